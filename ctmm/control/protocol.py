@@ -1,0 +1,62 @@
+"""The controller protocol used by the time stepper and the co-simulation master.
+
+A controller reads named measured signals (ctmm signal names such as ``"m6.x"`` or
+``"m6.v"``) and writes named actuator signals (such as ``"m2.force"``).  Controllers are
+*descriptions*: all mutable data (internal states, an FMU instance, the last held output)
+lives in the state object returned by :meth:`Controller.init` and threaded through
+:meth:`Controller.step`.
+
+Semantics of one call ``u, state = controller.step(t, y, state)``:
+
+* ``y`` is a 1-D float array ordered like ``controller.inputs``: the measurements at time ``t``
+  [units of each signal, SI].
+* ``u`` is a 1-D float array ordered like ``controller.outputs``: the actuator values valid
+  from ``t`` on.  With ``sample_time = h`` the stepper holds ``u`` (zero-order hold) on
+  ``[t, t + h)``; with ``sample_time = None`` it calls ``step`` at every integrator step.
+* If ``direct_feedthrough`` is True, ``u`` depends on ``y(t)`` at the same instant (e.g. a PD
+  law).  The co-simulation master uses this flag to detect algebraic loops.
+* The returned state is the controller state advanced to ``t + h`` (or to the next call).
+"""
+from __future__ import annotations
+
+from typing import Any, NamedTuple, Protocol, runtime_checkable
+
+import numpy as np
+
+
+class ControllerStep(NamedTuple):
+    """Output of one controller call: actuator values and the advanced controller state."""
+
+    outputs: np.ndarray
+    state: Any
+
+
+@runtime_checkable
+class Controller(Protocol):
+    """Protocol of a controller usable by :func:`ctmm.simulate`.
+
+    Attributes
+    ----------
+    inputs : tuple of str
+        Measured ctmm signal names read by the controller, in order.
+    outputs : tuple of str
+        Actuator signal names written by the controller, in order.
+    sample_time : float or None
+        Sample time [s] of a sampled controller (zero-order hold), or ``None`` for a
+        controller evaluated at every integrator step.
+    direct_feedthrough : bool
+        Whether the outputs depend on the inputs at the same instant.
+    """
+
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    sample_time: float | None
+    direct_feedthrough: bool
+
+    def init(self, t0: float) -> Any:
+        """Return the controller state at the start time ``t0`` [s]."""
+        ...
+
+    def step(self, t: float, y: np.ndarray, state: Any) -> ControllerStep:
+        """Return the outputs valid from time ``t`` [s] and the advanced state."""
+        ...

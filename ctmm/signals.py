@@ -1,0 +1,139 @@
+"""Time signals for external loads, prescribed motions and references.
+
+Every signal is a callable ``f(t) -> float`` of time [s]; the helpers here add validation,
+a readable ``repr`` and, where known, the harmonic amplitude used by the frequency domain.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable, Union
+
+import numpy as np
+
+from . import validation
+from .errors import ModelError
+
+TimeFunction = Callable[[float], float]
+
+
+@dataclass(frozen=True)
+class Constant:
+    """Constant signal ``value`` [unit of the signal]."""
+
+    value: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "value", validation.finite("value", self.value))
+
+    def __call__(self, t: float) -> float:
+        return self.value
+
+
+@dataclass(frozen=True)
+class Harmonic:
+    """``amplitude * sin(omega * t + phase)``.
+
+    Parameters
+    ----------
+    amplitude : float
+        Amplitude [unit of the signal].
+    omega : float
+        Angular frequency [rad/s], >= 0.
+    phase : float
+        Phase [rad].
+    """
+
+    amplitude: float
+    omega: float
+    phase: float = 0.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "amplitude", validation.finite("amplitude", self.amplitude))
+        object.__setattr__(self, "omega", validation.nonnegative("omega", self.omega))
+        object.__setattr__(self, "phase", validation.finite("phase", self.phase))
+
+    def __call__(self, t: float) -> float:
+        return self.amplitude * math.sin(self.omega * t + self.phase)
+
+
+@dataclass(frozen=True)
+class Step:
+    """Step of height ``value`` at time ``time`` [s] (0 before, ``value`` from ``time`` on)."""
+
+    value: float
+    time: float = 0.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "value", validation.finite("value", self.value))
+        object.__setattr__(self, "time", validation.finite("time", self.time))
+
+    def __call__(self, t: float) -> float:
+        return self.value if t >= self.time else 0.0
+
+
+@dataclass(frozen=True)
+class SquareWave:
+    """Square wave: ``+amplitude`` for the first half of each period, ``-amplitude`` after.
+
+    Parameters
+    ----------
+    amplitude : float
+        Level [unit of the signal].
+    period : float
+        Period [s], > 0.
+    duration : float, optional
+        After this time [s] the signal is 0 (``inf`` = never).
+    """
+
+    amplitude: float
+    period: float
+    duration: float = math.inf
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "amplitude", validation.finite("amplitude", self.amplitude))
+        object.__setattr__(self, "period", validation.positive("period", self.period))
+        if not (self.duration > 0):
+            raise ModelError(f"duration must be > 0, got {self.duration!r}")
+
+    def __call__(self, t: float) -> float:
+        if t < 0 or t >= self.duration:
+            return 0.0
+        return self.amplitude if (t % self.period) < 0.5 * self.period else -self.amplitude
+
+
+SignalLike = Union[float, int, TimeFunction]
+
+
+def as_signal(name: str, value: SignalLike) -> TimeFunction:
+    """Turn a number or a callable of time into a validated time signal.
+
+    Parameters
+    ----------
+    name : str
+        Parameter name used in error messages.
+    value : float or callable
+        A constant or a function of time ``t`` [s] returning a float.
+    """
+    if callable(value):
+        try:
+            probe = float(value(0.0))
+        except Exception as exc:  # noqa: BLE001 - report what the user's callable did
+            raise ModelError(f"{name} must be callable as f(t) -> float; f(0.0) raised {exc!r}") from exc
+        if not np.isfinite(probe):
+            raise ModelError(f"{name}(0.0) must be finite, got {probe!r}")
+        return value
+    return Constant(validation.finite(name, value))
+
+
+def harmonic_amplitude(signal: TimeFunction) -> complex:
+    """Complex amplitude of a signal in the frequency domain (phasor of ``e^{i w t}``).
+
+    Constants and harmonics have one; other callables are not steady-state signals.
+    """
+    if isinstance(signal, Constant):
+        return complex(signal.value)
+    if isinstance(signal, Harmonic):
+        # a sin(wt + phi) = Im(a e^{i phi} e^{i w t}) -> phasor convention: Re(A e^{iwt}) with A = a e^{i(phi - pi/2)}
+        return complex(signal.amplitude * np.exp(1j * (signal.phase - 0.5 * np.pi)))
+    raise ModelError(f"signal {signal!r} has no steady-state harmonic amplitude")
