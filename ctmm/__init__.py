@@ -1,6 +1,16 @@
-"""ctmm: controls-oriented transfer matrix method for multibody systems."""
-from .errors import ModelError, SimulationError, ConvergenceError, SingularSystemError, UnknownNameError
+"""ctmm: controls-oriented transfer matrix method for multibody systems.
+
+One model, two domains: the linear MSTMM in the frequency domain
+(:func:`frequency_response`, :func:`natural_frequencies`, :func:`mode_shapes`) and the
+discrete-time TMM in the time domain (:func:`simulate`), both solved by Riccati transfer.
+"""
+from . import signals
+from .errors import ConvergenceError, ModelError, SimulationError, SingularSystemError, UnknownNameError
+from .frequency import (eigenvalue_count, frequency_response, mode_shapes, natural_frequencies,
+                        steady_state_response)
+from .system import Chain
 
 __version__ = "0.1.0"
-__all__ = ["ModelError", "SimulationError", "ConvergenceError", "SingularSystemError",
-           "UnknownNameError", "__version__"]
+__all__ = ["Chain", "frequency_response", "natural_frequencies", "mode_shapes", "eigenvalue_count",
+           "steady_state_response", "signals", "ModelError", "SimulationError", "ConvergenceError",
+           "SingularSystemError", "UnknownNameError", "__version__"]

@@ -1,0 +1,195 @@
+"""Chain assembly: Riccati transfer (default) and plain transfer-matrix products.
+
+Both solve the two-point boundary-value problem
+
+    z_j = U_j z_{j-1} + u_j   (j = 1..N),   z_f,0 = S0 z_e,0 + P0   (start),   Bm z_N = b   (end)
+
+for all connection-point states ``z_0..z_N``, batched over a leading axis (frequencies or
+parameter sets).
+
+Riccati transfer (Horner & Pilkey 1978; FORMULAS §4.2)
+-----------------------------------------------------
+Split ``z = [f; e]`` with ``e`` the components unknown at the start.  Carry the relation
+``f_j = S_j e_j + P_j`` instead of the overall product.  For an element with blocks
+``U11 (f<-f), U12 (f<-e), U21 (e<-f), U22 (e<-e)`` and affine parts ``u1, u2``:
+
+    G_j     = U21 S_{j-1} + U22
+    S_j     = (U11 S_{j-1} + U12) G_j^{-1}
+    P_j     = U11 P_{j-1} + u1 - S_j (U21 P_{j-1} + u2)
+
+At the end ``(Bm_f S_N + Bm_e) e_N = b - Bm_f P_N``; back-substitution
+``e_{j-1} = G_j^{-1} (e_j - U21 P_{j-1} - u2)``, ``f_j = S_j e_j + P_j``.  Every quantity stays
+of order one, so no digits are lost to cancellation between huge products; the plain product
+loses them on long chains, stiff DT-TMM steps and high frequencies (tests/test_riccati_hard.py).
+
+The characteristic function (determinant of the boundary equations) is accumulated without
+cancellation as ``log det`` of the ``G_j`` and of the final boundary matrix.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from .errors import SingularSystemError
+
+
+@dataclass
+class BoundaryStart:
+    """Start relation ``z_f = S0 z_e + P0`` (arrays batched on axis 0)."""
+
+    e_indices: list[int]
+    S0: np.ndarray  # (B, nf, m)
+    P0: np.ndarray  # (B, nf)
+
+
+@dataclass
+class BoundaryEnd:
+    """End condition ``Bm z_N = b`` (arrays batched on axis 0)."""
+
+    Bm: np.ndarray  # (B, m, n)
+    b: np.ndarray   # (B, m)
+
+
+@dataclass
+class ChainSolution:
+    """States at all connection points, shape ``(N + 1, B, n)``, and ``log det`` of the BVP."""
+
+    states: np.ndarray
+    log_det: np.ndarray  # (B,) complex: log of the characteristic determinant (up to a constant)
+
+
+def _solve_small(G: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """Solve ``G x = rhs`` for batched small square ``G`` (rhs (..., m) or (..., m, k))."""
+    if G.shape[-1] == 1:
+        return rhs / G[..., 0:1, 0:1] if rhs.ndim == G.ndim else rhs / G[..., 0, :]
+    if rhs.ndim == G.ndim - 1:
+        return np.linalg.solve(G, rhs[..., None])[..., 0]
+    return np.linalg.solve(G, rhs)
+
+
+def _logdet(G: np.ndarray) -> np.ndarray:
+    if G.shape[-1] == 1:
+        return np.log(G[..., 0, 0].astype(complex))
+    sign, logabs = np.linalg.slogdet(G)
+    return np.log(sign.astype(complex)) + logabs
+
+
+def riccati_solve(Us: Sequence[np.ndarray], us: Sequence[np.ndarray], start: BoundaryStart,
+                  end: BoundaryEnd, *, want_states: bool = True, homogeneous: bool = False
+                  ) -> ChainSolution:
+    """Solve the chain BVP by Riccati transfer.
+
+    Parameters
+    ----------
+    Us : sequence of ndarray
+        Element transfer matrices, each ``(B, n, n)``.
+    us : sequence of ndarray
+        Affine parts, each ``(B, n)``.
+    start, end : BoundaryStart, BoundaryEnd
+        Boundary relations.
+    want_states : bool
+        If False, only the characteristic ``log_det`` is computed (no back-substitution).
+    homogeneous : bool
+        If True, return the non-trivial solution of the homogeneous problem (a mode shape):
+        ``e_N`` is the right singular vector of the (singular) end matrix for its smallest
+        singular value; loads ``u``, ``P0`` and ``b`` must be zero.
+
+    Raises
+    ------
+    SingularSystemError
+        If the boundary equations are singular for some batch entry.
+    """
+    n = Us[0].shape[-1]
+    e_idx = list(start.e_indices)
+    f_idx = [i for i in range(n) if i not in e_idx]
+    perm = np.array(f_idx + e_idx)
+    nf = len(f_idx)
+    S, P = start.S0, start.P0
+    dtype = np.result_type(S, P, *Us[:1], *us[:1])
+    log_det = np.zeros(S.shape[0], dtype=complex)
+    record = []
+    for U, u in zip(Us, us):
+        Up = U[..., perm[:, None], perm[None, :]]
+        up = u[..., perm]
+        U11, U12, U21, U22 = Up[..., :nf, :nf], Up[..., :nf, nf:], Up[..., nf:, :nf], Up[..., nf:, nf:]
+        u1, u2 = up[..., :nf], up[..., nf:]
+        G = U21 @ S + U22
+        numer = U11 @ S + U12
+        # S_new = numer G^{-1}  <=>  G^T S_new^T = numer^T
+        S_new = np.swapaxes(_solve_small(np.swapaxes(G, -1, -2), np.swapaxes(numer, -1, -2)), -1, -2)
+        r = np.einsum("...ij,...j->...i", U21, P) + u2
+        P_new = np.einsum("...ij,...j->...i", U11, P) + u1 - np.einsum("...ij,...j->...i", S_new, r)
+        log_det = log_det + _logdet(G)
+        if want_states:
+            record.append((G, r, S, P))
+        S, P = S_new, P_new
+    Bp = end.Bm[..., perm]
+    Bf, Be = Bp[..., :nf], Bp[..., nf:]
+    H = Bf @ S + Be
+    log_det = log_det + _logdet(H)
+    if not want_states:
+        return ChainSolution(np.empty((0,)), log_det)
+    if homogeneous:
+        e = np.conj(np.linalg.svd(H)[2][..., -1, :])
+    else:
+        rhs = end.b - np.einsum("...ij,...j->...i", Bf, P)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            e = _solve_small(H, rhs)
+    if not np.all(np.isfinite(e)):
+        bad = np.flatnonzero(~np.all(np.isfinite(e), axis=-1))
+        raise SingularSystemError(
+            f"the boundary equations are singular for batch entries {bad[:10].tolist()}"
+            " (e.g. a free-free chain under a static load, or a frequency exactly at a natural frequency)")
+    N = len(Us)
+    states = np.empty((N + 1,) + e.shape[:-1] + (n,), dtype=np.result_type(dtype, e))
+    inv = np.argsort(perm)
+    for j in range(N, 0, -1):
+        G, r, S_prev, P_prev = record[j - 1]
+        f = np.einsum("...ij,...j->...i", S, e) + P
+        states[j] = np.concatenate([f, e], axis=-1)[..., inv]
+        e = _solve_small(G, e - r)
+        S, P = S_prev, P_prev
+    f = np.einsum("...ij,...j->...i", S, e) + P
+    states[0] = np.concatenate([f, e], axis=-1)[..., inv]
+    return ChainSolution(states, log_det)
+
+
+def plain_solve(Us: Sequence[np.ndarray], us: Sequence[np.ndarray], start: BoundaryStart,
+                end: BoundaryEnd) -> ChainSolution:
+    """Solve the chain BVP with the plain overall transfer matrix (for comparison only).
+
+    The unknown start components are found from the overall product and the states are then
+    propagated element by element; precision is lost when the product grows large.
+    """
+    n = Us[0].shape[-1]
+    e_idx = list(start.e_indices)
+    f_idx = [i for i in range(n) if i not in e_idx]
+    B = start.S0.shape[0]
+    m = len(e_idx)
+    Z0 = np.zeros((B, n, m), dtype=np.result_type(start.S0, Us[0]))
+    Z0[:, f_idx, :] = start.S0
+    Z0[:, e_idx, :] = np.eye(m)
+    p0 = np.zeros((B, n), dtype=Z0.dtype)
+    p0[:, f_idx] = start.P0
+    Z, p = Z0, p0
+    for U, u in zip(Us, us):
+        Z = U @ Z
+        p = np.einsum("...ij,...j->...i", U, p) + u
+    H = end.Bm @ Z
+    rhs = end.b - np.einsum("...ij,...j->...i", end.Bm, p)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        e = _solve_small(H, rhs)
+    if not np.all(np.isfinite(e)):
+        raise SingularSystemError("the boundary equations are singular (plain transfer)")
+    states = np.empty((len(Us) + 1, B, n), dtype=np.result_type(Z, e))
+    z = np.einsum("...ij,...j->...i", Z0, e) + p0
+    states[0] = z
+    for j, (U, u) in enumerate(zip(Us, us), start=1):
+        z = np.einsum("...ij,...j->...i", U, z) + u
+        states[j] = z
+    return ChainSolution(states, _logdet(H))
+
+
+SOLVERS = {"riccati": riccati_solve, "plain": plain_solve}

@@ -1,0 +1,238 @@
+"""Boundary elements: what is known at the start and what is imposed at the end of a chain.
+
+A boundary at the **start** gives the known half of the first state vector in terms of the
+unknown half, ``z_f = S0 z_e + P0`` (``e`` = unknown components).  A boundary at the **end**
+gives linear conditions ``Bm z_n = b`` on the last state vector.  Both faces exist in the
+frequency domain (phasors, deviations from equilibrium) and in the time domain (absolute values
+at the step's unknown time).
+
+Sign convention: the force half of ``z`` is the force exerted by the inboard part on the
+outboard part.  At the start the inboard part *is* the support; at the end the outboard part is.
+
+=====================  ==================================  ======================================
+boundary               start                               end
+=====================  ==================================  ======================================
+Fixed                  x = position (f unknown)            x = position
+Free                   f = 0 (x unknown)                   f = 0
+Elastic(k, c)          f = -k (x - anchor) - c v           f = k (x - anchor) + c v
+PrescribedDisplacement x = X(t)                            x = X(t)
+PrescribedForce        f = F(t)  (F on the chain, +x)      f = -F(t)  (F on the chain, +x)
+=====================  ==================================  ======================================
+
+The table is written for one displacement/force pair; for layouts with several pairs
+(bending: ``w, theta``) every pair is treated alike.
+"""
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+import numpy as np
+
+from .. import validation
+from ..errors import ModelError
+from ..layouts import StateLayout
+from ..signals import SignalLike, TimeFunction, as_signal, harmonic_amplitude
+from .base import Element, Linearisation
+
+
+class Boundary(Element):
+    """Base class of boundary elements (first or last element of a chain)."""
+
+    is_point = True
+    known: str = "displacement"  # which half is known: "displacement" or "force"
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name)
+        self.layout = None  # set by the system from its neighbours
+
+    def transfer_matrix(self, s: np.ndarray) -> np.ndarray:
+        raise ModelError(f"boundary {self.name!r} has no transfer matrix")
+
+    # -- helpers ------------------------------------------------------------------------
+    def _stiffness(self, s: np.ndarray) -> np.ndarray:
+        return np.zeros(np.shape(s), dtype=complex)
+
+    def _value_phasor(self, amplitudes: Mapping[str, Any]) -> Any:
+        key = self.inputs[0] if self.inputs else None
+        return amplitudes.get(key, 0.0) if key else 0.0
+
+    def unknown_indices(self, layout: StateLayout) -> list[int]:
+        """Indices of the components unknown at a start boundary."""
+        d = layout.half
+        return list(range(d, 2 * d)) if self.known == "displacement" else list(range(d))
+
+    # -- frequency domain ---------------------------------------------------------------
+    def start(self, layout: StateLayout, s: np.ndarray, amplitudes: Mapping[str, Any]):
+        """Start relation ``z_f = S0 z_e + P0``: returns ``(e_indices, S0, P0)`` over ``s``."""
+        self.check_inputs(amplitudes)
+        s = np.asarray(s, dtype=complex)
+        d = layout.half
+        S0 = np.zeros(s.shape + (d, d), dtype=complex)
+        P0 = np.zeros(s.shape + (d,), dtype=complex)
+        k = self._stiffness(s)
+        for i in range(d):
+            S0[..., i, i] = -k if self.known == "force" else 0.0
+            P0[..., i] = self._start_value(amplitudes)
+        return self.unknown_indices(layout), S0, P0
+
+    def _start_value(self, amplitudes):
+        return self._value_phasor(amplitudes)
+
+    def end(self, layout: StateLayout, s: np.ndarray, amplitudes: Mapping[str, Any]):
+        """End condition ``Bm z_n = b``: returns ``(Bm, b)`` over ``s``."""
+        self.check_inputs(amplitudes)
+        s = np.asarray(s, dtype=complex)
+        d, n = layout.half, layout.size
+        Bm = np.zeros(s.shape + (d, n), dtype=complex)
+        b = np.zeros(s.shape + (d,), dtype=complex)
+        k = self._stiffness(s)
+        for i in range(d):
+            if self.known == "displacement":
+                Bm[..., i, i] = 1.0
+                b[..., i] = self._value_phasor(amplitudes)
+            else:
+                Bm[..., i, d + i] = 1.0
+                Bm[..., i, i] = -k
+                b[..., i] = self._end_force_value(amplitudes)
+        return Bm, b
+
+    def _end_force_value(self, amplitudes):
+        return self._value_phasor(amplitudes)
+
+    # -- time domain --------------------------------------------------------------------
+    def start_discrete(self, layout: StateLayout, t: float, lin: Linearisation):
+        """Time-domain start relation at the unknown's time ``t`` [s] (see :meth:`start`)."""
+        d = layout.half
+        k_eff, offset = self._discrete_spring(lin)
+        S0 = np.zeros((d, d))
+        P0 = np.zeros(d)
+        for i in range(d):
+            if self.known == "force":
+                S0[i, i] = -k_eff
+                P0[i] = self._force_signal(t) - offset
+            else:
+                P0[i] = self._position_signal(t)
+        return self.unknown_indices(layout), S0, P0
+
+    def end_discrete(self, layout: StateLayout, t: float, lin: Linearisation):
+        """Time-domain end condition ``Bm z_n = b`` at the unknown's time ``t`` [s]."""
+        d, n = layout.half, layout.size
+        k_eff, offset = self._discrete_spring(lin)
+        Bm = np.zeros((d, n))
+        b = np.zeros(d)
+        for i in range(d):
+            if self.known == "displacement":
+                Bm[i, i] = 1.0
+                b[i] = self._position_signal(t)
+            else:
+                Bm[i, d + i] = 1.0
+                Bm[i, i] = -k_eff
+                b[i] = offset - self._force_signal(t)
+        return Bm, b
+
+    def _discrete_spring(self, lin: Linearisation) -> tuple[float, float]:
+        return 0.0, 0.0
+
+    def _position_signal(self, t: float) -> float:
+        return 0.0
+
+    def _force_signal(self, t: float) -> float:
+        return 0.0
+
+
+class Fixed(Boundary):
+    """Rigid support: displacement held at ``position`` [m] (0 in the frequency domain)."""
+
+    known = "displacement"
+
+    def __init__(self, name: str, *, position: float = 0.0) -> None:
+        super().__init__(name)
+        self.position = validation.finite(f"{name}: position", position)
+
+    def _position_signal(self, t):
+        return self.position
+
+    def parameters(self):
+        return {"position": self.position}
+
+
+class Free(Boundary):
+    """Free end: no force."""
+
+    known = "force"
+
+
+class Elastic(Boundary):
+    """Spring (and damper) support to ground, anchored at ``anchor`` [m].
+
+    Parameters
+    ----------
+    stiffness : float
+        Support stiffness [N/m], >= 0.
+    damping : float, optional
+        Support damping [N s/m], >= 0 (not both zero).
+    anchor : float, optional
+        Position [m] of the support's unstretched end in absolute time-domain coordinates.
+    """
+
+    known = "force"
+
+    def __init__(self, name: str, stiffness: float, *, damping: float = 0.0, anchor: float = 0.0) -> None:
+        super().__init__(name)
+        self.stiffness = validation.nonnegative(f"{name}: stiffness", stiffness)
+        self.damping = validation.nonnegative(f"{name}: damping", damping)
+        self.anchor = validation.finite(f"{name}: anchor", anchor)
+        if self.stiffness == 0.0 and self.damping == 0.0:
+            raise ModelError(f"{name}: elastic support needs stiffness > 0 or damping > 0; use Free")
+
+    def _stiffness(self, s):
+        return self.stiffness + self.damping * np.asarray(s, dtype=complex)
+
+    def _discrete_spring(self, lin):
+        # support force on the chain: -k (x_eval - anchor) - c v_eval with x_eval = cx x + dx, v_eval = A x + B
+        k_eff = self.stiffness * lin.cx + self.damping * lin.A
+        offset = self.stiffness * (lin.dx - self.anchor) + self.damping * lin.B
+        return k_eff, float(np.squeeze(offset))
+
+    def _end_force_value(self, amplitudes):
+        return 0.0
+
+    def parameters(self):
+        return {"stiffness": self.stiffness, "damping": self.damping, "anchor": self.anchor}
+
+
+class PrescribedDisplacement(Boundary):
+    """Support with a prescribed displacement ``X(t)`` [m] (input ``"displacement"`` for FRFs)."""
+
+    known = "displacement"
+    inputs = ("displacement",)
+
+    def __init__(self, name: str, displacement: SignalLike = 0.0) -> None:
+        super().__init__(name)
+        self.displacement: TimeFunction = as_signal(f"{name}: displacement", displacement)
+
+    def _position_signal(self, t):
+        return float(self.displacement(t))
+
+    def steady_state_amplitudes(self):
+        return {"displacement": harmonic_amplitude(self.displacement)}
+
+
+class PrescribedForce(Boundary):
+    """Chain end loaded by a force ``F(t)`` [N] acting on the chain in +x (input ``"force"``)."""
+
+    known = "force"
+    inputs = ("force",)
+
+    def __init__(self, name: str, force: SignalLike = 0.0) -> None:
+        super().__init__(name)
+        self.force: TimeFunction = as_signal(f"{name}: force", force)
+
+    def _force_signal(self, t):
+        return float(self.force(t))
+
+    def _end_force_value(self, amplitudes):
+        return -self._value_phasor(amplitudes)
+
+    def steady_state_amplitudes(self):
+        return {"force": harmonic_amplitude(self.force)}

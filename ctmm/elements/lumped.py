@@ -1,0 +1,240 @@
+"""Lumped 1-D chain elements: masses, springs, dampers, grounded springs.
+
+Derivation (layout :data:`~ctmm.layouts.AXIAL`, ``z = [x, f]``, ``f`` = force exerted by the
+inboard part on the outboard part; full text in ``docs/elements/lumped.md``):
+
+*Point element* (mass ``m``, grounded spring ``k_g`` and damper ``c_g``, external force ``F``):
+Newton's law for the point, ``m a = f_in - f_out + F - c_g v - k_g x``, with the kinematics
+continuous (``x_out = x_in``) gives
+
+    f_out = f_in - (m s^2 + c_g s + k_g) x + F                       (frequency domain)
+    f_out = f_in - (m C + c_g A + k_g cx) x - (m D + c_g B + k_g dx) + F_eval   (DT-TMM)
+
+*Connector* (spring ``k`` with free length ``l`` in parallel with a damper ``c``, massless):
+the force transmitted to the outboard point is ``f = -k (x_out - x_in - l) - c (v_out - v_in)``
+(a stretched connector pulls the outboard point back), constant along the connector, so
+
+    x_out = x_in - f / (k + c s)                                       (frequency domain)
+    x_out = x_in + (k l - k (dx_out - dx_in) - c (B_out - B_in) - f) / (k cx + c A)  (DT-TMM)
+
+Frequency-domain quantities are deviations from the static configuration, so the free
+length does not appear there.
+"""
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+import numpy as np
+
+from .. import validation
+from ..errors import ModelError
+from ..layouts import AXIAL
+from ..signals import SignalLike, TimeFunction, as_signal, harmonic_amplitude
+from .base import DiscreteElement, Element, Linearisation
+
+
+def _point_matrix(s: np.ndarray, impedance: np.ndarray) -> np.ndarray:
+    U = np.zeros(np.shape(s) + (2, 2), dtype=complex)
+    U[..., 0, 0] = 1.0
+    U[..., 1, 1] = 1.0
+    U[..., 1, 0] = -impedance
+    return U
+
+
+class PointElement(Element):
+    """A point of the 1-D chain with inertia, grounding and an external force.
+
+    Subclasses only set the data ``mass``, ``damping``, ``stiffness`` and ``force``: the
+    frequency-domain and discrete-time matrices follow from them (see module docstring).
+    """
+
+    layout = AXIAL
+    is_point = True
+    inputs = ("force",)
+
+    def __init__(self, name: str, *, mass: float = 0.0, damping: float = 0.0, stiffness: float = 0.0,
+                 force: SignalLike = 0.0) -> None:
+        super().__init__(name)
+        self.mass = validation.nonnegative(f"{name}: mass", mass)
+        self.damping = validation.nonnegative(f"{name}: damping", damping)
+        self.stiffness = validation.nonnegative(f"{name}: stiffness", stiffness)
+        self.force: TimeFunction = as_signal(f"{name}: force", force)
+
+    def impedance(self, s: np.ndarray) -> np.ndarray:
+        """Dynamic stiffness ``m s^2 + c s + k`` [N/m] of the point."""
+        s = np.asarray(s, dtype=complex)
+        return self.mass * s * s + self.damping * s + self.stiffness
+
+    def transfer_matrix(self, s: np.ndarray) -> np.ndarray:
+        return _point_matrix(np.asarray(s, dtype=complex), self.impedance(s))
+
+    def load_vector(self, s: np.ndarray, amplitudes: Mapping[str, Any]) -> np.ndarray:
+        self.check_inputs(amplitudes)
+        u = np.zeros(np.shape(s) + (2,), dtype=complex)
+        if "force" in amplitudes:
+            u[..., 1] = amplitudes["force"]
+        return u
+
+    def steady_state_amplitudes(self) -> dict[str, complex]:
+        """Phasors of the element's own loads (constant or harmonic signals only)."""
+        return {"force": harmonic_amplitude(self.force)}
+
+    def discretize(self, scheme: Any) -> "DiscretePoint":
+        return DiscretePoint(self)
+
+    def parameters(self) -> dict[str, Any]:
+        return {"mass": self.mass, "damping": self.damping, "stiffness": self.stiffness}
+
+
+class Mass(PointElement):
+    """Lumped mass with an optional external force.
+
+    Parameters
+    ----------
+    name : str
+        Element name.
+    mass : float
+        Mass [kg], > 0.
+    force : float or callable, optional
+        External force [N] in +x: a constant, :class:`~ctmm.signals.Harmonic` or any ``f(t)``.
+    """
+
+    def __init__(self, name: str, mass: float, *, force: SignalLike = 0.0) -> None:
+        super().__init__(name, mass=validation.positive(f"{name}: mass", mass), force=force)
+
+    def parameters(self) -> dict[str, Any]:
+        return {"mass": self.mass}
+
+
+class GroundedSpring(PointElement):
+    """Spring (and optional damper) from a chain point to ground.
+
+    Parameters
+    ----------
+    stiffness : float
+        Stiffness [N/m], > 0.
+    damping : float, optional
+        Viscous damping [N s/m], >= 0.
+    """
+
+    def __init__(self, name: str, stiffness: float, *, damping: float = 0.0) -> None:
+        super().__init__(name, stiffness=validation.positive(f"{name}: stiffness", stiffness),
+                         damping=damping)
+
+    def parameters(self) -> dict[str, Any]:
+        return {"stiffness": self.stiffness, "damping": self.damping}
+
+
+class DiscretePoint(DiscreteElement):
+    """DT-TMM form of a :class:`PointElement`."""
+
+    def __init__(self, element: PointElement) -> None:
+        self.element = element
+
+    def step_matrices(self, t: float, inboard: Linearisation, outboard: Linearisation, force: float = 0.0):
+        e = self.element
+        lin = inboard
+        U = np.eye(2)
+        U[1, 0] = -(e.mass * lin.C + e.damping * lin.A + e.stiffness * lin.cx)
+        u = np.array([0.0, -(e.mass * lin.D + e.damping * lin.B + e.stiffness * lin.dx) + force])
+        return U, u
+
+
+class Connector(Element):
+    """Massless spring ``k`` (free length ``l``) in parallel with a viscous damper ``c``.
+
+    Subclasses only choose which of the data are given; ``k + c > 0`` is required.
+    """
+
+    layout = AXIAL
+    is_point = False
+
+    def __init__(self, name: str, *, stiffness: float = 0.0, damping: float = 0.0,
+                 free_length: float = 0.0) -> None:
+        super().__init__(name)
+        self.stiffness = validation.nonnegative(f"{name}: stiffness", stiffness)
+        self.damping = validation.nonnegative(f"{name}: damping", damping)
+        self.free_length = validation.finite(f"{name}: free_length", free_length)
+        if self.stiffness == 0.0 and self.damping == 0.0:
+            raise ModelError(f"{name}: a connector needs stiffness > 0 or damping > 0, got both 0")
+
+    def connector_stiffness(self, s: np.ndarray) -> np.ndarray:
+        """Complex stiffness ``k + c s`` [N/m]."""
+        return self.stiffness + self.damping * np.asarray(s, dtype=complex)
+
+    def transfer_matrix(self, s: np.ndarray) -> np.ndarray:
+        s = np.asarray(s, dtype=complex)
+        U = np.zeros(s.shape + (2, 2), dtype=complex)
+        U[..., 0, 0] = 1.0
+        U[..., 1, 1] = 1.0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            U[..., 0, 1] = -1.0 / self.connector_stiffness(s)
+        return U
+
+    def discretize(self, scheme: Any) -> "DiscreteConnector":
+        return DiscreteConnector(self)
+
+    def parameters(self) -> dict[str, Any]:
+        return {"stiffness": self.stiffness, "damping": self.damping, "free_length": self.free_length}
+
+
+class Spring(Connector):
+    """Linear massless spring.
+
+    Parameters
+    ----------
+    stiffness : float
+        Stiffness [N/m], > 0.
+    free_length : float, optional
+        Free length [m] (used in absolute coordinates in the time domain).
+    """
+
+    def __init__(self, name: str, stiffness: float, *, free_length: float = 0.0) -> None:
+        super().__init__(name, stiffness=validation.positive(f"{name}: stiffness", stiffness),
+                         free_length=free_length)
+
+
+class Damper(Connector):
+    """Massless viscous damper.
+
+    Parameters
+    ----------
+    damping : float
+        Damping coefficient [N s/m], > 0.
+    """
+
+    def __init__(self, name: str, damping: float) -> None:
+        super().__init__(name, damping=validation.positive(f"{name}: damping", damping))
+
+
+class SpringDamper(Connector):
+    """Spring in parallel with a viscous damper (Kelvin-Voigt connector).
+
+    Parameters
+    ----------
+    stiffness : float
+        Stiffness [N/m], >= 0.
+    damping : float
+        Damping coefficient [N s/m], >= 0 (not both zero).
+    free_length : float, optional
+        Free length [m].
+    """
+
+    def __init__(self, name: str, stiffness: float, damping: float, *, free_length: float = 0.0) -> None:
+        super().__init__(name, stiffness=stiffness, damping=damping, free_length=free_length)
+
+
+class DiscreteConnector(DiscreteElement):
+    """DT-TMM form of a :class:`Connector`."""
+
+    def __init__(self, element: Connector) -> None:
+        self.element = element
+
+    def step_matrices(self, t: float, inboard: Linearisation, outboard: Linearisation, force: float = 0.0):
+        e = self.element
+        k_eff = e.stiffness * inboard.cx + e.damping * inboard.A
+        U = np.eye(2)
+        U[0, 1] = -1.0 / k_eff
+        u = np.array([(e.stiffness * e.free_length - e.stiffness * (outboard.dx - inboard.dx)
+                       - e.damping * (outboard.B - inboard.B)) / k_eff, 0.0])
+        return U, u

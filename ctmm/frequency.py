@@ -1,0 +1,290 @@
+"""Frequency domain (linear MSTMM): forced response, FRFs, natural frequencies, mode shapes.
+
+All functions evaluate every element's ``U(s)`` for the whole frequency vector at once and
+solve the chain by batched Riccati transfer (:mod:`ctmm.assembly`).
+
+Natural frequencies: Wittrick-Williams counting
+-----------------------------------------------
+For an undamped (conservative) chain the number of natural frequencies below ``omega`` is
+
+    J(omega) = sum_j J0_j(omega) + s{K(omega)}
+
+where ``s{K}`` is the number of negative eigenvalues met in the Gaussian elimination of the
+dynamic stiffness matrix (Sylvester's law of inertia) and ``J0_j`` counts the natural frequencies
+of element ``j`` with both ends clamped (0 for massless springs; see
+:meth:`~ctmm.elements.beams.BeamField.clamped_frequency_count`).  The stiffness-form Riccati
+transfer ``F_j = S_j d_j`` *is* that elimination: crossing a field element the pivot is
+``Pi = -U12^{-1} (U11 + U12 S)`` = (element's inboard dynamic stiffness) + (condensed stiffness
+``-S`` of everything inboard).  Bisection on ``J`` isolates every root, clustered or repeated,
+without missing or duplicating any (Wittrick & Williams, Q. J. Mech. Appl. Math. 24, 1971).
+"""
+from __future__ import annotations
+
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from . import validation
+from .assembly import SOLVERS, BoundaryEnd, BoundaryStart, ChainSolution
+from .errors import ModelError
+from .results import FrequencyResponse, ModalResult
+from .system import Chain
+
+
+def _as_s(omega: Any, name: str = "omega") -> np.ndarray:
+    omega = validation.finite_array(name, omega)
+    if omega.ndim > 1:
+        raise ModelError(f"{name} must be a scalar or 1-D array, got shape {omega.shape}")
+    if np.any(omega < 0):
+        raise ModelError(f"{name} must be >= 0 [rad/s], got min {omega.min()!r}")
+    return 1j * np.atleast_1d(omega)
+
+
+def assemble(system: Chain, s: np.ndarray, amplitudes: Mapping[int, Mapping[str, Any]] | None = None):
+    """Element matrices and boundary relations of ``system`` at Laplace variables ``s``.
+
+    Parameters
+    ----------
+    system : Chain
+    s : ndarray
+        1-D array of Laplace variables [1/s].
+    amplitudes : mapping, optional
+        ``{element position: {input name: phasor}}``.
+
+    Returns
+    -------
+    Us, us, start, end
+        Inputs of :func:`ctmm.assembly.riccati_solve`.
+    """
+    amplitudes = amplitudes or {}
+    layout = system.layout
+    Us, us = [], []
+    for pos, element in enumerate(system.elements[1:-1], start=1):
+        Us.append(np.asarray(element.transfer_matrix(s), dtype=complex))
+        us.append(np.asarray(element.load_vector(s, amplitudes.get(pos, {})), dtype=complex))
+    e_idx, S0, P0 = system.start.start(layout, s, amplitudes.get(0, {}))
+    Bm, b = system.end.end(layout, s, amplitudes.get(len(system.elements) - 1, {}))
+    return Us, us, BoundaryStart(e_idx, S0, P0), BoundaryEnd(Bm, b)
+
+
+def solve(system: Chain, s: np.ndarray, amplitudes=None, *, solver: str = "riccati") -> ChainSolution:
+    """States at every connection point for harmonic loads (phasors), batched over ``s``."""
+    if solver not in SOLVERS:
+        raise ModelError(f"solver must be one of {sorted(SOLVERS)}, got {solver!r}")
+    Us, us, start, end = assemble(system, s, amplitudes)
+    return SOLVERS[solver](Us, us, start, end)
+
+
+def _output_value(system: Chain, states: np.ndarray, s: np.ndarray, name: str) -> np.ndarray:
+    sig = system.signal(name)
+    return states[sig.point, :, sig.component] * s ** sig.derivative
+
+
+def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],  # noqa: A002
+                       output: str | Sequence[str], solver: str = "riccati") -> FrequencyResponse:
+    """Frequency response functions from force/displacement inputs to outputs.
+
+    Parameters
+    ----------
+    system : Chain
+        The model.
+    omega : array_like
+        Angular frequencies [rad/s], >= 0.
+    input : str or sequence of str
+        Input names, e.g. ``"m1.force"`` [N] or ``"base.displacement"`` [m].
+    output : str or sequence of str
+        Output signal names, e.g. ``"m3.x"`` [m], ``"m3.v"``, ``"m3.a"``, ``"k2.f"`` [N].
+    solver : {"riccati", "plain"}
+        Chain solver (plain products only for comparison).
+
+    Returns
+    -------
+    FrequencyResponse
+        ``response[i_out, i_in, k]`` = output phasor per unit input phasor at ``omega[k]``.
+
+    Examples
+    --------
+    >>> import numpy as np, ctmm
+    >>> from ctmm.elements import Fixed, Spring, Mass, Free
+    >>> chain = ctmm.Chain("sdof", [Fixed("wall"), Spring("k", 100.0), Mass("m", 1.0), Free("end")])
+    >>> frf = ctmm.frequency_response(chain, [0.0, 5.0], input="m.force", output="m.x")
+    >>> np.allclose(frf("m.x", "m.force"), 1 / (100.0 - np.array([0.0, 25.0])))
+    True
+    """
+    inputs = (input,) if isinstance(input, str) else tuple(input)
+    outputs = (output,) if isinstance(output, str) else tuple(output)
+    s = _as_s(omega)
+    for o in outputs:
+        system.signal(o)
+    resolved = [system.input(i) for i in inputs]
+    response = np.empty((len(outputs), len(inputs), s.size), dtype=complex)
+    for k, inp in enumerate(resolved):
+        sol = solve(system, s, {inp.position: {inp.input: 1.0}}, solver=solver)
+        for j, o in enumerate(outputs):
+            response[j, k] = _output_value(system, sol.states, s, o)
+    return FrequencyResponse(np.imag(s), response, inputs, outputs, system.name)
+
+
+def steady_state_response(system: Chain, omega: float, *, outputs: Sequence[str] | None = None,
+                          solver: str = "riccati") -> dict[str, complex]:
+    """Steady-state phasors of outputs under the elements' own harmonic/constant loads at ``omega``.
+
+    Every load signal must be constant (used at ``omega = 0``) or
+    :class:`~ctmm.signals.Harmonic` with frequency ``omega`` [rad/s].
+    """
+    s = _as_s(omega)
+    amplitudes: dict[int, dict[str, complex]] = {}
+    for pos, element in enumerate(system.elements):
+        if hasattr(element, "steady_state_amplitudes"):
+            amps = {}
+            for key, value in element.steady_state_amplitudes().items():
+                signal = getattr(element, key)
+                sig_omega = getattr(signal, "omega", 0.0)
+                if value != 0 and not np.isclose(sig_omega, float(np.imag(s[0]))):
+                    raise ModelError(f"{element.name}.{key} varies at {sig_omega} rad/s, not at omega={omega}")
+                amps[key] = value
+            amplitudes[pos] = amps
+    sol = solve(system, s, amplitudes, solver=solver)
+    names = outputs or system.signal_names()
+    return {n: complex(_output_value(system, sol.states, s, n)[0]) for n in names}
+
+
+# -- natural frequencies ---------------------------------------------------------------
+def _check_conservative(system: Chain) -> None:
+    for e in system.elements:
+        if getattr(e, "damping", 0.0):
+            raise ModelError(
+                f"natural_frequencies needs an undamped system, but {e.name!r} has damping="
+                f"{e.damping!r}; use frequency_response for damped systems")
+        if getattr(e, "is_conservative", True) is False:
+            raise ModelError(f"natural_frequencies needs a conservative system; {e.name!r} is not")
+
+
+def eigenvalue_count(system: Chain, omega: Any) -> np.ndarray:
+    """Number of natural frequencies strictly below each ``omega`` [rad/s] (Wittrick-Williams).
+
+    Parameters
+    ----------
+    system : Chain
+        An undamped chain.
+    omega : array_like
+        Frequencies [rad/s] > 0.
+    """
+    omega = np.atleast_1d(validation.finite_array("omega", omega))
+    s = 1j * omega
+    d = system.layout.half
+    B = omega.size
+    count = np.zeros(B, dtype=int)
+    clamped = system.start.known == "displacement"
+    if clamped:
+        S = np.zeros((B, d, d))
+    else:
+        S = -np.real(system.start._stiffness(s))[:, None, None] * np.eye(d)
+    for element in system.body:
+        U = np.real(element.transfer_matrix(s))
+        U11, U12, U21, U22 = U[:, :d, :d], U[:, :d, d:], U[:, d:, :d], U[:, d:, d:]
+        if hasattr(element, "clamped_frequency_count"):
+            count += np.asarray(element.clamped_frequency_count(omega), dtype=int)
+        if element.is_point:
+            if not clamped:
+                S = U21 + U22 @ S  # U11 = I, U12 = 0 for point elements
+            continue
+        U12_inv = np.linalg.inv(U12)
+        if clamped:
+            S = U22 @ U12_inv
+            clamped = False
+            continue
+        G = U11 + U12 @ S
+        pivot = -U12_inv @ G
+        count += _negative_eigenvalues(pivot)
+        S = (U21 + U22 @ S) @ np.linalg.inv(G)
+    if system.end.known == "force" and not clamped:
+        k_end = np.real(system.end._stiffness(s))[:, None, None] * np.eye(d)
+        count += _negative_eigenvalues(k_end - S)
+    return count
+
+
+def _negative_eigenvalues(pivot: np.ndarray) -> np.ndarray:
+    if pivot.shape[-1] == 1:
+        return (pivot[:, 0, 0] < 0).astype(int)
+    sym = 0.5 * (pivot + np.swapaxes(pivot, -1, -2))
+    return np.sum(np.linalg.eigvalsh(sym) < 0, axis=-1)
+
+
+def natural_frequencies(system: Chain, *, n_modes: int | None = None, omega_max: float | None = None,
+                        rtol: float = 1e-14) -> np.ndarray:
+    """Undamped natural frequencies [rad/s] by Wittrick-Williams counting and bisection.
+
+    Parameters
+    ----------
+    system : Chain
+        An undamped chain.
+    n_modes : int, optional
+        Number of lowest frequencies wanted (rigid-body modes count, returned as 0).
+    omega_max : float, optional
+        Return all natural frequencies below ``omega_max`` [rad/s] instead.
+    rtol : float
+        Relative bracket width at which bisection stops.
+
+    Returns
+    -------
+    ndarray
+        Ascending natural frequencies; a repeated frequency appears once per multiplicity.
+    """
+    _check_conservative(system)
+    if (n_modes is None) == (omega_max is None):
+        raise ModelError("give exactly one of n_modes (int >= 1) or omega_max (rad/s > 0)")
+    if n_modes is not None:
+        if not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
+            raise ModelError(f"n_modes must be an integer >= 1, got {n_modes!r}")
+        hi = 1.0
+        while eigenvalue_count(system, [hi])[0] < n_modes:
+            hi *= 2.0
+            if hi > 1e15:
+                raise ModelError(f"chain {system.name!r} has fewer than {n_modes} natural frequencies")
+        targets = np.arange(1, n_modes + 1)
+    else:
+        hi = validation.positive("omega_max", omega_max)
+        total = int(eigenvalue_count(system, [hi])[0])
+        targets = np.arange(1, total + 1)
+    if targets.size == 0:
+        return np.zeros(0)
+    tiny = hi * 1e-12
+    n_rigid = int(eigenvalue_count(system, [tiny])[0])
+    roots = np.zeros(targets.size)
+    flexible = targets > n_rigid
+    k = targets[flexible]
+    lo = np.full(k.size, tiny)
+    up = np.full(k.size, hi)
+    # bisection on the count: root_k = inf{omega : count(omega) >= k}
+    while True:
+        active = (up - lo) > rtol * up
+        if not np.any(active):
+            break
+        mid = 0.5 * (lo + up)
+        c = eigenvalue_count(system, mid[active])
+        below = c >= k[active]
+        idx = np.flatnonzero(active)
+        up[idx[below]] = mid[active][below]
+        lo[idx[~below]] = mid[active][~below]
+    roots[flexible] = 0.5 * (lo + up)
+    return roots
+
+
+def mode_shapes(system: Chain, *, n_modes: int | None = None, omega_max: float | None = None) -> ModalResult:
+    """Natural frequencies and mode shapes (states at all connection points).
+
+    Shapes are normalised so that the largest displacement component is +1.
+    """
+    omega = natural_frequencies(system, n_modes=n_modes, omega_max=omega_max)
+    Us, us, start, end = assemble(system, 1j * np.maximum(omega, 1e-300))
+    us = [np.zeros_like(u) for u in us]
+    start.P0 = np.zeros_like(start.P0)
+    end.b = np.zeros_like(end.b)
+    sol = SOLVERS["riccati"](Us, us, start, end, homogeneous=True)
+    shapes = np.transpose(sol.states, (1, 0, 2))  # (modes, points, components)
+    d = system.layout.half
+    disp = shapes[..., :d].reshape(len(omega), -1)
+    ref = disp[np.arange(len(omega)), np.argmax(np.abs(disp), axis=1)]
+    shapes = np.real_if_close(shapes / ref[:, None, None], tol=1e6)
+    return ModalResult(omega, shapes, system.layout.components, tuple(system.point_names()))

@@ -1,0 +1,395 @@
+"""Time domain: DT-TMM stepping of a chain with any :mod:`ctmm.schemes` integrator.
+
+Each step (seed 002 §7.2-7.3): the scheme expresses velocity and acceleration at every
+connection point as affine functions of the unknown displacement; every element then has a
+real transfer matrix ``(U, u)`` for that step; the chain is solved by Riccati transfer for the
+unknown boundary states and back-substituted; the scheme updates the history.
+
+Two interchangeable paths compute the same thing:
+
+* the **lumped fast path** (1-D chains of :class:`~ctmm.elements.lumped.PointElement` and
+  :class:`~ctmm.elements.lumped.Connector`): element matrices for all elements are built in one
+  vectorised numpy pass; ``U`` is constant while the scheme's ``cx, A, C`` are, so the Riccati
+  ``S_j, G_j`` are computed once and each step only runs the affine recursion (scalar loop);
+* the **generic path**: ``DiscreteElement.step_matrices`` per element and
+  :func:`ctmm.assembly.riccati_solve` (or ``plain_solve`` for comparison).
+"""
+from __future__ import annotations
+
+import math
+import time as _time
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+from . import validation
+from .assembly import SOLVERS, BoundaryEnd, BoundaryStart
+from .elements.base import Linearisation
+from .elements.lumped import Connector, PointElement
+from .errors import ModelError, SimulationError
+from .progress import progress_bar
+from .results import SimulationResult
+from .schemes import History, Scheme, as_scheme
+from .signals import Constant
+from .system import Chain
+
+ForceHook = Callable[[float, History], Mapping[int, float]]
+
+
+# -- initial state ----------------------------------------------------------------------
+def rest_positions(system: Chain) -> np.ndarray:
+    """Absolute positions [m] of the connection points with every connector at its free length."""
+    x = np.zeros(system.n_points)
+    x[0] = getattr(system.start, "position", 0.0) if system.start.known == "displacement" else 0.0
+    for j, e in enumerate(system.body, start=1):
+        x[j] = x[j - 1] + (e.free_length if isinstance(e, Connector) else 0.0)
+    return x
+
+
+def _point_of(system: Chain, element_name: str) -> int:
+    pos = system.position(element_name)
+    if pos == len(system.elements) - 1:
+        return system.n_points - 1
+    return max(pos - 1, 0) if system.elements[pos].is_point and 0 < pos else min(pos, system.n_points - 1)
+
+
+def initial_state(system: Chain, x0: Mapping[str, float] | None, v0: Mapping[str, float] | None):
+    """Initial positions and velocities of all connection points.
+
+    ``x0`` / ``v0`` map element names (masses, boundaries) to absolute position [m] / velocity
+    [m/s].  Unspecified points keep their rest position (connectors at free length) and zero
+    velocity, except points between connectors only (massless junctions), which are placed by
+    the static force balance of the connectors around them (compliance-weighted).
+    """
+    x = rest_positions(system)
+    v = np.zeros(system.n_points)
+    given = np.zeros(system.n_points, dtype=bool)
+    for values, target in ((x0 or {}, x), (v0 or {}, v)):
+        for element_name, value in values.items():
+            p = _point_of(system, element_name)
+            target[p] = validation.finite(f"initial value of {element_name!r}", value)
+            given[p] = True
+            if target is x:
+                e = system.element(element_name)
+                if e.is_point and system.position(element_name) not in (0, len(system.elements) - 1):
+                    target[p + 1] = target[p]
+    # points tied to a point element share its value
+    for j, e in enumerate(system.body, start=1):
+        if e.is_point:
+            x[j], v[j] = x[j - 1], v[j - 1]
+    return x[:, None], v[:, None]
+
+
+def _connector_forces(system: Chain, x: np.ndarray, v: np.ndarray) -> dict[int, float]:
+    forces = {}
+    for j, e in enumerate(system.body, start=1):
+        if isinstance(e, Connector):
+            dx = x[j, 0] - x[j - 1, 0] - e.free_length
+            forces[j] = -e.stiffness * dx - e.damping * (v[j, 0] - v[j - 1, 0])
+    return forces
+
+
+def initial_acceleration(system: Chain, x: np.ndarray, v: np.ndarray, t0: float,
+                         extra_forces: Mapping[int, float] | None = None) -> np.ndarray:
+    """Accelerations [m/s^2] of all points from the equations of motion at ``t0``."""
+    a = np.zeros_like(x)
+    connector = _connector_forces(system, x, v)
+    extra_forces = extra_forces or {}
+    body = system.body
+    for j, e in enumerate(body, start=1):
+        if not isinstance(e, PointElement) or e.mass == 0.0:
+            continue
+        f_in = _force_at(system, connector, j - 1, x, v, side="in")
+        f_out = _force_at(system, connector, j, x, v, side="out")
+        load = float(e.force(t0)) + extra_forces.get(j, 0.0)
+        a[j - 1, 0] = (f_in - f_out + load - e.damping * v[j - 1, 0] - e.stiffness * x[j - 1, 0]) / e.mass
+        a[j, 0] = a[j - 1, 0]
+    return a
+
+
+def _force_at(system: Chain, connector: Mapping[int, float], point: int, x, v, side: str) -> float:
+    """Internal force at ``point`` from the nearest connector (inboard side first)."""
+    body = system.body
+    if side == "in":  # force arriving at a point element from inboard
+        j = point
+        while j >= 1 and body[j - 1].is_point:
+            j -= 1
+        if j >= 1:
+            return connector[j]
+        return _boundary_force(system.start, x[0, 0], v[0, 0], start=True)
+    j = point + 1
+    while j <= len(body) and body[j - 1].is_point:
+        j += 1
+    if j <= len(body):
+        return connector[j]
+    return _boundary_force(system.end, x[-1, 0], v[-1, 0], start=False)
+
+
+def _boundary_force(boundary, x: float, v: float, start: bool) -> float:
+    if boundary.known != "force":
+        raise ModelError(f"cannot start from a point element attached directly to {boundary.name!r}"
+                         " with a prescribed displacement; put a connector in between")
+    k, c = getattr(boundary, "stiffness", 0.0), getattr(boundary, "damping", 0.0)
+    spring = -k * (x - getattr(boundary, "anchor", 0.0)) - c * v
+    applied = float(boundary.force(0.0)) if hasattr(boundary, "force") else 0.0
+    return spring + applied if start else -(spring + applied)
+
+
+# -- the stepper ------------------------------------------------------------------------
+class _LumpedKernel:
+    """Vectorised element matrices of a 1-D lumped chain for one step."""
+
+    def __init__(self, system: Chain) -> None:
+        body = system.body
+        self.n = len(body)
+        self.is_point = np.array([isinstance(e, PointElement) for e in body])
+        get = lambda attr: np.array([getattr(e, attr, 0.0) for e in body], dtype=float)  # noqa: E731
+        self.mass, self.damping, self.stiffness = get("mass"), get("damping"), get("stiffness")
+        self.free_length = get("free_length")
+        self.point_pos = np.flatnonzero(self.is_point)
+        self.const_force = np.zeros(self.n)
+        self.variable_forces = []
+        for j in self.point_pos:
+            f = body[j].force
+            if isinstance(f, Constant):
+                self.const_force[j] = f.value
+            else:
+                self.variable_forces.append((j, f))
+
+    def forces(self, t: float) -> np.ndarray:
+        out = self.const_force.copy()
+        for j, f in self.variable_forces:
+            out[j] = float(f(t))
+        return out
+
+    def constant_part(self, cx: float, A: float, C: float):
+        """Per-element (U12, U21): connectors carry U12 = -1/k_eff, points U21 = -impedance."""
+        k_eff = self.stiffness * cx + self.damping * A
+        U12 = np.where(self.is_point, 0.0, -1.0 / np.where(self.is_point, 1.0, k_eff))
+        U21 = np.where(self.is_point, -(self.mass * C + self.damping * A + self.stiffness * cx), 0.0)
+        return U12, U21, k_eff
+
+    def affine_part(self, coeffs, k_eff, load: np.ndarray):
+        dx, B, D = coeffs.dx[:, 0], coeffs.B[:, 0], coeffs.D[:, 0]
+        u0 = np.where(self.is_point, 0.0,
+                      (self.stiffness * self.free_length - self.stiffness * (dx[1:] - dx[:-1])
+                       - self.damping * (B[1:] - B[:-1])) / np.where(self.is_point, 1.0, k_eff))
+        u1 = np.where(self.is_point, -(self.mass * D[:-1] + self.damping * B[:-1] + self.stiffness * dx[:-1])
+                      + load, 0.0)
+        return u0, u1
+
+
+def _scalar_riccati(U12, U21, u0, u1, fixed_start: bool, S0: float, P0: float, end_row, end_b: float,
+                    cache: dict):
+    """Riccati transfer for 2x2 lumped chains with Python floats (``U11 = U22 = 1``).
+
+    Partition: ``f = x`` and ``e = f(orce)`` for a displacement-type start, else the reverse.
+    Returns the point states ``(x, force)`` as arrays.
+    """
+    n = len(U12)
+    if fixed_start:  # f = x, e = force:   U11=1, U12=U12, U21=U21, U22=1
+        a12, a21 = U12, U21
+    else:            # f = force, e = x:   U11=1, U12=U21, U21=U12, U22=1
+        a12, a21 = U21, U12
+    key = ("S", fixed_start, S0)
+    if key not in cache:
+        S = np.empty(n + 1)
+        G = np.empty(n)
+        S[0] = S0
+        s = S0
+        for j in range(n):
+            g = a21[j] * s + 1.0
+            s = (s + a12[j]) / g
+            G[j] = g
+            S[j + 1] = s
+        cache[key] = (S, G)
+    S, G = cache[key]
+    v1, v2 = (u0, u1) if fixed_start else (u1, u0)
+    P = np.empty(n + 1)
+    p = P0
+    P[0] = p
+    a21l, v1l, v2l, Sl = a21.tolist(), v1.tolist(), v2.tolist(), S.tolist()
+    for j in range(n):
+        r = a21l[j] * p + v2l[j]
+        p = p + v1l[j] - Sl[j + 1] * r
+        P[j + 1] = p
+    # end: Bm = [cf, ce] on (f, e) -> (cf S + ce) e = b - cf P
+    cx_, cf_ = end_row
+    cf, ce = (cx_, cf_) if fixed_start else (cf_, cx_)
+    h = cf * S[n] + ce
+    if h == 0.0 or not math.isfinite(h):
+        raise SimulationError("the boundary equations of the step are singular")
+    e = (end_b - cf * P[n]) / h
+    E = np.empty(n + 1)
+    E[n] = e
+    Gl, Pl = G.tolist(), P.tolist()
+    for j in range(n, 0, -1):
+        e = (e - a21l[j - 1] * Pl[j - 1] - v2l[j - 1]) / Gl[j - 1]
+        E[j - 1] = e
+    F = S * E + P
+    return (F, E) if fixed_start else (E, F)
+
+
+def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str = "newmark",
+             x0: Mapping[str, float] | None = None, v0: Mapping[str, float] | None = None,
+             t0: float = 0.0, solver: str = "riccati", fast: bool | None = None,
+             force_hook: ForceHook | None = None, progress: bool | None = None) -> SimulationResult:
+    """Simulate a chain with the discrete-time transfer matrix method.
+
+    Parameters
+    ----------
+    system : Chain
+        The model.
+    t_final : float
+        End time [s] (> t0).
+    dt : float
+        Step size [s] (> 0).
+    scheme : Scheme or str
+        Integrator: ``"newmark"``, ``"generalized_alpha"``, ``"wilson_theta"``, ``"houbolt"``,
+        ``"forward_euler"`` or an instance such as ``Newmark(beta=0.3, gamma=0.6)``.
+    x0, v0 : mapping, optional
+        Initial absolute positions [m] / velocities [m/s] by element name (see
+        :func:`initial_state`).
+    t0 : float
+        Start time [s].
+    solver : {"riccati", "plain"}
+        Chain solver; ``"plain"`` (overall products) is for comparison only.
+    fast : bool, optional
+        Force (True) or forbid (False) the vectorised lumped-chain path; default: use it when the
+        chain qualifies and ``solver == "riccati"``.
+    force_hook : callable, optional
+        ``force_hook(t, history) -> {element position: force [N]}``: extra forces on point
+        elements at the evaluation time (used by delayed and co-simulated control).
+    progress : bool, optional
+        Show a progress bar (default: only on a terminal for long runs).
+
+    Returns
+    -------
+    SimulationResult
+
+    Raises
+    ------
+    SimulationError
+        When a step produces non-finite values (with the time and the element; the result up to
+        that point is attached as ``partial_result``).
+    """
+    t_final = validation.finite("t_final", t_final)
+    dt = validation.positive("dt", dt)
+    t0 = validation.finite("t0", t0)
+    if t_final <= t0:
+        raise ModelError(f"t_final must be > t0={t0}, got {t_final!r}")
+    if solver not in SOLVERS:
+        raise ModelError(f"solver must be one of {sorted(SOLVERS)}, got {solver!r}")
+    scheme = as_scheme(scheme)
+    lumped = all(isinstance(e, (PointElement, Connector)) for e in system.body) and system.layout.size == 2
+    if fast is None:
+        fast = lumped and solver == "riccati"
+    if fast and not (lumped and solver == "riccati"):
+        raise ModelError("fast=True needs a 1-D chain of lumped elements and solver='riccati'")
+    n_steps = int(round((t_final - t0) / dt))
+    if abs(n_steps * dt - (t_final - t0)) > 1e-9 * max(1.0, abs(t_final)):
+        raise ModelError(f"(t_final - t0) = {t_final - t0!r} s must be a whole number of steps dt={dt!r}")
+    x, v = initial_state(system, x0, v0)
+    extra0 = force_hook(t0, History(x, v, np.zeros_like(x), [x, x])) if force_hook else {}
+    a = initial_acceleration(system, x, v, t0, extra0)
+    history = History(x.copy(), v.copy(), a.copy(), [x.copy(), x.copy()], 0)
+    n_pts = system.n_points
+    d = system.layout.half
+    times = t0 + dt * np.arange(n_steps + 1)
+    states = np.full((n_steps + 1, n_pts, system.layout.size), np.nan)
+    vel = np.full((n_steps + 1, n_pts, d), np.nan)
+    acc = np.full((n_steps + 1, n_pts, d), np.nan)
+    states[0, :, :d], vel[0], acc[0] = x, v, a
+    states[0, :, d] = _initial_forces(system, x, v)
+    kernel = _LumpedKernel(system) if fast else None
+    discrete = None if fast else [e.discretize(scheme) for e in system.body]
+    cache: dict = {}
+    started = _time.perf_counter()
+    bar = progress_bar(n_steps, f"simulate {system.name}", enabled=progress)
+    try:
+        for i in range(n_steps):
+            t_n = times[i]
+            coeffs = scheme.coefficients(history, dt)
+            t_eval = t_n + coeffs.unknown_offset
+            w = coeffs.load_weight
+            extra = force_hook(t_n + w * dt, history) if force_hook else {}
+            if fast:
+                load = (1.0 - w) * kernel.forces(t_n) + w * kernel.forces(t_n + dt) if w != 1.0 \
+                    else kernel.forces(t_n + dt)
+                for pos, value in extra.items():
+                    load[pos - 1] += value
+                x_new, f_new = _fast_step(system, kernel, coeffs, load, t_eval, cache)
+            else:
+                x_new, f_new = _generic_step(system, discrete, coeffs, t_n, dt, w, t_eval, extra, solver)
+            bad = ~(np.isfinite(x_new) & np.isfinite(f_new))
+            if np.any(bad):
+                point = int(np.flatnonzero(bad)[0])
+                name = system.elements[min(point + 1, len(system.elements) - 1)].name
+                raise SimulationError(f"non-finite state at t = {times[i + 1]:.6g} s at the point "
+                                      f"{system.point_names()[point]!r} (element {name!r})",
+                                      time=float(times[i + 1]), element=name)
+            f_prev = states[i, :, d]
+            history = scheme.update(history, x_new[:, None], dt, coeffs)
+            states[i + 1, :, :d] = history.x
+            states[i + 1, :, d] = scheme.interpolate_force(f_new, f_prev)
+            vel[i + 1], acc[i + 1] = history.v, history.a
+            bar.update(1)
+    except SimulationError as exc:
+        k = int(np.searchsorted(times, exc.time or times[-1]))
+        exc.partial_result = SimulationResult(times[:k], states[:k], vel[:k], acc[:k], system, scheme.name)
+        raise
+    finally:
+        bar.close()
+    info = {"wall_time_s": _time.perf_counter() - started, "n_steps": n_steps, "dt": dt,
+            "path": "lumped-fast" if fast else f"generic-{solver}"}
+    return SimulationResult(times, states, vel, acc, system, scheme.name, info)
+
+
+def _initial_forces(system: Chain, x: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Internal forces at t0 (connectors from their law; others propagated at zero acceleration)."""
+    f = np.full(system.n_points, np.nan)
+    try:
+        connector = _connector_forces(system, x, v)
+        for j, val in connector.items():
+            f[j - 1] = f[j] = val
+    except Exception:  # noqa: BLE001 - forces at t0 are informative only
+        pass
+    return f
+
+
+def _fast_step(system: Chain, kernel: _LumpedKernel, coeffs, load, t_eval: float, cache: dict):
+    key = (coeffs.cx, coeffs.A, coeffs.C)
+    if cache.get("key") != key:
+        cache.clear()
+        cache["key"] = key
+        cache["const"] = kernel.constant_part(*key)
+    U12, U21, k_eff = cache["const"]
+    u0, u1 = kernel.affine_part(coeffs, k_eff, load)
+    lin0 = Linearisation(coeffs.cx, coeffs.dx[0, 0], coeffs.A, coeffs.B[0, 0], coeffs.C, coeffs.D[0, 0])
+    linN = Linearisation(coeffs.cx, coeffs.dx[-1, 0], coeffs.A, coeffs.B[-1, 0], coeffs.C, coeffs.D[-1, 0])
+    _, S0, P0 = system.start.start_discrete(system.layout, t_eval, lin0)
+    Bm, b = system.end.end_discrete(system.layout, t_eval, linN)
+    fixed_start = system.start.known == "displacement"
+    return _scalar_riccati(U12, U21, u0, u1, fixed_start, float(S0[0, 0]), float(P0[0]),
+                           (float(Bm[0, 0]), float(Bm[0, 1])), float(b[0]), cache)
+
+
+def _generic_step(system, discrete, coeffs, t_n, dt, w, t_eval, extra, solver):
+    pick = (lambda arr, j: float(arr[j, 0])) if system.layout.half == 1 else (lambda arr, j: arr[j])
+    lins = [Linearisation(coeffs.cx, pick(coeffs.dx, j), coeffs.A, pick(coeffs.B, j), coeffs.C,
+                          pick(coeffs.D, j)) for j in range(system.n_points)]
+    Us, us = [], []
+    for j, disc in enumerate(discrete, start=1):
+        e = disc.element
+        force = 0.0
+        if isinstance(e, PointElement):
+            force = (1.0 - w) * float(e.force(t_n)) + w * float(e.force(t_n + dt)) + extra.get(j, 0.0)
+        U, u = disc.step_matrices(t_eval, lins[j - 1], lins[j], force)
+        Us.append(np.asarray(U, dtype=float)[None])
+        us.append(np.asarray(u, dtype=float).reshape(1, -1))
+    e_idx, S0, P0 = system.start.start_discrete(system.layout, t_eval, lins[0])
+    Bm, b = system.end.end_discrete(system.layout, t_eval, lins[-1])
+    sol = SOLVERS[solver](Us, us, BoundaryStart(e_idx, S0[None], P0[None]), BoundaryEnd(Bm[None], b[None]))
+    d = system.layout.half
+    states = sol.states[:, 0, :]
+    return states[:, 0].copy() if d == 1 else states[:, :d], states[:, d].copy()
