@@ -9,8 +9,9 @@ from .errors import ConvergenceError, ModelError, SimulationError, SingularSyste
 from .frequency import (eigenvalue_count, frequency_response, mode_shapes, natural_frequencies,
                         steady_state_response)
 from .system import Chain
+from .timestep import simulate
 
 __version__ = "0.1.0"
-__all__ = ["Chain", "frequency_response", "natural_frequencies", "mode_shapes", "eigenvalue_count",
+__all__ = ["Chain", "simulate", "frequency_response", "natural_frequencies", "mode_shapes", "eigenvalue_count",
            "steady_state_response", "signals", "ModelError", "SimulationError", "ConvergenceError",
            "SingularSystemError", "UnknownNameError", "__version__"]

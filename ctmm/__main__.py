@@ -1,0 +1,6 @@
+"""``python -m ctmm`` = the ``ctmm`` command."""
+import sys
+
+from .cli import main
+
+sys.exit(main())

@@ -1,0 +1,1 @@
+"""ctmm scenarios: one module per study (loaded as ``ctmm.scenarios``)."""
