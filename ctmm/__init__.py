@@ -6,12 +6,12 @@ discrete-time TMM in the time domain (:func:`simulate`), both solved by Riccati 
 """
 from . import signals
 from .errors import ConvergenceError, ModelError, SimulationError, SingularSystemError, UnknownNameError
-from .frequency import (eigenvalue_count, frequency_response, mode_shapes, natural_frequencies,
+from .frequency import (characteristic_function, eigenvalue_count, frequency_response, mode_shapes, natural_frequencies,
                         steady_state_response)
 from .system import Chain
 from .timestep import simulate
 
 __version__ = "0.1.0"
-__all__ = ["Chain", "simulate", "frequency_response", "natural_frequencies", "mode_shapes", "eigenvalue_count",
+__all__ = ["Chain", "simulate", "characteristic_function", "frequency_response", "natural_frequencies", "mode_shapes", "eigenvalue_count",
            "steady_state_response", "signals", "ModelError", "SimulationError", "ConvergenceError",
            "SingularSystemError", "UnknownNameError", "__version__"]

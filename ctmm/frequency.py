@@ -57,6 +57,8 @@ def assemble(system: Chain, s: np.ndarray, amplitudes: Mapping[int, Mapping[str,
         Inputs of :func:`ctmm.assembly.riccati_solve`.
     """
     amplitudes = amplitudes or {}
+    if hasattr(system, "assemble_frequency"):  # controlled systems extend the plant's matrices
+        return system.assemble_frequency(s, amplitudes)
     layout = system.layout
     Us, us = [], []
     for pos, element in enumerate(system.elements[1:-1], start=1):
@@ -72,11 +74,20 @@ def solve(system: Chain, s: np.ndarray, amplitudes=None, *, solver: str = "ricca
     if solver not in SOLVERS:
         raise ModelError(f"solver must be one of {sorted(SOLVERS)}, got {solver!r}")
     Us, us, start, end = assemble(system, s, amplitudes)
-    return SOLVERS[solver](Us, us, start, end)
+    sol = SOLVERS[solver](Us, us, start, end)
+    index = getattr(system, "state_index", None)
+    if index is not None:  # controlled chains interleave sensing matrices: keep the points only
+        sol.states = sol.states[np.asarray(index)]
+    return sol
 
 
-def _output_value(system: Chain, states: np.ndarray, s: np.ndarray, name: str) -> np.ndarray:
+def _output_value(system, states: np.ndarray, s: np.ndarray, name: str,
+                  amplitudes: Mapping | None = None) -> np.ndarray:
     sig = system.signal(name)
+    if sig.derivative == -1:  # control force of a loop: u = -C(s) e^{-s tau} (y - r)
+        loop = system.loop(name.split(".")[0])
+        ref = (amplitudes or {}).get(loop.name, {}).get("reference", 0.0)
+        return -loop.loop_gain(s) * (states[sig.point, :, sig.component] - ref)
     return states[sig.point, :, sig.component] * s ** sig.derivative
 
 
@@ -119,9 +130,10 @@ def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],
     resolved = [system.input(i) for i in inputs]
     response = np.empty((len(outputs), len(inputs), s.size), dtype=complex)
     for k, inp in enumerate(resolved):
-        sol = solve(system, s, {inp.position: {inp.input: 1.0}}, solver=solver)
+        amps = {inp.position: {inp.input: 1.0}}
+        sol = solve(system, s, amps, solver=solver)
         for j, o in enumerate(outputs):
-            response[j, k] = _output_value(system, sol.states, s, o)
+            response[j, k] = _output_value(system, sol.states, s, o, amps)
     return FrequencyResponse(np.imag(s), response, inputs, outputs, system.name)
 
 
@@ -147,6 +159,48 @@ def steady_state_response(system: Chain, omega: float, *, outputs: Sequence[str]
     sol = solve(system, s, amplitudes, solver=solver)
     names = outputs or system.signal_names()
     return {n: complex(_output_value(system, sol.states, s, n)[0]) for n in names}
+
+
+def characteristic_function(system, s: Any, *, normalize: bool = True) -> np.ndarray:
+    """Characteristic function ``Delta(s)`` of a (controlled) chain, vectorised over ``s``.
+
+    ``Delta`` is the determinant of the boundary equations accumulated by the Riccati sweep
+    (product of the ``det G_j`` and of the end matrix), multiplied by the factors that clear the
+    poles of the element matrices (connectors ``k + c s``, controller denominators), so that it
+    is entire in ``s`` and vanishes exactly at the (closed-loop) characteristic roots, including
+    exact delays ``e^{-s tau}``.
+
+    Parameters
+    ----------
+    system : Chain or ControlledChain
+    s : array_like
+        Complex Laplace variables [1/s].
+    normalize : bool
+        Divide by ``Delta`` at ``s = 1`` (a constant) to keep magnitudes near one.
+    """
+    s_arr = np.atleast_1d(np.asarray(s, dtype=complex))
+    shape = s_arr.shape
+    flat = s_arr.ravel()
+    Us, us, start, end = assemble(system, flat)
+    sol = SOLVERS["riccati"](Us, us, start, end, want_states=False)
+    log_delta = sol.log_det + np.log(_scale(system, flat).astype(complex))
+    if normalize:
+        Us1, us1, start1, end1 = assemble(system, np.array([1.0 + 0j]))
+        ref = SOLVERS["riccati"](Us1, us1, start1, end1, want_states=False).log_det[0]
+        log_delta = log_delta - ref - np.log(complex(_scale(system, np.array([1.0 + 0j]))[0]))
+    return np.exp(log_delta).reshape(shape)
+
+
+def _scale(system, s: np.ndarray) -> np.ndarray:
+    if hasattr(system, "characteristic_scale"):
+        return system.characteristic_scale(s)
+    from .elements.lumped import Connector
+
+    scale = np.ones(s.shape, dtype=complex)
+    for e in system.body:
+        if isinstance(e, Connector):
+            scale = scale * e.connector_stiffness(s)
+    return scale
 
 
 # -- natural frequencies ---------------------------------------------------------------

@@ -1,0 +1,397 @@
+"""Feedback loops embedded in the transfer matrices (seed 001 §9.5-9.6; FORMULAS §5).
+
+A :class:`Feedback` applies the control force
+
+    u(t) = -C[ y(t - tau) - r(t - tau) ],    y = sum_i c_i * signal_i
+
+at an actuator: on a *point element* (force ``+u`` on its point, e.g. a mass) or *across a
+connector* (``+u`` on its outboard point, ``-u`` on its inboard point, like an actuator in
+parallel with the spring-damper ``K3, C3`` of seed Fig. 9.30).  ``C`` is a gain or a
+python-control LTI controller; ``signal_i`` are displacement, velocity, acceleration or force
+signals anywhere in the chain (upstream, downstream or collocated with the actuator; a
+relative measurement is two terms).
+
+Embedding without control states (the extended state vector)
+-----------------------------------------------------------
+Each loop adds two components to the state vector:
+
+* ``y`` -- the sensed value: unknown at the start, carried unchanged (identity rows);
+* ``acc`` -- an accumulator: zero at the start, ``acc += c_i * signal_i`` when the sweep passes
+  the point of ``signal_i`` (a unit lower-triangular, invertible *sensing* matrix).
+
+The actuator's transfer matrix gets the column ``-C(s) e^{-s tau}`` on ``y`` (force row of a point
+element; displacement row ``/(k + c s)`` of a connector), and the end condition gains
+``acc - y = 0``.  Because ``y`` is an unknown of the boundary-value problem, the closed loop is
+solved exactly by the same Riccati sweep wherever the sensor sits, and the characteristic
+determinant of the extended chain vanishes at the closed-loop roots (with exact delays).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from .. import validation
+from ..assembly import BoundaryEnd, BoundaryStart
+from ..elements.lumped import Connector, PointElement
+from ..errors import ModelError, unknown_name
+from ..system import Chain, Signal
+
+
+def _is_lti(gain: Any) -> bool:
+    try:
+        import control
+    except ImportError:  # pragma: no cover - control is a dependency
+        return False
+    return isinstance(gain, control.LTI)
+
+
+def _lti_siso(name: str, gain: Any):
+    import control
+
+    if gain.ninputs != 1 or gain.noutputs != 1:
+        raise ModelError(f"loop {name!r}: controller must be SISO, got {gain.ninputs} inputs, "
+                         f"{gain.noutputs} outputs")
+    if not control.isctime(gain):
+        raise ModelError(f"loop {name!r}: discrete-time LTI controllers are not embeddable; "
+                         "use a sampled controller object (co-simulation) instead")
+    return gain
+
+
+@dataclass(frozen=True)
+class Feedback:
+    """A feedback loop ``u = -C (y(t - delay) - r(t - delay))`` with force ``u`` at ``actuator``.
+
+    Parameters
+    ----------
+    name : str
+        Loop name; signals ``"<name>.y"``, ``"<name>.u"`` and input ``"<name>.reference"``.
+    sensor : str or sequence of (str, float)
+        Measured signal name (e.g. ``"m6.x"``, ``"m6.v"``, ``"m6.a"``, ``"k3.f"``) or weighted
+        terms, e.g. ``[("m6.x", 1.0), ("m5.x", -1.0)]`` for a relative measurement.
+    actuator : str
+        Name of a point element (force on its point) or a connector (force across it).
+    gain : float or control.LTI
+        Static gain [N per sensed unit] or a SISO continuous-time python-control system ``C(s)``.
+    delay : float
+        Loop delay ``tau`` [s], >= 0 (exact ``e^{-s tau}`` in the frequency domain; history in time).
+    """
+
+    name: str
+    sensor: Any
+    actuator: str
+    gain: Any = 0.0
+    delay: float = 0.0
+    terms: tuple = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        validation.name("loop", self.name)
+        if isinstance(self.sensor, str):
+            terms = ((self.sensor, 1.0),)
+        else:
+            try:
+                terms = tuple((str(sig), validation.finite(f"loop {self.name!r}: sensor weight", w))
+                              for sig, w in self.sensor)
+            except (TypeError, ValueError) as exc:
+                raise ModelError(f"loop {self.name!r}: sensor must be a signal name or a sequence of "
+                                 f"(signal, weight) pairs, got {self.sensor!r}") from exc
+            if not terms:
+                raise ModelError(f"loop {self.name!r}: sensor needs at least one signal")
+        object.__setattr__(self, "terms", terms)
+        if _is_lti(self.gain):
+            _lti_siso(self.name, self.gain)
+        else:
+            object.__setattr__(self, "gain", validation.finite(f"loop {self.name!r}: gain", self.gain))
+        object.__setattr__(self, "delay", validation.nonnegative(f"loop {self.name!r}: delay", self.delay))
+
+    def with_parameters(self, *, gain: Any = None, delay: float | None = None) -> "Feedback":
+        """A copy with a new gain/controller and/or delay (the plant is untouched)."""
+        return Feedback(self.name, self.sensor, self.actuator, self.gain if gain is None else gain,
+                        self.delay if delay is None else delay)
+
+    @property
+    def is_lti(self) -> bool:
+        """True when the gain is a python-control LTI system."""
+        return _is_lti(self.gain)
+
+    def controller_response(self, s: np.ndarray) -> np.ndarray:
+        """``C(s)`` (without the delay) over an array of Laplace variables."""
+        s = np.asarray(s, dtype=complex)
+        if self.is_lti:
+            return np.asarray(self.gain(s), dtype=complex).reshape(s.shape)
+        return np.full(s.shape, self.gain, dtype=complex)
+
+    def loop_gain(self, s: np.ndarray) -> np.ndarray:
+        """``C(s) e^{-s tau}`` over an array of Laplace variables."""
+        s = np.asarray(s, dtype=complex)
+        return self.controller_response(s) * np.exp(-s * self.delay)
+
+    def denominator(self, s: np.ndarray) -> np.ndarray:
+        """Denominator of ``C(s)`` (1 for a gain): clears the controller's poles from determinants."""
+        s = np.asarray(s, dtype=complex)
+        if self.is_lti:
+            import control
+
+            tf = control.tf(self.gain)
+            return np.polyval(np.asarray(tf.den[0][0], dtype=float), s)
+        return np.ones(s.shape, dtype=complex)
+
+
+@dataclass(frozen=True)
+class _Resolved:
+    loop: Feedback
+    index: int            # loop number
+    actuator_pos: int     # element position in the chain
+    across: bool          # actuator across a connector
+    sensing: tuple        # ((point, component, derivative, weight), ...)
+
+
+class ControlledChain:
+    """A :class:`~ctmm.system.Chain` closed by :class:`Feedback` loops.
+
+    The plant is not copied or rebuilt: loops only add the extended-state rows described in
+    the module docstring.  All frequency-domain functions (``frequency_response``,
+    ``characteristic_function``, ...) and :func:`ctmm.control.simulate_controlled` accept it.
+
+    Parameters
+    ----------
+    plant : Chain
+        The uncontrolled chain.
+    loops : sequence of Feedback
+        Loops (unique names).
+    """
+
+    def __init__(self, plant: Chain, loops: Sequence[Feedback]) -> None:
+        if not isinstance(plant, Chain):
+            raise ModelError(f"plant must be a Chain, got {plant!r}")
+        self.plant = plant
+        self.loops: tuple[Feedback, ...] = tuple(loops)
+        self.name = plant.name + "+control"
+        names = [lp.name for lp in self.loops]
+        problems = []
+        for lp in self.loops:
+            if not isinstance(lp, Feedback):
+                problems.append(f"{lp!r} is not a Feedback loop")
+        if len(set(names)) != len(names):
+            problems.append(f"loop names must be unique, got {names}")
+        clash = set(names) & {e.name for e in plant.elements}
+        if clash:
+            problems.append(f"loop names {sorted(clash)} clash with element names")
+        if problems:
+            raise ModelError(f"controlled chain {self.name!r} is invalid:\n  - " + "\n  - ".join(problems))
+        self._resolved = tuple(self._resolve(i, lp) for i, lp in enumerate(self.loops))
+        extras = []
+        for lp in self.loops:
+            extras += [f"{lp.name}:y", f"{lp.name}:acc"]
+        self.layout = plant.layout.with_extras(*extras)
+        self._by_loop = {lp.name: i for i, lp in enumerate(self.loops)}
+
+    def _resolve(self, index: int, loop: Feedback) -> _Resolved:
+        plant = self.plant
+        known_actuators = [e.name for e in plant.body if isinstance(e, (PointElement, Connector))]
+        if loop.actuator not in known_actuators:
+            raise unknown_name(f"actuator of loop {loop.name!r} (a mass/point element or a connector)",
+                               loop.actuator, known_actuators)
+        pos = plant.position(loop.actuator)
+        sensing = []
+        for signal_name, weight in loop.terms:
+            try:
+                sig: Signal = plant.signal(signal_name)
+            except ModelError as exc:
+                raise type(exc)(f"loop {loop.name!r}: sensor {exc}") from None
+            sensing.append((sig.point, sig.component, sig.derivative, weight))
+        return _Resolved(loop, index, pos, isinstance(plant.elements[pos], Connector), tuple(sensing))
+
+    # -- delegation to the plant ----------------------------------------------------------
+    @property
+    def elements(self):
+        return self.plant.elements
+
+    @property
+    def body(self):
+        return self.plant.body
+
+    @property
+    def start(self):
+        return self.plant.start
+
+    @property
+    def end(self):
+        return self.plant.end
+
+    @property
+    def n_points(self) -> int:
+        return self.plant.n_points
+
+    def point_names(self):
+        return self.plant.point_names()
+
+    def position(self, name: str) -> int:
+        return self.plant.position(name)
+
+    def element(self, name: str):
+        return self.plant.element(name)
+
+    def loop(self, name: str) -> Feedback:
+        """The loop called ``name``."""
+        if name not in self._by_loop:
+            raise unknown_name("loop", name, list(self._by_loop))
+        return self.loops[self._by_loop[name]]
+
+    def with_loops(self, loops: Sequence[Feedback]) -> "ControlledChain":
+        """The same plant closed by other loops (cheap: nothing of the plant is rebuilt)."""
+        return ControlledChain(self.plant, loops)
+
+    # -- names ----------------------------------------------------------------------------
+    def signal_names(self) -> list[str]:
+        return self.plant.signal_names() + [f"{lp.name}.{q}" for lp in self.loops for q in ("y", "u")]
+
+    def signal(self, name: str) -> Signal:
+        parts = name.split(".") if isinstance(name, str) else []
+        if len(parts) == 2 and parts[0] in self._by_loop:
+            i = self._by_loop[parts[0]]
+            d = self.plant.layout.size
+            if parts[1] == "y":
+                return Signal(name, self.n_points - 1, d + 2 * i, 0)
+            if parts[1] == "u":
+                return Signal(name, self.n_points - 1, d + 2 * i, -1)  # -1: control force, see below
+            raise unknown_name("signal", name, self.signal_names())
+        try:
+            return self.plant.signal(name)
+        except ModelError:
+            raise unknown_name("signal", str(name), self.signal_names()) from None
+
+    def input_names(self) -> list[str]:
+        return self.plant.input_names() + [f"{lp.name}.reference" for lp in self.loops]
+
+    def input(self, name: str):
+        parts = name.split(".") if isinstance(name, str) else []
+        if len(parts) == 2 and parts[0] in self._by_loop:
+            if parts[1] != "reference":
+                raise unknown_name("input", name, self.input_names())
+            return _LoopInput(name, self._by_loop[parts[0]])
+        try:
+            return self.plant.input(name)
+        except ModelError:
+            raise unknown_name("input", str(name), self.input_names()) from None
+
+    # -- frequency domain -----------------------------------------------------------------
+    def assemble_frequency(self, s: np.ndarray, amplitudes: Mapping[Any, Mapping[str, Any]]):
+        """Extended element matrices (elements interleaved with sensing matrices) at ``s``.
+
+        Returns ``Us, us, start, end`` for :func:`ctmm.assembly.riccati_solve`; the attribute
+        :attr:`state_index` maps connection point ``j`` to the index of its state in the result.
+        """
+        from ..frequency import assemble as assemble_plant
+
+        s = np.asarray(s, dtype=complex)
+        plant_amps = {k: v for k, v in amplitudes.items() if not isinstance(k, str)}
+        refs = {k: v for k, v in amplitudes.items() if isinstance(k, str)}
+        Us_p, us_p, start_p, end_p = assemble_plant(self.plant, s, plant_amps)
+        gains = [r.loop.loop_gain(s) for r in self._resolved]
+        ref_amp = [refs.get(r.loop.name, {}).get("reference", 0.0) for r in self._resolved]
+        return self._extend(s, Us_p, us_p, start_p, end_p, gains, ref_amp,
+                            lambda sig_point, deriv: s ** deriv)
+
+    def _extend(self, s, Us_p, us_p, start_p, end_p, gains, ref_amp, derivative_factor,
+                sensing_offset=None):
+        nb = s.shape[0] if np.ndim(s) else 1
+        d0 = self.plant.layout.size
+        n = self.layout.size
+        nl = len(self._resolved)
+        dtype = np.result_type(Us_p[0], *[np.asarray(g) for g in gains]) if gains else Us_p[0].dtype
+        sensing_at: dict[int, list] = {}
+        for r in self._resolved:
+            for (point, comp, deriv, weight) in r.sensing:
+                sensing_at.setdefault(point, []).append((r.index, comp, deriv, weight))
+        Us, us, state_index = [], [], []
+
+        def add_sensing(point: int) -> None:
+            if point not in sensing_at:
+                return
+            U = np.broadcast_to(np.eye(n, dtype=dtype), (nb, n, n)).copy()
+            u = np.zeros((nb, n), dtype=dtype)
+            for (i, comp, deriv, weight) in sensing_at[point]:
+                row = d0 + 2 * i + 1
+                factor = derivative_factor(point, deriv)
+                U[:, row, comp] += weight * factor
+                if sensing_offset is not None:
+                    u[:, row] += weight * sensing_offset(point, comp, deriv)
+            Us.append(U)
+            us.append(u)
+
+        add_sensing(0)
+        state_index.append(len(Us))
+        for j, (Up, up) in enumerate(zip(Us_p, us_p), start=1):
+            U = np.zeros((nb, n, n), dtype=dtype)
+            U[:, :d0, :d0] = Up
+            U[:, d0:, d0:] = np.eye(n - d0)
+            u = np.zeros((nb, n), dtype=dtype)
+            u[:, :d0] = up
+            for r in self._resolved:
+                if r.actuator_pos != j:
+                    continue
+                g = gains[r.index]
+                col = d0 + 2 * r.index
+                ref = g * ref_amp[r.index]
+                if r.across:  # x_out = x_in + (u - f)/k_c  -> coefficient of u is -U[x, f]
+                    U[:, 0, col] += -Up[:, 0, 1] * (-g)
+                    u[:, 0] += -Up[:, 0, 1] * ref
+                else:          # f_out = f_in - Z x + u
+                    U[:, 1, col] += -g
+                    u[:, 1] += ref
+            Us.append(U)
+            us.append(u)
+            add_sensing(j)
+            state_index.append(len(Us))
+        self.state_index = state_index
+        # start: y unknown (e), acc known (= 0)
+        e_idx = list(start_p.e_indices) + [d0 + 2 * i for i in range(nl)]
+        nf = n - len(e_idx)
+        m = len(e_idx)
+        S0 = np.zeros((nb, nf, m), dtype=dtype)
+        S0[:, : d0 - len(start_p.e_indices), : len(start_p.e_indices)] = start_p.S0
+        P0 = np.zeros((nb, nf), dtype=dtype)
+        P0[:, : d0 - len(start_p.e_indices)] = start_p.P0
+        Bm = np.zeros((nb, m, n), dtype=dtype)
+        Bm[:, : end_p.Bm.shape[1], :d0] = end_p.Bm
+        b = np.zeros((nb, m), dtype=dtype)
+        b[:, : end_p.b.shape[1]] = end_p.b
+        for i in range(nl):
+            row = end_p.Bm.shape[1] + i
+            Bm[:, row, d0 + 2 * i + 1] = 1.0
+            Bm[:, row, d0 + 2 * i] = -1.0
+        return Us, us, BoundaryStart(e_idx, S0, P0), BoundaryEnd(Bm, b)
+
+    def characteristic_scale(self, s: np.ndarray) -> np.ndarray:
+        """Factor that makes the extended chain's determinant entire in ``s``.
+
+        Connectors contribute ``k + c s`` (their transfer matrices have ``1/(k + c s)``), LTI
+        controllers their denominators.
+        """
+        s = np.asarray(s, dtype=complex)
+        scale = np.ones(s.shape, dtype=complex)
+        for e in self.plant.body:
+            if isinstance(e, Connector):
+                scale = scale * e.connector_stiffness(s)
+        for r in self._resolved:
+            scale = scale * r.loop.denominator(s)
+        return scale
+
+    def __repr__(self) -> str:
+        return f"ControlledChain({self.plant!r}, loops={[lp.name for lp in self.loops]})"
+
+
+@dataclass(frozen=True)
+class _LoopInput:
+    name: str
+    loop_index: int
+
+    @property
+    def position(self) -> str:  # key used in amplitude mappings
+        return self.name.split(".")[0]
+
+    @property
+    def input(self) -> str:
+        return "reference"
