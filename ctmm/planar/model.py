@@ -1,0 +1,481 @@
+"""Planar multibody model: topology (chains and trees), validation and coordinates.
+
+:class:`PlanarModel` turns a list of element descriptions (:mod:`ctmm.planar.elements`)
+into an immutable model with the bodies in topological order (every parent before its
+children) and plain numpy arrays of all parameters, used by the sweeps
+(:mod:`ctmm.planar.sweep`), the integrators and the independent reference
+(:mod:`ctmm.reference.planar_lagrange`).
+
+Generalised coordinates (named ``"body.theta"``, ``"body.x"``, ``"body.y"``)
+--------------------------------------------------------------------------
+* every body behind a non-driven hinge: its **absolute** angle ``theta`` [rad];
+* a body on a :class:`~ctmm.planar.elements.FreeBase`: ``x, y`` of its inboard end [m] and
+  its angle;
+* a body behind a :class:`~ctmm.planar.elements.DrivenHinge` (or welded to the ground):
+  no coordinate; its angle is ``theta_parent + angle(t)``.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from .. import validation
+from ..errors import ModelError, unknown_name
+from ..signals import Constant
+from .elements import (DrivenHinge, Fixed, Free, FreeBase, HINGE_TYPES, Pinned, RigidBody,
+                       SmoothHinge, _Hinge)
+
+REVOLUTE, DRIVEN, FREE = 0, 1, 2
+"""Joint kinds in :attr:`PlanarModel.joint_kind`."""
+
+
+@dataclass(frozen=True)
+class _Joint:
+    name: str
+    kind: int
+    parent: str | None          # parent body name, None = ground
+    end: str | None             # parent end name
+    ground: Fixed | None        # ground element when parent is None
+    hinge: object               # the hinge / boundary element
+
+
+class PlanarModel:
+    """Immutable planar chain or tree of rigid bodies connected by hinges.
+
+    Parameters
+    ----------
+    name : str
+        Model name.
+    elements : sequence
+        Bodies, hinges (with ``parent`` and ``child`` set) and boundaries
+        (:class:`Fixed` ground points, :class:`Pinned`, :class:`FreeBase`, :class:`Free`).
+    gravity : (float, float)
+        Gravitational acceleration in global axes [m/s^2].
+
+    Raises
+    ------
+    ModelError
+        Unknown or duplicate names, bodies with several inboard hinges, cycles, bodies with no
+        path to a base -- all problems found are listed in one message.
+
+    Examples
+    --------
+    >>> from ctmm.planar import RigidBody, SmoothHinge, Pinned, PlanarModel
+    >>> links = [RigidBody.uniform_link(f"l{i}", mass=1.0, length=1.0) for i in (1, 2)]
+    >>> model = PlanarModel.chain("double", [Pinned("base"), links[0], SmoothHinge("h2"),
+    ...                                      links[1]])
+    >>> model.coordinates
+    ('l1.theta', 'l2.theta')
+    """
+
+    def __init__(self, name: str, elements: Sequence[object], *,
+                 gravity: Sequence[float] = (0.0, -9.81)) -> None:
+        self.name = validation.name("model", name)
+        g = validation.finite_array("gravity", gravity)
+        if g.shape != (2,):
+            raise ModelError(f"gravity must be a 2-vector [m/s^2], got {gravity!r}")
+        self.gravity = g.copy()
+        self.elements = tuple(elements)
+        self._compile()
+
+    # ------------------------------------------------------------------------------------
+    @classmethod
+    def chain(cls, name: str, elements: Sequence[object], *,
+              gravity: Sequence[float] = (0.0, -9.81)) -> "PlanarModel":
+        """Serial chain from an ordered list ``[base, body, hinge, body, ..., (Free)]``.
+
+        The base is :class:`Fixed` (followed by a hinge, or by a body that is then welded),
+        :class:`Pinned` or :class:`FreeBase` (followed by a body).  Hinges connect the body
+        before them (its single outboard end) to the body after them.
+        """
+        items = list(elements)
+        if not items:
+            raise ModelError(f"chain {name!r} has no elements")
+        base, rest = items[0], items[1:]
+        if not isinstance(base, (Fixed, Pinned, FreeBase)):
+            raise ModelError(f"chain {name!r} must start with Fixed, Pinned or FreeBase, got "
+                             f"{type(base).__name__} {getattr(base, 'name', base)!r}")
+        if rest and isinstance(rest[-1], Free):
+            rest = rest[:-1]
+        out: list[object] = []
+        previous: str = base.name          # name of what the next hinge attaches to
+        pending_hinge: _Hinge | None = None
+        base_element: object = base
+        first = True
+        for element in rest:
+            if isinstance(element, RigidBody):
+                if first:
+                    if isinstance(base, Fixed) and pending_hinge is None:
+                        pending_hinge = DrivenHinge(f"{base.name}_weld", angle=0.0)
+                        pending_hinge = pending_hinge.connected(base.name, element.name)
+                        out.append(base)
+                    elif isinstance(base, Fixed):
+                        out.append(base)
+                    else:
+                        base_element = dataclasses.replace(base, child=element.name)
+                        out.append(base_element)
+                if pending_hinge is not None:
+                    out.append(pending_hinge.connected(previous, element.name))
+                elif not first:
+                    raise ModelError(f"chain {name!r}: body {element.name!r} follows a body "
+                                     "directly; put a hinge between them")
+                out.append(element)
+                if len(element.ends) > 1:
+                    previous = element.name + "." + element.ends[0]
+                else:
+                    previous = element.name
+                pending_hinge = None
+                first = False
+            elif isinstance(element, HINGE_TYPES):
+                if pending_hinge is not None:
+                    raise ModelError(f"chain {name!r}: hinges {pending_hinge.name!r} and "
+                                     f"{element.name!r} follow each other; put a body between")
+                if first and not isinstance(base, Fixed):
+                    raise ModelError(f"chain {name!r}: {type(base).__name__} {base.name!r} "
+                                     f"already contains its joint; hinge {element.name!r} "
+                                     "must follow a body")
+                pending_hinge = element
+            else:
+                raise ModelError(f"chain {name!r}: unexpected element {element!r} (Free is only "
+                                 "allowed at the end)")
+        if pending_hinge is not None:
+            raise ModelError(f"chain {name!r}: hinge {pending_hinge.name!r} has no outboard body")
+        if first:
+            raise ModelError(f"chain {name!r} has no bodies")
+        return cls(name, out, gravity=gravity)
+
+    # ------------------------------------------------------------------------------------
+    def _compile(self) -> None:
+        problems: list[str] = []
+        bodies: dict[str, RigidBody] = {}
+        grounds: dict[str, Fixed] = {}
+        joints: list[_Joint] = []
+        names: set[str] = set()
+        for element in self.elements:
+            element_name = getattr(element, "name", None)
+            if element_name in names:
+                problems.append(f"duplicate element name {element_name!r}")
+            names.add(element_name)
+            if isinstance(element, RigidBody):
+                bodies[element.name] = element
+            elif isinstance(element, Fixed):
+                grounds[element.name] = element
+        for element in self.elements:
+            if isinstance(element, (RigidBody, Fixed, Free)):
+                continue
+            if isinstance(element, _Hinge):
+                if element.parent is None or element.child is None:
+                    problems.append(f"hinge {element.name!r} needs parent and child "
+                                    f"(got parent={element.parent!r}, child={element.child!r})")
+                    continue
+                kind = DRIVEN if isinstance(element, DrivenHinge) else REVOLUTE
+                parent_name, _, end = element.parent.partition(".")
+                if parent_name in grounds:
+                    joints.append(_Joint(element.name, kind, None, None, grounds[parent_name],
+                                         element))
+                elif parent_name in bodies:
+                    body = bodies[parent_name]
+                    if not end:
+                        if len(body.ends) != 1:
+                            problems.append(f"hinge {element.name!r}: parent body {parent_name!r} "
+                                            f"has ends {list(body.ends)}; name one as "
+                                            f"'{parent_name}.END'")
+                            continue
+                        end = body.ends[0]
+                    elif end not in body.outboard:
+                        problems.append(f"hinge {element.name!r}: body {parent_name!r} has no "
+                                        f"end {end!r}; ends: {', '.join(body.ends) or '(none)'}")
+                        continue
+                    joints.append(_Joint(element.name, kind, parent_name, end, None, element))
+                else:
+                    problems.append(f"hinge {element.name!r}: unknown parent {element.parent!r}; "
+                                    f"bodies: {', '.join(sorted(bodies)) or '(none)'}; "
+                                    f"grounds: {', '.join(sorted(grounds)) or '(none)'}")
+                    continue
+                if element.child not in bodies:
+                    problems.append(f"hinge {element.name!r}: unknown child {element.child!r}; "
+                                    f"bodies: {', '.join(sorted(bodies)) or '(none)'}")
+                    joints.pop()
+            elif isinstance(element, (Pinned, FreeBase)):
+                if element.child not in bodies:
+                    problems.append(f"{type(element).__name__} {element.name!r}: unknown child "
+                                    f"{element.child!r}; bodies: "
+                                    f"{', '.join(sorted(bodies)) or '(none)'}")
+                    continue
+                if isinstance(element, Pinned):
+                    ground = Fixed(element.name, position=element.position)
+                    joints.append(_Joint(element.name, REVOLUTE, None, None, ground,
+                                         SmoothHinge(element.name, parent=element.name,
+                                                     child=element.child)))
+                else:
+                    joints.append(_Joint(element.name, FREE, None, None, None, element))
+            else:
+                problems.append(f"unknown element {element!r}")
+        inboard: dict[str, _Joint] = {}
+        for joint in joints:
+            child = joint.hinge.child
+            if child in inboard:
+                problems.append(f"body {child!r} has several inboard hinges: "
+                                f"{inboard[child].name!r} and {joint.name!r}")
+            else:
+                inboard[child] = joint
+        if not bodies:
+            problems.append("the model has no bodies")
+        missing = [b for b in bodies if b not in inboard]
+        if missing:
+            problems.append(f"bodies without an inboard hinge or base: {', '.join(missing)}")
+        # topological order from the roots
+        children: dict[str | None, list[str]] = {}
+        for child, joint in inboard.items():
+            children.setdefault(joint.parent, []).append(child)
+        order: list[str] = []
+        stack = list(reversed(children.get(None, [])))
+        while stack:
+            body = stack.pop()
+            order.append(body)
+            stack.extend(reversed(children.get(body, [])))
+        unreachable = [b for b in bodies if b not in set(order) and b in inboard]
+        if unreachable:
+            cycles = self._cycles(unreachable, inboard)
+            for cycle in cycles:
+                problems.append("cycle: " + " -> ".join(cycle))
+            problems.append(f"bodies with no path to a base: {', '.join(unreachable)}")
+        if problems:
+            raise ModelError(f"model {self.name!r} is invalid:\n  - " + "\n  - ".join(problems))
+        self._bodies = [bodies[b] for b in order]
+        self._joints = [inboard[b] for b in order]
+        self._arrays(order)
+
+    @staticmethod
+    def _cycles(unreachable: list[str], inboard: dict[str, _Joint]) -> list[list[str]]:
+        cycles, seen = [], set()
+        for start in unreachable:
+            path, node = [], start
+            while node is not None and node not in seen and node not in path:
+                path.append(node)
+                node = inboard[node].parent if node in inboard else None
+            if node is not None and node in path:
+                cycle = path[path.index(node):] + [node]
+                cycles.append(cycle)
+            seen.update(path)
+        return cycles
+
+    def _arrays(self, order: list[str]) -> None:
+        nb = len(order)
+        index = {b: i for i, b in enumerate(order)}
+        self.body_names: tuple[str, ...] = tuple(order)
+        self.joint_names: tuple[str, ...] = tuple(j.name for j in self._joints)
+        self.mass = np.array([b.mass for b in self._bodies])
+        self.inertia = np.array([b.inertia for b in self._bodies])
+        inb = np.array([b.inboard for b in self._bodies])
+        self.com = np.array([b.center_of_mass for b in self._bodies]) - inb
+        self.parent = np.full(nb, -1, dtype=int)
+        self.end_vector = np.zeros((nb, 2))     # parent end rel. to parent inboard (body frame)
+        self.ground_position = np.zeros((nb, 2))
+        self.ground_angle = np.zeros(nb)
+        self.joint_kind = np.array([j.kind for j in self._joints], dtype=int)
+        self.ends = []                          # per body: {end name: vector rel. inboard}
+        for i, body in enumerate(self._bodies):
+            self.ends.append({e: np.array(p) - inb[i] for e, p in body.outboard.items()})
+        for i, joint in enumerate(self._joints):
+            if joint.parent is not None:
+                p = index[joint.parent]
+                self.parent[i] = p
+                self.end_vector[i] = self.ends[p][joint.end]
+            elif joint.ground is not None:
+                self.ground_position[i] = joint.ground.position
+                self.ground_angle[i] = joint.ground.angle
+        # hinge laws tau = u - k (dtheta - r) - c (dtheta_dot - r_dot)
+        self.stiffness = np.zeros(nb)
+        self.damping = np.zeros(nb)
+        self._reference, self._reference_rate, self._torque = [], [], []
+        self._driven = []
+        for i, joint in enumerate(self._joints):
+            if joint.kind == REVOLUTE:
+                k, c, r, rd, u = joint.hinge.law()
+                self.stiffness[i], self.damping[i] = k, c
+                self._reference.append(r)
+                self._reference_rate.append(rd)
+                self._torque.append(u)
+            else:
+                zero = Constant(0.0)
+                self._reference.append(zero)
+                self._reference_rate.append(zero)
+                self._torque.append(zero)
+            if joint.kind == DRIVEN:
+                self._driven.append((i, joint.hinge.angle, joint.hinge.rate,
+                                     joint.hinge.acceleration))
+        self._constant_laws = all(isinstance(f, Constant) for f in
+                                  self._reference + self._reference_rate + self._torque)
+        if self._constant_laws:
+            self._law_values = (np.array([f.value for f in self._reference]),
+                                np.array([f.value for f in self._reference_rate]),
+                                np.array([f.value for f in self._torque]))
+        # loads
+        load_body, load_point, load_signals = [], [], []
+        for i, body in enumerate(self._bodies):
+            for load in body.loads:
+                load_body.append(i)
+                load_point.append(np.array(load.point) - inb[i])
+                load_signals.append((load.force_x, load.force_y, load.moment))
+        self.load_body = np.array(load_body, dtype=int)
+        self.load_point = np.array(load_point).reshape(-1, 2)
+        self._load_signals = load_signals
+        self._constant_loads = all(isinstance(f, Constant) for s in load_signals for f in s)
+        if self._constant_loads:
+            self._load_values = np.array([[f.value for f in s] for s in load_signals]
+                                         ).reshape(-1, 3)
+        # coordinates
+        names, theta_index, xy_index = [], np.full(nb, -1, dtype=int), np.full((nb, 2), -1,
+                                                                                  dtype=int)
+        for i, (body, joint) in enumerate(zip(order, self._joints)):
+            if joint.kind == FREE:
+                xy_index[i] = (len(names), len(names) + 1)
+                names += [f"{body}.x", f"{body}.y"]
+            if joint.kind != DRIVEN:
+                theta_index[i] = len(names)
+                names.append(f"{body}.theta")
+        self.coordinates: tuple[str, ...] = tuple(names)
+        self.theta_index = theta_index
+        self.xy_index = xy_index
+        self.coordinate_bodies = np.flatnonzero(theta_index >= 0)
+        self.free_bodies = np.flatnonzero(self.joint_kind == FREE)
+        self.children = [[] for _ in range(nb)]
+        for i in range(nb):
+            if self.parent[i] >= 0:
+                self.children[self.parent[i]].append(i)
+        self.is_chain = bool(np.all(self.parent == np.arange(-1, nb - 1))) and not self._driven \
+            and not len(self.free_bodies)
+
+    # ------------------------------------------------------------------------------------
+    @property
+    def n_bodies(self) -> int:
+        """Number of bodies."""
+        return len(self.body_names)
+
+    @property
+    def n_coordinates(self) -> int:
+        """Number of generalised coordinates."""
+        return len(self.coordinates)
+
+    @property
+    def bodies(self) -> tuple[RigidBody, ...]:
+        """Body descriptions in topological order."""
+        return tuple(self._bodies)
+
+    @property
+    def hinges(self) -> tuple[object, ...]:
+        """Inboard joint element of each body (same order as :attr:`bodies`)."""
+        return tuple(j.hinge for j in self._joints)
+
+    def coordinate_index(self, coordinate: str) -> int:
+        """Index of a coordinate name such as ``"link3.theta"``."""
+        try:
+            return self.coordinates.index(coordinate)
+        except ValueError:
+            raise unknown_name("coordinate", coordinate, self.coordinates) from None
+
+    def body_index(self, body: str) -> int:
+        """Index of a body in :attr:`body_names`."""
+        try:
+            return self.body_names.index(body)
+        except ValueError:
+            raise unknown_name("body", body, self.body_names) from None
+
+    # -- time-dependent inputs -------------------------------------------------------------
+    def hinge_laws(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(reference, reference_rate, torque)`` of every joint at time ``t``."""
+        if self._constant_laws:
+            return self._law_values
+        return (np.array([f(t) for f in self._reference], dtype=float),
+                np.array([f(t) for f in self._reference_rate], dtype=float),
+                np.array([f(t) for f in self._torque], dtype=float))
+
+    def loads(self, t: float) -> np.ndarray:
+        """External loads ``(fx, fy, moment)`` of every :class:`Load` at time ``t``."""
+        if self._constant_loads:
+            return self._load_values
+        return np.array([[f(t) for f in s] for s in self._load_signals], dtype=float
+                        ).reshape(-1, 3)
+
+    def driven(self, t: float) -> list[tuple[int, float, float, float]]:
+        """``(body, angle, rate, acceleration)`` of every driven joint at time ``t``."""
+        return [(i, float(a(t)), float(r(t)), float(c(t))) for i, a, r, c in self._driven]
+
+    # -- kinematics ---------------------------------------------------------------------------
+    def body_angles(self, q: np.ndarray, qdot: np.ndarray, t: float
+                    ) -> tuple[np.ndarray, np.ndarray]:
+        """Absolute angles and angular velocities of all bodies [rad, rad/s]."""
+        theta = np.empty(self.n_bodies)
+        omega = np.empty(self.n_bodies)
+        cb = self.coordinate_bodies
+        theta[cb] = q[self.theta_index[cb]]
+        omega[cb] = qdot[self.theta_index[cb]]
+        for i, angle, rate, _ in self.driven(t):
+            p = self.parent[i]
+            theta[i] = angle + (theta[p] if p >= 0 else self.ground_angle[i])
+            omega[i] = rate + (omega[p] if p >= 0 else 0.0)
+        return theta, omega
+
+    def relative_angles(self, theta: np.ndarray, omega: np.ndarray
+                        ) -> tuple[np.ndarray, np.ndarray]:
+        """Hinge angles ``theta_child - theta_parent`` and their rates."""
+        p = self.parent
+        has = p >= 0
+        dtheta = theta - np.where(has, theta[np.maximum(p, 0)], self.ground_angle)
+        domega = omega - np.where(has, omega[np.maximum(p, 0)], 0.0)
+        return dtheta, domega
+
+    def points(self, q: np.ndarray, qdot: np.ndarray, t: float = 0.0) -> dict[str, np.ndarray]:
+        """Positions and velocities of inboard ends and centres of mass in global axes.
+
+        Returns a dict with arrays ``inboard``, ``inboard_velocity``, ``com``,
+        ``com_velocity`` (shape ``(n_bodies, 2)``), ``theta`` and ``omega``.
+        """
+        q = np.asarray(q, dtype=float)
+        qdot = np.asarray(qdot, dtype=float)
+        theta, omega = self.body_angles(q, qdot, t)
+        c, s = np.cos(theta), np.sin(theta)
+        r_in = np.empty((self.n_bodies, 2))
+        v_in = np.empty((self.n_bodies, 2))
+        for i in range(self.n_bodies):
+            p = self.parent[i]
+            if p >= 0:
+                e = self.end_vector[i]
+                rx, ry = c[p] * e[0] - s[p] * e[1], s[p] * e[0] + c[p] * e[1]
+                r_in[i] = r_in[p] + (rx, ry)
+                v_in[i] = v_in[p] + omega[p] * np.array([-ry, rx])
+            elif self.joint_kind[i] == FREE:
+                ix, iy = self.xy_index[i]
+                r_in[i] = q[ix], q[iy]
+                v_in[i] = qdot[ix], qdot[iy]
+            else:
+                r_in[i] = self.ground_position[i]
+                v_in[i] = 0.0
+        rcx = c * self.com[:, 0] - s * self.com[:, 1]
+        rcy = s * self.com[:, 0] + c * self.com[:, 1]
+        com = r_in + np.column_stack([rcx, rcy])
+        v_com = v_in + omega[:, None] * np.column_stack([-rcy, rcx])
+        return {"inboard": r_in, "inboard_velocity": v_in, "com": com, "com_velocity": v_com,
+                "theta": theta, "omega": omega}
+
+    def energy(self, q: np.ndarray, qdot: np.ndarray, t: float = 0.0) -> float:
+        """Kinetic + gravitational + hinge-spring energy [J] (constant references only)."""
+        pts = self.points(q, qdot, t)
+        kinetic = 0.5 * np.sum(self.mass * np.sum(pts["com_velocity"] ** 2, axis=1)
+                               + self.inertia * pts["omega"] ** 2)
+        potential = -np.sum(self.mass * (pts["com"] @ self.gravity))
+        dtheta, _ = self.relative_angles(pts["theta"], pts["omega"])
+        reference, _, _ = self.hinge_laws(t)
+        spring = 0.5 * np.sum(self.stiffness * (dtheta - reference) ** 2)
+        return float(kinetic + potential + spring)
+
+    def __repr__(self) -> str:
+        return (f"PlanarModel({self.name!r}, bodies={self.n_bodies}, "
+                f"coordinates={self.n_coordinates})")
+
+
+__all__ = ["PlanarModel", "REVOLUTE", "DRIVEN", "FREE"]

@@ -1,0 +1,300 @@
+"""Acceleration-based transfer matrix method for planar chains and trees: the Riccati sweep.
+
+State vector at a connection point (layout ``PLANAR_ACCELERATION``):
+``A = [a_x, a_y, alpha]`` (acceleration of the point, angular acceleration of the outboard
+body) and ``F = [f_x, f_y, tau]`` (force and moment exerted by the inboard part on the
+outboard part), FORMULAS section 3.4 / seed 003 (6.4)-(6.6) / seed 000 eq. (1).
+
+Notation (one body ``j``, inboard end ``I``, outboard end ``O`` where child ``c`` hangs):
+
+* kinematics, rigid body I -> O:   ``A_O = X A_I + c``,
+  ``X = [[1, 0, -r_y], [0, 1, r_x], [0, 0, 1]]``, ``c = [-w^2 r_x, -w^2 r_y, 0]``,
+  ``r = R(theta) (O - I)``;
+* Newton-Euler of the body about ``I`` (all loads moved to ``I`` by ``X^T``):
+  ``F_I = K A_I + b + sum_c X_c^T F_Oc``, ``K = X_C^T diag(m, m, J_C) X_C``,
+  ``b = [-m w^2 r_C - m g - f_e ; -r_C x m g - r_E x f_e - tau_e]``;
+* hinge ``c`` (child inboard end = parent end ``O``): ``A_c = A_O + e3 alpha``, law
+  ``tau_c = e3^T F_c = tau_tilde - kappa alpha`` (``kappa = 0`` explicit), driven:
+  ``alpha`` given.
+
+Riccati (articulated) form ``F = Phi A + psi`` from the tips to the base (FORMULAS 4.3):
+``D = Phi_22 + kappa``, ``Phi_hat = Phi - Phi[:, 2] Phi[2, :] / D``,
+``psi_hat = psi + Phi[:, 2] (tau_tilde - psi_2) / D``, moved to the parent's inboard point
+with ``X_c^T (.) X_c``.  Base to tips: ``alpha = (tau_tilde - Phi[2, :] A_O - psi_2) / D``,
+``A_c = A_O + e3 alpha``, ``F_c = Phi A_c + psi``.  ``Phi`` may be non-symmetric: the Newton
+step of the implicit DT-TMM (:mod:`ctmm.planar.implicit`) feeds the same kernel with
+tangent-modified ``X`` (kinematic column) and ``K``.
+
+The recursion itself runs on Python floats (one small block per body, no numpy call per
+body); everything that does not depend on the recursion is computed for all bodies at once
+with numpy.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from ..errors import SimulationError
+from .model import DRIVEN, FREE, REVOLUTE, PlanarModel
+
+
+@dataclass(frozen=True)
+class InstantaneousSolution:
+    """Accelerations and internal forces of all bodies at one instant.
+
+    Attributes
+    ----------
+    qddot : ndarray, shape (n_coordinates,)
+        Second derivatives of the generalised coordinates.
+    body_acceleration : ndarray, shape (n_bodies, 3)
+        ``[a_x, a_y, alpha]`` of each body at its inboard end [m/s^2, rad/s^2].
+    joint_force : ndarray, shape (n_bodies, 3)
+        ``[f_x, f_y, tau]`` exerted by the parent (or ground) on each body at its inboard
+        end [N, N m] (the hinge torque is ``tau``).
+    hinge_acceleration : ndarray, shape (n_bodies,)
+        Relative angular acceleration of each body's inboard hinge [rad/s^2].
+    """
+
+    qddot: np.ndarray
+    body_acceleration: np.ndarray
+    joint_force: np.ndarray
+    hinge_acceleration: np.ndarray
+
+
+# ------------------------------------------------------------------------------------------
+# per-body terms (vectorised over all bodies)
+# ------------------------------------------------------------------------------------------
+def body_terms(model: PlanarModel, theta: np.ndarray, omega: np.ndarray, t: float):
+    """Vectorised body data: ``K`` (nb, 9), ``b`` (nb, 3), end data (nb, 6) and levers.
+
+    End data row ``j`` = ``(kx, ky, lx, ly, cx, cy)`` of the parent end carrying body ``j``
+    (kinematic third column of ``X``, lever column of ``X^T``, velocity term ``c``).
+    """
+    c, s = np.cos(theta), np.sin(theta)
+    m, inertia = model.mass, model.inertia
+    rcx = c * model.com[:, 0] - s * model.com[:, 1]
+    rcy = s * model.com[:, 0] + c * model.com[:, 1]
+    nb = model.n_bodies
+    K = np.zeros((nb, 9))
+    K[:, 0] = m
+    K[:, 4] = m
+    K[:, 2] = K[:, 6] = -m * rcy
+    K[:, 5] = K[:, 7] = m * rcx
+    K[:, 8] = inertia + m * (rcx * rcx + rcy * rcy)
+    gx, gy = model.gravity
+    w2 = omega * omega
+    b = np.empty((nb, 3))
+    b[:, 0] = -m * (w2 * rcx + gx)
+    b[:, 1] = -m * (w2 * rcy + gy)
+    b[:, 2] = -m * (rcx * gy - rcy * gx)
+    if len(model.load_body):
+        loads = model.loads(t)
+        lb = model.load_body
+        px, py = model.load_point[:, 0], model.load_point[:, 1]
+        rex = c[lb] * px - s[lb] * py
+        rey = s[lb] * px + c[lb] * py
+        np.add.at(b[:, 0], lb, -loads[:, 0])
+        np.add.at(b[:, 1], lb, -loads[:, 1])
+        np.add.at(b[:, 2], lb, -(rex * loads[:, 1] - rey * loads[:, 0] + loads[:, 2]))
+    p = np.maximum(model.parent, 0)
+    ex, ey = model.end_vector[:, 0], model.end_vector[:, 1]
+    rx = c[p] * ex - s[p] * ey
+    ry = s[p] * ex + c[p] * ey
+    wp2 = w2[p]
+    E = np.column_stack([-ry, rx, -ry, rx, -wp2 * rx, -wp2 * ry])
+    return K, b, E, (rcx, rcy, rx, ry)
+
+
+def hinge_torques(model: PlanarModel, theta: np.ndarray, omega: np.ndarray, t: float
+                  ) -> np.ndarray:
+    """Explicit hinge-law torques ``u - k (dtheta - r) - c (dtheta_dot - r_dot)`` [N m]."""
+    dtheta, domega = model.relative_angles(theta, omega)
+    reference, rate, torque = model.hinge_laws(t)
+    return torque - model.stiffness * (dtheta - reference) - model.damping * (domega - rate)
+
+
+# ------------------------------------------------------------------------------------------
+# the O(n) kernel
+# ------------------------------------------------------------------------------------------
+def riccati_kernel(parent: list, kind: list, K: list, b: list, E: list, kappa: list,
+                   tau: list, alpha_driven: list):
+    """Tip-to-base Riccati sweep and base-to-tip pass (pure Python floats, O(n)).
+
+    Parameters are plain lists over bodies in topological order (see :func:`body_terms`);
+    ``tau`` holds ``tau_tilde`` of revolute joints, ``alpha_driven`` the prescribed
+    relative angular acceleration of driven joints.
+
+    Returns
+    -------
+    A, F : list of [float, float, float]
+        Body accelerations at the inboard ends and joint forces.
+    alpha : list of float
+        Relative hinge accelerations.
+    """
+    nb = len(parent)
+    acc = [list(row) for row in K]
+    accb = [list(row) for row in b]
+    denominators = [0.0] * nb
+    for j in range(nb - 1, -1, -1):
+        p00, p01, p02, p10, p11, p12, p20, p21, p22 = acc[j]
+        s0, s1, s2 = accb[j]
+        kj = kind[j]
+        if kj == REVOLUTE:
+            d = p22 + kappa[j]
+            if not d > 0.0:
+                raise SimulationError(f"articulated inertia of hinge {j} is not positive ({d!r})")
+            denominators[j] = d
+            r = (tau[j] - s2) / d
+            f0, f1, f2 = p02 / d, p12 / d, p22 / d
+            q00, q01, q02 = p00 - f0 * p20, p01 - f0 * p21, p02 - f0 * p22
+            q10, q11, q12 = p10 - f1 * p20, p11 - f1 * p21, p12 - f1 * p22
+            q20, q21, q22 = p20 - f2 * p20, p21 - f2 * p21, p22 - f2 * p22
+            t0, t1, t2 = s0 + p02 * r, s1 + p12 * r, s2 + p22 * r
+        elif kj == DRIVEN:
+            ad = alpha_driven[j]
+            q00, q01, q02, q10, q11, q12, q20, q21, q22 = p00, p01, p02, p10, p11, p12, p20, p21, p22
+            t0, t1, t2 = s0 + p02 * ad, s1 + p12 * ad, s2 + p22 * ad
+        else:
+            continue
+        par = parent[j]
+        if par < 0:
+            continue
+        kx, ky, lx, ly, cx, cy = E[j]
+        z0 = q00 * cx + q01 * cy + t0
+        z1 = q10 * cx + q11 * cy + t1
+        z2 = q20 * cx + q21 * cy + t2
+        c02 = kx * q00 + ky * q01 + q02
+        c12 = kx * q10 + ky * q11 + q12
+        c22 = kx * q20 + ky * q21 + q22
+        a = acc[par]
+        a[0] += q00
+        a[1] += q01
+        a[2] += c02
+        a[3] += q10
+        a[4] += q11
+        a[5] += c12
+        a[6] += lx * q00 + ly * q10 + q20
+        a[7] += lx * q01 + ly * q11 + q21
+        a[8] += lx * c02 + ly * c12 + c22
+        bb = accb[par]
+        bb[0] += z0
+        bb[1] += z1
+        bb[2] += lx * z0 + ly * z1 + z2
+    A = [None] * nb
+    F = [None] * nb
+    alpha = [0.0] * nb
+    for j in range(nb):
+        par = parent[j]
+        if par >= 0:
+            a0, a1, al = A[par]
+            kx, ky, lx, ly, cx, cy = E[j]
+            o0, o1, o2 = a0 + kx * al + cx, a1 + ky * al + cy, al
+        else:
+            o0 = o1 = o2 = 0.0
+        p00, p01, p02, p10, p11, p12, p20, p21, p22 = acc[j]
+        s0, s1, s2 = accb[j]
+        kj = kind[j]
+        if kj == REVOLUTE:
+            al = (tau[j] - p20 * o0 - p21 * o1 - p22 * o2 - s2) / denominators[j]
+            a_j = (o0, o1, o2 + al)
+        elif kj == DRIVEN:
+            al = alpha_driven[j]
+            a_j = (o0, o1, o2 + al)
+        else:
+            sol = np.linalg.solve(np.array(acc[j]).reshape(3, 3), -np.array(accb[j]))
+            a_j = (float(sol[0]), float(sol[1]), float(sol[2]))
+            al = a_j[2]
+        alpha[j] = al
+        A[j] = a_j
+        x0, x1, x2 = a_j
+        F[j] = (p00 * x0 + p01 * x1 + p02 * x2 + s0,
+                p10 * x0 + p11 * x1 + p12 * x2 + s1,
+                p20 * x0 + p21 * x1 + p22 * x2 + s2)
+    return A, F, alpha
+
+
+def _driven_alpha(model: PlanarModel, t: float) -> list:
+    alpha_d = [0.0] * model.n_bodies
+    for i, _, _, acceleration in model.driven(t):
+        alpha_d[i] = acceleration
+    return alpha_d
+
+
+def coordinate_accelerations(model: PlanarModel, A: np.ndarray) -> np.ndarray:
+    """Map body accelerations ``(nb, 3)`` to the generalised-coordinate accelerations."""
+    qddot = np.empty(model.n_coordinates)
+    cb = model.coordinate_bodies
+    qddot[model.theta_index[cb]] = A[cb, 2]
+    fb = model.free_bodies
+    if len(fb):
+        qddot[model.xy_index[fb, 0]] = A[fb, 0]
+        qddot[model.xy_index[fb, 1]] = A[fb, 1]
+    return qddot
+
+
+# ------------------------------------------------------------------------------------------
+# public forward dynamics
+# ------------------------------------------------------------------------------------------
+def solve_instant(model: PlanarModel, q, qdot, t: float = 0.0) -> InstantaneousSolution:
+    """Forward dynamics at one instant by the acceleration-based TMM (one O(n) sweep).
+
+    Parameters
+    ----------
+    model : PlanarModel
+        The chain or tree.
+    q, qdot : array_like, shape (n_coordinates,)
+        Generalised coordinates [rad, m] and their rates, ordered as ``model.coordinates``.
+    t : float
+        Time [s] (for loads, hinge references and driven hinges).
+
+    Returns
+    -------
+    InstantaneousSolution
+        Coordinate accelerations, body accelerations and joint forces.
+    """
+    q = np.asarray(q, dtype=float)
+    qdot = np.asarray(qdot, dtype=float)
+    theta, omega = model.body_angles(q, qdot, t)
+    K, b, E, _ = body_terms(model, theta, omega, t)
+    tau = hinge_torques(model, theta, omega, t)
+    nb = model.n_bodies
+    A, F, alpha = riccati_kernel(model.parent.tolist(), model.joint_kind.tolist(), K.tolist(),
+                                 b.tolist(), E.tolist(), [0.0] * nb, tau.tolist(),
+                                 _driven_alpha(model, t))
+    A = np.array(A)
+    return InstantaneousSolution(coordinate_accelerations(model, A), A, np.array(F),
+                                 np.array(alpha))
+
+
+def accelerations(model: PlanarModel, q, qdot, t: float = 0.0) -> np.ndarray:
+    """Generalised accelerations ``qddot(q, qdot, t)`` by the O(n) acceleration TMM.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from ctmm.planar import PlanarModel, Pinned, RigidBody, accelerations
+    >>> model = PlanarModel.chain("p", [Pinned("o"), RigidBody.uniform_link("l", mass=1.0,
+    ...                                                                    length=1.0)])
+    >>> float(accelerations(model, [0.0], [0.0])[0])   # -3 g / (2 L) for a horizontal rod
+    -14.715
+    """
+    return solve_instant(model, q, qdot, t).qddot
+
+
+def ode_rhs(model: PlanarModel) -> Callable[[float, np.ndarray], np.ndarray]:
+    """Right-hand side ``f(t, y)`` with ``y = [q, qdot]`` for RK4 or ``scipy.integrate.solve_ivp``."""
+    n = model.n_coordinates
+
+    def rhs(t: float, y: np.ndarray) -> np.ndarray:
+        out = np.empty(2 * n)
+        out[:n] = y[n:]
+        out[n:] = accelerations(model, y[:n], y[n:], t)
+        return out
+
+    return rhs
+
+
+__all__ = ["InstantaneousSolution", "solve_instant", "accelerations", "ode_rhs",
+           "riccati_kernel", "body_terms", "hinge_torques", "coordinate_accelerations"]
