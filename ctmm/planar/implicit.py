@@ -1,0 +1,209 @@
+"""Implicit DT-TMM for planar chains and trees: Newmark / generalized-alpha + Newton.
+
+Each step solves the nonlinear equations of motion at ``t_{n+1}`` with the integrator's
+relations (FORMULAS 3.1, 3.5; Arnold & Bruls' form of generalized-alpha, which keeps the
+equations of motion exact at ``t_{n+1}``):
+
+``a_{n+1} = ((1 - af) qdd_{n+1} + af qdd_n - am a_n) / (1 - am)``,
+``q_{n+1} = q_n + h v_n + h^2 (1/2 - beta) a_n + h^2 beta a_{n+1}``,
+``v_{n+1} = v_n + h (1 - gamma) a_n + h gamma a_{n+1}``
+
+so ``q = q_hat + beta' h^2 qdd`` and ``v = v_hat + gamma' h qdd`` with
+``beta' = beta (1-af)/(1-am)``, ``gamma' = gamma (1-af)/(1-am)`` (Newmark: ``am = af = 0``).
+
+Hinge laws are linear in the hinge angle and rate, hence exactly implicit:
+``tau = tau_tilde - kappa alpha`` with ``kappa = k beta' h^2 + c gamma' h`` (FORMULAS 3.4).
+The geometric nonlinearity (``R(theta)``, ``omega^2``) is solved by **Newton's method**: the
+body relations ``A_O = X(theta) A_I + c(theta, omega)`` and
+``F_I = K(theta) A_I + b(theta, omega) + sum X^T(theta) F_O`` are linearised about the
+current iterate with ``d theta = beta' h^2 d alpha``, ``d omega = gamma' h d alpha``; the
+linearised relations keep the transfer form (only the third column of ``X`` and of ``K``
+change), so each Newton iteration is one O(n) Riccati sweep (:func:`riccati_kernel`) with a
+non-symmetric articulated matrix.  Convergence is quadratic.
+"""
+from __future__ import annotations
+
+import time as _time
+from typing import Any
+
+import numpy as np
+
+from .. import validation
+from ..errors import ConvergenceError, ModelError
+from .integrate import PlanarSimulation, _initial, _steps
+from .model import PlanarModel
+from .sweep import (body_terms, coordinate_accelerations, hinge_torques, riccati_kernel,
+                    solve_instant)
+
+
+def _scheme_parameters(scheme: Any) -> tuple[float, float, float, float]:
+    try:
+        beta, gamma = float(scheme.beta), float(scheme.gamma)
+    except AttributeError:
+        raise ModelError(f"scheme must have beta and gamma (Newmark or GeneralizedAlpha), "
+                         f"got {scheme!r}") from None
+    am = float(getattr(scheme, "alpha_m", 0.0))
+    af = float(getattr(scheme, "alpha_f", 0.0))
+    if not (beta > 0 and gamma >= 0 and am < 1 and af < 1):
+        raise ModelError(f"scheme parameters out of range: beta={beta}, gamma={gamma}, "
+                         f"alpha_m={am}, alpha_f={af}")
+    return beta, gamma, am, af
+
+
+class _NewtonStep:
+    """One implicit step: Newton iterations on the O(n) tangent sweep."""
+
+    def __init__(self, model: PlanarModel, bh2: float, gh: float) -> None:
+        self.model = model
+        self.bh2, self.gh = bh2, gh
+        self.parent = model.parent.tolist()
+        self.kind = model.joint_kind.tolist()
+        self.has_parent = model.parent >= 0
+        self.p = np.maximum(model.parent, 0)
+        self.kappa = (model.stiffness * bh2 + model.damping * gh)
+
+    def sweep(self, q, v, t, A, F):
+        """Solve the tangent problem linearised about ``(q, v, A, F)``; returns new A, F."""
+        m = self.model
+        bh2, gh = self.bh2, self.gh
+        theta, omega = m.body_angles(q, v, t)
+        K, b, E, (rcx, rcy, rx, ry) = body_terms(m, theta, omega, t)
+        alpha = A[:, 2]
+        w2 = omega * omega
+        # kinematic column of X: d/dtheta (X A_I + c) = -alpha_p r - w_p^2 k x r ; d/dw = -2 w r
+        p = self.p
+        ap, wp = alpha[p], omega[p]
+        gx = -(ap * rx - w2[p] * ry) * bh2 - 2.0 * wp * rx * gh
+        gy = -(ap * ry + w2[p] * rx) * bh2 - 2.0 * wp * ry * gh
+        gx = np.where(self.has_parent, gx, 0.0)
+        gy = np.where(self.has_parent, gy, 0.0)
+        E[:, 0] += gx
+        E[:, 1] += gy
+        E[:, 4] -= gx * ap
+        E[:, 5] -= gy * ap
+        # third column of K: d F_I / d theta, d F_I / d omega at fixed A_I, F_O
+        mass = m.mass
+        acx = A[:, 0] - alpha * rcy - w2 * rcx
+        acy = A[:, 1] + alpha * rcx - w2 * rcy
+        gvx, gvy = m.gravity
+        hx = mass * (-alpha * rcx + w2 * rcy) * bh2 - 2.0 * mass * omega * rcx * gh
+        hy = mass * (-alpha * rcy - w2 * rcx) * bh2 - 2.0 * mass * omega * rcy * gh
+        ht = (-(rcx * mass * (acx - gvx) + rcy * mass * (acy - gvy))
+              - mass * w2 * (rcx * rcx + rcy * rcy))
+        if len(m.load_body):
+            loads = m.loads(t)
+            lb = m.load_body
+            c, s = np.cos(theta[lb]), np.sin(theta[lb])
+            rex = c * m.load_point[:, 0] - s * m.load_point[:, 1]
+            rey = s * m.load_point[:, 0] + c * m.load_point[:, 1]
+            np.add.at(ht, lb, rex * loads[:, 0] + rey * loads[:, 1])
+        child_term = np.where(self.has_parent, rx * F[:, 0] + ry * F[:, 1], 0.0)
+        np.add.at(ht, p, -child_term)
+        ht *= bh2
+        K[:, 2] += hx
+        K[:, 5] += hy
+        K[:, 8] += ht
+        b[:, 0] -= hx * alpha
+        b[:, 1] -= hy * alpha
+        b[:, 2] -= ht * alpha
+        # exactly implicit hinge laws: tau = tau(iterate) - kappa (alpha_rel - alpha_rel_iterate)
+        tau = hinge_torques(m, theta, omega, t)
+        rel = alpha - np.where(self.has_parent, alpha[p], 0.0)
+        tau_tilde = tau + self.kappa * rel
+        alpha_d = [0.0] * m.n_bodies
+        for i, _, _, acc in m.driven(t):
+            alpha_d[i] = acc
+        A_new, F_new, _ = riccati_kernel(self.parent, self.kind, K.tolist(), b.tolist(),
+                                         E.tolist(), self.kappa.tolist(), tau_tilde.tolist(),
+                                         alpha_d)
+        return np.array(A_new), np.array(F_new)
+
+
+def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: float,
+                      scheme: Any = None, tolerance: float = 1e-10, max_iterations: int = 20,
+                      store_every: int = 1) -> PlanarSimulation:
+    """Implicit DT-TMM (Newmark or generalized-alpha) with Newton iterations per step.
+
+    Parameters
+    ----------
+    model : PlanarModel
+    q0, qdot0 : array_like
+        Initial coordinates and rates.
+    t_final, dt : float
+        End time and step [s]; ``t_final`` a whole multiple of ``dt``.
+    scheme : ctmm.schemes.Newmark or ctmm.schemes.GeneralizedAlpha, optional
+        Default ``Newmark(beta=0.25, gamma=0.5)`` (average acceleration).
+    tolerance : float
+        Newton stops when ``max |delta qdd| <= tolerance * (1 + max |qdd|)``.
+    max_iterations : int
+        Newton iterations allowed per step.
+
+    Returns
+    -------
+    PlanarSimulation
+        With ``iterations`` (Newton sweeps per step).
+
+    Raises
+    ------
+    ConvergenceError
+        Naming the step, time, last residual and iteration count.
+    """
+    if scheme is None:
+        from ..schemes import Newmark
+        scheme = Newmark()
+    beta, gamma, am, af = _scheme_parameters(scheme)
+    tolerance = validation.positive("tolerance", tolerance)
+    if not isinstance(max_iterations, int) or max_iterations < 1:
+        raise ModelError(f"max_iterations must be an integer >= 1, got {max_iterations!r}")
+    q, v = _initial(model, q0, qdot0)
+    n_steps = _steps(t_final, dt)
+    h = t_final / n_steps
+    fac = (1.0 - af) / (1.0 - am)
+    stepper = _NewtonStep(model, beta * fac * h * h, gamma * fac * h)
+    first = solve_instant(model, q, v, 0.0)
+    xdd, A, F = first.qddot.copy(), first.body_acceleration, first.joint_force
+    a = xdd.copy()
+    ts, qs, vs = [0.0], [q.copy()], [v.copy()]
+    iterations = np.zeros(n_steps, dtype=int)
+    start = _time.perf_counter()
+    evaluations = 1
+    for step in range(n_steps):
+        t1 = (step + 1) * h
+        a_known = (af * xdd - am * a) / (1.0 - am)
+        q_hat = q + h * v + h * h * (0.5 - beta) * a + beta * h * h * a_known
+        v_hat = v + h * (1.0 - gamma) * a + gamma * h * a_known
+        x = xdd.copy()
+        residual = np.inf
+        for it in range(1, max_iterations + 1):
+            A, F = stepper.sweep(q_hat + stepper.bh2 * x, v_hat + stepper.gh * x, t1, A, F)
+            evaluations += 1
+            x_new = coordinate_accelerations(model, A)
+            residual = float(np.max(np.abs(x_new - x))) if x.size else 0.0
+            x = x_new
+            if not np.isfinite(residual):
+                break
+            if residual <= tolerance * (1.0 + float(np.max(np.abs(x)))):
+                iterations[step] = it
+                break
+        else:
+            it = max_iterations
+        if iterations[step] == 0:
+            raise ConvergenceError(
+                f"implicit DT-TMM step {step + 1} (t = {t1:.6g} s) did not converge: residual "
+                f"max|delta qdd| = {residual:.3e} after {it} Newton iterations "
+                f"(tolerance {tolerance:g}); reduce dt", time=t1)
+        q = q_hat + stepper.bh2 * x
+        v = v_hat + stepper.gh * x
+        a = fac * x + a_known
+        xdd = x
+        if (step + 1) % store_every == 0 or step + 1 == n_steps:
+            ts.append(t1)
+            qs.append(q.copy())
+            vs.append(v.copy())
+    wall = _time.perf_counter() - start
+    name = type(scheme).__name__
+    return PlanarSimulation(model, np.array(ts), np.array(qs), np.array(vs), f"dt-tmm/{name}",
+                            wall, iterations=iterations, n_evaluations=evaluations)
+
+
+__all__ = ["simulate_implicit"]
