@@ -165,9 +165,12 @@ class SimulationResult:
     system: Any
     scheme_name: str = ""
     info: dict = field(default_factory=dict)
+    extra: dict = field(default_factory=dict)
 
     def __getitem__(self, name: str) -> np.ndarray:
-        """History of one signal by name, e.g. ``result["m1.x"]``."""
+        """History of one signal by name, e.g. ``result["m1.x"]`` or ``result["loop.u"]``."""
+        if name in self.extra:
+            return self.extra[name]
         sig = self.system.signal(name)
         if sig.derivative == 0:
             return self.states[:, sig.point, sig.component]
@@ -176,7 +179,7 @@ class SimulationResult:
 
     def signals(self) -> list[str]:
         """Available signal names."""
-        return self.system.signal_names()
+        return sorted(set(self.system.signal_names()) | set(self.extra))
 
     def to_dataframe(self, names: Sequence[str]):
         """A pandas DataFrame of the named signals indexed by time (pandas optional)."""

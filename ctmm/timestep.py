@@ -33,7 +33,10 @@ from .schemes import History, Scheme, as_scheme
 from .signals import Constant
 from .system import Chain
 
-ForceHook = Callable[[float, History], Mapping[int, float]]
+ForceHook = Callable[[float, float, float, History], Mapping[int, float]]
+"""``hook(t_n, dt, w, history) -> {element position: force [N]}`` at the step's evaluation level
+(``(1 - w) F(t_n) + w F(t_n + dt)``); point elements get a force on their point, connectors
+a force across them."""
 
 
 # -- initial state ----------------------------------------------------------------------
@@ -80,12 +83,15 @@ def initial_state(system: Chain, x0: Mapping[str, float] | None, v0: Mapping[str
     return x[:, None], v[:, None]
 
 
-def _connector_forces(system: Chain, x: np.ndarray, v: np.ndarray) -> dict[int, float]:
+def _connector_forces(system: Chain, x: np.ndarray, v: np.ndarray,
+                      across: Mapping[int, float] | None = None) -> dict[int, float]:
+    """Connector forces on their outboard point, including actuator forces ``across`` them."""
     forces = {}
+    across = across or {}
     for j, e in enumerate(system.body, start=1):
         if isinstance(e, Connector):
             dx = x[j, 0] - x[j - 1, 0] - e.free_length
-            forces[j] = -e.stiffness * dx - e.damping * (v[j, 0] - v[j - 1, 0])
+            forces[j] = -e.stiffness * dx - e.damping * (v[j, 0] - v[j - 1, 0]) + across.get(j, 0.0)
     return forces
 
 
@@ -93,8 +99,8 @@ def initial_acceleration(system: Chain, x: np.ndarray, v: np.ndarray, t0: float,
                          extra_forces: Mapping[int, float] | None = None) -> np.ndarray:
     """Accelerations [m/s^2] of all points from the equations of motion at ``t0``."""
     a = np.zeros_like(x)
-    connector = _connector_forces(system, x, v)
     extra_forces = extra_forces or {}
+    connector = _connector_forces(system, x, v, extra_forces)
     body = system.body
     for j, e in enumerate(body, start=1):
         if not isinstance(e, PointElement) or e.mass == 0.0:
@@ -233,7 +239,8 @@ def _scalar_riccati(U12, U21, u0, u1, fixed_start: bool, S0: float, P0: float, e
 def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str = "newmark",
              x0: Mapping[str, float] | None = None, v0: Mapping[str, float] | None = None,
              t0: float = 0.0, solver: str = "riccati", fast: bool | None = None,
-             force_hook: ForceHook | None = None, progress: bool | None = None) -> SimulationResult:
+             force_hook: ForceHook | None = None, progress: bool | None = None,
+             _step=None, _after_step=None, _system_for_result=None) -> SimulationResult:
     """Simulate a chain with the discrete-time transfer matrix method.
 
     Parameters
@@ -258,8 +265,9 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
         Force (True) or forbid (False) the vectorised lumped-chain path; default: use it when the
         chain qualifies and ``solver == "riccati"``.
     force_hook : callable, optional
-        ``force_hook(t, history) -> {element position: force [N]}``: extra forces on point
-        elements at the evaluation time (used by delayed and co-simulated control).
+        ``force_hook(t_n, dt, w, history) -> {element position: force [N]}``: extra forces at
+        the step's evaluation level (see :data:`ForceHook`; used by delayed and co-simulated
+        control).
     progress : bool, optional
         Show a progress bar (default: only on a terminal for long runs).
 
@@ -290,7 +298,7 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
     if abs(n_steps * dt - (t_final - t0)) > 1e-9 * max(1.0, abs(t_final)):
         raise ModelError(f"(t_final - t0) = {t_final - t0!r} s must be a whole number of steps dt={dt!r}")
     x, v = initial_state(system, x0, v0)
-    extra0 = force_hook(t0, History(x, v, np.zeros_like(x), [x, x])) if force_hook else {}
+    extra0 = force_hook(t0, dt, 0.0, History(x, v, np.zeros_like(x), [x, x])) if force_hook else {}
     a = initial_acceleration(system, x, v, t0, extra0)
     history = History(x.copy(), v.copy(), a.copy(), [x.copy(), x.copy()], 0)
     n_pts = system.n_points
@@ -312,13 +320,19 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
             coeffs = scheme.coefficients(history, dt)
             t_eval = t_n + coeffs.unknown_offset
             w = coeffs.load_weight
-            extra = force_hook(t_n + w * dt, history) if force_hook else {}
-            if fast:
+            extra = force_hook(t_n, dt, w, history) if force_hook else {}
+            if _step is not None:
+                x_new, f_new = _step(coeffs, t_n, dt, w, t_eval, extra, history)
+            elif fast:
                 load = (1.0 - w) * kernel.forces(t_n) + w * kernel.forces(t_n + dt) if w != 1.0 \
                     else kernel.forces(t_n + dt)
+                across = np.zeros(kernel.n)
                 for pos, value in extra.items():
-                    load[pos - 1] += value
-                x_new, f_new = _fast_step(system, kernel, coeffs, load, t_eval, cache)
+                    if kernel.is_point[pos - 1]:
+                        load[pos - 1] += value
+                    else:
+                        across[pos - 1] += value
+                x_new, f_new = _fast_step(system, kernel, coeffs, load, t_eval, cache, across)
             else:
                 x_new, f_new = _generic_step(system, discrete, coeffs, t_n, dt, w, t_eval, extra, solver)
             bad = ~(np.isfinite(x_new) & np.isfinite(f_new))
@@ -333,16 +347,19 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
             states[i + 1, :, :d] = history.x
             states[i + 1, :, d] = scheme.interpolate_force(f_new, f_prev)
             vel[i + 1], acc[i + 1] = history.v, history.a
+            if _after_step is not None:
+                _after_step(i + 1, float(times[i + 1]), history, states[i + 1])
             bar.update(1)
     except SimulationError as exc:
         k = int(np.searchsorted(times, exc.time or times[-1]))
-        exc.partial_result = SimulationResult(times[:k], states[:k], vel[:k], acc[:k], system, scheme.name)
+        exc.partial_result = SimulationResult(times[:k], states[:k], vel[:k], acc[:k],
+                                              _system_for_result or system, scheme.name)
         raise
     finally:
         bar.close()
     info = {"wall_time_s": _time.perf_counter() - started, "n_steps": n_steps, "dt": dt,
             "path": "lumped-fast" if fast else f"generic-{solver}"}
-    return SimulationResult(times, states, vel, acc, system, scheme.name, info)
+    return SimulationResult(times, states, vel, acc, _system_for_result or system, scheme.name, info)
 
 
 def _initial_forces(system: Chain, x: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -357,7 +374,8 @@ def _initial_forces(system: Chain, x: np.ndarray, v: np.ndarray) -> np.ndarray:
     return f
 
 
-def _fast_step(system: Chain, kernel: _LumpedKernel, coeffs, load, t_eval: float, cache: dict):
+def _fast_step(system: Chain, kernel: _LumpedKernel, coeffs, load, t_eval: float, cache: dict,
+               across: np.ndarray | None = None):
     key = (coeffs.cx, coeffs.A, coeffs.C)
     if cache.get("key") != key:
         cache.clear()
@@ -365,6 +383,8 @@ def _fast_step(system: Chain, kernel: _LumpedKernel, coeffs, load, t_eval: float
         cache["const"] = kernel.constant_part(*key)
     U12, U21, k_eff = cache["const"]
     u0, u1 = kernel.affine_part(coeffs, k_eff, load)
+    if across is not None:
+        u0 = u0 + np.where(kernel.is_point, 0.0, across / np.where(kernel.is_point, 1.0, k_eff))
     lin0 = Linearisation(coeffs.cx, coeffs.dx[0, 0], coeffs.A, coeffs.B[0, 0], coeffs.C, coeffs.D[0, 0])
     linN = Linearisation(coeffs.cx, coeffs.dx[-1, 0], coeffs.A, coeffs.B[-1, 0], coeffs.C, coeffs.D[-1, 0])
     _, S0, P0 = system.start.start_discrete(system.layout, t_eval, lin0)
@@ -381,9 +401,9 @@ def _generic_step(system, discrete, coeffs, t_n, dt, w, t_eval, extra, solver):
     Us, us = [], []
     for j, disc in enumerate(discrete, start=1):
         e = disc.element
-        force = 0.0
+        force = extra.get(j, 0.0)
         if isinstance(e, PointElement):
-            force = (1.0 - w) * float(e.force(t_n)) + w * float(e.force(t_n + dt)) + extra.get(j, 0.0)
+            force += (1.0 - w) * float(e.force(t_n)) + w * float(e.force(t_n + dt))
         U, u = disc.step_matrices(t_eval, lins[j - 1], lins[j], force)
         Us.append(np.asarray(U, dtype=float)[None])
         us.append(np.asarray(u, dtype=float).reshape(1, -1))

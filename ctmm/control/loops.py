@@ -292,7 +292,7 @@ class ControlledChain:
         gains = [r.loop.loop_gain(s) for r in self._resolved]
         ref_amp = [refs.get(r.loop.name, {}).get("reference", 0.0) for r in self._resolved]
         return self._extend(s, Us_p, us_p, start_p, end_p, gains, ref_amp,
-                            lambda sig_point, deriv: s ** deriv)
+                                        lambda point, comp, deriv: s ** deriv)
 
     def _extend(self, s, Us_p, us_p, start_p, end_p, gains, ref_amp, derivative_factor,
                 sensing_offset=None):
@@ -314,7 +314,7 @@ class ControlledChain:
             u = np.zeros((nb, n), dtype=dtype)
             for (i, comp, deriv, weight) in sensing_at[point]:
                 row = d0 + 2 * i + 1
-                factor = derivative_factor(point, deriv)
+                factor = derivative_factor(point, comp, deriv)
                 U[:, row, comp] += weight * factor
                 if sensing_offset is not None:
                     u[:, row] += weight * sensing_offset(point, comp, deriv)

@@ -143,11 +143,14 @@ class DiscretePoint(DiscreteElement):
 class Connector(Element):
     """Massless spring ``k`` (free length ``l``) in parallel with a viscous damper ``c``.
 
-    Subclasses only choose which of the data are given; ``k + c > 0`` is required.
+    Subclasses only choose which of the data are given; ``k + c > 0`` is required.  The input
+    ``"force"`` is an actuator acting *across* the connector: ``+F`` on its outboard point and
+    ``-F`` on its inboard point (seed 001 Fig. 9.30), so ``f = -k (dx - l) - c dv + F``.
     """
 
     layout = AXIAL
     is_point = False
+    inputs = ("force",)
 
     def __init__(self, name: str, *, stiffness: float = 0.0, damping: float = 0.0,
                  free_length: float = 0.0) -> None:
@@ -170,6 +173,13 @@ class Connector(Element):
         with np.errstate(divide="ignore", invalid="ignore"):
             U[..., 0, 1] = -1.0 / self.connector_stiffness(s)
         return U
+
+    def load_vector(self, s: np.ndarray, amplitudes: Mapping[str, Any]) -> np.ndarray:
+        self.check_inputs(amplitudes)
+        u = np.zeros(np.shape(s) + (2,), dtype=complex)
+        if "force" in amplitudes:
+            u[..., 0] = amplitudes["force"] / self.connector_stiffness(s)
+        return u
 
     def discretize(self, scheme: Any) -> "DiscreteConnector":
         return DiscreteConnector(self)
@@ -236,5 +246,5 @@ class DiscreteConnector(DiscreteElement):
         U = np.eye(2)
         U[0, 1] = -1.0 / k_eff
         u = np.array([(e.stiffness * e.free_length - e.stiffness * (outboard.dx - inboard.dx)
-                       - e.damping * (outboard.B - inboard.B)) / k_eff, 0.0])
+                       - e.damping * (outboard.B - inboard.B) + force) / k_eff, 0.0])
         return U, u

@@ -1,0 +1,400 @@
+"""Time-domain simulation of controlled chains (seed 001 §9.6; FORMULAS §5.1-5.2).
+
+How each loop of a :class:`~ctmm.control.loops.ControlledChain` enters the DT-TMM step:
+
+* **real time** (``delay < dt``): implicit, through the extended state of
+  :mod:`ctmm.control.loops` with the integrator's linearisation of the sensed quantity
+  (``x = cx x + dx``, ``v = A x + B``, ``a = C x + D``) -- no lag.  A delay ``0 < tau < dt`` is
+  the linear interpolation between the previous value and the unknown one, so the implicit gain
+  is ``K (1 - tau/dt_e)`` plus a known force (``dt_e`` = distance to the evaluation time);
+* **time delay** (``delay >= dt``): ``u = -K y(t - tau)`` is known from the stored history and
+  enters as an external force (§9.6.2); between stored steps the history is interpolated by
+  cubic Hermite polynomials (``y`` and its derivative) or linearly for accelerations and forces,
+  which keeps the integrator's second order; before ``t0`` the history is the initial value;
+* **LTI controllers** ``C(s)`` are realised by the trapezoidal (Tustin) rule on the step grid,
+  which is second order and adds no lag: ``u_{n+1} = g e_{n+1} + (known)`` is embedded like a gain.
+
+Co-simulated controllers (Python objects or FMUs, :class:`~ctmm.control.protocol.Controller`)
+are sampled at their sample time (a multiple of ``dt``) with a zero-order hold.  A controller
+with direct feedthrough that reads an acceleration or an internal force -- which depend on its
+own output at the same instant -- forms an algebraic loop: it is reported (``ModelError``)
+unless ``coupling="previous"`` explicitly accepts the one-sample lag.
+"""
+from __future__ import annotations
+
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from .. import validation
+from ..assembly import SOLVERS
+from ..elements.base import Linearisation
+from ..elements.lumped import PointElement
+from ..errors import ModelError, SimulationError
+from ..results import SimulationResult
+from ..schemes import History, as_scheme
+from ..signals import as_signal
+from ..system import Chain
+from ..timestep import simulate as simulate_plant
+from .loops import ControlledChain, Feedback
+from .protocol import Controller
+
+
+class _TustinLTI:
+    """Trapezoidal realisation of a SISO ``C(s)``: ``u_{n+1} = gain * e_{n+1} + offset(state, e_n)``."""
+
+    def __init__(self, system: Any, dt: float) -> None:
+        import control
+
+        ss = control.ss(system)
+        A, B, C, D = (np.atleast_2d(np.asarray(m, dtype=float)) for m in (ss.A, ss.B, ss.C, ss.D))
+        n = A.shape[0]
+        self.n = n
+        if n == 0:
+            self.M1 = np.zeros((0, 0))
+            self.M2 = np.zeros((0, 1))
+            self.C = np.zeros((1, 0))
+        else:
+            left = np.eye(n) - 0.5 * dt * A
+            self.M1 = np.linalg.solve(left, np.eye(n) + 0.5 * dt * A)
+            self.M2 = np.linalg.solve(left, 0.5 * dt * B)
+            self.C = C
+        self.D = float(D[0, 0])
+        self.gain = float((self.C @ self.M2)[0, 0]) + self.D if n else self.D
+
+    def offset(self, state: np.ndarray, e_n: float) -> float:
+        if self.n == 0:
+            return 0.0
+        return float((self.C @ (self.M1 @ state + self.M2[:, 0] * e_n))[0])
+
+    def advance(self, state: np.ndarray, e_n: float, e_next: float) -> np.ndarray:
+        if self.n == 0:
+            return state
+        return self.M1 @ state + self.M2[:, 0] * (e_n + e_next)
+
+
+class _History:
+    """Stored sensed values of one loop, interpolated at any past time."""
+
+    def __init__(self, t0: float, y0: float, dy0: float | None) -> None:
+        self.t = [t0]
+        self.y = [y0]
+        self.dy = [dy0]
+
+    def append(self, t: float, y: float, dy: float | None) -> None:
+        self.t.append(t)
+        self.y.append(y)
+        self.dy.append(dy)
+
+    def __call__(self, t: float) -> float:
+        ts = self.t
+        if t <= ts[0]:
+            return self.y[0]
+        if t >= ts[-1]:
+            if t - ts[-1] > 1e-9 * max(1.0, abs(t)):
+                raise SimulationError(f"delay history requested at t={t} beyond the last step {ts[-1]}")
+            return self.y[-1]
+        k = int(np.searchsorted(ts, t)) - 1
+        k = min(max(k, 0), len(ts) - 2)
+        h = ts[k + 1] - ts[k]
+        x = (t - ts[k]) / h
+        y0, y1, d0, d1 = self.y[k], self.y[k + 1], self.dy[k], self.dy[k + 1]
+        if d0 is None or d1 is None:
+            return (1 - x) * y0 + x * y1
+        h00 = 2 * x ** 3 - 3 * x ** 2 + 1
+        h10 = x ** 3 - 2 * x ** 2 + x
+        h01 = -2 * x ** 3 + 3 * x ** 2
+        h11 = x ** 3 - x ** 2
+        return h00 * y0 + h10 * h * d0 + h01 * y1 + h11 * h * d1
+
+
+def _sense(terms, x: np.ndarray, v: np.ndarray, a: np.ndarray, f: np.ndarray, d: int):
+    """Sensed value and its time derivative (None when unknown) from point arrays."""
+    y, dy = 0.0, 0.0
+    for point, comp, deriv, weight in terms:
+        if comp >= d:  # force component
+            y += weight * f[point]
+            dy = None
+            continue
+        series = (x, v, a)
+        y += weight * series[deriv][point, comp]
+        if dy is not None:
+            dy = dy + weight * series[deriv + 1][point, comp] if deriv < 2 else None
+    return y, dy
+
+
+def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: float, *,
+                        scheme: Any = "newmark", x0: Mapping[str, float] | None = None,
+                        v0: Mapping[str, float] | None = None, t0: float = 0.0,
+                        references: Mapping[str, Any] | None = None,
+                        controllers: Sequence[Controller] = (), coupling: str = "hold",
+                        progress: bool | None = None) -> SimulationResult:
+    """Simulate a chain closed by embedded loops and/or co-simulated controllers.
+
+    Parameters
+    ----------
+    system : ControlledChain or Chain
+        Plant with embedded :class:`~ctmm.control.loops.Feedback` loops (or a bare chain when
+        only co-simulated controllers are used).
+    t_final, dt : float
+        End time and step [s].
+    scheme : Scheme or str
+        DT-TMM integrator (see :func:`ctmm.simulate`).
+    x0, v0 : mapping, optional
+        Initial positions / velocities by element name.
+    references : mapping, optional
+        ``{loop name: r(t)}`` reference signals (default 0): ``u = -C (y - r)``.
+    controllers : sequence of Controller
+        Co-simulated controllers (Python objects, FMUs) with their sample times.
+    coupling : {"hold", "previous"}
+        ``"hold"``: zero-order hold, algebraic loops are errors; ``"previous"``: accept the
+        one-sample lag of an algebraic loop explicitly.
+
+    Returns
+    -------
+    SimulationResult
+        With loop signals ``"<loop>.y"`` (sensed value) and ``"<loop>.u"`` (control force), and
+        each controller output under its signal name.
+    """
+    controlled = system if isinstance(system, ControlledChain) else ControlledChain(system, [])
+    plant = controlled.plant
+    scheme = as_scheme(scheme)
+    dt = validation.positive("dt", dt)
+    if coupling not in ("hold", "previous"):
+        raise ModelError(f"coupling must be 'hold' or 'previous', got {coupling!r}")
+    d = plant.layout.half
+    refs = {}
+    for name, value in (references or {}).items():
+        controlled.loop(name)
+        refs[name] = as_signal(f"reference of loop {name!r}", value)
+    loops = controlled._resolved
+    realtime = [r for r in loops if r.loop.delay < dt]
+    delayed = [r for r in loops if r.loop.delay >= dt]
+    lti = {r.index: _TustinLTI(r.loop.gain, dt) for r in loops if r.loop.is_lti}
+    ctrl_state = {i: np.zeros(m.n) for i, m in lti.items()}
+    cosim = _CoSimulation(controlled, controllers, dt, coupling, t0)
+    hist: dict[int, _History] = {}
+    u_prev: dict[int, float] = {}
+    e_prev: dict[int, float] = {}
+    store = {"t": [], "y": {r.index: [] for r in loops}, "u": {r.index: [] for r in loops}}
+
+    def error_at(r, t: float) -> float:
+        ref = refs.get(r.loop.name)
+        return hist[r.index](t) - (float(ref(t)) if ref is not None else 0.0)
+
+    def delayed_force(r, t: float) -> float:
+        """u(t) = -C[e(t - tau)] for a history loop (controller advanced on the step grid)."""
+        e_d = error_at(r, t - r.loop.delay)
+        if r.index in lti:
+            m = lti[r.index]
+            return -(m.gain * e_d + m.offset(ctrl_state[r.index], e_prev[r.index]))
+        return -r.loop.gain * e_d
+
+    def force_hook(t_n: float, h: float, w: float, history: History) -> dict[int, float]:
+        forces: dict[int, float] = {}
+        if not hist:  # initial call: start histories
+            x, v, a = history.x, history.v, history.a
+            for r in loops:
+                y, dy = _sense(r.sensing, x, v, a, np.zeros(plant.n_points), d)
+                hist[r.index] = _History(t0, y, dy)
+                ref = refs.get(r.loop.name)
+                e_prev[r.index] = y - (float(ref(t0)) if ref is not None else 0.0)
+                u_prev[r.index] = -(r.loop.gain if not r.loop.is_lti else lti[r.index].D) * e_prev[r.index]
+            forces = dict(cosim.forces(t_n, history, None))
+            for r in loops:
+                forces[r.actuator_pos] = forces.get(r.actuator_pos, 0.0) + u_prev[r.index]
+            return forces
+        for r in delayed:
+            u_new = delayed_force(r, t_n + h)
+            u_eval = (1.0 - w) * u_prev[r.index] + w * u_new
+            forces[r.actuator_pos] = forces.get(r.actuator_pos, 0.0) + u_eval
+            _pending[r.index] = u_new
+        for pos, value in cosim.forces(t_n, history, _last_f[0]).items():
+            forces[pos] = forces.get(pos, 0.0) + value
+        return forces
+
+    _pending: dict[int, float] = {}
+    _last_f = [np.zeros(plant.n_points)]
+    _rt_gain: dict[int, float] = {}
+
+    def step(coeffs, t_n, h, w, t_eval, extra, history):
+        """Extended (real-time loops) DT-TMM step."""
+        lins = [Linearisation(coeffs.cx, float(coeffs.dx[j, 0]), coeffs.A, float(coeffs.B[j, 0]), coeffs.C,
+                              float(coeffs.D[j, 0])) for j in range(plant.n_points)]
+        Us_p, us_p = [], []
+        for j, e in enumerate(plant.body, start=1):
+            force = extra.get(j, 0.0)
+            if isinstance(e, PointElement):
+                force += (1.0 - w) * float(e.force(t_n)) + w * float(e.force(t_n + h))
+            U, u = e.discretize(scheme).step_matrices(t_eval, lins[j - 1], lins[j], force)
+            Us_p.append(np.asarray(U, float)[None])
+            us_p.append(np.asarray(u, float)[None])
+        e_idx, S0, P0 = plant.start.start_discrete(plant.layout, t_eval, lins[0])
+        Bm, b = plant.end.end_discrete(plant.layout, t_eval, lins[-1])
+        from ..assembly import BoundaryEnd, BoundaryStart
+
+        dt_e = coeffs.unknown_offset
+        gains, known_u = [], {}
+        for r in loops:
+            if r.loop.delay >= dt:
+                gains.append(np.zeros(1))
+                continue
+            theta = r.loop.delay / dt_e
+            g = lti[r.index].gain if r.index in lti else r.loop.gain
+            offset = lti[r.index].offset(ctrl_state[r.index], e_prev[r.index]) if r.index in lti else 0.0
+            ref = refs.get(r.loop.name)
+            r_eval = float(ref(t_eval - r.loop.delay)) if ref is not None else 0.0
+            y_old = hist[r.index](t_n) if theta > 0 else 0.0
+            # u = -g [ (1-theta) y_eval + theta y_n - r ] - offset
+            gains.append(np.array([g * (1.0 - theta)]))
+            known_u[r.index] = -g * (theta * y_old - r_eval) - offset
+            _rt_gain[r.index] = g * (1.0 - theta)
+        Us_p = [U.astype(float) for U in Us_p]
+        for r in realtime:  # known part of the real-time control force
+            pos = r.actuator_pos
+            U_el = Us_p[pos - 1]
+            if r.across:
+                us_p[pos - 1] = us_p[pos - 1] + np.array([[-U_el[0, 0, 1] * known_u[r.index], 0.0]])
+            else:
+                us_p[pos - 1] = us_p[pos - 1] + np.array([[0.0, known_u[r.index]]])
+
+        def factor(point, comp, deriv):
+            if comp >= d:
+                return 1.0
+            return (coeffs.cx, coeffs.A, coeffs.C)[deriv]
+
+        def offset_fn(point, comp, deriv):
+            if comp >= d:
+                return 0.0
+            return (coeffs.dx, coeffs.B, coeffs.D)[deriv][point, comp]
+
+        Us, us, start, end = controlled._extend(
+            np.zeros(1), Us_p, us_p, BoundaryStart(e_idx, S0[None], P0[None]),
+            BoundaryEnd(Bm[None], b[None]), gains, [0.0] * len(loops), factor, offset_fn)
+        sol = SOLVERS["riccati"](Us, us, start, end)
+        states = sol.states[np.asarray(controlled.state_index), 0, :]
+        for r in realtime:
+            y_eval = states[-1, plant.layout.size + 2 * r.index]
+            _pending[r.index] = -_rt_gain[r.index] * y_eval + known_u[r.index]
+        return states[:, 0].copy(), states[:, d].copy()
+
+    def after_step(i: int, t: float, history: History, state_row: np.ndarray) -> None:
+        f = state_row[:, d]
+        _last_f[0] = f
+        for r in loops:
+            y, dy = _sense(r.sensing, history.x, history.v, history.a, f, d)
+            hist[r.index].append(t, y, dy)
+            ref = refs.get(r.loop.name)
+            e_now = hist[r.index](t - r.loop.delay) - (float(ref(t - r.loop.delay)) if ref is not None else 0.0)
+            if r.index in lti:
+                ctrl_state[r.index] = lti[r.index].advance(ctrl_state[r.index], e_prev[r.index], e_now)
+                u_now = -(lti[r.index].C @ ctrl_state[r.index] if lti[r.index].n else 0.0) - lti[r.index].D * e_now
+                u_now = float(np.squeeze(u_now))
+            else:
+                u_now = -r.loop.gain * e_now
+            e_prev[r.index] = e_now
+            u_prev[r.index] = u_now
+            store["y"][r.index].append(y)
+            store["u"][r.index].append(u_now)
+        cosim.after_step(t, history, f)
+
+    result = simulate_plant(plant, t_final, dt, scheme=scheme, x0=x0, v0=v0, t0=t0,
+                            force_hook=force_hook, progress=progress,
+                            _step=step if realtime else None, _after_step=after_step,
+                            fast=None if not realtime else False, _system_for_result=controlled)
+    for r in loops:
+        y0 = hist[r.index].y[0]
+        result.extra[f"{r.loop.name}.y"] = np.array([y0] + store["y"][r.index])
+        u0 = -(r.loop.gain if not r.loop.is_lti else lti[r.index].D) * (y0 - (float(refs[r.loop.name](t0))
+                                                                            if r.loop.name in refs else 0.0))
+        result.extra[f"{r.loop.name}.u"] = np.array([u0] + store["u"][r.index])
+    result.extra.update(cosim.outputs())
+    result.info["loops"] = {r.loop.name: ("real-time" if r.loop.delay < dt else "history") for r in loops}
+    result.info["controllers"] = cosim.describe()
+    return result
+
+
+class _CoSimulation:
+    """Sampled co-simulation master for controller objects and FMUs (zero-order hold)."""
+
+    def __init__(self, system: ControlledChain, controllers: Sequence[Controller], dt: float, coupling: str,
+                 t0: float) -> None:
+        self.system = system
+        self.controllers = list(controllers)
+        self.dt = dt
+        self.t0 = t0
+        self.coupling = coupling
+        plant = system.plant
+        self.entries = []
+        for c in self.controllers:
+            if not isinstance(c, Controller):
+                raise ModelError(f"{c!r} does not implement the Controller protocol "
+                                 "(inputs, outputs, sample_time, direct_feedthrough, init, step)")
+            sample = c.sample_time if c.sample_time is not None else dt
+            ratio = sample / dt
+            if abs(ratio - round(ratio)) > 1e-9 * ratio or round(ratio) < 1:
+                raise ModelError(f"controller sample_time={c.sample_time!r} s must be a whole multiple "
+                                 f"of dt={dt!r} s")
+            sensing = [plant.signal(n) for n in c.inputs]
+            actuators = [plant.input(n) for n in c.outputs]
+            algebraic = [n for n, s in zip(c.inputs, sensing)
+                         if s.derivative == 2 or s.component >= plant.layout.half]
+            if c.direct_feedthrough and algebraic and coupling != "previous":
+                raise ModelError(
+                    f"algebraic loop: controller with outputs {list(c.outputs)} has direct feedthrough and "
+                    f"reads {algebraic}, which depend on its own output at the same instant; pass "
+                    "coupling='previous' to accept a one-sample lag, or measure displacement/velocity")
+            self.entries.append({"controller": c, "ratio": int(round(ratio)), "sensing": sensing,
+                                 "actuators": actuators, "state": c.init(t0),
+                                 "held": np.zeros(len(c.outputs)), "log_t": [], "log_u": []})
+        self.step_index = 0
+
+    def _measure(self, sensing, history: History, f: np.ndarray | None) -> np.ndarray:
+        d = self.system.plant.layout.half
+        y = []
+        for s in sensing:
+            if s.component >= d:
+                y.append(0.0 if f is None else float(f[s.point]))
+            else:
+                y.append(float((history.x, history.v, history.a)[s.derivative][s.point, s.component]))
+        return np.array(y)
+
+    def forces(self, t_n: float, history: History, f: np.ndarray | None) -> dict[int, float]:
+        out: dict[int, float] = {}
+        for entry in self.entries:
+            if self.step_index % entry["ratio"] == 0:
+                y = self._measure(entry["sensing"], history, f)
+                try:
+                    result = entry["controller"].step(t_n, y, entry["state"])
+                except SimulationError:
+                    raise
+                except Exception as exc:  # noqa: BLE001 - report which controller failed, when
+                    raise SimulationError(f"controller {entry['controller']!r} failed at t={t_n}: {exc}",
+                                          time=t_n) from exc
+                u, entry["state"] = result[0], result[1]
+                u = np.asarray(u, dtype=float).reshape(-1)
+                if not np.all(np.isfinite(u)):
+                    raise SimulationError(f"controller returned non-finite outputs {u} at t={t_n}", time=t_n)
+                entry["held"] = u
+                entry["log_t"].append(t_n)
+                entry["log_u"].append(u.copy())
+            for act, value in zip(entry["actuators"], entry["held"]):
+                out[act.position] = out.get(act.position, 0.0) + float(value)
+        return out
+
+    def after_step(self, t: float, history: History, f: np.ndarray) -> None:
+        self.step_index += 1
+
+    def outputs(self) -> dict[str, np.ndarray]:
+        res = {}
+        for entry in self.entries:
+            if not entry["log_t"]:
+                continue
+            u = np.array(entry["log_u"])
+            for k, name in enumerate(entry["controller"].outputs):
+                res[f"{name}@samples"] = np.column_stack([entry["log_t"], u[:, k]])
+        return res
+
+    def describe(self) -> list[dict]:
+        return [{"outputs": list(e["controller"].outputs), "inputs": list(e["controller"].inputs),
+                 "sample_time": e["ratio"] * self.dt} for e in self.entries]
