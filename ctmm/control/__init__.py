@@ -1,4 +1,14 @@
-"""Controllers: protocol, embeddable linear laws, delays, Python-object and FMU adapters."""
-from .protocol import Controller, ControllerStep
+"""Controllers: protocol, embedded feedback loops, Python and FMU adapters, co-simulation.
 
-__all__ = ["Controller", "ControllerStep"]
+* :class:`Feedback` / :class:`ControlledChain` -- linear loops embedded in transfer matrices.
+* :func:`simulate_controlled` -- DT-TMM with real-time / delayed loops and co-simulated controllers.
+* :class:`Controller` -- protocol for sampled, stateful or nonlinear controllers (Python, FMU).
+* :class:`FMUController`, :func:`build_fmu` -- FMI 2.0/3.0 co-simulation FMUs through fmpy.
+"""
+from .fmu import FMUController, build_fmu
+from .loops import ControlledChain, Feedback
+from .protocol import Controller, ControllerStep
+from .simulate import simulate_controlled
+
+__all__ = ["Controller", "ControllerStep", "Feedback", "ControlledChain", "simulate_controlled",
+           "FMUController", "build_fmu"]

@@ -298,10 +298,13 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
             store["u"][r.index].append(u_now)
         cosim.after_step(t, history, f)
 
-    result = simulate_plant(plant, t_final, dt, scheme=scheme, x0=x0, v0=v0, t0=t0,
-                            force_hook=force_hook, progress=progress,
-                            _step=step if realtime else None, _after_step=after_step,
-                            fast=None if not realtime else False, _system_for_result=controlled)
+    try:
+        result = simulate_plant(plant, t_final, dt, scheme=scheme, x0=x0, v0=v0, t0=t0,
+                                force_hook=force_hook, progress=progress,
+                                _step=step if realtime else None, _after_step=after_step,
+                                fast=None if not realtime else False, _system_for_result=controlled)
+    finally:
+        cosim.close()
     for r in loops:
         y0 = hist[r.index].y[0]
         result.extra[f"{r.loop.name}.y"] = np.array([y0] + store["y"][r.index])
@@ -394,6 +397,16 @@ class _CoSimulation:
             for k, name in enumerate(entry["controller"].outputs):
                 res[f"{name}@samples"] = np.column_stack([entry["log_t"], u[:, k]])
         return res
+
+    def close(self) -> None:
+        """Release controller resources (e.g. FMU instances) deterministically."""
+        for entry in self.entries:
+            closer = getattr(entry["controller"], "close", None)
+            if callable(closer):
+                try:
+                    closer(entry["state"])
+                except Exception:  # noqa: BLE001 - a failed cleanup must not hide the result
+                    pass
 
     def describe(self) -> list[dict]:
         return [{"outputs": list(e["controller"].outputs), "inputs": list(e["controller"].inputs),
