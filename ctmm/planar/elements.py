@@ -36,6 +36,11 @@ from ..signals import Constant, SignalLike, TimeFunction, as_signal
 Vector2 = tuple[float, float]
 
 
+def _required(label: str, value) -> None:
+    if isinstance(value, float) and math.isnan(value):
+        raise ModelError(f"{label} is required")
+
+
 def _point(name: str, value) -> Vector2:
     array = validation.finite_array(name, value)
     if array.shape != (2,):
@@ -210,6 +215,7 @@ class ElasticHinge(_Hinge):
 
     def __post_init__(self) -> None:
         super().__post_init__()
+        _required(f"{self.name}: stiffness", self.stiffness)
         object.__setattr__(self, "stiffness",
                            validation.positive(f"{self.name}: stiffness", self.stiffness))
         object.__setattr__(self, "rest_angle",
@@ -233,6 +239,7 @@ class DamperHinge(_Hinge):
 
     def __post_init__(self) -> None:
         super().__post_init__()
+        _required(f"{self.name}: damping", self.damping)
         object.__setattr__(self, "damping",
                            validation.positive(f"{self.name}: damping", self.damping))
 
@@ -260,8 +267,10 @@ class SpringDamperHinge(_Hinge):
 
     def __post_init__(self) -> None:
         super().__post_init__()
+        _required(f"{self.name}: stiffness", self.stiffness)
         object.__setattr__(self, "stiffness",
                            validation.positive(f"{self.name}: stiffness", self.stiffness))
+        _required(f"{self.name}: damping", self.damping)
         object.__setattr__(self, "damping",
                            validation.nonnegative(f"{self.name}: damping", self.damping))
         object.__setattr__(self, "rest_angle",
