@@ -65,12 +65,16 @@ class FrequencyResponse:
         return np.unwrap(np.angle(self.response), axis=-1)
 
     def to_control(self):
-        """Convert to :class:`control.FrequencyResponseData` (MIMO if several inputs/outputs)."""
+        """Convert to :class:`control.FrequencyResponseData` (MIMO if several inputs/outputs).
+
+        python-control does not allow ``.`` in signal names: ``"m1.force"`` becomes ``"m1_force"``.
+        """
         import control
 
         data = self.response if self.response.shape[:2] != (1, 1) else self.response[0, 0]
-        return control.frd(data, self.omega, inputs=list(self.inputs), outputs=list(self.outputs),
-                           name=self.system_name or None)
+        clean = lambda names: [n.replace(".", "_") for n in names]  # noqa: E731
+        return control.frd(data, self.omega, inputs=clean(self.inputs), outputs=clean(self.outputs),
+                           name=(self.system_name or "ctmm").replace(".", "_").replace("+", "_"))
 
     def plot(self, ax=None, *, output: str | None = None, input: str | None = None,  # noqa: A002
              phase: bool = True, label: str | None = None):
