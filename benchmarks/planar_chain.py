@@ -7,6 +7,8 @@ h = 1e-3 s.  Error = max over links of |theta_abs(1 s) - theta_ref(1 s)| [rad].
 Methods (all measured in one run, on the same machine):
 
 * ``tmm_rk4``       -- acceleration TMM (O(n) Riccati sweep, pure Python/numpy) + own RK4
+* ``tmm_rk4_compiled`` -- the same sweep and RK4 loop compiled (C via gcc, whole interval in
+                       one call; ``ctmm.planar.compiled``)
 * ``dttmm_newmark`` -- implicit DT-TMM, Newmark(1/4, 1/2), Newton (O(n) tangent sweep)
 * ``lagrange_rk4``  -- global Lagrange model (dense M(q), Cholesky, O(n^3)) + the same RK4;
                        skipped when the estimate exceeds 2 minutes
@@ -41,6 +43,7 @@ if str(ROOT) not in sys.path:
 from ctmm.planar import Pinned, PlanarModel, RigidBody, SmoothHinge  # noqa: E402
 from ctmm.planar.implicit import simulate_implicit  # noqa: E402
 from ctmm.planar.integrate import simulate_rk4, simulate_scipy  # noqa: E402
+from ctmm.planar.compiled import library, simulate_rk4_compiled  # noqa: E402
 from ctmm.reference.planar_lagrange import PlanarLagrange  # noqa: E402
 
 T_FINAL, H, G = 1.0, 1e-3, 9.81
@@ -133,6 +136,9 @@ def run_case(n: int, results: dict, log) -> None:
 
     sim = simulate_rk4(model, q0, v0, t_final=T_FINAL, dt=H, store_every=steps)
     record("tmm_rk4", sim.q[-1], sim.wall_time_s)
+    library()  # compile once, outside the timing
+    sim = simulate_rk4_compiled(model, q0, v0, t_final=T_FINAL, dt=H, store_every=steps)
+    record("tmm_rk4_compiled", sim.q[-1], sim.wall_time_s)
     sim = simulate_implicit(model, q0, v0, t_final=T_FINAL, dt=H, store_every=steps)
     record("dttmm_newmark", sim.q[-1], sim.wall_time_s,
            newton_iterations_mean=float(sim.iterations.mean()),
@@ -214,8 +220,12 @@ def main(argv=None) -> dict:
                "machine": f"{os.cpu_count()}-core {platform.machine()}, Python "
                           f"{platform.python_version()}, numpy {np.__version__}",
                "cases": []}
+    results["load_average_start"] = os.getloadavg()
     for n in ([5, 20] if args.quick else [5, 20, 100, 1000]):
         run_case(n, results, lambda s: print(s, flush=True))
+    results["load_average_end"] = os.getloadavg()
+    results["note"] = ("timings are wall-clock on a shared 2-core machine (other jobs running; see "
+                       "load averages): compare methods within one case, not across runs")
     (out / "planar_chain.json").write_text(json.dumps(results, indent=2) + "\n")
     plot(results, out / "planar_chain.png")
     return results

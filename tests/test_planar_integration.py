@@ -119,3 +119,29 @@ def test_integrator_argument_errors(case):
         simulate_rk4(model, q0, qdot0, t_final=1.0, dt=0.3)
     with pytest.raises(ModelError, match="method must be one of"):
         simulate_scipy(model, q0, qdot0, t_final=1.0, method="Euler")
+
+
+def test_compiled_rk4_equals_python_rk4():
+    """The C kernel is a transcription of the Python sweep: same trajectory (round-off)."""
+    from ctmm.planar import ActuatedHinge, Fixed, PlanarModel, RigidBody, SpringDamperHinge
+    from ctmm.planar.compiled import compiled_accelerations, simulate_rk4_compiled
+    from ctmm.planar.sweep import accelerations
+    fork = RigidBody("fork", mass=1.2, inertia=0.1, center_of_mass=(0.4, 0.1),
+                     outboard={"l": (1.0, 0.3), "r": (0.8, -0.4)})
+    model = PlanarModel("t", [fork, RigidBody.uniform_link("a", mass=0.5, length=0.7),
+                              RigidBody.uniform_link("b", mass=0.4, length=0.5),
+                              Fixed("g", angle=0.3),
+                              SpringDamperHinge("k0", parent="g", child="fork", stiffness=8.0,
+                                                damping=0.2, rest_angle=0.1),
+                              ActuatedHinge("m", parent="fork.l", child="a", torque=0.5, kp=3.0,
+                                            kd=0.1, reference=0.2),
+                              SpringDamperHinge("k2", parent="fork.r", child="b", stiffness=2.0,
+                                                damping=0.05)])
+    q, v = np.array([0.2, 1.0, -0.7]), np.array([0.5, -1.0, 2.0])
+    assert np.max(np.abs(compiled_accelerations(model, q, v) - accelerations(model, q, v))) < 1e-12
+    fast = simulate_rk4_compiled(model, q, v, t_final=0.5, dt=1e-3, store_every=10)
+    slow = simulate_rk4(model, q, v, t_final=0.5, dt=1e-3, store_every=10)
+    assert np.max(np.abs(fast.q - slow.q)) < 1e-12 and np.allclose(fast.t, slow.t)
+    with pytest.raises(ModelError, match="not supported by the compiled kernel"):
+        simulate_rk4_compiled(random_tree(5, 4, chain=True, base="pinned"), [0.0, 0.0],
+                              [0.0, 0.0], t_final=0.1, dt=0.01)
