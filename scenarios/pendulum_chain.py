@@ -42,7 +42,7 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    t_final = 1.0 if quick else 3.0
+    t_final = 0.5 if quick else 3.0
     q0, v0 = np.array([0.3, 0.9, -0.4]), np.zeros(3)
     sys_ = model()
     h = 1e-3
@@ -58,7 +58,7 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     # Newmark ladder at T = 1 s (published values)
     ref1 = PlanarLagrange(sys_).simulate(q0, v0, 1.0, t_eval=[1.0], rtol=1e-12, atol=1e-12).y[:3, -1]
     ladder = {}
-    for dt in PUBLISHED_NEWMARK:
+    for dt in list(PUBLISHED_NEWMARK)[: 2 if quick else 3]:
         sim = simulate_implicit(sys_, q0, v0, t_final=1.0, dt=dt)
         ladder[f"{dt:g}"] = {"error_rad": float(np.max(np.abs(sim.q[-1] - ref1))),
                              "published_rad": PUBLISHED_NEWMARK[dt],
