@@ -93,9 +93,9 @@ class RootSet:
     multiplicities : numpy.ndarray of int
         Multiplicity of each root (roots closer than ``cluster_size`` are reported as one).
     error_estimates : numpy.ndarray of float
-        A-posteriori error bound per root [1/s]: max(last Newton step,
-        (m! |Delta(z)| / |Delta^(m)(z)|)^(1/m)), i.e. the distance at which the evaluation noise
-        of Delta could move a root of multiplicity m.
+        A-posteriori error estimate per root [1/s]: max(last Newton step, (sigma/|a_m|)^(1/m),
+        (|Delta(z)|/|a_m|)^(1/m) if m > 1), with a_m = Delta^(m)(z)/m! and sigma the measured
+        evaluation noise of Delta: how far noise (or an unresolved cluster) can move the root.
     count : int
         Roots in the region by the argument principle (with multiplicity).
     reliable : bool
@@ -124,6 +124,22 @@ class RootSet:
         """All roots repeated according to multiplicity [1/s]."""
         return np.repeat(self.roots, self.multiplicities)
 
+    def plot(self, ax=None):
+        """Scatter the roots in the complex plane (multiple roots annotated); returns the axes."""
+        import matplotlib.pyplot as plt
+
+        if ax is None:
+            _, ax = plt.subplots()
+        ax.plot(self.roots.real, self.roots.imag, "x", label=f"{self.count} roots")
+        for z, m in zip(self.roots, self.multiplicities):
+            if m > 1:
+                ax.annotate(f"x{m}", (z.real, z.imag))
+        ax.axvline(0.0, color="0.6", linewidth=0.8)
+        ax.set_xlabel("Re s [1/s]")
+        ax.set_ylabel("Im s [rad/s]")
+        ax.legend()
+        return ax
+
 
 @dataclass(frozen=True)
 class SpectralAbscissa:
@@ -149,6 +165,13 @@ class SpectralAbscissa:
     root: complex | None
     below_re_min: bool
     roots: RootSet
+
+    @property
+    def stable(self) -> bool:
+        """Every root of the region lies in Re s < 0 (value + error < 0, or no root right of a
+        re_min <= 0), with a reliable search."""
+        inside = self.value + self.error < 0.0 or (self.below_re_min and self.value <= 0.0)
+        return bool(inside and self.roots.reliable)
 
 
 # --------------------------------------------------------------------------------------------

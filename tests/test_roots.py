@@ -52,8 +52,14 @@ def test_hayes_spectral_abscissa_and_conjugate_symmetry():
     assert abs(result.value - HAYES.real) < 1e-10 and result.error < 1e-10
     assert abs(result.root - HAYES) < 1e-10 and not result.below_re_min
     assert result.roots.roots[0] == np.conj(result.roots.roots[1])      # mirrored exactly
+    assert result.stable
     empty = spectral_abscissa(hayes, im_max=10.0, re_min=0.0, re_max=2.0)
-    assert empty.below_re_min and empty.value == 0.0 and empty.root is None
+    assert empty.below_re_min and empty.value == 0.0 and empty.root is None and empty.stable
+    unstable = spectral_abscissa(lambda s: s - 1.2 + np.exp(-s), im_max=10.0, re_min=-1.0,
+                                 re_max=2.0, conjugate_symmetric=True)
+    assert unstable.root.imag == 0.0 and unstable.value > 0 and not unstable.stable
+    ax = result.roots.plot()
+    assert ax.get_xlabel() == "Re s [1/s]"
 
 
 def test_rightmost_roots_without_re_max_uses_a_noted_heuristic():
