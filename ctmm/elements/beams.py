@@ -47,17 +47,20 @@ import scipy.linalg
 
 from .. import validation
 from ..errors import ModelError
-from ..layouts import BENDING
+from ..layouts import BENDING, StateLayout
 from .base import Element
+from .boundary import Boundary, Fixed, Free
 
 __all__ = [
     "BeamField", "BeamPointMass", "BeamSpring", "BeamHinge", "BeamPointLoad",
+    "BeamClamped", "BeamFree", "BeamPinned", "BeamSliding",
     "beam_state_matrix", "clamped_clamped_beta",
 ]
 
 # Series / closed-form switch: max(|m|, |n|) below this uses the Taylor series.
 _SERIES_LIMIT = 2.0
-_SERIES_TERMS = 48
+_SERIES_TERMS = 32
+_INV_FACT = np.array([1.0 / math.factorial(k) for k in range(_SERIES_TERMS)])
 # Near the double root (m^2 + n^2 -> 0) the closed form cancels: fall back to expm.
 _DOUBLE_ROOT_RATIO = 1e-3
 
@@ -104,19 +107,16 @@ def beam_state_matrix(s: complex, bending_stiffness: complex, mass_per_length: f
 
 
 def _phi_series(a: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, ...]:
-    """``p_j = φ^(j)(1)``, j=0..3, by the Taylor series at ξ = 0 (for small |a|, |c|)."""
-    # D_k = φ^(k)(0): D_0 = D_1 = D_2 = 0, D_3 = 1, D_{k+4} = a D_{k+2} + c D_k
-    D = [np.zeros_like(a), np.zeros_like(a), np.zeros_like(a), np.ones_like(a)]
+    """``p_j = φ^(j)(1)``, j=0..3, by the Taylor series at ξ = 0 (for ``max(|m|, |n|) <= 2``).
+
+    ``D_k = φ^(k)(0)``: ``D_0 = D_1 = D_2 = 0``, ``D_3 = 1``, ``D_{k+4} = a D_{k+2} + c D_k``;
+    ``p_j = Σ_k D_{k+j} / k!``.  ``|D_k| <= 2^(k-3)`` here, so 32 terms leave < 1e-20.
+    """
+    D = np.zeros((_SERIES_TERMS + 4,) + a.shape, dtype=complex)
+    D[3] = 1.0
     for k in range(_SERIES_TERMS):
-        D.append(a * D[k + 2] + c * D[k])
-    inv_fact = [1.0 / math.factorial(k) for k in range(_SERIES_TERMS + 1)]
-    out = []
-    for j in range(4):
-        total = np.zeros_like(a)
-        for k in range(_SERIES_TERMS):
-            total = total + D[k + j] * inv_fact[k]
-        out.append(total)
-    return tuple(out)
+        D[k + 4] = a * D[k + 2] + c * D[k]
+    return tuple(_INV_FACT @ D[j:j + _SERIES_TERMS] for j in range(4))
 
 
 def _sinhc(z: np.ndarray) -> np.ndarray:
@@ -296,9 +296,9 @@ class BeamField(Element):
                 "viscous_damping": self.viscous_damping}
 
     @property
-    def is_damped(self) -> bool:
-        """True when any damping parameter is non-zero."""
-        return bool(self.loss_factor or self.kelvin_voigt_time or self.viscous_damping)
+    def is_conservative(self) -> bool:
+        """False when any damping parameter is non-zero (checked by ``natural_frequencies``)."""
+        return not (self.loss_factor or self.kelvin_voigt_time or self.viscous_damping)
 
     def effective_bending_stiffness(self, s: Any) -> np.ndarray:
         """``EI* = EI (1 + i η sgn(Im s) + τ s)`` [N m^2] over ``s``."""
@@ -483,6 +483,11 @@ class BeamSpring(Element):
                     self.rotational_damping)):
             raise ModelError(f"{name}: all spring and damper constants are 0; give at least one > 0")
 
+    @property
+    def is_conservative(self) -> bool:
+        """False when a damper is present."""
+        return not (self.translational_damping or self.rotational_damping)
+
     def parameters(self) -> dict[str, Any]:
         return {"translational": self.translational, "rotational": self.rotational,
                 "translational_damping": self.translational_damping,
@@ -513,6 +518,11 @@ class BeamHinge(Element):
         self.rotational_stiffness = validation.positive(f"{name}: rotational_stiffness",
                                                         rotational_stiffness)
         self.damping = validation.nonnegative(f"{name}: damping", damping)
+
+    @property
+    def is_conservative(self) -> bool:
+        """False when the hinge has a damper."""
+        return not self.damping
 
     def parameters(self) -> dict[str, Any]:
         return {"rotational_stiffness": self.rotational_stiffness, "damping": self.damping}
@@ -546,3 +556,97 @@ class BeamPointLoad(Element):
         u[..., 2] = amplitudes.get("force", 0.0)
         u[..., 3] = amplitudes.get("moment", 0.0)
         return u
+
+
+# ----------------------------------------------------------------------------------------
+# boundaries of the bending layout
+class BeamClamped(Fixed):
+    """Clamped beam end: ``w = 0``, ``theta = 0`` (shear and moment unknown)."""
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name)
+        self.layout = BENDING
+
+
+class BeamFree(Free):
+    """Free beam end: ``shear = 0``, ``moment = 0`` (deflection and slope unknown)."""
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name)
+        self.layout = BENDING
+
+
+class _MixedBeamBoundary(Boundary):
+    """Beam end where one displacement and the non-conjugate force vanish.
+
+    ``zero_components`` names the two components that are zero (at the start they are the
+    known half ``z_f = 0``; at the end they are the conditions ``Bm z = 0``).  Such a boundary
+    is neither "all displacements known" nor "all forces known": code that only understands
+    those two kinds reads :attr:`known` and gets a :class:`~ctmm.errors.ModelError` instead
+    of a silently wrong model.
+    """
+
+    zero_components: tuple[str, str] = ()  # type: ignore[assignment]
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name)
+        self.layout = BENDING
+
+    @property  # type: ignore[override]
+    def known(self) -> str:
+        raise ModelError(
+            f"boundary {self.name!r} ({type(self).__name__}) fixes {' and '.join(self.zero_components)}: "
+            "a mixed displacement/force condition that this solver does not support yet "
+            "(supported: BeamClamped/Fixed, BeamFree/Free, Elastic)")
+
+    def _stiffness(self, s):
+        return self.known  # raises: no uniform support stiffness
+
+    def known_indices(self, layout: StateLayout) -> list[int]:
+        """Indices of the components that are zero at this boundary."""
+        if layout.name != BENDING.name:
+            raise ModelError(f"boundary {self.name!r} needs the bending layout, got {layout.name!r}")
+        return [layout.index(c) for c in self.zero_components]
+
+    @property
+    def constrained_displacements(self) -> tuple[str, ...]:
+        """Displacement components held at zero (the others have zero conjugate force)."""
+        return tuple(c for c in self.zero_components if c in BENDING.displacements)
+
+    def unknown_indices(self, layout: StateLayout) -> list[int]:
+        known = self.known_indices(layout)
+        return [i for i in range(layout.size) if i not in known]
+
+    def start(self, layout: StateLayout, s: Any, amplitudes: Mapping[str, Any]):
+        """Start relation: the two zero components, ``z_f = 0`` (``S0 = 0``, ``P0 = 0``)."""
+        self.check_inputs(amplitudes)
+        s = np.asarray(s, dtype=complex)
+        S0 = np.zeros(s.shape + (2, 2), dtype=complex)
+        P0 = np.zeros(s.shape + (2,), dtype=complex)
+        return self.unknown_indices(layout), S0, P0
+
+    def end(self, layout: StateLayout, s: Any, amplitudes: Mapping[str, Any]):
+        """End conditions ``Bm z = 0`` selecting the two zero components."""
+        self.check_inputs(amplitudes)
+        s = np.asarray(s, dtype=complex)
+        Bm = np.zeros(s.shape + (2, layout.size), dtype=complex)
+        for row, index in enumerate(self.known_indices(layout)):
+            Bm[..., row, index] = 1.0
+        return Bm, np.zeros(s.shape + (2,), dtype=complex)
+
+    def start_discrete(self, layout, t, lin):
+        raise ModelError(f"boundary {self.name!r}: beam boundaries have no time-domain form yet")
+
+    end_discrete = start_discrete
+
+
+class BeamPinned(_MixedBeamBoundary):
+    """Pinned (simply supported) beam end: ``w = 0``, ``moment = 0``."""
+
+    zero_components = ("w", "moment")
+
+
+class BeamSliding(_MixedBeamBoundary):
+    """Sliding (guided) beam end: ``theta = 0``, ``shear = 0``."""
+
+    zero_components = ("theta", "shear")
