@@ -1,0 +1,439 @@
+"""Frequency-domain analysis of controlled chains: closed loops, loop transfer functions, margins.
+
+Loop transfer function and sign convention
+------------------------------------------
+A :class:`~ctmm.control.loops.Feedback` loop applies ``u = -C(s) e^{-s tau} (y - r)`` at its
+actuator (negative feedback).  Breaking the loop at the actuator, injecting a force ``u`` there
+and reading what the controller sends back gives ``-L(s) u`` with
+
+    L(s) = C(s) e^{-s tau} P_yu(s),
+
+where ``P_yu`` is the response of the loop's sensed value ``y`` to a unit actuator force with
+*this* loop removed and every other loop of the system closed.  The closed-loop characteristic
+equation of the loop is ``1 + L(s) = 0``, so with the usual Nyquist criterion the closed loop is
+stable iff the Nyquist curve of ``L`` (``omega`` from ``-inf`` to ``inf``) encircles ``-1``
+counter-clockwise as many times as ``L`` has right-half-plane poles -- in particular, for a
+stable ``P_yu`` (a damped chain with stable other loops) and a stable ``C``: iff it does **not**
+encircle ``-1``.
+
+Margins (:func:`margins`): gain margin ``1/|L(i w_pc)|`` at the phase crossovers
+(``L`` real negative), phase margin ``180 deg + arg L(i w_gc)`` at the gain crossovers
+(``|L| = 1``), and the **delay margin** -- the smallest extra loop delay that puts ``L`` on
+``-1`` -- ``min_gc PM_gc / w_gc`` (``PM`` in rad, taken in ``[0, 2 pi)``).  python-control's
+``stability_margins`` on the FRD of a dense grid locates the crossovers; each is then refined
+by Brent's method on the exact TMM ``L(i w)`` (no interpolation error left).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Callable, Sequence
+
+import numpy as np
+from scipy.optimize import brentq
+
+from .. import validation
+from ..errors import ModelError
+from ..frequency import frequency_response
+from ..results import FrequencyResponse
+from .loops import ControlledChain
+
+__all__ = ["closed_loop_response", "loop_transfer_function", "open_loop_plant", "Margins", "margins",
+           "bode_plot", "nyquist_plot"]
+
+
+def _omega(omega: Any) -> np.ndarray:
+    w = np.atleast_1d(validation.finite_array("omega", omega))
+    if w.ndim != 1 or w.size == 0:
+        raise ModelError(f"omega must be a non-empty 1-D array [rad/s], got shape {w.shape}")
+    if np.any(w < 0):
+        raise ModelError(f"omega must be >= 0 [rad/s], got min {w.min()!r}")
+    return w
+
+
+def closed_loop_response(system: Any, omega: Any, inputs: str | Sequence[str],
+                         outputs: str | Sequence[str]) -> FrequencyResponse:
+    """Closed-loop frequency response of a (controlled) chain (thin wrapper of
+    :func:`ctmm.frequency_response`).
+
+    Parameters
+    ----------
+    system : Chain or ControlledChain
+    omega : array_like
+        Angular frequencies [rad/s].
+    inputs, outputs : str or sequence of str
+        Input names (``"m4.force"``, ``"<loop>.reference"``) and output signal names
+        (``"m2.x"``, ``"<loop>.u"``, ...).
+    """
+    return frequency_response(system, omega, input=inputs, output=outputs)
+
+
+def open_loop_plant(system: ControlledChain, loop: str, omega: Any) -> np.ndarray:
+    """``P_yu(i omega)``: sensed value of ``loop`` per unit force of its actuator, with this loop
+    removed and all other loops closed [sensed unit / N]."""
+    if not isinstance(system, ControlledChain):
+        raise ModelError(f"a loop transfer function needs a ControlledChain, got {system!r}")
+    w = _omega(omega)
+    lp = system.loop(loop)
+    others = [other for other in system.loops if other.name != lp.name]
+    open_system = system.with_loops(others) if others else system.plant
+    signals = list(dict.fromkeys(sig for sig, _ in lp.terms))
+    frf = frequency_response(open_system, w, input=f"{lp.actuator}.force", output=signals)
+    P = np.zeros(w.size, dtype=complex)
+    for sig, weight in lp.terms:
+        P = P + weight * frf(sig)
+    return P
+
+
+def loop_transfer_function(system: ControlledChain, loop: str, omega: Any) -> FrequencyResponse:
+    """Open loop ``L(i omega) = C(i omega) e^{-i omega tau} P_yu(i omega)`` broken at the actuator.
+
+    Parameters
+    ----------
+    system : ControlledChain
+    loop : str
+        Loop name.
+    omega : array_like
+        Angular frequencies [rad/s].
+
+    Returns
+    -------
+    FrequencyResponse
+        Input ``"<loop>.u"``, output ``"<loop>.L"`` (dimensionless); negative feedback: the
+        closed loop is stable iff the Nyquist curve of ``L`` does not encircle ``-1`` (for
+        stable ``P_yu`` and ``C``; see the module docstring).
+
+    Examples
+    --------
+    >>> import numpy as np, ctmm
+    >>> from ctmm.elements import Fixed, Damper, Mass, Free
+    >>> from ctmm.control import Feedback, ControlledChain
+    >>> plant = ctmm.Chain("lag", [Fixed("wall"), Damper("c", 1.0), Mass("m", 1.0), Free("end")])
+    >>> system = ControlledChain(plant, [Feedback("speed", "m.v", "m", gain=2.0)])
+    >>> L = loop_transfer_function(system, "speed", [1.0])
+    >>> complex(np.round(L("speed.L")[0], 12))       # 2 / (i + 1)
+    (1-1j)
+    """
+    w = _omega(omega)
+    lp = system.loop(loop) if isinstance(system, ControlledChain) else None
+    P = open_loop_plant(system, loop, w)
+    L = lp.loop_gain(1j * w) * P
+    return FrequencyResponse(w, L[None, None, :], (f"{lp.name}.u",), (f"{lp.name}.L",),
+                             f"L_{lp.name}")
+
+
+# ------------------------------------------------------------------------------- margins
+@dataclass(frozen=True)
+class Margins:
+    """Stability margins of a loop transfer function ``L`` (negative feedback).
+
+    Attributes
+    ----------
+    gain_margin : float
+        Smallest ``1/|L(i w_pc)|`` over the phase crossovers (``inf`` if none) [-].
+    phase_margin : float
+        Smallest ``180 + arg L(i w_gc)`` over the gain crossovers [deg] (``inf`` if none).
+    delay_margin : float
+        Smallest extra delay that destabilises: ``min PM_gc [rad] / w_gc`` [s] (``inf`` if no
+        gain crossover).
+    gain_crossover_frequency, phase_crossover_frequency : float
+        Frequencies [rad/s] of the returned phase and gain margins (``nan`` if none).
+    delay_crossover_frequency : float
+        Gain crossover [rad/s] that sets the delay margin.
+    stability_margin : float
+        ``min |1 + L|`` on the grid (refined) [-]; ``stability_margin_frequency`` [rad/s].
+    gain_crossovers, phase_margins, phase_crossovers, gain_margins, delay_margins : tuple
+        All crossovers found in the frequency range, ascending, with their margins.
+    """
+
+    gain_margin: float
+    phase_margin: float
+    delay_margin: float
+    gain_crossover_frequency: float
+    phase_crossover_frequency: float
+    delay_crossover_frequency: float
+    stability_margin: float
+    stability_margin_frequency: float
+    gain_crossovers: tuple = field(default=())
+    phase_margins: tuple = field(default=())
+    phase_crossovers: tuple = field(default=())
+    gain_margins: tuple = field(default=())
+    delay_margins: tuple = field(default=())
+
+    def as_dict(self) -> dict:
+        """Plain ``dict`` (JSON-friendly, tuples as lists)."""
+        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
+
+
+def _refine(fun: Callable[[float], float], w: np.ndarray, w_est: float) -> float:
+    """Root of ``fun`` near ``w_est`` by Brent's method in a grid bracket (or ``w_est`` itself)."""
+    k = int(np.clip(np.searchsorted(w, w_est), 1, w.size - 1))
+    for lo, hi in ((k - 1, k), (max(k - 2, 0), min(k + 1, w.size - 1)), (max(k - 3, 0), min(k + 2, w.size - 1))):
+        a, b = float(w[lo]), float(w[hi])
+        fa, fb = fun(a), fun(b)
+        if fa == 0.0:
+            return a
+        if fb == 0.0:
+            return b
+        if np.isfinite(fa) and np.isfinite(fb) and fa * fb < 0:
+            return float(brentq(fun, a, b, xtol=1e-14 * max(1.0, b), rtol=4 * np.finfo(float).eps, maxiter=200))
+    return float(w_est)
+
+
+def _grid_roots(values: np.ndarray, w: np.ndarray, keep: np.ndarray | None = None) -> list[float]:
+    """Linear-interpolation estimates of the sign changes of ``values`` on the grid."""
+    roots = []
+    for k in range(w.size - 1):
+        a, b = values[k], values[k + 1]
+        if a == 0.0 and (keep is None or keep[k]):
+            roots.append(float(w[k]))
+        elif a * b < 0 and (keep is None or keep[k] or keep[k + 1]):
+            roots.append(float(w[k] - a * (w[k + 1] - w[k]) / (b - a)))
+    return roots
+
+
+def _dedupe(values: Sequence[float], tol: float = 1e-9) -> list[float]:
+    out: list[float] = []
+    for v in sorted(values):
+        if not out or abs(v - out[-1]) > tol * max(1.0, abs(v)):
+            out.append(v)
+    return out
+
+
+def margins(source: Any, loop: str | None = None, omega: Any = None) -> Margins:
+    """Gain, phase, stability and delay margins of a loop.
+
+    Parameters
+    ----------
+    source : ControlledChain or FrequencyResponse or control.FrequencyResponseData
+        A controlled chain (with ``loop`` and ``omega``: ``L`` is computed by
+        :func:`loop_transfer_function` and crossovers are refined on the exact ``L``), or a SISO
+        loop transfer function given as data (refinement then interpolates the data, so use a
+        dense grid).
+    loop : str, optional
+        Loop name (with a controlled chain).
+    omega : array_like, optional
+        Dense frequency grid [rad/s] covering all crossovers (with a controlled chain).
+
+    Returns
+    -------
+    Margins
+
+    Notes
+    -----
+    The crossovers are located with :func:`control.stability_margins` on the FRD (``returnall``)
+    and, as a safeguard, by sign changes on the grid; each is refined by Brent's method.  Only
+    crossovers inside the grid are found.
+    """
+    import control
+
+    if isinstance(source, ControlledChain):
+        if loop is None or omega is None:
+            raise ModelError("margins(system, loop, omega): give the loop name and a frequency grid [rad/s]")
+        w = _omega(omega)
+        lp = source.loop(loop)
+        L = loop_transfer_function(source, loop, w)("{}.L".format(lp.name))
+
+        def evaluate(x: float) -> complex:
+            return complex(loop_transfer_function(source, loop, [x])(f"{lp.name}.L")[0])
+    else:
+        if loop is not None or omega is not None:
+            raise ModelError("margins(data) takes no loop/omega: they come with the data")
+        if isinstance(source, FrequencyResponse):
+            if source.response.shape[:2] != (1, 1):
+                raise ModelError("margins needs a SISO loop transfer function")
+            w, L = np.asarray(source.omega, float), source.response[0, 0]
+        elif isinstance(source, control.FrequencyResponseData):
+            if source.ninputs != 1 or source.noutputs != 1:
+                raise ModelError("margins needs a SISO loop transfer function")
+            w = np.asarray(source.omega, float)
+            L = np.asarray(source.frequency_response(w).complex, complex).reshape(-1)
+        else:
+            raise ModelError(f"margins needs a ControlledChain, FrequencyResponse or FRD, got {source!r}")
+        frd_smooth = control.frd(L, w, smooth=True)
+
+        def evaluate(x: float) -> complex:
+            return complex(np.asarray(frd_smooth(1j * x)).reshape(-1)[0])
+    order = np.argsort(w)
+    w, L = w[order], L[order]
+    if w.size < 4:
+        raise ModelError("margins needs a frequency grid with at least 4 points")
+    pos = w > 0
+    wg, Lg = w[pos], L[pos]
+    # python-control first (crossover estimates on the smoothed FRD), grid sign changes second
+    with np.errstate(all="ignore"):
+        try:
+            gm_pc, pm_pc, sm_pc, wpc_pc, wgc_pc, wms_pc = control.stability_margins(
+                control.frd(Lg, wg), returnall=True)
+        except Exception:  # noqa: BLE001 - fall back on the grid estimates
+            wpc_pc, wgc_pc = [], []
+    wpc_pc = [float(x) for x in np.atleast_1d(wpc_pc) if np.isfinite(x) and wg[0] <= x <= wg[-1]]
+    wgc_pc = [float(x) for x in np.atleast_1d(wgc_pc) if np.isfinite(x) and wg[0] <= x <= wg[-1]]
+    mag1 = np.abs(Lg) - 1.0
+    gc_est = wgc_pc + _grid_roots(mag1, wg)
+    pc_est = wpc_pc + _grid_roots(np.imag(Lg), wg, keep=np.real(Lg) < 0)
+
+    def f_mag(x: float) -> float:
+        return abs(evaluate(x)) - 1.0
+
+    def f_imag(x: float) -> float:
+        return evaluate(x).imag
+
+    gcs = _dedupe([_refine(f_mag, wg, x) for x in gc_est])
+    pcs = _dedupe([_refine(f_imag, wg, x) for x in pc_est])
+    gcs = [x for x in gcs if abs(f_mag(x)) < 1e-6]
+    pcs = [x for x in pcs if evaluate(x).real < 0 and abs(f_imag(x)) < 1e-6 * max(1.0, abs(evaluate(x)))]
+    pms = []
+    dms = []
+    for x in gcs:
+        pm = 180.0 + math.degrees(np.angle(evaluate(x)))
+        pm = (pm + 180.0) % 360.0 - 180.0  # in [-180, 180)
+        pms.append(pm)
+        dms.append(math.radians(pm % 360.0) / x)
+    gms = [1.0 / abs(evaluate(x)) for x in pcs]
+    # stability margin: min |1 + L| on the grid, refined by a bounded scalar search
+    dist = np.abs(1.0 + Lg)
+    k = int(np.argmin(dist))
+    from scipy.optimize import minimize_scalar
+
+    lo, hi = wg[max(k - 1, 0)], wg[min(k + 1, wg.size - 1)]
+    if hi > lo:
+        res = minimize_scalar(lambda x: abs(1.0 + evaluate(x)), bounds=(lo, hi), method="bounded",
+                              options={"xatol": 1e-12 * hi})
+        sm, wsm = (float(res.fun), float(res.x)) if res.fun <= dist[k] else (float(dist[k]), float(wg[k]))
+    else:
+        sm, wsm = float(dist[k]), float(wg[k])
+    i_pm = int(np.argmin(np.abs(pms))) if pms else None
+    i_gm = int(np.argmin(np.abs(np.log(gms)))) if gms else None
+    i_dm = int(np.argmin(dms)) if dms else None
+    return Margins(
+        gain_margin=gms[i_gm] if i_gm is not None else math.inf,
+        phase_margin=pms[i_pm] if i_pm is not None else math.inf,
+        delay_margin=dms[i_dm] if i_dm is not None else math.inf,
+        gain_crossover_frequency=gcs[i_pm] if i_pm is not None else math.nan,
+        phase_crossover_frequency=pcs[i_gm] if i_gm is not None else math.nan,
+        delay_crossover_frequency=gcs[i_dm] if i_dm is not None else math.nan,
+        stability_margin=sm, stability_margin_frequency=wsm,
+        gain_crossovers=tuple(gcs), phase_margins=tuple(pms), phase_crossovers=tuple(pcs),
+        gain_margins=tuple(gms), delay_margins=tuple(dms))
+
+
+# ------------------------------------------------------------------------------- plots
+def _responses(frfs: Any) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    items = frfs if isinstance(frfs, (list, tuple)) else [frfs]
+    curves = []
+    for item in items:
+        if not isinstance(item, FrequencyResponse):
+            raise ModelError(f"expected FrequencyResponse objects, got {item!r}")
+        for o in item.outputs:
+            for i in item.inputs:
+                label = f"{item.system_name}: {i} -> {o}" if item.system_name else f"{i} -> {o}"
+                curves.append((label, item.omega, item(o, i)))
+    return curves
+
+
+def bode_plot(responses: Any, *, margins: Margins | None = None, title: str | None = None,
+              hz: bool = False, axes: Any = None):
+    """Bode plot (magnitude [dB], phase [deg]) of one or more :class:`FrequencyResponse`.
+
+    Parameters
+    ----------
+    responses : FrequencyResponse or sequence of them
+        Every input/output pair is drawn.
+    margins : Margins, optional
+        Mark the gain and phase crossovers of a loop transfer function.
+    title : str, optional
+        Figure title.
+    hz : bool
+        Frequency axis in Hz instead of rad/s.
+    axes : pair of matplotlib axes, optional
+        Draw into these (magnitude, phase) axes.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib.pyplot as plt
+
+    if axes is None:
+        fig, axes = plt.subplots(2, 1, sharex=True, figsize=(7.5, 5.5))
+    else:
+        fig = axes[0].figure
+    scale = 1.0 / (2 * np.pi) if hz else 1.0
+    for label, w, h in _responses(responses):
+        axes[0].semilogx(w * scale, 20 * np.log10(np.abs(h) + 1e-300), label=label)
+        axes[1].semilogx(w * scale, np.degrees(np.unwrap(np.angle(h))), label=label)
+    if margins is not None:
+        for wc in margins.gain_crossovers:
+            axes[0].axvline(wc * scale, color="k", lw=0.6, ls=":")
+            axes[1].axvline(wc * scale, color="k", lw=0.6, ls=":")
+        for wp in margins.phase_crossovers:
+            axes[1].axvline(wp * scale, color="r", lw=0.6, ls=":")
+        axes[0].axhline(0.0, color="k", lw=0.6)
+        text = (f"GM = {20 * np.log10(margins.gain_margin):.2f} dB, PM = {margins.phase_margin:.1f} deg, "
+                f"DM = {margins.delay_margin * 1e3:.2f} ms" if np.isfinite(margins.gain_margin)
+                else f"GM = inf, PM = {margins.phase_margin:.1f} deg, DM = {margins.delay_margin * 1e3:.2f} ms")
+        axes[0].set_title(text, fontsize=9)
+    axes[0].set_ylabel("magnitude [dB]")
+    axes[1].set_ylabel("phase [deg]")
+    axes[1].set_xlabel("frequency [Hz]" if hz else "omega [rad/s]")
+    for ax in axes:
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].legend(fontsize=7)
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
+def nyquist_plot(responses: Any, *, margins: Margins | None = None, title: str | None = None, ax: Any = None,
+                 mirror: bool = True):
+    """Nyquist plot of loop transfer functions with the critical point ``-1``.
+
+    Parameters
+    ----------
+    responses : FrequencyResponse or sequence of them
+        SISO loop transfer functions (e.g. from :func:`loop_transfer_function`).
+    margins : Margins, optional
+        Mark the gain-crossover points on the unit circle and the phase crossovers.
+    mirror : bool
+        Also draw the negative-frequency branch (complex conjugate, dashed).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib.pyplot as plt
+
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(6, 6))
+    else:
+        fig = ax.figure
+    theta = np.linspace(0, 2 * np.pi, 361)
+    ax.plot(np.cos(theta), np.sin(theta), color="0.7", lw=0.8)
+    for label, w, h in _responses(responses):
+        line, = ax.plot(h.real, h.imag, label=label)
+        if mirror:
+            ax.plot(h.real, -h.imag, ls="--", color=line.get_color(), lw=0.8)
+        k = max(1, h.size // 3)
+        if h.size > k + 1:
+            ax.annotate("", xy=(h[k + 1].real, h[k + 1].imag), xytext=(h[k].real, h[k].imag),
+                        arrowprops=dict(arrowstyle="->", color=line.get_color()))
+    ax.plot([-1.0], [0.0], "r+", ms=12, mew=2, label="-1")
+    if margins is not None:
+        for pm in margins.phase_margins:
+            ang = np.radians(pm - 180.0)
+            ax.plot(np.cos(ang), np.sin(ang), "ko", ms=4)
+        for gm in margins.gain_margins:
+            ax.plot(-1.0 / gm, 0.0, "rs", ms=4)
+    ax.axhline(0, color="k", lw=0.5)
+    ax.axvline(0, color="k", lw=0.5)
+    ax.set_xlabel("Re L")
+    ax.set_ylabel("Im L")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7)
+    if title:
+        ax.set_title(title)
+    return fig
+

@@ -1,0 +1,289 @@
+"""Control tools: python-control export, loop transfer functions and margins, the design cache.
+
+References: the TMM closed loop itself for the export and the cache (metamorphic: the same
+closed loop computed another way), closed-form margins of a first-order lag with delay
+(``L = k e^{-s tau} / (m s + c)``), the global closed-loop eigenvalues
+(``ctmm.reference.delay_chain.closed_loop_roots``) for the gain margin, and the exact
+characteristic function on the imaginary axis for the delay margin.
+"""
+from __future__ import annotations
+
+import math
+
+import control
+import matplotlib
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+from scipy.optimize import brentq
+
+import ctmm
+from ctmm.control import ControlledChain, Feedback
+from ctmm.control.analysis import (bode_plot, closed_loop_response, loop_transfer_function, margins,
+                                   nyquist_plot, open_loop_plant)
+from ctmm.control.design import PlantCache
+from ctmm.elements import Damper, Elastic, Fixed, Free, GroundedSpring, Mass, PrescribedDisplacement, Spring, SpringDamper
+from ctmm.errors import ModelError, UnknownNameError
+from ctmm.interop import assemble_matrices, control_name, to_frd, to_state_space
+from ctmm.reference.delay_chain import closed_loop_roots
+
+from test_controlled_frequency import OMEGA, build, random_setup, relative_error
+
+S = control.tf("s")
+
+
+def seed_setup(loops=()):
+    return build([1.0, 1.5, 2.0], [100.0, 80.0, 120.0, 0.0], [0.5, 0.3, 0.4, 0.0], [0.0] * 3,
+                 start="fixed", end="free", loops=loops)
+
+
+# --------------------------------------------------------------------------- state space
+def ss_response(ss, omega) -> np.ndarray:
+    """``C (i w I - A)^{-1} B + D`` by batched dense solves, shape (outputs, inputs, n_omega)."""
+    A, B, C, D = (np.asarray(m, dtype=float) for m in (ss.A, ss.B, ss.C, ss.D))
+    shifted = 1j * omega[:, None, None] * np.eye(A.shape[0]) - A
+    H = C @ np.linalg.solve(shifted, np.broadcast_to(B, (omega.size,) + B.shape)) + D
+    return np.moveaxis(H, 0, -1)
+
+
+def exotic_plant() -> ctmm.Chain:
+    """Massless junctions (damped and undamped), grounded spring, elastic end, across actuator."""
+    return ctmm.Chain("exotic", [
+        Fixed("ground"), SpringDamper("k1", 100.0, 0.5), Mass("m2", 1.0), SpringDamper("k3", 100.0, 0.5),
+        Mass("m4", 1.0), Spring("k5a", 200.0), Damper("c5b", 1.0), Mass("m6", 1.0),
+        GroundedSpring("g6", 10.0, damping=0.1), Spring("k7", 50.0), Spring("k8", 30.0),
+        Elastic("end", 5.0, damping=0.2)])
+
+
+@pytest.mark.parametrize("n_loops", [0, 1, 3])
+def test_state_space_frf_equals_tmm_frf(n_loops):
+    loops = [Feedback("l1", "m6.x", "m2", gain=5.0),
+             Feedback("l2", [("m4.v", 1.0), ("m2.v", -1.0)], "k3", gain=control.tf([2, 1], [0.1, 1])),
+             Feedback("l3", "m2.a", "m6", gain=0.3)][:n_loops]
+    plant = exotic_plant()
+    system = ControlledChain(plant, loops) if loops else plant
+    inputs = ["m2.force", "m4.force", "k3.force", "k7.force"] + [f"{lp.name}.reference" for lp in loops]
+    outputs = ["m2.x", "m4.v", "m6.a", "k3.f", "m2.f", "k5a.f", "c5b.f", "g6.f", "k7.f", "k8.x", "k8.f",
+               "m6.f"] + [f"{lp.name}.{q}" for lp in loops for q in "yu"]
+    ss = to_state_space(system, inputs=inputs, outputs=outputs)
+    assert ss.input_labels == [control_name(n) for n in inputs]
+    assert ss.output_labels == [control_name(n) for n in outputs]
+    H = ss(1j * OMEGA)
+    tmm = ctmm.frequency_response(system, OMEGA, input=inputs, output=outputs).response
+    error = np.abs(H - tmm) / np.max(np.abs(tmm), axis=2, keepdims=True)
+    assert np.max(error) < 1e-10
+
+
+@settings(max_examples=10, deadline=None, derandomize=True)
+@given(st.integers(0, 2**31 - 1))
+def test_state_space_of_random_controlled_chains(seed):
+    setup = random_setup(seed, delays=False)
+    n = setup.chain.size
+    inputs = [f"m{i}.force" for i in range(n)]
+    outputs = [f"m{i}.x" for i in range(n)] + [f"{lp.name}.u" for lp in setup.loops]
+    ss = to_state_space(setup.system, inputs=inputs, outputs=outputs)
+    tmm = ctmm.frequency_response(setup.system, OMEGA, input=inputs, output=outputs).response
+    assert relative_error(ss_response(ss, OMEGA), tmm) < 1e-10
+    # eigenvalues of the realisation are the closed-loop roots of the global reference
+    ref = closed_loop_roots(setup.chain, setup.global_loops)
+    poles = ss.poles()
+    assert poles.size == ref.size
+    for root in ref:
+        assert np.min(np.abs(poles - root)) < 1e-7 * max(1.0, abs(root))
+
+
+def test_assembled_matrices_of_the_seed_chain():
+    M, C, K, point_dof = assemble_matrices(seed_setup().plant)
+    np.testing.assert_array_equal(np.diag(M), [1.0, 1.5, 2.0])
+    np.testing.assert_array_equal(K, [[180.0, -80.0, 0.0], [-80.0, 200.0, -120.0], [0.0, -120.0, 120.0]])
+    np.testing.assert_array_equal(C, [[0.8, -0.3, 0.0], [-0.3, 0.7, -0.4], [0.0, -0.4, 0.4]])
+    assert point_dof[0] == -1
+
+
+def test_state_space_errors():
+    setup = seed_setup([(2, "displacement", 0, 5.0, 0.05, None, False)])
+    with pytest.raises(ModelError, match="delay.*to_frd.*pade"):
+        to_state_space(setup.system)
+    base = ctmm.Chain("base", [PrescribedDisplacement("base"), SpringDamper("k", 10.0, 0.1), Mass("m", 1.0),
+                               Free("end")])
+    with pytest.raises(ModelError, match="force inputs only"):
+        to_state_space(base, inputs="base.displacement", outputs="m.x")
+    with pytest.raises(UnknownNameError, match="available"):
+        to_state_space(seed_setup().plant, inputs="m7.force", outputs="m0.x")
+    with pytest.raises(UnknownNameError, match="available"):
+        to_state_space(seed_setup().plant, inputs="m0.force", outputs="m0.q")
+
+
+def test_default_state_space_signals():
+    setup = seed_setup([(2, "displacement", 0, 5.0, 0.0, None, False)])
+    ss = to_state_space(setup.system)
+    assert ss.input_labels == ["m0_force", "m1_force", "m2_force"]
+    assert ss.output_labels == ["m0_x", "m1_x", "m2_x", "loop0_y", "loop0_u"]
+    assert ss.nstates == 6
+
+
+def test_to_frd_from_response_and_system():
+    setup = seed_setup([(2, "displacement", 0, 5.0, 0.05, None, False)])
+    frf = ctmm.frequency_response(setup.system, OMEGA, input="m1.force", output=["m0.x", "loop0.u"])
+    frd = to_frd(frf)
+    assert frd.input_labels == ["m1_force"] and frd.output_labels == ["m0_x", "loop0_u"]
+    np.testing.assert_array_equal(frd.frdata, frf.response)
+    siso = to_frd(setup.system, OMEGA, inputs="m1.force", outputs="m0.x")
+    np.testing.assert_array_equal(np.asarray(siso.frdata).reshape(-1), frf("m0.x"))
+    with pytest.raises(ModelError, match="needs omega"):
+        to_frd(setup.system)
+    with pytest.raises(ModelError, match="takes no"):
+        to_frd(frf, OMEGA)
+
+
+def test_closed_loop_response_wraps_frequency_response():
+    setup = seed_setup([(2, "displacement", 0, 5.0, 0.05, None, False)])
+    a = closed_loop_response(setup.system, OMEGA, "m1.force", ["m0.x", "m2.x"])
+    b = ctmm.frequency_response(setup.system, OMEGA, input="m1.force", output=["m0.x", "m2.x"])
+    np.testing.assert_array_equal(a.response, b.response)
+
+
+# ------------------------------------------------------------------ loop transfer function
+def test_loop_transfer_function_convention():
+    """Closed loop y/r = L/(1 + L) and u/r = K/(1 + L) with the other loops closed."""
+    setup = seed_setup([(2, "displacement", 0, 5.0, 0.05, None, False),
+                        (1, "velocity", 1, 3.0, 0.0, 0, True)])
+    L = loop_transfer_function(setup.system, "loop0", OMEGA)("loop0.L")
+    closed = ctmm.frequency_response(setup.system, OMEGA, input="loop0.reference", output=["loop0.y", "loop0.u"])
+    np.testing.assert_allclose(closed("loop0.y"), L / (1 + L), rtol=1e-11)
+    K = 5.0 * np.exp(-0.05j * OMEGA)
+    np.testing.assert_allclose(closed("loop0.u"), K / (1 + L), rtol=1e-11)
+    np.testing.assert_allclose(L, K * open_loop_plant(setup.system, "loop0", OMEGA), rtol=1e-14)
+
+
+def test_gain_margin_predicts_the_stability_boundary():
+    """Scaling the gain by GM (1 -+ 1e-3) moves a closed-loop root pair across the axis."""
+    setup = seed_setup([(2, "displacement", 0, 20.0, 0.0, None, False),
+                        (1, "velocity", 1, 0.5, 0.0, None, False)])
+    result = margins(setup.system, "loop0", np.linspace(0.5, 40.0, 800))
+    assert np.isfinite(result.gain_margin) and result.gain_margin > 1.0
+    for factor, stable in ((1 - 1e-3, True), (1 + 1e-3, False)):
+        loops = [setup.global_loops[0].__class__(2, "displacement", 0, 20.0 * result.gain_margin * factor),
+                 setup.global_loops[1]]
+        roots = closed_loop_roots(setup.chain, loops)
+        assert (np.max(roots.real) < 0) == stable
+        if not stable:  # the crossing root sits at the phase-crossover frequency
+            crossing = roots[np.argmax(roots.real)]
+            assert abs(abs(crossing.imag) - result.phase_crossover_frequency) < 1e-2
+
+
+def first_order_lag(m=2.0, c=1.0, k=5.0, tau=0.1):
+    plant = ctmm.Chain("lag", [Fixed("wall"), Damper("c", c), Mass("m", m), Free("end")])
+    return ControlledChain(plant, [Feedback("speed", "m.v", "m", gain=k, delay=tau)])
+
+
+def test_margins_of_first_order_lag_with_delay_closed_form():
+    """L = k e^{-s tau}/(m s + c): w_gc = sqrt(k^2 - c^2)/m, PM = pi - atan(m w_gc / c) - w_gc tau,
+    DM = PM / w_gc; phase crossover atan(m w_pc / c) + w_pc tau = pi, GM = |m i w_pc + c| / k."""
+    m, c, k, tau = 2.0, 1.0, 5.0, 0.1
+    system = first_order_lag(m, c, k, tau)
+    result = margins(system, "speed", np.logspace(-2, 2, 600))
+    wgc = math.sqrt(k * k - c * c) / m
+    pm = math.pi - math.atan(m * wgc / c) - wgc * tau
+    wpc = brentq(lambda w: math.atan(m * w / c) + w * tau - math.pi, 1e-3, 1e3)
+    assert result.gain_crossover_frequency == pytest.approx(wgc, rel=1e-12)
+    assert result.phase_margin == pytest.approx(math.degrees(pm), rel=1e-11)
+    assert result.delay_margin == pytest.approx(pm / wgc, rel=1e-11)
+    assert result.phase_crossover_frequency == pytest.approx(wpc, rel=1e-11)
+    assert result.gain_margin == pytest.approx(math.hypot(c, m * wpc) / k, rel=1e-11)
+    assert result.gain_crossovers == (result.gain_crossover_frequency,)
+    # the extra delay DM puts a characteristic root exactly on the imaginary axis at w_gc
+    at_boundary = ControlledChain(system.plant, [system.loop("speed").with_parameters(delay=tau + pm / wgc)])
+    delta = ctmm.characteristic_function(at_boundary, [1j * wgc, 1j * wgc * 1.1])
+    assert abs(delta[0]) < 1e-12 * abs(delta[1])
+    # the same margins from data: python-control FRD and ctmm FrequencyResponse (interpolated)
+    L = loop_transfer_function(system, "speed", np.logspace(-2, 2, 1500))
+    for data in (L, to_frd(L)):
+        approx = margins(data)
+        assert approx.phase_margin == pytest.approx(math.degrees(pm), rel=1e-6)
+        assert approx.gain_margin == pytest.approx(math.hypot(c, m * wpc) / k, rel=1e-6)
+        assert approx.delay_margin == pytest.approx(pm / wgc, rel=1e-6)
+    # python-control itself on the exported FRD agrees
+    gm, pm_pc, _, _, wgc_pc, _ = control.stability_margins(to_frd(L))
+    assert pm_pc == pytest.approx(math.degrees(pm), rel=1e-4) and wgc_pc == pytest.approx(wgc, rel=1e-4)
+
+
+def test_margins_without_crossovers_and_errors():
+    system = first_order_lag(k=0.5)               # |L| < 1 everywhere: no gain crossover
+    result = margins(system, "speed", np.logspace(-2, 2, 200))
+    assert math.isinf(result.phase_margin) and math.isinf(result.delay_margin)
+    assert math.isnan(result.gain_crossover_frequency)
+    with pytest.raises(ModelError, match="loop name and a frequency grid"):
+        margins(system)
+    with pytest.raises(UnknownNameError, match="unknown loop 'x'.*speed"):
+        margins(system, "x", [1.0, 2.0, 3.0, 4.0])
+    with pytest.raises(ModelError, match="ControlledChain"):
+        loop_transfer_function(system.plant, "speed", [1.0])
+
+
+def test_plots_return_figures(tmp_path):
+    matplotlib.use("Agg")
+    system = first_order_lag()
+    L = loop_transfer_function(system, "speed", np.logspace(-2, 2, 300))
+    result = margins(system, "speed", L.omega)
+    fig = bode_plot(L, margins=result, title="first-order lag")
+    assert len(fig.axes) == 2
+    fig.savefig(tmp_path / "bode.png")
+    fig = nyquist_plot([L], margins=result)
+    fig.savefig(tmp_path / "nyquist.png")
+    assert (tmp_path / "bode.png").stat().st_size > 0
+
+
+# -------------------------------------------------------------------------- design cache
+@settings(max_examples=10, deadline=None, derandomize=True)
+@given(st.integers(0, 2**31 - 1))
+def test_plant_cache_equals_embedded_closed_loop(seed):
+    setup = random_setup(seed)
+    system = setup.system
+    rng = np.random.default_rng(seed + 7)
+    n = setup.chain.size
+    inputs = [f"m{int(rng.integers(n))}.force", "loop0.reference"]
+    outputs = [f"m{i}.x" for i in range(n)] + ["loop0.y", "loop0.u"] + (["k1.f"] if n > 1 or setup.plant.elements[1].name == "k0" else [])
+    cache = PlantCache(system, OMEGA, inputs=inputs, outputs=outputs)
+    # new gains (float and LTI) and delays, no TMM sweep
+    new_gains = {"loop0": float(rng.uniform(0.5, 1.5)) * (system.loops[0].gain or 1.0)}
+    if len(system.loops) > 1:
+        new_gains[system.loops[1].name] = control.tf([float(rng.uniform(0.1, 1)), 1.0], [0.05, 1.0])
+    new_delays = {system.loops[-1].name: float(rng.uniform(0, 0.05))}
+    fast = cache.closed_loop(gains=new_gains, delays=new_delays)
+    loops = [lp.with_parameters(gain=new_gains.get(lp.name), delay=new_delays.get(lp.name)) for lp in system.loops]
+    direct = ctmm.frequency_response(system.with_loops(loops), OMEGA, input=inputs, output=outputs)
+    scale = np.max(np.abs(direct.response), axis=2, keepdims=True)
+    assert np.max(np.abs(fast.response - direct.response) / scale) < 1e-10
+    # loop transfer function with the others closed
+    for lp in loops:
+        a = cache.loop_transfer(lp.name, gains=new_gains, delays=new_delays)(f"{lp.name}.L")
+        b = loop_transfer_function(system.with_loops(loops), lp.name, OMEGA)(f"{lp.name}.L")
+        assert relative_error(a, b) < 1e-10
+
+
+def test_plant_cache_unchanged_gains_and_response_arrays():
+    setup = seed_setup([(2, "displacement", 0, 5.0, 0.05, None, False)])
+    cache = PlantCache(setup.system, OMEGA, inputs="m1.force", outputs="m0.x")
+    direct = ctmm.frequency_response(setup.system, OMEGA, input="m1.force", output="m0.x")
+    assert relative_error(cache.closed_loop().response, direct.response) < 1e-12
+    # C(i w) given as an array (e.g. measured controller data)
+    pd = 5.0 + 0.3j * OMEGA
+    via_array = cache.closed_loop(gains={"loop0": pd})
+    via_lti = cache.closed_loop(gains={"loop0": control.tf([0.3, 5.0], [1.0])})
+    assert relative_error(via_array.response, via_lti.response) < 1e-14
+
+
+def test_plant_cache_errors():
+    setup = seed_setup([(2, "displacement", 0, 5.0, 0.0, None, False)])
+    with pytest.raises(ModelError, match="ControlledChain"):
+        PlantCache(setup.plant, OMEGA, inputs="m1.force", outputs="m0.x")
+    cache = PlantCache(setup.system, OMEGA, inputs="m1.force", outputs="m0.x")
+    with pytest.raises(UnknownNameError, match="unknown loop 'nope'.*loop0"):
+        cache.closed_loop(gains={"nope": 1.0})
+    with pytest.raises(ModelError, match="delay must be >= 0"):
+        cache.closed_loop(delays={"loop0": -1.0})
+    with pytest.raises(ModelError, match="gain must be finite"):
+        cache.closed_loop(gains={"loop0": math.nan})
+    with pytest.raises(UnknownNameError, match="available"):
+        PlantCache(setup.system, OMEGA, inputs="m1.force", outputs="loop0.z")
