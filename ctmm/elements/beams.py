@@ -374,34 +374,32 @@ class BeamField(Element):
         beta = L * (rhoA * omega ** 2 / EI) ** 0.25
         if self.axial_force == 0.0:
             return _count_clamped_beta(beta).astype(np.int64)
-        flat = omega.ravel()
-        counts = np.array([self._clamped_count_subdivided(w) for w in flat], dtype=np.int64)
-        return counts.reshape(omega.shape)
+        return self._clamped_count_subdivided(omega.ravel()).reshape(omega.shape)
 
-    def _clamped_count_subdivided(self, omega: float) -> int:
+    def _clamped_count_subdivided(self, omega: np.ndarray) -> np.ndarray:
+        """Sturm count of the interior-node dynamic stiffness of ``N`` equal pieces (batched)."""
+        omega = np.atleast_1d(np.asarray(omega, dtype=float))
         EI, rhoA, L, T = self.bending_stiffness, self.mass_per_length, self.length, self.axial_force
-        beta = L * (rhoA * omega ** 2 / EI) ** 0.25
+        beta = L * (rhoA * omega.max(initial=0.0) ** 2 / EI) ** 0.25
         pieces = max(1, math.ceil(beta / 3.0), math.ceil(math.sqrt(abs(T) / EI) * L / math.pi))
         if pieces == 1:
-            return 0
+            return np.zeros(omega.shape, dtype=np.int64)
         ell = L / pieces
         c = rhoA * omega ** 2 * ell ** 4 / EI
-        U = _field_matrix(ell, np.asarray(EI, dtype=complex), np.asarray(T * ell ** 2 / EI, dtype=complex),
-                          np.asarray(c, dtype=complex)).real
-        K = _dynamic_stiffness(U)
+        a = np.full(omega.shape, T * ell ** 2 / EI, dtype=complex)
+        U = _field_matrix(ell, np.asarray(EI, dtype=complex), a, c.astype(complex)).real
+        K = _dynamic_stiffness(U)                       # (B, 4, 4): [inboard w, θ, outboard w, θ]
         n = 2 * (pieces - 1)
-        G = np.zeros((n, n))
-        for e in range(pieces):
-            for i_loc in range(4):
-                gi = 2 * (e - 1) + i_loc
-                if not 0 <= gi < n:
-                    continue
-                for j_loc in range(4):
-                    gj = 2 * (e - 1) + j_loc
-                    if 0 <= gj < n:
-                        G[gi, gj] += K[i_loc, j_loc]
-        G = (G + G.T) / 2
-        return int(np.sum(np.linalg.eigvalsh(G) < 0))
+        G = np.zeros(omega.shape + (n, n))
+        for node in range(pieces - 1):                  # interior node `node+1`
+            i = slice(2 * node, 2 * node + 2)
+            G[:, i, i] += K[:, 2:, 2:] + K[:, :2, :2]   # outboard end of piece `node`, inboard of next
+            if node + 1 < pieces - 1:
+                j = slice(2 * node + 2, 2 * node + 4)
+                G[:, i, j] += K[:, :2, 2:]
+                G[:, j, i] += K[:, 2:, :2]
+        G = 0.5 * (G + np.swapaxes(G, -1, -2))
+        return np.sum(np.linalg.eigvalsh(G) < 0, axis=-1).astype(np.int64)
 
 
 def _dynamic_stiffness(U: np.ndarray) -> np.ndarray:
@@ -410,9 +408,11 @@ def _dynamic_stiffness(U: np.ndarray) -> np.ndarray:
     ``d = [w, theta]``; ``F`` = force/moment acting *on the element* at its ends:
     ``F_L = f_L`` (exerted by the inboard part), ``F_R = -f_R``.
     """
-    U11, U12, U21, U22 = U[:2, :2], U[:2, 2:], U[2:, :2], U[2:, 2:]
+    U11, U12, U21, U22 = U[..., :2, :2], U[..., :2, 2:], U[..., 2:, :2], U[..., 2:, 2:]
     X = np.linalg.inv(U12)
-    return np.block([[-X @ U11, X], [-U21 + U22 @ X @ U11, -U22 @ X]])
+    top = np.concatenate([-X @ U11, X], axis=-1)
+    bottom = np.concatenate([-U21 + U22 @ X @ U11, -U22 @ X], axis=-1)
+    return np.concatenate([top, bottom], axis=-2)
 
 
 # ----------------------------------------------------------------------------------------
