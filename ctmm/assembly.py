@@ -193,3 +193,62 @@ def plain_solve(Us: Sequence[np.ndarray], us: Sequence[np.ndarray], start: Bound
 
 
 SOLVERS = {"riccati": riccati_solve, "plain": plain_solve}
+
+
+def predicted_forces(Us: Sequence[np.ndarray], us: Sequence[np.ndarray], d: int) -> np.ndarray:
+    """Forces at every point when all displacement corrections vanish (``delta = 0``).
+
+    For a field element with ``delta_out = U_dd delta_in + U_dF F_in + u_d`` the force that keeps
+    ``delta_in = delta_out = 0`` is ``F_in = -U_dF^{-1} u_d`` and ``F_out = U_FF F_in + u_F``; points
+    that only touch point elements inherit the value of their inboard neighbour.  Used as the
+    reference ``f_pred`` of the incremental-force form (:func:`shift_forces`).
+
+    Returns
+    -------
+    ndarray
+        ``(N + 1, B, d)`` reference forces (first ``d`` force components of the layout).
+    """
+    N = len(Us)
+    B = Us[0].shape[0]
+    ref = np.full((N + 1, B, d), np.nan)
+    for j, (U, u) in enumerate(zip(Us, us), start=1):
+        UdF = U[:, :d, d:2 * d]
+        if not np.any(UdF):
+            continue
+        try:
+            F_in = -np.linalg.solve(UdF, u[:, :d, None])[..., 0]
+        except np.linalg.LinAlgError:
+            continue
+        ref[j - 1] = F_in
+        ref[j] = np.einsum("bij,bj->bi", U[:, d:2 * d, d:2 * d], F_in) + u[:, d:2 * d]
+    if np.isnan(ref[0]).any():
+        ref[0] = 0.0
+    for j in range(1, N + 1):
+        if np.isnan(ref[j]).any():
+            ref[j] = ref[j - 1]
+    return ref
+
+
+def shift_forces(Us: Sequence[np.ndarray], us: Sequence[np.ndarray], start: BoundaryStart, end: BoundaryEnd,
+                 reference: np.ndarray, d: int):
+    """Rewrite the BVP for force corrections ``phi = f - reference`` (incremental-force form).
+
+    Exact change of variables: ``u_j' = u_j + U_j[:, F] ref_{j-1} - [0; ref_j; 0]``, the known start
+    forces and the end right-hand side shifted alike.  Add ``reference`` back to the solved
+    force components afterwards.
+    """
+    fs = slice(d, 2 * d)
+    new_us = []
+    for j, (U, u) in enumerate(zip(Us, us), start=1):
+        shifted = u + np.einsum("bij,bj->bi", U[:, :, fs], reference[j - 1])
+        shifted[:, fs] -= reference[j]
+        new_us.append(shifted)
+    n = Us[0].shape[-1]
+    e_idx = list(start.e_indices)
+    f_idx = [i for i in range(n) if i not in e_idx]
+    P0 = start.P0.copy()
+    for row, comp in enumerate(f_idx):
+        if d <= comp < 2 * d:
+            P0[:, row] = P0[:, row] - reference[0][:, comp - d]
+    b = end.b - np.einsum("bij,bj->bi", end.Bm[:, :, fs], reference[-1])
+    return new_us, BoundaryStart(e_idx, start.S0, P0), BoundaryEnd(end.Bm, b)

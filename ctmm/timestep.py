@@ -23,7 +23,7 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from . import validation
-from .assembly import SOLVERS, BoundaryEnd, BoundaryStart
+from .assembly import SOLVERS, BoundaryEnd, BoundaryStart, predicted_forces, shift_forces
 from .elements.base import Linearisation
 from .elements.lumped import Connector, PointElement
 from .errors import ModelError, SimulationError
@@ -97,38 +97,40 @@ def _connector_forces(system: Chain, x: np.ndarray, v: np.ndarray,
 
 def initial_acceleration(system: Chain, x: np.ndarray, v: np.ndarray, t0: float,
                          extra_forces: Mapping[int, float] | None = None) -> np.ndarray:
-    """Accelerations [m/s^2] of all points from the equations of motion at ``t0``."""
+    """Accelerations [m/s^2] of all points from the equations of motion at ``t0``.
+
+    Consecutive point elements (a mass with a grounded spring, ...) form one node: its
+    acceleration is (sum of the forces on the node) / (sum of the masses).  Massless nodes get 0.
+    """
     a = np.zeros_like(x)
     extra_forces = extra_forces or {}
     connector = _connector_forces(system, x, v, extra_forces)
     body = system.body
-    for j, e in enumerate(body, start=1):
-        if not isinstance(e, PointElement) or e.mass == 0.0:
+    j = 1
+    while j <= len(body):
+        if not body[j - 1].is_point:
+            j += 1
             continue
-        f_in = _force_at(system, connector, j - 1, x, v, side="in")
-        f_out = _force_at(system, connector, j, x, v, side="out")
-        load = float(e.force(t0)) + extra_forces.get(j, 0.0)
-        a[j - 1, 0] = (f_in - f_out + load - e.damping * v[j - 1, 0] - e.stiffness * x[j - 1, 0]) / e.mass
-        a[j, 0] = a[j - 1, 0]
+        first = j
+        while j <= len(body) and body[j - 1].is_point:
+            j += 1
+        last = j - 1                     # elements first..last share one point
+        point = first - 1
+        total_mass, force = 0.0, 0.0
+        for pos in range(first, last + 1):
+            e = body[pos - 1]
+            if isinstance(e, PointElement):
+                total_mass += e.mass
+                force += float(e.force(t0)) - e.damping * v[point, 0] - e.stiffness * x[point, 0]
+            force += extra_forces.get(pos, 0.0)
+        if total_mass == 0.0:
+            continue
+        f_in = connector[first - 1] if (first - 1) in connector else \
+            (_boundary_force(system.start, x[0, 0], v[0, 0], start=True) if first == 1 else 0.0)
+        f_out = connector[last + 1] if (last + 1) in connector else \
+            (_boundary_force(system.end, x[-1, 0], v[-1, 0], start=False) if last == len(body) else 0.0)
+        a[point:last + 1, 0] = (f_in - f_out + force) / total_mass
     return a
-
-
-def _force_at(system: Chain, connector: Mapping[int, float], point: int, x, v, side: str) -> float:
-    """Internal force at ``point`` from the nearest connector (inboard side first)."""
-    body = system.body
-    if side == "in":  # force arriving at a point element from inboard
-        j = point
-        while j >= 1 and body[j - 1].is_point:
-            j -= 1
-        if j >= 1:
-            return connector[j]
-        return _boundary_force(system.start, x[0, 0], v[0, 0], start=True)
-    j = point + 1
-    while j <= len(body) and body[j - 1].is_point:
-        j += 1
-    if j <= len(body):
-        return connector[j]
-    return _boundary_force(system.end, x[-1, 0], v[-1, 0], start=False)
 
 
 def _boundary_force(boundary, x: float, v: float, start: bool) -> float:
@@ -170,19 +172,50 @@ class _LumpedKernel:
 
     def constant_part(self, cx: float, A: float, C: float):
         """Per-element (U12, U21): connectors carry U12 = -1/k_eff, points U21 = -impedance."""
-        k_eff = self.stiffness * cx + self.damping * A
-        U12 = np.where(self.is_point, 0.0, -1.0 / np.where(self.is_point, 1.0, k_eff))
-        U21 = np.where(self.is_point, -(self.mass * C + self.damping * A + self.stiffness * cx), 0.0)
+        pts, con = self.is_point, ~self.is_point
+        k_eff = np.ones(self.n)
+        k_eff[con] = self.stiffness[con] * cx + self.damping[con] * A
+        U12 = np.zeros(self.n)
+        U12[con] = -1.0 / k_eff[con]
+        U21 = np.zeros(self.n)
+        U21[pts] = -(self.mass[pts] * C + self.damping[pts] * A + self.stiffness[pts] * cx)
+        self._con = np.flatnonzero(con)
+        self._pts = np.flatnonzero(pts)
+        self._con_kl = self.stiffness[con] * self.free_length[con]
+        self._con_k, self._con_c, self._con_keff = self.stiffness[con], self.damping[con], k_eff[con]
+        self._pts_m, self._pts_c, self._pts_k = self.mass[pts], self.damping[pts], self.stiffness[pts]
         return U12, U21, k_eff
 
-    def affine_part(self, coeffs, k_eff, load: np.ndarray):
+    def affine_part(self, coeffs, k_eff, load: np.ndarray, across: np.ndarray | None = None):
+        """Affine parts in *incremental force* form, and the predicted point forces ``f_pred``.
+
+        The force at every point is written ``f = f_pred + phi``: ``f_pred`` is the force of the
+        adjacent connector at the scheme's predictor (``delta = 0``), so a connector's affine term
+        vanishes identically and a point element's is the residual of its predicted equilibrium.
+        Solving for the small corrections ``(delta, phi)`` avoids recovering ``delta`` as the
+        difference of O(stretch) quantities (see :mod:`ctmm.schemes`).
+        """
         dx, B, D = coeffs.dx[:, 0], coeffs.B[:, 0], coeffs.D[:, 0]
-        u0 = np.where(self.is_point, 0.0,
-                      (self.stiffness * self.free_length - self.stiffness * (dx[1:] - dx[:-1])
-                       - self.damping * (B[1:] - B[:-1])) / np.where(self.is_point, 1.0, k_eff))
-        u1 = np.where(self.is_point, -(self.mass * D[:-1] + self.damping * B[:-1] + self.stiffness * dx[:-1])
-                      + load, 0.0)
-        return u0, u1
+        con, pts = self._con, self._pts
+        n_points = self.n + 1
+        predicted = (self._con_kl - self._con_k * (dx[con + 1] - dx[con]) - self._con_c * (B[con + 1] - B[con]))
+        if across is not None:
+            predicted = predicted + across[con]
+        f_pred = np.full(n_points, np.nan)
+        f_pred[con] = predicted          # inboard point of connector (element con+1 -> point con)
+        f_pred[con + 1] = predicted      # outboard point
+        known = ~np.isnan(f_pred)
+        if not known[0]:
+            f_pred[0] = 0.0
+            known[0] = True
+        idx = np.where(known, np.arange(n_points), 0)
+        np.maximum.accumulate(idx, out=idx)
+        f_pred = f_pred[idx]             # points between point elements inherit the inboard value
+        u0 = np.zeros(self.n)
+        u1 = np.zeros(self.n)
+        u1[pts] = (f_pred[pts] - f_pred[pts + 1] + load[pts]
+                   - (self._pts_m * D[pts] + self._pts_c * B[pts] + self._pts_k * dx[pts]))
+        return u0, u1, f_pred
 
 
 def _scalar_riccati(U12, U21, u0, u1, fixed_start: bool, S0: float, P0: float, end_row, end_b: float,
@@ -211,28 +244,29 @@ def _scalar_riccati(U12, U21, u0, u1, fixed_start: bool, S0: float, P0: float, e
         cache[key] = (S, G)
     S, G = cache[key]
     v1, v2 = (u0, u1) if fixed_start else (u1, u0)
-    P = np.empty(n + 1)
+    if "lists" not in cache:
+        cache["lists"] = (a21.tolist(), S.tolist(), G.tolist())
+    a21l, Sl, Gl = cache["lists"]
+    v1l, v2l = v1.tolist(), v2.tolist()
+    Pl = [P0]
     p = P0
-    P[0] = p
-    a21l, v1l, v2l, Sl = a21.tolist(), v1.tolist(), v2.tolist(), S.tolist()
-    for j in range(n):
-        r = a21l[j] * p + v2l[j]
-        p = p + v1l[j] - Sl[j + 1] * r
-        P[j + 1] = p
+    for j in range(n):  # affine Riccati recursion P_j = P_{j-1} + v1 - S_j (a21 P_{j-1} + v2)
+        p = p + v1l[j] - Sl[j + 1] * (a21l[j] * p + v2l[j])
+        Pl.append(p)
     # end: Bm = [cf, ce] on (f, e) -> (cf S + ce) e = b - cf P
     cx_, cf_ = end_row
     cf, ce = (cx_, cf_) if fixed_start else (cf_, cx_)
-    h = cf * S[n] + ce
+    h = cf * Sl[n] + ce
     if h == 0.0 or not math.isfinite(h):
         raise SimulationError("the boundary equations of the step are singular")
-    e = (end_b - cf * P[n]) / h
-    E = np.empty(n + 1)
-    E[n] = e
-    Gl, Pl = G.tolist(), P.tolist()
-    for j in range(n, 0, -1):
+    e = (end_b - cf * Pl[n]) / h
+    El = [0.0] * (n + 1)
+    El[n] = e
+    for j in range(n, 0, -1):  # back-substitution e_{j-1} = (e_j - a21 P_{j-1} - v2) / G_j
         e = (e - a21l[j - 1] * Pl[j - 1] - v2l[j - 1]) / Gl[j - 1]
-        E[j - 1] = e
-    F = S * E + P
+        El[j - 1] = e
+    E = np.array(El)
+    F = S * E + np.array(Pl)
     return (F, E) if fixed_start else (E, F)
 
 
@@ -343,7 +377,7 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
                                       f"{system.point_names()[point]!r} (element {name!r})",
                                       time=float(times[i + 1]), element=name)
             f_prev = states[i, :, d]
-            history = scheme.update(history, x_new[:, None], dt, coeffs)
+            history = scheme.update(history, x_new[:, None], dt, coeffs)  # x_new is the correction
             states[i + 1, :, :d] = history.x
             states[i + 1, :, d] = scheme.interpolate_force(f_new, f_prev)
             vel[i + 1], acc[i + 1] = history.v, history.a
@@ -382,22 +416,25 @@ def _fast_step(system: Chain, kernel: _LumpedKernel, coeffs, load, t_eval: float
         cache["key"] = key
         cache["const"] = kernel.constant_part(*key)
     U12, U21, k_eff = cache["const"]
-    u0, u1 = kernel.affine_part(coeffs, k_eff, load)
-    if across is not None:
-        u0 = u0 + np.where(kernel.is_point, 0.0, across / np.where(kernel.is_point, 1.0, k_eff))
-    lin0 = Linearisation(coeffs.cx, coeffs.dx[0, 0], coeffs.A, coeffs.B[0, 0], coeffs.C, coeffs.D[0, 0])
-    linN = Linearisation(coeffs.cx, coeffs.dx[-1, 0], coeffs.A, coeffs.B[-1, 0], coeffs.C, coeffs.D[-1, 0])
+    u0, u1, f_pred = kernel.affine_part(coeffs, k_eff, load, across)
+    lin0 = Linearisation(coeffs.cx, coeffs.dx[0, 0], coeffs.A, coeffs.B[0, 0], coeffs.C, coeffs.D[0, 0],
+                         coeffs.x_pred[0, 0])
+    linN = Linearisation(coeffs.cx, coeffs.dx[-1, 0], coeffs.A, coeffs.B[-1, 0], coeffs.C, coeffs.D[-1, 0],
+                         coeffs.x_pred[-1, 0])
     _, S0, P0 = system.start.start_discrete(system.layout, t_eval, lin0)
     Bm, b = system.end.end_discrete(system.layout, t_eval, linN)
     fixed_start = system.start.known == "displacement"
-    return _scalar_riccati(U12, U21, u0, u1, fixed_start, float(S0[0, 0]), float(P0[0]),
-                           (float(Bm[0, 0]), float(Bm[0, 1])), float(b[0]), cache)
+    P0_phi = float(P0[0]) if fixed_start else float(P0[0]) - f_pred[0]   # known force -> its correction
+    b_phi = float(b[0]) - float(Bm[0, 1]) * f_pred[-1]
+    delta, phi = _scalar_riccati(U12, U21, u0, u1, fixed_start, float(S0[0, 0]), P0_phi,
+                                 (float(Bm[0, 0]), float(Bm[0, 1])), b_phi, cache)
+    return delta, phi + f_pred
 
 
 def _generic_step(system, discrete, coeffs, t_n, dt, w, t_eval, extra, solver):
     pick = (lambda arr, j: float(arr[j, 0])) if system.layout.half == 1 else (lambda arr, j: arr[j])
     lins = [Linearisation(coeffs.cx, pick(coeffs.dx, j), coeffs.A, pick(coeffs.B, j), coeffs.C,
-                          pick(coeffs.D, j)) for j in range(system.n_points)]
+                          pick(coeffs.D, j), pick(coeffs.x_pred, j)) for j in range(system.n_points)]
     Us, us = [], []
     for j, disc in enumerate(discrete, start=1):
         e = disc.element
@@ -409,7 +446,14 @@ def _generic_step(system, discrete, coeffs, t_n, dt, w, t_eval, extra, solver):
         us.append(np.asarray(u, dtype=float).reshape(1, -1))
     e_idx, S0, P0 = system.start.start_discrete(system.layout, t_eval, lins[0])
     Bm, b = system.end.end_discrete(system.layout, t_eval, lins[-1])
-    sol = SOLVERS[solver](Us, us, BoundaryStart(e_idx, S0[None], P0[None]), BoundaryEnd(Bm[None], b[None]))
     d = system.layout.half
+    start, end = BoundaryStart(e_idx, S0[None], P0[None]), BoundaryEnd(Bm[None], b[None])
+    if solver == "riccati":  # incremental-force form (see ctmm.assembly.shift_forces)
+        reference = predicted_forces(Us, us, d)
+        us, start, end = shift_forces(Us, us, start, end, reference, d)
+    sol = SOLVERS[solver](Us, us, start, end)
     states = sol.states[:, 0, :]
+    if solver == "riccati":
+        states = states.copy()
+        states[:, d:2 * d] += reference[:, 0, :]
     return states[:, 0].copy() if d == 1 else states[:, :d], states[:, d].copy()

@@ -27,7 +27,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from .. import validation
-from ..assembly import SOLVERS
+from ..assembly import SOLVERS, predicted_forces, shift_forces
 from ..elements.base import Linearisation
 from ..elements.lumped import PointElement
 from ..errors import ModelError, SimulationError
@@ -220,7 +220,7 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
     def step(coeffs, t_n, h, w, t_eval, extra, history):
         """Extended (real-time loops) DT-TMM step."""
         lins = [Linearisation(coeffs.cx, float(coeffs.dx[j, 0]), coeffs.A, float(coeffs.B[j, 0]), coeffs.C,
-                              float(coeffs.D[j, 0])) for j in range(plant.n_points)]
+                              float(coeffs.D[j, 0]), float(coeffs.x_pred[j, 0])) for j in range(plant.n_points)]
         Us_p, us_p = [], []
         for j, e in enumerate(plant.body, start=1):
             force = extra.get(j, 0.0)
@@ -271,8 +271,16 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
         Us, us, start, end = controlled._extend(
             np.zeros(1), Us_p, us_p, BoundaryStart(e_idx, S0[None], P0[None]),
             BoundaryEnd(Bm[None], b[None]), gains, [0.0] * len(loops), factor, offset_fn)
+        reference_pts = predicted_forces(Us_p, us_p, d)   # incremental-force form on the plant rows
+        idx = np.asarray(controlled.state_index)
+        reference = np.zeros((len(Us) + 1, 1, d))
+        reference[: idx[0] + 1] = reference_pts[0]
+        for j in range(1, len(idx)):
+            reference[idx[j - 1] + 1: idx[j] + 1] = reference_pts[j]
+        us, start, end = shift_forces(Us, us, start, end, reference, d)
         sol = SOLVERS["riccati"](Us, us, start, end)
-        states = sol.states[np.asarray(controlled.state_index), 0, :]
+        states = sol.states[idx, 0, :].copy()
+        states[:, d:2 * d] += reference_pts[:, 0, :]
         for r in realtime:
             y_eval = states[-1, plant.layout.size + 2 * r.index]
             _pending[r.index] = -_rt_gain[r.index] * y_eval + known_u[r.index]

@@ -106,13 +106,15 @@ class Linearisation:
     """Affine relations of evaluation-level kinematics to the unknown displacement of a step.
 
     Attributes are floats or arrays over the displacement components:
-    ``cx, dx`` (displacement level), ``A, B`` (velocity), ``C, D`` (acceleration).
+    ``cx, dx`` (displacement level), ``A, B`` (velocity), ``C, D`` (acceleration), all in terms of
+    the step's unknown ``delta``, and ``xp``, the predictor: the displacement at the unknown's
+    time is ``xp + delta`` (see :mod:`ctmm.schemes`).
     """
 
-    __slots__ = ("cx", "dx", "A", "B", "C", "D")
+    __slots__ = ("cx", "dx", "A", "B", "C", "D", "xp")
 
-    def __init__(self, cx, dx, A, B, C, D) -> None:  # noqa: N803 - book notation
-        self.cx, self.dx, self.A, self.B, self.C, self.D = cx, dx, A, B, C, D
+    def __init__(self, cx, dx, A, B, C, D, xp=0.0) -> None:  # noqa: N803 - book notation
+        self.cx, self.dx, self.A, self.B, self.C, self.D, self.xp = cx, dx, A, B, C, D, xp
 
     @classmethod
     def ground(cls, cx: float, A: float, C: float) -> "Linearisation":

@@ -110,8 +110,8 @@ class Boundary(Element):
             if self.known == "force":
                 S0[i, i] = -k_eff
                 P0[i] = self._force_signal(t) - offset
-            else:
-                P0[i] = self._position_signal(t)
+            else:  # the unknown is the correction to the predictor xp
+                P0[i] = self._position_signal(t) - float(np.ravel(lin.xp)[i] if np.ndim(lin.xp) else lin.xp)
         return self.unknown_indices(layout), S0, P0
 
     def end_discrete(self, layout: StateLayout, t: float, lin: Linearisation):
@@ -123,7 +123,7 @@ class Boundary(Element):
         for i in range(d):
             if self.known == "displacement":
                 Bm[i, i] = 1.0
-                b[i] = self._position_signal(t)
+                b[i] = self._position_signal(t) - float(np.ravel(lin.xp)[i] if np.ndim(lin.xp) else lin.xp)
             else:
                 Bm[i, d + i] = 1.0
                 Bm[i, i] = -k_eff
