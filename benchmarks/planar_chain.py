@@ -183,6 +183,35 @@ def run_case(n: int, results: dict, log) -> None:
     results["cases"].append(case)
 
 
+def where_time_goes(n: int) -> dict:
+    """Split one pure-Python forward-dynamics call into its parts (mean over repeats)."""
+    from ctmm.planar.sweep import accelerations, body_terms, hinge_torques, riccati_kernel
+
+    model = chain(n)
+    rng = np.random.default_rng(0)
+    q, v = rng.normal(size=n), rng.normal(size=n)
+    repeats = max(5, 2000 // n)
+
+    def timed(fn):
+        start = time.perf_counter()
+        for _ in range(repeats):
+            out = fn()
+        return (time.perf_counter() - start) / repeats, out
+
+    total, _ = timed(lambda: accelerations(model, q, v, 0.0))
+    angles, (theta, omega) = timed(lambda: model.body_angles(q, v, 0.0))
+    terms, (K, b, E, _) = timed(lambda: body_terms(model, theta, omega, 0.0))
+    laws, tau = timed(lambda: hinge_torques(model, theta, omega, 0.0))
+    convert, lists = timed(lambda: (K.tolist(), b.tolist(), E.tolist(), tau.tolist()))
+    kernel, _ = timed(lambda: riccati_kernel(model._parent_list, model._kind_list, *lists[:3],
+                                             model._zeros, lists[3], model._zeros,
+                                             want_forces=False))
+    return {"n": n, "accelerations_call_s": total, "body_angles_s": angles,
+            "body_terms_numpy_s": terms, "hinge_laws_s": laws, "tolist_conversions_s": convert,
+            "recursion_python_floats_s": kernel,
+            "recursion_per_body_s": kernel / n}
+
+
 def plot(results: dict, path: Path) -> None:
     import matplotlib
     matplotlib.use("Agg")
@@ -232,6 +261,7 @@ def main(argv=None) -> dict:
     results["load_average_start"] = os.getloadavg()
     for n in ([5, 20] if args.quick else [5, 20, 100, 1000]):
         run_case(n, results, lambda s: print(s, flush=True))
+    results["where_time_goes"] = [where_time_goes(n) for n in (100, 1000)]
     results["load_average_end"] = os.getloadavg()
     results["note"] = ("timings are wall-clock on a shared 2-core machine (other jobs running; see "
                        "load averages): compare methods within one case, not across runs")

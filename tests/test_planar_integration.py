@@ -145,3 +145,19 @@ def test_compiled_rk4_equals_python_rk4():
     with pytest.raises(ModelError, match="not supported by the compiled kernel"):
         simulate_rk4_compiled(random_tree(5, 4, chain=True, base="pinned"), [0.0, 0.0],
                               [0.0, 0.0], t_final=0.1, dt=0.01)
+
+
+@pytest.mark.parametrize("seed,base", [(11, "free"), (12, "fixed"), (13, "pinned")])
+def test_implicit_on_random_trees_is_second_order(seed, base):
+    """Trees with floating / welded / pinned bases, driven and actuated hinges and loads."""
+    model = random_tree(seed, 4, base=base)
+    q0, qdot0, _ = random_state(model, seed)
+    qdot0 = 0.3 * qdot0
+    ref = PlanarLagrange(model).simulate(q0, qdot0, 0.5, t_eval=[0.5])
+    q_ref = ref.y[: model.n_coordinates, -1]
+    errors = []
+    for dt in (0.01, 0.005):
+        sim = simulate_implicit(model, q0, qdot0, t_final=0.5, dt=dt)
+        errors.append(np.max(np.abs(sim.q[-1] - q_ref)))
+        assert sim.iterations.max() <= 4
+    assert 1.9 <= np.log2(errors[0] / errors[1]) <= 2.1
