@@ -1,0 +1,91 @@
+"""Bad input gives clear errors naming the parameter, the value and what is allowed."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import ctmm
+from ctmm.elements import Damper, Elastic, Fixed, Free, GroundedSpring, Mass, Spring, SpringDamper
+from ctmm.schemes import GeneralizedAlpha, Newmark, WilsonTheta
+
+
+def chain():
+    return ctmm.Chain("c", [Fixed("w"), Spring("k", 10.0), Mass("m", 1.0), Free("e")])
+
+
+@pytest.mark.parametrize("factory, pattern", [
+    (lambda: Mass("m", 0.0), r"m: mass must be > 0, got 0"),
+    (lambda: Mass("m", -1.0), r"mass must be > 0, got -1"),
+    (lambda: Mass("m", float("nan")), r"mass must be finite, got nan"),
+    (lambda: Spring("k", 0.0), r"k: stiffness must be > 0"),
+    (lambda: Spring("k", float("inf")), r"stiffness must be finite"),
+    (lambda: Damper("c", -0.1), r"damping must be > 0, got -0.1"),
+    (lambda: SpringDamper("kc", 1.0, -1.0), r"damping must be >= 0, got -1"),
+    (lambda: SpringDamper("kc", 0.0, 0.0), r"needs stiffness > 0 or damping > 0"),
+    (lambda: GroundedSpring("g", -5.0), r"stiffness must be > 0"),
+    (lambda: Elastic("s", -1.0), r"stiffness must be >= 0"),
+    (lambda: Mass("m", 1.0, force="ten"), r"force must be a real number"),
+    (lambda: Mass("m.1", 1.0), r"element name must be a non-empty string without '\.'"),
+    (lambda: Newmark(beta=0.0), r"beta must be > 0"),
+    (lambda: GeneralizedAlpha(1.5), r"rho_infinity must be in \[0.0, 1.0\]"),
+    (lambda: WilsonTheta(0.5), r"theta must be >= 1"),
+])
+def test_invalid_parameters(factory, pattern):
+    with pytest.raises(ctmm.ModelError, match=pattern):
+        factory()
+
+
+def test_model_error_is_value_error():
+    assert issubclass(ctmm.ModelError, ValueError)
+    assert issubclass(ctmm.SimulationError, RuntimeError)
+
+
+def test_chain_structure_errors_reported_together():
+    with pytest.raises(ctmm.ModelError) as info:
+        ctmm.Chain("bad", [Spring("k", 1.0), Mass("k", 1.0), Fixed("w2"), Mass("m", 1.0), Spring("x", 1.0)])
+    text = str(info.value)
+    assert "first element must be a boundary" in text
+    assert "last element must be a boundary" in text
+    assert "duplicate element name 'k'" in text
+    assert "boundary 'w2' at position 2 is inside the chain" in text
+
+
+@pytest.mark.parametrize("call, pattern", [
+    (lambda c: ctmm.simulate(c, 1.0, 0.0), r"dt must be > 0, got 0"),
+    (lambda c: ctmm.simulate(c, 1.0, -1e-3), r"dt must be > 0"),
+    (lambda c: ctmm.simulate(c, float("nan"), 1e-3), r"t_final must be finite"),
+    (lambda c: ctmm.simulate(c, 1.0, 0.3), r"whole number of steps"),
+    (lambda c: ctmm.simulate(c, 1.0, 1e-3, scheme="rk99"), r"unknown scheme 'rk99'; available: forward_euler"),
+    (lambda c: ctmm.simulate(c, 1.0, 1e-3, solver="lu"), r"solver must be one of"),
+    (lambda c: ctmm.frequency_response(c, [-1.0], input="m.force", output="m.x"), r"omega must be >= 0"),
+    (lambda c: ctmm.frequency_response(c, [np.nan], input="m.force", output="m.x"), r"omega must contain only finite"),
+    (lambda c: ctmm.natural_frequencies(c), r"give exactly one of n_modes"),
+    (lambda c: ctmm.natural_frequencies(c, n_modes=0), r"n_modes must be an integer >= 1"),
+    (lambda c: ctmm.natural_frequencies(c, n_modes=5), r"fewer than 5 natural frequencies"),
+])
+def test_invalid_calls(call, pattern):
+    with pytest.raises(ctmm.ModelError, match=pattern):
+        call(chain())
+
+
+@pytest.mark.parametrize("name", ["m.nope", "nothing.x", "m", "m.in.out.x"])
+def test_unknown_signal_lists_available(name):
+    with pytest.raises(ctmm.UnknownNameError, match=r"unknown signal .* available: .*m\.x"):
+        ctmm.frequency_response(chain(), [1.0], input="m.force", output=name)
+
+
+def test_unknown_input_lists_available():
+    with pytest.raises(ctmm.UnknownNameError, match=r"unknown input 'm\.torque'; available: .*m\.force"):
+        ctmm.frequency_response(chain(), [1.0], input="m.torque", output="m.x")
+
+
+def test_unknown_initial_condition_name():
+    with pytest.raises(ctmm.UnknownNameError, match=r"unknown element 'mass9'; available"):
+        ctmm.simulate(chain(), 0.01, 1e-3, x0={"mass9": 0.1})
+
+
+def test_unknown_scenario_lists_available():
+    from ctmm.scenario import run_scenario
+
+    with pytest.raises(ctmm.UnknownNameError, match=r"unknown scenario 'nope'; available: .*table7_1"):
+        run_scenario("nope")
