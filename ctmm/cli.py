@@ -36,6 +36,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command == "list":
         for name, module in scenario.available().items():
             print(f"{name:28s} {getattr(module, 'DESCRIPTION', '')}")
+        for name, error in scenario.broken().items():
+            print(f"{name:28s} (cannot be imported: {error})", file=sys.stderr)
         return 0
     names = list(scenario.available()) if args.names == ["all"] else args.names
     status = 0

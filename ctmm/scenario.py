@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import unknown_name
+from .errors import ModelError, unknown_name
 
 
 def _package() -> ModuleType:
@@ -29,16 +29,32 @@ def _package() -> ModuleType:
 
 
 def available() -> dict[str, ModuleType]:
-    """All scenarios by name (modules defining ``NAME`` and ``run``)."""
-    found = {}
+    """All scenarios by name (modules defining ``NAME`` and ``run``).
+
+    A module that fails to import is left out here and reported by :func:`broken`.
+    """
+    return _discover()[0]
+
+
+def broken() -> dict[str, str]:
+    """Scenario modules that failed to import: ``{module name: error}``."""
+    return _discover()[1]
+
+
+def _discover() -> tuple[dict[str, ModuleType], dict[str, str]]:
+    found, failed = {}, {}
     pkg = _package()
     for info in pkgutil.iter_modules(pkg.__path__):
         if info.name.startswith("_"):
             continue
-        module = importlib.import_module(f"{pkg.__name__}.{info.name}")
+        try:
+            module = importlib.import_module(f"{pkg.__name__}.{info.name}")
+        except Exception as exc:  # noqa: BLE001 - one broken study must not hide the others
+            failed[info.name] = f"{type(exc).__name__}: {exc}"
+            continue
         if hasattr(module, "run") and hasattr(module, "NAME"):
             found[module.NAME] = module
-    return dict(sorted(found.items()))
+    return dict(sorted(found.items())), failed
 
 
 def _jsonable(value: Any) -> Any:
@@ -76,8 +92,10 @@ def write_json_atomic(path: Path, data: dict) -> None:
 
 def run_scenario(name: str, output_dir: str | Path = "results", *, quick: bool = False) -> dict:
     """Run scenario ``name``, write ``<output_dir>/<name>.json`` and return the summary."""
-    scenarios = available()
+    scenarios, failed = _discover()
     if name not in scenarios:
+        if name in failed:
+            raise ModelError(f"scenario module {name!r} cannot be imported: {failed[name]}")
         raise unknown_name("scenario", name, list(scenarios))
     output_dir = Path(output_dir)
     output_dir.mkdir(parents=True, exist_ok=True)

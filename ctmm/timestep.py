@@ -342,7 +342,7 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
     vel = np.full((n_steps + 1, n_pts, d), np.nan)
     acc = np.full((n_steps + 1, n_pts, d), np.nan)
     states[0, :, :d], vel[0], acc[0] = x, v, a
-    states[0, :, d] = _initial_forces(system, x, v)
+    states[0, :, d] = _initial_forces(system, x, v, extra0)
     kernel = _LumpedKernel(system) if fast else None
     discrete = None if fast else [e.discretize(scheme) for e in system.body]
     cache: dict = {}
@@ -396,11 +396,15 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
     return SimulationResult(times, states, vel, acc, _system_for_result or system, scheme.name, info)
 
 
-def _initial_forces(system: Chain, x: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Internal forces at t0 (connectors from their law; others propagated at zero acceleration)."""
+def _initial_forces(system: Chain, x: np.ndarray, v: np.ndarray,
+                    across: Mapping[int, float] | None = None) -> np.ndarray:
+    """Internal forces at t0 at the points next to connectors (from the connector law; NaN elsewhere).
+
+    ``across`` holds actuator forces acting across connectors (by element position).
+    """
     f = np.full(system.n_points, np.nan)
     try:
-        connector = _connector_forces(system, x, v)
+        connector = _connector_forces(system, x, v, across)
         for j, val in connector.items():
             f[j - 1] = f[j] = val
     except Exception:  # noqa: BLE001 - forces at t0 are informative only

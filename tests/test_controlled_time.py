@@ -78,7 +78,7 @@ def test_dttmm_equals_global_newmark_with_loops(case):
     for k, loop in enumerate(setup.loops):
         np.testing.assert_allclose(result[f"{loop.name}.y"], ref.sensed[:, k], rtol=0, atol=1e-13)
         # reported u(t1) of a velocity loop with tau < h interpolates the first interval with
-        # y'(t0): see the xfail test of the start-up bug below; from t2 on the values agree
+        # y'(t0) (fixed start-up); from t2 on the values agree
         np.testing.assert_allclose(result[f"{loop.name}.u"][2:], ref.control[2:, k], rtol=0, atol=1e-11)
 
 
@@ -91,7 +91,7 @@ def test_dttmm_equals_global_newmark_random_loops(seed):
         quantity = str(rng.choice(["displacement", "velocity"]))
         sensor, actuator = int(rng.integers(3)), int(rng.integers(3))
         across = bool(actuator >= 1 and rng.random() < 0.3)
-        # delays: 0, inside the step, or whole steps (non-integer multiples: see the xfail below)
+        # delays: 0, inside the step, or whole steps (non-integer multiples: separate test below)
         delay = float(rng.choice([0.0, 0.003, 0.02, 0.05]))
         if quantity == "displacement" and rng.random() < 0.5:
             delay = float(rng.uniform(0.0, 0.1))
@@ -103,11 +103,6 @@ def test_dttmm_equals_global_newmark_random_loops(seed):
     assert np.max(np.abs(x - ref.displacement)) < 1e-12
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "core bug (ctmm/control/simulate.py, force_hook initial branch): loop histories are started "
-    "from History(x, v, a=0) passed by timestep.simulate before a0 exists, so the Hermite "
-    "derivative y'(t0) of a velocity loop is 0 instead of c.a0; visible for tau/dt not an integer "
-    "(8e-6 m here, still second order)"))
 def test_delayed_velocity_loop_non_integer_delay_equals_global_newmark():
     setup = seed_setup([(2, "velocity", 0, 3.0, 0.053, None, False)])
     _, x = dttmm(setup, 1.0, H)
@@ -115,10 +110,6 @@ def test_delayed_velocity_loop_non_integer_delay_equals_global_newmark():
     assert np.max(np.abs(x - ref.displacement)) < 1e-12
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "core bug (ctmm/control/simulate.py, force_hook initial branch): an acceleration-sensing loop "
-    "starts its history with y(t0) = c.0 (a = 0 before a0 is known), so u(t0) of an undelayed loop "
-    "is 0 instead of -g c.a0 and a0 is wrong"))
 @pytest.mark.parametrize("delay", [0.0, 0.05])
 def test_acceleration_loop_equals_global_newmark(delay):
     setup = seed_setup([(0, "acceleration", 2, 0.3, delay, None, False)])
@@ -153,10 +144,6 @@ def test_dttmm_converges_to_method_of_steps_at_order_two(name, loops):
     assert 1.9 < slope(ref_errors, steps) < 2.1, ref_errors
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "core bug (ctmm/control/simulate.py): with y(t0) = 0 for acceleration sensing the initial "
-    "acceleration of an undelayed acceleration loop is wrong and Newmark drops to first order "
-    "(the global reference with the correct a0 converges at order 2.0)"))
 def test_realtime_acceleration_loop_converges_at_order_two():
     steps = np.array([0.02, 0.01, 0.005])
     errors, ref_errors = convergence([(0, "acceleration", 2, 0.3, 0.0, None, False)], steps)
@@ -187,12 +174,6 @@ def pd_fmu(tmp_path_factory):
                      compiler="gcc")
 
 
-@pytest.mark.xfail(strict=True, raises=SimulationError, reason=(
-    "core bug (ctmm/control/simulate.py, _CoSimulation.forces): the controllers are sampled twice "
-    "at t0 -- in the initial force_hook call (for a0) and again in the first step (step_index is "
-    "still 0) -- so an FMU refuses the repeated communication point ('step called at t = 0.0, but "
-    "the next communication point is ...') and a stateful Python controller (PID) is advanced twice; "
-    "fix: sample only when entry.get('last_step') != self.step_index and set it after the call"))
 def test_fmu_and_python_controllers_give_the_same_closed_loop(pd_fmu):
     plant = seed_setup([]).plant
     h, kp, kd, limit, reference = 2e-3, 60.0, 5.0, 4.0, 0.02

@@ -74,12 +74,18 @@ class _TustinLTI:
 
 
 class _History:
-    """Stored sensed values of one loop, interpolated at any past time."""
+    """Stored sensed values of one loop, interpolated at any past time.
 
-    def __init__(self, t0: float, y0: float, dy0: float | None) -> None:
+    Before ``t0`` the history is the initial *state held constant*: positions ``x0``, velocities
+    ``v0``, accelerations 0 (``pre`` is the sensed value of that state), the convention of the
+    independent references (ctmm.reference.delay_chain.method_of_steps).
+    """
+
+    def __init__(self, t0: float, y0: float, dy0: float | None, pre: float | None = None) -> None:
         self.t = [t0]
         self.y = [y0]
         self.dy = [dy0]
+        self.pre = y0 if pre is None else pre
 
     def append(self, t: float, y: float, dy: float | None) -> None:
         self.t.append(t)
@@ -88,6 +94,8 @@ class _History:
 
     def __call__(self, t: float) -> float:
         ts = self.t
+        if t < ts[0] - 1e-12 * max(1.0, abs(ts[0])):
+            return self.pre
         if t <= ts[0]:
             return self.y[0]
         if t >= ts[-1]:
@@ -192,17 +200,16 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
 
     def force_hook(t_n: float, h: float, w: float, history: History) -> dict[int, float]:
         forces: dict[int, float] = {}
-        if not hist:  # initial call: start histories
-            x, v, a = history.x, history.v, history.a
+        if not hist:  # initial call (t0): consistent loop forces, then start the histories
+            forces = dict(cosim.forces(t_n, history, None))
+            u0, a0, f0, pre = _consistent_start(plant, loops, lti, refs, history.x, history.v, t0, forces, d)
             for r in loops:
-                y, dy = _sense(r.sensing, x, v, a, np.zeros(plant.n_points), d)
-                hist[r.index] = _History(t0, y, dy)
+                y, dy = _sense(r.sensing, history.x, history.v, a0, f0, d)
+                hist[r.index] = _History(t0, y, dy, pre[r.index])
                 ref = refs.get(r.loop.name)
                 e_prev[r.index] = y - (float(ref(t0)) if ref is not None else 0.0)
-                u_prev[r.index] = -(r.loop.gain if not r.loop.is_lti else lti[r.index].D) * e_prev[r.index]
-            forces = dict(cosim.forces(t_n, history, None))
-            for r in loops:
-                forces[r.actuator_pos] = forces.get(r.actuator_pos, 0.0) + u_prev[r.index]
+                u_prev[r.index] = u0[r.index]
+                forces[r.actuator_pos] = forces.get(r.actuator_pos, 0.0) + u0[r.index]
             return forces
         for r in delayed:
             u_new = delayed_force(r, t_n + h)
@@ -214,6 +221,7 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
         return forces
 
     _pending: dict[int, float] = {}
+    u_start = u_prev  # the initial branch of force_hook fills u_prev with the t0 loop forces
     _last_f = [np.zeros(plant.n_points)]
     _rt_gain: dict[int, float] = {}
 
@@ -316,13 +324,52 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
     for r in loops:
         y0 = hist[r.index].y[0]
         result.extra[f"{r.loop.name}.y"] = np.array([y0] + store["y"][r.index])
-        u0 = -(r.loop.gain if not r.loop.is_lti else lti[r.index].D) * (y0 - (float(refs[r.loop.name](t0))
-                                                                            if r.loop.name in refs else 0.0))
-        result.extra[f"{r.loop.name}.u"] = np.array([u0] + store["u"][r.index])
+        result.extra[f"{r.loop.name}.u"] = np.array([u_start[r.index]] + store["u"][r.index])
     result.extra.update(cosim.outputs())
     result.info["loops"] = {r.loop.name: ("real-time" if r.loop.delay < dt else "history") for r in loops}
     result.info["controllers"] = cosim.describe()
     return result
+
+
+def _consistent_start(plant: Chain, loops, lti, refs, x, v, t0: float, forces: Mapping[int, float], d: int):
+    """Loop forces, accelerations and point forces at ``t0`` that satisfy every loop law.
+
+    A delayed loop (``tau > 0``) reads the history before ``t0`` -- the initial state held, with
+    zero acceleration -- so its force is known.  An undelayed loop that senses an acceleration or
+    an internal force depends on its own force at the same instant; everything is affine in the
+    vector of loop forces ``u``, so evaluate the equilibrium at ``u = 0`` and at unit forces and
+    solve ``u = -G (y(u) - r)`` exactly.  Returns ``(u, a0, f0, pre)`` with ``pre`` the sensed
+    values of the held pre-``t0`` state per loop.
+    """
+    from ..timestep import _initial_forces, initial_acceleration
+
+    def sensed(u: np.ndarray) -> np.ndarray:
+        extra = dict(forces)
+        for r in loops:
+            extra[r.actuator_pos] = extra.get(r.actuator_pos, 0.0) + u[r.index]
+        a = initial_acceleration(plant, x, v, t0, extra)
+        f = np.nan_to_num(_initial_forces(plant, x, v, extra))
+        return np.array([_sense(r.sensing, x, v, a, f, d)[0] for r in loops]), a, f
+
+    n = len(loops)
+    f_held = np.nan_to_num(_initial_forces(plant, x, v, forces))
+    pre = {r.index: _sense(r.sensing, x, v, np.zeros_like(x), f_held, d)[0] for r in loops}
+    if n == 0:
+        a = initial_acceleration(plant, x, v, t0, forces)
+        return {}, a, f_held, pre
+    gains = np.array([lti[r.index].D if r.index in lti else r.loop.gain for r in loops])
+    refs0 = np.array([float(refs[r.loop.name](t0 - r.loop.delay)) if r.loop.name in refs else 0.0
+                      for r in loops])
+    delayed = np.array([r.loop.delay > 0.0 for r in loops])
+    y_pre = np.array([pre[r.index] for r in loops])
+    y_zero = sensed(np.zeros(n))[0]
+    J = np.column_stack([sensed(np.eye(n)[k])[0] - y_zero for k in range(n)])  # dy/du
+    # undelayed rows: u = -G (y0 + J u - r);  delayed rows: u = -G (y_pre - r)
+    lhs = np.eye(n) + np.where(delayed[:, None], 0.0, gains[:, None] * J)
+    rhs = -gains * (np.where(delayed, y_pre, y_zero) - refs0)
+    u = np.linalg.solve(lhs, rhs)
+    y, a, f = sensed(u)
+    return {r.index: float(u[r.index]) for r in loops}, a, f, pre
 
 
 class _CoSimulation:
@@ -373,7 +420,9 @@ class _CoSimulation:
     def forces(self, t_n: float, history: History, f: np.ndarray | None) -> dict[int, float]:
         out: dict[int, float] = {}
         for entry in self.entries:
-            if self.step_index % entry["ratio"] == 0:
+            due = self.step_index % entry["ratio"] == 0 and entry.get("last_step") != self.step_index
+            if due:  # sample once per communication point (t0 is sampled by the initial call)
+                entry["last_step"] = self.step_index
                 y = self._measure(entry["sensing"], history, f)
                 try:
                     result = entry["controller"].step(t_n, y, entry["state"])
