@@ -23,7 +23,16 @@ def random_body(rng, name, n_ends):
                      inboard=tuple(rng.uniform(-0.3, 0.3, 2)), outboard=ends, loads=loads)
 
 
-def random_hinge(rng, name, parent, child, allow_driven=True):
+def random_hinge(rng, name, parent, child, allow_driven=True, allow_translation=True):
+    if allow_translation and rng.random() < 0.2:
+        if rng.random() < 0.5:
+            return ElasticHinge(name, parent=parent, child=child, stiffness=rng.uniform(1, 30),
+                                rest_angle=rng.normal(),
+                                translational_stiffness=rng.uniform(50, 500))
+        return SpringDamperHinge(name, parent=parent, child=child, stiffness=rng.uniform(1, 30),
+                                 damping=rng.uniform(0.1, 2), rest_angle=rng.normal(),
+                                 translational_stiffness=rng.uniform(50, 500),
+                                 translational_damping=rng.uniform(0.1, 3))
     kind = rng.integers(0, 7 if allow_driven else 6)
     if kind == 0:
         return SmoothHinge(name, parent=parent, child=child)
@@ -51,7 +60,8 @@ def random_hinge(rng, name, parent, child, allow_driven=True):
                        acceleration=lambda t, w=w: -0.5 * w * w * math.sin(w * t))
 
 
-def random_tree(seed, n_bodies, *, chain=False, base=None, allow_driven=True):
+def random_tree(seed, n_bodies, *, chain=False, base=None, allow_driven=True,
+                allow_translation=True):
     """Random tree (or chain) with all hinge types, loads and a random base."""
     rng = np.random.default_rng(seed)
     elements = []
@@ -67,7 +77,8 @@ def random_tree(seed, n_bodies, *, chain=False, base=None, allow_driven=True):
         elements.append(FreeBase("base", child="b0"))
     else:
         elements.append(Fixed("ground", position=tuple(rng.normal(size=2)), angle=rng.normal()))
-        elements.append(random_hinge(rng, "h0", "ground", "b0", allow_driven))
+        elements.append(random_hinge(rng, "h0", "ground", "b0", allow_driven,
+                                     allow_translation))
     for i in range(1, n_bodies):
         if chain:
             p = i - 1
@@ -75,7 +86,8 @@ def random_tree(seed, n_bodies, *, chain=False, base=None, allow_driven=True):
             p = int(rng.integers(0, i))
         parent = bodies[p]
         end = parent.ends[int(rng.integers(0, len(parent.ends)))]
-        elements.append(random_hinge(rng, f"h{i}", f"b{p}.{end}", f"b{i}", allow_driven))
+        elements.append(random_hinge(rng, f"h{i}", f"b{p}.{end}", f"b{i}", allow_driven,
+                                     allow_translation))
     g = (0.0, -9.81) if rng.random() < 0.7 else tuple(rng.normal(size=2))
     return PlanarModel(f"tree{seed}", elements, gravity=g)
 
@@ -83,7 +95,10 @@ def random_tree(seed, n_bodies, *, chain=False, base=None, allow_driven=True):
 def random_state(model, seed):
     rng = np.random.default_rng(seed + 1000)
     n = model.n_coordinates
-    return rng.uniform(-math.pi, math.pi, n), rng.normal(0.0, 2.0, n), float(rng.uniform(0, 3))
+    q = rng.uniform(-math.pi, math.pi, n)
+    translational = [i for i, c in enumerate(model.coordinates) if c.endswith((".dx", ".dy"))]
+    q[translational] *= 0.02            # small spring deflections [m]
+    return q, rng.normal(0.0, 2.0, n), float(rng.uniform(0, 3))
 
 
 def uniform_chain(n, *, length=1.0, mass=1.0, gravity=(0.0, -9.81)):

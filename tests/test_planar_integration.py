@@ -20,7 +20,7 @@ T = 1.0
 @pytest.fixture(scope="module")
 def case():
     """4-link chain with smooth, driven and actuated hinges, loads; tight Lagrange reference."""
-    model = random_tree(5, 4, chain=True, base="pinned")
+    model = random_tree(5, 4, chain=True, base="pinned", allow_translation=False)
     q0, qdot0, _ = random_state(model, 5)
     qdot0 = 0.3 * qdot0
     ref = PlanarLagrange(model).simulate(q0, qdot0, T, t_eval=[T], rtol=1e-13, atol=1e-13)
@@ -64,8 +64,7 @@ def test_newton_converges_quadratically():
     q_hat, v_hat = q + h * v + 0.25 * h * h * x, v + 0.5 * h * x
     residuals = []
     for _ in range(4):
-        A, F = step.sweep(q_hat + step.bh2 * x, v_hat + step.gh * x, h, A, F)
-        x_new = A[:, 2].copy()
+        A, F, x_new = step.sweep(q_hat + step.bh2 * x, v_hat + step.gh * x, h, A, F, x)
         residuals.append(np.max(np.abs(x_new - x)))
         x = x_new
     r = residuals
@@ -143,14 +142,15 @@ def test_compiled_rk4_equals_python_rk4():
     slow = simulate_rk4(model, q, v, t_final=0.5, dt=1e-3, store_every=10)
     assert np.max(np.abs(fast.q - slow.q)) < 1e-12 and np.allclose(fast.t, slow.t)
     with pytest.raises(ModelError, match="not supported by the compiled kernel"):
-        simulate_rk4_compiled(random_tree(5, 4, chain=True, base="pinned"), [0.0, 0.0],
+        simulate_rk4_compiled(random_tree(5, 4, chain=True, base="pinned",
+                                          allow_translation=False), [0.0, 0.0],
                               [0.0, 0.0], t_final=0.1, dt=0.01)
 
 
 @pytest.mark.parametrize("seed,base", [(11, "free"), (12, "fixed"), (13, "pinned")])
 def test_implicit_on_random_trees_is_second_order(seed, base):
     """Trees with floating / welded / pinned bases, driven and actuated hinges and loads."""
-    model = random_tree(seed, 4, base=base)
+    model = random_tree(seed, 4, base=base, allow_translation=False)
     q0, qdot0, _ = random_state(model, seed)
     qdot0 = 0.3 * qdot0
     ref = PlanarLagrange(model).simulate(q0, qdot0, 0.5, t_eval=[0.5])
@@ -161,3 +161,33 @@ def test_implicit_on_random_trees_is_second_order(seed, base):
         errors.append(np.max(np.abs(sim.q[-1] - q_ref)))
         assert sim.iterations.max() <= 4
     assert 1.9 <= np.log2(errors[0] / errors[1]) <= 2.1
+
+
+def test_translational_spring_hinge_orders_and_energy():
+    """Elbow with rotary and isotropic translational springs (3-DOF hinge)."""
+    from ctmm.planar import ElasticHinge, Pinned, PlanarModel, RigidBody, SpringDamperHinge
+    def arm(damping):
+        elbow = (SpringDamperHinge("elbow", stiffness=8.0, damping=0.05, rest_angle=0.3,
+                                   translational_stiffness=200.0, translational_damping=0.5)
+                 if damping else
+                 ElasticHinge("elbow", stiffness=8.0, rest_angle=0.3,
+                              translational_stiffness=200.0))
+        return PlanarModel.chain("arm", [Pinned("o"), RigidBody.uniform_link("a", mass=1.0,
+                                                                             length=1.0),
+                                         elbow, RigidBody.uniform_link("b", mass=0.6, length=0.7)])
+    model = arm(True)
+    assert model.coordinates == ("a.theta", "b.dx", "b.dy", "b.theta")
+    q0, v0 = np.array([0.2, 0.01, -0.02, 0.6]), np.zeros(4)
+    T_ = 0.5
+    q_ref = PlanarLagrange(model).simulate(q0, v0, T_, t_eval=[T_]).y[:4, -1]
+    dts = [0.004, 0.002, 0.001]
+    implicit = [np.max(np.abs(simulate_implicit(model, q0, v0, t_final=T_, dt=dt).q[-1] - q_ref))
+                for dt in dts]
+    assert 1.9 <= _slope(dts, implicit) <= 2.1, implicit
+    rk4 = [np.max(np.abs(simulate_rk4(model, q0, v0, t_final=T_, dt=dt).q[-1] - q_ref))
+           for dt in dts[:2]]
+    assert 3.7 <= np.log2(rk4[0] / rk4[1]) <= 4.3, rk4
+    undamped = arm(False)
+    sim = simulate_rk4(undamped, q0, v0, t_final=T_, dt=0.002)
+    energy = sim.energy()
+    assert np.max(np.abs(energy - energy[0])) < 1e-7 * 20.0

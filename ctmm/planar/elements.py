@@ -41,6 +41,18 @@ def _required(label: str, value) -> None:
         raise ModelError(f"{label} is required")
 
 
+def _translational(hinge) -> None:
+    for attribute in ("translational_stiffness", "translational_damping"):
+        object.__setattr__(hinge, attribute, validation.nonnegative(
+            f"{hinge.name}: {attribute}", getattr(hinge, attribute)))
+
+
+def translational_law(hinge) -> tuple[float, float]:
+    """``(k_t, c_t)`` of a hinge's translational spring / damper (0, 0 when rigid)."""
+    return (float(getattr(hinge, "translational_stiffness", 0.0)),
+            float(getattr(hinge, "translational_damping", 0.0)))
+
+
 def _point(name: str, value) -> Vector2:
     array = validation.finite_array(name, value)
     if array.shape != (2,):
@@ -208,13 +220,21 @@ class ElasticHinge(_Hinge):
         Rotary stiffness [N m/rad], > 0.
     rest_angle : float
         Relative angle at which the spring is relaxed [rad].
+    translational_stiffness, translational_damping : float
+        Optional isotropic translational spring [N/m] and damper [N s/m] between the parent
+        end and the child's inboard end (>= 0).  When either is > 0 the hinge lets the
+        child's inboard end move by ``d`` (coordinates ``"child.dx"``, ``"child.dy"``,
+        global axes) with the force ``f = -k_t d - c_t d_dot`` on the child (3 DOF).
     """
 
     stiffness: float = math.nan
     rest_angle: float = 0.0
+    translational_stiffness: float = 0.0
+    translational_damping: float = 0.0
 
     def __post_init__(self) -> None:
         super().__post_init__()
+        _translational(self)
         _required(f"{self.name}: stiffness", self.stiffness)
         object.__setattr__(self, "stiffness",
                            validation.positive(f"{self.name}: stiffness", self.stiffness))
@@ -259,14 +279,19 @@ class SpringDamperHinge(_Hinge):
         Rotary damping [N m s/rad], >= 0.
     rest_angle : float
         Relaxed relative angle [rad].
+    translational_stiffness, translational_damping : float
+        Optional isotropic translational spring / damper, as in :class:`ElasticHinge`.
     """
 
     stiffness: float = math.nan
     damping: float = math.nan
     rest_angle: float = 0.0
+    translational_stiffness: float = 0.0
+    translational_damping: float = 0.0
 
     def __post_init__(self) -> None:
         super().__post_init__()
+        _translational(self)
         _required(f"{self.name}: stiffness", self.stiffness)
         object.__setattr__(self, "stiffness",
                            validation.positive(f"{self.name}: stiffness", self.stiffness))

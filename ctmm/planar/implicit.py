@@ -29,11 +29,11 @@ from typing import Any
 import numpy as np
 
 from .. import validation
-from ..errors import ConvergenceError, ModelError
+from ..errors import ConvergenceError, ModelError, SimulationError
 from .integrate import PlanarSimulation, _initial, _steps
 from .model import PlanarModel
-from .sweep import (body_terms, coordinate_accelerations, hinge_torques, riccati_kernel,
-                    solve_instant)
+from .sweep import (body_terms, bushing_data, coordinate_accelerations, hinge_torques,
+                    riccati_kernel, solve_instant)
 
 
 def _scheme_parameters(scheme: Any) -> tuple[float, float, float, float]:
@@ -61,9 +61,13 @@ class _NewtonStep:
         self.has_parent = model.parent >= 0
         self.p = np.maximum(model.parent, 0)
         self.kappa = (model.stiffness * bh2 + model.damping * gh)
+        self.kappa_t = (model.translational_stiffness * bh2 + model.translational_damping * gh)
 
-    def sweep(self, q, v, t, A, F):
-        """Solve the tangent problem linearised about ``(q, v, A, F)``; returns new A, F."""
+    def sweep(self, q, v, t, A, F, x=None):
+        """Solve the tangent problem linearised about ``(q, v, A, F, qdd = x)``.
+
+        Returns the new body accelerations, joint forces and coordinate accelerations.
+        """
         m = self.model
         bh2, gh = self.bh2, self.gh
         theta, omega = m.body_angles(q, v, t)
@@ -113,10 +117,17 @@ class _NewtonStep:
         alpha_d = [0.0] * m.n_bodies
         for i, _, _, acc in m.driven(t):
             alpha_d[i] = acc
-        A_new, F_new, _ = riccati_kernel(self.parent, self.kind, K.tolist(), b.tolist(),
-                                         E.tolist(), self.kappa.tolist(), tau_tilde.tolist(),
-                                         alpha_d)
-        return np.array(A_new), np.array(F_new)
+        bushing = {}
+        if len(m.bushing_bodies):
+            xy = m.xy_index
+            dd = {j: (x[xy[j, 0]], x[xy[j, 1]]) for j in m.bushing_bodies.tolist()}
+            bushing = bushing_data(m, q, v, tau_tilde, kappa_t=self.kappa_t, kappa_r=self.kappa,
+                                   bh2=bh2, forces=F, translation_acc=dd)
+        A_new, F_new, _, translation = riccati_kernel(
+            self.parent, self.kind, K.tolist(), b.tolist(), E.tolist(), self.kappa.tolist(),
+            tau_tilde.tolist(), alpha_d, bushing=bushing)
+        A_new = np.array(A_new)
+        return A_new, np.array(F_new), coordinate_accelerations(m, A_new, translation)
 
 
 def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: float,
@@ -175,9 +186,14 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
         x = xdd.copy()
         residual = np.inf
         for it in range(1, max_iterations + 1):
-            A, F = stepper.sweep(q_hat + stepper.bh2 * x, v_hat + stepper.gh * x, t1, A, F)
+            try:
+                A, F, x_new = stepper.sweep(q_hat + stepper.bh2 * x, v_hat + stepper.gh * x,
+                                            t1, A, F, x)
+            except (SimulationError, np.linalg.LinAlgError) as exc:
+                raise ConvergenceError(
+                    f"implicit DT-TMM step {step + 1} (t = {t1:.6g} s): Newton iteration {it} "
+                    f"failed ({exc}); last residual {residual:.3e}; reduce dt", time=t1) from exc
             evaluations += 1
-            x_new = coordinate_accelerations(model, A)
             residual = float(np.max(np.abs(x_new - x))) if x.size else 0.0
             x = x_new
             if not np.isfinite(residual):

@@ -38,7 +38,7 @@ from .. import validation
 from ..elements.base import Element
 from ..errors import ModelError
 from ..layouts import PLANAR
-from .model import DRIVEN, FREE, PlanarModel
+from .model import BUSHING, DRIVEN, FREE, PlanarModel
 from .sweep import solve_instant
 
 
@@ -245,6 +245,10 @@ def static_equilibrium(model: PlanarModel, q_guess, *, t: float = 0.0,
 def _check_equilibrium(model: PlanarModel, q_eq, t: float):
     if np.any(model.joint_kind == DRIVEN):
         raise ModelError("linearisation about an equilibrium needs a model without driven hinges")
+    if np.any(model.joint_kind == BUSHING):
+        names = [model.joint_names[j] for j in np.flatnonzero(model.joint_kind == BUSHING)]
+        raise ModelError(f"the linear planar module does not support hinges with translational "
+                         f"springs yet: {', '.join(names)}")
     q_eq = validation.finite_array("q_eq", q_eq, ndim=1)
     if q_eq.shape != (model.n_coordinates,):
         raise ModelError(f"q_eq must have shape ({model.n_coordinates},), got {q_eq.shape}")

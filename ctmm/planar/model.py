@@ -26,10 +26,10 @@ from .. import validation
 from ..errors import ModelError, unknown_name
 from ..signals import Constant
 from .elements import (DrivenHinge, Fixed, Free, FreeBase, HINGE_TYPES, Pinned, RigidBody,
-                       SmoothHinge, _Hinge)
+                       SmoothHinge, _Hinge, translational_law)
 
-REVOLUTE, DRIVEN, FREE = 0, 1, 2
-"""Joint kinds in :attr:`PlanarModel.joint_kind`."""
+REVOLUTE, DRIVEN, FREE, BUSHING = 0, 1, 2, 3
+"""Joint kinds in :attr:`PlanarModel.joint_kind` (BUSHING: hinge with translational springs)."""
 
 
 @dataclass(frozen=True)
@@ -172,6 +172,8 @@ class PlanarModel:
                                     f"(got parent={element.parent!r}, child={element.child!r})")
                     continue
                 kind = DRIVEN if isinstance(element, DrivenHinge) else REVOLUTE
+                if kind == REVOLUTE and sum(translational_law(element)) > 0.0:
+                    kind = BUSHING
                 parent_name, _, end = element.parent.partition(".")
                 if parent_name in grounds:
                     joints.append(_Joint(element.name, kind, None, None, grounds[parent_name],
@@ -291,10 +293,15 @@ class PlanarModel:
         # hinge laws tau = u - k (dtheta - r) - c (dtheta_dot - r_dot)
         self.stiffness = np.zeros(nb)
         self.damping = np.zeros(nb)
+        self.translational_stiffness = np.zeros(nb)
+        self.translational_damping = np.zeros(nb)
         self._reference, self._reference_rate, self._torque = [], [], []
         self._driven = []
         for i, joint in enumerate(self._joints):
-            if joint.kind == REVOLUTE:
+            if joint.kind == BUSHING:
+                kt, ct = translational_law(joint.hinge)
+                self.translational_stiffness[i], self.translational_damping[i] = kt, ct
+            if joint.kind in (REVOLUTE, BUSHING):
                 k, c, r, rd, u = joint.hinge.law()
                 self.stiffness[i], self.damping[i] = k, c
                 self._reference.append(r)
@@ -335,6 +342,9 @@ class PlanarModel:
             if joint.kind == FREE:
                 xy_index[i] = (len(names), len(names) + 1)
                 names += [f"{body}.x", f"{body}.y"]
+            elif joint.kind == BUSHING:
+                xy_index[i] = (len(names), len(names) + 1)
+                names += [f"{body}.dx", f"{body}.dy"]
             if joint.kind != DRIVEN:
                 theta_index[i] = len(names)
                 names.append(f"{body}.theta")
@@ -343,10 +353,14 @@ class PlanarModel:
         self.xy_index = xy_index
         self.coordinate_bodies = np.flatnonzero(theta_index >= 0)
         self.free_bodies = np.flatnonzero(self.joint_kind == FREE)
+        self.bushing_bodies = np.flatnonzero(self.joint_kind == BUSHING)
         self.children = [[] for _ in range(nb)]
         for i in range(nb):
             if self.parent[i] >= 0:
                 self.children[self.parent[i]].append(i)
+        self._parent_list = self.parent.tolist()
+        self._kind_list = self.joint_kind.tolist()
+        self._zeros = [0.0] * nb
         self.is_chain = bool(np.all(self.parent == np.arange(-1, nb - 1))) and not self._driven \
             and not len(self.free_bodies)
 
@@ -420,6 +434,16 @@ class PlanarModel:
             omega[i] = rate + (omega[p] if p >= 0 else 0.0)
         return theta, omega
 
+    def bushing_offsets(self, q: np.ndarray, qdot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Translational offsets ``d`` and rates of the translational-spring hinges (nb, 2)."""
+        d = np.zeros((self.n_bodies, 2))
+        dd = np.zeros((self.n_bodies, 2))
+        bb = self.bushing_bodies
+        if len(bb):
+            d[bb] = np.asarray(q)[self.xy_index[bb]]
+            dd[bb] = np.asarray(qdot)[self.xy_index[bb]]
+        return d, dd
+
     def relative_angles(self, theta: np.ndarray, omega: np.ndarray
                         ) -> tuple[np.ndarray, np.ndarray]:
         """Hinge angles ``theta_child - theta_parent`` and their rates."""
@@ -455,6 +479,10 @@ class PlanarModel:
             else:
                 r_in[i] = self.ground_position[i]
                 v_in[i] = 0.0
+            if self.joint_kind[i] == BUSHING:
+                ix, iy = self.xy_index[i]
+                r_in[i] = r_in[i] + (q[ix], q[iy])
+                v_in[i] = v_in[i] + (qdot[ix], qdot[iy])
         rcx = c * self.com[:, 0] - s * self.com[:, 1]
         rcy = s * self.com[:, 0] + c * self.com[:, 1]
         com = r_in + np.column_stack([rcx, rcy])
@@ -471,6 +499,10 @@ class PlanarModel:
         dtheta, _ = self.relative_angles(pts["theta"], pts["omega"])
         reference, _, _ = self.hinge_laws(t)
         spring = 0.5 * np.sum(self.stiffness * (dtheta - reference) ** 2)
+        bb = self.bushing_bodies
+        if len(bb):
+            d = np.asarray(q)[self.xy_index[bb]]
+            spring += 0.5 * np.sum(self.translational_stiffness[bb] * np.sum(d * d, axis=1))
         return float(kinetic + potential + spring)
 
     def __repr__(self) -> str:
@@ -478,4 +510,4 @@ class PlanarModel:
                 f"coordinates={self.n_coordinates})")
 
 
-__all__ = ["PlanarModel", "REVOLUTE", "DRIVEN", "FREE"]
+__all__ = ["PlanarModel", "REVOLUTE", "DRIVEN", "FREE", "BUSHING"]

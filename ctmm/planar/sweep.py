@@ -37,7 +37,7 @@ from typing import Callable
 import numpy as np
 
 from ..errors import SimulationError
-from .model import DRIVEN, FREE, REVOLUTE, PlanarModel
+from .model import BUSHING, DRIVEN, FREE, REVOLUTE, PlanarModel
 
 
 @dataclass(frozen=True)
@@ -118,8 +118,29 @@ def hinge_torques(model: PlanarModel, theta: np.ndarray, omega: np.ndarray, t: f
 # ------------------------------------------------------------------------------------------
 # the O(n) kernel
 # ------------------------------------------------------------------------------------------
+def _bushing_backward(P, s, data):
+    """Hinge with translational springs: ``F_c = F_tilde - Kappa (A_c - A_O)``.
+
+    A force element between the parent end ``O`` and the child's inboard end: ``(f, tau)``
+    acts on the child, ``-(f, tau)`` on the parent at ``O`` (force pair, power
+    ``f . d_dot + tau dtheta_dot``).  ``data = (F_tilde(3), kappa_t, kappa_r, ...)``; returns
+    the projected ``(Phi_hat, psi_hat)`` at the parent end and what the forward pass needs.
+    With ``Kappa = 0`` (explicit) the child decouples: ``A_c = Phi^-1 (F - psi)``.
+    """
+    ft, kt, kr = data[0], data[1], data[2]
+    P = np.array(P).reshape(3, 3)
+    kap = np.diag([kt, kt, kr])
+    W = np.linalg.inv(P + kap)
+    G = W @ kap - np.eye(3)                     # A_c - A_O = G A_O + h0
+    h0 = W @ (np.asarray(ft) - np.asarray(s))
+    Fa = -kap @ G                               # F_c = Fa A_O + Fb  (= F at O)
+    Fb = np.asarray(ft) - kap @ h0
+    return Fa, Fb, (G, h0, Fa, Fb)
+
+
 def riccati_kernel(parent: list, kind: list, K: list, b: list, E: list, kappa: list,
-                   tau: list, alpha_driven: list):
+                   tau: list, alpha_driven: list, want_forces: bool = True,
+                   bushing: dict | None = None):
     """Tip-to-base Riccati sweep and base-to-tip pass (pure Python floats, O(n)).
 
     Parameters are plain lists over bodies in topological order (see :func:`body_terms`);
@@ -132,8 +153,13 @@ def riccati_kernel(parent: list, kind: list, K: list, b: list, E: list, kappa: l
         Body accelerations at the inboard ends and joint forces.
     alpha : list of float
         Relative hinge accelerations.
+    translation : dict
+        ``{j: (ddx, ddy)}``: relative translational accelerations of the hinges with
+        translational springs (``bushing`` maps their index to :func:`_bushing_backward` data).
     """
     nb = len(parent)
+    bushing_store = {}
+    translation = {}
     acc = [list(row) for row in K]
     accb = [list(row) for row in b]
     denominators = [0.0] * nb
@@ -143,8 +169,8 @@ def riccati_kernel(parent: list, kind: list, K: list, b: list, E: list, kappa: l
         kj = kind[j]
         if kj == REVOLUTE:
             d = p22 + kappa[j]
-            if not d > 0.0:
-                raise SimulationError(f"articulated inertia of hinge {j} is not positive ({d!r})")
+            if not (d != 0.0 and abs(d) < float("inf")):
+                raise SimulationError(f"articulated inertia of hinge {j} is singular ({d!r})")
             denominators[j] = d
             r = (tau[j] - s2) / d
             f0, f1, f2 = p02 / d, p12 / d, p22 / d
@@ -156,6 +182,11 @@ def riccati_kernel(parent: list, kind: list, K: list, b: list, E: list, kappa: l
             ad = alpha_driven[j]
             q00, q01, q02, q10, q11, q12, q20, q21, q22 = p00, p01, p02, p10, p11, p12, p20, p21, p22
             t0, t1, t2 = s0 + p02 * ad, s1 + p12 * ad, s2 + p22 * ad
+        elif kj == BUSHING:
+            Q, tt, stored = _bushing_backward(acc[j], accb[j], bushing[j])
+            bushing_store[j] = stored
+            (q00, q01, q02), (q10, q11, q12), (q20, q21, q22) = Q.tolist()
+            t0, t1, t2 = tt.tolist()
         else:
             continue
         par = parent[j]
@@ -202,17 +233,24 @@ def riccati_kernel(parent: list, kind: list, K: list, b: list, E: list, kappa: l
         elif kj == DRIVEN:
             al = alpha_driven[j]
             a_j = (o0, o1, o2 + al)
+        elif kj == BUSHING:
+            G, h0, Fa, Fb = bushing_store[j]
+            rel = G @ np.array([o0, o1, o2]) + h0
+            a_j = (o0 + float(rel[0]), o1 + float(rel[1]), o2 + float(rel[2]))
+            al = float(rel[2])
+            translation[j] = (float(rel[0]), float(rel[1]))
         else:
             sol = np.linalg.solve(np.array(acc[j]).reshape(3, 3), -np.array(accb[j]))
             a_j = (float(sol[0]), float(sol[1]), float(sol[2]))
             al = a_j[2]
         alpha[j] = al
         A[j] = a_j
-        x0, x1, x2 = a_j
-        F[j] = (p00 * x0 + p01 * x1 + p02 * x2 + s0,
-                p10 * x0 + p11 * x1 + p12 * x2 + s1,
-                p20 * x0 + p21 * x1 + p22 * x2 + s2)
-    return A, F, alpha
+        if want_forces:
+            x0, x1, x2 = a_j
+            F[j] = (p00 * x0 + p01 * x1 + p02 * x2 + s0,
+                    p10 * x0 + p11 * x1 + p12 * x2 + s1,
+                    p20 * x0 + p21 * x1 + p22 * x2 + s2)
+    return A, (F if want_forces else None), alpha, translation
 
 
 def _driven_alpha(model: PlanarModel, t: float) -> list:
@@ -222,8 +260,9 @@ def _driven_alpha(model: PlanarModel, t: float) -> list:
     return alpha_d
 
 
-def coordinate_accelerations(model: PlanarModel, A: np.ndarray) -> np.ndarray:
-    """Map body accelerations ``(nb, 3)`` to the generalised-coordinate accelerations."""
+def coordinate_accelerations(model: PlanarModel, A: np.ndarray, translation: dict | None = None
+                             ) -> np.ndarray:
+    """Map body accelerations ``(nb, 3)`` (and hinge translations) to ``qddot``."""
     qddot = np.empty(model.n_coordinates)
     cb = model.coordinate_bodies
     qddot[model.theta_index[cb]] = A[cb, 2]
@@ -231,7 +270,29 @@ def coordinate_accelerations(model: PlanarModel, A: np.ndarray) -> np.ndarray:
     if len(fb):
         qddot[model.xy_index[fb, 0]] = A[fb, 0]
         qddot[model.xy_index[fb, 1]] = A[fb, 1]
+    for j, (ddx, ddy) in (translation or {}).items():
+        qddot[model.xy_index[j, 0]] = ddx
+        qddot[model.xy_index[j, 1]] = ddy
     return qddot
+
+
+def bushing_data(model: PlanarModel, q, qdot, tau: np.ndarray, *, kappa_t=None, kappa_r=None,
+                 bh2: float = 0.0, forces=None, translation_acc=None) -> dict:
+    """Data of the translational-spring hinges for :func:`riccati_kernel` (explicit default)."""
+    out = {}
+    if not len(model.bushing_bodies):
+        return out
+    d, dd = model.bushing_offsets(q, qdot)
+    for j in model.bushing_bodies.tolist():
+        kt, ct = model.translational_stiffness[j], model.translational_damping[j]
+        f = -kt * d[j] - ct * dd[j]
+        if kappa_t is None:
+            out[j] = ((f[0], f[1], tau[j]), 0.0, 0.0, d[j], 0.0, (0.0, 0.0), (0.0, 0.0))
+        else:
+            ddk = translation_acc[j]
+            ft = (f[0] + kappa_t[j] * ddk[0], f[1] + kappa_t[j] * ddk[1], tau[j])
+            out[j] = (ft, kappa_t[j], kappa_r[j], d[j], bh2, tuple(forces[j, :2]), tuple(ddk))
+    return out
 
 
 # ------------------------------------------------------------------------------------------
@@ -260,11 +321,12 @@ def solve_instant(model: PlanarModel, q, qdot, t: float = 0.0) -> InstantaneousS
     K, b, E, _ = body_terms(model, theta, omega, t)
     tau = hinge_torques(model, theta, omega, t)
     nb = model.n_bodies
-    A, F, alpha = riccati_kernel(model.parent.tolist(), model.joint_kind.tolist(), K.tolist(),
-                                 b.tolist(), E.tolist(), [0.0] * nb, tau.tolist(),
-                                 _driven_alpha(model, t))
+    A, F, alpha, translation = riccati_kernel(
+        model.parent.tolist(), model.joint_kind.tolist(), K.tolist(), b.tolist(), E.tolist(),
+        [0.0] * nb, tau.tolist(), _driven_alpha(model, t),
+        bushing=bushing_data(model, q, qdot, tau))
     A = np.array(A)
-    return InstantaneousSolution(coordinate_accelerations(model, A), A, np.array(F),
+    return InstantaneousSolution(coordinate_accelerations(model, A, translation), A, np.array(F),
                                  np.array(alpha))
 
 
@@ -280,7 +342,17 @@ def accelerations(model: PlanarModel, q, qdot, t: float = 0.0) -> np.ndarray:
     >>> float(accelerations(model, [0.0], [0.0])[0])   # -3 g / (2 L) for a horizontal rod
     -14.715
     """
-    return solve_instant(model, q, qdot, t).qddot
+    q = np.asarray(q, dtype=float)
+    qdot = np.asarray(qdot, dtype=float)
+    theta, omega = model.body_angles(q, qdot, t)
+    K, b, E, _ = body_terms(model, theta, omega, t)
+    tau = hinge_torques(model, theta, omega, t)
+    nb = model.n_bodies
+    A, _, _, translation = riccati_kernel(
+        model._parent_list, model._kind_list, K.tolist(), b.tolist(), E.tolist(), model._zeros,
+        tau.tolist(), _driven_alpha(model, t), want_forces=False,
+        bushing=bushing_data(model, q, qdot, tau))
+    return coordinate_accelerations(model, np.array(A), translation)
 
 
 def ode_rhs(model: PlanarModel) -> Callable[[float, np.ndarray], np.ndarray]:
@@ -297,4 +369,5 @@ def ode_rhs(model: PlanarModel) -> Callable[[float, np.ndarray], np.ndarray]:
 
 
 __all__ = ["InstantaneousSolution", "solve_instant", "accelerations", "ode_rhs",
-           "riccati_kernel", "body_terms", "hinge_torques", "coordinate_accelerations"]
+           "riccati_kernel", "body_terms", "hinge_torques", "coordinate_accelerations",
+           "bushing_data"]

@@ -28,7 +28,7 @@ import scipy.linalg
 import scipy.sparse
 import scipy.sparse.linalg
 
-REVOLUTE, DRIVEN, FREE = 0, 1, 2   # joint kinds, as stored in model.joint_kind
+REVOLUTE, DRIVEN, FREE, BUSHING = 0, 1, 2, 3   # joint kinds, as stored in model.joint_kind
 
 
 def _rot(theta, v):
@@ -117,6 +117,12 @@ class PlanarLagrange:
                 j_i[k][1, iy] = 1.0
             else:
                 r_i[k] = m.ground_position[k]
+            if m.joint_kind[k] == BUSHING:              # translational spring hinge: r_I += d
+                ix, iy = m.xy_index[k]
+                r_i[k] = r_i[k] + (q[ix], q[iy])
+                j_i[k] = j_i[k].copy()
+                j_i[k][0, ix] += 1.0
+                j_i[k][1, iy] += 1.0
             lever = _rot(theta[k], m.com[k])
             r_c[k] = r_i[k] + lever
             j_c[k] = j_i[k]
@@ -151,6 +157,11 @@ class PlanarLagrange:
             if self.src[body] >= 0:
                 rhs[self.src[body]] += mz
         rhs += self._hinge_forces(kin["theta"], kin["omega"], t)
+        for k in range(self.nb):
+            if m.joint_kind[k] == BUSHING:
+                ix, iy = m.xy_index[k]
+                rhs[ix] -= m.translational_stiffness[k] * q[ix] + m.translational_damping[k] * qdot[ix]
+                rhs[iy] -= m.translational_stiffness[k] * q[iy] + m.translational_damping[k] * qdot[iy]
         return M, rhs
 
     def _hinge_forces(self, theta, omega, t):
@@ -158,7 +169,7 @@ class PlanarLagrange:
         reference, rate, torque = m.hinge_laws(t)
         q_h = np.zeros(self.n)
         for k in range(self.nb):
-            if m.joint_kind[k] != REVOLUTE:
+            if m.joint_kind[k] not in (REVOLUTE, BUSHING):
                 continue
             p = m.parent[k]
             dth = theta[k] - (theta[p] if p >= 0 else m.ground_angle[k])
@@ -285,7 +296,11 @@ class PlanarLagrange:
                 if s >= 0:
                     K[s, s] += je[1, s] * fx - je[0, s] * fy
         for k in range(self.nb):
-            if m.joint_kind[k] != REVOLUTE:
+            if m.joint_kind[k] == BUSHING:
+                for i in m.xy_index[k]:
+                    K[i, i] += m.translational_stiffness[k]
+                    C[i, i] += m.translational_damping[k]
+            if m.joint_kind[k] not in (REVOLUTE, BUSHING):
                 continue
             e = np.zeros(self.n)
             if self.src[k] >= 0:
@@ -372,10 +387,31 @@ def newton_euler_kkt(model, q, qdot, t: float = 0.0) -> KKTSolution:
         rhs[3 * body] += fx
         rhs[3 * body + 1] += fy
         rhs[3 * body + 2] += _cross(lever, (fx, fy)) + mz
+    bushing_force = {}
+    for k in range(nb):
+        if model.joint_kind[k] != BUSHING:
+            continue
+        # known spring forces: +f, +tau on the child at I_k; -f, -tau on the parent at O_k
+        p = model.parent[k]
+        ix, iy = model.xy_index[k]
+        d = np.array([q[ix], q[iy]])
+        f = -model.translational_stiffness[k] * d \
+            - model.translational_damping[k] * np.array([qdot[ix], qdot[iy]])
+        dth = theta[k] - (theta[p] if p >= 0 else model.ground_angle[k])
+        dom = omega[k] - (omega[p] if p >= 0 else 0.0)
+        tau = torque[k] - model.stiffness[k] * (dth - reference[k]) \
+            - model.damping[k] * (dom - rate[k])
+        bushing_force[k] = (f, tau)
+        rhs[3 * k: 3 * k + 2] += f
+        rhs[3 * k + 2] += _cross(r_ci[k], f) + tau
+        if p >= 0:
+            arm = rot(p, model.end_vector[k]) - rot(p, model.com[p])
+            rhs[3 * p: 3 * p + 2] -= f
+            rhs[3 * p + 2] -= _cross(arm, f) + tau
     for k in range(nb):
         p = model.parent[k]
         kind = model.joint_kind[k]
-        if kind == FREE:
+        if kind in (FREE, BUSHING):
             continue
         # joint force f acts +f on child at I_k, -f on parent at the same point
         col = react[k]
@@ -442,10 +478,20 @@ def newton_euler_kkt(model, q, qdot, t: float = 0.0) -> KKTSolution:
                 dom = omega[k] - (omega[p] if p >= 0 else 0.0)
                 force[k, 2] = torque[k] - model.stiffness[k] * (dth - reference[k]) \
                     - model.damping[k] * (dom - rate[k])
+    for k, (f, tau) in bushing_force.items():
+        force[k] = (f[0], f[1], tau)
     qddot = np.zeros(lag.n)
     for k in range(nb):
         if model.theta_index[k] >= 0:
             qddot[model.theta_index[k]] = a_c[k, 2]
+        if model.joint_kind[k] == BUSHING:       # d_ddot = a_I(child) - a_O(parent end)
+            p = model.parent[k]
+            lev = r_ci[k]
+            a_i = a_c[k, :2] + a_c[k, 2] * _perp(lev) - omega[k] ** 2 * lev
+            if p >= 0:
+                lev_p = rot(p, model.end_vector[k]) - rot(p, model.com[p])
+                a_i = a_i - (a_c[p, :2] + a_c[p, 2] * _perp(lev_p) - omega[p] ** 2 * lev_p)
+            qddot[model.xy_index[k, 0]], qddot[model.xy_index[k, 1]] = a_i
         if model.joint_kind[k] == FREE:
             lev = r_ci[k]
             a_i = a_c[k, :2] + a_c[k, 2] * _perp(lev) - omega[k] ** 2 * lev
