@@ -19,8 +19,9 @@ from scipy.optimize import brentq
 
 import ctmm
 from ctmm.control import ControlledChain, Feedback
-from ctmm.control.analysis import (bode_plot, closed_loop_response, loop_transfer_function, margins,
-                                   nyquist_plot, open_loop_plant)
+from ctmm.control.analysis import (bode_plot, closed_loop_response, encirclements, loop_transfer_function,
+                                   margins, nyquist_plot, open_loop_plant)
+from ctmm.results import FrequencyResponse
 from ctmm.control.design import PlantCache
 from ctmm.elements import Damper, Elastic, Fixed, Free, GroundedSpring, Mass, PrescribedDisplacement, Spring, SpringDamper
 from ctmm.errors import ModelError, UnknownNameError
@@ -219,6 +220,26 @@ def test_margins_without_crossovers_and_errors():
         margins(system, "x", [1.0, 2.0, 3.0, 4.0])
     with pytest.raises(ModelError, match="ControlledChain"):
         loop_transfer_function(system.plant, "speed", [1.0])
+
+
+@pytest.mark.parametrize("k, expected", [(7.9, 0), (8.1, -2)])
+def test_encirclements_of_third_order_lag(k, expected):
+    """L = k/(s + 1)^3 closes unstable for k > 8 (Routh): two clockwise encirclements."""
+    w = np.linspace(0.0, 300.0, 30001)
+    L = FrequencyResponse(w, (k / (1j * w + 1) ** 3)[None, None], ("u",), ("L",))
+    assert encirclements(L) == expected
+
+
+def test_scenario_modules_follow_the_protocol():
+    import importlib
+    import inspect
+
+    for name in ("controlled_chain_frequency", "controlled_chain_across", "controlled_chain_delay_frequency",
+                 "controlled_chain_time", "pd_tuning"):
+        module = importlib.import_module(f"ctmm.scenarios.{name}")
+        assert module.NAME == name and module.DESCRIPTION
+        assert list(inspect.signature(module.run).parameters) == ["output_dir", "quick"]
+    assert not hasattr(importlib.import_module("ctmm.scenarios.controlled_chain_common"), "NAME")
 
 
 def test_plots_return_figures(tmp_path):
