@@ -77,12 +77,24 @@ def test_dttmm_equals_global_newmark_with_loops(case):
     assert np.max(np.abs(x - ref.displacement)) < 1e-13
     for k, loop in enumerate(setup.loops):
         np.testing.assert_allclose(result[f"{loop.name}.y"], ref.sensed[:, k], rtol=0, atol=1e-13)
-        # reported u(t1) of a velocity loop with tau < h interpolates the first interval with
-        # y'(t0) (fixed start-up); from t2 on the values agree
-        np.testing.assert_allclose(result[f"{loop.name}.u"][2:], ref.control[2:, k], rtol=0, atol=1e-11)
+        # u(t0) is checked separately below (test_reported_initial_control_force)
+        np.testing.assert_allclose(result[f"{loop.name}.u"][1:], ref.control[1:, k], rtol=0, atol=1e-11)
 
 
-@settings(max_examples=10, deadline=None, derandomize=True)
+@pytest.mark.xfail(strict=True, reason=(
+    "core bug (ctmm/control/simulate.py, simulate_controlled): 'u_start = u_prev' aliases the dict that "
+    "after_step overwrites every step, so the reported '<loop>.u' at t0 is the force of the last step; "
+    "fix: 'u_start: dict[int, float] = {}' and, in the initial branch of force_hook, "
+    "'u_start[r.index] = u0[r.index]' next to 'u_prev[r.index] = u0[r.index]'"))
+@pytest.mark.parametrize("case", ["downstream real-time", "downstream delayed 5h"])
+def test_reported_initial_control_force(case):
+    setup = seed_setup(ROUNDOFF_CASES[case])
+    result, _ = dttmm(setup, 1.0, H)
+    ref = newmark_closed_loop(setup.chain, setup.global_loops, 1.0, H, X0, V0)
+    assert result["loop0.u"][0] == pytest.approx(ref.control[0, 0], abs=1e-12)     # -Ka x6(0) = -0.5 N
+
+
+@settings(max_examples=12, deadline=None, derandomize=True)
 @given(st.integers(0, 2**31 - 1))
 def test_dttmm_equals_global_newmark_random_loops(seed):
     rng = np.random.default_rng(seed)
@@ -91,9 +103,9 @@ def test_dttmm_equals_global_newmark_random_loops(seed):
         quantity = str(rng.choice(["displacement", "velocity"]))
         sensor, actuator = int(rng.integers(3)), int(rng.integers(3))
         across = bool(actuator >= 1 and rng.random() < 0.3)
-        # delays: 0, inside the step, or whole steps (non-integer multiples: separate test below)
+        # delays: 0, inside the step, whole steps or any multiple of the step
         delay = float(rng.choice([0.0, 0.003, 0.02, 0.05]))
-        if quantity == "displacement" and rng.random() < 0.5:
+        if rng.random() < 0.5:
             delay = float(rng.uniform(0.0, 0.1))
         gain = float(rng.uniform(-1, 1) * (20.0 if quantity == "displacement" else 1.0))
         loops.append((sensor, quantity, actuator, gain, delay, None, across))
