@@ -8,7 +8,7 @@ import pytest
 
 
 def test_pendulum_chain_scenario_quick(tmp_path):
-    from scenarios import pendulum_chain
+    from ctmm.scenarios import pendulum_chain
     summary = pendulum_chain.run(tmp_path, quick=True)
     json.dumps(summary)
     assert (tmp_path / "pendulum_chain.png").stat().st_size > 1000
