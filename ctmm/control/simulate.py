@@ -209,6 +209,7 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
                 ref = refs.get(r.loop.name)
                 e_prev[r.index] = y - (float(ref(t0)) if ref is not None else 0.0)
                 u_prev[r.index] = u0[r.index]
+                u_start[r.index] = u0[r.index]
                 forces[r.actuator_pos] = forces.get(r.actuator_pos, 0.0) + u0[r.index]
             return forces
         for r in delayed:
@@ -221,7 +222,7 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
         return forces
 
     _pending: dict[int, float] = {}
-    u_start = u_prev  # the initial branch of force_hook fills u_prev with the t0 loop forces
+    u_start: dict[int, float] = {}  # loop forces at t0, filled by the initial branch of force_hook
     _last_f = [np.zeros(plant.n_points)]
     _rt_gain: dict[int, float] = {}
 
