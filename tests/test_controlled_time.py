@@ -81,11 +81,6 @@ def test_dttmm_equals_global_newmark_with_loops(case):
         np.testing.assert_allclose(result[f"{loop.name}.u"][1:], ref.control[1:, k], rtol=0, atol=1e-11)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "core bug (ctmm/control/simulate.py, simulate_controlled): 'u_start = u_prev' aliases the dict that "
-    "after_step overwrites every step, so the reported '<loop>.u' at t0 is the force of the last step; "
-    "fix: 'u_start: dict[int, float] = {}' and, in the initial branch of force_hook, "
-    "'u_start[r.index] = u0[r.index]' next to 'u_prev[r.index] = u0[r.index]'"))
 @pytest.mark.parametrize("case", ["downstream real-time", "downstream delayed 5h"])
 def test_reported_initial_control_force(case):
     setup = seed_setup(ROUNDOFF_CASES[case])
