@@ -3,12 +3,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import scipy.linalg
 
 import ctmm
 from ctmm.errors import ModelError
-from ctmm.planar import (ElasticHinge, Pinned, PlanarModel, RigidBody, SmoothHinge,
-                         SpringDamperHinge, Fixed)
+from ctmm.planar import Fixed, Pinned, PlanarModel, RigidBody, SmoothHinge, SpringDamperHinge
 from ctmm.planar.linear import (LinearRigidBody, characteristic_function, linear_chain,
                                 natural_frequencies, static_equilibrium)
 from ctmm.reference.planar_lagrange import PlanarLagrange
@@ -119,4 +117,12 @@ def test_linear_errors():
     if np.any(damped.damping > 0):
         with pytest.raises(ModelError, match="undamped"):
             natural_frequencies(damped, np.zeros(damped.n_coordinates), n_modes=1)
-    _ = scipy.linalg, ElasticHinge, characteristic_function
+
+
+def test_tree_characteristic_function_vanishes_at_the_frequencies():
+    model = uniform_chain(3)
+    q_eq = np.full(3, -np.pi / 2)
+    omega = natural_frequencies(model, q_eq, n_modes=3)
+    at = np.abs(characteristic_function(model, q_eq, 1j * omega))
+    near = np.abs(characteristic_function(model, q_eq, 1j * omega * 1.001))
+    assert np.all(at < 1e-8 * near)
