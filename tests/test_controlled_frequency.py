@@ -253,7 +253,7 @@ def test_unknown_sensor_lists_known_signals():
 
 
 def test_unknown_actuator_lists_known_ones():
-    with pytest.raises(UnknownNameError, match=r"unknown actuator.*'m9'.*available: k0, k1, k2, m0, m1, m2"):
+    with pytest.raises(UnknownNameError, match=r"unknown actuator.*'m9'.*available: k0, k0.force, k1, k1.force, k2, k2.force, m0, m0.force, m1"):
         ControlledChain(seed_plant(), [Feedback("l", "m2.x", "m9", gain=1.0)])
 
 

@@ -70,8 +70,12 @@ class Feedback:
     sensor : str or sequence of (str, float)
         Measured signal name (e.g. ``"m6.x"``, ``"m6.v"``, ``"m6.a"``, ``"k3.f"``) or weighted
         terms, e.g. ``[("m6.x", 1.0), ("m5.x", -1.0)]`` for a relative measurement.
-    actuator : str
-        Name of a point element (force on its point) or a connector (force across it).
+    actuator : str or sequence of (str, float)
+        Where the control force/moment ``u`` enters: an element input (``"m2.force"``,
+        ``"pzt.moment"``), or an element name meaning its first input (``"m2"``: force on a
+        mass; ``"K3"``: force across a connector), or weighted inputs, e.g. a PZT moment pair
+        ``[("p1.moment", -1.0), ("p2.moment", 1.0)]``.  ``u`` enters every element exactly as its
+        input would (the element's unit-input load vector is the loop's column).
     gain : float or control.LTI
         Static gain [N per sensed unit] or a SISO continuous-time python-control system ``C(s)``.
     delay : float
@@ -84,9 +88,22 @@ class Feedback:
     gain: Any = 0.0
     delay: float = 0.0
     terms: tuple = field(init=False, repr=False, compare=False)
+    actuator_terms: tuple = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         validation.name("loop", self.name)
+        if isinstance(self.actuator, str):
+            actuators = ((self.actuator, 1.0),)
+        else:
+            try:
+                actuators = tuple((str(a), validation.finite(f"loop {self.name!r}: actuator weight", w))
+                                  for a, w in self.actuator)
+            except (TypeError, ValueError) as exc:
+                raise ModelError(f"loop {self.name!r}: actuator must be an input name or a sequence of "
+                                 f"(input, weight) pairs, got {self.actuator!r}") from exc
+            if not actuators:
+                raise ModelError(f"loop {self.name!r}: actuator needs at least one input")
+        object.__setattr__(self, "actuator_terms", actuators)
         if isinstance(self.sensor, str):
             terms = ((self.sensor, 1.0),)
         else:
@@ -142,9 +159,13 @@ class Feedback:
 class _Resolved:
     loop: Feedback
     index: int            # loop number
-    actuator_pos: int     # element position in the chain
-    across: bool          # actuator across a connector
+    actuators: tuple      # ((element position, input name, weight), ...)
     sensing: tuple        # ((point, component, derivative, weight), ...)
+
+    @property
+    def actuator_pos(self) -> int:
+        """Position of the (first) actuated element."""
+        return self.actuators[0][0]
 
 
 class ControlledChain:
@@ -189,11 +210,16 @@ class ControlledChain:
 
     def _resolve(self, index: int, loop: Feedback) -> _Resolved:
         plant = self.plant
-        known_actuators = [e.name for e in plant.body if isinstance(e, (PointElement, Connector))]
-        if loop.actuator not in known_actuators:
-            raise unknown_name(f"actuator of loop {loop.name!r} (a mass/point element or a connector)",
-                               loop.actuator, known_actuators)
-        pos = plant.position(loop.actuator)
+        known = [e.name for e in plant.body if e.inputs] + [n for n in plant.input_names()
+                                                           if plant.element(n.split(".")[0]) in plant.body]
+        actuators = []
+        for name, weight in loop.actuator_terms:
+            if name not in known:
+                raise unknown_name(f"actuator of loop {loop.name!r} (an element input, or an element "
+                                   "with inputs)", name, known)
+            element_name, _, input_name = name.partition(".")
+            element = plant.element(element_name)
+            actuators.append((plant.position(element_name), input_name or element.inputs[0], weight))
         sensing = []
         for signal_name, weight in loop.terms:
             try:
@@ -201,7 +227,7 @@ class ControlledChain:
             except ModelError as exc:
                 raise type(exc)(f"loop {loop.name!r}: sensor {exc}") from None
             sensing.append((sig.point, sig.component, sig.derivative, weight))
-        return _Resolved(loop, index, pos, isinstance(plant.elements[pos], Connector), tuple(sensing))
+        return _Resolved(loop, index, tuple(actuators), tuple(sensing))
 
     # -- delegation to the plant ----------------------------------------------------------
     @property
@@ -291,11 +317,15 @@ class ControlledChain:
         Us_p, us_p, start_p, end_p = assemble_plant(self.plant, s, plant_amps)
         gains = [r.loop.loop_gain(s) for r in self._resolved]
         ref_amp = [refs.get(r.loop.name, {}).get("reference", 0.0) for r in self._resolved]
+        columns = [[(pos, weight * np.asarray(self.plant.elements[pos].load_vector(s, {name: 1.0})))
+                    for pos, name, weight in r.actuators] for r in self._resolved]
         return self._extend(s, Us_p, us_p, start_p, end_p, gains, ref_amp,
-                                        lambda point, comp, deriv: s ** deriv)
+                            lambda point, comp, deriv: s ** deriv, columns=columns)
 
     def _extend(self, s, Us_p, us_p, start_p, end_p, gains, ref_amp, derivative_factor,
-                sensing_offset=None):
+                sensing_offset=None, columns=None):
+        """Extended matrices; ``columns[i]`` = ``[(element position, unit-input load vector), ...]``
+        of loop ``i`` (the control force enters like that input)."""
         nb = s.shape[0] if np.ndim(s) else 1
         d0 = self.plant.layout.size
         n = self.layout.size
@@ -330,17 +360,15 @@ class ControlledChain:
             u = np.zeros((nb, n), dtype=dtype)
             u[:, :d0] = up
             for r in self._resolved:
-                if r.actuator_pos != j:
-                    continue
                 g = gains[r.index]
                 col = d0 + 2 * r.index
                 ref = g * ref_amp[r.index]
-                if r.across:  # x_out = x_in + (u - f)/k_c  -> coefficient of u is -U[x, f]
-                    U[:, 0, col] += -Up[:, 0, 1] * (-g)
-                    u[:, 0] += -Up[:, 0, 1] * ref
-                else:          # f_out = f_in - Z x + u
-                    U[:, 1, col] += -g
-                    u[:, 1] += ref
+                for pos, unit in columns[r.index]:
+                    if pos != j:
+                        continue
+                    unit = np.broadcast_to(unit, (nb, d0))
+                    U[:, :d0, col] += -g[..., None] * unit if np.ndim(g) else -g * unit
+                    u[:, :d0] += (ref[..., None] if np.ndim(ref) else ref) * unit
             Us.append(U)
             us.append(u)
             add_sensing(j)

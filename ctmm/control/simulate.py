@@ -210,12 +210,14 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
                 e_prev[r.index] = y - (float(ref(t0)) if ref is not None else 0.0)
                 u_prev[r.index] = u0[r.index]
                 u_start[r.index] = u0[r.index]
-                forces[r.actuator_pos] = forces.get(r.actuator_pos, 0.0) + u0[r.index]
+                for pos, _, weight in r.actuators:
+                    forces[pos] = forces.get(pos, 0.0) + weight * u0[r.index]
             return forces
         for r in delayed:
             u_new = delayed_force(r, t_n + h)
             u_eval = (1.0 - w) * u_prev[r.index] + w * u_new
-            forces[r.actuator_pos] = forces.get(r.actuator_pos, 0.0) + u_eval
+            for pos, _, weight in r.actuators:
+                forces[pos] = forces.get(pos, 0.0) + weight * u_eval
             _pending[r.index] = u_new
         for pos, value in cosim.forces(t_n, history, _last_f[0]).items():
             forces[pos] = forces.get(pos, 0.0) + value
@@ -230,12 +232,16 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
         """Extended (real-time loops) DT-TMM step."""
         lins = [Linearisation(coeffs.cx, float(coeffs.dx[j, 0]), coeffs.A, float(coeffs.B[j, 0]), coeffs.C,
                               float(coeffs.D[j, 0]), float(coeffs.x_pred[j, 0])) for j in range(plant.n_points)]
-        Us_p, us_p = [], []
+        Us_p, us_p, unit = [], [], {}
+        actuated = {pos for r in loops for pos, _, _ in r.actuators}
         for j, e in enumerate(plant.body, start=1):
             force = extra.get(j, 0.0)
             if isinstance(e, PointElement):
                 force += (1.0 - w) * float(e.force(t_n)) + w * float(e.force(t_n + h))
-            U, u = e.discretize(scheme).step_matrices(t_eval, lins[j - 1], lins[j], force)
+            disc = e.discretize(scheme)
+            U, u = disc.step_matrices(t_eval, lins[j - 1], lins[j], force)
+            if j in actuated:  # unit-input column of the step (affine response to a unit force)
+                unit[j] = np.asarray(disc.step_matrices(t_eval, lins[j - 1], lins[j], force + 1.0)[1], float) - u
             Us_p.append(np.asarray(U, float)[None])
             us_p.append(np.asarray(u, float)[None])
         e_idx, S0, P0 = plant.start.start_discrete(plant.layout, t_eval, lins[0])
@@ -258,14 +264,10 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
             gains.append(np.array([g * (1.0 - theta)]))
             known_u[r.index] = -g * (theta * y_old - r_eval) - offset
             _rt_gain[r.index] = g * (1.0 - theta)
-        Us_p = [U.astype(float) for U in Us_p]
         for r in realtime:  # known part of the real-time control force
-            pos = r.actuator_pos
-            U_el = Us_p[pos - 1]
-            if r.across:
-                us_p[pos - 1] = us_p[pos - 1] + np.array([[-U_el[0, 0, 1] * known_u[r.index], 0.0]])
-            else:
-                us_p[pos - 1] = us_p[pos - 1] + np.array([[0.0, known_u[r.index]]])
+            for pos, _, weight in r.actuators:
+                us_p[pos - 1] = us_p[pos - 1] + weight * known_u[r.index] * unit[pos][None]
+        columns = [[(pos, weight * unit[pos][None]) for pos, _, weight in r.actuators] for r in loops]
 
         def factor(point, comp, deriv):
             if comp >= d:
@@ -279,7 +281,7 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
 
         Us, us, start, end = controlled._extend(
             np.zeros(1), Us_p, us_p, BoundaryStart(e_idx, S0[None], P0[None]),
-            BoundaryEnd(Bm[None], b[None]), gains, [0.0] * len(loops), factor, offset_fn)
+            BoundaryEnd(Bm[None], b[None]), gains, [0.0] * len(loops), factor, offset_fn, columns=columns)
         reference_pts = predicted_forces(Us_p, us_p, d)   # incremental-force form on the plant rows
         idx = np.asarray(controlled.state_index)
         reference = np.zeros((len(Us) + 1, 1, d))
@@ -347,7 +349,8 @@ def _consistent_start(plant: Chain, loops, lti, refs, x, v, t0: float, forces: M
     def sensed(u: np.ndarray) -> np.ndarray:
         extra = dict(forces)
         for r in loops:
-            extra[r.actuator_pos] = extra.get(r.actuator_pos, 0.0) + u[r.index]
+            for pos, _, weight in r.actuators:
+                extra[pos] = extra.get(pos, 0.0) + weight * u[r.index]
         a = initial_acceleration(plant, x, v, t0, extra)
         f = np.nan_to_num(_initial_forces(plant, x, v, extra))
         return np.array([_sense(r.sensing, x, v, a, f, d)[0] for r in loops]), a, f
