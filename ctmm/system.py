@@ -10,6 +10,8 @@ Signals are addressed by dotted names (see :meth:`Chain.signal`):
 * ``"k1.f"``: internal force [N] at the outboard point (for a connector: its force, exerted on
   the outboard part);
 * ``"k1.in.x"`` / ``"k1.out.f"``: explicit side; boundaries have a single point;
+* ``"<component>_dot"`` / ``"<component>_ddot"``: first/second time derivative of any displacement
+  component, e.g. ``"beam.theta_dot"`` (``v``/``a`` are aliases for the first component);
 * inputs: ``"m1.force"`` (external force on a mass), ``"base.displacement"``, ``"tip.force"``.
 """
 from __future__ import annotations
@@ -139,7 +141,8 @@ class Chain:
 
     def _quantities(self) -> list[str]:
         comps = list(self.layout.components)
-        return comps + list(KINEMATIC_ALIASES)
+        derived = [f"{c}_{suffix}" for c in self.layout.displacements for suffix in ("dot", "ddot")]
+        return comps + list(KINEMATIC_ALIASES) + derived
 
     def signal(self, name: str) -> Signal:
         """Resolve an output signal name such as ``"m1.x"`` or ``"k2.in.f"``."""
@@ -157,6 +160,10 @@ class Chain:
         point = min(max(point, 0), self.n_points - 1)
         if quantity in KINEMATIC_ALIASES:
             return Signal(name, point, 0, KINEMATIC_ALIASES[quantity])
+        for suffix, order in (("_ddot", 2), ("_dot", 1)):
+            base = quantity[: -len(suffix)]
+            if quantity.endswith(suffix) and base in self.layout.displacements:
+                return Signal(name, point, self.layout.index(base), order)
         if quantity in self.layout.components:
             return Signal(name, point, self.layout.index(quantity), 0)
         raise unknown_name("signal", name, self.signal_names())
