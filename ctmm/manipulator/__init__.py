@@ -1,0 +1,1 @@
+"""Controlled flexible manipulator: PD hub torque and PZT modal-velocity feedback."""
