@@ -462,8 +462,10 @@ def to_state_space(system: Any, *, inputs: str | Sequence[str] | None = None,
             raise unknown_name("input", name, list(system.input_names()))
         else:
             forces.append(name)
-    actuators = [f"{lp.actuator}.force" for lp in loops]
-    plant_inputs = list(dict.fromkeys(forces + actuators))
+    from .control.analysis import actuator_inputs
+
+    actuators = [actuator_inputs(system, lp.name) for lp in loops]     # [(input, weight), ...] per loop
+    plant_inputs = list(dict.fromkeys(forces + [a for terms in actuators for a, _ in terms]))
     model = _LumpedModel(chain, plant_inputs)
     n_u = len(plant_inputs)
     # plant outputs: requested plant signals, then each loop's sensed value
@@ -496,8 +498,9 @@ def to_state_space(system: Any, *, inputs: str | Sequence[str] | None = None,
     for k, name in enumerate(forces):
         Sw[col[name], k] = 1.0
     Su = np.zeros((n_u, nl))
-    for i, name in enumerate(actuators):
-        Su[col[name], i] += 1.0
+    for i, terms in enumerate(actuators):
+        for name, weight in terms:
+            Su[col[name], i] += weight
     B1, B2 = B @ Sw, B @ Su
     D11, D12 = Dz @ Sw, Dz @ Su
     D21, D22 = Dy @ Sw, Dy @ Su

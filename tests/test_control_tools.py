@@ -157,6 +157,22 @@ def test_loop_transfer_function_convention():
     np.testing.assert_allclose(L, K * open_loop_plant(setup.system, "loop0", OMEGA), rtol=1e-14)
 
 
+def test_tools_follow_weighted_actuator_inputs():
+    """An actuator given as weighted element inputs (here a force pair) in every tool."""
+    plant = seed_setup().plant
+    loops = [Feedback("pair", "m2.x", [("m0.force", 1.0), ("m1.force", -0.5)], gain=8.0),
+             Feedback("damp", "m1.v", "k1.force", gain=0.7)]
+    system = ControlledChain(plant, loops)
+    inputs, outputs = ["m2.force", "pair.reference"], ["m0.x", "m2.x", "pair.u", "damp.y"]
+    direct = ctmm.frequency_response(system, OMEGA, input=inputs, output=outputs).response
+    cache = PlantCache(system, OMEGA, inputs=inputs, outputs=outputs).closed_loop().response
+    ss = ss_response(to_state_space(system, inputs=inputs, outputs=outputs), OMEGA)
+    assert relative_error(cache, direct) < 1e-12 and relative_error(ss, direct) < 1e-10
+    L = loop_transfer_function(system, "pair", OMEGA)("pair.L")
+    closed = ctmm.frequency_response(system, OMEGA, input="pair.reference", output="pair.y")("pair.y")
+    np.testing.assert_allclose(closed, L / (1 + L), rtol=1e-11)
+
+
 def test_gain_margin_predicts_the_stability_boundary():
     """Scaling the gain by GM (1 -+ 1e-3) moves a closed-loop root pair across the axis."""
     setup = seed_setup([(2, "displacement", 0, 20.0, 0.0, None, False),

@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Sequence
 
 import numpy as np
-from scipy.optimize import brentq
+from scipy.optimize import brentq, minimize_scalar
 
 from .. import validation
 from ..errors import ModelError
@@ -38,7 +38,8 @@ from ..frequency import frequency_response
 from ..results import FrequencyResponse
 from .loops import ControlledChain
 
-__all__ = ["closed_loop_response", "loop_transfer_function", "open_loop_plant", "Margins", "margins",
+__all__ = ["closed_loop_response", "loop_transfer_function", "open_loop_plant", "actuator_inputs", "Margins",
+           "margins",
            "encirclements", "bode_plot", "nyquist_plot"]
 
 
@@ -68,6 +69,18 @@ def closed_loop_response(system: Any, omega: Any, inputs: str | Sequence[str],
     return frequency_response(system, omega, input=inputs, output=outputs)
 
 
+def actuator_inputs(system: ControlledChain, loop: str) -> list[tuple[str, float]]:
+    """The plant inputs ``[(input name, weight), ...]`` through which the force of ``loop`` enters
+    (an element name stands for its first input: ``"m2"`` -> ``"m2.force"``)."""
+    lp = system.loop(loop)
+    out = []
+    for name, weight in lp.actuator_terms:
+        if "." not in name:
+            name = f"{name}.{system.plant.element(name).inputs[0]}"
+        out.append((name, float(weight)))
+    return out
+
+
 def open_loop_plant(system: ControlledChain, loop: str, omega: Any) -> np.ndarray:
     """``P_yu(i omega)``: sensed value of ``loop`` per unit force of its actuator, with this loop
     removed and all other loops closed [sensed unit / N]."""
@@ -78,10 +91,12 @@ def open_loop_plant(system: ControlledChain, loop: str, omega: Any) -> np.ndarra
     others = [other for other in system.loops if other.name != lp.name]
     open_system = system.with_loops(others) if others else system.plant
     signals = list(dict.fromkeys(sig for sig, _ in lp.terms))
-    frf = frequency_response(open_system, w, input=f"{lp.actuator}.force", output=signals)
+    actuators = actuator_inputs(system, loop)
+    frf = frequency_response(open_system, w, input=list(dict.fromkeys(a for a, _ in actuators)), output=signals)
     P = np.zeros(w.size, dtype=complex)
-    for sig, weight in lp.terms:
-        P = P + weight * frf(sig)
+    for inp, a_weight in actuators:
+        for sig, weight in lp.terms:
+            P = P + a_weight * weight * frf(sig, inp)
     return P
 
 
@@ -130,9 +145,11 @@ class Margins:
     Attributes
     ----------
     gain_margin : float
-        Smallest ``1/|L(i w_pc)|`` over the phase crossovers (``inf`` if none) [-].
+        ``1/|L(i w_pc)|`` over the phase crossovers, the one closest to 1 in log scale
+        (python-control's choice; ``inf`` if none) [-].
     phase_margin : float
-        Smallest ``180 + arg L(i w_gc)`` over the gain crossovers [deg] (``inf`` if none).
+        ``180 + arg L(i w_gc)`` in ``[-180, 180)`` over the gain crossovers, the one smallest in
+        magnitude (``inf`` if none) [deg].
     delay_margin : float
         Smallest extra delay that destabilises: ``min PM_gc [rad] / w_gc`` [s] (``inf`` if no
         gain crossover).
@@ -297,8 +314,6 @@ def margins(source: Any, loop: str | None = None, omega: Any = None) -> Margins:
     # stability margin: min |1 + L| on the grid, refined by a bounded scalar search
     dist = np.abs(1.0 + Lg)
     k = int(np.argmin(dist))
-    from scipy.optimize import minimize_scalar
-
     lo, hi = wg[max(k - 1, 0)], wg[min(k + 1, wg.size - 1)]
     if hi > lo:
         res = minimize_scalar(lambda x: abs(1.0 + evaluate(x)), bounds=(lo, hi), method="bounded",

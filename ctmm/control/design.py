@@ -32,7 +32,7 @@ import numpy as np
 from ..errors import ModelError, unknown_name
 from ..frequency import frequency_response
 from ..results import FrequencyResponse
-from .analysis import _omega
+from .analysis import _omega, actuator_inputs
 from .loops import ControlledChain, Feedback
 
 __all__ = ["PlantCache"]
@@ -107,8 +107,9 @@ class PlantCache:
             else:
                 system.signal(name)
                 self._z_kind.append(("plant", name))
-        actuator_inputs = [f"{lp.actuator}.force" for lp in self.loops]
-        plant_inputs = list(dict.fromkeys(actuator_inputs + [n for k, n in self._w_kind if k == "plant"]))
+        actuators = [actuator_inputs(system, lp.name) for lp in self.loops]   # [(input, weight), ...] per loop
+        plant_inputs = list(dict.fromkeys([a for terms in actuators for a, _ in terms]
+                                          + [n for k, n in self._w_kind if k == "plant"]))
         sensed = [sig for lp in self.loops for sig, _ in lp.terms]
         plant_outputs = list(dict.fromkeys(sensed + [n for k, n in self._z_kind if k == "plant"]))
         frf = frequency_response(plant, self.omega, input=plant_inputs, output=plant_outputs)
@@ -121,8 +122,12 @@ class PlantCache:
                 total = total + weight * frf(sig, inp)
             return total
 
+        def to_actuator(response, terms) -> np.ndarray:   # response(input) summed over the loop's inputs
+            return sum(weight * response(inp) for inp, weight in terms)
+
         # arrays with the frequency axis first: (nw, rows, cols)
-        self.P_yu = np.stack([np.stack([y_row(lp, a) for a in actuator_inputs], -1) for lp in self.loops], -2)
+        self.P_yu = np.stack([np.stack([to_actuator(lambda inp, lp=lp: y_row(lp, inp), terms) for terms in actuators],
+                                       -1) for lp in self.loops], -2)
         nwx = len(self.inputs)
         self.P_yw = np.zeros((nw, nl, nwx), dtype=complex)
         self.P_zu = np.zeros((nw, len(self.outputs), nl), dtype=complex)
@@ -134,8 +139,8 @@ class PlantCache:
         for o, (kind, name) in enumerate(self._z_kind):
             if kind != "plant":
                 continue
-            for i, a in enumerate(actuator_inputs):
-                self.P_zu[:, o, i] = frf(name, a)
+            for i, terms in enumerate(actuators):
+                self.P_zu[:, o, i] = to_actuator(lambda inp, name=name: frf(name, inp), terms)
             for j, (wkind, wname) in enumerate(self._w_kind):
                 if wkind == "plant":
                     self.P_zw[:, o, j] = frf(name, wname)
@@ -188,7 +193,7 @@ class PlantCache:
 
         Raises
         ------
-        SingularSystemError-like ModelError
+        ModelError
             If ``I + K P_yu`` is singular at a grid frequency (a closed-loop pole on the axis).
         """
         K = self.loop_gains(gains, delays)
