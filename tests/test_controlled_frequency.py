@@ -174,7 +174,7 @@ def newton(f, s0: complex, *, steps: int = 60) -> complex:
     return s
 
 
-@settings(max_examples=12, deadline=None, derandomize=True)
+@settings(max_examples=8, deadline=None, derandomize=True)
 @given(st.integers(0, 2**31 - 1))
 def test_delay_free_closed_loop_roots_are_zeros_of_characteristic_function(seed):
     setup = random_setup(seed, delays=False)
