@@ -389,6 +389,25 @@ class DrivenHinge(_Hinge):
                         f"previous signal (finite difference gives {numeric!r})")
 
 
+@dataclass(frozen=True, kw_only=True)
+class FixedMounting(DrivenHinge):
+    """Rigid connection of a body to its parent's end (seed 000 section 4.3, "fixed mounting").
+
+    The child's angle is the parent end's angle plus the constant mounting ``angle`` [rad]; for
+    a flexible parent (:class:`~ctmm.flexible.ModalBeam`) the end angle includes the elastic
+    slope at the end station, so the outboard body follows the slope at the inboard tip
+    (rigid -> flexible, flexible -> flexible and flexible -> rigid mountings alike).  0 DOF; the
+    transmitted moment is an output.
+    """
+
+    angle: float = 0.0
+
+    def __post_init__(self) -> None:
+        angle = self.angle.value if isinstance(self.angle, Constant) else self.angle
+        object.__setattr__(self, "angle", validation.finite(f"{self.name}: angle", angle))
+        super().__post_init__()
+
+
 # ------------------------------------------------------------------------------------------
 # boundaries
 # ------------------------------------------------------------------------------------------
@@ -448,7 +467,7 @@ class Free:
 
 
 HINGE_TYPES = (SmoothHinge, ElasticHinge, DamperHinge, SpringDamperHinge, ActuatedHinge,
-               DrivenHinge)
+               DrivenHinge, FixedMounting)
 """All hinge classes."""
 
 
@@ -461,5 +480,5 @@ def law_arrays(hinge: _Hinge) -> tuple[float, float]:
 
 
 __all__ = ["Load", "RigidBody", "SmoothHinge", "ElasticHinge", "DamperHinge",
-           "SpringDamperHinge", "ActuatedHinge", "DrivenHinge", "Fixed", "Pinned", "FreeBase",
-           "Free", "HINGE_TYPES"]
+           "SpringDamperHinge", "ActuatedHinge", "DrivenHinge", "FixedMounting", "Fixed", "Pinned",
+           "FreeBase", "Free", "HINGE_TYPES"]

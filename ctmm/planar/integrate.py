@@ -118,6 +118,9 @@ def simulate_rk4(model: PlanarModel, q0, qdot0, *, t_final: float, dt: float,
     ts, qs, vs = [0.0], [q.copy()], [v.copy()]
     start = _time.perf_counter()
     acc = accelerations
+    flexible = model.has_flexible
+    if flexible:
+        from ..flexible.outputs import check_divergence
     for k in range(n_steps):
         t = k * h
         a1 = acc(model, q, v, t)
@@ -129,6 +132,9 @@ def simulate_rk4(model: PlanarModel, q0, qdot0, *, t_final: float, dt: float,
         a4 = acc(model, q4, v4, t + h)
         q = q + (h / 6.0) * (v + 2.0 * v2 + 2.0 * v3 + v4)
         v = v + (h / 6.0) * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+        if flexible:
+            check_divergence(model, q, t + h, h, "rk4", partial=lambda: PlanarSimulation(
+                model, np.array(ts), np.array(qs), np.array(vs), "rk4", 0.0))
         if (k + 1) % store_every == 0 or k + 1 == n_steps:
             if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
                 raise SimulationError(f"non-finite state after step {k + 1}", time=t + h)
@@ -162,6 +168,10 @@ def simulate_scipy(model: PlanarModel, q0, qdot0, *, t_final: float, method: str
                                     np.concatenate([q, v]), method=method, rtol=rtol, atol=atol,
                                     t_eval=t_eval)
     wall = _time.perf_counter() - start
+    if model.has_flexible and sol.t.size:
+        from ..flexible.outputs import check_divergence
+        for k in range(sol.t.size):
+            check_divergence(model, sol.y[:n, k], float(sol.t[k]), None, method)
     if not sol.success:
         raise SimulationError(f"solve_ivp({method}) failed: {sol.message}", time=float(sol.t[-1]))
     return PlanarSimulation(model, sol.t, sol.y[:n].T.copy(), sol.y[n:].T.copy(), method, wall,

@@ -12,7 +12,11 @@ Generalised coordinates (named ``"body.theta"``, ``"body.x"``, ``"body.y"``)
 * a body on a :class:`~ctmm.planar.elements.FreeBase`: ``x, y`` of its inboard end [m] and
   its angle;
 * a body behind a :class:`~ctmm.planar.elements.DrivenHinge` (or welded to the ground):
-  no coordinate; its angle is ``theta_parent + angle(t)``.
+  no coordinate; its angle is ``theta_parent + angle(t)``;
+* a flexible body (:class:`~ctmm.flexible.ModalBeam`) adds its modal coordinates
+  ``"beam.q1"``, ... (and ``"beam.u1"``, ... for axial modes) after its angle.  Angles of
+  children hanging at a beam end are measured from the end's cross-section
+  (``theta_beam + phi'(x_end) . q``).
 """
 from __future__ import annotations
 
@@ -27,6 +31,20 @@ from ..errors import ModelError, unknown_name
 from ..signals import Constant
 from .elements import (DrivenHinge, Fixed, Free, FreeBase, HINGE_TYPES, Pinned, RigidBody,
                        SmoothHinge, _Hinge, translational_law)
+
+
+def _modal_beam_type():
+    from ..flexible.beam import ModalBeam   # lazy: ctmm.flexible imports ctmm.planar
+    return ModalBeam
+
+
+def is_body(element) -> bool:
+    """True for rigid bodies and flexible (modal beam) bodies."""
+    return isinstance(element, (RigidBody, _modal_beam_type()))
+
+
+def _end_points(body) -> dict:
+    return body.end_points if hasattr(body, "end_points") else body.outboard
 
 REVOLUTE, DRIVEN, FREE, BUSHING = 0, 1, 2, 3
 """Joint kinds in :attr:`PlanarModel.joint_kind` (BUSHING: hinge with translational springs)."""
@@ -106,7 +124,7 @@ class PlanarModel:
         base_element: object = base
         first = True
         for element in rest:
-            if isinstance(element, RigidBody):
+            if is_body(element):
                 if first:
                     if isinstance(base, Fixed) and pending_hinge is None:
                         pending_hinge = DrivenHinge(f"{base.name}_weld", angle=0.0)
@@ -159,12 +177,12 @@ class PlanarModel:
             if element_name in names:
                 problems.append(f"duplicate element name {element_name!r}")
             names.add(element_name)
-            if isinstance(element, RigidBody):
+            if is_body(element):
                 bodies[element.name] = element
             elif isinstance(element, Fixed):
                 grounds[element.name] = element
         for element in self.elements:
-            if isinstance(element, (RigidBody, Fixed, Free)):
+            if is_body(element) or isinstance(element, (Fixed, Free)):
                 continue
             if isinstance(element, _Hinge):
                 if element.parent is None or element.child is None:
@@ -187,7 +205,7 @@ class PlanarModel:
                                             f"'{parent_name}.END'")
                             continue
                         end = body.ends[0]
-                    elif end not in body.outboard:
+                    elif end not in body.ends:
                         problems.append(f"hinge {element.name!r}: body {parent_name!r} has no "
                                         f"end {end!r}; ends: {', '.join(body.ends) or '(none)'}")
                         continue
@@ -281,7 +299,7 @@ class PlanarModel:
         self.joint_kind = np.array([j.kind for j in self._joints], dtype=int)
         self.ends = []                          # per body: {end name: vector rel. inboard}
         for i, body in enumerate(self._bodies):
-            self.ends.append({e: np.array(p) - inb[i] for e, p in body.outboard.items()})
+            self.ends.append({e: np.array(p) - inb[i] for e, p in _end_points(body).items()})
         for i, joint in enumerate(self._joints):
             if joint.parent is not None:
                 p = index[joint.parent]
@@ -335,6 +353,21 @@ class PlanarModel:
         if self._constant_loads:
             self._load_values = np.array([[f.value for f in s] for s in load_signals]
                                          ).reshape(-1, 3)
+        # flexible bodies (ctmm.flexible.ModalBeam)
+        ModalBeam = _modal_beam_type()
+        self.beams = {i: b for i, b in enumerate(self._bodies) if isinstance(b, ModalBeam)}
+        self.flexible_bodies = np.array(sorted(self.beams), dtype=int)
+        self.has_flexible = bool(self.beams)
+        self.modal_index = [np.zeros(0, dtype=int) for _ in range(nb)]
+        self.parent_end = [j.end for j in self._joints]
+        self.parent_end_index = np.array(
+            [(self._bodies[index[j.parent]].ends.index(j.end) if j.parent is not None else -1)
+             for j in self._joints], dtype=int)
+        if self.has_flexible and np.any(self.joint_kind == BUSHING):
+            names_ = [self.joint_names[j] for j in np.flatnonzero(self.joint_kind == BUSHING)]
+            raise ModelError(f"model {self.name!r}: hinges with translational springs "
+                             f"({', '.join(names_)}) are not supported together with flexible "
+                             "bodies yet")
         # coordinates
         names, theta_index, xy_index = [], np.full(nb, -1, dtype=int), np.full((nb, 2), -1,
                                                                                   dtype=int)
@@ -348,6 +381,10 @@ class PlanarModel:
             if joint.kind != DRIVEN:
                 theta_index[i] = len(names)
                 names.append(f"{body}.theta")
+            if i in self.beams:
+                start = len(names)
+                names += [f"{body}.{suffix}" for suffix in self.beams[i].coordinate_suffixes]
+                self.modal_index[i] = np.arange(start, len(names))
         self.coordinates: tuple[str, ...] = tuple(names)
         self.theta_index = theta_index
         self.xy_index = xy_index
@@ -362,7 +399,7 @@ class PlanarModel:
         self._kind_list = self.joint_kind.tolist()
         self._zeros = [0.0] * nb
         self.is_chain = bool(np.all(self.parent == np.arange(-1, nb - 1))) and not self._driven \
-            and not len(self.free_bodies)
+            and not len(self.free_bodies) and not self.has_flexible
 
     # ------------------------------------------------------------------------------------
     @property
@@ -432,7 +469,41 @@ class PlanarModel:
             p = self.parent[i]
             theta[i] = angle + (theta[p] if p >= 0 else self.ground_angle[i])
             omega[i] = rate + (omega[p] if p >= 0 else 0.0)
+            if p in self.beams:
+                slope = self.end_slope(i)
+                idx = self.modal_index[p][:len(slope)]
+                theta[i] += float(slope @ q[idx])
+                omega[i] += float(slope @ qdot[idx])
         return theta, omega
+
+    def end_slope(self, i: int) -> np.ndarray:
+        """``phi'(x_end)`` of the transverse modes of body ``i``'s parent beam at the end body
+        ``i`` hangs on (empty for rigid parents)."""
+        p = self.parent[i]
+        if p not in self.beams:
+            return np.zeros(0)
+        return self.beams[p].data.end_dphi[self.parent_end_index[i]]
+
+    def parent_end_angles(self, q, qdot, theta: np.ndarray, omega: np.ndarray
+                          ) -> tuple[np.ndarray, np.ndarray]:
+        """Angle and rate of the parent end each body hangs on (ground angle for roots);
+        includes the elastic slope of flexible parents."""
+        p = self.parent
+        has = p >= 0
+        th = np.where(has, theta[np.maximum(p, 0)], self.ground_angle)
+        om = np.where(has, omega[np.maximum(p, 0)], 0.0)
+        if self.has_flexible:
+            q = np.asarray(q)
+            qdot = np.asarray(qdot)
+            th = np.array(th, dtype=np.result_type(th, q))
+            om = np.array(om, dtype=np.result_type(om, qdot))
+            for i in range(self.n_bodies):
+                if p[i] in self.beams:
+                    slope = self.end_slope(i)
+                    idx = self.modal_index[p[i]][:len(slope)]
+                    th[i] = th[i] + slope @ q[idx]
+                    om[i] = om[i] + slope @ qdot[idx]
+        return th, om
 
     def bushing_offsets(self, q: np.ndarray, qdot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Translational offsets ``d`` and rates of the translational-spring hinges (nb, 2)."""
@@ -444,9 +515,18 @@ class PlanarModel:
             dd[bb] = np.asarray(qdot)[self.xy_index[bb]]
         return d, dd
 
-    def relative_angles(self, theta: np.ndarray, omega: np.ndarray
+    def relative_angles(self, theta: np.ndarray, omega: np.ndarray, q=None, qdot=None
                         ) -> tuple[np.ndarray, np.ndarray]:
-        """Hinge angles ``theta_child - theta_parent`` and their rates."""
+        """Hinge angles ``theta_child - theta_parent_end`` and their rates.
+
+        With flexible parents the parent end angle includes the elastic slope, which needs the
+        coordinates ``q, qdot``.
+        """
+        if self.has_flexible:
+            if q is None:
+                raise ModelError("relative_angles of a model with flexible bodies needs q, qdot")
+            th, om = self.parent_end_angles(q, qdot, theta, omega)
+            return theta - th, omega - om
         p = self.parent
         has = p >= 0
         dtheta = theta - np.where(has, theta[np.maximum(p, 0)], self.ground_angle)
@@ -469,9 +549,13 @@ class PlanarModel:
             p = self.parent[i]
             if p >= 0:
                 e = self.end_vector[i]
+                ed = np.zeros(2)
+                if p in self.beams:                     # deformed end of a flexible parent
+                    e, ed = self._beam_point_local(p, self.parent_end_index[i], q, qdot)
                 rx, ry = c[p] * e[0] - s[p] * e[1], s[p] * e[0] + c[p] * e[1]
                 r_in[i] = r_in[p] + (rx, ry)
-                v_in[i] = v_in[p] + omega[p] * np.array([-ry, rx])
+                v_in[i] = v_in[p] + omega[p] * np.array([-ry, rx]) + (
+                    c[p] * ed[0] - s[p] * ed[1], s[p] * ed[0] + c[p] * ed[1])
             elif self.joint_kind[i] == FREE:
                 ix, iy = self.xy_index[i]
                 r_in[i] = q[ix], q[iy]
@@ -487,8 +571,25 @@ class PlanarModel:
         rcy = s * self.com[:, 0] + c * self.com[:, 1]
         com = r_in + np.column_stack([rcx, rcy])
         v_com = v_in + omega[:, None] * np.column_stack([-rcy, rcx])
+        for j, beam in self.beams.items():           # deformed centroid s_bar / m of a beam
+            d = beam.data
+            eta, eta_dot = q[self.modal_index[j]], qdot[self.modal_index[j]]
+            sb = np.array([d.Sx + eta[d.nq:] @ d.b_p, eta[:d.nq] @ d.b_q]) / d.m
+            sbd = np.array([eta_dot[d.nq:] @ d.b_p, eta_dot[:d.nq] @ d.b_q]) / d.m
+            rot = np.array([[c[j], -s[j]], [s[j], c[j]]])
+            com[j] = r_in[j] + rot @ sb
+            v_com[j] = v_in[j] + omega[j] * (rot @ np.array([-sb[1], sb[0]])) + rot @ sbd
         return {"inboard": r_in, "inboard_velocity": v_in, "com": com, "com_velocity": v_com,
                 "theta": theta, "omega": omega}
+
+    def _beam_point_local(self, j: int, end: int, q, qdot) -> tuple[np.ndarray, np.ndarray]:
+        """Deformed end ``end`` of beam ``j`` in its frame (position, velocity rel. frame)."""
+        d = self.beams[j].data
+        eta, eta_dot = q[self.modal_index[j]], qdot[self.modal_index[j]]
+        nq = d.nq
+        pos = np.array([d.end_x[end] + eta[nq:] @ d.end_psi[end], eta[:nq] @ d.end_phi[end]])
+        vel = np.array([eta_dot[nq:] @ d.end_psi[end], eta_dot[:nq] @ d.end_phi[end]])
+        return pos, vel
 
     def energy(self, q: np.ndarray, qdot: np.ndarray, t: float = 0.0) -> float:
         """Kinetic + gravitational + hinge-spring energy [J] (constant references only)."""
@@ -496,6 +597,9 @@ class PlanarModel:
         kinetic = 0.5 * np.sum(self.mass * np.sum(pts["com_velocity"] ** 2, axis=1)
                                + self.inertia * pts["omega"] ** 2)
         potential = -np.sum(self.mass * (pts["com"] @ self.gravity))
+        if self.has_flexible:
+            from ..flexible.energy import flexible_energy
+            return flexible_energy(self, q, qdot, t)
         dtheta, _ = self.relative_angles(pts["theta"], pts["omega"])
         reference, _, _ = self.hinge_laws(t)
         spring = 0.5 * np.sum(self.stiffness * (dtheta - reference) ** 2)

@@ -31,7 +31,7 @@ with numpy.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
@@ -55,12 +55,15 @@ class InstantaneousSolution:
         end [N, N m] (the hinge torque is ``tau``).
     hinge_acceleration : ndarray, shape (n_bodies,)
         Relative angular acceleration of each body's inboard hinge [rad/s^2].
+    modal_acceleration : dict
+        ``{beam name: eta''}`` of flexible bodies (:class:`~ctmm.flexible.ModalBeam`), else empty.
     """
 
     qddot: np.ndarray
     body_acceleration: np.ndarray
     joint_force: np.ndarray
     hinge_acceleration: np.ndarray
+    modal_acceleration: dict = field(default_factory=dict)
 
 
 # ------------------------------------------------------------------------------------------
@@ -317,6 +320,11 @@ def solve_instant(model: PlanarModel, q, qdot, t: float = 0.0) -> InstantaneousS
     """
     q = np.asarray(q, dtype=float)
     qdot = np.asarray(qdot, dtype=float)
+    if model.has_flexible:
+        from ..flexible.kernel import system_of
+        sol = system_of(model).solve(q, qdot, t)
+        return InstantaneousSolution(sol.qddot, sol.body_acceleration, sol.joint_force,
+                                     sol.hinge_acceleration, sol.modal_acceleration)
     theta, omega = model.body_angles(q, qdot, t)
     K, b, E, _ = body_terms(model, theta, omega, t)
     tau = hinge_torques(model, theta, omega, t)
@@ -344,6 +352,9 @@ def accelerations(model: PlanarModel, q, qdot, t: float = 0.0) -> np.ndarray:
     """
     q = np.asarray(q, dtype=float)
     qdot = np.asarray(qdot, dtype=float)
+    if model.has_flexible:
+        from ..flexible.kernel import system_of
+        return system_of(model).accelerations(q, qdot, t)
     theta, omega = model.body_angles(q, qdot, t)
     K, b, E, _ = body_terms(model, theta, omega, t)
     tau = hinge_torques(model, theta, omega, t)

@@ -1,0 +1,82 @@
+"""Beam outputs of simulations and the divergence check of the integrators."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import SimulationError
+
+RK4_STABILITY_LIMIT = 2.785
+"""``h omega`` limit of the classical RK4 scheme on the imaginary axis (2 sqrt 2 = 2.828 is the
+exact value; 2.785 keeps a margin for the weak modal damping and coupling)."""
+
+
+def tip_deflection(model, q, beam: str) -> np.ndarray:
+    """Transverse tip deflection ``phi(L) . q`` [m] of ``beam`` in its floating frame, for one
+    state ``q`` or a history ``(n_times, n_coordinates)``."""
+    j = model.body_index(beam)
+    d = model.beams[j].data
+    q = np.asarray(q, dtype=float)
+    return q[..., model.modal_index[j][:d.nq]] @ d.tip_phi
+
+
+def axial_tip_displacement(model, q, beam: str) -> np.ndarray:
+    """Axial tip displacement ``psi(L) . p - 1/2 int_0^L (phi' . q)^2 dx`` [m]: elastic stretch
+    plus the second-order foreshortening of the bent axis (post-processed, not in the state)."""
+    j = model.body_index(beam)
+    b = model.beams[j]
+    d = b.data
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    idx = model.modal_index[j]
+    from .modes import gauss_points
+    x, w = gauss_points(64, b.length)
+    dphi = b.shapes(x, 1)
+    slope = q[:, idx[:d.nq]] @ dphi
+    shortening = -0.5 * (slope ** 2) @ w
+    stretch = q[:, idx[d.nq:]] @ d.tip_psi if d.np_ else 0.0
+    out = stretch + shortening
+    return out if np.ndim(out) else float(out)
+
+
+def highest_frequency(model) -> tuple[float, str]:
+    """Largest modal frequency ``sqrt(K_ii / M_ii)`` [rad/s] of all beams and its beam name."""
+    best, name = 0.0, ""
+    for j, beam in model.beams.items():
+        f = float(np.max(beam.data.frequencies))
+        if f > best:
+            best, name = f, beam.name
+    return best, name
+
+
+def check_divergence(model, q, t: float, dt: float | None, method: str, partial=None) -> None:
+    """Raise :class:`SimulationError` when a beam's deflection bound exceeds its length.
+
+    ``sum_i |eta_i| max|phi_i|`` > ``L`` is far outside the small-deformation model; the message
+    says whether the explicit step is above the RK4 stability limit (numerical instability) or
+    the model itself is unstable (e.g. no geometric stiffening above the first critical speed).
+    """
+    for j, beam in model.beams.items():
+        d = beam.data
+        eta = np.asarray(q)[model.modal_index[j]]
+        bound = float(np.abs(eta[:d.nq]) @ d.phi_bound) + (
+            float(np.sum(np.abs(eta[d.nq:]))) * np.sqrt(2.0) if d.np_ else 0.0)
+        if not np.isfinite(bound) or bound > beam.length:
+            w_max, which = highest_frequency(model)
+            if dt is not None and method == "rk4" and dt * w_max > RK4_STABILITY_LIMIT:
+                reason = (f"the explicit RK4 step is unstable: dt = {dt:g} s exceeds the stability "
+                          f"limit {RK4_STABILITY_LIMIT}/omega_max = "
+                          f"{RK4_STABILITY_LIMIT / w_max:.4g} s (highest modal frequency "
+                          f"{w_max:.4g} rad/s of beam {which!r}); reduce dt or use an implicit "
+                          f"scheme")
+            else:
+                reason = ("the model's response grows without bound (the step is within the "
+                          "integrator's stability limit, so the model itself is unstable, e.g. "
+                          "geometric stiffening is off above the first critical speed)")
+            raise SimulationError(
+                f"simulation diverged at t = {t:.6g} s: beam {beam.name!r} deflection bound "
+                f"{bound:.3g} m exceeds its length {beam.length:g} m; {reason}",
+                time=t, element=beam.name,
+                partial_result=partial() if callable(partial) else partial)
+
+
+__all__ = ["tip_deflection", "axial_tip_displacement", "highest_frequency", "check_divergence",
+           "RK4_STABILITY_LIMIT"]
