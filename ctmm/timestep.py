@@ -342,7 +342,7 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
     vel = np.full((n_steps + 1, n_pts, d), np.nan)
     acc = np.full((n_steps + 1, n_pts, d), np.nan)
     states[0, :, :d], vel[0], acc[0] = x, v, a
-    states[0, :, d] = _initial_forces(system, x, v, extra0)
+    states[0, :, d] = _initial_forces(system, x, v, extra0, a, t0)
     kernel = _LumpedKernel(system) if fast else None
     discrete = None if fast else [e.discretize(scheme) for e in system.body]
     cache: dict = {}
@@ -397,18 +397,42 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
 
 
 def _initial_forces(system: Chain, x: np.ndarray, v: np.ndarray,
-                    across: Mapping[int, float] | None = None) -> np.ndarray:
-    """Internal forces at t0 at the points next to connectors (from the connector law; NaN elsewhere).
+                    across: Mapping[int, float] | None = None, a: np.ndarray | None = None,
+                    t0: float = 0.0) -> np.ndarray:
+    """Internal forces at ``t0`` at every point.
 
-    ``across`` holds actuator forces acting across connectors (by element position).
+    Connectors give the forces at their two points from their law (``across`` holds actuator
+    forces acting across connectors, by element position); boundaries with a known force give
+    theirs; the remaining points follow from the equilibrium of the point elements between them
+    (``f_out = f_in - m a - c v - k x + F``), which needs the accelerations ``a``.
     """
-    f = np.full(system.n_points, np.nan)
-    try:
-        connector = _connector_forces(system, x, v, across)
-        for j, val in connector.items():
-            f[j - 1] = f[j] = val
-    except Exception:  # noqa: BLE001 - forces at t0 are informative only
-        pass
+    n = system.n_points
+    f = np.full(n, np.nan)
+    across = across or {}
+    for j, val in _connector_forces(system, x, v, across).items():
+        f[j - 1] = f[j] = val
+    for boundary, point, start in ((system.start, 0, True), (system.end, n - 1, False)):
+        if np.isnan(f[point]) and boundary.known == "force":
+            f[point] = _boundary_force(boundary, x[point, 0], v[point, 0], start=start)
+    if a is None:
+        return f
+    body = system.body
+
+    def residual(j: int) -> float:  # m a + c v + k x - F of the point element at position j
+        e = body[j - 1]
+        if not isinstance(e, PointElement):
+            return 0.0
+        p = j - 1
+        load = float(e.force(t0)) + across.get(j, 0.0)
+        return e.mass * a[p, 0] + e.damping * v[p, 0] + e.stiffness * x[p, 0] - load
+
+    for _ in range(2):  # forward then backward propagation through runs of point elements
+        for j in range(1, n):
+            if body[j - 1].is_point and np.isnan(f[j]) and not np.isnan(f[j - 1]):
+                f[j] = f[j - 1] - residual(j)
+        for j in range(n - 1, 0, -1):
+            if body[j - 1].is_point and np.isnan(f[j - 1]) and not np.isnan(f[j]):
+                f[j - 1] = f[j] + residual(j)
     return f
 
 

@@ -4,11 +4,16 @@
 * :func:`simulate_controlled` -- DT-TMM with real-time / delayed loops and co-simulated controllers.
 * :class:`Controller` -- protocol for sampled, stateful or nonlinear controllers (Python, FMU).
 * :class:`FMUController`, :func:`build_fmu` -- FMI 2.0/3.0 co-simulation FMUs through fmpy.
+* :func:`loop_transfer_function`, :func:`margins` (gain/phase/delay), :func:`bode_plot`,
+  :func:`nyquist_plot`, :class:`PlantCache` (cheap re-evaluation in control-design loops).
 """
+from .analysis import bode_plot, closed_loop_response, loop_transfer_function, margins, nyquist_plot
+from .design import PlantCache
 from .fmu import FMUController, build_fmu
 from .loops import ControlledChain, Feedback
 from .protocol import Controller, ControllerStep
 from .simulate import simulate_controlled
 
 __all__ = ["Controller", "ControllerStep", "Feedback", "ControlledChain", "simulate_controlled",
-           "FMUController", "build_fmu"]
+           "FMUController", "build_fmu", "loop_transfer_function", "margins", "closed_loop_response",
+           "bode_plot", "nyquist_plot", "PlantCache"]
