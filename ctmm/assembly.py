@@ -77,8 +77,8 @@ def _logdet(G: np.ndarray) -> np.ndarray:
 
 
 def riccati_solve(Us: Sequence[np.ndarray], us: Sequence[np.ndarray], start: BoundaryStart,
-                  end: BoundaryEnd, *, want_states: bool = True, homogeneous: bool = False
-                  ) -> ChainSolution:
+                  end: BoundaryEnd, *, want_states: bool = True, homogeneous: bool = False,
+                  want_log_det: bool = True) -> ChainSolution:
     """Solve the chain BVP by Riccati transfer.
 
     Parameters
@@ -91,6 +91,9 @@ def riccati_solve(Us: Sequence[np.ndarray], us: Sequence[np.ndarray], start: Bou
         Boundary relations.
     want_states : bool
         If False, only the characteristic ``log_det`` is computed (no back-substitution).
+    want_log_det : bool
+        If False, skip the characteristic determinant (``log_det`` is returned as zeros); the
+        frequency response does not need it.
     homogeneous : bool
         If True, return the non-trivial solution of the homogeneous problem (a mode shape):
         ``e_N`` is the right singular vector of the (singular) end matrix for its smallest
@@ -104,6 +107,8 @@ def riccati_solve(Us: Sequence[np.ndarray], us: Sequence[np.ndarray], start: Bou
     n = Us[0].shape[-1]
     e_idx = list(start.e_indices)
     f_idx = [i for i in range(n) if i not in e_idx]
+    if n == 2 and len(e_idx) == 1 and want_states and not homogeneous:
+        return _riccati_scalar(Us, us, start, end, f_idx[0], e_idx[0], want_log_det)
     perm = np.array(f_idx + e_idx)
     nf = len(f_idx)
     S, P = start.S0, start.P0
@@ -121,14 +126,16 @@ def riccati_solve(Us: Sequence[np.ndarray], us: Sequence[np.ndarray], start: Bou
         S_new = np.swapaxes(_solve_small(np.swapaxes(G, -1, -2), np.swapaxes(numer, -1, -2)), -1, -2)
         r = np.einsum("...ij,...j->...i", U21, P) + u2
         P_new = np.einsum("...ij,...j->...i", U11, P) + u1 - np.einsum("...ij,...j->...i", S_new, r)
-        log_det = log_det + _logdet(G)
+        if want_log_det:
+            log_det = log_det + _logdet(G)
         if want_states:
             record.append((G, r, S, P))
         S, P = S_new, P_new
     Bp = end.Bm[..., perm]
     Bf, Be = Bp[..., :nf], Bp[..., nf:]
     H = Bf @ S + Be
-    log_det = log_det + _logdet(H)
+    if want_log_det:
+        log_det = log_det + _logdet(H)
     if not want_states:
         return ChainSolution(np.empty((0,)), log_det)
     if homogeneous:
@@ -153,6 +160,47 @@ def riccati_solve(Us: Sequence[np.ndarray], us: Sequence[np.ndarray], start: Bou
         S, P = S_prev, P_prev
     f = np.einsum("...ij,...j->...i", S, e) + P
     states[0] = np.concatenate([f, e], axis=-1)[..., inv]
+    return ChainSolution(states, log_det)
+
+
+def _riccati_scalar(Us, us, start: BoundaryStart, end: BoundaryEnd, f: int, e: int,
+                    want_log_det: bool) -> ChainSolution:
+    """:func:`riccati_solve` for 2-component states with one unknown: the same recursion on
+    ``(B,)`` arrays (no permutation copies, no ``(B, 1, 1)`` temporaries)."""
+    S = start.S0[:, 0, 0]
+    P = start.P0[:, 0]
+    B = S.shape[0]
+    N = len(Us)
+    G_all, R_all, S_all, P_all = [], [], [S], [P]
+    log_det = np.zeros(B, dtype=complex)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        for U, u in zip(Us, us):
+            U11, U12, U21, U22 = U[:, f, f], U[:, f, e], U[:, e, f], U[:, e, e]
+            G = U21 * S + U22
+            S = (U11 * S + U12) / G
+            r = U21 * P + u[:, e]
+            P = U11 * P + u[:, f] - S * r
+            G_all.append(G)
+            R_all.append(r)
+            S_all.append(S)
+            P_all.append(P)
+        Bf, Be = end.Bm[:, 0, f], end.Bm[:, 0, e]
+        H = Bf * S + Be
+        ev = (end.b[:, 0] - Bf * P) / H
+    if want_log_det:
+        log_det = np.sum(np.log(np.asarray(G_all).astype(complex)), axis=0) + np.log(H.astype(complex))
+    if not np.all(np.isfinite(ev)):
+        bad = np.flatnonzero(~np.isfinite(ev))
+        raise SingularSystemError(
+            f"the boundary equations are singular for batch entries {bad[:10].tolist()}"
+            " (e.g. a free-free chain under a static load, or a frequency exactly at a natural frequency)")
+    dtype = np.result_type(ev, S_all[-1], P_all[-1])
+    states = np.empty((N + 1, B, 2), dtype=dtype)
+    for j in range(N, -1, -1):
+        states[j, :, e] = ev
+        states[j, :, f] = S_all[j] * ev + P_all[j]
+        if j:
+            ev = (ev - R_all[j - 1]) / G_all[j - 1]
     return ChainSolution(states, log_det)
 
 

@@ -244,6 +244,51 @@ def _scalar_riccati(U12, U21, u0, u1, fixed_start: bool, S0: float, P0: float, e
         cache[key] = (S, G)
     S, G = cache[key]
     v1, v2 = (u0, u1) if fixed_start else (u1, u0)
+    if n < 16:  # short chains: plain Python floats beat the LAPACK call overhead
+        return _scalar_sweeps_python(a21, S, G, v1, v2, P0, end_row, end_b, fixed_start, cache)
+    if "bands" not in cache:
+        # forward:  P_j - (1 - S_j a21_j) P_{j-1} = v1_j - S_j v2_j           (lower bidiagonal)
+        # backward: e_{j-1} - e_j / G_j = -(a21_j P_{j-1} + v2_j) / G_j        (upper bidiagonal)
+        alpha = 1.0 - S[1:] * a21
+        lower = np.zeros((2, n))
+        lower[0] = 1.0
+        lower[1, : n - 1] = -alpha[1:]
+        upper = np.zeros((2, n))
+        upper[1] = 1.0
+        upper[0, 1:] = -1.0 / G[: n - 1]
+        cache["bands"] = (alpha, lower, upper)
+    alpha, lower, upper = cache["bands"]
+    rhs = v1 - S[1:] * v2
+    rhs[0] += alpha[0] * P0
+    P_tail, info = _dtbtrs(lower, rhs, uplo="L")
+    P = np.concatenate(([P0], P_tail))
+    cx_, cf_ = end_row
+    cf, ce = (cx_, cf_) if fixed_start else (cf_, cx_)
+    h = cf * S[n] + ce
+    if h == 0.0 or not math.isfinite(h):
+        raise SimulationError("the boundary equations of the step are singular")
+    e_n = (end_b - cf * P[n]) / h
+    c = -(a21 * P[:n] + v2) / G
+    c[n - 1] += e_n / G[n - 1]
+    E_head, info = _dtbtrs(upper, c, uplo="U")
+    E = np.concatenate((E_head, [e_n]))
+    F = S * E + P
+    return (F, E) if fixed_start else (E, F)
+
+
+def _dtbtrs(band: np.ndarray, rhs: np.ndarray, uplo: str):
+    """Solve a bidiagonal triangular system stored in LAPACK band form (O(n), compiled)."""
+    from scipy.linalg.lapack import dtbtrs
+
+    x, info = dtbtrs(band, rhs, uplo=uplo)
+    if info != 0:
+        raise SimulationError(f"singular Riccati recursion (LAPACK dtbtrs info={info})")
+    return x, info
+
+
+def _scalar_sweeps_python(a21, S, G, v1, v2, P0, end_row, end_b, fixed_start, cache):
+    """The two sweeps of :func:`_scalar_riccati` on Python floats (fast for short chains)."""
+    n = len(G)
     if "lists" not in cache:
         cache["lists"] = (a21.tolist(), S.tolist(), G.tolist())
     a21l, Sl, Gl = cache["lists"]
