@@ -36,6 +36,10 @@ from .sweep import (body_terms, bushing_data, coordinate_accelerations, hinge_to
                     riccati_kernel, solve_instant)
 
 
+def name_of(scheme: Any) -> str:
+    return type(scheme).__name__.lower()
+
+
 def _scheme_parameters(scheme: Any) -> tuple[float, float, float, float]:
     try:
         beta, gamma = float(scheme.beta), float(scheme.gamma)
@@ -170,7 +174,13 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
     n_steps = _steps(t_final, dt)
     h = t_final / n_steps
     fac = (1.0 - af) / (1.0 - am)
-    stepper = _NewtonStep(model, beta * fac * h * h, gamma * fac * h)
+    if model.has_flexible:
+        from ..flexible.implicit import FlexibleNewtonStep
+        from ..flexible.outputs import check_divergence
+        stepper = FlexibleNewtonStep(model, beta * fac * h * h, gamma * fac * h)
+        stepper.start(q, v, 0.0)
+    else:
+        stepper = _NewtonStep(model, beta * fac * h * h, gamma * fac * h)
     first = solve_instant(model, q, v, 0.0)
     xdd, A, F = first.qddot.copy(), first.body_acceleration, first.joint_force
     a = xdd.copy()
@@ -212,6 +222,8 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
         v = v_hat + stepper.gh * x
         a = fac * x + a_known
         xdd = x
+        if model.has_flexible:
+            check_divergence(model, q, t1, h, name_of(scheme))
         if (step + 1) % store_every == 0 or step + 1 == n_steps:
             ts.append(t1)
             qs.append(q.copy())
