@@ -249,11 +249,13 @@ class ManipulatorLagrange:
         ``a = (-2 w u_dot - theta_ddot u - w^2 (r + x),  u_ddot + theta_ddot (r + x) - w^2 u)``;
         the PZT pairs are internal, so ``f = int rho A a``; moments about the fixed pivot give
         ``M_c = int rho A p x a - r f_Y = a^T eta_ddot + theta_ddot (J_a + eta^T eta)
-        + 2 w eta^T eta_dot - r f_Y``.  Only for ``stiffening=False`` (the foreshortening terms
-        are left out).
+        + 2 w eta^T eta_dot - r f_Y``.  The kinematics ``p = (r + x, u)`` are the model's (the
+        stiffening of the modal equations changes ``eta_ddot``, not this balance); with
+        ``consistent_inertia`` the second-order foreshortening terms would be missing, so that
+        option is refused.
         """
-        if self.stiffening:
-            raise ValueError("clamp_load is derived without foreshortening (stiffening=False)")
+        if self.consistent_inertia:
+            raise ValueError("clamp_load has no foreshortening terms: not for consistent_inertia=True")
         eta, eta_dot = np.asarray(eta, float), np.asarray(eta_dot, float)
         thdd, etadd = float(accelerations[0]), np.asarray(accelerations[1:], float)
         w = float(theta_dot)

@@ -1,0 +1,566 @@
+"""Time domain: the controlled manipulator as a planar multibody model with a modal beam.
+
+Model (``docs/manipulator.md`` §6): ``Fixed("ground")`` -> ``ActuatedHinge("motor")`` ->
+``RigidBody("hub")`` (inertia ``J_h`` about the pivot = its centre of mass, outboard end at
+``r_h``) -> ``FixedMounting("mount")`` (the seed's "fixed hinge whose inboard body is a rigid
+body and whose outboard body is a piezoelectric beam") -> :class:`~ctmm.flexible.ModalBeam`
+``"arm"`` (``n_modes`` clamped-free modes, 3 in the seed; Kelvin-Voigt damping; geometric
+stiffening).  Forward dynamics is the O(n) mixed TMM sweep of :mod:`ctmm.flexible.kernel`
+(modal accelerations eliminated locally).
+
+How the control laws enter (DESIGN §1):
+
+* **embedded** (no delay): the PD is the hinge law of the ``ActuatedHinge``
+  (``kappa = kp beta' h^2 + kd gamma' h`` in the implicit DT-TMM); the PZT law is the modal
+  damping matrix ``D_pzt = Psi^T diag(c_a) G Psi`` on the beam's modal equations through the
+  :class:`~ctmm.flexible.ModalForce` hook (``Psi_jk = phi_k'(x2_j) - phi_k'(x1_j)`` from the
+  beam's own shapes) -- exact and implicit (no added lag) in Newmark.  With
+  ``on_limit="saturate"`` the PZT law is a (complex-step safe) saturated ``law`` instead.
+* **delayed** (``delay > 0``, ``delay >= dt``): the delayed law's torque / generalised forces
+  are known from the stored history (FORMULAS §5.2; seed 001 §9.6.2) and enter as time
+  functions; history interpolation is 4-point Lagrange on the step grid (4th order), the
+  history before ``t = 0`` is the initial state held and ``theta_d(t < 0) = theta_d(0)``.
+* **co-simulation**: any :class:`~ctmm.control.protocol.Controller` (Python object or
+  :class:`~ctmm.control.fmu.FMUController`) reading ``SIGNALS`` and writing ``"motor.torque"``
+  and/or ``"<patch>.voltage"``, sampled at its ``sample_time`` (a multiple of ``dt``; ``None``:
+  every step) with zero-order hold.  A controller that writes the torque replaces the embedded
+  PD; one that writes any voltage replaces the embedded PZT law (unwritten patches get 0 V).
+
+Integrators: ``"rk4"`` (classical RK4 on the sweep, own loop: delays and sampling handled
+between steps) and ``"newmark"`` (:func:`ctmm.planar.simulate_implicit`, trapezoidal Newmark
+with Newton; delayed and sampled laws restart it at every step with the time offset carried
+by this module's time functions).
+"""
+from __future__ import annotations
+
+import math
+import time as _time
+from dataclasses import dataclass, field
+from typing import Any, Sequence
+
+import numpy as np
+
+from .. import validation
+from ..errors import ModelError, SimulationError, unknown_name
+from .laws import HubPD, PZTFeedback
+from .parameters import Manipulator
+
+__all__ = ["FlexibleManipulator", "ManipulatorSimulation", "SIGNALS_HELP"]
+
+SIGNALS_HELP = ("hub.theta [rad], hub.theta_dot [rad/s], tip.deflection [m], tip.deflection_dot [m/s], "
+                "<patch>.slope [rad], <patch>.slope_rate [rad/s]; outputs motor.torque [N m], <patch>.voltage [V]")
+METHODS = ("rk4", "newmark")
+
+
+@dataclass(frozen=True)
+class ManipulatorSimulation:
+    """Time histories of a manipulator simulation (arrays over the stored times ``t``).
+
+    ``theta``/``theta_dot`` hub angle [rad] and rate, ``desired`` reference angle, ``q``/``q_dot``
+    modal coordinates of the arm (beam normalisation, [m]), ``tip_deflection`` ``u(L)`` in the hub
+    frame [m], ``voltages`` ``(nt, P)`` applied patch voltages [V] (after saturation),
+    ``torque`` motor torque [N m]; the voltage report: ``voltage_limit``, ``peak_voltage`` (before
+    saturation), ``time_over_limit`` [s], ``saturated`` (per stored time).
+    """
+
+    t: np.ndarray
+    theta: np.ndarray
+    theta_dot: np.ndarray
+    desired: np.ndarray
+    q: np.ndarray
+    q_dot: np.ndarray
+    tip_deflection: np.ndarray
+    voltages: np.ndarray
+    torque: np.ndarray
+    method: str
+    dt: float
+    wall_time_s: float
+    n_evaluations: int
+    voltage_limit: float
+    peak_voltage: float
+    time_over_limit: float
+    saturated: np.ndarray
+    iterations: np.ndarray | None = None
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def real_time_factor(self) -> float:
+        """Simulated time / wall time (> 1: faster than real time)."""
+        return float((self.t[-1] - self.t[0]) / self.wall_time_s) if self.wall_time_s > 0 else math.inf
+
+    @property
+    def limit_exceeded(self) -> bool:
+        return self.peak_voltage > self.voltage_limit
+
+    def plot(self, axes=None, *, label: str | None = None, patch: int = 0):
+        """Seed Fig. 9.43 panels: (a) desired and actual hub angle, (b) tip deflection, (c) voltage."""
+        import matplotlib.pyplot as plt
+
+        if axes is None:
+            _, axes = plt.subplots(3, 1, sharex=True, figsize=(7, 8))
+        axes[0].plot(self.t, np.degrees(self.theta), label=label or "actual")
+        axes[0].set_ylabel("theta [deg]")
+        axes[1].plot(self.t, 1e3 * self.tip_deflection, label=label)
+        axes[1].set_ylabel("tip deflection [mm]")
+        if self.voltages.shape[1]:
+            axes[2].plot(self.t, self.voltages[:, patch], label=label)
+        axes[2].set_ylabel(f"V_{patch + 1} [V]")
+        axes[2].set_xlabel("t [s]")
+        return axes
+
+
+class _History:
+    """Step-grid history ``(q, v)`` with 4-point Lagrange interpolation (held before ``t = 0``)."""
+
+    def __init__(self, h: float, n_max: int, n: int) -> None:
+        self.h = h
+        self.q = np.zeros((n_max + 1, n))
+        self.v = np.zeros((n_max + 1, n))
+        self.count = 0
+
+    def add(self, q: np.ndarray, v: np.ndarray) -> None:
+        self.q[self.count] = q
+        self.v[self.count] = v
+        self.count += 1
+
+    def at(self, s: float) -> tuple[np.ndarray, np.ndarray]:
+        if s <= 0.0:
+            return self.q[0], self.v[0]
+        last = self.count - 1
+        x = s / self.h
+        k = int(math.floor(x + 1e-9))
+        if k >= last:
+            if x > last + 1e-6:
+                raise SimulationError(f"delayed signal needed at t = {s:.6g} s beyond the stored "
+                                      "history (delay shorter than the step?)", time=s)
+            return self.q[last], self.v[last]
+        lo = min(max(k - 1, 0), max(last - 3, 0))
+        idx = range(lo, min(lo + 4, last + 1))
+        xs = list(idx)
+        w = []
+        for i in xs:
+            p = 1.0
+            for j in xs:
+                if j != i:
+                    p *= (x - j) / (i - j)
+            w.append(p)
+        w = np.asarray(w)
+        return w @ self.q[lo:lo + len(xs)], w @ self.v[lo:lo + len(xs)]
+
+
+@dataclass(frozen=True)
+class FlexibleManipulator:
+    """Time-domain controlled manipulator (module docstring).
+
+    Parameters
+    ----------
+    manipulator : Manipulator
+    pd : HubPD or None
+        Embedded (or, with ``delay > 0``, history-based) PD; ``None``: a controller must drive
+        the motor (or the hub is free).
+    pzt : PZTFeedback or None
+        PZT law (``None``: patches not driven unless a controller writes voltages).
+    reference : object with ``angle(t)`` and ``rate(t)``
+        Desired hub angle and rate (e.g. :class:`~ctmm.manipulator.CycloidalMove`).
+    n_modes : int
+        Clamped-free modes of the arm (seed: 3).
+    geometric_stiffening : bool
+        Centrifugal stiffening of the arm (``ModalBeam``'s option).
+    hub_mass : float
+        Hub mass [kg] (its centre is the fixed pivot: enters the pivot reaction only).
+    """
+
+    manipulator: Manipulator
+    pd: HubPD | None
+    pzt: PZTFeedback | None
+    reference: Any
+    n_modes: int = 3
+    geometric_stiffening: bool = True
+    hub_mass: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.manipulator, Manipulator):
+            raise ModelError(f"manipulator must be a Manipulator, got {self.manipulator!r}")
+        if self.pd is not None and not isinstance(self.pd, HubPD):
+            raise ModelError(f"pd must be a HubPD or None, got {self.pd!r}")
+        if self.pzt is not None:
+            if not isinstance(self.pzt, PZTFeedback):
+                raise ModelError(f"pzt must be a PZTFeedback or None, got {self.pzt!r}")
+            if self.pzt.n_patches != self.manipulator.n_patches:
+                raise ModelError(f"pzt gains are for {self.pzt.n_patches} patches, the manipulator has "
+                                 f"{self.manipulator.n_patches}")
+        for attr in ("angle", "rate"):
+            if not callable(getattr(self.reference, attr, None)):
+                raise ModelError(f"reference must provide angle(t) and rate(t), got {self.reference!r}")
+        if isinstance(self.n_modes, bool) or not isinstance(self.n_modes, (int, np.integer)) or self.n_modes < 1:
+            raise ModelError(f"n_modes must be an integer >= 1, got {self.n_modes!r}")
+        validation.positive("hub_mass", self.hub_mass)
+        from ..flexible import ModalBeam
+
+        arm = self.manipulator.arm
+        beam = ModalBeam("arm", length=arm.length, bending_stiffness=arm.bending_stiffness,
+                         mass_per_length=arm.mass_per_length, n_modes=int(self.n_modes),
+                         stiffness_damping=arm.kelvin_voigt_time,
+                         geometric_stiffening=bool(self.geometric_stiffening))
+        ends = self.manipulator.patch_ends
+        Psi = np.array([beam.mode_slopes(x2) - beam.mode_slopes(x1) for x1, x2 in ends]).reshape(-1, beam.n_modes)
+        object.__setattr__(self, "_beam", beam)
+        object.__setattr__(self, "_Psi", Psi)
+
+    # ------------------------------------------------------------------ model pieces
+    @property
+    def slope_matrix(self) -> np.ndarray:
+        """``Psi`` (P, n): slope difference over each patch per unit modal coordinate [rad/m]."""
+        return self._Psi
+
+    @property
+    def tip_shape(self) -> np.ndarray:
+        """``phi(L)`` of the arm modes (tip deflection = ``phi(L) . q``)."""
+        return self._beam.data.tip_phi
+
+    @property
+    def pzt_damping(self) -> np.ndarray:
+        """``D_pzt = Psi^T diag(c_a) G Psi`` [N s/m]: the embedded PZT law on the modal equations."""
+        if self.pzt is None:
+            return np.zeros((self.n_modes, self.n_modes))
+        return self._Psi.T @ (self.manipulator.moments_per_volt[:, None] * self.pzt.gains) @ self._Psi
+
+    def signal_names(self) -> list[str]:
+        names = ["hub.theta", "hub.theta_dot", "tip.deflection", "tip.deflection_dot"]
+        for p in self.manipulator.patches:
+            names += [f"{p.name}.slope", f"{p.name}.slope_rate"]
+        return names
+
+    def output_names(self) -> list[str]:
+        return ["motor.torque"] + [f"{p.name}.voltage" for p in self.manipulator.patches]
+
+    def _measure(self, q: np.ndarray, v: np.ndarray) -> dict[str, float]:
+        out = {"hub.theta": q[0], "hub.theta_dot": v[0], "tip.deflection": q[1:] @ self.tip_shape,
+               "tip.deflection_dot": v[1:] @ self.tip_shape}
+        slope, rate = self._Psi @ q[1:], self._Psi @ v[1:]
+        for k, p in enumerate(self.manipulator.patches):
+            out[f"{p.name}.slope"] = slope[k]
+            out[f"{p.name}.slope_rate"] = rate[k]
+        return out
+
+    def model(self, *, torque=None, modal_force=None, time_offset=None):
+        """The planar model.  Without arguments: both laws embedded (zero delay).
+
+        ``torque(t)`` / ``modal_force(t)`` replace the PD / PZT law by time functions (history or
+        held controller outputs); ``time_offset()`` shifts the time of the embedded reference
+        (chunked restarts of the implicit integrator).
+        """
+        from ..flexible import ModalForce
+        from ..planar import ActuatedHinge, Fixed, PlanarModel, RigidBody
+        from ..planar.elements import FixedMounting
+
+        offset = time_offset or (lambda: 0.0)
+        hub = RigidBody("hub", mass=self.hub_mass, inertia=self.manipulator.hub.inertia,
+                        center_of_mass=(0.0, 0.0), outboard=(self.manipulator.hub.radius, 0.0))
+        if torque is None and self.pd is not None:
+            ref = self.reference
+            motor = ActuatedHinge("motor", kp=self.pd.kp, kd=self.pd.kd,
+                                  reference=lambda t: ref.angle(t + offset()),
+                                  reference_rate=lambda t: ref.rate(t + offset()))
+        else:
+            law = torque or (lambda t: 0.0)
+            motor = ActuatedHinge("motor", torque=law)
+        forces = []
+        if modal_force is not None:
+            forces.append(ModalForce(force=modal_force, label="PZT (history/held)"))
+        elif self.pzt is not None:
+            if self.pzt.on_limit == "saturate":
+                forces.append(ModalForce(law=self._saturated_law(), label="PZT (saturated)"))
+            else:
+                forces.append(ModalForce(damping=self.pzt_damping, label="PZT modal-velocity feedback"))
+        beam = self._beam.with_modal_forces(*forces) if forces else self._beam
+        return PlanarModel.chain("manipulator", [Fixed("ground"), motor, hub, FixedMounting("mount"), beam],
+                                 gravity=(0.0, 0.0))
+
+    def _saturated_law(self):
+        Psi, ca, G = self._Psi, self.manipulator.moments_per_volt, self.pzt.gains
+        limit = self.manipulator.voltage_limit
+
+        def law(t, eta, eta_dot):                       # complex-step safe saturation
+            V = -G @ (Psi @ eta_dot)
+            Vr = np.real(V)
+            V = np.where(Vr > limit, limit + 0 * V, np.where(Vr < -limit, -limit + 0 * V, V))
+            return Psi.T @ (ca * V)
+
+        return law
+
+    # ------------------------------------------------------------------ simulation
+    def simulate(self, t_final: float, dt: float, *, method: str = "rk4", controllers: Sequence[Any] = (),
+                 store_every: int = 1, theta0: float | None = None) -> ManipulatorSimulation:
+        """Simulate from rest at ``theta0`` (default ``theta_d(0)``) over ``[0, t_final]``.
+
+        Parameters
+        ----------
+        t_final, dt : float
+            End time and step [s] (``t_final`` a whole multiple of ``dt``).
+        method : {"rk4", "newmark"}
+        controllers : sequence of Controller
+            Co-simulated controllers (module docstring).
+        store_every : int
+            Keep every ``store_every``-th step.
+        """
+        if method not in METHODS:
+            raise ModelError(f"method must be one of {METHODS}, got {method!r}")
+        t_final = validation.positive("t_final", t_final)
+        dt = validation.positive("dt", dt)
+        n_steps = int(round(t_final / dt))
+        if n_steps < 1 or abs(n_steps * dt - t_final) > 1e-9 * t_final:
+            raise ModelError(f"t_final = {t_final!r} must be a whole multiple of dt = {dt!r}")
+        plan = _Plan(self, list(controllers), dt)
+        theta_start = float(self.reference.angle(0.0)) if theta0 is None else float(theta0)
+        run = _Run(self, plan, dt, n_steps, theta_start)
+        start = _time.perf_counter()
+        if method == "rk4":
+            run.rk4(store_every)
+        else:
+            run.newmark(store_every)
+        wall = _time.perf_counter() - start
+        return run.result(method, wall)
+
+
+class _Plan:
+    """Which law is embedded, history-based or co-simulated (validated once)."""
+
+    def __init__(self, owner: FlexibleManipulator, controllers: list, dt: float) -> None:
+        outputs = owner.output_names()
+        signals = owner.signal_names()
+        written: dict[str, int] = {}
+        problems = []
+        self.periods = []
+        for i, c in enumerate(controllers):
+            for attr in ("inputs", "outputs", "init", "step"):
+                if not hasattr(c, attr):
+                    raise ModelError(f"controller {i} ({c!r}) lacks {attr!r} (see ctmm.control.protocol)")
+            for name in c.inputs:
+                if name not in signals:
+                    problems.append(str(unknown_name(f"input of controller {i}", name, signals)))
+            for name in c.outputs:
+                if name not in outputs:
+                    problems.append(str(unknown_name(f"output of controller {i}", name, outputs)))
+                if name in written:
+                    problems.append(f"{name!r} is written by controllers {written[name]} and {i}")
+                written[name] = i
+            h = getattr(c, "sample_time", None)
+            if h is None:
+                self.periods.append(1)
+            else:
+                m = int(round(float(h) / dt))
+                if m < 1 or abs(m * dt - float(h)) > 1e-9 * float(h):
+                    problems.append(f"controller {i}: sample_time {h!r} must be a whole multiple of dt = {dt!r}")
+                self.periods.append(max(m, 1))
+        if problems:
+            raise ModelError("manipulator controllers are invalid:\n  - " + "\n  - ".join(problems))
+        self.controllers = controllers
+        self.torque_by_controller = "motor.torque" in written
+        self.voltage_by_controller = any(o.endswith(".voltage") for o in written)
+        pd, pzt = owner.pd, owner.pzt
+        self.pd_delayed = (not self.torque_by_controller and pd is not None and pd.delay > 0.0)
+        self.pzt_delayed = (not self.voltage_by_controller and pzt is not None and pzt.delay > 0.0)
+        for law, flag in ((pd, self.pd_delayed), (pzt, self.pzt_delayed)):
+            if flag and law.delay < dt * (1 - 1e-9):
+                raise ModelError(f"loop delay {law.delay!r} s is shorter than the step dt = {dt!r} s; "
+                                 "use delay = 0 (embedded) or delay >= dt")
+        self.embedded_pd = pd is not None and not self.torque_by_controller and not self.pd_delayed
+        self.embedded_pzt = pzt is not None and not self.voltage_by_controller and not self.pzt_delayed
+        self.needs_inputs = self.torque_by_controller or self.voltage_by_controller or self.pd_delayed \
+            or self.pzt_delayed
+
+
+class _Run:
+    """Mutable state of one simulation: history, held controller outputs, records."""
+
+    def __init__(self, owner: FlexibleManipulator, plan: _Plan, dt: float, n_steps: int, theta0: float) -> None:
+        self.o, self.plan, self.h, self.N = owner, plan, dt, n_steps
+        m = owner.manipulator
+        self.P = m.n_patches
+        self.ca = m.moments_per_volt
+        self.limit = m.voltage_limit
+        self.policy = owner.pzt.on_limit if owner.pzt is not None else "report"
+        self.t0 = 0.0                                  # time offset of chunked restarts
+        self.held_torque = 0.0
+        self.held_voltage = np.zeros(self.P)
+        self.states = [c.init(0.0) for c in plan.controllers]
+        self.hist = _History(dt, n_steps, 1 + owner.n_modes)      # before the model: probed at t = 0
+        self.model = owner.model(
+            torque=(self._torque if (plan.torque_by_controller or plan.pd_delayed) else None),
+            modal_force=(self._modal_force if (plan.voltage_by_controller or plan.pzt_delayed) else None),
+            time_offset=lambda: self.t0)
+        n = self.model.n_coordinates
+        self.q0 = np.zeros(n)
+        self.q0[0] = theta0
+        self.rec = {k: [] for k in ("t", "q", "v", "V", "tau", "raw")}
+        self.evaluations = 0
+        self.iterations: list = []
+
+    # -- inputs seen by the model (time functions) -------------------------------------
+    def _torque(self, t: float) -> float:
+        if self.plan.torque_by_controller:
+            return self.held_torque
+        t = t + self.t0
+        pd, ref = self.o.pd, self.o.reference
+        s = t - pd.delay
+        qd, vd = self.hist.at(s)
+        sr = max(s, 0.0)
+        return pd.kp * (ref.angle(sr) - qd[0]) + pd.kd * (ref.rate(sr) - vd[0])
+
+    def _voltages_delayed(self, t: float) -> np.ndarray:
+        _, vd = self.hist.at(t - self.o.pzt.delay)
+        return self.o.pzt.voltages(self.o.slope_matrix @ vd[1:])
+
+    def _modal_force(self, t: float) -> np.ndarray:
+        if self.plan.voltage_by_controller:
+            V = self.held_voltage
+        else:
+            V = self._limit(self._voltages_delayed(t + self.t0), t + self.t0)
+        return self.o.slope_matrix.T @ (self.ca * V)
+
+    def _limit(self, V: np.ndarray, t: float) -> np.ndarray:
+        if self.policy == "saturate":
+            return np.clip(V, -self.limit, self.limit)
+        return V
+
+    # -- per step bookkeeping -------------------------------------------------------------
+    def _sample(self, n: int, q: np.ndarray, v: np.ndarray, history: bool = True) -> None:
+        """Controllers due at step ``n``; record inputs/outputs at ``t_n``; history."""
+        t = n * self.h
+        if history:
+            self.hist.add(q, v)
+        if self.plan.controllers:
+            y_all = self.o._measure(q, v)
+            for i, c in enumerate(self.plan.controllers):
+                if n % self.plan.periods[i]:
+                    continue
+                y = np.array([y_all[name] for name in c.inputs], dtype=float)
+                u, self.states[i] = c.step(t, y, self.states[i])
+                u = np.asarray(u, dtype=float).reshape(-1)
+                for name, value in zip(c.outputs, u):
+                    if name == "motor.torque":
+                        self.held_torque = float(value)
+                    else:
+                        k = self.o.manipulator.patch_names.index(name.split(".")[0])
+                        self.held_voltage[k] = float(value)
+            if self.policy == "saturate":
+                self.held_voltage = np.clip(self.held_voltage, -self.limit, self.limit)
+        # applied torque and voltages at t_n (records)
+        pd, ref = self.o.pd, self.o.reference
+        if self.plan.torque_by_controller or self.plan.pd_delayed:
+            tau = self._torque(t - self.t0)
+        elif pd is not None:
+            tau = pd.kp * (ref.angle(t) - q[0]) + pd.kd * (ref.rate(t) - v[0])
+        else:
+            tau = 0.0
+        if self.plan.voltage_by_controller:
+            raw = self.held_voltage.copy()
+        elif self.plan.pzt_delayed:
+            raw = self._voltages_delayed(t)
+        elif self.o.pzt is not None:
+            raw = self.o.pzt.voltages(self.o.slope_matrix @ v[1:])
+        else:
+            raw = np.zeros(self.P)
+        if self.policy == "raise" and self.P and np.max(np.abs(raw)) > self.limit:
+            k = int(np.argmax(np.abs(raw)))
+            raise SimulationError(f"voltage limit exceeded at t = {t:.6g} s: patch "
+                                  f"{self.o.manipulator.patch_names[k]!r} needs {raw[k]:.4g} V, limit "
+                                  f"{self.limit:g} V", time=t, element=self.o.manipulator.patch_names[k])
+        self._current = (t, q.copy(), v.copy(), self._limit(raw, t), tau, raw)
+
+    def _store(self) -> None:
+        t, q, v, V, tau, raw = self._current
+        for key, value in zip(("t", "q", "v", "V", "tau", "raw"), (t, q, v, V, tau, raw)):
+            self.rec[key].append(value)
+
+    # -- integrators ---------------------------------------------------------------------------
+    def rk4(self, store_every: int) -> None:
+        from ..planar import accelerations
+
+        model, h = self.model, self.h
+        q, v = self.q0.copy(), np.zeros_like(self.q0)
+        check = _divergence_check()
+        for n in range(self.N):
+            t = n * h
+            self._sample(n, q, v)
+            if n % store_every == 0:
+                self._store()
+            a1 = accelerations(model, q, v, t)
+            q2, v2 = q + 0.5 * h * v, v + 0.5 * h * a1
+            a2 = accelerations(model, q2, v2, t + 0.5 * h)
+            q3, v3 = q + 0.5 * h * v2, v + 0.5 * h * a2
+            a3 = accelerations(model, q3, v3, t + 0.5 * h)
+            q4, v4 = q + h * v3, v + h * a3
+            a4 = accelerations(model, q4, v4, t + h)
+            q = q + (h / 6.0) * (v + 2.0 * v2 + 2.0 * v3 + v4)
+            v = v + (h / 6.0) * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+            self.evaluations += 4
+            check(model, q, v, t + h, h)
+        self._sample(self.N, q, v)
+        self._store()
+
+    def newmark(self, store_every: int) -> None:
+        from ..planar import simulate_implicit
+        from ..schemes import Newmark
+
+        model, h = self.model, self.h
+        q, v = self.q0.copy(), np.zeros_like(self.q0)
+        scheme = Newmark(0.25, 0.5)
+        if not self.plan.needs_inputs:                 # everything embedded: one implicit run
+            self._sample(0, q, v)
+            sim = simulate_implicit(model, q, v, t_final=self.N * h, dt=h, scheme=scheme, store_every=store_every)
+            for k, (t, qk, vk) in enumerate(zip(sim.t, sim.q, sim.qdot)):
+                self._sample_record(t, qk, vk)
+            self.iterations = list(np.asarray(sim.iterations).ravel())
+            self.evaluations = int(np.sum(sim.iterations)) + len(sim.t)
+            return
+        for n in range(self.N):                        # restart at every step (held inputs / history)
+            self._sample(n, q, v)
+            if n % store_every == 0:
+                self._store()
+            self.t0 = n * h
+            sim = simulate_implicit(model, q, v, t_final=h, dt=h, scheme=scheme)
+            self.t0 = 0.0
+            q, v = sim.q[-1].copy(), sim.qdot[-1].copy()
+            self.iterations.extend(np.asarray(sim.iterations).ravel().tolist())
+            self.evaluations += int(np.sum(sim.iterations)) + 1
+        self._sample(self.N, q, v)
+        self._store()
+
+    def _sample_record(self, t: float, q: np.ndarray, v: np.ndarray) -> None:
+        n = int(round(t / self.h))
+        if n > 0:
+            self._sample(n, q, v, history=False)       # embedded run: no history needed
+        self._store()
+
+    def result(self, method: str, wall: float) -> ManipulatorSimulation:
+        r = self.rec
+        t = np.asarray(r["t"], dtype=float)
+        Q = np.asarray(r["q"])
+        Vt = np.asarray(r["v"])
+        V = np.asarray(r["V"], dtype=float).reshape(len(t), self.P)
+        raw = np.asarray(r["raw"], dtype=float).reshape(len(t), self.P)
+        over = np.any(np.abs(raw) > self.limit, axis=1) if self.P else np.zeros(len(t), bool)
+        step = np.diff(t).mean() if len(t) > 1 else self.h
+        ref = self.o.reference
+        return ManipulatorSimulation(
+            t=t, theta=Q[:, 0], theta_dot=Vt[:, 0], desired=np.array([ref.angle(float(x)) for x in t]),
+            q=Q[:, 1:], q_dot=Vt[:, 1:], tip_deflection=Q[:, 1:] @ self.o.tip_shape, voltages=V,
+            torque=np.asarray(r["tau"], dtype=float), method=method, dt=self.h, wall_time_s=wall,
+            n_evaluations=self.evaluations, voltage_limit=self.limit,
+            peak_voltage=float(np.max(np.abs(raw))) if self.P else 0.0,
+            time_over_limit=float(np.count_nonzero(over) * step),
+            saturated=(over if self.policy == "saturate" else np.zeros(len(t), bool)),
+            iterations=np.asarray(self.iterations) if self.iterations else None)
+
+
+def _divergence_check():
+    from ..flexible.outputs import check_divergence
+
+    def check(model, q, v, t, h):
+        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+            raise SimulationError(f"non-finite state at t = {t:.6g} s", time=t)
+        check_divergence(model, q, t, h, "rk4")
+
+    return check
