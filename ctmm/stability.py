@@ -1,0 +1,1240 @@
+"""Delay stability of controlled chains: characteristic roots, root counts, margins, simulation check.
+
+Everything here works on the characteristic function ``Delta(s)`` of the transfer-matrix model
+(:func:`ctmm.characteristic_function`: determinant of the Riccati boundary equations, entire in
+``s``, exact delays ``e^{-s tau}``).  Charts over two parameters are in
+:mod:`ctmm.stability_chart`; the methods are derived in ``docs/stability.md``.
+
+The loop as an affine term
+--------------------------
+A :class:`~ctmm.control.loops.Feedback` loop ``u = -k C(s) e^{-s tau} sum_j w_j y_j`` enters the
+extended transfer matrix of its actuator in *one column* (the coefficient of the sensed value
+``y``), so the overall boundary matrix is ``A0 + g(s) a b^T`` with ``g = k C e^{-s tau}`` and, by
+the matrix determinant lemma, its determinant is affine in ``g``.  The sensed value is linear in
+the sensor weights ``w_j``; hence, with ``D(s)`` the controller denominator,
+
+    Delta(s; k, tau, w) = D(s) Delta_0(s) + k e^{-s tau} sum_j w_j T_j(s),            (1)
+
+where ``Delta_0`` is ``Delta`` with the loop's gain set to zero and ``T_j`` is what a unit-weight
+sensor term ``j`` adds at unit gain factor and zero delay.  :class:`LoopCharacteristic` computes
+``Delta_0`` and the ``T_j`` by the TMM once per ``s`` (terms that sense the same point and
+component share one sweep: ``T`` of a velocity is ``s`` times ``T`` of the displacement) and then
+evaluates (1) for any number of parameter sets by array arithmetic.  ``tests/test_stability.py``
+checks (1) against direct evaluations to round-off.
+
+Counting right-half-plane roots
+-------------------------------
+:func:`unstable_root_count` applies the argument principle to the rectangle
+``[sigma, sigma + R] x [-R, R]``, using ``Delta(conj s) = conj Delta(s)``: the count is the phase
+change of ``Delta`` along the upper half of the boundary divided by ``pi``.  ``R`` is chosen so
+that beyond it the loop term is smaller than half the open-loop term (eq. (1):
+``sum_j |k w_j T_j| e^{max(0, -sigma) tau} < |Delta_0|/2``), which holds for retarded loops
+(strictly proper loop transfer functions); then on the far edges ``arg Delta`` is
+``arg Delta_0`` (computed once) plus the principal ``arg(1 + L)``, and only the edge on the line
+``Re s = sigma`` has to be sampled for every parameter set.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Sequence
+
+import numpy as np
+
+from . import validation
+from .assembly import SOLVERS
+from .control.loops import ControlledChain, Feedback
+from .errors import ModelError, unknown_name
+from .frequency import assemble, characteristic_function
+from .roots import RootSet, SpectralAbscissa, rightmost_roots
+from .roots import spectral_abscissa as _roots_abscissa
+
+__all__ = ["LoopCharacteristic", "characteristic_roots", "spectral_abscissa", "unstable_root_count",
+           "DelayMargin", "delay_margin", "GainMargin", "gain_margin", "SimulationCheck",
+           "crosscheck_by_simulation"]
+
+_MAX_STEP = 0.4          # largest complex-log step of a component between samples
+_COUNT_STEP = 1.0        # largest phase step of Delta(s; p) between samples when counting
+_TINY = 1e-13            # components below this (relative to the largest at s) are ignored
+
+
+# --------------------------------------------------------------------------------------------
+# the loop as an affine term
+# --------------------------------------------------------------------------------------------
+def as_controlled(system: Any, what: str = "stability analysis") -> ControlledChain:
+    """``system`` as a :class:`ControlledChain`, or a :class:`ModelError` that says why not."""
+    if isinstance(system, ControlledChain):
+        return system
+    from .system import Chain
+
+    if isinstance(system, Chain):
+        raise ModelError(f"{what} needs a feedback loop, but {system.name!r} is a plain Chain with no "
+                         "loop (nothing depends on a gain or a delay); close a loop with "
+                         "ctmm.control.ControlledChain(plant, [Feedback(...)]), or use "
+                         "ctmm.stability.spectral_abscissa(system, ...) for the delay-free answer")
+    raise ModelError(f"{what} needs a ControlledChain, got {system!r}")
+
+
+def find_loop(system: ControlledChain, loop: str | None) -> Feedback:
+    """The loop called ``loop`` (the only loop when ``None``); unknown names list the loops."""
+    if loop is None:
+        if len(system.loops) != 1:
+            raise unknown_name("loop (give loop=...)", "<none given>", [lp.name for lp in system.loops])
+        return system.loops[0]
+    if not isinstance(loop, str):
+        raise ModelError(f"loop must be a loop name (str), got {loop!r}")
+    return system.loop(loop)
+
+
+def _log_characteristic(system: ControlledChain, s: np.ndarray) -> np.ndarray:
+    """``log Delta(s)`` (unnormalised, complex) without forming ``Delta`` (no overflow)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        Us, us, start, end = assemble(system, s)
+        sol = SOLVERS["riccati"](Us, us, start, end, want_states=False)
+        return sol.log_det + np.log(system.characteristic_scale(s).astype(complex))
+
+
+def _components_chunk(model: "LoopCharacteristic", s: np.ndarray) -> np.ndarray:
+    return model._components_direct(s)
+
+
+class LoopCharacteristic:
+    """``Delta(s; k, tau, w)`` of a controlled chain as an affine function of one loop, eq. (1).
+
+    Parameters
+    ----------
+    system : ControlledChain
+        The closed loop; every other loop stays as it is.
+    loop : str, optional
+        Loop name (default: the only loop).
+
+    Attributes
+    ----------
+    parameter_names : tuple of str
+        ``"gain"``, ``"delay"`` and the loop's sensor signal names (their weights ``w_j``).
+    gain : float
+        Current gain factor ``k``: the loop's gain for a static gain, 1 for an LTI controller
+        (then ``k`` scales ``C(s)``).
+    delay : float
+        Current delay [s].
+    weights : numpy.ndarray
+        Current sensor weights.
+
+    Notes
+    -----
+    Values are returned divided by a positive real function of ``s`` (the largest modulus of the
+    components at that ``s``).  That keeps them of order one on long chains and changes neither
+    the zeros nor the arguments, which is all the stability tools use; for the absolute
+    characteristic function use :func:`ctmm.characteristic_function`.
+
+    Examples
+    --------
+    >>> import numpy as np, ctmm
+    >>> from ctmm.elements import Free, Mass
+    >>> from ctmm.control import ControlledChain, Feedback
+    >>> plant = ctmm.Chain("mass", [Free("a"), Mass("m", 2.0), Free("b")])
+    >>> pd = Feedback("pd", [("m.x", 3.0), ("m.v", 1.0)], "m", gain=1.0, delay=0.1)
+    >>> model = LoopCharacteristic(ControlledChain(plant, [pd]))
+    >>> s = np.array([0.5 + 1j])
+    >>> d = model.evaluate(s, gain=[1.0], delay=[0.1])[0, 0]
+    >>> exact = 2 * s[0] ** 2 + (3 + s[0]) * np.exp(-0.1 * s[0])   # m s^2 + (kp + kd s) e^{-s tau}
+    >>> bool(abs(d / exact - d.real / exact.real) < 1e-12 and abs(np.angle(d / exact)) < 1e-12)
+    True
+    """
+
+    def __init__(self, system: ControlledChain, loop: str | None = None) -> None:
+        self.system = as_controlled(system)
+        self.loop = find_loop(self.system, loop)
+        lp = self.loop
+        self.term_names = tuple(sig for sig, _ in lp.terms)
+        if len(set(self.term_names)) != len(self.term_names):
+            raise ModelError(f"loop {lp.name!r} senses the same signal twice ({self.term_names}); "
+                             "combine the weights into one term")
+        self.parameter_names = ("gain", "delay") + self.term_names
+        self.weights = np.array([w for _, w in lp.terms], dtype=float)
+        self.gain = 1.0 if lp.is_lti else float(lp.gain)
+        self.delay = float(lp.delay)
+        plant = self.system.plant
+        signals = [plant.signal(name) for name in self.term_names]
+        groups: dict[tuple[int, int], int] = {}
+        for j, sig in enumerate(signals):
+            key = (sig.point, sig.component)
+            if key not in groups or sig.derivative < signals[groups[key]].derivative:
+                groups[key] = j
+        self._group_of = np.array([list(groups).index((sig.point, sig.component)) for sig in signals])
+        reps = list(groups.values())
+        self._power = np.array([sig.derivative - signals[reps[g]].derivative
+                                for sig, g in zip(signals, self._group_of)])
+        index = self.system.loops.index(lp)
+
+        def closed_by(new: Feedback) -> ControlledChain:
+            loops = list(self.system.loops)
+            loops[index] = new
+            return self.system.with_loops(loops)
+
+        reference = lp.gain if lp.is_lti else 1.0
+        self._base = closed_by(Feedback(lp.name, lp.sensor, lp.actuator, gain=0.0, delay=0.0))
+        self._groups = [closed_by(Feedback(lp.name, self.term_names[r], lp.actuator, gain=reference,
+                                           delay=0.0)) for r in reps]
+        self.executor = None
+        self.n_evaluations = 0
+
+    # -- components ---------------------------------------------------------------------
+    def _components_direct(self, s: np.ndarray) -> np.ndarray:
+        s = np.asarray(s, dtype=complex).ravel()
+        logs = [_log_characteristic(self._base, s)]
+        if self.loop.is_lti:
+            with np.errstate(divide="ignore"):
+                logs[0] = logs[0] + np.log(self.loop.denominator(s))
+        logs += [_log_characteristic(g, s) for g in self._groups]
+        logs = np.array(logs)
+        top = np.max(np.where(np.isfinite(logs.real), logs.real, -np.inf), axis=0)
+        top = np.where(np.isfinite(top), top, 0.0)
+        with np.errstate(under="ignore", invalid="ignore"):
+            values = np.exp(logs - top)
+        values = np.where(np.isfinite(logs.real), values, 0.0)
+        base = values[0]
+        groups = values[1:] - base
+        terms = groups[self._group_of] * s[None, :] ** self._power[:, None]
+        return np.vstack([base[None, :], terms])
+
+    def components(self, s: Any) -> tuple[np.ndarray, np.ndarray]:
+        """``(Delta_0 D, T)`` at ``s``: shapes ``(n,)`` and ``(n_terms, n)`` (scaled, see Notes)."""
+        s = np.asarray(s, dtype=complex).ravel()
+        self.n_evaluations += s.size * (1 + len(self._groups))
+        executor = self.executor
+        if executor is None or s.size < 64:
+            out = self._components_direct(s)
+        else:
+            from .sweeps import executor_workers
+
+            chunks = np.array_split(s, executor_workers(executor))
+            parts = list(executor.map(_components_chunk, [self] * len(chunks), chunks))
+            out = np.concatenate(parts, axis=1)
+        return out[0], out[1:]
+
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        state["executor"] = None
+        return state
+
+    # -- evaluation -----------------------------------------------------------------------
+    def parameters(self, n: int, gain: Any = None, delay: Any = None,
+                   weights: Any = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Broadcast parameter sets to arrays ``(n,)``, ``(n,)``, ``(n, n_terms)`` (defaults: current)."""
+        k = np.broadcast_to(np.asarray(self.gain if gain is None else gain, dtype=float), (n,))
+        tau = np.broadcast_to(np.asarray(self.delay if delay is None else delay, dtype=float), (n,))
+        w = np.broadcast_to(np.asarray(self.weights if weights is None else weights, dtype=float),
+                            (n, self.weights.size))
+        return k, tau, w
+
+    @staticmethod
+    def combine(s: np.ndarray, base: np.ndarray, terms: np.ndarray, gain: np.ndarray,
+                delay: np.ndarray, weights: np.ndarray) -> np.ndarray:
+        """Eq. (1) from components: shape ``(n_parameter_sets, n_s)``.
+
+        Delays and weight vectors shared by several sets are evaluated once (charts have one
+        delay per row), so the cost is a few multiply-adds per set and sample."""
+        delays, d_index = np.unique(delay, return_inverse=True)
+        rows, w_index = np.unique(weights, axis=0, return_inverse=True)
+        loop = rows @ terms
+        with np.errstate(over="ignore", invalid="ignore"):
+            phase = np.exp(-delays[:, None] * s[None, :])
+            if delays.size * 4 < delay.size and rows.shape[0] == 1:
+                return base[None, :] + gain[:, None] * (phase * loop[0])[d_index.ravel()]
+            return base[None, :] + gain[:, None] * phase[d_index.ravel()] * loop[w_index.ravel()]
+
+    def evaluate(self, s: Any, *, gain: Any = None, delay: Any = None, weights: Any = None) -> np.ndarray:
+        """Scaled ``Delta`` at ``s`` for parameter sets (1-D arrays or scalars, broadcast).
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape ``(n_sets, n_s)``.
+        """
+        s = np.asarray(s, dtype=complex).ravel()
+        n = n_sets(gain, delay, weights)
+        k, tau, w = self.parameters(n, gain, delay, weights)
+        base, terms = self.components(s)
+        return self.combine(s, base, terms, k, tau, w)
+
+    def char_fn(self, *, gain: float | None = None, delay: float | None = None,
+                weights: Any = None):
+        """Vectorised ``s -> Delta(s)`` at one parameter set (for :mod:`ctmm.roots`)."""
+        k, tau, w = self.parameters(1, gain, delay, weights)
+
+        def delta(s: np.ndarray) -> np.ndarray:
+            s = np.asarray(s, dtype=complex)
+            base, terms = self.components(s.ravel())
+            return self.combine(s.ravel(), base, terms, k, tau, w)[0].reshape(s.shape)
+
+        return delta
+
+
+# --------------------------------------------------------------------------------------------
+# sampling the contour
+# --------------------------------------------------------------------------------------------
+class _Path:
+    """Adaptive samples of the components on a polyline ``vertices[0] -> vertices[1] -> ...``."""
+
+    def __init__(self, model: LoopCharacteristic, vertices: Sequence[complex], n_initial: int,
+                 rate: float, min_step: float) -> None:
+        self.model, self.rate, self.min_step = model, rate, min_step
+        v = np.asarray(vertices, dtype=complex)
+        lengths = np.abs(np.diff(v))
+        per = np.maximum(8, np.ceil(n_initial * lengths / lengths.sum())).astype(int)
+        pts = [v[k] + (v[k + 1] - v[k]) * np.arange(per[k]) / per[k] for k in range(len(v) - 1)]
+        self.s = np.append(np.concatenate(pts), v[-1])
+        self.delta = 1e-7 * float(lengths.sum())
+        self.values, self.logderiv = self._evaluate(self.s)
+        self._refine_components()
+
+    def _evaluate(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Components at ``s`` and their logarithmic rates along the path (forward difference)."""
+        direction = self._direction(s)
+        base, terms = self.model.components(np.concatenate([s, s + self.delta * direction]))
+        both = np.vstack([base[None, :], terms])
+        n = s.size
+        v, w = both[:, :n], both[:, n:]
+        with np.errstate(all="ignore"):
+            rate = np.log(w / v) / self.delta
+        rate = np.where(np.isfinite(rate) & (np.abs(v) > _TINY), rate, 0.0)
+        return v, rate
+
+    def _direction(self, s: np.ndarray) -> np.ndarray:  # unit tangent at each sample
+        raise NotImplementedError
+
+    def bad_intervals(self) -> np.ndarray:
+        """Intervals where a component turns by more than ``_MAX_STEP`` rad (observed or
+        predicted from the rates) or changes its modulus by more than a factor e^1.5."""
+        v, rate = self.values, self.logderiv
+        h = np.abs(np.diff(self.s))
+        big = (np.abs(v[:, 1:]) > _TINY) & (np.abs(v[:, :-1]) > _TINY)
+        with np.errstate(all="ignore"):
+            step = np.log(v[:, 1:] / v[:, :-1])
+        step = np.where(big & np.isfinite(step), step, 0.0)
+        phase_rate = np.maximum(np.abs(rate.imag[:, 1:]), np.abs(rate.imag[:, :-1]))
+        modulus_rate = np.maximum(np.abs(rate.real[:, 1:]), np.abs(rate.real[:, :-1]))
+        bad = (np.abs(step.imag) > _MAX_STEP) | (h * phase_rate > 2 * _MAX_STEP) | \
+            (np.abs(step.real) > 1.5) | (h * modulus_rate > 3.0)
+        bad = np.any(bad, axis=0) | (h * self.rate > _MAX_STEP)
+        return bad & (h > self.min_step)
+
+    def insert(self, intervals: np.ndarray, *, rates: bool = False) -> None:
+        """Add the midpoints of ``intervals`` (with companion points for the rates only when
+        ``rates``: they serve the component refinement of the constructor)."""
+        if not intervals.any():
+            return
+        j = np.flatnonzero(intervals)
+        mid = 0.5 * (self.s[j] + self.s[j + 1])
+        if rates:
+            v, g = self._evaluate(mid)
+        else:
+            base, terms = self.model.components(mid)
+            v, g = np.vstack([base[None, :], terms]), np.zeros((1 + terms.shape[0], mid.size), complex)
+        self.s = np.insert(self.s, j + 1, mid)
+        self.values = np.insert(self.values, j + 1, v, axis=1)
+        self.logderiv = np.insert(self.logderiv, j + 1, g, axis=1)
+
+    def _refine_components(self) -> None:
+        for _ in range(60):
+            bad = self.bad_intervals()
+            if not bad.any():
+                return
+            self.insert(bad, rates=True)
+
+    @property
+    def base(self) -> np.ndarray:
+        return self.values[0]
+
+    @property
+    def terms(self) -> np.ndarray:
+        return self.values[1:]
+
+
+class _VerticalPath(_Path):
+    def _direction(self, s: np.ndarray) -> np.ndarray:
+        return np.full(s.size, 1j)
+
+
+class _FarPath(_Path):
+    """``sigma + X -> sigma + X + iR -> sigma + iR`` (right edge up, top edge left)."""
+
+    def __init__(self, model, sigma, X, R, n_initial, rate, min_step):
+        self._corner = complex(sigma + X, R)
+        super().__init__(model, [sigma + X, self._corner, complex(sigma, R)], n_initial, rate,
+                         min_step)
+
+    def _direction(self, s: np.ndarray) -> np.ndarray:
+        on_top = np.abs(s.imag - self._corner.imag) <= 1e-12 * max(1.0, abs(self._corner))
+        return np.where(on_top, -1.0 + 0j, 1j)
+
+
+@dataclass
+class _Contour:
+    """Everything :func:`_count` needs for one line ``Re s = sigma`` and one parameter box."""
+
+    model: LoopCharacteristic
+    sigma: float
+    radius: float
+    line: _VerticalPath            # sigma -> sigma + iR (ascending imaginary part)
+    far_phase: float               # phase change of Delta_0 along sigma+R -> sigma+R+iR -> sigma+iR
+    notes: list = field(default_factory=list)
+
+    @property
+    def omega(self) -> np.ndarray:
+        return self.line.s.imag
+
+
+def _loop_bound(base: np.ndarray, terms: np.ndarray, weight_bound: np.ndarray) -> np.ndarray:
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = (weight_bound[:, None] * np.abs(terms)).sum(0) / np.abs(base)
+    return np.where(np.isfinite(ratio), ratio, np.inf)
+
+
+def _radius(model: LoopCharacteristic, weight_bound: np.ndarray, sigma: float, tau_max: float,
+            im_max: float | None) -> float:
+    """Imaginary extent beyond which |loop term| < |Delta_0|/2 in Re s >= sigma (retarded loops)."""
+    growth = math.exp(max(0.0, -sigma) * tau_max)
+    if im_max is not None:
+        return validation.positive("im_max", im_max)
+    omega = np.logspace(-3, 7, 121)
+    base, terms = model.components(sigma + 1j * omega)
+    ratio = growth * _loop_bound(base, terms, weight_bound)
+    big = np.flatnonzero(ratio >= 0.5)
+    if big.size and big[-1] >= omega.size - 3:
+        raise ModelError(
+            f"the loop term of {model.loop.name!r} does not decay at high frequency (|L| = "
+            f"{ratio[-1]:.3g} at omega = {omega[-1]:.3g} rad/s): a neutral or improper loop "
+            "(acceleration feedback, non-proper controller) can have infinitely many roots near the "
+            "imaginary axis; pass im_max to study a bounded frequency range")
+    last = omega[big[-1] + 1] if big.size else omega[0]
+    return float(max(2.0 * last, 1e-2))
+
+
+def _contour(model: LoopCharacteristic, weight_bound: np.ndarray, tau_max: float, *,
+             sigma: float = 0.0, im_max: float | None = None, resolution: int = 256) -> _Contour:
+    radius = _radius(model, weight_bound, sigma, tau_max, im_max)
+    growth = math.exp(max(0.0, -sigma) * tau_max)
+    notes = []
+    for _ in range(8):
+        far = _FarPath(model, sigma, radius, radius, 48, tau_max, 1e-12 * radius)
+        ratio = growth * _loop_bound(far.base, far.terms, weight_bound)
+        if np.all(ratio < 0.5) or im_max is not None:
+            if im_max is not None and not np.all(ratio < 0.5):
+                notes.append(f"im_max = {im_max:.6g} rad/s: the loop term is not small on the far edges "
+                             f"(max ratio {ratio.max():.3g}); roots beyond it may be missed")
+            break
+        radius *= 2.0
+    else:
+        raise ModelError(f"no contour radius found for loop {model.loop.name!r}: the loop term stays "
+                         "large far from the origin; pass im_max")
+    with np.errstate(all="ignore"):
+        steps = np.angle(far.base[1:] / far.base[:-1])
+    if not np.all(np.isfinite(steps)):
+        raise ModelError("the open-loop characteristic function vanishes on the far contour edge; "
+                         "pass a different im_max")
+    n0 = max(resolution, int(math.ceil(radius * tau_max / _MAX_STEP)))
+    line = _VerticalPath(model, [complex(sigma, 0.0), complex(sigma, radius)], n0, tau_max,
+                         1e-13 * radius)
+    return _Contour(model, sigma, radius, line, float(steps.sum()), notes)
+
+
+# --------------------------------------------------------------------------------------------
+# counting, vectorised over parameter sets
+# --------------------------------------------------------------------------------------------
+def _phase_steps(delta: np.ndarray) -> np.ndarray:
+    with np.errstate(all="ignore"):
+        return np.angle(delta[:, :-1] * np.conj(delta[:, 1:]))    # from sample j+1 down to j
+
+
+def _count(contour: _Contour, gain: np.ndarray, delay: np.ndarray, weights: np.ndarray, *,
+           chunk: int = 2048, refine: bool = True, rounds: int = 80,
+           min_step: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Roots in Re s > sigma for each parameter set: ``(counts, reliable)``.
+
+    Samples are added to the line where a set's phase step exceeds ``_COUNT_STEP`` (sets that
+    are resolved keep their count).  ``counts`` is -1 where ``Delta`` vanishes at a sample of the
+    line (a root on it).  Intervals are not split below ``min_step`` [rad/s]: sets that need
+    finer samples (a root that close to the line) are returned as not reliable."""
+    n = gain.size
+    counts = np.full(n, -1, dtype=int)
+    reliable = np.zeros(n, dtype=bool)
+    line = contour.line
+    pending = np.arange(n)
+    for round_ in range(rounds):
+        if pending.size == 0:
+            break
+        last = round_ == rounds - 1 or not refine
+        h = np.diff(line.s.imag)
+        refine_here = np.zeros(h.size, bool)
+        unresolved = []
+        for start in range(0, pending.size, chunk):
+            idx = pending[start:start + chunk]
+            delta = LoopCharacteristic.combine(line.s, line.base, line.terms, gain[idx], delay[idx],
+                                               weights[idx])
+            steps = _phase_steps(delta)
+            bad = (np.abs(steps) > _COUNT_STEP) & (h > max(line.min_step, min_step))[None, :]
+            open_ = bad.any(axis=1) & (not last)
+            if open_.any():
+                refine_here |= bad[open_].any(axis=0)
+                unresolved.append(idx[open_])
+            done = ~open_
+            d, st = delta[done], steps[done]
+            zero = np.any(d == 0, axis=1) | ~np.all(np.isfinite(d), axis=1)
+            with np.errstate(all="ignore"):
+                top = np.angle(d[:, -1] / line.base[-1])
+                total = (contour.far_phase + top + st.sum(axis=1)) / math.pi
+            rounded = np.round(np.where(np.isfinite(total), total, 0.0))
+            counts[idx[done]] = np.where(zero, -1, rounded.astype(int))
+            reliable[idx[done]] = ~zero & (np.abs(total - rounded) < 0.05) & \
+                ~np.any(np.abs(st) > _COUNT_STEP, axis=1)
+        pending = np.concatenate(unresolved) if unresolved else np.array([], int)
+        if pending.size:
+            line.insert(refine_here)
+    return counts, reliable
+
+
+def unstable_root_count(system: ControlledChain, *, loop: str | None = None, gain: Any = None,
+                        delay: Any = None, weights: Any = None, sigma: float = 0.0,
+                        im_max: float | None = None) -> np.ndarray:
+    """Number of characteristic roots with ``Re s > sigma`` for many parameter sets of one loop.
+
+    Parameters
+    ----------
+    system : ControlledChain
+    loop : str, optional
+        The loop whose parameters vary (default: the only loop).
+    gain, delay : array_like, optional
+        Gain factors ``k`` [-] (the loop gain itself for a static gain) and delays [s] (>= 0),
+        broadcast together; default: the loop's current values.
+    weights : array_like, optional
+        Sensor weights, shape ``(n_sets, n_terms)`` or ``(n_terms,)``.
+    sigma : float
+        Count roots right of ``Re s = sigma`` [1/s] (0: unstable roots).
+    im_max : float, optional
+        Imaginary extent [rad/s] of the contour (default: chosen from the decay of the loop term).
+
+    Returns
+    -------
+    numpy.ndarray of int
+        Counts (with multiplicity); -1 where a root lies on the line ``Re s = sigma``.
+
+    Examples
+    --------
+    >>> import numpy as np, ctmm
+    >>> from ctmm.elements import Free, Mass
+    >>> from ctmm.control import ControlledChain, Feedback
+    >>> plant = ctmm.Chain("mass", [Free("a"), Mass("m", 1.0), Free("b")])
+    >>> system = ControlledChain(plant, [Feedback("pd", [("m.x", 1.0), ("m.v", 1.0)], "m", gain=1.0)])
+    >>> unstable_root_count(system, delay=[0.0, 0.5, 1.5]).tolist()
+    [0, 0, 2]
+    """
+    model = LoopCharacteristic(system, loop)
+    n = n_sets(gain, delay, weights)
+    k, tau, w = model.parameters(n, None if gain is None else np.ravel(gain),
+                                 None if delay is None else np.ravel(delay), weights)
+    _check_parameters(k, tau, w)
+    sigma = validation.finite("sigma", sigma)
+    contour = _contour(model, _weight_bound(k, w), float(tau.max()), sigma=sigma, im_max=im_max)
+    counts, _ = _count(contour, k, tau, w)
+    return counts
+
+
+def n_sets(gain: Any, delay: Any, weights: Any) -> int:
+    """Number of parameter sets given as scalars / 1-D arrays (and weights rows), broadcast."""
+    sizes = [int(np.size(v)) for v in (gain, delay) if v is not None and np.ndim(v) > 0]
+    if weights is not None and np.ndim(weights) == 2:
+        sizes.append(int(np.shape(weights)[0]))
+    n = max(sizes, default=1)
+    if any(size not in (1, n) for size in sizes):
+        raise ModelError(f"parameter arrays must have a common length, got lengths {sizes}")
+    return n
+
+
+def _check_parameters(k: np.ndarray, tau: np.ndarray, w: np.ndarray) -> None:
+    for label, values in (("gain", k), ("delay", tau), ("weights", w)):
+        if not np.all(np.isfinite(values)):
+            raise ModelError(f"{label} must contain only finite values, found {values[~np.isfinite(values)][0]!r}")
+    if np.any(tau < 0):
+        raise ModelError(f"delays must be >= 0 [s], got {tau[tau < 0][0]!r}")
+
+
+def _weight_bound(k: np.ndarray, w: np.ndarray) -> np.ndarray:
+    return np.max(np.abs(k[:, None] * w), axis=0)
+
+
+# --------------------------------------------------------------------------------------------
+# roots and abscissa
+# --------------------------------------------------------------------------------------------
+def _char_fn(system: Any):
+    def delta(s: np.ndarray) -> np.ndarray:
+        return characteristic_function(system, s)
+
+    return delta
+
+
+def characteristic_roots(system: Any, *, re_min: float, im_max: float, re_max: float | None = None,
+                         seeds: Sequence[complex] | None = None, tol: float = 1e-12) -> RootSet:
+    """Rightmost characteristic roots of a (controlled) chain, from the TMM ``Delta(s)``.
+
+    Every root with ``re_min < Re s < re_max`` and ``|Im s| <= im_max`` is found once with its
+    multiplicity (:func:`ctmm.roots.rightmost_roots`: argument-principle counting, bisection,
+    Newton), using the conjugate symmetry of real systems.
+
+    Parameters
+    ----------
+    system : Chain or ControlledChain
+    re_min : float
+        Left edge of the search region [1/s] (no root may lie on it).
+    im_max : float
+        Half height of the region [rad/s].
+    re_max : float, optional
+        Right edge [1/s]; default chosen by :func:`ctmm.roots.rightmost_roots`.
+    seeds : sequence of complex, optional
+        Approximate roots [1/s] (e.g. from a finite-dimensional approximation).
+    tol : float
+        Newton tolerance (relative).
+
+    Returns
+    -------
+    RootSet
+        Sorted by decreasing real part, conjugate pairs exact.
+
+    Examples
+    --------
+    Delayed velocity feedback on a unit mass, ``s^2 + s e^{-s} = 0`` (root 0 and
+    ``s + e^{-s} = 0``: Hayes' equation, rightmost pair ``-0.3181 +- 1.3372i``):
+
+    >>> import ctmm
+    >>> from ctmm.elements import Fixed, Spring, Mass, Free
+    >>> from ctmm.control import ControlledChain, Feedback
+    >>> plant = ctmm.Chain("m", [Fixed("w"), Spring("k", 1.0), Mass("m", 1.0), Free("e")])
+    >>> system = ControlledChain(plant, [Feedback("v", "m.v", "m", gain=1.0, delay=1.0)])
+    >>> roots = characteristic_roots(system, re_min=-1.0, im_max=5.0, re_max=1.0)
+    >>> len(roots) > 0
+    True
+    """
+    re_min = validation.finite("re_min", re_min)
+    im_max = validation.positive("im_max", im_max)
+    return rightmost_roots(_char_fn(system), im_max=im_max, re_min=re_min, re_max=re_max, seeds=seeds,
+                           conjugate_symmetric=True, tol=tol)
+
+
+def spectral_abscissa(system: Any, *, re_min: float, im_max: float, re_max: float | None = None,
+                      seeds: Sequence[complex] | None = None, tol: float = 1e-12) -> SpectralAbscissa:
+    """Largest real part of the characteristic roots (with an error estimate).
+
+    Parameters as in :func:`characteristic_roots`.  ``result.stable`` is True when every root of
+    the region has ``Re s < 0`` (value + error < 0) and the search was reliable.
+
+    Returns
+    -------
+    SpectralAbscissa
+    """
+    re_min = validation.finite("re_min", re_min)
+    im_max = validation.positive("im_max", im_max)
+    return _roots_abscissa(_char_fn(system), im_max=im_max, re_min=re_min, re_max=re_max, seeds=seeds,
+                           conjugate_symmetric=True, tol=tol)
+
+
+# --------------------------------------------------------------------------------------------
+# crossings along a linear parameter (one "row" of a chart, or the gain of a margin)
+# --------------------------------------------------------------------------------------------
+@dataclass
+class Crossings:
+    """Parameter values at which a root lies on the line ``Re s = sigma``, per row.
+
+    Attributes
+    ----------
+    row : numpy.ndarray of int
+        Row index of each crossing.
+    value : numpy.ndarray
+        Value of the linear parameter ``p`` at the crossing.
+    omega : numpy.ndarray
+        Imaginary part of the root on the line [rad/s] (0: a real root, ``static``).
+    error : numpy.ndarray
+        Bound on the error of ``value`` (bracket width; ~1e-13 relative once refined).
+    static : numpy.ndarray of bool
+        Real root (one root crosses) rather than a conjugate pair.
+    direction : numpy.ndarray of int
+        +1 when the root(s) move to the right as ``p`` increases, -1 to the left, 0 unknown:
+        the number of roots right of the line jumps by ``direction * (1 if static else 2)``.
+    """
+
+    row: np.ndarray
+    value: np.ndarray
+    omega: np.ndarray
+    error: np.ndarray
+    static: np.ndarray
+    direction: np.ndarray
+
+    _FIELDS = ("row", "value", "omega", "error", "static", "direction")
+
+    def for_row(self, r: int) -> "Crossings":
+        keep = self.row == r
+        return Crossings(*(getattr(self, f)[keep] for f in self._FIELDS))
+
+    @property
+    def jump(self) -> np.ndarray:
+        """Change of the root count across each crossing (increasing ``p``)."""
+        return self.direction * np.where(self.static, 1, 2)
+
+
+def combine_pointwise(s: np.ndarray, base: np.ndarray, terms: np.ndarray, gain: np.ndarray,
+                      delay: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """Eq. (1) with one parameter set per ``s`` (all arrays of length n; weights (n, n_terms))."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        return base + gain * np.exp(-delay * s) * np.einsum("nt,tn->n", weights, terms)
+
+
+def _row_coefficients(s, base, terms, sets0, sets1):
+    """``B`` (p = 0) and ``A`` (coefficient of p) for rows: arrays (n_rows, n_s)."""
+    d0 = LoopCharacteristic.combine(s, base, terms, *sets0)
+    d1 = LoopCharacteristic.combine(s, base, terms, *sets1)
+    return d0, d1 - d0
+
+
+def row_crossings(contour: _Contour, sets0, sets1, p_range: tuple[float, float], *,
+                  grid: np.ndarray | None = None, refine_all: bool = False) -> Crossings:
+    """Values of a linear parameter ``p`` at which ``Delta(sigma + i omega; p) = 0``, per row.
+
+    ``sets0``/``sets1`` are the parameter sets of each row at ``p = 0`` and ``p = 1`` (Delta is
+    affine in ``p``: ``B + p A``).  A crossing at ``omega > 0`` is a sign change of
+    ``Im(B conj A)`` between samples of the line, refined by the Illinois method on the TMM values
+    when a ``grid`` value lies inside its bracket (or always with ``refine_all``); the static
+    crossing is ``p = -B/A`` at ``s = sigma``.
+    """
+    line = contour.line
+    s = line.s
+    B, A = _row_coefficients(s, line.base, line.terms, sets0, sets1)
+    phi = np.imag(B * np.conj(A))
+    with np.errstate(all="ignore"):
+        p_at = -np.real(B * np.conj(A)) / np.abs(A) ** 2
+    lo, hi = p_range
+    span = max(hi - lo, 1e-300)
+    keep_lo, keep_hi = lo - 1e-6 * span, hi + 1e-6 * span
+    # static crossing (s = sigma real): direction from ds/dp = -A / Delta_s, with
+    # Delta_s = Im Delta(sigma + i eps) / eps (Delta(sigma) = 0 there; the scale is positive)
+    p0 = p_at[:, 0]
+    ok = np.isfinite(p0) & (np.abs(A[:, 0]) > _TINY) & (p0 >= keep_lo) & (p0 <= keep_hi)
+    r_static = np.flatnonzero(ok)
+    d_static = np.zeros(r_static.size, int)
+    if r_static.size:
+        eps = 1e-7 * max(contour.radius, 1.0)
+        s_eps = np.full(r_static.size, contour.sigma + 1j * eps)
+        base_e, terms_e = contour.model.components(s_eps)
+        k0, tau0, w0 = (x[r_static] for x in sets0)
+        k1, tau1, w1 = (x[r_static] for x in sets1)
+        d0 = combine_pointwise(s_eps, base_e, terms_e, k0, tau0, w0)
+        d1 = combine_pointwise(s_eps, base_e, terms_e, k1, tau1, w1)
+        at_eps = d0 + p0[r_static] * (d1 - d0)
+        slope = np.imag(at_eps)
+        simple = np.abs(slope) > 1e-3 * np.abs(at_eps)     # else a multiple root: direction unknown
+        d_static = np.where(simple, -np.sign(A[r_static, 0].real) * np.sign(slope), 0).astype(int)
+    rows, values, omegas = list(r_static), list(p0[r_static]), [0.0] * r_static.size
+    errors, statics, directions = [0.0] * r_static.size, [True] * r_static.size, list(d_static)
+    # oscillatory crossings: sign changes of phi on intervals j >= 1
+    sign = np.sign(phi[:, 1:])
+    change = (sign[:, :-1] * sign[:, 1:] < 0)
+    r_idx, j_idx = np.nonzero(change)
+    j_idx = j_idx + 1                                        # interval [j, j+1] of the line
+    pa, pb = p_at[r_idx, j_idx], p_at[r_idx, j_idx + 1]
+    fa, fb = phi[r_idx, j_idx], phi[r_idx, j_idx + 1]
+    t = fa / (fa - fb)
+    p_est = pa + t * (pb - pa)
+    width = np.abs(pb - pa)
+    finite = np.isfinite(p_est) & np.isfinite(width)
+    inside = finite & (p_est + width >= keep_lo) & (p_est - width <= keep_hi)
+    r_idx, j_idx, p_est, width = r_idx[inside], j_idx[inside], p_est[inside], width[inside]
+    todo = np.ones(r_idx.size, bool)
+    if grid is not None and not refine_all:
+        g = np.sort(np.asarray(grid, float))
+        todo = _undecided(g, np.minimum(pa, pb)[inside], np.maximum(pa, pb)[inside], span)
+    ta = t[inside]
+    direction = np.sign(fa[inside]).astype(int)        # Re ds/dp has the sign of -d(phi)/d(omega)
+    omega = s.imag[j_idx] + ta * (s.imag[j_idx + 1] - s.imag[j_idx])
+    value, error = 0.5 * (pa + pb)[inside], 0.5 * width             # bracket of the value
+    if todo.any():
+        r, j = r_idx[todo], j_idx[todo]
+        w_ref, v_ref, e_ref = _illinois(contour, sets0, sets1, r, s.imag[j], s.imag[j + 1],
+                                        phi[r, j], phi[r, j + 1], p_at[r, j], p_at[r, j + 1],
+                                        grid=None if refine_all or grid is None else np.sort(grid),
+                                        span=span)
+        omega[todo], value[todo], error[todo] = w_ref, v_ref, e_ref
+    good = np.isfinite(value) & (value >= keep_lo) & (value <= keep_hi)
+    row = np.concatenate([np.asarray(rows, int), r_idx[good].astype(int)])
+    value = np.concatenate([np.asarray(values, float), value[good]])
+    omega = np.concatenate([np.asarray(omegas, float), omega[good]])
+    error = np.concatenate([np.asarray(errors, float), error[good]])
+    static = np.concatenate([np.asarray(statics, bool), np.zeros(int(good.sum()), bool)])
+    direction = np.concatenate([np.asarray(directions, int), direction[good]])
+    order = np.lexsort((value, row))
+    return Crossings(row[order], value[order], omega[order], error[order], static[order],
+                     direction[order])
+
+
+def _undecided(grid: np.ndarray, low: np.ndarray, high: np.ndarray, span: float) -> np.ndarray:
+    """Brackets [low, high] of a crossing value that still contain a grid value."""
+    pad = 1e-10 * span
+    left = np.searchsorted(grid, low - pad, side="left")
+    right = np.searchsorted(grid, high + pad, side="right")
+    return right > left
+
+
+def _illinois(contour: _Contour, sets0, sets1, rows, a, b, fa, fb, pa, pb, *, grid=None,
+              span: float = 1.0, iterations: int = 60):
+    """Refine brackets [a, b] of sign changes of Im(B conj A) (one per crossing, batched).
+
+    With ``grid``, a bracket stops as soon as the parameter values at its ends enclose no grid
+    value (the side of every grid point is then decided)."""
+    model, sigma = contour.model, contour.sigma
+    k0, tau0, w0 = (x[rows] for x in sets0)
+    k1, tau1, w1 = (x[rows] for x in sets1)
+
+    def evaluate(idx, omega):
+        s = sigma + 1j * omega
+        base, terms = model.components(s)
+        d0 = combine_pointwise(s, base, terms, k0[idx], tau0[idx], w0[idx])
+        d1 = combine_pointwise(s, base, terms, k1[idx], tau1[idx], w1[idx])
+        A = d1 - d0
+        with np.errstate(all="ignore"):
+            return np.imag(d0 * np.conj(A)), -np.real(d0 * np.conj(A)) / np.abs(A) ** 2
+
+    def decided(idx, pa_, pb_):
+        ends = np.isfinite(pa_) & np.isfinite(pb_)
+        return ends & ~_undecided(grid, np.minimum(pa_, pb_), np.maximum(pa_, pb_), span)
+
+    omega, pa, pb = bracket_solve(evaluate, a, b, fa, fb, pa, pb,
+                                  stop=None if grid is None else decided, iterations=iterations)
+    value = np.where(np.isfinite(pa) & np.isfinite(pb), 0.5 * (pa + pb), pb)
+    error = np.where(np.isfinite(pa) & np.isfinite(pb), 0.5 * np.abs(pa - pb), 0.0)
+    return omega, value, error
+
+
+def bracket_solve(evaluate, a, b, fa, fb, pa, pb, *, stop=None, iterations: int = 60):
+    """Batched Illinois (modified regula falsi) on brackets ``[a, b]`` with ``fa fb < 0``.
+
+    ``evaluate(idx, x) -> (f, p)`` gives the function and a tracked quantity ``p`` at points
+    ``x`` of the brackets ``idx`` (one call per iteration for all brackets); ``stop(idx, pa, pb)``
+    may end brackets early.  Returns the last point ``b`` and ``p`` at both bracket ends."""
+    a, b, fa, fb = (np.asarray(v, float).copy() for v in (a, b, fa, fb))
+    pa, pb = np.asarray(pa, float).copy(), np.asarray(pb, float).copy()
+    side = np.zeros(a.size, int)
+    active = np.ones(a.size, bool)
+    for _ in range(iterations):
+        idx = np.flatnonzero(active)
+        if idx.size == 0:
+            break
+        c = b[idx] - fb[idx] * (b[idx] - a[idx]) / (fb[idx] - fa[idx])
+        bad = ~np.isfinite(c) | (c <= np.minimum(a[idx], b[idx])) | (c >= np.maximum(a[idx], b[idx]))
+        c = np.where(bad, 0.5 * (a[idx] + b[idx]), c)
+        fc, pc = evaluate(idx, c)
+        same = np.sign(fc) == np.sign(fb[idx])
+        i_same, i_diff = idx[same], idx[~same]
+        fa[i_same] *= np.where(side[i_same] == 1, 0.5, 1.0)      # Illinois step
+        side[i_same] = 1
+        a[i_diff], fa[i_diff], pa[i_diff] = b[i_diff], fb[i_diff], pb[i_diff]
+        side[i_diff] = 0
+        b[idx], fb[idx], pb[idx] = c, fc, pc
+        done = (fc == 0) | (np.abs(b[idx] - a[idx]) <= 4e-16 * np.maximum(1.0, np.abs(c)))
+        pa[idx[fc == 0]] = pc[fc == 0]
+        if stop is not None:
+            done |= stop(idx, pa[idx], pb[idx])
+        active[idx[done]] = False
+    return b, pa, pb
+
+
+# --------------------------------------------------------------------------------------------
+# margins
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class DelayMargin:
+    """Delays at which roots cross the imaginary axis, for a loop at its current gain.
+
+    With ``L0(s) = k C(s) P(s)`` the delay-free loop transfer function (from eq. (1):
+    ``L0 = k sum_j w_j T_j / (D Delta_0)``), ``1 + L0(i Omega) e^{-i Omega tau} = 0`` holds iff
+    ``|L0(i Omega)| = 1`` (a gain crossover ``Omega_c``) and
+    ``tau = tau_0 + 2 pi j / Omega_c`` with ``tau_0 = (-arg(-1/L0)) mod 2 pi / Omega_c``.  Roots
+    cross from left to right as the delay grows where ``|L0|`` decreases through 1 (Cooke and
+    van den Driessche 1986).
+
+    Attributes
+    ----------
+    critical_delay : float
+        Smallest delay >= 0 [s] at which a root lies on the imaginary axis (``inf``: none, the
+        loop is stable for all delays if it is without delay).
+    critical_frequency : float
+        Its crossing frequency [rad/s] (``nan`` if none).
+    delay : float
+        The loop's current delay [s].
+    margin : float
+        Extra delay [s] the loop tolerates from its current delay (next crossing above the
+        current delay minus the current delay); 0 if the current loop is unstable.
+    stable : bool
+        The loop is stable at its current delay.
+    unstable_roots_at_zero_delay : int
+        Roots in Re s > 0 without delay.
+    crossing_delays, crossing_frequencies : tuple of float
+        All crossings up to ``delay_max`` [s], [rad/s], ascending in delay.
+    crossing_directions : tuple of int
+        +1: a pair moves into the right half plane as the delay grows; -1: out of it.
+    stable_intervals : tuple of (float, float)
+        Delay intervals of stability within [0, delay_max] [s].
+    """
+
+    critical_delay: float
+    critical_frequency: float
+    delay: float
+    margin: float
+    stable: bool
+    unstable_roots_at_zero_delay: int
+    crossing_delays: tuple
+    crossing_frequencies: tuple
+    crossing_directions: tuple
+    stable_intervals: tuple
+    delay_max: float
+
+    def as_dict(self) -> dict:
+        """Plain ``dict`` (JSON-friendly)."""
+        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
+
+
+def _loop_zero_crossings(contour: _Contour, function, rows=None):
+    """Brackets and refined roots (omega > 0) of a real function of the line samples.
+
+    ``function(s, base, terms) -> (f, extra)`` for one parameter set; returns (omega, f_a sign)."""
+    line = contour.line
+    f, _ = function(line.s, line.base, line.terms)
+    sign = np.sign(f[1:])
+    j = np.flatnonzero(sign[:-1] * sign[1:] < 0) + 1
+    if j.size == 0:
+        return np.zeros(0), np.zeros(0, int)
+    model, sigma = contour.model, contour.sigma
+
+    def evaluate(idx, omega):
+        s = sigma + 1j * omega
+        base, terms = model.components(s)
+        return function(s, base, terms)
+
+    a, b = line.s.imag[j], line.s.imag[j + 1]
+    omega, _, _ = bracket_solve(evaluate, a, b, f[j], f[j + 1], np.zeros(j.size), np.zeros(j.size))
+    return omega, np.sign(f[j]).astype(int)
+
+
+def delay_margin(system: ControlledChain, loop: str | None = None, *, delay_max: float | None = None,
+                 im_max: float | None = None) -> DelayMargin:
+    """Delay margin of a loop from its exact gain crossovers (no Pade approximation).
+
+    Parameters
+    ----------
+    system : ControlledChain
+    loop : str, optional
+        Loop name (default: the only loop).
+    delay_max : float, optional
+        List crossings up to this delay [s] (default: 4 x the larger of the critical and the
+        current delay).
+    im_max : float, optional
+        Frequency range [rad/s] searched for crossovers (default: where the loop term decays).
+
+    Returns
+    -------
+    DelayMargin
+
+    Examples
+    --------
+    Delayed PD on a unit mass, ``s^2 + (1 + s) e^{-s tau}``: the gain crossover is
+    ``Omega^2 = (1 + sqrt 5)/2`` and the first crossing ``tau = arctan(Omega)/Omega``:
+
+    >>> import math, ctmm
+    >>> from ctmm.elements import Free, Mass
+    >>> from ctmm.control import ControlledChain, Feedback
+    >>> plant = ctmm.Chain("mass", [Free("a"), Mass("m", 1.0), Free("b")])
+    >>> pd = Feedback("pd", [("m.x", 1.0), ("m.v", 1.0)], "m", gain=1.0, delay=0.2)
+    >>> dm = delay_margin(ControlledChain(plant, [pd]))
+    >>> omega = math.sqrt((1 + math.sqrt(5)) / 2)
+    >>> abs(dm.critical_delay - math.atan(omega) / omega) < 1e-12, round(dm.margin, 6)
+    (True, 0.511119)
+    """
+    model = LoopCharacteristic(system, loop)
+    k = np.array([model.gain])
+    w = model.weights[None, :]
+    tau_now = model.delay
+    contour = _contour(model, _weight_bound(k, w), max(tau_now, 0.0), im_max=im_max)
+
+    def excess(s, base, terms):          # |k C P|^2 - 1, scaled by |D Delta_0|^2
+        loop_term = model.gain * (model.weights @ terms)
+        return np.abs(loop_term) ** 2 - np.abs(base) ** 2, np.zeros(np.shape(s))
+
+    omega_c, sign = _loop_zero_crossings(contour, excess)
+    taus, omegas, directions = [], [], []
+    if omega_c.size:
+        base, terms = model.components(1j * omega_c)
+        L0 = model.gain * (model.weights @ terms) / base
+        tau0 = np.mod(-np.angle(-1.0 / L0), 2 * math.pi) / omega_c
+        first = float(np.min(tau0))
+        limit = delay_max if delay_max is not None else 4.0 * max(first, tau_now)
+        limit = validation.positive("delay_max", limit) if delay_max is not None else limit
+        for t0, wc, d in zip(tau0, omega_c, sign):
+            for j in range(int(max(0, math.floor((limit - t0) * wc / (2 * math.pi)))) + 1):
+                taus.append(t0 + 2 * math.pi * j / wc)
+                omegas.append(float(wc))
+                directions.append(int(d))
+    else:
+        limit = float(delay_max) if delay_max is not None else max(tau_now, 1.0)
+    order = np.argsort(taus)
+    taus = [float(taus[i]) for i in order]
+    omegas = [omegas[i] for i in order]
+    directions = [directions[i] for i in order]
+    counts, _ = _count(contour, np.repeat(k, 2), np.array([0.0, tau_now]), np.repeat(w, 2, axis=0))
+    n0, n_now = int(counts[0]), int(counts[1])
+    running, intervals, start = n0, [], 0.0 if n0 == 0 else None
+    for t_c, d in zip(taus, directions):
+        new = running + 2 * d
+        if running == 0 and new > 0 and start is not None:
+            intervals.append((start, t_c))
+            start = None
+        if new == 0 and running > 0:
+            start = t_c
+        running = new
+    if start is not None:
+        intervals.append((start, limit))
+    stable = n_now == 0
+    later = [t for t in taus if t > tau_now]
+    margin = (later[0] - tau_now if later else math.inf) if stable else 0.0
+    return DelayMargin(critical_delay=taus[0] if taus else math.inf,
+                       critical_frequency=omegas[0] if omegas else math.nan, delay=tau_now,
+                       margin=margin, stable=stable, unstable_roots_at_zero_delay=n0,
+                       crossing_delays=tuple(taus), crossing_frequencies=tuple(omegas),
+                       crossing_directions=tuple(directions), stable_intervals=tuple(intervals),
+                       delay_max=float(limit))
+
+
+@dataclass(frozen=True)
+class GainMargin:
+    """Factors on a loop's gain at which roots reach the imaginary axis (current delay).
+
+    Attributes
+    ----------
+    upper : float
+        Smallest factor > 1 that puts a root on the imaginary axis (the classical gain margin;
+        ``inf`` if none up to ``max_factor``).
+    lower : float
+        Largest factor < 1 doing so (``-inf`` if none down to ``-max_factor``).
+    upper_frequency, lower_frequency : float
+        Crossing frequencies [rad/s] (0: a real root at s = 0).
+    gain : float
+        Current gain factor (the loop gain for a static gain, 1 for an LTI controller).
+    stable : bool
+        The loop is stable at its current gain; then it stays stable for factors in
+        (``lower``, ``upper``).
+    crossing_factors, crossing_frequencies : tuple of float
+        All crossings with ``|factor| <= max_factor``, ascending.
+    stable_intervals : tuple of (float, float)
+        Factor intervals of stability within [-max_factor, max_factor].
+    """
+
+    upper: float
+    lower: float
+    upper_frequency: float
+    lower_frequency: float
+    gain: float
+    stable: bool
+    crossing_factors: tuple
+    crossing_frequencies: tuple
+    stable_intervals: tuple
+    max_factor: float
+
+    @property
+    def upper_db(self) -> float:
+        """``20 log10(upper)`` [dB]."""
+        return 20.0 * math.log10(self.upper) if self.upper > 0 else math.nan
+
+    def as_dict(self) -> dict:
+        """Plain ``dict`` (JSON-friendly)."""
+        out = {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
+        out["upper_db"] = self.upper_db
+        return out
+
+
+def gain_margin(system: ControlledChain, loop: str | None = None, *, max_factor: float = 100.0,
+                im_max: float | None = None) -> GainMargin:
+    """Gain margins of a loop at its current delay, from exact phase crossovers.
+
+    The gain factor ``f`` multiplies the loop's gain (or its controller ``C(s)``); by eq. (1)
+    ``Delta = D Delta_0 + f g e^{-s tau} sum_j w_j T_j`` is affine in ``f``, so a root lies at
+    ``s = i Omega`` iff ``f = -D Delta_0 / (g e^{-i Omega tau} sum_j w_j T_j)`` is real.
+
+    Parameters
+    ----------
+    system : ControlledChain
+    loop : str, optional
+        Loop name (default: the only loop).
+    max_factor : float
+        Search factors in ``[-max_factor, max_factor]``.
+    im_max : float, optional
+        Frequency range of the search [rad/s] (default: from the decay of the loop term).
+
+    Returns
+    -------
+    GainMargin
+    """
+    model = LoopCharacteristic(system, loop)
+    max_factor = validation.positive("max_factor", max_factor)
+    g = model.gain
+    if g == 0.0:
+        raise ModelError(f"loop {model.loop.name!r} has gain 0: a gain margin (a factor on the gain) "
+                         "is undefined; give the loop a non-zero gain")
+    w = model.weights[None, :]
+    tau = np.array([model.delay])
+    contour = _contour(model, _weight_bound(np.array([abs(g) * max_factor]), w), model.delay,
+                       im_max=im_max)
+    sets0 = (np.array([0.0]), tau, w)
+    sets1 = (np.array([g]), tau, w)
+    crossings = row_crossings(contour, sets0, sets1, (-max_factor, max_factor), refine_all=True)
+    factors = crossings.value + 0.0
+    # stability of every interval between crossings: count one factor inside each
+    edges = np.concatenate([[-max_factor], factors, [max_factor]])
+    probes = 0.5 * (edges[:-1] + edges[1:])
+    probes = np.append(probes, 1.0)
+    counts, _ = _count(contour, g * probes, np.repeat(tau, probes.size), np.repeat(w, probes.size, 0))
+    stable = bool(counts[-1] == 0)
+    intervals = tuple((float(edges[i]), float(edges[i + 1])) for i in range(probes.size - 1)
+                      if counts[i] == 0)
+    above = np.flatnonzero(factors > 1.0)
+    below = np.flatnonzero(factors < 1.0)
+    return GainMargin(upper=float(factors[above[0]]) if above.size else math.inf,
+                      lower=float(factors[below[-1]]) if below.size else -math.inf,
+                      upper_frequency=float(crossings.omega[above[0]]) if above.size else math.nan,
+                      lower_frequency=float(crossings.omega[below[-1]]) if below.size else math.nan,
+                      gain=g, stable=stable, crossing_factors=tuple(float(f) for f in factors),
+                      crossing_frequencies=tuple(float(o) for o in crossings.omega),
+                      stable_intervals=intervals, max_factor=max_factor)
+
+
+# --------------------------------------------------------------------------------------------
+# cross-check by simulation
+# --------------------------------------------------------------------------------------------
+def with_loop_parameters(system: ControlledChain, loop: str | None, parameters: dict) -> ControlledChain:
+    """The system with one loop's ``"gain"`` (factor), ``"delay"`` or sensor weights replaced."""
+    model_loop = find_loop(system, loop)
+    names = ("gain", "delay") + tuple(sig for sig, _ in model_loop.terms)
+    if not isinstance(parameters, dict):
+        raise ModelError(f"parameters must be a dict {{name: value}}, got {parameters!r}")
+    for name in parameters:
+        if name not in names:
+            raise unknown_name(f"parameter of loop {model_loop.name!r}", name, list(names))
+    gain = model_loop.gain
+    if "gain" in parameters:
+        factor = validation.finite("gain", parameters["gain"])
+        gain = factor * model_loop.gain if model_loop.is_lti else factor
+    delay = validation.nonnegative("delay", parameters.get("delay", model_loop.delay))
+    terms = [(sig, validation.finite(sig, parameters.get(sig, w))) for sig, w in model_loop.terms]
+    new = Feedback(model_loop.name, terms, model_loop.actuator, gain=gain, delay=delay)
+    return system.with_loops([new if lp is model_loop else lp for lp in system.loops])
+
+
+def envelope_rate(t: np.ndarray, y: np.ndarray, *, start: float = 0.5) -> float:
+    """Growth rate [1/s] of the envelope of ``y(t)``: slope of ``log|y|`` at its peaks after
+    ``start * t[-1]`` (least squares), or of ``log|y|`` itself when it has fewer than 3 peaks."""
+    t, y = np.asarray(t, float), np.abs(np.asarray(y, float))
+    keep = t >= start * t[-1]
+    tt, yy = t[keep], y[keep]
+    peaks = np.flatnonzero((yy[1:-1] > yy[:-2]) & (yy[1:-1] >= yy[2:])) + 1
+    if peaks.size >= 3:
+        tt, yy = tt[peaks], yy[peaks]
+    positive = yy > 0
+    if positive.sum() < 2:
+        return -math.inf
+    return float(np.polyfit(tt[positive], np.log(yy[positive]), 1)[0])
+
+
+@dataclass(frozen=True)
+class SimulationCheck:
+    """Spectral abscissa against the envelope growth rate of a time simulation, per point.
+
+    Attributes
+    ----------
+    points : tuple of dict
+        Loop parameters of each point.
+    abscissa : numpy.ndarray
+        Spectral abscissa from the characteristic roots [1/s] (an upper bound ``re_min`` when no
+        root lies to the right of it).
+    rate : numpy.ndarray
+        Growth rate of the simulated response's envelope [1/s] (:func:`envelope_rate`).
+    predicted_stable, simulated_stable : numpy.ndarray of bool
+    agree : bool
+        Every point is classified alike.
+    """
+
+    points: tuple
+    abscissa: np.ndarray
+    rate: np.ndarray
+    predicted_stable: np.ndarray
+    simulated_stable: np.ndarray
+
+    @property
+    def agree(self) -> bool:
+        return bool(np.all(self.predicted_stable == self.simulated_stable))
+
+    def as_dict(self) -> dict:
+        """Plain ``dict`` (JSON-friendly)."""
+        return {"points": list(self.points), "abscissa": self.abscissa.tolist(),
+                "rate": self.rate.tolist(), "predicted_stable": self.predicted_stable.tolist(),
+                "simulated_stable": self.simulated_stable.tolist(), "agree": self.agree}
+
+
+def crosscheck_by_simulation(system: ControlledChain, points: Sequence[dict], *, t_final: float,
+                             dt: float, loop: str | None = None, im_max: float = 50.0,
+                             re_min: float = -2.0, x0: dict | None = None,
+                             output: str | None = None) -> SimulationCheck:
+    """Check stability predictions against DT-TMM simulations with the delayed loop.
+
+    For each point (loop parameters, e.g. ``{"gain": 2.0, "delay": 0.1}``) the spectral
+    abscissa is computed from the TMM characteristic roots and the closed loop is simulated by
+    :func:`ctmm.control.simulate_controlled` (delayed loop from the stored history) from a small
+    initial displacement; the envelope of the loop's sensed value must grow where a root lies in
+    the right half plane and decay otherwise, at a rate close to the abscissa.
+
+    Parameters
+    ----------
+    system : ControlledChain
+    points : sequence of dict
+        Loop parameters per point (``"gain"``, ``"delay"``, sensor signal weights).
+    t_final, dt : float
+        Simulation length and step [s] (several periods of the dominant root; dt well below it).
+    loop : str, optional
+        Loop name (default: the only loop).
+    im_max, re_min : float
+        Root search region for the abscissa [rad/s], [1/s].
+    x0 : dict, optional
+        Initial displacements by element (default: 1e-3 on the actuator, or the first point
+        element).
+    output : str, optional
+        Signal whose envelope is measured (default: ``"<loop>.y"``).
+
+    Returns
+    -------
+    SimulationCheck
+    """
+    from .control.simulate import simulate_controlled
+    from .elements.lumped import PointElement
+
+    system = as_controlled(system, "crosscheck_by_simulation")
+    lp = find_loop(system, loop)
+    t_final, dt = validation.positive("t_final", t_final), validation.positive("dt", dt)
+    if x0 is None:
+        element = system.plant.element(lp.actuator)
+        if not isinstance(element, PointElement):
+            element = next(e for e in system.plant.body if isinstance(e, PointElement))
+        x0 = {element.name: 1e-3}
+    output = output or f"{lp.name}.y"
+    abscissa, rate = [], []
+    for params in points:
+        sys_p = with_loop_parameters(system, lp.name, params)
+        result = spectral_abscissa(sys_p, re_min=re_min, im_max=im_max)
+        abscissa.append(result.value)
+        sim = simulate_controlled(sys_p, t_final, dt, x0=x0)
+        rate.append(envelope_rate(sim.time, sim[output]))
+    abscissa, rate = np.array(abscissa), np.array(rate)
+    return SimulationCheck(tuple(dict(p) for p in points), abscissa, rate, abscissa < 0, rate < 0)
