@@ -17,6 +17,20 @@ transfer ``F_j = S_j d_j`` *is* that elimination: crossing a field element the p
 ``Pi = -U12^{-1} (U11 + U12 S)`` = (element's inboard dynamic stiffness) + (condensed stiffness
 ``-S`` of everything inboard).  Bisection on ``J`` isolates every root, clustered or repeated,
 without missing or duplicating any (Wittrick & Williams, Q. J. Mech. Appl. Math. 24, 1971).
+
+* Constrained displacements are not degrees of freedom: a start that fixes some of them
+  (:meth:`~ctmm.elements.boundary.Boundary.constrained_dofs`, e.g. pinned ``w = 0``) starts the
+  condensation on the free ones, ``d = T q``, ``T^T F = S q``; an end counts the pivots of the
+  free-displacement block of ``k_end - S``.
+* An element with singular ``U12`` (hinge: only the slope jumps; rigid and point elements:
+  ``U12 = 0``) is a massless connector ``d_out = d_in + X F`` (``X = U11^-1 U12``) followed by a
+  rigid map; its pivot lives on the range ``R`` of ``X``: ``-(R^T X R)^-1 - R^T S R``.
+* Elements with a ``subdivide(omega_max)`` hook (long beams) are replaced by short pieces.
+
+Counting is exact, but its floating-point sign flickers within ~1e-9 of a root when a
+substructure resonates within ``e^-beta`` of it; :func:`natural_frequencies` therefore only
+*isolates* roots by counting and refines them on the sign of the characteristic determinant,
+evaluated by orthonormal (QR) transfer (:class:`_Determinant`).
 """
 from __future__ import annotations
 
@@ -287,6 +301,11 @@ def eigenvalue_count(system: Chain, omega: Any) -> np.ndarray:
     omega : array_like
         Frequencies [rad/s] > 0.
 
+    Raises
+    ------
+    ModelError
+        If an element matrix is not symplectic (not reciprocal), see :func:`_check_reciprocal`.
+
     Notes
     -----
     Exact in exact arithmetic.  In floating point the count may flicker within about
@@ -298,6 +317,7 @@ def eigenvalue_count(system: Chain, omega: Any) -> np.ndarray:
     if _is_lumped(system):
         return _lumped_count(system, omega)
     body, _ = _subdivided(system, float(np.max(omega, initial=0.0)))
+    _check_reciprocal(body, float(np.max(omega, initial=0.0)) or 1.0)
     return _count(system, body, omega)
 
 
@@ -581,7 +601,7 @@ def natural_frequencies(system: Chain, *, n_modes: int | None = None, omega_max:
     else:
         body, points = _subdivided(system, hi)
         count = lambda w: _count(system, body, w)  # noqa: E731
-        sign = _Determinant(system, body, points) if _is_real(body, hi) else None
+        sign = _Determinant(system, body, points) if _check_reciprocal(body, hi) else None
     tiny = hi * 1e-12
     # rigid-body modes (w = 0): the count at a tiny w is exact for lumped chains; for fields the
     # O(w^2) stiffness change drowns in round-off there, so use the static nullity instead
@@ -645,18 +665,16 @@ def _refine_sign(delta: "_Determinant", lo, up, idx, rtol) -> np.ndarray:
     good = f_lo * f_up < 0
     bad = idx[~good]
     idx, D, f_lo, f_up = idx[good], D[good], f_lo[good], f_up[good]
-    width = up[idx] - lo[idx]
+    width = up[idx] - lo[idx]             # bracket width when the stall counter was last reset
+    stall = np.zeros(idx.size, dtype=int)
     last = np.zeros(idx.size, dtype=int)   # end moved in the previous step: -1 lo, +1 up
-    step = 0
     while idx.size:
         a, b = lo[idx], up[idx]
         with np.errstate(divide="ignore", invalid="ignore"):
             x = b - f_up * (b - a) / (f_up - f_lo)
-        step += 1
-        slow = np.zeros(idx.size, dtype=bool)
-        if step % 2 == 0:
-            slow, width = (b - a) > 0.5 * width, b - a
-        x = np.where(slow | ~(x > a) | ~(x < b), 0.5 * (a + b), x)
+        x = np.where((stall >= 3) | ~np.isfinite(x), 0.5 * (a + b), x)
+        step_min = np.maximum(0.4 * rtol * b, 2 * np.spacing(b))   # Brent-style minimal step:
+        x = np.clip(x, a + step_min, b - step_min)                # a converged end closes the bracket
         f_x = delta(x, D)
         left = np.sign(f_x) == np.sign(f_lo)       # the root is in (x, up)
         zero = f_x == 0
@@ -667,19 +685,41 @@ def _refine_sign(delta: "_Determinant", lo, up, idx, rtol) -> np.ndarray:
         lo[idx[zero]] = up[idx[zero]] = x[zero]
         last = np.where(left, -1, 1)
         gap = up[idx] - lo[idx]
+        halved = gap <= 0.5 * width
+        width, stall = np.where(halved, gap, width), np.where(halved, 0, stall + 1)
         keep = (gap > rtol * up[idx]) & (gap > 4 * np.spacing(up[idx]))
-        idx, D, f_lo, f_up, width, last = idx[keep], D[keep], f_lo[keep], f_up[keep], width[keep], last[keep]
+        idx, D, f_lo, f_up = idx[keep], D[keep], f_lo[keep], f_up[keep]
+        width, stall, last = width[keep], stall[keep], last[keep]
     return bad
 
 
-def _is_real(body: Sequence, omega: float) -> bool:
-    """True when every element matrix is real at ``s = i omega`` (undamped: Delta is real)."""
-    s = 1j * np.array([omega, 0.5 * omega])
+def _check_reciprocal(body: Sequence, omega: float) -> bool:
+    """Check the matrices the count relies on at ``s = i omega``; return whether all are real.
+
+    Wittrick-Williams counting needs symplectic element matrices, ``U^T J U = J`` with
+    ``J = [[0, I], [-I, 0]]`` (reciprocity: every force work-conjugate to its displacement,
+    as for a conservative element).  Elements that are not (e.g. the smooth-hinge composite
+    :class:`~ctmm.planar.linear.LinearHingedBody`) raise :class:`~ctmm.errors.ModelError`
+    instead of giving a wrong count.
+    """
+    s = 1j * np.array([omega, 0.37 * omega])
+    real, bad, seen = True, [], set()
     for element in body:
+        if id(element) in seen:
+            continue
+        seen.add(id(element))
         U = np.asarray(element.transfer_matrix(s))
-        if np.any(np.abs(U.imag) > 1e-12 * np.maximum(np.abs(U.real), 1.0)):
-            return False
-    return True
+        real &= not np.any(np.abs(U.imag) > 1e-12 * np.maximum(np.abs(U.real), 1.0))
+        n = U.shape[-1]
+        J = np.block([[np.zeros((n // 2, n // 2)), np.eye(n // 2)], [-np.eye(n // 2), np.zeros((n // 2, n // 2))]])
+        residual = np.abs(_t(U.real) @ J @ U.real - J).max(axis=(-2, -1))
+        if n % 2 or np.any(residual > 1e-8 * np.maximum(np.abs(U.real).max(axis=(-2, -1)) ** 2, 1.0)):
+            bad.append(element.name)
+    if bad:
+        raise ModelError("natural_frequencies and eigenvalue_count need reciprocal (symplectic) element "
+                         f"matrices U^T J U = J; not satisfied by {', '.join(repr(b) for b in bad)}"
+                         " (for planar chains with smooth hinges use ctmm.planar.linear.natural_frequencies)")
+    return real
 
 
 def _balance(Us: Sequence[np.ndarray], sweeps: int = 8) -> np.ndarray:

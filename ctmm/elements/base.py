@@ -63,6 +63,20 @@ class Element(ABC):
         s = np.asarray(s)
         return np.zeros(s.shape + (self.layout.size,), dtype=complex)
 
+    def subdivide(self, omega_max: float) -> list["Element"]:
+        """Pieces whose chained transfer matrices equal this element's, for use up to ``omega_max``.
+
+        Optional capability used by :func:`ctmm.frequency.assemble` (``subdivide=True``),
+        :func:`~ctmm.frequency.eigenvalue_count`, :func:`~ctmm.frequency.natural_frequencies` and
+        :func:`~ctmm.frequency.mode_shapes`: a distributed element whose matrix grows
+        exponentially with frequency (e.g. :class:`~ctmm.elements.beams.BeamField`, entries
+        ``~ cosh(beta L)``) returns pieces short enough that every solver step stays well
+        conditioned up to ``omega_max`` [rad/s].  The product of the pieces' matrices (last
+        piece leftmost) must equal this element's matrix; the pieces take no inputs.  The
+        default returns ``[self]``.
+        """
+        return [self]
+
     def check_inputs(self, amplitudes: Mapping[str, Any]) -> None:
         """Raise :class:`~ctmm.errors.UnknownNameError` for input names the element lacks."""
         for key in amplitudes:

@@ -63,6 +63,8 @@ _SERIES_TERMS = 32
 _INV_FACT = np.array([1.0 / math.factorial(k) for k in range(_SERIES_TERMS)])
 # Near the double root (m^2 + n^2 -> 0) the closed form cancels: fall back to expm.
 _DOUBLE_ROOT_RATIO = 1e-3
+# Largest β (and tension parameter sqrt(|T|/EI) L) of a piece made by BeamField.subdivide.
+_SUBDIVISION_BETA = 4.0
 
 
 def _as_s(s: Any) -> np.ndarray:
@@ -343,6 +345,21 @@ class BeamField(Element):
         tension = math.sqrt(abs(self.axial_force) / self.bending_stiffness) * self.length
         return max(1, math.ceil(max(beta, tension) / max_beta))
 
+    def subdivide(self, omega_max: float) -> list["BeamField"]:
+        """Equal pieces with ``β_piece <= 4`` up to ``omega_max`` [rad/s] (solver hook).
+
+        Used by :func:`ctmm.frequency.eigenvalue_count`, :func:`~ctmm.frequency.natural_frequencies`
+        and :func:`~ctmm.frequency.mode_shapes` (and :func:`~ctmm.frequency.assemble` with
+        ``subdivide=True``): a single long field has entries ``~ cosh β`` and a boundary
+        determinant that loses ``~ e^β eps``; pieces of ``β <= 4`` keep natural frequencies at
+        round-off level (``docs/beams.md``, "natural frequencies of beam assemblies").
+        """
+        pieces = self.pieces_for(omega_max, max_beta=_SUBDIVISION_BETA)
+        if pieces == 1:
+            return [self]
+        piece = self.split(pieces)[0]
+        return [piece] * pieces  # one object: solvers evaluate its matrix once
+
     # -- Wittrick-Williams -------------------------------------------------------------
     def clamped_frequency_count(self, omega: Any) -> np.ndarray:
         """Number of natural frequencies of the element clamped at both ends strictly below ``omega``.
@@ -583,7 +600,8 @@ class _MixedBeamBoundary(Boundary):
     known half ``z_f = 0``; at the end they are the conditions ``Bm z = 0``).  Such a boundary
     is neither "all displacements known" nor "all forces known": code that only understands
     those two kinds reads :attr:`known` and gets a :class:`~ctmm.errors.ModelError` instead
-    of a silently wrong model.
+    of a silently wrong model.  Code that understands mixed conditions (the Riccati solver,
+    the Wittrick-Williams count) uses :meth:`start`, :meth:`end` and :meth:`constrained_dofs`.
     """
 
     zero_components: tuple[str, str] = ()  # type: ignore[assignment]
@@ -600,7 +618,16 @@ class _MixedBeamBoundary(Boundary):
             "(supported: BeamClamped/Fixed, BeamFree/Free, Elastic)")
 
     def _stiffness(self, s):
-        return self.known  # raises: no uniform support stiffness
+        """Support stiffness on the force-prescribed displacement: 0 (the conjugate force vanishes)."""
+        return np.zeros(np.shape(s), dtype=complex)
+
+    def constrained_dofs(self, layout: StateLayout) -> tuple[tuple[int, ...], tuple[int, ...]]:
+        """(constrained, force-prescribed) displacement indices: pinned ``((w,), (theta,))``,
+        sliding ``((theta,), (w,))`` as layout indices."""
+        if layout.name != BENDING.name:
+            raise ModelError(f"boundary {self.name!r} needs the bending layout, got {layout.name!r}")
+        fixed = tuple(layout.index(c) for c in self.constrained_displacements)
+        return fixed, tuple(i for i in range(layout.half) if i not in fixed)
 
     def known_indices(self, layout: StateLayout) -> list[int]:
         """Indices of the components that are zero at this boundary."""

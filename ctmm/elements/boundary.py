@@ -61,6 +61,20 @@ class Boundary(Element):
         d = layout.half
         return list(range(d, 2 * d)) if self.known == "displacement" else list(range(d))
 
+    def constrained_dofs(self, layout: StateLayout) -> tuple[tuple[int, ...], tuple[int, ...]]:
+        """Split the displacement components ``0 .. d-1`` into (constrained, force-prescribed).
+
+        A constrained displacement is held at a prescribed value (its conjugate force is an
+        unknown reaction); for every other displacement component the conjugate force is
+        prescribed: zero, an input, or elastic with the support stiffness of ``_stiffness(s)``.
+        Uniform boundaries constrain all (``known == "displacement"``) or none; mixed boundaries
+        (e.g. :class:`~ctmm.elements.beams.BeamPinned`) override this.
+        """
+        d = layout.half
+        if self.known == "displacement":
+            return tuple(range(d)), ()
+        return (), tuple(range(d))
+
     # -- frequency domain ---------------------------------------------------------------
     def start(self, layout: StateLayout, s: np.ndarray, amplitudes: Mapping[str, Any]):
         """Start relation ``z_f = S0 z_e + P0``: returns ``(e_indices, S0, P0)`` over ``s``."""
