@@ -78,5 +78,38 @@ def check_divergence(model, q, t: float, dt: float | None, method: str, partial=
                 partial_result=partial() if callable(partial) else partial)
 
 
-__all__ = ["tip_deflection", "axial_tip_displacement", "highest_frequency", "check_divergence",
+def mape(y, y_ref, *, floor: float = 0.1) -> float:
+    """Mean absolute percentage error [%] of ``y`` against ``y_ref``.
+
+    ``MAPE = 100/|K| sum_{k in K} |y_k - y_ref,k| / |y_ref,k|`` over the samples
+    ``K = {k : |y_ref,k| >= floor max |y_ref|}``: the plain MAPE of Sorensen et al. (seed 000,
+    Fig. 3) restricted to samples away from the zero crossings of the reference, where the
+    relative error is undefined (``floor = 0.1`` by default; ``docs/flexible.md``).
+    """
+    y = np.asarray(y, dtype=float)
+    y_ref = np.asarray(y_ref, dtype=float)
+    mask = np.abs(y_ref) >= floor * np.max(np.abs(y_ref))
+    return float(100.0 * np.mean(np.abs(y[mask] - y_ref[mask]) / np.abs(y_ref[mask])))
+
+
+def spinup_law(final_rate: float = 6.0, ramp_time: float = 15.0):
+    """Scalar ``(angle, rate, acceleration)`` functions of the Kane-Ryan-Banerjee spin-up
+    (FORMULAS 6.1), for :class:`~ctmm.planar.DrivenHinge` (plain ``math``: fast per call)."""
+    import math
+    W, T = float(final_rate), float(ramp_time)
+    w = 2 * math.pi / T
+
+    def angle(t):
+        return W / T * (t * t / 2 + (math.cos(w * t) - 1) / w ** 2) if t <= T else W * (t - T / 2)
+
+    def rate(t):
+        return W / T * (t - math.sin(w * t) / w) if t <= T else W
+
+    def acceleration(t):
+        return W / T * (1 - math.cos(w * t)) if t <= T else 0.0
+
+    return angle, rate, acceleration
+
+
+__all__ = ["mape", "spinup_law", "tip_deflection", "axial_tip_displacement", "highest_frequency", "check_divergence",
            "RK4_STABILITY_LIMIT"]
