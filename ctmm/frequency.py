@@ -605,7 +605,11 @@ def natural_frequencies(system: Chain, *, n_modes: int | None = None, omega_max:
     tiny = hi * 1e-12
     # rigid-body modes (w = 0): the count at a tiny w is exact for lumped chains; for fields the
     # O(w^2) stiffness change drowns in round-off there, so use the static nullity instead
-    n_rigid = int(count(np.array([tiny]))[0]) if sign is None else sign.static_nullity()
+    n_tiny = int(count(np.array([tiny]))[0])
+    n_rigid = n_tiny if sign is None else sign.static_nullity()
+    if n_tiny > n_rigid:  # round-off can only hide a rigid mode from the count, not add one
+        raise ModelError(f"chain {system.name!r} is statically unstable: {n_tiny - n_rigid} mode(s) with "
+                         "negative stiffness (omega^2 < 0, e.g. compression beyond buckling)")
     roots = np.zeros(targets.size)
     k = targets[targets > n_rigid]
     if k.size == 0:
