@@ -977,6 +977,8 @@ def delay_margin(system: ControlledChain, loop: str | None = None, *, delay_max:
         limit = validation.positive("delay_max", limit) if delay_max is not None else limit
         for t0, wc, d in zip(tau0, omega_c, sign):
             for j in range(int(max(0, math.floor((limit - t0) * wc / (2 * math.pi)))) + 1):
+                if t0 + 2 * math.pi * j / wc > limit:
+                    break
                 taus.append(t0 + 2 * math.pi * j / wc)
                 omegas.append(float(wc))
                 directions.append(int(d))

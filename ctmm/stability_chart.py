@@ -215,7 +215,7 @@ def _axis(label: str, spec: Any) -> tuple[str, np.ndarray, str]:
         raise ModelError(f"{label} grid {name!r} must be 1-D with at least 2 values, got shape {grid.shape}")
     bad = np.flatnonzero(~np.isfinite(grid))
     if bad.size:
-        raise ModelError(f"{label} grid {name!r} must be finite, got {grid[bad[0]]!r} at index {bad[0]}")
+        raise ModelError(f"{label} grid {name!r} must be finite, got {float(grid[bad[0]])!r} at index {bad[0]}")
     if len(np.unique(grid)) != grid.size:
         raise ModelError(f"{label} grid {name!r} has repeated values")
     text = spec[2] if len(spec) == 3 else name
