@@ -182,3 +182,32 @@ def test_bad_beam_input_is_rejected(kwargs, match):
     params.update(kwargs)
     with pytest.raises(ModelError, match=match):
         ModalBeam("b", **params)
+
+
+def test_piezo_moment_pair_hook_gives_the_exact_static_deflection():
+    """FORMULAS 5.3 (check c18): a moment pair M between x1 < x2 on a cantilever deflects the tip
+    by M (x2 - x1)/EI (L - (x1 + x2)/2); the modal static solution q = K^-1 Q converges to it."""
+    beam = ModalBeam("b", length=1.0, bending_stiffness=2.0, mass_per_length=0.5, n_modes=20)
+    beam = beam.with_modal_forces(beam.moment_pair(0.2, 0.5, 0.3))
+    model = PlanarModel.chain("c", [Fixed("g"), beam], gravity=(0.0, 0.0))
+    Q = 0.3 * (beam.mode_slopes(0.5) - beam.mode_slopes(0.2))
+    q_static = Q / np.diag(beam.data.K)
+    assert np.max(np.abs(accelerations(model, q_static, 0 * q_static))) < 1e-12
+    exact = 0.3 * 0.3 / 2.0 * (1.0 - 0.35)
+    assert abs(tip_deflection(model, q_static, "b") / exact - 1) < 1e-5
+
+
+def test_modal_velocity_feedback_hook_damps_and_is_exact_in_the_implicit_scheme():
+    from ctmm.planar import simulate_implicit
+    base = ModalBeam("b", length=1.0, bending_stiffness=2.0, mass_per_length=0.5, n_modes=3)
+    fb = base.modal_velocity_feedback(0.0, 0.3, coefficient=0.5, gain=2.0, mode=1)
+    assert fb.damping.shape == (3, 3) and np.count_nonzero(fb.damping[:, 1:]) == 0
+    model = PlanarModel.chain("c", [Fixed("g"), base.with_modal_forces(fb)], gravity=(0.0, 0.0))
+    q0 = np.array([0.01, 0.0, 0.0])
+    rk4 = simulate_rk4(model, q0, np.zeros(3), t_final=0.3, dt=5e-4)
+    nm = simulate_implicit(model, q0, np.zeros(3), t_final=0.3, dt=5e-4)
+    assert np.max(np.abs(rk4.q - nm.q)) < 2e-5 and nm.iterations.max() <= 2
+    free = PlanarModel.chain("c", [Fixed("g"), base], gravity=(0.0, 0.0))
+    undamped = simulate_rk4(free, q0, np.zeros(3), t_final=0.3, dt=5e-4)
+    assert model.energy(rk4.q[-1], rk4.qdot[-1]) < 0.8 * free.energy(undamped.q[-1],
+                                                                       undamped.qdot[-1])
