@@ -44,7 +44,8 @@ import numpy as np
 from . import validation
 from .assembly import SOLVERS
 from .control.loops import ControlledChain, Feedback
-from .errors import ModelError, unknown_name
+from .elements.lumped import Connector
+from .errors import ModelError, SingularSystemError, unknown_name
 from .frequency import assemble, characteristic_function
 from .roots import RootSet, SpectralAbscissa, rightmost_roots
 from .roots import spectral_abscissa as _roots_abscissa
@@ -86,12 +87,35 @@ def find_loop(system: ControlledChain, loop: str | None) -> Feedback:
     return system.loop(loop)
 
 
-def _log_characteristic(system: ControlledChain, s: np.ndarray) -> np.ndarray:
-    """``log Delta(s)`` (unnormalised, complex) without forming ``Delta`` (no overflow)."""
+def _log_characteristic(system: Any, s: np.ndarray) -> np.ndarray:
+    """``log Delta(s)`` (unnormalised, complex) without forming ``Delta`` (no overflow).
+
+    Same determinant and pole-clearing factor as :func:`ctmm.characteristic_function`."""
     with np.errstate(divide="ignore", invalid="ignore"):
         Us, us, start, end = assemble(system, s)
         sol = SOLVERS["riccati"](Us, us, start, end, want_states=False)
-        return sol.log_det + np.log(system.characteristic_scale(s).astype(complex))
+        return sol.log_det + np.log(_pole_factor(system, s))
+
+
+def _pole_factor(system: Any, s: np.ndarray) -> np.ndarray:
+    """Connector stiffnesses ``k + c s`` (and controller denominators) that clear the poles."""
+    if hasattr(system, "characteristic_scale"):
+        return np.asarray(system.characteristic_scale(s), dtype=complex)
+    factor = np.ones(s.shape, dtype=complex)
+    for element in system.body:
+        if isinstance(element, Connector):
+            factor = factor * element.connector_stiffness(s)
+    return factor
+
+
+def _normalised(logs: np.ndarray) -> np.ndarray:
+    """``exp(logs)`` divided by the largest modulus in each column (zeros where log is -inf)."""
+    finite = np.isfinite(logs.real)
+    top = np.max(np.where(finite, logs.real, -np.inf), axis=0)
+    top = np.where(np.isfinite(top), top, 0.0)
+    with np.errstate(under="ignore", invalid="ignore", over="ignore"):
+        values = np.exp(logs - top)
+    return np.where(finite, values, 0.0)
 
 
 def _components_chunk(model: "LoopCharacteristic", s: np.ndarray) -> np.ndarray:
@@ -176,23 +200,58 @@ class LoopCharacteristic:
         self._base = closed_by(Feedback(lp.name, lp.sensor, lp.actuator, gain=0.0, delay=0.0))
         self._groups = [closed_by(Feedback(lp.name, self.term_names[r], lp.actuator, gain=reference,
                                            delay=0.0)) for r in reps]
+        others = [other for other in self.system.loops if other is not lp]
+        self._open = self.system.with_loops(others) if others else plant
+        self._input = self._open.input(f"{lp.actuator}.force")
+        self._sensed = [(sig.point, sig.component, sig.derivative) for sig in signals]
         self.executor = None
         self.n_evaluations = 0
 
     # -- components ---------------------------------------------------------------------
     def _components_direct(self, s: np.ndarray) -> np.ndarray:
+        """``[D Delta_0, T_1, ...]`` at ``s``, divided by the largest modulus at each ``s``.
+
+        Fast path: with the loop open, ``Delta_0`` (log of the boundary determinant) and the
+        responses ``P_j`` of the sensed signals to a unit actuator force come from the open chain
+        (no extended states); by the matrix determinant lemma the loop adds
+        ``T_j = D Delta_0 C P_j``.  Where the open chain is singular (an open-loop root exactly
+        at a sample, e.g. s = 0 of a free chain) the extended closed chains are swept instead."""
         s = np.asarray(s, dtype=complex).ravel()
+        out = np.empty((1 + len(self._sensed), s.size), dtype=complex)
+        log_open = _log_characteristic(self._open, s)
+        regular = np.isfinite(log_open)
+        if regular.any():
+            try:
+                out[:, regular] = self._components_open(s[regular], log_open[regular])
+            except SingularSystemError:
+                regular[:] = False
+        if not regular.all():
+            out[:, ~regular] = self._components_closed(s[~regular])
+        return out
+
+    def _components_open(self, s: np.ndarray, log_open: np.ndarray) -> np.ndarray:
+        from .frequency import solve
+
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            states = solve(self._open, s, {self._input.position: {self._input.input: 1.0}}).states
+            log_base = log_open
+            controller = np.zeros(s.size, complex)
+            if self.loop.is_lti:
+                log_base = log_base + np.log(self.loop.denominator(s).astype(complex))
+                controller = np.log(self.loop.controller_response(s).astype(complex))
+            logs = [log_base]
+            for point, component, derivative in self._sensed:
+                response = states[point, :, component] * s ** derivative
+                logs.append(log_base + controller + np.log(response.astype(complex)))
+            return _normalised(np.array(logs))
+
+    def _components_closed(self, s: np.ndarray) -> np.ndarray:
         logs = [_log_characteristic(self._base, s)]
         if self.loop.is_lti:
             with np.errstate(divide="ignore"):
-                logs[0] = logs[0] + np.log(self.loop.denominator(s))
+                logs[0] = logs[0] + np.log(self.loop.denominator(s).astype(complex))
         logs += [_log_characteristic(g, s) for g in self._groups]
-        logs = np.array(logs)
-        top = np.max(np.where(np.isfinite(logs.real), logs.real, -np.inf), axis=0)
-        top = np.where(np.isfinite(top), top, 0.0)
-        with np.errstate(under="ignore", invalid="ignore"):
-            values = np.exp(logs - top)
-        values = np.where(np.isfinite(logs.real), values, 0.0)
+        values = _normalised(np.array(logs))
         base = values[0]
         groups = values[1:] - base
         terms = groups[self._group_of] * s[None, :] ** self._power[:, None]
