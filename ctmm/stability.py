@@ -70,10 +70,30 @@ def as_controlled(system: Any, what: str = "stability analysis") -> ControlledCh
 
     if isinstance(system, Chain):
         raise ModelError(f"{what} needs a feedback loop, but {system.name!r} is a plain Chain with no "
-                         "loop (nothing depends on a gain or a delay); close a loop with "
+                         "loop (nothing depends on a gain or a delay, a chart would be constant); "
+                         f"delay-free answer: {delay_free_answer(system)}. Close a loop with "
                          "ctmm.control.ControlledChain(plant, [Feedback(...)]), or use "
-                         "ctmm.stability.spectral_abscissa(system, ...) for the delay-free answer")
+                         "ctmm.stability.spectral_abscissa(system, ...) for its roots")
     raise ModelError(f"{what} needs a ControlledChain, got {system!r}")
+
+
+def delay_free_answer(system: Any, radius: float = 1e4) -> str:
+    """Stability of a system without delay, in words: roots in Re s > 0 with |s| < ``radius``."""
+    from .roots import ContourError, count_roots_in_rectangle
+
+    try:
+        count = count_roots_in_rectangle(_char_fn(system), (0.0, radius), (-radius, radius),
+                                         max_evaluations=50_000)
+    except ContourError as exc:
+        return (f"not asymptotically stable: a root lies on the imaginary axis near "
+                f"s = {exc.location:.4g} (e.g. a rigid-body or undamped mode)")
+    except ModelError as exc:  # pragma: no cover - unusual models
+        return f"undetermined ({exc})"
+    if not count.reliable:
+        return f"undetermined (count {count.count} not verified)"
+    if count.count == 0:
+        return f"stable (no root with Re s > 0, |Im s| < {radius:.0e} rad/s)"
+    return f"unstable ({count.count} root(s) with Re s > 0)"
 
 
 def find_loop(system: ControlledChain, loop: str | None) -> Feedback:
@@ -628,7 +648,8 @@ def _weight_bound(k: np.ndarray, w: np.ndarray) -> np.ndarray:
 # --------------------------------------------------------------------------------------------
 def _char_fn(system: Any):
     def delta(s: np.ndarray) -> np.ndarray:
-        return characteristic_function(system, s)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return characteristic_function(system, s)
 
     return delta
 

@@ -219,8 +219,12 @@ def test_unknown_loop_lists_loops():
 
 
 def test_plain_chain_explains_the_delay_free_answer():
-    with pytest.raises(ModelError, match="plain Chain with no loop.*spectral_abscissa"):
+    with pytest.raises(ModelError, match="plain Chain with no loop.*delay-free answer: stable"):
         delay_margin(seed_chain().plant)
+    free_mass = ctmm.Chain("mass", [Free("a"), Mass("m", 1.0), Free("b")])
+    with pytest.raises(ModelError, match="delay-free answer: not asymptotically stable: a root lies on "
+                                         "the imaginary axis near s = 0"):
+        gain_margin(free_mass)
     # ... and the delay-free answer it points to
     assert spectral_abscissa(seed_chain().plant, re_min=-1.0, im_max=30.0).stable
 
