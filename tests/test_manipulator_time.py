@@ -113,8 +113,8 @@ def test_pzt_control_reduces_the_residual_vibration(seed):
     t = runs["pd"].t
     after = t > SEED_MOVE.duration + 0.5
     rms = {k: np.sqrt(np.mean(r.tip_deflection[after] ** 2)) for k, r in runs.items()}
-    assert rms["pd+pzt"] < 0.45 * rms["pd"], rms                  # measured 0.30
-    assert np.abs(runs["pd+pzt"].voltages).max() < seed.voltage_limit   # 81 V: no saturation needed
+    assert rms["pd+pzt"] < 0.35 * rms["pd"], rms                  # measured 0.24
+    assert np.abs(runs["pd+pzt"].voltages).max() < seed.voltage_limit   # 129 V: no saturation needed
     last = t > 3.0                                                 # hub still tracks the target
     assert np.abs(runs["pd+pzt"].theta[last] - SEED_MOVE.final_angle).max() < 1e-3
 

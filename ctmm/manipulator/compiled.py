@@ -122,7 +122,10 @@ def _symbolic(n: int, block: int, chunks: int):
     step = ca.Function("step", [z, p], [ca.vertcat(x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4), t + h)])
     acc = ca.Function("acc", [z, p], [accelerations(t, x)])
     many = step.fold(block)                                   # block steps, last state
-    loop = many.mapaccum("manipulator_rk4", chunks, [0], [0])   # chunks stored states
+    mapped = many.mapaccum(chunks)                            # chunks stored states
+    zi, pi = ca.MX.sym("z", z.numel()), ca.MX.sym("p", size)
+    # a named wrapper: casadi may split long mapaccums into nested folds with generated names
+    loop = ca.Function("manipulator_rk4", [zi, pi], [mapped(zi, ca.repmat(pi, 1, chunks))])
     return acc, loop, size
 
 
