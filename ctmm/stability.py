@@ -226,6 +226,7 @@ class LoopCharacteristic:
         self._sensed = [(sig.point, sig.component, sig.derivative) for sig in signals]
         self.executor = None
         self.n_evaluations = 0
+        self._phase = None
 
     # -- components ---------------------------------------------------------------------
     def _components_direct(self, s: np.ndarray) -> np.ndarray:
@@ -246,8 +247,27 @@ class LoopCharacteristic:
             except SingularSystemError:
                 regular[:] = False
         if not regular.all():
-            out[:, ~regular] = self._components_closed(s[~regular])
+            out[:, ~regular] = self._components_closed(s[~regular]) * self._closed_phase()
         return out
+
+    def _closed_phase(self) -> complex:
+        """Phase of the constant ratio (open path)/(closed path) of ``D Delta_0`` (e.g. -1: the
+        extended chain's determinant carries the sign of the loop's constraint row)."""
+        if getattr(self, "_phase", None) is None:
+            for s_ref in (0.7 + 1.3j, 1.9 + 0.4j, 0.3 + 3.1j):
+                ref = np.array([s_ref])
+                log_open = _log_characteristic(self._open, ref)
+                if not np.isfinite(log_open[0]):
+                    continue
+                open_base = self._components_open(ref, log_open)[0, 0]
+                closed_base = self._components_closed(ref)[0, 0]
+                if open_base != 0 and closed_base != 0:
+                    ratio = open_base / closed_base
+                    self._phase = ratio / abs(ratio)
+                    break
+            else:  # pragma: no cover - an open chain singular at every reference point
+                self._phase = 1.0
+        return self._phase
 
     def _components_open(self, s: np.ndarray, log_open: np.ndarray) -> np.ndarray:
         from .frequency import solve

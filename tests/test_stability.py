@@ -164,6 +164,22 @@ def test_unstable_root_count_equals_hayes_region():
         assert np.array_equal(counts == 0, expected)
 
 
+def test_counts_of_a_free_mass_equal_collocation():
+    """The open chain is singular at s = 0 (free mass): there the closed chains are swept, with
+    the same phase convention as the open path."""
+    plant = ctmm.Chain("mass", [Free("a"), Mass("m", 1.0), Free("b")])
+    system = ControlledChain(plant, [Feedback("pd", [("m.x", 0.2), ("m.v", 0.5)], "m", gain=1.0)])
+    kp = np.array([-0.2, 0.1, 0.3, 0.6, 1.0, 0.25])
+    kd = np.array([0.5, 0.2, 0.9, 0.4, 1.5, 0.6])
+    taus = np.array([1.0, 0.5, 1.0, 2.0, 0.3, 1.4])
+    counts = unstable_root_count(system, weights=np.column_stack([kp, kd]), delay=taus)
+    for count, p, d, tau in zip(counts, kp, kd, taus):
+        A0, A1 = [[0.0, 1.0], [0.0, 0.0]], [[0.0, 0.0], [-p, -d]]
+        roots = chebyshev_collocation_roots(A0, [(A1, tau)], 40)
+        roots = roots[np.abs(roots) < 10]
+        assert count == int(np.sum(roots.real > 0)), (p, d, tau)
+
+
 def test_counts_equal_collocation_for_the_seed_chain():
     M, C, K = seed_matrices()
     system = seed_chain()
