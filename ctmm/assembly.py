@@ -167,19 +167,30 @@ def _riccati_scalar(Us, us, start: BoundaryStart, end: BoundaryEnd, f: int, e: i
                     want_log_det: bool) -> ChainSolution:
     """:func:`riccati_solve` for 2-component states with one unknown: the same recursion on
     ``(B,)`` arrays (no permutation copies, no ``(B, 1, 1)`` temporaries)."""
+    entries = [(U[:, f, f], U[:, f, e], U[:, e, f], U[:, e, e], u[:, f], u[:, e]) for U, u in zip(Us, us)]
+    return riccati_scalar_entries(entries, start, end, f, e, want_log_det)
+
+
+def riccati_scalar_entries(entries, start: BoundaryStart, end: BoundaryEnd, f: int, e: int,
+                           want_log_det: bool = False) -> ChainSolution:
+    """Riccati transfer of a 2-component chain given element *entries* instead of matrices.
+
+    ``entries[j] = (U_ff, U_fe, U_ef, U_ee, u_f, u_e)`` in the start partition (``f`` known at
+    the start, ``e`` unknown), each a ``(B,)`` array or a Python scalar (identity and zero entries
+    of lumped elements stay scalars, which saves most of the work).
+    """
     S = start.S0[:, 0, 0]
     P = start.P0[:, 0]
     B = S.shape[0]
-    N = len(Us)
     G_all, R_all, S_all, P_all = [], [], [S], [P]
     log_det = np.zeros(B, dtype=complex)
+    N = len(entries)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        for U, u in zip(Us, us):
-            U11, U12, U21, U22 = U[:, f, f], U[:, f, e], U[:, e, f], U[:, e, e]
+        for U11, U12, U21, U22, uf, ue in entries:
             G = U21 * S + U22
             S = (U11 * S + U12) / G
-            r = U21 * P + u[:, e]
-            P = U11 * P + u[:, f] - S * r
+            r = U21 * P + ue
+            P = U11 * P + uf - S * r
             G_all.append(G)
             R_all.append(r)
             S_all.append(S)
@@ -188,7 +199,8 @@ def _riccati_scalar(Us, us, start: BoundaryStart, end: BoundaryEnd, f: int, e: i
         H = Bf * S + Be
         ev = (end.b[:, 0] - Bf * P) / H
     if want_log_det:
-        log_det = np.sum(np.log(np.asarray(G_all).astype(complex)), axis=0) + np.log(H.astype(complex))
+        log_det = (np.sum([np.log(np.broadcast_to(G, (B,)).astype(complex)) for G in G_all], axis=0)
+                   + np.log(H.astype(complex)))
     if not np.all(np.isfinite(ev)):
         bad = np.flatnonzero(~np.isfinite(ev))
         raise SingularSystemError(

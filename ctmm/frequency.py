@@ -113,13 +113,52 @@ def solve(system: Chain, s: np.ndarray, amplitudes=None, *, solver: str = "ricca
     """States at every connection point for harmonic loads (phasors), batched over ``s``."""
     if solver not in SOLVERS:
         raise ModelError(f"solver must be one of {sorted(SOLVERS)}, got {solver!r}")
-    Us, us, start, end = assemble(system, s, amplitudes)
-    sol = SOLVERS[solver](Us, us, start, end, want_log_det=False) if solver == "riccati" else \
-        SOLVERS[solver](Us, us, start, end)
+    if solver == "riccati" and not hasattr(system, "assemble_frequency") and _lumped(system):
+        sol = _solve_lumped(system, np.asarray(s, dtype=complex), amplitudes or {})
+    else:
+        Us, us, start, end = assemble(system, s, amplitudes)
+        sol = SOLVERS[solver](Us, us, start, end, want_log_det=False) if solver == "riccati" else \
+            SOLVERS[solver](Us, us, start, end)
     index = getattr(system, "state_index", None)
     if index is not None:  # controlled chains interleave sensing matrices: keep the points only
         sol.states = sol.states[np.asarray(index)]
     return sol
+
+
+def _lumped(system) -> bool:
+    from .elements.lumped import Connector, PointElement
+
+    return system.layout.size == 2 and all(isinstance(e, (PointElement, Connector)) for e in system.body)
+
+
+def _solve_lumped(system: Chain, s: np.ndarray, amplitudes: Mapping) -> ChainSolution:
+    """Riccati solve of a 1-D lumped chain from element scalars (impedance, compliance).
+
+    Same recursion as :func:`ctmm.assembly.riccati_solve`; the unit and zero entries of the
+    element matrices stay Python scalars instead of ``(B, 2, 2)`` arrays.
+    """
+    from .assembly import riccati_scalar_entries
+    from .elements.lumped import Connector
+
+    e_idx, S0, P0 = system.start.start(system.layout, s, amplitudes.get(0, {}))
+    Bm, b = system.end.end(system.layout, s, amplitudes.get(len(system.elements) - 1, {}))
+    e = e_idx[0]
+    f = 1 - e
+    entries = []
+    for pos, element in enumerate(system.body, start=1):
+        load = amplitudes.get(pos, {}).get("force", 0.0)
+        if isinstance(element, Connector):   # x_out = x_in - F/k_c (+ F_act/k_c)
+            compliance = 1.0 / element.connector_stiffness(s)
+            ux, uF = (load * compliance if load else 0.0), 0.0
+            Uxx, UxF, UFx, UFF = 1.0, -compliance, 0.0, 1.0
+        else:                                # F_out = F_in - Z x + F
+            Uxx, UxF, UFx, UFF = 1.0, 0.0, -element.impedance(s), 1.0
+            ux, uF = 0.0, load
+        if f == 0:   # partition f = x (displacement known at the start), e = force
+            entries.append((Uxx, UxF, UFx, UFF, ux, uF))
+        else:        # f = force, e = x
+            entries.append((UFF, UFx, UxF, Uxx, uF, ux))
+    return riccati_scalar_entries(entries, BoundaryStart(e_idx, S0, P0), BoundaryEnd(Bm, b), f, e)
 
 
 def _output_value(system, states: np.ndarray, s: np.ndarray, name: str,
