@@ -204,10 +204,10 @@ def test_modal_velocity_feedback_hook_damps_and_is_exact_in_the_implicit_scheme(
     assert fb.damping.shape == (3, 3) and np.count_nonzero(fb.damping[:, 1:]) == 0
     model = PlanarModel.chain("c", [Fixed("g"), base.with_modal_forces(fb)], gravity=(0.0, 0.0))
     q0 = np.array([0.01, 0.0, 0.0])
-    rk4 = simulate_rk4(model, q0, np.zeros(3), t_final=0.3, dt=5e-4)
-    nm = simulate_implicit(model, q0, np.zeros(3), t_final=0.3, dt=5e-4)
-    assert np.max(np.abs(rk4.q - nm.q)) < 2e-5 and nm.iterations.max() <= 2
+    rk4 = simulate_rk4(model, q0, np.zeros(3), t_final=0.2, dt=1e-3)
+    nm = simulate_implicit(model, q0, np.zeros(3), t_final=0.2, dt=1e-3)
+    assert np.max(np.abs(rk4.q - nm.q)) < 1e-4 and nm.iterations.max() <= 2
     free = PlanarModel.chain("c", [Fixed("g"), base], gravity=(0.0, 0.0))
-    undamped = simulate_rk4(free, q0, np.zeros(3), t_final=0.3, dt=5e-4)
+    undamped = simulate_rk4(free, q0, np.zeros(3), t_final=0.2, dt=1e-3)
     assert model.energy(rk4.q[-1], rk4.qdot[-1]) < 0.8 * free.energy(undamped.q[-1],
                                                                        undamped.qdot[-1])

@@ -1,4 +1,4 @@
-"""Modal planar Euler-Bernoulli beam in a floating frame (seed 003 section 6.4, seed 000 section 4.1).
+"""Modal planar Euler-Bernoulli beam in a floating frame (seed 003 6.4, seed 000 4.1).
 
 Small deformation, large overall motion.  The floating frame is the root tangent frame
 (origin at the inboard end ``I``, x along the undeformed axis, angle ``theta``), see
@@ -12,7 +12,8 @@ with transverse modal coordinates ``q`` (``n_modes``) and optional axial ones ``
 outboard connection wrenches ``F_e`` (exerted by the beam on what hangs at end ``e``):
 
 ``F_I = M_rr A_I + M_re eta'' + h_r + sum_e X_e^T F_e``          (transfer equation 1)
-``0   = M_er A_I + M_ee eta'' + h_e + sum_e (Y_e^T + S_e) F_e``  (transfer equation 2: modal accelerations)
+``0   = M_er A_I + M_ee eta'' + h_e + sum_e (Y_e^T + S_e) F_e``  (transfer equation 2:
+ modal accelerations)
 ``A_e = X_e A_I + Y_e eta'' + c_e``                              (kinematics of end ``e``)
 
 ``A = [a_x, a_y, alpha]``.  ``S_e`` is the geometric-stiffening term of the axial end force.
@@ -29,7 +30,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import KW_ONLY, dataclass, field
+from dataclasses import KW_ONLY, dataclass
 from functools import cached_property
 from typing import Callable, Mapping, Sequence
 
@@ -409,7 +410,8 @@ class BeamData:
                         else np.zeros((0, self.np_)))
         self.end_G1 = np.array([self._g1(xe) for xe in self.end_x]).reshape(-1, self.nq, self.nq)
         self.load_x = np.array([ld.point[0] for ld in beam.loads])
-        self.load_phi = beam.shapes(self.load_x, 0).T if len(self.load_x) else np.zeros((0, self.nq))
+        self.load_phi = (beam.shapes(self.load_x, 0).T if len(self.load_x)
+                         else np.zeros((0, self.nq)))
         self.load_dphi = (beam.shapes(self.load_x, 1).T if len(self.load_x)
                           else np.zeros((0, self.nq)))
         self.load_psi = (beam.axial_shapes(self.load_x, 0).T if len(self.load_x)
@@ -469,7 +471,7 @@ class BeamData:
     @cached_property
     def _functionals(self):
         """Stacked linear functionals of ``eta`` and ``eta_dot`` (one product per call)."""
-        nq, np_, n = self.nq, self.np_, self.n
+        nq, np_ = self.nq, self.np_
         rows, names = [], {}
 
         def add(name, block):

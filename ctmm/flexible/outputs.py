@@ -111,5 +111,5 @@ def spinup_law(final_rate: float = 6.0, ramp_time: float = 15.0):
     return angle, rate, acceleration
 
 
-__all__ = ["mape", "spinup_law", "tip_deflection", "axial_tip_displacement", "highest_frequency", "check_divergence",
-           "RK4_STABILITY_LIMIT"]
+__all__ = ["mape", "spinup_law", "tip_deflection", "axial_tip_displacement", "highest_frequency",
+           "check_divergence", "RK4_STABILITY_LIMIT"]

@@ -67,7 +67,8 @@ class _Beam:
         self.dphi = self.shape(self.x, 1)
         self.psi = self.axial(self.x, 0)
         M = self.rhoA * (self.phi * self.w) @ self.phi.T
-        Kq = np.diag((self.betas / self.L) ** 4 * self.EI / self.rhoA) @ M  # EI phi"" = (b/L)^4 EI phi
+        # EI phi'''' = (b/L)^4 EI phi  =>  K = (b/L)^4 EI / rhoA * M
+        Kq = np.diag((self.betas / self.L) ** 4 * self.EI / self.rhoA) @ M
         Mp = self.rhoA * (self.psi * self.w) @ self.psi.T
         k = np.arange(1, self.np_ + 1)
         EA = float(beam.axial_stiffness or 0.0)
