@@ -14,6 +14,9 @@ Derivations: ``docs/flexible.md``.
 from .beam import BeamData, ModalBeam, ModalForce
 from .kernel import FlexibleSolution, solve_flexible
 from .modes import ModeSet
+from .outputs import axial_tip_displacement, mape, spinup_law, tip_deflection
+from .segments import finite_segment_beam
 
 __all__ = ["ModalBeam", "ModalForce", "BeamData", "ModeSet", "FlexibleSolution",
-           "solve_flexible"]
+           "solve_flexible", "finite_segment_beam", "tip_deflection", "axial_tip_displacement",
+           "mape", "spinup_law"]
