@@ -450,10 +450,11 @@ def _classify_rows(model, contour, crossings, p_name, p_grid, q_name, q_grid, no
 # --------------------------------------------------------------------------------------------
 # D-subdivision curves
 # --------------------------------------------------------------------------------------------
-def _window(grid: np.ndarray) -> tuple[float, float]:
+def _window(grid: np.ndarray, *, nonnegative: bool = False) -> tuple[float, float]:
+    """Plot window of a grid, padded by 2 % (not below 0 for delays)."""
     lo, hi = float(grid.min()), float(grid.max())
     pad = 0.02 * (hi - lo)
-    return lo - pad, hi + pad
+    return (max(lo - pad, 0.0) if nonnegative else lo - pad), hi + pad
 
 
 def _clip(values: np.ndarray, window: tuple[float, float]) -> np.ndarray:
@@ -531,7 +532,7 @@ def _resolve_curves(model, contour, p_name, q_name, p_grid, q_grid, tolerance: f
     """Add line samples until every D-curve moves by less than ``tolerance`` of the window
     between neighbouring samples (inside the window), so crossing pairs are not skipped."""
     line = contour.line
-    pw, qw = _window(p_grid), _window(q_grid)
+    pw, qw = _window(p_grid), _window(q_grid, nonnegative=q_name == "delay")
     p_span, q_span = pw[1] - pw[0], qw[1] - qw[0]
     for _ in range(rounds):
         s, base, terms = line.s[1:], line.base[1:], line.terms[:, 1:]
@@ -551,7 +552,7 @@ def _resolve_curves(model, contour, p_name, q_name, p_grid, q_grid, tolerance: f
 
 def _dcurves(model, contour, p_name, q_name, p_grid, q_grid, linear_x) -> list[Boundary]:
     line = contour.line
-    pw, qw = _window(p_grid), _window(q_grid)
+    pw, qw = _window(p_grid), _window(q_grid, nonnegative=q_name == "delay")
     s, base, terms = line.s[1:], line.base[1:], line.terms[:, 1:]
     omega = s.imag
     curves: list[tuple[np.ndarray, np.ndarray, np.ndarray, str]] = []
