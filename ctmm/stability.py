@@ -52,7 +52,16 @@ from .roots import spectral_abscissa as _roots_abscissa
 
 __all__ = ["LoopCharacteristic", "characteristic_roots", "spectral_abscissa", "unstable_root_count",
            "DelayMargin", "delay_margin", "GainMargin", "gain_margin", "SimulationCheck",
-           "crosscheck_by_simulation"]
+           "crosscheck_by_simulation", "stability_chart", "StabilityChart", "Boundary"]
+
+
+def __getattr__(name: str):
+    """``stability_chart``, ``StabilityChart`` and ``Boundary`` live in :mod:`ctmm.stability_chart`."""
+    if name in ("stability_chart", "StabilityChart", "Boundary"):
+        from . import stability_chart as charts
+
+        return getattr(charts, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 _MAX_STEP = 0.4          # largest complex-log step of a component between samples
 _COUNT_STEP = 1.0        # largest phase step of Delta(s; p) between samples when counting
@@ -167,9 +176,9 @@ class LoopCharacteristic:
     Notes
     -----
     Values are returned divided by a positive real function of ``s`` (the largest modulus of the
-    components at that ``s``).  That keeps them of order one on long chains and changes neither
-    the zeros nor the arguments, which is all the stability tools use; for the absolute
-    characteristic function use :func:`ctmm.characteristic_function`.
+    components at that ``s``) and by a constant.  That keeps them of order one on long chains and
+    changes neither the zeros nor the changes of argument, which is all the stability tools use;
+    for the characteristic function itself use :func:`ctmm.characteristic_function`.
 
     Examples
     --------
@@ -180,9 +189,10 @@ class LoopCharacteristic:
     >>> pd = Feedback("pd", [("m.x", 3.0), ("m.v", 1.0)], "m", gain=1.0, delay=0.1)
     >>> model = LoopCharacteristic(ControlledChain(plant, [pd]))
     >>> s = np.array([0.5 + 1j])
-    >>> d = model.evaluate(s, gain=[1.0], delay=[0.1])[0, 0]
-    >>> exact = 2 * s[0] ** 2 + (3 + s[0]) * np.exp(-0.1 * s[0])   # m s^2 + (kp + kd s) e^{-s tau}
-    >>> bool(abs(d / exact - d.real / exact.real) < 1e-12 and abs(np.angle(d / exact)) < 1e-12)
+    >>> d = model.evaluate(s, gain=[1.0, 2.0], delay=[0.1, 0.3])[:, 0]
+    >>> def exact(k, tau):        # m s^2 + k (kp + kd s) e^{-s tau}
+    ...     return 2 * s[0] ** 2 + k * (3 + s[0]) * np.exp(-tau * s[0])
+    >>> bool(abs(d[1] / d[0] - exact(2.0, 0.3) / exact(1.0, 0.1)) < 1e-12)
     True
     """
 

@@ -291,7 +291,7 @@ def stability_chart(system: ControlledChain | Callable[[float, float], Any], x: 
     with managed_executor(executor) as pool:
         if isinstance(system, ControlledChain):
             chart = _loop_chart(system, loop, (x_name, x_grid, x_label), (y_name, y_grid, y_label),
-                                im_max, levels, verify, pool)
+                                im_max, levels, verify, pool, progress)
         elif callable(system):
             chart = _function_chart(system, loop, (x_name, x_grid, x_label), (y_name, y_grid, y_label),
                                     im_max, levels, pool, progress)
@@ -327,7 +327,7 @@ def _check_names(model: LoopCharacteristic, names: Sequence[str], grids: Sequenc
         pass  # gain is then a factor multiplying C(s)
 
 
-def _loop_chart(system, loop, xs, ys, im_max, levels, verify, pool) -> StabilityChart:
+def _loop_chart(system, loop, xs, ys, im_max, levels, verify, pool, progress) -> StabilityChart:
     model = LoopCharacteristic(system, loop)
     model.executor = pool
     (x_name, x_grid, x_label), (y_name, y_grid, y_label) = xs, ys
@@ -364,7 +364,8 @@ def _loop_chart(system, loop, xs, ys, im_max, levels, verify, pool) -> Stability
     boundaries = _dcurves(model, contour, p_name, q_name, p_grid, q_grid, linear_x)
     abscissa = None
     if levels is not None:
-        abscissa = _abscissa_levels(model, k_all, tau_all, w_all, levels, im_max).reshape(nq, npp)
+        abscissa = _abscissa_levels(model, k_all, tau_all, w_all, levels, im_max,
+                                    progress).reshape(nq, npp)
         if not linear_x:
             abscissa = abscissa.T
     cross = {"row": crossings.row, "value": crossings.value, "omega": crossings.omega,
@@ -592,12 +593,17 @@ def _dcurves(model, contour, p_name, q_name, p_grid, q_grid, linear_x) -> list[B
 # --------------------------------------------------------------------------------------------
 # spectral abscissa by level counting
 # --------------------------------------------------------------------------------------------
-def _abscissa_levels(model, k, tau, w, levels, im_max) -> np.ndarray:
+def _abscissa_levels(model, k, tau, w, levels, im_max, progress=None) -> np.ndarray:
+    from .progress import progress_bar
+
     counts = []
+    bar = progress_bar(levels.size, "abscissa levels", enabled=progress, min_total=10)
     for sigma in levels:
         contour = _contour(model, _weight_bound(k, w), float(tau.max()), sigma=float(sigma),
                            im_max=im_max)
         counts.append(_count(contour, k, tau, w)[0])
+        bar.update()
+    bar.close()
     counts = np.array(counts)                       # (n_levels, n_points)
     right = counts != 0                             # roots right of (or on) the level
     first_clear = np.argmax(~right, axis=0)
@@ -659,7 +665,7 @@ def _function_chart(make_system, loop, xs, ys, im_max, levels, pool, progress) -
         counts, _ = _count(contour, k, tau, w)
         radius, method, evaluations = contour.radius, "points (batched over one loop)", model.n_evaluations
         abscissa = None if levels is None else \
-            _abscissa_levels(model, k, tau, w, levels, im_max).reshape(y_grid.size, x_grid.size)
+            _abscissa_levels(model, k, tau, w, levels, im_max, progress).reshape(y_grid.size, x_grid.size)
         notes += contour.notes
     else:
         if levels is not None:

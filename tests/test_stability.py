@@ -254,3 +254,17 @@ def test_bad_parameters():
         unstable_root_count(scalar(), gain=[1.0, 2.0], delay=[0.1, 0.2, 0.3])
     with pytest.raises(ModelError, match="gain 0"):
         gain_margin(scalar(gain=0.0))
+
+
+def test_docstring_examples_run():
+    import doctest
+
+    import ctmm.stability
+    import ctmm.stability_chart
+    import ctmm.sweeps
+
+    for module in (ctmm.stability, ctmm.stability_chart, ctmm.sweeps):
+        result = doctest.testmod(module, optionflags=doctest.ELLIPSIS)
+        assert result.failed == 0, module.__name__
+    from ctmm.stability import stability_chart as exported
+    assert exported is ctmm.stability_chart.stability_chart
