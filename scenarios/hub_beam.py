@@ -64,7 +64,7 @@ def run_case(output_dir: Path, quick: bool, tip_mass: float | None, name: str) -
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    t_final = 0.5 if quick else 3.0
+    t_final = 0.3 if quick else 3.0
     m = model(tip_mass)
     z = np.zeros(m.n_coordinates)
     sim = simulate_rk4(m, z, z, t_final=t_final, dt=1e-3, store_every=5)

@@ -47,8 +47,8 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    t_final = 1.0 if quick else T_FINAL
-    ladder = (4e-3, 2e-3, 1e-3) if quick else (4e-3, 2e-3, 1e-3, 5e-4)
+    t_final = 0.5 if quick else T_FINAL
+    ladder = (2e-3, 1e-3) if quick else (4e-3, 2e-3, 1e-3, 5e-4)
     m = model()
     z = np.zeros(m.n_coordinates)
     grid = np.linspace(0.0, t_final, int(round(t_final / 4e-3)) + 1)
