@@ -34,9 +34,9 @@ import numpy as np
 from . import validation
 from .control.loops import ControlledChain
 from .errors import ModelError, unknown_name
-from .stability import (LoopCharacteristic, _contour, _count, _weight_bound, as_controlled, find_loop,
-                        row_crossings)
-from .sweeps import managed_executor, parallel_map
+from .stability import row_crossings
+from .sweeps import (LoopCharacteristic, _contour, _weight_bound, as_controlled, count, find_loop,
+                     managed_executor, parallel_map)
 
 __all__ = ["Boundary", "StabilityChart", "stability_chart"]
 
@@ -85,6 +85,14 @@ class StabilityChart:
         ``levels[0]`` when below the lowest level, ``levels[-1]`` when above the highest.
     im_max : float
         Imaginary extent of the counting contour [rad/s].
+    method : str
+        How the grid was classified.
+    wall_time_s : float
+        Wall-clock time of :func:`stability_chart` [s].
+    n_evaluations : int
+        Laplace variables ``s`` at which the transfer-matrix model was evaluated.
+    verified : bool or None
+        With ``verify=True``: every grid point counted directly agrees.
     notes : list of str
         Diagnostics.
     """
@@ -353,7 +361,7 @@ def _loop_chart(system, loop, xs, ys, im_max, levels, verify, pool, progress) ->
     counts = _classify_rows(model, contour, crossings, p_name, p_grid, q_name, q_grid, notes)
     verified = None
     if verify:
-        direct, _ = _count(contour, k_all, tau_all, w_all)
+        direct, _ = count(contour, k_all, tau_all, w_all)
         direct = direct.reshape(nq, npp)
         mismatch = int(np.sum((direct != counts) & (counts >= 0)))    # -1: on a boundary
         verified = mismatch == 0
@@ -411,7 +419,7 @@ def _classify_rows(model, contour, crossings, p_name, p_grid, q_name, q_grid, no
     if requests:
         idx = np.array([(r, i) for r, _, i in requests])
         k, tau, w = _sets_for(model, {p_name: p_sorted[idx[:, 1]], q_name: q_grid[idx[:, 0]]}, len(requests))
-        values, reliable = _count(contour, k, tau, w, min_step=1e-9 * contour.radius)
+        values, reliable = count(contour, k, tau, w, min_step=1e-9 * contour.radius)
         unreliable = 0
         for (r, iv, _), v, ok in zip(requests, values, reliable):
             if ok and v >= 0:
@@ -601,7 +609,7 @@ def _abscissa_levels(model, k, tau, w, levels, im_max, progress=None) -> np.ndar
     for sigma in levels:
         contour = _contour(model, _weight_bound(k, w), float(tau.max()), sigma=float(sigma),
                            im_max=im_max)
-        counts.append(_count(contour, k, tau, w)[0])
+        counts.append(count(contour, k, tau, w)[0])
         bar.update()
     bar.close()
     counts = np.array(counts)                       # (n_levels, n_points)
@@ -662,7 +670,7 @@ def _function_chart(make_system, loop, xs, ys, im_max, levels, pool, progress) -
         tau = np.array([sys_.loop(shared.name).delay for sys_ in systems])
         w = np.array([[wt for _, wt in sys_.loop(shared.name).terms] for sys_ in systems])
         contour = _contour(model, _weight_bound(k, w), float(tau.max()), im_max=im_max)
-        counts, _ = _count(contour, k, tau, w)
+        counts, _ = count(contour, k, tau, w)
         radius, method, evaluations = contour.radius, "points (batched over one loop)", model.n_evaluations
         abscissa = None if levels is None else \
             _abscissa_levels(model, k, tau, w, levels, im_max, progress).reshape(y_grid.size, x_grid.size)
