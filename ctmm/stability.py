@@ -24,7 +24,8 @@ from .roots import spectral_abscissa as _roots_abscissa
 from .sweeps import (LoopCharacteristic, _check_parameters, _char_fn, _Contour, _contour, _TINY,
                      _weight_bound, as_controlled, count, find_loop, n_sets)
 
-__all__ = ["LoopCharacteristic", "characteristic_roots", "spectral_abscissa", "unstable_root_count",
+__all__ = ["LoopCharacteristic", "characteristic_roots", "spectral_abscissa", "spectral_seeds",
+           "unstable_root_count",
            "DelayMargin", "delay_margin", "GainMargin", "gain_margin", "SimulationCheck",
            "crosscheck_by_simulation", "stability_chart", "StabilityChart", "Boundary"]
 
@@ -89,7 +90,7 @@ def unstable_root_count(system: ControlledChain, *, loop: str | None = None, gai
 # roots and abscissa
 # --------------------------------------------------------------------------------------------
 def characteristic_roots(system: Any, *, re_min: float, im_max: float, re_max: float | None = None,
-                         seeds: Sequence[complex] | None = None, tol: float = 1e-12) -> RootSet:
+                         seeds: Sequence[complex] | str | None = None, tol: float = 1e-12) -> RootSet:
     """Rightmost characteristic roots of a (controlled) chain, from the TMM ``Delta(s)``.
 
     Every root with ``re_min < Re s < re_max`` and ``|Im s| <= im_max`` is found once with its
@@ -105,8 +106,11 @@ def characteristic_roots(system: Any, *, re_min: float, im_max: float, re_max: f
         Half height of the region [rad/s].
     re_max : float, optional
         Right edge [1/s]; default chosen by :func:`ctmm.roots.rightmost_roots`.
-    seeds : sequence of complex, optional
-        Approximate roots [1/s] (e.g. from a finite-dimensional approximation).
+    seeds : sequence of complex or "spectral", optional
+        Approximate roots [1/s] to start Newton from; ``"spectral"``: eigenvalues of a
+        Chebyshev collocation of the delay equations of a finite-dimensional realisation
+        (:func:`spectral_seeds`; lumped chains with static gains).  Seeds only save work: every
+        root is still polished on the TMM ``Delta`` and accounted for by the root count.
     tol : float
         Newton tolerance (relative).
 
@@ -131,8 +135,55 @@ def characteristic_roots(system: Any, *, re_min: float, im_max: float, re_max: f
     """
     re_min = validation.finite("re_min", re_min)
     im_max = validation.positive("im_max", im_max)
+    if isinstance(seeds, str):
+        if seeds != "spectral":
+            raise ModelError(f"seeds must be a sequence of complex numbers or 'spectral', got {seeds!r}")
+        seeds = spectral_seeds(system)
+        seeds = seeds[(seeds.real > re_min) & (np.abs(seeds.imag) <= im_max)]
     return rightmost_roots(_char_fn(system), im_max=im_max, re_min=re_min, re_max=re_max, seeds=seeds,
                            conjugate_symmetric=True, tol=tol)
+
+
+def spectral_seeds(system: Any, *, nodes: int = 24) -> np.ndarray:
+    """Approximate characteristic roots from a finite-dimensional realisation, when there is one.
+
+    A lumped chain is realised as ``x' = A x + B u``, ``y = C x`` (:func:`ctmm.interop.to_state_space`,
+    loop actuators as inputs, sensed signals as outputs); static-gain loops
+    ``u_l = -g_l c_l^T y(t - tau_l)`` make it the delay equation
+    ``x' = A x - sum_l g_l B_l c_l^T C x(t - tau_l)``, whose rightmost roots come from Chebyshev
+    collocation of its infinitesimal generator (Breda, Maset & Vermiglio 2005).  Returns an empty
+    array for systems without such a realisation (beams, LTI controllers, feedthrough from
+    acceleration or force sensing).
+    """
+    from .interop import to_state_space
+    from .reference.dde import chebyshev_collocation_roots
+
+    loops = system.loops if isinstance(system, ControlledChain) else ()
+    plant = system.plant if isinstance(system, ControlledChain) else system
+    if any(lp.is_lti for lp in loops):
+        return np.zeros(0, complex)
+    outputs = list(dict.fromkeys(sig for lp in loops for sig, _ in lp.terms))
+    inputs = list(dict.fromkeys(f"{lp.actuator}.force" for lp in loops))
+    try:
+        ss = to_state_space(plant, inputs=inputs or None, outputs=outputs or None)
+    except (ModelError, ValueError, TypeError):
+        return np.zeros(0, complex)
+    A, B, C, D = (np.atleast_2d(np.asarray(m, float)) for m in (ss.A, ss.B, ss.C, ss.D))
+    if loops and np.any(D != 0):
+        return np.zeros(0, complex)
+    delayed: dict[float, np.ndarray] = {}
+    A0 = A.copy()
+    for lp in loops:
+        b = B[:, inputs.index(f"{lp.actuator}.force")]
+        c = sum(w * C[outputs.index(sig)] for sig, w in lp.terms)
+        term = -float(lp.gain) * np.outer(b, c)
+        if lp.delay == 0.0:
+            A0 = A0 + term
+        else:
+            delayed[lp.delay] = delayed.get(lp.delay, 0.0) + term
+    roots = chebyshev_collocation_roots(A0, [(m, tau) for tau, m in delayed.items()], nodes) if delayed else \
+        np.linalg.eigvals(A0).astype(complex)
+    return roots[np.isfinite(roots)]
 
 
 def spectral_abscissa(system: Any, *, re_min: float, im_max: float, re_max: float | None = None,

@@ -20,7 +20,7 @@ from ctmm.reference.dde import (chebyshev_collocation_roots, delayed_pd_oscillat
                                 hayes_critical_b, hayes_critical_delay, hayes_is_stable, lambert_w_roots,
                                 newton_refine_root)
 from ctmm.stability import (LoopCharacteristic, characteristic_roots, delay_margin, gain_margin,
-                            spectral_abscissa, unstable_root_count)
+                            spectral_abscissa, spectral_seeds, unstable_root_count)
 
 
 # ------------------------------------------------------------------------------ systems
@@ -133,6 +133,20 @@ def test_chain_roots_equal_collocation():
     assert found.reliable
     for z in reference[:6]:
         assert np.min(np.abs(found.roots - z)) <= 1e-8 * max(1.0, abs(z))
+
+
+def test_spectral_seeds_save_work_not_accuracy():
+    """Seeds from collocation of the state-space realisation: same roots, fewer evaluations."""
+    system = seed_chain(25.0, 0.12)
+    plain = characteristic_roots(system, re_min=-1.5, im_max=30.0)
+    seeded = characteristic_roots(system, re_min=-1.5, im_max=30.0, seeds="spectral")
+    assert seeded.count == plain.count and seeded.reliable
+    np.testing.assert_allclose(seeded.roots, plain.roots, atol=1e-12)
+    assert seeded.n_evaluations < plain.n_evaluations
+    lti = ControlledChain(oscillator().plant, [Feedback("c", "m.x", "m", gain=control.tf([1.0], [0.1, 1.0]))])
+    assert spectral_seeds(lti).size == 0                   # no realisation used for LTI loops
+    with pytest.raises(ModelError, match="seeds must be"):
+        characteristic_roots(system, re_min=-1.0, im_max=10.0, seeds="eig")
 
 
 def test_oscillator_roots_equal_collocation():
