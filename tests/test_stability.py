@@ -88,6 +88,19 @@ def test_loop_enters_affinely(make):
     np.testing.assert_allclose(modelled[1:] / modelled[0], direct[1:] / direct[0], rtol=1e-10)
 
 
+def test_other_loops_stay_closed():
+    """With a second (delayed velocity) loop closed, eq. (1) in the first loop still holds."""
+    base = seed_chain()
+    system = base.with_loops([base.loops[0], Feedback("damp", "m1.v", "m1", gain=3.0, delay=0.02)])
+    model = LoopCharacteristic(system, "ka")
+    s = np.array([0.3 + 2j, -0.1 + 7j, 1.0 + 0.5j, 0.0])
+    modelled = model.evaluate(s, gain=[2.0, 7.0], delay=[0.1, 0.25])
+    direct = [ctmm.characteristic_function(
+        system.with_loops([Feedback("ka", "m2.x", "m0", gain=g, delay=tau), system.loops[1]]), s,
+        normalize=False) for g, tau in ((2.0, 0.1), (7.0, 0.25))]
+    np.testing.assert_allclose(modelled[1] / modelled[0], direct[1] / direct[0], rtol=1e-12)
+
+
 def test_lti_controller_gain_is_a_factor():
     """For C(s) = (2 + s)/(1 + 0.1 s), 'gain' k scales C: Delta(k) matches the loop k*C."""
     plant = oscillator().plant
