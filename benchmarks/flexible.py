@@ -90,6 +90,29 @@ def cost_vs_modes(counts) -> list:
     return cost
 
 
+def cost_vs_bodies(counts) -> list:
+    """Best-of-5 time of one sweep for chains of k modal beams (3 modes each) joined by
+    elastic hinges: the modal accelerations are eliminated locally, so the cost is O(k)."""
+    import timeit
+    from ctmm.planar import ElasticHinge, Pinned
+    out = []
+    for k in counts:
+        elements = [Pinned("o")]
+        for i in range(k):
+            if i:
+                elements.append(ElasticHinge(f"h{i}", stiffness=50.0))
+            elements.append(ModalBeam(f"b{i}", length=0.5, bending_stiffness=5.0,
+                                      mass_per_length=0.7, n_modes=3))
+        mm = PlanarModel.chain("beams", elements)
+        q = 1e-2 * np.ones(mm.n_coordinates)
+        t = min(timeit.repeat(lambda: accelerations(mm, q, q, 0.0), number=5, repeat=5)) / 5
+        out.append({"n_beams": k, "n_coordinates": mm.n_coordinates, "sweep_s": t,
+                    "per_beam_s": t / k})
+        print(f"  {k:3d} beams: sweep {1e3 * t:.2f} ms ({1e6 * t / k:.0f} us per beam)",
+              flush=True)
+    return out
+
+
 def main(quick: bool = False) -> dict:
     load = os.getloadavg()
     results = {"machine_load_average_start": load}
@@ -126,6 +149,7 @@ def main(quick: bool = False) -> dict:
     # --- cost against modes -------------------------------------------------------------------
     cost = cost_vs_modes((1, 2, 4, 8, 16) if not quick else (1, 4, 16))
     results["cost_vs_modes"] = cost
+    results["cost_vs_bodies"] = cost_vs_bodies((1, 4, 16) if quick else (1, 4, 16, 64))
     results["machine_load_average_end"] = os.getloadavg()
     out = ROOT / "benchmarks" / "results"
     out.mkdir(parents=True, exist_ok=True)
@@ -139,7 +163,7 @@ def _plot(results, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 3, figsize=(17, 4.8))
+    fig, axes = plt.subplots(1, 4, figsize=(22, 4.8))
     for ax, key, title in ((axes[0], "spin_up", "spin-up (4 modes, 20 s)"),
                            (axes[1], "single_link", "single link (3 modes, 2 s)")):
         methods = sorted({r["method"] for r in results[key]})
@@ -157,6 +181,14 @@ def _plot(results, path):
                    label="one implicit step (Newton)")
     axes[2].set(xlabel="number of modes", ylabel="[ms]", title="cost against modes")
     axes[2].legend(fontsize="small")
+    b = results.get("cost_vs_bodies", [])
+    if b:
+        k = np.array([r["n_beams"] for r in b])
+        axes[3].loglog(k, [1e3 * r["sweep_s"] for r in b], "o-", label="one sweep")
+        axes[3].loglog(k, 1e3 * b[-1]["sweep_s"] * k / k[-1], "k:", label="O(n)")
+        axes[3].set(xlabel="beams in the chain (3 modes each)", ylabel="[ms]",
+                    title="modal accelerations eliminated locally: O(n)")
+        axes[3].legend(fontsize="small")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
@@ -167,6 +199,7 @@ if __name__ == "__main__":
         path = ROOT / "benchmarks" / "results" / "flexible.json"
         data = json.loads(path.read_text())
         data["cost_vs_modes"] = cost_vs_modes((1, 2, 4, 8, 16))
+        data["cost_vs_bodies"] = cost_vs_bodies((1, 4, 16, 64))
         data["cost_load_average"] = os.getloadavg()
         path.write_text(json.dumps(data, indent=2) + "\n")
         _plot(data, path.with_suffix(".png"))
