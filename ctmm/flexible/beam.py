@@ -454,6 +454,10 @@ class BeamData:
         return M0
 
     @cached_property
+    def _eye(self) -> np.ndarray:
+        return np.eye(3 + self.n)
+
+    @cached_property
     def _constant_ends(self) -> list:
         """Body-frame end kinematics / force maps of the undeformed beam."""
         nq, n = self.nq, self.n
@@ -550,16 +554,14 @@ class BeamData:
         M[:] = self._constant_mass
         M[:, 0, 2] = M[:, 2, 0] = -bq_q
         M[:, 1, 2] = M[:, 2, 1] = sx
-        M[:, 2, 2] = self.I0 + 2 * V[:, sl["cp"]][:, 0] + np.sum(Mpp * p, axis=1) + np.sum(
-            Mqq * q, axis=1)
+        M[:, 2, 2] = self.I0 + 2 * V[:, sl["cp"]][:, 0] + (Mpp * p).sum(1) + (Mqq * q).sum(1)
         M[:, 2, 3:3 + nq] = M[:, 3:3 + nq, 2] = self.c_q + Np
         M[:, 2, 3 + nq:] = M[:, 3 + nq:, 2] = -Nq
         # -- velocity, gravity and load terms in the frame ----------------------------------
         h = np.empty((B, N3), dtype=dtype)
         h[:, 0] = -w2 * sx - 2 * omega * Vd[:, sl["bq"]][:, 0] - self.m * g1 - qx * self.L
         h[:, 1] = -w2 * bq_q + 2 * omega * Vd[:, sl["bp"]][:, 0] - self.m * g2 - qy * self.L
-        h[:, 2] = (2 * omega * (Vd[:, sl["cp"]][:, 0] + np.sum(Mpp * pd, axis=1)
-                                + np.sum(Mqq * qd, axis=1))
+        h[:, 2] = (2 * omega * (Vd[:, sl["cp"]][:, 0] + (Mpp * pd).sum(1) + (Mqq * qd).sum(1))
                    - (sx * g2 - bq_q * g1)
                    - qy * (self.L ** 2 / 2 + bp_p / self.rhoA) + qx * bq_q / self.rhoA)
         hq = (-w2[:, None] * Mqq + 2 * omega[:, None] * Vd[:, sl["Np"]]
@@ -593,7 +595,7 @@ class BeamData:
             h[:, 3:] -= np.stack([np.asarray(law(t, eta[b], eta_dot[b])) for b in range(B)])
         # -- rotate to global axes ----------------------------------------------------------
         T = np.zeros((B, N3, N3), dtype=dtype)
-        T[:] = np.eye(N3)
+        T[:] = self._eye
         T[:, 0, 0] = T[:, 1, 1] = c
         T[:, 0, 1] = -s
         T[:, 1, 0] = s
