@@ -231,7 +231,14 @@ class LoopCharacteristic:
                                            delay=0.0)) for r in reps]
         others = [other for other in self.system.loops if other is not lp]
         self._open = self.system.with_loops(others) if others else plant
-        self._input = self._open.input(f"{lp.actuator}.force")
+        # unit loop force: every weighted actuator input of the loop (e.g. a PZT moment pair)
+        self._amplitudes: dict = {}
+        for name, weight in lp.actuator_terms:
+            element_name, _, input_name = name.partition(".")
+            element = self._open.element(element_name)
+            resolved = self._open.input(f"{element_name}.{input_name or element.inputs[0]}")
+            slot = self._amplitudes.setdefault(resolved.position, {})
+            slot[resolved.input] = slot.get(resolved.input, 0.0) + weight
         self._sensed = [(sig.point, sig.component, sig.derivative) for sig in signals]
         self.executor = None
         self.n_evaluations = 0
@@ -282,7 +289,7 @@ class LoopCharacteristic:
         from .frequency import solve
 
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            states = solve(self._open, s, {self._input.position: {self._input.input: 1.0}}).states
+            states = solve(self._open, s, self._amplitudes).states
             log_base = log_open
             controller = np.zeros(s.size, complex)
             if self.loop.is_lti:
