@@ -11,7 +11,9 @@ from .frequency import (characteristic_function, eigenvalue_count, frequency_res
 from .system import Chain
 from .timestep import simulate
 
+from . import control, stability  # noqa: E402  (submodules used as ctmm.control / ctmm.stability)
+
 __version__ = "0.1.0"
 __all__ = ["Chain", "simulate", "characteristic_function", "frequency_response", "natural_frequencies", "mode_shapes", "eigenvalue_count",
            "steady_state_response", "signals", "ModelError", "SimulationError", "ConvergenceError",
-           "SingularSystemError", "UnknownNameError", "__version__"]
+           "SingularSystemError", "UnknownNameError", "control", "stability", "__version__"]
