@@ -13,7 +13,7 @@ explicit steps).
 from __future__ import annotations
 
 import math
-import time
+import timeit
 from pathlib import Path
 
 import numpy as np
@@ -80,11 +80,9 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     for n in (10, 40, 160) if quick else (10, 40, 160, 640):
         fs = segment_model(n)
         q = 0.01 * np.ones(n)
-        reps = 5 if quick else 20
-        start = time.perf_counter()
-        for _ in range(reps):
-            accelerations(fs, q, q)
-        cost[n] = (time.perf_counter() - start) / reps
+        number = 3 if quick else 10
+        cost[n] = min(timeit.repeat(lambda: accelerations(fs, q, q), number=number,
+                                    repeat=5)) / number     # best of 5: robust to load
     ns = np.array(sorted(cost))
     slope = float(np.polyfit(np.log(ns), np.log([cost[k] for k in ns]), 1)[0])
     fig, axes = plt.subplots(1, 3, figsize=(16, 4.5))
