@@ -96,3 +96,27 @@ def test_finite_segment_bad_input(kwargs, match):
     params.update(kwargs)
     with pytest.raises(ModelError, match=match):
         finite_segment_beam("s", **params)
+
+
+def test_implicit_with_hinges_at_beam_ends_matches_the_ode():
+    """Motor -> beam -> fixed mounting -> beam -> elastic/damper hinge at the tip -> link: the
+    implicit hinge law (kappa on the relative acceleration to the beam end's slope rate) and the
+    complex-step tangent give Newmark's second order against the ODE solution."""
+    from ctmm.planar import DrivenHinge, RigidBody, SpringDamperHinge
+    beam = lambda name, **kw: ModalBeam(name, length=0.8, bending_stiffness=4.0,  # noqa: E731
+                                        mass_per_length=0.6, n_modes=2, **kw)
+    model = PlanarModel.chain("m", [
+        Fixed("g"), DrivenHinge("motor", angle=lambda t: 0.5 * t * t, rate=lambda t: t,
+                                acceleration=lambda t: 1.0),
+        beam("b1"), FixedMounting("w", angle=0.2), beam("b2", damping_ratio=0.01),
+        SpringDamperHinge("e", stiffness=3.0, damping=0.05, rest_angle=0.1),
+        RigidBody.uniform_link("l", mass=0.3, length=0.4)])
+    n = model.n_coordinates
+    q0, v0 = np.zeros(n), np.zeros(n)
+    q0[-1] = 0.4
+    T = 0.2
+    ref = simulate_scipy(model, q0, v0, t_final=T, method="DOP853", rtol=1e-12,
+                         atol=1e-13).q[-1]
+    err = [np.max(np.abs(simulate_implicit(model, q0, v0, t_final=T, dt=h).q[-1] - ref))
+           for h in (4e-3, 2e-3)]
+    assert 1.7 < math.log2(err[0] / err[1]) < 2.3
