@@ -59,6 +59,21 @@ def _lti_siso(name: str, gain: Any):
     return gain
 
 
+def _weighted_terms(loop: str, role: str, value: Any, single: str, item: str) -> tuple:
+    """``(name, weight)`` pairs from a name or a sequence of pairs, validated."""
+    if isinstance(value, str):
+        return ((value, 1.0),)
+    try:
+        terms = tuple((str(name), validation.finite(f"loop {loop!r}: {role} weight", weight))
+                      for name, weight in value)
+    except (TypeError, ValueError) as exc:
+        raise ModelError(f"loop {loop!r}: {role} must be {single} or a sequence of ({item}, weight) pairs, "
+                         f"got {value!r}") from exc
+    if not terms:
+        raise ModelError(f"loop {loop!r}: {role} needs at least one {item}")
+    return terms
+
+
 @dataclass(frozen=True)
 class Feedback:
     """A feedback loop ``u = -C (y(t - delay) - r(t - delay))`` with force ``u`` at ``actuator``.
@@ -92,30 +107,9 @@ class Feedback:
 
     def __post_init__(self) -> None:
         validation.name("loop", self.name)
-        if isinstance(self.actuator, str):
-            actuators = ((self.actuator, 1.0),)
-        else:
-            try:
-                actuators = tuple((str(a), validation.finite(f"loop {self.name!r}: actuator weight", w))
-                                  for a, w in self.actuator)
-            except (TypeError, ValueError) as exc:
-                raise ModelError(f"loop {self.name!r}: actuator must be an input name or a sequence of "
-                                 f"(input, weight) pairs, got {self.actuator!r}") from exc
-            if not actuators:
-                raise ModelError(f"loop {self.name!r}: actuator needs at least one input")
-        object.__setattr__(self, "actuator_terms", actuators)
-        if isinstance(self.sensor, str):
-            terms = ((self.sensor, 1.0),)
-        else:
-            try:
-                terms = tuple((str(sig), validation.finite(f"loop {self.name!r}: sensor weight", w))
-                              for sig, w in self.sensor)
-            except (TypeError, ValueError) as exc:
-                raise ModelError(f"loop {self.name!r}: sensor must be a signal name or a sequence of "
-                                 f"(signal, weight) pairs, got {self.sensor!r}") from exc
-            if not terms:
-                raise ModelError(f"loop {self.name!r}: sensor needs at least one signal")
-        object.__setattr__(self, "terms", terms)
+        object.__setattr__(self, "actuator_terms",
+                           _weighted_terms(self.name, "actuator", self.actuator, "an input name", "input"))
+        object.__setattr__(self, "terms", _weighted_terms(self.name, "sensor", self.sensor, "a signal name", "signal"))
         if _is_lti(self.gain):
             _lti_siso(self.name, self.gain)
         else:
