@@ -46,6 +46,16 @@ def _signal_names(argument: str, value: Any, count: int, example: str) -> tuple[
     return names
 
 
+def saturate(u: float, limit: float | None) -> tuple[float, bool]:
+    """Clip ``u`` to ``[-limit, limit]`` (no clipping for ``limit=None``); returns ``(u, saturated)``."""
+    if limit is not None:
+        if u > limit:
+            return limit, True
+        if u < -limit:
+            return -limit, True
+    return u, False
+
+
 def _optional_positive(argument: str, value: Any) -> float | None:
     """``None`` or a finite float > 0."""
     return None if value is None else validation.positive(argument, value)
@@ -160,13 +170,7 @@ class SaturatedPD:
         """
         position, velocity = float(y[0]), float(y[1])
         u = self.kp * (self._r(t) - position) + self.kd * (self._rdot(t) - velocity)
-        limit = self.limit
-        saturated = False
-        if limit is not None:
-            if u > limit:
-                u, saturated = limit, True
-            elif u < -limit:
-                u, saturated = -limit, True
+        u, saturated = saturate(u, self.limit)
         if not math.isfinite(u):
             raise SimulationError(f"SaturatedPD -> {self.outputs[0]}: non-finite output {u!r} at t = {t!r} "
                                   f"from {self.inputs[0]} = {position!r}, {self.inputs[1]} = {velocity!r}", time=t)

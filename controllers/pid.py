@@ -30,7 +30,7 @@ from ctmm.control.protocol import ControllerStep
 from ctmm.errors import SimulationError
 from ctmm.signals import as_signal
 
-from .pd import _optional_positive, _signal_names
+from .pd import _optional_positive, _signal_names, saturate
 
 SignalLike = Union[float, int, Callable[[float], float]]
 
@@ -147,13 +147,7 @@ class PID:
         previous = error if state.previous_error is None else state.previous_error
         derivative = (tf * state.derivative + self.kd * (error - previous)) / (tf + h)
         u = self.kp * error + self.ki * state.integral + derivative
-        limit = self.limit
-        saturated = False
-        if limit is not None:
-            if u > limit:
-                u, saturated = limit, True
-            elif u < -limit:
-                u, saturated = -limit, True
+        u, saturated = saturate(u, self.limit)
         if not math.isfinite(u):
             raise SimulationError(f"PID -> {self.outputs[0]}: non-finite output {u!r} at t = {t!r} from "
                                   f"{self.inputs[0]} = {float(y[0])!r}", time=t)

@@ -19,8 +19,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ctmm.control.analysis import margins
-
 from . import controlled_chain_common as common
 
 NAME = "controlled_chain_across"
@@ -35,15 +33,9 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     import matplotlib.pyplot as plt
 
     output_dir = Path(output_dir)
-    omega = np.linspace(0.02, 6.0, 600 if quick else 3000)
-    t = np.linspace(0.0, 10.0, 201 if quick else 1001)
-    gains = (0.0, common.KA)
-    frf = {g: common.frf_comparison("K3", g, 0.0, omega) for g in gains}
-    steady = {g: common.steady_state_comparison("K3", g, 0.0, t) for g in gains}
-    tmm_time = sum(r["tmm_time"] for r in (*frf.values(), *steady.values()))
-    ref_time = sum(r["reference_time"] for r in (*frf.values(), *steady.values()))
-    system, _ = common.controlled("K3", common.KA)
-    loop_margins = margins(system, "control", np.linspace(0.02, 20.0, 2000 if quick else 8000))
+    comparison = common.compare_placement("K3", quick)
+    omega, t, frf, steady = comparison["omega"], comparison["t"], comparison["frf"], comparison["steady"]
+    tmm_time, ref_time, loop_margins = comparison["tmm_time"], comparison["reference_time"], comparison["margins"]
 
     figures = []
     fig, axes = plt.subplots(3, 1, sharex=True, figsize=(7.5, 7.5))

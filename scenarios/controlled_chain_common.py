@@ -156,6 +156,23 @@ def steady_state_comparison(placement: str, gain: float, delay: float, t: np.nda
             "error": float(np.max(np.abs(tmm - ref)))}
 
 
+def compare_placement(placement: str, quick: bool) -> dict:
+    """FRFs and steady-state motion for Ka = 0 and KA with the actuator at ``placement``, each
+    against the global closed-loop solve, plus the loop margins; used by the Fig. 9.27-9.31 scenarios."""
+    from ctmm.control.analysis import margins
+
+    omega = np.linspace(0.02, 6.0, 600 if quick else 3000)
+    t = np.linspace(0.0, 10.0, 201 if quick else 1001)
+    gains = (0.0, KA)
+    frf = {g: frf_comparison(placement, g, 0.0, omega) for g in gains}
+    steady = {g: steady_state_comparison(placement, g, 0.0, t) for g in gains}
+    system, _ = controlled(placement, KA)
+    return {"omega": omega, "t": t, "frf": frf, "steady": steady,
+            "tmm_time": sum(r["tmm_time"] for r in (*frf.values(), *steady.values())),
+            "reference_time": sum(r["reference_time"] for r in (*frf.values(), *steady.values())),
+            "margins": margins(system, "control", np.linspace(0.02, 20.0, 2000 if quick else 8000))}
+
+
 def plot_frf_pair(ax_pair, omega, results: dict, title: str) -> None:
     """Magnitudes of X2, X4, X6 for the two gains in ``results`` ({gain: frf_comparison})."""
     styles = ("-", "--", "-.")

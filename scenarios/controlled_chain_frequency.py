@@ -21,8 +21,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ctmm.control.analysis import margins
-
 from . import controlled_chain_common as common
 
 NAME = "controlled_chain_frequency"
@@ -37,15 +35,9 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     import matplotlib.pyplot as plt
 
     output_dir = Path(output_dir)
-    omega = np.linspace(0.02, 6.0, 600 if quick else 3000)
-    t = np.linspace(0.0, 10.0, 201 if quick else 1001)
-    gains = (0.0, common.KA)
-    frf = {g: common.frf_comparison("m2", g, 0.0, omega) for g in gains}
-    steady = {g: common.steady_state_comparison("m2", g, 0.0, t) for g in gains}
-    tmm_time = sum(r["tmm_time"] for r in (*frf.values(), *steady.values()))
-    ref_time = sum(r["reference_time"] for r in (*frf.values(), *steady.values()))
-    controlled_system, _ = common.controlled("m2", common.KA)
-    loop_margins = margins(controlled_system, "control", np.linspace(0.02, 20.0, 2000 if quick else 8000))
+    comparison = common.compare_placement("m2", quick)
+    omega, t, frf, steady = comparison["omega"], comparison["t"], comparison["frf"], comparison["steady"]
+    tmm_time, ref_time, loop_margins = comparison["tmm_time"], comparison["reference_time"], comparison["margins"]
 
     # -- figures ------------------------------------------------------------------------
     figures = []
@@ -76,7 +68,7 @@ def run(output_dir: Path, quick: bool = False) -> dict:
 
     peaks = {f"Ka={gain:g}": {
         "first_resonance_rad_s": float(omega[np.argmax(np.abs(frf[gain]["tmm"][2]))]),
-        "peak_X6_m_per_N": float(np.max(np.abs(frf[gain]["tmm"][2])))} for gain in gains}
+        "peak_X6_m_per_N": float(np.max(np.abs(frf[gain]["tmm"][2])))} for gain in frf}
     return {
         "max_error": max(max(r["error"] for r in frf.values()), max(r["error"] for r in steady.values())),
         "error_definition": ("max of (a) max_w |H_TMM - H_ref| / max_w |H_ref| over X2, X4, X6 and Ka = 0, 5 "
