@@ -1,0 +1,256 @@
+"""Run guards shared by every simulator: divergence, step-size stability limits and user code.
+
+Every time integrator in ctmm (the 1-D DT-TMM, the controlled stepper, the planar, flexible and
+manipulator simulators) uses these three pieces, so that a run that goes wrong stops the same way
+everywhere: with a :class:`~ctmm.errors.SimulationError` that names the time and the element or
+coordinate, and that the caller completes with the result computed so far (``partial_result``).
+
+Divergence
+----------
+:class:`DivergenceGuard` watches a vector of coordinates (displacements [m], angles [rad], modal
+coordinates [-]) and stops the run when one is non-finite or when its distance from a reference
+(the rest or initial configuration) exceeds ``bound``.  The default bound is
+``growth * max(1, largest initial excursion)`` with ``growth = 1e6``: a physical model that moves
+a million times further than it started (or a million metres / radians from rest) has diverged;
+a run that should go further sets ``divergence_bound`` explicitly (``math.inf`` switches the
+bound off, non-finite values are still caught).
+
+Step-size stability limits
+--------------------------
+Known limits, checked before a run starts against the model's highest natural frequency
+``omega_max`` [rad/s] (undamped, the worst case for these schemes):
+
+* Newmark-beta with ``gamma >= 1/2``: unconditionally stable for ``2 beta >= gamma``; otherwise
+  stable for ``omega_max h <= 1 / sqrt(gamma / 2 - beta)`` (Hughes, *The Finite Element Method*,
+  §9.1, eq. 9.1.30 with zero damping).  ``gamma < 1/2`` amplifies every mode at any step
+  (numerical negative damping).
+* Wilson-theta: unconditionally stable for ``theta >= 1.37`` (Bathe & Wilson 1973); for
+  ``1 <= theta < 1.37`` the spectral radius exceeds one at large ``omega h``.
+* Classical RK4 on an undamped mode: stable for ``omega_max h <= 2 sqrt 2`` (the stability
+  region meets the imaginary axis at ``+-2 sqrt 2 i``).
+
+:func:`check_step` turns a limit into a :class:`StabilityLimitWarning` (silence it with the
+``warnings`` module or the simulator's option) or a :class:`~ctmm.errors.ModelError`.
+
+User code
+---------
+:func:`call_user` runs a callback or controller and turns any exception into a
+:class:`~ctmm.errors.SimulationError` naming the callback and the time; :func:`user_output`
+checks what it returned (shape and finiteness).
+"""
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from .errors import ModelError, SimulationError
+
+__all__ = ["StabilityLimitWarning", "DivergenceGuard", "newmark_limit", "wilson_limit", "RK4_LIMIT",
+           "check_step", "call_user", "user_output", "DEFAULT_GROWTH"]
+
+#: Largest ``omega h`` of classical RK4 on an undamped mode (imaginary-axis stability boundary).
+RK4_LIMIT = 2.0 * math.sqrt(2.0)
+#: Default growth factor of :class:`DivergenceGuard` over the initial excursion (or 1).
+DEFAULT_GROWTH = 1e6
+
+
+class StabilityLimitWarning(UserWarning):
+    """A step size exceeds the known stability limit of the chosen scheme for this model."""
+
+
+def newmark_limit(beta: float, gamma: float) -> float:
+    """Largest stable ``omega h`` of Newmark-beta on an undamped mode.
+
+    Parameters
+    ----------
+    beta, gamma : float
+        Newmark parameters [-].
+
+    Returns
+    -------
+    float
+        ``inf`` when unconditionally stable (``2 beta >= gamma >= 1/2``), ``0`` when no step is
+        stable (``gamma < 1/2``: every mode is amplified), else ``1 / sqrt(gamma/2 - beta)``.
+    """
+    if gamma < 0.5:
+        return 0.0
+    if 2.0 * beta >= gamma:
+        return math.inf
+    return 1.0 / math.sqrt(gamma / 2.0 - beta)
+
+
+def wilson_limit(theta: float) -> float:
+    """Largest stable ``omega h`` of Wilson-theta: ``inf`` for ``theta >= 1.37``, else ``0``.
+
+    Below 1.37 the limit depends on ``theta`` in a way that has no closed form; it is reported as
+    0 (not certified) so that the caller warns.
+    """
+    return math.inf if theta >= 1.37 else 0.0
+
+
+def check_step(what: str, omega_max: float, dt: float, limit: float, *, policy: str = "warn") -> str | None:
+    """Compare ``omega_max * dt`` with a scheme's stability limit before a run.
+
+    Parameters
+    ----------
+    what : str
+        The scheme and its parameters, for the message (e.g. ``"Newmark(beta=0.01, gamma=0.5)"``).
+    omega_max : float
+        Highest natural frequency of the model [rad/s] (``inf`` if unbounded).
+    dt : float
+        Step size [s].
+    limit : float
+        Largest stable ``omega h`` of the scheme [-] (``inf``: unconditionally stable).
+    policy : {"warn", "error", "ignore"}
+        What to do when the limit is exceeded.
+
+    Returns
+    -------
+    str or None
+        The message, or ``None`` when the step is within the limit.
+    """
+    if policy not in ("warn", "error", "ignore"):
+        raise ModelError(f"stability_check must be 'warn', 'error' or 'ignore', got {policy!r}")
+    if math.isinf(limit) or omega_max * dt <= limit:
+        return None
+    if limit == 0.0:
+        message = (f"{what} is not stable at any step size for an undamped mode (highest natural "
+                   f"frequency {omega_max:.6g} rad/s): the response will grow without bound")
+    else:
+        message = (f"{what} is only conditionally stable: omega_max * dt = {omega_max * dt:.4g} exceeds its "
+                   f"limit {limit:.4g} (highest natural frequency {omega_max:.6g} rad/s); use dt <= "
+                   f"{limit / omega_max:.4g} s or an unconditionally stable scheme")
+    if policy == "error":
+        raise ModelError(message)
+    if policy == "warn":
+        warnings.warn(message, StabilityLimitWarning, stacklevel=3)
+    return message
+
+
+@dataclass(frozen=True)
+class DivergenceGuard:
+    """Stops a run whose monitored coordinates go non-finite or leave a bound.
+
+    Parameters
+    ----------
+    names : sequence of str
+        Name of each monitored coordinate (element, point or coordinate name), for messages.
+    reference : ndarray
+        Values the distance is measured from (rest or initial configuration), same length.
+    bound : float
+        Largest allowed ``|value - reference|`` (in the coordinates' own units); ``inf`` checks
+        only finiteness.
+    hint : str
+        Appended to the message when the bound is exceeded (e.g. which loops may be unstable).
+    """
+
+    names: tuple[str, ...]
+    reference: np.ndarray
+    bound: float
+    hint: str = ""
+
+    @classmethod
+    def from_start(cls, names: Sequence[str], reference: Any, initial: Any, *, bound: float | None = None,
+                   growth: float = DEFAULT_GROWTH, hint: str = "") -> "DivergenceGuard":
+        """A guard whose default bound is ``growth * max(1, largest initial excursion)``.
+
+        Parameters
+        ----------
+        names : sequence of str
+            Coordinate names.
+        reference : array_like
+            Rest / reference values.
+        initial : array_like
+            Initial values (their excursion from ``reference`` sets the default scale).
+        bound : float, optional
+            Explicit bound (``> 0``, may be ``inf``); overrides the default.
+        growth : float
+            Growth factor of the default bound.
+        hint : str
+            Appended to divergence messages.
+        """
+        reference = np.asarray(reference, dtype=float).reshape(-1)
+        initial = np.asarray(initial, dtype=float).reshape(-1)
+        if bound is None:
+            excursion = float(np.max(np.abs(initial - reference), initial=0.0))
+            bound = growth * max(1.0, excursion)
+        else:
+            if isinstance(bound, bool) or not isinstance(bound, (int, float, np.floating, np.integer)) \
+                    or math.isnan(bound) or bound <= 0:
+                raise ModelError(f"divergence_bound must be a number > 0 (or math.inf), got {bound!r}")
+            bound = float(bound)
+        return cls(tuple(names), reference, bound, hint)
+
+    def check(self, time: float, values: Any) -> None:
+        """Raise :class:`SimulationError` if ``values`` are non-finite or out of bound at ``time`` [s]."""
+        values = np.asarray(values, dtype=float).reshape(-1)
+        bad = ~np.isfinite(values)
+        if np.any(bad):
+            i = int(np.flatnonzero(bad)[0])
+            raise SimulationError(f"non-finite state at t = {time:.6g} s in {self.names[i]!r}"
+                                  + (f"; {self.hint}" if self.hint else ""),
+                                  time=float(time), element=self.names[i])
+        if math.isinf(self.bound):
+            return
+        excursion = np.abs(values - self.reference)
+        i = int(np.argmax(excursion))
+        if excursion[i] > self.bound:
+            raise SimulationError(f"the run diverged at t = {time:.6g} s: {self.names[i]!r} is "
+                                  f"{excursion[i]:.4g} from its reference, beyond the bound {self.bound:.4g} "
+                                  "(set divergence_bound to change it)" + (f"; {self.hint}" if self.hint else ""),
+                                  time=float(time), element=self.names[i])
+
+
+def call_user(what: str, function: Callable[..., Any], *args: Any, time: float) -> Any:
+    """Call user code; any exception becomes a :class:`SimulationError` naming ``what`` and ``time``.
+
+    Parameters
+    ----------
+    what : str
+        The callback or controller, e.g. ``"force of element 'm2'"`` or ``"controller 'pid'"``.
+    function : callable
+        The user's function.
+    *args
+        Its arguments.
+    time : float
+        Simulation time [s] of the call.
+    """
+    try:
+        return function(*args)
+    except SimulationError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - user code may raise anything; it is named and chained
+        raise SimulationError(f"{what} raised {type(exc).__name__} at t = {time:.6g} s: {exc}",
+                              time=float(time), element=what) from exc
+
+
+def user_output(what: str, value: Any, size: int, *, time: float) -> np.ndarray:
+    """Check a user function's return value: ``size`` finite real numbers, else :class:`SimulationError`.
+
+    Parameters
+    ----------
+    what : str
+        The callback or controller, for the message.
+    value : array_like
+        What it returned.
+    size : int
+        Number of values expected.
+    time : float
+        Simulation time [s].
+    """
+    try:
+        array = np.asarray(value, dtype=float).reshape(-1)
+    except (TypeError, ValueError) as exc:
+        raise SimulationError(f"{what} returned {value!r} at t = {time:.6g} s; expected {size} real "
+                              f"number(s)", time=float(time), element=what) from exc
+    if array.size != size:
+        raise SimulationError(f"{what} returned {array.size} value(s) at t = {time:.6g} s; expected {size}",
+                              time=float(time), element=what)
+    if not np.all(np.isfinite(array)):
+        raise SimulationError(f"{what} returned a non-finite value {array.tolist()!r} at t = {time:.6g} s",
+                              time=float(time), element=what)
+    return array
