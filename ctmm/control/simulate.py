@@ -53,7 +53,7 @@ class _TustinLTI:
         A, B, C, D = (np.atleast_2d(np.asarray(m, dtype=float)) for m in (ss.A, ss.B, ss.C, ss.D))
         for label, matrix in zip("ABCD", (A, B, C, D)):
             if not np.all(np.isfinite(matrix)):
-                raise ModelError(f"loop {loop!r}: the controller C(s) = {system!r} has a non-finite coefficient "
+                raise ModelError(f"loop {loop!r}: the controller C(s) has a non-finite coefficient "
                                  f"(state-space {label} = {matrix.tolist()!r}); every coefficient must be finite")
         n = A.shape[0]
         self.n = n
@@ -334,7 +334,13 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
         for j in range(1, len(idx)):
             reference[idx[j - 1] + 1: idx[j] + 1] = reference_pts[j]
         us, start, end = shift_forces(Us, us, start, end, reference, d)
-        sol = SOLVERS["riccati"](Us, us, start, end)
+        try:
+            sol = SOLVERS["riccati"](Us, us, start, end)
+        except np.linalg.LinAlgError as exc:
+            raise SimulationError(f"the step at t = {t_n + h:.6g} s is singular with the real-time loop(s) "
+                                  f"{[r.loop.name for r in realtime]} closed (an algebraic loop through an "
+                                  "acceleration or force sensor cancels the inertia); change their gains",
+                                  time=float(t_n + h), element=realtime[0].loop.name) from exc
         states = sol.states[idx, 0, :].copy()
         states[:, d:2 * d] += reference_pts[:, 0, :]
         for r in realtime:
@@ -442,6 +448,16 @@ def _consistent_start(plant: Chain, loops, lti, refs, x, v, t0: float, forces: M
     # undelayed rows: u = -G (y0 + J u - r);  delayed rows: u = -G (y_pre - r)
     lhs = np.eye(n) + np.where(delayed[:, None], 0.0, gains[:, None] * J)
     rhs = -gains * (np.where(delayed, y_pre, y_zero) - refs0)
+    _, singular_values, vh = np.linalg.svd(lhs)
+    if not singular_values[-1] > 1e-12 * max(1.0, singular_values[0]):
+        involved = [loops[k] for k in np.flatnonzero(np.abs(vh[-1]) > 1e-6)]
+        details = "; ".join(f"loop {r.loop.name!r} senses {[name for name, _ in r.loop.terms]} with gain "
+                            f"{gains[r.index]:.6g} and d(sensed)/d(own force) = {J[r.index, r.index]:.6g}"
+                            for r in involved)
+        raise ModelError(f"singular algebraic loop: {details}. An undelayed loop that senses an acceleration "
+                         "or a force depends on its own force at the same instant, and with these gains "
+                         "(1 + gain * d(sensed)/d(force) = 0) the closed loop has no unique acceleration "
+                         "(the loop cancels the inertia). Change the gain or the sensor, or add a delay")
     u = np.linalg.solve(lhs, rhs)
     y, a, f = sensed(u)
     return {r.index: float(u[r.index]) for r in loops}, a, f, pre
