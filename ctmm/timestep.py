@@ -453,20 +453,25 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
             t_eval = t_n + coeffs.unknown_offset
             w = coeffs.load_weight
             extra = force_hook(t_n, dt, w, history) if force_hook else {}
-            if _step is not None:
-                x_new, f_new = _step(coeffs, t_n, dt, w, t_eval, extra, history)
-            elif fast:
-                load = (1.0 - w) * kernel.forces(t_n) + w * kernel.forces(t_n + dt) if w != 1.0 \
-                    else kernel.forces(t_n + dt)
-                across = np.zeros(kernel.n)
-                for pos, value in extra.items():
-                    if kernel.is_point[pos - 1]:
-                        load[pos - 1] += value
-                    else:
-                        across[pos - 1] += value
-                x_new, f_new = _fast_step(system, kernel, coeffs, load, t_eval, cache, across)
-            else:
-                x_new, f_new = _generic_step(system, discrete, coeffs, t_n, dt, w, t_eval, extra, solver)
+            try:
+                if _step is not None:
+                    x_new, f_new = _step(coeffs, t_n, dt, w, t_eval, extra, history)
+                elif fast:
+                    load = (1.0 - w) * kernel.forces(t_n) + w * kernel.forces(t_n + dt) if w != 1.0 \
+                        else kernel.forces(t_n + dt)
+                    across = np.zeros(kernel.n)
+                    for pos, value in extra.items():
+                        if kernel.is_point[pos - 1]:
+                            load[pos - 1] += value
+                        else:
+                            across[pos - 1] += value
+                    x_new, f_new = _fast_step(system, kernel, coeffs, load, t_eval, cache, across)
+                else:
+                    x_new, f_new = _generic_step(system, discrete, coeffs, t_n, dt, w, t_eval, extra, solver)
+            except np.linalg.LinAlgError as exc:
+                raise SimulationError(f"the step to t = {times[i + 1]:.6g} s is singular ({exc}): the chain "
+                                      "equations have no unique solution at this step", time=float(times[i + 1]),
+                                      element=system.name) from exc
             bad = ~(np.isfinite(x_new) & np.isfinite(f_new))
             if np.any(bad):
                 point = int(np.flatnonzero(bad)[0])
@@ -486,6 +491,9 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
             done = i + 2
             bar.update(1)
     except SimulationError as exc:
+        if exc.time is None:             # raised by a solver that does not know the time
+            exc.time = float(times[min(done, n_steps)])
+            exc.args = (f"{exc.args[0] if exc.args else exc} (step to t = {exc.time:.6g} s)",) + exc.args[1:]
         if exc.partial_result is None:
             exc.partial_result = SimulationResult(
                 times[:done], states[:done], vel[:done], acc[:done], _system_for_result or system, scheme.name,
