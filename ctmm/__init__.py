@@ -9,7 +9,7 @@ from .errors import ConvergenceError, ModelError, SimulationError, SingularSyste
 from .frequency import (characteristic_function, eigenvalue_count, frequency_response, mode_shapes, natural_frequencies,
                         steady_state_response)
 from .system import Chain
-from .timestep import simulate
+from .simulation import simulate
 
 from . import control, stability  # noqa: E402  (submodules used as ctmm.control / ctmm.stability)
 

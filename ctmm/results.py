@@ -171,6 +171,14 @@ class SimulationResult:
     info: dict = field(default_factory=dict)
     extra: dict = field(default_factory=dict)
 
+    @classmethod
+    def empty(cls, system: Any, scheme_name: str = "") -> "SimulationResult":
+        """A result with no time row (the partial result of a run that failed before ``t0``)."""
+        layout = getattr(system, "plant", system).layout   # a controlled chain stores its plant's states
+        n_points = system.n_points
+        return cls(np.zeros(0), np.zeros((0, n_points, layout.size)), np.zeros((0, n_points, layout.half)),
+                   np.zeros((0, n_points, layout.half)), system, scheme_name)
+
     def __getitem__(self, name: str) -> np.ndarray:
         """History of one signal by name, e.g. ``result["m1.x"]`` or ``result["loop.u"]``."""
         if name in self.extra:

@@ -32,6 +32,7 @@ FORMULAS §3.1 (Cramer's ``Newmark.m``/``Houbolt.m``).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -39,6 +40,7 @@ import numpy as np
 
 from . import validation
 from .errors import ModelError
+from .guard import newmark_limit, wilson_limit
 
 
 @dataclass
@@ -100,6 +102,15 @@ class Scheme:
         """Internal forces at ``t_{n+1}`` from those solved at the evaluation level."""
         return f_unknown
 
+    def stability_limit(self) -> float:
+        """Largest stable ``omega h`` [-] on an undamped mode: ``inf`` if unconditionally stable.
+
+        ``0`` means no step is stable (every undamped mode is amplified).  The base class, the
+        backward-difference schemes (:class:`ForwardEuler`, :class:`Houbolt`) and
+        :class:`GeneralizedAlpha` (``0 <= rho_infinity <= 1``) are unconditionally stable.
+        """
+        return math.inf
+
 
 def _check_step(h: float) -> float:
     return validation.positive("dt", h)
@@ -141,6 +152,10 @@ class Newmark(Scheme):
         x_pred, v_pred, A, C = self._predictor(history, _check_step(h))
         zero = np.zeros_like(history.x)
         return StepCoefficients(1.0, A, C, x_pred, v_pred, zero, h, 1.0, x_pred)
+
+    def stability_limit(self) -> float:
+        """Limit of :func:`ctmm.guard.newmark_limit`: ``inf`` for ``2 beta >= gamma >= 1/2``."""
+        return newmark_limit(self.beta, self.gamma)
 
     def update(self, history, delta, h, coeffs):
         x_pred, v_pred, A, C = self._predictor(history, h)
@@ -228,6 +243,10 @@ class WilsonTheta(Scheme):
         v_pred = history.v + 0.5 * tau * history.a
         return StepCoefficients(1.0, 3.0 / tau, 6.0 / tau ** 2, x_pred, v_pred, np.zeros_like(history.x),
                                 tau, self.theta, x_pred)
+
+    def stability_limit(self) -> float:
+        """Limit of :func:`ctmm.guard.wilson_limit`: ``inf`` for ``theta >= 1.37``."""
+        return wilson_limit(self.theta)
 
     def update(self, history, delta, h, coeffs):
         a_tau = coeffs.C * delta

@@ -13,6 +13,7 @@ import numpy as np
 
 from . import validation
 from .errors import ModelError
+from .guard import UserFunction
 
 TimeFunction = Callable[[float], float]
 
@@ -122,7 +123,8 @@ def as_signal(name: str, value: SignalLike) -> TimeFunction:
             raise ModelError(f"{name} must be callable as f(t) -> float; f(0.0) raised {exc!r}") from exc
         if not np.isfinite(probe):
             raise ModelError(f"{name}(0.0) must be finite, got {probe!r}")
-        return value
+        known = (Constant, Harmonic, Step, SquareWave, UserFunction)
+        return value if isinstance(value, known) else UserFunction(name, value)  # failures named (guard)
     return Constant(validation.finite(name, value))
 
 

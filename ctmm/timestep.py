@@ -27,10 +27,12 @@ from .assembly import SOLVERS, BoundaryEnd, BoundaryStart, predicted_forces, shi
 from .elements.base import Linearisation
 from .elements.lumped import Connector, PointElement
 from .errors import ModelError, SimulationError
+from .guard import DivergenceGuard
 from .progress import progress_bar
 from .results import SimulationResult
 from .schemes import History, Scheme, as_scheme
 from .signals import Constant
+from .step_limit import check_scheme_step
 from .system import Chain
 
 ForceHook = Callable[[float, float, float, History], Mapping[int, float]]
@@ -67,8 +69,17 @@ def initial_state(system: Chain, x0: Mapping[str, float] | None, v0: Mapping[str
     x = rest_positions(system)
     v = np.zeros(system.n_points)
     given = np.zeros(system.n_points, dtype=bool)
-    for values, target in ((x0 or {}, x), (v0 or {}, v)):
+    for label, values, target in (("x0", x0, x), ("v0", v0, v)):
+        if values is None:
+            continue
+        if not isinstance(values, Mapping):
+            raise ModelError(f"{label} must be a mapping {{element name: value}}, got {values!r}")
         for element_name, value in values.items():
+            element = system.element(element_name)
+            if element in (system.start, system.end) and element.known == "displacement":
+                raise ModelError(f"{label}[{element_name!r}] = {value!r}: the displacement of boundary "
+                                 f"{element_name!r} is prescribed; give initial values of masses or of "
+                                 "boundaries with a known force only")
             p = _point_of(system, element_name)
             target[p] = validation.finite(f"initial value of {element_name!r}", value)
             given[p] = True
@@ -315,17 +326,37 @@ def _scalar_sweeps_python(a21, S, G, v1, v2, P0, end_row, end_b, fixed_start, ca
     return (F, E) if fixed_start else (E, F)
 
 
+#: Most steps one run may take (more is almost certainly a unit mistake in ``dt``).
+MAX_STEPS = 100_000_000
+
+
+def point_labels(system: Chain) -> list[str]:
+    """Name of each connection point for messages: its point element, else ``"<inboard>|<outboard>"``."""
+    labels = []
+    for p, name in enumerate(system.point_names()):
+        inboard, outboard = system.elements[p], system.elements[p + 1]
+        if isinstance(outboard, PointElement):
+            labels.append(outboard.name)
+        elif isinstance(inboard, PointElement):
+            labels.append(inboard.name)
+        else:
+            labels.append(name)
+    return labels
+
+
 def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str = "newmark",
              x0: Mapping[str, float] | None = None, v0: Mapping[str, float] | None = None,
              t0: float = 0.0, solver: str = "riccati", fast: bool | None = None,
              force_hook: ForceHook | None = None, progress: bool | None = None,
-             _step=None, _after_step=None, _system_for_result=None) -> SimulationResult:
+             stability_check: str | None = None, divergence_bound: float | None = None,
+             _step=None, _after_step=None, _system_for_result=None,
+             _divergence_hint: str = "") -> SimulationResult:
     """Simulate a chain with the discrete-time transfer matrix method.
 
     Parameters
     ----------
     system : Chain
-        The model.
+        The model (a plain chain; :func:`ctmm.simulate` also takes controlled chains).
     t_final : float
         End time [s] (> t0).
     dt : float
@@ -349,6 +380,14 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
         control).
     progress : bool, optional
         Show a progress bar (default: only on a terminal for long runs).
+    stability_check : {"warn", "error", "ignore"}, optional
+        What to do, before the run, when ``dt`` exceeds the stability limit of a conditionally
+        stable scheme for the chain's highest natural frequency (:mod:`ctmm.step_limit`).
+        Default: an error when no step is stable (Newmark with ``gamma < 1/2``), a
+        :class:`~ctmm.guard.StabilityLimitWarning` otherwise.
+    divergence_bound : float, optional
+        Largest allowed distance [m] of any point from its rest position; default
+        ``1e6 * max(1 m, largest initial excursion)``; ``math.inf`` checks finiteness only.
 
     Returns
     -------
@@ -357,9 +396,15 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
     Raises
     ------
     SimulationError
-        When a step produces non-finite values (with the time and the element; the result up to
-        that point is attached as ``partial_result``).
+        When a step produces non-finite values, a point leaves the divergence bound, or user code
+        (a force callback) fails; with the time and the element, and the result up to the last
+        good step attached as ``partial_result``.
+    ModelError
+        Bad input, or a step beyond the scheme's stability limit with ``stability_check="error"``.
     """
+    if not isinstance(system, Chain):
+        raise ModelError(f"system must be a Chain, got {type(system).__name__}; use ctmm.simulate for "
+                         "controlled chains (ctmm.control.ControlledChain)")
     t_final = validation.finite("t_final", t_final)
     dt = validation.positive("dt", dt)
     t0 = validation.finite("t0", t0)
@@ -373,66 +418,86 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
         fast = lumped and solver == "riccati"
     if fast and not (lumped and solver == "riccati"):
         raise ModelError("fast=True needs a 1-D chain of lumped elements and solver='riccati'")
+    if (t_final - t0) / dt > MAX_STEPS:
+        raise ModelError(f"dt={dt!r} s gives {(t_final - t0) / dt:.3g} steps over {t_final - t0!r} s; at most "
+                         f"{MAX_STEPS:.0e} steps are allowed (check the unit of dt)")
     n_steps = int(round((t_final - t0) / dt))
     if abs(n_steps * dt - (t_final - t0)) > 1e-9 * max(1.0, abs(t_final)):
         raise ModelError(f"(t_final - t0) = {t_final - t0!r} s must be a whole number of steps dt={dt!r}")
     x, v = initial_state(system, x0, v0)
-    extra0 = force_hook(t0, dt, 0.0, History(x, v, np.zeros_like(x), [x, x])) if force_hook else {}
-    a = initial_acceleration(system, x, v, t0, extra0)
-    history = History(x.copy(), v.copy(), a.copy(), [x.copy(), x.copy()], 0)
+    check_scheme_step(system, scheme, dt, stability_check)
+    guard = DivergenceGuard.from_start(point_labels(system), rest_positions(system), x[:, 0],
+                                       bound=divergence_bound, hint=_divergence_hint)
     n_pts = system.n_points
     d = system.layout.half
     times = t0 + dt * np.arange(n_steps + 1)
     states = np.full((n_steps + 1, n_pts, system.layout.size), np.nan)
     vel = np.full((n_steps + 1, n_pts, d), np.nan)
     acc = np.full((n_steps + 1, n_pts, d), np.nan)
-    states[0, :, :d], vel[0], acc[0] = x, v, a
-    states[0, :, d] = _initial_forces(system, x, v, extra0, a, t0)
-    kernel = _LumpedKernel(system) if fast else None
-    discrete = None if fast else [e.discretize(scheme) for e in system.body]
-    cache: dict = {}
+    done = 0                                 # rows of the result that are complete
     started = _time.perf_counter()
     bar = progress_bar(n_steps, f"simulate {system.name}", enabled=progress)
     try:
+        extra0 = force_hook(t0, dt, 0.0, History(x, v, np.zeros_like(x), [x, x])) if force_hook else {}
+        a = initial_acceleration(system, x, v, t0, extra0)
+        history = History(x.copy(), v.copy(), a.copy(), [x.copy(), x.copy()], 0)
+        states[0, :, :d], vel[0], acc[0] = x, v, a
+        states[0, :, d] = _initial_forces(system, x, v, extra0, a, t0)
+        done = 1
+        kernel = _LumpedKernel(system) if fast else None
+        discrete = None if fast else [e.discretize(scheme) for e in system.body]
+        cache: dict = {}
         for i in range(n_steps):
             t_n = times[i]
             coeffs = scheme.coefficients(history, dt)
             t_eval = t_n + coeffs.unknown_offset
             w = coeffs.load_weight
             extra = force_hook(t_n, dt, w, history) if force_hook else {}
-            if _step is not None:
-                x_new, f_new = _step(coeffs, t_n, dt, w, t_eval, extra, history)
-            elif fast:
-                load = (1.0 - w) * kernel.forces(t_n) + w * kernel.forces(t_n + dt) if w != 1.0 \
-                    else kernel.forces(t_n + dt)
-                across = np.zeros(kernel.n)
-                for pos, value in extra.items():
-                    if kernel.is_point[pos - 1]:
-                        load[pos - 1] += value
-                    else:
-                        across[pos - 1] += value
-                x_new, f_new = _fast_step(system, kernel, coeffs, load, t_eval, cache, across)
-            else:
-                x_new, f_new = _generic_step(system, discrete, coeffs, t_n, dt, w, t_eval, extra, solver)
+            try:
+                if _step is not None:
+                    x_new, f_new = _step(coeffs, t_n, dt, w, t_eval, extra, history)
+                elif fast:
+                    load = (1.0 - w) * kernel.forces(t_n) + w * kernel.forces(t_n + dt) if w != 1.0 \
+                        else kernel.forces(t_n + dt)
+                    across = np.zeros(kernel.n)
+                    for pos, value in extra.items():
+                        if kernel.is_point[pos - 1]:
+                            load[pos - 1] += value
+                        else:
+                            across[pos - 1] += value
+                    x_new, f_new = _fast_step(system, kernel, coeffs, load, t_eval, cache, across)
+                else:
+                    x_new, f_new = _generic_step(system, discrete, coeffs, t_n, dt, w, t_eval, extra, solver)
+            except np.linalg.LinAlgError as exc:
+                raise SimulationError(f"the step to t = {times[i + 1]:.6g} s is singular ({exc}): the chain "
+                                      "equations have no unique solution at this step", time=float(times[i + 1]),
+                                      element=system.name) from exc
             bad = ~(np.isfinite(x_new) & np.isfinite(f_new))
             if np.any(bad):
                 point = int(np.flatnonzero(bad)[0])
                 name = system.elements[min(point + 1, len(system.elements) - 1)].name
                 raise SimulationError(f"non-finite state at t = {times[i + 1]:.6g} s at the point "
-                                      f"{system.point_names()[point]!r} (element {name!r})",
+                                      f"{system.point_names()[point]!r} (element {name!r})"
+                                      + (f"; {_divergence_hint}" if _divergence_hint else ""),
                                       time=float(times[i + 1]), element=name)
             f_prev = states[i, :, d]
             history = scheme.update(history, x_new[:, None], dt, coeffs)  # x_new is the correction
+            guard.check(float(times[i + 1]), history.x[:, 0])
             states[i + 1, :, :d] = history.x
             states[i + 1, :, d] = scheme.interpolate_force(f_new, f_prev)
             vel[i + 1], acc[i + 1] = history.v, history.a
             if _after_step is not None:
                 _after_step(i + 1, float(times[i + 1]), history, states[i + 1])
+            done = i + 2
             bar.update(1)
     except SimulationError as exc:
-        k = int(np.searchsorted(times, exc.time or times[-1]))
-        exc.partial_result = SimulationResult(times[:k], states[:k], vel[:k], acc[:k],
-                                              _system_for_result or system, scheme.name)
+        if exc.time is None:             # raised by a solver that does not know the time
+            exc.time = float(times[min(done, n_steps)])
+            exc.args = (f"{exc.args[0] if exc.args else exc} (step to t = {exc.time:.6g} s)",) + exc.args[1:]
+        if exc.partial_result is None:
+            exc.partial_result = SimulationResult(
+                times[:done], states[:done], vel[:done], acc[:done], _system_for_result or system, scheme.name,
+                {"n_steps": done - 1, "dt": dt, "failed_at_s": exc.time})
         raise
     finally:
         bar.close()

@@ -203,16 +203,35 @@ def test_fmu_and_python_controllers_give_the_same_closed_loop(pd_fmu):
     ((2, "displacement", 2, -2.0e5, 0.02, None, False), 50.0),   # delayed positive feedback
 ], ids=["real-time", "delayed"])
 def test_diverging_closed_loop_stops_with_simulation_error(loop, t_final):
+    """Stopped at the divergence bound (not at overflow), naming the loop; the partial result has
+    every signal, cut at the last good step, and equals the global closed-loop Newmark there."""
     setup = seed_setup([loop])
-    with pytest.raises(SimulationError, match="non-finite state") as info:
-        with np.errstate(all="ignore"):
-            simulate_controlled(setup.system, t_final, 0.01, x0=initial(X0))
+    with pytest.raises(SimulationError, match=r"diverged.*\['loop0'\].*unstable_root_count.*delay_margin") as info:
+        simulate_controlled(setup.system, t_final, 0.01, x0=initial(X0), v0=initial(V0))
     error = info.value
     assert error.time is not None and 0.0 < error.time < t_final
     assert error.element in {e.name for e in setup.plant.elements}
     partial = error.partial_result
-    assert partial is not None and partial.time[-1] < error.time
-    assert np.all(np.isfinite(partial["m2.x"])) and np.max(np.abs(partial["m2.x"])) > 1e100
+    assert partial is not None and partial.time[-1] == pytest.approx(error.time - 0.01)
+    rows = len(partial.time)
+    for name in ("m2.x", "loop0.y", "loop0.u"):
+        assert len(partial[name]) == rows and np.all(np.isfinite(partial[name]))
+    bound = 1e6 * max(1.0, max(abs(v) for v in X0))
+    assert 1e-3 * bound < np.max(np.abs(partial["m2.x"])) <= bound      # stopped at the bound, not at 1e308
+    ref = newmark_closed_loop(setup.chain, setup.global_loops, partial.time[-1], 0.01, X0, V0)
+    scale = np.max(np.abs(ref.displacement), axis=0)
+    x = np.column_stack([partial[f"m{i}.x"] for i in range(3)])
+    assert np.max(np.abs(x - ref.displacement) / scale) < 1e-9
+    np.testing.assert_allclose(partial["loop0.u"], ref.control[:, 0], rtol=1e-9, atol=0)
+
+
+def test_divergence_bound_option():
+    setup = seed_setup([(2, "displacement", 2, -6.5e4, 0.0, None, False)])
+    with pytest.raises(SimulationError, match="beyond the bound 10") as info:
+        ctmm.simulate(setup.system, 5.0, 0.01, x0=initial(X0), divergence_bound=10.0)
+    assert np.max(np.abs(info.value.partial_result["m2.x"])) <= 10.0
+    with pytest.raises(ModelError, match="divergence_bound must be"):
+        ctmm.simulate(setup.system, 5.0, 0.01, divergence_bound=0.0)
 
 
 def test_algebraic_loop_is_detected():

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from ctmm.errors import ModelError, SimulationError
-from ctmm.guard import (RK4_LIMIT, DivergenceGuard, StabilityLimitWarning, call_user, check_step, newmark_limit,
-                        user_output)
+from ctmm.guard import (RK4_LIMIT, DivergenceGuard, StabilityLimitWarning, UserFunction, call_user, check_step,
+                        newmark_limit, user_output, wilson_limit)
 
 
 def newmark_spectral_radius(beta: float, gamma: float, omega_h: float) -> float:
@@ -86,3 +86,19 @@ def test_user_code_is_named():
         user_output("controller 'c'", [np.nan], 1, time=0.0)
     with pytest.raises(SimulationError, match="expected 1 real"):
         user_output("controller 'c'", "abc", 1, time=0.0)
+
+
+def test_wilson_limit():
+    """theta = 1 is the linear-acceleration method: omega h <= 2 sqrt 3 (closed form); the limit grows
+    without bound as theta approaches (1 + sqrt 3) / 2 = 1.366 and is infinite from 1.37."""
+    assert wilson_limit(1.0) == pytest.approx(2.0 * math.sqrt(3.0), rel=1e-9)
+    limits = [wilson_limit(theta) for theta in (1.0, 1.1, 1.2, 1.3, 1.35, 1.365)]
+    assert np.all(np.diff(limits) > 0) and limits[-1] > 50.0
+    assert wilson_limit(1.37) == math.inf and wilson_limit(1.4) == math.inf
+
+
+def test_user_function_is_named():
+    f = UserFunction("m2: force", lambda t: [t, t] if t > 1.0 else 2.0 * t)
+    assert f(0.5) == 1.0
+    with pytest.raises(SimulationError, match=r"user function 'm2: force' returned 2 value\(s\) at t = 2 s"):
+        f(2.0)

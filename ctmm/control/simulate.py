@@ -22,6 +22,8 @@ unless ``coupling="previous"`` explicitly accepts the one-sample lag.
 """
 from __future__ import annotations
 
+import bisect
+import math
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -31,6 +33,7 @@ from ..assembly import SOLVERS, predicted_forces, shift_forces
 from ..elements.base import Linearisation
 from ..elements.lumped import PointElement
 from ..errors import ModelError, SimulationError
+from ..guard import call_user, user_output
 from ..results import SimulationResult
 from ..schemes import History, as_scheme
 from ..signals import as_signal
@@ -43,11 +46,15 @@ from .protocol import Controller
 class _TustinLTI:
     """Trapezoidal realisation of a SISO ``C(s)``: ``u_{n+1} = gain * e_{n+1} + offset(state, e_n)``."""
 
-    def __init__(self, system: Any, dt: float) -> None:
+    def __init__(self, system: Any, dt: float, loop: str = "") -> None:
         import control
 
         ss = control.ss(system)
         A, B, C, D = (np.atleast_2d(np.asarray(m, dtype=float)) for m in (ss.A, ss.B, ss.C, ss.D))
+        for label, matrix in zip("ABCD", (A, B, C, D)):
+            if not np.all(np.isfinite(matrix)):
+                raise ModelError(f"loop {loop!r}: the controller C(s) has a non-finite coefficient "
+                                 f"(state-space {label} = {matrix.tolist()!r}); every coefficient must be finite")
         n = A.shape[0]
         self.n = n
         if n == 0:
@@ -74,35 +81,48 @@ class _TustinLTI:
 
 
 class _History:
-    """Stored sensed values of one loop, interpolated at any past time.
+    """Sensed values of one loop, interpolated at any past time, in O(1) memory and time per step.
 
     Before ``t0`` the history is the initial *state held constant*: positions ``x0``, velocities
     ``v0``, accelerations 0 (``pre`` is the sensed value of that state), the convention of the
-    independent references (ctmm.reference.delay_chain.method_of_steps).
+    independent references (ctmm.reference.delay_chain.method_of_steps).  From ``t0`` on, values
+    are interpolated between the stored steps (cubic Hermite with ``y`` and its derivative, or
+    linear when the derivative is unknown).  Only the samples a delay ``tau`` can reach are kept:
+    at least ``ceil(tau / dt) + 3`` (the window is trimmed when it reaches twice that, so the
+    cost per step does not grow with the run length); a lookup is a bisection in the window.
     """
 
-    def __init__(self, t0: float, y0: float, dy0: float | None, pre: float | None = None) -> None:
+    def __init__(self, t0: float, y0: float, dy0: float | None, pre: float | None = None, *,
+                 delay: float = 0.0, dt: float = 1.0) -> None:
+        self.t0, self.y0 = t0, y0
         self.t = [t0]
         self.y = [y0]
         self.dy = [dy0]
         self.pre = y0 if pre is None else pre
+        self.keep = int(math.ceil(delay / dt)) + 3
 
     def append(self, t: float, y: float, dy: float | None) -> None:
         self.t.append(t)
         self.y.append(y)
         self.dy.append(dy)
+        if len(self.t) > 2 * self.keep:
+            drop = len(self.t) - self.keep
+            del self.t[:drop], self.y[:drop], self.dy[:drop]
 
     def __call__(self, t: float) -> float:
         ts = self.t
-        if t < ts[0] - 1e-12 * max(1.0, abs(ts[0])):
+        if t < self.t0 - 1e-12 * max(1.0, abs(self.t0)):
             return self.pre
-        if t <= ts[0]:
-            return self.y[0]
+        if t <= self.t0:
+            return self.y0
         if t >= ts[-1]:
             if t - ts[-1] > 1e-9 * max(1.0, abs(t)):
-                raise SimulationError(f"delay history requested at t={t} beyond the last step {ts[-1]}")
+                raise SimulationError(f"delay history requested at t={t} beyond the last step {ts[-1]}", time=t)
             return self.y[-1]
-        k = int(np.searchsorted(ts, t)) - 1
+        if t < ts[0]:
+            raise SimulationError(f"delay history requested at t={t}, before its window {ts[0]} (internal error)",
+                                  time=t)
+        k = bisect.bisect_left(ts, t) - 1
         k = min(max(k, 0), len(ts) - 2)
         h = ts[k + 1] - ts[k]
         x = (t - ts[k]) / h
@@ -136,7 +156,8 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
                         v0: Mapping[str, float] | None = None, t0: float = 0.0,
                         references: Mapping[str, Any] | None = None,
                         controllers: Sequence[Controller] = (), coupling: str = "hold",
-                        progress: bool | None = None) -> SimulationResult:
+                        progress: bool | None = None, stability_check: str | None = None,
+                        divergence_bound: float | None = None) -> SimulationResult:
     """Simulate a chain closed by embedded loops and/or co-simulated controllers.
 
     Parameters
@@ -157,13 +178,33 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
     coupling : {"hold", "previous"}
         ``"hold"``: zero-order hold, algebraic loops are errors; ``"previous"``: accept the
         one-sample lag of an algebraic loop explicitly.
+    progress : bool, optional
+        Show a progress bar.
+    stability_check : {"warn", "error", "ignore"}, optional
+        Pre-run check of ``dt`` against the scheme's limit for the plant's highest undamped
+        natural frequency (see :func:`ctmm.timestep.simulate`; loops are not included).
+    divergence_bound : float, optional
+        Largest allowed distance [m] of a point from rest (default ``1e6 * max(1 m, initial
+        excursion)``); beyond it the run stops and the error names the loops.
 
     Returns
     -------
     SimulationResult
         With loop signals ``"<loop>.y"`` (sensed value) and ``"<loop>.u"`` (control force), and
-        each controller output under its signal name.
+        each controller output under ``"<output>@samples"`` (columns: sample time, value).
+
+    Raises
+    ------
+    ModelError
+        Bad input; a loop whose algebraic equation at ``t0`` is singular (an undelayed loop that
+        senses the acceleration or force it drives, with a gain that cancels the inertia).
+    SimulationError
+        Divergence, a non-finite state or failing user code (controller, reference or force
+        callback), naming the time and the loop, controller or element; ``partial_result``
+        holds every signal (loop and controller signals included) up to the last good step.
     """
+    if not isinstance(system, (ControlledChain, Chain)):
+        raise ModelError(f"system must be a ControlledChain or a Chain, got {system!r}")
     controlled = system if isinstance(system, ControlledChain) else ControlledChain(system, [])
     plant = controlled.plant
     scheme = as_scheme(scheme)
@@ -178,9 +219,13 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
     loops = controlled._resolved
     realtime = [r for r in loops if r.loop.delay < dt]
     delayed = [r for r in loops if r.loop.delay >= dt]
-    lti = {r.index: _TustinLTI(r.loop.gain, dt) for r in loops if r.loop.is_lti}
+    lti = {r.index: _TustinLTI(r.loop.gain, dt, r.loop.name) for r in loops if r.loop.is_lti}
     ctrl_state = {i: np.zeros(m.n) for i, m in lti.items()}
-    cosim = _CoSimulation(controlled, controllers, dt, coupling, t0)
+    try:
+        cosim = _CoSimulation(controlled, controllers, dt, coupling, t0)
+    except SimulationError as exc:  # a controller's init failed: nothing was computed
+        exc.partial_result = SimulationResult.empty(controlled, scheme.name)
+        raise
     hist: dict[int, _History] = {}
     u_prev: dict[int, float] = {}
     e_prev: dict[int, float] = {}
@@ -205,7 +250,7 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
             u0, a0, f0, pre = _consistent_start(plant, loops, lti, refs, history.x, history.v, t0, forces, d)
             for r in loops:
                 y, dy = _sense(r.sensing, history.x, history.v, a0, f0, d)
-                hist[r.index] = _History(t0, y, dy, pre[r.index])
+                hist[r.index] = _History(t0, y, dy, pre[r.index], delay=r.loop.delay, dt=dt)
                 ref = refs.get(r.loop.name)
                 e_prev[r.index] = y - (float(ref(t0)) if ref is not None else 0.0)
                 u_prev[r.index] = u0[r.index]
@@ -289,7 +334,13 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
         for j in range(1, len(idx)):
             reference[idx[j - 1] + 1: idx[j] + 1] = reference_pts[j]
         us, start, end = shift_forces(Us, us, start, end, reference, d)
-        sol = SOLVERS["riccati"](Us, us, start, end)
+        try:
+            sol = SOLVERS["riccati"](Us, us, start, end)
+        except np.linalg.LinAlgError as exc:
+            raise SimulationError(f"the step at t = {t_n + h:.6g} s is singular with the real-time loop(s) "
+                                  f"{[r.loop.name for r in realtime]} closed (an algebraic loop through an "
+                                  "acceleration or force sensor cancels the inertia); change their gains",
+                                  time=float(t_n + h), element=realtime[0].loop.name) from exc
         states = sol.states[idx, 0, :].copy()
         states[:, d:2 * d] += reference_pts[:, 0, :]
         for r in realtime:
@@ -317,21 +368,47 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
             store["u"][r.index].append(u_now)
         cosim.after_step(t, history, f)
 
+    hints = []
+    if loops:
+        hints.append(f"the closed loop(s) {[r.loop.name for r in loops]} may be unstable: check "
+                     "ctmm.stability.unstable_root_count(system) and ctmm.stability.delay_margin(system)")
+    if cosim.entries:
+        hints.append(f"or a co-simulated controller (outputs {[o for e in cosim.entries for o in e['controller'].outputs]})"
+                     " destabilises the plant")
     try:
         result = simulate_plant(plant, t_final, dt, scheme=scheme, x0=x0, v0=v0, t0=t0,
                                 force_hook=force_hook, progress=progress,
                                 _step=step if realtime else None, _after_step=after_step,
-                                fast=None if not realtime else False, _system_for_result=controlled)
+                                fast=None if not realtime else False, _system_for_result=controlled,
+                                stability_check=stability_check, divergence_bound=divergence_bound,
+                                _divergence_hint=" ".join(hints))
+    except SimulationError as exc:
+        partial = exc.partial_result
+        if partial is not None:
+            _attach_signals(partial, loops, hist, store, u_start, cosim, dt)
+        raise
     finally:
         cosim.close()
+    _attach_signals(result, loops, hist, store, u_start, cosim, dt)
+    return result
+
+
+def _attach_signals(result: SimulationResult, loops, hist, store, u_start, cosim: "_CoSimulation", dt: float) -> None:
+    """Add loop and controller signals to a (possibly partial) result, cut to its time rows."""
+    rows = len(result.time)
     for r in loops:
-        y0 = hist[r.index].y[0]
-        result.extra[f"{r.loop.name}.y"] = np.array([y0] + store["y"][r.index])
-        result.extra[f"{r.loop.name}.u"] = np.array([u_start[r.index]] + store["u"][r.index])
-    result.extra.update(cosim.outputs())
+        if r.index in hist:
+            y = np.array([hist[r.index].y0] + store["y"][r.index])[:rows]
+            u = np.array([u_start[r.index]] + store["u"][r.index])[:rows]
+        else:  # failed before the loop histories started
+            y, u = np.zeros(0), np.zeros(0)
+        result.extra[f"{r.loop.name}.y"] = y
+        result.extra[f"{r.loop.name}.u"] = u
+    last = result.time[-1] if rows else -math.inf
+    for name, samples in cosim.outputs().items():
+        result.extra[name] = samples[samples[:, 0] <= last] if samples.size else samples
     result.info["loops"] = {r.loop.name: ("real-time" if r.loop.delay < dt else "history") for r in loops}
     result.info["controllers"] = cosim.describe()
-    return result
 
 
 def _consistent_start(plant: Chain, loops, lti, refs, x, v, t0: float, forces: Mapping[int, float], d: int):
@@ -371,6 +448,16 @@ def _consistent_start(plant: Chain, loops, lti, refs, x, v, t0: float, forces: M
     # undelayed rows: u = -G (y0 + J u - r);  delayed rows: u = -G (y_pre - r)
     lhs = np.eye(n) + np.where(delayed[:, None], 0.0, gains[:, None] * J)
     rhs = -gains * (np.where(delayed, y_pre, y_zero) - refs0)
+    _, singular_values, vh = np.linalg.svd(lhs)
+    if not singular_values[-1] > 1e-12 * max(1.0, singular_values[0]):
+        involved = [loops[k] for k in np.flatnonzero(np.abs(vh[-1]) > 1e-6)]
+        details = "; ".join(f"loop {r.loop.name!r} senses {[name for name, _ in r.loop.terms]} with gain "
+                            f"{gains[r.index]:.6g} and d(sensed)/d(own force) = {J[r.index, r.index]:.6g}"
+                            for r in involved)
+        raise ModelError(f"singular algebraic loop: {details}. An undelayed loop that senses an acceleration "
+                         "or a force depends on its own force at the same instant, and with these gains "
+                         "(1 + gain * d(sensed)/d(force) = 0) the closed loop has no unique acceleration "
+                         "(the loop cancels the inertia). Change the gain or the sensor, or add a delay")
     u = np.linalg.solve(lhs, rhs)
     y, a, f = sensed(u)
     return {r.index: float(u[r.index]) for r in loops}, a, f, pre
@@ -406,8 +493,9 @@ class _CoSimulation:
                     f"algebraic loop: controller with outputs {list(c.outputs)} has direct feedthrough and "
                     f"reads {algebraic}, which depend on its own output at the same instant; pass "
                     "coupling='previous' to accept a one-sample lag, or measure displacement/velocity")
-            self.entries.append({"controller": c, "ratio": int(round(ratio)), "sensing": sensing,
-                                 "actuators": actuators, "state": c.init(t0),
+            label = f"controller {getattr(c, 'name', None) or type(c).__name__!r} (outputs {list(c.outputs)})"
+            self.entries.append({"controller": c, "ratio": int(round(ratio)), "sensing": sensing, "label": label,
+                                 "actuators": actuators, "state": call_user(label, c.init, t0, time=t0),
                                  "held": np.zeros(len(c.outputs)), "log_t": [], "log_u": []})
         self.step_index = 0
 
@@ -428,17 +516,13 @@ class _CoSimulation:
             if due:  # sample once per communication point (t0 is sampled by the initial call)
                 entry["last_step"] = self.step_index
                 y = self._measure(entry["sensing"], history, f)
-                try:
-                    result = entry["controller"].step(t_n, y, entry["state"])
-                except SimulationError:
-                    raise
-                except Exception as exc:  # noqa: BLE001 - report which controller failed, when
-                    raise SimulationError(f"controller {entry['controller']!r} failed at t={t_n}: {exc}",
-                                          time=t_n) from exc
-                u, entry["state"] = result[0], result[1]
-                u = np.asarray(u, dtype=float).reshape(-1)
-                if not np.all(np.isfinite(u)):
-                    raise SimulationError(f"controller returned non-finite outputs {u} at t={t_n}", time=t_n)
+                what = entry["label"]
+                result = call_user(what, entry["controller"].step, t_n, y, entry["state"], time=t_n)
+                if not isinstance(result, tuple) or len(result) != 2:
+                    raise SimulationError(f"{what} returned {result!r} at t = {t_n:.6g} s; expected "
+                                          "(outputs, state), e.g. a ControllerStep", time=float(t_n), element=what)
+                u = user_output(what, result[0], len(entry["controller"].outputs), time=t_n)
+                entry["state"] = result[1]
                 entry["held"] = u
                 entry["log_t"].append(t_n)
                 entry["log_u"].append(u.copy())
