@@ -267,8 +267,8 @@ def test_default_experiment_step_fixed_internal_step_and_instance_name(own_fmus,
         FMUController(no_step, inputs=TYPED_IN, outputs=TYPED_OUT)
     fixed = rewrite(path, tmp_path / "fixed.fmu", edit_xml('providesIntermediateUpdate="false"',
                                                            'providesIntermediateUpdate="false" fixedInternalStepSize="0.01"'))
-    with pytest.raises(ModelError, match=r"sample_time = 0\.015 s is not a whole multiple of the FMU's "
-                                         r"fixedInternalStepSize 0\.01 s"):
+    with pytest.warns(UserWarning, match=r"sample_time = 0\.015 s is not a whole multiple of the FMU's "
+                                         r"fixedInternalStepSize 0\.01 s.*may lag"):
         FMUController(fixed, inputs=TYPED_IN, outputs=TYPED_OUT, sample_time=0.015)
     assert FMUController(fixed, inputs=TYPED_IN, outputs=TYPED_OUT, sample_time=0.03).sample_time == 0.03
 
@@ -337,3 +337,23 @@ def test_build_fmu_refuses_a_file_that_is_not_an_fmu(tmp_path):
     junk.write_text("no zip")
     with pytest.raises(ModelError, match="is a file but not an FMU"):
         build_fmu(junk, tmp_path / "out")
+
+
+# ----------------------------------------------------------------------- in a closed-loop simulation
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/maps")
+def test_fmu_failure_in_a_closed_loop_keeps_the_partial_result_and_frees_the_fmu(own_fmus):
+    from ctmm.control import simulate_controlled
+    from test_controlled_time import X0, initial, seed_setup
+
+    plant = seed_setup([]).plant
+    fmu = FMUController(own_fmus["pd_controller"], inputs={"y": "m2.x", "ydot": "m2.v"}, outputs={"u": "m0.force"},
+                        parameters={"kp": 60.0, "kd": 5.0, "fail_at_time": 0.3}, sample_time=0.004)
+    with pytest.raises(SimulationError, match=r"FMU 'pd_controller' .*fmi2DoStep failed at t = 0\.3 \(status "
+                                              r"Error\).*reached fail_at_time") as info:
+        simulate_controlled(plant, 1.0, 0.002, x0=initial(X0), controllers=[fmu])
+    assert info.value.time == pytest.approx(0.3)
+    partial = info.value.partial_result
+    assert partial is not None and 0.29 < partial.time[-1] < 0.3 and np.all(np.isfinite(partial["m2.x"]))
+    gc.collect()
+    assert not mapped(fmu.unzip_dir.name)  # the co-simulation master closed the instance

@@ -25,6 +25,7 @@ import collections
 import ctypes
 import os
 import shutil
+import warnings
 import weakref
 from pathlib import Path
 from types import MappingProxyType
@@ -173,7 +174,8 @@ class FMUController:
     sample_time : float, optional
         Communication step size ``h`` [s], > 0; the outputs are held on ``[t, t + h)``.
         Default: the FMU's ``DefaultExperiment stepSize`` (an error if it declares none).  With an
-        FMI 3 ``fixedInternalStepSize`` it must be a whole multiple of that step.
+        FMI 3 ``fixedInternalStepSize`` it should be a whole multiple of that step (a
+        ``UserWarning`` says so otherwise: the outputs then lag the FMU's internal grid).
     direct_feedthrough : bool, optional
         Whether the outputs depend on the inputs at the same instant.  Default: derived from
         ``ModelStructure/Outputs`` (true if a mapped output depends on a mapped input, or if the
@@ -226,9 +228,9 @@ class FMUController:
                                     ("scheduled execution", getattr(description, "scheduledExecution", None)))
                      if v is not None]
             raise ModelError(f"{what} is not a co-simulation FMU (it provides {', '.join(kinds) or 'no interface'}); "
-                             "FMUController needs <CoSimulation> because it calls doStep at the sample time. "
-                             "Model exchange is not supported: export the model as a co-simulation FMU "
-                             "(with its own solver)")
+                             "FMUController needs <CoSimulation> because it calls doStep at the sample time; "
+                             "model exchange and scheduled execution are not supported: export the model as a "
+                             "co-simulation FMU (with its own solver)")
         identifier = cosimulation.modelIdentifier
         what = f"FMU {identifier!r} ({str(fmu_path)!r})"
 
@@ -324,8 +326,10 @@ class FMUController:
         if fixed:
             ratio = h / float(fixed)
             if abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio) or round(ratio) < 1:
-                raise ModelError(f"{what}: sample_time = {h!r} s is not a whole multiple of the FMU's "
-                                 f"fixedInternalStepSize {float(fixed)!r} s; allowed: k * {float(fixed)!r} s, k >= 1")
+                warnings.warn(f"{what}: sample_time = {h!r} s is not a whole multiple of the FMU's "
+                              f"fixedInternalStepSize {float(fixed)!r} s; its outputs change only on its own "
+                              f"grid, so they may lag by up to one internal step (use k * {float(fixed)!r} s, "
+                              "k >= 1, to avoid this)", UserWarning, stacklevel=3)
         return h
 
     def __setattr__(self, key: str, value: object) -> None:

@@ -68,6 +68,8 @@ def _libraries(root: Path, description: Any, major: int, what: str) -> list[_Lib
     if not interfaces:
         raise ModelError(f"{what} declares neither <CoSimulation> nor <ModelExchange>; build_fmu builds those")
     source_dir = root / "sources"
+    # source-code FMI 3 FMUs prefix their functions with "<modelIdentifier>_"; a binary needs none
+    version_flags = ["-DFMI3_OVERRIDE_FUNCTION_PREFIX"] if major == 3 else []
     configurations = {c.modelIdentifier: c for c in (description.buildConfigurations or [])}
     result = []
     for identifier, labels in interfaces.items():
@@ -79,7 +81,7 @@ def _libraries(root: Path, description: Any, major: int, what: str) -> list[_Lib
             if not sources:
                 raise ModelError(f"{what} has no C sources in sources/*.c and declares no source list "
                                  f"for model identifier {identifier!r}")
-            result.append(_Library(identifier, labels, sources, list(_COMPILE_FLAGS)))
+            result.append(_Library(identifier, labels, sources, [*_COMPILE_FLAGS, *version_flags]))
             continue
         sources, flags = [], [flag for flag in _COMPILE_FLAGS if not flag.startswith("-std=")]
         standard = "-std=gnu99"
@@ -101,7 +103,7 @@ def _libraries(root: Path, description: Any, major: int, what: str) -> list[_Lib
                 flags.append(f"-I{source_dir / include}")
         if not sources:
             raise ModelError(f"{what}: the build configuration of {identifier!r} lists no source files")
-        result.append(_Library(identifier, labels, sources, [standard, *flags]))
+        result.append(_Library(identifier, labels, sources, [standard, *flags, *version_flags]))
     return result
 
 

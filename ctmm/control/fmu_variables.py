@@ -104,9 +104,16 @@ def mapped_variable(name: Any, variables: Mapping[str, Any], causality: str, maj
 def _refuse_array(variable: Any, what: str) -> None:
     dimensions = getattr(variable, "dimensions", None) or []
     if dimensions:
-        shape = ", ".join(str(d.start) if d.start is not None else f"vr {d.valueReference}" for d in dimensions)
+        shape = ", ".join(_dimension_text(d) for d in dimensions)
         raise ModelError(f"{what}: FMU variable {variable.name!r} is an array (dimensions [{shape}]); "
                          "FMUController maps and sets scalar variables only")
+
+
+def _dimension_text(dimension: Any) -> str:
+    if dimension.start is not None:
+        return str(dimension.start)
+    size = getattr(dimension, "variable", None)
+    return f"size set by {size.name!r}" if size is not None else f"size set by value reference {dimension.valueReference}"
 
 
 def _settable(variable: Any) -> bool:
@@ -245,7 +252,7 @@ class ValueChannel:
                 self.view[:] = values != 0.0
                 return
         index = int(np.flatnonzero(bad)[0])
-        raise SimulationError(f"{what}: input {self.names[index]!r} = {values[index]!r} at t = {time!r} cannot be "
+        raise SimulationError(f"{what}: input {self.names[index]!r} = {float(values[index])!r} at t = {time!r} cannot be "
                               f"converted to the FMU type {kind.name}; allowed: {_range_text(kind)}", time=time)
 
 
