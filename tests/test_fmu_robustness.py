@@ -37,7 +37,7 @@ def own_fmus(tmp_path_factory) -> dict[str, Path]:
     assert shutil.which("gcc"), "gcc is required to build the test FMUs"
     folder = tmp_path_factory.mktemp("robust_fmus")
     return {name: build_fmu(controllers.fmu_source(name), folder / name, compiler="gcc")
-            for name in ("pd_controller", "pd_controller_fmi3", "typed_io_fmi3")}
+            for name in ("pd_controller", "pd_controller_fmi3", "typed_io_fmi3", "lag_filter_me")}
 
 
 def rewrite(source: Path, target: Path, edit) -> Path:
@@ -271,6 +271,63 @@ def test_default_experiment_step_fixed_internal_step_and_instance_name(own_fmus,
                                          r"fixedInternalStepSize 0\.01 s.*may lag"):
         FMUController(fixed, inputs=TYPED_IN, outputs=TYPED_OUT, sample_time=0.015)
     assert FMUController(fixed, inputs=TYPED_IN, outputs=TYPED_OUT, sample_time=0.03).sample_time == 0.03
+
+
+# ----------------------------------------------------------------------- model exchange
+
+LAG_IO = dict(inputs={"u": "m6.x"}, outputs={"y": "m2.force", "crossing_time": "c.t", "crossings": "c.n"})
+
+
+def lag_exact(t: np.ndarray, t_start: float, x_start: float, u: float, time_constant: float) -> np.ndarray:
+    """x(t) of der(x) = (u - x) / T from x(t_start) = x_start with u held."""
+    return u + (x_start - u) * np.exp(-(t - t_start) / time_constant)
+
+
+def test_model_exchange_fmu_is_integrated_with_exact_time_and_located_state_events(own_fmus):
+    time_constant, reset_time, h = 0.5, 0.73, 0.1  # the reset lies on neither the sample nor the RK4 grid
+    ctrl = FMUController(own_fmus["lag_filter_me"], **LAG_IO, parameters={"reset_time": reset_time}, sample_time=h)
+    assert ctrl.interface == "model exchange" and ctrl.solver_step == 0.01  # DefaultExperiment stepSize
+    assert ctrl.direct_feedthrough is False and not ctrl.can_snapshot
+    with ctrl.init(0.0) as state:
+        got = np.array([ctrl.step(k * h, np.array([1.0]), state).outputs for k in range(13)])
+        assert state.integrator.events == 3  # crossing, reset (time event), crossing
+    t = np.arange(13) * h
+    exact = np.where(t < reset_time, lag_exact(t, 0.0, 0.0, 1.0, time_constant),
+                     lag_exact(t, reset_time, 0.0, 1.0, time_constant))
+    np.testing.assert_allclose(got[:, 0], exact, rtol=0, atol=2e-9)  # RK4, 0.01 s: O(1e-10) per unit time
+    crossing = time_constant * math.log(2.0)  # x = 0.5 in the analytic solution
+    assert got[3, 1] == -1.0 and got[4, 1] == pytest.approx(crossing, abs=1e-9) and got[4, 2] == 1.0
+    assert got[-1, 1] == pytest.approx(reset_time + crossing, abs=1e-9) and got[-1, 2] == 2.0
+    # a held input that changes at a sample: the solution restarts from the sampled state
+    with ctrl.init(0.0) as state:
+        ctrl.step(0.0, np.array([2.0]), state)
+        u = ctrl.step(0.1, np.array([-1.0]), state).outputs[0]
+        v = ctrl.step(0.2, np.array([-1.0]), state).outputs[0]
+    x1 = lag_exact(np.array(0.1), 0.0, 0.0, 2.0, time_constant)
+    # RK4 local error (dt / T)**5 / 120 * |x - u| = 5e-11 per 0.01 s step for |x - u| <= 2
+    assert u == pytest.approx(x1, abs=1e-9)
+    assert v == pytest.approx(lag_exact(np.array(0.2), 0.1, x1, -1.0, time_constant), abs=2e-9)
+
+
+def test_model_exchange_options_are_checked(own_fmus):
+    path = own_fmus["lag_filter_me"]
+    coarse = FMUController(path, **LAG_IO, sample_time=0.1, solver_step=0.1)
+    with coarse.init(0.0) as state:
+        y = [coarse.step(k * 0.1, np.array([1.0]), state).outputs[0] for k in range(5)]
+    error = abs(y[-1] - lag_exact(np.array(0.4), 0.0, 0.0, 1.0, 0.5))
+    assert 1e-7 < error < 1e-4  # no error control: a coarse step gives an RK4-sized error
+    with pytest.raises(ModelError, match=r"solver_step must be > 0"):
+        FMUController(path, **LAG_IO, sample_time=0.1, solver_step=0.0)
+    with pytest.raises(ModelError, match=r"does not provide the co-simulation interface; it provides: model exchange"):
+        FMUController(path, **LAG_IO, sample_time=0.1, interface="co-simulation")
+    with pytest.raises(ModelError, match=r"interface must be one of \('co-simulation', 'model exchange'\)"):
+        FMUController(path, **LAG_IO, sample_time=0.1, interface="scheduled")
+    with pytest.raises(ModelError, match=r"solver_step applies to model-exchange FMUs only"):
+        FMUController(own_fmus["pd_controller"], **PD_IO, sample_time=0.1, solver_step=0.01)
+    bad = FMUController(path, **LAG_IO, sample_time=0.1, parameters={"time_constant": -1.0})
+    with pytest.raises(ModelError, match=r"fmi2EnterInitializationMode failed \(status Error\); FMU log: "
+                                         r"time_constant must be > 0"):
+        bad.init(0.0)
 
 
 # ----------------------------------------------------------------------- build_fmu inputs

@@ -38,111 +38,15 @@ from ..errors import ModelError, SimulationError
 from .fmu_build import build_fmu
 from .fmu_description import fmi_headers_dir, fmi_major_version, read_description, require_fmpy
 from .fmu_loading import check_library, construct_instance, extract_fmu
+from .fmu_model_exchange import ModelExchangeIntegrator
+from .fmu_state import FMUControllerState, FMUSnapshot
 from .fmu_variables import ValueChannel, mapped_variable, settable_values, variable_type
 from .protocol import ControllerStep
 
 __all__ = ["build_fmu", "fmi_headers_dir", "FMUController", "FMUControllerState", "FMUSnapshot"]
 
 _STATUS = ("OK", "Warning", "Discard", "Error", "Fatal", "Pending")
-
-
-class FMUSnapshot:
-    """A saved FMU state (``fmi2GetFMUstate`` / ``fmi3GetFMUState``) and the controller time.
-
-    Created by :meth:`FMUController.snapshot`; valid until released with
-    :meth:`FMUController.release` or until the owning state is closed.
-    """
-
-    __slots__ = ("handle", "time", "steps", "owner", "__weakref__")
-
-    def __init__(self, handle: ctypes.c_void_p, time: float, steps: int, owner: "FMUControllerState"):
-        self.handle = handle
-        self.time = time
-        self.steps = steps
-        self.owner = weakref.ref(owner)
-
-    def __repr__(self) -> str:
-        return f"FMUSnapshot(time={self.time!r}, released={not self.handle})"
-
-
-class FMUControllerState:
-    """Running FMU instance of an :class:`FMUController` (mutable; one per simulation).
-
-    Use as a context manager, or call :meth:`close`, to terminate and free the instance and
-    unload its library; this also happens when the state is garbage-collected.
-
-    Attributes
-    ----------
-    time : float
-        Communication point [s] of the next :meth:`FMUController.step` call.
-    steps : int
-        Number of completed ``doStep`` calls since :meth:`FMUController.init`.
-    log : collections.deque of str
-        The FMU's most recent log messages (the last 50).
-    closed : bool
-        Whether the instance has been freed.
-    failed_at : float or None
-        Communication point [s] of a failed FMI call; further steps are refused.
-    """
-
-    def __init__(self, controller: "FMUController", slave: Any, callbacks: Any, log: collections.deque,
-                 t0: float) -> None:
-        self.controller = controller
-        self.slave = slave
-        self.start_time = t0
-        self.time = t0
-        self.steps = 0
-        self.log = log
-        self.closed = False
-        self.failed_at: float | None = None
-        self.lifecycle = {"initialized": False}  # shared with the finalizer: terminate only if initialized
-        self.snapshots: set[FMUSnapshot] = set()  # freed by release() or close()
-        self.input_channels = controller.make_channels("inputs")
-        self.output_channels = controller.make_channels("outputs")
-        major = controller.fmi_version
-        self.setters = [getattr(slave, f"fmi{major}Set{c.kind.function}") for c in self.input_channels]
-        self.getters = [getattr(slave, f"fmi{major}Get{c.kind.function}") for c in self.output_channels]
-        self.outputs = np.zeros(len(controller.outputs))
-        flags = [ctypes.c_bool() for _ in range(3)] + [ctypes.c_double()]  # FMI 3 doStep results
-        self.step_flags = flags
-        self.step_flag_pointers = [ctypes.pointer(flag) for flag in flags]
-        # the callbacks stay referenced by the finalizer until the instance is freed
-        self.finalizer = weakref.finalize(self, _free_instance, slave, self.lifecycle, callbacks)
-
-    def close(self) -> None:
-        """Terminate and free the FMU instance (idempotent)."""
-        self.controller.close(self)
-
-    def __enter__(self) -> "FMUControllerState":
-        return self
-
-    def __exit__(self, *exc_info: object) -> None:
-        self.close()
-
-    def __repr__(self) -> str:
-        status = "closed" if self.closed else f"t={self.time!r}, steps={self.steps}"
-        return f"FMUControllerState({self.controller.model_identifier!r}, {status})"
-
-
-def _free_instance(slave: Any, lifecycle: dict, callbacks: Any) -> None:
-    """Terminate (if initialized), free the instance and unload the library; never raises."""
-    if slave.component:
-        if lifecycle.get("initialized"):
-            try:
-                slave.terminate()
-            except Exception:  # noqa: BLE001 - a failed FMU may refuse terminate; free it anyway
-                pass
-        try:
-            slave.freeInstance()
-        except Exception:  # noqa: BLE001
-            pass
-        slave.component = None
-    try:
-        slave.freeLibrary()
-    except Exception:  # noqa: BLE001
-        pass
-    lifecycle["initialized"] = False
-    del callbacks
+_INTERFACES = ("co-simulation", "model exchange")
 
 
 def _status_text(exc: BaseException) -> str:
@@ -182,11 +86,20 @@ class FMUController:
         FMU declares no dependencies).
     instance_name : str, optional
         Name passed to ``fmiXInstantiate`` (shown in the FMU's log).  Default: the model identifier.
+    interface : {"co-simulation", "model exchange"}, optional
+        Which interface of the FMU to run.  Default: co-simulation if the FMU provides it, else
+        model exchange.  A model-exchange FMU is integrated by ctmm between communication points
+        with fixed-step RK4, exact time events and bisection-located state events
+        (:mod:`ctmm.control.fmu_model_exchange`; no error control).
+    solver_step : float, optional
+        Model exchange only: largest RK4 step [s] (> 0).  Default: the smaller of ``sample_time``
+        and the ``DefaultExperiment stepSize``.
 
     Attributes
     ----------
     can_snapshot : bool
-        The FMU declares ``canGetAndSetFMUstate``.
+        Co-simulation FMU that declares ``canGetAndSetFMUstate`` (snapshots are not offered for
+        model exchange: the integrator's event bookkeeping is not part of the FMU state).
     variable_step : bool
         The FMU declares ``canHandleVariableCommunicationStepSize`` (ctmm always uses the constant
         step ``sample_time``, so this is information only).
@@ -212,7 +125,8 @@ class FMUController:
 
     def __init__(self, path: str | os.PathLike, *, inputs: Mapping[str, str], outputs: Mapping[str, str],
                  parameters: Mapping[str, Any] | None = None, sample_time: float | None = None,
-                 direct_feedthrough: bool | None = None, instance_name: str | None = None) -> None:
+                 direct_feedthrough: bool | None = None, instance_name: str | None = None,
+                 interface: str | None = None, solver_step: float | None = None) -> None:
         require_fmpy()
         if not isinstance(path, (str, os.PathLike)):
             raise ModelError(f"path must be the path of an .fmu file or extracted FMU folder, got {path!r}")
@@ -222,16 +136,8 @@ class FMUController:
         what = f"FMU {str(fmu_path)!r}"
         description = read_description(fmu_path, what)
         major = fmi_major_version(description.fmiVersion, what)
-        cosimulation = description.coSimulation
-        if cosimulation is None:
-            kinds = [k for k, v in (("model exchange", description.modelExchange),
-                                    ("scheduled execution", getattr(description, "scheduledExecution", None)))
-                     if v is not None]
-            raise ModelError(f"{what} is not a co-simulation FMU (it provides {', '.join(kinds) or 'no interface'}); "
-                             "FMUController needs <CoSimulation> because it calls doStep at the sample time; "
-                             "model exchange and scheduled execution are not supported: export the model as a "
-                             "co-simulation FMU (with its own solver)")
-        identifier = cosimulation.modelIdentifier
+        interface, kind = self._interface(interface, description, what)
+        identifier = kind.modelIdentifier
         what = f"FMU {identifier!r} ({str(fmu_path)!r})"
 
         variables = {v.name: v for v in description.modelVariables}
@@ -245,7 +151,8 @@ class FMUController:
             raise ModelError(f"{what}: outputs writes the ctmm signal(s) {', '.join(duplicated)} from more than "
                              "one FMU variable; allowed: each signal written once")
         settings = settable_values(parameters, variables, major, what, tuple(mapped_in))
-        h = self._sample_time(sample_time, description, what)
+        h = self._sample_time(sample_time, description, interface, what)
+        step = self._solver_step(solver_step, h, description, interface, what)
 
         if direct_feedthrough is None:
             feedthrough = _derive_feedthrough(description, [variables[n] for n in mapped_out],
@@ -262,11 +169,11 @@ class FMUController:
         # last: touch the file system (every earlier error leaves nothing behind)
         if fmu_path.is_dir():
             unzip_dir = fmu_path.resolve()
-            check_library(unzip_dir, identifier, major, what)
+            check_library(unzip_dir, identifier, major, what, interface)
         else:
             unzip_dir = extract_fmu(fmu_path, what)
             try:
-                check_library(unzip_dir, identifier, major, what)
+                check_library(unzip_dir, identifier, major, what, interface)
             except BaseException:
                 shutil.rmtree(unzip_dir, ignore_errors=True)
                 raise
@@ -285,8 +192,10 @@ class FMUController:
             parameters=MappingProxyType({name: value for name, (_, value) in settings.items()}),
             sample_time=h,
             direct_feedthrough=feedthrough,
-            can_snapshot=bool(cosimulation.canGetAndSetFMUstate),
-            variable_step=bool(cosimulation.canHandleVariableCommunicationStepSize),
+            interface=interface,
+            solver_step=step,
+            can_snapshot=interface == "co-simulation" and bool(kind.canGetAndSetFMUstate),
+            variable_step=bool(getattr(kind, "canHandleVariableCommunicationStepSize", True)),
             description_text=what,
             unzip_dir=unzip_dir,
             settings=tuple(settings.values()),
@@ -313,7 +222,38 @@ class FMUController:
         return result
 
     @staticmethod
-    def _sample_time(sample_time: float | None, description: Any, what: str) -> float:
+    def _interface(interface: str | None, description: Any, what: str) -> tuple[str, Any]:
+        available = {"co-simulation": description.coSimulation, "model exchange": description.modelExchange}
+        provided = [name for name, kind in available.items() if kind is not None]
+        if interface is None:
+            if not provided:
+                other = " (it provides scheduled execution only)" if getattr(description, "scheduledExecution", None) \
+                    else ""
+                raise ModelError(f"{what} provides neither co-simulation nor model exchange{other}; FMUController "
+                                 "supports those two (scheduled execution is not supported)")
+            interface = provided[0]
+        if interface not in _INTERFACES:
+            raise ModelError(f"{what}: interface must be one of {_INTERFACES} or None, got {interface!r}")
+        if available[interface] is None:
+            raise ModelError(f"{what} does not provide the {interface} interface; it provides: "
+                             f"{', '.join(provided) or '(none)'}")
+        return interface, available[interface]
+
+    @staticmethod
+    def _solver_step(solver_step: float | None, h: float, description: Any, interface: str, what: str) -> float | None:
+        if interface == "co-simulation":
+            if solver_step is not None:
+                raise ModelError(f"{what}: solver_step applies to model-exchange FMUs only (this FMU runs as "
+                                 f"co-simulation with its own solver), got {solver_step!r}")
+            return None
+        if solver_step is None:
+            experiment = description.defaultExperiment
+            default = getattr(experiment, "stepSize", None) if experiment is not None else None
+            return min(h, float(default)) if default else h
+        return validation.positive("solver_step", solver_step)
+
+    @staticmethod
+    def _sample_time(sample_time: float | None, description: Any, interface: str, what: str) -> float:
         if sample_time is None:
             experiment = description.defaultExperiment
             step = getattr(experiment, "stepSize", None) if experiment is not None else None
@@ -323,7 +263,7 @@ class FMUController:
             sample_time = float(step)
         h = validation.positive("sample_time", sample_time)
         fixed = getattr(description.coSimulation, "fixedInternalStepSize", None)
-        if fixed:
+        if fixed and interface == "co-simulation":
             ratio = h / float(fixed)
             if abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio) or round(ratio) < 1:
                 warnings.warn(f"{what}: sample_time = {h!r} s is not a whole multiple of the FMU's "
@@ -365,10 +305,7 @@ class FMUController:
         t0 = validation.finite("t0", t0)
         what = self.description_text
         log: collections.deque = collections.deque(maxlen=50)
-        if self.fmi_version == 2:
-            from fmpy.fmi2 import FMU2Slave as slave_class
-        else:
-            from fmpy.fmi3 import FMU3Slave as slave_class
+        slave_class = _instance_class(self.fmi_version, self.interface)
         token = self.model_description.guid  # FMI 3: fmpy stores the instantiationToken here
         slave = construct_instance(slave_class, what, guid=token, unzipDirectory=str(self.unzip_dir),
                                    modelIdentifier=self.model_identifier, instanceName=self.instance_name)
@@ -384,8 +321,10 @@ class FMUController:
         except Exception as exc:  # noqa: BLE001
             slave.component = None
             slave.freeLibrary()
+            kind = self.model_description.coSimulation if self.interface == "co-simulation" \
+                else self.model_description.modelExchange
             once = (" (the FMU declares canBeInstantiatedOnlyOncePerProcess: close the other state first)"
-                    if self.model_description.coSimulation.canBeInstantiatedOnlyOncePerProcess else "")
+                    if kind.canBeInstantiatedOnlyOncePerProcess else "")
             raise ModelError(f"{what}: fmi{self.fmi_version}Instantiate failed ({exc}){once}; "
                              f"FMU log: {' | '.join(log) or '(empty)'}") from exc
         state = FMUControllerState(self, slave, callbacks, log, t0)
@@ -407,6 +346,13 @@ class FMUController:
                 state.lifecycle["initialized"] = True
                 stage = "fmi3ExitInitializationMode"
                 slave.exitInitializationMode()
+            if self.interface == "model exchange":
+                stage = "the event iteration after initialization"
+                description = self.model_description
+                state.integrator = ModelExchangeIntegrator(slave, self.fmi_version,
+                                                           description.numberOfContinuousStates,
+                                                           description.numberOfEventIndicators, self.solver_step)
+                state.integrator.start()
         except Exception as exc:  # noqa: BLE001
             state.close()
             detail = str(exc.args[0]) if isinstance(exc, _SettingError) else f"{stage} failed ({_status_text(exc)})"
@@ -472,7 +418,10 @@ class FMUController:
                 function = f"fmi{self.fmi_version}Get{channel.kind.function}"
                 _exchange(getter, component, channel, fmi3)
                 state.outputs[channel.positions] = channel.view
-            if fmi3:
+            if state.integrator is not None:
+                function = "model-exchange integration (RK4)"
+                state.integrator.advance(t_fmu, h)
+            elif fmi3:
                 function = "fmi3DoStep"
                 slave.fmi3DoStep(component, t_fmu, h, not self.can_snapshot, *state.step_flag_pointers)
                 if state.step_flags[1].value:
@@ -485,7 +434,11 @@ class FMUController:
                 slave.fmi2DoStep(component, t_fmu, h, 0 if self.can_snapshot else 1)
         except Exception as exc:  # noqa: BLE001 - fmpy raises FMICallException
             state.failed_at = t_fmu
-            raise SimulationError(f"{what}: {function} failed at t = {t_fmu!r} ({_status_text(exc)}); "
+            detail = _status_text(exc)
+            called = getattr(exc, "function", None)
+            if called and called != function:
+                detail = f"{called} returned {detail}"
+            raise SimulationError(f"{what}: {function} failed at t = {t_fmu!r} ({detail}); "
                                   f"FMU log: {' | '.join(state.log) or '(empty)'}", time=t_fmu) from exc
         state.steps += 1
         state.time = state.start_time + state.steps * h
@@ -573,6 +526,15 @@ class _SettingError(Exception):
 
 class _StepRefused(Exception):
     """fmi3DoStep returned OK but asked to stop or returned early."""
+
+
+def _instance_class(major: int, interface: str) -> type:
+    """The fmpy class for this FMI version and interface."""
+    if major == 2:
+        from fmpy.fmi2 import FMU2Model, FMU2Slave
+        return FMU2Slave if interface == "co-simulation" else FMU2Model
+    from fmpy.fmi3 import FMU3Model, FMU3Slave
+    return FMU3Slave if interface == "co-simulation" else FMU3Model
 
 
 def _exchange(function: Any, component: Any, channel: ValueChannel, fmi3: bool) -> None:

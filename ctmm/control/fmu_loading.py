@@ -153,7 +153,8 @@ def missing_functions(library: Path, names: list[str], what: str, label: str | N
         require_fmpy().freeLibrary(handle._handle)
 
 
-def check_library(unzip_dir: Path, model_identifier: str, major: int, what: str) -> Path:
+def check_library(unzip_dir: Path, model_identifier: str, major: int, what: str,
+                  interface: str = "co-simulation") -> Path:
     """Check that the FMU's binary for this platform exists, loads and exports the FMI functions.
 
     Returns
@@ -179,10 +180,10 @@ def check_library(unzip_dir: Path, model_identifier: str, major: int, what: str)
                          f"{library.relative_to(unzip_dir).as_posix()}; platforms present: "
                          f"{', '.join(present) or '(none)'}.{hint}")
     label = library.relative_to(unzip_dir).as_posix()
-    missing = missing_functions(library, required_functions(major), what, label)
+    missing = missing_functions(library, required_functions(major, interface), what, label)
     if missing:
         raise ModelError(f"{what}: the shared library {label} does not export the FMI {major} "
-                         f"co-simulation functions {', '.join(missing)}")
+                         f"{interface} functions {', '.join(missing)}")
     return library
 
 
