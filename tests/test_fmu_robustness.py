@@ -106,7 +106,7 @@ DAMAGE = {
                       r"build_fmu",
     "no_model_description": r"has no modelDescription\.xml",
     "broken_xml": r"cannot read modelDescription\.xml",
-    "schema_violation": r"cannot read the model description of FMU .*sideways",
+    "schema_violation": r"cannot read the model description of FMU .*sideways.*validate=False accepts",
     "unsafe_member": r"unsafe member name '\.\./escape\.txt'",
 }
 
@@ -414,3 +414,15 @@ def test_fmu_failure_in_a_closed_loop_keeps_the_partial_result_and_frees_the_fmu
     assert partial is not None and 0.29 < partial.time[-1] < 0.3 and np.all(np.isfinite(partial["m2.x"]))
     gc.collect()
     assert not mapped(fmu.unzip_dir.name)  # the co-simulation master closed the instance
+
+
+def test_schema_violation_is_refused_unless_validation_is_switched_off(own_fmus, tmp_path):
+    odd = rewrite(own_fmus["pd_controller"], tmp_path / "odd.fmu",
+                  edit_xml("generationTool=", 'vendorFlag="x" generationTool='))
+    with pytest.raises(ModelError, match=r"attribute 'vendorFlag' is not allowed.*validate=False accepts"):
+        FMUController(odd, **PD_IO, sample_time=0.01)
+    ctrl = FMUController(odd, **PD_IO, parameters={"kp": 2.0}, sample_time=0.01, validate=False)
+    with ctrl.init(0.0) as state:
+        assert ctrl.step(0.0, np.array([0.25, 0.0]), state).outputs[0] == -0.5
+    with pytest.raises(ModelError, match="validate must be True or False"):
+        FMUController(odd, **PD_IO, sample_time=0.01, validate="no")

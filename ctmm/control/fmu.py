@@ -94,6 +94,9 @@ class FMUController:
     solver_step : float, optional
         Model exchange only: largest RK4 step [s] (> 0).  Default: the smaller of ``sample_time``
         and the ``DefaultExperiment stepSize``.
+    validate : bool, optional
+        Check ``modelDescription.xml`` against the FMI schema (default True).  ``False`` accepts a
+        description with schema violations that fmpy can still read, at the user's risk.
 
     Attributes
     ----------
@@ -126,7 +129,7 @@ class FMUController:
     def __init__(self, path: str | os.PathLike, *, inputs: Mapping[str, str], outputs: Mapping[str, str],
                  parameters: Mapping[str, Any] | None = None, sample_time: float | None = None,
                  direct_feedthrough: bool | None = None, instance_name: str | None = None,
-                 interface: str | None = None, solver_step: float | None = None) -> None:
+                 interface: str | None = None, solver_step: float | None = None, validate: bool = True) -> None:
         require_fmpy()
         if not isinstance(path, (str, os.PathLike)):
             raise ModelError(f"path must be the path of an .fmu file or extracted FMU folder, got {path!r}")
@@ -134,7 +137,9 @@ class FMUController:
         if not fmu_path.exists():
             raise ModelError(f"FMU file not found: {str(fmu_path)!r}")
         what = f"FMU {str(fmu_path)!r}"
-        description = read_description(fmu_path, what)
+        if not isinstance(validate, (bool, np.bool_)):
+            raise ModelError(f"{what}: validate must be True or False, got {validate!r}")
+        description = read_description(fmu_path, what, bool(validate))
         major = fmi_major_version(description.fmiVersion, what)
         interface, kind = self._interface(interface, description, what)
         identifier = kind.modelIdentifier

@@ -75,7 +75,7 @@ def fmi_major_version(version: str, what: str) -> int:
     return int(major)
 
 
-def read_description(path: Path, what: str) -> Any:
+def read_description(path: Path, what: str, validate: bool = True) -> Any:
     """Read and schema-validate the model description of an FMU file, extracted folder or XML file.
 
     Parameters
@@ -84,6 +84,9 @@ def read_description(path: Path, what: str) -> Any:
         ``.fmu`` archive, folder of an extracted FMU, or ``modelDescription.xml``.
     what : str
         How the FMU is named in error messages, e.g. ``"FMU '/path/model.fmu'"``.
+    validate : bool, optional
+        Check the XML against the FMI schema (default).  ``False`` accepts descriptions with
+        schema violations that fmpy can still read (at the user's risk).
 
     Returns
     -------
@@ -97,8 +100,10 @@ def read_description(path: Path, what: str) -> Any:
     fmpy = require_fmpy()
     fmi_major_version(peek_fmi_version(path), what)
     try:
-        return fmpy.read_model_description(str(path), validate=True)
+        return fmpy.read_model_description(str(path), validate=validate)
     except Exception as exc:  # fmpy raises ValidationError, lxml errors, zip errors ...
         problems = getattr(exc, "problems", None)
         detail = "; ".join(problems) if problems else str(exc)
-        raise ModelError(f"cannot read the model description of {what}: {detail}") from exc
+        hint = " (validate=False accepts schema violations that can still be read, at your own risk)" \
+            if validate else ""
+        raise ModelError(f"cannot read the model description of {what}: {detail}{hint}") from exc
