@@ -152,6 +152,24 @@ def test_close_unloads_the_library_and_failed_instantiation_too(own_fmus, tmp_pa
     assert not mapped("ctmm-fmu-")
 
 
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/maps")
+@pytest.mark.parametrize("name", ["pd_controller", "pd_controller_fmi3", "lag_filter_me"])
+def test_closing_one_instance_keeps_the_others_of_the_same_fmu_alive(own_fmus, name):
+    io = LAG_IO if name == "lag_filter_me" else PD_IO
+    controller = FMUController(own_fmus[name], **io, sample_time=0.1)
+    first, second, third = controller.init(0.0), controller.init(0.0), controller.init(0.0)
+    y = np.array([0.5] * len(io["inputs"]))
+    controller.step(0.0, y, first)
+    first.close()
+    second.close()
+    assert mapped(controller.unzip_dir.name)  # one dlopen reference per live instance
+    expected = controller.step(0.0, y, third).outputs
+    with controller.init(0.0) as fourth:
+        np.testing.assert_array_equal(controller.step(0.0, y, fourth).outputs, expected)
+    third.close()
+    assert not mapped(controller.unzip_dir.name)
+
+
 # ----------------------------------------------------------------------- typed FMI 3 interface
 
 def reference_typed(y: np.ndarray, k: int, gain: float, offset: int, invert: bool) -> list[float]:

@@ -1,7 +1,7 @@
-"""FMU controllers: run an FMI 2.0 / 3.0 co-simulation FMU as a sampled ctmm controller.
+"""FMU controllers: run an FMI 2.0 / 3.0 FMU as a sampled ctmm controller.
 
-:class:`FMUController` adapts a co-simulation FMU -- one built from the project's C sources with
-:func:`~ctmm.control.fmu_build.build_fmu` or a third-party FMU -- to the
+:class:`FMUController` adapts a co-simulation or model-exchange FMU -- one built from the
+project's C sources with :func:`~ctmm.control.fmu_build.build_fmu` or a third-party FMU -- to the
 :class:`ctmm.control.protocol.Controller` protocol.  The controller object is an immutable
 description; the FMU instance lives in the :class:`FMUControllerState` returned by
 :meth:`FMUController.init`.
@@ -11,13 +11,14 @@ Semantics of ``u, state = controller.step(t, y, state)`` (sample time ``h``):
 1. the inputs are set to ``y`` (measurements at ``t``, converted to the variables' FMI types, see
    :mod:`ctmm.control.fmu_variables`),
 2. the outputs are read; with direct feedthrough they already depend on ``y(t)``,
-3. ``doStep(t, h)`` advances the FMU to ``t + h`` with the inputs held (zero-order hold),
+3. ``doStep(t, h)`` advances the FMU to ``t + h`` with the inputs held (zero-order hold); a
+   model-exchange FMU is integrated instead (:mod:`ctmm.control.fmu_model_exchange`),
 4. ``u`` is returned; the caller holds it on ``[t, t + h)``.
 
 Loading cannot corrupt the process: the archive is extracted into a temporary folder that is
 removed on every failure, the binary is test-loaded without changing the working directory, and
-the working directory is restored around fmpy's loader.  FMI 1.0, model-exchange-only FMUs and
-array variables are refused with a :class:`~ctmm.errors.ModelError`.
+the working directory is restored around fmpy's loader.  FMI 1.0, scheduled execution and array
+variables are refused with a :class:`~ctmm.errors.ModelError`.
 """
 from __future__ import annotations
 
@@ -57,7 +58,7 @@ def _status_text(exc: BaseException) -> str:
 
 
 class FMUController:
-    """An FMI 2.0 / 3.0 co-simulation FMU used as a sampled ctmm controller.
+    """An FMI 2.0 / 3.0 FMU (co-simulation or model exchange) used as a sampled ctmm controller.
 
     Parameters
     ----------
@@ -111,7 +112,8 @@ class FMUController:
     ------
     ModelError
         Missing or corrupt file (not a ZIP, truncated, no or invalid ``modelDescription.xml``),
-        FMI version not 2.0/3.0, not a co-simulation FMU, no binary for this platform or one that
+        FMI version not 2.0/3.0, neither co-simulation nor model exchange (or not the requested
+        ``interface``), no binary for this platform or one that
         cannot be loaded, an unknown variable name (the message lists the available ones), a
         variable of the wrong causality or type, an array variable, a bad parameter value, or a
         bad sample time.  The working directory, loaded libraries and temporary folders are left

@@ -96,7 +96,13 @@ class FMUControllerState:
 
 
 def free_instance(slave: Any, lifecycle: dict, callbacks: Any) -> None:
-    """Terminate (if initialized), free the instance and unload the library; never raises."""
+    """Terminate (if initialized), free the instance and unload the library once; never raises.
+
+    fmpy's ``freeInstance`` unloads the library itself; it is unloaded here only when the
+    instance was never created or freeing it failed (each instance holds one ``dlopen``
+    reference, so other instances of the same FMU stay loaded).
+    """
+    library_released = False
     if slave.component:
         if lifecycle.get("initialized"):
             try:
@@ -104,13 +110,15 @@ def free_instance(slave: Any, lifecycle: dict, callbacks: Any) -> None:
             except Exception:  # noqa: BLE001 - a failed FMU may refuse terminate; free it anyway
                 pass
         try:
-            slave.freeInstance()
+            slave.freeInstance()  # fmiXFreeInstance, then fmpy's freeLibrary
+            library_released = True
         except Exception:  # noqa: BLE001
             pass
         slave.component = None
-    try:
-        slave.freeLibrary()
-    except Exception:  # noqa: BLE001
-        pass
+    if not library_released:
+        try:
+            slave.freeLibrary()
+        except Exception:  # noqa: BLE001
+            pass
     lifecycle["initialized"] = False
     del callbacks
