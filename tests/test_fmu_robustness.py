@@ -444,3 +444,14 @@ def test_schema_violation_is_refused_unless_validation_is_switched_off(own_fmus,
         assert ctrl.step(0.0, np.array([0.25, 0.0]), state).outputs[0] == -0.5
     with pytest.raises(ModelError, match="validate must be True or False"):
         FMUController(odd, **PD_IO, sample_time=0.01, validate="no")
+
+
+def test_step_and_build_argument_errors(own_fmus, tmp_path):
+    ctrl = FMUController(own_fmus["pd_controller"], **PD_IO, sample_time=0.1)
+    with ctrl.init(0.0) as state:
+        with pytest.raises(SimulationError, match=r"y must be 2 real numbers ordered like \('m6\.x', 'm6\.v'\), got 'ab'"):
+            ctrl.step(0.0, "ab", state)
+        with pytest.raises(ModelError, match="state must be the FMUControllerState returned by this controller's init"):
+            ctrl.step(0.0, np.zeros(2), object())
+    with pytest.raises(ModelError, match="compiler must be a C compiler command"):
+        build_fmu(controllers.fmu_source("pd_controller"), tmp_path, compiler=None)

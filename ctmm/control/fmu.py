@@ -397,8 +397,11 @@ class FMUController:
             call, the time and the status, ``error.time`` is the communication point.
         """
         h = self.sample_time
-        t_fmu = state.time
         what = self.description_text
+        if not isinstance(state, FMUControllerState) or state.controller is not self:
+            raise ModelError(f"{what}: state must be the FMUControllerState returned by this controller's init(), "
+                             f"got {type(state).__name__}")
+        t_fmu = state.time
         if state.closed:
             raise SimulationError(f"{what}: step on a closed state", time=t)
         if state.failed_at is not None:
@@ -407,7 +410,11 @@ class FMUController:
         if abs(t - t_fmu) > 1e-6 * h:
             raise SimulationError(f"{what}: step called at t = {t!r}, but the next communication point is "
                                   f"{t_fmu!r} (sample_time {h!r})", time=t)
-        values = np.asarray(y, dtype=float)
+        try:
+            values = np.asarray(y, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise SimulationError(f"{what}: y must be {len(self.inputs)} real numbers ordered like {self.inputs}, "
+                                  f"got {y!r}", time=t) from exc
         if values.shape != (len(self.inputs),):
             raise SimulationError(f"{what}: y must have shape ({len(self.inputs)},) ordered like {self.inputs}, "
                                   f"got shape {values.shape}", time=t)

@@ -180,6 +180,8 @@ def _build(root: Path, source: Path, output_dir: str | os.PathLike | None, compi
     libraries = _libraries(root, description, major, what)
     if not sys.platform.startswith(("linux", "darwin")):
         raise ModelError(f"build_fmu supports Linux and macOS C compilers, not platform {sys.platform!r}")
+    if not isinstance(compiler, (str, os.PathLike)) or not str(compiler).strip():
+        raise ModelError(f"compiler must be a C compiler command or path such as 'cc' or 'gcc', got {compiler!r}")
     compiler_path = shutil.which(compiler)
     if compiler_path is None:
         raise ModelError(f"compiler {compiler!r} not found on PATH; pass compiler='gcc' or a full path")
