@@ -327,6 +327,23 @@ def test_model_exchange_fmu_is_integrated_with_exact_time_and_located_state_even
     assert v == pytest.approx(lag_exact(np.array(0.2), 0.1, x1, -1.0, time_constant), abs=2e-9)
 
 
+def test_model_exchange_discrete_input_is_set_in_event_mode(own_fmus):
+    """'frozen' (Boolean, discrete) holds x; the FMU refuses it outside event mode."""
+    ctrl = FMUController(own_fmus["lag_filter_me"], inputs={"u": "m6.x", "frozen": "c.hold"},
+                         outputs={"y": "m2.force"}, sample_time=0.1)
+    frozen = [0, 0, 1, 1, 1, 0, 0]
+    with ctrl.init(0.0) as state:
+        got = [ctrl.step(k * 0.1, np.array([1.0, frozen[k]]), state).outputs[0] for k in range(len(frozen))]
+        # one event per sample for the discrete input, plus the threshold crossing between 0.6 and 0.7 s
+        assert state.integrator.events == len(frozen) + 1
+    x, expected = 0.0, []
+    for k, hold in enumerate(frozen):  # exact ZOH solution, x held on the frozen samples
+        expected.append(x)
+        x = x if hold else float(lag_exact(np.array(0.1), 0.0, x, 1.0, 0.5))
+    np.testing.assert_allclose(got, expected, rtol=0, atol=2e-9)
+    assert got[3] == got[4] == got[5] and got[5] != got[6]  # held exactly while frozen
+
+
 def test_model_exchange_options_are_checked(own_fmus):
     path = own_fmus["lag_filter_me"]
     coarse = FMUController(path, **LAG_IO, sample_time=0.1, solver_step=0.1)

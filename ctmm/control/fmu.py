@@ -206,6 +206,8 @@ class FMUController:
             description_text=what,
             unzip_dir=unzip_dir,
             settings=tuple(settings.values()),
+            discrete_inputs=any(variables[n].variability == "discrete"
+                                or variable_type(variables[n], major).kind != "float" for n in mapped_in),
             input_groups=_group_by_type([variables[n] for n in mapped_in], major),
             output_groups=_group_by_type([variables[n] for n in mapped_out], major),
         )
@@ -424,10 +426,17 @@ class FMUController:
         component = slave.component
         fmi3 = self.fmi_version == 3
         function = f"fmi{self.fmi_version}Set"
+        sample_event = state.integrator is not None and self.discrete_inputs
         try:
+            if sample_event:  # model exchange: discrete inputs may change only in event mode
+                function = f"fmi{self.fmi_version}EnterEventMode"
+                slave.enterEventMode()
             for channel, setter in zip(state.input_channels, state.setters):
                 function = f"fmi{self.fmi_version}Set{channel.kind.function}"
                 _exchange(setter, component, channel, fmi3)
+            if sample_event:
+                function = "the event iteration after setting discrete inputs"
+                state.integrator.settle()
             for channel, getter in zip(state.output_channels, state.getters):
                 function = f"fmi{self.fmi_version}Get{channel.kind.function}"
                 _exchange(getter, component, channel, fmi3)

@@ -11,7 +11,9 @@ inputs held:
 * state events (a sign change of an event indicator over a step) are located by bisection of the
   RK4 step length to ``event_tolerance`` [s], then handled (event mode, discrete-state
   iteration, continuous-time mode) and the integration restarts from the event,
-* ``completedIntegratorStep`` is called after every accepted step (step events are honoured).
+* ``completedIntegratorStep`` is called after every accepted step (step events are honoured),
+* discrete inputs are set in event mode at every communication point (the caller enters event
+  mode, sets them and calls :meth:`ModelExchangeIntegrator.settle`).
 
 A sign change caused by an input change at a communication point, or two sign changes of the
 same indicator within one solver step, are not seen (as in any fixed-step scheme).
@@ -121,6 +123,11 @@ class ModelExchangeIntegrator:
     def start(self) -> None:
         """After ``exitInitializationMode``: settle the discrete states and enter continuous time."""
         self._event_iteration()
+
+    def settle(self) -> None:
+        """In event mode (e.g. after discrete inputs were set): iterate, enter continuous time."""
+        self._event_iteration()
+        self.events += 1
 
     @staticmethod
     def _crossed(z_a: np.ndarray, z_b: np.ndarray) -> bool:

@@ -2,7 +2,7 @@
  * First-order lag with a threshold counter: FMI 2.0 model-exchange FMU (ctmm,
  * controllers/fmu/lag_filter_me).
  *
- *     der(x) = (u - x) / time_constant,        y = x
+ *     der(x) = frozen ? 0 : (u - x) / time_constant,        y = x
  *     state event  x = threshold  (either direction): crossings += 1, crossing_time = time
  *     time event   time = reset_time:         x := 0
  *
@@ -21,6 +21,7 @@
 
 enum { VR_TIME_CONSTANT, VR_THRESHOLD, VR_RESET_TIME, VR_U, VR_X, VR_DER_X, VR_Y, VR_CROSSING_TIME, N_REALS };
 enum { VR_CROSSINGS, N_INTEGERS };
+enum { VR_FROZEN, N_BOOLEANS };
 
 typedef enum { MODE_INSTANTIATED, MODE_INITIALIZATION, MODE_EVENT, MODE_CONTINUOUS, MODE_TERMINATED } Mode;
 
@@ -30,6 +31,7 @@ typedef struct {
     fmi2Real time;
     int above;     /* side of the threshold at the last event (1: x > threshold) */
     int reset_done;
+    fmi2Boolean frozen; /* discrete input: may change only in event mode */
     Mode mode;
     fmi2CallbackFunctions cb;
     char name[64];
@@ -52,7 +54,7 @@ static fmi2Status not_supported(fmi2Component c, const char *function) {
 
 static void compute(Instance *inst) {
     fmi2Real *r = inst->r;
-    r[VR_DER_X] = (r[VR_U] - r[VR_X]) / r[VR_TIME_CONSTANT];
+    r[VR_DER_X] = inst->frozen ? 0.0 : (r[VR_U] - r[VR_X]) / r[VR_TIME_CONSTANT];
     r[VR_Y] = r[VR_X];
 }
 
@@ -193,15 +195,29 @@ fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
 }
 
 fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[]) {
-    (void)vr;
-    (void)value;
-    return nvr == 0 ? fmi2OK : not_supported(c, "fmi2GetBoolean");
+    Instance *inst = (Instance *)c;
+    size_t k;
+    if (inst == NULL) return fmi2Error;
+    for (k = 0; k < nvr; k++) {
+        if (vr[k] != VR_FROZEN) return not_supported(c, "fmi2GetBoolean of this value reference");
+        value[k] = inst->frozen;
+    }
+    return fmi2OK;
 }
 
 fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[]) {
-    (void)vr;
-    (void)value;
-    return nvr == 0 ? fmi2OK : not_supported(c, "fmi2SetBoolean");
+    Instance *inst = (Instance *)c;
+    size_t k;
+    if (inst == NULL) return fmi2Error;
+    if (nvr > 0 && inst->mode == MODE_CONTINUOUS) {
+        log_error(inst, "fmi2SetBoolean: the discrete input 'frozen' can be set only in event mode");
+        return fmi2Error;
+    }
+    for (k = 0; k < nvr; k++) {
+        if (vr[k] != VR_FROZEN) return not_supported(c, "fmi2SetBoolean of this value reference");
+        inst->frozen = value[k];
+    }
+    return fmi2OK;
 }
 
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String value[]) {
