@@ -435,15 +435,18 @@ def test_build_fmu_refuses_a_file_that_is_not_an_fmu(tmp_path):
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/maps")
 def test_fmu_failure_in_a_closed_loop_keeps_the_partial_result_and_frees_the_fmu(own_fmus):
+    import ctmm
     from ctmm.control import simulate_controlled
-    from test_controlled_time import X0, initial, seed_setup
+    from ctmm.elements import Fixed, Free, Mass, SpringDamper
 
-    plant = seed_setup([]).plant
+    plant = ctmm.Chain("seed", [Fixed("start"), SpringDamper("k0", 100.0, 0.5), Mass("m0", 1.0),
+                                SpringDamper("k1", 80.0, 0.3), Mass("m1", 1.5), SpringDamper("k2", 120.0, 0.4),
+                                Mass("m2", 2.0), Free("end")])
     fmu = FMUController(own_fmus["pd_controller"], inputs={"y": "m2.x", "ydot": "m2.v"}, outputs={"u": "m0.force"},
                         parameters={"kp": 60.0, "kd": 5.0, "fail_at_time": 0.3}, sample_time=0.004)
     with pytest.raises(SimulationError, match=r"FMU 'pd_controller' .*fmi2DoStep failed at t = 0\.3 \(status "
                                               r"Error\).*reached fail_at_time") as info:
-        simulate_controlled(plant, 1.0, 0.002, x0=initial(X0), controllers=[fmu])
+        simulate_controlled(plant, 1.0, 0.002, x0={"m0": -0.05, "m2": 0.1}, controllers=[fmu])
     assert info.value.time == pytest.approx(0.3)
     partial = info.value.partial_result
     assert partial is not None and 0.29 < partial.time[-1] < 0.3 and np.all(np.isfinite(partial["m2.x"]))
