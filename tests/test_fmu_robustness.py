@@ -80,6 +80,9 @@ def _damaged(kind: str, base: Path, tmp: Path) -> Path:
         target.write_bytes(b"this is not an FMU\n" * 10)
     elif kind == "truncated_binary":
         rewrite(base, target, lambda n, d: d[: len(d) // 3] if n.endswith(".so") else d)
+    elif kind == "truncated_segment":  # no section table to give it away: a segment is cut
+        rewrite(base, target, lambda n, d: (d[:0x28] + bytes(8) + d[0x30:])[: int(len(d) * 0.6)]
+                if n.endswith(".so") else d)
     elif kind == "garbage_binary":
         rewrite(base, target, lambda n, d: b"\x7fELF\x02\x01\x01" + b"\0" * 57 + b"x" * 100 if n.endswith(".so") else d)
     elif kind == "missing_binary":
@@ -101,6 +104,7 @@ DAMAGE = {
     "truncated_archive": r"not a valid FMU: not a ZIP archive or truncated",
     "not_a_zip": r"not a valid FMU: not a ZIP archive",
     "truncated_binary": r"library 'binaries/linux64/pd_controller\.so' is truncated or corrupt: .* past the end of the file",
+    "truncated_segment": r"library 'binaries/linux64/pd_controller\.so' is truncated or corrupt: loadable segment",
     "garbage_binary": r"cannot load the shared library 'binaries/linux64/pd_controller\.so': .*ELF",
     "missing_binary": r"no binary for this platform: expected binaries/linux64/pd_controller\.so.*ships C sources.*"
                       r"build_fmu",

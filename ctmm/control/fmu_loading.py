@@ -83,8 +83,7 @@ def check_binary_file(library: Path, what: str, label: str | None = None) -> Non
 
     ``dlopen`` maps the segments listed in the ELF program headers; if the file is shorter than
     they say, touching the missing pages kills the process with SIGBUS.  This checks that the
-    header, the program and section header tables and every loadable segment lie inside the
-    file.  Non-ELF files (macOS Mach-O) are left to the loader.
+    header, the program and section header tables and every segment lie inside the file.  Non-ELF files (macOS Mach-O) are left to the loader.
 
     Raises
     ------
@@ -123,8 +122,9 @@ def check_binary_file(library: Path, what: str, label: str | None = None) -> Non
                         kind, _, offset, _, _, filesz = struct.unpack_from(order + "IIQQQQ", entry)
                     else:
                         kind, offset, _, _, filesz = struct.unpack_from(order + "IIIII", entry)
-                    if kind == 1 and offset + filesz > size:  # PT_LOAD
-                        problems.append(f"loadable segment {k} (bytes {offset}..{offset + filesz})")
+                    if filesz and offset + filesz > size:  # every segment's bytes must be in the file
+                        label_kind = "loadable segment" if kind == 1 else f"segment (type {kind:#x})"
+                        problems.append(f"{label_kind} {k} (bytes {offset}..{offset + filesz})")
     except (OSError, struct.error) as exc:
         raise ModelError(f"{what}: cannot read the shared library {label!r}: {exc}") from exc
     if problems:
