@@ -53,6 +53,8 @@ class FMUControllerState:
         Whether the instance has been freed.
     failed_at : float or None
         Communication point [s] of a failed FMI call; further steps are refused.
+    integrator : ModelExchangeIntegrator or None
+        The RK4 integrator of a model-exchange FMU (its ``events`` counts handled events).
     """
 
     def __init__(self, controller: "FMUController", slave: Any, callbacks: Any, log: collections.deque,
