@@ -259,7 +259,7 @@ class FMUController:
             experiment = description.defaultExperiment
             default = getattr(experiment, "stepSize", None) if experiment is not None else None
             return min(h, float(default)) if default else h
-        return validation.positive("solver_step", solver_step)
+        return _checked(validation.positive, "solver_step", solver_step, what)
 
     @staticmethod
     def _sample_time(sample_time: float | None, description: Any, interface: str, what: str) -> float:
@@ -270,7 +270,7 @@ class FMUController:
                 raise ModelError(f"{what}: sample_time is required (the FMU declares no DefaultExperiment "
                                  "stepSize); allowed: a communication step > 0 [s]")
             sample_time = float(step)
-        h = validation.positive("sample_time", sample_time)
+        h = _checked(validation.positive, "sample_time", sample_time, what)
         fixed = getattr(description.coSimulation, "fixedInternalStepSize", None)
         if fixed and interface == "co-simulation":
             ratio = h / float(fixed)
@@ -311,7 +311,7 @@ class FMUController:
             instantiation token, or an FMU that can be instantiated only once per process) or the
             FMU rejects a parameter or its initialization; the message includes the FMU's log.
         """
-        t0 = validation.finite("t0", t0)
+        t0 = _checked(validation.finite, "t0", t0, self.description_text)
         what = self.description_text
         log: collections.deque = collections.deque(maxlen=50)
         slave_class = _instance_class(self.fmi_version, self.interface)
@@ -549,6 +549,14 @@ class _SettingError(Exception):
 
 class _StepRefused(Exception):
     """fmi3DoStep returned OK but asked to stop or returned early."""
+
+
+def _checked(check: Any, name: str, value: Any, what: str) -> float:
+    """Run a :mod:`ctmm.validation` check; its error message is prefixed with the FMU's name."""
+    try:
+        return check(name, value)
+    except ModelError as exc:
+        raise ModelError(f"{what}: {exc}") from exc
 
 
 def _instance_class(major: int, interface: str) -> type:

@@ -27,7 +27,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from ..errors import ModelError, SimulationError, unknown_name
+from ..errors import ModelError, SimulationError, UnknownNameError, unknown_name
 
 __all__ = ["VariableType", "variable_type", "mapped_variable", "settable_values", "ValueChannel"]
 
@@ -90,7 +90,7 @@ def mapped_variable(name: Any, variables: Mapping[str, Any], causality: str, maj
     variable = variables.get(name)
     if variable is None:
         known = [v.name for v in variables.values() if v.causality == causality]
-        raise unknown_name(f"FMU {causality} variable", name, known)
+        raise _unknown(what, f"FMU {causality} variable", name, known)
     if variable.causality != causality:
         raise ModelError(f"{what}: FMU variable {name!r} has causality {variable.causality!r}; "
                          f"allowed here: {causality!r}")
@@ -99,6 +99,11 @@ def mapped_variable(name: Any, variables: Mapping[str, Any], causality: str, maj
                          f"{causality}s mapped to ctmm signals: {_allowed_types(major)}")
     _refuse_array(variable, what)
     return variable
+
+
+def _unknown(what: str, kind: str, name: str, known: list[str]) -> UnknownNameError:
+    """An :class:`UnknownNameError` listing the known names, prefixed with the FMU's name."""
+    return UnknownNameError(f"{what}: {unknown_name(kind, name, known)}")
 
 
 def _refuse_array(variable: Any, what: str) -> None:
@@ -180,7 +185,7 @@ def settable_values(values: Any, variables: Mapping[str, Any], major: int, what:
         variable = variables.get(name) if isinstance(name, str) else None
         if variable is None:
             known = [v.name for v in variables.values() if _settable(v) and v.name not in mapped_inputs]
-            raise unknown_name("FMU parameter variable", str(name), known)
+            raise _unknown(what, "FMU parameter variable", str(name), known)
         if not _settable(variable):
             raise ModelError(f"{what}: FMU variable {name!r} (causality {variable.causality!r}, variability "
                              f"{variable.variability!r}, initial {variable.initial!r}) cannot be set; allowed: "
