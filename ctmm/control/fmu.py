@@ -23,7 +23,6 @@ variables are refused with a :class:`~ctmm.errors.ModelError`.
 from __future__ import annotations
 
 import collections
-import ctypes
 import os
 import shutil
 import warnings
@@ -37,6 +36,7 @@ import numpy as np
 from .. import validation
 from ..errors import ModelError, SimulationError
 from .fmu_build import build_fmu
+from .fmu_calls import decode, exchange, fmi2_callbacks, instance_class, status_text
 from .fmu_description import fmi_headers_dir, fmi_major_version, read_description, require_fmpy
 from .fmu_loading import check_library, construct_instance, extract_fmu
 from .fmu_model_exchange import ModelExchangeIntegrator
@@ -46,15 +46,7 @@ from .protocol import ControllerStep
 
 __all__ = ["build_fmu", "fmi_headers_dir", "FMUController", "FMUControllerState", "FMUSnapshot"]
 
-_STATUS = ("OK", "Warning", "Discard", "Error", "Fatal", "Pending")
 _INTERFACES = ("co-simulation", "model exchange")
-
-
-def _status_text(exc: BaseException) -> str:
-    status = getattr(exc, "status", None)
-    if isinstance(status, int) and 0 <= status < len(_STATUS):
-        return f"status {_STATUS[status]}"
-    return str(exc)
 
 
 class FMUController:
@@ -314,17 +306,17 @@ class FMUController:
         t0 = _checked(validation.finite, "t0", t0, self.description_text)
         what = self.description_text
         log: collections.deque = collections.deque(maxlen=50)
-        slave_class = _instance_class(self.fmi_version, self.interface)
+        slave_class = instance_class(self.fmi_version, self.interface)
         token = self.model_description.guid  # FMI 3: fmpy stores the instantiationToken here
         slave = construct_instance(slave_class, what, guid=token, unzipDirectory=str(self.unzip_dir),
                                    modelIdentifier=self.model_identifier, instanceName=self.instance_name)
         try:
             if self.fmi_version == 2:
-                callbacks = _fmi2_callbacks(log)
+                callbacks = fmi2_callbacks(log)
                 slave.instantiate(callbacks=callbacks)
             else:
                 def log_message(env, status, category, message):  # noqa: ANN001 - ctypes callback
-                    log.append(_decode(message))
+                    log.append(decode(message))
                 callbacks = log_message
                 slave.instantiate(logMessage=log_message)
         except Exception as exc:  # noqa: BLE001
@@ -364,7 +356,7 @@ class FMUController:
                 state.integrator.start()
         except Exception as exc:  # noqa: BLE001
             state.close()
-            detail = str(exc.args[0]) if isinstance(exc, _SettingError) else f"{stage} failed ({_status_text(exc)})"
+            detail = str(exc.args[0]) if isinstance(exc, _SettingError) else f"{stage} failed ({status_text(exc)})"
             raise ModelError(f"{what}: {detail}; FMU log: {' | '.join(log) or '(empty)'}") from exc
         return state
 
@@ -375,7 +367,7 @@ class FMUController:
             try:
                 getattr(slave, function)([variable.valueReference], [value])
             except Exception as exc:  # noqa: BLE001
-                raise _SettingError(f"setting {variable.name!r} = {value!r} failed ({_status_text(exc)}); the "
+                raise _SettingError(f"setting {variable.name!r} = {value!r} failed ({status_text(exc)}); the "
                                     f"FMU refused the value") from exc
 
     def step(self, t: float, y: np.ndarray, state: FMUControllerState) -> ControllerStep:
@@ -433,13 +425,13 @@ class FMUController:
                 slave.enterEventMode()
             for channel, setter in zip(state.input_channels, state.setters):
                 function = f"fmi{self.fmi_version}Set{channel.kind.function}"
-                _exchange(setter, component, channel, fmi3)
+                exchange(setter, component, channel, fmi3)
             if sample_event:
                 function = "the event iteration after setting discrete inputs"
                 state.integrator.settle()
             for channel, getter in zip(state.output_channels, state.getters):
                 function = f"fmi{self.fmi_version}Get{channel.kind.function}"
-                _exchange(getter, component, channel, fmi3)
+                exchange(getter, component, channel, fmi3)
                 state.outputs[channel.positions] = channel.view
             if state.integrator is not None:
                 function = "model-exchange integration (RK4)"
@@ -457,7 +449,7 @@ class FMUController:
                 slave.fmi2DoStep(component, t_fmu, h, 0 if self.can_snapshot else 1)
         except Exception as exc:  # noqa: BLE001 - fmpy raises FMICallException
             state.failed_at = t_fmu
-            detail = _status_text(exc)
+            detail = status_text(exc)
             called = getattr(exc, "function", None)
             if called and called != function:
                 detail = f"{called} returned {detail}"
@@ -494,9 +486,11 @@ class FMUController:
         self._require_snapshots()
         self._require_open(state)
         if not isinstance(snapshot, FMUSnapshot) or snapshot.owner() is not state:
-            raise ModelError("snapshot must be an FMUSnapshot taken from this state with FMUController.snapshot")
+            raise ModelError(f"{self.description_text}: snapshot must be an FMUSnapshot taken from this state with "
+                             f"FMUController.snapshot, got {snapshot!r}")
         if not snapshot.handle:
-            raise ModelError("snapshot has been released")
+            raise ModelError(f"{self.description_text}: the snapshot taken at t = {snapshot.time!r} has been "
+                             "released; allowed: a snapshot not yet released")
         try:
             if self.fmi_version == 2:
                 state.slave.setFMUstate(snapshot.handle)
@@ -538,7 +532,8 @@ class FMUController:
 
     def _require_open(self, state: FMUControllerState) -> None:
         if not isinstance(state, FMUControllerState) or state.controller is not self:
-            raise ModelError("state must be the FMUControllerState returned by this controller's init()")
+            raise ModelError(f"{self.description_text}: state must be the FMUControllerState returned by this "
+                             f"controller's init(), got {type(state).__name__}")
         if state.closed:
             raise SimulationError(f"{self.description_text}: the state is closed", time=state.time)
 
@@ -557,23 +552,6 @@ def _checked(check: Any, name: str, value: Any, what: str) -> float:
         return check(name, value)
     except ModelError as exc:
         raise ModelError(f"{what}: {exc}") from exc
-
-
-def _instance_class(major: int, interface: str) -> type:
-    """The fmpy class for this FMI version and interface."""
-    if major == 2:
-        from fmpy.fmi2 import FMU2Model, FMU2Slave
-        return FMU2Slave if interface == "co-simulation" else FMU2Model
-    from fmpy.fmi3 import FMU3Model, FMU3Slave
-    return FMU3Slave if interface == "co-simulation" else FMU3Model
-
-
-def _exchange(function: Any, component: Any, channel: ValueChannel, fmi3: bool) -> None:
-    """Call an fmiXSet*/fmiXGet* function on a channel's value references and buffer."""
-    if fmi3:
-        function(component, channel.references, channel.count, channel.buffer, channel.count)
-    else:
-        function(component, channel.references, channel.count, channel.buffer)
 
 
 def _group_by_type(variables: list, major: int) -> tuple:
@@ -598,27 +576,3 @@ def _derive_feedthrough(description, outputs: list, input_ids: set[int]) -> bool
     return False
 
 
-def _decode(message: Any) -> str:
-    if isinstance(message, bytes):
-        return message.decode("utf-8", "replace")
-    return str(message)
-
-
-def _fmi2_callbacks(log: collections.deque):
-    from fmpy import calloc, free
-    from fmpy.fmi2 import (fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                           fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
-
-    def logger(component, instance_name, status, category, message):  # noqa: ANN001 - ctypes callback
-        log.append(_decode(message))
-
-    callbacks = fmi2CallbackFunctions()
-    callbacks.logger = fmi2CallbackLoggerTYPE(logger)
-    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-    try:
-        from fmpy.logging import addLoggerProxy
-        addLoggerProxy(ctypes.byref(callbacks))
-    except Exception:  # noqa: BLE001 - without the proxy the message is unformatted but still logged
-        pass
-    return callbacks
