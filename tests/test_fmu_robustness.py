@@ -308,6 +308,8 @@ def test_model_exchange_fmu_is_integrated_with_exact_time_and_located_state_even
     ctrl = FMUController(own_fmus["lag_filter_me"], **LAG_IO, parameters={"reset_time": reset_time}, sample_time=h)
     assert ctrl.interface == "model exchange" and ctrl.solver_step == 0.01  # DefaultExperiment stepSize
     assert ctrl.direct_feedthrough is False and not ctrl.can_snapshot
+    with ctrl.init(0.0) as state, pytest.raises(ModelError, match="snapshots are offered for co-simulation"):
+        ctrl.snapshot(state)
     with ctrl.init(0.0) as state:
         got = np.array([ctrl.step(k * h, np.array([1.0]), state).outputs for k in range(13)])
         assert state.integrator.events == 3  # crossing, reset (time event), crossing

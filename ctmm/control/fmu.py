@@ -526,6 +526,9 @@ class FMUController:
 
     # -- helpers
     def _require_snapshots(self) -> None:
+        if self.interface == "model exchange":
+            raise ModelError(f"{self.description_text}: snapshots are offered for co-simulation FMUs only (the "
+                             "model-exchange integrator's event bookkeeping is not part of the FMU state)")
         if not self.can_snapshot:
             raise ModelError(f"{self.description_text} does not support saving its state "
                              "(canGetAndSetFMUstate is not true in its modelDescription.xml)")
