@@ -348,6 +348,52 @@ def test_model_exchange_discrete_input_is_set_in_event_mode(own_fmus):
     assert got[3] == got[4] == got[5] and got[5] != got[6]  # held exactly while frozen
 
 
+class ZenoModel:
+    """Stand-in for fmpy's FMU2Model: x' = -1, indicator x - 0.5, each event puts x 1e-9 above it."""
+
+    def __init__(self) -> None:
+        self.x, self.t = 1.0, 0.0
+
+    def setTime(self, t):
+        self.t = t
+
+    def setContinuousStates(self, x, n):
+        self.x = x[0]
+
+    def getContinuousStates(self, x, n):
+        x[0] = self.x
+
+    def getDerivatives(self, dx, n):
+        dx[0] = -1.0
+
+    def getEventIndicators(self, z, n):
+        z[0] = self.x - 0.5
+
+    def completedIntegratorStep(self):
+        return False, False
+
+    def enterEventMode(self):
+        pass
+
+    def newDiscreteStates(self):
+        if self.t > 0.0:  # not at initialization
+            self.x = 0.5 + 1e-9
+        return False, False, False, True, False, 0.0
+
+    def enterContinuousTimeMode(self):
+        pass
+
+
+def test_model_exchange_chattering_stops_instead_of_hanging():
+    from ctmm.control.fmu_model_exchange import ModelExchangeIntegrator, ModelExchangeTerminated
+
+    integrator = ModelExchangeIntegrator(ZenoModel(), 2, 1, 1, solver_step=0.1, max_events=50)
+    integrator.start()
+    with pytest.raises(ModelExchangeTerminated, match=r"more than 50 events between t = 0\.0 s and 1\.0 s "
+                                                      r"\(chattering\); last event at 0\.50000"):
+        integrator.advance(0.0, 1.0)
+
+
 def test_model_exchange_options_are_checked(own_fmus):
     path = own_fmus["lag_filter_me"]
     coarse = FMUController(path, **LAG_IO, sample_time=0.1, solver_step=0.1)

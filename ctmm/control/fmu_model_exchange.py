@@ -48,16 +48,20 @@ class ModelExchangeIntegrator:
         Largest RK4 step [s].
     event_tolerance : float
         Width [s] to which state events are located.
+    max_events : int
+        Most events handled within one communication step, beyond one step event per RK4 step;
+        more is reported as chattering.
     """
 
     def __init__(self, instance: Any, major: int, n_states: int, n_indicators: int, solver_step: float,
-                 event_tolerance: float = 1e-12) -> None:
+                 event_tolerance: float = 1e-12, max_events: int = 10_000) -> None:
         self.instance = instance
         self.major = major
         self.n_states = n_states
         self.n_indicators = n_indicators
         self.solver_step = solver_step
         self.event_tolerance = event_tolerance
+        self.max_events = max_events
         self.events = 0
         self.next_event_time: float | None = None
         self._x = (ctypes.c_double * max(n_states, 1))()
@@ -144,6 +148,7 @@ class ModelExchangeIntegrator:
             The FMU asked to stop.
         """
         steps = max(1, math.ceil(h / self.solver_step - 1e-9))
+        events_before = self.events
         t_a = t
         x_a = self._states()
         self._set(t_a, x_a)
@@ -170,6 +175,9 @@ class ModelExchangeIntegrator:
                     self.instance.enterEventMode()
                     self._event_iteration()
                     self.events += 1
+                    if self.events - events_before > self.max_events + steps:  # one step event per step is fine
+                        raise ModelExchangeTerminated(f"more than {self.max_events} events between t = {t!r} s and "
+                                                      f"{t + h!r} s (chattering); last event at {target!r} s")
                     if self.next_event_time is not None and self.next_event_time <= target:
                         raise ModelExchangeTerminated(f"the FMU announced its next time event at "
                                                       f"{self.next_event_time!r} s, not after the current "
