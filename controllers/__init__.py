@@ -13,6 +13,11 @@ FMU sources (build with :func:`ctmm.control.fmu.build_fmu`, run with
 * ``pi_controller`` -- FMI 2.0 co-simulation PI with an internal integrator advanced in doStep
   (input ``y``; output ``u``; parameters ``kp``, ``ki``, ``reference``, ``fail_at_time``).
 * ``pd_controller_fmi3`` -- the PD law as an FMI 3.0 co-simulation FMU.
+* ``typed_io_fmi3`` -- FMI 3.0 test controller with Float32 / Int32 / UInt8 / Boolean variables,
+  two array variables and a doStep that can return Discard (sources listed in
+  ``sources/buildDescription.xml``).
+* ``lag_filter_me`` -- FMI 2.0 model-exchange first-order lag with a state event (threshold
+  crossings) and a time event (reset), for the model-exchange path of the FMU controller.
 """
 from __future__ import annotations
 
@@ -27,7 +32,8 @@ __all__ = ["SaturatedPD", "SaturatedPDState", "PID", "PIDState", "FMU_SOURCES", 
 
 _FMU_DIR = Path(__file__).resolve().parent / "fmu"
 
-FMU_SOURCES: tuple[str, ...] = ("pd_controller", "pi_controller", "pd_controller_fmi3")
+FMU_SOURCES: tuple[str, ...] = ("pd_controller", "pi_controller", "pd_controller_fmi3", "typed_io_fmi3",
+                                 "lag_filter_me")
 """Names of the FMU source folders shipped in ``controllers/fmu``."""
 
 

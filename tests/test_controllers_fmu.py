@@ -121,7 +121,7 @@ def test_build_input_errors(tmp_path):
         build_fmu(tmp_path / "empty")
     with pytest.raises(ModelError, match="not found on PATH"):
         build_fmu(controllers.fmu_source("pd_controller"), tmp_path / "out", compiler="no-such-cc-42")
-    with pytest.raises(ModelError, match="unknown FMU source 'pid'; available: pd_controller"):
+    with pytest.raises(ModelError, match="unknown FMU source 'pid'; available: lag_filter_me, pd_controller"):
         controllers.fmu_source("pid")
 
 
@@ -304,15 +304,19 @@ def test_wrong_causality_and_bad_values(fmus):
         FMUController(path, inputs={"y": "m6.x"}, outputs={}, sample_time=0.1)
 
 
-def test_model_exchange_only_fmu_is_rejected(fmus, tmp_path):
+def test_model_exchange_only_fmu_needs_model_exchange_functions(fmus, tmp_path):
     def to_model_exchange(text: str) -> str:
         start = text.index("<CoSimulation")
         end = text.index("/>", start) + 2
         return text[:start] + '<ModelExchange modelIdentifier="pd_controller"/>' + text[end:]
 
     me_only = edited_fmu(fmus["pd_controller"], tmp_path / "me_only.fmu", to_model_exchange)
-    with pytest.raises(ModelError, match="not a co-simulation FMU.*model exchange"):
+    # run as model exchange, the co-simulation binary lacks the model-exchange functions
+    with pytest.raises(ModelError, match=r"does not export the FMI 2 model exchange functions "
+                                         r"fmi2CompletedIntegratorStep, .*fmi2NewDiscreteStates"):
         FMUController(me_only, **PD_IO, sample_time=0.1)
+    with pytest.raises(ModelError, match=r"does not provide the co-simulation interface; it provides: model exchange"):
+        FMUController(me_only, **PD_IO, sample_time=0.1, interface="co-simulation")
 
 
 def test_fmi1_is_rejected(fmus, tmp_path):

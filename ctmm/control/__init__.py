@@ -3,7 +3,7 @@
 * :class:`Feedback` / :class:`ControlledChain` -- linear loops embedded in transfer matrices.
 * :func:`simulate_controlled` -- DT-TMM with real-time / delayed loops and co-simulated controllers.
 * :class:`Controller` -- protocol for sampled, stateful or nonlinear controllers (Python, FMU).
-* :class:`FMUController`, :func:`build_fmu` -- FMI 2.0/3.0 co-simulation FMUs through fmpy.
+* :class:`FMUController`, :func:`build_fmu` -- FMI 2.0/3.0 co-simulation and model-exchange FMUs through fmpy.
 * :func:`loop_transfer_function`, :func:`margins` (gain/phase/delay), :func:`bode_plot`,
   :func:`nyquist_plot`, :class:`PlantCache` (cheap re-evaluation in control-design loops).
 """

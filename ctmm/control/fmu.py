@@ -1,31 +1,31 @@
-"""FMU controllers: build an FMI co-simulation FMU from C sources and run it as a ctmm controller.
+"""FMU controllers: run an FMI 2.0 / 3.0 FMU as a sampled ctmm controller.
 
-Two public pieces:
-
-* :func:`build_fmu` compiles a source folder (``modelDescription.xml`` + ``sources/*.c``) with
-  the system C compiler against the FMI headers shipped with fmpy, zips the result into
-  ``<modelIdentifier>.fmu``, checks it with :func:`fmpy.validation.validate_fmu` and caches it by
-  a hash of everything that went into the build.
-* :class:`FMUController` adapts an FMI 2.0 or FMI 3.0 co-simulation FMU to the
-  :class:`ctmm.control.protocol.Controller` protocol.  The controller object is an immutable
-  description; the FMU instance lives in the :class:`FMUControllerState` returned by
-  :meth:`FMUController.init`.
+:class:`FMUController` adapts a co-simulation or model-exchange FMU -- one built from the
+project's C sources with :func:`~ctmm.control.fmu_build.build_fmu` or a third-party FMU -- to the
+:class:`ctmm.control.protocol.Controller` protocol.  The controller object is an immutable
+description; the FMU instance lives in the :class:`FMUControllerState` returned by
+:meth:`FMUController.init`.
 
 Semantics of ``u, state = controller.step(t, y, state)`` (sample time ``h``):
 
-1. the inputs are set to ``y`` (measurements at ``t``),
+1. the inputs are set to ``y`` (measurements at ``t``, converted to the variables' FMI types, see
+   :mod:`ctmm.control.fmu_variables`),
 2. the outputs are read; with direct feedthrough they already depend on ``y(t)``,
-3. ``doStep(t, h)`` advances the FMU to ``t + h`` with the inputs held (zero-order hold),
+3. ``doStep(t, h)`` advances the FMU to ``t + h`` with the inputs held (zero-order hold); a
+   model-exchange FMU is integrated instead (:mod:`ctmm.control.fmu_model_exchange`),
 4. ``u`` is returned; the caller holds it on ``[t, t + h)``.
 
-FMI 1.0 FMUs and model-exchange-only FMUs are rejected with a :class:`~ctmm.errors.ModelError`.
+Loading cannot corrupt the process: the archive is extracted into a temporary folder that is
+removed on every failure, the binary is test-loaded without changing the working directory, and
+the working directory is restored around fmpy's loader.  FMI 1.0, scheduled execution and array
+variables are refused with a :class:`~ctmm.errors.ModelError`.
 """
 from __future__ import annotations
 
 import collections
-import ctypes
 import os
 import shutil
+import warnings
 import weakref
 from pathlib import Path
 from types import MappingProxyType
@@ -34,103 +34,23 @@ from typing import Any, Mapping
 import numpy as np
 
 from .. import validation
-from ..errors import ModelError, SimulationError, unknown_name
-from .fmu_build import _REAL_TYPES, _fmi_major, _fmpy, _read_description, build_fmu, fmi_headers_dir  # noqa: F401
+from ..errors import ModelError, SimulationError
+from .fmu_build import build_fmu
+from .fmu_calls import decode, exchange, fmi2_callbacks, instance_class, status_text
+from .fmu_description import fmi_headers_dir, fmi_major_version, read_description, require_fmpy
+from .fmu_loading import check_library, construct_instance, extract_fmu
+from .fmu_model_exchange import ModelExchangeIntegrator
+from .fmu_state import FMUControllerState, FMUSnapshot
+from .fmu_variables import ValueChannel, mapped_variable, settable_values, variable_type
 from .protocol import ControllerStep
 
 __all__ = ["build_fmu", "fmi_headers_dir", "FMUController", "FMUControllerState", "FMUSnapshot"]
 
-
-class FMUSnapshot:
-    """A saved FMU state (``fmi2GetFMUstate`` / ``fmi3GetFMUState``) and the controller time.
-
-    Created by :meth:`FMUController.snapshot`; valid until released with
-    :meth:`FMUController.release` or until the owning state is closed.
-    """
-
-    __slots__ = ("handle", "time", "steps", "owner", "__weakref__")
-
-    def __init__(self, handle: ctypes.c_void_p, time: float, steps: int, owner: "FMUControllerState"):
-        self.handle = handle
-        self.time = time
-        self.steps = steps
-        self.owner = weakref.ref(owner)
-
-    def __repr__(self) -> str:
-        return f"FMUSnapshot(time={self.time!r}, released={not self.handle})"
-
-
-class FMUControllerState:
-    """Running FMU instance of an :class:`FMUController` (mutable; one per simulation).
-
-    Use as a context manager, or call :meth:`close`, to terminate and free the instance; it is
-    also freed when the state is garbage-collected.
-
-    Attributes
-    ----------
-    time : float
-        Communication point [s] of the next :meth:`FMUController.step` call.
-    steps : int
-        Number of completed ``doStep`` calls since :meth:`FMUController.init`.
-    log : collections.deque of str
-        The FMU's most recent log messages (the last 50).
-    closed : bool
-        Whether the instance has been freed.
-    """
-
-    def __init__(self, controller: "FMUController", slave: Any, callbacks: Any, log: collections.deque,
-                 t0: float) -> None:
-        self.controller = controller
-        self.slave = slave
-        self.start_time = t0
-        self.time = t0
-        self.steps = 0
-        self.log = log
-        self.closed = False
-        self.failed_at: float | None = None
-        self._callbacks = callbacks  # keeps the ctypes callbacks alive while the FMU may call them
-        self._snapshots: set[FMUSnapshot] = set()  # freed by release() or close()
-        n_in, n_out = len(controller.inputs), len(controller.outputs)
-        real = ctypes.c_double
-        self._vr_in = (ctypes.c_uint32 * n_in)(*controller._vr_in)
-        self._vr_out = (ctypes.c_uint32 * n_out)(*controller._vr_out)
-        self._in = (real * max(n_in, 1))()
-        self._out = (real * n_out)()
-        self._in_view = np.ctypeslib.as_array(self._in)[:n_in]
-        self._out_view = np.ctypeslib.as_array(self._out)
-        flags = [ctypes.c_bool() for _ in range(3)] + [ctypes.c_double()]  # FMI 3 doStep results
-        self._flags = flags
-        self._flag_pointers = [ctypes.pointer(flag) for flag in flags]
-        self._finalizer = weakref.finalize(self, _free_instance, slave)
-
-    def close(self) -> None:
-        """Terminate and free the FMU instance (idempotent)."""
-        self.controller.close(self)
-
-    def __enter__(self) -> "FMUControllerState":
-        return self
-
-    def __exit__(self, *exc_info: object) -> None:
-        self.close()
-
-    def __repr__(self) -> str:
-        status = "closed" if self.closed else f"t={self.time!r}, steps={self.steps}"
-        return f"FMUControllerState({self.controller.model_identifier!r}, {status})"
-
-
-def _free_instance(slave: Any) -> None:
-    try:
-        slave.terminate()
-    except Exception:  # noqa: BLE001 - a failed FMU may refuse terminate; free it anyway
-        pass
-    try:
-        slave.freeInstance()
-    except Exception:  # noqa: BLE001
-        pass
+_INTERFACES = ("co-simulation", "model exchange")
 
 
 class FMUController:
-    """An FMI 2.0 / 3.0 co-simulation FMU used as a sampled ctmm controller.
+    """An FMI 2.0 / 3.0 FMU (co-simulation or model exchange) used as a sampled ctmm controller.
 
     Parameters
     ----------
@@ -138,23 +58,58 @@ class FMUController:
         The ``.fmu`` file (or a folder holding an extracted FMU).
     inputs : mapping of str to str
         FMU input variable name -> ctmm signal it reads, e.g. ``{"y": "m6.x", "ydot": "m6.v"}``.
+        Types Real/Float64, Float32, Integer/Int8...UInt64, Enumeration and Boolean are accepted
+        (converted as described in :mod:`ctmm.control.fmu_variables`).
     outputs : mapping of str to str
-        FMU output variable name -> ctmm signal it writes, e.g. ``{"u": "m2.force"}``.
-    parameters : mapping of str to float, optional
-        Values for FMU parameters (causality ``parameter``), set before initialization.
-    sample_time : float
+        FMU output variable name -> ctmm signal it writes, e.g. ``{"u": "m2.force"}``; same types.
+    parameters : mapping of str to value, optional
+        Values set after instantiation, before initialization: parameters (variability
+        ``fixed`` or ``tunable``), start values of unmapped inputs and of variables with
+        ``initial="exact"`` or ``"approx"`` (e.g. initial states).  The value must suit the type:
+        a finite number for Real/Float, an integral number within range for Integer types,
+        ``True``/``False`` for Boolean, ``str`` for String.
+    sample_time : float, optional
         Communication step size ``h`` [s], > 0; the outputs are held on ``[t, t + h)``.
+        Default: the FMU's ``DefaultExperiment stepSize`` (an error if it declares none).  With an
+        FMI 3 ``fixedInternalStepSize`` it should be a whole multiple of that step (a
+        ``UserWarning`` says so otherwise: the outputs then lag the FMU's internal grid).
     direct_feedthrough : bool, optional
         Whether the outputs depend on the inputs at the same instant.  Default: derived from
         ``ModelStructure/Outputs`` (true if a mapped output depends on a mapped input, or if the
         FMU declares no dependencies).
+    instance_name : str, optional
+        Name passed to ``fmiXInstantiate`` (shown in the FMU's log).  Default: the model identifier.
+    interface : {"co-simulation", "model exchange"}, optional
+        Which interface of the FMU to run.  Default: co-simulation if the FMU provides it, else
+        model exchange.  A model-exchange FMU is integrated by ctmm between communication points
+        with fixed-step RK4, exact time events and bisection-located state events
+        (:mod:`ctmm.control.fmu_model_exchange`; no error control).
+    solver_step : float, optional
+        Model exchange only: largest RK4 step [s] (> 0).  Default: the smaller of ``sample_time``
+        and the ``DefaultExperiment stepSize``.
+    validate : bool, optional
+        Check ``modelDescription.xml`` against the FMI schema (default True).  ``False`` accepts a
+        description with schema violations that fmpy can still read, at the user's risk.
+
+    Attributes
+    ----------
+    can_snapshot : bool
+        Co-simulation FMU that declares ``canGetAndSetFMUstate`` (snapshots are not offered for
+        model exchange: the integrator's event bookkeeping is not part of the FMU state).
+    variable_step : bool
+        The FMU declares ``canHandleVariableCommunicationStepSize`` (ctmm always uses the constant
+        step ``sample_time``, so this is information only).
 
     Raises
     ------
     ModelError
-        Missing file, not a co-simulation FMU, FMI version not 2.0/3.0, no binary for this
-        platform, an unknown variable name (the message lists the available ones), a variable of
-        the wrong causality or type, a non-finite parameter value or a non-positive sample time.
+        Missing or corrupt file (not a ZIP, truncated, no or invalid ``modelDescription.xml``),
+        FMI version not 2.0/3.0, neither co-simulation nor model exchange (or not the requested
+        ``interface``), no binary for this platform or one that
+        cannot be loaded, an unknown variable name (the message lists the available ones), a
+        variable of the wrong causality or type, an array variable, a bad parameter value, or a
+        bad sample time.  The working directory, loaded libraries and temporary folders are left
+        as they were.
 
     Examples
     --------
@@ -166,62 +121,61 @@ class FMUController:
     """
 
     def __init__(self, path: str | os.PathLike, *, inputs: Mapping[str, str], outputs: Mapping[str, str],
-                 parameters: Mapping[str, float] | None = None, sample_time: float,
-                 direct_feedthrough: bool | None = None) -> None:
-        fmpy = _fmpy()
+                 parameters: Mapping[str, Any] | None = None, sample_time: float | None = None,
+                 direct_feedthrough: bool | None = None, instance_name: str | None = None,
+                 interface: str | None = None, solver_step: float | None = None, validate: bool = True) -> None:
+        require_fmpy()
+        if not isinstance(path, (str, os.PathLike)):
+            raise ModelError(f"path must be the path of an .fmu file or extracted FMU folder, got {path!r}")
         fmu_path = Path(path)
         if not fmu_path.exists():
             raise ModelError(f"FMU file not found: {str(fmu_path)!r}")
         what = f"FMU {str(fmu_path)!r}"
-        description = _read_description(fmu_path, what)
-        major = _fmi_major(description.fmiVersion, what)
-        if description.coSimulation is None:
-            kinds = [k for k, v in (("model exchange", description.modelExchange),
-                                    ("scheduled execution", getattr(description, "scheduledExecution", None)))
-                     if v is not None]
-            raise ModelError(f"{what} is not a co-simulation FMU (it provides {', '.join(kinds) or 'no interface'}); "
-                             "FMUController needs <CoSimulation> because it calls doStep at the sample time")
-        identifier = description.coSimulation.modelIdentifier
-        if fmu_path.is_file():
-            platforms = fmpy.supported_platforms(str(fmu_path))  # FMI 3 tuples reported as FMI 2 names
-            if fmpy.platform not in platforms:
-                hint = " (it ships C sources: compile them with build_fmu)" if "c-code" in platforms else ""
-                raise ModelError(f"{what} has no binary for this platform ({fmpy.platform}); it supports: "
-                                 f"{', '.join(platforms) or '(none)'}{hint}")
+        if not isinstance(validate, (bool, np.bool_)):
+            raise ModelError(f"{what}: validate must be True or False, got {validate!r}")
+        description = read_description(fmu_path, what, bool(validate))
+        major = fmi_major_version(description.fmiVersion, what)
+        interface, kind = self._interface(interface, description, what)
+        identifier = kind.modelIdentifier
+        what = f"FMU {identifier!r} ({str(fmu_path)!r})"
 
         variables = {v.name: v for v in description.modelVariables}
-        self_inputs = self._map("inputs", inputs, variables, "input", major)
-        self_outputs = self._map("outputs", outputs, variables, "output", major)
-        if not self_outputs:
-            raise ModelError("outputs must map at least one FMU output variable to a ctmm signal")
-        duplicated = sorted({s for s in self_outputs.values() if list(self_outputs.values()).count(s) > 1})
+        mapped_in = self._map("inputs", inputs, variables, "input", major, what)
+        mapped_out = self._map("outputs", outputs, variables, "output", major, what)
+        if not mapped_out:
+            raise ModelError(f"{what}: outputs must map at least one FMU output variable to a ctmm signal")
+        signals = list(mapped_out.values())
+        duplicated = sorted({s for s in signals if signals.count(s) > 1})
         if duplicated:
-            raise ModelError(f"outputs writes the ctmm signal(s) {', '.join(duplicated)} from more than one "
-                             "FMU variable; allowed: each signal written once")
-        if parameters is None:
-            parameters = {}
-        if not isinstance(parameters, Mapping):
-            raise ModelError(f"parameters must be a mapping of FMU parameter name -> value, got {parameters!r}")
-        param_values: dict[str, float] = {}
-        for pname, value in parameters.items():
-            variable = self._lookup(pname, variables, "parameter", major)
-            if variable.variability not in ("fixed", "tunable"):
-                raise ModelError(f"FMU parameter {pname!r} has variability {variable.variability!r}; "
-                                 "allowed: 'fixed' or 'tunable'")
-            param_values[pname] = validation.finite(f"parameters[{pname!r}]", value)
+            raise ModelError(f"{what}: outputs writes the ctmm signal(s) {', '.join(duplicated)} from more than "
+                             "one FMU variable; allowed: each signal written once")
+        settings = settable_values(parameters, variables, major, what, tuple(mapped_in))
+        h = self._sample_time(sample_time, description, interface, what)
+        step = self._solver_step(solver_step, h, description, interface, what)
 
         if direct_feedthrough is None:
-            feedthrough = _derive_feedthrough(description, [variables[n] for n in self_outputs],
-                                              {id(variables[n]) for n in self_inputs})
+            feedthrough = _derive_feedthrough(description, [variables[n] for n in mapped_out],
+                                              {id(variables[n]) for n in mapped_in})
         elif isinstance(direct_feedthrough, (bool, np.bool_)):
             feedthrough = bool(direct_feedthrough)
         else:
-            raise ModelError(f"direct_feedthrough must be True, False or None, got {direct_feedthrough!r}")
+            raise ModelError(f"{what}: direct_feedthrough must be True, False or None, got {direct_feedthrough!r}")
+        if instance_name is None:
+            instance_name = identifier
+        if not isinstance(instance_name, str) or not instance_name.strip():
+            raise ModelError(f"{what}: instance_name must be a non-empty str, got {instance_name!r}")
 
+        # last: touch the file system (every earlier error leaves nothing behind)
         if fmu_path.is_dir():
-            unzip_dir = fmu_path
+            unzip_dir = fmu_path.resolve()
+            check_library(unzip_dir, identifier, major, what, interface)
         else:
-            unzip_dir = Path(fmpy.extract(str(fmu_path)))
+            unzip_dir = extract_fmu(fmu_path, what)
+            try:
+                check_library(unzip_dir, identifier, major, what, interface)
+            except BaseException:
+                shutil.rmtree(unzip_dir, ignore_errors=True)
+                raise
             weakref.finalize(self, shutil.rmtree, str(unzip_dir), True)
 
         attrs = dict(
@@ -229,52 +183,95 @@ class FMUController:
             model_description=description,
             model_identifier=identifier,
             fmi_version=major,
-            inputs=tuple(self_inputs.values()),
-            outputs=tuple(self_outputs.values()),
-            input_variables=tuple(self_inputs),
-            output_variables=tuple(self_outputs),
-            parameters=MappingProxyType(param_values),
-            sample_time=validation.positive("sample_time", sample_time),
+            instance_name=instance_name,
+            inputs=tuple(mapped_in.values()),
+            outputs=tuple(mapped_out.values()),
+            input_variables=tuple(mapped_in),
+            output_variables=tuple(mapped_out),
+            parameters=MappingProxyType({name: value for name, (_, value) in settings.items()}),
+            sample_time=h,
             direct_feedthrough=feedthrough,
-            can_snapshot=bool(description.coSimulation.canGetAndSetFMUstate),
-            _unzip_dir=unzip_dir,
-            _vr_in=tuple(variables[n].valueReference for n in self_inputs),
-            _vr_out=tuple(variables[n].valueReference for n in self_outputs),
-            _vr_par=tuple(variables[n].valueReference for n in param_values),
+            interface=interface,
+            solver_step=step,
+            can_snapshot=interface == "co-simulation" and bool(kind.canGetAndSetFMUstate),
+            variable_step=bool(getattr(kind, "canHandleVariableCommunicationStepSize", True)),
+            description_text=what,
+            unzip_dir=unzip_dir,
+            settings=tuple(settings.values()),
+            discrete_inputs=any(variables[n].variability == "discrete"
+                                or variable_type(variables[n], major).kind != "float" for n in mapped_in),
+            input_groups=_group_by_type([variables[n] for n in mapped_in], major),
+            output_groups=_group_by_type([variables[n] for n in mapped_out], major),
         )
         for key, value in attrs.items():
             object.__setattr__(self, key, value)
 
     # -- construction helpers
     @staticmethod
-    def _lookup(var_name: str, variables: dict, causality: str, major: int):
-        if not isinstance(var_name, str):
-            raise ModelError(f"FMU variable names must be strings, got {var_name!r}")
-        variable = variables.get(var_name)
-        if variable is None:
-            known = [v.name for v in variables.values() if v.causality == causality]
-            raise unknown_name(f"FMU {causality} variable", var_name, known)
-        if variable.causality != causality:
-            raise ModelError(f"FMU variable {var_name!r} has causality {variable.causality!r}; "
-                             f"allowed here: {causality!r}")
-        if variable.type != _REAL_TYPES[major]:
-            raise ModelError(f"FMU variable {var_name!r} has type {variable.type!r}; allowed: "
-                             f"{_REAL_TYPES[major]!r} (ctmm signals are real numbers)")
-        return variable
-
-    @classmethod
-    def _map(cls, argument: str, mapping: Mapping[str, str], variables: dict, causality: str,
-             major: int) -> dict[str, str]:
+    def _map(argument: str, mapping: Mapping[str, str], variables: dict, causality: str,
+             major: int, what: str) -> dict[str, str]:
         if not isinstance(mapping, Mapping):
-            raise ModelError(f"{argument} must be a mapping of FMU variable name -> ctmm signal name, "
+            raise ModelError(f"{what}: {argument} must be a mapping of FMU variable name -> ctmm signal name, "
                              f"got {mapping!r}")
         result: dict[str, str] = {}
         for var_name, signal in mapping.items():
-            cls._lookup(var_name, variables, causality, major)
+            mapped_variable(var_name, variables, causality, major, what)
             if not isinstance(signal, str) or not signal.strip():
-                raise ModelError(f"{argument}[{var_name!r}] must be a non-empty ctmm signal name, got {signal!r}")
+                raise ModelError(f"{what}: {argument}[{var_name!r}] must be a non-empty ctmm signal name, "
+                                 f"got {signal!r}")
             result[var_name] = signal
         return result
+
+    @staticmethod
+    def _interface(interface: str | None, description: Any, what: str) -> tuple[str, Any]:
+        available = {"co-simulation": description.coSimulation, "model exchange": description.modelExchange}
+        provided = [name for name, kind in available.items() if kind is not None]
+        if interface is None:
+            if not provided:
+                other = " (it provides scheduled execution only)" if getattr(description, "scheduledExecution", None) \
+                    else ""
+                raise ModelError(f"{what} provides neither co-simulation nor model exchange{other}; FMUController "
+                                 "supports those two (scheduled execution is not supported)")
+            interface = provided[0]
+        if interface not in _INTERFACES:
+            raise ModelError(f"{what}: interface must be one of {_INTERFACES} or None, got {interface!r}")
+        if available[interface] is None:
+            raise ModelError(f"{what} does not provide the {interface} interface; it provides: "
+                             f"{', '.join(provided) or '(none)'}")
+        return interface, available[interface]
+
+    @staticmethod
+    def _solver_step(solver_step: float | None, h: float, description: Any, interface: str, what: str) -> float | None:
+        if interface == "co-simulation":
+            if solver_step is not None:
+                raise ModelError(f"{what}: solver_step applies to model-exchange FMUs only (this FMU runs as "
+                                 f"co-simulation with its own solver), got {solver_step!r}")
+            return None
+        if solver_step is None:
+            experiment = description.defaultExperiment
+            default = getattr(experiment, "stepSize", None) if experiment is not None else None
+            return min(h, float(default)) if default else h
+        return _checked(validation.positive, "solver_step", solver_step, what)
+
+    @staticmethod
+    def _sample_time(sample_time: float | None, description: Any, interface: str, what: str) -> float:
+        if sample_time is None:
+            experiment = description.defaultExperiment
+            step = getattr(experiment, "stepSize", None) if experiment is not None else None
+            if step is None:
+                raise ModelError(f"{what}: sample_time is required (the FMU declares no DefaultExperiment "
+                                 "stepSize); allowed: a communication step > 0 [s]")
+            sample_time = float(step)
+        h = _checked(validation.positive, "sample_time", sample_time, what)
+        fixed = getattr(description.coSimulation, "fixedInternalStepSize", None)
+        if fixed and interface == "co-simulation":
+            ratio = h / float(fixed)
+            if abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio) or round(ratio) < 1:
+                warnings.warn(f"{what}: sample_time = {h!r} s is not a whole multiple of the FMU's "
+                              f"fixedInternalStepSize {float(fixed)!r} s; its outputs change only on its own "
+                              f"grid, so they may lag by up to one internal step (use k * {float(fixed)!r} s, "
+                              "k >= 1, to avoid this)", UserWarning, stacklevel=3)
+        return h
 
     def __setattr__(self, key: str, value: object) -> None:
         raise AttributeError(f"FMUController is immutable; cannot set {key!r}")
@@ -285,45 +282,51 @@ class FMUController:
         return (f"FMUController({self.model_identifier!r}, FMI {self.fmi_version}, inputs=[{ins}], "
                 f"outputs=[{outs}], sample_time={self.sample_time!r})")
 
+    def make_channels(self, which: str) -> list[ValueChannel]:
+        """Fresh typed value buffers for the mapped ``"inputs"`` or ``"outputs"`` (one per FMI type)."""
+        groups = self.input_groups if which == "inputs" else self.output_groups
+        return [ValueChannel(kind, references, positions, names) for kind, references, positions, names in groups]
+
     # -- protocol
     def init(self, t0: float = 0.0) -> FMUControllerState:
         """Instantiate and initialize the FMU at time ``t0`` [s]; return its state.
 
-        The parameters are set after instantiation, then the FMU is initialized (FMI 2:
-        ``setupExperiment``, enter/exit initialization mode; FMI 3: enter/exit initialization
-        mode with start time ``t0``).
+        The parameters and start values are set after instantiation, then the FMU is initialized
+        (FMI 2: ``setupExperiment``, enter/exit initialization mode; FMI 3: enter/exit
+        initialization mode with start time ``t0``).  Every failure frees the instance and
+        unloads the library before raising.
 
         Raises
         ------
         ModelError
-            The shared library cannot be loaded, instantiation fails (e.g. wrong GUID) or the FMU
-            rejects a parameter or its initialization.
+            The shared library cannot be loaded, instantiation fails (e.g. wrong GUID or
+            instantiation token, or an FMU that can be instantiated only once per process) or the
+            FMU rejects a parameter or its initialization; the message includes the FMU's log.
         """
-        t0 = validation.finite("t0", t0)
+        t0 = _checked(validation.finite, "t0", t0, self.description_text)
+        what = self.description_text
         log: collections.deque = collections.deque(maxlen=50)
-        instance_name = f"{self.model_identifier}_{id(log):x}"  # unique among live instances
-        if self.fmi_version == 2:
-            from fmpy.fmi2 import FMU2Slave as slave_class
-        else:
-            from fmpy.fmi3 import FMU3Slave as slave_class
-        try:
-            slave = slave_class(guid=self.model_description.guid, unzipDirectory=str(self._unzip_dir),
-                                modelIdentifier=self.model_identifier, instanceName=instance_name)
-        except Exception as exc:  # noqa: BLE001 - fmpy raises bare Exception / AttributeError here
-            raise ModelError(f"cannot load FMU {self.model_identifier!r} from {str(self.path)!r}: {exc}") from exc
-        callbacks = None
+        slave_class = instance_class(self.fmi_version, self.interface)
+        token = self.model_description.guid  # FMI 3: fmpy stores the instantiationToken here
+        slave = construct_instance(slave_class, what, guid=token, unzipDirectory=str(self.unzip_dir),
+                                   modelIdentifier=self.model_identifier, instanceName=self.instance_name)
         try:
             if self.fmi_version == 2:
-                callbacks = _fmi2_callbacks(log)
+                callbacks = fmi2_callbacks(log)
                 slave.instantiate(callbacks=callbacks)
             else:
                 def log_message(env, status, category, message):  # noqa: ANN001 - ctypes callback
-                    log.append(_decode(message))
+                    log.append(decode(message))
                 callbacks = log_message
                 slave.instantiate(logMessage=log_message)
         except Exception as exc:  # noqa: BLE001
+            slave.component = None
             slave.freeLibrary()
-            raise ModelError(f"FMU {self.model_identifier!r}: instantiation failed ({exc}); "
+            kind = self.model_description.coSimulation if self.interface == "co-simulation" \
+                else self.model_description.modelExchange
+            once = (" (the FMU declares canBeInstantiatedOnlyOncePerProcess: close the other state first)"
+                    if kind.canBeInstantiatedOnlyOncePerProcess else "")
+            raise ModelError(f"{what}: fmi{self.fmi_version}Instantiate failed ({exc}){once}; "
                              f"FMU log: {' | '.join(log) or '(empty)'}") from exc
         state = FMUControllerState(self, slave, callbacks, log, t0)
         stage = "setting parameters"
@@ -331,23 +334,41 @@ class FMUController:
             if self.fmi_version == 2:
                 stage = "fmi2SetupExperiment"
                 slave.setupExperiment(startTime=t0)
-                stage = "setting parameters"
-                if self._vr_par:
-                    slave.setReal(list(self._vr_par), list(self.parameters.values()))
-                stage = "initialization"
+                self._set_start_values(slave)
+                stage = "fmi2EnterInitializationMode"
                 slave.enterInitializationMode()
+                state.lifecycle["initialized"] = True
+                stage = "fmi2ExitInitializationMode"
                 slave.exitInitializationMode()
             else:
-                if self._vr_par:
-                    slave.setFloat64(list(self._vr_par), list(self.parameters.values()))
-                stage = "initialization"
+                self._set_start_values(slave)
+                stage = "fmi3EnterInitializationMode"
                 slave.enterInitializationMode(startTime=t0)
+                state.lifecycle["initialized"] = True
+                stage = "fmi3ExitInitializationMode"
                 slave.exitInitializationMode()
+            if self.interface == "model exchange":
+                stage = "the event iteration after initialization"
+                description = self.model_description
+                state.integrator = ModelExchangeIntegrator(slave, self.fmi_version,
+                                                           description.numberOfContinuousStates,
+                                                           description.numberOfEventIndicators, self.solver_step)
+                state.integrator.start()
         except Exception as exc:  # noqa: BLE001
             state.close()
-            raise ModelError(f"FMU {self.model_identifier!r}: {stage} failed ({exc}); "
-                             f"FMU log: {' | '.join(log) or '(empty)'}") from exc
+            detail = str(exc.args[0]) if isinstance(exc, _SettingError) else f"{stage} failed ({status_text(exc)})"
+            raise ModelError(f"{what}: {detail}; FMU log: {' | '.join(log) or '(empty)'}") from exc
         return state
+
+    def _set_start_values(self, slave: Any) -> None:
+        for variable, value in self.settings:
+            kind = variable_type(variable, self.fmi_version)
+            function = "setString" if variable.type == "String" else "set" + kind.function
+            try:
+                getattr(slave, function)([variable.valueReference], [value])
+            except Exception as exc:  # noqa: BLE001
+                raise _SettingError(f"setting {variable.name!r} = {value!r} failed ({status_text(exc)}); the "
+                                    f"FMU refused the value") from exc
 
     def step(self, t: float, y: np.ndarray, state: FMUControllerState) -> ControllerStep:
         """Set the inputs ``y`` at ``t`` [s], read the outputs, advance the FMU to ``t + h``.
@@ -358,58 +379,85 @@ class FMUController:
         Returns
         -------
         ControllerStep
-            Outputs ordered like :attr:`outputs` (valid on ``[t, t + h)``) and the same state
-            object, advanced in place.
+            Outputs ordered like :attr:`outputs` (valid on ``[t, t + h)``) as float64, and the
+            same state object, advanced in place.
 
         Raises
         ------
         SimulationError
             The state is closed or failed before, ``t`` is off the sample grid, ``y`` has the
-            wrong length, or an FMI call (set, get, doStep) fails; ``error.time`` is ``t``.
+            wrong length or a value that cannot be converted to its input's type, or an FMI call
+            (set, get, doStep) returns Discard, Error or Fatal; the message names the FMU, the
+            call, the time and the status, ``error.time`` is the communication point.
         """
         h = self.sample_time
+        what = self.description_text
+        if not isinstance(state, FMUControllerState) or state.controller is not self:
+            raise ModelError(f"{what}: state must be the FMUControllerState returned by this controller's init(), "
+                             f"got {type(state).__name__}")
         t_fmu = state.time
         if state.closed:
-            raise SimulationError(f"FMU {self.model_identifier!r}: step on a closed state", time=t)
+            raise SimulationError(f"{what}: step on a closed state", time=t)
         if state.failed_at is not None:
-            raise SimulationError(f"FMU {self.model_identifier!r} failed at t = {state.failed_at!r}; restore a "
-                                  "snapshot or init a new state", time=t)
+            raise SimulationError(f"{what} failed at t = {state.failed_at!r}; restore a snapshot or init a new "
+                                  "state", time=t)
         if abs(t - t_fmu) > 1e-6 * h:
-            raise SimulationError(f"FMU {self.model_identifier!r}: step called at t = {t!r}, but the next "
-                                  f"communication point is {t_fmu!r} (sample_time {h!r})", time=t)
-        values = np.asarray(y, dtype=float)
+            raise SimulationError(f"{what}: step called at t = {t!r}, but the next communication point is "
+                                  f"{t_fmu!r} (sample_time {h!r})", time=t)
+        try:
+            values = np.asarray(y, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise SimulationError(f"{what}: y must be {len(self.inputs)} real numbers ordered like {self.inputs}, "
+                                  f"got {y!r}", time=t) from exc
         if values.shape != (len(self.inputs),):
-            raise SimulationError(f"FMU {self.model_identifier!r}: y must have shape ({len(self.inputs)},) "
-                                  f"ordered like {self.inputs}, got shape {values.shape}", time=t)
+            raise SimulationError(f"{what}: y must have shape ({len(self.inputs)},) ordered like {self.inputs}, "
+                                  f"got shape {values.shape}", time=t)
+        for channel in state.input_channels:
+            channel.load(values, t_fmu, what)
         slave = state.slave
         component = slave.component
-        n_in, n_out = len(self.inputs), len(self.outputs)
-        function = "set inputs"
+        fmi3 = self.fmi_version == 3
+        function = f"fmi{self.fmi_version}Set"
+        sample_event = state.integrator is not None and self.discrete_inputs
         try:
-            state._in_view[:] = values
-            if self.fmi_version == 2:
-                if n_in:
-                    slave.fmi2SetReal(component, state._vr_in, n_in, state._in)
-                function = "fmi2GetReal"
-                slave.fmi2GetReal(component, state._vr_out, n_out, state._out)
+            if sample_event:  # model exchange: discrete inputs may change only in event mode
+                function = f"fmi{self.fmi_version}EnterEventMode"
+                slave.enterEventMode()
+            for channel, setter in zip(state.input_channels, state.setters):
+                function = f"fmi{self.fmi_version}Set{channel.kind.function}"
+                exchange(setter, component, channel, fmi3)
+            if sample_event:
+                function = "the event iteration after setting discrete inputs"
+                state.integrator.settle()
+            for channel, getter in zip(state.output_channels, state.getters):
+                function = f"fmi{self.fmi_version}Get{channel.kind.function}"
+                exchange(getter, component, channel, fmi3)
+                state.outputs[channel.positions] = channel.view
+            if state.integrator is not None:
+                function = "model-exchange integration (RK4)"
+                state.integrator.advance(t_fmu, h)
+            elif fmi3:
+                function = "fmi3DoStep"
+                slave.fmi3DoStep(component, t_fmu, h, not self.can_snapshot, *state.step_flag_pointers)
+                if state.step_flags[1].value:
+                    raise _StepRefused("the FMU requested termination (terminateSimulation = true)")
+                if state.step_flags[2].value:
+                    raise _StepRefused(f"the FMU returned early at t = {state.step_flags[3].value!r} "
+                                       "(earlyReturn = true)")
+            else:
                 function = "fmi2DoStep"
                 slave.fmi2DoStep(component, t_fmu, h, 0 if self.can_snapshot else 1)
-            else:
-                if n_in:
-                    slave.fmi3SetFloat64(component, state._vr_in, n_in, state._in, n_in)
-                function = "fmi3GetFloat64"
-                slave.fmi3GetFloat64(component, state._vr_out, n_out, state._out, n_out)
-                function = "fmi3DoStep"
-                slave.fmi3DoStep(component, t_fmu, h, not self.can_snapshot, *state._flag_pointers)
-                if state._flags[1].value:
-                    raise RuntimeError("the FMU requested termination (terminateSimulation)")
         except Exception as exc:  # noqa: BLE001 - fmpy raises FMICallException
             state.failed_at = t_fmu
-            raise SimulationError(f"FMU {self.model_identifier!r}: {function} failed at t = {t_fmu!r} ({exc}); "
+            detail = status_text(exc)
+            called = getattr(exc, "function", None)
+            if called and called != function:
+                detail = f"{called} returned {detail}"
+            raise SimulationError(f"{what}: {function} failed at t = {t_fmu!r} ({detail}); "
                                   f"FMU log: {' | '.join(state.log) or '(empty)'}", time=t_fmu) from exc
         state.steps += 1
         state.time = state.start_time + state.steps * h
-        return ControllerStep(state._out_view.copy(), state)
+        return ControllerStep(state.outputs.copy(), state)
 
     # -- optional capabilities
     def snapshot(self, state: FMUControllerState) -> FMUSnapshot:
@@ -427,10 +475,10 @@ class FMUController:
         try:
             handle = state.slave.getFMUstate() if self.fmi_version == 2 else state.slave.getFMUState()
         except Exception as exc:  # noqa: BLE001
-            raise SimulationError(f"FMU {self.model_identifier!r}: saving the FMU state failed ({exc})",
+            raise SimulationError(f"{self.description_text}: saving the FMU state failed ({exc})",
                                   time=state.time) from exc
         snap = FMUSnapshot(handle, state.time, state.steps, state)
-        state._snapshots.add(snap)
+        state.snapshots.add(snap)
         return snap
 
     def restore(self, state: FMUControllerState, snapshot: FMUSnapshot) -> FMUControllerState:
@@ -438,16 +486,18 @@ class FMUController:
         self._require_snapshots()
         self._require_open(state)
         if not isinstance(snapshot, FMUSnapshot) or snapshot.owner() is not state:
-            raise ModelError("snapshot must be an FMUSnapshot taken from this state with FMUController.snapshot")
+            raise ModelError(f"{self.description_text}: snapshot must be an FMUSnapshot taken from this state with "
+                             f"FMUController.snapshot, got {snapshot!r}")
         if not snapshot.handle:
-            raise ModelError("snapshot has been released")
+            raise ModelError(f"{self.description_text}: the snapshot taken at t = {snapshot.time!r} has been "
+                             "released; allowed: a snapshot not yet released")
         try:
             if self.fmi_version == 2:
                 state.slave.setFMUstate(snapshot.handle)
             else:
                 state.slave.setFMUState(snapshot.handle)
         except Exception as exc:  # noqa: BLE001
-            raise SimulationError(f"FMU {self.model_identifier!r}: restoring the FMU state failed ({exc})",
+            raise SimulationError(f"{self.description_text}: restoring the FMU state failed ({exc})",
                                   time=state.time) from exc
         state.time, state.steps, state.failed_at = snapshot.time, snapshot.steps, None
         return state
@@ -460,31 +510,61 @@ class FMUController:
             else:
                 state.slave.freeFMUState(snapshot.handle)
         snapshot.handle = None
-        state._snapshots.discard(snapshot)
+        state.snapshots.discard(snapshot)
 
     def close(self, state: FMUControllerState) -> None:
         """Release the snapshots, terminate and free the FMU instance (idempotent)."""
         if state.closed:
             return
-        for snap in list(state._snapshots):
+        for snap in list(state.snapshots):
             try:
                 self.release(state, snap)
             except Exception:  # noqa: BLE001 - freeing must not stop the cleanup
                 snap.handle = None
         state.closed = True
-        state._finalizer()
+        state.finalizer()
 
     # -- helpers
     def _require_snapshots(self) -> None:
+        if self.interface == "model exchange":
+            raise ModelError(f"{self.description_text}: snapshots are offered for co-simulation FMUs only (the "
+                             "model-exchange integrator's event bookkeeping is not part of the FMU state)")
         if not self.can_snapshot:
-            raise ModelError(f"FMU {self.model_identifier!r} does not support saving its state "
+            raise ModelError(f"{self.description_text} does not support saving its state "
                              "(canGetAndSetFMUstate is not true in its modelDescription.xml)")
 
     def _require_open(self, state: FMUControllerState) -> None:
         if not isinstance(state, FMUControllerState) or state.controller is not self:
-            raise ModelError("state must be the FMUControllerState returned by this controller's init()")
+            raise ModelError(f"{self.description_text}: state must be the FMUControllerState returned by this "
+                             f"controller's init(), got {type(state).__name__}")
         if state.closed:
-            raise SimulationError(f"FMU {self.model_identifier!r}: the state is closed", time=state.time)
+            raise SimulationError(f"{self.description_text}: the state is closed", time=state.time)
+
+
+class _SettingError(Exception):
+    """An FMU refused a parameter or start value (message already complete)."""
+
+
+class _StepRefused(Exception):
+    """fmi3DoStep returned OK but asked to stop or returned early."""
+
+
+def _checked(check: Any, name: str, value: Any, what: str) -> float:
+    """Run a :mod:`ctmm.validation` check; its error message is prefixed with the FMU's name."""
+    try:
+        return check(name, value)
+    except ModelError as exc:
+        raise ModelError(f"{what}: {exc}") from exc
+
+
+def _group_by_type(variables: list, major: int) -> tuple:
+    """Mapped variables grouped by FMI type: (type, value references, positions, names) per type."""
+    groups: dict[str, list] = {}
+    for position, variable in enumerate(variables):
+        groups.setdefault(variable.type, []).append((position, variable))
+    return tuple((variable_type(members[0][1], major), tuple(v.valueReference for _, v in members),
+                  tuple(p for p, _ in members), tuple(v.name for _, v in members))
+                 for members in groups.values())
 
 
 def _derive_feedthrough(description, outputs: list, input_ids: set[int]) -> bool:
@@ -499,27 +579,3 @@ def _derive_feedthrough(description, outputs: list, input_ids: set[int]) -> bool
     return False
 
 
-def _decode(message: Any) -> str:
-    if isinstance(message, bytes):
-        return message.decode("utf-8", "replace")
-    return str(message)
-
-
-def _fmi2_callbacks(log: collections.deque):
-    from fmpy import calloc, free
-    from fmpy.fmi2 import (fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                           fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
-
-    def logger(component, instance_name, status, category, message):  # noqa: ANN001 - ctypes callback
-        log.append(_decode(message))
-
-    callbacks = fmi2CallbackFunctions()
-    callbacks.logger = fmi2CallbackLoggerTYPE(logger)
-    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-    try:
-        from fmpy.logging import addLoggerProxy
-        addLoggerProxy(ctypes.byref(callbacks))
-    except Exception:  # noqa: BLE001 - without the proxy the message is unformatted but still logged
-        pass
-    return callbacks

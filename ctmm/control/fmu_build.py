@@ -1,14 +1,17 @@
-"""Building FMI co-simulation FMUs from C sources (used by :mod:`ctmm.control.fmu`).
+"""Building FMUs from C sources: a source folder, an FMU that ships sources, or its extracted folder.
 
-:func:`build_fmu` compiles a source folder (``modelDescription.xml`` + ``sources/*.c``) with the
-system C compiler against the FMI headers shipped with fmpy, zips the result into
-``<modelIdentifier>.fmu``, checks it with :func:`fmpy.validation.validate_fmu` and caches it by a
-hash of everything that went into the build (sources, headers, compiler and flags).  The small
-helpers that read model descriptions are shared with the FMU controller.
+:func:`build_fmu` compiles the C sources with the system C compiler against the FMI headers shipped
+with fmpy, packs the result into ``<modelIdentifier>.fmu``, checks it with
+:func:`fmpy.validation.validate_fmu` and caches it by a hash of everything that went into the build
+(sources, headers, compiler and flags).
+
+Which sources are compiled: the FMU's own source list when it declares one (FMI 2:
+``<SourceFiles>`` of the interface in ``modelDescription.xml``; FMI 3:
+``sources/buildDescription.xml``, ``BuildConfiguration`` of the model identifier, with its
+``PreprocessorDefinition`` and ``IncludeDirectory`` entries), otherwise every ``sources/*.c``.
 """
 from __future__ import annotations
 
-import ctypes
 import hashlib
 import os
 import shutil
@@ -17,30 +20,20 @@ import sys
 import tempfile
 import zipfile
 from pathlib import Path
+from typing import Any
 
 from ..errors import ModelError
+from .fmu_description import fmi_headers_dir, fmi_major_version, read_description, require_fmpy
+from .fmu_loading import extract_fmu, missing_functions, required_functions
 
 __all__ = ["build_fmu", "fmi_headers_dir"]
 
 _BUILD_FORMAT = b"ctmm.build_fmu/1"
 _COMPILE_FLAGS = ("-std=c99", "-O2", "-ffp-contract=off", "-shared", "-fPIC", "-fvisibility=hidden")
-_REAL_TYPES = {2: "Real", 3: "Float64"}
-
-
-def _fmpy():
-    try:
-        import fmpy
-    except ImportError as exc:  # pragma: no cover - fmpy is a dependency of ctmm
-        raise ModelError("FMU support needs the 'fmpy' package (pip install fmpy)") from exc
-    return fmpy
-
-
-def fmi_headers_dir() -> Path:
-    """Folder holding the FMI 1/2/3 C headers shipped with fmpy (``fmpy/c-code``)."""
-    return Path(_fmpy().__file__).resolve().parent / "c-code"
-
-
-# --------------------------------------------------------------------------------------- build
+_LANGUAGE_STANDARDS = {"C89": "-std=gnu89", "C90": "-std=gnu90", "C99": "-std=gnu99", "C11": "-std=gnu11",
+                       "C17": "-std=gnu17", "C18": "-std=gnu17"}
+_PACKED = ("modelDescription.xml", "model.png", "sources", "resources", "documentation", "extra", "binaries",
+           "terminalsAndIcons", "licenses", "icons")
 
 
 def _default_cache_dir() -> Path:
@@ -56,85 +49,100 @@ def _default_cache_dir() -> Path:
     raise ModelError("no writable cache directory for FMUs; pass output_dir to build_fmu")
 
 
-def _peek_fmi_version(path: Path) -> str:
-    """The root's fmiVersion attribute, read before any schema validation."""
-    from xml.etree import ElementTree
+class _Library:
+    """One shared library to compile: model identifier, interfaces, sources, flags."""
 
-    try:
-        if path.is_dir():
-            path = path / "modelDescription.xml"
-        if path.suffix.lower() == ".xml":
-            stream = open(path, "rb")
-        else:
-            with zipfile.ZipFile(path) as archive:
-                stream = archive.open("modelDescription.xml")
-        with stream:
-            for _, element in ElementTree.iterparse(stream, events=("start",)):
-                return str(element.get("fmiVersion", ""))
-    except (OSError, KeyError, zipfile.BadZipFile, ElementTree.ParseError) as exc:
-        raise ModelError(f"cannot read modelDescription.xml from {str(path)!r}: {exc}") from exc
-    return ""
+    def __init__(self, identifier: str, interfaces: list[str], sources: list[Path], flags: list[str]) -> None:
+        self.identifier = identifier
+        self.interfaces = interfaces
+        self.sources = sources
+        self.flags = flags
 
 
-def _read_description(path: Path, what: str):
-    fmpy = _fmpy()
-    _fmi_major(_peek_fmi_version(path), what)
-    try:
-        return fmpy.read_model_description(str(path), validate=True)
-    except Exception as exc:  # fmpy raises ValidationError, lxml errors, zip errors ...
-        problems = getattr(exc, "problems", None)
-        detail = "; ".join(problems) if problems else str(exc)
-        raise ModelError(f"cannot read the model description of {what}: {detail}") from exc
-
-
-def _fmi_major(version: str, what: str) -> int:
-    major = version.split(".")[0]
-    if major not in ("2", "3"):
-        raise ModelError(f"{what} declares fmiVersion={version!r}; supported: '2.0' and '3.0' "
-                         "(FMI 1.0 has a different C API; re-export the model as FMI 2.0 or 3.0)")
-    return int(major)
-
-
-def _required_functions(major: int) -> list[str]:
-    """C functions fmpy loads for a co-simulation FMU of this FMI major version."""
-    if major == 2:
-        from fmpy.fmi2 import FMU2Slave as slave_class
-    else:
-        from fmpy.fmi3 import FMU3Slave as slave_class
-    prefix = f"fmi{major}"
-    return sorted(name for name in dir(slave_class) if name.startswith(prefix))
+def _libraries(root: Path, description: Any, major: int, what: str) -> list[_Library]:
+    """The libraries to compile, with their source files and flags, from the FMU's own build info."""
+    interfaces: dict[str, list[str]] = {}
+    for label, interface in (("co-simulation", description.coSimulation), ("model exchange", description.modelExchange)):
+        if interface is not None:
+            interfaces.setdefault(interface.modelIdentifier, []).append(label)
+    if not interfaces:
+        raise ModelError(f"{what} declares neither <CoSimulation> nor <ModelExchange>; build_fmu builds those")
+    source_dir = root / "sources"
+    # source-code FMI 3 FMUs prefix their functions with "<modelIdentifier>_"; a binary needs none
+    version_flags = ["-DFMI3_OVERRIDE_FUNCTION_PREFIX"] if major == 3 else []
+    configurations = {c.modelIdentifier: c for c in (description.buildConfigurations or [])}
+    result = []
+    for identifier, labels in interfaces.items():
+        configuration = configurations.get(identifier)
+        if configuration is None and len(configurations) == 1 and len(interfaces) == 1:
+            configuration = next(iter(configurations.values()))
+        if configuration is None:
+            sources = sorted(source_dir.glob("*.c"))
+            if not sources:
+                raise ModelError(f"{what} has no C sources in sources/*.c and declares no source list "
+                                 f"for model identifier {identifier!r}")
+            result.append(_Library(identifier, labels, sources, [*_COMPILE_FLAGS, *version_flags]))
+            continue
+        sources, flags = [], [flag for flag in _COMPILE_FLAGS if not flag.startswith("-std=")]
+        standard = "-std=gnu99"
+        for file_set in configuration.sourceFileSets:
+            language = (file_set.language or "C99").upper()
+            if language not in _LANGUAGE_STANDARDS:
+                raise ModelError(f"{what}: source file set language {file_set.language!r} is not supported; "
+                                 f"allowed: {', '.join(_LANGUAGE_STANDARDS)}")
+            standard = _LANGUAGE_STANDARDS[language]
+            for name in file_set.sourceFiles:
+                path = source_dir / name
+                if not path.is_file():
+                    raise ModelError(f"{what}: source file {name!r} listed for {identifier!r} is missing "
+                                     f"(expected sources/{name})")
+                sources.append(path)
+            for definition in file_set.preprocessorDefinitions:
+                flags.append(f"-D{definition.name}" + (f"={definition.value}" if definition.value is not None else ""))
+            for include in file_set.includeDirectories:
+                flags.append(f"-I{source_dir / include}")
+        if not sources:
+            raise ModelError(f"{what}: the build configuration of {identifier!r} lists no source files")
+        result.append(_Library(identifier, labels, sources, [standard, *flags, *version_flags]))
+    return result
 
 
 def build_fmu(source_dir: str | os.PathLike, output_dir: str | os.PathLike | None = None, *,
               compiler: str = "cc") -> Path:
-    """Compile an FMU source folder into a co-simulation ``.fmu`` (cached by content hash).
+    """Compile an FMU's C sources into an ``.fmu`` with a binary for this platform (cached).
 
     Parameters
     ----------
     source_dir : path
-        Folder with ``modelDescription.xml`` and ``sources/*.c`` (optional ``sources/*.h`` and a
-        ``resources/`` folder, which is packed as is).  FMI 2.0 and 3.0 descriptions are accepted.
+        One of: a folder with ``modelDescription.xml`` and ``sources/`` (optional ``resources/``);
+        an ``.fmu`` file that ships C sources (a source-code FMU); or the folder of an extracted
+        FMU.  FMI 2.0 and 3.0 are accepted; the FMI headers of the declared version are used.
     output_dir : path, optional
         Where ``<modelIdentifier>.fmu`` is written (with a ``.sha256`` stamp beside it).  Default:
         a per-user cache (``$XDG_CACHE_HOME/ctmm/fmu/<hash>/``, falling back to the temp folder).
     compiler : str, optional
-        C compiler command (``"cc"``, ``"gcc"``, ``"clang"`` or a path); called as
-        ``compiler -std=c99 -O2 -ffp-contract=off -shared -fPIC -fvisibility=hidden
-        -I<fmpy/c-code> -I<source_dir/sources> sources/*.c -lm`` (no fused multiply-add, so
-        the arithmetic matches numpy's bit for bit).
+        C compiler command (``"cc"``, ``"gcc"``, ``"clang"`` or a path).  Without a declared
+        source list it is called as ``compiler -std=c99 -O2 -ffp-contract=off -shared -fPIC
+        -fvisibility=hidden -I<fmpy/c-code> -I<sources> sources/*.c -lm`` (no fused multiply-add,
+        so the arithmetic matches numpy's bit for bit); with one, the listed files are compiled
+        with the declared preprocessor definitions and include folders and ``-std=gnuXX`` of the
+        declared language.
 
     Returns
     -------
     pathlib.Path
-        Path of the ``.fmu`` file.  It is rebuilt only when the description, a source, the FMI
-        headers, the compiler (path and ``--version``) or the flags changed.
+        Path of the ``.fmu`` file.  It holds everything of the input (model description,
+        sources, resources, documentation, other platforms' binaries) plus the new binary.  It is
+        rebuilt only when an input file, the FMI headers, the compiler (path and ``--version``)
+        or the flags changed.
 
     Raises
     ------
     ModelError
-        Missing files, an unsupported FMI version or platform, a compiler error (the message
-        contains the compiler's stderr), missing FMI functions in the binary, or problems
-        reported by :func:`fmpy.validation.validate_fmu`.
+        Missing files (a listed source that does not exist), an unsupported FMI version,
+        language or platform, a compiler error (the message contains the compiler's stderr),
+        missing FMI functions in the binary, or problems reported by
+        :func:`fmpy.validation.validate_fmu`.
 
     Examples
     --------
@@ -142,24 +150,38 @@ def build_fmu(source_dir: str | os.PathLike, output_dir: str | os.PathLike | Non
     >>> path.name                                                   # doctest: +SKIP
     'pd_controller.fmu'
     """
-    fmpy = _fmpy()
+    if not isinstance(source_dir, (str, os.PathLike)):
+        raise ModelError(f"source_dir must be a folder or an .fmu file, got {source_dir!r}")
     source = Path(source_dir)
+    if source.is_file():
+        if not zipfile.is_zipfile(source):
+            raise ModelError(f"source_dir {str(source)!r} is a file but not an FMU (ZIP) archive; allowed: a "
+                             "source folder, an .fmu file that ships C sources, or an extracted FMU folder")
+        root = extract_fmu(source, f"FMU {str(source)!r}")
+        try:
+            return _build(root, source, output_dir, compiler)
+        finally:
+            shutil.rmtree(root, ignore_errors=True)
     if not source.is_dir():
-        raise ModelError(f"source_dir must be an existing folder, got {str(source)!r}")
-    description_file = source / "modelDescription.xml"
+        raise ModelError(f"source_dir must be an existing folder or .fmu file, got {str(source)!r}")
+    return _build(source, source, output_dir, compiler)
+
+
+def _build(root: Path, source: Path, output_dir: str | os.PathLike | None, compiler: str) -> Path:
+    fmpy = require_fmpy()
+    description_file = root / "modelDescription.xml"
     if not description_file.is_file():
         raise ModelError(f"source_dir {str(source)!r} has no modelDescription.xml")
-    c_files = sorted((source / "sources").glob("*.c"))
-    if not c_files:
-        raise ModelError(f"source_dir {str(source)!r} has no C sources in sources/*.c")
-    description = _read_description(description_file, str(description_file))
-    major = _fmi_major(description.fmiVersion, str(description_file))
-    if description.coSimulation is None:
-        raise ModelError(f"{description_file} declares no <CoSimulation> interface; build_fmu builds "
-                         "co-simulation FMUs only")
-    identifier = description.coSimulation.modelIdentifier
+    if not (root / "sources").is_dir():
+        raise ModelError(f"source_dir {str(source)!r} has no sources/ folder (this FMU does not ship C sources)")
+    what = f"{str(source)!r}"
+    description = read_description(root, what)
+    major = fmi_major_version(description.fmiVersion, what)
+    libraries = _libraries(root, description, major, what)
     if not sys.platform.startswith(("linux", "darwin")):
         raise ModelError(f"build_fmu supports Linux and macOS C compilers, not platform {sys.platform!r}")
+    if not isinstance(compiler, (str, os.PathLike)) or not str(compiler).strip():
+        raise ModelError(f"compiler must be a C compiler command or path such as 'cc' or 'gcc', got {compiler!r}")
     compiler_path = shutil.which(compiler)
     if compiler_path is None:
         raise ModelError(f"compiler {compiler!r} not found on PATH; pass compiler='gcc' or a full path")
@@ -169,55 +191,66 @@ def build_fmu(source_dir: str | os.PathLike, output_dir: str | os.PathLike | Non
     digest = hashlib.sha256(_BUILD_FORMAT)
     parts: list[tuple[str, bytes]] = [("compiler", compiler_path.encode()),
                                       ("compiler-version", _compiler_version(compiler_path)),
-                                      ("flags", " ".join(_COMPILE_FLAGS).encode()),
                                       ("platform", platform_dir.encode())]
+    parts += [(f"flags/{lib.identifier}", " ".join(lib.flags).encode()) for lib in libraries]
     parts += [(f"header/{h.name}", h.read_bytes()) for h in sorted(headers.glob("fmi*.h"))]
-    packed = [p for p in sorted(source.rglob("*")) if p.is_file()
-              and (p.parts[len(source.parts)] in ("sources", "resources") or p == description_file)]
-    parts += [(f"source/{p.relative_to(source).as_posix()}", p.read_bytes()) for p in packed]
+    own_binaries = root / "binaries" / platform_dir
+    packed = [p for p in sorted(root.rglob("*")) if p.is_file() and p.parts[len(root.parts)] in _PACKED
+              and own_binaries not in p.parents]
+    parts += [(f"source/{p.relative_to(root).as_posix()}", p.read_bytes()) for p in packed]
     for label, payload in parts:
         digest.update(label.encode() + b"\0" + len(payload).to_bytes(8, "little") + payload)
     key = digest.hexdigest()
 
+    name = libraries[0].identifier
     target_dir = Path(output_dir) if output_dir is not None else _default_cache_dir() / key[:20]
     target_dir.mkdir(parents=True, exist_ok=True)
-    target = target_dir / f"{identifier}.fmu"
-    stamp = target_dir / f"{identifier}.fmu.sha256"
+    target = target_dir / f"{name}.fmu"
+    stamp = target_dir / f"{name}.fmu.sha256"
     if target.is_file() and stamp.is_file() and stamp.read_text().strip() == key:
         return target
 
-    with tempfile.TemporaryDirectory(prefix=f".{identifier}-", dir=target_dir) as work:
+    with tempfile.TemporaryDirectory(prefix=f".{name}-", dir=target_dir) as work:
         work_path = Path(work)
-        library = work_path / "binaries" / platform_dir / f"{identifier}{fmpy.sharedLibraryExtension}"
-        library.parent.mkdir(parents=True)
-        command = [compiler_path, *_COMPILE_FLAGS, f"-I{headers}", f"-I{source / 'sources'}",
-                   *map(str, c_files), "-o", str(library), "-lm"]
-        try:
-            completed = subprocess.run(command, capture_output=True, text=True, timeout=600)
-        except (OSError, subprocess.TimeoutExpired) as exc:
-            raise ModelError(f"compiling FMU {identifier!r} failed to run {compiler!r}: {exc}") from exc
-        if completed.returncode != 0:
-            raise ModelError(f"compiling FMU {identifier!r} failed (exit {completed.returncode}):\n"
-                             f"$ {' '.join(command)}\n{completed.stderr.strip()}")
-        missing = _missing_symbols(library, _required_functions(major))
-        if missing:
-            raise ModelError(f"FMU {identifier!r}: the compiled library does not export the FMI "
-                             f"{major} functions {', '.join(missing)}")
-        archive = work_path / f"{identifier}.fmu"
+        built = [_compile(lib, work_path, platform_dir, compiler, compiler_path, headers, root, major)
+                 for lib in libraries]
+        archive = work_path / f"{name}.fmu"
         with zipfile.ZipFile(archive, "w", zipfile.ZIP_DEFLATED) as zf:
-            zf.write(description_file, "modelDescription.xml")
-            zf.write(library, library.relative_to(work_path).as_posix())
             for path in packed:
-                if path != description_file:
-                    zf.write(path, path.relative_to(source).as_posix())
+                zf.write(path, path.relative_to(root).as_posix())
+            for library in built:
+                zf.write(library, library.relative_to(work_path).as_posix())
         from fmpy.validation import validate_fmu
         problems = validate_fmu(str(archive))
         if problems:
-            raise ModelError(f"FMU {identifier!r} built from {str(source)!r} is not valid:\n- "
-                             + "\n- ".join(problems))
+            raise ModelError(f"FMU {name!r} built from {str(source)!r} is not valid:\n- " + "\n- ".join(problems))
         os.replace(archive, target)
     stamp.write_text(key + "\n")
     return target
+
+
+def _compile(lib: _Library, work_path: Path, platform_dir: str, compiler: str, compiler_path: str,
+             headers: Path, root: Path, major: int) -> Path:
+    """Compile one library into ``work_path/binaries/<platform>/`` and check its FMI functions."""
+    fmpy = require_fmpy()
+    library = work_path / "binaries" / platform_dir / f"{lib.identifier}{fmpy.sharedLibraryExtension}"
+    library.parent.mkdir(parents=True, exist_ok=True)
+    command = [compiler_path, *lib.flags, f"-I{headers}", f"-I{root / 'sources'}",
+               *map(str, lib.sources), "-o", str(library), "-lm"]
+    try:
+        completed = subprocess.run(command, capture_output=True, text=True, timeout=600)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        raise ModelError(f"compiling FMU {lib.identifier!r} failed to run {compiler!r}: {exc}") from exc
+    if completed.returncode != 0:
+        raise ModelError(f"compiling FMU {lib.identifier!r} failed (exit {completed.returncode}):\n"
+                         f"$ {' '.join(command)}\n{completed.stderr.strip()}")
+    what = f"FMU {lib.identifier!r}"
+    for interface in lib.interfaces:
+        missing = missing_functions(library, required_functions(major, interface), what)
+        if missing:
+            raise ModelError(f"{what}: the compiled library does not export the FMI {major} {interface} "
+                             f"functions {', '.join(missing)}")
+    return library
 
 
 def _compiler_version(compiler_path: str) -> bytes:
@@ -225,16 +258,3 @@ def _compiler_version(compiler_path: str) -> bytes:
         return subprocess.run([compiler_path, "--version"], capture_output=True, timeout=60).stdout
     except (OSError, subprocess.TimeoutExpired):
         return b""
-
-
-def _missing_symbols(library: Path, names: list[str]) -> list[str]:
-    handle = ctypes.CDLL(str(library))
-    try:
-        return [name for name in names if not hasattr(handle, name)]
-    finally:
-        _fmpy().freeLibrary(handle._handle)
-
-
-# --------------------------------------------------------------------------------------- run
-
-
