@@ -499,7 +499,8 @@ def test_fmu_failure_in_a_closed_loop_keeps_the_partial_result_and_frees_the_fmu
         simulate_controlled(plant, 1.0, 0.002, x0={"m0": -0.05, "m2": 0.1}, controllers=[fmu])
     assert info.value.time == pytest.approx(0.3)
     partial = info.value.partial_result
-    assert partial is not None and 0.29 < partial.time[-1] < 0.3 and np.all(np.isfinite(partial["m2.x"]))
+    # the state at t = 0.3 s is computed before the controller is sampled there, so it is kept
+    assert partial is not None and partial.time[-1] == pytest.approx(0.3) and np.all(np.isfinite(partial["m2.x"]))
     gc.collect()
     assert not mapped(fmu.unzip_dir.name)  # the co-simulation master closed the instance
 
