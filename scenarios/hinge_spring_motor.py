@@ -20,6 +20,7 @@ from ctmm.planar import (ActuatedHinge, DrivenHinge, Fixed, PlanarModel, RigidBo
 from ctmm.planar.implicit import simulate_implicit
 from ctmm.planar.integrate import simulate_rk4
 from ctmm.reference.planar_lagrange import PlanarLagrange, newton_euler_kkt
+from ctmm.scenario import accuracy
 
 NAME = "hinge_spring_motor"
 DESCRIPTION = ("Two-link arm: PD hub motor (collocated feedback embedded in the hinge) and an "
@@ -112,9 +113,9 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     fig.savefig(Path(output_dir) / f"{NAME}.png", dpi=100)
     plt.close(fig)
     return {
-        "max_error": float(err_rk4.max()),
-        "error_definition": "max over t in [0, T] of |theta_TMM+RK4 - theta_Lagrange| over both "
-                            "links [rad], PD-motor arm, h = 1 ms, DOP853 1e-12 reference",
+        "accuracy": [accuracy("angle error vs Lagrange", float(err_rk4.max()), "rad", 1e-6,
+                              "max over t in [0, T] of |theta_TMM+RK4 - theta_Lagrange| over both links, "
+                              "PD-motor arm, h = 1 ms, DOP853 1e-12 reference", source="docs/planar.md: planar RK4 target 1e-6 rad")],
         "newmark_max_error": float(err_nm.max()),
         "newton_iterations_mean": float(newmark.iterations.mean()),
         "driven_hub_max_error": float(err_d),

@@ -18,6 +18,7 @@ from ctmm.planar import Pinned, PlanarModel, RigidBody, SmoothHinge, SpringDampe
 from ctmm.planar.implicit import simulate_implicit
 from ctmm.planar.integrate import simulate_rk4
 from ctmm.reference.planar_lagrange import PlanarLagrange
+from ctmm.scenario import accuracy
 
 NAME = "pendulum_chain"
 DESCRIPTION = ("Triple pendulum with an elastic hinge (FORMULAS c07): TMM + RK4 and implicit "
@@ -88,9 +89,9 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     fig.savefig(Path(output_dir) / f"{NAME}.png", dpi=100)
     plt.close(fig)
     return {
-        "max_error": float(err_rk4.max()),
-        "error_definition": "max over t in [0, T] and links of |theta_TMM+RK4 - theta_Lagrange| "
-                            "[rad], h = 1 ms, reference DOP853 rtol = atol = 1e-12",
+        "accuracy": [accuracy("angle error vs Lagrange", float(err_rk4.max()), "rad", 1e-6,
+                              "max over t in [0, T] and links of |theta_TMM+RK4 - theta_Lagrange|, h = 1 ms, "
+                              "reference DOP853 rtol = atol = 1e-12", source="docs/planar.md: planar RK4 target 1e-6 rad")],
         "newmark_max_error": float(err_nm.max()),
         "newmark_ladder_at_1s": ladder,
         "newton_iterations_mean": float(newmark.iterations.mean()),

@@ -1,0 +1,153 @@
+"""Command line: one-line errors, exit status, final table, atomic and consistent outputs."""
+from __future__ import annotations
+
+import importlib
+import json
+import subprocess
+import sys
+
+import pytest
+
+import ctmm
+from ctmm import scenario
+from ctmm.cli import main
+from ctmm.errors import SimulationError
+
+FAST = "table7_1"      # the fastest real scenario (~0.1 s quick)
+OTHER = "delay_oscillator"
+
+
+def _module(name):
+    return importlib.import_module(f"ctmm.scenarios.{name}")
+
+
+def _fake_run(figures=("a.png",), value=1e-9, bound=1e-6, fail=None, fail_after_write=False):
+    """A scenario run() that writes small PNG-like files and reports one accuracy figure."""
+    def run(output_dir, quick=False):
+        if fail is not None and not fail_after_write:
+            raise fail
+        for figure in figures:
+            (output_dir / figure).write_bytes(b"\x89PNG" + b"0" * 2000)
+        if fail is not None:
+            raise fail
+        return {"accuracy": [scenario.accuracy("fake error", value, "m", bound, "test", source="test")],
+                "wall_time_s": 0.01, "figures": list(figures)}
+    return run
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["--version"])
+    assert info.value.code == 0
+    assert capsys.readouterr().out.strip() == f"ctmm {ctmm.__version__}"
+
+
+def test_unknown_scenario_lists_the_available_ones(tmp_path, capsys):
+    assert main(["run", "nope", "--output", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("ctmm: error: unknown scenario 'nope'; available:")
+    assert FAST in err
+    assert list(tmp_path.iterdir()) == []          # nothing ran
+
+
+@pytest.mark.parametrize("make_output", [
+    lambda tmp: tmp / "a_file" / "sub",          # parent is a file
+    lambda tmp: tmp / "a_file",                  # the output is a file
+])
+def test_bad_output_is_one_line(tmp_path, capsys, make_output):
+    (tmp_path / "a_file").write_text("x")
+    assert main(["run", FAST, "--quick", "--output", str(make_output(tmp_path))]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "ctmm: error: --output" in err and "not a writable folder" in err
+
+
+def test_unwritable_output_from_a_subprocess_has_no_traceback(tmp_path):
+    (tmp_path / "a_file").write_text("x")
+    done = subprocess.run([sys.executable, "-m", "ctmm", "run", FAST, "--output", str(tmp_path / "a_file")],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2
+    assert "Traceback" not in done.stderr and done.stderr.count("\n") == 1
+
+
+def test_simulation_error_is_one_line_and_run_goes_on(tmp_path, capsys, monkeypatch):
+    error = SimulationError("state is not finite", time=0.25, element="K3")
+    monkeypatch.setattr(_module(OTHER), "run", _fake_run(fail=error))
+    monkeypatch.setattr(_module(FAST), "run", _fake_run())
+    assert main(["run", OTHER, FAST, "--output", str(tmp_path)]) == 1
+    out, err = capsys.readouterr()
+    assert err.count("\n") == 1
+    assert "Traceback" not in err
+    assert f"ctmm: error: scenario '{OTHER}' failed: simulation error (t = 0.25 s, element 'K3'): " \
+           "state is not finite" in err
+    assert f"{FAST} | fake error: error 1e-09 m (bound 1e-06)" in out       # ran after the failure
+    table = out[out.index("scenario "):]
+    assert f"{OTHER}" in table and "FAIL" in table and "pass" in table and "1 of 2 scenarios passed" in table
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.png", f"{FAST}.json"]
+
+
+def test_debug_shows_the_traceback(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(_module(FAST), "run", _fake_run(fail=RuntimeError("boom")))
+    assert main(["run", FAST, "--output", str(tmp_path), "--debug"]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" in err and "ctmm: error: scenario 'table7_1' failed: RuntimeError: boom" in err
+
+
+def test_disk_full_is_one_line(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(_module(FAST), "run", _fake_run(fail=OSError(28, "No space left on device"),
+                                                        fail_after_write=True))
+    assert main(["run", FAST, "--output", str(tmp_path)]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "cannot write results: [Errno 28] No space left on device" in err
+    assert list(tmp_path.iterdir()) == []          # the half-written PNG is gone
+
+
+def test_bound_exceeded_fails(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(_module(FAST), "run", _fake_run(value=2e-6, bound=1e-6))
+    assert main(["run", FAST, "--output", str(tmp_path)]) == 1
+    out, err = capsys.readouterr()
+    assert "EXCEEDED" in out and "exceeds its bound" in err
+    assert json.loads((tmp_path / f"{FAST}.json").read_text())["passed"] is False   # result kept
+
+
+def test_outputs_replace_an_earlier_run_consistently(tmp_path, monkeypatch):
+    module = _module(FAST)
+    monkeypatch.setattr(module, "run", _fake_run(figures=("a.png", "b.png")))
+    scenario.run_scenario(FAST, tmp_path)
+    (tmp_path / "unrelated.txt").write_text("kept")
+    monkeypatch.setattr(module, "run", _fake_run(figures=("a.png",)))
+    summary = scenario.run_scenario(FAST, tmp_path)
+    assert summary["figures"] == ["a.png"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.png", "table7_1.json", "unrelated.txt"]
+    # a failed run removes the earlier outputs: no stale result stays
+    monkeypatch.setattr(module, "run", _fake_run(fail=SimulationError("diverged", time=1.0),
+                                                 fail_after_write=True))
+    with pytest.raises(SimulationError):
+        scenario.run_scenario(FAST, tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["unrelated.txt"]
+
+
+def test_interrupted_run_leaves_earlier_outputs_untouched(tmp_path, monkeypatch):
+    module = _module(FAST)
+    monkeypatch.setattr(module, "run", _fake_run())
+    scenario.run_scenario(FAST, tmp_path)
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    monkeypatch.setattr(module, "run", _fake_run(figures=("a.png", "new.png"), fail=KeyboardInterrupt(),
+                                                 fail_after_write=True))
+    with pytest.raises(KeyboardInterrupt):
+        scenario.run_scenario(FAST, tmp_path)
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
+
+
+def test_scenario_without_accuracy_is_refused(tmp_path, monkeypatch):
+    monkeypatch.setattr(_module(FAST), "run", lambda output_dir, quick=False: {"max_error": 1e-9})
+    with pytest.raises(ctmm.ModelError, match="no accuracy figures"):
+        scenario.run_scenario(FAST, tmp_path)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_accuracy_figure_passes_only_when_finite_and_within_bound():
+    assert scenario.accuracy("e", 1e-7, "m", 1e-6, "d", source="s")["passed"] is True
+    assert scenario.accuracy("e", 2e-6, "m", 1e-6, "d", source="s")["passed"] is False
+    assert scenario.accuracy("e", float("nan"), "m", 1e-6, "d", source="s")["passed"] is False
+    with pytest.raises(ctmm.ModelError, match="bound"):
+        scenario.accuracy("e", 1.0, "m", 0.0, "d", source="s")
