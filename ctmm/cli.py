@@ -106,11 +106,15 @@ def _list() -> int:
 
 def _run(names: list[str], output: str, quick: bool, debug: bool) -> int:
     known = scenario.available()
+    broken = scenario.broken()
+    rows = []
     if names == ["all"]:
         names = list(known)
+        for name, error in broken.items():          # reported, and the run goes on
+            _error(f"scenario module {name!r} cannot be imported: {error}")
+            rows.append((name, "FAIL", f"cannot be imported: {error}", 0.0))
     unknown = [n for n in names if n not in known]
     if unknown:
-        broken = scenario.broken()
         for name in unknown:
             if name in broken:
                 _error(f"scenario {name!r} cannot be imported: {broken[name]}")
@@ -122,14 +126,13 @@ def _run(names: list[str], output: str, quick: bool, debug: bool) -> int:
     except ModelError as exc:
         _error(str(exc))
         return EXIT_USAGE
-    rows = []
     for name in names:
         started = time.perf_counter()
         try:
             summary = scenario.run_scenario(name, output, quick=quick)
         except KeyboardInterrupt:
             _error(f"scenario {name!r} interrupted; its earlier results (if any) are unchanged")
-            if len(names) > 1:
+            if rows:
                 print(_table(rows), file=sys.stderr)
             return EXIT_INTERRUPTED
         except Exception as exc:  # noqa: BLE001 - one failed study must not stop the others
@@ -145,7 +148,7 @@ def _run(names: list[str], output: str, quick: bool, debug: bool) -> int:
         if not summary["passed"]:
             _error(f"scenario {name!r} failed: an accuracy figure exceeds its bound "
                    f"({accuracy_text([f for f in summary['accuracy'] if not f['passed']])})")
-    if len(names) > 1:
+    if len(rows) > 1:
         print(_table(rows))
     return 0 if all(r[1] == "pass" for r in rows) else EXIT_FAILED
 

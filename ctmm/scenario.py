@@ -141,7 +141,11 @@ def check_output_folder(output_dir: str | Path) -> Path:
     ModelError
         The folder cannot be created or written (names the folder and the reason).
     """
+    if not isinstance(output_dir, (str, os.PathLike)) or not str(output_dir).strip():
+        raise ModelError(f"--output must name a folder, got {output_dir!r}")
     path = Path(output_dir)
+    if path.exists() and not path.is_dir():
+        raise ModelError(f"--output {str(path)!r} exists and is not a folder; give a folder you can write to")
     try:
         path.mkdir(parents=True, exist_ok=True)
         fd, probe = tempfile.mkstemp(dir=path, prefix=".ctmm-write-check-")

@@ -50,15 +50,16 @@ def test_unknown_scenario_lists_the_available_ones(tmp_path, capsys):
     assert list(tmp_path.iterdir()) == []          # nothing ran
 
 
-@pytest.mark.parametrize("make_output", [
-    lambda tmp: tmp / "a_file" / "sub",          # parent is a file
-    lambda tmp: tmp / "a_file",                  # the output is a file
+@pytest.mark.parametrize("make_output, message", [
+    (lambda tmp: str(tmp / "a_file" / "sub"), "is not a writable folder (Not a directory)"),
+    (lambda tmp: str(tmp / "a_file"), "exists and is not a folder"),
+    (lambda tmp: "", "must name a folder, got ''"),
 ])
-def test_bad_output_is_one_line(tmp_path, capsys, make_output):
+def test_bad_output_is_one_line(tmp_path, capsys, make_output, message):
     (tmp_path / "a_file").write_text("x")
-    assert main(["run", FAST, "--quick", "--output", str(make_output(tmp_path))]) == 2
+    assert main(["run", FAST, "--quick", "--output", make_output(tmp_path)]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "ctmm: error: --output" in err and "not a writable folder" in err
+    assert err.count("\n") == 1 and err.startswith("ctmm: error: --output") and message in err
 
 
 def test_unwritable_output_from_a_subprocess_has_no_traceback(tmp_path):
@@ -151,3 +152,28 @@ def test_accuracy_figure_passes_only_when_finite_and_within_bound():
     assert scenario.accuracy("e", float("nan"), "m", 1e-6, "d", source="s")["passed"] is False
     with pytest.raises(ctmm.ModelError, match="bound"):
         scenario.accuracy("e", 1.0, "m", 0.0, "d", source="s")
+
+
+def test_read_only_output_is_one_line(tmp_path, capsys, monkeypatch):
+    """A folder the user may not write to (simulated: the tests may run as root)."""
+    def refuse(*args, **kwargs):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(scenario.tempfile, "mkstemp", refuse)
+    assert main(["run", FAST, "--output", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err == f"ctmm: error: --output '{tmp_path}' is not a writable folder (Permission denied); " \
+                  "give a folder you can write to\n"
+
+
+def test_run_all_reports_a_module_that_cannot_be_imported(tmp_path, capsys, monkeypatch):
+    module = _module(FAST)
+    monkeypatch.setattr(module, "run", _fake_run())
+    monkeypatch.setattr(scenario, "available", lambda: {FAST: module})
+    monkeypatch.setattr(scenario, "broken", lambda: {"bad_study": "SyntaxError: invalid syntax (line 3)"})
+    assert main(["run", "all", "--output", str(tmp_path)]) == 1
+    out, err = capsys.readouterr()
+    assert err == "ctmm: error: scenario module 'bad_study' cannot be imported: SyntaxError: invalid syntax " \
+                  "(line 3)\n"
+    assert "bad_study" in out and "1 of 2 scenarios passed" in out
+    assert (tmp_path / f"{FAST}.json").is_file()
