@@ -108,8 +108,8 @@ def _run(names: list[str], output: str, quick: bool, debug: bool) -> int:
     known = scenario.available()
     broken = scenario.broken()
     rows = []
-    if names == ["all"]:
-        names = list(known)
+    if "all" in names:
+        names = list(dict.fromkeys(n for name in names for n in (known if name == "all" else [name])))
         for name, error in broken.items():          # reported, and the run goes on
             _error(f"scenario module {name!r} cannot be imported: {error}")
             rows.append((name, "FAIL", f"cannot be imported: {error}", 0.0))

@@ -234,18 +234,20 @@ def run_scenario(name: str, output_dir: str | Path = "results", *, quick: bool =
     try:
         try:
             started = time.perf_counter()
-            summary = dict(scenarios[name].run(staging, quick=quick))
-            summary["total_wall_time_s"] = time.perf_counter() - started
+            summary = scenarios[name].run(staging, quick=quick)
+            if not isinstance(summary, dict):
+                raise ModelError(f"scenario {name!r}: run() must return a dict, got {type(summary).__name__}")
+            summary = dict(summary, total_wall_time_s=time.perf_counter() - started)
             figures = _accuracy_figures(name, summary)
+            summary.setdefault("scenario", name)
+            summary["quick"] = quick
+            summary["passed"] = all(f["passed"] for f in figures)
+            written = sorted(p.name for p in staging.iterdir() if p.is_file() and p.name != f"{name}.json")
+            summary["figures"] = written
+            write_json_atomic(staging / f"{name}.json", summary)
         except Exception:
             _remove(_previous_outputs(output_dir, name))
             raise
-        summary.setdefault("scenario", name)
-        summary["quick"] = quick
-        summary["passed"] = all(f["passed"] for f in figures)
-        written = sorted(p.name for p in staging.iterdir() if p.is_file() and p.name != f"{name}.json")
-        summary["figures"] = written
-        write_json_atomic(staging / f"{name}.json", summary)
         _commit(staging, output_dir, name, written)
     finally:
         shutil.rmtree(staging, ignore_errors=True)

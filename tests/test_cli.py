@@ -177,3 +177,28 @@ def test_run_all_reports_a_module_that_cannot_be_imported(tmp_path, capsys, monk
                   "(line 3)\n"
     assert "bad_study" in out and "1 of 2 scenarios passed" in out
     assert (tmp_path / f"{FAST}.json").is_file()
+
+
+def test_unserialisable_summary_fails_cleanly(tmp_path, capsys, monkeypatch):
+    module = _module(FAST)
+    monkeypatch.setattr(module, "run", _fake_run())
+    scenario.run_scenario(FAST, tmp_path)                      # an earlier, good run
+
+    def run(output_dir, quick=False):
+        summary = _fake_run()(output_dir, quick)
+        summary["model"] = object()                            # not JSON
+        return summary
+
+    monkeypatch.setattr(module, "run", run)
+    assert main(["run", FAST, "--output", str(tmp_path)]) == 1
+    assert "is not JSON serializable" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_all_may_be_combined_with_names(tmp_path, capsys, monkeypatch):
+    module = _module(FAST)
+    monkeypatch.setattr(module, "run", _fake_run())
+    monkeypatch.setattr(scenario, "available", lambda: {FAST: module})
+    monkeypatch.setattr(scenario, "broken", lambda: {})
+    assert main(["run", FAST, "all", "--output", str(tmp_path)]) == 0
+    assert capsys.readouterr().out.count(f"{FAST} | ") == 1    # once, not twice
