@@ -8,10 +8,12 @@ adds the Python traceback.
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 import time
 import traceback
-from typing import Sequence
+from contextlib import contextmanager
+from typing import Iterator, Sequence
 
 from . import __version__, scenario
 from .errors import ModelError, SimulationError
@@ -131,7 +133,8 @@ def _run(names: list[str], output: str, quick: bool, debug: bool) -> int:
         try:
             summary = scenario.run_scenario(name, output, quick=quick)
         except KeyboardInterrupt:
-            _error(f"scenario {name!r} interrupted; its earlier results (if any) are unchanged")
+            _error(f"scenario {name!r} interrupted; its earlier results (if any) are unchanged, "
+                   "scenarios after it did not run")
             if rows:
                 print(_table(rows), file=sys.stderr)
             return EXIT_INTERRUPTED
@@ -158,7 +161,24 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     if args.command == "list":
         return _list()
-    return _run(args.names, args.output, args.quick, args.debug)
+    with _terminate_as_interrupt():
+        return _run(args.names, args.output, args.quick, args.debug)
+
+
+@contextmanager
+def _terminate_as_interrupt() -> Iterator[None]:
+    """Turn SIGTERM into KeyboardInterrupt while scenarios run, so their staging folders are removed."""
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+    try:
+        previous = signal.signal(signal.SIGTERM, interrupt)
+    except ValueError:                      # not the main thread: leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":  # pragma: no cover

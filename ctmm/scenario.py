@@ -195,6 +195,24 @@ def _remove(paths: list[Path]) -> None:
             pass
 
 
+def _process_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return True
+    return True
+
+
+def _remove_dead_staging(output_dir: Path, name: str) -> None:
+    """Remove staging folders of ``name`` left by killed runs (their process no longer exists)."""
+    for folder in output_dir.glob(f".{name}-*-*"):
+        pid = folder.name[len(name) + 2:].split("-", 1)[0]
+        if folder.is_dir() and pid.isdigit() and not _process_alive(int(pid)):
+            shutil.rmtree(folder, ignore_errors=True)
+
+
 def run_scenario(name: str, output_dir: str | Path = "results", *, quick: bool = False) -> dict:
     """Run scenario ``name`` and write its PNG(s) and ``<output_dir>/<name>.json`` atomically.
 
@@ -230,7 +248,8 @@ def run_scenario(name: str, output_dir: str | Path = "results", *, quick: bool =
     import matplotlib
 
     matplotlib.use("Agg")
-    staging = Path(tempfile.mkdtemp(dir=output_dir, prefix=f".{name}-"))
+    _remove_dead_staging(output_dir, name)
+    staging = Path(tempfile.mkdtemp(dir=output_dir, prefix=f".{name}-{os.getpid()}-"))
     try:
         try:
             started = time.perf_counter()

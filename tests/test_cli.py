@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import importlib
 import json
+import os
 import subprocess
 import sys
 
@@ -202,3 +203,16 @@ def test_all_may_be_combined_with_names(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(scenario, "broken", lambda: {})
     assert main(["run", FAST, "all", "--output", str(tmp_path)]) == 0
     assert capsys.readouterr().out.count(f"{FAST} | ") == 1    # once, not twice
+
+
+def test_staging_folders_of_killed_runs_are_removed(tmp_path, monkeypatch):
+    """A run killed by SIGKILL leaves a hidden staging folder; the next run of the scenario removes it."""
+    monkeypatch.setattr(_module(FAST), "run", _fake_run())
+    dead = tmp_path / f".{FAST}-999999999-abc"             # no such process
+    live = tmp_path / f".{FAST}-{os.getpid()}-abc"         # a run still going on
+    for folder in (dead, live):
+        folder.mkdir()
+        (folder / "half.png").write_bytes(b"\x89PNG")
+    scenario.run_scenario(FAST, tmp_path)
+    assert not dead.exists() and live.exists()
+    assert sorted(p.name for p in tmp_path.iterdir() if not p.name.startswith(".")) == ["a.png", f"{FAST}.json"]
