@@ -1,55 +1,184 @@
-"""Command line: ``ctmm list`` and ``ctmm run NAME [--quick] [--output DIR]``."""
+"""Command line: ``ctmm list``, ``ctmm run NAME... [--quick] [--output DIR] [--debug]``, ``ctmm --version``.
+
+Exit status: 0 when every scenario ran and met its accuracy bounds; 1 when a scenario failed
+(it raised, or an accuracy figure exceeded its bound); 2 for a usage error (unknown scenario,
+output folder not writable, bad option).  Errors are one line, ``ctmm: error: ...``; ``--debug``
+adds the Python traceback.
+"""
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
-from typing import Sequence
+import time
+import traceback
+from contextlib import contextmanager
+from typing import Iterator, Sequence
 
-from . import scenario
-from .errors import ModelError
+from . import __version__, scenario
+from .errors import ModelError, SimulationError
+
+EXIT_FAILED = 1
+EXIT_USAGE = 2
+EXIT_INTERRUPTED = 130
 
 
-def _summary_line(name: str, summary: dict) -> str:
-    parts = [name]
-    if "max_error" in summary:
-        parts.append(f"max error {summary['max_error']:.3g}" if isinstance(summary["max_error"], float)
-                     else f"max error {summary['max_error']}")
-    if "wall_time_s" in summary:
+def format_value(value: float) -> str:
+    """A number in 2 significant digits (``7.8e-06``, ``0.05``)."""
+    return f"{value:.2g}"
+
+
+def accuracy_text(figures: list[dict]) -> str:
+    """``"error 7.8e-06 % of peak (bound 0.1)"`` for each figure, joined by ``"; "``."""
+    parts = []
+    for figure in figures:
+        flag = "" if figure["passed"] else " EXCEEDED"
+        parts.append(f"{figure['name']}: error {format_value(figure['value'])} {figure['unit']} "
+                     f"(bound {format_value(figure['bound'])}){flag}")
+    return "; ".join(parts)
+
+
+def summary_line(name: str, summary: dict) -> str:
+    """One line per finished scenario: accuracy figures with units and bounds, wall times, plots."""
+    parts = [name, accuracy_text(summary.get("accuracy", []))]
+    if isinstance(summary.get("wall_time_s"), (int, float)):
         parts.append(f"TMM wall time {summary['wall_time_s']:.3g} s")
-    if "reference_wall_time_s" in summary:
+    if isinstance(summary.get("reference_wall_time_s"), (int, float)):
         parts.append(f"reference {summary['reference_wall_time_s']:.3g} s")
     for png in summary.get("figures", []):
         parts.append(f"plot {png}")
     return " | ".join(parts)
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``ctmm`` console command."""
-    parser = argparse.ArgumentParser(prog="ctmm", description="ctmm scenarios")
+def failure_text(name: str, exc: BaseException) -> str:
+    """One line for a scenario that raised: scenario, what failed, and time/element if known."""
+    message = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+    if isinstance(exc, SimulationError):
+        where = []
+        if getattr(exc, "time", None) is not None:
+            where.append(f"t = {exc.time:.6g} s")
+        if getattr(exc, "element", None):
+            where.append(f"element {exc.element!r}")
+        detail = f" ({', '.join(where)})" if where else ""
+        return f"scenario {name!r} failed: simulation error{detail}: {message}"
+    if isinstance(exc, ModelError):
+        return f"scenario {name!r} failed: invalid model or option: {message}"
+    if isinstance(exc, OSError):
+        return f"scenario {name!r} failed: cannot write results: {message}"
+    return f"scenario {name!r} failed: {type(exc).__name__}: {message}"
+
+
+def _error(text: str) -> None:
+    print(f"ctmm: error: {text}", file=sys.stderr)
+
+
+def _table(rows: list[tuple[str, str, str, float]]) -> str:
+    """Final table: scenario, pass/fail, accuracy (with units and bounds) or the failure, wall time."""
+    width = max([8] + [len(r[0]) for r in rows])
+    lines = [f"{'scenario':{width}s}  {'result':6s}  {'wall [s]':>8s}  error (unit, bound) / failure",
+             f"{'-' * width}  {'-' * 6}  {'-' * 8}  {'-' * 30}"]
+    for name, result, detail, wall in rows:
+        lines.append(f"{name:{width}s}  {result:6s}  {wall:8.2f}  {detail}")
+    passed = sum(r[1] == "pass" for r in rows)
+    lines.append(f"{passed} of {len(rows)} scenarios passed")
+    return "\n".join(lines)
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="ctmm", description="ctmm scenarios: validated studies that write "
+                                     "PNG figures and a JSON summary")
+    parser.add_argument("--version", action="version", version=f"ctmm {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     sub.add_parser("list", help="list the scenarios")
     run = sub.add_parser("run", help="run scenarios and write PNG + JSON")
     run.add_argument("names", nargs="+", metavar="NAME", help="scenario name(s) or 'all'")
     run.add_argument("--output", default="results", help="output folder (default: results)")
     run.add_argument("--quick", action="store_true", help="shorter version (smoke test)")
-    args = parser.parse_args(argv)
-    if args.command == "list":
-        for name, module in scenario.available().items():
-            print(f"{name:28s} {getattr(module, 'DESCRIPTION', '')}")
-        for name, error in scenario.broken().items():
-            print(f"{name:28s} (cannot be imported: {error})", file=sys.stderr)
-        return 0
-    names = list(scenario.available()) if args.names == ["all"] else args.names
-    status = 0
+    run.add_argument("--debug", action="store_true", help="print Python tracebacks of failures")
+    return parser
+
+
+def _list() -> int:
+    for name, module in scenario.available().items():
+        print(f"{name:28s} {getattr(module, 'DESCRIPTION', '')}")
+    for name, error in scenario.broken().items():
+        print(f"{name:28s} (cannot be imported: {error})", file=sys.stderr)
+    return 0
+
+
+def _run(names: list[str], output: str, quick: bool, debug: bool) -> int:
+    known = scenario.available()
+    broken = scenario.broken()
+    rows = []
+    if "all" in names:
+        names = list(dict.fromkeys(n for name in names for n in (known if name == "all" else [name])))
+        for name, error in broken.items():          # reported, and the run goes on
+            _error(f"scenario module {name!r} cannot be imported: {error}")
+            rows.append((name, "FAIL", f"cannot be imported: {error}", 0.0))
+    unknown = [n for n in names if n not in known]
+    if unknown:
+        for name in unknown:
+            if name in broken:
+                _error(f"scenario {name!r} cannot be imported: {broken[name]}")
+            else:
+                _error(f"unknown scenario {name!r}; available: {', '.join(known) or '(none)'}, all")
+        return EXIT_USAGE
+    try:
+        scenario.check_output_folder(output)
+    except ModelError as exc:
+        _error(str(exc))
+        return EXIT_USAGE
     for name in names:
+        started = time.perf_counter()
         try:
-            summary = scenario.run_scenario(name, args.output, quick=args.quick)
-        except ModelError as exc:
-            print(f"ctmm: {exc}", file=sys.stderr)
-            status = 2
+            summary = scenario.run_scenario(name, output, quick=quick)
+        except KeyboardInterrupt:
+            _error(f"scenario {name!r} interrupted; its earlier results (if any) are unchanged, "
+                   "scenarios after it did not run")
+            if rows:
+                print(_table(rows), file=sys.stderr)
+            return EXIT_INTERRUPTED
+        except Exception as exc:  # noqa: BLE001 - one failed study must not stop the others
+            if debug:
+                traceback.print_exc()
+            text = failure_text(name, exc)
+            _error(text)
+            rows.append((name, "FAIL", text, time.perf_counter() - started))
             continue
-        print(_summary_line(name, summary))
-    return status
+        print(summary_line(name, summary))
+        rows.append((name, "pass" if summary["passed"] else "FAIL",
+                     accuracy_text(summary["accuracy"]), time.perf_counter() - started))
+        if not summary["passed"]:
+            _error(f"scenario {name!r} failed: an accuracy figure exceeds its bound "
+                   f"({accuracy_text([f for f in summary['accuracy'] if not f['passed']])})")
+    if len(rows) > 1:
+        print(_table(rows))
+    return 0 if all(r[1] == "pass" for r in rows) else EXIT_FAILED
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``ctmm`` console command; returns the exit status."""
+    args = _parser().parse_args(argv)
+    if args.command == "list":
+        return _list()
+    with _terminate_as_interrupt():
+        return _run(args.names, args.output, args.quick, args.debug)
+
+
+@contextmanager
+def _terminate_as_interrupt() -> Iterator[None]:
+    """Turn SIGTERM into KeyboardInterrupt while scenarios run, so their staging folders are removed."""
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+    try:
+        previous = signal.signal(signal.SIGTERM, interrupt)
+    except ValueError:                      # not the main thread: leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":  # pragma: no cover

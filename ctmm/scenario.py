@@ -3,16 +3,24 @@
 A scenario is a module of the ``scenarios/`` folder (installed as ``ctmm.scenarios``) that
 defines ``NAME: str``, ``DESCRIPTION: str`` and ``run(output_dir: Path, quick: bool = False)
 -> dict``.  ``run`` writes its PNG(s) into ``output_dir`` and returns a JSON-serialisable
-summary containing at least ``"max_error"`` (with ``"error_definition"``) and
-``"wall_time_s"``.  :func:`run_scenario` adds timing and writes ``<NAME>.json`` atomically
-(whole or not at all).
+summary containing ``"accuracy"`` (a list of figures made by :func:`accuracy`: name, value,
+unit, definition and the scenario's own bound) and ``"wall_time_s"``.
+
+:func:`run_scenario` runs a scenario in a private staging folder inside the output folder and
+only then moves its files into place, each by ``os.replace`` (atomic on one file system), the
+JSON last: a failed or interrupted run leaves no half-written file and no new PNG beside an old
+JSON.  Files of an earlier run of the same scenario (listed in its JSON) that the new run does
+not write again are removed; when a run fails, the earlier outputs of that scenario are removed
+too, so the folder never shows a result the current code did not produce.
 """
 from __future__ import annotations
 
 import importlib
 import json
+import math
 import os
 import pkgutil
+import shutil
 import tempfile
 import time
 from pathlib import Path
@@ -22,6 +30,40 @@ from typing import Any
 import numpy as np
 
 from .errors import ModelError, unknown_name
+
+__all__ = ["accuracy", "available", "broken", "check_output_folder", "run_scenario", "write_json_atomic"]
+
+
+def accuracy(name: str, value: float, unit: str, bound: float, definition: str, *, source: str) -> dict:
+    """One accuracy figure of a scenario, with its unit, definition and bound.
+
+    Parameters
+    ----------
+    name : str
+        Short name, e.g. ``"tip deflection error vs Lagrange"``.
+    value : float
+        The measured error, in ``unit``.
+    unit : str
+        Unit of ``value`` and ``bound`` (``"m"``, ``"rad"``, ``"% of peak"``, ``"relative"`` ...).
+    bound : float
+        Largest acceptable value, from the scenario's documented target or reference.
+    definition : str
+        How ``value`` is computed and against which independent reference.
+    source : str
+        Where ``bound`` comes from (document and statement).
+
+    Returns
+    -------
+    dict
+        ``name, value, unit, bound, definition, bound_source, passed`` (``passed`` is False for a
+        non-finite value).
+    """
+    value = float(value)
+    bound = float(bound)
+    if not (math.isfinite(bound) and bound > 0):
+        raise ModelError(f"bound of accuracy figure {name!r} must be finite and > 0, got {bound!r}")
+    return {"name": name, "value": value, "unit": unit, "bound": bound, "definition": definition,
+            "bound_source": source, "passed": bool(math.isfinite(value) and value <= bound)}
 
 
 def _package() -> ModuleType:
@@ -91,23 +133,151 @@ def write_json_atomic(path: Path, data: dict) -> None:
         raise
 
 
+def check_output_folder(output_dir: str | Path) -> Path:
+    """Create ``output_dir`` if needed and check that files can be written in it.
+
+    Raises
+    ------
+    ModelError
+        The folder cannot be created or written (names the folder and the reason).
+    """
+    if not isinstance(output_dir, (str, os.PathLike)) or not str(output_dir).strip():
+        raise ModelError(f"--output must name a folder, got {output_dir!r}")
+    path = Path(output_dir)
+    if path.exists() and not path.is_dir():
+        raise ModelError(f"--output {str(path)!r} exists and is not a folder; give a folder you can write to")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(dir=path, prefix=".ctmm-write-check-")
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        reason = exc.strerror or type(exc).__name__
+        raise ModelError(f"--output {str(path)!r} is not a writable folder ({reason}); "
+                         "give a folder you can write to") from None
+    return path
+
+
+def _accuracy_figures(name: str, summary: dict) -> list[dict]:
+    figures = summary.get("accuracy")
+    if not isinstance(figures, list) or not figures:
+        raise ModelError(f"scenario {name!r} reports no accuracy figures (its run() must return "
+                         "'accuracy': [ctmm.scenario.accuracy(...), ...])")
+    keys = {"name", "value", "unit", "bound", "definition", "bound_source", "passed"}
+    for figure in figures:
+        if not isinstance(figure, dict) or not keys <= set(figure):
+            raise ModelError(f"scenario {name!r}: accuracy figure {figure!r} lacks one of {sorted(keys)}")
+    return figures
+
+
+def _previous_outputs(output_dir: Path, name: str) -> list[Path]:
+    """Files of an earlier run of ``name``: its JSON and the figures it lists."""
+    record = output_dir / f"{name}.json"
+    if not record.is_file():
+        return []
+    files = [record]
+    try:
+        listed = json.loads(record.read_text()).get("figures", [])
+    except (OSError, ValueError, AttributeError):
+        listed = []
+    for figure in listed if isinstance(listed, list) else []:
+        candidate = output_dir / str(figure)
+        if candidate.parent == output_dir and candidate.is_file():
+            files.append(candidate)
+    return files
+
+
+def _remove(paths: list[Path]) -> None:
+    for path in paths:
+        try:
+            path.unlink()
+        except FileNotFoundError:
+            pass
+
+
+def _process_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return True
+    return True
+
+
+def _remove_dead_staging(output_dir: Path, name: str) -> None:
+    """Remove staging folders of ``name`` left by killed runs (their process no longer exists)."""
+    for folder in output_dir.glob(f".{name}-*-*"):
+        pid = folder.name[len(name) + 2:].split("-", 1)[0]
+        if folder.is_dir() and pid.isdigit() and not _process_alive(int(pid)):
+            shutil.rmtree(folder, ignore_errors=True)
+
+
 def run_scenario(name: str, output_dir: str | Path = "results", *, quick: bool = False) -> dict:
-    """Run scenario ``name``, write ``<output_dir>/<name>.json`` and return the summary."""
+    """Run scenario ``name`` and write its PNG(s) and ``<output_dir>/<name>.json`` atomically.
+
+    Parameters
+    ----------
+    name : str
+        Scenario name (see :func:`available`).
+    output_dir : str or Path
+        Output folder (created if needed).
+    quick : bool
+        Run the short version.
+
+    Returns
+    -------
+    dict
+        The summary written to the JSON, with ``passed`` (every accuracy figure within its bound),
+        ``figures``, ``total_wall_time_s`` and ``quick`` added.
+
+    Raises
+    ------
+    ModelError
+        Unknown scenario, unwritable output folder, or a scenario that reports no accuracy.
+    Exception
+        Whatever the scenario raised (e.g. :class:`~ctmm.errors.SimulationError`); the outputs of
+        earlier runs of that scenario are then removed and nothing of this run is left behind.
+    """
     scenarios, failed = _discover()
     if name not in scenarios:
         if name in failed:
             raise ModelError(f"scenario module {name!r} cannot be imported: {failed[name]}")
         raise unknown_name("scenario", name, list(scenarios))
-    output_dir = Path(output_dir)
-    output_dir.mkdir(parents=True, exist_ok=True)
+    output_dir = check_output_folder(output_dir)
     import matplotlib
 
     matplotlib.use("Agg")
-    started = time.perf_counter()
-    summary = scenarios[name].run(output_dir, quick=quick)
-    summary = dict(summary)
-    summary.setdefault("scenario", name)
-    summary["total_wall_time_s"] = time.perf_counter() - started
-    summary["quick"] = quick
-    write_json_atomic(output_dir / f"{name}.json", summary)
+    _remove_dead_staging(output_dir, name)
+    staging = Path(tempfile.mkdtemp(dir=output_dir, prefix=f".{name}-{os.getpid()}-"))
+    try:
+        try:
+            started = time.perf_counter()
+            summary = scenarios[name].run(staging, quick=quick)
+            if not isinstance(summary, dict):
+                raise ModelError(f"scenario {name!r}: run() must return a dict, got {type(summary).__name__}")
+            summary = dict(summary, total_wall_time_s=time.perf_counter() - started)
+            figures = _accuracy_figures(name, summary)
+            summary.setdefault("scenario", name)
+            summary["quick"] = quick
+            summary["passed"] = all(f["passed"] for f in figures)
+            written = sorted(p.name for p in staging.iterdir() if p.is_file() and p.name != f"{name}.json")
+            summary["figures"] = written
+            write_json_atomic(staging / f"{name}.json", summary)
+        except Exception:
+            _remove(_previous_outputs(output_dir, name))
+            raise
+        _commit(staging, output_dir, name, written)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
     return summary
+
+
+def _commit(staging: Path, output_dir: Path, name: str, written: list[str]) -> None:
+    """Move a finished run into place: old JSON out first, new files in, new JSON last."""
+    previous = _previous_outputs(output_dir, name)
+    _remove(previous[:1])                      # no old JSON may describe the new figures
+    for file_name in written:
+        os.replace(staging / file_name, output_dir / file_name)
+    _remove([p for p in previous[1:] if p.name not in written])
+    os.replace(staging / f"{name}.json", output_dir / f"{name}.json")

@@ -31,6 +31,7 @@ from ctmm.control import ControlledChain, Feedback
 from ctmm.elements import Fixed, Free, Mass, SpringDamper
 from ctmm.reference.chain import GlobalChain
 from ctmm.reference.delay_chain import GlobalLoop
+from ctmm.scenario import accuracy
 
 MASS = 1.0
 STIFFNESS = 10.0
@@ -186,3 +187,18 @@ def plot_frf_pair(ax_pair, omega, results: dict, title: str) -> None:
         ax.set_ylabel("|X| per unit force on m6 [m/N]")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
+
+
+def frf_and_steady_accuracy(frf_error: float, frf_cases: str, steady_error: float, steady_reference: str) -> list:
+    """The two accuracy figures of the chain scenarios: relative FRF error [-] and steady-state error [m].
+
+    Bounds: 1e-10 for the FRF (docs/control.md, closed-loop FRF against dense solves) and 1e-8 m for
+    the steady state (1000 x the reference integrator's tolerance rtol 1e-11 on amplitudes <= 1 m).
+    """
+    return [
+        accuracy("FRF error vs global model", frf_error, "relative", 1e-10,
+                 f"max_w |H_TMM - H_ref| / max_w |H_ref| of X2, X4, X6 {frf_cases}",
+                 source="docs/control.md: closed-loop FRF vs dense solve < 1e-10"),
+        accuracy("steady-state error vs global model", steady_error, "m", 1e-8,
+                 f"max_t |x_TMM - x_ref| of m2, m4, m6 against {steady_reference}, started on the orbit",
+                 source="1000 x the reference integrator's tolerance (rtol 1e-11) on amplitudes <= 1 m")]

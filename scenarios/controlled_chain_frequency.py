@@ -70,11 +70,9 @@ def run(output_dir: Path, quick: bool = False) -> dict:
         "first_resonance_rad_s": float(omega[np.argmax(np.abs(frf[gain]["tmm"][2]))]),
         "peak_X6_m_per_N": float(np.max(np.abs(frf[gain]["tmm"][2])))} for gain in frf}
     return {
-        "max_error": max(max(r["error"] for r in frf.values()), max(r["error"] for r in steady.values())),
-        "error_definition": ("max of (a) max_w |H_TMM - H_ref| / max_w |H_ref| over X2, X4, X6 and Ka = 0, 5 "
-                             "(H_ref: dense closed-loop solve) and (b) max_t |x_TMM - x_ODE| [m] of the "
-                             "steady state against the global closed-loop ODE (DOP853, rtol 1e-11) started on "
-                             "the orbit"),
+        "accuracy": common.frf_and_steady_accuracy(
+            max(r["error"] for r in frf.values()), "over Ka = 0, 5 (H_ref: dense closed-loop solve)",
+            max(r["error"] for r in steady.values()), "the global closed-loop ODE (DOP853, rtol 1e-11)"),
         "frf_relative_error": {f"Ka={g:g}": r["error"] for g, r in frf.items()},
         "steady_state_error_m": {f"Ka={g:g}": r["error"] for g, r in steady.items()},
         "wall_time_s": tmm_time,

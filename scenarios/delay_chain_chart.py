@@ -28,9 +28,10 @@ from ctmm.reference.dde import second_order_system
 from ctmm.reference.delay_chain import GlobalLoop, closed_loop_dynamic_stiffness
 from ctmm.stability import crosscheck_by_simulation, delay_margin, gain_margin
 from ctmm.stability_chart import stability_chart
+from ctmm.scenario import accuracy
 
 from . import controlled_chain_common as common
-from .delay_common import boundary_points, compare_classification
+from .delay_common import DCURVE_BOUND_SOURCE, boundary_points, compare_classification
 
 NAME = "delay_chain_chart"
 DESCRIPTION = ("Seed chain, loop m6 -> m2 with delay: K_a x tau stability chart from the TMM against "
@@ -106,11 +107,16 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     plt.close(fig)
     static_error = float(np.max(np.abs(xs - static_gain))) if xs.size else 0.0
     return {
-        "max_error": max(boundary_error, static_error / abs(static_gain), margin_error),
-        "error_definition": "max of: sigma_min/sigma_max of the global dynamic stiffness "
-                            "s^2 M + s C + K + K_a e^{-s tau} e_2 e_6^T at the TMM D-curve points "
-                            "(s = i Omega); relative error of the static boundary K_a = -det K / minor; "
-                            "|delay margin - python-control margins on the exact L| [s]",
+        "accuracy": [
+            accuracy("D-curve error vs global delay model", max(boundary_error, static_error / abs(static_gain)),
+                     "relative", 1e-9,
+                     "max of sigma_min/sigma_max of the global dynamic stiffness s^2 M + s C + K + "
+                     "K_a e^{-s tau} e_2 e_6^T at the TMM D-curve points (s = i Omega) and the relative error of "
+                     "the static boundary K_a = -det K / minor",
+                     source=DCURVE_BOUND_SOURCE),
+            accuracy("delay margin error vs python-control", margin_error, "s", 1e-9,
+                     "|delay margin - python-control margins on the exact L|",
+                     source=DCURVE_BOUND_SOURCE)],
         "boundary_singularity": boundary_error,
         "static_boundary": {"tmm": xs[:1].tolist(), "reference": static_gain},
         "classification_vs_collocation": classes,

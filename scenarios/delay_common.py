@@ -10,6 +10,8 @@ import numpy as np
 
 from ctmm.reference.dde import chebyshev_collocation_roots, newton_refine_root
 
+DCURVE_BOUND_SOURCE = "docs/stability.md: D-curve points <= 1e-9 (test bound)"
+
 
 def collocation_roots(A0, delayed, nodes: int = 32, keep: int = 24) -> np.ndarray:
     """Rightmost roots of x' = A0 x + sum A_k x(t - tau_k): collocation, Newton-polished,

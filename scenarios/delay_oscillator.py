@@ -29,8 +29,10 @@ from ctmm.elements import Fixed, Free, Mass, SpringDamper
 from ctmm.reference.dde import delayed_pd_oscillator_characteristic_function, delayed_pd_oscillator_dcurves
 from ctmm.stability import characteristic_roots, delay_margin
 from ctmm.stability_chart import stability_chart
+from ctmm.scenario import accuracy
 
-from .delay_common import boundary_points, collocation_roots, compare_classification, pd_first_order
+from .delay_common import (DCURVE_BOUND_SOURCE, boundary_points, collocation_roots,
+                           compare_classification, pd_first_order)
 
 NAME = "delay_oscillator"
 DESCRIPTION = ("Delayed PD oscillator (FORMULAS 6.2): TMM D-curves and charts against the closed forms, "
@@ -117,12 +119,18 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     fig.savefig(out / f"{NAME}.png", dpi=100)
     plt.close(fig)
     return {
-        "max_error": max(error_a, error_static, error_b, max(root_errors.values()), margin_error),
-        "error_definition": "max of: relative deviation of the TMM D-curve points of the kp x kd chart "
-                            "from the closed form (FORMULAS 6.2) and of the static line from -omega_n^2; "
-                            "scaled |Delta(i W)| of the independent characteristic function at the kp x tau "
-                            "D-curve points; |root_TMM - root_collocation| of the rightmost roots at three "
-                            "points [1/s]; |delay margin - closed form| [s]",
+        "accuracy": [
+            accuracy("D-curve error vs closed form", max(error_a, error_static, error_b), "relative", 1e-9,
+                     "max of the relative deviation of the TMM D-curve points of the kp x kd chart from the closed "
+                     "form (FORMULAS 6.2), of the static line from -omega_n^2, and the scaled |Delta(i W)| of the "
+                     "independent characteristic function at the kp x tau D-curve points",
+                     source=DCURVE_BOUND_SOURCE),
+            accuracy("rightmost-root error vs collocation", max(root_errors.values()), "1/s", 1e-8,
+                     "|root_TMM - root_collocation| of the rightmost roots at three points (roots of magnitude ~1)",
+                     source="docs/stability.md: roots vs collocation <= 1e-8 relative"),
+            accuracy("delay margin error vs closed form", margin_error, "s", 1e-9,
+                     "|delay margin - closed form|",
+                     source=DCURVE_BOUND_SOURCE)],
         "dcurve_error_kp_kd": error_a, "static_line_error": error_static, "dcurve_residual_kp_tau": error_b,
         "rightmost_root_errors": root_errors, "delay_margin": margin.as_dict(),
         "delay_margin_closed_form": {"tau_s": exact_tau, "omega_rad_s": exact_omega, "error_s": margin_error},

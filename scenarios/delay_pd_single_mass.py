@@ -28,8 +28,9 @@ from ctmm.control import ControlledChain, Feedback
 from ctmm.elements import Free, Mass
 from ctmm.stability import crosscheck_by_simulation, delay_margin
 from ctmm.stability_chart import stability_chart
+from ctmm.scenario import accuracy
 
-from .delay_common import boundary_points, compare_classification, pd_first_order
+from .delay_common import DCURVE_BOUND_SOURCE, boundary_points, compare_classification, pd_first_order
 
 NAME = "delay_pd_single_mass"
 DESCRIPTION = ("Delayed PD on a single mass: kp x kd and kp x tau stability charts from the TMM against "
@@ -97,11 +98,11 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     fig.savefig(out / f"{NAME}.png", dpi=100)
     plt.close(fig)
     return {
-        "max_error": max(error_a, error_b, error_static),
-        "error_definition": "max of (a) relative deviation of the TMM D-curve points from "
-                            "kp = m W^2 cos(W tau), kd = m W sin(W tau) and of the static line from "
-                            "kp = 0, (b) |m s^2 + (kp + kd s) e^{-s tau}| / (m W^2 + |kp| + kd W) at "
-                            "the D-curve points s = i W",
+        "accuracy": [accuracy(
+            "D-curve error vs closed form", max(error_a, error_b, error_static), "relative", 1e-9,
+            "max of (a) relative deviation of the TMM D-curve points from kp = m W^2 cos(W tau), "
+            "kd = m W sin(W tau) and of the static line from kp = 0, (b) |m s^2 + (kp + kd s) e^{-s tau}| / "
+            "(m W^2 + |kp| + kd W) at the D-curve points s = i W", source=DCURVE_BOUND_SOURCE)],
         "dcurve_error_kp_kd": error_a, "dcurve_residual_kp_tau": error_b,
         "classification_vs_collocation": {"kp_kd": classes_a, "kp_tau": classes_b},
         "delayed_P_never_stable": bool(np.all(row_kd0 != 0)),

@@ -24,6 +24,7 @@ from ctmm.flexible.segments import finite_segment_beam
 from ctmm.planar import Fixed, Load, PlanarModel, RigidBody, accelerations, simulate_implicit
 from ctmm.planar.linear import natural_frequencies
 from ctmm.reference.beams import beta_roots
+from ctmm.scenario import accuracy
 
 NAME = "finite_segments"
 DESCRIPTION = ("Finite-segment beam: frequency convergence O(1/N^2) with the 2EI/l root spring "
@@ -105,9 +106,12 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     fig.savefig(Path(output_dir) / f"{NAME}.png", dpi=100)
     plt.close(fig)
     return {
-        "max_error": float(np.max(np.abs(e2[-1]))),
-        "error_definition": f"max relative error of the first 3 frequencies at N = {counts[-1]} "
-                            "(2EI/l root spring) against the exact clamped-free beta L values",
+        "accuracy": [accuracy(
+            "convergence order deviation", float(np.max(np.abs(order2 - 2.0))), "(dimensionless)", 0.05,
+            f"max |p - 2| of the observed orders p of the relative errors of the first 3 frequencies "
+            f"(2EI/l root spring, N = {', '.join(map(str, counts))}) against the exact clamped-free beta L values",
+            source="docs/flexible.md: frequency order 2.00 (2EI/l); test bound 0.05")],
+        "frequency_max_relative_error_finest": float(np.max(np.abs(e2[-1]))),
         "frequency_errors_2EI_l": {str(n): e2[i].tolist() for i, n in enumerate(counts)},
         "frequency_errors_EI_l": {str(n): e1[i].tolist() for i, n in enumerate(counts)},
         "observed_order_2EI_l": order2.tolist(),

@@ -25,6 +25,7 @@ from ctmm.flexible.segments import finite_segment_beam
 from ctmm.planar import DrivenHinge, Fixed, PlanarModel, RigidBody, simulate_rk4
 from ctmm.reference.beams import kane_spinup
 from ctmm.reference.planar_lagrange import PlanarLagrange
+from ctmm.scenario import accuracy
 
 NAME = "spin_up"
 DESCRIPTION = ("Kane-Ryan-Banerjee spin-up beam: modal-beam TMM + RK4 with / without geometric "
@@ -120,9 +121,10 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     fig.savefig(Path(output_dir) / f"{NAME}.png", dpi=100)
     plt.close(fig)
     return {
-        "max_error": float(err_krb.max()),
-        "error_definition": "max over 0-20 s of |tip deflection TMM+RK4 - assumed-modes KG "
-                            "reference (kane_spinup, same modes)| [m]",
+        "accuracy": [accuracy(
+            "tip deflection error vs Kane-Ryan-Banerjee", float(err_krb.max()), "m", 1e-4,
+            "max over the run of |tip deflection TMM+RK4 - assumed-modes KG reference (kane_spinup, same modes)|",
+            source="docs/flexible.md: spin-up vs kane_spinup <= 1e-4 m")],
         "peak_tip_deflection_m": float(tip.min()),
         "peak_time_s": float(sim.t[np.argmin(tip)]),
         "finite_segment_reference": fs_info,

@@ -48,6 +48,8 @@ def test_finite_segments_scenario_quick(tmp_path):
     json.dumps(summary)
     assert (tmp_path / "finite_segments.png").stat().st_size > 1000
     assert all(abs(o - 2.0) < 0.05 for o in summary["observed_order_2EI_l"])
+    (figure,) = summary["accuracy"]
+    assert figure["value"] <= figure["bound"] == 0.05
     assert all(abs(o - 1.0) < 0.15 for o in summary["observed_order_EI_l"])
     d = summary["tip_response_max_difference_m"]
     assert d["10"] < d["5"]

@@ -1,4 +1,4 @@
-"""Every scenario runs headless in its quick form, writes PNG + JSON, and reports its error."""
+"""Every scenario runs headless in its quick form, writes PNG + JSON, and meets its accuracy bounds."""
 from __future__ import annotations
 
 import json
@@ -20,12 +20,19 @@ def test_scenario_quick_run(name, tmp_path):
     summary = scenario.run_scenario(name, tmp_path, quick=True)
     data = json.loads((tmp_path / f"{name}.json").read_text())
     assert data["scenario"] == name
-    for key in ("max_error", "wall_time_s"):
-        assert key in data, f"{name}: summary lacks {key!r}"
-    assert isinstance(summary["max_error"], float) and math.isfinite(summary["max_error"])
-    assert "error_definition" in data
-    for figure in data.get("figures", []):
+    assert "wall_time_s" in data, f"{name}: summary lacks 'wall_time_s'"
+    assert data["accuracy"] == summary["accuracy"] and len(data["accuracy"]) >= 1
+    for figure in data["accuracy"]:
+        label = f"{name}: {figure['name']}"
+        assert figure["unit"] and figure["definition"] and figure["bound_source"], label
+        assert math.isfinite(figure["value"]), label
+        assert figure["value"] <= figure["bound"], \
+            f"{label} = {figure['value']:.3g} {figure['unit']} exceeds its bound {figure['bound']:.3g}"
+    assert data["passed"] is True
+    assert data["figures"], f"{name}: no figure written"
+    for figure in data["figures"]:
         assert (tmp_path / figure).stat().st_size > 1000
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(data["figures"] + [f"{name}.json"])
 
 
 def test_cli_list_and_run(tmp_path, capsys):
@@ -35,5 +42,6 @@ def test_cli_list_and_run(tmp_path, capsys):
     assert "table7_1" in capsys.readouterr().out
     assert main(["run", "table7_1", "--quick", "--output", str(tmp_path)]) == 0
     line = capsys.readouterr().out
-    assert line.startswith("table7_1 | max error")
+    assert line.startswith("table7_1 | linear MSTMM error vs exact: error ")
+    assert "m (bound 1e-09)" in line
     assert main(["run", "nope", "--output", str(tmp_path)]) == 2
