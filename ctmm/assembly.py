@@ -190,7 +190,9 @@ def riccati_scalar_entries(entries, start: BoundaryStart, end: BoundaryEnd, f: i
             G = U21 * S + U22
             S = (U11 * S + U12) / G
             r = U21 * P + ue
-            P = U11 * P + uf - S * r
+            # U11 P + uf - S r with U11 - S U21 = det(U) / G: no cancellation when S U21 ~ U11
+            # (e.g. a soft connector after a stiff part in stiffness form)
+            P = (U11 * U22 - U12 * U21) / G * P + uf - S * ue
             G_all.append(G)
             R_all.append(r)
             S_all.append(S)
@@ -214,6 +216,61 @@ def riccati_scalar_entries(entries, start: BoundaryStart, end: BoundaryEnd, f: i
         if j:
             ev = (ev - R_all[j - 1]) / G_all[j - 1]
     return ChainSolution(states, log_det)
+
+
+def clamped_start_solve(Us: Sequence[np.ndarray], us: Sequence[np.ndarray], start: BoundaryStart,
+                        end: BoundaryEnd) -> ChainSolution:
+    """:func:`riccati_solve` in stiffness form for a chain whose start displacements are known.
+
+    A known start displacement makes the Riccati relation the compliance form
+    ``x_j = S_j F_j + P_j``, with ``P_j`` the displacement of the chain cut at ``j`` under its
+    loads.  On stiff chains (a soft field element near the start, stiff ones further out; a
+    DT-TMM step at a large step size) ``P_j`` is orders of magnitude larger than the solution and
+    the digits are lost when ``x_j`` is formed.  The stiffness form ``F_j = S_j x_j + P_j``
+    carries ``P_j``, the reaction of the chain clamped at ``j``, which its loads bound: its
+    recursion is Gaussian elimination without pivoting of the effective stiffness matrix.
+
+    Elements whose displacement does not depend on the inboard force (``U_xF = 0``: point
+    elements) pass the known displacement on, ``x <- U_xx x + u_x``.  The first element with an
+    invertible ``U_xF`` (a field element) turns it into a force-type start at its outboard point:
+    from ``x_1 = U_xx x_0 + U_xF F_0 + u_x`` and ``F_1 = U_Fx x_0 + U_FF F_0 + u_F``,
+
+        F_1 = S' x_1 + P',   S' = U_FF U_xF^-1,   P' = U_Fx x_0 + u_F - S' (U_xx x_0 + u_x)
+
+    The rest of the chain is solved by :func:`riccati_solve`; the forces of the clamped prefix
+    follow backwards from ``F_in = U_FF^-1 (F_out - U_Fx x_in - u_F)``.  Falls back to
+    :func:`riccati_solve` when the start is not of displacement type or no such element exists
+    before the last one.  ``log_det`` is that of the rebased problem (not used in time stepping).
+    """
+    n = Us[0].shape[-1]
+    d = n // 2
+    if 2 * d != n or sorted(start.e_indices) != list(range(d, n)):
+        return riccati_solve(Us, us, start, end)
+    xs, fs = slice(0, d), slice(d, n)
+    x = start.P0
+    prefix = [x]
+    for c, (U, u) in enumerate(zip(Us[:-1], us[:-1])):
+        UxF = U[:, xs, fs]
+        if not np.any(UxF):
+            x = np.einsum("bij,bj->bi", U[:, xs, xs], x) + u[:, xs]
+            prefix.append(x)
+            continue
+        try:
+            S_new = np.swapaxes(np.linalg.solve(np.swapaxes(UxF, 1, 2), np.swapaxes(U[:, fs, fs], 1, 2)), 1, 2)
+        except np.linalg.LinAlgError:
+            break
+        P_new = (np.einsum("bij,bj->bi", U[:, fs, xs], x) + u[:, fs]
+                 - np.einsum("bij,bj->bi", S_new, np.einsum("bij,bj->bi", U[:, xs, xs], x) + u[:, xs]))
+        rest = riccati_solve(Us[c + 1:], us[c + 1:], BoundaryStart(list(range(d)), S_new, P_new), end)
+        states = np.empty((len(Us) + 1,) + rest.states.shape[1:], dtype=rest.states.dtype)
+        states[c + 1:] = rest.states
+        for j in range(c, -1, -1):  # prefix points: known x, forces backwards
+            U, u = Us[j], us[j]
+            states[j, :, xs] = prefix[j]
+            F_out = states[j + 1, :, fs] - np.einsum("bij,bj->bi", U[:, fs, xs], prefix[j]) - u[:, fs]
+            states[j, :, fs] = np.linalg.solve(U[:, fs, fs], F_out[..., None])[..., 0]
+        return ChainSolution(states, rest.log_det)
+    return riccati_solve(Us, us, start, end)
 
 
 def plain_solve(Us: Sequence[np.ndarray], us: Sequence[np.ndarray], start: BoundaryStart,
