@@ -41,11 +41,12 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from . import validation
 from .elements.boundary import Elastic, PrescribedForce
 from .elements.lumped import Connector, PointElement
 from .errors import ModelError, unknown_name
 from .results import FrequencyResponse
-from .system import Chain
+from .system import Chain, require_system
 
 __all__ = ["to_frd", "to_state_space", "assemble_matrices", "control_name"]
 
@@ -89,7 +90,8 @@ def to_frd(source: Any, omega: Any = None, *, inputs: str | Sequence[str] | None
     else:
         if omega is None or inputs is None or outputs is None:
             raise ModelError("to_frd(system, omega, inputs=..., outputs=...) needs omega [rad/s], inputs "
-                             "and outputs")
+                             f"and outputs, got omega={omega!r}, inputs={inputs!r}, outputs={outputs!r}")
+        require_system(source, parameter="source")
         from .frequency import frequency_response
 
         response = frequency_response(source, omega, input=inputs, output=outputs)
@@ -450,8 +452,8 @@ def to_state_space(system: Any, *, inputs: str | Sequence[str] | None = None,
             raise ModelError(f"loop {lp.name!r} has delay {lp.delay!r} s: no finite-dimensional realisation; "
                              "use to_frd (exact) or approximate e^(-s tau) with control.pade")
     d_in, d_out = _default_signals(system)
-    inputs = d_in if inputs is None else ([inputs] if isinstance(inputs, str) else list(inputs))
-    outputs = d_out if outputs is None else ([outputs] if isinstance(outputs, str) else list(outputs))
+    inputs = d_in if inputs is None else list(validation.names("inputs", inputs))
+    outputs = d_out if outputs is None else list(validation.names("outputs", outputs))
     loop_names = {lp.name: i for i, lp in enumerate(loops)}
     references, forces = [], []
     for name in inputs:

@@ -39,7 +39,7 @@ from . import validation
 from .assembly import ChainSolution  # noqa: F401
 from .errors import ModelError
 from .results import ModalResult
-from .system import Chain
+from .system import Chain, require_system
 from .frequency import _MatrixCache, _as_s, _assemble_body, _subdivided, assemble, solve  # noqa: F401
 
 
@@ -83,7 +83,8 @@ def eigenvalue_count(system: Chain, omega: Any) -> np.ndarray:
     frequency within ``e^-β`` of it (e.g. clamped-clamped and clamped-free beam roots);
     :func:`natural_frequencies` therefore uses the count only to isolate roots.
     """
-    omega = np.atleast_1d(validation.finite_array("omega", omega))
+    system = require_system(system)
+    omega = validation.frequencies("omega", omega)
     if _is_lumped(system):
         return _lumped_count(system, omega)
     body, _ = _subdivided(system, float(np.max(omega, initial=0.0)))
@@ -348,13 +349,13 @@ def natural_frequencies(system: Chain, *, n_modes: int | None = None, omega_max:
     ndarray
         Ascending natural frequencies; a repeated frequency appears once per multiplicity.
     """
+    system = require_system(system)
     _check_conservative(system)
     if (n_modes is None) == (omega_max is None):
         raise ModelError("give exactly one of n_modes (int >= 1) or omega_max (rad/s > 0)")
     rtol = validation.positive("rtol", rtol)
     if n_modes is not None:
-        if not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
-            raise ModelError(f"n_modes must be an integer >= 1, got {n_modes!r}")
+        n_modes = validation.integer("n_modes", n_modes, minimum=1)
         hi = 1.0
         while eigenvalue_count(system, [hi])[0] < n_modes:
             hi *= 2.0

@@ -17,7 +17,7 @@ Signals are addressed by dotted names (see :meth:`Chain.signal`):
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Iterable, Sequence
+from typing import Any, Iterable, Sequence
 
 from .elements.base import Element
 from .elements.boundary import Boundary
@@ -65,7 +65,12 @@ class Chain:
     """
 
     def __init__(self, name: str, elements: Sequence[Element]) -> None:
+        if not isinstance(name, str) or not name.strip():
+            raise ModelError(f"chain name must be a non-empty string, got {name!r}")
         self.name = name
+        if isinstance(elements, (str, bytes)) or not isinstance(elements, (list, tuple)):
+            raise ModelError(f"chain {name!r}: elements must be a list or tuple [start boundary, element, ..., "
+                             f"end boundary], got {elements!r}")
         self.elements: tuple[Element, ...] = tuple(elements)
         problems = list(self._validate())
         if problems:
@@ -185,3 +190,26 @@ class Chain:
 
     def __repr__(self) -> str:
         return f"Chain({self.name!r}, {len(self.body)} elements, {self.start.name!r} -> {self.end.name!r})"
+
+
+def require_system(value: Any, *, parameter: str = "system", controlled: bool = True) -> Any:
+    """Return ``value`` if it is a :class:`Chain` (or, when ``controlled``, a controlled chain).
+
+    A controlled chain (:class:`~ctmm.control.loops.ControlledChain`) is recognised by its
+    ``plant`` (a :class:`Chain`) and ``loops``; this module cannot import it (it builds on this one).
+
+    Raises
+    ------
+    ModelError
+        Naming ``parameter``, the value and what is allowed.
+    """
+    if isinstance(value, Chain):
+        return value
+    is_controlled = isinstance(getattr(value, "plant", None), Chain) and hasattr(value, "loops")
+    if controlled and is_controlled:
+        return value
+    allowed = "a ctmm.Chain or ctmm.control.ControlledChain" if controlled else "a ctmm.Chain"
+    hint = ("; a controlled chain is simulated by ctmm.control.simulate_controlled, which honours its loops"
+            if is_controlled else "")
+    text = repr(value)
+    raise ModelError(f"{parameter} must be {allowed}, got {text if len(text) <= 80 else text[:77] + '...'}{hint}")

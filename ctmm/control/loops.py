@@ -56,6 +56,14 @@ def _lti_siso(name: str, gain: Any):
     if not control.isctime(gain):
         raise ModelError(f"loop {name!r}: discrete-time LTI controllers are not embeddable; "
                          "use a sampled controller object (co-simulation) instead")
+    tf = control.tf(gain)
+    for label, coefficients in (("numerator", tf.num[0][0]), ("denominator", tf.den[0][0])):
+        values = np.asarray(coefficients, dtype=complex)
+        if not np.all(np.isfinite(values)):
+            raise ModelError(f"loop {name!r}: gain (LTI controller) {label} coefficients must be finite, "
+                             f"got {values.real.tolist()}")
+    if not np.any(np.asarray(tf.den[0][0]) != 0):
+        raise ModelError(f"loop {name!r}: gain (LTI controller) denominator must not be zero, got {gain!r}")
     return gain
 
 
@@ -179,15 +187,19 @@ class ControlledChain:
 
     def __init__(self, plant: Chain, loops: Sequence[Feedback]) -> None:
         if not isinstance(plant, Chain):
-            raise ModelError(f"plant must be a Chain, got {plant!r}")
+            raise ModelError(f"plant must be a ctmm.Chain, got {plant!r}")
+        if isinstance(loops, Feedback):
+            loops = [loops]
+        if not isinstance(loops, (list, tuple)):
+            raise ModelError(f"loops must be a list or tuple of Feedback loops, got {loops!r}")
         self.plant = plant
         self.loops: tuple[Feedback, ...] = tuple(loops)
         self.name = plant.name + "+control"
+        problems = [f"loops[{i}] must be a Feedback loop, got {lp!r}"
+                    for i, lp in enumerate(self.loops) if not isinstance(lp, Feedback)]
+        if problems:
+            raise ModelError(f"controlled chain {self.name!r} is invalid:\n  - " + "\n  - ".join(problems))
         names = [lp.name for lp in self.loops]
-        problems = []
-        for lp in self.loops:
-            if not isinstance(lp, Feedback):
-                problems.append(f"{lp!r} is not a Feedback loop")
         if len(set(names)) != len(names):
             problems.append(f"loop names must be unique, got {names}")
         clash = set(names) & {e.name for e in plant.elements}

@@ -34,7 +34,7 @@ from ..errors import ModelError, SimulationError
 from ..results import SimulationResult
 from ..schemes import History, as_scheme
 from ..signals import as_signal
-from ..system import Chain
+from ..system import Chain, require_system
 from ..timestep import simulate as simulate_plant
 from .loops import ControlledChain, Feedback
 from .protocol import Controller
@@ -164,10 +164,12 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
         With loop signals ``"<loop>.y"`` (sensed value) and ``"<loop>.u"`` (control force), and
         each controller output under its signal name.
     """
+    system = require_system(system)
+    dt = validation.positive("dt", dt)
+    validation.step_count(validation.finite("t_final", t_final), validation.finite("t0", t0), dt)
     controlled = system if isinstance(system, ControlledChain) else ControlledChain(system, [])
     plant = controlled.plant
     scheme = as_scheme(scheme)
-    dt = validation.positive("dt", dt)
     if coupling not in ("hold", "previous"):
         raise ModelError(f"coupling must be 'hold' or 'previous', got {coupling!r}")
     d = plant.layout.half
