@@ -74,6 +74,8 @@ def unstable_root_count(system: ControlledChain, *, loop: str | None = None, gai
     >>> unstable_root_count(system, delay=[0.0, 0.5, 1.5]).tolist()
     [0, 0, 2]
     """
+    gain = None if gain is None else validation.nonempty_array("gain", gain)
+    delay = None if delay is None else validation.nonempty_array("delay", delay)
     model = LoopCharacteristic(system, loop)
     n = n_sets(gain, delay, weights)
     k, tau, w = model.parameters(n, None if gain is None else np.ravel(gain),

@@ -211,3 +211,28 @@ def step_count(t_final: float, t0: float, dt: float, *, bytes_per_step: float = 
                          f"stored result would need about {memory / 1024 ** 3:.3g} GiB (limit "
                          f"{MAX_RESULT_BYTES / 1024 ** 3:.0f} GiB): increase dt or shorten the interval")
     return int(round(steps))
+
+
+def nonempty_array(name: str, value: Any) -> np.ndarray:
+    """A non-empty array of finite real numbers (e.g. a sweep of gains) or raise."""
+    array = finite_array(name, value)
+    if array.size == 0:
+        raise ModelError(f"{name} must contain at least one value, got {_shown(value)}")
+    return array
+
+
+def coordinates(name: str, value: Any, size: int, *, labels: Any = None) -> np.ndarray:
+    """A 1-D array of exactly ``size`` finite numbers (generalised coordinates, rates) or raise.
+
+    A float64 ndarray of the right shape is returned as is, without the finiteness check: the
+    integrators call the instantaneous solvers with their own state arrays every stage, and a
+    non-finite state there is theirs to report as a :class:`~ctmm.errors.SimulationError`.
+    """
+    if isinstance(value, np.ndarray) and value.dtype == np.float64 and value.shape == (size,):
+        return value
+    array = finite_array(name, value)
+    if array.shape != (size,):
+        which = f" for coordinates {list(labels)}" if labels is not None else ""
+        raise ModelError(f"{name} must be a 1-D array of {size} number(s){which}, got {_shown(value)} "
+                         f"(shape {array.shape})")
+    return array

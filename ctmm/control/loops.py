@@ -267,7 +267,7 @@ class ControlledChain:
 
     def loop(self, name: str) -> Feedback:
         """The loop called ``name``."""
-        if name not in self._by_loop:
+        if not isinstance(name, str) or name not in self._by_loop:
             raise unknown_name("loop", name, list(self._by_loop))
         return self.loops[self._by_loop[name]]
 

@@ -90,6 +90,7 @@ def _initial(model: PlanarModel, q0, qdot0) -> tuple[np.ndarray, np.ndarray]:
 def _steps(t_final: float, dt: float) -> int:
     t_final = validation.positive("t_final", t_final)
     dt = validation.positive("dt", dt)
+    validation.step_count(t_final, 0.0, dt)
     n = int(round(t_final / dt))
     if n < 1 or abs(n * dt - t_final) > 1e-9 * t_final:
         raise ModelError(f"t_final = {t_final!r} must be a whole multiple of dt = {dt!r}")
@@ -112,6 +113,7 @@ def simulate_rk4(model: PlanarModel, q0, qdot0, *, t_final: float, dt: float,
     store_every : int
         Keep every ``store_every``-th step (the last step is always kept).
     """
+    store_every = validation.integer("store_every", store_every, minimum=1)
     q, v = _initial(model, q0, qdot0)
     n_steps = _steps(t_final, dt)
     h = t_final / n_steps
