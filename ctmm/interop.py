@@ -445,7 +445,8 @@ def to_state_space(system: Any, *, inputs: str | Sequence[str] | None = None,
     controlled = hasattr(system, "plant") and hasattr(system, "loops")
     chain: Chain = system.plant if controlled else system
     if not isinstance(chain, Chain):
-        raise ModelError(f"to_state_space needs a Chain or ControlledChain, got {system!r}")
+        raise ModelError(f"system must be a ctmm.Chain or ctmm.control.ControlledChain for to_state_space, "
+                         f"got {system!r}")
     loops = tuple(system.loops) if controlled else ()
     for lp in loops:
         if lp.delay != 0.0:

@@ -43,9 +43,10 @@ def modal_response(system: Chain, times: np.ndarray, *, x0=None, v0=None, n_mode
         ``{mass name: displacement history [m]}`` in absolute coordinates.
     """
     system = require_system(system, controlled=False)
+    given = times
     times = validation.finite_array("times", times, ndim=1)
     if times.size == 0 or np.any(times < 0):
-        raise ModelError(f"times must be a non-empty 1-D array of times [s] >= 0 (t0 = 0), got {times!r}")
+        raise ModelError(f"times must be a non-empty 1-D array of times [s] >= 0 (t0 = 0), got {given!r}")
     if n_modes is not None:
         n_modes = validation.integer("n_modes", n_modes, minimum=1)
     masses = [(j, e) for j, e in enumerate(system.body, start=1) if isinstance(e, PointElement) and e.mass > 0]

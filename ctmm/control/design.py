@@ -33,7 +33,7 @@ from .. import validation
 from ..errors import ModelError, unknown_name
 from ..frequency import frequency_response
 from ..results import FrequencyResponse
-from .analysis import _omega, actuator_inputs
+from .analysis import actuator_inputs
 from .loops import ControlledChain, Feedback
 
 __all__ = ["PlantCache"]
@@ -80,7 +80,7 @@ class PlantCache:
         if not system.loops:
             raise ModelError("PlantCache needs at least one Feedback loop")
         self.system = system
-        self.omega = _omega(omega)
+        self.omega = validation.frequencies("omega", omega)
         self.inputs = validation.names("inputs", inputs)
         self.outputs = validation.names("outputs", outputs)
         self.loops: tuple[Feedback, ...] = tuple(system.loops)

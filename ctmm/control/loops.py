@@ -78,7 +78,7 @@ def _weighted_terms(loop: str, role: str, value: Any, single: str, item: str) ->
         raise ModelError(f"loop {loop!r}: {role} must be {single} or a sequence of ({item}, weight) pairs, "
                          f"got {value!r}") from exc
     if not terms:
-        raise ModelError(f"loop {loop!r}: {role} needs at least one {item}")
+        raise ModelError(f"loop {loop!r}: {role} needs at least one {item}, got {value!r}")
     return terms
 
 

@@ -37,7 +37,7 @@ from ..signals import as_signal
 from ..system import Chain, require_system
 from ..timestep import simulate as simulate_plant
 from .loops import ControlledChain, Feedback
-from .protocol import Controller
+from .protocol import Controller, check_controllers
 
 
 class _TustinLTI:
@@ -165,6 +165,7 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
         each controller output under its signal name.
     """
     system = require_system(system)
+    controllers = check_controllers(controllers)
     dt = validation.positive("dt", dt)
     validation.step_count(validation.finite("t_final", t_final), validation.finite("t0", t0), dt)
     controlled = system if isinstance(system, ControlledChain) else ControlledChain(system, [])

@@ -79,11 +79,12 @@ class PlanarSimulation:
 
 def _initial(model: PlanarModel, q0, qdot0) -> tuple[np.ndarray, np.ndarray]:
     n = model.n_coordinates
+    given = (q0, qdot0)
     q0 = validation.finite_array("q0", q0, ndim=1)
     qdot0 = validation.finite_array("qdot0", qdot0, ndim=1)
     if q0.shape != (n,) or qdot0.shape != (n,):
         raise ModelError(f"q0 and qdot0 must have shape ({n},) for coordinates "
-                         f"{model.coordinates}, got {q0.shape} and {qdot0.shape}")
+                         f"{model.coordinates}, got q0={given[0]!r} and qdot0={given[1]!r}")
     return q0.astype(float), qdot0.astype(float)
 
 
