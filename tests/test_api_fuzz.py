@@ -28,8 +28,8 @@ import ctmm
 from ctmm import interop, signals, stability
 from ctmm.control import ControlledChain, ControllerStep, Feedback, PlantCache, simulate_controlled
 from ctmm.control.analysis import closed_loop_response, loop_transfer_function, margins
-from ctmm.elements import (Damper, Elastic, Fixed, Free, GroundedSpring, Mass, PrescribedDisplacement,
-                           PrescribedForce, Spring, SpringDamper)
+from ctmm.elements import (BeamField, BeamHinge, BeamPointMass, BeamSpring, Damper, Elastic, Fixed, Free,
+                           GroundedSpring, Mass, PrescribedDisplacement, PrescribedForce, Spring, SpringDamper)
 from ctmm.modal import modal_response
 
 from _controllers_import import load_controllers
@@ -57,8 +57,8 @@ PUBLIC_API: dict[str, str] = {
     "ctmm.elements.PointElement": "base of Mass/GroundedSpring", "ctmm.elements.Mass": FUZZED,
     "ctmm.elements.GroundedSpring": FUZZED, "ctmm.elements.Connector": "base of Spring/Damper",
     "ctmm.elements.Spring": FUZZED, "ctmm.elements.Damper": FUZZED, "ctmm.elements.SpringDamper": FUZZED,
-    "ctmm.elements.BeamField": "tests/test_beams_*.py", "ctmm.elements.BeamPointMass": "tests/test_beams_*.py",
-    "ctmm.elements.BeamSpring": "tests/test_beams_*.py", "ctmm.elements.BeamHinge": "tests/test_beams_*.py",
+    "ctmm.elements.BeamField": FUZZED, "ctmm.elements.BeamPointMass": FUZZED,
+    "ctmm.elements.BeamSpring": FUZZED, "ctmm.elements.BeamHinge": FUZZED,
     "ctmm.elements.BeamPointLoad": "tests/test_beams_*.py", "ctmm.elements.BeamClamped": "tests/test_beams_*.py",
     "ctmm.elements.BeamFree": "tests/test_beams_*.py", "ctmm.elements.BeamPinned": "tests/test_beams_*.py",
     "ctmm.elements.BeamSliding": "tests/test_beams_*.py",
@@ -76,14 +76,14 @@ PUBLIC_API: dict[str, str] = {
     "ctmm.stability.unstable_root_count": FUZZED, "ctmm.stability.DelayMargin": "result record",
     "ctmm.stability.delay_margin": FUZZED, "ctmm.stability.GainMargin": "result record",
     "ctmm.stability.gain_margin": FUZZED, "ctmm.stability.SimulationCheck": "result record",
-    "ctmm.stability.crosscheck_by_simulation": "tests/test_stability_simulation.py",
-    "ctmm.stability.stability_chart": "tests/test_stability_chart.py", "ctmm.stability.StabilityChart": "result",
+    "ctmm.stability.crosscheck_by_simulation": FUZZED,
+    "ctmm.stability.stability_chart": FUZZED, "ctmm.stability.StabilityChart": "result",
     "ctmm.stability.Boundary": "result record",
     # ctmm.planar
     "ctmm.planar.ActuatedHinge": "tests/test_planar_model.py", "ctmm.planar.DamperHinge": "tests/test_planar_model.py",
-    "ctmm.planar.DrivenHinge": "tests/test_planar_model.py", "ctmm.planar.ElasticHinge": "tests/test_planar_model.py",
+    "ctmm.planar.DrivenHinge": "tests/test_planar_model.py", "ctmm.planar.ElasticHinge": FUZZED,
     "ctmm.planar.Fixed": "tests/test_planar_model.py", "ctmm.planar.Free": "tests/test_planar_model.py",
-    "ctmm.planar.FreeBase": "tests/test_planar_model.py", "ctmm.planar.Load": "tests/test_planar_model.py",
+    "ctmm.planar.FreeBase": "tests/test_planar_model.py", "ctmm.planar.Load": FUZZED,
     "ctmm.planar.Pinned": "tests/test_planar_model.py", "ctmm.planar.RigidBody": FUZZED,
     "ctmm.planar.SmoothHinge": "tests/test_planar_model.py",
     "ctmm.planar.SpringDamperHinge": "tests/test_planar_model.py", "ctmm.planar.PlanarModel": FUZZED,
@@ -92,22 +92,22 @@ PUBLIC_API: dict[str, str] = {
     "ctmm.planar.PlanarSimulation": "result", "ctmm.planar.simulate_rk4": FUZZED,
     "ctmm.planar.simulate_scipy": FUZZED, "ctmm.planar.simulate_implicit": FUZZED,
     # ctmm.flexible
-    "ctmm.flexible.ModalBeam": "tests/test_flexible_beam.py", "ctmm.flexible.ModalForce": "tests/test_flexible_beam.py",
+    "ctmm.flexible.ModalBeam": FUZZED, "ctmm.flexible.ModalForce": "tests/test_flexible_beam.py",
     "ctmm.flexible.BeamData": "tests/test_flexible_beam.py", "ctmm.flexible.ModeSet": "tests/test_flexible_beam.py",
     "ctmm.flexible.FlexibleSolution": "result record", "ctmm.flexible.solve_flexible": "tests/test_flexible_beam.py",
     "ctmm.flexible.finite_segment_beam": FUZZED, "ctmm.flexible.tip_deflection": "tests/test_flexible_time.py",
     "ctmm.flexible.axial_tip_displacement": "tests/test_flexible_time.py", "ctmm.flexible.mape": "metric",
     "ctmm.flexible.spinup_law": "tests/test_flexible_scenarios.py",
     # ctmm.manipulator
-    "ctmm.manipulator.Arm": FUZZED, "ctmm.manipulator.Hub": "tests/test_manipulator_parameters.py",
+    "ctmm.manipulator.Arm": FUZZED, "ctmm.manipulator.Hub": FUZZED,
     "ctmm.manipulator.PiezoMaterial": "tests/test_manipulator_parameters.py", "ctmm.manipulator.PZT_5A": "constant",
     "ctmm.manipulator.PZT_5H": "constant", "ctmm.manipulator.PZTPatch": "tests/test_manipulator_parameters.py",
     "ctmm.manipulator.Manipulator": "tests/test_manipulator_parameters.py",
     "ctmm.manipulator.moment_per_volt": "tests/test_manipulator_parameters.py",
-    "ctmm.manipulator.CycloidalMove": "tests/test_manipulator_parameters.py",
+    "ctmm.manipulator.CycloidalMove": FUZZED,
     "ctmm.manipulator.seed_manipulator": "tests/test_manipulator_*.py", "ctmm.manipulator.SEED_KP": "constant",
     "ctmm.manipulator.SEED_KD": "constant", "ctmm.manipulator.SEED_PZT_GAIN": "constant",
-    "ctmm.manipulator.SEED_MOVE": "constant", "ctmm.manipulator.HubPD": "tests/test_manipulator_time.py",
+    "ctmm.manipulator.SEED_MOVE": "constant", "ctmm.manipulator.HubPD": FUZZED,
     "ctmm.manipulator.PZTFeedback": "tests/test_manipulator_time.py",
     "ctmm.manipulator.LinearManipulator": "tests/test_manipulator_frequency.py",
     "ctmm.manipulator.RigidHub": "tests/test_manipulator_frequency.py",
@@ -412,6 +412,29 @@ CASES: list[Case] = [
     Case("ctmm.flexible.finite_segment_beam", "length", "positive",
          lambda v: __import__("ctmm.flexible").flexible.finite_segment_beam(
              "b", length=v, bending_stiffness=1.0, mass_per_length=1.0, n_segments=2)),
+    Case("ctmm.elements.BeamField", "length", "positive", lambda v: BeamField("b", v, 1.0, 1.0)),
+    Case("ctmm.elements.BeamField", "bending_stiffness", "positive", lambda v: BeamField("b", 1.0, v, 1.0)),
+    Case("ctmm.elements.BeamPointMass", "mass", "positive", lambda v: BeamPointMass("p", v)),
+    Case("ctmm.elements.BeamSpring", "translational", "nonnegative", lambda v: BeamSpring("s", v, 1.0)),
+    Case("ctmm.elements.BeamHinge", "rotational_stiffness", "positive", lambda v: BeamHinge("h", v)),
+    Case("ctmm.planar.RigidBody", "inertia", "positive",
+         lambda v: __import__("ctmm.planar").planar.RigidBody("b", mass=1.0, inertia=v)),
+    Case("ctmm.planar.ElasticHinge", "stiffness", "positive",
+         lambda v: __import__("ctmm.planar").planar.ElasticHinge("h", stiffness=v)),
+    Case("ctmm.planar.Load", "force_x", "real", lambda v: __import__("ctmm.planar").planar.Load(force_x=v)),
+    Case("ctmm.flexible.ModalBeam", "n_modes", "integer",
+         lambda v: __import__("ctmm.flexible").flexible.ModalBeam("b", length=1.0, bending_stiffness=1.0,
+                                                                 mass_per_length=1.0, n_modes=v)),
+    Case("ctmm.manipulator.Hub", "inertia", "positive",
+         lambda v: __import__("ctmm.manipulator").manipulator.Hub(inertia=v)),
+    Case("ctmm.manipulator.HubPD", "delay", "nonnegative",
+         lambda v: __import__("ctmm.manipulator").manipulator.HubPD(1.0, 1.0, delay=v)),
+    Case("ctmm.manipulator.CycloidalMove", "duration", "positive",
+         lambda v: __import__("ctmm.manipulator").manipulator.CycloidalMove(1.0, v)),
+    Case("ctmm.stability.stability_chart", "x", "numbers",
+         lambda v: stability.stability_chart(controlled(), v, ("delay", [0.0, 0.1]))),
+    Case("ctmm.stability.crosscheck_by_simulation", "points", "loops",
+         lambda v: stability.crosscheck_by_simulation(controlled(), v, t_final=0.1, dt=0.01)),
     Case("ctmm.manipulator.Arm", "length", "positive", lambda v: __import__("ctmm.manipulator").manipulator.Arm(
         length=v)),
     Case("ctmm.manipulator.FlexibleManipulator", "store_every", "integer",
@@ -502,8 +525,8 @@ def test_tiny_dt_is_refused_before_the_run():
     started = time.perf_counter()
     with pytest.raises(ctmm.ModelError, match=r"dt=1e-300 s .* gives 1e\+300 steps; at most 5e\+07"):
         ctmm.simulate(chain(), 1.0, 1e-300)
-    with pytest.raises(ctmm.ModelError, match=r"dt=1e-06 s .* GiB"):   # 1e6 steps of a 100 000-mass chain
-        big = ctmm.Chain("big", [Fixed("w")] + [e for i in range(50_000)
+    with pytest.raises(ctmm.ModelError, match=r"dt=1e-06 s .* GiB"):   # 1e6 steps of 4001 points: 128 GB
+        big = ctmm.Chain("big", [Fixed("w")] + [e for i in range(2_000)
                                                 for e in (Spring(f"k{i}", 1.0), Mass(f"m{i}", 1.0))] + [Free("e")])
         ctmm.simulate(big, 1.0, 1e-6)
     assert time.perf_counter() - started < 5.0
