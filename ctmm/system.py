@@ -17,7 +17,8 @@ Signals are addressed by dotted names (see :meth:`Chain.signal`):
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Iterable, Sequence
+from collections.abc import Iterable, Mapping
+from typing import Any, Sequence
 
 from .elements.base import Element
 from .elements.boundary import Boundary
@@ -68,8 +69,8 @@ class Chain:
         if not isinstance(name, str) or not name.strip():
             raise ModelError(f"chain name must be a non-empty string, got {name!r}")
         self.name = name
-        if isinstance(elements, (str, bytes)) or not isinstance(elements, (list, tuple)):
-            raise ModelError(f"chain {name!r}: elements must be a list or tuple [start boundary, element, ..., "
+        if isinstance(elements, (str, bytes, Mapping, Element)) or not isinstance(elements, Iterable):
+            raise ModelError(f"chain {name!r}: elements must be a list [start boundary, element, ..., "
                              f"end boundary], got {elements!r}")
         self.elements: tuple[Element, ...] = tuple(elements)
         problems = list(self._validate())

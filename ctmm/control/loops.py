@@ -28,7 +28,8 @@ determinant of the extended chain vanishes at the closed-loop roots (with exact 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from collections.abc import Iterable, Mapping
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -190,8 +191,8 @@ class ControlledChain:
             raise ModelError(f"plant must be a ctmm.Chain, got {plant!r}")
         if isinstance(loops, Feedback):
             loops = [loops]
-        if not isinstance(loops, (list, tuple)):
-            raise ModelError(f"loops must be a list or tuple of Feedback loops, got {loops!r}")
+        if isinstance(loops, (str, bytes, Mapping)) or not isinstance(loops, Iterable):
+            raise ModelError(f"loops must be a list of Feedback loops, got {loops!r}")
         self.plant = plant
         self.loops: tuple[Feedback, ...] = tuple(loops)
         self.name = plant.name + "+control"
