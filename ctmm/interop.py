@@ -148,6 +148,7 @@ def assemble_matrices(system: Chain) -> tuple[np.ndarray, np.ndarray, np.ndarray
     point_dof : ndarray of int, shape (n_points,)
         DOF of every connection point (``-1`` for points held by a ``Fixed`` boundary).
     """
+    system = require_system(system, controlled=False)
     dofs = _Dofs(system)
     n = dofs.n
     M, C, K = np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, n))

@@ -64,7 +64,7 @@ def finite_array(name: str, value: Any, *, ndim: int | None = None) -> np.ndarra
     except (TypeError, ValueError):
         raise ModelError(f"{name} must be an array of real numbers, got {_shown(value)}") from None
     if ndim is not None and array.ndim != ndim:
-        raise ModelError(f"{name} must have {ndim} dimension(s), got shape {array.shape}")
+        raise ModelError(f"{name} must have {ndim} dimension(s), got {_shown(value)} (shape {array.shape})")
     if not np.all(np.isfinite(array)):
         bad = array[~np.isfinite(array)].ravel()[0]
         raise ModelError(f"{name} must contain only finite values, found {bad!r}")
@@ -157,7 +157,7 @@ def frequencies(name: str, value: Any, *, scalar: bool = False) -> np.ndarray:
         return np.atleast_1d(nonnegative(name, value))
     array = finite_array(name, value)
     if array.ndim > 1:
-        raise ModelError(f"{name} must be a scalar or 1-D array [rad/s], got shape {array.shape}")
+        raise ModelError(f"{name} must be a scalar or 1-D array [rad/s], got {_shown(value)} (shape {array.shape})")
     array = np.atleast_1d(array)
     if array.size == 0:
         raise ModelError(f"{name} must contain at least one frequency [rad/s], got {_shown(value)}")

@@ -118,7 +118,7 @@ PUBLIC_API: dict[str, str] = {
     "ctmm.controllers.PID": FUZZED, "ctmm.controllers.PIDState": "state record",
     "ctmm.controllers.FMU_SOURCES": "constant", "ctmm.controllers.fmu_source": FUZZED,
     "ctmm.interop.to_frd": FUZZED, "ctmm.interop.to_state_space": FUZZED,
-    "ctmm.interop.assemble_matrices": "tests/test_control_tools.py", "ctmm.interop.control_name": "string helper",
+    "ctmm.interop.assemble_matrices": FUZZED, "ctmm.interop.control_name": "string helper",
     "ctmm.signals.Constant": FUZZED, "ctmm.signals.Harmonic": FUZZED, "ctmm.signals.Step": FUZZED,
     "ctmm.signals.SquareWave": FUZZED, "ctmm.signals.as_signal": FUZZED,
     "ctmm.signals.harmonic_amplitude": "internal use by the frequency domain", "ctmm.modal.modal_response": FUZZED,
@@ -371,6 +371,7 @@ CASES: list[Case] = [
     Case("ctmm.interop.to_frd", "omega", "frequencies",
          lambda v: interop.to_frd(chain(), v, inputs="m.force", outputs="m.x")),
     Case("ctmm.interop.to_state_space", "system", "system", lambda v: interop.to_state_space(v)),
+    Case("ctmm.interop.assemble_matrices", "system", "system", lambda v: interop.assemble_matrices(v)),
     Case("ctmm.interop.to_state_space", "inputs", "names",
          lambda v: interop.to_state_space(chain(), inputs=v), valid=(None,)),
     Case("ctmm.interop.to_state_space", "outputs", "names",
@@ -414,7 +415,7 @@ CASES: list[Case] = [
              "b", length=v, bending_stiffness=1.0, mass_per_length=1.0, n_segments=2)),
     Case("ctmm.elements.BeamField", "length", "positive", lambda v: BeamField("b", v, 1.0, 1.0)),
     Case("ctmm.elements.BeamField", "bending_stiffness", "positive", lambda v: BeamField("b", 1.0, v, 1.0)),
-    Case("ctmm.elements.BeamPointMass", "mass", "positive", lambda v: BeamPointMass("p", v)),
+    Case("ctmm.elements.BeamPointMass", "mass", "nonnegative", lambda v: BeamPointMass("p", v, 1.0)),
     Case("ctmm.elements.BeamSpring", "translational", "nonnegative", lambda v: BeamSpring("s", v, 1.0)),
     Case("ctmm.elements.BeamHinge", "rotational_stiffness", "positive", lambda v: BeamHinge("h", v)),
     Case("ctmm.planar.RigidBody", "inertia", "positive",
@@ -507,7 +508,7 @@ def test_every_case_refuses_its_first_examples(case):
                  "nonnegative": [-1.0, math.nan, None], "integer": [0, True, 1.5],
                  "system": [None, "c", [Fixed("w"), Mass("m", 1.0), Free("e")]],
                  "names": [None, [1.0], []], "mapping": [[("m", 1.0)], {"m": math.nan}],
-                 "frequencies": [[], [-1.0], [math.nan], "a"], "frequency": [[1.0, 2.0], -1.0, math.inf],
+                 "frequencies": [[], [-1.0], [math.nan], "a", [[1.0, 2.0]]], "frequency": [[1.0, 2.0], -1.0, math.inf],
                  "complex": [math.nan, "a", complex(0.0, math.inf)], "flag": [1, "yes"],
                  "callable": [1.0, "f"], "option": ["nope", [], None], "name": ["", "a.b", None],
                  "text": ["", None, 1.0], "numbers": [[], "a", [math.nan]],
@@ -668,6 +669,17 @@ def test_single_mass_free_vibration_matches_cosine():
     result = ctmm.simulate(chain(), 1.0, 1e-3, x0={"m": 0.1})
     exact = 0.1 * np.cos(OMEGA_N * result.time)
     assert np.max(np.abs(result["m.x"] - exact)) < 0.1 * 4e-6
+
+
+def test_natural_frequencies_refuse_a_controlled_chain():
+    with pytest.raises(ctmm.ModelError, match=r"system must be a ctmm.Chain \(undamped, without feedback loops\) .* "
+                                              r"got the controlled chain 'c\+control'"):
+        ctmm.natural_frequencies(controlled(), n_modes=1)
+
+
+def test_mode_shapes_below_the_first_natural_frequency_are_empty():
+    modes = ctmm.mode_shapes(chain(), omega_max=0.5 * OMEGA_N)
+    assert modes.natural_frequencies.shape == (0,) and modes.shapes.shape == (0, 3, 2)
 
 
 def test_single_feedback_without_a_list_and_empty_loops():
