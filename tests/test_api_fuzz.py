@@ -577,6 +577,14 @@ def test_planar_accelerations_with_an_extra_coordinate():
         accelerations(pendulum(), [0.0, 0.0], [0.0])
 
 
+def test_uniform_link_with_an_overflowing_inertia():
+    from ctmm.planar import RigidBody
+
+    with pytest.raises(ctmm.ModelError, match=r"l: inertia mass \* length\*\*2 / 12 must be finite and > 0, got inf "
+                                              r"\(mass=1.0, length=1e\+300\)"):
+        RigidBody.uniform_link("l", mass=1.0, length=1e300)
+
+
 def test_manipulator_store_every_zero():
     with pytest.raises(ctmm.ModelError, match=r"store_every must be an integer >= 1, got 0"):
         MANIPULATOR[0].simulate(0.01, 0.001, store_every=0)
