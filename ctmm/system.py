@@ -119,6 +119,8 @@ class Chain:
 
     def position(self, element_name: str) -> int:
         """Index of an element in :attr:`elements`."""
+        if not isinstance(element_name, str):
+            raise unknown_name("element", repr(element_name), list(self._by_name))
         try:
             return self._by_name[element_name]
         except KeyError:

@@ -73,8 +73,10 @@ def _weighted_terms(loop: str, role: str, value: Any, single: str, item: str) ->
     if isinstance(value, str):
         return ((value, 1.0),)
     try:
-        terms = tuple((str(name), validation.finite(f"loop {loop!r}: {role} weight", weight))
+        terms = tuple((name, validation.finite(f"loop {loop!r}: {role} weight", weight))
                       for name, weight in value)
+        if not all(isinstance(name, str) for name, _ in terms):
+            raise TypeError("names must be strings")
     except (TypeError, ValueError) as exc:
         raise ModelError(f"loop {loop!r}: {role} must be {single} or a sequence of ({item}, weight) pairs, "
                          f"got {value!r}") from exc
