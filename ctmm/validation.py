@@ -236,3 +236,13 @@ def coordinates(name: str, value: Any, size: int, *, labels: Any = None) -> np.n
         raise ModelError(f"{name} must be a 1-D array of {size} number(s){which}, got {_shown(value)} "
                          f"(shape {array.shape})")
     return array
+
+
+def path(name: str, value: Any):
+    """A file-system path (str or ``os.PathLike``) as :class:`pathlib.Path`, or raise."""
+    import os
+    from pathlib import Path
+
+    if isinstance(value, bool) or not isinstance(value, (str, os.PathLike)) or value == "":
+        raise ModelError(f"{name} must be a file-system path (str or pathlib.Path), got {_shown(value)}")
+    return Path(value)

@@ -65,8 +65,8 @@ PUBLIC_API: dict[str, str] = {
     # ctmm.control
     "ctmm.control.Controller": "protocol: check_controllers fuzzed", "ctmm.control.ControllerStep": "record",
     "ctmm.control.Feedback": FUZZED, "ctmm.control.ControlledChain": FUZZED,
-    "ctmm.control.simulate_controlled": FUZZED, "ctmm.control.FMUController": "tests/test_controllers_fmu.py",
-    "ctmm.control.build_fmu": "tests/test_controllers_fmu.py", "ctmm.control.loop_transfer_function": FUZZED,
+    "ctmm.control.simulate_controlled": FUZZED, "ctmm.control.FMUController": FUZZED,
+    "ctmm.control.build_fmu": FUZZED, "ctmm.control.loop_transfer_function": FUZZED,
     "ctmm.control.margins": FUZZED, "ctmm.control.closed_loop_response": FUZZED,
     "ctmm.control.bode_plot": "tests/test_control_tools.py", "ctmm.control.nyquist_plot": "tests/test_control_tools.py",
     "ctmm.control.PlantCache": FUZZED,
@@ -228,6 +228,7 @@ BAD: dict[str, st.SearchStrategy] = {
     "coordinates": st.sampled_from([None, "a", True, [], [0.0, 0.0], [[0.0]], {"q": 0.0}, Opaque(),
                                     [math.nan], [math.inf]]),
     "time_step": st.sampled_from([1e-300, 1e-200, 1e-30]),
+    "path": st.sampled_from([None, 3.0, True, [], {}, "", Opaque()]),
 }
 
 
@@ -366,6 +367,10 @@ CASES: list[Case] = [
          lambda v: controllers.PID("m.x", "m.force", kp=1.0, ki=0.0, kd=0.0, derivative_filter_time=0.0,
                                    sample_time=v)),
     Case("ctmm.controllers.fmu_source", "FMU source", "option", lambda v: controllers.fmu_source(v)),
+    Case("ctmm.control.FMUController", "path", "path",
+         lambda v: __import__("ctmm.control").control.FMUController(v, inputs=("m.x",), outputs=("m.force",),
+                                                                    sample_time=0.01)),
+    Case("ctmm.control.build_fmu", "source_dir", "path", lambda v: __import__("ctmm.control").control.build_fmu(v)),
     Case("ctmm.interop.to_frd", "source", "system", lambda v: interop.to_frd(v, [1.0], inputs="m.force",
                                                                             outputs="m.x")),
     Case("ctmm.interop.to_frd", "omega", "frequencies",
@@ -514,7 +519,7 @@ def test_every_case_refuses_its_first_examples(case):
                  "text": ["", None, 1.0], "numbers": [[], "a", [math.nan]],
                  "loops": [None, [3], "L"], "controllers": [[3], None, 3],
                  "elements": [None, 3.0, "abc"], "coordinates": [[0.0, 0.0], [], [math.nan]],
-                 "time_step": [1e-300]}[case.kind]
+                 "time_step": [1e-300], "path": [None, 3.0, ""]}[case.kind]
     for value in canonical:
         check_refused(case, value)
 

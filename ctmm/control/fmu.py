@@ -169,7 +169,7 @@ class FMUController:
                  parameters: Mapping[str, float] | None = None, sample_time: float,
                  direct_feedthrough: bool | None = None) -> None:
         fmpy = _fmpy()
-        fmu_path = Path(path)
+        fmu_path = validation.path("path", path)
         if not fmu_path.exists():
             raise ModelError(f"FMU file not found: {str(fmu_path)!r}")
         what = f"FMU {str(fmu_path)!r}"

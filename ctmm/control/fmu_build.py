@@ -18,6 +18,7 @@ import tempfile
 import zipfile
 from pathlib import Path
 
+from .. import validation
 from ..errors import ModelError
 
 __all__ = ["build_fmu", "fmi_headers_dir"]
@@ -143,7 +144,7 @@ def build_fmu(source_dir: str | os.PathLike, output_dir: str | os.PathLike | Non
     'pd_controller.fmu'
     """
     fmpy = _fmpy()
-    source = Path(source_dir)
+    source = validation.path("source_dir", source_dir)
     if not source.is_dir():
         raise ModelError(f"source_dir must be an existing folder, got {str(source)!r}")
     description_file = source / "modelDescription.xml"
