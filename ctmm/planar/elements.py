@@ -38,7 +38,7 @@ Vector2 = tuple[float, float]
 
 def _required(label: str, value) -> None:
     if isinstance(value, float) and math.isnan(value):
-        raise ModelError(f"{label} is required")
+        raise ModelError(f"{label} is required (a finite number), got {value!r}")
 
 
 def _translational(hinge) -> None:
