@@ -10,7 +10,7 @@ from .errors import ModelError
 
 
 def _as_float(name: str, value: Any) -> float:
-    if isinstance(value, (bool, np.bool_, str, bytes)):
+    if isinstance(value, (bool, np.bool_, str, bytes)) or (isinstance(value, np.ndarray) and value.ndim != 0):
         raise ModelError(f"{name} must be a real number, got {value!r}")
     try:
         number = float(value)

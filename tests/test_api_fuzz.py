@@ -193,7 +193,7 @@ class Opaque:
         return "Opaque()"
 
 
-NOT_NUMBERS = [None, "abc", "1.5", True, False, [1.0, 2.0], [], {"a": 1.0}, Opaque(), 1j]
+NOT_NUMBERS = [None, "abc", "1.5", True, False, [1.0, 2.0], [], {"a": 1.0}, Opaque(), 1j, np.array([1.0])]
 NON_FINITE = [math.nan, math.inf, -math.inf]
 _finite_floats = st.floats(allow_nan=False, allow_infinity=False)
 BAD: dict[str, st.SearchStrategy] = {
