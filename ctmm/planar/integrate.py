@@ -158,6 +158,13 @@ def simulate_scipy(model: PlanarModel, q0, qdot0, *, t_final: float, method: str
     """
     if method not in SCIPY_METHODS:
         raise ModelError(f"method must be one of {SCIPY_METHODS}, got {method!r}")
+    t_final = validation.positive("t_final", t_final)
+    rtol, atol = validation.positive("rtol", rtol), validation.positive("atol", atol)
+    if t_eval is not None:
+        given = t_eval
+        t_eval = validation.finite_array("t_eval", t_eval, ndim=1)
+        if t_eval.size == 0 or t_eval.min() < 0.0 or t_eval.max() > t_final or np.any(np.diff(t_eval) < 0):
+            raise ModelError(f"t_eval must be ascending times in [0, t_final={t_final!r}] s, got {given!r}")
     q, v = _initial(model, q0, qdot0)
     n = model.n_coordinates
     count = [0]
@@ -167,7 +174,7 @@ def simulate_scipy(model: PlanarModel, q0, qdot0, *, t_final: float, method: str
         return np.concatenate([y[n:], accelerations(model, y[:n], y[n:], t)])
 
     start = _time.perf_counter()
-    sol = scipy.integrate.solve_ivp(rhs, (0.0, validation.positive("t_final", t_final)),
+    sol = scipy.integrate.solve_ivp(rhs, (0.0, t_final),
                                     np.concatenate([q, v]), method=method, rtol=rtol, atol=atol,
                                     t_eval=t_eval)
     wall = _time.perf_counter() - start
