@@ -15,15 +15,10 @@ from . import validation
 from .assembly import SOLVERS, BoundaryEnd, BoundaryStart, ChainSolution
 from .errors import ModelError
 from .results import FrequencyResponse
-from .system import Chain
+from .system import Chain, require_system
 
 def _as_s(omega: Any, name: str = "omega") -> np.ndarray:
-    omega = validation.finite_array(name, omega)
-    if omega.ndim > 1:
-        raise ModelError(f"{name} must be a scalar or 1-D array, got shape {omega.shape}")
-    if np.any(omega < 0):
-        raise ModelError(f"{name} must be >= 0 [rad/s], got min {omega.min()!r}")
-    return 1j * np.atleast_1d(omega)
+    return 1j * validation.frequencies(name, omega)
 
 
 def assemble(system: Chain, s: np.ndarray, amplitudes: Mapping[int, Mapping[str, Any]] | None = None, *,
@@ -111,8 +106,7 @@ def _assemble_body(system: Chain, body: Sequence, points: Sequence[int], s: np.n
 
 def solve(system: Chain, s: np.ndarray, amplitudes=None, *, solver: str = "riccati") -> ChainSolution:
     """States at every connection point for harmonic loads (phasors), batched over ``s``."""
-    if solver not in SOLVERS:
-        raise ModelError(f"solver must be one of {sorted(SOLVERS)}, got {solver!r}")
+    solver = validation.option("solver", solver, SOLVERS)
     if solver == "riccati" and not hasattr(system, "assemble_frequency") and _lumped(system):
         sol = _solve_lumped(system, np.asarray(s, dtype=complex), amplitudes or {})
     else:
@@ -202,8 +196,10 @@ def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],
     >>> np.allclose(frf("m.x", "m.force"), 1 / (100.0 - np.array([0.0, 25.0])))
     True
     """
-    inputs = (input,) if isinstance(input, str) else tuple(input)
-    outputs = (output,) if isinstance(output, str) else tuple(output)
+    system = require_system(system)
+    inputs = validation.names("input", input)
+    outputs = validation.names("output", output)
+    solver = validation.option("solver", solver, SOLVERS)
     s = _as_s(omega)
     for o in outputs:
         system.signal(o)
@@ -223,8 +219,22 @@ def steady_state_response(system: Chain, omega: float, *, outputs: Sequence[str]
 
     Every load signal must be constant (used at ``omega = 0``) or
     :class:`~ctmm.signals.Harmonic` with frequency ``omega`` [rad/s].
+
+    Parameters
+    ----------
+    system : Chain or ControlledChain
+        The model.
+    omega : float
+        One angular frequency [rad/s], >= 0 (a sequence is refused: call once per frequency).
+    outputs : sequence of str, optional
+        Output signal names (default: every signal).
+    solver : {"riccati", "plain"}
+        Chain solver.
     """
-    s = _as_s(omega)
+    system = require_system(system)
+    s = 1j * validation.frequencies("omega", omega, scalar=True)
+    solver = validation.option("solver", solver, SOLVERS)
+    names = None if outputs is None else validation.names("outputs", outputs)
     amplitudes: dict[int, dict[str, complex]] = {}
     for pos, element in enumerate(system.elements):
         if hasattr(element, "steady_state_amplitudes"):
@@ -237,7 +247,7 @@ def steady_state_response(system: Chain, omega: float, *, outputs: Sequence[str]
                 amps[key] = value
             amplitudes[pos] = amps
     sol = solve(system, s, amplitudes, solver=solver)
-    names = outputs or system.signal_names()
+    names = names or system.signal_names()
     return {n: complex(_output_value(system, sol.states, s, n)[0]) for n in names}
 
 
@@ -258,7 +268,9 @@ def characteristic_function(system, s: Any, *, normalize: bool = True) -> np.nda
     normalize : bool
         Divide by ``Delta`` at ``s = 1`` (a constant) to keep magnitudes near one.
     """
-    s_arr = np.atleast_1d(np.asarray(s, dtype=complex))
+    system = require_system(system)
+    s_arr = np.atleast_1d(validation.complex_array("s", s))
+    validation.flag("normalize", normalize)
     shape = s_arr.shape
     flat = s_arr.ravel()
     Us, us, start, end = assemble(system, flat)

@@ -41,11 +41,12 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from . import validation
 from .elements.boundary import Elastic, PrescribedForce
 from .elements.lumped import Connector, PointElement
 from .errors import ModelError, unknown_name
 from .results import FrequencyResponse
-from .system import Chain
+from .system import Chain, require_system
 
 __all__ = ["to_frd", "to_state_space", "assemble_matrices", "control_name"]
 
@@ -89,7 +90,8 @@ def to_frd(source: Any, omega: Any = None, *, inputs: str | Sequence[str] | None
     else:
         if omega is None or inputs is None or outputs is None:
             raise ModelError("to_frd(system, omega, inputs=..., outputs=...) needs omega [rad/s], inputs "
-                             "and outputs")
+                             f"and outputs, got omega={omega!r}, inputs={inputs!r}, outputs={outputs!r}")
+        require_system(source, parameter="source")
         from .frequency import frequency_response
 
         response = frequency_response(source, omega, input=inputs, output=outputs)
@@ -146,6 +148,7 @@ def assemble_matrices(system: Chain) -> tuple[np.ndarray, np.ndarray, np.ndarray
     point_dof : ndarray of int, shape (n_points,)
         DOF of every connection point (``-1`` for points held by a ``Fixed`` boundary).
     """
+    system = require_system(system, controlled=False)
     dofs = _Dofs(system)
     n = dofs.n
     M, C, K = np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, n))
@@ -443,15 +446,16 @@ def to_state_space(system: Any, *, inputs: str | Sequence[str] | None = None,
     controlled = hasattr(system, "plant") and hasattr(system, "loops")
     chain: Chain = system.plant if controlled else system
     if not isinstance(chain, Chain):
-        raise ModelError(f"to_state_space needs a Chain or ControlledChain, got {system!r}")
+        raise ModelError(f"system must be a ctmm.Chain or ctmm.control.ControlledChain for to_state_space, "
+                         f"got {system!r}")
     loops = tuple(system.loops) if controlled else ()
     for lp in loops:
         if lp.delay != 0.0:
             raise ModelError(f"loop {lp.name!r} has delay {lp.delay!r} s: no finite-dimensional realisation; "
                              "use to_frd (exact) or approximate e^(-s tau) with control.pade")
     d_in, d_out = _default_signals(system)
-    inputs = d_in if inputs is None else ([inputs] if isinstance(inputs, str) else list(inputs))
-    outputs = d_out if outputs is None else ([outputs] if isinstance(outputs, str) else list(outputs))
+    inputs = d_in if inputs is None else list(validation.names("inputs", inputs))
+    outputs = d_out if outputs is None else list(validation.names("outputs", outputs))
     loop_names = {lp.name: i for i, lp in enumerate(loops)}
     references, forces = [], []
     for name in inputs:

@@ -17,7 +17,8 @@ import numpy as np
 from .elements.lumped import PointElement
 from .errors import ModelError
 from .frequency import mode_shapes, steady_state_response
-from .system import Chain
+from . import validation
+from .system import Chain, require_system
 from .timestep import initial_state
 
 
@@ -41,6 +42,13 @@ def modal_response(system: Chain, times: np.ndarray, *, x0=None, v0=None, n_mode
     dict
         ``{mass name: displacement history [m]}`` in absolute coordinates.
     """
+    system = require_system(system, controlled=False)
+    given = times
+    times = validation.finite_array("times", times, ndim=1)
+    if times.size == 0 or np.any(times < 0):
+        raise ModelError(f"times must be a non-empty 1-D array of times [s] >= 0 (t0 = 0), got {given!r}")
+    if n_modes is not None:
+        n_modes = validation.integer("n_modes", n_modes, minimum=1)
     masses = [(j, e) for j, e in enumerate(system.body, start=1) if isinstance(e, PointElement) and e.mass > 0]
     n_dof = len(masses)
     if n_dof == 0:

@@ -39,8 +39,17 @@ from . import validation
 from .assembly import ChainSolution  # noqa: F401
 from .errors import ModelError
 from .results import ModalResult
-from .system import Chain
+from .system import Chain, require_system
 from .frequency import _MatrixCache, _as_s, _assemble_body, _subdivided, assemble, solve  # noqa: F401
+
+
+def _conservative_chain(system: Any) -> Chain:
+    """Entry check of the natural-frequency functions: a plain :class:`Chain` (loops break reciprocity)."""
+    if isinstance(getattr(system, "plant", None), Chain) and hasattr(system, "loops"):
+        raise ModelError(f"system must be a ctmm.Chain (undamped, without feedback loops) for natural frequencies, "
+                         f"got the controlled chain {system.name!r}; its closed-loop roots come from "
+                         "ctmm.stability.characteristic_roots")
+    return require_system(system, controlled=False)
 
 
 def _check_conservative(system: Chain) -> None:
@@ -83,7 +92,8 @@ def eigenvalue_count(system: Chain, omega: Any) -> np.ndarray:
     frequency within ``e^-β`` of it (e.g. clamped-clamped and clamped-free beam roots);
     :func:`natural_frequencies` therefore uses the count only to isolate roots.
     """
-    omega = np.atleast_1d(validation.finite_array("omega", omega))
+    system = _conservative_chain(system)
+    omega = validation.frequencies("omega", omega)
     if _is_lumped(system):
         return _lumped_count(system, omega)
     body, _ = _subdivided(system, float(np.max(omega, initial=0.0)))
@@ -348,13 +358,13 @@ def natural_frequencies(system: Chain, *, n_modes: int | None = None, omega_max:
     ndarray
         Ascending natural frequencies; a repeated frequency appears once per multiplicity.
     """
+    system = _conservative_chain(system)
     _check_conservative(system)
     if (n_modes is None) == (omega_max is None):
         raise ModelError("give exactly one of n_modes (int >= 1) or omega_max (rad/s > 0)")
     rtol = validation.positive("rtol", rtol)
     if n_modes is not None:
-        if not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
-            raise ModelError(f"n_modes must be an integer >= 1, got {n_modes!r}")
+        n_modes = validation.integer("n_modes", n_modes, minimum=1)
         hi = 1.0
         while eigenvalue_count(system, [hi])[0] < n_modes:
             hi *= 2.0
@@ -652,6 +662,9 @@ def mode_shapes(system: Chain, *, n_modes: int | None = None, omega_max: float |
     largest displacement component is +1.
     """
     omega = natural_frequencies(system, n_modes=n_modes, omega_max=omega_max)
+    if omega.size == 0:   # no natural frequency below omega_max
+        return ModalResult(omega, np.zeros((0, system.n_points, system.layout.size)), system.layout.components,
+                           tuple(system.point_names()))
     if hasattr(system, "assemble_frequency"):
         return _mode_shapes_by_inputs(system, omega)
     layout = system.layout

@@ -181,6 +181,8 @@ class SimulationResult:
 
     def __getitem__(self, name: str) -> np.ndarray:
         """History of one signal by name, e.g. ``result["m1.x"]`` or ``result["loop.u"]``."""
+        if not isinstance(name, str):
+            raise unknown_name("signal", repr(name), self.signals())
         if name in self.extra:
             return self.extra[name]
         sig = self.system.signal(name)

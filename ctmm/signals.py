@@ -94,8 +94,8 @@ class SquareWave:
     def __post_init__(self) -> None:
         object.__setattr__(self, "amplitude", validation.finite("amplitude", self.amplitude))
         object.__setattr__(self, "period", validation.positive("period", self.period))
-        if not (self.duration > 0):
-            raise ModelError(f"duration must be > 0, got {self.duration!r}")
+        if self.duration != math.inf:
+            object.__setattr__(self, "duration", validation.positive("duration", self.duration))
 
     def __call__(self, t: float) -> float:
         if t < 0 or t >= self.duration:

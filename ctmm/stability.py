@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -74,6 +74,8 @@ def unstable_root_count(system: ControlledChain, *, loop: str | None = None, gai
     >>> unstable_root_count(system, delay=[0.0, 0.5, 1.5]).tolist()
     [0, 0, 2]
     """
+    gain = None if gain is None else validation.nonempty_array("gain", gain)
+    delay = None if delay is None else validation.nonempty_array("delay", delay)
     model = LoopCharacteristic(system, loop)
     n = n_sets(gain, delay, weights)
     k, tau, w = model.parameters(n, None if gain is None else np.ravel(gain),
@@ -788,6 +790,9 @@ def crosscheck_by_simulation(system: ControlledChain, points: Sequence[dict], *,
     from .elements.lumped import PointElement
 
     system = as_controlled(system, "crosscheck_by_simulation")
+    if not isinstance(points, (list, tuple)) or not points or not all(isinstance(p, Mapping) for p in points):
+        raise ModelError(f"points must be a non-empty list of mappings such as {{'gain': 2.0, 'delay': 0.1}}, "
+                         f"got {points!r}")
     lp = find_loop(system, loop)
     t_final, dt = validation.positive("t_final", t_final), validation.positive("dt", dt)
     if x0 is None:

@@ -75,7 +75,7 @@ def as_controlled(system: Any, what: str = "stability analysis") -> ControlledCh
                          f"delay-free answer: {delay_free_answer(system)}. Close a loop with "
                          "ctmm.control.ControlledChain(plant, [Feedback(...)]), or use "
                          "ctmm.stability.spectral_abscissa(system, ...) for its roots")
-    raise ModelError(f"{what} needs a ControlledChain, got {system!r}")
+    raise ModelError(f"system must be a ctmm.control.ControlledChain for {what}, got {system!r}")
 
 
 def delay_free_answer(system: Any, radius: float = 1e4) -> str:

@@ -17,7 +17,8 @@ Signals are addressed by dotted names (see :meth:`Chain.signal`):
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Iterable, Sequence
+from collections.abc import Iterable, Mapping
+from typing import Any, Sequence
 
 from .elements.base import Element
 from .elements.boundary import Boundary
@@ -65,7 +66,12 @@ class Chain:
     """
 
     def __init__(self, name: str, elements: Sequence[Element]) -> None:
+        if not isinstance(name, str) or not name.strip():
+            raise ModelError(f"chain name must be a non-empty string, got {name!r}")
         self.name = name
+        if isinstance(elements, (str, bytes, Mapping, Element)) or not isinstance(elements, Iterable):
+            raise ModelError(f"chain {name!r}: elements must be a list [start boundary, element, ..., "
+                             f"end boundary], got {elements!r}")
         self.elements: tuple[Element, ...] = tuple(elements)
         problems = list(self._validate())
         if problems:
@@ -113,6 +119,8 @@ class Chain:
 
     def position(self, element_name: str) -> int:
         """Index of an element in :attr:`elements`."""
+        if not isinstance(element_name, str):
+            raise unknown_name("element", repr(element_name), list(self._by_name))
         try:
             return self._by_name[element_name]
         except KeyError:
@@ -185,3 +193,25 @@ class Chain:
 
     def __repr__(self) -> str:
         return f"Chain({self.name!r}, {len(self.body)} elements, {self.start.name!r} -> {self.end.name!r})"
+
+
+def require_system(value: Any, *, parameter: str = "system", controlled: bool = True) -> Any:
+    """Return ``value`` if it is a :class:`Chain` (or, when ``controlled``, a controlled chain).
+
+    A controlled chain (:class:`~ctmm.control.loops.ControlledChain`) is recognised by its
+    ``plant`` (a :class:`Chain`) and ``loops``; this module cannot import it (it builds on this one).
+
+    Raises
+    ------
+    ModelError
+        Naming ``parameter``, the value and what is allowed.
+    """
+    if isinstance(value, Chain):
+        return value
+    is_controlled = isinstance(getattr(value, "plant", None), Chain) and hasattr(value, "loops")
+    if controlled and is_controlled:
+        return value
+    allowed = "a ctmm.Chain or ctmm.control.ControlledChain" if controlled else "a ctmm.Chain"
+    hint = ("; use ctmm.simulate for a controlled chain (it honours every loop)" if is_controlled else "")
+    text = repr(value)
+    raise ModelError(f"{parameter} must be {allowed}, got {text if len(text) <= 80 else text[:77] + '...'}{hint}")

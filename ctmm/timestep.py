@@ -35,7 +35,7 @@ from .results import SimulationResult
 from .schemes import History, Scheme, as_scheme
 from .signals import Constant
 from .step_limit import check_scheme_step
-from .system import Chain
+from .system import Chain, require_system
 
 ForceHook = Callable[[float, float, float, History], Mapping[int, float]]
 """``hook(t_n, dt, w, history) -> {element position: force [N]}`` at the step's evaluation level
@@ -68,22 +68,24 @@ def initial_state(system: Chain, x0: Mapping[str, float] | None, v0: Mapping[str
     velocity, except points between connectors only (massless junctions), which are placed by
     the static force balance of the connectors around them (compliance-weighted).
     """
+    x0 = validation.number_mapping("x0", x0)
+    v0 = validation.number_mapping("v0", v0)
+    for label, values in (("x0", x0), ("v0", v0)):
+        for element_name, value in values.items():
+            element = system.element(element_name)
+            if getattr(element, "known", None) != "displacement":
+                continue
+            held = getattr(element, "position", None) if label == "x0" else 0.0
+            if held is None or not math.isclose(value, held, rel_tol=1e-12, abs_tol=1e-15):
+                raise ModelError(f"{label}[{element_name!r}] = {value!r}: {element_name!r} is a support that "
+                                 "prescribes its own motion; give initial values to moving points only")
     x = rest_positions(system)
     v = np.zeros(system.n_points)
     given = np.zeros(system.n_points, dtype=bool)
-    for label, values, target in (("x0", x0, x), ("v0", v0, v)):
-        if values is None:
-            continue
-        if not isinstance(values, Mapping):
-            raise ModelError(f"{label} must be a mapping {{element name: value}}, got {values!r}")
+    for values, target in ((x0, x), (v0, v)):
         for element_name, value in values.items():
-            element = system.element(element_name)
-            if element in (system.start, system.end) and element.known == "displacement":
-                raise ModelError(f"{label}[{element_name!r}] = {value!r}: the displacement of boundary "
-                                 f"{element_name!r} is prescribed; give initial values of masses or of "
-                                 "boundaries with a known force only")
             p = _point_of(system, element_name)
-            target[p] = validation.finite(f"initial value of {element_name!r}", value)
+            target[p] = value
             given[p] = True
             if target is x:
                 e = system.element(element_name)
@@ -451,16 +453,17 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
     ModelError
         Bad input, or a step beyond the scheme's stability limit with ``stability_check="error"``.
     """
-    if not isinstance(system, Chain):
-        raise ModelError(f"system must be a Chain, got {type(system).__name__}; use ctmm.simulate for "
-                         "controlled chains (ctmm.control.ControlledChain)")
+    system = require_system(system, controlled=False)
     t_final = validation.finite("t_final", t_final)
     dt = validation.positive("dt", dt)
     t0 = validation.finite("t0", t0)
     if t_final <= t0:
         raise ModelError(f"t_final must be > t0={t0}, got {t_final!r}")
-    if solver not in SOLVERS:
-        raise ModelError(f"solver must be one of {sorted(SOLVERS)}, got {solver!r}")
+    validation.step_count(t_final, t0, dt, bytes_per_step=8.0 * system.n_points * 2 * system.layout.size)
+    solver = validation.option("solver", solver, SOLVERS)
+    fast = validation.flag("fast", fast, optional=True)
+    progress = validation.flag("progress", progress, optional=True)
+    force_hook = validation.callable_or_none("force_hook", force_hook)
     scheme = as_scheme(scheme)
     lumped = all(isinstance(e, (PointElement, Connector)) for e in system.body) and system.layout.size == 2
     if fast is None:

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -10,7 +10,7 @@ from .errors import ModelError
 
 
 def _as_float(name: str, value: Any) -> float:
-    if isinstance(value, bool):
+    if isinstance(value, (bool, np.bool_, str, bytes)) or (isinstance(value, np.ndarray) and value.ndim != 0):
         raise ModelError(f"{name} must be a real number, got {value!r}")
     try:
         number = float(value)
@@ -57,12 +57,14 @@ def in_range(name: str, value: Any, low: float, high: float, *, low_open: bool =
 
 def finite_array(name: str, value: Any, *, ndim: int | None = None) -> np.ndarray:
     """Return ``value`` as a float array with only finite entries or raise :class:`ModelError`."""
+    if value is None or isinstance(value, (bool, np.bool_, str, bytes, Mapping)):
+        raise ModelError(f"{name} must be an array of real numbers, got {_shown(value)}")
     try:
         array = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
-        raise ModelError(f"{name} must be an array of real numbers, got {value!r}") from None
+        raise ModelError(f"{name} must be an array of real numbers, got {_shown(value)}") from None
     if ndim is not None and array.ndim != ndim:
-        raise ModelError(f"{name} must have {ndim} dimension(s), got shape {array.shape}")
+        raise ModelError(f"{name} must have {ndim} dimension(s), got {_shown(value)} (shape {array.shape})")
     if not np.all(np.isfinite(array)):
         bad = array[~np.isfinite(array)].ravel()[0]
         raise ModelError(f"{name} must contain only finite values, found {bad!r}")
@@ -74,3 +76,173 @@ def name(kind: str, value: Any) -> str:
     if not isinstance(value, str) or not value or any(ch in value for ch in ". \t\n"):
         raise ModelError(f"{kind} name must be a non-empty string without '.' or spaces, got {value!r}")
     return value
+
+
+def _shown(value: Any) -> str:
+    """``repr`` of a value, shortened for messages."""
+    text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def integer(name: str, value: Any, *, minimum: int = 1) -> int:
+    """Return ``value`` as an int >= ``minimum`` (bools and non-integral numbers refused)."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise ModelError(f"{name} must be an integer >= {minimum}, got {_shown(value)}")
+    return int(value)
+
+
+def option(name: str, value: Any, allowed: Any) -> Any:
+    """Return ``value`` if it is one of ``allowed`` (a collection of strings) or raise."""
+    choices = sorted(allowed)
+    if not isinstance(value, str) or value not in choices:
+        raise ModelError(f"{name} must be one of {choices}, got {_shown(value)}")
+    return value
+
+
+def flag(name: str, value: Any, *, optional: bool = False) -> bool | None:
+    """Return ``value`` as a bool (``None`` kept when ``optional``) or raise."""
+    if value is None and optional:
+        return None
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    allowed = "True, False or None" if optional else "True or False"
+    raise ModelError(f"{name} must be {allowed}, got {_shown(value)}")
+
+
+def callable_or_none(name: str, value: Any) -> Any:
+    """Return ``value`` if it is callable or ``None``, else raise."""
+    if value is not None and not callable(value):
+        raise ModelError(f"{name} must be a callable or None, got {_shown(value)}")
+    return value
+
+
+def names(name: str, value: Any, *, allow_empty: bool = False) -> tuple[str, ...]:
+    """A name or a sequence of names as a tuple of strings (no mapping, no other container)."""
+    if isinstance(value, str):
+        return (value,)
+    if isinstance(value, (list, tuple)):
+        bad = [item for item in value if not isinstance(item, str)]
+        if bad:
+            raise ModelError(f"{name} must be a name or a sequence of names (str), got {_shown(value)} "
+                             f"(not a str: {_shown(bad[0])})")
+        if not value and not allow_empty:
+            raise ModelError(f"{name} must name at least one signal, got {_shown(value)}")
+        return tuple(value)
+    raise ModelError(f"{name} must be a name (str) or a list/tuple of names, got {_shown(value)}")
+
+
+def number_mapping(name: str, value: Any) -> dict[str, float]:
+    """A mapping ``{name: finite number}`` (``None`` means empty) or raise."""
+    if value is None:
+        return {}
+    if not isinstance(value, Mapping):
+        raise ModelError(f"{name} must be a mapping {{element name: number}} or None, got {_shown(value)}")
+    out = {}
+    for key, item in value.items():
+        if not isinstance(key, str):
+            raise ModelError(f"{name} keys must be element names (str), got {_shown(key)}")
+        out[key] = finite(f"{name}[{key!r}]", item)
+    return out
+
+
+def frequencies(name: str, value: Any, *, scalar: bool = False) -> np.ndarray:
+    """Angular frequencies [rad/s]: finite, >= 0, a non-empty 1-D array (or one number if ``scalar``)."""
+    if isinstance(value, (bool, np.bool_, str, bytes)) or value is None or isinstance(value, Mapping):
+        raise ModelError(f"{name} must be {'a number' if scalar else 'a 1-D array of numbers'} [rad/s] >= 0, "
+                         f"got {_shown(value)}")
+    if scalar:
+        if np.ndim(value) != 0:
+            raise ModelError(f"{name} must be one frequency [rad/s] (a number), got {_shown(value)}; "
+                             "call once per frequency")
+        return np.atleast_1d(nonnegative(name, value))
+    array = finite_array(name, value)
+    if array.ndim > 1:
+        raise ModelError(f"{name} must be a scalar or 1-D array [rad/s], got {_shown(value)} (shape {array.shape})")
+    array = np.atleast_1d(array)
+    if array.size == 0:
+        raise ModelError(f"{name} must contain at least one frequency [rad/s], got {_shown(value)}")
+    if np.any(array < 0):
+        raise ModelError(f"{name} must be >= 0 [rad/s], got min {float(array.min())!r}")
+    return array
+
+
+def complex_array(name: str, value: Any) -> np.ndarray:
+    """Finite complex array (e.g. Laplace variables [1/s]) or raise."""
+    if isinstance(value, (bool, np.bool_, str, bytes)) or value is None or isinstance(value, Mapping):
+        raise ModelError(f"{name} must be a complex number or array of them, got {_shown(value)}")
+    try:
+        array = np.asarray(value, dtype=complex)
+    except (TypeError, ValueError):
+        raise ModelError(f"{name} must be a complex number or array of them, got {_shown(value)}") from None
+    if array.size == 0:
+        raise ModelError(f"{name} must not be empty, got {_shown(value)}")
+    if not np.all(np.isfinite(array)):
+        bad = array[~np.isfinite(array)].ravel()[0]
+        raise ModelError(f"{name} must contain only finite values, found {complex(bad)!r}")
+    return array
+
+
+MAX_STEPS = 50_000_000
+"""Largest number of time steps a simulation accepts (a longer run is refused before it starts)."""
+
+MAX_RESULT_BYTES = 2 * 1024 ** 3
+"""Largest estimated size [bytes] of a simulation's stored result (2 GiB)."""
+
+
+def step_count(t_final: float, t0: float, dt: float, *, bytes_per_step: float = 0.0) -> int:
+    """Number of steps ``(t_final - t0) / dt``, refused when too many or too much memory.
+
+    Parameters
+    ----------
+    t_final, t0 : float
+        End and start time [s] (already validated).
+    dt : float
+        Step size [s] (already validated > 0).
+    bytes_per_step : float
+        Stored result size per step [bytes]; refused above :data:`MAX_RESULT_BYTES`.
+    """
+    steps = (t_final - t0) / dt
+    if not math.isfinite(steps) or steps > MAX_STEPS:
+        raise ModelError(f"dt={dt!r} s over (t_final - t0) = {t_final - t0!r} s gives {steps:.3g} steps; "
+                         f"at most {MAX_STEPS:.0e} are allowed: increase dt or shorten the interval")
+    memory = steps * bytes_per_step
+    if memory > MAX_RESULT_BYTES:
+        raise ModelError(f"dt={dt!r} s over (t_final - t0) = {t_final - t0!r} s gives {steps:.3g} steps whose "
+                         f"stored result would need about {memory / 1024 ** 3:.3g} GiB (limit "
+                         f"{MAX_RESULT_BYTES / 1024 ** 3:.0f} GiB): increase dt or shorten the interval")
+    return int(round(steps))
+
+
+def nonempty_array(name: str, value: Any) -> np.ndarray:
+    """A non-empty array of finite real numbers (e.g. a sweep of gains) or raise."""
+    array = finite_array(name, value)
+    if array.size == 0:
+        raise ModelError(f"{name} must contain at least one value, got {_shown(value)}")
+    return array
+
+
+def coordinates(name: str, value: Any, size: int, *, labels: Any = None) -> np.ndarray:
+    """A 1-D array of exactly ``size`` finite numbers (generalised coordinates, rates) or raise.
+
+    A float64 ndarray of the right shape is returned as is, without the finiteness check: the
+    integrators call the instantaneous solvers with their own state arrays every stage, and a
+    non-finite state there is theirs to report as a :class:`~ctmm.errors.SimulationError`.
+    """
+    if isinstance(value, np.ndarray) and value.dtype == np.float64 and value.shape == (size,):
+        return value
+    array = finite_array(name, value)
+    if array.shape != (size,):
+        which = f" for coordinates {list(labels)}" if labels is not None else ""
+        raise ModelError(f"{name} must be a 1-D array of {size} number(s){which}, got {_shown(value)} "
+                         f"(shape {array.shape})")
+    return array
+
+
+def path(name: str, value: Any):
+    """A file-system path (str or ``os.PathLike``) as :class:`pathlib.Path`, or raise."""
+    import os
+    from pathlib import Path
+
+    if isinstance(value, bool) or not isinstance(value, (str, os.PathLike)) or value == "":
+        raise ModelError(f"{name} must be a file-system path (str or pathlib.Path), got {_shown(value)}")
+    return Path(value)

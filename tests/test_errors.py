@@ -89,3 +89,20 @@ def test_unknown_scenario_lists_available():
 
     with pytest.raises(ctmm.UnknownNameError, match=r"unknown scenario 'nope'; available: .*table7_1"):
         run_scenario("nope")
+
+
+@pytest.mark.parametrize("call, pattern", [
+    (lambda c: c.position(["m"]), r"unknown element \"\['m'\]\"; available: e, k, m, w"),
+    (lambda c: ctmm.control.Feedback("L", [(3, 1.0)], "m"), r"sensor must be a signal name or a sequence of "
+                                                            r"\(signal, weight\) pairs, got \[\(3, 1\.0\)\]"),
+    (lambda c: ctmm.simulate(c, 0.1, 0.01, x0={"m": "0.5"}), r"x0\['m'\] must be a real number, got '0\.5'"),
+    (lambda c: Mass("m", "1.5"), r"m: mass must be a real number, got '1\.5'"),
+    (lambda c: ctmm.Chain("", list(c.elements)), r"chain name must be a non-empty string, got ''"),
+    (lambda c: ctmm.simulate(c, 0.1, 0.01, force_hook=3), r"force_hook must be a callable or None, got 3"),
+    (lambda c: ctmm.simulate(c, 0.1, 0.01, fast=1), r"fast must be True, False or None, got 1"),
+    (lambda c: ctmm.frequency_response(c, [], input="m.force", output="m.x"),
+     r"omega must contain at least one frequency \[rad/s\], got \[\]"),
+])
+def test_invalid_calls_name_parameter_and_value(call, pattern):
+    with pytest.raises(ctmm.ModelError, match=pattern):
+        call(chain())

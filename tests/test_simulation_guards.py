@@ -65,7 +65,7 @@ def test_simulate_routes_controllers_and_refuses_what_does_not_apply():
     np.testing.assert_array_equal(a.states, b.states)
     with pytest.raises(ModelError, match="solver='plain' applies to uncontrolled chains only"):
         ctmm.simulate(system, 0.05, 1e-3, solver="plain")
-    with pytest.raises(ModelError, match="system must be a Chain, got ControlledChain; use ctmm.simulate"):
+    with pytest.raises(ModelError, match="system must be a ctmm.Chain, got ControlledChain.*; use ctmm.simulate"):
         simulate_chain(system, 0.05, 1e-3)
 
 
@@ -223,10 +223,8 @@ def test_controller_failure_is_named_with_partial_samples(mode, match):
 def test_lti_controller_with_nan_coefficient_is_refused():
     import control
 
-    system = ControlledChain(seed_plant(), [Feedback("L", sensor="m6.v", actuator="m2",
-                                                    gain=control.ss([[-1.0]], [[1.0]], [[math.nan]], [[0.0]]))])
-    with pytest.raises(ModelError, match=r"loop 'L': the controller C\(s\) has a non-finite coefficient"):
-        ctmm.simulate(system, 0.01, 1e-3)
+    with pytest.raises(ModelError, match=r"loop 'L': gain \(LTI controller\) state-space matrix C must be finite"):
+        Feedback("L", sensor="m6.v", actuator="m2", gain=control.ss([[-1.0]], [[1.0]], [[math.nan]], [[0.0]]))
 
 
 def test_singular_acceleration_loop_is_a_model_error_naming_the_loop():
@@ -238,9 +236,9 @@ def test_singular_acceleration_loop_is_a_model_error_naming_the_loop():
 
 
 def test_initial_values_are_validated():
-    with pytest.raises(ModelError, match=r"x0 must be a mapping \{element name: value\}, got \[0.1\]"):
+    with pytest.raises(ModelError, match=r"x0 must be a mapping \{element name: number\} or None, got \[0.1\]"):
         ctmm.simulate(seed_plant(), 0.01, 1e-3, x0=[0.1])
-    with pytest.raises(ModelError, match=r"x0\['wall'\] = 0.1: the displacement of boundary 'wall' is prescribed"):
+    with pytest.raises(ModelError, match=r"x0\['wall'\] = 0.1: 'wall' is a support that prescribes its own motion"):
         ctmm.simulate(seed_plant(), 0.01, 1e-3, x0={"wall": 0.1})
     with pytest.raises(ModelError, match=r"at most 1e\+08 steps"):
         ctmm.simulate(seed_plant(), 1.0, 1e-300)

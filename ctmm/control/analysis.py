@@ -44,12 +44,7 @@ __all__ = ["closed_loop_response", "loop_transfer_function", "open_loop_plant", 
 
 
 def _omega(omega: Any) -> np.ndarray:
-    w = np.atleast_1d(validation.finite_array("omega", omega))
-    if w.ndim != 1 or w.size == 0:
-        raise ModelError(f"omega must be a non-empty 1-D array [rad/s], got shape {w.shape}")
-    if np.any(w < 0):
-        raise ModelError(f"omega must be >= 0 [rad/s], got min {w.min()!r}")
-    return w
+    return validation.frequencies("omega", omega)
 
 
 def closed_loop_response(system: Any, omega: Any, inputs: str | Sequence[str],

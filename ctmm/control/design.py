@@ -29,10 +29,11 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from .. import validation
 from ..errors import ModelError, unknown_name
 from ..frequency import frequency_response
 from ..results import FrequencyResponse
-from .analysis import _omega, actuator_inputs
+from .analysis import actuator_inputs
 from .loops import ControlledChain, Feedback
 
 __all__ = ["PlantCache"]
@@ -79,9 +80,9 @@ class PlantCache:
         if not system.loops:
             raise ModelError("PlantCache needs at least one Feedback loop")
         self.system = system
-        self.omega = _omega(omega)
-        self.inputs = (inputs,) if isinstance(inputs, str) else tuple(inputs)
-        self.outputs = (outputs,) if isinstance(outputs, str) else tuple(outputs)
+        self.omega = validation.frequencies("omega", omega)
+        self.inputs = validation.names("inputs", inputs)
+        self.outputs = validation.names("outputs", outputs)
         self.loops: tuple[Feedback, ...] = tuple(system.loops)
         self._loop_index = {lp.name: i for i, lp in enumerate(self.loops)}
         plant = system.plant
@@ -158,6 +159,9 @@ class PlantCache:
         delays : mapping, optional
             ``{loop name: delay [s]}``; loops not named keep their delay.
         """
+        for label, given in (("gains", gains), ("delays", delays)):
+            if given is not None and not isinstance(given, Mapping):
+                raise ModelError(f"{label} must be a mapping {{loop name: value}} or None, got {given!r}")
         gains = dict(gains or {})
         delays = dict(delays or {})
         for name in list(gains) + list(delays):

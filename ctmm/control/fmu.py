@@ -125,7 +125,7 @@ class FMUController:
                  direct_feedthrough: bool | None = None, instance_name: str | None = None,
                  interface: str | None = None, solver_step: float | None = None, validate: bool = True) -> None:
         require_fmpy()
-        if not isinstance(path, (str, os.PathLike)):
+        if not isinstance(path, (str, os.PathLike)) or str(path) == "":
             raise ModelError(f"path must be the path of an .fmu file or extracted FMU folder, got {path!r}")
         fmu_path = Path(path)
         if not fmu_path.exists():

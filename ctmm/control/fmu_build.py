@@ -150,7 +150,7 @@ def build_fmu(source_dir: str | os.PathLike, output_dir: str | os.PathLike | Non
     >>> path.name                                                   # doctest: +SKIP
     'pd_controller.fmu'
     """
-    if not isinstance(source_dir, (str, os.PathLike)):
+    if not isinstance(source_dir, (str, os.PathLike)) or str(source_dir) == "":
         raise ModelError(f"source_dir must be a folder or an .fmu file, got {source_dir!r}")
     source = Path(source_dir)
     if source.is_file():

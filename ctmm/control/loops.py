@@ -28,7 +28,8 @@ determinant of the extended chain vanishes at the closed-loop roots (with exact 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from collections.abc import Iterable, Mapping
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -56,6 +57,20 @@ def _lti_siso(name: str, gain: Any):
     if not control.isctime(gain):
         raise ModelError(f"loop {name!r}: discrete-time LTI controllers are not embeddable; "
                          "use a sampled controller object (co-simulation) instead")
+    if isinstance(gain, control.StateSpace):
+        for label, matrix in (("A", gain.A), ("B", gain.B), ("C", gain.C), ("D", gain.D)):
+            values = np.asarray(matrix, dtype=complex)
+            if not np.all(np.isfinite(values)):
+                raise ModelError(f"loop {name!r}: gain (LTI controller) state-space matrix {label} must be "
+                                 f"finite, got {values.real.tolist()}")
+    tf = control.tf(gain)
+    for label, coefficients in (("numerator", tf.num[0][0]), ("denominator", tf.den[0][0])):
+        values = np.asarray(coefficients, dtype=complex)
+        if not np.all(np.isfinite(values)):
+            raise ModelError(f"loop {name!r}: gain (LTI controller) {label} coefficients must be finite, "
+                             f"got {values.real.tolist()}")
+    if not np.any(np.asarray(tf.den[0][0]) != 0):
+        raise ModelError(f"loop {name!r}: gain (LTI controller) denominator must not be zero, got {gain!r}")
     return gain
 
 
@@ -64,13 +79,15 @@ def _weighted_terms(loop: str, role: str, value: Any, single: str, item: str) ->
     if isinstance(value, str):
         return ((value, 1.0),)
     try:
-        terms = tuple((str(name), validation.finite(f"loop {loop!r}: {role} weight", weight))
+        terms = tuple((name, validation.finite(f"loop {loop!r}: {role} weight", weight))
                       for name, weight in value)
+        if not all(isinstance(name, str) for name, _ in terms):
+            raise TypeError("names must be strings")
     except (TypeError, ValueError) as exc:
         raise ModelError(f"loop {loop!r}: {role} must be {single} or a sequence of ({item}, weight) pairs, "
                          f"got {value!r}") from exc
     if not terms:
-        raise ModelError(f"loop {loop!r}: {role} needs at least one {item}")
+        raise ModelError(f"loop {loop!r}: {role} needs at least one {item}, got {value!r}")
     return terms
 
 
@@ -179,15 +196,19 @@ class ControlledChain:
 
     def __init__(self, plant: Chain, loops: Sequence[Feedback]) -> None:
         if not isinstance(plant, Chain):
-            raise ModelError(f"plant must be a Chain, got {plant!r}")
+            raise ModelError(f"plant must be a ctmm.Chain, got {plant!r}")
+        if isinstance(loops, Feedback):
+            loops = [loops]
+        if isinstance(loops, (str, bytes, Mapping)) or not isinstance(loops, Iterable):
+            raise ModelError(f"loops must be a list of Feedback loops, got {loops!r}")
         self.plant = plant
         self.loops: tuple[Feedback, ...] = tuple(loops)
         self.name = plant.name + "+control"
+        problems = [f"loops[{i}] must be a Feedback loop, got {lp!r}"
+                    for i, lp in enumerate(self.loops) if not isinstance(lp, Feedback)]
+        if problems:
+            raise ModelError(f"controlled chain {self.name!r} is invalid:\n  - " + "\n  - ".join(problems))
         names = [lp.name for lp in self.loops]
-        problems = []
-        for lp in self.loops:
-            if not isinstance(lp, Feedback):
-                problems.append(f"{lp!r} is not a Feedback loop")
         if len(set(names)) != len(names):
             problems.append(f"loop names must be unique, got {names}")
         clash = set(names) & {e.name for e in plant.elements}
@@ -255,7 +276,7 @@ class ControlledChain:
 
     def loop(self, name: str) -> Feedback:
         """The loop called ``name``."""
-        if name not in self._by_loop:
+        if not isinstance(name, str) or name not in self._by_loop:
             raise unknown_name("loop", name, list(self._by_loop))
         return self.loops[self._by_loop[name]]
 

@@ -23,6 +23,9 @@ from typing import Any, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
+from .. import validation
+from ..errors import ModelError
+
 
 class ControllerStep(NamedTuple):
     """Output of one controller call: actuator values and the advanced controller state."""
@@ -60,3 +63,46 @@ class Controller(Protocol):
     def step(self, t: float, y: np.ndarray, state: Any) -> ControllerStep:
         """Return the outputs valid from time ``t`` [s] and the advanced state."""
         ...
+
+
+def check_controllers(controllers: Any) -> list:
+    """Validate controller objects before a run (attributes only; outputs are checked per call).
+
+    Parameters
+    ----------
+    controllers : sequence of Controller
+        The controllers given to :func:`ctmm.control.simulate_controlled`.
+
+    Returns
+    -------
+    list
+        The controllers.
+
+    Raises
+    ------
+    ModelError
+        ``controllers`` is not a list/tuple, or a controller lacks a protocol member or has one
+        of the wrong type (names the controller index, the member and the value).
+    """
+    if isinstance(controllers, Controller) and not isinstance(controllers, (list, tuple)):
+        raise ModelError(f"controllers must be a list or tuple of controllers, got the controller "
+                         f"{controllers!r}; pass [controller]")
+    if not isinstance(controllers, (list, tuple)):
+        raise ModelError(f"controllers must be a list or tuple of controllers, got {controllers!r}")
+    for i, c in enumerate(controllers):
+        where = f"controllers[{i}] = {c!r}"
+        for member in ("init", "step"):
+            if not callable(getattr(c, member, None)):
+                raise ModelError(f"{where} must have a callable {member}() (the Controller protocol), "
+                                 f"got {getattr(c, member, None)!r}")
+        for member, minimum in (("inputs", 0), ("outputs", 1)):
+            value = getattr(c, member, None)
+            if not isinstance(value, (list, tuple)) or len(value) < minimum \
+                    or not all(isinstance(n, str) for n in value):
+                raise ModelError(f"{where}.{member} must be a tuple of signal names (str)"
+                                 f"{', at least one' if minimum else ''}, got {value!r}")
+        sample_time = getattr(c, "sample_time", None)
+        if sample_time is not None:
+            validation.positive(f"{where}.sample_time", sample_time)
+        validation.flag(f"{where}.direct_feedthrough", getattr(c, "direct_feedthrough", None))
+    return list(controllers)

@@ -37,10 +37,10 @@ from ..guard import call_user, user_output
 from ..results import SimulationResult
 from ..schemes import History, as_scheme
 from ..signals import as_signal
-from ..system import Chain
+from ..system import Chain, require_system
 from ..timestep import simulate as simulate_plant
 from .loops import ControlledChain, Feedback
-from .protocol import Controller
+from .protocol import Controller, check_controllers
 
 
 class _TustinLTI:
@@ -203,12 +203,13 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
         callback), naming the time and the loop, controller or element; ``partial_result``
         holds every signal (loop and controller signals included) up to the last good step.
     """
-    if not isinstance(system, (ControlledChain, Chain)):
-        raise ModelError(f"system must be a ControlledChain or a Chain, got {system!r}")
+    system = require_system(system)
+    controllers = check_controllers(controllers)
+    dt = validation.positive("dt", dt)
+    validation.step_count(validation.finite("t_final", t_final), validation.finite("t0", t0), dt)
     controlled = system if isinstance(system, ControlledChain) else ControlledChain(system, [])
     plant = controlled.plant
     scheme = as_scheme(scheme)
-    dt = validation.positive("dt", dt)
     if coupling not in ("hold", "previous"):
         raise ModelError(f"coupling must be 'hold' or 'previous', got {coupling!r}")
     d = plant.layout.half

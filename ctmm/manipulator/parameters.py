@@ -237,10 +237,12 @@ class Manipulator:
             problems.append(f"arm must be an Arm, got {self.arm!r}")
         if not isinstance(self.hub, Hub):
             problems.append(f"hub must be a Hub, got {self.hub!r}")
+        if not isinstance(self.patches, (list, tuple)):
+            raise ModelError(f"patches must be a list or tuple of PZTPatch, got {self.patches!r}")
         patches = tuple(self.patches)
-        for p in patches:
+        for i, p in enumerate(patches):
             if not isinstance(p, PZTPatch):
-                problems.append(f"{p!r} is not a PZTPatch")
+                problems.append(f"patches[{i}] must be a PZTPatch, got {p!r}")
         if problems:
             raise ModelError("manipulator is invalid:\n  - " + "\n  - ".join(problems))
         patches = tuple(sorted(patches, key=lambda p: p.start))

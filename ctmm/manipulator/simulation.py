@@ -308,11 +308,13 @@ class FlexibleManipulator:
             raise ModelError(f"method must be one of {METHODS}, got {method!r}")
         t_final = validation.positive("t_final", t_final)
         dt = validation.positive("dt", dt)
+        store_every = validation.integer("store_every", store_every, minimum=1)
+        validation.step_count(t_final, 0.0, dt)
         n_steps = int(round(t_final / dt))
         if n_steps < 1 or abs(n_steps * dt - t_final) > 1e-9 * t_final:
             raise ModelError(f"t_final = {t_final!r} must be a whole multiple of dt = {dt!r}")
         plan = _Plan(self, list(controllers), dt)
-        theta_start = float(self.reference.angle(0.0)) if theta0 is None else float(theta0)
+        theta_start = float(self.reference.angle(0.0)) if theta0 is None else validation.finite("theta0", theta0)
         run = _Run(self, plan, dt, n_steps, theta_start)
         start = _time.perf_counter()
         if method == "rk4":

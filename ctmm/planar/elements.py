@@ -38,7 +38,7 @@ Vector2 = tuple[float, float]
 
 def _required(label: str, value) -> None:
     if isinstance(value, float) and math.isnan(value):
-        raise ModelError(f"{label} is required")
+        raise ModelError(f"{label} is required (a finite number), got {value!r}")
 
 
 def _translational(hinge) -> None:
@@ -165,7 +165,11 @@ class RigidBody:
         """
         length = validation.positive(f"{name}: length", length)
         mass = validation.positive(f"{name}: mass", mass)
-        return cls(name, mass=mass, inertia=mass * length ** 2 / 12.0,
+        inertia = mass * length * length / 12.0
+        if not 0.0 < inertia < math.inf:
+            raise ModelError(f"{name}: inertia mass * length**2 / 12 must be finite and > 0, got {inertia!r} "
+                             f"(mass={mass!r}, length={length!r})")
+        return cls(name, mass=mass, inertia=inertia,
                    center_of_mass=(0.5 * length, 0.0), inboard=(0.0, 0.0),
                    outboard=(length, 0.0), loads=loads)
 

@@ -168,8 +168,8 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
         scheme = Newmark()
     beta, gamma, am, af = _scheme_parameters(scheme)
     tolerance = validation.positive("tolerance", tolerance)
-    if not isinstance(max_iterations, int) or max_iterations < 1:
-        raise ModelError(f"max_iterations must be an integer >= 1, got {max_iterations!r}")
+    max_iterations = validation.integer("max_iterations", max_iterations, minimum=1)
+    store_every = validation.integer("store_every", store_every, minimum=1)
     q, v = _initial(model, q0, qdot0)
     n_steps = _steps(t_final, dt)
     h = t_final / n_steps

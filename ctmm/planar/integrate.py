@@ -79,17 +79,19 @@ class PlanarSimulation:
 
 def _initial(model: PlanarModel, q0, qdot0) -> tuple[np.ndarray, np.ndarray]:
     n = model.n_coordinates
+    given = (q0, qdot0)
     q0 = validation.finite_array("q0", q0, ndim=1)
     qdot0 = validation.finite_array("qdot0", qdot0, ndim=1)
     if q0.shape != (n,) or qdot0.shape != (n,):
         raise ModelError(f"q0 and qdot0 must have shape ({n},) for coordinates "
-                         f"{model.coordinates}, got {q0.shape} and {qdot0.shape}")
+                         f"{model.coordinates}, got q0={given[0]!r} and qdot0={given[1]!r}")
     return q0.astype(float), qdot0.astype(float)
 
 
 def _steps(t_final: float, dt: float) -> int:
     t_final = validation.positive("t_final", t_final)
     dt = validation.positive("dt", dt)
+    validation.step_count(t_final, 0.0, dt)
     n = int(round(t_final / dt))
     if n < 1 or abs(n * dt - t_final) > 1e-9 * t_final:
         raise ModelError(f"t_final = {t_final!r} must be a whole multiple of dt = {dt!r}")
@@ -112,6 +114,7 @@ def simulate_rk4(model: PlanarModel, q0, qdot0, *, t_final: float, dt: float,
     store_every : int
         Keep every ``store_every``-th step (the last step is always kept).
     """
+    store_every = validation.integer("store_every", store_every, minimum=1)
     q, v = _initial(model, q0, qdot0)
     n_steps = _steps(t_final, dt)
     h = t_final / n_steps
@@ -155,6 +158,13 @@ def simulate_scipy(model: PlanarModel, q0, qdot0, *, t_final: float, method: str
     """
     if method not in SCIPY_METHODS:
         raise ModelError(f"method must be one of {SCIPY_METHODS}, got {method!r}")
+    t_final = validation.positive("t_final", t_final)
+    rtol, atol = validation.positive("rtol", rtol), validation.positive("atol", atol)
+    if t_eval is not None:
+        given = t_eval
+        t_eval = validation.finite_array("t_eval", t_eval, ndim=1)
+        if t_eval.size == 0 or t_eval.min() < 0.0 or t_eval.max() > t_final or np.any(np.diff(t_eval) < 0):
+            raise ModelError(f"t_eval must be ascending times in [0, t_final={t_final!r}] s, got {given!r}")
     q, v = _initial(model, q0, qdot0)
     n = model.n_coordinates
     count = [0]
@@ -164,7 +174,7 @@ def simulate_scipy(model: PlanarModel, q0, qdot0, *, t_final: float, method: str
         return np.concatenate([y[n:], accelerations(model, y[:n], y[n:], t)])
 
     start = _time.perf_counter()
-    sol = scipy.integrate.solve_ivp(rhs, (0.0, validation.positive("t_final", t_final)),
+    sol = scipy.integrate.solve_ivp(rhs, (0.0, t_final),
                                     np.concatenate([q, v]), method=method, rtol=rtol, atol=atol,
                                     t_eval=t_eval)
     wall = _time.perf_counter() - start

@@ -109,6 +109,9 @@ class PlanarModel:
         :class:`Pinned` or :class:`FreeBase` (followed by a body).  Hinges connect the body
         before them (its single outboard end) to the body after them.
         """
+        if not isinstance(elements, (list, tuple)):
+            raise ModelError(f"chain {name!r}: elements must be a list or tuple [base, body, hinge, ...], "
+                             f"got {elements!r}")
         items = list(elements)
         if not items:
             raise ModelError(f"chain {name!r} has no elements")

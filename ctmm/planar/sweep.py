@@ -36,7 +36,8 @@ from typing import Callable
 
 import numpy as np
 
-from ..errors import SimulationError
+from .. import validation
+from ..errors import ModelError, SimulationError
 from .model import BUSHING, DRIVEN, FREE, REVOLUTE, PlanarModel
 
 
@@ -301,6 +302,15 @@ def bushing_data(model: PlanarModel, q, qdot, tau: np.ndarray, *, kappa_t=None, 
 # ------------------------------------------------------------------------------------------
 # public forward dynamics
 # ------------------------------------------------------------------------------------------
+def _checked_state(model: PlanarModel, q, qdot, t) -> tuple[np.ndarray, np.ndarray, float]:
+    """Entry validation of the instantaneous solvers: model type, coordinate shapes, time."""
+    if not isinstance(model, PlanarModel):
+        raise ModelError(f"model must be a ctmm.planar.PlanarModel, got {model!r}")
+    n = model.n_coordinates
+    return (validation.coordinates("q", q, n, labels=model.coordinates),
+            validation.coordinates("qdot", qdot, n, labels=model.coordinates), validation.finite("t", t))
+
+
 def solve_instant(model: PlanarModel, q, qdot, t: float = 0.0) -> InstantaneousSolution:
     """Forward dynamics at one instant by the acceleration-based TMM (one O(n) sweep).
 
@@ -318,8 +328,7 @@ def solve_instant(model: PlanarModel, q, qdot, t: float = 0.0) -> InstantaneousS
     InstantaneousSolution
         Coordinate accelerations, body accelerations and joint forces.
     """
-    q = np.asarray(q, dtype=float)
-    qdot = np.asarray(qdot, dtype=float)
+    q, qdot, t = _checked_state(model, q, qdot, t)
     if model.has_flexible:
         from ..flexible.kernel import system_of
         sol = system_of(model).solve(q, qdot, t)
@@ -350,8 +359,7 @@ def accelerations(model: PlanarModel, q, qdot, t: float = 0.0) -> np.ndarray:
     >>> float(accelerations(model, [0.0], [0.0])[0])   # -3 g / (2 L) for a horizontal rod
     -14.715
     """
-    q = np.asarray(q, dtype=float)
-    qdot = np.asarray(qdot, dtype=float)
+    q, qdot, t = _checked_state(model, q, qdot, t)
     if model.has_flexible:
         from ..flexible.kernel import system_of
         return system_of(model).accelerations(q, qdot, t)
