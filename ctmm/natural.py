@@ -36,6 +36,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from . import validation
+from .counting import certified_count
 from .assembly import ChainSolution  # noqa: F401
 from .errors import ModelError
 from .results import ModalResult
@@ -86,13 +87,38 @@ def eigenvalue_count(system: Chain, omega: Any) -> np.ndarray:
     omega = np.atleast_1d(validation.finite_array("omega", omega))
     if _is_lumped(system):
         return _lumped_count(system, omega)
-    body, _ = _subdivided(system, float(np.max(omega, initial=0.0)))
-    _check_reciprocal(body, float(np.max(omega, initial=0.0)) or 1.0)
-    return _count(system, body, omega)
+    body, points = _subdivided(system, float(np.max(omega, initial=0.0)))
+    real = _check_reciprocal(body, float(np.max(omega, initial=0.0)) or 1.0)
+    return _count(system, body, omega, _Side(system, body, points) if real else None)
 
 
-def _count(system, body: Sequence, omega: np.ndarray) -> np.ndarray:
-    """Wittrick-Williams count over the (subdivided) ``body`` at real frequencies ``omega``.
+def _count(system, body: Sequence, omega: np.ndarray, side: "_Side | None" = None) -> np.ndarray:
+    """Wittrick-Williams count over the (subdivided) ``body`` at real frequencies ``omega``,
+    certified at substructure resonances (:func:`ctmm.counting.certified_count`)."""
+    return certified_count(lambda w: _raw_count(system, body, w), omega, side=side)
+
+
+class _Side:
+    """``side(lower, omega)``: True where the single root in a window from ``lower`` lies below
+    ``omega``, from the sign of the pole-free determinant :class:`_Determinant`."""
+
+    def __init__(self, system, body: Sequence, points: Sequence[int]) -> None:
+        self.determinant = _Determinant(system, body, points)
+
+    def __call__(self, lower: np.ndarray, omega: np.ndarray) -> np.ndarray:
+        delta = self.determinant
+        D = delta.scaling(omega)
+        return np.sign(delta(lower, D)) != np.sign(delta(omega, D))
+
+
+def _raw_count(system, body: Sequence, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Wittrick-Williams count and smallest relative pivot at real frequencies ``omega``.
+
+    The margin is the smallest ``|eigenvalue| / scale`` of the eliminated pivot blocks (a block
+    vanishes where the structure inboard of its far end, clamped there, resonates) and the
+    smallest relative singular value of regular fields' ``U12`` (zero at the field's own
+    clamped-clamped frequencies, where ``J0`` jumps); ``nan`` when the condensation went
+    non-finite.  The end block is final and excluded (it vanishes at the chain's own roots).
 
     The condensed inboard structure is carried as ``d = T q``, ``T^T F = S q``: ``q`` are the
     free displacement coordinates of the current point (``T = I`` once the first element with a
@@ -104,6 +130,7 @@ def _count(system, body: Sequence, omega: np.ndarray) -> np.ndarray:
     B = omega.size
     eye = np.eye(d)
     count = np.zeros(B, dtype=np.int64)
+    margin = np.full(B, np.inf)
     _, free = system.start.constrained_dofs(layout)
     m = len(free)
     k_start = np.broadcast_to(np.real(system.start._stiffness(s)), (B,))
@@ -123,17 +150,23 @@ def _count(system, body: Sequence, omega: np.ndarray) -> np.ndarray:
                 hit = known[id(element)] = (element, j0, _structural_rank(U12))
             _, j0, rank = hit
             count += j0
+            if rank == d:
+                margin = np.minimum(margin, _relative_singularity(U12))
             if identity:
                 G = U11 + U12 @ S
                 if rank == d:       # regular field: pivot -U12^-1 G = K_aa - S
                     count += _negative_eigenvalues(-_solve(U12, G))
+                    margin = np.minimum(margin, _pivot_margin(-_solve(U12, G), -_solve(U12, U11), S))
                 elif rank > 0:      # hinge-like: pivot on the range R of the flexibility
                     R, _, Kc = _connector(U11, U12, rank)
-                    count += _negative_eigenvalues(Kc - _t(R) @ S @ R)
+                    RSR = _t(R) @ S @ R
+                    count += _negative_eigenvalues(Kc - RSR)
+                    margin = np.minimum(margin, _pivot_margin(Kc - RSR, Kc, RSR))
                 S = _t(_solve(_t(G), _t(U21 + U22 @ S)))    # (U21 + U22 S) G^-1
             else:
-                T, S, negative = _reduced_step(T, S, U11, U12, U21, U22, rank)
+                T, S, negative, step_margin = _reduced_step(T, S, U11, U12, U21, U22, rank)
                 count += negative
+                margin = np.minimum(margin, step_margin)
                 if T.shape[-1] == d:                        # all displacements free again: T -> I
                     Ti = _solve(T, np.broadcast_to(eye, T.shape))
                     S = _t(Ti) @ S @ Ti
@@ -148,7 +181,34 @@ def _count(system, body: Sequence, omega: np.ndarray) -> np.ndarray:
             K = k_end[:, None, None] * (_t(T) @ (E @ E.T) @ T) - S
             block = _t(Q) @ K @ Q
         count += _negative_eigenvalues(block)
-    return count
+        margin = np.where(np.all(np.isfinite(block), axis=(-2, -1)), margin, np.nan)
+    return count, margin
+
+
+def _pivot_margin(pivot: np.ndarray, *terms: np.ndarray) -> np.ndarray:
+    """Smallest ``|eigenvalue|`` of the symmetric part of ``pivot`` relative to the size of the
+    ``terms`` it is the sum of (``nan`` if non-finite), batched."""
+    if pivot.shape[-1] == 0:
+        return np.full(pivot.shape[:-2], np.inf)
+    finite = np.all(np.isfinite(pivot), axis=(-2, -1))
+    sym = np.where(finite[..., None, None], 0.5 * (pivot + _t(pivot)), 0.0)
+    smallest = np.min(np.abs(np.linalg.eigvalsh(sym)), axis=-1)
+    scale = sum(np.abs(term).max(axis=(-2, -1)) for term in terms)
+    scale = np.where(np.isfinite(scale) & (scale > 0), scale, 1.0)
+    return np.where(finite, smallest / scale, np.nan)
+
+
+def _relative_singularity(U12: np.ndarray) -> np.ndarray:
+    """Smallest over largest singular value of the row- and column-equilibrated ``U12`` (batched):
+    zero at the field's clamped-clamped frequencies."""
+    A = np.where(np.isfinite(U12), U12, 0.0)
+    row = np.abs(A).max(axis=-1, keepdims=True)
+    A = A / np.where(row > 0, row, 1.0)
+    col = np.abs(A).max(axis=-2, keepdims=True)
+    A = A / np.where(col > 0, col, 1.0)
+    sv = np.linalg.svd(A, compute_uv=False)
+    ratio = sv[..., -1] / np.where(sv[..., 0] > 0, sv[..., 0], 1.0)
+    return np.where(np.all(np.isfinite(U12), axis=(-2, -1)), ratio, np.nan)
 
 
 def _t(A: np.ndarray) -> np.ndarray:
@@ -229,19 +289,22 @@ def _null_space(A: np.ndarray) -> np.ndarray:
 def _reduced_step(T, S, U11, U12, U21, U22, rank):
     """One element when the current point has constrained displacements (``T`` has ``m < d`` columns).
 
-    Returns the new ``(T, S)`` and the number of negative pivots of the eliminated coordinates.
+    Returns the new ``(T, S)``, the number of negative pivots of the eliminated coordinates and
+    their smallest relative pivot (:func:`_pivot_margin`).
     """
     B, d, m = T.shape
     negative = np.zeros(B, dtype=np.int64)
+    margin = np.full(B, np.inf)
     if rank == d:  # regular field: eliminate q against the element's dynamic stiffness
         X = _solve(U12, np.broadcast_to(np.eye(d), U12.shape))
         Kaa, Kab, Kba, Kbb = -X @ U11, X, -U21 + U22 @ X @ U11, -U22 @ X
         if m == 0:
-            return np.broadcast_to(np.eye(d), (B, d, d)).copy(), -Kbb, negative
+            return np.broadcast_to(np.eye(d), (B, d, d)).copy(), -Kbb, negative, margin
         P = _t(T) @ Kaa @ T - S
         negative += _negative_eigenvalues(P)
+        margin = _pivot_margin(P, _t(T) @ Kaa @ T, S)
         S_new = -(Kbb - Kba @ T @ _solve(P, _t(T) @ Kab))
-        return np.broadcast_to(np.eye(d), (B, d, d)).copy(), S_new, negative
+        return np.broadcast_to(np.eye(d), (B, d, d)).copy(), S_new, negative, margin
     if rank > 0:  # connector part on its range R: new coordinates a (outboard R-components)
         R, N, Kc = _connector(U11, U12, rank)
         TR = _t(T) @ R                                           # (B, m, r)
@@ -255,11 +318,12 @@ def _reduced_step(T, S, U11, U12, U21, U22, rank):
         if Y0.shape[-1]:
             P = _t(Y0) @ H @ Y0
             negative += _negative_eigenvalues(P)
+            margin = _pivot_margin(P, H)
             H10 = _t(Y1) @ H @ Y0
             H11 = H11 - H10 @ _solve(P, _t(H10))
         T, S = W @ Y1, -H11
     # rigid part d' = U11 d, F' = U21 d + U11^-T F (symplectic): no new coordinates
-    return U11 @ T, S + _t(T) @ _t(U11) @ U21 @ T, negative
+    return U11 @ T, S + _t(T) @ _t(U11) @ U21 @ T, negative, margin
 
 
 def _is_lumped(system) -> bool:
@@ -272,7 +336,13 @@ def _lumped_count(system, omega: np.ndarray) -> np.ndarray:
     """Scalar Wittrick-Williams count for 1-D lumped chains (same recursion as the general one).
 
     ``S = -K_L`` (condensed dynamic stiffness of the inboard part, negated); a point element adds
-    ``m w^2 - k_g``; a connector ``k`` has pivot ``k - S`` and maps ``S -> k S / (k - S)``.
+    ``m w^2 - k_g``; a connector ``k`` has pivot ``k - S`` and maps ``S -> k^2 / (k - S) - k``.
+    This is the Sturm sequence of the tridiagonal ``K - w^2 M`` in ratio form, whose count is
+    backward stable (exact for a matrix within a few ulps of the given one) however small a
+    pivot.  A pivot exactly zero (``w`` exactly at a resonance of the inboard part clamped at
+    the connector's far end) is taken as ``+0``: the next pivot is then ``-inf`` and the pair
+    counts one, the limit from either side; a zero final pivot (a root at ``w``) counts none, as
+    "strictly below" requires.  No ``0 * inf`` can occur in this form.
     """
     from .elements.lumped import Connector
 
@@ -289,9 +359,9 @@ def _lumped_count(system, omega: np.ndarray) -> np.ndarray:
                     clamped = False
                     continue
                 pivot = k - S
-                pivot = np.where(pivot == 0.0, -np.finfo(float).tiny, pivot)  # limit from above
+                pivot = np.where(pivot == 0.0, np.finfo(float).tiny, pivot)
                 count += pivot < 0
-                S = k * S / pivot
+                S = k * k / pivot - k
             elif not clamped:
                 S = S + (e.mass * w2 - e.stiffness)
     if system.end.known == "force" and not clamped:
@@ -370,8 +440,9 @@ def natural_frequencies(system: Chain, *, n_modes: int | None = None, omega_max:
         count, sign = (lambda w: _lumped_count(system, w)), None
     else:
         body, points = _subdivided(system, hi)
-        count = lambda w: _count(system, body, w)  # noqa: E731
         sign = _Determinant(system, body, points) if _check_reciprocal(body, hi) else None
+        side = _Side(system, body, points) if sign is not None else None
+        count = lambda w: _count(system, body, w, side)  # noqa: E731
     tiny = hi * 1e-12
     # rigid-body modes (w = 0): the count at a tiny w is exact for lumped chains; for fields the
     # O(w^2) stiffness change drowns in round-off there, so use the static nullity instead

@@ -36,6 +36,7 @@ import scipy.optimize
 
 from .. import validation
 from ..elements.base import Element
+from ..counting import certified_count
 from ..errors import ModelError
 from ..layouts import PLANAR
 from .model import BUSHING, DRIVEN, FREE, PlanarModel
@@ -332,8 +333,12 @@ def _linear_data(model: PlanarModel, q_eq, t: float):
     return rcx, rcy, rx, ry, G
 
 
-def _pivots(model: PlanarModel, data, s: np.ndarray):
-    """Hinge pivots ``D_j(s)`` (B, nb) and root blocks of the frequency-domain sweep."""
+def _pivots(model: PlanarModel, data, s: np.ndarray, *, scales: bool = False):
+    """Hinge pivots ``D_j(s)`` (B, nb) and root blocks of the frequency-domain sweep.
+
+    With ``scales`` the pivots are returned as ``(D, scale)`` where ``scale = |P_22| + |k + c s|``
+    (the terms whose sum is the pivot, for its relative size).
+    """
     rcx, rcy, rx, ry, G = data
     B = s.size
     s2 = (s * s)[:, None, None]
@@ -346,6 +351,7 @@ def _pivots(model: PlanarModel, data, s: np.ndarray):
         acc[j] = s2 * M
         acc[j][:, 2, 2] += G[j]
     pivots = np.ones((B, nb), dtype=complex)
+    scale = np.ones((B, nb))
     roots = []
     for j in range(nb - 1, -1, -1):
         P = acc[j]
@@ -356,14 +362,18 @@ def _pivots(model: PlanarModel, data, s: np.ndarray):
         if kind == DRIVEN:
             Q = P
         else:
-            d = P[:, 2, 2] + model.stiffness[j] + model.damping[j] * s
+            spring = model.stiffness[j] + model.damping[j] * s
+            d = P[:, 2, 2] + spring
             pivots[:, j] = d
+            scale[:, j] = np.abs(P[:, 2, 2]) + np.abs(spring)
             with np.errstate(divide="ignore", invalid="ignore"):
                 Q = P - P[:, :, 2:3] * P[:, 2:3, :] / d[:, None, None]
         if model.parent[j] >= 0:
             X = np.eye(3)
             X[0, 2], X[1, 2] = -ry[j], rx[j]
             acc[model.parent[j]] += X.T @ Q @ X
+    if scales:
+        return (pivots, np.where(scale > 0, scale, 1.0)), roots
     return pivots, roots
 
 
@@ -380,15 +390,37 @@ def characteristic_function(model: PlanarModel, q_eq, s, *, t: float = 0.0) -> n
 
 def eigenvalue_count(model: PlanarModel, q_eq, omega, *, t: float = 0.0,
                      _data=None) -> np.ndarray:
-    """Number of natural frequencies below each ``omega`` (negative pivots, undamped)."""
+    """Number of natural frequencies strictly below each ``omega`` [rad/s] (undamped).
+
+    Negative pivots of the articulated sweep (Sylvester / Wittrick-Williams).  A hinge pivot
+    vanishes where ``omega`` is a natural frequency of the substructure outboard of that hinge
+    (pinned there); such trial frequencies are recounted just below and above and certified by
+    :func:`ctmm.counting.certified_count`, so the count is exact there too.
+    """
     omega = np.atleast_1d(np.asarray(omega, dtype=float))
     data = _data if _data is not None else _linear_data(model, q_eq, t)
-    pivots, roots = _pivots(model, data, 1j * omega)
-    count = np.sum(pivots.real < 0, axis=1)
-    for block in roots:
-        sym = 0.5 * (block + np.swapaxes(block, -1, -2)).real
-        count = count + np.sum(np.linalg.eigvalsh(sym) < 0, axis=-1)
-    return count
+    return certified_count(lambda w: _raw_count(model, data, w), omega)
+
+
+def _raw_count(model: PlanarModel, data, omega: np.ndarray):
+    """Sylvester count and smallest relative pivot (``nan`` if non-finite) at ``omega``."""
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        pivots, roots = _pivots(model, data, 1j * omega, scales=True)
+        d, scale = pivots
+        d = d.real
+        count = np.sum(d < 0, axis=1)
+        # only pivots that are eliminated into a parent can spoil the count; a zero pivot at a
+        # root (or a singular root block) is a natural frequency of the whole model at omega
+        inner = model.parent >= 0
+        margin = np.min(np.abs(d[:, inner]) / scale[:, inner], axis=1, initial=np.inf)
+        margin = np.where(np.all(np.isfinite(d), axis=1), margin, np.nan)
+        for block in roots:
+            sym = 0.5 * (block + np.swapaxes(block, -1, -2)).real
+            bad = ~np.all(np.isfinite(sym), axis=(-2, -1))
+            sym = np.where(bad[:, None, None], 0.0, sym)
+            margin = np.where(bad, np.nan, margin)
+            count = count + np.sum(np.linalg.eigvalsh(sym) < 0, axis=-1)
+    return count, margin
 
 
 def natural_frequencies(model: PlanarModel, q_eq, *, n_modes: int, t: float = 0.0,
