@@ -318,8 +318,7 @@ def solve_instant(model: PlanarModel, q, qdot, t: float = 0.0) -> InstantaneousS
     InstantaneousSolution
         Coordinate accelerations, body accelerations and joint forces.
     """
-    q = np.asarray(q, dtype=float)
-    qdot = np.asarray(qdot, dtype=float)
+    q, qdot = model.state(q, qdot)
     if model.has_flexible:
         from ..flexible.kernel import system_of
         sol = system_of(model).solve(q, qdot, t)
@@ -350,8 +349,7 @@ def accelerations(model: PlanarModel, q, qdot, t: float = 0.0) -> np.ndarray:
     >>> float(accelerations(model, [0.0], [0.0])[0])   # -3 g / (2 L) for a horizontal rod
     -14.715
     """
-    q = np.asarray(q, dtype=float)
-    qdot = np.asarray(qdot, dtype=float)
+    q, qdot = model.state(q, qdot)
     if model.has_flexible:
         from ..flexible.kernel import system_of
         return system_of(model).accelerations(q, qdot, t)
