@@ -210,8 +210,14 @@ class CompiledManipulator:
         return p
 
     def accelerations(self, q, qdot, t: float = 0.0, *, dt: float = 1e-3) -> np.ndarray:
-        """``[theta'', q'']`` from the compiled sweep."""
-        z = np.concatenate([np.asarray(q, float), np.asarray(qdot, float), [t]])
+        """``[theta'', q'']`` from the compiled sweep (``q, qdot``: hub angle and modal coordinates,
+        ``1 + n_modes`` each)."""
+        size = 1 + self.n
+        q, qdot = np.asarray(q, dtype=float), np.asarray(qdot, dtype=float)
+        if q.shape != (size,) or qdot.shape != (size,):
+            raise ModelError(f"q and qdot must have length {size} (hub.theta, arm.q1..q{self.n}), got shapes "
+                             f"{q.shape} and {qdot.shape}")
+        z = np.concatenate([q, qdot, [validation.finite("t", t)]])
         return np.asarray(self._acc(z, self.parameters(dt))).ravel()
 
     def simulate(self, t_final: float, dt: float, *, theta0: float | None = None,

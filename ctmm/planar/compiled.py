@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ModelError, SimulationError
+from ..errors import ModelError
 from .guards import check_scheme, check_stored, divergence_guard
 from .integrate import PlanarSimulation, _initial, _steps, check_store_every
 from .model import REVOLUTE, PlanarModel
@@ -217,6 +217,7 @@ def _arrays(model: PlanarModel) -> tuple:
 def compiled_accelerations(model: PlanarModel, q, qdot) -> np.ndarray:
     """Accelerations from the C kernel (same result as :func:`ctmm.planar.accelerations`)."""
     args = _arrays(model)
+    q, qdot = model.state(q, qdot)
     nb = model.n_bodies
     out = np.zeros(nb)
     library().accelerations(*args, np.ascontiguousarray(q, dtype=np.float64),

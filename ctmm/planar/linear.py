@@ -235,8 +235,9 @@ def static_equilibrium(model: PlanarModel, q_guess, *, t: float = 0.0,
     """Coordinates where all accelerations vanish at rest (``scipy.optimize.root``)."""
     from .sweep import accelerations
 
+    q_guess, _ = model.state(q_guess, np.zeros(model.n_coordinates))
     sol = scipy.optimize.root(lambda q: accelerations(model, q, np.zeros_like(q), t),
-                              np.asarray(q_guess, dtype=float), tol=tolerance, method="hybr")
+                              q_guess, tol=tolerance, method="hybr")
     residual = np.max(np.abs(accelerations(model, sol.x, np.zeros_like(sol.x), t)))
     if residual > 1e-8:
         raise ModelError(f"no static equilibrium found near {q_guess!r} (residual {residual:.2e})")
@@ -397,7 +398,9 @@ def eigenvalue_count(model: PlanarModel, q_eq, omega, *, t: float = 0.0,
     (pinned there); such trial frequencies are recounted just below and above and certified by
     :func:`ctmm.counting.certified_count`, so the count is exact there too.
     """
-    omega = np.atleast_1d(np.asarray(omega, dtype=float))
+    omega = np.atleast_1d(validation.finite_array("omega", omega)).reshape(-1)
+    if np.any(omega < 0):
+        raise ModelError(f"omega must be >= 0 rad/s, got {omega[omega < 0][0]!r}")
     data = _data if _data is not None else _linear_data(model, q_eq, t)
     return certified_count(lambda w: _raw_count(model, data, w), omega)
 

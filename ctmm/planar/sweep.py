@@ -36,7 +36,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..errors import SimulationError
+from ..errors import ModelError, SimulationError
 from .model import BUSHING, DRIVEN, FREE, REVOLUTE, PlanarModel
 
 
@@ -369,6 +369,9 @@ def ode_rhs(model: PlanarModel) -> Callable[[float, np.ndarray], np.ndarray]:
     n = model.n_coordinates
 
     def rhs(t: float, y: np.ndarray) -> np.ndarray:
+        y = np.asarray(y, dtype=float)
+        if y.shape != (2 * n,):
+            raise ModelError(f"y must be [q, qdot] of length {2 * n} for model {model.name!r}, got shape {y.shape}")
         out = np.empty(2 * n)
         out[:n] = y[n:]
         out[n:] = accelerations(model, y[:n], y[n:], t)
