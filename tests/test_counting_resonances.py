@@ -82,6 +82,8 @@ def test_random_spring_mass_chains_count_exactly_at_substructure_resonances(data
     S = -springs[0]
     for j in range(1, at):
         S = S + masses[j - 1] * omega ** 2
+        if springs[j] == S:
+            return                                   # an earlier pivot already vanishes
         S = springs[j] ** 2 / (springs[j] - S) - springs[j]
     target = S + masses[at - 1] * omega ** 2        # k_at - target = 0 in floating point too
     if not target > 0:
