@@ -476,6 +476,12 @@ class PlanarModel:
             :attr:`coordinates`.
         """
         n = self.n_coordinates
+        try:                                           # fast path (every sweep): no Python loop
+            q_array, qdot_array = np.asarray(q, dtype=float), np.asarray(qdot, dtype=float)
+            if q_array.shape == (n,) and qdot_array.shape == (n,):
+                return q_array, qdot_array
+        except (TypeError, ValueError):
+            pass
         out = []
         for label, value in (("q", q), ("qdot", qdot)):
             try:
