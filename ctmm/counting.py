@@ -18,8 +18,10 @@ is below ``tolerance`` the count is not trusted; it is taken instead at ``omega 
 * both counts equal: no natural frequency lies in between, so the common value is the exact
   count at ``omega`` (certified);
 * counts differ by one and a ``side`` test is given (the sign of a characteristic
-  determinant that has no poles, e.g. the orthonormal transfer of :mod:`ctmm.natural`): the
-  single natural frequency in the window is placed on its side of ``omega`` -- exact;
+  determinant that has no poles: the orthonormal transfer of :mod:`ctmm.natural`, the product of
+  the planar pivots): the single natural frequency in the window is placed on its side of
+  ``omega`` (the planar test compares at ``omega (1 - 1e-12)``, so a frequency within 1e-12
+  relative below ``omega`` counts as above it);
 * otherwise (no ``side`` test, or several frequencies in the window): a natural frequency of
   the whole model lies within ``eta omega`` of the substructure resonance and the count below
   ``omega (1 - eta)`` is returned, so a bisection on the count places that frequency to

@@ -50,6 +50,29 @@ def test_two_link_arm_first_frequency_at_substructure_resonance():
                                   [np.sum(expected < w) for w in (10.0, 9.0, 8.0, 30.0)])
 
 
+def test_tree_mode_exactly_at_the_branch_resonance_is_placed_by_the_determinant_sign():
+    """Two equal branches (centre of mass on the hinge, J_C = 0.5 kg m^2, k = 50 N m/rad) on a
+    trunk: the antisymmetric mode leaves the trunk at rest, so the whole tree has a natural
+    frequency exactly at the branches' own resonance sqrt(k / J_C) = 10 rad/s, where both branch
+    pivots vanish.  The count is settled by the sign of det(K - w^2 M) (product of pivots)."""
+    from ctmm.planar.elements import ElasticHinge as Spring_
+
+    trunk = RigidBody("trunk", mass=2.0, inertia=0.2, center_of_mass=(0.5, 0.0),
+                      outboard={"left": (1.0, 0.0), "right": (1.0, 0.0)})
+    branches = [RigidBody(n, mass=1.0, inertia=0.5, center_of_mass=(0.0, 0.0), outboard=(1.0, 0.0)) for n in "lr"]
+    model = PlanarModel("tree", [trunk, *branches, Fixed("g"), Spring_("k0", parent="g", child="trunk", stiffness=300.0),
+                                 Spring_("k1", parent="trunk.left", child="l", stiffness=50.0),
+                                 Spring_("k2", parent="trunk.right", child="r", stiffness=50.0)], gravity=(0.0, 0.0))
+    q_eq = np.zeros(3)
+    expected = PlanarLagrange(model).natural_frequencies(q_eq)
+    assert expected[1] == pytest.approx(10.0, rel=1e-14)
+    # strictly below: the mode at exactly 10 is not counted at 10, it is just above
+    np.testing.assert_array_equal(eigenvalue_count(model, q_eq, [10.0 * (1 - 1e-9), 10.0, 10.0 * (1 + 1e-9)]),
+                                  [1, 1, 2])
+    found = natural_frequencies(model, q_eq, n_modes=3)
+    np.testing.assert_allclose(found, expected, rtol=2e-12)     # 1e-12: the side test's offset
+
+
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(n_links=st.integers(2, 4), data=st.data())
 def test_random_planar_arms_count_exactly_at_substructure_resonances(n_links, data):

@@ -402,7 +402,29 @@ def eigenvalue_count(model: PlanarModel, q_eq, omega, *, t: float = 0.0,
     if np.any(omega < 0):
         raise ModelError(f"omega must be >= 0 rad/s, got {omega[omega < 0][0]!r}")
     data = _data if _data is not None else _linear_data(model, q_eq, t)
-    return certified_count(lambda w: _raw_count(model, data, w), omega)
+    return certified_count(lambda w: _raw_count(model, data, w), omega,
+                           side=lambda lower, w: _root_below(model, data, lower, w))
+
+
+def _determinant_sign(model: PlanarModel, data, omega: np.ndarray) -> np.ndarray:
+    """Sign of ``det(K - omega^2 M)`` up to a fixed factor: the product of all pivots.
+
+    The product of the pivots of an ``L D L^T`` factorisation is the determinant itself, with
+    no poles: near a substructure resonance a tiny pivot times the huge next one stays exact.
+    """
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        pivots, roots = _pivots(model, data, 1j * omega)
+        sign = np.prod(np.sign(pivots.real), axis=1)
+        for block in roots:
+            sign = sign * np.sign(np.linalg.det(0.5 * (block + np.swapaxes(block, -1, -2)).real))
+    return sign
+
+
+def _root_below(model: PlanarModel, data, lower: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    """True where the single natural frequency in ``(lower, ~omega)`` lies below ``omega``: the
+    determinant changes sign between ``lower`` and ``omega (1 - 1e-12)`` (``omega`` itself is
+    a substructure resonance, where a pivot is exactly zero)."""
+    return _determinant_sign(model, data, lower) != _determinant_sign(model, data, omega * (1.0 - 1e-12))
 
 
 def _raw_count(model: PlanarModel, data, omega: np.ndarray):
