@@ -33,7 +33,7 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["certified_count", "PIVOT_TOLERANCE", "OFFSETS"]
+__all__ = ["certified_count", "pivot_margin", "relative_singularity", "PIVOT_TOLERANCE", "OFFSETS"]
 
 #: Smallest trusted relative pivot ``|pivot| / scale`` [-].
 PIVOT_TOLERANCE = 1e-10
@@ -86,3 +86,41 @@ def certified_count(evaluate: Callable[[np.ndarray], tuple[np.ndarray, np.ndarra
         count[todo[take]] = chosen[take]
         todo = todo[~take]
     return count
+
+
+def pivot_margin(pivot: np.ndarray, *terms: np.ndarray) -> np.ndarray:
+    """Smallest ``|eigenvalue|`` of the symmetric part of ``pivot`` relative to the size of the
+    ``terms`` it is the sum of (``nan`` if non-finite), batched."""
+    if pivot.shape[-1] == 0:
+        return np.full(pivot.shape[:-2], np.inf)
+    finite = np.all(np.isfinite(pivot), axis=(-2, -1))
+    sym = np.where(finite[..., None, None], 0.5 * (pivot + np.swapaxes(pivot, -1, -2)), 0.0)
+    if sym.shape[-1] == 1:
+        smallest = np.abs(sym[..., 0, 0])
+    elif sym.shape[-1] == 2:      # closed form: mean -+ radius
+        a, c, b = sym[..., 0, 0], sym[..., 1, 1], sym[..., 0, 1]
+        smallest = np.abs(np.abs(0.5 * (a + c)) - np.hypot(0.5 * (a - c), b))
+    else:
+        smallest = np.min(np.abs(np.linalg.eigvalsh(sym)), axis=-1)
+    scale = sum(np.abs(term).max(axis=(-2, -1)) for term in terms)
+    scale = np.where(np.isfinite(scale) & (scale > 0), scale, 1.0)
+    return np.where(finite, smallest / scale, np.nan)
+
+
+def relative_singularity(U12: np.ndarray) -> np.ndarray:
+    """Smallest over largest singular value of the row- and column-equilibrated ``U12`` (batched):
+    zero at the field's clamped-clamped frequencies."""
+    A = np.where(np.isfinite(U12), U12, 0.0)
+    row = np.abs(A).max(axis=-1, keepdims=True)
+    A = A / np.where(row > 0, row, 1.0)
+    col = np.abs(A).max(axis=-2, keepdims=True)
+    A = A / np.where(col > 0, col, 1.0)
+    if A.shape[-1] == 2 and A.shape[-2] == 2:     # closed form: s_min s_max = |det|, s_min^2 + s_max^2 = |A|_F^2
+        det = np.abs(A[..., 0, 0] * A[..., 1, 1] - A[..., 0, 1] * A[..., 1, 0])
+        frobenius = np.sum(A * A, axis=(-2, -1))
+        largest2 = 0.5 * (frobenius + np.sqrt(np.maximum(frobenius ** 2 - 4 * det ** 2, 0.0)))
+        ratio = det / np.where(largest2 > 0, largest2, 1.0)
+    else:
+        sv = np.linalg.svd(A, compute_uv=False)
+        ratio = sv[..., -1] / np.where(sv[..., 0] > 0, sv[..., 0], 1.0)
+    return np.where(np.all(np.isfinite(U12), axis=(-2, -1)), ratio, np.nan)

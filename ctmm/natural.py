@@ -36,7 +36,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from . import validation
-from .counting import certified_count
+from .counting import certified_count, pivot_margin, relative_singularity
 from .assembly import ChainSolution  # noqa: F401
 from .errors import ModelError
 from .results import ModalResult
@@ -151,17 +151,17 @@ def _raw_count(system, body: Sequence, omega: np.ndarray) -> tuple[np.ndarray, n
             _, j0, rank = hit
             count += j0
             if rank == d:
-                margin = np.minimum(margin, _relative_singularity(U12))
+                margin = np.minimum(margin, relative_singularity(U12))
             if identity:
                 G = U11 + U12 @ S
                 if rank == d:       # regular field: pivot -U12^-1 G = K_aa - S
                     count += _negative_eigenvalues(-_solve(U12, G))
-                    margin = np.minimum(margin, _pivot_margin(-_solve(U12, G), -_solve(U12, U11), S))
+                    margin = np.minimum(margin, pivot_margin(-_solve(U12, G), -_solve(U12, U11), S))
                 elif rank > 0:      # hinge-like: pivot on the range R of the flexibility
                     R, _, Kc = _connector(U11, U12, rank)
                     RSR = _t(R) @ S @ R
                     count += _negative_eigenvalues(Kc - RSR)
-                    margin = np.minimum(margin, _pivot_margin(Kc - RSR, Kc, RSR))
+                    margin = np.minimum(margin, pivot_margin(Kc - RSR, Kc, RSR))
                 S = _t(_solve(_t(G), _t(U21 + U22 @ S)))    # (U21 + U22 S) G^-1
             else:
                 T, S, negative, step_margin = _reduced_step(T, S, U11, U12, U21, U22, rank)
@@ -183,44 +183,6 @@ def _raw_count(system, body: Sequence, omega: np.ndarray) -> tuple[np.ndarray, n
         count += _negative_eigenvalues(block)
         margin = np.where(np.all(np.isfinite(block), axis=(-2, -1)), margin, np.nan)
     return count, margin
-
-
-def _pivot_margin(pivot: np.ndarray, *terms: np.ndarray) -> np.ndarray:
-    """Smallest ``|eigenvalue|`` of the symmetric part of ``pivot`` relative to the size of the
-    ``terms`` it is the sum of (``nan`` if non-finite), batched."""
-    if pivot.shape[-1] == 0:
-        return np.full(pivot.shape[:-2], np.inf)
-    finite = np.all(np.isfinite(pivot), axis=(-2, -1))
-    sym = np.where(finite[..., None, None], 0.5 * (pivot + _t(pivot)), 0.0)
-    if sym.shape[-1] == 1:
-        smallest = np.abs(sym[..., 0, 0])
-    elif sym.shape[-1] == 2:      # closed form: mean -+ radius
-        a, c, b = sym[..., 0, 0], sym[..., 1, 1], sym[..., 0, 1]
-        smallest = np.abs(np.abs(0.5 * (a + c)) - np.hypot(0.5 * (a - c), b))
-    else:
-        smallest = np.min(np.abs(np.linalg.eigvalsh(sym)), axis=-1)
-    scale = sum(np.abs(term).max(axis=(-2, -1)) for term in terms)
-    scale = np.where(np.isfinite(scale) & (scale > 0), scale, 1.0)
-    return np.where(finite, smallest / scale, np.nan)
-
-
-def _relative_singularity(U12: np.ndarray) -> np.ndarray:
-    """Smallest over largest singular value of the row- and column-equilibrated ``U12`` (batched):
-    zero at the field's clamped-clamped frequencies."""
-    A = np.where(np.isfinite(U12), U12, 0.0)
-    row = np.abs(A).max(axis=-1, keepdims=True)
-    A = A / np.where(row > 0, row, 1.0)
-    col = np.abs(A).max(axis=-2, keepdims=True)
-    A = A / np.where(col > 0, col, 1.0)
-    if A.shape[-1] == 2 and A.shape[-2] == 2:     # closed form: s_min s_max = |det|, s_min^2 + s_max^2 = |A|_F^2
-        det = np.abs(A[..., 0, 0] * A[..., 1, 1] - A[..., 0, 1] * A[..., 1, 0])
-        frobenius = np.sum(A * A, axis=(-2, -1))
-        largest2 = 0.5 * (frobenius + np.sqrt(np.maximum(frobenius ** 2 - 4 * det ** 2, 0.0)))
-        ratio = det / np.where(largest2 > 0, largest2, 1.0)
-    else:
-        sv = np.linalg.svd(A, compute_uv=False)
-        ratio = sv[..., -1] / np.where(sv[..., 0] > 0, sv[..., 0], 1.0)
-    return np.where(np.all(np.isfinite(U12), axis=(-2, -1)), ratio, np.nan)
 
 
 def _t(A: np.ndarray) -> np.ndarray:
@@ -302,7 +264,7 @@ def _reduced_step(T, S, U11, U12, U21, U22, rank):
     """One element when the current point has constrained displacements (``T`` has ``m < d`` columns).
 
     Returns the new ``(T, S)``, the number of negative pivots of the eliminated coordinates and
-    their smallest relative pivot (:func:`_pivot_margin`).
+    their smallest relative pivot (:func:`ctmm.counting.pivot_margin`).
     """
     B, d, m = T.shape
     negative = np.zeros(B, dtype=np.int64)
@@ -314,7 +276,7 @@ def _reduced_step(T, S, U11, U12, U21, U22, rank):
             return np.broadcast_to(np.eye(d), (B, d, d)).copy(), -Kbb, negative, margin
         P = _t(T) @ Kaa @ T - S
         negative += _negative_eigenvalues(P)
-        margin = _pivot_margin(P, _t(T) @ Kaa @ T, S)
+        margin = pivot_margin(P, _t(T) @ Kaa @ T, S)
         S_new = -(Kbb - Kba @ T @ _solve(P, _t(T) @ Kab))
         return np.broadcast_to(np.eye(d), (B, d, d)).copy(), S_new, negative, margin
     if rank > 0:  # connector part on its range R: new coordinates a (outboard R-components)
@@ -330,7 +292,7 @@ def _reduced_step(T, S, U11, U12, U21, U22, rank):
         if Y0.shape[-1]:
             P = _t(Y0) @ H @ Y0
             negative += _negative_eigenvalues(P)
-            margin = _pivot_margin(P, H)
+            margin = pivot_margin(P, H)
             H10 = _t(Y1) @ H @ Y0
             H11 = H11 - H10 @ _solve(P, _t(H10))
         T, S = W @ Y1, -H11

@@ -32,7 +32,8 @@ from .. import validation
 from ..errors import ConvergenceError, ModelError, SimulationError
 from .guards import check_scheme, divergence_guard, with_partial
 from .integrate import PlanarSimulation, _initial, _steps, check_store_every, guard_rates
-from .model import PlanarModel, SignalError
+from .model import PlanarModel
+from .signals import SignalError
 from .sweep import (body_terms, bushing_data, coordinate_accelerations, hinge_torques,
                     riccati_kernel, solve_instant)
 

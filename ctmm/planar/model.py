@@ -27,9 +27,9 @@ from typing import Sequence
 import numpy as np
 
 from .. import validation
-from ..errors import ModelError, SimulationError, unknown_name
-from ..guard import call_user, user_output
+from ..errors import ModelError, unknown_name
 from ..signals import Constant
+from .signals import signal_values
 from .elements import (DrivenHinge, Fixed, Free, FreeBase, HINGE_TYPES, Pinned, RigidBody,
                        SmoothHinge, _Hinge, translational_law)
 
@@ -46,34 +46,6 @@ def is_body(element) -> bool:
 
 def _end_points(body) -> dict:
     return body.end_points if hasattr(body, "end_points") else body.outboard
-
-class SignalError(SimulationError):
-    """A user signal of a planar model (hinge law, load, prescribed motion) raised or returned
-    something other than one finite number; names the element and the time."""
-
-
-def _signal_values(functions, t: float, labels, parts, *, quote: bool = True) -> np.ndarray:
-    """``[f(t) for f in functions]`` as floats; a failing one -> :class:`SignalError`.
-
-    The fast path is one list comprehension; only on failure is every function called again
-    one by one (:func:`ctmm.guard.call_user`, :func:`ctmm.guard.user_output`) to name it.
-    """
-    try:
-        values = np.array([f(t) for f in functions], dtype=float)
-        if values.shape == (len(functions),) and np.all(np.isfinite(values)):
-            return values
-    except Exception:  # noqa: BLE001 - user code; found and named below
-        pass
-    if isinstance(parts, str):
-        parts = [parts] * len(functions)
-    for function, label, part in zip(functions, labels, parts):
-        what = f"{part} of {label!r}" if quote else f"{part} of {label}"
-        try:
-            user_output(what, call_user(what, function, t, time=t), 1, time=t)
-        except SimulationError as exc:
-            raise SignalError(str(exc), time=float(t), element=str(label)) from exc.__cause__
-    raise SignalError(f"user signals returned an invalid set of values at t = {t:.6g} s", time=float(t))
-
 
 REVOLUTE, DRIVEN, FREE, BUSHING = 0, 1, 2, 3
 """Joint kinds in :attr:`PlanarModel.joint_kind` (BUSHING: hinge with translational springs)."""
@@ -499,36 +471,36 @@ class PlanarModel:
     def hinge_laws(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(reference, reference_rate, torque)`` of every joint at time ``t``.
 
-        Raises :class:`SignalError` naming the joint and the time when a user signal raises or
+        Raises :class:`~ctmm.planar.signals.SignalError` naming the joint and the time when a user signal raises or
         returns anything but one finite number.
         """
         if self._constant_laws:
             return self._law_values
         names = self.joint_names
-        return (_signal_values(self._reference, t, names, "reference angle"),
-                _signal_values(self._reference_rate, t, names, "reference rate"),
-                _signal_values(self._torque, t, names, "torque"))
+        return (signal_values(self._reference, t, names, "reference angle"),
+                signal_values(self._reference_rate, t, names, "reference rate"),
+                signal_values(self._torque, t, names, "torque"))
 
     def loads(self, t: float) -> np.ndarray:
         """External loads ``(fx, fy, moment)`` of every :class:`Load` at time ``t``
-        (:class:`SignalError` naming the body and the load component when one fails)."""
+        (:class:`~ctmm.planar.signals.SignalError` naming the body and the load component when one fails)."""
         if self._constant_loads:
             return self._load_values
         functions = [f for s in self._load_signals for f in s]
         labels = [f"load {k} of body {self.body_names[b]!r}" for k, b in enumerate(self.load_body)
                   for _ in range(3)]
         parts = [part for _ in self._load_signals for part in ("force_x", "force_y", "moment")]
-        return _signal_values(functions, t, labels, parts, quote=False).reshape(-1, 3)
+        return signal_values(functions, t, labels, parts, quote=False).reshape(-1, 3)
 
     def driven(self, t: float) -> list[tuple[int, float, float, float]]:
         """``(body, angle, rate, acceleration)`` of every driven joint at time ``t``
-        (:class:`SignalError` naming the joint when a prescribed motion fails)."""
+        (:class:`~ctmm.planar.signals.SignalError` naming the joint when a prescribed motion fails)."""
         if not self._driven:
             return []
         functions = [f for _, a, r, c in self._driven for f in (a, r, c)]
         labels = [self.joint_names[i] for i, *_ in self._driven for _ in range(3)]
         parts = [part for _ in self._driven for part in ("angle", "rate", "acceleration")]
-        values = _signal_values(functions, t, labels, parts).reshape(-1, 3)
+        values = signal_values(functions, t, labels, parts).reshape(-1, 3)
         return [(i, float(v[0]), float(v[1]), float(v[2])) for (i, *_), v in zip(self._driven, values)]
 
     # -- kinematics ---------------------------------------------------------------------------
@@ -688,4 +660,4 @@ class PlanarModel:
                 f"coordinates={self.n_coordinates})")
 
 
-__all__ = ["PlanarModel", "SignalError", "REVOLUTE", "DRIVEN", "FREE", "BUSHING"]
+__all__ = ["PlanarModel", "REVOLUTE", "DRIVEN", "FREE", "BUSHING"]
