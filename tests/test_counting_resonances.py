@@ -159,3 +159,21 @@ def test_cantilever_in_two_halves_counts_at_substructure_resonances(case, length
     assert probes.size >= 2
     np.testing.assert_array_equal(ctmm.eigenvalue_count(chain, probes),
                                   [np.sum(exact < w) for w in probes])
+
+
+@settings(max_examples=15, deadline=None)
+@given(fraction=st.floats(0.15, 0.85), case=st.sampled_from(["clamped-clamped", "clamped-pinned", "clamped-sliding",
+                                                               "clamped-free", "pinned-pinned"]),
+       piece=st.sampled_from(["first", "second", "whole"]))
+def test_split_cantilevers_count_exactly_at_their_pieces_resonances(fraction, case, piece):
+    """A uniform cantilever cut anywhere into two exact fields, probed at natural frequencies of
+    its pieces (the inboard part clamped at the cut, each field's own clamped-clamped roots where
+    ``J0`` jumps, ...), against the clamped-free frequency equation of the whole beam."""
+    first, second = fraction * L, (1 - fraction) * L
+    chain = ctmm.Chain("split", [BeamClamped("root"), BeamField("a", first, EI, RHOA),
+                                 BeamField("b", second, EI, RHOA), BeamFree("tip")])
+    length = {"first": first, "second": second, "whole": L}[piece]
+    probes = omega_from_beta(beta_roots(case, 4), length, EI, RHOA)
+    exact = omega_from_beta(beta_roots("clamped-free", 60), L, EI, RHOA)
+    probes = probes[np.min(np.abs(exact[:, None] / probes[None, :] - 1.0), axis=0) > 1e-9]
+    np.testing.assert_array_equal(ctmm.eigenvalue_count(chain, probes), [np.sum(exact < w) for w in probes])

@@ -29,9 +29,9 @@ import numpy as np
 from .. import validation
 from ..errors import ModelError, unknown_name
 from ..signals import Constant
-from .signals import signal_values
 from .elements import (DrivenHinge, Fixed, Free, FreeBase, HINGE_TYPES, Pinned, RigidBody,
                        SmoothHinge, _Hinge, translational_law)
+from .signals import signal_values
 
 
 def _modal_beam_type():
