@@ -97,7 +97,8 @@ def _steps(t_final: float, dt: float) -> int:
     return n
 
 
-def check_store_every(store_every) -> int:
+def check_store_every(store_every: int) -> int:
+    """``store_every`` as an int ``>= 1`` (keep every ``store_every``-th step), else :class:`ModelError`."""
     if isinstance(store_every, bool) or not isinstance(store_every, (int, np.integer)) or store_every < 1:
         raise ModelError(f"store_every must be an integer >= 1, got {store_every!r}")
     return int(store_every)
