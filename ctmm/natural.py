@@ -24,10 +24,15 @@ without missing or duplicating any (Wittrick & Williams, Q. J. Mech. Appl. Math.
   rigid map; its pivot lives on the range ``R`` of ``X``: ``-(R^T X R)^-1 - R^T S R``.
 * Elements with a ``subdivide(omega_max)`` hook (long beams) are replaced by short pieces.
 
-Counting is exact, but its floating-point sign flickers within ~1e-9 of a root when a
-substructure resonates within ``e^-beta`` of it; :func:`natural_frequencies` therefore only
-*isolates* roots by counting and refines them on the sign of the characteristic determinant,
-evaluated by orthonormal (QR) transfer (:class:`_Determinant`).
+Substructure resonances: a pivot vanishes where the part of the chain it condenses resonates
+(clamped at the pivot's far end), and a field's ``U12`` is singular at the field's own
+clamped-clamped frequencies.  The count therefore carries a pivot margin and is certified by
+:func:`ctmm.counting.certified_count` (recount at ``omega (1 -+ eta)``; a single root in the
+window is placed by the sign of :class:`_Determinant`).  Lumped chains use the scalar Sturm
+recursion, exact with a zero pivot.  Near (not at) a root the count may still flicker within
+~1e-9 when a substructure resonates within ``e^-beta`` of it; :func:`natural_frequencies`
+therefore only *isolates* roots by counting and refines them on the sign of the characteristic
+determinant, evaluated by orthonormal (QR) transfer (:class:`_Determinant`).
 """
 from __future__ import annotations
 
@@ -79,9 +84,10 @@ def eigenvalue_count(system: Chain, omega: Any) -> np.ndarray:
 
     Notes
     -----
-    Exact in exact arithmetic.  In floating point the count may flicker within about
-    ``1e-9`` relative of a natural frequency when an inboard substructure has a natural
-    frequency within ``e^-β`` of it (e.g. clamped-clamped and clamped-free beam roots);
+    Exact in exact arithmetic, and exact at trial frequencies that hit a substructure
+    resonance (a vanishing pivot; module docstring).  In floating point the count may flicker
+    within about ``1e-9`` relative of a natural frequency when an inboard substructure has a
+    natural frequency within ``e^-β`` of it (e.g. clamped-clamped and clamped-free beam roots);
     :func:`natural_frequencies` therefore uses the count only to isolate roots.
     """
     omega = np.atleast_1d(validation.finite_array("omega", omega))
