@@ -177,3 +177,18 @@ def test_split_cantilevers_count_exactly_at_their_pieces_resonances(fraction, ca
     exact = omega_from_beta(beta_roots("clamped-free", 60), L, EI, RHOA)
     probes = probes[np.min(np.abs(exact[:, None] / probes[None, :] - 1.0), axis=0) > 1e-9]
     np.testing.assert_array_equal(ctmm.eigenvalue_count(chain, probes), [np.sum(exact < w) for w in probes])
+
+
+def test_counts_beside_roots_that_coincide_with_a_substructure_resonance():
+    """The 13th, 15th, 17th clamped-free roots of L coincide to round-off with clamped-pinned roots
+    of the half beam, where the inner pivot of the two-field cantilever vanishes: probes 1e-12 ...
+    1e-8 on either side of them must count the root only from above."""
+    chain = ctmm.Chain("cantilever", [BeamClamped("root"), BeamField("a", L / 2, EI, RHOA),
+                                      BeamField("b", L / 2, EI, RHOA), BeamFree("tip")])
+    exact = omega_from_beta(beta_roots("clamped-free", 30), L, EI, RHOA)
+    half = omega_from_beta(beta_roots("clamped-pinned", 10), L / 2, EI, RHOA)
+    roots = exact[[12, 14, 16]]
+    assert np.all(np.min(np.abs(half[:, None] / roots[None, :] - 1.0), axis=0) < 1e-13)
+    offsets = np.array([-1e-8, -1e-10, -1e-12, 1e-12, 1e-10, 1e-8])
+    probes = (roots[:, None] * (1.0 + offsets[None, :])).ravel()
+    np.testing.assert_array_equal(ctmm.eigenvalue_count(chain, probes), [np.sum(exact < w) for w in probes])
