@@ -157,3 +157,35 @@ def test_compiled_rk4_truncates_a_diverged_run_at_the_last_good_block():
     python = simulate_rk4(model, [-1.4], [0.0], t_final=float(partial.t[-1]), dt=1.0, stability_check="ignore",
                           divergence_bound=math.inf)
     np.testing.assert_allclose(partial.q[-1], python.q[-1], rtol=1e-9)
+
+
+@pytest.mark.parametrize("hook, what", [
+    ("force", "force of 'piezo' on beam 'arm'"),
+    ("law", "law of 'piezo' on beam 'arm'"),
+    ("distributed", "distributed load q_y of 'arm'"),
+])
+@pytest.mark.parametrize("value, problem", [(ValueError("boom"), "raised ValueError"), (float("nan"), "returned"),
+                                            ("shape", "returned")])
+def test_failing_flexible_hooks_are_named(hook, what, value, problem):
+    from ctmm.flexible import ModalBeam, ModalForce
+
+    def bad(t, *state):
+        if 0.05 < t < 0.2:
+            if isinstance(value, Exception):
+                raise value
+            if value == "shape":
+                return np.zeros(5) if hook != "distributed" else np.zeros(2)
+            return np.full(3, value) if hook != "distributed" else value
+        return np.zeros(3) if hook != "distributed" else 0.0
+
+    kw = {"distributed_load": (0.0, bad)} if hook == "distributed" else \
+        {"modal_forces": (ModalForce(label="piezo", **{hook: bad}),)}
+    arm = ModalBeam("arm", length=1.0, bending_stiffness=5.0, mass_per_length=0.7, n_modes=3, **kw)
+    model = PlanarModel.chain("flex", [Fixed("g"), arm])
+    q0, v0 = np.zeros(model.n_coordinates), np.zeros(model.n_coordinates)
+    for run in (lambda: simulate_rk4(model, q0, v0, t_final=0.3, dt=0.005),
+                lambda: simulate_implicit(model, q0, v0, t_final=0.3, dt=0.01)):
+        with pytest.raises(SimulationError, match=f"{what}.*{problem}|{problem}.*{what}") as info:
+            run()
+        assert info.value.element == "arm" and 0.05 < info.value.time < 0.07
+        assert info.value.partial_result.t[-1] == pytest.approx(0.05)
