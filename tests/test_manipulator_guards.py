@@ -98,3 +98,11 @@ def test_compiled_path_stops_at_the_first_bad_block(system):
     partial = info.value.partial_result
     assert partial.t.size >= 1 and partial.t[-1] < info.value.time
     assert np.all(np.abs(partial.theta - partial.theta[0]) <= 1.0)
+
+
+@pytest.mark.parametrize("method", ["rk4", "newmark"])
+def test_controller_failing_at_the_first_sample_gives_an_empty_partial_result(system, method):
+    with pytest.raises(SimulationError, match=r"controller 0 \(_Torque\) raised ZeroDivisionError at t = 0 s") as info:
+        system.simulate(0.01, 0.002, method=method, controllers=[_Torque(0.0, "raise")])
+    partial = info.value.partial_result
+    assert partial.t.size == 0 and partial.q.shape == (0, 3) and partial.peak_voltage == 0.0

@@ -587,8 +587,9 @@ class _Run:
     def result(self, method: str, wall: float) -> ManipulatorSimulation:
         r = self.rec
         t = np.asarray(r["t"], dtype=float)
-        Q = np.asarray(r["q"])
-        Vt = np.asarray(r["v"])
+        n = 1 + self.o.n_modes
+        Q = np.asarray(r["q"], dtype=float).reshape(len(t), n)       # (0, n) if nothing was stored
+        Vt = np.asarray(r["v"], dtype=float).reshape(len(t), n)
         V = np.asarray(r["V"], dtype=float).reshape(len(t), self.P)
         raw = np.asarray(r["raw"], dtype=float).reshape(len(t), self.P)
         over = np.any(np.abs(raw) > self.limit, axis=1) if self.P else np.zeros(len(t), bool)
@@ -599,7 +600,7 @@ class _Run:
             q=Q[:, 1:], q_dot=Vt[:, 1:], tip_deflection=Q[:, 1:] @ self.o.tip_shape, voltages=V,
             torque=np.asarray(r["tau"], dtype=float), method=method, dt=self.h, wall_time_s=wall,
             n_evaluations=self.evaluations, voltage_limit=self.limit,
-            peak_voltage=float(np.max(np.abs(raw))) if self.P else 0.0,
+            peak_voltage=float(np.max(np.abs(raw), initial=0.0)),
             time_over_limit=float(np.count_nonzero(over) * step),
             saturated=(over if self.policy == "saturate" else np.zeros(len(t), bool)),
             iterations=np.asarray(self.iterations) if self.iterations else None)
