@@ -141,6 +141,14 @@ def test_wrong_state_lengths_are_refused_by_every_state_function():
         model.points([0.0, 0.0, 1.0], [0.0, 0.0])
     with pytest.raises(ModelError, match="q must be 2 real number"):
         accelerations(model, "ab", [0.0, 0.0])
+    with pytest.raises(ModelError, match=r"qdot must have length 2 .*got shape \(3,\)"):
+        model.body_angles(np.zeros(2), np.zeros(3), 0.0)
+    from ctmm.flexible import ModalBeam
+    from ctmm.flexible.outputs import tip_deflection
+    flexible = PlanarModel.chain("f", [Fixed("g"), ModalBeam("arm", length=1.0, bending_stiffness=5.0,
+                                                              mass_per_length=0.7, n_modes=2)])
+    with pytest.raises(ModelError, match=r"q must have 2 coordinates .*got shape \(4, 3\)"):
+        tip_deflection(flexible, np.zeros((4, 3)), "arm")
 
 
 @pytest.mark.skipif(shutil.which("gcc") is None, reason="needs gcc")

@@ -507,6 +507,8 @@ class PlanarModel:
     def body_angles(self, q: np.ndarray, qdot: np.ndarray, t: float
                     ) -> tuple[np.ndarray, np.ndarray]:
         """Absolute angles and angular velocities of all bodies [rad, rad/s]."""
+        if len(q) != self.n_coordinates or len(qdot) != self.n_coordinates:
+            self.state(q, qdot)                        # raises the ModelError with the shapes
         theta = np.empty(self.n_bodies)
         omega = np.empty(self.n_bodies)
         cb = self.coordinate_bodies
@@ -554,6 +556,8 @@ class PlanarModel:
 
     def bushing_offsets(self, q: np.ndarray, qdot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Translational offsets ``d`` and rates of the translational-spring hinges (nb, 2)."""
+        if len(q) != self.n_coordinates or len(qdot) != self.n_coordinates:
+            self.state(q, qdot)
         d = np.zeros((self.n_bodies, 2))
         dd = np.zeros((self.n_bodies, 2))
         bb = self.bushing_bodies
