@@ -186,8 +186,9 @@ class CompiledManipulator:
         if problems:
             raise ModelError("the compiled manipulator path needs " + ", ".join(problems)
                              + "; use FlexibleManipulator.simulate instead")
-        if block < 1 or chunks < 1:
-            raise ModelError(f"block and chunks must be >= 1, got {block}, {chunks}")
+        for label, value in (("block", block), ("chunks", chunks)):
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+                raise ModelError(f"{label} must be an integer >= 1, got {value!r}")
         self.system = system
         self.block, self.chunks = int(block), int(chunks)
         self.n = system.n_modes
