@@ -24,10 +24,15 @@ without missing or duplicating any (Wittrick & Williams, Q. J. Mech. Appl. Math.
   rigid map; its pivot lives on the range ``R`` of ``X``: ``-(R^T X R)^-1 - R^T S R``.
 * Elements with a ``subdivide(omega_max)`` hook (long beams) are replaced by short pieces.
 
-Counting is exact, but its floating-point sign flickers within ~1e-9 of a root when a
-substructure resonates within ``e^-beta`` of it; :func:`natural_frequencies` therefore only
-*isolates* roots by counting and refines them on the sign of the characteristic determinant,
-evaluated by orthonormal (QR) transfer (:class:`_Determinant`).
+Substructure resonances: a pivot vanishes where the part of the chain it condenses resonates
+(clamped at the pivot's far end), and a field's ``U12`` is singular at the field's own
+clamped-clamped frequencies.  The count therefore carries a pivot margin and is certified by
+:func:`ctmm.counting.certified_count` (recount at ``omega (1 -+ eta)``; a single root in the
+window is placed by the sign of :class:`_Determinant`).  Lumped chains use the scalar Sturm
+recursion, exact with a zero pivot.  Near (not at) a root the count may still flicker within
+~1e-9 when a substructure resonates within ``e^-beta`` of it; :func:`natural_frequencies`
+therefore only *isolates* roots by counting and refines them on the sign of the characteristic
+determinant, evaluated by orthonormal (QR) transfer (:class:`_Determinant`).
 """
 from __future__ import annotations
 
@@ -36,6 +41,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from . import validation
+from .counting import certified_count, pivot_margin, relative_singularity
 from .assembly import ChainSolution  # noqa: F401
 from .errors import ModelError
 from .results import ModalResult
@@ -87,22 +93,48 @@ def eigenvalue_count(system: Chain, omega: Any) -> np.ndarray:
 
     Notes
     -----
-    Exact in exact arithmetic.  In floating point the count may flicker within about
-    ``1e-9`` relative of a natural frequency when an inboard substructure has a natural
-    frequency within ``e^-β`` of it (e.g. clamped-clamped and clamped-free beam roots);
+    Exact in exact arithmetic, and exact at trial frequencies that hit a substructure
+    resonance (a vanishing pivot; module docstring).  In floating point the count may flicker
+    within about ``1e-9`` relative of a natural frequency when an inboard substructure has a
+    natural frequency within ``e^-β`` of it (e.g. clamped-clamped and clamped-free beam roots);
     :func:`natural_frequencies` therefore uses the count only to isolate roots.
     """
     system = _conservative_chain(system)
     omega = validation.frequencies("omega", omega)
     if _is_lumped(system):
         return _lumped_count(system, omega)
-    body, _ = _subdivided(system, float(np.max(omega, initial=0.0)))
-    _check_reciprocal(body, float(np.max(omega, initial=0.0)) or 1.0)
-    return _count(system, body, omega)
+    body, points = _subdivided(system, float(np.max(omega, initial=0.0)))
+    real = _check_reciprocal(body, float(np.max(omega, initial=0.0)) or 1.0)
+    return _count(system, body, omega, _Side(system, body, points) if real else None)
 
 
-def _count(system, body: Sequence, omega: np.ndarray) -> np.ndarray:
-    """Wittrick-Williams count over the (subdivided) ``body`` at real frequencies ``omega``.
+def _count(system, body: Sequence, omega: np.ndarray, side: "_Side | None" = None) -> np.ndarray:
+    """Wittrick-Williams count over the (subdivided) ``body`` at real frequencies ``omega``,
+    certified at substructure resonances (:func:`ctmm.counting.certified_count`)."""
+    return certified_count(lambda w: _raw_count(system, body, w), omega, side=side)
+
+
+class _Side:
+    """``side(lower, omega)``: True where the single root in a window from ``lower`` lies below
+    ``omega``, from the sign of the pole-free determinant :class:`_Determinant`."""
+
+    def __init__(self, system, body: Sequence, points: Sequence[int]) -> None:
+        self.determinant = _Determinant(system, body, points)
+
+    def __call__(self, lower: np.ndarray, omega: np.ndarray) -> np.ndarray:
+        delta = self.determinant
+        D = delta.scaling(omega)
+        return np.sign(delta(lower, D)) != np.sign(delta(omega, D))
+
+
+def _raw_count(system, body: Sequence, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Wittrick-Williams count and smallest relative pivot at real frequencies ``omega``.
+
+    The margin is the smallest ``|eigenvalue| / scale`` of the eliminated pivot blocks (a block
+    vanishes where the structure inboard of its far end, clamped there, resonates) and the
+    smallest relative singular value of regular fields' ``U12`` (zero at the field's own
+    clamped-clamped frequencies, where ``J0`` jumps); ``nan`` when the condensation went
+    non-finite.  The end block is final and excluded (it vanishes at the chain's own roots).
 
     The condensed inboard structure is carried as ``d = T q``, ``T^T F = S q``: ``q`` are the
     free displacement coordinates of the current point (``T = I`` once the first element with a
@@ -114,6 +146,7 @@ def _count(system, body: Sequence, omega: np.ndarray) -> np.ndarray:
     B = omega.size
     eye = np.eye(d)
     count = np.zeros(B, dtype=np.int64)
+    margin = np.full(B, np.inf)
     _, free = system.start.constrained_dofs(layout)
     m = len(free)
     k_start = np.broadcast_to(np.real(system.start._stiffness(s)), (B,))
@@ -133,17 +166,23 @@ def _count(system, body: Sequence, omega: np.ndarray) -> np.ndarray:
                 hit = known[id(element)] = (element, j0, _structural_rank(U12))
             _, j0, rank = hit
             count += j0
+            if rank == d:
+                margin = np.minimum(margin, relative_singularity(U12))
             if identity:
                 G = U11 + U12 @ S
                 if rank == d:       # regular field: pivot -U12^-1 G = K_aa - S
                     count += _negative_eigenvalues(-_solve(U12, G))
+                    margin = np.minimum(margin, pivot_margin(-_solve(U12, G), -_solve(U12, U11), S))
                 elif rank > 0:      # hinge-like: pivot on the range R of the flexibility
                     R, _, Kc = _connector(U11, U12, rank)
-                    count += _negative_eigenvalues(Kc - _t(R) @ S @ R)
+                    RSR = _t(R) @ S @ R
+                    count += _negative_eigenvalues(Kc - RSR)
+                    margin = np.minimum(margin, pivot_margin(Kc - RSR, Kc, RSR))
                 S = _t(_solve(_t(G), _t(U21 + U22 @ S)))    # (U21 + U22 S) G^-1
             else:
-                T, S, negative = _reduced_step(T, S, U11, U12, U21, U22, rank)
+                T, S, negative, step_margin = _reduced_step(T, S, U11, U12, U21, U22, rank)
                 count += negative
+                margin = np.minimum(margin, step_margin)
                 if T.shape[-1] == d:                        # all displacements free again: T -> I
                     Ti = _solve(T, np.broadcast_to(eye, T.shape))
                     S = _t(Ti) @ S @ Ti
@@ -158,7 +197,8 @@ def _count(system, body: Sequence, omega: np.ndarray) -> np.ndarray:
             K = k_end[:, None, None] * (_t(T) @ (E @ E.T) @ T) - S
             block = _t(Q) @ K @ Q
         count += _negative_eigenvalues(block)
-    return count
+        margin = np.where(np.all(np.isfinite(block), axis=(-2, -1)), margin, np.nan)
+    return count, margin
 
 
 def _t(A: np.ndarray) -> np.ndarray:
@@ -239,19 +279,22 @@ def _null_space(A: np.ndarray) -> np.ndarray:
 def _reduced_step(T, S, U11, U12, U21, U22, rank):
     """One element when the current point has constrained displacements (``T`` has ``m < d`` columns).
 
-    Returns the new ``(T, S)`` and the number of negative pivots of the eliminated coordinates.
+    Returns the new ``(T, S)``, the number of negative pivots of the eliminated coordinates and
+    their smallest relative pivot (:func:`ctmm.counting.pivot_margin`).
     """
     B, d, m = T.shape
     negative = np.zeros(B, dtype=np.int64)
+    margin = np.full(B, np.inf)
     if rank == d:  # regular field: eliminate q against the element's dynamic stiffness
         X = _solve(U12, np.broadcast_to(np.eye(d), U12.shape))
         Kaa, Kab, Kba, Kbb = -X @ U11, X, -U21 + U22 @ X @ U11, -U22 @ X
         if m == 0:
-            return np.broadcast_to(np.eye(d), (B, d, d)).copy(), -Kbb, negative
+            return np.broadcast_to(np.eye(d), (B, d, d)).copy(), -Kbb, negative, margin
         P = _t(T) @ Kaa @ T - S
         negative += _negative_eigenvalues(P)
+        margin = pivot_margin(P, _t(T) @ Kaa @ T, S)
         S_new = -(Kbb - Kba @ T @ _solve(P, _t(T) @ Kab))
-        return np.broadcast_to(np.eye(d), (B, d, d)).copy(), S_new, negative
+        return np.broadcast_to(np.eye(d), (B, d, d)).copy(), S_new, negative, margin
     if rank > 0:  # connector part on its range R: new coordinates a (outboard R-components)
         R, N, Kc = _connector(U11, U12, rank)
         TR = _t(T) @ R                                           # (B, m, r)
@@ -265,11 +308,12 @@ def _reduced_step(T, S, U11, U12, U21, U22, rank):
         if Y0.shape[-1]:
             P = _t(Y0) @ H @ Y0
             negative += _negative_eigenvalues(P)
+            margin = pivot_margin(P, H)
             H10 = _t(Y1) @ H @ Y0
             H11 = H11 - H10 @ _solve(P, _t(H10))
         T, S = W @ Y1, -H11
     # rigid part d' = U11 d, F' = U21 d + U11^-T F (symplectic): no new coordinates
-    return U11 @ T, S + _t(T) @ _t(U11) @ U21 @ T, negative
+    return U11 @ T, S + _t(T) @ _t(U11) @ U21 @ T, negative, margin
 
 
 def _is_lumped(system) -> bool:
@@ -282,7 +326,13 @@ def _lumped_count(system, omega: np.ndarray) -> np.ndarray:
     """Scalar Wittrick-Williams count for 1-D lumped chains (same recursion as the general one).
 
     ``S = -K_L`` (condensed dynamic stiffness of the inboard part, negated); a point element adds
-    ``m w^2 - k_g``; a connector ``k`` has pivot ``k - S`` and maps ``S -> k S / (k - S)``.
+    ``m w^2 - k_g``; a connector ``k`` has pivot ``k - S`` and maps ``S -> k^2 / (k - S) - k``.
+    This is the Sturm sequence of the tridiagonal ``K - w^2 M`` in ratio form, whose count is
+    backward stable (exact for a matrix within a few ulps of the given one) however small a
+    pivot.  A pivot exactly zero (``w`` exactly at a resonance of the inboard part clamped at
+    the connector's far end) is taken as ``+0``: the next pivot is then ``-inf`` and the pair
+    counts one, the limit from either side; a zero final pivot (a root at ``w``) counts none, as
+    "strictly below" requires.  No ``0 * inf`` can occur in this form.
     """
     from .elements.lumped import Connector
 
@@ -299,9 +349,9 @@ def _lumped_count(system, omega: np.ndarray) -> np.ndarray:
                     clamped = False
                     continue
                 pivot = k - S
-                pivot = np.where(pivot == 0.0, -np.finfo(float).tiny, pivot)  # limit from above
+                pivot = np.where(pivot == 0.0, np.finfo(float).tiny, pivot)
                 count += pivot < 0
-                S = k * S / pivot
+                S = k * k / pivot - k
             elif not clamped:
                 S = S + (e.mass * w2 - e.stiffness)
     if system.end.known == "force" and not clamped:
@@ -380,8 +430,9 @@ def natural_frequencies(system: Chain, *, n_modes: int | None = None, omega_max:
         count, sign = (lambda w: _lumped_count(system, w)), None
     else:
         body, points = _subdivided(system, hi)
-        count = lambda w: _count(system, body, w)  # noqa: E731
         sign = _Determinant(system, body, points) if _check_reciprocal(body, hi) else None
+        side = _Side(system, body, points) if sign is not None else None
+        count = lambda w: _count(system, body, w, side)  # noqa: E731
     tiny = hi * 1e-12
     # rigid-body modes (w = 0): the count at a tiny w is exact for lumped chains; for fields the
     # O(w^2) stiffness change drowns in round-off there, so use the static nullity instead

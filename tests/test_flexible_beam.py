@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from ctmm.errors import ModelError, SimulationError
+from ctmm.guard import StabilityLimitWarning
 from ctmm.flexible import ModalBeam, ModeSet, solve_flexible
 from ctmm.flexible.outputs import tip_deflection
 from ctmm.planar import (DrivenHinge, ElasticHinge, Fixed, FreeBase, Load, Pinned, PlanarModel,
@@ -146,8 +147,15 @@ def test_too_large_explicit_step_is_reported():
     model = PlanarModel.chain("c", [Fixed("g"), ModalBeam("b", length=1.0, bending_stiffness=50.0,
                                                            mass_per_length=0.5, n_modes=3)])
     q0 = np.array([0.01, 0.0, 0.0])
-    with pytest.raises(SimulationError, match="explicit RK4 step is unstable"):
-        simulate_rk4(model, q0, np.zeros(3), t_final=2.0, dt=0.01)
+    # before the run: omega_max of the linearisation is the third cantilever mode,
+    # beta_3^2 sqrt(EI / (rho A L^4)) = 7.8548^2 * 10 = 617.0 rad/s (FORMULAS 2.6)
+    with pytest.warns(StabilityLimitWarning, match=r"highest natural frequency 61[67]\.\d+ rad/s"):
+        with pytest.raises(SimulationError, match="explicit RK4 step is unstable") as info:
+            simulate_rk4(model, q0, np.zeros(3), t_final=2.0, dt=0.01)
+    partial = info.value.partial_result
+    assert partial.t[-1] < info.value.time and np.all(np.isfinite(partial.q))
+    with pytest.raises(ModelError, match="RK4 .* conditionally stable"):
+        simulate_rk4(model, q0, np.zeros(3), t_final=2.0, dt=0.01, stability_check="error")
 
 
 def test_energy_is_conserved_without_stiffening_and_damping():

@@ -39,6 +39,7 @@ import numpy as np
 from .. import validation
 from ..errors import ModelError
 from ..planar.elements import Load
+from ..planar.signals import SignalError, signal_values
 from ..signals import Constant, SignalLike, as_signal
 from .modes import ModeSet, check_root_clamped, gauss_points
 
@@ -396,9 +397,9 @@ class BeamData:
             if hook.damping is not None:
                 self.D_fb += hook.damping
             if hook.force is not None:
-                self.forces.append(hook.force)
+                self.forces.append((hook.label, hook.force))
             if hook.law is not None:
-                self.laws.append(hook.law)
+                self.laws.append((hook.label, hook.law))
         self.K_total = self.K + self.K_fb
         self.D_total = self.D + self.D_fb
         # ends and loads: shape values at the stations
@@ -424,6 +425,19 @@ class BeamData:
         self.tip_psi = beam.axial_shapes([L], 0)[:, 0]
         self.phi_bound = np.max(np.abs(beam.shapes(np.linspace(0, L, 201), 0)), axis=1)
 
+    def _hook(self, what: str, function: Callable, args: tuple, t: float) -> np.ndarray:
+        """A :class:`ModalForce` ``force`` or ``law`` value (``n_eta`` finite numbers, complex
+        allowed for the complex-step tangent), else :class:`~ctmm.planar.signals.SignalError`."""
+        try:
+            value = np.asarray(function(*args))
+            if value.shape == (self.n,) and np.all(np.isfinite(value)):
+                return value
+        except Exception as exc:  # noqa: BLE001 - user code: named with the time
+            raise SignalError(f"{what} raised {type(exc).__name__} at t = {t:.6g} s: {exc}", time=float(t),
+                              element=self.beam.name) from exc
+        raise SignalError(f"{what} returned {value!r} at t = {t:.6g} s; expected {self.n} finite value(s)",
+                          time=float(t), element=self.beam.name)
+
     def _g1(self, x_end: float) -> np.ndarray:
         if x_end <= 0.0:
             return np.zeros((self.nq, self.nq))
@@ -434,9 +448,13 @@ class BeamData:
     # ---------------------------------------------------------------------------------------
     def external(self, t: float):
         """Point loads ``(n_loads, 3)`` and distributed load ``(q_x, q_y)`` at time ``t``."""
-        loads = np.array([[float(f(t)) for f in s] for s in self.load_signals]).reshape(-1, 3)
-        dist = (float(self.distributed[0](t)), float(self.distributed[1](t)))
-        return loads, dist
+        name = self.beam.name
+        functions = [f for s in self.load_signals for f in s]
+        labels = [f"load {k} of beam {name!r}" for k in range(len(self.load_signals)) for _ in range(3)]
+        parts = [part for _ in self.load_signals for part in ("force_x", "force_y", "moment")]
+        loads = signal_values(functions, t, labels, parts, quote=False).reshape(-1, 3)
+        dist = signal_values(self.distributed, t, [name, name], ["distributed load q_x", "distributed load q_y"])
+        return loads, (float(dist[0]), float(dist[1]))
 
     @cached_property
     def _constant_mass(self) -> np.ndarray:
@@ -589,10 +607,11 @@ class BeamData:
         h[:, 3:3 + nq] = hq
         h[:, 3 + nq:] = hp
         h[:, 3:] += eta @ self.K_total.T + eta_dot @ self.D_total.T
-        for f in self.forces:
-            h[:, 3:] -= np.asarray(f(t), dtype=float)
-        for law in self.laws:
-            h[:, 3:] -= np.stack([np.asarray(law(t, eta[b], eta_dot[b])) for b in range(B)])
+        for label, f in self.forces:
+            h[:, 3:] -= self._hook(f"force of {label!r} on beam {self.beam.name!r}", f, (t,), t)
+        for label, law in self.laws:
+            what = f"law of {label!r} on beam {self.beam.name!r}"
+            h[:, 3:] -= np.stack([self._hook(what, law, (t, eta[b], eta_dot[b]), t) for b in range(B)])
         # -- rotate to global axes ----------------------------------------------------------
         T = np.zeros((B, N3, N3), dtype=dtype)
         T[:] = self._eye

@@ -13,8 +13,7 @@ def flexible_energy(model, q, qdot, t: float = 0.0) -> float:
     solution when the model has no damping, no time-varying inputs and no geometric stiffening
     (the stiffening force is a first-order, non-conservative addition).
     """
-    q = np.asarray(q, dtype=float)
-    qdot = np.asarray(qdot, dtype=float)
+    q, qdot = model.state(q, qdot)
     pts = model.points(q, qdot, t)
     g = model.gravity
     energy = 0.0

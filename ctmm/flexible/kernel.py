@@ -269,8 +269,7 @@ class FlexibleSystem:
 
     def solve(self, q, qdot, t: float = 0.0) -> FlexibleSolution:
         """Explicit forward dynamics (one sweep)."""
-        q = np.asarray(q, dtype=float)
-        qdot = np.asarray(qdot, dtype=float)
+        q, qdot = self.model.state(q, qdot)
         terms, (theta, omega, _, _, _) = self.all_terms(q, qdot, t)
         tau = self.hinge_torques(q, qdot, theta, omega, t)
         x, F, AO, alpha = self.sweep(terms, [0.0] * self.nb, tau.tolist(), self.driven_alpha(t))
@@ -279,8 +278,8 @@ class FlexibleSystem:
         return FlexibleSolution(self.qddot(x), A, F, alpha, AO, modal)
 
     def accelerations(self, q, qdot, t: float = 0.0) -> np.ndarray:
-        q = np.asarray(q, dtype=float)
-        qdot = np.asarray(qdot, dtype=float)
+        """Generalised accelerations (one sweep); ``q, qdot`` checked by :meth:`PlanarModel.state`."""
+        q, qdot = self.model.state(q, qdot)
         terms, (theta, omega, _, _, _) = self.all_terms(q, qdot, t)
         tau = self.hinge_torques(q, qdot, theta, omega, t)
         x, _, _, _ = self.sweep(terms, [0.0] * self.nb, tau.tolist(), self.driven_alpha(t))

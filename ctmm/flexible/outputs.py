@@ -3,11 +3,20 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import SimulationError
+from ..errors import ModelError, SimulationError
 
 RK4_STABILITY_LIMIT = 2.785
 """``h omega`` limit of the classical RK4 scheme on the imaginary axis (2 sqrt 2 = 2.828 is the
 exact value; 2.785 keeps a margin for the weak modal damping and coupling)."""
+
+
+def _coordinates(model, q) -> np.ndarray:
+    """``q`` (one state or a history, last axis = coordinates) as floats, else ModelError."""
+    array = np.asarray(q, dtype=float)
+    if array.ndim not in (1, 2) or array.shape[-1] != model.n_coordinates:
+        raise ModelError(f"q must have {model.n_coordinates} coordinates ({', '.join(model.coordinates)}) on its last "
+                         f"axis, got shape {array.shape}")
+    return array
 
 
 def tip_deflection(model, q, beam: str) -> np.ndarray:
@@ -15,7 +24,7 @@ def tip_deflection(model, q, beam: str) -> np.ndarray:
     state ``q`` or a history ``(n_times, n_coordinates)``."""
     j = model.body_index(beam)
     d = model.beams[j].data
-    q = np.asarray(q, dtype=float)
+    q = _coordinates(model, q)
     return q[..., model.modal_index[j][:d.nq]] @ d.tip_phi
 
 
@@ -25,7 +34,7 @@ def axial_tip_displacement(model, q, beam: str) -> np.ndarray:
     j = model.body_index(beam)
     b = model.beams[j]
     d = b.data
-    q = np.atleast_2d(np.asarray(q, dtype=float))
+    q = np.atleast_2d(_coordinates(model, q))
     idx = model.modal_index[j]
     from .modes import gauss_points
     x, w = gauss_points(64, b.length)

@@ -39,6 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import validation
 from ..errors import ModelError
 from .parameters import CycloidalMove
 from .simulation import FlexibleManipulator, ManipulatorSimulation
@@ -185,8 +186,9 @@ class CompiledManipulator:
         if problems:
             raise ModelError("the compiled manipulator path needs " + ", ".join(problems)
                              + "; use FlexibleManipulator.simulate instead")
-        if block < 1 or chunks < 1:
-            raise ModelError(f"block and chunks must be >= 1, got {block}, {chunks}")
+        for label, value in (("block", block), ("chunks", chunks)):
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+                raise ModelError(f"{label} must be an integer >= 1, got {value!r}")
         self.system = system
         self.block, self.chunks = int(block), int(chunks)
         self.n = system.n_modes
@@ -209,34 +211,71 @@ class CompiledManipulator:
         return p
 
     def accelerations(self, q, qdot, t: float = 0.0, *, dt: float = 1e-3) -> np.ndarray:
-        """``[theta'', q'']`` from the compiled sweep."""
-        z = np.concatenate([np.asarray(q, float), np.asarray(qdot, float), [t]])
+        """``[theta'', q'']`` from the compiled sweep (``q, qdot``: hub angle and modal coordinates,
+        ``1 + n_modes`` each)."""
+        size = 1 + self.n
+        q, qdot = np.asarray(q, dtype=float), np.asarray(qdot, dtype=float)
+        if q.shape != (size,) or qdot.shape != (size,):
+            raise ModelError(f"q and qdot must have length {size} (hub.theta, arm.q1..q{self.n}), got shapes "
+                             f"{q.shape} and {qdot.shape}")
+        z = np.concatenate([q, qdot, [validation.finite("t", t)]])
         return np.asarray(self._acc(z, self.parameters(dt))).ravel()
 
-    def simulate(self, t_final: float, dt: float, *, theta0: float | None = None) -> ManipulatorSimulation:
+    def simulate(self, t_final: float, dt: float, *, theta0: float | None = None,
+                 divergence_bound: float | None = None, stability_check: str = "warn") -> ManipulatorSimulation:
         """RK4 from rest; stores every ``block``-th step.  ``t_final`` must be a multiple of
-        ``block * dt``."""
+        ``block * dt``.
+
+        ``divergence_bound`` and ``stability_check`` as in :meth:`FlexibleManipulator.simulate`;
+        the bound is checked on every compiled block of stored states (no per-step Python work),
+        and a run that diverges or goes non-finite raises :class:`~ctmm.errors.SimulationError`
+        at the first bad stored state with the history up to the last good one as
+        ``partial_result``.
+        """
+        from ..errors import SimulationError
+        from ..guard import DivergenceGuard
+        from ..planar.guards import check_scheme, check_stored
+
         s = self.system
+        t_final = validation.positive("t_final", t_final)
+        dt = validation.positive("dt", dt)
         n_steps = int(round(t_final / dt))
         if n_steps < 1 or abs(n_steps * dt - t_final) > 1e-9 * t_final or n_steps % self.block:
             raise ModelError(f"t_final = {t_final!r} must be a whole multiple of block * dt = {self.block * dt!r}")
         n_store = n_steps // self.block
         p = self.parameters(dt)
-        z = np.zeros(2 * self.n + 3)
-        z[0] = s.reference.angle(0.0) if theta0 is None else float(theta0)
+        n = self.n
+        z = np.zeros(2 * n + 3)
+        z[0] = s.reference.angle(0.0) if theta0 is None else validation.finite("theta0", theta0)
+        names = ["hub.theta"] + [f"arm.q{i + 1}" for i in range(n)]
+        guard = DivergenceGuard.from_start(names, z[:1 + n], z[:1 + n], bound=divergence_bound)
+        check_scheme(None, z[:1 + n], z[1 + n:2 + 2 * n], dt, scheme="rk4", policy=stability_check,
+                     label="the compiled manipulator",
+                     accelerations=lambda _, q, v, t: self.accelerations(q, v, t, dt=dt))
         out = [z.copy()]
         start = _time.perf_counter()
         remaining = n_store
         while remaining > 0:
             Z = np.asarray(self._loop(z, p))                  # (nz, chunks)
             take = min(remaining, self.chunks)
-            out.extend(Z[:, :take].T)
+            block = Z[:, :take].T
+            try:
+                check_stored(guard, block[:, -1], block[:, :1 + n], block[:, 1 + n:2 + 2 * n],
+                             lambda k: k)
+            except SimulationError as exc:
+                k = exc.partial_result
+                exc.partial_result = self._result(np.array(out + list(block[:k])), _time.perf_counter() - start,
+                                                  dt, len(out) + k - 1, check_limit=False)
+                raise exc from None
+            out.extend(block)
             z = Z[:, take - 1].copy()
             remaining -= take
-            if not np.all(np.isfinite(z)):
-                raise ModelError(f"compiled simulation became non-finite near t = {z[-1]:.6g} s")
-        wall = _time.perf_counter() - start
-        Y = np.array(out)
+        return self._result(np.array(out), _time.perf_counter() - start, dt, n_steps // self.block)
+
+    def _result(self, Y: np.ndarray, wall: float, dt: float, n_blocks: int, *,
+                check_limit: bool = True) -> ManipulatorSimulation:
+        """Histories from the stored states ``Y`` (rows ``[q, qdot, t]``); voltage limit check."""
+        s = self.system
         n = self.n
         t = Y[:, -1]
         q, v = Y[:, :1 + n], Y[:, 1 + n:2 + 2 * n]
@@ -249,15 +288,18 @@ class CompiledManipulator:
             V = np.zeros((t.size, s.manipulator.n_patches))
         limit = s.manipulator.voltage_limit
         peak = float(np.abs(V).max()) if V.size else 0.0
-        if s.pzt is not None and s.pzt.on_limit == "raise" and peak > limit:
-            from ..errors import SimulationError
-
-            k = int(np.argmax(np.any(np.abs(V) > limit, axis=1)))
-            raise SimulationError(f"voltage limit exceeded at t = {t[k]:.6g} s ({peak:.4g} V > {limit:g} V)",
-                                  time=float(t[k]))
         over = np.any(np.abs(V) > limit, axis=1) if V.size else np.zeros(t.size, bool)
-        return ManipulatorSimulation(
+        result = ManipulatorSimulation(
             t=t, theta=q[:, 0], theta_dot=v[:, 0], desired=np.asarray(desired, float), q=q[:, 1:], q_dot=v[:, 1:],
             tip_deflection=q[:, 1:] @ s.tip_shape, voltages=V, torque=torque, method="rk4-compiled", dt=dt,
-            wall_time_s=wall, n_evaluations=4 * n_steps, voltage_limit=limit, peak_voltage=peak,
+            wall_time_s=wall, n_evaluations=4 * n_blocks * self.block, voltage_limit=limit, peak_voltage=peak,
             time_over_limit=float(np.count_nonzero(over) * dt * self.block), saturated=np.zeros(t.size, bool))
+        if check_limit and s.pzt is not None and s.pzt.on_limit == "raise" and peak > limit:
+            from ..errors import SimulationError
+
+            k = int(np.argmax(over))
+            patch = s.manipulator.patch_names[int(np.argmax(np.abs(V[k])))]
+            raise SimulationError(f"voltage limit exceeded at t = {t[k]:.6g} s: patch {patch!r} needs "
+                                  f"{peak:.4g} V > {limit:g} V", time=float(t[k]), element=patch,
+                                  partial_result=self._result(Y[:k], wall, dt, k - 1, check_limit=False))
+        return result

@@ -42,6 +42,7 @@ import numpy as np
 
 from .. import validation
 from ..errors import ModelError, SimulationError, unknown_name
+from ..guard import call_user, user_output
 from .laws import HubPD, PZTFeedback
 from .parameters import Manipulator
 
@@ -291,7 +292,8 @@ class FlexibleManipulator:
 
     # ------------------------------------------------------------------ simulation
     def simulate(self, t_final: float, dt: float, *, method: str = "rk4", controllers: Sequence[Any] = (),
-                 store_every: int = 1, theta0: float | None = None) -> ManipulatorSimulation:
+                 store_every: int = 1, theta0: float | None = None, divergence_bound: float | None = None,
+                 stability_check: str = "warn") -> ManipulatorSimulation:
         """Simulate from rest at ``theta0`` (default ``theta_d(0)``) over ``[0, t_final]``.
 
         Parameters
@@ -302,25 +304,55 @@ class FlexibleManipulator:
         controllers : sequence of Controller
             Co-simulated controllers (module docstring).
         store_every : int
-            Keep every ``store_every``-th step.
+            Keep every ``store_every``-th step, >= 1.
+        theta0 : float, optional
+            Initial hub angle [rad].
+        divergence_bound : float, optional
+            Largest allowed distance of the hub angle [rad] or a modal coordinate [m] from its
+            initial value; default ``1e6 * max(1, |theta0|)``; ``math.inf`` checks only
+            finiteness.  (The arm's own bound -- deflection beyond its length -- always applies.)
+        stability_check : {"warn", "error", "ignore"}
+            ``"rk4"``: compare ``omega_max dt`` with ``2 sqrt 2`` before the run (``omega_max``
+            of the linearisation about the initial state, embedded laws included).
+
+        Raises
+        ------
+        SimulationError
+            Divergence, a voltage limit (``on_limit="raise"``) or a controller that raises or
+            returns NaN or the wrong number of outputs: names the time and the coordinate, patch
+            or controller; ``partial_result`` is the :class:`ManipulatorSimulation` up to the
+            last stored step.
         """
+        from ..planar.guards import check_scheme, divergence_guard, with_partial
+        from ..planar.integrate import check_store_every
+
         if method not in METHODS:
             raise ModelError(f"method must be one of {METHODS}, got {method!r}")
         t_final = validation.positive("t_final", t_final)
         dt = validation.positive("dt", dt)
-        store_every = validation.integer("store_every", store_every, minimum=1)
+        store_every = check_store_every(store_every)
         validation.step_count(t_final, 0.0, dt)
         n_steps = int(round(t_final / dt))
         if n_steps < 1 or abs(n_steps * dt - t_final) > 1e-9 * t_final:
             raise ModelError(f"t_final = {t_final!r} must be a whole multiple of dt = {dt!r}")
+        if theta0 is not None:
+            theta0 = validation.finite("theta0", theta0)
         plan = _Plan(self, list(controllers), dt)
         theta_start = float(self.reference.angle(0.0)) if theta0 is None else validation.finite("theta0", theta0)
         run = _Run(self, plan, dt, n_steps, theta_start)
-        start = _time.perf_counter()
+        run.guard = divergence_guard(run.model, run.q0, divergence_bound)
         if method == "rk4":
-            run.rk4(store_every)
-        else:
-            run.newmark(store_every)
+            check_scheme(run.model, run.q0, np.zeros_like(run.q0), dt, scheme="rk4", policy=stability_check)
+        elif stability_check not in ("warn", "error", "ignore"):
+            raise ModelError(f"stability_check must be one of ('warn', 'error', 'ignore'), got {stability_check!r}")
+        start = _time.perf_counter()
+        try:
+            if method == "rk4":
+                run.rk4(store_every)
+            else:
+                run.newmark(store_every)
+        except SimulationError as exc:
+            raise with_partial(exc, lambda: run.result(method, _time.perf_counter() - start)) from exc.__cause__
         wall = _time.perf_counter() - start
         return run.result(method, wall)
 
@@ -396,6 +428,7 @@ class _Run:
         self.q0 = np.zeros(n)
         self.q0[0] = theta0
         self.rec = {k: [] for k in ("t", "q", "v", "V", "tau", "raw")}
+        self.guard = None                              # DivergenceGuard, set by simulate
         self.evaluations = 0
         self.iterations: list = []
 
@@ -438,8 +471,14 @@ class _Run:
                 if n % self.plan.periods[i]:
                     continue
                 y = np.array([y_all[name] for name in c.inputs], dtype=float)
-                u, self.states[i] = c.step(t, y, self.states[i])
-                u = np.asarray(u, dtype=float).reshape(-1)
+                what = f"controller {i} ({getattr(c, 'name', type(c).__name__)})"
+                output = call_user(what, c.step, t, y, self.states[i], time=t)
+                try:
+                    u, self.states[i] = output
+                except (TypeError, ValueError):
+                    raise SimulationError(f"{what} returned {output!r} at t = {t:.6g} s; expected (outputs, state)",
+                                          time=t, element=what) from None
+                u = user_output(what, u, len(c.outputs), time=t)
                 for name, value in zip(c.outputs, u):
                     if name == "motor.torque":
                         self.held_torque = float(value)
@@ -478,27 +517,21 @@ class _Run:
 
     # -- integrators ---------------------------------------------------------------------------
     def rk4(self, store_every: int) -> None:
-        from ..planar import accelerations
+        from ..flexible.outputs import check_divergence
+        from ..planar.integrate import guard_rates, rk4_step
 
         model, h = self.model, self.h
         q, v = self.q0.copy(), np.zeros_like(self.q0)
-        check = _divergence_check()
         for n in range(self.N):
             t = n * h
             self._sample(n, q, v)
             if n % store_every == 0:
                 self._store()
-            a1 = accelerations(model, q, v, t)
-            q2, v2 = q + 0.5 * h * v, v + 0.5 * h * a1
-            a2 = accelerations(model, q2, v2, t + 0.5 * h)
-            q3, v3 = q + 0.5 * h * v2, v + 0.5 * h * a2
-            a3 = accelerations(model, q3, v3, t + 0.5 * h)
-            q4, v4 = q + h * v3, v + h * a3
-            a4 = accelerations(model, q4, v4, t + h)
-            q = q + (h / 6.0) * (v + 2.0 * v2 + 2.0 * v3 + v4)
-            v = v + (h / 6.0) * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+            q, v = rk4_step(model, q, v, t, h)
             self.evaluations += 4
-            check(model, q, v, t + h, h)
+            self.guard.check(t + h, q)
+            guard_rates(model, t + h, v)
+            check_divergence(model, q, t + h, h, "rk4")
         self._sample(self.N, q, v)
         self._store()
 
@@ -511,7 +544,16 @@ class _Run:
         scheme = Newmark(0.25, 0.5)
         if not self.plan.needs_inputs:                 # everything embedded: one implicit run
             self._sample(0, q, v)
-            sim = simulate_implicit(model, q, v, t_final=self.N * h, dt=h, scheme=scheme, store_every=store_every)
+            try:
+                sim = simulate_implicit(model, q, v, t_final=self.N * h, dt=h, scheme=scheme, store_every=store_every,
+                                        divergence_bound=self.guard.bound, stability_check="ignore")
+            except SimulationError as exc:             # keep the steps stored so far, as records
+                done = exc.partial_result
+                exc.partial_result = None
+                if done is not None:
+                    for t, qk, vk in zip(done.t, done.q, done.qdot):
+                        self._sample_record(t, qk, vk)
+                raise
             for k, (t, qk, vk) in enumerate(zip(sim.t, sim.q, sim.qdot)):
                 self._sample_record(t, qk, vk)
             self.iterations = list(np.asarray(sim.iterations).ravel())
@@ -522,9 +564,16 @@ class _Run:
             if n % store_every == 0:
                 self._store()
             self.t0 = n * h
-            sim = simulate_implicit(model, q, v, t_final=h, dt=h, scheme=scheme)
-            self.t0 = 0.0
+            try:
+                sim = simulate_implicit(model, q, v, t_final=h, dt=h, scheme=scheme, stability_check="ignore",
+                                        divergence_bound=math.inf)
+            except SimulationError as exc:
+                exc.partial_result = None          # the manipulator's own records are the partial result
+                raise
+            finally:
+                self.t0 = 0.0
             q, v = sim.q[-1].copy(), sim.qdot[-1].copy()
+            self.guard.check((n + 1) * h, q)
             self.iterations.extend(np.asarray(sim.iterations).ravel().tolist())
             self.evaluations += int(np.sum(sim.iterations)) + 1
         self._sample(self.N, q, v)
@@ -539,8 +588,9 @@ class _Run:
     def result(self, method: str, wall: float) -> ManipulatorSimulation:
         r = self.rec
         t = np.asarray(r["t"], dtype=float)
-        Q = np.asarray(r["q"])
-        Vt = np.asarray(r["v"])
+        n = 1 + self.o.n_modes
+        Q = np.asarray(r["q"], dtype=float).reshape(len(t), n)       # (0, n) if nothing was stored
+        Vt = np.asarray(r["v"], dtype=float).reshape(len(t), n)
         V = np.asarray(r["V"], dtype=float).reshape(len(t), self.P)
         raw = np.asarray(r["raw"], dtype=float).reshape(len(t), self.P)
         over = np.any(np.abs(raw) > self.limit, axis=1) if self.P else np.zeros(len(t), bool)
@@ -551,18 +601,7 @@ class _Run:
             q=Q[:, 1:], q_dot=Vt[:, 1:], tip_deflection=Q[:, 1:] @ self.o.tip_shape, voltages=V,
             torque=np.asarray(r["tau"], dtype=float), method=method, dt=self.h, wall_time_s=wall,
             n_evaluations=self.evaluations, voltage_limit=self.limit,
-            peak_voltage=float(np.max(np.abs(raw))) if self.P else 0.0,
+            peak_voltage=float(np.max(np.abs(raw), initial=0.0)),
             time_over_limit=float(np.count_nonzero(over) * step),
             saturated=(over if self.policy == "saturate" else np.zeros(len(t), bool)),
             iterations=np.asarray(self.iterations) if self.iterations else None)
-
-
-def _divergence_check():
-    from ..flexible.outputs import check_divergence
-
-    def check(model, q, v, t, h):
-        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
-            raise SimulationError(f"non-finite state at t = {t:.6g} s", time=t)
-        check_divergence(model, q, t, h, "rk4")
-
-    return check

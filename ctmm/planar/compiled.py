@@ -25,8 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ModelError, SimulationError
-from .integrate import PlanarSimulation, _initial, _steps
+from ..errors import ModelError
+from .guards import check_scheme, check_stored, divergence_guard
+from .integrate import PlanarSimulation, _initial, _steps, check_store_every
 from .model import REVOLUTE, PlanarModel
 
 C_SOURCE = r"""
@@ -216,6 +217,7 @@ def _arrays(model: PlanarModel) -> tuple:
 def compiled_accelerations(model: PlanarModel, q, qdot) -> np.ndarray:
     """Accelerations from the C kernel (same result as :func:`ctmm.planar.accelerations`)."""
     args = _arrays(model)
+    q, qdot = model.state(q, qdot)
     nb = model.n_bodies
     out = np.zeros(nb)
     library().accelerations(*args, np.ascontiguousarray(q, dtype=np.float64),
@@ -224,18 +226,26 @@ def compiled_accelerations(model: PlanarModel, q, qdot) -> np.ndarray:
 
 
 def simulate_rk4_compiled(model: PlanarModel, q0, qdot0, *, t_final: float, dt: float,
-                          store_every: int = 1) -> PlanarSimulation:
+                          store_every: int = 1, divergence_bound: float | None = None,
+                          stability_check: str = "warn") -> PlanarSimulation:
     """RK4 + acceleration TMM with the whole time loop in compiled C (fixed scenes).
 
     Same arguments and result as :func:`ctmm.planar.integrate.simulate_rk4`; supports revolute
-    trees with constant hinge laws and gravity (raises :class:`ModelError` otherwise).
+    trees with constant hinge laws and gravity (raises :class:`ModelError` otherwise).  The
+    stability limit is checked before the run (linearisation by the C kernel); the divergence
+    bound is checked on the stored states after the C loop, so a diverged run raises
+    :class:`SimulationError` at the first stored state out of bound, with the history up to the
+    last good stored state as ``partial_result``.  (The C loop itself stops at the first stored
+    non-finite state.)
     """
     args = _arrays(model)
     q, v = _initial(model, q0, qdot0)
     n_steps = _steps(t_final, dt)
     h = t_final / n_steps
-    if not isinstance(store_every, int) or store_every < 1:
-        raise ModelError(f"store_every must be an integer >= 1, got {store_every!r}")
+    store_every = check_store_every(store_every)
+    guard = divergence_guard(model, q, divergence_bound)
+    check_scheme(model, q, v, h, scheme="rk4", policy=stability_check,
+                 accelerations=lambda m, a, b, t: compiled_accelerations(m, a, b))
     nb = model.n_bodies
     n_store = n_steps // store_every + (1 if n_steps % store_every else 0)
     traj = np.zeros((n_store, 2 * nb))
@@ -245,12 +255,17 @@ def simulate_rk4_compiled(model: PlanarModel, q0, qdot0, *, t_final: float, dt: 
     start = _time.perf_counter()
     stored = lib.rk4(*args, h, n_steps, store_every, th, w, traj, work)
     wall = _time.perf_counter() - start
-    if stored < 0:
-        raise SimulationError(f"non-finite state after step {-stored}", time=-stored * h)
-    steps = [k for k in range(1, n_steps + 1) if k % store_every == 0 or k == n_steps]
-    t = np.concatenate([[0.0], np.array(steps) * h])
+    steps = np.array([k for k in range(1, n_steps + 1) if k % store_every == 0 or k == n_steps])
+    if stored < 0:      # non-finite at step -stored: the rows stored before it are good
+        failed = -stored
+        stored = (failed - 1) // store_every
+        steps = np.append(steps[:stored], failed)
+        traj[stored] = np.nan
+        traj = traj[:stored + 1]
+    t = np.concatenate([[0.0], steps * h])
     qs = np.vstack([q[None], traj[:, :nb]])
     vs = np.vstack([v[None], traj[:, nb:]])
+    check_stored(guard, t, qs, vs, lambda k: PlanarSimulation(model, t[:k], qs[:k], vs[:k], "rk4-compiled", wall))
     return PlanarSimulation(model, t, qs, vs, "rk4-compiled", wall, n_evaluations=4 * n_steps)
 
 

@@ -385,8 +385,12 @@ class DrivenHinge(_Hinge):
         for t in (0.0137, 0.5, 1.31, 3.7):
             for low, high, label in ((self.angle, self.rate, "rate"),
                                      (self.rate, self.acceleration, "acceleration")):
-                numeric = (float(low(t + step)) - float(low(t - step))) / (2 * step)
-                given = float(high(t))
+                try:
+                    numeric = (float(low(t + step)) - float(low(t - step))) / (2 * step)
+                    given = float(high(t))
+                except Exception as exc:  # noqa: BLE001 - user code, named with what it did
+                    raise ModelError(f"{self.name}: checking the prescribed motion at t = {t} s, a signal "
+                                     f"raised {type(exc).__name__}: {exc}") from exc
                 if abs(numeric - given) > 1e-4 * max(1.0, abs(given), abs(numeric)):
                     raise ModelError(
                         f"{self.name}: {label}({t}) = {given!r} is not the time derivative of the "

@@ -30,8 +30,10 @@ import numpy as np
 
 from .. import validation
 from ..errors import ConvergenceError, ModelError, SimulationError
-from .integrate import PlanarSimulation, _initial, _steps
+from .guards import check_scheme, divergence_guard, with_partial
+from .integrate import PlanarSimulation, _initial, _steps, check_store_every, guard_rates
 from .model import PlanarModel
+from .signals import SignalError
 from .sweep import (body_terms, bushing_data, coordinate_accelerations, hinge_torques,
                     riccati_kernel, solve_instant)
 
@@ -136,7 +138,8 @@ class _NewtonStep:
 
 def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: float,
                       scheme: Any = None, tolerance: float = 1e-10, max_iterations: int = 20,
-                      store_every: int = 1) -> PlanarSimulation:
+                      store_every: int = 1, divergence_bound: float | None = None,
+                      stability_check: str = "warn") -> PlanarSimulation:
     """Implicit DT-TMM (Newmark or generalized-alpha) with Newton iterations per step.
 
     Parameters
@@ -152,6 +155,15 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
         Newton stops when ``max |delta qdd| <= tolerance * (1 + max |qdd|)``.
     max_iterations : int
         Newton iterations allowed per step.
+    store_every : int
+        Keep every ``store_every``-th step (the last step is always kept), >= 1.
+    divergence_bound : float, optional
+        As in :func:`~ctmm.planar.integrate.simulate_rk4`.
+    stability_check : {"warn", "error", "ignore"}
+        Before the run: Newmark with ``gamma < 1/2`` (unstable at every step) or
+        ``2 beta < gamma`` (conditionally stable, ``omega_max h <= 1/sqrt(gamma/2 - beta)``)
+        is checked against ``omega_max`` of the linearisation about the initial state
+        (generalized-alpha through its ``beta`` and ``gamma``: a necessary condition).
 
     Returns
     -------
@@ -162,6 +174,9 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
     ------
     ConvergenceError
         Naming the step, time, last residual and iteration count.
+    SimulationError
+        Divergence or a failing user signal (as :func:`~ctmm.planar.integrate.simulate_rk4`);
+        every error carries the :class:`PlanarSimulation` stored so far as ``partial_result``.
     """
     if scheme is None:
         from ..schemes import Newmark
@@ -172,8 +187,11 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
     store_every = validation.integer("store_every", store_every, minimum=1)
     q, v = _initial(model, q0, qdot0)
     n_steps = _steps(t_final, dt)
+    store_every = check_store_every(store_every)
     h = t_final / n_steps
     fac = (1.0 - af) / (1.0 - am)
+    guard = divergence_guard(model, q, divergence_bound)
+    check_scheme(model, q, v, h, scheme="newmark", policy=stability_check, beta=beta, gamma=gamma)
     if model.has_flexible:
         from ..flexible.implicit import FlexibleNewtonStep
         from ..flexible.outputs import check_divergence
@@ -188,46 +206,56 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
     iterations = np.zeros(n_steps, dtype=int)
     start = _time.perf_counter()
     evaluations = 1
-    for step in range(n_steps):
-        t1 = (step + 1) * h
-        a_known = (af * xdd - am * a) / (1.0 - am)
-        q_hat = q + h * v + h * h * (0.5 - beta) * a + beta * h * h * a_known
-        v_hat = v + h * (1.0 - gamma) * a + gamma * h * a_known
-        x = xdd.copy()
-        residual = np.inf
-        for it in range(1, max_iterations + 1):
-            try:
-                A, F, x_new = stepper.sweep(q_hat + stepper.bh2 * x, v_hat + stepper.gh * x,
-                                            t1, A, F, x)
-            except (SimulationError, np.linalg.LinAlgError) as exc:
+    try:
+        for step in range(n_steps):
+            t1 = (step + 1) * h
+            a_known = (af * xdd - am * a) / (1.0 - am)
+            q_hat = q + h * v + h * h * (0.5 - beta) * a + beta * h * h * a_known
+            v_hat = v + h * (1.0 - gamma) * a + gamma * h * a_known
+            x = xdd.copy()
+            residual = np.inf
+            for it in range(1, max_iterations + 1):
+                try:
+                    A, F, x_new = stepper.sweep(q_hat + stepper.bh2 * x, v_hat + stepper.gh * x,
+                                                t1, A, F, x)
+                except SignalError:
+                    raise
+                except (SimulationError, np.linalg.LinAlgError) as exc:
+                    raise ConvergenceError(
+                        f"implicit DT-TMM step {step + 1} (t = {t1:.6g} s): Newton iteration {it} "
+                        f"failed ({exc}); last residual {residual:.3e}; reduce dt", time=t1) from exc
+                evaluations += 1
+                residual = float(np.max(np.abs(x_new - x))) if x.size else 0.0
+                x = x_new
+                if not np.isfinite(residual):
+                    break
+                if residual <= tolerance * (1.0 + float(np.max(np.abs(x)))):
+                    iterations[step] = it
+                    break
+            else:
+                it = max_iterations
+            if iterations[step] == 0:
                 raise ConvergenceError(
-                    f"implicit DT-TMM step {step + 1} (t = {t1:.6g} s): Newton iteration {it} "
-                    f"failed ({exc}); last residual {residual:.3e}; reduce dt", time=t1) from exc
-            evaluations += 1
-            residual = float(np.max(np.abs(x_new - x))) if x.size else 0.0
-            x = x_new
-            if not np.isfinite(residual):
-                break
-            if residual <= tolerance * (1.0 + float(np.max(np.abs(x)))):
-                iterations[step] = it
-                break
-        else:
-            it = max_iterations
-        if iterations[step] == 0:
-            raise ConvergenceError(
-                f"implicit DT-TMM step {step + 1} (t = {t1:.6g} s) did not converge: residual "
-                f"max|delta qdd| = {residual:.3e} after {it} Newton iterations "
-                f"(tolerance {tolerance:g}); reduce dt", time=t1)
-        q = q_hat + stepper.bh2 * x
-        v = v_hat + stepper.gh * x
-        a = fac * x + a_known
-        xdd = x
-        if model.has_flexible:
-            check_divergence(model, q, t1, h, name_of(scheme))
-        if (step + 1) % store_every == 0 or step + 1 == n_steps:
-            ts.append(t1)
-            qs.append(q.copy())
-            vs.append(v.copy())
+                    f"implicit DT-TMM step {step + 1} (t = {t1:.6g} s) did not converge: residual "
+                    f"max|delta qdd| = {residual:.3e} after {it} Newton iterations "
+                    f"(tolerance {tolerance:g}); reduce dt", time=t1)
+            q = q_hat + stepper.bh2 * x
+            v = v_hat + stepper.gh * x
+            a = fac * x + a_known
+            xdd = x
+            guard.check(t1, q)
+            guard_rates(model, t1, v)
+            if model.has_flexible:
+                check_divergence(model, q, t1, h, name_of(scheme))
+            if (step + 1) % store_every == 0 or step + 1 == n_steps:
+                ts.append(t1)
+                qs.append(q.copy())
+                vs.append(v.copy())
+    except SimulationError as exc:
+        raise with_partial(exc, lambda: PlanarSimulation(
+            model, np.array(ts), np.array(qs), np.array(vs), f"dt-tmm/{type(scheme).__name__}",
+            _time.perf_counter() - start, iterations=iterations.copy(),
+            n_evaluations=evaluations)) from exc.__cause__
     wall = _time.perf_counter() - start
     name = type(scheme).__name__
     return PlanarSimulation(model, np.array(ts), np.array(qs), np.array(vs), f"dt-tmm/{name}",

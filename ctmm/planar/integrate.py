@@ -17,6 +17,7 @@ import scipy.integrate
 
 from .. import validation
 from ..errors import ModelError, SimulationError
+from .guards import check_scheme, divergence_guard, with_partial
 from .model import PlanarModel
 from .sweep import accelerations
 
@@ -98,63 +99,114 @@ def _steps(t_final: float, dt: float) -> int:
     return n
 
 
+def check_store_every(store_every: int) -> int:
+    """``store_every`` as an int ``>= 1`` (keep every ``store_every``-th step), else :class:`ModelError`."""
+    if isinstance(store_every, bool) or not isinstance(store_every, (int, np.integer)) or store_every < 1:
+        raise ModelError(f"store_every must be an integer >= 1, got {store_every!r}")
+    return int(store_every)
+
+
 def simulate_rk4(model: PlanarModel, q0, qdot0, *, t_final: float, dt: float,
-                 store_every: int = 1) -> PlanarSimulation:
+                 store_every: int = 1, divergence_bound: float | None = None,
+                 stability_check: str = "warn") -> PlanarSimulation:
     """Classical 4th-order Runge-Kutta with fixed step ``dt`` [s] on the TMM accelerations.
 
     Parameters
     ----------
     model : PlanarModel
     q0, qdot0 : array_like
-        Initial coordinates and rates.
+        Initial coordinates and rates (one value per ``model.coordinates``).
     t_final : float
         End time [s], a whole multiple of ``dt``.
     dt : float
         Step [s].
     store_every : int
-        Keep every ``store_every``-th step (the last step is always kept).
+        Keep every ``store_every``-th step (the last step is always kept), >= 1.
+    divergence_bound : float, optional
+        Largest allowed distance of any coordinate from its initial value (its own unit, m or
+        rad); default ``1e6 * max(1, max |q0|)``; ``math.inf`` checks only finiteness.
+    stability_check : {"warn", "error", "ignore"}
+        Before the run, compare ``omega_max dt`` with RK4's limit ``2 sqrt 2`` (``omega_max``
+        of the linearisation about the initial state): warn
+        (:class:`~ctmm.guard.StabilityLimitWarning`), raise :class:`~ctmm.errors.ModelError`,
+        or skip.
+
+    Raises
+    ------
+    SimulationError
+        A coordinate goes non-finite or beyond the bound, or a user signal (load, hinge law,
+        driven motion) raises or returns a non-finite value: names the coordinate or element
+        and the time; ``partial_result`` is the :class:`PlanarSimulation` stored so far.
     """
     store_every = validation.integer("store_every", store_every, minimum=1)
     q, v = _initial(model, q0, qdot0)
     n_steps = _steps(t_final, dt)
+    store_every = check_store_every(store_every)
     h = t_final / n_steps
+    guard = divergence_guard(model, q, divergence_bound)
+    check_scheme(model, q, v, h, scheme="rk4", policy=stability_check)
     ts, qs, vs = [0.0], [q.copy()], [v.copy()]
     start = _time.perf_counter()
-    acc = accelerations
     flexible = model.has_flexible
     if flexible:
         from ..flexible.outputs import check_divergence
-    for k in range(n_steps):
-        t = k * h
-        a1 = acc(model, q, v, t)
-        q2, v2 = q + 0.5 * h * v, v + 0.5 * h * a1
-        a2 = acc(model, q2, v2, t + 0.5 * h)
-        q3, v3 = q + 0.5 * h * v2, v + 0.5 * h * a2
-        a3 = acc(model, q3, v3, t + 0.5 * h)
-        q4, v4 = q + h * v3, v + h * a3
-        a4 = acc(model, q4, v4, t + h)
-        q = q + (h / 6.0) * (v + 2.0 * v2 + 2.0 * v3 + v4)
-        v = v + (h / 6.0) * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
-        if flexible:
-            check_divergence(model, q, t + h, h, "rk4", partial=lambda: PlanarSimulation(
-                model, np.array(ts), np.array(qs), np.array(vs), "rk4", 0.0))
-        if (k + 1) % store_every == 0 or k + 1 == n_steps:
-            if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
-                raise SimulationError(f"non-finite state after step {k + 1}", time=t + h)
-            ts.append((k + 1) * h)
-            qs.append(q.copy())
-            vs.append(v.copy())
+    try:
+        for k in range(n_steps):
+            t = k * h
+            q, v = rk4_step(model, q, v, t, h)
+            guard.check(t + h, q)
+            guard_rates(model, t + h, v)
+            if flexible:
+                check_divergence(model, q, t + h, h, "rk4")
+            if (k + 1) % store_every == 0 or k + 1 == n_steps:
+                ts.append((k + 1) * h)
+                qs.append(q.copy())
+                vs.append(v.copy())
+    except SimulationError as exc:
+        raise with_partial(exc, lambda: PlanarSimulation(model, np.array(ts), np.array(qs), np.array(vs), "rk4",
+                                                         _time.perf_counter() - start)) from exc.__cause__
     wall = _time.perf_counter() - start
     return PlanarSimulation(model, np.array(ts), np.array(qs), np.array(vs), "rk4", wall,
                             n_evaluations=4 * n_steps)
 
 
-def simulate_scipy(model: PlanarModel, q0, qdot0, *, t_final: float, method: str = "RK45",
-                   rtol: float = 1e-8, atol: float = 1e-10, t_eval=None) -> PlanarSimulation:
-    """Integrate with ``scipy.integrate.solve_ivp`` (``method`` in :data:`SCIPY_METHODS`).
+def rk4_step(model: PlanarModel, q: np.ndarray, v: np.ndarray, t: float, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """One classical RK4 step of ``[q, v]' = [v, accelerations(model, q, v, t)]`` from ``t`` [s] by ``h`` [s]."""
+    a1 = accelerations(model, q, v, t)
+    q2, v2 = q + 0.5 * h * v, v + 0.5 * h * a1
+    a2 = accelerations(model, q2, v2, t + 0.5 * h)
+    q3, v3 = q + 0.5 * h * v2, v + 0.5 * h * a2
+    a3 = accelerations(model, q3, v3, t + 0.5 * h)
+    q4, v4 = q + h * v3, v + h * a3
+    a4 = accelerations(model, q4, v4, t + h)
+    return (q + (h / 6.0) * (v + 2.0 * v2 + 2.0 * v3 + v4),
+            v + (h / 6.0) * (a1 + 2.0 * a2 + 2.0 * a3 + a4))
 
-    Implicit scipy methods (Radau, BDF, LSODA) build their Jacobian by finite differences of
-    the TMM right-hand side (``2 n`` sweeps per Jacobian).
+
+def guard_rates(model: PlanarModel, t: float, qdot: np.ndarray) -> None:
+    """Raise :class:`SimulationError` naming the first non-finite rate ``qdot`` at ``t`` [s]."""
+    if not np.all(np.isfinite(qdot)):
+        name = model.coordinates[int(np.flatnonzero(~np.isfinite(qdot))[0])]
+        raise SimulationError(f"non-finite rate at t = {t:.6g} s in {name + '_dot'!r}", time=float(t),
+                              element=name)
+
+
+def simulate_scipy(model: PlanarModel, q0, qdot0, *, t_final: float, method: str = "RK45",
+                   rtol: float = 1e-8, atol: float = 1e-10, t_eval=None,
+                   divergence_bound: float | None = None) -> PlanarSimulation:
+    """Integrate with a ``scipy.integrate`` solver (``method`` in :data:`SCIPY_METHODS`).
+
+    The solver is stepped here (the loop of ``solve_ivp``) so that every accepted step is
+    checked: ``divergence_bound`` as in :func:`simulate_rk4` (adaptive steps control their own
+    stability).  Without ``t_eval`` every accepted step is stored, with it the dense output at
+    those times [s].  Implicit methods (Radau, BDF, LSODA) build their Jacobian by finite
+    differences of the TMM right-hand side (``2 n`` sweeps per Jacobian).
+
+    Raises
+    ------
+    SimulationError
+        Divergence, a solver failure or a failing user signal, with the time, the coordinate or
+        element, and ``partial_result`` (the :class:`PlanarSimulation` up to the last good step).
     """
     if method not in SCIPY_METHODS:
         raise ModelError(f"method must be one of {SCIPY_METHODS}, got {method!r}")
@@ -166,26 +218,61 @@ def simulate_scipy(model: PlanarModel, q0, qdot0, *, t_final: float, method: str
         if t_eval.size == 0 or t_eval.min() < 0.0 or t_eval.max() > t_final or np.any(np.diff(t_eval) < 0):
             raise ModelError(f"t_eval must be ascending times in [0, t_final={t_final!r}] s, got {given!r}")
     q, v = _initial(model, q0, qdot0)
+    t_final = validation.positive("t_final", t_final)
+    if t_eval is not None:
+        t_eval = validation.finite_array("t_eval", t_eval, ndim=1)
+        if np.any(np.diff(t_eval) <= 0) or t_eval.size and (t_eval[0] < 0 or t_eval[-1] > t_final):
+            raise ModelError(f"t_eval must be increasing times within [0, t_final = {t_final:g}] s, got "
+                             f"{t_eval.size} value(s) from {t_eval.min(initial=np.nan):g} to "
+                             f"{t_eval.max(initial=np.nan):g}")
     n = model.n_coordinates
     count = [0]
+    guard = divergence_guard(model, q, divergence_bound)
 
     def rhs(t, y):
         count[0] += 1
         return np.concatenate([y[n:], accelerations(model, y[:n], y[n:], t)])
 
+    y0 = np.concatenate([q, v])
+    ts: list[float] = []
+    ys: list[np.ndarray] = []
+    if t_eval is None or (t_eval.size and t_eval[0] == 0.0):
+        ts.append(0.0)
+        ys.append(y0)
     start = _time.perf_counter()
-    sol = scipy.integrate.solve_ivp(rhs, (0.0, t_final),
-                                    np.concatenate([q, v]), method=method, rtol=rtol, atol=atol,
-                                    t_eval=t_eval)
-    wall = _time.perf_counter() - start
-    if model.has_flexible and sol.t.size:
-        from ..flexible.outputs import check_divergence
-        for k in range(sol.t.size):
-            check_divergence(model, sol.y[:n, k], float(sol.t[k]), None, method)
-    if not sol.success:
-        raise SimulationError(f"solve_ivp({method}) failed: {sol.message}", time=float(sol.t[-1]))
-    return PlanarSimulation(model, sol.t, sol.y[:n].T.copy(), sol.y[n:].T.copy(), method, wall,
-                            n_evaluations=count[0])
+
+    def result() -> PlanarSimulation:
+        y = np.array(ys).reshape(-1, 2 * n)
+        return PlanarSimulation(model, np.array(ts), y[:, :n].copy(), y[:, n:].copy(), method,
+                                _time.perf_counter() - start, n_evaluations=count[0])
+
+    solver_type = getattr(scipy.integrate, method)
+    try:
+        solver = solver_type(rhs, 0.0, y0, t_final, rtol=rtol, atol=atol)
+        while solver.status == "running":
+            t_old = solver.t
+            message = solver.step()
+            if solver.status == "failed":
+                raise SimulationError(f"scipy {method} failed at t = {solver.t:.6g} s: {message}",
+                                      time=float(solver.t))
+            guard.check(solver.t, solver.y[:n])
+            guard_rates(model, solver.t, solver.y[n:])
+            if t_eval is None:
+                ts.append(float(solver.t))
+                ys.append(solver.y.copy())
+            else:
+                inside = t_eval[(t_eval > t_old) & (t_eval <= solver.t)]
+                if inside.size:
+                    dense = solver.dense_output()
+                    ts.extend(inside.tolist())
+                    ys.extend(np.atleast_2d(dense(inside).T))
+            if model.has_flexible:
+                from ..flexible.outputs import check_divergence
+                check_divergence(model, solver.y[:n], float(solver.t), None, method)
+    except SimulationError as exc:
+        raise with_partial(exc, result) from exc.__cause__
+    return result()
 
 
-__all__ = ["PlanarSimulation", "simulate_rk4", "simulate_scipy", "SCIPY_METHODS"]
+__all__ = ["PlanarSimulation", "simulate_rk4", "simulate_scipy", "guard_rates", "rk4_step",
+           "check_store_every", "SCIPY_METHODS"]

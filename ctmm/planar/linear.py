@@ -36,6 +36,7 @@ import scipy.optimize
 
 from .. import validation
 from ..elements.base import Element
+from ..counting import certified_count
 from ..errors import ModelError
 from ..layouts import PLANAR
 from .model import BUSHING, DRIVEN, FREE, PlanarModel
@@ -234,8 +235,9 @@ def static_equilibrium(model: PlanarModel, q_guess, *, t: float = 0.0,
     """Coordinates where all accelerations vanish at rest (``scipy.optimize.root``)."""
     from .sweep import accelerations
 
+    q_guess, _ = model.state(q_guess, np.zeros(model.n_coordinates))
     sol = scipy.optimize.root(lambda q: accelerations(model, q, np.zeros_like(q), t),
-                              np.asarray(q_guess, dtype=float), tol=tolerance, method="hybr")
+                              q_guess, tol=tolerance, method="hybr")
     residual = np.max(np.abs(accelerations(model, sol.x, np.zeros_like(sol.x), t)))
     if residual > 1e-8:
         raise ModelError(f"no static equilibrium found near {q_guess!r} (residual {residual:.2e})")
@@ -332,8 +334,12 @@ def _linear_data(model: PlanarModel, q_eq, t: float):
     return rcx, rcy, rx, ry, G
 
 
-def _pivots(model: PlanarModel, data, s: np.ndarray):
-    """Hinge pivots ``D_j(s)`` (B, nb) and root blocks of the frequency-domain sweep."""
+def _pivots(model: PlanarModel, data, s: np.ndarray, *, scales: bool = False):
+    """Hinge pivots ``D_j(s)`` (B, nb) and root blocks of the frequency-domain sweep.
+
+    With ``scales`` the pivots are returned as ``(D, scale)`` where ``scale = |P_22| + |k + c s|``
+    (the terms whose sum is the pivot, for its relative size).
+    """
     rcx, rcy, rx, ry, G = data
     B = s.size
     s2 = (s * s)[:, None, None]
@@ -346,6 +352,7 @@ def _pivots(model: PlanarModel, data, s: np.ndarray):
         acc[j] = s2 * M
         acc[j][:, 2, 2] += G[j]
     pivots = np.ones((B, nb), dtype=complex)
+    scale = np.ones((B, nb))
     roots = []
     for j in range(nb - 1, -1, -1):
         P = acc[j]
@@ -356,14 +363,18 @@ def _pivots(model: PlanarModel, data, s: np.ndarray):
         if kind == DRIVEN:
             Q = P
         else:
-            d = P[:, 2, 2] + model.stiffness[j] + model.damping[j] * s
+            spring = model.stiffness[j] + model.damping[j] * s
+            d = P[:, 2, 2] + spring
             pivots[:, j] = d
+            scale[:, j] = np.abs(P[:, 2, 2]) + np.abs(spring)
             with np.errstate(divide="ignore", invalid="ignore"):
                 Q = P - P[:, :, 2:3] * P[:, 2:3, :] / d[:, None, None]
         if model.parent[j] >= 0:
             X = np.eye(3)
             X[0, 2], X[1, 2] = -ry[j], rx[j]
             acc[model.parent[j]] += X.T @ Q @ X
+    if scales:
+        return (pivots, np.where(scale > 0, scale, 1.0)), roots
     return pivots, roots
 
 
@@ -380,15 +391,61 @@ def characteristic_function(model: PlanarModel, q_eq, s, *, t: float = 0.0) -> n
 
 def eigenvalue_count(model: PlanarModel, q_eq, omega, *, t: float = 0.0,
                      _data=None) -> np.ndarray:
-    """Number of natural frequencies below each ``omega`` (negative pivots, undamped)."""
-    omega = np.atleast_1d(np.asarray(omega, dtype=float))
+    """Number of natural frequencies strictly below each ``omega`` [rad/s] (undamped).
+
+    Negative pivots of the articulated sweep (Sylvester / Wittrick-Williams).  A hinge pivot
+    vanishes where ``omega`` is a natural frequency of the substructure outboard of that hinge
+    (pinned there); such trial frequencies are recounted just below and above and certified by
+    :func:`ctmm.counting.certified_count`, so the count is exact there too.
+    """
+    omega = np.atleast_1d(validation.finite_array("omega", omega)).reshape(-1)
+    if np.any(omega < 0):
+        raise ModelError(f"omega must be >= 0 rad/s, got {omega[omega < 0][0]!r}")
     data = _data if _data is not None else _linear_data(model, q_eq, t)
-    pivots, roots = _pivots(model, data, 1j * omega)
-    count = np.sum(pivots.real < 0, axis=1)
-    for block in roots:
-        sym = 0.5 * (block + np.swapaxes(block, -1, -2)).real
-        count = count + np.sum(np.linalg.eigvalsh(sym) < 0, axis=-1)
-    return count
+    return certified_count(lambda w: _raw_count(model, data, w), omega,
+                           side=lambda lower, w: _root_below(model, data, lower, w))
+
+
+def _determinant_sign(model: PlanarModel, data, omega: np.ndarray) -> np.ndarray:
+    """Sign of ``det(K - omega^2 M)`` up to a fixed factor: the product of all pivots.
+
+    The product of the pivots of an ``L D L^T`` factorisation is the determinant itself, with
+    no poles: near a substructure resonance a tiny pivot times the huge next one stays exact.
+    """
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        pivots, roots = _pivots(model, data, 1j * omega)
+        sign = np.prod(np.sign(pivots.real), axis=1)
+        for block in roots:
+            sign = sign * np.sign(np.linalg.det(0.5 * (block + np.swapaxes(block, -1, -2)).real))
+    return sign
+
+
+def _root_below(model: PlanarModel, data, lower: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    """True where the single natural frequency in ``(lower, ~omega)`` lies below ``omega``: the
+    determinant changes sign between ``lower`` and ``omega (1 - 1e-12)`` (``omega`` itself is
+    a substructure resonance, where a pivot is exactly zero)."""
+    return _determinant_sign(model, data, lower) != _determinant_sign(model, data, omega * (1.0 - 1e-12))
+
+
+def _raw_count(model: PlanarModel, data, omega: np.ndarray):
+    """Sylvester count and smallest relative pivot (``nan`` if non-finite) at ``omega``."""
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        pivots, roots = _pivots(model, data, 1j * omega, scales=True)
+        d, scale = pivots
+        d = d.real
+        count = np.sum(d < 0, axis=1)
+        # only pivots that are eliminated into a parent can spoil the count; a zero pivot at a
+        # root (or a singular root block) is a natural frequency of the whole model at omega
+        inner = model.parent >= 0
+        margin = np.min(np.abs(d[:, inner]) / scale[:, inner], axis=1, initial=np.inf)
+        margin = np.where(np.all(np.isfinite(d), axis=1), margin, np.nan)
+        for block in roots:
+            sym = 0.5 * (block + np.swapaxes(block, -1, -2)).real
+            bad = ~np.all(np.isfinite(sym), axis=(-2, -1))
+            sym = np.where(bad[:, None, None], 0.0, sym)
+            margin = np.where(bad, np.nan, margin)
+            count = count + np.sum(np.linalg.eigvalsh(sym) < 0, axis=-1)
+    return count, margin
 
 
 def natural_frequencies(model: PlanarModel, q_eq, *, n_modes: int, t: float = 0.0,

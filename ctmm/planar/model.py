@@ -31,6 +31,7 @@ from ..errors import ModelError, unknown_name
 from ..signals import Constant
 from .elements import (DrivenHinge, Fixed, Free, FreeBase, HINGE_TYPES, Pinned, RigidBody,
                        SmoothHinge, _Hinge, translational_law)
+from .signals import signal_values
 
 
 def _modal_beam_type():
@@ -439,30 +440,79 @@ class PlanarModel:
         except ValueError:
             raise unknown_name("body", body, self.body_names) from None
 
+    # -- state vectors ----------------------------------------------------------------------
+    def state(self, q, qdot) -> tuple[np.ndarray, np.ndarray]:
+        """``q, qdot`` as float arrays of one value per coordinate, else :class:`ModelError`.
+
+        Parameters
+        ----------
+        q, qdot : array_like
+            Coordinates [m, rad, modal] and their rates, ``n_coordinates`` each, in the order of
+            :attr:`coordinates`.
+        """
+        n = self.n_coordinates
+        # fast path (the integrators' own float64 arrays, every sweep): no Python loop, no NaN check
+        # (the integrators check the states they produce); anything else is checked in full
+        if type(q) is np.ndarray and type(qdot) is np.ndarray and q.dtype == np.float64 \
+                and qdot.dtype == np.float64 and q.shape == (n,) and qdot.shape == (n,):
+            return q, qdot
+        out = []
+        for label, value in (("q", q), ("qdot", qdot)):
+            try:
+                array = np.asarray(value, dtype=float)
+            except (TypeError, ValueError):
+                raise ModelError(f"{label} must be {n} real number(s) (coordinates {', '.join(self.coordinates)}), "
+                                 f"got {value!r}") from None
+            if array.shape != (n,):
+                raise ModelError(f"{label} must have length {n} (coordinates {', '.join(self.coordinates)}) for "
+                                 f"model {self.name!r}, got {value!r} (shape {array.shape})")
+            if not np.all(np.isfinite(array)):
+                raise ModelError(f"{label} must be finite (coordinates {', '.join(self.coordinates)}), got {value!r}")
+            out.append(array)
+        return out[0], out[1]
+
     # -- time-dependent inputs -------------------------------------------------------------
     def hinge_laws(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(reference, reference_rate, torque)`` of every joint at time ``t``."""
+        """``(reference, reference_rate, torque)`` of every joint at time ``t``.
+
+        Raises :class:`~ctmm.planar.signals.SignalError` naming the joint and the time when a user signal raises or
+        returns anything but one finite number.
+        """
         if self._constant_laws:
             return self._law_values
-        return (np.array([f(t) for f in self._reference], dtype=float),
-                np.array([f(t) for f in self._reference_rate], dtype=float),
-                np.array([f(t) for f in self._torque], dtype=float))
+        names = self.joint_names
+        return (signal_values(self._reference, t, names, "reference angle"),
+                signal_values(self._reference_rate, t, names, "reference rate"),
+                signal_values(self._torque, t, names, "torque"))
 
     def loads(self, t: float) -> np.ndarray:
-        """External loads ``(fx, fy, moment)`` of every :class:`Load` at time ``t``."""
+        """External loads ``(fx, fy, moment)`` of every :class:`Load` at time ``t``
+        (:class:`~ctmm.planar.signals.SignalError` naming the body and the load component when one fails)."""
         if self._constant_loads:
             return self._load_values
-        return np.array([[f(t) for f in s] for s in self._load_signals], dtype=float
-                        ).reshape(-1, 3)
+        functions = [f for s in self._load_signals for f in s]
+        labels = [f"load {k} of body {self.body_names[b]!r}" for k, b in enumerate(self.load_body)
+                  for _ in range(3)]
+        parts = [part for _ in self._load_signals for part in ("force_x", "force_y", "moment")]
+        return signal_values(functions, t, labels, parts, quote=False).reshape(-1, 3)
 
     def driven(self, t: float) -> list[tuple[int, float, float, float]]:
-        """``(body, angle, rate, acceleration)`` of every driven joint at time ``t``."""
-        return [(i, float(a(t)), float(r(t)), float(c(t))) for i, a, r, c in self._driven]
+        """``(body, angle, rate, acceleration)`` of every driven joint at time ``t``
+        (:class:`~ctmm.planar.signals.SignalError` naming the joint when a prescribed motion fails)."""
+        if not self._driven:
+            return []
+        functions = [f for _, a, r, c in self._driven for f in (a, r, c)]
+        labels = [self.joint_names[i] for i, *_ in self._driven for _ in range(3)]
+        parts = [part for _ in self._driven for part in ("angle", "rate", "acceleration")]
+        values = signal_values(functions, t, labels, parts).reshape(-1, 3)
+        return [(i, float(v[0]), float(v[1]), float(v[2])) for (i, *_), v in zip(self._driven, values)]
 
     # -- kinematics ---------------------------------------------------------------------------
     def body_angles(self, q: np.ndarray, qdot: np.ndarray, t: float
                     ) -> tuple[np.ndarray, np.ndarray]:
         """Absolute angles and angular velocities of all bodies [rad, rad/s]."""
+        if len(q) != self.n_coordinates or len(qdot) != self.n_coordinates:
+            self.state(q, qdot)                        # raises the ModelError with the shapes
         theta = np.empty(self.n_bodies)
         omega = np.empty(self.n_bodies)
         cb = self.coordinate_bodies
@@ -510,6 +560,8 @@ class PlanarModel:
 
     def bushing_offsets(self, q: np.ndarray, qdot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Translational offsets ``d`` and rates of the translational-spring hinges (nb, 2)."""
+        if len(q) != self.n_coordinates or len(qdot) != self.n_coordinates:
+            self.state(q, qdot)
         d = np.zeros((self.n_bodies, 2))
         dd = np.zeros((self.n_bodies, 2))
         bb = self.bushing_bodies
@@ -542,8 +594,7 @@ class PlanarModel:
         Returns a dict with arrays ``inboard``, ``inboard_velocity``, ``com``,
         ``com_velocity`` (shape ``(n_bodies, 2)``), ``theta`` and ``omega``.
         """
-        q = np.asarray(q, dtype=float)
-        qdot = np.asarray(qdot, dtype=float)
+        q, qdot = self.state(q, qdot)
         theta, omega = self.body_angles(q, qdot, t)
         c, s = np.cos(theta), np.sin(theta)
         r_in = np.empty((self.n_bodies, 2))

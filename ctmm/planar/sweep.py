@@ -306,9 +306,8 @@ def _checked_state(model: PlanarModel, q, qdot, t) -> tuple[np.ndarray, np.ndarr
     """Entry validation of the instantaneous solvers: model type, coordinate shapes, time."""
     if not isinstance(model, PlanarModel):
         raise ModelError(f"model must be a ctmm.planar.PlanarModel, got {model!r}")
-    n = model.n_coordinates
-    return (validation.coordinates("q", q, n, labels=model.coordinates),
-            validation.coordinates("qdot", qdot, n, labels=model.coordinates), validation.finite("t", t))
+    q, qdot = model.state(q, qdot)
+    return q, qdot, validation.finite("t", t)
 
 
 def solve_instant(model: PlanarModel, q, qdot, t: float = 0.0) -> InstantaneousSolution:
@@ -379,6 +378,9 @@ def ode_rhs(model: PlanarModel) -> Callable[[float, np.ndarray], np.ndarray]:
     n = model.n_coordinates
 
     def rhs(t: float, y: np.ndarray) -> np.ndarray:
+        y = np.asarray(y, dtype=float)
+        if y.shape != (2 * n,):
+            raise ModelError(f"y must be [q, qdot] of length {2 * n} for model {model.name!r}, got shape {y.shape}")
         out = np.empty(2 * n)
         out[:n] = y[n:]
         out[n:] = accelerations(model, y[:n], y[n:], t)

@@ -1,0 +1,160 @@
+"""Run guards of the planar (rigid and flexible) integrators: step limits, divergence, partial results.
+
+Built on :mod:`ctmm.guard` (shared by every ctmm simulator):
+
+* **Before the run** -- :func:`check_scheme` compares the step with the known stability limit of
+  the scheme (classical RK4: ``omega_max h <= 2 sqrt 2``; Newmark-beta and generalized-alpha:
+  :func:`ctmm.guard.newmark_limit`) and warns (:class:`~ctmm.guard.StabilityLimitWarning`),
+  raises :class:`~ctmm.errors.ModelError` or does nothing (``stability_check="warn" | "error" |
+  "ignore"``).  ``omega_max`` [rad/s] is the spectral radius of the linearisation of
+  ``y' = [qdot, qddot(q, qdot, t)]`` about the initial state (central differences of the
+  acceleration TMM, ``4 n`` sweeps).
+* **During the run** -- :func:`divergence_guard` stops a run whose coordinates go non-finite or
+  move farther than ``divergence_bound`` from their initial values (default: ``1e6 * max(1,
+  |q0|)``), naming the coordinate and the time.
+* **On failure** -- :func:`with_partial` completes a :class:`~ctmm.errors.SimulationError` with
+  the :class:`~ctmm.planar.integrate.PlanarSimulation` of the states stored so far.
+"""
+from __future__ import annotations
+
+import math
+import warnings
+from typing import Callable
+
+import numpy as np
+
+from ..errors import ModelError, SimulationError
+from ..guard import RK4_LIMIT, DivergenceGuard, StabilityLimitWarning, check_step, newmark_limit
+from .model import PlanarModel
+
+__all__ = ["STABILITY_CHECKS", "linearised_omega_max", "check_scheme", "divergence_guard", "check_stored",
+           "with_partial"]
+
+#: Allowed values of the ``stability_check`` option.
+STABILITY_CHECKS = ("warn", "error", "ignore")
+
+
+def linearised_omega_max(model: PlanarModel | None, q: np.ndarray, qdot: np.ndarray, t: float = 0.0, *,
+                         accelerations: Callable | None = None) -> float:
+    """Spectral radius [rad/s] of ``d[qdot, qddot]/d[q, qdot]`` at ``(q, qdot, t)``.
+
+    For an undamped linear model this is the highest natural frequency; about an unstable
+    configuration (an inverted pendulum) it is the fastest growth rate.  Jacobian-vector
+    products by central differences of ``accelerations(model, q, qdot, t)`` (default
+    :func:`ctmm.planar.sweep.accelerations`, steps ``1e-6 max(1, |y|)``): the dense Jacobian up to
+    20 coordinates (``4 n`` sweeps), above that ARPACK on the products (a few dozen sweeps,
+    relative accuracy 1e-3, ample for a stability check).
+    """
+    if accelerations is None:
+        from .sweep import accelerations
+
+    n = len(q)
+    y0 = np.concatenate([np.asarray(q, dtype=float), np.asarray(qdot, dtype=float)])
+    scale = 1e-6 * max(1.0, float(np.max(np.abs(y0), initial=0.0)))
+
+    def product(direction: np.ndarray) -> np.ndarray:
+        direction = np.real(np.asarray(direction, dtype=float).reshape(-1))
+        size = float(np.max(np.abs(direction), initial=0.0))
+        if size == 0.0:
+            return np.zeros(2 * n)
+        step = scale / size
+        plus, minus = y0 + step * direction, y0 - step * direction
+        derivative = (accelerations(model, plus[:n], plus[n:], t)
+                      - accelerations(model, minus[:n], minus[n:], t)) / (2.0 * step)
+        return np.concatenate([direction[n:], derivative])
+
+    if n <= 20:
+        jacobian = np.column_stack([product(e) for e in np.eye(2 * n)])
+        if not np.all(np.isfinite(jacobian)):
+            return math.inf
+        return float(np.max(np.abs(np.linalg.eigvals(jacobian)), initial=0.0))
+    import scipy.sparse.linalg
+
+    operator = scipy.sparse.linalg.LinearOperator((2 * n, 2 * n), matvec=product, dtype=float)
+    try:
+        value = scipy.sparse.linalg.eigs(operator, k=1, which="LM", tol=1e-3, return_eigenvectors=False,
+                                         v0=np.ones(2 * n))[0]
+    except scipy.sparse.linalg.ArpackNoConvergence as exc:
+        value = exc.eigenvalues[0] if len(exc.eigenvalues) else math.inf
+    return float(abs(value)) if np.isfinite(value) else math.inf
+
+
+def check_scheme(model: PlanarModel | None, q0: np.ndarray, qdot0: np.ndarray, dt: float, *, scheme: str,
+                 policy: str, beta: float | None = None, gamma: float | None = None,
+                 accelerations: Callable | None = None, label: str | None = None) -> str | None:
+    """Compare ``dt`` [s] with the stability limit of ``scheme`` before a run (module docstring).
+
+    Parameters
+    ----------
+    scheme : {"rk4", "newmark"}
+        ``"newmark"`` covers generalized-alpha through its ``beta`` and ``gamma``.
+    policy : {"warn", "error", "ignore"}
+        The ``stability_check`` option.
+    beta, gamma : float, optional
+        Newmark parameters (``scheme="newmark"``).
+    accelerations : callable, optional
+        Forward dynamics for :func:`linearised_omega_max` (e.g. the compiled kernel).
+    label : str, optional
+        What is simulated, for the message (default ``model 'name'``).
+
+    Returns
+    -------
+    str or None
+        The warning text when the limit is exceeded (and the policy is not ``"error"``).
+    """
+    if policy not in STABILITY_CHECKS:
+        raise ModelError(f"stability_check must be one of {STABILITY_CHECKS}, got {policy!r}")
+    if policy == "ignore":
+        return None
+    if scheme == "rk4":
+        limit, what = RK4_LIMIT, "classical RK4"
+    else:
+        limit, what = newmark_limit(beta, gamma), f"Newmark(beta={beta:g}, gamma={gamma:g})"
+        if math.isinf(limit):
+            return None
+    omega_max = linearised_omega_max(model, q0, qdot0, accelerations=accelerations)
+    try:   # raise here and warn below, so that the warning points at the user's call
+        label = label or f"model {model.name!r}"
+        check_step(f"{what} on {label} (linearised about the initial state)", omega_max, dt, limit,
+                   policy="error")
+    except ModelError as exc:
+        if policy == "error":
+            raise
+        warnings.warn(str(exc), StabilityLimitWarning, stacklevel=3)
+        return str(exc)
+    return None
+
+
+def divergence_guard(model: PlanarModel, q0: np.ndarray, bound: float | None) -> DivergenceGuard:
+    """Guard on the model's coordinates, measured from ``q0`` (``bound`` = ``divergence_bound``)."""
+    return DivergenceGuard.from_start(model.coordinates, q0, q0, bound=bound)
+
+
+def check_stored(guard: DivergenceGuard, t: np.ndarray, q: np.ndarray, qdot: np.ndarray,
+                 build: Callable[[int], object]) -> None:
+    """Check a whole stored history (compiled paths: no per-step Python work).
+
+    Raises the :class:`SimulationError` of the first stored row that is non-finite or beyond
+    the bound, with ``partial_result = build(k)``: the history truncated before that row.
+    """
+    bad = ~np.all(np.isfinite(q), axis=1) | ~np.all(np.isfinite(qdot), axis=1)
+    if not math.isinf(guard.bound):
+        with np.errstate(invalid="ignore"):
+            bad |= np.max(np.abs(q - guard.reference), axis=1, initial=0.0) > guard.bound
+    if not np.any(bad):
+        return
+    k = int(np.argmax(bad))
+    try:
+        guard.check(t[k], q[k])
+        column = int(np.flatnonzero(~np.isfinite(qdot[k]))[0])
+        raise SimulationError(f"non-finite rate at t = {t[k]:.6g} s in {guard.names[column] + '_dot'!r}",
+                              time=float(t[k]), element=guard.names[column])
+    except SimulationError as exc:
+        raise with_partial(exc, lambda: build(k)) from None
+
+
+def with_partial(error: SimulationError, build: Callable[[], object]) -> SimulationError:
+    """Attach ``build()`` as ``error.partial_result`` unless it already carries one; returns ``error``."""
+    if error.partial_result is None:
+        error.partial_result = build()
+    return error
