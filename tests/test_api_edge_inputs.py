@@ -73,8 +73,8 @@ def test_characteristic_function_at_non_finite_s(s):
 def test_planar_accelerations_with_an_extra_coordinate():
     from ctmm.planar import accelerations
 
-    with pytest.raises(ctmm.ModelError, match=r"q must be a 1-D array of 1 number\(s\) for coordinates "
-                                              r"\['l\.theta'\], got \[0\.0, 0\.0\]"):
+    with pytest.raises(ctmm.ModelError, match=r"q must have length 1 \(coordinates l\.theta\) for model 'p', "
+                                              r"got \[0\.0, 0\.0\]"):
         accelerations(pendulum(), [0.0, 0.0], [0.0])
 
 
