@@ -44,15 +44,17 @@ from __future__ import annotations
 
 import math
 import os
+import warnings
 from concurrent.futures import Executor, ProcessPoolExecutor, ThreadPoolExecutor
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Callable, Iterable, Iterator, Sequence
 
 import numpy as np
 
 from . import validation
 from .assembly import SOLVERS
+from .certification import ContourCertificate, StabilityWarning, loop_bound
 from .control.loops import ControlledChain, Feedback
 from .elements.lumped import Connector
 from .errors import ModelError, SingularSystemError, unknown_name
@@ -65,6 +67,7 @@ __all__ = ["LoopCharacteristic", "managed_executor", "executor_workers", "parall
 _MAX_STEP = 0.4          # largest complex-log step of a component between samples
 _COUNT_STEP = 1.0        # largest phase step of Delta(s; p) between samples when counting
 _TINY = 1e-13            # components below this (relative to the largest at s) are ignored
+_MAX_SAMPLES = 200_000   # largest initial line sampling for a proven contour height
 
 
 # --------------------------------------------------------------------------------------------
@@ -118,22 +121,32 @@ def find_loop(system: ControlledChain, loop: str | None) -> Feedback:
 def _log_characteristic(system: Any, s: np.ndarray) -> np.ndarray:
     """``log Delta(s)`` (unnormalised, complex) without forming ``Delta`` (no overflow).
 
-    Same determinant and pole-clearing factor as :func:`ctmm.characteristic_function`."""
+    Same determinant and pole-clearing factor as :func:`ctmm.characteristic_function`, but the
+    factor is summed as logarithms: a product of ``k + c s`` over a chain of thousands of
+    connectors overflows at high frequency."""
     with np.errstate(divide="ignore", invalid="ignore"):
         Us, us, start, end = assemble(system, s)
         sol = SOLVERS["riccati"](Us, us, start, end, want_states=False)
-        return sol.log_det + np.log(_pole_factor(system, s))
+        return sol.log_det + _log_pole_factor(system, s)
 
 
-def _pole_factor(system: Any, s: np.ndarray) -> np.ndarray:
-    """Connector stiffnesses ``k + c s`` (and controller denominators) that clear the poles."""
-    if hasattr(system, "characteristic_scale"):
-        return np.asarray(system.characteristic_scale(s), dtype=complex)
-    factor = np.ones(s.shape, dtype=complex)
-    for element in system.body:
-        if isinstance(element, Connector):
-            factor = factor * element.connector_stiffness(s)
-    return factor
+def _log_pole_factor(system: Any, s: np.ndarray) -> np.ndarray:
+    """``log`` of the connector stiffnesses ``k + c s`` (and LTI controller denominators) that
+    clear the poles of the element matrices, summed term by term."""
+    s = np.asarray(s, dtype=complex)
+    controlled = isinstance(system, ControlledChain)
+    body = system.plant.body if controlled else getattr(system, "body", None)
+    if body is None:      # another model type: its own (product) scale
+        return np.log(np.asarray(system.characteristic_scale(s), dtype=complex))
+    out = np.zeros(s.shape, dtype=complex)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        for element in body:
+            if isinstance(element, Connector):
+                out = out + np.log(np.asarray(element.connector_stiffness(s), dtype=complex))
+        for lp in (system.loops if controlled else ()):
+            if lp.is_lti:
+                out = out + np.log(np.asarray(lp.denominator(s), dtype=complex))
+    return out
 
 
 def _normalised(logs: np.ndarray) -> np.ndarray:
@@ -230,13 +243,13 @@ class LoopCharacteristic:
         self._groups = [closed_by(Feedback(lp.name, self.term_names[r], lp.actuator, gain=reference,
                                            delay=0.0)) for r in reps]
         others = [other for other in self.system.loops if other is not lp]
-        self._open = self.system.with_loops(others) if others else plant
+        self.open_system = self.system.with_loops(others) if others else plant
         # unit loop force: every weighted actuator input of the loop (e.g. a PZT moment pair)
         self._amplitudes: dict = {}
         for name, weight in lp.actuator_terms:
             element_name, _, input_name = name.partition(".")
-            element = self._open.element(element_name)
-            resolved = self._open.input(f"{element_name}.{input_name or element.inputs[0]}")
+            element = self.open_system.element(element_name)
+            resolved = self.open_system.input(f"{element_name}.{input_name or element.inputs[0]}")
             slot = self._amplitudes.setdefault(resolved.position, {})
             slot[resolved.input] = slot.get(resolved.input, 0.0) + weight
         self._sensed = [(sig.point, sig.component, sig.derivative) for sig in signals]
@@ -255,7 +268,7 @@ class LoopCharacteristic:
         at a sample, e.g. s = 0 of a free chain) the extended closed chains are swept instead."""
         s = np.asarray(s, dtype=complex).ravel()
         out = np.empty((1 + len(self._sensed), s.size), dtype=complex)
-        log_open = _log_characteristic(self._open, s)
+        log_open = _log_characteristic(self.open_system, s)
         regular = np.isfinite(log_open)
         if regular.any():
             try:
@@ -272,7 +285,7 @@ class LoopCharacteristic:
         if getattr(self, "_phase", None) is None:
             for s_ref in (0.7 + 1.3j, 1.9 + 0.4j, 0.3 + 3.1j):
                 ref = np.array([s_ref])
-                log_open = _log_characteristic(self._open, ref)
+                log_open = _log_characteristic(self.open_system, ref)
                 if not np.isfinite(log_open[0]):
                     continue
                 open_base = self._components_open(ref, log_open)[0, 0]
@@ -289,7 +302,7 @@ class LoopCharacteristic:
         from .frequency import solve
 
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            states = solve(self._open, s, self._amplitudes).states
+            states = solve(self.open_system, s, self._amplitudes).states
             log_base = log_open
             controller = np.zeros(s.size, complex)
             if self.loop.is_lti:
@@ -391,13 +404,16 @@ class _Path:
     """Adaptive samples of the components on a polyline ``vertices[0] -> vertices[1] -> ...``."""
 
     def __init__(self, model: LoopCharacteristic, vertices: Sequence[complex], n_initial: int,
-                 rate: float, min_step: float) -> None:
+                 rate: float, min_step: float, seeds: Sequence[complex] = ()) -> None:
         self.model, self.rate, self.min_step = model, rate, min_step
         v = np.asarray(vertices, dtype=complex)
         lengths = np.abs(np.diff(v))
         per = np.maximum(8, np.ceil(n_initial * lengths / lengths.sum())).astype(int)
         pts = [v[k] + (v[k + 1] - v[k]) * np.arange(per[k]) / per[k] for k in range(len(v) - 1)]
         self.s = np.append(np.concatenate(pts), v[-1])
+        if len(seeds):               # extra samples on a vertical line (open-loop resonances)
+            self.s = np.unique(np.concatenate([self.s, np.asarray(seeds, dtype=complex)]).imag) * 1j \
+                + v[0].real
         self.delta = 1e-7 * float(lengths.sum())
         self.values, self.logderiv = self._evaluate(self.s)
         self._refine_components()
@@ -493,6 +509,7 @@ class _Contour:
     line: _VerticalPath            # sigma -> sigma + iR (ascending imaginary part)
     far_phase: float               # phase change of Delta_0 along sigma+R -> sigma+R+iR -> sigma+iR
     notes: list = field(default_factory=list)
+    certificate: ContourCertificate | None = None
 
     @property
     def omega(self) -> np.ndarray:
@@ -505,52 +522,124 @@ def _loop_bound(base: np.ndarray, terms: np.ndarray, weight_bound: np.ndarray) -
     return np.where(np.isfinite(ratio), ratio, np.inf)
 
 
-def _radius(model: LoopCharacteristic, weight_bound: np.ndarray, sigma: float, tau_max: float,
-            im_max: float | None) -> float:
-    """Imaginary extent beyond which |loop term| < |Delta_0|/2 in Re s >= sigma (retarded loops)."""
+def _sampled_ratio(model: LoopCharacteristic, weight_bound: np.ndarray, sigma: float, growth: float,
+                   low: float, high: float, seeds: Sequence[complex] = ()) -> tuple[np.ndarray, np.ndarray]:
+    """``(omega, e^{max(0,-sigma) tau} |L|)`` on ``sigma + i [low, high]``: log-spaced samples
+    refined until every component turns by less than ``_MAX_STEP`` between samples."""
+    low = max(low, 1e-3)
+    decades = max(1, int(math.ceil(math.log10(high / low))))
+    vertices = sigma + 1j * np.concatenate([[0.0], np.logspace(math.log10(low), math.log10(high),
+                                                               4 * decades + 1)])
+    path = _VerticalPath(model, vertices, 40 * decades, 0.0, 1e-13 * high,
+                         [sigma + 1j * w for w in np.asarray(seeds, float) if 0 <= w <= high])
+    return path.s.imag, growth * _loop_bound(path.base, path.terms, weight_bound)
+
+
+def _neutral_error(model: LoopCharacteristic, detail: str) -> ModelError:
+    return ModelError(
+        f"loop {model.loop.name!r} is neutral or improper: {detail}; such a loop can have infinitely "
+        "many roots near a vertical line and no finite contour encloses them all. Pass im_max=<rad/s> "
+        "to count roots in a bounded frequency range (the result is then reported as not certified)")
+
+
+def _height(model: LoopCharacteristic, weight_bound: np.ndarray, sigma: float, tau_max: float,
+            im_max: float | None) -> tuple[float, np.ndarray, ContourCertificate]:
+    """Contour height ``R``, open-loop pole seeds and the certificate (:mod:`ctmm.certification`)."""
     growth = math.exp(max(0.0, -sigma) * tau_max)
     if im_max is not None:
-        return validation.positive("im_max", im_max)
-    omega = np.logspace(-3, 7, 121)
-    base, terms = model.components(sigma + 1j * omega)
-    ratio = growth * _loop_bound(base, terms, weight_bound)
-    big = np.flatnonzero(ratio >= 0.5)
-    if big.size and big[-1] >= omega.size - 3:
-        raise ModelError(
-            f"the loop term of {model.loop.name!r} does not decay at high frequency (|L| = "
-            f"{ratio[-1]:.3g} at omega = {omega[-1]:.3g} rad/s): a neutral or improper loop "
-            "(acceleration feedback, non-proper controller) can have infinitely many roots near the "
-            "imaginary axis; pass im_max to study a bounded frequency range")
-    last = omega[big[-1] + 1] if big.size else omega[0]
-    return float(max(2.0 * last, 1e-2))
+        im_max = validation.positive("im_max", im_max)
+    notes: list[str] = []
+    try:
+        bound = loop_bound(model, weight_bound)
+    except ModelError as exc:
+        bound, reason = None, str(exc)
+    if bound is None:
+        notes.append(f"{reason}; no bound on the loop term")
+        seeds = np.zeros(0)
+        if im_max is not None:
+            return im_max, seeds, ContourCertificate(sigma, im_max, "user", math.nan, False, tuple(notes))
+        omega, ratio = _sampled_ratio(model, weight_bound, sigma, growth, 1e-3, 1e7)
+        big = np.flatnonzero(ratio >= 0.5)
+        if big.size and omega[big[-1]] >= 1e6:
+            raise _neutral_error(model, f"its sampled loop term does not decay (|L| = {ratio[big[-1]]:.3g} "
+                                        f"at omega = {omega[big[-1]]:.3g} rad/s)")
+        radius = float(max(2.0 * omega[big[-1]], 1e-2)) if big.size else 1e-2
+        notes.append(f"height from |L| sampled on Re s = {sigma:.6g} up to 1e7 rad/s")
+        return radius, seeds, ContourCertificate(sigma, radius, "sampled", math.nan, False, tuple(notes))
+    proven = bound.radius(0.5 / growth)
+    seeds = bound.poles
+    if not math.isfinite(proven):
+        if im_max is None:
+            raise _neutral_error(model, f"its loop term tends to {bound.at_infinity * growth:.6g} >= 1/2 at "
+                                        "high frequency (direct feedthrough, e.g. acceleration feedback at "
+                                        "the actuated mass, or a controller that is not strictly proper)")
+        notes.append("neutral loop: the loop term does not decay, roots may exist at any frequency")
+    if im_max is None:
+        if proven * tau_max / _MAX_STEP <= _MAX_SAMPLES:
+            return proven, seeds, ContourCertificate(sigma, proven, "bound", proven, True)
+        omega, ratio = _sampled_ratio(model, weight_bound, sigma, growth, 1e-3, proven, seeds.imag)
+        big = np.flatnonzero(ratio >= 0.5)
+        radius = float(max(2.0 * omega[big[-1]], 1e-2)) if big.size else 1e-2
+        notes.append(f"the proven height {proven:.6g} rad/s would need more than {_MAX_SAMPLES} samples "
+                     f"at delay {tau_max:.6g} s; height from |L| sampled up to it (poles as samples)")
+        return radius, seeds, ContourCertificate(sigma, radius, "sampled", proven, False, tuple(notes))
+    certified = im_max >= proven
+    if not certified and math.isfinite(proven):
+        omega, ratio = _sampled_ratio(model, weight_bound, sigma, growth, im_max, proven, seeds.imag)
+        beyond = ratio[omega > im_max]
+        if beyond.size and beyond.max() >= 0.5:
+            message = (f"im_max = {im_max:.6g} rad/s is too small for loop {model.loop.name!r}: its loop "
+                       f"term reaches {beyond.max():.3g} (>= 1/2) at omega = "
+                       f"{omega[omega > im_max][np.argmax(beyond)]:.6g} rad/s, roots beyond im_max may be "
+                       f"missed; the proven height is {proven:.6g} rad/s (omit im_max to use it)")
+            warnings.warn(message, StabilityWarning, stacklevel=4)
+            notes.append(message)
+        else:
+            notes.append(f"im_max = {im_max:.6g} rad/s is below the proven height {proven:.6g} rad/s "
+                         "(the sampled loop term stays below 1/2 in between)")
+    return im_max, seeds, ContourCertificate(sigma, im_max, "user", proven, certified, tuple(notes))
 
 
 def _contour(model: LoopCharacteristic, weight_bound: np.ndarray, tau_max: float, *,
              sigma: float = 0.0, im_max: float | None = None, resolution: int = 256) -> _Contour:
-    radius = _radius(model, weight_bound, sigma, tau_max, im_max)
+    radius, poles, certificate = _height(model, weight_bound, sigma, tau_max, im_max)
     growth = math.exp(max(0.0, -sigma) * tau_max)
-    notes = []
+    notes = list(certificate.notes)
     for _ in range(8):
         far = _FarPath(model, sigma, radius, radius, 48, tau_max, 1e-12 * radius)
         ratio = growth * _loop_bound(far.base, far.terms, weight_bound)
-        if np.all(ratio < 0.5) or im_max is not None:
-            if im_max is not None and not np.all(ratio < 0.5):
-                notes.append(f"im_max = {im_max:.6g} rad/s: the loop term is not small on the far edges "
-                             f"(max ratio {ratio.max():.3g}); roots beyond it may be missed")
+        if np.all(ratio < 0.5) or certificate.source != "sampled":
+            if not np.all(ratio < 0.5):
+                notes.append(f"the loop term is not small on the far contour edges (max ratio "
+                             f"{ratio.max():.3g}); roots beyond im_max = {radius:.6g} rad/s may be missed")
             break
         radius *= 2.0
     else:
-        raise ModelError(f"no contour radius found for loop {model.loop.name!r}: the loop term stays "
+        raise ModelError(f"no contour height found for loop {model.loop.name!r}: the loop term stays "
                          "large far from the origin; pass im_max")
+    if radius != certificate.im_max or notes != list(certificate.notes):
+        certificate = replace(certificate, im_max=radius, notes=tuple(notes))
     with np.errstate(all="ignore"):
         steps = np.angle(far.base[1:] / far.base[:-1])
     if not np.all(np.isfinite(steps)):
         raise ModelError("the open-loop characteristic function vanishes on the far contour edge; "
                          "pass a different im_max")
     n0 = max(resolution, int(math.ceil(radius * tau_max / _MAX_STEP)))
+    seeds = _resonance_samples(poles, sigma, radius)
     line = _VerticalPath(model, [complex(sigma, 0.0), complex(sigma, radius)], n0, tau_max,
-                         1e-13 * radius)
-    return _Contour(model, sigma, radius, line, float(steps.sum()), notes)
+                         1e-13 * radius, seeds)
+    return _Contour(model, sigma, radius, line, float(steps.sum()), notes, certificate)
+
+
+def _resonance_samples(poles: np.ndarray, sigma: float, radius: float) -> np.ndarray:
+    """Samples of ``sigma + i omega`` at each open-loop pole's imaginary part and half-power
+    points (distance of the pole to the line) on either side, inside ``[0, radius]``."""
+    if poles.size == 0:
+        return np.zeros(0, complex)
+    width = np.maximum(np.abs(poles.real - sigma), 1e-9 * radius)
+    omega = np.concatenate([poles.imag, poles.imag - width, poles.imag + width])
+    omega = omega[(omega > 0) & (omega < radius)]
+    return sigma + 1j * omega
 
 
 # --------------------------------------------------------------------------------------------
