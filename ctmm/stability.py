@@ -18,6 +18,7 @@ import numpy as np
 
 from . import validation
 from .control.loops import ControlledChain, Feedback
+from .certification import ContourCertificate
 from .errors import ModelError, unknown_name
 from .roots import RootSet, SpectralAbscissa, rightmost_roots
 from .roots import spectral_abscissa as _roots_abscissa
@@ -25,7 +26,7 @@ from .sweeps import (LoopCharacteristic, _check_parameters, _char_fn, _Contour, 
                      _weight_bound, as_controlled, count, find_loop, n_sets)
 
 __all__ = ["LoopCharacteristic", "characteristic_roots", "spectral_abscissa", "spectral_seeds",
-           "unstable_root_count",
+           "unstable_root_count", "RootCounts",
            "DelayMargin", "delay_margin", "GainMargin", "gain_margin", "SimulationCheck",
            "crosscheck_by_simulation", "stability_chart", "StabilityChart", "Boundary"]
 
@@ -57,12 +58,17 @@ def unstable_root_count(system: ControlledChain, *, loop: str | None = None, gai
     sigma : float
         Count roots right of ``Re s = sigma`` [1/s] (0: unstable roots).
     im_max : float, optional
-        Imaginary extent [rad/s] of the contour (default: chosen from the decay of the loop term).
+        Imaginary extent [rad/s] of the contour (default: the proven height, module
+        :mod:`ctmm.certification`).
 
     Returns
     -------
-    numpy.ndarray of int
-        Counts (with multiplicity); -1 where a root lies on the line ``Re s = sigma``.
+    RootCounts
+        Integer array of counts (with multiplicity); -1 where a root lies on the line
+        ``Re s = sigma``.  ``counts.certificate`` says which region was counted and whether no
+        root outside it can exist (:class:`~ctmm.certification.ContourCertificate`); a user
+        ``im_max`` below the proven height that lets the loop term reach 1/2 warns
+        (:class:`~ctmm.certification.StabilityWarning`).
 
     Examples
     --------
@@ -82,7 +88,22 @@ def unstable_root_count(system: ControlledChain, *, loop: str | None = None, gai
     sigma = validation.finite("sigma", sigma)
     contour = _contour(model, _weight_bound(k, w), float(tau.max()), sigma=sigma, im_max=im_max)
     counts, _ = count(contour, k, tau, w)
-    return counts
+    return RootCounts(counts, contour.certificate)
+
+
+class RootCounts(np.ndarray):
+    """Root counts (an integer array) with the :class:`~ctmm.certification.ContourCertificate`
+    of the region they cover in its ``certificate`` attribute."""
+
+    certificate: ContourCertificate | None
+
+    def __new__(cls, counts: Any, certificate: ContourCertificate | None = None) -> "RootCounts":
+        obj = np.asarray(counts).view(cls)
+        obj.certificate = certificate
+        return obj
+
+    def __array_finalize__(self, obj: Any) -> None:
+        self.certificate = getattr(obj, "certificate", None)
 
 
 
@@ -446,6 +467,11 @@ class DelayMargin:
         +1: a pair moves into the right half plane as the delay grows; -1: out of it.
     stable_intervals : tuple of (float, float)
         Delay intervals of stability within [0, delay_max] [s].
+    delay_max : float
+        Largest delay listed [s].
+    certificate : ContourCertificate
+        Frequency range searched for crossovers and counted, and whether it is proven to hold
+        every crossover (:mod:`ctmm.certification`).
     """
 
     critical_delay: float
@@ -459,10 +485,13 @@ class DelayMargin:
     crossing_directions: tuple
     stable_intervals: tuple
     delay_max: float
+    certificate: ContourCertificate | None = None
 
     def as_dict(self) -> dict:
         """Plain ``dict`` (JSON-friendly)."""
-        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
+        out = {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
+        out["certificate"] = None if self.certificate is None else self.certificate.as_dict()
+        return out
 
 
 def _loop_zero_crossings(contour: _Contour, function, rows=None):
@@ -574,7 +603,7 @@ def delay_margin(system: ControlledChain, loop: str | None = None, *, delay_max:
                        margin=margin, stable=stable, unstable_roots_at_zero_delay=n0,
                        crossing_delays=tuple(taus), crossing_frequencies=tuple(omegas),
                        crossing_directions=tuple(directions), stable_intervals=tuple(intervals),
-                       delay_max=float(limit))
+                       delay_max=float(limit), certificate=contour.certificate)
 
 
 @dataclass(frozen=True)
@@ -599,6 +628,10 @@ class GainMargin:
         All crossings with ``|factor| <= max_factor``, ascending.
     stable_intervals : tuple of (float, float)
         Factor intervals of stability within [-max_factor, max_factor].
+    max_factor : float
+        Largest factor searched.
+    certificate : ContourCertificate
+        Frequency range searched and whether it is proven complete (:mod:`ctmm.certification`).
     """
 
     upper: float
@@ -611,6 +644,7 @@ class GainMargin:
     crossing_frequencies: tuple
     stable_intervals: tuple
     max_factor: float
+    certificate: ContourCertificate | None = None
 
     @property
     def upper_db(self) -> float:
@@ -621,6 +655,7 @@ class GainMargin:
         """Plain ``dict`` (JSON-friendly)."""
         out = {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
         out["upper_db"] = self.upper_db
+        out["certificate"] = None if self.certificate is None else self.certificate.as_dict()
         return out
 
 
@@ -676,7 +711,7 @@ def gain_margin(system: ControlledChain, loop: str | None = None, *, max_factor:
                       lower_frequency=float(crossings.omega[below[-1]]) if below.size else math.nan,
                       gain=g, stable=stable, crossing_factors=tuple(float(f) for f in factors),
                       crossing_frequencies=tuple(float(o) for o in crossings.omega),
-                      stable_intervals=intervals, max_factor=max_factor)
+                      stable_intervals=intervals, max_factor=max_factor, certificate=contour.certificate)
 
 
 # --------------------------------------------------------------------------------------------

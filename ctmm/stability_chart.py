@@ -33,6 +33,7 @@ import numpy as np
 
 from . import validation
 from .control.loops import ControlledChain
+from .certification import ContourCertificate
 from .errors import ModelError, unknown_name
 from .stability import row_crossings
 from .sweeps import (LoopCharacteristic, _contour, _weight_bound, as_controlled, count, find_loop,
@@ -95,6 +96,9 @@ class StabilityChart:
         With ``verify=True``: every grid point counted directly agrees.
     notes : list of str
         Diagnostics.
+    certificate : ContourCertificate or None
+        Region counted and whether no root outside it can exist, for the whole parameter box
+        (:mod:`ctmm.certification`); per-point charts of a function: the least certain point.
     """
 
     x_name: str
@@ -117,6 +121,7 @@ class StabilityChart:
     abscissa_levels: np.ndarray | None = None
     verified: bool | None = None
     notes: list = field(default_factory=list)
+    certificate: ContourCertificate | None = None
 
     @property
     def stable(self) -> np.ndarray:
@@ -208,6 +213,7 @@ class StabilityChart:
             "max_crossing_error": float(np.max(self.crossings["error"])) if len(self.crossings.get("error", ())) else 0.0,
             "im_max": self.im_max, "wall_time_s": self.wall_time_s,
             "n_evaluations": self.n_evaluations, "verified": self.verified, "notes": list(self.notes),
+            "certificate": None if self.certificate is None else self.certificate.as_dict(),
         }
 
 
@@ -382,7 +388,7 @@ def _loop_chart(system, loop, xs, ys, im_max, levels, verify, pool, progress) ->
     return StabilityChart(x_name, y_name, x_grid, y_grid, counts, tuple(boundaries), cross, p_name,
                           x_label, y_label, system.name, model.loop.name, contour.radius,
                           "rows (exact crossings + argument principle)", 0.0, model.n_evaluations,
-                          abscissa, levels, verified, notes)
+                          abscissa, levels, verified, notes, contour.certificate)
 
 
 def _classify_rows(model, contour, crossings, p_name, p_grid, q_name, q_grid, notes) -> np.ndarray:
@@ -649,7 +655,8 @@ def _point_count(args) -> int:
     system, loop, im_max = args
     from .stability import unstable_root_count
 
-    return int(unstable_root_count(system, loop=loop, im_max=im_max)[0])
+    counts = unstable_root_count(system, loop=loop, im_max=im_max)
+    return int(counts[0]), counts.certificate
 
 
 def _function_chart(make_system, loop, xs, ys, im_max, levels, pool, progress) -> StabilityChart:
@@ -675,11 +682,15 @@ def _function_chart(make_system, loop, xs, ys, im_max, levels, pool, progress) -
         abscissa = None if levels is None else \
             _abscissa_levels(model, k, tau, w, levels, im_max, progress).reshape(y_grid.size, x_grid.size)
         notes += contour.notes
+        certificate = contour.certificate
     else:
         if levels is not None:
             raise ModelError("abscissa_levels needs systems that differ only in one loop's parameters")
-        counts = np.array(parallel_map(_point_count, [(s_, loop, im_max) for s_ in systems],
-                                       executor=pool, progress=progress, description="stability chart"))
+        results = parallel_map(_point_count, [(s_, loop, im_max) for s_ in systems],
+                               executor=pool, progress=progress, description="stability chart")
+        counts = np.array([c for c, _ in results])
+        certificates = [cert for _, cert in results]
+        certificate = next((cert for cert in certificates if not cert.certified), certificates[0])
         radius, method, evaluations, abscissa = float("nan") if im_max is None else im_max, \
             "points (one count per system)", 0, None
     counts = counts.reshape(y_grid.size, x_grid.size)
@@ -689,7 +700,7 @@ def _function_chart(make_system, loop, xs, ys, im_max, levels, pool, progress) -
                           {"row": np.zeros(0, int), "value": np.zeros(0), "omega": np.zeros(0),
                            "error": np.zeros(0), "static": np.zeros(0, bool)}, None,
                           x_label, y_label, systems[0].name, lp_name, radius, method, 0.0,
-                          evaluations, abscissa, levels, None, notes)
+                          evaluations, abscissa, levels, None, notes, certificate)
 
 
 def _grid_boundaries(x: np.ndarray, y: np.ndarray, counts: np.ndarray) -> list[Boundary]:
