@@ -176,8 +176,8 @@ def spectral_seeds(system: Any, *, nodes: int = 24) -> np.ndarray:
     array for systems without such a realisation (beams, LTI controllers, feedthrough from
     acceleration or force sensing).
     """
+    from .delay_collocation import generator_eigenvalues
     from .interop import to_state_space
-    from .reference.dde import chebyshev_collocation_roots
 
     loops = system.loops if isinstance(system, ControlledChain) else ()
     plant = system.plant if isinstance(system, ControlledChain) else system
@@ -202,8 +202,8 @@ def spectral_seeds(system: Any, *, nodes: int = 24) -> np.ndarray:
             A0 = A0 + term
         else:
             delayed[lp.delay] = delayed.get(lp.delay, 0.0) + term
-    roots = chebyshev_collocation_roots(A0, [(m, tau) for tau, m in delayed.items()], nodes) if delayed else \
-        np.linalg.eigvals(A0).astype(complex)
+    roots = generator_eigenvalues(A0, [(m, tau) for tau, m in delayed.items()], nodes)
+    roots = roots[np.lexsort((roots.imag, -roots.real))]
     return roots[np.isfinite(roots)]
 
 

@@ -276,3 +276,33 @@ def test_long_chain_400_masses_default_call():
     assert counts.certificate.certified
     roots = closed_loop_roots(reference, [loop])
     assert counts.tolist() == [int(np.sum(roots.real > 0))]
+
+
+# ------------------------------------------------------------------------------ library seeds
+def test_library_collocation_matches_lambert_w():
+    """x' = a x + b x(t - tau): the library's collocation (seeds) against Lambert W roots."""
+    from ctmm.delay_collocation import generator_eigenvalues
+    from ctmm.reference.dde import lambert_w_roots
+
+    a, b, tau = -0.5, -2.0, 1.0
+    exact = lambert_w_roots(a, b, tau, range(-3, 4))
+    approx = generator_eigenvalues(np.array([[a]]), [(np.array([[b]]), tau)], 40)
+    for root in exact[np.abs(exact) < 8]:
+        assert np.min(np.abs(approx - root)) < 1e-8 * max(1.0, abs(root))
+
+
+def test_no_library_module_imports_the_reference_models():
+    import ast
+    import pathlib
+
+    package = pathlib.Path(ctmm.__file__).parent
+    offenders = []
+    for path in package.rglob("*.py"):
+        if "reference" in path.relative_to(package).parts:
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = [node.module or ""] if isinstance(node, ast.ImportFrom) else \
+                [a.name for a in node.names] if isinstance(node, ast.Import) else []
+            if any("reference" in name.split(".") for name in names):
+                offenders.append(str(path.relative_to(package)))
+    assert offenders == []
