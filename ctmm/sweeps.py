@@ -528,8 +528,7 @@ def _sampled_ratio(model: LoopCharacteristic, weight_bound: np.ndarray, sigma: f
     refined until every component turns by less than ``_MAX_STEP`` between samples."""
     low = max(low, 1e-3)
     decades = max(1, int(math.ceil(math.log10(high / low))))
-    vertices = sigma + 1j * np.concatenate([[0.0], np.logspace(math.log10(low), math.log10(high),
-                                                               4 * decades + 1)])
+    vertices = sigma + 1j * np.logspace(math.log10(low), math.log10(high), 4 * decades + 1)
     path = _VerticalPath(model, vertices, 40 * decades, 0.0, 1e-13 * high,
                          [sigma + 1j * w for w in np.asarray(seeds, float) if 0 <= w <= high])
     return path.s.imag, growth * _loop_bound(path.base, path.terms, weight_bound)
@@ -558,13 +557,21 @@ def _height(model: LoopCharacteristic, weight_bound: np.ndarray, sigma: float, t
         seeds = np.zeros(0)
         if im_max is not None:
             return im_max, seeds, ContourCertificate(sigma, im_max, "user", math.nan, False, tuple(notes))
-        omega, ratio = _sampled_ratio(model, weight_bound, sigma, growth, 1e-3, 1e7)
+        for top in (1e7, 1e6, 1e5, 1e4):      # distributed models may fail to evaluate very high
+            try:
+                omega, ratio = _sampled_ratio(model, weight_bound, sigma, growth, 1e-3, top)
+                break
+            except (np.linalg.LinAlgError, SingularSystemError):
+                continue
+        else:
+            raise ModelError(f"loop {model.loop.name!r}: the model cannot be evaluated on Re s = "
+                             f"{sigma:.6g} above 1e3 rad/s to find a contour height; pass im_max")
         big = np.flatnonzero(ratio >= 0.5)
-        if big.size and omega[big[-1]] >= 1e6:
+        if big.size and omega[big[-1]] >= 0.1 * top:
             raise _neutral_error(model, f"its sampled loop term does not decay (|L| = {ratio[big[-1]]:.3g} "
                                         f"at omega = {omega[big[-1]]:.3g} rad/s)")
         radius = float(max(2.0 * omega[big[-1]], 1e-2)) if big.size else 1e-2
-        notes.append(f"height from |L| sampled on Re s = {sigma:.6g} up to 1e7 rad/s")
+        notes.append(f"height from |L| sampled on Re s = {sigma:.6g} up to {top:.0e} rad/s")
         return radius, seeds, ContourCertificate(sigma, radius, "sampled", math.nan, False, tuple(notes))
     proven = bound.radius(0.5 / growth)
     seeds = bound.poles
