@@ -27,7 +27,7 @@ from .sweeps import (LoopCharacteristic, _check_parameters, _char_fn, _Contour, 
 
 __all__ = ["LoopCharacteristic", "characteristic_roots", "spectral_abscissa", "spectral_seeds",
            "unstable_root_count", "RootCounts",
-           "DelayMargin", "delay_margin", "GainMargin", "gain_margin", "SimulationCheck",
+           "DelayMargin", "delay_margin", "GainMargin", "gain_margin", "gain_crossovers", "SimulationCheck",
            "crosscheck_by_simulation", "stability_chart", "StabilityChart", "Boundary"]
 
 
@@ -516,6 +516,41 @@ def _loop_zero_crossings(contour: _Contour, function, rows=None):
     return omega, np.sign(f[j]).astype(int)
 
 
+def _gain_crossings(model: LoopCharacteristic, contour: _Contour) -> tuple[np.ndarray, np.ndarray]:
+    """Frequencies Omega > 0 on the contour line with ``|L(i Omega)| = 1`` and the sign of
+    ``|L| - 1`` below each."""
+    def excess(s, base, terms):          # |k C P|^2 - 1, scaled by |D Delta_0|^2
+        loop_term = model.gain * (model.weights @ terms)
+        return np.abs(loop_term) ** 2 - np.abs(base) ** 2, np.zeros(np.shape(s))
+
+    return _loop_zero_crossings(contour, excess)
+
+
+def gain_crossovers(system: ControlledChain, loop: str | None = None, *,
+                    im_max: float | None = None) -> tuple[np.ndarray, ContourCertificate]:
+    """Every gain crossover ``|L(i Omega)| = 1`` (Omega > 0) of a loop at its current gain.
+
+    Parameters
+    ----------
+    system : ControlledChain
+    loop : str, optional
+        Loop name (default: the only loop).
+    im_max : float, optional
+        Frequency range [rad/s] (default: the proven height of :mod:`ctmm.certification`,
+        beyond which ``|L| < 1/2``, so no crossover is left out).
+
+    Returns
+    -------
+    (numpy.ndarray, ContourCertificate)
+        Crossover frequencies [rad/s], ascending, and the certificate of the searched range.
+    """
+    model = LoopCharacteristic(system, loop)
+    contour = _contour(model, _weight_bound(np.array([model.gain]), model.weights[None, :]), model.delay,
+                       im_max=im_max)
+    omega, _ = _gain_crossings(model, contour)
+    return np.sort(omega), contour.certificate
+
+
 def delay_margin(system: ControlledChain, loop: str | None = None, *, delay_max: float | None = None,
                  im_max: float | None = None) -> DelayMargin:
     """Delay margin of a loop from its exact gain crossovers (no Pade approximation).
@@ -555,12 +590,7 @@ def delay_margin(system: ControlledChain, loop: str | None = None, *, delay_max:
     w = model.weights[None, :]
     tau_now = model.delay
     contour = _contour(model, _weight_bound(k, w), max(tau_now, 0.0), im_max=im_max)
-
-    def excess(s, base, terms):          # |k C P|^2 - 1, scaled by |D Delta_0|^2
-        loop_term = model.gain * (model.weights @ terms)
-        return np.abs(loop_term) ** 2 - np.abs(base) ** 2, np.zeros(np.shape(s))
-
-    omega_c, sign = _loop_zero_crossings(contour, excess)
+    omega_c, sign = _gain_crossings(model, contour)
     taus, omegas, directions = [], [], []
     if omega_c.size:
         base, terms = model.components(1j * omega_c)

@@ -306,3 +306,19 @@ def test_no_library_module_imports_the_reference_models():
             if any("reference" in name.split(".") for name in names):
                 offenders.append(str(path.relative_to(package)))
     assert offenders == []
+
+
+# ------------------------------------------------------------------------------ margins on a grid
+def test_margins_on_a_coarse_grid_are_completed_by_the_certified_search():
+    from ctmm.control.analysis import margins
+
+    system, reference, loop = seed()
+    _, crossings = crossing_reference(reference, loop)
+    expected = min(t for t, _, _ in crossings) - 0.005
+    fine = margins(system, "L", np.logspace(0.5, 2.5, 600))
+    for grid in (np.logspace(0.5, 2.5, 40), np.logspace(0.0, 1.0, 40)):   # between / outside
+        coarse = margins(system, "L", grid)
+        assert abs(coarse.delay_margin - expected) < 1e-9
+        assert abs(coarse.gain_margin - fine.gain_margin) < 1e-9
+        assert len(coarse.gain_crossovers) == 2 and any("added" in note for note in coarse.notes)
+    assert abs(fine.delay_margin - expected) < 1e-9 and fine.certificate.certified
