@@ -22,8 +22,8 @@ from .certification import ContourCertificate
 from .errors import ModelError, unknown_name
 from .roots import RootSet, SpectralAbscissa, rightmost_roots
 from .roots import spectral_abscissa as _roots_abscissa
-from .sweeps import (LoopCharacteristic, _check_parameters, _char_fn, _Contour, _contour, _TINY,
-                     _weight_bound, as_controlled, count, find_loop, n_sets)
+from .sweeps import (LoopCharacteristic, check_parameters, characteristic_callable, Contour, build_contour, TINY,
+                     loop_weight_bound, as_controlled, count, find_loop, n_sets)
 
 __all__ = ["LoopCharacteristic", "characteristic_roots", "spectral_abscissa", "spectral_seeds",
            "unstable_root_count", "RootCounts",
@@ -84,9 +84,9 @@ def unstable_root_count(system: ControlledChain, *, loop: str | None = None, gai
     n = n_sets(gain, delay, weights)
     k, tau, w = model.parameters(n, None if gain is None else np.ravel(gain),
                                  None if delay is None else np.ravel(delay), weights)
-    _check_parameters(k, tau, w)
+    check_parameters(k, tau, w)
     sigma = validation.finite("sigma", sigma)
-    contour = _contour(model, _weight_bound(k, w), float(tau.max()), sigma=sigma, im_max=im_max)
+    contour = build_contour(model, loop_weight_bound(k, w), float(tau.max()), sigma=sigma, im_max=im_max)
     counts, _ = count(contour, k, tau, w)
     return RootCounts(counts, contour.certificate)
 
@@ -161,7 +161,7 @@ def characteristic_roots(system: Any, *, re_min: float, im_max: float, re_max: f
             raise ModelError(f"seeds must be a sequence of complex numbers or 'spectral', got {seeds!r}")
         seeds = spectral_seeds(system)
         seeds = seeds[(seeds.real > re_min) & (np.abs(seeds.imag) <= im_max)]
-    return rightmost_roots(_char_fn(system), im_max=im_max, re_min=re_min, re_max=re_max, seeds=seeds,
+    return rightmost_roots(characteristic_callable(system), im_max=im_max, re_min=re_min, re_max=re_max, seeds=seeds,
                            conjugate_symmetric=True, tol=tol)
 
 
@@ -220,7 +220,7 @@ def spectral_abscissa(system: Any, *, re_min: float, im_max: float, re_max: floa
     """
     re_min = validation.finite("re_min", re_min)
     im_max = validation.positive("im_max", im_max)
-    return _roots_abscissa(_char_fn(system), im_max=im_max, re_min=re_min, re_max=re_max, seeds=seeds,
+    return _roots_abscissa(characteristic_callable(system), im_max=im_max, re_min=re_min, re_max=re_max, seeds=seeds,
                            conjugate_symmetric=True, tol=tol)
 
 
@@ -281,7 +281,7 @@ def _row_coefficients(s, base, terms, sets0, sets1):
     return d0, d1 - d0
 
 
-def row_crossings(contour: _Contour, sets0, sets1, p_range: tuple[float, float], *,
+def row_crossings(contour: Contour, sets0, sets1, p_range: tuple[float, float], *,
                   grid: np.ndarray | None = None, refine_all: bool = False) -> Crossings:
     """Values of a linear parameter ``p`` at which ``Delta(sigma + i omega; p) = 0``, per row.
 
@@ -303,7 +303,7 @@ def row_crossings(contour: _Contour, sets0, sets1, p_range: tuple[float, float],
     # static crossing (s = sigma real): direction from ds/dp = -A / Delta_s, with
     # Delta_s = Im Delta(sigma + i eps) / eps (Delta(sigma) = 0 there; the scale is positive)
     p0 = p_at[:, 0]
-    ok = np.isfinite(p0) & (np.abs(A[:, 0]) > _TINY) & (p0 >= keep_lo) & (p0 <= keep_hi)
+    ok = np.isfinite(p0) & (np.abs(A[:, 0]) > TINY) & (p0 >= keep_lo) & (p0 <= keep_hi)
     r_static = np.flatnonzero(ok)
     d_static = np.zeros(r_static.size, int)
     if r_static.size:
@@ -368,7 +368,7 @@ def _undecided(grid: np.ndarray, low: np.ndarray, high: np.ndarray, span: float)
     return right > left
 
 
-def _illinois(contour: _Contour, sets0, sets1, rows, a, b, fa, fb, pa, pb, *, grid=None,
+def _illinois(contour: Contour, sets0, sets1, rows, a, b, fa, fb, pa, pb, *, grid=None,
               span: float = 1.0, iterations: int = 60):
     """Refine brackets [a, b] of sign changes of Im(B conj A) (one per crossing, batched).
 
@@ -494,7 +494,7 @@ class DelayMargin:
         return out
 
 
-def _loop_zero_crossings(contour: _Contour, function, rows=None):
+def _loop_zero_crossings(contour: Contour, function, rows=None):
     """Brackets and refined roots (omega > 0) of a real function of the line samples.
 
     ``function(s, base, terms) -> (f, extra)`` for one parameter set; returns (omega, f_a sign)."""
@@ -516,7 +516,7 @@ def _loop_zero_crossings(contour: _Contour, function, rows=None):
     return omega, np.sign(f[j]).astype(int)
 
 
-def _gain_crossings(model: LoopCharacteristic, contour: _Contour) -> tuple[np.ndarray, np.ndarray]:
+def _gain_crossings(model: LoopCharacteristic, contour: Contour) -> tuple[np.ndarray, np.ndarray]:
     """Frequencies Omega > 0 on the contour line with ``|L(i Omega)| = 1`` and the sign of
     ``|L| - 1`` below each."""
     def excess(s, base, terms):          # |k C P|^2 - 1, scaled by |D Delta_0|^2
@@ -545,7 +545,7 @@ def gain_crossovers(system: ControlledChain, loop: str | None = None, *,
         Crossover frequencies [rad/s], ascending, and the certificate of the searched range.
     """
     model = LoopCharacteristic(system, loop)
-    contour = _contour(model, _weight_bound(np.array([model.gain]), model.weights[None, :]), model.delay,
+    contour = build_contour(model, loop_weight_bound(np.array([model.gain]), model.weights[None, :]), model.delay,
                        im_max=im_max)
     omega, _ = _gain_crossings(model, contour)
     return np.sort(omega), contour.certificate
@@ -589,7 +589,7 @@ def delay_margin(system: ControlledChain, loop: str | None = None, *, delay_max:
     k = np.array([model.gain])
     w = model.weights[None, :]
     tau_now = model.delay
-    contour = _contour(model, _weight_bound(k, w), max(tau_now, 0.0), im_max=im_max)
+    contour = build_contour(model, loop_weight_bound(k, w), max(tau_now, 0.0), im_max=im_max)
     omega_c, sign = _gain_crossings(model, contour)
     taus, omegas, directions = [], [], []
     if omega_c.size:
@@ -719,7 +719,7 @@ def gain_margin(system: ControlledChain, loop: str | None = None, *, max_factor:
                          "is undefined; give the loop a non-zero gain")
     w = model.weights[None, :]
     tau = np.array([model.delay])
-    contour = _contour(model, _weight_bound(np.array([abs(g) * max_factor]), w), model.delay,
+    contour = build_contour(model, loop_weight_bound(np.array([abs(g) * max_factor]), w), model.delay,
                        im_max=im_max)
     sets0 = (np.array([0.0]), tau, w)
     sets1 = (np.array([g]), tau, w)

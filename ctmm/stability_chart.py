@@ -36,7 +36,7 @@ from .control.loops import ControlledChain
 from .certification import ContourCertificate
 from .errors import ModelError, unknown_name
 from .stability import row_crossings
-from .sweeps import (LoopCharacteristic, _contour, _weight_bound, as_controlled, count, find_loop,
+from .sweeps import (LoopCharacteristic, build_contour, loop_weight_bound, as_controlled, count, find_loop,
                      managed_executor, parallel_map)
 
 __all__ = ["Boundary", "StabilityChart", "stability_chart"]
@@ -356,7 +356,7 @@ def _loop_chart(system, loop, xs, ys, im_max, levels, verify, pool, progress) ->
     # the parameter box (for the contour radius) and the largest delay (for the sampling)
     P, Q = np.meshgrid(p_grid, q_grid)
     k_all, tau_all, w_all = _sets_for(model, {p_name: P.ravel(), q_name: Q.ravel()}, P.size)
-    contour = _contour(model, _weight_bound(k_all, w_all), float(tau_all.max()), im_max=im_max)
+    contour = build_contour(model, loop_weight_bound(k_all, w_all), float(tau_all.max()), im_max=im_max)
     model._chart_tau_max = float(tau_all.max())
     notes += contour.notes
     _resolve_curves(model, contour, p_name, q_name, p_grid, q_grid)
@@ -613,7 +613,7 @@ def _abscissa_levels(model, k, tau, w, levels, im_max, progress=None) -> np.ndar
     counts = []
     bar = progress_bar(levels.size, "abscissa levels", enabled=progress, min_total=10)
     for sigma in levels:
-        contour = _contour(model, _weight_bound(k, w), float(tau.max()), sigma=float(sigma),
+        contour = build_contour(model, loop_weight_bound(k, w), float(tau.max()), sigma=float(sigma),
                            im_max=im_max)
         counts.append(count(contour, k, tau, w)[0])
         bar.update()
@@ -676,7 +676,7 @@ def _function_chart(make_system, loop, xs, ys, im_max, levels, pool, progress) -
         k = np.array([1.0 if lp.is_lti else float(lp.gain) for lp in (sys_.loop(shared.name) for sys_ in systems)])
         tau = np.array([sys_.loop(shared.name).delay for sys_ in systems])
         w = np.array([[wt for _, wt in sys_.loop(shared.name).terms] for sys_ in systems])
-        contour = _contour(model, _weight_bound(k, w), float(tau.max()), im_max=im_max)
+        contour = build_contour(model, loop_weight_bound(k, w), float(tau.max()), im_max=im_max)
         counts, _ = count(contour, k, tau, w)
         radius, method, evaluations = contour.radius, "points (batched over one loop)", model.n_evaluations
         abscissa = None if levels is None else \

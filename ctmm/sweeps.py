@@ -66,7 +66,7 @@ __all__ = ["LoopCharacteristic", "managed_executor", "executor_workers", "parall
 
 _MAX_STEP = 0.4          # largest complex-log step of a component between samples
 _COUNT_STEP = 1.0        # largest phase step of Delta(s; p) between samples when counting
-_TINY = 1e-13            # components below this (relative to the largest at s) are ignored
+TINY = 1e-13            # components below this (relative to the largest at s) are ignored
 _MAX_SAMPLES = 200_000   # largest initial line sampling for a proven contour height
 
 
@@ -93,7 +93,7 @@ def delay_free_answer(system: Any, radius: float = 1e4) -> str:
     from .roots import ContourError, count_roots_in_rectangle
 
     try:
-        count = count_roots_in_rectangle(_char_fn(system), (0.0, radius), (-radius, radius),
+        count = count_roots_in_rectangle(characteristic_callable(system), (0.0, radius), (-radius, radius),
                                          max_evaluations=50_000)
     except ContourError as exc:
         return (f"not asymptotically stable: a root lies on the imaginary axis near "
@@ -427,7 +427,7 @@ class _Path:
         v, w = both[:, :n], both[:, n:]
         with np.errstate(all="ignore"):
             rate = np.log(w / v) / self.delta
-        rate = np.where(np.isfinite(rate) & (np.abs(v) > _TINY), rate, 0.0)
+        rate = np.where(np.isfinite(rate) & (np.abs(v) > TINY), rate, 0.0)
         return v, rate
 
     def _direction(self, s: np.ndarray) -> np.ndarray:  # unit tangent at each sample
@@ -438,7 +438,7 @@ class _Path:
         predicted from the rates) or changes its modulus by more than a factor e^1.5."""
         v, rate = self.values, self.logderiv
         h = np.abs(np.diff(self.s))
-        big = (np.abs(v[:, 1:]) > _TINY) & (np.abs(v[:, :-1]) > _TINY)
+        big = (np.abs(v[:, 1:]) > TINY) & (np.abs(v[:, :-1]) > TINY)
         with np.errstate(all="ignore"):
             step = np.log(v[:, 1:] / v[:, :-1])
         step = np.where(big & np.isfinite(step), step, 0.0)
@@ -500,7 +500,7 @@ class _FarPath(_Path):
 
 
 @dataclass
-class _Contour:
+class Contour:
     """Everything :func:`count` needs for one line ``Re s = sigma`` and one parameter box."""
 
     model: LoopCharacteristic
@@ -607,8 +607,25 @@ def _height(model: LoopCharacteristic, weight_bound: np.ndarray, sigma: float, t
     return im_max, seeds, ContourCertificate(sigma, im_max, "user", proven, certified, tuple(notes))
 
 
-def _contour(model: LoopCharacteristic, weight_bound: np.ndarray, tau_max: float, *,
-             sigma: float = 0.0, im_max: float | None = None, resolution: int = 256) -> _Contour:
+def build_contour(model: LoopCharacteristic, weight_bound: np.ndarray, tau_max: float, *,
+                  sigma: float = 0.0, im_max: float | None = None, resolution: int = 256) -> Contour:
+    """The counting contour of a parameter box: height (proven when possible), far-edge phase,
+    line samples seeded with the open-loop resonances, and the certificate.
+
+    Parameters
+    ----------
+    model : LoopCharacteristic
+    weight_bound : numpy.ndarray
+        Largest ``|k w_j|`` per sensor term over the box (:func:`loop_weight_bound`).
+    tau_max : float
+        Largest delay of the box [s].
+    sigma : float
+        Abscissa of the counting line [1/s].
+    im_max : float, optional
+        User height [rad/s] (default: the proven height, :mod:`ctmm.certification`).
+    resolution : int
+        Initial number of line samples.
+    """
     radius, poles, certificate = _height(model, weight_bound, sigma, tau_max, im_max)
     growth = math.exp(max(0.0, -sigma) * tau_max)
     notes = list(certificate.notes)
@@ -635,7 +652,7 @@ def _contour(model: LoopCharacteristic, weight_bound: np.ndarray, tau_max: float
     seeds = _resonance_samples(poles, sigma, radius)
     line = _VerticalPath(model, [complex(sigma, 0.0), complex(sigma, radius)], n0, tau_max,
                          1e-13 * radius, seeds)
-    return _Contour(model, sigma, radius, line, float(steps.sum()), notes, certificate)
+    return Contour(model, sigma, radius, line, float(steps.sum()), notes, certificate)
 
 
 def _resonance_samples(poles: np.ndarray, sigma: float, radius: float) -> np.ndarray:
@@ -657,7 +674,7 @@ def _phase_steps(delta: np.ndarray) -> np.ndarray:
         return np.angle(delta[:, :-1] * np.conj(delta[:, 1:]))    # from sample j+1 down to j
 
 
-def count(contour: _Contour, gain: np.ndarray, delay: np.ndarray, weights: np.ndarray, *,
+def count(contour: Contour, gain: np.ndarray, delay: np.ndarray, weights: np.ndarray, *,
            chunk: int = 2048, refine: bool = True, rounds: int = 80,
            min_step: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Roots in Re s > sigma for each parameter set: ``(counts, reliable)``.
@@ -715,7 +732,8 @@ def n_sets(gain: Any, delay: Any, weights: Any) -> int:
     return n
 
 
-def _check_parameters(k: np.ndarray, tau: np.ndarray, w: np.ndarray) -> None:
+def check_parameters(k: np.ndarray, tau: np.ndarray, w: np.ndarray) -> None:
+    """``ModelError`` for non-finite gains, delays or weights and for negative delays."""
     for label, values in (("gain", k), ("delay", tau), ("weights", w)):
         if not np.all(np.isfinite(values)):
             raise ModelError(f"{label} must contain only finite values, found {values[~np.isfinite(values)][0]!r}")
@@ -723,12 +741,13 @@ def _check_parameters(k: np.ndarray, tau: np.ndarray, w: np.ndarray) -> None:
         raise ModelError(f"delays must be >= 0 [s], got {tau[tau < 0][0]!r}")
 
 
-def _weight_bound(k: np.ndarray, w: np.ndarray) -> np.ndarray:
+def loop_weight_bound(k: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Largest ``|k w_j|`` per sensor term over parameter sets (gains ``(n,)``, weights ``(n, t)``)."""
     return np.max(np.abs(k[:, None] * w), axis=0)
 
 
-
-def _char_fn(system: Any):
+def characteristic_callable(system: Any):
+    """``s -> ctmm.characteristic_function(system, s)`` with floating-point warnings silenced."""
     def delta(s: np.ndarray) -> np.ndarray:
         with np.errstate(divide="ignore", invalid="ignore"):
             return characteristic_function(system, s)
