@@ -322,3 +322,24 @@ def test_margins_on_a_coarse_grid_are_completed_by_the_certified_search():
         assert abs(coarse.gain_margin - fine.gain_margin) < 1e-9
         assert len(coarse.gain_crossovers) == 2 and any("added" in note for note in coarse.notes)
     assert abs(fine.delay_margin - expected) < 1e-9 and fine.certificate.certified
+
+
+def test_chart_crossing_next_to_an_anti_resonance():
+    """20-mass chain of benchmarks/stability_chart.py: at tau = 0.0697 s a pair crosses at
+    gain 3.3886 (31.04 rad/s) next to a zero of the loop term; an unrefined row bracket put it at
+    3.4067 and misclassified the grid point 3.3939 (2 instead of 4 unstable roots).  The counts 4
+    and 12 of the two cells are those of Chebyshev collocation of the delay equations
+    (``ctmm.reference.dde``, 40 and 80 nodes agree)."""
+    n = 20
+    body = [Fixed("wall")]
+    for i in range(n):
+        body += [SpringDamper(f"k{i}", 400.0, 0.5), Mass(f"m{i}", 1.0)]
+    body.append(Free("end"))
+    tip = f"m{n - 1}"
+    system = ControlledChain(ctmm.Chain("chain20", body),
+                             [Feedback("pd", [(f"{tip}.x", 20.0), (f"{tip}.v", 5.0)], tip, gain=1.0, delay=0.1)])
+    gains = np.linspace(0.0, 4.0, 100)
+    delays = np.array([0.0, 0.3 * 23 / 99, 0.3 * 97 / 99])
+    chart = stability_chart(system, x=("gain", gains), y=("delay", delays), verify=True)
+    assert chart.verified
+    assert chart.unstable_roots[1, 84] == 4 and chart.unstable_roots[2, 74] == 12
