@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -61,6 +62,10 @@ class RootSet:
         Points at which it was evaluated.
     notes : tuple of str
         Diagnostics (unresolved rectangles, heuristics used).
+    certificate : ContourCertificate or None
+        For a controlled chain with one loop (:func:`ctmm.stability.characteristic_roots`):
+        whether no root with ``Re s > re_min`` lies outside ``|Im s| <= im_max``
+        (:mod:`ctmm.certification`); None otherwise.
     """
 
     roots: np.ndarray
@@ -71,6 +76,7 @@ class RootSet:
     n_calls: int
     n_evaluations: int
     notes: tuple[str, ...] = ()
+    certificate: Any = None
 
     def __len__(self) -> int:
         return int(self.roots.size)
@@ -113,6 +119,8 @@ class SpectralAbscissa:
         No root was found to the right of ``re_min``.
     roots : RootSet
         All roots found in the region.
+    certificate : ContourCertificate or None
+        As for :class:`RootSet`: whether the region holds every root right of ``re_min``.
     """
 
     value: float
@@ -120,6 +128,7 @@ class SpectralAbscissa:
     root: complex | None
     below_re_min: bool
     roots: RootSet
+    certificate: Any = None
 
     @property
     def stable(self) -> bool:

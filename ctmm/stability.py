@@ -11,7 +11,7 @@ reachable as ``ctmm.stability.stability_chart``); the methods are derived in
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Sequence
 
 import numpy as np
@@ -23,7 +23,7 @@ from .errors import ModelError, unknown_name
 from .roots import RootSet, SpectralAbscissa, rightmost_roots
 from .roots import spectral_abscissa as _roots_abscissa
 from .sweeps import (LoopCharacteristic, check_parameters, characteristic_callable, Contour, build_contour, TINY,
-                     loop_weight_bound, as_controlled, count, find_loop, n_sets)
+                     contour_height, loop_weight_bound, as_controlled, count, find_loop, n_sets)
 
 __all__ = ["LoopCharacteristic", "characteristic_roots", "spectral_abscissa", "spectral_seeds",
            "unstable_root_count", "RootCounts",
@@ -150,7 +150,7 @@ def characteristic_roots(system: Any, *, re_min: float, im_max: float, re_max: f
     >>> from ctmm.control import ControlledChain, Feedback
     >>> plant = ctmm.Chain("m", [Fixed("w"), Spring("k", 1.0), Mass("m", 1.0), Free("e")])
     >>> system = ControlledChain(plant, [Feedback("v", "m.v", "m", gain=1.0, delay=1.0)])
-    >>> roots = characteristic_roots(system, re_min=-1.0, im_max=5.0, re_max=1.0)
+    >>> roots = characteristic_roots(system, re_min=-1.0, im_max=7.0, re_max=1.0)
     >>> len(roots) > 0
     True
     """
@@ -161,8 +161,9 @@ def characteristic_roots(system: Any, *, re_min: float, im_max: float, re_max: f
             raise ModelError(f"seeds must be a sequence of complex numbers or 'spectral', got {seeds!r}")
         seeds = spectral_seeds(system)
         seeds = seeds[(seeds.real > re_min) & (np.abs(seeds.imag) <= im_max)]
-    return rightmost_roots(characteristic_callable(system), im_max=im_max, re_min=re_min, re_max=re_max, seeds=seeds,
-                           conjugate_symmetric=True, tol=tol)
+    found = rightmost_roots(characteristic_callable(system), im_max=im_max, re_min=re_min, re_max=re_max,
+                            seeds=seeds, conjugate_symmetric=True, tol=tol)
+    return replace(found, certificate=region_certificate(system, re_min, im_max))
 
 
 def spectral_seeds(system: Any, *, nodes: int = 24) -> np.ndarray:
@@ -220,8 +221,22 @@ def spectral_abscissa(system: Any, *, re_min: float, im_max: float, re_max: floa
     """
     re_min = validation.finite("re_min", re_min)
     im_max = validation.positive("im_max", im_max)
-    return _roots_abscissa(characteristic_callable(system), im_max=im_max, re_min=re_min, re_max=re_max, seeds=seeds,
-                           conjugate_symmetric=True, tol=tol)
+    found = _roots_abscissa(characteristic_callable(system), im_max=im_max, re_min=re_min, re_max=re_max,
+                            seeds=seeds, conjugate_symmetric=True, tol=tol)
+    certificate = region_certificate(system, re_min, im_max)
+    return replace(found, roots=replace(found.roots, certificate=certificate), certificate=certificate)
+
+
+def region_certificate(system: Any, re_min: float, im_max: float) -> ContourCertificate | None:
+    """Whether ``Re s > re_min, |Im s| <= im_max`` holds every root of a controlled chain with
+    one loop (:mod:`ctmm.certification`; warns when ``im_max`` is too small); None for other
+    systems."""
+    if not isinstance(system, ControlledChain) or len(system.loops) != 1:
+        return None
+    model = LoopCharacteristic(system)
+    k, tau, w = model.parameters(1)
+    _, _, certificate = contour_height(model, loop_weight_bound(k, w), re_min, float(tau[0]), im_max)
+    return certificate
 
 
 # --------------------------------------------------------------------------------------------

@@ -541,9 +541,11 @@ def _neutral_error(model: LoopCharacteristic, detail: str) -> ModelError:
         "to count roots in a bounded frequency range (the result is then reported as not certified)")
 
 
-def _height(model: LoopCharacteristic, weight_bound: np.ndarray, sigma: float, tau_max: float,
+def contour_height(model: LoopCharacteristic, weight_bound: np.ndarray, sigma: float, tau_max: float,
             im_max: float | None) -> tuple[float, np.ndarray, ContourCertificate]:
-    """Contour height ``R``, open-loop pole seeds and the certificate (:mod:`ctmm.certification`)."""
+    """Contour height ``R`` [rad/s], open-loop poles (line seeds) and the certificate of the
+    region ``Re s >= sigma, |Im s| <= R`` for a parameter box (:mod:`ctmm.certification`); a
+    user ``im_max`` too small for the loop warns (:class:`StabilityWarning`)."""
     growth = math.exp(max(0.0, -sigma) * tau_max)
     if im_max is not None:
         im_max = validation.positive("im_max", im_max)
@@ -598,7 +600,7 @@ def _height(model: LoopCharacteristic, weight_bound: np.ndarray, sigma: float, t
             message = (f"im_max = {im_max:.6g} rad/s is too small for loop {model.loop.name!r}: its loop "
                        f"term reaches {beyond.max():.3g} (>= 1/2) at omega = "
                        f"{omega[omega > im_max][np.argmax(beyond)]:.6g} rad/s, roots beyond im_max may be "
-                       f"missed; the proven height is {proven:.6g} rad/s (omit im_max to use it)")
+                       f"missed; the proven height is {proven:.6g} rad/s (any im_max >= it is certified)")
             warnings.warn(message, StabilityWarning, stacklevel=4)
             notes.append(message)
         else:
@@ -626,7 +628,7 @@ def build_contour(model: LoopCharacteristic, weight_bound: np.ndarray, tau_max: 
     resolution : int
         Initial number of line samples.
     """
-    radius, poles, certificate = _height(model, weight_bound, sigma, tau_max, im_max)
+    radius, poles, certificate = contour_height(model, weight_bound, sigma, tau_max, im_max)
     growth = math.exp(max(0.0, -sigma) * tau_max)
     notes = list(certificate.notes)
     for _ in range(8):

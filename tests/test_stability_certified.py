@@ -343,3 +343,15 @@ def test_chart_crossing_next_to_an_anti_resonance():
     chart = stability_chart(system, x=("gain", gains), y=("delay", delays), verify=True)
     assert chart.verified
     assert chart.unstable_roots[1, 84] == 4 and chart.unstable_roots[2, 74] == 12
+
+
+def test_roots_and_abscissa_report_their_region():
+    from ctmm.stability import characteristic_roots, spectral_abscissa
+
+    system, reference, loop = seed(delay=0.2)
+    roots = characteristic_roots(system, re_min=-1.0, im_max=150.0)
+    assert roots.certificate.certified and roots.certificate.sigma == -1.0
+    assert int(np.sum(roots.expanded().real > 0)) == 2 == reference_count(reference, loop, 0.2)
+    with pytest.warns(StabilityWarning, match="too small"):
+        abscissa = spectral_abscissa(system, re_min=-1.0, im_max=10.0)   # misses the unstable pair
+    assert not abscissa.certificate.certified and not abscissa.roots.certificate.certified
