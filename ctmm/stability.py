@@ -22,8 +22,9 @@ from .certification import ContourCertificate
 from .errors import ModelError, unknown_name
 from .roots import RootSet, SpectralAbscissa, rightmost_roots
 from .roots import spectral_abscissa as _roots_abscissa
-from .sweeps import (LoopCharacteristic, check_parameters, characteristic_callable, Contour, build_contour, TINY,
-                     contour_height, loop_weight_bound, as_controlled, count, find_loop, n_sets)
+from .counting_contour import Contour, build_contour, contour_height, count
+from .sweeps import (TINY, LoopCharacteristic, as_controlled, characteristic_callable, check_parameters, find_loop,
+                     loop_weight_bound, n_sets)
 
 __all__ = ["LoopCharacteristic", "characteristic_roots", "spectral_abscissa", "spectral_seeds",
            "unstable_root_count", "RootCounts",

@@ -36,8 +36,9 @@ from .control.loops import ControlledChain
 from .certification import ContourCertificate
 from .errors import ModelError, unknown_name
 from .stability import row_crossings
-from .sweeps import (LoopCharacteristic, build_contour, loop_weight_bound, as_controlled, count, find_loop,
-                     managed_executor, parallel_map)
+from .counting_contour import build_contour, count
+from .sweeps import (LoopCharacteristic, as_controlled, find_loop, loop_weight_bound, managed_executor,
+                     parallel_map)
 
 __all__ = ["Boundary", "StabilityChart", "stability_chart"]
 
