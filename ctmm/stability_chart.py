@@ -35,7 +35,7 @@ from . import validation
 from .control.loops import ControlledChain
 from .certification import ContourCertificate
 from .errors import ModelError, unknown_name
-from .stability import row_crossings
+from .parameter_crossings import row_crossings
 from .counting_contour import build_contour, count
 from .sweeps import (LoopCharacteristic, as_controlled, find_loop, loop_weight_bound, managed_executor,
                      parallel_map)
