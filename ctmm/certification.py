@@ -227,8 +227,9 @@ def loop_bound(model: Any, weight_bound: np.ndarray) -> LoopBound:
         try:
             css = control.ss(lp.gain)
         except (ValueError, TypeError) as exc:
-            raise ModelError(f"loop {lp.name!r}: controller {lp.gain!r} is not proper ({exc}); its loop "
-                             "term grows with frequency (a neutral or advanced loop)") from exc
+            raise ModelError(f"loop {lp.name!r}: the controller is not proper ({exc}), so it has no "
+                             "state-space bound (with the plant the loop may still decay, or be neutral or "
+                             "advanced)") from exc
         Ac, Bc, Cc, Dc = (np.atleast_2d(np.asarray(m, float)) for m in (css.A, css.B, css.C, css.D))
         if css.nstates:
             factors.append(_factor(Ac, Bc[:, 0], Cc[:1, :], Dc[:1, 0], np.ones(1)))
