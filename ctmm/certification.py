@@ -100,9 +100,10 @@ class ContourCertificate:
         """One line: the region and how it was obtained."""
         head = (f"roots counted in Re s > {self.sigma:.6g}, |Im s| <= {self.im_max:.6g} rad/s "
                 f"({self.source})")
+        notes = "".join(f"; {n}" for n in self.notes)
         if self.certified:
-            return head + f"; certified: loop term < 1/2 for |s| >= {self.bound:.6g} rad/s"
-        return head + "; NOT certified beyond it" + ("".join(f"; {n}" for n in self.notes))
+            return head + f"; certified: loop term < 1/2 for |s| >= {self.bound:.6g} rad/s" + notes
+        return head + "; NOT certified beyond it" + notes
 
     def as_dict(self) -> dict:
         """Plain ``dict`` (JSON-friendly)."""
@@ -121,10 +122,13 @@ class LoopBound:
         controller.
     poles : numpy.ndarray
         Open-loop poles [1/s] (eigenvalues of the realisations; empty when too large).
+    n_states : int
+        States of the plant realisation.
     """
 
     factors: tuple
     poles: np.ndarray
+    n_states: int = 0
 
     def value(self, r: float) -> float:
         """Upper bound of ``|L(s)|`` over ``|s| = r`` (inf for ``r`` <= the largest beta)."""
@@ -237,4 +241,4 @@ def loop_bound(model: Any, weight_bound: np.ndarray) -> LoopBound:
         else:
             factors.append((0.0, 0.0, float(abs(Dc[0, 0]))))
     poles_all = np.concatenate(poles) if poles else np.zeros(0, complex)
-    return LoopBound(tuple(factors), poles_all.astype(complex))
+    return LoopBound(tuple(factors), poles_all.astype(complex), int(A.shape[0]))

@@ -22,7 +22,7 @@ from typing import Sequence
 import numpy as np
 
 from . import validation
-from .certification import ContourCertificate, StabilityWarning, loop_bound
+from .certification import MAX_EIGEN_STATES, ContourCertificate, StabilityWarning, loop_bound
 from .errors import ModelError, SingularSystemError
 from .sweeps import TINY, LoopCharacteristic
 
@@ -213,6 +213,9 @@ def contour_height(model: LoopCharacteristic, weight_bound: np.ndarray, sigma: f
         return radius, seeds, ContourCertificate(sigma, radius, "sampled", math.nan, False, tuple(notes))
     proven = bound.radius(0.5 / growth)
     seeds = bound.poles
+    if bound.n_states > MAX_EIGEN_STATES:
+        notes.append(f"open-loop poles not computed ({bound.n_states} states > {MAX_EIGEN_STATES}): the "
+                     "line samples are not seeded with the resonances, only refined adaptively")
     if not math.isfinite(proven):
         if im_max is None:
             raise _neutral_error(model, f"its loop term tends to {bound.at_infinity * growth:.6g} >= 1/2 at "
@@ -221,7 +224,7 @@ def contour_height(model: LoopCharacteristic, weight_bound: np.ndarray, sigma: f
         notes.append("neutral loop: the loop term does not decay, roots may exist at any frequency")
     if im_max is None:
         if proven * tau_max / _MAX_STEP <= _MAX_SAMPLES:
-            return proven, seeds, ContourCertificate(sigma, proven, "bound", proven, True)
+            return proven, seeds, ContourCertificate(sigma, proven, "bound", proven, True, tuple(notes))
         omega, ratio = _sampled_ratio(model, weight_bound, sigma, growth, 1e-3, proven, seeds.imag)
         big = np.flatnonzero(ratio >= 0.5)
         radius = float(max(2.0 * omega[big[-1]], 1e-2)) if big.size else 1e-2
