@@ -355,3 +355,20 @@ def test_roots_and_abscissa_report_their_region():
     with pytest.warns(StabilityWarning, match="too small"):
         abscissa = spectral_abscissa(system, re_min=-1.0, im_max=10.0)   # misses the unstable pair
     assert not abscissa.certificate.certified and not abscissa.roots.certificate.certified
+
+
+@pytest.mark.parametrize("delay", [0.05, 1.7, 23.0])
+def test_two_close_lightly_damped_modes(delay):
+    """wall - k - m0 - kc - m1 - k - wall with kc << k: modes at 31.623 and 31.686 rad/s, damping
+    ratio 1e-4, both inside one interval of any coarse grid (a 2 pi phase change would look
+    like none)."""
+    k, kc, c = 1000.0, 2.0, 2e-4 * math.sqrt(1000.0)
+    body = [Fixed("w0"), SpringDamper("k0", k, c), Mass("m0", 1.0), SpringDamper("kc", kc, 0.0),
+            Mass("m1", 1.0), SpringDamper("k2", k, c), Fixed("w1")]
+    system = ControlledChain(ctmm.Chain("pair", body), [Feedback("L", "m1.v", "m0", gain=0.05, delay=delay)])
+    reference = GlobalChain([1.0, 1.0], [k, kc, k], [c, 0.0, c], start="fixed", end="fixed")
+    loop = GlobalLoop(1, "velocity", 0, 0.05, delay)
+    expected = reference_count(reference, loop, delay, guard=1e-6 * delay)
+    counts = unstable_root_count(system)
+    assert counts.certificate.certified
+    assert counts.tolist() == [expected]
