@@ -233,18 +233,27 @@ def contour_height(model: LoopCharacteristic, weight_bound: np.ndarray, sigma: f
         return radius, seeds, ContourCertificate(sigma, radius, "sampled", proven, False, tuple(notes))
     certified = im_max >= proven
     if not certified and math.isfinite(proven):
+        # a root beyond im_max needs growth |L| >= 1 there: possible near an open-loop pole of the
+        # region (|L| unbounded) or where the sampled line already reaches 1
+        reasons = []
+        near = seeds[(seeds.real >= sigma) & (np.abs(seeds.imag) > im_max)]
+        if near.size:
+            reasons.append(f"{near.size} open-loop pole(s) lie in Re s >= {sigma:.6g} beyond it (e.g. "
+                           f"{near[np.argmin(np.abs(near.imag))]:.6g})")
         omega, ratio = _sampled_ratio(model, weight_bound, sigma, growth, im_max, proven, seeds.imag)
         beyond = ratio[omega > im_max]
-        if beyond.size and beyond.max() >= 0.5:
-            message = (f"im_max = {im_max:.6g} rad/s is too small for loop {model.loop.name!r}: its loop "
-                       f"term reaches {beyond.max():.3g} (>= 1/2) at omega = "
-                       f"{omega[omega > im_max][np.argmax(beyond)]:.6g} rad/s, roots beyond im_max may be "
-                       f"missed; the proven height is {proven:.6g} rad/s (any im_max >= it is certified)")
+        if beyond.size and beyond.max() >= 1.0:
+            reasons.append(f"its loop term reaches {beyond.max():.3g} (>= 1) at omega = "
+                           f"{omega[omega > im_max][np.argmax(beyond)]:.6g} rad/s")
+        if reasons:
+            message = (f"im_max = {im_max:.6g} rad/s is too small for loop {model.loop.name!r}: "
+                       f"{'; '.join(reasons)}; roots beyond im_max may be missed; the proven height is "
+                       f"{proven:.6g} rad/s (any im_max >= it is certified)")
             warnings.warn(message, StabilityWarning, stacklevel=4)
             notes.append(message)
         else:
-            notes.append(f"im_max = {im_max:.6g} rad/s is below the proven height {proven:.6g} rad/s "
-                         "(the sampled loop term stays below 1/2 in between)")
+            notes.append(f"im_max = {im_max:.6g} rad/s is below the proven height {proven:.6g} rad/s (no "
+                         "open-loop pole beyond it, the sampled loop term stays below 1 in between)")
     return im_max, seeds, ContourCertificate(sigma, im_max, "user", proven, certified, tuple(notes))
 
 
