@@ -372,3 +372,16 @@ def test_two_close_lightly_damped_modes(delay):
     counts = unstable_root_count(system)
     assert counts.certificate.certified
     assert counts.tolist() == [expected]
+
+
+def test_small_im_max_without_possible_roots_only_notes():
+    """x' = -x/2 - 1.5 x(t - 0.8) (test_stability.scalar): every root beyond |Im s| = 30 has
+    Re s < -3.2 (Lambert W branches), and the loop term stays below 1 there: no warning."""
+    from ctmm.stability import characteristic_roots
+    from test_stability import scalar
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", StabilityWarning)
+        roots = characteristic_roots(scalar(2.0, 1.0, 3.0, 0.8), re_min=-3.2, im_max=30.0)
+    assert not roots.certificate.certified
+    assert "below the proven height" in roots.certificate.notes[-1]
