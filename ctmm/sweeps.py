@@ -46,7 +46,7 @@ from .assembly import SOLVERS
 from .control.loops import ControlledChain, Feedback
 from .elements.lumped import Connector
 from .errors import ModelError, SingularSystemError, unknown_name
-from .frequency import assemble, characteristic_function
+from .frequency import assemble, characteristic_function, solve
 from .progress import progress_bar
 
 __all__ = ["LoopCharacteristic", "managed_executor", "executor_workers", "parallel_map",
@@ -253,6 +253,15 @@ class LoopCharacteristic:
         at a sample, e.g. s = 0 of a free chain) the extended closed chains are swept instead."""
         s = np.asarray(s, dtype=complex).ravel()
         out = np.empty((1 + len(self._sensed), s.size), dtype=complex)
+        try:             # one sweep for the determinant and the responses (a regular open chain)
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                solution = solve(self.open_system, s, self._amplitudes, want_log_det=True)
+                log_open = solution.log_det + _log_pole_factor(self.open_system, s)
+            if np.all(np.isfinite(log_open)):
+                out[:] = self._components_open(s, log_open, solution.states)
+                return out
+        except SingularSystemError:
+            pass
         log_open = _log_characteristic(self.open_system, s)
         regular = np.isfinite(log_open)
         if regular.any():
@@ -283,11 +292,11 @@ class LoopCharacteristic:
                 self._phase = 1.0
         return self._phase
 
-    def _components_open(self, s: np.ndarray, log_open: np.ndarray) -> np.ndarray:
-        from .frequency import solve
-
+    def _components_open(self, s: np.ndarray, log_open: np.ndarray,
+                         states: np.ndarray | None = None) -> np.ndarray:
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            states = solve(self.open_system, s, self._amplitudes).states
+            if states is None:
+                states = solve(self.open_system, s, self._amplitudes).states
             log_base = log_open
             controller = np.zeros(s.size, complex)
             if self.loop.is_lti:
