@@ -260,7 +260,7 @@ class LoopCharacteristic:
             if np.all(np.isfinite(log_open)):
                 out[:] = self._components_open(s, log_open, solution.states)
                 return out
-        except SingularSystemError:
+        except (SingularSystemError, np.linalg.LinAlgError):   # a root of the open chain at a sample
             pass
         log_open = _log_characteristic(self.open_system, s)
         regular = np.isfinite(log_open)
