@@ -20,9 +20,9 @@ from .validation import finite, positive
 __all__ = ["ContourError", "RootCount", "count_roots_in_rectangle"]
 
 CharacteristicFunction = Callable[[np.ndarray], np.ndarray]
-_CIRCLE = 16                                    # points of the Cauchy-integral derivative
-_UNIT = np.exp(2j * np.pi * np.arange(_CIRCLE) / _CIRCLE)
-_SPLITS = (0.5, 0.5617, 0.4383, 0.6180, 0.3820, 0.5281, 0.4719)
+CIRCLE_POINTS = 16                                    # points of the Cauchy-integral derivative
+UNIT_CIRCLE = np.exp(2j * np.pi * np.arange(CIRCLE_POINTS) / CIRCLE_POINTS)
+SPLIT_FRACTIONS = (0.5, 0.5617, 0.4383, 0.6180, 0.3820, 0.5281, 0.4719)
 
 
 class ContourError(ModelError):
@@ -70,7 +70,7 @@ class RootCount:
 # --------------------------------------------------------------------------------------------
 # evaluation bookkeeping
 # --------------------------------------------------------------------------------------------
-class _Evaluator:
+class ContourEvaluator:
     def __init__(self, char_fn: CharacteristicFunction, budget: int) -> None:
         if not callable(char_fn):
             raise ModelError(f"char_fn must be a callable s -> Delta(s), got {char_fn!r}")
@@ -80,7 +80,7 @@ class _Evaluator:
     def __call__(self, s: np.ndarray) -> np.ndarray:
         s = np.asarray(s, dtype=complex)
         if self.points + s.size > self.budget:
-            raise _BudgetExceeded()
+            raise BudgetExceeded()
         self.calls += 1
         self.points += s.size
         value = np.asarray(self.char_fn(s))
@@ -90,11 +90,11 @@ class _Evaluator:
         return value.astype(complex, copy=False)
 
 
-class _BudgetExceeded(Exception):
+class BudgetExceeded(Exception):
     pass
 
 
-def _rectangle(re_range: object, im_range: object) -> tuple[float, float, float, float]:
+def as_rectangle(re_range: object, im_range: object) -> tuple[float, float, float, float]:
     out = []
     for label, rng in (("re_range", re_range), ("im_range", im_range)):
         try:
@@ -108,23 +108,23 @@ def _rectangle(re_range: object, im_range: object) -> tuple[float, float, float,
     return out[0], out[1], out[2], out[3]
 
 
-def _corners(rect: tuple[float, float, float, float]) -> np.ndarray:
+def rectangle_corners(rect: tuple[float, float, float, float]) -> np.ndarray:
     a, b, c, d = rect
     return np.array([complex(a, c), complex(b, c), complex(b, d), complex(a, d)])
 
 
-def _diag(rect: tuple[float, float, float, float]) -> float:
+def rectangle_diagonal(rect: tuple[float, float, float, float]) -> float:
     return math.hypot(rect[1] - rect[0], rect[3] - rect[2])
 
 
-def _inside(z: np.ndarray, rect: tuple[float, float, float, float]) -> np.ndarray:
+def inside_rectangle(z: np.ndarray, rect: tuple[float, float, float, float]) -> np.ndarray:
     return (z.real > rect[0]) & (z.real < rect[1]) & (z.imag > rect[2]) & (z.imag < rect[3])
 
 
 # --------------------------------------------------------------------------------------------
 # argument principle, many contours at once
 # --------------------------------------------------------------------------------------------
-class _Contour:
+class RectangleContour:
     """Adaptive sampling state of one rectangle boundary (counter-clockwise, closed).
 
     Every sample s_j carries a companion s_j + delta u_j (u_j the unit tangent of its interval)
@@ -138,7 +138,7 @@ class _Contour:
                  max_points: int | None = None) -> None:
         self.rect = rect
         self.max_points = max_points
-        corners = _corners(rect)
+        corners = rectangle_corners(rect)
         edges = np.abs(np.roll(corners, -1) - corners)
         per_edge = np.maximum(4, np.ceil(initial_points * edges / edges.sum())).astype(int)
         s, u = [], []
@@ -178,7 +178,7 @@ def _log_steps(values: np.ndarray) -> np.ndarray:
     return (np.log(magnitude[1:]) - np.log(magnitude[:-1])) + 1j * phase
 
 
-def _check_values(c: _Contour, s: np.ndarray, v: np.ndarray) -> None:
+def _check_values(c: RectangleContour, s: np.ndarray, v: np.ndarray) -> None:
     bad = ~np.isfinite(v)
     if bad.any():
         z = complex(s[bad][0])
@@ -191,7 +191,7 @@ def _check_values(c: _Contour, s: np.ndarray, v: np.ndarray) -> None:
                            f"im {c.rect[2:]} at s = {z:.10g}; move that edge", z)
 
 
-def _count_many(ev: _Evaluator, contours: list[_Contour], max_log_step: float) -> None:
+def count_contours(ev: ContourEvaluator, contours: list[RectangleContour], max_log_step: float) -> None:
     """Run the adaptive sampling of all contours together (one batched call per round)."""
     while True:
         active = [c for c in contours if c.result is None and c.error is None]
@@ -201,9 +201,9 @@ def _count_many(ev: _Evaluator, contours: list[_Contour], max_log_step: float) -
                   for c in active]
         try:
             values = ev(np.concatenate(chunks))
-        except _BudgetExceeded:
+        except BudgetExceeded:
             for c in active:
-                c.error = _BudgetExceeded()
+                c.error = BudgetExceeded()
             return
         offset = 0
         for c, chunk in zip(active, chunks):
@@ -310,17 +310,17 @@ def count_roots_in_rectangle(char_fn: CharacteristicFunction, re_range: tuple[fl
     >>> count_roots_in_rectangle(lambda s: s**2 + 1, (-1, 1), (0, 2)).count
     1
     """
-    rect = _rectangle(re_range, im_range)
-    max_log_step = _log_step_option(max_log_step)
+    rect = as_rectangle(re_range, im_range)
+    max_log_step = log_step_option(max_log_step)
     if isinstance(initial_points, bool) or not isinstance(initial_points, (int, np.integer)) \
             or initial_points < 16:
         raise ModelError(f"initial_points must be an int >= 16, got {initial_points!r}")
     if min_step is not None:
         min_step = positive("min_step", min_step)
-    ev = _Evaluator(char_fn, _budget(max_evaluations))
-    contour = _Contour(rect, int(initial_points), min_step)
-    _count_many(ev, [contour], max_log_step)
-    if isinstance(contour.error, _BudgetExceeded):
+    ev = ContourEvaluator(char_fn, evaluation_budget(max_evaluations))
+    contour = RectangleContour(rect, int(initial_points), min_step)
+    count_contours(ev, [contour], max_log_step)
+    if isinstance(contour.error, BudgetExceeded):
         steps = _log_steps(contour.values) if contour.values is not None else np.zeros(1)
         winding = float(steps.imag.sum() / (2 * np.pi))
         return RootCount(int(round(winding)), False, winding, complex("nan"),
@@ -330,14 +330,14 @@ def count_roots_in_rectangle(char_fn: CharacteristicFunction, re_range: tuple[fl
     return contour.result
 
 
-def _log_step_option(value: float) -> float:
+def log_step_option(value: float) -> float:
     value = positive("max_log_step", value)
     if value > 1.5:
         raise ModelError(f"max_log_step must be in (0, 1.5] (phase aliasing), got {value!r}")
     return value
 
 
-def _budget(value: int) -> int:
+def evaluation_budget(value: int) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 100:
         raise ModelError(f"max_evaluations must be an int >= 100, got {value!r}")
     return int(value)

@@ -104,14 +104,16 @@ def _assemble_body(system: Chain, body: Sequence, points: Sequence[int], s: np.n
     return Us, us, BoundaryStart(e_idx, S0, P0), BoundaryEnd(Bm, b)
 
 
-def solve(system: Chain, s: np.ndarray, amplitudes=None, *, solver: str = "riccati") -> ChainSolution:
-    """States at every connection point for harmonic loads (phasors), batched over ``s``."""
+def solve(system: Chain, s: np.ndarray, amplitudes=None, *, solver: str = "riccati",
+          want_log_det: bool = False) -> ChainSolution:
+    """States at every connection point for harmonic loads (phasors), batched over ``s``
+    (with ``want_log_det``, the Riccati solvers also return the characteristic log-determinant)."""
     solver = validation.option("solver", solver, SOLVERS)
     if solver == "riccati" and not hasattr(system, "assemble_frequency") and _lumped(system):
-        sol = _solve_lumped(system, np.asarray(s, dtype=complex), amplitudes or {})
+        sol = _solve_lumped(system, np.asarray(s, dtype=complex), amplitudes or {}, want_log_det)
     else:
         Us, us, start, end = assemble(system, s, amplitudes)
-        sol = SOLVERS[solver](Us, us, start, end, want_log_det=False) if solver == "riccati" else \
+        sol = SOLVERS[solver](Us, us, start, end, want_log_det=want_log_det) if solver == "riccati" else \
             SOLVERS[solver](Us, us, start, end)
     index = getattr(system, "state_index", None)
     if index is not None:  # controlled chains interleave sensing matrices: keep the points only
@@ -125,7 +127,7 @@ def _lumped(system) -> bool:
     return system.layout.size == 2 and all(isinstance(e, (PointElement, Connector)) for e in system.body)
 
 
-def _solve_lumped(system: Chain, s: np.ndarray, amplitudes: Mapping) -> ChainSolution:
+def _solve_lumped(system: Chain, s: np.ndarray, amplitudes: Mapping, want_log_det: bool = False) -> ChainSolution:
     """Riccati solve of a 1-D lumped chain from element scalars (impedance, compliance).
 
     Same recursion as :func:`ctmm.assembly.riccati_solve`; the unit and zero entries of the
@@ -152,7 +154,7 @@ def _solve_lumped(system: Chain, s: np.ndarray, amplitudes: Mapping) -> ChainSol
             entries.append((Uxx, UxF, UFx, UFF, ux, uF))
         else:        # f = force, e = x
             entries.append((UFF, UFx, UxF, Uxx, uF, ux))
-    return riccati_scalar_entries(entries, BoundaryStart(e_idx, S0, P0), BoundaryEnd(Bm, b), f, e)
+    return riccati_scalar_entries(entries, BoundaryStart(e_idx, S0, P0), BoundaryEnd(Bm, b), f, e, want_log_det)
 
 
 def _output_value(system, states: np.ndarray, s: np.ndarray, name: str,

@@ -23,15 +23,16 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from .errors import ModelError
 from .validation import finite, positive
 
-from .contour import (_CIRCLE, _SPLITS, _UNIT, CharacteristicFunction, ContourError, RootCount,  # noqa: F401
-                      _BudgetExceeded, _Contour, _Evaluator, _budget, _corners, _count_many, _diag,
-                      _inside, _log_step_option, _rectangle, count_roots_in_rectangle)
+from .contour import (CIRCLE_POINTS, SPLIT_FRACTIONS, UNIT_CIRCLE, CharacteristicFunction, ContourError, RootCount,  # noqa: F401
+                      BudgetExceeded, RectangleContour, ContourEvaluator, evaluation_budget, rectangle_corners, count_contours, rectangle_diagonal,
+                      inside_rectangle, log_step_option, as_rectangle, count_roots_in_rectangle)
 
 __all__ = ["ContourError", "RootCount", "RootSet", "SpectralAbscissa",
            "count_roots_in_rectangle", "find_roots_in_rectangle", "rightmost_roots",
@@ -61,6 +62,10 @@ class RootSet:
         Points at which it was evaluated.
     notes : tuple of str
         Diagnostics (unresolved rectangles, heuristics used).
+    certificate : ContourCertificate or None
+        For a controlled chain with one loop (:func:`ctmm.stability.characteristic_roots`):
+        whether no root with ``Re s > re_min`` lies outside ``|Im s| <= im_max``
+        (:mod:`ctmm.certification`); None otherwise.
     """
 
     roots: np.ndarray
@@ -71,6 +76,7 @@ class RootSet:
     n_calls: int
     n_evaluations: int
     notes: tuple[str, ...] = ()
+    certificate: Any = None
 
     def __len__(self) -> int:
         return int(self.roots.size)
@@ -113,6 +119,8 @@ class SpectralAbscissa:
         No root was found to the right of ``re_min``.
     roots : RootSet
         All roots found in the region.
+    certificate : ContourCertificate or None
+        As for :class:`RootSet`: whether the region holds every root right of ``re_min``.
     """
 
     value: float
@@ -120,6 +128,7 @@ class SpectralAbscissa:
     root: complex | None
     below_re_min: bool
     roots: RootSet
+    certificate: Any = None
 
     @property
     def stable(self) -> bool:
@@ -132,14 +141,14 @@ class SpectralAbscissa:
 # --------------------------------------------------------------------------------------------
 # Newton's method, many roots at once
 # --------------------------------------------------------------------------------------------
-def _newton_many(ev: _Evaluator, derivative: CharacteristicFunction | None, z0: np.ndarray,
+def _newton_many(ev: ContourEvaluator, derivative: CharacteristicFunction | None, z0: np.ndarray,
                  order: np.ndarray, rho: np.ndarray, tol: float, limit: tuple | None,
                  max_iterations: int = 40
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Newton on Delta^(m-1) for roots of multiplicity m (m = ``order``), batched.
 
     The Taylor coefficients a_k = Delta^(k)(z)/k! come from the trapezoidal Cauchy integral
-    on the circle |s - z| = rho (``_CIRCLE`` points; exact up to a_(k+16) rho^16 for entire
+    on the circle |s - z| = rho (``CIRCLE_POINTS`` points; exact up to a_(k+16) rho^16 for entire
     Delta; ``rho`` per root).  The discrete Fourier coefficients k = 9..15 (Taylor terms
     a_k rho^k, negligible for a small circle) measure the evaluation noise sigma of Delta.  Step:
     Delta(z)/Delta'(z) for m = 1, a_(m-1) / (m a_m) otherwise; converged when the step is below
@@ -163,25 +172,25 @@ def _newton_many(ev: _Evaluator, derivative: CharacteristicFunction | None, z0: 
         zi, mi = z[idx], order[idx]
         use_circle = (mi > 1) | (derivative is None)
         circ = idx[use_circle]
-        pts = np.concatenate([zi, (z[circ][:, None] + rho[circ][:, None] * _UNIT).ravel()])
+        pts = np.concatenate([zi, (z[circ][:, None] + rho[circ][:, None] * UNIT_CIRCLE).ravel()])
         try:
             values = ev(pts)
-        except _BudgetExceeded:
+        except BudgetExceeded:
             break
         f0 = values[:idx.size]
-        coeffs = np.zeros((idx.size, _CIRCLE), complex)
+        coeffs = np.zeros((idx.size, CIRCLE_POINTS), complex)
         sigma = np.zeros(idx.size)
         if circ.size:
-            raw = np.fft.fft(values[idx.size:].reshape(circ.size, _CIRCLE), axis=1) / _CIRCLE
-            coeffs[use_circle] = raw / rho[circ][:, None] ** np.arange(_CIRCLE)
-            sigma[use_circle] = np.sqrt(_CIRCLE * np.mean(np.abs(raw[:, 9:]) ** 2, axis=1))
+            raw = np.fft.fft(values[idx.size:].reshape(circ.size, CIRCLE_POINTS), axis=1) / CIRCLE_POINTS
+            coeffs[use_circle] = raw / rho[circ][:, None] ** np.arange(CIRCLE_POINTS)
+            sigma[use_circle] = np.sqrt(CIRCLE_POINTS * np.mean(np.abs(raw[:, 9:]) ** 2, axis=1))
         if derivative is not None and (~use_circle).any():
             coeffs[~use_circle, 1] = np.asarray(derivative(zi[~use_circle]), dtype=complex)
         rows = np.arange(idx.size)
-        a_m = np.abs(coeffs[rows, np.minimum(mi, _CIRCLE - 1)])
-        numerator = np.where(mi == 1, f0, coeffs[rows, np.minimum(mi - 1, _CIRCLE - 1)])
+        a_m = np.abs(coeffs[rows, np.minimum(mi, CIRCLE_POINTS - 1)])
+        numerator = np.where(mi == 1, f0, coeffs[rows, np.minimum(mi - 1, CIRCLE_POINTS - 1)])
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            step = numerator / (mi * coeffs[rows, np.minimum(mi, _CIRCLE - 1)])
+            step = numerator / (mi * coeffs[rows, np.minimum(mi, CIRCLE_POINTS - 1)])
             radius_noise = (sigma / a_m) ** (1.0 / mi)
             radius_residual = np.where(mi > 1, (np.abs(f0) / a_m) ** (1.0 / mi), 0.0)
         ok = np.isfinite(step) & np.isfinite(f0)
@@ -221,7 +230,7 @@ def _split(rect, fraction: float):
 def _find(ev, derivative, rect, *, seeds, tol, cluster_size, max_log_step,
           outer_count: RootCount):
     """Core of :func:`find_roots_in_rectangle` (rect validated, outer count done)."""
-    scale = max(_diag(rect), float(np.abs(_corners(rect)).max()))
+    scale = max(rectangle_diagonal(rect), float(np.abs(rectangle_corners(rect)).max()))
     rho = 1e-3 * scale                                 # Cauchy radius, capped per rectangle below
     notes: list[str] = []
     pool_z: list[complex] = []
@@ -229,7 +238,7 @@ def _find(ev, derivative, rect, *, seeds, tol, cluster_size, max_log_step,
 
     def add_pool(zs, errs):
         for zz, ee in zip(zs, errs):
-            if not _inside(np.array([zz]), rect)[0]:
+            if not inside_rectangle(np.array([zz]), rect)[0]:
                 continue
             if any(abs(zz - p) <= 1e3 * max(ee, pe, tol * max(1.0, abs(zz)))
                    for p, pe in zip(pool_z, pool_err)):
@@ -264,7 +273,7 @@ def _find(ev, derivative, rect, *, seeds, tol, cluster_size, max_log_step,
         start = np.array([c.root_sum / c.count if np.isfinite(c.root_sum) else centre_of(r)
                           for r, c in group])
         centre = np.array([centre_of(r) for r, _ in group])
-        radius = np.array([2.0 * _diag(r) for r, _ in group])
+        radius = np.array([2.0 * rectangle_diagonal(r) for r, _ in group])
         floor = 1e3 * np.finfo(float).eps * np.maximum(1.0, np.abs(centre))
         # small circles for simple roots (fast oscillation of Delta), wider ones for clusters
         # (derivatives of order m - 1 amplify the noise by rho^-(m-1))
@@ -281,12 +290,12 @@ def _find(ev, derivative, rect, *, seeds, tol, cluster_size, max_log_step,
             if n == 0:
                 continue
             pz = np.array(pool_z, complex)
-            inside = np.flatnonzero(_inside(pz, r)) if pz.size else np.array([], int)
+            inside = np.flatnonzero(inside_rectangle(pz, r)) if pz.size else np.array([], int)
             if inside.size == n:                       # known roots account for the count
                 for i in inside:
                     accept(pool_z[i], 1, pool_err[i])
                 continue
-            if _diag(r) <= cluster_size or (failed >= 2 and n >= 2):
+            if rectangle_diagonal(r) <= cluster_size or (failed >= 2 and n >= 2):
                 cluster_rects.append((r, cnt, failed))
             elif n == 1 and failed == 0 and inside.size == 0:
                 newton_rects.append((r, cnt))
@@ -295,7 +304,7 @@ def _find(ev, derivative, rect, *, seeds, tol, cluster_size, max_log_step,
         if newton_rects:
             _, z, ok, err, _ = polish(newton_rects)
             for k, (r, c) in enumerate(newton_rects):
-                if ok[k] and _inside(z[k:k + 1], r)[0]:
+                if ok[k] and inside_rectangle(z[k:k + 1], r)[0]:
                     accept(z[k], 1, err[k])
                 else:
                     if ok[k]:
@@ -304,18 +313,18 @@ def _find(ev, derivative, rect, *, seeds, tol, cluster_size, max_log_step,
         if cluster_rects:
             start, z, ok, err, noisy = polish([(r, c) for r, c, _ in cluster_rects])
             for k, (r, c, failed) in enumerate(cluster_rects):
-                small = _diag(r) <= cluster_size
-                if ok[k] and _inside(z[k:k + 1], r)[0] and \
+                small = rectangle_diagonal(r) <= cluster_size
+                if ok[k] and inside_rectangle(z[k:k + 1], r)[0] and \
                         (small or noisy[k] or err[k] <= 1e3 * cluster_size):
                     accept(z[k], c.count, err[k])
                     if not small:
                         notes.append(f"{c.count} roots within ~{err[k]:.2g} of {z[k]:.10g} "
                                      "(sub-rectangles could not be counted: noise level) "
                                      "reported as one multiple root")
-                elif failed < len(_SPLITS) and not small:
+                elif failed < len(SPLIT_FRACTIONS) and not small:
                     to_split.append((r, c, failed))
                 else:
-                    accept(start[k], c.count, _diag(r))
+                    accept(start[k], c.count, rectangle_diagonal(r))
                     notes.append(f"rectangle {r} with {c.count} roots unresolved; reported as one "
                                  f"root of multiplicity {c.count} at its contour centroid")
         queue = []
@@ -323,24 +332,24 @@ def _find(ev, derivative, rect, *, seeds, tol, cluster_size, max_log_step,
             break
         children, parents = [], []
         for r, cnt, failed in to_split:
-            r1, r2 = _split(r, _SPLITS[max(failed, 0) % len(_SPLITS)])
+            r1, r2 = _split(r, SPLIT_FRACTIONS[max(failed, 0) % len(SPLIT_FRACTIONS)])
             cap = 20_000 + 8 * cnt.n_points          # noise guard, generous for oscillation
-            children += [_Contour(r1, 32, None, cap), _Contour(r2, 32, None, cap)]
+            children += [RectangleContour(r1, 32, None, cap), RectangleContour(r2, 32, None, cap)]
             parents.append((r, cnt, max(failed, 0)))
-        _count_many(ev, children, max_log_step)
+        count_contours(ev, children, max_log_step)
         for k, (r, cnt, failed) in enumerate(parents):
             c1, c2 = children[2 * k], children[2 * k + 1]
-            if isinstance(c1.error, _BudgetExceeded) or isinstance(c2.error, _BudgetExceeded):
+            if isinstance(c1.error, BudgetExceeded) or isinstance(c2.error, BudgetExceeded):
                 notes.append(f"evaluation budget exhausted; rectangle {r} with {cnt.count} roots "
                              "unresolved")
                 continue
             if c1.error is not None or c2.error is not None or \
                     c1.result.count + c2.result.count != cnt.count:
                 failed += 1                            # root on/near the split line, or noise
-                if failed < len(_SPLITS):              # (from 2 failures on: try a cluster)
+                if failed < len(SPLIT_FRACTIONS):              # (from 2 failures on: try a cluster)
                     queue.append((r, cnt, failed))
                 else:
-                    accept(cnt.root_sum / cnt.count, cnt.count, _diag(r))
+                    accept(cnt.root_sum / cnt.count, cnt.count, rectangle_diagonal(r))
                     notes.append(f"rectangle {r} with {cnt.count} roots unresolved (no consistent "
                                  "split); reported at its contour centroid")
                 continue
@@ -387,7 +396,7 @@ def _options(tol, cluster_size, max_log_step, max_evaluations):
         raise ModelError(f"tol must be in (0, 1e-3), got {tol!r}")
     if cluster_size is not None:
         cluster_size = positive("cluster_size", cluster_size)
-    return tol, cluster_size, _log_step_option(max_log_step), _budget(max_evaluations)
+    return tol, cluster_size, log_step_option(max_log_step), evaluation_budget(max_evaluations)
 
 
 def find_roots_in_rectangle(char_fn: CharacteristicFunction, re_range: tuple[float, float],
@@ -442,19 +451,19 @@ def find_roots_in_rectangle(char_fn: CharacteristicFunction, re_range: tuple[flo
     >>> found.count, found.multiplicities.tolist(), bool(abs(found.roots[0] - 0.5) < 1e-12)
     (3, [2, 1], True)
     """
-    rect = _rectangle(re_range, im_range)
+    rect = as_rectangle(re_range, im_range)
     tol, cluster_size, max_log_step, budget = _options(tol, cluster_size, max_log_step,
                                                        max_evaluations)
     if cluster_size is None:
-        cluster_size = 1e-7 * max(1.0, float(np.abs(_corners(rect)).max()))
-    ev = _Evaluator(char_fn, budget)
+        cluster_size = 1e-7 * max(1.0, float(np.abs(rectangle_corners(rect)).max()))
+    ev = ContourEvaluator(char_fn, budget)
     return _find_with(ev, derivative, rect, seeds, tol, cluster_size, max_log_step, [])
 
 
 def _find_with(ev, derivative, rect, seeds, tol, cluster_size, max_log_step, notes) -> RootSet:
-    outer = _Contour(rect, 64, None)
-    _count_many(ev, [outer], max_log_step)
-    if isinstance(outer.error, _BudgetExceeded):
+    outer = RectangleContour(rect, 64, None)
+    count_contours(ev, [outer], max_log_step)
+    if isinstance(outer.error, BudgetExceeded):
         return _root_set(ev, [], [], [], 0, False, notes + ["evaluation budget exhausted "
                                                              "while counting the rectangle"])
     if outer.error is not None:
@@ -507,7 +516,7 @@ def rightmost_roots(char_fn: CharacteristicFunction, *, im_max: float, re_min: f
         raise ModelError(f"conjugate_symmetric must be True or False, got {conjugate_symmetric!r}")
     tol, cluster_size, max_log_step, budget = _options(tol, cluster_size, max_log_step,
                                                        max_evaluations)
-    ev = _Evaluator(char_fn, budget)
+    ev = ContourEvaluator(char_fn, budget)
     notes: list[str] = []
     if re_max is None:
         re_max = _right_bound(ev, re_min, im_max, max_log_step, notes)
@@ -549,8 +558,8 @@ def _right_bound(ev, re_min, im_max, max_log_step, notes) -> float:
     width = max(1.0, im_max)
     right = re_min + width
     for _ in range(12):
-        strip = _Contour((right, right + 2 * width, -im_max, im_max), 64, None)
-        _count_many(ev, [strip], max_log_step)
+        strip = RectangleContour((right, right + 2 * width, -im_max, im_max), 64, None)
+        count_contours(ev, [strip], max_log_step)
         if strip.error is None and strip.result.count == 0:
             notes.append(f"re_max = {right:.6g} chosen heuristically (no root in "
                          f"{right:.6g} < Re s < {right + 2 * width:.6g}, |Im s| <= {im_max:.6g})")

@@ -11,22 +11,25 @@ reachable as ``ctmm.stability.stability_chart``); the methods are derived in
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from . import validation
 from .control.loops import ControlledChain, Feedback
+from .certification import ContourCertificate
 from .errors import ModelError, unknown_name
 from .roots import RootSet, SpectralAbscissa, rightmost_roots
 from .roots import spectral_abscissa as _roots_abscissa
-from .sweeps import (LoopCharacteristic, _check_parameters, _char_fn, _Contour, _contour, _TINY,
-                     _weight_bound, as_controlled, count, find_loop, n_sets)
+from .counting_contour import Contour, build_contour, contour_height, count
+from .parameter_crossings import bracket_solve, row_crossings
+from .sweeps import (LoopCharacteristic, as_controlled, characteristic_callable, check_parameters, find_loop,
+                     loop_weight_bound, n_sets)
 
 __all__ = ["LoopCharacteristic", "characteristic_roots", "spectral_abscissa", "spectral_seeds",
-           "unstable_root_count",
-           "DelayMargin", "delay_margin", "GainMargin", "gain_margin", "SimulationCheck",
+           "unstable_root_count", "RootCounts",
+           "DelayMargin", "delay_margin", "GainMargin", "gain_margin", "gain_crossovers", "SimulationCheck",
            "crosscheck_by_simulation", "stability_chart", "StabilityChart", "Boundary"]
 
 
@@ -57,12 +60,17 @@ def unstable_root_count(system: ControlledChain, *, loop: str | None = None, gai
     sigma : float
         Count roots right of ``Re s = sigma`` [1/s] (0: unstable roots).
     im_max : float, optional
-        Imaginary extent [rad/s] of the contour (default: chosen from the decay of the loop term).
+        Imaginary extent [rad/s] of the contour (default: the proven height, module
+        :mod:`ctmm.certification`).
 
     Returns
     -------
-    numpy.ndarray of int
-        Counts (with multiplicity); -1 where a root lies on the line ``Re s = sigma``.
+    RootCounts
+        Integer array of counts (with multiplicity); -1 where a root lies on the line
+        ``Re s = sigma``.  ``counts.certificate`` says which region was counted and whether no
+        root outside it can exist (:class:`~ctmm.certification.ContourCertificate`); a user
+        ``im_max`` below the proven height that lets the loop term reach 1/2 warns
+        (:class:`~ctmm.certification.StabilityWarning`).
 
     Examples
     --------
@@ -80,11 +88,26 @@ def unstable_root_count(system: ControlledChain, *, loop: str | None = None, gai
     n = n_sets(gain, delay, weights)
     k, tau, w = model.parameters(n, None if gain is None else np.ravel(gain),
                                  None if delay is None else np.ravel(delay), weights)
-    _check_parameters(k, tau, w)
+    check_parameters(k, tau, w)
     sigma = validation.finite("sigma", sigma)
-    contour = _contour(model, _weight_bound(k, w), float(tau.max()), sigma=sigma, im_max=im_max)
+    contour = build_contour(model, loop_weight_bound(k, w), float(tau.max()), sigma=sigma, im_max=im_max)
     counts, _ = count(contour, k, tau, w)
-    return counts
+    return RootCounts(counts, contour.certificate)
+
+
+class RootCounts(np.ndarray):
+    """Root counts (an integer array) with the :class:`~ctmm.certification.ContourCertificate`
+    of the region they cover in its ``certificate`` attribute."""
+
+    certificate: ContourCertificate | None
+
+    def __new__(cls, counts: Any, certificate: ContourCertificate | None = None) -> "RootCounts":
+        obj = np.asarray(counts).view(cls)
+        obj.certificate = certificate
+        return obj
+
+    def __array_finalize__(self, obj: Any) -> None:
+        self.certificate = getattr(obj, "certificate", None)
 
 
 
@@ -131,7 +154,7 @@ def characteristic_roots(system: Any, *, re_min: float, im_max: float, re_max: f
     >>> from ctmm.control import ControlledChain, Feedback
     >>> plant = ctmm.Chain("m", [Fixed("w"), Spring("k", 1.0), Mass("m", 1.0), Free("e")])
     >>> system = ControlledChain(plant, [Feedback("v", "m.v", "m", gain=1.0, delay=1.0)])
-    >>> roots = characteristic_roots(system, re_min=-1.0, im_max=5.0, re_max=1.0)
+    >>> roots = characteristic_roots(system, re_min=-1.0, im_max=7.0, re_max=1.0)
     >>> len(roots) > 0
     True
     """
@@ -142,8 +165,9 @@ def characteristic_roots(system: Any, *, re_min: float, im_max: float, re_max: f
             raise ModelError(f"seeds must be a sequence of complex numbers or 'spectral', got {seeds!r}")
         seeds = spectral_seeds(system)
         seeds = seeds[(seeds.real > re_min) & (np.abs(seeds.imag) <= im_max)]
-    return rightmost_roots(_char_fn(system), im_max=im_max, re_min=re_min, re_max=re_max, seeds=seeds,
-                           conjugate_symmetric=True, tol=tol)
+    found = rightmost_roots(characteristic_callable(system), im_max=im_max, re_min=re_min, re_max=re_max,
+                            seeds=seeds, conjugate_symmetric=True, tol=tol)
+    return replace(found, certificate=region_certificate(system, re_min, im_max))
 
 
 def spectral_seeds(system: Any, *, nodes: int = 24) -> np.ndarray:
@@ -157,8 +181,8 @@ def spectral_seeds(system: Any, *, nodes: int = 24) -> np.ndarray:
     array for systems without such a realisation (beams, LTI controllers, feedthrough from
     acceleration or force sensing).
     """
+    from .delay_collocation import generator_eigenvalues
     from .interop import to_state_space
-    from .reference.dde import chebyshev_collocation_roots
 
     loops = system.loops if isinstance(system, ControlledChain) else ()
     plant = system.plant if isinstance(system, ControlledChain) else system
@@ -183,8 +207,8 @@ def spectral_seeds(system: Any, *, nodes: int = 24) -> np.ndarray:
             A0 = A0 + term
         else:
             delayed[lp.delay] = delayed.get(lp.delay, 0.0) + term
-    roots = chebyshev_collocation_roots(A0, [(m, tau) for tau, m in delayed.items()], nodes) if delayed else \
-        np.linalg.eigvals(A0).astype(complex)
+    roots = generator_eigenvalues(A0, [(m, tau) for tau, m in delayed.items()], nodes)
+    roots = roots[np.lexsort((roots.imag, -roots.real))]
     return roots[np.isfinite(roots)]
 
 
@@ -201,215 +225,22 @@ def spectral_abscissa(system: Any, *, re_min: float, im_max: float, re_max: floa
     """
     re_min = validation.finite("re_min", re_min)
     im_max = validation.positive("im_max", im_max)
-    return _roots_abscissa(_char_fn(system), im_max=im_max, re_min=re_min, re_max=re_max, seeds=seeds,
-                           conjugate_symmetric=True, tol=tol)
+    found = _roots_abscissa(characteristic_callable(system), im_max=im_max, re_min=re_min, re_max=re_max,
+                            seeds=seeds, conjugate_symmetric=True, tol=tol)
+    certificate = region_certificate(system, re_min, im_max)
+    return replace(found, roots=replace(found.roots, certificate=certificate), certificate=certificate)
 
 
-# --------------------------------------------------------------------------------------------
-# crossings along a linear parameter (one "row" of a chart, or the gain of a margin)
-# --------------------------------------------------------------------------------------------
-@dataclass
-class Crossings:
-    """Parameter values at which a root lies on the line ``Re s = sigma``, per row.
-
-    Attributes
-    ----------
-    row : numpy.ndarray of int
-        Row index of each crossing.
-    value : numpy.ndarray
-        Value of the linear parameter ``p`` at the crossing.
-    omega : numpy.ndarray
-        Imaginary part of the root on the line [rad/s] (0: a real root, ``static``).
-    error : numpy.ndarray
-        Bound on the error of ``value`` (bracket width; ~1e-13 relative once refined).
-    static : numpy.ndarray of bool
-        Real root (one root crosses) rather than a conjugate pair.
-    direction : numpy.ndarray of int
-        +1 when the root(s) move to the right as ``p`` increases, -1 to the left, 0 unknown:
-        the number of roots right of the line jumps by ``direction * (1 if static else 2)``.
-    """
-
-    row: np.ndarray
-    value: np.ndarray
-    omega: np.ndarray
-    error: np.ndarray
-    static: np.ndarray
-    direction: np.ndarray
-
-    _FIELDS = ("row", "value", "omega", "error", "static", "direction")
-
-    def for_row(self, r: int) -> "Crossings":
-        keep = self.row == r
-        return Crossings(*(getattr(self, f)[keep] for f in self._FIELDS))
-
-    @property
-    def jump(self) -> np.ndarray:
-        """Change of the root count across each crossing (increasing ``p``)."""
-        return self.direction * np.where(self.static, 1, 2)
-
-
-def combine_pointwise(s: np.ndarray, base: np.ndarray, terms: np.ndarray, gain: np.ndarray,
-                      delay: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    """Eq. (1) with one parameter set per ``s`` (all arrays of length n; weights (n, n_terms))."""
-    with np.errstate(over="ignore", invalid="ignore"):
-        return base + gain * np.exp(-delay * s) * np.einsum("nt,tn->n", weights, terms)
-
-
-def _row_coefficients(s, base, terms, sets0, sets1):
-    """``B`` (p = 0) and ``A`` (coefficient of p) for rows: arrays (n_rows, n_s)."""
-    d0 = LoopCharacteristic.combine(s, base, terms, *sets0)
-    d1 = LoopCharacteristic.combine(s, base, terms, *sets1)
-    return d0, d1 - d0
-
-
-def row_crossings(contour: _Contour, sets0, sets1, p_range: tuple[float, float], *,
-                  grid: np.ndarray | None = None, refine_all: bool = False) -> Crossings:
-    """Values of a linear parameter ``p`` at which ``Delta(sigma + i omega; p) = 0``, per row.
-
-    ``sets0``/``sets1`` are the parameter sets of each row at ``p = 0`` and ``p = 1`` (Delta is
-    affine in ``p``: ``B + p A``).  A crossing at ``omega > 0`` is a sign change of
-    ``Im(B conj A)`` between samples of the line, refined by the Illinois method on the TMM values
-    when a ``grid`` value lies inside its bracket (or always with ``refine_all``); the static
-    crossing is ``p = -B/A`` at ``s = sigma``.
-    """
-    line = contour.line
-    s = line.s
-    B, A = _row_coefficients(s, line.base, line.terms, sets0, sets1)
-    phi = np.imag(B * np.conj(A))
-    with np.errstate(all="ignore"):
-        p_at = -np.real(B * np.conj(A)) / np.abs(A) ** 2
-    lo, hi = p_range
-    span = max(hi - lo, 1e-300)
-    keep_lo, keep_hi = lo - 1e-6 * span, hi + 1e-6 * span
-    # static crossing (s = sigma real): direction from ds/dp = -A / Delta_s, with
-    # Delta_s = Im Delta(sigma + i eps) / eps (Delta(sigma) = 0 there; the scale is positive)
-    p0 = p_at[:, 0]
-    ok = np.isfinite(p0) & (np.abs(A[:, 0]) > _TINY) & (p0 >= keep_lo) & (p0 <= keep_hi)
-    r_static = np.flatnonzero(ok)
-    d_static = np.zeros(r_static.size, int)
-    if r_static.size:
-        eps = 1e-7 * max(contour.radius, 1.0)
-        s_eps = np.full(r_static.size, contour.sigma + 1j * eps)
-        base_e, terms_e = contour.model.components(s_eps)
-        k0, tau0, w0 = (x[r_static] for x in sets0)
-        k1, tau1, w1 = (x[r_static] for x in sets1)
-        d0 = combine_pointwise(s_eps, base_e, terms_e, k0, tau0, w0)
-        d1 = combine_pointwise(s_eps, base_e, terms_e, k1, tau1, w1)
-        at_eps = d0 + p0[r_static] * (d1 - d0)
-        slope = np.imag(at_eps)
-        simple = np.abs(slope) > 1e-3 * np.abs(at_eps)     # else a multiple root: direction unknown
-        d_static = np.where(simple, -np.sign(A[r_static, 0].real) * np.sign(slope), 0).astype(int)
-    rows, values, omegas = list(r_static), list(p0[r_static]), [0.0] * r_static.size
-    errors, statics, directions = [0.0] * r_static.size, [True] * r_static.size, list(d_static)
-    # oscillatory crossings: sign changes of phi on intervals j >= 1
-    sign = np.sign(phi[:, 1:])
-    change = (sign[:, :-1] * sign[:, 1:] < 0)
-    r_idx, j_idx = np.nonzero(change)
-    j_idx = j_idx + 1                                        # interval [j, j+1] of the line
-    pa, pb = p_at[r_idx, j_idx], p_at[r_idx, j_idx + 1]
-    fa, fb = phi[r_idx, j_idx], phi[r_idx, j_idx + 1]
-    t = fa / (fa - fb)
-    p_est = pa + t * (pb - pa)
-    width = np.abs(pb - pa)
-    finite = np.isfinite(p_est) & np.isfinite(width)
-    inside = finite & (p_est + width >= keep_lo) & (p_est - width <= keep_hi)
-    r_idx, j_idx, p_est, width = r_idx[inside], j_idx[inside], p_est[inside], width[inside]
-    todo = np.ones(r_idx.size, bool)
-    if grid is not None and not refine_all:
-        g = np.sort(np.asarray(grid, float))
-        todo = _undecided(g, np.minimum(pa, pb)[inside], np.maximum(pa, pb)[inside], span)
-    ta = t[inside]
-    direction = np.sign(fa[inside]).astype(int)        # Re ds/dp has the sign of -d(phi)/d(omega)
-    omega = s.imag[j_idx] + ta * (s.imag[j_idx + 1] - s.imag[j_idx])
-    value, error = 0.5 * (pa + pb)[inside], 0.5 * width             # bracket of the value
-    if todo.any():
-        r, j = r_idx[todo], j_idx[todo]
-        w_ref, v_ref, e_ref = _illinois(contour, sets0, sets1, r, s.imag[j], s.imag[j + 1],
-                                        phi[r, j], phi[r, j + 1], p_at[r, j], p_at[r, j + 1],
-                                        grid=None if refine_all or grid is None else np.sort(grid),
-                                        span=span)
-        omega[todo], value[todo], error[todo] = w_ref, v_ref, e_ref
-    good = np.isfinite(value) & (value >= keep_lo) & (value <= keep_hi)
-    row = np.concatenate([np.asarray(rows, int), r_idx[good].astype(int)])
-    value = np.concatenate([np.asarray(values, float), value[good]])
-    omega = np.concatenate([np.asarray(omegas, float), omega[good]])
-    error = np.concatenate([np.asarray(errors, float), error[good]])
-    static = np.concatenate([np.asarray(statics, bool), np.zeros(int(good.sum()), bool)])
-    direction = np.concatenate([np.asarray(directions, int), direction[good]])
-    order = np.lexsort((value, row))
-    return Crossings(row[order], value[order], omega[order], error[order], static[order],
-                     direction[order])
-
-
-def _undecided(grid: np.ndarray, low: np.ndarray, high: np.ndarray, span: float) -> np.ndarray:
-    """Brackets [low, high] of a crossing value that still contain a grid value."""
-    pad = 1e-10 * span
-    left = np.searchsorted(grid, low - pad, side="left")
-    right = np.searchsorted(grid, high + pad, side="right")
-    return right > left
-
-
-def _illinois(contour: _Contour, sets0, sets1, rows, a, b, fa, fb, pa, pb, *, grid=None,
-              span: float = 1.0, iterations: int = 60):
-    """Refine brackets [a, b] of sign changes of Im(B conj A) (one per crossing, batched).
-
-    With ``grid``, a bracket stops as soon as the parameter values at its ends enclose no grid
-    value (the side of every grid point is then decided)."""
-    model, sigma = contour.model, contour.sigma
-    k0, tau0, w0 = (x[rows] for x in sets0)
-    k1, tau1, w1 = (x[rows] for x in sets1)
-
-    def evaluate(idx, omega):
-        s = sigma + 1j * omega
-        base, terms = model.components(s)
-        d0 = combine_pointwise(s, base, terms, k0[idx], tau0[idx], w0[idx])
-        d1 = combine_pointwise(s, base, terms, k1[idx], tau1[idx], w1[idx])
-        A = d1 - d0
-        with np.errstate(all="ignore"):
-            return np.imag(d0 * np.conj(A)), -np.real(d0 * np.conj(A)) / np.abs(A) ** 2
-
-    def decided(idx, pa_, pb_):
-        ends = np.isfinite(pa_) & np.isfinite(pb_)
-        return ends & ~_undecided(grid, np.minimum(pa_, pb_), np.maximum(pa_, pb_), span)
-
-    omega, pa, pb = bracket_solve(evaluate, a, b, fa, fb, pa, pb,
-                                  stop=None if grid is None else decided, iterations=iterations)
-    value = np.where(np.isfinite(pa) & np.isfinite(pb), 0.5 * (pa + pb), pb)
-    error = np.where(np.isfinite(pa) & np.isfinite(pb), 0.5 * np.abs(pa - pb), 0.0)
-    return omega, value, error
-
-
-def bracket_solve(evaluate, a, b, fa, fb, pa, pb, *, stop=None, iterations: int = 60):
-    """Batched Illinois (modified regula falsi) on brackets ``[a, b]`` with ``fa fb < 0``.
-
-    ``evaluate(idx, x) -> (f, p)`` gives the function and a tracked quantity ``p`` at points
-    ``x`` of the brackets ``idx`` (one call per iteration for all brackets); ``stop(idx, pa, pb)``
-    may end brackets early.  Returns the last point ``b`` and ``p`` at both bracket ends."""
-    a, b, fa, fb = (np.asarray(v, float).copy() for v in (a, b, fa, fb))
-    pa, pb = np.asarray(pa, float).copy(), np.asarray(pb, float).copy()
-    side = np.zeros(a.size, int)
-    active = np.ones(a.size, bool)
-    for _ in range(iterations):
-        idx = np.flatnonzero(active)
-        if idx.size == 0:
-            break
-        c = b[idx] - fb[idx] * (b[idx] - a[idx]) / (fb[idx] - fa[idx])
-        bad = ~np.isfinite(c) | (c <= np.minimum(a[idx], b[idx])) | (c >= np.maximum(a[idx], b[idx]))
-        c = np.where(bad, 0.5 * (a[idx] + b[idx]), c)
-        fc, pc = evaluate(idx, c)
-        same = np.sign(fc) == np.sign(fb[idx])
-        i_same, i_diff = idx[same], idx[~same]
-        fa[i_same] *= np.where(side[i_same] == 1, 0.5, 1.0)      # Illinois step
-        side[i_same] = 1
-        a[i_diff], fa[i_diff], pa[i_diff] = b[i_diff], fb[i_diff], pb[i_diff]
-        side[i_diff] = 0
-        b[idx], fb[idx], pb[idx] = c, fc, pc
-        done = (fc == 0) | (np.abs(b[idx] - a[idx]) <= 4e-16 * np.maximum(1.0, np.abs(c)))
-        pa[idx[fc == 0]] = pc[fc == 0]
-        if stop is not None:
-            done |= stop(idx, pa[idx], pb[idx])
-        active[idx[done]] = False
-    return b, pa, pb
+def region_certificate(system: Any, re_min: float, im_max: float) -> ContourCertificate | None:
+    """Whether ``Re s > re_min, |Im s| <= im_max`` holds every root of a controlled chain with
+    one loop (:mod:`ctmm.certification`; warns when ``im_max`` is too small); None for other
+    systems."""
+    if not isinstance(system, ControlledChain) or len(system.loops) != 1:
+        return None
+    model = LoopCharacteristic(system)
+    k, tau, w = model.parameters(1)
+    _, _, certificate = contour_height(model, loop_weight_bound(k, w), re_min, float(tau[0]), im_max)
+    return certificate
 
 
 # --------------------------------------------------------------------------------------------
@@ -448,6 +279,11 @@ class DelayMargin:
         +1: a pair moves into the right half plane as the delay grows; -1: out of it.
     stable_intervals : tuple of (float, float)
         Delay intervals of stability within [0, delay_max] [s].
+    delay_max : float
+        Largest delay listed [s].
+    certificate : ContourCertificate
+        Frequency range searched for crossovers and counted, and whether it is proven to hold
+        every crossover (:mod:`ctmm.certification`).
     """
 
     critical_delay: float
@@ -461,13 +297,16 @@ class DelayMargin:
     crossing_directions: tuple
     stable_intervals: tuple
     delay_max: float
+    certificate: ContourCertificate | None = None
 
     def as_dict(self) -> dict:
         """Plain ``dict`` (JSON-friendly)."""
-        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
+        out = {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
+        out["certificate"] = None if self.certificate is None else self.certificate.as_dict()
+        return out
 
 
-def _loop_zero_crossings(contour: _Contour, function, rows=None):
+def _loop_zero_crossings(contour: Contour, function, rows=None):
     """Brackets and refined roots (omega > 0) of a real function of the line samples.
 
     ``function(s, base, terms) -> (f, extra)`` for one parameter set; returns (omega, f_a sign)."""
@@ -487,6 +326,41 @@ def _loop_zero_crossings(contour: _Contour, function, rows=None):
     a, b = line.s.imag[j], line.s.imag[j + 1]
     omega, _, _ = bracket_solve(evaluate, a, b, f[j], f[j + 1], np.zeros(j.size), np.zeros(j.size))
     return omega, np.sign(f[j]).astype(int)
+
+
+def _gain_crossings(model: LoopCharacteristic, contour: Contour) -> tuple[np.ndarray, np.ndarray]:
+    """Frequencies Omega > 0 on the contour line with ``|L(i Omega)| = 1`` and the sign of
+    ``|L| - 1`` below each."""
+    def excess(s, base, terms):          # |k C P|^2 - 1, scaled by |D Delta_0|^2
+        loop_term = model.gain * (model.weights @ terms)
+        return np.abs(loop_term) ** 2 - np.abs(base) ** 2, np.zeros(np.shape(s))
+
+    return _loop_zero_crossings(contour, excess)
+
+
+def gain_crossovers(system: ControlledChain, loop: str | None = None, *,
+                    im_max: float | None = None) -> tuple[np.ndarray, ContourCertificate]:
+    """Every gain crossover ``|L(i Omega)| = 1`` (Omega > 0) of a loop at its current gain.
+
+    Parameters
+    ----------
+    system : ControlledChain
+    loop : str, optional
+        Loop name (default: the only loop).
+    im_max : float, optional
+        Frequency range [rad/s] (default: the proven height of :mod:`ctmm.certification`,
+        beyond which ``|L| < 1/2``, so no crossover is left out).
+
+    Returns
+    -------
+    (numpy.ndarray, ContourCertificate)
+        Crossover frequencies [rad/s], ascending, and the certificate of the searched range.
+    """
+    model = LoopCharacteristic(system, loop)
+    contour = build_contour(model, loop_weight_bound(np.array([model.gain]), model.weights[None, :]), model.delay,
+                       im_max=im_max)
+    omega, _ = _gain_crossings(model, contour)
+    return np.sort(omega), contour.certificate
 
 
 def delay_margin(system: ControlledChain, loop: str | None = None, *, delay_max: float | None = None,
@@ -527,13 +401,8 @@ def delay_margin(system: ControlledChain, loop: str | None = None, *, delay_max:
     k = np.array([model.gain])
     w = model.weights[None, :]
     tau_now = model.delay
-    contour = _contour(model, _weight_bound(k, w), max(tau_now, 0.0), im_max=im_max)
-
-    def excess(s, base, terms):          # |k C P|^2 - 1, scaled by |D Delta_0|^2
-        loop_term = model.gain * (model.weights @ terms)
-        return np.abs(loop_term) ** 2 - np.abs(base) ** 2, np.zeros(np.shape(s))
-
-    omega_c, sign = _loop_zero_crossings(contour, excess)
+    contour = build_contour(model, loop_weight_bound(k, w), max(tau_now, 0.0), im_max=im_max)
+    omega_c, sign = _gain_crossings(model, contour)
     taus, omegas, directions = [], [], []
     if omega_c.size:
         base, terms = model.components(1j * omega_c)
@@ -576,7 +445,7 @@ def delay_margin(system: ControlledChain, loop: str | None = None, *, delay_max:
                        margin=margin, stable=stable, unstable_roots_at_zero_delay=n0,
                        crossing_delays=tuple(taus), crossing_frequencies=tuple(omegas),
                        crossing_directions=tuple(directions), stable_intervals=tuple(intervals),
-                       delay_max=float(limit))
+                       delay_max=float(limit), certificate=contour.certificate)
 
 
 @dataclass(frozen=True)
@@ -601,6 +470,10 @@ class GainMargin:
         All crossings with ``|factor| <= max_factor``, ascending.
     stable_intervals : tuple of (float, float)
         Factor intervals of stability within [-max_factor, max_factor].
+    max_factor : float
+        Largest factor searched.
+    certificate : ContourCertificate
+        Frequency range searched and whether it is proven complete (:mod:`ctmm.certification`).
     """
 
     upper: float
@@ -613,6 +486,7 @@ class GainMargin:
     crossing_frequencies: tuple
     stable_intervals: tuple
     max_factor: float
+    certificate: ContourCertificate | None = None
 
     @property
     def upper_db(self) -> float:
@@ -623,6 +497,7 @@ class GainMargin:
         """Plain ``dict`` (JSON-friendly)."""
         out = {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
         out["upper_db"] = self.upper_db
+        out["certificate"] = None if self.certificate is None else self.certificate.as_dict()
         return out
 
 
@@ -656,7 +531,7 @@ def gain_margin(system: ControlledChain, loop: str | None = None, *, max_factor:
                          "is undefined; give the loop a non-zero gain")
     w = model.weights[None, :]
     tau = np.array([model.delay])
-    contour = _contour(model, _weight_bound(np.array([abs(g) * max_factor]), w), model.delay,
+    contour = build_contour(model, loop_weight_bound(np.array([abs(g) * max_factor]), w), model.delay,
                        im_max=im_max)
     sets0 = (np.array([0.0]), tau, w)
     sets1 = (np.array([g]), tau, w)
@@ -678,7 +553,7 @@ def gain_margin(system: ControlledChain, loop: str | None = None, *, max_factor:
                       lower_frequency=float(crossings.omega[below[-1]]) if below.size else math.nan,
                       gain=g, stable=stable, crossing_factors=tuple(float(f) for f in factors),
                       crossing_frequencies=tuple(float(o) for o in crossings.omega),
-                      stable_intervals=intervals, max_factor=max_factor)
+                      stable_intervals=intervals, max_factor=max_factor, certificate=contour.certificate)
 
 
 # --------------------------------------------------------------------------------------------

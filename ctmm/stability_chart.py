@@ -33,10 +33,12 @@ import numpy as np
 
 from . import validation
 from .control.loops import ControlledChain
+from .certification import ContourCertificate
 from .errors import ModelError, unknown_name
-from .stability import row_crossings
-from .sweeps import (LoopCharacteristic, _contour, _weight_bound, as_controlled, count, find_loop,
-                     managed_executor, parallel_map)
+from .parameter_crossings import row_crossings
+from .counting_contour import build_contour, count
+from .sweeps import (LoopCharacteristic, as_controlled, find_loop, loop_weight_bound, managed_executor,
+                     parallel_map)
 
 __all__ = ["Boundary", "StabilityChart", "stability_chart"]
 
@@ -95,6 +97,9 @@ class StabilityChart:
         With ``verify=True``: every grid point counted directly agrees.
     notes : list of str
         Diagnostics.
+    certificate : ContourCertificate or None
+        Region counted and whether no root outside it can exist, for the whole parameter box
+        (:mod:`ctmm.certification`); per-point charts of a function: the least certain point.
     """
 
     x_name: str
@@ -117,6 +122,7 @@ class StabilityChart:
     abscissa_levels: np.ndarray | None = None
     verified: bool | None = None
     notes: list = field(default_factory=list)
+    certificate: ContourCertificate | None = None
 
     @property
     def stable(self) -> np.ndarray:
@@ -208,6 +214,7 @@ class StabilityChart:
             "max_crossing_error": float(np.max(self.crossings["error"])) if len(self.crossings.get("error", ())) else 0.0,
             "im_max": self.im_max, "wall_time_s": self.wall_time_s,
             "n_evaluations": self.n_evaluations, "verified": self.verified, "notes": list(self.notes),
+            "certificate": None if self.certificate is None else self.certificate.as_dict(),
         }
 
 
@@ -350,7 +357,7 @@ def _loop_chart(system, loop, xs, ys, im_max, levels, verify, pool, progress) ->
     # the parameter box (for the contour radius) and the largest delay (for the sampling)
     P, Q = np.meshgrid(p_grid, q_grid)
     k_all, tau_all, w_all = _sets_for(model, {p_name: P.ravel(), q_name: Q.ravel()}, P.size)
-    contour = _contour(model, _weight_bound(k_all, w_all), float(tau_all.max()), im_max=im_max)
+    contour = build_contour(model, loop_weight_bound(k_all, w_all), float(tau_all.max()), im_max=im_max)
     model._chart_tau_max = float(tau_all.max())
     notes += contour.notes
     _resolve_curves(model, contour, p_name, q_name, p_grid, q_grid)
@@ -382,7 +389,7 @@ def _loop_chart(system, loop, xs, ys, im_max, levels, verify, pool, progress) ->
     return StabilityChart(x_name, y_name, x_grid, y_grid, counts, tuple(boundaries), cross, p_name,
                           x_label, y_label, system.name, model.loop.name, contour.radius,
                           "rows (exact crossings + argument principle)", 0.0, model.n_evaluations,
-                          abscissa, levels, verified, notes)
+                          abscissa, levels, verified, notes, contour.certificate)
 
 
 def _classify_rows(model, contour, crossings, p_name, p_grid, q_name, q_grid, notes) -> np.ndarray:
@@ -607,7 +614,7 @@ def _abscissa_levels(model, k, tau, w, levels, im_max, progress=None) -> np.ndar
     counts = []
     bar = progress_bar(levels.size, "abscissa levels", enabled=progress, min_total=10)
     for sigma in levels:
-        contour = _contour(model, _weight_bound(k, w), float(tau.max()), sigma=float(sigma),
+        contour = build_contour(model, loop_weight_bound(k, w), float(tau.max()), sigma=float(sigma),
                            im_max=im_max)
         counts.append(count(contour, k, tau, w)[0])
         bar.update()
@@ -649,7 +656,8 @@ def _point_count(args) -> int:
     system, loop, im_max = args
     from .stability import unstable_root_count
 
-    return int(unstable_root_count(system, loop=loop, im_max=im_max)[0])
+    counts = unstable_root_count(system, loop=loop, im_max=im_max)
+    return int(counts[0]), counts.certificate
 
 
 def _function_chart(make_system, loop, xs, ys, im_max, levels, pool, progress) -> StabilityChart:
@@ -669,17 +677,21 @@ def _function_chart(make_system, loop, xs, ys, im_max, levels, pool, progress) -
         k = np.array([1.0 if lp.is_lti else float(lp.gain) for lp in (sys_.loop(shared.name) for sys_ in systems)])
         tau = np.array([sys_.loop(shared.name).delay for sys_ in systems])
         w = np.array([[wt for _, wt in sys_.loop(shared.name).terms] for sys_ in systems])
-        contour = _contour(model, _weight_bound(k, w), float(tau.max()), im_max=im_max)
+        contour = build_contour(model, loop_weight_bound(k, w), float(tau.max()), im_max=im_max)
         counts, _ = count(contour, k, tau, w)
         radius, method, evaluations = contour.radius, "points (batched over one loop)", model.n_evaluations
         abscissa = None if levels is None else \
             _abscissa_levels(model, k, tau, w, levels, im_max, progress).reshape(y_grid.size, x_grid.size)
         notes += contour.notes
+        certificate = contour.certificate
     else:
         if levels is not None:
             raise ModelError("abscissa_levels needs systems that differ only in one loop's parameters")
-        counts = np.array(parallel_map(_point_count, [(s_, loop, im_max) for s_ in systems],
-                                       executor=pool, progress=progress, description="stability chart"))
+        results = parallel_map(_point_count, [(s_, loop, im_max) for s_ in systems],
+                               executor=pool, progress=progress, description="stability chart")
+        counts = np.array([c for c, _ in results])
+        certificates = [cert for _, cert in results]
+        certificate = next((cert for cert in certificates if not cert.certified), certificates[0])
         radius, method, evaluations, abscissa = float("nan") if im_max is None else im_max, \
             "points (one count per system)", 0, None
     counts = counts.reshape(y_grid.size, x_grid.size)
@@ -689,7 +701,7 @@ def _function_chart(make_system, loop, xs, ys, im_max, levels, pool, progress) -
                           {"row": np.zeros(0, int), "value": np.zeros(0), "omega": np.zeros(0),
                            "error": np.zeros(0), "static": np.zeros(0, bool)}, None,
                           x_label, y_label, systems[0].name, lp_name, radius, method, 0.0,
-                          evaluations, abscissa, levels, None, notes)
+                          evaluations, abscissa, levels, None, notes, certificate)
 
 
 def _grid_boundaries(x: np.ndarray, y: np.ndarray, counts: np.ndarray) -> list[Boundary]:

@@ -21,15 +21,8 @@ response of sensor term ``j`` to a unit actuator force.  :class:`LoopCharacteris
 parameter sets by array arithmetic.  ``tests/test_stability.py`` checks (1) against direct
 evaluations of the closed loop.
 
-Counting right-half-plane roots
--------------------------------
-:func:`count` applies the argument principle to the rectangle ``[sigma, sigma + R] x [-R, R]``,
-using ``Delta(conj s) = conj Delta(s)``: the count is the phase change of ``Delta`` along the
-upper half of the boundary divided by ``pi``.  ``R`` is chosen so that beyond it the loop term is
-smaller than half the open-loop term (``sum_j |k w_j T_j| e^{max(0, -sigma) tau} < |D Delta_0|/2``),
-which holds for retarded loops (strictly proper loop transfer functions); then on the far edges
-``arg Delta`` is ``arg D Delta_0`` (computed once) plus the principal ``arg(1 + L)``, and only the
-line ``Re s = sigma`` has to be sampled for every parameter set.
+Counting the roots of the loop's characteristic function on a contour is in
+:mod:`ctmm.counting_contour`.
 
 Executors
 ---------
@@ -38,26 +31,21 @@ process dies are described in :mod:`ctmm.executors`.
 """
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
-from . import validation
 from .assembly import SOLVERS
 from .control.loops import ControlledChain, Feedback
 from .elements.lumped import Connector
 from .errors import ModelError, SingularSystemError, unknown_name
-from .frequency import assemble, characteristic_function
+from .frequency import assemble, characteristic_function, solve
 from .executors import executor_workers, managed_executor, parallel_map
 
 __all__ = ["LoopCharacteristic", "managed_executor", "executor_workers", "parallel_map",
            "as_controlled", "find_loop", "delay_free_answer"]
 
-_MAX_STEP = 0.4          # largest complex-log step of a component between samples
-_COUNT_STEP = 1.0        # largest phase step of Delta(s; p) between samples when counting
-_TINY = 1e-13            # components below this (relative to the largest at s) are ignored
+TINY = 1e-13             # components below this (relative to the largest at s) are ignored
 
 
 # --------------------------------------------------------------------------------------------
@@ -83,7 +71,7 @@ def delay_free_answer(system: Any, radius: float = 1e4) -> str:
     from .roots import ContourError, count_roots_in_rectangle
 
     try:
-        count = count_roots_in_rectangle(_char_fn(system), (0.0, radius), (-radius, radius),
+        count = count_roots_in_rectangle(characteristic_callable(system), (0.0, radius), (-radius, radius),
                                          max_evaluations=50_000)
     except ContourError as exc:
         return (f"not asymptotically stable: a root lies on the imaginary axis near "
@@ -111,22 +99,32 @@ def find_loop(system: ControlledChain, loop: str | None) -> Feedback:
 def _log_characteristic(system: Any, s: np.ndarray) -> np.ndarray:
     """``log Delta(s)`` (unnormalised, complex) without forming ``Delta`` (no overflow).
 
-    Same determinant and pole-clearing factor as :func:`ctmm.characteristic_function`."""
+    Same determinant and pole-clearing factor as :func:`ctmm.characteristic_function`, but the
+    factor is summed as logarithms: a product of ``k + c s`` over a chain of thousands of
+    connectors overflows at high frequency."""
     with np.errstate(divide="ignore", invalid="ignore"):
         Us, us, start, end = assemble(system, s)
         sol = SOLVERS["riccati"](Us, us, start, end, want_states=False)
-        return sol.log_det + np.log(_pole_factor(system, s))
+        return sol.log_det + _log_pole_factor(system, s)
 
 
-def _pole_factor(system: Any, s: np.ndarray) -> np.ndarray:
-    """Connector stiffnesses ``k + c s`` (and controller denominators) that clear the poles."""
-    if hasattr(system, "characteristic_scale"):
-        return np.asarray(system.characteristic_scale(s), dtype=complex)
-    factor = np.ones(s.shape, dtype=complex)
-    for element in system.body:
-        if isinstance(element, Connector):
-            factor = factor * element.connector_stiffness(s)
-    return factor
+def _log_pole_factor(system: Any, s: np.ndarray) -> np.ndarray:
+    """``log`` of the connector stiffnesses ``k + c s`` (and LTI controller denominators) that
+    clear the poles of the element matrices, summed term by term."""
+    s = np.asarray(s, dtype=complex)
+    controlled = isinstance(system, ControlledChain)
+    body = system.plant.body if controlled else getattr(system, "body", None)
+    if body is None:      # another model type: its own (product) scale
+        return np.log(np.asarray(system.characteristic_scale(s), dtype=complex))
+    out = np.zeros(s.shape, dtype=complex)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        for element in body:
+            if isinstance(element, Connector):
+                out = out + np.log(np.asarray(element.connector_stiffness(s), dtype=complex))
+        for lp in (system.loops if controlled else ()):
+            if lp.is_lti:
+                out = out + np.log(np.asarray(lp.denominator(s), dtype=complex))
+    return out
 
 
 def _normalised(logs: np.ndarray) -> np.ndarray:
@@ -223,13 +221,13 @@ class LoopCharacteristic:
         self._groups = [closed_by(Feedback(lp.name, self.term_names[r], lp.actuator, gain=reference,
                                            delay=0.0)) for r in reps]
         others = [other for other in self.system.loops if other is not lp]
-        self._open = self.system.with_loops(others) if others else plant
+        self.open_system = self.system.with_loops(others) if others else plant
         # unit loop force: every weighted actuator input of the loop (e.g. a PZT moment pair)
         self._amplitudes: dict = {}
         for name, weight in lp.actuator_terms:
             element_name, _, input_name = name.partition(".")
-            element = self._open.element(element_name)
-            resolved = self._open.input(f"{element_name}.{input_name or element.inputs[0]}")
+            element = self.open_system.element(element_name)
+            resolved = self.open_system.input(f"{element_name}.{input_name or element.inputs[0]}")
             slot = self._amplitudes.setdefault(resolved.position, {})
             slot[resolved.input] = slot.get(resolved.input, 0.0) + weight
         self._sensed = [(sig.point, sig.component, sig.derivative) for sig in signals]
@@ -248,7 +246,16 @@ class LoopCharacteristic:
         at a sample, e.g. s = 0 of a free chain) the extended closed chains are swept instead."""
         s = np.asarray(s, dtype=complex).ravel()
         out = np.empty((1 + len(self._sensed), s.size), dtype=complex)
-        log_open = _log_characteristic(self._open, s)
+        try:             # one sweep for the determinant and the responses (a regular open chain)
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                solution = solve(self.open_system, s, self._amplitudes, want_log_det=True)
+                log_open = solution.log_det + _log_pole_factor(self.open_system, s)
+            if np.all(np.isfinite(log_open)):
+                out[:] = self._components_open(s, log_open, solution.states)
+                return out
+        except (SingularSystemError, np.linalg.LinAlgError):   # a root of the open chain at a sample
+            pass
+        log_open = _log_characteristic(self.open_system, s)
         regular = np.isfinite(log_open)
         if regular.any():
             try:
@@ -265,7 +272,7 @@ class LoopCharacteristic:
         if getattr(self, "_phase", None) is None:
             for s_ref in (0.7 + 1.3j, 1.9 + 0.4j, 0.3 + 3.1j):
                 ref = np.array([s_ref])
-                log_open = _log_characteristic(self._open, ref)
+                log_open = _log_characteristic(self.open_system, ref)
                 if not np.isfinite(log_open[0]):
                     continue
                 open_base = self._components_open(ref, log_open)[0, 0]
@@ -278,11 +285,11 @@ class LoopCharacteristic:
                 self._phase = 1.0
         return self._phase
 
-    def _components_open(self, s: np.ndarray, log_open: np.ndarray) -> np.ndarray:
-        from .frequency import solve
-
+    def _components_open(self, s: np.ndarray, log_open: np.ndarray,
+                         states: np.ndarray | None = None) -> np.ndarray:
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            states = solve(self._open, s, self._amplitudes).states
+            if states is None:
+                states = solve(self.open_system, s, self._amplitudes).states
             log_base = log_open
             controller = np.zeros(s.size, complex)
             if self.loop.is_lti:
@@ -377,230 +384,6 @@ class LoopCharacteristic:
         return delta
 
 
-# --------------------------------------------------------------------------------------------
-# sampling the contour
-# --------------------------------------------------------------------------------------------
-class _Path:
-    """Adaptive samples of the components on a polyline ``vertices[0] -> vertices[1] -> ...``."""
-
-    def __init__(self, model: LoopCharacteristic, vertices: Sequence[complex], n_initial: int,
-                 rate: float, min_step: float) -> None:
-        self.model, self.rate, self.min_step = model, rate, min_step
-        v = np.asarray(vertices, dtype=complex)
-        lengths = np.abs(np.diff(v))
-        per = np.maximum(8, np.ceil(n_initial * lengths / lengths.sum())).astype(int)
-        pts = [v[k] + (v[k + 1] - v[k]) * np.arange(per[k]) / per[k] for k in range(len(v) - 1)]
-        self.s = np.append(np.concatenate(pts), v[-1])
-        self.delta = 1e-7 * float(lengths.sum())
-        self.values, self.logderiv = self._evaluate(self.s)
-        self._refine_components()
-
-    def _evaluate(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Components at ``s`` and their logarithmic rates along the path (forward difference)."""
-        direction = self._direction(s)
-        base, terms = self.model.components(np.concatenate([s, s + self.delta * direction]))
-        both = np.vstack([base[None, :], terms])
-        n = s.size
-        v, w = both[:, :n], both[:, n:]
-        with np.errstate(all="ignore"):
-            rate = np.log(w / v) / self.delta
-        rate = np.where(np.isfinite(rate) & (np.abs(v) > _TINY), rate, 0.0)
-        return v, rate
-
-    def _direction(self, s: np.ndarray) -> np.ndarray:  # unit tangent at each sample
-        raise NotImplementedError
-
-    def bad_intervals(self) -> np.ndarray:
-        """Intervals where a component turns by more than ``_MAX_STEP`` rad (observed or
-        predicted from the rates) or changes its modulus by more than a factor e^1.5."""
-        v, rate = self.values, self.logderiv
-        h = np.abs(np.diff(self.s))
-        big = (np.abs(v[:, 1:]) > _TINY) & (np.abs(v[:, :-1]) > _TINY)
-        with np.errstate(all="ignore"):
-            step = np.log(v[:, 1:] / v[:, :-1])
-        step = np.where(big & np.isfinite(step), step, 0.0)
-        phase_rate = np.maximum(np.abs(rate.imag[:, 1:]), np.abs(rate.imag[:, :-1]))
-        modulus_rate = np.maximum(np.abs(rate.real[:, 1:]), np.abs(rate.real[:, :-1]))
-        bad = (np.abs(step.imag) > _MAX_STEP) | (h * phase_rate > 2 * _MAX_STEP) | \
-            (np.abs(step.real) > 1.5) | (h * modulus_rate > 3.0)
-        bad = np.any(bad, axis=0) | (h * self.rate > _MAX_STEP)
-        return bad & (h > self.min_step)
-
-    def insert(self, intervals: np.ndarray, *, rates: bool = False) -> None:
-        """Add the midpoints of ``intervals`` (with companion points for the rates only when
-        ``rates``: they serve the component refinement of the constructor)."""
-        if not intervals.any():
-            return
-        j = np.flatnonzero(intervals)
-        mid = 0.5 * (self.s[j] + self.s[j + 1])
-        if rates:
-            v, g = self._evaluate(mid)
-        else:
-            base, terms = self.model.components(mid)
-            v, g = np.vstack([base[None, :], terms]), np.zeros((1 + terms.shape[0], mid.size), complex)
-        self.s = np.insert(self.s, j + 1, mid)
-        self.values = np.insert(self.values, j + 1, v, axis=1)
-        self.logderiv = np.insert(self.logderiv, j + 1, g, axis=1)
-
-    def _refine_components(self) -> None:
-        for _ in range(60):
-            bad = self.bad_intervals()
-            if not bad.any():
-                return
-            self.insert(bad, rates=True)
-
-    @property
-    def base(self) -> np.ndarray:
-        return self.values[0]
-
-    @property
-    def terms(self) -> np.ndarray:
-        return self.values[1:]
-
-
-class _VerticalPath(_Path):
-    def _direction(self, s: np.ndarray) -> np.ndarray:
-        return np.full(s.size, 1j)
-
-
-class _FarPath(_Path):
-    """``sigma + X -> sigma + X + iR -> sigma + iR`` (right edge up, top edge left)."""
-
-    def __init__(self, model, sigma, X, R, n_initial, rate, min_step):
-        self._corner = complex(sigma + X, R)
-        super().__init__(model, [sigma + X, self._corner, complex(sigma, R)], n_initial, rate,
-                         min_step)
-
-    def _direction(self, s: np.ndarray) -> np.ndarray:
-        on_top = np.abs(s.imag - self._corner.imag) <= 1e-12 * max(1.0, abs(self._corner))
-        return np.where(on_top, -1.0 + 0j, 1j)
-
-
-@dataclass
-class _Contour:
-    """Everything :func:`count` needs for one line ``Re s = sigma`` and one parameter box."""
-
-    model: LoopCharacteristic
-    sigma: float
-    radius: float
-    line: _VerticalPath            # sigma -> sigma + iR (ascending imaginary part)
-    far_phase: float               # phase change of Delta_0 along sigma+R -> sigma+R+iR -> sigma+iR
-    notes: list = field(default_factory=list)
-
-    @property
-    def omega(self) -> np.ndarray:
-        return self.line.s.imag
-
-
-def _loop_bound(base: np.ndarray, terms: np.ndarray, weight_bound: np.ndarray) -> np.ndarray:
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = (weight_bound[:, None] * np.abs(terms)).sum(0) / np.abs(base)
-    return np.where(np.isfinite(ratio), ratio, np.inf)
-
-
-def _radius(model: LoopCharacteristic, weight_bound: np.ndarray, sigma: float, tau_max: float,
-            im_max: float | None) -> float:
-    """Imaginary extent beyond which |loop term| < |Delta_0|/2 in Re s >= sigma (retarded loops)."""
-    growth = math.exp(max(0.0, -sigma) * tau_max)
-    if im_max is not None:
-        return validation.positive("im_max", im_max)
-    omega = np.logspace(-3, 7, 121)
-    base, terms = model.components(sigma + 1j * omega)
-    ratio = growth * _loop_bound(base, terms, weight_bound)
-    big = np.flatnonzero(ratio >= 0.5)
-    if big.size and big[-1] >= omega.size - 3:
-        raise ModelError(
-            f"the loop term of {model.loop.name!r} does not decay at high frequency (|L| = "
-            f"{ratio[-1]:.3g} at omega = {omega[-1]:.3g} rad/s): a neutral or improper loop "
-            "(acceleration feedback, non-proper controller) can have infinitely many roots near the "
-            "imaginary axis; pass im_max to study a bounded frequency range")
-    last = omega[big[-1] + 1] if big.size else omega[0]
-    return float(max(2.0 * last, 1e-2))
-
-
-def _contour(model: LoopCharacteristic, weight_bound: np.ndarray, tau_max: float, *,
-             sigma: float = 0.0, im_max: float | None = None, resolution: int = 256) -> _Contour:
-    radius = _radius(model, weight_bound, sigma, tau_max, im_max)
-    growth = math.exp(max(0.0, -sigma) * tau_max)
-    notes = []
-    for _ in range(8):
-        far = _FarPath(model, sigma, radius, radius, 48, tau_max, 1e-12 * radius)
-        ratio = growth * _loop_bound(far.base, far.terms, weight_bound)
-        if np.all(ratio < 0.5) or im_max is not None:
-            if im_max is not None and not np.all(ratio < 0.5):
-                notes.append(f"im_max = {im_max:.6g} rad/s: the loop term is not small on the far edges "
-                             f"(max ratio {ratio.max():.3g}); roots beyond it may be missed")
-            break
-        radius *= 2.0
-    else:
-        raise ModelError(f"no contour radius found for loop {model.loop.name!r}: the loop term stays "
-                         "large far from the origin; pass im_max")
-    with np.errstate(all="ignore"):
-        steps = np.angle(far.base[1:] / far.base[:-1])
-    if not np.all(np.isfinite(steps)):
-        raise ModelError("the open-loop characteristic function vanishes on the far contour edge; "
-                         "pass a different im_max")
-    n0 = max(resolution, int(math.ceil(radius * tau_max / _MAX_STEP)))
-    line = _VerticalPath(model, [complex(sigma, 0.0), complex(sigma, radius)], n0, tau_max,
-                         1e-13 * radius)
-    return _Contour(model, sigma, radius, line, float(steps.sum()), notes)
-
-
-# --------------------------------------------------------------------------------------------
-# counting, vectorised over parameter sets
-# --------------------------------------------------------------------------------------------
-def _phase_steps(delta: np.ndarray) -> np.ndarray:
-    with np.errstate(all="ignore"):
-        return np.angle(delta[:, :-1] * np.conj(delta[:, 1:]))    # from sample j+1 down to j
-
-
-def count(contour: _Contour, gain: np.ndarray, delay: np.ndarray, weights: np.ndarray, *,
-           chunk: int = 2048, refine: bool = True, rounds: int = 80,
-           min_step: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-    """Roots in Re s > sigma for each parameter set: ``(counts, reliable)``.
-
-    Samples are added to the line where a set's phase step exceeds ``_COUNT_STEP`` (sets that
-    are resolved keep their count).  ``counts`` is -1 where ``Delta`` vanishes at a sample of the
-    line (a root on it).  Intervals are not split below ``min_step`` [rad/s]: sets that need
-    finer samples (a root that close to the line) are returned as not reliable."""
-    n = gain.size
-    counts = np.full(n, -1, dtype=int)
-    reliable = np.zeros(n, dtype=bool)
-    line = contour.line
-    pending = np.arange(n)
-    for round_ in range(rounds):
-        if pending.size == 0:
-            break
-        last = round_ == rounds - 1 or not refine
-        h = np.diff(line.s.imag)
-        refine_here = np.zeros(h.size, bool)
-        unresolved = []
-        for start in range(0, pending.size, chunk):
-            idx = pending[start:start + chunk]
-            delta = LoopCharacteristic.combine(line.s, line.base, line.terms, gain[idx], delay[idx],
-                                               weights[idx])
-            steps = _phase_steps(delta)
-            bad = (np.abs(steps) > _COUNT_STEP) & (h > max(line.min_step, min_step))[None, :]
-            open_ = bad.any(axis=1) & (not last)
-            if open_.any():
-                refine_here |= bad[open_].any(axis=0)
-                unresolved.append(idx[open_])
-            done = ~open_
-            d, st = delta[done], steps[done]
-            zero = np.any(d == 0, axis=1) | ~np.all(np.isfinite(d), axis=1)
-            with np.errstate(all="ignore"):
-                top = np.angle(d[:, -1] / line.base[-1])
-                total = (contour.far_phase + top + st.sum(axis=1)) / math.pi
-            rounded = np.round(np.where(np.isfinite(total), total, 0.0))
-            counts[idx[done]] = np.where(zero, -1, rounded.astype(int))
-            reliable[idx[done]] = ~zero & (np.abs(total - rounded) < 0.05) & \
-                ~np.any(np.abs(st) > _COUNT_STEP, axis=1)
-        pending = np.concatenate(unresolved) if unresolved else np.array([], int)
-        if pending.size:
-            line.insert(refine_here)
-    return counts, reliable
-
-
 def n_sets(gain: Any, delay: Any, weights: Any) -> int:
     """Number of parameter sets given as scalars / 1-D arrays (and weights rows), broadcast."""
     sizes = [int(np.size(v)) for v in (gain, delay) if v is not None and np.ndim(v) > 0]
@@ -612,7 +395,8 @@ def n_sets(gain: Any, delay: Any, weights: Any) -> int:
     return n
 
 
-def _check_parameters(k: np.ndarray, tau: np.ndarray, w: np.ndarray) -> None:
+def check_parameters(k: np.ndarray, tau: np.ndarray, w: np.ndarray) -> None:
+    """``ModelError`` for non-finite gains, delays or weights and for negative delays."""
     for label, values in (("gain", k), ("delay", tau), ("weights", w)):
         if not np.all(np.isfinite(values)):
             raise ModelError(f"{label} must contain only finite values, found {values[~np.isfinite(values)][0]!r}")
@@ -620,12 +404,13 @@ def _check_parameters(k: np.ndarray, tau: np.ndarray, w: np.ndarray) -> None:
         raise ModelError(f"delays must be >= 0 [s], got {tau[tau < 0][0]!r}")
 
 
-def _weight_bound(k: np.ndarray, w: np.ndarray) -> np.ndarray:
+def loop_weight_bound(k: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Largest ``|k w_j|`` per sensor term over parameter sets (gains ``(n,)``, weights ``(n, t)``)."""
     return np.max(np.abs(k[:, None] * w), axis=0)
 
 
-
-def _char_fn(system: Any):
+def characteristic_callable(system: Any):
+    """``s -> ctmm.characteristic_function(system, s)`` with floating-point warnings silenced."""
     def delta(s: np.ndarray) -> np.ndarray:
         with np.errstate(divide="ignore", invalid="ignore"):
             return characteristic_function(system, s)

@@ -19,7 +19,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time as _time
-from typing import Any, Callable, Mapping
+from typing import Callable, Mapping
 
 import numpy as np
 

@@ -155,7 +155,13 @@ class Margins:
     stability_margin : float
         ``min |1 + L|`` on the grid (refined) [-]; ``stability_margin_frequency`` [rad/s].
     gain_crossovers, phase_margins, phase_crossovers, gain_margins, delay_margins : tuple
-        All crossovers found in the frequency range, ascending, with their margins.
+        All crossovers found, ascending, with their margins.
+    notes : tuple of str
+        Crossovers the grid missed and that were added from the certified search, or why no
+        certified search was possible.
+    certificate : ContourCertificate or None
+        Frequency range of the certified gain-crossover search (controlled chains;
+        :mod:`ctmm.certification`).
     """
 
     gain_margin: float
@@ -171,10 +177,28 @@ class Margins:
     phase_crossovers: tuple = field(default=())
     gain_margins: tuple = field(default=())
     delay_margins: tuple = field(default=())
+    notes: tuple = field(default=())
+    certificate: Any = None
 
     def as_dict(self) -> dict:
         """Plain ``dict`` (JSON-friendly, tuples as lists)."""
-        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
+        out = {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
+        out["certificate"] = None if self.certificate is None else self.certificate.as_dict()
+        return out
+
+
+def _certified_crossovers(system: ControlledChain, loop: str) -> tuple[list, list, Any, list]:
+    """Gain and phase crossovers [rad/s] of a controlled chain's loop from the certified
+    contour search of :mod:`ctmm.stability` (phase crossovers: gain factors in (0, 100])."""
+    from ..stability import gain_crossovers, gain_margin
+
+    try:
+        gc, certificate = gain_crossovers(system, loop)
+        factors = gain_margin(system, loop)
+    except ModelError as exc:
+        return [], [], None, [f"crossovers not certified (only the grid was searched): {exc}"]
+    pc = [w for f, w in zip(factors.crossing_factors, factors.crossing_frequencies) if f > 0 and w > 0]
+    return [float(x) for x in gc], pc, certificate, []
 
 
 def _refine(fun: Callable[[float], float], w: np.ndarray, w_est: float) -> float:
@@ -234,8 +258,12 @@ def margins(source: Any, loop: str | None = None, omega: Any = None) -> Margins:
     Notes
     -----
     The crossovers are located with :func:`control.stability_margins` on the FRD (``returnall``)
-    and, as a safeguard, by sign changes on the grid; each is refined by Brent's method.  Only
-    crossovers inside the grid are found.
+    and, as a safeguard, by sign changes on the grid; each is refined by Brent's method.  For a
+    controlled chain the gain crossovers (and the phase crossovers with a gain margin up to
+    100) also come from the certified contour search of :func:`ctmm.stability.gain_crossovers`
+    and :func:`ctmm.stability.gain_margin`; crossovers the grid missed (narrow resonances, or
+    outside it) are added and listed in ``notes``.  For FRD data only crossovers inside the
+    grid are found.
     """
     import control
 
@@ -296,6 +324,21 @@ def margins(source: Any, loop: str | None = None, omega: Any = None) -> Margins:
 
     gcs = _dedupe([_refine(f_mag, wg, x) for x in gc_est])
     pcs = _dedupe([_refine(f_imag, wg, x) for x in pc_est])
+    notes: list[str] = []
+    certificate = None
+    if isinstance(source, ControlledChain):
+        gc_cert, pc_cert, certificate, notes = _certified_crossovers(source, lp.name)
+        for kind, found, exact in (("gain", gcs, gc_cert), ("phase", pcs, pc_cert)):
+            for x in exact:
+                if not any(abs(x - y) <= 1e-7 * max(1.0, x) for y in found):
+                    where = "between the samples of" if wg[0] <= x <= wg[-1] else "outside"
+                    notes.append(f"{kind} crossover at {x:.6g} rad/s {where} the grid: added from the "
+                                 "certified search")
+                    found.append(x)
+        gcs, pcs = sorted(gcs), sorted(pcs)
+        if certificate is not None and (wg[0] > 0.0 or wg[-1] < certificate.im_max):
+            notes.append(f"stability_margin (min |1 + L|) searched on the grid only, [{wg[0]:.6g}, "
+                         f"{wg[-1]:.6g}] rad/s")
     gcs = [x for x in gcs if abs(f_mag(x)) < 1e-6]
     pcs = [x for x in pcs if evaluate(x).real < 0 and abs(f_imag(x)) < 1e-6 * max(1.0, abs(evaluate(x)))]
     pms = []
@@ -328,7 +371,7 @@ def margins(source: Any, loop: str | None = None, omega: Any = None) -> Margins:
         delay_crossover_frequency=gcs[i_dm] if i_dm is not None else math.nan,
         stability_margin=sm, stability_margin_frequency=wsm,
         gain_crossovers=tuple(gcs), phase_margins=tuple(pms), phase_crossovers=tuple(pcs),
-        gain_margins=tuple(gms), delay_margins=tuple(dms))
+        gain_margins=tuple(gms), delay_margins=tuple(dms), notes=tuple(notes), certificate=certificate)
 
 
 def encirclements(loop_transfer: FrequencyResponse) -> int:

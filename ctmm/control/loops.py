@@ -35,7 +35,7 @@ import numpy as np
 
 from .. import validation
 from ..assembly import BoundaryEnd, BoundaryStart
-from ..elements.lumped import Connector, PointElement
+from ..elements.lumped import Connector
 from ..errors import ModelError, unknown_name
 from ..system import Chain, Signal
 

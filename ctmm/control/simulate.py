@@ -39,7 +39,7 @@ from ..schemes import History, as_scheme
 from ..signals import as_signal
 from ..system import Chain, require_system
 from ..timestep import simulate as simulate_plant
-from .loops import ControlledChain, Feedback
+from .loops import ControlledChain
 from .protocol import Controller, check_controllers
 
 

@@ -38,7 +38,7 @@ import numpy as np
 
 from .. import validation
 from ..errors import ModelError, SimulationError
-from .model import BUSHING, DRIVEN, FREE, REVOLUTE, PlanarModel
+from .model import BUSHING, DRIVEN, REVOLUTE, PlanarModel
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,244 @@
+"""Certified height of the root-counting contour: a model-based bound on the loop term.
+
+The stability tools (:mod:`ctmm.sweeps`, :mod:`ctmm.stability`, :mod:`ctmm.stability_chart`)
+count the characteristic roots of one delayed loop ``u = -k C(s) e^{-s tau} y`` in the rectangle
+``Re s >= sigma, |Im s| <= R``.  With ``L(s) = k C(s) P(s)`` the delay-free loop transfer
+function, a root needs ``|L(s)| e^{-Re(s) tau} = 1``; if
+
+    e^{max(0, -sigma) tau} |L(s)| < 1/2        for every s with Re s >= sigma, |s| >= R      (B)
+
+no root lies outside the rectangle, and on its far edges ``arg Delta = arg(D Delta_0) +
+Arg(1 + L e^{-s tau})`` with a principal argument, which the counting uses.
+
+How ``R`` is proved (lumped chains)
+-----------------------------------
+The open chain (the loop removed, every other delay-free loop closed) has a finite-dimensional
+realisation ``x' = A x + b f``, ``y_j = c_j x + d_j f`` (:func:`ctmm.interop.to_state_space`), and
+an LTI controller one of its own.  Balance ``A`` by a diagonal similarity ``B = T^-1 A T``
+(:func:`scipy.linalg.matrix_balance`, exact in floating point: powers of 2) and let
+``beta = ||B||_inf``.  For ``|s| > beta`` the Neumann series gives
+``||(sI - B)^-1||_inf <= 1/(|s| - beta)``, hence
+
+    |P_j(s)| = |(c_j T)(sI - B)^-1 (T^-1 b) + d_j| <= ||c_j T||_1 ||T^-1 b||_inf / (|s| - beta) + |d_j|,
+
+and the same for ``C(s)``.  The product of these bounds decreases with ``|s|``; ``R`` is where it
+reaches 1/2 (found by bisection, then enlarged by 1 %).  The bound covers every ``s`` of the
+half plane with ``|s| >= R``, not only the sampled line, so two close resonances, a pole-zero pair
+or any narrow peak cannot hide beyond ``R``: nothing is sampled there.  Every open-loop pole
+(eigenvalue of ``A``) satisfies ``|p| <= beta < R``.
+
+Inside ``R`` the line ``Re s = sigma`` is sampled adaptively; its initial samples include the
+imaginary parts of the open-loop poles (eigenvalues of ``A``, up to ``MAX_EIGEN_STATES`` states)
+and the points at their half-power distance on either side, so each resonance peak, however
+narrow, is a sample, and two close modes are two samples (a phase change of 2 pi between two
+samples cannot go unseen).
+
+Neutral and improper loops
+--------------------------
+If ``e^{max(0,-sigma) tau} |L(infinity)| >= 1/2`` (``|L(infinity)| = |k d C(infinity)|``: direct
+feedthrough, e.g. acceleration feedback at the actuated mass) or the controller is not proper,
+(B) fails for every ``R``: such a loop can have infinitely many roots near a vertical line.  The
+tools then raise a :class:`~ctmm.errors.ModelError` naming the loop unless the user gives
+``im_max`` (a bounded frequency range, reported as not certified).
+
+Models without a realisation
+----------------------------
+Chains with distributed elements (beams, rods) or other delayed loops have no realisation here:
+``R`` then comes from sampling ``|L|`` on the line (log-spaced, refined adaptively on the complex
+logarithms of the components) and the result says it is not certified.
+"""
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .errors import ModelError
+
+__all__ = ["ContourCertificate", "LoopBound", "loop_bound", "StabilityWarning", "MAX_EIGEN_STATES"]
+
+MAX_EIGEN_STATES = 2400       # open-loop poles are computed (dense eigenvalues) up to this size
+
+
+class StabilityWarning(UserWarning):
+    """A stability result could not be certified (e.g. a user ``im_max`` that is too small)."""
+
+
+@dataclass(frozen=True)
+class ContourCertificate:
+    """What a root count (or a margin, a chart) certifies.
+
+    Attributes
+    ----------
+    sigma : float
+        Roots are counted in ``Re s > sigma`` [1/s].
+    im_max : float
+        Half height ``R`` [rad/s] of the counted rectangle ``|Im s| <= R``.
+    source : str
+        How ``R`` was obtained: ``"bound"`` (model-based bound (B), module docstring),
+        ``"user"`` (the ``im_max`` option) or ``"sampled"`` (sampled loop term, no realisation).
+    bound : float
+        The proven height [rad/s] beyond which the loop term is below 1/2 in ``Re s >= sigma``
+        (``nan`` when no bound exists: no realisation, neutral loop).
+    certified : bool
+        No root with ``Re s > sigma`` can lie outside the rectangle (``im_max >= bound``).
+    notes : tuple of str
+        Why a result is not certified, and what was sampled.
+    """
+
+    sigma: float
+    im_max: float
+    source: str
+    bound: float
+    certified: bool
+    notes: tuple = field(default=())
+
+    def describe(self) -> str:
+        """One line: the region and how it was obtained."""
+        head = (f"roots counted in Re s > {self.sigma:.6g}, |Im s| <= {self.im_max:.6g} rad/s "
+                f"({self.source})")
+        notes = "".join(f"; {n}" for n in self.notes)
+        if self.certified:
+            return head + f"; certified: loop term < 1/2 for |s| >= {self.bound:.6g} rad/s" + notes
+        return head + "; NOT certified beyond it" + notes
+
+    def as_dict(self) -> dict:
+        """Plain ``dict`` (JSON-friendly)."""
+        return {"sigma": self.sigma, "im_max": self.im_max, "source": self.source,
+                "bound": self.bound, "certified": self.certified, "notes": list(self.notes)}
+
+
+@dataclass(frozen=True)
+class LoopBound:
+    """Factors ``G_i / (r - beta_i) + H_i`` whose product bounds ``|L(s)|`` for ``|s| = r``.
+
+    Attributes
+    ----------
+    factors : tuple of (float, float, float)
+        ``(G, beta, H)`` per factor: plant (sensor terms summed with the weight bounds) and
+        controller.
+    poles : numpy.ndarray
+        Open-loop poles [1/s] (eigenvalues of the realisations; empty when too large).
+    n_states : int
+        States of the plant realisation.
+    """
+
+    factors: tuple
+    poles: np.ndarray
+    n_states: int = 0
+
+    def value(self, r: float) -> float:
+        """Upper bound of ``|L(s)|`` over ``|s| = r`` (inf for ``r`` <= the largest beta)."""
+        out = 1.0
+        for g, beta, h in self.factors:
+            if r <= beta:
+                return math.inf
+            out *= g / (r - beta) + h
+        return out
+
+    @property
+    def at_infinity(self) -> float:
+        """``lim sup |L|`` for ``|s| -> inf`` (0 for strictly proper loops)."""
+        return float(np.prod([h for _, _, h in self.factors]))
+
+    def radius(self, level: float) -> float:
+        """Smallest ``r`` (up to 1 %) with ``value(r) < level``; inf if the limit is >= level."""
+        if self.at_infinity >= level:
+            return math.inf
+        lo = max(beta for _, beta, _ in self.factors)
+        hi = 2.0 * lo + 1.0
+        while self.value(hi) >= level:
+            hi *= 2.0
+        lo = max(lo, 0.0)
+        for _ in range(200):
+            if hi - lo <= 1e-3 * hi:
+                break
+            mid = 0.5 * (lo + hi)
+            lo, hi = (lo, mid) if self.value(mid) < level else (mid, hi)
+        return 1.01 * hi
+
+
+def _balanced(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(B, t)`` with ``B = diag(t)^-1 A diag(t)`` (powers of two: exact)."""
+    import scipy.linalg
+
+    if A.size == 0:
+        return A, np.ones(A.shape[0])
+    B, (scale, _) = scipy.linalg.matrix_balance(A, permute=False, separate=True)
+    return B, np.asarray(scale, float)
+
+
+def _factor(A: np.ndarray, b: np.ndarray, C: np.ndarray, d: np.ndarray,
+            weights: np.ndarray) -> tuple[float, float, float]:
+    """``(G, beta, H)``: ``sum_j weights_j |c_j (sI-A)^-1 b + d_j| <= G/(|s|-beta) + H``."""
+    B, t = _balanced(A)
+    beta = float(np.abs(B).sum(axis=1).max()) if B.size else 0.0
+    b_norm = float(np.abs(b / t).max()) if b.size else 0.0
+    c_norms = np.abs(C * t[None, :]).sum(axis=1) if C.size else np.zeros(len(d))
+    g = float(np.sum(weights * c_norms) * b_norm)
+    h = float(np.sum(weights * np.abs(d)))
+    # rounding of the balanced products: a relative safety margin
+    return g * (1 + 1e-9), beta * (1 + 1e-9), h * (1 + 1e-12)
+
+
+def loop_bound(model: Any, weight_bound: np.ndarray) -> LoopBound:
+    """A :class:`LoopBound` for the loop of a :class:`ctmm.sweeps.LoopCharacteristic`.
+
+    Parameters
+    ----------
+    model : LoopCharacteristic
+        The loop; its open system (every other loop closed) must have a state-space
+        realisation.
+    weight_bound : numpy.ndarray
+        Bound of ``|k w_j|`` per sensor term over the parameter sets.
+
+    Raises
+    ------
+    ModelError
+        No realisation (distributed elements, other delayed loops) or an improper controller;
+        the message says which.
+    """
+    import control
+
+    from .control.analysis import actuator_inputs
+    from .interop import to_state_space
+
+    lp = model.loop
+    actuators = actuator_inputs(model.system, lp.name)
+    inputs = list(dict.fromkeys(name for name, _ in actuators))
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            ss = to_state_space(model.open_system, inputs=inputs, outputs=list(model.term_names))
+    except (ModelError, ValueError, TypeError, KeyError) as exc:
+        raise ModelError(f"loop {lp.name!r}: the open chain has no state-space realisation ({exc})") from exc
+    A, Bm, C, D = (np.atleast_2d(np.asarray(m, float)) for m in (ss.A, ss.B, ss.C, ss.D))
+    A = A.reshape(A.shape[0], A.shape[0]) if A.size else np.zeros((0, 0))
+    b = np.zeros(A.shape[0])
+    d = np.zeros(len(model.term_names))
+    for name, weight in actuators:
+        column = inputs.index(name)
+        if A.size:
+            b = b + weight * Bm[:, column]
+        d = d + weight * D[:, column]
+    C = C.reshape(len(model.term_names), A.shape[0])
+    factors = [_factor(A, b, C, d, np.asarray(weight_bound, float))]
+    poles = [np.linalg.eigvals(A)] if 0 < A.shape[0] <= MAX_EIGEN_STATES else []
+    if lp.is_lti:
+        try:
+            css = control.ss(lp.gain)
+        except (ValueError, TypeError) as exc:
+            raise ModelError(f"loop {lp.name!r}: the controller is not proper ({exc}), so it has no "
+                             "state-space bound (with the plant the loop may still decay, or be neutral or "
+                             "advanced)") from exc
+        Ac, Bc, Cc, Dc = (np.atleast_2d(np.asarray(m, float)) for m in (css.A, css.B, css.C, css.D))
+        if css.nstates:
+            factors.append(_factor(Ac, Bc[:, 0], Cc[:1, :], Dc[:1, 0], np.ones(1)))
+            poles.append(np.linalg.eigvals(Ac))
+        else:
+            factors.append((0.0, 0.0, float(abs(Dc[0, 0]))))
+    poles_all = np.concatenate(poles) if poles else np.zeros(0, complex)
+    return LoopBound(tuple(factors), poles_all.astype(complex), int(A.shape[0]))

@@ -1,0 +1,230 @@
+"""Parameter values at which a characteristic root lies on the line ``Re s = sigma``.
+
+``Delta`` is affine in one loop parameter ``p`` (a gain factor or a sensor weight; eq. (1) of
+:mod:`ctmm.sweeps`), ``Delta = B + p A``, so for each sample ``s = sigma + i omega`` of the
+counting line there is one ``p`` making ``Delta`` real-aligned, and a root lies on the line where
+``Im(B conj A)`` changes sign.  Used by the stability charts (one row per value of the other
+parameter) and by the gain margin.  Methods: ``docs/stability.md`` section 5.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .counting_contour import Contour
+from .sweeps import TINY, LoopCharacteristic
+
+__all__ = ["Crossings", "row_crossings", "bracket_solve", "combine_pointwise"]
+
+
+# --------------------------------------------------------------------------------------------
+# crossings along a linear parameter (one "row" of a chart, or the gain of a margin)
+# --------------------------------------------------------------------------------------------
+@dataclass
+class Crossings:
+    """Parameter values at which a root lies on the line ``Re s = sigma``, per row.
+
+    Attributes
+    ----------
+    row : numpy.ndarray of int
+        Row index of each crossing.
+    value : numpy.ndarray
+        Value of the linear parameter ``p`` at the crossing.
+    omega : numpy.ndarray
+        Imaginary part of the root on the line [rad/s] (0: a real root, ``static``).
+    error : numpy.ndarray
+        Bound on the error of ``value`` (bracket width; ~1e-13 relative once refined).
+    static : numpy.ndarray of bool
+        Real root (one root crosses) rather than a conjugate pair.
+    direction : numpy.ndarray of int
+        +1 when the root(s) move to the right as ``p`` increases, -1 to the left, 0 unknown:
+        the number of roots right of the line jumps by ``direction * (1 if static else 2)``.
+    """
+
+    row: np.ndarray
+    value: np.ndarray
+    omega: np.ndarray
+    error: np.ndarray
+    static: np.ndarray
+    direction: np.ndarray
+
+    _FIELDS = ("row", "value", "omega", "error", "static", "direction")
+
+    def for_row(self, r: int) -> "Crossings":
+        keep = self.row == r
+        return Crossings(*(getattr(self, f)[keep] for f in self._FIELDS))
+
+    @property
+    def jump(self) -> np.ndarray:
+        """Change of the root count across each crossing (increasing ``p``)."""
+        return self.direction * np.where(self.static, 1, 2)
+
+
+def combine_pointwise(s: np.ndarray, base: np.ndarray, terms: np.ndarray, gain: np.ndarray,
+                      delay: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """Eq. (1) with one parameter set per ``s`` (all arrays of length n; weights (n, n_terms))."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        return base + gain * np.exp(-delay * s) * np.einsum("nt,tn->n", weights, terms)
+
+
+def _row_coefficients(s, base, terms, sets0, sets1):
+    """``B`` (p = 0) and ``A`` (coefficient of p) for rows: arrays (n_rows, n_s)."""
+    d0 = LoopCharacteristic.combine(s, base, terms, *sets0)
+    d1 = LoopCharacteristic.combine(s, base, terms, *sets1)
+    return d0, d1 - d0
+
+
+def row_crossings(contour: Contour, sets0, sets1, p_range: tuple[float, float], *,
+                  grid: np.ndarray | None = None, refine_all: bool = False) -> Crossings:
+    """Values of a linear parameter ``p`` at which ``Delta(sigma + i omega; p) = 0``, per row.
+
+    ``sets0``/``sets1`` are the parameter sets of each row at ``p = 0`` and ``p = 1`` (Delta is
+    affine in ``p``: ``B + p A``).  A crossing at ``omega > 0`` is a sign change of
+    ``Im(B conj A)`` between samples of the line, refined by the Illinois method on the TMM values
+    when a ``grid`` value lies inside its bracket (or always with ``refine_all``); the static
+    crossing is ``p = -B/A`` at ``s = sigma``.
+    """
+    line = contour.line
+    s = line.s
+    B, A = _row_coefficients(s, line.base, line.terms, sets0, sets1)
+    phi = np.imag(B * np.conj(A))
+    with np.errstate(all="ignore"):
+        p_at = -np.real(B * np.conj(A)) / np.abs(A) ** 2
+    lo, hi = p_range
+    span = max(hi - lo, 1e-300)
+    keep_lo, keep_hi = lo - 1e-6 * span, hi + 1e-6 * span
+    # static crossing (s = sigma real): direction from ds/dp = -A / Delta_s, with
+    # Delta_s = Im Delta(sigma + i eps) / eps (Delta(sigma) = 0 there; the scale is positive)
+    p0 = p_at[:, 0]
+    ok = np.isfinite(p0) & (np.abs(A[:, 0]) > TINY) & (p0 >= keep_lo) & (p0 <= keep_hi)
+    r_static = np.flatnonzero(ok)
+    d_static = np.zeros(r_static.size, int)
+    if r_static.size:
+        eps = 1e-7 * max(contour.radius, 1.0)
+        s_eps = np.full(r_static.size, contour.sigma + 1j * eps)
+        base_e, terms_e = contour.model.components(s_eps)
+        k0, tau0, w0 = (x[r_static] for x in sets0)
+        k1, tau1, w1 = (x[r_static] for x in sets1)
+        d0 = combine_pointwise(s_eps, base_e, terms_e, k0, tau0, w0)
+        d1 = combine_pointwise(s_eps, base_e, terms_e, k1, tau1, w1)
+        at_eps = d0 + p0[r_static] * (d1 - d0)
+        slope = np.imag(at_eps)
+        simple = np.abs(slope) > 1e-3 * np.abs(at_eps)     # else a multiple root: direction unknown
+        d_static = np.where(simple, -np.sign(A[r_static, 0].real) * np.sign(slope), 0).astype(int)
+    rows, values, omegas = list(r_static), list(p0[r_static]), [0.0] * r_static.size
+    errors, statics, directions = [0.0] * r_static.size, [True] * r_static.size, list(d_static)
+    # oscillatory crossings: sign changes of phi on intervals j >= 1
+    sign = np.sign(phi[:, 1:])
+    change = (sign[:, :-1] * sign[:, 1:] < 0)
+    r_idx, j_idx = np.nonzero(change)
+    j_idx = j_idx + 1                                        # interval [j, j+1] of the line
+    pa, pb = p_at[r_idx, j_idx], p_at[r_idx, j_idx + 1]
+    fa, fb = phi[r_idx, j_idx], phi[r_idx, j_idx + 1]
+    t = fa / (fa - fb)
+    p_est = pa + t * (pb - pa)
+    width = np.abs(pb - pa)
+    finite = np.isfinite(p_est) & np.isfinite(width)
+    inside = finite & (p_est + width >= keep_lo) & (p_est - width <= keep_hi)
+    r_idx, j_idx, p_est, width = r_idx[inside], j_idx[inside], p_est[inside], width[inside]
+    # every bracket is refined: the parameter values at its ends enclose the crossing value only
+    # where p is monotone on it, which a zero of A (an anti-resonance) inside the bracket breaks
+    # (a benchmark chart cell was misclassified that way); with a grid, refinement stops once the
+    # bracket is narrow and its ends enclose no grid value
+    todo = np.ones(r_idx.size, bool)
+    ta = t[inside]
+    direction = np.sign(fa[inside]).astype(int)        # Re ds/dp has the sign of -d(phi)/d(omega)
+    omega = s.imag[j_idx] + ta * (s.imag[j_idx + 1] - s.imag[j_idx])
+    value, error = 0.5 * (pa + pb)[inside], 0.5 * width             # bracket of the value
+    if todo.any():
+        r, j = r_idx[todo], j_idx[todo]
+        w_ref, v_ref, e_ref = _illinois(contour, sets0, sets1, r, s.imag[j], s.imag[j + 1],
+                                        phi[r, j], phi[r, j + 1], p_at[r, j], p_at[r, j + 1],
+                                        grid=None if refine_all or grid is None else np.sort(grid),
+                                        span=span)
+        omega[todo], value[todo], error[todo] = w_ref, v_ref, e_ref
+    good = np.isfinite(value) & (value >= keep_lo) & (value <= keep_hi)
+    row = np.concatenate([np.asarray(rows, int), r_idx[good].astype(int)])
+    value = np.concatenate([np.asarray(values, float), value[good]])
+    omega = np.concatenate([np.asarray(omegas, float), omega[good]])
+    error = np.concatenate([np.asarray(errors, float), error[good]])
+    static = np.concatenate([np.asarray(statics, bool), np.zeros(int(good.sum()), bool)])
+    direction = np.concatenate([np.asarray(directions, int), direction[good]])
+    order = np.lexsort((value, row))
+    return Crossings(row[order], value[order], omega[order], error[order], static[order],
+                     direction[order])
+
+
+def _undecided(grid: np.ndarray, low: np.ndarray, high: np.ndarray, span: float) -> np.ndarray:
+    """Brackets [low, high] of a crossing value that still contain a grid value."""
+    pad = 1e-10 * span
+    left = np.searchsorted(grid, low - pad, side="left")
+    right = np.searchsorted(grid, high + pad, side="right")
+    return right > left
+
+
+def _illinois(contour: Contour, sets0, sets1, rows, a, b, fa, fb, pa, pb, *, grid=None,
+              span: float = 1.0, iterations: int = 60):
+    """Refine brackets [a, b] of sign changes of Im(B conj A) (one per crossing, batched).
+
+    With ``grid``, a bracket stops as soon as the parameter values at its ends enclose no grid
+    value (the side of every grid point is then decided)."""
+    model, sigma = contour.model, contour.sigma
+    k0, tau0, w0 = (x[rows] for x in sets0)
+    k1, tau1, w1 = (x[rows] for x in sets1)
+
+    def evaluate(idx, omega):
+        s = sigma + 1j * omega
+        base, terms = model.components(s)
+        d0 = combine_pointwise(s, base, terms, k0[idx], tau0[idx], w0[idx])
+        d1 = combine_pointwise(s, base, terms, k1[idx], tau1[idx], w1[idx])
+        A = d1 - d0
+        with np.errstate(all="ignore"):
+            return np.imag(d0 * np.conj(A)), -np.real(d0 * np.conj(A)) / np.abs(A) ** 2
+
+    def decided(idx, pa_, pb_):
+        ends = np.isfinite(pa_) & np.isfinite(pb_)
+        return ends & ~_undecided(grid, np.minimum(pa_, pb_), np.maximum(pa_, pb_), span)
+
+    omega, pa, pb = bracket_solve(evaluate, a, b, fa, fb, pa, pb,
+                                  stop=None if grid is None else decided, iterations=iterations)
+    value = np.where(np.isfinite(pa) & np.isfinite(pb), 0.5 * (pa + pb), pb)
+    error = np.where(np.isfinite(pa) & np.isfinite(pb), 0.5 * np.abs(pa - pb), 0.0)
+    return omega, value, error
+
+
+def bracket_solve(evaluate, a, b, fa, fb, pa, pb, *, stop=None, iterations: int = 60):
+    """Batched Illinois (modified regula falsi) on brackets ``[a, b]`` with ``fa fb < 0``.
+
+    ``evaluate(idx, x) -> (f, p)`` gives the function and a tracked quantity ``p`` at points
+    ``x`` of the brackets ``idx`` (one call per iteration for all brackets); ``stop(idx, pa, pb)``
+    may end brackets early, once they are narrower than 1e-6 relative.  Returns the last point ``b`` and ``p`` at both bracket ends."""
+    a, b, fa, fb = (np.asarray(v, float).copy() for v in (a, b, fa, fb))
+    pa, pb = np.asarray(pa, float).copy(), np.asarray(pb, float).copy()
+    side = np.zeros(a.size, int)
+    active = np.ones(a.size, bool)
+    for _ in range(iterations):
+        idx = np.flatnonzero(active)
+        if idx.size == 0:
+            break
+        c = b[idx] - fb[idx] * (b[idx] - a[idx]) / (fb[idx] - fa[idx])
+        bad = ~np.isfinite(c) | (c <= np.minimum(a[idx], b[idx])) | (c >= np.maximum(a[idx], b[idx]))
+        c = np.where(bad, 0.5 * (a[idx] + b[idx]), c)
+        fc, pc = evaluate(idx, c)
+        same = np.sign(fc) == np.sign(fb[idx])
+        i_same, i_diff = idx[same], idx[~same]
+        fa[i_same] *= np.where(side[i_same] == 1, 0.5, 1.0)      # Illinois step
+        side[i_same] = 1
+        a[i_diff], fa[i_diff], pa[i_diff] = b[i_diff], fb[i_diff], pb[i_diff]
+        side[i_diff] = 0
+        b[idx], fb[idx], pb[idx] = c, fc, pc
+        done = (fc == 0) | (np.abs(b[idx] - a[idx]) <= 4e-16 * np.maximum(1.0, np.abs(c)))
+        pa[idx[fc == 0]] = pc[fc == 0]
+        if stop is not None:
+            # the tracked values at the bracket ends enclose the crossing value only where p is
+            # monotone on the bracket: stop early only once the bracket is narrow (a wide
+            # bracket across a resonance misplaced a chart crossing by 0.013 in gain)
+            narrow = np.abs(b[idx] - a[idx]) <= 1e-6 * np.maximum(1.0, np.abs(c))
+            done |= stop(idx, pa[idx], pb[idx]) & narrow
+        active[idx[done]] = False
+    return b, pa, pb
