@@ -13,6 +13,7 @@ import numpy as np
 
 from . import validation
 from .assembly import SOLVERS, BoundaryEnd, BoundaryStart, ChainSolution
+from .capabilities import require_chain
 from .errors import ModelError
 from .results import FrequencyResponse
 from .system import Chain
@@ -202,6 +203,7 @@ def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],
     >>> np.allclose(frf("m.x", "m.force"), 1 / (100.0 - np.array([0.0, 25.0])))
     True
     """
+    require_chain(system, "frequency_response")
     inputs = (input,) if isinstance(input, str) else tuple(input)
     outputs = (output,) if isinstance(output, str) else tuple(output)
     s = _as_s(omega)
@@ -222,8 +224,10 @@ def steady_state_response(system: Chain, omega: float, *, outputs: Sequence[str]
     """Steady-state phasors of outputs under the elements' own harmonic/constant loads at ``omega``.
 
     Every load signal must be constant (used at ``omega = 0``) or
-    :class:`~ctmm.signals.Harmonic` with frequency ``omega`` [rad/s].
+    :class:`~ctmm.signals.Harmonic` with frequency ``omega`` [rad/s].  A controlled chain is
+    answered with its loops closed (loop references 0).
     """
+    require_chain(system, "steady_state_response")
     s = _as_s(omega)
     amplitudes: dict[int, dict[str, complex]] = {}
     for pos, element in enumerate(system.elements):
@@ -258,6 +262,7 @@ def characteristic_function(system, s: Any, *, normalize: bool = True) -> np.nda
     normalize : bool
         Divide by ``Delta`` at ``s = 1`` (a constant) to keep magnitudes near one.
     """
+    require_chain(system, "characteristic_function")
     s_arr = np.atleast_1d(np.asarray(s, dtype=complex))
     shape = s_arr.shape
     flat = s_arr.ravel()

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .capabilities import refuse_loops
 from .elements.lumped import PointElement
 from .errors import ModelError
 from .frequency import mode_shapes, steady_state_response
@@ -41,6 +42,7 @@ def modal_response(system: Chain, times: np.ndarray, *, x0=None, v0=None, n_mode
     dict
         ``{mass name: displacement history [m]}`` in absolute coordinates.
     """
+    system = refuse_loops(system, "modal_response", "ctmm.simulate (loops closed in time)")
     masses = [(j, e) for j, e in enumerate(system.body, start=1) if isinstance(e, PointElement) and e.mass > 0]
     n_dof = len(masses)
     if n_dof == 0:

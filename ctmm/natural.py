@@ -37,20 +37,23 @@ import numpy as np
 
 from . import validation
 from .assembly import ChainSolution  # noqa: F401
+from .capabilities import refuse_damping, refuse_loops
 from .errors import ModelError
 from .results import ModalResult
 from .system import Chain
 from .frequency import _MatrixCache, _as_s, _assemble_body, _subdivided, assemble, solve  # noqa: F401
 
 
-def _check_conservative(system: Chain) -> None:
-    for e in system.elements:
-        if getattr(e, "damping", 0.0):
-            raise ModelError(
-                f"natural_frequencies needs an undamped system, but {e.name!r} has damping="
-                f"{e.damping!r}; use frequency_response for damped systems")
-        if getattr(e, "is_conservative", True) is False:
-            raise ModelError(f"natural_frequencies needs a conservative system; {e.name!r} is not")
+_CLOSED_LOOP = ("ctmm.stability.characteristic_roots(system, re_min=..., im_max=...) or "
+                "ctmm.stability.unstable_root_count(system)")
+_DAMPED = "ctmm.frequency_response, or ctmm.stability.characteristic_roots for damped roots"
+
+
+def _undamped_plant(system, verb: str) -> Chain:
+    """The undamped plain chain the natural-frequency verbs answer for, or a clear refusal."""
+    chain = refuse_loops(system, verb, _CLOSED_LOOP)
+    refuse_damping(chain, verb, _DAMPED)
+    return chain
 
 
 def eigenvalue_count(system: Chain, omega: Any) -> np.ndarray:
@@ -67,14 +70,16 @@ def eigenvalue_count(system: Chain, omega: Any) -> np.ndarray:
     Parameters
     ----------
     system : Chain
-        An undamped chain.
+        An undamped chain (a ``ControlledChain`` without loops counts as its plant).
     omega : array_like
         Frequencies [rad/s] > 0.
 
     Raises
     ------
     ModelError
-        If an element matrix is not symplectic (not reciprocal), see :func:`_check_reciprocal`.
+        If an element matrix is not symplectic (not reciprocal), see :func:`_check_reciprocal`;
+        if ``system`` is damped or closes feedback loops (the count of undamped natural
+        frequencies would ignore them; :mod:`ctmm.capabilities`).
 
     Notes
     -----
@@ -83,6 +88,7 @@ def eigenvalue_count(system: Chain, omega: Any) -> np.ndarray:
     frequency within ``e^-β`` of it (e.g. clamped-clamped and clamped-free beam roots);
     :func:`natural_frequencies` therefore uses the count only to isolate roots.
     """
+    system = _undamped_plant(system, "eigenvalue_count")
     omega = np.atleast_1d(validation.finite_array("omega", omega))
     if _is_lumped(system):
         return _lumped_count(system, omega)
@@ -335,7 +341,7 @@ def natural_frequencies(system: Chain, *, n_modes: int | None = None, omega_max:
     Parameters
     ----------
     system : Chain
-        An undamped chain.
+        An undamped chain (a ``ControlledChain`` without loops counts as its plant).
     n_modes : int, optional
         Number of lowest frequencies wanted (rigid-body modes count, returned as 0).
     omega_max : float, optional
@@ -347,8 +353,14 @@ def natural_frequencies(system: Chain, *, n_modes: int | None = None, omega_max:
     -------
     ndarray
         Ascending natural frequencies; a repeated frequency appears once per multiplicity.
+
+    Raises
+    ------
+    ModelError
+        ``system`` is damped or closes feedback loops: closed-loop roots are not undamped natural
+        frequencies (use :func:`ctmm.stability.characteristic_roots`, or pass ``system.plant``).
     """
-    _check_conservative(system)
+    system = _undamped_plant(system, "natural_frequencies")
     if (n_modes is None) == (omega_max is None):
         raise ModelError("give exactly one of n_modes (int >= 1) or omega_max (rad/s > 0)")
     rtol = validation.positive("rtol", rtol)
@@ -649,11 +661,11 @@ def mode_shapes(system: Chain, *, n_modes: int | None = None, omega_max: float |
     ``|w - w_k| / gap``, also for strongly localised modes where a homogeneous
     back-substitution from one end would amplify round-off.  Rigid-body modes (``w = 0``) are
     the null vectors of the static boundary equations.  Shapes are normalised so that the
-    largest displacement component is +1.
+    largest displacement component is +1.  Refuses damped chains and chains with feedback loops
+    like :func:`natural_frequencies`.
     """
+    system = _undamped_plant(system, "mode_shapes")
     omega = natural_frequencies(system, n_modes=n_modes, omega_max=omega_max)
-    if hasattr(system, "assemble_frequency"):
-        return _mode_shapes_by_inputs(system, omega)
     layout = system.layout
     d, n = layout.half, layout.size
     body, points = _subdivided(system, float(np.max(omega, initial=0.0)))
@@ -679,13 +691,3 @@ def _modal_result(system, omega: np.ndarray, states: np.ndarray) -> ModalResult:
     ref = disp[np.arange(len(omega)), np.argmax(np.abs(disp), axis=1)]
     shapes = np.real_if_close(shapes / ref[:, None, None], tol=1e6)
     return ModalResult(omega, shapes, system.layout.components, tuple(system.point_names()))
-
-
-def _mode_shapes_by_inputs(system, omega: np.ndarray) -> ModalResult:
-    """Controlled chains: forced response to pseudo-random loads on the element inputs."""
-    s = 1j * np.maximum(omega, 1e-300)
-    rng = np.random.default_rng(20260101)
-    amplitudes = {pos: {e.inputs[0]: 1.0 + rng.random()} for pos, e in enumerate(system.elements)
-                  if e.inputs and pos not in (0, len(system.elements) - 1)}
-    sol = solve(system, s, amplitudes)
-    return _modal_result(system, omega, sol.states)

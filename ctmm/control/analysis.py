@@ -36,6 +36,7 @@ from .. import validation
 from ..errors import ModelError
 from ..frequency import frequency_response
 from ..results import FrequencyResponse
+from ..system import Chain
 from .loops import ControlledChain
 
 __all__ = ["closed_loop_response", "loop_transfer_function", "open_loop_plant", "actuator_inputs", "Margins",
@@ -254,6 +255,9 @@ def margins(source: Any, loop: str | None = None, omega: Any = None) -> Margins:
         def evaluate(x: float) -> complex:
             return complex(loop_transfer_function(source, loop, [x])(f"{lp.name}.L")[0])
     else:
+        if isinstance(source, Chain):
+            raise ModelError(f"margins needs a ControlledChain with loop {loop!r}, got the plain Chain "
+                             f"{source.name!r}; close it with ctmm.control.ControlledChain(plant, [Feedback(...)])")
         if loop is not None or omega is not None:
             raise ModelError("margins(data) takes no loop/omega: they come with the data")
         if isinstance(source, FrequencyResponse):
