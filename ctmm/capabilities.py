@@ -41,7 +41,8 @@ class SystemContents:
     lti_loops : tuple of str
         Loops whose gain is a python-control LTI controller ``C(s)``.
     damped : tuple of str
-        Elements with nonzero damping [N s/m or N m s/rad].
+        Elements with nonzero damping [N s/m or N m s/rad] or otherwise not conservative
+        (e.g. beams with a loss factor).
     """
 
     kind: str
@@ -100,7 +101,8 @@ def describe(system: Any) -> SystemContents:
         loops=tuple(lp.name for lp in loops),
         delayed_loops=tuple(lp.name for lp in loops if lp.delay > 0),
         lti_loops=tuple(lp.name for lp in loops if lp.is_lti),
-        damped=tuple(e.name for e in plant.elements if getattr(e, "damping", 0.0)))
+        damped=tuple(e.name for e in plant.elements
+                     if getattr(e, "damping", 0.0) or getattr(e, "is_conservative", True) is False))
 
 
 def refuse_loops(system: Any, verb: str, instead: str) -> Chain:

@@ -21,7 +21,7 @@ import ctmm.modal
 from ctmm.capabilities import describe
 from ctmm.control import ControlledChain, Feedback
 from ctmm.control.analysis import margins
-from ctmm.elements import Fixed, Free, Mass, Spring, SpringDamper
+from ctmm.elements import Fixed, Free, Mass, PrescribedDisplacement, Spring, SpringDamper
 from ctmm.planar import Pinned, PlanarModel, RigidBody
 from ctmm.reference.chain import GlobalChain
 from ctmm.reference.chain import natural_frequencies as global_natural_frequencies
@@ -191,3 +191,40 @@ def test_describe_lists_loops_delays_and_damping():
     assert contents.loops == ("Lv", "Lx") and contents.delayed_loops == ("Lx",) and contents.lti_loops == ()
     assert contents.damped == ("k0", "k1", "k2")
     assert describe(lumped(damping=[0.0] * 3)).damped == ()
+
+
+# ------------------------------------------------------------------------ honoured: prescribed base motion
+BASE = Harmonic(0.02, 5.0)   # base displacement [m]: 0.02 sin(5 t)
+
+
+def base_driven(damping=DAMPING) -> ctmm.Chain:
+    """The chain of :func:`lumped` with the wall replaced by a prescribed displacement; the first
+    connector is a pure spring, so the base acts on m0 exactly as the force ``k0 y(t)``."""
+    elements = [PrescribedDisplacement("base", BASE), Spring("k0", STIFFNESS[0]), Mass("m0", MASSES[0])]
+    for i in (1, 2):
+        elements += [SpringDamper(f"k{i}", STIFFNESS[i], damping[i]), Mass(f"m{i}", MASSES[i])]
+    return ctmm.Chain("driven", elements + [Free("end")])
+
+
+def test_simulate_controlled_chain_with_prescribed_base_motion_equals_global_newmark():
+    """Real-time and delayed loops with a prescribed base displacement: equal to the global Newmark
+    of the walled chain loaded by ``k0 y(t)`` on m0."""
+    result = ctmm.simulate(controlled(base_driven()), 0.6, 0.01)
+    damping = [0.0] + DAMPING[1:]
+    ref = newmark_closed_loop(global_chain(damping), [g for _, g in LOOPS], 0.6, 0.01, np.zeros(3), np.zeros(3),
+                              force_fn=lambda t: np.array([STIFFNESS[0] * BASE(t), 0.0, 0.0]))
+    got = np.column_stack([result[f"m{i}.x"] for i in range(3)])
+    assert np.max(np.abs(ref.displacement)) > 1e-3
+    assert np.max(np.abs(got - ref.displacement)) < 1e-12 * np.max(np.abs(ref.displacement))
+
+
+def test_base_displacement_frequency_response_of_controlled_chain_equals_dense_solve():
+    """``frequency_response`` from ``base.displacement`` with the loops closed: ``D(i w) X = k0 e_0``."""
+    omega = np.array([0.5, 4.0, 9.0, 30.0])
+    frf = ctmm.frequency_response(controlled(base_driven()), omega, input="base.displacement",
+                                  output=["m0.x", "m2.x"])
+    damping = [0.0] + DAMPING[1:]
+    D = closed_loop_dynamic_stiffness(global_chain(damping), [g for _, g in LOOPS], 1j * omega)
+    X = np.linalg.solve(D, np.broadcast_to(np.array([STIFFNESS[0], 0.0, 0.0]), (omega.size, 3))[..., None])[..., 0]
+    np.testing.assert_allclose(frf("m0.x", "base.displacement"), X[:, 0], rtol=1e-11)
+    np.testing.assert_allclose(frf("m2.x", "base.displacement"), X[:, 2], rtol=1e-11)
