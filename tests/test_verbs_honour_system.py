@@ -19,7 +19,7 @@ import pytest
 import ctmm
 import ctmm.modal
 from ctmm.capabilities import describe
-from ctmm.control import ControlledChain, Feedback
+from ctmm.control import ControlledChain, Feedback, simulate_controlled
 from ctmm.control.analysis import margins
 from ctmm.elements import Fixed, Free, Mass, PrescribedDisplacement, Spring, SpringDamper
 from ctmm.planar import Pinned, PlanarModel, RigidBody
@@ -106,6 +106,7 @@ def test_controlled_chain_without_loops_is_its_plant():
 # ------------------------------------------------------------------------ systems that are not chains
 CHAIN_VERBS = {
     "ctmm.simulate": lambda system: ctmm.simulate(system, 0.1, 0.01),
+    "simulate_controlled": lambda system: simulate_controlled(system, 0.1, 0.01),
     "frequency_response": lambda system: ctmm.frequency_response(system, [1.0], input="m0.force",
                                                                  output="m0.x"),
     "steady_state_response": lambda system: ctmm.steady_state_response(system, 1.0),
@@ -183,6 +184,8 @@ def test_margins_of_a_plain_chain_names_the_missing_loop():
     """Was "margins(data) takes no loop/omega": a chain was taken for frequency data."""
     with pytest.raises(ctmm.ModelError, match=r"margins needs a ControlledChain with loop 'L'.*plain Chain"):
         margins(lumped(), "L", np.linspace(1.0, 10.0, 20))
+    with pytest.raises(ctmm.ModelError, match=r"margins\(system, loop, omega\) needs a ControlledChain, got NoneType"):
+        margins(None, "L", np.linspace(1.0, 10.0, 20))
 
 
 def test_describe_lists_loops_delays_and_damping():

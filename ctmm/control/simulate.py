@@ -30,6 +30,7 @@ import numpy as np
 
 from .. import validation
 from ..assembly import SOLVERS, predicted_forces, shift_forces
+from ..capabilities import require_chain
 from ..elements.base import Linearisation
 from ..elements.lumped import PointElement
 from ..errors import ModelError, SimulationError
@@ -203,8 +204,7 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
         callback), naming the time and the loop, controller or element; ``partial_result``
         holds every signal (loop and controller signals included) up to the last good step.
     """
-    if not isinstance(system, (ControlledChain, Chain)):
-        raise ModelError(f"system must be a ControlledChain or a Chain, got {system!r}")
+    require_chain(system, "simulate_controlled")
     controlled = system if isinstance(system, ControlledChain) else ControlledChain(system, [])
     plant = controlled.plant
     scheme = as_scheme(scheme)
