@@ -225,7 +225,10 @@ def steady_state_response(system: Chain, omega: float, *, outputs: Sequence[str]
 
     Every load signal must be constant (used at ``omega = 0``) or
     :class:`~ctmm.signals.Harmonic` with frequency ``omega`` [rad/s].  A controlled chain is
-    answered with its loops closed (loop references 0).
+    answered with its loops closed (loop references 0).  Displacements are measured from the
+    unstretched configuration (as every frequency-domain output): free lengths, support
+    positions and elastic anchors are static offsets that are not included; add
+    :func:`ctmm.timestep.rest_positions` for absolute positions as :func:`ctmm.simulate` reports them.
     """
     require_chain(system, "steady_state_response")
     s = _as_s(omega)
