@@ -17,7 +17,7 @@ from typing import Any
 from .errors import ModelError
 from .system import Chain
 
-__all__ = ["SystemContents", "describe", "require_chain", "refuse_loops", "refuse_damping"]
+__all__ = ["SystemContents", "describe", "require_chain", "require_planar", "refuse_loops", "refuse_damping"]
 
 _OTHER_PACKAGES = {
     "ctmm.planar": "ctmm.planar (simulate_rk4, simulate_implicit, linear.natural_frequencies, ...)",
@@ -79,6 +79,32 @@ def require_chain(system: Any, verb: str) -> None:
                f"{type(system).__name__} ({system!r:.80})")
     if instead is not None:
         message += f"; a {type(system).__name__} is simulated or analysed with {instead}"
+    raise ModelError(message)
+
+
+def require_planar(model: Any, verb: str) -> None:
+    """Refuse anything that is not a :class:`~ctmm.planar.model.PlanarModel` in a planar verb.
+
+    Parameters
+    ----------
+    model : object
+        What the user passed as ``model``.
+    verb : str
+        Public name of the calling verb(s), e.g. ``"ctmm.planar simulation"``.
+
+    Raises
+    ------
+    ModelError
+        Naming the type received; for a 1-D chain, the chain verbs.
+    """
+    from .planar.model import PlanarModel  # here, not at the top: ctmm.planar imports the chain verbs
+
+    if isinstance(model, PlanarModel):
+        return
+    message = f"{verb}: model must be a ctmm.planar.PlanarModel, got {type(model).__name__} ({model!r:.80})"
+    if isinstance(model, Chain) or _is_controlled(model):
+        message += ("; a 1-D Chain or ControlledChain (loops included) is simulated with ctmm.simulate and "
+                    "analysed with ctmm.frequency_response / ctmm.natural_frequencies / ctmm.stability")
     raise ModelError(message)
 
 

@@ -258,3 +258,17 @@ def test_loop_sensing_a_prescribed_base_is_honoured_in_both_domains(delay):
     rhs = (STIFFNESS[0] - gain * np.exp(-1j * omega * delay))[:, None] * np.array([1.0, 0.0, 0.0])
     X = np.linalg.solve(D, rhs[..., None])[..., 0]
     np.testing.assert_allclose(frf("m2.x", "base.displacement"), X[:, 2], rtol=1e-11)
+
+
+@pytest.mark.parametrize("system", [lumped(), controlled(lumped())], ids=["Chain", "ControlledChain"])
+def test_planar_verbs_refuse_chains(system):
+    """A 1-D chain (with or without loops) given to a planar verb got AttributeError; now the
+    chain verbs are named."""
+    from ctmm.planar import simulate_rk4
+    from ctmm.planar.linear import natural_frequencies as planar_natural_frequencies
+
+    with pytest.raises(ctmm.ModelError, match=r"ctmm\.planar simulation: model must be a ctmm\.planar\.PlanarModel, "
+                                              r"got .*Chain.*ctmm\.simulate"):
+        simulate_rk4(system, [0.0], [0.0], t_final=0.1, dt=0.01)
+    with pytest.raises(ctmm.ModelError, match=r"ctmm\.planar\.linear: model must be a ctmm\.planar\.PlanarModel"):
+        planar_natural_frequencies(system, [0.0], n_modes=1)

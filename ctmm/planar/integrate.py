@@ -16,6 +16,7 @@ import numpy as np
 import scipy.integrate
 
 from .. import validation
+from ..capabilities import require_planar
 from ..errors import ModelError, SimulationError
 from .model import PlanarModel
 from .sweep import accelerations
@@ -78,6 +79,7 @@ class PlanarSimulation:
 
 
 def _initial(model: PlanarModel, q0, qdot0) -> tuple[np.ndarray, np.ndarray]:
+    require_planar(model, "ctmm.planar simulation")
     n = model.n_coordinates
     q0 = validation.finite_array("q0", q0, ndim=1)
     qdot0 = validation.finite_array("qdot0", qdot0, ndim=1)
