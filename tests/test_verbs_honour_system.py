@@ -19,9 +19,9 @@ import pytest
 import ctmm
 import ctmm.modal
 from ctmm.capabilities import describe
-from ctmm.control import ControlledChain, Feedback, simulate_controlled
+from ctmm.control import ControlledChain, ControllerStep, Feedback, simulate_controlled
 from ctmm.control.analysis import margins
-from ctmm.elements import Fixed, Free, Mass, PrescribedDisplacement, Spring, SpringDamper
+from ctmm.elements import Fixed, Free, Mass, PrescribedDisplacement, PrescribedForce, Spring, SpringDamper
 from ctmm.planar import Pinned, PlanarModel, RigidBody
 from ctmm.reference.chain import GlobalChain
 from ctmm.reference.chain import natural_frequencies as global_natural_frequencies
@@ -272,3 +272,59 @@ def test_planar_verbs_refuse_chains(system):
         simulate_rk4(system, [0.0], [0.0], t_final=0.1, dt=0.01)
     with pytest.raises(ctmm.ModelError, match=r"ctmm\.planar\.linear: model must be a ctmm\.planar\.PlanarModel"):
         planar_natural_frequencies(system, [0.0], n_modes=1)
+
+
+# ------------------------------------------------------------------------ co-simulated controllers
+class ConstantOutput:
+    """A co-simulated controller that writes a constant value to one input (evaluated every step)."""
+
+    inputs = ("m0.x",)
+    sample_time = None
+    direct_feedthrough = False
+
+    def __init__(self, output: str, value: float) -> None:
+        self.outputs = (output,)
+        self.value = value
+
+    def init(self, t0: float):
+        return None
+
+    def step(self, t: float, y: np.ndarray, state):
+        return ControllerStep(np.array([self.value]), state)
+
+
+def test_controller_output_across_a_connector_equals_global_newmark():
+    """A controller output on a connector input acts across it (``+u`` outboard, ``-u`` inboard)."""
+    result = ctmm.simulate(lumped(), 0.5, 0.01, controllers=[ConstantOutput("k2.force", 2.0)])
+    ref = newmark_closed_loop(global_chain(), [], 0.5, 0.01, np.zeros(3), np.zeros(3),
+                              force_fn=lambda t: np.array([0.0, -2.0, 2.0]))
+    got = np.column_stack([result[f"m{i}.x"] for i in range(3)])
+    assert np.max(np.abs(got - ref.displacement)) < 1e-12 * np.max(np.abs(ref.displacement))
+
+
+@pytest.mark.parametrize("output", ["base.displacement", "tip.force"])
+def test_controller_outputs_on_boundaries_are_refused(output):
+    """Was silently misapplied ("base.displacement" moved the chain as some other load) or an
+    IndexError ("tip.force")."""
+    chain = ctmm.Chain("bounded", [PrescribedDisplacement("base", 0.0), Spring("k0", 100.0), Mass("m0", 1.0),
+                                   PrescribedForce("tip", 0.0)])
+    with pytest.raises(ctmm.ModelError, match=rf"controller output '{output}' is a boundary input.*drivable "
+                                              r"outputs: k0\.force, m0\.force"):
+        ctmm.simulate(chain, 0.1, 0.01, controllers=[ConstantOutput(output, 1.0)])
+
+
+def test_improper_controller_is_refused_where_it_cannot_be_realised():
+    """``C(s) = kp + kd s`` is exact in the frequency domain; in time and in a state-space export it
+    was a raw python-control ValueError."""
+    import control
+    from ctmm.interop import to_state_space
+
+    plant = ctmm.Chain("one", [Fixed("wall"), SpringDamper("k0", 100.0, 0.5), Mass("m0", 1.0), Free("end")])
+    system = ControlledChain(plant, [Feedback("pd", "m0.x", "m0", gain=control.tf([0.5, 10.0], [1.0]))])
+    omega = np.array([1.0, 10.0])
+    frf = ctmm.frequency_response(system, omega, input="m0.force", output="m0.x")
+    np.testing.assert_allclose(frf("m0.x", "m0.force"), 1 / (110.0 - omega ** 2 + 1j * omega), rtol=1e-13)
+    with pytest.raises(ctmm.ModelError, match=r"loop 'pd': the controller C\(s\) cannot be realised in time"):
+        ctmm.simulate(system, 0.1, 0.01)
+    with pytest.raises(ctmm.ModelError, match=r"loop 'pd': to_state_space cannot realise the controller"):
+        to_state_space(system, inputs="m0.force", outputs="m0.x")
