@@ -13,6 +13,7 @@ import numpy as np
 
 from . import validation
 from .assembly import SOLVERS, BoundaryEnd, BoundaryStart, ChainSolution
+from .capabilities import require_chain
 from .errors import ModelError
 from .results import FrequencyResponse
 from .system import Chain, require_system
@@ -198,6 +199,7 @@ def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],
     >>> np.allclose(frf("m.x", "m.force"), 1 / (100.0 - np.array([0.0, 25.0])))
     True
     """
+    require_chain(system, "frequency_response")
     system = require_system(system)
     inputs = validation.names("input", input)
     outputs = validation.names("output", output)
@@ -220,7 +222,11 @@ def steady_state_response(system: Chain, omega: float, *, outputs: Sequence[str]
     """Steady-state phasors of outputs under the elements' own harmonic/constant loads at ``omega``.
 
     Every load signal must be constant (used at ``omega = 0``) or
-    :class:`~ctmm.signals.Harmonic` with frequency ``omega`` [rad/s].
+    :class:`~ctmm.signals.Harmonic` with frequency ``omega`` [rad/s].  A controlled chain is
+    answered with its loops closed (loop references 0).  Displacements are measured from the
+    unstretched configuration (as every frequency-domain output): free lengths, support
+    positions and elastic anchors are static offsets that are not included; add
+    :func:`ctmm.timestep.rest_positions` for absolute positions as :func:`ctmm.simulate` reports them.
 
     Parameters
     ----------
@@ -233,6 +239,7 @@ def steady_state_response(system: Chain, omega: float, *, outputs: Sequence[str]
     solver : {"riccati", "plain"}
         Chain solver.
     """
+    require_chain(system, "steady_state_response")
     system = require_system(system)
     s = 1j * validation.frequencies("omega", omega, scalar=True)
     solver = validation.option("solver", solver, SOLVERS)
@@ -270,6 +277,7 @@ def characteristic_function(system, s: Any, *, normalize: bool = True) -> np.nda
     normalize : bool
         Divide by ``Delta`` at ``s = 1`` (a constant) to keep magnitudes near one.
     """
+    require_chain(system, "characteristic_function")
     system = require_system(system)
     s_arr = np.atleast_1d(validation.complex_array("s", s))
     validation.flag("normalize", normalize)

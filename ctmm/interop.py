@@ -396,7 +396,11 @@ def _controller_ss(loop) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray
     if loop.is_lti:
         import control
 
-        ss = control.ss(loop.gain)
+        try:
+            ss = control.ss(loop.gain)
+        except ValueError as exc:  # improper C(s): no finite-dimensional realisation
+            raise ModelError(f"loop {loop.name!r}: to_state_space cannot realise the controller C(s) ({exc}); "
+                             "use to_frd, or the sensor terms [(x, kp), (v, kd)] with gain=1 for a PD") from None
         return tuple(np.atleast_2d(np.asarray(m, dtype=float)) for m in (ss.A, ss.B, ss.C, ss.D))  # type: ignore
     return np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), np.array([[float(loop.gain)]])
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .capabilities import refuse_loops
 from .elements.lumped import PointElement
 from .errors import ModelError
 from .frequency import mode_shapes, steady_state_response
@@ -42,6 +43,7 @@ def modal_response(system: Chain, times: np.ndarray, *, x0=None, v0=None, n_mode
     dict
         ``{mass name: displacement history [m]}`` in absolute coordinates.
     """
+    system = refuse_loops(system, "modal_response", "ctmm.simulate (loops closed in time)")
     system = require_system(system, controlled=False)
     given = times
     times = validation.finite_array("times", times, ndim=1)

@@ -43,29 +43,23 @@ import numpy as np
 from . import validation
 from .counting import certified_count, pivot_margin, relative_singularity
 from .assembly import ChainSolution  # noqa: F401
+from .capabilities import refuse_damping, refuse_loops
 from .errors import ModelError
 from .results import ModalResult
-from .system import Chain, require_system
+from .system import Chain
 from .frequency import _MatrixCache, _as_s, _assemble_body, _subdivided, assemble, solve  # noqa: F401
 
 
-def _conservative_chain(system: Any) -> Chain:
-    """Entry check of the natural-frequency functions: a plain :class:`Chain` (loops break reciprocity)."""
-    if isinstance(getattr(system, "plant", None), Chain) and hasattr(system, "loops"):
-        raise ModelError(f"system must be a ctmm.Chain (undamped, without feedback loops) for natural frequencies, "
-                         f"got the controlled chain {system.name!r}; its closed-loop roots come from "
-                         "ctmm.stability.characteristic_roots")
-    return require_system(system, controlled=False)
+_CLOSED_LOOP = ("ctmm.stability.characteristic_roots(system, re_min=..., im_max=...) or "
+                "ctmm.stability.unstable_root_count(system)")
+_DAMPED = "ctmm.frequency_response, or ctmm.stability.characteristic_roots for damped roots"
 
 
-def _check_conservative(system: Chain) -> None:
-    for e in system.elements:
-        if getattr(e, "damping", 0.0):
-            raise ModelError(
-                f"natural_frequencies needs an undamped system, but {e.name!r} has damping="
-                f"{e.damping!r}; use frequency_response for damped systems")
-        if getattr(e, "is_conservative", True) is False:
-            raise ModelError(f"natural_frequencies needs a conservative system; {e.name!r} is not")
+def _undamped_plant(system, verb: str) -> Chain:
+    """The undamped plain chain the natural-frequency verbs answer for, or a clear refusal."""
+    chain = refuse_loops(system, verb, _CLOSED_LOOP)
+    refuse_damping(chain, verb, _DAMPED)
+    return chain
 
 
 def eigenvalue_count(system: Chain, omega: Any) -> np.ndarray:
@@ -82,14 +76,16 @@ def eigenvalue_count(system: Chain, omega: Any) -> np.ndarray:
     Parameters
     ----------
     system : Chain
-        An undamped chain.
+        An undamped chain (a ``ControlledChain`` without loops counts as its plant).
     omega : array_like
         Frequencies [rad/s] > 0.
 
     Raises
     ------
     ModelError
-        If an element matrix is not symplectic (not reciprocal), see :func:`_check_reciprocal`.
+        If an element matrix is not symplectic (not reciprocal), see :func:`_check_reciprocal`;
+        if ``system`` is damped or closes feedback loops (the count of undamped natural
+        frequencies would ignore them; :mod:`ctmm.capabilities`).
 
     Notes
     -----
@@ -99,7 +95,7 @@ def eigenvalue_count(system: Chain, omega: Any) -> np.ndarray:
     natural frequency within ``e^-β`` of it (e.g. clamped-clamped and clamped-free beam roots);
     :func:`natural_frequencies` therefore uses the count only to isolate roots.
     """
-    system = _conservative_chain(system)
+    system = _undamped_plant(system, "eigenvalue_count")
     omega = validation.frequencies("omega", omega)
     if _is_lumped(system):
         return _lumped_count(system, omega)
@@ -326,7 +322,8 @@ def _lumped_count(system, omega: np.ndarray) -> np.ndarray:
     """Scalar Wittrick-Williams count for 1-D lumped chains (same recursion as the general one).
 
     ``S = -K_L`` (condensed dynamic stiffness of the inboard part, negated); a point element adds
-    ``m w^2 - k_g``; a connector ``k`` has pivot ``k - S`` and maps ``S -> k^2 / (k - S) - k``.
+    ``m w^2 - k_g``; a connector ``k`` has pivot ``k - S`` and maps ``S -> k^2 / (k - S) - k``
+    (evaluated as ``k S / (k - S)`` while ``|S| < k/2``, where that form has no cancellation).
     This is the Sturm sequence of the tridiagonal ``K - w^2 M`` in ratio form, whose count is
     backward stable (exact for a matrix within a few ulps of the given one) however small a
     pivot.  A pivot exactly zero (``w`` exactly at a resonance of the inboard part clamped at
@@ -351,7 +348,11 @@ def _lumped_count(system, omega: np.ndarray) -> np.ndarray:
                 pivot = k - S
                 pivot = np.where(pivot == 0.0, np.finfo(float).tiny, pivot)
                 count += pivot < 0
-                S = k * k / pivot - k
+                # k S / (k - S) keeps the relative accuracy of a small S (a rigid-body mode at
+                # tiny w: k^2/pivot - k would cancel it to 0); k^2 / pivot - k avoids 0 * inf
+                # when the pivot vanishes.  Both are the same map; each is used where it is exact.
+                small = np.abs(S) < 0.5 * k
+                S = np.where(small, k * S / np.where(small, pivot, 1.0), k * k / pivot - k)
             elif not clamped:
                 S = S + (e.mass * w2 - e.stiffness)
     if system.end.known == "force" and not clamped:
@@ -395,7 +396,7 @@ def natural_frequencies(system: Chain, *, n_modes: int | None = None, omega_max:
     Parameters
     ----------
     system : Chain
-        An undamped chain.
+        An undamped chain (a ``ControlledChain`` without loops counts as its plant).
     n_modes : int, optional
         Number of lowest frequencies wanted (rigid-body modes count, returned as 0).
     omega_max : float, optional
@@ -407,9 +408,14 @@ def natural_frequencies(system: Chain, *, n_modes: int | None = None, omega_max:
     -------
     ndarray
         Ascending natural frequencies; a repeated frequency appears once per multiplicity.
+
+    Raises
+    ------
+    ModelError
+        ``system`` is damped or closes feedback loops: closed-loop roots are not undamped natural
+        frequencies (use :func:`ctmm.stability.characteristic_roots`, or pass ``system.plant``).
     """
-    system = _conservative_chain(system)
-    _check_conservative(system)
+    system = _undamped_plant(system, "natural_frequencies")
     if (n_modes is None) == (omega_max is None):
         raise ModelError("give exactly one of n_modes (int >= 1) or omega_max (rad/s > 0)")
     rtol = validation.positive("rtol", rtol)
@@ -710,14 +716,14 @@ def mode_shapes(system: Chain, *, n_modes: int | None = None, omega_max: float |
     ``|w - w_k| / gap``, also for strongly localised modes where a homogeneous
     back-substitution from one end would amplify round-off.  Rigid-body modes (``w = 0``) are
     the null vectors of the static boundary equations.  Shapes are normalised so that the
-    largest displacement component is +1.
+    largest displacement component is +1.  Refuses damped chains and chains with feedback loops
+    like :func:`natural_frequencies`.
     """
+    system = _undamped_plant(system, "mode_shapes")
     omega = natural_frequencies(system, n_modes=n_modes, omega_max=omega_max)
     if omega.size == 0:   # no natural frequency below omega_max
         return ModalResult(omega, np.zeros((0, system.n_points, system.layout.size)), system.layout.components,
                            tuple(system.point_names()))
-    if hasattr(system, "assemble_frequency"):
-        return _mode_shapes_by_inputs(system, omega)
     layout = system.layout
     d, n = layout.half, layout.size
     body, points = _subdivided(system, float(np.max(omega, initial=0.0)))
@@ -743,13 +749,3 @@ def _modal_result(system, omega: np.ndarray, states: np.ndarray) -> ModalResult:
     ref = disp[np.arange(len(omega)), np.argmax(np.abs(disp), axis=1)]
     shapes = np.real_if_close(shapes / ref[:, None, None], tol=1e6)
     return ModalResult(omega, shapes, system.layout.components, tuple(system.point_names()))
-
-
-def _mode_shapes_by_inputs(system, omega: np.ndarray) -> ModalResult:
-    """Controlled chains: forced response to pseudo-random loads on the element inputs."""
-    s = 1j * np.maximum(omega, 1e-300)
-    rng = np.random.default_rng(20260101)
-    amplitudes = {pos: {e.inputs[0]: 1.0 + rng.random()} for pos, e in enumerate(system.elements)
-                  if e.inputs and pos not in (0, len(system.elements) - 1)}
-    sol = solve(system, s, amplitudes)
-    return _modal_result(system, omega, sol.states)

@@ -13,6 +13,7 @@ from typing import Any, Mapping, Sequence
 
 from .control.loops import ControlledChain
 from .control.protocol import Controller
+from .capabilities import require_chain
 from .control.simulate import simulate_controlled
 from .errors import ModelError
 from .results import SimulationResult
@@ -51,7 +52,8 @@ def simulate(system: Chain | ControlledChain, t_final: float, dt: float, *, sche
         ``{loop name: r(t)}`` loop references [sensed unit].
     coupling : {"hold", "previous"}
         Algebraic-loop policy of co-simulated controllers (see
-        :func:`~ctmm.control.simulate.simulate_controlled`).
+        :func:`~ctmm.control.simulate.simulate_controlled`); ``"previous"`` without
+        ``controllers`` is refused (it would be ignored).
     solver, fast, force_hook
         Options of the uncontrolled stepper (:func:`ctmm.timestep.simulate`); not available
         with loops or controllers.
@@ -70,10 +72,16 @@ def simulate(system: Chain | ControlledChain, t_final: float, dt: float, *, sche
     Raises
     ------
     ModelError
-        Bad input; options that do not apply to a controlled run.
+        Bad input; a system that is not a chain; options that do not apply to the run
+        (``solver``/``fast``/``force_hook`` with loops or controllers, ``coupling`` without
+        controllers).
     SimulationError
         A failed run (divergence, non-finite state, failing user code), with ``partial_result``.
     """
+    require_chain(system, "ctmm.simulate")
+    if coupling != "hold" and not controllers:
+        raise ModelError(f"coupling={coupling!r} only applies to co-simulated controllers, but controllers is "
+                         f"empty; leave coupling at 'hold' (embedded loops are always solved implicitly)")
     controlled = isinstance(system, ControlledChain) or bool(controllers) or bool(references)
     if not controlled:
         return simulate_chain(system, t_final, dt, scheme=scheme, x0=x0, v0=v0, t0=t0, solver=solver, fast=fast,

@@ -189,3 +189,14 @@ def test_static_free_free_is_singular():
     chain = ctmm.Chain("ff", [Free("a"), Mass("m1", 1.0), Spring("k", 10.0), Mass("m2", 1.0), Free("b")])
     with pytest.raises(ctmm.SingularSystemError, match="free-free"):
         ctmm.frequency_response(chain, [0.0], input="m1.force", output="m2.x")
+
+
+@pytest.mark.parametrize("seed, n", [(0, 5), (3, 12), (11, 40)])
+def test_free_free_rigid_mode_is_exactly_zero(seed, n):
+    """A free-free chain's rigid-body mode is returned as 0 (the count at a tiny frequency must not
+    lose the O(w^2) point stiffness to cancellation), the rest equal eigh(K, M)."""
+    chain = random_chain(np.random.default_rng(seed), n, start="free", end="free", grounded=False)
+    exact = ref.natural_frequencies(to_global(chain))
+    w = ctmm.natural_frequencies(chain, n_modes=exact.size)
+    assert w[0] == 0.0 and exact[0] < 1e-6 * exact[-1]
+    np.testing.assert_allclose(w[1:], exact[1:], rtol=1e-10)

@@ -36,6 +36,7 @@ from .. import validation
 from ..errors import ModelError
 from ..frequency import frequency_response
 from ..results import FrequencyResponse
+from ..system import Chain
 from .loops import ControlledChain
 
 __all__ = ["closed_loop_response", "loop_transfer_function", "open_loop_plant", "actuator_inputs", "Margins",
@@ -277,8 +278,12 @@ def margins(source: Any, loop: str | None = None, omega: Any = None) -> Margins:
         def evaluate(x: float) -> complex:
             return complex(loop_transfer_function(source, loop, [x])(f"{lp.name}.L")[0])
     else:
+        if isinstance(source, Chain):
+            raise ModelError(f"margins needs a ControlledChain with loop {loop!r}, got the plain Chain "
+                             f"{source.name!r}; close it with ctmm.control.ControlledChain(plant, [Feedback(...)])")
         if loop is not None or omega is not None:
-            raise ModelError("margins(data) takes no loop/omega: they come with the data")
+            raise ModelError(f"margins(system, loop, omega) needs a ControlledChain, got {type(source).__name__}; "
+                             "a loop transfer function given as data takes no loop/omega (they come with the data)")
         if isinstance(source, FrequencyResponse):
             if source.response.shape[:2] != (1, 1):
                 raise ModelError("margins needs a SISO loop transfer function")

@@ -30,6 +30,7 @@ import numpy as np
 
 from .. import validation
 from ..assembly import SOLVERS, predicted_forces, shift_forces
+from ..capabilities import require_chain
 from ..elements.base import Linearisation
 from ..elements.lumped import PointElement
 from ..errors import ModelError, SimulationError
@@ -49,7 +50,12 @@ class _TustinLTI:
     def __init__(self, system: Any, dt: float, loop: str = "") -> None:
         import control
 
-        ss = control.ss(system)
+        try:
+            ss = control.ss(system)
+        except ValueError as exc:  # an improper C(s) (e.g. kp + kd s) has no state-space realisation
+            raise ModelError(f"loop {loop!r}: the controller C(s) cannot be realised in time ({exc}); "
+                             "an improper PD kp + kd s is the sensor terms [(x, kp), (v, kd)] with gain=1, "
+                             "or add a derivative filter") from None
         A, B, C, D = (np.atleast_2d(np.asarray(m, dtype=float)) for m in (ss.A, ss.B, ss.C, ss.D))
         for label, matrix in zip("ABCD", (A, B, C, D)):
             if not np.all(np.isfinite(matrix)):
@@ -203,6 +209,7 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
         callback), naming the time and the loop, controller or element; ``partial_result``
         holds every signal (loop and controller signals included) up to the last good step.
     """
+    require_chain(system, "simulate_controlled")
     system = require_system(system)
     controllers = check_controllers(controllers)
     dt = validation.positive("dt", dt)
@@ -464,6 +471,24 @@ def _consistent_start(plant: Chain, loops, lti, refs, x, v, t0: float, forces: M
     return {r.index: float(u[r.index]) for r in loops}, a, f, pre
 
 
+def _check_drivable(plant: Chain, outputs: Sequence[str], actuators: Sequence[Any]) -> None:
+    """Refuse controller outputs the time stepper cannot apply (it would drop or misplace them).
+
+    The stepper adds a controller output to the first input of a body element (a force on a
+    point element, a force across a connector); boundary inputs (prescribed displacement or
+    force) and other inputs of an element are not driven in time.
+    """
+    for name, actuator in zip(outputs, actuators):
+        element = plant.elements[actuator.position]
+        if 0 < actuator.position < len(plant.elements) - 1 and actuator.input == element.inputs[0]:
+            continue
+        drivable = [f"{e.name}.{e.inputs[0]}" for e in plant.body if e.inputs]
+        where = "a boundary input" if element not in plant.body else f"not the first input of {element.name!r}"
+        raise ModelError(f"controller output {name!r} is {where}, which co-simulated controllers cannot drive "
+                         f"in time; drivable outputs: {', '.join(drivable)} (a prescribed boundary motion or "
+                         f"force is given as the boundary's own signal, e.g. PrescribedDisplacement(name, function))")
+
+
 class _CoSimulation:
     """Sampled co-simulation master for controller objects and FMUs (zero-order hold)."""
 
@@ -487,6 +512,7 @@ class _CoSimulation:
                                  f"of dt={dt!r} s")
             sensing = [plant.signal(n) for n in c.inputs]
             actuators = [plant.input(n) for n in c.outputs]
+            _check_drivable(plant, c.outputs, actuators)
             algebraic = [n for n, s in zip(c.inputs, sensing)
                          if s.derivative == 2 or s.component >= plant.layout.half]
             if c.direct_feedthrough and algebraic and coupling != "previous":

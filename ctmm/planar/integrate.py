@@ -16,6 +16,7 @@ import numpy as np
 import scipy.integrate
 
 from .. import validation
+from ..capabilities import require_planar
 from ..errors import ModelError, SimulationError
 from .guards import check_scheme, divergence_guard, with_partial
 from .model import PlanarModel
@@ -79,6 +80,7 @@ class PlanarSimulation:
 
 
 def _initial(model: PlanarModel, q0, qdot0) -> tuple[np.ndarray, np.ndarray]:
+    require_planar(model, "ctmm.planar simulation")
     n = model.n_coordinates
     given = (q0, qdot0)
     q0 = validation.finite_array("q0", q0, ndim=1)

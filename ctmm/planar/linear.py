@@ -35,6 +35,7 @@ import numpy as np
 import scipy.optimize
 
 from .. import validation
+from ..capabilities import require_planar
 from ..elements.base import Element
 from ..counting import certified_count
 from ..errors import ModelError
@@ -245,6 +246,7 @@ def static_equilibrium(model: PlanarModel, q_guess, *, t: float = 0.0,
 
 
 def _check_equilibrium(model: PlanarModel, q_eq, t: float):
+    require_planar(model, "ctmm.planar.linear")
     if np.any(model.joint_kind == DRIVEN):
         raise ModelError("linearisation about an equilibrium needs a model without driven hinges")
     if np.any(model.joint_kind == BUSHING):
@@ -455,6 +457,7 @@ def natural_frequencies(model: PlanarModel, q_eq, *, n_modes: int, t: float = 0.
     Wittrick-Williams counting of negative pivots of the articulated sweep plus bisection
     (vectorised over all modes); zero-frequency (rigid) modes are returned as 0.
     """
+    require_planar(model, "ctmm.planar.linear")
     if np.any(model.damping > 0):
         raise ModelError("natural_frequencies needs an undamped model (hinge damping > 0 found)")
     if not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
