@@ -16,6 +16,7 @@ import numpy as np
 from . import result_files
 from .errors import ModelError, unknown_name
 from .signal_units import label, signal_unit
+from .system import Signal
 
 
 def _axes(ax=None, nrows: int = 1):
@@ -361,19 +362,23 @@ class SimulationResult:
         ax.legend(fontsize=8)
         return fig
 
-    def save(self, path: str | os.PathLike) -> Path:
+    def save(self, path: str | os.PathLike, signals: Sequence[str] | None = None) -> Path:
         """Save the whole result to an HDF5 file, written atomically (temporary file + ``os.replace``).
 
-        Stored: time [s], every signal by name with its unit (``/signals/<name>``), the raw
-        ``states``/``velocity``/``acceleration`` arrays, the system's element parameters, and the
-        provenance (ctmm version, creation time (UTC), system name, scheme, :attr:`info`: dt,
-        wall time, error figures, failure time of a partial result). The format is described in
-        ``docs/results.md``; read it back with :func:`load`.
+        Stored: time [s], the raw ``states``/``velocity``/``acceleration`` arrays with the map from
+        every signal name to them, signals by name with their unit (``/signals/<name>``), the
+        system's element parameters, and the provenance (ctmm version, creation time (UTC), system
+        name, scheme, :attr:`info`: dt, wall time, error figures, failure time of a partial
+        result). The format is described in ``docs/results.md``; read it back with :func:`load`.
 
         Parameters
         ----------
         path : str or os.PathLike
             File name ending with ``.h5`` (or ``.hdf5``, ``.hdf``) in an existing folder.
+        signals : sequence of str, optional
+            Signals written as named datasets (default: all). Signals not listed stay readable
+            after :func:`load` (from the raw arrays); loop signals and controller outputs, which are
+            not in the raw arrays, are always written. Give a short list for large chains.
 
         Returns
         -------
@@ -384,11 +389,20 @@ class SimulationResult:
         ------
         ResultFileError
             Bad path (missing folder, a folder, another suffix).
+        UnknownNameError
+            A name in ``signals`` is not a signal of the result.
         ImportError
             h5py is not installed (``pip install 'ctmm[data]'``).
         """
-        signal_names = [n for n in self.signals() if _available(self, n)]
-        units = {n: self.unit(n) for n in signal_names}
+        signal_map = _signal_map(self)
+        available = [n for n in self.signals() if _available(self, n)]
+        if signals is None:
+            stored = available
+        else:
+            for name in signals:
+                self[name]                   # raises UnknownNameError naming the available signals
+            stored = list(dict.fromkeys([*signals, *(n for n in available if n not in signal_map)]))
+        units = {n: self.unit(n) for n in dict.fromkeys([*signal_map, *available])}
         datasets: dict[str, tuple[np.ndarray, dict]] = {
             "time": (np.asarray(self.time), {"unit": "s"}),
             "states": (np.asarray(self.states), {"axes": ["time", "point", "component"]}),
@@ -396,26 +410,47 @@ class SimulationResult:
             "acceleration": (np.asarray(self.acceleration),
                              {"axes": ["time", "point", "displacement component"]}),
         }
-        for name in signal_names:
+        for name in stored:
             values = np.asarray(self[name])
             meta: dict[str, Any] = {"unit": units[name]}
             if values.ndim == 2 and values.shape[1:] == (2,):
                 meta["columns"] = ["time [s]", label("value", units[name])]
             datasets[f"signals/{name}"] = (values, meta)
-        system = self.system
-        layout = getattr(getattr(system, "plant", system), "layout", None)
-        groups = {
-            "signals": {"names": signal_names},
-            "system": {"name": getattr(system, "name", ""), "type": type(system).__name__,
-                       "point_names": list(system.point_names()) if hasattr(system, "point_names") else [],
-                       "components": list(getattr(layout, "components", ())),
-                       "elements": _element_parameters(system),
-                       "loops": [repr(lp) for lp in getattr(system, "loops", ()) or ()]},
-        }
-        attributes = _provenance(getattr(system, "name", ""), self.info)
+        groups = {"signals": {"names": stored}, "system": {**_system_description(self.system),
+                                                           "signal_map": signal_map}}
+        attributes = _provenance(getattr(self.system, "name", ""), self.info)
         attributes["scheme"] = self.scheme_name
         attributes["stored_units"] = units
         return result_files.write(path, "simulation", attributes, datasets, groups)
+
+
+def _signal_map(result: SimulationResult) -> dict[str, list[int]]:
+    """``{name: [point, component, derivative order]}`` of every signal read from the raw arrays."""
+    mapping = {}
+    for name in result.system.signal_names():
+        if name in result.extra:
+            continue
+        try:
+            signal = result.system.signal(name)
+        except ModelError:
+            continue
+        width = (result.states if signal.derivative == 0 else result.velocity).shape[-1]
+        if signal.derivative in (0, 1, 2) and 0 <= signal.component < width:
+            mapping[name] = [int(signal.point), int(signal.component), int(signal.derivative)]
+    return mapping
+
+
+def _system_description(system: Any) -> dict[str, Any]:
+    """Name, type, points, components, element parameters and loops of the simulated system."""
+    stored = getattr(system, "description", None)
+    if isinstance(system, StoredSystem) and stored:     # re-saving a loaded result keeps its model
+        return {k: v for k, v in stored.items() if k != "signal_map"}
+    layout = getattr(getattr(system, "plant", system), "layout", None)
+    return {"name": getattr(system, "name", ""), "type": type(system).__name__,
+            "point_names": list(system.point_names()) if hasattr(system, "point_names") else [],
+            "components": list(getattr(layout, "components", ())),
+            "elements": _element_parameters(system),
+            "loops": [repr(lp) for lp in getattr(system, "loops", ()) or ()]}
 
 
 def _available(result: SimulationResult, name: str) -> bool:
@@ -448,9 +483,21 @@ def _provenance(system_name: str, info: dict) -> dict[str, Any]:
 class StoredSystem:
     """The system of a loaded result: its name, points and signal names with units (no model).
 
-    A loaded :class:`SimulationResult` has every stored signal in ``extra``; this object answers
-    the name and unit questions (``signal_names()``, :func:`~ctmm.signal_units.signal_unit`) and
+    A loaded :class:`SimulationResult` has every signal dataset of the file in ``extra``; the
+    other signals are read from the raw arrays through ``signal_map``. This object answers the
+    name and unit questions (``signal_names()``, :func:`~ctmm.signal_units.signal_unit`) and
     refuses names that were not stored.
+
+    Parameters
+    ----------
+    name : str
+        System name.
+    point_names : sequence of str
+        Connection point names.
+    stored_units : dict
+        ``{signal name: unit}`` of every signal of the result.
+    description : dict, optional
+        The file's ``/system`` attributes (element parameters, loops, ``signal_map``).
     """
 
     def __init__(self, name: str, point_names: Sequence[str], stored_units: dict[str, str],
@@ -459,6 +506,7 @@ class StoredSystem:
         self._point_names = list(point_names)
         self.stored_units = dict(stored_units)
         self.description = dict(description or {})
+        self.signal_map = {k: tuple(v) for k, v in self.description.get("signal_map", {}).items()}
 
     @property
     def n_points(self) -> int:
@@ -473,8 +521,19 @@ class StoredSystem:
         """Names of the stored signals."""
         return list(self.stored_units)
 
-    def signal(self, name: str):
-        """Every stored signal is in the result's ``extra``; any other name is unknown."""
+    def signal(self, name: str) -> Signal:
+        """The place of a signal in the raw arrays (signals in ``extra`` are found there first)."""
+        if name in self.signal_map:
+            return Signal(name, *self.signal_map[name])
+        parts = name.split(".") if isinstance(name, str) else []
+        if len(parts) == 3 and parts[1] in ("in", "out") and self._point_names:
+            # "<element>.in.<q>" / ".out.<q>": the element's inboard/outboard point (as in Chain.signal)
+            elements = [p.split("|")[0] for p in self._point_names] + [self._point_names[-1].split("|")[-1]]
+            places = {tuple(v[1:]) for k, v in self.signal_map.items() if k.rsplit(".", 1)[-1] == parts[2]}
+            if parts[0] in elements and len(places) == 1:
+                position = elements.index(parts[0])
+                point = min(max(position - 1 if parts[1] == "in" else position, 0), self.n_points - 1)
+                return Signal(name, point, *places.pop())
         raise unknown_name("signal (of a loaded result)", name, list(self.stored_units))
 
     def __repr__(self) -> str:
@@ -508,7 +567,7 @@ def load(path: str | os.PathLike) -> SimulationResult | FrequencyResponse:
     system_attrs = contents.group_attributes.get("system", {})
     names = contents.group_attributes.get("signals", {}).get("names", [])
     extra = {name: contents.dataset(f"signals/{name}") for name in names}
-    system = StoredSystem(attrs.get("system_name", ""), system_attrs.get("point_names", []),
-                          {n: stored_units.get(n, "") for n in names}, system_attrs)
+    units = {n: stored_units.get(n, "") for n in dict.fromkeys([*system_attrs.get("signal_map", {}), *names])}
+    system = StoredSystem(attrs.get("system_name", ""), system_attrs.get("point_names", []), units, system_attrs)
     return SimulationResult(contents.dataset("time"), contents.dataset("states"), contents.dataset("velocity"),
                             contents.dataset("acceleration"), system, attrs.get("scheme", ""), info, extra)

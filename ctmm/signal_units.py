@@ -14,11 +14,13 @@ quantity                          unit         meaning
 ``<c>_dot`` / ``<c>_ddot``        [c]/s, ...   time derivatives of a displacement component
 ``ax``, ``ay`` / ``alpha``        m/s^2 /      planar accelerations
                                   rad/s^2
-``<loop>.y``, ``<loop>.reference``  sensor     unit of the sensed signal(s) (e.g. m for ``m6.x``)
-``<loop>.u``                      N (N*m)      control force (moment if the actuator is a moment)
+``<loop>.y``, ``.reference``      sensor       unit of the sensed signal(s) (m for ``m6.x``)
+``<loop>.u``                      N (N*m)      control force (moment for a moment actuator)
 ``<loop>.L``                      1            loop transfer function (dimensionless)
 inputs ``force`` / ``moment``     N / N*m      external loads
 input ``displacement``            m (rad)      prescribed motion
+``deflection``, ``slope``,        m, rad,      manipulator tip deflection, patch slope and its
+``slope_rate``, ``voltage``       rad/s, V     rate, PZT voltage
 ================================  ===========  =================================================
 
 An unknown quantity (a controller output, an extra layout component) has the unit ``""``
@@ -38,6 +40,7 @@ QUANTITY_UNITS: dict[str, str] = {
     "v": "m/s", "a": "m/s^2",
     "ax": "m/s^2", "ay": "m/s^2", "alpha": "rad/s^2",
     "force": "N", "displacement": "m", "L": "1",
+    "deflection": "m", "deflection_dot": "m/s", "slope": "rad", "slope_rate": "rad/s", "voltage": "V",
 }
 """Unit of each signal quantity that has one meaning whatever the system (the 1-D kinds included)."""
 

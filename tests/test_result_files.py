@@ -96,6 +96,11 @@ def test_empty_partial_result_round_trip(tmp_path):
     loaded = load(empty.save(tmp_path / "empty.h5"))
     assert loaded.time.shape == (0,) and loaded.states.shape == empty.states.shape
     assert loaded["m2.x"].shape == (0,)
+    controlled = ControlledChain(plant(), [Feedback("pd", "m2.v", "m1", 3.0, 0.01)])
+    loaded = load(SimulationResult.empty(controlled, "newmark").save(tmp_path / "empty_loop.h5"))
+    assert loaded["m2.v"].shape == (0,)
+    with pytest.raises(ModelError, match="unknown signal"):    # the loop never ran: no loop signal
+        loaded["pd.y"]
 
 
 def test_frequency_response_round_trip(tmp_path):
@@ -197,3 +202,20 @@ def test_docs_examples_run(tmp_path, monkeypatch):
         exec(compile(block, "docs/results.md", "exec"), namespace)  # noqa: S102
     assert namespace["unit"] == "m" and namespace["info"]["dt"] == 0.01
     assert namespace["elements"][2]["parameters"]["mass"] == 1.0
+
+
+def test_short_signal_list_keeps_every_signal_readable(controlled_result, tmp_path):
+    """With ``signals=[...]`` only those datasets are written; the rest comes from the raw arrays."""
+    path = controlled_result.save(tmp_path / "short.h5", signals=["m2.x"])
+    with h5py.File(path, "r") as f:
+        assert sorted(f["signals"]) == ["m2.x", "pd.u", "pd.y"]   # loop signals are not in the raw arrays
+    loaded = load(path)
+    assert_same_simulation(controlled_result, loaded)
+    for name in ("k2.in.f", "k2.out.x", "tip.in.v", "wall.out.x_ddot"):
+        np.testing.assert_array_equal(loaded[name], controlled_result[name])
+    again = load(loaded.save(tmp_path / "again.h5"))              # a loaded result saves with its model
+    assert_same_simulation(controlled_result, again)
+    assert again.system.description["elements"] == loaded.system.description["elements"]
+    assert again.system.description["elements"][2]["parameters"]["mass"] == 1.0
+    with pytest.raises(ModelError, match="unknown signal 'm9.x'"):
+        controlled_result.save(tmp_path / "bad.h5", signals=["m9.x"])

@@ -30,7 +30,7 @@ def result() -> SimulationResult:
     ("m6.x", "m"), ("m6.v", "m/s"), ("m6.a", "m/s^2"), ("k3.f", "N"), ("m6.x_dot", "m/s"),
     ("m6.x_ddot", "m/s^2"), ("m1.force", "N"), ("base.displacement", "m"), ("beam.theta", "rad"),
     ("beam.theta_dot", "rad/s"), ("beam.moment", "N*m"), ("loop.L", "1"), ("loop.u", "N"),
-    ("loop.y", ""), ("ctrl@samples", ""), ("m.xs", ""),
+    ("loop.y", ""), ("ctrl@samples", ""), ("m.xs", ""), ("tip.deflection", "m"), ("p1.voltage", "V"),
 ])
 def test_units_from_names_alone(name, unit):
     """The 1-D kinds have fixed units; names whose unit depends on the system are not guessed."""
