@@ -224,7 +224,11 @@ def read(path: str | os.PathLike, kinds: tuple[str, ...]) -> Contents:
         raise ResultFileError(f"result file {str(source)!r} is not a readable HDF5 file (wrong file type, "
                               f"truncated or corrupted): {exc}") from None
     with handle:
-        attrs = {key: _read_attribute(value) for key, value in handle.attrs.items()}
+        try:
+            attrs = {key: _read_attribute(value) for key, value in handle.attrs.items()}
+        except ValueError as exc:          # JSON text of an attribute damaged
+            raise ResultFileError(f"result file {str(source)!r} is corrupted (a root attribute is not "
+                                  f"valid JSON): {exc}") from None
         if attrs.get("format") != FORMAT_NAME:
             raise ResultFileError(f"{str(source)!r} is an HDF5 file but not a ctmm result file "
                                   f"(root attribute format={attrs.get('format')!r}, expected {FORMAT_NAME!r})")
@@ -250,7 +254,7 @@ def read(path: str | os.PathLike, kinds: tuple[str, ...]) -> Contents:
 
         try:
             handle.visititems(visit)
-        except OSError as exc:
-            raise ResultFileError(f"result file {str(source)!r} is corrupted (an HDF5 checksum or read "
-                                  f"failed): {exc}") from None
+        except (OSError, ValueError) as exc:
+            raise ResultFileError(f"result file {str(source)!r} is corrupted (an HDF5 checksum, read or "
+                                  f"attribute decoding failed): {exc}") from None
     return contents

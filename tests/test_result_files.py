@@ -219,3 +219,26 @@ def test_short_signal_list_keeps_every_signal_readable(controlled_result, tmp_pa
     assert again.system.description["elements"][2]["parameters"]["mass"] == 1.0
     with pytest.raises(ModelError, match="unknown signal 'm9.x'"):
         controlled_result.save(tmp_path / "bad.h5", signals=["m9.x"])
+
+
+def test_special_floats_round_trip_bit_for_bit(controlled_result, tmp_path):
+    """NaN, infinities, signed zero and subnormals (a diverged partial run) come back bit for bit."""
+    special = np.array([np.nan, np.inf, -np.inf, -0.0, 5e-324, np.finfo(float).max, 1.0 / 3.0])
+    states = controlled_result.states.copy()
+    states[: len(special), 0, 0] = special
+    odd = SimulationResult(controlled_result.time, states, controlled_result.velocity,
+                           controlled_result.acceleration, controlled_result.system, "newmark",
+                           {"error_estimate_m": 1.0 / 3.0, "tolerance": 5e-324, "note": "json:not json"},
+                           dict(controlled_result.extra))
+    loaded = load(odd.save(tmp_path / "odd.h5"))
+    np.testing.assert_array_equal(loaded.states.view(np.uint64), states.view(np.uint64))
+    assert loaded.info["error_estimate_m"] == 1.0 / 3.0 and loaded.info["tolerance"] == 5e-324
+    assert loaded.info["note"] == "json:not json"
+
+
+def test_damaged_provenance_text_is_refused(controlled_result, tmp_path):
+    path = controlled_result.save(tmp_path / "run.h5")
+    with h5py.File(path, "a") as f:
+        f.attrs["info"] = "json:{broken"
+    with pytest.raises(ResultFileError, match="not valid JSON"):
+        load(path)
