@@ -15,7 +15,7 @@ import numpy as np
 
 from . import result_files
 from .errors import ModelError, unknown_name
-from .signal_units import label, signal_unit
+from .signal_units import label as unit_label, signal_unit
 from .system import Signal
 
 
@@ -332,7 +332,7 @@ class SimulationResult:
             if np.ndim(values) != 1 or len(values) != n:
                 raise ModelError(f"signal {name!r} has shape {np.shape(values)}, not one value per time row "
                                  f"({n}); read it with result[{name!r}]")
-            column = label(name, self.unit(name)) if units_in_names else name
+            column = unit_label(name, self.unit(name)) if units_in_names else name
             columns[column] = values
             units[column] = self.unit(name)
         frame = pd.DataFrame(columns, index=pd.Index(self.time, name="time [s]"))
@@ -352,11 +352,11 @@ class SimulationResult:
         units = [self.unit(n) for n in names]
         shared = len(set(units)) == 1
         for n, unit in zip(names, units):
-            ax.plot(self.time, self[n], label=n if shared else label(n, unit))
+            ax.plot(self.time, self[n], label=n if shared else unit_label(n, unit))
         if shared and names:
-            ax.set_ylabel(label(", ".join(names), units[0]))
+            ax.set_ylabel(unit_label(", ".join(names), units[0]))
         else:
-            ax.set_ylabel(", ".join(label(n, u) for n, u in zip(names, units)))
+            ax.set_ylabel(", ".join(unit_label(n, u) for n, u in zip(names, units)))
         ax.set_xlabel("time [s]")
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8)
@@ -414,7 +414,7 @@ class SimulationResult:
             values = np.asarray(self[name])
             meta: dict[str, Any] = {"unit": units[name]}
             if values.ndim == 2 and values.shape[1:] == (2,):
-                meta["columns"] = ["time [s]", label("value", units[name])]
+                meta["columns"] = ["time [s]", unit_label("value", units[name])]
             datasets[f"signals/{name}"] = (values, meta)
         groups = {"signals": {"names": stored}, "system": {**_system_description(self.system),
                                                            "signal_map": signal_map}}
