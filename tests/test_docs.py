@@ -21,10 +21,10 @@ import types
 from pathlib import Path
 
 import matplotlib
-import matplotlib.pyplot as plt
 import pytest
 
-matplotlib.use("Agg")
+matplotlib.use("Agg")   # headless, as in conftest.py; before pyplot is imported
+import matplotlib.pyplot as plt  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = sorted([ROOT / "README.md", *(ROOT / "docs").rglob("*.md")])
@@ -53,6 +53,14 @@ EXPLICIT_ANCHOR = re.compile(r"<a\s+(?:id|name)=\"(?P<anchor>[^\"]+)\"")
 def relative(page: Path) -> str:
     """Path of ``page`` relative to the repository root, with forward slashes."""
     return page.relative_to(ROOT).as_posix()
+
+
+def display(page: Path) -> str:
+    """``relative(page)`` for pages of the repository, else the file name."""
+    try:
+        return relative(page)
+    except ValueError:
+        return page.name
 
 
 def code_blocks(text: str) -> list[tuple[int, str, str]]:
@@ -136,15 +144,12 @@ def anchors(page: Path) -> set[str]:
     return found
 
 
-def page_id(page: Path) -> str:
-    return relative(page)
-
-
 EXECUTABLE_PAGES = [page for page in PAGES
                     if any(not is_fragment(source) for _, source in python_blocks(page))]
 
 
 def page_params() -> list:
+    """One pytest parameter per page with a python block to run (slow / pending marks)."""
     params = []
     for page in EXECUTABLE_PAGES:
         marks = []
@@ -157,13 +162,22 @@ def page_params() -> list:
     return params
 
 
-@pytest.mark.parametrize("page", page_params())
-def test_python_blocks_run(page: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """Every non-fragment python block of the page runs, in order, in one namespace."""
-    monkeypatch.chdir(tmp_path)
+def run_page(page: Path) -> tuple[float, bool]:
+    """Execute the non-fragment python blocks of ``page`` in order, in one fresh module namespace.
+
+    Returns
+    -------
+    (elapsed, slow)
+        Wall time [s] and whether a block is marked ``# slow``.
+
+    Raises
+    ------
+    AssertionError
+        Naming the page, the line of the failing block and the exception.
+    """
     module = types.ModuleType("ctmm_docs_page")   # a real module: dataclasses look it up
-    monkeypatch.setitem(sys.modules, module.__name__, module)
-    namespace = module.__dict__
+    previous = sys.modules.get(module.__name__)
+    sys.modules[module.__name__] = module
     start = time.perf_counter()
     slow = False
     try:
@@ -171,18 +185,45 @@ def test_python_blocks_run(page: Path, tmp_path: Path, monkeypatch: pytest.Monke
             if is_fragment(source):
                 continue
             slow = slow or is_slow(source)
-            code = compile(source, f"{relative(page)}:{line}", "exec")
+            code = compile(source, f"{display(page)}:{line}", "exec")
             try:
-                exec(code, namespace)  # noqa: S102 - executing the documentation is the test
+                exec(code, module.__dict__)  # noqa: S102 - executing the documentation is the test
             except Exception as error:  # report the page and line of the failing block
-                raise AssertionError(f"{relative(page)}, block at line {line} raised "
+                raise AssertionError(f"{display(page)}, block at line {line} raised "
                                      f"{type(error).__name__}: {error}") from error
     finally:
         plt.close("all")
-    elapsed = time.perf_counter() - start
+        if previous is None:
+            sys.modules.pop(module.__name__, None)
+        else:
+            sys.modules[module.__name__] = previous
+    return time.perf_counter() - start, slow
+
+
+@pytest.mark.parametrize("page", page_params())
+def test_python_blocks_run(page: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every non-fragment python block of the page runs, in order, in one namespace."""
+    monkeypatch.chdir(tmp_path)
+    elapsed, slow = run_page(page)
     assert slow or elapsed < PAGE_TIME_LIMIT, (
         f"{relative(page)}: blocks took {elapsed:.1f} s; make the examples faster or mark one "
         f"'# slow'")
+
+
+def test_runner_executes_in_order_and_reports_failures(tmp_path: Path,
+                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    """The runner shares names between blocks, skips fragments and names a failing block."""
+    monkeypatch.chdir(tmp_path)
+    page = tmp_path / "page.md"
+    page.write_text("text\n\n```python\nvalue = 2\n```\n\n```python\n# fragment: sketch\n"
+                    "undefined_name\n```\n\n```python\nassert value == 2\n"
+                    "open('out.txt', 'w').write('x')\n```\n", encoding="utf-8")
+    run_page(page)
+    assert (tmp_path / "out.txt").is_file()
+    page.write_text("```python\nx = 1\n```\n\n```python\nraise ValueError('boom')\n```\n",
+                    encoding="utf-8")
+    with pytest.raises(AssertionError, match=r"page.md, block at line 5 raised ValueError: boom"):
+        run_page(page)
 
 
 def test_fragments_are_marked_visibly() -> None:
@@ -202,6 +243,7 @@ def test_pending_pages_exist() -> None:
 
 
 def link_params() -> list:
+    """One pytest parameter per relative link or image of every page (outside code)."""
     params = []
     for page in PAGES:
         text = prose(page.read_text(encoding="utf-8"))
