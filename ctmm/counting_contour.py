@@ -31,6 +31,7 @@ __all__ = ["Contour", "build_contour", "contour_height", "count"]
 _MAX_STEP = 0.4          # largest complex-log step of a component between samples
 _COUNT_STEP = 1.0        # largest phase step of Delta(s; p) between samples when counting
 _MAX_SAMPLES = 200_000   # largest initial line sampling for a proven contour height
+_LINE_LIMIT = 5_000_000   # largest line sampling at all (about 0.2 GB of components)
 
 
 # --------------------------------------------------------------------------------------------
@@ -257,6 +258,18 @@ def contour_height(model: LoopCharacteristic, weight_bound: np.ndarray, sigma: f
     return im_max, seeds, ContourCertificate(sigma, im_max, "user", proven, certified, tuple(notes))
 
 
+def _line_samples(length: float, tau_max: float, sigma: float) -> float:
+    """Samples a contour piece of ``length`` [rad/s] needs at delay ``tau_max`` [s] (the factor
+    ``e^(-s tau)`` turns once per ``2 pi / tau``), or a :class:`ModelError` beyond ``_LINE_LIMIT``."""
+    needed = length * tau_max / _MAX_STEP
+    if needed > _LINE_LIMIT:
+        raise ModelError(f"delay {tau_max:.6g} s with a contour {length:.6g} rad/s long (right of Re s = {sigma:g}) "
+                         f"would need {needed:.3g} samples (e^(-s tau) turns once per 2 pi / tau rad/s); at most "
+                         f"{_LINE_LIMIT:.0e} are allowed: use delays below {_LINE_LIMIT * _MAX_STEP / length:.3g} s "
+                         "or a smaller im_max")
+    return needed
+
+
 def build_contour(model: LoopCharacteristic, weight_bound: np.ndarray, tau_max: float, *,
                   sigma: float = 0.0, im_max: float | None = None, resolution: int = 256) -> Contour:
     """The counting contour of a parameter box: height (proven when possible), far-edge phase,
@@ -280,6 +293,7 @@ def build_contour(model: LoopCharacteristic, weight_bound: np.ndarray, tau_max: 
     growth = math.exp(max(0.0, -sigma) * tau_max)
     notes = list(certificate.notes)
     for _ in range(8):
+        _line_samples(2.0 * radius, tau_max, sigma)
         far = _FarPath(model, sigma, radius, radius, 48, tau_max, 1e-12 * radius)
         ratio = growth * _loop_bound(far.base, far.terms, weight_bound)
         if np.all(ratio < 0.5) or certificate.source != "sampled":
@@ -298,7 +312,7 @@ def build_contour(model: LoopCharacteristic, weight_bound: np.ndarray, tau_max: 
     if not np.all(np.isfinite(steps)):
         raise ModelError("the open-loop characteristic function vanishes on the far contour edge; "
                          "pass a different im_max")
-    n0 = max(resolution, int(math.ceil(radius * tau_max / _MAX_STEP)))
+    n0 = max(resolution, int(math.ceil(_line_samples(radius, tau_max, sigma))))
     seeds = _resonance_samples(poles, sigma, radius)
     line = _VerticalPath(model, [complex(sigma, 0.0), complex(sigma, radius)], n0, tau_max,
                          1e-13 * radius, seeds)

@@ -32,6 +32,8 @@ __all__ = ["LoopCharacteristic", "characteristic_roots", "spectral_abscissa", "s
            "DelayMargin", "delay_margin", "GainMargin", "gain_margin", "gain_crossovers", "SimulationCheck",
            "crosscheck_by_simulation", "stability_chart", "StabilityChart", "Boundary"]
 
+_MAX_CROSSINGS = 1_000_000   # largest number of delay crossings delay_margin lists
+
 
 def __getattr__(name: str):
     """``stability_chart``, ``StabilityChart`` and ``Boundary`` live in :mod:`ctmm.stability_chart`."""
@@ -411,6 +413,11 @@ def delay_margin(system: ControlledChain, loop: str | None = None, *, delay_max:
         first = float(np.min(tau0))
         limit = delay_max if delay_max is not None else 4.0 * max(first, tau_now)
         limit = validation.positive("delay_max", limit) if delay_max is not None else limit
+        listed = float(np.sum(np.maximum(0.0, limit - tau0) * omega_c / (2 * math.pi)))
+        if listed > _MAX_CROSSINGS:
+            raise ModelError(f"delay_max={delay_max!r} s would list {listed:.3g} stability crossings (each gain "
+                             f"crossover recurs every 2 pi / omega s); at most {_MAX_CROSSINGS:.0e} are allowed: "
+                             f"give delay_max <= {first + _MAX_CROSSINGS * 2 * math.pi / omega_c.max():.3g} s")
         for t0, wc, d in zip(tau0, omega_c, sign):
             for j in range(int(max(0, math.floor((limit - t0) * wc / (2 * math.pi)))) + 1):
                 if t0 + 2 * math.pi * j / wc > limit:

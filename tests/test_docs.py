@@ -34,10 +34,7 @@ PAGES = sorted([ROOT / "README.md", *(ROOT / "docs").rglob("*.md")])
 #: signature), control.md lines 142 and 186 (call summaries without imports or a system).  Their
 #: blocks are skipped; their links are checked.  The lead empties this set after merging the
 #: markers.  Every other page's blocks run (flexible, manipulator, planar, stability pass).
-PENDING_PAGES: frozenset[str] = frozenset({
-    "docs/characteristic_roots.md",
-    "docs/control.md",
-})
+PENDING_PAGES: frozenset[str] = frozenset()
 
 #: Wall-time budget of one page's blocks [s] outside the slow marker (a shared, loaded machine:
 #: the slowest page, docs/flexible.md, takes 7.5 s unloaded).
