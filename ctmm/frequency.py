@@ -7,6 +7,7 @@ Natural frequencies, their counting and mode shapes live in :mod:`ctmm.natural` 
 """
 from __future__ import annotations
 
+import time
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -16,6 +17,7 @@ from .assembly import SOLVERS, BoundaryEnd, BoundaryStart, ChainSolution
 from .capabilities import require_chain
 from .errors import ModelError
 from .results import FrequencyResponse
+from .signal_units import signal_unit
 from .system import Chain, require_system
 
 def _as_s(omega: Any, name: str = "omega") -> np.ndarray:
@@ -209,12 +211,15 @@ def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],
         system.signal(o)
     resolved = [system.input(i) for i in inputs]
     response = np.empty((len(outputs), len(inputs), s.size), dtype=complex)
+    started = time.perf_counter()
     for k, inp in enumerate(resolved):
         amps = {inp.position: {inp.input: 1.0}}
         sol = solve(system, s, amps, solver=solver)
         for j, o in enumerate(outputs):
             response[j, k] = _output_value(system, sol.states, s, o, amps)
-    return FrequencyResponse(np.imag(s), response, inputs, outputs, system.name)
+    units = {name: signal_unit(name, system) for name in (*inputs, *outputs)}
+    info = {"solver": solver, "wall_time_s": time.perf_counter() - started, "n_frequencies": int(s.size)}
+    return FrequencyResponse(np.imag(s), response, inputs, outputs, system.name, info=info, units=units)
 
 
 def steady_state_response(system: Chain, omega: float, *, outputs: Sequence[str] | None = None,

@@ -242,3 +242,16 @@ def test_damaged_provenance_text_is_refused(controlled_result, tmp_path):
         f.attrs["info"] = "json:{broken"
     with pytest.raises(ResultFileError, match="not valid JSON"):
         load(path)
+
+
+def test_frequency_response_carries_units_of_loop_signals():
+    """frequency_response fills the units (loop sensor unit from its sensor, actuator force) and info."""
+    import ctmm
+    from ctmm.control import ControlledChain, Feedback
+    from ctmm.elements import Fixed, Free, Mass, Spring
+
+    chain = ctmm.Chain("s", [Fixed("w"), Spring("k", 100.0), Mass("m", 1.0), Free("e")])
+    system = ControlledChain(chain, [Feedback("L", sensor="m.v", actuator="m", gain=1.0)])
+    frf = ctmm.frequency_response(system, [1.0, 2.0], input="m.force", output=["L.y", "L.u", "k.f"])
+    assert frf.units == {"m.force": "N", "L.y": "m/s", "L.u": "N", "k.f": "N"}
+    assert frf.info["solver"] == "riccati" and frf.info["n_frequencies"] == 2
