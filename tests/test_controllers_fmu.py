@@ -100,6 +100,7 @@ def test_build_is_cached_and_rebuilds_on_change(fmus, fmu_dir, tmp_path):
 
 def test_build_default_cache_folder(monkeypatch, tmp_path):
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.delenv("CTMM_CACHE", raising=False)    # $CTMM_CACHE would take precedence
     path = build_fmu(controllers.fmu_source("pi_controller"), compiler="gcc")
     assert path.name == "pi_controller.fmu" and path.parent.parent == tmp_path / "cache" / "ctmm" / "fmu"
     assert build_fmu(controllers.fmu_source("pi_controller"), compiler="gcc") == path

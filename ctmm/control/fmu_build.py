@@ -15,13 +15,13 @@ from __future__ import annotations
 import hashlib
 import os
 import shutil
-import subprocess
 import sys
 import tempfile
 import zipfile
 from pathlib import Path
 from typing import Any
 
+from ..codegen import cache_directory, compiler_identity, find_compiler, run_compiler
 from ..errors import ModelError
 from .fmu_description import fmi_headers_dir, fmi_major_version, read_description, require_fmpy
 from .fmu_loading import extract_fmu, missing_functions, required_functions
@@ -34,19 +34,6 @@ _LANGUAGE_STANDARDS = {"C89": "-std=gnu89", "C90": "-std=gnu90", "C99": "-std=gn
                        "C17": "-std=gnu17", "C18": "-std=gnu17"}
 _PACKED = ("modelDescription.xml", "model.png", "sources", "resources", "documentation", "extra", "binaries",
            "terminalsAndIcons", "licenses", "icons")
-
-
-def _default_cache_dir() -> Path:
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    for candidate in (Path(base) / "ctmm" / "fmu",
-                      Path(tempfile.gettempdir()) / f"ctmm-fmu-{getattr(os, 'getuid', lambda: 0)()}"):
-        try:
-            candidate.mkdir(parents=True, exist_ok=True)
-        except OSError:
-            continue
-        if os.access(candidate, os.W_OK):
-            return candidate
-    raise ModelError("no writable cache directory for FMUs; pass output_dir to build_fmu")
 
 
 class _Library:
@@ -182,15 +169,12 @@ def _build(root: Path, source: Path, output_dir: str | os.PathLike | None, compi
         raise ModelError(f"build_fmu supports Linux and macOS C compilers, not platform {sys.platform!r}")
     if not isinstance(compiler, (str, os.PathLike)) or not str(compiler).strip():
         raise ModelError(f"compiler must be a C compiler command or path such as 'cc' or 'gcc', got {compiler!r}")
-    compiler_path = shutil.which(compiler)
-    if compiler_path is None:
-        raise ModelError(f"compiler {compiler!r} not found on PATH; pass compiler='gcc' or a full path")
+    compiler_path = find_compiler(compiler)
     platform_dir = fmpy.platform if major == 2 else fmpy.platform_tuple
     headers = fmi_headers_dir()
 
     digest = hashlib.sha256(_BUILD_FORMAT)
-    parts: list[tuple[str, bytes]] = [("compiler", compiler_path.encode()),
-                                      ("compiler-version", _compiler_version(compiler_path)),
+    parts: list[tuple[str, bytes]] = [("compiler", compiler_identity(compiler_path)),
                                       ("platform", platform_dir.encode())]
     parts += [(f"flags/{lib.identifier}", " ".join(lib.flags).encode()) for lib in libraries]
     parts += [(f"header/{h.name}", h.read_bytes()) for h in sorted(headers.glob("fmi*.h"))]
@@ -203,7 +187,7 @@ def _build(root: Path, source: Path, output_dir: str | os.PathLike | None, compi
     key = digest.hexdigest()
 
     name = libraries[0].identifier
-    target_dir = Path(output_dir) if output_dir is not None else _default_cache_dir() / key[:20]
+    target_dir = Path(output_dir) if output_dir is not None else cache_directory(subfolder="fmu") / key[:20]
     target_dir.mkdir(parents=True, exist_ok=True)
     target = target_dir / f"{name}.fmu"
     stamp = target_dir / f"{name}.fmu.sha256"
@@ -212,7 +196,7 @@ def _build(root: Path, source: Path, output_dir: str | os.PathLike | None, compi
 
     with tempfile.TemporaryDirectory(prefix=f".{name}-", dir=target_dir) as work:
         work_path = Path(work)
-        built = [_compile(lib, work_path, platform_dir, compiler, compiler_path, headers, root, major)
+        built = [_compile(lib, work_path, platform_dir, compiler_path, headers, root, major)
                  for lib in libraries]
         archive = work_path / f"{name}.fmu"
         with zipfile.ZipFile(archive, "w", zipfile.ZIP_DEFLATED) as zf:
@@ -229,32 +213,19 @@ def _build(root: Path, source: Path, output_dir: str | os.PathLike | None, compi
     return target
 
 
-def _compile(lib: _Library, work_path: Path, platform_dir: str, compiler: str, compiler_path: str,
-             headers: Path, root: Path, major: int) -> Path:
+def _compile(lib: _Library, work_path: Path, platform_dir: str, compiler_path: str, headers: Path, root: Path,
+             major: int) -> Path:
     """Compile one library into ``work_path/binaries/<platform>/`` and check its FMI functions."""
     fmpy = require_fmpy()
     library = work_path / "binaries" / platform_dir / f"{lib.identifier}{fmpy.sharedLibraryExtension}"
     library.parent.mkdir(parents=True, exist_ok=True)
     command = [compiler_path, *lib.flags, f"-I{headers}", f"-I{root / 'sources'}",
                *map(str, lib.sources), "-o", str(library), "-lm"]
-    try:
-        completed = subprocess.run(command, capture_output=True, text=True, timeout=600)
-    except (OSError, subprocess.TimeoutExpired) as exc:
-        raise ModelError(f"compiling FMU {lib.identifier!r} failed to run {compiler!r}: {exc}") from exc
-    if completed.returncode != 0:
-        raise ModelError(f"compiling FMU {lib.identifier!r} failed (exit {completed.returncode}):\n"
-                         f"$ {' '.join(command)}\n{completed.stderr.strip()}")
     what = f"FMU {lib.identifier!r}"
+    run_compiler(command, what)
     for interface in lib.interfaces:
         missing = missing_functions(library, required_functions(major, interface), what)
         if missing:
             raise ModelError(f"{what}: the compiled library does not export the FMI {major} {interface} "
                              f"functions {', '.join(missing)}")
     return library
-
-
-def _compiler_version(compiler_path: str) -> bytes:
-    try:
-        return subprocess.run([compiler_path, "--version"], capture_output=True, timeout=60).stdout
-    except (OSError, subprocess.TimeoutExpired):
-        return b""

@@ -22,36 +22,25 @@ rotation ``T = diag(R, 1, I)`` cancels; test ``test_compiled_sweep_equals_the_py
   ``alpha = (tau - u.(Phi c + psi)) / (J_h + u.Phi u)``, ``tau = kp (theta_d - theta) + kd
   (theta_d' - theta')``; back-substitution ``q'' = -C^-1 (B A_I + d)``.
 
-The C library is cached by the hash of its text (``$CTMM_CACHE`` or ``~/.cache/ctmm``); all
+The C library is cached on disk by :mod:`ctmm.codegen` (keyed by the hash of its text, the
+compiler and the flags; folder: :func:`ctmm.codegen.cache_directory`); all
 physical numbers are run-time inputs, so one library serves every gain, step and geometry with
 the same number of modes and block sizes.
 """
 from __future__ import annotations
 
-import hashlib
-import os
-import shutil
-import subprocess
-import tempfile
 import time as _time
 from functools import lru_cache
-from pathlib import Path
 
 import numpy as np
 
 from .. import validation
+from ..codegen import load_casadi
 from ..errors import ModelError
 from .parameters import CycloidalMove
 from .simulation import FlexibleManipulator, ManipulatorSimulation
 
 __all__ = ["CompiledManipulator"]
-
-
-def _cache_dir() -> Path:
-    root = os.environ.get("CTMM_CACHE") or os.path.join(os.path.expanduser("~"), ".cache", "ctmm")
-    path = Path(root) / "manipulator"
-    path.mkdir(parents=True, exist_ok=True)
-    return path
 
 
 def _parameter_layout(n: int) -> list[tuple[str, int]]:
@@ -132,32 +121,10 @@ def _symbolic(n: int, block: int, chunks: int):
 
 @lru_cache(maxsize=8)
 def _library(n: int, block: int, chunks: int):
-    """Generate, compile (cached by hash) and load ``(acc, loop)`` for ``n`` modes."""
-    import casadi as ca
-
+    """Generate, compile (cached on disk by :mod:`ctmm.codegen`) and load ``(acc, loop)`` for ``n`` modes."""
     acc, loop, size = _symbolic(n, block, chunks)
-    cg = ca.CodeGenerator("manipulator_kernel", {"with_header": False})
-    cg.add(acc)
-    cg.add(loop)
-    with tempfile.TemporaryDirectory() as tmp:
-        cg.generate(tmp + os.sep)
-        text = Path(tmp, "manipulator_kernel.c").read_text()
-    digest = hashlib.sha256(text.encode()).hexdigest()[:16]
-    target = _cache_dir() / f"manipulator_{n}_{block}_{chunks}_{digest}.so"
-    if not target.exists():
-        compiler = shutil.which("gcc") or shutil.which("cc")
-        if compiler is None:
-            raise ModelError("the compiled manipulator kernel needs gcc (or cc) on PATH")
-        with tempfile.TemporaryDirectory() as tmp:
-            src = Path(tmp, "manipulator_kernel.c")
-            src.write_text(text)
-            out = Path(tmp, target.name)
-            proc = subprocess.run([compiler, "-O2", "-shared", "-fPIC", "-o", str(out), str(src), "-lm"],
-                                  capture_output=True, text=True)
-            if proc.returncode != 0:
-                raise ModelError(f"compiling the manipulator kernel failed:\n{proc.stderr}")
-            os.replace(out, target)
-    return (ca.external("acc", str(target)), ca.external("manipulator_rk4", str(target)), size)
+    acc, loop = load_casadi([acc, loop], f"manipulator_{n}_{block}_{chunks}")
+    return acc, loop, size
 
 
 class CompiledManipulator:

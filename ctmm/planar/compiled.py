@@ -8,23 +8,19 @@ coefficients, constant reference angles and torques, gravity and no external loa
 fixed-scene case of DESIGN section 9.  The whole time interval runs inside C (one call per
 simulation), so the Python overhead is paid once.
 
-The library is compiled on first use with ``gcc -O2 -shared -fPIC`` into a cache folder
-(``$CTMM_CACHE`` or ``~/.cache/ctmm``), named by the SHA-256 of the C text.  The notation is
-the one of :mod:`ctmm.planar.sweep`.
+The library is compiled on first use with ``gcc -O2 -shared -fPIC`` and cached on disk by
+:mod:`ctmm.codegen` (folder: :func:`ctmm.codegen.cache_directory`, keyed by the SHA-256 of the C
+text, the compiler and the flags).  The notation is the one of :mod:`ctmm.planar.sweep`.
 """
 from __future__ import annotations
 
 import ctypes
-import hashlib
-import os
-import shutil
-import subprocess
-import tempfile
 import time as _time
-from pathlib import Path
+from functools import lru_cache
 
 import numpy as np
 
+from ..codegen import load_ctypes
 from ..errors import ModelError
 from .guards import check_scheme, check_stored, divergence_guard
 from .integrate import PlanarSimulation, _initial, _steps, check_store_every
@@ -152,37 +148,16 @@ int accelerations(int nb, const int *parent, const double *ex, const double *ey,
 }
 """
 
-_LIBRARY = None
-
-
-def _cache_dir() -> Path:
-    root = os.environ.get("CTMM_CACHE") or os.path.join(os.path.expanduser("~"), ".cache", "ctmm")
-    path = Path(root)
-    path.mkdir(parents=True, exist_ok=True)
-    return path
-
-
+@lru_cache(maxsize=1)
 def library() -> ctypes.CDLL:
-    """Compile (once, cached by hash) and load the C kernel."""
-    global _LIBRARY
-    if _LIBRARY is not None:
-        return _LIBRARY
-    compiler = shutil.which("gcc") or shutil.which("cc")
-    digest = hashlib.sha256(C_SOURCE.encode()).hexdigest()[:16]
-    target = _cache_dir() / f"planar_rk4_{digest}.so"
-    if not target.exists():
-        if compiler is None:
-            raise ModelError("the compiled planar kernel needs gcc (or cc) on PATH")
-        with tempfile.TemporaryDirectory() as tmp:
-            src = Path(tmp) / "planar_rk4.c"
-            src.write_text(C_SOURCE)
-            out = Path(tmp) / target.name
-            proc = subprocess.run([compiler, "-O2", "-shared", "-fPIC", "-o", str(out), str(src),
-                                   "-lm"], capture_output=True, text=True)
-            if proc.returncode != 0:
-                raise ModelError(f"compiling the planar kernel failed:\n{proc.stderr}")
-            os.replace(out, target)   # atomic: concurrent builders end with the same file
-    lib = ctypes.CDLL(str(target))
+    """Compile (once, cached on disk by :mod:`ctmm.codegen`) and load the C kernel.
+
+    Raises
+    ------
+    ModelError
+        No C compiler, a compile error or an unusable cache folder (see :func:`ctmm.codegen.shared_library`).
+    """
+    lib = load_ctypes(C_SOURCE, "planar_rk4")
     dp = np.ctypeslib.ndpointer(dtype=np.float64, flags="C_CONTIGUOUS")
     ip = np.ctypeslib.ndpointer(dtype=np.int32, flags="C_CONTIGUOUS")
     common = [ctypes.c_int, ip] + [dp] * 11 + [ctypes.c_double, ctypes.c_double]
@@ -190,7 +165,6 @@ def library() -> ctypes.CDLL:
     lib.rk4.restype = ctypes.c_int
     lib.accelerations.argtypes = common + [dp, dp, dp, dp]
     lib.accelerations.restype = ctypes.c_int
-    _LIBRARY = lib
     return lib
 
 

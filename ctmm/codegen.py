@@ -1,0 +1,315 @@
+"""Compile C source into a shared library, cache it on disk, load it (the one compile-and-cache helper).
+
+Used by the compiled fast paths (:mod:`ctmm.planar.compiled`: hand-written C loaded with
+:mod:`ctypes`; :mod:`ctmm.manipulator.compiled`: casadi-generated C loaded with
+``casadi.external``) and by :func:`ctmm.control.fmu_build.build_fmu` (compiler lookup, compiler
+runs and the cache folder).
+
+Cache folder (:func:`cache_directory`): the ``folder`` argument, else ``$CTMM_CACHE``, else
+``$XDG_CACHE_HOME/ctmm``, else ``~/.cache/ctmm``; when the default is not writable, the temp folder
+(``ctmm-<uid>``).  A folder given explicitly (argument or ``$CTMM_CACHE``) that cannot be created
+or written raises :class:`~ctmm.errors.ModelError`.  Libraries live in its ``kernels/`` subfolder.
+
+Cache entry: ``kernels/<name>-<key>/`` holding ``<name>.c`` (the compiled text), ``<name>.so``
+and ``<name>.so.sha256`` (the SHA-256 of the library file), where ``key`` is the SHA-256 of the C text, the compiler (resolved
+path and ``--version`` output) and the flags.  An entry is built in a private temporary folder
+inside ``kernels/`` and published by one atomic rename, so concurrent processes never see a half
+written library (the loser of a race discards its own build and uses the winner's).  An entry
+whose library does not match its checksum (truncated or overwritten file) is discarded and
+rebuilt.
+"""
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import os
+import shutil
+import subprocess
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Sequence
+
+from .errors import ModelError
+
+__all__ = ["CompiledLibrary", "DEFAULT_FLAGS", "LINK_FLAGS", "cache_directory", "casadi_source",
+           "compiler_identity", "find_compiler", "load_casadi", "load_ctypes", "run_compiler",
+           "shared_library"]
+
+DEFAULT_FLAGS = ("-O2", "-shared", "-fPIC")
+"""Compiler flags of :func:`shared_library` unless others are given."""
+LINK_FLAGS = ("-lm",)
+"""Flags placed after the source file (libraries to link)."""
+_KEY_FORMAT = b"ctmm.codegen/1"
+_COMPILE_TIMEOUT_S = 600.0
+
+
+@dataclass(frozen=True)
+class CompiledLibrary:
+    """A shared library in the cache.
+
+    Attributes
+    ----------
+    path : pathlib.Path
+        The library file.
+    key : str
+        SHA-256 (hex) of the C text, the compiler and the flags; names the cache entry.
+    built : bool
+        True when this call compiled it (cache miss), False when it was found in the cache.
+    """
+
+    path: Path
+    key: str
+    built: bool
+
+
+def cache_directory(folder: str | os.PathLike | None = None, *, subfolder: str = "") -> Path:
+    """The cache folder (created if missing), checked to be writable.
+
+    Parameters
+    ----------
+    folder : path, optional
+        Explicit folder; default ``$CTMM_CACHE``, else ``$XDG_CACHE_HOME/ctmm``, else
+        ``~/.cache/ctmm``, else (default not writable) ``<temp>/ctmm-<uid>``.
+    subfolder : str, optional
+        Subfolder inside it (``"kernels"``, ``"fmu"``).
+
+    Raises
+    ------
+    ModelError
+        The explicit folder (argument or ``$CTMM_CACHE``) cannot be created or written, or no
+        default candidate can.
+    """
+    explicit = folder if folder is not None else (os.environ.get("CTMM_CACHE") or None)
+    if explicit is not None:
+        if not isinstance(explicit, (str, os.PathLike)) or str(explicit) == "":
+            raise ModelError(f"cache folder must be a path, got {explicit!r}")
+        source = "cache folder" if folder is not None else "$CTMM_CACHE"
+        path = Path(explicit) / subfolder
+        problem = _writable(path)
+        if problem:
+            raise ModelError(f"{source} {str(explicit)!r} is not usable: {problem}; allowed: a writable "
+                             "folder (or unset $CTMM_CACHE for the per-user default)")
+        return path
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    uid = getattr(os, "getuid", lambda: 0)()
+    candidates = (Path(base) / "ctmm", Path(tempfile.gettempdir()) / f"ctmm-{uid}")
+    problems = []
+    for candidate in candidates:
+        problem = _writable(candidate / subfolder)
+        if not problem:
+            return candidate / subfolder
+        problems.append(f"{candidate}: {problem}")
+    raise ModelError("no writable cache folder (" + "; ".join(problems) + "); set $CTMM_CACHE or pass a "
+                     "cache folder")
+
+
+def _writable(path: Path) -> str:
+    """Empty string when ``path`` exists (or was created) and is writable, else the reason."""
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        return f"cannot create it ({exc.strerror or exc})"
+    if not os.access(path, os.W_OK | os.X_OK):
+        return "not writable"
+    return ""
+
+
+def find_compiler(compiler: str | os.PathLike | None = None) -> str:
+    """Full path of the C compiler: ``compiler`` (a command or a path), default ``gcc`` then ``cc``.
+
+    Raises
+    ------
+    ModelError
+        No such compiler on ``PATH``.
+    """
+    if compiler is None:
+        for candidate in ("gcc", "cc"):
+            found = shutil.which(candidate)
+            if found:
+                return found
+        raise ModelError("no C compiler found: neither 'gcc' nor 'cc' is on PATH; install one or pass compiler=")
+    if not isinstance(compiler, (str, os.PathLike)) or not str(compiler).strip():
+        raise ModelError(f"compiler must be a C compiler command or path such as 'cc' or 'gcc', got {compiler!r}")
+    found = shutil.which(str(compiler))
+    if found is None:
+        raise ModelError(f"compiler {str(compiler)!r} not found on PATH; pass compiler='gcc' or a full path")
+    return found
+
+
+def compiler_identity(compiler_path: str) -> bytes:
+    """Resolved path and ``--version`` output of a compiler (part of every cache key)."""
+    try:
+        version = subprocess.run([compiler_path, "--version"], capture_output=True, timeout=60).stdout
+    except (OSError, subprocess.TimeoutExpired):
+        version = b""
+    return os.path.realpath(compiler_path).encode() + b"\0" + version
+
+
+def run_compiler(command: Sequence[str], what: str) -> None:
+    """Run one compiler command; :class:`ModelError` with the command and the compiler's message.
+
+    Parameters
+    ----------
+    command : sequence of str
+        Full command, compiler path first.
+    what : str
+        What is compiled, for messages (``"the planar kernel"``, ``"FMU 'pd'"``).
+    """
+    try:
+        completed = subprocess.run(list(command), capture_output=True, text=True, timeout=_COMPILE_TIMEOUT_S)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        raise ModelError(f"compiling {what} failed to run {command[0]!r}: {exc}") from exc
+    if completed.returncode != 0:
+        raise ModelError(f"compiling {what} failed (exit {completed.returncode}):\n$ {' '.join(command)}\n"
+                         f"{(completed.stderr or completed.stdout).strip()}")
+
+
+def shared_library(source: str, name: str, *, flags: Sequence[str] = DEFAULT_FLAGS,
+                   compiler: str | os.PathLike | None = None,
+                   cache_dir: str | os.PathLike | None = None) -> CompiledLibrary:
+    """The shared library compiled from the C text ``source``, from the cache or built now.
+
+    Parameters
+    ----------
+    source : str
+        The whole C translation unit.
+    name : str
+        File stem of the library (letters, digits, ``_``, ``-``); part of the cache entry name.
+    flags : sequence of str, optional
+        Compiler flags before the source file (default ``-O2 -shared -fPIC``); ``-lm`` follows it.
+    compiler : str or path, optional
+        Compiler command or path (default ``gcc``, then ``cc``).
+    cache_dir : path, optional
+        Cache folder (see :func:`cache_directory`); entries go to its ``kernels/`` subfolder.
+
+    Returns
+    -------
+    CompiledLibrary
+
+    Raises
+    ------
+    ModelError
+        Bad ``source`` or ``name``, no compiler, a compile error (with the compiler's message),
+        an unusable cache folder.
+    """
+    if not isinstance(source, str) or not source.strip():
+        raise ModelError(f"source must be non-empty C text, got {type(source).__name__} {source!r:.60}")
+    if not isinstance(name, str) or not name or not all(c.isalnum() or c in "_-" for c in name):
+        raise ModelError(f"name must be a non-empty file stem of letters, digits, '_' and '-', got {name!r}")
+    if isinstance(flags, (str, bytes)) or not all(isinstance(flag, str) for flag in flags):
+        raise ModelError(f"flags must be a sequence of strings such as ('-O2', '-shared', '-fPIC'), got {flags!r}")
+    flags = list(flags)
+    compiler_path = find_compiler(compiler)
+    digest = hashlib.sha256(_KEY_FORMAT)
+    for label, payload in (("source", source.encode()), ("compiler", compiler_identity(compiler_path)),
+                           ("flags", "\0".join(flags + list(LINK_FLAGS)).encode())):
+        digest.update(label.encode() + b"\0" + len(payload).to_bytes(8, "little") + payload)
+    key = digest.hexdigest()
+    folder = cache_directory(cache_dir, subfolder="kernels")
+    entry = folder / f"{name}-{key[:24]}"
+    library = entry / f"{name}.so"
+    if _intact(library):
+        return CompiledLibrary(library, key, built=False)
+    _discard(entry, folder)
+    try:
+        work = Path(tempfile.mkdtemp(prefix=f".{name}-", dir=folder))
+    except OSError as exc:
+        raise ModelError(f"cache folder {str(folder)!r} is not writable: {exc}") from exc
+    try:
+        source_file = work / f"{name}.c"
+        source_file.write_text(source)
+        built = work / library.name
+        run_compiler([compiler_path, *flags, "-o", str(built), str(source_file), *LINK_FLAGS],
+                     f"{name!r} ({source_file})")
+        built.with_name(built.name + ".sha256").write_text(_file_digest(built) + "\n")
+        try:
+            os.rename(work, entry)          # atomic publish; fails when another process won the race
+        except OSError:
+            if not _intact(library):
+                raise ModelError(f"cannot publish the compiled library {name!r} into {str(entry)!r}") from None
+            return CompiledLibrary(library, key, built=False)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    return CompiledLibrary(library, key, built=True)
+
+
+def _file_digest(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _intact(library: Path) -> bool:
+    """True when the library and its checksum file exist and agree."""
+    try:
+        expected = library.with_name(library.name + ".sha256").read_text().strip()
+        return expected == _file_digest(library)
+    except OSError:
+        return False
+
+
+def _discard(entry: Path, folder: Path) -> None:
+    """Remove a damaged entry: rename it away first (atomic), then delete it."""
+    if not entry.exists():
+        return
+    try:
+        trash = Path(tempfile.mkdtemp(prefix=".discard-", dir=folder))
+    except OSError as exc:
+        raise ModelError(f"cache folder {str(folder)!r} is not writable: {exc}") from exc
+    try:
+        os.rename(entry, trash / "entry")
+    except OSError:
+        pass                                  # another process moved or replaced it already
+    shutil.rmtree(trash, ignore_errors=True)
+
+
+def _load(source: str, name: str, options: dict[str, Any], loader: Any, errors: tuple[type, ...]) -> Any:
+    """``loader(path)`` of the cached library; one rebuild and retry when loading fails (an entry
+    discarded by another process between lookup and load)."""
+    for attempt in (0, 1):
+        library = shared_library(source, name, **options)
+        try:
+            return loader(str(library.path))
+        except errors as exc:
+            if attempt:
+                raise ModelError(f"the compiled library {str(library.path)!r} cannot be loaded: {exc}") from exc
+            _discard(library.path.parent, library.path.parent.parent)
+
+
+def load_ctypes(source: str, name: str, **options: Any) -> ctypes.CDLL:
+    """Compile (or find in the cache) and load C text with :mod:`ctypes`.
+
+    ``options`` are those of :func:`shared_library`.  Set ``argtypes``/``restype`` on the result.
+    """
+    return _load(source, name, options, ctypes.CDLL, (OSError,))
+
+
+def casadi_source(functions: Sequence[Any], name: str) -> str:
+    """C text of casadi :class:`casadi.Function` objects (one ``casadi.CodeGenerator`` file)."""
+    import casadi as ca
+
+    generator = ca.CodeGenerator(name, {"with_header": False})
+    for function in functions:
+        generator.add(function)
+    with tempfile.TemporaryDirectory() as tmp:
+        generator.generate(tmp + os.sep)
+        return Path(tmp, f"{name}.c").read_text()
+
+
+def load_casadi(functions: Sequence[Any], name: str, **options: Any) -> tuple[Any, ...]:
+    """Generate C for casadi functions, compile (cached) and load them with ``casadi.external``.
+
+    Parameters
+    ----------
+    functions : sequence of casadi.Function
+        Functions to generate; the result holds, in the same order, the compiled functions of the
+        same names.
+    name : str
+        Library name (see :func:`shared_library`).
+    **options
+        ``flags``, ``compiler``, ``cache_dir`` of :func:`shared_library`.
+    """
+    import casadi as ca
+
+    names = [function.name() for function in functions]
+    return _load(casadi_source(functions, name), name, options,
+                 lambda path: tuple(ca.external(label, path) for label in names), (RuntimeError, OSError))

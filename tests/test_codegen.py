@@ -1,0 +1,148 @@
+"""The one compile-and-cache helper (ctmm.codegen): cache hits and misses, keys, damaged entries, errors.
+
+References: the loaded functions are checked against values computed by hand (integer arithmetic
+and ``sin``), never against another compiled copy of the same code.
+"""
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from ctmm import codegen
+from ctmm.errors import ModelError
+
+SOURCE = "int twice(int x) { return 2 * x; }\n"
+LIBM_SOURCE = "#include <math.h>\ndouble sine(double x) { return sin(x); }\n"
+
+
+def _twice(path: Path) -> int:
+    lib = ctypes.CDLL(str(path))
+    lib.twice.argtypes, lib.twice.restype = [ctypes.c_int], ctypes.c_int
+    return lib.twice(21)
+
+
+def test_miss_then_hit(tmp_path):
+    first = codegen.shared_library(SOURCE, "twice", cache_dir=tmp_path)
+    assert first.built and first.path.parent.parent == tmp_path / "kernels"
+    assert _twice(first.path) == 42
+    stat = first.path.stat()
+    again = codegen.shared_library(SOURCE, "twice", cache_dir=tmp_path)
+    assert not again.built and again.path == first.path and again.key == first.key
+    assert again.path.stat().st_mtime_ns == stat.st_mtime_ns and again.path.stat().st_ino == stat.st_ino
+    # no temporary folders left behind
+    assert sorted(p.name for p in (tmp_path / "kernels").iterdir()) == [first.path.parent.name]
+
+
+def test_key_changes_with_source_and_flags(tmp_path):
+    base = codegen.shared_library(SOURCE, "twice", cache_dir=tmp_path)
+    changed = codegen.shared_library(SOURCE + "/* changed */\n", "twice", cache_dir=tmp_path)
+    flagged = codegen.shared_library(SOURCE, "twice", cache_dir=tmp_path, flags=("-O0", "-shared", "-fPIC"))
+    assert changed.built and flagged.built
+    assert len({base.key, changed.key, flagged.key}) == 3
+    assert len({base.path, changed.path, flagged.path}) == 3
+
+
+def test_damaged_entry_is_rebuilt(tmp_path):
+    first = codegen.shared_library(SOURCE, "twice", cache_dir=tmp_path)
+    first.path.write_bytes(first.path.read_bytes()[:100])          # truncated library
+    again = codegen.shared_library(SOURCE, "twice", cache_dir=tmp_path)
+    assert again.built and again.path == first.path
+    assert _twice(again.path) == 42
+    first.path.with_name(first.path.name + ".sha256").unlink()      # checksum lost
+    assert codegen.shared_library(SOURCE, "twice", cache_dir=tmp_path).built
+
+
+def test_unloadable_entry_is_rebuilt_by_the_loader(tmp_path):
+    entry = codegen.shared_library(SOURCE, "twice", cache_dir=tmp_path)
+    entry.path.write_bytes(b"not a shared library")                 # checksum made to agree
+    entry.path.with_name(entry.path.name + ".sha256").write_text(hashlib.sha256(
+        b"not a shared library").hexdigest())
+    lib = codegen.load_ctypes(SOURCE, "twice", cache_dir=tmp_path)
+    lib.twice.argtypes, lib.twice.restype = [ctypes.c_int], ctypes.c_int
+    assert lib.twice(21) == 42 and codegen.shared_library(SOURCE, "twice", cache_dir=tmp_path).built is False
+
+
+def test_environment_variable_and_default_folder(tmp_path, monkeypatch):
+    monkeypatch.setenv("CTMM_CACHE", str(tmp_path / "env"))
+    assert codegen.shared_library(SOURCE, "twice").path.parent.parent == tmp_path / "env" / "kernels"
+    monkeypatch.delenv("CTMM_CACHE")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert codegen.cache_directory(subfolder="fmu") == tmp_path / "xdg" / "ctmm" / "fmu"
+
+
+def test_load_ctypes_links_libm(tmp_path):
+    lib = codegen.load_ctypes(LIBM_SOURCE, "sine", cache_dir=tmp_path)
+    lib.sine.argtypes, lib.sine.restype = [ctypes.c_double], ctypes.c_double
+    assert lib.sine(0.5) == math.sin(0.5)
+
+
+def test_load_casadi(tmp_path):
+    ca = pytest.importorskip("casadi")
+    x = ca.SX.sym("x", 2)
+    product = ca.Function("product", [x], [x[0] * x[1]])
+    total = ca.Function("total", [x], [x[0] + x[1]])
+    loaded = codegen.load_casadi([product, total], "pair", cache_dir=tmp_path)
+    assert [f.name() for f in loaded] == ["product", "total"]
+    assert float(loaded[0]([3.0, 7.0])) == 21.0 and float(loaded[1]([3.0, 7.0])) == 10.0
+
+
+def test_compile_error_carries_the_compiler_message(tmp_path):
+    with pytest.raises(ModelError, match=r"(?s)compiling 'broken'.*failed \(exit \d+\).*undeclared_name"):
+        codegen.shared_library("int f(void) { return undeclared_name; }\n", "broken", cache_dir=tmp_path)
+    assert not any((tmp_path / "kernels").iterdir())               # the failed build left nothing
+
+
+def test_missing_compiler_and_bad_arguments(tmp_path):
+    with pytest.raises(ModelError, match="compiler '/nonexistent/cc' not found"):
+        codegen.shared_library(SOURCE, "twice", compiler="/nonexistent/cc", cache_dir=tmp_path)
+    with pytest.raises(ModelError, match="name must be"):
+        codegen.shared_library(SOURCE, "../escape", cache_dir=tmp_path)
+    with pytest.raises(ModelError, match="source must be non-empty C text"):
+        codegen.shared_library("  ", "twice", cache_dir=tmp_path)
+
+
+def test_unwritable_cache_folder(tmp_path, monkeypatch):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    with pytest.raises(ModelError, match=r"cache folder .*file/sub.* is not usable: cannot create it"):
+        codegen.shared_library(SOURCE, "twice", cache_dir=blocker / "sub")
+    monkeypatch.setenv("CTMM_CACHE", str(blocker))
+    with pytest.raises(ModelError, match=r"\$CTMM_CACHE .* is not usable"):
+        codegen.cache_directory()
+
+
+def test_concurrent_builders_share_one_entry(tmp_path):
+    script = ("import sys; from ctmm import codegen; "
+              f"r = codegen.shared_library({SOURCE!r}, 'race', cache_dir=sys.argv[1]); print(r.path)")
+    runs = [subprocess.Popen([sys.executable, "-c", script, str(tmp_path)], stdout=subprocess.PIPE, text=True)
+            for _ in range(3)]
+    paths = {run.communicate(timeout=120)[0].strip() for run in runs}
+    assert all(run.returncode == 0 for run in runs)
+    assert len(paths) == 1
+    path = Path(paths.pop())
+    assert codegen.shared_library(SOURCE, "race", cache_dir=tmp_path).built is False
+    assert _twice(path) == 42
+    assert [p.name for p in (tmp_path / "kernels").iterdir()] == [path.parent.name]
+
+
+def test_losing_a_publish_race_uses_the_winner(tmp_path, monkeypatch):
+    real = codegen.run_compiler
+    winners = []
+
+    def compile_then_lose(command, what):
+        real(command, what)
+        if not winners:                      # another builder publishes the entry meanwhile
+            monkeypatch.setattr(codegen, "run_compiler", real)
+            winners.append(codegen.shared_library(SOURCE, "twice", cache_dir=tmp_path))
+
+    monkeypatch.setattr(codegen, "run_compiler", compile_then_lose)
+    loser = codegen.shared_library(SOURCE, "twice", cache_dir=tmp_path)
+    assert winners[0].built and not loser.built and loser.path == winners[0].path
+    assert _twice(loser.path) == 42
+    assert [p.name for p in (tmp_path / "kernels").iterdir()] == [loser.path.parent.name]
