@@ -189,3 +189,17 @@ def test_a_failing_init_is_named_and_closes_the_controllers_already_started():
         CoSimulation([first, Recorder(fail="init")], 0.01, 0.5)
     assert first.closed == 0
 
+
+
+def test_the_manipulator_holds_and_records_its_controller_samples():
+    from ctmm.manipulator import SEED_MOVE, SEED_PZT_GAIN, FlexibleManipulator, HubPD, seed_manipulator
+    from ctmm.manipulator.controllers import SlopeRateFeedback
+
+    seed = seed_manipulator()
+    system = FlexibleManipulator(seed, HubPD(10.0, 1.0), None, SEED_MOVE)
+    gains = SEED_PZT_GAIN * np.eye(seed.n_patches)
+    sim = system.simulate(0.012, 0.002, controllers=[SlopeRateFeedback(seed.patch_names, gains, sample_time=0.004)])
+    samples = sim.extra[f"{seed.patch_names[0]}.voltage@samples"]
+    np.testing.assert_allclose(samples[:, 0], [0.0, 0.004, 0.008, 0.012], atol=1e-15)
+    applied = sim.voltages[:, 0]                  # zero-order hold: each sample over two steps
+    np.testing.assert_array_equal(applied, np.repeat(samples[:, 1], 2)[:applied.size])
