@@ -8,21 +8,22 @@ How each loop of a :class:`~ctmm.control.loops.ControlledChain` enters the DT-TM
   the linear interpolation between the previous value and the unknown one, so the implicit gain
   is ``K (1 - tau/dt_e)`` plus a known force (``dt_e`` = distance to the evaluation time);
 * **time delay** (``delay >= dt``): ``u = -K y(t - tau)`` is known from the stored history and
-  enters as an external force (§9.6.2); between stored steps the history is interpolated by
-  cubic Hermite polynomials (``y`` and its derivative) or linearly for accelerations and forces,
-  which keeps the integrator's second order; before ``t0`` the history is the initial value;
+  enters as an external force (§9.6.2); between stored steps the history
+  (:class:`~ctmm.control.history.DelayHistory`) is interpolated by cubic Hermite polynomials
+  (``y`` and its derivative) or linearly for accelerations and forces, which keeps the
+  integrator's second order; before ``t0`` the history is the initial value;
 * **LTI controllers** ``C(s)`` are realised by the trapezoidal (Tustin) rule on the step grid,
   which is second order and adds no lag: ``u_{n+1} = g e_{n+1} + (known)`` is embedded like a gain.
 
 Co-simulated controllers (Python objects or FMUs, :class:`~ctmm.control.protocol.Controller`)
-are sampled at their sample time (a multiple of ``dt``) with a zero-order hold.  A controller
+are sampled at their sample time (a multiple of ``dt``) with a zero-order hold by the shared
+master :class:`~ctmm.control.cosim.CoSimulation`.  A controller
 with direct feedthrough that reads an acceleration or an internal force -- which depend on its
 own output at the same instant -- forms an algebraic loop: it is reported (``ModelError``)
 unless ``coupling="previous"`` explicitly accepts the one-sample lag.
 """
 from __future__ import annotations
 
-import bisect
 import math
 from typing import Any, Mapping, Sequence
 
@@ -34,12 +35,13 @@ from ..capabilities import require_chain
 from ..elements.base import Linearisation
 from ..elements.lumped import PointElement
 from ..errors import ModelError, SimulationError
-from ..guard import call_user, user_output
 from ..results import SimulationResult
 from ..schemes import History, as_scheme
 from ..signals import as_signal
 from ..system import Chain, require_system
 from ..timestep import simulate as simulate_plant
+from .cosim import CoSimulation
+from .history import DelayHistory
 from .loops import ControlledChain
 from .protocol import Controller, check_controllers
 
@@ -84,62 +86,6 @@ class _TustinLTI:
         if self.n == 0:
             return state
         return self.M1 @ state + self.M2[:, 0] * (e_n + e_next)
-
-
-class _History:
-    """Sensed values of one loop, interpolated at any past time, in O(1) memory and time per step.
-
-    Before ``t0`` the history is the initial *state held constant*: positions ``x0``, velocities
-    ``v0``, accelerations 0 (``pre`` is the sensed value of that state), the convention of the
-    independent references (ctmm.reference.delay_chain.method_of_steps).  From ``t0`` on, values
-    are interpolated between the stored steps (cubic Hermite with ``y`` and its derivative, or
-    linear when the derivative is unknown).  Only the samples a delay ``tau`` can reach are kept:
-    at least ``ceil(tau / dt) + 3`` (the window is trimmed when it reaches twice that, so the
-    cost per step does not grow with the run length); a lookup is a bisection in the window.
-    """
-
-    def __init__(self, t0: float, y0: float, dy0: float | None, pre: float | None = None, *,
-                 delay: float = 0.0, dt: float = 1.0) -> None:
-        self.t0, self.y0 = t0, y0
-        self.t = [t0]
-        self.y = [y0]
-        self.dy = [dy0]
-        self.pre = y0 if pre is None else pre
-        self.keep = int(math.ceil(delay / dt)) + 3
-
-    def append(self, t: float, y: float, dy: float | None) -> None:
-        self.t.append(t)
-        self.y.append(y)
-        self.dy.append(dy)
-        if len(self.t) > 2 * self.keep:
-            drop = len(self.t) - self.keep
-            del self.t[:drop], self.y[:drop], self.dy[:drop]
-
-    def __call__(self, t: float) -> float:
-        ts = self.t
-        if t < self.t0 - 1e-12 * max(1.0, abs(self.t0)):
-            return self.pre
-        if t <= self.t0:
-            return self.y0
-        if t >= ts[-1]:
-            if t - ts[-1] > 1e-9 * max(1.0, abs(t)):
-                raise SimulationError(f"delay history requested at t={t} beyond the last step {ts[-1]}", time=t)
-            return self.y[-1]
-        if t < ts[0]:
-            raise SimulationError(f"delay history requested at t={t}, before its window {ts[0]} (internal error)",
-                                  time=t)
-        k = bisect.bisect_left(ts, t) - 1
-        k = min(max(k, 0), len(ts) - 2)
-        h = ts[k + 1] - ts[k]
-        x = (t - ts[k]) / h
-        y0, y1, d0, d1 = self.y[k], self.y[k + 1], self.dy[k], self.dy[k + 1]
-        if d0 is None or d1 is None:
-            return (1 - x) * y0 + x * y1
-        h00 = 2 * x ** 3 - 3 * x ** 2 + 1
-        h10 = x ** 3 - 2 * x ** 2 + x
-        h01 = -2 * x ** 3 + 3 * x ** 2
-        h11 = x ** 3 - x ** 2
-        return h00 * y0 + h10 * h * d0 + h01 * y1 + h11 * h * d1
 
 
 def _sense(terms, x: np.ndarray, v: np.ndarray, a: np.ndarray, f: np.ndarray, d: int):
@@ -230,11 +176,11 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
     lti = {r.index: _TustinLTI(r.loop.gain, dt, r.loop.name) for r in loops if r.loop.is_lti}
     ctrl_state = {i: np.zeros(m.n) for i, m in lti.items()}
     try:
-        cosim = _CoSimulation(controlled, controllers, dt, coupling, t0)
+        cosim = _ChainControllers(controlled, controllers, dt, coupling, t0)
     except SimulationError as exc:  # a controller's init failed: nothing was computed
         exc.partial_result = SimulationResult.empty(controlled, scheme.name)
         raise
-    hist: dict[int, _History] = {}
+    hist: dict[int, DelayHistory] = {}
     u_prev: dict[int, float] = {}
     e_prev: dict[int, float] = {}
     store = {"t": [], "y": {r.index: [] for r in loops}, "u": {r.index: [] for r in loops}}
@@ -258,7 +204,7 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
             u0, a0, f0, pre = _consistent_start(plant, loops, lti, refs, history.x, history.v, t0, forces, d)
             for r in loops:
                 y, dy = _sense(r.sensing, history.x, history.v, a0, f0, d)
-                hist[r.index] = _History(t0, y, dy, pre[r.index], delay=r.loop.delay, dt=dt)
+                hist[r.index] = DelayHistory(t0, y, dy, before=pre[r.index], delay=r.loop.delay, step=dt)
                 ref = refs.get(r.loop.name)
                 e_prev[r.index] = y - (float(ref(t0)) if ref is not None else 0.0)
                 u_prev[r.index] = u0[r.index]
@@ -380,9 +326,9 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
     if loops:
         hints.append(f"the closed loop(s) {[r.loop.name for r in loops]} may be unstable: check "
                      "ctmm.stability.unstable_root_count(system) and ctmm.stability.delay_margin(system)")
-    if cosim.entries:
-        hints.append(f"or a co-simulated controller (outputs {[o for e in cosim.entries for o in e['controller'].outputs]})"
-                     " destabilises the plant")
+    if len(cosim.master):
+        written = [o for c in cosim.master.controllers for o in c.outputs]
+        hints.append(f"or a co-simulated controller (outputs {written}) destabilises the plant")
     try:
         result = simulate_plant(plant, t_final, dt, scheme=scheme, x0=x0, v0=v0, t0=t0,
                                 force_hook=force_hook, progress=progress,
@@ -401,22 +347,22 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
     return result
 
 
-def _attach_signals(result: SimulationResult, loops, hist, store, u_start, cosim: "_CoSimulation", dt: float) -> None:
+def _attach_signals(result: SimulationResult, loops, hist, store, u_start, cosim: "_ChainControllers",
+                    dt: float) -> None:
     """Add loop and controller signals to a (possibly partial) result, cut to its time rows."""
     rows = len(result.time)
     for r in loops:
         if r.index in hist:
-            y = np.array([hist[r.index].y0] + store["y"][r.index])[:rows]
+            y = np.array([hist[r.index].start_value] + store["y"][r.index])[:rows]
             u = np.array([u_start[r.index]] + store["u"][r.index])[:rows]
         else:  # failed before the loop histories started
             y, u = np.zeros(0), np.zeros(0)
         result.extra[f"{r.loop.name}.y"] = y
         result.extra[f"{r.loop.name}.u"] = u
     last = result.time[-1] if rows else -math.inf
-    for name, samples in cosim.outputs().items():
-        result.extra[name] = samples[samples[:, 0] <= last] if samples.size else samples
+    result.extra.update(cosim.master.outputs(until=last))
     result.info["loops"] = {r.loop.name: ("real-time" if r.loop.delay < dt else "history") for r in loops}
-    result.info["controllers"] = cosim.describe()
+    result.info["controllers"] = cosim.master.describe()
 
 
 def _consistent_start(plant: Chain, loops, lti, refs, x, v, t0: float, forces: Mapping[int, float], d: int):
@@ -489,97 +435,53 @@ def _check_drivable(plant: Chain, outputs: Sequence[str], actuators: Sequence[An
                          f"force is given as the boundary's own signal, e.g. PrescribedDisplacement(name, function))")
 
 
-class _CoSimulation:
-    """Sampled co-simulation master for controller objects and FMUs (zero-order hold)."""
+class _ChainControllers:
+    """The chain's side of the co-simulation (:class:`~ctmm.control.cosim.CoSimulation`).
+
+    Controller inputs are read from the step's point arrays (positions, velocities,
+    accelerations, internal forces); outputs act as forces on the first input of a body element.
+    Accelerations and internal forces depend on the outputs at the same instant (algebraic loops).
+    """
 
     def __init__(self, system: ControlledChain, controllers: Sequence[Controller], dt: float, coupling: str,
                  t0: float) -> None:
-        self.system = system
-        self.controllers = list(controllers)
-        self.dt = dt
-        self.t0 = t0
-        self.coupling = coupling
         plant = system.plant
-        self.entries = []
-        for c in self.controllers:
+        self.half = plant.layout.half
+        for c in controllers:
             if not isinstance(c, Controller):
                 raise ModelError(f"{c!r} does not implement the Controller protocol "
                                  "(inputs, outputs, sample_time, direct_feedthrough, init, step)")
-            sample = c.sample_time if c.sample_time is not None else dt
-            ratio = sample / dt
-            if abs(ratio - round(ratio)) > 1e-9 * ratio or round(ratio) < 1:
-                raise ModelError(f"controller sample_time={c.sample_time!r} s must be a whole multiple "
-                                 f"of dt={dt!r} s")
-            sensing = [plant.signal(n) for n in c.inputs]
-            actuators = [plant.input(n) for n in c.outputs]
+        self.sensing = [[plant.signal(n) for n in c.inputs] for c in controllers]
+        self.actuators = [[plant.input(n) for n in c.outputs] for c in controllers]
+        for c, actuators in zip(controllers, self.actuators):
             _check_drivable(plant, c.outputs, actuators)
-            algebraic = [n for n, s in zip(c.inputs, sensing)
-                         if s.derivative == 2 or s.component >= plant.layout.half]
-            if c.direct_feedthrough and algebraic and coupling != "previous":
-                raise ModelError(
-                    f"algebraic loop: controller with outputs {list(c.outputs)} has direct feedthrough and "
-                    f"reads {algebraic}, which depend on its own output at the same instant; pass "
-                    "coupling='previous' to accept a one-sample lag, or measure displacement/velocity")
-            label = f"controller {getattr(c, 'name', None) or type(c).__name__!r} (outputs {list(c.outputs)})"
-            self.entries.append({"controller": c, "ratio": int(round(ratio)), "sensing": sensing, "label": label,
-                                 "actuators": actuators, "state": call_user(label, c.init, t0, time=t0),
-                                 "held": np.zeros(len(c.outputs)), "log_t": [], "log_u": []})
+        instantaneous = {n for c, sensing in zip(controllers, self.sensing) for n, s in zip(c.inputs, sensing)
+                         if s.derivative == 2 or s.component >= self.half}
+        self.master = CoSimulation(controllers, dt, t0, coupling=coupling, instantaneous=instantaneous)
         self.step_index = 0
 
     def _measure(self, sensing, history: History, f: np.ndarray | None) -> np.ndarray:
-        d = self.system.plant.layout.half
         y = []
         for s in sensing:
-            if s.component >= d:
+            if s.component >= self.half:
                 y.append(0.0 if f is None else float(f[s.point]))
             else:
                 y.append(float((history.x, history.v, history.a)[s.derivative][s.point, s.component]))
         return np.array(y)
 
     def forces(self, t_n: float, history: History, f: np.ndarray | None) -> dict[int, float]:
+        """Held controller outputs as forces by element position, sampling the controllers due at ``t_n``."""
+        if not self.sensing:
+            return {}
+        self.master.sample(self.step_index, t_n, lambda i: self._measure(self.sensing[i], history, f))
         out: dict[int, float] = {}
-        for entry in self.entries:
-            due = self.step_index % entry["ratio"] == 0 and entry.get("last_step") != self.step_index
-            if due:  # sample once per communication point (t0 is sampled by the initial call)
-                entry["last_step"] = self.step_index
-                y = self._measure(entry["sensing"], history, f)
-                what = entry["label"]
-                result = call_user(what, entry["controller"].step, t_n, y, entry["state"], time=t_n)
-                if not isinstance(result, tuple) or len(result) != 2:
-                    raise SimulationError(f"{what} returned {result!r} at t = {t_n:.6g} s; expected "
-                                          "(outputs, state), e.g. a ControllerStep", time=float(t_n), element=what)
-                u = user_output(what, result[0], len(entry["controller"].outputs), time=t_n)
-                entry["state"] = result[1]
-                entry["held"] = u
-                entry["log_t"].append(t_n)
-                entry["log_u"].append(u.copy())
-            for act, value in zip(entry["actuators"], entry["held"]):
+        for actuators, held in zip(self.actuators, self.master.held):
+            for act, value in zip(actuators, held):
                 out[act.position] = out.get(act.position, 0.0) + float(value)
         return out
 
     def after_step(self, t: float, history: History, f: np.ndarray) -> None:
         self.step_index += 1
 
-    def outputs(self) -> dict[str, np.ndarray]:
-        res = {}
-        for entry in self.entries:
-            if not entry["log_t"]:
-                continue
-            u = np.array(entry["log_u"])
-            for k, name in enumerate(entry["controller"].outputs):
-                res[f"{name}@samples"] = np.column_stack([entry["log_t"], u[:, k]])
-        return res
-
     def close(self) -> None:
-        """Release controller resources (e.g. FMU instances) deterministically."""
-        for entry in self.entries:
-            closer = getattr(entry["controller"], "close", None)
-            if callable(closer):
-                try:
-                    closer(entry["state"])
-                except Exception:  # noqa: BLE001 - a failed cleanup must not hide the result
-                    pass
-
-    def describe(self) -> list[dict]:
-        return [{"outputs": list(e["controller"].outputs), "inputs": list(e["controller"].inputs),
-                 "sample_time": e["ratio"] * self.dt} for e in self.entries]
+        self.master.close()

@@ -18,13 +18,16 @@ How the control laws enter (DESIGN §1):
   ``on_limit="saturate"`` the PZT law is a (complex-step safe) saturated ``law`` instead.
 * **delayed** (``delay > 0``, ``delay >= dt``): the delayed law's torque / generalised forces
   are known from the stored history (FORMULAS §5.2; seed 001 §9.6.2) and enter as time
-  functions; history interpolation is 4-point Lagrange on the step grid (4th order), the
-  history before ``t = 0`` is the initial state held and ``theta_d(t < 0) = theta_d(0)``.
+  functions; the history is a :class:`~ctmm.control.history.DelayHistory` with 4-point Lagrange
+  interpolation on the step grid (4th order, a window of ``O(delay / dt)`` steps), the history
+  before ``t = 0`` is the initial state held and ``theta_d(t < 0) = theta_d(0)``.
 * **co-simulation**: any :class:`~ctmm.control.protocol.Controller` (Python object or
   :class:`~ctmm.control.fmu.FMUController`) reading ``SIGNALS`` and writing ``"motor.torque"``
   and/or ``"<patch>.voltage"``, sampled at its ``sample_time`` (a multiple of ``dt``; ``None``:
-  every step) with zero-order hold.  A controller that writes the torque replaces the embedded
-  PD; one that writes any voltage replaces the embedded PZT law (unwritten patches get 0 V).
+  every step) with zero-order hold by the shared master :class:`~ctmm.control.cosim.CoSimulation`
+  (named failures, samples recorded in ``extra``).  A controller that writes the torque replaces
+  the embedded PD; one that writes any voltage replaces the embedded PZT law (unwritten patches
+  get 0 V).
 
 Integrators: ``"rk4"`` (classical RK4 on the sweep, own loop: delays and sampling handled
 between steps) and ``"newmark"`` (:func:`ctmm.planar.simulate_implicit`, trapezoidal Newmark
@@ -41,8 +44,9 @@ from typing import Any, Sequence
 import numpy as np
 
 from .. import validation
+from ..control.cosim import CoSimulation, sample_ratio
+from ..control.history import DelayHistory
 from ..errors import ModelError, SimulationError, unknown_name
-from ..guard import call_user, user_output
 from .laws import HubPD, PZTFeedback
 from .parameters import Manipulator
 
@@ -61,7 +65,9 @@ class ManipulatorSimulation:
     modal coordinates of the arm (beam normalisation, [m]), ``tip_deflection`` ``u(L)`` in the hub
     frame [m], ``voltages`` ``(nt, P)`` applied patch voltages [V] (after saturation),
     ``torque`` motor torque [N m]; the voltage report: ``voltage_limit``, ``peak_voltage`` (before
-    saturation), ``time_over_limit`` [s], ``saturated`` (per stored time).
+    saturation), ``time_over_limit`` [s], ``saturated`` (per stored time); ``extra`` holds each
+    co-simulated controller output under ``"<output>@samples"`` (columns: sample time [s], value
+    as returned by the controller, before saturation).
     """
 
     t: np.ndarray
@@ -108,45 +114,6 @@ class ManipulatorSimulation:
         axes[2].set_ylabel(f"V_{patch + 1} [V]")
         axes[2].set_xlabel("t [s]")
         return axes
-
-
-class _History:
-    """Step-grid history ``(q, v)`` with 4-point Lagrange interpolation (held before ``t = 0``)."""
-
-    def __init__(self, h: float, n_max: int, n: int) -> None:
-        self.h = h
-        self.q = np.zeros((n_max + 1, n))
-        self.v = np.zeros((n_max + 1, n))
-        self.count = 0
-
-    def add(self, q: np.ndarray, v: np.ndarray) -> None:
-        self.q[self.count] = q
-        self.v[self.count] = v
-        self.count += 1
-
-    def at(self, s: float) -> tuple[np.ndarray, np.ndarray]:
-        if s <= 0.0:
-            return self.q[0], self.v[0]
-        last = self.count - 1
-        x = s / self.h
-        k = int(math.floor(x + 1e-9))
-        if k >= last:
-            if x > last + 1e-6:
-                raise SimulationError(f"delayed signal needed at t = {s:.6g} s beyond the stored "
-                                      "history (delay shorter than the step?)", time=s)
-            return self.q[last], self.v[last]
-        lo = min(max(k - 1, 0), max(last - 3, 0))
-        idx = range(lo, min(lo + 4, last + 1))
-        xs = list(idx)
-        w = []
-        for i in xs:
-            p = 1.0
-            for j in xs:
-                if j != i:
-                    p *= (x - j) / (i - j)
-            w.append(p)
-        w = np.asarray(w)
-        return w @ self.q[lo:lo + len(xs)], w @ self.v[lo:lo + len(xs)]
 
 
 @dataclass(frozen=True)
@@ -321,7 +288,7 @@ class FlexibleManipulator:
             Divergence, a voltage limit (``on_limit="raise"``) or a controller that raises or
             returns NaN or the wrong number of outputs: names the time and the coordinate, patch
             or controller; ``partial_result`` is the :class:`ManipulatorSimulation` up to the
-            last stored step.
+            last stored step.  A controller whose ``init`` fails: named, without a partial result.
         """
         from ..planar.guards import check_scheme, divergence_guard, with_partial
         from ..planar.integrate import check_store_every
@@ -340,21 +307,25 @@ class FlexibleManipulator:
         plan = _Plan(self, list(controllers), dt)
         theta_start = float(self.reference.angle(0.0)) if theta0 is None else validation.finite("theta0", theta0)
         run = _Run(self, plan, dt, n_steps, theta_start)
-        run.guard = divergence_guard(run.model, run.q0, divergence_bound)
-        if method == "rk4":
-            check_scheme(run.model, run.q0, np.zeros_like(run.q0), dt, scheme="rk4", policy=stability_check)
-        elif stability_check not in ("warn", "error", "ignore"):
-            raise ModelError(f"stability_check must be one of ('warn', 'error', 'ignore'), got {stability_check!r}")
-        start = _time.perf_counter()
         try:
+            run.guard = divergence_guard(run.model, run.q0, divergence_bound)
             if method == "rk4":
-                run.rk4(store_every)
-            else:
-                run.newmark(store_every)
-        except SimulationError as exc:
-            raise with_partial(exc, lambda: run.result(method, _time.perf_counter() - start)) from exc.__cause__
-        wall = _time.perf_counter() - start
-        return run.result(method, wall)
+                check_scheme(run.model, run.q0, np.zeros_like(run.q0), dt, scheme="rk4", policy=stability_check)
+            elif stability_check not in ("warn", "error", "ignore"):
+                raise ModelError(f"stability_check must be one of ('warn', 'error', 'ignore'), "
+                                 f"got {stability_check!r}")
+            start = _time.perf_counter()
+            try:
+                if method == "rk4":
+                    run.rk4(store_every)
+                else:
+                    run.newmark(store_every)
+            except SimulationError as exc:
+                raise with_partial(exc, lambda: run.result(method, _time.perf_counter() - start)) from exc.__cause__
+            wall = _time.perf_counter() - start
+            return run.result(method, wall)
+        finally:
+            run.cosim.close()                          # release controller resources (FMU instances)
 
 
 class _Plan:
@@ -365,7 +336,6 @@ class _Plan:
         signals = owner.signal_names()
         written: dict[str, int] = {}
         problems = []
-        self.periods = []
         for i, c in enumerate(controllers):
             for attr in ("inputs", "outputs", "init", "step"):
                 if not hasattr(c, attr):
@@ -379,17 +349,14 @@ class _Plan:
                 if name in written:
                     problems.append(f"{name!r} is written by controllers {written[name]} and {i}")
                 written[name] = i
-            h = getattr(c, "sample_time", None)
-            if h is None:
-                self.periods.append(1)
-            else:
-                m = int(round(float(h) / dt))
-                if m < 1 or abs(m * dt - float(h)) > 1e-9 * float(h):
-                    problems.append(f"controller {i}: sample_time {h!r} must be a whole multiple of dt = {dt!r}")
-                self.periods.append(max(m, 1))
+            try:
+                sample_ratio(getattr(c, "sample_time", None), dt)
+            except ModelError as exc:
+                problems.append(f"controller {i}: {exc}")
         if problems:
             raise ModelError("manipulator controllers are invalid:\n  - " + "\n  - ".join(problems))
         self.controllers = controllers
+        self.labels = [f"controller {i} ({getattr(c, 'name', type(c).__name__)})" for i, c in enumerate(controllers)]
         self.torque_by_controller = "motor.torque" in written
         self.voltage_by_controller = any(o.endswith(".voltage") for o in written)
         pd, pzt = owner.pd, owner.pzt
@@ -418,19 +385,25 @@ class _Run:
         self.t0 = 0.0                                  # time offset of chunked restarts
         self.held_torque = 0.0
         self.held_voltage = np.zeros(self.P)
-        self.states = [c.init(0.0) for c in plan.controllers]
-        self.hist = _History(dt, n_steps, 1 + owner.n_modes)      # before the model: probed at t = 0
+        q0 = np.zeros(1 + owner.n_modes)
+        q0[0] = theta0
+        delays = [law.delay for law, flag in ((owner.pd, plan.pd_delayed), (owner.pzt, plan.pzt_delayed)) if flag]
+        window = {"delay": max(delays, default=0.0), "step": dt, "interpolation": "lagrange"}
+        self.hist_q = DelayHistory(0.0, q0, **window)              # before the model: probed at t = 0
+        self.hist_v = DelayHistory(0.0, np.zeros_like(q0), **window)
         self.model = owner.model(
             torque=(self._torque if (plan.torque_by_controller or plan.pd_delayed) else None),
             modal_force=(self._modal_force if (plan.voltage_by_controller or plan.pzt_delayed) else None),
             time_offset=lambda: self.t0)
-        n = self.model.n_coordinates
-        self.q0 = np.zeros(n)
-        self.q0[0] = theta0
+        if self.model.n_coordinates != q0.size:
+            raise ModelError(f"the planar model has {self.model.n_coordinates} coordinates, expected {q0.size} "
+                             "(hub angle and arm modes; internal error)")
+        self.q0 = q0
         self.rec = {k: [] for k in ("t", "q", "v", "V", "tau", "raw")}
         self.guard = None                              # DivergenceGuard, set by simulate
         self.evaluations = 0
         self.iterations: list = []
+        self.cosim = CoSimulation(plan.controllers, dt, 0.0, labels=plan.labels)   # init(0) of each controller
 
     # -- inputs seen by the model (time functions) -------------------------------------
     def _torque(self, t: float) -> float:
@@ -439,12 +412,12 @@ class _Run:
         t = t + self.t0
         pd, ref = self.o.pd, self.o.reference
         s = t - pd.delay
-        qd, vd = self.hist.at(s)
+        qd, vd = self.hist_q(s), self.hist_v(s)
         sr = max(s, 0.0)
         return pd.kp * (ref.angle(sr) - qd[0]) + pd.kd * (ref.rate(sr) - vd[0])
 
     def _voltages_delayed(self, t: float) -> np.ndarray:
-        _, vd = self.hist.at(t - self.o.pzt.delay)
+        vd = self.hist_v(t - self.o.pzt.delay)
         return self.o.pzt.voltages(self.o.slope_matrix @ vd[1:])
 
     def _modal_force(self, t: float) -> np.ndarray:
@@ -463,23 +436,15 @@ class _Run:
     def _sample(self, n: int, q: np.ndarray, v: np.ndarray, history: bool = True) -> None:
         """Controllers due at step ``n``; record inputs/outputs at ``t_n``; history."""
         t = n * self.h
-        if history:
-            self.hist.add(q, v)
+        if history and n > 0:                          # the start (n = 0) is the histories' first sample
+            self.hist_q.append(t, q)
+            self.hist_v.append(t, v)
         if self.plan.controllers:
             y_all = self.o._measure(q, v)
-            for i, c in enumerate(self.plan.controllers):
-                if n % self.plan.periods[i]:
-                    continue
-                y = np.array([y_all[name] for name in c.inputs], dtype=float)
-                what = f"controller {i} ({getattr(c, 'name', type(c).__name__)})"
-                output = call_user(what, c.step, t, y, self.states[i], time=t)
-                try:
-                    u, self.states[i] = output
-                except (TypeError, ValueError):
-                    raise SimulationError(f"{what} returned {output!r} at t = {t:.6g} s; expected (outputs, state)",
-                                          time=t, element=what) from None
-                u = user_output(what, u, len(c.outputs), time=t)
-                for name, value in zip(c.outputs, u):
+            controllers = self.plan.controllers
+            for i in self.cosim.sample(n, t, lambda i: np.array([y_all[name] for name in controllers[i].inputs],
+                                                                dtype=float)):
+                for name, value in zip(controllers[i].outputs, self.cosim.held[i]):
                     if name == "motor.torque":
                         self.held_torque = float(value)
                     else:
@@ -604,4 +569,5 @@ class _Run:
             peak_voltage=float(np.max(np.abs(raw), initial=0.0)),
             time_over_limit=float(np.count_nonzero(over) * step),
             saturated=(over if self.policy == "saturate" else np.zeros(len(t), bool)),
-            iterations=np.asarray(self.iterations) if self.iterations else None)
+            iterations=np.asarray(self.iterations) if self.iterations else None,
+            extra=self.cosim.outputs(until=float(t[-1]) if len(t) else -math.inf))
