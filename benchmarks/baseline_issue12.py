@@ -1,0 +1,407 @@
+"""Baseline of issue 12 (one core): the numbers the redesign must reproduce.
+
+Two parts, written to ``benchmarks/results/baseline_issue12.json``:
+
+* ``scenarios`` — every scenario of ``scenarios/`` run in quick mode through
+  :func:`ctmm.scenario.run_scenario` (outputs in a temporary folder, removed afterwards): each
+  accuracy figure (name, value, unit, bound, passed) and the scenario's wall time [s].  Issue 12
+  must keep every figure within its bound (``docs/plans/one_core.md`` §5: "scenario numbers in
+  the S0 baseline reproduced within their stated bounds").
+* ``timings`` — the cheapest configuration of every existing benchmark, built by the benchmark's
+  own model function: per-step time (time-stepping), per-sweep time (one call of a forward-dynamics
+  sweep or one frequency-response call over the benchmark's frequency grid) or per-chart time.
+  Each is the best of :data:`REPEATS` samples after one warm-up call (a sample repeats a short
+  call until it lasts :data:`MIN_SAMPLE_S`), as process CPU time and as wall time [s] (the plan's
+  rule: Python paths within 10 %, compiled paths unchanged).  The load average is recorded before
+  and after each part and after each case.
+
+Each benchmark's cheapest configuration only: ``foundation_work_precision`` at dt = 1 ms (five
+schemes); ``foundation_scaling`` at n = 10 (FRF and Newmark, fast and generic path);
+``control_overhead`` in its ``--quick`` time-domain form (plant, embedded, delayed, Python
+controller) and n = 3 in frequency (TMM, PlantCache); ``delay_history`` at 1000 steps;
+``planar_chain`` at N = 5 (sweep, RK4, implicit Newmark, compiled RK4); ``flexible`` one sweep at
+1, 4 and 16 modes and the implicit step at 1 mode; ``manipulator`` one sweep, RK4 and Newmark at
+dt = 10 ms, compiled RK4 at dt = 10 ms; ``stability_chart`` the 100 x 100 chart.  Left out (too long
+for a baseline under ~3 min, or needing a build): larger sizes and step ladders, the external
+libraries and references the benchmarks compare with (python-control, pinocchio, MuJoCo, global
+and Lagrange models), the FMU controller variant (builds an FMU with gcc), ``flexible``'s chain of
+beams and adaptive runs, the verified and threaded charts.  Python time-stepping cases whose
+benchmark horizon would make the repeats slow run over a shorter horizon at the benchmark's step
+(stated in ``configuration``): the per-step cost does not depend on the horizon.
+
+Run ``python benchmarks/baseline_issue12.py`` to write the baseline (``--only scenarios`` or
+``--only timings`` for one part; ``--output`` for another file), and
+``python benchmarks/baseline_issue12.py --compare`` after a migration step: it measures again and
+lists every scenario figure out of its bound and every timing more than 10 % slower (CPU) than the
+baseline (the timing pass is repeated up to :data:`RETRIES` times while a case is too slow, and
+each case's best is kept: on the shared machine one pass can be slowed by other work), exiting
+with status 1 if there is any.  On a shared machine, read the load averages and
+repeat a comparison that fails on timings alone.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Callable
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("MPLBACKEND", "Agg")
+
+import numpy as np  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+for folder in (ROOT, ROOT / "benchmarks"):
+    if str(folder) not in sys.path:
+        sys.path.insert(0, str(folder))
+
+import ctmm  # noqa: E402
+from ctmm.scenario import available, run_scenario, write_json_atomic  # noqa: E402
+
+REPEATS = 5
+MIN_SAMPLE_S = 0.1      # shortest timed sample [s]: short calls are repeated within one sample
+TIME_TOLERANCE = 0.10   # docs/plans/one_core.md §5: Python paths within 10 % (best of 5)
+RETRIES = 2             # --compare: whole timing passes repeated while a case is too slow (best kept)
+RESULTS = ROOT / "benchmarks" / "results" / "baseline_issue12.json"
+
+
+def machine() -> dict:
+    """Platform, versions, core count, load average and the code version."""
+    def git(*args: str) -> str:
+        try:
+            return subprocess.run(["git", *args], cwd=ROOT, capture_output=True, text=True, check=True).stdout.strip()
+        except (OSError, subprocess.CalledProcessError):
+            return "unknown"
+
+    info = {"platform": platform.platform(), "python": platform.python_version(), "numpy": np.__version__,
+            "ctmm": ctmm.__version__, "cpu_count": os.cpu_count(),
+            "OPENBLAS_NUM_THREADS": os.environ.get("OPENBLAS_NUM_THREADS"),
+            "git_commit": git("rev-parse", "HEAD"), "git_dirty": bool(git("status", "--porcelain", "--", "ctmm")),
+            "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+    try:
+        with open("/proc/cpuinfo") as handle:
+            info["cpu_model"] = next((line.split(":", 1)[1].strip() for line in handle
+                                      if line.startswith("model name")), "unknown")
+    except OSError:
+        pass
+    return info
+
+
+def load() -> list[float]:
+    """Load average over 1, 5 and 15 min."""
+    return [round(value, 2) for value in os.getloadavg()]
+
+
+# --------------------------------------------------------------------------------------------------
+# Scenarios
+# --------------------------------------------------------------------------------------------------
+def scenarios() -> dict:
+    """Accuracy figures and wall time of every scenario, quick mode."""
+    out = {"load_average_before": load(), "cases": {}}
+    with tempfile.TemporaryDirectory(prefix="ctmm-baseline-") as folder:
+        for name in available():
+            summary = run_scenario(name, folder, quick=True)
+            out["cases"][name] = {
+                "passed": summary["passed"], "wall_time_s": summary["total_wall_time_s"],
+                "accuracy": [{key: figure[key] for key in ("name", "value", "unit", "bound", "passed")}
+                             for figure in summary["accuracy"]]}
+            print(f"scenario {name:34s} {summary['total_wall_time_s']:6.2f} s  passed={summary['passed']}",
+                  flush=True)
+    out["load_average_after"] = load()
+    return out
+
+
+# --------------------------------------------------------------------------------------------------
+# Timings
+# --------------------------------------------------------------------------------------------------
+def best_of(call: Callable[[], object], repeats: int = REPEATS) -> tuple[float, float, int, object]:
+    """Best process CPU time [s] and best wall time [s] of one call, and the calls per sample.
+
+    One warm-up call, then ``repeats`` samples; a sample runs ``call`` as often as needed (a power
+    of 2) to last at least :data:`MIN_SAMPLE_S`, so that short calls are not timed one by one.
+    """
+    started = time.perf_counter()
+    result = call()
+    number = 1
+    if time.perf_counter() - started < MIN_SAMPLE_S:
+        while True:
+            wall = time.perf_counter()
+            for _ in range(number):
+                call()
+            if time.perf_counter() - wall >= MIN_SAMPLE_S:
+                break
+            number *= 2
+    cpus, walls = [], []
+    for _ in range(repeats):
+        wall, cpu = time.perf_counter(), time.process_time()
+        for _ in range(number):
+            result = call()
+        cpus.append((time.process_time() - cpu) / number)
+        walls.append((time.perf_counter() - wall) / number)
+    return min(cpus), min(walls), number, result
+
+
+class Timings:
+    """Collects timing cases: ``benchmark / case`` -> per-unit CPU and wall time [s]."""
+
+    def __init__(self) -> None:
+        self.cases: dict[str, dict] = {}
+
+    def add(self, benchmark: str, case: str, call: Callable[[], object], *, per: str, count: int,
+            configuration: str, repeats: int = REPEATS) -> object:
+        """Time ``call`` and store its time per ``per`` (``count`` of them in one call)."""
+        cpu, wall, number, result = best_of(call, repeats)
+        key = f"{benchmark}/{case}"
+        self.cases[key] = {"benchmark": f"benchmarks/{benchmark}.py", "configuration": configuration,
+                           "per": per, "count_per_call": count, "repeats": repeats, "calls_per_sample": number,
+                           "cpu_s_per_unit": cpu / count, "wall_s_per_unit": wall / count,
+                           "cpu_s_per_call": cpu, "wall_s_per_call": wall, "load_average_after": load()}
+        print(f"timing {key:52s} {1e6 * cpu / count:12.1f} us CPU per {per}", flush=True)
+        return result
+
+
+def _work_precision(t: Timings) -> None:
+    bench = importlib.import_module("foundation_work_precision")
+    system, x0, dt = bench.table_7_1_chain(), bench.initial_positions(), bench.DT_LADDER[0]
+    steps = int(round(bench.T_FINAL / dt))
+    for scheme in bench.SCHEMES:
+        t.add("foundation_work_precision", f"simulate_{scheme}",
+              lambda scheme=scheme: ctmm.simulate(system, bench.T_FINAL, dt, scheme=scheme, x0=x0),
+              per="step", count=steps, configuration=f"Table 7.1 chain (5 masses), dt={dt:g} s, {steps} steps")
+
+
+def _scaling(t: Timings) -> None:
+    bench = importlib.import_module("foundation_scaling")
+    n = bench.SIZES[0]
+    system, omega = bench.ctmm_chain(n), bench.omega_grid(n)
+    t.add("foundation_scaling", f"frequency_response_n{n}",
+          lambda: ctmm.frequency_response(system, omega, input="m1.force", output=["m1.x", f"m{n}.x"]),
+          per="sweep", count=1, configuration=f"fixed-free chain of {n} masses, {omega.size} frequencies")
+    x0 = {f"m{j}": float(0.01 * np.sin(np.pi * j / (2 * n))) for j in range(1, n + 1)}
+    for fast in (True, False):
+        t.add("foundation_scaling", f"simulate_newmark_n{n}_{'fast' if fast else 'generic'}",
+              lambda fast=fast: ctmm.simulate(system, bench.N_STEPS * bench.DT, bench.DT, scheme="newmark", x0=x0,
+                                              fast=fast, progress=False),
+              per="step", count=bench.N_STEPS,
+              configuration=f"chain of {n} masses, Newmark, dt={bench.DT:g} s, fast={fast}")
+
+
+def _control(t: Timings) -> None:
+    bench = importlib.import_module("control_overhead")
+    from ctmm.control import ControlledChain, Feedback, simulate_controlled
+    from ctmm.control.design import PlantCache
+
+    t_final, dt = 0.5, bench.DT
+    steps = int(round(t_final / dt))
+    plant = bench.chain(3)
+    terms = [("m2.x", bench.KP), ("m2.v", bench.KD)]
+    variants = {
+        "plant": lambda: simulate_controlled(plant, t_final, dt, x0={"m2": 0.1}),
+        "embedded": lambda: simulate_controlled(
+            ControlledChain(plant, [Feedback("pd", terms, "m0", gain=1.0)]), t_final, dt, x0={"m2": 0.1}),
+        "embedded_delayed": lambda: simulate_controlled(
+            ControlledChain(plant, [Feedback("pd", terms, "m0", gain=1.0, delay=dt)]), t_final, dt, x0={"m2": 0.1}),
+        "python": lambda: simulate_controlled(
+            plant, t_final, dt, x0={"m2": 0.1}, controllers=[bench.controllers.SaturatedPD(
+                ("m2.x", "m2.v"), ("m0.force",), kp=bench.KP, kd=bench.KD, sample_time=dt)]),
+    }
+    for name, call in variants.items():
+        t.add("control_overhead", f"time_{name}", call, per="step", count=steps,
+              configuration=f"seed chain (3 masses), PD on m0 from m2, Newmark, dt={dt:g} s, {steps} steps (--quick)")
+    omega = np.linspace(0.01, 10.0, 1000)
+    system = ControlledChain(plant, [Feedback("loop", "m2.x", "m0", gain=5.0)])
+    outputs = ["m0.x", "m1.x", "m2.x"]
+    t.add("control_overhead", "frequency_tmm_n3",
+          lambda: ctmm.frequency_response(system, omega, input="m2.force", output=outputs),
+          per="sweep", count=1, configuration="closed-loop FRF, chain of 3 masses, 1000 frequencies")
+    cache = PlantCache(system, omega, inputs="m2.force", outputs=outputs)
+    t.add("control_overhead", "frequency_plant_cache_n3", lambda: cache.closed_loop(gains={"loop": 5.0}),
+          per="sweep", count=1, configuration="PlantCache.closed_loop for a new gain, 3 masses, 1000 frequencies")
+
+
+def _delay_history(t: Timings) -> None:
+    bench = importlib.import_module("delay_history")
+    from ctmm.control import simulate_controlled
+
+    system, steps = bench.model(), 1000
+    t.add("delay_history", "simulate_1000_steps",
+          lambda: simulate_controlled(system, steps * bench.DT, bench.DT, x0={"m6": bench.X_TIP}),
+          per="step", count=steps, configuration=f"seed chain, delayed velocity loop, dt={bench.DT:g} s, 1000 steps")
+
+
+def _planar(t: Timings) -> None:
+    bench = importlib.import_module("planar_chain")
+    from ctmm.planar import accelerations
+
+    n, horizon = 5, 0.2
+    model = bench.chain(n)
+    q0, v0 = np.zeros(n), np.zeros(n)
+    steps = int(round(horizon / bench.H))
+    configuration = f"pendulum chain N={n}, dt={bench.H:g} s, horizon {horizon} s ({steps} steps; benchmark: 1 s)"
+    t.add("planar_chain", f"sweep_n{n}", lambda: accelerations(model, q0 + 0.1, v0 + 0.1, 0.0), per="sweep",
+          count=1, configuration=f"pendulum chain N={n}, one accelerations() call")
+    t.add("planar_chain", f"rk4_n{n}",
+          lambda: bench.simulate_rk4(model, q0, v0, t_final=horizon, dt=bench.H, store_every=steps),
+          per="step", count=steps, configuration=configuration)
+    t.add("planar_chain", f"implicit_newmark_n{n}",
+          lambda: bench.simulate_implicit(model, q0, v0, t_final=horizon, dt=bench.H, store_every=steps),
+          per="step", count=steps, configuration=configuration)
+    bench.library()
+    steps_c = int(round(bench.T_FINAL / bench.H))
+    t.add("planar_chain", f"rk4_compiled_n{n}",
+          lambda: bench.simulate_rk4_compiled(model, q0, v0, t_final=bench.T_FINAL, dt=bench.H, store_every=steps_c),
+          per="step", count=steps_c, configuration=f"pendulum chain N={n}, dt={bench.H:g} s, {steps_c} steps, C kernel")
+
+
+def _flexible(t: Timings) -> None:
+    bench = importlib.import_module("flexible")
+    from ctmm.planar import accelerations, simulate_implicit
+
+    for modes in (1, 4, 16):
+        model = bench.spin_model(modes)
+        q = 1e-3 * np.ones(modes)
+        t.add("flexible", f"sweep_spin_up_{modes}_modes", lambda model=model, q=q: accelerations(model, q, q, 5.0),
+              per="sweep", count=1, configuration=f"Kane spin-up beam, {modes} mode(s), one accelerations() call")
+    model = bench.spin_model(1)
+    t.add("flexible", "implicit_step_spin_up_1_mode",
+          lambda: simulate_implicit(model, np.zeros(1), np.zeros(1), t_final=0.1, dt=0.005), per="step", count=20,
+          configuration="Kane spin-up beam, 1 mode, generalized implicit DT-TMM, dt=0.005 s, 20 steps")
+
+
+def _manipulator(t: Timings) -> None:
+    bench = importlib.import_module("manipulator")
+    from ctmm.planar import accelerations
+
+    arm = bench.seed_manipulator()
+    system = bench.FlexibleManipulator(arm, bench.HubPD(bench.SEED_KP, bench.SEED_KD),
+                                       bench.PZTFeedback(np.eye(3) * bench.SEED_PZT_GAIN), bench.SEED_MOVE)
+    model = system.model()
+    q = np.zeros(model.n_coordinates)
+    t.add("manipulator", "sweep", lambda: accelerations(model, q, q, 0.1), per="sweep", count=1,
+          configuration="seed manipulator (hub + 3-mode arm, PD + PZT), one accelerations() call")
+    horizon, dt = 0.5, 0.01
+    steps = int(round(horizon / dt))
+    for method in ("rk4", "newmark"):
+        t.add("manipulator", f"simulate_{method}", lambda method=method: system.simulate(horizon, dt, method=method),
+              per="step", count=steps,
+              configuration=f"seed manipulator, dt={dt:g} s, horizon {horizon} s ({steps} steps; benchmark: 3 s)")
+    compiled = bench.CompiledManipulator(system, block=1, chunks=50)
+    steps = int(round(bench.T_WP / dt))
+    t.add("manipulator", "simulate_rk4_compiled", lambda: compiled.simulate(bench.T_WP, dt), per="step", count=steps,
+          configuration=f"seed manipulator, casadi-compiled RK4, dt={dt:g} s, {bench.T_WP:g} s ({steps} steps)")
+
+
+def _stability_chart(t: Timings) -> None:
+    bench = importlib.import_module("stability_chart")
+    system = bench.system()
+    t.add("stability_chart", "chart_100x100",
+          lambda: bench.stability_chart(system, x=("gain", bench.GAINS, "gain factor k [-]"),
+                                        y=("delay", bench.DELAYS, "delay tau [s]")),
+          per="chart", count=1, configuration="chain of 20 masses with a PD loop, 100 x 100 (gain, delay) grid")
+
+
+TIMING_PARTS = (_work_precision, _scaling, _control, _delay_history, _planar, _flexible, _manipulator,
+                _stability_chart)
+
+
+def timings() -> dict:
+    """Per-step / per-sweep timings of every benchmark's cheapest configuration."""
+    before = load()
+    collected = Timings()
+    for part in TIMING_PARTS:
+        part(collected)
+    return {"load_average_before": before, "load_average_after": load(), "repeats": REPEATS,
+            "definition": ("best of REPEATS samples after one warm-up call, a sample = calls_per_sample calls "
+                           f"lasting >= {MIN_SAMPLE_S} s together; cpu = time.process_time of this process "
+                           "(single-threaded code), wall = time.perf_counter; per call = sample / calls_per_sample; "
+                           "per unit = per call / count_per_call"),
+            "cases": collected.cases}
+
+
+def _pairs(baseline: dict, new: dict, part: str):
+    """``(key, baseline case, new case or None)`` for every case of ``part`` when ``new`` measured it."""
+    if part not in new:
+        return
+    cases = new[part].get("cases", {})
+    for key, old in baseline.get(part, {}).get("cases", {}).items():
+        yield key, old, cases.get(key)
+
+
+def compare(baseline: dict, new: dict, *, slower: float = TIME_TOLERANCE) -> list[str]:
+    """Differences of a new measurement from the baseline that break the plan's rules.
+
+    A scenario that is missing, fails, or has a figure out of its bound or missing; a timing case
+    that is missing or whose CPU time per unit exceeds the baseline's by more than ``slower``
+    (relative).  Returns one line per problem (empty: the new code reproduces the baseline).
+    """
+    problems = []
+    for name, old, case in _pairs(baseline, new, "scenarios"):
+        if case is None:
+            problems.append(f"scenario {name}: missing")
+            continue
+        figures = {figure["name"]: figure for figure in case["accuracy"]}
+        for figure in old["accuracy"]:
+            now = figures.get(figure["name"])
+            if now is None:
+                problems.append(f"scenario {name}: figure {figure['name']!r} missing")
+            elif not now["passed"]:
+                problems.append(f"scenario {name}: {figure['name']!r} = {now['value']!r} {now['unit']} exceeds its "
+                                f"bound {now['bound']!r} (baseline {figure['value']!r})")
+    for key, old, case in _pairs(baseline, new, "timings"):
+        if case is None:
+            problems.append(f"timing {key}: missing")
+        elif case["cpu_s_per_unit"] > (1.0 + slower) * old["cpu_s_per_unit"]:
+            ratio = case["cpu_s_per_unit"] / old["cpu_s_per_unit"]
+            problems.append(f"timing {key}: {1e6 * case['cpu_s_per_unit']:.1f} us CPU per {case['per']} vs baseline "
+                            f"{1e6 * old['cpu_s_per_unit']:.1f} us (+{100 * (ratio - 1):.0f} %)")
+    return problems
+
+
+def main(argv: list[str] | None = None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--only", choices=("scenarios", "timings"), help="run one part only")
+    parser.add_argument("--output", type=Path, default=None,
+                        help=f"JSON file to write (default: {RESULTS.relative_to(ROOT)}; with --compare: none)")
+    parser.add_argument("--compare", action="store_true",
+                        help="measure and list what breaks the baseline's rules instead of replacing it")
+    args = parser.parse_args(argv)
+    started = time.perf_counter()
+    data = {"purpose": ("issue 12 S0 baseline (docs/plans/one_core.md §5): scenario accuracy figures (quick mode) "
+                        "and per-step / per-sweep times of the benchmarks' cheapest configurations"),
+            "machine": machine()}
+    if args.only in (None, "scenarios"):
+        data["scenarios"] = scenarios()
+    if args.only in (None, "timings"):
+        data["timings"] = timings()
+        for _ in range(RETRIES if args.compare else 0):   # a slower case may be transient load: measure again
+            baseline = json.loads(RESULTS.read_text())
+            if not any(line.startswith("timing ") for line in compare(baseline, {"timings": data["timings"]})):
+                break
+            again = timings()["cases"]
+            for key, case in data["timings"]["cases"].items():
+                if key in again and again[key]["cpu_s_per_unit"] < case["cpu_s_per_unit"]:
+                    data["timings"]["cases"][key] = again[key]
+    data["total_wall_time_s"] = time.perf_counter() - started
+    output = args.output if args.output is not None or args.compare else RESULTS
+    if output is not None:
+        write_json_atomic(output, data)
+        print(f"wrote {output} in {data['total_wall_time_s']:.0f} s")
+    if args.compare:
+        problems = compare(json.loads(RESULTS.read_text()), data)
+        checked = ["every scenario figure within its bound" if "scenarios" in data else "",
+                   f"every timing within {100 * TIME_TOLERANCE:.0f} % (CPU)" if "timings" in data else ""]
+        print("\n".join(problems) if problems else "baseline reproduced: " + ", ".join(filter(None, checked)))
+        if problems:
+            raise SystemExit(1)
+    return data
+
+
+if __name__ == "__main__":
+    main()
