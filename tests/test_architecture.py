@@ -346,7 +346,6 @@ ALLOWED: dict[tuple[str, str], str] = {
     ("long module", "ctmm.elements.beams"):
         "beam field, bending points and boundaries in one file (plan: beam_field, bending)",
     ("long module", "ctmm.flexible.beam"): "modal beam description and its terms in one file (S: elements/modal_beam)",
-    ("long module", "ctmm.manipulator.simulation"): "manipulator co-simulation with its own history and RK4 (S1b/S1c)",
     ("long module", "ctmm.natural"): "natural frequencies, counting and mode shapes in one file (S: counting.py)",
     ("long module", "ctmm.planar.model"): "planar model description and its array compilation in one file",
     ("long module", "ctmm.reference.chain"): "independent global-matrix chain model (reference: split when touched)",
@@ -361,7 +360,6 @@ ALLOWED: dict[tuple[str, str], str] = {
 LONG_MODULES: dict[str, int] = {
     "ctmm.elements.beams": 679,
     "ctmm.flexible.beam": 647,
-    "ctmm.manipulator.simulation": 607,
     "ctmm.natural": 751,
     "ctmm.planar.model": 671,
     "ctmm.reference.chain": 641,
