@@ -129,13 +129,17 @@ def write(path: str | os.PathLike, kind: str, attributes: Mapping[str, Any],
     Raises
     ------
     ResultFileError
-        Bad path, or a dataset name that HDF5 cannot hold.
+        Bad path, a folder that cannot be written (read-only, full), or a dataset name that HDF5
+        cannot hold.
     ImportError
         h5py is not installed.
     """
     h5py = require_h5py("saving a result")
     target = _check_path(path, for_writing=True)
-    descriptor, temporary = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    try:
+        descriptor, temporary = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    except (OSError, ValueError) as exc:   # read-only or special folder, NUL in the name
+        raise ResultFileError(f"path {str(target)!r} cannot be written: {exc}") from None
     os.close(descriptor)
     try:
         with h5py.File(temporary, "w", track_order=True) as handle:
@@ -157,9 +161,11 @@ def write(path: str | os.PathLike, kind: str, attributes: Mapping[str, Any],
                 for key, value in data_attributes.items():
                     dataset.attrs[key] = _attribute(value)
         os.replace(temporary, target)
-    except BaseException:
+    except BaseException as exc:
         if os.path.exists(temporary):
             os.unlink(temporary)
+        if isinstance(exc, OSError):       # disk full, folder removed meanwhile, ...
+            raise ResultFileError(f"path {str(target)!r} cannot be written: {exc}") from exc
         raise
     return target
 

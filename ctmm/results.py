@@ -13,7 +13,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from . import result_files
+from . import result_files, validation
 from .errors import ModelError, unknown_name
 from .signal_units import label as unit_label, signal_unit
 from .system import Signal
@@ -326,6 +326,9 @@ class SimulationResult:
         except ImportError as exc:
             raise ImportError("SimulationResult.to_dataframe needs pandas, an optional dependency of ctmm: "
                               "pip install 'ctmm[data]' (or pip install pandas)") from exc
+        units_in_names = validation.flag("units_in_names", units_in_names)
+        if names is not None and (isinstance(names, (str, bytes, dict)) or not hasattr(names, "__iter__")):
+            raise ModelError(f"names must be a sequence of signal names or None, got {names!r}")
         names = self.time_signals() if names is None else list(names)
         n = len(self.time)
         columns, units = {}, {}
@@ -563,6 +566,11 @@ def load(path: str | os.PathLike) -> SimulationResult | FrequencyResponse:
                 format_version=contents.version)
     if contents.kind == "frequency_response":
         meta = contents.dataset_attributes.get("response", {})
+        shape = np.shape(contents.dataset("response"))
+        expected = (len(meta.get("outputs", ())), len(meta.get("inputs", ())), len(contents.dataset("omega")))
+        if shape != expected:
+            raise result_files.ResultFileError(f"result file {str(contents.path)!r} is inconsistent: response has "
+                                               f"shape {shape}, expected (n_outputs, n_inputs, n_omega) = {expected}")
         return FrequencyResponse(contents.dataset("omega"), contents.dataset("response"),
                                  tuple(meta.get("inputs", ())), tuple(meta.get("outputs", ())),
                                  attrs.get("system_name", ""), info, stored_units)
@@ -571,5 +579,21 @@ def load(path: str | os.PathLike) -> SimulationResult | FrequencyResponse:
     extra = {name: contents.dataset(f"signals/{name}") for name in names}
     units = {n: stored_units.get(n, "") for n in dict.fromkeys([*system_attrs.get("signal_map", {}), *names])}
     system = StoredSystem(attrs.get("system_name", ""), system_attrs.get("point_names", []), units, system_attrs)
+    _check_stored_shapes(contents, extra)
     return SimulationResult(contents.dataset("time"), contents.dataset("states"), contents.dataset("velocity"),
                             contents.dataset("acceleration"), system, attrs.get("scheme", ""), info, extra)
+
+
+def _check_stored_shapes(contents: Any, extra: dict[str, np.ndarray]) -> None:
+    """``ResultFileError`` when the arrays of a loaded simulation do not share its time grid."""
+    n = len(contents.dataset("time"))
+    problems = [f"{name} has shape {np.shape(contents.dataset(name))}"
+                for name in ("states", "velocity", "acceleration")
+                if np.ndim(contents.dataset(name)) != 3 or np.shape(contents.dataset(name))[0] != n]
+    problems += [f"signal {name!r} has shape {np.shape(values)}" for name, values in extra.items()
+                 if not ((np.ndim(values) == 1 and len(values) == n) or (np.ndim(values) == 2
+                                                                         and np.shape(values)[1] == 2))]
+    if np.ndim(contents.dataset("time")) != 1 or problems:
+        raise result_files.ResultFileError(f"result file {str(contents.path)!r} is inconsistent: the time grid has "
+                                           f"{n} rows but {'; '.join(problems) or 'time is not 1-D'} (damaged or "
+                                           "edited file)")

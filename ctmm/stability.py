@@ -87,6 +87,12 @@ def unstable_root_count(system: ControlledChain, *, loop: str | None = None, gai
     gain = None if gain is None else validation.nonempty_array("gain", gain)
     delay = None if delay is None else validation.nonempty_array("delay", delay)
     model = LoopCharacteristic(system, loop)
+    if weights is not None:
+        weights = validation.finite_array("weights", weights)
+        if weights.ndim not in (1, 2) or weights.shape[-1] != model.weights.size:
+            raise ModelError(f"weights must have shape (n_terms,) or (n_sets, n_terms) with n_terms = "
+                             f"{model.weights.size} (the sensor terms of the loop), got shape {weights.shape}: "
+                             f"{weights.tolist()!r:.200}")
     n = n_sets(gain, delay, weights)
     k, tau, w = model.parameters(n, None if gain is None else np.ravel(gain),
                                  None if delay is None else np.ravel(delay), weights)
