@@ -264,3 +264,32 @@ def read(path: str | os.PathLike, kinds: tuple[str, ...]) -> Contents:
             raise ResultFileError(f"result file {str(source)!r} is corrupted (an HDF5 checksum, read or "
                                   f"attribute decoding failed): {exc}") from None
     return contents
+
+
+def check_time_grid(contents: Contents, signals: Mapping[str, np.ndarray]) -> None:
+    """``ResultFileError`` when the arrays of a simulation file do not share its time grid.
+
+    ``states``/``velocity``/``acceleration`` need one row per time; a stored signal either one
+    value per time or rows ``(time, value)`` (controller outputs at their own rate).
+    """
+    time = contents.dataset("time")
+    n = len(time) if np.ndim(time) == 1 else -1
+    problems = [f"{name} has shape {np.shape(contents.dataset(name))}"
+                for name in ("states", "velocity", "acceleration")
+                if np.ndim(contents.dataset(name)) != 3 or np.shape(contents.dataset(name))[0] != n]
+    problems += [f"signal {name!r} has shape {np.shape(values)}" for name, values in signals.items()
+                 if not ((np.ndim(values) == 1 and len(values) == n)
+                         or (np.ndim(values) == 2 and np.shape(values)[1] == 2))]
+    if n < 0 or problems:
+        raise ResultFileError(f"result file {str(contents.path)!r} is inconsistent: time has shape "
+                              f"{np.shape(time)} but {'; '.join(problems) or 'it must be 1-D'} (damaged or "
+                              "edited file)")
+
+
+def check_response_shape(contents: Contents, n_outputs: int, n_inputs: int) -> None:
+    """``ResultFileError`` when a frequency-response file's response does not match its names and omega."""
+    shape = np.shape(contents.dataset("response"))
+    expected = (n_outputs, n_inputs, len(contents.dataset("omega")))
+    if shape != expected:
+        raise ResultFileError(f"result file {str(contents.path)!r} is inconsistent: response has shape {shape}, "
+                              f"expected (n_outputs, n_inputs, n_omega) = {expected}")

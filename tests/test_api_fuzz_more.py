@@ -3,7 +3,7 @@
 Part 1 extends :mod:`test_api_fuzz` (same :class:`Case` and :func:`check_refused` rule: a
 ``ModelError`` or ``TypeError`` naming the parameter and the value) to the options the first fuzz
 did not reach: ``ctmm.simulate`` ``references``/``controllers``/``stability_check``/
-``divergence_bound``, zero-step runs, ``to_dataframe``, result files (unwritable paths, files whose
+``divergence_bound``, zero-step runs, ``to_dataframe``, the ``plot`` methods of results, result files (unwritable paths, files whose
 arrays disagree), ``parallel_map``, the scheme limits of :mod:`ctmm.guard`, loop weights of
 ``unstable_root_count``, ``build_fmu`` output folders and the CLI's duplicate names.
 
@@ -35,7 +35,7 @@ from ctmm.control import FMUController, build_fmu
 from ctmm.elements import Fixed, Free, Mass, Spring
 from ctmm.executors import parallel_map
 
-from test_api_fuzz import Case, Opaque, chain, check_refused, controlled, sim_result
+from test_api_fuzz import Case, Opaque, chain, check_refused, controlled, frf, sim_result
 
 
 def _square(x: float) -> float:
@@ -66,6 +66,14 @@ MORE_CASES: list[tuple[Case, list]] = [
           lambda v: sim_result().to_dataframe(units_in_names=v)), [1, "yes", None, Opaque()]),
     (Case("SimulationResult.to_dataframe", "names", "names",
           lambda v: sim_result().to_dataframe(v)), ["m.x", {"m.x": 1}, 3]),
+    (Case("SimulationResult.plot", "ax", "axes", lambda v: sim_result().plot("m.x", ax=v)), [3, "ax", Opaque()]),
+    (Case("SimulationResult.plot", "names", "none given", lambda v: sim_result().plot(*v)), [()]),
+    (Case("FrequencyResponse.plot", "ax", "axes", lambda v: frf().plot(ax=v)), [3, "ax", Opaque()]),
+    (Case("FrequencyResponse.plot", "output", "names", lambda v: frf().plot(output=v)), ["", "nope", 3]),
+    (Case("ModeShapes.plot", "component", "names",
+          lambda v: ctmm.mode_shapes(chain(), n_modes=1).plot(component=v)), ["nope", 3, Opaque()]),
+    (Case("ModeShapes.plot", "modes", "indices",
+          lambda v: ctmm.mode_shapes(chain(), n_modes=1).plot(modes=v)), ["ab", [5], [-1], [1.5], 3]),
     (Case("ctmm.executors.parallel_map", "progress", "flag",
           lambda v: parallel_map(_square, [1.0], progress=v)), [1, "yes", math.nan, Opaque()]),
     (Case("ctmm.executors.parallel_map", "description", "text",
