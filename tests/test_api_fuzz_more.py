@@ -3,7 +3,8 @@
 Part 1 extends :mod:`test_api_fuzz` (same :class:`Case` and :func:`check_refused` rule: a
 ``ModelError`` or ``TypeError`` naming the parameter and the value) to the options the first fuzz
 did not reach: ``ctmm.simulate`` ``references``/``controllers``/``stability_check``/
-``divergence_bound``, zero-step runs, ``to_dataframe``, the ``plot`` methods of results, result files (unwritable paths, files whose
+``divergence_bound``, zero-step runs, ``to_dataframe``, the ``plot`` methods of results, beam outputs and
+laws of :mod:`ctmm.flexible`, the manipulator's ``plant_chain``/``seed_manipulator``, result files (unwritable paths, files whose
 arrays disagree), ``parallel_map``, the scheme limits of :mod:`ctmm.guard`, loop weights of
 ``unstable_root_count``, ``build_fmu`` output folders and the CLI's duplicate names.
 
@@ -35,7 +36,7 @@ from ctmm.control import FMUController, build_fmu
 from ctmm.elements import Fixed, Free, Mass, Spring
 from ctmm.executors import parallel_map
 
-from test_api_fuzz import Case, Opaque, chain, check_refused, controlled, frf, sim_result
+from test_api_fuzz import Case, Opaque, chain, check_refused, controlled, frf, pendulum, sim_result
 
 
 def _square(x: float) -> float:
@@ -74,6 +75,25 @@ MORE_CASES: list[tuple[Case, list]] = [
           lambda v: ctmm.mode_shapes(chain(), n_modes=1).plot(component=v)), ["nope", 3, Opaque()]),
     (Case("ModeShapes.plot", "modes", "indices",
           lambda v: ctmm.mode_shapes(chain(), n_modes=1).plot(modes=v)), ["ab", [5], [-1], [1.5], 3]),
+    (Case("ctmm.flexible.tip_deflection", "beam", "names",
+          lambda v: __import__("ctmm.flexible").flexible.tip_deflection(pendulum(), [0.0], v)),
+     ["l", "nope", None, 3]),
+    (Case("ctmm.flexible.axial_tip_displacement", "beam", "names",
+          lambda v: __import__("ctmm.flexible").flexible.axial_tip_displacement(pendulum(), [0.0], v)), ["l"]),
+    (Case("ctmm.flexible.mape", "y", "numbers", lambda v: __import__("ctmm.flexible").flexible.mape(v, [1.0])),
+     [None, "a", [math.nan], [], [1.0, 2.0]]),
+    (Case("ctmm.flexible.mape", "floor", "fraction",
+          lambda v: __import__("ctmm.flexible").flexible.mape([1.0], [1.0], floor=v)), [0.0, -1.0, math.nan, 2.0]),
+    (Case("ctmm.flexible.spinup_law", "ramp_time", "positive",
+          lambda v: __import__("ctmm.flexible").flexible.spinup_law(6.0, v)), [0.0, -1.0, math.nan, "a"]),
+    (Case("ctmm.flexible.spinup_law", "final_rate", "real",
+          lambda v: __import__("ctmm.flexible").flexible.spinup_law(v)), [math.nan, "a", None]),
+    (Case("ctmm.manipulator.seed_manipulator", "n_patches", "0..3",
+          lambda v: __import__("ctmm.manipulator").manipulator.seed_manipulator(n_patches=v)), [True, 4, -1, 1.5]),
+    (Case("ctmm.manipulator.plant_chain", "max_piece", "positive",
+          lambda v: __import__("ctmm.manipulator").manipulator.plant_chain(
+              __import__("ctmm.manipulator").manipulator.seed_manipulator(), max_piece=v)),
+     [0.0, -1.0, math.nan, "a", 1e-12]),
     (Case("ctmm.executors.parallel_map", "progress", "flag",
           lambda v: parallel_map(_square, [1.0], progress=v)), [1, "yes", math.nan, Opaque()]),
     (Case("ctmm.executors.parallel_map", "description", "text",
