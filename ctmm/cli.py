@@ -110,6 +110,7 @@ def _run(names: list[str], output: str, quick: bool, debug: bool) -> int:
     known = scenario.available()
     broken = scenario.broken()
     rows = []
+    names = list(dict.fromkeys(names))             # a name given twice runs once
     if "all" in names:
         names = list(dict.fromkeys(n for name in names for n in (known if name == "all" else [name])))
         for name, error in broken.items():          # reported, and the run goes on

@@ -22,12 +22,14 @@ Failures (:func:`parallel_map`)
 from __future__ import annotations
 
 import os
+import pickle
 from concurrent.futures import (FIRST_COMPLETED, Executor, Future, ProcessPoolExecutor,
                                 ThreadPoolExecutor, wait)
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 from typing import Any, Callable, Iterable, Iterator
 
+from . import validation
 from .errors import ModelError, SimulationError
 from .progress import progress_bar
 
@@ -180,6 +182,20 @@ def parallel_map(function: Callable[[Any], Any], items: Iterable[Any], *, execut
     """
     if isinstance(retries, bool) or not isinstance(retries, int) or retries < 0:
         raise ModelError(f"retries must be an integer >= 0, got {retries!r}")
+    if not callable(function):
+        raise ModelError(f"function must be callable, got {function!r}")
+    progress = validation.flag("progress", progress, optional=True)
+    if not isinstance(description, str):
+        raise ModelError(f"description must be a str, got {description!r}")
+    if isinstance(items, (str, bytes)) or not hasattr(items, "__iter__"):
+        raise ModelError(f"items must be an iterable of arguments, got {items!r}")
+    if (isinstance(executor, str) and executor == "processes") or isinstance(executor, ProcessPoolExecutor):
+        try:
+            pickle.dumps(function)
+        except Exception as exc:  # noqa: BLE001 - any pickling failure means the same
+            raise ModelError(f"function {function!r} cannot be sent to worker processes ({exc}); use a "
+                             "module-level function (lambdas and local functions are not picklable), or "
+                             "executor='threads'") from None
     items = list(items)
     bar = progress_bar(len(items), description, enabled=progress, min_total=50)
     try:

@@ -48,6 +48,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from . import validation
 from .errors import ModelError, SimulationError
 
 __all__ = ["StabilityLimitWarning", "DivergenceGuard", "newmark_limit", "wilson_limit", "wilson_amplification", "RK4_LIMIT",
@@ -77,6 +78,9 @@ def newmark_limit(beta: float, gamma: float) -> float:
         ``inf`` when unconditionally stable (``2 beta >= gamma >= 1/2``), ``0`` when no step is
         stable (``gamma < 1/2``: every mode is amplified), else ``1 / sqrt(gamma/2 - beta)``.
     """
+    beta, gamma = validation.finite("beta", beta), validation.finite("gamma", gamma)
+    if beta < 0.0:
+        raise ModelError(f"beta must be >= 0, got {beta!r}")
     if gamma < 0.5:
         return 0.0
     if 2.0 * beta >= gamma:
@@ -91,6 +95,8 @@ def wilson_amplification(theta: float, omega_h: float) -> np.ndarray:
     ``tau = theta h``, then ``a_{n+1} = a_n + (a_tau - a_n) / theta``,
     ``v_{n+1} = v_n + h (a_n + a_{n+1}) / 2``, ``x_{n+1} = x_n + h v_n + h^2 (2 a_n + a_{n+1}) / 6``.
     """
+    theta = validation.positive("theta", theta)
+    omega_h = validation.nonnegative("omega_h", omega_h)
     w2 = omega_h * omega_h
     columns = []
     for state in np.eye(3):
@@ -109,6 +115,7 @@ def wilson_limit(theta: float) -> float:
     and the first crossing of 1 is bisected to 1e-10 relative (``theta = 1``, the linear
     acceleration method, gives ``2 sqrt 3``).
     """
+    theta = validation.positive("theta", theta)
     if theta >= 1.37:
         return math.inf
 
@@ -124,6 +131,12 @@ def wilson_limit(theta: float) -> float:
         middle = 0.5 * (low + high)
         low, high = (low, middle) if unstable(middle) else (middle, high)
     return float(low)
+
+
+def _nonnegative_or_infinite(name: str, value: Any) -> float:
+    if isinstance(value, (float, np.floating)) and value == math.inf:
+        return math.inf
+    return validation.nonnegative(name, value)
 
 
 def check_step(what: str, omega_max: float, dt: float, limit: float, *, policy: str = "warn") -> str | None:
@@ -149,6 +162,9 @@ def check_step(what: str, omega_max: float, dt: float, limit: float, *, policy: 
     """
     if policy not in ("warn", "error", "ignore"):
         raise ModelError(f"stability_check must be 'warn', 'error' or 'ignore', got {policy!r}")
+    omega_max = _nonnegative_or_infinite("omega_max", omega_max)
+    dt = validation.positive("dt", dt)
+    limit = _nonnegative_or_infinite("limit", limit)
     if math.isinf(limit) or omega_max * dt <= limit:
         return None
     if limit == 0.0:

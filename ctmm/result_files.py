@@ -129,13 +129,17 @@ def write(path: str | os.PathLike, kind: str, attributes: Mapping[str, Any],
     Raises
     ------
     ResultFileError
-        Bad path, or a dataset name that HDF5 cannot hold.
+        Bad path, a folder that cannot be written (read-only, full), or a dataset name that HDF5
+        cannot hold.
     ImportError
         h5py is not installed.
     """
     h5py = require_h5py("saving a result")
     target = _check_path(path, for_writing=True)
-    descriptor, temporary = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    try:
+        descriptor, temporary = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    except (OSError, ValueError) as exc:   # read-only or special folder, NUL in the name
+        raise ResultFileError(f"path {str(target)!r} cannot be written: {exc}") from None
     os.close(descriptor)
     try:
         with h5py.File(temporary, "w", track_order=True) as handle:
@@ -157,9 +161,11 @@ def write(path: str | os.PathLike, kind: str, attributes: Mapping[str, Any],
                 for key, value in data_attributes.items():
                     dataset.attrs[key] = _attribute(value)
         os.replace(temporary, target)
-    except BaseException:
+    except BaseException as exc:
         if os.path.exists(temporary):
             os.unlink(temporary)
+        if isinstance(exc, OSError):       # disk full, folder removed meanwhile, ...
+            raise ResultFileError(f"path {str(target)!r} cannot be written: {exc}") from exc
         raise
     return target
 
@@ -258,3 +264,32 @@ def read(path: str | os.PathLike, kinds: tuple[str, ...]) -> Contents:
             raise ResultFileError(f"result file {str(source)!r} is corrupted (an HDF5 checksum, read or "
                                   f"attribute decoding failed): {exc}") from None
     return contents
+
+
+def check_time_grid(contents: Contents, signals: Mapping[str, np.ndarray]) -> None:
+    """``ResultFileError`` when the arrays of a simulation file do not share its time grid.
+
+    ``states``/``velocity``/``acceleration`` need one row per time; a stored signal either one
+    value per time or rows ``(time, value)`` (controller outputs at their own rate).
+    """
+    time = contents.dataset("time")
+    n = len(time) if np.ndim(time) == 1 else -1
+    problems = [f"{name} has shape {np.shape(contents.dataset(name))}"
+                for name in ("states", "velocity", "acceleration")
+                if np.ndim(contents.dataset(name)) != 3 or np.shape(contents.dataset(name))[0] != n]
+    problems += [f"signal {name!r} has shape {np.shape(values)}" for name, values in signals.items()
+                 if not ((np.ndim(values) == 1 and len(values) == n)
+                         or (np.ndim(values) == 2 and np.shape(values)[1] == 2))]
+    if n < 0 or problems:
+        raise ResultFileError(f"result file {str(contents.path)!r} is inconsistent: time has shape "
+                              f"{np.shape(time)} but {'; '.join(problems) or 'it must be 1-D'} (damaged or "
+                              "edited file)")
+
+
+def check_response_shape(contents: Contents, n_outputs: int, n_inputs: int) -> None:
+    """``ResultFileError`` when a frequency-response file's response does not match its names and omega."""
+    shape = np.shape(contents.dataset("response"))
+    expected = (n_outputs, n_inputs, len(contents.dataset("omega")))
+    if shape != expected:
+        raise ResultFileError(f"result file {str(contents.path)!r} is inconsistent: response has shape {shape}, "
+                              f"expected (n_outputs, n_inputs, n_omega) = {expected}")

@@ -13,7 +13,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from . import result_files
+from . import result_files, validation
 from .errors import ModelError, unknown_name
 from .signal_units import label as unit_label, signal_unit
 from .system import Signal
@@ -23,9 +23,16 @@ def _axes(ax=None, nrows: int = 1):
     import matplotlib.pyplot as plt
 
     if ax is not None:
-        return ax.figure, ax
+        return _axes_figure(ax), ax
     fig, axes = plt.subplots(nrows, 1, sharex=True, figsize=(7, 2.6 * nrows + 0.8), squeeze=False)
     return fig, axes[:, 0] if nrows > 1 else axes[0, 0]
+
+
+def _axes_figure(ax: Any):
+    """The figure of a user-given matplotlib Axes, or a ModelError naming ``ax``."""
+    if not callable(getattr(ax, "plot", None)) or getattr(ax, "figure", None) is None:
+        raise ModelError(f"ax must be a matplotlib Axes (or None for a new figure), got {ax!r}")
+    return ax.figure
 
 
 @dataclass
@@ -121,13 +128,15 @@ class FrequencyResponse:
         """
         pairs = [(o, i) for o in self.outputs for i in self.inputs]
         if output is not None or input is not None:
-            pairs = [(output or self.outputs[0], input or self.inputs[0])]
+            pairs = [(self.outputs[self._index(self.outputs, output, "output")] if output is not None
+                      else self.outputs[0],
+                      self.inputs[self._index(self.inputs, input, "input")] if input is not None else self.inputs[0])]
         if ax is None:
             fig, axes = _axes(nrows=2 if phase else 1)
             axes = list(np.atleast_1d(axes))
         else:
             axes = list(np.atleast_1d(ax))
-            fig = axes[0].figure
+            fig = [_axes_figure(a) for a in axes][0]
         pair_units = {(o, i): self.response_unit(o, i) for o, i in pairs}
         common = set(pair_units.values())
         shared = common.pop() if len(common) == 1 else None
@@ -213,8 +222,12 @@ class ModalResult:
         fig, ax = _axes(ax)
         if self.shapes is None:
             raise ValueError("no mode shapes stored; call mode_shapes()")
-        c = self.components.index(component) if component else 0
-        for k in (modes if modes is not None else range(len(self.natural_frequencies))):
+        if component is not None and component not in self.components:
+            raise unknown_name("component", component, list(self.components))
+        c = self.components.index(component) if component is not None else 0
+        n_modes = len(self.natural_frequencies)
+        modes = range(n_modes) if modes is None else validation.indices("modes", modes, n_modes)
+        for k in modes:
             ax.plot(np.real(self.shapes[k, :, c]), marker="o",
                     label=f"mode {k + 1}: {self.natural_frequencies[k]:.4g} rad/s")
         ax.set_xlabel("connection point (index)")
@@ -326,6 +339,9 @@ class SimulationResult:
         except ImportError as exc:
             raise ImportError("SimulationResult.to_dataframe needs pandas, an optional dependency of ctmm: "
                               "pip install 'ctmm[data]' (or pip install pandas)") from exc
+        units_in_names = validation.flag("units_in_names", units_in_names)
+        if names is not None and (isinstance(names, (str, bytes, dict)) or not hasattr(names, "__iter__")):
+            raise ModelError(f"names must be a sequence of signal names or None, got {names!r}")
         names = self.time_signals() if names is None else list(names)
         n = len(self.time)
         columns, units = {}, {}
@@ -350,6 +366,11 @@ class SimulationResult:
         names joined, with one unit if they share it, otherwise the unit of each in the label and
         the legend).
         """
+        if not names:
+            raise ModelError(f"names: give at least one signal name to plot, got {names!r}; e.g. "
+                             f"result.plot({(self.signals() or ['m.x'])[0]!r})")
+        for n in names:
+            self[n]                          # UnknownNameError listing the signals, before a figure opens
         fig, ax = _axes(ax)
         units = [self.unit(n) for n in names]
         shared = len(set(units)) == 1
@@ -563,6 +584,7 @@ def load(path: str | os.PathLike) -> SimulationResult | FrequencyResponse:
                 format_version=contents.version)
     if contents.kind == "frequency_response":
         meta = contents.dataset_attributes.get("response", {})
+        result_files.check_response_shape(contents, len(meta.get("outputs", ())), len(meta.get("inputs", ())))
         return FrequencyResponse(contents.dataset("omega"), contents.dataset("response"),
                                  tuple(meta.get("inputs", ())), tuple(meta.get("outputs", ())),
                                  attrs.get("system_name", ""), info, stored_units)
@@ -571,5 +593,7 @@ def load(path: str | os.PathLike) -> SimulationResult | FrequencyResponse:
     extra = {name: contents.dataset(f"signals/{name}") for name in names}
     units = {n: stored_units.get(n, "") for n in dict.fromkeys([*system_attrs.get("signal_map", {}), *names])}
     system = StoredSystem(attrs.get("system_name", ""), system_attrs.get("point_names", []), units, system_attrs)
+    result_files.check_time_grid(contents, extra)
     return SimulationResult(contents.dataset("time"), contents.dataset("states"), contents.dataset("velocity"),
                             contents.dataset("acceleration"), system, attrs.get("scheme", ""), info, extra)
+

@@ -12,7 +12,7 @@ from __future__ import annotations
 from typing import Any, Mapping, Sequence
 
 from .control.loops import ControlledChain
-from .control.protocol import Controller
+from .control.protocol import Controller, check_controllers, check_references
 from .capabilities import require_chain
 from .control.simulate import simulate_controlled
 from .errors import ModelError
@@ -79,6 +79,8 @@ def simulate(system: Chain | ControlledChain, t_final: float, dt: float, *, sche
         A failed run (divergence, non-finite state, failing user code), with ``partial_result``.
     """
     require_chain(system, "ctmm.simulate")
+    controllers = check_controllers(controllers)
+    references = check_references(references)
     if coupling != "hold" and not controllers:
         raise ModelError(f"coupling={coupling!r} only applies to co-simulated controllers, but controllers is "
                          f"empty; leave coupling at 'hold' (embedded loops are always solved implicitly)")

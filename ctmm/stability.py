@@ -84,9 +84,9 @@ def unstable_root_count(system: ControlledChain, *, loop: str | None = None, gai
     >>> unstable_root_count(system, delay=[0.0, 0.5, 1.5]).tolist()
     [0, 0, 2]
     """
-    gain = None if gain is None else validation.nonempty_array("gain", gain)
-    delay = None if delay is None else validation.nonempty_array("delay", delay)
+    gain, delay = (None if v is None else validation.nonempty_array(n, v) for n, v in (("gain", gain), ("delay", delay)))
     model = LoopCharacteristic(system, loop)
+    weights = None if weights is None else validation.weight_rows("weights", weights, model.weights.size)
     n = n_sets(gain, delay, weights)
     k, tau, w = model.parameters(n, None if gain is None else np.ravel(gain),
                                  None if delay is None else np.ravel(delay), weights)

@@ -246,3 +246,23 @@ def path(name: str, value: Any):
     if isinstance(value, bool) or not isinstance(value, (str, os.PathLike)) or value == "":
         raise ModelError(f"{name} must be a file-system path (str or pathlib.Path), got {_shown(value)}")
     return Path(value)
+
+
+def indices(name: str, value: Any, count: int) -> list[int]:
+    """A sequence of integer indices ``0 <= k < count`` (e.g. mode numbers), or raise."""
+    if isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):
+        raise ModelError(f"{name} must be a sequence of indices (0 to {count - 1}), got {_shown(value)}")
+    items = list(value)
+    bad = [k for k in items if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 0 <= k < count]
+    if bad:
+        raise ModelError(f"{name} must hold indices 0 to {count - 1}, got {bad[0]!r} in {_shown(value)}")
+    return [int(k) for k in items]
+
+
+def weight_rows(name: str, value: Any, n_terms: int) -> np.ndarray:
+    """Weights of shape ``(n_terms,)`` or ``(n_sets, n_terms)`` with finite entries, or raise."""
+    array = finite_array(name, value)
+    if array.ndim not in (1, 2) or array.shape[-1] != n_terms:
+        raise ModelError(f"{name} must have shape (n_terms,) or (n_sets, n_terms) with n_terms = {n_terms} (the "
+                         f"sensor terms of the loop), got shape {array.shape}: {_shown(value)}")
+    return array

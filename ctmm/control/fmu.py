@@ -47,6 +47,8 @@ from .protocol import ControllerStep
 __all__ = ["build_fmu", "fmi_headers_dir", "FMUController", "FMUControllerState", "FMUSnapshot"]
 
 _INTERFACES = ("co-simulation", "model exchange")
+#: Most RK4 steps of a model-exchange FMU per communication step (a larger count is a unit mistake).
+MAX_SOLVER_STEPS_PER_SAMPLE = 1e6
 
 
 class FMUController:
@@ -67,7 +69,8 @@ class FMUController:
         ``fixed`` or ``tunable``), start values of unmapped inputs and of variables with
         ``initial="exact"`` or ``"approx"`` (e.g. initial states).  The value must suit the type:
         a finite number for Real/Float, an integral number within range for Integer types,
-        ``True``/``False`` for Boolean, ``str`` for String.
+        ``True``/``False`` for Boolean, ``str`` for String; and lie within the variable's declared
+        ``min``/``max`` (an enumeration's value must be one of its items).
     sample_time : float, optional
         Communication step size ``h`` [s], > 0; the outputs are held on ``[t, t + h)``.
         Default: the FMU's ``DefaultExperiment stepSize`` (an error if it declares none).  With an
@@ -85,8 +88,8 @@ class FMUController:
         with fixed-step RK4, exact time events and bisection-located state events
         (:mod:`ctmm.control.fmu_model_exchange`; no error control).
     solver_step : float, optional
-        Model exchange only: largest RK4 step [s] (> 0).  Default: the smaller of ``sample_time``
-        and the ``DefaultExperiment stepSize``.
+        Model exchange only: largest RK4 step [s] (> 0, at most 1e6 steps per ``sample_time``).
+        Default: the smaller of ``sample_time`` and the ``DefaultExperiment stepSize``.
     validate : bool, optional
         Check ``modelDescription.xml`` against the FMI schema (default True).  ``False`` accepts a
         description with schema violations that fmpy can still read, at the user's risk.
@@ -162,8 +165,9 @@ class FMUController:
             raise ModelError(f"{what}: direct_feedthrough must be True, False or None, got {direct_feedthrough!r}")
         if instance_name is None:
             instance_name = identifier
-        if not isinstance(instance_name, str) or not instance_name.strip():
-            raise ModelError(f"{what}: instance_name must be a non-empty str, got {instance_name!r}")
+        if not isinstance(instance_name, str) or not instance_name.strip() or "\0" in instance_name:
+            raise ModelError(f"{what}: instance_name must be a non-empty str without NUL characters, "
+                             f"got {instance_name!r}")
 
         # last: touch the file system (every earlier error leaves nothing behind)
         if fmu_path.is_dir():
@@ -251,7 +255,11 @@ class FMUController:
             experiment = description.defaultExperiment
             default = getattr(experiment, "stepSize", None) if experiment is not None else None
             return min(h, float(default)) if default else h
-        return _checked(validation.positive, "solver_step", solver_step, what)
+        step = _checked(validation.positive, "solver_step", solver_step, what)
+        if h / step > MAX_SOLVER_STEPS_PER_SAMPLE:
+            raise ModelError(f"{what}: solver_step={solver_step!r} s gives {h / step:.3g} RK4 steps per sample_time "
+                             f"{h!r} s; at most {MAX_SOLVER_STEPS_PER_SAMPLE:.0e} are allowed (check the unit)")
+        return step
 
     @staticmethod
     def _sample_time(sample_time: float | None, description: Any, interface: str, what: str) -> float:

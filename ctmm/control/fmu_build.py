@@ -188,7 +188,10 @@ def _build(root: Path, source: Path, output_dir: str | os.PathLike | None, compi
 
     name = libraries[0].identifier
     target_dir = Path(output_dir) if output_dir is not None else cache_directory(subfolder="fmu") / key[:20]
-    target_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        target_dir.mkdir(parents=True, exist_ok=True)
+    except (OSError, ValueError) as exc:    # a file in the way, read-only parent, NUL in the name
+        raise ModelError(f"output_dir {str(target_dir)!r} cannot be used as a folder: {exc}") from None
     target = target_dir / f"{name}.fmu"
     stamp = target_dir / f"{name}.fmu.sha256"
     if target.is_file() and stamp.is_file() and stamp.read_text().strip() == key:

@@ -131,6 +131,24 @@ def _settable(variable: Any) -> bool:
     return variable.causality in ("local", "output") and variable.initial in ("exact", "approx")
 
 
+def _within_declared_range(variable: Any, value: float, label: str) -> None:
+    """Refuse a value outside the variable's declared ``min``/``max`` or enumeration items."""
+    declared = getattr(variable, "declaredType", None)
+    low = getattr(variable, "min", None)
+    high = getattr(variable, "max", None)
+    low = getattr(declared, "min", None) if low is None else low
+    high = getattr(declared, "max", None) if high is None else high
+    if (low is not None and value < float(low)) or (high is not None and value > float(high)):
+        raise ModelError(f"{label} = {value!r} is outside the range the FMU declares for it: "
+                         f"[{'-inf' if low is None else low}, {'inf' if high is None else high}]")
+    items = getattr(declared, "items", None) if variable.type == "Enumeration" else None
+    if items:
+        allowed = sorted(int(item.value) for item in items)
+        if int(value) not in allowed:
+            raise ModelError(f"{label} = {value!r} is not an item of the enumeration "
+                             f"{getattr(declared, 'name', '')!r}; allowed: {allowed}")
+
+
 def convert_start_value(variable: Any, value: Any, major: int, what: str) -> Any:
     """Convert a user value for ``variable`` to its FMI type (float, int, bool or str)."""
     label = f"{what}: parameters[{variable.name!r}]"
@@ -150,6 +168,7 @@ def convert_start_value(variable: Any, value: Any, major: int, what: str) -> Any
         raise ModelError(f"{label} must be a real number, got {value!r}")
     if not math.isfinite(value):
         raise ModelError(f"{label} must be finite, got {value!r}")
+    _within_declared_range(variable, value, label)
     if kind.kind == "float":
         if kind.dtype == np.float32 and abs(value) > float(np.finfo(np.float32).max):
             raise ModelError(f"{label} = {value!r} is outside the Float32 range +-3.4e38")

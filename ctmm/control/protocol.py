@@ -19,7 +19,7 @@ Semantics of one call ``u, state = controller.step(t, y, state)``:
 """
 from __future__ import annotations
 
-from typing import Any, NamedTuple, Protocol, runtime_checkable
+from typing import Any, Mapping, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -106,3 +106,32 @@ def check_controllers(controllers: Any) -> list:
             validation.positive(f"{where}.sample_time", sample_time)
         validation.flag(f"{where}.direct_feedthrough", getattr(c, "direct_feedthrough", None))
     return list(controllers)
+
+
+def check_references(references: Any) -> dict:
+    """Validate the ``references`` option of a controlled run (the loop names are checked later).
+
+    Parameters
+    ----------
+    references : mapping or None
+        ``{loop name: r(t)}`` reference signals [sensed unit].
+
+    Returns
+    -------
+    dict
+        The references (empty for ``None``).
+
+    Raises
+    ------
+    ModelError
+        ``references`` is not a mapping or ``None``, or a key is not a loop name (str).
+    """
+    if references is None:
+        return {}
+    if not isinstance(references, Mapping):
+        raise ModelError(f"references must be a mapping {{loop name: reference signal}} or None, "
+                         f"got {references!r}")
+    for name in references:
+        if not isinstance(name, str):
+            raise ModelError(f"references must be keyed by loop names (str), got the key {name!r}")
+    return dict(references)

@@ -34,7 +34,7 @@ from ..assembly import SOLVERS, predicted_forces, shift_forces
 from ..capabilities import require_chain
 from ..elements.base import Linearisation
 from ..elements.lumped import PointElement
-from ..errors import ModelError, SimulationError
+from ..errors import ModelError, SimulationError, unknown_name
 from ..results import SimulationResult
 from ..schemes import History, as_scheme
 from ..signals import as_signal
@@ -43,7 +43,7 @@ from ..timestep import simulate as simulate_plant
 from .cosim import CoSimulation
 from .history import DelayHistory
 from .loops import ControlledChain
-from .protocol import Controller, check_controllers
+from .protocol import Controller, check_controllers, check_references
 
 
 class _TustinLTI:
@@ -158,6 +158,7 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
     require_chain(system, "simulate_controlled")
     system = require_system(system)
     controllers = check_controllers(controllers)
+    references = check_references(references)
     dt = validation.positive("dt", dt)
     validation.step_count(validation.finite("t_final", t_final), validation.finite("t0", t0), dt)
     controlled = system if isinstance(system, ControlledChain) else ControlledChain(system, [])
@@ -167,9 +168,12 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
         raise ModelError(f"coupling must be 'hold' or 'previous', got {coupling!r}")
     d = plant.layout.half
     refs = {}
-    for name, value in (references or {}).items():
-        controlled.loop(name)
-        refs[name] = as_signal(f"reference of loop {name!r}", value)
+    for name, value in references.items():
+        loop_names = [loop.name for loop in controlled.loops]
+        if name not in loop_names:
+            error = unknown_name("loop", name, loop_names)
+            raise type(error)(f"references[{name!r}]: {error}")
+        refs[name] = as_signal(f"references[{name!r}] (reference of loop {name!r})", value)
     loops = controlled._resolved
     realtime = [r for r in loops if r.loop.delay < dt]
     delayed = [r for r in loops if r.loop.delay >= dt]

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import validation
 from ..errors import ModelError, SimulationError
 
 RK4_STABILITY_LIMIT = 2.785
@@ -19,10 +20,22 @@ def _coordinates(model, q) -> np.ndarray:
     return array
 
 
+def _modal_beam_index(model, beam: str) -> int:
+    """Body index of the modal beam called ``beam``, else ModelError listing the modal beams."""
+    beams = getattr(model, "beams", None)
+    if not isinstance(beams, dict) or not callable(getattr(model, "body_index", None)):
+        raise ModelError(f"model must be a PlanarModel with modal beams, got {model!r}")
+    names = [b.name for b in beams.values()]
+    if not isinstance(beam, str) or beam not in names:
+        raise ModelError(f"beam must name a modal beam (ModalBeam) of the model, got {beam!r}; modal beams: "
+                         f"{', '.join(names) or '(none)'}")
+    return model.body_index(beam)
+
+
 def tip_deflection(model, q, beam: str) -> np.ndarray:
     """Transverse tip deflection ``phi(L) . q`` [m] of ``beam`` in its floating frame, for one
     state ``q`` or a history ``(n_times, n_coordinates)``."""
-    j = model.body_index(beam)
+    j = _modal_beam_index(model, beam)
     d = model.beams[j].data
     q = _coordinates(model, q)
     return q[..., model.modal_index[j][:d.nq]] @ d.tip_phi
@@ -31,7 +44,7 @@ def tip_deflection(model, q, beam: str) -> np.ndarray:
 def axial_tip_displacement(model, q, beam: str) -> np.ndarray:
     """Axial tip displacement ``psi(L) . p - 1/2 int_0^L (phi' . q)^2 dx`` [m]: elastic stretch
     plus the second-order foreshortening of the bent axis (post-processed, not in the state)."""
-    j = model.body_index(beam)
+    j = _modal_beam_index(model, beam)
     b = model.beams[j]
     d = b.data
     q = np.atleast_2d(_coordinates(model, q))
@@ -95,8 +108,13 @@ def mape(y, y_ref, *, floor: float = 0.1) -> float:
     Fig. 3) restricted to samples away from the zero crossings of the reference, where the
     relative error is undefined (``floor = 0.1`` by default; ``docs/flexible.md``).
     """
-    y = np.asarray(y, dtype=float)
-    y_ref = np.asarray(y_ref, dtype=float)
+    y = validation.finite_array("y", y)
+    y_ref = validation.finite_array("y_ref", y_ref)
+    floor = validation.in_range("floor", floor, 0.0, 1.0, low_open=True)
+    if y.shape != y_ref.shape or y.size == 0 or not np.any(y_ref):
+        raise ModelError(f"y and y_ref must be non-empty, of the same shape, with y_ref not all zero; got "
+                         f"y = {y.tolist()!r:.80} (shape {y.shape}) and y_ref = {y_ref.tolist()!r:.80} "
+                         f"(shape {y_ref.shape})")
     mask = np.abs(y_ref) >= floor * np.max(np.abs(y_ref))
     return float(100.0 * np.mean(np.abs(y[mask] - y_ref[mask]) / np.abs(y_ref[mask])))
 
@@ -105,7 +123,7 @@ def spinup_law(final_rate: float = 6.0, ramp_time: float = 15.0):
     """Scalar ``(angle, rate, acceleration)`` functions of the Kane-Ryan-Banerjee spin-up
     (FORMULAS 6.1), for :class:`~ctmm.planar.DrivenHinge` (plain ``math``: fast per call)."""
     import math
-    W, T = float(final_rate), float(ramp_time)
+    W, T = validation.finite("final_rate", final_rate), validation.positive("ramp_time", ramp_time)
     w = 2 * math.pi / T
 
     def angle(t):

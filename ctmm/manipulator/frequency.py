@@ -42,6 +42,9 @@ from ..system import Chain
 from .laws import HubPD, PZTFeedback
 from .parameters import Manipulator
 
+#: Most beam fields :func:`plant_chain` builds from ``max_piece`` (a larger count is a unit mistake).
+MAX_PIECES = 100_000
+
 __all__ = ["RigidHub", "plant_chain", "LinearManipulator"]
 
 
@@ -116,6 +119,11 @@ def plant_chain(manipulator: Manipulator, *, name: str = "manipulator", max_piec
     if not isinstance(manipulator, Manipulator):
         raise ModelError(f"manipulator must be a Manipulator, got {manipulator!r}")
     arm, hub = manipulator.arm, manipulator.hub
+    if max_piece is not None:
+        max_piece = validation.positive("max_piece", max_piece)
+        if arm.length / max_piece > MAX_PIECES:
+            raise ModelError(f"max_piece={max_piece!r} m splits the {arm.length:g} m arm into about "
+                             f"{arm.length / max_piece:.3g} fields; at most {MAX_PIECES:.0e} are allowed")
     elements: list[Element] = [BeamPinned("pivot"), RigidHub("hub", hub.inertia, hub.radius)]
     x = 0.0
     k = 0

@@ -371,7 +371,7 @@ def seed_manipulator(*, n_patches: int = 3, kelvin_voigt_time: float = 2e-4,
     2 kg m^2 (motor and gearbox reflected inertia) with 50 mm radius, ``n_patches`` (0..3)
     PZT-5H patches 0.5 mm x 100 mm at 20-120, 300-400 and 550-650 mm, limit 200 V.
     """
-    if n_patches not in (0, 1, 2, 3):
+    if isinstance(n_patches, bool) or n_patches not in (0, 1, 2, 3):
         raise ModelError(f"n_patches must be 0..3, got {n_patches!r}")
     arm = Arm(kelvin_voigt_time=kelvin_voigt_time)
     patches = tuple(PZTPatch(name, a, b) for name, a, b in SEED_PATCHES[:n_patches])
