@@ -400,7 +400,7 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
              t0: float = 0.0, solver: str = "riccati", fast: bool | None = None,
              force_hook: ForceHook | None = None, progress: bool | None = None,
              stability_check: str | None = None, divergence_bound: float | None = None,
-             _step=None, _after_step=None, _system_for_result=None,
+             _step=None, _before_step=None, _after_step=None, _system_for_result=None,
              _divergence_hint: str = "") -> SimulationResult:
     """Simulate a chain with the discrete-time transfer matrix method.
 
@@ -454,9 +454,7 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
         Bad input, or a step beyond the scheme's stability limit with ``stability_check="error"``.
     """
     system = require_system(system, controlled=False)
-    t_final = validation.finite("t_final", t_final)
-    dt = validation.positive("dt", dt)
-    t0 = validation.finite("t0", t0)
+    t_final, dt, t0 = validation.finite("t_final", t_final), validation.positive("dt", dt), validation.finite("t0", t0)
     if t_final <= t0:
         raise ModelError(f"t_final must be > t0={t0}, got {t_final!r}")
     validation.step_count(t_final, t0, dt, bytes_per_step=8.0 * system.n_points * 2 * system.layout.size)
@@ -466,8 +464,7 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
     force_hook = validation.callable_or_none("force_hook", force_hook)
     scheme = as_scheme(scheme)
     lumped = all(isinstance(e, (PointElement, Connector)) for e in system.body) and system.layout.size == 2
-    if fast is None:
-        fast = lumped and solver == "riccati"
+    fast = (lumped and solver == "riccati") if fast is None else fast
     if fast and not (lumped and solver == "riccati"):
         raise ModelError("fast=True needs a 1-D chain of lumped elements and solver='riccati'")
     if (t_final - t0) / dt > MAX_STEPS:
@@ -501,6 +498,8 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
         cache: dict = {}
         for i in range(n_steps):
             t_n = times[i]
+            if _before_step is not None:      # may restart history.a at a load discontinuity
+                _before_step(i, float(t_n), history)
             coeffs = scheme.coefficients(history, dt)
             t_eval = t_n + coeffs.unknown_offset
             w = coeffs.load_weight

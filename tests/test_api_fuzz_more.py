@@ -247,11 +247,6 @@ def test_feedthrough_as_a_proportional_controller(version):
 
 
 @needs_reference
-@pytest.mark.xfail(strict=True, reason="the Newmark step that follows a sample instant averages the accelerations "
-                   "before and after the jump of the held force, which delays every switch of the held output by "
-                   "dt/2 (checked: the run equals the exact ZOH loop with switches at t_j + dt/2 to O(dt^2)), so a "
-                   "ZOH loop converges at first order in dt; re-evaluating the start acceleration with the new "
-                   "force at each sample instant (in the stepper, issue 12) would restore order 2")
 def test_feedthrough_loop_converges_at_second_order_in_dt():
     h = 0.01
     controller = FMUController(fmu(2, "Feedthrough"), inputs={"Float64_continuous_input": "m.x"},
@@ -285,8 +280,8 @@ def test_dahlquist_drives_the_plant_in_both_interfaces(version):
         exact = zoh_response(0.0, h, 10, lambda j, x: samples[j, 1])
         finer = ctmm.simulate(plant(), 1.0, 0.0025, controllers=[controller])
         errors = [np.max(np.abs(r["m.x"][::round(h / dt)] - exact)) for r, dt in ((run, 0.01), (finer, 0.0025))]
-        assert errors[0] < 0.015 * np.max(np.abs(exact))   # first order in dt (see the strict xfail below)
-        assert errors[1] < errors[0] / 3.0
+        assert errors[0] < 0.015 * np.max(np.abs(exact))
+        assert errors[1] < errors[0] / 10.0           # second order: the acceleration restarts at each sample
 
 
 @needs_reference

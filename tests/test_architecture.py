@@ -367,7 +367,7 @@ LONG_MODULES: dict[str, int] = {
     "ctmm.roots": 605,
     "ctmm.stability": 694,
     "ctmm.stability_chart": 714,
-    "ctmm.timestep": 710,
+    "ctmm.timestep": 709,
 }
 
 

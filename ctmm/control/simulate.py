@@ -326,6 +326,26 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
             store["u"][r.index].append(u_now)
         cosim.after_step(t, history, f)
 
+    held_before: dict[int, float] = {}
+    masses = {pos: e.mass for pos, e in enumerate(plant.elements) if isinstance(e, PointElement) and e.mass > 0}
+
+    def before_step(i: int, t_n: float, history: History) -> None:
+        """Restart the acceleration where a held controller output jumps at ``t_n``.
+
+        The scheme's predictor uses ``a_n``, the acceleration at ``t_n`` under the force held
+        BEFORE the sample; a zero-order hold switches the force at ``t_n``, so ``a_n`` is replaced
+        by ``a_n + dF / m`` (positions and velocities are continuous; only the point's own force
+        changes).  Without this restart every switch acts ``dt/2`` late and a sampled loop
+        converges at first order in ``dt`` instead of the scheme's order."""
+        now = cosim.forces(t_n, history, _last_f[0])
+        if i > 0:
+            for pos in set(now) | set(held_before):
+                jump = now.get(pos, 0.0) - held_before.get(pos, 0.0)
+                if jump != 0.0 and pos in masses:
+                    history.a[pos - 1:pos + 1] += jump / masses[pos]
+        held_before.clear()
+        held_before.update(now)
+
     hints = []
     if loops:
         hints.append(f"the closed loop(s) {[r.loop.name for r in loops]} may be unstable: check "
@@ -337,6 +357,7 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
         result = simulate_plant(plant, t_final, dt, scheme=scheme, x0=x0, v0=v0, t0=t0,
                                 force_hook=force_hook, progress=progress,
                                 _step=step if realtime else None, _after_step=after_step,
+                                _before_step=before_step if len(cosim.master) else None,
                                 fast=None if not realtime else False, _system_for_result=controlled,
                                 stability_check=stability_check, divergence_bound=divergence_bound,
                                 _divergence_hint=" ".join(hints))
