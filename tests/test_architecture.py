@@ -275,10 +275,6 @@ def all_violations(sources=SOURCES, **options) -> tuple[list[Violation], dict]:
 # --------------------------------------------------------------------------------------------------
 ALLOWED: dict[tuple[str, str], str] = {
     # import cycles (plan §1.5; removed by S1d: shared chain assembly moves to forms/frequency)
-    ("cycle", "ctmm.frequency -> ctmm.natural"):
-        "bottom import of the Wittrick-Williams counters; natural needs frequency's assembly helpers",
-    ("cycle", "ctmm.natural -> ctmm.frequency"):
-        "natural reuses frequency's chain assembly (_MatrixCache, _assemble_body, ...) until forms/frequency",
     ("lazy cycle", "ctmm.certification -> ctmm.control.analysis"):
         "certified state-space check needs actuator_inputs; analysis depends on stability/certification",
     ("lazy cycle", "ctmm.certification -> ctmm.interop"):
@@ -306,22 +302,10 @@ ALLOWED: dict[tuple[str, str], str] = {
         "PID shares the PD controller's parameter check",
     ("private import", "ctmm.controllers.pid: _signal_names from ctmm.controllers.pd"):
         "PID shares the PD controller's signal-name check",
-    ("private import", "ctmm.frequency: _count from ctmm.natural"):
-        "old location of the Wittrick-Williams counter, re-exported (tests import it from frequency)",
-    ("private import", "ctmm.frequency: _lumped_count from ctmm.natural"):
-        "old location of the scalar Wittrick-Williams counter, re-exported (tests import it from frequency)",
     ("private import", "ctmm.manipulator.frequency: _as_s from ctmm.elements.beams"):
         "complex-frequency argument check shared with the beam elements",
     ("private import", "ctmm.manipulator.frequency: _identity from ctmm.elements.beams"):
         "identity transfer matrix helper shared with the beam elements",
-    ("private import", "ctmm.natural: _MatrixCache from ctmm.frequency"):
-        "natural reuses frequency's transfer-matrix cache (S1d: forms/frequency)",
-    ("private import", "ctmm.natural: _as_s from ctmm.frequency"):
-        "natural reuses frequency's complex-frequency argument check (S1d)",
-    ("private import", "ctmm.natural: _assemble_body from ctmm.frequency"):
-        "natural reuses frequency's chain-body assembly (S1d: forms/frequency)",
-    ("private import", "ctmm.natural: _subdivided from ctmm.frequency"):
-        "natural reuses frequency's element subdivision (S1d: forms/frequency)",
     ("private import", "ctmm.planar.compiled: _initial from ctmm.planar.integrate"):
         "integrator initial-state helper shared by the planar integrators (S1c: ode.py)",
     ("private import", "ctmm.planar.compiled: _steps from ctmm.planar.integrate"):
