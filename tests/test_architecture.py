@@ -274,7 +274,7 @@ def all_violations(sources=SOURCES, **options) -> tuple[list[Violation], dict]:
 # Today's violations: this list may only shrink (issue 12, docs/plans/one_core.md §1.5-1.7, §5)
 # --------------------------------------------------------------------------------------------------
 ALLOWED: dict[tuple[str, str], str] = {
-    # import cycles (plan §1.5; removed by S1d: shared chain assembly moves to forms/frequency)
+    # import cycles (plan §1.5; frequency <-> natural and results -> ctmm removed in S1d)
     ("lazy cycle", "ctmm.certification -> ctmm.control.analysis"):
         "certified state-space check needs actuator_inputs; analysis depends on stability/certification",
     ("lazy cycle", "ctmm.certification -> ctmm.interop"):
