@@ -26,7 +26,7 @@ SignalLike = Union[float, int, Callable[[float], float]]
 __all__ = ["SaturatedPD", "SaturatedPDState"]
 
 
-def _signal_names(argument: str, value: Any, count: int, example: str) -> tuple[str, ...]:
+def signal_names(argument: str, value: Any, count: int, example: str) -> tuple[str, ...]:
     """Return ``value`` as a tuple of ``count`` ctmm signal names or raise :class:`ModelError`.
 
     A single string is accepted when ``count == 1``.
@@ -56,7 +56,7 @@ def saturate(u: float, limit: float | None) -> tuple[float, bool]:
     return u, False
 
 
-def _optional_positive(argument: str, value: Any) -> float | None:
+def optional_positive(argument: str, value: Any) -> float | None:
     """``None`` or a finite float > 0."""
     return None if value is None else validation.positive(argument, value)
 
@@ -136,12 +136,12 @@ class SaturatedPD:
 
     def __post_init__(self) -> None:
         setter = object.__setattr__
-        setter(self, "inputs", _signal_names("inputs", self.inputs, 2, "('m6.x', 'm6.v')"))
-        setter(self, "outputs", _signal_names("outputs", self.outputs, 1, "('m2.force',)"))
+        setter(self, "inputs", signal_names("inputs", self.inputs, 2, "('m6.x', 'm6.v')"))
+        setter(self, "outputs", signal_names("outputs", self.outputs, 1, "('m2.force',)"))
         setter(self, "kp", validation.finite("kp", self.kp))
         setter(self, "kd", validation.finite("kd", self.kd))
-        setter(self, "limit", _optional_positive("limit", self.limit))
-        setter(self, "sample_time", _optional_positive("sample_time", self.sample_time))
+        setter(self, "limit", optional_positive("limit", self.limit))
+        setter(self, "sample_time", optional_positive("sample_time", self.sample_time))
         setter(self, "_r", as_signal("reference", self.reference))
         setter(self, "_rdot", as_signal("reference_rate", self.reference_rate))
 

@@ -30,7 +30,7 @@ from ctmm.control.protocol import ControllerStep
 from ctmm.errors import SimulationError
 from ctmm.signals import as_signal
 
-from .pd import _optional_positive, _signal_names, saturate
+from .pd import optional_positive, signal_names, saturate
 
 SignalLike = Union[float, int, Callable[[float], float]]
 
@@ -112,15 +112,15 @@ class PID:
 
     def __post_init__(self) -> None:
         setter = object.__setattr__
-        setter(self, "inputs", _signal_names("inputs", self.inputs, 1, "('m6.x',)"))
-        setter(self, "outputs", _signal_names("outputs", self.outputs, 1, "('m2.force',)"))
+        setter(self, "inputs", signal_names("inputs", self.inputs, 1, "('m6.x',)"))
+        setter(self, "outputs", signal_names("outputs", self.outputs, 1, "('m2.force',)"))
         setter(self, "kp", validation.finite("kp", self.kp))
         setter(self, "ki", validation.finite("ki", self.ki))
         setter(self, "kd", validation.finite("kd", self.kd))
         setter(self, "derivative_filter_time",
                validation.nonnegative("derivative_filter_time", self.derivative_filter_time))
         setter(self, "sample_time", validation.positive("sample_time", self.sample_time))
-        setter(self, "limit", _optional_positive("limit", self.limit))
+        setter(self, "limit", optional_positive("limit", self.limit))
         setter(self, "_r", as_signal("reference", self.reference))
 
     @property

@@ -10,10 +10,10 @@ from .frequency import (characteristic_function, eigenvalue_count, frequency_res
                         steady_state_response)
 from .system import Chain
 from .simulation import simulate
+from .version import __version__
 
 from . import control, stability  # noqa: E402  (submodules used as ctmm.control / ctmm.stability)
 
-__version__ = "0.1.0"
 __all__ = ["Chain", "simulate", "characteristic_function", "frequency_response", "natural_frequencies", "mode_shapes", "eigenvalue_count",
            "steady_state_response", "signals", "ModelError", "SimulationError", "ConvergenceError",
            "SingularSystemError", "UnknownNameError", "control", "stability", "__version__"]

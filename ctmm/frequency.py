@@ -1,7 +1,7 @@
 """Frequency domain (linear MSTMM): forced response, FRFs, natural frequencies, mode shapes.
 
 All functions evaluate every element's ``U(s)`` for the whole frequency vector at once and
-solve the chain by batched Riccati transfer (:mod:`ctmm.assembly`).
+solve the chain by batched Riccati transfer (:mod:`ctmm.chain_assembly`, :mod:`ctmm.assembly`).
 
 Natural frequencies, their counting and mode shapes live in :mod:`ctmm.natural` (re-exported here).
 """
@@ -13,151 +13,14 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from . import validation
-from .assembly import SOLVERS, BoundaryEnd, BoundaryStart, ChainSolution
+from .assembly import SOLVERS
 from .capabilities import require_chain
+from .chain_assembly import assemble, laplace_variables, solve  # noqa: F401  (assemble, solve: public here too)
 from .errors import ModelError
+from .natural import eigenvalue_count, mode_shapes, natural_frequencies  # noqa: F401  (re-exported)
 from .results import FrequencyResponse
 from .signal_units import signal_unit
 from .system import Chain, require_system
-
-def _as_s(omega: Any, name: str = "omega") -> np.ndarray:
-    return 1j * validation.frequencies(name, omega)
-
-
-def assemble(system: Chain, s: np.ndarray, amplitudes: Mapping[int, Mapping[str, Any]] | None = None, *,
-             subdivide: bool = False):
-    """Element matrices and boundary relations of ``system`` at Laplace variables ``s``.
-
-    Parameters
-    ----------
-    system : Chain
-    s : ndarray
-        1-D array of Laplace variables [1/s].
-    amplitudes : mapping, optional
-        ``{element position: {input name: phasor}}``.
-    subdivide : bool
-        Replace every element by the pieces of its :meth:`~ctmm.elements.base.Element.subdivide`
-        hook for ``omega_max = max |s|`` (e.g. a long :class:`~ctmm.elements.beams.BeamField`
-        by pieces of ``β <= 4``), so that the Riccati transfer stays exact at high frequency.
-        The returned lists then hold one entry per *piece*; :func:`_subdivided` gives the
-        piece index of every connection point.  Ignored for controlled chains.
-
-    Returns
-    -------
-    Us, us, start, end
-        Inputs of :func:`ctmm.assembly.riccati_solve`.
-    """
-    amplitudes = amplitudes or {}
-    if hasattr(system, "assemble_frequency"):  # controlled systems extend the plant's matrices
-        return system.assemble_frequency(s, amplitudes)
-    s = np.asarray(s)
-    if subdivide:
-        omega_max = float(np.max(np.abs(s), initial=0.0))
-        body, points = _subdivided(system, omega_max)
-    else:
-        body, points = list(system.body), list(range(len(system.body) + 1))
-    return _assemble_body(system, body, points, s, amplitudes)
-
-
-def _subdivided(system: Chain, omega_max: float) -> tuple[list, list[int]]:
-    """Body elements after the :meth:`~ctmm.elements.base.Element.subdivide` hook and, for each
-    connection point ``0..N`` of ``system``, its index among the pieces' connection points."""
-    body, points = [], [0]
-    for element in system.body:
-        hook = getattr(element, "subdivide", None)
-        pieces = list(hook(omega_max)) if hook is not None and omega_max > 0 else [element]
-        body.extend(pieces)
-        points.append(len(body))
-    return body, points
-
-
-class _MatrixCache:
-    """``U(s)`` per element object, evaluated once (subdivided pieces are one repeated object)."""
-
-    def __init__(self, s: np.ndarray) -> None:
-        self.s = s
-        self._cache: dict[int, tuple[Any, np.ndarray]] = {}
-
-    def __call__(self, element) -> np.ndarray:
-        hit = self._cache.get(id(element))
-        if hit is None or hit[0] is not element:
-            hit = (element, np.asarray(element.transfer_matrix(self.s), dtype=complex))
-            self._cache[id(element)] = hit
-        return hit[1]
-
-
-def _assemble_body(system: Chain, body: Sequence, points: Sequence[int], s: np.ndarray,
-                   amplitudes: Mapping[int, Mapping[str, Any]]):
-    layout = system.layout
-    owner = {}  # piece index -> position of the system element it belongs to
-    for pos in range(1, len(points)):
-        for j in range(points[pos - 1], points[pos]):
-            owner[j] = pos
-    Us, us = [], []
-    matrices = _MatrixCache(s)
-    for j, element in enumerate(body):
-        pos = owner[j]
-        amps = amplitudes.get(pos, {})
-        if amps and points[pos] - points[pos - 1] > 1:
-            raise ModelError(f"element {system.elements[pos].name!r} is subdivided and cannot take loads")
-        Us.append(matrices(element))
-        us.append(np.asarray(element.load_vector(s, amps), dtype=complex))
-    e_idx, S0, P0 = system.start.start(layout, s, amplitudes.get(0, {}))
-    Bm, b = system.end.end(layout, s, amplitudes.get(len(system.elements) - 1, {}))
-    return Us, us, BoundaryStart(e_idx, S0, P0), BoundaryEnd(Bm, b)
-
-
-def solve(system: Chain, s: np.ndarray, amplitudes=None, *, solver: str = "riccati",
-          want_log_det: bool = False) -> ChainSolution:
-    """States at every connection point for harmonic loads (phasors), batched over ``s``
-    (with ``want_log_det``, the Riccati solvers also return the characteristic log-determinant)."""
-    solver = validation.option("solver", solver, SOLVERS)
-    if solver == "riccati" and not hasattr(system, "assemble_frequency") and _lumped(system):
-        sol = _solve_lumped(system, np.asarray(s, dtype=complex), amplitudes or {}, want_log_det)
-    else:
-        Us, us, start, end = assemble(system, s, amplitudes)
-        sol = SOLVERS[solver](Us, us, start, end, want_log_det=want_log_det) if solver == "riccati" else \
-            SOLVERS[solver](Us, us, start, end)
-    index = getattr(system, "state_index", None)
-    if index is not None:  # controlled chains interleave sensing matrices: keep the points only
-        sol.states = sol.states[np.asarray(index)]
-    return sol
-
-
-def _lumped(system) -> bool:
-    from .elements.lumped import Connector, PointElement
-
-    return system.layout.size == 2 and all(isinstance(e, (PointElement, Connector)) for e in system.body)
-
-
-def _solve_lumped(system: Chain, s: np.ndarray, amplitudes: Mapping, want_log_det: bool = False) -> ChainSolution:
-    """Riccati solve of a 1-D lumped chain from element scalars (impedance, compliance).
-
-    Same recursion as :func:`ctmm.assembly.riccati_solve`; the unit and zero entries of the
-    element matrices stay Python scalars instead of ``(B, 2, 2)`` arrays.
-    """
-    from .assembly import riccati_scalar_entries
-    from .elements.lumped import Connector
-
-    e_idx, S0, P0 = system.start.start(system.layout, s, amplitudes.get(0, {}))
-    Bm, b = system.end.end(system.layout, s, amplitudes.get(len(system.elements) - 1, {}))
-    e = e_idx[0]
-    f = 1 - e
-    entries = []
-    for pos, element in enumerate(system.body, start=1):
-        load = amplitudes.get(pos, {}).get("force", 0.0)
-        if isinstance(element, Connector):   # x_out = x_in - F/k_c (+ F_act/k_c)
-            compliance = 1.0 / element.connector_stiffness(s)
-            ux, uF = (load * compliance if load else 0.0), 0.0
-            Uxx, UxF, UFx, UFF = 1.0, -compliance, 0.0, 1.0
-        else:                                # F_out = F_in - Z x + F
-            Uxx, UxF, UFx, UFF = 1.0, 0.0, -element.impedance(s), 1.0
-            ux, uF = 0.0, load
-        if f == 0:   # partition f = x (displacement known at the start), e = force
-            entries.append((Uxx, UxF, UFx, UFF, ux, uF))
-        else:        # f = force, e = x
-            entries.append((UFF, UFx, UxF, Uxx, uF, ux))
-    return riccati_scalar_entries(entries, BoundaryStart(e_idx, S0, P0), BoundaryEnd(Bm, b), f, e, want_log_det)
 
 
 def _output_value(system, states: np.ndarray, s: np.ndarray, name: str,
@@ -206,7 +69,7 @@ def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],
     inputs = validation.names("input", input)
     outputs = validation.names("output", output)
     solver = validation.option("solver", solver, SOLVERS)
-    s = _as_s(omega)
+    s = laplace_variables(omega)
     for o in outputs:
         system.signal(o)
     resolved = [system.input(i) for i in inputs]
@@ -309,6 +172,3 @@ def _scale(system, s: np.ndarray) -> np.ndarray:
             scale = scale * e.connector_stiffness(s)
     return scale
 
-
-from .natural import (_count, _lumped_count, eigenvalue_count, mode_shapes,  # noqa: E402,F401
-                      natural_frequencies)

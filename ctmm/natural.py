@@ -47,7 +47,7 @@ from .capabilities import refuse_damping, refuse_loops
 from .errors import ModelError
 from .results import ModalResult
 from .system import Chain
-from .frequency import _MatrixCache, _as_s, _assemble_body, _subdivided, assemble, solve  # noqa: F401
+from .chain_assembly import MatrixCache as _MatrixCache, assemble_body as _assemble_body, subdivided as _subdivided
 
 
 _CLOSED_LOOP = ("ctmm.stability.characteristic_roots(system, re_min=..., im_max=...) or "

@@ -17,6 +17,7 @@ from . import result_files, validation
 from .errors import ModelError, unknown_name
 from .signal_units import label as unit_label, signal_unit
 from .system import Signal
+from .version import __version__
 
 
 def _axes(ax=None, nrows: int = 1):
@@ -497,8 +498,6 @@ def _element_parameters(system: Any) -> list[dict]:
 
 
 def _provenance(system_name: str, info: dict) -> dict[str, Any]:
-    from . import __version__
-
     return {"ctmm_version": __version__, "created_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(),
             "system_name": system_name, "info": dict(info)}
 

@@ -491,7 +491,7 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
         a = initial_acceleration(system, x, v, t0, extra0)
         history = History(x.copy(), v.copy(), a.copy(), [x.copy(), x.copy()], 0)
         states[0, :, :d], vel[0], acc[0] = x, v, a
-        states[0, :, d] = _initial_forces(system, x, v, extra0, a, t0)
+        states[0, :, d] = initial_forces(system, x, v, extra0, a, t0)
         done = 1
         kernel = _LumpedKernel(system) if fast else None
         discrete = None if fast else [e.discretize(scheme) for e in system.body]
@@ -557,7 +557,7 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
     return SimulationResult(times, states, vel, acc, _system_for_result or system, scheme.name, info)
 
 
-def _initial_forces(system: Chain, x: np.ndarray, v: np.ndarray,
+def initial_forces(system: Chain, x: np.ndarray, v: np.ndarray,
                     across: Mapping[int, float] | None = None, a: np.ndarray | None = None,
                     t0: float = 0.0) -> np.ndarray:
     """Internal forces at ``t0`` at every point.

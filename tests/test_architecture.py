@@ -274,13 +274,7 @@ def all_violations(sources=SOURCES, **options) -> tuple[list[Violation], dict]:
 # Today's violations: this list may only shrink (issue 12, docs/plans/one_core.md §1.5-1.7, §5)
 # --------------------------------------------------------------------------------------------------
 ALLOWED: dict[tuple[str, str], str] = {
-    # import cycles (plan §1.5; removed by S1d: shared chain assembly moves to forms/frequency)
-    ("cycle", "ctmm.frequency -> ctmm.natural"):
-        "bottom import of the Wittrick-Williams counters; natural needs frequency's assembly helpers",
-    ("cycle", "ctmm.natural -> ctmm.frequency"):
-        "natural reuses frequency's chain assembly (_MatrixCache, _assemble_body, ...) until forms/frequency",
-    ("lazy cycle", "ctmm.results -> ctmm"):
-        "provenance reads ctmm.__version__ from the package, which imports every verb module",
+    # import cycles (plan §1.5; frequency <-> natural and results -> ctmm removed in S1d)
     ("lazy cycle", "ctmm.certification -> ctmm.control.analysis"):
         "certified state-space check needs actuator_inputs; analysis depends on stability/certification",
     ("lazy cycle", "ctmm.certification -> ctmm.interop"):
@@ -289,16 +283,8 @@ ALLOWED: dict[tuple[str, str], str] = {
         "certified crossovers of control.analysis come from the stability contour search",
     ("lazy cycle", "ctmm.control.fmu_state -> ctmm.control.fmu"):
         "TYPE_CHECKING import for the FMU controller type in annotations",
-    ("lazy cycle", "ctmm.control.loops -> ctmm.frequency"):
-        "the controlled chain assembles its plant through frequency.assemble (plan §1.5 dispatch)",
-    ("lazy cycle", "ctmm.control.simulate -> ctmm.timestep"):
-        "controlled simulation reuses the DT-TMM initial forces/acceleration of timestep",
     ("lazy cycle", "ctmm.interop -> ctmm.control.analysis"):
         "to_state_space of a controlled chain lists its actuator inputs through control.analysis",
-    ("lazy cycle", "ctmm.interop -> ctmm.frequency"):
-        "to_frd evaluates frequency_response; frequency imports results, results imports ctmm",
-    ("lazy cycle", "ctmm.stability -> ctmm.control.simulate"):
-        "crosscheck_by_simulation runs simulate_controlled (a wrapper verb inside stability)",
     ("lazy cycle", "ctmm.stability -> ctmm.interop"):
         "spectral seeds realise the loop as a state space through interop.to_state_space",
     ("lazy cycle", "ctmm.stability -> ctmm.stability_chart"):
@@ -310,28 +296,6 @@ ALLOWED: dict[tuple[str, str], str] = {
     ("package cycle", "ctmm.planar -> ctmm.flexible"):
         "planar model/sweep/integrators dispatch to flexible kernels by lazy imports (plan §1.5)",
     # private names imported across modules (plan §1.6; removed by S1c/S1d)
-    ("private import", "ctmm.control.simulate: _initial_forces from ctmm.timestep"):
-        "controlled simulation reuses the DT-TMM start-up forces (S1d: make public or move)",
-    ("private import", "ctmm.controllers.pid: _optional_positive from ctmm.controllers.pd"):
-        "PID shares the PD controller's parameter check",
-    ("private import", "ctmm.controllers.pid: _signal_names from ctmm.controllers.pd"):
-        "PID shares the PD controller's signal-name check",
-    ("private import", "ctmm.frequency: _count from ctmm.natural"):
-        "old location of the Wittrick-Williams counter, re-exported (tests import it from frequency)",
-    ("private import", "ctmm.frequency: _lumped_count from ctmm.natural"):
-        "old location of the scalar Wittrick-Williams counter, re-exported (tests import it from frequency)",
-    ("private import", "ctmm.manipulator.frequency: _as_s from ctmm.elements.beams"):
-        "complex-frequency argument check shared with the beam elements",
-    ("private import", "ctmm.manipulator.frequency: _identity from ctmm.elements.beams"):
-        "identity transfer matrix helper shared with the beam elements",
-    ("private import", "ctmm.natural: _MatrixCache from ctmm.frequency"):
-        "natural reuses frequency's transfer-matrix cache (S1d: forms/frequency)",
-    ("private import", "ctmm.natural: _as_s from ctmm.frequency"):
-        "natural reuses frequency's complex-frequency argument check (S1d)",
-    ("private import", "ctmm.natural: _assemble_body from ctmm.frequency"):
-        "natural reuses frequency's chain-body assembly (S1d: forms/frequency)",
-    ("private import", "ctmm.natural: _subdivided from ctmm.frequency"):
-        "natural reuses frequency's element subdivision (S1d: forms/frequency)",
     ("private import", "ctmm.planar.compiled: _initial from ctmm.planar.integrate"):
         "integrator initial-state helper shared by the planar integrators (S1c: ode.py)",
     ("private import", "ctmm.planar.compiled: _steps from ctmm.planar.integrate"):
@@ -340,8 +304,6 @@ ALLOWED: dict[tuple[str, str], str] = {
         "integrator initial-state helper shared by the planar integrators (S1c: ode.py)",
     ("private import", "ctmm.planar.implicit: _steps from ctmm.planar.integrate"):
         "integrator step-count helper shared by the planar integrators (S1c: ode.py)",
-    ("private import", "ctmm.planar.model: _Hinge from ctmm.planar.elements"):
-        "the planar model compiles the hinge base class's fields into arrays",
     # modules over MAX_LINES lines (plan §4 splits or deletes each)
     ("long module", "ctmm.elements.beams"):
         "beam field, bending points and boundaries in one file (plan: beam_field, bending)",
@@ -358,7 +320,7 @@ ALLOWED: dict[tuple[str, str], str] = {
 
 #: Allowlisted long modules and their line count when they were listed: they may not grow.
 LONG_MODULES: dict[str, int] = {
-    "ctmm.elements.beams": 679,
+    "ctmm.elements.beams": 678,
     "ctmm.flexible.beam": 647,
     "ctmm.natural": 751,
     "ctmm.planar.model": 671,
@@ -406,6 +368,17 @@ def test_long_modules_do_not_grow(found):
     grown = {m: (lines[m], limit) for m, limit in LONG_MODULES.items() if m in lines and lines[m] > limit}
     assert not grown, ("allowlisted long modules grew (split them instead; lower the recorded count when "
                        "they shrink): " + ", ".join(f"{m}: {n} > {limit} lines" for m, (n, limit) in grown.items()))
+
+
+def test_version_module_matches_pyproject():
+    """``ctmm.version`` (read by results' provenance without importing the package) is the packaged version."""
+    import tomllib
+
+    from ctmm.version import __version__
+    import ctmm
+
+    declared = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["project"]["version"]
+    assert __version__ == declared == ctmm.__version__
 
 
 def test_every_allowlist_entry_has_a_reason():

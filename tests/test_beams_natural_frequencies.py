@@ -263,7 +263,7 @@ def test_subdivide_hook_bounds_beta_and_keeps_the_product():
 def test_assemble_with_subdivision_maps_points_and_refuses_loads_on_split_elements():
     from ctmm.elements import BeamPointLoad
     from ctmm.errors import ModelError
-    from ctmm.frequency import _subdivided
+    from ctmm.chain_assembly import subdivided as _subdivided
 
     system = chain("clamped", "free", beam(), BeamPointLoad("load"))
     s = 1j * np.array([500.0])
@@ -302,7 +302,7 @@ def test_constrained_dofs_of_every_boundary():
 def test_generic_count_equals_the_scalar_lumped_count():
     """The generic (matrix) recursion on 1-D lumped chains equals the scalar fast path."""
     from _chain_convert import random_chain
-    from ctmm.frequency import _count, _lumped_count
+    from ctmm.natural import _count, _lumped_count
 
     for seed, (start, end) in enumerate([("fixed", "free"), ("free", "elastic"), ("elastic", "fixed")]):
         system = random_chain(np.random.default_rng(seed), 30, start=start, end=end, grounded=True)

@@ -416,6 +416,12 @@ def bode_plot(responses: Any, *, margins: Margins | None = None, title: str | No
               hz: bool = False, axes: Any = None):
     """Bode plot (magnitude [dB], phase [deg]) of one or more :class:`FrequencyResponse`.
 
+    Every curve is drawn by :meth:`FrequencyResponse.plot <ctmm.results.FrequencyResponse.plot>`
+    (the one Bode drawing of ctmm), so the axes carry the same labels and units: the magnitude
+    axis reads ``magnitude [dB re 1 <output unit>/<input unit>]`` when every curve has the same
+    unit (``(dimensionless)`` for loop transfer functions); with mixed units each legend entry
+    carries its unit.  Legend entries are ``"<system>: <input> -> <output>"``.
+
     Parameters
     ----------
     responses : FrequencyResponse or sequence of them
@@ -435,14 +441,29 @@ def bode_plot(responses: Any, *, margins: Margins | None = None, title: str | No
     """
     import matplotlib.pyplot as plt
 
+    items = list(responses) if isinstance(responses, (list, tuple)) else [responses]
+    curves = _responses(items)  # checks the items; labels "system: input -> output"
+    pairs = [(item, o, i) for item in items for o in item.outputs for i in item.inputs]
     if axes is None:
         fig, axes = plt.subplots(2, 1, sharex=True, figsize=(7.5, 5.5))
     else:
         fig = axes[0].figure
+    axes = list(axes)
+    drawn_before = [len(ax.get_lines()) for ax in axes]
+    mixed = len({item.response_unit(o, i) for item, o, i in pairs}) > 1
+    for (label, _, _), (item, o, i) in zip(curves, pairs):
+        unit = item.response_unit(o, i)
+        item.plot(axes, output=o, input=i, label=label + (f" [{unit}]" if mixed and unit else ""))
+    if mixed:
+        axes[0].set_ylabel("magnitude [dB re 1 (unit in legend)]")
     scale = 1.0 / (2 * np.pi) if hz else 1.0
-    for label, w, h in _responses(responses):
-        axes[0].semilogx(w * scale, 20 * np.log10(np.abs(h) + 1e-300), label=label)
-        axes[1].semilogx(w * scale, np.degrees(np.unwrap(np.angle(h))), label=label)
+    if hz:  # FrequencyResponse.plot draws against omega [rad/s]: rescale the curves drawn here
+        for ax, before in zip(axes, drawn_before):
+            for line in ax.get_lines()[before:]:
+                line.set_xdata(np.asarray(line.get_xdata()) * scale)
+            ax.relim()
+            ax.autoscale_view()
+        axes[-1].set_xlabel("frequency [Hz]")
     if margins is not None:
         for wc in margins.gain_crossovers:
             axes[0].axvline(wc * scale, color="k", lw=0.6, ls=":")
@@ -454,11 +475,6 @@ def bode_plot(responses: Any, *, margins: Margins | None = None, title: str | No
                 f"DM = {margins.delay_margin * 1e3:.2f} ms" if np.isfinite(margins.gain_margin)
                 else f"GM = inf, PM = {margins.phase_margin:.1f} deg, DM = {margins.delay_margin * 1e3:.2f} ms")
         axes[0].set_title(text, fontsize=9)
-    axes[0].set_ylabel("magnitude [dB]")
-    axes[1].set_ylabel("phase [deg]")
-    axes[1].set_xlabel("frequency [Hz]" if hz else "omega [rad/s]")
-    for ax in axes:
-        ax.grid(True, which="both", alpha=0.3)
     axes[0].legend(fontsize=7)
     if title:
         fig.suptitle(title)

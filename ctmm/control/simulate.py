@@ -400,7 +400,7 @@ def _consistent_start(plant: Chain, loops, lti, refs, x, v, t0: float, forces: M
     solve ``u = -G (y(u) - r)`` exactly.  Returns ``(u, a0, f0, pre)`` with ``pre`` the sensed
     values of the held pre-``t0`` state per loop.
     """
-    from ..timestep import _initial_forces, initial_acceleration
+    from ..timestep import initial_acceleration, initial_forces
 
     def sensed(u: np.ndarray) -> np.ndarray:
         extra = dict(forces)
@@ -408,11 +408,11 @@ def _consistent_start(plant: Chain, loops, lti, refs, x, v, t0: float, forces: M
             for pos, _, weight in r.actuators:
                 extra[pos] = extra.get(pos, 0.0) + weight * u[r.index]
         a = initial_acceleration(plant, x, v, t0, extra)
-        f = np.nan_to_num(_initial_forces(plant, x, v, extra))
+        f = np.nan_to_num(initial_forces(plant, x, v, extra))
         return np.array([_sense(r.sensing, x, v, a, f, d)[0] for r in loops]), a, f
 
     n = len(loops)
-    f_held = np.nan_to_num(_initial_forces(plant, x, v, forces))
+    f_held = np.nan_to_num(initial_forces(plant, x, v, forces))
     pre = {r.index: _sense(r.sensing, x, v, np.zeros_like(x), f_held, d)[0] for r in loops}
     if n == 0:
         a = initial_acceleration(plant, x, v, t0, forces)

@@ -67,7 +67,8 @@ _DOUBLE_ROOT_RATIO = 1e-3
 _SUBDIVISION_BETA = 4.0
 
 
-def _as_s(s: Any) -> np.ndarray:
+def laplace_array(s: Any) -> np.ndarray:
+    """``s`` [1/s] as a complex array; :class:`~ctmm.errors.ModelError` unless it is numeric and finite."""
     try:
         array = np.asarray(s, dtype=complex)
     except (TypeError, ValueError):
@@ -304,13 +305,13 @@ class BeamField(Element):
 
     def effective_bending_stiffness(self, s: Any) -> np.ndarray:
         """``EI* = EI (1 + i η sgn(Im s) + τ s)`` [N m^2] over ``s``."""
-        s = _as_s(s)
+        s = laplace_array(s)
         sign = np.where(s.imag < 0, -1.0, 1.0)
         return self.bending_stiffness * (1 + 1j * self.loss_factor * sign + self.kelvin_voigt_time * s)
 
     def frequency_parameter(self, s: Any) -> np.ndarray:
         """Dimensionless ``c = -(ρA s^2 + c_v s) L^4 / EI*`` (``= (βL)^4`` for undamped ``s = iω``)."""
-        s = _as_s(s)
+        s = laplace_array(s)
         EI = self.effective_bending_stiffness(s)
         return -(self.mass_per_length * s * s + self.viscous_damping * s) * self.length ** 4 / EI
 
@@ -323,7 +324,7 @@ class BeamField(Element):
     # -- frequency domain --------------------------------------------------------------
     def transfer_matrix(self, s: Any) -> np.ndarray:
         """Exact field matrix ``U(s) = expm(A(s) L)``, shape ``np.shape(s) + (4, 4)``."""
-        s = _as_s(s)
+        s = laplace_array(s)
         EI = self.effective_bending_stiffness(s)
         c = self.frequency_parameter(s)
         a = self.axial_force * self.length ** 2 / EI
@@ -434,11 +435,9 @@ def _dynamic_stiffness(U: np.ndarray) -> np.ndarray:
 
 # ----------------------------------------------------------------------------------------
 # point and connector elements
-def _identity(s: np.ndarray) -> np.ndarray:
-    U = np.zeros(np.shape(s) + (4, 4), dtype=complex)
-    for i in range(4):
-        U[..., i, i] = 1.0
-    return U
+def identity_matrices(s: np.ndarray) -> np.ndarray:
+    """Identity transfer matrices, shape ``s.shape + (4, 4)`` (complex), of the bending state."""
+    return np.broadcast_to(np.eye(4, dtype=complex), np.shape(s) + (4, 4)).copy()
 
 
 class BeamPointMass(Element):
@@ -463,8 +462,8 @@ class BeamPointMass(Element):
         return {"mass": self.mass, "rotary_inertia": self.rotary_inertia}
 
     def transfer_matrix(self, s: Any) -> np.ndarray:
-        s = _as_s(s)
-        U = _identity(s)
+        s = laplace_array(s)
+        U = identity_matrices(s)
         U[..., 2, 0] = -self.mass * s * s
         U[..., 3, 1] = -self.rotary_inertia * s * s
         return U
@@ -511,8 +510,8 @@ class BeamSpring(Element):
                 "rotational_damping": self.rotational_damping}
 
     def transfer_matrix(self, s: Any) -> np.ndarray:
-        s = _as_s(s)
-        U = _identity(s)
+        s = laplace_array(s)
+        U = identity_matrices(s)
         U[..., 2, 0] = -(self.translational + self.translational_damping * s)
         U[..., 3, 1] = -(self.rotational + self.rotational_damping * s)
         return U
@@ -545,8 +544,8 @@ class BeamHinge(Element):
         return {"rotational_stiffness": self.rotational_stiffness, "damping": self.damping}
 
     def transfer_matrix(self, s: Any) -> np.ndarray:
-        s = _as_s(s)
-        U = _identity(s)
+        s = laplace_array(s)
+        U = identity_matrices(s)
         U[..., 1, 3] = -1.0 / (self.rotational_stiffness + self.damping * s)
         return U
 
@@ -564,11 +563,11 @@ class BeamPointLoad(Element):
     inputs = ("force", "moment")
 
     def transfer_matrix(self, s: Any) -> np.ndarray:
-        return _identity(_as_s(s))
+        return identity_matrices(laplace_array(s))
 
     def load_vector(self, s: Any, amplitudes: Mapping[str, Any]) -> np.ndarray:
         self.check_inputs(amplitudes)
-        s = _as_s(s)
+        s = laplace_array(s)
         u = np.zeros(s.shape + (4,), dtype=complex)
         u[..., 2] = amplitudes.get("force", 0.0)
         u[..., 3] = amplitudes.get("moment", 0.0)

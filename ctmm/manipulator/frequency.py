@@ -33,7 +33,7 @@ from .. import validation
 from ..control import ControlledChain, Feedback
 from ..control.analysis import Margins, loop_transfer_function, margins
 from ..elements.base import Element
-from ..elements.beams import BeamField, BeamFree, BeamPinned, BeamPointLoad, _as_s, _identity
+from ..elements.beams import BeamField, BeamFree, BeamPinned, BeamPointLoad, identity_matrices, laplace_array
 from ..errors import ModelError, unknown_name
 from ..frequency import frequency_response
 from ..layouts import BENDING
@@ -89,8 +89,8 @@ class RigidHub(Element):
         return {"inertia": self.inertia, "radius": self.radius, "mass": self.mass}
 
     def transfer_matrix(self, s: Any) -> np.ndarray:
-        s = _as_s(s)
-        U = _identity(s)
+        s = laplace_array(s)
+        U = identity_matrices(s)
         r, s2 = self.radius, s * s
         U[..., 0, 1] = r
         U[..., 2, 0] = -self.mass * s2
@@ -101,7 +101,7 @@ class RigidHub(Element):
 
     def load_vector(self, s: Any, amplitudes: Mapping[str, Any]) -> np.ndarray:
         self.check_inputs(amplitudes)
-        s = _as_s(s)
+        s = laplace_array(s)
         u = np.zeros(s.shape + (4,), dtype=complex)
         u[..., 3] = amplitudes.get("torque", 0.0)
         return u

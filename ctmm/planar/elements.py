@@ -178,7 +178,7 @@ class RigidBody:
 # hinges
 # ------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
-class _Hinge:
+class Hinge:
     """Common part of all hinges: the name and the connection (parent end, child body).
 
     ``parent`` is ``"body"`` (its only outboard end), ``"body.end"`` or the name of a
@@ -198,7 +198,7 @@ class _Hinge:
             if value is not None and (not isinstance(value, str) or not value):
                 raise ModelError(f"{self.name}: {attribute} must be a name, got {value!r}")
 
-    def connected(self, parent: str, child: str) -> "_Hinge":
+    def connected(self, parent: str, child: str) -> "Hinge":
         """Copy with the connection filled in (used by the chain builder)."""
         import dataclasses
         return dataclasses.replace(self, parent=parent, child=child)
@@ -210,12 +210,12 @@ class _Hinge:
 
 
 @dataclass(frozen=True)
-class SmoothHinge(_Hinge):
+class SmoothHinge(Hinge):
     """Smooth revolute hinge: relative rotation free, moment ``tau = 0``."""
 
 
 @dataclass(frozen=True, kw_only=True)
-class ElasticHinge(_Hinge):
+class ElasticHinge(Hinge):
     """Rotary spring hinge: ``tau = -stiffness (dtheta - rest_angle)``.
 
     Parameters
@@ -250,7 +250,7 @@ class ElasticHinge(_Hinge):
 
 
 @dataclass(frozen=True, kw_only=True)
-class DamperHinge(_Hinge):
+class DamperHinge(Hinge):
     """Rotary viscous damper hinge: ``tau = -damping dtheta_dot``.
 
     Parameters
@@ -272,7 +272,7 @@ class DamperHinge(_Hinge):
 
 
 @dataclass(frozen=True, kw_only=True)
-class SpringDamperHinge(_Hinge):
+class SpringDamperHinge(Hinge):
     """Rotary spring parallel to a damper: ``tau = -k (dtheta - rest_angle) - c dtheta_dot``.
 
     Parameters
@@ -311,7 +311,7 @@ class SpringDamperHinge(_Hinge):
 
 
 @dataclass(frozen=True, kw_only=True)
-class ActuatedHinge(_Hinge):
+class ActuatedHinge(Hinge):
     """Hinge with a torque input and an optional collocated PD law (a motor).
 
     ``tau = torque(t) - kp (dtheta - reference(t)) - kd (dtheta_dot - reference_rate(t))``
@@ -359,7 +359,7 @@ class ActuatedHinge(_Hinge):
 
 
 @dataclass(frozen=True, kw_only=True)
-class DrivenHinge(_Hinge):
+class DrivenHinge(Hinge):
     """Hinge with a prescribed relative angle ``angle(t)`` (0 DOF; the torque is an output).
 
     Parameters
@@ -479,7 +479,7 @@ HINGE_TYPES = (SmoothHinge, ElasticHinge, DamperHinge, SpringDamperHinge, Actuat
 """All hinge classes."""
 
 
-def law_arrays(hinge: _Hinge) -> tuple[float, float]:
+def law_arrays(hinge: Hinge) -> tuple[float, float]:
     """Stiffness and damping of a hinge law (``0, 0`` for driven hinges)."""
     if isinstance(hinge, DrivenHinge):
         return 0.0, 0.0

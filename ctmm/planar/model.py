@@ -30,7 +30,7 @@ from .. import validation
 from ..errors import ModelError, unknown_name
 from ..signals import Constant
 from .elements import (DrivenHinge, Fixed, Free, FreeBase, HINGE_TYPES, Pinned, RigidBody,
-                       SmoothHinge, _Hinge, translational_law)
+                       Hinge, SmoothHinge, translational_law)
 from .signals import signal_values
 
 
@@ -124,7 +124,7 @@ class PlanarModel:
             rest = rest[:-1]
         out: list[object] = []
         previous: str = base.name          # name of what the next hinge attaches to
-        pending_hinge: _Hinge | None = None
+        pending_hinge: Hinge | None = None
         base_element: object = base
         first = True
         for element in rest:
@@ -188,7 +188,7 @@ class PlanarModel:
         for element in self.elements:
             if is_body(element) or isinstance(element, (Fixed, Free)):
                 continue
-            if isinstance(element, _Hinge):
+            if isinstance(element, Hinge):
                 if element.parent is None or element.child is None:
                     problems.append(f"hinge {element.name!r} needs parent and child "
                                     f"(got parent={element.parent!r}, child={element.child!r})")
