@@ -472,7 +472,7 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
                          f"{MAX_STEPS:.0e} steps are allowed (check the unit of dt)")
     n_steps = int(round((t_final - t0) / dt))
     if n_steps < 1 or abs(n_steps * dt - (t_final - t0)) > 1e-9 * max(1.0, abs(t_final)):
-        raise ModelError(f"(t_final - t0) = {t_final - t0!r} s must be a whole number (>= 1) of steps dt={dt!r}")
+        raise ModelError(f"(t_final - t0) = {t_final - t0!r} s must be a whole number of steps dt={dt!r} (>= 1)")
     x, v = initial_state(system, x0, v0)
     check_scheme_step(system, scheme, dt, stability_check)
     guard = DivergenceGuard.from_start(point_labels(system), rest_positions(system), x[:, 0],
