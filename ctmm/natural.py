@@ -46,6 +46,7 @@ from .assembly import ChainSolution  # noqa: F401
 from .capabilities import refuse_damping, refuse_loops
 from .errors import ModelError
 from .results import ModalResult
+from .roots1d import bisect_count, refine_sign_change
 from .system import Chain
 from .chain_assembly import MatrixCache as _MatrixCache, assemble_body as _assemble_body, subdivided as _subdivided
 
@@ -462,76 +463,32 @@ def natural_frequencies(system: Chain, *, n_modes: int | None = None, omega_max:
     first = np.argmax(c_grid[None, :] >= k[:, None], axis=1)     # first grid point with count >= k
     lo, up = grid[first - 1], grid[first]
     c_lo, c_up = c_grid[first - 1].astype(np.int64), c_grid[first].astype(np.int64)
-    _bisect_count(count, k, lo, up, c_lo, c_up, rtol, np.arange(k.size), isolate=isolate)
+    bisect_count(count, k, lo, up, c_lo, c_up, rtol, np.arange(k.size), isolate=isolate)
     if isolate:
         # 2. refine isolated roots on the sign of Delta; 3. the rest on the count
         idx = np.flatnonzero((c_up - c_lo == 1) & (up - lo > rtol * up))
         if idx.size:
             bad = _refine_sign(sign, lo, up, idx, rtol)
-            _bisect_count(count, k, lo, up, c_lo, c_up, rtol, bad, isolate=False)
-        _bisect_count(count, k, lo, up, c_lo, c_up, rtol, np.flatnonzero(c_up - c_lo > 1), isolate=False)
+            bisect_count(count, k, lo, up, c_lo, c_up, rtol, bad, isolate=False)
+        bisect_count(count, k, lo, up, c_lo, c_up, rtol, np.flatnonzero(c_up - c_lo > 1), isolate=False)
     roots[targets > n_rigid] = 0.5 * (lo + up)
     return roots
 
 
-def _bisect_count(count, k, lo, up, c_lo, c_up, rtol, idx, *, isolate: bool) -> None:
-    """Bisection on the count for the targets ``idx`` (in place) until ``up - lo <= rtol up``
-    or, with ``isolate``, until the bracket holds exactly one root (``c_up - c_lo == 1``)."""
-    idx = np.asarray(idx, dtype=int)
-    while idx.size:
-        active = up[idx] - lo[idx] > rtol * up[idx]
-        if isolate:
-            active &= c_up[idx] - c_lo[idx] > 1
-        idx = idx[active]
-        if not idx.size:
-            break
-        mid = 0.5 * (lo[idx] + up[idx])
-        c = count(mid)
-        below = c >= k[idx]
-        up[idx[below]], c_up[idx[below]] = mid[below], c[below]
-        lo[idx[~below]], c_lo[idx[~below]] = mid[~below], c[~below]
-
-
 def _refine_sign(delta: "_Determinant", lo, up, idx, rtol) -> np.ndarray:
-    """Refine isolated roots ``idx`` (in place) where ``Delta`` changes sign: Illinois
-    (regula falsi, halving an end value retained twice) with a bisection step whenever two
-    steps have not halved the bracket.
+    """Refine isolated roots ``idx`` (in place) where ``Delta`` changes sign, by
+    :func:`ctmm.roots1d.refine_sign_change` (Illinois with bisection safeguard).
 
     Works on ``f = det(Bm D^-1 Q_N)`` (:class:`_Determinant`): same sign as ``Delta``, O(1) and
     smooth, with one fixed balancing ``D`` per root.  Returns the targets whose end signs
     agree (left to the count).
     """
     D = delta.scaling(0.5 * (lo[idx] + up[idx]))
-    f_lo, f_up = delta(lo[idx], D), delta(up[idx], D)
-    good = f_lo * f_up < 0
-    bad = idx[~good]
-    idx, D, f_lo, f_up = idx[good], D[good], f_lo[good], f_up[good]
-    width = up[idx] - lo[idx]             # bracket width when the stall counter was last reset
-    stall = np.zeros(idx.size, dtype=int)
-    last = np.zeros(idx.size, dtype=int)   # end moved in the previous step: -1 lo, +1 up
-    while idx.size:
-        a, b = lo[idx], up[idx]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            x = b - f_up * (b - a) / (f_up - f_lo)
-        x = np.where((stall >= 3) | ~np.isfinite(x), 0.5 * (a + b), x)
-        step_min = np.maximum(0.4 * rtol * b, 2 * np.spacing(b))   # Brent-style minimal step:
-        x = np.clip(x, a + step_min, b - step_min)                # a converged end closes the bracket
-        f_x = delta(x, D)
-        left = np.sign(f_x) == np.sign(f_lo)       # the root is in (x, up)
-        zero = f_x == 0
-        f_up = np.where(left & (last == -1), 0.5 * f_up, f_up)
-        f_lo = np.where(~left & (last == 1), 0.5 * f_lo, f_lo)
-        lo[idx[left]], f_lo = x[left], np.where(left, f_x, f_lo)
-        up[idx[~left]], f_up = x[~left], np.where(~left, f_x, f_up)
-        lo[idx[zero]] = up[idx[zero]] = x[zero]
-        last = np.where(left, -1, 1)
-        gap = up[idx] - lo[idx]
-        halved = gap <= 0.5 * width
-        width, stall = np.where(halved, gap, width), np.where(halved, 0, stall + 1)
-        keep = (gap > rtol * up[idx]) & (gap > 4 * np.spacing(up[idx]))
-        idx, D, f_lo, f_up = idx[keep], D[keep], f_lo[keep], f_up[keep]
-        width, stall, last = width[keep], stall[keep], last[keep]
-    return bad
+    lo_i, up_i = lo[idx], up[idx]
+    good = refine_sign_change(lambda x, active: delta(x, D[active]), lo_i, up_i,
+                              delta(lo_i, D), delta(up_i, D), rtol)
+    lo[idx], up[idx] = lo_i, up_i
+    return idx[~good]
 
 
 def _check_reciprocal(body: Sequence, omega: float) -> bool:

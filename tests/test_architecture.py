@@ -322,7 +322,7 @@ ALLOWED: dict[tuple[str, str], str] = {
 LONG_MODULES: dict[str, int] = {
     "ctmm.elements.beams": 678,
     "ctmm.flexible.beam": 647,
-    "ctmm.natural": 751,
+    "ctmm.natural": 708,
     "ctmm.planar.model": 671,
     "ctmm.reference.chain": 641,
     "ctmm.reference.dde": 611,

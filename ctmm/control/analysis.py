@@ -21,7 +21,7 @@ Margins (:func:`margins`): gain margin ``1/|L(i w_pc)|`` at the phase crossovers
 (``|L| = 1``), and the **delay margin** -- the smallest extra loop delay that puts ``L`` on
 ``-1`` -- ``min_gc PM_gc / w_gc`` (``PM`` in rad, taken in ``[0, 2 pi)``).  python-control's
 ``stability_margins`` on the FRD of a dense grid locates the crossovers; each is then refined
-by Brent's method on the exact TMM ``L(i w)`` (no interpolation error left).
+by the Illinois method (:mod:`ctmm.roots1d`) on the exact TMM ``L(i w)`` (no interpolation error left).
 """
 from __future__ import annotations
 
@@ -30,12 +30,13 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Sequence
 
 import numpy as np
-from scipy.optimize import brentq, minimize_scalar
+from scipy.optimize import minimize_scalar
 
 from .. import validation
 from ..errors import ModelError
 from ..frequency import frequency_response
 from ..results import FrequencyResponse
+from ..roots1d import refine_sign_change
 from ..system import Chain
 from .loops import ControlledChain
 
@@ -203,7 +204,8 @@ def _certified_crossovers(system: ControlledChain, loop: str) -> tuple[list, lis
 
 
 def _refine(fun: Callable[[float], float], w: np.ndarray, w_est: float) -> float:
-    """Root of ``fun`` near ``w_est`` by Brent's method in a grid bracket (or ``w_est`` itself)."""
+    """Root of ``fun`` near ``w_est`` [rad/s] to 1e-14 relative in a grid bracket
+    (:func:`ctmm.roots1d.refine_sign_change`), or ``w_est`` itself when no bracket changes sign."""
     k = int(np.clip(np.searchsorted(w, w_est), 1, w.size - 1))
     for lo, hi in ((k - 1, k), (max(k - 2, 0), min(k + 1, w.size - 1)), (max(k - 3, 0), min(k + 2, w.size - 1))):
         a, b = float(w[lo]), float(w[hi])
@@ -213,7 +215,10 @@ def _refine(fun: Callable[[float], float], w: np.ndarray, w_est: float) -> float
         if fb == 0.0:
             return b
         if np.isfinite(fa) and np.isfinite(fb) and fa * fb < 0:
-            return float(brentq(fun, a, b, xtol=1e-14 * max(1.0, b), rtol=4 * np.finfo(float).eps, maxiter=200))
+            lo_end, up_end = np.array([a]), np.array([b])
+            refine_sign_change(lambda x, active: np.array([fun(float(v)) for v in x]), lo_end, up_end,
+                               np.array([fa]), np.array([fb]), 1e-14)
+            return float(0.5 * (lo_end[0] + up_end[0]))
     return float(w_est)
 
 
@@ -259,9 +264,9 @@ def margins(source: Any, loop: str | None = None, omega: Any = None) -> Margins:
     Notes
     -----
     The crossovers are located with :func:`control.stability_margins` on the FRD (``returnall``)
-    and, as a safeguard, by sign changes on the grid; each is refined by Brent's method.  For a
-    controlled chain the gain crossovers (and the phase crossovers with a gain margin up to
-    100) also come from the certified contour search of :func:`ctmm.stability.gain_crossovers`
+    and, as a safeguard, by sign changes on the grid; each is refined by the Illinois method
+    (:mod:`ctmm.roots1d`).  For a controlled chain the gain crossovers (and the phase crossovers
+    with a gain margin up to 100) also come from the certified contour search of :func:`ctmm.stability.gain_crossovers`
     and :func:`ctmm.stability.gain_margin`; crossovers the grid missed (narrow resonances, or
     outside it) are added and listed in ``notes``.  For FRD data only crossovers inside the
     grid are found.

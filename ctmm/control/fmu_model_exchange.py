@@ -26,6 +26,8 @@ from typing import Any
 
 import numpy as np
 
+from ..ode import rk4_step
+
 __all__ = ["ModelExchangeIntegrator", "ModelExchangeTerminated"]
 
 
@@ -102,11 +104,7 @@ class ModelExchangeIntegrator:
         return self._x_view.copy()
 
     def _rk4(self, t: float, x: np.ndarray, dt: float) -> np.ndarray:
-        k1 = self._derivatives(t, x)
-        k2 = self._derivatives(t + dt / 2, x + dt / 2 * k1)
-        k3 = self._derivatives(t + dt / 2, x + dt / 2 * k2)
-        k4 = self._derivatives(t + dt, x + dt * k3)
-        return x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        return rk4_step(self._derivatives, t, x, dt)
 
     # -- events
     def _event_iteration(self) -> None:

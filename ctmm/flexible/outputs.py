@@ -5,10 +5,7 @@ import numpy as np
 
 from .. import validation
 from ..errors import ModelError, SimulationError
-
-RK4_STABILITY_LIMIT = 2.785
-"""``h omega`` limit of the classical RK4 scheme on the imaginary axis (2 sqrt 2 = 2.828 is the
-exact value; 2.785 keeps a margin for the weak modal damping and coupling)."""
+from ..guard import RK4_LIMIT
 
 
 def _coordinates(model, q) -> np.ndarray:
@@ -83,10 +80,10 @@ def check_divergence(model, q, t: float, dt: float | None, method: str, partial=
             float(np.sum(np.abs(eta[d.nq:]))) * np.sqrt(2.0) if d.np_ else 0.0)
         if not np.isfinite(bound) or bound > beam.length:
             w_max, which = highest_frequency(model)
-            if dt is not None and method == "rk4" and dt * w_max > RK4_STABILITY_LIMIT:
+            if dt is not None and method == "rk4" and dt * w_max > RK4_LIMIT:
                 reason = (f"the explicit RK4 step is unstable: dt = {dt:g} s exceeds the stability "
-                          f"limit {RK4_STABILITY_LIMIT}/omega_max = "
-                          f"{RK4_STABILITY_LIMIT / w_max:.4g} s (highest modal frequency "
+                          f"limit 2 sqrt 2/omega_max = "
+                          f"{RK4_LIMIT / w_max:.4g} s (highest modal frequency "
                           f"{w_max:.4g} rad/s of beam {which!r}); reduce dt or use an implicit "
                           f"scheme")
             else:
@@ -139,4 +136,4 @@ def spinup_law(final_rate: float = 6.0, ramp_time: float = 15.0):
 
 
 __all__ = ["mape", "spinup_law", "tip_deflection", "axial_tip_displacement", "highest_frequency",
-           "check_divergence", "RK4_STABILITY_LIMIT"]
+           "check_divergence"]

@@ -483,22 +483,27 @@ class _Run:
     # -- integrators ---------------------------------------------------------------------------
     def rk4(self, store_every: int) -> None:
         from ..flexible.outputs import check_divergence
-        from ..planar.integrate import guard_rates, rk4_step
+        from ..ode import integrate_rk4, second_order_rate
+        from ..planar.integrate import guard_rates
+        from ..planar.sweep import accelerations
 
-        model, h = self.model, self.h
-        q, v = self.q0.copy(), np.zeros_like(self.q0)
-        for n in range(self.N):
-            t = n * h
-            self._sample(n, q, v)
-            if n % store_every == 0:
-                self._store()
-            q, v = rk4_step(model, q, v, t, h)
+        model, h, N = self.model, self.h, self.N
+        n = len(self.q0)
+
+        def after_step(k: int, t: float, y: np.ndarray) -> None:
+            q, v = y[:n], y[n:]
             self.evaluations += 4
-            self.guard.check(t + h, q)
-            guard_rates(model, t + h, v)
-            check_divergence(model, q, t + h, h, "rk4")
-        self._sample(self.N, q, v)
+            self.guard.check(t, q)
+            guard_rates(model, t, v)
+            check_divergence(model, q, t, h, "rk4")
+            self._sample(k, q, v)
+            if k % store_every == 0 or k == N:
+                self._store()
+
+        self._sample(0, self.q0, np.zeros_like(self.q0))
         self._store()
+        rate = second_order_rate(lambda q, v, t: accelerations(model, q, v, t), n)
+        integrate_rk4(rate, np.concatenate((self.q0, np.zeros_like(self.q0))), h=h, n_steps=N, after_step=after_step)
 
     def newmark(self, store_every: int) -> None:
         from ..planar import simulate_implicit

@@ -2,7 +2,7 @@
 
 The acceleration-based TMM (:mod:`ctmm.planar.sweep`) turns any planar model into an ODE
 ``y' = f(t, y)`` with ``y = [q, qdot]``; this module integrates it with a fixed-step classical
-Runge-Kutta scheme (own implementation, 4th order) or with any ``scipy.integrate.solve_ivp``
+Runge-Kutta scheme (:func:`ctmm.ode.integrate_rk4`, 4th order) or with any ``scipy.integrate.solve_ivp``
 method (RK45, DOP853, Radau, BDF, LSODA).  Results are :class:`PlanarSimulation` objects with
 named coordinates.
 """
@@ -18,6 +18,7 @@ import scipy.integrate
 from .. import validation
 from ..capabilities import require_planar
 from ..errors import ModelError, SimulationError
+from ..ode import integrate_rk4, second_order_rate
 from .guards import check_scheme, divergence_guard, with_partial
 from .model import PlanarModel
 from .sweep import accelerations
@@ -149,40 +150,31 @@ def simulate_rk4(model: PlanarModel, q0, qdot0, *, t_final: float, dt: float,
     check_scheme(model, q, v, h, scheme="rk4", policy=stability_check)
     ts, qs, vs = [0.0], [q.copy()], [v.copy()]
     start = _time.perf_counter()
+    n = model.n_coordinates
     flexible = model.has_flexible
     if flexible:
         from ..flexible.outputs import check_divergence
+
+    def after_step(k: int, t: float, y: np.ndarray) -> None:
+        q, v = y[:n], y[n:]
+        guard.check(t, q)
+        guard_rates(model, t, v)
+        if flexible:
+            check_divergence(model, q, t, h, "rk4")
+        if k % store_every == 0 or k == n_steps:
+            ts.append(t)
+            qs.append(q)
+            vs.append(v)
+
+    rate = second_order_rate(lambda q, v, t: accelerations(model, q, v, t), n)
     try:
-        for k in range(n_steps):
-            t = k * h
-            q, v = rk4_step(model, q, v, t, h)
-            guard.check(t + h, q)
-            guard_rates(model, t + h, v)
-            if flexible:
-                check_divergence(model, q, t + h, h, "rk4")
-            if (k + 1) % store_every == 0 or k + 1 == n_steps:
-                ts.append((k + 1) * h)
-                qs.append(q.copy())
-                vs.append(v.copy())
+        integrate_rk4(rate, np.concatenate((q, v)), h=h, n_steps=n_steps, after_step=after_step)
     except SimulationError as exc:
         raise with_partial(exc, lambda: PlanarSimulation(model, np.array(ts), np.array(qs), np.array(vs), "rk4",
                                                          _time.perf_counter() - start)) from exc.__cause__
     wall = _time.perf_counter() - start
     return PlanarSimulation(model, np.array(ts), np.array(qs), np.array(vs), "rk4", wall,
                             n_evaluations=4 * n_steps)
-
-
-def rk4_step(model: PlanarModel, q: np.ndarray, v: np.ndarray, t: float, h: float) -> tuple[np.ndarray, np.ndarray]:
-    """One classical RK4 step of ``[q, v]' = [v, accelerations(model, q, v, t)]`` from ``t`` [s] by ``h`` [s]."""
-    a1 = accelerations(model, q, v, t)
-    q2, v2 = q + 0.5 * h * v, v + 0.5 * h * a1
-    a2 = accelerations(model, q2, v2, t + 0.5 * h)
-    q3, v3 = q + 0.5 * h * v2, v + 0.5 * h * a2
-    a3 = accelerations(model, q3, v3, t + 0.5 * h)
-    q4, v4 = q + h * v3, v + h * a3
-    a4 = accelerations(model, q4, v4, t + h)
-    return (q + (h / 6.0) * (v + 2.0 * v2 + 2.0 * v3 + v4),
-            v + (h / 6.0) * (a1 + 2.0 * a2 + 2.0 * a3 + a4))
 
 
 def guard_rates(model: PlanarModel, t: float, qdot: np.ndarray) -> None:
@@ -276,5 +268,5 @@ def simulate_scipy(model: PlanarModel, q0, qdot0, *, t_final: float, method: str
     return result()
 
 
-__all__ = ["PlanarSimulation", "simulate_rk4", "simulate_scipy", "guard_rates", "rk4_step",
+__all__ = ["PlanarSimulation", "simulate_rk4", "simulate_scipy", "guard_rates",
            "check_store_every", "SCIPY_METHODS"]

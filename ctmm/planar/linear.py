@@ -40,6 +40,7 @@ from ..elements.base import Element
 from ..counting import certified_count
 from ..errors import ModelError
 from ..layouts import PLANAR
+from ..roots1d import bisect_count
 from .model import BUSHING, DRIVEN, FREE, PlanarModel
 from .sweep import solve_instant
 
@@ -472,15 +473,9 @@ def natural_frequencies(model: PlanarModel, q_eq, *, n_modes: int, t: float = 0.
     lo = np.zeros(n_modes)
     up = np.full(n_modes, hi)
     n_rigid = int(eigenvalue_count(model, q_eq, [hi * 1e-13], _data=data)[0])
-    for _ in range(200):
-        active = (up - lo) > rtol * up
-        if not np.any(active):
-            break
-        mid = 0.5 * (lo + up)
-        below = eigenvalue_count(model, q_eq, mid[active], _data=data) >= k[active]
-        idx = np.flatnonzero(active)
-        up[idx[below]] = mid[active][below]
-        lo[idx[~below]] = mid[active][~below]
+    counts = np.zeros(n_modes, dtype=np.int64)       # bracket-end counts (not needed without isolate)
+    bisect_count(lambda w: eigenvalue_count(model, q_eq, w, _data=data), k, lo, up, counts, counts.copy(),
+                 rtol, max_iterations=200)          # rigid modes (root 0, lo = 0) stop at the bound
     out = 0.5 * (lo + up)
     out[k <= n_rigid] = 0.0
     return out
