@@ -290,12 +290,13 @@ def test_gain_margin_equals_phase_crossovers(zeta, delay):
     assert result.lower == (lower if math.isinf(lower) else pytest.approx(lower, rel=1e-8))
 
 
-def test_margins_delay_margin_from_a_coarse_grid_on_a_lightly_damped_chain():
-    """Crossovers 0.19 rad/s apart at 53 rad/s (zeta = 1e-4) lie between the samples of the grid."""
-    case = Case(M3, K3, 1e-4, [(2, 1, 1.0)], ("mass", 0), 1.0, 0.0)
-    result = margins(case.system, "L", np.logspace(0, 2.5, 300))
-    expected = min(tau0 for tau0, _, _, _ in case.cross)
-    assert result.delay_margin == pytest.approx(expected, rel=1e-9)
+@pytest.mark.parametrize("zeta", [1e-4, 1e-2])
+@pytest.mark.parametrize("lti", [None, control.tf([5.0], [1 / 50.0, 1.0])])
+def test_margins_from_a_coarse_grid_on_a_lightly_damped_chain(zeta, lti):
+    """20 samples over 3 decades: the crossovers near 13-14 and 53 rad/s lie between them."""
+    case = Case(M3, K3, zeta, [(2, 1, 1.0)], ("mass", 0), 1.0, 0.0, lti=lti)
+    result = margins(case.system, "L", np.logspace(0, 3, 20))
+    assert result.delay_margin == pytest.approx(min(tau0 for tau0, _, _, _ in case.cross), rel=1e-9)
     np.testing.assert_allclose(sorted(result.gain_crossovers), sorted(c[3] for c in case.cross), rtol=1e-9)
 
 
