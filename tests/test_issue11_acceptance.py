@@ -599,3 +599,26 @@ def test_planar_implicit_pendulum_at_absurd_step_is_not_silent(scheme):
         except (ctmm.SimulationError, ModelError, Warning):
             return                                 # refused, warned or stopped: not silent
     assert np.max(np.abs(run.q[:, 0] + math.pi / 2)) <= 0.1 + 1e-6   # energy cannot grow
+
+
+@pytest.mark.parametrize("theta", [1.1, 1.2, 1.3])
+def test_wilson_theta_limit_against_the_global_recurrence(theta):
+    """Below 1 - 2 % of the reported limit the global Wilson recurrence stays bounded, above it grows;
+    ctmm warns above the limit and not below."""
+    from ctmm.guard import StabilityLimitWarning, wilson_limit
+    from ctmm.schemes import WilsonTheta
+    limit = wilson_limit(theta)
+    reference = GlobalChain([1.0], [100.0, 0.0], start="fixed", end="free")          # omega = 10 rad/s
+    chain = ctmm.Chain("sdof", [Fixed("wall"), Spring("k", 100.0), Mass("m", 1.0), Free("tip")])
+    for factor, grows in ((0.98, False), (1.02, True)):
+        dt = factor * limit / 10.0
+        x = step_global(reference, 3000 * dt, dt, [0.01], [0.0], scheme="wilson_theta", theta=theta).displacement
+        with np.errstate(all="ignore"):
+            assert (not np.all(np.abs(x[-100:]) < 0.02)) == grows, (theta, factor)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error" if not grows else "ignore")
+            if grows:
+                with pytest.warns(StabilityLimitWarning):
+                    ctmm.simulate(chain, 2 * dt, dt, x0={"m": 0.01}, scheme=WilsonTheta(theta))
+            else:
+                ctmm.simulate(chain, 2 * dt, dt, x0={"m": 0.01}, scheme=WilsonTheta(theta))
