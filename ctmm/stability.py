@@ -274,7 +274,8 @@ class DelayMargin:
     stable : bool
         The loop is stable at its current delay.
     unstable_roots_at_zero_delay : int
-        Roots in Re s > 0 without delay.
+        Roots in Re s > 0 without delay (-1: a root on the imaginary axis, as in
+        :func:`unstable_root_count`, e.g. a rigid-body mode at s = 0 that the loop does not sense).
     crossing_delays, crossing_frequencies : tuple of float
         All crossings up to ``delay_max`` [s], [rad/s], ascending in delay.
     crossing_directions : tuple of int

@@ -622,3 +622,24 @@ def test_wilson_theta_limit_against_the_global_recurrence(theta):
                     ctmm.simulate(chain, 2 * dt, dt, x0={"m": 0.01}, scheme=WilsonTheta(theta))
             else:
                 ctmm.simulate(chain, 2 * dt, dt, x0={"m": 0.01}, scheme=WilsonTheta(theta))
+
+
+@pytest.mark.parametrize("delay", [0.0, 0.01, 0.2])
+def test_uncontrolled_rigid_body_mode_is_reported_on_the_axis_not_counted(delay):
+    """Velocity-only feedback on a free-free chain leaves det(K) = 0 and no position term: s = 0 is a
+    root for every delay (the closed-loop state matrix below is singular).  The count must not
+    pretend it is 0 (stable): it is the documented -1 (a root on Re s = 0), and the loop is not stable."""
+    masses, ks, cs = [1.0, 1.3, 0.8], [900.0, 1100.0], [0.06, 0.07]
+    body = [Free("a"), Mass("m0", masses[0])]
+    for i, (k, c) in enumerate(zip(ks, cs)):
+        body += [SpringDamper(f"k{i + 1}", k, c), Mass(f"m{i + 1}", masses[i + 1])]
+    system = ControlledChain(ctmm.Chain("free_free", body + [Free("b")]),
+                             [Feedback("L", "m2.v", "m0", gain=2.0, delay=delay)])
+    M, C, K = matrices(masses, [0.0] + ks, [0.0] + cs, fixed_end=False)
+    b, c = np.eye(3)[0], np.eye(3)[2]
+    A = np.block([[np.zeros((3, 3)), np.eye(3)], [-np.linalg.solve(M, K), -np.linalg.solve(M, C + 2.0 * np.outer(b, c))]])
+    assert np.min(np.abs(np.linalg.eigvals(A))) < 1e-9                     # s = 0 at zero delay too
+    counts = unstable_root_count(system)
+    assert counts.tolist() == [-1]
+    margin = delay_margin(system)
+    assert margin.unstable_roots_at_zero_delay == -1 and not margin.stable and margin.margin == 0.0
