@@ -39,7 +39,7 @@ from ..results import SimulationResult
 from ..schemes import History, as_scheme
 from ..signals import as_signal
 from ..system import Chain, require_system
-from ..timestep import simulate as simulate_plant
+from ..timestep import initial_acceleration, simulate as simulate_plant
 from .loops import ControlledChain
 from .protocol import Controller, check_controllers
 
@@ -231,6 +231,7 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
     ctrl_state = {i: np.zeros(m.n) for i, m in lti.items()}
     try:
         cosim = _CoSimulation(controlled, controllers, dt, coupling, t0)
+        cosim.n_steps = int(round((t_final - t0) / dt))
     except SimulationError as exc:  # a controller's init failed: nothing was computed
         exc.partial_result = SimulationResult.empty(controlled, scheme.name)
         raise
@@ -525,6 +526,8 @@ class _CoSimulation:
                                  "actuators": actuators, "state": call_user(label, c.init, t0, time=t0),
                                  "held": np.zeros(len(c.outputs)), "log_t": [], "log_u": []})
         self.step_index = 0
+        self.n_steps = 0     # steps of the run (set by simulate_controlled): no sample after the last
+        self.failure: SimulationError | None = None   # a controller failure at a sample in after_step
 
     def _measure(self, sensing, history: History, f: np.ndarray | None) -> np.ndarray:
         d = self.system.plant.layout.half
@@ -537,6 +540,8 @@ class _CoSimulation:
         return np.array(y)
 
     def forces(self, t_n: float, history: History, f: np.ndarray | None) -> dict[int, float]:
+        if self.failure is not None:
+            raise self.failure
         out: dict[int, float] = {}
         for entry in self.entries:
             due = self.step_index % entry["ratio"] == 0 and entry.get("last_step") != self.step_index
@@ -558,7 +563,37 @@ class _CoSimulation:
         return out
 
     def after_step(self, t: float, history: History, f: np.ndarray) -> None:
+        """Count the step; at a sample instant (before the last step) sample the due controllers
+        now and restart the acceleration with the new held outputs.
+
+        The held output jumps at the sample instant ``t_k``: the step that ends at ``t_k`` used the
+        old output (left limit), the next one starts from ``a_k^+ = a_k + M^-1 delta_u`` (the
+        forces on the masses change, positions and velocities do not).  Without the restart the
+        scheme's first step after each jump averages the old and new outputs, and the run
+        converges to the zero-order hold at first order only.
+        """
         self.step_index += 1
+        if self.step_index >= self.n_steps or not any(self.step_index % e["ratio"] == 0 for e in self.entries):
+            return
+        before = self._held_forces()
+        try:
+            after = self.forces(t, history, f)
+        except SimulationError as exc:   # raised when the next step asks for the forces, so that the
+            self.failure = exc           # partial result keeps this completed step, as before
+            return
+        jump = {pos: after.get(pos, 0.0) - before.get(pos, 0.0) for pos in set(before) | set(after)}
+        jump = {pos: value for pos, value in jump.items() if value != 0.0}
+        if jump:
+            plant = self.system.plant
+            history.a = history.a + (initial_acceleration(plant, history.x, history.v, t, jump)
+                                     - initial_acceleration(plant, history.x, history.v, t, {}))
+
+    def _held_forces(self) -> dict[int, float]:
+        out: dict[int, float] = {}
+        for entry in self.entries:
+            for act, value in zip(entry["actuators"], entry["held"]):
+                out[act.position] = out.get(act.position, 0.0) + float(value)
+        return out
 
     def outputs(self) -> dict[str, np.ndarray]:
         res = {}
