@@ -473,6 +473,14 @@ def natural_frequencies(model: PlanarModel, q_eq, *, n_modes: int, t: float = 0.
     lo = np.zeros(n_modes)
     up = np.full(n_modes, hi)
     n_rigid = int(eigenvalue_count(model, q_eq, [hi * 1e-13], _data=data)[0])
+    # the count at omega = 0 is the number of negative pivots of K: modes with omega^2 < 0
+    # (an unstable equilibrium, e.g. an arm held upright against gravity) that would otherwise
+    # come back as 0 rad/s, indistinguishable from rigid-body modes
+    n_negative = int(eigenvalue_count(model, q_eq, [0.0], _data=data)[0])
+    if n_negative > 0:
+        raise ModelError(f"model {model.name!r} is statically unstable about q_eq = {np.asarray(q_eq).tolist()}: "
+                         f"{n_negative} mode(s) with negative stiffness (omega^2 < 0, e.g. a link held "
+                         "against gravity); natural frequencies exist only about a stable equilibrium")
     counts = np.zeros(n_modes, dtype=np.int64)       # bracket-end counts (not needed without isolate)
     bisect_count(lambda w: eigenvalue_count(model, q_eq, w, _data=data), k, lo, up, counts, counts.copy(),
                  rtol, max_iterations=200)          # rigid modes (root 0, lo = 0) stop at the bound
