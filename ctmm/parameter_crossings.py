@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .counting_contour import Contour
+from .roots1d import refine_sign_change
 from .sweeps import TINY, LoopCharacteristic
 
 __all__ = ["Crossings", "row_crossings", "bracket_solve", "combine_pointwise"]
@@ -138,10 +139,10 @@ def row_crossings(contour: Contour, sets0, sets1, p_range: tuple[float, float], 
     value, error = 0.5 * (pa + pb)[inside], 0.5 * width             # bracket of the value
     if todo.any():
         r, j = r_idx[todo], j_idx[todo]
-        w_ref, v_ref, e_ref = _illinois(contour, sets0, sets1, r, s.imag[j], s.imag[j + 1],
-                                        phi[r, j], phi[r, j + 1], p_at[r, j], p_at[r, j + 1],
-                                        grid=None if refine_all or grid is None else np.sort(grid),
-                                        span=span)
+        w_ref, v_ref, e_ref = _refine_crossings(contour, sets0, sets1, r, s.imag[j], s.imag[j + 1],
+                                                phi[r, j], phi[r, j + 1], p_at[r, j], p_at[r, j + 1],
+                                                grid=None if refine_all or grid is None else np.sort(grid),
+                                                span=span)
         omega[todo], value[todo], error[todo] = w_ref, v_ref, e_ref
     good = np.isfinite(value) & (value >= keep_lo) & (value <= keep_hi)
     row = np.concatenate([np.asarray(rows, int), r_idx[good].astype(int)])
@@ -163,8 +164,8 @@ def _undecided(grid: np.ndarray, low: np.ndarray, high: np.ndarray, span: float)
     return right > left
 
 
-def _illinois(contour: Contour, sets0, sets1, rows, a, b, fa, fb, pa, pb, *, grid=None,
-              span: float = 1.0, iterations: int = 60):
+def _refine_crossings(contour: Contour, sets0, sets1, rows, a, b, fa, fb, pa, pb, *, grid=None,
+                      span: float = 1.0):
     """Refine brackets [a, b] of sign changes of Im(B conj A) (one per crossing, batched).
 
     With ``grid``, a bracket stops as soon as the parameter values at its ends enclose no grid
@@ -186,45 +187,36 @@ def _illinois(contour: Contour, sets0, sets1, rows, a, b, fa, fb, pa, pb, *, gri
         ends = np.isfinite(pa_) & np.isfinite(pb_)
         return ends & ~_undecided(grid, np.minimum(pa_, pb_), np.maximum(pa_, pb_), span)
 
-    omega, pa, pb = bracket_solve(evaluate, a, b, fa, fb, pa, pb,
-                                  stop=None if grid is None else decided, iterations=iterations)
+    omega, pa, pb = bracket_solve(evaluate, a, b, fa, fb, pa, pb, stop=None if grid is None else decided)
     value = np.where(np.isfinite(pa) & np.isfinite(pb), 0.5 * (pa + pb), pb)
     error = np.where(np.isfinite(pa) & np.isfinite(pb), 0.5 * np.abs(pa - pb), 0.0)
     return omega, value, error
 
 
-def bracket_solve(evaluate, a, b, fa, fb, pa, pb, *, stop=None, iterations: int = 60):
-    """Batched Illinois (modified regula falsi) on brackets ``[a, b]`` with ``fa fb < 0``.
+def bracket_solve(evaluate, a, b, fa, fb, pa, pb, *, stop=None, rtol: float = 4e-16):
+    """Refine brackets ``[a, b]`` (``0 < a < b``, frequencies [rad/s]) of sign changes, batched.
 
-    ``evaluate(idx, x) -> (f, p)`` gives the function and a tracked quantity ``p`` at points
-    ``x`` of the brackets ``idx`` (one call per iteration for all brackets); ``stop(idx, pa, pb)``
-    may end brackets early, once they are narrower than 1e-6 relative.  Returns the last point ``b`` and ``p`` at both bracket ends."""
-    a, b, fa, fb = (np.asarray(v, float).copy() for v in (a, b, fa, fb))
-    pa, pb = np.asarray(pa, float).copy(), np.asarray(pb, float).copy()
-    side = np.zeros(a.size, int)
-    active = np.ones(a.size, bool)
-    for _ in range(iterations):
-        idx = np.flatnonzero(active)
-        if idx.size == 0:
-            break
-        c = b[idx] - fb[idx] * (b[idx] - a[idx]) / (fb[idx] - fa[idx])
-        bad = ~np.isfinite(c) | (c <= np.minimum(a[idx], b[idx])) | (c >= np.maximum(a[idx], b[idx]))
-        c = np.where(bad, 0.5 * (a[idx] + b[idx]), c)
-        fc, pc = evaluate(idx, c)
-        same = np.sign(fc) == np.sign(fb[idx])
-        i_same, i_diff = idx[same], idx[~same]
-        fa[i_same] *= np.where(side[i_same] == 1, 0.5, 1.0)      # Illinois step
-        side[i_same] = 1
-        a[i_diff], fa[i_diff], pa[i_diff] = b[i_diff], fb[i_diff], pb[i_diff]
-        side[i_diff] = 0
-        b[idx], fb[idx], pb[idx] = c, fc, pc
-        done = (fc == 0) | (np.abs(b[idx] - a[idx]) <= 4e-16 * np.maximum(1.0, np.abs(c)))
-        pa[idx[fc == 0]] = pc[fc == 0]
-        if stop is not None:
-            # the tracked values at the bracket ends enclose the crossing value only where p is
-            # monotone on the bracket: stop early only once the bracket is narrow (a wide
-            # bracket across a resonance misplaced a chart crossing by 0.013 in gain)
-            narrow = np.abs(b[idx] - a[idx]) <= 1e-6 * np.maximum(1.0, np.abs(c))
-            done |= stop(idx, pa[idx], pb[idx]) & narrow
-        active[idx[done]] = False
-    return b, pa, pb
+    The refiner is :func:`ctmm.roots1d.refine_sign_change` (Illinois with a bisection safeguard);
+    ``evaluate(idx, x) -> (f, p)`` gives the function and a tracked quantity ``p`` at points ``x``
+    of the brackets ``idx`` (one call per step for all brackets); ``stop(idx, pa, pb)`` may end
+    brackets early, once they are narrower than 1e-6 relative.  A bracket otherwise stops at
+    ``b - a <= rtol b`` (or 4 ulp).  Returns the last trial point of every bracket and ``p``
+    at both bracket ends (``fa fb`` not negative: the bracket is not refined, its ``b``)."""
+    lo, up = np.array(a, dtype=float), np.array(b, dtype=float)
+    pa, pb = np.array(pa, dtype=float), np.array(pb, dtype=float)
+    last = up.copy()
+
+    def function(x, idx):
+        last[idx] = x
+        return evaluate(idx, x)
+
+    def narrow_and_decided(idx):
+        # the tracked values at the bracket ends enclose the crossing value only where p is
+        # monotone on the bracket: stop early only once the bracket is narrow (a wide
+        # bracket across a resonance misplaced a chart crossing by 0.013 in gain)
+        narrow = up[idx] - lo[idx] <= 1e-6 * np.maximum(1.0, up[idx])
+        return narrow & stop(idx, pa[idx], pb[idx])
+
+    refine_sign_change(function, lo, up, fa, fb, rtol, tracked=(pa, pb),
+                       stop=None if stop is None else narrow_and_decided)
+    return last, pa, pb

@@ -9,13 +9,14 @@ for many brackets at once, each function evaluation taking all active brackets i
 * :func:`refine_sign_change` -- a simple root of a continuous *sign* function inside a bracket
   whose end values have opposite signs: Illinois (regula falsi, halving an end value retained
   twice) with a bisection step whenever three steps have not halved the bracket, and a
-  Brent-style minimal step so a converged end closes the bracket.
+  Brent-style minimal step so a converged end closes the bracket; optionally it carries a
+  tracked quantity along with the bracket ends and lets the caller end brackets early.
 
 Both work in place on the bracket arrays ``lo``, ``up`` and stop at ``up - lo <= rtol up``.
 """
 from __future__ import annotations
 
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 
@@ -79,8 +80,10 @@ def bisect_count(count: Callable[[np.ndarray], np.ndarray], targets, lo: np.ndar
         rounds += 1
 
 
-def refine_sign_change(function: Callable[[np.ndarray, np.ndarray], np.ndarray], lo: np.ndarray, up: np.ndarray,
-                       f_lo: np.ndarray, f_up: np.ndarray, rtol: float) -> np.ndarray:
+def refine_sign_change(function: Callable[[np.ndarray, np.ndarray], Any], lo: np.ndarray, up: np.ndarray,
+                       f_lo: np.ndarray, f_up: np.ndarray, rtol: float, *,
+                       tracked: tuple[np.ndarray, np.ndarray] | None = None,
+                       stop: Callable[[np.ndarray], np.ndarray] | None = None) -> np.ndarray:
     """Refine a sign change of ``function`` in every bracket ``[lo[i], up[i]]`` (in place).
 
     Illinois steps (the secant through the bracket ends, an end value retained twice in a row
@@ -99,6 +102,13 @@ def refine_sign_change(function: Callable[[np.ndarray, np.ndarray], np.ndarray],
         ``function`` at ``lo`` and ``up``.
     rtol : float
         Relative bracket width at which a bracket stops, > 0.
+    tracked : (ndarray, ndarray), optional
+        Values of a quantity carried along with ``x`` (e.g. the parameter value at which a root
+        lies on the counting line) at ``lo`` and ``up``, updated in place with the ends; then
+        ``function`` returns the pair ``(f, tracked value)`` at the trial points.
+    stop : callable, optional
+        ``stop(active)`` -> bool per bracket of ``active``, asked after every step (with
+        ``lo``, ``up`` and ``tracked`` already updated): ``True`` ends that bracket early.
 
     Returns
     -------
@@ -121,7 +131,11 @@ def refine_sign_change(function: Callable[[np.ndarray, np.ndarray], np.ndarray],
         x = np.where((stall >= 3) | ~np.isfinite(x), 0.5 * (a + b), x)
         step_min = np.maximum(0.4 * rtol * b, 2 * np.spacing(b))   # Brent-style minimal step:
         x = np.clip(x, a + step_min, b - step_min)                # a converged end closes the bracket
-        f_x = function(x, idx)
+        if tracked is None:
+            f_x = np.asarray(function(x, idx), dtype=float)
+        else:
+            f_x, t_x = function(x, idx)
+            f_x, t_x = np.asarray(f_x, dtype=float), np.asarray(t_x, dtype=float)
         left = np.sign(f_x) == np.sign(f_lo)       # the root is in (x, up)
         zero = f_x == 0
         f_up = np.where(left & (last == -1), 0.5 * f_up, f_up)
@@ -129,11 +143,16 @@ def refine_sign_change(function: Callable[[np.ndarray, np.ndarray], np.ndarray],
         lo[idx[left]], f_lo = x[left], np.where(left, f_x, f_lo)
         up[idx[~left]], f_up = x[~left], np.where(~left, f_x, f_up)
         lo[idx[zero]] = up[idx[zero]] = x[zero]
+        if tracked is not None:
+            tracked[0][idx[left | zero]] = t_x[left | zero]
+            tracked[1][idx[~left | zero]] = t_x[~left | zero]
         last = np.where(left, -1, 1)
         gap = up[idx] - lo[idx]
         halved = gap <= 0.5 * width
         width, stall = np.where(halved, gap, width), np.where(halved, 0, stall + 1)
         keep = (gap > rtol * up[idx]) & (gap > 4 * np.spacing(up[idx]))
+        if stop is not None and keep.any():
+            keep[keep] = ~np.asarray(stop(idx[keep]), dtype=bool)
         idx, f_lo, f_up = idx[keep], f_lo[keep], f_up[keep]
         width, stall, last = width[keep], stall[keep], last[keep]
     return good

@@ -18,7 +18,7 @@ from ctmm.planar.integrate import simulate_rk4
 from ctmm.reference.planar_lagrange import PlanarLagrange, newton_euler_kkt
 from ctmm.planar import solve_instant
 
-from .planar_common import angle_accuracy
+from .planar_common import angle_accuracy, plot_angle_errors, save_figure
 
 NAME = "branched_tree"
 DESCRIPTION = ("Pinned trunk with two two-link branches (smooth and elastic hinges): TMM + RK4 "
@@ -82,18 +82,12 @@ def run(output_dir: Path, quick: bool = False) -> dict:
                              alpha=0.25 + 0.75 * k / len(rk4.t))
     axes[0].set(aspect="equal", title="configurations (darker = later)", xlabel="x [m]",
                 ylabel="y [m]")
-    axes[1].semilogy(rk4.t, err_rk4 + 1e-17, label="TMM + RK4")
-    axes[1].semilogy(newmark.t, err_nm + 1e-17, label="DT-TMM Newmark")
-    axes[1].set(xlabel="t [s]", ylabel="max angle error vs Lagrange [rad]")
-    axes[1].legend(fontsize="small")
+    plot_angle_errors(axes[1], rk4, err_rk4, newmark, err_nm, "max angle error vs Lagrange [rad]")
     axes[2].plot(rk4.t, energy_rk4 - energy_rk4[0], label="RK4")
     axes[2].plot(newmark.t, energy_nm - energy_nm[0], label="Newmark")
     axes[2].set(xlabel="t [s]", ylabel="E(t) - E(0) [J]")
     axes[2].legend(fontsize="small")
-    fig.tight_layout()
-    Path(output_dir).mkdir(parents=True, exist_ok=True)
-    fig.savefig(Path(output_dir) / f"{NAME}.png", dpi=100)
-    plt.close(fig)
+    save_figure(fig, output_dir, NAME)
     return {
         "accuracy": angle_accuracy(rk4.t, err_rk4, "over the coordinates, h = 1 ms, Lagrange tree model DOP853 1e-12"),
         "angle_max_error_whole_run_rad": float(err_rk4.max()),

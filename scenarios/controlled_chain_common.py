@@ -105,7 +105,7 @@ def frf_comparison(placement: str, gain: float, delay: float, omega: np.ndarray)
     """TMM closed-loop FRFs (force on m6 -> x2, x4, x6) and the dense global reference.
 
     Returns ``{"tmm": (3, n_omega), "reference": (3, n_omega), "error": relative error,
-    "tmm_time": s, "reference_time": s}``.
+    "tmm_time": s, "reference_time": s, "response": the TMM FrequencyResponse}``.
     """
     import time
 
@@ -113,15 +113,15 @@ def frf_comparison(placement: str, gain: float, delay: float, omega: np.ndarray)
 
     system, loops = controlled(placement, gain, delay)
     start = time.perf_counter()
-    tmm = ctmm.frequency_response(system, omega, input="m6.force",
-                                  output=[f"{m}.x" for m in MASSES]).response[:, 0]
+    response = ctmm.frequency_response(system, omega, input="m6.force", output=[f"{m}.x" for m in MASSES])
+    tmm = response.response[:, 0]
     tmm_time = time.perf_counter() - start
     chain = global_chain()
     start = time.perf_counter()
     ref = np.array([closed_loop_frequency_response(chain, loops, omega, 2, i) for i in range(3)])
     ref_time = time.perf_counter() - start
     return {"tmm": tmm, "reference": ref, "tmm_time": tmm_time, "reference_time": ref_time,
-            "error": float(np.max(np.abs(tmm - ref)) / np.max(np.abs(ref)))}
+            "error": float(np.max(np.abs(tmm - ref)) / np.max(np.abs(ref))), "response": response}
 
 
 def steady_state_comparison(placement: str, gain: float, delay: float, t: np.ndarray) -> dict:
@@ -174,19 +174,33 @@ def compare_placement(placement: str, quick: bool) -> dict:
             "margins": margins(system, "control", np.linspace(0.02, 20.0, 2000 if quick else 8000))}
 
 
-def plot_frf_pair(ax_pair, omega, results: dict, title: str) -> None:
-    """Magnitudes of X2, X4, X6 for the two gains in ``results`` ({gain: frf_comparison})."""
+def plot_magnitude(ax, result: dict, mass: str, label: str, style: str = "-", markers: int = 50,
+                   reference_label: str | None = None):
+    """Bode magnitude [dB re 1 m/N] of ``mass`` in one :func:`frf_comparison` result, drawn by
+    :meth:`ctmm.results.FrequencyResponse.plot` (the one Bode drawing: its axis labels and units),
+    with the global closed-loop solve as ``x`` markers (about ``markers`` of them, legend entry
+    ``reference_label``) in the same colour.
+
+    Returns the TMM curve (a matplotlib ``Line2D``)."""
+    result["response"].plot([ax], output=f"{mass}.x", input="m6.force", phase=False, label=label)
+    line = ax.get_lines()[-1]
+    line.set_linestyle(style)
+    omega, k = result["response"].omega, MASSES.index(mass)
+    step = max(1, omega.size // markers)
+    ax.semilogx(omega[::step], 20 * np.log10(np.abs(result["reference"][k, ::step])), "x", ms=4,
+                color=line.get_color(), label=reference_label)
+    ax.legend(fontsize=7)
+    return line
+
+
+def plot_frf_pair(ax_pair, results: dict, title: str) -> None:
+    """Bode magnitudes of X2, X4, X6 for the two gains in ``results`` ({gain: frf_comparison})."""
     styles = ("-", "--", "-.")
-    step = max(1, omega.size // 50)
     for ax, (gain, res) in zip(ax_pair, results.items()):
         for k, name in enumerate(MASSES):
-            ax.semilogy(omega, np.abs(res["tmm"][k]), styles[k], label=f"{LABELS[name]} TMM")
-            ax.semilogy(omega[::step], np.abs(res["reference"][k, ::step]), "kx", ms=4,
-                        label="global closed-loop solve" if k == 0 else None)
-        ax.set_title(f"{title}, Ka = {gain:g} N/m")
-        ax.set_ylabel("|X| per unit force on m6 [m/N]")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7)
+            plot_magnitude(ax, res, name, f"{LABELS[name]} TMM", styles[k],
+                           reference_label="global closed-loop solve" if k == 0 else None)
+        ax.set_title(f"{title}, Ka = {gain:g} N/m, force on m6")
 
 
 def frf_and_steady_accuracy(frf_error: float, frf_cases: str, steady_error: float, steady_reference: str) -> list:

@@ -78,19 +78,15 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     figures.append(name)
 
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 5))
-    step = max(1, omega.size // 60)
     for tau in DELAYS:
         ls = "-" if stability[tau] else ":"
-        line, = ax1.semilogy(omega, np.abs(frf[tau]["tmm"][2]), ls,
-                             label=f"tau = {tau:g} s ({'stable' if stability[tau] else 'unstable'})")
-        ax1.semilogy(omega[::step], np.abs(frf[tau]["reference"][2, ::step]), "x", ms=3, color=line.get_color())
+        line = common.plot_magnitude(ax1, frf[tau], "m6", f"tau = {tau:g} s "
+                                     f"({'stable' if stability[tau] else 'unstable'})", ls, markers=60,
+                                     reference_label="global closed-loop solve" if tau == DELAYS[0] else None)
         L = nyquist[tau]("control.L")
         ax2.plot(L.real, L.imag, ls, color=line.get_color(), label=f"tau = {tau:g} s")
         ax2.plot(L.real, -L.imag, ls, color=line.get_color(), lw=0.5)
-    ax1.set_xlabel("Omega [rad/s]")
-    ax1.set_ylabel("|X6| per unit force on m6 [m/N] (x: global solve)")
-    ax1.grid(True, which="both", alpha=0.3)
-    ax1.legend(fontsize=8)
+    ax1.set_title("X6 per unit force on m6", fontsize=9)
     ax2.plot([-1], [0], "r+", ms=14, mew=2)
     ax2.set_xlim(-3, 1.5)
     ax2.set_ylim(-2.5, 2.5)

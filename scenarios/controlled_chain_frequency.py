@@ -42,8 +42,7 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     # -- figures ------------------------------------------------------------------------
     figures = []
     fig, axes = plt.subplots(2, 1, sharex=True, figsize=(7.5, 7))
-    common.plot_frf_pair(axes, omega, frf, "Fig. 9.29: frequency response, loop m6 -> m2")
-    axes[-1].set_xlabel("Omega [rad/s]")
+    common.plot_frf_pair(axes, frf, "Fig. 9.29: frequency response, loop m6 -> m2")
     fig.tight_layout()
     name = f"{NAME}_fig9_29.png"
     fig.savefig(output_dir / name, dpi=110)

@@ -21,7 +21,7 @@ from ctmm.planar.implicit import simulate_implicit
 from ctmm.planar.integrate import simulate_rk4
 from ctmm.reference.planar_lagrange import PlanarLagrange, newton_euler_kkt
 
-from .planar_common import angle_accuracy
+from .planar_common import angle_accuracy, plot_angle_errors, save_figure
 
 NAME = "hinge_spring_motor"
 DESCRIPTION = ("Two-link arm: PD hub motor (collocated feedback embedded in the hinge) and an "
@@ -105,14 +105,8 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     axes[1].plot(sim_d.t, torque_d, "--", label="driven hub torque (output)")
     axes[1].set(xlabel="t [s]", ylabel="hub torque [N m]")
     axes[1].legend(fontsize="small")
-    axes[2].semilogy(rk4.t, err_rk4 + 1e-17, label="TMM + RK4")
-    axes[2].semilogy(newmark.t, err_nm + 1e-17, label="DT-TMM Newmark")
-    axes[2].set(xlabel="t [s]", ylabel="max angle error vs Lagrange [rad]")
-    axes[2].legend(fontsize="small")
-    fig.tight_layout()
-    Path(output_dir).mkdir(parents=True, exist_ok=True)
-    fig.savefig(Path(output_dir) / f"{NAME}.png", dpi=100)
-    plt.close(fig)
+    plot_angle_errors(axes[2], rk4, err_rk4, newmark, err_nm, "max angle error vs Lagrange [rad]")
+    save_figure(fig, output_dir, NAME)
     return {
         "accuracy": angle_accuracy(rk4.t, err_rk4, "over both links, PD-motor arm, h = 1 ms, DOP853 1e-12 reference"),
         "angle_max_error_whole_run_rad": float(err_rk4.max()),

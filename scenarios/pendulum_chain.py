@@ -19,7 +19,7 @@ from ctmm.planar.implicit import simulate_implicit
 from ctmm.planar.integrate import simulate_rk4
 from ctmm.reference.planar_lagrange import PlanarLagrange
 
-from .planar_common import angle_accuracy
+from .planar_common import angle_accuracy, plot_angle_errors, save_figure
 
 NAME = "pendulum_chain"
 DESCRIPTION = ("Triple pendulum with an elastic hinge (FORMULAS c07): TMM + RK4 and implicit "
@@ -77,18 +77,12 @@ def run(output_dir: Path, quick: bool = False) -> dict:
         axes[0].plot(rk4.t, rk4.q[:, i], "--", label=f"{name} TMM+RK4")
     axes[0].set(xlabel="t [s]", ylabel="absolute angle [rad]", title="grey: Lagrange DOP853")
     axes[0].legend(fontsize="small")
-    axes[1].semilogy(rk4.t, err_rk4 + 1e-17, label="TMM + RK4, h = 1 ms")
-    axes[1].semilogy(newmark.t, err_nm + 1e-17, label="DT-TMM Newmark, h = 1 ms")
-    axes[1].set(xlabel="t [s]", ylabel="max angle error [rad]")
-    axes[1].legend(fontsize="small")
+    plot_angle_errors(axes[1], rk4, err_rk4, newmark, err_nm, "max angle error [rad]", ", h = 1 ms")
     axes[2].plot(rk4.t, e_rk4 - e0, label="RK4 (undamped variant)")
     axes[2].plot(rk4.t, e_nm - e0, label="Newmark (undamped variant)")
     axes[2].set(xlabel="t [s]", ylabel="E(t) - E(0) [J]")
     axes[2].legend(fontsize="small")
-    fig.tight_layout()
-    Path(output_dir).mkdir(parents=True, exist_ok=True)
-    fig.savefig(Path(output_dir) / f"{NAME}.png", dpi=100)
-    plt.close(fig)
+    save_figure(fig, output_dir, NAME)
     return {
         "accuracy": angle_accuracy(rk4.t, err_rk4, "over the links, h = 1 ms, reference DOP853 rtol = atol = 1e-12"),
         "angle_max_error_whole_run_rad": float(err_rk4.max()),

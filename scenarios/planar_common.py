@@ -1,5 +1,9 @@
-"""Accuracy figure shared by the planar scenarios (pendulum chain, branched tree, hinge + motor)."""
+"""Accuracy figure and drawing helpers shared by the planar scenarios (pendulum chain, branched tree,
+hinge + motor)."""
 from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -25,3 +29,24 @@ def angle_accuracy(t: np.ndarray, error: np.ndarray, what: str) -> list[dict]:
     return [accuracy("angle error vs Lagrange over 1 s", float(np.max(np.asarray(error)[window])), "rad",
                      TARGET_RAD, f"max over t in [0, min(T, 1 s)] of |theta_TMM+RK4 - theta_Lagrange| {what}",
                      source="docs/planar.md: planar RK4 (h = 1 ms) target 1e-6 rad over 1 s")]
+
+
+def plot_angle_errors(ax: Any, rk4: Any, error_rk4: np.ndarray, newmark: Any, error_newmark: np.ndarray,
+                      ylabel: str, suffix: str = "") -> None:
+    """Max angle error [rad] of TMM + RK4 and DT-TMM Newmark against time [s], log scale.
+
+    ``rk4`` and ``newmark`` are the runs (their ``t`` [s]); ``suffix`` completes the legend entries."""
+    ax.semilogy(rk4.t, error_rk4 + 1e-17, label=f"TMM + RK4{suffix}")
+    ax.semilogy(newmark.t, error_newmark + 1e-17, label=f"DT-TMM Newmark{suffix}")
+    ax.set(xlabel="t [s]", ylabel=ylabel)
+    ax.legend(fontsize="small")
+
+
+def save_figure(fig: Any, output_dir: str | Path, name: str) -> None:
+    """Lay out, write ``<output_dir>/<name>.png`` (100 dpi, the directory made if needed) and close."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    Path(output_dir).mkdir(parents=True, exist_ok=True)
+    fig.savefig(Path(output_dir) / f"{name}.png", dpi=100)
+    plt.close(fig)

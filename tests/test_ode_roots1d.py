@@ -138,3 +138,39 @@ def test_sign_change_refinement_converges_superlinearly(function, lo, up, root, 
     lo, up = np.array([lo]), np.array([up])
     refine_sign_change(lambda x, active: calls.append(1) or function(x), lo, up, function(lo), function(up), 1e-15)
     assert len(calls) <= most and abs(0.5 * (lo[0] + up[0]) - root) <= 2e-15 * root
+
+
+def test_sign_change_refinement_carries_tracked_values_with_the_ends():
+    roots = np.array([math.sqrt(2.0), 1.5, 3.0])
+    lo, up = np.array([1.0, 1.0, 2.0]), np.array([2.0, 2.0, 4.0])
+    p_lo, p_up = lo ** 3, up ** 3                                   # tracked: x^3 at each end
+    everyone = np.arange(3)
+
+    def function(x, active):
+        return (x - roots[active]) * (1.0 + x), x ** 3
+
+    f_lo, f_up = function(lo, everyone)[0], function(up, everyone)[0]
+    good = refine_sign_change(function, lo, up, f_lo, f_up, 1e-15, tracked=(p_lo, p_up))
+    assert np.all(good) and np.all(p_lo == lo ** 3) and np.all(p_up == up ** 3)
+    assert np.all(np.abs(0.5 * (lo + up) - roots) <= 2e-15 * roots)
+    assert lo[1] == up[1] == 1.5 and p_lo[1] == p_up[1] == 1.5 ** 3    # exact zero: both ends
+
+
+def test_sign_change_refinement_stops_brackets_early_on_request():
+    root, asked, evaluated = 2.0 ** (1 / 3), [], []
+    lo, up = np.array([1.0, 1.0]), np.array([2.0, 2.0])
+
+    def stop(active):
+        asked.append(active.copy())
+        return (active == 0) & (up[active] - lo[active] <= 1e-2)     # bracket 0 only, once narrow
+
+    def function(x, active):
+        evaluated.append(np.copy(active))
+        return x ** 3 - 2.0
+
+    everyone = np.arange(2)
+    refine_sign_change(function, lo, up, lo ** 3 - 2.0, up ** 3 - 2.0, 1e-15, stop=stop)
+    assert 1e-6 < up[0] - lo[0] <= 1e-2 and lo[0] < root < up[0]                 # stopped, not converged
+    assert up[1] - lo[1] <= 1e-15 * up[1] and lo[1] <= root <= up[1]
+    assert np.array_equal(evaluated[0], everyone) and not np.isin(0, evaluated[-1])
+    assert all(np.isin(a, e).all() for a, e in zip(asked, evaluated))            # only brackets still going
