@@ -8,7 +8,11 @@ Built on :mod:`ctmm.guard` (shared by every ctmm simulator):
   raises :class:`~ctmm.errors.ModelError` or does nothing (``stability_check="warn" | "error" |
   "ignore"``).  ``omega_max`` [rad/s] is the spectral radius of the linearisation of
   ``y' = [qdot, qddot(q, qdot, t)]`` about the initial state (central differences of the
-  acceleration TMM, ``4 n`` sweeps).
+  acceleration TMM, ``4 n`` sweeps).  Implicit schemes, stable at any step, are also checked for
+  resolution: a step longer than half the period of the SLOWEST motion (smallest non-zero
+  eigenvalue modulus, up to 20 coordinates) resolves no motion, and Newton can settle on a
+  spurious root of the step equations (a pendulum at 6 periods per step winds round), so it is
+  warned about in the same way.
 * **During the run** -- :func:`divergence_guard` stops a run whose coordinates go non-finite or
   move farther than ``divergence_bound`` from their initial values (default: ``1e6 * max(1,
   |q0|)``), naming the coordinate and the time.
@@ -35,8 +39,11 @@ STABILITY_CHECKS = ("warn", "error", "ignore")
 
 
 def linearised_omega_max(model: PlanarModel | None, q: np.ndarray, qdot: np.ndarray, t: float = 0.0, *,
-                         accelerations: Callable | None = None) -> float:
+                         accelerations: Callable | None = None, slowest: bool = False) -> float | tuple:
     """Spectral radius [rad/s] of ``d[qdot, qddot]/d[q, qdot]`` at ``(q, qdot, t)``.
+
+    With ``slowest``, returns ``(fastest, slowest)``: also the smallest non-zero eigenvalue modulus
+    (the slowest motion; NaN when it is not computed, above 20 coordinates).
 
     For an undamped linear model this is the highest natural frequency; about an unstable
     configuration (an inverted pendulum) it is the fastest growth rate.  Jacobian-vector
@@ -66,8 +73,13 @@ def linearised_omega_max(model: PlanarModel | None, q: np.ndarray, qdot: np.ndar
     if n <= 20:
         jacobian = np.column_stack([product(e) for e in np.eye(2 * n)])
         if not np.all(np.isfinite(jacobian)):
-            return math.inf
-        return float(np.max(np.abs(np.linalg.eigvals(jacobian)), initial=0.0))
+            return (math.inf, math.nan) if slowest else math.inf
+        moduli = np.abs(np.linalg.eigvals(jacobian))
+        fastest = float(np.max(moduli, initial=0.0))
+        if not slowest:
+            return fastest
+        moving = moduli[moduli > 1e-6 * fastest]        # rigid-body modes (0) are not motions to resolve
+        return fastest, float(np.min(moving)) if moving.size else math.nan
     import scipy.sparse.linalg
 
     operator = scipy.sparse.linalg.LinearOperator((2 * n, 2 * n), matvec=product, dtype=float)
@@ -76,7 +88,8 @@ def linearised_omega_max(model: PlanarModel | None, q: np.ndarray, qdot: np.ndar
                                          v0=np.ones(2 * n))[0]
     except scipy.sparse.linalg.ArpackNoConvergence as exc:
         value = exc.eigenvalues[0] if len(exc.eigenvalues) else math.inf
-    return float(abs(value)) if np.isfinite(value) else math.inf
+    fastest = float(abs(value)) if np.isfinite(value) else math.inf
+    return (fastest, math.nan) if slowest else fastest
 
 
 def check_scheme(model: PlanarModel | None, q0: np.ndarray, qdot0: np.ndarray, dt: float, *, scheme: str,
@@ -110,13 +123,21 @@ def check_scheme(model: PlanarModel | None, q0: np.ndarray, qdot0: np.ndarray, d
         limit, what = RK4_LIMIT, "classical RK4"
     else:
         limit, what = newmark_limit(beta, gamma), f"Newmark(beta={beta:g}, gamma={gamma:g})"
-        if math.isinf(limit):
-            return None
-    omega_max = linearised_omega_max(model, q0, qdot0, accelerations=accelerations)
+    if math.isinf(limit) and len(q0) > 20:   # slowest motion only from the dense Jacobian (<= 20 coordinates)
+        return None
+    omega_max, omega_min = linearised_omega_max(model, q0, qdot0, accelerations=accelerations, slowest=True)
     try:   # raise here and warn below, so that the warning points at the user's call
         label = label or f"model {model.name!r}"
-        check_step(f"{what} on {label} (linearised about the initial state)", omega_max, dt, limit,
-                   policy="error")
+        if not math.isinf(limit):
+            check_step(f"{what} on {label} (linearised about the initial state)", omega_max, dt, limit,
+                       policy="error")
+        if scheme != "rk4" and omega_min * dt > math.pi:   # NaN (not computed) compares False
+            # an implicit scheme is stable at any step, but a step longer than half the period of the
+            # SLOWEST motion resolves no motion at all, and Newton can settle on a spurious solution
+            # of the step equations (a pendulum that winds round at every step)
+            raise ModelError(f"{what} on {label}: dt = {dt:g} s is longer than half the period of the slowest "
+                             f"motion ({2 * math.pi / omega_min:.4g} s, linearised about the initial state): "
+                             f"no motion is resolved; use dt <= {math.pi / omega_min:.4g} s")
     except ModelError as exc:
         if policy == "error":
             raise
