@@ -36,6 +36,7 @@ from .control.loops import ControlledChain
 from .certification import ContourCertificate
 from .errors import ModelError, unknown_name
 from .parameter_crossings import row_crossings
+from .root_counts import unstable_root_count
 from .counting_contour import build_contour, count
 from .sweeps import (LoopCharacteristic, as_controlled, find_loop, loop_weight_bound, managed_executor,
                      parallel_map)
@@ -654,8 +655,6 @@ def _shared_loop(systems: list, loop: str | None):
 
 def _point_count(args) -> int:
     system, loop, im_max = args
-    from .stability import unstable_root_count
-
     counts = unstable_root_count(system, loop=loop, im_max=im_max)
     return int(counts[0]), counts.certificate
 

@@ -287,10 +287,6 @@ ALLOWED: dict[tuple[str, str], str] = {
         "to_state_space of a controlled chain lists its actuator inputs through control.analysis",
     ("lazy cycle", "ctmm.stability -> ctmm.interop"):
         "spectral seeds realise the loop as a state space through interop.to_state_space",
-    ("lazy cycle", "ctmm.stability -> ctmm.stability_chart"):
-        "module __getattr__ re-exports stability_chart from stability (plan §1.5)",
-    ("lazy cycle", "ctmm.stability_chart -> ctmm.stability"):
-        "chart points are classified by stability.unstable_root_count (plan §1.5)",
     ("package cycle", "ctmm.flexible -> ctmm.planar"):
         "flexible bodies build on planar Load, signals and the planar model (plan §1.5)",
     ("package cycle", "ctmm.planar -> ctmm.flexible"):
