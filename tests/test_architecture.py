@@ -275,18 +275,8 @@ def all_violations(sources=SOURCES, **options) -> tuple[list[Violation], dict]:
 # --------------------------------------------------------------------------------------------------
 ALLOWED: dict[tuple[str, str], str] = {
     # import cycles (plan §1.5; frequency <-> natural and results -> ctmm removed in S1d)
-    ("lazy cycle", "ctmm.certification -> ctmm.control.analysis"):
-        "certified state-space check needs actuator_inputs; analysis depends on stability/certification",
-    ("lazy cycle", "ctmm.certification -> ctmm.interop"):
-        "certified state-space check needs to_state_space; interop depends on the verb modules",
-    ("lazy cycle", "ctmm.control.analysis -> ctmm.stability"):
-        "certified crossovers of control.analysis come from the stability contour search",
     ("lazy cycle", "ctmm.control.fmu_state -> ctmm.control.fmu"):
         "TYPE_CHECKING import for the FMU controller type in annotations",
-    ("lazy cycle", "ctmm.interop -> ctmm.control.analysis"):
-        "to_state_space of a controlled chain lists its actuator inputs through control.analysis",
-    ("lazy cycle", "ctmm.stability -> ctmm.interop"):
-        "spectral seeds realise the loop as a state space through interop.to_state_space",
     ("package cycle", "ctmm.flexible -> ctmm.planar"):
         "flexible bodies build on planar Load, signals and the planar model (plan §1.5)",
     ("package cycle", "ctmm.planar -> ctmm.flexible"):

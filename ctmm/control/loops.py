@@ -426,6 +426,22 @@ class ControlledChain:
         return f"ControlledChain({self.plant!r}, loops={[lp.name for lp in self.loops]})"
 
 
+def actuator_inputs(system: ControlledChain, loop: str) -> list[tuple[str, float]]:
+    """The plant inputs ``[(input name, weight), ...]`` through which the force of ``loop`` enters
+    (an element name stands for its first input: ``"m2"`` -> ``"m2.force"``; weights [-]).
+
+    Also reachable as ``ctmm.control.analysis.actuator_inputs``; used by the state-space
+    realisation (:mod:`ctmm.interop`) and the certified contour height (:mod:`ctmm.certification`).
+    """
+    lp = system.loop(loop)
+    out = []
+    for name, weight in lp.actuator_terms:
+        if "." not in name:
+            name = f"{name}.{system.plant.element(name).inputs[0]}"
+        out.append((name, float(weight)))
+    return out
+
+
 @dataclass(frozen=True)
 class _LoopInput:
     name: str
