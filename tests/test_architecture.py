@@ -275,8 +275,6 @@ def all_violations(sources=SOURCES, **options) -> tuple[list[Violation], dict]:
 # --------------------------------------------------------------------------------------------------
 ALLOWED: dict[tuple[str, str], str] = {
     # import cycles (plan §1.5; frequency <-> natural and results -> ctmm removed in S1d)
-    ("lazy cycle", "ctmm.control.fmu_state -> ctmm.control.fmu"):
-        "TYPE_CHECKING import for the FMU controller type in annotations",
     ("package cycle", "ctmm.flexible -> ctmm.planar"):
         "flexible bodies build on planar Load, signals and the planar model (plan §1.5)",
     ("package cycle", "ctmm.planar -> ctmm.flexible"):
