@@ -275,10 +275,6 @@ def all_violations(sources=SOURCES, **options) -> tuple[list[Violation], dict]:
 # --------------------------------------------------------------------------------------------------
 ALLOWED: dict[tuple[str, str], str] = {
     # import cycles (plan §1.5; frequency <-> natural and results -> ctmm removed in S1d)
-    ("package cycle", "ctmm.flexible -> ctmm.planar"):
-        "flexible bodies build on planar Load, signals and the planar model (plan §1.5)",
-    ("package cycle", "ctmm.planar -> ctmm.flexible"):
-        "planar model/sweep/integrators dispatch to flexible kernels by lazy imports (plan §1.5)",
     # private names imported across modules (plan §1.6; removed by S1c/S1d)
     ("private import", "ctmm.planar.compiled: _initial from ctmm.planar.integrate"):
         "integrator initial-state helper shared by the planar integrators (S1c: ode.py)",
