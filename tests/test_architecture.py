@@ -301,14 +301,14 @@ ALLOWED: dict[tuple[str, str], str] = {
 #: Allowlisted long modules and their line count when they were listed: they may not grow.
 LONG_MODULES: dict[str, int] = {
     "ctmm.elements.beams": 678,
-    "ctmm.flexible.beam": 647,
+    "ctmm.flexible.beam": 645,
     "ctmm.natural": 708,
     "ctmm.planar.model": 671,
     "ctmm.reference.chain": 641,
     "ctmm.reference.dde": 611,
     "ctmm.roots": 605,
-    "ctmm.stability": 694,
-    "ctmm.stability_chart": 714,
+    "ctmm.stability": 617,
+    "ctmm.stability_chart": 710,
     "ctmm.timestep": 709,
 }
 

@@ -423,6 +423,9 @@ class BeamData:
         self.tip_phi = beam.shapes([L], 0)[:, 0]
         self.tip_psi = beam.axial_shapes([L], 0)[:, 0]
         self.phi_bound = np.max(np.abs(beam.shapes(np.linspace(0, L, 201), 0)), axis=1)
+        self._eye = np.eye(3 + self.n)
+        for constant in ("_constant_mass", "_constant_ends", "_functionals"):
+            getattr(self, constant)   # computed here, once: the data of a beam never change afterwards
 
     def _hook(self, what: str, function: Callable, args: tuple, t: float) -> np.ndarray:
         """A :class:`ModalForce` ``force`` or ``law`` value (``n_eta`` finite numbers, complex
@@ -469,10 +472,6 @@ class BeamData:
         M0[3:3 + nq, 3:3 + nq] = self.M_q
         M0[3 + nq:, 3 + nq:] = self.M_p
         return M0
-
-    @cached_property
-    def _eye(self) -> np.ndarray:
-        return np.eye(3 + self.n)
 
     @cached_property
     def _constant_ends(self) -> list:
