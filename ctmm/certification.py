@@ -203,7 +203,7 @@ def loop_bound(model: Any, weight_bound: np.ndarray) -> LoopBound:
     """
     import control
 
-    from .control.analysis import actuator_inputs
+    from .control.loops import actuator_inputs
     from .interop import to_state_space
 
     lp = model.loop

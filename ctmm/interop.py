@@ -42,6 +42,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from . import validation
+from .control.loops import actuator_inputs
 from .elements.boundary import Elastic, PrescribedForce
 from .elements.lumped import Connector, PointElement
 from .errors import ModelError, unknown_name
@@ -470,8 +471,6 @@ def to_state_space(system: Any, *, inputs: str | Sequence[str] | None = None,
             raise unknown_name("input", name, list(system.input_names()))
         else:
             forces.append(name)
-    from .control.analysis import actuator_inputs
-
     actuators = [actuator_inputs(system, lp.name) for lp in loops]     # [(input, weight), ...] per loop
     plant_inputs = list(dict.fromkeys(forces + [a for terms in actuators for a, _ in terms]))
     model = _LumpedModel(chain, plant_inputs)

@@ -5,7 +5,7 @@ Everything here works on the characteristic function ``Delta(s)`` of the transfe
 it as an affine term (:class:`ctmm.sweeps.LoopCharacteristic`, eq. (1) there), which turns
 counts for many parameter sets, crossing frequencies and margins into array arithmetic on a few
 transfer-matrix sweeps.  Charts over two parameters are in :mod:`ctmm.stability_chart` (also
-reachable as ``ctmm.stability.stability_chart``); the methods are derived in
+reachable as ``ctmm.stability.stability_chart``), root counts in :mod:`ctmm.root_counts`; the methods are derived in
 ``docs/stability.md``.
 """
 from __future__ import annotations
@@ -24,8 +24,9 @@ from .roots import RootSet, SpectralAbscissa, rightmost_roots
 from .roots import spectral_abscissa as _roots_abscissa
 from .counting_contour import Contour, build_contour, contour_height, count
 from .parameter_crossings import bracket_solve, row_crossings
-from .sweeps import (LoopCharacteristic, as_controlled, characteristic_callable, check_parameters, find_loop,
-                     loop_weight_bound, n_sets)
+from .root_counts import RootCounts, unstable_root_count
+from .stability_chart import Boundary, StabilityChart, stability_chart
+from .sweeps import LoopCharacteristic, as_controlled, characteristic_callable, find_loop, loop_weight_bound
 
 __all__ = ["LoopCharacteristic", "characteristic_roots", "spectral_abscissa", "spectral_seeds",
            "unstable_root_count", "RootCounts",
@@ -33,84 +34,6 @@ __all__ = ["LoopCharacteristic", "characteristic_roots", "spectral_abscissa", "s
            "crosscheck_by_simulation", "stability_chart", "StabilityChart", "Boundary"]
 
 _MAX_CROSSINGS = 1_000_000   # largest number of delay crossings delay_margin lists
-
-
-def __getattr__(name: str):
-    """``stability_chart``, ``StabilityChart`` and ``Boundary`` live in :mod:`ctmm.stability_chart`."""
-    if name in ("stability_chart", "StabilityChart", "Boundary"):
-        from . import stability_chart as charts
-
-        return getattr(charts, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def unstable_root_count(system: ControlledChain, *, loop: str | None = None, gain: Any = None,
-                        delay: Any = None, weights: Any = None, sigma: float = 0.0,
-                        im_max: float | None = None) -> np.ndarray:
-    """Number of characteristic roots with ``Re s > sigma`` for many parameter sets of one loop.
-
-    Parameters
-    ----------
-    system : ControlledChain
-    loop : str, optional
-        The loop whose parameters vary (default: the only loop).
-    gain, delay : array_like, optional
-        Gain factors ``k`` [-] (the loop gain itself for a static gain) and delays [s] (>= 0),
-        broadcast together; default: the loop's current values.
-    weights : array_like, optional
-        Sensor weights, shape ``(n_sets, n_terms)`` or ``(n_terms,)``.
-    sigma : float
-        Count roots right of ``Re s = sigma`` [1/s] (0: unstable roots).
-    im_max : float, optional
-        Imaginary extent [rad/s] of the contour (default: the proven height, module
-        :mod:`ctmm.certification`).
-
-    Returns
-    -------
-    RootCounts
-        Integer array of counts (with multiplicity); -1 where a root lies on the line
-        ``Re s = sigma``.  ``counts.certificate`` says which region was counted and whether no
-        root outside it can exist (:class:`~ctmm.certification.ContourCertificate`); a user
-        ``im_max`` below the proven height that lets the loop term reach 1/2 warns
-        (:class:`~ctmm.certification.StabilityWarning`).
-
-    Examples
-    --------
-    >>> import numpy as np, ctmm
-    >>> from ctmm.elements import Free, Mass
-    >>> from ctmm.control import ControlledChain, Feedback
-    >>> plant = ctmm.Chain("mass", [Free("a"), Mass("m", 1.0), Free("b")])
-    >>> system = ControlledChain(plant, [Feedback("pd", [("m.x", 1.0), ("m.v", 1.0)], "m", gain=1.0)])
-    >>> unstable_root_count(system, delay=[0.0, 0.5, 1.5]).tolist()
-    [0, 0, 2]
-    """
-    gain, delay = (None if v is None else validation.nonempty_array(n, v) for n, v in (("gain", gain), ("delay", delay)))
-    model = LoopCharacteristic(system, loop)
-    weights = None if weights is None else validation.weight_rows("weights", weights, model.weights.size)
-    n = n_sets(gain, delay, weights)
-    k, tau, w = model.parameters(n, None if gain is None else np.ravel(gain),
-                                 None if delay is None else np.ravel(delay), weights)
-    check_parameters(k, tau, w)
-    sigma = validation.finite("sigma", sigma)
-    contour = build_contour(model, loop_weight_bound(k, w), float(tau.max()), sigma=sigma, im_max=im_max)
-    counts, _ = count(contour, k, tau, w)
-    return RootCounts(counts, contour.certificate)
-
-
-class RootCounts(np.ndarray):
-    """Root counts (an integer array) with the :class:`~ctmm.certification.ContourCertificate`
-    of the region they cover in its ``certificate`` attribute."""
-
-    certificate: ContourCertificate | None
-
-    def __new__(cls, counts: Any, certificate: ContourCertificate | None = None) -> "RootCounts":
-        obj = np.asarray(counts).view(cls)
-        obj.certificate = certificate
-        return obj
-
-    def __array_finalize__(self, obj: Any) -> None:
-        self.certificate = getattr(obj, "certificate", None)
-
 
 
 # --------------------------------------------------------------------------------------------

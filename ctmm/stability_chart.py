@@ -36,6 +36,7 @@ from .control.loops import ControlledChain
 from .certification import ContourCertificate
 from .errors import ModelError, unknown_name
 from .parameter_crossings import row_crossings
+from .root_counts import unstable_root_count
 from .counting_contour import build_contour, count
 from .sweeps import (LoopCharacteristic, as_controlled, find_loop, loop_weight_bound, managed_executor,
                      parallel_map)
@@ -357,10 +358,10 @@ def _loop_chart(system, loop, xs, ys, im_max, levels, verify, pool, progress) ->
     # the parameter box (for the contour radius) and the largest delay (for the sampling)
     P, Q = np.meshgrid(p_grid, q_grid)
     k_all, tau_all, w_all = _sets_for(model, {p_name: P.ravel(), q_name: Q.ravel()}, P.size)
-    contour = build_contour(model, loop_weight_bound(k_all, w_all), float(tau_all.max()), im_max=im_max)
-    model._chart_tau_max = float(tau_all.max())
+    tau_max = float(tau_all.max())   # largest delay of the chart [s]
+    contour = build_contour(model, loop_weight_bound(k_all, w_all), tau_max, im_max=im_max)
     notes += contour.notes
-    _resolve_curves(model, contour, p_name, q_name, p_grid, q_grid)
+    _resolve_curves(model, contour, p_name, q_name, p_grid, q_grid, tau_max)
     sets0 = _sets_for(model, {p_name: 0.0, q_name: q_grid}, nq)
     sets1 = _sets_for(model, {p_name: 1.0, q_name: q_grid}, nq)
     p_range = (float(p_grid.min()), float(p_grid.max()))
@@ -376,7 +377,7 @@ def _loop_chart(system, loop, xs, ys, im_max, levels, verify, pool, progress) ->
             notes.append(f"verify: {mismatch} grid points differ between row classification and direct counts")
     if not linear_x:
         counts = counts.T
-    boundaries = _dcurves(model, contour, p_name, q_name, p_grid, q_grid, linear_x)
+    boundaries = _dcurves(model, contour, p_name, q_name, p_grid, q_grid, linear_x, tau_max)
     abscissa = None
     if levels is not None:
         abscissa = _abscissa_levels(model, k_all, tau_all, w_all, levels, im_max,
@@ -487,14 +488,15 @@ def _at(model, assign, s, base, terms):
     return LoopCharacteristic.combine(s, base, terms, *_sets_for(model, assign, 1))[0]
 
 
-def _branches(model, s, base, terms, p_name, q_name) -> list[tuple[np.ndarray, np.ndarray]]:
+def _branches(model, s, base, terms, p_name, q_name, tau_max: float) -> list[tuple[np.ndarray, np.ndarray]]:
     """D-curve branches ``(p(omega), q(omega))`` on samples ``s = i omega`` (omega > 0).
 
     Linear ``p`` and delay ``q``: ``Delta = F0 + e^{-s tau} (p G + H)`` vanishes iff
     ``|p G + H| = |F0|`` (a quadratic in ``p``) and ``e^{-i omega tau} = -F0 / (p G + H)``, whose
     phase ``theta`` gives ``tau_k = (-theta + 2 pi k) / omega`` (``theta`` unwrapped along omega,
     one branch per ``k``).  Two linear parameters: ``Delta = F0 + p Fp + q Fq + p q Fpq`` and
-    ``Im((F0 + q Fq) conj(Fp + q Fpq)) = 0`` is a quadratic in ``q``, then ``p`` is real."""
+    ``Im((F0 + q Fq) conj(Fp + q Fpq)) = 0`` is a quadratic in ``q``, then ``p`` is real.
+    ``tau_max`` [s]: the largest delay of the chart (delay branches are listed up to it)."""
     omega = s.imag
     out = []
     if q_name == "delay":
@@ -514,7 +516,7 @@ def _branches(model, s, base, terms, p_name, q_name) -> list[tuple[np.ndarray, n
                 if not ok.any():
                     continue
                 k_lo = math.floor(np.nanmin(unwrapped) / (2 * math.pi)) - 1
-                k_hi = math.ceil(np.nanmax(unwrapped + model_tau_max(model) * omega) / (2 * math.pi)) + 1
+                k_hi = math.ceil(np.nanmax(unwrapped + tau_max * omega) / (2 * math.pi)) + 1
                 for k in range(k_lo, k_hi + 1):
                     out.append((p, (-unwrapped + 2 * math.pi * k) / omega))
     else:
@@ -539,12 +541,8 @@ def _branches(model, s, base, terms, p_name, q_name) -> list[tuple[np.ndarray, n
     return out
 
 
-def model_tau_max(model) -> float:
-    return getattr(model, "_chart_tau_max", model.delay)
-
-
-def _resolve_curves(model, contour, p_name, q_name, p_grid, q_grid, tolerance: float = 0.03,
-                    rounds: int = 12) -> None:
+def _resolve_curves(model, contour, p_name, q_name, p_grid, q_grid, tau_max: float,
+                    tolerance: float = 0.03, rounds: int = 12) -> None:
     """Add line samples until every D-curve moves by less than ``tolerance`` of the window
     between neighbouring samples (inside the window), so crossing pairs are not skipped."""
     line = contour.line
@@ -554,7 +552,7 @@ def _resolve_curves(model, contour, p_name, q_name, p_grid, q_grid, tolerance: f
         s, base, terms = line.s[1:], line.base[1:], line.terms[:, 1:]
         h = np.diff(s.imag)
         bad = np.zeros(h.size, bool)
-        for p, q in _branches(model, s, base, terms, p_name, q_name):
+        for p, q in _branches(model, s, base, terms, p_name, q_name, tau_max):
             inside = (p >= pw[0]) & (p <= pw[1]) & (q >= qw[0]) & (q <= qw[1])
             near = inside[1:] | inside[:-1]
             with np.errstate(invalid="ignore"):
@@ -566,13 +564,13 @@ def _resolve_curves(model, contour, p_name, q_name, p_grid, q_grid, tolerance: f
         line.insert(np.concatenate([[False], bad]))
 
 
-def _dcurves(model, contour, p_name, q_name, p_grid, q_grid, linear_x) -> list[Boundary]:
+def _dcurves(model, contour, p_name, q_name, p_grid, q_grid, linear_x, tau_max: float) -> list[Boundary]:
     line = contour.line
     pw, qw = _window(p_grid), _window(q_grid, nonnegative=q_name == "delay")
     s, base, terms = line.s[1:], line.base[1:], line.terms[:, 1:]
     omega = s.imag
     curves: list[tuple[np.ndarray, np.ndarray, np.ndarray, str]] = []
-    for p, q in _branches(model, s, base, terms, p_name, q_name):
+    for p, q in _branches(model, s, base, terms, p_name, q_name, tau_max):
         pc, qc = _clip(p, pw), _clip(q, qw)
         keep = np.isfinite(pc) & np.isfinite(qc)
         if keep.any():
@@ -654,8 +652,6 @@ def _shared_loop(systems: list, loop: str | None):
 
 def _point_count(args) -> int:
     system, loop, im_max = args
-    from .stability import unstable_root_count
-
     counts = unstable_root_count(system, loop=loop, im_max=im_max)
     return int(counts[0]), counts.certificate
 

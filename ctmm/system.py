@@ -79,9 +79,7 @@ class Chain:
         self.start: Boundary = self.elements[0]  # type: ignore[assignment]
         self.end: Boundary = self.elements[-1]  # type: ignore[assignment]
         self.body: tuple[Element, ...] = self.elements[1:-1]
-        self.layout: StateLayout = self.body[0].layout
-        for boundary in (self.start, self.end):
-            boundary.layout = self.layout
+        self.layout: StateLayout = self.body[0].layout   # boundaries receive it as an argument
         self._by_name = {e.name: i for i, e in enumerate(self.elements)}
 
     def _validate(self) -> Iterable[str]:

@@ -38,7 +38,7 @@ from ..frequency import frequency_response
 from ..results import FrequencyResponse
 from ..roots1d import refine_sign_change
 from ..system import Chain
-from .loops import ControlledChain
+from .loops import ControlledChain, actuator_inputs
 
 __all__ = ["closed_loop_response", "loop_transfer_function", "open_loop_plant", "actuator_inputs", "Margins",
            "margins",
@@ -64,18 +64,6 @@ def closed_loop_response(system: Any, omega: Any, inputs: str | Sequence[str],
         (``"m2.x"``, ``"<loop>.u"``, ...).
     """
     return frequency_response(system, omega, input=inputs, output=outputs)
-
-
-def actuator_inputs(system: ControlledChain, loop: str) -> list[tuple[str, float]]:
-    """The plant inputs ``[(input name, weight), ...]`` through which the force of ``loop`` enters
-    (an element name stands for its first input: ``"m2"`` -> ``"m2.force"``)."""
-    lp = system.loop(loop)
-    out = []
-    for name, weight in lp.actuator_terms:
-        if "." not in name:
-            name = f"{name}.{system.plant.element(name).inputs[0]}"
-        out.append((name, float(weight)))
-    return out
 
 
 def open_loop_plant(system: ControlledChain, loop: str, omega: Any) -> np.ndarray:

@@ -4,16 +4,26 @@ from __future__ import annotations
 import collections
 import ctypes
 import weakref
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol, Sequence
 
 import numpy as np
 
 from .fmu_model_exchange import ModelExchangeIntegrator
 
-if TYPE_CHECKING:  # pragma: no cover
-    from .fmu import FMUController
+__all__ = ["FMUSnapshot", "FMUControllerState", "FMUInstanceOwner", "free_instance"]
 
-__all__ = ["FMUSnapshot", "FMUControllerState", "free_instance"]
+
+class FMUInstanceOwner(Protocol):
+    """What a running instance needs of its controller (:class:`ctmm.control.fmu.FMUController`
+    satisfies it; stated here so that this module does not import ``fmu``)."""
+
+    model_identifier: str
+    fmi_version: int
+    outputs: Sequence[Any]
+
+    def make_channels(self, which: str) -> list: ...
+
+    def close(self, state: "FMUControllerState") -> None: ...
 
 
 class FMUSnapshot:
@@ -57,7 +67,7 @@ class FMUControllerState:
         The RK4 integrator of a model-exchange FMU (its ``events`` counts handled events).
     """
 
-    def __init__(self, controller: "FMUController", slave: Any, callbacks: Any, log: collections.deque,
+    def __init__(self, controller: FMUInstanceOwner, slave: Any, callbacks: Any, log: collections.deque,
                  t0: float) -> None:
         self.controller = controller
         self.slave = slave

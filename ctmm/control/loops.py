@@ -317,11 +317,23 @@ class ControlledChain:
         except ModelError:
             raise unknown_name("input", str(name), self.input_names()) from None
 
+    @property
+    def state_index(self) -> list[int]:
+        """Index, in the states of the extended matrices (:meth:`assemble_frequency`, the
+        real-time step of :mod:`ctmm.control.simulate`), of plant connection point ``j``: one
+        matrix per plant element, plus one sensing matrix after every sensed point."""
+        sensed = {point for r in self._resolved for point, *_ in r.sensing}
+        index, count = [], 0
+        for j in range(len(self.plant.body) + 1):
+            count += (j > 0) + (j in sensed)
+            index.append(count)
+        return index
+
     # -- frequency domain -----------------------------------------------------------------
     def assemble_frequency(self, s: np.ndarray, amplitudes: Mapping[Any, Mapping[str, Any]]):
         """Extended element matrices (elements interleaved with sensing matrices) at ``s``.
 
-        Returns ``Us, us, start, end`` for :func:`ctmm.assembly.riccati_solve`; the attribute
+        Returns ``Us, us, start, end`` for :func:`ctmm.assembly.riccati_solve`; the property
         :attr:`state_index` maps connection point ``j`` to the index of its state in the result.
         """
         from ..frequency import assemble as assemble_plant
@@ -388,7 +400,8 @@ class ControlledChain:
             us.append(u)
             add_sensing(j)
             state_index.append(len(Us))
-        self.state_index = state_index
+        if state_index != self.state_index:   # the matrices and the documented index must agree
+            raise ModelError(f"{self!r}: {len(Us_p)} plant matrices for {len(self.plant.body)} elements")
         # start: y unknown (e), acc known (= 0)
         e_idx = list(start_p.e_indices) + [d0 + 2 * i for i in range(nl)]
         nf = n - len(e_idx)
@@ -424,6 +437,22 @@ class ControlledChain:
 
     def __repr__(self) -> str:
         return f"ControlledChain({self.plant!r}, loops={[lp.name for lp in self.loops]})"
+
+
+def actuator_inputs(system: ControlledChain, loop: str) -> list[tuple[str, float]]:
+    """The plant inputs ``[(input name, weight), ...]`` through which the force of ``loop`` enters
+    (an element name stands for its first input: ``"m2"`` -> ``"m2.force"``; weights [-]).
+
+    Also reachable as ``ctmm.control.analysis.actuator_inputs``; used by the state-space
+    realisation (:mod:`ctmm.interop`) and the certified contour height (:mod:`ctmm.certification`).
+    """
+    lp = system.loop(loop)
+    out = []
+    for name, weight in lp.actuator_terms:
+        if "." not in name:
+            name = f"{name}.{system.plant.element(name).inputs[0]}"
+        out.append((name, float(weight)))
+    return out
 
 
 @dataclass(frozen=True)

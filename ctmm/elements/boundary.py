@@ -43,7 +43,9 @@ class Boundary(Element):
 
     def __init__(self, name: str) -> None:
         super().__init__(name)
-        self.layout = None  # set by the system from its neighbours
+        # any layout (None) unless a subclass fixes one: the chain passes its layout to the
+        # boundary methods (start, end, ...) as an argument and never writes it here
+        self.layout: StateLayout | None = None
 
     def transfer_matrix(self, s: np.ndarray) -> np.ndarray:
         raise ModelError(f"boundary {self.name!r} has no transfer matrix")

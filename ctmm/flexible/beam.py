@@ -32,15 +32,17 @@ import dataclasses
 import math
 from dataclasses import KW_ONLY, dataclass
 from functools import cached_property
-from typing import Callable, Mapping, Sequence
+from typing import Callable, ClassVar, Mapping, Sequence
 
 import numpy as np
 
 from .. import validation
 from ..errors import ModelError
+from ..planar.deformable import DeformableBody
 from ..planar.elements import Load
 from ..planar.signals import SignalError, signal_values
 from ..signals import Constant, SignalLike, as_signal
+from .family import ModalBeamFamily
 from .modes import ModeSet, check_root_clamped, gauss_points
 
 
@@ -96,7 +98,7 @@ def _station(owner: str, label: str, value, length: float) -> float:
 
 
 @dataclass(frozen=True)
-class ModalBeam:
+class ModalBeam(DeformableBody):
     """Planar Euler-Bernoulli beam with modal deformation in its floating (root tangent) frame.
 
     A body type of :class:`~ctmm.planar.PlanarModel`: its inboard end is the body-frame origin,
@@ -166,6 +168,7 @@ class ModalBeam:
     distributed_load: tuple = (0.0, 0.0)
     modal_forces: Sequence[ModalForce] = ()
     quadrature: int = 160
+    family: ClassVar[type[ModalBeamFamily]] = ModalBeamFamily
 
     def __post_init__(self) -> None:
         validation.name("element", self.name)
@@ -236,6 +239,7 @@ class ModalBeam:
                     raise ModelError(f"{n}: {hook.label}.{attribute} must have shape "
                                      f"({n_eta}, {n_eta}) (modes [q, p]), got {value.shape}")
         object.__setattr__(self, "modal_forces", forces)
+        object.__setattr__(self, "data", BeamData(self))   # modal integrals, computed once here
 
     def __hash__(self) -> int:
         return hash(self.name)
@@ -332,11 +336,6 @@ class ModalBeam:
         """Copy with ``forces`` appended to :attr:`modal_forces`."""
         return dataclasses.replace(self, modal_forces=tuple(self.modal_forces) + tuple(forces))
 
-    # -- constants --------------------------------------------------------------------------
-    @cached_property
-    def data(self) -> "BeamData":
-        """Modal integrals (computed once)."""
-        return BeamData(self)
 
 
 class BeamData:
@@ -424,6 +423,9 @@ class BeamData:
         self.tip_phi = beam.shapes([L], 0)[:, 0]
         self.tip_psi = beam.axial_shapes([L], 0)[:, 0]
         self.phi_bound = np.max(np.abs(beam.shapes(np.linspace(0, L, 201), 0)), axis=1)
+        self._eye = np.eye(3 + self.n)
+        for constant in ("_constant_mass", "_constant_ends", "_functionals"):
+            getattr(self, constant)   # computed here, once: the data of a beam never change afterwards
 
     def _hook(self, what: str, function: Callable, args: tuple, t: float) -> np.ndarray:
         """A :class:`ModalForce` ``force`` or ``law`` value (``n_eta`` finite numbers, complex
@@ -470,10 +472,6 @@ class BeamData:
         M0[3:3 + nq, 3:3 + nq] = self.M_q
         M0[3 + nq:, 3 + nq:] = self.M_p
         return M0
-
-    @cached_property
-    def _eye(self) -> np.ndarray:
-        return np.eye(3 + self.n)
 
     @cached_property
     def _constant_ends(self) -> list:

@@ -70,7 +70,7 @@ class FlexibleSolution:
 
 
 class FlexibleSystem:
-    """Per-model data of the mixed sweep (built once per model, see :func:`system_of`)."""
+    """Per-model data of the mixed sweep (built once, by the model's constructor; see :func:`system_of`)."""
 
     def __init__(self, model: PlanarModel) -> None:
         if np.any(model.joint_kind == 3):
@@ -287,12 +287,11 @@ class FlexibleSystem:
 
 
 def system_of(model: PlanarModel) -> FlexibleSystem:
-    """The (cached) :class:`FlexibleSystem` of a model with flexible bodies."""
-    cached = model.__dict__.get("_flexible_system")
-    if cached is None:
-        cached = FlexibleSystem(model)
-        model.__dict__["_flexible_system"] = cached
-    return cached
+    """The :class:`FlexibleSystem` of a model with flexible bodies (built with the model,
+    :attr:`ctmm.planar.PlanarModel.flexible_system`)."""
+    if model.flexible_system is None:
+        raise ModelError(f"model {model.name!r} has no flexible bodies")
+    return model.flexible_system
 
 
 def solve_flexible(model: PlanarModel, q, qdot, t: float = 0.0) -> FlexibleSolution:

@@ -192,10 +192,9 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
     fac = (1.0 - af) / (1.0 - am)
     guard = divergence_guard(model, q, divergence_bound)
     check_scheme(model, q, v, h, scheme="newmark", policy=stability_check, beta=beta, gamma=gamma)
-    if model.has_flexible:
-        from ..flexible.implicit import FlexibleNewtonStep
-        from ..flexible.outputs import check_divergence
-        stepper = FlexibleNewtonStep(model, beta * fac * h * h, gamma * fac * h)
+    family = model.deformable_family
+    if family is not None:
+        stepper = family.newton_step(model, beta * fac * h * h, gamma * fac * h)
         stepper.start(q, v, 0.0)
     else:
         stepper = _NewtonStep(model, beta * fac * h * h, gamma * fac * h)
@@ -245,8 +244,8 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
             xdd = x
             guard.check(t1, q)
             guard_rates(model, t1, v)
-            if model.has_flexible:
-                check_divergence(model, q, t1, h, name_of(scheme))
+            if family is not None:
+                family.check_divergence(model, q, t1, h, name_of(scheme))
             if (step + 1) % store_every == 0 or step + 1 == n_steps:
                 ts.append(t1)
                 qs.append(q.copy())

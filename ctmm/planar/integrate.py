@@ -151,16 +151,14 @@ def simulate_rk4(model: PlanarModel, q0, qdot0, *, t_final: float, dt: float,
     ts, qs, vs = [0.0], [q.copy()], [v.copy()]
     start = _time.perf_counter()
     n = model.n_coordinates
-    flexible = model.has_flexible
-    if flexible:
-        from ..flexible.outputs import check_divergence
+    family = model.deformable_family
 
     def after_step(k: int, t: float, y: np.ndarray) -> None:
         q, v = y[:n], y[n:]
         guard.check(t, q)
         guard_rates(model, t, v)
-        if flexible:
-            check_divergence(model, q, t, h, "rk4")
+        if family is not None:
+            family.check_divergence(model, q, t, h, "rk4")
         if k % store_every == 0 or k == n_steps:
             ts.append(t)
             qs.append(q)
@@ -260,9 +258,8 @@ def simulate_scipy(model: PlanarModel, q0, qdot0, *, t_final: float, method: str
                     dense = solver.dense_output()
                     ts.extend(inside.tolist())
                     ys.extend(np.atleast_2d(dense(inside).T))
-            if model.has_flexible:
-                from ..flexible.outputs import check_divergence
-                check_divergence(model, solver.y[:n], float(solver.t), None, method)
+            if model.deformable_family is not None:
+                model.deformable_family.check_divergence(model, solver.y[:n], float(solver.t), None, method)
     except SimulationError as exc:
         raise with_partial(exc, result) from exc.__cause__
     return result()

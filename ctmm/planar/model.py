@@ -31,17 +31,13 @@ from ..errors import ModelError, unknown_name
 from ..signals import Constant
 from .elements import (DrivenHinge, Fixed, Free, FreeBase, HINGE_TYPES, Pinned, RigidBody,
                        Hinge, SmoothHinge, translational_law)
+from .deformable import DeformableBody, DeformableFamily, DeformableSystem
 from .signals import signal_values
 
 
-def _modal_beam_type():
-    from ..flexible.beam import ModalBeam   # lazy: ctmm.flexible imports ctmm.planar
-    return ModalBeam
-
-
 def is_body(element) -> bool:
-    """True for rigid bodies and flexible (modal beam) bodies."""
-    return isinstance(element, (RigidBody, _modal_beam_type()))
+    """True for rigid bodies and bodies with internal coordinates (e.g. modal beams)."""
+    return isinstance(element, (RigidBody, DeformableBody))
 
 
 def _end_points(body) -> dict:
@@ -99,6 +95,8 @@ class PlanarModel:
         self.gravity = g.copy()
         self.elements = tuple(elements)
         self._compile()
+        family = self.deformable_family   # sweep data of bodies with internal coordinates, built once:
+        self.flexible_system: DeformableSystem | None = None if family is None else family.system(self)
 
     # ------------------------------------------------------------------------------------
     @classmethod
@@ -357,9 +355,12 @@ class PlanarModel:
         if self._constant_loads:
             self._load_values = np.array([[f.value for f in s] for s in load_signals]
                                          ).reshape(-1, 3)
-        # flexible bodies (ctmm.flexible.ModalBeam)
-        ModalBeam = _modal_beam_type()
-        self.beams = {i: b for i, b in enumerate(self._bodies) if isinstance(b, ModalBeam)}
+        # bodies with internal coordinates (ctmm.flexible.ModalBeam), kernels from their family
+        self.beams = {i: b for i, b in enumerate(self._bodies) if isinstance(b, DeformableBody)}
+        families = sorted({type(b).__name__: type(b).family for b in self.beams.values()}.items())
+        if len({id(f) for _, f in families}) > 1:   # one family's kernels run the whole sweep
+            raise ModelError(f"model {self.name!r}: bodies of one family only, got {[n for n, _ in families]}")
+        self.deformable_family: DeformableFamily | None = families[0][1] if families else None
         self.flexible_bodies = np.array(sorted(self.beams), dtype=int)
         self.has_flexible = bool(self.beams)
         self.modal_index = [np.zeros(0, dtype=int) for _ in range(nb)]
@@ -651,9 +652,8 @@ class PlanarModel:
         kinetic = 0.5 * np.sum(self.mass * np.sum(pts["com_velocity"] ** 2, axis=1)
                                + self.inertia * pts["omega"] ** 2)
         potential = -np.sum(self.mass * (pts["com"] @ self.gravity))
-        if self.has_flexible:
-            from ..flexible.energy import flexible_energy
-            return flexible_energy(self, q, qdot, t)
+        if self.deformable_family is not None:
+            return self.deformable_family.energy(self, q, qdot, t)
         dtheta, _ = self.relative_angles(pts["theta"], pts["omega"])
         reference, _, _ = self.hinge_laws(t)
         spring = 0.5 * np.sum(self.stiffness * (dtheta - reference) ** 2)

@@ -328,9 +328,8 @@ def solve_instant(model: PlanarModel, q, qdot, t: float = 0.0) -> InstantaneousS
         Coordinate accelerations, body accelerations and joint forces.
     """
     q, qdot, t = _checked_state(model, q, qdot, t)
-    if model.has_flexible:
-        from ..flexible.kernel import system_of
-        sol = system_of(model).solve(q, qdot, t)
+    if model.flexible_system is not None:
+        sol = model.flexible_system.solve(q, qdot, t)
         return InstantaneousSolution(sol.qddot, sol.body_acceleration, sol.joint_force,
                                      sol.hinge_acceleration, sol.modal_acceleration)
     theta, omega = model.body_angles(q, qdot, t)
@@ -359,9 +358,8 @@ def accelerations(model: PlanarModel, q, qdot, t: float = 0.0) -> np.ndarray:
     -14.715
     """
     q, qdot, t = _checked_state(model, q, qdot, t)
-    if model.has_flexible:
-        from ..flexible.kernel import system_of
-        return system_of(model).accelerations(q, qdot, t)
+    if model.flexible_system is not None:
+        return model.flexible_system.accelerations(q, qdot, t)
     theta, omega = model.body_angles(q, qdot, t)
     K, b, E, _ = body_terms(model, theta, omega, t)
     tau = hinge_torques(model, theta, omega, t)
