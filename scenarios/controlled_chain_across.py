@@ -34,7 +34,7 @@ def run(output_dir: Path, quick: bool = False) -> dict:
 
     output_dir = Path(output_dir)
     comparison = common.compare_placement("K3", quick)
-    omega, t, frf, steady = comparison["omega"], comparison["t"], comparison["frf"], comparison["steady"]
+    t, frf, steady = comparison["t"], comparison["frf"], comparison["steady"]
     tmm_time, ref_time, loop_margins = comparison["tmm_time"], comparison["reference_time"], comparison["margins"]
 
     figures = []

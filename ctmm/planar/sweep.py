@@ -363,7 +363,6 @@ def accelerations(model: PlanarModel, q, qdot, t: float = 0.0) -> np.ndarray:
     theta, omega = model.body_angles(q, qdot, t)
     K, b, E, _ = body_terms(model, theta, omega, t)
     tau = hinge_torques(model, theta, omega, t)
-    nb = model.n_bodies
     A, _, _, translation = riccati_kernel(
         model._parent_list, model._kind_list, K.tolist(), b.tolist(), E.tolist(), model._zeros,
         tau.tolist(), _driven_alpha(model, t), want_forces=False,

@@ -481,7 +481,7 @@ class ManipulatorLagrange:
         """
         w = np.atleast_1d(np.asarray(omega, dtype=float))
         s = 1j * w
-        P, N = self.P, self.N
+        P = self.P
         G = np.zeros((P, P)) if pzt_gains is None else np.asarray(pzt_gains, float)
         closed = np.broadcast_to(np.asarray(pzt_closed, dtype=bool), (P,)) if P else np.zeros(0, bool)
         bmat = self._port_modal()                                 # (2 + P, N)
