@@ -276,14 +276,6 @@ def all_violations(sources=SOURCES, **options) -> tuple[list[Violation], dict]:
 ALLOWED: dict[tuple[str, str], str] = {
     # import cycles (plan §1.5; frequency <-> natural and results -> ctmm removed in S1d)
     # private names imported across modules (plan §1.6; removed by S1c/S1d)
-    ("private import", "ctmm.planar.compiled: _initial from ctmm.planar.integrate"):
-        "integrator initial-state helper shared by the planar integrators (S1c: ode.py)",
-    ("private import", "ctmm.planar.compiled: _steps from ctmm.planar.integrate"):
-        "integrator step-count helper shared by the planar integrators (S1c: ode.py)",
-    ("private import", "ctmm.planar.implicit: _initial from ctmm.planar.integrate"):
-        "integrator initial-state helper shared by the planar integrators (S1c: ode.py)",
-    ("private import", "ctmm.planar.implicit: _steps from ctmm.planar.integrate"):
-        "integrator step-count helper shared by the planar integrators (S1c: ode.py)",
     # modules over MAX_LINES lines (plan §4 splits or deletes each)
     ("long module", "ctmm.elements.beams"):
         "beam field, bending points and boundaries in one file (plan: beam_field, bending)",

@@ -23,7 +23,7 @@ import numpy as np
 from ..codegen import load_ctypes
 from ..errors import ModelError
 from .guards import check_scheme, check_stored, divergence_guard
-from .integrate import PlanarSimulation, _initial, _steps, check_store_every
+from .integrate import PlanarSimulation, check_store_every, initial_coordinates, step_total
 from .model import REVOLUTE, PlanarModel
 
 C_SOURCE = r"""
@@ -213,8 +213,8 @@ def simulate_rk4_compiled(model: PlanarModel, q0, qdot0, *, t_final: float, dt: 
     non-finite state.)
     """
     args = _arrays(model)
-    q, v = _initial(model, q0, qdot0)
-    n_steps = _steps(t_final, dt)
+    q, v = initial_coordinates(model, q0, qdot0)
+    n_steps = step_total(t_final, dt)
     h = t_final / n_steps
     store_every = check_store_every(store_every)
     guard = divergence_guard(model, q, divergence_bound)

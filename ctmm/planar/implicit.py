@@ -31,7 +31,7 @@ import numpy as np
 from .. import validation
 from ..errors import ConvergenceError, ModelError, SimulationError
 from .guards import check_scheme, divergence_guard, with_partial
-from .integrate import PlanarSimulation, _initial, _steps, check_store_every, guard_rates
+from .integrate import PlanarSimulation, check_store_every, initial_coordinates, step_total, guard_rates
 from .model import PlanarModel
 from .signals import SignalError
 from .sweep import (body_terms, bushing_data, coordinate_accelerations, hinge_torques,
@@ -185,8 +185,8 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
     tolerance = validation.positive("tolerance", tolerance)
     max_iterations = validation.integer("max_iterations", max_iterations, minimum=1)
     store_every = validation.integer("store_every", store_every, minimum=1)
-    q, v = _initial(model, q0, qdot0)
-    n_steps = _steps(t_final, dt)
+    q, v = initial_coordinates(model, q0, qdot0)
+    n_steps = step_total(t_final, dt)
     store_every = check_store_every(store_every)
     h = t_final / n_steps
     fac = (1.0 - af) / (1.0 - am)

@@ -80,7 +80,8 @@ class PlanarSimulation:
         return ax
 
 
-def _initial(model: PlanarModel, q0, qdot0) -> tuple[np.ndarray, np.ndarray]:
+def initial_coordinates(model: PlanarModel, q0, qdot0) -> tuple[np.ndarray, np.ndarray]:
+    """``q0, qdot0`` [m, rad, modal] checked against the model's coordinates, as float arrays."""
     require_planar(model, "ctmm.planar simulation")
     n = model.n_coordinates
     given = (q0, qdot0)
@@ -92,7 +93,8 @@ def _initial(model: PlanarModel, q0, qdot0) -> tuple[np.ndarray, np.ndarray]:
     return q0.astype(float), qdot0.astype(float)
 
 
-def _steps(t_final: float, dt: float) -> int:
+def step_total(t_final: float, dt: float) -> int:
+    """Number of steps ``t_final / dt`` (a whole number >= 1, within the shared step budget)."""
     t_final = validation.positive("t_final", t_final)
     dt = validation.positive("dt", dt)
     validation.step_count(t_final, 0.0, dt)
@@ -142,8 +144,8 @@ def simulate_rk4(model: PlanarModel, q0, qdot0, *, t_final: float, dt: float,
         and the time; ``partial_result`` is the :class:`PlanarSimulation` stored so far.
     """
     store_every = validation.integer("store_every", store_every, minimum=1)
-    q, v = _initial(model, q0, qdot0)
-    n_steps = _steps(t_final, dt)
+    q, v = initial_coordinates(model, q0, qdot0)
+    n_steps = step_total(t_final, dt)
     store_every = check_store_every(store_every)
     h = t_final / n_steps
     guard = divergence_guard(model, q, divergence_bound)
@@ -209,7 +211,7 @@ def simulate_scipy(model: PlanarModel, q0, qdot0, *, t_final: float, method: str
         t_eval = validation.finite_array("t_eval", t_eval, ndim=1)
         if t_eval.size == 0 or t_eval.min() < 0.0 or t_eval.max() > t_final or np.any(np.diff(t_eval) < 0):
             raise ModelError(f"t_eval must be ascending times in [0, t_final={t_final!r}] s, got {given!r}")
-    q, v = _initial(model, q0, qdot0)
+    q, v = initial_coordinates(model, q0, qdot0)
     t_final = validation.positive("t_final", t_final)
     if t_eval is not None:
         t_eval = validation.finite_array("t_eval", t_eval, ndim=1)
