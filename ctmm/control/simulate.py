@@ -222,7 +222,7 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
             for pos, _, weight in r.actuators:
                 forces[pos] = forces.get(pos, 0.0) + weight * u_eval
             _pending[r.index] = u_new
-        for pos, value in cosim.forces(t_n, history, _last_f[0]).items():
+        for pos, value in held_before.items():   # sampled this step by before_step (empty without controllers)
             forces[pos] = forces.get(pos, 0.0) + value
         return forces
 
