@@ -11,7 +11,7 @@ import pytest
 from ctmm.errors import ModelError
 from ctmm.guard import RK4_LIMIT
 from ctmm.ode import integrate_rk4, rk4_step, second_order_rate
-from ctmm.roots1d import bisect_count, refine_sign_change
+from ctmm.roots1d import bisect_count, count_upper_bound, refine_sign_change
 
 
 # ------------------------------------------------------------------------------------------- RK4
@@ -209,3 +209,15 @@ def test_sign_change_refinement_stops_brackets_early_on_request():
     assert up[1] - lo[1] <= 1e-15 * up[1] and lo[1] <= root <= up[1]
     assert np.array_equal(evaluated[0], everyone) and not np.isin(0, evaluated[-1])
     assert all(np.isin(a, e).all() for a, e in zip(asked, evaluated))            # only brackets still going
+
+
+def test_count_upper_bound_doubles_until_enough_roots_lie_below():
+    # roots 0.5, 1, 1+1e-12, 1+2e-12, 2, 2, 7: below 2 lie four, below 4 six, below 8 all seven
+    assert count_upper_bound(_count, 1, limit=100.0, what="x") == 1.0
+    assert count_upper_bound(_count, 4, limit=100.0, what="x") == 2.0
+    assert count_upper_bound(_count, 5, limit=100.0, what="x") == 4.0
+    assert count_upper_bound(_count, 7, limit=100.0, what="x") == 8.0
+    with pytest.raises(ModelError, match="chain 'c' has fewer than 8 natural frequencies"):
+        count_upper_bound(_count, 8, limit=100.0, what="chain 'c'")
+    with pytest.raises(ModelError, match="fewer than 7"):
+        count_upper_bound(_count, 7, limit=7.0, what="x")          # 8 is beyond the limit
