@@ -344,13 +344,8 @@ def _dtbtrs(band: np.ndarray, rhs: np.ndarray, uplo: str):
 
 
 def _end_unknown(end_row, end_b: float, fixed_start: bool, S_n: float, P_n: float) -> float:
-    """The sweep's unknown ``e`` at the chain's end from its boundary row.
-
-    The end condition ``Bm = [cf, ce]`` on ``(f, e)`` with ``f = S e + P`` gives
-    ``(cf S + ce) e = b - cf P``.  ``end_row`` holds the coefficients of (displacement, force);
-    ``f, e`` are (displacement, force) for a displacement-type start (``fixed_start``) and
-    (force, displacement) otherwise.  ``S_n``, ``P_n``: the Riccati terms at the end point.
-    """
+    """End unknown ``e`` of the sweep: ``Bm = [cf, ce]`` on ``(f, e)``, ``f = S e + P`` -> ``(cf S + ce) e = b - cf P``
+    (``end_row``: coefficients of (x, force); ``(f, e) = (x, force)`` if ``fixed_start``, else swapped)."""
     cx_, cf_ = end_row
     cf, ce = (cx_, cf_) if fixed_start else (cf_, cx_)
     h = cf * S_n + ce

@@ -79,7 +79,8 @@ def test_generated_c_step_is_the_taylor_polynomial_and_rounds_as_rk4_step(tmp_pa
     step = second_order_rk4_c(lambda q, v, a: f"oscillator(nb, omega2, {q}, {v}, {a});")
     source = ("static void oscillator(int nb, const double *omega2, const double *q, const double *v, double *a)\n"
               "{ for (int i = 0; i < nb; i++) a[i] = -omega2[i] * q[i]; }\n"
-              "void rk4_steps(int nb, const double *omega2, double h, int n_steps, double *th, double *w, double *work)\n"
+              "void rk4_steps(int nb, const double *omega2, double h, int n_steps, double *th, double *w,\n"
+              "               double *work)\n"
               "{ double *a1 = work, *a2 = a1 + nb, *a3 = a2 + nb, *a4 = a3 + nb, *q2 = a4 + nb, *v2 = q2 + nb,\n"
               "  *q3 = v2 + nb, *v3 = q3 + nb, *q4 = v3 + nb, *v4 = q4 + nb;\n"
               "  for (int step = 0; step < n_steps; step++) {\n" + step + "\n} }\n")

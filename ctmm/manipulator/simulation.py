@@ -27,9 +27,9 @@ How the control laws enter (DESIGN §1):
   every step) with zero-order hold by the shared master :class:`~ctmm.control.cosim.CoSimulation`
   (named failures, samples recorded in ``extra``); the wiring is checked by
   :func:`~ctmm.control.cosim.check_wiring` against :meth:`FlexibleManipulator.signal_names` and
-  :meth:`FlexibleManipulator.output_names`, and the held outputs are read by those names.  A controller that writes the torque replaces
-  the embedded PD; one that writes any voltage replaces the embedded PZT law (unwritten patches
-  get 0 V).
+  :meth:`FlexibleManipulator.output_names`, and the held outputs are read by those names.  A
+  controller that writes the torque replaces the embedded PD; one that writes any voltage
+  replaces the embedded PZT law (unwritten patches get 0 V).
 
 Integrators: ``"rk4"`` (:func:`ctmm.ode.integrate_rk4` on the sweep; delays and sampling handled
 in its per-step callback) and ``"newmark"`` (:func:`ctmm.planar.simulate_implicit`, trapezoidal Newmark
