@@ -200,12 +200,12 @@ class CompiledManipulator:
         from ..errors import SimulationError
         from ..guard import DivergenceGuard
         from ..planar.guards import check_scheme, check_stored
+        from ..planar.integrate import step_total
 
         s = self.system
-        t_final = validation.positive("t_final", t_final)
-        dt = validation.positive("dt", dt)
-        n_steps = int(round(t_final / dt))
-        if n_steps < 1 or abs(n_steps * dt - t_final) > 1e-9 * t_final or n_steps % self.block:
+        n_steps = step_total(t_final, dt)              # validates t_final and dt
+        dt = float(dt)
+        if n_steps % self.block:
             raise ModelError(f"t_final = {t_final!r} must be a whole multiple of block * dt = {self.block * dt!r}")
         n_store = n_steps // self.block
         p = self.parameters(dt)

@@ -288,17 +288,13 @@ class FlexibleManipulator:
             last stored step.  A controller whose ``init`` fails: named, without a partial result.
         """
         from ..planar.guards import check_scheme, divergence_guard, with_partial
-        from ..planar.integrate import check_store_every
+        from ..planar.integrate import check_store_every, step_total
 
         if method not in METHODS:
             raise ModelError(f"method must be one of {METHODS}, got {method!r}")
-        t_final = validation.positive("t_final", t_final)
-        dt = validation.positive("dt", dt)
+        n_steps = step_total(t_final, dt)              # validates t_final and dt
+        dt = float(dt)
         store_every = check_store_every(store_every)
-        validation.step_count(t_final, 0.0, dt)
-        n_steps = int(round(t_final / dt))
-        if n_steps < 1 or abs(n_steps * dt - t_final) > 1e-9 * t_final:
-            raise ModelError(f"t_final = {t_final!r} must be a whole multiple of dt = {dt!r}")
         if theta0 is not None:
             theta0 = validation.finite("theta0", theta0)
         plan = _Plan(self, controllers, dt)
