@@ -160,17 +160,11 @@ class FlexibleManipulator:
         if isinstance(self.n_modes, bool) or not isinstance(self.n_modes, (int, np.integer)) or self.n_modes < 1:
             raise ModelError(f"n_modes must be an integer >= 1, got {self.n_modes!r}")
         validation.positive("hub_mass", self.hub_mass)
-        from ..flexible import ModalBeam
+        from .scene import arm_beam, patch_slope_matrix
 
-        arm = self.manipulator.arm
-        beam = ModalBeam("arm", length=arm.length, bending_stiffness=arm.bending_stiffness,
-                         mass_per_length=arm.mass_per_length, n_modes=int(self.n_modes),
-                         stiffness_damping=arm.kelvin_voigt_time,
-                         geometric_stiffening=bool(self.geometric_stiffening))
-        ends = self.manipulator.patch_ends
-        Psi = np.array([beam.mode_slopes(x2) - beam.mode_slopes(x1) for x1, x2 in ends]).reshape(-1, beam.n_modes)
+        beam = arm_beam(self.manipulator, self.n_modes, self.geometric_stiffening)
         object.__setattr__(self, "_beam", beam)
-        object.__setattr__(self, "_Psi", Psi)
+        object.__setattr__(self, "_Psi", patch_slope_matrix(beam, self.manipulator))
 
     # ------------------------------------------------------------------ model pieces
     @property
