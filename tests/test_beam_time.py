@@ -27,7 +27,7 @@ from ctmm.elements.beam_time import (FREQUENCY_TOLERANCE, BeamMeshWarning, BeamS
                                      time_element_count)
 from ctmm.errors import ModelError
 from ctmm.schemes import GeneralizedAlpha
-from ctmm.reference.beams import beta_roots, clamped_free_mode, omega_from_beta
+from ctmm.reference.beams import beta_roots, clamped_free_mode, omega_from_beta, pinned_pinned_tension_frequencies
 from ctmm.signals import Harmonic
 
 EI, RHO_A, L, F = 15.0, 0.8, 1.0, 2.0
@@ -122,17 +122,16 @@ def test_static_spring_between_fields():
     assert result["tip.w"][-1] == pytest.approx(F / (k + 3 * EI / L ** 3), rel=1e-6)
 
 
-def pinned_release(dt: float, time_elements: int | None = None) -> float:
-    """Relative error of the free-vibration period of a pinned-pinned beam released in mode 1."""
+def pinned_release(dt: float, time_elements: int | None = None, tension: float = 0.0) -> float:
+    """Relative error of the free-vibration period of a pinned-pinned beam (tension [N]) released in mode 1."""
     amplitude = 1e-2
 
     def shape(x):
         return amplitude * math.sin(math.pi * x / L), amplitude * math.pi / L * math.cos(math.pi * x / L)
 
-    chain = ctmm.Chain("pinned", [BeamPinned("left"), BeamField("a", L / 2, EI, RHO_A, time_elements=time_elements),
-                                  BeamPointLoad("mid"),
-                                  BeamField("b", L / 2, EI, RHO_A, time_elements=time_elements), BeamPinned("right")])
-    omega = (math.pi / L) ** 2 * math.sqrt(EI / RHO_A)
+    halves = [BeamField(name, L / 2, EI, RHO_A, axial_force=tension, time_elements=time_elements) for name in "ab"]
+    chain = ctmm.Chain("pinned", [BeamPinned("left"), halves[0], BeamPointLoad("mid"), halves[1], BeamPinned("right")])
+    omega = pinned_pinned_tension_frequencies(1, L, EI, RHO_A, tension)[0]
     periods = 2
     t_final = dt * math.ceil(periods * 2 * math.pi / omega / dt + 5)
     result = ctmm.simulate(chain, t_final, dt, x0={"a": shape, "b": lambda x: shape(x + L / 2)})
@@ -152,6 +151,12 @@ def test_pinned_pinned_period_and_second_order():
     coarse, fine = pinned_release(2e-3, 8), pinned_release(1e-3, 8)
     assert fine == pytest.approx((omega * 1e-3) ** 2 / 12, rel=0.05)
     assert coarse / fine == pytest.approx(4.0, rel=0.05)
+
+
+def test_pinned_pinned_under_tension():
+    tension = 50.0                               # omega_1 = (pi/L)^2 sqrt(EI/rho A) sqrt(1 + T L^2 / (EI pi^2))
+    omega = pinned_pinned_tension_frequencies(1, L, EI, RHO_A, tension)[0]
+    assert pinned_release(1e-3, 8, tension) == pytest.approx((omega * 1e-3) ** 2 / 12, rel=0.05)
 
 
 def steady_amplitude_error(dt: float, omega: float, t_final: float = 1.5) -> float:
@@ -215,7 +220,18 @@ def test_refusals():
         ctmm.simulate(cantilever(), 0.01, 1e-3, x0={"root": 0.1})
     with pytest.raises(ModelError, match="pair"):
         ctmm.simulate(cantilever(), 0.01, 1e-3, x0={"load": (1.0, 2.0, 3.0)})
+    with pytest.raises(ModelError, match="already given"):
+        ctmm.simulate(cantilever(), 0.01, 1e-3, x0={"beam": lambda x: (x, 1.0), "load": 0.5})
     with pytest.raises(ModelError, match="time_elements"):
         BeamField("b", L, EI, RHO_A, time_elements=0)
+
+
+def test_initial_values_at_points_and_velocities():
+    # a tip mass given a velocity, the beam at rest: momentum M v0 at t0, the tip deflection starts at 0
+    chain = ctmm.Chain("c", [BeamClamped("root"), BeamField("beam", L, EI, RHO_A), BeamPointMass("m", 0.5),
+                             BeamFree("tip")])
+    result = ctmm.simulate(chain, 2e-3, 1e-3, x0={"m": 0.0}, v0={"m": (0.1, 0.0)})
+    assert result["m.w_dot"][0] == 0.1 and result["tip.w_dot"][0] == 0.1 and result["beam.w_dot"][0] == 0.1
+    assert result["m.w"][0] == 0.0 and result["m.w"][1] == pytest.approx(0.1e-3, rel=0.05)
     with pytest.raises(ModelError, match="force hooks, feedback loops"):   # (a ControlledChain takes this path too)
         ctmm.simulate(cantilever(), 0.01, 1e-3, force_hook=lambda t_n, dt, w, history: {2: 1.0})

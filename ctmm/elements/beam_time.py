@@ -243,7 +243,7 @@ def field_segments(field: BeamField, dt: float) -> tuple[BeamSegment, ...]:
         warnings.warn(f"{field.name}: time_elements={count} resolves modes up to {resolved_frequency(field, count):.4g}"
                       f" rad/s (frequency error <= {FREQUENCY_TOLERANCE:g}), but the step dt={dt!r} s resolves them "
                       f"up to {band:.4g} rad/s: modes in between are in error; use time_elements >= {needed} "
-                      "(or the default)", BeamMeshWarning, stacklevel=4)
+                      "(or the default)", BeamMeshWarning, stacklevel=6)
     return tuple(BeamSegment(f"{field.name}[{k + 1}]", field, field.length / count) for k in range(count))
 
 
@@ -285,43 +285,47 @@ class BendingMesh:
         ``x0`` / ``v0`` map element names to a value ``w`` (slope 0) or a pair ``(w, theta)``
         at the element's point (a field: its outboard end), or, for a beam field, a callable
         ``shape(x) -> (w, theta)`` of the distance ``x`` [m] from its inboard end, applied at
-        every node.  Unspecified points start at rest at 0; supports hold their displacements.
+        every node.  Unspecified points start at rest at 0; supports hold their displacements.  A
+        point given twice with different values (a field's end and a point element there) is refused.
         """
-        x, v = np.zeros((self.chain.n_points, 2)), np.zeros((self.chain.n_points, 2))
+        return self._values("x0", x0), self._values("v0", v0)
+
+    def _values(self, label: str, values: Mapping[str, Any] | None) -> np.ndarray:
+        target = np.zeros((self.chain.n_points, 2))
         given = np.zeros(self.chain.n_points, dtype=bool)
-        for label, values, target in (("x0", x0, x), ("v0", v0, v)):
-            if values is None:
-                continue
-            if not isinstance(values, Mapping):
-                raise ModelError(f"{label} must be a mapping {{element name: value}}, got {values!r:.80}")
-            for name, value in values.items():
-                self._set(label, name, value, target, given)
+        if values is not None and not isinstance(values, Mapping):
+            raise ModelError(f"{label} must be a mapping {{element name: value}}, got {values!r:.80}")
+        for name, value in (values or {}).items():
+            for point, pair in self._pairs(label, name, value):
+                if given[point] and np.any(target[point] != pair):
+                    raise ModelError(f"{label}[{name!r}] = {pair.tolist()} at a point already given "
+                                     f"{target[point].tolist()} by another entry of {label}")
+                target[point], given[point] = pair, True
         for j, e in enumerate(self.chain.body, start=1):   # a point element's two points coincide
             if e.is_point:
+                if given[j - 1] and given[j] and np.any(target[j - 1] != target[j]):
+                    raise ModelError(f"{label}: the two sides of point element {e.name!r} are given different values "
+                                     f"{target[j - 1].tolist()} and {target[j].tolist()}")
                 source = j if given[j] and not given[j - 1] else j - 1
-                x[[j - 1, j]], v[[j - 1, j]] = x[source], v[source]
-        return x, v
+                target[[j - 1, j]], given[[j - 1, j]] = target[source], given[source]
+        return target
 
-    def _set(self, label: str, name: str, value: Any, target: np.ndarray, given: np.ndarray) -> None:
+    def _pairs(self, label: str, name: str, value: Any) -> list[tuple[int, np.ndarray]]:
+        """``(point of chain, (w, theta))`` that the entry ``label[name] = value`` sets."""
         element = self.original.element(name)
         if name in self.nodes:
             if not callable(value):
                 raise ModelError(f"{label}[{name!r}] must be a callable shape(x) -> (w, theta) of the distance x [m] "
                                  f"from the beam's inboard end, got {value!r:.80}")
             points, positions = self.nodes[name]
-            for p, position in zip(points, positions):
-                target[p] = _pair(f"{label}[{name!r}]({position:.6g})", value(position))
-            given[points] = True
-            return
+            return [(int(p), _pair(f"{label}[{name!r}]({x:.6g})", value(x))) for p, x in zip(points, positions)]
         pair = _pair(f"{label}[{name!r}]", value)
         pos = self.original.position(name)
         held = element.constrained_dofs(BENDING)[0] if isinstance(element, Boundary) else ()
         if any(pair[i] != 0.0 for i in held):
             raise ModelError(f"{label}[{name!r}] = {value!r}: {name!r} is a support that holds its own motion; "
                              "give initial values to moving points only")
-        point = self.rows[min(pos, len(self.rows) - 1) if not element.is_point or pos == 0 else pos - 1]
-        target[point] = pair
-        given[point] = True
+        return [(int(self.rows[min(pos, len(self.rows) - 1) if not element.is_point or pos == 0 else pos - 1]), pair)]
 
     def initial_motion(self, discrete, x: np.ndarray, v: np.ndarray, t0: float, extra: Mapping[int, Any]):
         """Accelerations ``(n, 2)`` and internal forces ``(n, 2)`` at ``t0`` (one transfer solve)."""
