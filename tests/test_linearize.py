@@ -1,0 +1,254 @@
+"""ctmm.linearize on every model, and the frequency verbs on planar models (issue 12, task LIN).
+
+Independent checks only: chains against the global matrices of ``ctmm.reference.chain`` (loops
+closed by hand, delays by ``e^{-s tau}``); planar models against the Lagrange models of
+``ctmm.reference.planar_lagrange`` / ``flexible_lagrange`` (their own ``M, C, K`` or their own
+accelerations differentiated here), the natural frequencies against the exact linear MSTMM
+(``ctmm.planar.linear``), and the LQR-controlled flexible manipulator against
+``ctmm.reference.manipulator_lagrange`` closed with the same gain.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.integrate
+
+import ctmm
+from ctmm.control import Feedback, with_feedback
+from ctmm.elements import Damper, Fixed, Free, Mass, Spring
+from ctmm.linearized import DelayedLoop
+from ctmm.planar import Fixed as Ground
+from ctmm.planar import (ActuatedHinge, ElasticHinge, Pinned, PlanarModel, RigidBody, SmoothHinge,
+                         SpringDamperHinge)
+from ctmm.planar import linear as planar_linear
+from ctmm.planar.elements import FixedMounting
+from ctmm.reference.chain import GlobalChain, assemble
+from ctmm.reference.flexible_lagrange import FlexibleLagrange
+from ctmm.reference.planar_lagrange import PlanarLagrange
+
+
+def _response(ss, s):
+    """``C (sI - A)^-1 B + D`` at one Laplace variable."""
+    A, B, C, D = (np.asarray(m) for m in (ss.A, ss.B, ss.C, ss.D))
+    return C @ np.linalg.solve(s * np.eye(A.shape[0]) - A, B) + D
+
+
+def _first_order(M, C, K):
+    n = M.shape[0]
+    return np.block([[np.zeros((n, n)), np.eye(n)], [-np.linalg.solve(M, K), -np.linalg.solve(M, C)]])
+
+
+# ----------------------------------------------------------------------------------------- chains
+def _three_masses():
+    chain = ctmm.Chain("three", [Fixed("wall"), Spring("k1", 100.0), Mass("m1", 1.0), Damper("c2", 0.3),
+                                 Mass("m2", 2.0), Spring("k3", 50.0), Mass("m3", 0.5), Free("end")])
+    ref = GlobalChain([1.0, 2.0, 0.5], [100.0, 0.0, 50.0, 0.0], damping=[0.0, 0.3, 0.0, 0.0],
+                      start="fixed", end="free")
+    return chain, assemble(ref)
+
+
+def test_chain_linearisation_equals_the_global_matrices():
+    chain, (M, C, K) = _three_masses()
+    lin = ctmm.linearize(chain, inputs="m2.force", outputs=["m3.x", "m1.x"])
+    assert lin.delays == () and lin.operating_point is None
+    assert lin.state_space.input_labels == ["m2_force"]
+    assert lin.state_space.output_labels == ["m3_x", "m1_x"]
+    for s in (0.3j, 2.0 + 5.0j, 11.0j):
+        exact = np.linalg.solve(s * s * M + s * C + K, np.eye(3)[:, 1])
+        assert np.allclose(_response(lin.state_space, s)[:, 0], exact[[2, 0]], rtol=1e-12, atol=0)
+
+
+def test_chain_delayed_loop_is_returned_open_and_closes_to_the_reference():
+    chain, (M, C, K) = _three_masses()
+    kp, g, tau = 40.0, 3.0, 0.02
+    fast = Feedback("fast", sensor="m3.x", actuator="m1.force", gain=kp)
+    slow = Feedback("slow", sensor="m2.v", actuator="m3.force", gain=g, delay=tau)
+    lin = ctmm.linearize(ctmm.control.ControlledChain(chain, [fast, slow]), inputs="m2.force", outputs="m3.x")
+    assert [(d.name, d.gain, d.delay) for d in lin.delays] == [("slow", g, tau)]
+    assert lin.state_space.input_labels == ["m2_force", "slow_u"]
+    assert lin.state_space.output_labels == ["m3_x", "slow_y"]
+    for s in (0.5j, 7.0j, 1.0 + 3.0j):
+        G = _response(lin.state_space, s)
+        k_delay = g * np.exp(-s * tau)
+        closed = G[0, 0] - G[0, 1] * k_delay * G[1, 0] / (1.0 + k_delay * G[1, 1])
+        Z = s * s * M + s * C + K
+        Z[0, 2] += kp                              # force on m1 = -kp x3
+        Z[2, 1] += g * s * np.exp(-s * tau)        # force on m3 = -g e^{-s tau} v2
+        exact = np.linalg.solve(Z, np.eye(3)[:, 1])[2]
+        assert abs(closed - exact) <= 1e-11 * abs(exact)
+
+
+def test_chain_refuses_an_operating_point_and_unknown_models():
+    chain, _ = _three_masses()
+    with pytest.raises(ctmm.ModelError, match="no operating point"):
+        ctmm.linearize(chain, ([0.0], [0.0]))
+    with pytest.raises(ctmm.ModelError, match="must be a ctmm.Chain.*got str"):
+        ctmm.linearize("chain")
+
+
+# ---------------------------------------------------------------------------------- rigid planar
+def _triple(damped: bool = False):
+    links = [RigidBody.uniform_link(f"l{i}", mass=1.0 + 0.3 * i, length=1.0 - 0.1 * i) for i in (1, 2, 3)]
+    h2 = SpringDamperHinge("h2", stiffness=5.0, damping=0.7) if damped else ElasticHinge("h2", stiffness=5.0)
+    return PlanarModel.chain("triple", [Pinned("base"), links[0], h2, links[1], SmoothHinge("h3"), links[2]])
+
+
+@pytest.mark.parametrize("damped", [False, True])
+def test_rigid_linearisation_equals_the_lagrange_model(damped):
+    model = _triple(damped)
+    lin = ctmm.linearize(model, inputs=["h2.torque", "base.torque"], outputs=["l3.theta", "l2.theta_dot"])
+    op = lin.operating_point
+    assert op.equilibrium and op.jacobian_error < 1e-9
+    assert np.allclose(op.q, -np.pi / 2, atol=1e-12)          # hanging straight down
+    M, C, K = PlanarLagrange(model).linearize(op.q)
+    A_ref = _first_order(M, C, K)
+    assert np.max(np.abs(lin.state_space.A - A_ref)) <= 1e-9 * np.max(np.abs(A_ref))
+    generalised = np.array([[-1.0, 0.0], [1.0, 0.0], [0.0, 0.0]])   # h2: +child -parent; base: +l1
+    generalised[0, 1] = 1.0
+    B_ref = np.vstack([np.zeros((3, 2)), np.linalg.solve(M, generalised)])
+    assert np.allclose(lin.state_space.B, B_ref, rtol=0, atol=1e-12 * np.max(np.abs(B_ref)))
+    C_ref = np.zeros((2, 6))
+    C_ref[0, 2], C_ref[1, 4] = 1.0, 1.0
+    assert np.array_equal(lin.state_space.C, C_ref)
+    assert lin.state_space.state_labels == ["l1_theta", "l2_theta", "l3_theta",
+                                            "l1_theta_dot", "l2_theta_dot", "l3_theta_dot"]
+
+
+def test_natural_frequencies_equal_the_linear_mstmm_and_the_lagrange_model():
+    model = _triple()
+    q_eq = ctmm.linearize(model, inputs=[]).operating_point.q
+    exact = planar_linear.natural_frequencies(model, q_eq, n_modes=3)
+    lagrange = PlanarLagrange(model).natural_frequencies(q_eq)
+    omega = ctmm.natural_frequencies(model, n_modes=3)
+    assert np.allclose(omega, exact, rtol=1e-9, atol=0)
+    assert np.allclose(omega, lagrange, rtol=1e-9, atol=0)
+    assert np.allclose(ctmm.natural_frequencies(model, omega_max=exact[1] * 1.01), exact[:2], rtol=1e-9)
+    modes = ctmm.mode_shapes(model, n_modes=3)
+    M, _, K = PlanarLagrange(model).linearize(q_eq)
+    for k in range(3):
+        phi = modes.shapes[k, :, 0]
+        assert np.max(np.abs(phi)) == pytest.approx(1.0)
+        residual = (K - modes.natural_frequencies[k] ** 2 * M) @ phi
+        assert np.linalg.norm(residual) <= 1e-8 * np.linalg.norm(K) * np.linalg.norm(phi)
+    assert modes.point_names == model.coordinates
+
+
+def test_planar_frequency_response_equals_the_lagrange_linearisation():
+    model = _triple(damped=True)
+    omega = np.array([0.0, 1.5, 4.0, 20.0])
+    frf = ctmm.frequency_response(model, omega, input=["h2.torque"], output=["l3.theta", "l3.out.x"])
+    q_eq = ctmm.linearize(model, inputs=[]).operating_point.q
+    M, C, K = PlanarLagrange(model).linearize(q_eq)
+    lengths = np.array([0.9, 0.8, 0.7])
+    for k, w in enumerate(omega):
+        s = 1j * w
+        q = np.linalg.solve(s * s * M + s * C + K, np.array([-1.0, 1.0, 0.0]))
+        size = np.max(np.abs(q))
+        assert abs(frf.response[0, 0, k] - q[2]) <= 1e-9 * size
+        x_tip = lengths @ q                     # d/dtheta (L cos theta) at theta = -pi/2 = L
+        assert abs(frf.response[1, 0, k] - x_tip) <= 1e-9 * size
+    assert frf.units["h2.torque"] == "N m" and frf.units["l3.out.x"] == "m"
+
+
+def test_frequency_verbs_refuse_damping_loops_and_unstable_points_like_the_chain_verbs():
+    with pytest.raises(ctmm.ModelError, match=r"natural_frequencies needs an undamped system, but 'h2' has damping"):
+        ctmm.natural_frequencies(_triple(damped=True), n_modes=1)
+    model = _triple()
+    pd = Feedback("pd", sensor=[("h2.angle", 20.0), ("h2.rate", 2.0)], actuator="h2.torque", gain=1.0)
+    with pytest.raises(ctmm.ModelError, match=r"mode_shapes cannot honour the feedback loops \['pd'\]"):
+        ctmm.mode_shapes(with_feedback(model, [pd]), n_modes=1)
+    upright = ([np.pi / 2] * 3, [0.0] * 3)
+    with pytest.raises(ctmm.ModelError, match="statically unstable"):
+        ctmm.natural_frequencies(model, n_modes=1, operating_point=upright)
+    with pytest.raises(ctmm.ModelError, match="not an equilibrium"):
+        ctmm.linearize(model, ([0.0] * 3, [0.0] * 3))
+    tangent = ctmm.linearize(model, ([0.0] * 3, [0.0] * 3), allow_nonequilibrium=True, inputs=[])
+    assert not tangent.operating_point.equilibrium
+    with pytest.raises(ctmm.ModelError, match="operating_point is for planar models"):
+        ctmm.frequency_response(_three_masses()[0], [1.0], input="m1.force", output="m1.x", operating_point=(0, 0))
+
+
+# ------------------------------------------------------------------------------ controlled model
+def test_controlled_model_closes_real_time_loops_and_leaves_delayed_ones_open():
+    model = _triple()
+    kp, kd, tau = 20.0, 2.0, 0.05
+    pd = Feedback("pd", sensor=[("h2.angle", kp), ("h2.rate", kd)], actuator="h2.torque", gain=1.0)
+    lin = ctmm.linearize(with_feedback(model, [pd]), inputs=["base.torque", "pd.reference"],
+                         outputs=["l3.theta"])
+    q_eq = lin.operating_point.q
+    M, C, K = PlanarLagrange(model).linearize(q_eq)
+    e = np.array([-1.0, 1.0, 0.0])
+    A_ref = _first_order(M, C + kd * np.outer(e, e), K + kp * np.outer(e, e))
+    assert np.max(np.abs(lin.state_space.A - A_ref)) <= 1e-9 * np.max(np.abs(A_ref))
+    B_ref = np.vstack([np.zeros((3, 2)), np.linalg.solve(M, np.column_stack([[1.0, 0.0, 0.0], e]))])
+    assert np.allclose(lin.state_space.B, B_ref, rtol=0, atol=1e-12 * np.max(np.abs(B_ref)))
+    # a PI controller C(s) on the same loop: its state is appended and named
+    import control
+
+    pi = Feedback("pi", sensor="h2.angle", actuator="h2.torque", gain=control.tf([kd, kp], [1.0, 0.0]))
+    lin_pi = ctmm.linearize(with_feedback(model, [pi]), inputs=[])
+    assert lin_pi.state_space.state_labels[-1] == "pi_controller0"
+    # the delayed loop: open ports, and the FRF of the closed loop equals the reference with e^{-s tau}
+    slow = pd.with_parameters(delay=tau)
+    controlled = with_feedback(model, [slow])
+    lin_d = ctmm.linearize(controlled, inputs=["base.torque"], outputs=["l3.theta"])
+    assert lin_d.state_space.input_labels == ["base_torque", "pd_u"]
+    assert lin_d.state_space.output_labels == ["l3_theta", "pd_y"]
+    assert lin_d.delays == (DelayedLoop("pd", 1.0, tau),)
+    omega = np.array([0.5, 3.0, 9.0])
+    frf = ctmm.frequency_response(controlled, omega, input="base.torque", output="l3.theta")
+    for k, w in enumerate(omega):
+        s = 1j * w
+        Z = s * s * M + s * C + K + (kp + kd * s) * np.exp(-s * tau) * np.outer(e, e)
+        exact = np.linalg.solve(Z, np.array([1.0, 0.0, 0.0]))[2]
+        assert abs(frf.response[0, 0, k] - exact) <= 1e-9 * abs(exact)
+
+
+# ------------------------------------------------------------------------------------ flexible
+def _reference_jacobians(reference, q, v, h=1e-4):
+    """Fourth-order central differences of the Lagrange model's own accelerations."""
+    n = q.size
+    Jq, Jv = np.zeros((n, n)), np.zeros((n, n))
+    for i in range(n):
+        e = np.zeros(n)
+        e[i] = h
+        Jq[:, i] = (8 * (reference.accelerations(q + e, v) - reference.accelerations(q - e, v))
+                    - reference.accelerations(q + 2 * e, v) + reference.accelerations(q - 2 * e, v)) / (12 * h)
+        Jv[:, i] = (8 * (reference.accelerations(q, v + e) - reference.accelerations(q, v - e))
+                    - reference.accelerations(q, v + 2 * e) + reference.accelerations(q, v - 2 * e)) / (12 * h)
+    return Jq, Jv
+
+
+def _hub_beam(torque=0.0, modal_force=None):
+    from ctmm.flexible import ModalBeam
+    from ctmm.flexible.beam import ModalForce
+
+    beam = ModalBeam("b", length=1.3, bending_stiffness=5.0, mass_per_length=0.7, n_modes=3,
+                     stiffness_damping=1e-3)
+    if modal_force is not None:
+        beam = beam.with_modal_forces(ModalForce(force=lambda t: modal_force))
+    hub = RigidBody("hub", mass=2.0, inertia=0.1, center_of_mass=(0.05, 0.02), outboard=(0.2, 0.0))
+    return PlanarModel.chain("hub_beam", [Ground("g"), ActuatedHinge("o", torque=torque), hub,
+                                          FixedMounting("mount"), beam])
+
+
+def test_flexible_linearisation_equals_the_differentiated_flexible_lagrange_model():
+    model = _hub_beam()
+    lin = ctmm.linearize(model, inputs=["o.torque", "b.q2.force"])
+    op = lin.operating_point
+    assert op.equilibrium and op.jacobian_error < 1e-8
+    reference = FlexibleLagrange(model)
+    assert np.max(np.abs(reference.accelerations(op.q, op.qdot))) < 1e-9     # at rest there too
+    Jq, Jv = _reference_jacobians(reference, op.q, op.qdot)
+    n = model.n_coordinates
+    A = np.asarray(lin.state_space.A)
+    scale = np.max(np.abs(Jq))
+    assert np.max(np.abs(A[n:, :n] - Jq)) <= 1e-7 * scale
+    assert np.max(np.abs(A[n:, n:] - Jv)) <= 1e-7 * scale
+    assert np.max(np.abs(Jv)) > 1e-3                      # the beam damping is in there
+    # B: the reference with the same torque / modal force as embedded loads
+    base = reference.accelerations(op.q, op.qdot)
+    torque = FlexibleLagrange(_hub_beam(torque=1.0)).accelerations(op.q, op.qdot) - base
+    modal = FlexibleLagrange(_hub_beam(modal_force=np.array([0.0, 1.0, 0.0]))).accelerations(op.q, op.qdot) - base
+    for k, column in enumerate((torque, modal)):
+        assert np.allclose(lin.state_space.B[n:, k], column, rtol=0, atol=1e-9 * np.max(np.abs(column)))
