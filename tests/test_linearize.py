@@ -252,3 +252,89 @@ def test_flexible_linearisation_equals_the_differentiated_flexible_lagrange_mode
     modal = FlexibleLagrange(_hub_beam(modal_force=np.array([0.0, 1.0, 0.0]))).accelerations(op.q, op.qdot) - base
     for k, column in enumerate((torque, modal)):
         assert np.allclose(lin.state_space.B[n:, k], column, rtol=0, atol=1e-9 * np.max(np.abs(column)))
+
+
+# ------------------------------------------------------------------- flexible manipulator + LQR
+class _Rest:
+    """Reference motion of a regulator: stay at 0 rad."""
+
+    @staticmethod
+    def angle(t):
+        return 0.0
+
+    @staticmethod
+    def rate(t):
+        return 0.0
+
+
+def test_lqr_on_the_linearised_flexible_manipulator_regulates_like_the_lagrange_reference():
+    import control
+
+    from ctmm.manipulator import FlexibleManipulator, seed_manipulator
+    from ctmm.ode import integrate_rk4
+    from ctmm.planar import accelerations, ports
+    from ctmm.reference.manipulator_lagrange import ManipulatorLagrange
+
+    manipulator = seed_manipulator()
+    arm = FlexibleManipulator(manipulator, pd=None, pzt=None, reference=_Rest(), n_modes=3,
+                              geometric_stiffening=False)
+    model = arm.model()
+    reference = ManipulatorLagrange.from_manipulator(manipulator, 3)
+    # ModalBeam modes: int phi^2 dx = L; the reference's: int rho A phi^2 dx = 1  ->  q = c eta
+    c = 1.0 / np.sqrt(manipulator.arm.mass_per_length * manipulator.arm.length)
+    np.testing.assert_allclose(reference.Psi, c * arm.slope_matrix, rtol=1e-9)
+    T = np.diag([1.0, c, c, c, 1.0, c, c, c])
+    modal = ["arm.q1.force", "arm.q2.force", "arm.q3.force"]
+    lin = ctmm.linearize(model, inputs=["motor.torque", *modal])
+    assert lin.operating_point.equilibrium and np.array_equal(lin.operating_point.q, np.zeros(4))
+    A = np.asarray(lin.state_space.A)
+    Psi, ca = arm.slope_matrix, manipulator.moments_per_volt
+    B = np.hstack([lin.state_space.B[:, :1], lin.state_space.B[:, 1:] @ (Psi.T * ca)])   # torque, 3 voltages
+    d = reference.linearize()
+    A_ref = _first_order(d["M"], d["D"], d["K"])
+    B_ref = np.vstack([np.zeros((4, 4)), np.linalg.solve(d["M"], np.column_stack([d["B_torque"], d["B_voltage"]]))])
+    assert np.max(np.abs(A - T @ A_ref @ np.linalg.inv(T))) <= 1e-12 * np.max(np.abs(A))
+    assert np.max(np.abs(B - T @ B_ref)) <= 1e-12 * np.max(np.abs(B))
+    K, _, poles = control.lqr(A, B, np.diag([100.0, 1e3, 1e3, 1e3, 1.0, 1.0, 1.0, 1.0]),
+                              np.diag([1.0, 1e-4, 1e-4, 1e-4]))
+    open_damping = np.sort(-np.linalg.eigvals(A).real)[2:]
+    assert np.all(np.sort(-poles.real)[2:] > open_damping)       # every flexible mode more damped
+    # the LQR law as real-time loops on the planar model (sensor terms = the LQR rows)
+    states = list(model.coordinates) + [f"{x}_dot" for x in model.coordinates]
+    loops = [Feedback("torque", sensor=list(zip(states, K[0])), actuator="motor.torque", gain=1.0)]
+    loops += [Feedback(f"v{j + 1}", sensor=list(zip(states, K[1 + j])),
+                       actuator=[(modal[i], Psi[j, i] * ca[j]) for i in range(3)], gain=1.0) for j in range(3)]
+    controlled = with_feedback(model, loops)
+    closed = ctmm.linearize(controlled, inputs=[])
+    assert np.allclose(closed.state_space.A, A - B @ K, rtol=0, atol=1e-12 * np.max(np.abs(A)))
+    # nonlinear closed loop: planar TMM accelerations with the loop forces as actuator inputs, RK4
+    sensors = controlled.sensors()
+
+    def rate(t, y):
+        values = dict(zip(sensors, ports.sensor_values(model, sensors, y[:4], y[4:], t)))
+        forces = controlled.actuation({name: -value for name, value in controlled.sensed(values).items()})
+        return np.concatenate([y[4:], accelerations(model, y[:4], y[4:], t,
+                                                    inputs=ports.actuator_inputs(model, forces))])
+
+    dt, t_final, theta0 = 1e-3, 1.0, 0.2
+    y0 = np.zeros(8)
+    y0[0] = theta0
+    stored = []
+    integrate_rk4(rate, y0, h=dt, n_steps=int(round(t_final / dt)),
+                  after_step=lambda k, t, y: stored.append(y) if k % 50 == 0 else None)
+    ours = np.array(stored)
+    K_ref = K @ T                                               # the same law on [theta, eta, rates]
+
+    def reference_rate(t, x):
+        u = -K_ref @ x
+        return np.concatenate([x[4:], reference.accelerations(x[4], x[1:4], x[5:], u[0], u[1:])])
+
+    times = dt * 50 * np.arange(1, len(stored) + 1)
+    sol = scipy.integrate.solve_ivp(reference_rate, (0.0, t_final), y0, method="DOP853", rtol=1e-11,
+                                    atol=1e-13, t_eval=times)
+    theirs = (T @ sol.y).T
+    assert abs(theirs[-1, 0]) < 0.3 * theta0                    # the loop regulates
+    assert np.max(np.abs(ours[:, 0] - theirs[:, 0])) <= 1e-9    # hub angle [rad] (RK4 at 1 ms)
+    tip_ours, tip_theirs = ours[:, 1:4] @ arm.tip_shape, theirs[:, 1:4] @ arm.tip_shape
+    assert np.max(np.abs(tip_theirs)) > 1e-3                    # the arm does bend
+    assert np.max(np.abs(tip_ours - tip_theirs)) <= 1e-8        # tip deflection [m]
