@@ -217,6 +217,7 @@ class _LumpedModel:
         na, nb = a.size, b.size
         ns = 2 * na + nb
         self.n_states = ns
+        self.state_names = self._state_names(a, b)
         kept = np.concatenate([a, b]).astype(int)
         Fk = Bf[kept]                                   # forces on the kept DOFs per input
         K_kept = K[np.ix_(kept, kept)]
@@ -269,6 +270,18 @@ class _LumpedModel:
             for k, i in enumerate(c):
                 self._q[i] = _Quantity(qc.Z[k:k + 1], qc.U[k:k + 1])
                 self._v[i] = _Quantity(vc.Z[k:k + 1], vc.U[k:k + 1], vc.dU[k:k + 1])
+
+    def _state_names(self, a: np.ndarray, b: np.ndarray) -> list[str]:
+        """``"<mass>.x"``, ``"<mass>.v"`` of the massive DOFs, ``"<point>.x"`` of the first-order ones."""
+        chain, pd = self.chain, self.point_dof
+        labels = []
+        for g in range(pd.max(initial=-1) + 1):
+            masses = [e.name for j, e in enumerate(chain.body, start=1)
+                      if isinstance(e, PointElement) and e.mass > 0 and pd[j] == g]
+            points = [p for p, d in zip(chain.point_names(), pd) if d == g]
+            labels.append(masses[0] if masses else points[0])
+        return ([f"{labels[g]}.x" for g in a] + [f"{labels[g]}.v" for g in a]
+                + [f"{labels[g]}.x" for g in b])
 
     def zero(self) -> _Quantity:
         return _Quantity(np.zeros((1, self.n_states)), np.zeros((1, self.n_inputs)))
@@ -410,8 +423,9 @@ def to_state_space(system: Any, *, inputs: str | Sequence[str] | None = None,
     -------
     control.StateSpace
         Continuous-time, labelled with the ctmm names through :func:`control_name` (``"m6.x"`` ->
-        ``"m6_x"``, python-control reserves dots); states
-        ``[q_a, q_a', q_b]`` followed by the controller states.
+        ``"m6_x"``, python-control reserves dots); states ``[q_a, q_a', q_b]`` named
+        ``"<mass>_x"``, ``"<mass>_v"`` (``"<point>_x"`` for massless damped points), followed by the
+        controller states ``"<loop>_controller<k>"``.
 
     Raises
     ------
@@ -532,7 +546,7 @@ def to_state_space(system: Any, *, inputs: str | Sequence[str] | None = None,
             out_D.append(np.concatenate([D11[k] + D12[k] @ Uw, D12[k] @ Ur]))
     C_cl = np.array(out_C).reshape(len(outputs), n + nk)
     D_cl = np.array(out_D).reshape(len(outputs), len(forces) + len(references))
-    states = [f"q{k}" for k in range(n)] + [f"controller{k}" for k in range(nk)]
+    states = model.state_names + [f"{lp.name}.controller{k}" for lp, size in zip(loops, sizes) for k in range(size)]
     return control.ss(A_cl, B_cl, C_cl, D_cl, inputs=[control_name(n) for n in forces + references],
-                      outputs=[control_name(n) for n in outputs], states=states,
+                      outputs=[control_name(n) for n in outputs], states=[control_name(x) for x in states],
                       name=control_name(getattr(system, "name", "")) or None)

@@ -53,6 +53,7 @@ def test_chain_linearisation_equals_the_global_matrices():
     assert lin.delays == () and lin.operating_point is None
     assert lin.state_space.input_labels == ["m2_force"]
     assert lin.state_space.output_labels == ["m3_x", "m1_x"]
+    assert lin.state_space.state_labels == ["m1_x", "m2_x", "m3_x", "m1_v", "m2_v", "m3_v"]
     for s in (0.3j, 2.0 + 5.0j, 11.0j):
         exact = np.linalg.solve(s * s * M + s * C + K, np.eye(3)[:, 1])
         assert np.allclose(_response(lin.state_space, s)[:, 0], exact[[2, 0]], rtol=1e-12, atol=0)
