@@ -339,3 +339,30 @@ def test_lqr_on_the_linearised_flexible_manipulator_regulates_like_the_lagrange_
     tip_ours, tip_theirs = ours[:, 1:4] @ arm.tip_shape, theirs[:, 1:4] @ arm.tip_shape
     assert np.max(np.abs(tip_theirs)) > 1e-3                    # the arm does bend
     assert np.max(np.abs(tip_ours - tip_theirs)) <= 1e-8        # tip deflection [m]
+
+
+def test_manipulator_scene_linearises_to_the_reference_closed_by_the_seed_laws():
+    from ctmm.manipulator import (SEED_KD, SEED_KP, SEED_PZT_GAIN, HubPD, PZTFeedback, manipulator_scene,
+                                  seed_manipulator)
+    from ctmm.reference.manipulator_lagrange import ManipulatorLagrange
+
+    manipulator = seed_manipulator()
+    pzt = PZTFeedback(gains=np.diag([SEED_PZT_GAIN] * 3))
+    d = ManipulatorLagrange.from_manipulator(manipulator, 3).linearize()
+    e = np.eye(4)[0]
+    damping = d["D"] + d["B_voltage"] @ pzt.gains @ d["C_slopes"]         # V = -G Psi eta_dot
+    # real-time PD and PZT loops: closed inside A (eigenvalues are invariant to the mode scaling)
+    scene = manipulator_scene(manipulator, pd=HubPD(kp=SEED_KP, kd=SEED_KD), pzt=pzt, geometric_stiffening=False)
+    lin = ctmm.linearize(scene, inputs=["hub_pd.reference"], outputs=["hub.theta"])
+    assert lin.delays == ()
+    A_ref = _first_order(d["M"], damping + SEED_KD * np.outer(e, e), d["K"] + SEED_KP * np.outer(e, e))
+    ours, theirs = np.sort_complex(np.linalg.eigvals(lin.state_space.A)), np.sort_complex(np.linalg.eigvals(A_ref))
+    assert np.max(np.abs(ours - theirs) / np.abs(theirs)) <= 1e-9
+    # a delayed PD is left open: its port transfer function is the reference's loop transfer function
+    delayed = manipulator_scene(manipulator, pd=HubPD(kp=SEED_KP, kd=SEED_KD, delay=0.01), pzt=pzt,
+                                geometric_stiffening=False)
+    lin = ctmm.linearize(delayed, inputs=[], outputs=["hub.theta"])
+    assert lin.delays == (DelayedLoop("hub_pd", 1.0, 0.01),)
+    for s in (2.0j, 30.0j, 1.0 + 90.0j):
+        loop = (SEED_KP + SEED_KD * s) * np.linalg.solve(s * s * d["M"] + s * damping + d["K"], e)[0]
+        assert abs(_response(lin.state_space, s)[1, 0] - loop) <= 1e-9 * abs(loop)
