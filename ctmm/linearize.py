@@ -77,7 +77,8 @@ def linearize(system: Any, operating_point: Any = None, *, inputs: str | Sequenc
         :func:`ctmm.planar.ports.actuator_names` (default: every actuator not used by a loop).
     outputs : str or sequence of str, optional
         Chain signal names; planar sensor names of :mod:`ctmm.planar.ports` (default: every
-        coordinate).
+        coordinate); ``"<loop>.y"`` (sensed value) and ``"<loop>.u"`` (loop force) of a loop
+        without delay.
     allow_nonequilibrium : bool
         Planar models: accept an operating point that is not an equilibrium (nonzero rates or
         accelerations).  The result is then the tangent at that instant only (the constant

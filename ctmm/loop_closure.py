@@ -74,6 +74,9 @@ def close_loops(plant: tuple, loops: Sequence[Any], n_exogenous: int) -> tuple:
         controller states of the real-time LTI loops appended).
     n_controller : list of int
         Number of controller states per real-time loop (in loop order, delayed loops skipped).
+    C_u, D_u : ndarray
+        The forces of the real-time loops, ``u = C_u [x, xi] + D_u [w, u_delayed]`` (one row per
+        real-time loop, in loop order).
     """
     A, B, C, D = (np.asarray(m, dtype=float) for m in plant)
     nl = len(loops)
@@ -102,4 +105,4 @@ def close_loops(plant: tuple, loops: Sequence[Any], n_exogenous: int) -> tuple:
     B_cl = np.vstack([B1 + B2 @ Uv, Bk @ Yv])
     C_cl = np.hstack([C1 + D12 @ Ux, D12 @ Uxi])
     D_cl = D11 + D12 @ Uv
-    return A_cl, B_cl, C_cl, D_cl, sizes
+    return A_cl, B_cl, C_cl, D_cl, sizes, np.hstack([Ux, Uxi]), Uv

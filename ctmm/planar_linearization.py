@@ -182,6 +182,15 @@ def linearize_planar(model: Any, loops: Sequence[Any], point: Any, *, inputs=Non
     else:
         exo = list(validation.names("inputs", inputs))
     req = list(model.coordinates) if outputs is None else list(validation.names("outputs", outputs))
+    loop_outputs = {}                               # output index -> (loop index, "y" or "u")
+    for k, name in enumerate(req):
+        head, _, tail = name.partition(".")
+        if head in {lp.name for lp in loops} and tail in ("y", "u"):
+            j = [lp.name for lp in loops].index(head)
+            if loops[j].delay > 0.0:
+                raise ModelError(f"linearize: output {name!r}: the delayed loop {head!r} is left open, its "
+                                 f"sensed value and force are the ports '{head}_y' and '{head}_u' already")
+            loop_outputs[k] = (j, tail)
     loop_index = {lp.name: j for j, lp in enumerate(loops)}
     references = {}                                 # exogenous index -> loop index (u = -C (y - r))
     for k, name in enumerate(exo):
@@ -203,7 +212,7 @@ def linearize_planar(model: Any, loops: Sequence[Any], point: Any, *, inputs=Non
                          "are not smooth there (a switching law, a saturation or a contact?)")
     op = op._replace(jacobian_error=error)
     plant_in = list(dict.fromkeys(exo_plant + loop_actuators))
-    plant_out = list(dict.fromkeys(req + loop_sensors))
+    plant_out = list(dict.fromkeys([x for k, x in enumerate(req) if k not in loop_outputs] + loop_sensors))
     Bf = input_matrix(model, plant_in, op)
     Cf = output_matrix(model, plant_out, op)
     col = {name: k for k, name in enumerate(plant_in)}
@@ -214,7 +223,11 @@ def linearize_planar(model: Any, loops: Sequence[Any], point: Any, *, inputs=Non
         if k not in references:
             S_in[col[name], k] = 1.0
     for k, name in enumerate(req):
-        S_out[k, row[name]] = 1.0
+        if k not in loop_outputs:
+            S_out[k, row[name]] = 1.0
+        elif loop_outputs[k][1] == "y":             # the sensed value (not y - r)
+            for sensor, weight in loops[loop_outputs[k][0]].terms:
+                S_out[k, row[sensor]] += weight
     for j, lp in enumerate(loops):
         for name, weight in lp.actuator_terms:
             S_in[col[name], len(exo) + j] += weight
@@ -225,7 +238,11 @@ def linearize_planar(model: Any, loops: Sequence[Any], point: Any, *, inputs=Non
     D = np.zeros((C.shape[0], B.shape[1]))
     for k, j in references.items():
         D[len(req) + j, k] = -1.0                   # the loop acts on y - r
-    A_cl, B_cl, C_cl, D_cl, sizes = close_loops((A, B, C, D), loops, len(exo))
+    A_cl, B_cl, C_cl, D_cl, sizes, C_u, D_u = close_loops((A, B, C, D), loops, len(exo))
+    real_time = [j for j, lp in enumerate(loops) if lp.delay == 0.0]
+    for k, (j, part) in loop_outputs.items():
+        if part == "u":                             # the loop force, from the closure
+            C_cl[k], D_cl[k] = C_u[real_time.index(j)], D_u[real_time.index(j)]
     delayed = [lp for lp in loops if lp.delay > 0.0]
     states = list(model.coordinates) + [f"{c}_dot" for c in model.coordinates]
     for lp, size in zip([lp for lp in loops if lp.delay == 0.0], sizes):

@@ -183,6 +183,11 @@ def test_controlled_model_closes_real_time_loops_and_leaves_delayed_ones_open():
     assert np.max(np.abs(lin.state_space.A - A_ref)) <= 1e-9 * np.max(np.abs(A_ref))
     B_ref = np.vstack([np.zeros((3, 2)), np.linalg.solve(M, np.column_stack([[1.0, 0.0, 0.0], e]))])
     assert np.allclose(lin.state_space.B, B_ref, rtol=0, atol=1e-12 * np.max(np.abs(B_ref)))
+    # the loop's own signals: y = kp (th2 - th1) + kd (w2 - w1), u = -(y - r)
+    signals = ctmm.linearize(with_feedback(model, [pd]), inputs="pd.reference", outputs=["pd.y", "pd.u"])
+    y_row = np.concatenate([kp * e, kd * e])
+    np.testing.assert_allclose(signals.state_space.C, [y_row, -y_row], rtol=1e-12, atol=1e-12)
+    np.testing.assert_array_equal(signals.state_space.D, [[0.0], [1.0]])
     # a PI controller C(s) on the same loop: its state is appended and named
     import control
 
@@ -196,6 +201,8 @@ def test_controlled_model_closes_real_time_loops_and_leaves_delayed_ones_open():
     assert lin_d.state_space.input_labels == ["base_torque", "pd_u"]
     assert lin_d.state_space.output_labels == ["l3_theta", "pd_y"]
     assert lin_d.delays == (DelayedLoop("pd", 1.0, tau),)
+    with pytest.raises(ctmm.ModelError, match="delayed loop 'pd' is left open"):
+        ctmm.linearize(controlled, outputs=["pd.u"])
     omega = np.array([0.5, 3.0, 9.0])
     frf = ctmm.frequency_response(controlled, omega, input="base.torque", output="l3.theta")
     for k, w in enumerate(omega):
