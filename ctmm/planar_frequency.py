@@ -22,7 +22,8 @@ import numpy as np
 
 from . import validation
 from .errors import ModelError
-from .planar_linearization import linearize_planar
+from .planar_linearization import linearize_planar, tangent
+from .planar_linearization import operating_point as planar_operating_point
 from .results import FrequencyResponse, ModalResult
 
 __all__ = ["is_planar_system", "frequency_response", "natural_frequencies", "mode_shapes"]
@@ -124,16 +125,15 @@ def _undamped_stiffness(system: Any, verb: str, operating_point: Any):
         if damping:
             raise ModelError(f"{verb} needs an undamped system, but {name!r} has damping={float(damping)!r}; "
                              f"use {_DAMPED}")
-    lin = linearize_planar(model, (), operating_point, inputs=[], outputs=list(model.coordinates))
+    A, op = tangent(model, planar_operating_point(model, operating_point))
     n = model.n_coordinates
-    A = np.asarray(lin.state_space.A, dtype=float)
     Jq, Jv = A[n:, :n], A[n:, n:]
     scale = np.sqrt(max(float(np.max(np.abs(Jq), initial=0.0)), 1e-300))
     if np.max(np.abs(Jv), initial=0.0) > UNDAMPED_TOLERANCE * scale:
         raise ModelError(f"{verb} needs an undamped system, but {model.name!r} has velocity-dependent forces at "
                          f"the operating point (largest |d qddot / d qdot| = {np.max(np.abs(Jv)):.3e} 1/s: a "
                          f"damped beam, a PD hinge or a velocity law); use {_DAMPED}")
-    return model, -Jq, lin.operating_point
+    return model, -Jq, op
 
 
 def _modes(system: Any, verb: str, n_modes, omega_max, operating_point):

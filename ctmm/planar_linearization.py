@@ -23,7 +23,8 @@ from .errors import ModelError
 from .linearized import DelayedLoop, LinearizedSystem, OperatingPoint, control_name
 from .loop_closure import close_loops
 
-__all__ = ["linearize_planar", "operating_point", "jacobian", "JACOBIAN_TOLERANCE", "EQUILIBRIUM_TOLERANCE"]
+__all__ = ["linearize_planar", "operating_point", "tangent", "jacobian", "input_matrix", "output_matrix",
+           "JACOBIAN_TOLERANCE", "EQUILIBRIUM_TOLERANCE"]
 
 JACOBIAN_TOLERANCE = 1e-6
 """Largest accepted estimated error of the Jacobians, relative to ``max |A|``."""
@@ -163,60 +164,75 @@ def output_matrix(model: Any, names: Sequence[str], point: OperatingPoint) -> np
     return rows
 
 
-def linearize_planar(model: Any, loops: Sequence[Any], point: Any, *, inputs=None, outputs=None,
-                     allow_nonequilibrium: bool = False) -> LinearizedSystem:
-    """:func:`ctmm.linearize` of a planar model closed by ``loops`` (module docstring)."""
-    import control
-
-    from .planar.sweep import accelerations
-
-    op = operating_point(model, point, allow_nonequilibrium=allow_nonequilibrium)
-    n = model.n_coordinates
-    loop_actuators, loop_sensors = _loop_ports(loops)
+def _exogenous_inputs(model: Any, loops: Sequence[Any], inputs: Any) -> tuple[list[str], dict[int, int]]:
+    """Requested inputs and ``{input index: loop index}`` of the ``"<loop>.reference"`` among them."""
     if inputs is None:
         from .planar import ports
 
-        exo = [name for name in ports.actuator_names(model) if name not in loop_actuators]
-    elif isinstance(inputs, (list, tuple)) and not inputs:
-        exo = []                                  # no exogenous input (e.g. for eigenvalues only)
-    else:
-        exo = list(validation.names("inputs", inputs))
-    req = list(model.coordinates) if outputs is None else list(validation.names("outputs", outputs))
-    loop_outputs = {}                               # output index -> (loop index, "y" or "u")
-    for k, name in enumerate(req):
-        head, _, tail = name.partition(".")
-        if head in {lp.name for lp in loops} and tail in ("y", "u"):
-            j = [lp.name for lp in loops].index(head)
-            if loops[j].delay > 0.0:
-                raise ModelError(f"linearize: output {name!r}: the delayed loop {head!r} is left open, its "
-                                 f"sensed value and force are the ports '{head}_y' and '{head}_u' already")
-            loop_outputs[k] = (j, tail)
-    loop_index = {lp.name: j for j, lp in enumerate(loops)}
-    references = {}                                 # exogenous index -> loop index (u = -C (y - r))
+        actuated = set(_loop_ports(loops)[0])
+        return [name for name in ports.actuator_names(model) if name not in actuated], {}
+    if isinstance(inputs, (list, tuple)) and not inputs:
+        return [], {}                               # no exogenous input (e.g. for eigenvalues only)
+    exo = list(validation.names("inputs", inputs))
+    index = {lp.name: j for j, lp in enumerate(loops)}
+    references = {}
     for k, name in enumerate(exo):
         head, _, tail = name.partition(".")
-        if head in loop_index:
-            if tail != "reference" or loops[loop_index[head]].delay > 0.0:
+        if head in index:
+            if tail != "reference" or loops[index[head]].delay > 0.0:
                 raise ModelError(f"linearize: input {name!r}: the inputs of a loop are '<loop>.reference' of a "
                                  "loop without delay; a delayed loop is left open (its force is the input "
                                  "'<loop>_u')")
-            references[k] = loop_index[head]
-    exo_plant = [name for k, name in enumerate(exo) if k not in references]
-    Jq, eq = jacobian(lambda q: accelerations(model, q, op.qdot, op.t), op.q)
-    Jv, ev = jacobian(lambda v: accelerations(model, op.q, v, op.t), op.qdot)
+            references[k] = index[head]
+    return exo, references
+
+
+def _requested_outputs(model: Any, loops: Sequence[Any], outputs: Any) -> tuple[list[str], dict[int, tuple]]:
+    """Requested outputs and ``{output index: (loop index, "y" or "u")}`` of the loop signals among them."""
+    req = list(model.coordinates) if outputs is None else list(validation.names("outputs", outputs))
+    index = {lp.name: j for j, lp in enumerate(loops)}
+    loop_outputs = {}
+    for k, name in enumerate(req):
+        head, _, tail = name.partition(".")
+        if head in index and tail in ("y", "u"):
+            if loops[index[head]].delay > 0.0:
+                raise ModelError(f"linearize: output {name!r}: the delayed loop {head!r} is left open, its "
+                                 f"sensed value and force are the ports '{head}_y' and '{head}_u' already")
+            loop_outputs[k] = (index[head], tail)
+    return req, loop_outputs
+
+
+def tangent(model: Any, point: OperatingPoint) -> tuple[np.ndarray, OperatingPoint]:
+    """``A = [[0, I], [df/dq, df/dqdot]]`` at ``point`` and the point with its ``jacobian_error``."""
+    from .planar.sweep import accelerations
+
+    n = model.n_coordinates
+    Jq, eq = jacobian(lambda q: accelerations(model, q, point.qdot, point.t), point.q)
+    Jv, ev = jacobian(lambda v: accelerations(model, point.q, v, point.t), point.qdot)
     A = np.block([[np.zeros((n, n)), np.eye(n)], [Jq, Jv]])
     error = float(max(np.max(eq, initial=0.0), np.max(ev, initial=0.0)) / np.max(np.abs(A)))
     if not error <= JACOBIAN_TOLERANCE:
         raise ModelError(f"linearize: the Jacobians of {model.name!r} at the operating point are not accurate "
                          f"(estimated relative error {error:.2e} > {JACOBIAN_TOLERANCE:.0e}); the accelerations "
                          "are not smooth there (a switching law, a saturation or a contact?)")
-    op = op._replace(jacobian_error=error)
-    plant_in = list(dict.fromkeys(exo_plant + loop_actuators))
+    return A, point._replace(jacobian_error=error)
+
+
+def linearize_planar(model: Any, loops: Sequence[Any], point: Any, *, inputs=None, outputs=None,
+                     allow_nonequilibrium: bool = False) -> LinearizedSystem:
+    """:func:`ctmm.linearize` of a planar model closed by ``loops`` (module docstring)."""
+    import control
+
+    A, op = tangent(model, operating_point(model, point, allow_nonequilibrium=allow_nonequilibrium))
+    n = model.n_coordinates
+    exo, references = _exogenous_inputs(model, loops, inputs)
+    req, loop_outputs = _requested_outputs(model, loops, outputs)
+    loop_actuators, loop_sensors = _loop_ports(loops)
+    plant_in = list(dict.fromkeys([x for k, x in enumerate(exo) if k not in references] + loop_actuators))
     plant_out = list(dict.fromkeys([x for k, x in enumerate(req) if k not in loop_outputs] + loop_sensors))
-    Bf = input_matrix(model, plant_in, op)
-    Cf = output_matrix(model, plant_out, op)
     col = {name: k for k, name in enumerate(plant_in)}
     row = {name: k for k, name in enumerate(plant_out)}
+    # plant ports -> [exogenous inputs, one force per loop], [requested outputs, one sensed sum per loop]
     S_in = np.zeros((len(plant_in), len(exo) + len(loops)))
     S_out = np.zeros((len(req) + len(loops), len(plant_out)))
     for k, name in enumerate(exo):
@@ -233,20 +249,19 @@ def linearize_planar(model: Any, loops: Sequence[Any], point: Any, *, inputs=Non
             S_in[col[name], len(exo) + j] += weight
         for name, weight in lp.terms:
             S_out[len(req) + j, row[name]] += weight
-    B = np.vstack([np.zeros((n, len(plant_in))), Bf]) @ S_in
-    C = S_out @ Cf
+    B = np.vstack([np.zeros((n, len(plant_in))), input_matrix(model, plant_in, op)]) @ S_in
+    C = S_out @ output_matrix(model, plant_out, op)
     D = np.zeros((C.shape[0], B.shape[1]))
     for k, j in references.items():
         D[len(req) + j, k] = -1.0                   # the loop acts on y - r
     A_cl, B_cl, C_cl, D_cl, sizes, C_u, D_u = close_loops((A, B, C, D), loops, len(exo))
-    real_time = [j for j, lp in enumerate(loops) if lp.delay == 0.0]
+    real_time = [lp for lp in loops if lp.delay == 0.0]
     for k, (j, part) in loop_outputs.items():
         if part == "u":                             # the loop force, from the closure
-            C_cl[k], D_cl[k] = C_u[real_time.index(j)], D_u[real_time.index(j)]
+            C_cl[k], D_cl[k] = C_u[real_time.index(loops[j])], D_u[real_time.index(loops[j])]
     delayed = [lp for lp in loops if lp.delay > 0.0]
     states = list(model.coordinates) + [f"{c}_dot" for c in model.coordinates]
-    for lp, size in zip([lp for lp in loops if lp.delay == 0.0], sizes):
-        states += [f"{lp.name}.controller{k}" for k in range(size)]
+    states += [f"{lp.name}.controller{k}" for lp, size in zip(real_time, sizes) for k in range(size)]
     labels_in = [control_name(x) for x in exo] + [control_name(f"{lp.name}.u") for lp in delayed]
     labels_out = [control_name(x) for x in req] + [control_name(f"{lp.name}.y") for lp in delayed]
     ss = control.ss(A_cl, B_cl, C_cl, D_cl, inputs=labels_in, outputs=labels_out,
