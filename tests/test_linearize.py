@@ -373,3 +373,20 @@ def test_manipulator_scene_linearises_to_the_reference_closed_by_the_seed_laws()
     for s in (2.0j, 30.0j, 1.0 + 90.0j):
         loop = (SEED_KP + SEED_KD * s) * np.linalg.solve(s * s * d["M"] + s * damping + d["K"], e)[0]
         assert abs(_response(lin.state_space, s)[1, 0] - loop) <= 1e-9 * abs(loop)
+
+
+def test_natural_frequencies_of_a_clamped_modal_beam_are_the_euler_bernoulli_ones():
+    from ctmm.flexible import ModalBeam
+    from ctmm.reference.manipulator_lagrange import clamped_free_beta
+
+    beam = ModalBeam("b", length=1.3, bending_stiffness=5.0, mass_per_length=0.7, n_modes=3)
+    model = PlanarModel.chain("clamped", [Ground("g"), beam], gravity=(0.0, 0.0))
+    exact = clamped_free_beta(3) ** 2 * np.sqrt(5.0 / (0.7 * 1.3 ** 4))     # beta_k^2 sqrt(EI / (rho A L^4))
+    np.testing.assert_allclose(ctmm.natural_frequencies(model, n_modes=3), exact, rtol=1e-10)
+    modes = ctmm.mode_shapes(model, omega_max=exact[1] * 1.01)
+    np.testing.assert_allclose(np.abs(modes.shapes[:, :, 0]), np.eye(3)[:2], atol=1e-10)   # one mode each
+    damped = PlanarModel.chain("damped", [Ground("g"), ModalBeam("b", length=1.3, bending_stiffness=5.0,
+                                                                  mass_per_length=0.7, n_modes=3,
+                                                                  stiffness_damping=1e-3)], gravity=(0.0, 0.0))
+    with pytest.raises(ctmm.ModelError, match="natural_frequencies needs an undamped system.*velocity-dependent"):
+        ctmm.natural_frequencies(damped, n_modes=1)
