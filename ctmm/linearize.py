@@ -17,9 +17,11 @@ Planar Jacobians (accuracy)
 ``df/dq`` and ``df/dqdot`` are central differences of :func:`ctmm.planar.accelerations` with
 Richardson extrapolation over the steps ``h, h/2, h/4`` (``h = 1e-3 max(1, |x|)``): truncation
 ``O(h^4)`` and round-off ``~1e-13`` relative.  The difference between the two extrapolated
-estimates bounds the error; it is returned as ``OperatingPoint.jacobian_error`` (largest
-absolute error of an entry of ``A`` divided by the largest entry) and the linearisation is
-refused (:class:`~ctmm.errors.ModelError`) if it exceeds ``1e-6``.  ``f`` is affine in the
+estimates is a (conservative) estimate of the truncation error, plus the slope jump where a
+kink sits exactly at the operating point (a saturation switching there: detected by the
+second differences, which central differences alone would average away); the largest, divided
+by ``max |A|``, is ``OperatingPoint.jacobian_error``, and the linearisation is refused
+(:class:`~ctmm.errors.ModelError`) if it exceeds ``1e-6``.  ``f`` is affine in the
 actuator inputs, so the columns of ``B`` are exact differences of unit inputs.  ``C`` comes
 from the sensor Jacobians of :mod:`ctmm.planar.ports` (outputs are deviations of the sensed
 values from their values at the operating point); ``D = 0`` (no planar sensor depends on an

@@ -390,3 +390,19 @@ def test_natural_frequencies_of_a_clamped_modal_beam_are_the_euler_bernoulli_one
                                                                   stiffness_damping=1e-3)], gravity=(0.0, 0.0))
     with pytest.raises(ctmm.ModelError, match="natural_frequencies needs an undamped system.*velocity-dependent"):
         ctmm.natural_frequencies(damped, n_modes=1)
+
+
+def test_jacobian_error_estimate_and_kink_detection():
+    from ctmm.planar_linearization import jacobian
+
+    def smooth(x):
+        return np.array([np.sin(x[0]) * np.exp(x[1]), x[0] ** 3 + 2.0 * x[1]])
+
+    x = np.array([0.7, -0.2])
+    exact = np.array([[np.cos(0.7) * np.exp(-0.2), np.sin(0.7) * np.exp(-0.2)], [3 * 0.49, 2.0]])
+    J, error = jacobian(smooth, x)
+    assert np.max(np.abs(J - exact)) <= 1e-12 and np.max(error) <= 1e-12
+    # a saturation switching exactly at x: the mean slope 1/2 would look exact to central differences
+    J, error = jacobian(lambda z: np.array([max(0.0, z[0]) + z[1], abs(z[1] - 0.3)]), np.array([0.0, 0.3]))
+    assert J[0, 0] == pytest.approx(0.5) and error[0, 0] == pytest.approx(1.0)     # slope jump 1
+    assert error[1, 1] == pytest.approx(2.0) and error[0, 1] < 1e-9
