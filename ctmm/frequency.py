@@ -75,6 +75,9 @@ def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],
     True
     """
     if is_planar_system(system):
+        if solver != "riccati":
+            raise ModelError(f"frequency_response: solver={solver!r} is a chain solver; a planar model is answered "
+                             "through its linearisation (ctmm.linearize), pass no solver")
         return planar_frequency.frequency_response(system, omega, input=input, output=output,
                                                    operating_point=operating_point)
     if operating_point is not None:

@@ -12,6 +12,10 @@ delay-free part with named states, inputs and outputs, the delayed loops left op
   point (:class:`OperatingPoint`), states ``[q, qdot]`` named by the coordinates
   (``"arm.q1"``, ``"arm.q1_dot"``), deviations from the operating point.
 
+On the package, ``ctmm.linearize`` is the function; the result types are importable as
+``from ctmm.linearize import LinearizedSystem, DelayedLoop, OperatingPoint`` (defined in
+:mod:`ctmm.linearized`).
+
 Planar Jacobians (accuracy)
 ---------------------------
 ``df/dq`` and ``df/dqdot`` are central differences of :func:`ctmm.planar.accelerations` with

@@ -165,6 +165,8 @@ def test_frequency_verbs_refuse_damping_loops_and_unstable_points_like_the_chain
         ctmm.linearize(model, ([0.0] * 3, [0.0] * 3))
     tangent = ctmm.linearize(model, ([0.0] * 3, [0.0] * 3), allow_nonequilibrium=True, inputs=[])
     assert not tangent.operating_point.equilibrium
+    with pytest.raises(ctmm.ModelError, match="solver='plain' is a chain solver"):
+        ctmm.frequency_response(model, [1.0], input="h2.torque", output="l3.theta", solver="plain")
     with pytest.raises(ctmm.ModelError, match="operating_point is for planar models"):
         ctmm.frequency_response(_three_masses()[0], [1.0], input="m1.force", output="m1.x", operating_point=(0, 0))
 
