@@ -98,7 +98,12 @@ def operating_point(model: Any, point: Any = None, *, allow_nonequilibrium: bool
     n = model.n_coordinates
     t = 0.0
     if point is None:
-        q = static_equilibrium(model, hanging_configuration(model))
+        try:
+            q = static_equilibrium(model, hanging_configuration(model))
+        except ModelError as exc:
+            raise ModelError(f"linearize: no operating point given and {exc}; pass operating_point=(q, qdot) "
+                             "(with allow_nonequilibrium=True for a point that is not an equilibrium, e.g. a "
+                             "free-flying body under gravity)") from None
         qdot = np.zeros(n)
     elif isinstance(point, OperatingPoint):
         q, qdot, t = point.q, point.qdot, point.t

@@ -165,6 +165,11 @@ def test_frequency_verbs_refuse_damping_loops_and_unstable_points_like_the_chain
         ctmm.linearize(model, ([0.0] * 3, [0.0] * 3))
     tangent = ctmm.linearize(model, ([0.0] * 3, [0.0] * 3), allow_nonequilibrium=True, inputs=[])
     assert not tangent.operating_point.equilibrium
+    from ctmm.planar import FreeBase
+
+    falling = PlanarModel.chain("falling", [FreeBase("f"), RigidBody.uniform_link("l", mass=1.0, length=1.0)])
+    with pytest.raises(ctmm.ModelError, match="no operating point given and no static equilibrium found"):
+        ctmm.linearize(falling)
     with pytest.raises(ctmm.ModelError, match="solver='plain' is a chain solver"):
         ctmm.frequency_response(model, [1.0], input="h2.torque", output="l3.theta", solver="plain")
     with pytest.raises(ctmm.ModelError, match="operating_point is for planar models"):
