@@ -53,7 +53,11 @@ def _split(system: Any):
 
 def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  # noqa: A002
                        output: str | Sequence[str], operating_point: Any = None) -> FrequencyResponse:
-    """Frequency response of a planar model's linearisation (module docstring).
+    """Frequency response of a planar model's linearisation, loops closed with exact delays.
+
+    Loops without delay are closed inside the linearisation (:func:`ctmm.linearize`); each delayed
+    loop ``u = -C(s) e^{-s tau} (y - r)`` is closed here at every frequency:
+    ``(I + K G_yu) u = K (r - G_yw w)``, ``K = diag(C_l(s) e^{-s tau_l})``.
 
     Parameters
     ----------
@@ -62,9 +66,10 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
         Angular frequencies [rad/s], >= 0.
     input : str or sequence of str
         Actuator names (:func:`ctmm.planar.ports.actuator_names`, e.g. ``"motor.torque"`` [N m])
-        or ``"<loop>.reference"`` of a loop without delay.
+        or ``"<loop>.reference"``.
     output : str or sequence of str
-        Sensor names (:func:`ctmm.planar.ports.sensor_names`, e.g. ``"arm.out.y"`` [m]).
+        Sensor names (:func:`ctmm.planar.ports.sensor_names`, e.g. ``"arm.out.y"`` [m]) or
+        ``"<loop>.y"``, ``"<loop>.u"``.
     operating_point : optional
         As for :func:`ctmm.linearize` (default: the static equilibrium).
 
@@ -76,35 +81,55 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
     from .planar import ports
 
     model, loops = _split(system)
-    inputs = validation.names("input", input)
-    outputs = validation.names("output", output)
+    inputs = list(validation.names("input", input))
+    outputs = list(validation.names("output", output))
     s = 1j * validation.frequencies("omega", omega)
     started = time.perf_counter()
-    lin = linearize_planar(model, loops, operating_point, inputs=inputs, outputs=outputs)
+    delayed = {lp.name: j for j, lp in enumerate(lp for lp in loops if lp.delay > 0.0)}
+
+    def delayed_signal(name: str, parts: tuple) -> tuple | None:
+        head, _, tail = name.partition(".")
+        return (delayed[head], tail) if head in delayed and tail in parts else None
+
+    lin_in = [x for x in inputs if delayed_signal(x, ("reference",)) is None]
+    lin_out = [x for x in outputs if delayed_signal(x, ("y", "u")) is None]
+    lin = linearize_planar(model, loops, operating_point, inputs=lin_in, outputs=lin_out)
     ss = lin.state_space
     A, B, C, D = (np.asarray(m, dtype=float) for m in (ss.A, ss.B, ss.C, ss.D))
-    n_x = A.shape[0]
-    X = np.linalg.solve(s[:, None, None] * np.eye(n_x) - A, np.broadcast_to(B, (s.size,) + B.shape))
-    G = C @ X + D                                        # (frequencies, outputs, inputs)
-    n_in, n_out, n_d = len(inputs), len(outputs), len(lin.delays)
-    if n_d:                                              # u_d = -C_l(s) e^{-s tau} y_d, exactly
-        K = np.zeros((s.size, n_d, n_d), dtype=complex)
-        for j, loop in enumerate(lin.delays):
-            K[:, j, j] = _controller_response(loop.gain, s) * np.exp(-s * loop.delay)
-        Gzw, Gzu = G[:, :n_out, :n_in], G[:, :n_out, n_in:]
-        Gyw, Gyu = G[:, n_out:, :n_in], G[:, n_out:, n_in:]
-        y = np.linalg.solve(np.eye(n_d) + Gyu @ K, Gyw)
-        G = Gzw - Gzu @ K @ y
-    units = {}
-    for name in inputs:
-        units[name] = ports.actuator_unit(model, name) if name in ports.actuator_names(model) else ""
-    for name in outputs:
-        units[name] = ports.sensor_unit(model, name)
-    info = {"method": "linearisation (ctmm.linearize)", "wall_time_s": time.perf_counter() - started,
+    try:
+        X = np.linalg.solve(s[:, None, None] * np.eye(A.shape[0]) - A, np.broadcast_to(B, (s.size,) + B.shape))
+    except np.linalg.LinAlgError as exc:
+        raise ModelError(f"frequency_response: s I - A is singular at one of the frequencies (a pole on the imaginary "
+                         f"axis, e.g. a rigid-body mode at omega = 0): {exc}") from None
+    G = C @ X + D                                        # (frequencies, lin_out + delayed y, lin_in + delayed u)
+    n_i, n_o, n_d = len(lin_in), len(lin_out), len(delayed)
+    E_w = np.zeros((n_i, len(inputs)))
+    E_r = np.zeros((n_d, len(inputs)))
+    for k, name in enumerate(inputs):
+        loop = delayed_signal(name, ("reference",))
+        if loop is None:
+            E_w[lin_in.index(name), k] = 1.0
+        else:
+            E_r[loop[0], k] = 1.0
+    Gzw, Gzu, Gyw, Gyu = G[:, :n_o, :n_i], G[:, :n_o, n_i:], G[:, n_o:, :n_i], G[:, n_o:, n_i:]
+    K = np.zeros((s.size, n_d, n_d), dtype=complex)
+    for j, loop in enumerate(lin.delays):
+        K[:, j, j] = _controller_response(loop.gain, s) * np.exp(-s * loop.delay)
+    u = np.linalg.solve(np.eye(n_d) + K @ Gyu, K @ (E_r - Gyw @ E_w)) if n_d else np.zeros((s.size, 0, len(inputs)))
+    z = Gzw @ E_w + Gzu @ u
+    y = Gyw @ E_w + Gyu @ u
+    response = np.empty((len(outputs), len(inputs), s.size), dtype=complex)
+    for k, name in enumerate(outputs):
+        loop = delayed_signal(name, ("y", "u"))
+        rows = z[:, lin_out.index(name)] if loop is None else (y if loop[1] == "y" else u)[:, loop[0]]
+        response[k] = rows.T
+    sensors, actuators = set(ports.sensor_names(model)), set(ports.actuator_names(model))
+    units = {name: ports.actuator_unit(model, name) for name in inputs if name in actuators}
+    units.update({name: ports.sensor_unit(model, name) for name in outputs if name in sensors})
+    info = {"method": "linearisation (ctmm.linearize), delays exact", "wall_time_s": time.perf_counter() - started,
             "n_frequencies": int(s.size), "operating_point_q": lin.operating_point.q.tolist(),
             "jacobian_error": lin.operating_point.jacobian_error}
-    return FrequencyResponse(np.imag(s), np.transpose(G, (1, 2, 0)), tuple(inputs), tuple(outputs), model.name,
-                             info=info, units=units)
+    return FrequencyResponse(np.imag(s), response, tuple(inputs), tuple(outputs), model.name, info=info, units=units)
 
 
 def _controller_response(gain: Any, s: np.ndarray) -> np.ndarray:

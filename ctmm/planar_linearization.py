@@ -204,7 +204,12 @@ def _exogenous_inputs(model: Any, loops: Sequence[Any], inputs: Any) -> tuple[li
 
 def _requested_outputs(model: Any, loops: Sequence[Any], outputs: Any) -> tuple[list[str], dict[int, tuple]]:
     """Requested outputs and ``{output index: (loop index, "y" or "u")}`` of the loop signals among them."""
-    req = list(model.coordinates) if outputs is None else list(validation.names("outputs", outputs))
+    if outputs is None:
+        req = list(model.coordinates)
+    elif isinstance(outputs, (list, tuple)) and not outputs:
+        req = []                                    # only the ports of the delayed loops
+    else:
+        req = list(validation.names("outputs", outputs))
     index = {lp.name: j for j, lp in enumerate(loops)}
     loop_outputs = {}
     for k, name in enumerate(req):

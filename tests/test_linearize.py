@@ -413,3 +413,20 @@ def test_jacobian_error_estimate_and_kink_detection():
     J, error = jacobian(lambda z: np.array([max(0.0, z[0]) + z[1], abs(z[1] - 0.3)]), np.array([0.0, 0.3]))
     assert J[0, 0] == pytest.approx(0.5) and error[0, 0] == pytest.approx(1.0)     # slope jump 1
     assert error[1, 1] == pytest.approx(2.0) and error[0, 1] < 1e-9
+
+
+def test_planar_frequency_response_closes_delayed_loops_with_references_exactly():
+    g, mass, length, kp, kd, tau = 9.81, 1.3, 0.7, 4.0, 0.6, 0.08
+    pendulum = PlanarModel.chain("pendulum", [Pinned("motor"), RigidBody.uniform_link("link", mass=mass, length=length)])
+    pd = Feedback("pd", sensor=[("motor.angle", kp), ("motor.rate", kd)], actuator="motor.torque", gain=1.0,
+                  delay=tau)
+    omega = np.array([0.3, 2.0, 7.5, 30.0])
+    frf = ctmm.frequency_response(with_feedback(pendulum, [pd]), omega, input=["motor.torque", "pd.reference"],
+                                  output=["link.theta", "pd.y", "pd.u"])
+    s = 1j * omega
+    plant = 1.0 / (mass * length ** 2 / 3.0 * s ** 2 + mass * g * length / 2.0)     # J s^2 + m g a
+    loop = (kp + kd * s) * np.exp(-s * tau)
+    np.testing.assert_allclose(frf("link.theta", "motor.torque"), plant / (1.0 + loop * plant), rtol=1e-9)
+    np.testing.assert_allclose(frf("pd.y", "motor.torque"), (kp + kd * s) * plant / (1.0 + loop * plant), rtol=1e-9)
+    np.testing.assert_allclose(frf("pd.u", "pd.reference"), np.exp(-s * tau) / (1.0 + loop * plant), rtol=1e-9)
+    assert frf.unit("link.theta") == "rad" and frf.unit("motor.torque") == "N m"
