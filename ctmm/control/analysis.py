@@ -38,6 +38,7 @@ from ..frequency import frequency_response
 from ..results import FrequencyResponse
 from ..roots1d import refine_sign_change
 from ..system import Chain
+from .controlled_model import ControlledModel
 from .loops import ControlledChain, actuator_inputs
 
 __all__ = ["closed_loop_response", "loop_transfer_function", "open_loop_plant", "actuator_inputs", "Margins",
@@ -66,17 +67,19 @@ def closed_loop_response(system: Any, omega: Any, inputs: str | Sequence[str],
     return frequency_response(system, omega, input=inputs, output=outputs)
 
 
-def open_loop_plant(system: ControlledChain, loop: str, omega: Any) -> np.ndarray:
+def open_loop_plant(system: ControlledChain | ControlledModel, loop: str, omega: Any) -> np.ndarray:
     """``P_yu(i omega)``: sensed value of ``loop`` per unit force of its actuator, with this loop
-    removed and all other loops closed [sensed unit / N]."""
-    if not isinstance(system, ControlledChain):
-        raise ModelError(f"a loop transfer function needs a ControlledChain, got {system!r}")
+    removed and all other loops closed [sensed unit / N].  A planar model (:class:`ControlledModel`)
+    is linearised about its operating point (:func:`ctmm.linearize`); delays stay exact."""
+    if not isinstance(system, (ControlledChain, ControlledModel)):
+        raise ModelError(f"a loop transfer function needs a ControlledChain or a ControlledModel, got {system!r}")
     w = _omega(omega)
     lp = system.loop(loop)
     others = [other for other in system.loops if other.name != lp.name]
     open_system = system.with_loops(others) if others else system.plant
     signals = list(dict.fromkeys(sig for sig, _ in lp.terms))
-    actuators = actuator_inputs(system, loop)
+    actuators = (actuator_inputs(system, loop) if isinstance(system, ControlledChain)
+                 else [(name, float(weight)) for name, weight in lp.actuator_terms])
     frf = frequency_response(open_system, w, input=list(dict.fromkeys(a for a, _ in actuators)), output=signals)
     P = np.zeros(w.size, dtype=complex)
     for inp, a_weight in actuators:
@@ -85,12 +88,12 @@ def open_loop_plant(system: ControlledChain, loop: str, omega: Any) -> np.ndarra
     return P
 
 
-def loop_transfer_function(system: ControlledChain, loop: str, omega: Any) -> FrequencyResponse:
+def loop_transfer_function(system: ControlledChain | ControlledModel, loop: str, omega: Any) -> FrequencyResponse:
     """Open loop ``L(i omega) = C(i omega) e^{-i omega tau} P_yu(i omega)`` broken at the actuator.
 
     Parameters
     ----------
-    system : ControlledChain
+    system : ControlledChain or ControlledModel
     loop : str
         Loop name.
     omega : array_like
@@ -115,8 +118,8 @@ def loop_transfer_function(system: ControlledChain, loop: str, omega: Any) -> Fr
     (1-1j)
     """
     w = _omega(omega)
-    lp = system.loop(loop) if isinstance(system, ControlledChain) else None
     P = open_loop_plant(system, loop, w)
+    lp = system.loop(loop)
     L = lp.loop_gain(1j * w) * P
     return FrequencyResponse(w, L[None, None, :], (f"{lp.name}.u",), (f"{lp.name}.L",),
                              f"L_{lp.name}")
@@ -235,8 +238,8 @@ def margins(source: Any, loop: str | None = None, omega: Any = None) -> Margins:
 
     Parameters
     ----------
-    source : ControlledChain or FrequencyResponse or control.FrequencyResponseData
-        A controlled chain (with ``loop`` and ``omega``: ``L`` is computed by
+    source : ControlledChain or ControlledModel or FrequencyResponse or control.FrequencyResponseData
+        A controlled chain or planar model (with ``loop`` and ``omega``: ``L`` is computed by
         :func:`loop_transfer_function` and crossovers are refined on the exact ``L``), or a SISO
         loop transfer function given as data (refinement then interpolates the data, so use a
         dense grid).
@@ -261,7 +264,7 @@ def margins(source: Any, loop: str | None = None, omega: Any = None) -> Margins:
     """
     import control
 
-    if isinstance(source, ControlledChain):
+    if isinstance(source, (ControlledChain, ControlledModel)):
         if loop is None or omega is None:
             raise ModelError("margins(system, loop, omega): give the loop name and a frequency grid [rad/s]")
         w = _omega(omega)
@@ -334,6 +337,10 @@ def margins(source: Any, loop: str | None = None, omega: Any = None) -> Margins:
                                  "certified search")
                     found.append(x)
         gcs, pcs = sorted(gcs), sorted(pcs)
+    if isinstance(source, ControlledModel):
+        notes.append("planar model: crossovers located on the grid and refined on the exact L of the "
+                     "linearisation; not certified beyond the grid")
+    if isinstance(source, ControlledChain):
         if certificate is not None and (wg[0] > 0.0 or wg[-1] < certificate.im_max):
             notes.append(f"stability_margin (min |1 + L|) searched on the grid only, [{wg[0]:.6g}, "
                          f"{wg[-1]:.6g}] rad/s")
