@@ -21,7 +21,8 @@ from ctmm.elements.lumped import Mass, Spring
 from ctmm.planar import ElasticHinge, Fixed, PlanarModel, RigidBody
 from ctmm.planar.linear import eigenvalue_count, natural_frequencies
 from ctmm.reference.beams import beta_roots, omega_from_beta
-from ctmm.reference.chain import GlobalChain, natural_frequencies as global_frequencies, natural_frequencies_precise
+from ctmm.reference.chain import GlobalChain, natural_frequencies as global_frequencies
+from ctmm.reference.chain_precise import natural_frequencies_precise
 from ctmm.reference.planar_lagrange import PlanarLagrange
 
 
