@@ -66,15 +66,30 @@ def _initial(model: PlanarModel, name: str, value: Any) -> np.ndarray:
     return value
 
 
-def _method(method: Any, scheme: Any, default: Any) -> Any:
-    if method is not None and scheme is not None:
+class _Default:
+    """Marks ``method`` / ``scheme`` as not given (``None`` is refused like any other bad value)."""
+
+    def __repr__(self) -> str:
+        return "<default>"
+
+
+_DEFAULT: Any = _Default()
+
+
+def _method(method: Any, scheme: Any, default: str) -> Any:
+    """The chosen method: ``method`` or its alias ``scheme`` (not both), else ``default``."""
+    if method is not _DEFAULT and scheme is not _DEFAULT:
         raise ModelError(f"give method={method!r} or its alias scheme={scheme!r}, not both")
-    chosen = method if method is not None else scheme
-    return default if chosen is None else chosen
+    chosen = method if method is not _DEFAULT else scheme
+    if chosen is _DEFAULT:
+        return default
+    if not isinstance(chosen, (str, Scheme)):
+        raise ModelError(f"method must be a method name (str) or a ctmm.schemes object, got {chosen!r}")
+    return chosen
 
 
-def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Scheme | str | None = None,
-             scheme: Scheme | str | None = None, x0: Mapping[str, float] | Any = None,
+def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Scheme | str = _DEFAULT,
+             scheme: Scheme | str = _DEFAULT, x0: Mapping[str, float] | Any = None,
              v0: Mapping[str, float] | Any = None, t0: float = 0.0, inputs: Mapping[str, Any] | None = None,
              outputs: Sequence[str] = (), controllers: Sequence[Controller] = (),
              references: Mapping[str, Any] | None = None, coupling: str = "hold", solver: str = "riccati",

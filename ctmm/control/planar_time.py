@@ -38,10 +38,9 @@ from .. import validation
 from ..errors import ModelError, SimulationError, unknown_name
 from ..ode import integrate_rk4
 from ..planar.guards import check_scheme, divergence_guard, with_partial
-from ..planar.integrate import SCIPY_METHODS, guard_rates, model_signals
+from ..planar.integrate import SCIPY_METHODS, accepted_steps, guard_rates, model_signals
 from ..planar.model import PlanarModel
-from ..planar.ports import (actuator_inputs, actuator_names, actuator_unit, sensor_jacobians, sensor_names,
-                            sensor_unit, sensor_values)
+from ..planar.ports import PlanarPorts, sensor_jacobians
 from ..planar.signals import signal_values
 from ..planar.sweep import accelerations
 from ..progress import progress_bar
@@ -93,17 +92,14 @@ def _realisation(loop: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     return A, B.reshape(-1, 1), C.reshape(1, -1), float(D[0, 0])
 
 
-def _resolve(model: PlanarModel, loops: Sequence[Any], step: float | None, n: int) -> list[_Loop]:
+def _resolve(ports: PlanarPorts, loops: Sequence[Any], step: float | None, n: int) -> list[_Loop]:
     """Check every loop's sensors, actuators and delay against the model and the step."""
-    sensors, actuators = set(sensor_names(model)), set(actuator_names(model))
     resolved, offset = [], 2 * n
     for loop in loops:
         for name, _ in loop.terms:
-            if name not in sensors:
-                raise unknown_name(f"sensor of loop {loop.name!r}", name, sorted(sensors))
+            ports.check_sensor(name, f"sensor of loop {loop.name!r}")
         for name, _ in loop.actuator_terms:
-            if name not in actuators:
-                raise unknown_name(f"actuator of loop {loop.name!r}", name, sorted(actuators))
+            ports.check_actuator(name, f"actuator of loop {loop.name!r}")
         if step is not None and 0.0 < loop.delay < step * (1.0 - 1e-9):
             raise ModelError(f"loop {loop.name!r}: delay = {loop.delay!r} s is shorter than the step dt = {step!r} s; "
                              "a fixed-step integrator evaluates the loop inside the step, so the delay must be 0 "
@@ -116,47 +112,44 @@ def _resolve(model: PlanarModel, loops: Sequence[Any], step: float | None, n: in
     return resolved
 
 
-def loop_unit(model: PlanarModel, loop: Any, quantity: str) -> str:
-    """Unit of ``"<loop>.y"`` (``quantity="y"``) or ``"<loop>.u"`` (``"u"``) on a planar model."""
+def loop_unit(ports: PlanarPorts, loop: Any, quantity: str) -> str:
+    """Unit of ``"<loop>.y"`` (``quantity="y"``) or ``"<loop>.u"`` (``"u"``) on a planar model
+    (``""`` when the terms mix units)."""
     names = [t for t, _ in (loop.terms if quantity == "y" else loop.actuator_terms)]
-    unit = sensor_unit if quantity == "y" else actuator_unit
-    units = {unit(model, name) for name in names}
+    unit = ports.sensor_unit if quantity == "y" else ports.actuator_unit
+    units = {unit(name) for name in names}
     return units.pop() if len(units) == 1 else ""
 
 
 class _ClosedLoop:
     """State ``y = [q, qdot, controller states]`` and its rate with every actuator input applied."""
 
-    def __init__(self, model: PlanarModel, loops: list[_Loop], controllers: Sequence[Any],
+    def __init__(self, ports: PlanarPorts, loops: list[_Loop], controllers: Sequence[Any],
                  inputs: Mapping[str, Any], references: Mapping[str, Any], step: float | None,
                  coupling: str, history_step: float) -> None:
-        self.model = model
+        self.ports = ports
+        self.model = model = ports.model
         self.n = model.n_coordinates
         self.loops = loops
+        self.loop_sensors = [ports.resolve(lp.sensors) for lp in loops]
         self.size = 2 * self.n + sum(lp.A.shape[0] for lp in loops)
-        names = set(actuator_names(model))
         self.input_names = list(inputs)
         for name in self.input_names:
-            if name not in names:
-                raise unknown_name("input (actuator)", name, sorted(names))
+            ports.check_actuator(name, "input")
         self.input_functions = [as_signal(f"inputs[{name!r}]", inputs[name]) for name in self.input_names]
         loop_names = [lp.name for lp in loops]
         for name in references:
             if name not in loop_names:
                 raise unknown_name("reference (loop)", name, loop_names)
         self.references = {name: as_signal(f"references[{name!r}]", r) for name, r in references.items()}
-        sensors = set(sensor_names(model))
         self.controllers = list(controllers)
         self.controller_delays = []
         for c in self.controllers:
+            label = f"controller {getattr(c, 'name', None) or type(c).__name__!r}"
             for name in c.inputs:
-                if name not in sensors:
-                    raise unknown_name(f"input of controller {getattr(c, 'name', type(c).__name__)!r}", name,
-                                       sorted(sensors))
+                ports.check_sensor(name, f"input of {label}")
             for name in c.outputs:
-                if name not in names:
-                    raise unknown_name(f"output of controller {getattr(c, 'name', type(c).__name__)!r}", name,
-                                       sorted(names))
+                ports.check_actuator(name, f"output of {label}")
             delay = validation.nonnegative("controller measurement_delay", getattr(c, "measurement_delay", 0.0))
             if step is not None and 0.0 < delay < step * (1.0 - 1e-9):
                 raise ModelError(f"controller with outputs {list(c.outputs)}: measurement_delay = {delay!r} s is "
@@ -166,6 +159,8 @@ class _ClosedLoop:
         delayed = [name for lp in loops if lp.delay > 0 for name in lp.sensors]
         delayed += [name for c, d in zip(self.controllers, self.controller_delays) if d > 0 for name in c.inputs]
         self.delayed_names = list(dict.fromkeys(delayed))
+        self.delayed_sensors = ports.resolve(self.delayed_names)
+        self.controller_sensors = [ports.resolve(list(c.inputs)) for c in self.controllers]
         self.delayed_index = {name: k for k, name in enumerate(self.delayed_names)}
         self.max_delay = max([lp.delay for lp in loops] + self.controller_delays + [0.0])
         self.history_step = history_step
@@ -175,9 +170,10 @@ class _ClosedLoop:
         self._cache: tuple[float, np.ndarray, np.ndarray] | None = None
 
     # -- signals --------------------------------------------------------------------------
-    def _sensed(self, lp: _Loop, t: float, q: np.ndarray, v: np.ndarray) -> tuple[float, float]:
-        """``(y now, error e = y(t - tau) - r(t - tau))`` of one loop."""
-        y_now = float(lp.weights @ sensor_values(self.model, lp.sensors, q, v, t))
+    def _sensed(self, k: int, t: float, q: np.ndarray, v: np.ndarray) -> tuple[float, float]:
+        """``(y now, error e = y(t - tau) - r(t - tau))`` of loop ``k``."""
+        lp = self.loops[k]
+        y_now = float(lp.weights @ self.ports.values(self.loop_sensors[k], q, v, t))
         ref = self.references.get(lp.name)
         if lp.delay > 0.0:
             past = self.history(t - lp.delay)
@@ -190,8 +186,8 @@ class _ClosedLoop:
         """``(y, e, u)`` of every loop at state ``y`` and time ``t``."""
         q, v = y[:self.n], y[self.n:2 * self.n]
         out = []
-        for lp in self.loops:
-            sensed, e = self._sensed(lp, t, q, v)
+        for k, lp in enumerate(self.loops):
+            sensed, e = self._sensed(k, t, q, v)
             z = y[lp.states]
             u = -(float((lp.C @ z)[0]) if z.size else 0.0) - lp.D * e
             out.append((sensed, e, u))
@@ -221,7 +217,7 @@ class _ClosedLoop:
         q, v = y[:self.n], y[self.n:2 * self.n]
         loop_values = self.loop_values(t, y)
         values = self.actuator_values(t, y, loop_values)
-        inputs = actuator_inputs(self.model, values) if values else None
+        inputs = self.ports.inputs(values) if values else None
         out = np.empty(self.size)
         out[:self.n] = v
         out[self.n:2 * self.n] = accelerations(self.model, q, v, t, inputs=inputs)
@@ -236,7 +232,7 @@ class _ClosedLoop:
     # -- history and controllers ----------------------------------------------------------
     def _delayed_now(self, t: float, y: np.ndarray, rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         q, v, a = y[:self.n], y[self.n:2 * self.n], rate[self.n:2 * self.n]
-        values = sensor_values(self.model, self.delayed_names, q, v, t)
+        values = self.ports.values(self.delayed_sensors, q, v, t)
         dq, dv = sensor_jacobians(self.model, self.delayed_names, q, v, t)
         return np.asarray(values, float), np.asarray(dq @ v + dv @ a, float)
 
@@ -244,7 +240,7 @@ class _ClosedLoop:
         """Start the delay history at ``t0`` (the initial state, held before ``t0``)."""
         if self.delayed_names:
             q, v = y0[:self.n], y0[self.n:2 * self.n]
-            values = np.asarray(sensor_values(self.model, self.delayed_names, q, v, t0), float)
+            values = np.asarray(self.ports.values(self.delayed_sensors, q, v, t0), float)
             self.history = DelayHistory(t0, values, None, delay=self.max_delay, step=self.history_step)
 
     def remember(self, t: float, y: np.ndarray) -> None:
@@ -269,7 +265,7 @@ class _ClosedLoop:
             if delay > 0.0:
                 past = self.history(t - delay)
                 return np.array([past[self.delayed_index[name]] for name in c.inputs], dtype=float)
-            return np.asarray(sensor_values(self.model, list(c.inputs), q, v, t), dtype=float)
+            return np.asarray(self.ports.values(self.controller_sensors[i], q, v, t), dtype=float)
 
         if self.master.sample(step, t, measure):
             self._cache = None          # held outputs changed: the rate at (t, y) changed too
@@ -303,13 +299,13 @@ def _result(rows: _Rows, outputs: Sequence[str], method: str, info: dict) -> Sim
     for k, lp in enumerate(system.loops):
         values = np.array([row[k] for row in rows.loops]).reshape(len(t), 3)
         signals[f"{lp.name}.y"], signals[f"{lp.name}.u"] = values[:, 0], values[:, 2]
-        units[f"{lp.name}.y"] = loop_unit(model, lp.loop, "y")
-        units[f"{lp.name}.u"] = loop_unit(model, lp.loop, "u")
+        units[f"{lp.name}.y"] = loop_unit(system.ports, lp.loop, "y")
+        units[f"{lp.name}.u"] = loop_unit(system.ports, lp.loop, "u")
     if system.master is not None:
         last = t[-1] if len(t) else -math.inf
         for name, samples in system.master.outputs(until=last).items():
             signals[name] = samples
-            units[name] = actuator_unit(model, name.split("@")[0])
+            units[name] = system.ports.actuator_unit(name.split("@")[0])
         info = {**info, "controllers": system.master.describe()}
     info = {**info, "loops": {lp.name: ("real-time" if lp.delay == 0.0 else "history") for lp in system.loops},
             "n_evaluations": system.evaluations}
@@ -399,12 +395,13 @@ def simulate_closed_loop(model: PlanarModel, q0: np.ndarray, qdot0: np.ndarray, 
         raise ModelError("dt is required with co-simulated controllers: it is the sample grid [s] "
                          "(each controller's sample_time is a whole multiple of it)")
     n = model.n_coordinates
-    resolved = _resolve(model, loops, dt if method == "rk4" else None, n)
+    ports = PlanarPorts(model)
+    resolved = _resolve(ports, loops, dt if method == "rk4" else None, n)
     delays = [lp.delay for lp in resolved if lp.delay > 0]
     if method != "rk4" and delays:
         max_step = min(max_step, min(delays))
     history_step = dt if method == "rk4" else (min(delays) if delays else t_final) * 1e-5
-    system = _ClosedLoop(model, resolved, controllers, inputs or {}, references or {}, dt, coupling,
+    system = _ClosedLoop(ports, resolved, controllers, inputs or {}, references or {}, dt, coupling,
                          history_step=max(history_step, 1e-300))
     try:
         y0 = np.concatenate([q0, qdot0, np.zeros(system.size - 2 * n)])
@@ -475,12 +472,7 @@ def _run_scipy(system: _ClosedLoop, rows: _Rows, guard, y0: np.ndarray, t_final:
             if k > 0:
                 system.sample(k, t, y)
             solver = solver_type(system.rate, t, y, t_end, rtol=rtol, atol=atol, max_step=max_step)
-            while solver.status == "running":
-                t_old = solver.t
-                message = solver.step()
-                if solver.status == "failed":
-                    raise SimulationError(f"scipy {method} failed at t = {solver.t:.6g} s: {message}",
-                                          time=float(solver.t))
+            for t_old in accepted_steps(solver, method):
                 t_new, y_new = float(solver.t), solver.y.copy()
                 _check_state(system, guard, t_new, y_new, None, method)
                 if dt is None:
