@@ -21,6 +21,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from . import validation
 from .capabilities import require_chain
 from .control.loops import ControlledChain
 from .control.planar_time import simulate_closed_loop
@@ -230,6 +231,8 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
             raise unknown_name("output (sensor)", name, sorted(known))
     if inputs is not None and not isinstance(inputs, Mapping):
         raise ModelError(f"inputs must be a mapping {{actuator name: number or f(t)}}, got {inputs!r}")
+    fast = validation.flag("fast", fast, optional=True)
+    progress = validation.flag("progress", progress, optional=True)
     q0, v0 = initial_coordinates(model, _initial(model, "x0", x0), _initial(model, "v0", v0))
     policy = "warn" if stability_check is None else stability_check
     controlled = bool(loops) or bool(controllers) or bool(inputs) or bool(references)
@@ -239,6 +242,14 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
     if fast and (method != "rk4" or controlled):
         raise ModelError(f"fast=True runs the compiled RK4 of an uncontrolled planar model; got method={method!r}"
                          + (f" with {', '.join(what)}" if controlled else "") + " (leave fast at None)")
+    adaptive_only = {"rtol": (rtol, 1e-8), "atol": (atol, 1e-10), "max_step": (max_step, None)}
+    for name, (value, default) in adaptive_only.items():
+        if value != default and method not in SCIPY_METHODS:
+            raise ModelError(f"{name}={value!r} applies to the solve_ivp methods {SCIPY_METHODS}, not to "
+                             f"method={method!r} (leave {name} at {default!r})")
+    if store_every != 1 and method in SCIPY_METHODS:
+        raise ModelError(f"store_every={store_every!r} applies to fixed-step methods; with {method!r} give dt "
+                         "to store the result on the grid k dt (leave store_every at 1)")
     if is_scheme:
         if controlled:
             raise ModelError(f"the implicit planar DT-TMM scheme {method!r} cannot yet close {', '.join(what)} "

@@ -143,6 +143,9 @@ def test_refusals_name_the_option():
         (dict(fast=True, inputs={"pin.torque": 1.0}), "fast=True runs the compiled RK4"),
         (dict(method="houbolt", inputs={"pin.torque": 1.0}), "cannot yet close inputs"),
         (dict(coupling="previous"), "coupling='previous' only applies"),
+        (dict(rtol=1e-6), "rtol=1e-06 applies to the solve_ivp methods"),
+        (dict(method="newmark", max_step=0.1), "max_step=0.1 applies to the solve_ivp methods"),
+        (dict(method="RK45", store_every=2), "store_every=2 applies to fixed-step methods"),
     ]
     for options, message in cases:
         dt = options.pop("dt", 1e-3)
