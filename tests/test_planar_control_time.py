@@ -263,3 +263,40 @@ def test_open_loop_inputs_and_unknown_names():
         ctmm.simulate(model, 0.5, 1e-3, inputs={"pivot.force": 1.0})
     with pytest.raises(ModelError, match="not both"):
         ctmm.simulate(model, 0.5, 1e-3, method="rk4", scheme="rk4")
+
+
+def test_a_chain_refuses_a_delayed_controller():
+    """The chain stepper has no measurement delay: a DelayedController there would be read on time."""
+    controllers = load_controllers()
+    from ctmm.elements import Fixed as Wall, Free, Mass, Spring
+
+    chain = ctmm.Chain("sdof", [Wall("wall"), Spring("k", 100.0), Mass("m", 1.0), Free("tip")])
+    pd = controllers.SaturatedPD(("m.x", "m.v"), ("m.force",), kp=5.0, kd=0.5, sample_time=0.01)
+    with pytest.raises(ModelError, match="measurement delay, which the chain stepper does not apply"):
+        ctmm.simulate(chain, 0.1, 1e-3, controllers=[DelayedController(pd, 0.02)])
+    with pytest.raises(ModelError, match="delay must be a finite measurement delay > 0"):
+        DelayedController(pd, 0.0)
+
+
+def test_manipulator_scene_with_delayed_loops_matches_the_lagrange_manipulator():
+    """The seed manipulator as a scene (hub PD 2 ms late, slope-rate PZT loops 1 ms late, on a
+    modal arm) run by ``ctmm.simulate`` vs the independent Lagrange manipulator with the same laws
+    and delays (method of steps, DOP853 1e-11)."""
+    from ctmm.manipulator import SEED_KD, SEED_KP, SEED_MOVE, HubPD, PZTFeedback, seed_manipulator
+    from ctmm.manipulator.scene import manipulator_scene, scene_references
+    from ctmm.reference.manipulator_lagrange import ManipulatorLagrange
+
+    gains = np.diag([300.0, 150.0, 80.0])
+    seed = seed_manipulator()
+    pd, pzt = HubPD(SEED_KP, SEED_KD, delay=0.002), PZTFeedback(gains, delay=0.001)
+    scene = manipulator_scene(seed, pd=pd, pzt=pzt)
+    result = ctmm.simulate(scene, 0.25, 1e-3, references=scene_references(pd, SEED_MOVE))
+    reference = ManipulatorLagrange.from_manipulator(seed, 3, stiffening=True)
+    ref = reference.simulate(0.25, reference=SEED_MOVE, kp=SEED_KP, kd=SEED_KD, pd_delay=0.002, pzt_gains=gains,
+                             pzt_delay=0.001, t_eval=result.time)
+    scale = scene.plant.bodies[scene.plant.body_index("arm")].data.tip_phi / reference.phi_tip
+    eta = scale * np.column_stack([result[f"arm.q{k}"] for k in (1, 2, 3)])
+    assert np.max(np.abs(result["hub.theta"] - ref.theta)) < 1e-9
+    assert np.max(np.abs(eta - ref.eta)) < 1e-8 * np.max(np.abs(ref.eta))
+    np.testing.assert_allclose(result["hub_pd.u"], ref.hub_torque, atol=1e-6 * np.max(np.abs(ref.hub_torque)))
+    assert set(result.info["loops"].values()) == {"history"}

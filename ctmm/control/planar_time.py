@@ -40,7 +40,7 @@ from ..ode import integrate_rk4
 from ..planar.guards import check_scheme, divergence_guard, with_partial
 from ..planar.integrate import SCIPY_METHODS, accepted_steps, guard_rates, model_signals
 from ..planar.model import PlanarModel
-from ..planar.ports import PlanarPorts, sensor_jacobians
+from ..planar.ports import PlanarPorts
 from ..planar.signals import signal_values
 from ..planar.sweep import accelerations
 from ..progress import progress_bar
@@ -131,7 +131,11 @@ class _ClosedLoop:
         self.model = model = ports.model
         self.n = model.n_coordinates
         self.loops = loops
-        self.loop_sensors = [ports.resolve(lp.sensors) for lp in loops]
+        self.all_names = list(dict.fromkeys(name for lp in loops for name in lp.sensors))
+        self.now_names = list(dict.fromkeys(name for lp in loops if lp.delay == 0.0 for name in lp.sensors))
+        self.all_sensors, self.now_sensors = ports.resolve(self.all_names), ports.resolve(self.now_names)
+        self.all_index = {name: k for k, name in enumerate(self.all_names)}
+        self.now_index = {name: k for k, name in enumerate(self.now_names)}
         self.size = 2 * self.n + sum(lp.A.shape[0] for lp in loops)
         self.input_names = list(inputs)
         for name in self.input_names:
@@ -170,27 +174,31 @@ class _ClosedLoop:
         self._cache: tuple[float, np.ndarray, np.ndarray] | None = None
 
     # -- signals --------------------------------------------------------------------------
-    def _sensed(self, k: int, t: float, q: np.ndarray, v: np.ndarray) -> tuple[float, float]:
-        """``(y now, error e = y(t - tau) - r(t - tau))`` of loop ``k``."""
-        lp = self.loops[k]
-        y_now = float(lp.weights @ self.ports.values(self.loop_sensors[k], q, v, t))
-        ref = self.references.get(lp.name)
-        if lp.delay > 0.0:
-            past = self.history(t - lp.delay)
-            y_then = float(sum(w * past[self.delayed_index[s]] for s, w in zip(lp.sensors, lp.weights)))
-        else:
-            y_then = y_now
-        return y_now, y_then - (float(ref(t - lp.delay)) if ref is not None else 0.0)
-
-    def loop_values(self, t: float, y: np.ndarray) -> list[tuple[float, float, float]]:
-        """``(y, e, u)`` of every loop at state ``y`` and time ``t``."""
+    def loop_values(self, t: float, y: np.ndarray, record: bool = False) -> list[tuple[float, float, float]]:
+        """``(y now, e, u)`` of every loop at state ``y`` and time ``t``, with the error
+        ``e = y(t - tau) - r(t - tau)`` and ``u = -C e`` (``y now`` is NaN for a delayed loop
+        unless ``record``: the integrator needs only ``u``)."""
         q, v = y[:self.n], y[self.n:2 * self.n]
+        names, sensors = (self.all_names, self.all_sensors) if record else (self.now_names, self.now_sensors)
+        now = self.ports.values(sensors, q, v, t) if names else np.zeros(0)
+        index = self.all_index if record else self.now_index
+        past_by_delay: dict[float, np.ndarray] = {}
         out = []
-        for k, lp in enumerate(self.loops):
-            sensed, e = self._sensed(k, t, q, v)
+        for lp in self.loops:
+            y_now = float(lp.weights @ now[[index[s] for s in lp.sensors]]) if (record or lp.delay == 0.0) \
+                else math.nan
+            if lp.delay > 0.0:
+                past = past_by_delay.get(lp.delay)
+                if past is None:
+                    past = past_by_delay[lp.delay] = self.history(t - lp.delay)
+                y_then = float(lp.weights @ past[[self.delayed_index[s] for s in lp.sensors]])
+            else:
+                y_then = y_now
+            ref = self.references.get(lp.name)
+            e = y_then - (float(ref(t - lp.delay)) if ref is not None else 0.0)
             z = y[lp.states]
             u = -(float((lp.C @ z)[0]) if z.size else 0.0) - lp.D * e
-            out.append((sensed, e, u))
+            out.append((y_now, e, u))
         return out
 
     def actuator_values(self, t: float, y: np.ndarray, loop_values) -> dict[str, float]:
@@ -231,10 +239,20 @@ class _ClosedLoop:
 
     # -- history and controllers ----------------------------------------------------------
     def _delayed_now(self, t: float, y: np.ndarray, rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Delayed sensors at ``(t, y)`` and their time derivatives ``J_q qdot + J_qdot qddot``: the
+        derivative along the state's own motion, by a fourth-order central difference (exact
+        Jacobians would cost one column per coordinate; this costs four sensor evaluations)."""
         q, v, a = y[:self.n], y[self.n:2 * self.n], rate[self.n:2 * self.n]
-        values = self.ports.values(self.delayed_sensors, q, v, t)
-        dq, dv = sensor_jacobians(self.model, self.delayed_names, q, v, t)
-        return np.asarray(values, float), np.asarray(dq @ v + dv @ a, float)
+        values = np.asarray(self.ports.values(self.delayed_sensors, q, v, t), float)
+        speed = max(float(np.max(np.abs(v), initial=0.0)) / max(1.0, float(np.max(np.abs(q), initial=0.0))),
+                    float(np.max(np.abs(a), initial=0.0)) / max(1.0, float(np.max(np.abs(v), initial=0.0))))
+        h = 1e-3 / max(speed, 1.0)      # the state moves by ~1e-3 of its size: truncation ~1e-12
+
+        def along(s: float) -> np.ndarray:
+            return np.asarray(self.ports.values(self.delayed_sensors, q + s * v, v + s * a, t + s), float)
+
+        derivative = (8.0 * (along(h) - along(-h)) - (along(2 * h) - along(-2 * h))) / (12.0 * h)
+        return values, derivative
 
     def begin(self, t0: float, y0: np.ndarray) -> None:
         """Start the delay history at ``t0`` (the initial state, held before ``t0``)."""
@@ -287,7 +305,7 @@ class _Rows:
     def add(self, t: float, y: np.ndarray) -> None:
         self.t.append(float(t))
         self.y.append(np.array(y, dtype=float))
-        self.loops.append(self.system.loop_values(t, y) if self.system.loops else [])
+        self.loops.append(self.system.loop_values(t, y, record=True) if self.system.loops else [])
 
 
 def _result(rows: _Rows, outputs: Sequence[str], method: str, info: dict) -> SimulationResult:
