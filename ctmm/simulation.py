@@ -182,7 +182,7 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
                                 store_every=store_every)
     require_chain(system, "ctmm.simulate")
     chosen = _method(method, scheme, "newmark")
-    if isinstance(chosen, str) and chosen not in SCHEMES:
+    if isinstance(chosen, str) and (chosen in FIXED_STEP_METHODS or chosen in SCIPY_METHODS):
         raise ModelError(f"method={chosen!r} does not apply to a 1-D chain, which is stepped by a DT-TMM scheme: "
                          f"{', '.join(sorted(SCHEMES))} or a ctmm.schemes object ('rk4' and the solve_ivp "
                          f"methods {SCIPY_METHODS} are for planar models)")
