@@ -300,3 +300,19 @@ def test_manipulator_scene_with_delayed_loops_matches_the_lagrange_manipulator()
     assert np.max(np.abs(eta - ref.eta)) < 1e-8 * np.max(np.abs(ref.eta))
     np.testing.assert_allclose(result["hub_pd.u"], ref.hub_torque, atol=1e-6 * np.max(np.abs(ref.hub_torque)))
     assert set(result.info["loops"].values()) == {"history"}
+
+
+def test_failing_controller_init_gives_an_empty_partial_result():
+    class Broken:
+        inputs, outputs, sample_time, direct_feedthrough = ("rod.theta",), ("pivot.torque",), 0.01, False
+
+        def init(self, t0):
+            raise RuntimeError("no licence")
+
+        def step(self, t, y, state):
+            return [0.0], state
+
+    with pytest.raises(SimulationError, match="no licence") as info:
+        ctmm.simulate(pendulum(SmoothHinge("pivot")), 0.1, 1e-3, controllers=[Broken()])
+    partial = info.value.partial_result
+    assert isinstance(partial, SimulationResult) and len(partial.time) == 0 and len(partial["rod.theta"]) == 0

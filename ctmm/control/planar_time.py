@@ -419,8 +419,15 @@ def simulate_closed_loop(model: PlanarModel, q0: np.ndarray, qdot0: np.ndarray, 
     if method != "rk4" and delays:
         max_step = min(max_step, min(delays))
     history_step = dt if method == "rk4" else (min(delays) if delays else t_final) * 1e-5
-    system = _ClosedLoop(ports, resolved, controllers, inputs or {}, references or {}, dt, coupling,
-                         history_step=max(history_step, 1e-300))
+    try:
+        system = _ClosedLoop(ports, resolved, controllers, inputs or {}, references or {}, dt, coupling,
+                             history_step=max(history_step, 1e-300))
+    except SimulationError as exc:     # a controller's init failed: nothing was simulated
+        def empty() -> SimulationResult:
+            signals, units = model_signals(model, np.zeros(0), np.zeros((0, n)), np.zeros((0, n)), outputs)
+            return signal_result(SignalSystem(model, units, loops), np.zeros(0), signals, method, {"dt": dt})
+
+        raise with_partial(exc, empty) from exc.__cause__
     try:
         y0 = np.concatenate([q0, qdot0, np.zeros(system.size - 2 * n)])
         guard = divergence_guard(model, q0, divergence_bound)
