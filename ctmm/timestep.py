@@ -289,12 +289,7 @@ def _scalar_riccati(U12, U21, u0, u1, fixed_start: bool, S0: float, P0: float, e
     rhs[0] += alpha[0] * P0
     P_tail, info = _dtbtrs(lower, rhs, uplo="L")
     P = np.concatenate(([P0], P_tail))
-    cx_, cf_ = end_row
-    cf, ce = (cx_, cf_) if fixed_start else (cf_, cx_)
-    h = cf * S[n] + ce
-    if h == 0.0 or not math.isfinite(h):
-        raise SimulationError("the boundary equations of the step are singular")
-    e_n = (end_b - cf * P[n]) / h
+    e_n = _end_unknown(end_row, end_b, fixed_start, S[n], P[n])
     c = -(a21 * P[:n] + v2) / G
     c[n - 1] += e_n / G[n - 1]
     E_head, info = _dtbtrs(upper, c, uplo="U")
@@ -348,6 +343,17 @@ def _dtbtrs(band: np.ndarray, rhs: np.ndarray, uplo: str):
     return x, info
 
 
+def _end_unknown(end_row, end_b: float, fixed_start: bool, S_n: float, P_n: float) -> float:
+    """End unknown ``e`` of the sweep: ``Bm = [cf, ce]`` on ``(f, e)``, ``f = S e + P`` -> ``(cf S + ce) e = b - cf P``
+    (``end_row``: coefficients of (x, force); ``(f, e) = (x, force)`` if ``fixed_start``, else swapped)."""
+    cx_, cf_ = end_row
+    cf, ce = (cx_, cf_) if fixed_start else (cf_, cx_)
+    h = cf * S_n + ce
+    if h == 0.0 or not math.isfinite(h):
+        raise SimulationError("the boundary equations of the step are singular")
+    return (end_b - cf * P_n) / h
+
+
 def _scalar_sweeps_python(a21, S, G, alpha, v1, v2, P0, end_row, end_b, fixed_start, cache):
     """The two sweeps of :func:`_scalar_riccati` on Python floats (fast for short chains)."""
     n = len(G)
@@ -360,13 +366,7 @@ def _scalar_sweeps_python(a21, S, G, alpha, v1, v2, P0, end_row, end_b, fixed_st
     for j in range(n):  # affine Riccati recursion P_j = alpha_j P_{j-1} + v1 - S_j v2
         p = alphal[j] * p + v1l[j] - Sl[j + 1] * v2l[j]
         Pl.append(p)
-    # end: Bm = [cf, ce] on (f, e) -> (cf S + ce) e = b - cf P
-    cx_, cf_ = end_row
-    cf, ce = (cx_, cf_) if fixed_start else (cf_, cx_)
-    h = cf * Sl[n] + ce
-    if h == 0.0 or not math.isfinite(h):
-        raise SimulationError("the boundary equations of the step are singular")
-    e = (end_b - cf * Pl[n]) / h
+    e = _end_unknown(end_row, end_b, fixed_start, Sl[n], Pl[n])
     El = [0.0] * (n + 1)
     El[n] = e
     for j in range(n, 0, -1):  # back-substitution e_{j-1} = (e_j - a21 P_{j-1} - v2) / G_j
