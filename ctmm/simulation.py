@@ -16,8 +16,9 @@ Every path returns one :class:`~ctmm.results.SimulationResult` (named signals wi
 """
 from __future__ import annotations
 
+import contextlib
 import math
-from typing import Any, Mapping, Sequence
+from typing import Any, Iterator, Mapping, Sequence
 
 import numpy as np
 
@@ -27,8 +28,8 @@ from .control.loops import ControlledChain
 from .control.planar_time import simulate_closed_loop
 from .control.protocol import Controller, check_controllers, check_references
 from .control.simulate import simulate_controlled
-from .errors import ModelError, unknown_name
-from .planar.integrate import SCIPY_METHODS, initial_coordinates, to_result
+from .errors import ModelError, SimulationError, unknown_name
+from .planar.integrate import SCIPY_METHODS, PlanarSimulation, initial_coordinates, to_result
 from .planar.model import PlanarModel
 from .results import SimulationResult
 from .schemes import SCHEMES, Scheme, as_scheme
@@ -209,6 +210,18 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
                                stability_check=stability_check, divergence_bound=divergence_bound)
 
 
+@contextlib.contextmanager
+def _partial_as_result(outputs: Sequence[str], dt: float) -> Iterator[None]:
+    """Turn the partial :class:`PlanarSimulation` of a failed legacy planar run into a
+    :class:`SimulationResult` (``ctmm.simulate`` returns one kind of result, also on failure)."""
+    try:
+        yield
+    except SimulationError as exc:
+        if isinstance(exc.partial_result, PlanarSimulation):
+            exc.partial_result = to_result(exc.partial_result, outputs=outputs, info={"dt": dt, "failed": True})
+        raise
+
+
 def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float | None, *, method: Any,
                      x0: Any, v0: Any, t0: float, inputs: Mapping[str, Any] | None, outputs: Sequence[str],
                      controllers: list, references: dict, coupling: str, solver: str, fast: bool | None,
@@ -259,9 +272,10 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
             raise ModelError(f"dt is required with the DT-TMM scheme {method!r} (a fixed step [s])")
         from .planar.implicit import simulate_implicit
 
-        simulation = simulate_implicit(model, q0, v0, t_final=t_final, dt=dt, scheme=as_scheme(method),
-                                       store_every=store_every, divergence_bound=divergence_bound,
-                                       stability_check=policy)
+        with _partial_as_result(outputs, dt):
+            simulation = simulate_implicit(model, q0, v0, t_final=t_final, dt=dt, scheme=as_scheme(method),
+                                           store_every=store_every, divergence_bound=divergence_bound,
+                                           stability_check=policy)
         return to_result(simulation, outputs=outputs, info={"dt": dt})
     if method not in FIXED_STEP_METHODS and method not in SCIPY_METHODS:
         raise ModelError(f"method must be 'rk4', a solve_ivp method {SCIPY_METHODS} or a DT-TMM scheme "
@@ -271,8 +285,9 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
             raise ModelError("dt is required with method='rk4' (a fixed step [s])")
         from .planar.compiled import simulate_rk4_compiled
 
-        simulation = simulate_rk4_compiled(model, q0, v0, t_final=t_final, dt=dt, store_every=store_every,
-                                           divergence_bound=divergence_bound, stability_check=policy)
+        with _partial_as_result(outputs, dt):
+            simulation = simulate_rk4_compiled(model, q0, v0, t_final=t_final, dt=dt, store_every=store_every,
+                                               divergence_bound=divergence_bound, stability_check=policy)
         return to_result(simulation, outputs=outputs, info={"dt": dt})
     return simulate_closed_loop(model, q0, v0, t_final, dt, method=method, loops=loops, controllers=controllers,
                                 inputs=inputs, references=references, outputs=outputs, coupling=coupling,

@@ -128,6 +128,19 @@ def test_divergence_gives_the_partial_result():
     assert info.value.time == pytest.approx(partial.time[-1] + 1e-3)
 
 
+@pytest.mark.parametrize("options", [dict(method="newmark"), dict(fast=True)])
+def test_partial_results_of_the_legacy_drivers_are_simulation_results(options):
+    """Implicit and compiled runs keep their own drivers; their partial results are converted."""
+    rod = PlanarModel.chain("rod", [Fixed("g"), SmoothHinge("pin"), RigidBody.uniform_link("r", mass=1.0,
+                                                                                           length=1.0)])
+    with pytest.raises(SimulationError) as info:
+        ctmm.simulate(rod, 2.0, 1e-3, x0=[-1.5], v0=[15.0], divergence_bound=3.0, outputs=["r.out.y"], **options)
+    partial = info.value.partial_result
+    assert isinstance(partial, SimulationResult) and 1 < len(partial.time) < 2001
+    assert np.all(np.abs(partial["r.theta"] + 1.5) <= 3.0)
+    np.testing.assert_allclose(partial["r.out.y"], np.sin(partial["r.theta"]), atol=1e-14)
+
+
 def test_refusals_name_the_option():
     rod = PlanarModel.chain("rod", [Fixed("g"), SmoothHinge("pin"), RigidBody.uniform_link("r", mass=1.0,
                                                                                            length=1.0)])
