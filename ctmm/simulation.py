@@ -63,7 +63,7 @@ def _initial(model: PlanarModel, name: str, value: Any) -> np.ndarray:
         for key, number in value.items():
             if key not in model.coordinates:
                 raise unknown_name(f"coordinate of {name}", key, list(model.coordinates))
-            out[model.coordinate_index(key)] = number
+            out[model.coordinate_index(key)] = validation.finite(f"{name}[{key!r}]", number)
         return out
     return value
 

@@ -151,6 +151,7 @@ def test_refusals_name_the_option():
         (dict(method=None), "method must be a method name"),
         (dict(method="rk4", scheme="newmark"), "not both"),
         (dict(x0={"r.phi": 1.0}), "r.phi"),
+        (dict(v0={"r.theta": "fast"}), "v0\\['r.theta'\\]"),
         (dict(outputs=["r.out.z"]), "r.out.z"),
         (dict(t0=1.0), "t0=1.0 applies to 1-D chains only"),
         (dict(fast=True, inputs={"pin.torque": 1.0}), "fast=True runs the compiled RK4"),
