@@ -125,7 +125,8 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         Start time [s] (chains; planar runs start at 0).
     inputs : mapping, optional
         Planar: ``{actuator name: number or f(t)}`` open-loop actuator values
-        (:mod:`ctmm.planar.ports`, e.g. ``"motor.torque"`` [N m]).
+        (:mod:`ctmm.planar.ports`, e.g. ``"motor.torque"`` [N m]); ``"<loop>.reference"`` is the
+        loop's reference (as in ``references``).
     outputs : sequence of str
         Planar: sensor names stored at every time (``"fore.outboard.y"``); every coordinate and
         its rate are always stored.
@@ -210,6 +211,25 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
                                stability_check=stability_check, divergence_bound=divergence_bound)
 
 
+def _loop_references(loops: Sequence[Any], inputs: Mapping[str, Any] | None, references: dict
+                     ) -> tuple[dict, dict]:
+    """Move ``"<loop>.reference"`` entries of ``inputs`` (the loop's input name in the frequency
+    domain) to ``references``; the same loop in both is an error."""
+    if not inputs:
+        return {}, references
+    names = {f"{loop.name}.reference": loop.name for loop in loops}
+    actuators, references = {}, dict(references)
+    for key, value in inputs.items():
+        if key in names:
+            if names[key] in references:
+                raise ModelError(f"loop {names[key]!r} has a reference in both inputs[{key!r}] and references; "
+                                 "give it once")
+            references[names[key]] = value
+        else:
+            actuators[key] = value
+    return actuators, references
+
+
 @contextlib.contextmanager
 def _partial_as_result(outputs: Sequence[str], dt: float) -> Iterator[None]:
     """Turn the partial :class:`PlanarSimulation` of a failed legacy planar run into a
@@ -244,6 +264,7 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
             raise unknown_name("output (sensor)", name, sorted(known))
     if inputs is not None and not isinstance(inputs, Mapping):
         raise ModelError(f"inputs must be a mapping {{actuator name: number or f(t)}}, got {inputs!r}")
+    inputs, references = _loop_references(loops, inputs, references)
     fast = validation.flag("fast", fast, optional=True)
     progress = validation.flag("progress", progress, optional=True)
     q0, v0 = initial_coordinates(model, _initial(model, "x0", x0), _initial(model, "v0", v0))

@@ -316,3 +316,27 @@ def test_failing_controller_init_gives_an_empty_partial_result():
         ctmm.simulate(pendulum(SmoothHinge("pivot")), 0.1, 1e-3, controllers=[Broken()])
     partial = info.value.partial_result
     assert isinstance(partial, SimulationResult) and len(partial.time) == 0 and len(partial["rod.theta"]) == 0
+
+
+def test_embedded_pd_equals_a_sampled_pd_as_the_sample_time_goes_to_zero():
+    """Metamorphic identity: the real-time PD ``Feedback`` and a co-simulated ``SaturatedPD`` (no
+    limit) held over its sample time ``h`` differ by O(h) (first order); the loop reference given as
+    the input ``"pd.reference"`` equals ``references``."""
+    controllers = load_controllers()
+    model = pendulum(SmoothHinge("pivot"))
+    loop = Feedback("pd", [("rod.theta", KP), ("rod.omega", KD)], "pivot.torque", gain=1.0)
+    embedded = ctmm.simulate(ControlledModel(model, [loop]), 0.5, 5e-4, x0=[-math.pi / 2],
+                             inputs={"pd.reference": KP * TARGET})
+    same = ctmm.simulate(ControlledModel(model, [loop]), 0.5, 5e-4, x0=[-math.pi / 2],
+                         references={"pd": KP * TARGET})
+    np.testing.assert_array_equal(embedded["rod.theta"], same["rod.theta"])
+    gaps = []
+    for h in (4e-3, 2e-3, 1e-3):
+        pd = controllers.SaturatedPD(("rod.theta", "rod.omega"), ("pivot.torque",), kp=KP, kd=KD, reference=TARGET,
+                                     sample_time=h)
+        sampled = ctmm.simulate(model, 0.5, 5e-4, x0=[-math.pi / 2], controllers=[pd])
+        gaps.append(np.max(np.abs(sampled["rod.theta"] - embedded["rod.theta"])))
+    assert 1.7 < gaps[0] / gaps[1] < 2.3 and 1.7 < gaps[1] / gaps[2] < 2.3, gaps
+    with pytest.raises(ModelError, match="reference in both"):
+        ctmm.simulate(ControlledModel(model, [loop]), 0.01, 1e-3, inputs={"pd.reference": 1.0},
+                      references={"pd": 1.0})
