@@ -266,13 +266,14 @@ def test_open_loop_inputs_and_unknown_names():
 
 
 def test_a_chain_refuses_a_delayed_controller():
-    """The chain stepper has no measurement delay: a DelayedController there would be read on time."""
+    """The chain stepper has no measurement delay: a DelayedController there would be read on time
+    (the co-simulation master refuses it for every stepper that does not apply the delay)."""
     controllers = load_controllers()
     from ctmm.elements import Fixed as Wall, Free, Mass, Spring
 
     chain = ctmm.Chain("sdof", [Wall("wall"), Spring("k", 100.0), Mass("m", 1.0), Free("tip")])
     pd = controllers.SaturatedPD(("m.x", "m.v"), ("m.force",), kp=5.0, kd=0.5, sample_time=0.01)
-    with pytest.raises(ModelError, match="measurement delay, which the chain stepper does not apply"):
+    with pytest.raises(ModelError, match="measurement delay, which this stepper does not apply"):
         ctmm.simulate(chain, 0.1, 1e-3, controllers=[DelayedController(pd, 0.02)])
     with pytest.raises(ModelError, match="delay must be a finite measurement delay > 0"):
         DelayedController(pd, 0.0)

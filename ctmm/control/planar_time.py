@@ -159,7 +159,8 @@ class _ClosedLoop:
                 raise ModelError(f"controller with outputs {list(c.outputs)}: measurement_delay = {delay!r} s is "
                                  f"shorter than the step dt = {step!r} s; use 0 or at least dt")
             self.controller_delays.append(delay)
-        self.master = CoSimulation(self.controllers, step, 0.0, coupling=coupling) if self.controllers else None
+        self.master = CoSimulation(self.controllers, step, 0.0, coupling=coupling, measurement_delays=True) \
+            if self.controllers else None
         delayed = [name for lp in loops if lp.delay > 0 for name in lp.sensors]
         delayed += [name for c, d in zip(self.controllers, self.controller_delays) if d > 0 for name in c.inputs]
         self.delayed_names = list(dict.fromkeys(delayed))

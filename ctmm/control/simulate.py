@@ -158,11 +158,6 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
     require_chain(system, "simulate_controlled")
     system = require_system(system)
     controllers = check_controllers(controllers)
-    delayed = [c for c in controllers if getattr(c, "measurement_delay", 0.0)]
-    if delayed:
-        raise ModelError(f"{delayed[0]!r} declares a measurement delay, which the chain stepper does not "
-                         "apply (it would be dropped); close a delayed measurement as a Feedback loop with "
-                         "delay=..., or simulate a planar model")
     references = check_references(references)
     dt = validation.positive("dt", dt)
     validation.step_count(validation.finite("t_final", t_final), validation.finite("t0", t0), dt)
