@@ -20,8 +20,10 @@ from .system import Chain
 __all__ = ["SystemContents", "describe", "require_chain", "require_planar", "refuse_loops", "refuse_damping"]
 
 _OTHER_PACKAGES = {
-    "ctmm.planar": "ctmm.planar (simulate_rk4, simulate_implicit, linear.natural_frequencies, ...)",
-    "ctmm.flexible": "ctmm.planar with ctmm.flexible beams (simulate_rk4, simulate_implicit)",
+    "ctmm.planar": "ctmm.planar (simulate_rk4, simulate_implicit, linear.natural_frequencies, ...); in time "
+                   "with loops and controllers: ctmm.simulate",
+    "ctmm.flexible": "ctmm.planar with ctmm.flexible beams (simulate_rk4, simulate_implicit); in time with loops "
+                     "and controllers: ctmm.simulate",
     "ctmm.manipulator": "the model's own methods (FlexibleManipulator.simulate, LinearManipulator.system)",
 }
 

@@ -470,7 +470,7 @@ def _system_description(system: Any) -> dict[str, Any]:
     if isinstance(system, StoredSystem) and stored:     # re-saving a loaded result keeps its model
         return {k: v for k, v in stored.items() if k != "signal_map"}
     layout = getattr(getattr(system, "plant", system), "layout", None)
-    return {"name": getattr(system, "name", ""), "type": type(system).__name__,
+    return {"name": getattr(system, "name", ""), "type": getattr(system, "model_type", type(system).__name__),
             "point_names": list(system.point_names()) if hasattr(system, "point_names") else [],
             "components": list(getattr(layout, "components", ())),
             "elements": _element_parameters(system),

@@ -1,92 +1,204 @@
 """The one simulation verb, :func:`ctmm.simulate`: every system is simulated with all it contains.
 
-A plain :class:`~ctmm.system.Chain` goes to the DT-TMM stepper (:func:`ctmm.timestep.simulate`);
-a :class:`~ctmm.control.loops.ControlledChain`, or a chain with co-simulated ``controllers`` or
-loop ``references``, goes to the controlled stepper
-(:func:`ctmm.control.simulate.simulate_controlled`), so that no loop is ever dropped.  Both
-share the pre-run stability check of the scheme (:mod:`ctmm.step_limit`) and the divergence
-guard (:mod:`ctmm.guard`).
+* A plain :class:`~ctmm.system.Chain` goes to the DT-TMM stepper (:func:`ctmm.timestep.simulate`);
+  a :class:`~ctmm.control.loops.ControlledChain`, or a chain with co-simulated ``controllers`` or
+  loop ``references``, goes to the controlled stepper
+  (:func:`ctmm.control.simulate.simulate_controlled`), so that no loop is ever dropped.  Both
+  share the pre-run stability check of the scheme (:mod:`ctmm.step_limit`) and the divergence
+  guard (:mod:`ctmm.guard`).
+* A :class:`~ctmm.planar.model.PlanarModel` (rigid or with flexible beams), or a controlled
+  planar model (``plant`` + ``loops``, :func:`ctmm.control.with_feedback`), goes to
+  :func:`ctmm.control.planar_time.simulate_closed_loop` for ``"rk4"`` and the ``solve_ivp``
+  methods (loops, controllers, open-loop ``inputs``), to the compiled RK4 with ``fast=True``, or
+  to the implicit DT-TMM (:func:`ctmm.planar.implicit.simulate_implicit`) for a scheme.
+
+Every path returns one :class:`~ctmm.results.SimulationResult` (named signals with units).
 """
 from __future__ import annotations
 
-from typing import Any, Mapping, Sequence
+import contextlib
+import math
+from typing import Any, Iterator, Mapping, Sequence
 
-from .control.loops import ControlledChain
-from .control.protocol import Controller, check_controllers, check_references
+import numpy as np
+
+from . import validation
 from .capabilities import require_chain
+from .control.loops import ControlledChain
+from .control.planar_time import simulate_closed_loop
+from .control.protocol import Controller, check_controllers, check_references
 from .control.simulate import simulate_controlled
-from .errors import ModelError
+from .errors import ModelError, SimulationError, unknown_name
+from .planar.integrate import SCIPY_METHODS, PlanarSimulation, initial_coordinates, to_result
+from .planar.model import PlanarModel
 from .results import SimulationResult
-from .schemes import Scheme
+from .schemes import SCHEMES, Scheme, as_scheme
 from .system import Chain
 from .timestep import ForceHook
 from .timestep import simulate as simulate_chain
 
-__all__ = ["simulate"]
+__all__ = ["simulate", "FIXED_STEP_METHODS"]
+
+FIXED_STEP_METHODS = ("rk4",)
+"""Explicit fixed-step methods of :func:`simulate` (planar models)."""
 
 
-def simulate(system: Chain | ControlledChain, t_final: float, dt: float, *, scheme: Scheme | str = "newmark",
-             x0: Mapping[str, float] | None = None, v0: Mapping[str, float] | None = None, t0: float = 0.0,
-             controllers: Sequence[Controller] = (), references: Mapping[str, Any] | None = None,
-             coupling: str = "hold", solver: str = "riccati", fast: bool | None = None,
-             force_hook: ForceHook | None = None, progress: bool | None = None,
-             stability_check: str | None = None, divergence_bound: float | None = None) -> SimulationResult:
-    """Simulate a chain or a controlled chain in the time domain (DT-TMM).
+def _planar_parts(system: Any) -> tuple[PlanarModel, tuple] | None:
+    """``(model, loops)`` of a planar model or a controlled planar model, else ``None``."""
+    if isinstance(system, PlanarModel):
+        return system, ()
+    plant = getattr(system, "plant", None)
+    if isinstance(plant, PlanarModel) and hasattr(system, "loops"):
+        return plant, tuple(system.loops)
+    return None
+
+
+def _initial(model: PlanarModel, name: str, value: Any) -> np.ndarray:
+    """``x0``/``v0`` of a planar model: ``None`` (zeros), a mapping by coordinate name, or an array."""
+    n = model.n_coordinates
+    if value is None:
+        return np.zeros(n)
+    if isinstance(value, Mapping):
+        out = np.zeros(n)
+        for key, number in value.items():
+            if key not in model.coordinates:
+                raise unknown_name(f"coordinate of {name}", key, list(model.coordinates))
+            out[model.coordinate_index(key)] = validation.finite(f"{name}[{key!r}]", number)
+        return out
+    return value
+
+
+class _Default:
+    """Marks ``method`` / ``scheme`` as not given (``None`` is refused like any other bad value)."""
+
+    def __repr__(self) -> str:
+        return "<default>"
+
+
+_DEFAULT: Any = _Default()
+
+
+def _method(method: Any, scheme: Any, default: str) -> Any:
+    """The chosen method: ``method`` or its alias ``scheme`` (not both), else ``default``."""
+    if method is not _DEFAULT and scheme is not _DEFAULT:
+        raise ModelError(f"give method={method!r} or its alias scheme={scheme!r}, not both")
+    chosen = method if method is not _DEFAULT else scheme
+    if chosen is _DEFAULT:
+        return default
+    if not isinstance(chosen, (str, Scheme)):
+        raise ModelError(f"method must be a method name (str) or a ctmm.schemes object, got {chosen!r}")
+    return chosen
+
+
+def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Scheme | str = _DEFAULT,
+             scheme: Scheme | str = _DEFAULT, x0: Mapping[str, float] | Any = None,
+             v0: Mapping[str, float] | Any = None, t0: float = 0.0, inputs: Mapping[str, Any] | None = None,
+             outputs: Sequence[str] = (), controllers: Sequence[Controller] = (),
+             references: Mapping[str, Any] | None = None, coupling: str = "hold", solver: str = "riccati",
+             fast: bool | None = None, force_hook: ForceHook | None = None, progress: bool | None = None,
+             stability_check: str | None = None, divergence_bound: float | None = None,
+             rtol: float = 1e-8, atol: float = 1e-10, max_step: float | None = None,
+             store_every: int = 1) -> SimulationResult:
+    """Simulate a chain, a planar or flexible model, with or without loops, in the time domain.
 
     Parameters
     ----------
-    system : Chain or ControlledChain
-        The model; every :class:`~ctmm.control.loops.Feedback` loop of a controlled chain is
-        closed during the run.
-    t_final, dt : float
-        End time and step [s].
-    scheme : Scheme or str
-        Integrator (:mod:`ctmm.schemes`).
-    x0, v0 : mapping, optional
-        Initial positions [m] / velocities [m/s] by element name.
+    system : Chain, ControlledChain, PlanarModel or controlled planar model
+        The model; every :class:`~ctmm.control.loops.Feedback` loop is closed during the run.
+    t_final : float
+        End time [s].
+    dt : float, optional
+        Step [s]: required by the DT-TMM schemes, ``"rk4"`` and co-simulated controllers (their
+        sample grid); with a ``solve_ivp`` method the result is stored at the times ``k dt``
+        (without it: at every accepted step).
+    method : str or Scheme, optional
+        ``"rk4"`` (fixed step; planar default), a ``scipy.integrate.solve_ivp`` method
+        (``"RK45"``, ``"DOP853"``, ``"Radau"``, ``"BDF"``, ...; planar) or a DT-TMM scheme
+        (``"newmark"`` (chain default), ``"generalized_alpha"``, ``"wilson"``, ``"houbolt"``,
+        ``"euler"`` or a :mod:`ctmm.schemes` object).
+    scheme : str or Scheme, optional
+        Alias of ``method`` (giving both is an error).
+    x0, v0 : mapping or array, optional
+        Initial positions / velocities: chains by element name [m]; planar models by coordinate
+        name (``{"upper.theta": -1.57}``, others 0) or an array ordered as ``model.coordinates``.
     t0 : float
-        Start time [s].
+        Start time [s] (chains; planar runs start at 0).
+    inputs : mapping, optional
+        Planar: ``{actuator name: number or f(t)}`` open-loop actuator values
+        (:mod:`ctmm.planar.ports`, e.g. ``"motor.torque"`` [N m]); ``"<loop>.reference"`` is the
+        loop's reference (as in ``references``).
+    outputs : sequence of str
+        Planar: sensor names stored at every time (``"fore.outboard.y"``); every coordinate and
+        its rate are always stored.
     controllers : sequence of Controller
-        Co-simulated controllers (Python objects, FMUs).
+        Co-simulated controllers (Python objects, FMUs) reading sensors and writing actuators by
+        name; a :class:`~ctmm.control.measurement_delay.DelayedController` reads its inputs late.
     references : mapping, optional
         ``{loop name: r(t)}`` loop references [sensed unit].
     coupling : {"hold", "previous"}
-        Algebraic-loop policy of co-simulated controllers (see
-        :func:`~ctmm.control.simulate.simulate_controlled`); ``"previous"`` without
-        ``controllers`` is refused (it would be ignored).
+        Algebraic-loop policy of co-simulated controllers; ``"previous"`` without ``controllers``
+        is refused (it would be ignored).
     solver, fast, force_hook
-        Options of the uncontrolled stepper (:func:`ctmm.timestep.simulate`); not available
-        with loops or controllers.
+        Options of the uncontrolled chain stepper (:func:`ctmm.timestep.simulate`).  Planar:
+        ``fast=True`` runs ``"rk4"`` in compiled C (:func:`ctmm.planar.compiled.simulate_rk4_compiled`;
+        revolute trees with constant hinge laws, no loops; same numbers to round-off).
     progress : bool, optional
-        Show a progress bar.
+        Show a progress bar (default: long runs on a terminal).
     stability_check : {"warn", "error", "ignore"}, optional
-        Pre-run check of ``dt`` against the scheme's stability limit (:mod:`ctmm.step_limit`).
+        Pre-run check of ``dt`` against the method's stability limit (plant only).
     divergence_bound : float, optional
-        Largest allowed distance [m] of a point from rest (:class:`ctmm.guard.DivergenceGuard`).
+        Largest allowed distance from the start (chains: of a point [m]; planar: of a
+        coordinate, its own unit).
+    rtol, atol, max_step : float
+        ``solve_ivp`` tolerances and largest step [s] (planar).
+    store_every : int
+        Planar fixed-step methods: keep every ``store_every``-th step (the last always).
 
     Returns
     -------
     SimulationResult
-        With ``"<loop>.y"`` / ``"<loop>.u"`` and controller outputs when the system is controlled.
+        Named signals with units: chain point signals; planar ``"<coordinate>"``,
+        ``"<coordinate>_dot"`` and the outputs; ``"<loop>.y"`` / ``"<loop>.u"`` and
+        ``"<output>@samples"`` of controllers when the system is controlled.
 
     Raises
     ------
     ModelError
-        Bad input; a system that is not a chain; options that do not apply to the run
-        (``solver``/``fast``/``force_hook`` with loops or controllers, ``coupling`` without
-        controllers).
+        Bad input; a system of another kind; options that do not apply to the run (e.g.
+        ``inputs`` for a chain, ``fast`` with loops, loops with an implicit planar scheme).
     SimulationError
         A failed run (divergence, non-finite state, failing user code), with ``partial_result``.
     """
-    require_chain(system, "ctmm.simulate")
     controllers = check_controllers(controllers)
     references = check_references(references)
     if coupling != "hold" and not controllers:
         raise ModelError(f"coupling={coupling!r} only applies to co-simulated controllers, but controllers is "
                          f"empty; leave coupling at 'hold' (embedded loops are always solved implicitly)")
+    planar = _planar_parts(system)
+    if planar is not None:
+        return _simulate_planar(planar, t_final, dt, method=_method(method, scheme, "rk4"), x0=x0, v0=v0, t0=t0,
+                                inputs=inputs, outputs=outputs, controllers=controllers, references=references,
+                                coupling=coupling, solver=solver, fast=fast, force_hook=force_hook,
+                                progress=progress, stability_check=stability_check,
+                                divergence_bound=divergence_bound, rtol=rtol, atol=atol, max_step=max_step,
+                                store_every=store_every)
+    require_chain(system, "ctmm.simulate")
+    chosen = _method(method, scheme, "newmark")
+    if isinstance(chosen, str) and (chosen in FIXED_STEP_METHODS or chosen in SCIPY_METHODS):
+        raise ModelError(f"method={chosen!r} does not apply to a 1-D chain, which is stepped by a DT-TMM scheme: "
+                         f"{', '.join(sorted(SCHEMES))} or a ctmm.schemes object ('rk4' and the solve_ivp "
+                         f"methods {SCIPY_METHODS} are for planar models)")
+    planar_only = {"inputs": (inputs, None), "outputs": (tuple(outputs), ()), "rtol": (rtol, 1e-8),
+                   "atol": (atol, 1e-10), "max_step": (max_step, None), "store_every": (store_every, 1)}
+    for name, (value, default) in planar_only.items():
+        if value != default:
+            raise ModelError(f"{name}={value!r} applies to planar models only; a chain stores every signal and "
+                             f"takes loads and prescribed motions from its elements (leave {name} at {default!r})")
+    if dt is None:
+        raise ModelError("dt is required to simulate a chain (the DT-TMM step [s], > 0), got None")
     controlled = isinstance(system, ControlledChain) or bool(controllers) or bool(references)
     if not controlled:
-        return simulate_chain(system, t_final, dt, scheme=scheme, x0=x0, v0=v0, t0=t0, solver=solver, fast=fast,
+        return simulate_chain(system, t_final, dt, scheme=chosen, x0=x0, v0=v0, t0=t0, solver=solver, fast=fast,
                               force_hook=force_hook, progress=progress, stability_check=stability_check,
                               divergence_bound=divergence_bound)
     unsupported = {"solver": (solver, "riccati"), "fast": (fast, None), "force_hook": (force_hook, None)}
@@ -94,6 +206,112 @@ def simulate(system: Chain | ControlledChain, t_final: float, dt: float, *, sche
         if value is not default and value != default:
             raise ModelError(f"{name}={value!r} applies to uncontrolled chains only; a controlled run uses the "
                              f"Riccati DT-TMM stepper (leave {name} at {default!r})")
-    return simulate_controlled(system, t_final, dt, scheme=scheme, x0=x0, v0=v0, t0=t0, references=references,
+    return simulate_controlled(system, t_final, dt, scheme=chosen, x0=x0, v0=v0, t0=t0, references=references,
                                controllers=controllers, coupling=coupling, progress=progress,
                                stability_check=stability_check, divergence_bound=divergence_bound)
+
+
+def _loop_references(loops: Sequence[Any], inputs: Mapping[str, Any] | None, references: dict
+                     ) -> tuple[dict, dict]:
+    """Move ``"<loop>.reference"`` entries of ``inputs`` (the loop's input name in the frequency
+    domain) to ``references``; the same loop in both is an error."""
+    if not inputs:
+        return {}, references
+    names = {f"{loop.name}.reference": loop.name for loop in loops}
+    actuators, references = {}, dict(references)
+    for key, value in inputs.items():
+        if key in names:
+            if names[key] in references:
+                raise ModelError(f"loop {names[key]!r} has a reference in both inputs[{key!r}] and references; "
+                                 "give it once")
+            references[names[key]] = value
+        else:
+            actuators[key] = value
+    return actuators, references
+
+
+@contextlib.contextmanager
+def _partial_as_result(outputs: Sequence[str], dt: float) -> Iterator[None]:
+    """Turn the partial :class:`PlanarSimulation` of a failed legacy planar run into a
+    :class:`SimulationResult` (``ctmm.simulate`` returns one kind of result, also on failure)."""
+    try:
+        yield
+    except SimulationError as exc:
+        if isinstance(exc.partial_result, PlanarSimulation):
+            exc.partial_result = to_result(exc.partial_result, outputs=outputs, info={"dt": dt, "failed": True})
+        raise
+
+
+def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float | None, *, method: Any,
+                     x0: Any, v0: Any, t0: float, inputs: Mapping[str, Any] | None, outputs: Sequence[str],
+                     controllers: list, references: dict, coupling: str, solver: str, fast: bool | None,
+                     force_hook: Any, progress: bool | None, stability_check: str | None,
+                     divergence_bound: float | None, rtol: float, atol: float, max_step: float | None,
+                     store_every: int) -> SimulationResult:
+    """:func:`simulate` of a planar model or a controlled planar model (dispatch on ``method``)."""
+    model, loops = parts
+    for name, value, default in (("solver", solver, "riccati"), ("force_hook", force_hook, None), ("t0", t0, 0.0)):
+        if value is not default and value != default:
+            raise ModelError(f"{name}={value!r} applies to 1-D chains only; a planar run starts at t = 0 and "
+                             f"takes loads from its elements and inputs (leave {name} at {default!r})")
+    if isinstance(outputs, str) or not all(isinstance(o, str) for o in outputs):
+        raise ModelError(f"outputs must be a list of sensor names (str), got {outputs!r}")
+    from .planar.ports import sensor_names
+
+    known = set(sensor_names(model))
+    for name in outputs:
+        if name not in known:
+            raise unknown_name("output (sensor)", name, sorted(known))
+    if inputs is not None and not isinstance(inputs, Mapping):
+        raise ModelError(f"inputs must be a mapping {{actuator name: number or f(t)}}, got {inputs!r}")
+    inputs, references = _loop_references(loops, inputs, references)
+    fast = validation.flag("fast", fast, optional=True)
+    progress = validation.flag("progress", progress, optional=True)
+    q0, v0 = initial_coordinates(model, _initial(model, "x0", x0), _initial(model, "v0", v0))
+    policy = "warn" if stability_check is None else stability_check
+    controlled = bool(loops) or bool(controllers) or bool(inputs) or bool(references)
+    what = [label for label, present in (("loops", loops), ("controllers", controllers), ("inputs", inputs),
+                                         ("references", references)) if present]
+    is_scheme = isinstance(method, Scheme) or (isinstance(method, str) and method in SCHEMES)
+    if fast and (method != "rk4" or controlled):
+        raise ModelError(f"fast=True runs the compiled RK4 of an uncontrolled planar model; got method={method!r}"
+                         + (f" with {', '.join(what)}" if controlled else "") + " (leave fast at None)")
+    adaptive_only = {"rtol": (rtol, 1e-8), "atol": (atol, 1e-10), "max_step": (max_step, None)}
+    for name, (value, default) in adaptive_only.items():
+        if value != default and method not in SCIPY_METHODS:
+            raise ModelError(f"{name}={value!r} applies to the solve_ivp methods {SCIPY_METHODS}, not to "
+                             f"method={method!r} (leave {name} at {default!r})")
+    if store_every != 1 and method in SCIPY_METHODS:
+        raise ModelError(f"store_every={store_every!r} applies to fixed-step methods; with {method!r} give dt "
+                         "to store the result on the grid k dt (leave store_every at 1)")
+    if is_scheme:
+        if controlled:
+            raise ModelError(f"the implicit planar DT-TMM scheme {method!r} cannot yet close {', '.join(what)} "
+                             "(the Newton-iterate input hook is not available); use method='rk4' or a solve_ivp "
+                             "method such as 'DOP853' or 'Radau'")
+        if dt is None:
+            raise ModelError(f"dt is required with the DT-TMM scheme {method!r} (a fixed step [s], > 0), got None")
+        from .planar.implicit import simulate_implicit
+
+        with _partial_as_result(outputs, dt):
+            simulation = simulate_implicit(model, q0, v0, t_final=t_final, dt=dt, scheme=as_scheme(method),
+                                           store_every=store_every, divergence_bound=divergence_bound,
+                                           stability_check=policy)
+        return to_result(simulation, outputs=outputs, info={"dt": dt})
+    if method not in FIXED_STEP_METHODS and method not in SCIPY_METHODS:
+        raise ModelError(f"method must be 'rk4', a solve_ivp method {SCIPY_METHODS} or a DT-TMM scheme "
+                         f"{tuple(sorted(SCHEMES))} (or a ctmm.schemes object), got {method!r}")
+    if fast:
+        if dt is None:
+            raise ModelError("dt is required with method='rk4' (a fixed step [s], > 0), got None")
+        from .planar.compiled import simulate_rk4_compiled
+
+        with _partial_as_result(outputs, dt):
+            simulation = simulate_rk4_compiled(model, q0, v0, t_final=t_final, dt=dt, store_every=store_every,
+                                               divergence_bound=divergence_bound, stability_check=policy)
+        return to_result(simulation, outputs=outputs, info={"dt": dt})
+    return simulate_closed_loop(model, q0, v0, t_final, dt, method=method, loops=loops, controllers=controllers,
+                                inputs=inputs, references=references, outputs=outputs, coupling=coupling,
+                                rtol=rtol, atol=atol, max_step=math.inf if max_step is None else max_step,
+                                store_every=store_every, progress=progress, stability_check=policy,
+                                divergence_bound=divergence_bound)

@@ -125,7 +125,7 @@ def test_chain_verbs_refuse_other_models(verb):
     with pytest.raises(ctmm.ModelError, match=r"system must be a ctmm\.Chain or a ctmm\.control\.ControlledChain, "
                                               r"got NoneType"):
         CHAIN_VERBS[verb](None)
-    if verb in PLANAR_ANSWERED:     # answered through ctmm.linearize (tests/test_linearize.py)
+    if verb in PLANAR_ANSWERED or verb == "ctmm.simulate":   # answered through ctmm.linearize / simulated (tests/test_linearize.py, tests/test_planar_simulate.py)
         return
     with pytest.raises(ctmm.ModelError, match=r"got PlanarModel .*with ctmm\.planar \(simulate_rk4"):
         CHAIN_VERBS[verb](planar_model())

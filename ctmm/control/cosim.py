@@ -133,19 +133,30 @@ class CoSimulation:
         internal forces); read by a controller with direct feedthrough they form an algebraic loop.
     labels : sequence of str, optional
         How each controller is named in messages (default :func:`default_label`).
+    measurement_delays : bool
+        Whether the stepper reads the inputs of a controller with a ``measurement_delay``
+        (:class:`~ctmm.control.measurement_delay.DelayedController`) late; if not, such a
+        controller is refused (it would read on time).
 
     Raises
     ------
     ModelError
-        A sample time that is not a whole multiple of ``dt``, an algebraic loop, a bad ``coupling``.
+        A sample time that is not a whole multiple of ``dt``, an algebraic loop, a bad ``coupling``,
+        a measurement delay the stepper does not apply.
     SimulationError
         A controller's ``init`` failed (controllers already started are closed).
     """
 
     def __init__(self, controllers: Sequence[Any], dt: float, t0: float, *, coupling: str = "hold",
-                 instantaneous: Collection[str] = (), labels: Sequence[str] | None = None) -> None:
+                 instantaneous: Collection[str] = (), labels: Sequence[str] | None = None,
+                 measurement_delays: bool = False) -> None:
         if coupling not in COUPLINGS:
             raise ModelError(f"coupling must be 'hold' or 'previous', got {coupling!r}")
+        delayed = [c for c in controllers if getattr(c, "measurement_delay", 0.0)]
+        if delayed and not measurement_delays:
+            raise ModelError(f"{delayed[0]!r} declares a measurement delay, which this stepper does not apply (it "
+                             "would be dropped); close a delayed measurement as a Feedback loop with delay=..., or "
+                             "simulate a planar model with ctmm.simulate")
         self.controllers = list(controllers)
         self.dt = dt
         self.t0 = t0

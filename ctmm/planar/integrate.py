@@ -185,6 +185,18 @@ def guard_rates(model: PlanarModel, t: float, qdot: np.ndarray) -> None:
                               element=name)
 
 
+def accepted_steps(solver, method: str):
+    """Step a ``scipy.integrate`` solver object to its end, yielding the start time [s] of every
+    accepted step (the solver then holds the step's end); a failed step raises
+    :class:`SimulationError` with the time and the solver's message."""
+    while solver.status == "running":
+        t_old = solver.t
+        message = solver.step()
+        if solver.status == "failed":
+            raise SimulationError(f"scipy {method} failed at t = {solver.t:.6g} s: {message}", time=float(solver.t))
+        yield t_old
+
+
 def simulate_scipy(model: PlanarModel, q0, qdot0, *, t_final: float, method: str = "RK45",
                    rtol: float = 1e-8, atol: float = 1e-10, t_eval=None,
                    divergence_bound: float | None = None) -> PlanarSimulation:
@@ -243,12 +255,7 @@ def simulate_scipy(model: PlanarModel, q0, qdot0, *, t_final: float, method: str
     solver_type = getattr(scipy.integrate, method)
     try:
         solver = solver_type(rhs, 0.0, y0, t_final, rtol=rtol, atol=atol)
-        while solver.status == "running":
-            t_old = solver.t
-            message = solver.step()
-            if solver.status == "failed":
-                raise SimulationError(f"scipy {method} failed at t = {solver.t:.6g} s: {message}",
-                                      time=float(solver.t))
+        for t_old in accepted_steps(solver, method):
             guard.check(solver.t, solver.y[:n])
             guard_rates(model, solver.t, solver.y[n:])
             if t_eval is None:
@@ -267,5 +274,68 @@ def simulate_scipy(model: PlanarModel, q0, qdot0, *, t_final: float, method: str
     return result()
 
 
-__all__ = ["PlanarSimulation", "simulate_rk4", "simulate_scipy", "guard_rates",
-           "check_store_every", "SCIPY_METHODS"]
+def model_signals(model: PlanarModel, t: np.ndarray, q: np.ndarray, qdot: np.ndarray,
+                  outputs: Sequence[str] = ()) -> tuple[dict[str, np.ndarray], dict[str, str]]:
+    """Named signals of a planar history and their units.
+
+    Parameters
+    ----------
+    model : PlanarModel
+    t : ndarray, shape (n_rows,)
+        Times [s].
+    q, qdot : ndarray, shape (n_rows, n_coordinates)
+        Coordinates and rates.
+    outputs : sequence of str
+        Sensor names of :mod:`ctmm.planar.ports` to add (``"fore.outboard.y"``, ``"motor.angle"``).
+
+    Returns
+    -------
+    signals, units : dict
+        ``"<coordinate>"`` and ``"<coordinate>_dot"`` for every coordinate, plus the outputs,
+        one value per row; ``{name: unit}`` from :func:`ctmm.planar.ports.sensor_unit`.
+    """
+    from .ports import PlanarPorts
+
+    ports = PlanarPorts(model)
+    signals: dict[str, np.ndarray] = {}
+    for k, name in enumerate(model.coordinates):
+        signals[name] = np.asarray(q[:, k], dtype=float).copy() if len(q) else np.zeros(0)
+        signals[name + "_dot"] = np.asarray(qdot[:, k], dtype=float).copy() if len(qdot) else np.zeros(0)
+    outputs = list(dict.fromkeys(outputs))
+    if outputs:
+        sensors = ports.resolve(outputs)
+        values = np.array([ports.values(sensors, np.asarray(qk, dtype=float), np.asarray(vk, dtype=float), float(tk))
+                           for tk, qk, vk in zip(t, q, qdot)])
+        values = values.reshape(len(t), len(outputs))
+        for k, name in enumerate(outputs):
+            signals[name] = values[:, k]
+    units = {name: ports.sensor_unit(name) for name in signals}
+    return signals, units
+
+
+def to_result(simulation: PlanarSimulation, *, outputs: Sequence[str] = (), info: dict | None = None):
+    """The :class:`~ctmm.results.SimulationResult` of a :class:`PlanarSimulation` (named signals).
+
+    Parameters
+    ----------
+    simulation : PlanarSimulation
+    outputs : sequence of str
+        Sensor names (:mod:`ctmm.planar.ports`) evaluated at every stored time.
+    info : dict, optional
+        Provenance added to the result's ``info``.
+    """
+    from ..signal_results import SignalSystem, signal_result
+
+    sim = simulation
+    signals, units = model_signals(sim.model, sim.t, sim.q, sim.qdot, outputs)
+    details = {"method": sim.method, "wall_time_s": float(sim.wall_time_s),
+               "n_evaluations": int(sim.n_evaluations)}
+    if sim.iterations is not None and len(sim.iterations):
+        details["newton_iterations_mean"] = float(np.mean(sim.iterations))
+        details["newton_iterations_max"] = int(np.max(sim.iterations))
+    details.update(info or {})
+    return signal_result(SignalSystem(sim.model, units), sim.t, signals, sim.method, details)
+
+
+__all__ = ["PlanarSimulation", "simulate_rk4", "simulate_scipy", "guard_rates", "accepted_steps",
+           "check_store_every", "SCIPY_METHODS", "model_signals", "to_result"]

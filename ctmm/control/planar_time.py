@@ -1,0 +1,522 @@
+"""Planar and flexible models in time with feedback loops, co-simulated controllers and inputs.
+
+:func:`simulate_closed_loop` integrates a :class:`~ctmm.planar.model.PlanarModel` (rigid or with
+flexible beams) whose named actuators (:mod:`ctmm.planar.ports`) are driven by
+
+* open-loop ``inputs`` ``{actuator name: number or f(t)}``;
+* embedded :class:`~ctmm.control.loops.Feedback` loops ``u = -C (y(t - tau) - r(t - tau))``
+  with ``y`` a weighted sum of named sensors: a **real-time** loop (``tau = 0``) is evaluated at
+  the current state at every stage of the integrator; a **delayed** loop reads the one delay
+  history (:class:`~ctmm.control.history.DelayHistory`, cubic Hermite from the sensed values
+  and their time derivatives at every step; before the start the initial state held); an LTI
+  controller ``C(s)`` (proper, SISO) has its states integrated with the plant (an improper
+  ``C(s)`` such as ``kp + kd s`` is refused: write it as sensor terms);
+* co-simulated controllers (Python objects, FMUs) through the one co-simulation master
+  (:class:`~ctmm.control.cosim.CoSimulation`): sampled on the step grid, outputs held
+  (zero-order hold) -- the integrator restarts at every sample; a controller wrapped in
+  :class:`~ctmm.control.measurement_delay.DelayedController` reads its inputs ``delay`` seconds
+  late from the same delay history.
+
+Methods: fixed-step ``"rk4"`` (:func:`ctmm.ode.integrate_rk4`) or a ``scipy.integrate``
+solver (``"RK45"``, ``"DOP853"``, ``"Radau"``, ...; stepped here, every accepted step checked;
+``max_step`` at most the shortest loop delay).  A loop delay must be 0 or at least one step
+(RK4 evaluates the loop inside the step).  The guards of :mod:`ctmm.planar.guards` apply (step
+limit of the plant before the run, divergence bound, non-finite states) and a failed run raises
+:class:`~ctmm.errors.SimulationError` with the result up to the last good step.
+"""
+from __future__ import annotations
+
+import math
+import time as _time
+from dataclasses import dataclass
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+import scipy.integrate
+
+from .. import validation
+from ..errors import ModelError, SimulationError, unknown_name
+from ..ode import integrate_rk4
+from ..planar.guards import check_scheme, divergence_guard, with_partial
+from ..planar.integrate import SCIPY_METHODS, accepted_steps, guard_rates, model_signals
+from ..planar.model import PlanarModel
+from ..planar.ports import PlanarPorts
+from ..planar.signals import signal_values
+from ..planar.sweep import accelerations
+from ..progress import progress_bar
+from ..results import SimulationResult
+from ..signal_results import SignalSystem, signal_result
+from ..signals import as_signal
+from .cosim import CoSimulation
+from .history import DelayHistory
+
+__all__ = ["simulate_closed_loop", "loop_unit"]
+
+
+@dataclass(frozen=True)
+class _Loop:
+    """A :class:`Feedback` resolved on a planar model."""
+
+    loop: Any
+    sensors: tuple[str, ...]
+    weights: np.ndarray
+    actuators: tuple[tuple[str, float], ...]
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: float
+    states: slice
+
+    @property
+    def name(self) -> str:
+        return self.loop.name
+
+    @property
+    def delay(self) -> float:
+        return float(self.loop.delay)
+
+
+def _realisation(loop: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """``(A, B, C, D)`` of the loop's controller: a static gain is ``D`` alone."""
+    if not loop.is_lti:
+        return np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), float(loop.gain)
+    import control
+
+    try:
+        ss = control.ss(loop.gain)
+    except ValueError as exc:   # an improper C(s) (e.g. kp + kd s) has no state-space realisation
+        raise ModelError(f"loop {loop.name!r}: the controller C(s) cannot be realised in time ({exc}); an "
+                         "improper PD kp + kd s is the sensor terms [(angle, kp), (rate, kd)] with gain=1, or "
+                         "add a derivative filter") from None
+    A, B, C, D = (np.atleast_2d(np.asarray(m, dtype=float)) for m in (ss.A, ss.B, ss.C, ss.D))
+    return A, B.reshape(-1, 1), C.reshape(1, -1), float(D[0, 0])
+
+
+def _resolve(ports: PlanarPorts, loops: Sequence[Any], step: float | None, n: int) -> list[_Loop]:
+    """Check every loop's sensors, actuators and delay against the model and the step."""
+    resolved, offset = [], 2 * n
+    for loop in loops:
+        for name, _ in loop.terms:
+            ports.check_sensor(name, f"sensor of loop {loop.name!r}")
+        for name, _ in loop.actuator_terms:
+            ports.check_actuator(name, f"actuator of loop {loop.name!r}")
+        if step is not None and 0.0 < loop.delay < step * (1.0 - 1e-9):
+            raise ModelError(f"loop {loop.name!r}: delay = {loop.delay!r} s is shorter than the step dt = {step!r} s; "
+                             "a fixed-step integrator evaluates the loop inside the step, so the delay must be 0 "
+                             f"or at least dt: use dt <= {loop.delay!r} s (or delay=0)")
+        A, B, C, D = _realisation(loop)
+        k = A.shape[0]
+        resolved.append(_Loop(loop, tuple(t for t, _ in loop.terms), np.array([w for _, w in loop.terms], float),
+                              tuple(loop.actuator_terms), A, B, C, D, slice(offset, offset + k)))
+        offset += k
+    return resolved
+
+
+def loop_unit(ports: PlanarPorts, loop: Any, quantity: str) -> str:
+    """Unit of ``"<loop>.y"`` (``quantity="y"``) or ``"<loop>.u"`` (``"u"``) on a planar model
+    (``""`` when the terms mix units)."""
+    names = [t for t, _ in (loop.terms if quantity == "y" else loop.actuator_terms)]
+    unit = ports.sensor_unit if quantity == "y" else ports.actuator_unit
+    units = {unit(name) for name in names}
+    return units.pop() if len(units) == 1 else ""
+
+
+class _ClosedLoop:
+    """State ``y = [q, qdot, controller states]`` and its rate with every actuator input applied."""
+
+    def __init__(self, ports: PlanarPorts, loops: list[_Loop], controllers: Sequence[Any],
+                 inputs: Mapping[str, Any], references: Mapping[str, Any], step: float | None,
+                 coupling: str, history_step: float) -> None:
+        self.ports = ports
+        self.model = model = ports.model
+        self.n = model.n_coordinates
+        self.loops = loops
+        self.all_names = list(dict.fromkeys(name for lp in loops for name in lp.sensors))
+        self.now_names = list(dict.fromkeys(name for lp in loops if lp.delay == 0.0 for name in lp.sensors))
+        self.all_sensors, self.now_sensors = ports.resolve(self.all_names), ports.resolve(self.now_names)
+        self.all_index = {name: k for k, name in enumerate(self.all_names)}
+        self.now_index = {name: k for k, name in enumerate(self.now_names)}
+        self.size = 2 * self.n + sum(lp.A.shape[0] for lp in loops)
+        self.input_names = list(inputs)
+        for name in self.input_names:
+            ports.check_actuator(name, "input")
+        self.input_functions = [as_signal(f"inputs[{name!r}]", inputs[name]) for name in self.input_names]
+        loop_names = [lp.name for lp in loops]
+        for name in references:
+            if name not in loop_names:
+                raise unknown_name("reference (loop)", name, loop_names)
+        self.references = {name: as_signal(f"references[{name!r}]", r) for name, r in references.items()}
+        self.controllers = list(controllers)
+        self.controller_delays = []
+        for c in self.controllers:
+            label = f"controller {getattr(c, 'name', None) or type(c).__name__!r}"
+            for name in c.inputs:
+                ports.check_sensor(name, f"input of {label}")
+            for name in c.outputs:
+                ports.check_actuator(name, f"output of {label}")
+            delay = validation.nonnegative("controller measurement_delay", getattr(c, "measurement_delay", 0.0))
+            if step is not None and 0.0 < delay < step * (1.0 - 1e-9):
+                raise ModelError(f"controller with outputs {list(c.outputs)}: measurement_delay = {delay!r} s is "
+                                 f"shorter than the step dt = {step!r} s; use 0 or at least dt")
+            self.controller_delays.append(delay)
+        self.master = CoSimulation(self.controllers, step, 0.0, coupling=coupling, measurement_delays=True) \
+            if self.controllers else None
+        delayed = [name for lp in loops if lp.delay > 0 for name in lp.sensors]
+        delayed += [name for c, d in zip(self.controllers, self.controller_delays) if d > 0 for name in c.inputs]
+        self.delayed_names = list(dict.fromkeys(delayed))
+        self.delayed_sensors = ports.resolve(self.delayed_names)
+        self.controller_sensors = [ports.resolve(list(c.inputs)) for c in self.controllers]
+        self.delayed_index = {name: k for k, name in enumerate(self.delayed_names)}
+        self.max_delay = max([lp.delay for lp in loops] + self.controller_delays + [0.0])
+        self.history_step = history_step
+        self.history: DelayHistory | None = None
+        self.evaluations = 0
+        self.use_cache = False      # RK4 only: its first stage reuses the history's evaluation
+        self._cache: tuple[float, np.ndarray, np.ndarray] | None = None
+
+    # -- signals --------------------------------------------------------------------------
+    def loop_values(self, t: float, y: np.ndarray, record: bool = False) -> list[tuple[float, float, float]]:
+        """``(y now, e, u)`` of every loop at state ``y`` and time ``t``, with the error
+        ``e = y(t - tau) - r(t - tau)`` and ``u = -C e`` (``y now`` is NaN for a delayed loop
+        unless ``record``: the integrator needs only ``u``)."""
+        q, v = y[:self.n], y[self.n:2 * self.n]
+        names, sensors = (self.all_names, self.all_sensors) if record else (self.now_names, self.now_sensors)
+        now = self.ports.values(sensors, q, v, t) if names else np.zeros(0)
+        index = self.all_index if record else self.now_index
+        past_by_delay: dict[float, np.ndarray] = {}
+        out = []
+        for lp in self.loops:
+            y_now = float(lp.weights @ now[[index[s] for s in lp.sensors]]) if (record or lp.delay == 0.0) \
+                else math.nan
+            if lp.delay > 0.0:
+                past = past_by_delay.get(lp.delay)
+                if past is None:
+                    past = past_by_delay[lp.delay] = self.history(t - lp.delay)
+                y_then = float(lp.weights @ past[[self.delayed_index[s] for s in lp.sensors]])
+            else:
+                y_then = y_now
+            ref = self.references.get(lp.name)
+            e = y_then - (float(ref(t - lp.delay)) if ref is not None else 0.0)
+            z = y[lp.states]
+            u = -(float((lp.C @ z)[0]) if z.size else 0.0) - lp.D * e
+            out.append((y_now, e, u))
+        return out
+
+    def actuator_values(self, t: float, y: np.ndarray, loop_values) -> dict[str, float]:
+        """Total value of every driven actuator: inputs + loops + held controller outputs."""
+        values: dict[str, float] = {}
+        if self.input_functions:
+            for name, value in zip(self.input_names,
+                                   signal_values(self.input_functions, t, self.input_names, "input")):
+                values[name] = values.get(name, 0.0) + float(value)
+        for lp, (_, _, u) in zip(self.loops, loop_values):
+            for name, weight in lp.actuators:
+                values[name] = values.get(name, 0.0) + weight * u
+        if self.master is not None:
+            for c, held in zip(self.controllers, self.master.held):
+                for name, value in zip(c.outputs, held):
+                    values[name] = values.get(name, 0.0) + float(value)
+        return values
+
+    def rate(self, t: float, y: np.ndarray) -> np.ndarray:
+        """``dy/dt``; the last evaluation is kept (RK4's first stage reuses the history's one)."""
+        cached = self._cache
+        if self.use_cache and cached is not None and cached[0] == t and cached[1] is y:
+            return cached[2]
+        q, v = y[:self.n], y[self.n:2 * self.n]
+        loop_values = self.loop_values(t, y)
+        values = self.actuator_values(t, y, loop_values)
+        inputs = self.ports.inputs(values) if values else None
+        out = np.empty(self.size)
+        out[:self.n] = v
+        out[self.n:2 * self.n] = accelerations(self.model, q, v, t, inputs=inputs)
+        for lp, (_, e, _) in zip(self.loops, loop_values):
+            z = y[lp.states]
+            if z.size:
+                out[lp.states] = lp.A @ z + lp.B[:, 0] * e
+        self.evaluations += 1
+        self._cache = (t, y, out)
+        return out
+
+    # -- history and controllers ----------------------------------------------------------
+    def _delayed_now(self, t: float, y: np.ndarray, rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Delayed sensors at ``(t, y)`` and their time derivatives ``J_q qdot + J_qdot qddot``: the
+        derivative along the state's own motion, by a fourth-order central difference (exact
+        Jacobians would cost one column per coordinate; this costs four sensor evaluations)."""
+        q, v, a = y[:self.n], y[self.n:2 * self.n], rate[self.n:2 * self.n]
+        values = np.asarray(self.ports.values(self.delayed_sensors, q, v, t), float)
+        speed = max(float(np.max(np.abs(v), initial=0.0)) / max(1.0, float(np.max(np.abs(q), initial=0.0))),
+                    float(np.max(np.abs(a), initial=0.0)) / max(1.0, float(np.max(np.abs(v), initial=0.0))))
+        h = 1e-3 / max(speed, 1.0)      # the state moves by ~1e-3 of its size: truncation ~1e-12
+
+        def along(s: float) -> np.ndarray:
+            return np.asarray(self.ports.values(self.delayed_sensors, q + s * v, v + s * a, t + s), float)
+
+        derivative = (8.0 * (along(h) - along(-h)) - (along(2 * h) - along(-2 * h))) / (12.0 * h)
+        return values, derivative
+
+    def begin(self, t0: float, y0: np.ndarray) -> None:
+        """Start the delay history at ``t0`` (the initial state, held before ``t0``)."""
+        if self.delayed_names:
+            q, v = y0[:self.n], y0[self.n:2 * self.n]
+            values = np.asarray(self.ports.values(self.delayed_sensors, q, v, t0), float)
+            self.history = DelayHistory(t0, values, None, delay=self.max_delay, step=self.history_step)
+
+    def remember(self, t: float, y: np.ndarray) -> None:
+        """Store the delayed sensors and their rates at ``(t, y)`` (after the controllers due at ``t``
+        were sampled; at the last stored time: its rate only)."""
+        if self.history is None:
+            return
+        values, derivative = self._delayed_now(t, y, self.rate(t, y))
+        if t > self.history.last_time:
+            self.history.append(t, values, derivative)
+        else:
+            self.history.derivatives[-1] = derivative
+
+    def sample(self, step: int, t: float, y: np.ndarray) -> None:
+        """Sample the controllers due at step ``step`` (time ``t`` [s], state ``y``)."""
+        if self.master is None:
+            return
+        q, v = y[:self.n], y[self.n:2 * self.n]
+
+        def measure(i: int) -> np.ndarray:
+            c, delay = self.controllers[i], self.controller_delays[i]
+            if delay > 0.0:
+                past = self.history(t - delay)
+                return np.array([past[self.delayed_index[name]] for name in c.inputs], dtype=float)
+            return np.asarray(self.ports.values(self.controller_sensors[i], q, v, t), dtype=float)
+
+        if self.master.sample(step, t, measure):
+            self._cache = None          # held outputs changed: the rate at (t, y) changed too
+
+    def close(self) -> None:
+        if self.master is not None:
+            self.master.close()
+
+
+class _Rows:
+    """Stored rows: times, states and loop signals (a partial result on failure)."""
+
+    def __init__(self, system: _ClosedLoop) -> None:
+        self.system = system
+        self.t: list[float] = []
+        self.y: list[np.ndarray] = []
+        self.loops: list[list[tuple[float, float, float]]] = []
+
+    def add(self, t: float, y: np.ndarray) -> None:
+        self.t.append(float(t))
+        self.y.append(np.array(y, dtype=float))
+        self.loops.append(self.system.loop_values(t, y, record=True) if self.system.loops else [])
+
+
+def _result(rows: _Rows, outputs: Sequence[str], method: str, info: dict) -> SimulationResult:
+    system = rows.system
+    model, n = system.model, system.n
+    t = np.array(rows.t)
+    y = np.array(rows.y).reshape(len(t), system.size)
+    signals, units = model_signals(model, t, y[:, :n], y[:, n:2 * n], outputs)
+    for k, lp in enumerate(system.loops):
+        values = np.array([row[k] for row in rows.loops]).reshape(len(t), 3)
+        signals[f"{lp.name}.y"], signals[f"{lp.name}.u"] = values[:, 0], values[:, 2]
+        units[f"{lp.name}.y"] = loop_unit(system.ports, lp.loop, "y")
+        units[f"{lp.name}.u"] = loop_unit(system.ports, lp.loop, "u")
+    if system.master is not None:
+        last = t[-1] if len(t) else -math.inf
+        for name, samples in system.master.outputs(until=last).items():
+            signals[name] = samples
+            units[name] = system.ports.actuator_unit(name.split("@")[0])
+        info = {**info, "controllers": system.master.describe()}
+    info = {**info, "loops": {lp.name: ("real-time" if lp.delay == 0.0 else "history") for lp in system.loops},
+            "n_evaluations": system.evaluations}
+    return signal_result(SignalSystem(model, units, [lp.loop for lp in system.loops]), t, signals, method, info)
+
+
+def _check_state(system: _ClosedLoop, guard, t: float, y: np.ndarray, step: float | None, method: str) -> None:
+    n = system.n
+    guard.check(t, y[:n])
+    guard_rates(system.model, t, y[n:2 * n])
+    if not np.all(np.isfinite(y[2 * n:])):
+        name = next(lp.name for lp in system.loops if not np.all(np.isfinite(y[lp.states])))
+        raise SimulationError(f"non-finite controller state of loop {name!r} at t = {t:.6g} s", time=float(t),
+                              element=name)
+    family = system.model.deformable_family
+    if family is not None:
+        family.check_divergence(system.model, y[:n], float(t), step, method)
+
+
+def simulate_closed_loop(model: PlanarModel, q0: np.ndarray, qdot0: np.ndarray, t_final: float,
+                         dt: float | None, *, method: str = "rk4", loops: Sequence[Any] = (),
+                         controllers: Sequence[Any] = (), inputs: Mapping[str, Any] | None = None,
+                         references: Mapping[str, Any] | None = None, outputs: Sequence[str] = (),
+                         coupling: str = "hold", rtol: float = 1e-8, atol: float = 1e-10,
+                         max_step: float = math.inf, store_every: int = 1, progress: bool | None = None,
+                         stability_check: str = "warn", divergence_bound: float | None = None) -> SimulationResult:
+    """Integrate a planar model with its loops, controllers and inputs (module docstring).
+
+    Parameters
+    ----------
+    model : PlanarModel
+    q0, qdot0 : ndarray
+        Initial coordinates and rates (checked by the caller).
+    t_final : float
+        End time [s].
+    dt : float or None
+        Step [s] of ``"rk4"`` and the sample grid of controllers (required for both); for a scipy
+        method with ``dt`` the result is stored on the grid ``k dt`` (dense output), without it at
+        every accepted step.
+    method : str
+        ``"rk4"`` or a name of :data:`~ctmm.planar.integrate.SCIPY_METHODS`.
+    loops : sequence of Feedback
+        Loops on named sensors and actuators of :mod:`ctmm.planar.ports`.
+    controllers : sequence of Controller
+        Co-simulated controllers (validated by the caller).
+    inputs : mapping, optional
+        ``{actuator name: number or f(t)}`` open-loop actuator values [N, N m].
+    references : mapping, optional
+        ``{loop name: r(t)}`` [sensed unit].
+    outputs : sequence of str
+        Sensor names stored at every row.
+    coupling : {"hold", "previous"}
+        As in :class:`~ctmm.control.cosim.CoSimulation`.
+    rtol, atol, max_step : float
+        scipy tolerances and largest step [s].
+    store_every : int
+        ``"rk4"``: keep every ``store_every``-th step (the last one always).
+    progress : bool, optional
+        Progress bar (long runs on a terminal by default).
+    stability_check : {"warn", "error", "ignore"}
+        ``"rk4"``: step against the plant's linearised limit before the run (loops not included).
+    divergence_bound : float, optional
+        As in :func:`~ctmm.planar.integrate.simulate_rk4`.
+
+    Returns
+    -------
+    SimulationResult
+        Coordinates, rates, outputs, ``"<loop>.y"``, ``"<loop>.u"`` [sensed unit, actuator
+        unit] and ``"<controller output>@samples"``.
+
+    Raises
+    ------
+    ModelError
+        Unknown sensor, actuator, loop or method; a delay between 0 and ``dt``; an improper C(s).
+    SimulationError
+        Divergence, non-finite states, failing controller or user code; ``partial_result``.
+    """
+    if method != "rk4" and method not in SCIPY_METHODS:
+        raise ModelError(f"method must be 'rk4' or one of {SCIPY_METHODS} for a planar model with loops, "
+                         f"controllers or inputs, got {method!r}")
+    t_final = validation.positive("t_final", t_final)
+    if dt is not None:
+        dt = validation.positive("dt", dt)
+    if method == "rk4" and dt is None:
+        raise ModelError("dt is required with method='rk4' (a fixed step [s], > 0), got None")
+    if controllers and dt is None:
+        raise ModelError("dt is required with co-simulated controllers: it is the sample grid [s] "
+                         "(each controller's sample_time is a whole multiple of it)")
+    n = model.n_coordinates
+    ports = PlanarPorts(model)
+    resolved = _resolve(ports, loops, dt if method == "rk4" else None, n)
+    delays = [lp.delay for lp in resolved if lp.delay > 0]
+    if method != "rk4" and delays:
+        max_step = min(max_step, min(delays))
+    history_step = dt if method == "rk4" else (min(delays) if delays else t_final) * 1e-5
+    try:
+        system = _ClosedLoop(ports, resolved, controllers, inputs or {}, references or {}, dt, coupling,
+                             history_step=max(history_step, 1e-300))
+    except SimulationError as exc:     # a controller's init failed: nothing was simulated
+        def empty() -> SimulationResult:
+            signals, units = model_signals(model, np.zeros(0), np.zeros((0, n)), np.zeros((0, n)), outputs)
+            return signal_result(SignalSystem(model, units, loops), np.zeros(0), signals, method, {"dt": dt})
+
+        raise with_partial(exc, empty) from exc.__cause__
+    try:
+        y0 = np.concatenate([q0, qdot0, np.zeros(system.size - 2 * n)])
+        guard = divergence_guard(model, q0, divergence_bound)
+        rows = _Rows(system)
+        start = _time.perf_counter()
+        info = {"dt": dt, "method": method}
+
+        def partial() -> SimulationResult:
+            return _result(rows, outputs, method, {**info, "wall_time_s": _time.perf_counter() - start})
+
+        try:
+            system.begin(0.0, y0)
+            system.sample(0, 0.0, y0)
+            system.remember(0.0, y0)
+            rows.add(0.0, y0)
+            if method == "rk4":
+                from ..planar.integrate import step_total
+
+                n_steps = step_total(t_final, dt)
+                check_scheme(model, q0, qdot0, dt, scheme="rk4", policy=stability_check)
+                _run_rk4(system, rows, guard, dt, n_steps, store_every, progress)
+            else:
+                _run_scipy(system, rows, guard, y0, t_final, dt, method, rtol, atol, max_step, progress)
+        except SimulationError as exc:
+            raise with_partial(exc, partial) from exc.__cause__
+        return _result(rows, outputs, method, {**info, "wall_time_s": _time.perf_counter() - start})
+    finally:
+        system.close()
+
+
+def _run_rk4(system: _ClosedLoop, rows: _Rows, guard, dt: float, n_steps: int, store_every: int,
+             progress: bool | None) -> None:
+    bar = progress_bar(n_steps, "ctmm.simulate (planar, rk4)", enabled=progress)
+    system.use_cache = True
+
+    def after_step(k: int, t: float, y: np.ndarray) -> None:
+        _check_state(system, guard, t, y, dt, "rk4")
+        system.sample(k, t, y)
+        system.remember(t, y)
+        if k % store_every == 0 or k == n_steps:
+            rows.add(t, y)
+        bar.update()
+
+    try:
+        integrate_rk4(system.rate, rows.y[0], h=dt, n_steps=n_steps, after_step=after_step)
+    finally:
+        bar.close()
+
+
+def _run_scipy(system: _ClosedLoop, rows: _Rows, guard, y0: np.ndarray, t_final: float, dt: float | None,
+               method: str, rtol: float, atol: float, max_step: float, progress: bool | None) -> None:
+    """Solver stepped segment by segment: one segment per controller sample (restart), else one."""
+    rtol, atol = validation.positive("rtol", rtol), validation.positive("atol", atol)
+    if system.master is not None:
+        from ..planar.integrate import step_total
+
+        n_segments = step_total(t_final, dt)
+        ends = [(k + 1) * dt for k in range(n_segments)]
+    else:
+        ends = [t_final]
+    grid_next = 1
+    y, t = y0, 0.0
+    solver_type: Callable = getattr(scipy.integrate, method)
+    bar = progress_bar(len(ends), f"ctmm.simulate (planar, {method})", enabled=progress and len(ends) > 1)
+    try:
+        for k, t_end in enumerate(ends):
+            if k > 0:
+                system.sample(k, t, y)
+            solver = solver_type(system.rate, t, y, t_end, rtol=rtol, atol=atol, max_step=max_step)
+            for t_old in accepted_steps(solver, method):
+                t_new, y_new = float(solver.t), solver.y.copy()
+                _check_state(system, guard, t_new, y_new, None, method)
+                if dt is None:
+                    rows.add(t_new, y_new)
+                else:
+                    dense = None
+                    while grid_next * dt <= t_new + 1e-12 * max(1.0, t_new) and grid_next * dt > t_old:
+                        t_row = grid_next * dt
+                        if abs(t_row - t_new) <= 1e-12 * max(1.0, t_new):
+                            rows.add(t_new, y_new)
+                        else:
+                            dense = dense or solver.dense_output()
+                            rows.add(t_row, dense(t_row))
+                        grid_next += 1
+                system.remember(t_new, y_new)
+            t, y = float(solver.t), solver.y.copy()
+            bar.update()
+    finally:
+        bar.close()
+    if dt is not None and (not rows.t or rows.t[-1] < t_final - 1e-9 * t_final):
+        rows.add(t, y)
