@@ -1,10 +1,11 @@
-"""Newton step of the implicit DT-TMM (Newmark / generalized-alpha) for models with modal beams.
+"""Newton step of the implicit DT-TMM (every :mod:`ctmm.schemes` scheme) for models with modal beams.
 
 Per iteration the body relations (:mod:`ctmm.flexible.kernel`) are linearised about the iterate.
 Each body's relations depend nonlinearly only on its own angle, rate, modal coordinates and
 rates, and the integrator ties these to the body's own unknowns:
 ``d theta = beta' h^2 d alpha``, ``d omega = gamma' h d alpha``,
-``d eta = beta' h^2 d eta''``, ``d eta' = gamma' h d eta''`` (``docs/planar.md`` section 4).
+``d eta = beta' h^2 d eta''``, ``d eta' = gamma' h d eta''`` (``docs/planar.md`` sections 4, 4a:
+``beta' h^2`` and ``gamma' h`` are the scheme's ``position_weight`` and ``velocity_weight``).
 The tangent columns ``T = d r / d x_own`` of the residuals
 
 ``r_rows = M x_k + h + sum_e RF_e F_e,k``,   ``r_kin,e = Kin_e x_k + c_e``

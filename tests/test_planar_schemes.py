@@ -1,0 +1,201 @@
+"""Every DT-TMM scheme of :mod:`ctmm.schemes` on planar models (rigid and with modal beams).
+
+Each scheme's nonlinear form (``Scheme.second_order_step``) drives the implicit planar stepper;
+its order is measured on a step ladder against independent global references (the Lagrange
+model of :mod:`ctmm.reference.planar_lagrange` / :mod:`ctmm.reference.flexible_lagrange`,
+DOP853 at tight tolerance), and the pre-run stability check is compared with what the stepper
+actually does on either side of the limit it reports.
+"""
+from __future__ import annotations
+
+import math
+import re
+import warnings
+
+import numpy as np
+import pytest
+
+from ctmm.errors import ModelError, SimulationError
+from ctmm.flexible import ModalBeam
+from ctmm.guard import StabilityLimitWarning
+from ctmm.planar import (ElasticHinge, Load, Pinned, PlanarModel, RigidBody, SpringDamperHinge,
+                         simulate_implicit)
+from ctmm.planar.elements import FixedMounting
+from ctmm.planar.guards import check_scheme, linearised_omega_max
+from ctmm.reference.flexible_lagrange import FlexibleLagrange
+from ctmm.reference.planar_lagrange import PlanarLagrange
+from ctmm.schemes import (SCHEMES, ForwardEuler, GeneralizedAlpha, Houbolt, Newmark, Scheme,
+                          WilsonTheta, as_scheme)
+
+# every registered name, and parameter variants that change the coefficients
+VARIANTS = [*SCHEMES, WilsonTheta(1.0), GeneralizedAlpha(0.3), Newmark(beta=0.3, gamma=0.6)]
+EXPECTED_ORDER = {"forward_euler": 1, "Newmark(beta=0.3, gamma=0.6)": 1}
+
+
+def _label(scheme) -> str:
+    return scheme if isinstance(scheme, str) else repr(scheme)
+
+
+def _slopes(dts, errors):
+    return np.log(np.asarray(errors[:-1]) / errors[1:]) / np.log(np.asarray(dts[:-1]) / dts[1:])
+
+
+@pytest.fixture(scope="module")
+def double_pendulum():
+    """Double pendulum with a spring-damper hinge and a time-varying tip load (the evaluation
+    time of Wilson-theta matters), and its Lagrange reference at T."""
+    model = PlanarModel.chain("dp", [
+        Pinned("o"), RigidBody.uniform_link("a", mass=1.0, length=1.0),
+        SpringDamperHinge("h", stiffness=4.0, damping=0.3, rest_angle=0.2),
+        RigidBody.uniform_link("b", mass=0.7, length=0.8,
+                               loads=(Load(point=(0.8, 0.0), force_y=lambda t: 2.0 * math.sin(3.0 * t)),))])
+    q0, v0, T = np.array([-0.6, -0.2]), np.array([0.5, -0.3]), 1.0
+    ref = PlanarLagrange(model).simulate(q0, v0, T, t_eval=[T], rtol=1e-13, atol=1e-13).y[:2, -1]
+    return model, q0, v0, T, ref
+
+
+@pytest.mark.parametrize("scheme", VARIANTS, ids=_label)
+def test_every_scheme_converges_at_its_order_on_a_double_pendulum(double_pendulum, scheme):
+    model, q0, v0, T, ref = double_pendulum
+    order = EXPECTED_ORDER.get(_label(scheme), 2)
+    assert as_scheme(scheme).order == order
+    dts = [0.01, 0.005, 0.0025]
+    errors, iterations = [], []
+    for dt in dts:
+        run = simulate_implicit(model, q0, v0, t_final=T, dt=dt, scheme=scheme)
+        errors.append(np.max(np.abs(run.q[-1] - ref)))
+        iterations.append(run.iterations.mean())
+    slopes = _slopes(dts, errors)
+    assert np.all(np.abs(slopes - order) < 0.1), (slopes, errors)
+    assert errors[-1] < (0.03 if order == 1 else 2e-3)
+    assert max(iterations) <= 3.5                      # Newton stays quadratic with every scheme
+
+
+@pytest.fixture(scope="module")
+def hub_beam():
+    """Hub with a two-mode cantilever; global assumed-modes reference (no transfer matrices)."""
+    beam = ModalBeam("b", length=1.0, bending_stiffness=1.0, mass_per_length=0.7, n_modes=2)
+    model = PlanarModel.chain("hub-beam", [
+        Pinned("o"), RigidBody("hub", mass=2.0, inertia=0.1, center_of_mass=(0.05, 0.02), outboard=(0.2, 0.0)),
+        FixedMounting("mount", angle=0.3), beam])
+    n = model.n_coordinates
+    q0, v0 = np.zeros(n), np.zeros(n)
+    q0[:2], v0[0] = (0.3, 0.02), 2.0
+    T = 0.2
+    ref = FlexibleLagrange(model).simulate(q0, v0, T, t_eval=[T], rtol=1e-12, atol=1e-13).y[:n, -1]
+    return model, q0, v0, T, ref
+
+
+@pytest.mark.parametrize("scheme", list(SCHEMES), ids=_label)
+def test_every_scheme_converges_at_its_order_on_a_hub_beam(hub_beam, scheme):
+    model, q0, v0, T, ref = hub_beam
+    order = EXPECTED_ORDER.get(scheme, 2)
+    dts = [4e-3, 2e-3, 1e-3]
+    errors = [np.max(np.abs(simulate_implicit(model, q0, v0, t_final=T, dt=dt, scheme=scheme).q[-1] - ref))
+              for dt in dts]
+    slopes = _slopes(dts, errors)
+    assert np.all(np.abs(slopes - order) < 0.1), (slopes, errors)
+
+
+@pytest.mark.parametrize("scheme", [ForwardEuler(), WilsonTheta(1.2), Houbolt(), Newmark(0.3, 0.6)], ids=repr)
+def test_the_generic_nonlinear_form_is_the_schemes_own_linear_step(scheme):
+    """On ``x'' = -w^2 x`` one nonlinear step (solved in closed form) equals one step of the
+    chain core's linearisation (``coefficients`` / ``update``) of the same scheme."""
+    w2, h = 9.0, 0.05
+    history = scheme.start_history(np.array([0.3]), np.array([-0.2]), np.array([-w2 * 0.3]))
+    for _ in range(4):                                  # through Houbolt's start-up
+        plan = scheme.second_order_step(history, h)
+        a = -w2 * plan.q_predictor / (1.0 + w2 * plan.position_weight)
+        coefficients = scheme.coefficients(history, h)
+        delta = -w2 * coefficients.x_pred / (coefficients.C + w2)
+        linear = scheme.update(history, delta, h, coefficients)
+        history = scheme.second_order_update(history, a, h, plan)
+        for name in ("x", "v", "a"):
+            assert np.allclose(getattr(history, name), getattr(linear, name), rtol=1e-13, atol=1e-15), name
+
+
+def test_newmark_and_generalized_alpha_keep_the_arnold_bruls_form():
+    """Newmark's own statement equals the generic derivation from its coefficients; the
+    generalized-alpha step keeps the equations of motion at t_{n+1} with
+    ``beta' = beta (1 - af)/(1 - am)``."""
+    history = Newmark().start_history(np.array([0.3, -1.0]), np.array([0.5, 2.0]), np.array([-1.0, 4.0]))
+    own, generic = Newmark(0.3, 0.6).second_order_step(history, 0.01), Scheme.second_order_step(
+        Newmark(0.3, 0.6), history, 0.01)
+    assert np.allclose(own.q_predictor, generic.q_predictor, rtol=1e-15, atol=1e-15)
+    assert np.allclose(own.v_predictor, generic.v_predictor, rtol=1e-15, atol=1e-15)
+    assert math.isclose(own.position_weight, generic.position_weight, rel_tol=1e-14)
+    assert math.isclose(own.velocity_weight, generic.velocity_weight, rel_tol=1e-14)
+    alpha = GeneralizedAlpha(0.6)
+    plan = alpha.second_order_step(history, 0.01)
+    factor = (1.0 - alpha.alpha_f) / (1.0 - alpha.alpha_m)
+    assert plan.time_fraction == 1.0
+    assert math.isclose(plan.position_weight, alpha.beta * factor * 1e-4, rel_tol=1e-14)
+    assert math.isclose(plan.velocity_weight, alpha.gamma * factor * 1e-2, rel_tol=1e-14)
+
+
+def test_scheme_names_and_errors(double_pendulum):
+    model, q0, v0, _, _ = double_pendulum
+    run = simulate_implicit(model, q0, v0, t_final=0.02, dt=0.01, scheme="houbolt")
+    assert run.method == "dt-tmm/Houbolt"
+    with pytest.raises(ModelError, match=r"unknown scheme 'rk45'; available: forward_euler, generalized_alpha, "
+                                         r"houbolt, newmark, wilson_theta"):
+        simulate_implicit(model, q0, v0, t_final=0.02, dt=0.01, scheme="rk45")
+
+
+@pytest.fixture(scope="module")
+def stiff_and_slow():
+    """A slow pendulum carrying a stiff spring hinge (no damping): ``omega_max`` from the stiff
+    mode, ``omega_min`` from the swing; small amplitude, so nearly linear."""
+    model = PlanarModel.chain("stiff", [
+        Pinned("o"), RigidBody.uniform_link("a", mass=1.0, length=1.0),
+        ElasticHinge("k", stiffness=400.0), RigidBody.uniform_link("b", mass=0.5, length=0.5)])
+    q0, v0 = np.array([-math.pi / 2 + 0.05, -math.pi / 2 + 0.06]), np.zeros(2)
+    omega_max, omega_min = linearised_omega_max(model, q0, v0, slowest=True)
+    return model, q0, v0, omega_max, omega_min
+
+
+def _stiff_mode_amplification(model, q0, v0, dt, scheme) -> float:
+    """Largest relative angle over the last third of 150 steps (or of the steps before the run
+    failed) / the initial one: late, after Wilson-theta's first-step overshoot (-32 x at
+    ``omega h = 15``, ``theta = 1.4``, as in the linear recurrence) has decayed."""
+    try:
+        run = simulate_implicit(model, q0, v0, t_final=150 * dt, dt=dt, scheme=scheme, stability_check="ignore")
+    except SimulationError as exc:                      # Newton lost on a growing solution
+        run = exc.partial_result
+    relative = np.abs(run.q[:, 1] - run.q[:, 0])
+    return float(np.max(relative[2 * len(relative) // 3:]) / relative[0])
+
+
+@pytest.mark.parametrize("scheme, limit", [
+    (WilsonTheta(1.0), 2.0 * math.sqrt(3.0)), (Newmark(0.05, 0.5), 1.0 / math.sqrt(0.2)),
+    (WilsonTheta(1.2), None)])
+def test_conditionally_stable_schemes_are_checked_against_their_limit(stiff_and_slow, scheme, limit):
+    model, q0, v0, omega_max, omega_min = stiff_and_slow
+    limit = scheme.stability_limit() if limit is None else limit
+    assert math.isclose(scheme.stability_limit(), limit, rel_tol=1e-8)
+    below, above = 0.95 * limit / omega_max, 1.1 * limit / omega_max
+    assert omega_min * above < math.pi                  # the slow swing is resolved: only stability speaks
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert check_scheme(model, q0, v0, below, scheme=scheme, policy="error") is None
+    with pytest.warns(StabilityLimitWarning, match=re.escape(repr(scheme))):
+        simulate_implicit(model, q0, v0, t_final=above, dt=above, scheme=scheme)
+    with pytest.raises(ModelError, match="omega"):
+        check_scheme(model, q0, v0, above, scheme=scheme, policy="error")
+    # what the stepper does on either side of the reported limit
+    assert _stiff_mode_amplification(model, q0, v0, below, scheme) < 1.5
+    assert _stiff_mode_amplification(model, q0, v0, above, scheme) > 10.0
+
+
+@pytest.mark.parametrize("scheme", ["forward_euler", "houbolt", "generalized_alpha", "newmark",
+                                    WilsonTheta(1.4)], ids=_label)
+def test_unconditionally_stable_schemes_only_ask_for_resolution(stiff_and_slow, scheme):
+    model, q0, v0, omega_max, omega_min = stiff_and_slow
+    scheme = as_scheme(scheme)
+    assert scheme.stability_limit() == math.inf
+    dt = 0.05                      # twice any finite limit, swing resolved (Newton from the last
+    assert omega_max * dt > 7.0 and omega_min * dt < 0.1 * math.pi    # acceleration: dt <~ 0.1 s here)
+    assert check_scheme(model, q0, v0, dt, scheme=scheme, policy="error") is None
+    assert _stiff_mode_amplification(model, q0, v0, dt, scheme) < 1.5
+    with pytest.raises(ModelError, match="no motion is resolved"):
+        check_scheme(model, q0, v0, 1.1 * math.pi / omega_min, scheme=scheme, policy="error")
