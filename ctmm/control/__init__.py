@@ -1,6 +1,7 @@
 """Controllers: protocol, embedded feedback loops, Python and FMU adapters, co-simulation.
 
 * :class:`Feedback` / :class:`ControlledChain` -- linear loops embedded in transfer matrices.
+* :class:`ControlledModel` / :func:`with_feedback` -- the same loops on planar models (any plant).
 * :func:`simulate_controlled` -- DT-TMM with real-time / delayed loops and co-simulated controllers.
 * :class:`Controller` -- protocol for sampled, stateful or nonlinear controllers (Python, FMU).
 * :class:`FMUController`, :func:`build_fmu` -- FMI 2.0/3.0 co-simulation and model-exchange FMUs through fmpy.
@@ -11,9 +12,10 @@ from .analysis import bode_plot, closed_loop_response, loop_transfer_function, m
 from .design import PlantCache
 from .fmu import FMUController, build_fmu
 from .loops import ControlledChain, Feedback
+from .controlled_model import ControlledModel, with_feedback
 from .protocol import Controller, ControllerStep
 from .simulate import simulate_controlled
 
-__all__ = ["Controller", "ControllerStep", "Feedback", "ControlledChain", "simulate_controlled",
+__all__ = ["Controller", "ControllerStep", "Feedback", "ControlledChain", "ControlledModel", "with_feedback", "simulate_controlled",
            "FMUController", "build_fmu", "loop_transfer_function", "margins", "closed_loop_response",
            "bode_plot", "nyquist_plot", "PlantCache"]

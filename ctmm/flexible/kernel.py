@@ -267,21 +267,36 @@ class FlexibleSystem:
                 out[self.modal_index[j]] = x[j][3:]
         return out
 
-    def solve(self, q, qdot, t: float = 0.0) -> FlexibleSolution:
-        """Explicit forward dynamics (one sweep)."""
+    def apply_inputs(self, terms: list, theta: np.ndarray, tau: np.ndarray, inputs) -> np.ndarray:
+        """Add actuator ``inputs`` (:class:`ctmm.planar.ports.ActuatorInputs`) to the body
+        terms (in place: the terms are this step's work arrays) and return the hinge torques."""
+        if inputs is None:
+            return tau
+        wrench = inputs.inboard_wrench(self.model, theta)
+        for j in self.rigid:
+            terms[j][1] = terms[j][1] - wrench[j]
+        for j, force in inputs.modal_force.items():
+            h = terms[j][1].copy()
+            h[3:] -= force
+            terms[j][1] = h
+        return tau + inputs.hinge_torque
+
+    def solve(self, q, qdot, t: float = 0.0, inputs=None) -> FlexibleSolution:
+        """Explicit forward dynamics (one sweep), with optional actuator ``inputs``."""
         q, qdot = self.model.state(q, qdot)
         terms, (theta, omega, _, _, _) = self.all_terms(q, qdot, t)
-        tau = self.hinge_torques(q, qdot, theta, omega, t)
+        tau = self.apply_inputs(terms, theta, self.hinge_torques(q, qdot, theta, omega, t), inputs)
         x, F, AO, alpha = self.sweep(terms, [0.0] * self.nb, tau.tolist(), self.driven_alpha(t))
         A = np.array([xj[:3] for xj in x])
         modal = {self.model.body_names[j]: x[j][3:].copy() for j in self.beam_data}
         return FlexibleSolution(self.qddot(x), A, F, alpha, AO, modal)
 
-    def accelerations(self, q, qdot, t: float = 0.0) -> np.ndarray:
-        """Generalised accelerations (one sweep); ``q, qdot`` checked by :meth:`PlanarModel.state`."""
+    def accelerations(self, q, qdot, t: float = 0.0, inputs=None) -> np.ndarray:
+        """Generalised accelerations (one sweep), with optional actuator ``inputs``;
+        ``q, qdot`` checked by :meth:`PlanarModel.state`."""
         q, qdot = self.model.state(q, qdot)
         terms, (theta, omega, _, _, _) = self.all_terms(q, qdot, t)
-        tau = self.hinge_torques(q, qdot, theta, omega, t)
+        tau = self.apply_inputs(terms, theta, self.hinge_torques(q, qdot, theta, omega, t), inputs)
         x, _, _, _ = self.sweep(terms, [0.0] * self.nb, tau.tolist(), self.driven_alpha(t))
         return self.qddot(x)
 
@@ -300,4 +315,4 @@ def solve_flexible(model: PlanarModel, q, qdot, t: float = 0.0) -> FlexibleSolut
     return system_of(model).solve(q, qdot, t)
 
 
-__all__ = ["FlexibleSolution", "FlexibleSystem", "system_of", "solve_flexible"]
+__all__ = ["FlexibleSolution", "FlexibleSystem", "solve_flexible", "system_of"]

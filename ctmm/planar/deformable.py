@@ -18,12 +18,13 @@ __all__ = ["DeformableBody", "DeformableFamily", "DeformableSystem", "Deformable
 class DeformableSystem(Protocol):
     """Per-model data of the sweep with internal coordinates (built once, with the model)."""
 
-    def solve(self, q: np.ndarray, qdot: np.ndarray, t: float) -> Any:
+    def solve(self, q: np.ndarray, qdot: np.ndarray, t: float, inputs: Any = None) -> Any:
         """Forward dynamics: an object with ``qddot``, ``body_acceleration``, ``joint_force``,
-        ``hinge_acceleration`` and ``modal_acceleration``."""
+        ``hinge_acceleration`` and ``modal_acceleration``; ``inputs`` are actuator values
+        (:class:`ctmm.planar.ports.ActuatorInputs`) added to the model's own loads."""
 
-    def accelerations(self, q: np.ndarray, qdot: np.ndarray, t: float) -> np.ndarray:
-        """Generalised accelerations [rad/s^2, m/s^2]."""
+    def accelerations(self, q: np.ndarray, qdot: np.ndarray, t: float, inputs: Any = None) -> np.ndarray:
+        """Generalised accelerations [rad/s^2, m/s^2], with optional actuator ``inputs``."""
 
 
 class DeformableNewtonStep(Protocol):

@@ -606,7 +606,7 @@ class PlanarModel:
                 e = self.end_vector[i]
                 ed = np.zeros(2)
                 if p in self.beams:                     # deformed end of a flexible parent
-                    e, ed = self._beam_point_local(p, self.parent_end_index[i], q, qdot)
+                    e, ed = self.beam_point_local(p, self.parent_end_index[i], q, qdot)
                 rx, ry = c[p] * e[0] - s[p] * e[1], s[p] * e[0] + c[p] * e[1]
                 r_in[i] = r_in[p] + (rx, ry)
                 v_in[i] = v_in[p] + omega[p] * np.array([-ry, rx]) + (
@@ -637,7 +637,7 @@ class PlanarModel:
         return {"inboard": r_in, "inboard_velocity": v_in, "com": com, "com_velocity": v_com,
                 "theta": theta, "omega": omega}
 
-    def _beam_point_local(self, j: int, end: int, q, qdot) -> tuple[np.ndarray, np.ndarray]:
+    def beam_point_local(self, j: int, end: int, q, qdot) -> tuple[np.ndarray, np.ndarray]:
         """Deformed end ``end`` of beam ``j`` in its frame (position, velocity rel. frame)."""
         d = self.beams[j].data
         eta, eta_dot = q[self.modal_index[j]], qdot[self.modal_index[j]]

@@ -31,8 +31,8 @@ with numpy.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
@@ -310,7 +310,16 @@ def _checked_state(model: PlanarModel, q, qdot, t) -> tuple[np.ndarray, np.ndarr
     return q, qdot, validation.finite("t", t)
 
 
-def solve_instant(model: PlanarModel, q, qdot, t: float = 0.0) -> InstantaneousSolution:
+def _with_inputs(model: PlanarModel, theta, b: np.ndarray, tau: np.ndarray, inputs
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Body terms and hinge torques with the actuator ``inputs`` added
+    (:class:`ctmm.planar.ports.ActuatorInputs`; loads enter ``b`` with a minus sign)."""
+    if inputs is None:
+        return b, tau
+    return b - inputs.inboard_wrench(model, theta), tau + inputs.hinge_torque
+
+
+def solve_instant(model: PlanarModel, q, qdot, t: float = 0.0, inputs=None) -> InstantaneousSolution:
     """Forward dynamics at one instant by the acceleration-based TMM (one O(n) sweep).
 
     Parameters
@@ -321,6 +330,9 @@ def solve_instant(model: PlanarModel, q, qdot, t: float = 0.0) -> InstantaneousS
         Generalised coordinates [rad, m] and their rates, ordered as ``model.coordinates``.
     t : float
         Time [s] (for loads, hinge references and driven hinges).
+    inputs : ctmm.planar.ports.ActuatorInputs, optional
+        Actuator values added to the model's own loads and hinge laws
+        (:func:`ctmm.planar.ports.actuator_inputs`).
 
     Returns
     -------
@@ -329,12 +341,12 @@ def solve_instant(model: PlanarModel, q, qdot, t: float = 0.0) -> InstantaneousS
     """
     q, qdot, t = _checked_state(model, q, qdot, t)
     if model.flexible_system is not None:
-        sol = model.flexible_system.solve(q, qdot, t)
+        sol = model.flexible_system.solve(q, qdot, t, inputs)
         return InstantaneousSolution(sol.qddot, sol.body_acceleration, sol.joint_force,
                                      sol.hinge_acceleration, sol.modal_acceleration)
     theta, omega = model.body_angles(q, qdot, t)
     K, b, E, _ = body_terms(model, theta, omega, t)
-    tau = hinge_torques(model, theta, omega, t)
+    b, tau = _with_inputs(model, theta, b, hinge_torques(model, theta, omega, t), inputs)
     nb = model.n_bodies
     A, F, alpha, translation = riccati_kernel(
         model.parent.tolist(), model.joint_kind.tolist(), K.tolist(), b.tolist(), E.tolist(),
@@ -345,8 +357,11 @@ def solve_instant(model: PlanarModel, q, qdot, t: float = 0.0) -> InstantaneousS
                                  np.array(alpha))
 
 
-def accelerations(model: PlanarModel, q, qdot, t: float = 0.0) -> np.ndarray:
+def accelerations(model: PlanarModel, q, qdot, t: float = 0.0, inputs=None) -> np.ndarray:
     """Generalised accelerations ``qddot(q, qdot, t)`` by the O(n) acceleration TMM.
+
+    ``inputs`` (:class:`ctmm.planar.ports.ActuatorInputs`, optional) adds actuator values to the
+    model's own loads and hinge laws (see :func:`ctmm.planar.ports.actuator_inputs`).
 
     Examples
     --------
@@ -359,10 +374,10 @@ def accelerations(model: PlanarModel, q, qdot, t: float = 0.0) -> np.ndarray:
     """
     q, qdot, t = _checked_state(model, q, qdot, t)
     if model.flexible_system is not None:
-        return model.flexible_system.accelerations(q, qdot, t)
+        return model.flexible_system.accelerations(q, qdot, t, inputs)
     theta, omega = model.body_angles(q, qdot, t)
     K, b, E, _ = body_terms(model, theta, omega, t)
-    tau = hinge_torques(model, theta, omega, t)
+    b, tau = _with_inputs(model, theta, b, hinge_torques(model, theta, omega, t), inputs)
     A, _, _, translation = riccati_kernel(
         model._parent_list, model._kind_list, K.tolist(), b.tolist(), E.tolist(), model._zeros,
         tau.tolist(), _driven_alpha(model, t), want_forces=False,
@@ -386,6 +401,14 @@ def ode_rhs(model: PlanarModel) -> Callable[[float, np.ndarray], np.ndarray]:
     return rhs
 
 
-__all__ = ["InstantaneousSolution", "solve_instant", "accelerations", "ode_rhs",
-           "riccati_kernel", "body_terms", "hinge_torques", "coordinate_accelerations",
-           "bushing_data"]
+__all__ = [
+    "InstantaneousSolution",
+    "accelerations",
+    "body_terms",
+    "bushing_data",
+    "coordinate_accelerations",
+    "hinge_torques",
+    "ode_rhs",
+    "riccati_kernel",
+    "solve_instant",
+]

@@ -1,0 +1,170 @@
+"""Feedback loops on planar models (rigid and flexible): :class:`ControlledModel`.
+
+The loops are the same :class:`~ctmm.control.loops.Feedback` objects as on 1-D chains,
+
+    u(t) = -C [ y(t - tau) - r(t - tau) ],    y = sum_i c_i * sensor_i,
+
+with sensors and actuators named by the model's ports (:mod:`ctmm.planar.ports`: hinge angles
+and rates, body angles, point positions and velocities, generalised coordinates; hinge
+torques, body forces and moments, modal forces).  A controlled model is a description: the
+verbs close its loops -- :func:`ctmm.simulate` in time (real-time loops at the current state,
+delayed loops from the history), :func:`ctmm.linearize` about an operating point (real-time
+loops inside ``A``, delayed loops beside it) and the stability tools on that linearisation.
+
+:func:`with_feedback` is the one constructor for every plant: a :class:`~ctmm.system.Chain`
+gets a :class:`~ctmm.control.loops.ControlledChain` (loops embedded in its transfer
+matrices), a :class:`~ctmm.planar.model.PlanarModel` a :class:`ControlledModel`.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from ..errors import ModelError, unknown_name
+from ..planar.model import PlanarModel
+from ..planar.ports import PlanarPorts
+from ..system import Chain
+from .loops import ControlledChain, Feedback
+
+__all__ = ["ControlledModel", "with_feedback"]
+
+
+class ControlledModel:
+    """A planar model (rigid or with modal beams) with embedded feedback loops.
+
+    Parameters
+    ----------
+    plant : PlanarModel
+        The open-loop model.
+    loops : sequence of Feedback
+        Loops whose sensor terms name sensors of ``plant`` and whose actuator terms name its
+        actuators (:mod:`ctmm.planar.ports`).  ``gain`` is a float or a SISO continuous-time
+        python-control system; a PD law on an angle is the weighted sensor
+        ``[("motor.angle", kp), ("motor.rate", kd)]`` with ``gain=1`` (no improper ``C(s)``).
+
+    Examples
+    --------
+    >>> from ctmm.planar import ActuatedHinge, PlanarModel, Pinned, RigidBody
+    >>> from ctmm.control import Feedback, with_feedback
+    >>> arm = PlanarModel.chain("arm", [Pinned("motor"), RigidBody.uniform_link("link", mass=1.0, length=0.5)])
+    >>> pd = Feedback("pd", sensor=[("motor.angle", 20.0), ("motor.rate", 2.0)], actuator="motor.torque",
+    ...               gain=1.0, delay=0.01)
+    >>> with_feedback(arm, [pd]).signal_names()[-2:]
+    ['pd.y', 'pd.u']
+    """
+
+    def __init__(self, plant: PlanarModel, loops: Sequence[Feedback]) -> None:
+        if not isinstance(plant, PlanarModel):
+            raise ModelError(f"plant must be a ctmm.planar.PlanarModel (use with_feedback for any "
+                             f"plant), got {plant!r}")
+        if isinstance(loops, Feedback) or not isinstance(loops, Sequence):
+            raise ModelError(f"loops must be a sequence of ctmm.control.Feedback, got {loops!r}")
+        ports = PlanarPorts(plant)
+        names: set[str] = set()
+        for loop in loops:
+            if not isinstance(loop, Feedback):
+                raise ModelError(f"loops must be ctmm.control.Feedback objects, got {loop!r}")
+            if loop.name in names:
+                raise ModelError(f"duplicate loop name {loop.name!r}")
+            if loop.name in plant.body_names or loop.name in plant.joint_names:
+                raise ModelError(f"loop name {loop.name!r} is also an element of {plant.name!r}; "
+                                 "signal names would be ambiguous")
+            names.add(loop.name)
+            for sensor, _ in loop.terms:
+                ports.check_sensor(sensor, f"loop {loop.name!r}: sensor")
+            for actuator, _ in loop.actuator_terms:
+                ports.check_actuator(actuator, f"loop {loop.name!r}: actuator")
+        self._plant = plant
+        self._loops = tuple(loops)
+        self._ports = ports
+
+    # -- description ---------------------------------------------------------------------
+    @property
+    def plant(self) -> PlanarModel:
+        """The open-loop model."""
+        return self._plant
+
+    @property
+    def loops(self) -> tuple[Feedback, ...]:
+        """The loops, in the order given."""
+        return self._loops
+
+    @property
+    def name(self) -> str:
+        """The plant's name."""
+        return self._plant.name
+
+    @property
+    def ports(self) -> PlanarPorts:
+        """The plant's sensors and actuators."""
+        return self._ports
+
+    def loop(self, name: str) -> Feedback:
+        """The loop called ``name``."""
+        for loop in self._loops:
+            if loop.name == name:
+                return loop
+        raise unknown_name("loop", name, [loop.name for loop in self._loops])
+
+    def with_loops(self, loops: Sequence[Feedback]) -> ControlledModel:
+        """The same plant with other loops."""
+        return ControlledModel(self._plant, loops)
+
+    def signal_names(self) -> list[str]:
+        """Plant sensors, then ``"<loop>.y"`` and ``"<loop>.u"`` of every loop."""
+        return list(self._ports.sensors) + [f"{loop.name}.{part}" for loop in self._loops
+                                            for part in ("y", "u")]
+
+    def input_names(self) -> list[str]:
+        """Plant actuators, then ``"<loop>.reference"`` of every loop."""
+        return list(self._ports.actuators) + [f"{loop.name}.reference" for loop in self._loops]
+
+    # -- evaluation helpers for the verbs ------------------------------------------------
+    def sensed(self, values: Mapping[str, float]) -> dict[str, float]:
+        """``{loop: y}`` from sensor values ``{sensor: value}`` (``y = sum c_i sensor_i``)."""
+        return {loop.name: sum(weight * values[sensor] for sensor, weight in loop.terms)
+                for loop in self._loops}
+
+    def actuation(self, forces: Mapping[str, float]) -> dict[str, float]:
+        """``{actuator: value}`` from loop outputs ``{loop: u}`` (weighted actuator terms added)."""
+        out: dict[str, float] = {}
+        for loop in self._loops:
+            u = forces.get(loop.name, 0.0)
+            for actuator, weight in loop.actuator_terms:
+                out[actuator] = out.get(actuator, 0.0) + weight * u
+        return out
+
+    def sensors(self) -> list[str]:
+        """Every sensor some loop reads (each once, in loop order)."""
+        seen: dict[str, None] = {}
+        for loop in self._loops:
+            for sensor, _ in loop.terms:
+                seen.setdefault(sensor, None)
+        return list(seen)
+
+    def __repr__(self) -> str:
+        return f"ControlledModel({self._plant!r}, loops={[loop.name for loop in self._loops]})"
+
+
+def with_feedback(plant: Any, loops: Sequence[Feedback]) -> ControlledChain | ControlledModel:
+    """``plant`` with the feedback ``loops`` closed, for any plant.
+
+    Parameters
+    ----------
+    plant : Chain or PlanarModel
+        A 1-D chain (loops embedded in its transfer matrices: :class:`ControlledChain`) or a
+        planar model, rigid or with modal beams (:class:`ControlledModel`).
+    loops : sequence of Feedback
+
+    Returns
+    -------
+    ControlledChain or ControlledModel
+    """
+    if isinstance(plant, Chain):
+        return ControlledChain(plant, loops)
+    if isinstance(plant, PlanarModel):
+        return ControlledModel(plant, loops)
+    if isinstance(plant, (ControlledChain, ControlledModel)):
+        raise ModelError(f"plant {plant!r} already has loops; use plant.with_loops(...) to "
+                         "replace them or build from the open-loop plant")
+    raise ModelError(f"plant must be a ctmm.Chain or a ctmm.planar.PlanarModel, got {plant!r}")

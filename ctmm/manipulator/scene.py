@@ -1,0 +1,138 @@
+"""The controlled flexible manipulator as a scene of general elements and general loops.
+
+The plant is an ordinary planar model -- ``Fixed("ground")`` -> ``ActuatedHinge("motor")``
+(a torque input, no law of its own) -> ``RigidBody("hub")`` -> ``FixedMounting("mount")`` ->
+:class:`~ctmm.flexible.ModalBeam` ``"arm"`` -- and both control laws of seed 001 §9.6.1 are
+ordinary :class:`~ctmm.control.Feedback` loops on its ports (:mod:`ctmm.planar.ports`):
+
+* ``"hub_pd"`` -- the PD motor law (seed eq. (9.64))
+  ``tau = kp (theta_d - theta) + kd (theta_d_dot - theta_dot)`` at ``t - delay``:
+  sensor ``y = kp * motor.angle + kd * motor.rate``, gain 1, actuator ``motor.torque``,
+  reference ``r(t) = kp theta_d(t) + kd theta_d_dot(t)`` (:func:`scene_references`);
+* ``"<patch>"`` for every PZT patch -- the slope-rate law ``V = -G Psi eta_dot`` (seed eq.
+  (9.65); :class:`~ctmm.manipulator.PZTFeedback`): patch ``j``'s loop senses
+  ``sum_k (G Psi)_jk arm.q<k>_dot`` with gain 1, so its output ``"<patch>.u"`` is the voltage
+  ``V_j`` [V], and acts on the modal equations through the moment pair
+  ``Q_k = c_a_j Psi_jk V_j`` (actuators ``arm.q<k>.force``), ``Psi_jk = phi_k'(x2_j) - phi_k'(x1_j)``.
+
+So the manipulator is simulated by :func:`ctmm.simulate`, linearised by :func:`ctmm.linearize`
+and analysed by the stability tools like any other controlled model; nothing in the verbs knows
+it is a manipulator.  Voltage saturation (``on_limit="saturate"``) is not a linear loop: use a
+co-simulated controller (or :class:`~ctmm.manipulator.FlexibleManipulator`).
+"""
+from __future__ import annotations
+
+from typing import Any, Callable
+
+import numpy as np
+
+from .. import validation
+from ..control.controlled_model import ControlledModel
+from ..control.loops import Feedback
+from ..errors import ModelError
+from ..flexible import ModalBeam
+from ..planar import ActuatedHinge, Fixed, PlanarModel, RigidBody
+from ..planar.elements import FixedMounting
+from .laws import HubPD, PZTFeedback
+from .parameters import Manipulator
+
+__all__ = ["manipulator_plant", "manipulator_scene", "scene_references", "HUB_LOOP"]
+
+HUB_LOOP = "hub_pd"
+
+
+def manipulator_plant(manipulator: Manipulator, *, n_modes: int = 3, geometric_stiffening: bool = True,
+                      hub_mass: float = 1.0) -> PlanarModel:
+    """The open-loop manipulator: hub on a torque-driven hinge carrying the modal beam ``"arm"``.
+
+    Parameters
+    ----------
+    manipulator : Manipulator
+        Arm, hub and patches (:mod:`ctmm.manipulator.parameters`).
+    n_modes : int
+        Clamped-free modes of the arm (seed: 3).
+    geometric_stiffening : bool
+        Centrifugal stiffening of the arm.
+    hub_mass : float
+        Hub mass [kg] (its centre is the pivot: it enters only the pivot reaction).
+    """
+    if not isinstance(manipulator, Manipulator):
+        raise ModelError(f"manipulator must be a ctmm.manipulator.Manipulator, got {manipulator!r}")
+    if isinstance(n_modes, bool) or not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
+        raise ModelError(f"n_modes must be an integer >= 1, got {n_modes!r}")
+    arm = manipulator.arm
+    beam = ModalBeam("arm", length=arm.length, bending_stiffness=arm.bending_stiffness,
+                     mass_per_length=arm.mass_per_length, n_modes=int(n_modes),
+                     stiffness_damping=arm.kelvin_voigt_time, geometric_stiffening=bool(geometric_stiffening))
+    hub = RigidBody("hub", mass=validation.positive("hub_mass", hub_mass), inertia=manipulator.hub.inertia,
+                    center_of_mass=(0.0, 0.0), outboard=(manipulator.hub.radius, 0.0))
+    return PlanarModel.chain("manipulator", [Fixed("ground"), ActuatedHinge("motor"), hub, FixedMounting("mount"), beam],
+                             gravity=(0.0, 0.0))
+
+
+def _slope_matrix(plant: PlanarModel, manipulator: Manipulator) -> np.ndarray:
+    beam = plant.bodies[plant.body_index("arm")]
+    return np.array([beam.mode_slopes(x2) - beam.mode_slopes(x1) for x1, x2 in manipulator.patch_ends]
+                    ).reshape(-1, beam.n_modes)
+
+
+def manipulator_scene(manipulator: Manipulator, *, pd: HubPD | None, pzt: PZTFeedback | None, n_modes: int = 3,
+                      geometric_stiffening: bool = True, hub_mass: float = 1.0) -> ControlledModel:
+    """The controlled manipulator: :func:`manipulator_plant` with the PD and PZT laws as loops.
+
+    Parameters
+    ----------
+    manipulator : Manipulator
+    pd : HubPD or None
+        The hub PD (loop ``"hub_pd"``; its delay is the loop delay).  ``None``: no hub loop.
+    pzt : PZTFeedback or None
+        Slope-rate feedback to the patches (one loop per patch, named after the patch).
+    n_modes, geometric_stiffening, hub_mass
+        As in :func:`manipulator_plant`.
+
+    Returns
+    -------
+    ControlledModel
+        Simulate with ``references=scene_references(pd, move)`` so that the hub tracks ``move``.
+    """
+    plant = manipulator_plant(manipulator, n_modes=n_modes, geometric_stiffening=geometric_stiffening,
+                              hub_mass=hub_mass)
+    loops = []
+    if pd is not None:
+        if not isinstance(pd, HubPD):
+            raise ModelError(f"pd must be a ctmm.manipulator.HubPD or None, got {pd!r}")
+        loops.append(Feedback(HUB_LOOP, sensor=[("motor.angle", pd.kp), ("motor.rate", pd.kd)],
+                              actuator="motor.torque", gain=1.0, delay=pd.delay))
+    if pzt is not None:
+        if not isinstance(pzt, PZTFeedback):
+            raise ModelError(f"pzt must be a ctmm.manipulator.PZTFeedback or None, got {pzt!r}")
+        if pzt.n_patches != manipulator.n_patches:
+            raise ModelError(f"pzt gains are for {pzt.n_patches} patches, the manipulator has "
+                             f"{manipulator.n_patches}")
+        if pzt.on_limit == "saturate":
+            raise ModelError("pzt.on_limit='saturate' is a nonlinear law, not a feedback loop: use a "
+                             "co-simulated controller or ctmm.manipulator.FlexibleManipulator")
+        psi = _slope_matrix(plant, manipulator)
+        sensing = pzt.gains @ psi                                   # V = -(G Psi) eta_dot
+        ca = manipulator.moments_per_volt
+        modes = plant.bodies[plant.body_index("arm")].coordinate_suffixes
+        for j, patch in enumerate(manipulator.patches):
+            sensor = [(f"arm.{mode}_dot", float(sensing[j, k])) for k, mode in enumerate(modes[:psi.shape[1]])
+                      if sensing[j, k] != 0.0]
+            actuator = [(f"arm.{mode}.force", float(ca[j] * psi[j, k])) for k, mode in enumerate(modes[:psi.shape[1]])
+                        if psi[j, k] != 0.0]
+            if sensor and actuator:
+                loops.append(Feedback(patch.name, sensor=sensor, actuator=actuator, gain=1.0, delay=pzt.delay))
+    return ControlledModel(plant, loops)
+
+
+def scene_references(pd: HubPD, move: Any) -> dict[str, Callable[[float], float]]:
+    """``{"hub_pd": r}`` with ``r(t) = kp theta_d(t) + kd theta_d_dot(t)`` for a move with
+    ``angle(t)`` [rad] and ``rate(t)`` [rad/s] (e.g. :class:`~ctmm.manipulator.CycloidalMove`)."""
+    if not isinstance(pd, HubPD):
+        raise ModelError(f"pd must be a ctmm.manipulator.HubPD, got {pd!r}")
+    for attribute in ("angle", "rate"):
+        if not callable(getattr(move, attribute, None)):
+            raise ModelError(f"move must provide angle(t) and rate(t), got {move!r}")
+    kp, kd = pd.kp, pd.kd
+    return {HUB_LOOP: lambda t: kp * move.angle(t) + kd * move.rate(t)}

@@ -1,0 +1,385 @@
+"""Named sensors and actuators of a planar model: the signals loops and controllers connect to.
+
+A :class:`~ctmm.planar.model.PlanarModel` (rigid or with modal beams) exposes
+
+Sensors (measured signals, all in global axes)
+    * ``"<body>.theta"``, ``"<body>.omega"`` -- absolute angle [rad] and rate [rad/s] of a body;
+    * ``"<body>.<point>.x|y|vx|vy"`` -- position [m] and velocity [m/s] of a point of a body:
+      ``inboard``, ``com`` (centre of mass, deformed for beams) or one of the body's outboard
+      ends (``out`` for a link, the deformed end of a beam);
+    * ``"<hinge>.angle"``, ``"<hinge>.rate"`` -- relative angle [rad] and rate [rad/s] of a
+      hinge (child minus the parent end, elastic slope of a flexible parent included);
+    * every generalised coordinate (``"arm.q1"``, ``"base.x"``) and its rate
+      ``"<coordinate>_dot"``.
+
+Actuators (inputs, added to what the model's own laws apply)
+    * ``"<hinge>.torque"`` -- torque [N m] exerted by the parent on the child across a
+      revolute hinge (every hinge that is not driven or welded; the reaction acts on the
+      parent);
+    * ``"<body>.force_x"``, ``"<body>.force_y"`` [N], ``"<body>.moment"`` [N m] -- force at
+      the centre of mass in global axes and moment, on a rigid body;
+    * ``"<beam>.<coordinate suffix>.force"`` -- generalised force on one modal equation of a
+      beam [N per unit modal coordinate]; a piezo moment pair ``M`` between ``x1`` and ``x2``
+      is the weighted set ``M (phi_i'(x2) - phi_i'(x1))`` over the transverse modes (see
+      :meth:`ctmm.flexible.ModalBeam.mode_slopes`).
+
+Sensors are kinematic: a position-like sensor (angle, position, coordinate) depends on ``q``
+only and its rate counterpart is linear in ``qdot``, ``y_rate = J(q) qdot (+ dy/dt of driven
+motions)``.  :func:`sensor_jacobians` uses this: ``dy/dq`` of a position-like sensor and
+``dy/dqdot`` of a rate sensor are the rate map evaluated on unit rates (exact, no step size);
+only ``dy/dq`` of a rate sensor (zero at rest) is a fourth-order central difference.
+
+Accelerations are not sensors here (they would close an algebraic loop through the sweep).
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import validation
+from ..errors import ModelError, UnknownNameError
+from .model import BUSHING, DRIVEN, REVOLUTE, PlanarModel
+
+__all__ = [
+    "ActuatorInputs",
+    "PlanarPorts",
+    "actuator_inputs",
+    "actuator_names",
+    "actuator_unit",
+    "sensor_jacobians",
+    "sensor_names",
+    "sensor_unit",
+    "sensor_values",
+]
+
+_POINT_PARTS = {"x": (0, 0, "m"), "y": (0, 1, "m"), "vx": (1, 0, "m/s"), "vy": (1, 1, "m/s")}
+_RATE_OF = {"x": "vx", "y": "vy", "theta": "omega", "angle": "rate"}
+
+
+@dataclass(frozen=True)
+class _Sensor:
+    """One resolved sensor: what it reads and whether it is a rate (linear in ``qdot``)."""
+
+    name: str
+    kind: str            # "coordinate", "body_angle", "hinge", "point"
+    index: int           # coordinate index, body index or joint index
+    part: str            # "theta"/"omega", "angle"/"rate", "x"/"y"/"vx"/"vy", "" / "dot"
+    point: str = ""      # point name for kind == "point"
+    unit: str = ""
+
+    @property
+    def is_rate(self) -> bool:
+        return self.part in ("omega", "rate", "vx", "vy", "dot")
+
+
+@dataclass(frozen=True)
+class _Actuator:
+    name: str
+    kind: str            # "hinge", "body", "modal"
+    index: int           # joint index, body index
+    component: int       # 0, 1, 2 (fx, fy, moment) for bodies; modal row for beams
+    unit: str
+
+
+def _unknown(what: str, name: object, model: PlanarModel, known: Mapping) -> UnknownNameError:
+    return UnknownNameError(f"unknown {what} {name!r} of model {model.name!r}; available: "
+                            f"{', '.join(sorted(known)) or '(none)'}")
+
+
+def _body_points(model: PlanarModel, i: int) -> tuple[str, ...]:
+    return ("inboard", "com") + tuple(model.ends[i])
+
+
+def _build(model: PlanarModel) -> tuple[dict, dict]:
+    sensors: dict[str, _Sensor] = {}
+    actuators: dict[str, _Actuator] = {}
+    for i, body in enumerate(model.body_names):
+        sensors[f"{body}.theta"] = _Sensor(f"{body}.theta", "body_angle", i, "theta", unit="rad")
+        sensors[f"{body}.omega"] = _Sensor(f"{body}.omega", "body_angle", i, "omega", unit="rad/s")
+        for point in _body_points(model, i):
+            for part, (_, _, unit) in _POINT_PARTS.items():
+                label = f"{body}.{point}.{part}"
+                sensors[label] = _Sensor(label, "point", i, part, point, unit)
+        if i not in model.beams:
+            for k, part in enumerate(("force_x", "force_y", "moment")):
+                label = f"{body}.{part}"
+                actuators[label] = _Actuator(label, "body", i, k, "N m" if k == 2 else "N")
+        else:
+            for k, suffix in enumerate(model.beams[i].coordinate_suffixes):
+                label = f"{body}.{suffix}.force"
+                actuators[label] = _Actuator(label, "modal", i, k, "N")
+    for j, hinge in enumerate(model.joint_names):
+        kind = model.joint_kind[j]
+        if kind in (REVOLUTE, BUSHING):
+            sensors[f"{hinge}.angle"] = _Sensor(f"{hinge}.angle", "hinge", j, "angle", unit="rad")
+            sensors[f"{hinge}.rate"] = _Sensor(f"{hinge}.rate", "hinge", j, "rate", unit="rad/s")
+            actuators[f"{hinge}.torque"] = _Actuator(f"{hinge}.torque", "hinge", j, 0, "N m")
+        elif kind == DRIVEN:
+            sensors[f"{hinge}.angle"] = _Sensor(f"{hinge}.angle", "hinge", j, "angle", unit="rad")
+            sensors[f"{hinge}.rate"] = _Sensor(f"{hinge}.rate", "hinge", j, "rate", unit="rad/s")
+    for k, coordinate in enumerate(model.coordinates):
+        unit = "m" if coordinate.rsplit(".", 1)[-1] in ("x", "y", "dx", "dy") else (
+            "rad" if coordinate.endswith(".theta") else "1")
+        rate_unit = {"m": "m/s", "rad": "rad/s", "1": "1/s"}[unit]
+        sensors.setdefault(coordinate, _Sensor(coordinate, "coordinate", k, "", unit=unit))
+        sensors[f"{coordinate}_dot"] = _Sensor(f"{coordinate}_dot", "coordinate", k, "dot",
+                                               unit=rate_unit)
+    return sensors, actuators
+
+
+class PlanarPorts:
+    """The sensors and actuators of one model, resolved once (hold one in a time loop).
+
+    Parameters
+    ----------
+    model : PlanarModel
+    """
+
+    def __init__(self, model: PlanarModel) -> None:
+        if not isinstance(model, PlanarModel):
+            raise ModelError(f"model must be a ctmm.planar.PlanarModel, got {model!r}")
+        self.model = model
+        self.sensors, self.actuators = _build(model)
+
+    def check_sensor(self, name: str, what: str = "sensor") -> str:
+        """``name`` if it is a sensor, else an error listing the sensors."""
+        if not isinstance(name, str) or name not in self.sensors:
+            if isinstance(name, str) and name.endswith((".a", ".alpha", ".ax", ".ay")):
+                raise ModelError(f"{what} {name!r}: accelerations are not sensors of planar models "
+                                 "(they would close an algebraic loop through the sweep); measure "
+                                 "positions, angles or rates")
+            raise _unknown(what, name, self.model, self.sensors)
+        return name
+
+    def check_actuator(self, name: str, what: str = "actuator") -> str:
+        """``name`` if it is an actuator, else an error listing the actuators."""
+        if not isinstance(name, str) or name not in self.actuators:
+            if isinstance(name, str) and name.endswith(".torque") and \
+                    name[:-len(".torque")] in self.model.joint_names:
+                raise ModelError(f"{what} {name!r}: hinge {name[:-7]!r} is driven or welded (its "
+                                 "motion is prescribed); only free revolute hinges take a torque input")
+            raise _unknown(what, name, self.model, self.actuators)
+        return name
+
+    def sensor_unit(self, name: str) -> str:
+        """SI unit of sensor ``name``."""
+        return self.sensors[self.check_sensor(name)].unit
+
+    def actuator_unit(self, name: str) -> str:
+        """SI unit of actuator ``name``."""
+        return self.actuators[self.check_actuator(name)].unit
+
+    def resolve(self, names: Sequence[str]) -> list:
+        """The resolved sensors ``names`` (for :meth:`values` in a loop)."""
+        if isinstance(names, str):
+            raise ModelError(f"names must be a sequence of sensor names, got the string {names!r}")
+        return [self.sensors[self.check_sensor(name)] for name in names]
+
+    def values(self, sensors: list, q: np.ndarray, qdot: np.ndarray, t: float) -> np.ndarray:
+        """Values of resolved ``sensors`` (no validation of the state: for inner loops)."""
+        return _evaluate(self.model, sensors, q, qdot, t)
+
+    def inputs(self, values: Mapping[str, float]) -> ActuatorInputs:
+        """Arrange actuator ``values`` (``{actuator name: value}``, SI units) for the sweeps;
+        several entries on one actuator add up."""
+        if not isinstance(values, Mapping):
+            raise ModelError(f"values must be a mapping of actuator name to value, got {values!r}")
+        model = self.model
+        nb = model.n_bodies
+        torque = np.zeros(nb)
+        force = np.zeros((nb, 3))
+        modal: dict[int, np.ndarray] = {}
+        for name, value in values.items():
+            actuator = self.actuators[self.check_actuator(name)]
+            value = validation.finite(f"actuator {name!r}", value)
+            if actuator.kind == "hinge":
+                torque[actuator.index] += value
+            elif actuator.kind == "body":
+                force[actuator.index, actuator.component] += value
+            else:
+                row = modal.setdefault(actuator.index, np.zeros(len(model.modal_index[actuator.index])))
+                row[actuator.component] += value
+        return ActuatorInputs(torque, force, modal)
+
+
+def sensor_names(model: PlanarModel) -> tuple[str, ...]:
+    """Every sensor signal of ``model`` (see the module docstring for the naming)."""
+    return tuple(PlanarPorts(model).sensors)
+
+
+def actuator_names(model: PlanarModel) -> tuple[str, ...]:
+    """Every actuator input of ``model`` (see the module docstring for the naming)."""
+    return tuple(PlanarPorts(model).actuators)
+
+
+def sensor_unit(model: PlanarModel, name: str) -> str:
+    """SI unit of sensor ``name`` of ``model``."""
+    return PlanarPorts(model).sensor_unit(name)
+
+
+def actuator_unit(model: PlanarModel, name: str) -> str:
+    """SI unit of actuator ``name`` of ``model``."""
+    return PlanarPorts(model).actuator_unit(name)
+
+
+# ------------------------------------------------------------------------------------------
+# sensor evaluation
+# ------------------------------------------------------------------------------------------
+def _point_kinematics(model: PlanarModel, q, qdot, t: float) -> dict:
+    """Positions and velocities of every named point: ``{(body, point): (r, v)}``."""
+    pts = model.points(q, qdot, t)
+    theta = pts["theta"]
+    omega = pts["omega"]
+    out = {}
+    for i, body in enumerate(model.body_names):
+        r_in, v_in = pts["inboard"][i], pts["inboard_velocity"][i]
+        out[(i, "inboard")] = (r_in, v_in)
+        out[(i, "com")] = (pts["com"][i], pts["com_velocity"][i])
+        c, s = np.cos(theta[i]), np.sin(theta[i])
+        rotation = np.array([[c, -s], [s, c]])
+        for k, end in enumerate(model.ends[i]):
+            if i in model.beams:
+                local, local_rate = model.beam_point_local(i, k, q, qdot)
+            else:
+                local, local_rate = np.asarray(model.ends[i][end], float), np.zeros(2)
+            r = rotation @ local
+            out[(i, end)] = (r_in + r, v_in + omega[i] * np.array([-r[1], r[0]])
+                             + rotation @ local_rate)
+    return out, theta, omega
+
+
+def _evaluate(model: PlanarModel, sensors: Sequence[_Sensor], q, qdot, t: float) -> np.ndarray:
+    need_points = any(s.kind == "point" for s in sensors)
+    need_angles = any(s.kind in ("body_angle", "hinge") for s in sensors)
+    points = theta = omega = None
+    if need_points:
+        points, theta, omega = _point_kinematics(model, q, qdot, t)
+    elif need_angles:
+        theta, omega = model.body_angles(q, qdot, t)
+    relative = None
+    values = np.empty(len(sensors))
+    for n, sensor in enumerate(sensors):
+        if sensor.kind == "coordinate":
+            values[n] = (qdot if sensor.part == "dot" else q)[sensor.index]
+        elif sensor.kind == "body_angle":
+            values[n] = (omega if sensor.part == "omega" else theta)[sensor.index]
+        elif sensor.kind == "hinge":
+            if relative is None:
+                relative = model.relative_angles(theta, omega, q, qdot)
+            values[n] = relative[1 if sensor.part == "rate" else 0][sensor.index]
+        else:
+            derivative, axis, _ = _POINT_PARTS[sensor.part]
+            values[n] = points[(sensor.index, sensor.point)][derivative][axis]
+    return values
+
+
+def sensor_values(model: PlanarModel, names: Sequence[str], q, qdot, t: float = 0.0) -> np.ndarray:
+    """Values of the sensors ``names`` at the state ``(q, qdot)`` and time ``t``.
+
+    Parameters
+    ----------
+    model : PlanarModel
+    names : sequence of str
+        Sensor names (:func:`sensor_names`).
+    q, qdot : array_like, shape (n_coordinates,)
+        Coordinates [rad, m] and rates.
+    t : float
+        Time [s] (driven hinges).
+
+    Returns
+    -------
+    ndarray, shape (len(names),)
+        In the sensors' units (:func:`sensor_unit`).
+    """
+    q, qdot = model.state(q, qdot)
+    return _evaluate(model, PlanarPorts(model).resolve(names), q, qdot, validation.finite("t", t))
+
+
+def _rate_twin(sensor: _Sensor) -> _Sensor:
+    """The rate sensor whose map ``J(q) qdot`` is the position sensor's Jacobian."""
+    if sensor.is_rate:
+        return sensor
+    part = "dot" if sensor.kind == "coordinate" else _RATE_OF[sensor.part]
+    return _Sensor(sensor.name + "'", sensor.kind, sensor.index, part, sensor.point, sensor.unit)
+
+
+def sensor_jacobians(model: PlanarModel, names: Sequence[str], q, qdot, t: float = 0.0,
+                     *, step: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
+    """Jacobians ``dy/dq`` and ``dy/dqdot`` of the sensors ``names`` at ``(q, qdot, t)``.
+
+    Exact (rate maps on unit rates) except ``dy/dq`` of rate sensors, a fourth-order central
+    difference with relative step ``step`` (zero at rest, where linearisations are usually taken).
+
+    Returns
+    -------
+    dy_dq, dy_dqdot : ndarray, shape (len(names), n_coordinates)
+    """
+    q, qdot = model.state(q, qdot)
+    t = validation.finite("t", t)
+    sensors = PlanarPorts(model).resolve(names)
+    n = model.n_coordinates
+    twins = [_rate_twin(s) for s in sensors]
+    # the rate maps are affine in qdot: J e_k = y(q, e_k) - y(q, 0)
+    base = _evaluate(model, twins, q, np.zeros(n), t)
+    jacobian = np.empty((len(sensors), n))
+    for k in range(n):
+        unit = np.zeros(n)
+        unit[k] = 1.0
+        jacobian[:, k] = _evaluate(model, twins, q, unit, t) - base
+    dy_dq = np.zeros((len(sensors), n))
+    dy_dqdot = np.zeros((len(sensors), n))
+    rates = np.array([s.is_rate for s in sensors], dtype=bool)
+    dy_dq[~rates] = jacobian[~rates]
+    dy_dqdot[rates] = jacobian[rates]
+    if rates.any() and np.any(qdot != 0.0):
+        rate_sensors = [s for s in sensors if s.is_rate]
+        for k in range(n):
+            h = step * max(1.0, abs(q[k]))
+            shifted = []
+            for offset in (-2.0, -1.0, 1.0, 2.0):
+                qk = q.copy()
+                qk[k] += offset * h
+                shifted.append(_evaluate(model, rate_sensors, qk, qdot, t))
+            dy_dq[rates, k] = (shifted[0] - 8.0 * shifted[1] + 8.0 * shifted[2] - shifted[3]) / (12.0 * h)
+    return dy_dq, dy_dqdot
+
+
+# ------------------------------------------------------------------------------------------
+# actuator inputs
+# ------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ActuatorInputs:
+    """Actuator values of one instant, arranged for the sweeps.
+
+    Attributes
+    ----------
+    hinge_torque : ndarray, shape (n_bodies,)
+        Extra torque across each body's inboard hinge [N m] (parent on child).
+    body_force : ndarray, shape (n_bodies, 3)
+        Extra force at the centre of mass (global ``fx, fy`` [N]) and moment [N m] on each body.
+    modal_force : dict of int to ndarray
+        Extra generalised forces on the modal equations of beams, by body index.
+    """
+
+    hinge_torque: np.ndarray
+    body_force: np.ndarray
+    modal_force: Mapping[int, np.ndarray] = field(default_factory=dict)
+
+    def inboard_wrench(self, model: PlanarModel, theta: np.ndarray) -> np.ndarray:
+        """``(fx, fy, moment about the inboard point)`` of the body forces, shape (n_bodies, 3),
+        with the bodies at absolute angles ``theta`` [rad]."""
+        c, s = np.cos(theta), np.sin(theta)
+        rcx = c * model.com[:, 0] - s * model.com[:, 1]
+        rcy = s * model.com[:, 0] + c * model.com[:, 1]
+        f = self.body_force
+        wrench = np.array(f, dtype=np.result_type(f, theta))
+        wrench[:, 2] = rcx * f[:, 1] - rcy * f[:, 0] + f[:, 2]
+        return wrench
+
+
+def actuator_inputs(model: PlanarModel, values: Mapping[str, float]) -> ActuatorInputs:
+    """Arrange actuator ``values`` (``{actuator name: value}``, SI units) of ``model`` for the
+    sweeps (:meth:`PlanarPorts.inputs`)."""
+    return PlanarPorts(model).inputs(values)
