@@ -35,13 +35,15 @@ from typing import Any
 import numpy as np
 
 from .. import validation
-from ..errors import ConvergenceError, SimulationError
+from ..errors import ConvergenceError, ModelError, SimulationError
 from ..schemes import Newmark, Scheme, as_scheme
+from .actuated_newton import ActuatedNewton, InputError, InputMap
 from .guards import check_scheme, divergence_guard, with_partial
 from .integrate import PlanarSimulation, check_store_every, initial_coordinates, step_total, guard_rates
 from .model import PlanarModel
+from .ports import ActuatorInputs
 from .signals import SignalError
-from .sweep import (body_terms, bushing_data, coordinate_accelerations, hinge_torques,
+from .sweep import (accelerations, body_terms, bushing_data, coordinate_accelerations, hinge_torques,
                     riccati_kernel, solve_instant)
 
 
@@ -62,11 +64,15 @@ class _NewtonStep:
         self.kappa = (model.stiffness * bh2 + model.damping * gh)
         self.kappa_t = (model.translational_stiffness * bh2 + model.translational_damping * gh)
 
-    def sweep(self, q, v, t, A, F, x=None):
+    def sweep(self, q, v, t, A, F, x=None, inputs: ActuatorInputs | None = None):
         """Solve the tangent problem linearised about ``(q, v, A, F, qdd = x)``.
 
         Returns the new body accelerations, joint forces and coordinate accelerations.
         """
+        return self.solve(self.linearise(q, v, t, A, F, x), inputs)
+
+    def linearise(self, q, v, t, A, F, x=None) -> dict:
+        """The tangent relations about ``(q, v, A, F, qdd = x)``, before actuator inputs."""
         m = self.model
         bh2, gh = self.bh2, self.gh
         theta, omega = m.body_angles(q, v, t)
@@ -116,15 +122,35 @@ class _NewtonStep:
         alpha_d = [0.0] * m.n_bodies
         for i, _, _, acc in m.driven(t):
             alpha_d[i] = acc
+        return dict(q=q, v=v, x=x, F=F, theta=theta, alpha=alpha, rc=(rcx, rcy), K=K, b=b, E=E.tolist(),
+                    tau_tilde=tau_tilde, alpha_d=alpha_d)
+
+    def solve(self, tangent: dict, inputs: ActuatorInputs | None = None):
+        """One O(n) sweep of the tangent relations of :meth:`linearise` with actuator ``inputs``.
+
+        A body force ``f`` at the centre of mass adds ``-(f, r_C x f + M)`` to ``b`` and, since its
+        moment turns with the body, ``(r_C . f) beta' h^2`` to the third column of ``K`` (as a load).
+        """
+        m = self.model
+        K, b, tau_tilde = tangent["K"], tangent["b"], tangent["tau_tilde"]
+        if inputs is not None:
+            rcx, rcy = tangent["rc"]
+            force = inputs.body_force
+            turn = (rcx * force[:, 0] + rcy * force[:, 1]) * self.bh2
+            K, b = K.copy(), b - inputs.inboard_wrench(m, tangent["theta"])
+            K[:, 8] += turn
+            b[:, 2] -= turn * tangent["alpha"]
+            tau_tilde = tau_tilde + inputs.hinge_torque
         bushing = {}
         if len(m.bushing_bodies):
             xy = m.xy_index
+            x = tangent["x"]
             dd = {j: (x[xy[j, 0]], x[xy[j, 1]]) for j in m.bushing_bodies.tolist()}
-            bushing = bushing_data(m, q, v, tau_tilde, kappa_t=self.kappa_t, kappa_r=self.kappa,
-                                   bh2=bh2, forces=F, translation_acc=dd)
+            bushing = bushing_data(m, tangent["q"], tangent["v"], tau_tilde, kappa_t=self.kappa_t,
+                                   kappa_r=self.kappa, bh2=self.bh2, forces=tangent["F"], translation_acc=dd)
         A_new, F_new, _, translation = riccati_kernel(
-            self.parent, self.kind, K.tolist(), b.tolist(), E.tolist(), self.kappa.tolist(),
-            tau_tilde.tolist(), alpha_d, bushing=bushing)
+            self.parent, self.kind, K.tolist(), b.tolist(), tangent["E"], self.kappa.tolist(),
+            tau_tilde.tolist(), tangent["alpha_d"], bushing=bushing)
         A_new = np.array(A_new)
         return A_new, np.array(F_new), coordinate_accelerations(m, A_new, translation)
 
@@ -139,7 +165,7 @@ def _stepper(model: PlanarModel, position_weight: float, velocity_weight: float)
 def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: float,
                       scheme: Scheme | str | None = None, tolerance: float = 1e-10, max_iterations: int = 20,
                       store_every: int = 1, divergence_bound: float | None = None,
-                      stability_check: str = "warn") -> PlanarSimulation:
+                      stability_check: str = "warn", inputs: InputMap | None = None) -> PlanarSimulation:
     """Implicit DT-TMM (any :mod:`ctmm.schemes` scheme) with Newton iterations per step.
 
     Parameters
@@ -169,7 +195,16 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
         (:meth:`ctmm.schemes.Scheme.stability_limit`: Newmark with ``gamma < 1/2`` is unstable at
         every step, ``2 beta < gamma`` and Wilson-theta with ``theta < 1.37`` are conditionally
         stable) with ``omega_max`` of the linearisation about the initial state, and for
-        resolution (:func:`~ctmm.planar.guards.check_scheme`).
+        resolution (:func:`~ctmm.planar.guards.check_scheme`); with ``inputs``, ``omega_max``
+        includes their state dependence.
+    inputs : callable, optional
+        ``inputs(t, q, qdot) -> ActuatorInputs | None``: actuator values
+        (:func:`ctmm.planar.ports.actuator_inputs`) added to the model's own loads and hinge laws,
+        evaluated at the evaluation time of each step (``t_{n+1}``; ``t_n + theta dt`` for
+        Wilson-theta) and at every Newton iterate; a function of its arguments only (it is
+        called several times per iteration).  The Newton tangent includes their state
+        dependence by directional finite differences (:mod:`ctmm.planar.actuated_newton`), so a
+        stiff feedback closed through ``inputs`` converges like the same law in a hinge.
 
     Returns
     -------
@@ -183,7 +218,8 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
     ConvergenceError
         Naming the step, time, last residual and iteration count.
     SimulationError
-        Divergence or a failing user signal (as :func:`~ctmm.planar.integrate.simulate_rk4`);
+        Divergence, a failing user signal (as :func:`~ctmm.planar.integrate.simulate_rk4`) or
+        ``inputs`` that raise or return something other than finite actuator values;
         every error carries the :class:`PlanarSimulation` stored so far as ``partial_result``.
     """
     scheme = Newmark() if scheme is None else as_scheme(scheme)
@@ -195,9 +231,14 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
     store_every = check_store_every(store_every)
     h = t_final / n_steps
     guard = divergence_guard(model, q, divergence_bound)
-    check_scheme(model, q, v, h, scheme=scheme, policy=stability_check)
+    if inputs is not None and not callable(inputs):
+        raise ModelError(f"inputs must be a callable inputs(t, q, qdot) -> ActuatorInputs | None, got {inputs!r}")
+    actuated = None if inputs is None else ActuatedNewton(model, inputs)
+    closed = None if actuated is None else (
+        lambda m, qk, vk, t: accelerations(m, qk, vk, t, inputs=actuated.evaluate(t, qk, vk)))
+    check_scheme(model, q, v, h, scheme=scheme, policy=stability_check, accelerations=closed)
     family = model.deformable_family
-    first = solve_instant(model, q, v, 0.0)
+    first = solve_instant(model, q, v, 0.0, inputs=None if actuated is None else actuated.evaluate(0.0, q, v))
     xdd, A, F = first.qddot.copy(), first.body_acceleration, first.joint_force
     history = scheme.start_history(q, v, xdd)
     weights = None
@@ -221,15 +262,20 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
             residual = np.inf
             for it in range(1, max_iterations + 1):
                 try:
-                    A, F, x_new = stepper.sweep(q_hat + stepper.bh2 * x, v_hat + stepper.gh * x,
-                                                t_eval, A, F, x)
-                except SignalError:
+                    if actuated is None:
+                        A, F, x_new = stepper.sweep(q_hat + stepper.bh2 * x, v_hat + stepper.gh * x,
+                                                    t_eval, A, F, x)
+                        evaluations += 1
+                    else:
+                        before = actuated.sweeps
+                        A, F, x_new = actuated.iterate(stepper, q_hat, v_hat, t_eval, A, F, x)
+                        evaluations += actuated.sweeps - before
+                except (SignalError, InputError):
                     raise
                 except (SimulationError, np.linalg.LinAlgError) as exc:
                     raise ConvergenceError(
                         f"implicit DT-TMM step {step + 1} (t = {t1:.6g} s): Newton iteration {it} "
                         f"failed ({exc}); last residual {residual:.3e}; reduce dt", time=t1) from exc
-                evaluations += 1
                 residual = float(np.max(np.abs(x_new - x))) if x.size else 0.0
                 x = x_new
                 if not np.isfinite(residual):
