@@ -350,6 +350,22 @@ def test_modal_force_feedback_on_a_beam_converges_at_second_order():
     assert max(run.iterations.mean() for run in runs) <= 3.5
 
 
+def test_the_stability_check_sees_the_feedback_closed_through_inputs():
+    """A stiff proportional elbow torque as inputs raises omega_max like the same spring in the
+    hinge: Wilson-theta(1) just above 2 sqrt 3 is flagged for both, not for the open plant."""
+    kp = 1e4
+    q0, v0 = np.array([-0.6, -0.29]), np.zeros(2)
+    hinge, plain = _two_links(ActuatedHinge("h", kp=kp, reference=0.3)), _two_links(SmoothHinge("h"))
+    dt = 1.1 * 2.0 * math.sqrt(3.0) / linearised_omega_max(hinge, q0, v0)
+    for model, extra in ((hinge, {}), (plain, {"inputs": _pd_inputs(plain, kp, 0.0)})):
+        with pytest.raises(ModelError, match=r"WilsonTheta\(theta=1.0\) .* only conditionally stable"):
+            simulate_implicit(model, q0, v0, t_final=dt, dt=dt, scheme=WilsonTheta(1.0), stability_check="error",
+                              **extra)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        simulate_implicit(plain, q0, v0, t_final=dt, dt=dt, scheme=WilsonTheta(1.0), stability_check="error")
+
+
 def test_inputs_errors_name_the_time_and_keep_the_partial_result():
     model = _two_links(SmoothHinge("h"))
     ports = PlanarPorts(model)

@@ -26,6 +26,10 @@ current iterate with ``d theta = beta' h^2 d alpha``, ``d omega = gamma' h d alp
 linearised relations keep the transfer form (only the third column of ``X`` and of ``K``
 change), so each Newton iteration is one O(n) Riccati sweep (:func:`riccati_kernel`) with a
 non-symmetric articulated matrix.  Convergence is quadratic.
+
+Actuator inputs (``inputs=``, :mod:`ctmm.planar.ports`) enter the tangent sweep like loads
+(:meth:`_NewtonStep.solve`); their state dependence is added to the Newton tangent by
+:mod:`ctmm.planar.actuated_newton`.
 """
 from __future__ import annotations
 
