@@ -29,6 +29,18 @@ scheme                    unknown ``x``           evaluation level
 
 The coefficients are derived in ``docs/schemes.md``; Newmark and Houbolt agree with
 FORMULAS §3.1 (Cramer's ``Newmark.m``/``Houbolt.m``).
+
+Nonlinear second-order form (the planar and flexible stepper, :mod:`ctmm.planar.implicit`).
+:meth:`Scheme.second_order_step` states the same scheme for ``M(q, t) q'' = f(q, q', t)`` with the
+acceleration ``a`` at the evaluation level as unknown (Newton on ``a``):
+
+    q_eval = q_pred + b' h^2 a,     v_eval = v_pred + g' h a,     t_eval = t_n + fraction h
+
+derived from the coefficients above when ``cx = 1`` and ``D = 0`` (``a = C delta``, so
+``b' h^2 = 1/C`` and ``g' h = A/C``); :meth:`Scheme.second_order_update` then calls
+:meth:`Scheme.update` with ``delta = b' h^2 a``.  Newmark and generalized-alpha use the form of
+Arnold & Bruls (2007), which imposes the equations of motion exactly at ``t_{n+1}``
+(``docs/planar.md``, "Every DT-TMM scheme on a planar model").
 """
 from __future__ import annotations
 
@@ -49,6 +61,9 @@ class History:
 
     ``x, v, a`` are the values at the last completed step ``t_n``; ``x_old`` keeps
     ``[x_{n-1}, x_{n-2}]`` for multistep schemes; ``steps`` counts completed steps.
+    ``equation_acceleration`` (nonlinear form only, :meth:`Scheme.second_order_update`) is the
+    acceleration that satisfied the equations of motion in the last step; generalized-alpha keeps
+    it apart from its algorithmic acceleration ``a`` (Arnold & Bruls), ``None`` in the chain core.
     """
 
     x: np.ndarray
@@ -56,10 +71,12 @@ class History:
     a: np.ndarray
     x_old: list
     steps: int = 0
+    equation_acceleration: np.ndarray | None = None
 
     def copy(self) -> "History":
+        equation = None if self.equation_acceleration is None else self.equation_acceleration.copy()
         return History(self.x.copy(), self.v.copy(), self.a.copy(), [p.copy() for p in self.x_old],
-                       self.steps)
+                       self.steps, equation)
 
 
 @dataclass(frozen=True)
@@ -84,6 +101,41 @@ class StepCoefficients:
     x_pred: np.ndarray
 
 
+@dataclass(frozen=True)
+class SecondOrderStep:
+    """One step of a scheme on a nonlinear second-order system ``M(q, t) q'' = f(q, q', t)``.
+
+    With the acceleration ``a`` [unit/s^2] that satisfies the equations of motion at the
+    evaluation time ``t_n + time_fraction h`` as the unknown, the coordinates and rates there are
+
+        q_eval = q_predictor + position_weight a,    v_eval = v_predictor + velocity_weight a.
+
+    Attributes
+    ----------
+    q_predictor, v_predictor : ndarray
+        Known parts [unit, unit/s].
+    position_weight : float
+        ``b' h^2`` [s^2].
+    velocity_weight : float
+        ``g' h`` [s]; a hinge law ``k q + c v`` contributes ``kappa = k b' h^2 + c g' h``.
+    time_fraction : float
+        Evaluation time as a fraction of the step [-] (1, or ``theta`` for Wilson-theta).
+    coefficients : StepCoefficients or None
+        The scheme's linearisation the step was derived from (for :meth:`Scheme.update`).
+    known_acceleration : ndarray or None
+        Generalized-alpha (Arnold & Bruls): the known part of the new algorithmic acceleration,
+        ``a_{n+1} = (1 - af)/(1 - am) a + known_acceleration``.
+    """
+
+    q_predictor: np.ndarray
+    v_predictor: np.ndarray
+    position_weight: float
+    velocity_weight: float
+    time_fraction: float
+    coefficients: StepCoefficients | None = None
+    known_acceleration: np.ndarray | None = None
+
+
 class Scheme:
     """Base class of DT-TMM time-integration schemes (frozen dataclasses)."""
 
@@ -102,6 +154,31 @@ class Scheme:
         """Internal forces at ``t_{n+1}`` from those solved at the evaluation level."""
         return f_unknown
 
+    def second_order_step(self, history: History, h: float) -> SecondOrderStep:
+        """The next step of size ``h`` [s] in the nonlinear form (module docstring).
+
+        Derived from :meth:`coefficients`: with ``cx = 1`` and ``D = 0`` the acceleration at the
+        evaluation level is ``a = C delta``, so ``x = x_pred + a / C`` and ``v = B + (A / C) a``.
+        """
+        coefficients = self.coefficients(history, h)
+        if coefficients.cx != 1.0 or np.any(coefficients.D != 0.0):
+            raise ModelError(f"scheme {self!r} has no nonlinear second-order form "
+                             "(its evaluation level mixes two times)")
+        weight = 1.0 / coefficients.C
+        return SecondOrderStep(coefficients.x_pred, coefficients.B, weight, coefficients.A * weight,
+                               coefficients.unknown_offset / h, coefficients)
+
+    def second_order_update(self, history: History, acceleration: np.ndarray, h: float,
+                            step: SecondOrderStep) -> History:
+        """History at ``t_{n+1}`` from the acceleration solved at the evaluation level of ``step``."""
+        new = self.update(history, step.position_weight * acceleration, h, step.coefficients)
+        new.equation_acceleration = acceleration
+        return new
+
+    def start_history(self, x: np.ndarray, v: np.ndarray, a: np.ndarray) -> History:
+        """History at the initial time: state ``x, v`` and the acceleration ``a`` it implies."""
+        return History(x.copy(), v.copy(), a.copy(), [x.copy(), x.copy()], 0, a.copy())
+
     def stability_limit(self) -> float:
         """Largest stable ``omega h`` [-] on an undamped mode: ``inf`` if unconditionally stable.
 
@@ -114,6 +191,31 @@ class Scheme:
 
 def _check_step(h: float) -> float:
     return validation.positive("dt", h)
+
+
+def _arnold_bruls_step(beta: float, gamma: float, alpha_m: float, alpha_f: float, history: History,
+                       h: float) -> SecondOrderStep:
+    """Newmark relations on the algorithmic acceleration ``a`` of Arnold & Bruls (2007).
+
+    ``(1 - am) a_{n+1} + am a_n = (1 - af) q''_{n+1} + af q''_n`` with the equations of motion
+    exact at ``t_{n+1}``; ``a_{n+1} = f q''_{n+1} + a_known`` with ``f = (1 - af)/(1 - am)``.
+    """
+    h = _check_step(h)
+    q, v, a = history.x, history.v, history.a
+    xdd = a if history.equation_acceleration is None else history.equation_acceleration
+    a_known = (alpha_f * xdd - alpha_m * a) / (1.0 - alpha_m)
+    fac = (1.0 - alpha_f) / (1.0 - alpha_m)
+    q_hat = q + h * v + h * h * (0.5 - beta) * a + beta * h * h * a_known
+    v_hat = v + h * (1.0 - gamma) * a + gamma * h * a_known
+    return SecondOrderStep(q_hat, v_hat, beta * fac * h * h, gamma * fac * h, 1.0, known_acceleration=a_known)
+
+
+def _arnold_bruls_update(history: History, acceleration: np.ndarray, step: SecondOrderStep,
+                         fac: float) -> History:
+    return History(step.q_predictor + step.position_weight * acceleration,
+                   step.v_predictor + step.velocity_weight * acceleration,
+                   fac * acceleration + step.known_acceleration,
+                   [history.x, history.x_old[0]], history.steps + 1, acceleration)
 
 
 @dataclass(frozen=True)
@@ -161,6 +263,13 @@ class Newmark(Scheme):
         x_pred, v_pred, A, C = self._predictor(history, h)
         return History(x_pred + delta, v_pred + A * delta, C * delta, [history.x, history.x_old[0]],
                        history.steps + 1)
+
+    def second_order_step(self, history: History, h: float) -> SecondOrderStep:
+        """Arnold & Bruls' form with ``alpha_m = alpha_f = 0``: ``b' = beta``, ``g' = gamma``."""
+        return _arnold_bruls_step(self.beta, self.gamma, 0.0, 0.0, history, h)
+
+    def second_order_update(self, history, acceleration, h, step):
+        return _arnold_bruls_update(history, acceleration, step, 1.0)
 
 
 @dataclass(frozen=True)
@@ -212,6 +321,19 @@ class GeneralizedAlpha(Scheme):
 
     def update(self, history, delta, h, coeffs):
         return self._newmark().update(history, delta, h, coeffs)
+
+    def second_order_step(self, history: History, h: float) -> SecondOrderStep:
+        """Arnold & Bruls' form: ``b' = beta (1 - af)/(1 - am)``, ``g' = gamma (1 - af)/(1 - am)``.
+
+        The equations of motion hold exactly at ``t_{n+1}`` (no mixed evaluation level), which
+        is what a nonlinear stepper needs; same order (2) and spectral radius ``rho_infinity``
+        as Chung & Hulbert's form on linear systems.
+        """
+        return _arnold_bruls_step(self.beta, self.gamma, self.alpha_m, self.alpha_f, history, h)
+
+    def second_order_update(self, history, acceleration, h, step):
+        return _arnold_bruls_update(history, acceleration, step,
+                                    (1.0 - self.alpha_f) / (1.0 - self.alpha_m))
 
     def interpolate_force(self, f_unknown, f_previous):
         # forces solved at n+1-alpha_f: f_eval = (1-af) f_{n+1} + af f_n

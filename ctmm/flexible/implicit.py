@@ -1,10 +1,11 @@
-"""Newton step of the implicit DT-TMM (Newmark / generalized-alpha) for models with modal beams.
+"""Newton step of the implicit DT-TMM (every :mod:`ctmm.schemes` scheme) for models with modal beams.
 
 Per iteration the body relations (:mod:`ctmm.flexible.kernel`) are linearised about the iterate.
 Each body's relations depend nonlinearly only on its own angle, rate, modal coordinates and
 rates, and the integrator ties these to the body's own unknowns:
 ``d theta = beta' h^2 d alpha``, ``d omega = gamma' h d alpha``,
-``d eta = beta' h^2 d eta''``, ``d eta' = gamma' h d eta''`` (``docs/planar.md`` section 4).
+``d eta = beta' h^2 d eta''``, ``d eta' = gamma' h d eta''`` (``docs/planar.md`` sections 4, 4a:
+``beta' h^2`` and ``gamma' h`` are the scheme's ``position_weight`` and ``velocity_weight``).
 The tangent columns ``T = d r / d x_own`` of the residuals
 
 ``r_rows = M x_k + h + sum_e RF_e F_e,k``,   ``r_kin,e = Kin_e x_k + c_e``
@@ -96,11 +97,15 @@ class FlexibleNewtonStep:
             cache[j] = [c for c in range(self.S.nb) if self.S.parent[c] == j]
         return cache[j]
 
-    def sweep(self, q, v, t, A=None, F=None, x=None):
+    def sweep(self, q, v, t, A=None, F=None, x=None, inputs=None):
         """One Newton iteration about ``(q, v)`` (the integrator's state for the iterate).
 
         Returns ``(A_new (nb, 3), F_new (nb, 3), qddot_new)`` like the rigid stepper.
         """
+        return self.solve(self.linearise(q, v, t), inputs)
+
+    def linearise(self, q, v, t, A=None, F=None, x=None) -> dict:
+        """The tangent relations about ``(q, v)`` and the last solution, before actuator inputs."""
         S = self.S
         if self.last is None:
             self.start(q, v, t)
@@ -109,7 +114,33 @@ class FlexibleNewtonStep:
         tau = S.hinge_torques(q, v, theta, omega, t)
         rel = np.array([x_k[j][2] - AO_k[j][2] for j in range(S.nb)])
         tau_tilde = tau + np.array(self.kappa) * rel
-        result = S.sweep(terms, self.kappa, tau_tilde.tolist(), S.driven_alpha(t))
+        return dict(terms=terms, theta=theta, tau_tilde=tau_tilde, x_k=x_k, alpha_d=S.driven_alpha(t))
+
+    def solve(self, tangent: dict, inputs=None):
+        """One sweep of the tangent relations of :meth:`linearise` with actuator ``inputs``
+        (:class:`ctmm.planar.ports.ActuatorInputs`); the solution becomes the next iterate.
+
+        A rigid body's input wrench about its inboard point turns with the body: its angle
+        derivative (complex step, as the body terms) enters the column of ``alpha``.
+        """
+        S = self.S
+        terms, tau_tilde = tangent["terms"], tangent["tau_tilde"]
+        if inputs is not None:
+            x_k = tangent["x_k"]
+            wrench = inputs.inboard_wrench(self.model, tangent["theta"] + 1j * _EPS * self.bh2)
+            terms = [list(term) for term in terms]
+            for j in S.rigid:
+                turn = wrench[j].imag / _EPS                     # d wrench / d alpha
+                M = terms[j][0].copy()
+                M[:, 2] -= turn
+                terms[j][0] = M
+                terms[j][1] = terms[j][1] - wrench[j].real + turn * x_k[j][2]
+            for j, force in inputs.modal_force.items():
+                h = terms[j][1].copy()
+                h[3:] -= force
+                terms[j][1] = h
+            tau_tilde = tau_tilde + inputs.hinge_torque
+        result = S.sweep(terms, self.kappa, tau_tilde.tolist(), tangent["alpha_d"])
         self.last = result
         x, F_new, _, _ = result
         A_new = np.array([xj[:3] for xj in x])

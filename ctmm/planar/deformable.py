@@ -36,8 +36,17 @@ class DeformableNewtonStep(Protocol):
     def start(self, q: np.ndarray, v: np.ndarray, t: float) -> None:
         """Iterate data from the explicit solution at the initial state."""
 
-    def sweep(self, q: np.ndarray, v: np.ndarray, t: float, A: Any, F: Any, x: np.ndarray) -> tuple:
-        """One Newton sweep: ``(body accelerations, joint forces, new coordinate accelerations)``."""
+    def sweep(self, q: np.ndarray, v: np.ndarray, t: float, A: Any, F: Any, x: np.ndarray,
+              inputs: Any = None) -> tuple:
+        """One Newton sweep: ``(body accelerations, joint forces, new coordinate accelerations)``;
+        ``solve(linearise(q, v, t, A, F, x), inputs)``."""
+
+    def linearise(self, q: np.ndarray, v: np.ndarray, t: float, A: Any, F: Any, x: np.ndarray) -> Any:
+        """The tangent relations about the iterate, before actuator inputs."""
+
+    def solve(self, tangent: Any, inputs: Any = None) -> tuple:
+        """One sweep of ``tangent`` with actuator ``inputs`` (:class:`ctmm.planar.ports.ActuatorInputs`),
+        as :meth:`sweep` returns it; the solution is the next iterate."""
 
 
 class DeformableFamily(Protocol):

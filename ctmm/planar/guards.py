@@ -3,8 +3,10 @@
 Built on :mod:`ctmm.guard` (shared by every ctmm simulator):
 
 * **Before the run** -- :func:`check_scheme` compares the step with the known stability limit of
-  the scheme (classical RK4: ``omega_max h <= 2 sqrt 2``; Newmark-beta and generalized-alpha:
-  :func:`ctmm.guard.newmark_limit`) and warns (:class:`~ctmm.guard.StabilityLimitWarning`),
+  the scheme (classical RK4: ``omega_max h <= 2 sqrt 2``; every :mod:`ctmm.schemes` scheme by its
+  :meth:`~ctmm.schemes.Scheme.stability_limit`: Newmark-beta :func:`ctmm.guard.newmark_limit`,
+  Wilson-theta :func:`ctmm.guard.wilson_limit`, backward Euler, Houbolt and generalized-alpha
+  unconditionally stable) and warns (:class:`~ctmm.guard.StabilityLimitWarning`),
   raises :class:`~ctmm.errors.ModelError` or does nothing (``stability_check="warn" | "error" |
   "ignore"``).  ``omega_max`` [rad/s] is the spectral radius of the linearisation of
   ``y' = [qdot, qddot(q, qdot, t)]`` about the initial state (central differences of the
@@ -29,6 +31,7 @@ import numpy as np
 
 from ..errors import ModelError, SimulationError
 from ..guard import RK4_LIMIT, DivergenceGuard, StabilityLimitWarning, check_step, newmark_limit
+from ..schemes import Newmark, Scheme
 from .model import PlanarModel
 
 __all__ = ["STABILITY_CHECKS", "linearised_omega_max", "check_scheme", "divergence_guard", "check_stored",
@@ -92,15 +95,18 @@ def linearised_omega_max(model: PlanarModel | None, q: np.ndarray, qdot: np.ndar
     return (fastest, math.nan) if slowest else fastest
 
 
-def check_scheme(model: PlanarModel | None, q0: np.ndarray, qdot0: np.ndarray, dt: float, *, scheme: str,
+def check_scheme(model: PlanarModel | None, q0: np.ndarray, qdot0: np.ndarray, dt: float, *, scheme: str | Scheme,
                  policy: str, beta: float | None = None, gamma: float | None = None,
                  accelerations: Callable | None = None, label: str | None = None) -> str | None:
     """Compare ``dt`` [s] with the stability limit of ``scheme`` before a run (module docstring).
 
     Parameters
     ----------
-    scheme : {"rk4", "newmark"}
-        ``"newmark"`` covers generalized-alpha through its ``beta`` and ``gamma``.
+    scheme : {"rk4", "newmark"} or ctmm.schemes.Scheme
+        A scheme object is checked against :meth:`~ctmm.schemes.Scheme.stability_limit`
+        (Newmark-beta: :func:`ctmm.guard.newmark_limit`; Wilson-theta: :func:`ctmm.guard.wilson_limit`;
+        backward Euler, Houbolt and generalized-alpha: unconditionally stable, so only the
+        resolution check applies).  ``"newmark"`` takes ``beta`` and ``gamma``.
     policy : {"warn", "error", "ignore"}
         The ``stability_check`` option.
     beta, gamma : float, optional
@@ -119,7 +125,11 @@ def check_scheme(model: PlanarModel | None, q0: np.ndarray, qdot0: np.ndarray, d
         raise ModelError(f"stability_check must be one of {STABILITY_CHECKS}, got {policy!r}")
     if policy == "ignore":
         return None
-    if scheme == "rk4":
+    if isinstance(scheme, Newmark):
+        scheme, beta, gamma = "newmark", scheme.beta, scheme.gamma
+    if isinstance(scheme, Scheme):
+        limit, what = scheme.stability_limit(), repr(scheme)
+    elif scheme == "rk4":
         limit, what = RK4_LIMIT, "classical RK4"
     else:
         limit, what = newmark_limit(beta, gamma), f"Newmark(beta={beta:g}, gamma={gamma:g})"

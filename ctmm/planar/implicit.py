@@ -1,15 +1,21 @@
-"""Implicit DT-TMM for planar chains and trees: Newmark / generalized-alpha + Newton.
+"""Implicit DT-TMM for planar chains and trees: every :mod:`ctmm.schemes` scheme + Newton.
 
-Each step solves the nonlinear equations of motion at ``t_{n+1}`` with the integrator's
-relations (FORMULAS 3.1, 3.5; Arnold & Bruls' form of generalized-alpha, which keeps the
-equations of motion exact at ``t_{n+1}``):
+Each step solves the nonlinear equations of motion at the scheme's evaluation time
+``t_n + fraction h`` (``t_{n+1}``; ``t_n + theta h`` for Wilson-theta) in the scheme's
+nonlinear second-order form (:meth:`ctmm.schemes.Scheme.second_order_step`,
+``docs/planar.md`` section "Every DT-TMM scheme on a planar model")
 
+``q = q_hat + beta' h^2 qdd``,   ``v = v_hat + gamma' h qdd``
+
+with ``qdd`` the acceleration that satisfies them.  Newmark and generalized-alpha use the form
+of Arnold & Bruls (FORMULAS 3.1, 3.5), which keeps the equations of motion exact at ``t_{n+1}``:
 ``a_{n+1} = ((1 - af) qdd_{n+1} + af qdd_n - am a_n) / (1 - am)``,
 ``q_{n+1} = q_n + h v_n + h^2 (1/2 - beta) a_n + h^2 beta a_{n+1}``,
-``v_{n+1} = v_n + h (1 - gamma) a_n + h gamma a_{n+1}``
-
-so ``q = q_hat + beta' h^2 qdd`` and ``v = v_hat + gamma' h qdd`` with
+``v_{n+1} = v_n + h (1 - gamma) a_n + h gamma a_{n+1}``, so
 ``beta' = beta (1-af)/(1-am)``, ``gamma' = gamma (1-af)/(1-am)`` (Newmark: ``am = af = 0``).
+Backward Euler (``forward_euler``, the book's name): ``beta' = gamma' = 1``; Wilson-theta:
+``beta' h^2 = tau^2/6``, ``gamma' h = tau/2`` at ``tau = theta h``; Houbolt: ``beta' h^2 = h^2/2``,
+``gamma' h = 11 h/12`` after two average-acceleration start-up steps.
 
 Hinge laws are linear in the hinge angle and rate, hence exactly implicit:
 ``tau = tau_tilde - kappa alpha`` with ``kappa = k beta' h^2 + c gamma' h`` (FORMULAS 3.4).
@@ -20,6 +26,10 @@ current iterate with ``d theta = beta' h^2 d alpha``, ``d omega = gamma' h d alp
 linearised relations keep the transfer form (only the third column of ``X`` and of ``K``
 change), so each Newton iteration is one O(n) Riccati sweep (:func:`riccati_kernel`) with a
 non-symmetric articulated matrix.  Convergence is quadratic.
+
+Actuator inputs (``inputs=``, :mod:`ctmm.planar.ports`) enter the tangent sweep like loads
+(:meth:`_NewtonStep.solve`); their state dependence is added to the Newton tangent by
+:mod:`ctmm.planar.actuated_newton`.
 """
 from __future__ import annotations
 
@@ -30,30 +40,19 @@ import numpy as np
 
 from .. import validation
 from ..errors import ConvergenceError, ModelError, SimulationError
+from ..schemes import Newmark, Scheme, as_scheme
+from .actuated_newton import ActuatedNewton, InputError, InputMap
 from .guards import check_scheme, divergence_guard, with_partial
 from .integrate import PlanarSimulation, check_store_every, initial_coordinates, step_total, guard_rates
 from .model import PlanarModel
+from .ports import ActuatorInputs
 from .signals import SignalError
-from .sweep import (body_terms, bushing_data, coordinate_accelerations, hinge_torques,
+from .sweep import (accelerations, body_terms, bushing_data, coordinate_accelerations, hinge_torques,
                     riccati_kernel, solve_instant)
 
 
 def name_of(scheme: Any) -> str:
     return type(scheme).__name__.lower()
-
-
-def _scheme_parameters(scheme: Any) -> tuple[float, float, float, float]:
-    try:
-        beta, gamma = float(scheme.beta), float(scheme.gamma)
-    except AttributeError:
-        raise ModelError(f"scheme must have beta and gamma (Newmark or GeneralizedAlpha), "
-                         f"got {scheme!r}") from None
-    am = float(getattr(scheme, "alpha_m", 0.0))
-    af = float(getattr(scheme, "alpha_f", 0.0))
-    if not (beta > 0 and gamma >= 0 and am < 1 and af < 1):
-        raise ModelError(f"scheme parameters out of range: beta={beta}, gamma={gamma}, "
-                         f"alpha_m={am}, alpha_f={af}")
-    return beta, gamma, am, af
 
 
 class _NewtonStep:
@@ -69,11 +68,15 @@ class _NewtonStep:
         self.kappa = (model.stiffness * bh2 + model.damping * gh)
         self.kappa_t = (model.translational_stiffness * bh2 + model.translational_damping * gh)
 
-    def sweep(self, q, v, t, A, F, x=None):
+    def sweep(self, q, v, t, A, F, x=None, inputs: ActuatorInputs | None = None):
         """Solve the tangent problem linearised about ``(q, v, A, F, qdd = x)``.
 
         Returns the new body accelerations, joint forces and coordinate accelerations.
         """
+        return self.solve(self.linearise(q, v, t, A, F, x), inputs)
+
+    def linearise(self, q, v, t, A, F, x=None) -> dict:
+        """The tangent relations about ``(q, v, A, F, qdd = x)``, before actuator inputs."""
         m = self.model
         bh2, gh = self.bh2, self.gh
         theta, omega = m.body_angles(q, v, t)
@@ -123,24 +126,51 @@ class _NewtonStep:
         alpha_d = [0.0] * m.n_bodies
         for i, _, _, acc in m.driven(t):
             alpha_d[i] = acc
+        return dict(q=q, v=v, x=x, F=F, theta=theta, alpha=alpha, rc=(rcx, rcy), K=K, b=b, E=E.tolist(),
+                    tau_tilde=tau_tilde, alpha_d=alpha_d)
+
+    def solve(self, tangent: dict, inputs: ActuatorInputs | None = None):
+        """One O(n) sweep of the tangent relations of :meth:`linearise` with actuator ``inputs``.
+
+        A body force ``f`` at the centre of mass adds ``-(f, r_C x f + M)`` to ``b`` and, since its
+        moment turns with the body, ``(r_C . f) beta' h^2`` to the third column of ``K`` (as a load).
+        """
+        m = self.model
+        K, b, tau_tilde = tangent["K"], tangent["b"], tangent["tau_tilde"]
+        if inputs is not None:
+            rcx, rcy = tangent["rc"]
+            force = inputs.body_force
+            turn = (rcx * force[:, 0] + rcy * force[:, 1]) * self.bh2
+            K, b = K.copy(), b - inputs.inboard_wrench(m, tangent["theta"])
+            K[:, 8] += turn
+            b[:, 2] -= turn * tangent["alpha"]
+            tau_tilde = tau_tilde + inputs.hinge_torque
         bushing = {}
         if len(m.bushing_bodies):
             xy = m.xy_index
+            x = tangent["x"]
             dd = {j: (x[xy[j, 0]], x[xy[j, 1]]) for j in m.bushing_bodies.tolist()}
-            bushing = bushing_data(m, q, v, tau_tilde, kappa_t=self.kappa_t, kappa_r=self.kappa,
-                                   bh2=bh2, forces=F, translation_acc=dd)
+            bushing = bushing_data(m, tangent["q"], tangent["v"], tau_tilde, kappa_t=self.kappa_t,
+                                   kappa_r=self.kappa, bh2=self.bh2, forces=tangent["F"], translation_acc=dd)
         A_new, F_new, _, translation = riccati_kernel(
-            self.parent, self.kind, K.tolist(), b.tolist(), E.tolist(), self.kappa.tolist(),
-            tau_tilde.tolist(), alpha_d, bushing=bushing)
+            self.parent, self.kind, K.tolist(), b.tolist(), tangent["E"], self.kappa.tolist(),
+            tau_tilde.tolist(), tangent["alpha_d"], bushing=bushing)
         A_new = np.array(A_new)
         return A_new, np.array(F_new), coordinate_accelerations(m, A_new, translation)
 
 
+def _stepper(model: PlanarModel, position_weight: float, velocity_weight: float):
+    family = model.deformable_family
+    if family is not None:
+        return family.newton_step(model, position_weight, velocity_weight)
+    return _NewtonStep(model, position_weight, velocity_weight)
+
+
 def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: float,
-                      scheme: Any = None, tolerance: float = 1e-10, max_iterations: int = 20,
+                      scheme: Scheme | str | None = None, tolerance: float = 1e-10, max_iterations: int = 20,
                       store_every: int = 1, divergence_bound: float | None = None,
-                      stability_check: str = "warn") -> PlanarSimulation:
-    """Implicit DT-TMM (Newmark or generalized-alpha) with Newton iterations per step.
+                      stability_check: str = "warn", inputs: InputMap | None = None) -> PlanarSimulation:
+    """Implicit DT-TMM (any :mod:`ctmm.schemes` scheme) with Newton iterations per step.
 
     Parameters
     ----------
@@ -149,8 +179,13 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
         Initial coordinates and rates.
     t_final, dt : float
         End time and step [s]; ``t_final`` a whole multiple of ``dt``.
-    scheme : ctmm.schemes.Newmark or ctmm.schemes.GeneralizedAlpha, optional
-        Default ``Newmark(beta=0.25, gamma=0.5)`` (average acceleration).
+    scheme : ctmm.schemes.Scheme or str, optional
+        A scheme object or its name (:data:`ctmm.schemes.SCHEMES`: ``"forward_euler"`` (backward
+        differences, order 1), ``"newmark"``, ``"wilson_theta"``, ``"houbolt"``,
+        ``"generalized_alpha"``).  Default ``Newmark(beta=0.25, gamma=0.5)`` (average acceleration).
+        Each is used in its nonlinear form (:meth:`ctmm.schemes.Scheme.second_order_step`,
+        ``docs/planar.md``); Wilson-theta imposes the equations of motion at ``t_n + theta dt``
+        (every time-dependent input evaluated there) and interpolates back to ``t_n + dt``.
     tolerance : float
         Newton stops when ``max |delta qdd| <= tolerance * (1 + max |qdd|)``.
     max_iterations : int
@@ -160,10 +195,20 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
     divergence_bound : float, optional
         As in :func:`~ctmm.planar.integrate.simulate_rk4`.
     stability_check : {"warn", "error", "ignore"}
-        Before the run: Newmark with ``gamma < 1/2`` (unstable at every step) or
-        ``2 beta < gamma`` (conditionally stable, ``omega_max h <= 1/sqrt(gamma/2 - beta)``)
-        is checked against ``omega_max`` of the linearisation about the initial state
-        (generalized-alpha through its ``beta`` and ``gamma``: a necessary condition).
+        Before the run: the step is checked against the scheme's stability limit
+        (:meth:`ctmm.schemes.Scheme.stability_limit`: Newmark with ``gamma < 1/2`` is unstable at
+        every step, ``2 beta < gamma`` and Wilson-theta with ``theta < 1.37`` are conditionally
+        stable) with ``omega_max`` of the linearisation about the initial state, and for
+        resolution (:func:`~ctmm.planar.guards.check_scheme`); with ``inputs``, ``omega_max``
+        includes their state dependence.
+    inputs : callable, optional
+        ``inputs(t, q, qdot) -> ActuatorInputs | None``: actuator values
+        (:func:`ctmm.planar.ports.actuator_inputs`) added to the model's own loads and hinge laws,
+        evaluated at the evaluation time of each step (``t_{n+1}``; ``t_n + theta dt`` for
+        Wilson-theta) and at every Newton iterate; a function of its arguments only (it is
+        called several times per iteration).  The Newton tangent includes their state
+        dependence by directional finite differences (:mod:`ctmm.planar.actuated_newton`), so a
+        stiff feedback closed through ``inputs`` converges like the same law in a hinge.
 
     Returns
     -------
@@ -172,16 +217,16 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
 
     Raises
     ------
+    ModelError
+        An unknown scheme name or a scheme without a nonlinear form.
     ConvergenceError
         Naming the step, time, last residual and iteration count.
     SimulationError
-        Divergence or a failing user signal (as :func:`~ctmm.planar.integrate.simulate_rk4`);
+        Divergence, a failing user signal (as :func:`~ctmm.planar.integrate.simulate_rk4`) or
+        ``inputs`` that raise or return something other than finite actuator values;
         every error carries the :class:`PlanarSimulation` stored so far as ``partial_result``.
     """
-    if scheme is None:
-        from ..schemes import Newmark
-        scheme = Newmark()
-    beta, gamma, am, af = _scheme_parameters(scheme)
+    scheme = Newmark() if scheme is None else as_scheme(scheme)
     tolerance = validation.positive("tolerance", tolerance)
     max_iterations = validation.integer("max_iterations", max_iterations, minimum=1)
     store_every = validation.integer("store_every", store_every, minimum=1)
@@ -189,18 +234,19 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
     n_steps = step_total(t_final, dt)
     store_every = check_store_every(store_every)
     h = t_final / n_steps
-    fac = (1.0 - af) / (1.0 - am)
     guard = divergence_guard(model, q, divergence_bound)
-    check_scheme(model, q, v, h, scheme="newmark", policy=stability_check, beta=beta, gamma=gamma)
+    if inputs is not None and not callable(inputs):
+        raise ModelError(f"inputs must be a callable inputs(t, q, qdot) -> ActuatorInputs | None, got {inputs!r}")
+    actuated = None if inputs is None else ActuatedNewton(model, inputs)
+    closed = None if actuated is None else (
+        lambda m, qk, vk, t: accelerations(m, qk, vk, t, inputs=actuated.evaluate(t, qk, vk)))
+    check_scheme(model, q, v, h, scheme=scheme, policy=stability_check, accelerations=closed)
     family = model.deformable_family
-    if family is not None:
-        stepper = family.newton_step(model, beta * fac * h * h, gamma * fac * h)
-        stepper.start(q, v, 0.0)
-    else:
-        stepper = _NewtonStep(model, beta * fac * h * h, gamma * fac * h)
-    first = solve_instant(model, q, v, 0.0)
+    first = solve_instant(model, q, v, 0.0, inputs=None if actuated is None else actuated.evaluate(0.0, q, v))
     xdd, A, F = first.qddot.copy(), first.body_acceleration, first.joint_force
-    a = xdd.copy()
+    history = scheme.start_history(q, v, xdd)
+    weights = None
+    stepper: Any = None
     ts, qs, vs = [0.0], [q.copy()], [v.copy()]
     iterations = np.zeros(n_steps, dtype=int)
     start = _time.perf_counter()
@@ -208,22 +254,32 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
     try:
         for step in range(n_steps):
             t1 = (step + 1) * h
-            a_known = (af * xdd - am * a) / (1.0 - am)
-            q_hat = q + h * v + h * h * (0.5 - beta) * a + beta * h * h * a_known
-            v_hat = v + h * (1.0 - gamma) * a + gamma * h * a_known
+            plan = scheme.second_order_step(history, h)
+            if weights != (plan.position_weight, plan.velocity_weight):   # once, or at a start-up's end
+                weights = (plan.position_weight, plan.velocity_weight)
+                stepper = _stepper(model, *weights)
+                if family is not None:
+                    stepper.start(q, v, step * h)
+            t_eval = t1 if plan.time_fraction == 1.0 else (step + plan.time_fraction) * h
+            q_hat, v_hat = plan.q_predictor, plan.v_predictor
             x = xdd.copy()
             residual = np.inf
             for it in range(1, max_iterations + 1):
                 try:
-                    A, F, x_new = stepper.sweep(q_hat + stepper.bh2 * x, v_hat + stepper.gh * x,
-                                                t1, A, F, x)
-                except SignalError:
+                    if actuated is None:
+                        A, F, x_new = stepper.sweep(q_hat + stepper.bh2 * x, v_hat + stepper.gh * x,
+                                                    t_eval, A, F, x)
+                        evaluations += 1
+                    else:
+                        before = actuated.sweeps
+                        A, F, x_new = actuated.iterate(stepper, q_hat, v_hat, t_eval, A, F, x)
+                        evaluations += actuated.sweeps - before
+                except (SignalError, InputError):
                     raise
                 except (SimulationError, np.linalg.LinAlgError) as exc:
                     raise ConvergenceError(
                         f"implicit DT-TMM step {step + 1} (t = {t1:.6g} s): Newton iteration {it} "
                         f"failed ({exc}); last residual {residual:.3e}; reduce dt", time=t1) from exc
-                evaluations += 1
                 residual = float(np.max(np.abs(x_new - x))) if x.size else 0.0
                 x = x_new
                 if not np.isfinite(residual):
@@ -238,9 +294,8 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
                     f"implicit DT-TMM step {step + 1} (t = {t1:.6g} s) did not converge: residual "
                     f"max|delta qdd| = {residual:.3e} after {it} Newton iterations "
                     f"(tolerance {tolerance:g}); reduce dt", time=t1)
-            q = q_hat + stepper.bh2 * x
-            v = v_hat + stepper.gh * x
-            a = fac * x + a_known
+            history = scheme.second_order_update(history, x, h, plan)
+            q, v = history.x, history.v
             xdd = x
             guard.check(t1, q)
             guard_rates(model, t1, v)
