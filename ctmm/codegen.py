@@ -3,7 +3,7 @@
 Used by the compiled fast paths (:mod:`ctmm.planar.compiled`: hand-written C loaded with
 :mod:`ctypes`; :mod:`ctmm.manipulator.compiled`: casadi-generated C loaded with
 ``casadi.external``) and by :func:`ctmm.control.fmu_build.build_fmu` (compiler lookup, compiler
-runs and the cache folder).
+runs, the cache key of labelled build inputs, :func:`cache_key`, and the cache folder).
 
 Cache folder (:func:`cache_directory`): the ``folder`` argument, else ``$CTMM_CACHE``, else
 ``$XDG_CACHE_HOME/ctmm``, else ``~/.cache/ctmm``; when the default is not writable, the temp folder
@@ -28,11 +28,11 @@ import subprocess
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Iterable, Sequence
 
 from .errors import ModelError
 
-__all__ = ["CompiledLibrary", "DEFAULT_FLAGS", "LINK_FLAGS", "cache_directory", "casadi_source",
+__all__ = ["CompiledLibrary", "DEFAULT_FLAGS", "LINK_FLAGS", "cache_directory", "cache_key", "casadi_source",
            "compiler_identity", "find_compiler", "load_casadi", "load_ctypes", "run_compiler",
            "shared_library"]
 
@@ -102,6 +102,26 @@ def cache_directory(folder: str | os.PathLike | None = None, *, subfolder: str =
         problems.append(f"{candidate}: {problem}")
     raise ModelError("no writable cache folder (" + "; ".join(problems) + "); set $CTMM_CACHE or pass a "
                      "cache folder")
+
+
+def cache_key(key_format: bytes, parts: Iterable[tuple[str, bytes]]) -> str:
+    """SHA-256 (hex) of labelled inputs of a build: the cache key of :func:`shared_library` and
+    :func:`ctmm.control.fmu_build.build_fmu`.
+
+    Each part enters as ``label \\0 length payload`` (length: 8 bytes, little-endian), so no two
+    different lists of parts give the same byte stream.
+
+    Parameters
+    ----------
+    key_format : bytes
+        Version tag of the key layout (changing it invalidates every entry built with another).
+    parts : iterable of (str, bytes)
+        ``(label, payload)`` in a fixed order: sources, compiler identity, flags, headers...
+    """
+    digest = hashlib.sha256(key_format)
+    for label, payload in parts:
+        digest.update(label.encode() + b"\0" + len(payload).to_bytes(8, "little") + payload)
+    return digest.hexdigest()
 
 
 def _writable(path: Path) -> str:
@@ -201,11 +221,8 @@ def shared_library(source: str, name: str, *, flags: Sequence[str] = DEFAULT_FLA
         raise ModelError(f"flags must be a sequence of strings such as ('-O2', '-shared', '-fPIC'), got {flags!r}")
     flags = list(flags)
     compiler_path = find_compiler(compiler)
-    digest = hashlib.sha256(_KEY_FORMAT)
-    for label, payload in (("source", source.encode()), ("compiler", compiler_identity(compiler_path)),
-                           ("flags", "\0".join(flags + list(LINK_FLAGS)).encode())):
-        digest.update(label.encode() + b"\0" + len(payload).to_bytes(8, "little") + payload)
-    key = digest.hexdigest()
+    key = cache_key(_KEY_FORMAT, (("source", source.encode()), ("compiler", compiler_identity(compiler_path)),
+                                  ("flags", "\0".join(flags + list(LINK_FLAGS)).encode())))
     folder = cache_directory(cache_dir, subfolder="kernels")
     entry = folder / f"{name}-{key[:24]}"
     library = entry / f"{name}.so"

@@ -46,7 +46,7 @@ from .assembly import ChainSolution  # noqa: F401
 from .capabilities import refuse_damping, refuse_loops
 from .errors import ModelError
 from .results import ModalResult
-from .roots1d import bisect_count, refine_sign_change
+from .roots1d import bisect_count, count_upper_bound, refine_sign_change
 from .system import Chain
 from .chain_assembly import MatrixCache as _MatrixCache, assemble_body as _assemble_body, subdivided as _subdivided
 
@@ -422,11 +422,8 @@ def natural_frequencies(system: Chain, *, n_modes: int | None = None, omega_max:
     rtol = validation.positive("rtol", rtol)
     if n_modes is not None:
         n_modes = validation.integer("n_modes", n_modes, minimum=1)
-        hi = 1.0
-        while eigenvalue_count(system, [hi])[0] < n_modes:
-            hi *= 2.0
-            if hi > 1e15:
-                raise ModelError(f"chain {system.name!r} has fewer than {n_modes} natural frequencies")
+        hi = count_upper_bound(lambda w: eigenvalue_count(system, w), n_modes, limit=1e15,
+                               what=f"chain {system.name!r}")
         targets = np.arange(1, n_modes + 1)
     else:
         hi = validation.positive("omega_max", omega_max)

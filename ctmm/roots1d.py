@@ -3,6 +3,8 @@
 Two questions about a real variable ``x`` (a frequency [rad/s], a gain, ...) are answered here
 for many brackets at once, each function evaluation taking all active brackets in one call:
 
+* :func:`count_upper_bound` -- a power of two above the ``k``-th root of a counting function
+  (the upper end of the first bracket);
 * :func:`bisect_count` -- the ``k``-th root of a *counting* function (the number of roots
   below ``x``, e.g. Wittrick-Williams): ``root_k = inf{x : count(x) >= k}``, by bisection;
   clustered and repeated roots are handled exactly because only counts are compared.
@@ -22,13 +24,41 @@ import numpy as np
 
 from .errors import ModelError
 
-__all__ = ["bisect_count", "refine_sign_change"]
+__all__ = ["count_upper_bound", "bisect_count", "refine_sign_change"]
 
 
 def _check_rtol(rtol: float) -> float:
     if not (np.isfinite(rtol) and rtol > 0.0):
         raise ModelError(f"rtol must be a finite relative bracket width > 0, got {rtol!r}")
     return float(rtol)
+
+
+def count_upper_bound(count: Callable[[np.ndarray], np.ndarray], target: int, *, limit: float, what: str) -> float:
+    """Smallest ``x = 2^m`` (``m >= 0``) with ``count(x) >= target``, by doubling from 1.
+
+    Parameters
+    ----------
+    count : callable
+        ``count(x)`` -> integer array: number of roots below each ``x`` (units of ``x``).
+    target : int
+        Number of roots the bound must lie above, >= 1.
+    limit : float
+        Largest ``x`` tried (units of ``x``); beyond it the roots are taken not to exist.
+    what : str
+        The system named in the error, e.g. ``"chain 'rod'"``.
+
+    Raises
+    ------
+    ModelError
+        ``"<what> has fewer than <target> natural frequencies"`` when ``count`` stays below
+        ``target`` up to ``limit``.
+    """
+    x = 1.0
+    while count(np.array([x]))[0] < target:
+        x *= 2.0
+        if x > limit:
+            raise ModelError(f"{what} has fewer than {target} natural frequencies")
+    return x
 
 
 def bisect_count(count: Callable[[np.ndarray], np.ndarray], targets, lo: np.ndarray, up: np.ndarray,

@@ -27,6 +27,7 @@ from . import validation
 from .assembly import (SOLVERS, BoundaryEnd, BoundaryStart, clamped_start_solve, predicted_forces,
                        shift_forces)
 from .elements.base import Linearisation
+from .elements.beam_time import bending_mesh
 from .elements.lumped import Connector, PointElement
 from .errors import ModelError, SimulationError
 from .guard import DivergenceGuard
@@ -289,12 +290,7 @@ def _scalar_riccati(U12, U21, u0, u1, fixed_start: bool, S0: float, P0: float, e
     rhs[0] += alpha[0] * P0
     P_tail, info = _dtbtrs(lower, rhs, uplo="L")
     P = np.concatenate(([P0], P_tail))
-    cx_, cf_ = end_row
-    cf, ce = (cx_, cf_) if fixed_start else (cf_, cx_)
-    h = cf * S[n] + ce
-    if h == 0.0 or not math.isfinite(h):
-        raise SimulationError("the boundary equations of the step are singular")
-    e_n = (end_b - cf * P[n]) / h
+    e_n = _end_unknown(end_row, end_b, fixed_start, S[n], P[n])
     c = -(a21 * P[:n] + v2) / G
     c[n - 1] += e_n / G[n - 1]
     E_head, info = _dtbtrs(upper, c, uplo="U")
@@ -348,6 +344,17 @@ def _dtbtrs(band: np.ndarray, rhs: np.ndarray, uplo: str):
     return x, info
 
 
+def _end_unknown(end_row, end_b: float, fixed_start: bool, S_n: float, P_n: float) -> float:
+    """End unknown ``e`` of the sweep: ``Bm = [cf, ce]`` on ``(f, e)``, ``f = S e + P`` -> ``(cf S + ce) e = b - cf P``
+    (``end_row``: coefficients of (x, force); ``(f, e) = (x, force)`` if ``fixed_start``, else swapped)."""
+    cx_, cf_ = end_row
+    cf, ce = (cx_, cf_) if fixed_start else (cf_, cx_)
+    h = cf * S_n + ce
+    if h == 0.0 or not math.isfinite(h):
+        raise SimulationError("the boundary equations of the step are singular")
+    return (end_b - cf * P_n) / h
+
+
 def _scalar_sweeps_python(a21, S, G, alpha, v1, v2, P0, end_row, end_b, fixed_start, cache):
     """The two sweeps of :func:`_scalar_riccati` on Python floats (fast for short chains)."""
     n = len(G)
@@ -360,13 +367,7 @@ def _scalar_sweeps_python(a21, S, G, alpha, v1, v2, P0, end_row, end_b, fixed_st
     for j in range(n):  # affine Riccati recursion P_j = alpha_j P_{j-1} + v1 - S_j v2
         p = alphal[j] * p + v1l[j] - Sl[j + 1] * v2l[j]
         Pl.append(p)
-    # end: Bm = [cf, ce] on (f, e) -> (cf S + ce) e = b - cf P
-    cx_, cf_ = end_row
-    cf, ce = (cx_, cf_) if fixed_start else (cf_, cx_)
-    h = cf * Sl[n] + ce
-    if h == 0.0 or not math.isfinite(h):
-        raise SimulationError("the boundary equations of the step are singular")
-    e = (end_b - cf * Pl[n]) / h
+    e = _end_unknown(end_row, end_b, fixed_start, Sl[n], Pl[n])
     El = [0.0] * (n + 1)
     El[n] = e
     for j in range(n, 0, -1):  # back-substitution e_{j-1} = (e_j - a21 P_{j-1} - v2) / G_j
@@ -463,6 +464,8 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
     progress = validation.flag("progress", progress, optional=True)
     force_hook = validation.callable_or_none("force_hook", force_hook)
     scheme = as_scheme(scheme)
+    original, mesh = system, bending_mesh(system, dt, (force_hook, _step, _before_step, _after_step))
+    system, rows = (mesh.chain, mesh.rows) if mesh else (system, slice(None))
     lumped = all(isinstance(e, (PointElement, Connector)) for e in system.body) and system.layout.size == 2
     fast = (lumped and solver == "riccati") if fast is None else fast
     if fast and not (lumped and solver == "riccati"):
@@ -473,28 +476,28 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
     n_steps = int(round((t_final - t0) / dt))
     if n_steps < 1 or abs(n_steps * dt - (t_final - t0)) > 1e-9 * max(1.0, abs(t_final)):
         raise ModelError(f"(t_final - t0) = {t_final - t0!r} s must be a whole number of steps dt={dt!r} (>= 1)")
-    x, v = initial_state(system, x0, v0)
+    x, v = mesh.initial_state(x0, v0) if mesh else initial_state(system, x0, v0)
     check_scheme_step(system, scheme, dt, stability_check)
-    guard = DivergenceGuard.from_start(point_labels(system), rest_positions(system), x[:, 0],
+    guard = DivergenceGuard.from_start(point_labels(system), 0 * x[:, 0] if mesh else rest_positions(system), x[:, 0],
                                        bound=divergence_bound, hint=_divergence_hint)
     n_pts = system.n_points
     d = system.layout.half
     times = t0 + dt * np.arange(n_steps + 1)
     states = np.full((n_steps + 1, n_pts, system.layout.size), np.nan)
-    vel = np.full((n_steps + 1, n_pts, d), np.nan)
-    acc = np.full((n_steps + 1, n_pts, d), np.nan)
+    vel, acc = (np.full((n_steps + 1, n_pts, d), np.nan) for _ in range(2))
     done = 0                                 # rows of the result that are complete
     started = _time.perf_counter()
     bar = progress_bar(n_steps, f"simulate {system.name}", enabled=progress)
     try:
         extra0 = force_hook(t0, dt, 0.0, History(x, v, np.zeros_like(x), [x, x])) if force_hook else {}
-        a = initial_acceleration(system, x, v, t0, extra0)
+        discrete = None if fast else [e.discretize(scheme) for e in system.body]
+        motion = mesh.initial_motion(discrete, x, v, t0, extra0) if mesh else None
+        a = motion[0] if mesh else initial_acceleration(system, x, v, t0, extra0)
         history = History(x.copy(), v.copy(), a.copy(), [x.copy(), x.copy()], 0)
         states[0, :, :d], vel[0], acc[0] = x, v, a
-        states[0, :, d] = initial_forces(system, x, v, extra0, a, t0)
+        states[0, :, d:2 * d] = motion[1] if mesh else initial_forces(system, x, v, extra0, a, t0)[:, None]
         done = 1
         kernel = _LumpedKernel(system) if fast else None
-        discrete = None if fast else [e.discretize(scheme) for e in system.body]
         cache: dict = {}
         for i in range(n_steps):
             t_n = times[i]
@@ -525,17 +528,16 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
                                       element=system.name) from exc
             bad = ~(np.isfinite(x_new) & np.isfinite(f_new))
             if np.any(bad):
-                point = int(np.flatnonzero(bad)[0])
+                point = int(np.flatnonzero(bad)[0]) // d
                 name = system.elements[min(point + 1, len(system.elements) - 1)].name
                 raise SimulationError(f"non-finite state at t = {times[i + 1]:.6g} s at the point "
                                       f"{system.point_names()[point]!r} (element {name!r})"
                                       + (f"; {_divergence_hint}" if _divergence_hint else ""),
                                       time=float(times[i + 1]), element=name)
-            f_prev = states[i, :, d]
-            history = scheme.update(history, x_new[:, None], dt, coeffs)  # x_new is the correction
+            history = scheme.update(history, x_new.reshape(n_pts, d), dt, coeffs)  # x_new is the correction
             guard.check(float(times[i + 1]), history.x[:, 0])
             states[i + 1, :, :d] = history.x
-            states[i + 1, :, d] = scheme.interpolate_force(f_new, f_prev)
+            states[i + 1, :, d:2 * d] = scheme.interpolate_force(f_new.reshape(n_pts, d), states[i, :, d:2 * d])
             vel[i + 1], acc[i + 1] = history.v, history.a
             if _after_step is not None:
                 _after_step(i + 1, float(times[i + 1]), history, states[i + 1])
@@ -547,14 +549,15 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
             exc.args = (f"{exc.args[0] if exc.args else exc} (step to t = {exc.time:.6g} s)",) + exc.args[1:]
         if exc.partial_result is None:
             exc.partial_result = SimulationResult(
-                times[:done], states[:done], vel[:done], acc[:done], _system_for_result or system, scheme.name,
-                {"n_steps": done - 1, "dt": dt, "failed_at_s": exc.time})
+                times[:done], states[:done, rows], vel[:done, rows], acc[:done, rows], _system_for_result or original,
+                scheme.name, {"n_steps": done - 1, "dt": dt, "failed_at_s": exc.time})
         raise
     finally:
         bar.close()
     info = {"wall_time_s": _time.perf_counter() - started, "n_steps": n_steps, "dt": dt,
             "path": "lumped-fast" if fast else f"generic-{solver}"}
-    return SimulationResult(times, states, vel, acc, _system_for_result or system, scheme.name, info)
+    return SimulationResult(times, states[:, rows], vel[:, rows], acc[:, rows], _system_for_result or original,
+                            scheme.name, info)
 
 
 def initial_forces(system: Chain, x: np.ndarray, v: np.ndarray,
@@ -676,7 +679,7 @@ def _generic_step(system, discrete, coeffs, t_n, dt, w, t_eval, extra, solver):
         xi, phi, reference = _generic_solve(system, discrete, around, t_n, dt, w, t_eval, extra, solver)
         x_part = x_part + xi
         forces = phi + reference
-    return x_part, forces[:, 0].copy()
+    return x_part, (forces[:, 0] if d == 1 else forces).copy()
 
 
 def _generic_solve(system, discrete, coeffs, t_n, dt, w, t_eval, extra, solver):
@@ -686,10 +689,7 @@ def _generic_solve(system, discrete, coeffs, t_n, dt, w, t_eval, extra, solver):
                           pick(coeffs.D, j), pick(coeffs.x_pred, j)) for j in range(system.n_points)]
     Us, us = [], []
     for j, disc in enumerate(discrete, start=1):
-        e = disc.element
-        force = extra.get(j, 0.0)
-        if isinstance(e, PointElement):
-            force += (1.0 - w) * float(e.force(t_n)) + w * float(e.force(t_n + dt))
+        force = extra.get(j, 0.0) + (1.0 - w) * disc.load(t_n) + w * disc.load(t_n + dt)
         U, u = disc.step_matrices(t_eval, lins[j - 1], lins[j], force)
         Us.append(np.asarray(U, dtype=float)[None])
         us.append(np.asarray(u, dtype=float).reshape(1, -1))

@@ -146,3 +146,13 @@ def test_losing_a_publish_race_uses_the_winner(tmp_path, monkeypatch):
     assert winners[0].built and not loser.built and loser.path == winners[0].path
     assert _twice(loser.path) == 42
     assert [p.name for p in (tmp_path / "kernels").iterdir()] == [loser.path.parent.name]
+
+
+def test_cache_key_frames_each_labelled_part():
+    expected = hashlib.sha256(b"fmt/1" + b"source\0" + (3).to_bytes(8, "little") + b"abc"
+                              + b"flags\0" + (0).to_bytes(8, "little")).hexdigest()
+    assert codegen.cache_key(b"fmt/1", [("source", b"abc"), ("flags", b"")]) == expected
+    # moving bytes between label and payload, or between parts, changes the key
+    keys = {codegen.cache_key(b"fmt/1", parts) for parts in ([("ab", b"c")], [("a", b"bc")], [("a", b"b"), ("c", b"")])}
+    assert len(keys) == 3
+    assert codegen.cache_key(b"fmt/2", [("source", b"abc"), ("flags", b"")]) != expected

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from ctmm.control.cosim import CoSimulation, sample_ratio
+from ctmm.control.cosim import CoSimulation, check_wiring, sample_ratio
 from ctmm.control.history import DelayHistory
 from ctmm.control.protocol import ControllerStep
 from ctmm.errors import ModelError, SimulationError
@@ -105,8 +105,8 @@ def test_array_samples_are_copied_and_bad_parameters_refused():
 class Recorder:
     """``u = y`` sampled every ``sample_time``; remembers its calls and whether it was closed."""
 
-    def __init__(self, inputs=("x",), sample_time=None, direct_feedthrough=False, fail=None):
-        self.inputs, self.outputs = tuple(inputs), ("u",)
+    def __init__(self, inputs=("x",), sample_time=None, direct_feedthrough=False, fail=None, outputs=("u",)):
+        self.inputs, self.outputs = tuple(inputs), tuple(outputs)
         self.sample_time, self.direct_feedthrough, self.fail = sample_time, direct_feedthrough, fail
         self.calls, self.closed = [], None
 
@@ -189,6 +189,28 @@ def test_a_failing_init_is_named_and_closes_the_controllers_already_started():
         CoSimulation([first, Recorder(fail="init")], 0.01, 0.5)
     assert first.closed == 0
 
+
+
+def test_wiring_is_checked_by_name_and_held_outputs_are_read_by_actuator_name():
+    signals, actuators = ("hub.theta", "p1.slope"), ("motor.torque", "p1.voltage", "p2.voltage")
+    a = Recorder(("hub.theta",), outputs=("p2.voltage",))
+    b = Recorder(("p1.slope",), sample_time=0.02, outputs=("motor.torque",))
+    assert check_wiring([a, b], signals, actuators, 0.01) == {"p2.voltage", "motor.torque"}
+    bad = [Recorder(("hub.angle",), outputs=("p2.voltage",)),
+           Recorder(("hub.theta",), sample_time=0.015, outputs=("p2.voltage", "motor.force"))]
+    with pytest.raises(ModelError) as info:
+        check_wiring(bad, signals, actuators, 0.01, what="test controllers")
+    lines = str(info.value).splitlines()
+    assert lines[0] == "test controllers are invalid:" and len(lines) == 5       # every problem, one per line
+    assert "unknown input of controller 0 'hub.angle'; available: hub.theta, p1.slope" in lines[1]
+    assert "'p2.voltage' is written by controllers 0 and 1" in lines[2]
+    assert "unknown output of controller 1 'motor.force'; available: motor.torque, p1.voltage" in lines[3]
+    assert "controller 1: sample_time 0.015 must be a whole multiple of dt = 0.01" in lines[4]
+    master = CoSimulation([a, b], 0.01, 0.0)
+    np.testing.assert_array_equal(master.held_values(actuators), [0.0, 0.0, 0.0])
+    master.sample(0, 0.0, lambda i: np.array([1.5 + i]))          # a sees 1.5, b sees 2.5
+    master.sample(1, 0.01, lambda i: np.array([-4.0]))             # only a is due
+    np.testing.assert_array_equal(master.held_values(actuators), [2.5, 0.0, -4.0])      # unwritten: 0
 
 
 def test_the_manipulator_holds_and_records_its_controller_samples():

@@ -109,3 +109,15 @@ def test_controller_failing_at_the_first_sample_gives_an_empty_partial_result(sy
         system.simulate(0.01, 0.002, method=method, controllers=[_Torque(0.0, "raise")])
     partial = info.value.partial_result
     assert partial.t.size == 0 and partial.q.shape == (0, 3) and partial.peak_voltage == 0.0
+
+
+def test_both_manipulator_models_refuse_a_pzt_law_that_does_not_fit():
+    from ctmm.manipulator import LinearManipulator
+
+    seed = seed_manipulator()
+    for make in (lambda pzt: FlexibleManipulator(seed, HubPD(SEED_KP, SEED_KD), pzt, SEED_MOVE),
+                 lambda pzt: LinearManipulator(seed, HubPD(SEED_KP, SEED_KD), pzt)):
+        with pytest.raises(ModelError, match="pzt gains are for 2 patches, the manipulator has 3"):
+            make(PZTFeedback(np.eye(2)))
+        with pytest.raises(ModelError, match="pzt must be a PZTFeedback or None, got 'fast'"):
+            make("fast")

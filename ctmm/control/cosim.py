@@ -16,6 +16,10 @@ signal a name reads and where an output acts -- and the master owns the timing:
   number of outputs or a non-finite value stops the run with a
   :class:`~ctmm.errors.SimulationError` naming the controller and the time (:mod:`ctmm.guard`);
 * every sample is recorded (``"<output>@samples"``: sample time [s], value).
+
+A stepper whose signals and actuators are a fixed list of names (the manipulator) checks the
+wiring with :func:`check_wiring` and reads the held outputs by actuator name with
+:meth:`CoSimulation.held_values`.
 """
 from __future__ import annotations
 
@@ -23,10 +27,10 @@ from typing import Any, Callable, Collection, Sequence
 
 import numpy as np
 
-from ..errors import ModelError, SimulationError
+from ..errors import ModelError, SimulationError, unknown_name
 from ..guard import call_user, user_output
 
-__all__ = ["COUPLINGS", "CoSimulation", "sample_ratio"]
+__all__ = ["COUPLINGS", "CoSimulation", "sample_ratio", "check_wiring"]
 
 COUPLINGS = ("hold", "previous")
 
@@ -52,6 +56,56 @@ def sample_ratio(sample_time: float | None, dt: float) -> int:
     if abs(ratio - round(ratio)) > 1e-9 * ratio or round(ratio) < 1:
         raise ModelError(f"sample_time {sample_time!r} must be a whole multiple of dt = {dt!r} (both in s)")
     return int(round(ratio))
+
+
+def check_wiring(controllers: Sequence[Any], signals: Sequence[str], actuators: Sequence[str], dt: float, *,
+                 what: str = "controllers") -> set[str]:
+    """Check that controllers fit a stepper with named signals and actuators; all problems at once.
+
+    Parameters
+    ----------
+    controllers : sequence of Controller
+        Controllers with ``inputs``, ``outputs`` and ``sample_time`` (protocol members already
+        validated, e.g. by :func:`~ctmm.control.protocol.check_controllers`).
+    signals : sequence of str
+        The signal names a controller may read.
+    actuators : sequence of str
+        The actuator names a controller may write.
+    dt : float
+        Time step [s] of the stepper (sample times must be whole multiples of it).
+    what : str
+        How the controllers are named in the message (e.g. ``"manipulator controllers"``).
+
+    Returns
+    -------
+    set of str
+        The actuator names written by the controllers.
+
+    Raises
+    ------
+    ModelError
+        Unknown input or output names (listing the available ones), an actuator written by two
+        controllers, or a sample time that is not a whole multiple of ``dt``: every problem, one per line.
+    """
+    written: dict[str, int] = {}
+    problems = []
+    for i, c in enumerate(controllers):
+        for name in c.inputs:
+            if name not in signals:
+                problems.append(str(unknown_name(f"input of controller {i}", name, list(signals))))
+        for name in c.outputs:
+            if name not in actuators:
+                problems.append(str(unknown_name(f"output of controller {i}", name, list(actuators))))
+            if name in written:
+                problems.append(f"{name!r} is written by controllers {written[name]} and {i}")
+            written[name] = i
+        try:
+            sample_ratio(getattr(c, "sample_time", None), dt)
+        except ModelError as exc:
+            problems.append(f"controller {i}: {exc}")
+    if problems:
+        raise ModelError(f"{what} are invalid:\n  - " + "\n  - ".join(problems))
+    return set(written)
 
 
 def default_label(controller: Any) -> str:
@@ -159,6 +213,13 @@ class CoSimulation:
             self._log_u[i].append(u.copy())
             sampled.append(i)
         return sampled
+
+    def held_values(self, names: Sequence[str]) -> np.ndarray:
+        """The held output for each actuator in ``names``: the last sample of the controller that
+        writes it, ``0.0`` where no controller writes it (each name written once: :func:`check_wiring`).
+        """
+        held = {name: value for c, u in zip(self.controllers, self.held) for name, value in zip(c.outputs, u)}
+        return np.array([held.get(name, 0.0) for name in names], dtype=float)
 
     def outputs(self, until: float | None = None) -> dict[str, np.ndarray]:
         """Recorded samples ``{"<output>@samples": (n, 2) array of (time [s], value)}``.

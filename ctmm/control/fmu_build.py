@@ -12,7 +12,6 @@ Which sources are compiled: the FMU's own source list when it declares one (FMI 
 """
 from __future__ import annotations
 
-import hashlib
 import os
 import shutil
 import sys
@@ -21,7 +20,7 @@ import zipfile
 from pathlib import Path
 from typing import Any
 
-from ..codegen import cache_directory, compiler_identity, find_compiler, run_compiler
+from ..codegen import cache_directory, cache_key, compiler_identity, find_compiler, run_compiler
 from ..errors import ModelError
 from .fmu_description import fmi_headers_dir, fmi_major_version, read_description, require_fmpy
 from .fmu_loading import extract_fmu, missing_functions, required_functions
@@ -173,7 +172,6 @@ def _build(root: Path, source: Path, output_dir: str | os.PathLike | None, compi
     platform_dir = fmpy.platform if major == 2 else fmpy.platform_tuple
     headers = fmi_headers_dir()
 
-    digest = hashlib.sha256(_BUILD_FORMAT)
     parts: list[tuple[str, bytes]] = [("compiler", compiler_identity(compiler_path)),
                                       ("platform", platform_dir.encode())]
     parts += [(f"flags/{lib.identifier}", " ".join(lib.flags).encode()) for lib in libraries]
@@ -182,9 +180,7 @@ def _build(root: Path, source: Path, output_dir: str | os.PathLike | None, compi
     packed = [p for p in sorted(root.rglob("*")) if p.is_file() and p.parts[len(root.parts)] in _PACKED
               and own_binaries not in p.parents]
     parts += [(f"source/{p.relative_to(root).as_posix()}", p.read_bytes()) for p in packed]
-    for label, payload in parts:
-        digest.update(label.encode() + b"\0" + len(payload).to_bytes(8, "little") + payload)
-    key = digest.hexdigest()
+    key = cache_key(_BUILD_FORMAT, parts)
 
     name = libraries[0].identifier
     target_dir = Path(output_dir) if output_dir is not None else cache_directory(subfolder="fmu") / key[:20]

@@ -115,6 +115,15 @@ class DiscreteElement(ABC):
                       ) -> tuple[np.ndarray, np.ndarray]:
         """Return ``(U, u)`` of the step: ``U`` shape ``(n, n)``, ``u`` shape ``(n,)``."""
 
+    def load(self, t: float) -> Any:
+        """The element's own external load at time ``t`` [s] (0 by default).
+
+        The stepper weights it to the step's evaluation level,
+        ``(1 - w) load(t_n) + w load(t_n + h)`` (:class:`~ctmm.schemes.StepCoefficients`), adds the
+        loads of force hooks and passes the sum to :meth:`step_matrices` as ``force``.
+        """
+        return 0.0
+
 
 class Linearisation:
     """Affine relations of evaluation-level kinematics to the unknown displacement of a step.

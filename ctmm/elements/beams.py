@@ -47,9 +47,10 @@ import scipy.linalg
 
 from .. import validation
 from ..errors import ModelError
-from ..layouts import BENDING, StateLayout
+from ..layouts import BENDING
 from .base import Element
-from .boundary import Boundary, Fixed, Free
+from .bending import (BeamClamped, BeamFree, BeamHinge, BeamPinned, BeamPointLoad, BeamPointMass,  # noqa: F401
+                      BeamSliding, BeamSpring, identity_matrices, laplace_array)
 
 __all__ = [
     "BeamField", "BeamPointMass", "BeamSpring", "BeamHinge", "BeamPointLoad",
@@ -66,16 +67,6 @@ _DOUBLE_ROOT_RATIO = 1e-3
 # Largest β (and tension parameter sqrt(|T|/EI) L) of a piece made by BeamField.subdivide.
 _SUBDIVISION_BETA = 4.0
 
-
-def laplace_array(s: Any) -> np.ndarray:
-    """``s`` [1/s] as a complex array; :class:`~ctmm.errors.ModelError` unless it is numeric and finite."""
-    try:
-        array = np.asarray(s, dtype=complex)
-    except (TypeError, ValueError):
-        raise ModelError(f"s must be a (complex) number or array, got {s!r}") from None
-    if not np.all(np.isfinite(array)):
-        raise ModelError("s must contain only finite values")
-    return array
 
 
 def beam_state_matrix(s: complex, bending_stiffness: complex, mass_per_length: float,
@@ -261,6 +252,10 @@ class BeamField(Element):
         analytic in ``s``; mode ``k`` gets damping ratio ``τ ω_k / 2``.
     viscous_damping : float, optional
         External viscous damping per unit length ``c_v >= 0`` [N s/m^2].
+    time_elements : int, optional
+        Number of cubic Hermite elements of the span in time simulations (``ctmm.simulate``);
+        default: enough to resolve every mode the step resolves, at a relative frequency error
+        of 1e-3 (:func:`ctmm.elements.beam_time.time_element_count`; a smaller number warns).
 
     Notes
     -----
@@ -281,8 +276,10 @@ class BeamField(Element):
 
     def __init__(self, name: str, length: float, bending_stiffness: float, mass_per_length: float, *,
                  axial_force: float = 0.0, loss_factor: float = 0.0, kelvin_voigt_time: float = 0.0,
-                 viscous_damping: float = 0.0) -> None:
+                 viscous_damping: float = 0.0, time_elements: int | None = None) -> None:
         super().__init__(name)
+        self.time_elements = None if time_elements is None else validation.integer(f"{name}: time_elements",
+                                                                                   time_elements)
         self.length = validation.positive(f"{name}: length", length)
         self.bending_stiffness = validation.positive(f"{name}: bending_stiffness", bending_stiffness)
         self.mass_per_length = validation.positive(f"{name}: mass_per_length", mass_per_length)
@@ -320,6 +317,11 @@ class BeamField(Element):
         s = complex(s)
         EI = complex(self.effective_bending_stiffness(s))
         return beam_state_matrix(s, EI, self.mass_per_length, self.axial_force, self.viscous_damping)
+
+    def discretize(self, scheme: Any):
+        """Refused: in time the span is meshed into Hermite elements by the stepper (``ctmm.simulate``)."""
+        raise ModelError(f"element {self.name!r} (BeamField) is stepped as the Hermite elements of "
+                         "ctmm.elements.beam_time.field_segments; simulate its chain with ctmm.simulate")
 
     # -- frequency domain --------------------------------------------------------------
     def transfer_matrix(self, s: Any) -> np.ndarray:
@@ -431,248 +433,3 @@ def _dynamic_stiffness(U: np.ndarray) -> np.ndarray:
     top = np.concatenate([-X @ U11, X], axis=-1)
     bottom = np.concatenate([-U21 + U22 @ X @ U11, -U22 @ X], axis=-1)
     return np.concatenate([top, bottom], axis=-2)
-
-
-# ----------------------------------------------------------------------------------------
-# point and connector elements
-def identity_matrices(s: np.ndarray) -> np.ndarray:
-    """Identity transfer matrices, shape ``s.shape + (4, 4)`` (complex), of the bending state."""
-    return np.broadcast_to(np.eye(4, dtype=complex), np.shape(s) + (4, 4)).copy()
-
-
-class BeamPointMass(Element):
-    """Point mass ``M`` [kg] with rotary inertia ``J`` [kg m^2] on a beam.
-
-    Newton/Euler for the point (kinematics continuous): ``M s^2 w = shear_in - shear_out``,
-    ``J s^2 θ = moment_in - moment_out``, hence ``shear_out = shear_in - M s^2 w`` and
-    ``moment_out = moment_in - J s^2 θ`` (FORMULAS §2.3 with ``moment = -M_F``).
-    """
-
-    layout = BENDING
-    is_point = True
-
-    def __init__(self, name: str, mass: float, rotary_inertia: float = 0.0) -> None:
-        super().__init__(name)
-        self.mass = validation.nonnegative(f"{name}: mass", mass)
-        self.rotary_inertia = validation.nonnegative(f"{name}: rotary_inertia", rotary_inertia)
-        if self.mass == 0.0 and self.rotary_inertia == 0.0:
-            raise ModelError(f"{name}: mass and rotary_inertia are both 0; give at least one > 0")
-
-    def parameters(self) -> dict[str, Any]:
-        return {"mass": self.mass, "rotary_inertia": self.rotary_inertia}
-
-    def transfer_matrix(self, s: Any) -> np.ndarray:
-        s = laplace_array(s)
-        U = identity_matrices(s)
-        U[..., 2, 0] = -self.mass * s * s
-        U[..., 3, 1] = -self.rotary_inertia * s * s
-        return U
-
-
-class BeamSpring(Element):
-    """Grounded translational and rotational spring (and optional dampers) at a beam station.
-
-    Parameters
-    ----------
-    translational : float
-        Stiffness ``k_t`` [N/m] against deflection, >= 0.
-    rotational : float
-        Stiffness ``k_r`` [N m/rad] against slope, >= 0.
-    translational_damping, rotational_damping : float, optional
-        Dampers ``c_t`` [N s/m] and ``c_r`` [N m s/rad] in parallel, >= 0.
-
-    ``shear_out = shear_in - (k_t + c_t s) w``, ``moment_out = moment_in - (k_r + c_r s) θ``.
-    """
-
-    layout = BENDING
-    is_point = True
-
-    def __init__(self, name: str, translational: float, rotational: float, *,
-                 translational_damping: float = 0.0, rotational_damping: float = 0.0) -> None:
-        super().__init__(name)
-        self.translational = validation.nonnegative(f"{name}: translational", translational)
-        self.rotational = validation.nonnegative(f"{name}: rotational", rotational)
-        self.translational_damping = validation.nonnegative(f"{name}: translational_damping",
-                                                            translational_damping)
-        self.rotational_damping = validation.nonnegative(f"{name}: rotational_damping", rotational_damping)
-        if not any((self.translational, self.rotational, self.translational_damping,
-                    self.rotational_damping)):
-            raise ModelError(f"{name}: all spring and damper constants are 0; give at least one > 0")
-
-    @property
-    def is_conservative(self) -> bool:
-        """False when a damper is present."""
-        return not (self.translational_damping or self.rotational_damping)
-
-    def parameters(self) -> dict[str, Any]:
-        return {"translational": self.translational, "rotational": self.rotational,
-                "translational_damping": self.translational_damping,
-                "rotational_damping": self.rotational_damping}
-
-    def transfer_matrix(self, s: Any) -> np.ndarray:
-        s = laplace_array(s)
-        U = identity_matrices(s)
-        U[..., 2, 0] = -(self.translational + self.translational_damping * s)
-        U[..., 3, 1] = -(self.rotational + self.rotational_damping * s)
-        return U
-
-
-class BeamHinge(Element):
-    """In-span elastic hinge (rotational spring ``k_h``, optional damper ``c_h``) in a beam.
-
-    ``w``, shear and moment are continuous; the moment transmitted to the outboard side is
-    ``moment = -(k_h + c_h s)(θ_out - θ_in)``, so ``θ_out = θ_in - moment / (k_h + c_h s)``
-    (FORMULAS §2.3: ``θ_R = θ_L + M/k_h`` with ``M = -moment``).  A field-type element
-    (the slope jumps), ``is_point = False``.
-    """
-
-    layout = BENDING
-    is_point = False
-
-    def __init__(self, name: str, rotational_stiffness: float, *, damping: float = 0.0) -> None:
-        super().__init__(name)
-        self.rotational_stiffness = validation.positive(f"{name}: rotational_stiffness",
-                                                        rotational_stiffness)
-        self.damping = validation.nonnegative(f"{name}: damping", damping)
-
-    @property
-    def is_conservative(self) -> bool:
-        """False when the hinge has a damper."""
-        return not self.damping
-
-    def parameters(self) -> dict[str, Any]:
-        return {"rotational_stiffness": self.rotational_stiffness, "damping": self.damping}
-
-    def transfer_matrix(self, s: Any) -> np.ndarray:
-        s = laplace_array(s)
-        U = identity_matrices(s)
-        U[..., 1, 3] = -1.0 / (self.rotational_stiffness + self.damping * s)
-        return U
-
-
-class BeamPointLoad(Element):
-    """External point force ``P`` (+w) and moment ``C`` (+θ) on a beam station (FRF inputs).
-
-    Inputs ``("force", "moment")``; equilibrium of the massless station gives
-    ``shear_out = shear_in + P`` and ``moment_out = moment_in + C``; the transfer matrix is
-    the identity and the loads enter :meth:`load_vector`.
-    """
-
-    layout = BENDING
-    is_point = True
-    inputs = ("force", "moment")
-
-    def transfer_matrix(self, s: Any) -> np.ndarray:
-        return identity_matrices(laplace_array(s))
-
-    def load_vector(self, s: Any, amplitudes: Mapping[str, Any]) -> np.ndarray:
-        self.check_inputs(amplitudes)
-        s = laplace_array(s)
-        u = np.zeros(s.shape + (4,), dtype=complex)
-        u[..., 2] = amplitudes.get("force", 0.0)
-        u[..., 3] = amplitudes.get("moment", 0.0)
-        return u
-
-
-# ----------------------------------------------------------------------------------------
-# boundaries of the bending layout
-class BeamClamped(Fixed):
-    """Clamped beam end: ``w = 0``, ``theta = 0`` (shear and moment unknown)."""
-
-    def __init__(self, name: str) -> None:
-        super().__init__(name)
-        self.layout = BENDING
-
-
-class BeamFree(Free):
-    """Free beam end: ``shear = 0``, ``moment = 0`` (deflection and slope unknown)."""
-
-    def __init__(self, name: str) -> None:
-        super().__init__(name)
-        self.layout = BENDING
-
-
-class _MixedBeamBoundary(Boundary):
-    """Beam end where one displacement and the non-conjugate force vanish.
-
-    ``zero_components`` names the two components that are zero (at the start they are the
-    known half ``z_f = 0``; at the end they are the conditions ``Bm z = 0``).  Such a boundary
-    is neither "all displacements known" nor "all forces known": code that only understands
-    those two kinds reads :attr:`known` and gets a :class:`~ctmm.errors.ModelError` instead
-    of a silently wrong model.  Code that understands mixed conditions (the Riccati solver,
-    the Wittrick-Williams count) uses :meth:`start`, :meth:`end` and :meth:`constrained_dofs`.
-    """
-
-    zero_components: tuple[str, str] = ()  # type: ignore[assignment]
-
-    def __init__(self, name: str) -> None:
-        super().__init__(name)
-        self.layout = BENDING
-
-    @property  # type: ignore[override]
-    def known(self) -> str:
-        raise ModelError(
-            f"boundary {self.name!r} ({type(self).__name__}) fixes {' and '.join(self.zero_components)}: "
-            "a mixed displacement/force condition that this solver does not support yet "
-            "(supported: BeamClamped/Fixed, BeamFree/Free, Elastic)")
-
-    def _stiffness(self, s):
-        """Support stiffness on the force-prescribed displacement: 0 (the conjugate force vanishes)."""
-        return np.zeros(np.shape(s), dtype=complex)
-
-    def constrained_dofs(self, layout: StateLayout) -> tuple[tuple[int, ...], tuple[int, ...]]:
-        """(constrained, force-prescribed) displacement indices: pinned ``((w,), (theta,))``,
-        sliding ``((theta,), (w,))`` as layout indices."""
-        if layout.name != BENDING.name:
-            raise ModelError(f"boundary {self.name!r} needs the bending layout, got {layout.name!r}")
-        fixed = tuple(layout.index(c) for c in self.constrained_displacements)
-        return fixed, tuple(i for i in range(layout.half) if i not in fixed)
-
-    def known_indices(self, layout: StateLayout) -> list[int]:
-        """Indices of the components that are zero at this boundary."""
-        if layout.name != BENDING.name:
-            raise ModelError(f"boundary {self.name!r} needs the bending layout, got {layout.name!r}")
-        return [layout.index(c) for c in self.zero_components]
-
-    @property
-    def constrained_displacements(self) -> tuple[str, ...]:
-        """Displacement components held at zero (the others have zero conjugate force)."""
-        return tuple(c for c in self.zero_components if c in BENDING.displacements)
-
-    def unknown_indices(self, layout: StateLayout) -> list[int]:
-        known = self.known_indices(layout)
-        return [i for i in range(layout.size) if i not in known]
-
-    def start(self, layout: StateLayout, s: Any, amplitudes: Mapping[str, Any]):
-        """Start relation: the two zero components, ``z_f = 0`` (``S0 = 0``, ``P0 = 0``)."""
-        self.check_inputs(amplitudes)
-        s = np.asarray(s, dtype=complex)
-        S0 = np.zeros(s.shape + (2, 2), dtype=complex)
-        P0 = np.zeros(s.shape + (2,), dtype=complex)
-        return self.unknown_indices(layout), S0, P0
-
-    def end(self, layout: StateLayout, s: Any, amplitudes: Mapping[str, Any]):
-        """End conditions ``Bm z = 0`` selecting the two zero components."""
-        self.check_inputs(amplitudes)
-        s = np.asarray(s, dtype=complex)
-        Bm = np.zeros(s.shape + (2, layout.size), dtype=complex)
-        for row, index in enumerate(self.known_indices(layout)):
-            Bm[..., row, index] = 1.0
-        return Bm, np.zeros(s.shape + (2,), dtype=complex)
-
-    def start_discrete(self, layout, t, lin):
-        raise ModelError(f"boundary {self.name!r}: beam boundaries have no time-domain form yet")
-
-    end_discrete = start_discrete
-
-
-class BeamPinned(_MixedBeamBoundary):
-    """Pinned (simply supported) beam end: ``w = 0``, ``moment = 0``."""
-
-    zero_components = ("w", "moment")
-
-
-class BeamSliding(_MixedBeamBoundary):
-    """Sliding (guided) beam end: ``theta = 0``, ``shear = 0``."""
-
-    zero_components = ("theta", "shear")

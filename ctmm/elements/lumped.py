@@ -131,6 +131,10 @@ class DiscretePoint(DiscreteElement):
     def __init__(self, element: PointElement) -> None:
         self.element = element
 
+    def load(self, t: float) -> float:
+        """External force [N] of the point at time ``t`` [s]."""
+        return float(self.element.force(t))
+
     def step_matrices(self, t: float, inboard: Linearisation, outboard: Linearisation, force: float = 0.0):
         e = self.element
         lin = inboard

@@ -4,7 +4,8 @@ For the fixed scene hub + modal arm with *embedded* laws (no delay, no saturatio
 co-simulated controller) the O(n) transfer sweep of :mod:`ctmm.flexible.kernel` reduces to a
 handful of closed formulas, written here symbolically (casadi SX), differentiated by nobody,
 generated to C, compiled with gcc and loaded with ``casadi.external``.  The whole RK4 interval
-(``block`` steps, ``chunks`` stored states) runs in one call.
+(``block`` steps, ``chunks`` stored states) runs in one call; its step is the package's one RK4
+statement, :func:`ctmm.ode.rk4_step`, evaluated on casadi symbols (no transcription).
 
 Sweep in the arm frame (equal to the global-axes sweep because the plane is horizontal: the
 rotation ``T = diag(R, 1, I)`` cancels; test ``test_compiled_sweep_equals_the_python_sweep``):
@@ -37,6 +38,7 @@ import numpy as np
 from .. import validation
 from ..codegen import load_casadi
 from ..errors import ModelError
+from ..ode import rk4_step
 from .parameters import CycloidalMove
 from .simulation import FlexibleManipulator, ManipulatorSimulation
 
@@ -104,12 +106,8 @@ def _symbolic(n: int, block: int, chunks: int):
     def f(tt, xx):
         return ca.vertcat(xx[1 + n:], accelerations(tt, xx))
 
-    k1 = f(t, x)
-    k2 = f(t + h / 2, x + h / 2 * k1)
-    k3 = f(t + h / 2, x + h / 2 * k2)
-    k4 = f(t + h, x + h * k3)
     z = ca.vertcat(x, t)
-    step = ca.Function("step", [z, p], [ca.vertcat(x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4), t + h)])
+    step = ca.Function("step", [z, p], [ca.vertcat(rk4_step(f, t, x, h), t + h)])   # the one RK4, on symbols
     acc = ca.Function("acc", [z, p], [accelerations(t, x)])
     many = step.fold(block)                                   # block steps, last state
     mapped = many.mapaccum(chunks)                            # chunks stored states
@@ -202,12 +200,12 @@ class CompiledManipulator:
         from ..errors import SimulationError
         from ..guard import DivergenceGuard
         from ..planar.guards import check_scheme, check_stored
+        from ..planar.integrate import step_total
 
         s = self.system
-        t_final = validation.positive("t_final", t_final)
-        dt = validation.positive("dt", dt)
-        n_steps = int(round(t_final / dt))
-        if n_steps < 1 or abs(n_steps * dt - t_final) > 1e-9 * t_final or n_steps % self.block:
+        n_steps = step_total(t_final, dt)              # validates t_final and dt
+        dt = float(dt)
+        if n_steps % self.block:
             raise ModelError(f"t_final = {t_final!r} must be a whole multiple of block * dt = {self.block * dt!r}")
         n_store = n_steps // self.block
         p = self.parameters(dt)

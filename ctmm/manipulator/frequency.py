@@ -39,7 +39,7 @@ from ..frequency import frequency_response
 from ..layouts import BENDING
 from ..results import FrequencyResponse
 from ..system import Chain
-from .laws import HubPD, PZTFeedback
+from .laws import HubPD, PZTFeedback, check_pzt
 from .parameters import Manipulator
 
 #: Most beam fields :func:`plant_chain` builds from ``max_piece`` (a larger count is a unit mistake).
@@ -181,12 +181,7 @@ class LinearManipulator:
     def __post_init__(self) -> None:
         if not isinstance(self.pd, HubPD):
             raise ModelError(f"pd must be a HubPD, got {self.pd!r}")
-        if self.pzt is not None:
-            if not isinstance(self.pzt, PZTFeedback):
-                raise ModelError(f"pzt must be a PZTFeedback or None, got {self.pzt!r}")
-            if self.pzt.n_patches != self.manipulator.n_patches:
-                raise ModelError(f"pzt gains are for {self.pzt.n_patches} patches, the manipulator has "
-                                 f"{self.manipulator.n_patches}")
+        check_pzt(self.pzt, self.manipulator.n_patches)
         if self.pzt is not None and self.manipulator.n_patches == 0:
             raise ModelError("PZT feedback given but the manipulator has no patches")
         object.__setattr__(self, "_plant", plant_chain(self.manipulator, max_piece=self.max_piece))

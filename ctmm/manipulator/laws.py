@@ -25,7 +25,7 @@ import numpy as np
 from .. import validation
 from ..errors import ModelError
 
-__all__ = ["HubPD", "PZTFeedback", "LIMIT_POLICIES"]
+__all__ = ["HubPD", "PZTFeedback", "LIMIT_POLICIES", "check_pzt"]
 
 LIMIT_POLICIES = ("report", "saturate", "raise")
 
@@ -148,3 +148,19 @@ class PZTFeedback:
     def voltages(self, slope_rates) -> np.ndarray:
         """``-G dtheta_dot`` [V] (no saturation)."""
         return -self.gains @ np.asarray(slope_rates, dtype=float)
+
+
+def check_pzt(pzt: "PZTFeedback | None", n_patches: int) -> None:
+    """Check the ``pzt`` argument of a manipulator with ``n_patches`` patches (``None``: no PZT loop).
+
+    Raises
+    ------
+    ModelError
+        ``pzt`` is not a :class:`PZTFeedback` or ``None``, or its gains are for another number of patches.
+    """
+    if pzt is None:
+        return
+    if not isinstance(pzt, PZTFeedback):
+        raise ModelError(f"pzt must be a PZTFeedback or None, got {pzt!r}")
+    if pzt.n_patches != n_patches:
+        raise ModelError(f"pzt gains are for {pzt.n_patches} patches, the manipulator has {n_patches}")

@@ -33,10 +33,10 @@ from ..errors import ModelError
 from ..flexible import ModalBeam
 from ..planar import ActuatedHinge, Fixed, PlanarModel, RigidBody
 from ..planar.elements import FixedMounting
-from .laws import HubPD, PZTFeedback
+from .laws import HubPD, PZTFeedback, check_pzt
 from .parameters import Manipulator
 
-__all__ = ["manipulator_plant", "manipulator_scene", "scene_references", "HUB_LOOP"]
+__all__ = ["manipulator_plant", "manipulator_scene", "scene_references", "arm_beam", "patch_slope_matrix", "HUB_LOOP"]
 
 HUB_LOOP = "hub_pd"
 
@@ -60,18 +60,24 @@ def manipulator_plant(manipulator: Manipulator, *, n_modes: int = 3, geometric_s
         raise ModelError(f"manipulator must be a ctmm.manipulator.Manipulator, got {manipulator!r}")
     if isinstance(n_modes, bool) or not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
         raise ModelError(f"n_modes must be an integer >= 1, got {n_modes!r}")
-    arm = manipulator.arm
-    beam = ModalBeam("arm", length=arm.length, bending_stiffness=arm.bending_stiffness,
-                     mass_per_length=arm.mass_per_length, n_modes=int(n_modes),
-                     stiffness_damping=arm.kelvin_voigt_time, geometric_stiffening=bool(geometric_stiffening))
+    beam = arm_beam(manipulator, n_modes, geometric_stiffening)
     hub = RigidBody("hub", mass=validation.positive("hub_mass", hub_mass), inertia=manipulator.hub.inertia,
                     center_of_mass=(0.0, 0.0), outboard=(manipulator.hub.radius, 0.0))
     return PlanarModel.chain("manipulator", [Fixed("ground"), ActuatedHinge("motor"), hub, FixedMounting("mount"), beam],
                              gravity=(0.0, 0.0))
 
 
-def _slope_matrix(plant: PlanarModel, manipulator: Manipulator) -> np.ndarray:
-    beam = plant.bodies[plant.body_index("arm")]
+def arm_beam(manipulator: Manipulator, n_modes: int, geometric_stiffening: bool) -> ModalBeam:
+    """The arm as the modal beam ``"arm"`` (``n_modes`` clamped-free modes, Kelvin-Voigt damping)."""
+    arm = manipulator.arm
+    return ModalBeam("arm", length=arm.length, bending_stiffness=arm.bending_stiffness,
+                     mass_per_length=arm.mass_per_length, n_modes=int(n_modes),
+                     stiffness_damping=arm.kelvin_voigt_time, geometric_stiffening=bool(geometric_stiffening))
+
+
+def patch_slope_matrix(beam: ModalBeam, manipulator: Manipulator) -> np.ndarray:
+    """``Psi`` (P, n): slope difference over each patch per unit modal coordinate [rad/m],
+    ``Psi_jk = phi_k'(x2_j) - phi_k'(x1_j)``."""
     return np.array([beam.mode_slopes(x2) - beam.mode_slopes(x1) for x1, x2 in manipulator.patch_ends]
                     ).reshape(-1, beam.n_modes)
 
@@ -104,15 +110,11 @@ def manipulator_scene(manipulator: Manipulator, *, pd: HubPD | None, pzt: PZTFee
         loops.append(Feedback(HUB_LOOP, sensor=[("motor.angle", pd.kp), ("motor.rate", pd.kd)],
                               actuator="motor.torque", gain=1.0, delay=pd.delay))
     if pzt is not None:
-        if not isinstance(pzt, PZTFeedback):
-            raise ModelError(f"pzt must be a ctmm.manipulator.PZTFeedback or None, got {pzt!r}")
-        if pzt.n_patches != manipulator.n_patches:
-            raise ModelError(f"pzt gains are for {pzt.n_patches} patches, the manipulator has "
-                             f"{manipulator.n_patches}")
+        check_pzt(pzt, manipulator.n_patches)
         if pzt.on_limit == "saturate":
             raise ModelError("pzt.on_limit='saturate' is a nonlinear law, not a feedback loop: use a "
                              "co-simulated controller or ctmm.manipulator.FlexibleManipulator")
-        psi = _slope_matrix(plant, manipulator)
+        psi = patch_slope_matrix(plant.bodies[plant.body_index("arm")], manipulator)
         sensing = pzt.gains @ psi                                   # V = -(G Psi) eta_dot
         ca = manipulator.moments_per_volt
         modes = plant.bodies[plant.body_index("arm")].coordinate_suffixes

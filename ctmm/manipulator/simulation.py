@@ -25,12 +25,14 @@ How the control laws enter (DESIGN §1):
   :class:`~ctmm.control.fmu.FMUController`) reading ``SIGNALS`` and writing ``"motor.torque"``
   and/or ``"<patch>.voltage"``, sampled at its ``sample_time`` (a multiple of ``dt``; ``None``:
   every step) with zero-order hold by the shared master :class:`~ctmm.control.cosim.CoSimulation`
-  (named failures, samples recorded in ``extra``).  A controller that writes the torque replaces
-  the embedded PD; one that writes any voltage replaces the embedded PZT law (unwritten patches
-  get 0 V).
+  (named failures, samples recorded in ``extra``); the wiring is checked by
+  :func:`~ctmm.control.cosim.check_wiring` against :meth:`FlexibleManipulator.signal_names` and
+  :meth:`FlexibleManipulator.output_names`, and the held outputs are read by those names.  A
+  controller that writes the torque replaces the embedded PD; one that writes any voltage
+  replaces the embedded PZT law (unwritten patches get 0 V).
 
-Integrators: ``"rk4"`` (classical RK4 on the sweep, own loop: delays and sampling handled
-between steps) and ``"newmark"`` (:func:`ctmm.planar.simulate_implicit`, trapezoidal Newmark
+Integrators: ``"rk4"`` (:func:`ctmm.ode.integrate_rk4` on the sweep; delays and sampling handled
+in its per-step callback) and ``"newmark"`` (:func:`ctmm.planar.simulate_implicit`, trapezoidal Newmark
 with Newton; delayed and sampled laws restart it at every step with the time offset carried
 by this module's time functions).
 """
@@ -44,10 +46,10 @@ from typing import Any, Sequence
 import numpy as np
 
 from .. import validation
-from ..control.cosim import CoSimulation, sample_ratio
+from ..control.cosim import CoSimulation, check_wiring
 from ..control.history import DelayHistory
-from ..errors import ModelError, SimulationError, unknown_name
-from .laws import HubPD, PZTFeedback
+from ..errors import ModelError, SimulationError
+from .laws import HubPD, PZTFeedback, check_pzt
 from .parameters import Manipulator
 
 __all__ = ["FlexibleManipulator", "ManipulatorSimulation", "SIGNALS_HELP"]
@@ -151,29 +153,18 @@ class FlexibleManipulator:
             raise ModelError(f"manipulator must be a Manipulator, got {self.manipulator!r}")
         if self.pd is not None and not isinstance(self.pd, HubPD):
             raise ModelError(f"pd must be a HubPD or None, got {self.pd!r}")
-        if self.pzt is not None:
-            if not isinstance(self.pzt, PZTFeedback):
-                raise ModelError(f"pzt must be a PZTFeedback or None, got {self.pzt!r}")
-            if self.pzt.n_patches != self.manipulator.n_patches:
-                raise ModelError(f"pzt gains are for {self.pzt.n_patches} patches, the manipulator has "
-                                 f"{self.manipulator.n_patches}")
+        check_pzt(self.pzt, self.manipulator.n_patches)
         for attr in ("angle", "rate"):
             if not callable(getattr(self.reference, attr, None)):
                 raise ModelError(f"reference must provide angle(t) and rate(t), got {self.reference!r}")
         if isinstance(self.n_modes, bool) or not isinstance(self.n_modes, (int, np.integer)) or self.n_modes < 1:
             raise ModelError(f"n_modes must be an integer >= 1, got {self.n_modes!r}")
         validation.positive("hub_mass", self.hub_mass)
-        from ..flexible import ModalBeam
+        from .scene import arm_beam, patch_slope_matrix
 
-        arm = self.manipulator.arm
-        beam = ModalBeam("arm", length=arm.length, bending_stiffness=arm.bending_stiffness,
-                         mass_per_length=arm.mass_per_length, n_modes=int(self.n_modes),
-                         stiffness_damping=arm.kelvin_voigt_time,
-                         geometric_stiffening=bool(self.geometric_stiffening))
-        ends = self.manipulator.patch_ends
-        Psi = np.array([beam.mode_slopes(x2) - beam.mode_slopes(x1) for x1, x2 in ends]).reshape(-1, beam.n_modes)
+        beam = arm_beam(self.manipulator, self.n_modes, self.geometric_stiffening)
         object.__setattr__(self, "_beam", beam)
-        object.__setattr__(self, "_Psi", Psi)
+        object.__setattr__(self, "_Psi", patch_slope_matrix(beam, self.manipulator))
 
     # ------------------------------------------------------------------ model pieces
     @property
@@ -291,20 +282,16 @@ class FlexibleManipulator:
             last stored step.  A controller whose ``init`` fails: named, without a partial result.
         """
         from ..planar.guards import check_scheme, divergence_guard, with_partial
-        from ..planar.integrate import check_store_every
+        from ..planar.integrate import check_store_every, step_total
 
         if method not in METHODS:
             raise ModelError(f"method must be one of {METHODS}, got {method!r}")
-        t_final = validation.positive("t_final", t_final)
-        dt = validation.positive("dt", dt)
+        n_steps = step_total(t_final, dt)              # validates t_final and dt
+        dt = float(dt)
         store_every = check_store_every(store_every)
-        validation.step_count(t_final, 0.0, dt)
-        n_steps = int(round(t_final / dt))
-        if n_steps < 1 or abs(n_steps * dt - t_final) > 1e-9 * t_final:
-            raise ModelError(f"t_final = {t_final!r} must be a whole multiple of dt = {dt!r}")
         if theta0 is not None:
             theta0 = validation.finite("theta0", theta0)
-        plan = _Plan(self, list(controllers), dt)
+        plan = _Plan(self, controllers, dt)
         theta_start = float(self.reference.angle(0.0)) if theta0 is None else validation.finite("theta0", theta0)
         run = _Run(self, plan, dt, n_steps, theta_start)
         try:
@@ -332,33 +319,18 @@ class _Plan:
     """Which law is embedded, history-based or co-simulated (validated once)."""
 
     def __init__(self, owner: FlexibleManipulator, controllers: list, dt: float) -> None:
-        outputs = owner.output_names()
-        signals = owner.signal_names()
-        written: dict[str, int] = {}
-        problems = []
+        controllers = list(controllers)
         for i, c in enumerate(controllers):
             for attr in ("inputs", "outputs", "init", "step"):
                 if not hasattr(c, attr):
                     raise ModelError(f"controller {i} ({c!r}) lacks {attr!r} (see ctmm.control.protocol)")
-            for name in c.inputs:
-                if name not in signals:
-                    problems.append(str(unknown_name(f"input of controller {i}", name, signals)))
-            for name in c.outputs:
-                if name not in outputs:
-                    problems.append(str(unknown_name(f"output of controller {i}", name, outputs)))
-                if name in written:
-                    problems.append(f"{name!r} is written by controllers {written[name]} and {i}")
-                written[name] = i
-            try:
-                sample_ratio(getattr(c, "sample_time", None), dt)
-            except ModelError as exc:
-                problems.append(f"controller {i}: {exc}")
-        if problems:
-            raise ModelError("manipulator controllers are invalid:\n  - " + "\n  - ".join(problems))
+        self.actuators = owner.output_names()          # [motor torque, patch voltages...]
+        written = check_wiring(controllers, owner.signal_names(), self.actuators, dt,
+                               what="manipulator controllers")
         self.controllers = controllers
         self.labels = [f"controller {i} ({getattr(c, 'name', type(c).__name__)})" for i, c in enumerate(controllers)]
-        self.torque_by_controller = "motor.torque" in written
-        self.voltage_by_controller = any(o.endswith(".voltage") for o in written)
+        self.torque_by_controller = self.actuators[0] in written
+        self.voltage_by_controller = any(name in written for name in self.actuators[1:])
         pd, pzt = owner.pd, owner.pzt
         self.pd_delayed = (not self.torque_by_controller and pd is not None and pd.delay > 0.0)
         self.pzt_delayed = (not self.voltage_by_controller and pzt is not None and pzt.delay > 0.0)
@@ -442,14 +414,9 @@ class _Run:
         if self.plan.controllers:
             y_all = self.o._measure(q, v)
             controllers = self.plan.controllers
-            for i in self.cosim.sample(n, t, lambda i: np.array([y_all[name] for name in controllers[i].inputs],
-                                                                dtype=float)):
-                for name, value in zip(controllers[i].outputs, self.cosim.held[i]):
-                    if name == "motor.torque":
-                        self.held_torque = float(value)
-                    else:
-                        k = self.o.manipulator.patch_names.index(name.split(".")[0])
-                        self.held_voltage[k] = float(value)
+            self.cosim.sample(n, t, lambda i: np.array([y_all[name] for name in controllers[i].inputs], dtype=float))
+            held = self.cosim.held_values(self.plan.actuators)
+            self.held_torque, self.held_voltage = float(held[0]), held[1:]
             if self.policy == "saturate":
                 self.held_voltage = np.clip(self.held_voltage, -self.limit, self.limit)
         # applied torque and voltages at t_n (records)

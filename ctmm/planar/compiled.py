@@ -6,7 +6,9 @@ recursion in C costs tens of nanoseconds.  The kernel below is the C transcripti
 :func:`ctmm.planar.sweep.body_terms`, for *revolute* trees with constant hinge-law
 coefficients, constant reference angles and torques, gravity and no external loads -- the
 fixed-scene case of DESIGN section 9.  The whole time interval runs inside C (one call per
-simulation), so the Python overhead is paid once.
+simulation), so the Python overhead is paid once.  The RK4 step in the C loop is not written by
+hand: :func:`ctmm.ode.second_order_rk4_c` generates it from the one scheme statement,
+:func:`ctmm.ode.rk4_step` (same operations in the same order, so the same rounding).
 
 The library is compiled on first use with ``gcc -O2 -shared -fPIC`` and cached on disk by
 :mod:`ctmm.codegen` (folder: :func:`ctmm.codegen.cache_directory`, keyed by the SHA-256 of the C
@@ -22,6 +24,7 @@ import numpy as np
 
 from ..codegen import load_ctypes
 from ..errors import ModelError
+from ..ode import second_order_rk4_c
 from .guards import check_scheme, check_stored, divergence_guard
 from .integrate import PlanarSimulation, check_store_every, initial_coordinates, step_total
 from .model import REVOLUTE, PlanarModel
@@ -103,8 +106,9 @@ static void accel(int nb, const int *parent, const double *ex, const double *ey,
     }
 }
 
-/* classical RK4 over n_steps; state th, w updated in place; traj receives every
-   store_every-th state ([th, w] rows), work has 25 nb + 10 nb doubles */
+/* classical RK4 over n_steps (the step below is generated from ctmm.ode.rk4_step); state th, w
+   updated in place; traj receives every store_every-th state ([th, w] rows), work has 25 nb +
+   10 nb doubles */
 int rk4(int nb, const int *parent, const double *ex, const double *ey, const double *cx,
         const double *cy, const double *m, const double *J, const double *k, const double *c,
         const double *r, const double *u, const double *g0, double gx, double gy, double h,
@@ -114,17 +118,7 @@ int rk4(int nb, const int *parent, const double *ex, const double *ey, const dou
     double *q2 = a4 + nb, *v2 = q2 + nb, *q3 = v2 + nb, *v3 = q3 + nb, *q4 = v3 + nb, *v4 = q4 + nb;
     int stored = 0;
     for (int step = 0; step < n_steps; step++) {
-        accel(nb, parent, ex, ey, cx, cy, m, J, k, c, r, u, g0, gx, gy, th, w, a1, work);
-        for (int i = 0; i < nb; i++) { q2[i] = th[i] + 0.5 * h * w[i]; v2[i] = w[i] + 0.5 * h * a1[i]; }
-        accel(nb, parent, ex, ey, cx, cy, m, J, k, c, r, u, g0, gx, gy, q2, v2, a2, work);
-        for (int i = 0; i < nb; i++) { q3[i] = th[i] + 0.5 * h * v2[i]; v3[i] = w[i] + 0.5 * h * a2[i]; }
-        accel(nb, parent, ex, ey, cx, cy, m, J, k, c, r, u, g0, gx, gy, q3, v3, a3, work);
-        for (int i = 0; i < nb; i++) { q4[i] = th[i] + h * v3[i]; v4[i] = w[i] + h * a3[i]; }
-        accel(nb, parent, ex, ey, cx, cy, m, J, k, c, r, u, g0, gx, gy, q4, v4, a4, work);
-        for (int i = 0; i < nb; i++) {
-            th[i] += (h / 6.0) * (w[i] + 2.0 * v2[i] + 2.0 * v3[i] + v4[i]);
-            w[i] += (h / 6.0) * (a1[i] + 2.0 * a2[i] + 2.0 * a3[i] + a4[i]);
-        }
+/*RK4_STEP*/
         if ((step + 1) % store_every == 0 || step + 1 == n_steps) {
             for (int i = 0; i < nb; i++) {
                 if (!isfinite(th[i]) || !isfinite(w[i])) return -(step + 1);
@@ -147,6 +141,11 @@ int accelerations(int nb, const int *parent, const double *ex, const double *ey,
     return 0;
 }
 """
+C_SOURCE = C_SOURCE.replace("/*RK4_STEP*/", "\n".join(
+    "        " + line for line in second_order_rk4_c(
+        lambda q, v, a: f"accel(nb, parent, ex, ey, cx, cy, m, J, k, c, r, u, g0, gx, gy, {q}, {v}, {a}, work);"
+    ).splitlines()))
+
 
 @lru_cache(maxsize=1)
 def library() -> ctypes.CDLL:

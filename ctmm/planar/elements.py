@@ -47,6 +47,14 @@ def _translational(hinge) -> None:
             f"{hinge.name}: {attribute}", getattr(hinge, attribute)))
 
 
+def _rotary_spring(hinge) -> None:
+    """Check a spring hinge's ``stiffness`` (required, > 0), ``rest_angle`` and translational terms."""
+    _translational(hinge)
+    _required(f"{hinge.name}: stiffness", hinge.stiffness)
+    object.__setattr__(hinge, "stiffness", validation.positive(f"{hinge.name}: stiffness", hinge.stiffness))
+    object.__setattr__(hinge, "rest_angle", validation.finite(f"{hinge.name}: rest_angle", hinge.rest_angle))
+
+
 def translational_law(hinge) -> tuple[float, float]:
     """``(k_t, c_t)`` of a hinge's translational spring / damper (0, 0 when rigid)."""
     return (float(getattr(hinge, "translational_stiffness", 0.0)),
@@ -238,12 +246,7 @@ class ElasticHinge(Hinge):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        _translational(self)
-        _required(f"{self.name}: stiffness", self.stiffness)
-        object.__setattr__(self, "stiffness",
-                           validation.positive(f"{self.name}: stiffness", self.stiffness))
-        object.__setattr__(self, "rest_angle",
-                           validation.finite(f"{self.name}: rest_angle", self.rest_angle))
+        _rotary_spring(self)
 
     def law(self):
         return self.stiffness, 0.0, Constant(self.rest_angle), Constant(0.0), Constant(0.0)
@@ -295,15 +298,10 @@ class SpringDamperHinge(Hinge):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        _translational(self)
-        _required(f"{self.name}: stiffness", self.stiffness)
-        object.__setattr__(self, "stiffness",
-                           validation.positive(f"{self.name}: stiffness", self.stiffness))
+        _rotary_spring(self)
         _required(f"{self.name}: damping", self.damping)
         object.__setattr__(self, "damping",
                            validation.nonnegative(f"{self.name}: damping", self.damping))
-        object.__setattr__(self, "rest_angle",
-                           validation.finite(f"{self.name}: rest_angle", self.rest_angle))
 
     def law(self):
         return (self.stiffness, self.damping, Constant(self.rest_angle), Constant(0.0),

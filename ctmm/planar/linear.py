@@ -40,7 +40,7 @@ from ..elements.base import Element
 from ..counting import certified_count
 from ..errors import ModelError
 from ..layouts import PLANAR
-from ..roots1d import bisect_count
+from ..roots1d import bisect_count, count_upper_bound
 from .model import BUSHING, DRIVEN, FREE, PlanarModel
 from .sweep import solve_instant
 
@@ -464,11 +464,8 @@ def natural_frequencies(model: PlanarModel, q_eq, *, n_modes: int, t: float = 0.
     if not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
         raise ModelError(f"n_modes must be an integer >= 1, got {n_modes!r}")
     data = _linear_data(model, q_eq, t)
-    hi = 1.0
-    while eigenvalue_count(model, q_eq, [hi], _data=data)[0] < n_modes:
-        hi *= 2.0
-        if hi > 1e12:
-            raise ModelError(f"model {model.name!r} has fewer than {n_modes} natural frequencies")
+    hi = count_upper_bound(lambda w: eigenvalue_count(model, q_eq, w, _data=data), n_modes, limit=1e12,
+                           what=f"model {model.name!r}")
     k = np.arange(1, n_modes + 1)
     lo = np.zeros(n_modes)
     up = np.full(n_modes, hi)
