@@ -9,11 +9,12 @@ from .errors import ConvergenceError, ModelError, SimulationError, SingularSyste
 from .frequency import (characteristic_function, eigenvalue_count, frequency_response, mode_shapes, natural_frequencies,
                         steady_state_response)
 from .system import Chain
+from .linearize import LinearizedSystem, linearize
 from .simulation import simulate
 from .version import __version__
 
 from . import control, stability  # noqa: E402  (submodules used as ctmm.control / ctmm.stability)
 
-__all__ = ["Chain", "simulate", "characteristic_function", "frequency_response", "natural_frequencies", "mode_shapes", "eigenvalue_count",
+__all__ = ["Chain", "simulate", "linearize", "LinearizedSystem", "characteristic_function", "frequency_response", "natural_frequencies", "mode_shapes", "eigenvalue_count",
            "steady_state_response", "signals", "ModelError", "SimulationError", "ConvergenceError",
            "SingularSystemError", "UnknownNameError", "control", "stability", "__version__"]

@@ -4,6 +4,8 @@ All functions evaluate every element's ``U(s)`` for the whole frequency vector a
 solve the chain by batched Riccati transfer (:mod:`ctmm.chain_assembly`, :mod:`ctmm.assembly`).
 
 Natural frequencies, their counting and mode shapes live in :mod:`ctmm.natural` (re-exported here).
+Planar models (:class:`~ctmm.planar.model.PlanarModel`, ``ControlledModel``) are answered through
+their linearisation by :mod:`ctmm.planar_frequency` (dispatched here).
 """
 from __future__ import annotations
 
@@ -14,10 +16,13 @@ import numpy as np
 
 from . import validation
 from .assembly import SOLVERS
+from . import planar_frequency
 from .capabilities import require_chain
 from .chain_assembly import assemble, laplace_variables, solve  # noqa: F401  (assemble, solve: public here too)
 from .errors import ModelError
-from .natural import eigenvalue_count, mode_shapes, natural_frequencies  # noqa: F401  (re-exported)
+from . import natural
+from .natural import eigenvalue_count  # noqa: F401  (re-exported)
+from .planar_frequency import is_planar_system
 from .results import FrequencyResponse
 from .signal_units import signal_unit
 from .system import Chain, require_system
@@ -34,13 +39,16 @@ def _output_value(system, states: np.ndarray, s: np.ndarray, name: str,
 
 
 def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],  # noqa: A002
-                       output: str | Sequence[str], solver: str = "riccati") -> FrequencyResponse:
+                       output: str | Sequence[str], solver: str = "riccati",
+                       operating_point: Any = None) -> FrequencyResponse:
     """Frequency response functions from force/displacement inputs to outputs.
 
     Parameters
     ----------
-    system : Chain
-        The model.
+    system : Chain, ControlledChain, PlanarModel or ControlledModel
+        The model.  A planar model is answered through its linearisation about
+        ``operating_point`` (:func:`ctmm.planar_frequency.frequency_response`: actuator inputs,
+        sensor outputs of :mod:`ctmm.planar.ports`).
     omega : array_like
         Angular frequencies [rad/s], >= 0.
     input : str or sequence of str
@@ -49,6 +57,8 @@ def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],
         Output signal names, e.g. ``"m3.x"`` [m], ``"m3.v"``, ``"m3.a"``, ``"k2.f"`` [N].
     solver : {"riccati", "plain"}
         Chain solver (plain products only for comparison).
+    operating_point : optional
+        Planar models only (:func:`ctmm.linearize`; default: the static equilibrium).
 
     Returns
     -------
@@ -64,6 +74,15 @@ def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],
     >>> np.allclose(frf("m.x", "m.force"), 1 / (100.0 - np.array([0.0, 25.0])))
     True
     """
+    if is_planar_system(system):
+        if solver != "riccati":
+            raise ModelError(f"frequency_response: solver={solver!r} is a chain solver; a planar model is answered "
+                             "through its linearisation (ctmm.linearize), pass no solver")
+        return planar_frequency.frequency_response(system, omega, input=input, output=output,
+                                                   operating_point=operating_point)
+    if operating_point is not None:
+        raise ModelError(f"frequency_response: operating_point is for planar models; a chain is linear, got "
+                         f"operating_point={operating_point!r}")
     require_chain(system, "frequency_response")
     system = require_system(system)
     inputs = validation.names("input", input)
@@ -172,3 +191,27 @@ def _scale(system, s: np.ndarray) -> np.ndarray:
             scale = scale * e.connector_stiffness(s)
     return scale
 
+
+
+def natural_frequencies(system: Any, **options: Any) -> np.ndarray:
+    """Undamped natural frequencies [rad/s] of a chain or a planar model.
+
+    A :class:`~ctmm.system.Chain` is answered by :func:`ctmm.natural.natural_frequencies`
+    (options ``n_modes``, ``omega_max``, ``rtol``); a ``PlanarModel`` through its undamped
+    linearisation by :func:`ctmm.planar_frequency.natural_frequencies` (options ``n_modes``,
+    ``omega_max``, ``operating_point``).  Damped systems and systems with loops are refused.
+    """
+    if is_planar_system(system):
+        return planar_frequency.natural_frequencies(system, **options)
+    return natural.natural_frequencies(system, **options)
+
+
+def mode_shapes(system: Any, **options: Any):
+    """Natural frequencies and mode shapes of a chain or a planar model.
+
+    Chains: :func:`ctmm.natural.mode_shapes` (states at the connection points); planar models:
+    :func:`ctmm.planar_frequency.mode_shapes` (shapes in the generalised coordinates).
+    """
+    if is_planar_system(system):
+        return planar_frequency.mode_shapes(system, **options)
+    return natural.mode_shapes(system, **options)

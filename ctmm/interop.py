@@ -46,10 +46,12 @@ from .control.loops import actuator_inputs
 from .elements.boundary import Elastic, PrescribedForce
 from .elements.lumped import Connector, PointElement
 from .errors import ModelError, unknown_name
+from .linearized import control_name
+from .loop_closure import block_controller
 from .results import FrequencyResponse
 from .system import Chain, require_system
 
-__all__ = ["to_frd", "to_state_space", "assemble_matrices", "control_name"]
+__all__ = ["to_frd", "to_state_space", "assemble_matrices", "control_name", "default_signal_names"]
 
 
 # -------------------------------------------------------------------------------------- FRD
@@ -100,15 +102,6 @@ def to_frd(source: Any, omega: Any = None, *, inputs: str | Sequence[str] | None
     return control.frd(data, response.omega, inputs=[control_name(n) for n in response.inputs],
                        outputs=[control_name(n) for n in response.outputs],
                        name=control_name(response.system_name) if response.system_name else None)
-
-
-def control_name(name: str) -> str:
-    """python-control label of a ctmm signal name: ``"m2.force"`` -> ``"m2_force"``.
-
-    python-control reserves ``'.'`` in signal names (``"system.signal"`` in ``interconnect``);
-    ctmm element names contain no dots, so the mapping is unambiguous in practice.
-    """
-    return str(name).replace(".", "_")
 
 
 # ------------------------------------------------------------------------------ assembly
@@ -224,6 +217,7 @@ class _LumpedModel:
         na, nb = a.size, b.size
         ns = 2 * na + nb
         self.n_states = ns
+        self.state_names = self._state_names(a, b)
         kept = np.concatenate([a, b]).astype(int)
         Fk = Bf[kept]                                   # forces on the kept DOFs per input
         K_kept = K[np.ix_(kept, kept)]
@@ -276,6 +270,18 @@ class _LumpedModel:
             for k, i in enumerate(c):
                 self._q[i] = _Quantity(qc.Z[k:k + 1], qc.U[k:k + 1])
                 self._v[i] = _Quantity(vc.Z[k:k + 1], vc.U[k:k + 1], vc.dU[k:k + 1])
+
+    def _state_names(self, a: np.ndarray, b: np.ndarray) -> list[str]:
+        """``"<mass>.x"``, ``"<mass>.v"`` of the massive DOFs, ``"<point>.x"`` of the first-order ones."""
+        chain, pd = self.chain, self.point_dof
+        labels = []
+        for g in range(pd.max(initial=-1) + 1):
+            masses = [e.name for j, e in enumerate(chain.body, start=1)
+                      if isinstance(e, PointElement) and e.mass > 0 and pd[j] == g]
+            points = [p for p, d in zip(chain.point_names(), pd) if d == g]
+            labels.append(masses[0] if masses else points[0])
+        return ([f"{labels[g]}.x" for g in a] + [f"{labels[g]}.v" for g in a]
+                + [f"{labels[g]}.x" for g in b])
 
     def zero(self) -> _Quantity:
         return _Quantity(np.zeros((1, self.n_states)), np.zeros((1, self.n_inputs)))
@@ -384,26 +390,15 @@ class _LumpedModel:
 
 
 # -------------------------------------------------------------------------- state space
-def _default_signals(system) -> tuple[list[str], list[str]]:
+def default_signal_names(system) -> tuple[list[str], list[str]]:
+    """Default ``(inputs, outputs)`` of :func:`to_state_space`: the force on and the displacement of every
+    mass, plus ``"<loop>.y"``, ``"<loop>.u"`` of every loop."""
     chain = system.plant if hasattr(system, "plant") else system
     inputs = [f"{e.name}.force" for e in chain.body if isinstance(e, PointElement) and e.mass > 0]
     outputs = [f"{e.name}.x" for e in chain.body if isinstance(e, PointElement) and e.mass > 0]
     for lp in getattr(system, "loops", ()):
         outputs += [f"{lp.name}.y", f"{lp.name}.u"]
     return inputs, outputs
-
-
-def _controller_ss(loop) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    if loop.is_lti:
-        import control
-
-        try:
-            ss = control.ss(loop.gain)
-        except ValueError as exc:  # improper C(s): no finite-dimensional realisation
-            raise ModelError(f"loop {loop.name!r}: to_state_space cannot realise the controller C(s) ({exc}); "
-                             "use to_frd, or the sensor terms [(x, kp), (v, kd)] with gain=1 for a PD") from None
-        return tuple(np.atleast_2d(np.asarray(m, dtype=float)) for m in (ss.A, ss.B, ss.C, ss.D))  # type: ignore
-    return np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), np.array([[float(loop.gain)]])
 
 
 def to_state_space(system: Any, *, inputs: str | Sequence[str] | None = None,
@@ -428,8 +423,9 @@ def to_state_space(system: Any, *, inputs: str | Sequence[str] | None = None,
     -------
     control.StateSpace
         Continuous-time, labelled with the ctmm names through :func:`control_name` (``"m6.x"`` ->
-        ``"m6_x"``, python-control reserves dots); states
-        ``[q_a, q_a', q_b]`` followed by the controller states.
+        ``"m6_x"``, python-control reserves dots); states ``[q_a, q_a', q_b]`` named
+        ``"<mass>_x"``, ``"<mass>_v"`` (``"<point>_x"`` for massless damped points), followed by the
+        controller states ``"<loop>_controller<k>"``.
 
     Raises
     ------
@@ -458,7 +454,7 @@ def to_state_space(system: Any, *, inputs: str | Sequence[str] | None = None,
         if lp.delay != 0.0:
             raise ModelError(f"loop {lp.name!r} has delay {lp.delay!r} s: no finite-dimensional realisation; "
                              "use to_frd (exact) or approximate e^(-s tau) with control.pade")
-    d_in, d_out = _default_signals(system)
+    d_in, d_out = default_signal_names(system)
     inputs = d_in if inputs is None else list(validation.names("inputs", inputs))
     outputs = d_out if outputs is None else list(validation.names("outputs", outputs))
     loop_names = {lp.name: i for i, lp in enumerate(loops)}
@@ -512,14 +508,8 @@ def to_state_space(system: Any, *, inputs: str | Sequence[str] | None = None,
     D11, D12 = Dz @ Sw, Dz @ Su
     D21, D22 = Dy @ Sw, Dy @ Su
     # controller K = blockdiag(C_l): xi' = Ak xi + Bk e, v = Ck xi + Dk e, u = -v, e = y - r
-    blocks = [_controller_ss(lp) for lp in loops]
-    nk = sum(blk[0].shape[0] for blk in blocks)
-    Ak, Bk, Ck, Dk = np.zeros((nk, nk)), np.zeros((nk, nl)), np.zeros((nl, nk)), np.zeros((nl, nl))
-    o = 0
-    for i, (a_, b_, c_, d_) in enumerate(blocks):
-        m = a_.shape[0]
-        Ak[o:o + m, o:o + m], Bk[o:o + m, i], Ck[i, o:o + m], Dk[i, i] = a_, b_[:, 0], c_[0], d_[0, 0]
-        o += m
+    Ak, Bk, Ck, Dk, sizes = block_controller(loops)
+    nk = sum(sizes)
     R = np.zeros((nl, len(references)))
     for k, name in enumerate(references):
         R[loop_names[name.partition(".")[0]], k] = 1.0
@@ -556,7 +546,7 @@ def to_state_space(system: Any, *, inputs: str | Sequence[str] | None = None,
             out_D.append(np.concatenate([D11[k] + D12[k] @ Uw, D12[k] @ Ur]))
     C_cl = np.array(out_C).reshape(len(outputs), n + nk)
     D_cl = np.array(out_D).reshape(len(outputs), len(forces) + len(references))
-    states = [f"q{k}" for k in range(n)] + [f"controller{k}" for k in range(nk)]
+    states = model.state_names + [f"{lp.name}.controller{k}" for lp, size in zip(loops, sizes) for k in range(size)]
     return control.ss(A_cl, B_cl, C_cl, D_cl, inputs=[control_name(n) for n in forces + references],
-                      outputs=[control_name(n) for n in outputs], states=states,
+                      outputs=[control_name(n) for n in outputs], states=[control_name(x) for x in states],
                       name=control_name(getattr(system, "name", "")) or None)

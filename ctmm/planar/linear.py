@@ -234,16 +234,46 @@ class LinearHingedBody(Element):
 # ------------------------------------------------------------------------------------------
 def static_equilibrium(model: PlanarModel, q_guess, *, t: float = 0.0,
                        tolerance: float = 1e-12) -> np.ndarray:
-    """Coordinates where all accelerations vanish at rest (``scipy.optimize.root``)."""
+    """Coordinates where all accelerations vanish at rest (``scipy.optimize.root`` from ``q_guess``).
+
+    Absolute body angles (coordinates ``"<body>.theta"``) are returned wrapped into
+    ``[-pi, pi)``.  Which equilibrium is found depends on the guess (a pendulum also balances
+    upright); :func:`hanging_configuration` is the guess for the hanging one.
+    """
     from .sweep import accelerations
 
     q_guess, _ = model.state(q_guess, np.zeros(model.n_coordinates))
     sol = scipy.optimize.root(lambda q: accelerations(model, q, np.zeros_like(q), t),
                               q_guess, tol=tolerance, method="hybr")
-    residual = np.max(np.abs(accelerations(model, sol.x, np.zeros_like(sol.x), t)))
+    q = sol.x.copy()
+    angles = np.array([c.endswith(".theta") for c in model.coordinates], dtype=bool)
+    q[angles] = (q[angles] + np.pi) % (2.0 * np.pi) - np.pi
+    residual = np.max(np.abs(accelerations(model, q, np.zeros_like(q), t)))
     if residual > 1e-8:
         raise ModelError(f"no static equilibrium found near {q_guess!r} (residual {residual:.2e})")
-    return sol.x
+    return q
+
+
+def hanging_configuration(model: PlanarModel) -> np.ndarray:
+    """Coordinates with every body's centre of mass straight below its inboard end (along gravity).
+
+    A guess for :func:`static_equilibrium` (exact for a chain of bodies on smooth hinges; hinge
+    springs and loads move the equilibrium away from it).  Bodies whose centre of mass is at their
+    inboard end, and every body without gravity, keep angle 0; other coordinates are 0.
+    """
+    q = np.zeros(model.n_coordinates)
+    g = np.asarray(model.gravity, dtype=float)
+    if not np.any(g != 0.0):
+        return q
+    down = float(np.arctan2(g[1], g[0]))
+    for k, name in enumerate(model.coordinates):
+        body, _, what = name.rpartition(".")
+        if what != "theta" or body not in model.body_names:
+            continue
+        com = model.com[model.body_index(body)]
+        if np.any(com != 0.0):
+            q[k] = down - float(np.arctan2(com[1], com[0]))
+    return q
 
 
 def _check_equilibrium(model: PlanarModel, q_eq, t: float):
@@ -487,5 +517,5 @@ def natural_frequencies(model: PlanarModel, q_eq, *, n_modes: int, t: float = 0.
 
 
 __all__ = ["LinearRigidBody", "LinearElasticHinge", "LinearHingedBody", "linear_chain",
-           "static_equilibrium", "characteristic_function", "eigenvalue_count",
+           "static_equilibrium", "hanging_configuration", "characteristic_function", "eigenvalue_count",
            "natural_frequencies"]

@@ -1,0 +1,222 @@
+"""Frequency verbs on planar models through their linearisation (:func:`ctmm.linearize`).
+
+:func:`ctmm.frequency_response`, :func:`ctmm.natural_frequencies` and :func:`ctmm.mode_shapes`
+dispatch here for a :class:`~ctmm.planar.model.PlanarModel` (rigid or flexible) or a
+``ctmm.control.ControlledModel``.  The model is linearised about ``operating_point`` (default:
+its static equilibrium, see :func:`ctmm.linearize`); the response is that of the linearisation,
+``G(s) = C (s I - A)^{-1} B + D``, with delayed loops closed exactly by ``e^{-s tau}``.
+
+Natural frequencies are those of the undamped linearisation ``M qddot + K q = 0``:
+``omega_k^2`` are the eigenvalues of ``-df/dq`` (``= M^{-1} K``).  As for chains, a model with
+damping (any velocity-dependent force: hinge dampers, beam damping, PD hinges) or with loops
+is refused; an unstable equilibrium (``omega^2 < 0``) is refused too.  For the exact
+frequency-domain path of rigid chains and trees (Wittrick-Williams counting of the linear
+MSTMM) see :func:`ctmm.planar.linear.natural_frequencies`.
+"""
+from __future__ import annotations
+
+import time
+from typing import Any, Sequence
+
+import numpy as np
+
+from . import validation
+from .errors import ModelError
+from .planar_linearization import linearize_planar, tangent
+from .planar_linearization import operating_point as planar_operating_point
+from .results import FrequencyResponse, ModalResult
+
+__all__ = ["is_planar_system", "frequency_response", "natural_frequencies", "mode_shapes"]
+
+_CLOSED_LOOP = ("ctmm.linearize (eigenvalues of the closed-loop A, delays beside it) or ctmm.stability "
+                "for the closed-loop roots")
+_DAMPED = "ctmm.frequency_response, or the eigenvalues of ctmm.linearize(model).state_space.A for damped roots"
+#: Largest |df/dqdot| counted as undamped, relative to sqrt(max |df/dq|) [1/s].
+UNDAMPED_TOLERANCE = 1e-8
+
+
+def is_planar_system(system: Any) -> bool:
+    """True for a PlanarModel or a ControlledModel (a PlanarModel plant with loops)."""
+    from .planar.model import PlanarModel
+
+    return isinstance(system, PlanarModel) or (isinstance(getattr(system, "plant", None), PlanarModel)
+                                                and hasattr(system, "loops"))
+
+
+def _split(system: Any):
+    from .planar.model import PlanarModel
+
+    if isinstance(system, PlanarModel):
+        return system, ()
+    return system.plant, tuple(system.loops)
+
+
+def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  # noqa: A002
+                       output: str | Sequence[str], operating_point: Any = None) -> FrequencyResponse:
+    """Frequency response of a planar model's linearisation, loops closed with exact delays.
+
+    Loops without delay are closed inside the linearisation (:func:`ctmm.linearize`); each delayed
+    loop ``u = -C(s) e^{-s tau} (y - r)`` is closed here at every frequency:
+    ``(I + K G_yu) u = K (r - G_yw w)``, ``K = diag(C_l(s) e^{-s tau_l})``.
+
+    Parameters
+    ----------
+    system : PlanarModel or ControlledModel
+    omega : array_like
+        Angular frequencies [rad/s], >= 0.
+    input : str or sequence of str
+        Actuator names (:func:`ctmm.planar.ports.actuator_names`, e.g. ``"motor.torque"`` [N m])
+        or ``"<loop>.reference"``.
+    output : str or sequence of str
+        Sensor names (:func:`ctmm.planar.ports.sensor_names`, e.g. ``"arm.out.y"`` [m]) or
+        ``"<loop>.y"``, ``"<loop>.u"``.
+    operating_point : optional
+        As for :func:`ctmm.linearize` (default: the static equilibrium).
+
+    Returns
+    -------
+    FrequencyResponse
+        ``response[i_out, i_in, k]``: output deviation phasor per unit input phasor.
+    """
+    from .planar import ports
+
+    model, loops = _split(system)
+    inputs = list(validation.names("input", input))
+    outputs = list(validation.names("output", output))
+    s = 1j * validation.frequencies("omega", omega)
+    started = time.perf_counter()
+    delayed = {lp.name: j for j, lp in enumerate(lp for lp in loops if lp.delay > 0.0)}
+
+    def delayed_signal(name: str, parts: tuple) -> tuple | None:
+        head, _, tail = name.partition(".")
+        return (delayed[head], tail) if head in delayed and tail in parts else None
+
+    lin_in = [x for x in inputs if delayed_signal(x, ("reference",)) is None]
+    lin_out = [x for x in outputs if delayed_signal(x, ("y", "u")) is None]
+    lin = linearize_planar(model, loops, operating_point, inputs=lin_in, outputs=lin_out)
+    ss = lin.state_space
+    A, B, C, D = (np.asarray(m, dtype=float) for m in (ss.A, ss.B, ss.C, ss.D))
+    try:
+        X = np.linalg.solve(s[:, None, None] * np.eye(A.shape[0]) - A, np.broadcast_to(B, (s.size,) + B.shape))
+    except np.linalg.LinAlgError as exc:
+        raise ModelError(f"frequency_response: s I - A is singular at one of the frequencies (a pole on the imaginary "
+                         f"axis, e.g. a rigid-body mode at omega = 0): {exc}") from None
+    G = C @ X + D                                        # (frequencies, lin_out + delayed y, lin_in + delayed u)
+    n_i, n_o, n_d = len(lin_in), len(lin_out), len(delayed)
+    E_w = np.zeros((n_i, len(inputs)))
+    E_r = np.zeros((n_d, len(inputs)))
+    for k, name in enumerate(inputs):
+        loop = delayed_signal(name, ("reference",))
+        if loop is None:
+            E_w[lin_in.index(name), k] = 1.0
+        else:
+            E_r[loop[0], k] = 1.0
+    Gzw, Gzu, Gyw, Gyu = G[:, :n_o, :n_i], G[:, :n_o, n_i:], G[:, n_o:, :n_i], G[:, n_o:, n_i:]
+    K = np.zeros((s.size, n_d, n_d), dtype=complex)
+    for j, loop in enumerate(lin.delays):
+        K[:, j, j] = _controller_response(loop.gain, s) * np.exp(-s * loop.delay)
+    u = np.linalg.solve(np.eye(n_d) + K @ Gyu, K @ (E_r - Gyw @ E_w)) if n_d else np.zeros((s.size, 0, len(inputs)))
+    z = Gzw @ E_w + Gzu @ u
+    y = Gyw @ E_w + Gyu @ u
+    response = np.empty((len(outputs), len(inputs), s.size), dtype=complex)
+    for k, name in enumerate(outputs):
+        loop = delayed_signal(name, ("y", "u"))
+        rows = z[:, lin_out.index(name)] if loop is None else (y if loop[1] == "y" else u)[:, loop[0]]
+        response[k] = rows.T
+    sensors, actuators = set(ports.sensor_names(model)), set(ports.actuator_names(model))
+    units = {name: ports.actuator_unit(model, name) for name in inputs if name in actuators}
+    units.update({name: ports.sensor_unit(model, name) for name in outputs if name in sensors})
+    info = {"method": "linearisation (ctmm.linearize), delays exact", "wall_time_s": time.perf_counter() - started,
+            "n_frequencies": int(s.size), "operating_point_q": lin.operating_point.q.tolist(),
+            "jacobian_error": lin.operating_point.jacobian_error}
+    return FrequencyResponse(np.imag(s), response, tuple(inputs), tuple(outputs), model.name, info=info, units=units)
+
+
+def _controller_response(gain: Any, s: np.ndarray) -> np.ndarray:
+    if callable(gain):                                  # a python-control LTI C(s)
+        return np.asarray(gain(s), dtype=complex).reshape(s.shape)
+    return np.full(s.shape, float(gain), dtype=complex)
+
+
+def _undamped_stiffness(system: Any, verb: str, operating_point: Any):
+    """``(model, M^{-1} K, OperatingPoint)`` of an undamped, loop-free planar model, else a refusal."""
+    model, loops = _split(system)
+    if loops:
+        names = [lp.name for lp in loops]
+        raise ModelError(f"{verb} cannot honour the feedback loops {names} of {model.name!r}: it describes an "
+                         f"uncontrolled model; for the closed loop use {_CLOSED_LOOP}; for the plant pass "
+                         "system.plant")
+    for name, damping in zip(model.joint_names, model.damping):
+        if damping:
+            raise ModelError(f"{verb} needs an undamped system, but {name!r} has damping={float(damping)!r}; "
+                             f"use {_DAMPED}")
+    A, op = tangent(model, planar_operating_point(model, operating_point))
+    n = model.n_coordinates
+    Jq, Jv = A[n:, :n], A[n:, n:]
+    scale = np.sqrt(max(float(np.max(np.abs(Jq), initial=0.0)), 1e-300))
+    if np.max(np.abs(Jv), initial=0.0) > UNDAMPED_TOLERANCE * scale:
+        raise ModelError(f"{verb} needs an undamped system, but {model.name!r} has velocity-dependent forces at "
+                         f"the operating point (largest |d qddot / d qdot| = {np.max(np.abs(Jv)):.3e} 1/s: a "
+                         f"damped beam, a PD hinge or a velocity law); use {_DAMPED}")
+    return model, -Jq, op
+
+
+def _modes(system: Any, verb: str, n_modes, omega_max, operating_point):
+    model, stiffness, op = _undamped_stiffness(system, verb, operating_point)
+    if (n_modes is None) == (omega_max is None):
+        raise ModelError("give exactly one of n_modes (int >= 1) or omega_max (rad/s > 0)")
+    values, vectors = np.linalg.eig(stiffness)
+    top = max(float(np.max(np.abs(values), initial=0.0)), 1e-300)
+    if np.max(np.abs(values.imag), initial=0.0) > 1e-6 * top:
+        raise ModelError(f"{verb}: the linearisation of {model.name!r} is not a symmetric mass-stiffness pair "
+                         "(complex omega^2: circulatory forces such as follower loads); use ctmm.linearize")
+    values = values.real
+    if np.any(values < -1e-9 * top):
+        raise ModelError(f"model {model.name!r} is statically unstable about q = {op.q.tolist()}: "
+                         f"{int(np.sum(values < -1e-9 * top))} mode(s) with negative stiffness (omega^2 < 0, e.g. "
+                         "a link held against gravity); natural frequencies exist only about a stable equilibrium")
+    values = np.where(np.abs(values) <= 1e-9 * top, 0.0, values)
+    order = np.argsort(values)
+    omega = np.sqrt(values[order])
+    shapes = np.real(vectors[:, order])
+    if n_modes is not None:
+        n_modes = validation.integer("n_modes", n_modes, minimum=1)
+        if n_modes > omega.size:
+            raise ModelError(f"model {model.name!r} has {omega.size} natural frequencies (one per coordinate), "
+                             f"n_modes={n_modes} requested")
+        keep = np.arange(n_modes)
+    else:
+        keep = np.flatnonzero(omega < validation.positive("omega_max", omega_max))
+    return model, omega[keep], shapes[:, keep]
+
+
+def natural_frequencies(system: Any, *, n_modes: int | None = None, omega_max: float | None = None,
+                        operating_point: Any = None) -> np.ndarray:
+    """Undamped natural frequencies [rad/s] of a planar model's linearisation (ascending, rigid as 0).
+
+    Parameters
+    ----------
+    system : PlanarModel
+        Undamped and without loops (else :class:`ModelError`, as for chains).
+    n_modes : int, optional
+        Number of lowest frequencies.
+    omega_max : float, optional
+        All frequencies below ``omega_max`` [rad/s] instead.
+    operating_point : optional
+        As for :func:`ctmm.linearize` (default: the static equilibrium).
+    """
+    return _modes(system, "natural_frequencies", n_modes, omega_max, operating_point)[1]
+
+
+def mode_shapes(system: Any, *, n_modes: int | None = None, omega_max: float | None = None,
+                operating_point: Any = None) -> ModalResult:
+    """Natural frequencies and mode shapes in the generalised coordinates of a planar model.
+
+    ``shapes[k, i, 0]`` is coordinate ``i`` (``point_names``) in mode ``k``, normalised to unit
+    largest entry; otherwise as :func:`natural_frequencies`.
+    """
+    model, omega, vectors = _modes(system, "mode_shapes", n_modes, omega_max, operating_point)
+    if vectors.size:
+        ref = vectors[np.argmax(np.abs(vectors), axis=0), np.arange(vectors.shape[1])]
+        vectors = vectors / ref
+    return ModalResult(omega, vectors.T[:, :, None], ("amplitude",), tuple(model.coordinates))
