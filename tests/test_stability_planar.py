@@ -267,6 +267,12 @@ def test_controlled_planar_pendulum_delay_margin_matches_the_lagrange_reference(
     assert abs(margin.critical_delay - tau_ref) <= 1e-6 * tau_ref
     assert abs(margin.critical_frequency - omega_ref) <= 1e-6 * omega_ref
     assert margin.stable and margin.certificate.certified
+    # the LinearizedSystem of the controlled model itself: loop left open as "pd_u" / "pd_y"
+    import ctmm
+
+    linear = ctmm.linearize(system)
+    assert [loop.name for loop in linear.delays] == ["pd"]
+    assert abs(delay_margin(linear).critical_delay - tau_ref) <= 1e-6 * tau_ref
 
 
 def test_controlled_planar_pendulum_charts_match_collocation():
@@ -328,3 +334,18 @@ def test_controlled_flexible_pendulum_delay_margin_matches_the_flexible_lagrange
     assert abs(margin.critical_delay - tau_ref) <= 1e-6 * tau_ref
     assert abs(margin.critical_frequency - omega_ref) <= 1e-6 * omega_ref
     assert margin.certificate.certified and omega_ref > 30.0         # a beam mode goes unstable first
+
+
+def test_controlled_pendulum_with_an_lti_controller_matches_walton_marshall():
+    pytest.importorskip("ctmm.linearize", reason="ctmm.linearize (issue 12, LIN) not merged yet")
+    from ctmm.control import Feedback, with_feedback
+
+    # u = -C(s) e^{-s tau} (kp angle + kd rate), C(s) = 1 / (0.02 s + 1): P (0.02 s + 1) + Q e^{-s tau}
+    lag = control.tf([1.0], [0.02, 1.0])
+    pd = Feedback("pd", [("motor.angle", KP), ("motor.rate", KD)], "motor.torque", gain=lag, delay=0.01)
+    P, Q = quasi_polynomial(pendulum(2), 1.0)
+    tau_ref, omega_ref = walton_marshall(npoly.polymul(P, [1.0, 0.02]), Q)
+    margin = delay_margin(with_feedback(pendulum(2), [pd]))
+    assert abs(margin.critical_delay - tau_ref) <= 1e-6 * tau_ref
+    assert abs(margin.critical_frequency - omega_ref) <= 1e-6 * omega_ref
+    assert margin.certificate.certified
