@@ -10,11 +10,13 @@ function, a root needs ``|L(s)| e^{-Re(s) tau} = 1``; if
 no root lies outside the rectangle, and on its far edges ``arg Delta = arg(D Delta_0) +
 Arg(1 + L e^{-s tau})`` with a principal argument, which the counting uses.
 
-How ``R`` is proved (lumped chains)
------------------------------------
+How ``R`` is proved (lumped chains, state-space models)
+------------------------------------------------------
 The open chain (the loop removed, every other delay-free loop closed) has a finite-dimensional
 realisation ``x' = A x + b f``, ``y_j = c_j x + d_j f`` (:func:`ctmm.interop.to_state_space`), and
-an LTI controller one of its own.  Balance ``A`` by a diagonal similarity ``B = T^-1 A T``
+an LTI controller one of its own.  A linear(ised) state-space model
+(:class:`ctmm.state_space_characteristic.StateSpaceCharacteristic`) gives its realisation with
+the controller states appended (``open_loop_realisation()``): one factor below.  Balance ``A`` by a diagonal similarity ``B = T^-1 A T``
 (:func:`scipy.linalg.matrix_balance`, exact in floating point: powers of 2) and let
 ``beta = ||B||_inf``.  For ``|s| > beta`` the Neumann series gives
 ``||(sI - B)^-1||_inf <= 1/(|s| - beta)``, hence
@@ -189,9 +191,9 @@ def loop_bound(model: Any, weight_bound: np.ndarray) -> LoopBound:
 
     Parameters
     ----------
-    model : LoopCharacteristic
+    model : LoopCharacteristic or StateSpaceCharacteristic
         The loop; its open system (every other loop closed) must have a state-space
-        realisation.
+        realisation (a state-space characteristic gives its own, ``open_loop_realisation()``).
     weight_bound : numpy.ndarray
         Bound of ``|k w_j|`` per sensor term over the parameter sets.
 
@@ -206,6 +208,12 @@ def loop_bound(model: Any, weight_bound: np.ndarray) -> LoopBound:
     from .control.loops import actuator_inputs
     from .interop import to_state_space
 
+    realisation = getattr(model, "open_loop_realisation", None)
+    if realisation is not None:             # a state-space model: controller states included
+        A, b, C, d = realisation()
+        poles = np.linalg.eigvals(A) if 0 < A.shape[0] <= MAX_EIGEN_STATES else np.zeros(0)
+        return LoopBound((_factor(A, b, C, d, np.asarray(weight_bound, float)),), poles.astype(complex),
+                         int(A.shape[0]))
     lp = model.loop
     actuators = actuator_inputs(model.system, lp.name)
     inputs = list(dict.fromkeys(name for name, _ in actuators))

@@ -15,7 +15,8 @@ from . import validation
 from .certification import ContourCertificate
 from .control.loops import ControlledChain
 from .counting_contour import build_contour, count
-from .sweeps import LoopCharacteristic, check_parameters, loop_weight_bound, n_sets
+from .state_space_characteristic import loop_characteristic
+from .sweeps import check_parameters, loop_weight_bound, n_sets
 
 __all__ = ["RootCounts", "unstable_root_count"]
 
@@ -27,7 +28,7 @@ def unstable_root_count(system: ControlledChain, *, loop: str | None = None, gai
 
     Parameters
     ----------
-    system : ControlledChain
+    system : ControlledChain, LinearizedSystem or ControlledModel
     loop : str, optional
         The loop whose parameters vary (default: the only loop).
     gain, delay : array_like, optional
@@ -61,7 +62,7 @@ def unstable_root_count(system: ControlledChain, *, loop: str | None = None, gai
     [0, 0, 2]
     """
     gain, delay = (None if v is None else validation.nonempty_array(n, v) for n, v in (("gain", gain), ("delay", delay)))
-    model = LoopCharacteristic(system, loop)
+    model = loop_characteristic(system, loop)
     weights = None if weights is None else validation.weight_rows("weights", weights, model.weights.size)
     n = n_sets(gain, delay, weights)
     k, tau, w = model.parameters(n, None if gain is None else np.ravel(gain),

@@ -1,12 +1,12 @@
-"""Delay stability of controlled chains: characteristic roots, root counts, margins, simulation check.
+"""Delay stability of controlled models: characteristic roots, root counts, margins, simulation check.
 
-Everything here works on the characteristic function ``Delta(s)`` of the transfer-matrix model
-(:func:`ctmm.characteristic_function`, exact delays ``e^{-s tau}``).  The loop under study enters
-it as an affine term (:class:`ctmm.sweeps.LoopCharacteristic`, eq. (1) there), which turns
-counts for many parameter sets, crossing frequencies and margins into array arithmetic on a few
-transfer-matrix sweeps.  Charts over two parameters are in :mod:`ctmm.stability_chart` (also
-reachable as ``ctmm.stability.stability_chart``), root counts in :mod:`ctmm.root_counts`; the methods are derived in
-``docs/stability.md``.
+Everything here works on the characteristic function ``Delta(s)`` with exact delays ``e^{-s tau}``:
+of the transfer-matrix model for chains (:class:`ctmm.sweeps.LoopCharacteristic`), of a linear(ised)
+state-space model for ``ctmm.linearize`` results and planar ``ControlledModel`` s
+(:mod:`ctmm.state_space_characteristic`).  The loop under study enters it as an affine term, which
+turns counts for many parameter sets, crossing frequencies and margins into array arithmetic.
+Charts are in :mod:`ctmm.stability_chart` (also ``ctmm.stability.stability_chart``), root counts
+in :mod:`ctmm.root_counts`; the methods are derived in ``docs/stability.md``.
 """
 from __future__ import annotations
 
@@ -26,7 +26,8 @@ from .counting_contour import Contour, build_contour, contour_height, count
 from .parameter_crossings import bracket_solve, row_crossings
 from .root_counts import RootCounts, unstable_root_count
 from .stability_chart import Boundary, StabilityChart, stability_chart
-from .sweeps import LoopCharacteristic, as_controlled, characteristic_callable, find_loop, loop_weight_bound
+from .state_space_characteristic import characteristic_of, is_loop_system, loop_characteristic
+from .sweeps import LoopCharacteristic, as_controlled, find_loop, loop_weight_bound
 
 __all__ = ["LoopCharacteristic", "characteristic_roots", "spectral_abscissa", "spectral_seeds",
            "unstable_root_count", "RootCounts",
@@ -41,7 +42,7 @@ _MAX_CROSSINGS = 1_000_000   # largest number of delay crossings delay_margin li
 # --------------------------------------------------------------------------------------------
 def characteristic_roots(system: Any, *, re_min: float, im_max: float, re_max: float | None = None,
                          seeds: Sequence[complex] | str | None = None, tol: float = 1e-12) -> RootSet:
-    """Rightmost characteristic roots of a (controlled) chain, from the TMM ``Delta(s)``.
+    """Rightmost characteristic roots of a model, from its ``Delta(s)`` (TMM or state space).
 
     Every root with ``re_min < Re s < re_max`` and ``|Im s| <= im_max`` is found once with its
     multiplicity (:func:`ctmm.roots.rightmost_roots`: argument-principle counting, bisection,
@@ -49,7 +50,7 @@ def characteristic_roots(system: Any, *, re_min: float, im_max: float, re_max: f
 
     Parameters
     ----------
-    system : Chain or ControlledChain
+    system : Chain, ControlledChain, LinearizedSystem or ControlledModel (one delayed loop)
     re_min : float
         Left edge of the search region [1/s] (no root may lie on it).
     im_max : float
@@ -90,7 +91,7 @@ def characteristic_roots(system: Any, *, re_min: float, im_max: float, re_max: f
             raise ModelError(f"seeds must be a sequence of complex numbers or 'spectral', got {seeds!r}")
         seeds = spectral_seeds(system)
         seeds = seeds[(seeds.real > re_min) & (np.abs(seeds.imag) <= im_max)]
-    found = rightmost_roots(characteristic_callable(system), im_max=im_max, re_min=re_min, re_max=re_max,
+    found = rightmost_roots(characteristic_of(system), im_max=im_max, re_min=re_min, re_max=re_max,
                             seeds=seeds, conjugate_symmetric=True, tol=tol)
     return replace(found, certificate=region_certificate(system, re_min, im_max))
 
@@ -150,19 +151,19 @@ def spectral_abscissa(system: Any, *, re_min: float, im_max: float, re_max: floa
     """
     re_min = validation.finite("re_min", re_min)
     im_max = validation.positive("im_max", im_max)
-    found = _roots_abscissa(characteristic_callable(system), im_max=im_max, re_min=re_min, re_max=re_max,
+    found = _roots_abscissa(characteristic_of(system), im_max=im_max, re_min=re_min, re_max=re_max,
                             seeds=seeds, conjugate_symmetric=True, tol=tol)
     certificate = region_certificate(system, re_min, im_max)
     return replace(found, roots=replace(found.roots, certificate=certificate), certificate=certificate)
 
 
 def region_certificate(system: Any, re_min: float, im_max: float) -> ContourCertificate | None:
-    """Whether ``Re s > re_min, |Im s| <= im_max`` holds every root of a controlled chain with
+    """Whether ``Re s > re_min, |Im s| <= im_max`` holds every root of a controlled model with
     one loop (:mod:`ctmm.certification`; warns when ``im_max`` is too small); None for other
     systems."""
-    if not isinstance(system, ControlledChain) or len(system.loops) != 1:
+    if not is_loop_system(system) or len(getattr(system, "delays", getattr(system, "loops", ()))) != 1:
         return None
-    model = LoopCharacteristic(system)
+    model = loop_characteristic(system)
     k, tau, w = model.parameters(1)
     _, _, certificate = contour_height(model, loop_weight_bound(k, w), re_min, float(tau[0]), im_max)
     return certificate
@@ -269,7 +270,7 @@ def gain_crossovers(system: ControlledChain, loop: str | None = None, *,
 
     Parameters
     ----------
-    system : ControlledChain
+    system : ControlledChain, LinearizedSystem or ControlledModel
     loop : str, optional
         Loop name (default: the only loop).
     im_max : float, optional
@@ -281,7 +282,7 @@ def gain_crossovers(system: ControlledChain, loop: str | None = None, *,
     (numpy.ndarray, ContourCertificate)
         Crossover frequencies [rad/s], ascending, and the certificate of the searched range.
     """
-    model = LoopCharacteristic(system, loop)
+    model = loop_characteristic(system, loop)
     contour = build_contour(model, loop_weight_bound(np.array([model.gain]), model.weights[None, :]), model.delay,
                        im_max=im_max)
     omega, _ = _gain_crossings(model, contour)
@@ -294,7 +295,7 @@ def delay_margin(system: ControlledChain, loop: str | None = None, *, delay_max:
 
     Parameters
     ----------
-    system : ControlledChain
+    system : ControlledChain, LinearizedSystem or ControlledModel
     loop : str, optional
         Loop name (default: the only loop).
     delay_max : float, optional
@@ -322,7 +323,7 @@ def delay_margin(system: ControlledChain, loop: str | None = None, *, delay_max:
     >>> abs(dm.critical_delay - math.atan(omega) / omega) < 1e-12, round(dm.margin, 6)
     (True, 0.511119)
     """
-    model = LoopCharacteristic(system, loop)
+    model = loop_characteristic(system, loop)
     k = np.array([model.gain])
     w = model.weights[None, :]
     tau_now = model.delay
@@ -334,8 +335,7 @@ def delay_margin(system: ControlledChain, loop: str | None = None, *, delay_max:
         L0 = model.gain * (model.weights @ terms) / base
         tau0 = np.mod(-np.angle(-1.0 / L0), 2 * math.pi) / omega_c
         first = float(np.min(tau0))
-        limit = delay_max if delay_max is not None else 4.0 * max(first, tau_now)
-        limit = validation.positive("delay_max", limit) if delay_max is not None else limit
+        limit = validation.positive("delay_max", delay_max) if delay_max is not None else 4.0 * max(first, tau_now)
         listed = float(np.sum(np.maximum(0.0, limit - tau0) * omega_c / (2 * math.pi)))
         if listed > _MAX_CROSSINGS:
             raise ModelError(f"delay_max={delay_max!r} s would list {listed:.3g} stability crossings (each gain "
@@ -441,7 +441,7 @@ def gain_margin(system: ControlledChain, loop: str | None = None, *, max_factor:
 
     Parameters
     ----------
-    system : ControlledChain
+    system : ControlledChain, LinearizedSystem or ControlledModel
     loop : str, optional
         Loop name (default: the only loop).
     max_factor : float
@@ -453,7 +453,7 @@ def gain_margin(system: ControlledChain, loop: str | None = None, *, max_factor:
     -------
     GainMargin
     """
-    model = LoopCharacteristic(system, loop)
+    model = loop_characteristic(system, loop)
     max_factor = validation.positive("max_factor", max_factor)
     g = model.gain
     if g == 0.0:

@@ -38,6 +38,7 @@ from .errors import ModelError, unknown_name
 from .parameter_crossings import row_crossings
 from .root_counts import unstable_root_count
 from .counting_contour import build_contour, count
+from .state_space_characteristic import is_loop_system, loop_characteristic
 from .sweeps import (LoopCharacteristic, as_controlled, find_loop, loop_weight_bound, managed_executor,
                      parallel_map)
 
@@ -250,13 +251,13 @@ def stability_chart(system: ControlledChain | Callable[[float, float], Any], x: 
                     loop: str | None = None, im_max: float | None = None,
                     abscissa_levels: Any = None, verify: bool = False, executor: Any = None,
                     progress: bool | None = None) -> StabilityChart:
-    """Stability chart of a controlled chain over two parameters.
+    """Stability chart of a controlled chain or linear(ised) model over two parameters.
 
     Parameters
     ----------
-    system : ControlledChain or callable
-        The closed loop (parameters of ``loop`` vary), or ``make_system(x, y)`` returning a
-        :class:`~ctmm.control.ControlledChain` for every grid point.
+    system : ControlledChain, LinearizedSystem, ControlledModel or callable
+        The closed loop (parameters of ``loop`` vary; a ``ctmm.linearize`` result or a planar
+        ``ControlledModel`` too), or ``make_system(x, y)`` returning a ControlledChain per point.
     x, y : (str, array_like) or (str, array_like, str)
         Parameter name, grid values and optional axis label.  For a ControlledChain the names
         are ``"gain"``, ``"delay"`` [s] (>= 0) or a sensor signal of the loop (its weight).
@@ -305,15 +306,14 @@ def stability_chart(system: ControlledChain | Callable[[float, float], Any], x: 
     if not isinstance(verify, bool):
         raise ModelError(f"verify must be True or False, got {verify!r}")
     with managed_executor(executor) as pool:
-        if isinstance(system, ControlledChain):
+        if is_loop_system(system):
             chart = _loop_chart(system, loop, (x_name, x_grid, x_label), (y_name, y_grid, y_label),
                                 im_max, levels, verify, pool, progress)
         elif callable(system):
             chart = _function_chart(system, loop, (x_name, x_grid, x_label), (y_name, y_grid, y_label),
                                     im_max, levels, pool, progress)
         else:
-            as_controlled(system, "a stability chart")
-            raise AssertionError  # pragma: no cover
+            loop_characteristic(system, loop, "a stability chart")    # raises: no model with a loop
     chart.wall_time_s = time.perf_counter() - started
     return chart
 
@@ -344,7 +344,7 @@ def _check_names(model: LoopCharacteristic, names: Sequence[str], grids: Sequenc
 
 
 def _loop_chart(system, loop, xs, ys, im_max, levels, verify, pool, progress) -> StabilityChart:
-    model = LoopCharacteristic(system, loop)
+    model = loop_characteristic(system, loop)
     model.executor = pool
     (x_name, x_grid, x_label), (y_name, y_grid, y_label) = xs, ys
     _check_names(model, (x_name, y_name), (x_grid, y_grid))
@@ -388,7 +388,7 @@ def _loop_chart(system, loop, xs, ys, im_max, levels, verify, pool, progress) ->
              "error": crossings.error, "static": crossings.static, "direction": crossings.direction,
              "row_parameter": q_name}
     return StabilityChart(x_name, y_name, x_grid, y_grid, counts, tuple(boundaries), cross, p_name,
-                          x_label, y_label, system.name, model.loop.name, contour.radius,
+                          x_label, y_label, model.system_name, model.loop.name, contour.radius,
                           "rows (exact crossings + argument principle)", 0.0, model.n_evaluations,
                           abscissa, levels, verified, notes, contour.certificate)
 

@@ -42,7 +42,7 @@ from .errors import ModelError, SingularSystemError, unknown_name
 from .frequency import assemble, characteristic_function, solve
 from .executors import executor_workers, managed_executor, parallel_map
 
-__all__ = ["LoopCharacteristic", "managed_executor", "executor_workers", "parallel_map",
+__all__ = ["AffineCharacteristic", "LoopCharacteristic", "normalised_columns", "managed_executor", "executor_workers", "parallel_map",
            "as_controlled", "find_loop", "delay_free_answer"]
 
 TINY = 1e-13             # components below this (relative to the largest at s) are ignored
@@ -127,7 +127,7 @@ def _log_pole_factor(system: Any, s: np.ndarray) -> np.ndarray:
     return out
 
 
-def _normalised(logs: np.ndarray) -> np.ndarray:
+def normalised_columns(logs: np.ndarray) -> np.ndarray:
     """``exp(logs)`` divided by the largest modulus in each column (zeros where log is -inf)."""
     finite = np.isfinite(logs.real)
     top = np.max(np.where(finite, logs.real, -np.inf), axis=0)
@@ -137,181 +137,26 @@ def _normalised(logs: np.ndarray) -> np.ndarray:
     return np.where(finite, values, 0.0)
 
 
-def _components_chunk(model: "LoopCharacteristic", s: np.ndarray) -> np.ndarray:
-    return model._components_direct(s)
+class AffineCharacteristic:
+    """Eq. (1) evaluated from components: ``Delta = base + k e^{-s tau} sum_j w_j T_j``.
 
-
-class LoopCharacteristic:
-    """``Delta(s; k, tau, w)`` of a controlled chain as an affine function of one loop, eq. (1).
-
-    Parameters
-    ----------
-    system : ControlledChain
-        The closed loop; every other loop stays as it is.
-    loop : str, optional
-        Loop name (default: the only loop).
-
-    Attributes
-    ----------
-    parameter_names : tuple of str
-        ``"gain"``, ``"delay"`` and the loop's sensor signal names (their weights ``w_j``).
-    gain : float
-        Current gain factor ``k``: the loop's gain for a static gain, 1 for an LTI controller
-        (then ``k`` scales ``C(s)``).
-    delay : float
-        Current delay [s].
-    weights : numpy.ndarray
-        Current sensor weights.
-
-    Notes
-    -----
-    Values are returned divided by a positive real function of ``s`` (the largest modulus of the
-    components at that ``s``) and by a constant.  That keeps them of order one on long chains and
-    changes neither the zeros nor the changes of argument, which is all the stability tools use;
-    for the characteristic function itself use :func:`ctmm.characteristic_function`.
-
-    Examples
-    --------
-    >>> import numpy as np, ctmm
-    >>> from ctmm.elements import Free, Mass
-    >>> from ctmm.control import ControlledChain, Feedback
-    >>> plant = ctmm.Chain("mass", [Free("a"), Mass("m", 2.0), Free("b")])
-    >>> pd = Feedback("pd", [("m.x", 3.0), ("m.v", 1.0)], "m", gain=1.0, delay=0.1)
-    >>> model = LoopCharacteristic(ControlledChain(plant, [pd]))
-    >>> s = np.array([0.5 + 1j])
-    >>> d = model.evaluate(s, gain=[1.0, 2.0], delay=[0.1, 0.3])[:, 0]
-    >>> def exact(k, tau):        # m s^2 + k (kp + kd s) e^{-s tau}
-    ...     return 2 * s[0] ** 2 + k * (3 + s[0]) * np.exp(-tau * s[0])
-    >>> bool(abs(d[1] / d[0] - exact(2.0, 0.3) / exact(1.0, 0.1)) < 1e-12)
-    True
+    Shared by :class:`LoopCharacteristic` (transfer-matrix chains) and
+    :class:`ctmm.state_space_characteristic.StateSpaceCharacteristic` (linear(ised) state-space
+    models).  A subclass sets ``gain``, ``delay``, ``weights``, ``term_names``,
+    ``parameter_names``, ``loop`` (with ``name`` and ``is_lti``), ``system_name``,
+    ``executor = None``, ``n_evaluations = 0`` and implements :meth:`components_at`.
     """
 
-    def __init__(self, system: ControlledChain, loop: str | None = None) -> None:
-        self.system = as_controlled(system)
-        self.loop = find_loop(self.system, loop)
-        lp = self.loop
-        self.term_names = tuple(sig for sig, _ in lp.terms)
-        if len(set(self.term_names)) != len(self.term_names):
-            raise ModelError(f"loop {lp.name!r} senses the same signal twice ({self.term_names}); "
-                             "combine the weights into one term")
-        self.parameter_names = ("gain", "delay") + self.term_names
-        self.weights = np.array([w for _, w in lp.terms], dtype=float)
-        self.gain = 1.0 if lp.is_lti else float(lp.gain)
-        self.delay = float(lp.delay)
-        plant = self.system.plant
-        signals = [plant.signal(name) for name in self.term_names]
-        groups: dict[tuple[int, int], int] = {}
-        for j, sig in enumerate(signals):
-            key = (sig.point, sig.component)
-            if key not in groups or sig.derivative < signals[groups[key]].derivative:
-                groups[key] = j
-        self._group_of = np.array([list(groups).index((sig.point, sig.component)) for sig in signals])
-        reps = list(groups.values())
-        self._power = np.array([sig.derivative - signals[reps[g]].derivative
-                                for sig, g in zip(signals, self._group_of)])
-        index = self.system.loops.index(lp)
+    gain: float
+    delay: float
+    weights: np.ndarray
+    executor: Any = None
+    n_evaluations: int = 0
 
-        def closed_by(new: Feedback) -> ControlledChain:
-            loops = list(self.system.loops)
-            loops[index] = new
-            return self.system.with_loops(loops)
-
-        reference = lp.gain if lp.is_lti else 1.0
-        self._base = closed_by(Feedback(lp.name, lp.sensor, lp.actuator, gain=0.0, delay=0.0))
-        self._groups = [closed_by(Feedback(lp.name, self.term_names[r], lp.actuator, gain=reference,
-                                           delay=0.0)) for r in reps]
-        others = [other for other in self.system.loops if other is not lp]
-        self.open_system = self.system.with_loops(others) if others else plant
-        # unit loop force: every weighted actuator input of the loop (e.g. a PZT moment pair)
-        self._amplitudes: dict = {}
-        for name, weight in lp.actuator_terms:
-            element_name, _, input_name = name.partition(".")
-            element = self.open_system.element(element_name)
-            resolved = self.open_system.input(f"{element_name}.{input_name or element.inputs[0]}")
-            slot = self._amplitudes.setdefault(resolved.position, {})
-            slot[resolved.input] = slot.get(resolved.input, 0.0) + weight
-        self._sensed = [(sig.point, sig.component, sig.derivative) for sig in signals]
-        self.executor = None
-        self.n_evaluations = 0
-        self._phase = None
-
-    # -- components ---------------------------------------------------------------------
-    def _components_direct(self, s: np.ndarray) -> np.ndarray:
-        """``[D Delta_0, T_1, ...]`` at ``s``, divided by the largest modulus at each ``s``.
-
-        Fast path: with the loop open, ``Delta_0`` (log of the boundary determinant) and the
-        responses ``P_j`` of the sensed signals to a unit actuator force come from the open chain
-        (no extended states); by the matrix determinant lemma the loop adds
-        ``T_j = D Delta_0 C P_j``.  Where the open chain is singular (an open-loop root exactly
-        at a sample, e.g. s = 0 of a free chain) the extended closed chains are swept instead."""
-        s = np.asarray(s, dtype=complex).ravel()
-        out = np.empty((1 + len(self._sensed), s.size), dtype=complex)
-        try:             # one sweep for the determinant and the responses (a regular open chain)
-            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-                solution = solve(self.open_system, s, self._amplitudes, want_log_det=True)
-                log_open = solution.log_det + _log_pole_factor(self.open_system, s)
-            if np.all(np.isfinite(log_open)):
-                out[:] = self._components_open(s, log_open, solution.states)
-                return out
-        except (SingularSystemError, np.linalg.LinAlgError):   # a root of the open chain at a sample
-            pass
-        log_open = _log_characteristic(self.open_system, s)
-        regular = np.isfinite(log_open)
-        if regular.any():
-            try:
-                out[:, regular] = self._components_open(s[regular], log_open[regular])
-            except SingularSystemError:
-                regular[:] = False
-        if not regular.all():
-            out[:, ~regular] = self._components_closed(s[~regular]) * self._closed_phase()
-        return out
-
-    def _closed_phase(self) -> complex:
-        """Phase of the constant ratio (open path)/(closed path) of ``D Delta_0`` (e.g. -1: the
-        extended chain's determinant carries the sign of the loop's constraint row)."""
-        if getattr(self, "_phase", None) is None:
-            for s_ref in (0.7 + 1.3j, 1.9 + 0.4j, 0.3 + 3.1j):
-                ref = np.array([s_ref])
-                log_open = _log_characteristic(self.open_system, ref)
-                if not np.isfinite(log_open[0]):
-                    continue
-                open_base = self._components_open(ref, log_open)[0, 0]
-                closed_base = self._components_closed(ref)[0, 0]
-                if open_base != 0 and closed_base != 0:
-                    ratio = open_base / closed_base
-                    self._phase = ratio / abs(ratio)
-                    break
-            else:  # pragma: no cover - an open chain singular at every reference point
-                self._phase = 1.0
-        return self._phase
-
-    def _components_open(self, s: np.ndarray, log_open: np.ndarray,
-                         states: np.ndarray | None = None) -> np.ndarray:
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            if states is None:
-                states = solve(self.open_system, s, self._amplitudes).states
-            log_base = log_open
-            controller = np.zeros(s.size, complex)
-            if self.loop.is_lti:
-                log_base = log_base + np.log(self.loop.denominator(s).astype(complex))
-                controller = np.log(self.loop.controller_response(s).astype(complex))
-            logs = [log_base]
-            for point, component, derivative in self._sensed:
-                response = states[point, :, component] * s ** derivative
-                logs.append(log_base + controller + np.log(response.astype(complex)))
-            return _normalised(np.array(logs))
-
-    def _components_closed(self, s: np.ndarray) -> np.ndarray:
-        logs = [_log_characteristic(self._base, s)]
-        if self.loop.is_lti:
-            with np.errstate(divide="ignore"):
-                logs[0] = logs[0] + np.log(self.loop.denominator(s).astype(complex))
-        logs += [_log_characteristic(g, s) for g in self._groups]
-        values = _normalised(np.array(logs))
-        base = values[0]
-        groups = values[1:] - base
-        terms = groups[self._group_of] * s[None, :] ** self._power[:, None]
-        return np.vstack([base[None, :], terms])
+    def components_at(self, s: np.ndarray) -> np.ndarray:
+        """``[base, T_1, ...]`` at ``s`` (shape ``(1 + n_terms, n)``), divided by a positive
+        function of ``s``."""
+        raise NotImplementedError
 
     def components(self, s: Any) -> tuple[np.ndarray, np.ndarray]:
         """``(Delta_0 D, T)`` at ``s``: shapes ``(n,)`` and ``(n_terms, n)`` (scaled, see Notes)."""
@@ -319,7 +164,7 @@ class LoopCharacteristic:
         self.n_evaluations += s.size
         executor = self.executor
         if executor is None or s.size < 64:
-            out = self._components_direct(s)
+            out = self.components_at(s)
         else:
             chunks = np.array_split(s, executor_workers(executor))
             parts = list(executor.map(_components_chunk, [self] * len(chunks), chunks))
@@ -383,6 +228,183 @@ class LoopCharacteristic:
 
         return delta
 
+
+def _components_chunk(model: "AffineCharacteristic", s: np.ndarray) -> np.ndarray:
+    return model.components_at(s)
+
+
+class LoopCharacteristic(AffineCharacteristic):
+    """``Delta(s; k, tau, w)`` of a controlled chain as an affine function of one loop, eq. (1).
+
+    Parameters
+    ----------
+    system : ControlledChain
+        The closed loop; every other loop stays as it is.
+    loop : str, optional
+        Loop name (default: the only loop).
+
+    Attributes
+    ----------
+    parameter_names : tuple of str
+        ``"gain"``, ``"delay"`` and the loop's sensor signal names (their weights ``w_j``).
+    gain : float
+        Current gain factor ``k``: the loop's gain for a static gain, 1 for an LTI controller
+        (then ``k`` scales ``C(s)``).
+    delay : float
+        Current delay [s].
+    weights : numpy.ndarray
+        Current sensor weights.
+
+    Notes
+    -----
+    Values are returned divided by a positive real function of ``s`` (the largest modulus of the
+    components at that ``s``) and by a constant.  That keeps them of order one on long chains and
+    changes neither the zeros nor the changes of argument, which is all the stability tools use;
+    for the characteristic function itself use :func:`ctmm.characteristic_function`.
+
+    Examples
+    --------
+    >>> import numpy as np, ctmm
+    >>> from ctmm.elements import Free, Mass
+    >>> from ctmm.control import ControlledChain, Feedback
+    >>> plant = ctmm.Chain("mass", [Free("a"), Mass("m", 2.0), Free("b")])
+    >>> pd = Feedback("pd", [("m.x", 3.0), ("m.v", 1.0)], "m", gain=1.0, delay=0.1)
+    >>> model = LoopCharacteristic(ControlledChain(plant, [pd]))
+    >>> s = np.array([0.5 + 1j])
+    >>> d = model.evaluate(s, gain=[1.0, 2.0], delay=[0.1, 0.3])[:, 0]
+    >>> def exact(k, tau):        # m s^2 + k (kp + kd s) e^{-s tau}
+    ...     return 2 * s[0] ** 2 + k * (3 + s[0]) * np.exp(-tau * s[0])
+    >>> bool(abs(d[1] / d[0] - exact(2.0, 0.3) / exact(1.0, 0.1)) < 1e-12)
+    True
+    """
+
+    def __init__(self, system: ControlledChain, loop: str | None = None) -> None:
+        self.system = as_controlled(system)
+        self.system_name = self.system.name
+        self.loop = find_loop(self.system, loop)
+        lp = self.loop
+        self.term_names = tuple(sig for sig, _ in lp.terms)
+        if len(set(self.term_names)) != len(self.term_names):
+            raise ModelError(f"loop {lp.name!r} senses the same signal twice ({self.term_names}); "
+                             "combine the weights into one term")
+        self.parameter_names = ("gain", "delay") + self.term_names
+        self.weights = np.array([w for _, w in lp.terms], dtype=float)
+        self.gain = 1.0 if lp.is_lti else float(lp.gain)
+        self.delay = float(lp.delay)
+        plant = self.system.plant
+        signals = [plant.signal(name) for name in self.term_names]
+        groups: dict[tuple[int, int], int] = {}
+        for j, sig in enumerate(signals):
+            key = (sig.point, sig.component)
+            if key not in groups or sig.derivative < signals[groups[key]].derivative:
+                groups[key] = j
+        self._group_of = np.array([list(groups).index((sig.point, sig.component)) for sig in signals])
+        reps = list(groups.values())
+        self._power = np.array([sig.derivative - signals[reps[g]].derivative
+                                for sig, g in zip(signals, self._group_of)])
+        index = self.system.loops.index(lp)
+
+        def closed_by(new: Feedback) -> ControlledChain:
+            loops = list(self.system.loops)
+            loops[index] = new
+            return self.system.with_loops(loops)
+
+        reference = lp.gain if lp.is_lti else 1.0
+        self._base = closed_by(Feedback(lp.name, lp.sensor, lp.actuator, gain=0.0, delay=0.0))
+        self._groups = [closed_by(Feedback(lp.name, self.term_names[r], lp.actuator, gain=reference,
+                                           delay=0.0)) for r in reps]
+        others = [other for other in self.system.loops if other is not lp]
+        self.open_system = self.system.with_loops(others) if others else plant
+        # unit loop force: every weighted actuator input of the loop (e.g. a PZT moment pair)
+        self._amplitudes: dict = {}
+        for name, weight in lp.actuator_terms:
+            element_name, _, input_name = name.partition(".")
+            element = self.open_system.element(element_name)
+            resolved = self.open_system.input(f"{element_name}.{input_name or element.inputs[0]}")
+            slot = self._amplitudes.setdefault(resolved.position, {})
+            slot[resolved.input] = slot.get(resolved.input, 0.0) + weight
+        self._sensed = [(sig.point, sig.component, sig.derivative) for sig in signals]
+        self.executor = None
+        self.n_evaluations = 0
+        self._phase = None
+
+    # -- components ---------------------------------------------------------------------
+    def components_at(self, s: np.ndarray) -> np.ndarray:
+        """``[D Delta_0, T_1, ...]`` at ``s``, divided by the largest modulus at each ``s``.
+
+        Fast path: with the loop open, ``Delta_0`` (log of the boundary determinant) and the
+        responses ``P_j`` of the sensed signals to a unit actuator force come from the open chain
+        (no extended states); by the matrix determinant lemma the loop adds
+        ``T_j = D Delta_0 C P_j``.  Where the open chain is singular (an open-loop root exactly
+        at a sample, e.g. s = 0 of a free chain) the extended closed chains are swept instead."""
+        s = np.asarray(s, dtype=complex).ravel()
+        out = np.empty((1 + len(self._sensed), s.size), dtype=complex)
+        try:             # one sweep for the determinant and the responses (a regular open chain)
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                solution = solve(self.open_system, s, self._amplitudes, want_log_det=True)
+                log_open = solution.log_det + _log_pole_factor(self.open_system, s)
+            if np.all(np.isfinite(log_open)):
+                out[:] = self._components_open(s, log_open, solution.states)
+                return out
+        except (SingularSystemError, np.linalg.LinAlgError):   # a root of the open chain at a sample
+            pass
+        log_open = _log_characteristic(self.open_system, s)
+        regular = np.isfinite(log_open)
+        if regular.any():
+            try:
+                out[:, regular] = self._components_open(s[regular], log_open[regular])
+            except SingularSystemError:
+                regular[:] = False
+        if not regular.all():
+            out[:, ~regular] = self._components_closed(s[~regular]) * self._closed_phase()
+        return out
+
+    def _closed_phase(self) -> complex:
+        """Phase of the constant ratio (open path)/(closed path) of ``D Delta_0`` (e.g. -1: the
+        extended chain's determinant carries the sign of the loop's constraint row)."""
+        if getattr(self, "_phase", None) is None:
+            for s_ref in (0.7 + 1.3j, 1.9 + 0.4j, 0.3 + 3.1j):
+                ref = np.array([s_ref])
+                log_open = _log_characteristic(self.open_system, ref)
+                if not np.isfinite(log_open[0]):
+                    continue
+                open_base = self._components_open(ref, log_open)[0, 0]
+                closed_base = self._components_closed(ref)[0, 0]
+                if open_base != 0 and closed_base != 0:
+                    ratio = open_base / closed_base
+                    self._phase = ratio / abs(ratio)
+                    break
+            else:  # pragma: no cover - an open chain singular at every reference point
+                self._phase = 1.0
+        return self._phase
+
+    def _components_open(self, s: np.ndarray, log_open: np.ndarray,
+                         states: np.ndarray | None = None) -> np.ndarray:
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            if states is None:
+                states = solve(self.open_system, s, self._amplitudes).states
+            log_base = log_open
+            controller = np.zeros(s.size, complex)
+            if self.loop.is_lti:
+                log_base = log_base + np.log(self.loop.denominator(s).astype(complex))
+                controller = np.log(self.loop.controller_response(s).astype(complex))
+            logs = [log_base]
+            for point, component, derivative in self._sensed:
+                response = states[point, :, component] * s ** derivative
+                logs.append(log_base + controller + np.log(response.astype(complex)))
+            return normalised_columns(np.array(logs))
+
+    def _components_closed(self, s: np.ndarray) -> np.ndarray:
+        logs = [_log_characteristic(self._base, s)]
+        if self.loop.is_lti:
+            with np.errstate(divide="ignore"):
+                logs[0] = logs[0] + np.log(self.loop.denominator(s).astype(complex))
+        logs += [_log_characteristic(g, s) for g in self._groups]
+        values = normalised_columns(np.array(logs))
+        base = values[0]
+        groups = values[1:] - base
+        terms = groups[self._group_of] * s[None, :] ** self._power[:, None]
+        return np.vstack([base[None, :], terms])
 
 def n_sets(gain: Any, delay: Any, weights: Any) -> int:
     """Number of parameter sets given as scalars / 1-D arrays (and weights rows), broadcast."""
