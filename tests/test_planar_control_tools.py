@@ -50,3 +50,11 @@ def test_loop_tools_refuse_unknown_loops_and_plain_models():
         loop_transfer_function(system(), "speed", [1.0])
     with pytest.raises(ModelError):
         loop_transfer_function(system().plant, "pd", [1.0])
+
+
+def test_margins_of_a_planar_loop_add_the_crossover_a_coarse_grid_misses():
+    result = margins(system(), "pd", np.linspace(0.05, 3.0, 50))          # the crossover is near 7.9 rad/s
+    w_gc = brentq(lambda w: abs(exact_loop(w)) - 1.0, 1.0, 60.0)
+    assert result.gain_crossovers == pytest.approx([w_gc], rel=1e-9)
+    assert result.delay_margin == pytest.approx((np.pi + np.angle(exact_loop(w_gc))) / w_gc, rel=1e-8)
+    assert any("certified search" in note for note in result.notes)

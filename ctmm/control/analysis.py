@@ -180,8 +180,8 @@ class Margins:
         return out
 
 
-def _certified_crossovers(system: ControlledChain, loop: str) -> tuple[list, list, Any, list]:
-    """Gain and phase crossovers [rad/s] of a controlled chain's loop from the certified
+def _certified_crossovers(system: ControlledChain | ControlledModel, loop: str) -> tuple[list, list, Any, list]:
+    """Gain and phase crossovers [rad/s] of a controlled chain's (or linearised model's) loop from the certified
     contour search of :mod:`ctmm.stability` (phase crossovers: gain factors in (0, 100])."""
     from ..stability import gain_crossovers, gain_margin
 
@@ -327,7 +327,7 @@ def margins(source: Any, loop: str | None = None, omega: Any = None) -> Margins:
     pcs = _dedupe([_refine(f_imag, wg, x) for x in pc_est])
     notes: list[str] = []
     certificate = None
-    if isinstance(source, ControlledChain):
+    if isinstance(source, (ControlledChain, ControlledModel)):
         gc_cert, pc_cert, certificate, notes = _certified_crossovers(source, lp.name)
         for kind, found, exact in (("gain", gcs, gc_cert), ("phase", pcs, pc_cert)):
             for x in exact:
@@ -337,10 +337,8 @@ def margins(source: Any, loop: str | None = None, omega: Any = None) -> Margins:
                                  "certified search")
                     found.append(x)
         gcs, pcs = sorted(gcs), sorted(pcs)
-    if isinstance(source, ControlledModel):
-        notes.append("planar model: crossovers located on the grid and refined on the exact L of the "
-                     "linearisation; not certified beyond the grid")
-    if isinstance(source, ControlledChain):
+        if isinstance(source, ControlledModel):
+            notes.append("planar model: L is that of the linearisation about the operating point")
         if certificate is not None and (wg[0] > 0.0 or wg[-1] < certificate.im_max):
             notes.append(f"stability_margin (min |1 + L|) searched on the grid only, [{wg[0]:.6g}, "
                          f"{wg[-1]:.6g}] rad/s")
