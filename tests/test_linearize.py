@@ -286,8 +286,6 @@ def test_lqr_on_the_linearised_flexible_manipulator_regulates_like_the_lagrange_
     import control
 
     from ctmm.manipulator import FlexibleManipulator, seed_manipulator
-    from ctmm.ode import integrate_rk4
-    from ctmm.planar import accelerations, ports
     from ctmm.reference.manipulator_lagrange import ManipulatorLagrange
 
     manipulator = seed_manipulator()
@@ -322,29 +320,21 @@ def test_lqr_on_the_linearised_flexible_manipulator_regulates_like_the_lagrange_
     controlled = with_feedback(model, loops)
     closed = ctmm.linearize(controlled, inputs=[])
     assert np.allclose(closed.state_space.A, A - B @ K, rtol=0, atol=1e-12 * np.max(np.abs(A)))
-    # nonlinear closed loop: planar TMM accelerations with the loop forces as actuator inputs, RK4
-    sensors = controlled.sensors()
-
-    def rate(t, y):
-        values = dict(zip(sensors, ports.sensor_values(model, sensors, y[:4], y[4:], t)))
-        forces = controlled.actuation({name: -value for name, value in controlled.sensed(values).items()})
-        return np.concatenate([y[4:], accelerations(model, y[:4], y[4:], t,
-                                                    inputs=ports.actuator_inputs(model, forces))])
-
+    # the nonlinear closed loop simulated by the one verb (real-time loops at every RK4 stage)
     dt, t_final, theta0 = 1e-3, 1.0, 0.2
     y0 = np.zeros(8)
     y0[0] = theta0
-    stored = []
-    integrate_rk4(rate, y0, h=dt, n_steps=int(round(t_final / dt)),
-                  after_step=lambda k, t, y: stored.append(y) if k % 50 == 0 else None)
-    ours = np.array(stored)
+    run = ctmm.simulate(controlled, t_final, dt, method="rk4", x0={"hub.theta": theta0})
+    every = int(round(0.05 / dt))
+    coordinates = list(model.coordinates)
+    ours = np.column_stack([run[name] for name in coordinates])[every::every]
     K_ref = K @ T                                               # the same law on [theta, eta, rates]
 
     def reference_rate(t, x):
         u = -K_ref @ x
         return np.concatenate([x[4:], reference.accelerations(x[4], x[1:4], x[5:], u[0], u[1:])])
 
-    times = dt * 50 * np.arange(1, len(stored) + 1)
+    times = run.time[every::every]
     sol = scipy.integrate.solve_ivp(reference_rate, (0.0, t_final), y0, method="DOP853", rtol=1e-11,
                                     atol=1e-13, t_eval=times)
     theirs = (T @ sol.y).T
