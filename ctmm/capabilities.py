@@ -20,11 +20,14 @@ from .system import Chain
 __all__ = ["SystemContents", "describe", "require_chain", "require_planar", "refuse_loops", "refuse_damping"]
 
 _OTHER_PACKAGES = {
-    "ctmm.planar": "ctmm.planar (simulate_rk4, simulate_implicit, linear.natural_frequencies, ...); in time "
-                   "with loops and controllers: ctmm.simulate",
-    "ctmm.flexible": "ctmm.planar with ctmm.flexible beams (simulate_rk4, simulate_implicit); in time with loops "
-                     "and controllers: ctmm.simulate",
-    "ctmm.manipulator": "the model's own methods (FlexibleManipulator.simulate, LinearManipulator.system)",
+    "ctmm.planar": "the verbs that answer every model: ctmm.simulate, ctmm.linearize, ctmm.frequency_response, "
+                   "ctmm.natural_frequencies, ctmm.mode_shapes (through the linearisation), ctmm.stability with "
+                   "loops (ctmm.control.with_feedback)",
+    "ctmm.flexible": "the verbs that answer every model (planar models with ctmm.flexible beams): ctmm.simulate, "
+                     "ctmm.linearize, ctmm.frequency_response, ctmm.natural_frequencies, ctmm.mode_shapes, "
+                     "ctmm.stability with loops",
+    "ctmm.manipulator": "ctmm.manipulator.manipulator_scene (a ControlledModel for the verbs) or the model's own "
+                        "methods (FlexibleManipulator.simulate, LinearManipulator.system)",
 }
 
 
