@@ -17,10 +17,17 @@ flexible beams) whose named actuators (:mod:`ctmm.planar.ports`) are driven by
   :class:`~ctmm.control.measurement_delay.DelayedController` reads its inputs ``delay`` seconds
   late from the same delay history.
 
-Methods: fixed-step ``"rk4"`` (:func:`ctmm.ode.integrate_rk4`) or a ``scipy.integrate``
+Methods: fixed-step ``"rk4"`` (:func:`ctmm.ode.integrate_rk4`), a ``scipy.integrate``
 solver (``"RK45"``, ``"DOP853"``, ``"Radau"``, ...; stepped here, every accepted step checked;
-``max_step`` at most the shortest loop delay).  A loop delay must be 0 or at least one step
-(RK4 evaluates the loop inside the step).  The guards of :mod:`ctmm.planar.guards` apply (step
+``max_step`` at most the shortest loop delay), or an implicit DT-TMM scheme of
+:mod:`ctmm.schemes` (:func:`ctmm.planar.implicit.simulate_implicit`, one run): loops, inputs and
+held controller outputs enter through its ``inputs`` hook, evaluated at every Newton iterate
+(a real-time loop is implicit in the step, its state dependence in the Newton tangent), and its
+per-step callback samples the controllers and appends to the delay history; a step after a
+sample starts from the acceleration with the new held outputs.  A loop delay must be 0 or at
+least one step (``theta dt`` with Wilson-theta, whose equations are imposed at
+``t_n + theta dt``); an LTI controller with states is closed by ``"rk4"`` and the ``solve_ivp``
+methods only.  The guards of :mod:`ctmm.planar.guards` apply (step
 limit of the plant before the run, divergence bound, non-finite states) and a failed run raises
 :class:`~ctmm.errors.SimulationError` with the result up to the last good step.
 """
@@ -45,6 +52,7 @@ from ..planar.signals import signal_values
 from ..planar.sweep import accelerations
 from ..progress import progress_bar
 from ..results import SimulationResult
+from ..schemes import SCHEMES, Scheme, as_scheme
 from ..signal_results import SignalSystem, signal_result
 from ..signals import as_signal
 from .cosim import CoSimulation
@@ -273,10 +281,11 @@ class _ClosedLoop:
         else:
             self.history.derivatives[-1] = derivative
 
-    def sample(self, step: int, t: float, y: np.ndarray) -> None:
-        """Sample the controllers due at step ``step`` (time ``t`` [s], state ``y``)."""
+    def sample(self, step: int, t: float, y: np.ndarray) -> bool:
+        """Sample the controllers due at step ``step`` (time ``t`` [s], state ``y``); returns
+        whether one was sampled (its held outputs may have jumped)."""
         if self.master is None:
-            return
+            return False
         q, v = y[:self.n], y[self.n:2 * self.n]
 
         def measure(i: int) -> np.ndarray:
@@ -288,6 +297,15 @@ class _ClosedLoop:
 
         if self.master.sample(step, t, measure):
             self._cache = None          # held outputs changed: the rate at (t, y) changed too
+            return True
+        return False
+
+    def actuator_inputs(self, t: float, q: np.ndarray, v: np.ndarray) -> Any:
+        """The actuator inputs at ``(t, q, v)`` (no controller states): the ``inputs`` hook of
+        :func:`~ctmm.planar.implicit.simulate_implicit`."""
+        y = np.concatenate([q, v])
+        values = self.actuator_values(t, y, self.loop_values(t, y))
+        return self.ports.inputs(values) if values else None
 
     def close(self) -> None:
         if self.master is not None:
@@ -345,7 +363,7 @@ def _check_state(system: _ClosedLoop, guard, t: float, y: np.ndarray, step: floa
 
 
 def simulate_closed_loop(model: PlanarModel, q0: np.ndarray, qdot0: np.ndarray, t_final: float,
-                         dt: float | None, *, method: str = "rk4", loops: Sequence[Any] = (),
+                         dt: float | None, *, method: str | Scheme = "rk4", loops: Sequence[Any] = (),
                          controllers: Sequence[Any] = (), inputs: Mapping[str, Any] | None = None,
                          references: Mapping[str, Any] | None = None, outputs: Sequence[str] = (),
                          coupling: str = "hold", rtol: float = 1e-8, atol: float = 1e-10,
@@ -361,11 +379,12 @@ def simulate_closed_loop(model: PlanarModel, q0: np.ndarray, qdot0: np.ndarray, 
     t_final : float
         End time [s].
     dt : float or None
-        Step [s] of ``"rk4"`` and the sample grid of controllers (required for both); for a scipy
-        method with ``dt`` the result is stored on the grid ``k dt`` (dense output), without it at
-        every accepted step.
-    method : str
-        ``"rk4"`` or a name of :data:`~ctmm.planar.integrate.SCIPY_METHODS`.
+        Step [s] of ``"rk4"`` and the schemes and the sample grid of controllers (required for
+        these); for a scipy method with ``dt`` the result is stored on the grid ``k dt`` (dense
+        output), without it at every accepted step.
+    method : str or Scheme
+        ``"rk4"``, a name of :data:`~ctmm.planar.integrate.SCIPY_METHODS`, or a DT-TMM scheme
+        (a name of :data:`ctmm.schemes.SCHEMES` or a :mod:`ctmm.schemes` object).
     loops : sequence of Feedback
         Loops on named sensors and actuators of :mod:`ctmm.planar.ports`.
     controllers : sequence of Controller
@@ -381,11 +400,13 @@ def simulate_closed_loop(model: PlanarModel, q0: np.ndarray, qdot0: np.ndarray, 
     rtol, atol, max_step : float
         scipy tolerances and largest step [s].
     store_every : int
-        ``"rk4"``: keep every ``store_every``-th step (the last one always).
+        ``"rk4"`` and the schemes: keep every ``store_every``-th step (the last one always).
     progress : bool, optional
         Progress bar (long runs on a terminal by default).
     stability_check : {"warn", "error", "ignore"}
-        ``"rk4"``: step against the plant's linearised limit before the run (loops not included).
+        ``"rk4"``: step against the plant's linearised limit before the run (loops not included);
+        a scheme: against its own limit with the real-time loops included
+        (:func:`~ctmm.planar.implicit.simulate_implicit`).
     divergence_bound : float, optional
         As in :func:`~ctmm.planar.integrate.simulate_rk4`.
 
@@ -398,35 +419,43 @@ def simulate_closed_loop(model: PlanarModel, q0: np.ndarray, qdot0: np.ndarray, 
     Raises
     ------
     ModelError
-        Unknown sensor, actuator, loop or method; a delay between 0 and ``dt``; an improper C(s).
+        Unknown sensor, actuator, loop or method; a delay between 0 and ``dt`` (``theta dt``
+        with Wilson-theta); an improper C(s); an LTI controller with states and a scheme.
     SimulationError
         Divergence, non-finite states, failing controller or user code; ``partial_result``.
     """
-    if method != "rk4" and method not in SCIPY_METHODS:
-        raise ModelError(f"method must be 'rk4' or one of {SCIPY_METHODS} for a planar model with loops, "
-                         f"controllers or inputs, got {method!r}")
+    scheme = as_scheme(method) if isinstance(method, Scheme) or (isinstance(method, str) and method in SCHEMES) \
+        else None
+    if method != "rk4" and method not in SCIPY_METHODS and scheme is None:
+        raise ModelError(f"method must be 'rk4', one of {SCIPY_METHODS} or a DT-TMM scheme "
+                         f"{tuple(sorted(SCHEMES))} for a planar model with loops, controllers or inputs, "
+                         f"got {method!r}")
+    fixed = method == "rk4" or scheme is not None
     t_final = validation.positive("t_final", t_final)
     if dt is not None:
         dt = validation.positive("dt", dt)
-    if method == "rk4" and dt is None:
-        raise ModelError("dt is required with method='rk4' (a fixed step [s], > 0), got None")
+    if fixed and dt is None:
+        raise ModelError(f"dt is required with method={method!r} (a fixed step [s], > 0), got None")
     if controllers and dt is None:
         raise ModelError("dt is required with co-simulated controllers: it is the sample grid [s] "
                          "(each controller's sample_time is a whole multiple of it)")
     n = model.n_coordinates
     ports = PlanarPorts(model)
-    resolved = _resolve(ports, loops, dt if method == "rk4" else None, n)
+    resolved = _resolve(ports, loops, dt if fixed else None, n)
     delays = [lp.delay for lp in resolved if lp.delay > 0]
-    if method != "rk4" and delays:
+    if scheme is not None:
+        _check_scheme_loops(resolved, scheme, dt)
+    if not fixed and delays:
         max_step = min(max_step, min(delays))
-    history_step = dt if method == "rk4" else (min(delays) if delays else t_final) * 1e-5
+    history_step = dt if fixed else (min(delays) if delays else t_final) * 1e-5
+    label = method if scheme is None else f"dt-tmm/{type(scheme).__name__}"
     try:
         system = _ClosedLoop(ports, resolved, controllers, inputs or {}, references or {}, dt, coupling,
                              history_step=max(history_step, 1e-300))
     except SimulationError as exc:     # a controller's init failed: nothing was simulated
         def empty() -> SimulationResult:
             signals, units = model_signals(model, np.zeros(0), np.zeros((0, n)), np.zeros((0, n)), outputs)
-            return signal_result(SignalSystem(model, units, loops), np.zeros(0), signals, method, {"dt": dt})
+            return signal_result(SignalSystem(model, units, loops), np.zeros(0), signals, label, {"dt": dt})
 
         raise with_partial(exc, empty) from exc.__cause__
     try:
@@ -434,10 +463,10 @@ def simulate_closed_loop(model: PlanarModel, q0: np.ndarray, qdot0: np.ndarray, 
         guard = divergence_guard(model, q0, divergence_bound)
         rows = _Rows(system)
         start = _time.perf_counter()
-        info = {"dt": dt, "method": method}
+        info = {"dt": dt, "method": label}
 
         def partial() -> SimulationResult:
-            return _result(rows, outputs, method, {**info, "wall_time_s": _time.perf_counter() - start})
+            return _result(rows, outputs, label, {**info, "wall_time_s": _time.perf_counter() - start})
 
         try:
             system.begin(0.0, y0)
@@ -450,11 +479,14 @@ def simulate_closed_loop(model: PlanarModel, q0: np.ndarray, qdot0: np.ndarray, 
                 n_steps = step_total(t_final, dt)
                 check_scheme(model, q0, qdot0, dt, scheme="rk4", policy=stability_check)
                 _run_rk4(system, rows, guard, dt, n_steps, store_every, progress)
+            elif scheme is not None:
+                info.update(_run_implicit(system, rows, q0, qdot0, t_final, dt, scheme, store_every, progress,
+                                          stability_check, divergence_bound))
             else:
                 _run_scipy(system, rows, guard, y0, t_final, dt, method, rtol, atol, max_step, progress)
         except SimulationError as exc:
             raise with_partial(exc, partial) from exc.__cause__
-        return _result(rows, outputs, method, {**info, "wall_time_s": _time.perf_counter() - start})
+        return _result(rows, outputs, label, {**info, "wall_time_s": _time.perf_counter() - start})
     finally:
         system.close()
 
@@ -476,6 +508,60 @@ def _run_rk4(system: _ClosedLoop, rows: _Rows, guard, dt: float, n_steps: int, s
         integrate_rk4(system.rate, rows.y[0], h=dt, n_steps=n_steps, after_step=after_step)
     finally:
         bar.close()
+
+
+def _check_scheme_loops(loops: list[_Loop], scheme: Scheme, dt: float) -> None:
+    """Refuse what an implicit scheme cannot close: controller states, a delay the step reaches."""
+    for lp in loops:
+        if lp.A.shape[0]:
+            raise ModelError(f"loop {lp.name!r}: the LTI controller C(s) has {lp.A.shape[0]} state(s), which the "
+                             f"implicit DT-TMM scheme {type(scheme).__name__} does not integrate; use method='rk4' "
+                             "or a solve_ivp method such as 'Radau', or a static gain on sensor terms")
+    probe = scheme.start_history(np.zeros(1), np.zeros(1), np.zeros(1))
+    fraction = scheme.second_order_step(probe, dt).time_fraction
+    for lp in loops:
+        if fraction > 1.0 and 0.0 < lp.delay < fraction * dt * (1.0 - 1e-9):
+            raise ModelError(f"loop {lp.name!r}: delay = {lp.delay!r} s is shorter than {fraction:g} dt = "
+                             f"{fraction * dt!r} s; {type(scheme).__name__} imposes the equations of motion at "
+                             f"t_n + {fraction:g} dt, where the loop needs y(t - delay) from a completed step: use "
+                             f"dt <= {lp.delay / fraction!r} s, another scheme or delay=0")
+
+
+def _run_implicit(system: _ClosedLoop, rows: _Rows, q0: np.ndarray, qdot0: np.ndarray, t_final: float, dt: float,
+                  scheme: Scheme, store_every: int, progress: bool | None, stability_check: str,
+                  divergence_bound: float | None) -> dict:
+    """One implicit DT-TMM run: every actuator input through its ``inputs`` hook (real-time loops
+    at every Newton iterate), controllers and the delay history in its per-step callback."""
+    from ..planar.implicit import simulate_implicit
+    from ..planar.integrate import step_total
+
+    n_steps = step_total(t_final, dt)
+    store_every = validation.integer("store_every", store_every, minimum=1)
+    bar = progress_bar(n_steps, f"ctmm.simulate (planar, {type(scheme).__name__})", enabled=progress)
+    driven = bool(system.loops or system.input_functions or system.master is not None)
+
+    def after_step(k: int, t: float, q: np.ndarray, v: np.ndarray) -> bool:
+        y = np.concatenate([q, v])
+        jumped = system.sample(k, t, y)
+        system.remember(t, y)
+        if k % store_every == 0 or k == n_steps:
+            rows.add(t, y)
+        bar.update()
+        return jumped
+
+    try:
+        simulation = simulate_implicit(system.model, q0, qdot0, t_final=t_final, dt=dt, scheme=scheme,
+                                       store_every=n_steps, divergence_bound=divergence_bound,
+                                       stability_check=stability_check,
+                                       inputs=system.actuator_inputs if driven else None, after_step=after_step)
+    except SimulationError as exc:
+        exc.partial_result = None          # the rows stored here are the partial result
+        raise
+    finally:
+        bar.close()
+    system.evaluations += int(simulation.n_evaluations)
+    return {"newton_iterations_mean": float(np.mean(simulation.iterations)),
+            "newton_iterations_max": int(np.max(simulation.iterations))}
 
 
 def _run_scipy(system: _ClosedLoop, rows: _Rows, guard, y0: np.ndarray, t_final: float, dt: float | None,
