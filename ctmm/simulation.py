@@ -116,8 +116,9 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
     method : str or Scheme, optional
         ``"rk4"`` (fixed step; planar default), a ``scipy.integrate.solve_ivp`` method
         (``"RK45"``, ``"DOP853"``, ``"Radau"``, ``"BDF"``, ...; planar) or a DT-TMM scheme
-        (``"newmark"`` (chain default), ``"generalized_alpha"``, ``"wilson"``, ``"houbolt"``,
-        ``"euler"`` or a :mod:`ctmm.schemes` object).
+        (``"newmark"`` (chain default), ``"generalized_alpha"``, ``"wilson_theta"``, ``"houbolt"``,
+        ``"forward_euler"`` or a :mod:`ctmm.schemes` object); on a planar model every scheme closes
+        loops, ``inputs`` and ``controllers`` (``docs/planar.md``, ``docs/control.md`` §4c).
     scheme : str or Scheme, optional
         Alias of ``method`` (giving both is an error).
     x0, v0 : mapping or array, optional
@@ -167,8 +168,8 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
     ------
     ModelError
         Bad input; a system of another kind; options that do not apply to the run (e.g.
-        ``inputs`` for a chain, ``fast`` with loops); with a DT-TMM scheme on a planar model, an
-        LTI loop controller with states or a loop delay shorter than the step.
+        ``inputs`` for a chain, ``fast`` with loops); with a DT-TMM scheme on a planar model, a
+        loop delay shorter than the step (Wilson-theta: ``theta dt``).
     SimulationError
         A failed run (divergence, non-finite state, failing user code), with ``partial_result``.
     """

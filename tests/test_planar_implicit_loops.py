@@ -183,12 +183,32 @@ def test_open_loop_inputs_equal_the_same_torque_in_the_hinge(method):
     np.testing.assert_allclose(a["rod.theta"], b["rod.theta"], rtol=0, atol=1e-12)
 
 
-def test_refusals_with_a_scheme():
+@pytest.mark.parametrize("method, bound", [("newmark", 4e-5), ("wilson_theta", 1.7e-4)])   # ~2x the measured
+def test_lti_controller_states_advance_with_the_step_at_second_order(method, bound):
+    """``C(s) = K a / (s + a)`` on the angle error: its state advances by the trapezoidal rule inside
+    the implicit step (at every Newton iterate); the reference carries ``x' = a (e - x)``, ``u = -K x``."""
     control = pytest.importorskip("control")
-    model = pendulum(SmoothHinge("pivot"))
-    lag = ControlledModel(model, [Feedback("lag", "rod.theta", "pivot.torque", gain=control.tf([10.0], [1.0, 5.0]))])
-    with pytest.raises(ModelError, match="loop 'lag': the LTI controller C\\(s\\) has 1 state"):
-        ctmm.simulate(lag, 0.01, 1e-3, method="newmark")
+    K, a, t_final = 25.0, 40.0, 0.6
+    loop = Feedback("lag", "rod.theta", "pivot.torque", gain=control.tf([K * a], [1.0, a]))
+    lagrange = PlanarLagrange(pendulum(ActuatedHinge("pivot", torque=(cell := Cell()))))
+
+    def rhs(t, y):
+        cell.value = -K * y[2]
+        return np.array([y[1], lagrange.accelerations(y[:1], y[1:2], t)[0], a * (y[0] - TARGET - y[2])])
+
+    theta_errors, u_errors = [], []
+    for dt in (2e-3, 1e-3):
+        result = ctmm.simulate(ControlledModel(pendulum(SmoothHinge("pivot")), [loop]), t_final, dt, method=method,
+                               x0=[THETA0], references={"lag": TARGET})
+        ref = dop853(rhs, (0.0, t_final), [THETA0, 0.0, 0.0], t_eval=result.time)
+        theta_errors.append(float(np.max(np.abs(result["rod.theta"] - ref.y[0]))))
+        u_errors.append(float(np.max(np.abs(result["lag.u"] + K * ref.y[2]))))
+    assert abs(observed_order(theta_errors) - 2.0) < 0.25, theta_errors
+    assert abs(observed_order(u_errors) - 2.0) < 0.25, u_errors
+    assert theta_errors[1] < bound, theta_errors
+
+
+def test_refusals_with_a_scheme():
     with pytest.raises(ModelError, match="delay = 0.0012 s is shorter than 1.4 dt"):
         ctmm.simulate(pd_system(delay=1.2e-3), 0.01, 1e-3, method="wilson_theta")
     ctmm.simulate(pd_system(delay=1.2e-3), 0.01, 1e-3, method="newmark")      # one step late: fine

@@ -24,10 +24,10 @@ solver (``"RK45"``, ``"DOP853"``, ``"Radau"``, ...; stepped here, every accepted
 held controller outputs enter through its ``inputs`` hook, evaluated at every Newton iterate
 (a real-time loop is implicit in the step, its state dependence in the Newton tangent), and its
 per-step callback samples the controllers and appends to the delay history; a step after a
-sample starts from the acceleration with the new held outputs.  A loop delay must be 0 or at
-least one step (``theta dt`` with Wilson-theta, whose equations are imposed at
-``t_n + theta dt``); an LTI controller with states is closed by ``"rk4"`` and the ``solve_ivp``
-methods only.  The guards of :mod:`ctmm.planar.guards` apply (step
+sample starts from the acceleration with the new held outputs; the states of an LTI controller
+advance by the trapezoidal rule from the step start to the iterate's time (implicit in the
+step, second order).  A loop delay must be 0 or at least one step (``theta dt`` with
+Wilson-theta, whose equations are imposed at ``t_n + theta dt``).  The guards of :mod:`ctmm.planar.guards` apply (step
 limit of the plant before the run, divergence bound, non-finite states) and a failed run raises
 :class:`~ctmm.errors.SimulationError` with the result up to the last good step.
 """
@@ -179,6 +179,7 @@ class _ClosedLoop:
         self.history_step = history_step
         self.history: DelayHistory | None = None
         self.evaluations = 0
+        self.step_start: tuple = (0.0, np.zeros(self.size - 2 * self.n), [])   # implicit schemes
         self.use_cache = False      # RK4 only: its first stage reuses the history's evaluation
         self._cache: tuple[float, np.ndarray, np.ndarray] | None = None
 
@@ -300,12 +301,55 @@ class _ClosedLoop:
             return True
         return False
 
+    # -- implicit DT-TMM schemes ----------------------------------------------------------
+    def start_step(self, t: float, y: np.ndarray) -> None:
+        """Remember ``(t_n, z_n, e_n)``: the start of the next implicit step (controller states and
+        loop errors at the accepted state ``y``)."""
+        self.step_start = (t, y[2 * self.n:].copy(), [e for _, e, _ in self.loop_values(t, y)])
+
+    def _states_at(self, t: float, loop_values: list) -> tuple[np.ndarray, list]:
+        """Controller states at ``t`` by the trapezoidal rule from the step start, and the loop
+        values with ``u = -C z - D e`` at those states (the error ``e`` does not depend on ``z``)."""
+        t_n, z_n, e_n = self.step_start
+        z = z_n.copy()
+        step = t - t_n
+        out = list(loop_values)
+        for k, lp in enumerate(self.loops):
+            if not lp.A.shape[0]:
+                continue
+            i = lp.states.start - 2 * self.n
+            j = i + lp.A.shape[0]
+            e = loop_values[k][1]
+            if step > 0.0:
+                half = 0.5 * step
+                rhs = z_n[i:j] + half * (lp.A @ z_n[i:j]) + half * lp.B[:, 0] * (e_n[k] + e)
+                z[i:j] = np.linalg.solve(np.eye(j - i) - half * lp.A, rhs)
+            out[k] = (loop_values[k][0], e, -float((lp.C @ z[i:j])[0]) - lp.D * e)
+        return z, out
+
     def actuator_inputs(self, t: float, q: np.ndarray, v: np.ndarray) -> Any:
-        """The actuator inputs at ``(t, q, v)`` (no controller states): the ``inputs`` hook of
-        :func:`~ctmm.planar.implicit.simulate_implicit`."""
-        y = np.concatenate([q, v])
-        values = self.actuator_values(t, y, self.loop_values(t, y))
+        """The actuator inputs at ``(t, q, v)``: the ``inputs`` hook of
+        :func:`~ctmm.planar.implicit.simulate_implicit` (controller states from the step start by
+        the trapezoidal rule, :meth:`start_step`)."""
+        y = np.concatenate([q, v, self.step_start[1]])
+        loop_values = self.loop_values(t, y)
+        if self.size > 2 * self.n:
+            loop_values = self._states_at(t, loop_values)[1]
+        values = self.actuator_values(t, y, loop_values)
         return self.ports.inputs(values) if values else None
+
+    def end_step(self, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """The full state ``[q, v, z]`` at the end of an accepted implicit step (controller states
+        by the trapezoidal rule over the step); becomes the next step's start."""
+        y = np.concatenate([q, v, self.step_start[1]])
+        if self.size > 2 * self.n:
+            y[2 * self.n:] = self._states_at(t, self.loop_values(t, y))[0]
+            if not np.all(np.isfinite(y[2 * self.n:])):
+                name = next(lp.name for lp in self.loops if not np.all(np.isfinite(y[lp.states])))
+                raise SimulationError(f"non-finite controller state of loop {name!r} at t = {t:.6g} s",
+                                      time=float(t), element=name)
+        self.start_step(t, y)
+        return y
 
     def close(self) -> None:
         if self.master is not None:
@@ -420,7 +464,7 @@ def simulate_closed_loop(model: PlanarModel, q0: np.ndarray, qdot0: np.ndarray, 
     ------
     ModelError
         Unknown sensor, actuator, loop or method; a delay between 0 and ``dt`` (``theta dt``
-        with Wilson-theta); an improper C(s); an LTI controller with states and a scheme.
+        with Wilson-theta); an improper C(s).
     SimulationError
         Divergence, non-finite states, failing controller or user code; ``partial_result``.
     """
@@ -511,12 +555,7 @@ def _run_rk4(system: _ClosedLoop, rows: _Rows, guard, dt: float, n_steps: int, s
 
 
 def _check_scheme_loops(loops: list[_Loop], scheme: Scheme, dt: float) -> None:
-    """Refuse what an implicit scheme cannot close: controller states, a delay the step reaches."""
-    for lp in loops:
-        if lp.A.shape[0]:
-            raise ModelError(f"loop {lp.name!r}: the LTI controller C(s) has {lp.A.shape[0]} state(s), which the "
-                             f"implicit DT-TMM scheme {type(scheme).__name__} does not integrate; use method='rk4' "
-                             "or a solve_ivp method such as 'Radau', or a static gain on sensor terms")
+    """Refuse a loop delay that an implicit step reaches (Wilson-theta: shorter than ``theta dt``)."""
     probe = scheme.start_history(np.zeros(1), np.zeros(1), np.zeros(1))
     fraction = scheme.second_order_step(probe, dt).time_fraction
     for lp in loops:
@@ -531,7 +570,8 @@ def _run_implicit(system: _ClosedLoop, rows: _Rows, q0: np.ndarray, qdot0: np.nd
                   scheme: Scheme, store_every: int, progress: bool | None, stability_check: str,
                   divergence_bound: float | None) -> dict:
     """One implicit DT-TMM run: every actuator input through its ``inputs`` hook (real-time loops
-    at every Newton iterate), controllers and the delay history in its per-step callback."""
+    at every Newton iterate; controller states by the trapezoidal rule over the step), controllers
+    and the delay history in its per-step callback."""
     from ..planar.implicit import simulate_implicit
     from ..planar.integrate import step_total
 
@@ -541,7 +581,7 @@ def _run_implicit(system: _ClosedLoop, rows: _Rows, q0: np.ndarray, qdot0: np.nd
     driven = bool(system.loops or system.input_functions or system.master is not None)
 
     def after_step(k: int, t: float, q: np.ndarray, v: np.ndarray) -> bool:
-        y = np.concatenate([q, v])
+        y = system.end_step(t, q, v)
         jumped = system.sample(k, t, y)
         system.remember(t, y)
         if k % store_every == 0 or k == n_steps:
@@ -549,6 +589,7 @@ def _run_implicit(system: _ClosedLoop, rows: _Rows, q0: np.ndarray, qdot0: np.nd
         bar.update()
         return jumped
 
+    system.start_step(0.0, np.concatenate([q0, qdot0, np.zeros(system.size - 2 * system.n)]))
     try:
         simulation = simulate_implicit(system.model, q0, qdot0, t_final=t_final, dt=dt, scheme=scheme,
                                        store_every=n_steps, divergence_bound=divergence_bound,
