@@ -25,7 +25,7 @@ from ctmm.reference.planar_lagrange import PlanarLagrange
 from ctmm.results import SimulationResult
 
 from _controllers_import import load_controllers
-from test_planar_control_time import Cell, dop853, pendulum, reference_rhs
+from test_planar_control_time import Cell, dop853, pd_fmu, pendulum, reference_rhs  # noqa: F401 (fixture)
 
 KP, KD, TARGET = 30.0, 4.0, -1.2          # u = -(KP (theta - TARGET) + KD omega) [N m]
 THETA0 = -math.pi / 2
@@ -243,3 +243,29 @@ def test_failures_carry_the_rows_so_far():
     assert info.value.time == pytest.approx(0.01)
     partial = info.value.partial_result
     assert isinstance(partial, SimulationResult) and partial.time[-1] == pytest.approx(0.009)
+
+
+def test_delayed_fmu_tip_controller_with_newmark_converges_to_the_rk4_path(pd_fmu):
+    """The issue-12 case with Newmark: an FMU reads the tip height of the hinge_spring_motor arm
+    (``fore.out.y`` and its rate) 20 ms late through the one delay history and writes the motor
+    torque every 10 ms (held), the hub's own PD tracking the quintic move.  The RK4 path (checked
+    against the restarted Lagrange model to 1e-8 rad in ``test_planar_control_time.py``) at 0.5 ms
+    is the reference: Newmark converges to it at order 2."""
+    from ctmm.control import FMUController
+    from ctmm.scenarios.hinge_spring_motor import arm, reference_angle, reference_rate
+
+    fmu = FMUController(pd_fmu, inputs={"y": "fore.out.y", "ydot": "fore.out.vy"}, outputs={"u": "motor.torque"},
+                        parameters={"kp": 8.0, "kd": 0.8, "reference": -0.2}, sample_time=0.01)
+    model = arm(ActuatedHinge("motor", kp=200.0, kd=20.0, reference=reference_angle, reference_rate=reference_rate))
+    x0, t_final = {"upper.theta": -math.pi / 2, "fore.theta": -math.pi / 2}, 0.5
+    controllers = [DelayedController(fmu, 0.02)]
+    rk4 = ctmm.simulate(model, t_final, 5e-4, x0=x0, controllers=controllers, store_every=4)
+    errors = []
+    for dt in (2e-3, 1e-3):
+        result = ctmm.simulate(model, t_final, dt, method="newmark", x0=x0, controllers=controllers,
+                               store_every=int(round(2e-3 / dt)))
+        np.testing.assert_allclose(result.time, rk4.time, atol=1e-12)
+        errors.append(float(np.max(np.abs(result["fore.theta"] - rk4["fore.theta"]))))
+    assert abs(observed_order(errors) - 2.0) < 0.3, errors
+    assert errors[1] < 3e-6, errors                                    # measured 1.4e-6 rad
+    assert np.ptp(result["motor.torque@samples"][:, 1]) > 0.5          # the controller really acts

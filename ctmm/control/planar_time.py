@@ -20,7 +20,8 @@ flexible beams) whose named actuators (:mod:`ctmm.planar.ports`) are driven by
 Methods: fixed-step ``"rk4"`` (:func:`ctmm.ode.integrate_rk4`), a ``scipy.integrate``
 solver (``"RK45"``, ``"DOP853"``, ``"Radau"``, ...; stepped here, every accepted step checked;
 ``max_step`` at most the shortest loop delay), or an implicit DT-TMM scheme of
-:mod:`ctmm.schemes` (:func:`ctmm.planar.implicit.simulate_implicit`, one run): loops, inputs and
+:mod:`ctmm.schemes` (:mod:`ctmm.control.implicit_loops`: one
+:func:`~ctmm.planar.implicit.simulate_implicit` run): loops, inputs and
 held controller outputs enter through its ``inputs`` hook, evaluated at every Newton iterate
 (a real-time loop is implicit in the step, its state dependence in the Newton tangent), and its
 per-step callback samples the controllers and appends to the delay history; a step after a
@@ -57,6 +58,7 @@ from ..signal_results import SignalSystem, signal_result
 from ..signals import as_signal
 from .cosim import CoSimulation
 from .history import DelayHistory
+from .implicit_loops import check_scheme_delays, run_implicit
 
 __all__ = ["simulate_closed_loop", "loop_unit"]
 
@@ -179,7 +181,6 @@ class _ClosedLoop:
         self.history_step = history_step
         self.history: DelayHistory | None = None
         self.evaluations = 0
-        self.step_start: tuple = (0.0, np.zeros(self.size - 2 * self.n), [])   # implicit schemes
         self.use_cache = False      # RK4 only: its first stage reuses the history's evaluation
         self._cache: tuple[float, np.ndarray, np.ndarray] | None = None
 
@@ -300,56 +301,6 @@ class _ClosedLoop:
             self._cache = None          # held outputs changed: the rate at (t, y) changed too
             return True
         return False
-
-    # -- implicit DT-TMM schemes ----------------------------------------------------------
-    def start_step(self, t: float, y: np.ndarray) -> None:
-        """Remember ``(t_n, z_n, e_n)``: the start of the next implicit step (controller states and
-        loop errors at the accepted state ``y``)."""
-        self.step_start = (t, y[2 * self.n:].copy(), [e for _, e, _ in self.loop_values(t, y)])
-
-    def _states_at(self, t: float, loop_values: list) -> tuple[np.ndarray, list]:
-        """Controller states at ``t`` by the trapezoidal rule from the step start, and the loop
-        values with ``u = -C z - D e`` at those states (the error ``e`` does not depend on ``z``)."""
-        t_n, z_n, e_n = self.step_start
-        z = z_n.copy()
-        step = t - t_n
-        out = list(loop_values)
-        for k, lp in enumerate(self.loops):
-            if not lp.A.shape[0]:
-                continue
-            i = lp.states.start - 2 * self.n
-            j = i + lp.A.shape[0]
-            e = loop_values[k][1]
-            if step > 0.0:
-                half = 0.5 * step
-                rhs = z_n[i:j] + half * (lp.A @ z_n[i:j]) + half * lp.B[:, 0] * (e_n[k] + e)
-                z[i:j] = np.linalg.solve(np.eye(j - i) - half * lp.A, rhs)
-            out[k] = (loop_values[k][0], e, -float((lp.C @ z[i:j])[0]) - lp.D * e)
-        return z, out
-
-    def actuator_inputs(self, t: float, q: np.ndarray, v: np.ndarray) -> Any:
-        """The actuator inputs at ``(t, q, v)``: the ``inputs`` hook of
-        :func:`~ctmm.planar.implicit.simulate_implicit` (controller states from the step start by
-        the trapezoidal rule, :meth:`start_step`)."""
-        y = np.concatenate([q, v, self.step_start[1]])
-        loop_values = self.loop_values(t, y)
-        if self.size > 2 * self.n:
-            loop_values = self._states_at(t, loop_values)[1]
-        values = self.actuator_values(t, y, loop_values)
-        return self.ports.inputs(values) if values else None
-
-    def end_step(self, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """The full state ``[q, v, z]`` at the end of an accepted implicit step (controller states
-        by the trapezoidal rule over the step); becomes the next step's start."""
-        y = np.concatenate([q, v, self.step_start[1]])
-        if self.size > 2 * self.n:
-            y[2 * self.n:] = self._states_at(t, self.loop_values(t, y))[0]
-            if not np.all(np.isfinite(y[2 * self.n:])):
-                name = next(lp.name for lp in self.loops if not np.all(np.isfinite(y[lp.states])))
-                raise SimulationError(f"non-finite controller state of loop {name!r} at t = {t:.6g} s",
-                                      time=float(t), element=name)
-        self.start_step(t, y)
-        return y
 
     def close(self) -> None:
         if self.master is not None:
@@ -488,7 +439,7 @@ def simulate_closed_loop(model: PlanarModel, q0: np.ndarray, qdot0: np.ndarray, 
     resolved = _resolve(ports, loops, dt if fixed else None, n)
     delays = [lp.delay for lp in resolved if lp.delay > 0]
     if scheme is not None:
-        _check_scheme_loops(resolved, scheme, dt)
+        check_scheme_delays(resolved, scheme, dt)
     if not fixed and delays:
         max_step = min(max_step, min(delays))
     history_step = dt if fixed else (min(delays) if delays else t_final) * 1e-5
@@ -524,7 +475,7 @@ def simulate_closed_loop(model: PlanarModel, q0: np.ndarray, qdot0: np.ndarray, 
                 check_scheme(model, q0, qdot0, dt, scheme="rk4", policy=stability_check)
                 _run_rk4(system, rows, guard, dt, n_steps, store_every, progress)
             elif scheme is not None:
-                info.update(_run_implicit(system, rows, q0, qdot0, t_final, dt, scheme, store_every, progress,
+                info.update(run_implicit(system, rows, q0, qdot0, t_final, dt, scheme, store_every, progress,
                                           stability_check, divergence_bound))
             else:
                 _run_scipy(system, rows, guard, y0, t_final, dt, method, rtol, atol, max_step, progress)
@@ -552,57 +503,6 @@ def _run_rk4(system: _ClosedLoop, rows: _Rows, guard, dt: float, n_steps: int, s
         integrate_rk4(system.rate, rows.y[0], h=dt, n_steps=n_steps, after_step=after_step)
     finally:
         bar.close()
-
-
-def _check_scheme_loops(loops: list[_Loop], scheme: Scheme, dt: float) -> None:
-    """Refuse a loop delay that an implicit step reaches (Wilson-theta: shorter than ``theta dt``)."""
-    probe = scheme.start_history(np.zeros(1), np.zeros(1), np.zeros(1))
-    fraction = scheme.second_order_step(probe, dt).time_fraction
-    for lp in loops:
-        if fraction > 1.0 and 0.0 < lp.delay < fraction * dt * (1.0 - 1e-9):
-            raise ModelError(f"loop {lp.name!r}: delay = {lp.delay!r} s is shorter than {fraction:g} dt = "
-                             f"{fraction * dt!r} s; {type(scheme).__name__} imposes the equations of motion at "
-                             f"t_n + {fraction:g} dt, where the loop needs y(t - delay) from a completed step: use "
-                             f"dt <= {lp.delay / fraction!r} s, another scheme or delay=0")
-
-
-def _run_implicit(system: _ClosedLoop, rows: _Rows, q0: np.ndarray, qdot0: np.ndarray, t_final: float, dt: float,
-                  scheme: Scheme, store_every: int, progress: bool | None, stability_check: str,
-                  divergence_bound: float | None) -> dict:
-    """One implicit DT-TMM run: every actuator input through its ``inputs`` hook (real-time loops
-    at every Newton iterate; controller states by the trapezoidal rule over the step), controllers
-    and the delay history in its per-step callback."""
-    from ..planar.implicit import simulate_implicit
-    from ..planar.integrate import step_total
-
-    n_steps = step_total(t_final, dt)
-    store_every = validation.integer("store_every", store_every, minimum=1)
-    bar = progress_bar(n_steps, f"ctmm.simulate (planar, {type(scheme).__name__})", enabled=progress)
-    driven = bool(system.loops or system.input_functions or system.master is not None)
-
-    def after_step(k: int, t: float, q: np.ndarray, v: np.ndarray) -> bool:
-        y = system.end_step(t, q, v)
-        jumped = system.sample(k, t, y)
-        system.remember(t, y)
-        if k % store_every == 0 or k == n_steps:
-            rows.add(t, y)
-        bar.update()
-        return jumped
-
-    system.start_step(0.0, np.concatenate([q0, qdot0, np.zeros(system.size - 2 * system.n)]))
-    try:
-        simulation = simulate_implicit(system.model, q0, qdot0, t_final=t_final, dt=dt, scheme=scheme,
-                                       store_every=n_steps, divergence_bound=divergence_bound,
-                                       stability_check=stability_check,
-                                       inputs=system.actuator_inputs if driven else None, after_step=after_step)
-    except SimulationError as exc:
-        exc.partial_result = None          # the rows stored here are the partial result
-        raise
-    finally:
-        bar.close()
-    system.evaluations += int(simulation.n_evaluations)
-    return {"newton_iterations_mean": float(np.mean(simulation.iterations)),
-            "newton_iterations_max": int(np.max(simulation.iterations))}
 
 
 def _run_scipy(system: _ClosedLoop, rows: _Rows, guard, y0: np.ndarray, t_final: float, dt: float | None,
