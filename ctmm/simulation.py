@@ -8,9 +8,11 @@
   guard (:mod:`ctmm.guard`).
 * A :class:`~ctmm.planar.model.PlanarModel` (rigid or with flexible beams), or a controlled
   planar model (``plant`` + ``loops``, :func:`ctmm.control.with_feedback`), goes to
-  :func:`ctmm.control.planar_time.simulate_closed_loop` for ``"rk4"`` and the ``solve_ivp``
-  methods (loops, controllers, open-loop ``inputs``), to the compiled RK4 with ``fast=True``, or
-  to the implicit DT-TMM (:func:`ctmm.planar.implicit.simulate_implicit`) for a scheme.
+  :func:`ctmm.control.planar_time.simulate_closed_loop` when it has loops, controllers or
+  open-loop ``inputs`` (``"rk4"``, the ``solve_ivp`` methods and every DT-TMM scheme, the last
+  through the Newton-iterate input hook of :func:`ctmm.planar.implicit.simulate_implicit`), to
+  the compiled RK4 with ``fast=True``, or else to :func:`~ctmm.planar.implicit.simulate_implicit`
+  for a scheme.
 
 Every path returns one :class:`~ctmm.results.SimulationResult` (named signals with units).
 """
@@ -114,8 +116,9 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
     method : str or Scheme, optional
         ``"rk4"`` (fixed step; planar default), a ``scipy.integrate.solve_ivp`` method
         (``"RK45"``, ``"DOP853"``, ``"Radau"``, ``"BDF"``, ...; planar) or a DT-TMM scheme
-        (``"newmark"`` (chain default), ``"generalized_alpha"``, ``"wilson"``, ``"houbolt"``,
-        ``"euler"`` or a :mod:`ctmm.schemes` object).
+        (``"newmark"`` (chain default), ``"generalized_alpha"``, ``"wilson_theta"``, ``"houbolt"``,
+        ``"forward_euler"`` or a :mod:`ctmm.schemes` object); on a planar model every scheme closes
+        loops, ``inputs`` and ``controllers`` (``docs/planar.md``, ``docs/control.md`` §4c).
     scheme : str or Scheme, optional
         Alias of ``method`` (giving both is an error).
     x0, v0 : mapping or array, optional
@@ -165,7 +168,8 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
     ------
     ModelError
         Bad input; a system of another kind; options that do not apply to the run (e.g.
-        ``inputs`` for a chain, ``fast`` with loops, loops with an implicit planar scheme).
+        ``inputs`` for a chain, ``fast`` with loops); with a DT-TMM scheme on a planar model, a
+        loop delay shorter than the step (Wilson-theta: ``theta dt``).
     SimulationError
         A failed run (divergence, non-finite state, failing user code), with ``partial_result``.
     """
@@ -284,11 +288,7 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
     if store_every != 1 and method in SCIPY_METHODS:
         raise ModelError(f"store_every={store_every!r} applies to fixed-step methods; with {method!r} give dt "
                          "to store the result on the grid k dt (leave store_every at 1)")
-    if is_scheme:
-        if controlled:
-            raise ModelError(f"the implicit planar DT-TMM scheme {method!r} cannot yet close {', '.join(what)} "
-                             "(the Newton-iterate input hook is not available); use method='rk4' or a solve_ivp "
-                             "method such as 'DOP853' or 'Radau'")
+    if is_scheme and not controlled:
         if dt is None:
             raise ModelError(f"dt is required with the DT-TMM scheme {method!r} (a fixed step [s], > 0), got None")
         from .planar.implicit import simulate_implicit
@@ -298,7 +298,7 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
                                            store_every=store_every, divergence_bound=divergence_bound,
                                            stability_check=policy)
         return to_result(simulation, outputs=outputs, info={"dt": dt})
-    if method not in FIXED_STEP_METHODS and method not in SCIPY_METHODS:
+    if not is_scheme and method not in FIXED_STEP_METHODS and method not in SCIPY_METHODS:
         raise ModelError(f"method must be 'rk4', a solve_ivp method {SCIPY_METHODS} or a DT-TMM scheme "
                          f"{tuple(sorted(SCHEMES))} (or a ctmm.schemes object), got {method!r}")
     if fast:

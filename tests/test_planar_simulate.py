@@ -155,7 +155,7 @@ def test_refusals_name_the_option():
         (dict(outputs=["r.out.z"]), "r.out.z"),
         (dict(t0=1.0), "t0=1.0 applies to 1-D chains only"),
         (dict(fast=True, inputs={"pin.torque": 1.0}), "fast=True runs the compiled RK4"),
-        (dict(method="houbolt", inputs={"pin.torque": 1.0}), "cannot yet close inputs"),
+        (dict(method="houbolt", inputs={"pin.torque": 1.0}, dt=None), "dt is required with method='houbolt'"),
         (dict(coupling="previous"), "coupling='previous' only applies"),
         (dict(rtol=1e-6), "rtol=1e-06 applies to the solve_ivp methods"),
         (dict(method="newmark", max_step=0.1), "max_step=0.1 applies to the solve_ivp methods"),

@@ -17,10 +17,18 @@ flexible beams) whose named actuators (:mod:`ctmm.planar.ports`) are driven by
   :class:`~ctmm.control.measurement_delay.DelayedController` reads its inputs ``delay`` seconds
   late from the same delay history.
 
-Methods: fixed-step ``"rk4"`` (:func:`ctmm.ode.integrate_rk4`) or a ``scipy.integrate``
+Methods: fixed-step ``"rk4"`` (:func:`ctmm.ode.integrate_rk4`), a ``scipy.integrate``
 solver (``"RK45"``, ``"DOP853"``, ``"Radau"``, ...; stepped here, every accepted step checked;
-``max_step`` at most the shortest loop delay).  A loop delay must be 0 or at least one step
-(RK4 evaluates the loop inside the step).  The guards of :mod:`ctmm.planar.guards` apply (step
+``max_step`` at most the shortest loop delay), or an implicit DT-TMM scheme of
+:mod:`ctmm.schemes` (:mod:`ctmm.control.implicit_loops`: one
+:func:`~ctmm.planar.implicit.simulate_implicit` run): loops, inputs and
+held controller outputs enter through its ``inputs`` hook, evaluated at every Newton iterate
+(a real-time loop is implicit in the step, its state dependence in the Newton tangent), and its
+per-step callback samples the controllers and appends to the delay history; a step after a
+sample starts from the acceleration with the new held outputs; the states of an LTI controller
+advance by the trapezoidal rule from the step start to the iterate's time (implicit in the
+step, second order).  A loop delay must be 0 or at least one step (``theta dt`` with
+Wilson-theta, whose equations are imposed at ``t_n + theta dt``).  The guards of :mod:`ctmm.planar.guards` apply (step
 limit of the plant before the run, divergence bound, non-finite states) and a failed run raises
 :class:`~ctmm.errors.SimulationError` with the result up to the last good step.
 """
@@ -45,10 +53,12 @@ from ..planar.signals import signal_values
 from ..planar.sweep import accelerations
 from ..progress import progress_bar
 from ..results import SimulationResult
+from ..schemes import SCHEMES, Scheme, as_scheme
 from ..signal_results import SignalSystem, signal_result
 from ..signals import as_signal
 from .cosim import CoSimulation
 from .history import DelayHistory
+from .implicit_loops import check_scheme_delays, run_implicit
 
 __all__ = ["simulate_closed_loop", "loop_unit"]
 
@@ -273,10 +283,11 @@ class _ClosedLoop:
         else:
             self.history.derivatives[-1] = derivative
 
-    def sample(self, step: int, t: float, y: np.ndarray) -> None:
-        """Sample the controllers due at step ``step`` (time ``t`` [s], state ``y``)."""
+    def sample(self, step: int, t: float, y: np.ndarray) -> bool:
+        """Sample the controllers due at step ``step`` (time ``t`` [s], state ``y``); returns
+        whether one was sampled (its held outputs may have jumped)."""
         if self.master is None:
-            return
+            return False
         q, v = y[:self.n], y[self.n:2 * self.n]
 
         def measure(i: int) -> np.ndarray:
@@ -288,6 +299,8 @@ class _ClosedLoop:
 
         if self.master.sample(step, t, measure):
             self._cache = None          # held outputs changed: the rate at (t, y) changed too
+            return True
+        return False
 
     def close(self) -> None:
         if self.master is not None:
@@ -345,7 +358,7 @@ def _check_state(system: _ClosedLoop, guard, t: float, y: np.ndarray, step: floa
 
 
 def simulate_closed_loop(model: PlanarModel, q0: np.ndarray, qdot0: np.ndarray, t_final: float,
-                         dt: float | None, *, method: str = "rk4", loops: Sequence[Any] = (),
+                         dt: float | None, *, method: str | Scheme = "rk4", loops: Sequence[Any] = (),
                          controllers: Sequence[Any] = (), inputs: Mapping[str, Any] | None = None,
                          references: Mapping[str, Any] | None = None, outputs: Sequence[str] = (),
                          coupling: str = "hold", rtol: float = 1e-8, atol: float = 1e-10,
@@ -361,11 +374,12 @@ def simulate_closed_loop(model: PlanarModel, q0: np.ndarray, qdot0: np.ndarray, 
     t_final : float
         End time [s].
     dt : float or None
-        Step [s] of ``"rk4"`` and the sample grid of controllers (required for both); for a scipy
-        method with ``dt`` the result is stored on the grid ``k dt`` (dense output), without it at
-        every accepted step.
-    method : str
-        ``"rk4"`` or a name of :data:`~ctmm.planar.integrate.SCIPY_METHODS`.
+        Step [s] of ``"rk4"`` and the schemes and the sample grid of controllers (required for
+        these); for a scipy method with ``dt`` the result is stored on the grid ``k dt`` (dense
+        output), without it at every accepted step.
+    method : str or Scheme
+        ``"rk4"``, a name of :data:`~ctmm.planar.integrate.SCIPY_METHODS`, or a DT-TMM scheme
+        (a name of :data:`ctmm.schemes.SCHEMES` or a :mod:`ctmm.schemes` object).
     loops : sequence of Feedback
         Loops on named sensors and actuators of :mod:`ctmm.planar.ports`.
     controllers : sequence of Controller
@@ -381,11 +395,13 @@ def simulate_closed_loop(model: PlanarModel, q0: np.ndarray, qdot0: np.ndarray, 
     rtol, atol, max_step : float
         scipy tolerances and largest step [s].
     store_every : int
-        ``"rk4"``: keep every ``store_every``-th step (the last one always).
+        ``"rk4"`` and the schemes: keep every ``store_every``-th step (the last one always).
     progress : bool, optional
         Progress bar (long runs on a terminal by default).
     stability_check : {"warn", "error", "ignore"}
-        ``"rk4"``: step against the plant's linearised limit before the run (loops not included).
+        ``"rk4"``: step against the plant's linearised limit before the run (loops not included);
+        a scheme: against its own limit with the real-time loops included
+        (:func:`~ctmm.planar.implicit.simulate_implicit`).
     divergence_bound : float, optional
         As in :func:`~ctmm.planar.integrate.simulate_rk4`.
 
@@ -398,35 +414,43 @@ def simulate_closed_loop(model: PlanarModel, q0: np.ndarray, qdot0: np.ndarray, 
     Raises
     ------
     ModelError
-        Unknown sensor, actuator, loop or method; a delay between 0 and ``dt``; an improper C(s).
+        Unknown sensor, actuator, loop or method; a delay between 0 and ``dt`` (``theta dt``
+        with Wilson-theta); an improper C(s).
     SimulationError
         Divergence, non-finite states, failing controller or user code; ``partial_result``.
     """
-    if method != "rk4" and method not in SCIPY_METHODS:
-        raise ModelError(f"method must be 'rk4' or one of {SCIPY_METHODS} for a planar model with loops, "
-                         f"controllers or inputs, got {method!r}")
+    scheme = as_scheme(method) if isinstance(method, Scheme) or (isinstance(method, str) and method in SCHEMES) \
+        else None
+    if method != "rk4" and method not in SCIPY_METHODS and scheme is None:
+        raise ModelError(f"method must be 'rk4', one of {SCIPY_METHODS} or a DT-TMM scheme "
+                         f"{tuple(sorted(SCHEMES))} for a planar model with loops, controllers or inputs, "
+                         f"got {method!r}")
+    fixed = method == "rk4" or scheme is not None
     t_final = validation.positive("t_final", t_final)
     if dt is not None:
         dt = validation.positive("dt", dt)
-    if method == "rk4" and dt is None:
-        raise ModelError("dt is required with method='rk4' (a fixed step [s], > 0), got None")
+    if fixed and dt is None:
+        raise ModelError(f"dt is required with method={method!r} (a fixed step [s], > 0), got None")
     if controllers and dt is None:
         raise ModelError("dt is required with co-simulated controllers: it is the sample grid [s] "
                          "(each controller's sample_time is a whole multiple of it)")
     n = model.n_coordinates
     ports = PlanarPorts(model)
-    resolved = _resolve(ports, loops, dt if method == "rk4" else None, n)
+    resolved = _resolve(ports, loops, dt if fixed else None, n)
     delays = [lp.delay for lp in resolved if lp.delay > 0]
-    if method != "rk4" and delays:
+    if scheme is not None:
+        check_scheme_delays(resolved, scheme, dt)
+    if not fixed and delays:
         max_step = min(max_step, min(delays))
-    history_step = dt if method == "rk4" else (min(delays) if delays else t_final) * 1e-5
+    history_step = dt if fixed else (min(delays) if delays else t_final) * 1e-5
+    label = method if scheme is None else f"dt-tmm/{type(scheme).__name__}"
     try:
         system = _ClosedLoop(ports, resolved, controllers, inputs or {}, references or {}, dt, coupling,
                              history_step=max(history_step, 1e-300))
     except SimulationError as exc:     # a controller's init failed: nothing was simulated
         def empty() -> SimulationResult:
             signals, units = model_signals(model, np.zeros(0), np.zeros((0, n)), np.zeros((0, n)), outputs)
-            return signal_result(SignalSystem(model, units, loops), np.zeros(0), signals, method, {"dt": dt})
+            return signal_result(SignalSystem(model, units, loops), np.zeros(0), signals, label, {"dt": dt})
 
         raise with_partial(exc, empty) from exc.__cause__
     try:
@@ -434,10 +458,10 @@ def simulate_closed_loop(model: PlanarModel, q0: np.ndarray, qdot0: np.ndarray, 
         guard = divergence_guard(model, q0, divergence_bound)
         rows = _Rows(system)
         start = _time.perf_counter()
-        info = {"dt": dt, "method": method}
+        info = {"dt": dt, "method": label}
 
         def partial() -> SimulationResult:
-            return _result(rows, outputs, method, {**info, "wall_time_s": _time.perf_counter() - start})
+            return _result(rows, outputs, label, {**info, "wall_time_s": _time.perf_counter() - start})
 
         try:
             system.begin(0.0, y0)
@@ -450,11 +474,14 @@ def simulate_closed_loop(model: PlanarModel, q0: np.ndarray, qdot0: np.ndarray, 
                 n_steps = step_total(t_final, dt)
                 check_scheme(model, q0, qdot0, dt, scheme="rk4", policy=stability_check)
                 _run_rk4(system, rows, guard, dt, n_steps, store_every, progress)
+            elif scheme is not None:
+                info.update(run_implicit(system, rows, q0, qdot0, t_final, dt, scheme, store_every, progress,
+                                          stability_check, divergence_bound))
             else:
                 _run_scipy(system, rows, guard, y0, t_final, dt, method, rtol, atol, max_step, progress)
         except SimulationError as exc:
             raise with_partial(exc, partial) from exc.__cause__
-        return _result(rows, outputs, method, {**info, "wall_time_s": _time.perf_counter() - start})
+        return _result(rows, outputs, label, {**info, "wall_time_s": _time.perf_counter() - start})
     finally:
         system.close()
 

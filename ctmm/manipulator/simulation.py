@@ -31,10 +31,11 @@ How the control laws enter (DESIGN §1):
   controller that writes the torque replaces the embedded PD; one that writes any voltage
   replaces the embedded PZT law (unwritten patches get 0 V).
 
-Integrators: ``"rk4"`` (:func:`ctmm.ode.integrate_rk4` on the sweep; delays and sampling handled
-in its per-step callback) and ``"newmark"`` (:func:`ctmm.planar.simulate_implicit`, trapezoidal Newmark
-with Newton; delayed and sampled laws restart it at every step with the time offset carried
-by this module's time functions).
+Integrators: ``"rk4"`` (:func:`ctmm.ode.integrate_rk4` on the sweep) and ``"newmark"``
+(:func:`ctmm.planar.simulate_implicit`, trapezoidal Newmark with Newton), each one run whose
+per-step callback appends the histories and samples the controllers; the time functions of the
+model read both.  In Newmark a step after a sample with a new held output starts from the
+acceleration with that output (``after_step`` of :func:`~ctmm.planar.simulate_implicit`).
 """
 from __future__ import annotations
 
@@ -202,25 +203,22 @@ class FlexibleManipulator:
             out[f"{p.name}.slope_rate"] = rate[k]
         return out
 
-    def model(self, *, torque=None, modal_force=None, time_offset=None):
+    def model(self, *, torque=None, modal_force=None):
         """The planar model.  Without arguments: both laws embedded (zero delay).
 
         ``torque(t)`` / ``modal_force(t)`` replace the PD / PZT law by time functions (history or
-        held controller outputs); ``time_offset()`` shifts the time of the embedded reference
-        (chunked restarts of the implicit integrator).
+        held controller outputs).
         """
         from ..flexible import ModalForce
         from ..planar import ActuatedHinge, Fixed, PlanarModel, RigidBody
         from ..planar.elements import FixedMounting
 
-        offset = time_offset or (lambda: 0.0)
         hub = RigidBody("hub", mass=self.hub_mass, inertia=self.manipulator.hub.inertia,
                         center_of_mass=(0.0, 0.0), outboard=(self.manipulator.hub.radius, 0.0))
         if torque is None and self.pd is not None:
             ref = self.reference
             motor = ActuatedHinge("motor", kp=self.pd.kp, kd=self.pd.kd,
-                                  reference=lambda t: ref.angle(t + offset()),
-                                  reference_rate=lambda t: ref.rate(t + offset()))
+                                  reference=ref.angle, reference_rate=ref.rate)
         else:
             law = torque or (lambda t: 0.0)
             motor = ActuatedHinge("motor", torque=law)
@@ -354,7 +352,6 @@ class _Run:
         self.ca = m.moments_per_volt
         self.limit = m.voltage_limit
         self.policy = owner.pzt.on_limit if owner.pzt is not None else "report"
-        self.t0 = 0.0                                  # time offset of chunked restarts
         self.held_torque = 0.0
         self.held_voltage = np.zeros(self.P)
         q0 = np.zeros(1 + owner.n_modes)
@@ -365,8 +362,7 @@ class _Run:
         self.hist_v = DelayHistory(0.0, np.zeros_like(q0), **window)
         self.model = owner.model(
             torque=(self._torque if (plan.torque_by_controller or plan.pd_delayed) else None),
-            modal_force=(self._modal_force if (plan.voltage_by_controller or plan.pzt_delayed) else None),
-            time_offset=lambda: self.t0)
+            modal_force=(self._modal_force if (plan.voltage_by_controller or plan.pzt_delayed) else None))
         if self.model.n_coordinates != q0.size:
             raise ModelError(f"the planar model has {self.model.n_coordinates} coordinates, expected {q0.size} "
                              "(hub angle and arm modes; internal error)")
@@ -381,7 +377,6 @@ class _Run:
     def _torque(self, t: float) -> float:
         if self.plan.torque_by_controller:
             return self.held_torque
-        t = t + self.t0
         pd, ref = self.o.pd, self.o.reference
         s = t - pd.delay
         qd, vd = self.hist_q(s), self.hist_v(s)
@@ -396,7 +391,7 @@ class _Run:
         if self.plan.voltage_by_controller:
             V = self.held_voltage
         else:
-            V = self._limit(self._voltages_delayed(t + self.t0), t + self.t0)
+            V = self._limit(self._voltages_delayed(t), t)
         return self.o.slope_matrix.T @ (self.ca * V)
 
     def _limit(self, V: np.ndarray, t: float) -> np.ndarray:
@@ -405,16 +400,19 @@ class _Run:
         return V
 
     # -- per step bookkeeping -------------------------------------------------------------
-    def _sample(self, n: int, q: np.ndarray, v: np.ndarray, history: bool = True) -> None:
-        """Controllers due at step ``n``; record inputs/outputs at ``t_n``; history."""
+    def _sample(self, n: int, q: np.ndarray, v: np.ndarray, history: bool = True) -> bool:
+        """Controllers due at step ``n``; record inputs/outputs at ``t_n``; history.  Returns
+        whether a controller was sampled (its held output may have jumped)."""
         t = n * self.h
         if history and n > 0:                          # the start (n = 0) is the histories' first sample
             self.hist_q.append(t, q)
             self.hist_v.append(t, v)
+        sampled = False
         if self.plan.controllers:
             y_all = self.o._measure(q, v)
             controllers = self.plan.controllers
-            self.cosim.sample(n, t, lambda i: np.array([y_all[name] for name in controllers[i].inputs], dtype=float))
+            sampled = bool(self.cosim.sample(n, t, lambda i: np.array([y_all[name] for name in controllers[i].inputs],
+                                                             dtype=float)))
             held = self.cosim.held_values(self.plan.actuators)
             self.held_torque, self.held_voltage = float(held[0]), held[1:]
             if self.policy == "saturate":
@@ -422,7 +420,7 @@ class _Run:
         # applied torque and voltages at t_n (records)
         pd, ref = self.o.pd, self.o.reference
         if self.plan.torque_by_controller or self.plan.pd_delayed:
-            tau = self._torque(t - self.t0)
+            tau = self._torque(t)
         elif pd is not None:
             tau = pd.kp * (ref.angle(t) - q[0]) + pd.kd * (ref.rate(t) - v[0])
         else:
@@ -441,6 +439,7 @@ class _Run:
                                   f"{self.o.manipulator.patch_names[k]!r} needs {raw[k]:.4g} V, limit "
                                   f"{self.limit:g} V", time=t, element=self.o.manipulator.patch_names[k])
         self._current = (t, q.copy(), v.copy(), self._limit(raw, t), tau, raw)
+        return sampled
 
     def _store(self) -> None:
         t, q, v, V, tau, raw = self._current
@@ -473,54 +472,31 @@ class _Run:
         integrate_rk4(rate, np.concatenate((self.q0, np.zeros_like(self.q0))), h=h, n_steps=N, after_step=after_step)
 
     def newmark(self, store_every: int) -> None:
+        """One implicit run; at every accepted step its callback appends the histories, samples the
+        controllers (a new held output restarts the step's acceleration) and stores the records."""
         from ..planar import simulate_implicit
         from ..schemes import Newmark
 
-        model, h = self.model, self.h
         q, v = self.q0.copy(), np.zeros_like(self.q0)
-        scheme = Newmark(0.25, 0.5)
-        if not self.plan.needs_inputs:                 # everything embedded: one implicit run
-            self._sample(0, q, v)
-            try:
-                sim = simulate_implicit(model, q, v, t_final=self.N * h, dt=h, scheme=scheme, store_every=store_every,
-                                        divergence_bound=self.guard.bound, stability_check="ignore")
-            except SimulationError as exc:             # keep the steps stored so far, as records
-                done = exc.partial_result
-                exc.partial_result = None
-                if done is not None:
-                    for t, qk, vk in zip(done.t, done.q, done.qdot):
-                        self._sample_record(t, qk, vk)
-                raise
-            for k, (t, qk, vk) in enumerate(zip(sim.t, sim.q, sim.qdot)):
-                self._sample_record(t, qk, vk)
-            self.iterations = list(np.asarray(sim.iterations).ravel())
-            self.evaluations = int(np.sum(sim.iterations)) + len(sim.t)
-            return
-        for n in range(self.N):                        # restart at every step (held inputs / history)
-            self._sample(n, q, v)
-            if n % store_every == 0:
-                self._store()
-            self.t0 = n * h
-            try:
-                sim = simulate_implicit(model, q, v, t_final=h, dt=h, scheme=scheme, stability_check="ignore",
-                                        divergence_bound=math.inf)
-            except SimulationError as exc:
-                exc.partial_result = None          # the manipulator's own records are the partial result
-                raise
-            finally:
-                self.t0 = 0.0
-            q, v = sim.q[-1].copy(), sim.qdot[-1].copy()
-            self.guard.check((n + 1) * h, q)
-            self.iterations.extend(np.asarray(sim.iterations).ravel().tolist())
-            self.evaluations += int(np.sum(sim.iterations)) + 1
-        self._sample(self.N, q, v)
-        self._store()
+        history = self.plan.pd_delayed or self.plan.pzt_delayed
 
-    def _sample_record(self, t: float, q: np.ndarray, v: np.ndarray) -> None:
-        n = int(round(t / self.h))
-        if n > 0:
-            self._sample(n, q, v, history=False)       # embedded run: no history needed
+        def after_step(n: int, t: float, qn: np.ndarray, vn: np.ndarray) -> bool:
+            sampled = self._sample(n, qn, vn, history=history)
+            if n % store_every == 0 or n == self.N:
+                self._store()
+            return sampled
+
+        self._sample(0, q, v, history=history)
         self._store()
+        try:
+            sim = simulate_implicit(self.model, q, v, t_final=self.N * self.h, dt=self.h, scheme=Newmark(0.25, 0.5),
+                                    store_every=self.N, divergence_bound=self.guard.bound, stability_check="ignore",
+                                    after_step=after_step)
+        except SimulationError as exc:
+            exc.partial_result = None          # the manipulator's own records are the partial result
+            raise
+        self.iterations = list(np.asarray(sim.iterations).ravel())
+        self.evaluations = int(sim.n_evaluations)
 
     def result(self, method: str, wall: float) -> ManipulatorSimulation:
         r = self.rec

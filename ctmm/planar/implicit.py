@@ -34,6 +34,7 @@ Actuator inputs (``inputs=``, :mod:`ctmm.planar.ports`) enter the tangent sweep 
 from __future__ import annotations
 
 import time as _time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -49,6 +50,10 @@ from .ports import ActuatorInputs
 from .signals import SignalError
 from .sweep import (accelerations, body_terms, bushing_data, coordinate_accelerations, hinge_torques,
                     riccati_kernel, solve_instant)
+
+#: ``after_step(step, t, q, qdot) -> bool``: called once per accepted step (``step`` = 1, 2, ...;
+#: ``t`` [s]); returns whether the actuator inputs jumped at ``t`` (held controller outputs).
+StepCallback = Callable[[int, float, np.ndarray, np.ndarray], bool]
 
 
 def name_of(scheme: Any) -> str:
@@ -169,7 +174,8 @@ def _stepper(model: PlanarModel, position_weight: float, velocity_weight: float)
 def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: float,
                       scheme: Scheme | str | None = None, tolerance: float = 1e-10, max_iterations: int = 20,
                       store_every: int = 1, divergence_bound: float | None = None,
-                      stability_check: str = "warn", inputs: InputMap | None = None) -> PlanarSimulation:
+                      stability_check: str = "warn", inputs: InputMap | None = None,
+                      after_step: StepCallback | None = None) -> PlanarSimulation:
     """Implicit DT-TMM (any :mod:`ctmm.schemes` scheme) with Newton iterations per step.
 
     Parameters
@@ -209,6 +215,15 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
         called several times per iteration).  The Newton tangent includes their state
         dependence by directional finite differences (:mod:`ctmm.planar.actuated_newton`), so a
         stiff feedback closed through ``inputs`` converges like the same law in a hinge.
+    after_step : callable, optional
+        ``after_step(step, t, q, qdot) -> bool``, called once after every accepted step (``step``
+        = 1, 2, ..., ``t = step dt`` [s], after the divergence checks, before the step is stored):
+        where a stepper samples controllers and appends to a delay history (the inputs of the
+        next step may read both).  A true return value says the inputs jumped at ``t`` (new held
+        outputs): the acceleration at ``t`` is then solved again with the new inputs and the
+        next step starts from it, as a restart of the run at ``t`` would (the multistep memory
+        of Houbolt is kept).  An exception ends the run as it is (``partial_result`` up to the
+        previous stored step).
 
     Returns
     -------
@@ -237,6 +252,8 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
     guard = divergence_guard(model, q, divergence_bound)
     if inputs is not None and not callable(inputs):
         raise ModelError(f"inputs must be a callable inputs(t, q, qdot) -> ActuatorInputs | None, got {inputs!r}")
+    if after_step is not None and not callable(after_step):
+        raise ModelError(f"after_step must be a callable after_step(step, t, q, qdot) -> bool, got {after_step!r}")
     actuated = None if inputs is None else ActuatedNewton(model, inputs)
     closed = None if actuated is None else (
         lambda m, qk, vk, t: accelerations(m, qk, vk, t, inputs=actuated.evaluate(t, qk, vk)))
@@ -301,6 +318,13 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
             guard_rates(model, t1, v)
             if family is not None:
                 family.check_divergence(model, q, t1, h, name_of(scheme))
+            if after_step is not None and after_step(step + 1, t1, q.copy(), v.copy()):
+                restart = solve_instant(model, q, v, t1,
+                                        inputs=None if actuated is None else actuated.evaluate(t1, q, v))
+                evaluations += 1
+                xdd, A, F = restart.qddot.copy(), restart.body_acceleration, restart.joint_force
+                history.a = xdd.copy()
+                history.equation_acceleration = xdd.copy()
             if (step + 1) % store_every == 0 or step + 1 == n_steps:
                 ts.append(t1)
                 qs.append(q.copy())
@@ -316,4 +340,4 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
                             wall, iterations=iterations, n_evaluations=evaluations)
 
 
-__all__ = ["simulate_implicit"]
+__all__ = ["simulate_implicit", "StepCallback"]
