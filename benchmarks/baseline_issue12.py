@@ -173,7 +173,7 @@ def _work_precision(t: Timings) -> None:
     steps = int(round(bench.T_FINAL / dt))
     for scheme in bench.SCHEMES:
         t.add("foundation_work_precision", f"simulate_{scheme}",
-              lambda scheme=scheme: ctmm.simulate(system, bench.T_FINAL, dt, scheme=scheme, x0=x0),
+              lambda scheme=scheme: ctmm.simulate(system, bench.T_FINAL, dt, method=scheme, x0=x0),
               per="step", count=steps, configuration=f"Table 7.1 chain (5 masses), dt={dt:g} s, {steps} steps")
 
 
@@ -187,7 +187,7 @@ def _scaling(t: Timings) -> None:
     x0 = {f"m{j}": float(0.01 * np.sin(np.pi * j / (2 * n))) for j in range(1, n + 1)}
     for fast in (True, False):
         t.add("foundation_scaling", f"simulate_newmark_n{n}_{'fast' if fast else 'generic'}",
-              lambda fast=fast: ctmm.simulate(system, bench.N_STEPS * bench.DT, bench.DT, scheme="newmark", x0=x0,
+              lambda fast=fast: ctmm.simulate(system, bench.N_STEPS * bench.DT, bench.DT, method="newmark", x0=x0,
                                               fast=fast, progress=False),
               per="step", count=bench.N_STEPS,
               configuration=f"chain of {n} masses, Newmark, dt={bench.DT:g} s, fast={fast}")

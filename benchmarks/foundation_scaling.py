@@ -454,7 +454,7 @@ def stepping_case(n: int, *, run_big_baselines: bool = True) -> dict:
     mass_points = 2 * i  # connection point of mass j (point after the mass element)
 
     def ctmm_run(steps, fast):
-        return ctmm.simulate(system, steps * DT, DT, scheme="newmark", x0=x0_map, fast=fast, progress=False)
+        return ctmm.simulate(system, steps * DT, DT, method="newmark", x0=x0_map, fast=fast, progress=False)
 
     # banded reference (reference.newmark_global, banded) first: it defines the comparison
     def ref_run(steps, banded):

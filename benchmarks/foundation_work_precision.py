@@ -154,7 +154,7 @@ def run(ladder=DT_LADDER) -> dict:
     for scheme in SCHEMES:
         rows = []
         for dt in ladder:
-            sim, wall, cpu, runs = timed(lambda: ctmm.simulate(system, T_FINAL, dt, scheme=scheme, x0=x0))
+            sim, wall, cpu, runs = timed(lambda: ctmm.simulate(system, T_FINAL, dt, method=scheme, x0=x0))
             x_end = np.array([sim[n][-1] for n in names])
             rows.append({"dt": dt, "error_m": float(np.max(np.abs(x_end - x_exact))), "wall_time_s": wall,
                          "cpu_time_s": cpu, "n_steps": sim.info["n_steps"], "runs": runs, "path": sim.info["path"]})

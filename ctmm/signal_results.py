@@ -12,11 +12,11 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from .errors import unknown_name
+from .errors import ModelError, unknown_name
 from .results import SimulationResult
 from .system import Signal
 
-__all__ = ["SignalSystem", "signal_result"]
+__all__ = ["SignalSystem", "signal_result", "coordinate_histories", "energy_history"]
 
 
 class SignalSystem:
@@ -92,3 +92,52 @@ def signal_result(system: SignalSystem, time: np.ndarray, signals: dict[str, np.
     empty = np.zeros((len(time), 0, 0))
     return SimulationResult(time, empty, empty.copy(), empty.copy(), system, method, dict(info or {}),
                             dict(signals))
+
+
+def _planar_model(result: SimulationResult, what: str) -> Any:
+    """The planar model of a result of :func:`ctmm.simulate` on a planar model, else :class:`ModelError`."""
+    model = getattr(result.system, "model", None)
+    if not isinstance(result, SimulationResult) or not hasattr(model, "coordinates"):
+        raise ModelError(f"{what} needs the SimulationResult of ctmm.simulate on a planar or flexible model, "
+                         f"got {type(result).__name__} of {type(getattr(result, 'system', None)).__name__}")
+    return model
+
+
+def coordinate_histories(result: SimulationResult) -> tuple[np.ndarray, np.ndarray]:
+    """Coordinates and rates of a planar run as two arrays.
+
+    Parameters
+    ----------
+    result : SimulationResult
+        Of :func:`ctmm.simulate` on a planar or flexible model.
+
+    Returns
+    -------
+    q, qdot : ndarray, shape (n_rows, n_coordinates)
+        Columns ordered as ``model.coordinates`` [m, rad, modal] and their rates [m/s, rad/s]:
+        the signals ``"<coordinate>"`` and ``"<coordinate>_dot"``.
+
+    Raises
+    ------
+    ModelError
+        ``result`` is not the result of a planar run.
+    """
+    model = _planar_model(result, "coordinate_histories")
+    n_rows = len(result.time)
+    q = np.array([result[name] for name in model.coordinates], dtype=float).reshape(-1, n_rows).T
+    qdot = np.array([result[name + "_dot"] for name in model.coordinates], dtype=float).reshape(-1, n_rows).T
+    return q, qdot
+
+
+def energy_history(result: SimulationResult) -> np.ndarray:
+    """Total mechanical energy [J] of a planar run at every stored time
+    (:meth:`~ctmm.planar.model.PlanarModel.energy`).
+
+    Raises
+    ------
+    ModelError
+        ``result`` is not the result of a planar run.
+    """
+    model = _planar_model(result, "energy_history")
+    q, qdot = coordinate_histories(result)
+    return np.array([model.energy(qk, vk, float(tk)) for tk, qk, vk in zip(result.time, q, qdot)])

@@ -12,10 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
+import ctmm
 from ctmm.planar import ElasticHinge, Pinned, PlanarModel, RigidBody, SmoothHinge
-from ctmm.planar.implicit import simulate_implicit
-from ctmm.planar.integrate import simulate_rk4
 from ctmm.reference.planar_lagrange import PlanarLagrange, newton_euler_kkt
+from ctmm.signal_results import coordinate_histories, energy_history
 from ctmm.planar import solve_instant
 
 from .planar_common import angle_accuracy, plot_angle_errors, save_figure
@@ -56,22 +56,23 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     ref = PlanarLagrange(tree).simulate(q0, v0, t_final, t_eval=t_grid, rtol=1e-12, atol=1e-12)
     ref_time = time.perf_counter() - start
     q_ref = ref.y[:n].T
-    rk4 = simulate_rk4(tree, q0, v0, t_final=t_final, dt=h)
-    newmark = simulate_implicit(tree, q0, v0, t_final=t_final, dt=h)
-    err_rk4 = np.max(np.abs(rk4.q - q_ref), axis=1)
-    err_nm = np.max(np.abs(newmark.q - q_ref), axis=1)
-    energy_rk4 = rk4.energy()
-    energy_nm = newmark.energy()
+    rk4 = ctmm.simulate(tree, t_final, h, method="rk4", x0=q0, v0=v0)
+    newmark = ctmm.simulate(tree, t_final, h, method="newmark", x0=q0, v0=v0)
+    t_rk4, (q_rk4, v_rk4) = rk4.time, coordinate_histories(rk4)
+    err_rk4 = np.max(np.abs(q_rk4 - q_ref), axis=1)
+    err_nm = np.max(np.abs(coordinate_histories(newmark)[0] - q_ref), axis=1)
+    energy_rk4 = energy_history(rk4)
+    energy_nm = energy_history(newmark)
     # instantaneous joint forces vs the global Newton-Euler (KKT) solve along the trajectory
     force_err = 0.0
-    for k in range(0, len(rk4.t), max(1, len(rk4.t) // 20)):
-        tmm = solve_instant(tree, rk4.q[k], rk4.qdot[k], rk4.t[k])
-        kkt = newton_euler_kkt(tree, rk4.q[k], rk4.qdot[k], rk4.t[k])
+    for k in range(0, len(t_rk4), max(1, len(t_rk4) // 20)):
+        tmm = solve_instant(tree, q_rk4[k], v_rk4[k], t_rk4[k])
+        kkt = newton_euler_kkt(tree, q_rk4[k], v_rk4[k], t_rk4[k])
         force_err = max(force_err, float(np.max(np.abs(tmm.joint_force - kkt.joint_force))))
 
     fig, axes = plt.subplots(1, 3, figsize=(14, 4.2))
-    for k in np.linspace(0, len(rk4.t) - 1, 7).astype(int):
-        pts = tree.points(rk4.q[k], rk4.qdot[k], rk4.t[k])
+    for k in np.linspace(0, len(t_rk4) - 1, 7).astype(int):
+        pts = tree.points(q_rk4[k], v_rk4[k], t_rk4[k])
         r = pts["inboard"]
         for j, body in enumerate(tree.body_names):
             theta = pts["theta"][j]
@@ -79,23 +80,23 @@ def run(output_dir: Path, quick: bool = False) -> dict:
             for end in tree.ends[j].values():
                 tip = r[j] + rot @ end
                 axes[0].plot([r[j, 0], tip[0]], [r[j, 1], tip[1]], "-", color=f"C{j}",
-                             alpha=0.25 + 0.75 * k / len(rk4.t))
+                             alpha=0.25 + 0.75 * k / len(t_rk4))
     axes[0].set(aspect="equal", title="configurations (darker = later)", xlabel="x [m]",
                 ylabel="y [m]")
     plot_angle_errors(axes[1], rk4, err_rk4, newmark, err_nm, "max angle error vs Lagrange [rad]")
-    axes[2].plot(rk4.t, energy_rk4 - energy_rk4[0], label="RK4")
-    axes[2].plot(newmark.t, energy_nm - energy_nm[0], label="Newmark")
+    axes[2].plot(t_rk4, energy_rk4 - energy_rk4[0], label="RK4")
+    axes[2].plot(newmark.time, energy_nm - energy_nm[0], label="Newmark")
     axes[2].set(xlabel="t [s]", ylabel="E(t) - E(0) [J]")
     axes[2].legend(fontsize="small")
     save_figure(fig, output_dir, NAME)
     return {
-        "accuracy": angle_accuracy(rk4.t, err_rk4, "over the coordinates, h = 1 ms, Lagrange tree model DOP853 1e-12"),
+        "accuracy": angle_accuracy(t_rk4, err_rk4, "over the coordinates, h = 1 ms, Lagrange tree model DOP853 1e-12"),
         "angle_max_error_whole_run_rad": float(err_rk4.max()),
         "newmark_max_error": float(err_nm.max()),
-        "newton_iterations_mean": float(newmark.iterations.mean()),
+        "newton_iterations_mean": newmark.info["newton_iterations_mean"],
         "joint_force_max_difference_vs_kkt_N": force_err,
-        "wall_time_s": rk4.wall_time_s,
-        "newmark_wall_time_s": newmark.wall_time_s,
+        "wall_time_s": rk4.info["wall_time_s"],
+        "newmark_wall_time_s": newmark.info["wall_time_s"],
         "reference_wall_time_s": ref_time,
         "energy_drift": {"rk4_J": float(np.max(np.abs(energy_rk4 - energy_rk4[0]))),
                          "newmark_J": float(np.max(np.abs(energy_nm - energy_nm[0]))),

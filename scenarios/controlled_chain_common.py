@@ -160,7 +160,7 @@ def steady_state_comparison(placement: str, gain: float, delay: float, t: np.nda
 def compare_placement(placement: str, quick: bool) -> dict:
     """FRFs and steady-state motion for Ka = 0 and KA with the actuator at ``placement``, each
     against the global closed-loop solve, plus the loop margins; used by the Fig. 9.27-9.31 scenarios."""
-    from ctmm.control.analysis import margins
+    from ctmm.control import margins
 
     omega = np.linspace(0.02, 6.0, 600 if quick else 3000)
     t = np.linspace(0.0, 10.0, 201 if quick else 1001)

@@ -23,7 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ctmm.control.analysis import encirclements, loop_transfer_function, margins
+from ctmm.control import loop_transfer_function, margins
+from ctmm.control.analysis import encirclements
 
 from . import controlled_chain_common as common
 

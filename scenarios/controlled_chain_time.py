@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ctmm.control import simulate_controlled
+import ctmm
 from ctmm.reference.delay_chain import method_of_steps
 from ctmm.reference.delay_newmark import newmark_closed_loop
 from ctmm.scenario import accuracy
@@ -44,7 +44,7 @@ def _case(placement: str, gain: float, delay: float, t_final: float, dt: float =
     if gain == 0.0:  # uncontrolled: the bare plant (plain DT-TMM, no loop rows)
         system, loops = system.plant, []
     start = time.perf_counter()
-    result = simulate_controlled(system, t_final, dt, x0={"m6": float(X0[2])})
+    result = ctmm.simulate(system, t_final, dt, x0={"m6": float(X0[2])})
     tmm_time = time.perf_counter() - start
     x = np.column_stack([result[f"{m}.x"] for m in common.MASSES])
     chain = common.global_chain()

@@ -22,12 +22,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ctmm.control.analysis import margins
+from ctmm.control import margins
 from ctmm.reference.chain import assemble
 from ctmm.reference.dde import second_order_system
 from ctmm.reference.delay_chain import GlobalLoop, closed_loop_dynamic_stiffness
-from ctmm.stability import crosscheck_by_simulation, delay_margin, gain_margin
-from ctmm.stability_chart import stability_chart
+from ctmm.stability import crosscheck_by_simulation, delay_margin, gain_margin, stability_chart
 from ctmm.scenario import accuracy
 
 from . import controlled_chain_common as common

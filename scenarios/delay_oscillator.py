@@ -27,8 +27,7 @@ import ctmm
 from ctmm.control import ControlledChain, Feedback
 from ctmm.elements import Fixed, Free, Mass, SpringDamper
 from ctmm.reference.dde import delayed_pd_oscillator_characteristic_function, delayed_pd_oscillator_dcurves
-from ctmm.stability import characteristic_roots, delay_margin
-from ctmm.stability_chart import stability_chart
+from ctmm.stability import characteristic_roots, delay_margin, stability_chart
 from ctmm.scenario import accuracy
 
 from .delay_common import (DCURVE_BOUND_SOURCE, boundary_points, collocation_roots,

@@ -26,8 +26,7 @@ import numpy as np
 import ctmm
 from ctmm.control import ControlledChain, Feedback
 from ctmm.elements import Free, Mass
-from ctmm.stability import crosscheck_by_simulation, delay_margin
-from ctmm.stability_chart import stability_chart
+from ctmm.stability import crosscheck_by_simulation, delay_margin, stability_chart
 from ctmm.scenario import accuracy
 
 from .delay_common import DCURVE_BOUND_SOURCE, boundary_points, compare_classification, pd_first_order

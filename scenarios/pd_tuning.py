@@ -26,9 +26,8 @@ import numpy as np
 from scipy.optimize import differential_evolution
 
 import ctmm
-from ctmm.control import ControlledChain, Feedback, simulate_controlled
-from ctmm.control.analysis import encirclements, loop_transfer_function, margins
-from ctmm.control.design import PlantCache
+from ctmm.control import ControlledChain, Feedback, PlantCache, loop_transfer_function, margins
+from ctmm.control.analysis import encirclements
 from ctmm.results import FrequencyResponse
 from ctmm.scenario import accuracy
 
@@ -126,7 +125,7 @@ def run(output_dir: Path, quick: bool = False) -> dict:
                          ("no control", None)):
         sim_system = (common.plant() if terms is None else
                       ControlledChain(common.plant(), [Feedback("pd", terms, "m2", gain=1.0)]))
-        runs[label] = simulate_controlled(sim_system, t_final, 0.01, x0={"m6": 0.1})
+        runs[label] = ctmm.simulate(sim_system, t_final, 0.01, x0={"m6": 0.1})
 
     def settling(res) -> float | None:
         """Last time |x6| exceeds 2 % of its initial 0.1 m (None: not settled within t_final)."""

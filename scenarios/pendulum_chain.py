@@ -14,10 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
+import ctmm
 from ctmm.planar import Pinned, PlanarModel, RigidBody, SmoothHinge, SpringDamperHinge
-from ctmm.planar.implicit import simulate_implicit
-from ctmm.planar.integrate import simulate_rk4
 from ctmm.reference.planar_lagrange import PlanarLagrange
+from ctmm.signal_results import coordinate_histories, energy_history
 
 from .planar_common import angle_accuracy, plot_angle_errors, save_figure
 
@@ -53,44 +53,45 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     ref = PlanarLagrange(sys_).simulate(q0, v0, t_final, t_eval=t_grid, rtol=1e-12, atol=1e-12)
     ref_time = time.perf_counter() - start
     q_ref = ref.y[:3].T
-    rk4 = simulate_rk4(sys_, q0, v0, t_final=t_final, dt=h)
-    newmark = simulate_implicit(sys_, q0, v0, t_final=t_final, dt=h)
-    err_rk4 = np.max(np.abs(rk4.q - q_ref), axis=1)
-    err_nm = np.max(np.abs(newmark.q - q_ref), axis=1)
+    rk4 = ctmm.simulate(sys_, t_final, h, method="rk4", x0=q0, v0=v0)
+    newmark = ctmm.simulate(sys_, t_final, h, method="newmark", x0=q0, v0=v0)
+    q_rk4, q_nm = coordinate_histories(rk4)[0], coordinate_histories(newmark)[0]
+    err_rk4 = np.max(np.abs(q_rk4 - q_ref), axis=1)
+    err_nm = np.max(np.abs(q_nm - q_ref), axis=1)
     # Newmark ladder at T = 1 s (published values)
     ref1 = PlanarLagrange(sys_).simulate(q0, v0, 1.0, t_eval=[1.0], rtol=1e-12, atol=1e-12).y[:3, -1]
     ladder = {}
     for dt in list(PUBLISHED_NEWMARK)[: 2 if quick else 3]:
-        sim = simulate_implicit(sys_, q0, v0, t_final=1.0, dt=dt)
-        ladder[f"{dt:g}"] = {"error_rad": float(np.max(np.abs(sim.q[-1] - ref1))),
+        sim = ctmm.simulate(sys_, 1.0, dt, method="newmark", x0=q0, v0=v0)
+        ladder[f"{dt:g}"] = {"error_rad": float(np.max(np.abs(coordinate_histories(sim)[0][-1] - ref1))),
                              "published_rad": PUBLISHED_NEWMARK[dt],
-                             "newton_iterations_mean": float(sim.iterations.mean())}
+                             "newton_iterations_mean": sim.info["newton_iterations_mean"]}
     # energy of the undamped variant
     undamped = model(damping=0.0)
-    e_rk4 = simulate_rk4(undamped, q0, v0, t_final=t_final, dt=h).energy()
-    e_nm = simulate_implicit(undamped, q0, v0, t_final=t_final, dt=h).energy()
+    e_rk4 = energy_history(ctmm.simulate(undamped, t_final, h, method="rk4", x0=q0, v0=v0))
+    e_nm = energy_history(ctmm.simulate(undamped, t_final, h, method="newmark", x0=q0, v0=v0))
     e0 = e_rk4[0]
 
     fig, axes = plt.subplots(1, 3, figsize=(14, 4))
     for i, name in enumerate(sys_.coordinates):
         axes[0].plot(ref.t, q_ref[:, i], "k-", lw=2.5, alpha=0.3)
-        axes[0].plot(rk4.t, rk4.q[:, i], "--", label=f"{name} TMM+RK4")
+        axes[0].plot(rk4.time, rk4[name], "--", label=f"{name} TMM+RK4")
     axes[0].set(xlabel="t [s]", ylabel="absolute angle [rad]", title="grey: Lagrange DOP853")
     axes[0].legend(fontsize="small")
     plot_angle_errors(axes[1], rk4, err_rk4, newmark, err_nm, "max angle error [rad]", ", h = 1 ms")
-    axes[2].plot(rk4.t, e_rk4 - e0, label="RK4 (undamped variant)")
-    axes[2].plot(rk4.t, e_nm - e0, label="Newmark (undamped variant)")
+    axes[2].plot(rk4.time, e_rk4 - e0, label="RK4 (undamped variant)")
+    axes[2].plot(rk4.time, e_nm - e0, label="Newmark (undamped variant)")
     axes[2].set(xlabel="t [s]", ylabel="E(t) - E(0) [J]")
     axes[2].legend(fontsize="small")
     save_figure(fig, output_dir, NAME)
     return {
-        "accuracy": angle_accuracy(rk4.t, err_rk4, "over the links, h = 1 ms, reference DOP853 rtol = atol = 1e-12"),
+        "accuracy": angle_accuracy(rk4.time, err_rk4, "over the links, h = 1 ms, reference DOP853 rtol = atol = 1e-12"),
         "angle_max_error_whole_run_rad": float(err_rk4.max()),
         "newmark_max_error": float(err_nm.max()),
         "newmark_ladder_at_1s": ladder,
-        "newton_iterations_mean": float(newmark.iterations.mean()),
-        "wall_time_s": rk4.wall_time_s,
-        "newmark_wall_time_s": newmark.wall_time_s,
+        "newton_iterations_mean": newmark.info["newton_iterations_mean"],
+        "wall_time_s": rk4.info["wall_time_s"],
+        "newmark_wall_time_s": newmark.info["wall_time_s"],
         "reference_wall_time_s": ref_time,
         "energy_drift": {"rk4_J": float(np.max(np.abs(e_rk4 - e0))),
                          "newmark_J": float(np.max(np.abs(e_nm - e0))),

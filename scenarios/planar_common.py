@@ -35,9 +35,10 @@ def plot_angle_errors(ax: Any, rk4: Any, error_rk4: np.ndarray, newmark: Any, er
                       ylabel: str, suffix: str = "") -> None:
     """Max angle error [rad] of TMM + RK4 and DT-TMM Newmark against time [s], log scale.
 
-    ``rk4`` and ``newmark`` are the runs (their ``t`` [s]); ``suffix`` completes the legend entries."""
-    ax.semilogy(rk4.t, error_rk4 + 1e-17, label=f"TMM + RK4{suffix}")
-    ax.semilogy(newmark.t, error_newmark + 1e-17, label=f"DT-TMM Newmark{suffix}")
+    ``rk4`` and ``newmark`` are the runs (:class:`~ctmm.results.SimulationResult`, their ``time``
+    [s]); ``suffix`` completes the legend entries."""
+    ax.semilogy(rk4.time, error_rk4 + 1e-17, label=f"TMM + RK4{suffix}")
+    ax.semilogy(newmark.time, error_newmark + 1e-17, label=f"DT-TMM Newmark{suffix}")
     ax.set(xlabel="t [s]", ylabel=ylabel)
     ax.legend(fontsize="small")
 

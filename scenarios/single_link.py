@@ -20,12 +20,14 @@ from pathlib import Path
 
 import numpy as np
 
+import ctmm
 from ctmm.flexible import ModalBeam
 from ctmm.flexible.outputs import mape, spinup_law, tip_deflection
-from ctmm.planar import DrivenHinge, Fixed, PlanarModel, simulate_implicit, simulate_rk4
+from ctmm.planar import DrivenHinge, Fixed, PlanarModel
 from ctmm.reference.flexible_lagrange import FlexibleLagrange
-from ctmm.schemes import Newmark
 from ctmm.scenario import accuracy
+from ctmm.schemes import Newmark
+from ctmm.signal_results import coordinate_histories
 
 NAME = "single_link"
 DESCRIPTION = ("Motor-driven single flexible link (seed 000): DT-TMM Newmark vs independent "
@@ -59,16 +61,15 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     y_ref = ref.y[:m.n_coordinates].T @ m.beams[0].data.tip_phi
     results, sims = {}, {}
     for dt in ladder:
-        sim = simulate_implicit(m, z, z, t_final=t_final, dt=dt, scheme=Newmark(),
-                                store_every=int(round(4e-3 / dt)))
-        y = tip_deflection(m, sim.q, "link")
+        sim = ctmm.simulate(m, t_final, dt, method=Newmark(), store_every=int(round(4e-3 / dt)))
+        y = tip_deflection(m, coordinate_histories(sim)[0], "link")
         sims[dt] = (sim, y)
         results[f"{dt:g}"] = {"mape_percent": mape(y, y_ref),
                               "max_abs_error_m": float(np.max(np.abs(y - y_ref))),
-                              "wall_time_s": sim.wall_time_s,
-                              "newton_iterations_mean": float(sim.iterations.mean())}
-    rk4 = simulate_rk4(m, z, z, t_final=t_final, dt=1e-3, store_every=4)
-    y_rk4 = tip_deflection(m, rk4.q, "link")
+                              "wall_time_s": sim.info["wall_time_s"],
+                              "newton_iterations_mean": sim.info["newton_iterations_mean"]}
+    rk4 = ctmm.simulate(m, t_final, 1e-3, method="rk4", store_every=4)
+    y_rk4 = tip_deflection(m, coordinate_histories(rk4)[0], "link")
     main = results["0.001"]
     rates = [np.log2(results[f"{a:g}"]["max_abs_error_m"] / results[f"{b:g}"]["max_abs_error_m"])
              for a, b in zip(ladder[:-1], ladder[1:])]

@@ -18,14 +18,16 @@ from pathlib import Path
 
 import numpy as np
 
+import ctmm
 from ctmm.errors import SimulationError
 from ctmm.flexible import ModalBeam
 from ctmm.flexible.outputs import spinup_law, tip_deflection
 from ctmm.flexible.segments import finite_segment_beam
-from ctmm.planar import DrivenHinge, Fixed, PlanarModel, RigidBody, simulate_rk4
+from ctmm.planar import DrivenHinge, Fixed, PlanarModel, RigidBody
 from ctmm.reference.beams import kane_spinup
 from ctmm.reference.planar_lagrange import PlanarLagrange
 from ctmm.scenario import accuracy
+from ctmm.signal_results import coordinate_histories
 
 NAME = "spin_up"
 DESCRIPTION = ("Kane-Ryan-Banerjee spin-up beam: modal-beam TMM + RK4 with / without geometric "
@@ -69,16 +71,15 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     t_final = 20.0
     n_modes, dt = (2, 0.02) if quick else (4, 0.005)
     m = model(True, n_modes)
-    z = np.zeros(n_modes)
-    sim = simulate_rk4(m, z, z, t_final=t_final, dt=dt)
-    tip = tip_deflection(m, sim.q, "beam")
+    sim = ctmm.simulate(m, t_final, dt, method="rk4")
+    tip = tip_deflection(m, coordinate_histories(sim)[0], "beam")
     start = time.perf_counter()
-    ref = kane_spinup(n_modes=n_modes, t_final=t_final, t_eval=sim.t)
+    ref = kane_spinup(n_modes=n_modes, t_final=t_final, t_eval=sim.time)
     ref_time = time.perf_counter() - start
     err_krb = np.abs(tip - ref.tip_deflection)
     fs_info = {}
     if not quick:
-        t_fs = sim.t[::20]
+        t_fs = sim.time[::20]
         start = time.perf_counter()
         fs8 = finite_segment_tip(8, t_fs, t_final)
         fs16 = finite_segment_tip(16, t_fs, t_final)
@@ -94,24 +95,24 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     # unstiffened: diverges
     m0 = model(False, n_modes)
     try:
-        simulate_rk4(m0, z, z, t_final=t_final, dt=dt)
+        ctmm.simulate(m0, t_final, dt, method="rk4")
         diverged, partial, message = False, None, "did not diverge"
     except SimulationError as exc:
         diverged, partial, message = True, exc.partial_result, str(exc)
     fig, axes = plt.subplots(1, 2, figsize=(13, 4.5))
-    axes[0].plot(sim.t, tip, label=f"TMM modal beam ({n_modes} modes) + RK4, stiffening")
+    axes[0].plot(sim.time, tip, label=f"TMM modal beam ({n_modes} modes) + RK4, stiffening")
     axes[0].plot(ref.t, ref.tip_deflection, "k--", lw=1, label="assumed modes + KG (DOP853)")
     if fs_info:
         axes[0].plot(t_fs, fs_rich, "r:", lw=2, label="nonlinear finite segments (N=8,16 extrap.)")
     axes[0].set(xlabel="t [s]", ylabel="tip deflection in hub frame [m]",
                 title="Kane-Ryan-Banerjee spin-up")
     axes[0].legend(fontsize="small")
-    if partial is not None and len(partial.t) > 1:
-        axes[1].semilogy(partial.t, np.abs(tip_deflection(m0, partial.q, "beam")) + 1e-12,
+    if partial is not None and len(partial.time) > 1:
+        axes[1].semilogy(partial.time, np.abs(tip_deflection(m0, coordinate_histories(partial)[0], "beam")) + 1e-12,
                          label="TMM, stiffening off")
-    axes[1].semilogy(sim.t, np.abs(tip) + 1e-12, label="TMM, stiffening on")
-    rate = np.array([spinup_law()[1](t) for t in sim.t])
-    t_crit = float(sim.t[np.argmax(rate > ref.first_frequency)])
+    axes[1].semilogy(sim.time, np.abs(tip) + 1e-12, label="TMM, stiffening on")
+    rate = np.array([spinup_law()[1](t) for t in sim.time])
+    t_crit = float(sim.time[np.argmax(rate > ref.first_frequency)])
     axes[1].axvline(t_crit, color="grey", ls=":", label=r"$\dot\theta = \omega_1$")
     axes[1].set(xlabel="t [s]", ylabel="|tip deflection| [m]",
                 title="without geometric stiffening the model diverges")
@@ -126,12 +127,12 @@ def run(output_dir: Path, quick: bool = False) -> dict:
             "max over the run of |tip deflection TMM+RK4 - assumed-modes KG reference (kane_spinup, same modes)|",
             source="docs/flexible.md: spin-up vs kane_spinup <= 1e-4 m")],
         "peak_tip_deflection_m": float(tip.min()),
-        "peak_time_s": float(sim.t[np.argmin(tip)]),
+        "peak_time_s": float(sim.time[np.argmin(tip)]),
         "finite_segment_reference": fs_info,
         "unstiffened": {"diverged": diverged, "message": message,
                         "critical_time_s": t_crit, "omega_1": ref.first_frequency},
-        "wall_time_s": sim.wall_time_s,
+        "wall_time_s": sim.info["wall_time_s"],
         "reference_wall_time_s": ref_time,
-        "real_time_factor": t_final / sim.wall_time_s,
+        "real_time_factor": t_final / sim.info["wall_time_s"],
         "figures": [f"{NAME}.png"],
     }

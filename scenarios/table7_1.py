@@ -67,7 +67,7 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     for reading, offset in (("A", 0.0), ("B", 0.1)):
         x0 = {name: 0.1 * (i + 1) + offset * (i + 1) for i, name in enumerate(names)}
         start = time.perf_counter()
-        sim = ctmm.simulate(chain, t_end, dt, scheme="newmark", x0=x0)
+        sim = ctmm.simulate(chain, t_end, dt, method="newmark", x0=x0)
         t_dt = time.perf_counter() - start
         start = time.perf_counter()
         modal = modal_response(chain, sim.time, x0=x0)

@@ -5,12 +5,19 @@ The acceleration-based TMM (:mod:`ctmm.planar.sweep`) turns any planar model int
 Runge-Kutta scheme (:func:`ctmm.ode.integrate_rk4`, 4th order) or with any ``scipy.integrate.solve_ivp``
 method (RK45, DOP853, Radau, BDF, LSODA).  Results are :class:`PlanarSimulation` objects with
 named coordinates.
+
+The per-step work of a fixed-step run (guards, storing, progress) is :func:`run_fixed_step` and
+the guards of one state :func:`check_state`, for every planar run: :func:`simulate_rk4` here, and
+meant for the loops of :func:`ctmm.simulate` (``ctmm.control.planar_time``) too, so that there is
+one RK4 driver.  :func:`simulate_rk4` and :func:`simulate_scipy` are the older entry points (a
+:class:`PlanarSimulation`); :func:`ctmm.simulate` is the one verb (a
+:class:`~ctmm.results.SimulationResult`, same numbers).
 """
 from __future__ import annotations
 
 import time as _time
 from dataclasses import dataclass, field
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 import scipy.integrate
@@ -19,6 +26,7 @@ from .. import validation
 from ..capabilities import require_planar
 from ..errors import ModelError, SimulationError
 from ..ode import integrate_rk4, second_order_rate
+from ..progress import progress_bar
 from .guards import check_scheme, divergence_guard, with_partial
 from .model import PlanarModel
 from .sweep import accelerations
@@ -146,35 +154,72 @@ def simulate_rk4(model: PlanarModel, q0, qdot0, *, t_final: float, dt: float,
     store_every = validation.integer("store_every", store_every, minimum=1)
     q, v = initial_coordinates(model, q0, qdot0)
     n_steps = step_total(t_final, dt)
-    store_every = check_store_every(store_every)
     h = t_final / n_steps
     guard = divergence_guard(model, q, divergence_bound)
     check_scheme(model, q, v, h, scheme="rk4", policy=stability_check)
-    ts, qs, vs = [0.0], [q.copy()], [v.copy()]
+    ts, ys = [0.0], [np.concatenate((q, v))]
     start = _time.perf_counter()
     n = model.n_coordinates
-    family = model.deformable_family
 
-    def after_step(k: int, t: float, y: np.ndarray) -> None:
-        q, v = y[:n], y[n:]
-        guard.check(t, q)
-        guard_rates(model, t, v)
-        if family is not None:
-            family.check_divergence(model, q, t, h, "rk4")
-        if k % store_every == 0 or k == n_steps:
-            ts.append(t)
-            qs.append(q)
-            vs.append(v)
+    def result(n_evaluations: int = 0) -> PlanarSimulation:
+        y = np.array(ys).reshape(-1, 2 * n)
+        return PlanarSimulation(model, np.array(ts), y[:, :n].copy(), y[:, n:].copy(), "rk4",
+                                _time.perf_counter() - start, n_evaluations=n_evaluations)
+
+    def record(t: float, y: np.ndarray) -> None:
+        ts.append(t)
+        ys.append(y)
 
     rate = second_order_rate(lambda q, v, t: accelerations(model, q, v, t), n)
     try:
-        integrate_rk4(rate, np.concatenate((q, v)), h=h, n_steps=n_steps, after_step=after_step)
+        run_fixed_step(rate, ys[0], h=h, n_steps=n_steps, store_every=store_every, record=record,
+                       check=lambda t, y: check_state(model, guard, t, y, h, "rk4"))
     except SimulationError as exc:
-        raise with_partial(exc, lambda: PlanarSimulation(model, np.array(ts), np.array(qs), np.array(vs), "rk4",
-                                                         _time.perf_counter() - start)) from exc.__cause__
-    wall = _time.perf_counter() - start
-    return PlanarSimulation(model, np.array(ts), np.array(qs), np.array(vs), "rk4", wall,
-                            n_evaluations=4 * n_steps)
+        raise with_partial(exc, result) from exc.__cause__
+    return result(4 * n_steps)
+
+
+def check_state(model: PlanarModel, guard, t: float, y: np.ndarray, step: float | None, method: str) -> None:
+    """The guards of a planar run at one accepted state ``y = [q, qdot, ...]`` at ``t`` [s].
+
+    ``guard`` (:func:`~ctmm.planar.guards.divergence_guard`) checks the coordinates against the
+    divergence bound and for finiteness, :func:`guard_rates` the rates, and a deformable family
+    (flexible beams) its own divergence with the fixed step ``step`` [s] (``None``: adaptive) of
+    ``method``.  Raises :class:`SimulationError` naming the coordinate or element and the time.
+    """
+    n = model.n_coordinates
+    guard.check(t, y[:n])
+    guard_rates(model, t, y[n:2 * n])
+    family = model.deformable_family
+    if family is not None:
+        family.check_divergence(model, y[:n], float(t), step, method)
+
+
+def run_fixed_step(rate: Callable[[float, np.ndarray], np.ndarray], y0: np.ndarray, *, h: float, n_steps: int,
+                   store_every: int, check: Callable[[float, np.ndarray], None],
+                   record: Callable[[float, np.ndarray], None],
+                   on_step: Callable[[int, float, np.ndarray], None] | None = None,
+                   progress: bool | None = False, description: str = "planar rk4") -> None:
+    """The fixed-step RK4 driver of planar runs: ``n_steps`` steps of ``y' = rate(t, y)`` from
+    ``y(0) = y0`` (:func:`ctmm.ode.integrate_rk4`), and after every step ``k`` at time ``t`` [s]:
+    ``check(t, y)`` (guards; raise to stop), ``on_step(k, t, y)`` (e.g. sample controllers,
+    extend a delay history), ``record(t, y)`` every ``store_every``-th step and at the last one,
+    then the progress bar (``progress``: ``None`` shows it for long runs on a terminal).
+    """
+    bar = progress_bar(n_steps, description, enabled=progress)
+
+    def after_step(k: int, t: float, y: np.ndarray) -> None:
+        check(t, y)
+        if on_step is not None:
+            on_step(k, t, y)
+        if k % store_every == 0 or k == n_steps:
+            record(t, y)
+        bar.update()
+
+    try:
+        integrate_rk4(rate, y0, h=h, n_steps=n_steps, after_step=after_step)
+    finally:
+        bar.close()
 
 
 def guard_rates(model: PlanarModel, t: float, qdot: np.ndarray) -> None:
@@ -256,8 +301,7 @@ def simulate_scipy(model: PlanarModel, q0, qdot0, *, t_final: float, method: str
     try:
         solver = solver_type(rhs, 0.0, y0, t_final, rtol=rtol, atol=atol)
         for t_old in accepted_steps(solver, method):
-            guard.check(solver.t, solver.y[:n])
-            guard_rates(model, solver.t, solver.y[n:])
+            check_state(model, guard, solver.t, solver.y, None, method)
             if t_eval is None:
                 ts.append(float(solver.t))
                 ys.append(solver.y.copy())
@@ -267,8 +311,6 @@ def simulate_scipy(model: PlanarModel, q0, qdot0, *, t_final: float, method: str
                     dense = solver.dense_output()
                     ts.extend(inside.tolist())
                     ys.extend(np.atleast_2d(dense(inside).T))
-            if model.deformable_family is not None:
-                model.deformable_family.check_divergence(model, solver.y[:n], float(solver.t), None, method)
     except SimulationError as exc:
         raise with_partial(exc, result) from exc.__cause__
     return result()
@@ -337,5 +379,6 @@ def to_result(simulation: PlanarSimulation, *, outputs: Sequence[str] = (), info
     return signal_result(SignalSystem(sim.model, units), sim.t, signals, sim.method, details)
 
 
-__all__ = ["PlanarSimulation", "simulate_rk4", "simulate_scipy", "guard_rates", "accepted_steps",
+__all__ = ["PlanarSimulation", "simulate_rk4", "simulate_scipy", "guard_rates", "accepted_steps", "check_state",
+           "run_fixed_step",
            "check_store_every", "SCIPY_METHODS", "model_signals", "to_result"]
