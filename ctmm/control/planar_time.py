@@ -44,9 +44,8 @@ import scipy.integrate
 
 from .. import validation
 from ..errors import ModelError, SimulationError, unknown_name
-from ..ode import integrate_rk4
 from ..planar.guards import check_scheme, divergence_guard, with_partial
-from ..planar.integrate import SCIPY_METHODS, accepted_steps, guard_rates, model_signals
+from ..planar.integrate import SCIPY_METHODS, accepted_steps, check_state, model_signals, run_fixed_step
 from ..planar.model import PlanarModel
 from ..planar.ports import PlanarPorts
 from ..planar.signals import signal_values
@@ -346,15 +345,11 @@ def _result(rows: _Rows, outputs: Sequence[str], method: str, info: dict) -> Sim
 
 def _check_state(system: _ClosedLoop, guard, t: float, y: np.ndarray, step: float | None, method: str) -> None:
     n = system.n
-    guard.check(t, y[:n])
-    guard_rates(system.model, t, y[n:2 * n])
+    check_state(system.model, guard, t, y, step, method)
     if not np.all(np.isfinite(y[2 * n:])):
         name = next(lp.name for lp in system.loops if not np.all(np.isfinite(y[lp.states])))
         raise SimulationError(f"non-finite controller state of loop {name!r} at t = {t:.6g} s", time=float(t),
                               element=name)
-    family = system.model.deformable_family
-    if family is not None:
-        family.check_divergence(system.model, y[:n], float(t), step, method)
 
 
 def simulate_closed_loop(model: PlanarModel, q0: np.ndarray, qdot0: np.ndarray, t_final: float,
@@ -488,21 +483,15 @@ def simulate_closed_loop(model: PlanarModel, q0: np.ndarray, qdot0: np.ndarray, 
 
 def _run_rk4(system: _ClosedLoop, rows: _Rows, guard, dt: float, n_steps: int, store_every: int,
              progress: bool | None) -> None:
-    bar = progress_bar(n_steps, "ctmm.simulate (planar, rk4)", enabled=progress)
     system.use_cache = True
 
-    def after_step(k: int, t: float, y: np.ndarray) -> None:
-        _check_state(system, guard, t, y, dt, "rk4")
+    def on_step(k: int, t: float, y: np.ndarray) -> None:
         system.sample(k, t, y)
         system.remember(t, y)
-        if k % store_every == 0 or k == n_steps:
-            rows.add(t, y)
-        bar.update()
 
-    try:
-        integrate_rk4(system.rate, rows.y[0], h=dt, n_steps=n_steps, after_step=after_step)
-    finally:
-        bar.close()
+    run_fixed_step(system.rate, rows.y[0], h=dt, n_steps=n_steps, store_every=store_every,
+                   check=lambda t, y: _check_state(system, guard, t, y, dt, "rk4"), record=rows.add,
+                   on_step=on_step, progress=progress, description="ctmm.simulate (planar, rk4)")
 
 
 def _run_scipy(system: _ClosedLoop, rows: _Rows, guard, y0: np.ndarray, t_final: float, dt: float | None,
