@@ -408,7 +408,7 @@ def _consistent_start(plant: Chain, loops, lti, refs, x, v, t0: float, forces: M
             for pos, _, weight in r.actuators:
                 extra[pos] = extra.get(pos, 0.0) + weight * u[r.index]
         a = initial_acceleration(plant, x, v, t0, extra)
-        f = np.nan_to_num(initial_forces(plant, x, v, extra))
+        f = np.nan_to_num(initial_forces(plant, x, v, extra, a, t0))
         return np.array([_sense(r.sensing, x, v, a, f, d)[0] for r in loops]), a, f
 
     n = len(loops)
