@@ -17,7 +17,7 @@ from .elements.lumped import PointElement
 from .errors import ModelError
 from .system import Chain
 
-__all__ = ["rest_positions", "initial_state", "initial_acceleration", "initial_forces"]
+__all__ = ["rest_positions", "initial_state", "initial_acceleration", "initial_forces", "acceleration_change"]
 
 def rest_positions(system: Chain) -> np.ndarray:
     """Absolute positions [m] of the connection points with every connector at its free length."""
@@ -99,6 +99,41 @@ def _has_inertance(system: Chain) -> bool:
                for c in (e.lumped_coefficients() for e in system.body))
 
 
+def _node_mass(system: Chain) -> tuple[np.ndarray, np.ndarray]:
+    """Node of every point (points joined by point elements share one) and the nodes' mass matrix
+    [kg]: point masses on the diagonal, connector inertances ``b [[1, -1], [-1, 1]]``."""
+    node = np.zeros(system.n_points, dtype=int)
+    for j, e in enumerate(system.body, start=1):
+        node[j] = node[j - 1] if e.is_point else node[j - 1] + 1
+    n = int(node[-1]) + 1
+    M = np.zeros((n, n))
+    for j, e in enumerate(system.body, start=1):
+        c = e.lumped_coefficients()
+        i, o = node[j - 1], node[j]
+        if c.connector:
+            M[np.ix_([i, o], [i, o])] += c.mass * np.array([[1.0, -1.0], [-1.0, 1.0]])
+        else:
+            M[i, i] += c.mass
+    return node, M
+
+
+def _solve_nodes(system: Chain, node: np.ndarray, M: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Point accelerations ``(n_points, 1)`` [m/s^2] from ``M a = F`` over the nodes that move and have
+    inertia; nodes held by a displacement boundary, and nodes without inertia, get 0."""
+    held = np.zeros(M.shape[0], dtype=bool)
+    for boundary, point in ((system.start, 0), (system.end, -1)):
+        held[node[point]] |= boundary.known == "displacement"
+    active = np.flatnonzero(~held & (np.diag(M) > 0.0))
+    a_node = np.zeros(M.shape[0])
+    if active.size:
+        Maa = M[np.ix_(active, active)]
+        if np.linalg.cond(Maa) > 1e12:
+            raise ModelError(f"chain {system.name!r}: the accelerations are not determined (points joined only "
+                             "by inerters, without mass or a support); add a mass or a support")
+        a_node[active] = np.linalg.solve(Maa, F[active])
+    return a_node[node][:, None]
+
+
 def _coupled_acceleration(system: Chain, x: np.ndarray, v: np.ndarray, t0: float,
                           extra_forces: Mapping[int, float]) -> np.ndarray:
     """Accelerations [m/s^2] from the global equations ``M a = F(t0, x, v)`` of a lumped chain.
@@ -108,39 +143,51 @@ def _coupled_acceleration(system: Chain, x: np.ndarray, v: np.ndarray, t0: float
     displacement boundary start at rest (``a = 0``, as their velocity); nodes without inertia
     get 0 as in :func:`initial_acceleration`.
     """
-    body = system.body
-    node = np.zeros(system.n_points, dtype=int)
-    for j, e in enumerate(body, start=1):
-        node[j] = node[j - 1] if e.is_point else node[j - 1] + 1
-    n = int(node[-1]) + 1
-    M, F = np.zeros((n, n)), np.zeros(n)
-    for j, e in enumerate(body, start=1):
+    node, M = _node_mass(system)
+    F = np.zeros(M.shape[0])
+    for j, e in enumerate(system.body, start=1):
         c = e.lumped_coefficients()
         i, o, extra = node[j - 1], node[j], extra_forces.get(j, 0.0)
         if not c.connector:
-            M[i, i] += c.mass
             F[i] += float(e.force(t0)) - c.damping * v[j - 1, 0] - c.stiffness * x[j - 1, 0] + extra
             continue
         f = (-c.stiffness * (x[j, 0] - x[j - 1, 0] - c.free_length) - c.damping * (v[j, 0] - v[j - 1, 0])
              + extra)
         F[o] += f
         F[i] -= f
-        M[np.ix_([i, o], [i, o])] += c.mass * np.array([[1.0, -1.0], [-1.0, 1.0]])
-    held = np.zeros(n, dtype=bool)
     for boundary, point, start in ((system.start, 0, True), (system.end, -1, False)):
-        if boundary.known == "displacement":
-            held[node[point]] = True
-        else:
+        if boundary.known == "force":
             F[node[point]] += (1.0 if start else -1.0) * _boundary_force(boundary, x[point, 0], v[point, 0], start)
-    active = np.flatnonzero(~held & (np.diag(M) > 0.0))
-    a_node = np.zeros(n)
-    if active.size:
-        Maa = M[np.ix_(active, active)]
-        if np.linalg.cond(Maa) > 1e12:
-            raise ModelError(f"chain {system.name!r}: the initial accelerations are not determined (points joined "
-                             "only by inerters, without mass or a support); add a mass or a support")
-        a_node[active] = np.linalg.solve(Maa, F[active])
-    return a_node[node][:, None]
+    return _solve_nodes(system, node, M, F)
+
+
+def acceleration_change(system: Chain, forces: Mapping[int, float]) -> np.ndarray:
+    """Jump [m/s^2] of every point's acceleration when loads jump (positions and velocities continuous).
+
+    Parameters
+    ----------
+    system : Chain
+        A 1-D chain whose elements all have a lumped form
+        (:meth:`~ctmm.elements.base.Element.lumped_coefficients`).
+    forces : mapping
+        Load jumps [N] by element position: on the point of a point element, across a connector
+        (``+F`` outboard, ``-F`` inboard).  Positions of boundaries are ignored.
+
+    Returns
+    -------
+    ndarray, shape (n_points, 1)
+        ``M^-1 dF`` over the nodes (inerters couple neighbouring nodes); 0 at held or massless nodes.
+    """
+    node, M = _node_mass(system)
+    F = np.zeros(M.shape[0])
+    for j, value in forces.items():
+        if 1 <= j <= len(system.body):
+            if system.body[j - 1].lumped_coefficients().connector:
+                F[node[j]] += value
+                F[node[j - 1]] -= value
+            else:
+                F[node[j - 1]] += value
+    return _solve_nodes(system, node, M, F)
 
 
 def initial_acceleration(system: Chain, x: np.ndarray, v: np.ndarray, t0: float,

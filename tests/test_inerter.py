@@ -290,3 +290,31 @@ def test_undelayed_loop_across_the_inerter_in_time():
     got = np.stack([result[f"m{i}.x"] for i in (1, 2, 3)], axis=1)
     assert np.max(np.abs(got - x)) < 1e-5
     np.testing.assert_allclose(result["loop.u"], -gain * result["m3.x"], rtol=1e-12, atol=1e-15)
+
+
+def test_sampled_controller_across_the_inerter_converges_at_second_order():
+    """A zero-order-hold PD force across b12 from m3: at each sample the held force jumps and the
+    accelerations restart by M^-1 dF (the inerter couples m1 and m2).  Reference: exact ZOH
+    discretisation of the global first-order system by the matrix exponential."""
+    import scipy.linalg
+
+    from _controllers_import import load_controllers
+
+    controllers = load_controllers()
+    kp, kd, hold, n = 30.0, 1.5, 0.02, 30
+    rc = reference(damping=0.7)
+    M, _, _ = ref.assemble(rc)
+    a = ref.state_matrix(rc)
+    b = np.concatenate([np.zeros(3), np.linalg.solve(M, [-1.0, 1.0, 0.0])])[:, None]
+    step = scipy.linalg.expm(np.block([[a, b], [np.zeros((1, 7))]]) * hold)
+    z, exact = np.array([0.0, 0.01, 0.0, 0.0, 0.0, 0.0]), [0.01]
+    for _ in range(n):
+        z = step[:6, :6] @ z + step[:6, 6] * (-(kp * z[2] + kd * z[5]))
+        exact.append(z[1])
+    errors = []
+    for dt in (hold / 2, hold / 4, hold / 8):
+        pd = controllers.SaturatedPD(("m3.x", "m3.v"), ("b12.force",), kp=kp, kd=kd, sample_time=hold)
+        run = ctmm.simulate(chain(damping=0.7), n * hold, dt, x0={"m2": 0.01}, controllers=[pd])
+        errors.append(np.max(np.abs(run["m2.x"][::round(hold / dt)] - np.array(exact))))
+    orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
+    assert np.all(orders > 1.8), (errors, orders)
