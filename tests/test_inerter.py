@@ -134,6 +134,15 @@ def test_mode_shapes_against_global_eigenvectors():
         np.testing.assert_allclose(shape, vector, atol=1e-10)
 
 
+def test_modal_superposition_refuses_a_chain_with_inerters():
+    """ctmm.modal weighs mode shapes with the point masses only: with inertance the shapes are not
+    orthogonal in that weighting, and the verb refuses instead of superposing them."""
+    from ctmm.modal import modal_response
+
+    with pytest.raises(ctmm.ModelError, match="not mass-orthogonal"):
+        modal_response(chain(k23=5.0), np.linspace(0.0, 0.1, 5), x0={"m2": 0.01})
+
+
 # ------------------------------------------------------------------------------ frequency response
 def test_frequency_response_and_internal_force_against_global_solve():
     """Inputs on a mass and across the inerter; outputs displacement, acceleration and the inerter's
