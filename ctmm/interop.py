@@ -12,14 +12,16 @@ Realisation (derivation)
 ------------------------
 Connection points joined by point elements (masses, grounded springs) move together and form one
 degree of freedom (DOF); points tied to a ``Fixed`` boundary are dropped.  Each element scatters
-its parameters like a finite element: a point element adds ``m, c, k`` on the diagonal of its DOF,
-a connector ``k [[1, -1], [-1, 1]]`` (and ``c``) on its two DOFs, an ``Elastic`` boundary its
-spring/damper on the diagonal, giving ``M q'' + C q' + K q = B_f w``.  Force inputs:
+its lumped coefficients (:meth:`~ctmm.elements.base.Element.lumped_coefficients`) like a finite
+element: a point element adds ``m, c, k`` on the diagonal of its DOF, a connector
+``k [[1, -1], [-1, 1]]`` (and ``c``, and its inertance ``b`` into ``M``) on its two DOFs, an
+``Elastic`` boundary its spring/damper on the diagonal, giving ``M q'' + C q' + K q = B_f w``.  Force inputs:
 ``"m.force"`` = ``+e_m``; ``"k.force"`` across a connector = ``+e_out - e_in``;
 ``"end.force"`` of a :class:`~ctmm.elements.boundary.PrescribedForce` = ``+e``.
 
-DOFs are split into massive (``a``), massless-damped (``b``) and massless-undamped (``c``)
-ones.  The ``c`` DOFs carry no inertia or damping, so they are condensed statically and exactly:
+DOFs are split into massive (``a``, a nonzero row of the positive semidefinite ``M``),
+massless-damped (``b``) and massless-undamped (``c``) ones; ``M`` has no entries outside the
+``a`` block.  The ``c`` DOFs carry no inertia or damping, so they are condensed statically and exactly:
 ``q_c = K_cc^{-1} (f_c - K_ca q_a - K_cb q_b)``.  The ``b`` DOFs are first order,
 ``q_b' = C_bb^{-1} (f_b - C_ba q_a' - K'_b. q)``.  The state is ``[q_a, q_a', q_b]``.
 
@@ -44,7 +46,6 @@ import numpy as np
 from . import validation
 from .control.loops import actuator_inputs
 from .elements.boundary import Elastic, PrescribedForce
-from .elements.lumped import Connector, PointElement
 from .errors import ModelError, unknown_name
 from .linearized import control_name
 from .loop_closure import block_controller
@@ -105,6 +106,23 @@ def to_frd(source: Any, omega: Any = None, *, inputs: str | Sequence[str] | None
 
 
 # ------------------------------------------------------------------------------ assembly
+def _is_point(element) -> bool:
+    """True for a 1-D lumped point element (mass, grounded spring)."""
+    lumped = element.lumped_coefficients()
+    return lumped is not None and not lumped.connector
+
+
+def _is_connector(element) -> bool:
+    """True for a 1-D lumped connector (spring, damper, inerter)."""
+    lumped = element.lumped_coefficients()
+    return lumped is not None and lumped.connector
+
+
+def _is_mass(element) -> bool:
+    """True for a point element with mass (its force input and displacement are default signals)."""
+    return _is_point(element) and element.lumped_coefficients().mass > 0
+
+
 class _Dofs:
     """Degrees of freedom of a lumped chain: point -> DOF index (or -1 when grounded)."""
 
@@ -113,9 +131,9 @@ class _Dofs:
             raise ModelError(f"to_state_space supports 1-D lumped chains (layout 'axial'), got layout "
                              f"{chain.layout.name!r}")
         for e in chain.body:
-            if not isinstance(e, (PointElement, Connector)):
+            if e.lumped_coefficients() is None:
                 raise ModelError(f"to_state_space supports lumped elements (masses, springs, dampers, "
-                                 f"grounded springs) only; {e.name!r} is a {type(e).__name__}")
+                                 f"grounded springs, inerters) only; {e.name!r} is a {type(e).__name__}")
         n_points = chain.n_points
         group = list(range(n_points))
         for j, e in enumerate(chain.body, start=1):
@@ -153,14 +171,15 @@ def assemble_matrices(system: Chain) -> tuple[np.ndarray, np.ndarray, np.ndarray
             mat[i, j] += value
 
     for j, e in enumerate(system.body, start=1):
-        if isinstance(e, PointElement):
+        lumped = e.lumped_coefficients()
+        if not lumped.connector:
             g = pd[j]
-            add(M, g, g, e.mass)
-            add(C, g, g, e.damping)
-            add(K, g, g, e.stiffness)
+            add(M, g, g, lumped.mass)
+            add(C, g, g, lumped.damping)
+            add(K, g, g, lumped.stiffness)
         else:
             a, b = pd[j - 1], pd[j]
-            for mat, value in ((K, e.stiffness), (C, e.damping)):
+            for mat, value in ((K, lumped.stiffness), (C, lumped.damping), (M, lumped.mass)):
                 add(mat, a, a, value)
                 add(mat, b, b, value)
                 add(mat, a, b, -value)
@@ -244,7 +263,7 @@ class _LumpedModel:
             vb = _Quantity(Cbb_inv @ (-C[np.ix_(b, a)] @ Sva - K_kept[ib] @ Sq), Cbb_inv @ Fk[ib])
         else:
             vb = _Quantity(np.zeros((0, ns)), zero_u)
-        Minv = np.diag(1.0 / np.diag(M)[a]) if na else np.zeros((0, 0))
+        Minv = np.linalg.inv(M[np.ix_(a, a)]) if na else np.zeros((0, 0))
         Cab = C[np.ix_(a, b)]
         aa = _Quantity(Minv @ (-C[np.ix_(a, a)] @ Sva - Cab @ vb.Z - K_kept[ia] @ Sq),
                        Minv @ (Fk[ia] - Cab @ vb.U))
@@ -277,7 +296,7 @@ class _LumpedModel:
         labels = []
         for g in range(pd.max(initial=-1) + 1):
             masses = [e.name for j, e in enumerate(chain.body, start=1)
-                      if isinstance(e, PointElement) and e.mass > 0 and pd[j] == g]
+                      if _is_mass(e) and pd[j] == g]
             points = [p for p, d in zip(chain.point_names(), pd) if d == g]
             labels.append(masses[0] if masses else points[0])
         return ([f"{labels[g]}.x" for g in a] + [f"{labels[g]}.v" for g in a]
@@ -298,9 +317,9 @@ class _LumpedModel:
         inp = chain.input(name)
         e, pos, pd = inp.element, inp.position, self.point_dof
         f = np.zeros(self.M.shape[0])
-        if isinstance(e, PointElement):
+        if _is_point(e):
             targets = [(pd[pos], 1.0)]
-        elif isinstance(e, Connector):
+        elif _is_connector(e):
             targets = [(pd[pos], 1.0), (pd[pos - 1], -1.0)]
         elif isinstance(e, PrescribedForce):
             targets = [(pd[0 if pos == 0 else chain.n_points - 1], 1.0)]
@@ -326,17 +345,21 @@ class _LumpedModel:
     def _connector_force(self, pos: int) -> _Quantity:
         """Force of the connector at chain position ``pos`` on its outboard point (actuator included)."""
         e = self.chain.elements[pos]
+        lumped = e.lumped_coefficients()
         what = f"the force of {e.name!r}"
-        f = -e.stiffness * (self.kinematic(pos, 0, what) + -1.0 * self.kinematic(pos - 1, 0, what))
-        if e.damping:
-            f = f + -e.damping * (self.kinematic(pos, 1, what) + -1.0 * self.kinematic(pos - 1, 1, what))
+        f = -lumped.stiffness * (self.kinematic(pos, 0, what) + -1.0 * self.kinematic(pos - 1, 0, what))
+        for coefficient, derivative in ((lumped.damping, 1), (lumped.mass, 2)):
+            if coefficient:
+                f = f + -coefficient * (self.kinematic(pos, derivative, what)
+                                        + -1.0 * self.kinematic(pos - 1, derivative, what))
         return f + self.unit_input(f"{e.name}.force")
 
     def _point_load(self, pos: int) -> _Quantity:
         """``m a + c v + k x - F`` of the point element at chain position ``pos``."""
         e = self.chain.elements[pos]
+        lumped = e.lumped_coefficients()
         total = self.zero()
-        for coef, deriv in ((e.stiffness, 0), (e.damping, 1), (e.mass, 2)):
+        for coef, deriv in ((lumped.stiffness, 0), (lumped.damping, 1), (lumped.mass, 2)):
             if coef:
                 total = total + coef * self.kinematic(pos, deriv, f"the force next to {e.name!r}")
         return total + -1.0 * self.unit_input(f"{e.name}.force")
@@ -346,11 +369,11 @@ class _LumpedModel:
         chain = self.chain
         els = chain.elements
         last = len(els) - 1
-        if 1 <= point < last and isinstance(els[point], Connector):
+        if 1 <= point < last and _is_connector(els[point]):
             return self._connector_force(point)
         # outboard: f_p = f_(k-1) + sum over point elements p < j < k of (Z x - F)_j
         total, pos = self.zero(), point + 1
-        while pos < last and isinstance(els[pos], PointElement):
+        while pos < last and _is_point(els[pos]):
             total = total + self._point_load(pos)
             pos += 1
         if pos < last:
@@ -363,7 +386,7 @@ class _LumpedModel:
             return total + f_end + -1.0 * self.unit_input(f"{end.name}.force")
         # inboard: f_p = f_i - sum over point elements i < j <= p of (Z x - F)_j
         total, pos = self.zero(), point
-        while pos >= 1 and isinstance(els[pos], PointElement):
+        while pos >= 1 and _is_point(els[pos]):
             total = total + -1.0 * self._point_load(pos)
             pos -= 1
         if pos >= 1:
@@ -394,8 +417,8 @@ def default_signal_names(system) -> tuple[list[str], list[str]]:
     """Default ``(inputs, outputs)`` of :func:`to_state_space`: the force on and the displacement of every
     mass, plus ``"<loop>.y"``, ``"<loop>.u"`` of every loop."""
     chain = system.plant if hasattr(system, "plant") else system
-    inputs = [f"{e.name}.force" for e in chain.body if isinstance(e, PointElement) and e.mass > 0]
-    outputs = [f"{e.name}.x" for e in chain.body if isinstance(e, PointElement) and e.mass > 0]
+    inputs = [f"{e.name}.force" for e in chain.body if _is_mass(e)]
+    outputs = [f"{e.name}.x" for e in chain.body if _is_mass(e)]
     for lp in getattr(system, "loops", ()):
         outputs += [f"{lp.name}.y", f"{lp.name}.u"]
     return inputs, outputs

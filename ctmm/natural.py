@@ -314,17 +314,18 @@ def _reduced_step(T, S, U11, U12, U21, U22, rank):
 
 
 def _is_lumped(system) -> bool:
-    from .elements.lumped import Connector, PointElement
-
-    return system.layout.size == 2 and all(isinstance(e, (PointElement, Connector)) for e in system.body)
+    return system.layout.size == 2 and all(e.lumped_coefficients() is not None for e in system.body)
 
 
 def _lumped_count(system, omega: np.ndarray) -> np.ndarray:
     """Scalar Wittrick-Williams count for 1-D lumped chains (same recursion as the general one).
 
+    Elements are read through :meth:`~ctmm.elements.base.Element.lumped_coefficients`.
     ``S = -K_L`` (condensed dynamic stiffness of the inboard part, negated); a point element adds
-    ``m w^2 - k_g``; a connector ``k`` has pivot ``k - S`` and maps ``S -> k^2 / (k - S) - k``
-    (evaluated as ``k S / (k - S)`` while ``|S| < k/2``, where that form has no cancellation).
+    ``m w^2 - k_g``; a connector of undamped dynamic stiffness ``k = k_c - b w^2`` (``b`` its
+    inertance, 0 for springs; ``k`` may then be negative or zero, the connector has no internal
+    degrees of freedom so ``J_0 = 0``) has pivot ``k - S`` and maps ``S -> k^2 / (k - S) - k``
+    (evaluated as ``k S / (k - S)`` while ``|S| < |k|/2``, where that form has no cancellation).
     This is the Sturm sequence of the tridiagonal ``K - w^2 M`` in ratio form, whose count is
     backward stable (exact for a matrix within a few ulps of the given one) however small a
     pivot.  A pivot exactly zero (``w`` exactly at a resonance of the inboard part clamped at
@@ -332,18 +333,17 @@ def _lumped_count(system, omega: np.ndarray) -> np.ndarray:
     counts one, the limit from either side; a zero final pivot (a root at ``w``) counts none, as
     "strictly below" requires.  No ``0 * inf`` can occur in this form.
     """
-    from .elements.lumped import Connector
-
     w2 = omega * omega
     count = np.zeros(omega.size, dtype=int)
     clamped = system.start.known == "displacement"
     S = np.zeros(omega.size) if clamped else np.full(omega.size, -float(np.real(system.start._stiffness(0.0))))
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         for e in system.body:
-            if isinstance(e, Connector):
-                k = e.stiffness
+            lumped = e.lumped_coefficients()
+            if lumped.connector:
+                k = lumped.stiffness - lumped.mass * w2
                 if clamped:
-                    S = np.full(omega.size, -k)
+                    S = -k
                     clamped = False
                     continue
                 pivot = k - S
@@ -352,10 +352,10 @@ def _lumped_count(system, omega: np.ndarray) -> np.ndarray:
                 # k S / (k - S) keeps the relative accuracy of a small S (a rigid-body mode at
                 # tiny w: k^2/pivot - k would cancel it to 0); k^2 / pivot - k avoids 0 * inf
                 # when the pivot vanishes.  Both are the same map; each is used where it is exact.
-                small = np.abs(S) < 0.5 * k
+                small = np.abs(S) < 0.5 * np.abs(k)
                 S = np.where(small, k * S / np.where(small, pivot, 1.0), k * k / pivot - k)
             elif not clamped:
-                S = S + (e.mass * w2 - e.stiffness)
+                S = S + (lumped.mass * w2 - lumped.stiffness)
     if system.end.known == "force" and not clamped:
         count += (float(np.real(system.end._stiffness(0.0))) - S) < 0
     return count

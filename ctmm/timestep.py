@@ -7,8 +7,9 @@ unknown boundary states and back-substituted; the scheme updates the history.
 
 Two interchangeable paths compute the same thing:
 
-* the **lumped fast path** (1-D chains of :class:`~ctmm.elements.lumped.PointElement` and
-  :class:`~ctmm.elements.lumped.Connector`): element matrices for all elements are built in one
+* the **lumped fast path** (1-D chains whose elements all have a lumped form,
+  :meth:`~ctmm.elements.base.Element.lumped_coefficients`: masses, springs, dampers, inerters):
+  element matrices for all elements are built in one
   vectorised numpy pass; ``U`` is constant while the scheme's ``cx, A, C`` are, so the Riccati
   ``S_j, G_j`` are computed once and each step only runs the affine recursion (scalar loop);
 * the **generic path**: ``DiscreteElement.step_matrices`` per element and
@@ -27,8 +28,9 @@ from . import validation
 from .assembly import (SOLVERS, BoundaryEnd, BoundaryStart, clamped_start_solve, predicted_forces,
                        shift_forces)
 from .elements.base import Linearisation
+from .chain_start import initial_acceleration, initial_forces, initial_state, rest_positions
 from .elements.beam_time import bending_mesh
-from .elements.lumped import Connector, PointElement
+from .elements.lumped import PointElement
 from .errors import ModelError, SimulationError
 from .guard import DivergenceGuard
 from .progress import progress_bar
@@ -44,121 +46,6 @@ ForceHook = Callable[[float, float, float, History], Mapping[int, float]]
 a force across them."""
 
 
-# -- initial state ----------------------------------------------------------------------
-def rest_positions(system: Chain) -> np.ndarray:
-    """Absolute positions [m] of the connection points with every connector at its free length."""
-    x = np.zeros(system.n_points)
-    x[0] = getattr(system.start, "position", 0.0) if system.start.known == "displacement" else 0.0
-    for j, e in enumerate(system.body, start=1):
-        x[j] = x[j - 1] + (e.free_length if isinstance(e, Connector) else 0.0)
-    return x
-
-
-def _point_of(system: Chain, element_name: str) -> int:
-    pos = system.position(element_name)
-    if pos == len(system.elements) - 1:
-        return system.n_points - 1
-    return max(pos - 1, 0) if system.elements[pos].is_point and 0 < pos else min(pos, system.n_points - 1)
-
-
-def initial_state(system: Chain, x0: Mapping[str, float] | None, v0: Mapping[str, float] | None):
-    """Initial positions and velocities of all connection points.
-
-    ``x0`` / ``v0`` map element names (masses, boundaries) to absolute position [m] / velocity
-    [m/s].  Unspecified points keep their rest position (connectors at free length) and zero
-    velocity, except points between connectors only (massless junctions), which are placed by
-    the static force balance of the connectors around them (compliance-weighted).
-    """
-    x0 = validation.number_mapping("x0", x0)
-    v0 = validation.number_mapping("v0", v0)
-    for label, values in (("x0", x0), ("v0", v0)):
-        for element_name, value in values.items():
-            element = system.element(element_name)
-            if getattr(element, "known", None) != "displacement":
-                continue
-            held = getattr(element, "position", None) if label == "x0" else 0.0
-            if held is None or not math.isclose(value, held, rel_tol=1e-12, abs_tol=1e-15):
-                raise ModelError(f"{label}[{element_name!r}] = {value!r}: {element_name!r} is a support that "
-                                 "prescribes its own motion; give initial values to moving points only")
-    x = rest_positions(system)
-    v = np.zeros(system.n_points)
-    given = np.zeros(system.n_points, dtype=bool)
-    for values, target in ((x0, x), (v0, v)):
-        for element_name, value in values.items():
-            p = _point_of(system, element_name)
-            target[p] = value
-            given[p] = True
-            if target is x:
-                e = system.element(element_name)
-                if e.is_point and system.position(element_name) not in (0, len(system.elements) - 1):
-                    target[p + 1] = target[p]
-    # points tied to a point element share its value
-    for j, e in enumerate(system.body, start=1):
-        if e.is_point:
-            x[j], v[j] = x[j - 1], v[j - 1]
-    return x[:, None], v[:, None]
-
-
-def _connector_forces(system: Chain, x: np.ndarray, v: np.ndarray,
-                      across: Mapping[int, float] | None = None) -> dict[int, float]:
-    """Connector forces on their outboard point, including actuator forces ``across`` them."""
-    forces = {}
-    across = across or {}
-    for j, e in enumerate(system.body, start=1):
-        if isinstance(e, Connector):
-            dx = x[j, 0] - x[j - 1, 0] - e.free_length
-            forces[j] = -e.stiffness * dx - e.damping * (v[j, 0] - v[j - 1, 0]) + across.get(j, 0.0)
-    return forces
-
-
-def initial_acceleration(system: Chain, x: np.ndarray, v: np.ndarray, t0: float,
-                         extra_forces: Mapping[int, float] | None = None) -> np.ndarray:
-    """Accelerations [m/s^2] of all points from the equations of motion at ``t0``.
-
-    Consecutive point elements (a mass with a grounded spring, ...) form one node: its
-    acceleration is (sum of the forces on the node) / (sum of the masses).  Massless nodes get 0.
-    """
-    a = np.zeros_like(x)
-    extra_forces = extra_forces or {}
-    connector = _connector_forces(system, x, v, extra_forces)
-    body = system.body
-    j = 1
-    while j <= len(body):
-        if not body[j - 1].is_point:
-            j += 1
-            continue
-        first = j
-        while j <= len(body) and body[j - 1].is_point:
-            j += 1
-        last = j - 1                     # elements first..last share one point
-        point = first - 1
-        total_mass, force = 0.0, 0.0
-        for pos in range(first, last + 1):
-            e = body[pos - 1]
-            if isinstance(e, PointElement):
-                total_mass += e.mass
-                force += float(e.force(t0)) - e.damping * v[point, 0] - e.stiffness * x[point, 0]
-            force += extra_forces.get(pos, 0.0)
-        if total_mass == 0.0:
-            continue
-        f_in = connector[first - 1] if (first - 1) in connector else \
-            (_boundary_force(system.start, x[0, 0], v[0, 0], start=True) if first == 1 else 0.0)
-        f_out = connector[last + 1] if (last + 1) in connector else \
-            (_boundary_force(system.end, x[-1, 0], v[-1, 0], start=False) if last == len(body) else 0.0)
-        a[point:last + 1, 0] = (f_in - f_out + force) / total_mass
-    return a
-
-
-def _boundary_force(boundary, x: float, v: float, start: bool) -> float:
-    if boundary.known != "force":
-        raise ModelError(f"cannot start from a point element attached directly to {boundary.name!r}"
-                         " with a prescribed displacement; put a connector in between")
-    k, c = getattr(boundary, "stiffness", 0.0), getattr(boundary, "damping", 0.0)
-    spring = -k * (x - getattr(boundary, "anchor", 0.0)) - c * v
-    applied = float(boundary.force(0.0)) if hasattr(boundary, "force") else 0.0
-    return spring + applied if start else -(spring + applied)
-
-
 # -- the stepper ------------------------------------------------------------------------
 class _LumpedKernel:
     """Vectorised element matrices of a 1-D lumped chain for one step."""
@@ -166,8 +53,10 @@ class _LumpedKernel:
     def __init__(self, system: Chain) -> None:
         body = system.body
         self.n = len(body)
-        self.is_point = np.array([isinstance(e, PointElement) for e in body])
-        get = lambda attr: np.array([getattr(e, attr, 0.0) for e in body], dtype=float)  # noqa: E731
+        lumped = [e.lumped_coefficients() for e in body]
+        self.is_point = np.array([not c.connector for c in lumped])
+        get = lambda attr: np.array([getattr(c, attr) for c in lumped], dtype=float)  # noqa: E731
+        # mass: a point's mass, or a connector's inertance
         self.mass, self.damping, self.stiffness = get("mass"), get("damping"), get("stiffness")
         self.free_length = get("free_length")
         self.point_pos = np.flatnonzero(self.is_point)
@@ -190,7 +79,7 @@ class _LumpedKernel:
         """Per-element (U12, U21): connectors carry U12 = -1/k_eff, points U21 = -impedance."""
         pts, con = self.is_point, ~self.is_point
         k_eff = np.ones(self.n)
-        k_eff[con] = self.stiffness[con] * cx + self.damping[con] * A
+        k_eff[con] = self.stiffness[con] * cx + self.damping[con] * A + self.mass[con] * C
         U12 = np.zeros(self.n)
         U12[con] = -1.0 / k_eff[con]
         U21 = np.zeros(self.n)
@@ -199,6 +88,7 @@ class _LumpedKernel:
         self._pts = np.flatnonzero(pts)
         self._con_kl = self.stiffness[con] * self.free_length[con]
         self._con_k, self._con_c, self._con_keff = self.stiffness[con], self.damping[con], k_eff[con]
+        self._con_b = self.mass[con]
         self._pts_m, self._pts_c, self._pts_k = self.mass[pts], self.damping[pts], self.stiffness[pts]
         return U12, U21, k_eff
 
@@ -214,7 +104,8 @@ class _LumpedKernel:
         dx, B, D = coeffs.dx[:, 0], coeffs.B[:, 0], coeffs.D[:, 0]
         con, pts = self._con, self._pts
         n_points = self.n + 1
-        predicted = (self._con_kl - self._con_k * (dx[con + 1] - dx[con]) - self._con_c * (B[con + 1] - B[con]))
+        predicted = (self._con_kl - self._con_k * (dx[con + 1] - dx[con]) - self._con_c * (B[con + 1] - B[con])
+                     - self._con_b * (D[con + 1] - D[con]))
         if across is not None:
             predicted = predicted + across[con]
         f_pred = np.full(n_points, np.nan)
@@ -466,7 +357,7 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
     scheme = as_scheme(scheme)
     original, mesh = system, bending_mesh(system, dt, (force_hook, _step, _before_step, _after_step))
     system, rows = (mesh.chain, mesh.rows) if mesh else (system, slice(None))
-    lumped = all(isinstance(e, (PointElement, Connector)) for e in system.body) and system.layout.size == 2
+    lumped = all(e.lumped_coefficients() is not None for e in system.body) and system.layout.size == 2
     fast = (lumped and solver == "riccati") if fast is None else fast
     if fast and not (lumped and solver == "riccati"):
         raise ModelError("fast=True needs a 1-D chain of lumped elements and solver='riccati'")
@@ -558,46 +449,6 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
             "path": "lumped-fast" if fast else f"generic-{solver}"}
     return SimulationResult(times, states[:, rows], vel[:, rows], acc[:, rows], _system_for_result or original,
                             scheme.name, info)
-
-
-def initial_forces(system: Chain, x: np.ndarray, v: np.ndarray,
-                    across: Mapping[int, float] | None = None, a: np.ndarray | None = None,
-                    t0: float = 0.0) -> np.ndarray:
-    """Internal forces at ``t0`` at every point.
-
-    Connectors give the forces at their two points from their law (``across`` holds actuator
-    forces acting across connectors, by element position); boundaries with a known force give
-    theirs; the remaining points follow from the equilibrium of the point elements between them
-    (``f_out = f_in - m a - c v - k x + F``), which needs the accelerations ``a``.
-    """
-    n = system.n_points
-    f = np.full(n, np.nan)
-    across = across or {}
-    for j, val in _connector_forces(system, x, v, across).items():
-        f[j - 1] = f[j] = val
-    for boundary, point, start in ((system.start, 0, True), (system.end, n - 1, False)):
-        if np.isnan(f[point]) and boundary.known == "force":
-            f[point] = _boundary_force(boundary, x[point, 0], v[point, 0], start=start)
-    if a is None:
-        return f
-    body = system.body
-
-    def residual(j: int) -> float:  # m a + c v + k x - F of the point element at position j
-        e = body[j - 1]
-        if not isinstance(e, PointElement):
-            return 0.0
-        p = j - 1
-        load = float(e.force(t0)) + across.get(j, 0.0)
-        return e.mass * a[p, 0] + e.damping * v[p, 0] + e.stiffness * x[p, 0] - load
-
-    for _ in range(2):  # forward then backward propagation through runs of point elements
-        for j in range(1, n):
-            if body[j - 1].is_point and np.isnan(f[j]) and not np.isnan(f[j - 1]):
-                f[j] = f[j - 1] - residual(j)
-        for j in range(n - 1, 0, -1):
-            if body[j - 1].is_point and np.isnan(f[j - 1]) and not np.isnan(f[j]):
-                f[j - 1] = f[j] + residual(j)
-    return f
 
 
 def _fast_step(system: Chain, kernel: _LumpedKernel, coeffs, load, t_eval: float, cache: dict,

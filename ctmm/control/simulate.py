@@ -32,6 +32,7 @@ import numpy as np
 from .. import validation
 from ..assembly import SOLVERS, predicted_forces, shift_forces
 from ..capabilities import require_chain
+from ..chain_start import acceleration_change, initial_acceleration, initial_forces
 from ..elements.base import Linearisation
 from ..elements.lumped import PointElement
 from ..errors import ModelError, SimulationError, unknown_name
@@ -327,22 +328,23 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
         cosim.after_step(t, history, f)
 
     held_before: dict[int, float] = {}
-    masses = {pos: e.mass for pos, e in enumerate(plant.elements) if isinstance(e, PointElement) and e.mass > 0}
+    lumped = plant.layout.size == 2 and all(e.lumped_coefficients() is not None for e in plant.body)
 
     def before_step(i: int, t_n: float, history: History) -> None:
         """Restart the acceleration where a held controller output jumps at ``t_n``.
 
         The scheme's predictor uses ``a_n``, the acceleration at ``t_n`` under the force held
         BEFORE the sample; a zero-order hold switches the force at ``t_n``, so ``a_n`` is replaced
-        by ``a_n + dF / m`` (positions and velocities are continuous; only the point's own force
-        changes).  Without this restart every switch acts ``dt/2`` late and a sampled loop
-        converges at first order in ``dt`` instead of the scheme's order."""
+        by ``a_n + M^-1 dF`` (positions and velocities are continuous; :func:`ctmm.chain_start.
+        acceleration_change`: a force on a mass moves its node, a force across a connector both
+        neighbours, inerters couple nodes).  Without this restart every switch acts ``dt/2`` late
+        and a sampled loop converges at first order in ``dt`` instead of the scheme's order."""
         now = cosim.forces(t_n, history, _last_f[0])
-        if i > 0:
-            for pos in set(now) | set(held_before):
-                jump = now.get(pos, 0.0) - held_before.get(pos, 0.0)
-                if jump != 0.0 and pos in masses:
-                    history.a[pos - 1:pos + 1] += jump / masses[pos]
+        if i > 0 and lumped:
+            jumps = {pos: now.get(pos, 0.0) - held_before.get(pos, 0.0) for pos in set(now) | set(held_before)}
+            jumps = {pos: jump for pos, jump in jumps.items() if jump != 0.0}
+            if jumps:
+                history.a += acceleration_change(plant, jumps)
         held_before.clear()
         held_before.update(now)
 
@@ -400,7 +402,6 @@ def _consistent_start(plant: Chain, loops, lti, refs, x, v, t0: float, forces: M
     solve ``u = -G (y(u) - r)`` exactly.  Returns ``(u, a0, f0, pre)`` with ``pre`` the sensed
     values of the held pre-``t0`` state per loop.
     """
-    from ..timestep import initial_acceleration, initial_forces
 
     def sensed(u: np.ndarray) -> np.ndarray:
         extra = dict(forces)
@@ -408,7 +409,7 @@ def _consistent_start(plant: Chain, loops, lti, refs, x, v, t0: float, forces: M
             for pos, _, weight in r.actuators:
                 extra[pos] = extra.get(pos, 0.0) + weight * u[r.index]
         a = initial_acceleration(plant, x, v, t0, extra)
-        f = np.nan_to_num(initial_forces(plant, x, v, extra))
+        f = np.nan_to_num(initial_forces(plant, x, v, extra, a, t0))
         return np.array([_sense(r.sensing, x, v, a, f, d)[0] for r in loops]), a, f
 
     n = len(loops)

@@ -16,6 +16,7 @@ Elements are immutable descriptions; any history or state lives in the stepper's
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
@@ -23,6 +24,45 @@ import numpy as np
 from ..errors import ModelError, unknown_name
 from ..layouts import StateLayout
 from .. import validation
+
+
+@dataclass(frozen=True)
+class LumpedCoefficients:
+    """The 1-D lumped form of an element: its mass, damping and stiffness coefficients.
+
+    A 1-D lumped element is either a *point* (its two connection points coincide; the
+    coefficients act between the point and ground: force ``-(m a + c v + k x)`` on the point) or
+    a *connector* (massless in the usual sense; the coefficients act on the relative motion of
+    its outboard and inboard points: force ``f = -m (a_out - a_in) - c (v_out - v_in) -
+    k (x_out - x_in - l)`` on the outboard point, for a connector ``m`` is an inertance).  The
+    frequency-domain dynamic stiffness is ``m s^2 + c s + k`` in both cases.  Framework code that
+    assembles global ``M, C, K`` matrices, vectorised time steps or Sturm counts reads these
+    numbers instead of asking for element classes (``docs/adding_an_element.md``).
+
+    Attributes
+    ----------
+    connector : bool
+        True for a connector (two distinct points), False for a point element.
+    mass : float
+        Mass [kg] of a point, or inertance [kg] of a connector, >= 0.
+    damping : float
+        Viscous damping [N s/m], >= 0.
+    stiffness : float
+        Stiffness [N/m], >= 0.
+    free_length : float
+        Free length [m] of a connector (0 for a point).
+    """
+
+    connector: bool
+    mass: float = 0.0
+    damping: float = 0.0
+    stiffness: float = 0.0
+    free_length: float = 0.0
+
+    def dynamic_stiffness(self, s: np.ndarray) -> np.ndarray:
+        """``m s^2 + c s + k`` [N/m] for Laplace variables ``s`` [1/s]."""
+        s = np.asarray(s, dtype=complex)
+        return self.mass * s * s + self.damping * s + self.stiffness
 
 
 class Element(ABC):
@@ -88,6 +128,15 @@ class Element(ABC):
     def discretize(self, scheme: Any) -> "DiscreteElement":
         """Return the discrete-time form of the element for ``scheme`` (DT-TMM)."""
         raise ModelError(f"element {self.name!r} ({type(self).__name__}) has no discrete-time form")
+
+    def lumped_coefficients(self) -> LumpedCoefficients | None:
+        """The element's 1-D lumped form, or None when it is not a 1-D lumped element.
+
+        Optional capability: elements that return coefficients get the lumped fast paths (scalar
+        Riccati solves, vectorised time steps, Sturm counts, state-space export); the others are
+        solved through :meth:`transfer_matrix` and :meth:`discretize` alone.
+        """
+        return None
 
     def parameters(self) -> dict[str, Any]:
         """Physical parameters by name (used by reports and independent reference models)."""

@@ -30,7 +30,7 @@ from .. import validation
 from ..errors import ModelError
 from ..layouts import AXIAL
 from ..signals import SignalLike, TimeFunction, as_signal, harmonic_amplitude
-from .base import DiscreteElement, Element, Linearisation
+from .base import DiscreteElement, Element, Linearisation, LumpedCoefficients
 
 
 def _point_matrix(s: np.ndarray, impedance: np.ndarray) -> np.ndarray:
@@ -81,6 +81,9 @@ class PointElement(Element):
 
     def discretize(self, scheme: Any) -> "DiscretePoint":
         return DiscretePoint(self)
+
+    def lumped_coefficients(self) -> LumpedCoefficients:
+        return LumpedCoefficients(False, self.mass, self.damping, self.stiffness)
 
     def parameters(self) -> dict[str, Any]:
         return {"mass": self.mass, "damping": self.damping, "stiffness": self.stiffness}
@@ -187,6 +190,9 @@ class Connector(Element):
 
     def discretize(self, scheme: Any) -> "DiscreteConnector":
         return DiscreteConnector(self)
+
+    def lumped_coefficients(self) -> LumpedCoefficients:
+        return LumpedCoefficients(True, 0.0, self.damping, self.stiffness, self.free_length)
 
     def parameters(self) -> dict[str, Any]:
         return {"stiffness": self.stiffness, "damping": self.damping, "free_length": self.free_length}
