@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ctmm.control import loop_transfer_function, margins
-from ctmm.control.analysis import encirclements
+from ctmm.control import encirclements
 
 from . import controlled_chain_common as common
 

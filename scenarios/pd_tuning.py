@@ -27,7 +27,7 @@ from scipy.optimize import differential_evolution
 
 import ctmm
 from ctmm.control import ControlledChain, Feedback, PlantCache, loop_transfer_function, margins
-from ctmm.control.analysis import encirclements
+from ctmm.control import encirclements
 from ctmm.results import FrequencyResponse
 from ctmm.scenario import accuracy
 

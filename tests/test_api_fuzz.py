@@ -74,6 +74,7 @@ PUBLIC_API: dict[str, str] = {
     "ctmm.control.bode_plot": "tests/test_control_tools.py", "ctmm.control.nyquist_plot": "tests/test_control_tools.py",
     "ctmm.control.PlantCache": FUZZED,
     "ctmm.control.DelayedController": "tests/test_planar_control_time.py",
+    "ctmm.control.encirclements": "tests/test_control_tools.py",
     "ctmm.control.ControlledModel": "tests/test_planar_ports.py", "ctmm.control.with_feedback": "tests/test_planar_ports.py",
     # ctmm.stability
     "ctmm.stability.LoopCharacteristic": "tests/test_stability.py", "ctmm.stability.characteristic_roots": FUZZED,

@@ -9,7 +9,7 @@
 * :func:`loop_transfer_function`, :func:`margins` (gain/phase/delay), :func:`bode_plot`,
   :func:`nyquist_plot`, :class:`PlantCache` (cheap re-evaluation in control-design loops).
 """
-from .analysis import bode_plot, closed_loop_response, loop_transfer_function, margins, nyquist_plot
+from .analysis import bode_plot, closed_loop_response, encirclements, loop_transfer_function, margins, nyquist_plot
 from .design import PlantCache
 from .fmu import FMUController, build_fmu
 from .loops import ControlledChain, Feedback
@@ -20,4 +20,4 @@ from .simulate import simulate_controlled
 
 __all__ = ["Controller", "ControllerStep", "DelayedController", "Feedback", "ControlledChain", "ControlledModel", "with_feedback", "simulate_controlled",
            "FMUController", "build_fmu", "loop_transfer_function", "margins", "closed_loop_response",
-           "bode_plot", "nyquist_plot", "PlantCache"]
+           "bode_plot", "nyquist_plot", "encirclements", "PlantCache"]
