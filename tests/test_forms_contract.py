@@ -218,3 +218,39 @@ def test_bad_trees_and_unsupported_joints_are_refused():
     pendulum = PlanarModel.chain("p", [Pinned("o"), RigidBody.uniform_link("l", mass=1.0, length=1.0)])
     with pytest.raises(ModelError, match=r"\(B, 1\)"):
         PlanarScene(pendulum).accelerations(np.zeros(5), np.zeros(5))
+
+
+# ------------------------------------------------------------------ first caller: ctmm.linearize of planar models
+def _first_order(M, C, K):
+    n = M.shape[0]
+    return np.block([[np.zeros((n, n)), np.eye(n)], [-np.linalg.solve(M, K), -np.linalg.solve(M, C)]])
+
+
+def test_linearize_takes_its_state_matrix_from_the_one_sweep_exactly():
+    import ctmm
+    from ctmm.planar_linearization import jacobian
+
+    for model, q0 in _equilibrium_models()[:3]:
+        lin = ctmm.linearize(model, operating_point=(q0, np.zeros_like(q0)), inputs=[], outputs=[])
+        A = np.asarray(lin.state_space.A)
+        M, C, K = PlanarLagrange(model).linearize(q0)
+        assert _relative(A, _first_order(M, C, K)) <= 1e-13          # the difference path met 1e-9
+        assert 0.0 < lin.operating_point.jacobian_error <= 1e-9
+        # cross-check: the Richardson difference path of today's kernel, within its own error estimate
+        n = model.n_coordinates
+        Jq, error = jacobian(lambda q: accelerations(model, q, np.zeros(n)), q0)
+        assert np.all(np.abs(A[n:, :n] - Jq) <= error + 1e-12 * np.max(np.abs(Jq)))
+
+
+def test_linearize_falls_back_to_differences_when_the_complex_step_disagrees(monkeypatch):
+    import ctmm
+    import ctmm.planar_linearization as planar_linearization
+
+    model, q0 = _equilibrium_models()[1]
+    n = model.n_coordinates
+    monkeypatch.setattr(planar_linearization, "_complex_step_jacobians",
+                        lambda *args, **kwargs: (np.zeros((n, n)), np.zeros((n, n))))   # a non-analytic term
+    lin = ctmm.linearize(model, operating_point=(q0, np.zeros(n)), inputs=[], outputs=[])
+    M, C, K = PlanarLagrange(model).linearize(q0)
+    assert _relative(np.asarray(lin.state_space.A), _first_order(M, C, K)) <= 1e-9
+    assert lin.operating_point.jacobian_error > 1e-14               # Richardson's estimate, not the cross-check
