@@ -171,8 +171,12 @@ def articulated_sweep(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints:
                 Dj = Dj + kappa[j]
             D[j] = Dj
             tau = joint.tau if joint.tau is not None else ops.zeros(joint.free, 1)
-            P_hat = P - ops.matmul(PS, ops.solve(Dj, ops.matmul(St, P)))
-            p_hat = p + ops.matmul(PS, ops.solve(Dj, tau - ops.matmul(St, p)))
+            if joint.free == 1:                     # one free direction: D is 1 x 1, divide
+                P_hat = P - ops.matmul(PS, ops.matmul(St, P)) / Dj
+                p_hat = p + PS * ((tau - ops.matmul(St, p)) / Dj)
+            else:
+                P_hat = P - ops.matmul(PS, ops.solve(Dj, ops.matmul(St, P)))
+                p_hat = p + ops.matmul(PS, ops.solve(Dj, tau - ops.matmul(St, p)))
         par = tree.parent[j]
         if par < 0:
             continue
@@ -196,7 +200,8 @@ def articulated_sweep(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints:
             a = None
         else:
             tau = joint.tau if joint.tau is not None else ops.zeros(joint.free, 1)
-            a = ops.solve(D[j], tau - ops.matmul(ops.transpose(joint.S), ops.matmul(Phi[j], A_O) + psi[j]))
+            rhs = tau - ops.matmul(ops.transpose(joint.S), ops.matmul(Phi[j], A_O) + psi[j])
+            a = rhs / D[j] if joint.free == 1 else ops.solve(D[j], rhs)
         A = A_O if a is None else A_O + ops.matmul(joint.S, a)
         if joint.c is not None:
             A = A + joint.c

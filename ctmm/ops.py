@@ -70,6 +70,11 @@ class NumpyOps:
     exp = staticmethod(np.exp)
 
     def block(self, rows: Sequence[Sequence[Any]]) -> np.ndarray:
+        if all(len(row) == 1 for row in rows) and all(type(row[0]) is np.ndarray and row[0].ndim == 3
+                                                       for row in rows):
+            shapes = {(row[0].shape[0], row[0].dtype) for row in rows}
+            if len(shapes) == 1:                   # a column of blocks of one batch and dtype
+                return np.concatenate([row[0] for row in rows], axis=1)
         grid = [[self._matrix(entry) for entry in row] for row in rows]
         batch = max(entry.shape[0] for row in grid for entry in row)
         dtype = np.result_type(*[entry.dtype for row in grid for entry in row], float)
@@ -84,6 +89,8 @@ class NumpyOps:
     @staticmethod
     def solve(a: Any, b: Any) -> np.ndarray:
         a, b = np.asarray(a), np.asarray(b)
+        if a.shape[:-2] == b.shape[:-2]:
+            return np.linalg.solve(a, b)
         batch = np.broadcast_shapes(a.shape[:-2], b.shape[:-2])
         return np.linalg.solve(np.broadcast_to(a, batch + a.shape[-2:]), np.broadcast_to(b, batch + b.shape[-2:]))
 
