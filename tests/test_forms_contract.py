@@ -254,3 +254,16 @@ def test_linearize_falls_back_to_differences_when_the_complex_step_disagrees(mon
     M, C, K = PlanarLagrange(model).linearize(q0)
     assert _relative(np.asarray(lin.state_space.A), _first_order(M, C, K)) <= 1e-9
     assert lin.operating_point.jacobian_error > 1e-14               # Richardson's estimate, not the cross-check
+
+
+def test_linearize_of_a_model_off_the_protocol_uses_differences():
+    import ctmm
+
+    model = PlanarModel.chain("bushed", [Pinned("o"), RigidBody.uniform_link("l1", mass=1.0, length=1.0),
+                                         ElasticHinge("h", stiffness=4.0, translational_stiffness=300.0),
+                                         RigidBody.uniform_link("l2", mass=0.5, length=0.8)])
+    lin = ctmm.linearize(model, inputs=[], outputs=[])
+    q0 = lin.operating_point.q
+    M, C, K = PlanarLagrange(model).linearize(q0)
+    assert _relative(np.asarray(lin.state_space.A), _first_order(M, C, K)) <= 1e-8
+    assert 0.0 < lin.operating_point.jacobian_error <= 1e-8
