@@ -267,3 +267,26 @@ def test_linearize_of_a_model_off_the_protocol_uses_differences():
     M, C, K = PlanarLagrange(model).linearize(q0)
     assert _relative(np.asarray(lin.state_space.A), _first_order(M, C, K)) <= 1e-8
     assert 0.0 < lin.operating_point.jacobian_error <= 1e-8
+
+
+def test_frequency_context_with_modal_elimination_equals_the_flexible_lagrange_linearisation():
+    """Delta(s) = prod det D_j prod det C_j = det(s^2 M + s C + K) = det(M) det(s I - A): the ratio to
+    det(s I - A) of the differentiated FlexibleLagrange model is the constant det M."""
+    from ctmm.planar import SpringDamperHinge
+    from ctmm.planar_linearization import jacobian
+
+    model = PlanarModel.chain("hub_beam_link", [
+        Pinned("o"), RigidBody("hub", mass=2.0, inertia=0.1, center_of_mass=(0.05, 0.02), outboard=(0.2, 0.0)),
+        FixedMounting("mount", angle=0.3),
+        _beam("b", n_axial_modes=1, axial_stiffness=300.0, damping_ratio=0.02),
+        SpringDamperHinge("e", stiffness=3.0, damping=0.2), RigidBody.uniform_link("l", mass=0.3, length=0.5)])
+    q0 = static_equilibrium(model, hanging_configuration(model))
+    n = model.n_coordinates
+    reference = FlexibleLagrange(model)
+    Jq, _ = jacobian(lambda q: reference.accelerations(q, np.zeros(n)), q0)
+    Jv, _ = jacobian(lambda v: reference.accelerations(q0, v), np.zeros(n))
+    A = np.block([[np.zeros((n, n)), np.eye(n)], [Jq, Jv]])
+    s = np.array([0.3 + 1.7j, -0.2 + 0.5j, 2.0j, 0.7, 5.0 + 3.0j])
+    ratio = PlanarScene(model).frequency(q0, s).characteristic[:, 0, 0] / np.linalg.det(
+        s[:, None, None] * np.eye(2 * n) - A)
+    assert np.max(np.abs(ratio - ratio[0])) <= 1e-9 * abs(ratio[0])
