@@ -149,8 +149,8 @@ def articulated_sweep(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints:
             rest = slice(d, size)
             C[j] = ops.sub(Mj, rest, rest)
             Mre = ops.sub(Mj, rd, rest)
-            WA[j] = ops.solve(C[j], ops.sub(Mj, rest, rd))
-            Wh[j] = ops.solve(C[j], ops.sub(hj, rest, slice(0, 1)))
+            W = ops.solve(C[j], ops.block([[ops.sub(Mj, rest, rd), ops.sub(hj, rest, slice(0, 1))]]))
+            WA[j], Wh[j] = ops.sub(W, slice(0, size - d), rd), ops.sub(W, slice(0, size - d), slice(d, d + 1))
             P = ops.sub(Mj, rd, rd) - ops.matmul(Mre, WA[j])
             p = ops.sub(hj, rd, slice(0, 1)) - ops.matmul(Mre, Wh[j])
         else:

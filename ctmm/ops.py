@@ -70,11 +70,11 @@ class NumpyOps:
     exp = staticmethod(np.exp)
 
     def block(self, rows: Sequence[Sequence[Any]]) -> np.ndarray:
-        if all(len(row) == 1 for row in rows) and all(type(row[0]) is np.ndarray and row[0].ndim == 3
-                                                       for row in rows):
-            shapes = {(row[0].shape[0], row[0].dtype) for row in rows}
-            if len(shapes) == 1:                   # a column of blocks of one batch and dtype
-                return np.concatenate([row[0] for row in rows], axis=1)
+        if len(rows) == 1 or all(len(row) == 1 for row in rows):
+            parts = [e for row in rows for e in row]
+            if all(type(e) is np.ndarray and e.ndim == 3 for e in parts) and \
+                    len({(e.shape[0], e.dtype) for e in parts}) == 1:    # one row or one column of equal blocks
+                return np.concatenate(parts, axis=2 if len(rows) == 1 else 1)
         grid = [[self._matrix(entry) for entry in row] for row in rows]
         batch = max(entry.shape[0] for row in grid for entry in row)
         dtype = np.result_type(*[entry.dtype for row in grid for entry in row], float)

@@ -25,7 +25,7 @@ from ..articulated import Articulated, Tree, articulated_sweep, frequency_kappa
 from ..errors import ModelError, SimulationError
 from ..ops import NUMPY, Ops
 from ..protocol import BodyTerms, JointTerms
-from .model import BUSHING, DRIVEN, FREE, PlanarModel
+from .model import BUSHING, FREE, PlanarModel
 
 __all__ = ["rigid_body_terms", "revolute_terms", "driven_terms", "free_base_terms", "beam_terms",
            "PlanarScene"]
