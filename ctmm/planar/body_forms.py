@@ -184,7 +184,7 @@ class PlanarScene:
             else:
                 th_end, om_end = float(m.ground_angle[j]), 0.0
             if j in driven:
-                angle, rate, acceleration = driven[j]
+                angle, rate, _ = driven[j]
                 th, om = th_end + angle, om_end + rate
             else:
                 k = int(m.theta_index[j])
