@@ -18,16 +18,18 @@ On the package, ``ctmm.linearize`` is the function; the result types are importa
 
 Planar Jacobians (accuracy)
 ---------------------------
-``df/dq`` and ``df/dqdot`` are central differences of :func:`ctmm.planar.accelerations` with
-Richardson extrapolation over the steps ``h, h/2, h/4`` (``h = 1e-3 max(1, |x|)``): truncation
-``O(h^4)`` and round-off ``~1e-13`` relative.  The difference between the two extrapolated
-estimates is a (conservative) estimate of the truncation error, plus the slope jump where a
-kink sits exactly at the operating point (a saturation switching there: detected by the
-second differences, which central differences alone would average away); the largest, divided
-by ``max |A|``, is ``OperatingPoint.jacobian_error``, and the linearisation is refused
-(:class:`~ctmm.errors.ModelError`) if it exceeds ``1e-6``.  ``f`` is affine in the
-actuator inputs, so the columns of ``B`` are exact differences of unit inputs.  ``C`` comes
-from the sensor Jacobians of :mod:`ctmm.planar.ports` (outputs are deviations of the sensed
+``df/dq`` and ``df/dqdot`` are taken by complex step through the batched terms of the one
+articulated sweep (:mod:`ctmm.articulated`; exact to round-off), cross-checked along one direction
+against a Richardson difference of :func:`ctmm.planar.accelerations`: the disagreement (plus that
+difference's error estimate), divided by ``max |A|``, is ``OperatingPoint.jacobian_error``.  When
+they disagree by more than ``1e-6``, and for models not on the element protocol yet
+(translational-spring hinges, user state laws on beams), every column is a central difference with
+Richardson extrapolation over the steps ``h, h/2, h/4`` (``h = 1e-3 max(1, |x|)``; the difference
+between the two extrapolated estimates as a conservative truncation error, plus the slope jump where
+a kink sits exactly at the operating point, detected by the second differences), and the
+linearisation is refused (:class:`~ctmm.errors.ModelError`) if that estimate exceeds ``1e-6``.
+``f`` is affine in the actuator inputs, so the columns of ``B`` are exact differences of unit
+inputs.  ``C`` comes from the sensor Jacobians of :mod:`ctmm.planar.ports` (outputs are deviations of the sensed
 values from their values at the operating point); ``D = 0`` (no planar sensor depends on an
 input).
 

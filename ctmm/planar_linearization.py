@@ -4,9 +4,12 @@ The path of :func:`ctmm.linearize` for a :class:`~ctmm.planar.model.PlanarModel`
 ``ctmm.control.ControlledModel`` (documented there and in ``docs/control.md``, "Linearisation").
 State ``x = [q, qdot]`` (deviations from the operating point), ``x' = A x + B u``, ``y = C x``:
 
-* ``A = [[0, I], [df/dq, df/dqdot]]`` with ``f = qddot(q, qdot, u)`` of
-  :func:`ctmm.planar.accelerations` -- central differences with Richardson extrapolation and an
-  error estimate (:func:`jacobian`);
+* ``A = [[0, I], [df/dq, df/dqdot]]`` with ``f = qddot(q, qdot, u)`` -- by complex step through
+  the batched terms of the one articulated sweep (:mod:`ctmm.articulated`,
+  :class:`ctmm.planar.body_forms.PlanarScene`), exact to round-off, cross-checked along one
+  direction by a Richardson difference of :func:`ctmm.planar.accelerations`; models not on the
+  element protocol yet (translational-spring hinges, user state laws on beams): central
+  differences with Richardson extrapolation and an error estimate (:func:`jacobian`);
 * ``B = [[0], [df/du]]`` -- ``f`` is affine in the actuator inputs of
   :func:`ctmm.planar.ports.actuator_inputs`, so a symmetric unit difference is exact;
 * ``C`` -- coordinates and their rates directly, other sensors from
@@ -222,11 +225,64 @@ def _requested_outputs(model: Any, loops: Sequence[Any], outputs: Any) -> tuple[
     return req, loop_outputs
 
 
+def _one_sweep_applies(model: Any) -> bool:
+    """True when every element of ``model`` is stated on the element protocol with complex-safe terms
+    (:class:`ctmm.planar.body_forms.PlanarScene`): no hinges with translational springs, no user
+    state-feedback laws on beams (user code may not accept complex coordinates)."""
+    from .planar.model import BUSHING
+
+    if np.any(model.joint_kind == BUSHING):
+        return False
+    return not any(beam.data.laws for beam in model.beams.values())
+
+
+def _complex_step_jacobians(model: Any, point: OperatingPoint, step: float = 1e-30
+                            ) -> tuple[np.ndarray, np.ndarray]:
+    """``df/dq, df/dqdot`` by complex step through the batched terms of the one articulated sweep.
+
+    One sweep batched over ``2 n`` complex states ``q + i h e_k``, ``qdot + i h e_k``;
+    ``Im f / h`` is exact to round-off (no subtraction) for terms that are analytic in the state.
+    """
+    from .planar.body_forms import PlanarScene
+
+    n = model.n_coordinates
+    perturb = 1j * step * np.eye(2 * n)
+    q = point.q[None, :] + perturb[:, :n]
+    qdot = point.qdot[None, :] + perturb[:, n:]
+    J = PlanarScene(model).accelerations(q, qdot, point.t).imag / step      # (2 n, n): row k = d f / d x_k
+    return J[:n].T, J[n:].T
+
+
 def tangent(model: Any, point: OperatingPoint) -> tuple[np.ndarray, OperatingPoint]:
-    """``A = [[0, I], [df/dq, df/dqdot]]`` at ``point`` and the point with its ``jacobian_error``."""
+    """``A = [[0, I], [df/dq, df/dqdot]]`` at ``point`` and the point with its ``jacobian_error``.
+
+    Models on the element protocol (:func:`_one_sweep_applies`): complex step through the one
+    articulated sweep (:func:`_complex_step_jacobians`), cross-checked along a fixed pseudo-random
+    direction ``d`` against a Richardson difference of :func:`ctmm.planar.accelerations` (today's
+    kernel): ``jacobian_error`` is their disagreement ``|J d - (df/dd)_Richardson|`` plus that
+    difference's own error estimate, relative to ``max |A|`` (a conservative bound: the complex
+    step itself is exact to round-off).  A disagreement beyond :data:`JACOBIAN_TOLERANCE` (terms
+    that are not analytic in the state, a kink) falls back to Richardson differences of every
+    column (:func:`jacobian`), which report the kink.  Other models: Richardson differences.
+    """
     from .planar.sweep import accelerations
 
     n = model.n_coordinates
+    if _one_sweep_applies(model):
+        Jq, Jv = _complex_step_jacobians(model, point)
+        A = np.block([[np.zeros((n, n)), np.eye(n)], [Jq, Jv]])
+        direction = np.random.default_rng(20261124).uniform(-1.0, 1.0, 2 * n)
+        direction /= np.max(np.abs(direction))
+
+        def along(e: np.ndarray) -> np.ndarray:
+            x = np.concatenate([point.q, point.qdot]) + e[0] * direction
+            return accelerations(model, x[:n], x[n:], point.t)
+
+        slope, slope_error = jacobian(along, np.zeros(1))
+        disagreement = np.abs(np.hstack([Jq, Jv]) @ direction - slope[:, 0]) + slope_error[:, 0]
+        error = float(np.max(disagreement, initial=0.0) / np.max(np.abs(A)))
+        if error <= JACOBIAN_TOLERANCE:
+            return A, point._replace(jacobian_error=error)
     Jq, eq = jacobian(lambda q: accelerations(model, q, point.qdot, point.t), point.q)
     Jv, ev = jacobian(lambda v: accelerations(model, point.q, v, point.t), point.qdot)
     A = np.block([[np.zeros((n, n)), np.eye(n)], [Jq, Jv]])

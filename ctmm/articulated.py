@@ -1,0 +1,216 @@
+"""The one articulated (Riccati) sweep over :class:`~ctmm.protocol.BodyTerms` for trees.
+
+One recursion, three evaluation contexts (``docs/plans/one_core.md`` §1.10, §2.3; derivation in
+``docs/planar.md``, "The one articulated sweep"):
+
+* **explicit** accelerations: ``kappa = 0`` (:func:`explicit_kappa`);
+* **implicit** Newton tangent: the integrator's ``kappa = -(tau_q cx + tau_v A)`` and
+  tangent-modified terms (today ``planar/implicit.py``: ``kappa = k beta' h^2 + c gamma' h``);
+* **frequency**: terms linearised about a static operating point, ``M -> Z(s) = s^2 M0 + s C0 + K0``,
+  ``kappa(s) = -(tau_q + s tau_v)``, batched over ``s`` (:func:`frequency_kappa`); the pivots give
+  the characteristic function ``prod det D_j prod det C_j`` (:attr:`Articulated.characteristic`).
+
+Tip to base, for each body ``j`` (children already folded into ``M_j, h_j``): modal elimination
+``W = C^-1 [M_er, h_e]``, ``Phi = M_rr - M_re W_A``, ``psi = h_r - M_re W_h`` (``C = M_ee``);
+joint ``D = S^T Phi S + kappa``, ``Phi_hat = Phi - Phi S D^-1 S^T Phi``,
+``psi_hat = psi' + Phi S D^-1 (tau - S^T psi')`` with ``psi' = psi + Phi c_joint`` (driven:
+``psi_hat = psi' + Phi S a_rel``; weld ``k = 0``: ``psi_hat = psi'``), moved to the parent point
+``e``: ``M_p += RF_e Phi_hat Kin_e``, ``h_p += RF_e (Phi_hat c_e + psi_hat)``.  Base to tip:
+``A_O = Kin_e x_p + c_e`` (ground: 0), ``a_rel = D^-1 (tau - S^T (Phi A_O + psi'))``,
+``A = A_O + S a_rel + c_joint``, ``eta'' = -(W_A A + W_h)``, ``F = Phi A + psi``.
+
+Written in :mod:`ctmm.ops` only, so it runs batched on numpy (float, complex) and on casadi symbols.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+from .errors import ModelError
+from .ops import Ops
+from .protocol import BodyTerms, JointTerms
+
+__all__ = ["Tree", "Articulated", "articulated_sweep", "explicit_kappa", "frequency_kappa"]
+
+
+@dataclass(frozen=True)
+class Tree:
+    """Topology of a tree of bodies in topological order (every parent before its children).
+
+    Attributes
+    ----------
+    parent : tuple of int
+        Parent body of each body's inboard joint, ``-1`` for the ground.
+    point : tuple of str or None
+        Name of the parent's point each body hangs on (``None`` at the ground).
+    dimension : int
+        Point state dimension ``d`` (planar 3, spatial 6).
+    """
+
+    parent: tuple[int, ...]
+    point: tuple[str | None, ...]
+    dimension: int = 3
+
+    def __post_init__(self) -> None:
+        if len(self.parent) != len(self.point):
+            raise ModelError(f"Tree: parent ({len(self.parent)}) and point ({len(self.point)}) must have one "
+                             "entry per body")
+        for j, p in enumerate(self.parent):
+            if not -1 <= p < j:
+                raise ModelError(f"Tree: parent[{j}] = {p} is not -1 (ground) or an earlier body; bodies must be "
+                                 "in topological order")
+
+
+@dataclass(frozen=True)
+class Articulated:
+    """Result of one sweep (per body ``j``, ops matrices).
+
+    Attributes
+    ----------
+    x : list
+        ``[A_in ; eta'']`` (d + n_j, 1).
+    force : list
+        ``F_in`` (d, 1): wrench of the parent (or ground) on the body at its inboard point.
+    relative : list
+        ``a_rel`` (k_j, 1) of the inboard joint (``None`` for a weld).
+    pivot : list
+        ``D_j`` (k_j, k_j) of free joints (``None`` otherwise).
+    modal : list
+        ``C_j`` (n_j, n_j) of bodies with internal coordinates (``None`` otherwise).
+    characteristic : matrix (1, 1) or None
+        ``prod det D_j * prod det C_j`` (the frequency context's characteristic function), when
+        asked for.
+    """
+
+    x: list
+    force: list
+    relative: list
+    pivot: list
+    modal: list
+    characteristic: Any = None
+
+
+def explicit_kappa(joints: Sequence[JointTerms]) -> list:
+    """``kappa = 0`` for every joint (explicit accelerations)."""
+    return [None] * len(joints)
+
+
+def frequency_kappa(ops: Ops, joints: Sequence[JointTerms], s: Any) -> list:
+    """``kappa(s) = -(tau_q + s tau_v)`` of the joint laws (connector ``k + c s``)."""
+    out = []
+    for joint in joints:
+        if joint.tau is None or joint.free == 0:
+            out.append(None)
+            continue
+        k = joint.free
+        tq = joint.tau_q if joint.tau_q is not None else ops.zeros(k, k)
+        tv = joint.tau_v if joint.tau_v is not None else ops.zeros(k, k)
+        out.append((tq + s * tv) * -1.0)
+    return out
+
+
+def articulated_sweep(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints: Sequence[JointTerms],
+                      kappa: Sequence[Any] | None = None, *, characteristic: bool = False) -> Articulated:
+    """Tip-to-base elimination and base-to-tip pass (module docstring).
+
+    Parameters
+    ----------
+    ops : Ops
+    tree : Tree
+    bodies : sequence of BodyTerms
+        One per body, in the tree's order.
+    joints : sequence of JointTerms
+        The inboard joint of each body.
+    kappa : sequence, optional
+        Joint tangent ``(k, k)`` per joint (``None`` entries: 0); default explicit.
+    characteristic : bool
+        Also form ``prod det D_j prod det C_j``.
+
+    Returns
+    -------
+    Articulated
+        Singular pivots are not detected here (no branching on values): numpy callers check the
+        result for finiteness.
+    """
+    nb = len(tree.parent)
+    if len(bodies) != nb or len(joints) != nb:
+        raise ModelError(f"articulated_sweep: {nb} bodies in the tree, got {len(bodies)} body terms and "
+                         f"{len(joints)} joint terms")
+    kappa = list(kappa) if kappa is not None else explicit_kappa(joints)
+    d = tree.dimension
+    M = [b.M for b in bodies]
+    h = [b.h for b in bodies]
+    Phi, psi, WA, Wh, D, C = [None] * nb, [None] * nb, [None] * nb, [None] * nb, [None] * nb, [None] * nb
+    rd = slice(0, d)
+    for j in range(nb - 1, -1, -1):
+        Mj, hj = M[j], h[j]
+        size = ops.shape(Mj)[0]
+        if size > d:
+            rest = slice(d, size)
+            C[j] = ops.sub(Mj, rest, rest)
+            Mre = ops.sub(Mj, rd, rest)
+            W = ops.solve(C[j], ops.block([[ops.sub(Mj, rest, rd), ops.sub(hj, rest, slice(0, 1))]]))
+            WA[j], Wh[j] = ops.sub(W, slice(0, size - d), rd), ops.sub(W, slice(0, size - d), slice(d, d + 1))
+            P = ops.sub(Mj, rd, rd) - ops.matmul(Mre, WA[j])
+            p = ops.sub(hj, rd, slice(0, 1)) - ops.matmul(Mre, Wh[j])
+        else:
+            P, p = Mj, hj
+        joint = joints[j]
+        if joint.c is not None:
+            p = p + ops.matmul(P, joint.c)
+        Phi[j], psi[j] = P, p
+        if joint.prescribed is not None:
+            P_hat, p_hat = P, p + ops.matmul(ops.matmul(P, joint.S), joint.prescribed)
+        elif joint.free == 0:
+            P_hat, p_hat = P, p
+        else:
+            St = ops.transpose(joint.S)
+            PS = ops.matmul(P, joint.S)
+            Dj = ops.matmul(St, PS)
+            if kappa[j] is not None:
+                Dj = Dj + kappa[j]
+            D[j] = Dj
+            tau = joint.tau if joint.tau is not None else ops.zeros(joint.free, 1)
+            if joint.free == 1:                     # one free direction: D is 1 x 1, divide
+                P_hat = P - ops.matmul(PS, ops.matmul(St, P)) / Dj
+                p_hat = p + PS * ((tau - ops.matmul(St, p)) / Dj)
+            else:
+                P_hat = P - ops.matmul(PS, ops.solve(Dj, ops.matmul(St, P)))
+                p_hat = p + ops.matmul(PS, ops.solve(Dj, tau - ops.matmul(St, p)))
+        par = tree.parent[j]
+        if par < 0:
+            continue
+        e = tree.point[j]
+        parent = bodies[par]
+        RP = ops.matmul(parent.RF[e], P_hat)
+        M[par] = M[par] + ops.matmul(RP, parent.Kin[e])
+        h[par] = h[par] + ops.matmul(RP, parent.c[e]) + ops.matmul(parent.RF[e], p_hat)
+    x, force, relative = [None] * nb, [None] * nb, [None] * nb
+    for j in range(nb):
+        par = tree.parent[j]
+        joint = joints[j]
+        if par >= 0:
+            e = tree.point[j]
+            A_O = ops.matmul(bodies[par].Kin[e], x[par]) + bodies[par].c[e]
+        else:
+            A_O = ops.zeros(d, 1)
+        if joint.prescribed is not None:
+            a = joint.prescribed
+        elif joint.free == 0:
+            a = None
+        else:
+            tau = joint.tau if joint.tau is not None else ops.zeros(joint.free, 1)
+            rhs = tau - ops.matmul(ops.transpose(joint.S), ops.matmul(Phi[j], A_O) + psi[j])
+            a = rhs / D[j] if joint.free == 1 else ops.solve(D[j], rhs)
+        A = A_O if a is None else A_O + ops.matmul(joint.S, a)
+        if joint.c is not None:
+            A = A + joint.c
+        relative[j] = a
+        x[j] = A if C[j] is None else ops.block([[A], [(ops.matmul(WA[j], A) + Wh[j]) * -1.0]])
+        # F = Phi (A - c_joint) + psi  (psi already carries Phi c_joint)
+        force[j] = ops.matmul(Phi[j], A if joint.c is None else A - joint.c) + psi[j]
+    char = None
+    if characteristic:
+        for block in [b for b in D if b is not None] + [b for b in C if b is not None]:
+            char = ops.det(block) if char is None else char * ops.det(block)
+    return Articulated(x, force, relative, D, C, char)

@@ -1,0 +1,204 @@
+"""One namespace of array operations for physics written once (issue 12, ``docs/plans/one_core.md`` §2.1).
+
+Element physics (:mod:`ctmm.protocol`) and the articulated sweep (:mod:`ctmm.articulated`) use only
+the operations of an :class:`Ops` object and the arithmetic operators ``+ - *`` (elementwise, with a
+scalar broadcasting against a matrix).  Two implementations:
+
+* :data:`NUMPY` -- every value is a **batched matrix** of shape ``(B, rows, columns)`` (a scalar is
+  ``(B, 1, 1)``, a vector a column ``(B, n, 1)``); float or complex (complex-step tangents and
+  frequency sweeps use the complex dtype; ``B`` may be 1 for constants, which broadcast);
+* :data:`CASADI` -- every value is a ``casadi.SX`` (or ``MX``) matrix ``(rows, columns)``, no batch axis.
+
+Rules for code written against :class:`Ops`: no in-place writes (``SX`` is immutable), no Python
+branching on values (use :meth:`Ops.if_else`), no ``abs``/``max``/``clip`` on state-dependent
+values (not complex-step safe).  Python branching on *structure* (sizes, kinds, names) is fine.
+"""
+from __future__ import annotations
+
+from typing import Any, Protocol, Sequence
+
+import numpy as np
+
+__all__ = ["Ops", "NumpyOps", "CasadiOps", "NUMPY", "CASADI", "batch_scalars", "batch_column"]
+
+
+class Ops(Protocol):
+    """Operations valid on batched numpy matrices (float or complex) and casadi symbols."""
+
+    name: str
+
+    def sin(self, x: Any) -> Any: ...
+    def cos(self, x: Any) -> Any: ...
+    def sqrt(self, x: Any) -> Any: ...
+    def exp(self, x: Any) -> Any: ...
+    def block(self, rows: Sequence[Sequence[Any]]) -> Any:
+        """Matrix from a grid of blocks; an entry is a matrix or a scalar (Python number or 1 x 1)."""
+    def matmul(self, a: Any, b: Any) -> Any: ...
+    def solve(self, a: Any, b: Any) -> Any:
+        """``a^-1 b`` for a small square ``a``."""
+    def det(self, a: Any) -> Any:
+        """Determinant of a square matrix, as a 1 x 1 matrix."""
+    def transpose(self, a: Any) -> Any: ...
+    def sub(self, a: Any, rows: slice, columns: slice) -> Any:
+        """The block ``a[rows, columns]`` (no copy semantics assumed)."""
+    def zeros(self, rows: int, columns: int) -> Any:
+        """A zero constant (broadcasts against any batch)."""
+    def eye(self, n: int) -> Any:
+        """An identity constant (broadcasts against any batch)."""
+    def if_else(self, condition: Any, a: Any, b: Any) -> Any: ...
+    def shape(self, a: Any) -> tuple[int, int]:
+        """``(rows, columns)`` of a matrix (without the batch axis)."""
+
+
+class NumpyOps:
+    """:class:`Ops` on numpy arrays of shape ``(B, rows, columns)``; Python numbers are ``(1, 1, 1)``."""
+
+    name = "numpy"
+
+    @staticmethod
+    def _matrix(x: Any) -> np.ndarray:
+        array = np.asarray(x)
+        if array.ndim == 0:
+            return array.reshape(1, 1, 1)
+        if array.ndim != 3:
+            raise ValueError(f"numpy ops values are (B, rows, columns) arrays, got shape {array.shape}")
+        return array
+
+    sin = staticmethod(np.sin)
+    cos = staticmethod(np.cos)
+    sqrt = staticmethod(np.sqrt)
+    exp = staticmethod(np.exp)
+
+    def block(self, rows: Sequence[Sequence[Any]]) -> np.ndarray:
+        if len(rows) == 1 or all(len(row) == 1 for row in rows):
+            parts = [e for row in rows for e in row]
+            if all(type(e) is np.ndarray and e.ndim == 3 for e in parts) and \
+                    len({(e.shape[0], e.dtype) for e in parts}) == 1:    # one row or one column of equal blocks
+                return np.concatenate(parts, axis=2 if len(rows) == 1 else 1)
+        grid = [[self._matrix(entry) for entry in row] for row in rows]
+        batch = max(entry.shape[0] for row in grid for entry in row)
+        dtype = np.result_type(*[entry.dtype for row in grid for entry in row], float)
+        out_rows = [np.concatenate([np.broadcast_to(e, (batch,) + e.shape[1:]).astype(dtype, copy=False)
+                                    for e in row], axis=2) for row in grid]
+        return np.concatenate(out_rows, axis=1)
+
+    @staticmethod
+    def matmul(a: Any, b: Any) -> np.ndarray:
+        return np.matmul(a, b)
+
+    @staticmethod
+    def solve(a: Any, b: Any) -> np.ndarray:
+        a, b = np.asarray(a), np.asarray(b)
+        if a.shape[:-2] == b.shape[:-2]:
+            return np.linalg.solve(a, b)
+        batch = np.broadcast_shapes(a.shape[:-2], b.shape[:-2])
+        return np.linalg.solve(np.broadcast_to(a, batch + a.shape[-2:]), np.broadcast_to(b, batch + b.shape[-2:]))
+
+    @staticmethod
+    def det(a: Any) -> np.ndarray:
+        return np.linalg.det(a)[:, None, None]
+
+    @staticmethod
+    def transpose(a: Any) -> np.ndarray:
+        return np.swapaxes(a, -1, -2)
+
+    @staticmethod
+    def sub(a: Any, rows: slice, columns: slice) -> np.ndarray:
+        return a[:, rows, columns]
+
+    @staticmethod
+    def zeros(rows: int, columns: int) -> np.ndarray:
+        return np.zeros((1, rows, columns))
+
+    @staticmethod
+    def eye(n: int) -> np.ndarray:
+        return np.eye(n)[None]
+
+    @staticmethod
+    def if_else(condition: Any, a: Any, b: Any) -> np.ndarray:
+        return np.where(condition, a, b)
+
+    @staticmethod
+    def shape(a: Any) -> tuple[int, int]:
+        return tuple(np.shape(a)[-2:])
+
+
+class CasadiOps:
+    """:class:`Ops` on ``casadi.SX`` / ``casadi.MX`` matrices (imported on first use)."""
+
+    name = "casadi"
+
+    @property
+    def _ca(self):
+        import casadi
+
+        return casadi
+
+    def sin(self, x: Any) -> Any:
+        return self._ca.sin(x)
+
+    def cos(self, x: Any) -> Any:
+        return self._ca.cos(x)
+
+    def sqrt(self, x: Any) -> Any:
+        return self._ca.sqrt(x)
+
+    def exp(self, x: Any) -> Any:
+        return self._ca.exp(x)
+
+    def block(self, rows: Sequence[Sequence[Any]]) -> Any:
+        ca = self._ca
+        return ca.vertcat(*[ca.horzcat(*[ca.SX(e) if isinstance(e, (int, float)) else e for e in row])
+                            for row in rows])
+
+    def matmul(self, a: Any, b: Any) -> Any:
+        return self._ca.mtimes(a, b)
+
+    def solve(self, a: Any, b: Any) -> Any:
+        return self._ca.solve(a, b)
+
+    def det(self, a: Any) -> Any:
+        return self._ca.det(a)
+
+    @staticmethod
+    def transpose(a: Any) -> Any:
+        return a.T
+
+    @staticmethod
+    def sub(a: Any, rows: slice, columns: slice) -> Any:
+        return a[rows, columns]
+
+    def zeros(self, rows: int, columns: int) -> Any:
+        return self._ca.SX.zeros(rows, columns)
+
+    def eye(self, n: int) -> Any:
+        return self._ca.SX.eye(n)
+
+    def if_else(self, condition: Any, a: Any, b: Any) -> Any:
+        return self._ca.if_else(condition, a, b)
+
+    @staticmethod
+    def shape(a: Any) -> tuple[int, int]:
+        return tuple(a.shape)
+
+
+NUMPY = NumpyOps()
+"""Batched numpy implementation (float or complex)."""
+CASADI = CasadiOps()
+"""casadi implementation (``SX`` / ``MX`` symbols)."""
+
+
+def batch_scalars(values: Any) -> list[np.ndarray]:
+    """Columns of a ``(B, n)`` numpy array as ``n`` batched scalars ``(B, 1, 1)`` for :data:`NUMPY`."""
+    values = np.asarray(values)
+    if values.ndim == 1:
+        values = values[None]
+    return [values[:, k].reshape(-1, 1, 1) for k in range(values.shape[1])]
+
+
+def batch_column(values: Any) -> np.ndarray:
+    """A ``(B, n)`` (or ``(n,)``) numpy array as a batched column ``(B, n, 1)`` for :data:`NUMPY`."""
+    values = np.asarray(values)
+    if values.ndim == 1:
+        values = values[None]
+    return values[:, :, None]

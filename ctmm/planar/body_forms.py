@@ -1,0 +1,376 @@
+"""Planar families stated once on the element protocol (:mod:`ctmm.protocol`), and a planar model as
+an articulated tree (:class:`PlanarScene`) for the one sweep (:mod:`ctmm.articulated`).
+
+* :func:`rigid_body_terms` -- :class:`~ctmm.planar.elements.RigidBody` in :mod:`ctmm.ops`
+  (numpy batched, complex, casadi): ``M = X_C^T diag(m, m, J_C) X_C``, ``h`` velocity, gravity,
+  load and input terms, ``Kin_e = X(r_e)``, ``c_e = -omega^2 r_e``, ``RF_e = X(r_e)^T``
+  (``docs/planar.md`` FORMULAS 3.4);
+* :func:`revolute_terms` -- one law for the smooth, elastic, damper, spring-damper and actuated
+  hinges, ``tau = u - k (q_rel - r) - c (v_rel - r_dot)`` along ``S = e3``; :func:`driven_terms`
+  (driven hinge, fixed mounting: prescribed ``a_rel``); :func:`free_base_terms` (``S = I3``);
+* :func:`beam_terms` -- the modal beam through an adapter over
+  :meth:`ctmm.flexible.beam.BeamData.terms` (numpy only: that routine still writes in place into
+  its work arrays -- a debt of the one-core migration, plan §2.2, "ModalBeam").
+
+Hinges with translational springs (``BUSHING``) are not stated on the protocol yet
+(:class:`PlanarScene` refuses them).
+"""
+from __future__ import annotations
+
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from ..articulated import Articulated, Tree, articulated_sweep, frequency_kappa
+from ..errors import ModelError, SimulationError
+from ..ops import NUMPY, Ops
+from ..protocol import BodyTerms, JointTerms
+from .model import BUSHING, FREE, PlanarModel
+
+__all__ = ["rigid_body_terms", "revolute_terms", "driven_terms", "free_base_terms", "beam_terms",
+           "PlanarScene"]
+
+
+def rigid_body_terms(ops: Ops, *, mass: float, inertia: float, center_of_mass: Sequence[float],
+                     points: Mapping[str, Sequence[float]], gravity: Sequence[float], theta: Any, omega: Any,
+                     loads: Sequence[Sequence[float]] = (), body_force: Sequence[Any] | None = None
+                     ) -> BodyTerms:
+    """Transfer relations of a planar rigid body about its inboard point.
+
+    Parameters
+    ----------
+    ops : Ops
+    mass : float
+        [kg].
+    inertia : float
+        About the centre of mass [kg m^2].
+    center_of_mass : (float, float)
+        Relative to the inboard point, body frame [m].
+    points : mapping of str to (float, float)
+        Outboard points relative to the inboard point, body frame [m].
+    gravity : (float, float)
+        [m/s^2], global axes.
+    theta, omega : ops scalars
+        Absolute angle [rad] and angular velocity [rad/s].
+    loads : sequence of (px, py, fx, fy, moment)
+        External loads at body-frame points [m] (global forces [N], moment [N m]).
+    body_force : (fx, fy, moment), optional
+        Actuator force at the centre of mass (global axes) [N, N m].
+
+    Returns
+    -------
+    BodyTerms
+        ``d = 3``, ``n = 0``.
+    """
+    c, s = ops.cos(theta), ops.sin(theta)
+    cx, cy = float(center_of_mass[0]), float(center_of_mass[1])
+    rcx, rcy = c * cx - s * cy, s * cx + c * cy
+    m, gx, gy = float(mass), float(gravity[0]), float(gravity[1])
+    w2 = omega * omega
+    M = ops.block([[m, 0.0, rcy * -m], [0.0, m, rcx * m],
+                   [rcy * -m, rcx * m, (rcx * rcx + rcy * rcy) * m + float(inertia)]])
+    hx = (w2 * rcx + gx) * -m
+    hy = (w2 * rcy + gy) * -m
+    hz = (rcx * gy - rcy * gx) * -m
+    for px, py, fx, fy, mz in loads:
+        rex, rey = c * px - s * py, s * px + c * py
+        hx, hy, hz = hx - fx, hy - fy, hz - (rex * fy - rey * fx + mz)
+    if body_force is not None:
+        fx, fy, mz = body_force
+        hx, hy, hz = hx - fx, hy - fy, hz - (rcx * fy - rcy * fx + mz)
+    h = ops.block([[hx], [hy], [hz]])
+    Kin, cc, RF = {}, {}, {}
+    for name, (vx, vy) in points.items():
+        rx, ry = c * float(vx) - s * float(vy), s * float(vx) + c * float(vy)
+        Kin[name] = ops.block([[1.0, 0.0, ry * -1.0], [0.0, 1.0, rx], [0.0, 0.0, 1.0]])
+        cc[name] = ops.block([[w2 * rx * -1.0], [w2 * ry * -1.0], [0.0]])
+        RF[name] = ops.transpose(Kin[name])
+    return BodyTerms(M, h, Kin, cc, RF)
+
+
+def revolute_terms(ops: Ops, *, angle: Any, rate: Any, stiffness: float = 0.0, damping: float = 0.0,
+                   reference: float = 0.0, reference_rate: float = 0.0, torque: Any = 0.0) -> JointTerms:
+    """Revolute hinge law ``tau = torque - k (angle - reference) - c (rate - reference_rate)``.
+
+    ``angle``, ``rate``: relative hinge angle [rad] and rate [rad/s] (ops scalars); ``stiffness`` k
+    [N m/rad], ``damping`` c [N m s/rad]; ``torque`` the input across the hinge [N m].  Smooth
+    (k = c = 0), elastic, damper, spring-damper and actuated hinges are this one law.
+    """
+    k, c = float(stiffness), float(damping)
+    tau = (angle - reference) * -k - (rate - reference_rate) * c + torque
+    return JointTerms(S=ops.block([[0.0], [0.0], [1.0]]), tau=ops.block([[tau]]),
+                      tau_q=ops.block([[-k]]), tau_v=ops.block([[-c]]))
+
+
+def driven_terms(ops: Ops, acceleration: Any) -> JointTerms:
+    """Driven hinge / fixed mounting: prescribed relative angular acceleration [rad/s^2]."""
+    return JointTerms(S=ops.block([[0.0], [0.0], [1.0]]), prescribed=ops.block([[acceleration]]))
+
+
+def free_base_terms(ops: Ops) -> JointTerms:
+    """Free base: every direction free, zero force (``S = I3``, ``tau = 0``)."""
+    return JointTerms(S=ops.eye(3), tau=ops.zeros(3, 1), tau_q=ops.zeros(3, 3), tau_v=ops.zeros(3, 3))
+
+
+def beam_terms(data: Any, points: Sequence[str], theta: np.ndarray, omega: np.ndarray, eta: np.ndarray,
+               eta_dot: np.ndarray, t: float, gravity: Sequence[float],
+               modal_force: np.ndarray | None = None) -> tuple[BodyTerms, list[tuple[Any, Any]]]:
+    """Adapter: :meth:`ctmm.flexible.beam.BeamData.terms` as :class:`BodyTerms` (numpy only).
+
+    ``theta, omega`` (B,), ``eta, eta_dot`` (B, n); ``modal_force`` (n,) an actuator force on the modal
+    equations.  Returns the terms and, per point, the end's ``(angle, rate)`` (B,).
+    """
+    M, h, ends = data.terms(theta, omega, eta, eta_dot, t, gravity)
+    h = h[:, :, None]
+    if modal_force is not None:
+        h = h - np.concatenate([np.zeros((1, 3, 1)), np.asarray(modal_force, float).reshape(1, -1, 1)], axis=1)
+    Kin = {name: e[0] for name, e in zip(points, ends)}
+    cc = {name: e[1][:, :, None] for name, e in zip(points, ends)}
+    RF = {name: e[2] for name, e in zip(points, ends)}
+    return BodyTerms(M, h, Kin, cc, RF), [(e[3], e[4]) for e in ends]
+
+
+def _entry(ops: Ops, column: Any, k: int) -> Any:
+    return ops.sub(column, slice(k, k + 1), slice(0, 1))
+
+
+class PlanarScene:
+    """A :class:`~ctmm.planar.model.PlanarModel` (rigid bodies and modal beams) as bodies and joints
+    on the protocol, for :func:`ctmm.articulated.articulated_sweep`.
+
+    Parameters
+    ----------
+    model : PlanarModel
+        Without hinges with translational springs.
+    """
+
+    def __init__(self, model: PlanarModel) -> None:
+        if not isinstance(model, PlanarModel):
+            raise ModelError(f"PlanarScene: model must be a ctmm.planar.PlanarModel, got {model!r}")
+        if np.any(model.joint_kind == BUSHING):
+            raise ModelError(f"PlanarScene: model {model.name!r} has hinges with translational springs, which are "
+                             "not stated on the element protocol yet")
+        self.model = model
+        self.beam_points = {j: tuple(b.ends) for j, b in model.beams.items()}
+        points = []
+        for j in range(model.n_bodies):
+            p = int(model.parent[j])
+            if p < 0:
+                points.append(None)
+            elif p in self.beam_points:
+                points.append(self.beam_points[p][model.parent_end_index[j]])
+            else:
+                points.append(model.parent_end[j])
+        self.tree = Tree(tuple(int(p) for p in model.parent), tuple(points), 3)
+
+    def terms(self, ops: Ops, q: Any, qdot: Any, t: float = 0.0, inputs: Any = None
+              ) -> tuple[list[BodyTerms], list[JointTerms]]:
+        """Body and joint terms at coordinates ``q`` and rates ``qdot`` (ops columns
+        ``(B, n, 1)`` for numpy, ``(n, 1)`` for casadi) and time ``t`` [s].
+
+        ``inputs``: :class:`ctmm.planar.ports.ActuatorInputs` (numeric), optional.
+        """
+        m = self.model
+        if m.beams and ops is not NUMPY:
+            raise ModelError(f"PlanarScene: model {m.name!r} has modal beams, whose terms are numpy only yet")
+        driven = {i: (a, r, acc) for i, a, r, acc in m.driven(t)}
+        laws = m.hinge_laws(t)
+        all_loads = m.loads(t) if len(m.load_body) else np.zeros((0, 3))
+        end_motion, bodies, joints = {}, [], []
+        for j in range(m.n_bodies):
+            p = int(m.parent[j])
+            if p >= 0:
+                th_end, om_end = end_motion[(p, self.tree.point[j])]
+            else:
+                th_end, om_end = float(m.ground_angle[j]), 0.0
+            if j in driven:
+                angle, rate, _ = driven[j]
+                th, om = th_end + angle, om_end + rate
+            else:
+                k = int(m.theta_index[j])
+                th, om = _entry(ops, q, k), _entry(ops, qdot, k)
+            idx = m.modal_index[j]
+            e = q[:, idx, 0] if len(idx) else None
+            ed = qdot[:, idx, 0] if len(idx) else None
+            body, ends = self.body_terms(ops, j, th, om, e, ed, t, inputs, all_loads)
+            end_motion.update({(j, name): motion for name, motion in ends.items()})
+            bodies.append(body)
+            kind = int(m.joint_kind[j])
+            if j in driven:
+                joints.append(driven_terms(ops, driven[j][2]))
+            elif kind == FREE:
+                joints.append(free_base_terms(ops))
+            else:
+                torque = laws[2][j] + (0.0 if inputs is None else float(inputs.hinge_torque[j]))
+                joints.append(revolute_terms(ops, angle=th - th_end, rate=om - om_end, stiffness=m.stiffness[j],
+                                             damping=m.damping[j], reference=laws[0][j],
+                                             reference_rate=laws[1][j], torque=torque))
+        return bodies, joints
+
+    def body_terms(self, ops: Ops, j: int, theta: Any, omega: Any, eta: Any, eta_dot: Any, t: float,
+                   inputs: Any = None, loads: np.ndarray | None = None) -> tuple[BodyTerms, dict]:
+        """Terms of body ``j`` at absolute angle ``theta`` [rad], rate ``omega`` [rad/s] and, for a beam,
+        modal coordinates ``eta`` and rates ``eta_dot`` (numpy ``(B, n)``); also ``{point: (angle, rate)}``
+        of its outboard points.  ``loads``: ``model.loads(t)`` (evaluated when omitted)."""
+        m = self.model
+        if loads is None:
+            loads = m.loads(t) if len(m.load_body) else np.zeros((0, 3))
+        if j in m.beams:
+            th_b, om_b = np.asarray(theta).reshape(-1), np.asarray(omega).reshape(-1)
+            batch = max(eta.shape[0], eta_dot.shape[0], th_b.size, om_b.size)
+            modal = None if inputs is None else inputs.modal_force.get(j)
+            body, ends = beam_terms(m.beams[j].data, self.beam_points[j], np.broadcast_to(th_b, (batch,)),
+                                    np.broadcast_to(om_b, (batch,)), np.broadcast_to(eta, (batch, eta.shape[1])),
+                                    np.broadcast_to(eta_dot, (batch, eta_dot.shape[1])), t, m.gravity, modal)
+            return body, {name: (a.reshape(-1, 1, 1), r.reshape(-1, 1, 1))
+                          for name, (a, r) in zip(self.beam_points[j], ends)}
+        rows = [k for k in range(len(m.load_body)) if int(m.load_body[k]) == j]
+        force = None if inputs is None else tuple(float(v) for v in inputs.body_force[j])
+        body = rigid_body_terms(ops, mass=m.mass[j], inertia=m.inertia[j], center_of_mass=m.com[j],
+                                points=m.ends[j], gravity=m.gravity, theta=theta, omega=omega,
+                                loads=[(*m.load_point[k], *loads[k]) for k in rows], body_force=force)
+        return body, {name: (theta, omega) for name in m.ends[j]}
+
+    def frequency(self, q0: Any, s: Any, t: float = 0.0, torque: Mapping[int, complex] | None = None,
+                  *, step: float = 1e-30) -> Articulated:
+        """The frequency context of the one sweep about a static operating point ``q0`` (rates 0).
+
+        Each body's terms are linearised about ``q0``: ``Z(s) = s^2 M0 + s C0 + K0`` with
+        ``K0 = d(h + sum_e RF_e F_e0)/d(theta, eta)`` (``F_e0``: the static wrenches at its points, the
+        geometric stiffness of the preload) and ``C0 = dh/d(omega, eta_dot)``, both by complex step
+        through the batched terms (exact to round-off); ``Kin`` and ``RF`` at ``q0``, ``c = 0``.  Joints:
+        ``kappa(s) = k + c s``, driven joints held.  The unknowns are displacement amplitudes
+        ``x = [dx, dy, dtheta ; d eta]``.
+
+        Parameters
+        ----------
+        q0 : array_like (n_coordinates,)
+            An equilibrium (else :class:`ModelError`).
+        s : array_like (B,)
+            Laplace variables [1/s].
+        t : float
+            Time of the operating point [s] (loads, hinge references).
+        torque : mapping of body index to complex, optional
+            Hinge-torque amplitudes [N m] across the inboard joints (default none: the homogeneous
+            problem, whose :attr:`~ctmm.articulated.Articulated.characteristic` is
+            ``prod det D_j prod det C_j``).
+        step : float
+            Complex step.
+
+        Returns
+        -------
+        Articulated
+            Batched over ``s``.
+        """
+        m = self.model
+        q0 = np.asarray(q0, dtype=float)
+        n = m.n_coordinates
+        if q0.shape != (n,) or not np.all(np.isfinite(q0)):
+            raise ModelError(f"PlanarScene.frequency: q0 must be {n} finite coordinates "
+                             f"({', '.join(m.coordinates)}), got {q0!r}")
+        zero = np.zeros(n)
+        bodies, joints = self.terms(NUMPY, q0[None, :, None], zero[None, :, None], t)
+        static = articulated_sweep(NUMPY, self.tree, bodies, joints)
+        residual = float(np.max(np.abs(self.coordinate_accelerations(static)), initial=0.0))
+        limit = 1e-8 * (1.0 + float(np.max(np.abs(m.gravity))))
+        if not residual <= limit:
+            raise ModelError(f"PlanarScene.frequency: q0 is not an equilibrium of {m.name!r} (largest acceleration "
+                             f"{residual:.3e} > {limit:.1e})")
+        end_force: dict = {}
+        for c in range(m.n_bodies):
+            if self.tree.parent[c] >= 0:
+                key = (self.tree.parent[c], self.tree.point[c])
+                end_force[key] = end_force.get(key, 0.0) + static.force[c][0]
+        theta, _ = m.body_angles(q0, zero, t)
+        s = np.asarray(s, dtype=complex).reshape(-1, 1, 1)
+        loads = m.loads(t) if len(m.load_body) else np.zeros((0, 3))
+        linear = []
+        for j in range(m.n_bodies):
+            idx = m.modal_index[j]
+            k = 1 + len(idx)                       # own coordinates: theta, eta
+            perturb = np.zeros((1 + 2 * k, 2 * k), dtype=complex)
+            perturb[1:, :] = 1j * step * np.eye(2 * k)
+            th = theta[j] + perturb[:, 0]
+            om = perturb[:, k]
+            eta = q0[idx][None, :] + perturb[:, 1:k] if len(idx) else None
+            eta_dot = perturb[:, k + 1:] if len(idx) else None
+            body, _ = self.body_terms(NUMPY, j, th.reshape(-1, 1, 1), om.reshape(-1, 1, 1), eta, eta_dot, t,
+                                      None, loads)
+            Q = body.h
+            for e in body.Kin:
+                if (j, e) in end_force:
+                    Q = Q + body.RF[e] @ end_force[(j, e)]
+            slopes = Q[1:, :, 0].imag.T / step     # (3 + n, 2k): columns d/dtheta, d/deta, d/domega, ...
+            size = Q.shape[1]
+            own = [2] + list(range(3, size))
+            K0, C0 = np.zeros((size, size)), np.zeros((size, size))
+            K0[:, own] = slopes[:, :k]
+            C0[:, own] = slopes[:, k:]
+            Z = s * s * body.M[:1].real + s * C0 + K0
+            linear.append(BodyTerms(Z, np.zeros((1, size, 1), dtype=complex),
+                                    {e: v[:1].real for e, v in body.Kin.items()},
+                                    {e: np.zeros((1, 3, 1)) for e in body.Kin},
+                                    {e: v[:1].real for e, v in body.RF.items()}))
+        amplitudes = dict(torque or {})
+        held = []
+        for j, joint in enumerate(joints):
+            if joint.prescribed is not None:
+                held.append(JointTerms(S=joint.S, prescribed=np.zeros((1, 1, 1))))
+            elif joint.free == 3:
+                held.append(JointTerms(S=joint.S, tau=np.zeros((1, 3, 1)), tau_q=joint.tau_q, tau_v=joint.tau_v))
+            else:
+                amplitude = complex(amplitudes.pop(j, 0.0))
+                held.append(JointTerms(S=joint.S, tau=np.full((1, 1, 1), amplitude), tau_q=joint.tau_q,
+                                       tau_v=joint.tau_v))
+        if amplitudes:
+            raise ModelError(f"PlanarScene.frequency: torque given for bodies {sorted(amplitudes)} whose inboard "
+                             "joints are not revolute")
+        return articulated_sweep(NUMPY, self.tree, linear, held, frequency_kappa(NUMPY, held, s),
+                                 characteristic=True)
+
+    def coordinate_accelerations(self, solution: Articulated) -> np.ndarray:
+        """``qddot`` (B, n) from a numpy sweep's result."""
+        m = self.model
+        batch = max(np.shape(x)[0] for x in solution.x)
+        dtype = np.result_type(*solution.x)
+        out = np.zeros((batch, m.n_coordinates), dtype=dtype)
+        for j, x in enumerate(solution.x):
+            x = np.broadcast_to(x, (batch,) + np.shape(x)[1:])
+            if m.theta_index[j] >= 0:
+                out[:, m.theta_index[j]] = x[:, 2, 0]
+            if m.joint_kind[j] == FREE:
+                out[:, m.xy_index[j]] = x[:, :2, 0]
+            if len(m.modal_index[j]):
+                out[:, m.modal_index[j]] = x[:, 3:, 0]
+        return out
+
+    def accelerations(self, q: Any, qdot: Any, t: float = 0.0, inputs: Any = None) -> np.ndarray:
+        """Generalised accelerations by the one sweep, batched: ``q, qdot`` (B, n) -> (B, n)
+        (float or complex; complex for complex-step tangents).
+
+        Raises
+        ------
+        SimulationError
+            A singular articulated inertia (non-finite accelerations), naming the time.
+        """
+        q, qdot = np.asarray(q), np.asarray(qdot)
+        if q.ndim == 1:
+            q = q[None]
+        if qdot.ndim == 1:
+            qdot = qdot[None]
+        n = self.model.n_coordinates
+        if q.shape[1:] != (n,) or qdot.shape[1:] != (n,):
+            raise ModelError(f"PlanarScene.accelerations: q and qdot must be (B, {n}) arrays (coordinates "
+                             f"{', '.join(self.model.coordinates)}), got shapes {q.shape} and {qdot.shape}")
+        bodies, joints = self.terms(NUMPY, q[:, :, None], qdot[:, :, None], t, inputs)
+        with np.errstate(all="ignore"):
+            try:
+                solution = articulated_sweep(NUMPY, self.tree, bodies, joints)
+            except np.linalg.LinAlgError as exc:
+                raise SimulationError(f"articulated inertia of model {self.model.name!r} is singular ({exc})",
+                                      time=t) from exc
+        out = self.coordinate_accelerations(solution)
+        if not np.all(np.isfinite(out)):
+            raise SimulationError(f"articulated inertia of model {self.model.name!r} is singular (non-finite "
+                                  "accelerations)", time=t)
+        return out
