@@ -187,7 +187,42 @@ def _modes(system: Any, verb: str, n_modes, omega_max, operating_point):
         keep = np.arange(n_modes)
     else:
         keep = np.flatnonzero(omega < validation.positive("omega_max", omega_max))
-    return model, omega[keep], shapes[:, keep]
+    exact = _counted_frequencies(model, op, keep.size, omega_max)
+    if exact is None:
+        return model, omega[keep], shapes[:, keep]
+    # eig of the dense M^-1 K loses eps * omega_max^2 / omega^2 on the low modes of stiff chains:
+    # the frequencies come from the exact count, the shapes by inverse iteration at them
+    omega_keep, shapes_keep = exact, shapes[:, keep].copy()
+    n = stiffness.shape[0]
+    for j, w in enumerate(exact):
+        shifted = stiffness - (w * w) * np.eye(n) + 1e-12 * max(top, 1.0) * np.eye(n)
+        x = shapes_keep[:, j] if np.any(shapes_keep[:, j]) else np.ones(n)
+        for _ in range(2):
+            try:
+                x = np.linalg.solve(shifted, x)
+            except np.linalg.LinAlgError:
+                break
+            x = x / np.max(np.abs(x))
+        shapes_keep[:, j] = x
+    return model, omega_keep, shapes_keep
+
+
+def _counted_frequencies(model: Any, op: Any, count: int, omega_max: Any) -> np.ndarray | None:
+    """The ``count`` lowest frequencies [rad/s] by Wittrick-Williams counting of the articulated sweep
+    (exact to round-off; rigid models the counting path accepts), else ``None`` (eig stands).  With
+    ``omega_max`` the exact count below it decides how many there are."""
+    from .planar import linear
+
+    if getattr(model, "has_flexible", False) or op.t != 0.0 or np.any(op.qdot != 0.0):
+        return None
+    try:
+        if omega_max is not None:
+            count = int(linear.eigenvalue_count(model, op.q, [float(omega_max)])[0])
+        if count == 0:
+            return np.zeros(0)
+        return linear.natural_frequencies(model, op.q, n_modes=count)
+    except ModelError:
+        return None
 
 
 def natural_frequencies(system: Any, *, n_modes: int | None = None, omega_max: float | None = None,

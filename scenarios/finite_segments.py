@@ -2,12 +2,11 @@
 
 Cantilever L = 1 m, EI = 2 N m^2, rhoA = 0.5 kg/m cut into N rigid segments joined by torsional
 springs EI/l (root 2EI/l, FORMULAS 3.7).  (1) First three natural frequencies (linear planar
-sweep, ``ctmm.planar.linear.natural_frequencies``) against the exact clamped-free
+sweep, ``ctmm.natural_frequencies``) against the exact clamped-free
 beta L values for N = 5..80, with the 2EI/l and the EI/l root spring: orders 2 and 1.  The
-frequencies stay on the Wittrick-Williams counting of the articulated sweep (converged to
-round-off), not on the verb ``ctmm.natural_frequencies``: the verb's eigenvalues of the
-finite-difference linearisation differ by 3e-5 (relative) at N = 80, which spoils the observed
-order of the 1e-5 errors there (2.82 instead of 2.00).
+verb ``ctmm.natural_frequencies`` counts them by Wittrick-Williams on the articulated sweep
+(converged to round-off; a dense eigensolver would lose ~3e-5 on the lowest mode at N = 80 and
+spoil the observed order).
 (2) Time domain: tip response to a suddenly applied tip force (0.05 N, 2 s) of the segment
 chains against the modal beam (6 clamped-free modes), both by the implicit DT-TMM (Newmark,
 h = 1 ms: the short segments' highest frequencies, ~(2N)^2 omega_1 / 3.5, would force tiny
@@ -27,7 +26,6 @@ from ctmm.flexible import ModalBeam
 from ctmm.flexible.outputs import tip_deflection
 from ctmm.flexible.segments import finite_segment_beam
 from ctmm.planar import Fixed, Load, PlanarModel, RigidBody, accelerations
-from ctmm.planar.linear import natural_frequencies
 from ctmm.reference.beams import beta_roots
 from ctmm.scenario import accuracy
 from ctmm.signal_results import coordinate_histories
@@ -60,7 +58,7 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     errors = {2.0: [], 1.0: []}
     for factor in errors:
         for n in counts:
-            w = natural_frequencies(segment_model(n, factor), np.zeros(n), n_modes=3)
+            w = ctmm.natural_frequencies(segment_model(n, factor), n_modes=3)
             errors[factor].append(w / exact - 1)
     e2, e1 = np.array(errors[2.0]), np.array(errors[1.0])
     order2 = np.log2(e2[-2] / e2[-1])

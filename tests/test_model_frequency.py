@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from ctmm.control import ControlledModel, Feedback
-from ctmm import frequency_response
+from ctmm import frequency_response, natural_frequencies
 from ctmm.errors import ModelError
 from ctmm.planar import ActuatedHinge, Fixed, PlanarModel, RigidBody, SpringDamperHinge
 from ctmm.reference.planar_lagrange import PlanarLagrange
@@ -68,3 +68,25 @@ def test_bad_names_are_refused():
         frequency_response(system, [1.0], input="motor.torque", output="motor.angel")
     with pytest.raises(ModelError):
         frequency_response("pendulum", [1.0], input="motor.torque", output="motor.angle")
+
+
+def test_natural_frequencies_of_a_stiff_segment_chain_keep_full_precision_on_the_low_modes():
+    """80 rigid segments joined by torsional springs (a finite-segment cantilever): omega spans five
+    decades, so eig of the dense M^-1 K loses ~1e-5 on the lowest mode; the verb counts instead."""
+    from scipy.linalg import eigh
+
+    from ctmm.flexible.segments import finite_segment_beam
+    n = 80
+    parts = finite_segment_beam("s", n_segments=n, root_spring_factor=2.0, length=1.0, bending_stiffness=2.0,
+                                mass_per_length=0.5)
+    model = PlanarModel.chain("fs", [Fixed("ground")] + parts, gravity=(0.0, 0.0))
+    omega = natural_frequencies(model, n_modes=3)
+    M, _, K = PlanarLagrange(model).linearize(np.zeros(n))
+    values = eigh(K, M, eigvals_only=True)
+    bound = 50 * np.finfo(float).eps * values[-1] / values[:3]          # eigh's own error on each eigenvalue
+    assert np.all(np.abs(omega ** 2 / values[:3] - 1.0) <= bound)
+    # the clamped-free Euler-Bernoulli beam it discretises: within the O(1/N^2) discretisation error
+    beta = np.array([1.875104068711961, 4.694091132974175, 7.854757438237613])
+    assert np.all(np.abs(omega / (beta ** 2 * np.sqrt(2.0 / 0.5)) - 1.0) < 1e-3)
+    from ctmm.planar.linear import natural_frequencies as counted
+    np.testing.assert_allclose(omega, counted(model, np.zeros(n), n_modes=3), rtol=1e-13)
