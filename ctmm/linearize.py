@@ -80,7 +80,9 @@ def linearize(system: Any, operating_point: Any = None, *, inputs: str | Sequenc
         its hinge; refine-by-root-search, so hinge springs and loads are honoured).  Must be ``None`` for chains.
     inputs : str or sequence of str, optional
         Exogenous inputs: chain force inputs / loop references; planar actuator names of
-        :func:`ctmm.planar.ports.actuator_names` (default: every actuator not used by a loop).
+        :func:`ctmm.planar.ports.actuator_names` (default: every actuator not used by a loop);
+        ``[]``: no exogenous input (e.g. for the eigenvalues of ``A``; refused with a single
+        output and no delayed loop, a shape python-control cannot hold).
     outputs : str or sequence of str, optional
         Chain signal names; planar sensor names of :mod:`ctmm.planar.ports` (default: every
         coordinate); ``"<loop>.y"`` (sensed value) and ``"<loop>.u"`` (loop force) of a loop

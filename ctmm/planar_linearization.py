@@ -19,7 +19,7 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from . import validation
-from .errors import ModelError
+from .errors import ModelError, unknown_name
 from .linearized import DelayedLoop, LinearizedSystem, OperatingPoint, control_name
 from .loop_closure import close_loops
 
@@ -114,6 +114,9 @@ def operating_point(model: Any, point: Any = None, *, allow_nonequilibrium: bool
         else:
             q = np.zeros(n)
             for name, value in point.items():
+                if name not in model.coordinates:
+                    raise unknown_name("coordinate of operating_point (or its keys 'q', 'qdot', 't')", name,
+                                       list(model.coordinates))
                 q[model.coordinate_index(name)] = validation.finite(f"operating_point[{name!r}]", value)
             qdot = np.zeros(n)
     elif isinstance(point, (tuple, list)) and len(point) in (2, 3):
@@ -122,7 +125,10 @@ def operating_point(model: Any, point: Any = None, *, allow_nonequilibrium: bool
     else:
         raise ModelError(f"operating_point must be None, an OperatingPoint, (q, qdot), (q, qdot, t) or a mapping "
                          f"(coordinates {', '.join(model.coordinates)}), got {point!r}")
-    q, qdot = model.state(q, qdot)
+    try:
+        q, qdot = model.state(q, qdot)
+    except ModelError as exc:
+        raise ModelError(f"operating_point: {exc}") from None
     q, qdot = q.copy(), qdot.copy()
     t = validation.finite("operating_point t", t)
     residual = float(np.max(np.abs(accelerations(model, q, qdot, t)), initial=0.0))
@@ -284,6 +290,11 @@ def linearize_planar(model: Any, loops: Sequence[Any], point: Any, *, inputs=Non
     states += [f"{lp.name}.controller{k}" for lp, size in zip(real_time, sizes) for k in range(size)]
     labels_in = [control_name(x) for x in exo] + [control_name(f"{lp.name}.u") for lp in delayed]
     labels_out = [control_name(x) for x in req] + [control_name(f"{lp.name}.y") for lp in delayed]
+    if not labels_in and len(labels_out) == 1:
+        raise ModelError(f"linearize: inputs={inputs!r} leaves the linearisation of {model.name!r} with no input and "
+                         f"the one output {req + [lp.name for lp in delayed]}, a state space python-control cannot "
+                         "hold (its D would be 1 x 0); name an input (an actuator or '<loop>.reference'), a "
+                         "second output, or leave inputs=None")
     ss = control.ss(A_cl, B_cl, C_cl, D_cl, inputs=labels_in, outputs=labels_out,
                     states=[control_name(x) for x in states], name=control_name(model.name))
     return LinearizedSystem(ss, tuple(DelayedLoop(lp.name, lp.gain, lp.delay) for lp in delayed), op)

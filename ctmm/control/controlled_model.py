@@ -17,7 +17,7 @@ matrices), a :class:`~ctmm.planar.model.PlanarModel` a :class:`ControlledModel`.
 """
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 from ..errors import ModelError, unknown_name
@@ -37,7 +37,8 @@ class ControlledModel:
     plant : PlanarModel
         The open-loop model.
     loops : sequence of Feedback
-        Loops whose sensor terms name sensors of ``plant`` and whose actuator terms name its
+        A list (any iterable but a string or a mapping; a single Feedback is one loop) of
+        loops whose sensor terms name sensors of ``plant`` and whose actuator terms name its
         actuators (:mod:`ctmm.planar.ports`).  ``gain`` is a float or a SISO continuous-time
         python-control system; a PD law on an angle is the weighted sensor
         ``[("motor.angle", kp), ("motor.rate", kd)]`` with ``gain=1`` (no improper ``C(s)``).
@@ -57,13 +58,16 @@ class ControlledModel:
         if not isinstance(plant, PlanarModel):
             raise ModelError(f"plant must be a ctmm.planar.PlanarModel (use with_feedback for any "
                              f"plant), got {plant!r}")
-        if isinstance(loops, Feedback) or not isinstance(loops, Sequence):
-            raise ModelError(f"loops must be a sequence of ctmm.control.Feedback, got {loops!r}")
+        if isinstance(loops, Feedback):
+            loops = [loops]                         # one loop, as ControlledChain accepts it
+        if isinstance(loops, (str, bytes, Mapping)) or not isinstance(loops, Iterable):
+            raise ModelError(f"loops must be a list of ctmm.control.Feedback loops, got {loops!r}")
+        loops = tuple(loops)
         ports = PlanarPorts(plant)
         names: set[str] = set()
-        for loop in loops:
+        for index, loop in enumerate(loops):
             if not isinstance(loop, Feedback):
-                raise ModelError(f"loops must be ctmm.control.Feedback objects, got {loop!r}")
+                raise ModelError(f"loops[{index}] must be a ctmm.control.Feedback loop, got {loop!r}")
             if loop.name in names:
                 raise ModelError(f"duplicate loop name {loop.name!r}")
             if loop.name in plant.body_names or loop.name in plant.joint_names:
