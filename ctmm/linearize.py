@@ -89,7 +89,7 @@ def linearize(system: Any, operating_point: Any = None, *, inputs: str | Sequenc
         without delay.
     allow_nonequilibrium : bool
         Planar models: accept an operating point that is not an equilibrium (nonzero rates or
-        accelerations).  The result is then the tangent at that instant only (the constant
+        accelerations, now or a little later: a driven hinge in motion, a time-varying load).  The result is then the tangent at that instant only (the constant
         term ``f(x0)`` is dropped); by default such a point is refused.
 
     Returns

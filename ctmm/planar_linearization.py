@@ -30,6 +30,8 @@ JACOBIAN_TOLERANCE = 1e-6
 """Largest accepted estimated error of the Jacobians, relative to ``max |A|``."""
 EQUILIBRIUM_TOLERANCE = 1e-8
 """Largest accelerations at an equilibrium [rad/s^2, m/s^2], relative to ``1 + |gravity|``."""
+TIME_PROBES = (1e-3, 0.0137, 0.1, 0.731, 3.1)
+"""Offsets [s] after the operating time at which an equilibrium must still be at rest (time-varying models)."""
 
 
 def jacobian(function: Callable[[np.ndarray], np.ndarray], x: np.ndarray, *, relative_step: float = 1e-3
@@ -139,6 +141,21 @@ def operating_point(model: Any, point: Any = None, *, allow_nonequilibrium: bool
                          f"acceleration {residual:.3e} > {limit:.1e}, largest rate "
                          f"{float(np.max(np.abs(qdot), initial=0.0)):.3e}); pass operating_point=None for the "
                          "static equilibrium, or allow_nonequilibrium=True for the tangent at this instant")
+    if equilibrium:
+        # at rest now is not enough: a driven hinge in motion or a time-varying load moves the point later
+        # (the tangent of a time-varying system at one instant has no eigenvalues or frequency response)
+        for later in (t + offset for offset in TIME_PROBES):
+            drift = float(np.max(np.abs(accelerations(model, q, qdot, later)), initial=0.0))
+            if not drift <= limit:
+                equilibrium = False
+                if not allow_nonequilibrium:
+                    raise ModelError(
+                        f"linearize: the operating point of {model.name!r} is at rest at t = {t:g} s but not an "
+                        f"equilibrium in time: at t = {later:.4g} s its largest acceleration is {drift:.3e} > "
+                        f"{limit:.1e} (a driven hinge in motion or a time-varying load); the system is time-varying "
+                        "there, so its linearisation has no eigenvalues or frequency response; pass "
+                        "allow_nonequilibrium=True for the tangent at this instant only")
+                break
     return OperatingPoint(q, qdot, t, tuple(model.coordinates), bool(equilibrium), 0.0)
 
 

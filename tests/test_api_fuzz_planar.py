@@ -446,3 +446,46 @@ def test_accelerations_take_actuator_inputs_built_by_the_ports():
     tau = 0.3
     qddot = accelerations(arm(), [-math.pi / 2], [0.0], inputs=ports.actuator_inputs(arm(), {"motor.torque": tau}))
     assert qddot[0] == pytest.approx(tau / (1.0 * 0.5 ** 2 / 3.0), rel=1e-12)
+
+
+def _hub_and_pendulum(angle, rate, acceleration) -> PlanarModel:
+    """A hub on a driven hinge (prescribed angle) carrying a uniform rod on a smooth hinge at its tip."""
+    from ctmm.planar import DrivenHinge, Fixed, SmoothHinge
+
+    drive = DrivenHinge("drive", angle=angle, rate=rate, acceleration=acceleration)
+    return PlanarModel.chain("hub", [Fixed("ground"), drive, RigidBody.uniform_link("hub", mass=1.0, length=0.5),
+                                     SmoothHinge("pin"), RigidBody.uniform_link("rod", mass=1.0, length=0.5)])
+
+
+@pytest.mark.parametrize("angle, rate, acceleration", [
+    (lambda t: 2.0 * t, lambda t: 2.0, lambda t: 0.0),                                            # spinning hub
+    (lambda t: 0.1 * math.sin(t), lambda t: 0.1 * math.cos(t), lambda t: -0.1 * math.sin(t))])    # rocking hub
+def test_a_point_at_rest_in_a_time_varying_model_is_not_an_equilibrium(angle, rate, acceleration):
+    """Was silent: the instantaneous rest point of a model with a moving driven hinge was taken for an
+    equilibrium, and linearize / natural_frequencies / frequency_response answered for a frozen hub."""
+    model = _hub_and_pendulum(angle, rate, acceleration)
+    for verb in (lambda: ctmm.linearize(model), lambda: ctmm.natural_frequencies(model, n_modes=1),
+                 lambda: ctmm.frequency_response(model, W, input="rod.moment", output="rod.theta")):
+        with pytest.raises(ctmm.ModelError, match=r"at rest at t = 0 s but not an equilibrium in time"):
+            verb()
+    tangent = ctmm.linearize(model, allow_nonequilibrium=True)   # the tangent at t = 0 stays available
+    assert not tangent.operating_point.equilibrium
+
+
+def test_a_driven_hinge_at_rest_still_gives_the_pendulum_frequency():
+    """Valid neighbour: a hub held still; the rod (m, L) pinned at its end swings at sqrt(3 g / (2 L))."""
+    model = _hub_and_pendulum(0.0, 0.0, 0.0)
+    assert ctmm.natural_frequencies(model, n_modes=1)[0] == pytest.approx(math.sqrt(3.0 * 9.81 / (2.0 * 0.5)), rel=1e-6)
+
+
+def test_a_controller_returning_none_is_a_simulation_error_with_the_partial_result():
+    """Was 'returned a non-finite value [nan]' (numpy reads None as nan)."""
+    class Quits(Sampler):
+        def step(self, t, y, state):
+            return (None if t > 0.025 else [0.0]), state
+
+    for method in ("rk4", "RK45"):
+        with pytest.raises(ctmm.SimulationError, match=r"controller 'Quits'.* returned None at t = 0\.03 s") as info:
+            ctmm.simulate(arm(), 0.05, 0.01, method=method, controllers=[Quits()])
+        assert info.value.time == pytest.approx(0.03)
+        assert info.value.partial_result.time[-1] <= 0.03
