@@ -21,6 +21,8 @@ import warnings
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 import ctmm
 from ctmm import stability
@@ -29,7 +31,7 @@ from ctmm.elements import BeamClamped, BeamField, BeamFree
 from ctmm.flexible import ModalBeam
 from ctmm.planar import Pinned, PlanarModel, RigidBody, accelerations, ports, simulate_implicit, solve_instant
 
-from test_api_fuzz import Case, Opaque, chain, check_refused
+from test_api_fuzz import BAD, Case, Opaque, chain, check_refused
 
 W = [1.0, 2.0]
 GRID = np.linspace(0.1, 100.0, 40)
@@ -282,6 +284,44 @@ CASES: list[tuple[Case, list]] = [
 def test_planar_bad_inputs_are_refused_clearly(case, values):
     for value in values:
         check_refused(case, value)
+
+
+# the same parameters with random values of the shared catalogue (test_api_fuzz.BAD, by kind)
+KIND_CASES: list[Case] = [
+    Case("ControlledModel", "loops", "loops", lambda v: ControlledModel(arm(), v)),
+    Case("DelayedController", "delay", "positive", lambda v: DelayedController(Sampler(), v)),
+    Case("ctmm.simulate", "t_final", "positive", lambda v: ctmm.simulate(arm(), v, 0.01)),
+    Case("ctmm.simulate", "dt", "positive", lambda v: ctmm.simulate(controlled(), 0.02, v)),
+    Case("ctmm.simulate", "dt", "time_step", lambda v: ctmm.simulate(arm(), 1.0, v)),
+    Case("ctmm.simulate", "fast", "flag", lambda v: ctmm.simulate(arm(), 0.02, 0.01, fast=v)),
+    Case("ctmm.simulate", "controllers", "controllers", lambda v: ctmm.simulate(arm(), 0.02, 0.01, controllers=v)),
+    Case("ctmm.linearize", "allow_nonequilibrium", "flag", lambda v: ctmm.linearize(arm(), allow_nonequilibrium=v)),
+    Case("ctmm.linearize", "inputs", "names", lambda v: ctmm.linearize(arm(), inputs=v), valid=(None,)),
+    Case("ctmm.linearize", "outputs", "names", lambda v: ctmm.linearize(controlled(), outputs=v), valid=(None, [])),
+    Case("ctmm.frequency_response", "omega", "frequencies",
+         lambda v: ctmm.frequency_response(controlled(), v, input="motor.torque", output="link.theta")),
+    Case("ctmm.natural_frequencies", "n_modes", "integer", lambda v: ctmm.natural_frequencies(arm(), n_modes=v)),
+    Case("ctmm.control.loop_transfer_function", "omega", "frequencies",
+         lambda v: loop_transfer_function(controlled(), "pd", v)),
+    Case("ctmm.planar.ports.sensor_values", "q", "coordinates",
+         lambda v: ports.sensor_values(arm(), ["link.out.y"], v, [0.0])),
+    Case("ctmm.planar.simulate_implicit", "tolerance", "positive",
+         lambda v: simulate_implicit(arm(), [0.1], [0.0], t_final=0.02, dt=0.01, tolerance=v)),
+    Case("ctmm.planar.simulate_implicit", "max_iterations", "integer",
+         lambda v: simulate_implicit(arm(), [0.1], [0.0], t_final=0.02, dt=0.01, max_iterations=v)),
+    Case("ctmm.manipulator.manipulator_scene", "hub_mass", "positive", lambda v: _scene(hub_mass=v)),
+    Case("BeamField", "time_elements", "integer", _field),
+    Case("ctmm.flexible.ModalBeam", "n_modes", "integer",
+         lambda v: ModalBeam("a", length=1.0, bending_stiffness=1.0, mass_per_length=1.0, n_modes=v)),
+]
+
+
+@settings(max_examples=150, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.too_slow])
+@given(data=st.data())
+def test_planar_random_bad_values_are_refused_clearly(data):
+    case = data.draw(st.sampled_from(KIND_CASES), label="case")
+    check_refused(case, data.draw(BAD[case.kind], label="value"))
 
 
 # --------------------------------------------------------------------------------------------
