@@ -19,8 +19,8 @@ On the package, ``ctmm.linearize`` is the function; the result types are importa
 Planar Jacobians (accuracy)
 ---------------------------
 ``df/dq`` and ``df/dqdot`` are central differences of :func:`ctmm.planar.accelerations` with
-Richardson extrapolation over the steps ``h, h/2, h/4`` (``h = 1e-3 max(1, |x|)``): truncation
-``O(h^4)`` and round-off ``~1e-13`` relative.  The difference between the two extrapolated
+Richardson extrapolation over the steps ``h, h/2, h/4`` (``h = 1e-3 max(1, min(|x|, 2 pi),
+|x| / 1e4)``): truncation ``O(h^4)`` and round-off ``~1e-13`` relative.  The difference between the two extrapolated
 estimates is a (conservative) estimate of the truncation error, plus the slope jump where a
 kink sits exactly at the operating point (a saturation switching there: detected by the
 second differences, which central differences alone would average away); the largest, divided

@@ -14,6 +14,7 @@ State ``x = [q, qdot]`` (deviations from the operating point), ``x' = A x + B u`
 """
 from __future__ import annotations
 
+import math
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
@@ -38,7 +39,10 @@ def jacobian(function: Callable[[np.ndarray], np.ndarray], x: np.ndarray, *, rel
              ) -> tuple[np.ndarray, np.ndarray]:
     """Jacobian of a smooth ``function`` at ``x`` by Richardson-extrapolated central differences.
 
-    Steps ``h, h/2, h/4`` with ``h = relative_step * max(1, |x_i|)``; ``D(h)`` central differences,
+    Steps ``h, h/2, h/4`` with ``h = relative_step * max(1, min(|x_i|, 2 pi), |x_i| / 1e4)``
+    (bounded for ``|x_i|`` up to ``2 pi 1e4``: an angle's scale is the radian, not its value, so a
+    step relative to a large angle (many turns) would span whole periods; beyond, relative
+    ``1e-7`` keeps ``x + h`` exact enough); ``D(h)`` central differences,
     ``R(h) = (4 D(h/2) - D(h)) / 3`` (error ``O(h^4)``).  A kink at ``x`` (one-sided slopes that
     differ by ``j``, e.g. a saturation switching exactly there) leaves every ``D`` equal to the mean
     slope, so it is detected separately: the second difference ``S(h) = f(x+h) - 2 f(x) + f(x-h)``
@@ -58,7 +62,7 @@ def jacobian(function: Callable[[np.ndarray], np.ndarray], x: np.ndarray, *, rel
     f0 = np.asarray(function(x), dtype=float)
     columns, errors = [], []
     for i in range(x.size):
-        h = relative_step * max(1.0, abs(x[i]))
+        h = relative_step * max(1.0, min(abs(x[i]), 2.0 * math.pi), abs(x[i]) / 1e4)
         diffs, second = [], []
         for k in range(3):
             step = np.zeros_like(x)

@@ -529,3 +529,13 @@ def test_a_controller_returning_none_is_a_simulation_error_with_the_partial_resu
             ctmm.simulate(arm(), 0.05, 0.01, method=method, controllers=[Quits()])
         assert info.value.time == pytest.approx(0.03)
         assert info.value.partial_result.time[-1] <= 0.03
+
+
+@pytest.mark.parametrize("turns", [0, 160, 16000, 160000])
+def test_the_linearisation_about_an_angle_of_many_turns_is_the_pendulum_stiffness(turns):
+    """Was silent: the difference step was relative to the angle's value, so about -pi/2 + 2 pi 16000
+    it spanned whole periods and gave d(qddot)/dq = 5e-4 with an estimated error of 2e-11 (at 160
+    and 1600 turns the refusal blamed a kink).  Closed form: -3 g / (2 L) for a rod pinned at its end."""
+    q = -math.pi / 2.0 + 2.0 * math.pi * turns
+    tangent = ctmm.linearize(arm(), ([q], [0.0])).state_space.A
+    assert tangent[1, 0] == pytest.approx(-3.0 * 9.81 / (2.0 * 0.5), rel=1e-7)
