@@ -102,6 +102,13 @@ CASES: list[tuple[Case, list]] = [
      [None, 3, "abc", {"a": 1}, [3], [pd(), 3], Opaque()]),
     (Case("with_feedback", "plant", "model", lambda v: with_feedback(v, [pd()])), [None, 3, "arm", Opaque()]),
     (Case("ControlledModel.loop", "loop", "name", lambda v: controlled().loop(v)), [None, 3, "nope", ""]),
+    (Case("ControlledModel.sensed", "values", "sensor mapping", lambda v: controlled().sensed(v)),
+     [None, 3, {}, {"motor.angle": 1.0}, {"motor.angle": 1.0, "motor.rate": "a"},
+      {"motor.angle": 1.0, "motor.rate": math.nan}]),
+    (Case("ControlledModel.actuation", "forces", "loop mapping", lambda v: controlled().actuation(v)),
+     [None, 3, {"pd": "a"}, {"pd": math.inf}]),
+    (Case("ControlledModel.actuation", "loop", "unknown loop", lambda v: controlled().actuation(v)),
+     [{"nope": 1.0}, {"motor.torque": 1.0}]),
     (Case("DelayedController", "delay", "positive seconds", lambda v: DelayedController(Sampler(), v)),
      [0, -1, 0.0, math.nan, math.inf, "1.5", True, None, [0.1], np.array([0.1])]),
     (Case("DelayedController", "controllers[0]", "controller", lambda v: DelayedController(v, 0.01)),
@@ -459,6 +466,10 @@ def test_valid_neighbours_still_run():
     """One loop given alone or as an iterator (as ControlledChain takes them), a delay of exactly dt,
     no exogenous input with two outputs, the largest accepted mesh and mode counts."""
     assert with_feedback(arm(), pd()).loops == controlled().loops
+    assert controlled().sensed({"motor.angle": 0.1, "motor.rate": 0.2, "link.theta": 9.0}) == {
+        "pd": pytest.approx(20.0 * 0.1 + 2.0 * 0.2)}
+    assert controlled().actuation({"pd": 3.0}) == {"motor.torque": 3.0}
+    assert controlled().actuation({}) == {"motor.torque": 0.0}
     assert ControlledModel(arm(), iter([pd()])).loops == controlled().loops
     assert DelayedController(Sampler(), np.float64(0.01)).measurement_delay == 0.01
     assert ctmm.simulate(with_feedback(arm(), [pd(delay=0.01)]), 0.02, 0.01).time.size == 3

@@ -20,6 +20,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
+from .. import validation
 from ..errors import ModelError, unknown_name
 from ..planar.model import PlanarModel
 from ..planar.ports import PlanarPorts
@@ -125,15 +126,27 @@ class ControlledModel:
 
     # -- evaluation helpers for the verbs ------------------------------------------------
     def sensed(self, values: Mapping[str, float]) -> dict[str, float]:
-        """``{loop: y}`` from sensor values ``{sensor: value}`` (``y = sum c_i sensor_i``)."""
-        return {loop.name: sum(weight * values[sensor] for sensor, weight in loop.terms)
-                for loop in self._loops}
+        """``{loop: y}`` from sensor values ``{sensor: value}`` (``y = sum c_i sensor_i``); every
+        sensor of :meth:`sensors` must be given, as a finite number in its unit."""
+        if not isinstance(values, Mapping):
+            raise ModelError(f"values must be a mapping {{sensor name: value}}, got {values!r:.80}")
+        missing = [sensor for sensor in self.sensors() if sensor not in values]
+        if missing:
+            raise ModelError(f"values must give every sensor the loops read: missing {missing} in {values!r:.80}")
+        checked = {sensor: validation.finite(f"values[{sensor!r}]", values[sensor]) for sensor in self.sensors()}
+        return {loop.name: sum(weight * checked[sensor] for sensor, weight in loop.terms) for loop in self._loops}
 
     def actuation(self, forces: Mapping[str, float]) -> dict[str, float]:
-        """``{actuator: value}`` from loop outputs ``{loop: u}`` (weighted actuator terms added)."""
+        """``{actuator: value}`` from loop outputs ``{loop: u}`` (weighted actuator terms added; a
+        loop not given contributes 0)."""
+        if not isinstance(forces, Mapping):
+            raise ModelError(f"forces must be a mapping {{loop name: u}}, got {forces!r:.80}")
+        for name in forces:
+            if name not in {loop.name for loop in self._loops}:
+                raise unknown_name("loop of forces", name, [loop.name for loop in self._loops])
         out: dict[str, float] = {}
         for loop in self._loops:
-            u = forces.get(loop.name, 0.0)
+            u = validation.finite(f"forces[{loop.name!r}]", forces.get(loop.name, 0.0))
             for actuator, weight in loop.actuator_terms:
                 out[actuator] = out.get(actuator, 0.0) + weight * u
         return out
