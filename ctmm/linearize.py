@@ -24,7 +24,7 @@ against a Richardson difference of :func:`ctmm.planar.accelerations`: the disagr
 difference's error estimate), divided by ``max |A|``, is ``OperatingPoint.jacobian_error``.  When
 they disagree by more than ``1e-6``, and for models not on the element protocol yet
 (translational-spring hinges, user state laws on beams), every column is a central difference with
-Richardson extrapolation over the steps ``h, h/2, h/4`` (``h = 1e-3 max(1, |x|)``; the difference
+Richardson extrapolation over the steps ``h, h/2, h/4`` (``h = 1e-3 max(1, min(|x|, 2 pi), |x| / 1e4)``; the difference
 between the two extrapolated estimates as a conservative truncation error, plus the slope jump where
 a kink sits exactly at the operating point, detected by the second differences), and the
 linearisation is refused (:class:`~ctmm.errors.ModelError`) if that estimate exceeds ``1e-6``.
@@ -82,14 +82,16 @@ def linearize(system: Any, operating_point: Any = None, *, inputs: str | Sequenc
         its hinge; refine-by-root-search, so hinge springs and loads are honoured).  Must be ``None`` for chains.
     inputs : str or sequence of str, optional
         Exogenous inputs: chain force inputs / loop references; planar actuator names of
-        :func:`ctmm.planar.ports.actuator_names` (default: every actuator not used by a loop).
+        :func:`ctmm.planar.ports.actuator_names` (default: every actuator not used by a loop);
+        ``[]``: no exogenous input (e.g. for the eigenvalues of ``A``; refused with a single
+        output and no delayed loop, a shape python-control cannot hold).
     outputs : str or sequence of str, optional
         Chain signal names; planar sensor names of :mod:`ctmm.planar.ports` (default: every
         coordinate); ``"<loop>.y"`` (sensed value) and ``"<loop>.u"`` (loop force) of a loop
         without delay.
     allow_nonequilibrium : bool
         Planar models: accept an operating point that is not an equilibrium (nonzero rates or
-        accelerations).  The result is then the tangent at that instant only (the constant
+        accelerations, now or a little later: a driven hinge in motion, a time-varying load).  The result is then the tangent at that instant only (the constant
         term ``f(x0)`` is dropped); by default such a point is refused.
 
     Returns

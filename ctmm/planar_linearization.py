@@ -17,12 +17,13 @@ State ``x = [q, qdot]`` (deviations from the operating point), ``x' = A x + B u`
 """
 from __future__ import annotations
 
+import math
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
 from . import validation
-from .errors import ModelError
+from .errors import ModelError, unknown_name
 from .linearized import DelayedLoop, LinearizedSystem, OperatingPoint, control_name
 from .loop_closure import close_loops
 
@@ -33,13 +34,18 @@ JACOBIAN_TOLERANCE = 1e-6
 """Largest accepted estimated error of the Jacobians, relative to ``max |A|``."""
 EQUILIBRIUM_TOLERANCE = 1e-8
 """Largest accelerations at an equilibrium [rad/s^2, m/s^2], relative to ``1 + |gravity|``."""
+TIME_PROBES = (1e-3, 0.0137, 0.1, 0.731, 3.1)
+"""Offsets [s] after the operating time at which an equilibrium must still be at rest (time-varying models)."""
 
 
 def jacobian(function: Callable[[np.ndarray], np.ndarray], x: np.ndarray, *, relative_step: float = 1e-3
              ) -> tuple[np.ndarray, np.ndarray]:
     """Jacobian of a smooth ``function`` at ``x`` by Richardson-extrapolated central differences.
 
-    Steps ``h, h/2, h/4`` with ``h = relative_step * max(1, |x_i|)``; ``D(h)`` central differences,
+    Steps ``h, h/2, h/4`` with ``h = relative_step * max(1, min(|x_i|, 2 pi), |x_i| / 1e4)``
+    (bounded for ``|x_i|`` up to ``2 pi 1e4``: an angle's scale is the radian, not its value, so a
+    step relative to a large angle (many turns) would span whole periods; beyond, relative
+    ``1e-7`` keeps ``x + h`` exact enough); ``D(h)`` central differences,
     ``R(h) = (4 D(h/2) - D(h)) / 3`` (error ``O(h^4)``).  A kink at ``x`` (one-sided slopes that
     differ by ``j``, e.g. a saturation switching exactly there) leaves every ``D`` equal to the mean
     slope, so it is detected separately: the second difference ``S(h) = f(x+h) - 2 f(x) + f(x-h)``
@@ -59,7 +65,7 @@ def jacobian(function: Callable[[np.ndarray], np.ndarray], x: np.ndarray, *, rel
     f0 = np.asarray(function(x), dtype=float)
     columns, errors = [], []
     for i in range(x.size):
-        h = relative_step * max(1.0, abs(x[i]))
+        h = relative_step * max(1.0, min(abs(x[i]), 2.0 * math.pi), abs(x[i]) / 1e4)
         diffs, second = [], []
         for k in range(3):
             step = np.zeros_like(x)
@@ -117,6 +123,9 @@ def operating_point(model: Any, point: Any = None, *, allow_nonequilibrium: bool
         else:
             q = np.zeros(n)
             for name, value in point.items():
+                if name not in model.coordinates:
+                    raise unknown_name("coordinate of operating_point (or its keys 'q', 'qdot', 't')", name,
+                                       list(model.coordinates))
                 q[model.coordinate_index(name)] = validation.finite(f"operating_point[{name!r}]", value)
             qdot = np.zeros(n)
     elif isinstance(point, (tuple, list)) and len(point) in (2, 3):
@@ -125,7 +134,10 @@ def operating_point(model: Any, point: Any = None, *, allow_nonequilibrium: bool
     else:
         raise ModelError(f"operating_point must be None, an OperatingPoint, (q, qdot), (q, qdot, t) or a mapping "
                          f"(coordinates {', '.join(model.coordinates)}), got {point!r}")
-    q, qdot = model.state(q, qdot)
+    try:
+        q, qdot = model.state(q, qdot)
+    except ModelError as exc:
+        raise ModelError(f"operating_point: {exc}") from None
     q, qdot = q.copy(), qdot.copy()
     t = validation.finite("operating_point t", t)
     residual = float(np.max(np.abs(accelerations(model, q, qdot, t)), initial=0.0))
@@ -136,6 +148,21 @@ def operating_point(model: Any, point: Any = None, *, allow_nonequilibrium: bool
                          f"acceleration {residual:.3e} > {limit:.1e}, largest rate "
                          f"{float(np.max(np.abs(qdot), initial=0.0)):.3e}); pass operating_point=None for the "
                          "static equilibrium, or allow_nonequilibrium=True for the tangent at this instant")
+    if equilibrium:
+        # at rest now is not enough: a driven hinge in motion or a time-varying load moves the point later
+        # (the tangent of a time-varying system at one instant has no eigenvalues or frequency response)
+        for later in (t + offset for offset in TIME_PROBES):
+            drift = float(np.max(np.abs(accelerations(model, q, qdot, later)), initial=0.0))
+            if not drift <= limit:
+                equilibrium = False
+                if not allow_nonequilibrium:
+                    raise ModelError(
+                        f"linearize: the operating point of {model.name!r} is at rest at t = {t:g} s but not an "
+                        f"equilibrium in time: at t = {later:.4g} s its largest acceleration is {drift:.3e} > "
+                        f"{limit:.1e} (a driven hinge in motion or a time-varying load); the system is time-varying "
+                        "there, so its linearisation has no eigenvalues or frequency response; pass "
+                        "allow_nonequilibrium=True for the tangent at this instant only")
+                break
     return OperatingPoint(q, qdot, t, tuple(model.coordinates), bool(equilibrium), 0.0)
 
 
@@ -340,6 +367,11 @@ def linearize_planar(model: Any, loops: Sequence[Any], point: Any, *, inputs=Non
     states += [f"{lp.name}.controller{k}" for lp, size in zip(real_time, sizes) for k in range(size)]
     labels_in = [control_name(x) for x in exo] + [control_name(f"{lp.name}.u") for lp in delayed]
     labels_out = [control_name(x) for x in req] + [control_name(f"{lp.name}.y") for lp in delayed]
+    if not labels_in and len(labels_out) == 1:
+        raise ModelError(f"linearize: inputs={inputs!r} leaves the linearisation of {model.name!r} with no input and "
+                         f"the one output {req + [lp.name for lp in delayed]}, a state space python-control cannot "
+                         "hold (its D would be 1 x 0); name an input (an actuator or '<loop>.reference'), a "
+                         "second output, or leave inputs=None")
     ss = control.ss(A_cl, B_cl, C_cl, D_cl, inputs=labels_in, outputs=labels_out,
                     states=[control_name(x) for x in states], name=control_name(model.name))
     return LinearizedSystem(ss, tuple(DelayedLoop(lp.name, lp.gain, lp.delay) for lp in delayed), op)

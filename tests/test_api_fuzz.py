@@ -73,9 +73,9 @@ PUBLIC_API: dict[str, str] = {
     "ctmm.control.margins": FUZZED, "ctmm.control.closed_loop_response": FUZZED,
     "ctmm.control.bode_plot": "tests/test_control_tools.py", "ctmm.control.nyquist_plot": "tests/test_control_tools.py",
     "ctmm.control.PlantCache": FUZZED,
-    "ctmm.control.DelayedController": "tests/test_planar_control_time.py",
+    "ctmm.control.DelayedController": "tests/test_api_fuzz_planar.py",
+    "ctmm.control.ControlledModel": "tests/test_api_fuzz_planar.py", "ctmm.control.with_feedback": "tests/test_api_fuzz_planar.py",
     "ctmm.control.encirclements": "tests/test_control_tools.py",
-    "ctmm.control.ControlledModel": "tests/test_planar_ports.py", "ctmm.control.with_feedback": "tests/test_planar_ports.py",
     # ctmm.stability
     "ctmm.stability.LoopCharacteristic": "tests/test_stability.py", "ctmm.stability.characteristic_roots": FUZZED,
     "ctmm.stability.spectral_abscissa": "tests/test_roots.py", "ctmm.stability.spectral_seeds": "tests/test_roots.py",
@@ -119,8 +119,8 @@ PUBLIC_API: dict[str, str] = {
     "ctmm.manipulator.LinearManipulator": "tests/test_manipulator_frequency.py",
     "ctmm.manipulator.RigidHub": "tests/test_manipulator_frequency.py",
     "ctmm.manipulator.manipulator_plant": "tests/test_manipulator_scene.py",
-    "ctmm.manipulator.manipulator_scene": "tests/test_manipulator_scene.py",
-    "ctmm.manipulator.scene_references": "tests/test_manipulator_scene.py",
+    "ctmm.manipulator.manipulator_scene": "tests/test_api_fuzz_planar.py",
+    "ctmm.manipulator.scene_references": "tests/test_api_fuzz_planar.py",
     "ctmm.manipulator.plant_chain": "tests/test_manipulator_frequency.py",
     "ctmm.manipulator.FlexibleManipulator": FUZZED, "ctmm.manipulator.ManipulatorSimulation": "result",
     # ctmm.controllers, ctmm.interop, ctmm.signals, ctmm.modal

@@ -231,7 +231,8 @@ def test_linearize_takes_its_state_matrix_from_the_one_sweep_exactly():
     from ctmm.planar_linearization import jacobian
 
     for model, q0 in _equilibrium_models()[:3]:
-        lin = ctmm.linearize(model, operating_point=(q0, np.zeros_like(q0)), inputs=[], outputs=[])
+        lin = ctmm.linearize(model, operating_point=(q0, np.zeros_like(q0)), inputs=[], outputs=[],
+                             allow_nonequilibrium=True)      # random loads vary in time: the tangent at t = 0
         A = np.asarray(lin.state_space.A)
         M, C, K = PlanarLagrange(model).linearize(q0)
         assert _relative(A, _first_order(M, C, K)) <= 1e-13          # the difference path met 1e-9
@@ -250,7 +251,7 @@ def test_linearize_falls_back_to_differences_when_the_complex_step_disagrees(mon
     n = model.n_coordinates
     monkeypatch.setattr(planar_linearization, "_complex_step_jacobians",
                         lambda *args, **kwargs: (np.zeros((n, n)), np.zeros((n, n))))   # a non-analytic term
-    lin = ctmm.linearize(model, operating_point=(q0, np.zeros(n)), inputs=[], outputs=[])
+    lin = ctmm.linearize(model, operating_point=(q0, np.zeros(n)), inputs=[], outputs=[], allow_nonequilibrium=True)
     M, C, K = PlanarLagrange(model).linearize(q0)
     assert _relative(np.asarray(lin.state_space.A), _first_order(M, C, K)) <= 1e-9
     assert lin.operating_point.jacobian_error > 1e-14               # Richardson's estimate, not the cross-check

@@ -266,7 +266,8 @@ def margins(source: Any, loop: str | None = None, omega: Any = None) -> Margins:
 
     if isinstance(source, (ControlledChain, ControlledModel)):
         if loop is None or omega is None:
-            raise ModelError("margins(system, loop, omega): give the loop name and a frequency grid [rad/s]")
+            raise ModelError(f"margins(system, loop, omega): give the loop name and a frequency grid [rad/s] "
+                             f"(loops: {[lp.name for lp in source.loops]}), got loop={loop!r}, omega={omega!r:.80}")
         w = _omega(omega)
         lp = source.loop(loop)
         L = loop_transfer_function(source, loop, w)("{}.L".format(lp.name))
@@ -278,8 +279,9 @@ def margins(source: Any, loop: str | None = None, omega: Any = None) -> Margins:
             raise ModelError(f"margins needs a ControlledChain with loop {loop!r}, got the plain Chain "
                              f"{source.name!r}; close it with ctmm.control.ControlledChain(plant, [Feedback(...)])")
         if loop is not None or omega is not None:
-            raise ModelError(f"margins(system, loop, omega) needs a ControlledChain, got {type(source).__name__}; "
-                             "a loop transfer function given as data takes no loop/omega (they come with the data)")
+            raise ModelError(f"margins(system, loop, omega) needs a ControlledChain, got {type(source).__name__} "
+                             f"({source!r:.80}); a ControlledModel is accepted too (ctmm.control.with_feedback), and a "
+                             "loop transfer function given as data takes no loop/omega (they come with the data)")
         if isinstance(source, FrequencyResponse):
             if source.response.shape[:2] != (1, 1):
                 raise ModelError("margins needs a SISO loop transfer function")
@@ -290,7 +292,8 @@ def margins(source: Any, loop: str | None = None, omega: Any = None) -> Margins:
             w = np.asarray(source.omega, float)
             L = np.asarray(source.frequency_response(w).complex, complex).reshape(-1)
         else:
-            raise ModelError(f"margins needs a ControlledChain, FrequencyResponse or FRD, got {source!r}")
+            raise ModelError(f"margins needs a ControlledChain, ControlledModel, FrequencyResponse or FRD, "
+                             f"got {source!r:.80}")
         frd_smooth = control.frd(L, w, smooth=True)
 
         def evaluate(x: float) -> complex:
@@ -298,7 +301,7 @@ def margins(source: Any, loop: str | None = None, omega: Any = None) -> Margins:
     order = np.argsort(w)
     w, L = w[order], L[order]
     if w.size < 4:
-        raise ModelError("margins needs a frequency grid with at least 4 points")
+        raise ModelError(f"margins needs a frequency grid (omega) with at least 4 points, got {w.size}: {w.tolist()}")
     pos = w > 0
     wg, Lg = w[pos], L[pos]
     # python-control first (crossover estimates on the smoothed FRD), grid sign changes second

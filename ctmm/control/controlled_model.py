@@ -17,9 +17,10 @@ matrices), a :class:`~ctmm.planar.model.PlanarModel` a :class:`ControlledModel`.
 """
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
+from .. import validation
 from ..errors import ModelError, unknown_name
 from ..planar.model import PlanarModel
 from ..planar.ports import PlanarPorts
@@ -37,7 +38,8 @@ class ControlledModel:
     plant : PlanarModel
         The open-loop model.
     loops : sequence of Feedback
-        Loops whose sensor terms name sensors of ``plant`` and whose actuator terms name its
+        A list (any iterable but a string or a mapping; a single Feedback is one loop) of
+        loops whose sensor terms name sensors of ``plant`` and whose actuator terms name its
         actuators (:mod:`ctmm.planar.ports`).  ``gain`` is a float or a SISO continuous-time
         python-control system; a PD law on an angle is the weighted sensor
         ``[("motor.angle", kp), ("motor.rate", kd)]`` with ``gain=1`` (no improper ``C(s)``).
@@ -57,13 +59,16 @@ class ControlledModel:
         if not isinstance(plant, PlanarModel):
             raise ModelError(f"plant must be a ctmm.planar.PlanarModel (use with_feedback for any "
                              f"plant), got {plant!r}")
-        if isinstance(loops, Feedback) or not isinstance(loops, Sequence):
-            raise ModelError(f"loops must be a sequence of ctmm.control.Feedback, got {loops!r}")
+        if isinstance(loops, Feedback):
+            loops = [loops]                         # one loop, as ControlledChain accepts it
+        if isinstance(loops, (str, bytes, Mapping)) or not isinstance(loops, Iterable):
+            raise ModelError(f"loops must be a list of ctmm.control.Feedback loops, got {loops!r}")
+        loops = tuple(loops)
         ports = PlanarPorts(plant)
         names: set[str] = set()
-        for loop in loops:
+        for index, loop in enumerate(loops):
             if not isinstance(loop, Feedback):
-                raise ModelError(f"loops must be ctmm.control.Feedback objects, got {loop!r}")
+                raise ModelError(f"loops[{index}] must be a ctmm.control.Feedback loop, got {loop!r}")
             if loop.name in names:
                 raise ModelError(f"duplicate loop name {loop.name!r}")
             if loop.name in plant.body_names or loop.name in plant.joint_names:
@@ -121,15 +126,27 @@ class ControlledModel:
 
     # -- evaluation helpers for the verbs ------------------------------------------------
     def sensed(self, values: Mapping[str, float]) -> dict[str, float]:
-        """``{loop: y}`` from sensor values ``{sensor: value}`` (``y = sum c_i sensor_i``)."""
-        return {loop.name: sum(weight * values[sensor] for sensor, weight in loop.terms)
-                for loop in self._loops}
+        """``{loop: y}`` from sensor values ``{sensor: value}`` (``y = sum c_i sensor_i``); every
+        sensor of :meth:`sensors` must be given, as a finite number in its unit."""
+        if not isinstance(values, Mapping):
+            raise ModelError(f"values must be a mapping {{sensor name: value}}, got {values!r:.80}")
+        missing = [sensor for sensor in self.sensors() if sensor not in values]
+        if missing:
+            raise ModelError(f"values must give every sensor the loops read: missing {missing} in {values!r:.80}")
+        checked = {sensor: validation.finite(f"values[{sensor!r}]", values[sensor]) for sensor in self.sensors()}
+        return {loop.name: sum(weight * checked[sensor] for sensor, weight in loop.terms) for loop in self._loops}
 
     def actuation(self, forces: Mapping[str, float]) -> dict[str, float]:
-        """``{actuator: value}`` from loop outputs ``{loop: u}`` (weighted actuator terms added)."""
+        """``{actuator: value}`` from loop outputs ``{loop: u}`` (weighted actuator terms added; a
+        loop not given contributes 0)."""
+        if not isinstance(forces, Mapping):
+            raise ModelError(f"forces must be a mapping {{loop name: u}}, got {forces!r:.80}")
+        for name in forces:
+            if name not in {loop.name for loop in self._loops}:
+                raise unknown_name("loop of forces", name, [loop.name for loop in self._loops])
         out: dict[str, float] = {}
         for loop in self._loops:
-            u = forces.get(loop.name, 0.0)
+            u = validation.finite(f"forces[{loop.name!r}]", forces.get(loop.name, 0.0))
             for actuator, weight in loop.actuator_terms:
                 out[actuator] = out.get(actuator, 0.0) + weight * u
         return out

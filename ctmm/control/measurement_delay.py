@@ -56,12 +56,10 @@ class DelayedController:
 
     def __init__(self, controller: Any, delay: float) -> None:
         check_controllers([controller])
-        try:
-            delay = float(delay)
-        except (TypeError, ValueError):
-            delay = math.nan
-        if not (math.isfinite(delay) and delay > 0.0):
-            raise ModelError(f"delay must be a finite measurement delay > 0 [s], got {delay!r}")
+        if isinstance(delay, (bool, np.bool_)) or not isinstance(delay, (int, float, np.integer, np.floating)) \
+                or not (math.isfinite(delay) and delay > 0.0):
+            raise ModelError(f"delay must be a finite measurement delay > 0 [s] (a number), got {delay!r:.80}")
+        delay = float(delay)
         self.controller = controller
         self.measurement_delay = delay
         self.inputs = tuple(controller.inputs)

@@ -58,7 +58,7 @@ from ..errors import ModelError
 from ..layouts import BENDING
 from ..system import Chain
 from .base import DiscreteElement, Element, Linearisation
-from .beams import BeamField
+from .beams import MAX_TIME_ELEMENTS, BeamField
 from .bending import laplace_array
 from .boundary import Boundary
 
@@ -234,10 +234,15 @@ def field_segments(field: BeamField, dt: float) -> tuple[BeamSegment, ...]:
     Raises
     ------
     ModelError
-        The field has a loss factor (hysteretic damping has no time-domain form).
+        The field has a loss factor (hysteretic damping has no time-domain form), or ``dt`` is
+        so small that the default count exceeds :data:`~ctmm.elements.beams.MAX_TIME_ELEMENTS`.
     """
     needed = time_element_count(field, dt)
     count = needed if field.time_elements is None else field.time_elements
+    if count > MAX_TIME_ELEMENTS:
+        raise ModelError(f"{field.name}: the step dt={dt!r} s resolves modes that need {count} Hermite elements, more "
+                         f"than {MAX_TIME_ELEMENTS} (each step costs O(N)); use a larger dt or give "
+                         f"time_elements <= {MAX_TIME_ELEMENTS} (the band above it is then in error)")
     if count < needed:
         band = math.sqrt(FREQUENCY_TOLERANCE / _STEP_ERROR) / dt
         warnings.warn(f"{field.name}: time_elements={count} resolves modes up to {resolved_frequency(field, count):.4g}"

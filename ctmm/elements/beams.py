@@ -58,6 +58,9 @@ __all__ = [
     "beam_state_matrix", "clamped_clamped_beta",
 ]
 
+MAX_TIME_ELEMENTS = 10_000
+"""Most Hermite elements per BeamField span in time simulations (``time_elements`` or the default count)."""
+
 # Series / closed-form switch: max(|m|, |n|) below this uses the Taylor series.
 _SERIES_LIMIT = 2.0
 _SERIES_TERMS = 32
@@ -255,7 +258,8 @@ class BeamField(Element):
     time_elements : int, optional
         Number of cubic Hermite elements of the span in time simulations (``ctmm.simulate``);
         default: enough to resolve every mode the step resolves, at a relative frequency error
-        of 1e-3 (:func:`ctmm.elements.beam_time.time_element_count`; a smaller number warns).
+        of 1e-3 (:func:`ctmm.elements.beam_time.time_element_count`; a smaller number warns);
+        at most :data:`MAX_TIME_ELEMENTS`.
 
     Notes
     -----
@@ -280,6 +284,9 @@ class BeamField(Element):
         super().__init__(name)
         self.time_elements = None if time_elements is None else validation.integer(f"{name}: time_elements",
                                                                                    time_elements)
+        if self.time_elements is not None and self.time_elements > MAX_TIME_ELEMENTS:
+            raise ModelError(f"{name}: time_elements must be at most {MAX_TIME_ELEMENTS} Hermite elements per span "
+                             f"(the time steps cost O(N)), got {time_elements!r}")
         self.length = validation.positive(f"{name}: length", length)
         self.bending_stiffness = validation.positive(f"{name}: bending_stiffness", bending_stiffness)
         self.mass_per_length = validation.positive(f"{name}: mass_per_length", mass_per_length)

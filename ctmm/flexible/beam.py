@@ -43,7 +43,7 @@ from ..planar.elements import Load
 from ..planar.signals import SignalError, signal_values
 from ..signals import Constant, SignalLike, as_signal
 from .family import ModalBeamFamily
-from .modes import ModeSet, check_root_clamped, gauss_points
+from .modes import ModeSet, check_quadrature, check_root_clamped, gauss_points
 
 
 @dataclass(frozen=True)
@@ -141,7 +141,8 @@ class ModalBeam(DeformableBody):
     modal_forces : sequence of ModalForce
         Extra generalised forces on the modal equations (actuators, modal feedback).
     quadrature : int
-        Gauss-Legendre points for the modal integrals (default 160: round-off for <= 20 modes).
+        Gauss-Legendre points for the modal integrals (default 160), at least
+        ``2 max(n_modes, n_axial_modes) + 8`` (fewer integrate the higher shapes wrongly).
 
     Examples
     --------
@@ -181,12 +182,10 @@ class ModalBeam(DeformableBody):
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
                 raise ModelError(f"{n}: {attribute} must be an integer >= {low}, got {value!r}")
             object.__setattr__(self, attribute, int(value))
-        if self.n_axial_modes:
-            if self.axial_stiffness is None:
-                raise ModelError(f"{n}: axial_stiffness (EA) is required when n_axial_modes > 0")
-            object.__setattr__(self, "axial_stiffness",
-                               validation.positive(f"{n}: axial_stiffness", self.axial_stiffness))
-        elif self.axial_stiffness is not None:
+        check_quadrature(n, self.n_modes, self.n_axial_modes, self.quadrature)
+        if self.n_axial_modes and self.axial_stiffness is None:
+            raise ModelError(f"{n}: axial_stiffness (EA) is required when n_axial_modes > 0")
+        if self.axial_stiffness is not None:
             object.__setattr__(self, "axial_stiffness",
                                validation.positive(f"{n}: axial_stiffness", self.axial_stiffness))
         if not isinstance(self.geometric_stiffening, bool):

@@ -39,6 +39,7 @@ import numpy as np
 from .. import validation
 from ..errors import ModelError, SimulationError
 from .model import BUSHING, DRIVEN, REVOLUTE, PlanarModel
+from .ports import ActuatorInputs
 
 
 @dataclass(frozen=True)
@@ -302,10 +303,13 @@ def bushing_data(model: PlanarModel, q, qdot, tau: np.ndarray, *, kappa_t=None, 
 # ------------------------------------------------------------------------------------------
 # public forward dynamics
 # ------------------------------------------------------------------------------------------
-def _checked_state(model: PlanarModel, q, qdot, t) -> tuple[np.ndarray, np.ndarray, float]:
-    """Entry validation of the instantaneous solvers: model type, coordinate shapes, time."""
+def _checked_state(model: PlanarModel, q, qdot, t, inputs=None) -> tuple[np.ndarray, np.ndarray, float]:
+    """Entry validation of the instantaneous solvers: model type, coordinate shapes, time, inputs."""
     if not isinstance(model, PlanarModel):
         raise ModelError(f"model must be a ctmm.planar.PlanarModel, got {model!r}")
+    if inputs is not None and not isinstance(inputs, ActuatorInputs):
+        raise ModelError(f"inputs must be ctmm.planar.ports.ActuatorInputs or None (build it with "
+                         f"actuator_inputs(model, {{actuator name: value}})), got {inputs!r:.80}")
     q, qdot = model.state(q, qdot)
     return q, qdot, validation.finite("t", t)
 
@@ -339,7 +343,7 @@ def solve_instant(model: PlanarModel, q, qdot, t: float = 0.0, inputs=None) -> I
     InstantaneousSolution
         Coordinate accelerations, body accelerations and joint forces.
     """
-    q, qdot, t = _checked_state(model, q, qdot, t)
+    q, qdot, t = _checked_state(model, q, qdot, t, inputs)
     if model.flexible_system is not None:
         sol = model.flexible_system.solve(q, qdot, t, inputs)
         return InstantaneousSolution(sol.qddot, sol.body_acceleration, sol.joint_force,
@@ -372,7 +376,7 @@ def accelerations(model: PlanarModel, q, qdot, t: float = 0.0, inputs=None) -> n
     >>> float(accelerations(model, [0.0], [0.0])[0])   # -3 g / (2 L) for a horizontal rod
     -14.715
     """
-    q, qdot, t = _checked_state(model, q, qdot, t)
+    q, qdot, t = _checked_state(model, q, qdot, t, inputs)
     if model.flexible_system is not None:
         return model.flexible_system.accelerations(q, qdot, t, inputs)
     theta, omega = model.body_angles(q, qdot, t)
