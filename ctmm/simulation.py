@@ -67,7 +67,21 @@ def _initial(model: PlanarModel, name: str, value: Any) -> np.ndarray:
                 raise unknown_name(f"coordinate of {name}", key, list(model.coordinates))
             out[model.coordinate_index(key)] = validation.finite(f"{name}[{key!r}]", number)
         return out
-    return value
+    array = np.asarray(value, dtype=float) if _numeric(value) else None
+    if array is None or array.shape != (n,):
+        raise ModelError(f"{name} must be a mapping {{coordinate: value}} or an array of length {n} "
+                         f"(coordinates {', '.join(model.coordinates)}), got {value!r}")
+    if not np.all(np.isfinite(array)):
+        raise ModelError(f"{name} must be finite, got {value!r}")
+    return array
+
+
+def _numeric(value: Any) -> bool:
+    try:
+        np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        return False
+    return True
 
 
 class _Default:
@@ -258,8 +272,9 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
         if value is not default and value != default:
             raise ModelError(f"{name}={value!r} applies to 1-D chains only; a planar run starts at t = 0 and "
                              f"takes loads from its elements and inputs (leave {name} at {default!r})")
-    if isinstance(outputs, str) or not all(isinstance(o, str) for o in outputs):
-        raise ModelError(f"outputs must be a list of sensor names (str), got {outputs!r}")
+    if isinstance(outputs, (str, Mapping)) or not isinstance(outputs, (list, tuple)) or \
+            not all(isinstance(o, str) for o in outputs):
+        raise ModelError(f"outputs must be a list or tuple of sensor names (str), got {outputs!r}")
     from .planar.ports import sensor_names
 
     known = set(sensor_names(model))
@@ -272,7 +287,11 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
     fast = validation.flag("fast", fast, optional=True)
     progress = validation.flag("progress", progress, optional=True)
     q0, v0 = initial_coordinates(model, _initial(model, "x0", x0), _initial(model, "v0", v0))
-    policy = "warn" if stability_check is None else stability_check
+    policy = "warn" if stability_check is None else validation.option("stability_check", stability_check,
+                                                                       ("warn", "error", "ignore"))
+    store_every = validation.integer("store_every", store_every, minimum=1)
+    if max_step is not None and not (isinstance(max_step, (int, float)) and max_step == math.inf):
+        max_step = validation.positive("max_step", max_step)        # inf (no limit) is solve_ivp's default
     controlled = bool(loops) or bool(controllers) or bool(inputs) or bool(references)
     what = [label for label, present in (("loops", loops), ("controllers", controllers), ("inputs", inputs),
                                          ("references", references)) if present]
