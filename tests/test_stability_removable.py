@@ -161,3 +161,31 @@ def test_circle_mean_of_entire_functions_and_its_refusal():
     assert entire_logs(lambda s: np.log(s)[None, :], np.array([0j]))[0, 0].real == -np.inf   # a true zero
     with pytest.raises(SingularSystemError, match="cannot be evaluated at s = 0"):
         circle_mean_logs(lambda s: np.log(1.0 / s**3 + s)[None, :], 0.0)     # a pole, not removable
+
+
+def test_undamped_inerter_with_a_spring_at_its_connector_zero():
+    """b s^2 + k = 0 at s = 20i (b = 0.25, k = 100): on the imaginary axis.  Delta there against the
+    closed form det(s^2 M + K + g s e^(-s tau) E12) with M = [[m1 + b, -b], [-b, m2 + b]]; counts
+    against the verified delay-equation roots (and the eigenvalues without delay)."""
+    b, k, m1, m2, k1, k2, gain = 0.25, 100.0, 1.0, 0.5, 97.0, 50.0, 2.0
+    plant = ctmm.Chain("undamped", [Fixed("g"), Spring("k1", k1), Mass("m1", m1), Inerter("b", b, stiffness=k),
+                                    Mass("m2", m2), Spring("k2", k2), Fixed("w")])
+    system = ControlledChain(plant, [Feedback("loop", "m2.v", "m1", gain=gain, delay=0.1)])
+    M = np.array([[m1 + b, -b], [-b, m2 + b]])
+    K = np.array([[k1 + k, -k], [-k, k + k2]])
+
+    def closed_form(s, tau):
+        return np.array([np.linalg.det(z * z * M + K + gain * z * np.exp(-z * tau) * E12) for z in s])
+
+    s = np.array([20.0j, 3.0j])
+    got = ctmm.characteristic_function(system, s)
+    expected = closed_form(s, 0.1)
+    assert got[0] / got[1] == pytest.approx(expected[0] / expected[1], rel=1e-9)
+    delays = [0.0, 0.1, 0.5, 1.0]
+    first_order = np.block([[np.zeros((2, 2)), np.eye(2)], [-np.linalg.solve(M, K), -np.linalg.solve(M, gain * E12)]])
+    expected_counts = [int(np.sum(np.linalg.eigvals(first_order).real > 0))]
+    for tau in delays[1:]:
+        A0, delayed = dde.second_order_system(M, np.zeros((2, 2)), K, [(np.zeros((2, 2)), gain * E12, tau)])
+        expected_counts.append(int(np.sum(dde_verified.verified_roots(A0, delayed, 100, re_min=0.0, im_max=200.0).real > 0)))
+    assert expected_counts == [2, 2, 4, 2]
+    np.testing.assert_array_equal(stability.unstable_root_count(system, delay=delays), expected_counts)
