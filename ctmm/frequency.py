@@ -19,6 +19,7 @@ from .assembly import SOLVERS
 from . import planar_frequency
 from .capabilities import require_chain
 from .chain_assembly import assemble, laplace_variables, solve  # noqa: F401  (assemble, solve: public here too)
+from .entire_values import entire_logs
 from .errors import ModelError
 from . import natural
 from .natural import eigenvalue_count  # noqa: F401  (re-exported)
@@ -154,7 +155,9 @@ def characteristic_function(system, s: Any, *, normalize: bool = True) -> np.nda
     (product of the ``det G_j`` and of the end matrix), multiplied by the factors that clear the
     poles of the element matrices (connectors ``k + c s``, controller denominators), so that it
     is entire in ``s`` and vanishes exactly at the (closed-loop) characteristic roots, including
-    exact delays ``e^{-s tau}``.
+    exact delays ``e^{-s tau}``.  Where the sweep itself fails although ``Delta`` is finite (a
+    connector without spring at ``s = 0``, a substructure resonance), the value is the certified
+    mean of ``Delta`` on a small circle (:func:`ctmm.entire_values.entire_logs`).
 
     Parameters
     ----------
@@ -170,14 +173,20 @@ def characteristic_function(system, s: Any, *, normalize: bool = True) -> np.nda
     validation.flag("normalize", normalize)
     shape = s_arr.shape
     flat = s_arr.ravel()
-    Us, us, start, end = assemble(system, flat)
-    sol = SOLVERS["riccati"](Us, us, start, end, want_states=False)
-    log_delta = sol.log_det + np.log(_scale(system, flat).astype(complex))
+    log_delta = entire_logs(lambda z: _log_delta(system, z), flat)[0]
     if normalize:
-        Us1, us1, start1, end1 = assemble(system, np.array([1.0 + 0j]))
-        ref = SOLVERS["riccati"](Us1, us1, start1, end1, want_states=False).log_det[0]
-        log_delta = log_delta - ref - np.log(complex(_scale(system, np.array([1.0 + 0j]))[0]))
+        log_delta = log_delta - entire_logs(lambda z: _log_delta(system, z), np.array([1.0 + 0j]))[0, 0]
     return np.exp(log_delta).reshape(shape)
+
+
+def _log_delta(system, s: np.ndarray) -> np.ndarray:
+    """``log Delta(s)`` by one Riccati sweep (NaN or ``LinAlgError`` where the sweep fails: at a
+    zero of a connector's stiffness, e.g. s = 0 for a pure damper, or a substructure resonance;
+    :func:`ctmm.entire_values.entire_logs` then evaluates the finite value by a circle mean)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        Us, us, start, end = assemble(system, s)
+        sol = SOLVERS["riccati"](Us, us, start, end, want_states=False)
+        return sol.log_det + np.log(_scale(system, s).astype(complex))
 
 
 def _scale(system, s: np.ndarray) -> np.ndarray:

@@ -40,6 +40,7 @@ from .control.loops import ControlledChain, Feedback
 from .elements.lumped import Connector
 from .errors import ModelError, SingularSystemError, unknown_name
 from .frequency import assemble, characteristic_function, solve
+from .entire_values import entire_logs
 from .executors import executor_workers, managed_executor, parallel_map
 
 __all__ = ["AffineCharacteristic", "LoopCharacteristic", "normalised_columns", "managed_executor", "executor_workers", "parallel_map",
@@ -101,7 +102,14 @@ def _log_characteristic(system: Any, s: np.ndarray) -> np.ndarray:
 
     Same determinant and pole-clearing factor as :func:`ctmm.characteristic_function`, but the
     factor is summed as logarithms: a product of ``k + c s`` over a chain of thousands of
-    connectors overflows at high frequency."""
+    connectors overflows at high frequency.  Where the sweep fails (a connector's stiffness or a
+    substructure resonance at ``s``), the value is the certified circle mean of
+    :func:`ctmm.entire_values.entire_logs`."""
+    return entire_logs(lambda z: _direct_log_characteristic(system, z), s)[0]
+
+
+def _direct_log_characteristic(system: Any, s: np.ndarray) -> np.ndarray:
+    """``log Delta(s)`` by one Riccati sweep (NaN or ``LinAlgError`` where the sweep fails)."""
     with np.errstate(divide="ignore", invalid="ignore"):
         Us, us, start, end = assemble(system, s)
         sol = SOLVERS["riccati"](Us, us, start, end, want_states=False)
@@ -336,7 +344,11 @@ class LoopCharacteristic(AffineCharacteristic):
         responses ``P_j`` of the sensed signals to a unit actuator force come from the open chain
         (no extended states); by the matrix determinant lemma the loop adds
         ``T_j = D Delta_0 C P_j``.  Where the open chain is singular (an open-loop root exactly
-        at a sample, e.g. s = 0 of a free chain) the extended closed chains are swept instead."""
+        at a sample, e.g. s = 0 of a free chain) the extended closed chains are swept instead.
+        Where a sweep fails although the function is finite (a connector's stiffness ``c s`` or
+        ``b s^2`` vanishing at ``s = 0``, a substructure resonance making a Riccati pivot
+        singular), the components are the certified circle means of
+        :func:`ctmm.entire_values.entire_logs`."""
         s = np.asarray(s, dtype=complex).ravel()
         out = np.empty((1 + len(self._sensed), s.size), dtype=complex)
         try:             # one sweep for the determinant and the responses (a regular open chain)
@@ -344,15 +356,18 @@ class LoopCharacteristic(AffineCharacteristic):
                 solution = solve(self.open_system, s, self._amplitudes, want_log_det=True)
                 log_open = solution.log_det + _log_pole_factor(self.open_system, s)
             if np.all(np.isfinite(log_open)):
-                out[:] = self._components_open(s, log_open, solution.states)
-                return out
+                logs = self._component_logs(s, log_open, solution.states)
+                if not np.isnan(logs).any():
+                    out[:] = normalised_columns(logs)
+                    return out
         except (SingularSystemError, np.linalg.LinAlgError):   # a root of the open chain at a sample
             pass
         log_open = _log_characteristic(self.open_system, s)
         regular = np.isfinite(log_open)
         if regular.any():
             try:
-                out[:, regular] = self._components_open(s[regular], log_open[regular])
+                out[:, regular] = normalised_columns(entire_logs(self._open_logs, s[regular],
+                                                                 label=f"loop {self.loop.name!r}"))
             except SingularSystemError:
                 regular[:] = False
         if not regular.all():
@@ -378,11 +393,23 @@ class LoopCharacteristic(AffineCharacteristic):
                 self._phase = 1.0
         return self._phase
 
+    def _open_logs(self, s: np.ndarray) -> np.ndarray:
+        """Unnormalised logs of ``[D Delta_0, T_1, ...]`` from one open-chain sweep (NaN or an
+        exception where the sweep fails: :func:`ctmm.entire_values.entire_logs` repairs them)."""
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            solution = solve(self.open_system, s, self._amplitudes, want_log_det=True)
+            log_open = solution.log_det + _log_pole_factor(self.open_system, s)
+        return self._component_logs(s, log_open, solution.states)
+
     def _components_open(self, s: np.ndarray, log_open: np.ndarray,
                          states: np.ndarray | None = None) -> np.ndarray:
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             if states is None:
                 states = solve(self.open_system, s, self._amplitudes).states
+        return normalised_columns(self._component_logs(s, log_open, states))
+
+    def _component_logs(self, s: np.ndarray, log_open: np.ndarray, states: np.ndarray) -> np.ndarray:
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             log_base = log_open
             controller = np.zeros(s.size, complex)
             if self.loop.is_lti:
@@ -392,7 +419,7 @@ class LoopCharacteristic(AffineCharacteristic):
             for point, component, derivative in self._sensed:
                 response = states[point, :, component] * s ** derivative
                 logs.append(log_base + controller + np.log(response.astype(complex)))
-            return normalised_columns(np.array(logs))
+            return np.array(logs)
 
     def _components_closed(self, s: np.ndarray) -> np.ndarray:
         logs = [_log_characteristic(self._base, s)]

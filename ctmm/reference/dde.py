@@ -503,10 +503,10 @@ def chebyshev_collocation_roots(A0: object, delayed: Sequence[tuple[object, floa
     j >= 1 of the discrete generator are the Chebyshev derivative phi'(theta_j); the row at
     theta_0 = 0 imposes the DDE, A0 phi(0) + sum_k A_k p(-tau_k), with p the interpolating
     polynomial.  Its eigenvalues converge spectrally (geometrically in n_nodes) to the
-    characteristic roots of moderate modulus, roughly |s| tau_max < n_nodes; eigenvalues of
-    larger modulus are spurious and may lie to the right of true roots when the true root
-    chains run far to the left, so filter by modulus (and check by increasing n_nodes or by
-    ``refine``).
+    characteristic roots of moderate modulus, |s| tau_max < ~1.1 N; beyond, the eigenvalues are
+    spurious (spectral pollution, residual O(0.01-0.1); docs/characteristic_roots.md section 5)
+    and may lie to the right of true roots: these are candidates, not verified roots (use
+    :func:`ctmm.reference.dde_verified.verified_roots`).
 
     Parameters
     ----------
