@@ -44,6 +44,7 @@ from ..planar.signals import SignalError, signal_values
 from ..signals import Constant, SignalLike, as_signal
 from .family import ModalBeamFamily
 from .modes import ModeSet, check_root_clamped, gauss_points
+from .stations import check_stations
 
 
 @dataclass(frozen=True)
@@ -142,6 +143,9 @@ class ModalBeam(DeformableBody):
         Extra generalised forces on the modal equations (actuators, modal feedback).
     quadrature : int
         Gauss-Legendre points for the modal integrals (default 160: round-off for <= 20 modes).
+    stations : mapping of str to float, optional
+        Named stations ``{name: x}`` [m from the root] of the station ports (``"arm.<name>.w"``,
+        ``".slope"``, ``".moment"``... in :mod:`ctmm.planar.ports`; :mod:`ctmm.flexible.stations`).
 
     Examples
     --------
@@ -168,6 +172,7 @@ class ModalBeam(DeformableBody):
     distributed_load: tuple = (0.0, 0.0)
     modal_forces: Sequence[ModalForce] = ()
     quadrature: int = 160
+    stations: Mapping[str, float] | None = None
     family: ClassVar[type[ModalBeamFamily]] = ModalBeamFamily
 
     def __post_init__(self) -> None:
@@ -181,17 +186,12 @@ class ModalBeam(DeformableBody):
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
                 raise ModelError(f"{n}: {attribute} must be an integer >= {low}, got {value!r}")
             object.__setattr__(self, attribute, int(value))
-        if self.n_axial_modes:
-            if self.axial_stiffness is None:
-                raise ModelError(f"{n}: axial_stiffness (EA) is required when n_axial_modes > 0")
-            object.__setattr__(self, "axial_stiffness",
-                               validation.positive(f"{n}: axial_stiffness", self.axial_stiffness))
-        elif self.axial_stiffness is not None:
-            object.__setattr__(self, "axial_stiffness",
-                               validation.positive(f"{n}: axial_stiffness", self.axial_stiffness))
+        if self.n_axial_modes and self.axial_stiffness is None:
+            raise ModelError(f"{n}: axial_stiffness (EA) is required when n_axial_modes > 0")
+        if self.axial_stiffness is not None:
+            object.__setattr__(self, "axial_stiffness", validation.positive(f"{n}: axial_stiffness", self.axial_stiffness))
         if not isinstance(self.geometric_stiffening, bool):
-            raise ModelError(f"{n}: geometric_stiffening must be True or False, "
-                             f"got {self.geometric_stiffening!r}")
+            raise ModelError(f"{n}: geometric_stiffening must be True or False, got {self.geometric_stiffening!r}")
         object.__setattr__(self, "damping_ratio",
                            validation.nonnegative(f"{n}: damping_ratio", self.damping_ratio))
         object.__setattr__(self, "stiffness_damping",
@@ -213,6 +213,7 @@ class ModalBeam(DeformableBody):
         else:
             checked = {"out": _station(n, "outboard", ends, self.length)}
         object.__setattr__(self, "outboard", checked)
+        object.__setattr__(self, "stations", check_stations(self, self.stations))
         loads = tuple(self.loads)
         for load in loads:
             if not isinstance(load, Load):
@@ -335,7 +336,6 @@ class ModalBeam(DeformableBody):
     def with_modal_forces(self, *forces: ModalForce) -> "ModalBeam":
         """Copy with ``forces`` appended to :attr:`modal_forces`."""
         return dataclasses.replace(self, modal_forces=tuple(self.modal_forces) + tuple(forces))
-
 
 
 class BeamData:
