@@ -40,7 +40,7 @@ def _output_value(system, states: np.ndarray, s: np.ndarray, name: str,
 
 def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],  # noqa: A002
                        output: str | Sequence[str], solver: str = "riccati",
-                       operating_point: Any = None) -> FrequencyResponse:
+                       operating_point: Any = None, fields: str | None = None) -> FrequencyResponse:
     """Frequency response functions from force/displacement inputs to outputs.
 
     Parameters
@@ -59,6 +59,9 @@ def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],
         Chain solver (plain products only for comparison).
     operating_point : optional
         Planar models only (:func:`ctmm.linearize`; default: the static equilibrium).
+    fields : {"modal", "exact"}, optional
+        Planar models only: ``"exact"`` answers a straight chain with beams by exact beam fields
+        (:mod:`ctmm.exact_fields`); default ``"modal"`` (the model as built).
 
     Returns
     -------
@@ -79,7 +82,10 @@ def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],
             raise ModelError(f"frequency_response: solver={solver!r} is a chain solver; a planar model is answered "
                              "through its linearisation (ctmm.linearize), pass no solver")
         return planar_frequency.frequency_response(system, omega, input=input, output=output,
-                                                   operating_point=operating_point)
+                                                   operating_point=operating_point, fields=fields or "modal")
+    if fields is not None:
+        raise ModelError(f"frequency_response: fields={fields!r} is for planar models; a chain's beam fields are "
+                         "already exact")
     if operating_point is not None:
         raise ModelError(f"frequency_response: operating_point is for planar models; a chain is linear, got "
                          f"operating_point={operating_point!r}")

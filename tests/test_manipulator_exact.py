@@ -40,3 +40,130 @@ def test_scene_pzt_loops_act_on_station_ports_as_the_modal_slope_rate_law():
     reference = ctmm.frequency_response(ControlledModel(scene.plant, modal), omega, input=f"{HUB_LOOP}.reference",
                                         output=outputs)
     np.testing.assert_allclose(station.response, reference.response, rtol=1e-9, atol=1e-12)
+
+
+# ------------------------------------------------------------------------------------------
+# the exact-field frequency form (ctmm.exact_fields, fields="exact")
+OMEGA = np.array([1.0, 5.0, 15.7, 40.0, 97.0, 300.0])
+
+
+def seed_scene(pzt=True, n_modes=3):
+    seed = seed_manipulator()
+    pd = HubPD(SEED_KP, SEED_KD, delay=0.004)
+    law = PZTFeedback(G, delay=0.003) if pzt else None
+    return seed, pd, law, manipulator_scene(seed, pd=pd, pzt=law, n_modes=n_modes)
+
+
+def test_exact_fields_of_the_scene_equal_the_linear_manipulator_chain():
+    from ctmm.manipulator import LinearManipulator
+
+    seed, pd, pzt, scene = seed_scene()
+    outputs = ["motor.angle", "arm.out.y"] + [f"{p.name}.u" for p in seed.patches]
+    reference = LinearManipulator(seed, pd, pzt)
+    for name, planar_input, scale in (("torque", "motor.torque", 1.0),
+                                      ("theta_d", f"{HUB_LOOP}.reference", SEED_KP + SEED_KD * 1j * OMEGA)):
+        exact = ctmm.frequency_response(scene, OMEGA, input=planar_input, output=outputs, fields="exact")
+        expected = reference.response(OMEGA, input=name)
+        got = {key: exact(signal, planar_input) * scale for key, signal in (("theta", "motor.angle"),
+                                                                          ("tip_w", "arm.out.y"))}
+        np.testing.assert_allclose(got["theta"], expected["theta"], rtol=1e-10)
+        np.testing.assert_allclose(got["tip_w"], expected["tip_w"], rtol=1e-10)
+        for k, patch in enumerate(seed.patches):
+            np.testing.assert_allclose(exact(f"{patch.name}.u", planar_input) * scale, expected["voltages"][k],
+                                       rtol=1e-10)
+    assert exact.info["method"].startswith("exact fields")
+    assert exact.units["arm.out.y"] == "m"
+
+
+def test_the_modal_form_converges_to_the_exact_fields_as_modes_are_added():
+    omega = np.array([2.0, 10.0, 30.0, 60.0])             # below the 2nd mode of the 2-mode arm (~97 rad/s)
+    errors = {}
+    for pzt in (False, True):
+        exact = ctmm.frequency_response(seed_scene(pzt)[3], omega, input="motor.torque", output="arm.out.y",
+                                        fields="exact").response[0, 0]
+        for n in (2, 4, 8, 16):
+            modal = ctmm.frequency_response(seed_scene(pzt, n)[3], omega, input="motor.torque",
+                                            output="arm.out.y").response[0, 0]
+            errors[pzt, n] = float(np.max(np.abs(modal - exact) / np.abs(exact)))
+    pd_only = [errors[False, n] for n in (2, 4, 8, 16)]
+    assert all(b < a / 10 for a, b in zip(pd_only, pd_only[1:])) and pd_only[-1] < 1e-6
+    # collocated point moments and slope sensing: the modal series converges slowly (~1/n)
+    with_pzt = [errors[True, n] for n in (2, 4, 8, 16)]
+    assert all(b < a for a, b in zip(with_pzt, with_pzt[1:])) and with_pzt[-1] < 2e-3
+
+
+def bvp_tip_response(omega, k_hinge, c_hinge, L1, L2, EI, rhoA):
+    """Tip deflection, root deflection and root slope of the second beam per unit tip force of
+    clamped beam - spring-damper hinge - free beam, from the continuum boundary-value problem
+    (8 coefficients of the Euler-Bernoulli solutions)."""
+    out = []
+    for w in omega:
+        beta = (rhoA * w * w / EI) ** 0.25
+
+        def basis(x, d):               # [cosh, sinh, cos, sin] and derivatives at x
+            b = beta
+            return np.array([(np.cosh, np.sinh, np.cosh, np.sinh)[d](b * x) * b ** d,
+                             (np.sinh, np.cosh, np.sinh, np.cosh)[d](b * x) * b ** d,
+                             (np.cos, lambda y: -np.sin(y), lambda y: -np.cos(y), np.sin)[d](b * x) * b ** d,
+                             (np.sin, np.cos, lambda y: -np.sin(y), lambda y: -np.cos(y))[d](b * x) * b ** d])
+        z = np.zeros(4)
+        impedance = k_hinge + 1j * w * c_hinge
+        rows = [np.r_[basis(0, 0), z], np.r_[basis(0, 1), z],                        # clamped
+                np.r_[basis(L1, 0), -basis(0, 0)],                                     # w continuous
+                np.r_[EI * basis(L1, 2), -EI * basis(0, 2)],                           # moment continuous
+                np.r_[EI * basis(L1, 3), -EI * basis(0, 3)],                           # shear continuous
+                np.r_[EI * basis(L1, 2) + impedance * basis(L1, 1), -impedance * basis(0, 1)],  # EI w'' = Z dtheta
+                np.r_[z, basis(L2, 2)], np.r_[z, EI * basis(L2, 3)]]                   # free end, tip force
+        rhs = np.zeros(8, dtype=complex)
+        rhs[7] = -1.0                                                                  # EI w''' = -F
+        coefficients = np.linalg.solve(np.array(rows, dtype=complex), rhs)
+        second = coefficients[4:]
+        out.append((basis(L2, 0) @ second, basis(0, 0) @ second, basis(0, 1) @ second))
+    return np.array(out).T
+
+
+def test_a_hinged_two_beam_chain_equals_the_continuum_boundary_value_problem():
+    from ctmm.flexible import ModalBeam
+    from ctmm.planar import Fixed, PlanarModel, SpringDamperHinge
+    from ctmm.planar.elements import FixedMounting
+
+    L1, L2, EI, RHOA, K, C = 0.6, 0.5, 20.0, 0.5, 15.0, 0.05
+    first = ModalBeam("first", length=L1, bending_stiffness=EI, mass_per_length=RHOA, n_modes=3)
+    second = ModalBeam("second", length=L2, bending_stiffness=EI, mass_per_length=RHOA, n_modes=3,
+                       stations={"tip": L2})
+    model = PlanarModel.chain("hinged", [Fixed("ground"), FixedMounting("clamp"), first,
+                                         SpringDamperHinge("h", stiffness=K, damping=C), second], gravity=(0.0, 0.0))
+    omega = np.array([0.5, 7.0, 33.0, 120.0, 400.0])
+    exact = ctmm.frequency_response(model, omega, input="second.tip.force", output=["second.out.y", "second.tip.w"],
+                                    fields="exact")
+    tip, root, root_slope = bvp_tip_response(omega, K, C, L1, L2, EI, RHOA)
+    np.testing.assert_allclose(exact("second.out.y", "second.tip.force"), tip, rtol=1e-9)
+    # the station sensor is the deflection in the beam's own (root tangent) frame
+    np.testing.assert_allclose(exact("second.tip.w", "second.tip.force"), tip - root - L2 * root_slope, rtol=1e-8)
+
+
+def test_exact_fields_refuse_what_they_cannot_map():
+    import pytest
+
+    from ctmm.errors import ModelError
+    from ctmm.flexible import ModalBeam
+    from ctmm.planar import Fixed, PlanarModel, RigidBody, SmoothHinge
+
+    seed, pd, pzt, scene = seed_scene()
+    with pytest.raises(ModelError, match="modal coordinate"):
+        ctmm.frequency_response(scene, [1.0], input="motor.torque", output="arm.q1", fields="exact")
+    with pytest.raises(ModelError, match="axial"):
+        ctmm.frequency_response(scene, [1.0], input="motor.torque", output="arm.out.x", fields="exact")
+    with pytest.raises(ModelError, match="fields must be one of"):
+        ctmm.frequency_response(scene, [1.0], input="motor.torque", output="arm.out.y", fields="exakt")
+    beam = ModalBeam("b", length=1.0, bending_stiffness=5.0, mass_per_length=0.3, n_modes=2)
+    link = RigidBody("l", mass=1.0, inertia=0.1, center_of_mass=(0.5, 0.0), outboard=(1.0, 0.0))
+    heavy = PlanarModel.chain("heavy", [Fixed("g"), SmoothHinge("p"), link, SmoothHinge("q"), beam])
+    with pytest.raises(ModelError, match="gravity"):
+        ctmm.frequency_response(heavy, [1.0], input="p.torque", output="l.theta", fields="exact")
+    free = PlanarModel.chain("free", [Fixed("g"), SmoothHinge("p"), link, SmoothHinge("q"), beam], gravity=(0, 0))
+    with pytest.raises(ModelError, match="free"):
+        ctmm.frequency_response(free, [1.0], input="p.torque", output="l.theta", fields="exact")
+    with pytest.raises(ModelError, match="for planar models"):
+        from ctmm.manipulator.frequency import plant_chain
+        ctmm.frequency_response(plant_chain(seed), [1.0], input="hub.torque", output="hub.theta", fields="exact")
