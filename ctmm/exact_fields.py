@@ -199,7 +199,8 @@ class _Builder:
                 self.elements.append(RevoluteJoint(hinge, stiffness=k, damping=c))
             root = self.marker(f"{body}__root")
             if not welded:
-                self.actuators[f"{hinge}.torque"] = ([(f"{root}.moment", 1.0)] if i == 0 else [(f"{hinge}.torque", 1.0)])
+                torque = f"{root}.moment" if i == 0 else f"{hinge}.torque"
+                self.actuators[f"{hinge}.torque"] = [(torque, 1.0)]
             angle = [(f"{root}.theta", 1.0)] + ([] if i == 0 else [(previous_end, -1.0)])
             self.sensors[f"{hinge}.angle"] = [] if welded else angle
             self.sensors[f"{hinge}.rate"] = [] if welded else [(f"{n}_dot", w) for n, w in angle]

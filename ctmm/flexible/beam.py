@@ -189,14 +189,13 @@ class ModalBeam(DeformableBody):
         if self.n_axial_modes and self.axial_stiffness is None:
             raise ModelError(f"{n}: axial_stiffness (EA) is required when n_axial_modes > 0")
         if self.axial_stiffness is not None:
-            object.__setattr__(self, "axial_stiffness", validation.positive(f"{n}: axial_stiffness", self.axial_stiffness))
+            object.__setattr__(self, "axial_stiffness",
+                               validation.positive(f"{n}: axial_stiffness", self.axial_stiffness))
         if not isinstance(self.geometric_stiffening, bool):
             raise ModelError(f"{n}: geometric_stiffening must be True or False, got {self.geometric_stiffening!r}")
-        object.__setattr__(self, "damping_ratio",
-                           validation.nonnegative(f"{n}: damping_ratio", self.damping_ratio))
+        object.__setattr__(self, "damping_ratio", validation.nonnegative(f"{n}: damping_ratio", self.damping_ratio))
         object.__setattr__(self, "stiffness_damping",
-                           validation.nonnegative(f"{n}: stiffness_damping",
-                                                  self.stiffness_damping))
+                           validation.nonnegative(f"{n}: stiffness_damping", self.stiffness_damping))
         modes = self.mode_set if self.mode_set is not None else ModeSet.clamped_free(self.n_modes)
         if not isinstance(modes, ModeSet):
             raise ModelError(f"{n}: mode_set must be a ModeSet, got {modes!r}")
