@@ -44,7 +44,7 @@ from .errors import ModelError
 from .loop_phasors import close_loops
 from .results import FrequencyResponse
 
-__all__ = ["ExactForm", "exact_form", "frequency_response"]
+__all__ = ["ExactForm", "exact_form", "frequency_response", "natural_frequencies"]
 
 #: Largest hinge angle [rad], modal coordinate and rate counted as zero at the operating point.
 STRAIGHT_TOLERANCE = 1e-9
@@ -384,3 +384,31 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
             "wall_time_s": time.perf_counter() - started, "n_frequencies": int(omega.size),
             "chain_elements": len(form.chain.elements)}
     return FrequencyResponse(omega, response, tuple(inputs), tuple(outputs), model.name, info=info, units=units)
+
+
+def natural_frequencies(system: Any, *, n_modes: int | None = None, omega_max: float | None = None,
+                        operating_point: Any = None) -> np.ndarray:
+    """Undamped natural frequencies [rad/s] of a planar chain's exact-field form (ascending).
+
+    The bending chain of :func:`exact_form` is counted by Wittrick-Williams
+    (:func:`ctmm.natural.natural_frequencies`): no mode is missed.  Loops and damping (hinge
+    dampers, Kelvin-Voigt beams) are refused as for chains.
+
+    Parameters
+    ----------
+    system : PlanarModel
+    n_modes : int, optional
+        Number of lowest frequencies.
+    omega_max : float, optional
+        All frequencies below ``omega_max`` [rad/s] instead.
+    operating_point : optional
+        As for :func:`exact_form`.
+    """
+    from .natural import natural_frequencies as chain_natural
+    from .planar.model import PlanarModel
+
+    if not isinstance(system, PlanarModel):
+        names = [lp.name for lp in getattr(system, "loops", ())]
+        raise ModelError(f"natural_frequencies cannot honour the feedback loops {names}: it describes an uncontrolled "
+                         "model; pass system.plant, or use frequency_response(..., fields='exact') for the closed loop")
+    return chain_natural(exact_form(system, operating_point).chain, n_modes=n_modes, omega_max=omega_max)

@@ -205,10 +205,14 @@ def natural_frequencies(system: Any, **options: Any) -> np.ndarray:
     A :class:`~ctmm.system.Chain` is answered by :func:`ctmm.natural.natural_frequencies`
     (options ``n_modes``, ``omega_max``, ``rtol``); a ``PlanarModel`` through its undamped
     linearisation by :func:`ctmm.planar_frequency.natural_frequencies` (options ``n_modes``,
-    ``omega_max``, ``operating_point``).  Damped systems and systems with loops are refused.
+    ``omega_max``, ``operating_point``, ``fields="exact"`` for the exact-field form of a straight
+    chain with beams, :mod:`ctmm.exact_fields`).  Damped systems and systems with loops are refused.
     """
     if is_planar_system(system):
         return planar_frequency.natural_frequencies(system, **options)
+    if "fields" in options:
+        raise ModelError(f"natural_frequencies: fields={options['fields']!r} is for planar models; a chain's beam "
+                         "fields are already exact")
     return natural.natural_frequencies(system, **options)
 
 

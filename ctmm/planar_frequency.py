@@ -186,7 +186,7 @@ def _modes(system: Any, verb: str, n_modes, omega_max, operating_point):
 
 
 def natural_frequencies(system: Any, *, n_modes: int | None = None, omega_max: float | None = None,
-                        operating_point: Any = None) -> np.ndarray:
+                        operating_point: Any = None, fields: str = "modal") -> np.ndarray:
     """Undamped natural frequencies [rad/s] of a planar model's linearisation (ascending, rigid as 0).
 
     Parameters
@@ -199,7 +199,13 @@ def natural_frequencies(system: Any, *, n_modes: int | None = None, omega_max: f
         All frequencies below ``omega_max`` [rad/s] instead.
     operating_point : optional
         As for :func:`ctmm.linearize` (default: the static equilibrium).
+    fields : {"modal", "exact"}
+        ``"exact"``: the Wittrick-Williams count of the exact-field form of a straight serial
+        chain (:func:`ctmm.exact_fields.natural_frequencies`).
     """
+    if validation.option("fields", fields, ("modal", "exact")) == "exact":
+        from .exact_fields import natural_frequencies as exact_natural
+        return exact_natural(system, n_modes=n_modes, omega_max=omega_max, operating_point=operating_point)
     return _modes(system, "natural_frequencies", n_modes, omega_max, operating_point)[1]
 
 

@@ -167,3 +167,45 @@ def test_exact_fields_refuse_what_they_cannot_map():
     with pytest.raises(ModelError, match="for planar models"):
         from ctmm.manipulator.frequency import plant_chain
         ctmm.frequency_response(plant_chain(seed), [1.0], input="hub.torque", output="hub.theta", fields="exact")
+
+
+def test_exact_natural_frequencies_of_a_hinged_two_beam_chain_are_the_continuum_roots():
+    from scipy.optimize import brentq
+
+    from ctmm.flexible import ModalBeam
+    from ctmm.planar import ElasticHinge, Fixed, PlanarModel
+    from ctmm.planar.elements import FixedMounting
+
+    L1, L2, EI, RHOA, K = 0.6, 0.5, 20.0, 0.5, 15.0
+    def model(n_modes):
+        return PlanarModel.chain("hinged", [
+            Fixed("ground"), FixedMounting("clamp"),
+            ModalBeam("first", length=L1, bending_stiffness=EI, mass_per_length=RHOA, n_modes=n_modes),
+            ElasticHinge("h", stiffness=K),
+            ModalBeam("second", length=L2, bending_stiffness=EI, mass_per_length=RHOA, n_modes=n_modes)],
+            gravity=(0.0, 0.0))
+
+    exact = ctmm.natural_frequencies(model(1), n_modes=4, fields="exact")
+
+    def determinant(w):             # the homogeneous boundary-value problem of bvp_tip_response
+        beta = (RHOA * w * w / EI) ** 0.25
+        funcs = [(np.cosh, np.sinh, np.cosh, np.sinh), (np.sinh, np.cosh, np.sinh, np.cosh),
+                 (np.cos, lambda y: -np.sin(y), lambda y: -np.cos(y), np.sin),
+                 (np.sin, np.cos, lambda y: -np.sin(y), lambda y: -np.cos(y))]
+
+        def basis(x, d):
+            return np.array([f[d](beta * x) * beta ** d for f in funcs])
+        z = np.zeros(4)
+        rows = [np.r_[basis(0, 0), z], np.r_[basis(0, 1), z], np.r_[basis(L1, 0), -basis(0, 0)],
+                np.r_[basis(L1, 2), -basis(0, 2)], np.r_[basis(L1, 3), -basis(0, 3)],
+                np.r_[EI * basis(L1, 2) + K * basis(L1, 1), -K * basis(0, 1)],
+                np.r_[z, basis(L2, 2)], np.r_[z, basis(L2, 3)]]
+        return np.linalg.det(np.array(rows))
+
+    grid = np.linspace(1.0, 1200.0, 4000)
+    values = np.array([determinant(w) for w in grid])
+    roots = [brentq(determinant, a, b, xtol=1e-13) for a, b, fa, fb in
+             zip(grid, grid[1:], values, values[1:]) if fa * fb < 0][:4]
+    np.testing.assert_allclose(exact, roots, rtol=1e-9)
+    modal = ctmm.natural_frequencies(model(1), n_modes=2)       # Rayleigh-Ritz: upper bounds
+    assert np.all(modal >= exact[:2] * (1 - 1e-12))
