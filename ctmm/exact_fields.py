@@ -111,6 +111,11 @@ def _check_model(model: Any, operating_point: Any) -> float:
         raise _refuse(model, f"hinges {names} have translational springs")
     if len(model.load_body):
         raise _refuse(model, "its bodies carry loads (a preload; the exact form has no load terms)")
+    for i in range(nb):
+        if i in model.beams:
+            _check_beam(model, model.bodies[i])
+        else:
+            _check_body_geometry(model, i)
     op = planar_operating_point(model, operating_point)
     theta, omega = model.body_angles(op.q, op.qdot, op.t)
     relative, _ = model.relative_angles(theta, omega, op.q, op.qdot)
@@ -224,7 +229,6 @@ class _Builder:
     def rigid(self, i: int, body: str, root: str, child_end: str | None) -> str:
         from .elements.bending_bodies import RigidSegment
         model = self.model
-        _check_body_geometry(model, i)
         points = {"inboard": 0.0, "com": float(model.com[i][0])}
         points.update({e: float(p[0]) for e, p in model.ends[i].items()})
         for point, x in points.items():
@@ -243,7 +247,6 @@ class _Builder:
         from .elements.beams import BeamField
         model = self.model
         beam = model.bodies[i]
-        _check_beam(model, beam)
         if child_end is not None and beam.outboard[child_end] < beam.length * (1 - 1e-12):
             raise _refuse(model, f"body {model.body_names[i + 1]!r} hangs from beam {body!r} mid-span "
                                  f"(x = {beam.outboard[child_end]} m < L): a branch")

@@ -209,3 +209,39 @@ def test_exact_natural_frequencies_of_a_hinged_two_beam_chain_are_the_continuum_
     np.testing.assert_allclose(exact, roots, rtol=1e-9)
     modal = ctmm.natural_frequencies(model(1), n_modes=2)       # Rayleigh-Ritz: upper bounds
     assert np.all(modal >= exact[:2] * (1 - 1e-12))
+
+
+def test_exact_fields_refuse_kinks_trees_and_modal_only_physics():
+    import pytest
+
+    from ctmm.errors import ModelError
+    from ctmm.flexible import ModalBeam
+    from ctmm.planar import ElasticHinge, Fixed, Pinned, PlanarModel, RigidBody
+    from ctmm.planar.elements import FixedMounting
+
+    def beam(name="b", **extra):
+        return ModalBeam(name, length=0.5, bending_stiffness=5.0, mass_per_length=0.3, n_modes=1, **extra)
+
+    def chain(*bodies_and_hinges):
+        return PlanarModel.chain("c", [Fixed("g"), FixedMounting("m"), *bodies_and_hinges], gravity=(0.0, 0.0))
+
+    kinked = chain(beam("a"), ElasticHinge("h", stiffness=3.0, rest_angle=0.3), beam())
+    with pytest.raises(ModelError, match="not straight"):
+        ctmm.frequency_response(kinked, [1.0], input="h.torque", output="h.angle", fields="exact")
+    with pytest.raises(ModelError, match="damping ratio"):
+        ctmm.natural_frequencies(chain(beam(damping_ratio=0.01)), n_modes=1, fields="exact")
+    hooked = chain(beam().with_modal_forces(beam().moment_pair(0.1, 0.2, 1.0)))
+    with pytest.raises(ModelError, match="modal-force hooks"):
+        ctmm.natural_frequencies(hooked, n_modes=1, fields="exact")
+    link = RigidBody("l", mass=1.0, inertia=0.1, center_of_mass=(0.2, 0.05), outboard=(0.4, 0.0))
+    with pytest.raises(ModelError, match="off its axis"):
+        ctmm.natural_frequencies(chain(link), n_modes=1, fields="exact")
+    fork = RigidBody("f", mass=1.0, inertia=0.1, outboard={"left": (0.4, 0.0), "right": (0.4, 0.0)})
+    tree = PlanarModel("tree", [Pinned("g", child="f"), fork,
+                                ElasticHinge("h1", parent="f.left", child="b1", stiffness=2.0), beam("b1"),
+                                ElasticHinge("h2", parent="f.right", child="b2", stiffness=2.0), beam("b2")],
+                       gravity=(0.0, 0.0))
+    with pytest.raises(ModelError, match="not a serial chain"):
+        ctmm.natural_frequencies(tree, n_modes=1, fields="exact")
+    with pytest.raises(ModelError, match="uncontrolled"):
+        ctmm.natural_frequencies(seed_scene(pzt=False)[3], n_modes=1, fields="exact")
