@@ -41,7 +41,7 @@ def _output_value(system, states: np.ndarray, s: np.ndarray, name: str,
 
 def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],  # noqa: A002
                        output: str | Sequence[str], solver: str = "riccati",
-                       operating_point: Any = None) -> FrequencyResponse:
+                       operating_point: Any = None, fields: str | None = None) -> FrequencyResponse:
     """Frequency response functions from force/displacement inputs to outputs.
 
     Parameters
@@ -60,6 +60,9 @@ def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],
         Chain solver (plain products only for comparison).
     operating_point : optional
         Planar models only (:func:`ctmm.linearize`; default: the static equilibrium).
+    fields : {"modal", "exact"}, optional
+        Planar models only: ``"exact"`` answers a straight chain with beams by exact beam fields
+        (:mod:`ctmm.exact_fields`); default ``"modal"`` (the model as built).
 
     Returns
     -------
@@ -80,7 +83,10 @@ def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],
             raise ModelError(f"frequency_response: solver={solver!r} is a chain solver; a planar model is answered "
                              "through its linearisation (ctmm.linearize), pass no solver")
         return planar_frequency.frequency_response(system, omega, input=input, output=output,
-                                                   operating_point=operating_point)
+                                                   operating_point=operating_point, fields=fields or "modal")
+    if fields is not None:
+        raise ModelError(f"frequency_response: fields={fields!r} is for planar models; a chain's beam fields are "
+                         "already exact")
     if operating_point is not None:
         raise ModelError(f"frequency_response: operating_point is for planar models; a chain is linear, got "
                          f"operating_point={operating_point!r}")
@@ -208,10 +214,14 @@ def natural_frequencies(system: Any, **options: Any) -> np.ndarray:
     A :class:`~ctmm.system.Chain` is answered by :func:`ctmm.natural.natural_frequencies`
     (options ``n_modes``, ``omega_max``, ``rtol``); a ``PlanarModel`` through its undamped
     linearisation by :func:`ctmm.planar_frequency.natural_frequencies` (options ``n_modes``,
-    ``omega_max``, ``operating_point``).  Damped systems and systems with loops are refused.
+    ``omega_max``, ``operating_point``, ``fields="exact"`` for the exact-field form of a straight
+    chain with beams, :mod:`ctmm.exact_fields`).  Damped systems and systems with loops are refused.
     """
     if is_planar_system(system):
         return planar_frequency.natural_frequencies(system, **options)
+    if "fields" in options:
+        raise ModelError(f"natural_frequencies: fields={options['fields']!r} is for planar models; a chain's beam "
+                         "fields are already exact")
     return natural.natural_frequencies(system, **options)
 
 

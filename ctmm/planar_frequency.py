@@ -22,6 +22,7 @@ import numpy as np
 
 from . import validation
 from .errors import ModelError
+from .loop_phasors import close_loops
 from .planar_linearization import linearize_planar, tangent
 from .planar_linearization import operating_point as planar_operating_point
 from .results import FrequencyResponse, ModalResult
@@ -52,7 +53,8 @@ def _split(system: Any):
 
 
 def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  # noqa: A002
-                       output: str | Sequence[str], operating_point: Any = None) -> FrequencyResponse:
+                       output: str | Sequence[str], operating_point: Any = None,
+                       fields: str = "modal") -> FrequencyResponse:
     """Frequency response of a planar model's linearisation, loops closed with exact delays.
 
     Loops without delay are closed inside the linearisation (:func:`ctmm.linearize`); each delayed
@@ -72,6 +74,10 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
         ``"<loop>.y"``, ``"<loop>.u"``.
     operating_point : optional
         As for :func:`ctmm.linearize` (default: the static equilibrium).
+    fields : {"modal", "exact"}
+        ``"modal"``: the model as built (beams by their kept modes).  ``"exact"``: a straight
+        serial chain converted to exact beam fields between its stations
+        (:func:`ctmm.exact_fields.frequency_response`; refused where it does not apply).
 
     Returns
     -------
@@ -79,6 +85,10 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
         ``response[i_out, i_in, k]``: output deviation phasor per unit input phasor.
     """
     from .planar import ports
+
+    if validation.option("fields", fields, ("modal", "exact")) == "exact":
+        from .exact_fields import frequency_response as exact_response
+        return exact_response(system, omega, input=input, output=output, operating_point=operating_point)
 
     model, loops = _split(system)
     inputs = list(validation.names("input", input))
@@ -103,26 +113,11 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
                          f"axis, e.g. a rigid-body mode at omega = 0): {exc}") from None
     G = C @ X + D                                        # (frequencies, lin_out + delayed y, lin_in + delayed u)
     n_i, n_o, n_d = len(lin_in), len(lin_out), len(delayed)
-    E_w = np.zeros((n_i, len(inputs)))
-    E_r = np.zeros((n_d, len(inputs)))
-    for k, name in enumerate(inputs):
-        loop = delayed_signal(name, ("reference",))
-        if loop is None:
-            E_w[lin_in.index(name), k] = 1.0
-        else:
-            E_r[loop[0], k] = 1.0
-    Gzw, Gzu, Gyw, Gyu = G[:, :n_o, :n_i], G[:, :n_o, n_i:], G[:, n_o:, :n_i], G[:, n_o:, n_i:]
+    blocks = (G[:, :n_o, :n_i], G[:, :n_o, n_i:], G[:, n_o:, :n_i], G[:, n_o:, n_i:])
     K = np.zeros((s.size, n_d, n_d), dtype=complex)
     for j, loop in enumerate(lin.delays):
         K[:, j, j] = _controller_response(loop.gain, s) * np.exp(-s * loop.delay)
-    u = np.linalg.solve(np.eye(n_d) + K @ Gyu, K @ (E_r - Gyw @ E_w)) if n_d else np.zeros((s.size, 0, len(inputs)))
-    z = Gzw @ E_w + Gzu @ u
-    y = Gyw @ E_w + Gyu @ u
-    response = np.empty((len(outputs), len(inputs), s.size), dtype=complex)
-    for k, name in enumerate(outputs):
-        loop = delayed_signal(name, ("y", "u"))
-        rows = z[:, lin_out.index(name)] if loop is None else (y if loop[1] == "y" else u)[:, loop[0]]
-        response[k] = rows.T
+    response = close_loops(blocks, K, inputs, outputs, lin_in, lin_out, delayed_signal)
     sensors, actuators = set(ports.sensor_names(model)), set(ports.actuator_names(model))
     units = {name: ports.actuator_unit(model, name) for name in inputs if name in actuators}
     units.update({name: ports.sensor_unit(model, name) for name in outputs if name in sensors})
@@ -226,7 +221,7 @@ def _counted_frequencies(model: Any, op: Any, count: int, omega_max: Any) -> np.
 
 
 def natural_frequencies(system: Any, *, n_modes: int | None = None, omega_max: float | None = None,
-                        operating_point: Any = None) -> np.ndarray:
+                        operating_point: Any = None, fields: str = "modal") -> np.ndarray:
     """Undamped natural frequencies [rad/s] of a planar model's linearisation (ascending, rigid as 0).
 
     Parameters
@@ -239,7 +234,13 @@ def natural_frequencies(system: Any, *, n_modes: int | None = None, omega_max: f
         All frequencies below ``omega_max`` [rad/s] instead.
     operating_point : optional
         As for :func:`ctmm.linearize` (default: the static equilibrium).
+    fields : {"modal", "exact"}
+        ``"exact"``: the Wittrick-Williams count of the exact-field form of a straight serial
+        chain (:func:`ctmm.exact_fields.natural_frequencies`).
     """
+    if validation.option("fields", fields, ("modal", "exact")) == "exact":
+        from .exact_fields import natural_frequencies as exact_natural
+        return exact_natural(system, n_modes=n_modes, omega_max=omega_max, operating_point=operating_point)
     return _modes(system, "natural_frequencies", n_modes, omega_max, operating_point)[1]
 
 

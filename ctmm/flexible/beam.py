@@ -44,6 +44,7 @@ from ..planar.signals import SignalError, signal_values
 from ..signals import Constant, SignalLike, as_signal
 from .family import ModalBeamFamily
 from .modes import ModeSet, check_quadrature, check_root_clamped, gauss_points
+from .stations import check_stations
 
 
 @dataclass(frozen=True)
@@ -143,6 +144,8 @@ class ModalBeam(DeformableBody):
     quadrature : int
         Gauss-Legendre points for the modal integrals (default 160), at least
         ``2 max(n_modes, n_axial_modes) + 8`` (fewer integrate the higher shapes wrongly).
+    stations : mapping of str to float, optional
+        Named stations ``{name: x}`` [m from the root]: ports ``"arm.<name>.w"`` ... (:mod:`ctmm.flexible.stations`).
 
     Examples
     --------
@@ -169,6 +172,7 @@ class ModalBeam(DeformableBody):
     distributed_load: tuple = (0.0, 0.0)
     modal_forces: Sequence[ModalForce] = ()
     quadrature: int = 160
+    stations: Mapping[str, float] | None = None
     family: ClassVar[type[ModalBeamFamily]] = ModalBeamFamily
 
     def __post_init__(self) -> None:
@@ -189,13 +193,10 @@ class ModalBeam(DeformableBody):
             object.__setattr__(self, "axial_stiffness",
                                validation.positive(f"{n}: axial_stiffness", self.axial_stiffness))
         if not isinstance(self.geometric_stiffening, bool):
-            raise ModelError(f"{n}: geometric_stiffening must be True or False, "
-                             f"got {self.geometric_stiffening!r}")
-        object.__setattr__(self, "damping_ratio",
-                           validation.nonnegative(f"{n}: damping_ratio", self.damping_ratio))
+            raise ModelError(f"{n}: geometric_stiffening must be True or False, got {self.geometric_stiffening!r}")
+        object.__setattr__(self, "damping_ratio", validation.nonnegative(f"{n}: damping_ratio", self.damping_ratio))
         object.__setattr__(self, "stiffness_damping",
-                           validation.nonnegative(f"{n}: stiffness_damping",
-                                                  self.stiffness_damping))
+                           validation.nonnegative(f"{n}: stiffness_damping", self.stiffness_damping))
         modes = self.mode_set if self.mode_set is not None else ModeSet.clamped_free(self.n_modes)
         if not isinstance(modes, ModeSet):
             raise ModelError(f"{n}: mode_set must be a ModeSet, got {modes!r}")
@@ -212,6 +213,7 @@ class ModalBeam(DeformableBody):
         else:
             checked = {"out": _station(n, "outboard", ends, self.length)}
         object.__setattr__(self, "outboard", checked)
+        object.__setattr__(self, "stations", check_stations(self, self.stations))
         loads = tuple(self.loads)
         for load in loads:
             if not isinstance(load, Load):
@@ -334,7 +336,6 @@ class ModalBeam(DeformableBody):
     def with_modal_forces(self, *forces: ModalForce) -> "ModalBeam":
         """Copy with ``forces`` appended to :attr:`modal_forces`."""
         return dataclasses.replace(self, modal_forces=tuple(self.modal_forces) + tuple(forces))
-
 
 
 class BeamData:

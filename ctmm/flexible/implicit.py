@@ -135,9 +135,15 @@ class FlexibleNewtonStep:
                 M[:, 2] -= turn
                 terms[j][0] = M
                 terms[j][1] = terms[j][1] - wrench[j].real + turn * x_k[j][2]
-            for j, force in inputs.modal_force.items():
+            for j in set(inputs.modal_force) | set(inputs.frame_wrench):
                 h = terms[j][1].copy()
-                h[3:] -= force
+                h[3:] -= inputs.modal_force.get(j, 0.0)
+                if j in inputs.frame_wrench:     # station loads on the beam's floating frame
+                    turn = wrench[j].imag / _EPS
+                    M = terms[j][0].copy()
+                    M[:3, 2] -= turn
+                    terms[j][0] = M
+                    h[:3] -= wrench[j].real - turn * x_k[j][2]
                 terms[j][1] = h
             tau_tilde = tau_tilde + inputs.hinge_torque
         result = S.sweep(terms, self.kappa, tau_tilde.tolist(), tangent["alpha_d"])

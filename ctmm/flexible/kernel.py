@@ -275,9 +275,11 @@ class FlexibleSystem:
         wrench = inputs.inboard_wrench(self.model, theta)
         for j in self.rigid:
             terms[j][1] = terms[j][1] - wrench[j]
-        for j, force in inputs.modal_force.items():
+        for j in set(inputs.modal_force) | set(inputs.frame_wrench):
             h = terms[j][1].copy()
-            h[3:] -= force
+            h[3:] -= inputs.modal_force.get(j, 0.0)
+            if j in inputs.frame_wrench:         # station loads on the beam's floating frame
+                h[:3] -= wrench[j]
             terms[j][1] = h
         return tau + inputs.hinge_torque
 

@@ -10,10 +10,14 @@ ordinary :class:`~ctmm.control.Feedback` loops on its ports (:mod:`ctmm.planar.p
   sensor ``y = kp * motor.angle + kd * motor.rate``, gain 1, actuator ``motor.torque``,
   reference ``r(t) = kp theta_d(t) + kd theta_d_dot(t)`` (:func:`scene_references`);
 * ``"<patch>"`` for every PZT patch -- the slope-rate law ``V = -G Psi eta_dot`` (seed eq.
-  (9.65); :class:`~ctmm.manipulator.PZTFeedback`): patch ``j``'s loop senses
-  ``sum_k (G Psi)_jk arm.q<k>_dot`` with gain 1, so its output ``"<patch>.u"`` is the voltage
-  ``V_j`` [V], and acts on the modal equations through the moment pair
-  ``Q_k = c_a_j Psi_jk V_j`` (actuators ``arm.q<k>.force``), ``Psi_jk = phi_k'(x2_j) - phi_k'(x1_j)``.
+  (9.65); :class:`~ctmm.manipulator.PZTFeedback`) on the arm's **station ports**
+  (:mod:`ctmm.flexible.stations`; stations ``"<patch>_x1"``, ``"<patch>_x2"`` at the patch
+  ends): patch ``j``'s loop senses ``sum_i G_ji (arm.<patch_i>_x2.slope_rate -
+  arm.<patch_i>_x1.slope_rate)`` with gain 1, so its output ``"<patch>.u"`` is the voltage
+  ``V_j`` [V], and acts with the moment pair ``[(arm.<patch_j>_x1.moment, -c_a_j),
+  (arm.<patch_j>_x2.moment, +c_a_j)]``.  On the modal beam that is ``Q_k = c_a_j Psi_jk V_j``,
+  ``Psi_jk = phi_k'(x2_j) - phi_k'(x1_j)``; the ports are physical (slopes and moments at
+  points), so the same loops close an exact beam field as well.
 
 So the manipulator is simulated by :func:`ctmm.simulate`, linearised by :func:`ctmm.linearize`
 and analysed by the stability tools like any other controlled model; nothing in the verbs knows
@@ -36,7 +40,8 @@ from ..planar.elements import FixedMounting
 from .laws import HubPD, PZTFeedback, check_pzt
 from .parameters import Manipulator
 
-__all__ = ["manipulator_plant", "manipulator_scene", "scene_references", "arm_beam", "patch_slope_matrix", "HUB_LOOP"]
+__all__ = ["manipulator_plant", "manipulator_scene", "scene_references", "arm_beam", "patch_slope_matrix",
+           "patch_stations", "HUB_LOOP"]
 
 HUB_LOOP = "hub_pd"
 
@@ -68,11 +73,21 @@ def manipulator_plant(manipulator: Manipulator, *, n_modes: int = 3, geometric_s
 
 
 def arm_beam(manipulator: Manipulator, n_modes: int, geometric_stiffening: bool) -> ModalBeam:
-    """The arm as the modal beam ``"arm"`` (``n_modes`` clamped-free modes, Kelvin-Voigt damping)."""
+    """The arm as the modal beam ``"arm"`` (``n_modes`` clamped-free modes, Kelvin-Voigt damping)
+    with a station at each patch end (:func:`patch_stations`)."""
     arm = manipulator.arm
     return ModalBeam("arm", length=arm.length, bending_stiffness=arm.bending_stiffness,
                      mass_per_length=arm.mass_per_length, n_modes=int(n_modes),
-                     stiffness_damping=arm.kelvin_voigt_time, geometric_stiffening=bool(geometric_stiffening))
+                     stiffness_damping=arm.kelvin_voigt_time, geometric_stiffening=bool(geometric_stiffening),
+                     stations=patch_stations(manipulator))
+
+
+def patch_stations(manipulator: Manipulator) -> dict[str, float]:
+    """``{"<patch>_x1": start, "<patch>_x2": end}`` [m from the arm root] of every patch."""
+    stations = {}
+    for patch in manipulator.patches:
+        stations[f"{patch.name}_x1"], stations[f"{patch.name}_x2"] = patch.start, patch.end
+    return stations
 
 
 def patch_slope_matrix(beam: ModalBeam, manipulator: Manipulator) -> np.ndarray:
@@ -114,16 +129,14 @@ def manipulator_scene(manipulator: Manipulator, *, pd: HubPD | None, pzt: PZTFee
         if pzt.on_limit == "saturate":
             raise ModelError("pzt.on_limit='saturate' is a nonlinear law, not a feedback loop: use a "
                              "co-simulated controller or ctmm.manipulator.FlexibleManipulator")
-        psi = patch_slope_matrix(plant.bodies[plant.body_index("arm")], manipulator)
-        sensing = pzt.gains @ psi                                   # V = -(G Psi) eta_dot
         ca = manipulator.moments_per_volt
-        modes = plant.bodies[plant.body_index("arm")].coordinate_suffixes
-        for j, patch in enumerate(manipulator.patches):
-            sensor = [(f"arm.{mode}_dot", float(sensing[j, k])) for k, mode in enumerate(modes[:psi.shape[1]])
-                      if sensing[j, k] != 0.0]
-            actuator = [(f"arm.{mode}.force", float(ca[j] * psi[j, k])) for k, mode in enumerate(modes[:psi.shape[1]])
-                        if psi[j, k] != 0.0]
-            if sensor and actuator:
+        patches = manipulator.patches
+        for j, patch in enumerate(patches):                         # V_j = -sum_i G_ji slope rate over patch i
+            sensor = [(f"arm.{other.name}_x{end}.slope_rate", float(sign * pzt.gains[j, i]))
+                      for i, other in enumerate(patches) if pzt.gains[j, i] != 0.0
+                      for end, sign in ((1, -1.0), (2, 1.0))]
+            actuator = [(f"arm.{patch.name}_x1.moment", -float(ca[j])), (f"arm.{patch.name}_x2.moment", float(ca[j]))]
+            if sensor and ca[j] != 0.0:
                 loops.append(Feedback(patch.name, sensor=sensor, actuator=actuator, gain=1.0, delay=pzt.delay))
     return ControlledModel(plant, loops)
 

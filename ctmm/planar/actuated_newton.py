@@ -53,13 +53,16 @@ def _zero_inputs(model: PlanarModel) -> ActuatorInputs:
 def _same(a: ActuatorInputs, b: ActuatorInputs) -> bool:
     return (np.array_equal(a.hinge_torque, b.hinge_torque) and np.array_equal(a.body_force, b.body_force)
             and a.modal_force.keys() == b.modal_force.keys()
-            and all(np.array_equal(a.modal_force[k], b.modal_force[k]) for k in a.modal_force))
+            and all(np.array_equal(a.modal_force[k], b.modal_force[k]) for k in a.modal_force)
+            and a.frame_wrench.keys() == b.frame_wrench.keys()
+            and all(np.array_equal(a.frame_wrench[k], b.frame_wrench[k]) for k in a.frame_wrench))
 
 
 def _combine(base: ActuatorInputs, shifts: list[tuple[ActuatorInputs, float]]) -> ActuatorInputs:
     """``base + sum w (u - base)`` over ``shifts = [(u, w), ...]``."""
     torque, force = base.hinge_torque.copy(), base.body_force.copy()
     modal = {k: np.array(v, dtype=float) for k, v in base.modal_force.items()}
+    frame = {k: np.array(v, dtype=float) for k, v in base.frame_wrench.items()}
     for u, weight in shifts:
         torque += weight * (u.hinge_torque - base.hinge_torque)
         force += weight * (u.body_force - base.body_force)
@@ -67,7 +70,10 @@ def _combine(base: ActuatorInputs, shifts: list[tuple[ActuatorInputs, float]]) -
             size = len(u.modal_force.get(k, base.modal_force.get(k)))
             change = u.modal_force.get(k, np.zeros(size)) - base.modal_force.get(k, np.zeros(size))
             modal[k] = modal.get(k, np.zeros(size)) + weight * change
-    return ActuatorInputs(torque, force, modal)
+        for k in set(u.frame_wrench) | set(base.frame_wrench):
+            change = u.frame_wrench.get(k, np.zeros(3)) - base.frame_wrench.get(k, np.zeros(3))
+            frame[k] = frame.get(k, np.zeros(3)) + weight * change
+    return ActuatorInputs(torque, force, modal, frame)
 
 
 class ActuatedNewton:
@@ -101,7 +107,8 @@ class ActuatedNewton:
                                   f"(see actuator_inputs), got {type(value).__name__} at t = {t:.6g} s",
                                   time=float(t), element="inputs")
         arrays = [np.asarray(value.hinge_torque, float), np.asarray(value.body_force, float),
-                  *(np.asarray(f, float) for f in value.modal_force.values())]
+                  *(np.asarray(f, float) for f in value.modal_force.values()),
+                  *(np.asarray(f, float) for f in value.frame_wrench.values())]
         if (arrays[0].shape != (nb,) or arrays[1].shape != (nb, 3)
                 or not all(np.all(np.isfinite(a)) for a in arrays)):
             raise InputError(f"inputs(t, q, qdot) returned actuator values of the wrong shape or not "

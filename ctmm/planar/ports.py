@@ -10,7 +10,10 @@ Sensors (measured signals, all in global axes)
     * ``"<hinge>.angle"``, ``"<hinge>.rate"`` -- relative angle [rad] and rate [rad/s] of a
       hinge (child minus the parent end, elastic slope of a flexible parent included);
     * every generalised coordinate (``"arm.q1"``, ``"base.x"``) and its rate
-      ``"<coordinate>_dot"``.
+      ``"<coordinate>_dot"``;
+    * at every named station of a modal beam (:mod:`ctmm.flexible.stations`), in the beam's
+      floating frame: ``"<beam>.<station>.w"`` (transverse deflection [m]), ``".slope"``
+      (elastic slope [rad]), ``".w_dot"`` [m/s], ``".slope_rate"`` [rad/s].
 
 Actuators (inputs, added to what the model's own laws apply)
     * ``"<hinge>.torque"`` -- torque [N m] exerted by the parent on the child across a
@@ -21,7 +24,11 @@ Actuators (inputs, added to what the model's own laws apply)
     * ``"<beam>.<coordinate suffix>.force"`` -- generalised force on one modal equation of a
       beam [N per unit modal coordinate]; a piezo moment pair ``M`` between ``x1`` and ``x2``
       is the weighted set ``M (phi_i'(x2) - phi_i'(x1))`` over the transverse modes (see
-      :meth:`ctmm.flexible.ModalBeam.mode_slopes`).
+      :meth:`ctmm.flexible.ModalBeam.mode_slopes`);
+    * ``"<beam>.<station>.force"`` -- transverse force [N] (beam frame, turning with the beam)
+      and ``"<beam>.<station>.moment"`` [N m] at a named station: physical loads, on the modal
+      equations ``phi_k(x) F``, ``phi_k'(x) M`` and on the floating frame ``F`` and ``x F + M``
+      (a station force needs an axially rigid beam, ``n_axial_modes = 0``).
 
 Sensors are kinematic: a position-like sensor (angle, position, coordinate) depends on ``q``
 only and its rate counterpart is linear in ``qdot``, ``y_rate = J(q) qdot (+ dy/dt of driven
@@ -55,7 +62,9 @@ __all__ = [
 ]
 
 _POINT_PARTS = {"x": (0, 0, "m"), "y": (0, 1, "m"), "vx": (1, 0, "m/s"), "vy": (1, 1, "m/s")}
-_RATE_OF = {"x": "vx", "y": "vy", "theta": "omega", "angle": "rate"}
+_RATE_OF = {"x": "vx", "y": "vy", "theta": "omega", "angle": "rate", "w": "w_dot", "slope": "slope_rate"}
+_STATION_PARTS = {"w": ("m", 0, False), "slope": ("rad", 1, False), "w_dot": ("m/s", 0, True),
+                  "slope_rate": ("rad/s", 1, True)}      # unit, shape derivative, rate
 
 
 @dataclass(frozen=True)
@@ -63,24 +72,26 @@ class _Sensor:
     """One resolved sensor: what it reads and whether it is a rate (linear in ``qdot``)."""
 
     name: str
-    kind: str            # "coordinate", "body_angle", "hinge", "point"
+    kind: str            # "coordinate", "body_angle", "hinge", "point", "station"
     index: int           # coordinate index, body index or joint index
     part: str            # "theta"/"omega", "angle"/"rate", "x"/"y"/"vx"/"vy", "" / "dot"
-    point: str = ""      # point name for kind == "point"
+    point: str = ""      # point name for kind == "point", station name for kind == "station"
     unit: str = ""
 
     @property
     def is_rate(self) -> bool:
-        return self.part in ("omega", "rate", "vx", "vy", "dot")
+        return self.part in ("omega", "rate", "vx", "vy", "dot", "w_dot", "slope_rate")
 
 
 @dataclass(frozen=True)
 class _Actuator:
     name: str
-    kind: str            # "hinge", "body", "modal"
+    kind: str            # "hinge", "body", "modal", "station"
     index: int           # joint index, body index
-    component: int       # 0, 1, 2 (fx, fy, moment) for bodies; modal row for beams
+    component: int       # 0, 1, 2 (fx, fy, moment) for bodies; modal row for beams; 1, 2 (force,
+                         # moment) for stations
     unit: str
+    station: str = ""
 
 
 def _unknown(what: str, name: object, model: PlanarModel, known: Mapping) -> UnknownNameError:
@@ -110,6 +121,15 @@ def _build(model: PlanarModel) -> tuple[dict, dict]:
             for k, suffix in enumerate(model.beams[i].coordinate_suffixes):
                 label = f"{body}.{suffix}.force"
                 actuators[label] = _Actuator(label, "modal", i, k, "N")
+            for station in getattr(model.beams[i], "stations", None) or {}:
+                for part, (unit, _, _) in _STATION_PARTS.items():
+                    label = f"{body}.{station}.{part}"
+                    sensors[label] = _Sensor(label, "station", i, part, station, unit)
+                for k, part in ((1, "force"), (2, "moment")):
+                    if k == 1 and model.beams[i].n_axial_modes:
+                        continue        # the moment arm x + psi(x) . p would depend on the state
+                    label = f"{body}.{station}.{part}"
+                    actuators[label] = _Actuator(label, "station", i, k, "N" if k == 1 else "N m", station)
     for j, hinge in enumerate(model.joint_names):
         kind = model.joint_kind[j]
         if kind in (REVOLUTE, BUSHING):
@@ -160,6 +180,12 @@ class PlanarPorts:
                     name[:-len(".torque")] in self.model.joint_names:
                 raise ModelError(f"{what} {name!r}: hinge {name[:-7]!r} is driven or welded (its "
                                  "motion is prescribed); only free revolute hinges take a torque input")
+            station = self.actuators.get(name[:-len(".force")] + ".moment") if isinstance(name, str) \
+                and name.endswith(".force") else None
+            if station is not None and station.kind == "station":
+                raise ModelError(f"{what} {name!r}: a station force needs an axially rigid beam "
+                                 "(n_axial_modes = 0: its moment arm would move with the axial modes); "
+                                 "station moments are available")
             raise _unknown(what, name, self.model, self.actuators)
         return name
 
@@ -191,6 +217,7 @@ class PlanarPorts:
         torque = np.zeros(nb)
         force = np.zeros((nb, 3))
         modal: dict[int, np.ndarray] = {}
+        frame: dict[int, np.ndarray] = {}
         for name, value in values.items():
             actuator = self.actuators[self.check_actuator(name)]
             value = validation.finite(f"actuator {name!r}", value)
@@ -200,8 +227,26 @@ class PlanarPorts:
                 force[actuator.index, actuator.component] += value
             else:
                 row = modal.setdefault(actuator.index, np.zeros(len(model.modal_index[actuator.index])))
-                row[actuator.component] += value
-        return ActuatorInputs(torque, force, modal)
+                if actuator.kind == "modal":
+                    row[actuator.component] += value
+                else:
+                    _station_load(model.beams[actuator.index], actuator, value, row,
+                                  frame.setdefault(actuator.index, np.zeros(3)))
+        return ActuatorInputs(torque, force, modal, frame)
+
+
+def _station_load(beam, actuator: _Actuator, value: float, modal_row: np.ndarray, frame_row: np.ndarray) -> None:
+    """Add the loads of ``value`` on station actuator ``actuator`` (in place): modal
+    ``phi_k(x) F`` or ``phi_k'(x) M`` and frame ``(0, F, x F)`` or ``(0, 0, M)``."""
+    x = beam.stations[actuator.station]
+    nq = beam.n_modes
+    if actuator.component == 1:
+        modal_row[:nq] += value * beam.shapes([x], 0)[:, 0]
+        frame_row[1] += value
+        frame_row[2] += x * value
+    else:
+        modal_row[:nq] += value * beam.shapes([x], 1)[:, 0]
+        frame_row[2] += value
 
 
 def sensor_names(model: PlanarModel) -> tuple[str, ...]:
@@ -260,6 +305,7 @@ def _evaluate(model: PlanarModel, sensors: Sequence[_Sensor], q, qdot, t: float)
         theta, omega = model.body_angles(q, qdot, t)
     relative = None
     values = np.empty(len(sensors))
+    station_rows = {}
     for n, sensor in enumerate(sensors):
         if sensor.kind == "coordinate":
             values[n] = (qdot if sensor.part == "dot" else q)[sensor.index]
@@ -269,6 +315,15 @@ def _evaluate(model: PlanarModel, sensors: Sequence[_Sensor], q, qdot, t: float)
             if relative is None:
                 relative = model.relative_angles(theta, omega, q, qdot)
             values[n] = relative[1 if sensor.part == "rate" else 0][sensor.index]
+        elif sensor.kind == "station":
+            _, derivative, rate = _STATION_PARTS[sensor.part]
+            key = (sensor.index, sensor.point, derivative)
+            if key not in station_rows:
+                beam = model.beams[sensor.index]
+                station_rows[key] = beam.shapes([beam.stations[sensor.point]], derivative)[:, 0]
+            row = station_rows[key]
+            index = model.modal_index[sensor.index][:row.size]
+            values[n] = row @ (qdot if rate else q)[index]
         else:
             derivative, axis, _ = _POINT_PARTS[sensor.part]
             values[n] = points[(sensor.index, sensor.point)][derivative][axis]
@@ -361,11 +416,16 @@ class ActuatorInputs:
         Extra force at the centre of mass (global ``fx, fy`` [N]) and moment [N m] on each body.
     modal_force : dict of int to ndarray
         Extra generalised forces on the modal equations of beams, by body index.
+    frame_wrench : dict of int to ndarray
+        Extra wrench on the floating frame of beams, by body index: ``(f_x, f_y, moment about
+        the root)`` [N, N, N m] in the beam's frame (it turns with the beam): the frame part of
+        the station loads.
     """
 
     hinge_torque: np.ndarray
     body_force: np.ndarray
     modal_force: Mapping[int, np.ndarray] = field(default_factory=dict)
+    frame_wrench: Mapping[int, np.ndarray] = field(default_factory=dict)
 
     def inboard_wrench(self, model: PlanarModel, theta: np.ndarray) -> np.ndarray:
         """``(fx, fy, moment about the inboard point)`` of the body forces, shape (n_bodies, 3),
@@ -376,6 +436,11 @@ class ActuatorInputs:
         f = self.body_force
         wrench = np.array(f, dtype=np.result_type(f, theta))
         wrench[:, 2] = rcx * f[:, 1] - rcy * f[:, 0] + f[:, 2]
+        if self.frame_wrench:
+            for j, (f1, f2, moment) in self.frame_wrench.items():
+                wrench[j, 0] += c[j] * f1 - s[j] * f2
+                wrench[j, 1] += s[j] * f1 + c[j] * f2
+                wrench[j, 2] += moment
         return wrench
 
 
