@@ -78,7 +78,7 @@ def arm_beam(manipulator: Manipulator, n_modes: int, geometric_stiffening: bool)
     arm = manipulator.arm
     return ModalBeam("arm", length=arm.length, bending_stiffness=arm.bending_stiffness,
                      mass_per_length=arm.mass_per_length, n_modes=int(n_modes),
-                     stiffness_damping=arm.kelvin_voigt_time, geometric_stiffening=bool(geometric_stiffening),
+                     stiffness_damping=arm.kelvin_voigt_time, geometric_stiffening=validation.flag("geometric_stiffening", geometric_stiffening),
                      stations=patch_stations(manipulator))
 
 

@@ -201,6 +201,8 @@ class PlanarPorts:
         """The resolved sensors ``names`` (for :meth:`values` in a loop)."""
         if isinstance(names, str):
             raise ModelError(f"names must be a sequence of sensor names, got the string {names!r}")
+        if not isinstance(names, (list, tuple)):
+            raise ModelError(f"names must be a list or tuple of sensor names (str), got {names!r}")
         return [self.sensors[self.check_sensor(name)] for name in names]
 
     def values(self, sensors: list, q: np.ndarray, qdot: np.ndarray, t: float) -> np.ndarray:
@@ -348,8 +350,9 @@ def sensor_values(model: PlanarModel, names: Sequence[str], q, qdot, t: float = 
     ndarray, shape (len(names),)
         In the sensors' units (:func:`sensor_unit`).
     """
+    sensors = PlanarPorts(model).resolve(names)          # checks the model type first
     q, qdot = model.state(q, qdot)
-    return _evaluate(model, PlanarPorts(model).resolve(names), q, qdot, validation.finite("t", t))
+    return _evaluate(model, sensors, q, qdot, validation.finite("t", t))
 
 
 def _rate_twin(sensor: _Sensor) -> _Sensor:
@@ -371,9 +374,10 @@ def sensor_jacobians(model: PlanarModel, names: Sequence[str], q, qdot, t: float
     -------
     dy_dq, dy_dqdot : ndarray, shape (len(names), n_coordinates)
     """
+    sensors = PlanarPorts(model).resolve(names)          # checks the model type first
+    step = validation.positive("step", step)
     q, qdot = model.state(q, qdot)
     t = validation.finite("t", t)
-    sensors = PlanarPorts(model).resolve(names)
     n = model.n_coordinates
     twins = [_rate_twin(s) for s in sensors]
     # the rate maps are affine in qdot: J e_k = y(q, e_k) - y(q, 0)
