@@ -101,6 +101,9 @@ def operating_point(model: Any, point: Any = None, *, allow_nonequilibrium: bool
     OperatingPoint
         ``jacobian_error`` not yet set (0).
     """
+    if getattr(model, "n_coordinates", 1) == 0:
+        raise ModelError(f"model {model.name!r} has no coordinates (every body is welded or driven): there is no "
+                         "motion to linearise about an operating point")
     from .planar.linear import hanging_configuration, static_equilibrium
     from .planar.sweep import accelerations
 

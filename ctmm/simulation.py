@@ -268,6 +268,9 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
                      store_every: int) -> SimulationResult:
     """:func:`simulate` of a planar model or a controlled planar model (dispatch on ``method``)."""
     model, loops = parts
+    if model.n_coordinates == 0:
+        raise ModelError(f"model {model.name!r} has no coordinates (every body is welded or driven): there is "
+                         "nothing to integrate; its prescribed motion is model.points(q=[], qdot=[], t)")
     for name, value, default in (("solver", solver, "riccati"), ("force_hook", force_hook, None), ("t0", t0, 0.0)):
         if value is not default and value != default:
             raise ModelError(f"{name}={value!r} applies to 1-D chains only; a planar run starts at t = 0 and "

@@ -29,7 +29,7 @@ from ctmm import stability
 from ctmm.control import ControlledModel, DelayedController, Feedback, loop_transfer_function, margins, with_feedback
 from ctmm.elements import BeamClamped, BeamField, BeamFree
 from ctmm.flexible import ModalBeam
-from ctmm.planar import Pinned, PlanarModel, RigidBody, accelerations, ports, simulate_implicit, solve_instant
+from ctmm.planar import Fixed, Pinned, PlanarModel, RigidBody, accelerations, ports, simulate_implicit, solve_instant
 
 from test_api_fuzz import BAD, Case, Opaque, chain, check_refused
 
@@ -536,3 +536,15 @@ def test_the_linearisation_about_an_angle_of_many_turns_is_the_pendulum_stiffnes
     q = -math.pi / 2.0 + 2.0 * math.pi * turns
     tangent = ctmm.linearize(arm(), ([q], [0.0])).state_space.A
     assert tangent[1, 0] == pytest.approx(-3.0 * 9.81 / (2.0 * 0.5), rel=1e-7)
+
+
+def test_a_model_without_coordinates_is_refused_by_every_verb():
+    from ctmm.planar.elements import FixedMounting
+
+    welded = PlanarModel.chain("welded", [Fixed("g"), FixedMounting("m"), RigidBody.uniform_link("l", mass=1.0,
+                                                                                                length=1.0)])
+    for verb in (lambda: ctmm.linearize(welded), lambda: ctmm.natural_frequencies(welded, n_modes=1),
+                 lambda: ctmm.simulate(welded, 0.01, 0.001),
+                 lambda: ctmm.frequency_response(welded, [1.0], input="l.force_x", output="l.theta")):
+        with pytest.raises(ctmm.ModelError, match="has no coordinates"):
+            verb()
