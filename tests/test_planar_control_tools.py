@@ -58,3 +58,22 @@ def test_margins_of_a_planar_loop_add_the_crossover_a_coarse_grid_misses():
     assert result.gain_crossovers == pytest.approx([w_gc], rel=1e-9)
     assert result.delay_margin == pytest.approx((np.pi + np.angle(exact_loop(w_gc))) / w_gc, rel=1e-8)
     assert any("certified search" in note for note in result.notes)
+
+
+def test_exact_field_margins_of_the_manipulator_scene_equal_the_exact_chain():
+    """fields="exact": the scene's loops on the exact beam fields give LinearManipulator's margins (itself
+    checked against the 150-mode continuum in tests/test_manipulator_frequency.py)."""
+    from ctmm.manipulator import (SEED_KD, SEED_KP, SEED_PZT_GAIN, HubPD, LinearManipulator, PZTFeedback,
+                                  manipulator_scene, seed_manipulator)
+
+    arm = seed_manipulator()
+    pd, law = HubPD(SEED_KP, SEED_KD), PZTFeedback.per_patch([SEED_PZT_GAIN] * arm.n_patches)
+    scene = manipulator_scene(arm, pd=pd, pzt=law, geometric_stiffening=False)
+    omega = np.linspace(0.5, 60.0, 300)
+    exact = margins(scene, "hub_pd", omega, fields="exact")
+    chain = LinearManipulator(arm, pd, law).margins("pd", omega)
+    np.testing.assert_allclose(exact.gain_crossovers, chain.gain_crossovers, rtol=1e-10)
+    np.testing.assert_allclose(exact.delay_margins, chain.delay_margins, rtol=1e-10)
+    assert any("exact beam fields" in note for note in exact.notes)
+    with pytest.raises(ModelError, match="fields"):
+        loop_transfer_function(system(), "pd", [1.0], fields="exact")     # a rigid pendulum has no beam

@@ -67,10 +67,12 @@ def closed_loop_response(system: Any, omega: Any, inputs: str | Sequence[str],
     return frequency_response(system, omega, input=inputs, output=outputs)
 
 
-def open_loop_plant(system: ControlledChain | ControlledModel, loop: str, omega: Any) -> np.ndarray:
+def open_loop_plant(system: ControlledChain | ControlledModel, loop: str, omega: Any, *,
+                    fields: str | None = None) -> np.ndarray:
     """``P_yu(i omega)``: sensed value of ``loop`` per unit force of its actuator, with this loop
     removed and all other loops closed [sensed unit / N].  A planar model (:class:`ControlledModel`)
-    is linearised about its operating point (:func:`ctmm.linearize`); delays stay exact."""
+    is linearised about its operating point (:func:`ctmm.linearize`), or with ``fields="exact"``
+    answered by exact beam fields (:mod:`ctmm.exact_fields`); delays stay exact."""
     if not isinstance(system, (ControlledChain, ControlledModel)):
         raise ModelError(f"a loop transfer function needs a ControlledChain or a ControlledModel, got {system!r}")
     w = _omega(omega)
@@ -80,7 +82,11 @@ def open_loop_plant(system: ControlledChain | ControlledModel, loop: str, omega:
     signals = list(dict.fromkeys(sig for sig, _ in lp.terms))
     actuators = (actuator_inputs(system, loop) if isinstance(system, ControlledChain)
                  else [(name, float(weight)) for name, weight in lp.actuator_terms])
-    frf = frequency_response(open_system, w, input=list(dict.fromkeys(a for a, _ in actuators)), output=signals)
+    if fields is not None and not isinstance(system, ControlledModel):
+        raise ModelError(f"fields={fields!r} applies to planar models (ControlledModel), not to {type(system).__name__}")
+    options = {} if fields is None else {"fields": fields}
+    frf = frequency_response(open_system, w, input=list(dict.fromkeys(a for a, _ in actuators)), output=signals,
+                             **options)
     P = np.zeros(w.size, dtype=complex)
     for inp, a_weight in actuators:
         for sig, weight in lp.terms:
@@ -88,7 +94,8 @@ def open_loop_plant(system: ControlledChain | ControlledModel, loop: str, omega:
     return P
 
 
-def loop_transfer_function(system: ControlledChain | ControlledModel, loop: str, omega: Any) -> FrequencyResponse:
+def loop_transfer_function(system: ControlledChain | ControlledModel, loop: str, omega: Any, *,
+                           fields: str | None = None) -> FrequencyResponse:
     """Open loop ``L(i omega) = C(i omega) e^{-i omega tau} P_yu(i omega)`` broken at the actuator.
 
     Parameters
@@ -118,7 +125,7 @@ def loop_transfer_function(system: ControlledChain | ControlledModel, loop: str,
     (1-1j)
     """
     w = _omega(omega)
-    P = open_loop_plant(system, loop, w)
+    P = open_loop_plant(system, loop, w, fields=fields)
     lp = system.loop(loop)
     L = lp.loop_gain(1j * w) * P
     return FrequencyResponse(w, L[None, None, :], (f"{lp.name}.u",), (f"{lp.name}.L",),
@@ -233,7 +240,7 @@ def _dedupe(values: Sequence[float], tol: float = 1e-9) -> list[float]:
     return out
 
 
-def margins(source: Any, loop: str | None = None, omega: Any = None) -> Margins:
+def margins(source: Any, loop: str | None = None, omega: Any = None, *, fields: str | None = None) -> Margins:
     """Gain, phase, stability and delay margins of a loop.
 
     Parameters
@@ -247,6 +254,10 @@ def margins(source: Any, loop: str | None = None, omega: Any = None) -> Margins:
         Loop name (with a controlled chain).
     omega : array_like, optional
         Dense frequency grid [rad/s] covering all crossovers (with a controlled chain).
+    fields : {"modal", "exact"}, optional
+        Planar models: ``"exact"`` computes ``L`` from exact beam fields (:mod:`ctmm.exact_fields`);
+        the certified crossover search then does not apply (it works on the linearisation) and the
+        crossovers come from the grid, refined on the exact ``L``.
 
     Returns
     -------
@@ -270,14 +281,17 @@ def margins(source: Any, loop: str | None = None, omega: Any = None) -> Margins:
                              f"(loops: {[lp.name for lp in source.loops]}), got loop={loop!r}, omega={omega!r:.80}")
         w = _omega(omega)
         lp = source.loop(loop)
-        L = loop_transfer_function(source, loop, w)("{}.L".format(lp.name))
+        L = loop_transfer_function(source, loop, w, fields=fields)("{}.L".format(lp.name))
 
         def evaluate(x: float) -> complex:
-            return complex(loop_transfer_function(source, loop, [x])(f"{lp.name}.L")[0])
+            return complex(loop_transfer_function(source, loop, [x], fields=fields)(f"{lp.name}.L")[0])
     else:
         if isinstance(source, Chain):
             raise ModelError(f"margins needs a ControlledChain with loop {loop!r}, got the plain Chain "
                              f"{source.name!r}; close it with ctmm.control.ControlledChain(plant, [Feedback(...)])")
+        if fields is not None:
+            raise ModelError(f"fields={fields!r} applies to a ControlledModel, not to a loop transfer function "
+                             "given as data")
         if loop is not None or omega is not None:
             raise ModelError(f"margins(system, loop, omega) needs a ControlledChain, got {type(source).__name__} "
                              f"({source!r:.80}); a ControlledModel is accepted too (ctmm.control.with_feedback), and a "
@@ -330,7 +344,10 @@ def margins(source: Any, loop: str | None = None, omega: Any = None) -> Margins:
     pcs = _dedupe([_refine(f_imag, wg, x) for x in pc_est])
     notes: list[str] = []
     certificate = None
-    if isinstance(source, (ControlledChain, ControlledModel)):
+    if fields == "exact":
+        notes.append("exact beam fields: crossovers located on the grid and refined on the exact L; the certified "
+                      "search works on the linearisation and is not applied")
+    elif isinstance(source, (ControlledChain, ControlledModel)):
         gc_cert, pc_cert, certificate, notes = _certified_crossovers(source, lp.name)
         for kind, found, exact in (("gain", gcs, gc_cert), ("phase", pcs, pc_cert)):
             for x in exact:
