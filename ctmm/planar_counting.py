@@ -74,33 +74,88 @@ class FrequencyCounter:
                                  f"{model.name!r} has velocity-dependent forces at the operating point (largest "
                                  f"|C0| = {np.max(np.abs(C0)):.3e}: a damped beam)")
 
-    def _pivots(self, omega: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, bool]]:
-        """``(pivot, scale, eliminated)`` for every joint and modal pivot at real ``omega`` (B,):
+    def _sweep(self, squared: np.ndarray) -> tuple[list, list, list]:
+        """Joint pivots ``D_j``, modal blocks ``C_j`` and inertias ``Phi_j`` (batched, ``None`` where
+        absent) at ``omega^2 = squared`` (B,) [rad^2/s^2] (``s = sqrt(-omega^2)``; ``omega^2 < 0`` counts
+        negative stiffness).  An exactly singular multi-dimensional pivot (``LinAlgError``) gives ``nan``
+        at that frequency (the count's margin is then ``nan`` and it is recounted beside it)."""
+        s = np.sqrt(-squared.astype(complex))
+        try:
+            with np.errstate(all="ignore"):
+                result = self.terms.sweep(s)
+            return result.pivot, result.modal, result.inertia
+        except np.linalg.LinAlgError:
+            pass
+        nb = len(self.terms.bodies)
+        parts = [[], [], []]
+        for value in s:
+            try:
+                with np.errstate(all="ignore"):
+                    result = self.terms.sweep(np.array([value]))
+                found = (result.pivot, result.modal, result.inertia)
+            except np.linalg.LinAlgError:
+                found = None
+            for k in range(3):
+                parts[k].append(found[k] if found is not None else None)
+        out = []
+        for k, shape in enumerate((self._pivot_shape, self._modal_shape, lambda j: (3, 3))):
+            stacked = []
+            for j in range(nb):
+                size = shape(j)
+                if size is None:
+                    stacked.append(None)
+                    continue
+                rows = [np.full((1,) + size, np.nan, dtype=complex) if p is None else p[j] for p in parts[k]]
+                stacked.append(np.concatenate(rows, axis=0))
+            out.append(stacked)
+        return out[0], out[1], out[2]
+
+    def _pivot_shape(self, j: int) -> tuple[int, int] | None:
+        joint = self.terms.joints[j]
+        return None if joint.prescribed is not None or joint.free == 0 else (joint.free, joint.free)
+
+    def _modal_shape(self, j: int) -> tuple[int, int] | None:
+        size = self.terms.bodies[j][0].shape[0] - 3
+        return (size, size) if size > 0 else None
+
+    def _pivots(self, squared: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, bool]]:
+        """``(pivot, scale, eliminated)`` for every joint and modal pivot at ``omega^2 = squared`` (B,):
         symmetric real parts ``(B, k, k)``, the size of the terms each is the sum of ``(B,)``, and
         whether it is eliminated into a parent (a zero pivot at the ground is a natural frequency of
         the whole model and cannot spoil the count)."""
-        with np.errstate(all="ignore"):
-            result = self.terms.sweep(1j * omega)
-        w2 = (omega * omega)[:, None, None]
+        pivots, modal, inertias = self._sweep(squared)
         out = []
-        for j, ((M0, _, K0, _, _), D, C) in enumerate(zip(self.terms.bodies, result.pivot, result.modal)):
+        for j, ((M0, _, K0, _, _), D, C) in enumerate(zip(self.terms.bodies, pivots, modal)):
             if C is not None:
                 n = C.shape[-1]
-                own = np.abs(K0[3:, 3:]).max() + w2[:, 0, 0] * np.abs(M0[3:, 3:]).max()
+                own = np.abs(K0[3:, 3:]).max() + np.abs(squared) * np.abs(M0[3:, 3:]).max()
                 out.append((_symmetric(C, n), np.maximum(own, np.abs(C).max(axis=(-2, -1))), True))
             if D is not None:
                 S = self.terms.joints[j].S
-                inertia = np.swapaxes(S, -1, -2) @ result.inertia[j] @ S
+                inertia = np.swapaxes(S, -1, -2) @ inertias[j] @ S
                 scale = np.abs(inertia).max(axis=(-2, -1)) + np.abs(D - inertia).max(axis=(-2, -1))
                 out.append((_symmetric(D, D.shape[-1]), scale, self.terms.tree.parent[j] >= 0))
         return out
 
+    def negative_count(self) -> int:
+        """Number of modes with ``omega^2 < 0`` (negative stiffness: an unstable operating point): the
+        count below ``omega^2 = -1e-10 omega_ref^2`` (``omega_ref^2``: largest stiffness over largest
+        inertia of the bodies and hinges), so rigid-body modes (``omega^2 = 0``) are not counted."""
+        stiffness = max([float(np.max(np.abs(K0))) for _, _, K0, _, _ in self.terms.bodies]
+                        + [float(np.max(np.abs(self.model.stiffness), initial=0.0))])
+        inertia = max(float(np.max(np.abs(M0))) for M0, _, _, _, _ in self.terms.bodies)
+        reference = max(stiffness / inertia, 1e-300)
+        return int(self._raw(np.array([-1e-10 * reference]))[0][0])
+
     def raw(self, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Sylvester count and smallest relative pivot (``nan`` if non-finite) at ``omega`` (B,)."""
+        """Sylvester count and smallest relative pivot (``nan`` if non-finite) at ``omega`` (B,) [rad/s]."""
         omega = np.asarray(omega, dtype=float)
-        count = np.zeros(omega.shape, dtype=np.int64)
-        margin = np.full(omega.shape, np.inf)
-        for pivot, scale, eliminated in self._pivots(omega):
+        return self._raw(omega * omega)
+
+    def _raw(self, squared: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        count = np.zeros(squared.shape, dtype=np.int64)
+        margin = np.full(squared.shape, np.inf)
+        for pivot, scale, eliminated in self._pivots(squared):
             bad = ~np.all(np.isfinite(pivot), axis=(-2, -1))
             safe = np.where(bad[:, None, None], 0.0, pivot)
             values = safe[:, 0, 0][:, None] if safe.shape[-1] == 1 else np.linalg.eigvalsh(safe)
@@ -115,7 +170,7 @@ class FrequencyCounter:
         """Sign of ``det(K - omega^2 M)`` up to a fixed factor: the product of all pivot determinants
         (no poles: near a substructure resonance a tiny pivot times the huge next one stays exact)."""
         sign = np.ones(np.shape(omega))
-        for pivot, _, _ in self._pivots(np.asarray(omega, dtype=float)):
+        for pivot, _, _ in self._pivots(np.asarray(omega, dtype=float) ** 2):
             with np.errstate(all="ignore"):
                 sign = sign * np.sign(np.linalg.det(np.where(np.isfinite(pivot), pivot, 0.0)))
         return sign
@@ -147,7 +202,7 @@ class FrequencyCounter:
         model = self.model
         if (n_modes is None) == (omega_max is None):
             raise ModelError("give exactly one of n_modes (int >= 1) or omega_max (rad/s > 0)")
-        n_negative = int(self.count([0.0])[0])
+        n_negative = self.negative_count()
         if n_negative > 0:
             raise ModelError(f"model {model.name!r} is statically unstable about q = "
                              f"{self.q0.tolist()}: {n_negative} mode(s) with negative stiffness "
