@@ -80,6 +80,9 @@ class Articulated:
     characteristic : matrix (1, 1) or None
         ``prod det D_j * prod det C_j`` (the frequency context's characteristic function), when
         asked for.
+    inertia : list or None
+        ``Phi_j`` (d, d): the articulated inertia at each inboard point before the joint is
+        eliminated, ``D_j = S^T Phi_j S + kappa_j`` (the terms of a pivot, for its relative size).
     """
 
     x: list
@@ -88,6 +91,7 @@ class Articulated:
     pivot: list
     modal: list
     characteristic: Any = None
+    inertia: Any = None
 
 
 def explicit_kappa(joints: Sequence[JointTerms]) -> list:
@@ -213,4 +217,4 @@ def articulated_sweep(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints:
     if characteristic:
         for block in [b for b in D if b is not None] + [b for b in C if b is not None]:
             char = ops.det(block) if char is None else char * ops.det(block)
-    return Articulated(x, force, relative, D, C, char)
+    return Articulated(x, force, relative, D, C, char, Phi)

@@ -22,7 +22,6 @@ from .chain_assembly import assemble, laplace_variables, solve  # noqa: F401  (a
 from .entire_values import entire_logs
 from .errors import ModelError
 from . import natural
-from .natural import eigenvalue_count  # noqa: F401  (re-exported)
 from .planar_frequency import is_planar_system
 from .results import FrequencyResponse
 from .signal_units import signal_unit
@@ -223,6 +222,17 @@ def natural_frequencies(system: Any, **options: Any) -> np.ndarray:
         raise ModelError(f"natural_frequencies: fields={options['fields']!r} is for planar models; a chain's beam "
                          "fields are already exact")
     return natural.natural_frequencies(system, **options)
+
+
+def eigenvalue_count(system: Any, omega: Any, **options: Any) -> np.ndarray:
+    """Number of undamped natural frequencies strictly below each ``omega`` [rad/s].
+
+    Chains: :func:`ctmm.natural.eigenvalue_count`; planar models (rigid or flexible):
+    :func:`ctmm.planar_frequency.eigenvalue_count` (option ``operating_point``).
+    """
+    if is_planar_system(system):
+        return planar_frequency.eigenvalue_count(system, omega, **options)
+    return natural.eigenvalue_count(system, omega, **options)
 
 
 def mode_shapes(system: Any, **options: Any):

@@ -1,7 +1,7 @@
 """Frequency verbs on planar models through their linearisation (:func:`ctmm.linearize`).
 
-:func:`ctmm.frequency_response`, :func:`ctmm.natural_frequencies` and :func:`ctmm.mode_shapes`
-dispatch here for a :class:`~ctmm.planar.model.PlanarModel` (rigid or flexible) or a
+:func:`ctmm.frequency_response`, :func:`ctmm.natural_frequencies`, :func:`ctmm.mode_shapes` and
+:func:`ctmm.eigenvalue_count` dispatch here for a :class:`~ctmm.planar.model.PlanarModel` (rigid or flexible) or a
 ``ctmm.control.ControlledModel``.  The model is linearised about ``operating_point`` (default:
 its static equilibrium, see :func:`ctmm.linearize`); the response is that of the linearisation,
 ``G(s) = C (s I - A)^{-1} B + D``, with delayed loops closed exactly by ``e^{-s tau}``.
@@ -9,9 +9,11 @@ its static equilibrium, see :func:`ctmm.linearize`); the response is that of the
 Natural frequencies are those of the undamped linearisation ``M qddot + K q = 0``:
 ``omega_k^2`` are the eigenvalues of ``-df/dq`` (``= M^{-1} K``).  As for chains, a model with
 damping (any velocity-dependent force: hinge dampers, beam damping, PD hinges) or with loops
-is refused; an unstable equilibrium (``omega^2 < 0``) is refused too.  For the exact
-frequency-domain path of rigid chains and trees (Wittrick-Williams counting of the linear
-MSTMM) see :func:`ctmm.planar.linear.natural_frequencies`.
+is refused; an unstable equilibrium (``omega^2 < 0``) is refused too.  The frequencies themselves
+come from Wittrick-Williams counting on the one sweep's frequency context
+(:mod:`ctmm.planar_counting`, rigid and flexible models, exact to round-off); the dense eig of
+``M^{-1} K`` only checks the symmetry (circulatory forces are refused), gives the starting shapes
+for inverse iteration, and stands in for models off the element protocol.
 """
 from __future__ import annotations
 
@@ -27,7 +29,7 @@ from .planar_linearization import linearize_planar, tangent
 from .planar_linearization import operating_point as planar_operating_point
 from .results import FrequencyResponse, ModalResult
 
-__all__ = ["is_planar_system", "frequency_response", "natural_frequencies", "mode_shapes"]
+__all__ = ["is_planar_system", "frequency_response", "natural_frequencies", "mode_shapes", "eigenvalue_count"]
 
 _CLOSED_LOOP = ("ctmm.linearize (eigenvalues of the closed-loop A, delays beside it) or ctmm.stability "
                 "for the closed-loop roots")
@@ -156,10 +158,9 @@ def _undamped_stiffness(system: Any, verb: str, operating_point: Any):
     return model, -Jq, op
 
 
-def _modes(system: Any, verb: str, n_modes, omega_max, operating_point):
-    model, stiffness, op = _undamped_stiffness(system, verb, operating_point)
-    if (n_modes is None) == (omega_max is None):
-        raise ModelError("give exactly one of n_modes (int >= 1) or omega_max (rad/s > 0)")
+def _checked_eig(model: Any, stiffness: np.ndarray, op: Any, verb: str) -> tuple[np.ndarray, np.ndarray, float]:
+    """``omega^2`` (real, tiny values as 0), eigenvectors and largest ``|omega^2|`` of ``M^{-1} K``,
+    refusing a non-symmetric pair (circulatory forces) and an unstable operating point."""
     values, vectors = np.linalg.eig(stiffness)
     top = max(float(np.max(np.abs(values), initial=0.0)), 1e-300)
     if np.max(np.abs(values.imag), initial=0.0) > 1e-6 * top:
@@ -170,7 +171,44 @@ def _modes(system: Any, verb: str, n_modes, omega_max, operating_point):
         raise ModelError(f"model {model.name!r} is statically unstable about q = {op.q.tolist()}: "
                          f"{int(np.sum(values < -1e-9 * top))} mode(s) with negative stiffness (omega^2 < 0, e.g. "
                          "a link held against gravity); natural frequencies exist only about a stable equilibrium")
-    values = np.where(np.abs(values) <= 1e-9 * top, 0.0, values)
+    return np.where(np.abs(values) <= 1e-9 * top, 0.0, values), vectors, top
+
+
+def eigenvalue_count(system: Any, omega: Any, *, operating_point: Any = None) -> np.ndarray:
+    """Number of undamped natural frequencies of a planar model's linearisation strictly below each
+    ``omega`` [rad/s] (Wittrick-Williams counting on the one sweep's frequency context,
+    :mod:`ctmm.planar_counting`; exact also at substructure resonances).
+
+    Parameters
+    ----------
+    system : PlanarModel
+        Undamped and without loops (else :class:`ModelError`, as for chains).
+    omega : array_like
+        Trial frequencies [rad/s], >= 0.
+    operating_point : optional
+        As for :func:`ctmm.linearize` (default: the static equilibrium).
+    """
+    from .planar_counting import FrequencyCounter
+
+    model, stiffness, op = _undamped_stiffness(system, "eigenvalue_count", operating_point)
+    values, _, _ = _checked_eig(model, stiffness, op, "eigenvalue_count")
+    omega = validation.frequencies("omega", omega)
+    if not np.any(op.qdot != 0.0):
+        try:
+            counter = FrequencyCounter(model, op.q, op.t, verb="eigenvalue_count")
+        except ModelError:
+            counter = None
+        if counter is not None:
+            return counter.count(omega.reshape(-1)).reshape(omega.shape)
+    # off the element protocol (hinges with translational springs): the dense eigenvalues
+    return np.sum(np.sqrt(values)[None, :] < omega.reshape(-1, 1), axis=1).reshape(omega.shape)
+
+
+def _modes(system: Any, verb: str, n_modes, omega_max, operating_point):
+    model, stiffness, op = _undamped_stiffness(system, verb, operating_point)
+    if (n_modes is None) == (omega_max is None):
+        raise ModelError("give exactly one of n_modes (int >= 1) or omega_max (rad/s > 0)")
+    values, vectors, top = _checked_eig(model, stiffness, op, verb)
     order = np.argsort(values)
     omega = np.sqrt(values[order])
     shapes = np.real(vectors[:, order])
@@ -186,8 +224,9 @@ def _modes(system: Any, verb: str, n_modes, omega_max, operating_point):
     if exact is None:
         return model, omega[keep], shapes[:, keep]
     # eig of the dense M^-1 K loses eps * omega_max^2 / omega^2 on the low modes of stiff chains:
-    # the frequencies come from the exact count, the shapes by inverse iteration at them
-    omega_keep, shapes_keep = exact, shapes[:, keep].copy()
+    # the frequencies come from the exact count, the shapes by inverse iteration at them (the exact
+    # count below omega_max decides how many: the lowest of eig's ascending modes start the iteration)
+    omega_keep, shapes_keep = exact, shapes[:, np.arange(min(exact.size, omega.size))].copy()
     n = stiffness.shape[0]
     for j, w in enumerate(exact):
         shifted = stiffness - (w * w) * np.eye(n) + 1e-12 * max(top, 1.0) * np.eye(n)
@@ -203,21 +242,21 @@ def _modes(system: Any, verb: str, n_modes, omega_max, operating_point):
 
 
 def _counted_frequencies(model: Any, op: Any, count: int, omega_max: Any) -> np.ndarray | None:
-    """The ``count`` lowest frequencies [rad/s] by Wittrick-Williams counting of the articulated sweep
-    (exact to round-off; rigid models the counting path accepts), else ``None`` (eig stands).  With
-    ``omega_max`` the exact count below it decides how many there are."""
-    from .planar import linear
+    """The ``count`` lowest frequencies [rad/s] by Wittrick-Williams counting on the one sweep's
+    frequency context (:mod:`ctmm.planar_counting`; rigid and flexible models, exact to round-off),
+    else ``None`` (eig stands: models off the protocol, e.g. hinges with translational springs, or a
+    moving operating point).  With ``omega_max`` the exact count below it decides how many there are."""
+    from .planar_counting import FrequencyCounter
 
-    if getattr(model, "has_flexible", False) or op.t != 0.0 or np.any(op.qdot != 0.0):
+    if np.any(op.qdot != 0.0):
         return None
     try:
-        if omega_max is not None:
-            count = int(linear.eigenvalue_count(model, op.q, [float(omega_max)])[0])
-        if count == 0:
-            return np.zeros(0)
-        return linear.natural_frequencies(model, op.q, n_modes=count)
+        counter = FrequencyCounter(model, op.q, op.t)
     except ModelError:
         return None
+    if omega_max is not None:
+        return counter.frequencies(omega_max=float(omega_max))
+    return counter.frequencies(n_modes=count) if count else np.zeros(0)
 
 
 def natural_frequencies(system: Any, *, n_modes: int | None = None, omega_max: float | None = None,

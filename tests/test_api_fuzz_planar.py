@@ -242,7 +242,8 @@ CASES: list[tuple[Case, list]] = [
      [0, 1.5, -1, True, 100, "1"]),
     (Case("ctmm.mode_shapes", "omega_max", "planar", lambda v: ctmm.mode_shapes(arm(), omega_max=v)),
      [-1.0, math.nan, 0.0, "1"]),
-    (Case("ctmm.eigenvalue_count", "system", "planar", lambda v: ctmm.eigenvalue_count(v, 10.0)), [arm()]),
+    (Case("ctmm.eigenvalue_count", "omega", "planar", lambda v: ctmm.eigenvalue_count(arm(), v)),
+     [-1.0, math.nan, "1", [[1.0]]]),
     (Case("ctmm.steady_state_response", "system", "planar", lambda v: ctmm.steady_state_response(v, 1.0)),
      [arm(), controlled()]),
     # -- the control toolset and the stability tools on a ControlledModel --------------------------

@@ -115,7 +115,7 @@ CHAIN_VERBS = {
 }
 
 
-PLANAR_ANSWERED = {"frequency_response", "natural_frequencies", "mode_shapes"}
+PLANAR_ANSWERED = {"frequency_response", "natural_frequencies", "mode_shapes", "eigenvalue_count"}
 
 
 @pytest.mark.parametrize("verb", [v for v in CHAIN_VERBS if v != "modal_response"])

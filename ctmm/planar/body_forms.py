@@ -17,6 +17,7 @@ Hinges with translational springs (``BUSHING``) are not stated on the protocol y
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -28,7 +29,7 @@ from ..protocol import BodyTerms, JointTerms
 from .model import BUSHING, FREE, PlanarModel
 
 __all__ = ["rigid_body_terms", "revolute_terms", "driven_terms", "free_base_terms", "beam_terms",
-           "PlanarScene"]
+           "PlanarScene", "LinearTerms"]
 
 
 def rigid_body_terms(ops: Ops, *, mass: float, inertia: float, center_of_mass: Sequence[float],
@@ -134,6 +135,36 @@ def _entry(ops: Ops, column: Any, k: int) -> Any:
     return ops.sub(column, slice(k, k + 1), slice(0, 1))
 
 
+@dataclass(frozen=True)
+class LinearTerms:
+    """Body and joint terms of a planar model linearised about a static operating point
+    (:meth:`PlanarScene.linear_terms`).
+
+    Attributes
+    ----------
+    tree : Tree
+    bodies : tuple of (M0, C0, K0, Kin, RF)
+        Per body: mass, damping and stiffness matrices ``(3 + n, 3 + n)`` of ``Z(s) = s^2 M0 + s C0 + K0``
+        [kg, N s, N and their moment and modal units], and the point kinematics and wrench maps at
+        the operating point.
+    joints : tuple of JointTerms
+        Driven joints held; others with their law's tangents and torque amplitudes.
+    """
+
+    tree: Tree
+    bodies: tuple
+    joints: tuple
+
+    def sweep(self, s: Any) -> Articulated:
+        """The frequency context of the one sweep at the Laplace variables ``s`` (B,) [1/s], batched."""
+        s = np.asarray(s, dtype=complex).reshape(-1, 1, 1)
+        linear = [BodyTerms(s * s * M0 + s * C0 + K0, np.zeros((1, M0.shape[0], 1), dtype=complex), Kin,
+                            {e: np.zeros((1, 3, 1)) for e in Kin}, RF)
+                  for M0, C0, K0, Kin, RF in self.bodies]
+        return articulated_sweep(NUMPY, self.tree, linear, self.joints, frequency_kappa(NUMPY, self.joints, s),
+                                 characteristic=True)
+
+
 class PlanarScene:
     """A :class:`~ctmm.planar.model.PlanarModel` (rigid bodies and modal beams) as bodies and joints
     on the protocol, for :func:`ctmm.articulated.articulated_sweep`.
@@ -235,8 +266,8 @@ class PlanarScene:
                   *, step: float = 1e-30) -> Articulated:
         """The frequency context of the one sweep about a static operating point ``q0`` (rates 0).
 
-        Each body's terms are linearised about ``q0``: ``Z(s) = s^2 M0 + s C0 + K0`` with
-        ``K0 = d(h + sum_e RF_e F_e0)/d(theta, eta)`` (``F_e0``: the static wrenches at its points, the
+        Each body's terms are linearised about ``q0`` (:meth:`linear_terms`): ``Z(s) = s^2 M0 + s C0 + K0``
+        with ``K0 = d(h + sum_e RF_e F_e0)/d(theta, eta)`` (``F_e0``: the static wrenches at its points, the
         geometric stiffness of the preload) and ``C0 = dh/d(omega, eta_dot)``, both by complex step
         through the batched terms (exact to round-off); ``Kin`` and ``RF`` at ``q0``, ``c = 0``.  Joints:
         ``kappa(s) = k + c s``, driven joints held.  The unknowns are displacement amplitudes
@@ -262,6 +293,12 @@ class PlanarScene:
         Articulated
             Batched over ``s``.
         """
+        return self.linear_terms(q0, t, torque, step=step).sweep(s)
+
+    def linear_terms(self, q0: Any, t: float = 0.0, torque: Mapping[int, complex] | None = None,
+                     *, step: float = 1e-30) -> "LinearTerms":
+        """The terms of :meth:`frequency` about ``q0``, linearised once, to sweep at many ``s``
+        (:meth:`LinearTerms.sweep`); arguments as for :meth:`frequency`."""
         m = self.model
         q0 = np.asarray(q0, dtype=float)
         n = m.n_coordinates
@@ -282,7 +319,6 @@ class PlanarScene:
                 key = (self.tree.parent[c], self.tree.point[c])
                 end_force[key] = end_force.get(key, 0.0) + static.force[c][0]
         theta, _ = m.body_angles(q0, zero, t)
-        s = np.asarray(s, dtype=complex).reshape(-1, 1, 1)
         loads = m.loads(t) if len(m.load_body) else np.zeros((0, 3))
         linear = []
         for j in range(m.n_bodies):
@@ -306,11 +342,8 @@ class PlanarScene:
             K0, C0 = np.zeros((size, size)), np.zeros((size, size))
             K0[:, own] = slopes[:, :k]
             C0[:, own] = slopes[:, k:]
-            Z = s * s * body.M[:1].real + s * C0 + K0
-            linear.append(BodyTerms(Z, np.zeros((1, size, 1), dtype=complex),
-                                    {e: v[:1].real for e, v in body.Kin.items()},
-                                    {e: np.zeros((1, 3, 1)) for e in body.Kin},
-                                    {e: v[:1].real for e, v in body.RF.items()}))
+            linear.append((body.M[0].real, C0, K0, {e: v[:1].real for e, v in body.Kin.items()},
+                           {e: v[:1].real for e, v in body.RF.items()}))
         amplitudes = dict(torque or {})
         held = []
         for j, joint in enumerate(joints):
@@ -325,8 +358,7 @@ class PlanarScene:
         if amplitudes:
             raise ModelError(f"PlanarScene.frequency: torque given for bodies {sorted(amplitudes)} whose inboard "
                              "joints are not revolute")
-        return articulated_sweep(NUMPY, self.tree, linear, held, frequency_kappa(NUMPY, held, s),
-                                 characteristic=True)
+        return LinearTerms(self.tree, tuple(linear), tuple(held))
 
     def coordinate_accelerations(self, solution: Articulated) -> np.ndarray:
         """``qddot`` (B, n) from a numpy sweep's result."""

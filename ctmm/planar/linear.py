@@ -21,11 +21,12 @@ Two ways to use it:
 * Element classes (:class:`LinearRigidBody`, :class:`LinearElasticHinge`,
   :class:`LinearHingedBody`) for :class:`ctmm.Chain` and :func:`ctmm.frequency_response`;
   :func:`linear_chain` builds such a chain from a :class:`PlanarModel`.
-* :func:`natural_frequencies` / :func:`characteristic_function` for chains **and trees**: the
-  articulated (Riccati) sweep in the frequency domain, vectorised over frequencies; the hinge
-  pivots ``D_j(omega)`` are the pivots of an LDL^T factorisation of ``K - omega^2 M`` in joint
-  coordinates, so the number of negative pivots counts the natural frequencies below
-  ``omega`` (Wittrick-Williams / Sylvester), and bisection finds them to round-off.
+* :func:`natural_frequencies` / :func:`eigenvalue_count` / :func:`characteristic_function` for
+  chains **and trees** (rigid or with modal beams): thin calls of the one articulated sweep's
+  frequency context (:meth:`ctmm.planar.body_forms.PlanarScene.frequency`) and its
+  Wittrick-Williams counting (:mod:`ctmm.planar_counting`): the joint and modal pivots are those
+  of an LDL^T factorisation of ``K - omega^2 M``, so the number of negative pivots counts the
+  natural frequencies below ``omega``, and bisection finds them to round-off.
 """
 from __future__ import annotations
 
@@ -37,10 +38,8 @@ import scipy.optimize
 from .. import validation
 from ..capabilities import require_planar
 from ..elements.base import Element
-from ..counting import certified_count
 from ..errors import ModelError
 from ..layouts import PLANAR
-from ..roots1d import bisect_count, count_upper_bound
 from .model import BUSHING, DRIVEN, FREE, PlanarModel
 from .sweep import solve_instant
 
@@ -342,178 +341,51 @@ def linear_chain(model: PlanarModel, q_eq, *, name: str | None = None, t: float 
 
 
 # ------------------------------------------------------------------------------------------
-# articulated (Riccati) sweep in the frequency domain, chains and trees
+# chains and trees: the one articulated sweep's frequency context (ctmm.planar_counting)
 # ------------------------------------------------------------------------------------------
-def _linear_data(model: PlanarModel, q_eq, t: float):
-    q_eq, sol = _check_equilibrium(model, q_eq, t)
-    theta, _ = model.body_angles(q_eq, np.zeros_like(q_eq), t)
-    c, s_ = np.cos(theta), np.sin(theta)
-    rcx = c * model.com[:, 0] - s_ * model.com[:, 1]
-    rcy = s_ * model.com[:, 0] + c * model.com[:, 1]
-    p = np.maximum(model.parent, 0)
-    rx = c[p] * model.end_vector[:, 0] - s_[p] * model.end_vector[:, 1]
-    ry = s_[p] * model.end_vector[:, 0] + c[p] * model.end_vector[:, 1]
-    gx, gy = model.gravity
-    # geometric stiffness dtau_I/dtheta at rest (the Newton tangent at zero motion, docs/planar.md)
-    G = model.mass * (rcx * gx + rcy * gy)
-    if len(model.load_body):
-        loads = model.loads(t)
-        lb = model.load_body
-        rex = c[lb] * model.load_point[:, 0] - s_[lb] * model.load_point[:, 1]
-        rey = s_[lb] * model.load_point[:, 0] + c[lb] * model.load_point[:, 1]
-        np.add.at(G, lb, rex * loads[:, 0] + rey * loads[:, 1])
-    child = np.where(model.parent >= 0, rx * sol.joint_force[:, 0] + ry * sol.joint_force[:, 1], 0)
-    np.add.at(G, p, -child)
-    return rcx, rcy, rx, ry, G
-
-
-def _pivots(model: PlanarModel, data, s: np.ndarray, *, scales: bool = False):
-    """Hinge pivots ``D_j(s)`` (B, nb) and root blocks of the frequency-domain sweep.
-
-    With ``scales`` the pivots are returned as ``(D, scale)`` where ``scale = |P_22| + |k + c s|``
-    (the terms whose sum is the pivot, for its relative size).
-    """
-    rcx, rcy, rx, ry, G = data
-    B = s.size
-    s2 = (s * s)[:, None, None]
-    nb = model.n_bodies
-    m, J = model.mass, model.inertia
-    acc = np.zeros((nb, B, 3, 3), dtype=complex)
-    for j in range(nb):
-        M = np.array([[m[j], 0.0, -m[j] * rcy[j]], [0.0, m[j], m[j] * rcx[j]],
-                      [-m[j] * rcy[j], m[j] * rcx[j], J[j] + m[j] * (rcx[j] ** 2 + rcy[j] ** 2)]])
-        acc[j] = s2 * M
-        acc[j][:, 2, 2] += G[j]
-    pivots = np.ones((B, nb), dtype=complex)
-    scale = np.ones((B, nb))
-    roots = []
-    for j in range(nb - 1, -1, -1):
-        P = acc[j]
-        kind = model.joint_kind[j]
-        if kind == FREE:
-            roots.append(P)
-            continue
-        if kind == DRIVEN:
-            Q = P
-        else:
-            spring = model.stiffness[j] + model.damping[j] * s
-            d = P[:, 2, 2] + spring
-            pivots[:, j] = d
-            scale[:, j] = np.abs(P[:, 2, 2]) + np.abs(spring)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                Q = P - P[:, :, 2:3] * P[:, 2:3, :] / d[:, None, None]
-        if model.parent[j] >= 0:
-            X = np.eye(3)
-            X[0, 2], X[1, 2] = -ry[j], rx[j]
-            acc[model.parent[j]] += X.T @ Q @ X
-    if scales:
-        return (pivots, np.where(scale > 0, scale, 1.0)), roots
-    return pivots, roots
-
-
 def characteristic_function(model: PlanarModel, q_eq, s, *, t: float = 0.0) -> np.ndarray:
-    """``Delta(s) = prod_j D_j(s) * prod det(root blocks)`` (= det(K + s C + s^2 M) up to a
-    constant), vectorised over the Laplace variables ``s``."""
+    """``Delta(s) = prod det D_j * prod det C_j`` (= det(K + s C + s^2 M) up to a constant) of the
+    one sweep's frequency context (:meth:`ctmm.planar.body_forms.PlanarScene.frequency`),
+    vectorised over the Laplace variables ``s``."""
+    from .body_forms import PlanarScene
+
+    q_eq, _ = _check_equilibrium(model, q_eq, t)
     s = np.atleast_1d(np.asarray(s, dtype=complex))
-    pivots, roots = _pivots(model, _linear_data(model, q_eq, t), s.ravel())
-    value = np.prod(pivots, axis=1)
-    for block in roots:
-        value = value * np.linalg.det(block)
-    return value.reshape(s.shape)
+    value = PlanarScene(model).frequency(q_eq, s.ravel(), t).characteristic
+    return np.asarray(value).reshape(s.shape)
 
 
-def eigenvalue_count(model: PlanarModel, q_eq, omega, *, t: float = 0.0,
-                     _data=None) -> np.ndarray:
+def eigenvalue_count(model: PlanarModel, q_eq, omega, *, t: float = 0.0) -> np.ndarray:
     """Number of natural frequencies strictly below each ``omega`` [rad/s] (undamped).
 
-    Negative pivots of the articulated sweep (Sylvester / Wittrick-Williams).  A hinge pivot
-    vanishes where ``omega`` is a natural frequency of the substructure outboard of that hinge
-    (pinned there); such trial frequencies are recounted just below and above and certified by
-    :func:`ctmm.counting.certified_count`, so the count is exact there too.
+    Wittrick-Williams counting on the one sweep's frequency context
+    (:func:`ctmm.planar_counting.eigenvalue_count`): negative pivots of the articulated
+    elimination, certified at substructure resonances (a hinge pivot vanishes where ``omega`` is a
+    natural frequency of the substructure outboard of that hinge, pinned there).
     """
-    omega = np.atleast_1d(validation.finite_array("omega", omega)).reshape(-1)
-    if np.any(omega < 0):
-        raise ModelError(f"omega must be >= 0 rad/s, got {omega[omega < 0][0]!r}")
-    data = _data if _data is not None else _linear_data(model, q_eq, t)
-    return certified_count(lambda w: _raw_count(model, data, w), omega,
-                           side=lambda lower, w: _root_below(model, data, lower, w))
+    from ..planar_counting import FrequencyCounter
 
-
-def _determinant_sign(model: PlanarModel, data, omega: np.ndarray) -> np.ndarray:
-    """Sign of ``det(K - omega^2 M)`` up to a fixed factor: the product of all pivots.
-
-    The product of the pivots of an ``L D L^T`` factorisation is the determinant itself, with
-    no poles: near a substructure resonance a tiny pivot times the huge next one stays exact.
-    """
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        pivots, roots = _pivots(model, data, 1j * omega)
-        sign = np.prod(np.sign(pivots.real), axis=1)
-        for block in roots:
-            sign = sign * np.sign(np.linalg.det(0.5 * (block + np.swapaxes(block, -1, -2)).real))
-    return sign
-
-
-def _root_below(model: PlanarModel, data, lower: np.ndarray, omega: np.ndarray) -> np.ndarray:
-    """True where the single natural frequency in ``(lower, ~omega)`` lies below ``omega``: the
-    determinant changes sign between ``lower`` and ``omega (1 - 1e-12)`` (``omega`` itself is
-    a substructure resonance, where a pivot is exactly zero)."""
-    return _determinant_sign(model, data, lower) != _determinant_sign(model, data, omega * (1.0 - 1e-12))
-
-
-def _raw_count(model: PlanarModel, data, omega: np.ndarray):
-    """Sylvester count and smallest relative pivot (``nan`` if non-finite) at ``omega``."""
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        pivots, roots = _pivots(model, data, 1j * omega, scales=True)
-        d, scale = pivots
-        d = d.real
-        count = np.sum(d < 0, axis=1)
-        # only pivots that are eliminated into a parent can spoil the count; a zero pivot at a
-        # root (or a singular root block) is a natural frequency of the whole model at omega
-        inner = model.parent >= 0
-        margin = np.min(np.abs(d[:, inner]) / scale[:, inner], axis=1, initial=np.inf)
-        margin = np.where(np.all(np.isfinite(d), axis=1), margin, np.nan)
-        for block in roots:
-            sym = 0.5 * (block + np.swapaxes(block, -1, -2)).real
-            bad = ~np.all(np.isfinite(sym), axis=(-2, -1))
-            sym = np.where(bad[:, None, None], 0.0, sym)
-            margin = np.where(bad, np.nan, margin)
-            count = count + np.sum(np.linalg.eigvalsh(sym) < 0, axis=-1)
-    return count, margin
+    q_eq, _ = _check_equilibrium(model, q_eq, t)
+    return FrequencyCounter(model, q_eq, t, verb="eigenvalue_count").count(omega)
 
 
 def natural_frequencies(model: PlanarModel, q_eq, *, n_modes: int, t: float = 0.0,
                         rtol: float = 1e-15) -> np.ndarray:
     """Lowest ``n_modes`` undamped natural frequencies [rad/s] about the equilibrium ``q_eq``.
 
-    Wittrick-Williams counting of negative pivots of the articulated sweep plus bisection
-    (vectorised over all modes); zero-frequency (rigid) modes are returned as 0.
+    Wittrick-Williams counting on the one sweep's frequency context plus bisection
+    (:func:`ctmm.planar_counting.natural_frequencies`); zero-frequency (rigid) modes are returned
+    as 0.
     """
+    from ..planar_counting import FrequencyCounter
+
     require_planar(model, "ctmm.planar.linear")
     if np.any(model.damping > 0):
         raise ModelError("natural_frequencies needs an undamped model (hinge damping > 0 found)")
     if not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
         raise ModelError(f"n_modes must be an integer >= 1, got {n_modes!r}")
-    data = _linear_data(model, q_eq, t)
-    hi = count_upper_bound(lambda w: eigenvalue_count(model, q_eq, w, _data=data), n_modes, limit=1e12,
-                           what=f"model {model.name!r}")
-    k = np.arange(1, n_modes + 1)
-    lo = np.zeros(n_modes)
-    up = np.full(n_modes, hi)
-    n_rigid = int(eigenvalue_count(model, q_eq, [hi * 1e-13], _data=data)[0])
-    # the count at omega = 0 is the number of negative pivots of K: modes with omega^2 < 0
-    # (an unstable equilibrium, e.g. an arm held upright against gravity) that would otherwise
-    # come back as 0 rad/s, indistinguishable from rigid-body modes
-    n_negative = int(eigenvalue_count(model, q_eq, [0.0], _data=data)[0])
-    if n_negative > 0:
-        raise ModelError(f"model {model.name!r} is statically unstable about q_eq = {np.asarray(q_eq).tolist()}: "
-                         f"{n_negative} mode(s) with negative stiffness (omega^2 < 0, e.g. a link held "
-                         "against gravity); natural frequencies exist only about a stable equilibrium")
-    counts = np.zeros(n_modes, dtype=np.int64)       # bracket-end counts (not needed without isolate)
-    bisect_count(lambda w: eigenvalue_count(model, q_eq, w, _data=data), k, lo, up, counts, counts.copy(),
-                 rtol, max_iterations=200)          # rigid modes (root 0, lo = 0) stop at the bound
-    out = 0.5 * (lo + up)
-    out[k <= n_rigid] = 0.0
-    return out
+    q_eq, _ = _check_equilibrium(model, q_eq, t)
+    return FrequencyCounter(model, q_eq, t).frequencies(n_modes=int(n_modes), rtol=rtol)
 
 
 __all__ = ["LinearRigidBody", "LinearElasticHinge", "LinearHingedBody", "linear_chain",
