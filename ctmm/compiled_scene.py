@@ -41,6 +41,7 @@ from .ops import CASADI
 from .planar.body_forms import PlanarScene
 from .planar.guards import check_scheme, check_stored, divergence_guard
 from .planar.integrate import PlanarSimulation, check_store_every, initial_coordinates, step_total
+from .planar.elements import DrivenHinge, Hinge
 from .planar.model import FREE, PlanarModel
 from .planar.ports import ActuatorInputs, actuator_inputs, actuator_names
 from .signals import Constant
@@ -55,13 +56,10 @@ def compile_refusal(model: Any) -> str:
     """Why ``model`` cannot be compiled by :class:`CompiledScene` (empty string when it can)."""
     if not isinstance(model, PlanarModel):
         return f"a ctmm.planar.PlanarModel is compiled, got {type(model).__name__}"
-    reasons = []
-    if not model.time_invariant:
-        reasons.append("time-dependent driven joints, hinge laws or rigid-body loads")
+    reasons = [f"time-dependent signals in {name!r}" for name in _time_dependent_elements(model)]
     for j, beam in model.beams.items():
         data = beam.data
-        constant_loads = all(isinstance(f, Constant) for signals in data.load_signals for f in signals)
-        if not constant_loads or not data.constant_distributed or data.forces or data.laws:
+        if not data.constant_distributed or data.forces or data.laws:
             reasons.append(f"time-dependent loads or modal force hooks on beam {model.body_names[j]!r}")
     if reasons:
         return (f"model {model.name!r} has " + "; ".join(reasons) + " (Python callables of time, not compiled; "
@@ -71,6 +69,23 @@ def compile_refusal(model: Any) -> str:
     except ModelError as exc:
         return str(exc)
     return ""
+
+
+def _time_dependent_elements(model: PlanarModel) -> list[str]:
+    """Names of the elements with a signal that is not a constant: driven motions (fixed mountings are
+    constant), hinge references and torques, loads of bodies and beams."""
+    names = []
+    for element in model.elements:
+        if isinstance(element, DrivenHinge):
+            signals = [element.angle, element.rate, element.acceleration]
+        elif isinstance(element, Hinge):
+            signals = list(element.law()[2:])
+        else:
+            signals = []
+        signals += [f for load in getattr(element, "loads", ()) for f in (load.force_x, load.force_y, load.moment)]
+        if any(f is not None and not isinstance(f, Constant) for f in signals):
+            names.append(element.name)
+    return names
 
 
 class CompiledScene:

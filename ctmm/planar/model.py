@@ -473,14 +473,6 @@ class PlanarModel:
         return out[0], out[1]
 
     # -- time-dependent inputs -------------------------------------------------------------
-    @property
-    def time_invariant(self) -> bool:
-        """True when no driven joint (fixed mountings included), hinge reference, hinge torque or load of a
-        rigid body depends on time (every such signal a constant; beam loads and hooks are their own:
-        ``BeamData``)."""
-        driven = all(isinstance(f, Constant) for _, *signals in self._driven for f in signals)
-        return driven and self._constant_laws and self._constant_loads
-
     def hinge_laws(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(reference, reference_rate, torque)`` of every joint at time ``t``.
 
