@@ -203,6 +203,9 @@ def test_refusals():
                                            {"nope.torque": 1.0})
     with pytest.raises(ModelError, match="rows"):
         CompiledScene(model, rows=0)
+    with pytest.raises(ModelError, match="CompiledScene of this model"):
+        simulate_rk4_generated(model, np.zeros(model.n_coordinates), np.zeros(model.n_coordinates), t_final=0.01,
+                               dt=1e-3, store_every=2, scene=CompiledScene(model))
     chain = ctmm.Chain("c", [elements.Fixed("w"), elements.Spring("k", 1.0), elements.Mass("m", 1.0),
                              elements.Free("e")])
     with pytest.raises(ModelError, match="compiled=True applies to planar models"):
