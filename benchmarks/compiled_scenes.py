@@ -44,11 +44,14 @@ from ctmm.flexible import ModalBeam  # noqa: E402
 from ctmm.manipulator import SEED_KD, SEED_KP, SEED_MOVE, FlexibleManipulator, HubPD, seed_manipulator  # noqa: E402
 from ctmm.manipulator.compiled import CompiledManipulator  # noqa: E402
 from ctmm.manipulator.scene import arm_beam  # noqa: E402
-from ctmm.planar import ActuatedHinge, Fixed, Pinned, PlanarModel, RigidBody, SmoothHinge  # noqa: E402
+from ctmm.planar import ActuatedHinge, Fixed, PlanarModel, RigidBody  # noqa: E402
 from ctmm.planar.compiled import simulate_rk4_compiled  # noqa: E402
 from ctmm.planar.elements import FixedMounting  # noqa: E402
 from ctmm.planar.integrate import simulate_rk4  # noqa: E402
 from ctmm.reference.flexible_lagrange import FlexibleLagrange  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from planar_chain import chain  # noqa: E402  (the pendulum chain of benchmarks/planar_chain.py)
 
 T_HUB = 2.0
 T_CHAIN, H_CHAIN = 1.0, 1e-3
@@ -62,15 +65,6 @@ def hub_beam() -> PlanarModel:
         Fixed("ground"), ActuatedHinge("motor", torque=2.0),
         RigidBody("hub", mass=2.0, inertia=0.05, center_of_mass=(0.0, 0.0), outboard=(0.1, 0.0)),
         FixedMounting("mount"), beam], gravity=(0.0, 0.0))
-
-
-def chain(n: int) -> PlanarModel:
-    elements = [Pinned("base")]
-    for i in range(n):
-        if i:
-            elements.append(SmoothHinge(f"h{i}"))
-        elements.append(RigidBody.uniform_link(f"link{i}", mass=1.0, length=1.0))
-    return PlanarModel.chain(f"chain{n}", elements, gravity=(0.0, -9.81))
 
 
 def best_of(run, repeats: int = 3):
