@@ -33,6 +33,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from . import validation
 from .articulated import articulated_sweep
 from .codegen import load_casadi
 from .errors import ModelError
@@ -180,7 +181,8 @@ class CompiledScene:
         Returns ``(q, qdot)`` (n,) each; non-finite entries when the run diverged.
         """
         q, qdot = self.model.state(q, qdot)
-        states = self._run(np.concatenate([q, qdot]), self._inputs(inputs), float(dt), int(n_steps))
+        states = self._run(np.concatenate([q, qdot]), self._inputs(inputs), validation.positive("dt", dt),
+                           validation.integer("n_steps", n_steps))
         n = self.model.n_coordinates
         return states[-1, :n].copy(), states[-1, n:].copy()
 
@@ -190,7 +192,8 @@ class CompiledScene:
         (the rows of :func:`ctmm.planar.integrate.simulate_rk4`), the initial state excluded; stops
         after the first block holding a non-finite state."""
         q, qdot = self.model.state(q, qdot)
-        return self._run(np.concatenate([q, qdot]), self._inputs(inputs), float(dt), int(n_steps))
+        return self._run(np.concatenate([q, qdot]), self._inputs(inputs), validation.positive("dt", dt),
+                         validation.integer("n_steps", n_steps))
 
     def _run(self, y: np.ndarray, u: np.ndarray, h: float, n_steps: int) -> np.ndarray:
         strides, rest = divmod(n_steps, self.store_every)

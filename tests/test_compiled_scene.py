@@ -164,6 +164,7 @@ def test_ctmm_simulate_dispatches_compiled_true():
     x0 = {"hub.theta": 0.2, "b.q1": 0.01}
     generated = ctmm.simulate(model, 0.05, 1e-3, method="rk4", compiled=True, x0=x0, outputs=["b.out.y"])
     numpy_path = ctmm.simulate(model, 0.05, 1e-3, method="rk4", x0=x0, outputs=["b.out.y"])
+    assert generated.info["method"] == "rk4-generated" and numpy_path.info["method"] == "rk4"
     for signal in ("hub.theta", "b.q1", "b.out.y"):
         assert _relative(generated[signal], numpy_path[signal]) <= 1e-12
 
@@ -203,6 +204,11 @@ def test_refusals():
                                            {"nope.torque": 1.0})
     with pytest.raises(ModelError, match="rows"):
         CompiledScene(model, rows=0)
+    zero = np.zeros(model.n_coordinates)
+    with pytest.raises(ModelError, match="n_steps"):
+        CompiledScene(model).advance(zero, zero, 1e-3, 0)
+    with pytest.raises(ModelError, match="dt"):
+        CompiledScene(model).run(zero, zero, float("nan"), 3)
     with pytest.raises(ModelError, match="CompiledScene of this model"):
         simulate_rk4_generated(model, np.zeros(model.n_coordinates), np.zeros(model.n_coordinates), t_final=0.01,
                                dt=1e-3, store_every=2, scene=CompiledScene(model))
