@@ -21,7 +21,9 @@ schemes); ``foundation_scaling`` at n = 10 (FRF and Newmark, fast and generic pa
 controller) and n = 3 in frequency (TMM, PlantCache); ``delay_history`` at 1000 steps;
 ``planar_chain`` at N = 5 (sweep, RK4, implicit Newmark, compiled RK4); ``flexible`` one sweep at
 1, 4 and 16 modes and the implicit step at 1 mode; ``manipulator`` one sweep, RK4 and Newmark at
-dt = 10 ms, compiled RK4 at dt = 10 ms; ``stability_chart`` the 100 x 100 chart.  Left out (too long
+dt = 10 ms, compiled RK4 at dt = 10 ms; ``stability_chart`` the 100 x 100 chart; ``compiled_scenes``
+(issue 13, added after the baseline run: its two cases were measured alone) the generated RK4 of
+the hub-beam and of the N = 5 chain.  Left out (too long
 for a baseline under ~3 min, or needing a build): larger sizes and step ladders, the external
 libraries and references the benchmarks compare with (python-control, pinocchio, MuJoCo, global
 and Lagrange models), the FMU controller variant (builds an FMU with gcc), ``flexible``'s chain of
@@ -307,8 +309,20 @@ def _stability_chart(t: Timings) -> None:
           per="chart", count=1, configuration="chain of 20 masses with a PD loop, 100 x 100 (gain, delay) grid")
 
 
+def _compiled_scenes(t: Timings) -> None:
+    bench = importlib.import_module("compiled_scenes")
+    cases = (("hub_beam", bench.hub_beam(), 1e-3, 2000), ("chain_n5", bench.chain(5), 1e-3, 1000))
+    for label, model, dt, steps in cases:
+        scene = bench.CompiledScene(model)
+        zero = np.zeros(model.n_coordinates)
+        t.add("compiled_scenes", f"generated_rk4_{label}", lambda scene=scene, zero=zero, dt=dt, steps=steps:
+              scene.run(zero, zero, dt, steps), per="step", count=steps,
+              configuration=f"{label.replace('_', ' ')}, RK4 generated from the element definitions "
+                            f"(CompiledScene.run, library loaded), dt={dt:g} s, {steps} steps")
+
+
 TIMING_PARTS = (_work_precision, _scaling, _control, _delay_history, _planar, _flexible, _manipulator,
-                _stability_chart)
+                _stability_chart, _compiled_scenes)
 
 
 def timings() -> dict:

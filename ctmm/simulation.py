@@ -11,7 +11,8 @@
   :func:`ctmm.control.planar_time.simulate_closed_loop` when it has loops, controllers or
   open-loop ``inputs`` (``"rk4"``, the ``solve_ivp`` methods and every DT-TMM scheme, the last
   through the Newton-iterate input hook of :func:`ctmm.planar.implicit.simulate_implicit`), to
-  the compiled RK4 with ``fast=True``, or else to :func:`~ctmm.planar.implicit.simulate_implicit`
+  the hand-typed compiled RK4 with ``fast=True``, to the RK4 generated from the element definitions
+  with ``compiled=True`` (:mod:`ctmm.compiled_scene`), or else to :func:`~ctmm.planar.implicit.simulate_implicit`
   for a scheme.
 
 Every path returns one :class:`~ctmm.results.SimulationResult` (named signals with units).
@@ -114,7 +115,7 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
              fast: bool | None = None, force_hook: ForceHook | None = None, progress: bool | None = None,
              stability_check: str | None = None, divergence_bound: float | None = None,
              rtol: float = 1e-8, atol: float = 1e-10, max_step: float | None = None,
-             store_every: int = 1) -> SimulationResult:
+             store_every: int = 1, compiled: bool | None = None) -> SimulationResult:
     """Simulate a chain, a planar or flexible model, with or without loops, in the time domain.
 
     Parameters
@@ -159,6 +160,12 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         Options of the uncontrolled chain stepper (:func:`ctmm.timestep.simulate`).  Planar:
         ``fast=True`` runs ``"rk4"`` in compiled C (:func:`ctmm.planar.compiled.simulate_rk4_compiled`;
         revolute trees with constant hinge laws, no loops; same numbers to round-off).
+    compiled : bool, optional
+        Planar, ``"rk4"``, uncontrolled: ``True`` runs the RK4 time loop in C generated from the
+        element definitions (:func:`ctmm.compiled_scene.simulate_rk4_generated`; any time-invariant
+        planar scene -- rigid trees, modal beams, hub-beam; compiled once and cached on disk; same
+        numbers as the numpy path to round-off).  A scene it cannot compile (time signals, driven
+        motions, translational hinge springs) raises :class:`ModelError`.  Default: the numpy path.
     progress : bool, optional
         Show a progress bar (default: long runs on a terminal).
     stability_check : {"warn", "error", "ignore"}, optional
@@ -199,7 +206,10 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
                                 coupling=coupling, solver=solver, fast=fast, force_hook=force_hook,
                                 progress=progress, stability_check=stability_check,
                                 divergence_bound=divergence_bound, rtol=rtol, atol=atol, max_step=max_step,
-                                store_every=store_every)
+                                store_every=store_every, compiled=compiled)
+    if compiled is not None:
+        raise ModelError(f"compiled={compiled!r} applies to planar models (the generated RK4 of "
+                         "ctmm.compiled_scene); leave compiled at None for a 1-D chain")
     require_chain(system, "ctmm.simulate")
     chosen = _method(method, scheme, "newmark")
     if isinstance(chosen, str) and (chosen in FIXED_STEP_METHODS or chosen in SCIPY_METHODS):
@@ -265,7 +275,7 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
                      controllers: list, references: dict, coupling: str, solver: str, fast: bool | None,
                      force_hook: Any, progress: bool | None, stability_check: str | None,
                      divergence_bound: float | None, rtol: float, atol: float, max_step: float | None,
-                     store_every: int) -> SimulationResult:
+                     store_every: int, compiled: bool | None = None) -> SimulationResult:
     """:func:`simulate` of a planar model or a controlled planar model (dispatch on ``method``)."""
     model, loops = parts
     if model.n_coordinates == 0:
@@ -288,6 +298,10 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
         raise ModelError(f"inputs must be a mapping {{actuator name: number or f(t)}}, got {inputs!r}")
     inputs, references = _loop_references(loops, inputs, references)
     fast = validation.flag("fast", fast, optional=True)
+    compiled = validation.flag("compiled", compiled, optional=True)
+    if compiled and fast:
+        raise ModelError("give fast=True (hand-typed C, revolute trees) or compiled=True (generated C, any "
+                         "time-invariant planar scene), not both")
     progress = validation.flag("progress", progress, optional=True)
     q0, v0 = initial_coordinates(model, _initial(model, "x0", x0), _initial(model, "v0", v0))
     policy = "warn" if stability_check is None else validation.option("stability_check", stability_check,
@@ -299,6 +313,10 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
     what = [label for label, present in (("loops", loops), ("controllers", controllers), ("inputs", inputs),
                                          ("references", references)) if present]
     is_scheme = isinstance(method, Scheme) or (isinstance(method, str) and method in SCHEMES)
+    if compiled and (method != "rk4" or controlled):
+        raise ModelError(f"compiled=True runs the generated RK4 of an uncontrolled planar model; got "
+                         f"method={method!r}" + (f" with {', '.join(what)}" if controlled else "")
+                         + " (leave compiled at None)")
     if fast and (method != "rk4" or controlled):
         raise ModelError(f"fast=True runs the compiled RK4 of an uncontrolled planar model; got method={method!r}"
                          + (f" with {', '.join(what)}" if controlled else "") + " (leave fast at None)")
@@ -323,14 +341,16 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
     if not is_scheme and method not in FIXED_STEP_METHODS and method not in SCIPY_METHODS:
         raise ModelError(f"method must be 'rk4', a solve_ivp method {SCIPY_METHODS} or a DT-TMM scheme "
                          f"{tuple(sorted(SCHEMES))} (or a ctmm.schemes object), got {method!r}")
-    if fast:
+    if compiled or fast:
         if dt is None:
             raise ModelError("dt is required with method='rk4' (a fixed step [s], > 0), got None")
-        from .planar.compiled import simulate_rk4_compiled
-
+        if compiled:
+            from .compiled_scene import simulate_rk4_generated as run_compiled
+        else:
+            from .planar.compiled import simulate_rk4_compiled as run_compiled
         with _partial_as_result(outputs, dt):
-            simulation = simulate_rk4_compiled(model, q0, v0, t_final=t_final, dt=dt, store_every=store_every,
-                                               divergence_bound=divergence_bound, stability_check=policy)
+            simulation = run_compiled(model, q0, v0, t_final=t_final, dt=dt, store_every=store_every,
+                                      divergence_bound=divergence_bound, stability_check=policy)
         return to_result(simulation, outputs=outputs, info={"dt": dt})
     return simulate_closed_loop(model, q0, v0, t_final, dt, method=method, loops=loops, controllers=controllers,
                                 inputs=inputs, references=references, outputs=outputs, coupling=coupling,

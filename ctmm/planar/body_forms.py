@@ -9,8 +9,10 @@ an articulated tree (:class:`PlanarScene`) for the one sweep (:mod:`ctmm.articul
   hinges, ``tau = u - k (q_rel - r) - c (v_rel - r_dot)`` along ``S = e3``; :func:`driven_terms`
   (driven hinge, fixed mounting: prescribed ``a_rel``); :func:`free_base_terms` (``S = I3``);
 * :func:`beam_terms` -- the modal beam through an adapter over
-  :meth:`ctmm.flexible.beam.BeamData.terms` (numpy only: that routine still writes in place into
-  its work arrays -- a debt of the one-core migration, plan §2.2, "ModalBeam").
+  :meth:`ctmm.flexible.beam.BeamData.terms` (a numpy routine that writes in place into its work
+  arrays -- a debt of the one-core migration, plan §2.2, "ModalBeam"; under casadi it runs on object
+  arrays of symbols, ``B = 1``, and its results are assembled into casadi matrices, so
+  :class:`PlanarScene` with beams evaluates and generates code like the rigid families).
 
 Hinges with translational springs (``BUSHING``) are not stated on the protocol yet
 (:class:`PlanarScene` refuses them).
@@ -165,6 +167,47 @@ class LinearTerms:
                                  characteristic=True)
 
 
+def _value(entry: Any) -> Any:
+    """A numeric actuator value as float; a symbolic one (casadi, object arrays) as it is."""
+    return float(entry) if isinstance(entry, (int, float, np.number)) else entry
+
+
+def _modal(ops: Ops, column: Any, idx: np.ndarray) -> Any:
+    """Modal coordinates ``idx`` of a column: numpy ``(B, n)``; symbolic: an object array ``(1, n)``."""
+    if not len(idx):
+        return None
+    if ops is NUMPY:
+        return column[:, idx, 0]
+    out = np.empty((1, len(idx)), dtype=object)
+    out[0, :] = [column[int(k)] for k in idx]
+    return out
+
+
+def _symbolic_beam_terms(ops: Ops, data: Any, points: Sequence[str], theta: Any, omega: Any, eta: np.ndarray,
+                         eta_dot: np.ndarray, t: float, gravity: Sequence[float], modal_force: Any = None
+                         ) -> tuple[BodyTerms, dict]:
+    """:func:`beam_terms` on symbols (casadi): the numpy routine run on object arrays of scalars
+    (``B = 1``), its results assembled into ops matrices.  ``eta, eta_dot``: object arrays ``(1, n)``."""
+    def scalars(x: Any) -> np.ndarray:
+        out = np.empty(1, dtype=object)
+        out[0] = x
+        return out
+
+    def matrix(a: np.ndarray) -> Any:
+        a = np.asarray(a, dtype=object)
+        a = a.reshape(a.shape[0], -1) if a.ndim == 2 else a
+        return ops.block([[a[r, c] for c in range(a.shape[1])] for r in range(a.shape[0])])
+
+    body, ends = beam_terms(data, points, scalars(theta), scalars(omega), eta, eta_dot, t, gravity, None)
+    h = body.h[0]
+    if modal_force is not None:
+        h = h.copy()
+        h[3:, 0] = h[3:, 0] - np.asarray(modal_force, dtype=object).reshape(-1)
+    terms = BodyTerms(matrix(body.M[0]), matrix(h), {e: matrix(v[0]) for e, v in body.Kin.items()},
+                      {e: matrix(v[0]) for e, v in body.c.items()}, {e: matrix(v[0]) for e, v in body.RF.items()})
+    return terms, {name: (a[0], r[0]) for name, (a, r) in zip(points, ends)}
+
+
 class PlanarScene:
     """A :class:`~ctmm.planar.model.PlanarModel` (rigid bodies and modal beams) as bodies and joints
     on the protocol, for :func:`ctmm.articulated.articulated_sweep`.
@@ -202,8 +245,6 @@ class PlanarScene:
         ``inputs``: :class:`ctmm.planar.ports.ActuatorInputs` (numeric), optional.
         """
         m = self.model
-        if m.beams and ops is not NUMPY:
-            raise ModelError(f"PlanarScene: model {m.name!r} has modal beams, whose terms are numpy only yet")
         driven = {i: (a, r, acc) for i, a, r, acc in m.driven(t)}
         laws = m.hinge_laws(t)
         all_loads = m.loads(t) if len(m.load_body) else np.zeros((0, 3))
@@ -221,8 +262,8 @@ class PlanarScene:
                 k = int(m.theta_index[j])
                 th, om = _entry(ops, q, k), _entry(ops, qdot, k)
             idx = m.modal_index[j]
-            e = q[:, idx, 0] if len(idx) else None
-            ed = qdot[:, idx, 0] if len(idx) else None
+            e = _modal(ops, q, idx)
+            ed = _modal(ops, qdot, idx)
             body, ends = self.body_terms(ops, j, th, om, e, ed, t, inputs, all_loads)
             end_motion.update({(j, name): motion for name, motion in ends.items()})
             bodies.append(body)
@@ -232,7 +273,7 @@ class PlanarScene:
             elif kind == FREE:
                 joints.append(free_base_terms(ops))
             else:
-                torque = laws[2][j] + (0.0 if inputs is None else float(inputs.hinge_torque[j]))
+                torque = laws[2][j] + (0.0 if inputs is None else _value(inputs.hinge_torque[j]))
                 joints.append(revolute_terms(ops, angle=th - th_end, rate=om - om_end, stiffness=m.stiffness[j],
                                              damping=m.damping[j], reference=laws[0][j],
                                              reference_rate=laws[1][j], torque=torque))
@@ -246,6 +287,9 @@ class PlanarScene:
         m = self.model
         if loads is None:
             loads = m.loads(t) if len(m.load_body) else np.zeros((0, 3))
+        if j in m.beams and ops is not NUMPY:
+            return _symbolic_beam_terms(ops, m.beams[j].data, self.beam_points[j], theta, omega, eta, eta_dot, t,
+                                        m.gravity, None if inputs is None else inputs.modal_force.get(j))
         if j in m.beams:
             th_b, om_b = np.asarray(theta).reshape(-1), np.asarray(omega).reshape(-1)
             batch = max(eta.shape[0], eta_dot.shape[0], th_b.size, om_b.size)
@@ -256,7 +300,7 @@ class PlanarScene:
             return body, {name: (a.reshape(-1, 1, 1), r.reshape(-1, 1, 1))
                           for name, (a, r) in zip(self.beam_points[j], ends)}
         rows = [k for k in range(len(m.load_body)) if int(m.load_body[k]) == j]
-        force = None if inputs is None else tuple(float(v) for v in inputs.body_force[j])
+        force = None if inputs is None else tuple(_value(v) for v in inputs.body_force[j])
         body = rigid_body_terms(ops, mass=m.mass[j], inertia=m.inertia[j], center_of_mass=m.com[j],
                                 points=m.ends[j], gravity=m.gravity, theta=theta, omega=omega,
                                 loads=[(*m.load_point[k], *loads[k]) for k in rows], body_force=force)

@@ -1,0 +1,218 @@
+"""Generated kernels of planar scenes (ctmm.compiled_scene, issue 13 first slice).
+
+The generated RK4 is checked against the numpy path (``ctmm.planar.integrate.simulate_rk4``, the
+TMM sweep in Python: equal to round-off) and, independently, against the Lagrange references
+(``reference/planar_lagrange.py``, ``reference/flexible_lagrange.py``): accelerations, and an RK4
+run of the Lagrange equations (:func:`ctmm.ode.integrate_rk4`, the same scheme on another model).
+Compiles go to a temporary cache folder.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import ctmm
+from ctmm import elements
+from ctmm.errors import ModelError, SimulationError
+from ctmm.flexible import ModalBeam
+from ctmm.ode import integrate_rk4, second_order_rate
+from ctmm.planar import (ActuatedHinge, DamperHinge, ElasticHinge, FreeBase, Load, Pinned, PlanarModel,
+                         RigidBody, SmoothHinge, SpringDamperHinge, ports)
+from ctmm.planar.body_forms import PlanarScene
+from ctmm.planar.elements import FixedMounting
+from ctmm.planar.integrate import simulate_rk4
+from ctmm.reference.flexible_lagrange import FlexibleLagrange
+from ctmm.reference.planar_lagrange import PlanarLagrange
+
+casadi = pytest.importorskip("casadi")
+compiled_scene = pytest.importorskip("ctmm.compiled_scene")
+CompiledScene = compiled_scene.CompiledScene
+simulate_rk4_generated = compiled_scene.simulate_rk4_generated
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _cache(tmp_path_factory):
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("CTMM_CACHE", str(tmp_path_factory.mktemp("kernels")))
+        yield
+
+
+def _relative(a, b) -> float:
+    return float(np.max(np.abs(np.asarray(a) - np.asarray(b))) / np.max(np.abs(b)))
+
+
+def rigid_tree() -> PlanarModel:
+    """Revolute tree with every hinge law, a branch, constant loads, an actuated hinge."""
+    return PlanarModel("tree", [
+        Pinned("o", child="a"),
+        RigidBody("a", mass=1.2, inertia=0.05, center_of_mass=(0.3, 0.02), outboard={"tip": (0.6, 0.0),
+                                                                                    "mid": (0.3, 0.1)}),
+        ElasticHinge("h1", parent="a.tip", child="b", stiffness=3.0, rest_angle=0.2),
+        RigidBody.uniform_link("b", mass=0.7, length=0.5),
+        DamperHinge("h2", parent="a.mid", child="c", damping=0.3),
+        RigidBody("c", mass=0.4, inertia=0.02, center_of_mass=(0.2, -0.05), outboard=(0.4, 0.0),
+                  loads=(Load(point=(0.4, 0.0), force_x=0.5, force_y=-0.3, moment=0.1),)),
+        SpringDamperHinge("h3", parent="c", child="d", stiffness=2.0, damping=0.1, rest_angle=-0.3),
+        RigidBody.uniform_link("d", mass=0.3, length=0.3),
+        ActuatedHinge("h4", parent="b", child="e", torque=0.4, kp=5.0, kd=0.5, reference=0.1),
+        RigidBody.uniform_link("e", mass=0.2, length=0.25)])
+
+
+def _beam(name, **kw):
+    return ModalBeam(name, length=1.3, bending_stiffness=5.0, mass_per_length=0.7, n_modes=3, **kw)
+
+
+def hub_beam() -> PlanarModel:
+    """Hub + modal beam (3 bending modes, 2 axial, geometric stiffening, damping, constant loads) + tip mass."""
+    return PlanarModel.chain("hub_beam", [
+        Pinned("o"), RigidBody("hub", mass=2.0, inertia=0.1, center_of_mass=(0.05, 0.02), outboard=(0.2, 0.0)),
+        FixedMounting("mount", angle=0.3),
+        _beam("b", n_axial_modes=2, axial_stiffness=300.0, damping_ratio=0.02, stiffness_damping=1e-3,
+              distributed_load=(0.4, -0.2), loads=(Load(point=(0.7, 0.0), force_x=0.3, force_y=-0.5, moment=0.2),)),
+        FixedMounting("m2"),
+        RigidBody("tip", mass=0.2, inertia=0.01, center_of_mass=(0.03, 0.01), outboard=(0.1, 0.0))])
+
+
+def beam_tree() -> PlanarModel:
+    """Pinned beam with two outboard points, a hinged link and a welded second beam."""
+    return PlanarModel("beam_tree", [
+        Pinned("o", child="b1"), _beam("b1", outboard={"mid": 0.6, "tip": 1.3}),
+        ElasticHinge("h", parent="b1.mid", child="l", stiffness=2.0, rest_angle=0.1),
+        RigidBody.uniform_link("l", mass=0.4, length=0.7),
+        FixedMounting("w", parent="b1.tip", child="b2", angle=-0.4), _beam("b2")])
+
+
+def floating() -> PlanarModel:
+    """Free base (x, y, theta coordinates), beam, smooth hinge, beam without geometric stiffening."""
+    return PlanarModel.chain("floating", [FreeBase("f"), _beam("b1"), SmoothHinge("h"),
+                                          _beam("b2", geometric_stiffening=False)])
+
+
+SCENES = {"rigid_tree": rigid_tree, "hub_beam": hub_beam, "beam_tree": beam_tree}
+
+
+def _state(model, seed):
+    rng = np.random.default_rng(seed)
+    n = model.n_coordinates
+    return 0.1 * rng.normal(size=n), 0.2 * rng.normal(size=n)
+
+
+@pytest.mark.parametrize("name", sorted(SCENES))
+def test_generated_run_equals_the_numpy_path_to_round_off(name):
+    model = SCENES[name]()
+    q0, v0 = (0.01 * x for x in _state(model, 1))    # near rest: the beam tree is violent from larger states
+    generated = simulate_rk4_generated(model, q0, v0, t_final=0.2, dt=2e-3, store_every=3)
+    numpy_path = simulate_rk4(model, q0, v0, t_final=0.2, dt=2e-3, store_every=3)
+    assert generated.method == "rk4-generated"
+    assert np.array_equal(generated.t, numpy_path.t)
+    assert _relative(generated.q, numpy_path.q) <= 1e-12
+    assert _relative(generated.qdot, numpy_path.qdot) <= 1e-12
+    assert np.max(np.abs(generated.q[-1] - q0)) > 1e-3          # it moved
+
+
+@pytest.mark.parametrize("name", sorted(SCENES) + ["floating"])
+def test_generated_accelerations_equal_the_lagrange_models(name):
+    model = {**SCENES, "floating": floating}[name]()
+    reference = FlexibleLagrange(model) if model.beams else PlanarLagrange(model)
+    scene = CompiledScene(model)
+    for seed in range(3):
+        q, v = _state(model, seed)
+        assert _relative(scene.accelerations(q, v), reference.accelerations(q, v, 0.0)) <= 1e-12
+
+
+def test_generated_hub_beam_run_equals_rk4_of_the_lagrange_model():
+    model = hub_beam()
+    q0, v0 = _state(model, 2)
+    n = model.n_coordinates
+    lagrange = FlexibleLagrange(model)
+    expected = integrate_rk4(second_order_rate(lambda q, v, t: lagrange.accelerations(q, v, t), n),
+                             np.concatenate([q0, v0]), h=2e-3, n_steps=50)
+    generated = simulate_rk4_generated(model, q0, v0, t_final=0.1, dt=2e-3)
+    assert _relative(np.concatenate([generated.q[-1], generated.qdot[-1]]), expected) <= 1e-10
+
+
+def test_blocks_strides_and_remainders_give_the_same_rows():
+    model = rigid_tree()
+    q0, v0 = _state(model, 3)
+    small = CompiledScene(model, store_every=2, rows=4).run(q0, v0, 1e-3, 23)      # 2 blocks, 3 strides, 1 step
+    single = CompiledScene(model, store_every=1, rows=1).run(q0, v0, 1e-3, 23)
+    assert small.shape == (12, 2 * model.n_coordinates)
+    assert np.allclose(small[:11], single[1:22:2], rtol=0, atol=1e-14)
+    assert np.allclose(small[-1], single[-1], rtol=0, atol=1e-14)
+
+
+def test_actuator_inputs_held_over_an_interval_equal_the_numpy_sweep():
+    model = rigid_tree()
+    scene = CompiledScene(model)
+    names = ports.actuator_names(model)
+    rng = np.random.default_rng(5)
+    values = {name: float(rng.normal()) for name in names}
+    q, v = _state(model, 4)
+    numeric = ports.actuator_inputs(model, values)
+    expected = PlanarScene(model).accelerations(q, v, 0.0, numeric)[0]
+    assert _relative(scene.accelerations(q, v, values), expected) <= 1e-12
+    assert _relative(scene.accelerations(q, v), expected) > 1e-3                  # the inputs act
+    n = model.n_coordinates
+    rate = second_order_rate(lambda a, b, t: PlanarScene(model).accelerations(a, b, t, numeric)[0], n)
+    reference = integrate_rk4(rate, np.concatenate([q, v]), h=1e-3, n_steps=20)
+    q1, v1 = scene.advance(q, v, 1e-3, 20, values)
+    assert _relative(np.concatenate([q1, v1]), reference) <= 1e-12
+
+
+def test_ctmm_simulate_dispatches_compiled_true():
+    model = hub_beam()
+    x0 = {"hub.theta": 0.2, "b.q1": 0.01}
+    generated = ctmm.simulate(model, 0.05, 1e-3, method="rk4", compiled=True, x0=x0, outputs=["b.out.y"])
+    numpy_path = ctmm.simulate(model, 0.05, 1e-3, method="rk4", x0=x0, outputs=["b.out.y"])
+    assert generated.info["method"] == "rk4-generated" and numpy_path.info["method"] == "rk4"
+    for signal in ("hub.theta", "b.q1", "b.out.y"):
+        assert _relative(generated[signal], numpy_path[signal]) <= 1e-12
+
+
+def test_divergence_bound_stops_with_a_partial_result():
+    model = rigid_tree()
+    q0, v0 = _state(model, 6)
+    with pytest.raises(SimulationError) as caught:
+        simulate_rk4_generated(model, q0, v0 * 100, t_final=0.5, dt=1e-3, divergence_bound=2.0,
+                               stability_check="ignore")
+    assert caught.value.partial_result is not None
+
+
+def test_refusals():
+    moving = PlanarModel.chain("moving", [Pinned("o"), RigidBody.uniform_link("a", mass=1.0, length=1.0),
+                                          ActuatedHinge("h", torque=lambda t: np.sin(t)),
+                                          RigidBody.uniform_link("b", mass=1.0, length=1.0)])
+    with pytest.raises(ModelError, match="time-dependent signals in 'h'"):
+        CompiledScene(moving)
+    with pytest.raises(ModelError, match="time-dependent"):
+        ctmm.simulate(moving, 0.1, 1e-2, compiled=True)
+    swinging_load = PlanarModel.chain("load", [Pinned("o"), _beam("b", loads=(Load(point=(1.0, 0.0),
+                                                                                   force_y=lambda t: t),))])
+    with pytest.raises(ModelError, match="time-dependent signals in 'b'"):
+        CompiledScene(swinging_load)
+    with pytest.raises(ModelError, match="PlanarModel"):
+        CompiledScene("not a model")
+    model = rigid_tree()
+    with pytest.raises(ModelError, match="not both"):
+        ctmm.simulate(model, 0.1, 1e-2, compiled=True, fast=True)
+    with pytest.raises(ModelError, match="compiled=True runs the generated RK4"):
+        ctmm.simulate(model, 0.1, 1e-2, method="newmark", compiled=True)
+    with pytest.raises(ModelError, match="compiled"):
+        ctmm.simulate(model, 0.1, 1e-2, compiled="yes")
+    with pytest.raises(ModelError, match="unknown actuator"):
+        CompiledScene(model).accelerations(np.zeros(model.n_coordinates), np.zeros(model.n_coordinates),
+                                           {"nope.torque": 1.0})
+    with pytest.raises(ModelError, match="rows"):
+        CompiledScene(model, rows=0)
+    zero = np.zeros(model.n_coordinates)
+    with pytest.raises(ModelError, match="n_steps"):
+        CompiledScene(model).advance(zero, zero, 1e-3, 0)
+    with pytest.raises(ModelError, match="dt"):
+        CompiledScene(model).run(zero, zero, float("nan"), 3)
+    with pytest.raises(ModelError, match="CompiledScene of this model"):
+        simulate_rk4_generated(model, np.zeros(model.n_coordinates), np.zeros(model.n_coordinates), t_final=0.01,
+                               dt=1e-3, store_every=2, scene=CompiledScene(model))
+    chain = ctmm.Chain("c", [elements.Fixed("w"), elements.Spring("k", 1.0), elements.Mass("m", 1.0),
+                             elements.Free("e")])
+    with pytest.raises(ModelError, match="compiled=True applies to planar models"):
+        ctmm.simulate(chain, 0.1, 1e-2, compiled=True)
