@@ -14,18 +14,28 @@ kd = 30 N m s/rad, PZT law eq. (9.65) with Ka_i = 1000 V s/rad, 60 deg cycloidal
   (``solve_ivp`` DOP853, rtol 1e-11).
 * full run only: the implicit DT-TMM (Newmark + Newton) of the book and a delayed variant (PD
   10 ms, PZT 2 ms, through the verb) against the method of steps.
-* frequency domain: closed-loop FRF ``theta_d -> tip`` of the exact continuum (beam fields +
-  embedded loops) with and without PZT, against the reference (150 modes + static correction);
-  loop margins at the hub and at PZT 1 (full run).
+* frequency domain, through the verbs on the same scene with exact beam fields
+  (``fields="exact"``: the arm as exact Euler-Bernoulli fields between its stations, the loops
+  closed on them with exact delays): closed-loop FRF ``theta_d -> tip`` with and without PZT
+  against the reference (150 modes + static correction); loop margins at the hub and at PZT 1
+  (full run) by ``ctmm.control.margins(scene, loop, omega, fields="exact")``.
 
-Not (yet) through the verbs, and why:
+  The FRF per unit desired angle.  The hub loop senses ``y = kp theta + kd theta_dot`` and its
+  reference is ``r = kp theta_d + kd theta_d_dot`` (:func:`~ctmm.manipulator.scene_references`),
+  so ``theta_d`` enters the closed loop only through ``r``: with ``theta_d = e^{i w t}``,
+  ``r = (kp + kd i w) e^{i w t}``, and by linearity
 
-* the compiled (casadi) RK4 timing uses :class:`~ctmm.manipulator.compiled.CompiledManipulator`:
-  the verb's compiled RK4 (``fast=True``) does not take loops; it is reported as a timing and
-  checked against the verb's run;
-* the FRF and the margins use :class:`~ctmm.manipulator.LinearManipulator` (exact beam fields):
-  the planar frequency verbs answer the 3-mode scene, not the continuum the 150-mode reference
-  checks.
+      tip / theta_d = (kp + i w kd) * H(i w),   H = "arm.tip.w" per unit "hub_pd.reference",
+
+  ``H`` from ``ctmm.frequency_response(scene, omega, input="hub_pd.reference",
+  output="arm.tip.w", fields="exact")``.  ``"arm.tip.w"`` is the station port at the arm's free
+  end: the deflection in the arm's root-tangent (hub) frame, ``u(L) = w(L) - (r_h + L) theta``
+  for the inertial transverse displacement ``w`` -- the reference's hub-frame tip.
+
+Not (yet) through the verbs, and why: the compiled (casadi) RK4 timing uses
+:class:`~ctmm.manipulator.compiled.CompiledManipulator` (the manipulator's closed form with the
+laws embedded): the verb's compiled paths (``fast=True``, ``compiled=True``) refuse loops; it is
+reported as a timing and checked against the verb's run.
 """
 from __future__ import annotations
 
@@ -38,10 +48,11 @@ from dataclasses import dataclass
 
 import ctmm
 from ctmm.flexible.outputs import tip_deflection
-from ctmm.manipulator import (SEED_KD, SEED_KP, SEED_MOVE, SEED_PZT_GAIN, FlexibleManipulator, HubPD,
-                              LinearManipulator, PZTFeedback, manipulator_scene, scene_references,
-                              seed_manipulator)
+from ctmm.control import margins
+from ctmm.manipulator import (SEED_KD, SEED_KP, SEED_MOVE, SEED_PZT_GAIN, FlexibleManipulator, HubPD, PZTFeedback,
+                              manipulator_scene, scene_references, seed_manipulator)
 from ctmm.manipulator.compiled import CompiledManipulator
+from ctmm.manipulator.scene import HUB_LOOP, TIP_STATION
 from ctmm.reference.manipulator_lagrange import ManipulatorLagrange
 from ctmm.scenario import accuracy
 from ctmm.signal_results import coordinate_histories
@@ -91,6 +102,16 @@ def _simulate_scene(arm, pd: HubPD, law, t_final: float, store_every: int, metho
                 tip_deflection(scene.plant, q, "arm"), voltages, result.info["wall_time_s"], result.info)
 
 
+def _tip_per_desired_angle(scene, pd: HubPD, omega: np.ndarray) -> np.ndarray:
+    """Closed-loop ``tip / theta_d`` [m/rad] of the scene's exact beam fields over ``omega``
+    [rad/s]: ``(kp + i omega kd)`` times the response of ``"arm.tip.w"`` to the hub loop's
+    reference (module docstring)."""
+    reference = f"{HUB_LOOP}.reference"
+    tip = f"arm.{TIP_STATION}.w"
+    response = ctmm.frequency_response(scene, omega, input=reference, output=tip, fields="exact")
+    return (pd.kp + 1j * omega * pd.kd) * response(tip, reference)
+
+
 def _after_move(t: np.ndarray) -> np.ndarray:
     """Stored times [s] from 0.5 s after the end of the move on (that time included, to 1e-9 s:
     independent of round-off in the time grid)."""
@@ -136,13 +157,14 @@ def run(output_dir: Path, quick: bool = False) -> dict:
                 for k, s in sims.items()}
     controlled = sims["PD + PZT"]
 
-    # compiled RK4 of the same scene (not a verb: fast=True takes no loops): timing and agreement
+    # compiled RK4 of the same scene (not a verb: fast=True / compiled=True refuse loops): timing, agreement
     compiled = CompiledManipulator(FlexibleManipulator(arm, pd, laws["PD + PZT"], SEED_MOVE), block=5,
                                    chunks=100).simulate(t_final, DT)
     extra = {"compiled_rk4": {
         "wall_time_s": compiled.wall_time_s, "real_time_factor": compiled.real_time_factor,
         "tip_difference_vs_verb_m": float(np.abs(compiled.tip_deflection - controlled.tip_deflection).max()),
-        "note": "CompiledManipulator (casadi RK4 with the laws embedded); ctmm.simulate(fast=True) refuses loops"}}
+        "note": ("CompiledManipulator (casadi RK4 with the laws embedded); ctmm.simulate(fast=True or "
+                 "compiled=True) refuses loops")}}
     if not quick:
         newmark = _simulate_scene(arm, pd, laws["PD + PZT"], t_final, store_every=5, method="newmark")
         extra["dt_tmm_newmark"] = {**_error(newmark, refs["PD + PZT"]), "wall_time_s": newmark.wall_time_s,
@@ -160,7 +182,8 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     # -- frequency domain ----------------------------------------------------------------------
     omega = np.linspace(2.0, 40.0, 120 if quick else 400)
     started = time.perf_counter()
-    frf = {label: LinearManipulator(arm, pd, law).response(omega)["tip"] for label, law in laws.items()}
+    scenes = {label: manipulator_scene(arm, pd=pd, pzt=law) for label, law in laws.items()}
+    frf = {label: _tip_per_desired_angle(scene, pd, omega) for label, scene in scenes.items()}
     frf_wall = time.perf_counter() - started
     continuum = ManipulatorLagrange.from_manipulator(arm, 150)
     frf_ref = {label: continuum.frequency_response(omega, kp=SEED_KP, kd=SEED_KD,
@@ -168,9 +191,11 @@ def run(output_dir: Path, quick: bool = False) -> dict:
                for label, law in laws.items()}
     frf_error = max(float(np.max(np.abs(frf[k] - frf_ref[k]) / np.abs(frf_ref[k]))) for k in frf)
     if not quick:                      # margins refine every crossover on the exact L (slow-ish)
-        linear = LinearManipulator(arm, pd, laws["PD + PZT"])
-        extra["margins_hub_pd"] = linear.margins("pd", np.logspace(-1, 3, 600)).as_dict()
-        extra["margins_pzt1"] = linear.margins("pzt1", np.logspace(0, 3.5, 600)).as_dict()
+        controlled_scene = scenes["PD + PZT"]
+        extra["margins_hub_pd"] = margins(controlled_scene, HUB_LOOP, np.logspace(-1, 3, 600),
+                                          fields="exact").as_dict()
+        extra["margins_pzt1"] = margins(controlled_scene, arm.patches[0].name, np.logspace(0, 3.5, 600),
+                                        fields="exact").as_dict()
 
     # -- figures -------------------------------------------------------------------------------
     figures = []
@@ -222,7 +247,7 @@ def run(output_dir: Path, quick: bool = False) -> dict:
         "accuracy": [accuracy(
             "tip deflection error vs Lagrange", float(max_error), "% of peak", 0.1,
             "max_t |u_tip,TMM - u_tip,Lagrange| / max_t |u_tip,Lagrange| x 100, over the PD-only and PD+PZT "
-            "runs (compiled RK4, dt = 2 ms; full run also the DT-TMM Newmark); reference: assumed modes (3), "
+            "runs (ctmm.simulate RK4, dt = 2 ms; full run also the DT-TMM Newmark); reference: assumed modes (3), "
             "Lagrange, DOP853 rtol 1e-11 (1e-10 quick)",
             source="docs/manipulator.md: real-time target, tip error << 0.1 % of the peak")],
         "errors": errors,

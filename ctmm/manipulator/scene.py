@@ -19,6 +19,10 @@ ordinary :class:`~ctmm.control.Feedback` loops on its ports (:mod:`ctmm.planar.p
   ``Psi_jk = phi_k'(x2_j) - phi_k'(x1_j)``; the ports are physical (slopes and moments at
   points), so the same loops close an exact beam field as well.
 
+The arm also has a station ``"tip"`` (:data:`TIP_STATION`) at its free end: ``"arm.tip.w"`` is
+the tip deflection in the hub frame (the arm's root tangent), ``u(L)`` [m] -- the quantity the
+seed's figures and the frequency responses report.
+
 So the manipulator is simulated by :func:`ctmm.simulate`, linearised by :func:`ctmm.linearize`
 and analysed by the stability tools like any other controlled model; nothing in the verbs knows
 it is a manipulator.  Voltage saturation (``on_limit="saturate"``) is not a linear loop: use a
@@ -41,9 +45,11 @@ from .laws import HubPD, PZTFeedback, check_pzt
 from .parameters import Manipulator
 
 __all__ = ["manipulator_plant", "manipulator_scene", "scene_references", "arm_beam", "patch_slope_matrix",
-           "patch_stations", "HUB_LOOP"]
+           "patch_stations", "HUB_LOOP", "TIP_STATION"]
 
 HUB_LOOP = "hub_pd"
+#: Station at the arm's free end: ``"arm.tip.w"`` is the hub-frame tip deflection ``u(L)`` [m].
+TIP_STATION = "tip"
 
 
 def manipulator_plant(manipulator: Manipulator, *, n_modes: int = 3, geometric_stiffening: bool = True,
@@ -74,12 +80,12 @@ def manipulator_plant(manipulator: Manipulator, *, n_modes: int = 3, geometric_s
 
 def arm_beam(manipulator: Manipulator, n_modes: int, geometric_stiffening: bool) -> ModalBeam:
     """The arm as the modal beam ``"arm"`` (``n_modes`` clamped-free modes, Kelvin-Voigt damping)
-    with a station at each patch end (:func:`patch_stations`)."""
+    with a station at each patch end (:func:`patch_stations`) and :data:`TIP_STATION` at ``x = L``."""
     arm = manipulator.arm
     return ModalBeam("arm", length=arm.length, bending_stiffness=arm.bending_stiffness,
                      mass_per_length=arm.mass_per_length, n_modes=int(n_modes),
                      stiffness_damping=arm.kelvin_voigt_time, geometric_stiffening=validation.flag("geometric_stiffening", geometric_stiffening),
-                     stations=patch_stations(manipulator))
+                     stations={**patch_stations(manipulator), TIP_STATION: arm.length})
 
 
 def patch_stations(manipulator: Manipulator) -> dict[str, float]:
