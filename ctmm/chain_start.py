@@ -17,7 +17,7 @@ from .elements.lumped import PointElement
 from .errors import ModelError
 from .system import Chain
 
-__all__ = ["rest_positions", "initial_state", "initial_acceleration", "initial_forces", "acceleration_change"]
+__all__ = ["rest_positions", "initial_state", "initial_acceleration", "initial_forces", "acceleration_change", "NodeInertia"]
 
 def rest_positions(system: Chain) -> np.ndarray:
     """Absolute positions [m] of the connection points with every connector at its free length."""
@@ -117,23 +117,6 @@ def _node_mass(system: Chain) -> tuple[np.ndarray, np.ndarray]:
     return node, M
 
 
-def _solve_nodes(system: Chain, node: np.ndarray, M: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """Point accelerations ``(n_points, 1)`` [m/s^2] from ``M a = F`` over the nodes that move and have
-    inertia; nodes held by a displacement boundary, and nodes without inertia, get 0."""
-    held = np.zeros(M.shape[0], dtype=bool)
-    for boundary, point in ((system.start, 0), (system.end, -1)):
-        held[node[point]] |= boundary.known == "displacement"
-    active = np.flatnonzero(~held & (np.diag(M) > 0.0))
-    a_node = np.zeros(M.shape[0])
-    if active.size:
-        Maa = M[np.ix_(active, active)]
-        if np.linalg.cond(Maa) > 1e12:
-            raise ModelError(f"chain {system.name!r}: the accelerations are not determined (points joined only "
-                             "by inerters, without mass or a support); add a mass or a support")
-        a_node[active] = np.linalg.solve(Maa, F[active])
-    return a_node[node][:, None]
-
-
 def _coupled_acceleration(system: Chain, x: np.ndarray, v: np.ndarray, t0: float,
                           extra_forces: Mapping[int, float]) -> np.ndarray:
     """Accelerations [m/s^2] from the global equations ``M a = F(t0, x, v)`` of a lumped chain.
@@ -143,8 +126,9 @@ def _coupled_acceleration(system: Chain, x: np.ndarray, v: np.ndarray, t0: float
     displacement boundary start at rest (``a = 0``, as their velocity); nodes without inertia
     get 0 as in :func:`initial_acceleration`.
     """
-    node, M = _node_mass(system)
-    F = np.zeros(M.shape[0])
+    inertia = NodeInertia(system)
+    node = inertia.node
+    F = np.zeros(inertia.mass.shape[0])
     for j, e in enumerate(system.body, start=1):
         c = e.lumped_coefficients()
         i, o, extra = node[j - 1], node[j], extra_forces.get(j, 0.0)
@@ -158,10 +142,11 @@ def _coupled_acceleration(system: Chain, x: np.ndarray, v: np.ndarray, t0: float
     for boundary, point, start in ((system.start, 0, True), (system.end, -1, False)):
         if boundary.known == "force":
             F[node[point]] += (1.0 if start else -1.0) * _boundary_force(boundary, x[point, 0], v[point, 0], start)
-    return _solve_nodes(system, node, M, F)
+    return inertia.solve(F)
 
 
-def acceleration_change(system: Chain, forces: Mapping[int, float]) -> np.ndarray:
+def acceleration_change(system: Chain, forces: Mapping[int, float], inertia: "NodeInertia | None" = None
+                        ) -> np.ndarray:
     """Jump [m/s^2] of every point's acceleration when loads jump (positions and velocities continuous).
 
     Parameters
@@ -173,21 +158,57 @@ def acceleration_change(system: Chain, forces: Mapping[int, float]) -> np.ndarra
         Load jumps [N] by element position: on the point of a point element, across a connector
         (``+F`` outboard, ``-F`` inboard).  Positions of boundaries are ignored.
 
+    inertia : NodeInertia, optional
+        The chain's node mass matrix, factorised once (pass it when called every step).
+
     Returns
     -------
     ndarray, shape (n_points, 1)
         ``M^-1 dF`` over the nodes (inerters couple neighbouring nodes); 0 at held or massless nodes.
     """
-    node, M = _node_mass(system)
-    F = np.zeros(M.shape[0])
+    inertia = inertia if inertia is not None else NodeInertia(system)
+    F = np.zeros(inertia.mass.shape[0])
+    node = inertia.node
     for j, value in forces.items():
         if 1 <= j <= len(system.body):
-            if system.body[j - 1].lumped_coefficients().connector:
+            if inertia.connector[j - 1]:
                 F[node[j]] += value
                 F[node[j - 1]] -= value
             else:
                 F[node[j - 1]] += value
-    return _solve_nodes(system, node, M, F)
+    return inertia.solve(F)
+
+
+class NodeInertia:
+    """A lumped chain's nodes, node mass matrix and its inverse over the moving nodes, built once.
+
+    Parameters
+    ----------
+    system : Chain
+        A 1-D chain whose elements all have a lumped form.
+    """
+
+    def __init__(self, system: Chain) -> None:
+        self.node, self.mass = _node_mass(system)
+        self.connector = [e.lumped_coefficients().connector for e in system.body]
+        held = np.zeros(self.mass.shape[0], dtype=bool)
+        for boundary, point in ((system.start, 0), (system.end, -1)):
+            held[self.node[point]] |= boundary.known == "displacement"
+        self.active = np.flatnonzero(~held & (np.diag(self.mass) > 0.0))
+        self.inverse = None
+        if self.active.size:
+            Maa = self.mass[np.ix_(self.active, self.active)]
+            if np.linalg.cond(Maa) > 1e12:
+                raise ModelError(f"chain {system.name!r}: the accelerations are not determined (points joined only "
+                                 "by inerters, without mass or a support); add a mass or a support")
+            self.inverse = np.linalg.inv(Maa)
+
+    def solve(self, F: np.ndarray) -> np.ndarray:
+        """Point accelerations ``(n_points, 1)`` [m/s^2] from node forces ``F`` [N] (held or massless: 0)."""
+        a_node = np.zeros(self.mass.shape[0])
+        if self.inverse is not None:
+            a_node[self.active] = self.inverse @ F[self.active]
+        return a_node[self.node][:, None]
 
 
 def initial_acceleration(system: Chain, x: np.ndarray, v: np.ndarray, t0: float,

@@ -295,14 +295,16 @@ def user_output(what: str, value: Any, size: int, *, time: float) -> np.ndarray:
     time : float
         Simulation time [s].
     """
-    not_numbers = SimulationError(f"{what} returned {value!r:.80} at t = {time:.6g} s; expected {size} real "
-                                  f"number(s)", time=float(time), element=what)
+    def not_numbers() -> SimulationError:          # built only on failure (the repr costs a step's time)
+        return SimulationError(f"{what} returned {value!r:.80} at t = {time:.6g} s; expected {size} real "
+                               f"number(s)", time=float(time), element=what)
+
     if value is None:                               # np.asarray(None, float) is nan: say what it was
-        raise not_numbers
+        raise not_numbers()
     try:
         array = np.asarray(value, dtype=float).reshape(-1)
     except (TypeError, ValueError) as exc:
-        raise not_numbers from exc
+        raise not_numbers() from exc
     if array.size != size:
         raise SimulationError(f"{what} returned {array.size} value(s) at t = {time:.6g} s; expected {size}",
                               time=float(time), element=what)

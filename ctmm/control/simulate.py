@@ -32,7 +32,7 @@ import numpy as np
 from .. import validation
 from ..assembly import SOLVERS, predicted_forces, shift_forces
 from ..capabilities import require_chain
-from ..chain_start import acceleration_change, initial_acceleration, initial_forces
+from ..chain_start import NodeInertia, acceleration_change, initial_acceleration, initial_forces
 from ..elements.base import Linearisation
 from ..elements.lumped import PointElement
 from ..errors import ModelError, SimulationError, unknown_name
@@ -329,6 +329,7 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
 
     held_before: dict[int, float] = {}
     lumped = plant.layout.size == 2 and all(e.lumped_coefficients() is not None for e in plant.body)
+    inertia = NodeInertia(plant) if lumped and len(cosim.master) else None
 
     def before_step(i: int, t_n: float, history: History) -> None:
         """Restart the acceleration where a held controller output jumps at ``t_n``.
@@ -344,7 +345,7 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
             jumps = {pos: now.get(pos, 0.0) - held_before.get(pos, 0.0) for pos in set(now) | set(held_before)}
             jumps = {pos: jump for pos, jump in jumps.items() if jump != 0.0}
             if jumps:
-                history.a += acceleration_change(plant, jumps)
+                history.a += acceleration_change(plant, jumps, inertia)
         held_before.clear()
         held_before.update(now)
 

@@ -59,6 +59,7 @@ class PointElement(Element):
         self.damping = validation.nonnegative(f"{name}: damping", damping)
         self.stiffness = validation.nonnegative(f"{name}: stiffness", stiffness)
         self.force: TimeFunction = as_signal(f"{name}: force", force)
+        self._coefficients = LumpedCoefficients(False, self.mass, self.damping, self.stiffness)
 
     def impedance(self, s: np.ndarray) -> np.ndarray:
         """Dynamic stiffness ``m s^2 + c s + k`` [N/m] of the point."""
@@ -83,7 +84,7 @@ class PointElement(Element):
         return DiscretePoint(self)
 
     def lumped_coefficients(self) -> LumpedCoefficients:
-        return LumpedCoefficients(False, self.mass, self.damping, self.stiffness)
+        return self._coefficients                  # built with the element (read every step)
 
     def parameters(self) -> dict[str, Any]:
         return {"mass": self.mass, "damping": self.damping, "stiffness": self.stiffness}
@@ -167,6 +168,7 @@ class Connector(Element):
         self.free_length = validation.finite(f"{name}: free_length", free_length)
         if self.stiffness == 0.0 and self.damping == 0.0:
             raise ModelError(f"{name}: a connector needs stiffness > 0 or damping > 0, got both 0")
+        self._coefficients = LumpedCoefficients(True, 0.0, self.damping, self.stiffness, self.free_length)
 
     def connector_stiffness(self, s: np.ndarray) -> np.ndarray:
         """Complex stiffness ``k + c s`` [N/m]."""
@@ -192,7 +194,7 @@ class Connector(Element):
         return DiscreteConnector(self)
 
     def lumped_coefficients(self) -> LumpedCoefficients:
-        return LumpedCoefficients(True, 0.0, self.damping, self.stiffness, self.free_length)
+        return self._coefficients                  # built with the element (read every step)
 
     def parameters(self) -> dict[str, Any]:
         return {"stiffness": self.stiffness, "damping": self.damping, "free_length": self.free_length}
