@@ -21,11 +21,20 @@ cached by :mod:`ctmm.codegen` (key: SHA-256 of the C text, the compiler and the 
 Refused (:class:`~ctmm.errors.ModelError`): anything but a planar model, hinges with translational
 springs (not on the protocol), and time-dependent data (driven joints, time signals of hinge laws or
 loads, beam load signals, time-varying distributed loads, modal force hooks), whose values are Python
-callables of time.  The model's parameters are constants of the generated code (one library per
-model; an identical model finds it in the cache).
+callables of time.
+
+Parameters as inputs: the numbers of the rigid bodies, hinge laws and loads (masses, inertias,
+centres of mass, points, gravity, stiffnesses, dampings, references, torques, loads;
+:func:`parameter_vector`) are an input ``p`` of every generated function, so the C text -- and the
+cached library -- depends on the scene's structure only (:func:`structure_key`: tree, joint kinds,
+points and loads layout, coordinates, actuators, ground angles, fixed mountings, modal beams' data).
+A model of the same structure with other numbers finds the library in the cache, or runs on an
+existing scene without generating anything (:meth:`CompiledScene.with_model`).
 """
 from __future__ import annotations
 
+import copy
+import hashlib
 import math
 import os
 import time as _time
@@ -39,7 +48,7 @@ from .codegen import load_casadi
 from .errors import ModelError
 from .ode import rk4_step
 from .ops import CASADI
-from .planar.body_forms import PlanarScene
+from .planar.body_forms import PlanarScene, SceneNumbers
 from .planar.guards import check_scheme, check_stored, divergence_guard
 from .planar.integrate import PlanarSimulation, check_store_every, initial_coordinates, step_total
 from .planar.elements import DrivenHinge, Hinge
@@ -47,7 +56,7 @@ from .planar.model import FREE, PlanarModel
 from .planar.ports import ActuatorInputs, actuator_inputs, actuator_names
 from .signals import Constant
 
-__all__ = ["CompiledScene", "compile_refusal", "simulate_rk4_generated"]
+__all__ = ["CompiledScene", "compile_refusal", "parameter_vector", "simulate_rk4_generated", "structure_key"]
 
 DEFAULT_ROWS = 64
 """Stored states per generated block call."""
@@ -89,6 +98,80 @@ def _time_dependent_elements(model: PlanarModel) -> list[str]:
     return names
 
 
+def parameter_vector(model: PlanarModel) -> np.ndarray:
+    """The numbers of ``model`` that generated kernels take as inputs, in their order: masses, inertias,
+    centres of mass, outboard points, gravity, hinge stiffnesses, dampings, references, reference
+    rates, torques, loads and load points (:class:`~ctmm.planar.body_forms.SceneNumbers`, SI units)."""
+    numbers = SceneNumbers.of(model)
+    parts = [numbers.mass, numbers.inertia, np.reshape(numbers.center_of_mass, -1)]
+    parts += [np.reshape(point, -1) for ends in numbers.ends for point in ends.values()]
+    parts += [numbers.gravity, numbers.stiffness, numbers.damping, numbers.reference, numbers.reference_rate,
+              numbers.torque, np.reshape(numbers.loads, -1), np.reshape(numbers.load_point, -1)]
+    return np.concatenate([np.asarray(part, dtype=float).reshape(-1) for part in parts])
+
+
+def _symbolic_numbers(model: PlanarModel, p: Any) -> SceneNumbers:
+    """:class:`SceneNumbers` of entries of the symbol column ``p``, in the order of :func:`parameter_vector`."""
+    nb, nl = model.n_bodies, len(model.load_body)
+    cursor = [0]
+
+    def take(count: int) -> list:
+        start = cursor[0]
+        cursor[0] += count
+        return [p[start + k] for k in range(count)]
+
+    def pairs(count: int) -> list:
+        flat = take(2 * count)
+        return [(flat[2 * k], flat[2 * k + 1]) for k in range(count)]
+
+    mass, inertia, com = take(nb), take(nb), pairs(nb)
+    ends = [dict(zip(points, pairs(len(points)))) for points in model.ends]
+    gravity = take(2)
+    stiffness, damping, reference, reference_rate, torque = (take(nb) for _ in range(5))
+    flat = take(3 * nl)
+    loads = [flat[3 * k:3 * k + 3] for k in range(nl)]
+    load_point = pairs(nl)
+    return SceneNumbers(mass, inertia, com, ends, gravity, stiffness, damping, reference, reference_rate, torque,
+                        loads, load_point)
+
+
+def structure_key(model: PlanarModel) -> str:
+    """SHA-256 (hex) of what a generated kernel keeps as constants: the tree, joint kinds, point and
+    load layout, coordinates, actuators, ground angles, fixed mountings and the modal beams' data (with
+    gravity, which the beams take as a constant).  Two models with one key run on one compiled
+    :class:`CompiledScene` with their own :func:`parameter_vector`; a beam whose definition holds an
+    object without a value ``repr`` makes the key unique to the model (never shared)."""
+    digest = hashlib.sha256()
+    parts: list[Any] = [model.parent, model.joint_kind, model.ground_angle, model.theta_index, model.load_body,
+                        [list(ends) for ends in model.ends], [np.asarray(idx).tolist() for idx in model.modal_index],
+                        [np.asarray(idx).tolist() for idx in model.xy_index], model.n_coordinates,
+                        model.parent_end, model.parent_end_index, list(actuator_names(model)), model.driven(0.0)]
+    for name in actuator_names(model):
+        unit = actuator_inputs(model, {name: 1.0})
+        parts.append((unit.hinge_torque, unit.body_force, sorted((j, np.asarray(f, dtype=float).tolist())
+                                                                 for j, f in unit.modal_force.items())))
+    if model.beams:
+        parts.append(model.gravity)
+        for j, beam in sorted(model.beams.items()):
+            # the beam's data derive from its definition (a dataclass of numbers and constant signals);
+            # a definition whose text shows an object address makes the key unique to the model
+            text = repr(beam)
+            parts.append((j, text if " at 0x" not in text else f"model {id(model)}"))
+    digest.update(repr(_plain(parts)).encode())
+    return digest.hexdigest()
+
+
+def _plain(value: Any) -> Any:
+    """Arrays as nested lists of Python numbers (full precision in ``repr``), recursively."""
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, (list, tuple)):
+        return [_plain(x) for x in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
 class CompiledScene:
     """Generated and compiled accelerations and RK4 time loop of one planar model.
 
@@ -124,39 +207,66 @@ class CompiledScene:
         start = _time.perf_counter()
         self.model, self.store_every, self.rows = model, store_every, int(rows)
         self.actuators = tuple(actuator_names(model))
-        n = model.n_coordinates
+        self.structure = structure_key(model)
+        self.parameters = parameter_vector(model)
+        n, n_p = model.n_coordinates, self.parameters.size
         scene = PlanarScene(model)
         q, v = ca.SX.sym("q", n), ca.SX.sym("v", n)
-        u = ca.SX.sym("u", len(self.actuators))
-        bodies, joints = scene.terms(CASADI, q, v, 0.0, _symbolic_inputs(model, self.actuators, u))
+        u, p = ca.SX.sym("u", len(self.actuators)), ca.SX.sym("p", n_p)
+        bodies, joints = scene.terms(CASADI, q, v, 0.0, _symbolic_inputs(model, self.actuators, u),
+                                     _symbolic_numbers(model, p))
         solution = articulated_sweep(CASADI, scene.tree, bodies, joints)
         qddot = _coordinate_accelerations(model, solution.x)
-        acceleration = ca.Function("acceleration", [q, v, u], [qddot])
+        acceleration = ca.Function("acceleration", [q, v, u, p], [qddot])
         # on MX symbols the sweep stays one C function called by the four stages, and the loops stay
         # loops (an SX call would inline and unroll them)
         y_mx, u_mx, h_mx = ca.MX.sym("y", 2 * n), ca.MX.sym("u", len(self.actuators)), ca.MX.sym("h")
+        p_mx = ca.MX.sym("p", n_p)
 
         def rate(_t: float, state: Any) -> Any:
-            return ca.vertcat(state[n:], acceleration(state[:n], state[n:], u_mx))
+            return ca.vertcat(state[n:], acceleration(state[:n], state[n:], u_mx, p_mx))
 
-        step = ca.Function("step", [y_mx, u_mx, h_mx], [rk4_step(rate, 0.0, y_mx, h_mx)])
-        folded = step.fold(store_every) if store_every > 1 else step
-        stride = ca.Function("stride", [y_mx, u_mx, h_mx],
-                             [folded(y_mx, ca.repmat(u_mx, 1, store_every), ca.repmat(h_mx, 1, store_every))
-                              if store_every > 1 else folded(y_mx, u_mx, h_mx)])
+        arguments = [y_mx, u_mx, h_mx, p_mx]
+        step = ca.Function("step", arguments, [rk4_step(rate, 0.0, y_mx, h_mx)])
+
+        def repeated(count: int) -> list:
+            return [y_mx] + [ca.repmat(x, 1, count) for x in (u_mx, h_mx, p_mx)]
+
+        stride = ca.Function("stride", arguments, [step.fold(store_every)(*repeated(store_every))
+                                                   if store_every > 1 else step(*arguments)])
         # blocks of rows, rows/2, rows/4, ... strides: a remainder costs one call per binary digit
         self._sizes = [self.rows >> k for k in range(self.rows.bit_length()) if self.rows >> k > 1]
         blocks = []
         for size in self._sizes:
             accumulated = stride.mapaccum(f"block{size}_acc", size)
-            blocks.append(ca.Function(f"block{size}", [y_mx, u_mx, h_mx],
-                                      [accumulated(y_mx, ca.repmat(u_mx, 1, size), ca.repmat(h_mx, 1, size))]))
+            blocks.append(ca.Function(f"block{size}", arguments, [accumulated(*repeated(size))]))
         name = f"scene_{model.n_bodies}b{n}q"
         options = {"cache_dir": cache_dir, "compiler": compiler}
         loaded = load_casadi([acceleration, step, stride, *blocks], name, **options)
         self._acceleration, self._step, self._stride = loaded[:3]
         self._blocks = list(zip(self._sizes, loaded[3:]))
         self.compile_time_s = _time.perf_counter() - start
+
+    def with_model(self, model: PlanarModel) -> "CompiledScene":
+        """This compiled scene for another model of the same structure (:func:`structure_key`): its
+        numbers (:func:`parameter_vector`) enter the same generated code, nothing is generated or
+        compiled.
+
+        Raises
+        ------
+        ModelError
+            ``model`` is not compilable or has another structure.
+        """
+        reason = compile_refusal(model)
+        if reason:
+            raise ModelError(f"CompiledScene.with_model: {reason}")
+        if structure_key(model) != self.structure:
+            raise ModelError(f"CompiledScene.with_model: model {model.name!r} has another structure than "
+                             f"{self.model.name!r} (tree, joint kinds, points, loads, coordinates, actuators, "
+                             "ground angles, fixed mountings or beam data differ); build a CompiledScene of it")
+        other = copy.copy(self)
+        other.model, other.parameters = model, parameter_vector(model)
+        return other
 
     def _inputs(self, inputs: Mapping[str, float] | None) -> np.ndarray:
         values = np.zeros(len(self.actuators))
@@ -172,7 +282,7 @@ class CompiledScene:
     def accelerations(self, q: Any, qdot: Any, inputs: Mapping[str, float] | None = None) -> np.ndarray:
         """``qddot`` (n,) at coordinates ``q`` and rates ``qdot`` (n,) with actuator ``inputs`` [SI]."""
         q, qdot = self.model.state(q, qdot)
-        return np.asarray(self._acceleration(q, qdot, self._inputs(inputs))).reshape(-1)
+        return np.asarray(self._acceleration(q, qdot, self._inputs(inputs), self.parameters)).reshape(-1)
 
     def advance(self, q: Any, qdot: Any, dt: float, n_steps: int, inputs: Mapping[str, float] | None = None
                 ) -> tuple[np.ndarray, np.ndarray]:
@@ -197,21 +307,22 @@ class CompiledScene:
 
     def _run(self, y: np.ndarray, u: np.ndarray, h: float, n_steps: int) -> np.ndarray:
         strides, rest = divmod(n_steps, self.store_every)
+        p = self.parameters
         out = []
         done = 0
         for size, function in self._blocks:
             while done + size <= strides:
-                block = np.asarray(function(y, u, h)).T
+                block = np.asarray(function(y, u, h, p)).T
                 out.append(block)
                 y = block[-1]
                 done += size
                 if not np.all(np.isfinite(block)):
                     return np.vstack(out)
         for _ in range(strides - done):
-            y = np.asarray(self._stride(y, u, h)).reshape(-1)
+            y = np.asarray(self._stride(y, u, h, p)).reshape(-1)
             out.append(y[None])
         for _ in range(rest):
-            y = np.asarray(self._step(y, u, h)).reshape(-1)
+            y = np.asarray(self._step(y, u, h, p)).reshape(-1)
         if rest:
             out.append(y[None])
         return np.vstack(out) if out else np.zeros((0, y.size))

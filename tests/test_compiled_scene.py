@@ -41,21 +41,22 @@ def _relative(a, b) -> float:
     return float(np.max(np.abs(np.asarray(a) - np.asarray(b))) / np.max(np.abs(b)))
 
 
-def rigid_tree() -> PlanarModel:
-    """Revolute tree with every hinge law, a branch, constant loads, an actuated hinge."""
+def rigid_tree(f: float = 1.0) -> PlanarModel:
+    """Revolute tree with every hinge law, a branch, constant loads, an actuated hinge; ``f`` scales
+    every number (same structure)."""
     return PlanarModel("tree", [
         Pinned("o", child="a"),
-        RigidBody("a", mass=1.2, inertia=0.05, center_of_mass=(0.3, 0.02), outboard={"tip": (0.6, 0.0),
-                                                                                    "mid": (0.3, 0.1)}),
-        ElasticHinge("h1", parent="a.tip", child="b", stiffness=3.0, rest_angle=0.2),
-        RigidBody.uniform_link("b", mass=0.7, length=0.5),
-        DamperHinge("h2", parent="a.mid", child="c", damping=0.3),
-        RigidBody("c", mass=0.4, inertia=0.02, center_of_mass=(0.2, -0.05), outboard=(0.4, 0.0),
-                  loads=(Load(point=(0.4, 0.0), force_x=0.5, force_y=-0.3, moment=0.1),)),
-        SpringDamperHinge("h3", parent="c", child="d", stiffness=2.0, damping=0.1, rest_angle=-0.3),
-        RigidBody.uniform_link("d", mass=0.3, length=0.3),
-        ActuatedHinge("h4", parent="b", child="e", torque=0.4, kp=5.0, kd=0.5, reference=0.1),
-        RigidBody.uniform_link("e", mass=0.2, length=0.25)])
+        RigidBody("a", mass=1.2 * f, inertia=0.05 * f, center_of_mass=(0.3 * f, 0.02), outboard={
+            "tip": (0.6 * f, 0.0), "mid": (0.3, 0.1 * f)}),
+        ElasticHinge("h1", parent="a.tip", child="b", stiffness=3.0 * f, rest_angle=0.2 * f),
+        RigidBody.uniform_link("b", mass=0.7 * f, length=0.5 * f),
+        DamperHinge("h2", parent="a.mid", child="c", damping=0.3 * f),
+        RigidBody("c", mass=0.4 * f, inertia=0.02 * f, center_of_mass=(0.2, -0.05 * f), outboard=(0.4 * f, 0.0),
+                  loads=(Load(point=(0.4 * f, 0.0), force_x=0.5 * f, force_y=-0.3 * f, moment=0.1 * f),)),
+        SpringDamperHinge("h3", parent="c", child="d", stiffness=2.0 * f, damping=0.1 * f, rest_angle=-0.3 * f),
+        RigidBody.uniform_link("d", mass=0.3 * f, length=0.3 * f),
+        ActuatedHinge("h4", parent="b", child="e", torque=0.4 * f, kp=5.0 * f, kd=0.5 * f, reference=0.1 * f),
+        RigidBody.uniform_link("e", mass=0.2 * f, length=0.25 * f)], gravity=(0.3 * (f - 1.0), -9.81 * f))
 
 
 def _beam(name, **kw):
@@ -176,6 +177,45 @@ def test_divergence_bound_stops_with_a_partial_result():
         simulate_rk4_generated(model, q0, v0 * 100, t_final=0.5, dt=1e-3, divergence_bound=2.0,
                                stability_check="ignore")
     assert caught.value.partial_result is not None
+
+
+def _libraries(folder) -> list:
+    return sorted(path.name for path in (folder / "kernels").iterdir())
+
+
+def test_models_of_one_structure_share_one_library(tmp_path):
+    first, second = rigid_tree(), rigid_tree(1.37)
+    assert compiled_scene.structure_key(first) == compiled_scene.structure_key(second)
+    assert not np.allclose(compiled_scene.parameter_vector(first), compiled_scene.parameter_vector(second))
+    scenes = [CompiledScene(model, store_every=3, cache_dir=tmp_path) for model in (first, second)]
+    assert len(_libraries(tmp_path)) == 1                       # the second found the first's library
+    reused = scenes[0].with_model(second)                        # nothing generated: same functions
+    assert reused._step is scenes[0]._step
+    for model, scene in [(first, scenes[0]), (second, scenes[1]), (second, reused)]:
+        q0, v0 = _state(model, 7)
+        generated = simulate_rk4_generated(model, q0, v0, t_final=0.1, dt=2e-3, store_every=3, scene=scene)
+        numpy_path = simulate_rk4(model, q0, v0, t_final=0.1, dt=2e-3, store_every=3)
+        assert _relative(generated.q, numpy_path.q) <= 1e-12
+        assert _relative(generated.qdot, numpy_path.qdot) <= 1e-12
+        assert _relative(scene.accelerations(q0, v0), PlanarLagrange(model).accelerations(q0, v0, 0.0)) <= 1e-12
+    q0, v0 = _state(first, 7)
+    assert _relative(reused.accelerations(q0, v0), scenes[0].accelerations(q0, v0)) > 1e-2   # numbers matter
+
+
+def test_beam_data_and_structure_changes_give_another_key():
+    key = compiled_scene.structure_key
+    assert key(hub_beam()) == key(hub_beam())
+    other_beam = PlanarModel.chain("hub_beam", [
+        Pinned("o"), RigidBody("hub", mass=2.0, inertia=0.1, center_of_mass=(0.05, 0.02), outboard=(0.2, 0.0)),
+        FixedMounting("mount", angle=0.3), ModalBeam("b", length=1.4, bending_stiffness=5.0, mass_per_length=0.7,
+                                                     n_modes=3)])
+    assert key(other_beam) != key(hub_beam())
+    shorter = PlanarModel.chain("c", [Pinned("o"), RigidBody.uniform_link("a", mass=1.0, length=1.0)])
+    longer = PlanarModel.chain("c", [Pinned("o"), RigidBody.uniform_link("a", mass=1.0, length=1.0), SmoothHinge("h"),
+                                     RigidBody.uniform_link("b", mass=1.0, length=1.0)])
+    assert key(shorter) != key(longer)
+    with pytest.raises(ModelError, match="another structure"):
+        CompiledScene(shorter).with_model(longer)
 
 
 def test_refusals():
