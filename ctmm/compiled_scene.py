@@ -52,9 +52,10 @@ from .planar.body_forms import PlanarScene, SceneNumbers
 from .planar.guards import check_scheme, check_stored, divergence_guard
 from .planar.integrate import PlanarSimulation, check_store_every, initial_coordinates, step_total
 from .planar.elements import DrivenHinge, Hinge
-from .planar.model import FREE, PlanarModel
+from .planar.deformable import DeformableBody
+from .planar.model import FREE, REVOLUTE, PlanarModel
 from .planar.ports import ActuatorInputs, actuator_inputs, actuator_names
-from .signals import Constant
+from .signals import SYMBOLIC_FIELDS, Constant, signal_parameters, symbolic_signal
 
 __all__ = ["CompiledScene", "compile_refusal", "parameter_vector", "simulate_rk4_generated", "structure_key"]
 
@@ -66,14 +67,15 @@ def compile_refusal(model: Any) -> str:
     """Why ``model`` cannot be compiled by :class:`CompiledScene` (empty string when it can)."""
     if not isinstance(model, PlanarModel):
         return f"a ctmm.planar.PlanarModel is compiled, got {type(model).__name__}"
-    reasons = [f"time-dependent signals in {name!r}" for name in _time_dependent_elements(model)]
+    reasons = [f"time-dependent signals without a symbolic form in {name!r}"
+               for name in _time_dependent_elements(model)]
     for j, beam in model.beams.items():
         data = beam.data
         if not data.constant_distributed or data.forces or data.laws:
             reasons.append(f"time-dependent loads or modal force hooks on beam {model.body_names[j]!r}")
     if reasons:
         return (f"model {model.name!r} has " + "; ".join(reasons) + " (Python callables of time, not compiled; "
-                "use the numpy path, compiled=False)")
+                "use ctmm.signals Constant, Harmonic, Step or SquareWave, or the numpy path, compiled=False)")
     try:
         PlanarScene(model)
     except ModelError as exc:
@@ -82,36 +84,65 @@ def compile_refusal(model: Any) -> str:
 
 
 def _time_dependent_elements(model: PlanarModel) -> list[str]:
-    """Names of the elements with a signal that is not a constant: driven motions (fixed mountings are
-    constant), hinge references and torques, loads of bodies and beams."""
+    """Names of the elements with a time signal that the generated code cannot evaluate: driven motions
+    that are not constant (fixed mountings are), hinge references and torques and rigid-body loads
+    without a symbolic form (:data:`ctmm.signals.SYMBOLIC_FIELDS`: user callables), beam loads that are
+    not constant."""
     names = []
     for element in model.elements:
+        symbolic: list = []
+        constant: list = []
         if isinstance(element, DrivenHinge):
-            signals = [element.angle, element.rate, element.acceleration]
+            constant = [element.angle, element.rate, element.acceleration]
         elif isinstance(element, Hinge):
-            signals = list(element.law()[2:])
+            symbolic = list(element.law()[2:])
+        loads = [f for load in getattr(element, "loads", ()) for f in (load.force_x, load.force_y, load.moment)]
+        if isinstance(element, DeformableBody):
+            constant += loads
         else:
-            signals = []
-        signals += [f for load in getattr(element, "loads", ()) for f in (load.force_x, load.force_y, load.moment)]
-        if any(f is not None and not isinstance(f, Constant) for f in signals):
+            symbolic += loads
+        if any(f is not None and not isinstance(f, Constant) for f in constant) or \
+                any(f is not None and signal_parameters(f) is None for f in symbolic):
             names.append(element.name)
     return names
 
 
 def parameter_vector(model: PlanarModel) -> np.ndarray:
     """The numbers of ``model`` that generated kernels take as inputs, in their order: masses, inertias,
-    centres of mass, outboard points, gravity, hinge stiffnesses, dampings, references, reference
-    rates, torques, loads and load points (:class:`~ctmm.planar.body_forms.SceneNumbers`, SI units)."""
+    centres of mass, outboard points, gravity, hinge stiffnesses, dampings, then the parameters of the
+    hinge references, reference rates, torques and loads (each signal's
+    :func:`ctmm.signals.signal_parameters`: a constant's value, a sine's amplitude, frequency and phase,
+    ...) and the load points (:class:`~ctmm.planar.body_forms.SceneNumbers`, SI units)."""
     numbers = SceneNumbers.of(model)
     parts = [numbers.mass, numbers.inertia, np.reshape(numbers.center_of_mass, -1)]
     parts += [np.reshape(point, -1) for ends in numbers.ends for point in ends.values()]
-    parts += [numbers.gravity, numbers.stiffness, numbers.damping, numbers.reference, numbers.reference_rate,
-              numbers.torque, np.reshape(numbers.loads, -1), np.reshape(numbers.load_point, -1)]
+    parts += [numbers.gravity, numbers.stiffness, numbers.damping]
+    parts += [signal_parameters(signal) for signal in _signals(model)]
+    parts += [np.reshape(numbers.load_point, -1)]
     return np.concatenate([np.asarray(part, dtype=float).reshape(-1) for part in parts])
 
 
-def _symbolic_numbers(model: PlanarModel, p: Any) -> SceneNumbers:
-    """:class:`SceneNumbers` of entries of the symbol column ``p``, in the order of :func:`parameter_vector`."""
+def _signals(model: PlanarModel) -> list:
+    """The hinge references, reference rates and torques (per body, its inboard joint; zero for other
+    joints) and the rigid-body load components ``(fx, fy, moment)`` of ``model``, in
+    :func:`parameter_vector` order."""
+    by_name = {getattr(element, "name", None): element for element in model.elements}
+    zero = Constant(0.0)
+    laws = []
+    for name, kind in zip(model.joint_names, model.joint_kind):
+        element = by_name.get(name)
+        if kind == REVOLUTE and isinstance(element, Hinge):
+            laws.append(tuple(zero if f is None else f for f in element.law()[2:]))
+        else:
+            laws.append((zero, zero, zero))
+    loads = [f for name in model.body_names for load in getattr(by_name[name], "loads", ())
+             for f in (load.force_x, load.force_y, load.moment)]
+    return [law[c] for c in range(3) for law in laws] + loads
+
+
+def _symbolic_numbers(model: PlanarModel, p: Any, t: Any) -> SceneNumbers:
+    """:class:`SceneNumbers` of entries of the symbol column ``p`` (:func:`parameter_vector` order) at
+    the time symbol ``t``: signals by their symbolic form."""
     nb, nl = model.n_bodies, len(model.load_body)
     cursor = [0]
 
@@ -127,9 +158,11 @@ def _symbolic_numbers(model: PlanarModel, p: Any) -> SceneNumbers:
     mass, inertia, com = take(nb), take(nb), pairs(nb)
     ends = [dict(zip(points, pairs(len(points)))) for points in model.ends]
     gravity = take(2)
-    stiffness, damping, reference, reference_rate, torque = (take(nb) for _ in range(5))
-    flat = take(3 * nl)
-    loads = [flat[3 * k:3 * k + 3] for k in range(nl)]
+    stiffness, damping = take(nb), take(nb)
+    values = [symbolic_signal(type(signal), t, take(len(SYMBOLIC_FIELDS[type(signal)])))
+              for signal in _signals(model)]
+    reference, reference_rate, torque = values[:nb], values[nb:2 * nb], values[2 * nb:3 * nb]
+    loads = [values[3 * nb + 3 * k:3 * nb + 3 * k + 3] for k in range(nl)]
     load_point = pairs(nl)
     return SceneNumbers(mass, inertia, com, ends, gravity, stiffness, damping, reference, reference_rate, torque,
                         loads, load_point)
@@ -145,7 +178,8 @@ def structure_key(model: PlanarModel) -> str:
     parts: list[Any] = [model.parent, model.joint_kind, model.ground_angle, model.theta_index, model.load_body,
                         [list(ends) for ends in model.ends], [np.asarray(idx).tolist() for idx in model.modal_index],
                         [np.asarray(idx).tolist() for idx in model.xy_index], model.n_coordinates,
-                        model.parent_end, model.parent_end_index, list(actuator_names(model)), model.driven(0.0)]
+                        model.parent_end, model.parent_end_index, list(actuator_names(model)), model.driven(0.0),
+                        [type(signal).__name__ for signal in _signals(model)]]
     for name in actuator_names(model):
         unit = actuator_inputs(model, {name: 1.0})
         parts.append((unit.hinge_torque, unit.body_force, sorted((j, np.asarray(f, dtype=float).tolist())
@@ -212,34 +246,38 @@ class CompiledScene:
         n, n_p = model.n_coordinates, self.parameters.size
         scene = PlanarScene(model)
         q, v = ca.SX.sym("q", n), ca.SX.sym("v", n)
-        u, p = ca.SX.sym("u", len(self.actuators)), ca.SX.sym("p", n_p)
+        u, p, t = ca.SX.sym("u", len(self.actuators)), ca.SX.sym("p", n_p), ca.SX.sym("t")
         bodies, joints = scene.terms(CASADI, q, v, 0.0, _symbolic_inputs(model, self.actuators, u),
-                                     _symbolic_numbers(model, p))
+                                     _symbolic_numbers(model, p, t))
         solution = articulated_sweep(CASADI, scene.tree, bodies, joints)
         qddot = _coordinate_accelerations(model, solution.x)
-        acceleration = ca.Function("acceleration", [q, v, u, p], [qddot])
+        acceleration = ca.Function("acceleration", [q, v, u, p, t], [qddot])
         # on MX symbols the sweep stays one C function called by the four stages, and the loops stay
         # loops (an SX call would inline and unroll them)
         y_mx, u_mx, h_mx = ca.MX.sym("y", 2 * n), ca.MX.sym("u", len(self.actuators)), ca.MX.sym("h")
-        p_mx = ca.MX.sym("p", n_p)
+        p_mx, t_mx = ca.MX.sym("p", n_p), ca.MX.sym("t")
 
-        def rate(_t: float, state: Any) -> Any:
-            return ca.vertcat(state[n:], acceleration(state[:n], state[n:], u_mx, p_mx))
+        def rate(stage: Any, state: Any) -> Any:
+            return ca.vertcat(state[n:], acceleration(state[:n], state[n:], u_mx, p_mx, stage))
 
-        arguments = [y_mx, u_mx, h_mx, p_mx]
-        step = ca.Function("step", arguments, [rk4_step(rate, 0.0, y_mx, h_mx)])
+        # the start times of the steps are inputs (k h, as the numpy path), a row per stride and block
+        step = ca.Function("step", [y_mx, u_mx, h_mx, p_mx, t_mx], [rk4_step(rate, t_mx, y_mx, h_mx)])
+        times = ca.MX.sym("times", 1, store_every)
 
-        def repeated(count: int) -> list:
-            return [y_mx] + [ca.repmat(x, 1, count) for x in (u_mx, h_mx, p_mx)]
+        def repeated(count: int, row: Any) -> list:
+            return [y_mx] + [ca.repmat(x, 1, count) for x in (u_mx, h_mx, p_mx)] + [row]
 
-        stride = ca.Function("stride", arguments, [step.fold(store_every)(*repeated(store_every))
-                                                   if store_every > 1 else step(*arguments)])
+        stride = ca.Function("stride", [y_mx, u_mx, h_mx, p_mx, times],
+                             [step.fold(store_every)(*repeated(store_every, times))
+                              if store_every > 1 else step(y_mx, u_mx, h_mx, p_mx, times)])
         # blocks of rows, rows/2, rows/4, ... strides: a remainder costs one call per binary digit
         self._sizes = [self.rows >> k for k in range(self.rows.bit_length()) if self.rows >> k > 1]
         blocks = []
         for size in self._sizes:
             accumulated = stride.mapaccum(f"block{size}_acc", size)
-            blocks.append(ca.Function(f"block{size}", arguments, [accumulated(*repeated(size))]))
+            row = ca.MX.sym("times", 1, size * store_every)
+            blocks.append(ca.Function(f"block{size}", [y_mx, u_mx, h_mx, p_mx, row],
+                                      [accumulated(*repeated(size, row))]))
         name = f"scene_{model.n_bodies}b{n}q"
         options = {"cache_dir": cache_dir, "compiler": compiler}
         loaded = load_casadi([acceleration, step, stride, *blocks], name, **options)
@@ -279,50 +317,59 @@ class CompiledScene:
             values[self.actuators.index(key)] = float(value)
         return values
 
-    def accelerations(self, q: Any, qdot: Any, inputs: Mapping[str, float] | None = None) -> np.ndarray:
-        """``qddot`` (n,) at coordinates ``q`` and rates ``qdot`` (n,) with actuator ``inputs`` [SI]."""
+    def accelerations(self, q: Any, qdot: Any, inputs: Mapping[str, float] | None = None, t: float = 0.0
+                      ) -> np.ndarray:
+        """``qddot`` (n,) at coordinates ``q`` and rates ``qdot`` (n,) with actuator ``inputs`` [SI] at time
+        ``t`` [s]."""
         q, qdot = self.model.state(q, qdot)
-        return np.asarray(self._acceleration(q, qdot, self._inputs(inputs), self.parameters)).reshape(-1)
+        return np.asarray(self._acceleration(q, qdot, self._inputs(inputs), self.parameters,
+                                             validation.finite("t", t))).reshape(-1)
 
-    def advance(self, q: Any, qdot: Any, dt: float, n_steps: int, inputs: Mapping[str, float] | None = None
-                ) -> tuple[np.ndarray, np.ndarray]:
-        """The state after ``n_steps`` RK4 steps of ``dt`` [s] with ``inputs`` held (one sample interval).
+    def advance(self, q: Any, qdot: Any, dt: float, n_steps: int, inputs: Mapping[str, float] | None = None,
+                t0: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """The state after ``n_steps`` RK4 steps of ``dt`` [s] from time ``t0`` [s] (steps start at
+        ``t0 + k dt``) with ``inputs`` held (one sample interval).
 
         Returns ``(q, qdot)`` (n,) each; non-finite entries when the run diverged.
         """
         q, qdot = self.model.state(q, qdot)
         states = self._run(np.concatenate([q, qdot]), self._inputs(inputs), validation.positive("dt", dt),
-                           validation.integer("n_steps", n_steps))
+                           validation.integer("n_steps", n_steps), validation.finite("t0", t0))
         n = self.model.n_coordinates
         return states[-1, :n].copy(), states[-1, n:].copy()
 
-    def run(self, q: Any, qdot: Any, dt: float, n_steps: int, inputs: Mapping[str, float] | None = None
-            ) -> np.ndarray:
+    def run(self, q: Any, qdot: Any, dt: float, n_steps: int, inputs: Mapping[str, float] | None = None,
+            t0: float = 0.0) -> np.ndarray:
         """Stored states ``[q, qdot]`` (rows, 2 n) after each ``store_every`` steps and after the last step
-        (the rows of :func:`ctmm.planar.integrate.simulate_rk4`), the initial state excluded; stops
-        after the first block holding a non-finite state."""
+        (the rows of :func:`ctmm.planar.integrate.simulate_rk4`), the initial state (time ``t0`` [s])
+        excluded; stops after the first block holding a non-finite state."""
         q, qdot = self.model.state(q, qdot)
         return self._run(np.concatenate([q, qdot]), self._inputs(inputs), validation.positive("dt", dt),
-                         validation.integer("n_steps", n_steps))
+                         validation.integer("n_steps", n_steps), validation.finite("t0", t0))
 
-    def _run(self, y: np.ndarray, u: np.ndarray, h: float, n_steps: int) -> np.ndarray:
-        strides, rest = divmod(n_steps, self.store_every)
+    def _run(self, y: np.ndarray, u: np.ndarray, h: float, n_steps: int, t0: float) -> np.ndarray:
+        every = self.store_every
+        strides, rest = divmod(n_steps, every)
         p = self.parameters
         out = []
         done = 0
+
+        def times(first_stride: int, count: int) -> np.ndarray:     # step start times t0 + k h
+            return t0 + (first_stride * every + np.arange(count)) * h
+
         for size, function in self._blocks:
             while done + size <= strides:
-                block = np.asarray(function(y, u, h, p)).T
+                block = np.asarray(function(y, u, h, p, times(done, size * every))).T
                 out.append(block)
                 y = block[-1]
                 done += size
                 if not np.all(np.isfinite(block)):
                     return np.vstack(out)
-        for _ in range(strides - done):
-            y = np.asarray(self._stride(y, u, h, p)).reshape(-1)
+        for k in range(done, strides):
+            y = np.asarray(self._stride(y, u, h, p, times(k, every))).reshape(-1)
             out.append(y[None])
-        for _ in range(rest):
-            y = np.asarray(self._step(y, u, h, p)).reshape(-1)
+        for k in range(rest):
+            y = np.asarray(self._step(y, u, h, p, times(strides, rest)[k])).reshape(-1)
         if rest:
             out.append(y[None])
         return np.vstack(out) if out else np.zeros((0, y.size))
@@ -395,7 +442,7 @@ def simulate_rk4_generated(model: PlanarModel, q0: Any, qdot0: Any, *, t_final: 
                          f"{scene!r}")
     guard = divergence_guard(model, q, divergence_bound)
     check_scheme(model, q, v, h, scheme="rk4", policy=stability_check,
-                 accelerations=lambda m, a, b, t: scene.accelerations(a, b))
+                 accelerations=lambda m, a, b, t: scene.accelerations(a, b, t=t))
     start = _time.perf_counter()
     states = scene.run(q, v, h, n_steps)
     wall = _time.perf_counter() - start

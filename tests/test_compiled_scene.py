@@ -23,6 +23,7 @@ from ctmm.planar.elements import FixedMounting
 from ctmm.planar.integrate import simulate_rk4
 from ctmm.reference.flexible_lagrange import FlexibleLagrange
 from ctmm.reference.planar_lagrange import PlanarLagrange
+from ctmm.signals import Harmonic, SquareWave, Step
 
 casadi = pytest.importorskip("casadi")
 compiled_scene = pytest.importorskip("ctmm.compiled_scene")
@@ -179,6 +180,62 @@ def test_divergence_bound_stops_with_a_partial_result():
     assert caught.value.partial_result is not None
 
 
+def signal_tree(amplitude: float = 1.0, wave=SquareWave) -> PlanarModel:
+    """A branched tree whose hinge reference, reference rate, torque and rigid-body loads are sines,
+    steps and square waves (symbolic signals)."""
+    return PlanarModel("signals", [
+        Pinned("o", child="a"),
+        RigidBody("a", mass=1.2, inertia=0.05, center_of_mass=(0.3, 0.02), outboard={"tip": (0.6, 0.0),
+                                                                                    "mid": (0.3, 0.1)}),
+        ActuatedHinge("h1", parent="a.tip", child="b", torque=Harmonic(0.4 * amplitude, 3.0, 0.2), kp=5.0, kd=0.5,
+                      reference=Harmonic(0.3 * amplitude, 7.0),
+                      reference_rate=Harmonic(2.1 * amplitude, 7.0, np.pi / 2)),
+        RigidBody.uniform_link("b", mass=0.7, length=0.5),
+        SpringDamperHinge("h2", parent="a.mid", child="c", stiffness=2.0, damping=0.1, rest_angle=-0.3),
+        RigidBody("c", mass=0.4, inertia=0.02, center_of_mass=(0.2, -0.05), outboard=(0.4, 0.0),
+                  loads=(Load(point=(0.4, 0.0), force_x=Step(0.5 * amplitude, 0.05),
+                              force_y=wave(0.3 * amplitude, 0.04), moment=Harmonic(0.1, 5.0)),))])
+
+
+def test_symbolic_time_signals_are_evaluated_in_the_generated_code(tmp_path):
+    model = signal_tree()
+    scene = CompiledScene(model, store_every=2, rows=4, cache_dir=tmp_path)
+    q0, v0 = _state(model, 8)
+    generated = simulate_rk4_generated(model, q0, v0, t_final=0.1, dt=2e-3, store_every=2, scene=scene)
+    numpy_path = simulate_rk4(model, q0, v0, t_final=0.1, dt=2e-3, store_every=2)
+    assert _relative(generated.q, numpy_path.q) <= 1e-12
+    assert _relative(generated.qdot, numpy_path.qdot) <= 1e-12
+    lagrange = PlanarLagrange(model)
+    for t in (0.0, 0.013, 0.03, 0.07):                     # before and after the step, both wave levels
+        assert _relative(scene.accelerations(q0, v0, t=t), lagrange.accelerations(q0, v0, t)) <= 1e-12
+    assert _relative(scene.accelerations(q0, v0, t=0.07), scene.accelerations(q0, v0, t=0.0)) > 1e-2
+    # a run that starts later (co-simulation intervals) takes its times from t0
+    q1, v1 = scene.advance(q0, v0, 2e-3, 10, t0=0.03)
+    rate = second_order_rate(lambda a, b, t: lagrange.accelerations(a, b, t), model.n_coordinates)
+    expected = integrate_rk4(rate, np.concatenate([q0, v0]), h=2e-3, n_steps=10, t0=0.03)
+    assert _relative(np.concatenate([q1, v1]), expected) <= 1e-10
+    # other amplitudes: same structure, one library; another signal class: another structure
+    assert compiled_scene.structure_key(signal_tree(1.7)) == scene.structure
+    assert compiled_scene.structure_key(signal_tree(wave=Harmonic)) != scene.structure
+    other = scene.with_model(signal_tree(1.7))
+    assert _relative(other.accelerations(q0, v0, t=0.07),
+                     PlanarLagrange(other.model).accelerations(q0, v0, 0.07)) <= 1e-12
+    assert len(_libraries(tmp_path)) == 1
+
+
+@pytest.mark.parametrize("signal", [Harmonic(0.7, 3.0, 0.4), Step(-1.5, 0.25), SquareWave(2.0, 0.3),
+                                    SquareWave(2.0, 0.3, duration=0.5), ctmm.signals.Constant(3.5)])
+def test_symbolic_forms_equal_the_signals(signal):
+    t = casadi.SX.sym("t")
+    parameters = ctmm.signals.signal_parameters(signal)
+    form = casadi.Function("f", [t], [ctmm.signals.symbolic_signal(type(signal), t, parameters)])
+    for time in (-0.1, 0.0, 0.1, 0.25, 0.3, 0.44, 0.5, 0.61, 1.7):
+        assert float(form(time)) == pytest.approx(signal(time), rel=1e-15, abs=1e-15)
+    assert ctmm.signals.signal_parameters(lambda time: time) is None
+    with pytest.raises(ModelError, match="no symbolic form"):
+        ctmm.signals.symbolic_signal(float, t, ())
+
+
 def _libraries(folder) -> list:
     return sorted(path.name for path in (folder / "kernels").iterdir())
 
@@ -222,13 +279,13 @@ def test_refusals():
     moving = PlanarModel.chain("moving", [Pinned("o"), RigidBody.uniform_link("a", mass=1.0, length=1.0),
                                           ActuatedHinge("h", torque=lambda t: np.sin(t)),
                                           RigidBody.uniform_link("b", mass=1.0, length=1.0)])
-    with pytest.raises(ModelError, match="time-dependent signals in 'h'"):
+    with pytest.raises(ModelError, match="time-dependent signals without a symbolic form in 'h'"):
         CompiledScene(moving)
     with pytest.raises(ModelError, match="time-dependent"):
         ctmm.simulate(moving, 0.1, 1e-2, compiled=True)
     swinging_load = PlanarModel.chain("load", [Pinned("o"), _beam("b", loads=(Load(point=(1.0, 0.0),
                                                                                    force_y=lambda t: t),))])
-    with pytest.raises(ModelError, match="time-dependent signals in 'b'"):
+    with pytest.raises(ModelError, match="time-dependent signals without a symbolic form in 'b'"):
         CompiledScene(swinging_load)
     with pytest.raises(ModelError, match="PlanarModel"):
         CompiledScene("not a model")
