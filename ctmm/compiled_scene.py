@@ -57,7 +57,8 @@ from .planar.model import FREE, REVOLUTE, PlanarModel
 from .planar.ports import ActuatorInputs, actuator_inputs, actuator_names
 from .signals import SYMBOLIC_FIELDS, Constant, signal_parameters, symbolic_signal
 
-__all__ = ["CompiledScene", "compile_refusal", "parameter_vector", "simulate_rk4_generated", "structure_key"]
+__all__ = ["CompiledScene", "compile_refusal", "parameter_vector", "simulate_batch", "simulate_rk4_generated",
+           "structure_key"]
 
 DEFAULT_ROWS = 64
 """Stored states per generated block call."""
@@ -348,31 +349,103 @@ class CompiledScene:
                          validation.integer("n_steps", n_steps), validation.finite("t0", t0))
 
     def _run(self, y: np.ndarray, u: np.ndarray, h: float, n_steps: int, t0: float) -> np.ndarray:
-        every = self.store_every
+        return self._run_batch(y[:, None], u, h, n_steps, t0, self.parameters[:, None], "serial", 1)[0]
+
+    def _run_batch(self, y: np.ndarray, u: np.ndarray, h: float, n_steps: int, t0: float, p: np.ndarray,
+                   parallelization: str, threads: int) -> np.ndarray:
+        """Stored states (B, rows, 2 n) of the B members (columns of ``y`` (2 n, B) and ``p``); the
+        generated functions run over the batch by ``casadi.Function.map`` (nothing generated or
+        compiled); stops after the first block where every member holds a non-finite state."""
+        every, batch = self.store_every, y.shape[1]
         strides, rest = divmod(n_steps, every)
-        p = self.parameters
-        out = []
-        done = 0
+
+        def mapped(function: Any) -> Any:
+            return function if batch == 1 else function.map(batch, parallelization, threads)
 
         def times(first_stride: int, count: int) -> np.ndarray:     # step start times t0 + k h
-            return t0 + (first_stride * every + np.arange(count)) * h
+            return (t0 + (first_stride * every + np.arange(count)) * h)[None, :]
 
+        def members(value: Any, size: int) -> np.ndarray:          # (2 n, size B) -> (B, size, 2 n)
+            return np.asarray(value).reshape(y.shape[0], batch, size).transpose(1, 2, 0)
+
+        out = []
+        done = 0
         for size, function in self._blocks:
+            function = mapped(function) if done + size <= strides else function
             while done + size <= strides:
-                block = np.asarray(function(y, u, h, p, times(done, size * every))).T
+                block = members(function(y, u, h, p, times(done, size * every)), size)
                 out.append(block)
-                y = block[-1]
+                y = block[:, -1, :].T
                 done += size
-                if not np.all(np.isfinite(block)):
-                    return np.vstack(out)
+                if not np.any(np.all(np.isfinite(block), axis=(1, 2))):
+                    return np.concatenate(out, axis=1)
+        stride, step = mapped(self._stride), mapped(self._step)
         for k in range(done, strides):
-            y = np.asarray(self._stride(y, u, h, p, times(k, every))).reshape(-1)
-            out.append(y[None])
+            y = np.asarray(stride(y, u, h, p, times(k, every))).reshape(y.shape)
+            out.append(y.T[:, None, :])
         for k in range(rest):
-            y = np.asarray(self._step(y, u, h, p, times(strides, rest)[k])).reshape(-1)
+            y = np.asarray(step(y, u, h, p, times(strides, rest)[0, k])).reshape(y.shape)
         if rest:
-            out.append(y[None])
-        return np.vstack(out) if out else np.zeros((0, y.size))
+            out.append(y.T[:, None, :])
+        return np.concatenate(out, axis=1) if out else np.zeros((batch, 0, y.shape[0]))
+
+
+def simulate_batch(scene: CompiledScene, parameters: Any, q0: Any, qdot0: Any, *, dt: float, n_steps: int,
+                   inputs: Mapping[str, float] | None = None, t0: float = 0.0, parallelization: str = "serial",
+                   threads: int = 1) -> np.ndarray:
+    """RK4 runs of a batch of parameter sets on one compiled scene (nothing generated or compiled).
+
+    Parameters
+    ----------
+    scene : CompiledScene
+    parameters : array_like (B, n_parameters)
+        One :func:`parameter_vector` per row (of models of ``scene``'s structure).
+    q0, qdot0 : array_like (n,) or (B, n)
+        Initial coordinates and rates, shared or per member.
+    dt : float
+        Step [s].
+    n_steps : int
+        Steps, >= 1.
+    inputs : mapping, optional
+        Actuator values held over the run (all members) [SI].
+    t0 : float
+        Start time [s].
+    parallelization : {"serial", "openmp", "thread"}
+        Of ``casadi.Function.map`` over the members.
+    threads : int
+        Threads for ``"thread"``.
+
+    Returns
+    -------
+    ndarray (B, rows, 2 n)
+        Stored states ``[q, qdot]`` of each member, rows as :meth:`CompiledScene.run` (non-finite
+        entries for a diverged member).
+    """
+    if not isinstance(scene, CompiledScene):
+        raise ModelError(f"simulate_batch: scene must be a CompiledScene, got {scene!r}")
+    n, n_p = scene.model.n_coordinates, scene.parameters.size
+    p = np.asarray(parameters, dtype=float) if not isinstance(parameters, str) else np.zeros(0)
+    if p.ndim != 2 or p.shape[1] != n_p or p.shape[0] < 1 or np.any(np.isnan(p)):
+        raise ModelError(f"simulate_batch: parameters must be a (B, {n_p}) array without NaN (rows of "
+                         f"parameter_vector; a square wave's duration may be inf), got {np.shape(parameters)!r}")
+    batch = p.shape[0]
+    state = []
+    for label, value in (("q0", q0), ("qdot0", qdot0)):
+        array = np.asarray(value, dtype=float)
+        array = np.broadcast_to(array, (batch, n)) if array.shape in ((n,), (batch, n)) else None
+        if array is None or not np.all(np.isfinite(array)):
+            raise ModelError(f"simulate_batch: {label} must be finite, shape ({n},) or ({batch}, {n}) "
+                             f"(coordinates {', '.join(scene.model.coordinates)}), got {value!r}")
+        state.append(array)
+    if parallelization not in ("serial", "openmp", "thread"):
+        raise ModelError(f"simulate_batch: parallelization must be 'serial', 'openmp' or 'thread', got "
+                         f"{parallelization!r}")
+    if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
+        raise ModelError(f"simulate_batch: threads must be an integer >= 1, got {threads!r}")
+    y = np.concatenate(state, axis=1).T.copy()
+    return scene._run_batch(y, scene._inputs(inputs), validation.positive("dt", dt),
+                            validation.integer("n_steps", n_steps), validation.finite("t0", t0), p.T.copy(),
+                            parallelization, int(threads))
 
 
 def _symbolic_inputs(model: PlanarModel, names: Sequence[str], u: Any) -> ActuatorInputs | None:

@@ -236,6 +236,34 @@ def test_symbolic_forms_equal_the_signals(signal):
         ctmm.signals.symbolic_signal(float, t, ())
 
 
+@pytest.mark.parametrize("parallelization", ["serial", "thread"])
+def test_simulate_batch_maps_parameter_sets_over_one_library(tmp_path, parallelization):
+    models = [signal_tree(a) for a in (1.0, 1.6, 0.4)]
+    scene = CompiledScene(models[0], store_every=2, rows=4, cache_dir=tmp_path)
+    parameters = np.array([compiled_scene.parameter_vector(m) for m in models])
+    q0 = np.array([_state(m, 9 + k)[0] for k, m in enumerate(models)])
+    v0 = _state(models[0], 9)[1]
+    states = compiled_scene.simulate_batch(scene, parameters, q0, v0, dt=2e-3, n_steps=23, t0=0.01,
+                                           parallelization=parallelization, threads=2)
+    assert states.shape == (3, 12, 2 * models[0].n_coordinates)
+    n = models[0].n_coordinates
+    for k, model in enumerate(models):
+        alone = scene.with_model(model).run(q0[k], v0, 2e-3, 23, t0=0.01)
+        assert np.array_equal(states[k], alone)
+        lagrange = PlanarLagrange(model)
+        rate = second_order_rate(lambda a, b, t: lagrange.accelerations(a, b, t), n)
+        expected = integrate_rk4(rate, np.concatenate([q0[k], v0]), h=2e-3, n_steps=23, t0=0.01)
+        assert _relative(states[k, -1], expected) <= 1e-10
+    assert _relative(states[1], states[0]) > 1e-3
+    assert len(_libraries(tmp_path)) == 1
+    with pytest.raises(ModelError, match="parameters must be a"):
+        compiled_scene.simulate_batch(scene, parameters[:, :-1], q0, v0, dt=1e-3, n_steps=2)
+    with pytest.raises(ModelError, match="q0 must be finite"):
+        compiled_scene.simulate_batch(scene, parameters, q0[:2], v0, dt=1e-3, n_steps=2)
+    with pytest.raises(ModelError, match="parallelization"):
+        compiled_scene.simulate_batch(scene, parameters, q0, v0, dt=1e-3, n_steps=2, parallelization="gpu")
+
+
 def _libraries(folder) -> list:
     return sorted(path.name for path in (folder / "kernels").iterdir())
 
