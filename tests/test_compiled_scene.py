@@ -57,7 +57,7 @@ def rigid_tree(f: float = 1.0) -> PlanarModel:
         SpringDamperHinge("h3", parent="c", child="d", stiffness=2.0 * f, damping=0.1 * f, rest_angle=-0.3 * f),
         RigidBody.uniform_link("d", mass=0.3 * f, length=0.3 * f),
         ActuatedHinge("h4", parent="b", child="e", torque=0.4 * f, kp=5.0 * f, kd=0.5 * f, reference=0.1 * f),
-        RigidBody.uniform_link("e", mass=0.2 * f, length=0.25 * f)], gravity=(0.3 * (f - 1.0), -9.81 * f))
+        RigidBody.uniform_link("e", mass=0.2 * f, length=0.25 * f)], gravity=(0.0, -9.81 * f))
 
 
 def _beam(name, **kw):
@@ -256,6 +256,10 @@ def test_simulate_batch_maps_parameter_sets_over_one_library(tmp_path, paralleli
         assert _relative(states[k, -1], expected) <= 1e-10
     assert _relative(states[1], states[0]) > 1e-3
     assert len(_libraries(tmp_path)) == 1
+    nonzero = parameters.copy()
+    nonzero[:, np.flatnonzero(scene.parameters == 0.0)[0]] = 1.0
+    with pytest.raises(ModelError, match="are zero in the scene's model"):
+        compiled_scene.simulate_batch(scene, nonzero, q0, v0, dt=1e-3, n_steps=2)
     with pytest.raises(ModelError, match="parameters must be a"):
         compiled_scene.simulate_batch(scene, parameters[:, :-1], q0, v0, dt=1e-3, n_steps=2)
     with pytest.raises(ModelError, match="q0 must be finite"):
@@ -287,6 +291,22 @@ def test_models_of_one_structure_share_one_library(tmp_path):
     assert _relative(reused.accelerations(q0, v0), scenes[0].accelerations(q0, v0)) > 1e-2   # numbers matter
 
 
+def test_numbers_as_constants_give_one_library_per_model(tmp_path):
+    first, second = rigid_tree(), rigid_tree(1.37)
+    scenes = [CompiledScene(model, numbers="constants", cache_dir=tmp_path) for model in (first, second)]
+    assert len(_libraries(tmp_path)) == 2
+    q0, v0 = _state(first, 7)
+    inputs = CompiledScene(second, cache_dir=tmp_path)
+    assert _relative(scenes[1].accelerations(q0, v0, t=0.1), inputs.accelerations(q0, v0, t=0.1)) <= 1e-12
+    assert _relative(scenes[0].accelerations(q0, v0), PlanarLagrange(first).accelerations(q0, v0, 0.0)) <= 1e-12
+    with pytest.raises(ModelError, match="another structure"):
+        scenes[0].with_model(second)
+    with pytest.raises(ModelError, match="numbers='inputs'"):
+        compiled_scene.simulate_batch(scenes[0], scenes[0].parameters[None], q0, v0, dt=1e-3, n_steps=2)
+    with pytest.raises(ModelError, match="numbers must be"):
+        CompiledScene(first, numbers="symbols")
+
+
 def test_beam_data_and_structure_changes_give_another_key():
     key = compiled_scene.structure_key
     assert key(hub_beam()) == key(hub_beam())
@@ -299,6 +319,9 @@ def test_beam_data_and_structure_changes_give_another_key():
     longer = PlanarModel.chain("c", [Pinned("o"), RigidBody.uniform_link("a", mass=1.0, length=1.0), SmoothHinge("h"),
                                      RigidBody.uniform_link("b", mass=1.0, length=1.0)])
     assert key(shorter) != key(longer)
+    tilted = PlanarModel.chain("c", [Pinned("o"), RigidBody.uniform_link("a", mass=1.0, length=1.0)],
+                               gravity=(0.5, -9.81))
+    assert key(tilted) != key(shorter)            # a zero number is a constant of the code: structure
     with pytest.raises(ModelError, match="another structure"):
         CompiledScene(shorter).with_model(longer)
 
