@@ -221,6 +221,10 @@ def test_symbolic_time_signals_are_evaluated_in_the_generated_code(tmp_path):
     assert _relative(other.accelerations(q0, v0, t=0.07),
                      PlanarLagrange(other.model).accelerations(q0, v0, 0.07)) <= 1e-12
     assert len(_libraries(tmp_path)) == 1
+    x0 = {"a.theta": 0.2}
+    verb = ctmm.simulate(model, 0.05, 1e-3, method="rk4", compiled=True, x0=x0)
+    assert verb.info["method"] == "rk4-generated"
+    assert _relative(verb["b.theta"], ctmm.simulate(model, 0.05, 1e-3, method="rk4", x0=x0)["b.theta"]) <= 1e-12
 
 
 @pytest.mark.parametrize("signal", [Harmonic(0.7, 3.0, 0.4), Step(-1.5, 0.25), SquareWave(2.0, 0.3),
