@@ -117,13 +117,24 @@ def parameter_vector(model: PlanarModel) -> np.ndarray:
     centres of mass, outboard points, gravity, hinge stiffnesses, dampings, then the parameters of the
     hinge references, reference rates, torques and loads (each signal's
     :func:`ctmm.signals.signal_parameters`: a constant's value, a sine's amplitude, frequency and phase,
-    ...) and the load points (:class:`~ctmm.planar.body_forms.SceneNumbers`, SI units)."""
+    ...) and the load points (:class:`~ctmm.planar.body_forms.SceneNumbers`, SI units).
+
+    Raises
+    ------
+    ModelError
+        A hinge or load signal without a symbolic form (a user callable).
+    """
     numbers = SceneNumbers.of(model)
     parts = [numbers.mass, numbers.inertia, np.reshape(numbers.center_of_mass, -1)]
     parts += [np.reshape(point, -1) for ends in numbers.ends for point in ends.values()]
     parts += [numbers.gravity, numbers.stiffness, numbers.damping]
-    parts += [signal_parameters(signal) for signal in _signals(model)]
-    parts += [np.reshape(numbers.load_point, -1)]
+    signals = _signals(model)
+    signal_parts = [signal_parameters(signal) for signal in signals]
+    without = [signal for signal, part in zip(signals, signal_parts) if part is None]
+    if without:
+        raise ModelError(f"parameter_vector: model {model.name!r} has hinge or load signals without a symbolic form "
+                         f"({without[0]!r}); allowed: ctmm.signals Constant, Harmonic, Step, SquareWave")
+    parts += signal_parts + [np.reshape(numbers.load_point, -1)]
     return np.concatenate([np.asarray(part, dtype=float).reshape(-1) for part in parts])
 
 

@@ -336,6 +336,8 @@ def test_refusals():
                                           RigidBody.uniform_link("b", mass=1.0, length=1.0)])
     with pytest.raises(ModelError, match="time-dependent signals without a symbolic form in 'h'"):
         CompiledScene(moving)
+    with pytest.raises(ModelError, match="without a symbolic form"):
+        compiled_scene.parameter_vector(moving)
     with pytest.raises(ModelError, match="time-dependent"):
         ctmm.simulate(moving, 0.1, 1e-2, compiled=True)
     swinging_load = PlanarModel.chain("load", [Pinned("o"), _beam("b", loads=(Load(point=(1.0, 0.0),
