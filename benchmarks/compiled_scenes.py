@@ -10,11 +10,17 @@ Rows (time and error together, ratios from one run, ``benchmarks/results/compile
 2. **Rigid pendulum chain** N = 5, 20, 100 (unit links, smooth hinges, gravity), 1 s at dt = 1e-3:
    per-step time of the generated path and of the hand-typed C (``simulate_rk4_compiled``), their
    largest difference (round-off) and the RK4 error of both against a dt/4 run of the generated path;
-   first-compile time in a fresh cache folder.
+   first-compile time in a fresh cache folder (numbers as inputs, the default, and as constants).
 3. **Manipulator** (seed arm, 3 modes, stiffening, hub PD): per-step time of ``CompiledManipulator``
    (closed form, cycloidal reference) and of the generated path on the same plant with the PD law on a
    constant reference (the generated path refuses time signals; the per-step work is the same sweep).
    Errors: each against its own numpy path.
+4. **Parameter sweep** (issue 13 item 4): the hub-beam with 10 sets of hub mass, hub inertia and motor
+   torque, 0.5 s at dt = 1e-3 each: (a) one compile per set (the numbers as constants of the C: a
+   fresh cache folder per set, the behaviour before parameters became inputs), (b) one compile, then
+   each set on the same library (``CompiledScene.with_model``), (c) one compile, the 10 sets in one
+   ``simulate_batch`` (``casadi.Function.map``).  Whole wall time of each (build, generate, compile,
+   run) and the largest difference of (b) and (c) from (a) (round-off).
 
 Run: ``python benchmarks/compiled_scenes.py [--quick]``.
 """
@@ -39,7 +45,7 @@ if str(ROOT) not in sys.path:
 
 from scipy.integrate import solve_ivp  # noqa: E402
 
-from ctmm.compiled_scene import CompiledScene, simulate_rk4_generated  # noqa: E402
+from ctmm.compiled_scene import CompiledScene, parameter_vector, simulate_batch, simulate_rk4_generated  # noqa: E402
 from ctmm.flexible import ModalBeam  # noqa: E402
 from ctmm.manipulator import SEED_KD, SEED_KP, SEED_MOVE, FlexibleManipulator, HubPD, seed_manipulator  # noqa: E402
 from ctmm.manipulator.compiled import CompiledManipulator  # noqa: E402
@@ -58,12 +64,12 @@ T_CHAIN, H_CHAIN = 1.0, 1e-3
 T_MANIPULATOR, H_MANIPULATOR = 3.0, 1e-3
 
 
-def hub_beam() -> PlanarModel:
+def hub_beam(hub_mass: float = 2.0, hub_inertia: float = 0.05, torque: float = 2.0) -> PlanarModel:
     beam = ModalBeam("beam", length=1.0, bending_stiffness=12.0, mass_per_length=0.8, n_modes=3,
                      geometric_stiffening=True, damping_ratio=0.005)
     return PlanarModel.chain("hub_beam", [
-        Fixed("ground"), ActuatedHinge("motor", torque=2.0),
-        RigidBody("hub", mass=2.0, inertia=0.05, center_of_mass=(0.0, 0.0), outboard=(0.1, 0.0)),
+        Fixed("ground"), ActuatedHinge("motor", torque=torque),
+        RigidBody("hub", mass=hub_mass, inertia=hub_inertia, center_of_mass=(0.0, 0.0), outboard=(0.1, 0.0)),
         FixedMounting("mount"), beam], gravity=(0.0, 0.0))
 
 
@@ -85,9 +91,9 @@ def call_overhead(run) -> float:
     return time.perf_counter() - start - out.wall_time_s
 
 
-def first_compile(model: PlanarModel) -> float:
+def first_compile(model: PlanarModel, numbers: str = "inputs") -> float:
     with tempfile.TemporaryDirectory() as folder:
-        return CompiledScene(model, cache_dir=folder).compile_time_s
+        return CompiledScene(model, cache_dir=folder, numbers=numbers).compile_time_s
 
 
 def hub_beam_row(quick: bool) -> dict:
@@ -138,6 +144,7 @@ def chain_rows(quick: bool) -> list:
         fine = simulate_rk4_generated(model, q0, v0, t_final=T_CHAIN, dt=H_CHAIN / 4, store_every=4)
         overhead = call_overhead(lambda: simulate_rk4_generated(model, q0, v0, t_final=T_CHAIN, dt=H_CHAIN))
         row = {"n": n, "first_compile_s": compile_s, "generated_call_overhead_s": overhead,
+               "first_compile_numbers_as_constants_s": first_compile(model, "constants"),
                "generated_per_step_us": generated_wall / steps * 1e6, "hand_typed_per_step_us": hand_wall / steps * 1e6,
                "generated_over_hand_typed": generated_wall / hand_wall,
                "generated_minus_hand_typed_rad": float(np.max(np.abs(generated.q - hand.q))),
@@ -179,9 +186,47 @@ def manipulator_row() -> dict:
     return row
 
 
+def parameter_sweep_row(sets: int = 10, t_final: float = 0.5, dt: float = 1e-3) -> dict:
+    models = [hub_beam(2.0 + 0.2 * k, 0.05 + 0.01 * k, 2.0 - 0.1 * k) for k in range(sets)]
+    n, steps = models[0].n_coordinates, round(t_final / dt)
+    zero = np.zeros(n)
+    start = time.perf_counter()
+    recompiled = []
+    for model in models:
+        with tempfile.TemporaryDirectory() as folder:
+            recompiled.append(CompiledScene(model, cache_dir=folder).run(zero, zero, dt, steps))
+    recompile_s = time.perf_counter() - start
+    with tempfile.TemporaryDirectory() as folder:
+        start = time.perf_counter()
+        scene = CompiledScene(models[0], cache_dir=folder)
+        reused = [scene.with_model(model).run(zero, zero, dt, steps) for model in models]
+        reuse_s = time.perf_counter() - start
+        start = time.perf_counter()
+        scene = CompiledScene(models[0], cache_dir=folder, rows=64)      # from the cache: generate, hash, load
+        batch = simulate_batch(scene, np.array([parameter_vector(m) for m in models]), zero, zero, dt=dt,
+                               n_steps=steps)
+        batch_s = time.perf_counter() - start
+    with tempfile.TemporaryDirectory() as folder:
+        start = time.perf_counter()
+        scene = CompiledScene(models[0], cache_dir=folder)
+        batch = simulate_batch(scene, np.array([parameter_vector(m) for m in models]), zero, zero, dt=dt,
+                               n_steps=steps)
+        batch_fresh_s = time.perf_counter() - start
+    row = {"sets": sets, "steps": steps, "recompile_each_s": recompile_s, "compile_once_run_each_s": reuse_s,
+           "compile_once_batch_s": batch_fresh_s, "batch_from_cache_s": batch_s,
+           "recompile_over_compile_once": recompile_s / reuse_s,
+           "reuse_minus_recompiled": float(max(np.max(np.abs(a - b)) for a, b in zip(reused, recompiled))),
+           "batch_minus_recompiled": float(max(np.max(np.abs(a - b)) for a, b in zip(batch, recompiled)))}
+    print(f"parameter sweep ({sets} sets, {steps} steps): recompile each {recompile_s:.2f} s, compile once "
+          f"{reuse_s:.2f} s (x{row['recompile_over_compile_once']:.1f}), batch {batch_fresh_s:.2f} s, "
+          f"|diff| {row['reuse_minus_recompiled']:.1e} / {row['batch_minus_recompiled']:.1e}")
+    return row
+
+
 def main(quick: bool = False) -> dict:
     results = {"machine": platform.machine(), "python": platform.python_version(), "quick": quick,
-               "hub_beam": hub_beam_row(quick), "chain": chain_rows(quick), "manipulator": manipulator_row()}
+               "hub_beam": hub_beam_row(quick), "chain": chain_rows(quick), "manipulator": manipulator_row(),
+               "parameter_sweep": parameter_sweep_row()}
     out = ROOT / "benchmarks" / "results" / "compiled_scenes.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(results, indent=2))

@@ -1,13 +1,14 @@
 """Time signals for external loads, prescribed motions and references.
 
 Every signal is a callable ``f(t) -> float`` of time [s]; the helpers here add validation,
-a readable ``repr`` and, where known, the harmonic amplitude used by the frequency domain.
+a readable ``repr`` and, where known, the harmonic amplitude used by the frequency domain and the
+symbolic form used by generated code (:func:`symbolic_signal`).
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Callable, Union
+from typing import Any, Callable, Sequence, Union
 
 import numpy as np
 
@@ -139,3 +140,44 @@ def harmonic_amplitude(signal: TimeFunction) -> complex:
         # a sin(wt + phi) = Im(a e^{i phi} e^{i w t}) -> phasor convention: Re(A e^{iwt}) with A = a e^{i(phi - pi/2)}
         return complex(signal.amplitude * np.exp(1j * (signal.phase - 0.5 * np.pi)))
     raise ModelError(f"signal {signal!r} has no steady-state harmonic amplitude")
+
+
+SYMBOLIC_FIELDS: dict[type, tuple[str, ...]] = {
+    Constant: ("value",), Harmonic: ("amplitude", "omega", "phase"), Step: ("value", "time"),
+    SquareWave: ("amplitude", "period", "duration")}
+"""The signal classes with a symbolic form (:func:`symbolic_signal`) and the fields it takes, in order."""
+
+
+def signal_parameters(signal: TimeFunction) -> tuple[float, ...] | None:
+    """The numbers of a signal with a symbolic form (:data:`SYMBOLIC_FIELDS` order), ``None`` for any
+    other callable (a user function has no symbolic form)."""
+    fields = SYMBOLIC_FIELDS.get(type(signal))
+    return None if fields is None else tuple(float(getattr(signal, name)) for name in fields)
+
+
+def symbolic_signal(kind: type, t: Any, parameters: Sequence[Any]) -> Any:
+    """The value at time ``t`` [s] of a signal of class ``kind`` with ``parameters`` (its
+    :func:`signal_parameters`, numbers or casadi symbols), as a casadi expression: the same operations
+    as the class's ``__call__``.
+
+    Raises
+    ------
+    ModelError
+        ``kind`` has no symbolic form.
+    """
+    import casadi as ca
+
+    if kind is Constant:
+        return parameters[0]
+    if kind is Harmonic:
+        amplitude, omega, phase = parameters
+        return amplitude * ca.sin(omega * t + phase)
+    if kind is Step:
+        value, time = parameters
+        return ca.if_else(t >= time, value, 0.0)
+    if kind is SquareWave:
+        amplitude, period, duration = parameters
+        level = ca.if_else(ca.fmod(t, period) < 0.5 * period, amplitude, -amplitude)
+        return ca.if_else(ca.logic_or(t < 0, t >= duration), 0.0, level)
+    raise ModelError(f"signal class {getattr(kind, '__name__', kind)!r} has no symbolic form; symbolic signals: "
+                     + ", ".join(k.__name__ for k in SYMBOLIC_FIELDS))

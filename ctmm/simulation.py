@@ -162,10 +162,11 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         revolute trees with constant hinge laws, no loops; same numbers to round-off).
     compiled : bool, optional
         Planar, ``"rk4"``, uncontrolled: ``True`` runs the RK4 time loop in C generated from the
-        element definitions (:func:`ctmm.compiled_scene.simulate_rk4_generated`; any time-invariant
-        planar scene -- rigid trees, modal beams, hub-beam; compiled once and cached on disk; same
-        numbers as the numpy path to round-off).  A scene it cannot compile (time signals, driven
-        motions, translational hinge springs) raises :class:`ModelError`.  Default: the numpy path.
+        element definitions (:func:`ctmm.compiled_scene.simulate_rk4_generated`; planar scenes --
+        rigid trees, modal beams, hub-beam, hinge and load signals with a symbolic form; compiled once
+        per structure and cached on disk; same numbers as the numpy path to round-off).  A scene it
+        cannot compile (user callables of time, driven motions, translational hinge springs) raises
+        :class:`ModelError`.  Default: the numpy path.
     progress : bool, optional
         Show a progress bar (default: long runs on a terminal).
     stability_check : {"warn", "error", "ignore"}, optional

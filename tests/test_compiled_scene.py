@@ -23,6 +23,7 @@ from ctmm.planar.elements import FixedMounting
 from ctmm.planar.integrate import simulate_rk4
 from ctmm.reference.flexible_lagrange import FlexibleLagrange
 from ctmm.reference.planar_lagrange import PlanarLagrange
+from ctmm.signals import Harmonic, SquareWave, Step
 
 casadi = pytest.importorskip("casadi")
 compiled_scene = pytest.importorskip("ctmm.compiled_scene")
@@ -41,21 +42,22 @@ def _relative(a, b) -> float:
     return float(np.max(np.abs(np.asarray(a) - np.asarray(b))) / np.max(np.abs(b)))
 
 
-def rigid_tree() -> PlanarModel:
-    """Revolute tree with every hinge law, a branch, constant loads, an actuated hinge."""
+def rigid_tree(f: float = 1.0) -> PlanarModel:
+    """Revolute tree with every hinge law, a branch, constant loads, an actuated hinge; ``f`` scales
+    every number (same structure)."""
     return PlanarModel("tree", [
         Pinned("o", child="a"),
-        RigidBody("a", mass=1.2, inertia=0.05, center_of_mass=(0.3, 0.02), outboard={"tip": (0.6, 0.0),
-                                                                                    "mid": (0.3, 0.1)}),
-        ElasticHinge("h1", parent="a.tip", child="b", stiffness=3.0, rest_angle=0.2),
-        RigidBody.uniform_link("b", mass=0.7, length=0.5),
-        DamperHinge("h2", parent="a.mid", child="c", damping=0.3),
-        RigidBody("c", mass=0.4, inertia=0.02, center_of_mass=(0.2, -0.05), outboard=(0.4, 0.0),
-                  loads=(Load(point=(0.4, 0.0), force_x=0.5, force_y=-0.3, moment=0.1),)),
-        SpringDamperHinge("h3", parent="c", child="d", stiffness=2.0, damping=0.1, rest_angle=-0.3),
-        RigidBody.uniform_link("d", mass=0.3, length=0.3),
-        ActuatedHinge("h4", parent="b", child="e", torque=0.4, kp=5.0, kd=0.5, reference=0.1),
-        RigidBody.uniform_link("e", mass=0.2, length=0.25)])
+        RigidBody("a", mass=1.2 * f, inertia=0.05 * f, center_of_mass=(0.3 * f, 0.02), outboard={
+            "tip": (0.6 * f, 0.0), "mid": (0.3, 0.1 * f)}),
+        ElasticHinge("h1", parent="a.tip", child="b", stiffness=3.0 * f, rest_angle=0.2 * f),
+        RigidBody.uniform_link("b", mass=0.7 * f, length=0.5 * f),
+        DamperHinge("h2", parent="a.mid", child="c", damping=0.3 * f),
+        RigidBody("c", mass=0.4 * f, inertia=0.02 * f, center_of_mass=(0.2, -0.05 * f), outboard=(0.4 * f, 0.0),
+                  loads=(Load(point=(0.4 * f, 0.0), force_x=0.5 * f, force_y=-0.3 * f, moment=0.1 * f),)),
+        SpringDamperHinge("h3", parent="c", child="d", stiffness=2.0 * f, damping=0.1 * f, rest_angle=-0.3 * f),
+        RigidBody.uniform_link("d", mass=0.3 * f, length=0.3 * f),
+        ActuatedHinge("h4", parent="b", child="e", torque=0.4 * f, kp=5.0 * f, kd=0.5 * f, reference=0.1 * f),
+        RigidBody.uniform_link("e", mass=0.2 * f, length=0.25 * f)], gravity=(0.0, -9.81 * f))
 
 
 def _beam(name, **kw):
@@ -178,17 +180,169 @@ def test_divergence_bound_stops_with_a_partial_result():
     assert caught.value.partial_result is not None
 
 
+def signal_tree(amplitude: float = 1.0, wave=SquareWave) -> PlanarModel:
+    """A branched tree whose hinge reference, reference rate, torque and rigid-body loads are sines,
+    steps and square waves (symbolic signals)."""
+    return PlanarModel("signals", [
+        Pinned("o", child="a"),
+        RigidBody("a", mass=1.2, inertia=0.05, center_of_mass=(0.3, 0.02), outboard={"tip": (0.6, 0.0),
+                                                                                    "mid": (0.3, 0.1)}),
+        ActuatedHinge("h1", parent="a.tip", child="b", torque=Harmonic(0.4 * amplitude, 3.0, 0.2), kp=5.0, kd=0.5,
+                      reference=Harmonic(0.3 * amplitude, 7.0),
+                      reference_rate=Harmonic(2.1 * amplitude, 7.0, np.pi / 2)),
+        RigidBody.uniform_link("b", mass=0.7, length=0.5),
+        SpringDamperHinge("h2", parent="a.mid", child="c", stiffness=2.0, damping=0.1, rest_angle=-0.3),
+        RigidBody("c", mass=0.4, inertia=0.02, center_of_mass=(0.2, -0.05), outboard=(0.4, 0.0),
+                  loads=(Load(point=(0.4, 0.0), force_x=Step(0.5 * amplitude, 0.05),
+                              force_y=wave(0.3 * amplitude, 0.04), moment=Harmonic(0.1, 5.0)),))])
+
+
+def test_symbolic_time_signals_are_evaluated_in_the_generated_code(tmp_path):
+    model = signal_tree()
+    scene = CompiledScene(model, store_every=2, rows=4, cache_dir=tmp_path)
+    q0, v0 = _state(model, 8)
+    generated = simulate_rk4_generated(model, q0, v0, t_final=0.1, dt=2e-3, store_every=2, scene=scene)
+    numpy_path = simulate_rk4(model, q0, v0, t_final=0.1, dt=2e-3, store_every=2)
+    assert _relative(generated.q, numpy_path.q) <= 1e-12
+    assert _relative(generated.qdot, numpy_path.qdot) <= 1e-12
+    lagrange = PlanarLagrange(model)
+    for t in (0.0, 0.013, 0.03, 0.07):                     # before and after the step, both wave levels
+        assert _relative(scene.accelerations(q0, v0, t=t), lagrange.accelerations(q0, v0, t)) <= 1e-12
+    assert _relative(scene.accelerations(q0, v0, t=0.07), scene.accelerations(q0, v0, t=0.0)) > 1e-2
+    # a run that starts later (co-simulation intervals) takes its times from t0
+    q1, v1 = scene.advance(q0, v0, 2e-3, 10, t0=0.03)
+    rate = second_order_rate(lambda a, b, t: lagrange.accelerations(a, b, t), model.n_coordinates)
+    expected = integrate_rk4(rate, np.concatenate([q0, v0]), h=2e-3, n_steps=10, t0=0.03)
+    assert _relative(np.concatenate([q1, v1]), expected) <= 1e-10
+    # other amplitudes: same structure, one library; another signal class: another structure
+    assert compiled_scene.structure_key(signal_tree(1.7)) == scene.structure
+    assert compiled_scene.structure_key(signal_tree(wave=Harmonic)) != scene.structure
+    other = scene.with_model(signal_tree(1.7))
+    assert _relative(other.accelerations(q0, v0, t=0.07),
+                     PlanarLagrange(other.model).accelerations(q0, v0, 0.07)) <= 1e-12
+    assert len(_libraries(tmp_path)) == 1
+    x0 = {"a.theta": 0.2}
+    verb = ctmm.simulate(model, 0.05, 1e-3, method="rk4", compiled=True, x0=x0)
+    assert verb.info["method"] == "rk4-generated"
+    assert _relative(verb["b.theta"], ctmm.simulate(model, 0.05, 1e-3, method="rk4", x0=x0)["b.theta"]) <= 1e-12
+
+
+@pytest.mark.parametrize("signal", [Harmonic(0.7, 3.0, 0.4), Step(-1.5, 0.25), SquareWave(2.0, 0.3),
+                                    SquareWave(2.0, 0.3, duration=0.5), ctmm.signals.Constant(3.5)])
+def test_symbolic_forms_equal_the_signals(signal):
+    t = casadi.SX.sym("t")
+    parameters = ctmm.signals.signal_parameters(signal)
+    form = casadi.Function("f", [t], [ctmm.signals.symbolic_signal(type(signal), t, parameters)])
+    for time in (-0.1, 0.0, 0.1, 0.25, 0.3, 0.44, 0.5, 0.61, 1.7):
+        assert float(form(time)) == pytest.approx(signal(time), rel=1e-15, abs=1e-15)
+    assert ctmm.signals.signal_parameters(lambda time: time) is None
+    with pytest.raises(ModelError, match="no symbolic form"):
+        ctmm.signals.symbolic_signal(float, t, ())
+
+
+@pytest.mark.parametrize("parallelization", ["serial", "thread"])
+def test_simulate_batch_maps_parameter_sets_over_one_library(tmp_path, parallelization):
+    models = [signal_tree(a) for a in (1.0, 1.6, 0.4)]
+    scene = CompiledScene(models[0], store_every=2, rows=4, cache_dir=tmp_path)
+    parameters = np.array([compiled_scene.parameter_vector(m) for m in models])
+    q0 = np.array([_state(m, 9 + k)[0] for k, m in enumerate(models)])
+    v0 = _state(models[0], 9)[1]
+    states = compiled_scene.simulate_batch(scene, parameters, q0, v0, dt=2e-3, n_steps=23, t0=0.01,
+                                           parallelization=parallelization, threads=2)
+    assert states.shape == (3, 12, 2 * models[0].n_coordinates)
+    n = models[0].n_coordinates
+    for k, model in enumerate(models):
+        alone = scene.with_model(model).run(q0[k], v0, 2e-3, 23, t0=0.01)
+        assert np.array_equal(states[k], alone)
+        lagrange = PlanarLagrange(model)
+        rate = second_order_rate(lambda a, b, t: lagrange.accelerations(a, b, t), n)
+        expected = integrate_rk4(rate, np.concatenate([q0[k], v0]), h=2e-3, n_steps=23, t0=0.01)
+        assert _relative(states[k, -1], expected) <= 1e-10
+    assert _relative(states[1], states[0]) > 1e-3
+    assert len(_libraries(tmp_path)) == 1
+    nonzero = parameters.copy()
+    nonzero[:, np.flatnonzero(scene.parameters == 0.0)[0]] = 1.0
+    with pytest.raises(ModelError, match="are zero in the scene's model"):
+        compiled_scene.simulate_batch(scene, nonzero, q0, v0, dt=1e-3, n_steps=2)
+    with pytest.raises(ModelError, match="parameters must be a"):
+        compiled_scene.simulate_batch(scene, parameters[:, :-1], q0, v0, dt=1e-3, n_steps=2)
+    with pytest.raises(ModelError, match="q0 must be finite"):
+        compiled_scene.simulate_batch(scene, parameters, q0[:2], v0, dt=1e-3, n_steps=2)
+    with pytest.raises(ModelError, match="parallelization"):
+        compiled_scene.simulate_batch(scene, parameters, q0, v0, dt=1e-3, n_steps=2, parallelization="gpu")
+
+
+def _libraries(folder) -> list:
+    return sorted(path.name for path in (folder / "kernels").iterdir())
+
+
+def test_models_of_one_structure_share_one_library(tmp_path):
+    first, second = rigid_tree(), rigid_tree(1.37)
+    assert compiled_scene.structure_key(first) == compiled_scene.structure_key(second)
+    assert not np.allclose(compiled_scene.parameter_vector(first), compiled_scene.parameter_vector(second))
+    scenes = [CompiledScene(model, store_every=3, cache_dir=tmp_path) for model in (first, second)]
+    assert len(_libraries(tmp_path)) == 1                       # the second found the first's library
+    reused = scenes[0].with_model(second)                        # nothing generated: same functions
+    assert reused._step is scenes[0]._step
+    for model, scene in [(first, scenes[0]), (second, scenes[1]), (second, reused)]:
+        q0, v0 = _state(model, 7)
+        generated = simulate_rk4_generated(model, q0, v0, t_final=0.1, dt=2e-3, store_every=3, scene=scene)
+        numpy_path = simulate_rk4(model, q0, v0, t_final=0.1, dt=2e-3, store_every=3)
+        assert _relative(generated.q, numpy_path.q) <= 1e-12
+        assert _relative(generated.qdot, numpy_path.qdot) <= 1e-12
+        assert _relative(scene.accelerations(q0, v0), PlanarLagrange(model).accelerations(q0, v0, 0.0)) <= 1e-12
+    q0, v0 = _state(first, 7)
+    assert _relative(reused.accelerations(q0, v0), scenes[0].accelerations(q0, v0)) > 1e-2   # numbers matter
+
+
+def test_numbers_as_constants_give_one_library_per_model(tmp_path):
+    first, second = rigid_tree(), rigid_tree(1.37)
+    scenes = [CompiledScene(model, numbers="constants", cache_dir=tmp_path) for model in (first, second)]
+    assert len(_libraries(tmp_path)) == 2
+    q0, v0 = _state(first, 7)
+    inputs = CompiledScene(second, cache_dir=tmp_path)
+    assert _relative(scenes[1].accelerations(q0, v0, t=0.1), inputs.accelerations(q0, v0, t=0.1)) <= 1e-12
+    assert _relative(scenes[0].accelerations(q0, v0), PlanarLagrange(first).accelerations(q0, v0, 0.0)) <= 1e-12
+    with pytest.raises(ModelError, match="another structure"):
+        scenes[0].with_model(second)
+    with pytest.raises(ModelError, match="numbers='inputs'"):
+        compiled_scene.simulate_batch(scenes[0], scenes[0].parameters[None], q0, v0, dt=1e-3, n_steps=2)
+    with pytest.raises(ModelError, match="numbers must be"):
+        CompiledScene(first, numbers="symbols")
+
+
+def test_beam_data_and_structure_changes_give_another_key():
+    key = compiled_scene.structure_key
+    assert key(hub_beam()) == key(hub_beam())
+    other_beam = PlanarModel.chain("hub_beam", [
+        Pinned("o"), RigidBody("hub", mass=2.0, inertia=0.1, center_of_mass=(0.05, 0.02), outboard=(0.2, 0.0)),
+        FixedMounting("mount", angle=0.3), ModalBeam("b", length=1.4, bending_stiffness=5.0, mass_per_length=0.7,
+                                                     n_modes=3)])
+    assert key(other_beam) != key(hub_beam())
+    shorter = PlanarModel.chain("c", [Pinned("o"), RigidBody.uniform_link("a", mass=1.0, length=1.0)])
+    longer = PlanarModel.chain("c", [Pinned("o"), RigidBody.uniform_link("a", mass=1.0, length=1.0), SmoothHinge("h"),
+                                     RigidBody.uniform_link("b", mass=1.0, length=1.0)])
+    assert key(shorter) != key(longer)
+    tilted = PlanarModel.chain("c", [Pinned("o"), RigidBody.uniform_link("a", mass=1.0, length=1.0)],
+                               gravity=(0.5, -9.81))
+    assert key(tilted) != key(shorter)            # a zero number is a constant of the code: structure
+    with pytest.raises(ModelError, match="another structure"):
+        CompiledScene(shorter).with_model(longer)
+
+
 def test_refusals():
     moving = PlanarModel.chain("moving", [Pinned("o"), RigidBody.uniform_link("a", mass=1.0, length=1.0),
                                           ActuatedHinge("h", torque=lambda t: np.sin(t)),
                                           RigidBody.uniform_link("b", mass=1.0, length=1.0)])
-    with pytest.raises(ModelError, match="time-dependent signals in 'h'"):
+    with pytest.raises(ModelError, match="time-dependent signals without a symbolic form in 'h'"):
         CompiledScene(moving)
+    with pytest.raises(ModelError, match="without a symbolic form"):
+        compiled_scene.parameter_vector(moving)
     with pytest.raises(ModelError, match="time-dependent"):
         ctmm.simulate(moving, 0.1, 1e-2, compiled=True)
     swinging_load = PlanarModel.chain("load", [Pinned("o"), _beam("b", loads=(Load(point=(1.0, 0.0),
                                                                                    force_y=lambda t: t),))])
-    with pytest.raises(ModelError, match="time-dependent signals in 'b'"):
+    with pytest.raises(ModelError, match="time-dependent signals without a symbolic form in 'b'"):
         CompiledScene(swinging_load)
     with pytest.raises(ModelError, match="PlanarModel"):
         CompiledScene("not a model")

@@ -31,7 +31,55 @@ from ..protocol import BodyTerms, JointTerms
 from .model import BUSHING, FREE, PlanarModel
 
 __all__ = ["rigid_body_terms", "revolute_terms", "driven_terms", "free_base_terms", "beam_terms",
-           "PlanarScene", "LinearTerms"]
+           "PlanarScene", "LinearTerms", "SceneNumbers"]
+
+
+@dataclass(frozen=True)
+class SceneNumbers:
+    """The numbers of a planar model's rigid bodies, hinge laws and loads that :class:`PlanarScene`
+    states its terms with: numeric (:meth:`of`, the model's own) or symbols (generated code that takes
+    them as inputs, :mod:`ctmm.compiled_scene`).  Modal beams keep their own data.
+
+    Attributes
+    ----------
+    mass, inertia : sequence (n_bodies,)
+        [kg], about the centre of mass [kg m^2].
+    center_of_mass : sequence (n_bodies,) of (x, y)
+        Relative to the inboard point, body frame [m].
+    ends : sequence (n_bodies,) of mapping str -> (x, y)
+        Outboard points relative to the inboard point, body frame [m].
+    gravity : (gx, gy)
+        [m/s^2].
+    stiffness, damping : sequence (n_bodies,)
+        Hinge law [N m/rad], [N m s/rad].
+    reference, reference_rate, torque : sequence (n_bodies,)
+        Hinge law [rad], [rad/s], [N m] (at the time of the terms).
+    loads : sequence (n_loads,) of (fx, fy, moment)
+        [N, N, N m] (at the time of the terms).
+    load_point : sequence (n_loads,) of (x, y)
+        Body frame [m].
+    """
+
+    mass: Sequence[Any]
+    inertia: Sequence[Any]
+    center_of_mass: Sequence[Any]
+    ends: Sequence[Mapping[str, Any]]
+    gravity: Sequence[Any]
+    stiffness: Sequence[Any]
+    damping: Sequence[Any]
+    reference: Sequence[Any]
+    reference_rate: Sequence[Any]
+    torque: Sequence[Any]
+    loads: Sequence[Any]
+    load_point: Sequence[Any]
+
+    @classmethod
+    def of(cls, model: PlanarModel, t: float = 0.0) -> "SceneNumbers":
+        """The numbers of ``model`` at time ``t`` [s] (hinge-law and load signals evaluated)."""
+        reference, reference_rate, torque = model.hinge_laws(t)
+        loads = model.loads(t) if len(model.load_body) else np.zeros((0, 3))
+        return cls(model.mass, model.inertia, model.com, model.ends, model.gravity, model.stiffness, model.damping,
+                   reference, reference_rate, torque, loads, model.load_point)
 
 
 def rigid_body_terms(ops: Ops, *, mass: float, inertia: float, center_of_mass: Sequence[float],
@@ -43,8 +91,9 @@ def rigid_body_terms(ops: Ops, *, mass: float, inertia: float, center_of_mass: S
     Parameters
     ----------
     ops : Ops
-    mass : float
-        [kg].
+    mass : float or symbol
+        [kg].  Numbers (``mass`` ... ``gravity``, loads) may be symbols (casadi) for generated code
+        that takes them as inputs (:class:`SceneNumbers`).
     inertia : float
         About the centre of mass [kg m^2].
     center_of_mass : (float, float)
@@ -66,12 +115,12 @@ def rigid_body_terms(ops: Ops, *, mass: float, inertia: float, center_of_mass: S
         ``d = 3``, ``n = 0``.
     """
     c, s = ops.cos(theta), ops.sin(theta)
-    cx, cy = float(center_of_mass[0]), float(center_of_mass[1])
+    cx, cy = _value(center_of_mass[0]), _value(center_of_mass[1])
     rcx, rcy = c * cx - s * cy, s * cx + c * cy
-    m, gx, gy = float(mass), float(gravity[0]), float(gravity[1])
+    m, gx, gy = _value(mass), _value(gravity[0]), _value(gravity[1])
     w2 = omega * omega
     M = ops.block([[m, 0.0, rcy * -m], [0.0, m, rcx * m],
-                   [rcy * -m, rcx * m, (rcx * rcx + rcy * rcy) * m + float(inertia)]])
+                   [rcy * -m, rcx * m, (rcx * rcx + rcy * rcy) * m + _value(inertia)]])
     hx = (w2 * rcx + gx) * -m
     hy = (w2 * rcy + gy) * -m
     hz = (rcx * gy - rcy * gx) * -m
@@ -84,7 +133,8 @@ def rigid_body_terms(ops: Ops, *, mass: float, inertia: float, center_of_mass: S
     h = ops.block([[hx], [hy], [hz]])
     Kin, cc, RF = {}, {}, {}
     for name, (vx, vy) in points.items():
-        rx, ry = c * float(vx) - s * float(vy), s * float(vx) + c * float(vy)
+        vx, vy = _value(vx), _value(vy)
+        rx, ry = c * vx - s * vy, s * vx + c * vy
         Kin[name] = ops.block([[1.0, 0.0, ry * -1.0], [0.0, 1.0, rx], [0.0, 0.0, 1.0]])
         cc[name] = ops.block([[w2 * rx * -1.0], [w2 * ry * -1.0], [0.0]])
         RF[name] = ops.transpose(Kin[name])
@@ -96,10 +146,11 @@ def revolute_terms(ops: Ops, *, angle: Any, rate: Any, stiffness: float = 0.0, d
     """Revolute hinge law ``tau = torque - k (angle - reference) - c (rate - reference_rate)``.
 
     ``angle``, ``rate``: relative hinge angle [rad] and rate [rad/s] (ops scalars); ``stiffness`` k
-    [N m/rad], ``damping`` c [N m s/rad]; ``torque`` the input across the hinge [N m].  Smooth
+    [N m/rad], ``damping`` c [N m s/rad]; ``torque`` the input across the hinge [N m].  Numbers may
+    be symbols (casadi).  Smooth
     (k = c = 0), elastic, damper, spring-damper and actuated hinges are this one law.
     """
-    k, c = float(stiffness), float(damping)
+    k, c = _value(stiffness), _value(damping)
     tau = (angle - reference) * -k - (rate - reference_rate) * c + torque
     return JointTerms(S=ops.block([[0.0], [0.0], [1.0]]), tau=ops.block([[tau]]),
                       tau_q=ops.block([[-k]]), tau_v=ops.block([[-c]]))
@@ -237,17 +288,20 @@ class PlanarScene:
                 points.append(model.parent_end[j])
         self.tree = Tree(tuple(int(p) for p in model.parent), tuple(points), 3)
 
-    def terms(self, ops: Ops, q: Any, qdot: Any, t: float = 0.0, inputs: Any = None
-              ) -> tuple[list[BodyTerms], list[JointTerms]]:
+    def terms(self, ops: Ops, q: Any, qdot: Any, t: float = 0.0, inputs: Any = None,
+              numbers: SceneNumbers | None = None) -> tuple[list[BodyTerms], list[JointTerms]]:
         """Body and joint terms at coordinates ``q`` and rates ``qdot`` (ops columns
         ``(B, n, 1)`` for numpy, ``(n, 1)`` for casadi) and time ``t`` [s].
 
-        ``inputs``: :class:`ctmm.planar.ports.ActuatorInputs` (numeric), optional.
+        ``inputs``: :class:`ctmm.planar.ports.ActuatorInputs` (numeric), optional.  ``numbers``: the
+        bodies', hinge laws' and loads' numbers (default the model's at ``t``, :meth:`SceneNumbers.of`);
+        symbols for generated code that takes them as inputs.
         """
         m = self.model
         driven = {i: (a, r, acc) for i, a, r, acc in m.driven(t)}
-        laws = m.hinge_laws(t)
-        all_loads = m.loads(t) if len(m.load_body) else np.zeros((0, 3))
+        numbers = SceneNumbers.of(m, t) if numbers is None else numbers
+        laws = (numbers.reference, numbers.reference_rate, numbers.torque)
+        all_loads = numbers.loads
         end_motion, bodies, joints = {}, [], []
         for j in range(m.n_bodies):
             p = int(m.parent[j])
@@ -264,7 +318,7 @@ class PlanarScene:
             idx = m.modal_index[j]
             e = _modal(ops, q, idx)
             ed = _modal(ops, qdot, idx)
-            body, ends = self.body_terms(ops, j, th, om, e, ed, t, inputs, all_loads)
+            body, ends = self.body_terms(ops, j, th, om, e, ed, t, inputs, all_loads, numbers)
             end_motion.update({(j, name): motion for name, motion in ends.items()})
             bodies.append(body)
             kind = int(m.joint_kind[j])
@@ -274,19 +328,24 @@ class PlanarScene:
                 joints.append(free_base_terms(ops))
             else:
                 torque = laws[2][j] + (0.0 if inputs is None else _value(inputs.hinge_torque[j]))
-                joints.append(revolute_terms(ops, angle=th - th_end, rate=om - om_end, stiffness=m.stiffness[j],
-                                             damping=m.damping[j], reference=laws[0][j],
+                joints.append(revolute_terms(ops, angle=th - th_end, rate=om - om_end, stiffness=numbers.stiffness[j],
+                                             damping=numbers.damping[j], reference=laws[0][j],
                                              reference_rate=laws[1][j], torque=torque))
         return bodies, joints
 
     def body_terms(self, ops: Ops, j: int, theta: Any, omega: Any, eta: Any, eta_dot: Any, t: float,
-                   inputs: Any = None, loads: np.ndarray | None = None) -> tuple[BodyTerms, dict]:
+                   inputs: Any = None, loads: Any = None, numbers: SceneNumbers | None = None
+                   ) -> tuple[BodyTerms, dict]:
         """Terms of body ``j`` at absolute angle ``theta`` [rad], rate ``omega`` [rad/s] and, for a beam,
         modal coordinates ``eta`` and rates ``eta_dot`` (numpy ``(B, n)``); also ``{point: (angle, rate)}``
-        of its outboard points.  ``loads``: ``model.loads(t)`` (evaluated when omitted)."""
+        of its outboard points.  ``loads``: ``model.loads(t)`` (evaluated when omitted); ``numbers``: of
+        :meth:`terms` (default the model's)."""
         m = self.model
         if loads is None:
             loads = m.loads(t) if len(m.load_body) else np.zeros((0, 3))
+        if numbers is None:
+            numbers = SceneNumbers(m.mass, m.inertia, m.com, m.ends, m.gravity, m.stiffness, m.damping, (), (), (),
+                                   loads, m.load_point)
         if j in m.beams and ops is not NUMPY:
             return _symbolic_beam_terms(ops, m.beams[j].data, self.beam_points[j], theta, omega, eta, eta_dot, t,
                                         m.gravity, None if inputs is None else inputs.modal_force.get(j))
@@ -301,9 +360,10 @@ class PlanarScene:
                           for name, (a, r) in zip(self.beam_points[j], ends)}
         rows = [k for k in range(len(m.load_body)) if int(m.load_body[k]) == j]
         force = None if inputs is None else tuple(_value(v) for v in inputs.body_force[j])
-        body = rigid_body_terms(ops, mass=m.mass[j], inertia=m.inertia[j], center_of_mass=m.com[j],
-                                points=m.ends[j], gravity=m.gravity, theta=theta, omega=omega,
-                                loads=[(*m.load_point[k], *loads[k]) for k in rows], body_force=force)
+        body = rigid_body_terms(ops, mass=numbers.mass[j], inertia=numbers.inertia[j],
+                                center_of_mass=numbers.center_of_mass[j], points=numbers.ends[j],
+                                gravity=numbers.gravity, theta=theta, omega=omega,
+                                loads=[(*numbers.load_point[k], *loads[k]) for k in rows], body_force=force)
         return body, {name: (theta, omega) for name in m.ends[j]}
 
     def frequency(self, q0: Any, s: Any, t: float = 0.0, torque: Mapping[int, complex] | None = None,
