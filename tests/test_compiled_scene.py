@@ -370,3 +370,26 @@ def test_refusals():
                              elements.Free("e")])
     with pytest.raises(ModelError, match="compiled=True applies to planar models"):
         ctmm.simulate(chain, 0.1, 1e-2, compiled=True)
+
+
+def test_beam_station_loads_are_not_taken_by_generated_kernels_and_never_dropped():
+    """A station force on a beam has a floating-frame part the protocol does not carry yet: the
+    generated scene leaves those actuators out (other inputs still work) and refuses them by name."""
+    from ctmm.compiled_scene import CompiledScene, compiled_actuators
+    from ctmm.flexible import ModalBeam
+    from ctmm.planar import ActuatedHinge, Fixed, PlanarModel, RigidBody
+    from ctmm.planar.elements import FixedMounting
+    from ctmm.planar.body_forms import PlanarScene
+
+    beam = ModalBeam("beam", length=1.0, bending_stiffness=20.0, mass_per_length=0.5, n_modes=2, stations={"mid": 0.5})
+    model = PlanarModel.chain("hb", [Fixed("g"), ActuatedHinge("motor"),
+                                     RigidBody("hub", mass=2.0, inertia=0.1, outboard=(0.1, 0.0)),
+                                     FixedMounting("mount"), beam], gravity=(0.0, 0.0))
+    names = compiled_actuators(model)
+    assert "motor.torque" in names and "beam.q1.force" in names
+    assert not any(name.startswith("beam.mid.") for name in names)
+    from ctmm.planar.ports import actuator_inputs
+
+    with pytest.raises(ModelError, match="station forces and moments"):
+        PlanarScene(model).accelerations(np.zeros(3), np.zeros(3), inputs=actuator_inputs(model, {"beam.mid.force": 1.0}))
+    assert CompiledScene(model).actuators == names

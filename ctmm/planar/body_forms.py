@@ -297,6 +297,10 @@ class PlanarScene:
         bodies', hinge laws' and loads' numbers (default the model's at ``t``, :meth:`SceneNumbers.of`);
         symbols for generated code that takes them as inputs.
         """
+        if inputs is not None and getattr(inputs, "frame_wrench", None):
+            raise ModelError("station forces and moments on a beam's floating frame (actuators "
+                             "'<beam>.<station>.force|moment') are not on the element protocol yet; use the "
+                             "sweep of ctmm.planar.accelerations (ctmm.simulate without compiled=True)")
         m = self.model
         driven = {i: (a, r, acc) for i, a, r, acc in m.driven(t)}
         numbers = SceneNumbers.of(m, t) if numbers is None else numbers
