@@ -91,7 +91,8 @@ class FrequencyResponse:
     def _index(names: Sequence[str], name: str | None, kind: str) -> int:
         if name is None:
             if len(names) != 1:
-                raise unknown_name(kind, "<none given>", list(names))
+                raise ModelError(f"this response has {len(names)} {kind}s; name the {kind}: one of "
+                                 f"{', '.join(names) or '(none)'}")
             return 0
         if name not in names:
             raise unknown_name(kind, name, list(names))

@@ -130,3 +130,15 @@ def test_modal_plot_labels():
     assert ax.get_ylabel() == "mode shape, x [1] (largest displacement = 1)"
     assert all("rad/s" in text for text in ax.get_legend_handles_labels()[1])
     plt.close("all")
+
+
+def test_frequency_response_call_without_a_name_needs_a_single_pair():
+    import ctmm
+    from ctmm.elements import Fixed, Free, Mass, Spring
+
+    chain = ctmm.Chain("s", [Fixed("w"), Spring("k", 100.0), Mass("m", 1.0), Spring("k2", 50.0), Mass("m2", 1.0),
+                             Free("e")])
+    frf = ctmm.frequency_response(chain, [1.0, 2.0], input=["m.force", "m2.force"], output="m.x")
+    assert frf("m.x", "m2.force").shape == (2,)
+    with pytest.raises(ctmm.ModelError, match="2 inputs; name the input: one of m.force, m2.force"):
+        frf("m.x")
