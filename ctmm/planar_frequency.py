@@ -123,6 +123,14 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
     sensors, actuators = set(ports.sensor_names(model)), set(ports.actuator_names(model))
     units = {name: ports.actuator_unit(model, name) for name in inputs if name in actuators}
     units.update({name: ports.sensor_unit(model, name) for name in outputs if name in sensors})
+    for loop in loops:              # loop signals carry a unit when their weights are plain (one term, weight 1)
+        plain_sensor = [w for _, w in loop.terms] == [1.0]
+        plain_actuator = [w for _, w in loop.actuator_terms] == [1.0]
+        sensed = ports.sensor_unit(model, loop.terms[0][0]) if plain_sensor else ""
+        force = ports.actuator_unit(model, loop.actuator_terms[0][0]) if plain_actuator else ""
+        for name, unit in ((f"{loop.name}.y", sensed), (f"{loop.name}.reference", sensed), (f"{loop.name}.u", force)):
+            if name in inputs or name in outputs:
+                units[name] = unit
     info = {"method": "linearisation (ctmm.linearize), delays exact", "wall_time_s": time.perf_counter() - started,
             "n_frequencies": int(s.size), "operating_point_q": lin.operating_point.q.tolist(),
             "jacobian_error": lin.operating_point.jacobian_error}

@@ -90,3 +90,12 @@ def test_natural_frequencies_of_a_stiff_segment_chain_keep_full_precision_on_the
     assert np.all(np.abs(omega / (beta ** 2 * np.sqrt(2.0 / 0.5)) - 1.0) < 1e-3)
     from ctmm.planar.linear import natural_frequencies as counted
     np.testing.assert_allclose(omega, counted(model, np.zeros(n), n_modes=3), rtol=1e-13)
+
+
+def test_loop_signals_of_a_planar_response_carry_units_when_their_weights_are_plain():
+    system = ControlledModel(pendulum(), [
+        Feedback("a", sensor="motor.angle", actuator="motor.torque", gain=3.0, delay=0.01),
+        Feedback("b", sensor=[("motor.angle", 2.0), ("motor.rate", 0.1)], actuator="motor.torque", gain=1.0)])
+    frf = frequency_response(system, [1.0], input=["a.reference", "motor.torque"], output=["a.u", "a.y", "b.y"])
+    assert [frf.unit(name) for name in ("a.reference", "motor.torque", "a.u", "a.y", "b.y")] == \
+        ["rad", "N m", "N m", "rad", ""]          # b.y = 2 angle + 0.1 rate: no single unit
