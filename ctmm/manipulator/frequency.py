@@ -33,10 +33,10 @@ from .. import validation
 from ..control import ControlledChain, Feedback
 from ..control.analysis import Margins, loop_transfer_function, margins
 from ..elements.base import Element
-from ..elements.beams import BeamField, BeamFree, BeamPinned, BeamPointLoad, identity_matrices, laplace_array
+from ..elements.beams import BeamField, BeamFree, BeamPinned, BeamPointLoad, laplace_array
+from ..elements.bending_bodies import RigidSegment
 from ..errors import ModelError, unknown_name
 from ..frequency import frequency_response
-from ..layouts import BENDING
 from ..results import FrequencyResponse
 from ..system import Chain
 from .laws import HubPD, PZTFeedback, check_pzt
@@ -48,7 +48,7 @@ MAX_PIECES = 100_000
 __all__ = ["RigidHub", "plant_chain", "LinearManipulator"]
 
 
-class RigidHub(Element):
+class RigidHub(RigidSegment):
     """Rigid hub pivoted at its centre, arm clamped at radius ``r`` (bending layout, linear).
 
     The hub receives ``(shear_in, moment_in)`` at the pivot, ``-(shear_out, moment_out)`` at the
@@ -62,7 +62,9 @@ class RigidHub(Element):
              [r m s^2,  -J s^2,  -r,  1]],     u = [0, 0, 0, tau]
 
     (for ``r -> 0`` the point inertia :class:`~ctmm.elements.beams.BeamPointMass`; the rigid-bar
-    part equals a beam field at ``s = 0``: ``moment' = -shear``).
+    part equals a beam field at ``s = 0``: ``moment' = -shear``).  It is the
+    :class:`~ctmm.elements.bending_bodies.RigidSegment` of length ``r`` with its centre of mass at
+    the pivot (the transfer matrix is that one), the motor torque as its input.
 
     Parameters
     ----------
@@ -75,34 +77,19 @@ class RigidHub(Element):
         ``m`` [kg] (enters only if the pivot moves), >= 0.
     """
 
-    layout = BENDING
-    is_point = False
     inputs = ("torque",)
 
     def __init__(self, name: str, inertia: float, radius: float = 0.0, *, mass: float = 0.0) -> None:
-        super().__init__(name)
-        self.inertia = validation.positive(f"{name}: inertia", inertia)
-        self.radius = validation.nonnegative(f"{name}: radius", radius)
-        self.mass = validation.nonnegative(f"{name}: mass", mass)
+        super().__init__(name, length=validation.nonnegative(f"{name}: radius", radius),
+                         mass=mass, inertia=validation.positive(f"{name}: inertia", inertia), center=0.0)
+        self.radius = self.length
 
     def parameters(self) -> dict[str, Any]:
         return {"inertia": self.inertia, "radius": self.radius, "mass": self.mass}
 
-    def transfer_matrix(self, s: Any) -> np.ndarray:
-        s = laplace_array(s)
-        U = identity_matrices(s)
-        r, s2 = self.radius, s * s
-        U[..., 0, 1] = r
-        U[..., 2, 0] = -self.mass * s2
-        U[..., 3, 0] = r * self.mass * s2
-        U[..., 3, 1] = -self.inertia * s2
-        U[..., 3, 2] = -r
-        return U
-
     def load_vector(self, s: Any, amplitudes: Mapping[str, Any]) -> np.ndarray:
         self.check_inputs(amplitudes)
-        s = laplace_array(s)
-        u = np.zeros(s.shape + (4,), dtype=complex)
+        u = np.zeros(laplace_array(s).shape + (4,), dtype=complex)
         u[..., 3] = amplitudes.get("torque", 0.0)
         return u
 
