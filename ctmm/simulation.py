@@ -305,6 +305,7 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
                          "time-invariant planar scene), not both")
     progress = validation.flag("progress", progress, optional=True)
     q0, v0 = initial_coordinates(model, _initial(model, "x0", x0), _initial(model, "v0", v0))
+    model.check_resolution(q0, "x0")
     policy = "warn" if stability_check is None else validation.option("stability_check", stability_check,
                                                                        ("warn", "error", "ignore"))
     store_every = validation.integer("store_every", store_every, minimum=1)

@@ -380,6 +380,10 @@ FIXED_CASES: list[tuple[Case, object, str]] = [
     (Case("ctmm.manipulator.manipulator_scene", "geometric_stiffening", "flag",
           lambda v: _scene(geometric_stiffening=v)), None,
      f"{_SCENE}: geometric_stiffening=None is cast by bool() to False silently"),
+    (Case("ctmm.simulate", "x0", "unresolvable angle",
+          lambda v: ctmm.simulate(arm(), 0.1, 0.01, x0=[v])), 1e20,
+     "ctmm.simulate: x0 = 1e20 rad runs: the angle never moves (its increments are below one ulp) while "
+     "its rate evolves"),
 ]
 
 
