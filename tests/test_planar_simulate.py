@@ -188,3 +188,61 @@ def test_progress_bar_and_store_every(double):
     assert len(result.time) == 11
     np.testing.assert_allclose(result.time, np.linspace(0.0, 0.1, 11), atol=1e-15)
     assert math.isfinite(result.info["wall_time_s"])
+
+
+def _delayed_pd_pendulum_reference(theta0: float, t_final: float, delay: float, kp: float, kd: float,
+                                   inertia: float, steps_per_delay: int = 20) -> float:
+    """``J theta'' = -(kp theta(t - tau) + kd theta'(t - tau))`` (no gravity), history ``theta0`` at rest,
+    by the method of steps: RK4 with the delayed terms read from the stored grid (step ``tau / k``)."""
+    h = delay / steps_per_delay
+    n = int(round(t_final / h))
+    theta, rate = np.empty(n + 1), np.empty(n + 1)
+    theta[0], rate[0] = theta0, 0.0
+
+    def delayed(k: float) -> tuple[float, float]:      # state at grid index k - steps_per_delay (held before 0)
+        j = k - steps_per_delay
+        if j <= 0:
+            return theta0, 0.0
+        lo = int(math.floor(j))
+        w = j - lo
+        return (1 - w) * theta[lo] + w * theta[min(lo + 1, n)], (1 - w) * rate[lo] + w * rate[min(lo + 1, n)]
+
+    def accel(k: float) -> float:
+        a, b = delayed(k)
+        return -(kp * a + kd * b) / inertia
+
+    for k in range(n):             # the delayed term is known on the grid (steps_per_delay >= 1): stages at k, k+1/2, k+1
+        a0, am, a1 = accel(k), accel(k + 0.5), accel(k + 1)
+        theta[k + 1] = theta[k] + h * rate[k] + h * h / 6 * (a0 + 2 * am)
+        rate[k + 1] = rate[k] + h / 6 * (a0 + 4 * am + a1)
+    return float(theta[-1])
+
+
+@pytest.mark.parametrize("method", ["RK45", "LSODA"])
+def test_adaptive_methods_with_a_loop_delay_shorter_than_their_first_step_guess(method):
+    """scipy's first-step guess evaluated the rate beyond the delay history ('delay history requested at
+    t=7e-07 beyond the last step 0.0'); the step (first included) is now bounded by the delay."""
+    from ctmm.control import with_feedback
+    from ctmm.planar import Pinned
+
+    link = RigidBody.uniform_link("link", mass=1.0, length=0.5)
+    arm = PlanarModel.chain("arm", [Pinned("motor"), link], gravity=(0.0, 0.0))
+    delay, t_final = 1e-6, 1e-3
+    pd = Feedback("pd", sensor=[("motor.angle", 2000.0), ("motor.rate", 20.0)], actuator="motor.torque", gain=1.0,
+                  delay=delay)
+    result = ctmm.simulate(with_feedback(arm, [pd]), t_final, method=method, x0=[0.1])
+    expected = _delayed_pd_pendulum_reference(0.1, t_final, delay, 2000.0, 20.0, inertia=1.0 * 0.5 ** 2 / 3)
+    assert abs(expected - 0.1) > 1e-3                      # the loop moved the link
+    assert abs(result["link.theta"][-1] - expected) <= 1e-8
+
+
+def test_a_loop_delay_that_forces_too_many_adaptive_steps_is_refused_and_many_are_announced():
+    from ctmm.control import with_feedback
+    from ctmm.planar import Pinned
+
+    arm = PlanarModel.chain("arm", [Pinned("motor"), RigidBody.uniform_link("link", mass=1.0, length=0.5)])
+    pd = Feedback("pd", sensor="motor.angle", actuator="motor.torque", gain=1.0, delay=1e-6)
+    with pytest.raises(ModelError, match=r"caps solve_ivp's step.*1e\+08 steps.*method='rk4'"):
+        ctmm.simulate(with_feedback(arm, [pd]), 100.0, method="RK45", x0=[0.1])
+    with pytest.warns(RuntimeWarning, match=r"at least 2e\+05 steps"), pytest.raises(SimulationError):
+        ctmm.simulate(with_feedback(arm, [pd]), 0.2, method="RK45", x0=[0.1], divergence_bound=1e-9)

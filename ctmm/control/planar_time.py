@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 import time as _time
+import warnings
 from dataclasses import dataclass
 from typing import Any, Callable, Mapping, Sequence
 
@@ -437,6 +438,15 @@ def simulate_closed_loop(model: PlanarModel, q0: np.ndarray, qdot0: np.ndarray, 
         check_scheme_delays(resolved, scheme, dt)
     if not fixed and delays:
         max_step = min(max_step, min(delays))
+        forced = t_final / max_step
+        advice = (f"the loop delay {min(delays):.3g} s caps solve_ivp's step (the delayed signal must come from "
+                  f"the stored history), so method={method!r} takes at least {forced:.3g} steps over {t_final!r} s")
+        if forced > validation.MAX_STEPS:
+            raise ModelError(f"{advice}; at most {validation.MAX_STEPS:.0e} are allowed: shorten t_final, or use "
+                             "method='rk4' with a dt that divides the delay, or a DT-TMM scheme")
+        if forced > 1e5:
+            warnings.warn(f"{advice}; for a delay this short relative to the run, method='rk4' with a dt that "
+                          "divides the delay, or a DT-TMM scheme, is faster", RuntimeWarning, stacklevel=3)
     history_step = dt if fixed else (min(delays) if delays else t_final) * 1e-5
     label = method if scheme is None else f"dt-tmm/{type(scheme).__name__}"
     try:
@@ -513,7 +523,10 @@ def _run_scipy(system: _ClosedLoop, rows: _Rows, guard, y0: np.ndarray, t_final:
         for k, t_end in enumerate(ends):
             if k > 0:
                 system.sample(k, t, y)
-            solver = solver_type(system.rate, t, y, t_end, rtol=rtol, atol=atol, max_step=max_step)
+            # a finite max_step (a loop delay) bounds the first step too: scipy's own first-step guess
+            # evaluates the rate at t + h0 with h0 unbounded, i.e. beyond the stored delay history
+            first = {"first_step": min(max_step, t_end - t)} if math.isfinite(max_step) else {}
+            solver = solver_type(system.rate, t, y, t_end, rtol=rtol, atol=atol, max_step=max_step, **first)
             for t_old in accepted_steps(solver, method):
                 t_new, y_new = float(solver.t), solver.y.copy()
                 _check_state(system, guard, t_new, y_new, None, method)
