@@ -7,9 +7,10 @@ terms, :class:`SpatialScene`), :mod:`~ctmm.spatial.dynamics` (accelerations, rea
 Conventions and derivations: ``docs/spatial.md``.
 """
 from .body_forms import SpatialScene
-from .dynamics import SpatialSolution, accelerations, reactions, solve, state_rates
+from .dynamics import SpatialSolution, accelerations, energy, reactions, solve, state_rates
+from .integrate import simulate_spatial
 from .elements import Elastic6, Free, Load, Prismatic, Revolute, SpatialBody, Spherical, Universal, Weld
 from .model import SpatialModel
 
 __all__ = ["SpatialBody", "Revolute", "Prismatic", "Universal", "Spherical", "Free", "Elastic6", "Weld", "Load",
-           "SpatialModel", "SpatialScene", "SpatialSolution", "solve", "accelerations", "reactions", "state_rates"]
+           "SpatialModel", "SpatialScene", "SpatialSolution", "solve", "accelerations", "reactions", "state_rates", "energy", "simulate_spatial"]

@@ -7,11 +7,11 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..errors import SimulationError
+from ..errors import ModelError, SimulationError
 from .body_forms import SpatialScene
 from .model import SpatialModel
 
-__all__ = ["SpatialSolution", "solve", "accelerations", "reactions", "state_rates", "scene_of"]
+__all__ = ["SpatialSolution", "solve", "accelerations", "reactions", "state_rates", "scene_of", "energy"]
 
 
 def scene_of(model: SpatialModel) -> SpatialScene:
@@ -103,3 +103,43 @@ def state_rates(model: SpatialModel, x: np.ndarray, t: float, inputs: Mapping[st
     out = np.concatenate([model.position_rates(q if q.ndim == 2 else q[None], v if v.ndim == 2 else v[None]),
                           rates], axis=-1)
     return out[0] if x.ndim == 1 else out
+
+
+def energy(model: SpatialModel, q: Any, v: Any, t: float = 0.0) -> np.ndarray:
+    """Kinetic + gravitational + joint-spring energy [J] (scalar, or (B,) for a batch).
+
+    Springs counted: revolute, prismatic and universal ``1/2 k (q - q_ref)^2``; spherical joints with a
+    scalar stiffness ``k I``: ``2 k (1 - w^2)`` (unit quaternion).  A spherical joint with an anisotropic
+    stiffness and :class:`~ctmm.spatial.elements.Elastic6` have no potential here (``ModelError``).
+    """
+    from ..ops import NUMPY
+
+    q_rows, v_rows = model.check_state(q, v)
+    _, _, states = scene_of(model).terms(NUMPY, q_rows, v_rows, t)
+    total = np.zeros(q_rows.shape[0])
+    for body, state in zip(model.bodies, states):
+        R = state.rotation
+        arm = R @ body.center_of_mass[:, None]
+        v_com = (state.velocity + np.cross(state.omega, arm, axis=1))[..., 0]
+        omega = state.omega[..., 0]
+        inertia = R @ body.inertia @ np.swapaxes(R, -1, -2)
+        total = total + 0.5 * body.mass * np.sum(v_com ** 2, axis=-1) \
+            + 0.5 * np.einsum("bi,bij,bj->b", np.broadcast_to(omega, (len(total), 3)),
+                              np.broadcast_to(inertia, (len(total), 3, 3)), np.broadcast_to(omega, (len(total), 3))) \
+            - body.mass * ((state.origin + arm)[..., 0] @ model.gravity)
+    for joint, layout in zip(model.joints, model.layout):
+        if joint.driven or joint.kind in ("weld", "free"):
+            continue
+        qj = q_rows[:, layout.position]
+        if joint.kind in ("revolute", "prismatic", "universal"):
+            total = total + 0.5 * np.sum(joint.stiffness * (qj - joint.reference) ** 2, axis=1)
+        elif joint.kind == "spherical":
+            k = joint.stiffness[0, 0]
+            if not np.allclose(joint.stiffness, k * np.eye(3)):
+                raise ModelError(f"energy: spherical joint {joint.name!r} has an anisotropic stiffness, whose law "
+                                 "has no potential; energy is defined for scalar stiffness k I only")
+            total = total + 2 * k * (1 - qj[:, 0] ** 2 / np.sum(qj ** 2, axis=1))
+        elif np.any(joint.stiffness):
+            raise ModelError(f"energy: the Elastic6 joint {joint.name!r} has no potential here (its linear law is "
+                             "for small deformations); energy is defined without elastic 6-DOF springs")
+    return total[0] if np.ndim(q) == 1 else total

@@ -40,12 +40,23 @@ def column(ops: Ops, values: Any) -> Any:
 
 def skew(ops: Ops, v: Any) -> Any:
     """``[v]x`` (3 x 3) of a column ``v`` (3 x 1): ``skew(v) w = v x w``."""
+    if ops.name == "numpy":                     # same values, without nine-block assembly
+        v = np.asarray(v)
+        x, y, z = v[:, 0, 0], v[:, 1, 0], v[:, 2, 0]
+        out = np.zeros(v.shape[:1] + (3, 3), dtype=v.dtype)
+        out[:, 0, 1], out[:, 0, 2], out[:, 1, 2] = -z, y, -x
+        out[:, 1, 0], out[:, 2, 0], out[:, 2, 1] = z, -y, x
+        return out
     x, y, z = (entry(ops, v, i) for i in range(3))
     return ops.block([[0.0, z * -1.0, y], [z, 0.0, x * -1.0], [y * -1.0, x, 0.0]])
 
 
 def cross(ops: Ops, a: Any, b: Any) -> Any:
     """``a x b`` of two columns."""
+    if ops.name == "numpy":
+        a0, a1, a2 = a[:, 0], a[:, 1], a[:, 2]
+        b0, b1, b2 = b[:, 0], b[:, 1], b[:, 2]
+        return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=1)
     return ops.matmul(skew(ops, a), b)
 
 
@@ -59,6 +70,13 @@ def axis_rotation(ops: Ops, axis: np.ndarray, angle: Any) -> Any:
 def quaternion_rotation(ops: Ops, w: Any, x: Any, y: Any, z: Any) -> Any:
     """Rotation matrix of the quaternion ``(w, x, y, z)`` divided by its norm (any non-zero quaternion)."""
     n2 = w * w + x * x + y * y + z * z
+    if ops.name == "numpy":
+        w, x, y, z = np.broadcast_arrays(*(np.asarray(c)[:, 0, 0] for c in (w, x, y, z)))
+        n2 = np.asarray(n2)[:, 0, 0]
+        R = np.stack([np.stack([w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+                      np.stack([2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)], -1),
+                      np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z], -1)], -2)
+        return R / np.broadcast_to(n2, w.shape)[:, None, None]
     rows = [[w * w + x * x - y * y - z * z, (x * y - w * z) * 2.0, (x * z + w * y) * 2.0],
             [(x * y + w * z) * 2.0, w * w - x * x + y * y - z * z, (y * z - w * x) * 2.0],
             [(x * z - w * y) * 2.0, (y * z + w * x) * 2.0, w * w - x * x - y * y + z * z]]
