@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import ctmm.spatial as sp
+from ctmm.signals import Harmonic
 
 pin = pytest.importorskip("pinocchio")
 
@@ -74,7 +75,9 @@ def random_tree(rng: np.random.Generator, n: int, base: str = "free", kinds=KIND
             point = f"p{int(rng.integers(0, 3))}"
             elements.append(random_joint(rng, kinds[(j - 1) % len(kinds)], f"j{j}", f"b{parent}", point, f"b{j}"))
     if loads:
-        elements.append(sp.Load("push", f"b{n - 1}", "p1", force=rng.normal(size=3), moment=rng.normal(size=3)))
+        force = list(rng.normal(size=3))
+        force[0] = Harmonic(force[0], 3.0, 0.2)                               # a time signal
+        elements.append(sp.Load("push", f"b{n - 1}", "p1", force=force, moment=rng.normal(size=3)))
         elements.append(sp.Load("twist", "b0", "p2", force=rng.normal(size=3), moment=rng.normal(size=3),
                                 axes="body"))
     return sp.SpatialModel("tree", elements, gravity=rng.normal(size=3) * 5)
@@ -173,6 +176,7 @@ class PinTree:
         """Applied loads as Pinocchio local-frame forces per joint."""
         pin.forwardKinematics(self.pin, self.data, q_pin)
         fext = [pin.Force.Zero() for _ in range(self.pin.njoints)]
+        self.body_loads = [pin.Force.Zero() for _ in self.model.bodies]     # per body, in its pin joint's frame
         for load in self.model.loads:
             j = self.model.body_index(load.body)
             jid, frame = self.frame[j]
@@ -182,6 +186,7 @@ class PinTree:
             f_body, m_body = (values[:3], values[3:]) if load.axes == "body" else (R.T @ values[:3], R.T @ values[3:])
             force_in_body = pin.Force(f_body, m_body + np.cross(self.model.bodies[j].points[load.point], f_body))
             fext[jid] += frame.act(force_in_body)
+            self.body_loads[j] += frame.act(force_in_body)
         return fext
 
     def solve(self, q: np.ndarray, v: np.ndarray, inputs: dict, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
@@ -195,7 +200,7 @@ class PinTree:
         for j, joint in enumerate(self.model.joints):
             jid, frame = self.frame[j]
             if joint.kind == "weld":
-                wrenches.append(np.full(6, np.nan))
+                wrenches.append(self.welded_subtree_wrench(j))
                 continue
             world = self.data.oMi[jid]
             f = world.rotation @ self.data.f[jid].linear
@@ -207,6 +212,32 @@ class PinTree:
                 P = (self.data.oMi[pid] * pframe).act(self.model.bodies[self.model.parent[j]].points[joint.point])
             wrenches.append(np.r_[f, m + np.cross(world.translation - P, f)])
         return np.array(a), np.array(wrenches)
+
+
+    def welded_subtree_wrench(self, j: int) -> np.ndarray:
+        """Reaction of a weld (no Pinocchio joint): Newton-Euler of body ``j``'s subtree from Pinocchio's
+        velocities and accelerations (``data.v``, ``data.a_gf``), world axes, moment about the weld point."""
+        model = self.model
+        subtree = {j}
+        for k in range(j + 1, model.n_bodies):
+            if model.parent[k] in subtree:
+                subtree.add(k)
+        total = np.zeros(6)
+        for k in subtree:
+            jid, frame = self.frame[k]
+            body = model.bodies[k]
+            inertia = frame.act(pin.Inertia(body.mass, body.center_of_mass, body.inertia))
+            v = self.data.v[jid]
+            local = inertia * self.data.a_gf[jid] + v.cross(inertia * v) - self.body_loads[k]
+            world = self.data.oMi[jid].act(local)                   # at the world origin
+            total += np.r_[world.linear, world.angular]
+        joint = model.joints[j]
+        if joint.parent is None:
+            P = joint.point
+        else:
+            pid, pframe = self.frame[model.parent[j]]
+            P = (self.data.oMi[pid] * pframe).act(model.bodies[model.parent[j]].points[joint.point])
+        return np.r_[total[:3], total[3:] - np.cross(P, total[:3])]
 
 
 def assert_close(ours: np.ndarray, theirs: np.ndarray, label: str) -> None:
