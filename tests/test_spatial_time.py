@@ -127,7 +127,7 @@ def test_spherical_pendulum_in_3d_conserves_energy_and_vertical_momentum() -> No
 
 
 def test_random_tree_run_equals_pinocchio_aba_with_rk4() -> None:
-    """A random 5-body tree (free base, every joint kind, laws, inputs, loads): ctmm.simulate's RK4 run
+    """A random 5-body tree (free base, joint laws, inputs, a time-varying load): ctmm.simulate's RK4 run
     equals an RK4 written here on Pinocchio's ABA (same ODE, no normalisation in either) to 1e-9."""
     from test_spatial_pinocchio import PinTree, random_inputs, random_state, random_tree
 
@@ -139,7 +139,7 @@ def test_random_tree_run_equals_pinocchio_aba_with_rk4() -> None:
     inputs = random_inputs(rng, model)
     dt, n = 0.002, 100
 
-    def rates(x):
+    def rates(t, x):
         q, v = x[:model.n_positions], x[model.n_positions:]
         qdot = []
         for joint, layout in zip(model.joints, model.layout):
@@ -152,14 +152,15 @@ def test_random_tree_run_equals_pinocchio_aba_with_rk4() -> None:
                                                                        quat[0] * vj[3:] + np.cross(quat[1:], vj[3:])]])
             else:
                 qdot.append(vj)
-        return np.r_[np.concatenate(qdot), reference.solve(q, v, inputs)[0]]
+        return np.r_[np.concatenate(qdot), reference.solve(q, v, inputs, t)[0]]
 
     x = np.r_[q0, v0]
-    for _ in range(n):
-        k1 = rates(x)
-        k2 = rates(x + dt / 2 * k1)
-        k3 = rates(x + dt / 2 * k2)
-        k4 = rates(x + dt * k3)
+    for step in range(n):
+        t = step * dt
+        k1 = rates(t, x)
+        k2 = rates(t + dt / 2, x + dt / 2 * k1)
+        k3 = rates(t + dt / 2, x + dt / 2 * k2)
+        k4 = rates(t + dt, x + dt * k3)
         x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
     result = ctmm.simulate(model, n * dt, dt, x0=q0, v0=v0, inputs=inputs)
     q, v = states(model, result)
