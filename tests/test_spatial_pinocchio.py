@@ -280,9 +280,16 @@ def test_casadi_terms_equal_numpy() -> None:
     model = random_tree(rng, 8, loads=False)
     scene = sp.SpatialScene(model)
     qs, vs = casadi.SX.sym("q", model.n_positions), casadi.SX.sym("v", model.n_velocities)
-    solution = scene.sweep(CASADI, qs, vs, 0.0, {})
+    names = [(joint.inputs[0], joint.velocity_count) for joint in model.joints if joint.inputs]
+    us = {name: casadi.SX.sym(name, k) for name, k in names}
+    solution = scene.sweep(CASADI, qs, vs, 0.0, us)
     rates = casadi.vertcat(*scene.velocity_rates(solution))
-    function = casadi.Function("f", [qs, vs], [rates])
+    forces = casadi.vertcat(*solution.force)
+    function = casadi.Function("f", [qs, vs] + list(us.values()), [rates, forces])
     q, v = random_state(rng, model)
-    np.testing.assert_allclose(np.array(function(q, v)).ravel(), sp.accelerations(model, q, v),
-                               rtol=1e-10, atol=1e-10)
+    inputs = random_inputs(rng, model)
+    rates_value, forces_value = function(q, v, *[np.atleast_1d(inputs[name]) for name, _ in names])
+    ours = sp.solve(model, q, v, 0.0, inputs)
+    assert names                                        # actuated joints take symbolic inputs
+    np.testing.assert_allclose(np.array(rates_value).ravel(), ours.velocity_rates[0], rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(np.array(forces_value).ravel(), ours.reactions[0].ravel(), rtol=1e-10, atol=1e-10)

@@ -249,6 +249,12 @@ class SpatialScene:
         self.tree = Tree(model.parent, tuple(None if joint.parent is None else joint.point for joint in model.joints),
                          dimension=6)
         self._loads = [[load for load in model.loads if load.body == body.name] for body in model.bodies]
+        used = [set() for _ in model.bodies]                    # outboard points that carry a child
+        for j, joint in enumerate(model.joints):
+            if model.parent[j] >= 0:
+                used[model.parent[j]].add(joint.point)
+        self._outboard = [{name: p for name, p in body.points.items() if name in names}
+                          for body, names in zip(model.bodies, used)]
 
     def terms(self, ops: Ops, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | None = None
               ) -> tuple[list[BodyTerms], list[JointTerms], list[BodyState]]:
@@ -323,7 +329,7 @@ class SpatialScene:
                     wrench = constant(ops, values)
                 loads.append((body.points[load.point], wrench))
             bodies.append(rigid_body_terms(ops, mass=body.mass, inertia=body.inertia,
-                                           center_of_mass=body.center_of_mass, points=body.points, rotation=R_c,
+                                           center_of_mass=body.center_of_mass, points=self._outboard[j], rotation=R_c,
                                            offset=offset, omega=w_c, gravity=model.gravity, loads=loads))
         return bodies, joints, states
 
