@@ -20,6 +20,7 @@ def body(name: str = "b", **kw) -> sp.SpatialBody:
     (dict(inertia=(1.0, -1.0, 1.0)), ["b: inertia", "positive definite"]),
     (dict(center_of_mass=(0.0, 1.0)), ["b: center_of_mass", "3 finite numbers"]),
     (dict(points={"tip": (0.0, np.nan, 0.0)}), ["b: points['tip']", "finite"]),
+    (dict(points={"origin": (0.0, 0.1, 0.0)}), ["b: points['origin']", "(0, 0, 0)"]),
 ])
 def test_body_validation_names_parameter_value_and_rule(kwargs, words) -> None:
     with pytest.raises(ModelError) as error:

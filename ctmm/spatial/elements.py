@@ -164,6 +164,9 @@ class SpatialBody:
         for key, value in self.points.items():
             validation.name(f"{self.name}: point", key)
             points[key] = _vector(f"{self.name}: points[{key!r}]", value)
+            if key == "origin" and np.any(points[key]):
+                raise ModelError(f"{self.name}: points['origin'] is the body origin (its inboard point) and must "
+                                 f"be (0, 0, 0), got {list(value)}; name the point differently")
         object.__setattr__(self, "points", points)
 
 
@@ -205,6 +208,7 @@ class _Joint:
 
     @property
     def driven(self) -> bool:
+        """True for a joint with prescribed motion (no coordinate)."""
         return False
 
 
@@ -246,10 +250,12 @@ class _Lawful(_Joint):
 
     @property
     def inputs(self) -> tuple[str, ...]:
+        """``("<joint>.torque",)`` (prismatic ``".force"``) when actuated."""
         return (f"{self.name}.{self.input_kind}",) if self.actuated else ()
 
     @property
     def driven(self) -> bool:
+        """True when ``position, rate, acceleration`` are given."""
         return self.position is not None
 
 
@@ -336,6 +342,7 @@ class Spherical(_Joint):
 
     @property
     def inputs(self) -> tuple[str, ...]:
+        """``("<joint>.torque",)`` (3 components, child axes) when actuated."""
         return (f"{self.name}.torque",) if self.actuated else ()
 
 
@@ -355,6 +362,7 @@ class Free(_Joint):
 
     @property
     def inputs(self) -> tuple[str, ...]:
+        """``("<joint>.wrench",)`` (force and moment, child axes) when actuated."""
         return (f"{self.name}.wrench",) if self.actuated else ()
 
 

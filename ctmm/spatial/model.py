@@ -147,6 +147,7 @@ class SpatialModel:
 
     @property
     def n_bodies(self) -> int:
+        """Number of bodies."""
         return len(self._bodies)
 
     def body_index(self, body: str) -> int:
