@@ -14,6 +14,8 @@
   the hand-typed compiled RK4 with ``fast=True``, to the RK4 generated from the element definitions
   with ``compiled=True`` (:mod:`ctmm.compiled_scene`), or else to :func:`~ctmm.planar.implicit.simulate_implicit`
   for a scheme.
+* A :class:`~ctmm.spatial.model.SpatialModel` goes to :func:`ctmm.spatial.integrate.simulate_spatial`
+  (``"rk4"`` or a ``solve_ivp`` method; ``docs/spatial.md``).
 
 Every path returns one :class:`~ctmm.results.SimulationResult` (named signals with units).
 """
@@ -36,6 +38,8 @@ from .planar.integrate import SCIPY_METHODS, PlanarSimulation, initial_coordinat
 from .planar.model import PlanarModel
 from .results import SimulationResult
 from .schemes import SCHEMES, Scheme, as_scheme
+from .spatial.integrate import simulate_spatial
+from .spatial.model import SpatialModel
 from .system import Chain
 from .timestep import ForceHook
 from .timestep import simulate as simulate_chain
@@ -44,6 +48,27 @@ __all__ = ["simulate", "FIXED_STEP_METHODS"]
 
 FIXED_STEP_METHODS = ("rk4",)
 """Explicit fixed-step methods of :func:`simulate` (planar models)."""
+
+
+def _simulate_spatial(model: SpatialModel, t_final: float, dt: float | None, *, method: Any, x0: Any, v0: Any,
+                      t0: float, inputs: Any, outputs: Sequence[str], controllers: list, references: dict,
+                      solver: str, fast: Any, force_hook: Any, progress: Any, stability_check: Any,
+                      divergence_bound: float | None, rtol: float, atol: float, max_step: float | None,
+                      store_every: int, compiled: Any) -> SimulationResult:
+    """:func:`simulate` of a :class:`~ctmm.spatial.model.SpatialModel` (RK4 or ``solve_ivp``; ``docs/spatial.md``)."""
+    unsupported = {"controllers": (controllers, []), "references": (references, {}), "solver": (solver, "riccati"),
+                   "fast": (fast, None), "force_hook": (force_hook, None), "t0": (t0, 0.0),
+                   "progress": (progress, None), "stability_check": (stability_check, None),
+                   "outputs": (tuple(outputs), ()), "compiled": (compiled, None)}
+    for name, (value, default) in unsupported.items():
+        if value is not default and value != default:
+            raise ModelError(f"{name}={value!r} is not available for spatial models yet (RK4 and solve_ivp runs "
+                             f"store every coordinate, velocity, body position and angular velocity); leave {name} "
+                             f"at {default!r}")
+    if not isinstance(method, str):
+        raise ModelError(f"method for a spatial model must be 'rk4' or a solve_ivp method, got {method!r}")
+    return simulate_spatial(model, t_final, dt, method=method, x0=x0, v0=v0, inputs=inputs, rtol=rtol, atol=atol,
+                            max_step=max_step, store_every=store_every, divergence_bound=divergence_bound)
 
 
 def _planar_parts(system: Any) -> tuple[PlanarModel, tuple] | None:
@@ -120,7 +145,7 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
 
     Parameters
     ----------
-    system : Chain, ControlledChain, PlanarModel or controlled planar model
+    system : Chain, ControlledChain, PlanarModel, controlled planar model or SpatialModel
         The model; every :class:`~ctmm.control.loops.Feedback` loop is closed during the run.
     t_final : float
         End time [s].
@@ -200,6 +225,12 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
     if coupling != "hold" and not controllers:
         raise ModelError(f"coupling={coupling!r} only applies to co-simulated controllers, but controllers is "
                          f"empty; leave coupling at 'hold' (embedded loops are always solved implicitly)")
+    if isinstance(system, SpatialModel):
+        return _simulate_spatial(system, t_final, dt, method=_method(method, scheme, "rk4"), x0=x0, v0=v0, t0=t0,
+                                 inputs=inputs, outputs=outputs, controllers=controllers, references=references,
+                                 solver=solver, fast=fast, force_hook=force_hook, progress=progress,
+                                 stability_check=stability_check, divergence_bound=divergence_bound, rtol=rtol,
+                                 atol=atol, max_step=max_step, store_every=store_every, compiled=compiled)
     planar = _planar_parts(system)
     if planar is not None:
         return _simulate_planar(planar, t_final, dt, method=_method(method, scheme, "rk4"), x0=x0, v0=v0, t0=t0,

@@ -1,0 +1,362 @@
+"""Spatial body and joint terms on the one protocol (d = 6) and the :class:`SpatialScene` (issue 14).
+
+Physics written once in :mod:`ctmm.ops` (numpy batched, casadi), solved by the one
+:func:`ctmm.articulated.articulated_sweep` with ``Tree(..., dimension=6)``.  Point state
+``A = [a (3) ; alpha (3)]`` (classical acceleration of a material point and angular acceleration,
+world axes), ``F = [f (3) ; m (3)]`` (force and moment about the point, world axes, exerted by the
+inboard side on the outboard side).  Derivations: ``docs/spatial.md``.
+
+Every body's terms are taken about its **inboard point** ``P``: the material point of the child that
+is at the parent's connection point at this instant (the child origin for revolute, universal,
+spherical and weld joints; for prismatic, free and elastic joints the child point the joint's
+translation has carried to ``P``), so that ``A_child = A_parent(P) + S a_rel + c`` holds exactly.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from ..articulated import Articulated, Tree, articulated_sweep
+from ..ops import NUMPY, Ops, batch_column, batch_scalars
+from ..protocol import BodyTerms, JointTerms
+from .frames import axis_rotation, block_diagonal, column, constant, cross, entry, quaternion_rotation, skew
+from .model import SpatialModel, input_values
+
+__all__ = ["rigid_body_terms", "JointMotion", "joint_motion", "SpatialScene", "BodyState"]
+
+
+def rigid_body_terms(ops: Ops, *, mass: float, inertia: np.ndarray, center_of_mass: np.ndarray,
+                     points: Mapping[str, np.ndarray], rotation: Any, offset: Any, omega: Any,
+                     gravity: np.ndarray, loads: Sequence[tuple[np.ndarray, Any]] = ()) -> BodyTerms:
+    """Newton-Euler terms of a rigid body about its inboard point ``P``.
+
+    Parameters
+    ----------
+    mass : float
+        [kg].
+    inertia : (3, 3) array
+        About the centre of mass in body axes [kg m^2].
+    center_of_mass : (3,) array
+        Body axes, from the body origin [m].
+    points : mapping of name to (3,) array
+        Outboard points in body axes [m].
+    rotation : ops (3, 3)
+        Body axes to world axes.
+    offset : ops (3, 1) or None
+        Body origin minus ``P`` in world axes [m] (``None``: the origin is ``P``).
+    omega : ops (3, 1) or None
+        Angular velocity in world axes [rad/s] (``None``: zero).
+    gravity : (3,) array
+        [m/s^2].
+    loads : sequence of (point (3,) array in body axes, wrench ops (6, 1) world axes)
+        Applied force [N] and moment [N m] at body points.
+
+    Returns
+    -------
+    BodyTerms
+        ``M = [[m I, -m [r_c]x], [m [r_c]x, I_P]]``, ``h`` the velocity, gravity and load terms,
+        ``Kin[e] = [[I, -[r_e]x], [0, I]]``, ``c[e] = [omega x (omega x r_e) ; 0]``, ``RF[e] = Kin[e]^T``.
+    """
+    def located(p: np.ndarray) -> Any:
+        r = ops.matmul(rotation, constant(ops, p))
+        return r if offset is None else r + offset
+
+    r_c = located(center_of_mass)
+    inertia_world = ops.matmul(ops.matmul(rotation, constant(ops, inertia)), ops.transpose(rotation))
+    rc_x = skew(ops, r_c)
+    eye = ops.eye(3)
+    M = ops.block([[eye * mass, rc_x * -mass],
+                   [rc_x * mass, inertia_world - ops.matmul(rc_x, rc_x) * mass]])
+    g = constant(ops, gravity)
+    h_lin = g * -mass
+    h_ang = cross(ops, r_c, g) * -mass
+    if omega is not None:
+        centripetal = cross(ops, omega, cross(ops, omega, r_c))
+        h_lin = h_lin + centripetal * mass
+        h_ang = h_ang + cross(ops, omega, ops.matmul(inertia_world, omega)) + cross(ops, r_c, centripetal) * mass
+    for point, wrench in loads:
+        f = ops.sub(wrench, slice(0, 3), slice(0, 1))
+        h_lin = h_lin - f
+        h_ang = h_ang - ops.sub(wrench, slice(3, 6), slice(0, 1)) - cross(ops, located(point), f)
+    Kin, c, RF = {}, {}, {}
+    for name, p in points.items():
+        r_e = located(p)
+        K = ops.block([[eye, skew(ops, r_e) * -1.0], [ops.zeros(3, 3), eye]])
+        Kin[name] = K
+        RF[name] = ops.transpose(K)
+        accel = ops.zeros(3, 1) if omega is None else cross(ops, omega, cross(ops, omega, r_e))
+        c[name] = ops.block([[accel], [ops.zeros(3, 1)]])
+    return BodyTerms(M=M, h=ops.block([[h_lin], [h_ang]]), Kin=Kin, c=c, RF=RF)
+
+
+@dataclass(frozen=True)
+class JointMotion:
+    """Relative motion of a joint in its joint frame (ops values; ``None`` for zero).
+
+    Attributes
+    ----------
+    rotation : (3, 3)
+        Child axes relative to the joint frame ``R_rel``.
+    translation : (3, 1) or None
+        Child origin in the joint frame [m].
+    S : (6, k)
+        Relative twist ``[u ; w]`` of the inboard point per unit ``v`` (joint frame).
+    bias : (6, 1) or None
+        ``S_dot v`` seen in the joint frame (relative acceleration at ``v_dot = 0``).
+    linear : (3, 1) or None
+        ``u``: velocity of the inboard point relative to the parent [m/s].
+    angular : (3, 1) or None
+        ``w``: relative angular velocity [rad/s].
+    tau, tau_q, tau_v, prescribed
+        As in :class:`~ctmm.protocol.JointTerms`.
+    """
+
+    rotation: Any
+    translation: Any
+    S: Any
+    bias: Any
+    linear: Any
+    angular: Any
+    tau: Any = None
+    tau_q: Any = None
+    tau_v: Any = None
+    prescribed: Any = None
+
+
+def _law(ops: Ops, joint, q: list, v: list, u: Any) -> tuple[Any, Any, Any]:
+    """``tau = u - k (q - q_ref) - c v`` of a 1- or 2-DOF joint, with its tangents."""
+    k, c, ref = joint.stiffness, joint.damping, joint.reference
+    if not (np.any(k) or np.any(c)) and u is None:
+        return None, None, None
+    terms = [q[i] * -k[i] + k[i] * ref[i] - v[i] * c[i] for i in range(len(v))]
+    tau = column(ops, terms)
+    if u is not None:
+        tau = tau + u
+    return tau, constant(ops, -np.diag(k)), constant(ops, -np.diag(c))
+
+
+def joint_motion(ops: Ops, joint, q: list, v: list, u: Any = None, acceleration: list | None = None) -> JointMotion:
+    """Relative kinematics and law of one joint from its coordinates ``q`` and velocities ``v`` (lists of
+    ops scalars), actuator input ``u`` (ops column or ``None``) and, for a driven joint, its prescribed
+    ``acceleration`` (list of ops scalars)."""
+    kind = joint.kind
+    zero3 = ops.zeros(3, 1)
+    if kind == "weld":
+        return JointMotion(ops.eye(3), None, ops.zeros(6, 0), None, None, None)
+    if kind == "revolute":
+        a = constant(ops, joint.axis)
+        motion = dict(rotation=axis_rotation(ops, joint.axis, q[0]), translation=None,
+                      S=constant(ops, np.r_[np.zeros(3), joint.axis]), bias=None, linear=None, angular=a * v[0])
+    elif kind == "prismatic":
+        a = constant(ops, joint.axis)
+        motion = dict(rotation=ops.eye(3), translation=a * q[0], S=constant(ops, np.r_[joint.axis, np.zeros(3)]),
+                      bias=None, linear=a * v[0], angular=None)
+    elif kind == "universal":
+        first = axis_rotation(ops, joint.axis1, q[0])
+        a1 = constant(ops, joint.axis1)
+        s2 = ops.matmul(first, constant(ops, joint.axis2))
+        motion = dict(rotation=ops.matmul(first, axis_rotation(ops, joint.axis2, q[1])), translation=None,
+                      S=ops.block([[ops.zeros(3, 2)], [ops.block([[a1, s2]])]]),
+                      bias=ops.block([[zero3], [cross(ops, a1, s2) * (v[0] * v[1])]]), linear=None,
+                      angular=a1 * v[0] + s2 * v[1])
+    elif kind == "spherical":
+        R = quaternion_rotation(ops, *q)
+        omega = column(ops, v)
+        motion = dict(rotation=R, translation=None, S=ops.block([[ops.zeros(3, 3)], [R]]), bias=None, linear=None,
+                      angular=ops.matmul(R, omega))
+    elif kind in ("free", "elastic6"):
+        R = quaternion_rotation(ops, *q[3:])
+        t = column(ops, q[:3])
+        w = ops.matmul(R, column(ops, v[3:]))
+        linear = ops.matmul(R, column(ops, v[:3])) - cross(ops, w, t)
+        motion = dict(rotation=R, translation=t,
+                      S=ops.block([[R, ops.matmul(skew(ops, t), R)], [ops.zeros(3, 3), R]]),
+                      bias=ops.block([[cross(ops, w, linear)], [zero3]]), linear=linear, angular=w)
+    else:                                       # pragma: no cover - guarded by the model
+        raise AssertionError(kind)
+    if acceleration is not None:
+        return JointMotion(**motion, prescribed=column(ops, acceleration))
+    tau = tau_q = tau_v = None
+    if kind in ("revolute", "prismatic", "universal"):
+        tau, tau_q, tau_v = _law(ops, joint, q, v, u)
+    elif kind == "spherical":
+        w0, x, y, z = q
+        n2 = w0 * w0 + x * x + y * y + z * z
+        s = column(ops, [w0 * x * 2.0 / n2, w0 * y * 2.0 / n2, w0 * z * 2.0 / n2])
+        if np.any(joint.stiffness) or np.any(joint.damping) or u is not None:
+            tau = (ops.matmul(constant(ops, joint.stiffness), s) + ops.matmul(constant(ops, joint.damping),
+                                                                               column(ops, v))) * -1.0
+            tau = tau if u is None else tau + u
+            tau_q, tau_v = constant(ops, -joint.stiffness), constant(ops, -joint.damping)
+    else:
+        if kind == "elastic6":
+            w0, x, y, z = q[3:]
+            n2 = w0 * w0 + x * x + y * y + z * z
+            R = motion["rotation"]
+            e = ops.block([[ops.matmul(ops.transpose(R), motion["translation"])],
+                           [column(ops, [w0 * x * 2.0 / n2, w0 * y * 2.0 / n2, w0 * z * 2.0 / n2])]])
+            tau = (ops.matmul(constant(ops, joint.stiffness), e) + ops.matmul(constant(ops, joint.damping),
+                                                                               column(ops, v))) * -1.0
+            tau_q, tau_v = constant(ops, -joint.stiffness), constant(ops, -joint.damping)
+        if u is not None:
+            tau = u if tau is None else tau + u
+    return JointMotion(**motion, tau=tau, tau_q=tau_q, tau_v=tau_v)
+
+
+@dataclass(frozen=True)
+class BodyState:
+    """Pose and velocity of one body (ops values, world axes).
+
+    Attributes
+    ----------
+    rotation : (3, 3)
+        Body axes to world axes.
+    origin : (3, 1)
+        Body origin [m].
+    velocity : (3, 1)
+        Velocity of the body origin [m/s].
+    omega : (3, 1)
+        Angular velocity [rad/s].
+    inboard : (3, 1)
+        The inboard point ``P`` [m].
+    """
+
+    rotation: Any
+    origin: Any
+    velocity: Any
+    omega: Any
+    inboard: Any
+
+
+def _scalars(ops: Ops, values: Any, count: int) -> list:
+    if ops.name == "numpy":
+        return batch_scalars(values) if count else []
+    return [values[i] for i in range(count)]
+
+
+class SpatialScene:
+    """A :class:`SpatialModel` as protocol terms: forward kinematics, body and joint terms, the sweep.
+
+    Parameters
+    ----------
+    model : SpatialModel
+    """
+
+    def __init__(self, model: SpatialModel) -> None:
+        self.model = model
+        self.tree = Tree(model.parent, tuple(None if joint.parent is None else joint.point for joint in model.joints),
+                         dimension=6)
+        self._loads = [[load for load in model.loads if load.body == body.name] for body in model.bodies]
+        used = [set() for _ in model.bodies]                    # outboard points that carry a child
+        for j, joint in enumerate(model.joints):
+            if model.parent[j] >= 0:
+                used[model.parent[j]].add(joint.point)
+        self._outboard = [{name: p for name, p in body.points.items() if name in names}
+                          for body, names in zip(model.bodies, used)]
+
+    def terms(self, ops: Ops, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | None = None
+              ) -> tuple[list[BodyTerms], list[JointTerms], list[BodyState]]:
+        """Body terms, joint terms (world axes) and body states at ``(q, v, t)``.
+
+        Parameters
+        ----------
+        q, v : numpy ``(B, nq)``, ``(B, nv)`` or casadi columns
+        t : float
+            Time [s] (signals of loads and driven joints are evaluated numerically).
+        inputs : mapping of input name to ops column ``(k, 1)`` (numpy ``(B, k, 1)``), optional
+        """
+        model = self.model
+        inputs = inputs or {}
+        qs, vs = _scalars(ops, q, model.n_positions), _scalars(ops, v, model.n_velocities)
+        states: list[BodyState] = []
+        bodies, joints = [], []
+        for j, (body, joint, layout) in enumerate(zip(model.bodies, model.joints, model.layout)):
+            if joint.driven:
+                qj = [constant(ops, [[float(f(t))]]) for f in joint.position]
+                vj = [constant(ops, [[float(f(t))]]) for f in joint.rate]
+                acc = [constant(ops, [[float(f(t))]]) for f in joint.acceleration]
+            else:
+                qj, vj, acc = qs[layout.position], vs[layout.velocity], None
+            u = inputs.get(joint.inputs[0]) if joint.inputs else None
+            rel = joint_motion(ops, joint, qj, vj, u, acc)
+            par = model.parent[j]
+            if par < 0:
+                R_p, o_p, v_p, w_p = None, None, None, None
+                P = constant(ops, joint.point)
+                v_P = None
+            else:
+                ps = states[par]
+                R_p, o_p, v_p, w_p = ps.rotation, ps.origin, ps.velocity, ps.omega
+                arm = ops.matmul(R_p, constant(ops, model.bodies[par].points[joint.point]))
+                P = o_p + arm
+                v_P = v_p + cross(ops, w_p, arm)
+            R_J = constant(ops, joint.rotation)
+            R_PJ = R_J if R_p is None else ops.matmul(R_p, R_J)
+            R_c = ops.matmul(R_PJ, rel.rotation)
+            offset = None if rel.translation is None else ops.matmul(R_PJ, rel.translation)
+            o_c = P if offset is None else P + offset
+            w_rel = None if rel.angular is None else ops.matmul(R_PJ, rel.angular)
+            u_rel = None if rel.linear is None else ops.matmul(R_PJ, rel.linear)
+            w_c = _add(w_p, w_rel)
+            v_C = _add(v_P, u_rel)
+            v_o = v_C if (offset is None or w_c is None) else _add(v_C, cross(ops, w_c, offset))
+            states.append(BodyState(R_c, o_c, v_o if v_o is not None else ops.zeros(3, 1),
+                                    w_c if w_c is not None else ops.zeros(3, 1), P))
+            # joint terms in world axes
+            S = ops.matmul(block_diagonal(ops, R_PJ, R_PJ, 3, 3), rel.S) if rel.S is not None else None
+            c_lin = None if rel.bias is None else ops.matmul(R_PJ, ops.sub(rel.bias, slice(0, 3), slice(0, 1)))
+            c_ang = None if rel.bias is None else ops.matmul(R_PJ, ops.sub(rel.bias, slice(3, 6), slice(0, 1)))
+            if w_p is not None:
+                if u_rel is not None:
+                    c_lin = _add(c_lin, cross(ops, w_p, u_rel) * 2.0)
+                if w_rel is not None:
+                    c_ang = _add(c_ang, cross(ops, w_p, w_rel))
+            c = None
+            if c_lin is not None or c_ang is not None:
+                c = ops.block([[c_lin if c_lin is not None else ops.zeros(3, 1)],
+                               [c_ang if c_ang is not None else ops.zeros(3, 1)]])
+            joints.append(JointTerms(S=S, c=c, tau=rel.tau, tau_q=rel.tau_q, tau_v=rel.tau_v,
+                                     prescribed=rel.prescribed))
+            loads = []
+            for load in self._loads[j]:
+                values = load.values(t)
+                if load.axes == "body":
+                    wrench = ops.block([[ops.matmul(R_c, constant(ops, values[:3]))],
+                                        [ops.matmul(R_c, constant(ops, values[3:]))]])
+                else:
+                    wrench = constant(ops, values)
+                loads.append((body.points[load.point], wrench))
+            bodies.append(rigid_body_terms(ops, mass=body.mass, inertia=body.inertia,
+                                           center_of_mass=body.center_of_mass, points=self._outboard[j], rotation=R_c,
+                                           offset=offset, omega=w_c, gravity=model.gravity, loads=loads))
+        return bodies, joints, states
+
+    def sweep(self, ops: Ops, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | None = None
+              ) -> Articulated:
+        """The one articulated sweep (explicit context) at ``(q, v, t)``."""
+        bodies, joints, _ = self.terms(ops, q, v, t, inputs)
+        return articulated_sweep(ops, self.tree, bodies, joints)
+
+    def velocity_rates(self, solution: Articulated) -> list:
+        """``v_dot`` pieces (one ops column per non-driven, non-welded joint, in state order)."""
+        return [solution.relative[j] for j, joint in enumerate(self.model.joints)
+                if not joint.driven and joint.kind != "weld"]
+
+    def numpy_inputs(self, inputs: Mapping[str, Any] | None, t: float, batch: int) -> dict:
+        """Actuator inputs at ``t`` as numpy batched columns ``(B, k, 1)``."""
+        return {name: batch_column(value) for name, value in input_values(self.model, inputs, t, batch).items()}
+
+    def solve(self, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | None = None) -> Articulated:
+        """Numpy sweep of a batch ``q (B, nq)``, ``v (B, nv)`` (inputs as in :func:`input_values`)."""
+        q, v = self.model.check_state(q, v)
+        return self.sweep(NUMPY, q, v, t, self.numpy_inputs(inputs, t, q.shape[0]))
+
+
+def _add(a: Any, b: Any) -> Any:
+    if a is None:
+        return b
+    if b is None:
+        return a
+    return a + b

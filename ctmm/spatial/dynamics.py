@@ -1,0 +1,145 @@
+"""Forward dynamics of spatial models through the one articulated sweep: accelerations, joint
+reactions and the first-order ODE right-hand side (issue 14, ``docs/spatial.md``)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+
+from ..errors import ModelError, SimulationError
+from .body_forms import SpatialScene
+from .model import SpatialModel
+
+__all__ = ["SpatialSolution", "solve", "accelerations", "reactions", "state_rates", "scene_of", "energy"]
+
+
+def scene_of(model: SpatialModel) -> SpatialScene:
+    """The :class:`SpatialScene` of a model (cheap; the model is immutable)."""
+    return SpatialScene(model)
+
+
+@dataclass(frozen=True)
+class SpatialSolution:
+    """One instant of a spatial model (batched over ``B``).
+
+    Attributes
+    ----------
+    velocity_rates : (B, nv) array
+        ``v_dot`` [m/s^2, rad/s^2] in the model's velocity convention (child axes).
+    reactions : (B, n_bodies, 6) array
+        Wrench ``[f ; m]`` of the parent (or ground) on each body at its inboard point, world axes
+        [N, N m] (moment about the inboard point).
+    point_accelerations : (B, n_bodies, 6) array
+        ``[a ; alpha]`` of each body's inboard point, world axes [m/s^2, rad/s^2].
+    """
+
+    velocity_rates: np.ndarray
+    reactions: np.ndarray
+    point_accelerations: np.ndarray
+
+
+def solve(model: SpatialModel, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | None = None
+          ) -> SpatialSolution:
+    """Accelerations and reactions at one state (or a batch of states).
+
+    Parameters
+    ----------
+    model : SpatialModel
+    q : (nq,) or (B, nq) array
+        Joint coordinates (quaternions need not be unit: rotations are formed from the normalised ones).
+    v : (nv,) or (B, nv) array
+        Joint velocities (child axes for spherical, free and elastic joints).
+    t : float
+        Time [s].
+    inputs : mapping, optional
+        ``{"<joint>.torque" | "<joint>.force" | "<joint>.wrench": value or f(t)}`` (missing: zero).
+
+    Raises
+    ------
+    ModelError
+        Wrong sizes, non-finite or zero-quaternion states, unknown inputs.
+    SimulationError
+        A singular articulated pivot (e.g. a free joint carrying no mass).
+    """
+    scene = scene_of(model)
+    solution = scene.solve(q, v, t, inputs)
+    batch = np.asarray(solution.force[0]).shape[0]
+    parts = [np.broadcast_to(np.asarray(a), (batch,) + np.asarray(a).shape[1:])[:, :, 0]
+             for a in scene.velocity_rates(solution)]
+    rates = np.concatenate(parts, axis=1) if parts else np.zeros((batch, 0))
+    forces = np.stack([np.broadcast_to(f, (batch, 6, 1))[:, :, 0] for f in solution.force], axis=1)
+    points = np.stack([np.broadcast_to(np.asarray(x)[:, :6], (batch, 6, 1))[:, :, 0] for x in solution.x], axis=1)
+    if not (np.all(np.isfinite(rates)) and np.all(np.isfinite(forces))):
+        raise SimulationError(f"{model.name}: the articulated sweep gave non-finite accelerations at t = {t} s "
+                              "(a singular pivot: a joint whose free directions carry no inertia)", time=t,
+                              element=model.name)
+    return SpatialSolution(rates, forces, points)
+
+
+def _unbatch(array: np.ndarray, q: Any) -> np.ndarray:
+    return array[0] if np.ndim(q) == 1 else array
+
+
+def accelerations(model: SpatialModel, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | None = None
+                  ) -> np.ndarray:
+    """``v_dot`` (nv,) or (B, nv) of a spatial model (:func:`solve`)."""
+    return _unbatch(solve(model, q, v, t, inputs).velocity_rates, q)
+
+
+def reactions(model: SpatialModel, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | None = None
+              ) -> np.ndarray:
+    """Joint reactions (n_bodies, 6) or (B, n_bodies, 6): wrench ``[f ; m]`` of the parent on each body at
+    its inboard point, world axes [N, N m] (:func:`solve`)."""
+    return _unbatch(solve(model, q, v, t, inputs).reactions, q)
+
+
+def state_rates(model: SpatialModel, x: np.ndarray, t: float, inputs: Mapping[str, Any] | None = None
+                ) -> np.ndarray:
+    """``x_dot = [G(q) v ; v_dot]`` of the state ``x = [q ; v]`` (1-D or ``(B, nq + nv)``)."""
+    x = np.asarray(x, dtype=float)
+    q, v = x[..., :model.n_positions], x[..., model.n_positions:]
+    rates = solve(model, q, v, t, inputs).velocity_rates
+    out = np.concatenate([model.position_rates(q if q.ndim == 2 else q[None], v if v.ndim == 2 else v[None]),
+                          rates], axis=-1)
+    return out[0] if x.ndim == 1 else out
+
+
+def energy(model: SpatialModel, q: Any, v: Any, t: float = 0.0) -> np.ndarray:
+    """Kinetic + gravitational + joint-spring energy [J] (scalar, or (B,) for a batch).
+
+    Springs counted: revolute, prismatic and universal ``1/2 k (q - q_ref)^2``; spherical joints with a
+    scalar stiffness ``k I``: ``2 k (1 - w^2)`` (unit quaternion).  A spherical joint with an anisotropic
+    stiffness and :class:`~ctmm.spatial.elements.Elastic6` have no potential here (``ModelError``).
+    """
+    from ..ops import NUMPY
+
+    q_rows, v_rows = model.check_state(q, v)
+    _, _, states = scene_of(model).terms(NUMPY, q_rows, v_rows, t)
+    total = np.zeros(q_rows.shape[0])
+    for body, state in zip(model.bodies, states):
+        R = state.rotation
+        arm = R @ body.center_of_mass[:, None]
+        v_com = (state.velocity + np.cross(state.omega, arm, axis=1))[..., 0]
+        omega = state.omega[..., 0]
+        inertia = R @ body.inertia @ np.swapaxes(R, -1, -2)
+        total = total + 0.5 * body.mass * np.sum(v_com ** 2, axis=-1) \
+            + 0.5 * np.einsum("bi,bij,bj->b", np.broadcast_to(omega, (len(total), 3)),
+                              np.broadcast_to(inertia, (len(total), 3, 3)), np.broadcast_to(omega, (len(total), 3))) \
+            - body.mass * ((state.origin + arm)[..., 0] @ model.gravity)
+    for joint, layout in zip(model.joints, model.layout):
+        if joint.driven or joint.kind in ("weld", "free"):
+            continue
+        qj = q_rows[:, layout.position]
+        if joint.kind in ("revolute", "prismatic", "universal"):
+            total = total + 0.5 * np.sum(joint.stiffness * (qj - joint.reference) ** 2, axis=1)
+        elif joint.kind == "spherical":
+            k = joint.stiffness[0, 0]
+            if not np.allclose(joint.stiffness, k * np.eye(3)):
+                raise ModelError(f"energy: spherical joint {joint.name!r} has an anisotropic stiffness, whose law "
+                                 "has no potential; energy is defined for scalar stiffness k I only")
+            total = total + 2 * k * (1 - qj[:, 0] ** 2 / np.sum(qj ** 2, axis=1))
+        elif np.any(joint.stiffness):
+            raise ModelError(f"energy: the Elastic6 joint {joint.name!r} has no potential here (its linear law is "
+                             "for small deformations); energy is defined without elastic 6-DOF springs")
+    return total[0] if np.ndim(q) == 1 else total

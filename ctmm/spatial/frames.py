@@ -1,0 +1,97 @@
+"""Rotations and small vector algebra in :mod:`ctmm.ops` operations (numpy batched and casadi).
+
+Quaternions are scalar first, ``(w, x, y, z)``, Hamilton product; the rotation of a quaternion is
+formed from the quaternion divided by its norm (:func:`quaternion_rotation` is exact for any
+non-zero quaternion), so integration drift of the norm never enters the physics (``docs/spatial.md``).
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..ops import Ops
+
+__all__ = ["constant", "entry", "column", "skew", "cross", "axis_rotation", "quaternion_rotation",
+           "quaternion_rate", "block_diagonal"]
+
+
+def constant(ops: Ops, array: Any) -> Any:
+    """A numeric constant matrix as an ops value (``(1, r, c)`` numpy or ``casadi.DM``)."""
+    array = np.asarray(array, dtype=float)
+    if array.ndim == 1:
+        array = array[:, None]
+    if ops.name == "numpy":
+        return array[None]
+    import casadi
+
+    return casadi.DM(array)
+
+
+def entry(ops: Ops, matrix: Any, row: int, col: int = 0) -> Any:
+    """The scalar ``matrix[row, col]`` (a 1 x 1 ops value)."""
+    return ops.sub(matrix, slice(row, row + 1), slice(col, col + 1))
+
+
+def column(ops: Ops, values: Any) -> Any:
+    """A column from a sequence of scalars."""
+    return ops.block([[v] for v in values])
+
+
+def skew(ops: Ops, v: Any) -> Any:
+    """``[v]x`` (3 x 3) of a column ``v`` (3 x 1): ``skew(v) w = v x w``."""
+    if ops.name == "numpy":                     # same values, without nine-block assembly
+        v = np.asarray(v)
+        x, y, z = v[:, 0, 0], v[:, 1, 0], v[:, 2, 0]
+        out = np.zeros(v.shape[:1] + (3, 3), dtype=v.dtype)
+        out[:, 0, 1], out[:, 0, 2], out[:, 1, 2] = -z, y, -x
+        out[:, 1, 0], out[:, 2, 0], out[:, 2, 1] = z, -y, x
+        return out
+    x, y, z = (entry(ops, v, i) for i in range(3))
+    return ops.block([[0.0, z * -1.0, y], [z, 0.0, x * -1.0], [y * -1.0, x, 0.0]])
+
+
+def cross(ops: Ops, a: Any, b: Any) -> Any:
+    """``a x b`` of two columns."""
+    if ops.name == "numpy":
+        a0, a1, a2 = a[:, 0], a[:, 1], a[:, 2]
+        b0, b1, b2 = b[:, 0], b[:, 1], b[:, 2]
+        return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=1)
+    return ops.matmul(skew(ops, a), b)
+
+
+def axis_rotation(ops: Ops, axis: np.ndarray, angle: Any) -> Any:
+    """``Rot(axis, angle) = I + sin(angle) [a]x + (1 - cos(angle)) [a]x^2`` for a unit numeric ``axis``."""
+    a = np.asarray(axis, dtype=float)
+    k = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+    return constant(ops, np.eye(3)) + constant(ops, k) * ops.sin(angle) + constant(ops, k @ k) * (1.0 - ops.cos(angle))
+
+
+def quaternion_rotation(ops: Ops, w: Any, x: Any, y: Any, z: Any) -> Any:
+    """Rotation matrix of the quaternion ``(w, x, y, z)`` divided by its norm (any non-zero quaternion)."""
+    n2 = w * w + x * x + y * y + z * z
+    if ops.name == "numpy":
+        w, x, y, z = np.broadcast_arrays(*(np.asarray(c)[:, 0, 0] for c in (w, x, y, z)))
+        n2 = np.asarray(n2)[:, 0, 0]
+        R = np.stack([np.stack([w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+                      np.stack([2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)], -1),
+                      np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z], -1)], -2)
+        return R / np.broadcast_to(n2, w.shape)[:, None, None]
+    rows = [[w * w + x * x - y * y - z * z, (x * y - w * z) * 2.0, (x * z + w * y) * 2.0],
+            [(x * y + w * z) * 2.0, w * w - x * x + y * y - z * z, (y * z - w * x) * 2.0],
+            [(x * z - w * y) * 2.0, (y * z + w * x) * 2.0, w * w - x * x - y * y + z * z]]
+    return ops.block(rows) * (1.0 / n2)
+
+
+def quaternion_rate(q: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    """``q_dot = 1/2 q (x) (0, omega)`` for quaternions ``q (..., 4)`` and child-axes angular velocities
+    ``omega (..., 3)`` [rad/s] (numpy)."""
+    w, x, y, z = np.moveaxis(q, -1, 0)
+    p, r, s = np.moveaxis(omega, -1, 0)
+    return 0.5 * np.stack([-x * p - y * r - z * s, w * p + y * s - z * r, w * r + z * p - x * s,
+                           w * s + x * r - y * p], axis=-1)
+
+
+def block_diagonal(ops: Ops, a: Any, b: Any, rows_a: int, rows_b: int) -> Any:
+    """``diag(a, b)`` of two square blocks of sizes ``rows_a``, ``rows_b``."""
+    return ops.block([[a, ops.zeros(rows_a, rows_b)], [ops.zeros(rows_b, rows_a), b]])

@@ -1,0 +1,216 @@
+"""Time integration of spatial models (issue 14): classical RK4 and ``scipy.integrate.solve_ivp`` on the
+state ``x = [q ; v]`` with ``x_dot = [G(q) v ; v_dot]``, ``v_dot`` from the one articulated sweep.
+
+Quaternions are integrated as coordinates (no Euler angles: no gimbal lock); their norm drifts by the
+integrator's local error only and never enters the physics, because every rotation is formed from the
+normalised quaternion (:func:`ctmm.spatial.frames.quaternion_rotation`).  Stored quaternions are as
+integrated (``model.normalized(q)`` gives unit ones).
+"""
+from __future__ import annotations
+
+import time as clock
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from .. import validation
+from ..errors import ModelError, SimulationError, unknown_name
+from ..results import SimulationResult
+from ..signal_results import SignalSystem, signal_result
+from .body_forms import SpatialScene
+from .dynamics import state_rates
+from .model import SpatialModel
+
+__all__ = ["simulate_spatial", "initial_state", "spatial_signals", "SCIPY_METHODS"]
+
+SCIPY_METHODS = ("RK45", "RK23", "DOP853", "Radau", "BDF", "LSODA")
+"""``solve_ivp`` methods accepted for spatial models."""
+
+
+def _initial(model: SpatialModel, label: str, value: Any, names: Sequence[str], start: np.ndarray) -> np.ndarray:
+    out = start.copy()
+    if value is None:
+        return out
+    if isinstance(value, Mapping):
+        for key, number in value.items():
+            if key not in names:
+                raise unknown_name(f"entry of {label}", key, list(names))
+            out[list(names).index(key)] = validation.finite(f"{label}[{key!r}]", number)
+        return out
+    array = validation.finite_array(label, value)
+    if array.shape != (len(names),):
+        raise ModelError(f"{label} must be a mapping {{name: value}} or {len(names)} numbers ({', '.join(names)}), "
+                         f"got shape {array.shape}")
+    return array.astype(float)
+
+
+def initial_state(model: SpatialModel, x0: Any = None, v0: Any = None) -> np.ndarray:
+    """``[q0 ; v0]`` from ``x0`` (positions: array or ``{coordinate: value}`` over :meth:`SpatialModel.neutral`)
+    and ``v0`` (velocities: array or ``{velocity: value}`` over zeros)."""
+    q0 = _initial(model, "x0", x0, model.coordinates, model.neutral())
+    v = _initial(model, "v0", v0, model.velocities, np.zeros(model.n_velocities))
+    model.check_state(q0, v)
+    return np.concatenate([q0, v])
+
+
+def spatial_signals(model: SpatialModel, time: np.ndarray, states: np.ndarray) -> tuple[dict, dict]:
+    """Named signals of stored states: every coordinate and velocity, each body's origin
+    ``"<body>.position_x|y|z"`` [m] and angular velocity ``"<body>.omega_x|y|z"`` [rad/s] (world axes)."""
+    from ..ops import NUMPY
+
+    q, v = states[:, :model.n_positions], states[:, model.n_positions:]
+    signals, units = {}, {}
+    for k, name in enumerate(model.coordinates):
+        signals[name] = q[:, k]
+        units[name] = "m" if name.split(".")[-1] in ("x", "y", "z", "position") else \
+            ("" if name.split(".")[-1].startswith("q") else "rad")
+    for k, name in enumerate(model.velocities):
+        signals[name] = v[:, k]
+        units[name] = "m/s" if name.split(".")[-1] in ("vx", "vy", "vz", "position_rate") else "rad/s"
+    scene = SpatialScene(model)
+    driven = any(joint.driven for joint in model.joints)        # body poses depend on t only through driven joints
+    chunks = [(q[i:i + 1], v[i:i + 1], float(t)) for i, t in enumerate(time)] if driven else [(q, v, 0.0)]
+    origins = [[] for _ in model.bodies]
+    omegas = [[] for _ in model.bodies]
+    for q_rows, v_rows, t in chunks:
+        for j, state in enumerate(scene.terms(NUMPY, q_rows, v_rows, t)[2]):
+            origins[j].append(np.broadcast_to(state.origin, (len(q_rows), 3, 1)))
+            omegas[j].append(np.broadcast_to(state.omega, (len(q_rows), 3, 1)))
+    for j, body in enumerate(model.bodies):
+        origin, omega = np.concatenate(origins[j]), np.concatenate(omegas[j])
+        for axis, label in enumerate("xyz"):
+            signals[f"{body.name}.position_{label}"] = origin[:, axis, 0].copy()
+            units[f"{body.name}.position_{label}"] = "m"
+            signals[f"{body.name}.omega_{label}"] = omega[:, axis, 0].copy()
+            units[f"{body.name}.omega_{label}"] = "rad/s"
+    return signals, units
+
+
+def _result(model: SpatialModel, time: list, states: list, method: str, info: dict) -> SimulationResult:
+    time_array, state_array = np.asarray(time), np.asarray(states)
+    signals, units = spatial_signals(model, time_array, state_array)
+    return signal_result(SignalSystem(model, units), time_array, signals, method, info)
+
+
+def _check(model: SpatialModel, t: float, x: np.ndarray, bound: float | None, times: list, states: list,
+           method: str, info: dict) -> None:
+    bad = not np.all(np.isfinite(x))
+    if not bad and bound is not None and float(np.abs(x).max()) > bound:
+        bad = True
+    if bad:
+        partial = _result(model, times, states, method, info) if times else None
+        what = "non-finite" if not np.all(np.isfinite(x)) else f"beyond divergence_bound = {bound}"
+        raise SimulationError(f"{model.name}: the state became {what} at t = {t} s ({method})", time=t,
+                              element=model.name, partial_result=partial)
+
+
+def simulate_spatial(model: SpatialModel, t_final: float, dt: float | None, *, method: str = "rk4", x0: Any = None,
+                     v0: Any = None, inputs: Mapping[str, Any] | None = None, rtol: float = 1e-8,
+                     atol: float = 1e-10, max_step: float | None = None, store_every: int = 1,
+                     divergence_bound: float | None = None) -> SimulationResult:
+    """Simulate a spatial model (the spatial branch of :func:`ctmm.simulate`).
+
+    Parameters
+    ----------
+    model : SpatialModel
+    t_final : float
+        End time [s] (start at 0).
+    dt : float or None
+        RK4 step [s] (``t_final`` a whole multiple); with a ``solve_ivp`` method the output grid (``None``:
+        the solver's own steps).
+    method : str
+        ``"rk4"`` or one of :data:`SCIPY_METHODS`.
+    x0, v0 : array or mapping, optional
+        Initial coordinates (default :meth:`SpatialModel.neutral`) and velocities (default zero).
+    inputs : mapping, optional
+        Actuator inputs ``{"<joint>.torque" | ".force" | ".wrench": value or f(t)}``.
+    rtol, atol, max_step
+        ``solve_ivp`` options.
+    store_every : int
+        RK4: keep every ``store_every``-th step (and the last).
+    divergence_bound : float, optional
+        Largest allowed ``|q|``, ``|v|`` entry.
+
+    Returns
+    -------
+    SimulationResult
+        Signals named as in :func:`spatial_signals`; ``info`` with ``dt``, ``wall_time_s``, ``n_evaluations``.
+
+    Raises
+    ------
+    ModelError
+        Bad arguments; SimulationError a non-finite or diverging state (with the partial result).
+    """
+    t_final = validation.positive("t_final", t_final)
+    store_every = validation.integer("store_every", store_every, minimum=1)
+    if divergence_bound is not None:
+        divergence_bound = validation.positive("divergence_bound", divergence_bound)
+    if method != "rk4" and method not in SCIPY_METHODS:
+        raise ModelError(f"method for a spatial model must be 'rk4' or a solve_ivp method {SCIPY_METHODS}, got "
+                         f"{method!r} (DT-TMM schemes on spatial models are not implemented yet)")
+    if inputs is not None and not isinstance(inputs, Mapping):
+        raise ModelError(f"inputs must be a mapping {{input name: number or f(t)}}, got {inputs!r}")
+    for name in inputs or {}:
+        if name not in model.inputs:
+            raise unknown_name("spatial input", name, list(model.inputs))
+    if model.n_velocities == 0:
+        raise ModelError(f"model {model.name!r} has no coordinates (every joint is welded or driven): nothing to "
+                         "integrate")
+    x = initial_state(model, x0, v0)
+    count = [0]
+
+    def rates(t: float, state: np.ndarray) -> np.ndarray:
+        count[0] += 1
+        return state_rates(model, state, t, inputs)
+
+    start = clock.perf_counter()
+    if method == "rk4":
+        if dt is None:
+            raise ModelError("dt is required with method='rk4' (a fixed step [s], > 0), got None")
+        dt = validation.positive("dt", dt)
+        n = int(round(t_final / dt))
+        if n < 1 or abs(n * dt - t_final) > 1e-9 * t_final:
+            raise ModelError(f"t_final = {t_final!r} must be a whole multiple of dt = {dt!r}")
+        info = {"dt": dt}
+        times, states = [0.0], [x.copy()]
+        for step in range(n):
+            t = step * dt
+            try:
+                k1 = rates(t, x)
+                k2 = rates(t + dt / 2, x + dt / 2 * k1)
+                k3 = rates(t + dt / 2, x + dt / 2 * k2)
+                k4 = rates(t + dt, x + dt * k3)
+            except SimulationError as exc:
+                raise SimulationError(f"{exc} (RK4 step from t = {t} s)", time=t, element=model.name,
+                                      partial_result=_result(model, times, states, method, info)) from exc
+            x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+            _check(model, t + dt, x, divergence_bound, times, states, method, info)
+            if (step + 1) % store_every == 0 or step == n - 1:
+                times.append((step + 1) * dt)
+                states.append(x.copy())
+    else:
+        from scipy.integrate import solve_ivp
+
+        for name, value, default in (("store_every", store_every, 1),):
+            if value != default:
+                raise ModelError(f"{name}={value!r} applies to method='rk4'; give dt as the output grid")
+        grid = None
+        info = {"rtol": rtol, "atol": atol}
+        if dt is not None:
+            dt = validation.positive("dt", dt)
+            grid = np.linspace(0.0, t_final, int(round(t_final / dt)) + 1)
+            info["dt"] = dt
+        options = {} if max_step is None else {"max_step": validation.positive("max_step", max_step)}
+        try:
+            solution = solve_ivp(rates, (0.0, t_final), x, method=method, t_eval=grid, rtol=rtol, atol=atol,
+                                 **options)
+        except SimulationError as exc:
+            raise SimulationError(f"{exc} ({method})", time=exc.time, element=model.name) from exc
+        times, states = list(solution.t), list(solution.y.T)
+        if not solution.success:
+            raise SimulationError(f"{model.name}: solve_ivp ({method}) failed: {solution.message}",
+                                  time=float(times[-1]) if times else 0.0, element=model.name,
+                                  partial_result=_result(model, times, states, method, info) if times else None)
+        _check(model, float(times[-1]), np.asarray(states), divergence_bound, [], [], method, info)
+    info.update({"method": method, "wall_time_s": clock.perf_counter() - start, "n_evaluations": count[0]})
+    return _result(model, times, states, method, info)

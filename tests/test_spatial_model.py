@@ -1,0 +1,110 @@
+"""Spatial model building, validation messages and driven joints (issue 14)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import ctmm.spatial as sp
+from ctmm.errors import ModelError
+
+
+def body(name: str = "b", **kw) -> sp.SpatialBody:
+    return sp.SpatialBody(name, kw.pop("mass", 1.0), kw.pop("inertia", (0.1, 0.2, 0.25)),
+                          kw.pop("center_of_mass", (0.0, 0.0, -0.5)), kw.pop("points", {"tip": (0.0, 0.0, -1.0)}))
+
+
+@pytest.mark.parametrize("kwargs, words", [
+    (dict(mass=-1.0), ["b: mass", "> 0"]),
+    (dict(inertia=[[1, 0, 0], [0, 1, 0], [0, 0, 3]]), ["b: inertia", "triangle inequality"]),
+    (dict(inertia=[[1, 0.5, 0], [0, 1, 0], [0, 0, 1]]), ["b: inertia", "symmetric"]),
+    (dict(inertia=(1.0, -1.0, 1.0)), ["b: inertia", "positive definite"]),
+    (dict(center_of_mass=(0.0, 1.0)), ["b: center_of_mass", "3 finite numbers"]),
+    (dict(points={"tip": (0.0, np.nan, 0.0)}), ["b: points['tip']", "finite"]),
+    (dict(points={"origin": (0.0, 0.1, 0.0)}), ["b: points['origin']", "(0, 0, 0)"]),
+])
+def test_body_validation_names_parameter_value_and_rule(kwargs, words) -> None:
+    with pytest.raises(ModelError) as error:
+        body(**kwargs)
+    for word in words:
+        assert word in str(error.value)
+
+
+@pytest.mark.parametrize("make, words", [
+    (lambda: sp.Revolute(name="j", parent=None, child="b", axis=(0, 0, 0)), ["j: axis", "non-zero"]),
+    (lambda: sp.Revolute(name="j", parent=None, child="b", rotation=np.diag([1.0, 1.0, -1.0])),
+     ["j: rotation", "proper rotation"]),
+    (lambda: sp.Universal(name="j", parent=None, child="b", axis1=(1, 0, 0), axis2=(2, 0, 0)), ["parallel"]),
+    (lambda: sp.Revolute(name="j", parent=None, child="b", stiffness=-1.0), ["j: stiffness", ">= 0"]),
+    (lambda: sp.Universal(name="j", parent=None, child="b", damping=(1.0, 2.0, 3.0)), ["j: damping", "2 numbers"]),
+    (lambda: sp.Elastic6(name="j", parent=None, child="b", stiffness=-np.eye(6)), ["j: stiffness", "semi-definite"]),
+    (lambda: sp.Revolute(name="j", parent=None, child="b", position=0.0), ["position, rate and acceleration"]),
+    (lambda: sp.Revolute(name="j", parent=None, child="b", position=np.sin, rate=np.sin, acceleration=np.cos),
+     ["rate[0]", "not the time derivative"]),
+    (lambda: sp.Load("l", "b", force=(1.0, 2.0)), ["l: force", "3 signal"]),
+])
+def test_joint_validation(make, words) -> None:
+    with pytest.raises(ModelError) as error:
+        make()
+    for word in words:
+        assert word in str(error.value)
+
+
+def test_tree_validation() -> None:
+    with pytest.raises(ModelError, match="no inboard joint"):
+        sp.SpatialModel("m", [body()])
+    with pytest.raises(ModelError, match="two inboard joints"):
+        sp.SpatialModel("m", [body(), sp.Weld(name="a", parent=None, child="b"), sp.Weld(name="c", parent=None, child="b")])
+    with pytest.raises(ModelError, match="nowhere"):
+        sp.SpatialModel("m", [body(), body("c"), sp.Weld(name="a", parent=None, child="b"),
+                              sp.Revolute(name="r", parent="b", point="nowhere", child="c")])
+    with pytest.raises(ModelError, match="cycle"):
+        sp.SpatialModel("m", [body(), body("c"), sp.Revolute(name="a", parent="c", point="tip", child="b"),
+                              sp.Revolute(name="r", parent="b", point="tip", child="c")])
+    model = sp.SpatialModel("m", [body(), sp.Spherical(name="s", parent=None, child="b")])
+    with pytest.raises(ModelError, match="quaternion of joint 's' is zero"):
+        sp.accelerations(model, np.zeros(4), np.zeros(3))
+    with pytest.raises(ModelError, match="q must have 4 entries"):
+        sp.accelerations(model, np.zeros(3), np.zeros(3))
+    assert model.coordinates == ("s.qw", "s.qx", "s.qy", "s.qz") and model.velocities == ("s.wx", "s.wy", "s.wz")
+
+
+def test_driven_joint_matches_pinocchio_partitioned_dynamics() -> None:
+    """A driven revolute in the middle of a chain: the free joints' accelerations and the driven joint's
+    torque (an output) equal Pinocchio's with the driven acceleration moved to the right-hand side."""
+    pin = pytest.importorskip("pinocchio")
+    angle, rate, accel = (lambda t: 0.4 * np.sin(2 * t)), (lambda t: 0.8 * np.cos(2 * t)), (lambda t: -1.6 * np.sin(2 * t))
+    elements = [body("a"), body("b"), body("c"),
+                sp.Revolute(name="ja", parent=None, child="a", axis=(1, 0, 0)),
+                sp.Revolute(name="jb", parent="a", point="tip", child="b", axis=(0, 1, 1), position=angle, rate=rate,
+                            acceleration=accel),
+                sp.Spherical(name="jc", parent="b", point="tip", child="c")]
+    model = sp.SpatialModel("driven", elements)
+    t = 0.7
+    q, v = np.array([0.3, 0.9, 0.1, -0.3, 0.2]), np.array([0.5, 0.2, -0.4, 0.3])
+    ours = sp.solve(model, q, v, t)
+
+    pm = pin.Model()
+    pm.gravity = pin.Motion(model.gravity, np.zeros(3))
+    j1 = pm.addJoint(0, pin.JointModelRevoluteUnaligned(np.array([1.0, 0, 0])), pin.SE3.Identity(), "ja")
+    j2 = pm.addJoint(j1, pin.JointModelRevoluteUnaligned(np.array([0, 1.0, 1.0]) / np.sqrt(2)),
+                     pin.SE3(np.eye(3), np.array([0, 0, -1.0])), "jb")
+    j3 = pm.addJoint(j2, pin.JointModelSpherical(), pin.SE3(np.eye(3), np.array([0, 0, -1.0])), "jc")
+    for j, b in zip((j1, j2, j3), model.bodies):
+        pm.appendBodyToJoint(j, pin.Inertia(b.mass, b.center_of_mass, b.inertia), pin.SE3.Identity())
+    data = pm.createData()
+    quat = q[1:] / np.linalg.norm(q[1:])
+    qp = np.r_[q[0], angle(t), quat[1:], quat[0]]
+    vp = np.r_[v[0], rate(t), v[1:]]
+    M = pin.crba(pm, data, qp)
+    M = np.triu(M) + np.triu(M, 1).T
+    bias = pin.nle(pm, data, qp, vp)
+    free, fixed = [0, 2, 3, 4], [1]
+    a = np.zeros(5)
+    a[1] = accel(t)
+    a[free] = np.linalg.solve(M[np.ix_(free, free)], -bias[free] - M[np.ix_(free, fixed)] @ a[fixed])
+    torque = pin.rnea(pm, data, qp, vp, a)
+    np.testing.assert_allclose(ours.velocity_rates[0], a[free], rtol=0, atol=1e-10 * max(1, np.abs(a).max()))
+    pin.forwardKinematics(pm, data, qp)
+    axis = data.oMi[j2].rotation @ (np.array([0, 1.0, 1.0]) / np.sqrt(2))
+    driven_torque = axis @ ours.reactions[0, 1, 3:]             # inboard point = joint origin: moment about it
+    assert abs(driven_torque - torque[1]) < 1e-10 * max(1.0, abs(torque[1]))
