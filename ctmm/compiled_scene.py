@@ -38,7 +38,6 @@ existing scene without generating anything (:meth:`CompiledScene.with_model`).
 from __future__ import annotations
 
 import copy
-import hashlib
 import math
 import os
 import time as _time
@@ -49,187 +48,24 @@ import numpy as np
 from . import validation
 from .articulated import articulated_sweep
 from .codegen import load_casadi
+from .compiled_loops import ClosedLoops
+from .compiled_parameters import (compile_refusal, compiled_actuators, constants_key, parameter_vector,
+                                  structure_key, symbolic_numbers)
+from .control.controlled_model import ControlledModel
 from .errors import ModelError
 from .ode import rk4_step
 from .ops import CASADI
-from .planar.body_forms import PlanarScene, SceneNumbers
+from .planar.body_forms import PlanarScene
 from .planar.guards import check_scheme, check_stored, divergence_guard
 from .planar.integrate import PlanarSimulation, check_store_every, initial_coordinates, step_total
-from .planar.elements import DrivenHinge, Hinge
-from .planar.deformable import DeformableBody
-from .planar.model import FREE, REVOLUTE, PlanarModel
+from .planar.model import FREE, PlanarModel
 from .planar.ports import ActuatorInputs, PlanarPorts
-from .signals import SYMBOLIC_FIELDS, Constant, signal_parameters, symbolic_signal
 
-__all__ = ["CompiledScene", "compile_refusal", "parameter_vector", "simulate_batch", "simulate_rk4_generated",
-           "structure_key"]
+__all__ = ["CompiledScene", "compile_refusal", "compiled_actuators", "parameter_vector", "simulate_batch",
+           "simulate_rk4_generated", "structure_key"]
 
 DEFAULT_ROWS = 64
 """Stored states per generated block call."""
-
-
-def compile_refusal(model: Any) -> str:
-    """Why ``model`` cannot be compiled by :class:`CompiledScene` (empty string when it can)."""
-    if not isinstance(model, PlanarModel):
-        return f"a ctmm.planar.PlanarModel is compiled, got {type(model).__name__}"
-    reasons = [f"time-dependent signals without a symbolic form in {name!r}"
-               for name in _time_dependent_elements(model)]
-    for j, beam in model.beams.items():
-        data = beam.data
-        if not data.constant_distributed or data.forces or data.laws:
-            reasons.append(f"time-dependent loads or modal force hooks on beam {model.body_names[j]!r}")
-    if reasons:
-        return (f"model {model.name!r} has " + "; ".join(reasons) + " (Python callables of time, not compiled; "
-                "use ctmm.signals Constant, Harmonic, Step or SquareWave, or the numpy path, compiled=False)")
-    try:
-        PlanarScene(model)
-    except ModelError as exc:
-        return str(exc)
-    return ""
-
-
-def _time_dependent_elements(model: PlanarModel) -> list[str]:
-    """Names of the elements with a time signal that the generated code cannot evaluate: driven motions
-    that are not constant (fixed mountings are), hinge references and torques and rigid-body loads
-    without a symbolic form (:data:`ctmm.signals.SYMBOLIC_FIELDS`: user callables), beam loads that are
-    not constant."""
-    names = []
-    for element in model.elements:
-        symbolic: list = []
-        constant: list = []
-        if isinstance(element, DrivenHinge):
-            constant = [element.angle, element.rate, element.acceleration]
-        elif isinstance(element, Hinge):
-            symbolic = list(element.law()[2:])
-        loads = [f for load in getattr(element, "loads", ()) for f in (load.force_x, load.force_y, load.moment)]
-        if isinstance(element, DeformableBody):
-            constant += loads
-        else:
-            symbolic += loads
-        if any(f is not None and not isinstance(f, Constant) for f in constant) or \
-                any(f is not None and signal_parameters(f) is None for f in symbolic):
-            names.append(element.name)
-    return names
-
-
-def parameter_vector(model: PlanarModel) -> np.ndarray:
-    """The numbers of ``model`` that generated kernels take as inputs, in their order: masses, inertias,
-    centres of mass, outboard points, gravity, hinge stiffnesses, dampings, then the parameters of the
-    hinge references, reference rates, torques and loads (each signal's
-    :func:`ctmm.signals.signal_parameters`: a constant's value, a sine's amplitude, frequency and phase,
-    ...) and the load points (:class:`~ctmm.planar.body_forms.SceneNumbers`, SI units).
-
-    Raises
-    ------
-    ModelError
-        A hinge or load signal without a symbolic form (a user callable).
-    """
-    numbers = SceneNumbers.of(model)
-    parts = [numbers.mass, numbers.inertia, np.reshape(numbers.center_of_mass, -1)]
-    parts += [np.reshape(point, -1) for ends in numbers.ends for point in ends.values()]
-    parts += [numbers.gravity, numbers.stiffness, numbers.damping]
-    signals = _signals(model)
-    signal_parts = [signal_parameters(signal) for signal in signals]
-    without = [signal for signal, part in zip(signals, signal_parts) if part is None]
-    if without:
-        raise ModelError(f"parameter_vector: model {model.name!r} has hinge or load signals without a symbolic form "
-                         f"({without[0]!r}); allowed: ctmm.signals Constant, Harmonic, Step, SquareWave")
-    parts += signal_parts + [np.reshape(numbers.load_point, -1)]
-    return np.concatenate([np.asarray(part, dtype=float).reshape(-1) for part in parts])
-
-
-def _signals(model: PlanarModel) -> list:
-    """The hinge references, reference rates and torques (per body, its inboard joint; zero for other
-    joints) and the rigid-body load components ``(fx, fy, moment)`` of ``model``, in
-    :func:`parameter_vector` order."""
-    by_name = {getattr(element, "name", None): element for element in model.elements}
-    zero = Constant(0.0)
-    laws = []
-    for name, kind in zip(model.joint_names, model.joint_kind):
-        element = by_name.get(name)
-        if kind == REVOLUTE and isinstance(element, Hinge):
-            laws.append(tuple(zero if f is None else f for f in element.law()[2:]))
-        else:
-            laws.append((zero, zero, zero))
-    loads = [f for name in model.body_names for load in getattr(by_name[name], "loads", ())
-             for f in (load.force_x, load.force_y, load.moment)]
-    return [law[c] for c in range(3) for law in laws] + loads
-
-
-def _symbolic_numbers(model: PlanarModel, p: Any, t: Any) -> SceneNumbers:
-    """:class:`SceneNumbers` of entries of the symbol column ``p`` (:func:`parameter_vector` order) at
-    the time symbol ``t``: signals by their symbolic form; the entries that are zero in ``model`` are
-    the constant 0.  ``p = None``: every entry the model's number (constants of the code)."""
-    nb, nl = model.n_bodies, len(model.load_body)
-    # the model's zeros stay constants of the code (part of the structure): a smooth hinge, a centred
-    # mass, a zero gravity component cost nothing, as when every number was a constant
-    values = parameter_vector(model)
-    entries = list(values) if p is None else [0.0 if value == 0.0 else p[k] for k, value in enumerate(values)]
-    cursor = [0]
-
-    def take(count: int) -> list:
-        start = cursor[0]
-        cursor[0] += count
-        return entries[start:start + count]
-
-    def pairs(count: int) -> list:
-        flat = take(2 * count)
-        return [(flat[2 * k], flat[2 * k + 1]) for k in range(count)]
-
-    mass, inertia, com = take(nb), take(nb), pairs(nb)
-    ends = [dict(zip(points, pairs(len(points)))) for points in model.ends]
-    gravity = take(2)
-    stiffness, damping = take(nb), take(nb)
-    values = [symbolic_signal(type(signal), t, take(len(SYMBOLIC_FIELDS[type(signal)])))
-              for signal in _signals(model)]
-    reference, reference_rate, torque = values[:nb], values[nb:2 * nb], values[2 * nb:3 * nb]
-    loads = [values[3 * nb + 3 * k:3 * nb + 3 * k + 3] for k in range(nl)]
-    load_point = pairs(nl)
-    return SceneNumbers(mass, inertia, com, ends, gravity, stiffness, damping, reference, reference_rate, torque,
-                        loads, load_point)
-
-
-def structure_key(model: PlanarModel) -> str:
-    """SHA-256 (hex) of what a generated kernel keeps as constants: the tree, joint kinds, point and
-    load layout, coordinates, actuators, ground angles, fixed mountings, the kinds of the time signals,
-    which numbers are zero (constants 0 of the code) and the modal beams' data (with gravity, which the
-    beams take as a constant).  Two models with one key run on one compiled
-    :class:`CompiledScene` with their own :func:`parameter_vector`; a beam whose definition holds an
-    object without a value ``repr`` makes the key unique to the model (never shared)."""
-    digest = hashlib.sha256()
-    parts: list[Any] = [model.parent, model.joint_kind, model.ground_angle, model.theta_index, model.load_body,
-                        [list(ends) for ends in model.ends], [np.asarray(idx).tolist() for idx in model.modal_index],
-                        [np.asarray(idx).tolist() for idx in model.xy_index], model.n_coordinates,
-                        model.parent_end, model.parent_end_index, list(compiled_actuators(model)), model.driven(0.0),
-                        [type(signal).__name__ for signal in _signals(model)],
-                        np.flatnonzero(parameter_vector(model) == 0.0)]
-    # the actuators' unit patterns follow from their names (a hinge torque, a force at a centre of mass)
-    # and, on beams, from the beam definitions below
-    if model.beams:
-        parts.append(model.gravity)
-        for j, beam in sorted(model.beams.items()):
-            # the beam's data derive from its definition (a dataclass of numbers and constant signals);
-            # a definition whose text shows an object address makes the key unique to the model
-            text = repr(beam)
-            parts.append((j, text if " at 0x" not in text else f"model {id(model)}"))
-    digest.update(repr(_plain(parts)).encode())
-    return digest.hexdigest()
-
-
-def _constants_key(model: PlanarModel) -> str:
-    """:func:`structure_key` and every number: the scenes a kernel with the numbers as constants serves."""
-    return hashlib.sha256((structure_key(model) + repr(parameter_vector(model).tolist())).encode()).hexdigest()
-
-
-def _plain(value: Any) -> Any:
-    """Arrays as nested lists of Python numbers (full precision in ``repr``), recursively."""
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, (list, tuple)):
-        return [_plain(x) for x in value]
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
 
 
 class CompiledScene:
@@ -263,9 +99,16 @@ class CompiledScene:
         Wall time of building the expressions, generating C and compiling (or loading) [s].
     """
 
-    def __init__(self, model: PlanarModel, *, store_every: int = 1, rows: int = DEFAULT_ROWS,
+    def __init__(self, model: PlanarModel | ControlledModel, *, store_every: int = 1, rows: int = DEFAULT_ROWS,
                  cache_dir: str | os.PathLike | None = None, compiler: str | None = None,
-                 numbers: str = "inputs") -> None:
+                 numbers: str = "inputs", dt: float | None = None, references: Mapping[str, Any] | None = None,
+                 signals: Mapping[str, Any] | None = None) -> None:
+        controlled = model if isinstance(model, ControlledModel) else None
+        if controlled is not None:
+            model = controlled.plant
+        elif dt is not None or references or signals:
+            raise ModelError("CompiledScene: dt, references and signals apply to a ControlledModel (its loops), "
+                             f"got the model {getattr(model, 'name', model)!r} without loops")
         reason = compile_refusal(model)
         if reason:
             raise ModelError(f"CompiledScene: {reason}")
@@ -281,14 +124,17 @@ class CompiledScene:
         self.model, self.store_every, self.rows = model, store_every, int(rows)
         self.actuators = compiled_actuators(model)
         self.numbers = numbers
-        self.structure = structure_key(model) if numbers == "inputs" else _constants_key(model)
+        self.controlled = controlled
+        self.loops = None if controlled is None else ClosedLoops(controlled, self.actuators, dt, references, signals)
+        self.state_size = 2 * model.n_coordinates if self.loops is None else self.loops.state_size
+        self.structure = structure_key(model) if numbers == "inputs" else constants_key(model)
         self.parameters = parameter_vector(model)
         n, n_p = model.n_coordinates, self.parameters.size
         scene = PlanarScene(model)
         q, v = ca.SX.sym("q", n), ca.SX.sym("v", n)
         u, p, t = ca.SX.sym("u", len(self.actuators)), ca.SX.sym("p", n_p), ca.SX.sym("t")
         bodies, joints = scene.terms(CASADI, q, v, 0.0, _symbolic_inputs(model, self.actuators, u),
-                                     _symbolic_numbers(model, p if numbers == "inputs" else None, t))
+                                     symbolic_numbers(model, p if numbers == "inputs" else None, t))
         solution = articulated_sweep(CASADI, scene.tree, bodies, joints)
         qddot = _coordinate_accelerations(model, solution.x)
         acceleration = ca.Function("acceleration", [q, v, u, p, t], [qddot])
@@ -302,8 +148,13 @@ class CompiledScene:
 
         # the start time of step k is t0 + k h (as the numpy path), from the inputs t0 and k (a double)
         t0_mx, k_mx = ca.MX.sym("t0"), ca.MX.sym("k")
+        if self.loops is None:
+            step = ca.Function("step", [y_mx, u_mx, h_mx, p_mx, t0_mx, k_mx],
+                               [rk4_step(rate, t0_mx + k_mx * h_mx, y_mx, h_mx)])
+        else:           # the loops closed at every stage, the delayed ones from the ring in the state
+            step = self.loops.step(acceleration, len(self.actuators), n_p)
+            y_mx = ca.MX.sym("y", self.state_size)
         arguments = [y_mx, u_mx, h_mx, p_mx, t0_mx, k_mx]
-        step = ca.Function("step", arguments, [rk4_step(rate, t0_mx + k_mx * h_mx, y_mx, h_mx)])
 
         def repeated(count: int, first: Any) -> list:
             return [y_mx] + [ca.repmat(x, 1, count) for x in (u_mx, h_mx, p_mx, t0_mx)] + [first]
@@ -318,7 +169,7 @@ class CompiledScene:
             accumulated = stride.mapaccum(f"block{size}_acc", size)
             first = k_mx + ca.DM(store_every * np.arange(size, dtype=float)).T
             blocks.append(ca.Function(f"block{size}", arguments, [accumulated(*repeated(size, first))]))
-        name = f"scene_{model.n_bodies}b{n}q"
+        name = f"scene_{model.n_bodies}b{n}q" + (f"{len(self.loops.laws)}l" if self.loops else "")
         options = {"cache_dir": cache_dir, "compiler": compiler}
         loaded = load_casadi([acceleration, step, stride, *blocks], name, **options)
         self._acceleration, self._step, self._stride = loaded[:3]
@@ -335,10 +186,13 @@ class CompiledScene:
         ModelError
             ``model`` is not compilable or has another structure.
         """
+        if self.loops is not None:
+            raise ModelError("CompiledScene.with_model: a scene with loops keeps its sensors' geometry and loop laws as "
+                             "constants of its code; build a CompiledScene of the other ControlledModel")
         reason = compile_refusal(model)
         if reason:
             raise ModelError(f"CompiledScene.with_model: {reason}")
-        if (structure_key(model) if self.numbers == "inputs" else _constants_key(model)) != self.structure:
+        if (structure_key(model) if self.numbers == "inputs" else constants_key(model)) != self.structure:
             raise ModelError(f"CompiledScene.with_model: model {model.name!r} has another structure than "
                              f"{self.model.name!r} (tree, joint kinds, points, loads, coordinates, actuators, "
                              "ground angles, fixed mountings, signal classes, zero numbers or beam data differ; "
@@ -374,6 +228,9 @@ class CompiledScene:
 
         Returns ``(q, qdot)`` (n,) each; non-finite entries when the run diverged.
         """
+        if self.loops is not None:
+            raise ModelError("CompiledScene.advance: a scene with loops carries controller states and the delay "
+                             "history in its state; use run (one interval from the initial state)")
         q, qdot = self.model.state(q, qdot)
         states = self._run(np.concatenate([q, qdot]), self._inputs(inputs), validation.positive("dt", dt),
                            validation.integer("n_steps", n_steps), validation.finite("t0", t0))
@@ -384,10 +241,42 @@ class CompiledScene:
             t0: float = 0.0) -> np.ndarray:
         """Stored states ``[q, qdot]`` (rows, 2 n) after each ``store_every`` steps and after the last step
         (the rows of :func:`ctmm.planar.integrate.simulate_rk4`), the initial state (time ``t0`` [s])
-        excluded; stops after the first block holding a non-finite state."""
+        excluded; stops after the first block holding a non-finite state.  With loops the rows are the
+        whole state ``[q, qdot, z, ring]`` (:attr:`state_size`; :class:`~ctmm.compiled_loops.ClosedLoops`)
+        from controller states 0 and the initial state held before ``t0``."""
         q, qdot = self.model.state(q, qdot)
-        return self._run(np.concatenate([q, qdot]), self._inputs(inputs), validation.positive("dt", dt),
+        start = np.concatenate([q, qdot]) if self.loops is None else self.loops.initial_state(q, qdot)
+        return self._run(start, self._inputs(inputs), validation.positive("dt", dt),
                          validation.integer("n_steps", n_steps), validation.finite("t0", t0))
+
+    def checked_run(self, q: np.ndarray, qdot: np.ndarray, h: float, n_steps: int, stability_check: str = "warn"
+                    ) -> tuple[np.ndarray, np.ndarray, float]:
+        """A run from ``t = 0`` as the verbs store it: the step ``h`` [s] checked against the model's
+        linearised RK4 limit first (``stability_check`` policy; the plant's accelerations, loops not
+        included), then :meth:`run` of ``n_steps``.
+
+        Returns
+        -------
+        t : ndarray (rows,)
+            Times of the stored rows [s], from 0.
+        states : ndarray (rows, state_size)
+            The initial state and the stored states, up to the first non-finite row (kept).
+        wall : float
+            Wall time of the run [s].
+        """
+        check_scheme(self.model, q, qdot, h, scheme="rk4", policy=stability_check,
+                     accelerations=lambda m, a, b, t: self.accelerations(a, b, t=t))
+        start = _time.perf_counter()
+        states = self.run(q, qdot, h, n_steps)
+        wall = _time.perf_counter() - start
+        every = self.store_every
+        steps = np.array([k for k in range(1, n_steps + 1) if k % every == 0 or k == n_steps])[:len(states)]
+        bad = np.flatnonzero(~np.all(np.isfinite(states), axis=1))
+        if bad.size:
+            states, steps = states[:bad[0] + 1], steps[:bad[0] + 1]
+        q, qdot = self.model.state(q, qdot)
+        first = np.concatenate([q, qdot]) if self.loops is None else self.loops.initial_state(q, qdot)
+        return np.concatenate([[0.0], steps * h]), np.vstack([first[None], states]), wall
 
     def _run(self, y: np.ndarray, u: np.ndarray, h: float, n_steps: int, t0: float) -> np.ndarray:
         return self._run_batch(y[:, None], u, h, n_steps, t0, self.parameters[:, None], "serial", 1)[0]
@@ -462,9 +351,9 @@ def simulate_batch(scene: CompiledScene, parameters: Any, q0: Any, qdot0: Any, *
         Stored states ``[q, qdot]`` of each member, rows as :meth:`CompiledScene.run` (non-finite
         entries for a diverged member).
     """
-    if not isinstance(scene, CompiledScene) or scene.numbers != "inputs":
-        raise ModelError(f"simulate_batch: scene must be a CompiledScene with numbers='inputs' (its numbers are "
-                         f"the input p), got {scene!r}")
+    if not isinstance(scene, CompiledScene) or scene.numbers != "inputs" or scene.loops is not None:
+        raise ModelError(f"simulate_batch: scene must be a CompiledScene without loops with numbers='inputs' (its "
+                         f"numbers are the input p), got {scene!r}")
     n, n_p = scene.model.n_coordinates, scene.parameters.size
     p = np.asarray(parameters, dtype=float) if not isinstance(parameters, str) else np.zeros(0)
     if p.ndim != 2 or p.shape[1] != n_p or p.shape[0] < 1 or np.any(np.isnan(p)):
@@ -494,13 +383,6 @@ def simulate_batch(scene: CompiledScene, parameters: Any, q0: Any, qdot0: Any, *
     return scene._run_batch(y, scene._inputs(inputs), validation.positive("dt", dt),
                             validation.integer("n_steps", n_steps), validation.finite("t0", t0), p.T.copy(),
                             parallelization, int(threads))
-
-
-def compiled_actuators(model: PlanarModel) -> tuple[str, ...]:
-    """The actuators a generated kernel takes as inputs: every actuator of ``model`` but the station
-    forces and moments of beams (their floating-frame part is not on the element protocol yet)."""
-    ports = PlanarPorts(model)
-    return tuple(name for name, actuator in ports.actuators.items() if actuator.kind != "station")
 
 
 def _symbolic_inputs(model: PlanarModel, names: Sequence[str], u: Any) -> ActuatorInputs | None:
@@ -574,20 +456,9 @@ def simulate_rk4_generated(model: PlanarModel, q0: Any, qdot0: Any, *, t_final: 
         raise ModelError(f"scene must be a CompiledScene of this model with store_every={store_every!r}, got "
                          f"{scene!r}")
     guard = divergence_guard(model, q, divergence_bound)
-    check_scheme(model, q, v, h, scheme="rk4", policy=stability_check,
-                 accelerations=lambda m, a, b, t: scene.accelerations(a, b, t=t))
-    start = _time.perf_counter()
-    states = scene.run(q, v, h, n_steps)
-    wall = _time.perf_counter() - start
-    every = scene.store_every
-    steps = np.array([k for k in range(1, n_steps + 1) if k % every == 0 or k == n_steps])[:len(states)]
+    t, states, wall = scene.checked_run(q, v, h, n_steps, stability_check)
     n = model.n_coordinates
-    bad = np.flatnonzero(~np.all(np.isfinite(states), axis=1))
-    if bad.size:
-        states, steps = states[:bad[0] + 1], steps[:bad[0] + 1]
-    t = np.concatenate([[0.0], steps * h])
-    qs = np.vstack([q[None], states[:, :n]])
-    vs = np.vstack([v[None], states[:, n:]])
+    qs, vs = states[:, :n], states[:, n:]
     check_stored(guard, t, qs, vs, lambda k: PlanarSimulation(model, t[:k], qs[:k], vs[:k], "rk4-generated", wall))
     return PlanarSimulation(model, t, qs, vs, "rk4-generated", wall, n_evaluations=4 * n_steps,
                             extra={"compile_time_s": scene.compile_time_s})
