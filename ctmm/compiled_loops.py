@@ -40,10 +40,10 @@ from .control.controlled_model import ControlledModel
 from .errors import ModelError
 from .ode import rk4_step
 from .planar.model import FREE, PlanarModel
-from .planar.ports import PlanarPorts
+from .planar.ports import ActuatorInputs, PlanarPorts
 from .signals import as_signal, signal_parameters, symbolic_signal
 
-__all__ = ["ClosedLoops", "LoopLaw", "delay_steps", "sensor_expression"]
+__all__ = ["ClosedLoops", "LoopLaw", "SymbolicReference", "delay_steps", "sensor_expression"]
 
 _POINT_AXES = {"x": (0, 0), "y": (0, 1), "vx": (1, 0), "vy": (1, 1)}
 _STATION_PARTS = {"w": (0, False), "slope": (1, False), "w_dot": (0, True), "slope_rate": (1, True)}
@@ -121,16 +121,43 @@ def _controller(loop: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
         float(np.asarray(system.D, float).reshape(-1)[0])
 
 
+@dataclass(frozen=True)
+class SymbolicReference:
+    """A time signal given twice: as numbers and on casadi symbols (for references and inputs that
+    :mod:`ctmm.signals` has no class for, e.g. a cycloidal move).  Callable as ``r(t)`` [float], so the
+    numpy path takes it too.
+
+    Parameters
+    ----------
+    numeric : callable
+        ``t [s] -> float``.
+    symbolic : callable
+        ``t`` (casadi symbol) ``->`` casadi expression, the same operations.
+    """
+
+    numeric: Callable[[float], float]
+    symbolic: Callable[[Any], Any]
+
+    def __call__(self, t: float) -> float:
+        return float(self.numeric(t))
+
+
 def _symbolic(label: str, value: Any) -> Any:
-    """A number or a :mod:`ctmm.signals` object with a symbolic form, as a signal; ModelError otherwise."""
+    """A number, a :mod:`ctmm.signals` object with a symbolic form or a :class:`SymbolicReference`, as a
+    signal; ModelError otherwise."""
+    if isinstance(value, SymbolicReference):
+        return value
     signal = as_signal(label, value)
     if signal_parameters(signal) is None:
         raise ModelError(f"{label} is a Python callable of time, which generated kernels cannot evaluate; give a "
-                         "number or a ctmm.signals Constant, Harmonic, Step or SquareWave, or use compiled=False")
+                         "number, a ctmm.signals Constant, Harmonic, Step or SquareWave, or a "
+                         "ctmm.compiled_loops.SymbolicReference, or use compiled=False")
     return signal
 
 
 def _at(signal: Any, t: Any) -> Any:
+    if isinstance(signal, SymbolicReference):
+        return signal.symbolic(t)
     return symbolic_signal(type(signal), t, signal_parameters(signal))
 
 
@@ -277,6 +304,9 @@ class ClosedLoops:
     Attributes
     ----------
     laws : tuple of LoopLaw
+    channels : list of (int, ActuatorInputs)
+        Loops acting on beam station forces or moments whose floating-frame wrenches cancel: the loop's
+        index and its loads per unit output (extra inputs of the sweep after ``actuators``).
     n_controller_states : int
     ring_columns : int
         Stored samples per delayed loop (``max tau / dt + 1``; 0 without delayed loops).
@@ -302,13 +332,10 @@ class ClosedLoops:
                                  f"{', '.join(self.actuators) or '(none)'}; station forces and moments of beams are "
                                  "not on the element protocol yet (use compiled=False)")
             self.inputs.append((self.actuators.index(name), _symbolic(f"inputs[{name!r}]", value)))
-        laws = []
+        laws, self.channels = [], []
         for loop in controlled.loops:
-            for actuator, _ in loop.actuator_terms:
-                if actuator not in self.actuators:
-                    raise ModelError(f"loop {loop.name!r} acts on {actuator!r}: a station force or moment of a beam "
-                                     "is not on the element protocol yet, so generated kernels cannot close this "
-                                     "loop; use compiled=False")
+            if any(actuator not in self.actuators for actuator, _ in loop.actuator_terms):
+                self.channels.append((len(laws), self._channel(ports, loop)))
             A, B, C, D = _controller(loop)
             reference = _symbolic(f"references[{loop.name!r}]", references.get(loop.name, 0.0))
             laws.append(LoopLaw(loop.name, tuple(loop.terms), tuple(loop.actuator_terms), A, B, C, D,
@@ -333,10 +360,28 @@ class ClosedLoops:
         rates = ca.jtimes(y, ca.vertcat(q, v), ca.vertcat(v, a)) if laws else ca.SX(0, 1)
         self.sensor_rates = ca.Function("loop_sensor_rates", [q, v, a], [rates])
         weights = np.zeros((len(self.actuators), len(laws)))
+        channelled = {k for k, _ in self.channels}
         for k, law in enumerate(laws):
-            for actuator, w in law.actuators:
+            for actuator, w in ([] if k in channelled else law.actuators):
                 weights[self.actuators.index(actuator), k] += float(w)
         self.weights = weights
+
+    @staticmethod
+    def _channel(ports: PlanarPorts, loop: Any) -> ActuatorInputs:
+        """The loads of a loop acting on beam station forces or moments, per unit output: allowed when
+        their floating-frame wrenches cancel (e.g. a piezo patch's moment pair ``-M`` at ``x1``, ``+M`` at
+        ``x2``), which leaves modal forces only (on the element protocol)."""
+        weights: dict[str, float] = {}
+        for actuator, w in loop.actuator_terms:
+            weights[actuator] = weights.get(actuator, 0.0) + float(w)
+        unit = ports.inputs(weights)
+        scale = max(abs(w) for w in weights.values())
+        if any(np.max(np.abs(wrench)) > 1e-12 * scale for wrench in unit.frame_wrench.values()):
+            raise ModelError(f"loop {loop.name!r} acts on beam station forces or moments whose wrench on the beam's "
+                             "floating frame does not cancel; that wrench is not on the element protocol yet, so "
+                             "generated kernels cannot close this loop (a moment pair -M, +M at two stations "
+                             "compiles); use compiled=False")
+        return ActuatorInputs(unit.hinge_torque, unit.body_force, unit.modal_force)
 
     # -- pieces of the state -----------------------------------------------------------------
     def _split(self, x: Any) -> tuple:
@@ -358,7 +403,7 @@ class ClosedLoops:
         return np.concatenate([q, qdot, np.zeros(self.n_controller_states), ring])
 
     # -- the closed-loop rate and step -----------------------------------------------------
-    def _rate(self, acceleration: Any, u: Any, p: Any, t: Any, x: Any, delayed: Sequence[Any]) -> tuple:
+    def rate(self, acceleration: Any, u: Any, p: Any, t: Any, x: Any, delayed: Sequence[Any]) -> tuple:
         """``(dx/dt, qddot)`` at time ``t`` and ``x = [q, qdot, z]`` with the delayed loop signals
         ``delayed`` (one per delayed loop, in order)."""
         import casadi as ca
@@ -382,13 +427,15 @@ class ClosedLoops:
             unit = np.zeros(len(self.actuators))
             unit[index] = 1.0
             total = total + ca.DM(unit) * _at(signal, t)
+        total = ca.vertcat(total, *[outputs[k] for k, _ in self.channels])
         qddot = acceleration(q, v, total, p, t)
         return ca.vertcat(v, qddot, *rates), qddot
 
     def step(self, acceleration: Any, n_inputs: int, n_parameters: int) -> Any:
         """``step(Y, u, h, p, t0, k)``: RK4 step ``k`` (from ``t0 + k h``) of the closed loop, ``Y`` the
-        state ``[q, qdot, z, ring]`` (:attr:`state_size`); ``acceleration(q, v, u, p, t)`` the plant's
-        generated sweep (a casadi Function)."""
+        state ``[q, qdot, z, ring]`` (:attr:`state_size`), ``u`` the ``n_inputs`` held actuator values;
+        ``acceleration(q, v, [u; channels], p, t)`` the plant's generated sweep (a casadi Function) whose
+        inputs continue with one per :attr:`channels` entry."""
         import casadi as ca
 
         Y, u, h = ca.MX.sym("y", self.state_size), ca.MX.sym("u", n_inputs), ca.MX.sym("h")
@@ -397,7 +444,7 @@ class ClosedLoops:
         t = t0 + k * h
         if not self.delayed:
             def rate(stage: Any, state: Any) -> Any:
-                return self._rate(acceleration, u, p, stage, state, ())[0]
+                return self.rate(acceleration, u, p, stage, state, ())[0]
 
             return ca.Function("step", [Y, u, h, p, t0, k], [rk4_step(rate, t, x, h)])
         ring, last = self._ring(Y), self.ring_columns - 1
@@ -420,7 +467,7 @@ class ClosedLoops:
             return out
 
         placeholder = ca.horzcat(shifted, ca.MX.zeros(2 * count, 1))       # sample n not read at t_n
-        first, qddot = self._rate(acceleration, u, p, t, x, read(placeholder, "start"))
+        first, qddot = self.rate(acceleration, u, p, t, x, read(placeholder, "start"))
         q, v, _ = self._split(x)
         sample = ca.vertcat(self.sensors(q, v)[self.delayed], self.sensor_rates(q, v, qddot)[self.delayed])
         table = ca.horzcat(shifted, sample)
@@ -430,7 +477,7 @@ class ClosedLoops:
             calls[0] += 1
             if calls[0] == 1:
                 return first
-            return self._rate(acceleration, u, p, stage, state, read(table, "end" if calls[0] == 4 else "half"))[0]
+            return self.rate(acceleration, u, p, stage, state, read(table, "end" if calls[0] == 4 else "half"))[0]
 
         out = ca.vertcat(rk4_step(rate, t, x, h), ca.reshape(table, -1, 1))
         return ca.Function("step", [Y, u, h, p, t0, k], [out])

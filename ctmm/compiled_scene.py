@@ -131,9 +131,12 @@ class CompiledScene:
         self.parameters = parameter_vector(model)
         n, n_p = model.n_coordinates, self.parameters.size
         scene = PlanarScene(model)
+        ports = PlanarPorts(model)                        # resolved once (was once per actuator)
+        units = [ports.inputs({name: 1.0}) for name in self.actuators]
+        units += [unit for _, unit in (self.loops.channels if self.loops else [])]
         q, v = ca.SX.sym("q", n), ca.SX.sym("v", n)
-        u, p, t = ca.SX.sym("u", len(self.actuators)), ca.SX.sym("p", n_p), ca.SX.sym("t")
-        bodies, joints = scene.terms(CASADI, q, v, 0.0, _symbolic_inputs(model, self.actuators, u),
+        u, p, t = ca.SX.sym("u", len(units)), ca.SX.sym("p", n_p), ca.SX.sym("t")
+        bodies, joints = scene.terms(CASADI, q, v, 0.0, _symbolic_inputs(model, units, u),
                                      symbolic_numbers(model, p if numbers == "inputs" else None, t))
         solution = articulated_sweep(CASADI, scene.tree, bodies, joints)
         qddot = _coordinate_accelerations(model, solution.x)
@@ -174,6 +177,11 @@ class CompiledScene:
         loaded = load_casadi([acceleration, step, stride, *blocks], name, **options)
         self._acceleration, self._step, self._stride = loaded[:3]
         self._blocks = list(zip(self._sizes, loaded[3:]))
+        self._closed_rate = None
+        if self.loops is not None and not self.loops.delayed:       # the closed loop's rate, on the library
+            x, u_all = ca.MX.sym("x", self.state_size), ca.MX.sym("u", len(self.actuators))
+            self._closed_rate = ca.Function("closed_rate", [x, u_all, p_mx, t_mx], [
+                self.loops.rate(self._acceleration, u_all, p_mx, t_mx, x, ())[0]])
         self.compile_time_s = _time.perf_counter() - start
 
     def with_model(self, model: PlanarModel) -> "CompiledScene":
@@ -218,8 +226,30 @@ class CompiledScene:
         """``qddot`` (n,) at coordinates ``q`` and rates ``qdot`` (n,) with actuator ``inputs`` [SI] at time
         ``t`` [s]."""
         q, qdot = self.model.state(q, qdot)
-        return np.asarray(self._acceleration(q, qdot, self._inputs(inputs), self.parameters,
+        held = np.concatenate([self._inputs(inputs), np.zeros(len(self.loops.channels) if self.loops else 0)])
+        return np.asarray(self._acceleration(q, qdot, held, self.parameters,
                                              validation.finite("t", t))).reshape(-1)
+
+    def closed_loop_rates(self, state: Any, t: float = 0.0, inputs: Mapping[str, float] | None = None
+                          ) -> np.ndarray:
+        """``d/dt [q, qdot, z]`` of a scene with real-time loops only, at the state ``[q, qdot, z]``
+        (:attr:`state_size`; ``z`` the controller states) and time ``t`` [s], with held actuator
+        ``inputs`` [SI] (the rate every RK4 stage evaluates).
+
+        Raises
+        ------
+        ModelError
+            A scene without loops or with delayed loops (their rate needs the history), a bad state.
+        """
+        if self._closed_rate is None:
+            raise ModelError("CompiledScene.closed_loop_rates: the scene has no loops or has delayed loops (their "
+                             "rate reads the history); use accelerations or run")
+        state = np.asarray(state, dtype=float).reshape(-1)
+        if state.size != self.state_size or not np.all(np.isfinite(state)):
+            raise ModelError(f"CompiledScene.closed_loop_rates: state must be {self.state_size} finite numbers "
+                             f"[q, qdot, controller states], got shape {state.shape}")
+        return np.asarray(self._closed_rate(state, self._inputs(inputs), self.parameters,
+                                            validation.finite("t", t))).reshape(-1)
 
     def advance(self, q: Any, qdot: Any, dt: float, n_steps: int, inputs: Mapping[str, float] | None = None,
                 t0: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
@@ -385,18 +415,17 @@ def simulate_batch(scene: CompiledScene, parameters: Any, q0: Any, qdot0: Any, *
                             parallelization, int(threads))
 
 
-def _symbolic_inputs(model: PlanarModel, names: Sequence[str], u: Any) -> ActuatorInputs | None:
-    """Actuator inputs as affine expressions of the symbols ``u`` (each actuator's unit pattern)."""
-    if not names:
+def _symbolic_inputs(model: PlanarModel, units: Sequence[ActuatorInputs], u: Any) -> ActuatorInputs | None:
+    """Actuator inputs as affine expressions of the symbols ``u``: ``sum_k u_k units[k]`` (each input's
+    loads per unit value)."""
+    if not units:
         return None
     torque = np.zeros(model.n_bodies, dtype=object)
     force = np.zeros((model.n_bodies, 3), dtype=object)
     modal: dict[int, np.ndarray] = {}
-    ports = PlanarPorts(model)                            # resolved once (was once per actuator)
-    for k, name in enumerate(names):
-        unit = ports.inputs({name: 1.0})
+    for k, unit in enumerate(units):
         if unit.frame_wrench:
-            raise ModelError(f"actuator {name!r}: a station force or moment on a beam's floating frame is not on the "
+            raise ModelError(f"input {k}: a station force or moment on a beam's floating frame is not on the "
                              "element protocol yet, so generated kernels cannot take it; use ctmm.simulate without "
                              "compiled=True")
         for j in np.flatnonzero(unit.hinge_torque):
