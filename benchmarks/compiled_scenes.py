@@ -198,7 +198,8 @@ def manipulator_row() -> dict:
            "delayed_minus_numpy_tip_first_0p2s": float(np.max(np.abs(delayed["arm.tip.w"][:rows]
                                                                      - numpy_run["arm.tip.w"])))}
     row["delayed_numpy_over_generated"] = row["delayed_numpy_per_step_us"] / row["delayed_per_step_us"]
-    print(f"manipulator: embedded {row['embedded_per_step_us']:.2f} us/step (RTF {row['embedded_real_time_factor']:.0f}); "
+    print(f"manipulator: embedded {row['embedded_per_step_us']:.2f} us/step "
+          f"(RTF {row['embedded_real_time_factor']:.0f}); "
           f"delayed loops {row['delayed_per_step_us']:.2f} us/step generated vs {row['delayed_numpy_per_step_us']:.0f} "
           f"us/step numpy, |diff| {row['delayed_minus_numpy_tip_first_0p2s']:.1e} m")
     return row

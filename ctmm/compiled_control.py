@@ -41,8 +41,7 @@ def simulate_controlled_generated(controlled: ControlledModel, q0: Any, qdot0: A
     q0, qdot0 : array_like
         Initial coordinates [rad, m] and rates.
     t_final, dt : float
-        End time and step [s] (``dt`` is adjusted to ``t_final / ceil(t_final / dt)``, as the numpy path;
-        each loop delay a whole multiple of it).
+        End time and step [s]: ``t_final`` a whole multiple of ``dt``, and each loop delay too.
     inputs : mapping, optional
         ``{actuator: number or ctmm.signals signal}`` open-loop actuator values [SI].
     references : mapping, optional

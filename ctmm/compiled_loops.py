@@ -43,7 +43,7 @@ from .planar.model import FREE, PlanarModel
 from .planar.ports import ActuatorInputs, PlanarPorts
 from .signals import as_signal, signal_parameters, symbolic_signal
 
-__all__ = ["ClosedLoops", "LoopLaw", "SymbolicReference", "delay_steps", "sensor_expression"]
+__all__ = ["ClosedLoops", "LoopLaw", "SymbolicKinematics", "SymbolicReference", "delay_steps", "sensor_expression"]
 
 _POINT_AXES = {"x": (0, 0), "y": (0, 1), "vx": (1, 0), "vy": (1, 1)}
 _STATION_PARTS = {"w": (0, False), "slope": (1, False), "w_dot": (0, True), "slope_rate": (1, True)}
@@ -146,6 +146,7 @@ def _symbolic(label: str, value: Any) -> Any:
     """A number, a :mod:`ctmm.signals` object with a symbolic form or a :class:`SymbolicReference`, as a
     signal; ModelError otherwise."""
     if isinstance(value, SymbolicReference):
+        _check_forms(label, value)
         return value
     signal = as_signal(label, value)
     if signal_parameters(signal) is None:
@@ -153,6 +154,23 @@ def _symbolic(label: str, value: Any) -> Any:
                          "number, a ctmm.signals Constant, Harmonic, Step or SquareWave, or a "
                          "ctmm.compiled_loops.SymbolicReference, or use compiled=False")
     return signal
+
+
+def _check_forms(label: str, reference: SymbolicReference) -> None:
+    """Refuse a :class:`SymbolicReference` whose two forms differ (relative 1e-12) at a few times [s]."""
+    import casadi as ca
+
+    t = ca.SX.sym("t")
+    try:
+        function = ca.Function("reference", [t], [reference.symbolic(t)])
+    except Exception as exc:  # noqa: BLE001 - report what the user's symbolic form did
+        raise ModelError(f"{label}: the symbolic form of the SymbolicReference failed on a casadi symbol "
+                         f"({exc!r})") from None
+    for time in (0.0, 0.013, 0.31, 0.77, 1.9, 4.3):
+        numeric, symbolic = reference(time), float(function(time))
+        if not abs(numeric - symbolic) <= 1e-12 * max(1.0, abs(numeric)):
+            raise ModelError(f"{label}: the SymbolicReference's numeric and symbolic forms differ at t = {time} s "
+                             f"({numeric!r} and {symbolic!r}); they must be the same signal")
 
 
 def _at(signal: Any, t: Any) -> Any:
@@ -169,10 +187,17 @@ def _dot(row: Any, column: Any, index: Sequence[int]) -> Any:
     return sum((float(w) * column[int(k)] for w, k in zip(row, index) if w != 0.0), 0.0)
 
 
-class _Kinematics:
+class SymbolicKinematics:
     """Angles, rates and point motions of a planar model on casadi symbols ``q, v`` (the numbers of
     :meth:`~ctmm.planar.model.PlanarModel.points`; driven motions are constant, as generated kernels
-    require)."""
+    require).
+
+    Parameters
+    ----------
+    model : PlanarModel
+    q, v : casadi SX
+        Coordinate and rate symbols (``n_coordinates`` each).
+    """
 
     def __init__(self, model: PlanarModel, q: Any, v: Any) -> None:
         import casadi as ca
@@ -260,7 +285,7 @@ class _Kinematics:
         return (r[0] + x, r[1] + y), (v[0] - omega * y + dx, v[1] + omega * x + dy)
 
 
-def sensor_expression(ports: PlanarPorts, name: str, kinematics: _Kinematics) -> Any:
+def sensor_expression(ports: PlanarPorts, name: str, kinematics: SymbolicKinematics) -> Any:
     """The value of sensor ``name`` of :mod:`ctmm.planar.ports` as a casadi expression of the
     symbols of ``kinematics``."""
     sensor = ports.resolve([name])[0]
@@ -327,6 +352,7 @@ class ClosedLoops:
         self.actuators = tuple(actuators)
         self.inputs = []
         for name, value in dict(inputs or {}).items():
+            ports.check_actuator(name, "inputs: actuator")
             if name not in self.actuators:
                 raise ModelError(f"inputs[{name!r}]: generated kernels drive the actuators "
                                  f"{', '.join(self.actuators) or '(none)'}; station forces and moments of beams are "
@@ -347,7 +373,7 @@ class ClosedLoops:
         self.ring_columns = max((law.steps for law in laws), default=0) + 1 if self.delayed else 0
         self.state_size = 2 * self.n + self.n_controller_states + 2 * len(self.delayed) * self.ring_columns
         q, v, a = (ca.SX.sym(label, self.n) for label in ("q", "v", "a"))
-        kinematics = _Kinematics(plant, q, v)
+        kinematics = SymbolicKinematics(plant, q, v)
         cache: dict[str, Any] = {}
 
         def sensed(name: str) -> Any:

@@ -195,8 +195,8 @@ class CompiledScene:
             ``model`` is not compilable or has another structure.
         """
         if self.loops is not None:
-            raise ModelError("CompiledScene.with_model: a scene with loops keeps its sensors' geometry and loop laws as "
-                             "constants of its code; build a CompiledScene of the other ControlledModel")
+            raise ModelError("CompiledScene.with_model: a scene with loops keeps its sensors' geometry and loop laws "
+                             "as constants of its code; build a CompiledScene of the other ControlledModel")
         reason = compile_refusal(model)
         if reason:
             raise ModelError(f"CompiledScene.with_model: {reason}")

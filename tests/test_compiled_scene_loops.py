@@ -18,7 +18,7 @@ import scipy.integrate
 
 import ctmm
 from ctmm.compiled_control import simulate_controlled_generated
-from ctmm.compiled_loops import ClosedLoops, _Kinematics, sensor_expression
+from ctmm.compiled_loops import ClosedLoops, SymbolicKinematics, SymbolicReference, sensor_expression
 from ctmm.control import Feedback
 from ctmm.control.controlled_model import ControlledModel
 from ctmm.errors import ModelError, SimulationError
@@ -61,7 +61,7 @@ def test_symbolic_sensors_equal_the_numpy_ports(build):
     ports = PlanarPorts(model)
     names = sorted(ports.sensors)
     q, v = casadi.SX.sym("q", model.n_coordinates), casadi.SX.sym("v", model.n_coordinates)
-    kinematics = _Kinematics(model, q, v)
+    kinematics = SymbolicKinematics(model, q, v)
     function = casadi.Function("s", [q, v], [casadi.vertcat(*[sensor_expression(ports, n, kinematics)
                                                               for n in names])])
     for seed in range(3):
@@ -226,6 +226,16 @@ def test_refusals_name_the_feature():
         ctmm.compiled_scene.simulate_batch(scene, scene.parameters[None], [0.1], [0.0], dt=1e-3, n_steps=2)
     with pytest.raises(ModelError, match="ControlledModel"):
         ClosedLoops(plant, ())
+    with pytest.raises(ModelError, match="numeric and symbolic forms differ at t = 0.013 s"):
+        ctmm.simulate(pd, 0.1, 1e-3, compiled=True,
+                      references={"pd": SymbolicReference(lambda t: t, lambda t: casadi.sin(t))})
+    with pytest.raises(ModelError, match="unknown inputs: actuator 'pivot.force'"):
+        ctmm.simulate(pd, 0.1, 1e-3, compiled=True, inputs={"pivot.force": 1.0})
+    with pytest.raises(ModelError, match="scene must be a CompiledScene of this controlled model"):
+        simulate_controlled_generated(pd, [0.1], [0.0], t_final=0.01, dt=1e-3, scene=scene, store_every=2)
+    reused = simulate_controlled_generated(pd, [0.1], [0.0], t_final=0.01, dt=1e-3, scene=scene)
+    fresh = ctmm.simulate(pd, 0.01, 1e-3, x0=[0.1], compiled=True)
+    np.testing.assert_array_equal(reused["rod.theta"], fresh["rod.theta"])
 
 
 def test_diverging_loop_stops_with_the_partial_result():
