@@ -11,10 +11,14 @@ Rows (time and error together, ratios from one run, ``benchmarks/results/compile
    per-step time of the generated path and of the hand-typed C (``simulate_rk4_compiled``), their
    largest difference (round-off) and the RK4 error of both against a dt/4 run of the generated path;
    first-compile time in a fresh cache folder (numbers as inputs, the default, and as constants).
-3. **Manipulator** (seed arm, 3 modes, stiffening, hub PD): per-step time of ``CompiledManipulator``
-   (closed form, cycloidal reference) and of the generated path on the same plant with the PD law on a
-   constant reference (the generated path refuses time signals; the per-step work is the same sweep).
-   Errors: each against its own numpy path.
+3. **Manipulator** (seed arm, 3 modes, stiffening, hub PD and PZT loops, cycloidal move, 3 s at
+   dt = 1e-3): per-step time of ``CompiledManipulator`` -- since issue 13 the controlled scene through
+   the generated kernels (:mod:`ctmm.compiled_loops`) -- and of the same scene with delayed loops (PD
+   10 ms, PZT 2 ms) through ``ctmm.simulate(..., compiled=True)``; errors against the numpy path of
+   the same model (first 0.2 s).  Before the hand-derived closed form was removed, both ran side by
+   side in one run (2026-11-25, 2-core machine, best of 5): closed form 2.99 / 0.48 us per step
+   (store every 1 / 5 steps), generated 2.66 / 0.56 (PD), 2.91 / 0.51 vs 2.78 / 0.67 (PD + PZT):
+   ratios 0.89-1.33, tip deflections equal to 4e-16 m.
 4. **Parameter sweep** (issue 13 item 4): the hub-beam with 10 sets of hub mass, hub inertia and motor
    torque, 0.5 s at dt = 1e-3 each: (a) one compile per set (the numbers as constants of the C: a
    fresh cache folder per set, the behaviour before parameters became inputs), (b) one compile, then
@@ -47,9 +51,11 @@ from scipy.integrate import solve_ivp  # noqa: E402
 
 from ctmm.compiled_scene import CompiledScene, parameter_vector, simulate_batch, simulate_rk4_generated  # noqa: E402
 from ctmm.flexible import ModalBeam  # noqa: E402
-from ctmm.manipulator import SEED_KD, SEED_KP, SEED_MOVE, FlexibleManipulator, HubPD, seed_manipulator  # noqa: E402
-from ctmm.manipulator.compiled import CompiledManipulator  # noqa: E402
-from ctmm.manipulator.scene import arm_beam  # noqa: E402
+import ctmm  # noqa: E402
+from ctmm.manipulator import (SEED_KD, SEED_KP, SEED_MOVE, SEED_PZT_GAIN, FlexibleManipulator, HubPD,  # noqa: E402
+                              PZTFeedback, manipulator_scene, seed_manipulator)
+from ctmm.manipulator.compiled import CompiledManipulator, cycloid_reference  # noqa: E402
+from ctmm.manipulator.scene import HUB_LOOP  # noqa: E402
 from ctmm.planar import ActuatedHinge, Fixed, PlanarModel, RigidBody  # noqa: E402
 from ctmm.planar.compiled import simulate_rk4_compiled  # noqa: E402
 from ctmm.planar.elements import FixedMounting  # noqa: E402
@@ -158,31 +164,44 @@ def chain_rows(quick: bool) -> list:
 
 
 def manipulator_row() -> dict:
+    """The seed manipulator (PD + PZT loops, cycloidal move): ``CompiledManipulator`` (now the generated
+    scene) and the same scene with delayed loops through ``ctmm.simulate(..., compiled=True)``, each
+    against the numpy path of the same model over the first 0.2 s."""
     arm = seed_manipulator()
-    system = FlexibleManipulator(arm, HubPD(SEED_KP, SEED_KD), None, SEED_MOVE)
-    closed_form = CompiledManipulator(system, block=1, chunks=50)
-    closed_form.simulate(T_MANIPULATOR, H_MANIPULATOR)
-    _, closed_wall = best_of(lambda: closed_form.simulate(T_MANIPULATOR, H_MANIPULATOR))
-    model = PlanarModel.chain("manipulator_pd", [
-        Fixed("ground"), ActuatedHinge("motor", kp=SEED_KP, kd=SEED_KD, reference=SEED_MOVE.final_angle),
-        RigidBody("hub", mass=1.0, inertia=arm.hub.inertia, center_of_mass=(0.0, 0.0), outboard=(arm.hub.radius, 0.0)),
-        FixedMounting("mount"), arm_beam(arm, 3, True)], gravity=(0.0, 0.0))
-    n = model.n_coordinates
-    q0, v0 = np.zeros(n), np.zeros(n)
-    compile_s = first_compile(model)
-    simulate_rk4_generated(model, q0, v0, t_final=T_MANIPULATOR, dt=H_MANIPULATOR)
-    generated, generated_wall = best_of(lambda: simulate_rk4_generated(model, q0, v0, t_final=T_MANIPULATOR,
-                                                                       dt=H_MANIPULATOR))
-    short = simulate_rk4(model, q0, v0, t_final=0.2, dt=H_MANIPULATOR)
+    pd, pzt = HubPD(SEED_KP, SEED_KD), PZTFeedback(SEED_PZT_GAIN * np.eye(arm.n_patches))
+    system = FlexibleManipulator(arm, pd, pzt, SEED_MOVE)
+    compiled = CompiledManipulator(system, block=1, chunks=50)
+    compiled.simulate(T_MANIPULATOR, H_MANIPULATOR)
+    embedded, embedded_wall = best_of(lambda: compiled.simulate(T_MANIPULATOR, H_MANIPULATOR))
+    short = system.simulate(0.2, H_MANIPULATOR)
     steps = round(T_MANIPULATOR / H_MANIPULATOR)
-    row = {"first_compile_s": compile_s, "closed_form_per_step_us": closed_wall / steps * 1e6,
-           "generated_per_step_us": generated_wall / steps * 1e6,
-           "generated_over_closed_form": generated_wall / closed_wall,
-           "generated_real_time_factor": T_MANIPULATOR / generated_wall,
-           "closed_form_real_time_factor": T_MANIPULATOR / closed_wall,
-           "generated_minus_numpy_first_0p2s": float(np.max(np.abs(generated.q[:len(short.q)] - short.q)))}
-    print(f"manipulator: closed form {row['closed_form_per_step_us']:.2f} us/step, generated "
-          f"{row['generated_per_step_us']:.2f} us/step (ratio {row['generated_over_closed_form']:.2f})")
+    late = manipulator_scene(arm, pd=HubPD(SEED_KP, SEED_KD, delay=0.01), pzt=PZTFeedback(pzt.gains, delay=0.002))
+    references = {HUB_LOOP: cycloid_reference(SEED_KP, SEED_KD, SEED_MOVE)}
+    def run_delayed():
+        return ctmm.simulate(late, T_MANIPULATOR, H_MANIPULATOR, references=references, compiled=True,
+                             outputs=["arm.tip.w"])
+
+    start = time.perf_counter()
+    run_delayed()
+    first_call = time.perf_counter() - start
+    delayed = min((run_delayed() for _ in range(3)), key=lambda r: r.info["wall_time_s"])
+    numpy_run = ctmm.simulate(late, 0.2, H_MANIPULATOR, references=references, outputs=["arm.tip.w"])
+    rows = len(numpy_run.time)
+    row = {"embedded_per_step_us": embedded_wall / steps * 1e6,
+           "embedded_real_time_factor": T_MANIPULATOR / embedded_wall,
+           "embedded_minus_numpy_tip_first_0p2s": float(np.max(np.abs(embedded.tip_deflection[:len(short.t)]
+                                                                      - short.tip_deflection))),
+           "delayed_first_call_s": first_call,
+           "delayed_per_step_us": delayed.info["wall_time_s"] / steps * 1e6,
+           "delayed_real_time_factor": T_MANIPULATOR / delayed.info["wall_time_s"],
+           "delayed_numpy_per_step_us": numpy_run.info["wall_time_s"] / (rows - 1) * 1e6,
+           "delayed_minus_numpy_tip_first_0p2s": float(np.max(np.abs(delayed["arm.tip.w"][:rows]
+                                                                     - numpy_run["arm.tip.w"])))}
+    row["delayed_numpy_over_generated"] = row["delayed_numpy_per_step_us"] / row["delayed_per_step_us"]
+    print(f"manipulator: embedded {row['embedded_per_step_us']:.2f} us/step "
+          f"(RTF {row['embedded_real_time_factor']:.0f}); "
+          f"delayed loops {row['delayed_per_step_us']:.2f} us/step generated vs {row['delayed_numpy_per_step_us']:.0f} "
+          f"us/step numpy, |diff| {row['delayed_minus_numpy_tip_first_0p2s']:.1e} m")
     return row
 
 

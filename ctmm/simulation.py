@@ -186,12 +186,17 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         ``fast=True`` runs ``"rk4"`` in compiled C (:func:`ctmm.planar.compiled.simulate_rk4_compiled`;
         revolute trees with constant hinge laws, no loops; same numbers to round-off).
     compiled : bool, optional
-        Planar, ``"rk4"``, uncontrolled: ``True`` runs the RK4 time loop in C generated from the
-        element definitions (:func:`ctmm.compiled_scene.simulate_rk4_generated`; planar scenes --
-        rigid trees, modal beams, hub-beam, hinge and load signals with a symbolic form; compiled once
-        per structure and cached on disk; same numbers as the numpy path to round-off).  A scene it
-        cannot compile (user callables of time, driven motions, translational hinge springs) raises
-        :class:`ModelError`.  Default: the numpy path.
+        Planar, ``"rk4"``: ``True`` runs the RK4 time loop in C generated from the element
+        definitions (:func:`ctmm.compiled_scene.simulate_rk4_generated`; planar scenes -- rigid trees,
+        modal beams, hub-beam, hinge and load signals with a symbolic form; compiled once per structure
+        and cached on disk; same numbers as the numpy path to round-off).  A controlled planar model's
+        loops close inside the generated step (:func:`ctmm.compiled_control.simulate_controlled_generated`:
+        real-time loops at every stage, LTI controller states integrated, delayed loops with
+        ``delay = m dt`` from a ring of stored samples; references and inputs numbers or
+        :mod:`ctmm.signals` signals with a symbolic form).  What it cannot compile (user callables of
+        time, driven motions, translational hinge springs, delays that are not whole multiples of
+        ``dt``, beam station forces or moments, co-simulated controllers) raises :class:`ModelError`
+        naming it.  Default: the numpy path.
     progress : bool, optional
         Show a progress bar (default: long runs on a terminal).
     stability_check : {"warn", "error", "ignore"}, optional
@@ -346,10 +351,10 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
     what = [label for label, present in (("loops", loops), ("controllers", controllers), ("inputs", inputs),
                                          ("references", references)) if present]
     is_scheme = isinstance(method, Scheme) or (isinstance(method, str) and method in SCHEMES)
-    if compiled and (method != "rk4" or controlled):
-        raise ModelError(f"compiled=True runs the generated RK4 of an uncontrolled planar model; got "
-                         f"method={method!r}" + (f" with {', '.join(what)}" if controlled else "")
-                         + " (leave compiled at None)")
+    if compiled and (method != "rk4" or controllers):
+        raise ModelError(f"compiled=True runs the generated RK4 of a planar model with its loops, inputs and "
+                         f"references; got method={method!r}" + (" with co-simulated controllers (they sample "
+                         "in Python)" if controllers else "") + " (leave compiled at None)")
     if fast and (method != "rk4" or controlled):
         raise ModelError(f"fast=True runs the compiled RK4 of an uncontrolled planar model; got method={method!r}"
                          + (f" with {', '.join(what)}" if controlled else "") + " (leave fast at None)")
@@ -377,6 +382,14 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
     if compiled or fast:
         if dt is None:
             raise ModelError("dt is required with method='rk4' (a fixed step [s], > 0), got None")
+        if compiled and controlled:
+            from .compiled_control import simulate_controlled_generated
+            from .control.controlled_model import ControlledModel
+
+            return simulate_controlled_generated(ControlledModel(model, loops), q0, v0, t_final=t_final, dt=dt,
+                                                 inputs=inputs, references=references, outputs=outputs,
+                                                 store_every=store_every, divergence_bound=divergence_bound,
+                                                 stability_check=policy)
         if compiled:
             from .compiled_scene import simulate_rk4_generated as run_compiled
         else:

@@ -1,0 +1,539 @@
+"""Feedback loops closed inside generated kernels (issue 13: real-time and delayed loops, LTI controllers).
+
+A :class:`~ctmm.control.controlled_model.ControlledModel` is a planar plant with
+:class:`~ctmm.control.loops.Feedback` loops ``u = -C [ y(t - tau) - r(t - tau) ]``,
+``y = sum_i c_i sensor_i``.  :class:`ClosedLoops` states every loop on casadi symbols so that
+:class:`~ctmm.compiled_scene.CompiledScene` closes it inside the generated RK4 step, exactly as the
+numpy path of :mod:`ctmm.control.planar_time` does:
+
+* **sensors** (:func:`sensor_expression`): coordinates and their rates, body angles and rates,
+  hinge angles and rates, positions and velocities of named points, beam station deflections,
+  slopes and their rates -- every port of :mod:`ctmm.planar.ports` (all are functions of the
+  state ``(q, qdot)``; no port reads an acceleration, so no loop is algebraic);
+* **real-time loops** (``tau = 0``): evaluated at the state of every RK4 stage (no added lag);
+* **LTI controllers** ``C(s)`` (proper, SISO; the realisation of ``control.ss``): their states
+  ``z`` are appended to the integrated state, ``z' = A z + B e``, ``u = -(C z + D e)``;
+* **delayed loops** with ``tau = m dt`` (``m >= 1`` whole): the loop signal ``y`` and its time
+  derivative ``J_q qdot + J_qdot qddot`` (exact, by forward differentiation of the sensor
+  expression) are stored at every step in a ring of ``max m + 1`` samples carried in the fold
+  state; a stage at ``t_n`` or ``t_n + dt`` reads a stored sample, a stage at ``t_n + dt/2``
+  the cubic Hermite interpolant between two samples (third order, the interpolation of the
+  numpy path's :class:`~ctmm.control.history.DelayHistory`).  Before ``t = 0`` the history is
+  the initial value held (as the numpy path).  A delay that is not a whole multiple of ``dt``
+  is refused (:class:`~ctmm.errors.ModelError`).
+
+References ``r(t)`` and open-loop inputs are numbers or :mod:`ctmm.signals` objects with a
+symbolic form (constants, sines, steps, square waves), evaluated in the generated code at the
+stage times; the loop gains, controller matrices, delays, references and inputs are constants of
+the generated code (one library per loop set).  Refused: user callables as references or inputs,
+loops acting on beam station forces or moments (not on the element protocol yet,
+:func:`ctmm.compiled_scene.compiled_actuators`), co-simulated controllers.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+from .control.controlled_model import ControlledModel
+from .errors import ModelError
+from .ode import rk4_step
+from .planar.model import FREE, PlanarModel
+from .planar.ports import ActuatorInputs, PlanarPorts
+from .signals import as_signal, signal_parameters, symbolic_signal
+
+__all__ = ["ClosedLoops", "LoopLaw", "SymbolicKinematics", "SymbolicReference", "delay_steps", "sensor_expression"]
+
+_POINT_AXES = {"x": (0, 0), "y": (0, 1), "vx": (1, 0), "vy": (1, 1)}
+_STATION_PARTS = {"w": (0, False), "slope": (1, False), "w_dot": (0, True), "slope_rate": (1, True)}
+
+
+@dataclass(frozen=True)
+class LoopLaw:
+    """One loop stated for generated code.
+
+    Attributes
+    ----------
+    name : str
+    sensors, actuators : tuple of (str, float)
+        Weighted sensor and actuator terms.
+    A, B, C : ndarray
+        Controller realisation ``(k, k)``, ``(k,)``, ``(k,)`` (``k = 0`` for a static gain).
+    D : float
+        Feedthrough (the static gain).
+    delay : float
+        ``tau`` [s].
+    steps : int
+        ``tau / dt`` (0 for a real-time loop).
+    reference : callable
+        ``r(t)`` [sensed unit], a :mod:`ctmm.signals` object with a symbolic form.
+    """
+
+    name: str
+    sensors: tuple
+    actuators: tuple
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: float
+    delay: float
+    steps: int
+    reference: Any
+
+
+def delay_steps(name: str, delay: float, dt: float | None) -> int:
+    """``tau / dt`` of loop ``name`` as a whole number (0 for ``tau = 0``).
+
+    Raises
+    ------
+    ModelError
+        ``tau > 0`` without ``dt``, or not a whole multiple (>= 1) of ``dt``.
+    """
+    delay = float(delay)
+    if delay == 0.0:
+        return 0
+    if dt is None:
+        raise ModelError(f"loop {name!r}: a delayed loop (delay = {delay!r} s) needs the step dt to compile its "
+                         "history ring")
+    steps = int(round(delay / dt))
+    if steps < 1 or abs(steps * dt - delay) > 1e-9 * delay:
+        raise ModelError(f"loop {name!r}: delay = {delay!r} s is not a whole multiple of dt = {dt!r} s; generated "
+                         "kernels keep the history as a ring of samples stored every step (cubic Hermite at the "
+                         "half steps): choose dt = delay / m for a whole m >= 1, or compiled=False")
+    return steps
+
+
+def _controller(loop: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """``(A, B, C, D)`` of the loop's controller, ``B`` and ``C`` flat; a static gain is ``D`` alone."""
+    if not loop.is_lti:
+        return np.zeros((0, 0)), np.zeros(0), np.zeros(0), float(loop.gain)
+    import control
+
+    try:
+        system = control.ss(loop.gain)
+    except ValueError as exc:
+        raise ModelError(f"loop {loop.name!r}: the controller C(s) is improper and has no state-space form "
+                         f"({exc}); write a PD as weighted sensor terms with gain=1") from None
+    k = system.nstates
+    A = np.asarray(system.A, dtype=float).reshape(k, k)
+    return A, np.asarray(system.B, float).reshape(k), np.asarray(system.C, float).reshape(k), \
+        float(np.asarray(system.D, float).reshape(-1)[0])
+
+
+@dataclass(frozen=True)
+class SymbolicReference:
+    """A time signal given twice: as numbers and on casadi symbols (for references and inputs that
+    :mod:`ctmm.signals` has no class for, e.g. a cycloidal move).  Callable as ``r(t)`` [float], so the
+    numpy path takes it too.
+
+    Parameters
+    ----------
+    numeric : callable
+        ``t [s] -> float``.
+    symbolic : callable
+        ``t`` (casadi symbol) ``->`` casadi expression, the same operations.
+    """
+
+    numeric: Callable[[float], float]
+    symbolic: Callable[[Any], Any]
+
+    def __call__(self, t: float) -> float:
+        return float(self.numeric(t))
+
+
+def _symbolic(label: str, value: Any) -> Any:
+    """A number, a :mod:`ctmm.signals` object with a symbolic form or a :class:`SymbolicReference`, as a
+    signal; ModelError otherwise."""
+    if isinstance(value, SymbolicReference):
+        _check_forms(label, value)
+        return value
+    signal = as_signal(label, value)
+    if signal_parameters(signal) is None:
+        raise ModelError(f"{label} is a Python callable of time, which generated kernels cannot evaluate; give a "
+                         "number, a ctmm.signals Constant, Harmonic, Step or SquareWave, or a "
+                         "ctmm.compiled_loops.SymbolicReference, or use compiled=False")
+    return signal
+
+
+def _check_forms(label: str, reference: SymbolicReference) -> None:
+    """Refuse a :class:`SymbolicReference` whose two forms differ (relative 1e-12) at a few times [s]."""
+    import casadi as ca
+
+    t = ca.SX.sym("t")
+    try:
+        function = ca.Function("reference", [t], [reference.symbolic(t)])
+    except Exception as exc:  # noqa: BLE001 - report what the user's symbolic form did
+        raise ModelError(f"{label}: the symbolic form of the SymbolicReference failed on a casadi symbol "
+                         f"({exc!r})") from None
+    for time in (0.0, 0.013, 0.31, 0.77, 1.9, 4.3):
+        numeric, symbolic = reference(time), float(function(time))
+        if not abs(numeric - symbolic) <= 1e-12 * max(1.0, abs(numeric)):
+            raise ModelError(f"{label}: the SymbolicReference's numeric and symbolic forms differ at t = {time} s "
+                             f"({numeric!r} and {symbolic!r}); they must be the same signal")
+
+
+def _at(signal: Any, t: Any) -> Any:
+    if isinstance(signal, SymbolicReference):
+        return signal.symbolic(t)
+    return symbolic_signal(type(signal), t, signal_parameters(signal))
+
+
+# ------------------------------------------------------------------------------------------
+# sensors on symbols
+# ------------------------------------------------------------------------------------------
+def _dot(row: Any, column: Any, index: Sequence[int]) -> Any:
+    """``sum_k row[k] column[index[k]]`` on symbols (zero weights left out)."""
+    return sum((float(w) * column[int(k)] for w, k in zip(row, index) if w != 0.0), 0.0)
+
+
+class SymbolicKinematics:
+    """Angles, rates and point motions of a planar model on casadi symbols ``q, v`` (the numbers of
+    :meth:`~ctmm.planar.model.PlanarModel.points`; driven motions are constant, as generated kernels
+    require).
+
+    Parameters
+    ----------
+    model : PlanarModel
+    q, v : casadi SX
+        Coordinate and rate symbols (``n_coordinates`` each).
+    """
+
+    def __init__(self, model: PlanarModel, q: Any, v: Any) -> None:
+        import casadi as ca
+
+        self.model, self.q, self.v = model, q, v
+        driven = {i: (a, r) for i, a, r, _ in model.driven(0.0)}
+        nb = model.n_bodies
+        self.theta: list = [None] * nb
+        self.omega: list = [None] * nb
+        self.end_angle: list = [None] * nb         # angle and rate of the parent end body i hangs on
+        for i in range(nb):
+            p = int(model.parent[i])
+            if p >= 0:
+                th, om = self.theta[p], self.omega[p]
+                if p in model.beams:
+                    slope = model.end_slope(i)
+                    index = model.modal_index[p][:len(slope)]
+                    th, om = th + _dot(slope, q, index), om + _dot(slope, v, index)
+            else:
+                th, om = float(model.ground_angle[i]), 0.0
+            self.end_angle[i] = (th, om)
+            if model.theta_index[i] >= 0:
+                k = int(model.theta_index[i])
+                self.theta[i], self.omega[i] = q[k], v[k]
+            else:
+                angle, rate = driven[i]
+                self.theta[i], self.omega[i] = th + angle, om + rate
+        self.cos = [ca.cos(th) for th in self.theta]
+        self.sin = [ca.sin(th) for th in self.theta]
+        self._inboard: dict[int, tuple] = {}
+
+    def rotate(self, i: int, x: Any, y: Any) -> tuple:
+        return self.cos[i] * x - self.sin[i] * y, self.sin[i] * x + self.cos[i] * y
+
+    def beam_local(self, j: int, end: int) -> tuple:
+        """Deformed end ``end`` of beam ``j`` in its frame: position and velocity (2-tuples)."""
+        d, m = self.model.beams[j].data, self.model
+        index = m.modal_index[j]
+        nq = d.nq
+        position = (d.end_x[end] + _dot(d.end_psi[end], self.q, index[nq:]), _dot(d.end_phi[end], self.q, index[:nq]))
+        velocity = (_dot(d.end_psi[end], self.v, index[nq:]), _dot(d.end_phi[end], self.v, index[:nq]))
+        return position, velocity
+
+    def inboard(self, i: int) -> tuple:
+        """Position and velocity of body ``i``'s inboard end (2-tuples), global axes."""
+        if i in self._inboard:
+            return self._inboard[i]
+        m, q, v = self.model, self.q, self.v
+        p = int(m.parent[i])
+        if p >= 0:
+            (rp, vp), omega = self.inboard(p), self.omega[p]
+            if p in m.beams:
+                e, ed = self.beam_local(p, int(m.parent_end_index[i]))
+            else:
+                e, ed = tuple(float(x) for x in m.end_vector[i]), (0.0, 0.0)
+            rx, ry = self.rotate(p, *e)
+            dx, dy = self.rotate(p, *ed)
+            out = ((rp[0] + rx, rp[1] + ry), (vp[0] - omega * ry + dx, vp[1] + omega * rx + dy))
+        elif m.joint_kind[i] == FREE:
+            ix, iy = (int(k) for k in m.xy_index[i])
+            out = ((q[ix], q[iy]), (v[ix], v[iy]))
+        else:
+            out = (tuple(float(x) for x in m.ground_position[i]), (0.0, 0.0))
+        self._inboard[i] = out
+        return out
+
+    def point(self, i: int, name: str) -> tuple:
+        """Position and velocity of point ``name`` (``"inboard"``, ``"com"`` or an end) of body ``i``."""
+        m = self.model
+        (r, v), omega = self.inboard(i), self.omega[i]
+        if name == "inboard":
+            return r, v
+        if name == "com" and i in m.beams:         # the deformed centroid s_bar / m
+            d, index = m.beams[i].data, m.modal_index[i]
+            local = ((d.Sx + _dot(d.b_p, self.q, index[d.nq:])) / d.m, _dot(d.b_q, self.q, index[:d.nq]) / d.m)
+            rate = (_dot(d.b_p, self.v, index[d.nq:]) / d.m, _dot(d.b_q, self.v, index[:d.nq]) / d.m)
+        elif name == "com":
+            local, rate = tuple(float(x) for x in m.com[i]), (0.0, 0.0)
+        elif i in m.beams:
+            local, rate = self.beam_local(i, list(m.ends[i]).index(name))
+        else:
+            local, rate = tuple(float(x) for x in m.ends[i][name]), (0.0, 0.0)
+        x, y = self.rotate(i, *local)
+        dx, dy = self.rotate(i, *rate)
+        return (r[0] + x, r[1] + y), (v[0] - omega * y + dx, v[1] + omega * x + dy)
+
+
+def sensor_expression(ports: PlanarPorts, name: str, kinematics: SymbolicKinematics) -> Any:
+    """The value of sensor ``name`` of :mod:`ctmm.planar.ports` as a casadi expression of the
+    symbols of ``kinematics``."""
+    sensor = ports.resolve([name])[0]
+    m, q, v = kinematics.model, kinematics.q, kinematics.v
+    if sensor.kind == "coordinate":
+        return (v if sensor.part == "dot" else q)[sensor.index]
+    if sensor.kind == "body_angle":
+        return (kinematics.omega if sensor.part == "omega" else kinematics.theta)[sensor.index]
+    if sensor.kind == "hinge":
+        th, om = kinematics.end_angle[sensor.index]
+        if sensor.part == "rate":
+            return kinematics.omega[sensor.index] - om
+        return kinematics.theta[sensor.index] - th
+    if sensor.kind == "station":
+        derivative, rate = _STATION_PARTS[sensor.part]
+        beam = m.beams[sensor.index]
+        row = beam.shapes([beam.stations[sensor.point]], derivative)[:, 0]
+        return _dot(row, v if rate else q, m.modal_index[sensor.index][:row.size])
+    which, axis = _POINT_AXES[sensor.part]
+    return kinematics.point(sensor.index, sensor.point)[which][axis]
+
+
+# ------------------------------------------------------------------------------------------
+# the closed loop on symbols
+# ------------------------------------------------------------------------------------------
+class ClosedLoops:
+    """The loops of a controlled model stated on casadi symbols (module docstring).
+
+    Parameters
+    ----------
+    controlled : ControlledModel
+    actuators : sequence of str
+        The actuator inputs ``u`` of the generated kernel, in order.
+    dt : float or None
+        Step [s]; required with delayed loops (each delay a whole multiple of it).
+    references : mapping, optional
+        ``{loop name: number or symbolic signal}`` [sensed unit] (default 0).
+    inputs : mapping, optional
+        ``{actuator name: number or symbolic signal}`` open-loop actuator values [SI], added to the loops'.
+
+    Attributes
+    ----------
+    laws : tuple of LoopLaw
+    channels : list of (int, ActuatorInputs)
+        Loops acting on beam station forces or moments whose floating-frame wrenches cancel: the loop's
+        index and its loads per unit output (extra inputs of the sweep after ``actuators``).
+    n_controller_states : int
+    ring_columns : int
+        Stored samples per delayed loop (``max tau / dt + 1``; 0 without delayed loops).
+    state_size : int
+        Length of the integrated and folded state ``[q, qdot, z, ring]``.
+    """
+
+    def __init__(self, controlled: ControlledModel, actuators: Sequence[str], dt: float | None = None,
+                 references: Mapping[str, Any] | None = None, inputs: Mapping[str, Any] | None = None) -> None:
+        if not isinstance(controlled, ControlledModel):
+            raise ModelError(f"ClosedLoops: controlled must be a ctmm.control.ControlledModel, got {controlled!r}")
+        import casadi as ca
+
+        plant, ports = controlled.plant, controlled.ports
+        references = dict(references or {})
+        for name in references:
+            controlled.loop(name)                   # unknown loop names raise
+        self.actuators = tuple(actuators)
+        self.inputs = []
+        for name, value in dict(inputs or {}).items():
+            ports.check_actuator(name, "inputs: actuator")
+            if name not in self.actuators:
+                raise ModelError(f"inputs[{name!r}]: generated kernels drive the actuators "
+                                 f"{', '.join(self.actuators) or '(none)'}; station forces and moments of beams are "
+                                 "not on the element protocol yet (use compiled=False)")
+            self.inputs.append((self.actuators.index(name), _symbolic(f"inputs[{name!r}]", value)))
+        laws, self.channels = [], []
+        for loop in controlled.loops:
+            if any(actuator not in self.actuators for actuator, _ in loop.actuator_terms):
+                self.channels.append((len(laws), self._channel(ports, loop)))
+            A, B, C, D = _controller(loop)
+            reference = _symbolic(f"references[{loop.name!r}]", references.get(loop.name, 0.0))
+            laws.append(LoopLaw(loop.name, tuple(loop.terms), tuple(loop.actuator_terms), A, B, C, D,
+                                float(loop.delay), delay_steps(loop.name, loop.delay, dt), reference))
+        self.laws = tuple(laws)
+        self.n = plant.n_coordinates
+        self.n_controller_states = sum(law.A.shape[0] for law in laws)
+        self.delayed = [k for k, law in enumerate(laws) if law.steps]
+        self.ring_columns = max((law.steps for law in laws), default=0) + 1 if self.delayed else 0
+        self.state_size = 2 * self.n + self.n_controller_states + 2 * len(self.delayed) * self.ring_columns
+        q, v, a = (ca.SX.sym(label, self.n) for label in ("q", "v", "a"))
+        kinematics = SymbolicKinematics(plant, q, v)
+        cache: dict[str, Any] = {}
+
+        def sensed(name: str) -> Any:
+            if name not in cache:
+                cache[name] = sensor_expression(ports, name, kinematics)
+            return cache[name]
+
+        y = ca.vertcat(*[sum((w * sensed(s) for s, w in law.sensors), 0.0) for law in laws]) if laws else ca.SX(0, 1)
+        self.sensors = ca.Function("loop_sensors", [q, v], [y])
+        rates = ca.jtimes(y, ca.vertcat(q, v), ca.vertcat(v, a)) if laws else ca.SX(0, 1)
+        self.sensor_rates = ca.Function("loop_sensor_rates", [q, v, a], [rates])
+        weights = np.zeros((len(self.actuators), len(laws)))
+        channelled = {k for k, _ in self.channels}
+        for k, law in enumerate(laws):
+            for actuator, w in ([] if k in channelled else law.actuators):
+                weights[self.actuators.index(actuator), k] += float(w)
+        self.weights = weights
+
+    @staticmethod
+    def _channel(ports: PlanarPorts, loop: Any) -> ActuatorInputs:
+        """The loads of a loop acting on beam station forces or moments, per unit output: allowed when
+        their floating-frame wrenches cancel (e.g. a piezo patch's moment pair ``-M`` at ``x1``, ``+M`` at
+        ``x2``), which leaves modal forces only (on the element protocol)."""
+        weights: dict[str, float] = {}
+        for actuator, w in loop.actuator_terms:
+            weights[actuator] = weights.get(actuator, 0.0) + float(w)
+        unit = ports.inputs(weights)
+        scale = max(abs(w) for w in weights.values())
+        if any(np.max(np.abs(wrench)) > 1e-12 * scale for wrench in unit.frame_wrench.values()):
+            raise ModelError(f"loop {loop.name!r} acts on beam station forces or moments whose wrench on the beam's "
+                             "floating frame does not cancel; that wrench is not on the element protocol yet, so "
+                             "generated kernels cannot close this loop (a moment pair -M, +M at two stations "
+                             "compiles); use compiled=False")
+        return ActuatorInputs(unit.hinge_torque, unit.body_force, unit.modal_force)
+
+    # -- pieces of the state -----------------------------------------------------------------
+    def _split(self, x: Any) -> tuple:
+        n, nz = self.n, self.n_controller_states
+        return x[:n], x[n:2 * n], x[2 * n:2 * n + nz]
+
+    def _ring(self, state: Any) -> Any:
+        import casadi as ca
+
+        start = 2 * self.n + self.n_controller_states
+        return ca.reshape(state[start:], 2 * len(self.delayed), self.ring_columns)
+
+    def initial_state(self, q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
+        """``[q, qdot, z = 0, ring]`` at the start: every stored sample the initial loop signal with rate
+        0 (the history before ``t = 0`` is the initial state held)."""
+        y0 = np.asarray(self.sensors(q, qdot), dtype=float).reshape(-1)[self.delayed]
+        column = np.concatenate([y0, np.zeros(len(self.delayed))])
+        ring = np.tile(column[:, None], (1, self.ring_columns)).reshape(-1, order="F")
+        return np.concatenate([q, qdot, np.zeros(self.n_controller_states), ring])
+
+    # -- the closed-loop rate and step -----------------------------------------------------
+    def rate(self, acceleration: Any, u: Any, p: Any, t: Any, x: Any, delayed: Sequence[Any]) -> tuple:
+        """``(dx/dt, qddot)`` at time ``t`` and ``x = [q, qdot, z]`` with the delayed loop signals
+        ``delayed`` (one per delayed loop, in order)."""
+        import casadi as ca
+
+        q, v, z = self._split(x)
+        now = self.sensors(q, v)
+        outputs, rates, offset = [], [], 0
+        for k, law in enumerate(self.laws):
+            signal = delayed[self.delayed.index(k)] if law.steps else now[k]
+            e = signal - _at(law.reference, t - law.delay)
+            size = law.A.shape[0]
+            zk = z[offset:offset + size]
+            offset += size
+            outputs.append(-(ca.dot(ca.DM(law.C), zk) if size else 0.0) - law.D * e)
+            if size:
+                rates.append(ca.mtimes(ca.DM(law.A), zk) + ca.DM(law.B) * e)
+        total = u
+        if self.laws:
+            total = total + ca.mtimes(ca.DM(self.weights), ca.vertcat(*outputs))
+        for index, signal in self.inputs:
+            unit = np.zeros(len(self.actuators))
+            unit[index] = 1.0
+            total = total + ca.DM(unit) * _at(signal, t)
+        total = ca.vertcat(total, *[outputs[k] for k, _ in self.channels])
+        qddot = acceleration(q, v, total, p, t)
+        return ca.vertcat(v, qddot, *rates), qddot
+
+    def step(self, acceleration: Any, n_inputs: int, n_parameters: int) -> Any:
+        """``step(Y, u, h, p, t0, k)``: RK4 step ``k`` (from ``t0 + k h``) of the closed loop, ``Y`` the
+        state ``[q, qdot, z, ring]`` (:attr:`state_size`), ``u`` the ``n_inputs`` held actuator values;
+        ``acceleration(q, v, [u; channels], p, t)`` the plant's generated sweep (a casadi Function) whose
+        inputs continue with one per :attr:`channels` entry."""
+        import casadi as ca
+
+        Y, u, h = ca.MX.sym("y", self.state_size), ca.MX.sym("u", n_inputs), ca.MX.sym("h")
+        p, t0, k = ca.MX.sym("p", n_parameters), ca.MX.sym("t0"), ca.MX.sym("k")
+        x = Y[:2 * self.n + self.n_controller_states]
+        t = t0 + k * h
+        if not self.delayed:
+            def rate(stage: Any, state: Any) -> Any:
+                return self.rate(acceleration, u, p, stage, state, ())[0]
+
+            return ca.Function("step", [Y, u, h, p, t0, k], [rk4_step(rate, t, x, h)])
+        ring, last = self._ring(Y), self.ring_columns - 1
+        shifted = ring[:, 1:]
+        steps = [self.laws[j].steps for j in self.delayed]
+        count = len(self.delayed)
+
+        def read(table: Any, stage: str) -> list:
+            out = []
+            for d, m in enumerate(steps):
+                left, right = table[d, last - m], table[d, last - m + 1]
+                if stage == "start":
+                    out.append(left)
+                elif stage == "end":
+                    out.append(right)
+                else:                       # cubic Hermite at the half step; the state held before t = 0
+                    middle = 0.5 * (left + right) + 0.125 * h * (table[count + d, last - m]
+                                                                 - table[count + d, last - m + 1])
+                    out.append(ca.if_else(k < m, left, middle))
+            return out
+
+        placeholder = ca.horzcat(shifted, ca.MX.zeros(2 * count, 1))       # sample n not read at t_n
+        first, qddot = self.rate(acceleration, u, p, t, x, read(placeholder, "start"))
+        q, v, _ = self._split(x)
+        sample = ca.vertcat(self.sensors(q, v)[self.delayed], self.sensor_rates(q, v, qddot)[self.delayed])
+        table = ca.horzcat(shifted, sample)
+        calls = [0]
+
+        def rate(stage: Any, state: Any) -> Any:
+            calls[0] += 1
+            if calls[0] == 1:
+                return first
+            return self.rate(acceleration, u, p, stage, state, read(table, "end" if calls[0] == 4 else "half"))[0]
+
+        out = ca.vertcat(rk4_step(rate, t, x, h), ca.reshape(table, -1, 1))
+        return ca.Function("step", [Y, u, h, p, t0, k], [out])
+
+    def signals(self) -> Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+        """``(y, u)`` (rows, loops) of stored states ``Y`` (rows, :attr:`state_size`) at times ``t``
+        (rows,): each loop's signal now and its output (the delayed sample of the row time from the
+        ring; as the numpy path's ``<loop>.y`` and ``<loop>.u``)."""
+        import casadi as ca
+
+        Y, t = ca.SX.sym("y", self.state_size), ca.SX.sym("t")
+        x = Y[:2 * self.n + self.n_controller_states]
+        q, v, z = self._split(x)
+        now = self.sensors(q, v)
+        ring = self._ring(Y) if self.delayed else None
+        outputs, offset = [], 0
+        for k, law in enumerate(self.laws):
+            signal = ring[self.delayed.index(k), self.ring_columns - law.steps] if law.steps else now[k]
+            e = signal - _at(law.reference, t - law.delay)
+            size = law.A.shape[0]
+            outputs.append(-(ca.dot(ca.DM(law.C), z[offset:offset + size]) if size else 0.0) - law.D * e)
+            offset += size
+        function = ca.Function("loop_signals", [Y, t], [now, ca.vertcat(*outputs) if outputs else ca.SX(0, 1)])
+
+        def evaluate(states: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            rows = len(times)
+            if rows == 0 or not self.laws:
+                return np.zeros((rows, len(self.laws))), np.zeros((rows, len(self.laws)))
+            mapped = function.map(rows)
+            y, u = mapped(np.asarray(states, float).T, np.asarray(times, float)[None, :])
+            return np.asarray(y).T, np.asarray(u).T
+
+        return evaluate

@@ -1,0 +1,196 @@
+"""What a generated kernel of a planar scene takes as inputs and keeps as constants (issue 13).
+
+:func:`compile_refusal` says why a model cannot be compiled; :func:`parameter_vector` lists the
+numbers a kernel takes as its input ``p`` and :func:`symbolic_numbers` states them on symbols;
+:func:`structure_key` hashes what the generated code keeps as constants (the scenes one library
+serves); :func:`compiled_actuators` lists the actuator inputs ``u``.  Used by
+:class:`ctmm.compiled_scene.CompiledScene`.
+"""
+from __future__ import annotations
+
+import hashlib
+from typing import Any
+
+import numpy as np
+
+from .errors import ModelError
+from .planar.body_forms import PlanarScene, SceneNumbers
+from .planar.deformable import DeformableBody
+from .planar.elements import DrivenHinge, Hinge
+from .planar.model import REVOLUTE, PlanarModel
+from .planar.ports import PlanarPorts
+from .signals import SYMBOLIC_FIELDS, Constant, signal_parameters, symbolic_signal
+
+__all__ = ["compile_refusal", "compiled_actuators", "constants_key", "parameter_vector", "structure_key",
+           "symbolic_numbers"]
+
+
+def compile_refusal(model: Any) -> str:
+    """Why ``model`` cannot be compiled by :class:`CompiledScene` (empty string when it can)."""
+    if not isinstance(model, PlanarModel):
+        return f"a ctmm.planar.PlanarModel is compiled, got {type(model).__name__}"
+    reasons = [f"time-dependent signals without a symbolic form in {name!r}"
+               for name in _time_dependent_elements(model)]
+    for j, beam in model.beams.items():
+        data = beam.data
+        if not data.constant_distributed or data.forces or data.laws:
+            reasons.append(f"time-dependent loads or modal force hooks on beam {model.body_names[j]!r}")
+    if reasons:
+        return (f"model {model.name!r} has " + "; ".join(reasons) + " (Python callables of time, not compiled; "
+                "use ctmm.signals Constant, Harmonic, Step or SquareWave, or the numpy path, compiled=False)")
+    try:
+        PlanarScene(model)
+    except ModelError as exc:
+        return str(exc)
+    return ""
+
+
+def _time_dependent_elements(model: PlanarModel) -> list[str]:
+    """Names of the elements with a time signal that the generated code cannot evaluate: driven motions
+    that are not constant (fixed mountings are), hinge references and torques and rigid-body loads
+    without a symbolic form (:data:`ctmm.signals.SYMBOLIC_FIELDS`: user callables), beam loads that are
+    not constant."""
+    names = []
+    for element in model.elements:
+        symbolic: list = []
+        constant: list = []
+        if isinstance(element, DrivenHinge):
+            constant = [element.angle, element.rate, element.acceleration]
+        elif isinstance(element, Hinge):
+            symbolic = list(element.law()[2:])
+        loads = [f for load in getattr(element, "loads", ()) for f in (load.force_x, load.force_y, load.moment)]
+        if isinstance(element, DeformableBody):
+            constant += loads
+        else:
+            symbolic += loads
+        if any(f is not None and not isinstance(f, Constant) for f in constant) or \
+                any(f is not None and signal_parameters(f) is None for f in symbolic):
+            names.append(element.name)
+    return names
+
+
+def parameter_vector(model: PlanarModel) -> np.ndarray:
+    """The numbers of ``model`` that generated kernels take as inputs, in their order: masses, inertias,
+    centres of mass, outboard points, gravity, hinge stiffnesses, dampings, then the parameters of the
+    hinge references, reference rates, torques and loads (each signal's
+    :func:`ctmm.signals.signal_parameters`: a constant's value, a sine's amplitude, frequency and phase,
+    ...) and the load points (:class:`~ctmm.planar.body_forms.SceneNumbers`, SI units).
+
+    Raises
+    ------
+    ModelError
+        A hinge or load signal without a symbolic form (a user callable).
+    """
+    numbers = SceneNumbers.of(model)
+    parts = [numbers.mass, numbers.inertia, np.reshape(numbers.center_of_mass, -1)]
+    parts += [np.reshape(point, -1) for ends in numbers.ends for point in ends.values()]
+    parts += [numbers.gravity, numbers.stiffness, numbers.damping]
+    signals = _signals(model)
+    signal_parts = [signal_parameters(signal) for signal in signals]
+    without = [signal for signal, part in zip(signals, signal_parts) if part is None]
+    if without:
+        raise ModelError(f"parameter_vector: model {model.name!r} has hinge or load signals without a symbolic form "
+                         f"({without[0]!r}); allowed: ctmm.signals Constant, Harmonic, Step, SquareWave")
+    parts += signal_parts + [np.reshape(numbers.load_point, -1)]
+    return np.concatenate([np.asarray(part, dtype=float).reshape(-1) for part in parts])
+
+
+def _signals(model: PlanarModel) -> list:
+    """The hinge references, reference rates and torques (per body, its inboard joint; zero for other
+    joints) and the rigid-body load components ``(fx, fy, moment)`` of ``model``, in
+    :func:`parameter_vector` order."""
+    by_name = {getattr(element, "name", None): element for element in model.elements}
+    zero = Constant(0.0)
+    laws = []
+    for name, kind in zip(model.joint_names, model.joint_kind):
+        element = by_name.get(name)
+        if kind == REVOLUTE and isinstance(element, Hinge):
+            laws.append(tuple(zero if f is None else f for f in element.law()[2:]))
+        else:
+            laws.append((zero, zero, zero))
+    loads = [f for name in model.body_names for load in getattr(by_name[name], "loads", ())
+             for f in (load.force_x, load.force_y, load.moment)]
+    return [law[c] for c in range(3) for law in laws] + loads
+
+
+def symbolic_numbers(model: PlanarModel, p: Any, t: Any) -> SceneNumbers:
+    """:class:`SceneNumbers` of entries of the symbol column ``p`` (:func:`parameter_vector` order) at
+    the time symbol ``t``: signals by their symbolic form; the entries that are zero in ``model`` are
+    the constant 0.  ``p = None``: every entry the model's number (constants of the code)."""
+    nb, nl = model.n_bodies, len(model.load_body)
+    # the model's zeros stay constants of the code (part of the structure): a smooth hinge, a centred
+    # mass, a zero gravity component cost nothing, as when every number was a constant
+    values = parameter_vector(model)
+    entries = list(values) if p is None else [0.0 if value == 0.0 else p[k] for k, value in enumerate(values)]
+    cursor = [0]
+
+    def take(count: int) -> list:
+        start = cursor[0]
+        cursor[0] += count
+        return entries[start:start + count]
+
+    def pairs(count: int) -> list:
+        flat = take(2 * count)
+        return [(flat[2 * k], flat[2 * k + 1]) for k in range(count)]
+
+    mass, inertia, com = take(nb), take(nb), pairs(nb)
+    ends = [dict(zip(points, pairs(len(points)))) for points in model.ends]
+    gravity = take(2)
+    stiffness, damping = take(nb), take(nb)
+    values = [symbolic_signal(type(signal), t, take(len(SYMBOLIC_FIELDS[type(signal)])))
+              for signal in _signals(model)]
+    reference, reference_rate, torque = values[:nb], values[nb:2 * nb], values[2 * nb:3 * nb]
+    loads = [values[3 * nb + 3 * k:3 * nb + 3 * k + 3] for k in range(nl)]
+    load_point = pairs(nl)
+    return SceneNumbers(mass, inertia, com, ends, gravity, stiffness, damping, reference, reference_rate, torque,
+                        loads, load_point)
+
+
+def structure_key(model: PlanarModel) -> str:
+    """SHA-256 (hex) of what a generated kernel keeps as constants: the tree, joint kinds, point and
+    load layout, coordinates, actuators, ground angles, fixed mountings, the kinds of the time signals,
+    which numbers are zero (constants 0 of the code) and the modal beams' data (with gravity, which the
+    beams take as a constant).  Two models with one key run on one compiled
+    :class:`CompiledScene` with their own :func:`parameter_vector`; a beam whose definition holds an
+    object without a value ``repr`` makes the key unique to the model (never shared)."""
+    digest = hashlib.sha256()
+    parts: list[Any] = [model.parent, model.joint_kind, model.ground_angle, model.theta_index, model.load_body,
+                        [list(ends) for ends in model.ends], [np.asarray(idx).tolist() for idx in model.modal_index],
+                        [np.asarray(idx).tolist() for idx in model.xy_index], model.n_coordinates,
+                        model.parent_end, model.parent_end_index, list(compiled_actuators(model)), model.driven(0.0),
+                        [type(signal).__name__ for signal in _signals(model)],
+                        np.flatnonzero(parameter_vector(model) == 0.0)]
+    # the actuators' unit patterns follow from their names (a hinge torque, a force at a centre of mass)
+    # and, on beams, from the beam definitions below
+    if model.beams:
+        parts.append(model.gravity)
+        for j, beam in sorted(model.beams.items()):
+            # the beam's data derive from its definition (a dataclass of numbers and constant signals);
+            # a definition whose text shows an object address makes the key unique to the model
+            text = repr(beam)
+            parts.append((j, text if " at 0x" not in text else f"model {id(model)}"))
+    digest.update(repr(_plain(parts)).encode())
+    return digest.hexdigest()
+
+
+def constants_key(model: PlanarModel) -> str:
+    """:func:`structure_key` and every number: the scenes a kernel with the numbers as constants serves."""
+    return hashlib.sha256((structure_key(model) + repr(parameter_vector(model).tolist())).encode()).hexdigest()
+
+
+def _plain(value: Any) -> Any:
+    """Arrays as nested lists of Python numbers (full precision in ``repr``), recursively."""
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, (list, tuple)):
+        return [_plain(x) for x in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def compiled_actuators(model: PlanarModel) -> tuple[str, ...]:
+    """The actuators a generated kernel takes as inputs: every actuator of ``model`` but the station
+    forces and moments of beams (their floating-frame part is not on the element protocol yet)."""
+    ports = PlanarPorts(model)
+    return tuple(name for name, actuator in ports.actuators.items() if actuator.kind != "station")
