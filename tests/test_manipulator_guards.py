@@ -112,11 +112,11 @@ def test_controller_failing_at_the_first_sample_gives_an_empty_partial_result(sy
 
 
 def test_both_manipulator_models_refuse_a_pzt_law_that_does_not_fit():
-    from ctmm.manipulator import LinearManipulator
+    from ctmm.manipulator import manipulator_scene
 
     seed = seed_manipulator()
     for make in (lambda pzt: FlexibleManipulator(seed, HubPD(SEED_KP, SEED_KD), pzt, SEED_MOVE),
-                 lambda pzt: LinearManipulator(seed, HubPD(SEED_KP, SEED_KD), pzt)):
+                 lambda pzt: manipulator_scene(seed, pd=HubPD(SEED_KP, SEED_KD), pzt=pzt)):
         with pytest.raises(ModelError, match="pzt gains are for 2 patches, the manipulator has 3"):
             make(PZTFeedback(np.eye(2)))
         with pytest.raises(ModelError, match="pzt must be a PZTFeedback or None, got 'fast'"):
