@@ -47,7 +47,7 @@ from scipy.integrate import solve_ivp  # noqa: E402
 
 from ctmm.compiled_scene import CompiledScene, parameter_vector, simulate_batch, simulate_rk4_generated  # noqa: E402
 from ctmm.flexible import ModalBeam  # noqa: E402
-from ctmm.manipulator import SEED_KD, SEED_KP, SEED_MOVE, FlexibleManipulator, HubPD, seed_manipulator  # noqa: E402
+from ctmm.manipulator import SEED_KD, SEED_KP, SEED_MOVE, HubPD, seed_manipulator  # noqa: E402
 from ctmm.manipulator.compiled import CompiledManipulator  # noqa: E402
 from ctmm.manipulator.scene import arm_beam  # noqa: E402
 from ctmm.planar import ActuatedHinge, Fixed, PlanarModel, RigidBody  # noqa: E402
@@ -159,8 +159,7 @@ def chain_rows(quick: bool) -> list:
 
 def manipulator_row() -> dict:
     arm = seed_manipulator()
-    system = FlexibleManipulator(arm, HubPD(SEED_KP, SEED_KD), None, SEED_MOVE)
-    closed_form = CompiledManipulator(system, block=1, chunks=50)
+    closed_form = CompiledManipulator(arm, HubPD(SEED_KP, SEED_KD), None, SEED_MOVE, block=1, chunks=50)
     closed_form.simulate(T_MANIPULATOR, H_MANIPULATOR)
     _, closed_wall = best_of(lambda: closed_form.simulate(T_MANIPULATOR, H_MANIPULATOR))
     model = PlanarModel.chain("manipulator_pd", [

@@ -93,8 +93,8 @@ def test_compiled_path_stops_at_the_first_bad_block(system):
 
     for bad in ({"block": 0}, {"block": 2.5}, {"chunks": True}):
         with pytest.raises(ModelError, match=f"{next(iter(bad))} must be an integer >= 1"):
-            CompiledManipulator(system, **bad)
-    compiled = CompiledManipulator(system, block=2, chunks=5)
+            CompiledManipulator(system.manipulator, system.pd, system.pzt, system.reference, **bad)
+    compiled = CompiledManipulator(system.manipulator, system.pd, system.pzt, system.reference, block=2, chunks=5)
     with pytest.warns(StabilityLimitWarning):
         with pytest.raises(SimulationError, match="diverged") as info:
             compiled.simulate(0.4, 0.02, divergence_bound=1.0)

@@ -8,7 +8,8 @@ fields with ``fields="exact"``), :mod:`~ctmm.manipulator.simulation` (the older 
 modal beam, kept for the PZT voltage saturation and the compiled fast path).  Derivations and numbers: ``docs/manipulator.md``.
 """
 from .laws import HubPD, PZTFeedback
-from .simulation import FlexibleManipulator, ManipulatorSimulation
+from .results import ManipulatorSimulation
+from .simulation import FlexibleManipulator
 from .scene import manipulator_plant, manipulator_scene, scene_references
 from .parameters import (PZT_5A, PZT_5H, SEED_KD, SEED_KP, SEED_MOVE, SEED_PZT_GAIN, Arm, CycloidalMove, Hub,
                          Manipulator, PiezoMaterial, PZTPatch, moment_per_volt, seed_manipulator)

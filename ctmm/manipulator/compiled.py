@@ -39,8 +39,10 @@ from .. import validation
 from ..codegen import load_casadi
 from ..errors import ModelError
 from ..ode import rk4_step
-from .parameters import CycloidalMove
-from .simulation import FlexibleManipulator, ManipulatorSimulation
+from .laws import HubPD, PZTFeedback, check_pzt
+from .parameters import CycloidalMove, Manipulator
+from .results import ManipulatorSimulation
+from .scene import arm_beam, patch_slope_matrix
 
 __all__ = ["CompiledManipulator"]
 
@@ -126,49 +128,76 @@ def _library(n: int, block: int, chunks: int):
 
 
 class CompiledManipulator:
-    """Compiled RK4 of a :class:`FlexibleManipulator` with embedded laws.
+    """Compiled RK4 of the manipulator with embedded laws (the scene of :func:`~ctmm.manipulator.manipulator_scene`
+    with undelayed, unsaturated loops, tracking a cycloidal move).
 
     Parameters
     ----------
-    system : FlexibleManipulator
-        Needs ``pd`` without delay, ``pzt`` without delay and not saturating (``on_limit``
-        ``"report"`` or ``"raise"`` is checked after the run), and a :class:`CycloidalMove`
-        reference.
+    manipulator : Manipulator
+        Arm, hub and patches.
+    pd : HubPD
+        The hub PD, without delay.
+    pzt : PZTFeedback or None
+        The PZT law without delay and not saturating (``on_limit`` ``"report"``, or ``"raise"``:
+        checked after the run); ``None``: patches not driven.
+    reference : CycloidalMove
+        Desired hub angle.
+    n_modes : int
+        Clamped-free modes of the arm (seed: 3).
+    geometric_stiffening : bool
+        Centrifugal stiffening of the arm.
     block : int
         RK4 steps per stored state (``store_every``).
     chunks : int
         Stored states per compiled call.
     """
 
-    def __init__(self, system: FlexibleManipulator, *, block: int = 1, chunks: int = 250) -> None:
+    def __init__(self, manipulator: Manipulator, pd: HubPD, pzt: PZTFeedback | None, reference: CycloidalMove, *,
+                 n_modes: int = 3, geometric_stiffening: bool = True, block: int = 1, chunks: int = 250) -> None:
+        if not isinstance(manipulator, Manipulator):
+            raise ModelError(f"manipulator must be a ctmm.manipulator.Manipulator, got {manipulator!r}")
+        if pd is not None and not isinstance(pd, HubPD):
+            raise ModelError(f"pd must be a ctmm.manipulator.HubPD, got {pd!r}")
+        check_pzt(pzt, manipulator.n_patches)
+        if isinstance(n_modes, bool) or not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
+            raise ModelError(f"n_modes must be an integer >= 1, got {n_modes!r}")
         problems = []
-        if system.pd is None or system.pd.delay > 0:
+        if pd is None or pd.delay > 0:
             problems.append("an embedded (undelayed) hub PD")
-        if system.pzt is not None and (system.pzt.delay > 0 or system.pzt.on_limit == "saturate"):
+        if pzt is not None and (pzt.delay > 0 or pzt.on_limit == "saturate"):
             problems.append("an embedded, unsaturated PZT law (no delay)")
-        if not isinstance(system.reference, CycloidalMove):
+        if not isinstance(reference, CycloidalMove):
             problems.append("a CycloidalMove reference")
         if problems:
             raise ModelError("the compiled manipulator path needs " + ", ".join(problems)
-                             + "; use FlexibleManipulator.simulate instead")
+                             + "; use ctmm.simulate(manipulator_scene(...)) instead")
         for label, value in (("block", block), ("chunks", chunks)):
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
                 raise ModelError(f"{label} must be an integer >= 1, got {value!r}")
-        self.system = system
+        self.manipulator, self.pd, self.pzt, self.reference = manipulator, pd, pzt, reference
         self.block, self.chunks = int(block), int(chunks)
-        self.n = system.n_modes
+        self.n = int(n_modes)
+        self._beam = arm_beam(manipulator, self.n, geometric_stiffening)
+        self.slope_matrix = patch_slope_matrix(self._beam, manipulator)
         self._acc, self._loop, self._size = _library(self.n, self.block, self.chunks)
+
+    @property
+    def pzt_damping(self) -> np.ndarray:
+        """``D_pzt = Psi^T diag(c_a) G Psi`` [N s/m]: the embedded PZT law on the modal equations."""
+        if self.pzt is None:
+            return np.zeros((self.n, self.n))
+        Psi = self.slope_matrix
+        return Psi.T @ (self.manipulator.moments_per_volt[:, None] * self.pzt.gains) @ Psi
 
     def parameters(self, dt: float) -> np.ndarray:
         """The run-time parameter vector (layout of ``_parameter_layout``)."""
-        s = self.system
-        d = s._beam.data
-        beam = s._beam
-        mv = s.reference
-        hub = s.manipulator.hub
-        scal = [d.m, d.Sx, d.I0, d.rhoA, hub.inertia, hub.radius, s.pd.kp, s.pd.kd, dt,
+        beam = self._beam
+        d = beam.data
+        mv = self.reference
+        hub = self.manipulator.hub
+        scal = [d.m, d.Sx, d.I0, d.rhoA, hub.inertia, hub.radius, self.pd.kp, self.pd.kd, dt,
                 1.0 if beam.geometric_stiffening else 0.0, 0.0]
-        D = d.D + s.pzt_damping
+        D = d.D + self.pzt_damping
         parts = [scal, [mv.start_angle, mv.final_angle, mv.duration, mv.start_time], d.b_q, d.c_q,
                  d.M_q.T.ravel(), d.K_q.T.ravel(), D.T.ravel(), d.G2.T.ravel(), d.G3.T.ravel()]
         p = np.concatenate([np.ravel(np.asarray(x, float)) for x in parts])
@@ -191,7 +220,7 @@ class CompiledManipulator:
         """RK4 from rest; stores every ``block``-th step.  ``t_final`` must be a multiple of
         ``block * dt``.
 
-        ``divergence_bound`` and ``stability_check`` as in :meth:`FlexibleManipulator.simulate`;
+        ``divergence_bound`` and ``stability_check`` as in :func:`ctmm.simulate`;
         the bound is checked on every compiled block of stored states (no per-step Python work),
         and a run that diverges or goes non-finite raises :class:`~ctmm.errors.SimulationError`
         at the first bad stored state with the history up to the last good one as
@@ -202,7 +231,6 @@ class CompiledManipulator:
         from ..planar.guards import check_scheme, check_stored
         from ..planar.integrate import step_total
 
-        s = self.system
         n_steps = step_total(t_final, dt)              # validates t_final and dt
         dt = float(dt)
         if n_steps % self.block:
@@ -211,7 +239,7 @@ class CompiledManipulator:
         p = self.parameters(dt)
         n = self.n
         z = np.zeros(2 * n + 3)
-        z[0] = s.reference.angle(0.0) if theta0 is None else validation.finite("theta0", theta0)
+        z[0] = self.reference.angle(0.0) if theta0 is None else validation.finite("theta0", theta0)
         names = ["hub.theta"] + [f"arm.q{i + 1}" for i in range(n)]
         guard = DivergenceGuard.from_start(names, z[:1 + n], z[:1 + n], bound=divergence_bound)
         check_scheme(None, z[:1 + n], z[1 + n:2 + 2 * n], dt, scheme="rk4", policy=stability_check,
@@ -240,30 +268,29 @@ class CompiledManipulator:
     def _result(self, Y: np.ndarray, wall: float, dt: float, n_blocks: int, *,
                 check_limit: bool = True) -> ManipulatorSimulation:
         """Histories from the stored states ``Y`` (rows ``[q, qdot, t]``); voltage limit check."""
-        s = self.system
         n = self.n
         t = Y[:, -1]
         q, v = Y[:, :1 + n], Y[:, 1 + n:2 + 2 * n]
-        pd, mv = s.pd, s.reference
+        pd, mv, pzt, manipulator = self.pd, self.reference, self.pzt, self.manipulator
         desired = mv.angle(t)
         torque = pd.kp * (desired - q[:, 0]) + pd.kd * (mv.rate(t) - v[:, 0])
-        if s.pzt is not None:
-            V = -(s.pzt.gains @ (s.slope_matrix @ v[:, 1:].T)).T
+        if pzt is not None:
+            V = -(pzt.gains @ (self.slope_matrix @ v[:, 1:].T)).T
         else:
-            V = np.zeros((t.size, s.manipulator.n_patches))
-        limit = s.manipulator.voltage_limit
+            V = np.zeros((t.size, manipulator.n_patches))
+        limit = manipulator.voltage_limit
         peak = float(np.abs(V).max()) if V.size else 0.0
         over = np.any(np.abs(V) > limit, axis=1) if V.size else np.zeros(t.size, bool)
         result = ManipulatorSimulation(
             t=t, theta=q[:, 0], theta_dot=v[:, 0], desired=np.asarray(desired, float), q=q[:, 1:], q_dot=v[:, 1:],
-            tip_deflection=q[:, 1:] @ s.tip_shape, voltages=V, torque=torque, method="rk4-compiled", dt=dt,
+            tip_deflection=q[:, 1:] @ self._beam.data.tip_phi, voltages=V, torque=torque, method="rk4-compiled", dt=dt,
             wall_time_s=wall, n_evaluations=4 * n_blocks * self.block, voltage_limit=limit, peak_voltage=peak,
             time_over_limit=float(np.count_nonzero(over) * dt * self.block), saturated=np.zeros(t.size, bool))
-        if check_limit and s.pzt is not None and s.pzt.on_limit == "raise" and peak > limit:
+        if check_limit and pzt is not None and pzt.on_limit == "raise" and peak > limit:
             from ..errors import SimulationError
 
             k = int(np.argmax(over))
-            patch = s.manipulator.patch_names[int(np.argmax(np.abs(V[k])))]
+            patch = manipulator.patch_names[int(np.argmax(np.abs(V[k])))]
             raise SimulationError(f"voltage limit exceeded at t = {t[k]:.6g} s: patch {patch!r} needs "
                                   f"{peak:.4g} V > {limit:g} V", time=float(t[k]), element=patch,
                                   partial_result=self._result(Y[:k], wall, dt, k - 1, check_limit=False))
