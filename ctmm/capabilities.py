@@ -27,7 +27,7 @@ _OTHER_PACKAGES = {
                      "ctmm.linearize, ctmm.frequency_response, ctmm.natural_frequencies, ctmm.mode_shapes, "
                      "ctmm.stability with loops",
     "ctmm.manipulator": "ctmm.manipulator.manipulator_scene (a ControlledModel for every verb; exact beam fields "
-                        "with fields='exact'), or FlexibleManipulator.simulate for the PZT voltage saturation",
+                        "with fields='exact'; the PZT voltage limit as loop saturation, on_limit='saturate')",
 }
 
 
