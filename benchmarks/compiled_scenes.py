@@ -170,7 +170,7 @@ def manipulator_row() -> dict:
     arm = seed_manipulator()
     pd, pzt = HubPD(SEED_KP, SEED_KD), PZTFeedback(SEED_PZT_GAIN * np.eye(arm.n_patches))
     system = FlexibleManipulator(arm, pd, pzt, SEED_MOVE)
-    compiled = CompiledManipulator(system, block=1, chunks=50)
+    compiled = CompiledManipulator(arm, pd, pzt, SEED_MOVE, block=1, chunks=50)
     compiled.simulate(T_MANIPULATOR, H_MANIPULATOR)
     embedded, embedded_wall = best_of(lambda: compiled.simulate(T_MANIPULATOR, H_MANIPULATOR))
     short = system.simulate(0.2, H_MANIPULATOR)

@@ -84,7 +84,7 @@ def main(quick: bool = False) -> dict:
     compiled = {}
     for dt in ladder:
         block = max(1, int(round(GRID / dt)))
-        cm = CompiledManipulator(system, block=block, chunks=50)
+        cm = CompiledManipulator(system.manipulator, system.pd, system.pzt, system.reference, block=block, chunks=50)
         compiled[dt] = cm
         sim = cm.simulate(T_WP, dt)                      # warm (library load)
         best = min(cm.simulate(T_WP, dt).wall_time_s for _ in range(3))

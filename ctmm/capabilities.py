@@ -26,8 +26,8 @@ _OTHER_PACKAGES = {
     "ctmm.flexible": "the verbs that answer every model (planar models with ctmm.flexible beams): ctmm.simulate, "
                      "ctmm.linearize, ctmm.frequency_response, ctmm.natural_frequencies, ctmm.mode_shapes, "
                      "ctmm.stability with loops",
-    "ctmm.manipulator": "ctmm.manipulator.manipulator_scene (a ControlledModel for the verbs) or the model's own "
-                        "methods (FlexibleManipulator.simulate, LinearManipulator.system)",
+    "ctmm.manipulator": "ctmm.manipulator.manipulator_scene (a ControlledModel for every verb; exact beam fields "
+                        "with fields='exact'; the PZT voltage limit as loop saturation, on_limit='saturate')",
 }
 
 

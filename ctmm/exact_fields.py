@@ -41,6 +41,7 @@ import numpy as np
 
 from . import validation
 from .errors import ModelError
+from .saturation import refuse_saturation
 from .loop_phasors import close_loops
 from .results import FrequencyResponse
 
@@ -348,6 +349,7 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
     from .planar.model import PlanarModel
 
     model, loops = (system, ()) if isinstance(system, PlanarModel) else (system.plant, tuple(system.loops))
+    refuse_saturation(loops, "the frequency-domain verbs (fields='exact')")
     inputs = list(validation.names("input", input))
     outputs = list(validation.names("output", output))
     omega = validation.frequencies("omega", omega)

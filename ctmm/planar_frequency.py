@@ -24,6 +24,7 @@ import numpy as np
 
 from . import validation
 from .errors import ModelError
+from .saturation import refuse_saturation
 from .loop_phasors import close_loops
 from .planar_linearization import linearize_planar, tangent
 from .planar_linearization import operating_point as planar_operating_point
@@ -51,6 +52,7 @@ def _split(system: Any):
 
     if isinstance(system, PlanarModel):
         return system, ()
+    refuse_saturation(system.loops, "the frequency-domain verbs")
     return system.plant, tuple(system.loops)
 
 

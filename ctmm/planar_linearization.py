@@ -24,6 +24,7 @@ import numpy as np
 
 from . import validation
 from .errors import ModelError, unknown_name
+from .saturation import refuse_saturation
 from .linearized import DelayedLoop, LinearizedSystem, OperatingPoint, control_name
 from .loop_closure import close_loops
 
@@ -328,6 +329,8 @@ def linearize_planar(model: Any, loops: Sequence[Any], point: Any, *, inputs=Non
                      allow_nonequilibrium: bool = False) -> LinearizedSystem:
     """:func:`ctmm.linearize` of a planar model closed by ``loops`` (module docstring)."""
     import control
+
+    refuse_saturation(loops, "ctmm.linearize")
 
     A, op = tangent(model, operating_point(model, point, allow_nonequilibrium=allow_nonequilibrium))
     n = model.n_coordinates

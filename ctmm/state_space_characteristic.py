@@ -60,6 +60,7 @@ from .control.loops import ControlledChain
 from .errors import ModelError, unknown_name
 from .interop import control_name
 from .planar.model import PlanarModel
+from .saturation import refuse_saturation
 from .sweeps import (AffineCharacteristic, LoopCharacteristic, as_controlled, characteristic_callable,
                      normalised_columns)
 
@@ -232,6 +233,7 @@ def _from_controlled_model(system: Any) -> LoopRealisation:
     from .linearize import linearize
 
     loops = tuple(system.loops)
+    refuse_saturation(loops, "stability analysis")
     if not loops:
         raise _refuse(system.plant, "stability analysis")
     sensors = list(dict.fromkeys(name for lp in loops for name, _ in lp.terms))

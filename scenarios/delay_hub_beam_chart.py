@@ -1,7 +1,9 @@
 """Delay stability of the hub PD on the flexible arm: chart Kd x tau (issue 7, flexible case).
 
-The linearised manipulator of ``scenarios/flexible_manipulator.py`` (seed 001 Fig. 9.42: hub of
-inertia J_h on a pivot, aluminium arm as exact Euler-Bernoulli fields, PZT loops open) with a
+The manipulator scene of ``scenarios/flexible_manipulator.py`` (seed 001 Fig. 9.42: hub of
+inertia J_h on a pivot, aluminium arm; ``ctmm.manipulator.manipulator_plant``) on its exact
+Euler-Bernoulli fields (``ctmm.exact_fields.exact_form``: the plant about its rest pose as a bending
+chain, with its port map; PZT loops open) with a
 delayed PD hub torque ``tau_m(t) = -(kp theta + kd theta_dot)(t - tau)``, ``kp`` fixed at the seed
 value.  The chart over (kd, tau) comes from the TMM characteristic function with the exact factor
 ``e^{-s tau}`` (D-subdivision + root counting, ``ctmm.stability_chart``); the delay margin at the
@@ -53,18 +55,24 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     import matplotlib.pyplot as plt
 
     from ctmm.control import ControlledChain, Feedback
-    from ctmm.manipulator import plant_chain
+    from ctmm.exact_fields import exact_form
+    from ctmm.manipulator import manipulator_plant
     from ctmm.manipulator.parameters import SEED_KD, SEED_KP, seed_manipulator
     from ctmm.stability import delay_margin, stability_chart
 
     manipulator = seed_manipulator()
-    plant = plant_chain(manipulator)
-    pd = Feedback("pd", [("hub.theta", SEED_KP), ("hub.theta_dot", SEED_KD)], "hub.torque", gain=1.0, delay=0.01)
-    system = ControlledChain(plant, [pd])
+    form = exact_form(manipulator_plant(manipulator))     # the scene's plant on its exact beam fields
+    (angle, unit_angle), = form.sensor("motor.angle")
+    (rate, unit_rate), = form.sensor("motor.rate")
+    if unit_rate != 1.0:                                   # the chart's x is the weight of this term: kd itself
+        raise RuntimeError(f"the hinge rate maps to {unit_rate!r} x {rate!r}, expected a unit weight")
+    pd = Feedback("pd", [(angle, SEED_KP * unit_angle), (rate, SEED_KD)], form.actuator("motor.torque"),
+                  gain=1.0, delay=0.01)
+    system = ControlledChain(form.chain, [pd])
     n = 16 if quick else 60
     start = time.perf_counter()
     margin = delay_margin(system, "pd")
-    chart = stability_chart(system, x=("hub.theta_dot", np.linspace(1.0, 80.0, n), "kd [N m s/rad]"),
+    chart = stability_chart(system, x=(rate, np.linspace(1.0, 80.0, n), "kd [N m s/rad]"),
                             y=("delay", np.linspace(0.0, 0.08, n), "delay [s]"), loop="pd", im_max=400.0)
     wall = time.perf_counter() - start
     start = time.perf_counter()

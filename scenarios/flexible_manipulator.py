@@ -49,7 +49,7 @@ from dataclasses import dataclass
 import ctmm
 from ctmm.flexible.outputs import tip_deflection
 from ctmm.control import margins
-from ctmm.manipulator import (SEED_KD, SEED_KP, SEED_MOVE, SEED_PZT_GAIN, FlexibleManipulator, HubPD, PZTFeedback,
+from ctmm.manipulator import (SEED_KD, SEED_KP, SEED_MOVE, SEED_PZT_GAIN, HubPD, PZTFeedback,
                               manipulator_scene, scene_references, seed_manipulator)
 from ctmm.manipulator.compiled import CompiledManipulator
 from ctmm.manipulator.scene import HUB_LOOP, TIP_STATION
@@ -158,8 +158,7 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     controlled = sims["PD + PZT"]
 
     # compiled RK4 of the same scene (not a verb: fast=True / compiled=True refuse loops): timing, agreement
-    compiled = CompiledManipulator(FlexibleManipulator(arm, pd, laws["PD + PZT"], SEED_MOVE), block=5,
-                                   chunks=100).simulate(t_final, DT)
+    compiled = CompiledManipulator(arm, pd, laws["PD + PZT"], SEED_MOVE, block=5, chunks=100).simulate(t_final, DT)
     extra = {"compiled_rk4": {
         "wall_time_s": compiled.wall_time_s, "real_time_factor": compiled.real_time_factor,
         "tip_difference_vs_verb_m": float(np.abs(compiled.tip_deflection - controlled.tip_deflection).max()),

@@ -116,12 +116,9 @@ PUBLIC_API: dict[str, str] = {
     "ctmm.manipulator.SEED_KD": "constant", "ctmm.manipulator.SEED_PZT_GAIN": "constant",
     "ctmm.manipulator.SEED_MOVE": "constant", "ctmm.manipulator.HubPD": FUZZED,
     "ctmm.manipulator.PZTFeedback": "tests/test_manipulator_time.py",
-    "ctmm.manipulator.LinearManipulator": "tests/test_manipulator_frequency.py",
-    "ctmm.manipulator.RigidHub": "tests/test_manipulator_frequency.py",
     "ctmm.manipulator.manipulator_plant": "tests/test_manipulator_scene.py",
     "ctmm.manipulator.manipulator_scene": "tests/test_api_fuzz_planar.py",
     "ctmm.manipulator.scene_references": "tests/test_api_fuzz_planar.py",
-    "ctmm.manipulator.plant_chain": "tests/test_manipulator_frequency.py",
     "ctmm.manipulator.FlexibleManipulator": FUZZED, "ctmm.manipulator.ManipulatorSimulation": "result",
     # ctmm.controllers, ctmm.interop, ctmm.signals, ctmm.modal
     "ctmm.controllers.SaturatedPD": FUZZED, "ctmm.controllers.SaturatedPDState": "state record",

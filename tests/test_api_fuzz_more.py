@@ -4,7 +4,7 @@ Part 1 extends :mod:`test_api_fuzz` (same :class:`Case` and :func:`check_refused
 ``ModelError`` or ``TypeError`` naming the parameter and the value) to the options the first fuzz
 did not reach: ``ctmm.simulate`` ``references``/``controllers``/``stability_check``/
 ``divergence_bound``, zero-step runs, ``to_dataframe``, the ``plot`` methods of results, beam outputs and
-laws of :mod:`ctmm.flexible`, the manipulator's ``plant_chain``/``seed_manipulator``, result files (unwritable paths, files whose
+laws of :mod:`ctmm.flexible`, the manipulator's ``seed_manipulator``, result files (unwritable paths, files whose
 arrays disagree), ``parallel_map``, the scheme limits of :mod:`ctmm.guard`, loop weights of
 ``unstable_root_count``, ``build_fmu`` output folders and the CLI's duplicate names.
 
@@ -90,10 +90,6 @@ MORE_CASES: list[tuple[Case, list]] = [
           lambda v: __import__("ctmm.flexible").flexible.spinup_law(v)), [math.nan, "a", None]),
     (Case("ctmm.manipulator.seed_manipulator", "n_patches", "0..3",
           lambda v: __import__("ctmm.manipulator").manipulator.seed_manipulator(n_patches=v)), [True, 4, -1, 1.5]),
-    (Case("ctmm.manipulator.plant_chain", "max_piece", "positive",
-          lambda v: __import__("ctmm.manipulator").manipulator.plant_chain(
-              __import__("ctmm.manipulator").manipulator.seed_manipulator(), max_piece=v)),
-     [0.0, -1.0, math.nan, "a", 1e-12]),
     (Case("ctmm.executors.parallel_map", "progress", "flag",
           lambda v: parallel_map(_square, [1.0], progress=v)), [1, "yes", math.nan, Opaque()]),
     (Case("ctmm.executors.parallel_map", "description", "text",

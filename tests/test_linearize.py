@@ -270,38 +270,27 @@ def test_flexible_linearisation_equals_the_differentiated_flexible_lagrange_mode
 
 
 # ------------------------------------------------------------------- flexible manipulator + LQR
-class _Rest:
-    """Reference motion of a regulator: stay at 0 rad."""
-
-    @staticmethod
-    def angle(t):
-        return 0.0
-
-    @staticmethod
-    def rate(t):
-        return 0.0
-
-
 def test_lqr_on_the_linearised_flexible_manipulator_regulates_like_the_lagrange_reference():
     import control
 
-    from ctmm.manipulator import FlexibleManipulator, seed_manipulator
+    from ctmm.manipulator import manipulator_plant, seed_manipulator
+    from ctmm.manipulator.scene import patch_slope_matrix
     from ctmm.reference.manipulator_lagrange import ManipulatorLagrange
 
     manipulator = seed_manipulator()
-    arm = FlexibleManipulator(manipulator, pd=None, pzt=None, reference=_Rest(), n_modes=3,
-                              geometric_stiffening=False)
-    model = arm.model()
+    model = manipulator_plant(manipulator, n_modes=3, geometric_stiffening=False)
+    beam = model.bodies[model.body_index("arm")]
+    slope_matrix = patch_slope_matrix(beam, manipulator)
     reference = ManipulatorLagrange.from_manipulator(manipulator, 3)
     # ModalBeam modes: int phi^2 dx = L; the reference's: int rho A phi^2 dx = 1  ->  q = c eta
     c = 1.0 / np.sqrt(manipulator.arm.mass_per_length * manipulator.arm.length)
-    np.testing.assert_allclose(reference.Psi, c * arm.slope_matrix, rtol=1e-9)
+    np.testing.assert_allclose(reference.Psi, c * slope_matrix, rtol=1e-9)
     T = np.diag([1.0, c, c, c, 1.0, c, c, c])
     modal = ["arm.q1.force", "arm.q2.force", "arm.q3.force"]
     lin = ctmm.linearize(model, inputs=["motor.torque", *modal])
     assert lin.operating_point.equilibrium and np.array_equal(lin.operating_point.q, np.zeros(4))
     A = np.asarray(lin.state_space.A)
-    Psi, ca = arm.slope_matrix, manipulator.moments_per_volt
+    Psi, ca = slope_matrix, manipulator.moments_per_volt
     B = np.hstack([lin.state_space.B[:, :1], lin.state_space.B[:, 1:] @ (Psi.T * ca)])   # torque, 3 voltages
     d = reference.linearize()
     A_ref = _first_order(d["M"], d["D"], d["K"])
@@ -340,7 +329,7 @@ def test_lqr_on_the_linearised_flexible_manipulator_regulates_like_the_lagrange_
     theirs = (T @ sol.y).T
     assert abs(theirs[-1, 0]) < 0.3 * theta0                    # the loop regulates
     assert np.max(np.abs(ours[:, 0] - theirs[:, 0])) <= 1e-9    # hub angle [rad] (RK4 at 1 ms)
-    tip_ours, tip_theirs = ours[:, 1:4] @ arm.tip_shape, theirs[:, 1:4] @ arm.tip_shape
+    tip_ours, tip_theirs = ours[:, 1:4] @ beam.data.tip_phi, theirs[:, 1:4] @ beam.data.tip_phi
     assert np.max(np.abs(tip_theirs)) > 1e-3                    # the arm does bend
     assert np.max(np.abs(tip_ours - tip_theirs)) <= 1e-8        # tip deflection [m]
 

@@ -54,23 +54,27 @@ def seed_scene(pzt=True, n_modes=3):
     return seed, pd, law, manipulator_scene(seed, pd=pd, pzt=law, n_modes=n_modes)
 
 
-def test_exact_fields_of_the_scene_equal_the_linear_manipulator_chain():
-    from ctmm.manipulator import LinearManipulator
+def test_exact_fields_of_the_scene_equal_the_continuum_reference():
+    """The exact-field form against the 150-mode Lagrange model with static correction (the former
+    ``LinearManipulator`` chain gave the same numbers to 1e-12 before it was removed)."""
+    from ctmm.reference.manipulator_lagrange import ManipulatorLagrange
 
     seed, pd, pzt, scene = seed_scene()
     outputs = ["motor.angle", "arm.out.y"] + [f"{p.name}.u" for p in seed.patches]
-    reference = LinearManipulator(seed, pd, pzt)
+    reference = ManipulatorLagrange.from_manipulator(seed, 150).frequency_response(
+        OMEGA, kp=SEED_KP, kd=SEED_KD, pd_delay=pd.delay, pzt_gains=G, pzt_delay=pzt.delay)
+    reach = seed.hub.radius + seed.arm.length
     for name, planar_input, scale in (("torque", "motor.torque", 1.0),
                                       ("theta_d", f"{HUB_LOOP}.reference", SEED_KP + SEED_KD * 1j * OMEGA)):
         exact = ctmm.frequency_response(scene, OMEGA, input=planar_input, output=outputs, fields="exact")
-        expected = reference.response(OMEGA, input=name)
-        got = {key: exact(signal, planar_input) * scale for key, signal in (("theta", "motor.angle"),
-                                                                          ("tip_w", "arm.out.y"))}
-        np.testing.assert_allclose(got["theta"], expected["theta"], rtol=1e-10)
-        np.testing.assert_allclose(got["tip_w"], expected["tip_w"], rtol=1e-10)
-        for k, patch in enumerate(seed.patches):
-            np.testing.assert_allclose(exact(f"{patch.name}.u", planar_input) * scale, expected["voltages"][k],
-                                       rtol=1e-10)
+        expected = reference[name]
+        theta = exact("motor.angle", planar_input) * scale
+        np.testing.assert_allclose(theta, expected["theta"], rtol=1e-8)
+        # "arm.out.y" is the inertial tip w(L) = u(L) + (r + L) theta
+        np.testing.assert_allclose(exact("arm.out.y", planar_input) * scale,
+                                   expected["tip"] + reach * expected["theta"], rtol=1e-8)
+        volts = np.array([exact(f"{p.name}.u", planar_input) * scale for p in seed.patches])
+        assert np.abs(volts - expected["voltages"]).max() < 1e-8 * np.abs(expected["voltages"]).max()
     assert exact.info["method"].startswith("exact fields")
     assert exact.units["arm.out.y"] == "m"
 
@@ -165,8 +169,9 @@ def test_exact_fields_refuse_what_they_cannot_map():
     with pytest.raises(ModelError, match="free"):
         ctmm.frequency_response(free, [1.0], input="p.torque", output="l.theta", fields="exact")
     with pytest.raises(ModelError, match="for planar models"):
-        from ctmm.manipulator.frequency import plant_chain
-        ctmm.frequency_response(plant_chain(seed), [1.0], input="hub.torque", output="hub.theta", fields="exact")
+        from ctmm.exact_fields import exact_form
+        chain = exact_form(scene.plant).chain                           # a 1-D chain has nothing to convert
+        ctmm.frequency_response(chain, [1.0], input="hub__root.moment", output="hub__root.theta", fields="exact")
 
 
 def test_exact_natural_frequencies_of_a_hinged_two_beam_chain_are_the_continuum_roots():

@@ -93,8 +93,8 @@ def test_compiled_path_stops_at_the_first_bad_block(system):
 
     for bad in ({"block": 0}, {"block": 2.5}, {"chunks": True}):
         with pytest.raises(ModelError, match=f"{next(iter(bad))} must be an integer >= 1"):
-            CompiledManipulator(system, **bad)
-    compiled = CompiledManipulator(system, block=2, chunks=5)
+            CompiledManipulator(system.manipulator, system.pd, system.pzt, system.reference, **bad)
+    compiled = CompiledManipulator(system.manipulator, system.pd, system.pzt, system.reference, block=2, chunks=5)
     with pytest.warns(StabilityLimitWarning):
         with pytest.raises(SimulationError, match="diverged") as info:
             compiled.simulate(0.4, 0.02, divergence_bound=1.0)
@@ -112,11 +112,11 @@ def test_controller_failing_at_the_first_sample_gives_an_empty_partial_result(sy
 
 
 def test_both_manipulator_models_refuse_a_pzt_law_that_does_not_fit():
-    from ctmm.manipulator import LinearManipulator
+    from ctmm.manipulator import manipulator_scene
 
     seed = seed_manipulator()
     for make in (lambda pzt: FlexibleManipulator(seed, HubPD(SEED_KP, SEED_KD), pzt, SEED_MOVE),
-                 lambda pzt: LinearManipulator(seed, HubPD(SEED_KP, SEED_KD), pzt)):
+                 lambda pzt: manipulator_scene(seed, pd=HubPD(SEED_KP, SEED_KD), pzt=pzt)):
         with pytest.raises(ModelError, match="pzt gains are for 2 patches, the manipulator has 3"):
             make(PZTFeedback(np.eye(2)))
         with pytest.raises(ModelError, match="pzt must be a PZTFeedback or None, got 'fast'"):

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from ctmm.errors import ModelError
-from ctmm.manipulator import (PZT_5A, PZT_5H, Arm, CycloidalMove, Hub, HubPD, LinearManipulator,
-                              Manipulator, PZTFeedback, PZTPatch, moment_per_volt, seed_manipulator)
+from ctmm.manipulator import (PZT_5A, PZT_5H, Arm, CycloidalMove, Hub, HubPD,
+                              Manipulator, PZTFeedback, PZTPatch, manipulator_scene, moment_per_volt, seed_manipulator)
 
 
 def test_arm_section_properties_of_the_seed_arm():
@@ -95,7 +95,7 @@ def test_pzt_gains_are_checked():
     with pytest.raises(ModelError, match="cannot be estimated from 2 patch sensors"):
         PZTFeedback.modal(np.ones((2, 3)), np.ones((2, 3)))
     with pytest.raises(ModelError, match="for 2 patches, the manipulator has 3"):
-        LinearManipulator(seed_manipulator(), HubPD(1.0, 0.1), PZTFeedback.per_patch([1.0, 1.0]))
+        manipulator_scene(seed_manipulator(), pd=HubPD(1.0, 0.1), pzt=PZTFeedback.per_patch([1.0, 1.0]))
 
 
 def test_modal_gains_round_trip():

@@ -54,8 +54,9 @@ def test_scene_loops_equal_the_lagrange_manipulator():
 
 def test_scene_refuses_what_a_loop_cannot_hold():
     seed = seed_manipulator()
-    with pytest.raises(ModelError, match="saturate"):
-        manipulator_scene(seed, pd=None, pzt=PZTFeedback(G, on_limit="saturate"))
+    saturating = manipulator_scene(seed, pd=None, pzt=PZTFeedback(G, on_limit="saturate"))
+    assert {lp.saturation for lp in saturating.loops} == {(-seed.voltage_limit, seed.voltage_limit)}
+    assert {lp.saturation for lp in manipulator_scene(seed, pd=None, pzt=PZTFeedback(G)).loops} == {None}
     with pytest.raises(ModelError, match="patches"):
         manipulator_scene(seed, pd=None, pzt=PZTFeedback(np.eye(2)))
     with pytest.raises(ModelError, match="HubPD"):

@@ -72,7 +72,7 @@ def test_embedded_pzt_law_is_the_modal_damping_of_the_seed_law(seed, system, ref
 
 
 def test_compiled_sweep_equals_the_python_sweep(system):
-    compiled = CompiledManipulator(system, block=5, chunks=40)
+    compiled = CompiledManipulator(system.manipulator, system.pd, system.pzt, system.reference, block=5, chunks=40)
     model = system.model()
     from ctmm.planar import accelerations
 
@@ -109,7 +109,7 @@ def test_pzt_control_reduces_the_residual_vibration(seed):
     runs = {}
     for label, pzt in (("pd", None), ("pd+pzt", PZTFeedback(G_SEED))):
         system = FlexibleManipulator(seed, pd, pzt, SEED_MOVE)
-        runs[label] = CompiledManipulator(system, block=5, chunks=80).simulate(4.0, 0.002)
+        runs[label] = CompiledManipulator(seed, pd, pzt, SEED_MOVE, block=5, chunks=80).simulate(4.0, 0.002)
     t = runs["pd"].t
     after = t > SEED_MOVE.duration + 0.5
     rms = {k: np.sqrt(np.mean(r.tip_deflection[after] ** 2)) for k, r in runs.items()}
@@ -189,4 +189,4 @@ def test_bad_controller_wiring_is_reported(seed, system):
     with pytest.raises(ModelError, match="method must be one of"):
         system.simulate(0.01, 0.005, method="euler")
     with pytest.raises(ModelError, match="compiled manipulator path needs"):
-        CompiledManipulator(FlexibleManipulator(seed, HubPD(1.0, 0.1, delay=0.01), None, SEED_MOVE))
+        CompiledManipulator(seed, HubPD(1.0, 0.1, delay=0.01), None, SEED_MOVE)

@@ -60,20 +60,34 @@ def test_margins_of_a_planar_loop_add_the_crossover_a_coarse_grid_misses():
     assert any("certified search" in note for note in result.notes)
 
 
-def test_exact_field_margins_of_the_manipulator_scene_equal_the_exact_chain():
-    """fields="exact": the scene's loops on the exact beam fields give LinearManipulator's margins (itself
-    checked against the 150-mode continuum in tests/test_manipulator_frequency.py)."""
-    from ctmm.manipulator import (SEED_KD, SEED_KP, SEED_PZT_GAIN, HubPD, LinearManipulator, PZTFeedback,
-                                  manipulator_scene, seed_manipulator)
+def test_exact_field_margins_of_the_manipulator_scene_equal_the_continuum_reference():
+    """fields="exact": the scene's hub loop on the exact beam fields has the crossovers and delay margins
+    of the loop transfer function of the 150-mode Lagrange model with static correction (the former
+    ``LinearManipulator`` chain gave the same margins to 1e-15 before it was removed)."""
+    from ctmm.manipulator import (SEED_KD, SEED_KP, SEED_PZT_GAIN, HubPD, PZTFeedback, manipulator_scene,
+                                  seed_manipulator)
+    from ctmm.reference.manipulator_lagrange import ManipulatorLagrange
 
     arm = seed_manipulator()
     pd, law = HubPD(SEED_KP, SEED_KD), PZTFeedback.per_patch([SEED_PZT_GAIN] * arm.n_patches)
     scene = manipulator_scene(arm, pd=pd, pzt=law, geometric_stiffening=False)
     omega = np.linspace(0.5, 60.0, 300)
     exact = margins(scene, "hub_pd", omega, fields="exact")
-    chain = LinearManipulator(arm, pd, law).margins("pd", omega)
-    np.testing.assert_allclose(exact.gain_crossovers, chain.gain_crossovers, rtol=1e-10)
-    np.testing.assert_allclose(exact.delay_margins, chain.delay_margins, rtol=1e-10)
+    lagrange = ManipulatorLagrange.from_manipulator(arm, 150)
+
+    def reference_loop(w):
+        plant = lagrange.frequency_response(np.atleast_1d(w), kp=SEED_KP, kd=SEED_KD, pd_closed=False,
+                                            pzt_gains=law.gains)["torque"]["theta"]
+        return (SEED_KP + 1j * SEED_KD * np.atleast_1d(w)) * plant
+
+    magnitude = np.abs(reference_loop(omega)) - 1.0
+    brackets = np.flatnonzero(np.sign(magnitude[:-1]) != np.sign(magnitude[1:]))
+    crossovers = [brentq(lambda w: abs(reference_loop(w)[0]) - 1.0, omega[k], omega[k + 1], xtol=1e-14)
+                  for k in brackets]
+    assert len(crossovers) >= 1
+    np.testing.assert_allclose(exact.gain_crossovers, crossovers, rtol=1e-9)
+    expected = [(np.pi + np.angle(reference_loop(w)[0])) % (2 * np.pi) / w for w in crossovers]
+    np.testing.assert_allclose(exact.delay_margins, expected, rtol=1e-8)
     assert any("exact beam fields" in note for note in exact.notes)
     with pytest.raises(ModelError, match="fields"):
         loop_transfer_function(system(), "pd", [1.0], fields="exact")     # a rigid pendulum has no beam

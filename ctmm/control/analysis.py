@@ -37,6 +37,7 @@ from ..errors import ModelError
 from ..frequency import frequency_response
 from ..results import FrequencyResponse
 from ..roots1d import refine_sign_change
+from ..saturation import refuse_saturation
 from ..system import Chain
 from .controlled_model import ControlledModel
 from .loops import ControlledChain, actuator_inputs
@@ -77,6 +78,7 @@ def open_loop_plant(system: ControlledChain | ControlledModel, loop: str, omega:
         raise ModelError(f"a loop transfer function needs a ControlledChain or a ControlledModel, got {system!r}")
     w = _omega(omega)
     lp = system.loop(loop)
+    refuse_saturation(system.loops, "a loop transfer function")
     others = [other for other in system.loops if other.name != lp.name]
     open_system = system.with_loops(others) if others else system.plant
     signals = list(dict.fromkeys(sig for sig, _ in lp.terms))

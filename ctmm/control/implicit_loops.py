@@ -11,7 +11,9 @@ one :func:`ctmm.planar.implicit.simulate_implicit` run whose
   when a controller was sampled the next step starts from the acceleration with its new held
   output (second order in ``dt`` with zero-order hold).
 
-The states ``z`` of an LTI loop controller ``z' = A z + B e``, ``u = -C z - D e`` advance by the
+A loop's saturation clips ``u`` at every iterate (piecewise linear: the Newton tangent, by directional
+differences, is the slope of the side the iterate is on).  The states ``z`` of an LTI loop controller
+``z' = A z + B e``, ``u = -C z - D e`` advance by the
 trapezoidal rule from the step start ``t_n`` to the iterate's time ``t``:
 ``(I - s A / 2) z = (I + s A / 2) z_n + s B (e_n + e) / 2`` with ``s = t - t_n`` (``e`` at the
 iterate; implicit in the step, second order), and at the accepted state over the whole step.
@@ -96,7 +98,7 @@ class LoopSteps:
                 half = 0.5 * step
                 rhs = z_n[i:j] + half * (loop.A @ z_n[i:j]) + half * loop.B[:, 0] * (e_n[k] + e)
                 z[i:j] = np.linalg.solve(np.eye(j - i) - half * loop.A, rhs)
-            out[k] = (loop_values[k][0], e, -float((loop.C @ z[i:j])[0]) - loop.D * e)
+            out[k] = (loop_values[k][0], e, float(loop.loop.saturate(-float((loop.C @ z[i:j])[0]) - loop.D * e)))
         return z, out
 
     def actuator_inputs(self, t: float, q: np.ndarray, v: np.ndarray) -> Any:

@@ -37,6 +37,7 @@ from .. import validation
 from ..assembly import BoundaryEnd, BoundaryStart
 from ..elements.lumped import Connector
 from ..errors import ModelError, unknown_name
+from ..saturation import check_limits, clip, refuse_saturation
 from ..system import Chain, Signal
 
 
@@ -112,6 +113,16 @@ class Feedback:
         Static gain [N per sensed unit] or a SISO continuous-time python-control system ``C(s)``.
     delay : float
         Loop delay ``tau`` [s], >= 0 (exact ``e^{-s tau}`` in the frequency domain; history in time).
+    saturation : (float, float) or None
+        Actuator limits ``(low, high)`` [actuator unit: N, N m, or V for a PZT loop whose weights are
+        the moments per volt], ``low < high`` (``-inf``/``inf`` for a one-sided limit): the applied
+        force is ``min(max(u, low), high)`` (:meth:`saturate`).  Honoured by the time paths of planar
+        models (:func:`ctmm.simulate`: RK4, scipy and every implicit scheme; the result holds
+        ``"<name>.u_demand"``, ``"<name>.saturated"`` and ``info["time_saturated_s"]``).  A saturated
+        loop is not linear: the frequency-domain, linearisation and stability verbs refuse it (use
+        :meth:`unsaturated` for the small-signal loop inside the limits), and a 1-D
+        :class:`ControlledChain` refuses it (its loops are embedded linearly in every path).
+        ``None`` (default): no limit.
     """
 
     name: str
@@ -119,6 +130,7 @@ class Feedback:
     actuator: str
     gain: Any = 0.0
     delay: float = 0.0
+    saturation: Any = None
     terms: tuple = field(init=False, repr=False, compare=False)
     actuator_terms: tuple = field(init=False, repr=False, compare=False)
 
@@ -132,11 +144,23 @@ class Feedback:
         else:
             object.__setattr__(self, "gain", validation.finite(f"loop {self.name!r}: gain", self.gain))
         object.__setattr__(self, "delay", validation.nonnegative(f"loop {self.name!r}: delay", self.delay))
+        if self.saturation is not None:
+            object.__setattr__(self, "saturation", check_limits(self.name, self.saturation))
 
     def with_parameters(self, *, gain: Any = None, delay: float | None = None) -> "Feedback":
-        """A copy with a new gain/controller and/or delay (the plant is untouched)."""
+        """A copy with a new gain/controller and/or delay (the plant and the saturation are untouched)."""
         return Feedback(self.name, self.sensor, self.actuator, self.gain if gain is None else gain,
-                        self.delay if delay is None else delay)
+                        self.delay if delay is None else delay, self.saturation)
+
+    def unsaturated(self) -> "Feedback":
+        """The same loop without its saturation: the small-signal (linearised) loop about an operating
+        point strictly inside the limits (slope 1; at a limit the slope is 0 and the loop is open)."""
+        return Feedback(self.name, self.sensor, self.actuator, self.gain, self.delay)
+
+    def saturate(self, u: Any) -> Any:
+        """``u`` clipped to :attr:`saturation` (``u`` itself without one), branch-free and complex-step
+        safe: the real part decides, so the derivative is 1 inside the limits and 0 at them."""
+        return clip(self.saturation, u)
 
     @property
     def is_lti(self) -> bool:
@@ -208,6 +232,7 @@ class ControlledChain:
                     for i, lp in enumerate(self.loops) if not isinstance(lp, Feedback)]
         if problems:
             raise ModelError(f"controlled chain {self.name!r} is invalid:\n  - " + "\n  - ".join(problems))
+        refuse_saturation(self.loops, f"a 1-D ControlledChain ({self.name!r}: every path embeds its loops linearly)")
         names = [lp.name for lp in self.loops]
         if len(set(names)) != len(names):
             problems.append(f"loop names must be unique, got {names}")

@@ -11,6 +11,11 @@ flexible beams) whose named actuators (:mod:`ctmm.planar.ports`) are driven by
   and their time derivatives at every step; before the start the initial state held); an LTI
   controller ``C(s)`` (proper, SISO) has its states integrated with the plant (an improper
   ``C(s)`` such as ``kp + kd s`` is refused: write it as sensor terms);
+* a loop with ``saturation=(low, high)`` applies ``u`` clipped to its limits at every evaluation
+  (:func:`ctmm.saturation.clip`; an LTI controller's states integrate the unclipped error, no
+  anti-windup); the result adds ``"<loop>.u_demand"`` (the unclipped ``-C e``), ``"<loop>.saturated"``
+  (1 where the demand is beyond a limit) and ``info["time_saturated_s"]`` (seconds at a limit,
+  summed over the stored rows);
 * co-simulated controllers (Python objects, FMUs) through the one co-simulation master
   (:class:`~ctmm.control.cosim.CoSimulation`): sampled on the step grid, outputs held
   (zero-order hold) -- the integrator restarts at every sample; a controller wrapped in
@@ -208,8 +213,8 @@ class _ClosedLoop:
             ref = self.references.get(lp.name)
             e = y_then - (float(ref(t - lp.delay)) if ref is not None else 0.0)
             z = y[lp.states]
-            u = -(float((lp.C @ z)[0]) if z.size else 0.0) - lp.D * e
-            out.append((y_now, e, u))
+            u = lp.loop.saturate(-(float((lp.C @ z)[0]) if z.size else 0.0) - lp.D * e)
+            out.append((y_now, e, float(u)))
         return out
 
     def actuator_values(self, t: float, y: np.ndarray, loop_values) -> dict[str, float]:
@@ -328,11 +333,19 @@ def _result(rows: _Rows, outputs: Sequence[str], method: str, info: dict) -> Sim
     t = np.array(rows.t)
     y = np.array(rows.y).reshape(len(t), system.size)
     signals, units = model_signals(model, t, y[:, :n], y[:, n:2 * n], outputs)
+    saturated_time = {}
     for k, lp in enumerate(system.loops):
         values = np.array([row[k] for row in rows.loops]).reshape(len(t), 3)
         signals[f"{lp.name}.y"], signals[f"{lp.name}.u"] = values[:, 0], values[:, 2]
         units[f"{lp.name}.y"] = loop_unit(system.ports, lp.loop, "y")
         units[f"{lp.name}.u"] = loop_unit(system.ports, lp.loop, "u")
+        if lp.loop.saturation is not None:
+            demand, at_limit = _saturation_signals(lp, y[:, lp.states], values[:, 1])
+            signals[f"{lp.name}.u_demand"], units[f"{lp.name}.u_demand"] = demand, units[f"{lp.name}.u"]
+            signals[f"{lp.name}.saturated"], units[f"{lp.name}.saturated"] = at_limit.astype(float), ""
+            saturated_time[lp.name] = float(np.sum(np.diff(t)[at_limit[:-1]])) if len(t) > 1 else 0.0
+    if saturated_time:
+        info = {**info, "time_saturated_s": saturated_time}
     if system.master is not None:
         last = t[-1] if len(t) else -math.inf
         for name, samples in system.master.outputs(until=last).items():
@@ -342,6 +355,14 @@ def _result(rows: _Rows, outputs: Sequence[str], method: str, info: dict) -> Sim
     info = {**info, "loops": {lp.name: ("real-time" if lp.delay == 0.0 else "history") for lp in system.loops},
             "n_evaluations": system.evaluations}
     return signal_result(SignalSystem(model, units, [lp.loop for lp in system.loops]), t, signals, method, info)
+
+
+def _saturation_signals(lp: _Loop, z: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The unsaturated demand ``-C z - D e`` of a saturating loop on the stored rows [actuator unit]
+    and where it is beyond the limits (the applied ``"<loop>.u"`` is at a limit there)."""
+    demand = -(z @ lp.C[0]) - lp.D * e if z.shape[1] else -lp.D * e
+    low, high = lp.loop.saturation
+    return demand, (demand < low) | (demand > high)
 
 
 def _check_state(system: _ClosedLoop, guard, t: float, y: np.ndarray, step: float | None, method: str) -> None:

@@ -25,8 +25,11 @@ seed's figures and the frequency responses report.
 
 So the manipulator is simulated by :func:`ctmm.simulate`, linearised by :func:`ctmm.linearize`
 and analysed by the stability tools like any other controlled model; nothing in the verbs knows
-it is a manipulator.  Voltage saturation (``on_limit="saturate"``) is not a linear loop: use a
-co-simulated controller (or :class:`~ctmm.manipulator.FlexibleManipulator`).
+it is a manipulator.  The PZT amplifier limit (``pzt.on_limit="saturate"``) is each patch loop's
+``saturation=(-V_max, V_max)`` [V] (:class:`~ctmm.control.Feedback`): honoured by
+:func:`ctmm.simulate` (every method; ``"<patch>.u_demand"``, ``"<patch>.saturated"`` and
+``info["time_saturated_s"]`` in the result), refused by the linear verbs (build the scene with
+``on_limit="report"`` for the small-signal model inside the limits).
 """
 from __future__ import annotations
 
@@ -132,9 +135,8 @@ def manipulator_scene(manipulator: Manipulator, *, pd: HubPD | None, pzt: PZTFee
                               actuator="motor.torque", gain=1.0, delay=pd.delay))
     if pzt is not None:
         check_pzt(pzt, manipulator.n_patches)
-        if pzt.on_limit == "saturate":
-            raise ModelError("pzt.on_limit='saturate' is a nonlinear law, not a feedback loop: use a "
-                             "co-simulated controller or ctmm.manipulator.FlexibleManipulator")
+        limit = manipulator.voltage_limit
+        saturation = (-limit, limit) if pzt.on_limit == "saturate" else None
         ca = manipulator.moments_per_volt
         patches = manipulator.patches
         for j, patch in enumerate(patches):                         # V_j = -sum_i G_ji slope rate over patch i
@@ -143,7 +145,8 @@ def manipulator_scene(manipulator: Manipulator, *, pd: HubPD | None, pzt: PZTFee
                       for end, sign in ((1, -1.0), (2, 1.0))]
             actuator = [(f"arm.{patch.name}_x1.moment", -float(ca[j])), (f"arm.{patch.name}_x2.moment", float(ca[j]))]
             if sensor and ca[j] != 0.0:
-                loops.append(Feedback(patch.name, sensor=sensor, actuator=actuator, gain=1.0, delay=pzt.delay))
+                loops.append(Feedback(patch.name, sensor=sensor, actuator=actuator, gain=1.0, delay=pzt.delay,
+                                      saturation=saturation))
     return ControlledModel(plant, loops)
 
 
