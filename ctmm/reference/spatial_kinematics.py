@@ -1,0 +1,181 @@
+"""Rotations, joint motions and forward kinematics of :mod:`ctmm.reference.spatial_tree`.
+
+Complex-step safe (no ``abs`` or norms inside values) so that :func:`spatial_tree.linearize`
+can differentiate through it.  Conventions: see :mod:`ctmm.reference.spatial_tree`.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+#: joint kind -> (number of configuration coordinates nq, number of velocities nv)
+JOINT_SIZES = {"revolute": (1, 1), "prismatic": (1, 1), "universal": (2, 2),
+               "spherical": (4, 3), "free": (7, 6), "elastic6": (7, 6), "weld": (0, 0)}
+
+
+# -- rotations (complex-step safe: no abs, no norm) -------------------------------------------
+def skew(x: np.ndarray) -> np.ndarray:
+    """``[x]`` with ``[x] y = x cross y``."""
+    return np.array([[0 * x[0], -x[2], x[1]], [x[2], 0 * x[0], -x[0]], [-x[1], x[0], 0 * x[0]]])
+
+
+def quaternion_matrix(quat: np.ndarray) -> np.ndarray:
+    """Rotation matrix of a scalar-last quaternion (normalised inside)."""
+    vec, w = quat[:3], quat[3]
+    s = quat @ quat
+    vx = skew(vec)
+    return np.eye(3) + (2.0 / s) * (w * vx + vx @ vx)
+
+
+def quaternion_product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product ``a b`` of scalar-last quaternions."""
+    return np.concatenate([a[3] * b[:3] + b[3] * a[:3] + np.cross(a[:3], b[:3]),
+                           [a[3] * b[3] - a[:3] @ b[:3]]])
+
+
+def exp_quaternion(phi: np.ndarray) -> np.ndarray:
+    """Unit quaternion of the rotation vector ``phi`` [rad]."""
+    s = phi @ phi
+    if abs(s) < 1e-8:
+        half_sinc, cos_half = 0.5 - s / 48.0 + s * s / 3840.0, 1.0 - s / 8.0 + s * s / 384.0
+    else:
+        theta = np.sqrt(s)
+        half_sinc, cos_half = np.sin(theta / 2) / theta, np.cos(theta / 2)
+    return np.concatenate([half_sinc * phi, [cos_half]])
+
+
+def rotation_vector(quat: np.ndarray) -> np.ndarray:
+    """Rotation vector ``phi = log(R)`` [rad] of a scalar-last quaternion, |phi| <= pi."""
+    quat = quat / np.sqrt(quat @ quat)
+    if np.real(quat[3]) < 0:
+        quat = -quat
+    vec, w = quat[:3], quat[3]
+    s = vec @ vec
+    u = s / (w * w) if abs(w) > 1e-3 else None
+    if u is not None and abs(u) < 1e-6:
+        return vec * (2.0 / w) * (1.0 - u / 3.0 + u * u / 5.0 - u ** 3 / 7.0)
+    theta = np.sqrt(s)
+    angle = np.arctan(theta / w) if np.iscomplexobj(quat) else np.arctan2(theta, w)
+    return vec * (2.0 * angle / theta)
+
+
+# -- joints ------------------------------------------------------------------------------------
+def joint_transform(body, qj: np.ndarray):
+    """Relative rotation ``R`` (joint -> child axes) and child origin ``d`` in joint axes."""
+    kind = body.joint
+    zero = np.zeros(3, dtype=np.result_type(qj, float))
+    if kind == "revolute":
+        return quaternion_matrix(exp_quaternion(body.axes[0] * qj[0])), zero
+    if kind == "prismatic":
+        return np.eye(3), body.axes[0] * qj[0]
+    if kind == "universal":
+        return (quaternion_matrix(exp_quaternion(body.axes[0] * qj[0]))
+                @ quaternion_matrix(exp_quaternion(body.axes[1] * qj[1]))), zero
+    if kind == "spherical":
+        return quaternion_matrix(qj), zero
+    if kind in ("free", "elastic6"):
+        return quaternion_matrix(qj[3:7]), qj[:3]
+    return np.eye(3), zero
+
+
+def motion_columns(body, qj: np.ndarray):
+    """Joint motion axes: angular (child axes) and translational (joint axes), (3, nv) each."""
+    kind = body.joint
+    nv = JOINT_SIZES[kind][1]
+    dtype = np.result_type(qj, float)
+    angular, linear = np.zeros((3, nv), dtype), np.zeros((3, nv), dtype)
+    if kind == "revolute":
+        angular[:, 0] = body.axes[0]
+    elif kind == "prismatic":
+        linear[:, 0] = body.axes[0]
+    elif kind == "universal":
+        second = quaternion_matrix(exp_quaternion(body.axes[1] * qj[1]))
+        angular[:, 0] = second.T @ body.axes[0]
+        angular[:, 1] = body.axes[1]
+    elif kind == "spherical":
+        angular[:, :] = np.eye(3)
+    elif kind in ("free", "elastic6"):
+        linear[:, :3] = quaternion_matrix(qj[3:7])
+        angular[:, 3:] = np.eye(3)
+    return angular, linear
+
+
+def joint_motion_bias(body, qj, vj):
+    """Rates of the motion columns times ``v`` at ``vdot = 0``: (angular child, linear joint)."""
+    zero = np.zeros(3, dtype=np.result_type(qj, vj, float))
+    if body.joint == "universal":
+        second = quaternion_matrix(exp_quaternion(body.axes[1] * qj[1]))
+        return -np.cross(body.axes[1] * vj[1], second.T @ body.axes[0] * vj[0]), zero
+    if body.joint in ("free", "elastic6"):
+        return zero, quaternion_matrix(qj[3:7]) @ np.cross(vj[3:6], vj[:3])
+    return zero, zero
+
+
+# -- kinematics ----------------------------------------------------------------------------------
+class Kinematics(NamedTuple):
+    """World poses, velocities, bias accelerations (``vdot = 0``) and Jacobians of all bodies."""
+
+    rotation: np.ndarray        # (nb, 3, 3) body -> world
+    origin: np.ndarray          # (nb, 3) body origins [m]
+    omega: np.ndarray           # (nb, 3) [rad/s]
+    com: np.ndarray             # (nb, 3) centres of mass [m]
+    com_velocity: np.ndarray    # (nb, 3) [m/s]
+    alpha_bias: np.ndarray      # (nb, 3) [rad/s^2]
+    com_bias: np.ndarray        # (nb, 3) [m/s^2]
+    jacobian_angular: np.ndarray  # (nb, 3, nv)
+    jacobian_com: np.ndarray    # (nb, 3, nv)
+    joint_axes: list            # per body: (world angular, world linear of child origin) (3, nv_j)
+
+
+def kinematics(tree, q: np.ndarray, v: np.ndarray) -> Kinematics:
+    """Forward kinematics of positions, velocities and accelerations at ``vdot = 0``."""
+    nb, nv = len(tree.bodies), tree.nv
+    dtype = np.result_type(q, v, float)
+    rot = np.zeros((nb, 3, 3), dtype)
+    origin, omega, velocity = (np.zeros((nb, 3), dtype) for _ in range(3))
+    alpha, accel = np.zeros((nb, 3), dtype), np.zeros((nb, 3), dtype)
+    jw, jo = np.zeros((nb, 3, nv), dtype), np.zeros((nb, 3, nv), dtype)
+    axes = []
+    for i, body in enumerate(tree.bodies):
+        qj = q[tree.q_start[i]: tree.q_start[i] + JOINT_SIZES[body.joint][0]]
+        vs = tree.v_start[i]
+        vj = v[vs: vs + JOINT_SIZES[body.joint][1]]
+        p = body.parent
+        if p >= 0:
+            rp, op, wp, vp, ap, acp = rot[p], origin[p], omega[p], velocity[p], alpha[p], accel[p]
+        else:
+            rp, op = np.eye(3), np.zeros(3)
+            wp = vp = ap = acp = np.zeros(3)
+        r_joint = rp @ body.joint_rotation
+        rel, d = joint_transform(body, qj)
+        rot[i] = r_joint @ rel
+        origin[i] = op + rp @ body.joint_position + r_joint @ d
+        ang, lin = motion_columns(body, qj)
+        s_w, s_v = rot[i] @ ang, r_joint @ lin
+        axes.append((s_w, s_v))
+        w_rel, d_rel = s_w @ vj, s_v @ vj
+        bias_w, bias_d = joint_motion_bias(body, qj, vj)
+        lever = origin[i] - op
+        omega[i] = wp + w_rel
+        velocity[i] = vp + np.cross(wp, lever) + d_rel
+        alpha[i] = ap + rot[i] @ bias_w + np.cross(wp, w_rel)
+        accel[i] = (acp + np.cross(ap, lever) + np.cross(wp, np.cross(wp, lever))
+                    + 2.0 * np.cross(wp, d_rel) + r_joint @ bias_d)
+        if p >= 0:
+            jw[i] = jw[p]
+            jo[i] = jo[p] + np.cross(jw[p].T, lever).T
+        jw[i][:, vs: vs + s_w.shape[1]] += s_w
+        jo[i][:, vs: vs + s_w.shape[1]] += s_v
+    arm = np.einsum("bij,bj->bi", rot, np.array([b.com for b in tree.bodies]))
+    com = origin + arm
+    com_velocity = velocity + np.cross(omega, arm)
+    com_bias = accel + np.cross(alpha, arm) + np.cross(omega, np.cross(omega, arm))
+    jc = jo + np.cross(jw.transpose(0, 2, 1), arm[:, None, :]).transpose(0, 2, 1)
+    return Kinematics(rot, origin, omega, com, com_velocity, alpha, com_bias, jw, jc, axes)
+
+
+def point_jacobian(kin: Kinematics, body: int, point_world: np.ndarray) -> np.ndarray:
+    """(3, nv) Jacobian of the world velocity of a body point (world position ``point_world``)."""
+    arm = point_world - kin.com[body]
+    return kin.jacobian_com[body] + np.cross(kin.jacobian_angular[body].T, arm).T
