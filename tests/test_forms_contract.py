@@ -61,6 +61,39 @@ def test_explicit_context_is_batched_and_takes_actuator_inputs():
     assert _relative(expected, scene.accelerations(q[0], v[0], 0.4)[0]) > 1e-3     # the inputs act
 
 
+@pytest.mark.parametrize("seed", range(12))
+def test_translational_spring_hinges_on_the_protocol_equal_lagrange_and_the_old_kernel(seed):
+    """BUSHING (S = I3, f = -k_t d - c_t d_dot along the global offset): random trees with
+    translational-spring hinges, against the independent Lagrange model and the Python-float kernel."""
+    model = random_tree(seed, 6, allow_translation=True)
+    q, v, t = random_state(model, seed)
+    scene = PlanarScene(model)
+    rng = np.random.default_rng(seed)
+    inputs = ports.actuator_inputs(model, {name: float(rng.normal()) for name in ports.actuator_names(model)})
+    for given in (None, inputs):
+        result = scene.accelerations(q, v, t, given)[0]
+        assert _relative(result, accelerations(model, q, v, t, inputs=given)) <= 1e-12
+        if given is None:
+            assert _relative(result, PlanarLagrange(model).accelerations(q, v, t)) <= 1e-12
+
+
+def test_translational_spring_hinge_frequency_context_equals_the_lagrange_linearisation():
+    import ctmm
+
+    model = PlanarModel.chain("bushed", [Pinned("o"), RigidBody.uniform_link("l1", mass=1.0, length=1.0),
+                                         ElasticHinge("h", stiffness=4.0, rest_angle=0.4, translational_stiffness=300.0,
+                                                      translational_damping=0.7),
+                                         RigidBody.uniform_link("l2", mass=0.5, length=0.8)])
+    assert model.joint_kind.tolist()[1] == 3                    # the hinge is a BUSHING
+    q0 = ctmm.linearize(model, inputs=[], outputs=[]).operating_point.q
+    M, C, K = PlanarLagrange(model).linearize(q0)
+    s = np.array([0.3 + 1.7j, -0.2 + 0.5j, 2.0j, 0.7])
+    Z = s[:, None, None] ** 2 * M + s[:, None, None] * C + K
+    assert np.max(np.abs(q0[1:3])) > 1e-3                       # the spring is preloaded
+    characteristic = PlanarScene(model).frequency(q0, s).characteristic[:, 0, 0]
+    assert _relative(characteristic, np.linalg.det(Z)) <= 1e-12
+
+
 def _beam(name, **kw):
     return ModalBeam(name, length=1.3, bending_stiffness=5.0, mass_per_length=0.7, n_modes=3, **kw)
 
@@ -211,10 +244,6 @@ def test_bad_trees_and_unsupported_joints_are_refused():
         Tree((-1, 2, 0), (None, "out", "out"))
     with pytest.raises(ModelError, match="one entry per body"):
         Tree((-1, 0), (None,))
-    bushing = PlanarModel.chain("b", [Fixed("g"), ElasticHinge("h", stiffness=1.0, translational_stiffness=10.0),
-                                      RigidBody.uniform_link("l", mass=1.0, length=1.0)])
-    with pytest.raises(ModelError, match="translational springs"):
-        PlanarScene(bushing)
     pendulum = PlanarModel.chain("p", [Pinned("o"), RigidBody.uniform_link("l", mass=1.0, length=1.0)])
     with pytest.raises(ModelError, match=r"\(B, 1\)"):
         PlanarScene(pendulum).accelerations(np.zeros(5), np.zeros(5))
