@@ -6,7 +6,10 @@ scalar broadcasting against a matrix).  Two implementations:
 
 * :data:`NUMPY` -- every value is a **batched matrix** of shape ``(B, rows, columns)`` (a scalar is
   ``(B, 1, 1)``, a vector a column ``(B, n, 1)``); float or complex (complex-step tangents and
-  frequency sweeps use the complex dtype; ``B`` may be 1 for constants, which broadcast);
+  frequency sweeps use the complex dtype; ``B`` may be 1 for constants, which broadcast).  An
+  unbatched ``(rows, columns)`` array is one evaluation (``B = 1``): numpy's calls on 2-D arrays
+  are cheaper, which is the fast path of single-state callers (``flexible/kernel.py``); results
+  stay 2-D while every operand is;
 * :data:`CASADI` -- every value is a ``casadi.SX`` (or ``MX``) matrix ``(rows, columns)``, no batch axis.
 
 Rules for code written against :class:`Ops`: no in-place writes (``SX`` is immutable), no Python
@@ -60,6 +63,8 @@ class NumpyOps:
         array = np.asarray(x)
         if array.ndim == 0:
             return array.reshape(1, 1, 1)
+        if array.ndim == 2:
+            return array[None]
         if array.ndim != 3:
             raise ValueError(f"numpy ops values are (B, rows, columns) arrays, got shape {array.shape}")
         return array
@@ -72,9 +77,9 @@ class NumpyOps:
     def block(self, rows: Sequence[Sequence[Any]]) -> np.ndarray:
         if len(rows) == 1 or all(len(row) == 1 for row in rows):
             parts = [e for row in rows for e in row]
-            if all(type(e) is np.ndarray and e.ndim == 3 for e in parts) and \
-                    len({(e.shape[0], e.dtype) for e in parts}) == 1:    # one row or one column of equal blocks
-                return np.concatenate(parts, axis=2 if len(rows) == 1 else 1)
+            if all(type(e) is np.ndarray for e in parts) and \
+                    len({(e.shape[:-2], e.ndim, e.dtype) for e in parts}) == 1:  # one row or column of equal blocks
+                return np.concatenate(parts, axis=-1 if len(rows) == 1 else -2)
         grid = [[self._matrix(entry) for entry in row] for row in rows]
         batch = max(entry.shape[0] for row in grid for entry in row)
         dtype = np.result_type(*[entry.dtype for row in grid for entry in row], float)
@@ -82,9 +87,7 @@ class NumpyOps:
                                     for e in row], axis=2) for row in grid]
         return np.concatenate(out_rows, axis=1)
 
-    @staticmethod
-    def matmul(a: Any, b: Any) -> np.ndarray:
-        return np.matmul(a, b)
+    matmul = staticmethod(np.matmul)           # no Python frame: the sweep's most frequent call
 
     @staticmethod
     def solve(a: Any, b: Any) -> np.ndarray:
@@ -96,7 +99,7 @@ class NumpyOps:
 
     @staticmethod
     def det(a: Any) -> np.ndarray:
-        return np.linalg.det(a)[:, None, None]
+        return np.linalg.det(a)[..., None, None]
 
     @staticmethod
     def transpose(a: Any) -> np.ndarray:
@@ -104,7 +107,7 @@ class NumpyOps:
 
     @staticmethod
     def sub(a: Any, rows: slice, columns: slice) -> np.ndarray:
-        return a[:, rows, columns]
+        return a[..., rows, columns]
 
     @staticmethod
     def zeros(rows: int, columns: int) -> np.ndarray:

@@ -3,9 +3,10 @@
 Every context is checked against an INDEPENDENT model: explicit accelerations against the Lagrange
 references (``reference/planar_lagrange.py``, ``reference/flexible_lagrange.py``), the frequency
 context's characteristic function and FRF against ``PlanarLagrange.linearize`` ``M, C, K``; casadi
-evaluation against numpy; and the "same recursion" equalities with today's kernels
-(``planar/sweep.py riccati_kernel``, ``flexible/kernel.py FlexibleSystem.sweep``) with arbitrary
-joint tangents ``kappa`` (the implicit context).
+evaluation against numpy; the "same recursion" equality with the Python-float explicit fast path
+(``planar/sweep.py riccati_kernel``) with arbitrary joint tangents ``kappa`` (the implicit context);
+and ``flexible/kernel.py FlexibleSystem.sweep`` (a call of the one sweep on its own terms) equal to
+the sweep of the scene's tree.
 """
 from __future__ import annotations
 
@@ -216,7 +217,7 @@ def test_same_recursion_as_the_planar_riccati_kernel_with_joint_tangents(seed):
 
 
 @pytest.mark.parametrize("name", sorted(FLEXIBLE))
-def test_same_recursion_as_the_flexible_sweep_with_joint_tangents(name):
+def test_flexible_system_sweep_is_the_one_sweep_of_the_scene_with_joint_tangents(name):
     model = FLEXIBLE[name]()
     system = model.flexible_system
     rng = np.random.default_rng(3)
