@@ -4,7 +4,7 @@ Every context is checked against an INDEPENDENT model: explicit accelerations ag
 references (``reference/planar_lagrange.py``, ``reference/flexible_lagrange.py``), the frequency
 context's characteristic function and FRF against ``PlanarLagrange.linearize`` ``M, C, K``; casadi
 evaluation against numpy; the "same recursion" equality with the Python-float explicit fast path
-(``planar/sweep.py riccati_kernel``) with arbitrary joint tangents ``kappa`` (the implicit context);
+(``planar/fast_sweep.py riccati_kernel``) with arbitrary joint tangents ``kappa`` (the implicit context);
 and ``flexible/kernel.py FlexibleSystem.sweep`` (a call of the one sweep on its own terms) equal to
 the sweep of the scene's tree.
 """
@@ -24,7 +24,8 @@ from ctmm.planar import (ElasticHinge, Fixed, FreeBase, Load, Pinned, PlanarMode
                          SmoothHinge, accelerations, ports)
 from ctmm.planar.body_forms import PlanarScene
 from ctmm.planar.linear import hanging_configuration, static_equilibrium
-from ctmm.planar.sweep import body_terms, hinge_torques, riccati_kernel
+from ctmm.planar.fast_sweep import riccati_kernel
+from ctmm.planar.sweep import body_terms, hinge_torques
 from ctmm.protocol import BodyTerms
 from ctmm.reference.flexible_lagrange import FlexibleLagrange
 from ctmm.reference.planar_lagrange import PlanarLagrange
@@ -69,13 +70,28 @@ def test_translational_spring_hinges_on_the_protocol_equal_lagrange_and_the_old_
     model = random_tree(seed, 6, allow_translation=True)
     q, v, t = random_state(model, seed)
     scene = PlanarScene(model)
+    reference = PlanarLagrange(model)
+    free = scene.accelerations(q, v, t)[0]
+    assert _relative(free, reference.accelerations(q, v, t)) <= 1e-12
+    assert _relative(accelerations(model, q, v, t), free) <= 1e-15          # ctmm.planar.accelerations routes here
+    # hinge torques and body moments act through the Lagrange mass matrix: qdd(u) - qdd(0) = M^-1 Q(u)
     rng = np.random.default_rng(seed)
-    inputs = ports.actuator_inputs(model, {name: float(rng.normal()) for name in ports.actuator_names(model)})
-    for given in (None, inputs):
-        result = scene.accelerations(q, v, t, given)[0]
-        assert _relative(result, accelerations(model, q, v, t, inputs=given)) <= 1e-12
-        if given is None:
-            assert _relative(result, PlanarLagrange(model).accelerations(q, v, t)) <= 1e-12
+    values, Q = {}, np.zeros(model.n_coordinates)
+    for j, name in enumerate(model.joint_names):
+        if model.joint_kind[j] in (0, 3) and f"{name}.torque" in ports.actuator_names(model):
+            u = values[f"{name}.torque"] = float(rng.normal())
+            Q[model.theta_index[j]] += u
+            p = model.parent[j]
+            while p >= 0 and model.theta_index[p] < 0:    # a driven parent turns with its own parent
+                p = model.parent[p]
+            if p >= 0:
+                Q[model.theta_index[p]] -= u
+    for j, name in enumerate(model.body_names):
+        if model.theta_index[j] >= 0:
+            u = values[f"{name}.moment"] = float(rng.normal())
+            Q[model.theta_index[j]] += u
+    forced = scene.accelerations(q, v, t, ports.actuator_inputs(model, values))[0]
+    assert _relative(forced - free, np.linalg.solve(reference.mass_matrix(q, t), Q)) <= 1e-10
 
 
 def test_translational_spring_hinge_frequency_context_equals_the_lagrange_linearisation():
@@ -191,7 +207,7 @@ def test_same_recursion_as_the_planar_riccati_kernel_with_joint_tangents(seed):
     alpha_driven = [0.0] * model.n_bodies
     for i, _, _, acceleration in model.driven(t):
         alpha_driven[i] = acceleration
-    A, F, alpha, _ = riccati_kernel(model.parent.tolist(), model.joint_kind.tolist(), K.tolist(), b.tolist(),
+    A, F, alpha = riccati_kernel(model.parent.tolist(), model.joint_kind.tolist(), K.tolist(), b.tolist(),
                                     E.tolist(), kappa.tolist(), tau.tolist(), alpha_driven)
     scene = PlanarScene(model)
     _, joints = scene.terms(NUMPY, q[None, :, None], v[None, :, None], t)
@@ -321,3 +337,23 @@ def test_frequency_context_with_modal_elimination_equals_the_flexible_lagrange_l
     ratio = PlanarScene(model).frequency(q0, s).characteristic[:, 0, 0] / np.linalg.det(
         s[:, None, None] * np.eye(2 * n) - A)
     assert np.max(np.abs(ratio - ratio[0])) <= 1e-9 * abs(ratio[0])
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_implicit_tangent_sweep_on_the_one_sweep_equals_the_fast_path(seed):
+    """The planar Newton step's tangent relations swept by articulated_sweep (the path of models with
+    translational springs) give the fast path's numbers on rigid revolute trees."""
+    from ctmm.planar.implicit import _NewtonStep
+    from ctmm.planar.sweep import solve_instant
+
+    model = random_tree(seed, 6, allow_translation=False)
+    q, v, t = random_state(model, seed)
+    h = 0.01
+    step = _NewtonStep(model, 0.25 * h * h, 0.5 * h)
+    start = solve_instant(model, q, v, t)
+    tangent = step.linearise(q, v, t, start.body_acceleration, start.joint_force, start.qddot)
+    A, F, _ = step.solve(tangent)
+    A_one, F_one, translation = step.tangent_sweep(tangent["K"], tangent["b"], tangent["E"], tangent["tau_tilde"],
+                                                   tangent["alpha_d"], None)
+    assert translation == {}
+    assert _relative(A_one, A) <= 1e-12 and _relative(F_one, F) <= 1e-12

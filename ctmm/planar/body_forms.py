@@ -525,6 +525,17 @@ class PlanarScene:
         SimulationError
             A singular articulated inertia (non-finite accelerations), naming the time.
         """
+        return self.coordinate_accelerations(self.solution(q, qdot, t, inputs))
+
+    def solution(self, q: Any, qdot: Any, t: float = 0.0, inputs: Any = None) -> Articulated:
+        """The explicit sweep's whole result (accelerations, joint forces, relative accelerations),
+        batched: ``q, qdot`` (B, n) or (n,) as for :meth:`accelerations`.
+
+        Raises
+        ------
+        SimulationError
+            A singular articulated inertia (non-finite accelerations), naming the time.
+        """
         q, qdot = np.asarray(q), np.asarray(qdot)
         if q.ndim == 1:
             q = q[None]
@@ -541,8 +552,7 @@ class PlanarScene:
             except np.linalg.LinAlgError as exc:
                 raise SimulationError(f"articulated inertia of model {self.model.name!r} is singular ({exc})",
                                       time=t) from exc
-        out = self.coordinate_accelerations(solution)
-        if not np.all(np.isfinite(out)):
+        if not all(np.all(np.isfinite(x)) for x in solution.x):
             raise SimulationError(f"articulated inertia of model {self.model.name!r} is singular (non-finite "
                                   "accelerations)", time=t)
-        return out
+        return solution
