@@ -80,12 +80,28 @@ class NumpyOps:
             if all(type(e) is np.ndarray for e in parts) and \
                     len({(e.shape[:-2], e.ndim, e.dtype) for e in parts}) == 1:  # one row or column of equal blocks
                 return np.concatenate(parts, axis=-1 if len(rows) == 1 else -2)
-        grid = [[self._matrix(entry) for entry in row] for row in rows]
-        batch = max(entry.shape[0] for row in grid for entry in row)
-        dtype = np.result_type(*[entry.dtype for row in grid for entry in row], float)
-        out_rows = [np.concatenate([np.broadcast_to(e, (batch,) + e.shape[1:]).astype(dtype, copy=False)
-                                    for e in row], axis=2) for row in grid]
-        return np.concatenate(out_rows, axis=1)
+        # one allocation, one broadcasting assignment per entry (scalars and B = 1 entries broadcast)
+        grid = [[entry if isinstance(entry, (int, float, complex)) else np.asarray(entry) for entry in row]
+                for row in rows]
+        arrays = [e for row in grid for e in row if isinstance(e, np.ndarray) and e.ndim]
+        if any(e.ndim not in (2, 3) for e in arrays):
+            bad = next(e for e in arrays if e.ndim not in (2, 3))
+            raise ValueError(f"numpy ops values are (B, rows, columns) arrays, got shape {bad.shape}")
+        batch = max([e.shape[0] for e in arrays if e.ndim == 3], default=None)
+        heights = [max([e.shape[-2] for e in row if isinstance(e, np.ndarray) and e.ndim], default=1) for row in grid]
+        widths = [max([row[c].shape[-1] for row in grid if isinstance(row[c], np.ndarray) and row[c].ndim],
+                      default=1) for c in range(len(grid[0]))]
+        dtype = np.result_type(*[e for row in grid for e in row], float)
+        shape = (sum(heights), sum(widths))
+        out = np.empty(shape if batch is None and arrays else (batch or 1,) + shape, dtype=dtype)
+        r0 = 0
+        for row, height in zip(grid, heights):
+            c0 = 0
+            for entry, width in zip(row, widths):
+                out[..., r0:r0 + height, c0:c0 + width] = entry
+                c0 += width
+            r0 += height
+        return out
 
     matmul = staticmethod(np.matmul)           # no Python frame: the sweep's most frequent call
 
