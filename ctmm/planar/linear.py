@@ -248,6 +248,12 @@ def static_equilibrium(model: PlanarModel, q_guess, *, t: float = 0.0,
     angles = np.array([c.endswith(".theta") for c in model.coordinates], dtype=bool)
     q[angles] = (q[angles] + np.pi) % (2.0 * np.pi) - np.pi
     residual = np.max(np.abs(accelerations(model, q, np.zeros_like(q), t)))
+    if residual > 1e-8:        # a root at a huge angle loses digits when wrapped: polish the wrapped point
+        sol = scipy.optimize.root(lambda x: accelerations(model, x, np.zeros_like(x), t), q, tol=tolerance,
+                                  method="hybr")
+        q = sol.x.copy()
+        q[angles] = (q[angles] + np.pi) % (2.0 * np.pi) - np.pi
+        residual = np.max(np.abs(accelerations(model, q, np.zeros_like(q), t)))
     if residual > 1e-8:
         raise ModelError(f"no static equilibrium found near {q_guess!r} (residual {residual:.2e})")
     return q
@@ -257,21 +263,35 @@ def hanging_configuration(model: PlanarModel) -> np.ndarray:
     """Coordinates with every body's centre of mass straight below its inboard end (along gravity).
 
     A guess for :func:`static_equilibrium` (exact for a chain of bodies on smooth hinges; hinge
-    springs and loads move the equilibrium away from it).  Bodies whose centre of mass is at their
-    inboard end, and every body without gravity, keep angle 0; other coordinates are 0.
+    springs and loads move the equilibrium away from it).  A body whose centre of mass is at its
+    inboard end (a hub) hangs by what it carries instead: the first moment of the bodies welded or
+    driven on it (taken straight) and the masses of the subtrees hinged on it at their points.  A
+    body with no such moment, and every body without gravity, keeps angle 0; other coordinates are 0.
     """
     q = np.zeros(model.n_coordinates)
     g = np.asarray(model.gravity, dtype=float)
     if not np.any(g != 0.0):
         return q
     down = float(np.arctan2(g[1], g[0]))
+    nb = model.n_bodies
+    total = np.asarray(model.mass, dtype=float).copy()            # subtree masses [kg]
+    moment = total[:, None] * np.asarray(model.com, dtype=float)   # first moments in the body's frame [kg m]
+    for j in range(nb - 1, 0, -1):                                  # tips first (topological order)
+        p = int(model.parent[j])
+        if p < 0:
+            continue
+        total[p] += total[j]
+        moment[p] += total[j] * model.end_vector[j]
+        if model.theta_index[j] < 0:                                # turns with its parent
+            moment[p] += moment[j]
     for k, name in enumerate(model.coordinates):
         body, _, what = name.rpartition(".")
         if what != "theta" or body not in model.body_names:
             continue
-        com = model.com[model.body_index(body)]
-        if np.any(com != 0.0):
-            q[k] = down - float(np.arctan2(com[1], com[0]))
+        j = model.body_index(body)
+        lever = model.com[j] if np.any(model.com[j] != 0.0) else moment[j]
+        if np.any(lever != 0.0):
+            q[k] = down - float(np.arctan2(lever[1], lever[0]))
     return q
 
 
