@@ -7,11 +7,12 @@ import pytest
 import ctmm
 from ctmm.errors import ModelError
 from ctmm.planar import Fixed, Pinned, PlanarModel, RigidBody, SmoothHinge, SpringDamperHinge
-from ctmm.planar.linear import (LinearRigidBody, characteristic_function, linear_chain,
-                                hanging_configuration, natural_frequencies, static_equilibrium)
+from ctmm.planar.linear import (characteristic_function, hanging_configuration, natural_frequencies,
+                                static_equilibrium)
 from ctmm.reference.planar_lagrange import PlanarLagrange
 
 from planar_helpers import random_tree, uniform_chain
+from planar_linear_elements import LinearRigidBody, linear_chain
 
 
 def _offset_chain():
