@@ -111,6 +111,24 @@ def test_translational_spring_hinge_frequency_context_equals_the_lagrange_linear
     assert _relative(characteristic, np.linalg.det(Z)) <= 1e-12
 
 
+def test_translational_spring_hinges_are_counted_by_the_one_sweep():
+    """Now on the protocol, models with translational springs take the Wittrick-Williams count (3 x 3
+    joint pivots) in ctmm.natural_frequencies / eigenvalue_count: equal to the Lagrange eigenvalues."""
+    import ctmm
+    from ctmm.planar_counting import FrequencyCounter
+
+    model = PlanarModel.chain("bushed", [Pinned("o"), RigidBody.uniform_link("l1", mass=1.0, length=1.0),
+                                         ElasticHinge("h", stiffness=4.0, rest_angle=0.4, translational_stiffness=300.0),
+                                         RigidBody.uniform_link("l2", mass=0.5, length=0.8)])
+    q0 = ctmm.linearize(model, inputs=[], outputs=[]).operating_point.q
+    expected = PlanarLagrange(model).natural_frequencies(q0)
+    np.testing.assert_allclose(FrequencyCounter(model, q0, 0.0).frequencies(n_modes=4), expected, rtol=1e-10)
+    np.testing.assert_allclose(ctmm.natural_frequencies(model, n_modes=4), expected, rtol=1e-10)
+    omega = np.concatenate([0.999 * expected, 1.001 * expected])
+    np.testing.assert_array_equal(ctmm.eigenvalue_count(model, omega),
+                                  np.sum(expected[None, :] < omega[:, None], axis=1))
+
+
 def _beam(name, **kw):
     return ModalBeam(name, length=1.3, bending_stiffness=5.0, mass_per_length=0.7, n_modes=3, **kw)
 
