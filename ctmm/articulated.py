@@ -145,6 +145,7 @@ def articulated_sweep(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints:
     M = [b.M for b in bodies]
     h = [b.h for b in bodies]
     Phi, psi, WA, Wh, D, C = [None] * nb, [None] * nb, [None] * nb, [None] * nb, [None] * nb, [None] * nb
+    St = [None] * nb                                # S^T of the free joints
     rd = slice(0, d)
     for j in range(nb - 1, -1, -1):
         Mj, hj = M[j], h[j]
@@ -164,28 +165,33 @@ def articulated_sweep(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints:
         if joint.c is not None:
             p = p + ops.matmul(P, joint.c)
         Phi[j], psi[j] = P, p
+        par = tree.parent[j]
+        if par < 0:                                 # at the ground only the pivot is needed
+            if joint.prescribed is None and joint.free:
+                St[j] = ops.transpose(joint.S)
+                D[j] = ops.matmul(ops.matmul(St[j], P), joint.S)
+                if kappa[j] is not None:
+                    D[j] = D[j] + kappa[j]
+            continue
         if joint.prescribed is not None:
             P_hat, p_hat = P, p + ops.matmul(ops.matmul(P, joint.S), joint.prescribed)
         elif joint.free == 0:
             P_hat, p_hat = P, p
         else:
-            St = ops.transpose(joint.S)
+            St[j] = ops.transpose(joint.S)
             PS = ops.matmul(P, joint.S)
-            StP = ops.matmul(St, P)
+            StP = ops.matmul(St[j], P)
             Dj = ops.matmul(StP, joint.S)
             if kappa[j] is not None:
                 Dj = Dj + kappa[j]
             D[j] = Dj
-            rhs = ops.matmul(St, p) * -1.0 if joint.tau is None else joint.tau - ops.matmul(St, p)
+            rhs = ops.matmul(St[j], p) * -1.0 if joint.tau is None else joint.tau - ops.matmul(St[j], p)
             if joint.free == 1:                     # one free direction: D is 1 x 1, divide
                 P_hat = P - ops.matmul(PS, StP / Dj)
                 p_hat = p + PS * (rhs / Dj)
             else:
                 P_hat = P - ops.matmul(PS, ops.solve(Dj, StP))
                 p_hat = p + ops.matmul(PS, ops.solve(Dj, rhs))
-        par = tree.parent[j]
-        if par < 0:
-            continue
         e = tree.point[j]
         parent = bodies[par]
         RF = parent.RF[e]
@@ -205,7 +211,7 @@ def articulated_sweep(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints:
         elif joint.free == 0:
             a = None
         else:
-            load = ops.matmul(ops.transpose(joint.S), psi[j] if A_O is None else ops.matmul(Phi[j], A_O) + psi[j])
+            load = ops.matmul(St[j], psi[j] if A_O is None else ops.matmul(Phi[j], A_O) + psi[j])
             rhs = load * -1.0 if joint.tau is None else joint.tau - load
             a = rhs / D[j] if joint.free == 1 else ops.solve(D[j], rhs)
         if a is None:

@@ -88,6 +88,7 @@ class FlexibleSystem:
         self.rigid_load_rows = [k for k in range(len(lb)) if int(lb[k]) not in self.beam_data]
         self.end_vectors = [[np.asarray(v, float) for v in model.ends[j].values()]
                             for j in range(nb)]
+        self.free_base = [j for j in range(nb) if self.kind[j] == FREE]
         # the tree of the one sweep; a body's points are keyed by their index in its terms' end list
         self.tree = Tree(tuple(self.parent), tuple(None if p < 0 else e for p, e in zip(self.parent, self.pend)), 3)
 
@@ -219,15 +220,14 @@ class FlexibleSystem:
                     raise SimulationError(f"articulated inertia of joint {self.model.joint_names[j]!r} is singular "
                                           f"({d!r})", element=self.model.joint_names[j])
         x = [xj[:, 0] for xj in out.x]
-        if not all(np.all(np.isfinite(xj)) for xj in x):
+        if not np.all(np.isfinite(np.concatenate(x))):
             raise SimulationError(f"articulated inertia or modal matrix of model {self.model.name!r} is singular "
                                   "(non-finite accelerations)", element=self._singular_element(terms))
         F = np.array([f[:, 0] for f in out.force])
         alpha = np.array([0.0 if r is None else r[-1, 0] for r in out.relative])
-        AO = np.array([xj[:3] for xj in x])
-        for j, r in enumerate(out.relative):
-            if r is not None:
-                AO[j] = AO[j] - joints[j].S @ r[:, 0]
+        AO = np.array([xj[:3] for xj in x])         # A_O = A - S a_rel: revolute and driven S = e3
+        AO[:, 2] -= alpha
+        AO[self.free_base] = 0.0                     # a free base hangs on the ground
         return x, F, AO, alpha
 
     def _singular_element(self, terms) -> str | None:
