@@ -19,6 +19,13 @@ the force transmitted to the outboard point is ``f = -k (x_out - x_in - l) - c (
 
 Frequency-domain quantities are deviations from the static configuration, so the free
 length does not appear there.
+
+*On the element protocol* (issue 12, :mod:`ctmm.protocol` with point dimension ``d = 1``,
+:mod:`ctmm.lumped_forms`): a point element is a **body** with ``M = [m]``,
+``h = [c_g v + k_g x - F]`` and ``Kin = RF = [1]``, ``c = 0`` at its point ``"out"`` (the same
+point as ``"in"``); a connector is a **joint** with ``S = [1]`` and the law
+``tau = -k (q_rel - l) - c v_rel + F`` (tangents ``tau_q = -k``, ``tau_v = -c``; an inertance ``b``
+as ``tau_a = -b``).  :meth:`PointElement.terms` and :meth:`Connector.terms` state this once.
 """
 from __future__ import annotations
 
@@ -29,6 +36,8 @@ import numpy as np
 from .. import validation
 from ..errors import ModelError
 from ..layouts import AXIAL
+from ..ops import Ops
+from ..protocol import BodyTerms, JointTerms, Motion
 from ..signals import SignalLike, TimeFunction, as_signal, harmonic_amplitude
 from .base import DiscreteElement, Element, Linearisation, LumpedCoefficients
 
@@ -51,6 +60,9 @@ class PointElement(Element):
     layout = AXIAL
     is_point = True
     inputs = ("force",)
+    points = ("in", "out")
+    coordinates: tuple[str, ...] = ()
+    dimensions = frozenset({1})
 
     def __init__(self, name: str, *, mass: float = 0.0, damping: float = 0.0, stiffness: float = 0.0,
                  force: SignalLike = 0.0) -> None:
@@ -60,6 +72,35 @@ class PointElement(Element):
         self.stiffness = validation.nonnegative(f"{name}: stiffness", stiffness)
         self.force: TimeFunction = as_signal(f"{name}: force", force)
         self._coefficients = LumpedCoefficients(False, self.mass, self.damping, self.stiffness)
+
+    def terms(self, ops: Ops, motion: Motion, eta: Any = None, eta_dot: Any = None, t: float = 0.0,
+              u: Mapping[str, Any] | None = None) -> BodyTerms:
+        """The point's physics as body terms (``d = 1``, no internal coordinates).
+
+        Parameters
+        ----------
+        ops : Ops
+        motion : Motion
+            ``pose = (x,)`` [m], ``twist = (v,)`` [m/s] of the point (ops scalars).
+        eta, eta_dot : unused
+            A lumped point has no internal coordinates.
+        t : float
+            Time [s] (unused: the load enters through ``u``).
+        u : mapping, optional
+            ``{"force": F}`` [N], the external force in +x (0 when absent).
+
+        Returns
+        -------
+        BodyTerms
+            ``M = [m]``, ``h = [c v + k x - F]``, ``Kin["out"] = RF["out"] = [1]``, ``c["out"] = 0``:
+            ``f_in = m a + c v + k x - F + f_out``.
+        """
+        x, v = motion.pose[0], motion.twist[0]
+        force = (u or {}).get("force", 0.0)
+        one = ops.eye(1)
+        h = ops.zeros(1, 1) + v * self.damping + x * self.stiffness - force
+        return BodyTerms(M=ops.block([[self.mass]]), h=h, Kin={"out": one}, c={"out": ops.zeros(1, 1)},
+                         RF={"out": one})
 
     def impedance(self, s: np.ndarray) -> np.ndarray:
         """Dynamic stiffness ``m s^2 + c s + k`` [N/m] of the point."""
@@ -159,6 +200,8 @@ class Connector(Element):
     layout = AXIAL
     is_point = False
     inputs = ("force",)
+    coordinates = ("dx",)
+    dimensions = frozenset({1})
 
     def __init__(self, name: str, *, stiffness: float = 0.0, damping: float = 0.0,
                  free_length: float = 0.0) -> None:
@@ -169,6 +212,34 @@ class Connector(Element):
         if self.stiffness == 0.0 and self.damping == 0.0:
             raise ModelError(f"{name}: a connector needs stiffness > 0 or damping > 0, got both 0")
         self._coefficients = LumpedCoefficients(True, 0.0, self.damping, self.stiffness, self.free_length)
+
+    def terms(self, ops: Ops, q_rel: Any, v_rel: Any, t: float = 0.0,
+              u: Mapping[str, Any] | None = None) -> JointTerms:
+        """The connector's physics as joint terms (``d = 1``, one free direction).
+
+        Parameters
+        ----------
+        ops : Ops
+        q_rel, v_rel : ops scalars
+            Elongation ``x_out - x_in`` [m] and its rate [m/s].
+        t : float
+            Time [s] (unused).
+        u : mapping, optional
+            ``{"force": F}`` [N], the actuator force across the connector (0 when absent).
+
+        Returns
+        -------
+        JointTerms
+            ``S = [1]``, ``tau = -k (q_rel - l) - c v_rel + F`` (force on the outboard point),
+            ``tau_q = -k``, ``tau_v = -c`` and, with an inertance ``b``, ``tau_a = -b`` (the law's
+            ``-b a_rel``, which the contexts take through ``kappa``).
+        """
+        co = self.lumped_coefficients()
+        force = (u or {}).get("force", 0.0)
+        tau = ops.zeros(1, 1) + (q_rel - co.free_length) * (-co.stiffness) - v_rel * co.damping + force
+        return JointTerms(S=ops.eye(1), tau=tau, tau_q=ops.block([[-co.stiffness]]),
+                          tau_v=ops.block([[-co.damping]]),
+                          tau_a=ops.block([[-co.mass]]) if co.mass else None)
 
     def connector_stiffness(self, s: np.ndarray) -> np.ndarray:
         """Complex stiffness ``k + c s`` [N/m]."""

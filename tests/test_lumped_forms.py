@@ -1,0 +1,211 @@
+"""Contract of the 1-D lumped families on the element protocol (issue 12, plan S4A; ``ctmm/lumped_forms.py``).
+
+* frequency context: for random chains of every lumped family and boundary, the states at every
+  connection point and the characteristic function equal today's chain transfer solution (the scalar
+  Riccati fast path ``chain_assembly.solve``, the assembled ``U(s)`` path and
+  ``frequency.characteristic_function``), and the displacements equal the independent global
+  equations (``reference/inerter_chain.py``);
+* explicit context: accelerations equal ``M^-1 (f - C v - K x)`` of the global references
+  (``reference/chain.py``, ``reference/inerter_chain.py``); a massless node is refused;
+* the terms run on casadi symbols and give the numpy numbers.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import ctmm
+from ctmm.assembly import SOLVERS
+from ctmm.chain_assembly import assemble, solve
+from ctmm.elements import (BeamClamped, BeamField, BeamFree, Damper, Elastic, Fixed, Free, GroundedSpring, Inerter,
+                           Mass, PrescribedDisplacement, PrescribedForce, Spring, SpringDamper)
+from ctmm.errors import ModelError
+from ctmm.frequency import characteristic_function
+from ctmm.lumped_forms import explicit_accelerations, frequency_states, lumped_tree
+from ctmm.ops import CASADI, NUMPY
+from ctmm.protocol import Motion
+from ctmm.reference import chain as global_chain
+from ctmm.reference import inerter_chain
+from _chain_convert import random_chain, to_global
+
+S = 0.05 + 1j * np.array([0.0, 0.7, 3.1, 9.0, 22.0])      # off the axis: no resonance is hit exactly
+
+
+def _connector(rng, name):
+    kind = rng.integers(4)
+    k, c, b = float(rng.uniform(20, 300)), float(rng.uniform(0.1, 3.0)), float(rng.uniform(0.05, 1.0))
+    length = float(rng.uniform(-0.5, 0.5))
+    return [Spring(name, k, free_length=length), Damper(name, c), SpringDamper(name, k, c, free_length=length),
+            Inerter(name, b, stiffness=k * rng.integers(2), damping=c * rng.integers(2))][kind]
+
+
+def _boundary(rng, name, kinds):
+    kind = kinds[rng.integers(len(kinds))]
+    return {"fixed": lambda: Fixed(name, position=float(rng.uniform(-1, 1))),
+            "free": lambda: Free(name),
+            "elastic": lambda: Elastic(name, float(rng.uniform(20, 200)), damping=float(rng.uniform(0, 1)),
+                                       anchor=float(rng.uniform(-1, 1))),
+            "base": lambda: PrescribedDisplacement(name, 0.0),
+            "force": lambda: PrescribedForce(name, 0.0)}[kind]()
+
+
+def _random_lumped_chain(seed: int) -> ctmm.Chain:
+    """Every lumped family, massless nodes (connectors in series), point elements on a fixed end."""
+    rng = np.random.default_rng(seed)
+    elements = [_boundary(rng, "start", ("fixed", "free", "elastic", "base", "force"))]
+    for i in range(int(rng.integers(3, 7))):
+        if rng.uniform() < 0.85:
+            elements.append(_connector(rng, f"k{i}"))
+        if rng.uniform() < 0.8:
+            elements.append(Mass(f"m{i}", float(rng.uniform(0.2, 3.0))))
+        if rng.uniform() < 0.3:
+            elements.append(GroundedSpring(f"g{i}", float(rng.uniform(10, 100)), damping=float(rng.uniform(0, 1))))
+    if not any(isinstance(e, (Spring, Damper, SpringDamper, Inerter)) for e in elements):
+        elements.append(_connector(rng, "k_last"))
+    if not any(e.is_point for e in elements[1:]):
+        elements.append(Mass("m_last", 1.0))
+    elements.append(_boundary(rng, "end", ("fixed", "free", "elastic", "base", "force")))
+    return ctmm.Chain(f"lumped_{seed}", elements)
+
+
+def _relative(a, b) -> float:
+    return float(np.max(np.abs(np.asarray(a) - np.asarray(b))) / np.max(np.abs(b)))
+
+
+@pytest.mark.parametrize("seed", range(24))
+def test_frequency_context_equals_the_chain_transfer_solution_for_every_family(seed):
+    chain = _random_lumped_chain(seed)
+    tree = lumped_tree(chain)
+    for position, element in enumerate(chain.elements):
+        for name in element.inputs:
+            amplitudes = {position: {name: 0.7 - 0.2j}}
+            derived = frequency_states(tree, S, amplitudes).states
+            fast = solve(chain, S, amplitudes).states                       # scalar Riccati fast path
+            Us, us, start, end = assemble(chain, S, amplitudes)               # element matrices U(s)
+            generic = SOLVERS["riccati"](Us, us, start, end).states
+            scale = np.max(np.abs(fast), axis=(0, 2))                        # per frequency
+            assert np.max(np.abs(derived - fast) / scale[None, :, None]) <= 1e-12, (element.name, name)
+            assert np.max(np.abs(derived - generic) / scale[None, :, None]) <= 1e-12, (element.name, name)
+    s = np.concatenate([S, [1.0 + 0j]])
+    characteristic = frequency_states(tree, s).characteristic
+    expected = characteristic_function(chain, S)                            # normalised at s = 1
+    assert _relative(characteristic[:-1] / characteristic[-1], expected) <= 1e-12
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_frequency_context_equals_the_global_equations_with_inerters(seed):
+    rng = np.random.default_rng(100 + seed)
+    n = 4
+    masses = rng.uniform(0.3, 2.0, n)
+    k, c, b = rng.uniform(20, 200, n + 1), rng.uniform(0.1, 1.0, n + 1), rng.uniform(0.1, 0.8, n + 1)
+    b[rng.integers(n + 1)] = 0.0
+    end = ("fixed", "free")[seed % 2]
+    if end == "free":
+        k[n] = c[n] = b[n] = 0.0
+    reference = inerter_chain.InerterChain(masses, k, c, b, start="fixed", end=end)
+    elements = [Fixed("start")]
+    for j in range(n + 1):
+        if j == n and end == "free":
+            break
+        elements.append(Inerter(f"c{j}", b[j], stiffness=k[j], damping=c[j]) if b[j] else
+                        SpringDamper(f"c{j}", k[j], c[j]))
+        if j < n:
+            elements.append(Mass(f"m{j}", masses[j]))
+    elements.append(Fixed("end") if end == "fixed" else Free("end"))
+    chain = ctmm.Chain("inerters", elements)
+    tree = lumped_tree(chain)
+    omega = np.array([0.5, 4.0, 11.0])
+    force = rng.normal(size=n)
+    amplitudes = {chain.position(f"m{i}"): {"force": force[i]} for i in range(n)}
+    states = frequency_states(tree, 1j * omega, amplitudes).states
+    derived = np.array([states[chain.position(f"m{i}"), :, 0] for i in range(n)]).T
+    assert _relative(derived, inerter_chain.frequency_response(reference, omega, force)) <= 1e-12
+
+
+def _node_of(tree, chain, name) -> int:
+    return tree.node[tree.positions.index(chain.position(name))]
+
+
+@pytest.mark.parametrize("start, end", [("fixed", "fixed"), ("fixed", "free"), ("free", "fixed"),
+                                        ("elastic", "free"), ("free", "elastic")])
+@pytest.mark.parametrize("seed", range(3))
+def test_explicit_context_equals_the_global_equations(start, end, seed):
+    rng = np.random.default_rng(seed)
+    chain = random_chain(rng, 4, start=start, end=end, damped=True, grounded=True)
+    reference = to_global(chain)
+    tree = lumped_tree(chain)
+    x, v, f = rng.normal(size=(3, 3, reference.size))
+    expected = global_chain.accelerations(reference, x, v, f)
+    masses = [e.name for e in chain.body if isinstance(e, Mass)]
+    nodes = [_node_of(tree, chain, name) for name in masses]
+    xn, vn = np.zeros((3, tree.n_nodes)), np.zeros((3, tree.n_nodes))
+    xn[:, nodes], vn[:, nodes] = x, v
+    inputs = {chain.position(name): {"force": f[:, i].reshape(-1, 1, 1)} for i, name in enumerate(masses)}
+    accelerations = explicit_accelerations(tree, xn, vn, 0.0, inputs)[:, nodes]
+    assert _relative(accelerations, expected) <= 1e-12
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_explicit_context_with_inerters_and_inertance_only_nodes(seed):
+    rng = np.random.default_rng(200 + seed)
+    n = 4
+    masses = rng.uniform(0.3, 2.0, n)
+    masses[1] = 0.0                                       # held only by the inerters beside it
+    k, c, b = rng.uniform(20, 200, n + 1), rng.uniform(0.1, 1.0, n + 1), rng.uniform(0.1, 0.8, n + 1)
+    reference = inerter_chain.InerterChain(masses, k, c, b, start="fixed", end="fixed")
+    elements = [Fixed("start")]
+    for j in range(n + 1):
+        elements.append(Inerter(f"c{j}", b[j], stiffness=k[j], damping=c[j]))
+        if j < n and masses[j]:
+            elements.append(Mass(f"m{j}", masses[j]))
+    chain = ctmm.Chain("inerters", elements + [Fixed("end")])
+    tree = lumped_tree(chain)
+    x, v, f = rng.normal(size=(3, n))
+    f[1] = 0.0
+    nodes = [tree.node[tree.positions.index(chain.position(f"m{j}"))] if masses[j] else
+             tree.node[tree.point_body[chain.position(f"c{j}")]] for j in range(n)]
+    xn, vn = np.zeros(tree.n_nodes), np.zeros(tree.n_nodes)
+    xn[nodes], vn[nodes] = x, v
+    inputs = {chain.position(f"m{j}"): {"force": f[j]} for j in range(n) if masses[j]}
+    accelerations = explicit_accelerations(tree, xn, vn, 0.0, inputs)[0, nodes]
+    assert _relative(accelerations, inerter_chain.initial_acceleration(reference, x, v, f)) <= 1e-12
+
+
+def test_explicit_context_refuses_a_massless_node_between_springs():
+    chain = ctmm.Chain("series", [Fixed("w"), Spring("k1", 10.0), Spring("k2", 20.0), Mass("m", 1.0), Free("e")])
+    tree = lumped_tree(chain)
+    with pytest.raises(ModelError, match="no mass and no inertance"):
+        explicit_accelerations(tree, np.zeros(tree.n_nodes), np.zeros(tree.n_nodes))
+    # the frequency context solves it: two springs in series
+    states = frequency_states(tree, [0.0], {3: {"force": 1.0}}).states
+    assert abs(states[3, 0, 0] - (1 / 10.0 + 1 / 20.0)) <= 1e-15
+
+
+def test_non_lumped_chains_are_refused_by_name():
+    beam = ctmm.Chain("beam", [BeamClamped("c"), BeamField("b", 1.0, 1.0, 1.0),
+                               BeamFree("f")])
+    with pytest.raises(ModelError, match="only lumped 1-D elements"):
+        lumped_tree(beam)
+    with pytest.raises(ModelError, match="can move"):
+        lumped_tree(ctmm.Chain("held", [Fixed("a"), Mass("m", 1.0), Fixed("b")]))
+
+
+def test_terms_on_casadi_symbols_equal_numpy():
+    casadi = pytest.importorskip("casadi")
+    x, v, F = casadi.SX.sym("x"), casadi.SX.sym("v"), casadi.SX.sym("F")
+    values = (0.3, -1.2, 2.5)
+    point = GroundedSpring("g", 40.0, damping=0.7)
+    body = point.terms(CASADI, Motion((x,), (v,)), u={"force": F})
+    reference = point.terms(NUMPY, Motion((np.full((1, 1, 1), 0.3),), (np.full((1, 1, 1), -1.2),)),
+                            u={"force": 2.5})
+    h = casadi.Function("h", [x, v, F], [body.h])(*values)
+    assert abs(float(h) - float(reference.h[0, 0, 0])) <= 1e-15
+    for element in (SpringDamper("k", 50.0, 0.4, free_length=0.2), Inerter("b", 0.3, stiffness=9.0),
+                    Elastic("e", 30.0, damping=0.5, anchor=0.1)):
+        joint = element.terms(CASADI, x, v, 0.0, {"force": F}) if not isinstance(element, Elastic) else \
+            element.terms(CASADI, x, v, 0.0, side="end")
+        expected = element.terms(NUMPY, np.full((1, 1, 1), 0.3), np.full((1, 1, 1), -1.2), 0.0, {"force": 2.5}) \
+            if not isinstance(element, Elastic) else element.terms(NUMPY, np.full((1, 1, 1), 0.3),
+                                                                   np.full((1, 1, 1), -1.2), 0.0, side="end")
+        tau = casadi.Function("tau", [x, v, F], [joint.tau])(*values)
+        assert abs(float(tau) - float(expected.tau[0, 0, 0])) <= 1e-13
