@@ -60,6 +60,10 @@ class _LumpedKernel:
         self.mass, self.damping, self.stiffness = get("mass"), get("damping"), get("stiffness")
         self.free_length = get("free_length")
         self.point_pos = np.flatnonzero(self.is_point)
+        # connectors in series (a massless node between them): their shared point can hold one
+        # predicted force only, so their affine parts carry the difference (affine_part)
+        con = np.flatnonzero(~self.is_point)
+        self.series = bool(np.any(np.diff(con) == 1))
         self.const_force = np.zeros(self.n)
         self.variable_forces = []
         for j in self.point_pos:
@@ -120,6 +124,9 @@ class _LumpedKernel:
         f_pred = f_pred[idx]             # points between point elements inherit the inboard value
         u0 = np.zeros(self.n)
         u1 = np.zeros(self.n)
+        if self.series:  # a massless node keeps the inboard connector's force: the outboard one's offsets
+            u0[con] = (predicted - f_pred[con]) / self._con_keff
+            u1[con] = f_pred[con] - f_pred[con + 1]
         u1[pts] = (f_pred[pts] - f_pred[pts + 1] + load[pts]
                    - (self._pts_m * D[pts] + self._pts_c * B[pts] + self._pts_k * dx[pts]))
         return u0, u1, f_pred
