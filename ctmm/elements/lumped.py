@@ -31,38 +31,24 @@ from __future__ import annotations
 
 from typing import Any, Mapping
 
-import numpy as np
 
 from .. import validation
 from ..errors import ModelError
-from ..layouts import AXIAL
 from ..ops import Ops
 from ..protocol import BodyTerms, JointTerms, Motion
 from ..signals import SignalLike, TimeFunction, as_signal, harmonic_amplitude
-from .base import DiscreteElement, Element, Linearisation, LumpedCoefficients
+from .axial import AxialBody, AxialJoint
 
 
-def _point_matrix(s: np.ndarray, impedance: np.ndarray) -> np.ndarray:
-    U = np.zeros(np.shape(s) + (2, 2), dtype=complex)
-    U[..., 0, 0] = 1.0
-    U[..., 1, 1] = 1.0
-    U[..., 1, 0] = -impedance
-    return U
-
-
-class PointElement(Element):
+class PointElement(AxialBody):
     """A point of the 1-D chain with inertia, grounding and an external force.
 
-    Subclasses only set the data ``mass``, ``damping``, ``stiffness`` and ``force``: the
-    frequency-domain and discrete-time matrices follow from them (see module docstring).
+    Subclasses only set the data ``mass``, ``damping``, ``stiffness`` and ``force``; the physics
+    is :meth:`terms`, and every form (``U(s)``, the DT-TMM step, the lumped coefficients) is derived
+    from it by :class:`~ctmm.elements.axial.AxialBody`.
     """
 
-    layout = AXIAL
-    is_point = True
     inputs = ("force",)
-    points = ("in", "out")
-    coordinates: tuple[str, ...] = ()
-    dimensions = frozenset({1})
 
     def __init__(self, name: str, *, mass: float = 0.0, damping: float = 0.0, stiffness: float = 0.0,
                  force: SignalLike = 0.0) -> None:
@@ -71,7 +57,6 @@ class PointElement(Element):
         self.damping = validation.nonnegative(f"{name}: damping", damping)
         self.stiffness = validation.nonnegative(f"{name}: stiffness", stiffness)
         self.force: TimeFunction = as_signal(f"{name}: force", force)
-        self._coefficients = LumpedCoefficients(False, self.mass, self.damping, self.stiffness)
 
     def terms(self, ops: Ops, motion: Motion, eta: Any = None, eta_dot: Any = None, t: float = 0.0,
               u: Mapping[str, Any] | None = None) -> BodyTerms:
@@ -102,30 +87,13 @@ class PointElement(Element):
         return BodyTerms(M=ops.block([[self.mass]]), h=h, Kin={"out": one}, c={"out": ops.zeros(1, 1)},
                          RF={"out": one})
 
-    def impedance(self, s: np.ndarray) -> np.ndarray:
-        """Dynamic stiffness ``m s^2 + c s + k`` [N/m] of the point."""
-        s = np.asarray(s, dtype=complex)
-        return self.mass * s * s + self.damping * s + self.stiffness
-
-    def transfer_matrix(self, s: np.ndarray) -> np.ndarray:
-        return _point_matrix(np.asarray(s, dtype=complex), self.impedance(s))
-
-    def load_vector(self, s: np.ndarray, amplitudes: Mapping[str, Any]) -> np.ndarray:
-        self.check_inputs(amplitudes)
-        u = np.zeros(np.shape(s) + (2,), dtype=complex)
-        if "force" in amplitudes:
-            u[..., 1] = amplitudes["force"]
-        return u
+    def own_load(self, t: float) -> float:
+        """External force [N] of the point at time ``t`` [s]."""
+        return float(self.force(t))
 
     def steady_state_amplitudes(self) -> dict[str, complex]:
         """Phasors of the element's own loads (constant or harmonic signals only)."""
         return {"force": harmonic_amplitude(self.force)}
-
-    def discretize(self, scheme: Any) -> "DiscretePoint":
-        return DiscretePoint(self)
-
-    def lumped_coefficients(self) -> LumpedCoefficients:
-        return self._coefficients                  # built with the element (read every step)
 
     def parameters(self) -> dict[str, Any]:
         return {"mass": self.mass, "damping": self.damping, "stiffness": self.stiffness}
@@ -170,38 +138,17 @@ class GroundedSpring(PointElement):
         return {"stiffness": self.stiffness, "damping": self.damping}
 
 
-class DiscretePoint(DiscreteElement):
-    """DT-TMM form of a :class:`PointElement`."""
-
-    def __init__(self, element: PointElement) -> None:
-        self.element = element
-
-    def load(self, t: float) -> float:
-        """External force [N] of the point at time ``t`` [s]."""
-        return float(self.element.force(t))
-
-    def step_matrices(self, t: float, inboard: Linearisation, outboard: Linearisation, force: float = 0.0):
-        e = self.element
-        lin = inboard
-        U = np.eye(2)
-        U[1, 0] = -(e.mass * lin.C + e.damping * lin.A + e.stiffness * lin.cx)
-        u = np.array([0.0, -(e.mass * lin.D + e.damping * lin.B + e.stiffness * lin.dx) + force])
-        return U, u
-
-
-class Connector(Element):
+class Connector(AxialJoint):
     """Massless spring ``k`` (free length ``l``) in parallel with a viscous damper ``c``.
 
     Subclasses only choose which of the data are given; ``k + c > 0`` is required.  The input
     ``"force"`` is an actuator acting *across* the connector: ``+F`` on its outboard point and
-    ``-F`` on its inboard point (seed 001 Fig. 9.30), so ``f = -k (dx - l) - c dv + F``.
+    ``-F`` on its inboard point (seed 001 Fig. 9.30), so ``f = -k (dx - l) - c dv + F``.  The
+    physics is :meth:`terms`; every form is derived from it by :class:`~ctmm.elements.axial.AxialJoint`.
     """
 
-    layout = AXIAL
-    is_point = False
     inputs = ("force",)
-    coordinates = ("dx",)
-    dimensions = frozenset({1})
+    inertance = 0.0          # [kg]; an Inerter sets its own
 
     def __init__(self, name: str, *, stiffness: float = 0.0, damping: float = 0.0,
                  free_length: float = 0.0) -> None:
@@ -211,7 +158,6 @@ class Connector(Element):
         self.free_length = validation.finite(f"{name}: free_length", free_length)
         if self.stiffness == 0.0 and self.damping == 0.0:
             raise ModelError(f"{name}: a connector needs stiffness > 0 or damping > 0, got both 0")
-        self._coefficients = LumpedCoefficients(True, 0.0, self.damping, self.stiffness, self.free_length)
 
     def terms(self, ops: Ops, q_rel: Any, v_rel: Any, t: float = 0.0,
               u: Mapping[str, Any] | None = None) -> JointTerms:
@@ -234,38 +180,11 @@ class Connector(Element):
             ``tau_q = -k``, ``tau_v = -c`` and, with an inertance ``b``, ``tau_a = -b`` (the law's
             ``-b a_rel``, which the contexts take through ``kappa``).
         """
-        co = self.lumped_coefficients()
         force = (u or {}).get("force", 0.0)
-        tau = ops.zeros(1, 1) + (q_rel - co.free_length) * (-co.stiffness) - v_rel * co.damping + force
-        return JointTerms(S=ops.eye(1), tau=tau, tau_q=ops.block([[-co.stiffness]]),
-                          tau_v=ops.block([[-co.damping]]),
-                          tau_a=ops.block([[-co.mass]]) if co.mass else None)
-
-    def connector_stiffness(self, s: np.ndarray) -> np.ndarray:
-        """Complex stiffness ``k + c s`` [N/m]."""
-        return self.stiffness + self.damping * np.asarray(s, dtype=complex)
-
-    def transfer_matrix(self, s: np.ndarray) -> np.ndarray:
-        s = np.asarray(s, dtype=complex)
-        U = np.zeros(s.shape + (2, 2), dtype=complex)
-        U[..., 0, 0] = 1.0
-        U[..., 1, 1] = 1.0
-        with np.errstate(divide="ignore", invalid="ignore"):
-            U[..., 0, 1] = -1.0 / self.connector_stiffness(s)
-        return U
-
-    def load_vector(self, s: np.ndarray, amplitudes: Mapping[str, Any]) -> np.ndarray:
-        self.check_inputs(amplitudes)
-        u = np.zeros(np.shape(s) + (2,), dtype=complex)
-        if "force" in amplitudes:
-            u[..., 0] = amplitudes["force"] / self.connector_stiffness(s)
-        return u
-
-    def discretize(self, scheme: Any) -> "DiscreteConnector":
-        return DiscreteConnector(self)
-
-    def lumped_coefficients(self) -> LumpedCoefficients:
-        return self._coefficients                  # built with the element (read every step)
+        tau = ops.zeros(1, 1) + (q_rel - self.free_length) * (-self.stiffness) - v_rel * self.damping + force
+        return JointTerms(S=ops.eye(1), tau=tau, tau_q=ops.block([[-self.stiffness]]),
+                          tau_v=ops.block([[-self.damping]]),
+                          tau_a=ops.block([[-self.inertance]]) if self.inertance else None)
 
     def parameters(self) -> dict[str, Any]:
         return {"stiffness": self.stiffness, "damping": self.damping, "free_length": self.free_length}
@@ -315,19 +234,3 @@ class SpringDamper(Connector):
 
     def __init__(self, name: str, stiffness: float, damping: float, *, free_length: float = 0.0) -> None:
         super().__init__(name, stiffness=stiffness, damping=damping, free_length=free_length)
-
-
-class DiscreteConnector(DiscreteElement):
-    """DT-TMM form of a :class:`Connector`."""
-
-    def __init__(self, element: Connector) -> None:
-        self.element = element
-
-    def step_matrices(self, t: float, inboard: Linearisation, outboard: Linearisation, force: float = 0.0):
-        e = self.element
-        k_eff = e.stiffness * inboard.cx + e.damping * inboard.A
-        U = np.eye(2)
-        U[0, 1] = -1.0 / k_eff
-        u = np.array([(e.stiffness * e.free_length - e.stiffness * (outboard.dx - inboard.dx)
-                       - e.damping * (outboard.B - inboard.B) + force) / k_eff, 0.0])
-        return U, u
