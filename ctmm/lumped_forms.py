@@ -31,8 +31,8 @@ S4A) is a serial tree with point dimension ``d = 1`` (:class:`~ctmm.articulated.
   closure a serial chain needs (a second grounded leaf, §2.4), solved exactly, not iterated.
 
 Frequency context (:func:`frequency_states`): the terms are linearised about the unstretched rest
-configuration (``x = v = 0``, inputs 0), ``Z(s) = s^2 M + s dh/dv + dh/dx`` with the tangents by
-complex step, joints ``kappa(s) = -(tau_q + s tau_v + s^2 tau_a)``, loads = the inputs' part of
+configuration (``x = v = 0``, inputs 0), ``Z(s) = s^2 M + s dh/dv + dh/dx`` from the affine form of
+the body terms (:func:`ctmm.elements.axial.body_coefficients`), joints ``kappa(s) = -(tau_q + s tau_v + s^2 tau_a)``, loads = the inputs' part of
 ``h`` and ``tau``; the unknowns are displacement phasors.  The characteristic function is
 ``prod D_j`` over the free joints (``det`` of the dynamic stiffness of the moving nodes, a
 polynomial in ``s``).
@@ -55,7 +55,6 @@ from .protocol import BodyTerms, JointTerms, Motion
 __all__ = ["MasslessNode", "LumpedTree", "lumped_tree", "frequency_states", "explicit_accelerations",
            "FrequencyStates"]
 
-_STEP = 1e-20          # complex step of the tangents (exact to round-off for analytic terms)
 
 
 class MasslessNode:
@@ -198,10 +197,6 @@ def lumped_tree(chain) -> LumpedTree:
                       cap, tuple(wall), tuple(point_body), tree)
 
 
-def _scalar(value: Any, batch: int = 1) -> np.ndarray:
-    return np.broadcast_to(np.asarray(value, dtype=complex).reshape(-1, 1, 1), (batch, 1, 1))
-
-
 def _joint(tree: LumpedTree, entry, q_rel, v_rel, t, u) -> JointTerms:
     if entry is None:
         return JointTerms(S=NUMPY.zeros(1, 0))                      # weld
@@ -263,16 +258,11 @@ def frequency_states(tree: LumpedTree, s: Any, amplitudes: Mapping[int, Mapping[
     s = np.atleast_1d(np.asarray(s, dtype=complex)).reshape(-1, 1, 1)
     batch = s.shape[0]
     zero = np.zeros((1, 1, 1))
-    step = _scalar(1j * _STEP)
     body_Z, body_h, joint_terms, kappa = [], [], [], []
     for body, entry, position in zip(tree.bodies, tree.joints, tree.positions):
-        u = dict(amplitudes.get(position, {})) if position >= 0 else {}
-        rest = body.terms(NUMPY, _motion(zero, zero), t=0.0)
-        stiff = np.imag(body.terms(NUMPY, _motion(step, zero), t=0.0).h) / _STEP
-        damp = np.imag(body.terms(NUMPY, _motion(zero, step), t=0.0).h) / _STEP
-        loaded = body.terms(NUMPY, _motion(zero, zero), t=0.0, u=u).h - rest.h
-        body_Z.append(s * s * rest.M + s * damp + stiff + np.zeros((batch, 1, 1)))
-        body_h.append(loaded + np.zeros((batch, 1, 1), dtype=complex))
+        Zj, hj = _frequency_body(body, s, dict(amplitudes.get(position, {})) if position >= 0 else {})
+        body_Z.append(Zj)
+        body_h.append(hj)
         joint, k = _frequency_joint(tree, entry, s, amplitudes)
         joint_terms.append(joint)
         kappa.append(k)
@@ -294,6 +284,17 @@ def frequency_states(tree: LumpedTree, s: Any, amplitudes: Mapping[int, Mapping[
     return FrequencyStates(_point_states(tree, x, f_in, f_out, X_g[:, 0, 0], s, amplitudes),
                            np.ones(batch, dtype=complex) if sweep.characteristic is None
                            else sweep.characteristic[:, 0, 0])
+
+
+def _frequency_body(body, s: np.ndarray, u: Mapping) -> tuple[np.ndarray, np.ndarray]:
+    """``Z(s) = M s^2 + (dh/dv) s + dh/dx`` and the inputs' part of ``h`` (affine form of the terms)."""
+    batch = s.shape[0]
+    if isinstance(body, MasslessNode):
+        return np.zeros((batch, 1, 1), dtype=complex), np.zeros((batch, 1, 1), dtype=complex)
+    co = body.axial_coefficients()
+    load = sum((co.inputs[key] * value for key, value in u.items()), 0.0)
+    return (co.inertia * s * s + co.damping * s + co.stiffness + np.zeros((batch, 1, 1)),
+            np.zeros((batch, 1, 1), dtype=complex) + load)
 
 
 def _frequency_joint(tree: LumpedTree, entry, s: np.ndarray, amplitudes: Mapping):
@@ -338,14 +339,8 @@ def _point_states(tree: LumpedTree, x, f_in, f_out, x_wall, s, amplitudes) -> np
             continue
         states[position, :, 0] = x_wall
         if position in tree.wall:                 # a point element on the wall: f_out = f_in - (Z X + h)
-            terms = element.terms(NUMPY, _motion(np.zeros((1, 1, 1)), np.zeros((1, 1, 1))), t=0.0)
-            step = _scalar(1j * _STEP)
-            stiff = np.imag(element.terms(NUMPY, _motion(step, np.zeros((1, 1, 1))), t=0.0).h) / _STEP
-            damp = np.imag(element.terms(NUMPY, _motion(np.zeros((1, 1, 1)), step), t=0.0).h) / _STEP
-            load = element.terms(NUMPY, _motion(np.zeros((1, 1, 1)), np.zeros((1, 1, 1))), t=0.0,
-                                 u=dict(amplitudes.get(position, {}))).h - terms.h
-            Zw = (s * s * terms.M + s * damp + stiff)[:, 0, 0]
-            states[position, :, 1] = states[position - 1, :, 1] - (Zw * x_wall + load[:, 0, 0])
+            Zw, load = _frequency_body(element, s, dict(amplitudes.get(position, {})))
+            states[position, :, 1] = states[position - 1, :, 1] - (Zw[:, 0, 0] * x_wall + load[:, 0, 0])
         else:                                     # the connector into the wall carries f_out of the last body
             states[position, :, 1] = f_out[-1]
     return states

@@ -30,7 +30,7 @@ from .assembly import (SOLVERS, BoundaryEnd, BoundaryStart, clamped_start_solve,
 from .elements.base import Linearisation
 from .chain_start import initial_acceleration, initial_forces, initial_state, rest_positions
 from .elements.beam_time import bending_mesh
-from .elements.lumped import PointElement
+from .elements.axial import AxialBody
 from .errors import ModelError, SimulationError
 from .guard import DivergenceGuard
 from .progress import progress_bar
@@ -285,9 +285,9 @@ def point_labels(system: Chain) -> list[str]:
     labels = []
     for p, name in enumerate(system.point_names()):
         inboard, outboard = system.elements[p], system.elements[p + 1]
-        if isinstance(outboard, PointElement):
+        if isinstance(outboard, AxialBody):
             labels.append(outboard.name)
-        elif isinstance(inboard, PointElement):
+        elif isinstance(inboard, AxialBody):
             labels.append(inboard.name)
         else:
             labels.append(name)

@@ -123,6 +123,14 @@ def joint_coefficients(joint: "AxialJoint") -> AxialCoefficients:
     return AxialCoefficients(-tangent(terms.tau_a), -damping, -stiffness, rest, inputs)
 
 
+def _derived(element: Element, key: str, build):
+    """A form derived once per element (elements are immutable descriptions)."""
+    value = element.__dict__.get(key)
+    if value is None:
+        value = element.__dict__[key] = build()
+    return value
+
+
 class AxialBody(Element):
     """A 1-D point family: only :meth:`terms` (and validation) is its own; every form is derived."""
 
@@ -142,11 +150,8 @@ class AxialBody(Element):
         return 0.0
 
     def axial_coefficients(self) -> AxialCoefficients:
-        """The affine form of :meth:`terms`, derived once per element (elements are immutable)."""
-        cached = self.__dict__.get("_axial")
-        if cached is None:
-            cached = self.__dict__["_axial"] = body_coefficients(self)
-        return cached
+        """The affine form of :meth:`terms`, derived once per element."""
+        return _derived(self, "_axial", lambda: body_coefficients(self))
 
     def impedance(self, s: np.ndarray) -> np.ndarray:
         """Dynamic stiffness ``Z(s) = M s^2 + (dh/dv) s + dh/dx`` [N/m]."""
@@ -173,11 +178,8 @@ class AxialBody(Element):
         return DiscreteAxialBody(self)
 
     def lumped_coefficients(self) -> LumpedCoefficients:
-        cached = self.__dict__.get("_lumped")
-        if cached is None:
-            co = self.axial_coefficients()
-            cached = self.__dict__["_lumped"] = LumpedCoefficients(False, co.inertia, co.damping, co.stiffness)
-        return cached
+        co = self.axial_coefficients()
+        return _derived(self, "_lumped", lambda: LumpedCoefficients(False, co.inertia, co.damping, co.stiffness))
 
 
 class AxialJoint(Element):
@@ -194,11 +196,8 @@ class AxialJoint(Element):
         """The law (``S = [1]``)."""
 
     def axial_coefficients(self) -> AxialCoefficients:
-        """The affine form of :meth:`terms`, derived once per element (elements are immutable)."""
-        cached = self.__dict__.get("_axial")
-        if cached is None:
-            cached = self.__dict__["_axial"] = joint_coefficients(self)
-        return cached
+        """The affine form of :meth:`terms`, derived once per element."""
+        return _derived(self, "_axial", lambda: joint_coefficients(self))
 
     def connector_stiffness(self, s: np.ndarray) -> np.ndarray:
         """``kappa(s) = -(tau_q + s tau_v + s^2 tau_a) = k + c s + b s^2`` [N/m] (it clears the poles of ``U``)."""
@@ -228,12 +227,9 @@ class AxialJoint(Element):
         return DiscreteAxialJoint(self)
 
     def lumped_coefficients(self) -> LumpedCoefficients:
-        cached = self.__dict__.get("_lumped")
-        if cached is None:
-            co = self.axial_coefficients()
-            length = co.rest / co.stiffness if co.stiffness else 0.0
-            cached = self.__dict__["_lumped"] = LumpedCoefficients(True, co.inertia, co.damping, co.stiffness, length)
-        return cached
+        co = self.axial_coefficients()
+        length = co.rest / co.stiffness if co.stiffness else 0.0
+        return _derived(self, "_lumped", lambda: LumpedCoefficients(True, co.inertia, co.damping, co.stiffness, length))
 
 
 class DiscreteAxialBody(DiscreteElement):
