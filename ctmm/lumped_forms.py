@@ -410,18 +410,19 @@ def _require_inertia(tree: LumpedTree) -> None:
     """Refuse nodes whose displacement is algebraic in the explicit context."""
     inertance = {}
     for j, entry in enumerate(tree.joints):
-        if entry is not None and getattr(entry[0], "lumped_coefficients", None) is not None and entry[1] is None:
-            b = entry[0].lumped_coefficients().mass
+        if entry is not None and entry[1] is None:                  # a connector
+            b = entry[0].axial_coefficients().inertia
             inertance[tree.node[j]] = inertance.get(tree.node[j], 0.0) + b
             if j > 0:
                 inertance[tree.node[j - 1]] = inertance.get(tree.node[j - 1], 0.0) + b
     if tree.cap[1] is None:
-        b = tree.cap[0].lumped_coefficients().mass
+        b = tree.cap[0].axial_coefficients().inertia
         inertance[tree.node[-1]] = inertance.get(tree.node[-1], 0.0) + b
     for k in range(tree.n_nodes):
         if tree.grounded[k]:
             continue
-        mass = sum(getattr(tree.bodies[j], "mass", 0.0) for j in range(len(tree.bodies)) if tree.node[j] == k)
+        mass = sum(tree.bodies[j].axial_coefficients().inertia for j in range(len(tree.bodies))
+                   if tree.node[j] == k and not isinstance(tree.bodies[j], MasslessNode))
         if mass + inertance.get(k, 0.0) == 0.0:
             names = [tree.bodies[j].name for j in range(len(tree.bodies)) if tree.node[j] == k]
             raise ModelError(f"explicit_accelerations: node {k} ({', '.join(names)}) of chain {tree.chain.name!r} has "
