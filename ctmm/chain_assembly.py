@@ -149,8 +149,11 @@ def _solve_lumped(system: Chain, s: np.ndarray, amplitudes: Mapping, want_log_de
     f = 1 - e
     entries = []
     for pos, element in enumerate(system.body, start=1):
-        inputs = element.axial_coefficients().inputs          # d tau / d u (joints), d h / d u (bodies)
-        load = sum((inputs[key] * value for key, value in amplitudes.get(pos, {}).items()), 0.0)
+        amps = amplitudes.get(pos)
+        load = 0.0
+        if amps:                            # d tau / d u (joints), d h / d u (bodies) of the derived form
+            inputs = element.axial_coefficients().inputs
+            load = sum((inputs[key] * value for key, value in amps.items()), 0.0)
         if isinstance(element, AxialJoint):   # x_out = x_in - F/k_c (+ F_act/k_c)
             compliance = 1.0 / element.connector_stiffness(s)
             ux, uF = (load * compliance if load else 0.0), 0.0

@@ -151,7 +151,8 @@ class AxialBody(Element):
 
     def axial_coefficients(self) -> AxialCoefficients:
         """The affine form of :meth:`terms`, derived once per element."""
-        return _derived(self, "_axial", lambda: body_coefficients(self))
+        cached = self.__dict__.get("_axial")
+        return cached if cached is not None else _derived(self, "_axial", lambda: body_coefficients(self))
 
     def impedance(self, s: np.ndarray) -> np.ndarray:
         """Dynamic stiffness ``Z(s) = M s^2 + (dh/dv) s + dh/dx`` [N/m]."""
@@ -197,13 +198,16 @@ class AxialJoint(Element):
 
     def axial_coefficients(self) -> AxialCoefficients:
         """The affine form of :meth:`terms`, derived once per element."""
-        return _derived(self, "_axial", lambda: joint_coefficients(self))
+        cached = self.__dict__.get("_axial")
+        return cached if cached is not None else _derived(self, "_axial", lambda: joint_coefficients(self))
 
     def connector_stiffness(self, s: np.ndarray) -> np.ndarray:
         """``kappa(s) = -(tau_q + s tau_v + s^2 tau_a) = k + c s + b s^2`` [N/m] (it clears the poles of ``U``)."""
         co = self.axial_coefficients()
         s = np.asarray(s, dtype=complex)
-        return co.stiffness + co.damping * s + co.inertia * s * s
+        if co.inertia:
+            return co.inertia * s * s + co.damping * s + co.stiffness
+        return co.stiffness + co.damping * s
 
     def transfer_matrix(self, s: np.ndarray) -> np.ndarray:
         s = np.asarray(s, dtype=complex)
