@@ -37,8 +37,11 @@ the body terms (:func:`ctmm.elements.axial.body_coefficients`), joints ``kappa(s
 ``prod D_j`` over the free joints (``det`` of the dynamic stiffness of the moving nodes, a
 polynomial in ``s``).
 
-Explicit context (:func:`explicit_accelerations`): the terms at the nodes' displacements and
-velocities, ``kappa = -tau_a`` (inertance), accelerations of every node.
+Implicit context (:func:`implicit_corrections`): the scheme's ``x = cx delta + dx``,
+``v = A delta + B``, ``a = C delta + D`` at every node, joints ``kappa = k cx + c A + b C`` (the
+connector's ``k_eff`` of the DT-TMM step), one sweep per step for these linear families.  Explicit
+context (:func:`explicit_accelerations`): its special case ``cx = A = 0``, ``C = 1``, ``D = 0``:
+``kappa = -tau_a`` (inertance), accelerations of every node.
 """
 from __future__ import annotations
 
@@ -53,7 +56,7 @@ from .ops import NUMPY, batch_column
 from .protocol import BodyTerms, JointTerms, Motion
 
 __all__ = ["MasslessNode", "LumpedTree", "lumped_tree", "frequency_states", "explicit_accelerations",
-           "FrequencyStates"]
+           "implicit_corrections", "FrequencyStates"]
 
 
 
@@ -373,37 +376,94 @@ def explicit_accelerations(tree: LumpedTree, x: Any, v: Any, t: float = 0.0,
     ModelError
         When a node has neither mass nor inertance next to it (its displacement is algebraic).
     """
-    inputs = inputs or {}
-    xs, vs = np.atleast_2d(np.asarray(x, dtype=float)), np.atleast_2d(np.asarray(v, dtype=float))
-    if xs.shape != vs.shape or xs.shape[1] != tree.n_nodes:
-        raise ModelError(f"explicit_accelerations: x and v must have shape (B, {tree.n_nodes}) (one entry per node), "
-                         f"got {xs.shape} and {vs.shape}")
-    xn, vn = [batch_column(xs[:, [k]]) for k in range(tree.n_nodes)], \
-        [batch_column(vs[:, [k]]) for k in range(tree.n_nodes)]
+    xs = np.atleast_2d(np.asarray(x, dtype=float))
     _require_inertia(tree)
+    return implicit_corrections(tree, 0.0, 0.0, 1.0, x, v, np.zeros_like(xs), t, inputs)
+
+
+def implicit_corrections(tree: LumpedTree, cx: float, A: float, C: float, dx: Any, B: Any, D: Any,  # noqa: N803
+                         t: float = 0.0, inputs: Mapping[int, Mapping[str, Any]] | None = None) -> np.ndarray:
+    """The implicit (DT-TMM) context: the step's unknowns ``delta`` of the nodes by one sweep.
+
+    Every node's kinematics at the step's evaluation level are affine in its unknown,
+    ``x = cx delta + dx``, ``v = A delta + B``, ``a = C delta + D`` (:mod:`ctmm.schemes`).  Bodies
+    become ``M_eff = M C + (dh/dv) A + (dh/dx) cx``, ``h_eff = h(dx, B, u) + M D``; joints
+    ``kappa = -(tau_q cx + tau_v A + tau_a C)`` (the connector's ``k_eff``) and
+    ``tau_eff = tau(dx_out - dx_in, B_out - B_in, u) + tau_a (D_out - D_in)``; the end joint to a
+    resting ground folds ``kappa`` and ``tau(-dx, -B) - tau_a D`` into the last body.  The explicit
+    context is ``cx = A = 0``, ``C = 1``, ``D = 0`` (then ``delta = a``).  Linear families (their
+    tangents from :meth:`~ctmm.elements.axial.AxialBody.axial_coefficients`), one sweep: no Newton
+    iteration is needed.
+
+    Parameters
+    ----------
+    tree : LumpedTree
+    cx, A, C : float
+        The scheme's coefficients [-, 1/s, 1/s^2] (the same at every node).
+    dx, B, D : array_like, shape (B, n_nodes) or (n_nodes,)
+        Per node: displacement [m], velocity [m/s] and acceleration [m/s^2] parts independent of
+        ``delta``.  Ground-welded nodes and the resting ground of a displacement-type end have
+        ``delta = 0``.
+    t : float
+        Time [s] of the evaluation level.
+    inputs : mapping, optional
+        ``{element position: {input name: value}}`` at the evaluation level (``"displacement"`` of a
+        prescribed start: its ``delta``).
+
+    Returns
+    -------
+    ndarray, shape (B, n_nodes)
+        ``delta`` per node.
+    """
+    inputs = inputs or {}
+    columns = [np.atleast_2d(np.asarray(value, dtype=float)) for value in (dx, B, D)]
+    if any(c.shape != columns[0].shape or c.shape[1] != tree.n_nodes for c in columns):
+        raise ModelError(f"lumped_forms: the node values must have shape (B, {tree.n_nodes}) (one entry per node), "
+                         f"got {[c.shape for c in columns]}")
+    dxn, Bn, Dn = ([batch_column(c[:, [k]]) for k in range(tree.n_nodes)] for c in columns)
     bodies, joints, kappa = [], [], []
     for j, (body, entry, position) in enumerate(zip(tree.bodies, tree.joints, tree.positions)):
         k = tree.node[j]
         u = dict(inputs.get(position, {})) if position >= 0 else {}
-        bodies.append(body.terms(NUMPY, _motion(xn[k], vn[k]), t=t, u=u))
+        terms = body.terms(NUMPY, _motion(dxn[k], Bn[k]), t=t, u=u)
+        M, h = terms.M * C, terms.h + terms.M * Dn[k]
+        if not isinstance(body, MasslessNode) and (cx or A):
+            co = body.axial_coefficients()
+            M = M + (co.damping * A + co.stiffness * cx)
+        bodies.append(BodyTerms(M=M, h=h, Kin=terms.Kin, c=terms.c, RF=terms.RF))
         parent = tree.node[j - 1] if j > 0 else None
-        q_rel = xn[k] - (xn[parent] if parent is not None else 0.0)
-        v_rel = vn[k] - (vn[parent] if parent is not None else 0.0)
-        joint = _joint(tree, entry, q_rel, v_rel, t, _inputs(inputs, entry))
+        relative = [value[k] - (value[parent] if parent is not None else 0.0) for value in (dxn, Bn, Dn)]
+        joint, tangent = _step_joint(tree, entry, relative, cx, A, C, t, _inputs(inputs, entry))
         joints.append(joint)
-        kappa.append(None if joint.tau_a is None else -joint.tau_a)
+        kappa.append(tangent)
     last = tree.node[-1]
-    cap = _joint(tree, tree.cap, -xn[last], -vn[last], t, _inputs(inputs, tree.cap))
+    cap, tangent = _step_joint(tree, tree.cap, [-dxn[last], -Bn[last], -Dn[last]], cx, A, C, t,
+                               _inputs(inputs, tree.cap))
     if cap.tau is not None and cap.free:
         M, h = bodies[-1].M, bodies[-1].h + cap.tau
-        if cap.tau_a is not None:
-            M = M - cap.tau_a
+        if tangent is not None:
+            M = M + tangent
         bodies[-1] = BodyTerms(M=M, h=h, Kin=bodies[-1].Kin, c=bodies[-1].c, RF=bodies[-1].RF)
     sweep = articulated_sweep(NUMPY, tree.tree, bodies, joints, kappa)
-    out = np.zeros_like(xs)
+    out = np.zeros_like(columns[0])
     for j, xj in enumerate(sweep.x):
         out[:, tree.node[j]] = xj[:, 0, 0]
     return out
+
+
+def _step_joint(tree: LumpedTree, entry, relative, cx: float, A: float, C: float, t: float, u: Mapping):
+    """Joint terms of the implicit context: ``tau_eff`` and ``kappa`` (module docstring)."""
+    q_rel, v_rel, a_rel = relative
+    joint = _joint(tree, entry, q_rel, v_rel, t, u)
+    if joint.tau is None or joint.free == 0:
+        return joint, None
+    tau, tangent = joint.tau, None
+    for value, coefficient in ((joint.tau_q, cx), (joint.tau_v, A), (joint.tau_a, C)):
+        if value is not None and coefficient:
+            tangent = -value * coefficient if tangent is None else tangent - value * coefficient
+    if joint.tau_a is not None:
+        tau = tau + joint.tau_a * a_rel
+    return JointTerms(S=joint.S, tau=tau, tau_q=joint.tau_q, tau_v=joint.tau_v, tau_a=joint.tau_a), tangent
 
 
 def _require_inertia(tree: LumpedTree) -> None:

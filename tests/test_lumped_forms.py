@@ -21,7 +21,7 @@ from ctmm.elements import (BeamClamped, BeamField, BeamFree, Damper, Elastic, Fi
                            Mass, PrescribedDisplacement, PrescribedForce, Spring, SpringDamper)
 from ctmm.errors import ModelError
 from ctmm.frequency import characteristic_function
-from ctmm.lumped_forms import explicit_accelerations, frequency_states, lumped_tree
+from ctmm.lumped_forms import explicit_accelerations, frequency_states, implicit_corrections, lumped_tree
 from ctmm.ops import CASADI, NUMPY
 from ctmm.protocol import Motion
 from ctmm.reference import chain as global_chain
@@ -169,6 +169,45 @@ def test_explicit_context_with_inerters_and_inertance_only_nodes(seed):
     inputs = {chain.position(f"m{j}"): {"force": f[j]} for j in range(n) if masses[j]}
     accelerations = explicit_accelerations(tree, xn, vn, 0.0, inputs)[0, nodes]
     assert _relative(accelerations, inerter_chain.initial_acceleration(reference, x, v, f)) <= 1e-12
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_implicit_context_solves_the_global_step_equations(seed):
+    """One implicit sweep = ``(C M + A C_d + cx K) delta = f - M D - C_d B - K dx`` of the global matrices
+    (``reference/inerter_chain.py``), with inerters and a massless node between two springs."""
+    rng = np.random.default_rng(300 + seed)
+    n = 5
+    masses = rng.uniform(0.3, 2.0, n)
+    masses[2] = 0.0
+    k, c, b = rng.uniform(20, 200, n + 1), rng.uniform(0.1, 1.0, n + 1), rng.uniform(0.1, 0.8, n + 1)
+    b[2] = b[3] = 0.0                                     # node 2: a massless point between two springs
+    end = ("fixed", "free")[seed % 2]
+    if end == "free":
+        k[n] = c[n] = b[n] = 0.0
+    reference = inerter_chain.InerterChain(masses, k, c, b, start="fixed", end=end)
+    elements = [Fixed("start")]
+    for j in range(n + 1):
+        if j == n and end == "free":
+            break
+        elements.append(Inerter(f"c{j}", b[j], stiffness=k[j], damping=c[j]) if b[j] else
+                        SpringDamper(f"c{j}", k[j], c[j]))
+        if j < n and masses[j]:
+            elements.append(Mass(f"m{j}", masses[j]))
+    chain = ctmm.Chain("step", elements + [Fixed("end") if end == "fixed" else Free("end")])
+    tree = lumped_tree(chain)
+    nodes = [tree.node[tree.positions.index(chain.position(f"m{j}"))] if masses[j] else
+             tree.node[tree.point_body[chain.position(f"c{j}")]] for j in range(n)]
+    cx, A, C = 0.25, 2.0e3, 4.0e6                          # Newmark at dt = 1 ms (x = delta + ..., scaled)
+    dx, B, D, f = rng.normal(size=(4, n))
+    f[2] = 0.0
+    values = [np.zeros(tree.n_nodes) for _ in range(3)]
+    for value, given in zip(values, (dx, B, D)):
+        value[nodes] = given
+    inputs = {chain.position(f"m{j}"): {"force": f[j]} for j in range(n) if masses[j]}
+    delta = implicit_corrections(tree, cx, A, C, *values, 0.0, inputs)[0, nodes]
+    M, Cd, K = inerter_chain.assemble(reference)
+    expected = np.linalg.solve(C * M + A * Cd + cx * K, f - M @ D - Cd @ B - K @ dx)
+    assert _relative(delta, expected) <= 1e-12
 
 
 def test_explicit_context_refuses_a_massless_node_between_springs():
