@@ -92,14 +92,9 @@ def test_frequency_context_equals_the_chain_transfer_solution_for_every_family(s
     assert _relative(characteristic[:-1] / characteristic[-1], expected) <= 1e-12
 
 
-@pytest.mark.parametrize("seed", range(6))
-def test_frequency_context_equals_the_global_equations_with_inerters(seed):
-    rng = np.random.default_rng(100 + seed)
-    n = 4
-    masses = rng.uniform(0.3, 2.0, n)
-    k, c, b = rng.uniform(20, 200, n + 1), rng.uniform(0.1, 1.0, n + 1), rng.uniform(0.1, 0.8, n + 1)
-    b[rng.integers(n + 1)] = 0.0
-    end = ("fixed", "free")[seed % 2]
+def _inerter_chains(masses, k, c, b, end: str):
+    """The same chain for ctmm and ``reference/inerter_chain.py`` (a zero mass: a point without a Mass)."""
+    n = len(masses)
     if end == "free":
         k[n] = c[n] = b[n] = 0.0
     reference = inerter_chain.InerterChain(masses, k, c, b, start="fixed", end=end)
@@ -109,10 +104,19 @@ def test_frequency_context_equals_the_global_equations_with_inerters(seed):
             break
         elements.append(Inerter(f"c{j}", b[j], stiffness=k[j], damping=c[j]) if b[j] else
                         SpringDamper(f"c{j}", k[j], c[j]))
-        if j < n:
+        if j < n and masses[j]:
             elements.append(Mass(f"m{j}", masses[j]))
-    elements.append(Fixed("end") if end == "fixed" else Free("end"))
-    chain = ctmm.Chain("inerters", elements)
+    return ctmm.Chain("inerters", elements + [Fixed("end") if end == "fixed" else Free("end")]), reference
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_frequency_context_equals_the_global_equations_with_inerters(seed):
+    rng = np.random.default_rng(100 + seed)
+    n = 4
+    masses = rng.uniform(0.3, 2.0, n)
+    k, c, b = rng.uniform(20, 200, n + 1), rng.uniform(0.1, 1.0, n + 1), rng.uniform(0.1, 0.8, n + 1)
+    b[rng.integers(n + 1)] = 0.0
+    chain, reference = _inerter_chains(masses, k, c, b, ("fixed", "free")[seed % 2])
     tree = lumped_tree(chain)
     omega = np.array([0.5, 4.0, 11.0])
     force = rng.normal(size=n)
@@ -181,19 +185,7 @@ def test_implicit_context_solves_the_global_step_equations(seed):
     masses[2] = 0.0
     k, c, b = rng.uniform(20, 200, n + 1), rng.uniform(0.1, 1.0, n + 1), rng.uniform(0.1, 0.8, n + 1)
     b[2] = b[3] = 0.0                                     # node 2: a massless point between two springs
-    end = ("fixed", "free")[seed % 2]
-    if end == "free":
-        k[n] = c[n] = b[n] = 0.0
-    reference = inerter_chain.InerterChain(masses, k, c, b, start="fixed", end=end)
-    elements = [Fixed("start")]
-    for j in range(n + 1):
-        if j == n and end == "free":
-            break
-        elements.append(Inerter(f"c{j}", b[j], stiffness=k[j], damping=c[j]) if b[j] else
-                        SpringDamper(f"c{j}", k[j], c[j]))
-        if j < n and masses[j]:
-            elements.append(Mass(f"m{j}", masses[j]))
-    chain = ctmm.Chain("step", elements + [Fixed("end") if end == "fixed" else Free("end")])
+    chain, reference = _inerter_chains(masses, k, c, b, ("fixed", "free")[seed % 2])
     tree = lumped_tree(chain)
     nodes = [tree.node[tree.positions.index(chain.position(f"m{j}"))] if masses[j] else
              tree.node[tree.point_body[chain.position(f"c{j}")]] for j in range(n)]

@@ -179,8 +179,11 @@ class AxialBody(Element):
         return DiscreteAxialBody(self)
 
     def lumped_coefficients(self) -> LumpedCoefficients:
-        co = self.axial_coefficients()
-        return _derived(self, "_lumped", lambda: LumpedCoefficients(False, co.inertia, co.damping, co.stiffness))
+        cached = self.__dict__.get("_lumped")          # read every step by the fast paths
+        if cached is None:
+            co = self.axial_coefficients()
+            cached = _derived(self, "_lumped", lambda: LumpedCoefficients(False, co.inertia, co.damping, co.stiffness))
+        return cached
 
 
 class AxialJoint(Element):
@@ -231,9 +234,13 @@ class AxialJoint(Element):
         return DiscreteAxialJoint(self)
 
     def lumped_coefficients(self) -> LumpedCoefficients:
-        co = self.axial_coefficients()
-        length = co.rest / co.stiffness if co.stiffness else 0.0
-        return _derived(self, "_lumped", lambda: LumpedCoefficients(True, co.inertia, co.damping, co.stiffness, length))
+        cached = self.__dict__.get("_lumped")          # read every step by the fast paths
+        if cached is None:
+            co = self.axial_coefficients()
+            length = co.rest / co.stiffness if co.stiffness else 0.0
+            cached = _derived(self, "_lumped",
+                              lambda: LumpedCoefficients(True, co.inertia, co.damping, co.stiffness, length))
+        return cached
 
 
 class DiscreteAxialBody(DiscreteElement):
