@@ -120,15 +120,13 @@ def joint_coefficients(joint: "AxialJoint") -> AxialCoefficients:
     if (tangent(terms.tau_q), tangent(terms.tau_v)) != (stiffness, damping):
         raise ModelError(f"{joint.name}: the law's stated tangents tau_q={tangent(terms.tau_q)}, "
                          f"tau_v={tangent(terms.tau_v)} differ from its slopes {stiffness}, {damping}")
-    return AxialCoefficients(-tangent(terms.tau_a), -damping, -stiffness, rest, inputs)
+    return AxialCoefficients(0.0 - tangent(terms.tau_a), 0.0 - damping, 0.0 - stiffness, rest, inputs)
 
 
-def _derived(element: Element, key: str, build):
-    """A form derived once per element (elements are immutable descriptions)."""
-    value = element.__dict__.get(key)
-    if value is None:
-        value = element.__dict__[key] = build()
-    return value
+def _lumped(co: AxialCoefficients, connector: bool) -> LumpedCoefficients:
+    if not connector:
+        return LumpedCoefficients(False, co.inertia, co.damping, co.stiffness)
+    return LumpedCoefficients(True, co.inertia, co.damping, co.stiffness, co.rest / co.stiffness if co.stiffness else 0.0)
 
 
 class AxialBody(Element):
@@ -149,10 +147,16 @@ class AxialBody(Element):
         """The value of the element's own (first) input at time ``t`` [s]; 0 by default."""
         return 0.0
 
+    def derive_forms(self) -> None:
+        """Derive the affine form once; call it last in ``__init__`` (the description is then complete
+        and never changes: the verbs only read it)."""
+        self._axial = body_coefficients(self)
+        self._lumped = _lumped(self._axial, connector=False)
+
     def axial_coefficients(self) -> AxialCoefficients:
-        """The affine form of :meth:`terms`, derived once per element."""
+        """The affine form of :meth:`terms` (derived by :meth:`derive_forms`, else on every call)."""
         cached = self.__dict__.get("_axial")
-        return cached if cached is not None else _derived(self, "_axial", lambda: body_coefficients(self))
+        return cached if cached is not None else body_coefficients(self)
 
     def impedance(self, s: np.ndarray) -> np.ndarray:
         """Dynamic stiffness ``Z(s) = M s^2 + (dh/dv) s + dh/dx`` [N/m]."""
@@ -180,10 +184,7 @@ class AxialBody(Element):
 
     def lumped_coefficients(self) -> LumpedCoefficients:
         cached = self.__dict__.get("_lumped")          # read every step by the fast paths
-        if cached is None:
-            co = self.axial_coefficients()
-            cached = _derived(self, "_lumped", lambda: LumpedCoefficients(False, co.inertia, co.damping, co.stiffness))
-        return cached
+        return cached if cached is not None else _lumped(self.axial_coefficients(), connector=False)
 
 
 class AxialJoint(Element):
@@ -199,10 +200,16 @@ class AxialJoint(Element):
               u: Mapping[str, Any] | None = None) -> JointTerms:
         """The law (``S = [1]``)."""
 
+    def derive_forms(self) -> None:
+        """Derive the affine form once; call it last in ``__init__`` (the description is then complete
+        and never changes: the verbs only read it)."""
+        self._axial = joint_coefficients(self)
+        self._lumped = _lumped(self._axial, connector=True)
+
     def axial_coefficients(self) -> AxialCoefficients:
-        """The affine form of :meth:`terms`, derived once per element."""
+        """The affine form of :meth:`terms` (derived by :meth:`derive_forms`, else on every call)."""
         cached = self.__dict__.get("_axial")
-        return cached if cached is not None else _derived(self, "_axial", lambda: joint_coefficients(self))
+        return cached if cached is not None else joint_coefficients(self)
 
     def connector_stiffness(self, s: np.ndarray) -> np.ndarray:
         """``kappa(s) = -(tau_q + s tau_v + s^2 tau_a) = k + c s + b s^2`` [N/m] (it clears the poles of ``U``)."""
@@ -235,12 +242,7 @@ class AxialJoint(Element):
 
     def lumped_coefficients(self) -> LumpedCoefficients:
         cached = self.__dict__.get("_lumped")          # read every step by the fast paths
-        if cached is None:
-            co = self.axial_coefficients()
-            length = co.rest / co.stiffness if co.stiffness else 0.0
-            cached = _derived(self, "_lumped",
-                              lambda: LumpedCoefficients(True, co.inertia, co.damping, co.stiffness, length))
-        return cached
+        return cached if cached is not None else _lumped(self.axial_coefficients(), connector=True)
 
 
 class DiscreteAxialBody(DiscreteElement):

@@ -81,6 +81,7 @@ class Inerter(Connector):
         self.stiffness = validation.nonnegative(f"{name}: stiffness", stiffness)
         self.damping = validation.nonnegative(f"{name}: damping", damping)
         self.free_length = validation.finite(f"{name}: free_length", free_length)
+        self.derive_forms()
 
     def parameters(self) -> dict[str, Any]:
         return {"inertance": self.inertance, "stiffness": self.stiffness, "damping": self.damping,

@@ -57,6 +57,7 @@ class PointElement(AxialBody):
         self.damping = validation.nonnegative(f"{name}: damping", damping)
         self.stiffness = validation.nonnegative(f"{name}: stiffness", stiffness)
         self.force: TimeFunction = as_signal(f"{name}: force", force)
+        self.derive_forms()
 
     def terms(self, ops: Ops, motion: Motion, eta: Any = None, eta_dot: Any = None, t: float = 0.0,
               u: Mapping[str, Any] | None = None) -> BodyTerms:
@@ -158,6 +159,7 @@ class Connector(AxialJoint):
         self.free_length = validation.finite(f"{name}: free_length", free_length)
         if self.stiffness == 0.0 and self.damping == 0.0:
             raise ModelError(f"{name}: a connector needs stiffness > 0 or damping > 0, got both 0")
+        self.derive_forms()
 
     def terms(self, ops: Ops, q_rel: Any, v_rel: Any, t: float = 0.0,
               u: Mapping[str, Any] | None = None) -> JointTerms:
