@@ -234,6 +234,16 @@ def fine_reference(chain: "PinocchioChain", q0, v0):
     return fine, rotation_error(coarse, fine) / 15.0, (q, v)
 
 
+def reference_tree(n: int, kind: str) -> "reference_model.SpatialTree":
+    """The chain as a tree of the independent global model."""
+    joint = "revolute" if kind == "revolute" else "spherical"
+    bodies = [reference_model.SpatialBody(
+        f"l{i}", i - 1, joint, 1.0, COM, INERTIA,
+        axes=[revolute_axis(i)] if kind == "revolute" else np.zeros((0, 3)),
+        joint_position=(1.0 if i else 0.0, 0.0, 0.0)) for i in range(n)]
+    return reference_model.SpatialTree(tuple(bodies), gravity=(0.0, 0.0, -G))
+
+
 def reference_check(log) -> dict:
     """At N = 5: the Pinocchio fine-step reference against the independent global model."""
     out = {}
@@ -241,12 +251,7 @@ def reference_check(log) -> dict:
         n = 5
         chain = PinocchioChain(n, kind)
         q0, v0 = initial_state(n, kind)
-        joint = "revolute" if kind == "revolute" else "spherical"
-        bodies = [reference_model.SpatialBody(
-            f"l{i}", i - 1, joint, 1.0, COM, INERTIA,
-            axes=[revolute_axis(i)] if kind == "revolute" else np.zeros((0, 3)),
-            joint_position=(1.0 if i else 0.0, 0.0, 0.0)) for i in range(n)]
-        tree = reference_model.SpatialTree(tuple(bodies), gravity=(0.0, 0.0, -G))
+        tree = reference_tree(n, kind)
 
         def rhs(_t, y, tree=tree):
             q, v = y[: tree.nq], y[tree.nq:]
