@@ -34,6 +34,7 @@ from .control.planar_time import simulate_closed_loop
 from .control.protocol import Controller, check_controllers, check_references
 from .control.simulate import simulate_controlled
 from .errors import ModelError, SimulationError, unknown_name
+from .planar.guards import check_resolution
 from .planar.integrate import SCIPY_METHODS, PlanarSimulation, initial_coordinates, to_result
 from .planar.model import PlanarModel
 from .results import SimulationResult
@@ -341,7 +342,7 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
                          "time-invariant planar scene), not both")
     progress = validation.flag("progress", progress, optional=True)
     q0, v0 = initial_coordinates(model, _initial(model, "x0", x0), _initial(model, "v0", v0))
-    model.check_resolution(q0, "x0")
+    check_resolution(model, q0, "x0")
     policy = "warn" if stability_check is None else validation.option("stability_check", stability_check,
                                                                        ("warn", "error", "ignore"))
     store_every = validation.integer("store_every", store_every, minimum=1)
