@@ -1,6 +1,7 @@
 """``ctmm.linearize`` of spatial models against the independent global Newton-Euler reference
 (``ctmm/reference/spatial_tree.py``: ``M``, ``C``, ``K`` by complex step of the global equations, sharing no
-TMM code).  The conversion of a ``SpatialModel`` to the reference's plain description is written here.
+TMM code).  The conversion of a ``SpatialModel`` to the reference's plain description is test code
+(``tests/spatial_linear_helpers.py``).
 
 The two models state the same joint laws to first order about an undeflected joint; spherical and
 elastic-hinge springs differ beyond that (ctmm ``2 w (x, y, z) = sin(angle) axis`` and ``R^T t``, the
@@ -17,51 +18,10 @@ import pytest
 import ctmm
 import ctmm.spatial as sp
 from ctmm.errors import ModelError
-from ctmm.reference import spatial_tree as ref
 from ctmm.spatial_linearization import retract, static_equilibrium, tangent_names
+from spatial_linear_helpers import elastic_hinge_body, random_spring_tree, reference_blocks
 
 TOLERANCE = 1e-10
-
-
-def reference_tree(model: sp.SpatialModel) -> ref.SpatialTree:
-    """The reference description of a spatial model (bodies in the model's order)."""
-    bodies = []
-    for j, (body, joint) in enumerate(zip(model.bodies, model.joints)):
-        parent = model.parent[j]
-        position = joint.point if parent < 0 else model.bodies[parent].points[joint.point]
-        axes = {"revolute": lambda: [joint.axis], "prismatic": lambda: [joint.axis],
-                "universal": lambda: [joint.axis1, joint.axis2]}.get(joint.kind, lambda: np.zeros((0, 3)))()
-        stiffness = getattr(joint, "stiffness", None)
-        damping = getattr(joint, "damping", None)
-        if joint.kind in ("revolute", "prismatic", "universal"):
-            assert not np.any(joint.reference), "the reference has no spring reference angle"
-            stiffness, damping = np.diag(np.atleast_1d(stiffness)), np.diag(np.atleast_1d(damping))
-        if joint.kind in ("free", "weld"):
-            stiffness = damping = None
-        bodies.append(ref.SpatialBody(body.name, parent, joint.kind, body.mass, body.center_of_mass, body.inertia,
-                                      axes=np.array(axes, dtype=float), joint_position=np.asarray(position, float),
-                                      joint_rotation=joint.rotation, stiffness=stiffness, damping=damping))
-    return ref.SpatialTree(tuple(bodies), gravity=model.gravity)
-
-
-def reference_configuration(model: sp.SpatialModel, q: np.ndarray) -> np.ndarray:
-    """Our ``q`` in the reference layout (quaternions scalar last)."""
-    out = []
-    for joint, layout in zip(model.joints, model.layout):
-        qj = q[layout.position]
-        if joint.kind == "spherical":
-            out.append(np.r_[qj[1:], qj[0]])
-        elif joint.kind in ("free", "elastic6"):
-            out.append(np.r_[qj[:3], qj[4:], qj[3]])
-        else:
-            out.append(qj)
-    return np.concatenate(out) if out else np.zeros(0)
-
-
-def reference_blocks(model: sp.SpatialModel, q0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``-M^-1 K``, ``-M^-1 C`` of the reference about ``q0``."""
-    mass, damping, stiffness = ref.linearize(reference_tree(model), reference_configuration(model, q0))
-    return -np.linalg.solve(mass, stiffness), -np.linalg.solve(mass, damping)
 
 
 def assert_blocks_match(model: sp.SpatialModel, lin) -> None:
@@ -73,46 +33,6 @@ def assert_blocks_match(model: sp.SpatialModel, lin) -> None:
     np.testing.assert_array_equal(A[:n, n:], np.eye(n))
     assert np.max(np.abs(A[n:, :n] - Kq)) <= TOLERANCE * scale, np.max(np.abs(A[n:, :n] - Kq)) / scale
     assert np.max(np.abs(A[n:, n:] - Cv)) <= TOLERANCE * scale, np.max(np.abs(A[n:, n:] - Cv)) / scale
-
-
-def _rotation(rng: np.random.Generator) -> np.ndarray:
-    Q, R = np.linalg.qr(rng.normal(size=(3, 3)))
-    Q = Q @ np.diag(np.sign(np.diag(R)))
-    return Q if np.linalg.det(Q) > 0 else -Q
-
-
-def _body(rng: np.random.Generator, name: str) -> sp.SpatialBody:
-    R = _rotation(rng)
-    inertia = R @ np.diag(rng.uniform(0.6, 1.1, 3)) @ R.T
-    return sp.SpatialBody(name, rng.uniform(0.5, 3.0), inertia, rng.uniform(-0.5, 0.5, 3),
-                          {f"p{i}": rng.uniform(-1, 1, 3) for i in range(3)})
-
-
-def random_spring_tree(rng: np.random.Generator, n: int, base: str) -> sp.SpatialModel:
-    """Branches of sprung revolute / universal / prismatic joints, unsprung spherical joints and welds
-    under gravity: the equilibrium deflects every spring."""
-    elements = [_body(rng, f"b{j}") for j in range(n)]
-    kinds = ("revolute", "universal", "spherical", "prismatic", "weld", "revolute")
-    for j in range(n):
-        kind = base if j == 0 else kinds[(j - 1) % len(kinds)]
-        common = dict(name=f"j{j}", parent=None if j == 0 else f"b{int(rng.integers(0, j))}", child=f"b{j}",
-                      point=rng.normal(size=3) if j == 0 else f"p{int(rng.integers(0, 3))}",
-                      rotation=_rotation(rng))
-        if kind == "revolute":
-            joint = sp.Revolute(axis=rng.normal(size=3), stiffness=rng.uniform(20, 60), damping=rng.uniform(0, 1),
-                                actuated=True, **common)
-        elif kind == "universal":
-            joint = sp.Universal(axis1=rng.normal(size=3), axis2=rng.normal(size=3), stiffness=rng.uniform(20, 60, 2),
-                                 damping=rng.uniform(0, 1, 2), actuated=True, **common)
-        elif kind == "prismatic":
-            joint = sp.Prismatic(axis=rng.normal(size=3), stiffness=rng.uniform(50, 90), damping=rng.uniform(0, 1),
-                                 **common)
-        elif kind == "spherical":
-            joint = sp.Spherical(damping=rng.uniform(0, 1), actuated=True, **common)
-        else:
-            joint = sp.Weld(**common)
-        elements.append(joint)
-    return sp.SpatialModel("springs", elements, gravity=rng.normal(size=3) * 3)
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
@@ -148,19 +68,6 @@ def test_hanging_spherical_pendulum_has_two_equal_pendulum_frequencies() -> None
     B = np.asarray(lin.state_space.B)
     assert list(lin.state_space.input_labels) == ["ball_torque_x", "ball_torque_y", "ball_torque_z"]
     np.testing.assert_allclose(B[3:, 0], [1.0 / (0.02 + mass * length ** 2), 0.0, 0.0], rtol=1e-13, atol=1e-15)
-
-
-def elastic_hinge_body(gravity=(0.0, 0.0, -9.81)) -> sp.SpatialModel:
-    """A rigid body on a 6-DOF elastic hinge (seed 001 Fig. 9.44; our parameters): isotropic
-    translational stiffness, anisotropic rotary stiffness, centre of mass on the vertical through the
-    hinge (the spring is loaded in translation only)."""
-    rotary = np.array([[40.0, 3.0, 0.0], [3.0, 55.0, 1.0], [0.0, 1.0, 30.0]])
-    stiffness = np.block([[2.0e4 * np.eye(3), np.zeros((3, 3))], [np.zeros((3, 3)), rotary]])
-    damping = np.diag([5.0, 5.0, 5.0, 0.2, 0.3, 0.1])
-    return sp.SpatialModel("hinge", [
-        sp.SpatialBody("body", 4.0, np.diag([0.05, 0.08, 0.06]), center_of_mass=(0.0, 0.0, 0.25)),
-        sp.Elastic6(name="hinge", parent=None, child="body", stiffness=stiffness, damping=damping, actuated=True)],
-        gravity=gravity)
 
 
 def test_elastic_hinge_body_matches_the_reference_and_sags_by_mg_over_k() -> None:
