@@ -77,8 +77,9 @@ def linearize(system: Any, operating_point: Any = None, *, inputs: str | Sequenc
     system : Chain, ControlledChain, PlanarModel, ControlledModel or SpatialModel
         The model; loops with a delay are returned open beside the state space.
     operating_point : OperatingPoint, (q, qdot), mapping or None
-        Spatial models: ``(q, v)``, ``{"q", "v", "t"}`` or ``None`` (static equilibrium by Newton on the
-        sweep, :func:`ctmm.spatial_linearization.static_equilibrium`).  Planar models:  ``(q, qdot)`` or ``{"q": ..., "qdot": ..., "t": ...}`` or a
+        Spatial models: ``(q, v)``, ``{"q", "v", "t"}`` or ``None`` (the static equilibrium by
+        pseudo-transient Newton on the sweep, :func:`ctmm.spatial_linearization.static_equilibrium`).
+        Planar models: ``(q, qdot)`` or ``{"q": ..., "qdot": ..., "t": ...}`` or a
         mapping from coordinate names to values (rates zero); ``None``: the static equilibrium
         found by :func:`ctmm.planar.linear.static_equilibrium` from
         :func:`ctmm.planar.linear.hanging_configuration` (every centre of mass straight below
@@ -86,14 +87,15 @@ def linearize(system: Any, operating_point: Any = None, *, inputs: str | Sequenc
     inputs : str or sequence of str, optional
         Exogenous inputs: chain force inputs / loop references; planar actuator names of
         :func:`ctmm.planar.ports.actuator_names` (default: every actuator not used by a loop);
+        spatial input components of :func:`ctmm.spatial_linearization.input_names` (default: all);
         ``[]``: no exogenous input (e.g. for the eigenvalues of ``A``; refused with a single
         output and no delayed loop, a shape python-control cannot hold).
     outputs : str or sequence of str, optional
         Chain signal names; planar sensor names of :mod:`ctmm.planar.ports` (default: every
         coordinate); ``"<loop>.y"`` (sensed value) and ``"<loop>.u"`` (loop force) of a loop
-        without delay.
+        without delay; spatial tangent coordinates and velocities (default: the tangent coordinates).
     allow_nonequilibrium : bool
-        Planar models: accept an operating point that is not an equilibrium (nonzero rates or
+        Planar and spatial models: accept an operating point that is not an equilibrium (nonzero rates or
         accelerations, now or a little later: a driven hinge in motion, a time-varying load).  The result is then the tangent at that instant only (the constant
         term ``f(x0)`` is dropped); by default such a point is refused.
 

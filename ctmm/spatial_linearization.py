@@ -23,11 +23,12 @@ followed by the velocities ``v`` (``model.velocities``, their deviations).  Name
   ``"base.wrench_fx"``, ... in the joint's own axes, child axes for spherical and free joints);
 * ``C`` selects tangent coordinates and velocities (``D = 0``).
 
-The operating point is the static equilibrium when none is given: Newton's method on the sweep's
-accelerations ``f(q0 (+) r, 0) = 0`` from the neutral configuration (a minimum-norm step, so neutral
-directions such as a free yaw stay where they are, with a backtracking line search).  It finds *an*
-equilibrium near the neutral configuration, stable or not (the eigenvalues of ``A`` tell).  A free
-joint under gravity has none: refused.
+The operating point is the static equilibrium when none is given: the root of the sweep's
+accelerations ``f(q0 (+) r, 0) = 0`` from the neutral configuration by pseudo-transient continuation
+(implicit Euler steps of the overdamped fall ``r' = f``, which lowers the potential energy, with a
+step ``dt`` grown as ``|f|`` falls until they are Newton steps; minimum-norm solves, so neutral
+directions such as a free yaw stay where they are).  It heads for a stable equilibrium but may end
+on any (the eigenvalues of ``A`` tell).  A free joint under gravity has none: refused.
 """
 from __future__ import annotations
 
@@ -44,8 +45,8 @@ from .planar_linearization import EQUILIBRIUM_TOLERANCE, JACOBIAN_TOLERANCE, TIM
 __all__ = ["linearize_spatial", "tangent_names", "input_names", "retract", "static_equilibrium",
            "operating_point", "tangent", "input_matrix", "NEWTON_ITERATIONS"]
 
-NEWTON_ITERATIONS = 60
-"""Largest number of Newton steps of :func:`static_equilibrium`."""
+NEWTON_ITERATIONS = 200
+"""Largest number of (pseudo-transient Newton) steps of :func:`static_equilibrium`."""
 _COMPONENTS = {3: ("x", "y", "z"), 6: ("fx", "fy", "fz", "mx", "my", "mz"), 2: ("1", "2")}
 
 
@@ -159,8 +160,9 @@ def _scale(model: Any) -> float:
 
 
 def static_equilibrium(model: Any, t: float = 0.0, start: Any = None) -> np.ndarray:
-    """A static equilibrium ``q0`` (unit quaternions) of a spatial model near ``start`` (default
-    ``model.neutral()``) by Newton's method on the sweep's accelerations at rest (module docstring).
+    """A static equilibrium ``q0`` (unit quaternions) of a spatial model reached from ``start`` (default
+    ``model.neutral()``) by pseudo-transient continuation on the sweep's accelerations at rest
+    (module docstring).
 
     Raises
     ------
@@ -179,24 +181,29 @@ def static_equilibrium(model: Any, t: float = 0.0, start: Any = None) -> np.ndar
     limit = _scale(model)
     residual = _rates(model, q[None], zero, t)[0]
     size = float(np.max(np.abs(residual), initial=0.0))
+    # pseudo-transient continuation on r' = f (the overdamped fall, which lowers the potential energy):
+    # implicit Euler steps (I / dt - df/dr) step = f, dt grown as |f| falls (Newton once dt is large)
+    dt = 0.1 / max(size, 1e-300)
+    eye = np.eye(model.n_velocities)
     for _ in range(NEWTON_ITERATIONS):
         if size <= 1e-6 * limit:
             break
         Jq, _ = _position_jacobian(model, q, zero[0], t)
-        step = np.linalg.lstsq(Jq, -residual, rcond=1e-12)[0]
-        accepted = False
-        for alpha in 0.5 ** np.arange(12):
-            trial = model.normalized(retract(model, q, alpha * step)[0])
-            trial_residual = _rates(model, trial[None], zero, t)[0]
-            trial_size = float(np.max(np.abs(trial_residual), initial=0.0))
-            if np.isfinite(trial_size) and trial_size < size:
-                q, residual, size, accepted = trial, trial_residual, trial_size, True
-                break
-        if not accepted:
-            break
+        step = np.linalg.lstsq(eye / dt - Jq, residual, rcond=1e-13)[0]
+        trial = model.normalized(retract(model, q, step)[0])
+        trial_residual = _rates(model, trial[None], zero, t)[0]
+        trial_size = float(np.max(np.abs(trial_residual), initial=0.0))
+        if not (np.isfinite(trial_size) and trial_size < 2.0 * size):
+            dt /= 4.0
+            continue
+        ratio = trial_size / max(size, 1e-300)
+        q, residual, size = trial, trial_residual, trial_size
+        if size <= limit and ratio > 0.1:
+            break                                   # Newton's quadratic convergence has reached round-off
+        dt *= min(10.0, 1.0 / max(ratio, 1e-300))
     if not size <= limit:
         raise ModelError(f"linearize: no static equilibrium of {model.name!r} found near the neutral configuration "
-                         f"(Newton on the accelerations stopped at a largest acceleration {size:.3e} > {limit:.1e}); "
+                         f"(pseudo-transient Newton stopped at a largest acceleration {size:.3e} > {limit:.1e}); "
                          "a load without a restoring spring, or a drift direction; pass operating_point=(q, v)")
     return q
 

@@ -18,6 +18,7 @@ import pytest
 import ctmm
 import ctmm.spatial as sp
 from ctmm.errors import ModelError
+from ctmm.ops import NUMPY
 from ctmm.spatial_linearization import retract, static_equilibrium, tangent_names
 from spatial_linear_helpers import elastic_hinge_body, random_spring_tree, reference_blocks
 
@@ -94,7 +95,7 @@ def test_given_operating_point_and_refusals() -> None:
         ctmm.linearize(falling)
     pushed = sp.SpatialModel("pushed", [sp.SpatialBody("b", 1.0, (0.1, 0.1, 0.1), points={"tip": (1, 0, 0)}),
                                         sp.Revolute(name="hinge", parent=None, child="b", axis=(0, 0, 1)),
-                                        sp.Load("push", "b", "tip", force=(0.0, 1.0, 0.0))], gravity=(0, 0, 0))
+                                        sp.Load("twist", "b", "tip", moment=(0.0, 0.0, 1.0))], gravity=(0, 0, 0))
     with pytest.raises(ModelError, match="no static equilibrium"):
         ctmm.linearize(pushed)
 
@@ -108,3 +109,18 @@ def test_retraction_is_the_exponential_of_the_tangent() -> None:
     np.testing.assert_allclose(q[3:], np.r_[np.cos(angle / 2), np.sin(angle / 2) * delta[3:] / angle], rtol=1e-14)
     np.testing.assert_allclose(q[:3], delta[:3], rtol=1e-14)
     assert np.allclose(static_equilibrium(elastic_hinge_body(gravity=(0, 0, 0))), model.neutral())
+
+
+def test_a_pendulum_starting_horizontal_falls_to_its_hanging_equilibrium() -> None:
+    """Newton's Jacobian is singular at the horizontal start (the gravity moment is extremal there):
+    the pseudo-transient steps fall to the hanging, stable equilibrium (not the upright one)."""
+    model = sp.SpatialModel("arm", [
+        sp.SpatialBody("base", 2.0, (0.02, 0.02, 0.01), center_of_mass=(0, 0, 0.1), points={"top": (0, 0, 0.2)}),
+        sp.SpatialBody("link", 1.0, (0.01, 0.01, 0.002), center_of_mass=(0.25, 0, 0)),
+        sp.Revolute(name="yaw", parent=None, child="base", axis=(0, 0, 1), actuated=True),
+        sp.Spherical(name="ball", parent="base", point="top", child="link")], gravity=(0, 0, -9.81))
+    lin = ctmm.linearize(model)
+    q = lin.operating_point.q
+    R = sp.SpatialScene(model).terms(NUMPY, q[None], np.zeros((1, 4)))[2][1].rotation[0]
+    np.testing.assert_allclose(R @ [1.0, 0.0, 0.0], [0.0, 0.0, -1.0], atol=1e-9)     # the link's x axis hangs down
+    assert_blocks_match(model, lin)
