@@ -228,10 +228,10 @@ def operating_point(model: Any, point: Any = None, *, allow_nonequilibrium: bool
     """The :class:`OperatingPoint` of a spatial model: the static equilibrium for ``None``
     (:func:`static_equilibrium`), else ``(q, v)``, ``(q, v, t)``, a mapping or an OperatingPoint,
     checked to be an equilibrium (at rest now and at a few later times) unless allowed."""
-    if point is None:
-        q0 = static_equilibrium(model)
-        return OperatingPoint(q0, np.zeros(model.n_velocities), 0.0, tuple(model.coordinates), True, 0.0)
-    q, v, t = _parse_point(model, point)
+    if point is None:                       # then checked like a given point (time-varying loads)
+        q, v, t = static_equilibrium(model), np.zeros(model.n_velocities), 0.0
+    else:
+        q, v, t = _parse_point(model, point)
     try:
         q_rows, v_rows = model.check_state(q, v)
     except ModelError as exc:

@@ -17,6 +17,7 @@ import pytest
 
 import ctmm
 import ctmm.spatial as sp
+from ctmm.signals import Harmonic
 from ctmm.errors import ModelError
 from ctmm.ops import NUMPY
 from ctmm.spatial_linearization import retract, static_equilibrium, tangent_names
@@ -98,6 +99,29 @@ def test_given_operating_point_and_refusals() -> None:
                                         sp.Load("twist", "b", "tip", moment=(0.0, 0.0, 1.0))], gravity=(0, 0, 0))
     with pytest.raises(ModelError, match="no static equilibrium"):
         ctmm.linearize(pushed)
+    shaken = sp.SpatialModel("shaken", [sp.SpatialBody("b", 1.0, (0.1, 0.1, 0.1), points={"tip": (1, 0, 0)}),
+                                        sp.Revolute(name="hinge", parent=None, child="b", axis=(0, 0, 1), stiffness=5.0),
+                                        sp.Load("shake", "b", "tip", force=(0.0, Harmonic(1.0, 3.0), 0.0))],
+                            gravity=(0, 0, 0))
+    with pytest.raises(ModelError, match="not an equilibrium"):         # at rest at t = 0 only
+        ctmm.linearize(shaken, outputs=["hinge.angle", "hinge.angle_rate"])
+
+
+def test_free_body_in_zero_gravity_is_a_double_integrator_in_its_own_axes() -> None:
+    """About a turned pose, a force along the body's x axis moves the tangent coordinate x (child axes
+    at q0) as 1 / (m s^2), a moment about a principal axis turns r_x as 1 / (I_xx s^2)."""
+    model = sp.SpatialModel("floating", [sp.SpatialBody("b", 3.0, (0.2, 0.3, 0.4)),
+                                         sp.Free(name="base", parent=None, child="b", actuated=True)],
+                            gravity=(0, 0, 0))
+    turned = np.r_[0.3, -0.2, 1.0, np.cos(0.6), np.sin(0.6) * np.array([1.0, 2.0, 2.0]) / 3.0]
+    omega = np.array([0.5, 2.0])
+    frf = ctmm.frequency_response(model, omega, input=["base.wrench_fx", "base.wrench_mx"],
+                                  output=["base.x", "base.y", "base.rx"], operating_point=(turned, np.zeros(6)))
+    expected = np.zeros((3, 2, 2), dtype=complex)
+    expected[0, 0] = -1.0 / (3.0 * omega ** 2)
+    expected[2, 1] = -1.0 / (0.2 * omega ** 2)
+    np.testing.assert_allclose(frf.response, expected, rtol=1e-12, atol=1e-14)
+    np.testing.assert_array_equal(ctmm.natural_frequencies(model, n_modes=6), np.zeros(6))
 
 
 def test_retraction_is_the_exponential_of_the_tangent() -> None:
