@@ -37,7 +37,8 @@ sys.path.insert(0, str(ROOT.parent / "tests"))
 from test_spatial_schemes import double_pendulum, final_state, pose_error, stiff_hinge, to_reference  # noqa: E402
 
 CASES = {
-    "double_pendulum": (double_pendulum, 0.5, 1e-3, [("rk4", 0.02), ("rk4", 0.01), ("newmark", 0.01), ("newmark", 0.005),
+    "double_pendulum": (double_pendulum, 0.5, 1e-3, [("rk4", 0.02), ("rk4", 0.01), ("newmark", 0.01),
+                                                     ("newmark", 0.005),
                                                ("generalized_alpha", 0.005), ("houbolt", 0.005),
                                                ("wilson_theta", 0.005), ("forward_euler", 0.005)]),
     "stiff_hinge": (stiff_hinge, 0.3, 2.5e-4, [("rk4", 0.005), ("rk4", 0.0025), ("newmark", 0.01), ("newmark", 0.005),

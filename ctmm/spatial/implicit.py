@@ -199,8 +199,9 @@ def simulate_spatial_implicit(model: SpatialModel, t_final: float, dt: float, *,
             rate = plan.v_predictor + plan.velocity_weight * a
             try:
                 if chart:
-                    body_rates = implicit_rates(scene, retract(model, q, delta), rate - 0.5 * bracket(model, delta, rate),
-                                                t_eval, inputs, plan.position_weight, plan.velocity_weight,
+                    body_velocity = rate - 0.5 * bracket(model, delta, rate)
+                    body_rates = implicit_rates(scene, retract(model, q, delta), body_velocity, t_eval, inputs,
+                                                plan.position_weight, plan.velocity_weight,
                                                 a - 0.5 * bracket(model, delta, a))
                     a_new = body_rates + 0.5 * bracket(model, delta, body_rates)
                 else:
