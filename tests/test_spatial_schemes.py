@@ -15,7 +15,8 @@ import ctmm.spatial as sp
 from ctmm.errors import ConvergenceError, ModelError, SimulationError
 from ctmm.reference import spatial_tree as ref
 from ctmm.reference.spatial_kinematics import kinematics
-from ctmm.schemes import Newmark
+from ctmm.guard import StabilityLimitWarning
+from ctmm.schemes import Newmark, WilsonTheta
 from ctmm.spatial.implicit import simulate_spatial_implicit
 from ctmm.spatial.lie import left_jacobian, local_coordinates, quaternion_exponential, retract
 
@@ -241,6 +242,14 @@ def test_failures_name_time_and_joint_and_keep_the_partial_result() -> None:
         ctmm.simulate(model, T_FINAL, 0.01, method="houbolt", x0=x0, v0=v0, divergence_bound=1.6)
     assert failure.value.time > 0 and failure.value.element == "double"
     assert len(failure.value.partial_result.time) >= 1
+
+
+def test_conditionally_stable_schemes_are_flagged() -> None:
+    model, _, x0, v0 = double_pendulum()
+    with pytest.warns(StabilityLimitWarning, match="amplifies every undamped mode"):
+        ctmm.simulate(model, 0.02, 0.01, method=Newmark(beta=0.25, gamma=0.4), x0=x0, v0=v0)
+    with pytest.warns(StabilityLimitWarning, match="stable only for omega_max dt"):
+        ctmm.simulate(model, 0.02, 0.01, method=WilsonTheta(theta=1.2), x0=x0, v0=v0)
 
 
 def test_arguments_are_checked() -> None:

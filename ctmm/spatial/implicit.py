@@ -36,7 +36,9 @@ the joint with the largest residual, with the result so far.
 from __future__ import annotations
 
 import dataclasses
+import math
 import time as clock
+import warnings
 from typing import Any, Mapping
 
 import numpy as np
@@ -44,6 +46,7 @@ import numpy as np
 from .. import validation
 from ..articulated import articulated_sweep
 from ..errors import ConvergenceError, ModelError, SimulationError
+from ..guard import StabilityLimitWarning
 from ..ops import NUMPY
 from ..planar.integrate import step_total
 from ..results import SimulationResult
@@ -146,6 +149,9 @@ def simulate_spatial_implicit(model: SpatialModel, t_final: float, dt: float, *,
     ------
     ModelError
         Bad arguments or an unknown scheme.
+    StabilityLimitWarning
+        (a warning) A scheme that is not unconditionally stable (Newmark with ``gamma < 1/2`` or
+        ``2 beta < gamma``, Wilson-theta with ``theta < 1.37``): the step is not checked yet.
     ConvergenceError
         A step whose iterations do not converge (time, joint, residual; ``partial_result``).
     SimulationError
@@ -164,6 +170,14 @@ def simulate_spatial_implicit(model: SpatialModel, t_final: float, dt: float, *,
     if inputs is not None and not isinstance(inputs, Mapping):
         raise ModelError(f"inputs must be a mapping {{input name: number or f(t)}}, got {inputs!r}")
     input_values(model, inputs, 0.0, 1)                      # names and values checked before the run
+    limit = scheme.stability_limit()
+    if limit < math.inf:
+        what = "amplifies every undamped mode at every step" if limit == 0.0 else \
+            f"is stable only for omega_max dt <= {limit:.4g}"
+        warnings.warn(f"{model.name}: the DT-TMM scheme {scheme!r} {what}; the spatial path does not check the "
+                      "step against the model's frequencies yet (docs/spatial.md §6a): use an unconditionally "
+                      "stable scheme (Newmark(0.25, 0.5), generalized_alpha, houbolt, WilsonTheta(theta >= 1.37))",
+                      StabilityLimitWarning, stacklevel=3)
     if model.n_velocities == 0:
         raise ModelError(f"model {model.name!r} has no coordinates (every joint is welded or driven): no DT-TMM "
                          "step to take")
