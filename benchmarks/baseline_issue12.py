@@ -23,7 +23,8 @@ controller) and n = 3 in frequency (TMM, PlantCache); ``delay_history`` at 1000 
 1, 4 and 16 modes and the implicit step at 1 mode; ``manipulator`` one sweep, RK4 and Newmark at
 dt = 10 ms, compiled RK4 at dt = 10 ms; ``stability_chart`` the 100 x 100 chart; ``compiled_scenes``
 (issue 13, added after the baseline run: its two cases were measured alone) the generated RK4 of
-the hub-beam and of the N = 5 chain.  Left out (too long
+the hub-beam and of the N = 5 chain; ``spatial_schemes`` (issue 14, added later, measured alone)
+Newmark on the spatial double pendulum at dt = 10 ms.  Left out (too long
 for a baseline under ~3 min, or needing a build): larger sizes and step ladders, the external
 libraries and references the benchmarks compare with (python-control, pinocchio, MuJoCo, global
 and Lagrange models), the FMU controller variant (builds an FMU with gcc), ``flexible``'s chain of
@@ -321,8 +322,19 @@ def _compiled_scenes(t: Timings) -> None:
                             f"(CompiledScene.run, library loaded), dt={dt:g} s, {steps} steps")
 
 
+def _spatial_schemes(t: Timings) -> None:
+    bench = importlib.import_module("spatial_schemes")
+    model, _, x0, v0 = bench.double_pendulum()
+    dt, steps = 0.01, 20
+    t.add("spatial_schemes", "newmark_double_pendulum",
+          lambda: ctmm.simulate(model, steps * dt, dt, method="newmark", x0=x0, v0=v0, store_every=steps),
+          per="step", count=steps,
+          configuration=f"spatial double pendulum (revolute + ball joint), Lie-group Newmark, dt={dt:g} s, "
+                        f"{steps} steps (benchmark: 0.5 s)")
+
+
 TIMING_PARTS = (_work_precision, _scaling, _control, _delay_history, _planar, _flexible, _manipulator,
-                _stability_chart, _compiled_scenes)
+                _stability_chart, _compiled_scenes, _spatial_schemes)
 
 
 def timings() -> dict:
