@@ -92,8 +92,8 @@ def operating_point(model: Any, point: Any = None, *, allow_nonequilibrium: bool
     point : OperatingPoint, (q, qdot[, t]), mapping or None
         A mapping has keys ``"q"``, ``"qdot"``, ``"t"`` or coordinate names (values [rad, m,
         modal]; the others 0, rates 0).  ``None``: the static equilibrium found by
-        :func:`ctmm.planar.linear.static_equilibrium` at ``t = 0`` from
-        :func:`ctmm.planar.linear.hanging_configuration` (every centre of mass below its hinge).
+        :func:`ctmm.planar.equilibrium.static_equilibrium` at ``t = 0`` from
+        :func:`ctmm.planar.equilibrium.hanging_configuration` (every centre of mass below its hinge).
     allow_nonequilibrium : bool
         Accept nonzero rates or accelerations (otherwise :class:`ModelError`).
 
@@ -105,7 +105,7 @@ def operating_point(model: Any, point: Any = None, *, allow_nonequilibrium: bool
     if getattr(model, "n_coordinates", 1) == 0:
         raise ModelError(f"model {model.name!r} has no coordinates (every body is welded or driven): there is no "
                          "motion to linearise about an operating point")
-    from .planar.linear import hanging_configuration, static_equilibrium
+    from .planar.equilibrium import hanging_configuration, static_equilibrium
     from .planar.sweep import accelerations
 
     n = model.n_coordinates

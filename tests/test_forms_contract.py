@@ -23,7 +23,7 @@ from ctmm.planar.elements import FixedMounting
 from ctmm.planar import (ElasticHinge, Fixed, FreeBase, Load, Pinned, PlanarModel, RigidBody,
                          SmoothHinge, accelerations, ports)
 from ctmm.planar.body_forms import PlanarScene
-from ctmm.planar.linear import hanging_configuration, static_equilibrium
+from ctmm.planar.equilibrium import hanging_configuration, static_equilibrium
 from ctmm.planar.fast_sweep import riccati_kernel
 from ctmm.planar.sweep import body_terms, hinge_torques
 from ctmm.protocol import BodyTerms
