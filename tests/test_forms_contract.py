@@ -111,6 +111,35 @@ def test_translational_spring_hinge_frequency_context_equals_the_lagrange_linear
     assert _relative(characteristic, np.linalg.det(Z)) <= 1e-12
 
 
+def test_translational_spring_hinges_are_linearised_by_complex_step(monkeypatch):
+    """ctmm.linearize of a model with a translational-spring hinge takes the complex step through the
+    one sweep (Richardson differences only along the one cross-check direction, not per coordinate)
+    and equals the Lagrange linearisation ``A = [[0, I], [-M^-1 K, -M^-1 C]]``."""
+    import ctmm
+    from ctmm import planar_linearization
+
+    sizes = []
+    differences = planar_linearization.jacobian
+
+    def recorded(function, x, **options):
+        sizes.append(np.size(x))
+        return differences(function, x, **options)
+
+    monkeypatch.setattr(planar_linearization, "jacobian", recorded)
+    model = PlanarModel.chain("bushed", [Pinned("o"), RigidBody.uniform_link("l1", mass=1.0, length=1.0),
+                                         ElasticHinge("h", stiffness=4.0, rest_angle=0.4, translational_stiffness=300.0,
+                                                      translational_damping=0.7),
+                                         RigidBody.uniform_link("l2", mass=0.5, length=0.8)])
+    lin = ctmm.linearize(model, inputs=[], outputs=[])
+    assert sizes == [1]                                         # the cross-check direction only
+    q0 = lin.operating_point.q
+    M, C, K = PlanarLagrange(model).linearize(q0)
+    n = model.n_coordinates
+    expected = np.block([[np.zeros((n, n)), np.eye(n)], [-np.linalg.solve(M, K), -np.linalg.solve(M, C)]])
+    assert _relative(np.asarray(lin.state_space.A), expected) <= 1e-10
+    assert lin.operating_point.jacobian_error <= 1e-8
+
+
 def test_translational_spring_hinges_are_counted_by_the_one_sweep():
     """Now on the protocol, models with translational springs take the Wittrick-Williams count (3 x 3
     joint pivots) in ctmm.natural_frequencies / eigenvalue_count: equal to the Lagrange eigenvalues."""
