@@ -22,6 +22,8 @@ from typing import Any, Protocol, Sequence
 
 import numpy as np
 
+_SCALARS = (int, float, complex, np.number)
+
 __all__ = ["Ops", "NumpyOps", "CasadiOps", "NUMPY", "CASADI", "batch_scalars", "batch_column"]
 
 
@@ -90,6 +92,9 @@ class NumpyOps:
                         break
                 else:
                     return np.concatenate(parts, axis=axis)
+        if all(isinstance(e, _SCALARS) for row in rows for e in row):     # numbers only: one call, B = 1
+            out = np.array(rows)
+            return (out if out.dtype.kind in "fc" else out.astype(float))[None]
         # one allocation, one broadcasting assignment per entry (scalars and B = 1 entries broadcast)
         grid = [[entry if isinstance(entry, (int, float, complex)) else np.asarray(entry) for entry in row]
                 for row in rows]

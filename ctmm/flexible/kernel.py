@@ -32,6 +32,7 @@ import numpy as np
 from ..articulated import Tree, articulated_sweep
 from ..errors import ModelError, SimulationError
 from ..ops import NUMPY
+from ..planar.body_forms import rigid_body_terms
 from ..planar.model import DRIVEN, FREE, REVOLUTE, PlanarModel
 from ..protocol import BodyTerms, JointTerms
 
@@ -87,8 +88,12 @@ class FlexibleSystem:
         # rigid loads (beam loads are handled by the beam terms)
         lb = model.load_body
         self.rigid_load_rows = [k for k in range(len(lb)) if int(lb[k]) not in self.beam_data]
-        self.end_vectors = [[np.asarray(v, float) for v in model.ends[j].values()]
-                            for j in range(nb)]
+        # the rigid bodies' numbers as Python floats for rigid_body_terms (points keyed by end index)
+        self.end_points = [{e: (float(v[0]), float(v[1])) for e, v in enumerate(model.ends[j].values())}
+                           for j in range(nb)]
+        self.mass, self.inertia = [float(v) for v in model.mass], [float(v) for v in model.inertia]
+        self.com = [(float(c[0]), float(c[1])) for c in model.com]
+        self.gravity = (float(model.gravity[0]), float(model.gravity[1]))
         self.free_base = [j for j in range(nb) if self.kind[j] == FREE]
         # row of each coordinate's acceleration in the stacked x = [A_I ; eta''] of all bodies
         rows = np.full(model.n_coordinates, -1)
@@ -108,47 +113,20 @@ class FlexibleSystem:
 
     # -- per-body terms -------------------------------------------------------------------
     def rigid_terms(self, j: int, theta, omega, t: float, loads):
-        """Batched complex-safe rigid-body relations (FORMULAS 3.4 in the generalised form)."""
+        """Batched complex-safe rigid-body relations: the one statement
+        :func:`ctmm.planar.body_forms.rigid_body_terms` (FORMULAS 3.4), in this kernel's layout
+        ``M (B, 3, 3)``, ``h (B, 3)``, per end ``(Kin, c (B, 3), RF, theta, omega)``."""
         m = self.model
-        mass, inertia = float(m.mass[j]), float(m.inertia[j])
-        B = theta.shape[0]
-        dtype = np.result_type(theta, omega, float)
-        c, s = np.cos(theta), np.sin(theta)
-        cx, cy = m.com[j]
-        rcx, rcy = c * cx - s * cy, s * cx + c * cy
-        gx, gy = m.gravity
-        w2 = omega * omega
-        M = np.zeros((B, 3, 3), dtype=dtype)
-        M[:, 0, 0] = M[:, 1, 1] = mass
-        M[:, 0, 2] = M[:, 2, 0] = -mass * rcy
-        M[:, 1, 2] = M[:, 2, 1] = mass * rcx
-        M[:, 2, 2] = inertia + mass * (rcx * rcx + rcy * rcy)
-        h = np.zeros((B, 3), dtype=dtype)
-        h[:, 0] = -mass * (w2 * rcx + gx)
-        h[:, 1] = -mass * (w2 * rcy + gy)
-        h[:, 2] = -mass * (rcx * gy - rcy * gx)
-        for k in self.rigid_load_rows:
-            if int(m.load_body[k]) != j:
-                continue
-            px, py = m.load_point[k]
-            rex, rey = c * px - s * py, s * px + c * py
-            fx, fy, mz = loads[k]
-            h[:, 0] -= fx
-            h[:, 1] -= fy
-            h[:, 2] -= rex * fy - rey * fx + mz
-        ends = []
-        for v in self.end_vectors[j]:
-            rx, ry = c * v[0] - s * v[1], s * v[0] + c * v[1]
-            Kin = np.zeros((B, 3, 3), dtype=dtype)
-            Kin[:, 0, 0] = Kin[:, 1, 1] = Kin[:, 2, 2] = 1.0
-            Kin[:, 0, 2] = -ry
-            Kin[:, 1, 2] = rx
-            cc = np.zeros((B, 3), dtype=dtype)
-            cc[:, 0] = -w2 * rx
-            cc[:, 1] = -w2 * ry
-            RF = np.transpose(Kin, (0, 2, 1)).copy()
-            ends.append((Kin, cc, RF, theta, omega))
-        return M, h, ends
+        body_loads = [(*m.load_point[k], *loads[k]) for k in self.rigid_load_rows if m.load_body[k] == j]
+        if theta.shape[0] == 1:             # one evaluation (a rigid body has no modal directions): numpy scalars
+            theta_j, omega_j = theta[0], omega[0]
+        else:
+            theta_j, omega_j = theta[:, None, None], omega[:, None, None]
+        terms = rigid_body_terms(NUMPY, mass=self.mass[j], inertia=self.inertia[j], center_of_mass=self.com[j],
+                                 points=self.end_points[j], gravity=self.gravity, theta=theta_j, omega=omega_j,
+                                 loads=body_loads)
+        ends = [(terms.Kin[e], terms.c[e][:, :, 0], terms.RF[e], theta, omega) for e in self.end_points[j]]
+        return terms.M, terms.h[:, :, 0], ends
 
     def body_terms(self, j: int, theta, omega, eta, eta_dot, t: float, loads):
         """Terms of body ``j`` (batched over the leading axis of ``theta``)."""
