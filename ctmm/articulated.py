@@ -166,17 +166,35 @@ def articulated_sweep(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints:
             p = p + ops.matmul(P, joint.c)
         Phi[j], psi[j] = P, p
         par = tree.parent[j]
+        axis = joint.axis                           # S = column `axis` of the identity: index, no products
         if par < 0:                                 # at the ground only the pivot is needed
             if joint.prescribed is None and joint.free:
-                St[j] = ops.transpose(joint.S)
-                D[j] = ops.matmul(ops.matmul(St[j], P), joint.S)
+                if axis is not None:
+                    St[j] = ops.sub(P, slice(axis, axis + 1), rd)       # S^T Phi
+                    D[j] = ops.sub(P, slice(axis, axis + 1), slice(axis, axis + 1))
+                else:
+                    St[j] = ops.transpose(joint.S)
+                    D[j] = ops.matmul(ops.matmul(St[j], P), joint.S)
                 if kappa[j] is not None:
                     D[j] = D[j] + kappa[j]
             continue
         if joint.prescribed is not None:
-            P_hat, p_hat = P, p + ops.matmul(ops.matmul(P, joint.S), joint.prescribed)
+            PS = ops.sub(P, rd, slice(axis, axis + 1)) if axis is not None else ops.matmul(P, joint.S)
+            P_hat = P
+            p_hat = p + (PS * joint.prescribed if axis is not None else ops.matmul(PS, joint.prescribed))
         elif joint.free == 0:
             P_hat, p_hat = P, p
+        elif axis is not None:                      # one unit free direction: rows, columns and a division
+            row = slice(axis, axis + 1)
+            StP = St[j] = ops.sub(P, row, rd)
+            PS = ops.sub(P, rd, row)
+            Dj = ops.sub(P, row, row)
+            if kappa[j] is not None:
+                Dj = Dj + kappa[j]
+            D[j] = Dj
+            rhs = ops.sub(p, row, slice(0, 1)) * -1.0 if joint.tau is None else joint.tau - ops.sub(p, row, slice(0, 1))
+            P_hat = P - ops.matmul(PS, StP / Dj)
+            p_hat = p + PS * (rhs / Dj)
         else:
             St[j] = ops.transpose(joint.S)
             PS = ops.matmul(P, joint.S)
@@ -210,12 +228,21 @@ def articulated_sweep(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints:
             a = joint.prescribed
         elif joint.free == 0:
             a = None
+        elif joint.axis is not None:                # St[j] holds the row S^T Phi
+            row = slice(joint.axis, joint.axis + 1)
+            load = ops.sub(psi[j], row, slice(0, 1))
+            if A_O is not None:
+                load = load + ops.matmul(St[j], A_O)
+            rhs = load * -1.0 if joint.tau is None else joint.tau - load
+            a = rhs / D[j]
         else:
             load = ops.matmul(St[j], psi[j] if A_O is None else ops.matmul(Phi[j], A_O) + psi[j])
             rhs = load * -1.0 if joint.tau is None else joint.tau - load
             a = rhs / D[j] if joint.free == 1 else ops.solve(D[j], rhs)
         if a is None:
             A = ops.zeros(d, 1) if A_O is None else A_O
+        elif joint.axis is not None:                # S a = a in row `axis`
+            A = joint.S * a if A_O is None else A_O + joint.S * a
         else:
             A = ops.matmul(joint.S, a) if A_O is None else A_O + ops.matmul(joint.S, a)
         if joint.c is not None:

@@ -81,8 +81,8 @@ def linearize(system: Any, operating_point: Any = None, *, inputs: str | Sequenc
         pseudo-transient Newton on the sweep, :func:`ctmm.spatial_linearization.static_equilibrium`).
         Planar models: ``(q, qdot)`` or ``{"q": ..., "qdot": ..., "t": ...}`` or a
         mapping from coordinate names to values (rates zero); ``None``: the static equilibrium
-        found by :func:`ctmm.planar.linear.static_equilibrium` from
-        :func:`ctmm.planar.linear.hanging_configuration` (every centre of mass straight below
+        found by :func:`ctmm.planar.equilibrium.static_equilibrium` from
+        :func:`ctmm.planar.equilibrium.hanging_configuration` (every centre of mass straight below
         its hinge; refine-by-root-search, so hinge springs and loads are honoured).  Must be ``None`` for chains.
     inputs : str or sequence of str, optional
         Exogenous inputs: chain force inputs / loop references; planar actuator names of

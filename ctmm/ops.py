@@ -22,6 +22,8 @@ from typing import Any, Protocol, Sequence
 
 import numpy as np
 
+_SCALARS = (int, float, complex, np.number)
+
 __all__ = ["Ops", "NumpyOps", "CasadiOps", "NUMPY", "CASADI", "batch_scalars", "batch_column"]
 
 
@@ -75,11 +77,24 @@ class NumpyOps:
     exp = staticmethod(np.exp)
 
     def block(self, rows: Sequence[Sequence[Any]]) -> np.ndarray:
-        if len(rows) == 1 or all(len(row) == 1 for row in rows):
-            parts = [e for row in rows for e in row]
-            if all(type(e) is np.ndarray for e in parts) and \
-                    len({(e.shape[:-2], e.ndim, e.dtype) for e in parts}) == 1:  # one row or column of equal blocks
-                return np.concatenate(parts, axis=-1 if len(rows) == 1 else -2)
+        if len(rows) == 1:
+            parts, axis = rows[0], -1
+        elif all(len(row) == 1 for row in rows):
+            parts, axis = [row[0] for row in rows], -2
+        else:
+            parts = None
+        if parts:                                   # one row or column of equal-kind arrays: concatenate
+            first = parts[0]
+            if type(first) is np.ndarray:
+                ndim, dtype, lead = first.ndim, first.dtype, first.shape[:-2]
+                for e in parts:
+                    if type(e) is not np.ndarray or e.ndim != ndim or e.dtype != dtype or e.shape[:-2] != lead:
+                        break
+                else:
+                    return np.concatenate(parts, axis=axis)
+        if all(isinstance(e, _SCALARS) for row in rows for e in row):     # numbers only: one call, B = 1
+            out = np.array(rows)
+            return (out if out.dtype.kind in "fc" else out.astype(float))[None]
         # one allocation, one broadcasting assignment per entry (scalars and B = 1 entries broadcast)
         grid = [[entry if isinstance(entry, (int, float, complex)) else np.asarray(entry) for entry in row]
                 for row in rows]
@@ -139,7 +154,7 @@ class NumpyOps:
 
     @staticmethod
     def shape(a: Any) -> tuple[int, int]:
-        return tuple(np.shape(a)[-2:])
+        return a.shape[-2:] if type(a) is np.ndarray else tuple(np.shape(a)[-2:])
 
 
 class CasadiOps:

@@ -8,8 +8,8 @@ State ``x = [q, qdot]`` (deviations from the operating point), ``x' = A x + B u`
   the batched terms of the one articulated sweep (:mod:`ctmm.articulated`,
   :class:`ctmm.planar.body_forms.PlanarScene`), exact to round-off, cross-checked along one
   direction by a Richardson difference of :func:`ctmm.planar.accelerations`; models not on the
-  element protocol yet (translational-spring hinges, user state laws on beams): central
-  differences with Richardson extrapolation and an error estimate (:func:`jacobian`);
+  element protocol with complex-safe terms (user state laws on beams): central differences
+  with Richardson extrapolation and an error estimate (:func:`jacobian`);
 * ``B = [[0], [df/du]]`` -- ``f`` is affine in the actuator inputs of
   :func:`ctmm.planar.ports.actuator_inputs`, so a symmetric unit difference is exact;
 * ``C`` -- coordinates and their rates directly, other sensors from
@@ -92,8 +92,8 @@ def operating_point(model: Any, point: Any = None, *, allow_nonequilibrium: bool
     point : OperatingPoint, (q, qdot[, t]), mapping or None
         A mapping has keys ``"q"``, ``"qdot"``, ``"t"`` or coordinate names (values [rad, m,
         modal]; the others 0, rates 0).  ``None``: the static equilibrium found by
-        :func:`ctmm.planar.linear.static_equilibrium` at ``t = 0`` from
-        :func:`ctmm.planar.linear.hanging_configuration` (every centre of mass below its hinge).
+        :func:`ctmm.planar.equilibrium.static_equilibrium` at ``t = 0`` from
+        :func:`ctmm.planar.equilibrium.hanging_configuration` (every centre of mass below its hinge).
     allow_nonequilibrium : bool
         Accept nonzero rates or accelerations (otherwise :class:`ModelError`).
 
@@ -105,7 +105,7 @@ def operating_point(model: Any, point: Any = None, *, allow_nonequilibrium: bool
     if getattr(model, "n_coordinates", 1) == 0:
         raise ModelError(f"model {model.name!r} has no coordinates (every body is welded or driven): there is no "
                          "motion to linearise about an operating point")
-    from .planar.linear import hanging_configuration, static_equilibrium
+    from .planar.equilibrium import hanging_configuration, static_equilibrium
     from .planar.sweep import accelerations
 
     n = model.n_coordinates
@@ -258,12 +258,8 @@ def _requested_outputs(model: Any, loops: Sequence[Any], outputs: Any) -> tuple[
 
 def _one_sweep_applies(model: Any) -> bool:
     """True when every element of ``model`` is stated on the element protocol with complex-safe terms
-    (:class:`ctmm.planar.body_forms.PlanarScene`): no hinges with translational springs, no user
+    (:class:`ctmm.planar.body_forms.PlanarScene`, hinges with translational springs included): no user
     state-feedback laws on beams (user code may not accept complex coordinates)."""
-    from .planar.model import BUSHING
-
-    if np.any(model.joint_kind == BUSHING):
-        return False
     return not any(beam.data.laws for beam in model.beams.values())
 
 

@@ -36,6 +36,7 @@ from typing import Any, Hashable, Mapping, Protocol
 
 import numpy as np
 
+from .errors import ModelError
 from .ops import Ops
 
 __all__ = ["Motion", "BodyTerms", "JointTerms", "Body", "Joint"]
@@ -98,6 +99,11 @@ class JointTerms:
         ``-tau_a`` to ``kappa`` in every context (``s^2`` times it in the frequency context).
     prescribed : column (k, 1) or None
         Prescribed relative acceleration ``a_rel`` of a driven joint.
+    axis : int or None
+        Structural hint for a one-direction joint whose free direction is a unit axis: ``S`` is
+        column ``axis`` of the identity (a planar revolute joint: ``axis = 2``).  The sweep then
+        takes rows and columns of the articulated inertia instead of products with ``S``; the
+        numbers are the same.  ``None`` (default): ``S`` is used as given.
     """
 
     S: Any
@@ -107,6 +113,15 @@ class JointTerms:
     tau_v: Any = None
     prescribed: Any = None
     tau_a: Any = None
+    axis: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.axis is not None:
+            rows, columns = self.S.shape[-2:]
+            if columns != 1 or not 0 <= self.axis < rows:
+                raise ModelError(f"JointTerms: axis = {self.axis!r} needs S of one column with more than "
+                                 f"{self.axis} rows (S column {self.axis} of the identity), got S of shape "
+                                 f"{tuple(self.S.shape)}")
 
     @property
     def free(self) -> int:

@@ -7,13 +7,13 @@ import math
 import numpy as np
 import pytest
 
+import ctmm
 from ctmm.errors import ModelError
 from ctmm.flexible import ModalBeam
 from ctmm.flexible.segments import finite_segment_beam
 from ctmm.planar import (Fixed, Load, Pinned, PlanarModel, RigidBody, simulate_implicit,
                          simulate_rk4, simulate_scipy)
 from ctmm.planar.elements import FixedMounting
-from ctmm.planar.linear import natural_frequencies
 from ctmm.reference.beams import beta_roots
 from ctmm.schemes import GeneralizedAlpha, Newmark
 
@@ -70,7 +70,7 @@ def _fs_frequencies(n, factor):
     model = PlanarModel.chain("fs", [Fixed("g")] + finite_segment_beam(
         "s", length=1.0, bending_stiffness=2.0, mass_per_length=0.5, n_segments=n,
         root_spring_factor=factor), gravity=(0.0, 0.0))
-    return natural_frequencies(model, np.zeros(n), n_modes=3)
+    return ctmm.natural_frequencies(model, n_modes=3, operating_point=(np.zeros(n),) * 2)
 
 
 def test_finite_segments_converge_at_second_order_with_the_2EI_over_l_root_spring():

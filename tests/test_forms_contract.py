@@ -23,7 +23,7 @@ from ctmm.planar.elements import FixedMounting
 from ctmm.planar import (ElasticHinge, Fixed, FreeBase, Load, Pinned, PlanarModel, RigidBody,
                          SmoothHinge, accelerations, ports)
 from ctmm.planar.body_forms import PlanarScene
-from ctmm.planar.linear import hanging_configuration, static_equilibrium
+from ctmm.planar.equilibrium import hanging_configuration, static_equilibrium
 from ctmm.planar.fast_sweep import riccati_kernel
 from ctmm.planar.sweep import body_terms, hinge_torques
 from ctmm.protocol import BodyTerms
@@ -109,6 +109,35 @@ def test_translational_spring_hinge_frequency_context_equals_the_lagrange_linear
     assert np.max(np.abs(q0[1:3])) > 1e-3                       # the spring is preloaded
     characteristic = PlanarScene(model).frequency(q0, s).characteristic[:, 0, 0]
     assert _relative(characteristic, np.linalg.det(Z)) <= 1e-12
+
+
+def test_translational_spring_hinges_are_linearised_by_complex_step(monkeypatch):
+    """ctmm.linearize of a model with a translational-spring hinge takes the complex step through the
+    one sweep (Richardson differences only along the one cross-check direction, not per coordinate)
+    and equals the Lagrange linearisation ``A = [[0, I], [-M^-1 K, -M^-1 C]]``."""
+    import ctmm
+    from ctmm import planar_linearization
+
+    sizes = []
+    differences = planar_linearization.jacobian
+
+    def recorded(function, x, **options):
+        sizes.append(np.size(x))
+        return differences(function, x, **options)
+
+    monkeypatch.setattr(planar_linearization, "jacobian", recorded)
+    model = PlanarModel.chain("bushed", [Pinned("o"), RigidBody.uniform_link("l1", mass=1.0, length=1.0),
+                                         ElasticHinge("h", stiffness=4.0, rest_angle=0.4, translational_stiffness=300.0,
+                                                      translational_damping=0.7),
+                                         RigidBody.uniform_link("l2", mass=0.5, length=0.8)])
+    lin = ctmm.linearize(model, inputs=[], outputs=[])
+    assert sizes == [1]                                         # the cross-check direction only
+    q0 = lin.operating_point.q
+    M, C, K = PlanarLagrange(model).linearize(q0)
+    n = model.n_coordinates
+    expected = np.block([[np.zeros((n, n)), np.eye(n)], [-np.linalg.solve(M, K), -np.linalg.solve(M, C)]])
+    assert _relative(np.asarray(lin.state_space.A), expected) <= 1e-10
+    assert lin.operating_point.jacobian_error <= 1e-8
 
 
 def test_translational_spring_hinges_are_counted_by_the_one_sweep():
@@ -248,6 +277,39 @@ def test_same_recursion_as_the_planar_riccati_kernel_with_joint_tangents(seed):
     rel = [0.0 if r is None else r[0, -1, 0] for r in result.relative]
     free = model.joint_kind != 2
     assert _relative(np.array(rel)[free], np.array(alpha)[free]) <= 1e-12
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_unit_axis_hint_gives_the_numbers_of_the_products_with_S(seed):
+    """Revolute and driven joints carry ``axis = 2``; the sweep without the hint (products with ``S``)
+    gives the same accelerations, forces, pivots and characteristic, explicit and with tangents."""
+    from dataclasses import replace
+
+    model = random_tree(seed, 6, allow_translation=False)
+    q, v, t = random_state(model, seed)
+    scene = PlanarScene(model)
+    bodies, joints = scene.terms(NUMPY, q[None, :, None], v[None, :, None], t)
+    assert any(joint.axis == 2 for joint in joints)
+    plain = [replace(joint, axis=None) for joint in joints]
+    rng = np.random.default_rng(seed)
+    kappa = [np.full((1, 1, 1), rng.uniform(0.5, 5.0)) if joint.free == 1 and joint.tau is not None else None
+             for joint in joints]
+    for kap in (None, kappa):
+        hinted = articulated_sweep(NUMPY, scene.tree, bodies, joints, kap, characteristic=True)
+        products = articulated_sweep(NUMPY, scene.tree, bodies, plain, kap, characteristic=True)
+        for a, b in [(hinted.x, products.x), (hinted.force, products.force),
+                     ([p for p in hinted.pivot if p is not None], [p for p in products.pivot if p is not None])]:
+            assert _relative(np.concatenate([np.ravel(e) for e in a]), np.concatenate([np.ravel(e) for e in b])) <= 1e-13
+        assert _relative(hinted.characteristic, products.characteristic) <= 1e-13
+
+
+def test_unit_axis_hint_needs_one_column():
+    from ctmm.protocol import JointTerms
+
+    with pytest.raises(ModelError, match="axis = 2"):
+        JointTerms(S=np.eye(3), axis=2)
+    with pytest.raises(ModelError, match="axis = 3"):
+        JointTerms(S=np.ones((3, 1)), axis=3)
 
 
 @pytest.mark.parametrize("name", sorted(FLEXIBLE))

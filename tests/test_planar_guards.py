@@ -18,7 +18,7 @@ from ctmm.guard import StabilityLimitWarning
 from ctmm.planar import (ActuatedHinge, DrivenHinge, Fixed, Load, Pinned, PlanarModel, RigidBody, accelerations,
                          simulate_implicit, simulate_rk4, simulate_scipy, solve_instant)
 from ctmm.planar.guards import linearised_omega_max
-from ctmm.planar.linear import static_equilibrium
+from ctmm.planar.equilibrium import static_equilibrium
 from ctmm.reference.planar_lagrange import PlanarLagrange
 from ctmm.schemes import Newmark
 

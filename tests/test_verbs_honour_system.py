@@ -270,13 +270,13 @@ def test_planar_verbs_refuse_chains(system):
     """A 1-D chain (with or without loops) given to a planar verb got AttributeError; now the
     chain verbs are named."""
     from ctmm.planar import simulate_rk4
-    from ctmm.planar.linear import natural_frequencies as planar_natural_frequencies
+    from ctmm.planar.equilibrium import static_equilibrium
 
     with pytest.raises(ctmm.ModelError, match=r"ctmm\.planar simulation: model must be a ctmm\.planar\.PlanarModel, "
                                               r"got .*Chain.*ctmm\.simulate"):
         simulate_rk4(system, [0.0], [0.0], t_final=0.1, dt=0.01)
-    with pytest.raises(ctmm.ModelError, match=r"ctmm\.planar\.linear: model must be a ctmm\.planar\.PlanarModel"):
-        planar_natural_frequencies(system, [0.0], n_modes=1)
+    with pytest.raises(ctmm.ModelError, match=r"ctmm\.planar\.equilibrium: model must be a ctmm\.planar\.PlanarModel"):
+        static_equilibrium(system, [0.0])
 
 
 # ------------------------------------------------------------------------ co-simulated controllers

@@ -24,6 +24,7 @@ is again one O(n) sweep of transfer relations.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,6 +32,7 @@ import numpy as np
 from ..articulated import Tree, articulated_sweep
 from ..errors import ModelError, SimulationError
 from ..ops import NUMPY
+from ..planar.body_forms import rigid_body_terms
 from ..planar.model import DRIVEN, FREE, REVOLUTE, PlanarModel
 from ..protocol import BodyTerms, JointTerms
 
@@ -86,55 +88,45 @@ class FlexibleSystem:
         # rigid loads (beam loads are handled by the beam terms)
         lb = model.load_body
         self.rigid_load_rows = [k for k in range(len(lb)) if int(lb[k]) not in self.beam_data]
-        self.end_vectors = [[np.asarray(v, float) for v in model.ends[j].values()]
-                            for j in range(nb)]
+        # the rigid bodies' numbers as Python floats for rigid_body_terms (points keyed by end index)
+        self.end_points = [{e: (float(v[0]), float(v[1])) for e, v in enumerate(model.ends[j].values())}
+                           for j in range(nb)]
+        self.mass, self.inertia = [float(v) for v in model.mass], [float(v) for v in model.inertia]
+        self.com = [(float(c[0]), float(c[1])) for c in model.com]
+        self.gravity = (float(model.gravity[0]), float(model.gravity[1]))
         self.free_base = [j for j in range(nb) if self.kind[j] == FREE]
+        # row of each coordinate's acceleration in the stacked x = [A_I ; eta''] of all bodies
+        rows = np.full(model.n_coordinates, -1)
+        offset = 0
+        for j in range(nb):
+            if model.theta_index[j] >= 0:
+                rows[model.theta_index[j]] = offset + 2
+            if self.kind[j] == FREE:
+                rows[model.xy_index[j, 0]], rows[model.xy_index[j, 1]] = offset, offset + 1
+            rows[self.modal_index[j]] = offset + 3 + np.arange(self.n_modal[j])
+            offset += 3 + self.n_modal[j]
+        if np.any(rows < 0):                           # pragma: no cover - every coordinate has a row
+            raise ModelError(f"model {model.name!r}: coordinates without an acceleration row in the sweep")
+        self.coordinate_rows = rows
         # the tree of the one sweep; a body's points are keyed by their index in its terms' end list
         self.tree = Tree(tuple(self.parent), tuple(None if p < 0 else e for p, e in zip(self.parent, self.pend)), 3)
 
     # -- per-body terms -------------------------------------------------------------------
     def rigid_terms(self, j: int, theta, omega, t: float, loads):
-        """Batched complex-safe rigid-body relations (FORMULAS 3.4 in the generalised form)."""
+        """Batched complex-safe rigid-body relations: the one statement
+        :func:`ctmm.planar.body_forms.rigid_body_terms` (FORMULAS 3.4), in this kernel's layout
+        ``M (B, 3, 3)``, ``h (B, 3)``, per end ``(Kin, c (B, 3), RF, theta, omega)``."""
         m = self.model
-        mass, inertia = float(m.mass[j]), float(m.inertia[j])
-        B = theta.shape[0]
-        dtype = np.result_type(theta, omega, float)
-        c, s = np.cos(theta), np.sin(theta)
-        cx, cy = m.com[j]
-        rcx, rcy = c * cx - s * cy, s * cx + c * cy
-        gx, gy = m.gravity
-        w2 = omega * omega
-        M = np.zeros((B, 3, 3), dtype=dtype)
-        M[:, 0, 0] = M[:, 1, 1] = mass
-        M[:, 0, 2] = M[:, 2, 0] = -mass * rcy
-        M[:, 1, 2] = M[:, 2, 1] = mass * rcx
-        M[:, 2, 2] = inertia + mass * (rcx * rcx + rcy * rcy)
-        h = np.zeros((B, 3), dtype=dtype)
-        h[:, 0] = -mass * (w2 * rcx + gx)
-        h[:, 1] = -mass * (w2 * rcy + gy)
-        h[:, 2] = -mass * (rcx * gy - rcy * gx)
-        for k in self.rigid_load_rows:
-            if int(m.load_body[k]) != j:
-                continue
-            px, py = m.load_point[k]
-            rex, rey = c * px - s * py, s * px + c * py
-            fx, fy, mz = loads[k]
-            h[:, 0] -= fx
-            h[:, 1] -= fy
-            h[:, 2] -= rex * fy - rey * fx + mz
-        ends = []
-        for v in self.end_vectors[j]:
-            rx, ry = c * v[0] - s * v[1], s * v[0] + c * v[1]
-            Kin = np.zeros((B, 3, 3), dtype=dtype)
-            Kin[:, 0, 0] = Kin[:, 1, 1] = Kin[:, 2, 2] = 1.0
-            Kin[:, 0, 2] = -ry
-            Kin[:, 1, 2] = rx
-            cc = np.zeros((B, 3), dtype=dtype)
-            cc[:, 0] = -w2 * rx
-            cc[:, 1] = -w2 * ry
-            RF = np.transpose(Kin, (0, 2, 1)).copy()
-            ends.append((Kin, cc, RF, theta, omega))
-        return M, h, ends
+        body_loads = [(*m.load_point[k], *loads[k]) for k in self.rigid_load_rows if m.load_body[k] == j]
+        if theta.shape[0] == 1:             # one evaluation (a rigid body has no modal directions): numpy scalars
+            theta_j, omega_j = theta[0], omega[0]
+        else:
+            theta_j, omega_j = theta[:, None, None], omega[:, None, None]
+        terms = rigid_body_terms(NUMPY, mass=self.mass[j], inertia=self.inertia[j], center_of_mass=self.com[j],
+                                 points=self.end_points[j], gravity=self.gravity, theta=theta_j, omega=omega_j,
+                                 loads=body_loads)
+        ends = [(terms.Kin[e], terms.c[e][:, :, 0], terms.RF[e], theta, omega) for e in self.end_points[j]]
+        return terms.M, terms.h[:, :, 0], ends
 
     def body_terms(self, j: int, theta, omega, eta, eta_dot, t: float, loads):
         """Terms of body ``j`` (batched over the leading axis of ``theta``)."""
@@ -173,15 +165,16 @@ class FlexibleSystem:
         return alpha
 
     # -- the sweep ----------------------------------------------------------------------------
-    def sweep(self, terms, kappa, tau, alpha_driven):
+    def sweep(self, terms, kappa, tau, alpha_driven, *, full: bool = True):
         """The one articulated sweep (:func:`ctmm.articulated.articulated_sweep`) of these terms.
 
         ``terms``: per body ``[M (3+n, 3+n), h (3+n,), [(Kin, c, RF) per end]]`` (unbatched, real);
-        ``kappa``: joint tangent per body (revolute joints; 0 explicit); ``tau``: hinge torques
-        [N m]; ``alpha_driven``: prescribed relative accelerations of driven joints [rad/s^2].
+        ``kappa``: joint tangent per body (revolute joints), or ``None`` for the explicit sweep
+        (``kappa = 0``); ``tau``: hinge torques [N m]; ``alpha_driven``: prescribed relative
+        accelerations of driven joints [rad/s^2].
 
         Returns ``x`` (list of ``[A_I ; eta'']``), ``F`` (nb, 3), ``A_O`` (nb, 3) and the joint
-        accelerations (nb,).
+        accelerations (nb,); with ``full=False`` only ``x`` (the others ``None``).
 
         Raises
         ------
@@ -190,19 +183,21 @@ class FlexibleSystem:
         """
         bodies = []                                     # unbatched 2-D matrices: the B = 1 fast path of ops
         for M, h, ends in terms:
-            bodies.append(BodyTerms(M, h.reshape(-1, 1), {e: end[0] for e, end in enumerate(ends)},
-                                    {e: end[1].reshape(3, 1) for e, end in enumerate(ends)},
-                                    {e: end[2] for e, end in enumerate(ends)}))
-        tau_c = np.asarray(tau, dtype=float).reshape(-1, 1, 1)
-        driven_c = np.asarray(alpha_driven, dtype=float).reshape(-1, 1, 1)
-        kappa_c = np.asarray(kappa, dtype=float).reshape(-1, 1, 1)
+            if ends:
+                Kin, c, RF = {}, {}, {}
+                for e, (K, ce, R) in enumerate(ends):
+                    Kin[e], c[e], RF[e] = K, ce.reshape(3, 1), R
+                bodies.append(BodyTerms(M, h.reshape(-1, 1), Kin, c, RF))
+            else:
+                bodies.append(BodyTerms(M, h.reshape(-1, 1)))
+        tau_c = np.array(tau, dtype=float).reshape(-1, 1, 1)
         joints, kap = [], []
         for j, kj in enumerate(self.kind):
             if kj == REVOLUTE:
-                joints.append(JointTerms(S=_E3_COLUMN, tau=tau_c[j]))
-                kap.append(kappa_c[j] if kappa[j] else None)
+                joints.append(JointTerms(S=_E3_COLUMN, tau=tau_c[j], axis=2))
+                kap.append(np.array([[kappa[j]]], dtype=float) if kappa is not None and kappa[j] else None)
             elif kj == DRIVEN:
-                joints.append(JointTerms(S=_E3_COLUMN, prescribed=driven_c[j]))
+                joints.append(JointTerms(S=_E3_COLUMN, prescribed=np.array([[alpha_driven[j]]], dtype=float), axis=2))
                 kap.append(None)
             else:                                       # FREE: a free base (rejected elsewhere otherwise)
                 joints.append(JointTerms(S=_EYE3, tau=_ZERO3))
@@ -213,21 +208,25 @@ class FlexibleSystem:
             except np.linalg.LinAlgError as exc:
                 raise SimulationError(f"articulated inertia or modal matrix of model {self.model.name!r} is "
                                       f"singular ({exc})", element=self._singular_element(terms)) from exc
-        for j, pivot in enumerate(out.pivot):
-            if pivot is not None and pivot.shape[-1] == 1:
-                d = pivot[0, 0]
-                if not (d != 0.0 and abs(d) < np.inf):
-                    raise SimulationError(f"articulated inertia of joint {self.model.joint_names[j]!r} is singular "
-                                          f"({d!r})", element=self.model.joint_names[j])
         x = [xj[:, 0] for xj in out.x]
-        if not np.all(np.isfinite(np.concatenate(x))):
+        if not math.isfinite(np.concatenate(x).sum()) and not np.isfinite(np.concatenate(x)).all():
+            # a zero or non-finite pivot leaves no finite x
+            for j, pivot in enumerate(out.pivot):
+                if pivot is not None and pivot.shape[-1] == 1:
+                    d = pivot[0, 0]
+                    if not (d != 0.0 and abs(d) < np.inf):
+                        raise SimulationError(f"articulated inertia of joint {self.model.joint_names[j]!r} is "
+                                              f"singular ({d!r})", element=self.model.joint_names[j])
             raise SimulationError(f"articulated inertia or modal matrix of model {self.model.name!r} is singular "
                                   "(non-finite accelerations)", element=self._singular_element(terms))
-        F = np.array([f[:, 0] for f in out.force])
+        if not full:
+            return x, None, None, None
+        F = np.concatenate(out.force, axis=1).T
         alpha = np.array([0.0 if r is None else r[-1, 0] for r in out.relative])
-        AO = np.array([xj[:3] for xj in x])         # A_O = A - S a_rel: revolute and driven S = e3
+        AO = np.concatenate([xj[:3] for xj in out.x], axis=1).T   # A_O = A - S a_rel: revolute, driven S = e3
         AO[:, 2] -= alpha
-        AO[self.free_base] = 0.0                     # a free base hangs on the ground
+        if self.free_base:
+            AO[self.free_base] = 0.0                 # a free base hangs on the ground
         return x, F, AO, alpha
 
     def _singular_element(self, terms) -> str | None:
@@ -239,17 +238,8 @@ class FlexibleSystem:
         return self.model.body_names[worst]
 
     def qddot(self, x) -> np.ndarray:
-        m = self.model
-        out = np.empty(m.n_coordinates)
-        for j in range(self.nb):
-            if m.theta_index[j] >= 0:
-                out[m.theta_index[j]] = x[j][2]
-            if m.joint_kind[j] == FREE:
-                out[m.xy_index[j, 0]] = x[j][0]
-                out[m.xy_index[j, 1]] = x[j][1]
-            if self.n_modal[j]:
-                out[self.modal_index[j]] = x[j][3:]
-        return out
+        """Generalised accelerations from the sweep's ``x`` (list of ``[A_I ; eta'']``)."""
+        return np.concatenate(x)[self.coordinate_rows]
 
     def apply_inputs(self, terms: list, theta: np.ndarray, tau: np.ndarray, inputs) -> np.ndarray:
         """Add actuator ``inputs`` (:class:`ctmm.planar.ports.ActuatorInputs`) to the body
@@ -272,18 +262,19 @@ class FlexibleSystem:
         q, qdot = self.model.state(q, qdot)
         terms, (theta, omega, _, _, _) = self.all_terms(q, qdot, t)
         tau = self.apply_inputs(terms, theta, self.hinge_torques(q, qdot, theta, omega, t), inputs)
-        x, F, AO, alpha = self.sweep(terms, [0.0] * self.nb, tau.tolist(), self.driven_alpha(t))
+        x, F, AO, alpha = self.sweep(terms, None, tau.tolist(), self.driven_alpha(t))
         A = np.array([xj[:3] for xj in x])
         modal = {self.model.body_names[j]: x[j][3:].copy() for j in self.beam_data}
         return FlexibleSolution(self.qddot(x), A, F, alpha, AO, modal)
 
-    def accelerations(self, q, qdot, t: float = 0.0, inputs=None) -> np.ndarray:
+    def accelerations(self, q, qdot, t: float = 0.0, inputs=None, *, checked: bool = False) -> np.ndarray:
         """Generalised accelerations (one sweep), with optional actuator ``inputs``;
-        ``q, qdot`` checked by :meth:`PlanarModel.state`."""
-        q, qdot = self.model.state(q, qdot)
+        ``q, qdot`` checked by :meth:`PlanarModel.state` (``checked=True``: the caller did)."""
+        if not checked:
+            q, qdot = self.model.state(q, qdot)
         terms, (theta, omega, _, _, _) = self.all_terms(q, qdot, t)
         tau = self.apply_inputs(terms, theta, self.hinge_torques(q, qdot, theta, omega, t), inputs)
-        x, _, _, _ = self.sweep(terms, [0.0] * self.nb, tau.tolist(), self.driven_alpha(t))
+        x, _, _, _ = self.sweep(terms, None, tau.tolist(), self.driven_alpha(t), full=False)
         return self.qddot(x)
 
 

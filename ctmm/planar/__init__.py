@@ -4,7 +4,8 @@ Modules: :mod:`~ctmm.planar.elements` (bodies, hinges, boundaries), :mod:`~ctmm.
 (chains and trees, validation, coordinates), :mod:`~ctmm.planar.sweep` (O(n) Riccati sweep,
 forward dynamics), :mod:`~ctmm.planar.integrate` (RK4, ``solve_ivp``),
 :mod:`~ctmm.planar.implicit` (Newmark / generalized-alpha DT-TMM with Newton),
-:mod:`~ctmm.planar.linear` (frequency domain about an equilibrium),
+:mod:`~ctmm.planar.equilibrium` (static equilibrium and its hanging guess; the frequency domain
+about it: the verbs ``ctmm.natural_frequencies`` etc.),
 :mod:`~ctmm.planar.compiled` (C fast path).  Derivations: ``docs/planar.md``.
 """
 from .elements import (ActuatedHinge, DamperHinge, DrivenHinge, ElasticHinge, Fixed, Free,

@@ -153,12 +153,12 @@ def revolute_terms(ops: Ops, *, angle: Any, rate: Any, stiffness: float = 0.0, d
     k, c = _value(stiffness), _value(damping)
     tau = (angle - reference) * -k - (rate - reference_rate) * c + torque
     return JointTerms(S=ops.block([[0.0], [0.0], [1.0]]), tau=ops.block([[tau]]),
-                      tau_q=ops.block([[-k]]), tau_v=ops.block([[-c]]))
+                      tau_q=ops.block([[-k]]), tau_v=ops.block([[-c]]), axis=2)
 
 
 def driven_terms(ops: Ops, acceleration: Any) -> JointTerms:
     """Driven hinge / fixed mounting: prescribed relative angular acceleration [rad/s^2]."""
-    return JointTerms(S=ops.block([[0.0], [0.0], [1.0]]), prescribed=ops.block([[acceleration]]))
+    return JointTerms(S=ops.block([[0.0], [0.0], [1.0]]), prescribed=ops.block([[acceleration]]), axis=2)
 
 
 def free_base_terms(ops: Ops) -> JointTerms:
@@ -486,13 +486,13 @@ class PlanarScene:
         held = []
         for j, joint in enumerate(joints):
             if joint.prescribed is not None:
-                held.append(JointTerms(S=joint.S, prescribed=np.zeros((1, 1, 1))))
+                held.append(JointTerms(S=joint.S, prescribed=np.zeros((1, 1, 1)), axis=joint.axis))
             elif joint.free == 3:
                 held.append(JointTerms(S=joint.S, tau=np.zeros((1, 3, 1)), tau_q=joint.tau_q, tau_v=joint.tau_v))
             else:
                 amplitude = complex(amplitudes.pop(j, 0.0))
                 held.append(JointTerms(S=joint.S, tau=np.full((1, 1, 1), amplitude), tau_q=joint.tau_q,
-                                       tau_v=joint.tau_v))
+                                       tau_v=joint.tau_v, axis=joint.axis))
         if amplitudes:
             raise ModelError(f"PlanarScene.frequency: torque given for bodies {sorted(amplitudes)} whose inboard "
                              "joints are not revolute")

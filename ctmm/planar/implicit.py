@@ -219,10 +219,10 @@ class _NewtonStep:
         joints, kappa = [], []
         for j, kind in enumerate(self.kind):
             if kind == REVOLUTE:
-                joints.append(JointTerms(S=_E3, tau=tau_c[j]))
+                joints.append(JointTerms(S=_E3, tau=tau_c[j], axis=2))
                 kappa.append(self.kappa_column[j])
             elif kind == DRIVEN:
-                joints.append(JointTerms(S=_E3, prescribed=driven_c[j]))
+                joints.append(JointTerms(S=_E3, prescribed=driven_c[j], axis=2))
                 kappa.append(None)
             elif kind == BUSHING:
                 f = joint_force[j]

@@ -219,7 +219,7 @@ def accelerations(model: PlanarModel, q, qdot, t: float = 0.0, inputs=None) -> n
     """
     q, qdot, t = _checked_state(model, q, qdot, t, inputs)
     if model.flexible_system is not None:
-        return model.flexible_system.accelerations(q, qdot, t, inputs)
+        return model.flexible_system.accelerations(q, qdot, t, inputs, checked=True)
     if len(model.bushing_bodies):
         return _scene_solution(model, q, qdot, t, inputs).qddot
     theta, omega = model.body_angles(q, qdot, t)
