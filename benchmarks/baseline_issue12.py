@@ -23,7 +23,9 @@ controller) and n = 3 in frequency (TMM, PlantCache); ``delay_history`` at 1000 
 1, 4 and 16 modes and the implicit step at 1 mode; ``manipulator`` one sweep, RK4 and Newmark at
 dt = 10 ms, compiled RK4 at dt = 10 ms; ``stability_chart`` the 100 x 100 chart; ``compiled_scenes``
 (issue 13, added after the baseline run: its two cases were measured alone) the generated RK4 of
-the hub-beam and of the N = 5 chain.  Left out (too long
+the hub-beam and of the N = 5 chain; ``spatial_chain`` (issue 14, added later and measured
+alone) one forward dynamics of the spatial reference model at N = 5 until ``ctmm.spatial``
+lands.  Left out (too long
 for a baseline under ~3 min, or needing a build): larger sizes and step ladders, the external
 libraries and references the benchmarks compare with (python-control, pinocchio, MuJoCo, global
 and Lagrange models), the FMU controller variant (builds an FMU with gcc), ``flexible``'s chain of
@@ -321,8 +323,18 @@ def _compiled_scenes(t: Timings) -> None:
                             f"(CompiledScene.run, library loaded), dt={dt:g} s, {steps} steps")
 
 
+def _spatial_chain(t: Timings) -> None:
+    bench = importlib.import_module("spatial_chain")
+    tree = bench.reference_tree(5, "ball")
+    q0, v0 = bench.initial_state(5, "ball")
+    t.add("spatial_chain", "reference_forward_dynamics_ball_n5",
+          lambda: bench.reference_model.forward_dynamics(tree, q0, v0 + 0.1), per="evaluation", count=1,
+          configuration="5-link ball chain, one forward dynamics of the global reference model "
+                        "(ctmm.reference.spatial_tree; the benchmark's only pure-ctmm code until ctmm.spatial lands)")
+
+
 TIMING_PARTS = (_work_precision, _scaling, _control, _delay_history, _planar, _flexible, _manipulator,
-                _stability_chart, _compiled_scenes)
+                _stability_chart, _compiled_scenes, _spatial_chain)
 
 
 def timings() -> dict:

@@ -145,6 +145,7 @@ def articulated_sweep(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints:
     M = [b.M for b in bodies]
     h = [b.h for b in bodies]
     Phi, psi, WA, Wh, D, C = [None] * nb, [None] * nb, [None] * nb, [None] * nb, [None] * nb, [None] * nb
+    St = [None] * nb                                # S^T of the free joints
     rd = slice(0, d)
     for j in range(nb - 1, -1, -1):
         Mj, hj = M[j], h[j]
@@ -155,40 +156,47 @@ def articulated_sweep(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints:
             Mre = ops.sub(Mj, rd, rest)
             W = ops.solve(C[j], ops.block([[ops.sub(Mj, rest, rd), ops.sub(hj, rest, slice(0, 1))]]))
             WA[j], Wh[j] = ops.sub(W, slice(0, size - d), rd), ops.sub(W, slice(0, size - d), slice(d, d + 1))
-            P = ops.sub(Mj, rd, rd) - ops.matmul(Mre, WA[j])
-            p = ops.sub(hj, rd, slice(0, 1)) - ops.matmul(Mre, Wh[j])
+            MW = ops.matmul(Mre, W)                 # [M_re W_A, M_re W_h] in one product
+            P = ops.sub(Mj, rd, rd) - ops.sub(MW, rd, rd)
+            p = ops.sub(hj, rd, slice(0, 1)) - ops.sub(MW, rd, slice(d, d + 1))
         else:
             P, p = Mj, hj
         joint = joints[j]
         if joint.c is not None:
             p = p + ops.matmul(P, joint.c)
         Phi[j], psi[j] = P, p
+        par = tree.parent[j]
+        if par < 0:                                 # at the ground only the pivot is needed
+            if joint.prescribed is None and joint.free:
+                St[j] = ops.transpose(joint.S)
+                D[j] = ops.matmul(ops.matmul(St[j], P), joint.S)
+                if kappa[j] is not None:
+                    D[j] = D[j] + kappa[j]
+            continue
         if joint.prescribed is not None:
             P_hat, p_hat = P, p + ops.matmul(ops.matmul(P, joint.S), joint.prescribed)
         elif joint.free == 0:
             P_hat, p_hat = P, p
         else:
-            St = ops.transpose(joint.S)
+            St[j] = ops.transpose(joint.S)
             PS = ops.matmul(P, joint.S)
-            Dj = ops.matmul(St, PS)
+            StP = ops.matmul(St[j], P)
+            Dj = ops.matmul(StP, joint.S)
             if kappa[j] is not None:
                 Dj = Dj + kappa[j]
             D[j] = Dj
-            tau = joint.tau if joint.tau is not None else ops.zeros(joint.free, 1)
+            rhs = ops.matmul(St[j], p) * -1.0 if joint.tau is None else joint.tau - ops.matmul(St[j], p)
             if joint.free == 1:                     # one free direction: D is 1 x 1, divide
-                P_hat = P - ops.matmul(PS, ops.matmul(St, P)) / Dj
-                p_hat = p + PS * ((tau - ops.matmul(St, p)) / Dj)
+                P_hat = P - ops.matmul(PS, StP / Dj)
+                p_hat = p + PS * (rhs / Dj)
             else:
-                P_hat = P - ops.matmul(PS, ops.solve(Dj, ops.matmul(St, P)))
-                p_hat = p + ops.matmul(PS, ops.solve(Dj, tau - ops.matmul(St, p)))
-        par = tree.parent[j]
-        if par < 0:
-            continue
+                P_hat = P - ops.matmul(PS, ops.solve(Dj, StP))
+                p_hat = p + ops.matmul(PS, ops.solve(Dj, rhs))
         e = tree.point[j]
         parent = bodies[par]
-        RP = ops.matmul(parent.RF[e], P_hat)
-        M[par] = M[par] + ops.matmul(RP, parent.Kin[e])
-        h[par] = h[par] + ops.matmul(RP, parent.c[e]) + ops.matmul(parent.RF[e], p_hat)
+        RF = parent.RF[e]
+        M[par] = M[par] + ops.matmul(ops.matmul(RF, P_hat), parent.Kin[e])
+        h[par] = h[par] + ops.matmul(RF, ops.matmul(P_hat, parent.c[e]) + p_hat)
     x, force, relative = [None] * nb, [None] * nb, [None] * nb
     for j in range(nb):
         par = tree.parent[j]
@@ -197,16 +205,19 @@ def articulated_sweep(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints:
             e = tree.point[j]
             A_O = ops.matmul(bodies[par].Kin[e], x[par]) + bodies[par].c[e]
         else:
-            A_O = ops.zeros(d, 1)
+            A_O = None                              # the ground does not move
         if joint.prescribed is not None:
             a = joint.prescribed
         elif joint.free == 0:
             a = None
         else:
-            tau = joint.tau if joint.tau is not None else ops.zeros(joint.free, 1)
-            rhs = tau - ops.matmul(ops.transpose(joint.S), ops.matmul(Phi[j], A_O) + psi[j])
+            load = ops.matmul(St[j], psi[j] if A_O is None else ops.matmul(Phi[j], A_O) + psi[j])
+            rhs = load * -1.0 if joint.tau is None else joint.tau - load
             a = rhs / D[j] if joint.free == 1 else ops.solve(D[j], rhs)
-        A = A_O if a is None else A_O + ops.matmul(joint.S, a)
+        if a is None:
+            A = ops.zeros(d, 1) if A_O is None else A_O
+        else:
+            A = ops.matmul(joint.S, a) if A_O is None else A_O + ops.matmul(joint.S, a)
         if joint.c is not None:
             A = A + joint.c
         relative[j] = a

@@ -13,6 +13,7 @@ import numpy as np
 
 from . import validation
 from .assembly import SOLVERS, BoundaryEnd, BoundaryStart, ChainSolution
+from .elements.axial import AxialBody, AxialJoint
 from .errors import ModelError
 from .system import Chain
 
@@ -131,9 +132,7 @@ def solve(system: Chain, s: np.ndarray, amplitudes=None, *, solver: str = "ricca
 
 
 def _lumped(system) -> bool:
-    from .elements.lumped import Connector, PointElement
-
-    return system.layout.size == 2 and all(isinstance(e, (PointElement, Connector)) for e in system.body)
+    return system.layout.size == 2 and all(isinstance(e, (AxialBody, AxialJoint)) for e in system.body)
 
 
 def _solve_lumped(system: Chain, s: np.ndarray, amplitudes: Mapping, want_log_det: bool = False) -> ChainSolution:
@@ -143,7 +142,6 @@ def _solve_lumped(system: Chain, s: np.ndarray, amplitudes: Mapping, want_log_de
     element matrices stay Python scalars instead of ``(B, 2, 2)`` arrays.
     """
     from .assembly import riccati_scalar_entries
-    from .elements.lumped import Connector
 
     e_idx, S0, P0 = system.start.start(system.layout, s, amplitudes.get(0, {}))
     Bm, b = system.end.end(system.layout, s, amplitudes.get(len(system.elements) - 1, {}))
@@ -151,14 +149,18 @@ def _solve_lumped(system: Chain, s: np.ndarray, amplitudes: Mapping, want_log_de
     f = 1 - e
     entries = []
     for pos, element in enumerate(system.body, start=1):
-        load = amplitudes.get(pos, {}).get("force", 0.0)
-        if isinstance(element, Connector):   # x_out = x_in - F/k_c (+ F_act/k_c)
+        amps = amplitudes.get(pos)
+        load = 0.0
+        if amps:                            # d tau / d u (joints), d h / d u (bodies) of the derived form
+            inputs = element.axial_coefficients().inputs
+            load = sum((inputs[key] * value for key, value in amps.items()), 0.0)
+        if isinstance(element, AxialJoint):   # x_out = x_in - F/k_c (+ F_act/k_c)
             compliance = 1.0 / element.connector_stiffness(s)
             ux, uF = (load * compliance if load else 0.0), 0.0
             Uxx, UxF, UFx, UFF = 1.0, -compliance, 0.0, 1.0
         else:                                # F_out = F_in - Z x + F
             Uxx, UxF, UFx, UFF = 1.0, 0.0, -element.impedance(s), 1.0
-            ux, uF = 0.0, load
+            ux, uF = 0.0, -load
         if f == 0:   # partition f = x (displacement known at the start), e = force
             entries.append((Uxx, UxF, UFx, UFF, ux, uF))
         else:        # f = force, e = x

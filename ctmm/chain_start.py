@@ -13,7 +13,7 @@ from typing import Mapping
 import numpy as np
 
 from . import validation
-from .elements.lumped import PointElement
+from .elements.axial import AxialBody
 from .errors import ModelError
 from .system import Chain
 
@@ -238,9 +238,10 @@ def initial_acceleration(system: Chain, x: np.ndarray, v: np.ndarray, t0: float,
         total_mass, force = 0.0, 0.0
         for pos in range(first, last + 1):
             e = body[pos - 1]
-            if isinstance(e, PointElement):
-                total_mass += e.mass
-                force += float(e.force(t0)) - e.damping * v[point, 0] - e.stiffness * x[point, 0]
+            if isinstance(e, AxialBody):
+                co = e.axial_coefficients()
+                total_mass += co.inertia
+                force += e.own_load(t0) - co.damping * v[point, 0] - co.stiffness * x[point, 0] - co.rest
             force += extra_forces.get(pos, 0.0)
         if total_mass == 0.0:
             continue

@@ -19,6 +19,7 @@ from .assembly import SOLVERS
 from . import planar_frequency
 from .capabilities import require_chain
 from .chain_assembly import assemble, laplace_variables, solve  # noqa: F401  (assemble, solve: public here too)
+from .elements.axial import AxialJoint
 from .entire_values import entire_logs
 from .errors import ModelError
 from . import natural
@@ -197,11 +198,9 @@ def _log_delta(system, s: np.ndarray) -> np.ndarray:
 def _scale(system, s: np.ndarray) -> np.ndarray:
     if hasattr(system, "characteristic_scale"):
         return system.characteristic_scale(s)
-    from .elements.lumped import Connector
-
     scale = np.ones(s.shape, dtype=complex)
     for e in system.body:
-        if isinstance(e, Connector):
+        if isinstance(e, AxialJoint):
             scale = scale * e.connector_stiffness(s)
     return scale
 

@@ -493,9 +493,9 @@ def _check_reciprocal(body: Sequence, omega: float) -> bool:
 
     Wittrick-Williams counting needs symplectic element matrices, ``U^T J U = J`` with
     ``J = [[0, I], [-I, 0]]`` (reciprocity: every force work-conjugate to its displacement,
-    as for a conservative element).  Elements that are not (e.g. the smooth-hinge composite
-    :class:`~ctmm.planar.linear.LinearHingedBody`) raise :class:`~ctmm.errors.ModelError`
-    instead of giving a wrong count.
+    as for a conservative element).  Elements that are not (e.g. a composite of a rigid body and
+    the smooth hinge it hangs on) raise :class:`~ctmm.errors.ModelError` instead of giving a wrong
+    count.
     """
     s = 1j * np.array([omega, 0.37 * omega])
     real, bad, seen = True, [], set()
@@ -513,7 +513,7 @@ def _check_reciprocal(body: Sequence, omega: float) -> bool:
     if bad:
         raise ModelError("natural_frequencies and eigenvalue_count need reciprocal (symplectic) element "
                          f"matrices U^T J U = J; not satisfied by {', '.join(repr(b) for b in bad)}"
-                         " (for planar chains with smooth hinges use ctmm.planar.linear.natural_frequencies)")
+                         " (for planar chains with smooth hinges give the PlanarModel itself to ctmm.natural_frequencies)")
     return real
 
 

@@ -6,7 +6,10 @@ scalar broadcasting against a matrix).  Two implementations:
 
 * :data:`NUMPY` -- every value is a **batched matrix** of shape ``(B, rows, columns)`` (a scalar is
   ``(B, 1, 1)``, a vector a column ``(B, n, 1)``); float or complex (complex-step tangents and
-  frequency sweeps use the complex dtype; ``B`` may be 1 for constants, which broadcast);
+  frequency sweeps use the complex dtype; ``B`` may be 1 for constants, which broadcast).  An
+  unbatched ``(rows, columns)`` array is one evaluation (``B = 1``): numpy's calls on 2-D arrays
+  are cheaper, which is the fast path of single-state callers (``flexible/kernel.py``); results
+  stay 2-D while every operand is;
 * :data:`CASADI` -- every value is a ``casadi.SX`` (or ``MX``) matrix ``(rows, columns)``, no batch axis.
 
 Rules for code written against :class:`Ops`: no in-place writes (``SX`` is immutable), no Python
@@ -60,6 +63,8 @@ class NumpyOps:
         array = np.asarray(x)
         if array.ndim == 0:
             return array.reshape(1, 1, 1)
+        if array.ndim == 2:
+            return array[None]
         if array.ndim != 3:
             raise ValueError(f"numpy ops values are (B, rows, columns) arrays, got shape {array.shape}")
         return array
@@ -72,19 +77,33 @@ class NumpyOps:
     def block(self, rows: Sequence[Sequence[Any]]) -> np.ndarray:
         if len(rows) == 1 or all(len(row) == 1 for row in rows):
             parts = [e for row in rows for e in row]
-            if all(type(e) is np.ndarray and e.ndim == 3 for e in parts) and \
-                    len({(e.shape[0], e.dtype) for e in parts}) == 1:    # one row or one column of equal blocks
-                return np.concatenate(parts, axis=2 if len(rows) == 1 else 1)
-        grid = [[self._matrix(entry) for entry in row] for row in rows]
-        batch = max(entry.shape[0] for row in grid for entry in row)
-        dtype = np.result_type(*[entry.dtype for row in grid for entry in row], float)
-        out_rows = [np.concatenate([np.broadcast_to(e, (batch,) + e.shape[1:]).astype(dtype, copy=False)
-                                    for e in row], axis=2) for row in grid]
-        return np.concatenate(out_rows, axis=1)
+            if all(type(e) is np.ndarray for e in parts) and \
+                    len({(e.shape[:-2], e.ndim, e.dtype) for e in parts}) == 1:  # one row or column of equal blocks
+                return np.concatenate(parts, axis=-1 if len(rows) == 1 else -2)
+        # one allocation, one broadcasting assignment per entry (scalars and B = 1 entries broadcast)
+        grid = [[entry if isinstance(entry, (int, float, complex)) else np.asarray(entry) for entry in row]
+                for row in rows]
+        arrays = [e for row in grid for e in row if isinstance(e, np.ndarray) and e.ndim]
+        if any(e.ndim not in (2, 3) for e in arrays):
+            bad = next(e for e in arrays if e.ndim not in (2, 3))
+            raise ValueError(f"numpy ops values are (B, rows, columns) arrays, got shape {bad.shape}")
+        batch = max([e.shape[0] for e in arrays if e.ndim == 3], default=None)
+        heights = [max([e.shape[-2] for e in row if isinstance(e, np.ndarray) and e.ndim], default=1) for row in grid]
+        widths = [max([row[c].shape[-1] for row in grid if isinstance(row[c], np.ndarray) and row[c].ndim],
+                      default=1) for c in range(len(grid[0]))]
+        dtype = np.result_type(*[e for row in grid for e in row], float)
+        shape = (sum(heights), sum(widths))
+        out = np.empty(shape if batch is None and arrays else (batch or 1,) + shape, dtype=dtype)
+        r0 = 0
+        for row, height in zip(grid, heights):
+            c0 = 0
+            for entry, width in zip(row, widths):
+                out[..., r0:r0 + height, c0:c0 + width] = entry
+                c0 += width
+            r0 += height
+        return out
 
-    @staticmethod
-    def matmul(a: Any, b: Any) -> np.ndarray:
-        return np.matmul(a, b)
+    matmul = staticmethod(np.matmul)           # no Python frame: the sweep's most frequent call
 
     @staticmethod
     def solve(a: Any, b: Any) -> np.ndarray:
@@ -96,7 +115,7 @@ class NumpyOps:
 
     @staticmethod
     def det(a: Any) -> np.ndarray:
-        return np.linalg.det(a)[:, None, None]
+        return np.linalg.det(a)[..., None, None]
 
     @staticmethod
     def transpose(a: Any) -> np.ndarray:
@@ -104,7 +123,7 @@ class NumpyOps:
 
     @staticmethod
     def sub(a: Any, rows: slice, columns: slice) -> np.ndarray:
-        return a[:, rows, columns]
+        return a[..., rows, columns]
 
     @staticmethod
     def zeros(rows: int, columns: int) -> np.ndarray:

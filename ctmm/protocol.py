@@ -93,6 +93,9 @@ class JointTerms:
     tau_q, tau_v : matrix (k, k) or None
         ``d tau / d q_rel`` and ``d tau / d v_rel`` (``-stiffness``, ``-damping``) -- the law's
         tangents, from which the implicit and frequency contexts form ``kappa``.
+    tau_a : matrix (k, k) or None
+        ``d tau / d a_rel`` (``-inertance``: a 1-D inerter); ``None`` for zero.  It adds
+        ``-tau_a`` to ``kappa`` in every context (``s^2`` times it in the frequency context).
     prescribed : column (k, 1) or None
         Prescribed relative acceleration ``a_rel`` of a driven joint.
     """
@@ -103,6 +106,7 @@ class JointTerms:
     tau_q: Any = None
     tau_v: Any = None
     prescribed: Any = None
+    tau_a: Any = None
 
     @property
     def free(self) -> int:

@@ -30,7 +30,7 @@ from .assembly import (SOLVERS, BoundaryEnd, BoundaryStart, clamped_start_solve,
 from .elements.base import Linearisation
 from .chain_start import initial_acceleration, initial_forces, initial_state, rest_positions
 from .elements.beam_time import bending_mesh
-from .elements.lumped import PointElement
+from .elements.axial import AxialBody
 from .errors import ModelError, SimulationError
 from .guard import DivergenceGuard
 from .progress import progress_bar
@@ -60,6 +60,10 @@ class _LumpedKernel:
         self.mass, self.damping, self.stiffness = get("mass"), get("damping"), get("stiffness")
         self.free_length = get("free_length")
         self.point_pos = np.flatnonzero(self.is_point)
+        # connectors in series (a massless node between them): their shared point can hold one
+        # predicted force only, so their affine parts carry the difference (affine_part)
+        con = np.flatnonzero(~self.is_point)
+        self.series = bool(np.any(np.diff(con) == 1))
         self.const_force = np.zeros(self.n)
         self.variable_forces = []
         for j in self.point_pos:
@@ -120,6 +124,9 @@ class _LumpedKernel:
         f_pred = f_pred[idx]             # points between point elements inherit the inboard value
         u0 = np.zeros(self.n)
         u1 = np.zeros(self.n)
+        if self.series:  # a massless node keeps the inboard connector's force: the outboard one's offsets
+            u0[con] = (predicted - f_pred[con]) / self._con_keff
+            u1[con] = f_pred[con] - f_pred[con + 1]
         u1[pts] = (f_pred[pts] - f_pred[pts + 1] + load[pts]
                    - (self._pts_m * D[pts] + self._pts_c * B[pts] + self._pts_k * dx[pts]))
         return u0, u1, f_pred
@@ -278,9 +285,9 @@ def point_labels(system: Chain) -> list[str]:
     labels = []
     for p, name in enumerate(system.point_names()):
         inboard, outboard = system.elements[p], system.elements[p + 1]
-        if isinstance(outboard, PointElement):
+        if isinstance(outboard, AxialBody):
             labels.append(outboard.name)
-        elif isinstance(inboard, PointElement):
+        elif isinstance(inboard, AxialBody):
             labels.append(inboard.name)
         else:
             labels.append(name)

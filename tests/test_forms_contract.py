@@ -3,9 +3,10 @@
 Every context is checked against an INDEPENDENT model: explicit accelerations against the Lagrange
 references (``reference/planar_lagrange.py``, ``reference/flexible_lagrange.py``), the frequency
 context's characteristic function and FRF against ``PlanarLagrange.linearize`` ``M, C, K``; casadi
-evaluation against numpy; and the "same recursion" equalities with today's kernels
-(``planar/sweep.py riccati_kernel``, ``flexible/kernel.py FlexibleSystem.sweep``) with arbitrary
-joint tangents ``kappa`` (the implicit context).
+evaluation against numpy; the "same recursion" equality with the Python-float explicit fast path
+(``planar/fast_sweep.py riccati_kernel``) with arbitrary joint tangents ``kappa`` (the implicit context);
+and ``flexible/kernel.py FlexibleSystem.sweep`` (a call of the one sweep on its own terms) equal to
+the sweep of the scene's tree.
 """
 from __future__ import annotations
 
@@ -23,7 +24,8 @@ from ctmm.planar import (ElasticHinge, Fixed, FreeBase, Load, Pinned, PlanarMode
                          SmoothHinge, accelerations, ports)
 from ctmm.planar.body_forms import PlanarScene
 from ctmm.planar.linear import hanging_configuration, static_equilibrium
-from ctmm.planar.sweep import body_terms, hinge_torques, riccati_kernel
+from ctmm.planar.fast_sweep import riccati_kernel
+from ctmm.planar.sweep import body_terms, hinge_torques
 from ctmm.protocol import BodyTerms
 from ctmm.reference.flexible_lagrange import FlexibleLagrange
 from ctmm.reference.planar_lagrange import PlanarLagrange
@@ -59,6 +61,72 @@ def test_explicit_context_is_batched_and_takes_actuator_inputs():
     expected = accelerations(model, q[0], v[0], 0.4, inputs=inputs)
     assert _relative(scene.accelerations(q[0], v[0], 0.4, inputs)[0], expected) <= 1e-12
     assert _relative(expected, scene.accelerations(q[0], v[0], 0.4)[0]) > 1e-3     # the inputs act
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_translational_spring_hinges_on_the_protocol_equal_lagrange_and_the_old_kernel(seed):
+    """BUSHING (S = I3, f = -k_t d - c_t d_dot along the global offset): random trees with
+    translational-spring hinges, against the independent Lagrange model and the Python-float kernel."""
+    model = random_tree(seed, 6, allow_translation=True)
+    q, v, t = random_state(model, seed)
+    scene = PlanarScene(model)
+    reference = PlanarLagrange(model)
+    free = scene.accelerations(q, v, t)[0]
+    assert _relative(free, reference.accelerations(q, v, t)) <= 1e-12
+    assert _relative(accelerations(model, q, v, t), free) <= 1e-15          # ctmm.planar.accelerations routes here
+    # hinge torques and body moments act through the Lagrange mass matrix: qdd(u) - qdd(0) = M^-1 Q(u)
+    rng = np.random.default_rng(seed)
+    values, Q = {}, np.zeros(model.n_coordinates)
+    for j, name in enumerate(model.joint_names):
+        if model.joint_kind[j] in (0, 3) and f"{name}.torque" in ports.actuator_names(model):
+            u = values[f"{name}.torque"] = float(rng.normal())
+            Q[model.theta_index[j]] += u
+            p = model.parent[j]
+            while p >= 0 and model.theta_index[p] < 0:    # a driven parent turns with its own parent
+                p = model.parent[p]
+            if p >= 0:
+                Q[model.theta_index[p]] -= u
+    for j, name in enumerate(model.body_names):
+        if model.theta_index[j] >= 0:
+            u = values[f"{name}.moment"] = float(rng.normal())
+            Q[model.theta_index[j]] += u
+    forced = scene.accelerations(q, v, t, ports.actuator_inputs(model, values))[0]
+    assert _relative(forced - free, np.linalg.solve(reference.mass_matrix(q, t), Q)) <= 1e-10
+
+
+def test_translational_spring_hinge_frequency_context_equals_the_lagrange_linearisation():
+    import ctmm
+
+    model = PlanarModel.chain("bushed", [Pinned("o"), RigidBody.uniform_link("l1", mass=1.0, length=1.0),
+                                         ElasticHinge("h", stiffness=4.0, rest_angle=0.4, translational_stiffness=300.0,
+                                                      translational_damping=0.7),
+                                         RigidBody.uniform_link("l2", mass=0.5, length=0.8)])
+    assert model.joint_kind.tolist()[1] == 3                    # the hinge is a BUSHING
+    q0 = ctmm.linearize(model, inputs=[], outputs=[]).operating_point.q
+    M, C, K = PlanarLagrange(model).linearize(q0)
+    s = np.array([0.3 + 1.7j, -0.2 + 0.5j, 2.0j, 0.7])
+    Z = s[:, None, None] ** 2 * M + s[:, None, None] * C + K
+    assert np.max(np.abs(q0[1:3])) > 1e-3                       # the spring is preloaded
+    characteristic = PlanarScene(model).frequency(q0, s).characteristic[:, 0, 0]
+    assert _relative(characteristic, np.linalg.det(Z)) <= 1e-12
+
+
+def test_translational_spring_hinges_are_counted_by_the_one_sweep():
+    """Now on the protocol, models with translational springs take the Wittrick-Williams count (3 x 3
+    joint pivots) in ctmm.natural_frequencies / eigenvalue_count: equal to the Lagrange eigenvalues."""
+    import ctmm
+    from ctmm.planar_counting import FrequencyCounter
+
+    model = PlanarModel.chain("bushed", [Pinned("o"), RigidBody.uniform_link("l1", mass=1.0, length=1.0),
+                                         ElasticHinge("h", stiffness=4.0, rest_angle=0.4, translational_stiffness=300.0),
+                                         RigidBody.uniform_link("l2", mass=0.5, length=0.8)])
+    q0 = ctmm.linearize(model, inputs=[], outputs=[]).operating_point.q
+    expected = PlanarLagrange(model).natural_frequencies(q0)
+    np.testing.assert_allclose(FrequencyCounter(model, q0, 0.0).frequencies(n_modes=4), expected, rtol=1e-10)
+    np.testing.assert_allclose(ctmm.natural_frequencies(model, n_modes=4), expected, rtol=1e-10)
+    omega = np.concatenate([0.999 * expected, 1.001 * expected])
+    np.testing.assert_array_equal(ctmm.eigenvalue_count(model, omega),
+                                  np.sum(expected[None, :] < omega[:, None], axis=1))
 
 
 def _beam(name, **kw):
@@ -157,7 +225,7 @@ def test_same_recursion_as_the_planar_riccati_kernel_with_joint_tangents(seed):
     alpha_driven = [0.0] * model.n_bodies
     for i, _, _, acceleration in model.driven(t):
         alpha_driven[i] = acceleration
-    A, F, alpha, _ = riccati_kernel(model.parent.tolist(), model.joint_kind.tolist(), K.tolist(), b.tolist(),
+    A, F, alpha = riccati_kernel(model.parent.tolist(), model.joint_kind.tolist(), K.tolist(), b.tolist(),
                                     E.tolist(), kappa.tolist(), tau.tolist(), alpha_driven)
     scene = PlanarScene(model)
     _, joints = scene.terms(NUMPY, q[None, :, None], v[None, :, None], t)
@@ -183,7 +251,7 @@ def test_same_recursion_as_the_planar_riccati_kernel_with_joint_tangents(seed):
 
 
 @pytest.mark.parametrize("name", sorted(FLEXIBLE))
-def test_same_recursion_as_the_flexible_sweep_with_joint_tangents(name):
+def test_flexible_system_sweep_is_the_one_sweep_of_the_scene_with_joint_tangents(name):
     model = FLEXIBLE[name]()
     system = model.flexible_system
     rng = np.random.default_rng(3)
@@ -211,10 +279,6 @@ def test_bad_trees_and_unsupported_joints_are_refused():
         Tree((-1, 2, 0), (None, "out", "out"))
     with pytest.raises(ModelError, match="one entry per body"):
         Tree((-1, 0), (None,))
-    bushing = PlanarModel.chain("b", [Fixed("g"), ElasticHinge("h", stiffness=1.0, translational_stiffness=10.0),
-                                      RigidBody.uniform_link("l", mass=1.0, length=1.0)])
-    with pytest.raises(ModelError, match="translational springs"):
-        PlanarScene(bushing)
     pendulum = PlanarModel.chain("p", [Pinned("o"), RigidBody.uniform_link("l", mass=1.0, length=1.0)])
     with pytest.raises(ModelError, match=r"\(B, 1\)"):
         PlanarScene(pendulum).accelerations(np.zeros(5), np.zeros(5))
@@ -291,3 +355,23 @@ def test_frequency_context_with_modal_elimination_equals_the_flexible_lagrange_l
     ratio = PlanarScene(model).frequency(q0, s).characteristic[:, 0, 0] / np.linalg.det(
         s[:, None, None] * np.eye(2 * n) - A)
     assert np.max(np.abs(ratio - ratio[0])) <= 1e-9 * abs(ratio[0])
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_implicit_tangent_sweep_on_the_one_sweep_equals_the_fast_path(seed):
+    """The planar Newton step's tangent relations swept by articulated_sweep (the path of models with
+    translational springs) give the fast path's numbers on rigid revolute trees."""
+    from ctmm.planar.implicit import _NewtonStep
+    from ctmm.planar.sweep import solve_instant
+
+    model = random_tree(seed, 6, allow_translation=False)
+    q, v, t = random_state(model, seed)
+    h = 0.01
+    step = _NewtonStep(model, 0.25 * h * h, 0.5 * h)
+    start = solve_instant(model, q, v, t)
+    tangent = step.linearise(q, v, t, start.body_acceleration, start.joint_force, start.qddot)
+    A, F, _ = step.solve(tangent)
+    A_one, F_one, translation = step.tangent_sweep(tangent["K"], tangent["b"], tangent["E"], tangent["tau_tilde"],
+                                                   tangent["alpha_d"], None)
+    assert translation == {}
+    assert _relative(A_one, A) <= 1e-12 and _relative(F_one, F) <= 1e-12

@@ -7,11 +7,12 @@ import pytest
 import ctmm
 from ctmm.errors import ModelError
 from ctmm.planar import Fixed, Pinned, PlanarModel, RigidBody, SmoothHinge, SpringDamperHinge
-from ctmm.planar.linear import (LinearRigidBody, characteristic_function, linear_chain,
-                                natural_frequencies, static_equilibrium)
+from ctmm.planar.linear import (characteristic_function, hanging_configuration, natural_frequencies,
+                                static_equilibrium)
 from ctmm.reference.planar_lagrange import PlanarLagrange
 
 from planar_helpers import random_tree, uniform_chain
+from planar_linear_elements import LinearRigidBody, linear_chain
 
 
 def _offset_chain():
@@ -126,3 +127,19 @@ def test_tree_characteristic_function_vanishes_at_the_frequencies():
     at = np.abs(characteristic_function(model, q_eq, 1j * omega))
     near = np.abs(characteristic_function(model, q_eq, 1j * omega * 1.001))
     assert np.all(at < 1e-8 * near)
+
+
+def test_a_hub_hangs_by_the_beam_it_carries():
+    """A hub with its centre of mass on the pivot carrying a welded beam: the guess hangs the beam, and
+    the equilibrium found from it is the hanging one (not the upright one)."""
+    from ctmm.flexible import ModalBeam
+    from ctmm.planar import ActuatedHinge, Fixed, PlanarModel, RigidBody
+    from ctmm.planar.elements import FixedMounting
+
+    model = PlanarModel.chain("hub_beam", [
+        Fixed("ground"), ActuatedHinge("motor"), RigidBody("hub", mass=2.0, inertia=0.1, outboard=(0.1, 0.0)),
+        FixedMounting("mount"), ModalBeam("beam", length=1.0, bending_stiffness=20.0, mass_per_length=0.5, n_modes=2)])
+    guess = hanging_configuration(model)
+    assert guess[model.coordinate_index("hub.theta")] == pytest.approx(-0.5 * np.pi, abs=1e-15)
+    q = static_equilibrium(model, guess)
+    assert q[model.coordinate_index("hub.theta")] == pytest.approx(-0.5 * np.pi, abs=1e-12)

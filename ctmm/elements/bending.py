@@ -228,6 +228,8 @@ class BeamPointLoad(Element):
 class BeamClamped(Fixed):
     """Clamped beam end: ``w = 0``, ``theta = 0`` (shear and moment unknown)."""
 
+    dimensions: frozenset[int] = frozenset()        # no d = 2 joint terms yet (plan S4C)
+
     def __init__(self, name: str) -> None:
         super().__init__(name)
         self.layout = BENDING
@@ -235,6 +237,8 @@ class BeamClamped(Fixed):
 
 class BeamFree(Free):
     """Free beam end: ``shear = 0``, ``moment = 0`` (deflection and slope unknown)."""
+
+    dimensions: frozenset[int] = frozenset()        # no d = 2 joint terms yet (plan S4C)
 
     def __init__(self, name: str) -> None:
         super().__init__(name)
@@ -253,6 +257,7 @@ class _MixedBeamBoundary(Boundary):
     """
 
     zero_components: tuple[str, str] = ()  # type: ignore[assignment]
+    dimensions: frozenset[int] = frozenset()        # no d = 2 joint terms yet (plan S4C)
 
     def __init__(self, name: str) -> None:
         super().__init__(name)

@@ -21,6 +21,13 @@ PrescribedForce        f = F(t)  (F on the chain, +x)      f = -F(t)  (F on the 
 
 The table is written for one displacement/force pair; for layouts with several pairs
 (bending: ``w, theta``) every pair is treated alike.
+
+*On the element protocol* (issue 12, point dimension ``d = 1``, :mod:`ctmm.lumped_forms`) a
+boundary is a **joint to ground** (:meth:`Boundary.terms`): ``Fixed`` a weld (no free
+direction), ``PrescribedDisplacement`` a prescribed joint, ``Free`` a free joint without law,
+``Elastic`` the connector law with free length ``anchor`` (start) or ``-anchor`` (end: the ground
+is the child), ``PrescribedForce`` the law ``tau = F`` (start) or ``-F`` (end).  ``q_rel`` is the
+child's displacement minus the parent's, the ground at 0.
 """
 from __future__ import annotations
 
@@ -31,6 +38,8 @@ import numpy as np
 from .. import validation
 from ..errors import ModelError
 from ..layouts import StateLayout
+from ..ops import Ops
+from ..protocol import JointTerms
 from ..signals import SignalLike, TimeFunction, as_signal, harmonic_amplitude
 from .base import Element, Linearisation
 
@@ -49,6 +58,35 @@ class Boundary(Element):
 
     def transfer_matrix(self, s: np.ndarray) -> np.ndarray:
         raise ModelError(f"boundary {self.name!r} has no transfer matrix")
+
+    # -- element protocol (d = 1) ---------------------------------------------------------
+    dimensions = frozenset({1})
+
+    def terms(self, ops: Ops, q_rel: Any = 0.0, v_rel: Any = 0.0, t: float = 0.0,
+              u: Mapping[str, Any] | None = None, *, side: str = "start") -> JointTerms:
+        """The boundary as a joint to ground (module docstring).
+
+        Parameters
+        ----------
+        ops : Ops
+        q_rel, v_rel : ops scalars
+            Child displacement minus parent displacement [m] and its rate [m/s] (ground at 0).
+        t : float
+            Time [s].
+        u : mapping, optional
+            The boundary's input (``"force"`` [N] or ``"displacement"``: the prescribed motion at
+            the level of the context's unknowns -- acceleration [m/s^2] in time, displacement phasor
+            [m] in the frequency context).
+        side : {"start", "end"}
+            ``"start"``: the ground is the parent; ``"end"``: the ground is the child.
+        """
+        if side not in ("start", "end"):
+            raise ModelError(f"{self.name}: side must be 'start' or 'end', got {side!r}")
+        return self._joint_terms(ops, q_rel, v_rel, t, u or {}, side)
+
+    def _joint_terms(self, ops: Ops, q_rel: Any, v_rel: Any, t: float, u: Mapping[str, Any],
+                     side: str) -> JointTerms:
+        raise ModelError(f"boundary {self.name!r} ({type(self).__name__}) has no joint terms")
 
     # -- helpers ------------------------------------------------------------------------
     def _stiffness(self, s: np.ndarray) -> np.ndarray:
@@ -168,6 +206,9 @@ class Fixed(Boundary):
     def _position_signal(self, t):
         return self.position
 
+    def _joint_terms(self, ops, q_rel, v_rel, t, u, side):
+        return JointTerms(S=ops.zeros(1, 0))                 # weld
+
     def parameters(self):
         return {"position": self.position}
 
@@ -176,6 +217,10 @@ class Free(Boundary):
     """Free end: no force."""
 
     known = "force"
+
+    def _joint_terms(self, ops, q_rel, v_rel, t, u, side):
+        zero = ops.zeros(1, 1)
+        return JointTerms(S=ops.eye(1), tau=zero, tau_q=zero, tau_v=zero)
 
 
 class Elastic(Boundary):
@@ -213,6 +258,12 @@ class Elastic(Boundary):
     def _end_force_value(self, amplitudes):
         return 0.0
 
+    def _joint_terms(self, ops, q_rel, v_rel, t, u, side):
+        length = self.anchor if side == "start" else -self.anchor
+        tau = ops.zeros(1, 1) + (q_rel - length) * (-self.stiffness) - v_rel * self.damping
+        return JointTerms(S=ops.eye(1), tau=tau, tau_q=ops.block([[-self.stiffness]]),
+                          tau_v=ops.block([[-self.damping]]))
+
     def parameters(self):
         return {"stiffness": self.stiffness, "damping": self.damping, "anchor": self.anchor}
 
@@ -230,6 +281,9 @@ class PrescribedDisplacement(Boundary):
     def _position_signal(self, t):
         return float(self.displacement(t))
 
+    def _joint_terms(self, ops, q_rel, v_rel, t, u, side):
+        return JointTerms(S=ops.eye(1), prescribed=ops.zeros(1, 1) + u.get("displacement", 0.0))
+
     def steady_state_amplitudes(self):
         return {"displacement": harmonic_amplitude(self.displacement)}
 
@@ -246,6 +300,11 @@ class PrescribedForce(Boundary):
 
     def _force_signal(self, t):
         return float(self.force(t))
+
+    def _joint_terms(self, ops, q_rel, v_rel, t, u, side):
+        zero = ops.zeros(1, 1)
+        force = u.get("force", 0.0)
+        return JointTerms(S=ops.eye(1), tau=zero + (force if side == "start" else -force), tau_q=zero, tau_v=zero)
 
     def _end_force_value(self, amplitudes):
         return -self._value_phasor(amplitudes)

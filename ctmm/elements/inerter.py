@@ -10,8 +10,10 @@ counting and state-space form in ``docs/adding_an_element.md``):
     f = -b (a_out - a_in) - c (v_out - v_in) - k (x_out - x_in - l) + F
 
 The element is massless in the usual sense (no inertia to ground) and the force is the same at
-both ends, so it is a :class:`~ctmm.elements.lumped.Connector` whose complex stiffness is the
-full dynamic stiffness ``Z(s) = b s^2 + c s + k``:
+both ends, so it is a :class:`~ctmm.elements.lumped.Connector` whose law carries ``tau_a = -b``
+(:meth:`Connector.terms <ctmm.elements.lumped.Connector.terms>`); every form below is derived from
+those terms (:mod:`ctmm.elements.axial`), with the full dynamic stiffness
+``kappa(s) = Z(s) = b s^2 + c s + k``:
 
     x_out = x_in - f / Z(s) + F / Z(s),   f_out = f_in                    (frequency domain)
 
@@ -30,13 +32,12 @@ from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
 
 from .. import validation
-from .base import DiscreteElement, Element, Linearisation, LumpedCoefficients
+from .base import Element
 from .lumped import Connector
 
-__all__ = ["Inerter", "DiscreteInerter"]
+__all__ = ["Inerter"]
 
 
 class Inerter(Connector):
@@ -80,34 +81,8 @@ class Inerter(Connector):
         self.stiffness = validation.nonnegative(f"{name}: stiffness", stiffness)
         self.damping = validation.nonnegative(f"{name}: damping", damping)
         self.free_length = validation.finite(f"{name}: free_length", free_length)
-
-    def connector_stiffness(self, s: np.ndarray) -> np.ndarray:
-        """Dynamic stiffness ``b s^2 + c s + k`` [N/m] (it clears the poles of the element matrix)."""
-        return self.lumped_coefficients().dynamic_stiffness(s)
-
-    def lumped_coefficients(self) -> LumpedCoefficients:
-        return LumpedCoefficients(True, self.inertance, self.damping, self.stiffness, self.free_length)
-
-    def discretize(self, scheme: Any) -> "DiscreteInerter":
-        return DiscreteInerter(self)
+        self.derive_forms()
 
     def parameters(self) -> dict[str, Any]:
         return {"inertance": self.inertance, "stiffness": self.stiffness, "damping": self.damping,
                 "free_length": self.free_length}
-
-
-class DiscreteInerter(DiscreteElement):
-    """DT-TMM form of an :class:`Inerter` (module docstring)."""
-
-    def __init__(self, element: Inerter) -> None:
-        self.element = element
-
-    def step_matrices(self, t: float, inboard: Linearisation, outboard: Linearisation, force: float = 0.0):
-        e = self.element
-        k_eff = e.stiffness * inboard.cx + e.damping * inboard.A + e.inertance * inboard.C
-        U = np.eye(2)
-        U[0, 1] = -1.0 / k_eff
-        u = np.array([(e.stiffness * e.free_length - e.stiffness * (outboard.dx - inboard.dx)
-                       - e.damping * (outboard.B - inboard.B) - e.inertance * (outboard.D - inboard.D)
-                       + force) / k_eff, 0.0])
-        return U, u

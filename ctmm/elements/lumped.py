@@ -19,37 +19,35 @@ the force transmitted to the outboard point is ``f = -k (x_out - x_in - l) - c (
 
 Frequency-domain quantities are deviations from the static configuration, so the free
 length does not appear there.
+
+*On the element protocol* (issue 12, :mod:`ctmm.protocol` with point dimension ``d = 1``,
+:mod:`ctmm.lumped_forms`): a point element is a **body** with ``M = [m]``,
+``h = [c_g v + k_g x - F]`` and ``Kin = RF = [1]``, ``c = 0`` at its point ``"out"`` (the same
+point as ``"in"``); a connector is a **joint** with ``S = [1]`` and the law
+``tau = -k (q_rel - l) - c v_rel + F`` (tangents ``tau_q = -k``, ``tau_v = -c``; an inertance ``b``
+as ``tau_a = -b``).  :meth:`PointElement.terms` and :meth:`Connector.terms` state this once.
 """
 from __future__ import annotations
 
 from typing import Any, Mapping
 
-import numpy as np
 
 from .. import validation
 from ..errors import ModelError
-from ..layouts import AXIAL
+from ..ops import Ops
+from ..protocol import BodyTerms, JointTerms, Motion
 from ..signals import SignalLike, TimeFunction, as_signal, harmonic_amplitude
-from .base import DiscreteElement, Element, Linearisation, LumpedCoefficients
+from .axial import AxialBody, AxialJoint
 
 
-def _point_matrix(s: np.ndarray, impedance: np.ndarray) -> np.ndarray:
-    U = np.zeros(np.shape(s) + (2, 2), dtype=complex)
-    U[..., 0, 0] = 1.0
-    U[..., 1, 1] = 1.0
-    U[..., 1, 0] = -impedance
-    return U
-
-
-class PointElement(Element):
+class PointElement(AxialBody):
     """A point of the 1-D chain with inertia, grounding and an external force.
 
-    Subclasses only set the data ``mass``, ``damping``, ``stiffness`` and ``force``: the
-    frequency-domain and discrete-time matrices follow from them (see module docstring).
+    Subclasses only set the data ``mass``, ``damping``, ``stiffness`` and ``force``; the physics
+    is :meth:`terms`, and every form (``U(s)``, the DT-TMM step, the lumped coefficients) is derived
+    from it by :class:`~ctmm.elements.axial.AxialBody`.
     """
 
-    layout = AXIAL
-    is_point = True
     inputs = ("force",)
 
     def __init__(self, name: str, *, mass: float = 0.0, damping: float = 0.0, stiffness: float = 0.0,
@@ -59,32 +57,44 @@ class PointElement(Element):
         self.damping = validation.nonnegative(f"{name}: damping", damping)
         self.stiffness = validation.nonnegative(f"{name}: stiffness", stiffness)
         self.force: TimeFunction = as_signal(f"{name}: force", force)
-        self._coefficients = LumpedCoefficients(False, self.mass, self.damping, self.stiffness)
+        self.derive_forms()
 
-    def impedance(self, s: np.ndarray) -> np.ndarray:
-        """Dynamic stiffness ``m s^2 + c s + k`` [N/m] of the point."""
-        s = np.asarray(s, dtype=complex)
-        return self.mass * s * s + self.damping * s + self.stiffness
+    def terms(self, ops: Ops, motion: Motion, eta: Any = None, eta_dot: Any = None, t: float = 0.0,
+              u: Mapping[str, Any] | None = None) -> BodyTerms:
+        """The point's physics as body terms (``d = 1``, no internal coordinates).
 
-    def transfer_matrix(self, s: np.ndarray) -> np.ndarray:
-        return _point_matrix(np.asarray(s, dtype=complex), self.impedance(s))
+        Parameters
+        ----------
+        ops : Ops
+        motion : Motion
+            ``pose = (x,)`` [m], ``twist = (v,)`` [m/s] of the point (ops scalars).
+        eta, eta_dot : unused
+            A lumped point has no internal coordinates.
+        t : float
+            Time [s] (unused: the load enters through ``u``).
+        u : mapping, optional
+            ``{"force": F}`` [N], the external force in +x (0 when absent).
 
-    def load_vector(self, s: np.ndarray, amplitudes: Mapping[str, Any]) -> np.ndarray:
-        self.check_inputs(amplitudes)
-        u = np.zeros(np.shape(s) + (2,), dtype=complex)
-        if "force" in amplitudes:
-            u[..., 1] = amplitudes["force"]
-        return u
+        Returns
+        -------
+        BodyTerms
+            ``M = [m]``, ``h = [c v + k x - F]``, ``Kin["out"] = RF["out"] = [1]``, ``c["out"] = 0``:
+            ``f_in = m a + c v + k x - F + f_out``.
+        """
+        x, v = motion.pose[0], motion.twist[0]
+        force = (u or {}).get("force", 0.0)
+        one = ops.eye(1)
+        h = ops.zeros(1, 1) + v * self.damping + x * self.stiffness - force
+        return BodyTerms(M=ops.block([[self.mass]]), h=h, Kin={"out": one}, c={"out": ops.zeros(1, 1)},
+                         RF={"out": one})
+
+    def own_load(self, t: float) -> float:
+        """External force [N] of the point at time ``t`` [s]."""
+        return float(self.force(t))
 
     def steady_state_amplitudes(self) -> dict[str, complex]:
         """Phasors of the element's own loads (constant or harmonic signals only)."""
         return {"force": harmonic_amplitude(self.force)}
-
-    def discretize(self, scheme: Any) -> "DiscretePoint":
-        return DiscretePoint(self)
-
-    def lumped_coefficients(self) -> LumpedCoefficients:
-        return self._coefficients                  # built with the element (read every step)
 
     def parameters(self) -> dict[str, Any]:
         return {"mass": self.mass, "damping": self.damping, "stiffness": self.stiffness}
@@ -129,36 +139,17 @@ class GroundedSpring(PointElement):
         return {"stiffness": self.stiffness, "damping": self.damping}
 
 
-class DiscretePoint(DiscreteElement):
-    """DT-TMM form of a :class:`PointElement`."""
-
-    def __init__(self, element: PointElement) -> None:
-        self.element = element
-
-    def load(self, t: float) -> float:
-        """External force [N] of the point at time ``t`` [s]."""
-        return float(self.element.force(t))
-
-    def step_matrices(self, t: float, inboard: Linearisation, outboard: Linearisation, force: float = 0.0):
-        e = self.element
-        lin = inboard
-        U = np.eye(2)
-        U[1, 0] = -(e.mass * lin.C + e.damping * lin.A + e.stiffness * lin.cx)
-        u = np.array([0.0, -(e.mass * lin.D + e.damping * lin.B + e.stiffness * lin.dx) + force])
-        return U, u
-
-
-class Connector(Element):
+class Connector(AxialJoint):
     """Massless spring ``k`` (free length ``l``) in parallel with a viscous damper ``c``.
 
     Subclasses only choose which of the data are given; ``k + c > 0`` is required.  The input
     ``"force"`` is an actuator acting *across* the connector: ``+F`` on its outboard point and
-    ``-F`` on its inboard point (seed 001 Fig. 9.30), so ``f = -k (dx - l) - c dv + F``.
+    ``-F`` on its inboard point (seed 001 Fig. 9.30), so ``f = -k (dx - l) - c dv + F``.  The
+    physics is :meth:`terms`; every form is derived from it by :class:`~ctmm.elements.axial.AxialJoint`.
     """
 
-    layout = AXIAL
-    is_point = False
     inputs = ("force",)
+    inertance = 0.0          # [kg]; an Inerter sets its own
 
     def __init__(self, name: str, *, stiffness: float = 0.0, damping: float = 0.0,
                  free_length: float = 0.0) -> None:
@@ -168,33 +159,34 @@ class Connector(Element):
         self.free_length = validation.finite(f"{name}: free_length", free_length)
         if self.stiffness == 0.0 and self.damping == 0.0:
             raise ModelError(f"{name}: a connector needs stiffness > 0 or damping > 0, got both 0")
-        self._coefficients = LumpedCoefficients(True, 0.0, self.damping, self.stiffness, self.free_length)
+        self.derive_forms()
 
-    def connector_stiffness(self, s: np.ndarray) -> np.ndarray:
-        """Complex stiffness ``k + c s`` [N/m]."""
-        return self.stiffness + self.damping * np.asarray(s, dtype=complex)
+    def terms(self, ops: Ops, q_rel: Any, v_rel: Any, t: float = 0.0,
+              u: Mapping[str, Any] | None = None) -> JointTerms:
+        """The connector's physics as joint terms (``d = 1``, one free direction).
 
-    def transfer_matrix(self, s: np.ndarray) -> np.ndarray:
-        s = np.asarray(s, dtype=complex)
-        U = np.zeros(s.shape + (2, 2), dtype=complex)
-        U[..., 0, 0] = 1.0
-        U[..., 1, 1] = 1.0
-        with np.errstate(divide="ignore", invalid="ignore"):
-            U[..., 0, 1] = -1.0 / self.connector_stiffness(s)
-        return U
+        Parameters
+        ----------
+        ops : Ops
+        q_rel, v_rel : ops scalars
+            Elongation ``x_out - x_in`` [m] and its rate [m/s].
+        t : float
+            Time [s] (unused).
+        u : mapping, optional
+            ``{"force": F}`` [N], the actuator force across the connector (0 when absent).
 
-    def load_vector(self, s: np.ndarray, amplitudes: Mapping[str, Any]) -> np.ndarray:
-        self.check_inputs(amplitudes)
-        u = np.zeros(np.shape(s) + (2,), dtype=complex)
-        if "force" in amplitudes:
-            u[..., 0] = amplitudes["force"] / self.connector_stiffness(s)
-        return u
-
-    def discretize(self, scheme: Any) -> "DiscreteConnector":
-        return DiscreteConnector(self)
-
-    def lumped_coefficients(self) -> LumpedCoefficients:
-        return self._coefficients                  # built with the element (read every step)
+        Returns
+        -------
+        JointTerms
+            ``S = [1]``, ``tau = -k (q_rel - l) - c v_rel + F`` (force on the outboard point),
+            ``tau_q = -k``, ``tau_v = -c`` and, with an inertance ``b``, ``tau_a = -b`` (the law's
+            ``-b a_rel``, which the contexts take through ``kappa``).
+        """
+        force = (u or {}).get("force", 0.0)
+        tau = ops.zeros(1, 1) + (q_rel - self.free_length) * (-self.stiffness) - v_rel * self.damping + force
+        return JointTerms(S=ops.eye(1), tau=tau, tau_q=ops.block([[-self.stiffness]]),
+                          tau_v=ops.block([[-self.damping]]),
+                          tau_a=ops.block([[-self.inertance]]) if self.inertance else None)
 
     def parameters(self) -> dict[str, Any]:
         return {"stiffness": self.stiffness, "damping": self.damping, "free_length": self.free_length}
@@ -244,19 +236,3 @@ class SpringDamper(Connector):
 
     def __init__(self, name: str, stiffness: float, damping: float, *, free_length: float = 0.0) -> None:
         super().__init__(name, stiffness=stiffness, damping=damping, free_length=free_length)
-
-
-class DiscreteConnector(DiscreteElement):
-    """DT-TMM form of a :class:`Connector`."""
-
-    def __init__(self, element: Connector) -> None:
-        self.element = element
-
-    def step_matrices(self, t: float, inboard: Linearisation, outboard: Linearisation, force: float = 0.0):
-        e = self.element
-        k_eff = e.stiffness * inboard.cx + e.damping * inboard.A
-        U = np.eye(2)
-        U[0, 1] = -1.0 / k_eff
-        u = np.array([(e.stiffness * e.free_length - e.stiffness * (outboard.dx - inboard.dx)
-                       - e.damping * (outboard.B - inboard.B) + force) / k_eff, 0.0])
-        return U, u

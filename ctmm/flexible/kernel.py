@@ -1,4 +1,5 @@
-"""O(n) articulated (Riccati) sweep for planar trees of rigid bodies and modal beams.
+"""Per-model data and body terms of planar trees of rigid bodies and modal beams, swept by the one
+articulated sweep (:func:`ctmm.articulated.articulated_sweep`).
 
 Every body ``j`` provides its transfer relations in the generalised form (``n_j`` modal
 coordinates, ``n_j = 0`` for a rigid body; ``x_j = [A_I ; eta'']``):
@@ -8,22 +9,13 @@ coordinates, ``n_j = 0`` for a rigid body; ``x_j = [A_I ; eta'']``):
 
 ``F_e`` is the wrench exerted by body ``j`` on what hangs at end ``e``.  For a rigid body
 ``M = K``, ``Kin = X``, ``RF = X^T`` (FORMULAS 3.4, ``docs/planar.md``); for a beam see
-:mod:`ctmm.flexible.beam`.
+:mod:`ctmm.flexible.beam`.  :meth:`FlexibleSystem.sweep` hands these terms (unbatched 2-D
+matrices, the ``B = 1`` fast path of :mod:`ctmm.ops`) with the joints (revolute ``S = e3`` with the
+hinge torque and tangent ``kappa``, driven, free base) to the one sweep, which eliminates the modal
+accelerations locally and the joints tip to base (``docs/planar.md``, "The one articulated
+sweep"); cost O(sum (3 + n_j)^3), linear in the number of bodies.
 
-Tip-to-base pass (children first): each child ``c`` at end ``e`` gives its articulated
-relation at the connection point, ``F_e = Phi_hat_c A_e + psi_hat_c``; substituting the end
-kinematics,
-
-``M_j += RF_e Phi_hat_c Kin_e``,   ``h_j += RF_e (Phi_hat_c c_e + psi_hat_c)``.
-
-Then the modal accelerations are eliminated locally (seed 003's second transfer equation),
-``eta'' = -C^-1 (B A_I + d)`` with ``M_j = [[P, Q], [B, C]]``, ``h_j = [r ; d]``, which leaves the
-3x3 articulated relation ``F_I = Phi A_I + psi``, ``Phi = P - Q C^-1 B``, ``psi = r - Q C^-1 d``.
-The joint is eliminated as in ``docs/planar.md`` (revolute / implicit elastic: ``D = Phi_22 +
-kappa``; driven: ``alpha`` given).  Base-to-tip pass: ``A_e`` of the parent end, joint
-``alpha``, ``A_I``, ``eta''``, ``F_I``.  Cost O(sum (3 + n_j)^3): linear in the number of bodies.
-
-The implicit DT-TMM (:mod:`ctmm.flexible.implicit`) feeds the same kernel with Newton-tangent
+The implicit DT-TMM (:mod:`ctmm.flexible.implicit`) feeds the same sweep with Newton-tangent
 relations: the body relations depend on the body's own angle, rate, modal coordinates and
 rates, which the integrator ties to the body's own unknowns (``d theta = beta' h^2 d alpha``,
 ``d eta = beta' h^2 d eta''``, rates with ``gamma' h``); the tangent columns are computed by
@@ -36,10 +28,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..articulated import Tree, articulated_sweep
 from ..errors import ModelError, SimulationError
+from ..ops import NUMPY
 from ..planar.model import DRIVEN, FREE, REVOLUTE, PlanarModel
+from ..protocol import BodyTerms, JointTerms
 
-_E3 = np.array([0.0, 0.0, 1.0])
+_E3_COLUMN = np.array([[0.0], [0.0], [1.0]])
+_EYE3 = np.eye(3)
+_ZERO3 = np.zeros((3, 1))
 
 
 @dataclass(frozen=True)
@@ -91,6 +88,9 @@ class FlexibleSystem:
         self.rigid_load_rows = [k for k in range(len(lb)) if int(lb[k]) not in self.beam_data]
         self.end_vectors = [[np.asarray(v, float) for v in model.ends[j].values()]
                             for j in range(nb)]
+        self.free_base = [j for j in range(nb) if self.kind[j] == FREE]
+        # the tree of the one sweep; a body's points are keyed by their index in its terms' end list
+        self.tree = Tree(tuple(self.parent), tuple(None if p < 0 else e for p, e in zip(self.parent, self.pend)), 3)
 
     # -- per-body terms -------------------------------------------------------------------
     def rigid_terms(self, j: int, theta, omega, t: float, loads):
@@ -174,85 +174,69 @@ class FlexibleSystem:
 
     # -- the sweep ----------------------------------------------------------------------------
     def sweep(self, terms, kappa, tau, alpha_driven):
-        """Tip-to-base elimination and base-to-tip pass (see the module docstring).
+        """The one articulated sweep (:func:`ctmm.articulated.articulated_sweep`) of these terms.
+
+        ``terms``: per body ``[M (3+n, 3+n), h (3+n,), [(Kin, c, RF) per end]]`` (unbatched, real);
+        ``kappa``: joint tangent per body (revolute joints; 0 explicit); ``tau``: hinge torques
+        [N m]; ``alpha_driven``: prescribed relative accelerations of driven joints [rad/s^2].
 
         Returns ``x`` (list of ``[A_I ; eta'']``), ``F`` (nb, 3), ``A_O`` (nb, 3) and the joint
         accelerations (nb,).
+
+        Raises
+        ------
+        SimulationError
+            A singular modal matrix or articulated inertia, naming the element.
         """
-        nb = self.nb
-        parent, kind, pend = self.parent, self.kind, self.pend
-        Macc = [t[0].copy() for t in terms]
-        hacc = [t[1].copy() for t in terms]
-        Phi, psi, W, w, D = [None] * nb, [None] * nb, [None] * nb, [None] * nb, [0.0] * nb
-        for j in range(nb - 1, -1, -1):
-            M, h = Macc[j], hacc[j]
-            if self.n_modal[j]:
-                C = M[3:, 3:]
-                try:
-                    sol = np.linalg.solve(C, np.column_stack([M[3:, :3], h[3:]]))
-                except np.linalg.LinAlgError as exc:
-                    raise SimulationError(f"modal matrix of body {self.model.body_names[j]!r} "
-                                          f"is singular ({exc})", element=self.model.body_names[j]
-                                          ) from exc
-                W[j], w[j] = sol[:, :3], sol[:, 3]
-                P = M[:3, :3] - M[:3, 3:] @ W[j]
-                s = h[:3] - M[:3, 3:] @ w[j]
-            else:
-                P, s = M, h
-            Phi[j], psi[j] = P, s
-            kj = kind[j]
+        bodies = []                                     # unbatched 2-D matrices: the B = 1 fast path of ops
+        for M, h, ends in terms:
+            bodies.append(BodyTerms(M, h.reshape(-1, 1), {e: end[0] for e, end in enumerate(ends)},
+                                    {e: end[1].reshape(3, 1) for e, end in enumerate(ends)},
+                                    {e: end[2] for e, end in enumerate(ends)}))
+        tau_c = np.asarray(tau, dtype=float).reshape(-1, 1, 1)
+        driven_c = np.asarray(alpha_driven, dtype=float).reshape(-1, 1, 1)
+        kappa_c = np.asarray(kappa, dtype=float).reshape(-1, 1, 1)
+        joints, kap = [], []
+        for j, kj in enumerate(self.kind):
             if kj == REVOLUTE:
-                d = P[2, 2] + kappa[j]
+                joints.append(JointTerms(S=_E3_COLUMN, tau=tau_c[j]))
+                kap.append(kappa_c[j] if kappa[j] else None)
+            elif kj == DRIVEN:
+                joints.append(JointTerms(S=_E3_COLUMN, prescribed=driven_c[j]))
+                kap.append(None)
+            else:                                       # FREE: a free base (rejected elsewhere otherwise)
+                joints.append(JointTerms(S=_EYE3, tau=_ZERO3))
+                kap.append(None)
+        with np.errstate(all="ignore"):
+            try:
+                out = articulated_sweep(NUMPY, self.tree, bodies, joints, kap)
+            except np.linalg.LinAlgError as exc:
+                raise SimulationError(f"articulated inertia or modal matrix of model {self.model.name!r} is "
+                                      f"singular ({exc})", element=self._singular_element(terms)) from exc
+        for j, pivot in enumerate(out.pivot):
+            if pivot is not None and pivot.shape[-1] == 1:
+                d = pivot[0, 0]
                 if not (d != 0.0 and abs(d) < np.inf):
-                    raise SimulationError(f"articulated inertia of joint "
-                                          f"{self.model.joint_names[j]!r} is singular ({d!r})")
-                D[j] = d
-                Ph = P - np.outer(P[:, 2], P[2, :]) / d
-                ph = s + P[:, 2] * ((tau[j] - s[2]) / d)
-            elif kj == DRIVEN:
-                Ph = P
-                ph = s + P[:, 2] * alpha_driven[j]
-            else:
-                continue
-            par = parent[j]
-            if par < 0:
-                continue
-            Kin, cc, RF = terms[par][2][pend[j]]
-            RP = RF @ Ph
-            Macc[par] += RP @ Kin
-            hacc[par] += RP @ cc + RF @ ph
-        x = [None] * nb
-        F = np.zeros((nb, 3))
-        AO = np.zeros((nb, 3))
-        alpha = np.zeros(nb)
-        for j in range(nb):
-            par = parent[j]
-            if par >= 0:
-                Kin, cc, _ = terms[par][2][pend[j]]
-                a_o = Kin @ x[par] + cc
-            else:
-                a_o = np.zeros(3)
-            kj = kind[j]
-            P, s = Phi[j], psi[j]
-            if kj == REVOLUTE:
-                al = (tau[j] - P[2, :] @ a_o - s[2]) / D[j]
-                A = a_o + _E3 * al
-            elif kj == DRIVEN:
-                al = alpha_driven[j]
-                A = a_o + _E3 * al
-            elif kj == FREE:
-                A = np.linalg.solve(P, -s)
-                al = A[2]
-            else:  # pragma: no cover - rejected at construction
-                raise ModelError(f"joint kind {kj} not supported with flexible bodies")
-            if self.n_modal[j]:
-                x[j] = np.concatenate([A, -(W[j] @ A + w[j])])
-            else:
-                x[j] = A
-            F[j] = P @ A + s
-            AO[j] = a_o
-            alpha[j] = al
+                    raise SimulationError(f"articulated inertia of joint {self.model.joint_names[j]!r} is singular "
+                                          f"({d!r})", element=self.model.joint_names[j])
+        x = [xj[:, 0] for xj in out.x]
+        if not np.all(np.isfinite(np.concatenate(x))):
+            raise SimulationError(f"articulated inertia or modal matrix of model {self.model.name!r} is singular "
+                                  "(non-finite accelerations)", element=self._singular_element(terms))
+        F = np.array([f[:, 0] for f in out.force])
+        alpha = np.array([0.0 if r is None else r[-1, 0] for r in out.relative])
+        AO = np.array([xj[:3] for xj in x])         # A_O = A - S a_rel: revolute and driven S = e3
+        AO[:, 2] -= alpha
+        AO[self.free_base] = 0.0                     # a free base hangs on the ground
         return x, F, AO, alpha
+
+    def _singular_element(self, terms) -> str | None:
+        """Name of the body whose own modal matrix is worst conditioned (for error messages)."""
+        beams = [j for j in range(self.nb) if self.n_modal[j]]
+        if not beams:
+            return None
+        worst = max(beams, key=lambda j: np.linalg.cond(terms[j][0][3:, 3:]))
+        return self.model.body_names[worst]
 
     def qddot(self, x) -> np.ndarray:
         m = self.model

@@ -8,14 +8,14 @@ an articulated tree (:class:`PlanarScene`) for the one sweep (:mod:`ctmm.articul
 * :func:`revolute_terms` -- one law for the smooth, elastic, damper, spring-damper and actuated
   hinges, ``tau = u - k (q_rel - r) - c (v_rel - r_dot)`` along ``S = e3``; :func:`driven_terms`
   (driven hinge, fixed mounting: prescribed ``a_rel``); :func:`free_base_terms` (``S = I3``);
+  :func:`bushing_terms` (hinge with translational springs: ``S = I3``, the revolute law about
+  ``e3`` and ``f = -k_t d - c_t d_dot`` along the global offset ``d`` of the child's inboard point
+  from the parent's point);
 * :func:`beam_terms` -- the modal beam through an adapter over
   :meth:`ctmm.flexible.beam.BeamData.terms` (a numpy routine that writes in place into its work
   arrays -- a debt of the one-core migration, plan §2.2, "ModalBeam"; under casadi it runs on object
   arrays of symbols, ``B = 1``, and its results are assembled into casadi matrices, so
   :class:`PlanarScene` with beams evaluates and generates code like the rigid families).
-
-Hinges with translational springs (``BUSHING``) are not stated on the protocol yet
-(:class:`PlanarScene` refuses them).
 """
 from __future__ import annotations
 
@@ -30,7 +30,7 @@ from ..ops import NUMPY, Ops
 from ..protocol import BodyTerms, JointTerms
 from .model import BUSHING, FREE, PlanarModel
 
-__all__ = ["rigid_body_terms", "revolute_terms", "driven_terms", "free_base_terms", "beam_terms",
+__all__ = ["rigid_body_terms", "revolute_terms", "driven_terms", "free_base_terms", "bushing_terms", "beam_terms",
            "PlanarScene", "LinearTerms", "SceneNumbers"]
 
 
@@ -166,6 +166,29 @@ def free_base_terms(ops: Ops) -> JointTerms:
     return JointTerms(S=ops.eye(3), tau=ops.zeros(3, 1), tau_q=ops.zeros(3, 3), tau_v=ops.zeros(3, 3))
 
 
+def bushing_terms(ops: Ops, *, offset: Sequence[Any], offset_rate: Sequence[Any], angle: Any, rate: Any,
+                  translational_stiffness: float, translational_damping: float, stiffness: float = 0.0,
+                  damping: float = 0.0, reference: float = 0.0, reference_rate: float = 0.0,
+                  torque: Any = 0.0) -> JointTerms:
+    """Hinge with translational springs: every direction free (``S = I3``, ``c = 0``).
+
+    The child's inboard point sits at the parent's point plus the offset ``d = (dx, dy)`` [m] in
+    global axes (``offset_rate`` [m/s]); the joint's wrench on the child is
+    ``(f, tau) = (-k_t d - c_t d_dot, torque - k (angle - reference) - c (rate - reference_rate))``
+    and ``-(f, tau)`` acts on the parent at its point (a force pair, power ``f . d_dot + tau rate``).
+    ``translational_stiffness`` k_t [N/m], ``translational_damping`` c_t [N s/m]; the rotational law
+    as :func:`revolute_terms`.
+    """
+    kt, ct = _value(translational_stiffness), _value(translational_damping)
+    k, c = _value(stiffness), _value(damping)
+    fx = offset[0] * -kt - offset_rate[0] * ct
+    fy = offset[1] * -kt - offset_rate[1] * ct
+    tau = (angle - reference) * -k - (rate - reference_rate) * c + torque
+    return JointTerms(S=ops.eye(3), tau=ops.block([[fx], [fy], [tau]]),
+                      tau_q=ops.block([[-kt, 0.0, 0.0], [0.0, -kt, 0.0], [0.0, 0.0, -k]]),
+                      tau_v=ops.block([[-ct, 0.0, 0.0], [0.0, -ct, 0.0], [0.0, 0.0, -c]]))
+
+
 def beam_terms(data: Any, points: Sequence[str], theta: np.ndarray, omega: np.ndarray, eta: np.ndarray,
                eta_dot: np.ndarray, t: float, gravity: Sequence[float],
                modal_force: np.ndarray | None = None) -> tuple[BodyTerms, list[tuple[Any, Any]]]:
@@ -266,15 +289,13 @@ class PlanarScene:
     Parameters
     ----------
     model : PlanarModel
-        Without hinges with translational springs.
+        Any planar model: rigid bodies and modal beams; revolute (every law), driven, free-base and
+        translational-spring hinges.
     """
 
     def __init__(self, model: PlanarModel) -> None:
         if not isinstance(model, PlanarModel):
             raise ModelError(f"PlanarScene: model must be a ctmm.planar.PlanarModel, got {model!r}")
-        if np.any(model.joint_kind == BUSHING):
-            raise ModelError(f"PlanarScene: model {model.name!r} has hinges with translational springs, which are "
-                             "not stated on the element protocol yet")
         self.model = model
         self.beam_points = {j: tuple(b.ends) for j, b in model.beams.items()}
         points = []
@@ -330,6 +351,15 @@ class PlanarScene:
                 joints.append(driven_terms(ops, driven[j][2]))
             elif kind == FREE:
                 joints.append(free_base_terms(ops))
+            elif kind == BUSHING:
+                ix, iy = (int(i) for i in m.xy_index[j])
+                torque = laws[2][j] + (0.0 if inputs is None else _value(inputs.hinge_torque[j]))
+                joints.append(bushing_terms(
+                    ops, offset=(_entry(ops, q, ix), _entry(ops, q, iy)),
+                    offset_rate=(_entry(ops, qdot, ix), _entry(ops, qdot, iy)), angle=th - th_end,
+                    rate=om - om_end, translational_stiffness=m.translational_stiffness[j],
+                    translational_damping=m.translational_damping[j], stiffness=numbers.stiffness[j],
+                    damping=numbers.damping[j], reference=laws[0][j], reference_rate=laws[1][j], torque=torque))
             else:
                 torque = laws[2][j] + (0.0 if inputs is None else _value(inputs.hinge_torque[j]))
                 joints.append(revolute_terms(ops, angle=th - th_end, rate=om - om_end, stiffness=numbers.stiffness[j],
@@ -480,6 +510,8 @@ class PlanarScene:
                 out[:, m.theta_index[j]] = x[:, 2, 0]
             if m.joint_kind[j] == FREE:
                 out[:, m.xy_index[j]] = x[:, :2, 0]
+            elif m.joint_kind[j] == BUSHING:         # the offset's acceleration: the joint's relative one
+                out[:, m.xy_index[j]] = np.broadcast_to(solution.relative[j], (batch, 3, 1))[:, :2, 0]
             if len(m.modal_index[j]):
                 out[:, m.modal_index[j]] = x[:, 3:, 0]
         return out
@@ -487,6 +519,17 @@ class PlanarScene:
     def accelerations(self, q: Any, qdot: Any, t: float = 0.0, inputs: Any = None) -> np.ndarray:
         """Generalised accelerations by the one sweep, batched: ``q, qdot`` (B, n) -> (B, n)
         (float or complex; complex for complex-step tangents).
+
+        Raises
+        ------
+        SimulationError
+            A singular articulated inertia (non-finite accelerations), naming the time.
+        """
+        return self.coordinate_accelerations(self.solution(q, qdot, t, inputs))
+
+    def solution(self, q: Any, qdot: Any, t: float = 0.0, inputs: Any = None) -> Articulated:
+        """The explicit sweep's whole result (accelerations, joint forces, relative accelerations),
+        batched: ``q, qdot`` (B, n) or (n,) as for :meth:`accelerations`.
 
         Raises
         ------
@@ -509,8 +552,7 @@ class PlanarScene:
             except np.linalg.LinAlgError as exc:
                 raise SimulationError(f"articulated inertia of model {self.model.name!r} is singular ({exc})",
                                       time=t) from exc
-        out = self.coordinate_accelerations(solution)
-        if not np.all(np.isfinite(out)):
+        if not all(np.all(np.isfinite(x)) for x in solution.x):
             raise SimulationError(f"articulated inertia of model {self.model.name!r} is singular (non-finite "
                                   "accelerations)", time=t)
-        return out
+        return solution

@@ -2,7 +2,7 @@
 
 Pure Python spends ~3-6 us per body per sweep (see ``benchmarks/planar_chain.py``); the same
 recursion in C costs tens of nanoseconds.  The kernel below is the C transcription of
-:func:`ctmm.planar.sweep.riccati_kernel` (explicit case, ``kappa = 0``) and of
+:func:`ctmm.planar.fast_sweep.riccati_kernel` (explicit case, ``kappa = 0``) and of
 :func:`ctmm.planar.sweep.body_terms`, for *revolute* trees with constant hinge-law
 coefficients, constant reference angles and torques, gravity and no external loads -- the
 fixed-scene case of DESIGN section 9.  The whole time interval runs inside C (one call per

@@ -24,8 +24,11 @@ body relations ``A_O = X(theta) A_I + c(theta, omega)`` and
 ``F_I = K(theta) A_I + b(theta, omega) + sum X^T(theta) F_O`` are linearised about the
 current iterate with ``d theta = beta' h^2 d alpha``, ``d omega = gamma' h d alpha``; the
 linearised relations keep the transfer form (only the third column of ``X`` and of ``K``
-change), so each Newton iteration is one O(n) Riccati sweep (:func:`riccati_kernel`) with a
-non-symmetric articulated matrix.  Convergence is quadratic.
+change), so each Newton iteration is one O(n) articulated sweep with a non-symmetric articulated
+matrix and the joint tangents ``kappa``: :func:`ctmm.articulated.articulated_sweep`
+(:meth:`_NewtonStep.tangent_sweep`), or for rigid revolute trees its registered Python-float fast
+path :func:`ctmm.planar.fast_sweep.riccati_kernel` (the same recursion, gated equal to it).
+Convergence is quadratic.
 
 Actuator inputs (``inputs=``, :mod:`ctmm.planar.ports`) enter the tangent sweep like loads
 (:meth:`_NewtonStep.solve`); their state dependence is added to the Newton tangent by
@@ -40,16 +43,23 @@ from typing import Any
 import numpy as np
 
 from .. import validation
+from ..articulated import Tree, articulated_sweep
 from ..errors import ConvergenceError, ModelError, SimulationError
+from ..ops import NUMPY
+from ..protocol import BodyTerms, JointTerms
 from ..schemes import Newmark, Scheme, as_scheme
 from .actuated_newton import ActuatedNewton, InputError, InputMap
 from .guards import check_scheme, divergence_guard, with_partial
 from .integrate import PlanarSimulation, check_store_every, initial_coordinates, step_total, guard_rates
-from .model import PlanarModel
+from .model import BUSHING, DRIVEN, REVOLUTE, PlanarModel
 from .ports import ActuatorInputs
 from .signals import SignalError
-from .sweep import (accelerations, body_terms, bushing_data, coordinate_accelerations, hinge_torques,
-                    riccati_kernel, solve_instant)
+from .fast_sweep import riccati_kernel
+from .sweep import accelerations, body_terms, coordinate_accelerations, hinge_torques, solve_instant
+
+_E3 = np.array([[0.0], [0.0], [1.0]])
+_I3 = np.eye(3)
+_ZERO3 = np.zeros((3, 1))
 
 #: ``after_step(step, t, q, qdot) -> bool``: called once per accepted step (``step`` = 1, 2, ...;
 #: ``t`` [s]); returns whether the actuator inputs jumped at ``t`` (held controller outputs).
@@ -72,6 +82,9 @@ class _NewtonStep:
         self.p = np.maximum(model.parent, 0)
         self.kappa = (model.stiffness * bh2 + model.damping * gh)
         self.kappa_t = (model.translational_stiffness * bh2 + model.translational_damping * gh)
+        self.kappa_column = [np.full((1, 1), k) if k else None for k in self.kappa]
+        self.children = [np.flatnonzero(model.parent == j).tolist() for j in range(model.n_bodies)]
+        self.tree = Tree(tuple(self.parent), tuple(None if p < 0 else j for j, p in enumerate(self.parent)), 3)
 
     def sweep(self, q, v, t, A, F, x=None, inputs: ActuatorInputs | None = None):
         """Solve the tangent problem linearised about ``(q, v, A, F, qdd = x)``.
@@ -150,18 +163,85 @@ class _NewtonStep:
             K[:, 8] += turn
             b[:, 2] -= turn * tangent["alpha"]
             tau_tilde = tau_tilde + inputs.hinge_torque
-        bushing = {}
+        if not len(m.bushing_bodies):           # rigid revolute trees: the registered fast path
+            A_new, F_new, _ = riccati_kernel(self.parent, self.kind, K.tolist(), b.tolist(), tangent["E"],
+                                             self.kappa.tolist(), tau_tilde.tolist(), tangent["alpha_d"])
+            A_new = np.array(A_new)
+            return A_new, np.array(F_new), coordinate_accelerations(m, A_new)
+        joint_force = None
         if len(m.bushing_bodies):
+            # translational springs, exactly implicit: f = f(iterate) - kappa_t (d'' - d''_iterate)
             xy = m.xy_index
             x = tangent["x"]
-            dd = {j: (x[xy[j, 0]], x[xy[j, 1]]) for j in m.bushing_bodies.tolist()}
-            bushing = bushing_data(m, tangent["q"], tangent["v"], tau_tilde, kappa_t=self.kappa_t,
-                                   kappa_r=self.kappa, bh2=self.bh2, forces=tangent["F"], translation_acc=dd)
-        A_new, F_new, _, translation = riccati_kernel(
-            self.parent, self.kind, K.tolist(), b.tolist(), tangent["E"], self.kappa.tolist(),
-            tau_tilde.tolist(), tangent["alpha_d"], bushing=bushing)
-        A_new = np.array(A_new)
-        return A_new, np.array(F_new), coordinate_accelerations(m, A_new, translation)
+            offset, offset_rate = m.bushing_offsets(tangent["q"], tangent["v"])
+            joint_force = {}
+            for j in m.bushing_bodies.tolist():
+                f = -m.translational_stiffness[j] * offset[j] - m.translational_damping[j] * offset_rate[j]
+                joint_force[j] = f + self.kappa_t[j] * np.array([x[xy[j, 0]], x[xy[j, 1]]])
+        A_new, F_new, translation = self.tangent_sweep(K, b, tangent["E"], tau_tilde, tangent["alpha_d"],
+                                                       joint_force)
+        return A_new, F_new, coordinate_accelerations(m, A_new, translation)
+
+    def tangent_sweep(self, K: np.ndarray, b: np.ndarray, E: Any, tau: np.ndarray, alpha_driven: list,
+                      joint_force: dict | None) -> tuple[np.ndarray, np.ndarray, dict]:
+        """The one articulated sweep (:func:`ctmm.articulated.articulated_sweep`) of the tangent relations.
+
+        Body ``j``: ``M = K_j`` (3 x 3), ``h = b_j``; the point each child ``c`` hangs on has the
+        kinematics ``[[1, 0, kx], [0, 1, ky], [0, 0, 1]]``, ``c = (cx, cy, 0)`` and the wrench map
+        ``[[1, 0, 0], [0, 1, 0], [lx, ly, 1]]`` of ``E_c`` (the tangent-modified columns).  Joints:
+        revolute ``S = e3``, ``tau = tau_tilde``, ``kappa = k beta' h^2 + c gamma' h``; driven;
+        free base; translational springs ``S = I3``, ``tau = (f_tilde, tau_tilde)``,
+        ``kappa = diag(kappa_t, kappa_t, kappa)``.  Unbatched 2-D matrices (the ``B = 1`` path of ops).
+
+        Returns body accelerations (nb, 3), joint forces (nb, 3) and ``{j: (dx'', dy'')}`` of the
+        translational-spring hinges.
+
+        Raises
+        ------
+        SimulationError
+            A singular articulated inertia (naming the joint).
+        """
+        m = self.model
+        nb = m.n_bodies
+        E = np.asarray(E, dtype=float).reshape(nb, 6)
+        Kin = np.zeros((nb, 3, 3))
+        Kin[:, 0, 0] = Kin[:, 1, 1] = Kin[:, 2, 2] = 1.0
+        RF = Kin.copy()
+        Kin[:, 0, 2], Kin[:, 1, 2] = E[:, 0], E[:, 1]
+        RF[:, 2, 0], RF[:, 2, 1] = E[:, 2], E[:, 3]
+        c = np.zeros((nb, 3, 1))
+        c[:, 0, 0], c[:, 1, 0] = E[:, 4], E[:, 5]
+        M, h = np.asarray(K, dtype=float).reshape(nb, 3, 3), np.asarray(b, dtype=float).reshape(nb, 3, 1)
+        bodies = [BodyTerms(M[j], h[j], {k: Kin[k] for k in self.children[j]}, {k: c[k] for k in self.children[j]},
+                            {k: RF[k] for k in self.children[j]}) for j in range(nb)]
+        tau_c = np.asarray(tau, dtype=float).reshape(nb, 1, 1)
+        driven_c = np.asarray(alpha_driven, dtype=float).reshape(nb, 1, 1)
+        joints, kappa = [], []
+        for j, kind in enumerate(self.kind):
+            if kind == REVOLUTE:
+                joints.append(JointTerms(S=_E3, tau=tau_c[j]))
+                kappa.append(self.kappa_column[j])
+            elif kind == DRIVEN:
+                joints.append(JointTerms(S=_E3, prescribed=driven_c[j]))
+                kappa.append(None)
+            elif kind == BUSHING:
+                f = joint_force[j]
+                joints.append(JointTerms(S=_I3, tau=np.array([[f[0]], [f[1]], [tau_c[j, 0, 0]]])))
+                kappa.append(np.diag([self.kappa_t[j], self.kappa_t[j], self.kappa[j]]))
+            else:                                   # free base
+                joints.append(JointTerms(S=_I3, tau=_ZERO3))
+                kappa.append(None)
+        with np.errstate(all="ignore"):
+            out = articulated_sweep(NUMPY, self.tree, bodies, joints, kappa)
+        A = np.array([x[:, 0] for x in out.x])
+        if not np.all(np.isfinite(A)):
+            bad = next((j for j in range(nb) if not np.all(np.isfinite(A[j]))), 0)
+            raise SimulationError(f"articulated inertia of hinge {m.joint_names[bad]!r} is singular (non-finite "
+                                  "accelerations in the Newton tangent sweep)", element=m.joint_names[bad])
+        F = np.array([f[:, 0] for f in out.force])
+        translation = {j: (float(out.relative[j][0, 0]), float(out.relative[j][1, 0]))
+                       for j in m.bushing_bodies.tolist()}
+        return A, F, translation
 
 
 def _stepper(model: PlanarModel, position_weight: float, velocity_weight: float):

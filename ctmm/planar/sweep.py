@@ -1,33 +1,17 @@
-"""Acceleration-based transfer matrix method for planar chains and trees: the Riccati sweep.
+"""Acceleration-based transfer matrix method for planar chains and trees: explicit forward dynamics.
 
 State vector at a connection point (layout ``PLANAR_ACCELERATION``):
 ``A = [a_x, a_y, alpha]`` (acceleration of the point, angular acceleration of the outboard
 body) and ``F = [f_x, f_y, tau]`` (force and moment exerted by the inboard part on the
 outboard part), FORMULAS section 3.4 / seed 003 (6.4)-(6.6) / seed 000 eq. (1).
 
-Notation (one body ``j``, inboard end ``I``, outboard end ``O`` where child ``c`` hangs):
-
-* kinematics, rigid body I -> O:   ``A_O = X A_I + c``,
-  ``X = [[1, 0, -r_y], [0, 1, r_x], [0, 0, 1]]``, ``c = [-w^2 r_x, -w^2 r_y, 0]``,
-  ``r = R(theta) (O - I)``;
-* Newton-Euler of the body about ``I`` (all loads moved to ``I`` by ``X^T``):
-  ``F_I = K A_I + b + sum_c X_c^T F_Oc``, ``K = X_C^T diag(m, m, J_C) X_C``,
-  ``b = [-m w^2 r_C - m g - f_e ; -r_C x m g - r_E x f_e - tau_e]``;
-* hinge ``c`` (child inboard end = parent end ``O``): ``A_c = A_O + e3 alpha``, law
-  ``tau_c = e3^T F_c = tau_tilde - kappa alpha`` (``kappa = 0`` explicit), driven:
-  ``alpha`` given.
-
-Riccati (articulated) form ``F = Phi A + psi`` from the tips to the base (FORMULAS 4.3):
-``D = Phi_22 + kappa``, ``Phi_hat = Phi - Phi[:, 2] Phi[2, :] / D``,
-``psi_hat = psi + Phi[:, 2] (tau_tilde - psi_2) / D``, moved to the parent's inboard point
-with ``X_c^T (.) X_c``.  Base to tips: ``alpha = (tau_tilde - Phi[2, :] A_O - psi_2) / D``,
-``A_c = A_O + e3 alpha``, ``F_c = Phi A_c + psi``.  ``Phi`` may be non-symmetric: the Newton
-step of the implicit DT-TMM (:mod:`ctmm.planar.implicit`) feeds the same kernel with
-tangent-modified ``X`` (kinematic column) and ``K``.
-
-The recursion itself runs on Python floats (one small block per body, no numpy call per
-body); everything that does not depend on the recursion is computed for all bodies at once
-with numpy.
+:func:`body_terms` and :func:`hinge_torques` evaluate a rigid model's body and hinge-law terms for
+all bodies at once with numpy (``K = X_C^T diag(m, m, J_C) X_C``, ``b`` the velocity, gravity and
+load terms, ``E`` the parent-point data).  The sweep is the one articulated sweep: for rigid
+revolute trees its registered Python-float fast path :func:`ctmm.planar.fast_sweep.riccati_kernel`;
+models with modal beams go through :class:`ctmm.flexible.kernel.FlexibleSystem`, models with
+translational-spring hinges through :class:`ctmm.planar.body_forms.PlanarScene` -- both
+:func:`ctmm.articulated.articulated_sweep`.
 """
 from __future__ import annotations
 
@@ -38,7 +22,8 @@ import numpy as np
 
 from .. import validation
 from ..errors import ModelError, SimulationError
-from .model import BUSHING, DRIVEN, REVOLUTE, PlanarModel
+from .fast_sweep import riccati_kernel
+from .model import PlanarModel
 from .ports import ActuatorInputs
 
 
@@ -120,144 +105,6 @@ def hinge_torques(model: PlanarModel, theta: np.ndarray, omega: np.ndarray, t: f
     return torque - model.stiffness * (dtheta - reference) - model.damping * (domega - rate)
 
 
-# ------------------------------------------------------------------------------------------
-# the O(n) kernel
-# ------------------------------------------------------------------------------------------
-def _bushing_backward(P, s, data):
-    """Hinge with translational springs: ``F_c = F_tilde - Kappa (A_c - A_O)``.
-
-    A force element between the parent end ``O`` and the child's inboard end: ``(f, tau)``
-    acts on the child, ``-(f, tau)`` on the parent at ``O`` (force pair, power
-    ``f . d_dot + tau dtheta_dot``).  ``data = (F_tilde(3), kappa_t, kappa_r, ...)``; returns
-    the projected ``(Phi_hat, psi_hat)`` at the parent end and what the forward pass needs.
-    With ``Kappa = 0`` (explicit) the child decouples: ``A_c = Phi^-1 (F - psi)``.
-    """
-    ft, kt, kr = data[0], data[1], data[2]
-    P = np.array(P).reshape(3, 3)
-    kap = np.diag([kt, kt, kr])
-    W = np.linalg.inv(P + kap)
-    G = W @ kap - np.eye(3)                     # A_c - A_O = G A_O + h0
-    h0 = W @ (np.asarray(ft) - np.asarray(s))
-    Fa = -kap @ G                               # F_c = Fa A_O + Fb  (= F at O)
-    Fb = np.asarray(ft) - kap @ h0
-    return Fa, Fb, (G, h0, Fa, Fb)
-
-
-def riccati_kernel(parent: list, kind: list, K: list, b: list, E: list, kappa: list,
-                   tau: list, alpha_driven: list, want_forces: bool = True,
-                   bushing: dict | None = None):
-    """Tip-to-base Riccati sweep and base-to-tip pass (pure Python floats, O(n)).
-
-    Parameters are plain lists over bodies in topological order (see :func:`body_terms`);
-    ``tau`` holds ``tau_tilde`` of revolute joints, ``alpha_driven`` the prescribed
-    relative angular acceleration of driven joints.
-
-    Returns
-    -------
-    A, F : list of [float, float, float]
-        Body accelerations at the inboard ends and joint forces.
-    alpha : list of float
-        Relative hinge accelerations.
-    translation : dict
-        ``{j: (ddx, ddy)}``: relative translational accelerations of the hinges with
-        translational springs (``bushing`` maps their index to :func:`_bushing_backward` data).
-    """
-    nb = len(parent)
-    bushing_store = {}
-    translation = {}
-    acc = [list(row) for row in K]
-    accb = [list(row) for row in b]
-    denominators = [0.0] * nb
-    for j in range(nb - 1, -1, -1):
-        p00, p01, p02, p10, p11, p12, p20, p21, p22 = acc[j]
-        s0, s1, s2 = accb[j]
-        kj = kind[j]
-        if kj == REVOLUTE:
-            d = p22 + kappa[j]
-            if not (d != 0.0 and abs(d) < float("inf")):
-                raise SimulationError(f"articulated inertia of hinge {j} is singular ({d!r})")
-            denominators[j] = d
-            r = (tau[j] - s2) / d
-            f0, f1, f2 = p02 / d, p12 / d, p22 / d
-            q00, q01, q02 = p00 - f0 * p20, p01 - f0 * p21, p02 - f0 * p22
-            q10, q11, q12 = p10 - f1 * p20, p11 - f1 * p21, p12 - f1 * p22
-            q20, q21, q22 = p20 - f2 * p20, p21 - f2 * p21, p22 - f2 * p22
-            t0, t1, t2 = s0 + p02 * r, s1 + p12 * r, s2 + p22 * r
-        elif kj == DRIVEN:
-            ad = alpha_driven[j]
-            q00, q01, q02, q10, q11, q12, q20, q21, q22 = p00, p01, p02, p10, p11, p12, p20, p21, p22
-            t0, t1, t2 = s0 + p02 * ad, s1 + p12 * ad, s2 + p22 * ad
-        elif kj == BUSHING:
-            Q, tt, stored = _bushing_backward(acc[j], accb[j], bushing[j])
-            bushing_store[j] = stored
-            (q00, q01, q02), (q10, q11, q12), (q20, q21, q22) = Q.tolist()
-            t0, t1, t2 = tt.tolist()
-        else:
-            continue
-        par = parent[j]
-        if par < 0:
-            continue
-        kx, ky, lx, ly, cx, cy = E[j]
-        z0 = q00 * cx + q01 * cy + t0
-        z1 = q10 * cx + q11 * cy + t1
-        z2 = q20 * cx + q21 * cy + t2
-        c02 = kx * q00 + ky * q01 + q02
-        c12 = kx * q10 + ky * q11 + q12
-        c22 = kx * q20 + ky * q21 + q22
-        a = acc[par]
-        a[0] += q00
-        a[1] += q01
-        a[2] += c02
-        a[3] += q10
-        a[4] += q11
-        a[5] += c12
-        a[6] += lx * q00 + ly * q10 + q20
-        a[7] += lx * q01 + ly * q11 + q21
-        a[8] += lx * c02 + ly * c12 + c22
-        bb = accb[par]
-        bb[0] += z0
-        bb[1] += z1
-        bb[2] += lx * z0 + ly * z1 + z2
-    A = [None] * nb
-    F = [None] * nb
-    alpha = [0.0] * nb
-    for j in range(nb):
-        par = parent[j]
-        if par >= 0:
-            a0, a1, al = A[par]
-            kx, ky, lx, ly, cx, cy = E[j]
-            o0, o1, o2 = a0 + kx * al + cx, a1 + ky * al + cy, al
-        else:
-            o0 = o1 = o2 = 0.0
-        p00, p01, p02, p10, p11, p12, p20, p21, p22 = acc[j]
-        s0, s1, s2 = accb[j]
-        kj = kind[j]
-        if kj == REVOLUTE:
-            al = (tau[j] - p20 * o0 - p21 * o1 - p22 * o2 - s2) / denominators[j]
-            a_j = (o0, o1, o2 + al)
-        elif kj == DRIVEN:
-            al = alpha_driven[j]
-            a_j = (o0, o1, o2 + al)
-        elif kj == BUSHING:
-            G, h0, Fa, Fb = bushing_store[j]
-            rel = G @ np.array([o0, o1, o2]) + h0
-            a_j = (o0 + float(rel[0]), o1 + float(rel[1]), o2 + float(rel[2]))
-            al = float(rel[2])
-            translation[j] = (float(rel[0]), float(rel[1]))
-        else:
-            sol = np.linalg.solve(np.array(acc[j]).reshape(3, 3), -np.array(accb[j]))
-            a_j = (float(sol[0]), float(sol[1]), float(sol[2]))
-            al = a_j[2]
-        alpha[j] = al
-        A[j] = a_j
-        if want_forces:
-            x0, x1, x2 = a_j
-            F[j] = (p00 * x0 + p01 * x1 + p02 * x2 + s0,
-                    p10 * x0 + p11 * x1 + p12 * x2 + s1,
-                    p20 * x0 + p21 * x1 + p22 * x2 + s2)
-    return A, (F if want_forces else None), alpha, translation
-
-
 def _driven_alpha(model: PlanarModel, t: float) -> list:
     alpha_d = [0.0] * model.n_bodies
     for i, _, _, acceleration in model.driven(t):
@@ -279,25 +126,6 @@ def coordinate_accelerations(model: PlanarModel, A: np.ndarray, translation: dic
         qddot[model.xy_index[j, 0]] = ddx
         qddot[model.xy_index[j, 1]] = ddy
     return qddot
-
-
-def bushing_data(model: PlanarModel, q, qdot, tau: np.ndarray, *, kappa_t=None, kappa_r=None,
-                 bh2: float = 0.0, forces=None, translation_acc=None) -> dict:
-    """Data of the translational-spring hinges for :func:`riccati_kernel` (explicit default)."""
-    out = {}
-    if not len(model.bushing_bodies):
-        return out
-    d, dd = model.bushing_offsets(q, qdot)
-    for j in model.bushing_bodies.tolist():
-        kt, ct = model.translational_stiffness[j], model.translational_damping[j]
-        f = -kt * d[j] - ct * dd[j]
-        if kappa_t is None:
-            out[j] = ((f[0], f[1], tau[j]), 0.0, 0.0, d[j], 0.0, (0.0, 0.0), (0.0, 0.0))
-        else:
-            ddk = translation_acc[j]
-            ft = (f[0] + kappa_t[j] * ddk[0], f[1] + kappa_t[j] * ddk[1], tau[j])
-            out[j] = (ft, kappa_t[j], kappa_r[j], d[j], bh2, tuple(forces[j, :2]), tuple(ddk))
-    return out
 
 
 # ------------------------------------------------------------------------------------------
@@ -348,17 +176,30 @@ def solve_instant(model: PlanarModel, q, qdot, t: float = 0.0, inputs=None) -> I
         sol = model.flexible_system.solve(q, qdot, t, inputs)
         return InstantaneousSolution(sol.qddot, sol.body_acceleration, sol.joint_force,
                                      sol.hinge_acceleration, sol.modal_acceleration)
+    if len(model.bushing_bodies):
+        return _scene_solution(model, q, qdot, t, inputs)
     theta, omega = model.body_angles(q, qdot, t)
     K, b, E, _ = body_terms(model, theta, omega, t)
     b, tau = _with_inputs(model, theta, b, hinge_torques(model, theta, omega, t), inputs)
     nb = model.n_bodies
-    A, F, alpha, translation = riccati_kernel(
-        model.parent.tolist(), model.joint_kind.tolist(), K.tolist(), b.tolist(), E.tolist(),
-        [0.0] * nb, tau.tolist(), _driven_alpha(model, t),
-        bushing=bushing_data(model, q, qdot, tau))
+    A, F, alpha = riccati_kernel(model.parent.tolist(), model.joint_kind.tolist(), K.tolist(), b.tolist(),
+                                 E.tolist(), [0.0] * nb, tau.tolist(), _driven_alpha(model, t))
     A = np.array(A)
-    return InstantaneousSolution(coordinate_accelerations(model, A, translation), A, np.array(F),
-                                 np.array(alpha))
+    return InstantaneousSolution(coordinate_accelerations(model, A), A, np.array(F), np.array(alpha))
+
+
+def _scene_solution(model: PlanarModel, q: np.ndarray, qdot: np.ndarray, t: float, inputs
+                    ) -> InstantaneousSolution:
+    """:func:`solve_instant` by the generic sweep (:class:`~ctmm.planar.body_forms.PlanarScene`),
+    for models off the fast path (translational-spring hinges)."""
+    from .body_forms import PlanarScene             # body_forms imports model and ports only: no cycle
+
+    scene = PlanarScene(model)
+    solution = scene.solution(q, qdot, t, inputs)
+    A = np.array([x[0, :3, 0] for x in solution.x])
+    alpha = np.array([0.0 if r is None else r[0, -1, 0] for r in solution.relative])
+    return InstantaneousSolution(scene.coordinate_accelerations(solution)[0], A,
+                                 np.array([f[0, :, 0] for f in solution.force]), alpha)
 
 
 def accelerations(model: PlanarModel, q, qdot, t: float = 0.0, inputs=None) -> np.ndarray:
@@ -379,14 +220,14 @@ def accelerations(model: PlanarModel, q, qdot, t: float = 0.0, inputs=None) -> n
     q, qdot, t = _checked_state(model, q, qdot, t, inputs)
     if model.flexible_system is not None:
         return model.flexible_system.accelerations(q, qdot, t, inputs)
+    if len(model.bushing_bodies):
+        return _scene_solution(model, q, qdot, t, inputs).qddot
     theta, omega = model.body_angles(q, qdot, t)
     K, b, E, _ = body_terms(model, theta, omega, t)
     b, tau = _with_inputs(model, theta, b, hinge_torques(model, theta, omega, t), inputs)
-    A, _, _, translation = riccati_kernel(
-        model._parent_list, model._kind_list, K.tolist(), b.tolist(), E.tolist(), model._zeros,
-        tau.tolist(), _driven_alpha(model, t), want_forces=False,
-        bushing=bushing_data(model, q, qdot, tau))
-    return coordinate_accelerations(model, np.array(A), translation)
+    A, _, _ = riccati_kernel(model._parent_list, model._kind_list, K.tolist(), b.tolist(), E.tolist(), model._zeros,
+                             tau.tolist(), _driven_alpha(model, t), want_forces=False)
+    return coordinate_accelerations(model, np.array(A))
 
 
 def ode_rhs(model: PlanarModel) -> Callable[[float, np.ndarray], np.ndarray]:
@@ -409,7 +250,6 @@ __all__ = [
     "InstantaneousSolution",
     "accelerations",
     "body_terms",
-    "bushing_data",
     "coordinate_accelerations",
     "hinge_torques",
     "ode_rhs",

@@ -42,13 +42,17 @@ Conventions (the same as Pinocchio's, which the tests use as a second reference)
   only for isotropic ``K`` (and ``elastic6`` only without translation-rotation coupling);
   otherwise they are a linear law without a potential.  ``free`` and ``weld`` have no law.
 
+Rotations, joint motions and forward kinematics are in :mod:`.spatial_kinematics`; the
+description, equations, integrator and linearisation here; documentation in
+``docs/reference_models.md`` section 7.
+
 Numbers: float64 (complex128 inside :func:`linearize`, which differentiates the global model
 by the complex step: ``K = Im h(q0 (+) i eps e_k, 0) / eps``, ``C`` likewise in ``v``).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable, NamedTuple, Sequence
+from typing import Callable, NamedTuple
 
 import numpy as np
 import scipy.linalg

@@ -157,7 +157,7 @@ def check_discrete_closed_forms():
 
 
 def check_discrete_elements():
-    """DiscretePoint / DiscreteConnector.step_matrices equal the derivation (random data)."""
+    """The DT-TMM step matrices (derived from the terms, ctmm/elements/axial.py) equal the derivation (random data)."""
     for trial in range(5):
         cxv, Av, Cv = RNG.uniform(0.5, 1.0), RNG.uniform(10, 1e3), RNG.uniform(1e3, 1e6)
         lin_in = Linearisation(cxv, RNG.normal(), Av, RNG.normal(), Cv, RNG.normal())
