@@ -4,7 +4,8 @@ A :class:`~ctmm.planar.model.PlanarModel` -- rigid trees, modal beams, hub-beam 
 the element protocol by :class:`~ctmm.planar.body_forms.PlanarScene`; its one articulated sweep
 (:func:`ctmm.articulated.articulated_sweep`) runs here on casadi symbols and gives the accelerations
 ``qddot = f(q, qdot, u, p, t)`` as one SX expression.  Nothing in this module knows a family: a new
-element family stated on the protocol compiles without touching it.  From that expression:
+element family stated on the protocol compiles without touching it.  From that expression
+(the time loop of :mod:`ctmm.generated_loop`, shared with spatial models, :mod:`ctmm.compiled_spatial`):
 
 * ``acceleration(q, v, u, p, t)`` -- the sweep;
 * ``step(y, u, h, p, t0, k)`` -- RK4 step ``k`` (from ``t0 + k h``), :func:`ctmm.ode.rk4_step` run on
