@@ -24,8 +24,8 @@ controller) and n = 3 in frequency (TMM, PlantCache); ``delay_history`` at 1000 
 dt = 10 ms, compiled RK4 at dt = 10 ms; ``stability_chart`` the 100 x 100 chart; ``compiled_scenes``
 (issue 13, added after the baseline run: its two cases were measured alone) the generated RK4 of
 the hub-beam and of the N = 5 chain; ``spatial_chain`` (issue 14, added later and measured
-alone) one forward dynamics of the spatial reference model at N = 5 until ``ctmm.spatial``
-lands.  Left out (too long
+alone) one forward dynamics of the spatial reference model at N = 5; ``spatial_schemes`` (issue 14,
+added later, measured alone) Newmark on the spatial double pendulum at dt = 10 ms.  Left out (too long
 for a baseline under ~3 min, or needing a build): larger sizes and step ladders, the external
 libraries and references the benchmarks compare with (python-control, pinocchio, MuJoCo, global
 and Lagrange models), the FMU controller variant (builds an FMU with gcc), ``flexible``'s chain of
@@ -333,8 +333,19 @@ def _spatial_chain(t: Timings) -> None:
                         "(ctmm.reference.spatial_tree; the benchmark's only pure-ctmm code until ctmm.spatial lands)")
 
 
+def _spatial_schemes(t: Timings) -> None:
+    bench = importlib.import_module("spatial_schemes")
+    model, _, x0, v0 = bench.double_pendulum()
+    dt, steps = 0.01, 20
+    t.add("spatial_schemes", "newmark_double_pendulum",
+          lambda: ctmm.simulate(model, steps * dt, dt, method="newmark", x0=x0, v0=v0, store_every=steps),
+          per="step", count=steps,
+          configuration=f"spatial double pendulum (revolute + ball joint), Lie-group Newmark, dt={dt:g} s, "
+                        f"{steps} steps (benchmark: 0.5 s)")
+
+
 TIMING_PARTS = (_work_precision, _scaling, _control, _delay_history, _planar, _flexible, _manipulator,
-                _stability_chart, _compiled_scenes, _spatial_chain)
+                _stability_chart, _compiled_scenes, _spatial_chain, _spatial_schemes)
 
 
 def timings() -> dict:

@@ -5,7 +5,8 @@ solve the chain by batched Riccati transfer (:mod:`ctmm.chain_assembly`, :mod:`c
 
 Natural frequencies, their counting and mode shapes live in :mod:`ctmm.natural` (re-exported here).
 Planar models (:class:`~ctmm.planar.model.PlanarModel`, ``ControlledModel``) are answered through
-their linearisation by :mod:`ctmm.planar_frequency` (dispatched here).
+their linearisation by :mod:`ctmm.planar_frequency`, spatial models by :mod:`ctmm.spatial_frequency`
+(dispatched here).
 """
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ import numpy as np
 
 from . import validation
 from .assembly import SOLVERS
-from . import planar_frequency
+from . import planar_frequency, spatial_frequency
 from .capabilities import require_chain
 from .chain_assembly import assemble, laplace_variables, solve  # noqa: F401  (assemble, solve: public here too)
 from .elements.axial import AxialJoint
@@ -46,8 +47,10 @@ def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],
 
     Parameters
     ----------
-    system : Chain, ControlledChain, PlanarModel or ControlledModel
-        The model.  A planar model is answered through its linearisation about
+    system : Chain, ControlledChain, PlanarModel, ControlledModel or SpatialModel
+        The model.  A spatial model is answered through its linearisation
+        (:func:`ctmm.spatial_frequency.frequency_response`: input components, tangent coordinates and
+        velocities as outputs).  A planar model is answered through its linearisation about
         ``operating_point`` (:func:`ctmm.planar_frequency.frequency_response`: actuator inputs,
         sensor outputs of :mod:`ctmm.planar.ports`).
     omega : array_like
@@ -78,6 +81,12 @@ def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],
     >>> np.allclose(frf("m.x", "m.force"), 1 / (100.0 - np.array([0.0, 25.0])))
     True
     """
+    if _is_spatial(system):
+        if solver != "riccati" or fields not in (None, "modal"):
+            raise ModelError(f"frequency_response: solver={solver!r} and fields={fields!r} are for chains and planar "
+                             "models; a spatial model is answered through its linearisation (leave the defaults)")
+        return spatial_frequency.frequency_response(system, omega, input=input, output=output,
+                                                    operating_point=operating_point)
     if is_planar_system(system):
         if solver != "riccati":
             raise ModelError(f"frequency_response: solver={solver!r} is a chain solver; a planar model is answered "
@@ -206,17 +215,27 @@ def _scale(system, s: np.ndarray) -> np.ndarray:
 
 
 
+def _is_spatial(system: Any) -> bool:
+    from .spatial.model import SpatialModel
+
+    return isinstance(system, SpatialModel)
+
+
 def natural_frequencies(system: Any, **options: Any) -> np.ndarray:
-    """Undamped natural frequencies [rad/s] of a chain or a planar model.
+    """Undamped natural frequencies [rad/s] of a chain, a planar or a spatial model.
 
     A :class:`~ctmm.system.Chain` is answered by :func:`ctmm.natural.natural_frequencies`
     (options ``n_modes``, ``omega_max``, ``rtol``); a ``PlanarModel`` through its undamped
     linearisation by :func:`ctmm.planar_frequency.natural_frequencies` (options ``n_modes``,
     ``omega_max``, ``operating_point``, ``fields="exact"`` for the exact-field form of a straight
-    chain with beams, :mod:`ctmm.exact_fields`).  Damped systems and systems with loops are refused.
+    chain with beams, :mod:`ctmm.exact_fields`); a ``SpatialModel`` by
+    :func:`ctmm.spatial_frequency.natural_frequencies` (options ``n_modes``, ``omega_max``,
+    ``operating_point``).  Damped systems and systems with loops are refused.
     """
     if is_planar_system(system):
         return planar_frequency.natural_frequencies(system, **options)
+    if _is_spatial(system):
+        return spatial_frequency.natural_frequencies(system, **options)
     if "fields" in options:
         raise ModelError(f"natural_frequencies: fields={options['fields']!r} is for planar models; a chain's beam "
                          "fields are already exact")
@@ -227,10 +246,13 @@ def eigenvalue_count(system: Any, omega: Any, **options: Any) -> np.ndarray:
     """Number of undamped natural frequencies strictly below each ``omega`` [rad/s].
 
     Chains: :func:`ctmm.natural.eigenvalue_count`; planar models (rigid or flexible):
-    :func:`ctmm.planar_frequency.eigenvalue_count` (option ``operating_point``).
+    :func:`ctmm.planar_frequency.eigenvalue_count` (option ``operating_point``); spatial models:
+    :func:`ctmm.spatial_frequency.eigenvalue_count`.
     """
     if is_planar_system(system):
         return planar_frequency.eigenvalue_count(system, omega, **options)
+    if _is_spatial(system):
+        return spatial_frequency.eigenvalue_count(system, omega, **options)
     return natural.eigenvalue_count(system, omega, **options)
 
 
@@ -238,8 +260,11 @@ def mode_shapes(system: Any, **options: Any):
     """Natural frequencies and mode shapes of a chain or a planar model.
 
     Chains: :func:`ctmm.natural.mode_shapes` (states at the connection points); planar models:
-    :func:`ctmm.planar_frequency.mode_shapes` (shapes in the generalised coordinates).
+    :func:`ctmm.planar_frequency.mode_shapes` (shapes in the generalised coordinates); spatial models:
+    :func:`ctmm.spatial_frequency.mode_shapes` (shapes in the tangent coordinates).
     """
     if is_planar_system(system):
         return planar_frequency.mode_shapes(system, **options)
+    if _is_spatial(system):
+        return spatial_frequency.mode_shapes(system, **options)
     return natural.mode_shapes(system, **options)

@@ -11,6 +11,8 @@ delay-free part with named states, inputs and outputs, the delayed loops left op
   ``ctmm.control.ControlledModel``: the tangent of ``qddot = f(q, qdot, u)`` at an operating
   point (:class:`OperatingPoint`), states ``[q, qdot]`` named by the coordinates
   (``"arm.q1"``, ``"arm.q1_dot"``), deviations from the operating point.
+* :class:`~ctmm.spatial.model.SpatialModel`: the same tangent in tangent coordinates (rotation
+  vectors for quaternion joints) and velocities, :mod:`ctmm.spatial_linearization`.
 
 On the package, ``ctmm.linearize`` is the function; the result types are importable as
 ``from ctmm.linearize import LinearizedSystem, DelayedLoop, OperatingPoint`` (defined in
@@ -72,10 +74,12 @@ def linearize(system: Any, operating_point: Any = None, *, inputs: str | Sequenc
 
     Parameters
     ----------
-    system : Chain, ControlledChain, PlanarModel or ControlledModel
+    system : Chain, ControlledChain, PlanarModel, ControlledModel or SpatialModel
         The model; loops with a delay are returned open beside the state space.
     operating_point : OperatingPoint, (q, qdot), mapping or None
-        Planar models only.  ``(q, qdot)`` or ``{"q": ..., "qdot": ..., "t": ...}`` or a
+        Spatial models: ``(q, v)``, ``{"q", "v", "t"}`` or ``None`` (the static equilibrium by
+        pseudo-transient Newton on the sweep, :func:`ctmm.spatial_linearization.static_equilibrium`).
+        Planar models: ``(q, qdot)`` or ``{"q": ..., "qdot": ..., "t": ...}`` or a
         mapping from coordinate names to values (rates zero); ``None``: the static equilibrium
         found by :func:`ctmm.planar.linear.static_equilibrium` from
         :func:`ctmm.planar.linear.hanging_configuration` (every centre of mass straight below
@@ -83,14 +87,15 @@ def linearize(system: Any, operating_point: Any = None, *, inputs: str | Sequenc
     inputs : str or sequence of str, optional
         Exogenous inputs: chain force inputs / loop references; planar actuator names of
         :func:`ctmm.planar.ports.actuator_names` (default: every actuator not used by a loop);
+        spatial input components of :func:`ctmm.spatial_linearization.input_names` (default: all);
         ``[]``: no exogenous input (e.g. for the eigenvalues of ``A``; refused with a single
         output and no delayed loop, a shape python-control cannot hold).
     outputs : str or sequence of str, optional
         Chain signal names; planar sensor names of :mod:`ctmm.planar.ports` (default: every
         coordinate); ``"<loop>.y"`` (sensed value) and ``"<loop>.u"`` (loop force) of a loop
-        without delay.
+        without delay; spatial tangent coordinates and velocities (default: the tangent coordinates).
     allow_nonequilibrium : bool
-        Planar models: accept an operating point that is not an equilibrium (nonzero rates or
+        Planar and spatial models: accept an operating point that is not an equilibrium (nonzero rates or
         accelerations, now or a little later: a driven hinge in motion, a time-varying load).  The result is then the tangent at that instant only (the constant
         term ``f(x0)`` is dropped); by default such a point is refused.
 
@@ -127,9 +132,20 @@ def linearize(system: Any, operating_point: Any = None, *, inputs: str | Sequenc
         model = system if _is_planar(system) else plant
         return linearize_planar(model, loops if not _is_planar(system) else (), operating_point,
                                 inputs=inputs, outputs=outputs, allow_nonequilibrium=allow_nonequilibrium)
+    if _is_spatial(system):
+        from .spatial_linearization import linearize_spatial
+
+        return linearize_spatial(system, operating_point, inputs=inputs, outputs=outputs,
+                                 allow_nonequilibrium=allow_nonequilibrium)
     raise ModelError(f"linearize: system must be a ctmm.Chain, ctmm.control.ControlledChain, "
-                     f"ctmm.planar.PlanarModel or ctmm.control.ControlledModel, got "
+                     f"ctmm.planar.PlanarModel, ctmm.control.ControlledModel or ctmm.spatial.SpatialModel, got "
                      f"{type(system).__name__} ({system!r:.80})")
+
+
+def _is_spatial(system: Any) -> bool:
+    from .spatial.model import SpatialModel
+
+    return isinstance(system, SpatialModel)
 
 
 # ------------------------------------------------------------------------------- chains

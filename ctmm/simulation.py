@@ -15,7 +15,8 @@
   with ``compiled=True`` (:mod:`ctmm.compiled_scene`), or else to :func:`~ctmm.planar.implicit.simulate_implicit`
   for a scheme.
 * A :class:`~ctmm.spatial.model.SpatialModel` goes to :func:`ctmm.spatial.integrate.simulate_spatial`
-  (``"rk4"`` or a ``solve_ivp`` method; ``docs/spatial.md``).
+  (``"rk4"`` or a ``solve_ivp`` method) or, with a DT-TMM scheme, to
+  :func:`ctmm.spatial.implicit.simulate_spatial_implicit` (``docs/spatial.md``).
 
 Every path returns one :class:`~ctmm.results.SimulationResult` (named signals with units).
 """
@@ -34,10 +35,12 @@ from .control.planar_time import simulate_closed_loop
 from .control.protocol import Controller, check_controllers, check_references
 from .control.simulate import simulate_controlled
 from .errors import ModelError, SimulationError, unknown_name
+from .planar.guards import check_resolution
 from .planar.integrate import SCIPY_METHODS, PlanarSimulation, initial_coordinates, to_result
 from .planar.model import PlanarModel
 from .results import SimulationResult
 from .schemes import SCHEMES, Scheme, as_scheme
+from .spatial.implicit import simulate_spatial_implicit
 from .spatial.integrate import simulate_spatial
 from .spatial.model import SpatialModel
 from .system import Chain
@@ -55,7 +58,8 @@ def _simulate_spatial(model: SpatialModel, t_final: float, dt: float | None, *, 
                       solver: str, fast: Any, force_hook: Any, progress: Any, stability_check: Any,
                       divergence_bound: float | None, rtol: float, atol: float, max_step: float | None,
                       store_every: int, compiled: Any) -> SimulationResult:
-    """:func:`simulate` of a :class:`~ctmm.spatial.model.SpatialModel` (RK4 or ``solve_ivp``; ``docs/spatial.md``)."""
+    """:func:`simulate` of a :class:`~ctmm.spatial.model.SpatialModel` (RK4, ``solve_ivp`` or a DT-TMM scheme;
+    ``docs/spatial.md`` §6, §6a, §6b)."""
     unsupported = {"controllers": (controllers, []), "references": (references, {}), "solver": (solver, "riccati"),
                    "fast": (fast, None), "force_hook": (force_hook, None), "t0": (t0, 0.0),
                    "progress": (progress, None), "stability_check": (stability_check, None),
@@ -65,14 +69,22 @@ def _simulate_spatial(model: SpatialModel, t_final: float, dt: float | None, *, 
             raise ModelError(f"{name}={value!r} is not available for spatial models yet (RK4 and solve_ivp runs "
                              f"store every coordinate, velocity, body position and angular velocity); leave {name} "
                              f"at {default!r}")
-    if not isinstance(method, str):
-        raise ModelError(f"method for a spatial model must be 'rk4' or a solve_ivp method, got {method!r}")
     if validation.flag("compiled", compiled, optional=True):        # the generated RK4 (ctmm.compiled_spatial)
-        if method != "rk4":
+        if not isinstance(method, str) or method != "rk4":
             raise ModelError(f"compiled=True runs the generated RK4 of a spatial model; got method={method!r}")
         from .compiled_spatial import simulate_spatial_generated
         return simulate_spatial_generated(model, t_final, dt, x0=x0, v0=v0, inputs=inputs, store_every=store_every,
                                           divergence_bound=divergence_bound)
+    if isinstance(method, Scheme) or method in SCHEMES:          # the implicit DT-TMM (docs/spatial.md §6)
+        solve_ivp_options = {"rtol": (rtol, 1e-8), "atol": (atol, 1e-10), "max_step": (max_step, None)}
+        for name, (value, default) in solve_ivp_options.items():
+            if value != default:
+                raise ModelError(f"{name}={value!r} applies to solve_ivp methods, not to the DT-TMM scheme {method!r}")
+        return simulate_spatial_implicit(model, t_final, dt, scheme=method, x0=x0, v0=v0, inputs=inputs,
+                                         store_every=store_every, divergence_bound=divergence_bound)
+    if not isinstance(method, str):
+        raise ModelError(f"method for a spatial model must be 'rk4', a solve_ivp method or a DT-TMM scheme "
+                         f"{tuple(SCHEMES)}, got {method!r}")
     return simulate_spatial(model, t_final, dt, method=method, x0=x0, v0=v0, inputs=inputs, rtol=rtol, atol=atol,
                             max_step=max_step, store_every=store_every, divergence_bound=divergence_bound)
 
@@ -164,7 +176,8 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         (``"RK45"``, ``"DOP853"``, ``"Radau"``, ``"BDF"``, ...; planar) or a DT-TMM scheme
         (``"newmark"`` (chain default), ``"generalized_alpha"``, ``"wilson_theta"``, ``"houbolt"``,
         ``"forward_euler"`` or a :mod:`ctmm.schemes` object); on a planar model every scheme closes
-        loops, ``inputs`` and ``controllers`` (``docs/planar.md``, ``docs/control.md`` §4c).
+        loops, ``inputs`` and ``controllers`` (``docs/planar.md``, ``docs/control.md`` §4c); on a
+        spatial model the schemes run in Lie-group form (``docs/spatial.md`` §6a).
     scheme : str or Scheme, optional
         Alias of ``method`` (giving both is an error).
     x0, v0 : mapping or array, optional
@@ -349,7 +362,7 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
                          "time-invariant planar scene), not both")
     progress = validation.flag("progress", progress, optional=True)
     q0, v0 = initial_coordinates(model, _initial(model, "x0", x0), _initial(model, "v0", v0))
-    model.check_resolution(q0, "x0")
+    check_resolution(model, q0, "x0")
     policy = "warn" if stability_check is None else validation.option("stability_check", stability_check,
                                                                        ("warn", "error", "ignore"))
     store_every = validation.integer("store_every", store_every, minimum=1)

@@ -172,7 +172,7 @@ def test_random_tree_run_equals_pinocchio_aba_with_rk4() -> None:
 def test_simulate_arguments_are_checked() -> None:
     model = pendulum_tree()
     with pytest.raises(ModelError, match="method for a spatial model"):
-        ctmm.simulate(model, 1.0, 0.01, method="newmark")
+        ctmm.simulate(model, 1.0, 0.01, method="verlet")
     with pytest.raises(ModelError, match="unknown spatial input|ja.torque|no such"):
         ctmm.simulate(model, 1.0, 0.01, inputs={"ja.torque": 1.0})
     with pytest.raises(ModelError, match="whole multiple"):

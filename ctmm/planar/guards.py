@@ -34,7 +34,7 @@ from ..guard import RK4_LIMIT, DivergenceGuard, StabilityLimitWarning, check_ste
 from ..schemes import Newmark, Scheme
 from .model import PlanarModel
 
-__all__ = ["STABILITY_CHECKS", "linearised_omega_max", "check_scheme", "divergence_guard", "check_stored",
+__all__ = ["STABILITY_CHECKS", "check_resolution", "linearised_omega_max", "check_scheme", "divergence_guard", "check_stored",
            "with_partial"]
 
 #: Allowed values of the ``stability_check`` option.
@@ -189,3 +189,36 @@ def with_partial(error: SimulationError, build: Callable[[], object]) -> Simulat
     if error.partial_result is None:
         error.partial_result = build()
     return error
+
+
+def check_resolution(model: PlanarModel, q: np.ndarray, label: str = "x0") -> None:
+    """Refuse initial coordinates too large for double precision to resolve their motion.
+
+    At ``|theta| = 1e20`` rad one unit in the last place is 16 384 rad: every step's increment
+    is lost and the angle stays put while its rate evolves -- a silent wrong answer.  Allowed:
+    angles ``|theta| <= 1e6`` rad (resolved to 1.2e-10 rad) and positions ``|x| <= 1e6 L``
+    (resolved to 1.2e-10 L, ``L`` the model's largest body dimension, at least 1 m).  Modal
+    coordinates are not limited here (their scale is the beam's).
+
+    Parameters
+    ----------
+    model : PlanarModel
+    q : ndarray (n_coordinates,)
+        Coordinates [m, rad, modal].
+    label : str
+        Name of the argument in the error message.
+    """
+    q = np.asarray(q, dtype=float)
+    lengths = [np.linalg.norm(v) for ends in model.ends for v in ends.values()]
+    lengths += [float(np.linalg.norm(c)) for c in model.com]
+    scale = max([1.0] + lengths)
+    angle = set(int(k) for k in model.theta_index if k >= 0)
+    position = set(int(k) for k in np.ravel(model.xy_index) if k >= 0)
+    for k in sorted(angle | position):
+        limit = 1e6 if k in angle else 1e6 * scale
+        if abs(q[k]) > limit:
+            unit = "rad" if k in angle else "m"
+            raise ModelError(f"{label}[{model.coordinates[k]!r}] = {q[k]!r} {unit}: double precision "
+                             f"resolves only {np.spacing(abs(q[k])):.3g} {unit} at this magnitude, so the "
+                             f"motion would be lost; allowed |value| <= {limit:.3g} {unit} (shift angles by "
+                             "whole turns, positions by a new origin)")

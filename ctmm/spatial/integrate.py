@@ -147,7 +147,7 @@ def simulate_spatial(model: SpatialModel, t_final: float, dt: float | None, *, m
         divergence_bound = validation.positive("divergence_bound", divergence_bound)
     if method != "rk4" and method not in SCIPY_METHODS:
         raise ModelError(f"method for a spatial model must be 'rk4' or a solve_ivp method {SCIPY_METHODS}, got "
-                         f"{method!r} (DT-TMM schemes on spatial models are not implemented yet)")
+                         f"{method!r} (DT-TMM schemes: ctmm.spatial.implicit.simulate_spatial_implicit)")
     if inputs is not None and not isinstance(inputs, Mapping):
         raise ModelError(f"inputs must be a mapping {{input name: number or f(t)}}, got {inputs!r}")
     for name in inputs or {}:

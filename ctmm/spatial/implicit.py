@@ -1,0 +1,262 @@
+"""Implicit DT-TMM schemes on spatial models: every :mod:`ctmm.schemes` scheme in Lie-group form.
+
+Each step is stated in the **local chart at the last configuration** ``q_n``: the unknown
+configuration is ``q = q_n (+) delta`` (:func:`ctmm.spatial.lie.retract`: incremental rotation
+vectors on ``SO(3)``, body twists on ``SE(3)``, plain increments for angles and displacements), and
+the scheme's own nonlinear second-order form (:meth:`ctmm.schemes.Scheme.second_order_step`) is
+applied to ``(delta, v, a)`` with the history ``x_n = 0``, ``v_n``, ``a_n`` and, for Houbolt, the
+earlier configurations in the same chart, ``x_{n-k} = log(q_n^-1 q_{n-k})``
+(:func:`~ctmm.spatial.lie.local_coordinates`):
+
+    delta = delta_hat + b' h^2 a,      v = v_hat + g' h a,      q = q_n (+) delta
+
+with ``a`` the velocity rates ``v_dot`` at the evaluation time (``t_{n+1}``; ``t_n + theta h``
+for Wilson-theta).  ``v`` and ``a`` live in the vector space of the velocities (child axes for
+rotations), so the velocity relations are the book's schemes unchanged; only positions move on
+the group.  For Newmark and generalized-alpha (Arnold & Bruls' form) this is the Lie-group
+generalized-alpha method of Brüls & Cardona (2010), second order (Arnold, Brüls & Cardona 2015);
+the translational and angle coordinates get exactly the planar schemes.  Backward Euler is
+``q_{n+1} = q_n (+) h v_{n+1}``, order 1.  Wilson-theta is a one-step scheme in the same chart and
+keeps order 2.  Houbolt differences configurations: its unknowns are the chart rate ``x_dot`` and
+acceleration ``x_ddot`` at ``t_{n+1}`` in the chart at ``q_n``, whose body velocity and rate are
+``x_dot - 1/2 [x, x_dot]`` and ``x_ddot - 1/2 [x, x_ddot]`` to ``O(h^2)``
+(:func:`~ctmm.spatial.lie.bracket`); without that conversion the ``O(h)`` difference of the
+accelerations makes Houbolt first order (its positions carry the velocity from step to step).
+With it Houbolt is order 2 (measured, ``tests/test_spatial_schemes.py``).
+
+Newton on ``a`` with the tangent of the one articulated sweep in its implicit context: the joint
+laws enter linearised, ``tau(a) = tau(a_k) + (tau_q b' h^2 + tau_v g' h)(a - a_k)``, i.e.
+``kappa = -(tau_q b' h^2 + tau_v g' h)`` in the pivots ``D = S^T Phi S + kappa`` and
+``tau + kappa a_k`` as the law (exact tangents for scalar joints; for quaternion joints the
+tangent at zero deflection, ``docs/spatial.md`` §5), so a stiff spring or damper converges about
+as fast as a soft one (``tests/test_spatial_schemes.py``: an elastic hinge at
+``omega_max dt = 10`` in at most 10 sweeps per step); the
+geometric terms (``M(q)``, velocity products) are taken at the iterate (one sweep per iteration),
+so convergence is linear with a rate of order ``h |omega|`` and ``h^2 |d h / d q| / m``.  An
+iteration that does not converge is a :class:`~ctmm.errors.ConvergenceError` naming the time and
+the joint with the largest residual, with the result so far.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import time as clock
+import warnings
+from typing import Any, Mapping
+
+import numpy as np
+
+from .. import validation
+from ..articulated import articulated_sweep
+from ..errors import ConvergenceError, ModelError, SimulationError
+from ..guard import StabilityLimitWarning
+from ..ops import NUMPY
+from ..planar.integrate import step_total
+from ..results import SimulationResult
+from ..schemes import History, Houbolt, Scheme, as_scheme
+from ..signal_results import SignalSystem, signal_result
+from .body_forms import SpatialScene
+from .dynamics import accelerations
+from .integrate import initial_state, spatial_signals
+from .lie import bracket, local_coordinates, retract
+from .model import SpatialModel, input_values
+
+__all__ = ["simulate_spatial_implicit", "implicit_rates"]
+
+
+def implicit_rates(scene: SpatialScene, q: np.ndarray, v: np.ndarray, t: float, inputs: Mapping[str, Any] | None,
+                   position_weight: float, velocity_weight: float, iterate: np.ndarray) -> np.ndarray:
+    """One sweep of the implicit context: ``v_dot`` (nv,) with the joint laws linearised about ``iterate``.
+
+    Parameters
+    ----------
+    scene : SpatialScene
+    q, v : (nq,), (nv,) arrays
+        The configuration and velocities at the iterate.
+    t : float
+        Evaluation time [s].
+    inputs : mapping, optional
+        Actuator inputs (as :func:`ctmm.spatial.dynamics.solve`).
+    position_weight, velocity_weight : float
+        ``b' h^2`` [s^2] and ``g' h`` [s] of the scheme.
+    iterate : (nv,) array
+        The acceleration iterate ``a_k`` [m/s^2, rad/s^2].
+    """
+    model = scene.model
+    bodies, joints, _ = scene.terms(NUMPY, q[None], v[None], t, scene.numpy_inputs(inputs, t, 1))
+    kappa, implicit = [], []
+    for joint, terms, layout in zip(model.joints, joints, model.layout):
+        if terms.tau is None or terms.free == 0 or terms.prescribed is not None or terms.tau_q is None:
+            kappa.append(None)
+            implicit.append(terms)
+            continue
+        tangent = (terms.tau_q * position_weight + terms.tau_v * velocity_weight) * -1.0
+        column = iterate[layout.velocity][None, :, None]
+        kappa.append(tangent)
+        implicit.append(dataclasses.replace(terms, tau=terms.tau + tangent @ column))
+    solution = articulated_sweep(NUMPY, scene.tree, bodies, implicit, kappa)
+    parts = [np.asarray(a)[0, :, 0] for a in scene.velocity_rates(solution)]
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
+def _joint_of(model: SpatialModel, index: int) -> str:
+    for joint, layout in zip(model.joints, model.layout):
+        if layout.velocity.start <= index < layout.velocity.stop:
+            return joint.name
+    return model.name
+
+
+def _result(model: SpatialModel, times: list, states: list, method: str, info: dict) -> SimulationResult:
+    time_array, state_array = np.asarray(times), np.asarray(states)
+    signals, units = spatial_signals(model, time_array, state_array)
+    return signal_result(SignalSystem(model, units), time_array, signals, method, info)
+
+
+def simulate_spatial_implicit(model: SpatialModel, t_final: float, dt: float, *, scheme: Scheme | str = "newmark",
+                              x0: Any = None, v0: Any = None, inputs: Mapping[str, Any] | None = None,
+                              tolerance: float = 1e-10, max_iterations: int = 50, store_every: int = 1,
+                              divergence_bound: float | None = None) -> SimulationResult:
+    """Implicit DT-TMM run of a spatial model with any scheme (module docstring).
+
+    Parameters
+    ----------
+    model : SpatialModel
+    t_final : float
+        End time [s] (start at 0), a whole multiple of ``dt``.
+    dt : float
+        Step [s].
+    scheme : Scheme or str
+        ``"newmark"`` (average acceleration, default), ``"generalized_alpha"``, ``"wilson_theta"``,
+        ``"houbolt"``, ``"forward_euler"`` (the book's name; backward differences, order 1) or an instance.
+    x0, v0 : array or mapping, optional
+        Initial coordinates and velocities (as :func:`ctmm.spatial.integrate.simulate_spatial`).
+    inputs : mapping, optional
+        Actuator inputs ``{"<joint>.torque" | ".force" | ".wrench": value or f(t)}``, evaluated at
+        each step's evaluation time.
+    tolerance : float
+        Iterations stop when ``max |a_(k+1) - a_k| <= tolerance (1 + max |a|)``.
+    max_iterations : int
+        Sweeps allowed per step.
+    store_every : int
+        Keep every ``store_every``-th step (and the last).
+    divergence_bound : float, optional
+        Largest allowed ``|q|``, ``|v|`` entry.
+
+    Returns
+    -------
+    SimulationResult
+        Signals as :func:`ctmm.spatial.integrate.spatial_signals` (unit quaternions); ``info`` with
+        ``dt``, ``scheme``, ``iterations`` (per step), ``wall_time_s``, ``n_evaluations`` (sweeps).
+
+    Raises
+    ------
+    ModelError
+        Bad arguments or an unknown scheme.
+    StabilityLimitWarning
+        (a warning) A scheme that is not unconditionally stable (Newmark with ``gamma < 1/2`` or
+        ``2 beta < gamma``, Wilson-theta with ``theta < 1.37``): the step is not checked yet.
+    ConvergenceError
+        A step whose iterations do not converge (time, joint, residual; ``partial_result``).
+    SimulationError
+        A non-finite or diverging state (time, model, ``partial_result``).
+    """
+    scheme = as_scheme(scheme)
+    if dt is None:
+        raise ModelError(f"dt is required with the DT-TMM scheme {scheme.name!r} (a fixed step [s], > 0), got None")
+    n_steps = step_total(t_final, dt)
+    dt = float(t_final) / n_steps
+    tolerance = validation.positive("tolerance", tolerance)
+    max_iterations = validation.integer("max_iterations", max_iterations, minimum=1)
+    store_every = validation.integer("store_every", store_every, minimum=1)
+    if divergence_bound is not None:
+        divergence_bound = validation.positive("divergence_bound", divergence_bound)
+    if inputs is not None and not isinstance(inputs, Mapping):
+        raise ModelError(f"inputs must be a mapping {{input name: number or f(t)}}, got {inputs!r}")
+    input_values(model, inputs, 0.0, 1)                      # names and values checked before the run
+    limit = scheme.stability_limit()
+    if limit < math.inf:
+        what = "amplifies every undamped mode at every step" if limit == 0.0 else \
+            f"is stable only for omega_max dt <= {limit:.4g}"
+        warnings.warn(f"{model.name}: the DT-TMM scheme {scheme!r} {what}; the spatial path does not check the "
+                      "step against the model's frequencies yet (docs/spatial.md §6a): use an unconditionally "
+                      "stable scheme (Newmark(0.25, 0.5), generalized_alpha, houbolt, WilsonTheta(theta >= 1.37))",
+                      StabilityLimitWarning, stacklevel=3)
+    if model.n_velocities == 0:
+        raise ModelError(f"model {model.name!r} has no coordinates (every joint is welded or driven): no DT-TMM "
+                         "step to take")
+    state = initial_state(model, x0, v0)
+    q, v = model.normalized(state[:model.n_positions]), state[model.n_positions:]
+    scene = SpatialScene(model)
+    method = f"dt-tmm/{scheme.name}"
+    info: dict = {"dt": dt, "scheme": repr(scheme)}
+    start = clock.perf_counter()
+    rates = accelerations(model, q, v, 0.0, inputs)
+    algorithmic, earlier = rates.copy(), [q.copy(), q.copy()]
+    zero = np.zeros(model.n_velocities)
+    times, states = [0.0], [np.concatenate([q, v])]
+    iterations = np.zeros(n_steps, dtype=int)
+    sweeps = 1
+
+    def partial() -> SimulationResult:
+        return _result(model, times, states, method, dict(info, iterations=iterations.copy(), n_evaluations=sweeps,
+                                                          wall_time_s=clock.perf_counter() - start))
+
+    for step in range(n_steps):
+        t1 = (step + 1) * dt
+        x_old = [local_coordinates(model, q, earlier[0]), local_coordinates(model, q, earlier[1])] \
+            if step >= 2 else [zero.copy(), zero.copy()]
+        history = History(zero.copy(), v.copy(), algorithmic.copy(), x_old, step, rates.copy())
+        plan = scheme.second_order_step(history, dt)
+        t_eval = (step + plan.time_fraction) * dt
+        a = rates.copy()
+        residual = np.inf
+        chart = isinstance(scheme, Houbolt) and step >= 2      # velocities are differences of chart positions
+        for iteration in range(1, max_iterations + 1):
+            delta = plan.q_predictor + plan.position_weight * a
+            rate = plan.v_predictor + plan.velocity_weight * a
+            try:
+                if chart:
+                    body_velocity = rate - 0.5 * bracket(model, delta, rate)
+                    body_rates = implicit_rates(scene, retract(model, q, delta), body_velocity, t_eval, inputs,
+                                                plan.position_weight, plan.velocity_weight,
+                                                a - 0.5 * bracket(model, delta, a))
+                    a_new = body_rates + 0.5 * bracket(model, delta, body_rates)
+                else:
+                    a_new = implicit_rates(scene, retract(model, q, delta), rate, t_eval, inputs, plan.position_weight,
+                                           plan.velocity_weight, a)
+            except (SimulationError, np.linalg.LinAlgError) as exc:
+                raise ConvergenceError(f"{model.name}: implicit DT-TMM step {step + 1} ({scheme.name}) at t = {t1:.6g} "
+                                       f"s failed in iteration {iteration}: {exc}", time=t1, element=model.name,
+                                       partial_result=partial()) from exc
+            sweeps += 1
+            change = np.abs(a_new - a)
+            residual = float(change.max())
+            a = a_new
+            if not np.isfinite(residual):
+                break
+            if residual <= tolerance * (1.0 + float(np.abs(a).max())):
+                iterations[step] = iteration
+                break
+        if iterations[step] == 0:
+            worst = int(np.nanargmax(change)) if np.any(np.isfinite(change)) else 0
+            joint = _joint_of(model, worst)
+            raise ConvergenceError(
+                f"{model.name}: implicit DT-TMM step {step + 1} ({scheme.name}) at t = {t1:.6g} s did not converge: "
+                f"max |change of v_dot| = {residual:.3e} after {max_iterations} sweeps (tolerance {tolerance:g}), "
+                f"largest at joint {joint!r} ({model.velocities[worst]}); reduce dt", time=t1, element=joint,
+                partial_result=partial())
+        new = scheme.second_order_update(history, a, dt, plan)
+        earlier = [q, earlier[0]]
+        q, v = retract(model, q, new.x), (new.v - 0.5 * bracket(model, new.x, new.v) if chart else new.v)
+        algorithmic = new.a
+        rates = new.equation_acceleration if new.equation_acceleration is not None else new.a
+        x = np.concatenate([q, v])
+        if not np.all(np.isfinite(x)) or (divergence_bound is not None and float(np.abs(x).max()) > divergence_bound):
+            what = "non-finite" if not np.all(np.isfinite(x)) else f"beyond divergence_bound = {divergence_bound}"
+            raise SimulationError(f"{model.name}: the state became {what} at t = {t1} s ({method})", time=t1,
+                                  element=model.name, partial_result=partial())
+        if (step + 1) % store_every == 0 or step + 1 == n_steps:
+            times.append(t1)
+            states.append(x)
+    info.update({"iterations": iterations, "n_evaluations": sweeps, "wall_time_s": clock.perf_counter() - start})
+    return _result(model, times, states, method, info)

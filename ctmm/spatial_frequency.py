@@ -1,0 +1,268 @@
+"""Frequency verbs on spatial models through their linearisation (issue 14, ``docs/spatial.md`` §9).
+
+:func:`ctmm.natural_frequencies`, :func:`ctmm.mode_shapes`, :func:`ctmm.eigenvalue_count` and
+:func:`ctmm.frequency_response` dispatch here for a :class:`~ctmm.spatial.model.SpatialModel`.  About a
+static operating point ``q0`` (default: the static equilibrium of :func:`ctmm.linearize`) in the tangent
+coordinates of :mod:`ctmm.spatial_linearization`, small motions obey ``M x'' + C x' + K x = B u`` with
+
+* ``M^-1`` from the one articulated sweep: its columns are the accelerations of unit generalised
+  forces added to each joint's law (one batched sweep), ``M`` its inverse;
+* ``K = -M df/dr``, ``C = -M df/dv`` from the complex-step Jacobians of :func:`ctmm.linearize`.
+
+``K`` must be symmetric (a conservative linearisation: refused otherwise, e.g. the linear law of an
+anisotropic rotary spring away from its rest rotation) and, for natural frequencies, positive
+semi-definite (a stable equilibrium) with ``C = 0`` (damped models are refused, as for chains).
+
+**Counting.**  The number of natural frequencies strictly below ``omega`` is the number of negative
+eigenvalues of the symmetric ``K - omega^2 M`` (Sylvester's law of inertia: the Wittrick-Williams count
+of the global matrices), certified next to a natural frequency by :func:`ctmm.counting.certified_count`
+with the sign of ``det(K - omega^2 M)`` as its side test.  Natural frequencies come from the symmetric
+generalised eigenproblem ``eigh(K, M)`` and are certified by that independent count: every gap between
+them and the range above the highest must hold the count ``eigh`` claims, so no root is missed (a
+:class:`~ctmm.errors.ModelError` otherwise).  The articulated *frequency context* of the sweep with
+``d = 6`` (the planar :mod:`ctmm.planar_counting`) is not built for spatial bodies: their linear body
+terms need the geometric stiffness of joint axes that turn with the parent, not derived yet.
+"""
+from __future__ import annotations
+
+import dataclasses
+import time
+from typing import Any, Sequence
+
+import numpy as np
+import scipy.linalg
+
+from . import validation
+from .counting import PIVOT_TOLERANCE, certified_count
+from .errors import ModelError
+from .ops import NUMPY
+from .results import FrequencyResponse, ModalResult
+
+__all__ = ["mass_matrix", "SpatialModes", "natural_frequencies", "mode_shapes", "eigenvalue_count",
+           "frequency_response", "SINGULAR_CONDITION", "SYMMETRY_TOLERANCE", "UNDAMPED_TOLERANCE"]
+
+SYMMETRY_TOLERANCE = 1e-8
+"""Largest ``|K - K^T|`` accepted as symmetric, relative to ``max |K|``."""
+UNDAMPED_TOLERANCE = 1e-8
+"""Largest ``|C|`` counted as undamped, relative to ``sqrt(max |K| max |M|)``."""
+SINGULAR_CONDITION = 1e12
+"""Condition number of ``i omega I - A`` above which a frequency response is refused (a pole there)."""
+
+
+def mass_matrix(model: Any, q: np.ndarray, t: float = 0.0) -> np.ndarray:
+    """``M(q)`` (nv, nv) of a spatial model in its velocity coordinates, from one batched sweep.
+
+    Row ``0`` of the batch is the model at rest, row ``1 + k`` the same with a unit generalised force
+    added to velocity ``k``'s joint law; the difference of their accelerations is column ``k`` of ``M^-1``.
+    """
+    from .articulated import articulated_sweep
+    from .spatial.body_forms import SpatialScene
+
+    n = model.n_velocities
+    scene = SpatialScene(model)
+    q_rows = np.repeat(np.asarray(q, dtype=float)[None], n + 1, axis=0)
+    bodies, joints, _ = scene.terms(NUMPY, q_rows, np.zeros((n + 1, n)), t, scene.numpy_inputs(None, t, n + 1))
+    unit = np.vstack([np.zeros((1, n)), np.eye(n)])
+    forced = []
+    for joint, terms, layout in zip(model.joints, joints, model.layout):
+        k = layout.velocity.stop - layout.velocity.start
+        if joint.driven or k == 0:
+            forced.append(terms)
+            continue
+        extra = unit[:, layout.velocity][:, :, None]
+        forced.append(dataclasses.replace(terms, tau=extra if terms.tau is None else terms.tau + extra))
+    solution = articulated_sweep(NUMPY, scene.tree, bodies, forced)
+    parts = [np.broadcast_to(np.asarray(a), (n + 1,) + np.asarray(a).shape[1:])[:, :, 0]
+             for a in scene.velocity_rates(solution)]
+    rates = np.concatenate(parts, axis=1)
+    inverse = (rates[1:] - rates[:1]).T
+    inverse = 0.5 * (inverse + inverse.T)
+    return np.linalg.inv(inverse)
+
+
+@dataclasses.dataclass(frozen=True)
+class SpatialModes:
+    """Symmetric linearisation of a spatial model: ``M``, ``K`` (nv, nv) in tangent coordinates, the
+    operating point and the tangent names."""
+
+    model: Any
+    mass: np.ndarray
+    stiffness: np.ndarray
+    operating_point: Any
+    names: tuple[str, ...]
+
+    def raw(self, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Sylvester count (negative eigenvalues of ``K - omega^2 M``) and the smallest eigenvalue in
+        size relative to ``max |K| + omega^2 max |M|``, at each ``omega`` (B,) [rad/s]."""
+        omega = np.asarray(omega, dtype=float)
+        squared = (omega * omega)[:, None, None]
+        values = np.linalg.eigvalsh(self.stiffness[None] - squared * self.mass[None])
+        scale = float(np.max(np.abs(self.stiffness), initial=0.0)) + squared[:, 0, 0] * float(np.max(np.abs(self.mass)))
+        scale = np.where(scale > 0, scale, 1.0)
+        return np.sum(values < 0.0, axis=1), np.min(np.abs(values), axis=1, initial=np.inf) / scale
+
+    def determinant_sign(self, omega: np.ndarray) -> np.ndarray:
+        """Sign of ``det(K - omega^2 M)``."""
+        omega = np.asarray(omega, dtype=float)
+        return np.linalg.slogdet(self.stiffness[None] - (omega * omega)[:, None, None] * self.mass[None])[0]
+
+    def count(self, omega: Any) -> np.ndarray:
+        """Number of natural frequencies strictly below each ``omega`` [rad/s] (certified)."""
+        omega = np.atleast_1d(np.asarray(omega, dtype=float)).reshape(-1)
+        if omega.size == 0:
+            return np.zeros(0, dtype=np.int64)
+
+        def side(lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+            return self.determinant_sign(lower) != self.determinant_sign(upper * (1.0 - 1e-12))
+
+        return certified_count(self.raw, omega, tolerance=PIVOT_TOLERANCE, side=side)
+
+    def solve(self, verb: str) -> tuple[np.ndarray, np.ndarray]:
+        """Natural frequencies [rad/s] ascending (rigid-body modes 0) and M-orthonormal shapes, certified
+        by :meth:`count` (module docstring)."""
+        values, vectors = scipy.linalg.eigh(self.stiffness, self.mass)
+        top = max(float(np.max(np.abs(values), initial=0.0)), 1e-300)
+        if np.any(values < -1e-9 * top):
+            raise ModelError(f"model {self.model.name!r} is statically unstable about q = "
+                             f"{self.operating_point.q.tolist()}: {int(np.sum(values < -1e-9 * top))} mode(s) with "
+                             "negative stiffness (omega^2 < 0); natural frequencies exist only about a stable "
+                             "equilibrium")
+        omega = np.sqrt(np.where(values <= 1e-9 * top, 0.0, values))
+        positive = omega[omega > 0.0]
+        if positive.size:
+            distinct = np.unique(positive)
+            distinct = distinct[np.concatenate([[True], np.diff(distinct) > 1e-9 * distinct[1:]])]
+            probes = np.concatenate([0.5 * (distinct[:-1] + distinct[1:]), [2.0 * distinct[-1]],
+                                     [0.5 * distinct[0]]])
+            expected = np.sum(omega[None, :] < probes[:, None], axis=1)
+            counted = self.count(probes)
+            if not np.array_equal(counted, expected):
+                raise ModelError(f"{verb}: the Sylvester count of K - omega^2 M of {self.model.name!r} disagrees with "
+                                 f"its eigenvalues (counts {counted.tolist()} != {expected.tolist()} at omega = "
+                                 f"{probes.tolist()} rad/s); the linearisation is ill-conditioned")
+        return omega, vectors
+
+
+def _modes(system: Any, verb: str, operating_point: Any) -> SpatialModes:
+    from .spatial_linearization import operating_point as spatial_operating_point
+    from .spatial_linearization import tangent, tangent_names
+
+    model = system
+    A, op = tangent(model, spatial_operating_point(model, operating_point))
+    n = model.n_velocities
+    M = mass_matrix(model, op.q, op.t)
+    K, C = -M @ A[n:, :n], -M @ A[n:, n:]
+    k_size = max(float(np.max(np.abs(K), initial=0.0)), 1e-300)
+    if np.max(np.abs(C), initial=0.0) > UNDAMPED_TOLERANCE * np.sqrt(k_size * float(np.max(np.abs(M)))):
+        raise ModelError(f"{verb} needs an undamped system, but {model.name!r} has velocity-dependent forces at the "
+                         f"operating point (largest |C| = {np.max(np.abs(C)):.3e}: joint dampers); use "
+                         "ctmm.frequency_response, or the eigenvalues of ctmm.linearize(model).state_space.A")
+    if np.max(np.abs(K - K.T), initial=0.0) > SYMMETRY_TOLERANCE * k_size:
+        raise ModelError(f"{verb}: the stiffness of {model.name!r} at the operating point is not symmetric (largest "
+                         f"|K - K^T| = {np.max(np.abs(K - K.T)):.3e} of {k_size:.3e}: a circulatory law, e.g. an "
+                         "anisotropic rotary spring deflected from its rest rotation); use ctmm.linearize")
+    return SpatialModes(model, 0.5 * (M + M.T), 0.5 * (K + K.T), op, tangent_names(model))
+
+
+def natural_frequencies(system: Any, *, n_modes: int | None = None, omega_max: float | None = None,
+                        operating_point: Any = None) -> np.ndarray:
+    """Undamped natural frequencies [rad/s] of a spatial model's linearisation (ascending, rigid as 0).
+
+    Parameters
+    ----------
+    system : SpatialModel
+        Undamped (else :class:`ModelError`).
+    n_modes : int, optional
+        Number of lowest frequencies.
+    omega_max : float, optional
+        All frequencies below ``omega_max`` [rad/s] instead.
+    operating_point : optional
+        As for :func:`ctmm.linearize` (default: the static equilibrium).
+    """
+    return _selected(system, "natural_frequencies", n_modes, omega_max, operating_point)[0]
+
+
+def _selected(system, verb, n_modes, omega_max, operating_point):
+    if (n_modes is None) == (omega_max is None):
+        raise ModelError("give exactly one of n_modes (int >= 1) or omega_max (rad/s > 0)")
+    modes = _modes(system, verb, operating_point)
+    omega, vectors = modes.solve(verb)
+    if n_modes is not None:
+        n_modes = validation.integer("n_modes", n_modes, minimum=1)
+        if n_modes > omega.size:
+            raise ModelError(f"model {system.name!r} has {omega.size} natural frequencies (one per tangent "
+                             f"coordinate), n_modes={n_modes} requested")
+        keep = np.arange(n_modes)
+    else:
+        keep = np.flatnonzero(omega < validation.positive("omega_max", omega_max))
+    return omega[keep], vectors[:, keep], modes
+
+
+def mode_shapes(system: Any, *, n_modes: int | None = None, omega_max: float | None = None,
+                operating_point: Any = None) -> ModalResult:
+    """Natural frequencies and mode shapes in the tangent coordinates of a spatial model.
+
+    ``shapes[k, i, 0]`` is tangent coordinate ``i`` (``point_names``: :func:`ctmm.spatial_linearization.tangent_names`)
+    in mode ``k``, normalised to unit largest entry; otherwise as :func:`natural_frequencies`.  Modes of a
+    repeated frequency are an M-orthogonal basis of its eigenspace.
+    """
+    omega, vectors, modes = _selected(system, "mode_shapes", n_modes, omega_max, operating_point)
+    if vectors.size:
+        ref = vectors[np.argmax(np.abs(vectors), axis=0), np.arange(vectors.shape[1])]
+        vectors = vectors / ref
+    return ModalResult(omega, vectors.T[:, :, None], ("amplitude",), modes.names)
+
+
+def eigenvalue_count(system: Any, omega: Any, *, operating_point: Any = None) -> np.ndarray:
+    """Number of undamped natural frequencies of a spatial model's linearisation strictly below each
+    ``omega`` [rad/s] (Sylvester count of ``K - omega^2 M``, certified; module docstring)."""
+    omega = validation.frequencies("omega", omega)
+    modes = _modes(system, "eigenvalue_count", operating_point)
+    return modes.count(omega.reshape(-1)).reshape(omega.shape)
+
+
+def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  # noqa: A002
+                       output: str | Sequence[str], operating_point: Any = None) -> FrequencyResponse:
+    """Frequency response ``C (i omega I - A)^-1 B`` of a spatial model's linearisation.
+
+    Parameters
+    ----------
+    system : SpatialModel
+    omega : array_like
+        Angular frequencies [rad/s], >= 0.
+    input : str or sequence of str
+        Input components (:func:`ctmm.spatial_linearization.input_names`, e.g. ``"yaw.torque"`` [N m],
+        ``"base.wrench_fz"`` [N]).
+    output : str or sequence of str
+        Tangent coordinates [rad, m] and velocities [rad/s, m/s] (:func:`ctmm.linearize`).
+    operating_point : optional
+        As for :func:`ctmm.linearize` (default: the static equilibrium).
+
+    Returns
+    -------
+    FrequencyResponse
+        ``response[i_out, i_in, k]``: output deviation phasor per unit input phasor.
+    """
+    from .spatial_linearization import linearize_spatial
+
+    inputs = list(validation.names("input", input))
+    outputs = list(validation.names("output", output))
+    s = 1j * validation.frequencies("omega", omega)
+    started = time.perf_counter()
+    lin = linearize_spatial(system, operating_point, inputs=inputs, outputs=outputs)
+    ss = lin.state_space
+    A, B, C, D = (np.asarray(m, dtype=float) for m in (ss.A, ss.B, ss.C, ss.D))
+    pencil = s[:, None, None] * np.eye(A.shape[0]) - A
+    condition = np.linalg.cond(pencil) if A.size else np.ones(s.size)
+    if not np.all(condition < SINGULAR_CONDITION):
+        bad = float(np.imag(s)[np.argmax(~(condition < SINGULAR_CONDITION))])
+        raise ModelError(f"frequency_response: s I - A of {system.name!r} is singular at omega = {bad!r} rad/s (a pole "
+                         "on the imaginary axis, e.g. a rigid-body mode or a free rotation at omega = 0); leave that "
+                         "frequency out")
+    X = np.linalg.solve(pencil, np.broadcast_to(B, (s.size,) + B.shape))
+    G = C @ X + D                                        # (frequencies, outputs, inputs)
+    info = {"method": "linearisation (ctmm.linearize)", "wall_time_s": time.perf_counter() - started,
+            "n_frequencies": int(s.size), "operating_point_q": lin.operating_point.q.tolist(),
+            "jacobian_error": lin.operating_point.jacobian_error}
+    return FrequencyResponse(np.imag(s), np.moveaxis(G, 0, -1), tuple(inputs), tuple(outputs), system.name,
+                             info=info)

@@ -1,0 +1,357 @@
+"""Linearisation of spatial models about an operating point: the linear spatial MSTMM (issue 14).
+
+The path of :func:`ctmm.linearize` for a :class:`~ctmm.spatial.model.SpatialModel`
+(``docs/spatial.md`` §9).  States are **tangent coordinates** about the operating point ``q0``:
+
+* revolute, prismatic, universal joints: the deviation of their angles / displacements;
+* spherical joints: the rotation vector ``r`` (3, child axes) with ``quat = quat0 (x) exp(r)``
+  (right perturbation: ``r_dot = omega`` to first order, ``omega`` in child axes as the velocities);
+* free and elastic joints: ``[p ; r]`` with ``t = t0 + R0 p`` (``p`` in the child axes at ``q0``,
+  ``p_dot = v_o`` to first order) and the rotation vector ``r`` as above;
+
+followed by the velocities ``v`` (``model.velocities``, their deviations).  Named
+``"<joint>.angle"``, ``"<joint>.rx"``, ``"<joint>.x"``, ... (:func:`tangent_names`) and
+``model.velocities``.  ``x' = A x + B u``, ``y = C x`` with
+
+* ``A = [[0, I], [df/dr, df/dv]]``, ``f = v_dot(q0 (+) r, v, u)`` by complex step through the batched
+  terms of the one articulated sweep (:class:`ctmm.spatial.body_forms.SpatialScene`, ``d = 6``), exact to
+  round-off, cross-checked along one direction by a Richardson difference of
+  :func:`ctmm.spatial.accelerations` (``OperatingPoint.jacobian_error``, refused above
+  :data:`~ctmm.planar_linearization.JACOBIAN_TOLERANCE`);
+* ``B = [[0], [df/du]]`` -- ``f`` is affine in the actuator inputs, a symmetric unit difference is
+  exact; one input per component (:func:`input_names`: ``"yaw.torque"``, ``"ball.torque_x"``,
+  ``"base.wrench_fx"``, ... in the joint's own axes, child axes for spherical and free joints);
+* ``C`` selects tangent coordinates and velocities (``D = 0``).
+
+The operating point is the static equilibrium when none is given: the root of the sweep's
+accelerations ``f(q0 (+) r, 0) = 0`` from the neutral configuration by pseudo-transient continuation
+(implicit Euler steps of the overdamped fall ``r' = f``, which lowers the potential energy, with a
+step ``dt`` grown as ``|f|`` falls until they are Newton steps; minimum-norm solves, so neutral
+directions such as a free yaw stay where they are).  It heads for a stable equilibrium but may end
+on any (the eigenvalues of ``A`` tell).  A free joint under gravity has none: refused.
+"""
+from __future__ import annotations
+
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from . import validation
+from .errors import ModelError, unknown_name
+from .linearized import LinearizedSystem, OperatingPoint, control_name
+from .ops import NUMPY
+from .planar_linearization import EQUILIBRIUM_TOLERANCE, JACOBIAN_TOLERANCE, TIME_PROBES, jacobian
+
+__all__ = ["linearize_spatial", "tangent_names", "input_names", "retract", "static_equilibrium",
+           "operating_point", "tangent", "input_matrix", "NEWTON_ITERATIONS"]
+
+NEWTON_ITERATIONS = 200
+"""Largest number of (pseudo-transient Newton) steps of :func:`static_equilibrium`."""
+_COMPONENTS = {3: ("x", "y", "z"), 6: ("fx", "fy", "fz", "mx", "my", "mz"), 2: ("1", "2")}
+
+
+def tangent_names(model: Any) -> tuple[str, ...]:
+    """Names of the tangent coordinates (one per velocity, module docstring)."""
+    names = []
+    for joint in model.joints:
+        if joint.driven or joint.kind == "weld":
+            continue
+        if joint.kind == "spherical":
+            parts: tuple[str, ...] = ("rx", "ry", "rz")
+        elif joint.kind in ("free", "elastic6"):
+            parts = ("x", "y", "z", "rx", "ry", "rz")
+        elif joint.kind == "universal":
+            parts = ("angle1", "angle2")
+        else:
+            parts = ("angle",) if joint.kind == "revolute" else ("position",)
+        names += [f"{joint.name}.{p}" for p in parts]
+    return tuple(names)
+
+
+def input_names(model: Any) -> tuple[str, ...]:
+    """One name per actuator input component: the input's own name for a scalar input, else
+    ``"<input>_<component>"`` (``x, y, z``; ``1, 2`` for universal joints; ``fx ... mz`` for wrenches)."""
+    return tuple(name for name, _, _ in _input_components(model))
+
+
+def _input_components(model: Any) -> list[tuple[str, str, int]]:
+    out = []
+    for joint in model.joints:
+        for name in joint.inputs:
+            k = joint.velocity_count
+            if k == 1:
+                out.append((name, name, 0))
+            else:
+                out += [(f"{name}_{c}", name, i) for i, c in enumerate(_COMPONENTS[k])]
+    return out
+
+
+# ------------------------------------------------------------------------------ rotations
+def _quaternion_exp(r: np.ndarray) -> np.ndarray:
+    """``exp(r)`` as a unit quaternion ``(..., 4)`` scalar first; analytic (complex step safe)."""
+    theta2 = np.sum(r * r, axis=-1)
+    small = np.abs(theta2) < 1e-8
+    theta = np.sqrt(np.where(small, 1.0, theta2).astype(np.result_type(r, complex)))
+    if not np.iscomplexobj(r):
+        theta = theta.real
+    w = np.where(small, 1.0 - theta2 / 8.0 + theta2 ** 2 / 384.0, np.cos(theta / 2.0))
+    s = np.where(small, 0.5 - theta2 / 48.0 + theta2 ** 2 / 3840.0, np.sin(theta / 2.0) / theta)
+    return np.concatenate([w[..., None], s[..., None] * r], axis=-1)
+
+
+def _quaternion_product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    wa, va = a[..., :1], a[..., 1:]
+    wb, vb = b[..., :1], b[..., 1:]
+    return np.concatenate([wa * wb - np.sum(va * vb, axis=-1, keepdims=True),
+                           wa * vb + wb * va + np.cross(va, vb)], axis=-1)
+
+
+def retract(model: Any, q0: np.ndarray, delta: np.ndarray) -> np.ndarray:
+    """``q0 (+) delta`` (module docstring) for a batch ``delta (B, nv)`` (complex allowed) -> ``(B, nq)``."""
+    from .spatial.model import rotation_matrix
+
+    delta = np.atleast_2d(delta)
+    q = np.repeat(np.asarray(q0)[None, :], delta.shape[0], axis=0).astype(np.result_type(q0, delta, float))
+    for joint, layout in zip(model.joints, model.layout):
+        qs, d = layout.position, delta[:, layout.velocity]
+        if joint.driven or joint.kind == "weld":
+            continue
+        if joint.kind == "spherical":
+            q[:, qs] = _quaternion_product(q[:, qs], _quaternion_exp(d))
+        elif joint.kind in ("free", "elastic6"):
+            start = qs.start
+            R0 = rotation_matrix(np.asarray(q0, dtype=float)[start + 3:start + 7])
+            q[:, start:start + 3] = q[:, start:start + 3] + d[:, :3] @ R0.T
+            q[:, start + 3:start + 7] = _quaternion_product(q[:, start + 3:start + 7], _quaternion_exp(d[:, 3:]))
+        else:
+            q[:, qs] = q[:, qs] + d
+    return q
+
+
+def _rates(model: Any, q: np.ndarray, v: np.ndarray, t: float, inputs: Mapping[str, Any] | None = None
+           ) -> np.ndarray:
+    """``v_dot (B, nv)`` of a batch through the one sweep, complex states allowed (no float check)."""
+    from .spatial.body_forms import SpatialScene
+
+    scene = SpatialScene(model)
+    batch = max(q.shape[0], v.shape[0])
+    solution = scene.sweep(NUMPY, q, v, t, scene.numpy_inputs(inputs, t, batch))
+    parts = [np.broadcast_to(np.asarray(a), (batch,) + np.asarray(a).shape[1:])[:, :, 0]
+             for a in scene.velocity_rates(solution)]
+    return np.concatenate(parts, axis=1) if parts else np.zeros((batch, 0))
+
+
+def _position_jacobian(model: Any, q: np.ndarray, v: np.ndarray, t: float, step: float = 1e-30
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """``df/dr, df/dv`` (nv, nv) at ``(q, v)`` by complex step, one batched sweep over ``2 nv`` states."""
+    n = model.n_velocities
+    if n == 0:
+        return np.zeros((0, 0)), np.zeros((0, 0))
+    perturb = 1j * step * np.eye(2 * n)
+    qs = retract(model, q, perturb[:, :n])
+    vs = v[None, :] + perturb[:, n:]
+    J = _rates(model, qs, vs, t).imag / step          # row k: d f / d x_k
+    return J[:n].T, J[n:].T
+
+
+# ---------------------------------------------------------------------------- equilibrium
+def _scale(model: Any) -> float:
+    return EQUILIBRIUM_TOLERANCE * (1.0 + float(np.max(np.abs(model.gravity))))
+
+
+def static_equilibrium(model: Any, t: float = 0.0, start: Any = None) -> np.ndarray:
+    """A static equilibrium ``q0`` (unit quaternions) of a spatial model reached from ``start`` (default
+    ``model.neutral()``) by pseudo-transient continuation on the sweep's accelerations at rest
+    (module docstring).
+
+    Raises
+    ------
+    ModelError
+        A free joint under gravity; no convergence (no equilibrium near ``start``, or loads that
+        keep a body moving).
+    """
+    free = [joint.name for joint in model.joints if joint.kind == "free" and not joint.driven]
+    if free and np.any(model.gravity != 0.0):
+        raise ModelError(f"linearize: {model.name!r} has the free joint(s) {free} under gravity "
+                         f"{model.gravity.tolist()} m/s^2: it falls, there is no static equilibrium; hold the body "
+                         "(Elastic6, Weld), set gravity=(0, 0, 0), or pass operating_point with "
+                         "allow_nonequilibrium=True for the tangent at one instant")
+    q = model.normalized(model.neutral() if start is None else start)
+    zero = np.zeros((1, model.n_velocities))
+    limit = _scale(model)
+    residual = _rates(model, q[None], zero, t)[0]
+    size = float(np.max(np.abs(residual), initial=0.0))
+    # pseudo-transient continuation on r' = f (the overdamped fall, which lowers the potential energy):
+    # implicit Euler steps (I / dt - df/dr) step = f, dt grown as |f| falls (Newton once dt is large)
+    dt = 0.1 / max(size, 1e-300)
+    eye = np.eye(model.n_velocities)
+    for _ in range(NEWTON_ITERATIONS):
+        if size <= 1e-6 * limit:
+            break
+        Jq, _ = _position_jacobian(model, q, zero[0], t)
+        step = np.linalg.lstsq(eye / dt - Jq, residual, rcond=1e-13)[0]
+        trial = model.normalized(retract(model, q, step)[0])
+        trial_residual = _rates(model, trial[None], zero, t)[0]
+        trial_size = float(np.max(np.abs(trial_residual), initial=0.0))
+        if not (np.isfinite(trial_size) and trial_size < 2.0 * size):
+            dt /= 4.0
+            continue
+        ratio = trial_size / max(size, 1e-300)
+        q, residual, size = trial, trial_residual, trial_size
+        if size <= limit and ratio > 0.1:
+            break                                   # Newton's quadratic convergence has reached round-off
+        dt *= min(10.0, 1.0 / max(ratio, 1e-300))
+    if not size <= limit:
+        raise ModelError(f"linearize: no static equilibrium of {model.name!r} found near the neutral configuration "
+                         f"(pseudo-transient Newton stopped at a largest acceleration {size:.3e} > {limit:.1e}); "
+                         "a load without a restoring spring, or a drift direction; pass operating_point=(q, v)")
+    return q
+
+
+def _parse_point(model: Any, point: Any) -> tuple[Any, Any, float]:
+    n_q, n_v = model.n_positions, model.n_velocities
+    if isinstance(point, OperatingPoint):
+        return point.q, point.qdot, point.t
+    if isinstance(point, Mapping):
+        if not set(point) <= {"q", "v", "t"}:
+            raise ModelError(f"operating_point mapping keys must be 'q' ({n_q} coordinates {model.coordinates}), 'v' "
+                             f"({n_v} velocities) and 't' [s], got {sorted(point)}")
+        return point.get("q", model.neutral()), point.get("v", np.zeros(n_v)), point.get("t", 0.0)
+    if isinstance(point, (tuple, list)) and len(point) in (2, 3):
+        return point[0], point[1], (point[2] if len(point) == 3 else 0.0)
+    raise ModelError(f"operating_point must be None, an OperatingPoint, (q, v), (q, v, t) or a mapping with keys 'q', "
+                     f"'v', 't' for the spatial model {model.name!r} (q: {n_q} coordinates {model.coordinates}), got "
+                     f"{point!r}")
+
+
+def operating_point(model: Any, point: Any = None, *, allow_nonequilibrium: bool = False) -> OperatingPoint:
+    """The :class:`OperatingPoint` of a spatial model: the static equilibrium for ``None``
+    (:func:`static_equilibrium`), else ``(q, v)``, ``(q, v, t)``, a mapping or an OperatingPoint,
+    checked to be an equilibrium (at rest now and at a few later times) unless allowed."""
+    if point is None:                       # then checked like a given point (time-varying loads)
+        q, v, t = static_equilibrium(model), np.zeros(model.n_velocities), 0.0
+    else:
+        q, v, t = _parse_point(model, point)
+    try:
+        q_rows, v_rows = model.check_state(q, v)
+    except ModelError as exc:
+        raise ModelError(f"operating_point: {exc}") from None
+    if q_rows.shape[0] != 1 or v_rows.shape[0] != 1:
+        raise ModelError(f"operating_point: one state, got q of shape {np.shape(q)} and v of shape {np.shape(v)}")
+    q, v = model.normalized(q_rows[0]), v_rows[0].copy()
+    t = validation.finite("operating_point t", t)
+    quaternion_rates = [joint.name for joint, layout in zip(model.joints, model.layout)
+                        if joint.kind in ("spherical", "free", "elastic6") and np.any(v[layout.velocity] != 0.0)]
+    if quaternion_rates:
+        raise ModelError(f"linearize: the operating point of {model.name!r} has rates on the rotating joints "
+                         f"{quaternion_rates}; the spatial tangent is built about rest for them (their tangent "
+                         "kinematics are not [0, I] in motion); give v = 0 for spherical, free and elastic joints")
+    limit = _scale(model)
+    residual = float(np.max(np.abs(_rates(model, q[None], v[None], t)[0]), initial=0.0))
+    equilibrium = residual <= limit and not np.any(v != 0.0)
+    if equilibrium:
+        for later in (t + offset for offset in TIME_PROBES):
+            drift = float(np.max(np.abs(_rates(model, q[None], v[None], later)[0]), initial=0.0))
+            if not drift <= limit:
+                equilibrium, residual = False, drift
+                break
+    if not equilibrium and not allow_nonequilibrium:
+        raise ModelError(f"linearize: the operating point of {model.name!r} is not an equilibrium (largest "
+                         f"acceleration {residual:.3e} > {limit:.1e} now or later, largest rate "
+                         f"{float(np.max(np.abs(v), initial=0.0)):.3e}); pass operating_point=None for the static "
+                         "equilibrium, or allow_nonequilibrium=True for the tangent at this instant")
+    return OperatingPoint(q, v, t, tuple(model.coordinates), bool(equilibrium), 0.0)
+
+
+# ------------------------------------------------------------------------------- matrices
+def tangent(model: Any, point: OperatingPoint) -> tuple[np.ndarray, OperatingPoint]:
+    """``A = [[0, I], [df/dr, df/dv]]`` (2 nv, 2 nv) at ``point`` and the point with its
+    ``jacobian_error`` (complex step, cross-checked by a Richardson difference along one direction)."""
+    from .spatial.dynamics import accelerations
+
+    n = model.n_velocities
+    Jq, Jv = _position_jacobian(model, point.q, point.qdot, point.t)
+    A = np.block([[np.zeros((n, n)), np.eye(n)], [Jq, Jv]])
+    if n == 0:
+        return A, point
+    direction = np.random.default_rng(20261125).uniform(-1.0, 1.0, 2 * n)
+    direction /= np.max(np.abs(direction))
+
+    def along(e: np.ndarray) -> np.ndarray:
+        q = retract(model, point.q, e[0] * direction[None, :n])[0]
+        return accelerations(model, q, point.qdot + e[0] * direction[n:], point.t)
+
+    slope, slope_error = jacobian(along, np.zeros(1))
+    disagreement = np.abs(np.hstack([Jq, Jv]) @ direction - slope[:, 0]) + slope_error[:, 0]
+    error = float(np.max(disagreement, initial=0.0) / max(float(np.max(np.abs(A))), 1e-300))
+    if not error <= JACOBIAN_TOLERANCE:
+        raise ModelError(f"linearize: the Jacobians of {model.name!r} at the operating point disagree with a "
+                         f"Richardson difference (relative {error:.2e} > {JACOBIAN_TOLERANCE:.0e}); the accelerations "
+                         "are not smooth there")
+    return A, point._replace(jacobian_error=error)
+
+
+def input_matrix(model: Any, names: Sequence[str], point: OperatingPoint) -> np.ndarray:
+    """``df/du`` (nv, len(names)) of input components ``names`` (:func:`input_names`; exact)."""
+    components = {name: (base, i) for name, base, i in _input_components(model)}
+    for name in names:
+        if name not in components:
+            raise unknown_name("spatial input", name, list(components))
+    if not names:
+        return np.zeros((model.n_velocities, 0))
+    m = len(names)
+    values: dict[str, np.ndarray] = {}
+    for k, name in enumerate(names):
+        base, i = components[name]
+        size = next(j.velocity_count for j in model.joints if base in j.inputs)
+        block = values.setdefault(base, np.zeros((2 * m, size)))
+        block[k, i], block[m + k, i] = 1.0, -1.0
+    q = np.repeat(point.q[None], 2 * m, axis=0)
+    v = np.repeat(point.qdot[None], 2 * m, axis=0)
+    rates = _rates(model, q, v, point.t, values)
+    return (0.5 * (rates[:m] - rates[m:])).T
+
+
+def linearize_spatial(model: Any, point: Any = None, *, inputs: Any = None, outputs: Any = None,
+                      allow_nonequilibrium: bool = False) -> LinearizedSystem:
+    """:func:`ctmm.linearize` of a spatial model (module docstring).
+
+    Parameters
+    ----------
+    model : SpatialModel
+    point : optional
+        ``None`` (static equilibrium), ``(q, v)``, ``(q, v, t)``, ``{"q", "v", "t"}`` or an OperatingPoint.
+    inputs : str or sequence of str, optional
+        Input components (:func:`input_names`; default all); ``[]`` for none.
+    outputs : str or sequence of str, optional
+        Tangent coordinates (:func:`tangent_names`) and velocities (``model.velocities``); default the
+        tangent coordinates.
+    allow_nonequilibrium : bool
+        Accept a point that is not an equilibrium (rates of 1-/2-DOF joints, accelerations): the
+        tangent at that instant only.
+    """
+    import control
+
+    validation.flag("allow_nonequilibrium", allow_nonequilibrium)
+    A, op = tangent(model, operating_point(model, point, allow_nonequilibrium=allow_nonequilibrium))
+    n = model.n_velocities
+    available = input_names(model)
+    exo = list(available) if inputs is None else list(validation.names("inputs", inputs)) if inputs else []
+    states = list(tangent_names(model)) + list(model.velocities)
+    index = {name: k for k, name in enumerate(states)}
+    req = list(tangent_names(model)) if outputs is None else (
+        list(validation.names("outputs", outputs)) if outputs else [])
+    C = np.zeros((len(req), 2 * n))
+    for k, name in enumerate(req):
+        if name not in index:
+            raise unknown_name("output of a spatial linearisation (tangent coordinate or velocity)", name, states)
+        C[k, index[name]] = 1.0
+    B = np.vstack([np.zeros((n, len(exo))), input_matrix(model, exo, op)])
+    if not exo and len(req) == 1:
+        raise ModelError(f"linearize: inputs={inputs!r} leaves the linearisation of {model.name!r} with no input and "
+                         f"the one output {req}, a state space python-control cannot hold; name an input or a "
+                         "second output")
+    ss = control.ss(A, B, C, np.zeros((len(req), len(exo))), inputs=[control_name(x) for x in exo],
+                    outputs=[control_name(x) for x in req], states=[control_name(x) for x in states],
+                    name=control_name(model.name))
+    return LinearizedSystem(ss, (), op)
