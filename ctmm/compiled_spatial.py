@@ -289,7 +289,8 @@ def simulate_spatial_generated(model: SpatialModel, t_final: float, dt: float, *
         bad |= np.any(np.abs(np.where(np.isfinite(states), states, 0.0)) > divergence_bound, axis=1)
     if np.any(bad):
         first = int(np.flatnonzero(bad)[0])
-        what = "non-finite" if not np.all(np.isfinite(states[first])) else f"beyond divergence_bound = {divergence_bound}"
+        finite = np.all(np.isfinite(states[first]))
+        what = f"beyond divergence_bound = {divergence_bound}" if finite else "non-finite"
         raise SimulationError(f"{model.name}: the state became {what} at t = {times[first]} s (rk4-generated; checked "
                               f"on the stored states)", time=float(times[first]), element=model.name,
                               partial_result=_result(model, times[:first], states[:first], info))
