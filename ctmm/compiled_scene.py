@@ -4,7 +4,8 @@ A :class:`~ctmm.planar.model.PlanarModel` -- rigid trees, modal beams, hub-beam 
 the element protocol by :class:`~ctmm.planar.body_forms.PlanarScene`; its one articulated sweep
 (:func:`ctmm.articulated.articulated_sweep`) runs here on casadi symbols and gives the accelerations
 ``qddot = f(q, qdot, u, p, t)`` as one SX expression.  Nothing in this module knows a family: a new
-element family stated on the protocol compiles without touching it.  From that expression:
+element family stated on the protocol compiles without touching it.  From that expression
+(the time loop of :mod:`ctmm.generated_loop`, shared with spatial models, :mod:`ctmm.compiled_spatial`):
 
 * ``acceleration(q, v, u, p, t)`` -- the sweep;
 * ``step(y, u, h, p, t0, k)`` -- RK4 step ``k`` (from ``t0 + k h``), :func:`ctmm.ode.rk4_step` run on
@@ -57,7 +58,7 @@ from .compiled_parameters import (compile_refusal, compiled_actuators, constants
                                   structure_key, symbolic_numbers)
 from .control.controlled_model import ControlledModel
 from .errors import ModelError
-from .ode import rk4_step
+from .generated_loop import rk4_step_function, run_blocks, time_loop_functions
 from .ops import CASADI
 from .planar.body_forms import PlanarScene
 from .planar.guards import check_scheme, check_stored, divergence_guard
@@ -157,37 +158,14 @@ class CompiledScene:
         solution = articulated_sweep(CASADI, scene.tree, bodies, joints)
         qddot = _coordinate_accelerations(model, solution.x)
         acceleration = ca.Function("acceleration", [q, v, u, p, t], [qddot])
-        # on MX symbols the sweep stays one C function called by the four stages, and the loops stay
-        # loops (an SX call would inline and unroll them)
-        y_mx, u_mx, h_mx = ca.MX.sym("y", 2 * n), ca.MX.sym("u", len(self.actuators)), ca.MX.sym("h")
-        p_mx, t_mx = ca.MX.sym("p", n_p), ca.MX.sym("t")
-
-        def rate(stage: Any, state: Any) -> Any:
-            return ca.vertcat(state[n:], acceleration(state[:n], state[n:], u_mx, p_mx, stage))
-
-        # the start time of step k is t0 + k h (as the numpy path), from the inputs t0 and k (a double)
-        t0_mx, k_mx = ca.MX.sym("t0"), ca.MX.sym("k")
         if self.loops is None:
-            step = ca.Function("step", [y_mx, u_mx, h_mx, p_mx, t0_mx, k_mx],
-                               [rk4_step(rate, t0_mx + k_mx * h_mx, y_mx, h_mx)])
+            y_sx = ca.SX.sym("y", 2 * n)
+            rate = ca.Function("rate", [y_sx, u, p, t], [ca.vertcat(y_sx[n:], acceleration(y_sx[:n], y_sx[n:], u, p,
+                                                                                           t))])
+            step = rk4_step_function(rate)
         else:           # the loops closed at every stage, the delayed ones from the ring in the state
             step = self.loops.step(acceleration, len(self.actuators), n_p)
-            y_mx = ca.MX.sym("y", self.state_size)
-        arguments = [y_mx, u_mx, h_mx, p_mx, t0_mx, k_mx]
-
-        def repeated(count: int, first: Any) -> list:
-            return [y_mx] + [ca.repmat(x, 1, count) for x in (u_mx, h_mx, p_mx, t0_mx)] + [first]
-
-        stride = ca.Function("stride", arguments, [step.fold(store_every)(*repeated(
-            store_every, k_mx + ca.DM(np.arange(store_every, dtype=float)).T)) if store_every > 1
-            else step(*arguments)])
-        # blocks of rows, rows/2, rows/4, ... strides: a remainder costs one call per binary digit
-        self._sizes = [self.rows >> k for k in range(self.rows.bit_length()) if self.rows >> k > 1]
-        blocks = []
-        for size in self._sizes:
-            accumulated = stride.mapaccum(f"block{size}_acc", size)
-            first = k_mx + ca.DM(store_every * np.arange(size, dtype=float)).T
-            blocks.append(ca.Function(f"block{size}", arguments, [accumulated(*repeated(size, first))]))
+        stride, self._sizes, blocks = time_loop_functions(step, store_every, self.rows)
         name = f"scene_{model.n_bodies}b{n}q" + (f"{len(self.loops.laws)}l" if self.loops else "")
         options = {"cache_dir": cache_dir, "compiler": compiler}
         loaded = load_casadi([acceleration, step, stride, *blocks], name, **options)
@@ -196,6 +174,7 @@ class CompiledScene:
         self._closed_rate = None
         if self.loops is not None and not self.loops.delayed:       # the closed loop's rate, on the library
             x, u_all = ca.MX.sym("x", self.state_size), ca.MX.sym("u", len(self.actuators))
+            p_mx, t_mx = ca.MX.sym("p", n_p), ca.MX.sym("t")
             self._closed_rate = ca.Function("closed_rate", [x, u_all, p_mx, t_mx], [
                 self.loops.rate(self._acceleration, u_all, p_mx, t_mx, x, ())[0]])
         self.compile_time_s = _time.perf_counter() - start
@@ -329,41 +308,10 @@ class CompiledScene:
 
     def _run_batch(self, y: np.ndarray, u: np.ndarray, h: float, n_steps: int, t0: float, p: np.ndarray,
                    parallelization: str, threads: int) -> np.ndarray:
-        """Stored states (B, rows, 2 n) of the B members (columns of ``y`` (2 n, B) and ``p``); the
-        generated functions run over the batch by ``casadi.Function.map`` (nothing generated or
-        compiled); stops after the first block where every member holds a non-finite state."""
-        every, batch = self.store_every, y.shape[1]
-        strides, rest = divmod(n_steps, every)
-
-        def mapped(function: Any) -> Any:
-            return function if batch == 1 else function.map(batch, parallelization, threads)
-
-        def members(value: Any, size: int) -> np.ndarray:          # (2 n, size B) -> (B, size, 2 n)
-            return np.asarray(value).reshape(y.shape[0], batch, size).transpose(1, 2, 0)
-
-        import casadi as ca
-
-        u, p = ca.DM(u), ca.DM(p)                                   # converted once, not per call
-        out = []
-        done = 0
-        for size, function in self._blocks:
-            function = mapped(function) if done + size <= strides else function
-            while done + size <= strides:
-                block = members(function(y, u, h, p, t0, float(done * every)), size)
-                out.append(block)
-                y = block[:, -1, :].T
-                done += size
-                if not np.any(np.all(np.isfinite(block), axis=(1, 2))):
-                    return np.concatenate(out, axis=1)
-        stride, step = mapped(self._stride), mapped(self._step)
-        for k in range(done, strides):
-            y = np.asarray(stride(y, u, h, p, t0, float(k * every))).reshape(y.shape)
-            out.append(y.T[:, None, :])
-        for k in range(rest):
-            y = np.asarray(step(y, u, h, p, t0, float(strides * every + k))).reshape(y.shape)
-        if rest:
-            out.append(y.T[:, None, :])
-        return np.concatenate(out, axis=1) if out else np.zeros((batch, 0, y.shape[0]))
+        """Stored states (B, rows, 2 n) of the B members (columns of ``y`` (2 n, B) and ``p``):
+        :func:`ctmm.generated_loop.run_blocks` of this scene's compiled functions."""
+        return run_blocks(self._blocks, self._stride, self._step, self.store_every, y, u, h, n_steps, t0, p,
+                          parallelization, threads)
 
 
 def simulate_batch(scene: CompiledScene, parameters: Any, q0: Any, qdot0: Any, *, dt: float, n_steps: int,

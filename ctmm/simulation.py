@@ -59,16 +59,22 @@ def _simulate_spatial(model: SpatialModel, t_final: float, dt: float | None, *, 
                       divergence_bound: float | None, rtol: float, atol: float, max_step: float | None,
                       store_every: int, compiled: Any) -> SimulationResult:
     """:func:`simulate` of a :class:`~ctmm.spatial.model.SpatialModel` (RK4, ``solve_ivp`` or a DT-TMM scheme;
-    ``docs/spatial.md`` §6, §6a)."""
+    ``docs/spatial.md`` §6, §6a, §6b)."""
     unsupported = {"controllers": (controllers, []), "references": (references, {}), "solver": (solver, "riccati"),
                    "fast": (fast, None), "force_hook": (force_hook, None), "t0": (t0, 0.0),
                    "progress": (progress, None), "stability_check": (stability_check, None),
-                   "outputs": (tuple(outputs), ()), "compiled": (compiled, None)}
+                   "outputs": (tuple(outputs), ())}
     for name, (value, default) in unsupported.items():
         if value is not default and value != default:
             raise ModelError(f"{name}={value!r} is not available for spatial models yet (RK4 and solve_ivp runs "
                              f"store every coordinate, velocity, body position and angular velocity); leave {name} "
                              f"at {default!r}")
+    if validation.flag("compiled", compiled, optional=True):        # the generated RK4 (ctmm.compiled_spatial)
+        if not isinstance(method, str) or method != "rk4":
+            raise ModelError(f"compiled=True runs the generated RK4 of a spatial model; got method={method!r}")
+        from .compiled_spatial import simulate_spatial_generated
+        return simulate_spatial_generated(model, t_final, dt, x0=x0, v0=v0, inputs=inputs, store_every=store_every,
+                                          divergence_bound=divergence_bound)
     if isinstance(method, Scheme) or method in SCHEMES:          # the implicit DT-TMM (docs/spatial.md §6)
         solve_ivp_options = {"rtol": (rtol, 1e-8), "atol": (atol, 1e-10), "max_step": (max_step, None)}
         for name, (value, default) in solve_ivp_options.items():
@@ -209,7 +215,9 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         :mod:`ctmm.signals` signals with a symbolic form).  What it cannot compile (user callables of
         time, driven motions, translational hinge springs, delays that are not whole multiples of
         ``dt``, beam station forces or moments, co-simulated controllers) raises :class:`ModelError`
-        naming it.  Default: the numpy path.
+        naming it.  Spatial, ``"rk4"``: ``True`` runs the generated RK4 of
+        :func:`ctmm.compiled_spatial.simulate_spatial_generated` (inputs held numbers; same result as
+        the numpy path to round-off).  Default: the numpy path.
     progress : bool, optional
         Show a progress bar (default: long runs on a terminal).
     stability_check : {"warn", "error", "ignore"}, optional

@@ -1,0 +1,303 @@
+"""Generated kernels of spatial models (issues 13 and 14): the RK4 time loop in C.
+
+A :class:`~ctmm.spatial.model.SpatialModel` is stated on the element protocol by
+:class:`~ctmm.spatial.body_forms.SpatialScene`; its body and joint terms run here on casadi symbols
+through the one articulated sweep (:func:`ctmm.articulated.articulated_sweep`, ``d = 6``) and give
+the rates of the state ``y = [q ; v]``
+
+    y_dot = [G(q) v ; v_dot(q, v, u)]
+
+as one SX expression (:class:`SpatialRates`, the :class:`~ctmm.generated_loop.SymbolicRates` of the
+scene); :mod:`ctmm.generated_loop` builds the RK4 step, strides and blocks from it exactly as for
+planar scenes (:class:`~ctmm.compiled_scene.CompiledScene`), and :mod:`ctmm.codegen` compiles and
+caches the C.
+
+Quaternions are integrated as coordinates, as on the numpy path
+(:func:`ctmm.spatial.integrate.simulate_spatial`): ``q_dot = 1/2 q (x) (0, omega)``, every rotation
+formed from the normalised quaternion, stored quaternions as integrated; the two paths agree to
+round-off.
+
+Numbers are constants of the generated code (one library per model, cached by the hash of its C
+text): :func:`~ctmm.spatial.body_forms.rigid_body_terms` and the joint laws take the model's masses,
+inertias, points, stiffnesses and dampings as numeric constants, so a parameter input ``p`` would
+need those terms to accept symbols; the kernels keep an empty ``p`` for that.  Actuator inputs
+(``"<joint>.torque" | ".force" | ".wrench"``) are inputs ``u`` of every function, numbers held over
+a run.
+
+Refused (:class:`~ctmm.errors.ModelError`, by name): anything but a spatial model, a model without
+coordinates, loads and driven joints whose signals are not constants (the terms evaluate them
+numerically), and actuator inputs that are functions of time.
+"""
+from __future__ import annotations
+
+import os
+import time as clock
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from . import validation
+from .articulated import articulated_sweep
+from .codegen import load_casadi
+from .errors import ModelError, SimulationError
+from .generated_loop import rk4_step_function, run_blocks, time_loop_functions
+from .ops import CASADI
+from .results import SimulationResult
+from .signal_results import SignalSystem, signal_result
+from .signals import Constant
+from .spatial.body_forms import SpatialScene
+from .spatial.frames import quaternion_rate, quaternion_rotation
+from .spatial.integrate import initial_state, spatial_signals
+from .spatial.model import SpatialModel
+
+__all__ = ["SpatialRates", "CompiledSpatialScene", "spatial_compile_refusal", "simulate_spatial_generated"]
+
+DEFAULT_ROWS = 64
+"""Stored states per generated block call."""
+SPATIAL_FLAGS = ("-O1", "-shared", "-fPIC")
+"""Compiler flags of spatial kernels: their C is long (about 700 instructions per revolute body and rate,
+straight-line), and ``-O1`` compiles it 3.5x faster than ``-O2`` and runs it as fast (a 100-link revolute
+chain, one run on the 2-core machine: 50 s and 222 us per step against 172 s and 249 us)."""
+
+
+def spatial_compile_refusal(model: Any) -> str:
+    """Why ``model`` cannot be compiled by :class:`CompiledSpatialScene` (empty string when it can)."""
+    if not isinstance(model, SpatialModel):
+        return f"a ctmm.spatial.SpatialModel is compiled here, got {type(model).__name__}"
+    if model.n_velocities == 0:
+        return f"model {model.name!r} has no coordinates (every joint is welded or driven): nothing to integrate"
+    reasons = [f"driven joint {joint.name!r}" for joint in model.joints if joint.driven and not all(
+        isinstance(f, Constant) for f in joint.position + joint.rate + joint.acceleration)]
+    reasons += [f"load {load.name!r}" for load in model.loads
+                if not all(isinstance(f, Constant) for f in load.force + load.moment)]
+    if reasons:
+        return (f"model {model.name!r} has signals that are not constants in " + ", ".join(reasons) + " (the spatial "
+                "terms evaluate them numerically, so generated code cannot follow them in time); use ctmm.simulate "
+                "without compiled=True")
+    return ""
+
+
+class SpatialRates:
+    """The rates ``y_dot = [G(q) v ; v_dot]`` of a spatial model on casadi symbols (a
+    :class:`~ctmm.generated_loop.SymbolicRates`).
+
+    Parameters
+    ----------
+    model : SpatialModel
+        Compilable (:func:`spatial_compile_refusal`).
+
+    Attributes
+    ----------
+    rate : casadi.Function
+        ``(y, u, p, t) -> y_dot`` (``p`` empty: numbers are constants), calling
+        :attr:`velocity_rate`.
+    velocity_rate : casadi.Function
+        ``(q, v, u) -> v_dot``.
+    actuators : tuple of str
+        Input names, in the order of ``u``; :attr:`widths` their sizes.
+    """
+
+    def __init__(self, model: SpatialModel) -> None:
+        import casadi as ca
+
+        reason = spatial_compile_refusal(model)
+        if reason:
+            raise ModelError(f"SpatialRates: {reason}")
+        self.model = model
+        nq, nv = model.n_positions, model.n_velocities
+        self.actuators = tuple(model.inputs)
+        self.widths = tuple(joint.velocity_count for joint in model.joints for _ in joint.inputs)
+        q, v = ca.SX.sym("q", nq), ca.SX.sym("v", nv)
+        u = ca.SX.sym("u", sum(self.widths))
+        offsets = np.concatenate([[0], np.cumsum(self.widths)]).astype(int)
+        inputs = {name: u[int(offsets[i]):int(offsets[i + 1])] for i, name in enumerate(self.actuators)}
+        scene = SpatialScene(model)
+        bodies, joints, _ = scene.terms(CASADI, q, v, 0.0, inputs)
+        solution = articulated_sweep(CASADI, scene.tree, bodies, joints)
+        v_dot = ca.vertcat(*scene.velocity_rates(solution))
+        self.velocity_rate = ca.Function("velocity_rate", [q, v, u], [v_dot])
+        position_rate = ca.Function("position_rate", [q, v], [position_rates(model, q, v)])
+        # on MX symbols the sweep stays one C function (an SX call would inline a second copy of it)
+        y, u_mx, p, t = ca.MX.sym("y", nq + nv), ca.MX.sym("u", u.size1()), ca.MX.sym("p", 0), ca.MX.sym("t")
+        q_y, v_y = y[:nq], y[nq:]
+        self.rate = ca.Function("rate", [y, u_mx, p, t], [ca.vertcat(position_rate(q_y, v_y),
+                                                                     self.velocity_rate(q_y, v_y, u_mx))])
+
+    def input_vector(self, inputs: Mapping[str, Any] | None) -> np.ndarray:
+        """``u`` from ``{input name: number or (k,) numbers}`` held over a run (missing inputs zero).
+
+        Raises
+        ------
+        ModelError
+            Unknown names, wrong sizes, non-finite values, functions of time.
+        """
+        if inputs is not None and not isinstance(inputs, Mapping):
+            raise ModelError(f"inputs must be a mapping {{input name: number}}, got {inputs!r}")
+        values = [np.zeros(k) for k in self.widths]
+        for name, value in dict(inputs or {}).items():
+            if name not in self.actuators:
+                raise ModelError(f"unknown spatial input {name!r}; allowed: {', '.join(self.actuators) or 'none'}")
+            k = self.widths[self.actuators.index(name)]
+            if callable(value):
+                raise ModelError(f"input {name!r} is a function of time; the compiled path holds inputs as numbers "
+                                 "over the run (give a number, or use ctmm.simulate without compiled=True)")
+            array = np.asarray(value, dtype=float) if not isinstance(value, (str, bool)) else np.array(np.nan)
+            array = np.full(k, float(array)) if array.ndim == 0 else array
+            if array.shape != (k,) or not np.all(np.isfinite(array)):
+                raise ModelError(f"input {name!r} must be {k} finite number(s) held over the run, got {value!r}")
+            values[self.actuators.index(name)] = array
+        return np.concatenate(values) if values else np.zeros(0)
+
+
+def position_rates(model: SpatialModel, q: Any, v: Any) -> Any:
+    """``q_dot = G(q) v`` on casadi symbols (:meth:`SpatialModel.position_rates` on numbers)."""
+    import casadi as ca
+
+    parts = []
+    for joint, layout in zip(model.joints, model.layout):
+        qj, vj = q[layout.position], v[layout.velocity]
+        if joint.kind == "spherical":
+            parts.append(_quaternion_rate(qj, vj))
+        elif joint.kind in ("free", "elastic6"):
+            rotation = quaternion_rotation(CASADI, qj[3], qj[4], qj[5], qj[6])
+            parts += [ca.mtimes(rotation, vj[:3]), _quaternion_rate(qj[3:], vj[3:])]
+        elif layout.position.stop > layout.position.start:
+            parts.append(vj)
+    return ca.vertcat(*parts)
+
+
+def _quaternion_rate(quaternion: Any, omega: Any) -> Any:
+    import casadi as ca
+
+    # the numpy statement on object arrays of symbols (one row): the same formula, no second copy
+    rate = quaternion_rate(np.array([[quaternion[i] for i in range(4)]], dtype=object),
+                           np.array([[omega[i] for i in range(3)]], dtype=object))
+    return ca.vertcat(*rate[0])
+
+
+class CompiledSpatialScene:
+    """Generated and compiled RK4 time loop of one spatial model.
+
+    Parameters
+    ----------
+    model : SpatialModel
+        Compilable (:func:`spatial_compile_refusal`).
+    store_every : int
+        Steps per stored state.
+    rows : int
+        Stored states per generated block (one C call) [-].
+    cache_dir, compiler, flags
+        Of :func:`ctmm.codegen.shared_library` (``flags`` default :data:`SPATIAL_FLAGS`; ``-O0``
+        compiles faster still and runs slower, with the same numbers to round-off).
+
+    Attributes
+    ----------
+    rates : SpatialRates
+        The rates on symbols.
+    compile_time_s : float
+        Wall time of building the expressions, generating C and compiling (or loading) [s].
+    """
+
+    def __init__(self, model: SpatialModel, *, store_every: int = 1, rows: int = DEFAULT_ROWS,
+                 cache_dir: str | os.PathLike | None = None, compiler: str | None = None,
+                 flags: Sequence[str] | None = None) -> None:
+        reason = spatial_compile_refusal(model)
+        if reason:
+            raise ModelError(f"CompiledSpatialScene: {reason}")
+        store_every = validation.integer("store_every", store_every, minimum=1)
+        if isinstance(rows, bool) or not isinstance(rows, (int, np.integer)) or rows < 1:
+            raise ModelError(f"CompiledSpatialScene: rows must be an integer >= 1 (stored states per block), got "
+                             f"{rows!r}")
+        start = clock.perf_counter()
+        self.model, self.store_every, self.rows = model, store_every, int(rows)
+        self.rates = SpatialRates(model)
+        step = rk4_step_function(self.rates.rate)
+        stride, sizes, blocks = time_loop_functions(step, store_every, self.rows)
+        name = f"spatial_{model.n_bodies}b{model.n_positions}q{model.n_velocities}v"
+        options = {"cache_dir": cache_dir, "compiler": compiler,
+                   "flags": SPATIAL_FLAGS if flags is None else tuple(flags)}
+        loaded = load_casadi([self.rates.velocity_rate, step, stride, *blocks], name, **options)
+        self._velocity_rate, self._step, self._stride = loaded[:3]
+        self._blocks = list(zip(sizes, loaded[3:]))
+        self.compile_time_s = clock.perf_counter() - start
+
+    def accelerations(self, q: Any, v: Any, inputs: Mapping[str, Any] | None = None) -> np.ndarray:
+        """``v_dot`` (nv,) at ``q`` (nq,), ``v`` (nv,) with held ``inputs`` (generated code)."""
+        q, v = self.model.check_state(q, v)
+        return np.asarray(self._velocity_rate(q[0], v[0], self.rates.input_vector(inputs))).reshape(-1)
+
+    def run(self, x0: np.ndarray, dt: float, n_steps: int, inputs: Mapping[str, Any] | None = None) -> np.ndarray:
+        """Stored states ``[q ; v]`` (rows, nq + nv) after each ``store_every`` steps and after the last of
+        ``n_steps`` RK4 steps of ``dt`` [s] from ``x0`` at ``t = 0`` (initial state excluded); stops after
+        the first block holding a non-finite state."""
+        x0 = np.asarray(x0, dtype=float).reshape(-1)
+        nq = self.model.n_positions
+        self.model.check_state(x0[:nq], x0[nq:])
+        return run_blocks(self._blocks, self._stride, self._step, self.store_every, x0[:, None],
+                          self.rates.input_vector(inputs), validation.positive("dt", dt),
+                          validation.integer("n_steps", n_steps, minimum=1), 0.0, np.zeros((0, 1)))[0]
+
+
+def simulate_spatial_generated(model: SpatialModel, t_final: float, dt: float, *, x0: Any = None, v0: Any = None,
+                               inputs: Mapping[str, Any] | None = None, store_every: int = 1,
+                               divergence_bound: float | None = None, cache_dir: str | os.PathLike | None = None,
+                               scene: CompiledSpatialScene | None = None) -> SimulationResult:
+    """RK4 of a spatial model with the time loop in generated C (``ctmm.simulate(..., compiled=True)``).
+
+    Same arguments and result as :func:`ctmm.spatial.integrate.simulate_spatial` with ``method="rk4"``
+    (signals, units, times; ``scheme_name`` ``"rk4-generated"``; ``info`` adds ``compile_time_s``);
+    inputs are numbers held over the run.  ``scene``: a :class:`CompiledSpatialScene` of ``model`` with
+    this ``store_every`` to reuse (default: built now, the C cached on disk).
+
+    Raises
+    ------
+    ModelError
+        A model the generated path cannot compile (:func:`spatial_compile_refusal`), bad arguments.
+    SimulationError
+        A non-finite stored state, or one beyond ``divergence_bound`` (checked on the stored states),
+        with the result up to the last good stored state.
+    """
+    t_final = validation.positive("t_final", t_final)
+    if dt is None:
+        raise ModelError("dt is required with method='rk4' (a fixed step [s], > 0), got None")
+    dt = validation.positive("dt", dt)
+    store_every = validation.integer("store_every", store_every, minimum=1)
+    if divergence_bound is not None:
+        divergence_bound = validation.positive("divergence_bound", divergence_bound)
+    n_steps = int(round(t_final / dt))
+    if n_steps < 1 or abs(n_steps * dt - t_final) > 1e-9 * t_final:
+        raise ModelError(f"t_final = {t_final!r} must be a whole multiple of dt = {dt!r}")
+    reason = spatial_compile_refusal(model)
+    if reason:
+        raise ModelError(f"compiled=True: {reason}")
+    x = initial_state(model, x0, v0)
+    if scene is None:
+        scene = CompiledSpatialScene(model, store_every=store_every, cache_dir=cache_dir)
+    elif not isinstance(scene, CompiledSpatialScene) or scene.model is not model or scene.store_every != store_every:
+        raise ModelError(f"scene must be a CompiledSpatialScene of this model with store_every={store_every!r}, got "
+                         f"{scene!r}")
+    start = clock.perf_counter()
+    states = scene.run(x, dt, n_steps, inputs)
+    wall = clock.perf_counter() - start
+    steps = np.array([k for k in range(1, n_steps + 1) if k % store_every == 0 or k == n_steps])[:len(states)]
+    times = np.concatenate([[0.0], steps * dt])
+    states = np.vstack([x[None], states])
+    info = {"dt": dt, "method": "rk4-generated", "wall_time_s": wall, "n_evaluations": 4 * n_steps,
+            "compile_time_s": scene.compile_time_s}
+    bad = ~np.all(np.isfinite(states), axis=1)
+    if divergence_bound is not None:
+        bad |= np.any(np.abs(np.where(np.isfinite(states), states, 0.0)) > divergence_bound, axis=1)
+    if np.any(bad):
+        first = int(np.flatnonzero(bad)[0])
+        finite = np.all(np.isfinite(states[first]))
+        what = f"beyond divergence_bound = {divergence_bound}" if finite else "non-finite"
+        raise SimulationError(f"{model.name}: the state became {what} at t = {times[first]} s (rk4-generated; checked "
+                              f"on the stored states)", time=float(times[first]), element=model.name,
+                              partial_result=_result(model, times[:first], states[:first], info))
+    return _result(model, times, states, info)
+
+
+def _result(model: SpatialModel, times: np.ndarray, states: np.ndarray, info: dict) -> SimulationResult:
+    signals, units = spatial_signals(model, times, states)
+    return signal_result(SignalSystem(model, units), times, signals, "rk4-generated", info)
+

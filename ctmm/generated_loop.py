@@ -1,0 +1,122 @@
+"""The generated RK4 time loop of any scene: one step, strides of steps, blocks of strides (issue 13).
+
+A scene that states its rates on casadi symbols -- ``y_dot = rate(y, u, p, t)`` as a
+``casadi.Function`` (:class:`SymbolicRates`) -- compiles through this module without it knowing the
+scene's family: :class:`ctmm.compiled_scene.CompiledScene` (planar models, the one articulated sweep
+at ``d = 3``) and :class:`ctmm.compiled_spatial.CompiledSpatialScene` (spatial models, ``d = 6``,
+quaternion coordinates) both build their kernels here.
+
+Generated functions (all with the inputs ``y, u, h, p, t0, k``: state, held actuator inputs, step
+[s], parameters, start time [s] and the index of the first step, a double):
+
+* ``step`` -- RK4 step ``k`` from ``t0 + k h``: :func:`ctmm.ode.rk4_step` run on symbols (the one
+  scheme statement);
+* ``stride`` -- ``store_every`` steps (``fold``);
+* ``block<size>`` -- ``size`` strides (``mapaccum``) with every stored state returned, for
+  ``size = rows, rows/2, rows/4, ... > 1``, so a whole interval runs inside the generated C with one
+  call per block and a remainder costs one call per binary digit.
+
+:func:`run_blocks` runs them over an interval (and a batch of members through
+``casadi.Function.map``).
+"""
+from __future__ import annotations
+
+from typing import Any, Protocol
+
+import numpy as np
+
+from .ode import rk4_step
+
+__all__ = ["SymbolicRates", "rk4_step_function", "time_loop_functions", "run_blocks"]
+
+
+class SymbolicRates(Protocol):
+    """What a scene supplies to be compiled: its rates on casadi symbols.
+
+    Attributes
+    ----------
+    rate : casadi.Function
+        ``y_dot = rate(y, u, p, t)``: state ``y`` (``state_size``), held inputs ``u``, parameters
+        ``p``, time ``t`` [s].
+    """
+
+    rate: Any
+
+
+def rk4_step_function(rate: Any) -> Any:
+    """The generated ``step(y, u, h, p, t0, k)``: one RK4 step of ``rate`` (a ``casadi.Function``
+    ``(y, u, p, t) -> y_dot``) from ``t0 + k h`` by ``h`` with ``u`` and ``p`` held.
+
+    On MX symbols the rate stays one C function called by the four stages (an SX call would inline it).
+    """
+    import casadi as ca
+
+    y, u, p = (ca.MX.sym(label, *rate.size_in(i)) for i, label in ((0, "y"), (1, "u"), (2, "p")))
+    h, t0, k = ca.MX.sym("h"), ca.MX.sym("t0"), ca.MX.sym("k")
+    return ca.Function("step", [y, u, h, p, t0, k],
+                       [rk4_step(lambda stage, state: rate(state, u, p, stage), t0 + k * h, y, h)])
+
+
+def time_loop_functions(step: Any, store_every: int, rows: int) -> tuple[Any, list[int], list[Any]]:
+    """``(stride, sizes, blocks)`` of a generated ``step(y, u, h, p, t0, k)``: ``stride`` runs
+    ``store_every`` steps, ``blocks[i]`` runs ``sizes[i]`` strides and returns every stored state
+    (columns), ``sizes = rows, rows/2, ... > 1``."""
+    import casadi as ca
+
+    y, u, h, p, t0, k = (ca.MX.sym(label, *step.size_in(i)) for i, label in enumerate(("y", "u", "h", "p", "t0", "k")))
+    arguments = [y, u, h, p, t0, k]
+
+    def repeated(count: int, first: Any) -> list:
+        return [y] + [ca.repmat(x, 1, count) for x in (u, h, p, t0)] + [first]
+
+    stride = ca.Function("stride", arguments, [step.fold(store_every)(*repeated(
+        store_every, k + ca.DM(np.arange(store_every, dtype=float)).T)) if store_every > 1 else step(*arguments)])
+    sizes = [rows >> j for j in range(rows.bit_length()) if rows >> j > 1]
+    blocks = []
+    for size in sizes:
+        accumulated = stride.mapaccum(f"block{size}_acc", size)
+        first = k + ca.DM(store_every * np.arange(size, dtype=float)).T
+        blocks.append(ca.Function(f"block{size}", arguments, [accumulated(*repeated(size, first))]))
+    return stride, sizes, blocks
+
+
+def run_blocks(blocks: list[tuple[int, Any]], stride: Any, step: Any, store_every: int, y: np.ndarray,
+               u: np.ndarray, h: float, n_steps: int, t0: float, p: np.ndarray, parallelization: str = "serial",
+               threads: int = 1) -> np.ndarray:
+    """Stored states (B, rows, state size) after each ``store_every`` steps and after the last step of
+    ``n_steps`` RK4 steps of ``h`` [s] from ``t0`` [s], for the B members (columns of ``y`` (state size,
+    B) and ``p``); compiled ``blocks`` ``[(size, function)]``, ``stride`` and ``step`` of
+    :func:`time_loop_functions`, mapped over the batch by ``casadi.Function.map`` (nothing generated
+    or compiled); stops after the first block where every member holds a non-finite state."""
+    import casadi as ca
+
+    every, batch = store_every, y.shape[1]
+    strides, rest = divmod(n_steps, every)
+
+    def mapped(function: Any) -> Any:
+        return function if batch == 1 else function.map(batch, parallelization, threads)
+
+    def members(value: Any, size: int) -> np.ndarray:          # (n, size B) -> (B, size, n)
+        return np.asarray(value).reshape(y.shape[0], batch, size).transpose(1, 2, 0)
+
+    u, p = ca.DM(u), ca.DM(p)                                   # converted once, not per call
+    out = []
+    done = 0
+    for size, function in blocks:
+        function = mapped(function) if done + size <= strides else function
+        while done + size <= strides:
+            block = members(function(y, u, h, p, t0, float(done * every)), size)
+            out.append(block)
+            y = block[:, -1, :].T
+            done += size
+            if not np.any(np.all(np.isfinite(block), axis=(1, 2))):
+                return np.concatenate(out, axis=1)
+    stride, step = mapped(stride), mapped(step)
+    for j in range(done, strides):
+        y = np.asarray(stride(y, u, h, p, t0, float(j * every))).reshape(y.shape)
+        out.append(y.T[:, None, :])
+    for j in range(rest):
+        y = np.asarray(step(y, u, h, p, t0, float(strides * every + j))).reshape(y.shape)
+    if rest:
+        out.append(y.T[:, None, :])
+    return np.concatenate(out, axis=1) if out else np.zeros((batch, 0, y.shape[0]))
