@@ -17,7 +17,8 @@ from .elements.axial import AxialBody
 from .errors import ModelError
 from .system import Chain
 
-__all__ = ["rest_positions", "initial_state", "initial_acceleration", "initial_forces", "acceleration_change", "NodeInertia"]
+__all__ = ["rest_positions", "initial_state", "initial_acceleration", "initial_forces", "acceleration_change", "NodeInertia",
+           "point_labels"]
 
 def rest_positions(system: Chain) -> np.ndarray:
     """Absolute positions [m] of the connection points with every connector at its free length."""
@@ -27,6 +28,20 @@ def rest_positions(system: Chain) -> np.ndarray:
         lumped = e.lumped_coefficients()
         x[j] = x[j - 1] + (lumped.free_length if lumped is not None and lumped.connector else 0.0)
     return x
+
+
+def point_labels(system: Chain) -> list[str]:
+    """Name of each connection point for messages: its point element, else ``"<inboard>|<outboard>"``."""
+    labels = []
+    for p, name in enumerate(system.point_names()):
+        inboard, outboard = system.elements[p], system.elements[p + 1]
+        if isinstance(outboard, AxialBody):
+            labels.append(outboard.name)
+        elif isinstance(inboard, AxialBody):
+            labels.append(inboard.name)
+        else:
+            labels.append(name)
+    return labels
 
 
 def _point_of(system: Chain, element_name: str) -> int:

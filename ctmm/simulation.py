@@ -250,9 +250,11 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
     require_chain(system, "ctmm.simulate")
     chosen = _method(method, scheme, "newmark")
     if isinstance(chosen, str) and (chosen in FIXED_STEP_METHODS or chosen in SCIPY_METHODS):
-        raise ModelError(f"method={chosen!r} does not apply to a 1-D chain, which is stepped by a DT-TMM scheme: "
-                         f"{', '.join(sorted(SCHEMES))} or a ctmm.schemes object ('rk4' and the solve_ivp "
-                         f"methods {SCIPY_METHODS} are for planar models)")
+        return _simulate_chain_ode(system, t_final, dt, method=chosen, x0=x0, v0=v0, t0=t0, inputs=inputs,
+                                   outputs=outputs, controllers=controllers, references=references, solver=solver,
+                                   fast=fast, force_hook=force_hook, progress=progress,
+                                   stability_check=stability_check, divergence_bound=divergence_bound, rtol=rtol,
+                                   atol=atol, max_step=max_step, store_every=store_every)
     planar_only = {"inputs": (inputs, None), "outputs": (tuple(outputs), ()), "rtol": (rtol, 1e-8),
                    "atol": (atol, 1e-10), "max_step": (max_step, None), "store_every": (store_every, 1)}
     for name, (value, default) in planar_only.items():
@@ -274,6 +276,31 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
     return simulate_controlled(system, t_final, dt, scheme=chosen, x0=x0, v0=v0, t0=t0, references=references,
                                controllers=controllers, coupling=coupling, progress=progress,
                                stability_check=stability_check, divergence_bound=divergence_bound)
+
+
+def _simulate_chain_ode(system: Any, t_final: float, dt: float | None, *, method: str, x0: Any, v0: Any, t0: float,
+                        inputs: Any, outputs: Sequence[str], controllers: list, references: dict, solver: str,
+                        fast: Any, force_hook: Any, progress: Any, stability_check: Any,
+                        divergence_bound: float | None, rtol: float, atol: float, max_step: float | None,
+                        store_every: int) -> SimulationResult:
+    """:func:`simulate` of a plain chain with ``"rk4"`` or a ``solve_ivp`` method (:mod:`ctmm.chain_ode`)."""
+    if isinstance(system, ControlledChain) or controllers or references:
+        what = "loops" if isinstance(system, ControlledChain) else ("controllers" if controllers else "references")
+        raise ModelError(f"method={method!r} on a chain with {what}: the ODE path of 1-D chains does not close "
+                         "feedback loops yet (it would drop them); use a DT-TMM scheme "
+                         f"({', '.join(sorted(SCHEMES))}), which closes real-time and delayed loops")
+    unsupported = {"inputs": (inputs, None), "outputs": (tuple(outputs), ()), "solver": (solver, "riccati"),
+                   "fast": (fast, None), "force_hook": (force_hook, None), "progress": (progress, None),
+                   "stability_check": (stability_check, None)}
+    for name, (value, default) in unsupported.items():
+        if value is not default and value != default:
+            raise ModelError(f"{name}={value!r} does not apply to an ODE run of a chain (method={method!r}: loads "
+                             f"and prescribed motions come from its elements; every signal is stored); leave "
+                             f"{name} at {default!r}")
+    from .chain_ode import simulate_chain_ode
+
+    return simulate_chain_ode(system, t_final, dt, method=method, x0=x0, v0=v0, t0=t0, rtol=rtol, atol=atol,
+                              max_step=max_step, store_every=store_every, divergence_bound=divergence_bound)
 
 
 def _loop_references(loops: Sequence[Any], inputs: Mapping[str, Any] | None, references: dict

@@ -28,9 +28,8 @@ from . import validation
 from .assembly import (SOLVERS, BoundaryEnd, BoundaryStart, clamped_start_solve, predicted_forces,
                        shift_forces)
 from .elements.base import Linearisation
-from .chain_start import initial_acceleration, initial_forces, initial_state, rest_positions
+from .chain_start import initial_acceleration, initial_forces, initial_state, point_labels, rest_positions
 from .elements.beam_time import bending_mesh
-from .elements.axial import AxialBody
 from .errors import ModelError, SimulationError
 from .guard import DivergenceGuard
 from .progress import progress_bar
@@ -278,20 +277,6 @@ def _scalar_sweeps_python(a21, S, G, alpha, v1, v2, P0, end_row, end_b, fixed_st
 
 #: Most steps one run may take (more is almost certainly a unit mistake in ``dt``).
 MAX_STEPS = 100_000_000
-
-
-def point_labels(system: Chain) -> list[str]:
-    """Name of each connection point for messages: its point element, else ``"<inboard>|<outboard>"``."""
-    labels = []
-    for p, name in enumerate(system.point_names()):
-        inboard, outboard = system.elements[p], system.elements[p + 1]
-        if isinstance(outboard, AxialBody):
-            labels.append(outboard.name)
-        elif isinstance(inboard, AxialBody):
-            labels.append(inboard.name)
-        else:
-            labels.append(name)
-    return labels
 
 
 def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str = "newmark",
