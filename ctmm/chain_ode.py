@@ -54,11 +54,8 @@ def signal_derivatives(owner: str, what: str, signal: Callable[[float], float]
                        ) -> Callable[[float], tuple[float, float, float]]:
     """``t -> (value, rate, second rate)`` of a signal whose derivatives are known exactly.
 
-    Raises
-    ------
-    ModelError
-        For any other signal (an ODE needs the rates of a prescribed motion, or of a force on a
-        massless node, in closed form).
+    For any other signal the returned function raises :class:`ModelError` when called (an ODE
+    needs the rates of a prescribed motion, or of a force on a massless node, in closed form).
     """
     if isinstance(signal, Constant):
         value = signal.value
@@ -66,9 +63,14 @@ def signal_derivatives(owner: str, what: str, signal: Callable[[float], float]
     if isinstance(signal, Harmonic):
         a, w, p = signal.amplitude, signal.omega, signal.phase
         return lambda t: (a * math.sin(w * t + p), a * w * math.cos(w * t + p), -a * w * w * math.sin(w * t + p))
-    raise ModelError(f"{owner}: the {what} signal {signal!r} has no closed-form rate, which an ODE method needs "
-                     "(the velocity and acceleration of a prescribed motion, or the rate of a force on a massless "
-                     "node); give a Constant or Harmonic signal, or use a DT-TMM scheme (method='newmark', ...)")
+
+    def refuse(t: float) -> tuple[float, float, float]:
+        raise ModelError(f"{owner}: the {what} signal {signal!r} has no closed-form rate, which an ODE method "
+                         "needs (the velocity and acceleration of a prescribed motion, or the rate of a force on a "
+                         "massless node); give a Constant or Harmonic signal, or use a DT-TMM scheme "
+                         "(method='newmark', ...)")
+
+    return refuse
 
 
 class ChainDynamics:
@@ -110,13 +112,7 @@ class ChainDynamics:
         q = self.index_Q
         self.n_r = 0
         if q.size:
-            zero = np.zeros((1, n))
-            probes = np.zeros((q.size, n))
-            probes[np.arange(q.size), q] = 1.0
-            base = self._forces(zero, zero, 0.0, {}, (0.0, 0.0, 0.0))[:, q]
-            Jx = self._forces(probes, np.zeros_like(probes), 0.0, {}, (0.0, 0.0, 0.0))[:, q] - base
-            Jv = self._forces(np.zeros_like(probes), probes, 0.0, {}, (0.0, 0.0, 0.0))[:, q] - base
-            self.Jx, self.Jv = Jx.T, Jv.T                                  # rows: equations, columns: nodes
+            self.Jx, self.Jv = self._massless_tangents()                   # rows: equations, columns: nodes
             damping = -0.5 * (self.Jv + self.Jv.T)
             values, vectors = np.linalg.eigh(damping)
             scale = float(np.max(np.abs(values), initial=0.0))
@@ -136,6 +132,33 @@ class ChainDynamics:
             self._check_massless_loads()
 
     # -- pieces -----------------------------------------------------------------------------
+    def _massless_tangents(self) -> tuple[np.ndarray, np.ndarray]:
+        """``dF_Q/dx_Q`` and ``dF_Q/dv_Q`` by unit probes of the sweep (the families are affine).
+
+        A node's force depends on its own and its two neighbours' motion only (a serial tree), so three
+        probes (nodes ``k = c mod 3`` moved together) give every column: 7 sweeps, batched.
+        """
+        n, q = self.tree.n_nodes, self.index_Q
+        colours = np.arange(n) % 3
+        probes = np.zeros((3, n))
+        for c in range(3):
+            probes[c, colours == c] = 1.0
+        zero = np.zeros((1, n))
+        x = np.concatenate([zero, probes, np.zeros((3, n))])
+        v = np.concatenate([zero, np.zeros((3, n)), probes])
+        forces = self._forces(x, v, 0.0, {}, (0.0, 0.0, 0.0))
+        base = forces[0, q]
+        row_of = {int(k): row for row, k in enumerate(q)}
+        Jx, Jv = np.zeros((q.size, q.size)), np.zeros((q.size, q.size))
+        for column, k in enumerate(q):
+            c = colours[k]
+            for j in (k - 1, k, k + 1):
+                row = row_of.get(int(j))
+                if row is not None:
+                    Jx[row, column] = forces[1 + c, j] - base[row]
+                    Jv[row, column] = forces[4 + c, j] - base[row]
+        return Jx, Jv
+
     def _node_name(self, k: int) -> str:
         return "/".join(self.tree.bodies[j].name for j in range(len(self.tree.bodies)) if self.tree.node[j] == k)
 
@@ -253,13 +276,15 @@ class ChainDynamics:
             parts.append(self.P_r.T @ v[q])
         return np.concatenate(parts)
 
-    def consistent_start(self, t0: float, x0: Mapping[str, float] | None, v0: Mapping[str, float] | None
-                         ) -> np.ndarray:
+    def consistent_start(self, t0: float, x0: Mapping[str, float] | None, v0: Mapping[str, float] | None, *,
+                         held_from_signals: bool = True) -> np.ndarray:
         """The state ``y`` at ``t0`` from ``x0``/``v0`` by element name (:func:`ctmm.chain_start.initial_state`).
 
         Massless nodes start at the static balance of the massless part under the given positions of
         the other nodes (velocities left out: the chain held at ``x0`` and released), least-squares
         minimal change where only dampers hold a node; their velocities then follow from the balance.
+        ``held_from_signals=False`` keeps the held points where :func:`~ctmm.chain_start.initial_state`
+        puts them (the DT-TMM paths start a prescribed support there).
         """
         x_points, v_points = initial_state(self.chain, x0, v0)
         n, I, q = self.tree.n_nodes, self.index_I, self.index_Q
@@ -267,7 +292,8 @@ class ChainDynamics:
         for p, k in enumerate(self.node_of_point):
             if k >= 0:
                 x[k], v[k] = x_points[p, 0], v_points[p, 0]
-        self._held(t0, x, v)
+        if held_from_signals:
+            self._held(t0, x, v)
         if q.size:
             inputs, wall = self.inputs(t0), self._wall_motion(t0)
             still = np.zeros(n)
@@ -277,6 +303,29 @@ class ChainDynamics:
         if self.n_r:
             parts.append(self.P_r.T @ x[q])
         return np.concatenate(parts)
+
+    def start_points(self, t0: float, x0: Mapping[str, float] | None, v0: Mapping[str, float] | None
+                     ) -> tuple[np.ndarray, np.ndarray]:
+        """Positions and velocities ``(n_points, 1)`` of a DT-TMM start: :func:`~ctmm.chain_start.initial_state`
+        with the massless points placed consistently (:meth:`consistent_start`, :meth:`condense`)."""
+        x_points, v_points = initial_state(self.chain, x0, v0)
+        if not self.index_Q.size:
+            return x_points, v_points
+        y = self.consistent_start(t0, x0, v0, held_from_signals=False)
+        n, I, q = self.tree.n_nodes, self.index_I, self.index_Q
+        x, v = np.zeros(n), np.zeros(n)
+        for p, k in enumerate(self.node_of_point):
+            if k >= 0:
+                x[k], v[k] = x_points[p, 0], v_points[p, 0]
+        x[I], v[I] = y[:I.size], y[I.size:2 * I.size]
+        if self.n_r:
+            x[q] = self.P_r @ y[2 * I.size:]
+        wall = self._wall_motion(t0) if self.chain.end.known == "displacement" else (0.0, 0.0, 0.0)
+        self.condense(t0, x, v, self.inputs(t0), wall)
+        massless_points = np.isin(self.node_of_point, q)
+        x_points[massless_points, 0] = x[self.node_of_point[massless_points]]
+        v_points[massless_points, 0] = v[self.node_of_point[massless_points]]
+        return x_points, v_points
 
     def point_positions(self, t: float, y: np.ndarray) -> np.ndarray:
         """Positions [m] of the connection points, without a sweep (``(n_points,)``; ``NaN`` at the

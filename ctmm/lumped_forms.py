@@ -497,7 +497,7 @@ def _step_joint(tree: LumpedTree, entry, relative, cx: float, A: float, C: float
 
 
 def node_inertia(tree: LumpedTree) -> np.ndarray:
-    """Per node: its mass plus the inertance of the connectors touching it [kg] (0 at held nodes too).
+    """Per node: its mass plus the inertance of the connectors touching it [kg].
 
     A node that is not held by the start and has ``node_inertia == 0`` is **massless**: its
     displacement is algebraic (between springs) or a first-order state (next to a damper), never an
@@ -514,10 +514,11 @@ def node_inertia(tree: LumpedTree) -> np.ndarray:
         b = tree.cap[0].axial_coefficients().inertia
         inertance[tree.node[-1]] = inertance.get(tree.node[-1], 0.0) + b
     out = np.zeros(tree.n_nodes)
-    for k in range(tree.n_nodes):
-        mass = sum(tree.bodies[j].axial_coefficients().inertia for j in range(len(tree.bodies))
-                   if tree.node[j] == k and not isinstance(tree.bodies[j], MasslessNode))
-        out[k] = mass + inertance.get(k, 0.0)
+    for j, body in enumerate(tree.bodies):
+        if not isinstance(body, MasslessNode):
+            out[tree.node[j]] += body.axial_coefficients().inertia
+    for k, b in inertance.items():
+        out[k] += b
     return out
 
 

@@ -28,6 +28,7 @@ from . import validation
 from .assembly import (SOLVERS, BoundaryEnd, BoundaryStart, clamped_start_solve, predicted_forces,
                        shift_forces)
 from .elements.base import Linearisation
+from .chain_ode import ChainDynamics
 from .chain_start import initial_acceleration, initial_forces, initial_state, point_labels, rest_positions
 from .elements.beam_time import bending_mesh
 from .errors import ModelError, SimulationError
@@ -359,7 +360,7 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
     n_steps = int(round((t_final - t0) / dt))
     if n_steps < 1 or abs(n_steps * dt - (t_final - t0)) > 1e-9 * max(1.0, abs(t_final)):
         raise ModelError(f"(t_final - t0) = {t_final - t0!r} s must be a whole number of steps dt={dt!r} (>= 1)")
-    x, v = mesh.initial_state(x0, v0) if mesh else initial_state(system, x0, v0)
+    x, v = mesh.initial_state(x0, v0) if mesh else _start_state(system, x0, v0, t0)
     check_scheme_step(system, scheme, dt, stability_check)
     guard = DivergenceGuard.from_start(point_labels(system), 0 * x[:, 0] if mesh else rest_positions(system), x[:, 0],
                                        bound=divergence_bound, hint=_divergence_hint)
@@ -441,6 +442,26 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
             "path": "lumped-fast" if fast else f"generic-{solver}"}
     return SimulationResult(times, states[:, rows], vel[:, rows], acc[:, rows], _system_for_result or original,
                             scheme.name, info)
+
+
+def _start_state(system: Chain, x0, v0, t0: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`~ctmm.chain_start.initial_state` with the massless points of a lumped chain at their
+    consistent start (:meth:`ctmm.chain_ode.ChainDynamics.start_points`: static balance under the given
+    positions, velocities from the balance), so the first step sees the right connector forces.  Chains
+    off the ``d = 1`` protocol, or whose support or massless-node force has no closed-form rate, keep
+    :func:`initial_state` (massless points at rest length)."""
+    try:
+        dynamics = ChainDynamics(system)
+    except ModelError:
+        return initial_state(system, x0, v0)
+    if not dynamics.index_Q.size:
+        return initial_state(system, x0, v0)
+    try:
+        return dynamics.start_points(t0, x0, v0)
+    except ModelError as exc:
+        if "closed-form rate" not in str(exc):
+            raise
+        return initial_state(system, x0, v0)
 
 
 def _fast_step(system: Chain, kernel: _LumpedKernel, coeffs, load, t_eval: float, cache: dict,

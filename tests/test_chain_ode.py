@@ -197,3 +197,29 @@ def test_a_diverging_run_stops_with_the_partial_result():
     partial = caught.value.partial_result
     assert partial is not None and 1 <= len(partial.time) < 101
     assert np.all(np.isfinite(partial["m.x"]))
+
+
+@pytest.mark.parametrize("scheme", ["newmark", "generalized_alpha"])
+def test_dt_tmm_runs_start_massless_nodes_consistently(scheme):
+    """A massless node starts at its balance under ``x0`` (springs in series) and with its balance
+    velocity (Maxwell node): the scheme's second order is kept from the first step (it was O(h))."""
+    k1, k2, m, x0 = 100.0, 300.0, 2.0, 0.1
+    series = ctmm.Chain("series", [Fixed("w"), Spring("k1", k1), Spring("k2", k2), Mass("m", m), Free("e")])
+    omega = np.sqrt(k1 * k2 / (k1 + k2) / m)
+    k, c = 100.0, 5.0
+    maxwell = ctmm.Chain("maxwell", [Fixed("w"), Spring("k", k), Damper("c", c), Mass("m", m), Free("e")])
+    A = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, -k / m], [0.0, 1.0, -k / c]])
+    for chain, start, exact in (
+            (series, {"x0": {"m": x0}}, lambda t: x0 * np.cos(omega * t)),
+            (maxwell, {"x0": {"m": 0.1}, "v0": {"m": 1.0}},
+             lambda t: np.array([(sla.expm(A * s) @ [0.1, 1.0, 0.0])[0] for s in t]))):
+        errors = []
+        for dt in (0.01, 0.005):
+            result = ctmm.simulate(chain, 0.5, dt, method=scheme, **start)
+            errors.append(float(np.max(np.abs(result["m.x"] - exact(result.time)))))
+        order = np.log2(errors[0] / errors[1])
+        assert 1.8 <= order <= 2.3, (chain.name, errors, order)
+    result = ctmm.simulate(series, 0.1, 0.01, x0={"m": x0})
+    assert result.states[0, 1, 0] == pytest.approx(x0 * k2 / (k1 + k2), rel=1e-12)
+    result = ctmm.simulate(maxwell, 0.1, 0.01, x0={"m": 0.1}, v0={"m": 1.0})
+    assert result.velocity[0, 1, 0] == pytest.approx(1.0, rel=1e-12)
