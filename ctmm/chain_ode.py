@@ -304,6 +304,17 @@ class ChainDynamics:
             parts.append(self.P_r.T @ x[q])
         return np.concatenate(parts)
 
+    def held_points(self) -> list[tuple[np.ndarray, Callable[[float], tuple[float, float, float]]]]:
+        """``(points, motion)`` of the displacement-type boundaries: the connection points held by the
+        start and those on the end's wall, with ``motion(t) -> (x, v, a)`` (raises :class:`ModelError`
+        when the signal has no closed-form rate)."""
+        out = []
+        if self._start_motion is not None:
+            out.append((np.flatnonzero(np.isin(self.node_of_point, np.flatnonzero(self.held))), self._start_motion))
+        if self.chain.end.known == "displacement" and np.any(self.node_of_point < 0):
+            out.append((np.flatnonzero(self.node_of_point < 0), self._wall_motion))
+        return out
+
     def start_points(self, t0: float, x0: Mapping[str, float] | None, v0: Mapping[str, float] | None
                      ) -> tuple[np.ndarray, np.ndarray]:
         """Positions and velocities ``(n_points, 1)`` of a DT-TMM start: :func:`~ctmm.chain_start.initial_state`

@@ -1,6 +1,8 @@
 """The one simulation verb, :func:`ctmm.simulate`: every system is simulated with all it contains.
 
-* A plain :class:`~ctmm.system.Chain` goes to the DT-TMM stepper (:func:`ctmm.timestep.simulate`);
+* A plain :class:`~ctmm.system.Chain` goes to the DT-TMM stepper (:func:`ctmm.timestep.simulate`)
+  with a scheme, or to :func:`ctmm.chain_ode.simulate_chain_ode` with ``"rk4"`` or a ``solve_ivp``
+  method (state equations from the explicit context of the one sweep, massless nodes condensed);
   a :class:`~ctmm.control.loops.ControlledChain`, or a chain with co-simulated ``controllers`` or
   loop ``references``, goes to the controlled stepper
   (:func:`ctmm.control.simulate.simulate_controlled`), so that no loop is ever dropped.  Both
@@ -155,7 +157,8 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         (without it: at every accepted step).
     method : str or Scheme, optional
         ``"rk4"`` (fixed step; planar default), a ``scipy.integrate.solve_ivp`` method
-        (``"RK45"``, ``"DOP853"``, ``"Radau"``, ``"BDF"``, ...; planar) or a DT-TMM scheme
+        (``"RK45"``, ``"DOP853"``, ``"Radau"``, ``"BDF"``, ...; planar models and plain lumped chains,
+        :mod:`ctmm.chain_ode`; loops of a chain need a scheme) or a DT-TMM scheme
         (``"newmark"`` (chain default), ``"generalized_alpha"``, ``"wilson_theta"``, ``"houbolt"``,
         ``"forward_euler"`` or a :mod:`ctmm.schemes` object); on a planar model every scheme closes
         loops, ``inputs`` and ``controllers`` (``docs/planar.md``, ``docs/control.md`` §4c).
@@ -205,9 +208,10 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         Largest allowed distance from the start (chains: of a point [m]; planar: of a
         coordinate, its own unit).
     rtol, atol, max_step : float
-        ``solve_ivp`` tolerances and largest step [s] (planar).
+        ``solve_ivp`` tolerances and largest step [s] (planar models, chains).
     store_every : int
-        Planar fixed-step methods: keep every ``store_every``-th step (the last always).
+        Fixed-step ``"rk4"`` (planar models, chains): keep every ``store_every``-th step (the last
+        always).
 
     Returns
     -------

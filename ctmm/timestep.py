@@ -454,14 +454,18 @@ def _start_state(system: Chain, x0, v0, t0: float) -> tuple[np.ndarray, np.ndarr
         dynamics = ChainDynamics(system)
     except ModelError:
         return initial_state(system, x0, v0)
-    if not dynamics.index_Q.size:
-        return initial_state(system, x0, v0)
     try:
-        return dynamics.start_points(t0, x0, v0)
+        x, v = dynamics.start_points(t0, x0, v0)
     except ModelError as exc:
         if "closed-form rate" not in str(exc):
             raise
-        return initial_state(system, x0, v0)
+        x, v = initial_state(system, x0, v0)
+    for points, motion in dynamics.held_points():
+        try:
+            x[points, 0], v[points, 0] = motion(t0)[:2]
+        except ModelError:                    # no closed-form rate: the support starts at rest as before
+            pass
+    return x, v
 
 
 def _fast_step(system: Chain, kernel: _LumpedKernel, coeffs, load, t_eval: float, cache: dict,

@@ -223,3 +223,46 @@ def test_dt_tmm_runs_start_massless_nodes_consistently(scheme):
     assert result.states[0, 1, 0] == pytest.approx(x0 * k2 / (k1 + k2), rel=1e-12)
     result = ctmm.simulate(maxwell, 0.1, 0.01, x0={"m": 0.1}, v0={"m": 1.0})
     assert result.velocity[0, 1, 0] == pytest.approx(1.0, rel=1e-12)
+
+
+def test_a_mass_on_a_driven_end_moves_with_it_and_loads_its_reaction():
+    """Masses directly on prescribed displacements (start and end): they move with the boundary and their
+    inertia force enters its reaction (hand-written equations, DOP853 at 1e-12)."""
+    from scipy.integrate import solve_ivp
+
+    amplitude, w, k, c, k2, m, m0, mw = 0.01, 5.0, 200.0, 0.8, 100.0, 1.0, 3.0, 2.0
+    X = lambda t: amplitude * np.sin(w * t)                                         # noqa: E731
+    V = lambda t: amplitude * w * np.cos(w * t)                                     # noqa: E731
+    Acc = lambda t: -amplitude * w * w * np.sin(w * t)                              # noqa: E731
+    times = np.linspace(0.0, 0.5, 26)
+    driven_start = ctmm.Chain("start", [PrescribedDisplacement("base", Harmonic(amplitude, w)), Mass("m0", m0),
+                                        SpringDamper("s", k, c), Mass("m", m), Free("e")])
+    exact = solve_ivp(lambda t, z: [z[1], (-k * (z[0] - X(t)) - c * (z[1] - V(t))) / m], (0.0, 0.5), [0.0, 0.0],
+                      t_eval=times, rtol=1e-12, atol=1e-14, method="DOP853").y
+    result = ctmm.simulate(driven_start, 0.5, 0.02, method="DOP853", rtol=1e-11, atol=1e-14)
+    assert np.max(np.abs(result["m.x"] - exact[0])) <= 1e-9
+    assert np.allclose(result["m0.x"], X(times), atol=1e-15)
+    assert np.allclose(result.acceleration[:, 0, 0], Acc(times), atol=1e-12)
+    connector = -k * (exact[0] - X(times)) - c * (exact[1] - V(times))
+    assert np.max(np.abs(result.states[:, 1, 1] - connector)) <= 1e-7
+    assert np.max(np.abs(result.states[:, 0, 1] - (connector + m0 * Acc(times)))) <= 1e-7
+
+    driven_end = ctmm.Chain("end", [Fixed("w"), Spring("k", k), Mass("m", m), Spring("k2", k2), Mass("mw", mw),
+                                    PrescribedDisplacement("end", Harmonic(amplitude, w))])
+    exact = solve_ivp(lambda t, z: [z[1], (-k * z[0] + k2 * (X(t) - z[0])) / m], (0.0, 0.5), [0.0, 0.0],
+                      t_eval=times, rtol=1e-12, atol=1e-14, method="DOP853").y
+    result = ctmm.simulate(driven_end, 0.5, 0.02, method="DOP853", rtol=1e-11, atol=1e-14)
+    assert np.max(np.abs(result["m.x"] - exact[0])) <= 1e-9
+    assert np.allclose(result["mw.x"], X(times), atol=1e-15)
+    spring = -k2 * (X(times) - exact[0])                              # force of k2 on its outboard point
+    assert np.max(np.abs(result.states[:, 3, 1] - spring)) <= 1e-7
+    assert np.max(np.abs(result.states[:, 4, 1] - (spring - mw * Acc(times)))) <= 1e-7
+    # a DT-TMM scheme refuses the moving case by name (its support acceleration would not converge) ...
+    with pytest.raises(ModelError, match="sits directly on the driven boundary 'end'.*ODE method"):
+        ctmm.simulate(driven_end, 0.5, 0.01)
+    # ... and runs a mass resting on a Fixed support (refused before), reaction from the mass at rest
+    resting = ctmm.Chain("rest", [Fixed("w"), Mass("m0", m0), Spring("k", k), Mass("m", m), Free("e")])
+    newmark = ctmm.simulate(resting, 0.5, 0.001, x0={"m": 0.01})
+    ode = ctmm.simulate(resting, 0.5, 0.001, method="DOP853", x0={"m": 0.01}, rtol=1e-11, atol=1e-14)
+    assert np.all(newmark["m0.x"] == 0.0) and np.all(newmark.acceleration[:, 0, 0] == 0.0)
+    assert np.max(np.abs(newmark.states[:, 0, 1] - ode.states[:, 0, 1])) <= 1e-3 * np.max(np.abs(ode.states[:, 0, 1]))
