@@ -35,7 +35,7 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from . import validation
-from .chain_start import initial_forces, initial_state, point_labels, rest_positions
+from .chain_start import initial_forces, initial_state, point_labels, point_of_element, rest_positions
 from .elements.base import Element
 from .errors import ModelError, SimulationError
 from .guard import DivergenceGuard
@@ -84,8 +84,9 @@ class ChainDynamics:
     Raises
     ------
     ModelError
-        A chain that is not on the ``d = 1`` protocol, a prescribed motion without closed-form rates,
-        or a massless node whose balance does not determine it (no spring and no damper holds it).
+        A chain that is not on the ``d = 1`` protocol, or massless nodes whose balance does not
+        determine them (no spring and no damper holds them).  A prescribed motion (or a force on a
+        massless node) without closed-form rates is refused when its rates are needed.
     """
 
     def __init__(self, chain) -> None:
@@ -296,13 +297,32 @@ class ChainDynamics:
             self._held(t0, x, v)
         if q.size:
             inputs, wall = self.inputs(t0), self._wall_motion(t0)
+            given = {name: int(self.node_of_point[point_of_element(self.chain, name)]) for name in (x0 or {})}
+            given = {name: k for name, k in given.items() if k >= 0 and self.massless[k]}
+            values = {k: x[k] for k in given.values()}
             still = np.zeros(n)
             residual = self._forces(x[None], still[None], t0, inputs, (wall[0], 0.0, 0.0))[0, q]
             x[q] += np.linalg.lstsq(self.Jx, -residual, rcond=None)[0]
+            for k, value in values.items():                   # a given first-order part is an initial value
+                x[k] = value
+            if given:
+                self._check_given(t0, x, v, given, values, inputs, wall)
         parts = [x[I], v[I]]
         if self.n_r:
             parts.append(self.P_r.T @ x[q])
         return np.concatenate(parts)
+
+    def _check_given(self, t0: float, x: np.ndarray, v: np.ndarray, given: Mapping[str, int],
+                     values: Mapping[int, float], inputs: Mapping, wall) -> None:
+        """Refuse an ``x0`` of a massless point that its balance does not allow (its algebraic part)."""
+        settled, rates = x.copy(), v.copy()
+        self.condense(t0, settled, rates, inputs, wall)
+        for name, k in given.items():
+            if abs(settled[k] - values[k]) > 1e-9 * max(1.0, abs(values[k])):
+                raise ModelError(f"x0[{name!r}] = {float(values[k])!r}: the point of {name!r} has no mass and its "
+                                 "position follows from the force balance of the elements around it "
+                                 f"({settled[k]:.9g} m under the other initial positions); leave it out of x0, or "
+                                 "give it a mass")
 
     def held_points(self) -> list[tuple[np.ndarray, Callable[[float], tuple[float, float, float]]]]:
         """``(points, motion)`` of the displacement-type boundaries: the connection points held by the

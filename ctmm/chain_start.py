@@ -19,7 +19,7 @@ from .signals import Constant
 from .system import Chain
 
 __all__ = ["rest_positions", "initial_state", "initial_acceleration", "initial_forces", "acceleration_change", "NodeInertia",
-           "point_labels"]
+           "point_labels", "point_of_element"]
 
 def rest_positions(system: Chain) -> np.ndarray:
     """Absolute positions [m] of the connection points with every connector at its free length."""
@@ -45,7 +45,8 @@ def point_labels(system: Chain) -> list[str]:
     return labels
 
 
-def _point_of(system: Chain, element_name: str) -> int:
+def point_of_element(system: Chain, element_name: str) -> int:
+    """The connection point an ``x0`` / ``v0`` entry by element name sets (:func:`initial_state`)."""
     pos = system.position(element_name)
     if pos == len(system.elements) - 1:
         return system.n_points - 1
@@ -76,7 +77,7 @@ def initial_state(system: Chain, x0: Mapping[str, float] | None, v0: Mapping[str
     given = np.zeros(system.n_points, dtype=bool)
     for values, target in ((x0, x), (v0, v)):
         for element_name, value in values.items():
-            p = _point_of(system, element_name)
+            p = point_of_element(system, element_name)
             target[p] = value
             given[p] = True
             if target is x:

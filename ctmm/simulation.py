@@ -253,6 +253,9 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
                          "ctmm.compiled_scene); leave compiled at None for a 1-D chain")
     require_chain(system, "ctmm.simulate")
     chosen = _method(method, scheme, "newmark")
+    if isinstance(chosen, str) and chosen not in (*SCHEMES, *FIXED_STEP_METHODS, *SCIPY_METHODS):
+        raise ModelError(f"unknown scheme {chosen!r}; available: {', '.join(sorted(SCHEMES))} or a ctmm.schemes "
+                         f"object; the method of a chain may also be 'rk4' or a solve_ivp method {SCIPY_METHODS}")
     if isinstance(chosen, str) and (chosen in FIXED_STEP_METHODS or chosen in SCIPY_METHODS):
         return _simulate_chain_ode(system, t_final, dt, method=chosen, x0=x0, v0=v0, t0=t0, inputs=inputs,
                                    outputs=outputs, controllers=controllers, references=references, solver=solver,

@@ -1,4 +1,4 @@
-"""ODE integrators for plain 1-D chains (``ctmm.simulate(chain, ..., method="rk4" | solve_ivp)``, ``ctmm/chain_ode.py``).
+"""ODE integrators for plain 1-D chains (``ctmm.simulate(chain, method="rk4" | solve_ivp)``, ``ctmm/chain_ode.py``).
 
 Independent references only: the matrix exponential of the global equations (``reference/chain.py``),
 ``reference/inerter_chain.py``, and closed-form / hand-written state equations of small chains (two
@@ -266,3 +266,14 @@ def test_a_mass_on_a_driven_end_moves_with_it_and_loads_its_reaction():
     ode = ctmm.simulate(resting, 0.5, 0.001, method="DOP853", x0={"m": 0.01}, rtol=1e-11, atol=1e-14)
     assert np.all(newmark["m0.x"] == 0.0) and np.all(newmark.acceleration[:, 0, 0] == 0.0)
     assert np.max(np.abs(newmark.states[:, 0, 1] - ode.states[:, 0, 1])) <= 1e-3 * np.max(np.abs(ode.states[:, 0, 1]))
+
+
+def test_x0_of_a_massless_point_is_an_initial_value_only_where_it_can_be():
+    maxwell = ctmm.Chain("maxwell", [Fixed("w"), Spring("k", 100.0), Damper("c", 5.0), Mass("m", 2.0), Free("e")])
+    for method in ("rk4", "newmark"):                    # first-order node: its position is an initial value
+        result = ctmm.simulate(maxwell, 0.1, 0.01, method=method, x0={"m": 0.1, "k": 0.05})
+        assert result.states[0, 1, 0] == 0.05
+        assert result.velocity[0, 1, 0] == pytest.approx(-100.0 * 0.05 / 5.0, rel=1e-12)   # c (0 - v) = k q
+    pulled = ctmm.Chain("free", [Free("s"), Spring("k", 100.0), Mass("m", 1.0), Spring("k2", 50.0), Fixed("e")])
+    with pytest.raises(ModelError, match=r"x0\['s'\] = 0.3: the point of 's' has no mass"):
+        ctmm.simulate(pulled, 0.1, 0.01, method="rk4", x0={"s": 0.3})
