@@ -15,9 +15,11 @@ import numpy as np
 from . import validation
 from .elements.axial import AxialBody
 from .errors import ModelError
+from .signals import Constant
 from .system import Chain
 
-__all__ = ["rest_positions", "initial_state", "initial_acceleration", "initial_forces", "acceleration_change", "NodeInertia"]
+__all__ = ["rest_positions", "initial_state", "initial_acceleration", "initial_forces", "acceleration_change", "NodeInertia",
+           "point_labels", "point_of_element"]
 
 def rest_positions(system: Chain) -> np.ndarray:
     """Absolute positions [m] of the connection points with every connector at its free length."""
@@ -29,7 +31,22 @@ def rest_positions(system: Chain) -> np.ndarray:
     return x
 
 
-def _point_of(system: Chain, element_name: str) -> int:
+def point_labels(system: Chain) -> list[str]:
+    """Name of each connection point for messages: its point element, else ``"<inboard>|<outboard>"``."""
+    labels = []
+    for p, name in enumerate(system.point_names()):
+        inboard, outboard = system.elements[p], system.elements[p + 1]
+        if isinstance(outboard, AxialBody):
+            labels.append(outboard.name)
+        elif isinstance(inboard, AxialBody):
+            labels.append(inboard.name)
+        else:
+            labels.append(name)
+    return labels
+
+
+def point_of_element(system: Chain, element_name: str) -> int:
+    """The connection point an ``x0`` / ``v0`` entry by element name sets (:func:`initial_state`)."""
     pos = system.position(element_name)
     if pos == len(system.elements) - 1:
         return system.n_points - 1
@@ -41,8 +58,8 @@ def initial_state(system: Chain, x0: Mapping[str, float] | None, v0: Mapping[str
 
     ``x0`` / ``v0`` map element names (masses, boundaries) to absolute position [m] / velocity
     [m/s].  Unspecified points keep their rest position (connectors at free length) and zero
-    velocity, except points between connectors only (massless junctions), which are placed by
-    the static force balance of the connectors around them (compliance-weighted).
+    velocity; the time paths then place the points between connectors only (massless junctions)
+    at their force balance (:meth:`ctmm.chain_ode.ChainDynamics.start_points`).
     """
     x0 = validation.number_mapping("x0", x0)
     v0 = validation.number_mapping("v0", v0)
@@ -60,7 +77,7 @@ def initial_state(system: Chain, x0: Mapping[str, float] | None, v0: Mapping[str
     given = np.zeros(system.n_points, dtype=bool)
     for values, target in ((x0, x), (v0, v)):
         for element_name, value in values.items():
-            p = _point_of(system, element_name)
+            p = point_of_element(system, element_name)
             target[p] = value
             given[p] = True
             if target is x:
@@ -217,7 +234,18 @@ def initial_acceleration(system: Chain, x: np.ndarray, v: np.ndarray, t0: float,
 
     Consecutive point elements (a mass with a grounded spring, ...) form one node: its
     acceleration is (sum of the forces on the node) / (sum of the masses).  Massless nodes get 0.
-    Chains with inerters solve the coupled equations (:func:`_coupled_acceleration`).
+    Point elements directly on a resting displacement-type boundary (``Fixed``, a constant
+    ``PrescribedDisplacement``) rest with it (``a = 0``; their inertia force enters the boundary's
+    reaction, :func:`initial_forces`).  Chains with inerters solve the coupled equations
+    (:func:`_coupled_acceleration`).
+
+    Raises
+    ------
+    ModelError
+        A point element directly on a *moving* prescribed displacement: a DT-TMM scheme would take
+        its acceleration from the scheme's differences of the prescribed motion, whose error does
+        not vanish with the step (the reported reaction would be wrong); the ODE methods move it with
+        the boundary exactly (:mod:`ctmm.chain_ode`).
     """
     extra_forces = extra_forces or {}
     if _has_inertance(system):
@@ -235,6 +263,20 @@ def initial_acceleration(system: Chain, x: np.ndarray, v: np.ndarray, t0: float,
             j += 1
         last = j - 1                     # elements first..last share one point
         point = first - 1
+        on_start, on_end = first == 1 and system.start.known == "displacement", \
+            last == len(body) and system.end.known == "displacement"
+        if on_start or on_end:           # the point rests with its boundary
+            boundary = system.start if on_start else system.end
+            signal = getattr(boundary, "displacement", None)
+            if signal is not None and not isinstance(signal, Constant):
+                names = ", ".join(body[pos - 1].name for pos in range(first, last + 1))
+                raise ModelError(f"{names} sits directly on the driven boundary {boundary.name!r}: a DT-TMM scheme "
+                                 "would take its acceleration from the scheme's differences of the prescribed "
+                                 "displacement, whose error does not vanish as dt -> 0 (its inertia force in the "
+                                 "reaction would be wrong); use an ODE method (method='rk4' or a solve_ivp method), "
+                                 "which moves it with the boundary exactly, or put a connector in between")
+            a[point:last + 1, 0] = 0.0
+            continue
         total_mass, force = 0.0, 0.0
         for pos in range(first, last + 1):
             e = body[pos - 1]

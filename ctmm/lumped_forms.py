@@ -56,7 +56,7 @@ from .ops import NUMPY, batch_column
 from .protocol import BodyTerms, JointTerms, Motion
 
 __all__ = ["MasslessNode", "LumpedTree", "lumped_tree", "frequency_states", "explicit_accelerations",
-           "implicit_corrections", "FrequencyStates"]
+           "implicit_corrections", "FrequencyStates", "node_inertia", "massless_nodes"]
 
 
 
@@ -350,7 +350,8 @@ def _point_states(tree: LumpedTree, x, f_in, f_out, x_wall, s, amplitudes) -> np
 
 
 def explicit_accelerations(tree: LumpedTree, x: Any, v: Any, t: float = 0.0,
-                           inputs: Mapping[int, Mapping[str, Any]] | None = None) -> np.ndarray:
+                           inputs: Mapping[int, Mapping[str, Any]] | None = None, *,
+                           wall: tuple[Any, Any, Any] = (0.0, 0.0, 0.0), massless: str = "refuse") -> np.ndarray:
     """Accelerations of the nodes from the element terms (explicit context, ``kappa = -tau_a``).
 
     Parameters
@@ -365,24 +366,45 @@ def explicit_accelerations(tree: LumpedTree, x: Any, v: Any, t: float = 0.0,
     inputs : mapping, optional
         ``{element position: {input name: value}}`` (forces [N]; ``"displacement"`` of a prescribed
         start boundary as an acceleration [m/s^2]).
+    wall : tuple of float or arrays
+        Position [m], velocity [m/s] and acceleration [m/s^2] of the ground of a displacement-type
+        end (``Fixed(position=...)``, ``PrescribedDisplacement``); ignored for a force-type end.
+    massless : {"refuse", "residual"}
+        What to do with the nodes without mass and without inertance next to them
+        (:func:`node_inertia` ``== 0``): refuse them (:class:`ModelError`), or return the **net force
+        [N]** on each of them in its column (``"residual"``: the caller condenses them, e.g.
+        :mod:`ctmm.chain_ode`).  In the explicit context such a node is decoupled from the others
+        (its joints have ``kappa = -tau_a = 0``), so a unit placeholder inertia at it changes no
+        other node's acceleration and its own "acceleration" is the force on it.
 
     Returns
     -------
     ndarray, shape (B, n_nodes)
-        Accelerations [m/s^2].
+        Accelerations [m/s^2] (``"residual"``: forces [N] at the massless nodes).
 
     Raises
     ------
     ModelError
-        When a node has neither mass nor inertance next to it (its displacement is algebraic).
+        When a node has neither mass nor inertance next to it (its displacement is algebraic) and
+        ``massless="refuse"``.
     """
     xs = np.atleast_2d(np.asarray(x, dtype=float))
-    _require_inertia(tree)
-    return implicit_corrections(tree, 0.0, 0.0, 1.0, x, v, np.zeros_like(xs), t, inputs)
+    if massless not in ("refuse", "residual"):
+        raise ModelError(f"explicit_accelerations: massless must be 'refuse' or 'residual', got {massless!r}")
+    if massless == "refuse":
+        _require_inertia(tree)
+        placeholder: tuple[int, ...] = ()
+    else:
+        placeholder = tuple(int(k) for k in np.flatnonzero(massless_nodes(tree)))
+    wall_parts = (wall[0], wall[1], 0.0, wall[2])
+    return implicit_corrections(tree, 0.0, 0.0, 1.0, x, v, np.zeros_like(xs), t, inputs,
+                                wall=wall_parts, _placeholder=placeholder)
 
 
 def implicit_corrections(tree: LumpedTree, cx: float, A: float, C: float, dx: Any, B: Any, D: Any,  # noqa: N803
-                         t: float = 0.0, inputs: Mapping[int, Mapping[str, Any]] | None = None) -> np.ndarray:
+                         t: float = 0.0, inputs: Mapping[int, Mapping[str, Any]] | None = None, *,
+                         wall: tuple[Any, Any, Any, Any] = (0.0, 0.0, 0.0, 0.0),
+                         _placeholder: tuple[int, ...] = ()) -> np.ndarray:
     """The implicit (DT-TMM) context: the step's unknowns ``delta`` of the nodes by one sweep.
 
     Every node's kinematics at the step's evaluation level are affine in its unknown,
@@ -409,6 +431,9 @@ def implicit_corrections(tree: LumpedTree, cx: float, A: float, C: float, dx: An
     inputs : mapping, optional
         ``{element position: {input name: value}}`` at the evaluation level (``"displacement"`` of a
         prescribed start: its ``delta``).
+    wall : tuple
+        ``(dx, B, delta, D)`` of the ground of a displacement-type end (its position [m], velocity
+        [m/s], its known ``delta`` and acceleration part [m/s^2]; all 0 for a ground at rest at 0).
 
     Returns
     -------
@@ -430,6 +455,8 @@ def implicit_corrections(tree: LumpedTree, cx: float, A: float, C: float, dx: An
         if not isinstance(body, MasslessNode) and (cx or A):
             co = body.axial_coefficients()
             M = M + (co.damping * A + co.stiffness * cx)
+        if k in _placeholder and (j == 0 or tree.node[j - 1] != k):
+            M = M + NUMPY.eye(1)                                    # unit placeholder of a massless node
         bodies.append(BodyTerms(M=M, h=h, Kin=terms.Kin, c=terms.c, RF=terms.RF))
         parent = tree.node[j - 1] if j > 0 else None
         relative = [value[k] - (value[parent] if parent is not None else 0.0) for value in (dxn, Bn, Dn)]
@@ -437,10 +464,13 @@ def implicit_corrections(tree: LumpedTree, cx: float, A: float, C: float, dx: An
         joints.append(joint)
         kappa.append(tangent)
     last = tree.node[-1]
-    cap, tangent = _step_joint(tree, tree.cap, [-dxn[last], -Bn[last], -Dn[last]], cx, A, C, t,
-                               _inputs(inputs, tree.cap))
+    ground = [batch_column(np.atleast_2d(np.asarray(value, dtype=float)).reshape(-1, 1)) for value in wall]
+    cap, tangent = _step_joint(tree, tree.cap, [ground[0] - dxn[last], ground[1] - Bn[last], ground[3] - Dn[last]],
+                               cx, A, C, t, _inputs(inputs, tree.cap))
     if cap.tau is not None and cap.free:
         M, h = bodies[-1].M, bodies[-1].h + cap.tau
+        if tangent is not None and tree.wall_moves:                 # the ground's known delta
+            h = h - tangent * ground[2]
         if tangent is not None:
             M = M + tangent
         bodies[-1] = BodyTerms(M=M, h=h, Kin=bodies[-1].Kin, c=bodies[-1].c, RF=bodies[-1].RF)
@@ -466,8 +496,13 @@ def _step_joint(tree: LumpedTree, entry, relative, cx: float, A: float, C: float
     return JointTerms(S=joint.S, tau=tau, tau_q=joint.tau_q, tau_v=joint.tau_v, tau_a=joint.tau_a), tangent
 
 
-def _require_inertia(tree: LumpedTree) -> None:
-    """Refuse nodes whose displacement is algebraic in the explicit context."""
+def node_inertia(tree: LumpedTree) -> np.ndarray:
+    """Per node: its mass plus the inertance of the connectors touching it [kg].
+
+    A node that is not held by the start and has ``node_inertia == 0`` is **massless**: its
+    displacement is algebraic (between springs) or a first-order state (next to a damper), never an
+    acceleration (:func:`massless_nodes`).
+    """
     inertance = {}
     for j, entry in enumerate(tree.joints):
         if entry is not None and entry[1] is None:                  # a connector
@@ -478,13 +513,25 @@ def _require_inertia(tree: LumpedTree) -> None:
     if tree.cap[1] is None:
         b = tree.cap[0].axial_coefficients().inertia
         inertance[tree.node[-1]] = inertance.get(tree.node[-1], 0.0) + b
-    for k in range(tree.n_nodes):
-        if tree.grounded[k]:
-            continue
-        mass = sum(tree.bodies[j].axial_coefficients().inertia for j in range(len(tree.bodies))
-                   if tree.node[j] == k and not isinstance(tree.bodies[j], MasslessNode))
-        if mass + inertance.get(k, 0.0) == 0.0:
-            names = [tree.bodies[j].name for j in range(len(tree.bodies)) if tree.node[j] == k]
-            raise ModelError(f"explicit_accelerations: node {k} ({', '.join(names)}) of chain {tree.chain.name!r} has "
-                             "no mass and no inertance next to it: its displacement is algebraic (a static "
-                             "condensation, not an acceleration); the frequency and implicit contexts solve it")
+    out = np.zeros(tree.n_nodes)
+    for j, body in enumerate(tree.bodies):
+        if not isinstance(body, MasslessNode):
+            out[tree.node[j]] += body.axial_coefficients().inertia
+    for k, b in inertance.items():
+        out[k] += b
+    return out
+
+
+def massless_nodes(tree: LumpedTree) -> np.ndarray:
+    """Boolean mask of the massless nodes (not held by the start, :func:`node_inertia` ``== 0``)."""
+    return (node_inertia(tree) == 0.0) & ~np.asarray(tree.grounded, dtype=bool)
+
+
+def _require_inertia(tree: LumpedTree) -> None:
+    """Refuse nodes whose displacement is algebraic in the explicit context."""
+    for k in np.flatnonzero(massless_nodes(tree)):
+        names = [tree.bodies[j].name for j in range(len(tree.bodies)) if tree.node[j] == k]
+        raise ModelError(f"explicit_accelerations: node {k} ({', '.join(names)}) of chain {tree.chain.name!r} has "
+                         "no mass and no inertance next to it: its displacement is algebraic (a static "
+                         "condensation, not an acceleration); the frequency and implicit contexts solve it, and "
+                         "massless='residual' returns the force on it for a condensation (ctmm.chain_ode)")

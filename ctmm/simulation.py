@@ -1,6 +1,8 @@
 """The one simulation verb, :func:`ctmm.simulate`: every system is simulated with all it contains.
 
-* A plain :class:`~ctmm.system.Chain` goes to the DT-TMM stepper (:func:`ctmm.timestep.simulate`);
+* A plain :class:`~ctmm.system.Chain` goes to the DT-TMM stepper (:func:`ctmm.timestep.simulate`)
+  with a scheme, or to :func:`ctmm.chain_ode.simulate_chain_ode` with ``"rk4"`` or a ``solve_ivp``
+  method (state equations from the explicit context of the one sweep, massless nodes condensed);
   a :class:`~ctmm.control.loops.ControlledChain`, or a chain with co-simulated ``controllers`` or
   loop ``references``, goes to the controlled stepper
   (:func:`ctmm.control.simulate.simulate_controlled`), so that no loop is ever dropped.  Both
@@ -173,7 +175,8 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         (without it: at every accepted step).
     method : str or Scheme, optional
         ``"rk4"`` (fixed step; planar default), a ``scipy.integrate.solve_ivp`` method
-        (``"RK45"``, ``"DOP853"``, ``"Radau"``, ``"BDF"``, ...; planar) or a DT-TMM scheme
+        (``"RK45"``, ``"DOP853"``, ``"Radau"``, ``"BDF"``, ...; planar models and plain lumped chains,
+        :mod:`ctmm.chain_ode`; loops of a chain need a scheme) or a DT-TMM scheme
         (``"newmark"`` (chain default), ``"generalized_alpha"``, ``"wilson_theta"``, ``"houbolt"``,
         ``"forward_euler"`` or a :mod:`ctmm.schemes` object); on a planar model every scheme closes
         loops, ``inputs`` and ``controllers`` (``docs/planar.md``, ``docs/control.md`` §4c); on a
@@ -226,9 +229,10 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         Largest allowed distance from the start (chains: of a point [m]; planar: of a
         coordinate, its own unit).
     rtol, atol, max_step : float
-        ``solve_ivp`` tolerances and largest step [s] (planar).
+        ``solve_ivp`` tolerances and largest step [s] (planar models, chains).
     store_every : int
-        Planar fixed-step methods: keep every ``store_every``-th step (the last always).
+        Fixed-step ``"rk4"`` (planar models, chains): keep every ``store_every``-th step (the last
+        always).
 
     Returns
     -------
@@ -270,10 +274,15 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
                          "ctmm.compiled_scene); leave compiled at None for a 1-D chain")
     require_chain(system, "ctmm.simulate")
     chosen = _method(method, scheme, "newmark")
+    if isinstance(chosen, str) and chosen not in (*SCHEMES, *FIXED_STEP_METHODS, *SCIPY_METHODS):
+        raise ModelError(f"unknown scheme {chosen!r}; available: {', '.join(sorted(SCHEMES))} or a ctmm.schemes "
+                         f"object; the method of a chain may also be 'rk4' or a solve_ivp method {SCIPY_METHODS}")
     if isinstance(chosen, str) and (chosen in FIXED_STEP_METHODS or chosen in SCIPY_METHODS):
-        raise ModelError(f"method={chosen!r} does not apply to a 1-D chain, which is stepped by a DT-TMM scheme: "
-                         f"{', '.join(sorted(SCHEMES))} or a ctmm.schemes object ('rk4' and the solve_ivp "
-                         f"methods {SCIPY_METHODS} are for planar models)")
+        return _simulate_chain_ode(system, t_final, dt, method=chosen, x0=x0, v0=v0, t0=t0, inputs=inputs,
+                                   outputs=outputs, controllers=controllers, references=references, solver=solver,
+                                   fast=fast, force_hook=force_hook, progress=progress,
+                                   stability_check=stability_check, divergence_bound=divergence_bound, rtol=rtol,
+                                   atol=atol, max_step=max_step, store_every=store_every)
     planar_only = {"inputs": (inputs, None), "outputs": (tuple(outputs), ()), "rtol": (rtol, 1e-8),
                    "atol": (atol, 1e-10), "max_step": (max_step, None), "store_every": (store_every, 1)}
     for name, (value, default) in planar_only.items():
@@ -295,6 +304,31 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
     return simulate_controlled(system, t_final, dt, scheme=chosen, x0=x0, v0=v0, t0=t0, references=references,
                                controllers=controllers, coupling=coupling, progress=progress,
                                stability_check=stability_check, divergence_bound=divergence_bound)
+
+
+def _simulate_chain_ode(system: Any, t_final: float, dt: float | None, *, method: str, x0: Any, v0: Any, t0: float,
+                        inputs: Any, outputs: Sequence[str], controllers: list, references: dict, solver: str,
+                        fast: Any, force_hook: Any, progress: Any, stability_check: Any,
+                        divergence_bound: float | None, rtol: float, atol: float, max_step: float | None,
+                        store_every: int) -> SimulationResult:
+    """:func:`simulate` of a plain chain with ``"rk4"`` or a ``solve_ivp`` method (:mod:`ctmm.chain_ode`)."""
+    if isinstance(system, ControlledChain) or controllers or references:
+        what = "loops" if isinstance(system, ControlledChain) else ("controllers" if controllers else "references")
+        raise ModelError(f"method={method!r} on a chain with {what}: the ODE path of 1-D chains does not close "
+                         "feedback loops yet (it would drop them); use a DT-TMM scheme "
+                         f"({', '.join(sorted(SCHEMES))}), which closes real-time and delayed loops")
+    unsupported = {"inputs": (inputs, None), "outputs": (tuple(outputs), ()), "solver": (solver, "riccati"),
+                   "fast": (fast, None), "force_hook": (force_hook, None), "progress": (progress, None),
+                   "stability_check": (stability_check, None)}
+    for name, (value, default) in unsupported.items():
+        if value is not default and value != default:
+            raise ModelError(f"{name}={value!r} does not apply to an ODE run of a chain (method={method!r}: loads "
+                             f"and prescribed motions come from its elements; every signal is stored); leave "
+                             f"{name} at {default!r}")
+    from .chain_ode import simulate_chain_ode
+
+    return simulate_chain_ode(system, t_final, dt, method=method, x0=x0, v0=v0, t0=t0, rtol=rtol, atol=atol,
+                              max_step=max_step, store_every=store_every, divergence_bound=divergence_bound)
 
 
 def _loop_references(loops: Sequence[Any], inputs: Mapping[str, Any] | None, references: dict

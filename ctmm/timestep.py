@@ -28,9 +28,9 @@ from . import validation
 from .assembly import (SOLVERS, BoundaryEnd, BoundaryStart, clamped_start_solve, predicted_forces,
                        shift_forces)
 from .elements.base import Linearisation
-from .chain_start import initial_acceleration, initial_forces, initial_state, rest_positions
+from .chain_ode import ChainDynamics
+from .chain_start import initial_acceleration, initial_forces, initial_state, point_labels, rest_positions
 from .elements.beam_time import bending_mesh
-from .elements.axial import AxialBody
 from .errors import ModelError, SimulationError
 from .guard import DivergenceGuard
 from .progress import progress_bar
@@ -280,20 +280,6 @@ def _scalar_sweeps_python(a21, S, G, alpha, v1, v2, P0, end_row, end_b, fixed_st
 MAX_STEPS = 100_000_000
 
 
-def point_labels(system: Chain) -> list[str]:
-    """Name of each connection point for messages: its point element, else ``"<inboard>|<outboard>"``."""
-    labels = []
-    for p, name in enumerate(system.point_names()):
-        inboard, outboard = system.elements[p], system.elements[p + 1]
-        if isinstance(outboard, AxialBody):
-            labels.append(outboard.name)
-        elif isinstance(inboard, AxialBody):
-            labels.append(inboard.name)
-        else:
-            labels.append(name)
-    return labels
-
-
 def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str = "newmark",
              x0: Mapping[str, float] | None = None, v0: Mapping[str, float] | None = None,
              t0: float = 0.0, solver: str = "riccati", fast: bool | None = None,
@@ -374,7 +360,7 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
     n_steps = int(round((t_final - t0) / dt))
     if n_steps < 1 or abs(n_steps * dt - (t_final - t0)) > 1e-9 * max(1.0, abs(t_final)):
         raise ModelError(f"(t_final - t0) = {t_final - t0!r} s must be a whole number of steps dt={dt!r} (>= 1)")
-    x, v = mesh.initial_state(x0, v0) if mesh else initial_state(system, x0, v0)
+    x, v = mesh.initial_state(x0, v0) if mesh else _start_state(system, x0, v0, t0)
     check_scheme_step(system, scheme, dt, stability_check)
     guard = DivergenceGuard.from_start(point_labels(system), 0 * x[:, 0] if mesh else rest_positions(system), x[:, 0],
                                        bound=divergence_bound, hint=_divergence_hint)
@@ -456,6 +442,30 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
             "path": "lumped-fast" if fast else f"generic-{solver}"}
     return SimulationResult(times, states[:, rows], vel[:, rows], acc[:, rows], _system_for_result or original,
                             scheme.name, info)
+
+
+def _start_state(system: Chain, x0, v0, t0: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`~ctmm.chain_start.initial_state` with the massless points of a lumped chain at their
+    consistent start (:meth:`ctmm.chain_ode.ChainDynamics.start_points`: static balance under the given
+    positions, velocities from the balance), so the first step sees the right connector forces.  Chains
+    off the ``d = 1`` protocol, or whose support or massless-node force has no closed-form rate, keep
+    :func:`initial_state` (massless points at rest length)."""
+    try:
+        dynamics = ChainDynamics(system)
+    except ModelError:
+        return initial_state(system, x0, v0)
+    try:
+        x, v = dynamics.start_points(t0, x0, v0)
+    except ModelError as exc:
+        if "closed-form rate" not in str(exc):
+            raise
+        x, v = initial_state(system, x0, v0)
+    for points, motion in dynamics.held_points():
+        try:
+            x[points, 0], v[points, 0] = motion(t0)[:2]
+        except ModelError:                    # no closed-form rate: the support starts at rest as before
+            pass
+    return x, v
 
 
 def _fast_step(system: Chain, kernel: _LumpedKernel, coeffs, load, t_eval: float, cache: dict,

@@ -9,7 +9,8 @@ from __future__ import annotations
 import numpy as np
 
 import ctmm
-from ctmm.elements import Connector, Elastic, Fixed, Free, GroundedSpring, Mass
+from ctmm.elements import Connector, Elastic, Fixed, Free, GroundedSpring, Inerter, Mass, SpringDamper
+from ctmm.reference import inerter_chain
 from ctmm.reference.chain import GlobalChain
 
 
@@ -83,3 +84,21 @@ def random_chain(rng: np.random.Generator, n: int, *, start: str, end: str, damp
                         else ctmm.elements.Spring(f"k{n}", kk))
     elements.append(boundary(end, "end"))
     return ctmm.Chain(f"random_{start}_{end}_{n}", elements)
+
+
+def inerter_chains(masses, k, c, b, end: str):
+    """The same chain for ctmm and ``reference/inerter_chain.py`` (a zero mass: a point without a Mass;
+    a connector without inertance: a SpringDamper)."""
+    n = len(masses)
+    if end == "free":
+        k[n] = c[n] = b[n] = 0.0
+    reference = inerter_chain.InerterChain(masses, k, c, b, start="fixed", end=end)
+    elements = [Fixed("start")]
+    for j in range(n + 1):
+        if j == n and end == "free":
+            break
+        elements.append(Inerter(f"c{j}", b[j], stiffness=k[j], damping=c[j]) if b[j] else
+                        SpringDamper(f"c{j}", k[j], c[j]))
+        if j < n and masses[j]:
+            elements.append(Mass(f"m{j}", masses[j]))
+    return ctmm.Chain("inerters", elements + [Fixed("end") if end == "fixed" else Free("end")]), reference

@@ -183,8 +183,8 @@ CASES: list[tuple[Case, list]] = [
      [[0.1], np.zeros(1)]),
     (Case("ctmm.simulate", "element", "chain given a planar x0", lambda v: ctmm.simulate(chain(), 0.05, 0.01, x0=v)),
      [{"link.theta": 1.0}]),
-    (Case("ctmm.simulate", "method", "chain given a planar method",
-          lambda v: ctmm.simulate(chain(), 0.05, 0.01, method=v)), ["rk4", "RK45", "Radau"]),
+    (Case("ctmm.simulate", "method", "chain given an unknown method",          # rk4 / solve_ivp run chains
+          lambda v: ctmm.simulate(chain(), 0.05, 0.01, method=v)), ["rk5", "RK99", "radau"]),
     # -- ctmm.simulate_implicit (every scheme) -------------------------------------------------
     (Case("ctmm.planar.simulate_implicit", "scheme", "scheme",
           lambda v: simulate_implicit(arm(), [0.1], [0.0], t_final=0.02, dt=0.01, scheme=v)),

@@ -26,7 +26,7 @@ from ctmm.ops import CASADI, NUMPY
 from ctmm.protocol import Motion
 from ctmm.reference import chain as global_chain
 from ctmm.reference import inerter_chain
-from _chain_convert import random_chain, to_global
+from _chain_convert import inerter_chains, random_chain, to_global
 
 S = 0.05 + 1j * np.array([0.0, 0.7, 3.1, 9.0, 22.0])      # off the axis: no resonance is hit exactly
 
@@ -92,23 +92,6 @@ def test_frequency_context_equals_the_chain_transfer_solution_for_every_family(s
     assert _relative(characteristic[:-1] / characteristic[-1], expected) <= 1e-12
 
 
-def _inerter_chains(masses, k, c, b, end: str):
-    """The same chain for ctmm and ``reference/inerter_chain.py`` (a zero mass: a point without a Mass)."""
-    n = len(masses)
-    if end == "free":
-        k[n] = c[n] = b[n] = 0.0
-    reference = inerter_chain.InerterChain(masses, k, c, b, start="fixed", end=end)
-    elements = [Fixed("start")]
-    for j in range(n + 1):
-        if j == n and end == "free":
-            break
-        elements.append(Inerter(f"c{j}", b[j], stiffness=k[j], damping=c[j]) if b[j] else
-                        SpringDamper(f"c{j}", k[j], c[j]))
-        if j < n and masses[j]:
-            elements.append(Mass(f"m{j}", masses[j]))
-    return ctmm.Chain("inerters", elements + [Fixed("end") if end == "fixed" else Free("end")]), reference
-
-
 @pytest.mark.parametrize("seed", range(6))
 def test_frequency_context_equals_the_global_equations_with_inerters(seed):
     rng = np.random.default_rng(100 + seed)
@@ -116,7 +99,7 @@ def test_frequency_context_equals_the_global_equations_with_inerters(seed):
     masses = rng.uniform(0.3, 2.0, n)
     k, c, b = rng.uniform(20, 200, n + 1), rng.uniform(0.1, 1.0, n + 1), rng.uniform(0.1, 0.8, n + 1)
     b[rng.integers(n + 1)] = 0.0
-    chain, reference = _inerter_chains(masses, k, c, b, ("fixed", "free")[seed % 2])
+    chain, reference = inerter_chains(masses, k, c, b, ("fixed", "free")[seed % 2])
     tree = lumped_tree(chain)
     omega = np.array([0.5, 4.0, 11.0])
     force = rng.normal(size=n)
@@ -185,7 +168,7 @@ def test_implicit_context_solves_the_global_step_equations(seed):
     masses[2] = 0.0
     k, c, b = rng.uniform(20, 200, n + 1), rng.uniform(0.1, 1.0, n + 1), rng.uniform(0.1, 0.8, n + 1)
     b[2] = b[3] = 0.0                                     # node 2: a massless point between two springs
-    chain, reference = _inerter_chains(masses, k, c, b, ("fixed", "free")[seed % 2])
+    chain, reference = inerter_chains(masses, k, c, b, ("fixed", "free")[seed % 2])
     tree = lumped_tree(chain)
     nodes = [tree.node[tree.positions.index(chain.position(f"m{j}"))] if masses[j] else
              tree.node[tree.point_body[chain.position(f"c{j}")]] for j in range(n)]
