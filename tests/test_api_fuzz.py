@@ -461,7 +461,7 @@ CASES: list[Case] = [
     Case("ctmm.manipulator.Arm", "length", "positive", lambda v: __import__("ctmm.manipulator").manipulator.Arm(
         length=v)),
     Case("ctmm.control.StaticGainController", "sample_time", "positive",
-         lambda v: ctmm.control.StaticGainController(["a.x"], ["b.force"], [[1.0]], sample_time=v)),
+         lambda v: ctmm.control.StaticGainController(["a.x"], ["b.force"], [[1.0]], sample_time=v), valid=(None,)),
 ]
 
 
