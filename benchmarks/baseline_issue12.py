@@ -29,7 +29,16 @@ added later, measured alone) Newmark on the spatial double pendulum at dt = 10 m
 for a baseline under ~3 min, or needing a build): larger sizes and step ladders, the external
 libraries and references the benchmarks compare with (python-control, pinocchio, MuJoCo, global
 and Lagrange models), the FMU controller variant (builds an FMU with gcc), ``flexible``'s chain of
-beams and adaptive runs, the verified and threaded charts.  Python time-stepping cases whose
+beams and adaptive runs, the verified and threaded charts.
+
+Re-based cases (their stored numbers replaced, measured alone and merged; every other case is the
+S0 baseline): on 2026-11-25 (issue 12, retiring ``FlexibleManipulator``) ``manipulator/sweep``,
+``manipulator/simulate_rk4`` and ``manipulator/simulate_newmark`` changed what they measure -- the
+sweep is the scene plant's ``accelerations()`` with the PD and PZT loops' actuator inputs (was: the
+older model with both laws embedded in it), and the two runs are ``ctmm.simulate`` of the
+manipulator scene with the laws as ``Feedback`` loops on its ports (was:
+``FlexibleManipulator.simulate``); same physics, same step and horizon.  Each re-based case says so
+in its ``"rebased"`` entry.  Python time-stepping cases whose
 benchmark horizon would make the repeats slow run over a shorter horizon at the benchmark's step
 (stated in ``configuration``): the per-step cost does not depend on the horizon.
 
@@ -283,20 +292,21 @@ def _manipulator(t: Timings) -> None:
     bench = importlib.import_module("manipulator")
     from ctmm.planar import accelerations
 
-    arm = bench.seed_manipulator()
-    system = bench.FlexibleManipulator(arm, bench.HubPD(bench.SEED_KP, bench.SEED_KD),
-                                       bench.PZTFeedback(np.eye(3) * bench.SEED_PZT_GAIN), bench.SEED_MOVE)
-    model = system.model()
-    q = np.zeros(model.n_coordinates)
-    t.add("manipulator", "sweep", lambda: accelerations(model, q, q, 0.1), per="sweep", count=1,
-          configuration="seed manipulator (hub + 3-mode arm, PD + PZT), one accelerations() call")
+    arm, pd, pzt, scene, references = bench.seed_scene()
+    q = np.zeros(scene.plant.n_coordinates)
+    inputs = bench.loop_inputs(scene, references, q, q, 0.1)
+    t.add("manipulator", "sweep", lambda: accelerations(scene.plant, q, q, 0.1, inputs=inputs), per="sweep", count=1,
+          configuration="seed manipulator scene (hub + 3-mode arm; PD + PZT loops' actuator inputs), one "
+                        "accelerations() call of the plant")
     horizon, dt = 0.5, 0.01
     steps = int(round(horizon / dt))
     for method in ("rk4", "newmark"):
-        t.add("manipulator", f"simulate_{method}", lambda method=method: system.simulate(horizon, dt, method=method),
+        t.add("manipulator", f"simulate_{method}",
+              lambda method=method: ctmm.simulate(scene, horizon, dt, method=method, references=references),
               per="step", count=steps,
-              configuration=f"seed manipulator, dt={dt:g} s, horizon {horizon} s ({steps} steps; benchmark: 3 s)")
-    compiled = bench.CompiledManipulator(system.manipulator, system.pd, system.pzt, system.reference, block=1, chunks=50)
+              configuration=f"seed manipulator scene through ctmm.simulate, dt={dt:g} s, horizon {horizon} s "
+                            f"({steps} steps; benchmark: 3 s)")
+    compiled = bench.CompiledManipulator(arm, pd, pzt, bench.SEED_MOVE, block=1, chunks=50)
     steps = int(round(bench.T_WP / dt))
     t.add("manipulator", "simulate_rk4_compiled", lambda: compiled.simulate(bench.T_WP, dt), per="step", count=steps,
           configuration=f"seed manipulator, casadi-compiled RK4, dt={dt:g} s, {bench.T_WP:g} s ({steps} steps)")

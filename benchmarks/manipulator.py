@@ -9,9 +9,12 @@ model, DOP853 at rtol 1e-12.
 Methods (measured in one run on the same machine):
 
 * ``tmm_rk4_compiled``  -- O(n) TMM sweep + RK4, casadi-generated C, whole interval per call
-* ``tmm_rk4``           -- the same sweep in Python/numpy (``ctmm.flexible`` kernel) + RK4
-* ``dttmm_newmark``     -- implicit DT-TMM, Newmark(1/4, 1/2) + Newton (complex-step tangents)
-* ``tmm_dop853``        -- the Python sweep under ``scipy.integrate.solve_ivp`` (adaptive)
+  (:class:`~ctmm.manipulator.compiled.CompiledManipulator`: the scene's loops closed in the generated step)
+* ``tmm_rk4``           -- the scene (``manipulator_scene``: PD and PZT laws as ``Feedback`` loops on its
+  ports) through ``ctmm.simulate(..., method="rk4")``: the same sweep in Python/numpy + RK4
+* ``dttmm_newmark``     -- the scene through ``ctmm.simulate(..., method="newmark")``: implicit DT-TMM,
+  Newmark(1/4, 1/2) + Newton (complex-step tangents), the real-time loops inside the step
+* ``tmm_dop853``        -- the scene through ``ctmm.simulate(..., method="DOP853")`` (adaptive)
 * ``lagrange_dop853``   -- the global Lagrange model itself under ``solve_ivp`` (peer baseline)
 
 Real-time factor: 10 s of motion with the compiled RK4 at the largest step on the ladder that
@@ -41,10 +44,12 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from ctmm.manipulator import (SEED_KD, SEED_KP, SEED_MOVE, SEED_PZT_GAIN, FlexibleManipulator,  # noqa: E402
-                              HubPD, PZTFeedback, seed_manipulator)
+import ctmm  # noqa: E402
+from ctmm.manipulator import (SEED_KD, SEED_KP, SEED_MOVE, SEED_PZT_GAIN, HubPD, PZTFeedback,  # noqa: E402
+                              manipulator_scene, scene_references, seed_manipulator)
 from ctmm.manipulator.compiled import CompiledManipulator  # noqa: E402
-from ctmm.planar import accelerations, simulate_scipy  # noqa: E402
+from ctmm.planar import accelerations  # noqa: E402
+from ctmm.planar.ports import PlanarPorts  # noqa: E402
 from ctmm.reference.manipulator_lagrange import ManipulatorLagrange  # noqa: E402
 
 T_WP = 3.0
@@ -58,10 +63,28 @@ def _error(t, tip, ref_t, ref_tip) -> float:
     return float(np.abs(on - ref_tip).max() / np.abs(ref_tip).max() * 100)
 
 
-def main(quick: bool = False) -> dict:
+TIP = "arm.tip.w"
+
+
+def seed_scene() -> tuple:
+    """The seed scene: ``(arm, pd, pzt, scene, references)`` (PD + PZT loops, the seed's cycloidal move)."""
     arm = seed_manipulator()
-    gains = np.eye(3) * SEED_PZT_GAIN
-    system = FlexibleManipulator(arm, HubPD(SEED_KP, SEED_KD), PZTFeedback(gains), SEED_MOVE)
+    pd, pzt = HubPD(SEED_KP, SEED_KD), PZTFeedback(np.eye(arm.n_patches) * SEED_PZT_GAIN)
+    return arm, pd, pzt, manipulator_scene(arm, pd=pd, pzt=pzt), scene_references(pd, SEED_MOVE)
+
+
+def loop_inputs(scene, references, q, v, t: float):
+    """Actuator inputs of the scene's loops closed without delay at ``(q, v, t)`` (``u = -(y - r)``)."""
+    ports = PlanarPorts(scene.plant)
+    sensors = scene.sensors()
+    y = scene.sensed(dict(zip(sensors, ports.values(ports.resolve(sensors), q, v, t))))
+    u = {name: -(y[name] - (references[name](t) if name in references else 0.0)) for name in y}
+    return ports.inputs(scene.actuation(u))
+
+
+def main(quick: bool = False) -> dict:
+    arm, pd, pzt, scene, references = seed_scene()
+    gains = pzt.gains
     reference = ManipulatorLagrange.from_manipulator(arm, 3, stiffening=True)
     grid = np.linspace(0.0, T_WP, int(round(T_WP / GRID)) + 1)
     started = time.perf_counter()
@@ -84,31 +107,33 @@ def main(quick: bool = False) -> dict:
     compiled = {}
     for dt in ladder:
         block = max(1, int(round(GRID / dt)))
-        cm = CompiledManipulator(system.manipulator, system.pd, system.pzt, system.reference, block=block, chunks=50)
+        cm = CompiledManipulator(arm, pd, pzt, SEED_MOVE, block=block, chunks=50)
         compiled[dt] = cm
         sim = cm.simulate(T_WP, dt)                      # warm (library load)
         best = min(cm.simulate(T_WP, dt).wall_time_s for _ in range(3))
         record("tmm_rk4_compiled", f"dt={dt:g}", best, _error(sim.t, sim.tip_deflection, grid, ref.tip_deflection),
                steps=int(round(T_WP / dt)))
-    # -- Python RK4 and Newmark ------------------------------------------------------------------
-    for dt in ((0.01, 0.005, 0.002) if not quick else (0.01,)):
-        sim = system.simulate(T_WP, dt, store_every=max(1, int(round(GRID / dt))))
-        record("tmm_rk4", f"dt={dt:g}", sim.wall_time_s, _error(sim.t, sim.tip_deflection, grid, ref.tip_deflection),
-               steps=int(round(T_WP / dt)))
-    for dt in ((0.01, 0.005, 0.002, 0.001) if not quick else (0.01,)):
-        sim = system.simulate(T_WP, dt, method="newmark", store_every=max(1, int(round(GRID / dt))))
-        record("dttmm_newmark", f"dt={dt:g}", sim.wall_time_s,
-               _error(sim.t, sim.tip_deflection, grid, ref.tip_deflection), steps=int(round(T_WP / dt)),
-               extra={"mean_newton_iterations": float(np.mean(sim.iterations))})
-    # -- adaptive: TMM sweep and Lagrange under DOP853 ------------------------------------------
-    model = system.model()
-    q0 = np.zeros(model.n_coordinates)
+    # -- the scene through ctmm.simulate: RK4 and Newmark ----------------------------------------
+    for method, label, ladder in (("rk4", "tmm_rk4", (0.01, 0.005, 0.002)),
+                                  ("newmark", "dttmm_newmark", (0.01, 0.005, 0.002, 0.001))):
+        for dt in (ladder if not quick else (0.01,)):
+            started = time.perf_counter()
+            sim = ctmm.simulate(scene, T_WP, dt, method=method, references=references, outputs=[TIP],
+                                store_every=max(1, int(round(GRID / dt))))
+            wall = time.perf_counter() - started
+            extra = {"evaluations": sim.info.get("n_evaluations")}
+            if "newton_iterations_mean" in sim.info:
+                extra["mean_newton_iterations"] = sim.info["newton_iterations_mean"]
+            record(label, f"dt={dt:g}", wall, _error(sim.time, sim[TIP], grid, ref.tip_deflection),
+                   steps=int(round(T_WP / dt)), extra=extra)
+    # -- adaptive: the scene and Lagrange under DOP853 ---------------------------------------------
     for rtol in ((1e-6, 1e-8, 1e-10) if not quick else (1e-6,)):
-        sim = simulate_scipy(model, q0, np.zeros_like(q0), t_final=T_WP, method="DOP853", rtol=rtol,
-                             atol=rtol * 1e-2, t_eval=grid)
-        tip = sim.q[:, 1:] @ system.tip_shape
-        record("tmm_dop853", f"rtol={rtol:g}", sim.wall_time_s, _error(sim.t, tip, grid, ref.tip_deflection),
-               extra={"evaluations": sim.n_evaluations})
+        started = time.perf_counter()
+        sim = ctmm.simulate(scene, T_WP, GRID, method="DOP853", references=references, outputs=[TIP], rtol=rtol,
+                            atol=rtol * 1e-2)
+        wall = time.perf_counter() - started
+        record("tmm_dop853", f"rtol={rtol:g}", wall, _error(sim.time, sim[TIP], grid, ref.tip_deflection),
+               extra={"evaluations": sim.info.get("n_evaluations")})
         started = time.perf_counter()
         lag = reference.simulate(T_WP, reference=SEED_MOVE, kp=SEED_KP, kd=SEED_KD, pzt_gains=gains, t_eval=grid,
                                  rtol=rtol, atol=rtol * 1e-2)
@@ -125,18 +150,19 @@ def main(quick: bool = False) -> dict:
                 "target": ">= 100 at tip error <= 0.1 % of the peak",
                 "met": bool(T_RT / wall_rt >= 100.0)}
     print(f"real time: 10 s in {wall_rt:.4f} s at dt = {dt_rt:g} s -> {T_RT / wall_rt:.0f}x")
-    # -- where the time goes in the Python sweep ---------------------------------------------------
+    # -- where the time goes in the Python sweep (the plant's sweep with the loops' inputs) -----------
     q = np.array([0.3, 0.01, -0.002, 0.0005])
     v = np.array([1.0, 0.05, 0.01, 0.0])
+    model, inputs = scene.plant, loop_inputs(scene, references, q, v, 0.4)
     n_calls = 300
     started = time.perf_counter()
     for _ in range(n_calls):
-        accelerations(model, q, v, 0.4)
+        accelerations(model, q, v, 0.4, inputs=inputs)
     per_call = (time.perf_counter() - started) / n_calls
     prof = cProfile.Profile()
     prof.enable()
     for _ in range(100):
-        accelerations(model, q, v, 0.4)
+        accelerations(model, q, v, 0.4, inputs=inputs)
     prof.disable()
     stream = io.StringIO()
     pstats.Stats(prof, stream=stream).sort_stats("tottime").print_stats(8)
@@ -155,8 +181,10 @@ def main(quick: bool = False) -> dict:
                          "compiled_time_per_evaluation_us": compiled_per_eval,
                          "speed_up": per_call * 1e6 / compiled_per_eval, "profile_top_tottime": top},
         "note": ("The pure-Python sweep is generic (any tree of rigid bodies and modal beams, per-call object "
-                 "churn, complex-step-ready numpy batches); the compiled path transcribes the same sweep for "
-                 "this fixed scene (hub + modal arm, embedded laws) and runs whole RK4 intervals in C."),
+                 "churn, complex-step-ready numpy batches); the compiled path generates the same sweep for "
+                 "this fixed scene (hub + modal arm, loops closed in the step) and runs whole RK4 intervals in C. "
+                 "Since 2026-11-25 the Python rows run the scene through ctmm.simulate (loops on the ports) "
+                 "instead of the retired FlexibleManipulator (laws embedded in the model)."),
     }
 
 

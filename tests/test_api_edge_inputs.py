@@ -18,7 +18,7 @@ from ctmm import signals, stability
 from ctmm.control import ControlledChain, ControllerStep, Feedback, simulate_controlled
 from ctmm.elements import Fixed, Free, Mass, Spring
 
-from test_api_fuzz import chain, controlled, manipulator, pendulum, sim_result
+from test_api_fuzz import chain, controlled, pendulum, sim_result
 
 # --------------------------------------------------------------------------------------------
 # issue 11 examples, one by one
@@ -87,8 +87,11 @@ def test_uniform_link_with_an_overflowing_inertia():
 
 
 def test_manipulator_store_every_zero():
+    from ctmm.manipulator import SEED_KD, SEED_KP, HubPD, manipulator_scene, seed_manipulator
+
+    scene = manipulator_scene(seed_manipulator(), pd=HubPD(SEED_KP, SEED_KD), pzt=None)
     with pytest.raises(ctmm.ModelError, match=r"store_every must be an integer >= 1, got 0"):
-        manipulator().simulate(0.01, 0.001, store_every=0)
+        ctmm.simulate(scene, 0.01, 0.001, store_every=0)
 
 
 def test_frequency_response_of_none():

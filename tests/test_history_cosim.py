@@ -214,14 +214,36 @@ def test_wiring_is_checked_by_name_and_held_outputs_are_read_by_actuator_name():
 
 
 def test_the_manipulator_holds_and_records_its_controller_samples():
-    from ctmm.manipulator import SEED_MOVE, SEED_PZT_GAIN, FlexibleManipulator, HubPD, seed_manipulator
-    from ctmm.manipulator.controllers import SlopeRateFeedback
+    """A sampled controller on the manipulator scene: its samples recorded under ``"<output>@samples"``
+    and each held over two steps (zero-order hold) -- the run equals one where the held values are an
+    open-loop input, piecewise constant on the sample intervals."""
+    import ctmm
+    from ctmm.control import StaticGainController
+    from ctmm.manipulator import SEED_MOVE, SEED_PZT_GAIN, HubPD, manipulator_scene, scene_references, seed_manipulator
 
     seed = seed_manipulator()
-    system = FlexibleManipulator(seed, HubPD(10.0, 1.0), None, SEED_MOVE)
-    gains = SEED_PZT_GAIN * np.eye(seed.n_patches)
-    sim = system.simulate(0.012, 0.002, controllers=[SlopeRateFeedback(seed.patch_names, gains, sample_time=0.004)])
-    samples = sim.extra[f"{seed.patch_names[0]}.voltage@samples"]
+    pd = HubPD(10.0, 1.0)
+    scene = manipulator_scene(seed, pd=pd, pzt=None)
+    patch = seed.patch_names[0]
+    ca = seed.moments_per_volt[0]
+    sensors = [f"arm.{patch}_x1.slope_rate", f"arm.{patch}_x2.slope_rate"]
+    controller = StaticGainController(sensors, [f"arm.{patch}_x2.moment"], [[ca * SEED_PZT_GAIN, -ca * SEED_PZT_GAIN]],
+                                      sample_time=0.004)
+    references = scene_references(pd, SEED_MOVE)
+    sim = ctmm.simulate(scene, 0.012, 0.002, controllers=[controller], references=references)
+    samples = sim[f"arm.{patch}_x2.moment@samples"]
     np.testing.assert_allclose(samples[:, 0], [0.0, 0.004, 0.008, 0.012], atol=1e-15)
-    applied = sim.voltages[:, 0]                  # zero-order hold: each sample over two steps
-    np.testing.assert_array_equal(applied, np.repeat(samples[:, 1], 2)[:applied.size])
+    assert np.abs(samples[1:, 1]).max() > 0
+
+    # replay: three runs of one sample interval each, the held value a constant input
+    names = scene.plant.coordinates
+    x0, v0, rows = None, None, []
+    for k in range(3):
+        shifted = {"hub_pd": (lambda t, s=0.004 * k: references["hub_pd"](t + s))}
+        part = ctmm.simulate(scene, 0.004, 0.002, x0=x0, v0=v0, references=shifted,
+                             inputs={f"arm.{patch}_x2.moment": float(samples[k, 1])})
+        x0 = [float(part[name][-1]) for name in names]
+        v0 = [float(part[f"{name}_dot"][-1]) for name in names]
+        rows.append(part["arm.q1"][1:])
+    replay = np.concatenate([[0.0], *rows])
+    np.testing.assert_allclose(replay, sim["arm.q1"], rtol=0, atol=1e-12 * np.abs(sim["arm.q1"]).max())

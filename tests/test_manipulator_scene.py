@@ -12,21 +12,22 @@ from ctmm.control import ControlledModel
 from ctmm.errors import ModelError
 from ctmm.manipulator import SEED_KD, SEED_KP, SEED_MOVE, HubPD, PZTFeedback, seed_manipulator
 from ctmm.manipulator.scene import HUB_LOOP, manipulator_scene, scene_references
-from ctmm.planar import accelerations
+from ctmm.planar import solve_instant
 from ctmm.planar.ports import PlanarPorts
 from ctmm.reference.manipulator_lagrange import ManipulatorLagrange
 
 G = np.diag([300.0, 150.0, 80.0])
 
 
-def closed_loop_accelerations(scene: ControlledModel, references, q, v, t):
-    """Accelerations with every loop closed without delay (u = -(y - r)) through the ports."""
+def closed_loop_solution(scene: ControlledModel, references, q, v, t):
+    """Forward dynamics (accelerations, joint forces) with every loop closed without delay
+    (``u = -(y - r)``) through the ports, and the loop outputs ``u``."""
     ports = PlanarPorts(scene.plant)
     sensors = scene.sensors()
     values = dict(zip(sensors, ports.values(ports.resolve(sensors), q, v, t)))
     y = scene.sensed(values)
     u = {name: -(y[name] - (references[name](t) if name in references else 0.0)) for name in y}
-    return accelerations(scene.plant, q, v, t, inputs=ports.inputs(scene.actuation(u))), u
+    return solve_instant(scene.plant, q, v, t, inputs=ports.inputs(scene.actuation(u))), u
 
 
 def test_scene_loops_equal_the_lagrange_manipulator():
@@ -42,7 +43,8 @@ def test_scene_loops_equal_the_lagrange_manipulator():
         q = np.r_[rng.normal(), 0.02 * rng.normal(size=3)]
         v = np.r_[3 * rng.normal(), 0.3 * rng.normal(size=3)]
         t = float(rng.uniform(0.0, 1.2))
-        tmm, u = closed_loop_accelerations(scene, scene_references(pd, SEED_MOVE), q, v, t)
+        solution, u = closed_loop_solution(scene, scene_references(pd, SEED_MOVE), q, v, t)
+        tmm = solution.qddot
         eta, eta_dot = scale * q[1:], scale * v[1:]
         torque = SEED_KP * (SEED_MOVE.angle(t) - q[0]) + SEED_KD * (SEED_MOVE.rate(t) - v[0])
         voltages = -G @ (reference.Psi @ eta_dot)

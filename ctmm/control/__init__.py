@@ -4,7 +4,8 @@
 * :class:`ControlledModel` / :func:`with_feedback` -- the same loops on planar models (any plant).
 * :func:`simulate_controlled` -- DT-TMM with real-time / delayed loops and co-simulated controllers.
 * :class:`Controller` -- protocol for sampled, stateful or nonlinear controllers (Python, FMU);
-  :class:`DelayedController` reads a controller's inputs a measurement delay late.
+  :class:`DelayedController` reads a controller's inputs a measurement delay late;
+  :class:`StaticGainController` is a sampled matrix gain ``u = clip(K y)`` on named signals.
 * :class:`FMUController`, :func:`build_fmu` -- FMI 2.0/3.0 co-simulation and model-exchange FMUs through fmpy.
 * :func:`loop_transfer_function`, :func:`margins` (gain/phase/delay), :func:`bode_plot`,
   :func:`nyquist_plot`, :class:`PlantCache` (cheap re-evaluation in control-design loops).
@@ -16,8 +17,9 @@ from .loops import ControlledChain, Feedback
 from .controlled_model import ControlledModel, with_feedback
 from .protocol import Controller, ControllerStep
 from .measurement_delay import DelayedController
+from .static_gain import StaticGainController
 from .simulate import simulate_controlled
 
-__all__ = ["Controller", "ControllerStep", "DelayedController", "Feedback", "ControlledChain", "ControlledModel", "with_feedback", "simulate_controlled",
+__all__ = ["Controller", "ControllerStep", "DelayedController", "StaticGainController", "Feedback", "ControlledChain", "ControlledModel", "with_feedback", "simulate_controlled",
            "FMUController", "build_fmu", "loop_transfer_function", "margins", "closed_loop_response",
            "bode_plot", "nyquist_plot", "encirclements", "PlantCache"]

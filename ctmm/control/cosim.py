@@ -2,7 +2,7 @@
 
 One class, :class:`CoSimulation`, drives the :class:`~ctmm.control.protocol.Controller` objects
 of every time stepper of the package (the controlled chains of :mod:`ctmm.control.simulate` and
-the manipulator of :mod:`ctmm.manipulator.simulation`).  The stepper owns the physics -- which
+the planar models of :mod:`ctmm.control.planar_time`).  The stepper owns the physics -- which
 signal a name reads and where an output acts -- and the master owns the timing:
 
 * a controller is sampled at the steps ``n`` that are multiples of ``sample_time / dt`` (a whole

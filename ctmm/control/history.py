@@ -1,7 +1,7 @@
 """Delay history: past values of a sensed signal, interpolated at any time ``t - tau``.
 
 One class, :class:`DelayHistory`, serves every delayed loop of the package (the controlled chains
-of :mod:`ctmm.control.simulate` and the manipulator of :mod:`ctmm.manipulator.simulation`).  It
+of :mod:`ctmm.control.simulate` and the planar models of :mod:`ctmm.control.planar_time`).  It
 keeps only the samples a delay ``tau`` can reach -- a window of ``O(tau / dt)`` samples, trimmed
 when it reaches twice that length -- so its memory and its cost per step do not grow with the
 run length.  Two interpolations share the interface:

@@ -118,7 +118,8 @@ class CompiledManipulator:
         beam = arm_beam(manipulator, self.n, geometric_stiffening)
         self.slope_matrix = patch_slope_matrix(beam, manipulator)
         self.tip_shape = np.asarray(beam.data.tip_phi, dtype=float)
-        controlled = manipulator_scene(manipulator, pd=pd, pzt=pzt, n_modes=self.n,
+        loops_pzt = None if pzt is None else PZTFeedback(pzt.gains, delay=pzt.delay)   # limit checked after the run
+        controlled = manipulator_scene(manipulator, pd=pd, pzt=loops_pzt, n_modes=self.n,
                                        geometric_stiffening=geometric_stiffening, hub_mass=hub_mass)
         self.scene = CompiledScene(controlled, store_every=self.block, rows=self.chunks,
                                    references={HUB_LOOP: cycloid_reference(pd.kp, pd.kd, reference)})

@@ -1,4 +1,9 @@
-"""Control laws of the manipulator (seed 001 eqs. (9.64)-(9.65)) as immutable descriptions.
+"""Parameters of the manipulator's control laws (seed 001 eqs. (9.64)-(9.65)) as immutable descriptions.
+
+Nothing here closes a loop or integrates: :func:`~ctmm.manipulator.manipulator_scene` turns these
+parameters into :class:`~ctmm.control.Feedback` loops on the scene's ports (run by
+:func:`ctmm.simulate` and every other verb), and
+:class:`~ctmm.manipulator.compiled.CompiledManipulator` compiles the same scene.
 
 * :class:`HubPD` -- motor torque ``tau = kp (theta_d - theta) + kd (theta_d_dot - theta_dot)``
   evaluated at ``t - delay`` (FORMULAS §3.4: a damper/elastic hinge with moving rest angle).
@@ -12,9 +17,12 @@
   ``V = -Ka eta_dot[:n]`` becomes ``G = Ka Psi_n^+`` (modal filter from the slope sensors,
   :meth:`PZTFeedback.modal`; exact when ``P = n`` and only those modes respond).
 
-Voltage limit policy (``on_limit``): ``"report"`` (default: simulate unsaturated, report the
-peak and the time above the limit), ``"saturate"`` (clip at the limit; a nonlinear loop, so
-time domain only), ``"raise"`` (a :class:`~ctmm.errors.SimulationError` at the first violation).
+Voltage limit policy (``on_limit``): ``"report"`` (default: unsaturated loops; the demanded
+voltages are the result's ``"<patch>.u"``, and :class:`~ctmm.manipulator.ManipulatorSimulation` of
+the compiled path reports the peak and the time above the limit), ``"saturate"`` (each patch loop
+clips at the limit, ``Feedback(saturation=...)``; a nonlinear loop, so time domain only),
+``"raise"`` (only :class:`~ctmm.manipulator.compiled.CompiledManipulator`: a
+:class:`~ctmm.errors.SimulationError` at the first stored violation after its run; the scene refuses it).
 """
 from __future__ import annotations
 
@@ -52,16 +60,6 @@ class HubPD:
         object.__setattr__(self, "kp", validation.positive("hub PD: kp", self.kp))
         object.__setattr__(self, "kd", validation.nonnegative("hub PD: kd", self.kd))
         object.__setattr__(self, "delay", validation.nonnegative("hub PD: delay", self.delay))
-
-    def controller(self):
-        """``C(s) = kp + kd s`` as a python-control transfer function (improper, embeddable)."""
-        import control
-
-        return control.tf([self.kd, self.kp], [1.0]) if self.kd else control.tf([self.kp], [1.0])
-
-    def torque(self, angle_error: float, rate_error: float) -> float:
-        """``kp e + kd e_dot`` with ``e = theta_d - theta`` [N m]."""
-        return self.kp * angle_error + self.kd * rate_error
 
 
 @dataclass(frozen=True)

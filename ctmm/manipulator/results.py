@@ -1,6 +1,6 @@
-"""Time histories of a manipulator run (:class:`ManipulatorSimulation`): the result of
-:class:`~ctmm.manipulator.compiled.CompiledManipulator` and of the older
-:class:`~ctmm.manipulator.FlexibleManipulator` (``docs/manipulator.md`` §6)."""
+"""Time histories of a compiled manipulator run (:class:`ManipulatorSimulation`): the result of
+:class:`~ctmm.manipulator.compiled.CompiledManipulator` (``docs/manipulator.md`` §6; the scene run by
+:func:`ctmm.simulate` returns the general :class:`~ctmm.results.SimulationResult`)."""
 from __future__ import annotations
 
 import math

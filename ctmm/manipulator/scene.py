@@ -29,7 +29,10 @@ it is a manipulator.  The PZT amplifier limit (``pzt.on_limit="saturate"``) is e
 ``saturation=(-V_max, V_max)`` [V] (:class:`~ctmm.control.Feedback`): honoured by
 :func:`ctmm.simulate` (every method; ``"<patch>.u_demand"``, ``"<patch>.saturated"`` and
 ``info["time_saturated_s"]`` in the result), refused by the linear verbs (build the scene with
-``on_limit="report"`` for the small-signal model inside the limits).
+``on_limit="report"`` for the small-signal model inside the limits).  With ``on_limit="report"`` the
+loops are unclipped and the result's ``"<patch>.u"`` are the demanded voltages (compare them with
+``manipulator.voltage_limit``); ``on_limit="raise"`` is refused here (only
+:class:`~ctmm.manipulator.compiled.CompiledManipulator` checks it, after its run).
 """
 from __future__ import annotations
 
@@ -116,7 +119,9 @@ def manipulator_scene(manipulator: Manipulator, *, pd: HubPD | None, pzt: PZTFee
     pd : HubPD or None
         The hub PD (loop ``"hub_pd"``; its delay is the loop delay).  ``None``: no hub loop.
     pzt : PZTFeedback or None
-        Slope-rate feedback to the patches (one loop per patch, named after the patch).
+        Slope-rate feedback to the patches (one loop per patch, named after the patch).  Its
+        ``on_limit``: ``"report"`` unclipped loops, ``"saturate"`` loops with
+        ``saturation=(-V_max, V_max)``; ``"raise"`` is refused (:class:`ModelError`).
     n_modes, geometric_stiffening, hub_mass
         As in :func:`manipulator_plant`.
 
@@ -135,6 +140,11 @@ def manipulator_scene(manipulator: Manipulator, *, pd: HubPD | None, pzt: PZTFee
                               actuator="motor.torque", gain=1.0, delay=pd.delay))
     if pzt is not None:
         check_pzt(pzt, manipulator.n_patches)
+        if pzt.on_limit == "raise":
+            raise ModelError("pzt: on_limit='raise' is not available on the scene (a loop does not stop a run at "
+                             "its limit); use on_limit='saturate' (the amplifier clips; '<patch>.u_demand' and "
+                             "'<patch>.saturated' in the result), on_limit='report' (unclipped; the voltages are "
+                             "'<patch>.u' in the result) or the CompiledManipulator, which raises after its run")
         limit = manipulator.voltage_limit
         saturation = (-limit, limit) if pzt.on_limit == "saturate" else None
         ca = manipulator.moments_per_volt
