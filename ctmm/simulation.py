@@ -75,7 +75,9 @@ def _simulate_spatial(parts: tuple[SpatialModel, tuple], t_final: float, dt: flo
     if loops or controllers or references or tuple(outputs) or port_inputs:
         if isinstance(outputs, (str, Mapping)) or not isinstance(outputs, (list, tuple)):
             raise ModelError(f"outputs must be a list or tuple of sensor names (str), got {outputs!r}")
-        SpatialPorts(model).resolve(list(outputs))
+        ports = SpatialPorts(model)
+        for name in outputs:
+            ports.check_sensor(name, "output (sensor)")
         if model.n_velocities == 0:
             raise ModelError(f"model {model.name!r} has no coordinates (every joint is welded or driven): nothing "
                              "to integrate")

@@ -358,7 +358,15 @@ class SpatialPorts:
 
 
 def _state(model: SpatialModel, q, v, t) -> tuple[np.ndarray, np.ndarray, float]:
-    q, v = model.check_state(q, v)
+    given = {"q": q, "v": v}
+    q, v = validation.finite_array("q", q, ndim=1), validation.finite_array("v", v, ndim=1)
+    for label, array, names in (("q", q, model.coordinates), ("v", v, model.velocities)):
+        if array.shape != (len(names),):
+            raise ModelError(f"{label} must have {len(names)} entries {names}, got {given[label]!r}")
+    try:
+        q, v = model.check_state(q, v)
+    except ModelError as exc:
+        raise ModelError(f"q = {given['q']!r}: {exc}") from None
     if q.shape[0] != 1:
         raise ModelError(f"q and v must be one state ({model.n_positions},), ({model.n_velocities},), got a batch "
                          f"of {q.shape[0]}")
