@@ -169,7 +169,7 @@ def test_refusals_name_what_is_allowed() -> None:
         p.check_sensor("b1.omega_q")
     with pytest.raises(ModelError, match="SpatialModel"):
         ports.SpatialPorts("model")
-    with pytest.raises(ModelError, match="list or tuple"):
+    with pytest.raises(ModelError, match="sequence of sensor names"):
         p.resolve("b1.omega_x")
     with pytest.raises(ModelError, match="finite"):
         p.inputs({"b1.force_x": float("nan")})

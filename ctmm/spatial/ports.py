@@ -53,6 +53,7 @@ import numpy as np
 
 from .. import validation
 from ..errors import ModelError, UnknownNameError
+from ..named_ports import NamedPorts
 from ..ops import NUMPY
 from .body_forms import SpatialScene
 from .dynamics import accelerations as sweep_accelerations
@@ -215,7 +216,7 @@ def rotation_vector(rotation: np.ndarray) -> np.ndarray:
     return (2.0 * np.arctan2(s, w) / s) * vec
 
 
-class SpatialPorts:
+class SpatialPorts(NamedPorts):
     """The sensors and actuators of one spatial model, resolved once (hold one in a time loop).
 
     Parameters
@@ -288,21 +289,6 @@ class SpatialPorts:
                                    f"{', '.join(sorted(self.actuators)) or '(none)'}")
         return name
 
-    def sensor_unit(self, name: str) -> str:
-        """SI unit of sensor ``name``."""
-        return self.sensors[self.check_sensor(name)].unit
-
-    def actuator_unit(self, name: str) -> str:
-        """SI unit of actuator ``name``."""
-        return self.actuators[self.check_actuator(name)].unit
-
-    def resolve(self, names: Sequence[str]) -> list:
-        """The resolved sensors ``names`` (for :meth:`values` in a loop)."""
-        if isinstance(names, str) or not isinstance(names, (list, tuple)):
-            raise ModelError(f"names must be a list or tuple of sensor names (str), got {names!r}")
-        return [self.sensors[self.check_sensor(name)] for name in names]
-
-    # -- values -----------------------------------------------------------------------------------
     def values(self, sensors: list, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
         """Values of resolved ``sensors`` at ``(q, v, t)`` (no validation of the state: for inner loops)."""
         out = np.empty(len(sensors))
