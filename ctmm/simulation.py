@@ -43,8 +43,9 @@ from .planar.model import PlanarModel
 from .results import SimulationResult
 from .schemes import SCHEMES, Scheme, as_scheme
 from .spatial.implicit import simulate_spatial_implicit
-from .spatial.integrate import simulate_spatial
+from .spatial.integrate import initial_state, simulate_spatial
 from .spatial.model import SpatialModel
+from .spatial.ports import SpatialPorts
 from .system import Chain
 from .timestep import ForceHook
 from .timestep import simulate as simulate_chain
@@ -55,50 +56,93 @@ FIXED_STEP_METHODS = ("rk4",)
 """Explicit fixed-step methods of :func:`simulate` (planar models)."""
 
 
-def _simulate_spatial(model: SpatialModel, t_final: float, dt: float | None, *, method: Any, x0: Any, v0: Any,
-                      t0: float, inputs: Any, outputs: Sequence[str], controllers: list, references: dict,
-                      solver: str, fast: Any, force_hook: Any, progress: Any, stability_check: Any,
+def _simulate_spatial(parts: tuple[SpatialModel, tuple], t_final: float, dt: float | None, *, method: Any, x0: Any,
+                      v0: Any, t0: float, inputs: Any, outputs: Sequence[str], controllers: list, references: dict,
+                      coupling: str, solver: str, fast: Any, force_hook: Any, progress: Any, stability_check: Any,
                       divergence_bound: float | None, rtol: float, atol: float, max_step: float | None,
                       store_every: int, compiled: Any) -> SimulationResult:
-    """:func:`simulate` of a :class:`~ctmm.spatial.model.SpatialModel` (RK4, ``solve_ivp`` or a DT-TMM scheme;
-    ``docs/spatial.md`` §6, §6a, §6b)."""
-    unsupported = {"controllers": (controllers, []), "references": (references, {}), "solver": (solver, "riccati"),
-                   "fast": (fast, None), "force_hook": (force_hook, None), "t0": (t0, 0.0),
-                   "progress": (progress, None), "stability_check": (stability_check, None),
-                   "outputs": (tuple(outputs), ())}
+    """:func:`simulate` of a :class:`~ctmm.spatial.model.SpatialModel` or a controlled one (RK4, ``solve_ivp`` or a
+    DT-TMM scheme; ``docs/spatial.md`` §6, §6a, §6b): loops, controllers, references, outputs or port actuator
+    inputs go to the one loop-closing driver :func:`~ctmm.control.planar_time.simulate_closed_loop`."""
+    model, loops = parts
+    unsupported = {"solver": (solver, "riccati"), "fast": (fast, None), "force_hook": (force_hook, None),
+                   "t0": (t0, 0.0)}
     for name, (value, default) in unsupported.items():
         if value is not default and value != default:
-            raise ModelError(f"{name}={value!r} is not available for spatial models yet (RK4 and solve_ivp runs "
-                             f"store every coordinate, velocity, body position and angular velocity); leave {name} "
-                             f"at {default!r}")
+            raise ModelError(f"{name}={value!r} is not available for spatial models yet (runs start at t = 0); "
+                             f"leave {name} at {default!r}")
+    if inputs is not None and not isinstance(inputs, Mapping):
+        raise ModelError(f"inputs must be a mapping {{actuator name: number or f(t)}}, got {inputs!r}")
+    port_inputs = any(name not in model.inputs for name in inputs or {})
+    controlled = bool(loops or controllers or references or tuple(outputs) or port_inputs)
+    closed = ("loops, controllers, references, outputs and port actuator inputs" if controlled else "")
     if validation.flag("compiled", compiled, optional=True):        # the generated RK4 (ctmm.compiled_spatial)
+        if controlled:
+            raise ModelError(f"compiled=True does not take {closed} of spatial models yet; run without "
+                             "compiled=True (the Python RK4 or solve_ivp closes them)")
         if not isinstance(method, str) or method != "rk4":
             raise ModelError(f"compiled=True runs the generated RK4 of a spatial model; got method={method!r}")
         from .compiled_spatial import simulate_spatial_generated
         return simulate_spatial_generated(model, t_final, dt, x0=x0, v0=v0, inputs=inputs, store_every=store_every,
                                           divergence_bound=divergence_bound)
-    if isinstance(method, Scheme) or method in SCHEMES:          # the implicit DT-TMM (docs/spatial.md §6)
+    if isinstance(method, Scheme) or method in SCHEMES:          # the implicit DT-TMM (docs/spatial.md §6a)
+        if controlled:
+            raise ModelError(f"the DT-TMM scheme {method!r} does not take {closed} of spatial models yet; use "
+                             "method='rk4' or a solve_ivp method")
         solve_ivp_options = {"rtol": (rtol, 1e-8), "atol": (atol, 1e-10), "max_step": (max_step, None)}
         for name, (value, default) in solve_ivp_options.items():
             if value != default:
                 raise ModelError(f"{name}={value!r} applies to solve_ivp methods, not to the DT-TMM scheme {method!r}")
+        for name, (value, default) in {"progress": (progress, None), "stability_check": (stability_check, None)}.items():
+            if value is not default and value != default:
+                raise ModelError(f"{name}={value!r} is not available for DT-TMM runs of spatial models yet; leave "
+                                 f"{name} at {default!r}")
         return simulate_spatial_implicit(model, t_final, dt, scheme=method, x0=x0, v0=v0, inputs=inputs,
                                          store_every=store_every, divergence_bound=divergence_bound)
     if not isinstance(method, str):
         raise ModelError(f"method for a spatial model must be 'rk4', a solve_ivp method or a DT-TMM scheme "
                          f"{tuple(SCHEMES)}, got {method!r}")
+    if controlled:
+        if isinstance(outputs, (str, Mapping)) or not isinstance(outputs, (list, tuple)):
+            raise ModelError(f"outputs must be a list or tuple of sensor names (str), got {outputs!r}")
+        ports = SpatialPorts(model)
+        for name in outputs:
+            ports.check_sensor(name, "output (sensor)")
+        if model.n_velocities == 0:
+            raise ModelError(f"model {model.name!r} has no coordinates (every joint is welded or driven): nothing "
+                             "to integrate")
+        inputs, references = _loop_references(loops, inputs, references)
+        state = initial_state(model, x0, v0)
+        policy = "warn" if stability_check is None else validation.option("stability_check", stability_check,
+                                                                           ("warn", "error", "ignore"))
+        return simulate_closed_loop(model, state[:model.n_positions], state[model.n_positions:], t_final, dt,
+                                    method=method, loops=loops, controllers=controllers, inputs=inputs,
+                                    references=references, outputs=tuple(outputs), coupling=coupling, rtol=rtol,
+                                    atol=atol, max_step=math.inf if max_step is None else max_step,
+                                    store_every=validation.integer("store_every", store_every, minimum=1),
+                                    progress=validation.flag("progress", progress, optional=True),
+                                    stability_check=policy, divergence_bound=divergence_bound)
+    for name, (value, default) in {"progress": (progress, None), "stability_check": (stability_check, None)}.items():
+        if value is not default and value != default:
+            raise ModelError(f"{name}={value!r} is not available for uncontrolled spatial models yet; leave {name} "
+                             f"at {default!r}")
     return simulate_spatial(model, t_final, dt, method=method, x0=x0, v0=v0, inputs=inputs, rtol=rtol, atol=atol,
                             max_step=max_step, store_every=store_every, divergence_bound=divergence_bound)
 
 
-def _planar_parts(system: Any) -> tuple[PlanarModel, tuple] | None:
-    """``(model, loops)`` of a planar model or a controlled planar model, else ``None``."""
-    if isinstance(system, PlanarModel):
+def _model_parts(system: Any, kind: type) -> tuple[Any, tuple] | None:
+    """``(model, loops)`` of a model of type ``kind`` or a controlled one, else ``None``."""
+    if isinstance(system, kind):
         return system, ()
     plant = getattr(system, "plant", None)
-    if isinstance(plant, PlanarModel) and hasattr(system, "loops"):
+    if isinstance(plant, kind) and hasattr(system, "loops"):
         return plant, tuple(system.loops)
     return None
+
+
+def _planar_parts(system: Any) -> tuple[PlanarModel, tuple] | None:
+    """``(model, loops)`` of a planar model or a controlled planar model, else ``None``."""
+    return _model_parts(system, PlanarModel)
 
 
 def _initial(model: PlanarModel, name: str, value: Any) -> np.ndarray:
@@ -255,10 +299,11 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
     if coupling != "hold" and not controllers:
         raise ModelError(f"coupling={coupling!r} only applies to co-simulated controllers, but controllers is "
                          f"empty; leave coupling at 'hold' (embedded loops are always solved implicitly)")
-    if isinstance(system, SpatialModel):
-        return _simulate_spatial(system, t_final, dt, method=_method(method, scheme, "rk4"), x0=x0, v0=v0, t0=t0,
+    spatial = _model_parts(system, SpatialModel)
+    if spatial is not None:
+        return _simulate_spatial(spatial, t_final, dt, method=_method(method, scheme, "rk4"), x0=x0, v0=v0, t0=t0,
                                  inputs=inputs, outputs=outputs, controllers=controllers, references=references,
-                                 solver=solver, fast=fast, force_hook=force_hook, progress=progress,
+                                 coupling=coupling, solver=solver, fast=fast, force_hook=force_hook, progress=progress,
                                  stability_check=stability_check, divergence_bound=divergence_bound, rtol=rtol,
                                  atol=atol, max_step=max_step, store_every=store_every, compiled=compiled)
     planar = _planar_parts(system)

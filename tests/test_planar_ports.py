@@ -158,7 +158,7 @@ def test_controlled_model_validates_loops_and_with_feedback_dispatches():
         ControlledModel(model, [Feedback("elbow", sensor="motor.angle", actuator="motor.torque", gain=1.0)])
     with pytest.raises(ModelError, match="already has loops"):
         with_feedback(system, [pd])
-    with pytest.raises(ModelError, match="Chain or a ctmm.planar.PlanarModel"):
+    with pytest.raises(ModelError, match="ctmm.Chain, a ctmm.planar.PlanarModel or a ctmm.spatial.SpatialModel"):
         with_feedback("arm", [pd])
     assert isinstance(with_feedback(_chain(), [Feedback("v", sensor="m.v", actuator="m", gain=5.0)]), ControlledChain)
 

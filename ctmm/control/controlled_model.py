@@ -1,4 +1,4 @@
-"""Feedback loops on planar models (rigid and flexible): :class:`ControlledModel`.
+"""Feedback loops on planar models (rigid and flexible) and spatial models: :class:`ControlledModel`.
 
 The loops are the same :class:`~ctmm.control.loops.Feedback` objects as on 1-D chains,
 
@@ -6,14 +6,18 @@ The loops are the same :class:`~ctmm.control.loops.Feedback` objects as on 1-D c
 
 with sensors and actuators named by the model's ports (:mod:`ctmm.planar.ports`: hinge angles
 and rates, body angles, point positions and velocities, generalised coordinates; hinge
-torques, body forces and moments, modal forces).  A controlled model is a description: the
+torques, body forces and moments, modal forces; :mod:`ctmm.spatial.ports`: joint coordinates and
+rates, angular velocities about world or body axes, x-y-z angles, rotation vectors, point
+positions and velocities; joint torques and forces, body forces and moments).  A controlled model is a description: the
 verbs close its loops -- :func:`ctmm.simulate` in time (real-time loops at the current state,
 delayed loops from the history), :func:`ctmm.linearize` about an operating point (real-time
 loops inside ``A``, delayed loops beside it) and the stability tools on that linearisation.
 
 :func:`with_feedback` is the one constructor for every plant: a :class:`~ctmm.system.Chain`
 gets a :class:`~ctmm.control.loops.ControlledChain` (loops embedded in its transfer
-matrices), a :class:`~ctmm.planar.model.PlanarModel` a :class:`ControlledModel`.
+matrices), a :class:`~ctmm.planar.model.PlanarModel` or a :class:`~ctmm.spatial.model.SpatialModel`
+a :class:`ControlledModel`.  Spatial controlled models are simulated (``"rk4"`` and the
+``solve_ivp`` methods); their linearisation is issue 14's next step.
 """
 from __future__ import annotations
 
@@ -23,25 +27,26 @@ from typing import Any
 from .. import validation
 from ..errors import ModelError, unknown_name
 from ..planar.model import PlanarModel
-from ..planar.ports import PlanarPorts
+from ..spatial.model import SpatialModel
 from ..system import Chain
 from .loops import ControlledChain, Feedback
+from .plants import is_plant_model, plant_of
 
 __all__ = ["ControlledModel", "with_feedback"]
 
 
 class ControlledModel:
-    """A planar model (rigid or with modal beams) with embedded feedback loops.
+    """A planar model (rigid or with modal beams) or a spatial model with embedded feedback loops.
 
     Parameters
     ----------
-    plant : PlanarModel
+    plant : PlanarModel or SpatialModel
         The open-loop model.
     loops : sequence of Feedback
         A list (any iterable but a string or a mapping; a single Feedback is one loop) of
         loops whose sensor terms name sensors of ``plant`` and whose actuator terms name its
-        actuators (:mod:`ctmm.planar.ports`).  ``gain`` is a float or a SISO continuous-time
-        python-control system; a PD law on an angle is the weighted sensor
+        actuators (:mod:`ctmm.planar.ports`, :mod:`ctmm.spatial.ports`).  ``gain`` is a float or a
+        SISO continuous-time python-control system; a PD law on an angle is the weighted sensor
         ``[("motor.angle", kp), ("motor.rate", kd)]`` with ``gain=1`` (no improper ``C(s)``).
 
     Examples
@@ -55,23 +60,24 @@ class ControlledModel:
     ['pd.y', 'pd.u']
     """
 
-    def __init__(self, plant: PlanarModel, loops: Sequence[Feedback]) -> None:
-        if not isinstance(plant, PlanarModel):
-            raise ModelError(f"plant must be a ctmm.planar.PlanarModel (use with_feedback for any "
-                             f"plant), got {plant!r}")
+    def __init__(self, plant: PlanarModel | SpatialModel, loops: Sequence[Feedback]) -> None:
+        if not is_plant_model(plant):
+            raise ModelError(f"plant must be a ctmm.planar.PlanarModel or a ctmm.spatial.SpatialModel (use "
+                             f"with_feedback for any plant), got {plant!r}")
         if isinstance(loops, Feedback):
             loops = [loops]                         # one loop, as ControlledChain accepts it
         if isinstance(loops, (str, bytes, Mapping)) or not isinstance(loops, Iterable):
             raise ModelError(f"loops must be a list of ctmm.control.Feedback loops, got {loops!r}")
         loops = tuple(loops)
-        ports = PlanarPorts(plant)
+        described = plant_of(plant)
+        ports = described.ports
         names: set[str] = set()
         for index, loop in enumerate(loops):
             if not isinstance(loop, Feedback):
                 raise ModelError(f"loops[{index}] must be a ctmm.control.Feedback loop, got {loop!r}")
             if loop.name in names:
                 raise ModelError(f"duplicate loop name {loop.name!r}")
-            if loop.name in plant.body_names or loop.name in plant.joint_names:
+            if loop.name in described.element_names:
                 raise ModelError(f"loop name {loop.name!r} is also an element of {plant.name!r}; "
                                  "signal names would be ambiguous")
             names.add(loop.name)
@@ -85,7 +91,7 @@ class ControlledModel:
 
     # -- description ---------------------------------------------------------------------
     @property
-    def plant(self) -> PlanarModel:
+    def plant(self) -> PlanarModel | SpatialModel:
         """The open-loop model."""
         return self._plant
 
@@ -100,8 +106,9 @@ class ControlledModel:
         return self._plant.name
 
     @property
-    def ports(self) -> PlanarPorts:
-        """The plant's sensors and actuators."""
+    def ports(self) -> Any:
+        """The plant's sensors and actuators (:class:`~ctmm.planar.ports.PlanarPorts` or
+        :class:`~ctmm.spatial.ports.SpatialPorts`)."""
         return self._ports
 
     def loop(self, name: str) -> Feedback:
@@ -168,9 +175,9 @@ def with_feedback(plant: Any, loops: Sequence[Feedback]) -> ControlledChain | Co
 
     Parameters
     ----------
-    plant : Chain or PlanarModel
-        A 1-D chain (loops embedded in its transfer matrices: :class:`ControlledChain`) or a
-        planar model, rigid or with modal beams (:class:`ControlledModel`).
+    plant : Chain, PlanarModel or SpatialModel
+        A 1-D chain (loops embedded in its transfer matrices: :class:`ControlledChain`), a
+        planar model, rigid or with modal beams, or a spatial model (:class:`ControlledModel`).
     loops : sequence of Feedback
 
     Returns
@@ -179,9 +186,10 @@ def with_feedback(plant: Any, loops: Sequence[Feedback]) -> ControlledChain | Co
     """
     if isinstance(plant, Chain):
         return ControlledChain(plant, loops)
-    if isinstance(plant, PlanarModel):
+    if is_plant_model(plant):
         return ControlledModel(plant, loops)
     if isinstance(plant, (ControlledChain, ControlledModel)):
         raise ModelError(f"plant {plant!r} already has loops; use plant.with_loops(...) to "
                          "replace them or build from the open-loop plant")
-    raise ModelError(f"plant must be a ctmm.Chain or a ctmm.planar.PlanarModel, got {plant!r}")
+    raise ModelError(f"plant must be a ctmm.Chain, a ctmm.planar.PlanarModel or a ctmm.spatial.SpatialModel, got "
+                     f"{plant!r}")

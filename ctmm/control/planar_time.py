@@ -1,7 +1,9 @@
-"""Planar and flexible models in time with feedback loops, co-simulated controllers and inputs.
+"""Planar, flexible and spatial models in time with feedback loops, co-simulated controllers and inputs.
 
 :func:`simulate_closed_loop` integrates a :class:`~ctmm.planar.model.PlanarModel` (rigid or with
-flexible beams) whose named actuators (:mod:`ctmm.planar.ports`) are driven by
+flexible beams) or a :class:`~ctmm.spatial.model.SpatialModel` -- any model with a
+:class:`~ctmm.control.plants.Plant` (its ports and a few dynamics) -- whose named actuators
+(:mod:`ctmm.planar.ports`, :mod:`ctmm.spatial.ports`) are driven by
 
 * open-loop ``inputs`` ``{actuator name: number or f(t)}``;
 * embedded :class:`~ctmm.control.loops.Feedback` loops ``u = -C (y(t - tau) - r(t - tau))``
@@ -33,9 +35,15 @@ per-step callback samples the controllers and appends to the delay history; a st
 sample starts from the acceleration with the new held outputs; the states of an LTI controller
 advance by the trapezoidal rule from the step start to the iterate's time (implicit in the
 step, second order).  A loop delay must be 0 or at least one step (``theta dt`` with
-Wilson-theta, whose equations are imposed at ``t_n + theta dt``).  The guards of :mod:`ctmm.planar.guards` apply (step
-limit of the plant before the run, divergence bound, non-finite states) and a failed run raises
-:class:`~ctmm.errors.SimulationError` with the result up to the last good step.
+Wilson-theta, whose equations are imposed at ``t_n + theta dt``).  The schemes are planar only; a
+spatial model takes ``"rk4"`` and the scipy methods.  The plant's guards apply (planar: those of
+:mod:`ctmm.planar.guards`, step limit of the plant before the run; every plant: divergence bound,
+non-finite states) and a failed run raises :class:`~ctmm.errors.SimulationError` with the result up
+to the last good step.
+
+The state is ``y = [q, v, controller states]`` with ``q_dot = G(q) v`` (planar: ``v = q_dot``;
+spatial: quaternion rates from child-axes angular velocities), so the same code closes the loops
+on both plants.
 """
 from __future__ import annotations
 
@@ -50,12 +58,9 @@ import scipy.integrate
 
 from .. import validation
 from ..errors import ModelError, SimulationError, unknown_name
-from ..planar.guards import check_scheme, divergence_guard, with_partial
-from ..planar.integrate import SCIPY_METHODS, accepted_steps, check_state, model_signals, run_fixed_step
-from ..planar.model import PlanarModel
-from ..planar.ports import PlanarPorts
+from ..planar.guards import with_partial
+from ..planar.integrate import SCIPY_METHODS, accepted_steps, run_fixed_step
 from ..planar.signals import signal_values
-from ..planar.sweep import accelerations
 from ..progress import progress_bar
 from ..results import SimulationResult
 from ..schemes import SCHEMES, Scheme, as_scheme
@@ -64,6 +69,7 @@ from ..signals import as_signal
 from .cosim import CoSimulation
 from .history import DelayHistory
 from .implicit_loops import check_scheme_delays, run_implicit
+from .plants import Plant, plant_of
 
 __all__ = ["simulate_closed_loop", "loop_unit"]
 
@@ -107,9 +113,10 @@ def _realisation(loop: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     return A, B.reshape(-1, 1), C.reshape(1, -1), float(D[0, 0])
 
 
-def _resolve(ports: PlanarPorts, loops: Sequence[Any], step: float | None, n: int) -> list[_Loop]:
-    """Check every loop's sensors, actuators and delay against the model and the step."""
-    resolved, offset = [], 2 * n
+def _resolve(ports: Any, loops: Sequence[Any], step: float | None, n: int) -> list[_Loop]:
+    """Check every loop's sensors, actuators and delay against the model's ports and the step (the
+    controller states start at ``n``, the size of ``[q, v]``)."""
+    resolved, offset = [], n
     for loop in loops:
         for name, _ in loop.terms:
             ports.check_sensor(name, f"sensor of loop {loop.name!r}")
@@ -127,9 +134,10 @@ def _resolve(ports: PlanarPorts, loops: Sequence[Any], step: float | None, n: in
     return resolved
 
 
-def loop_unit(ports: PlanarPorts, loop: Any, quantity: str) -> str:
-    """Unit of ``"<loop>.y"`` (``quantity="y"``) or ``"<loop>.u"`` (``"u"``) on a planar model
-    (``""`` when the terms mix units)."""
+def loop_unit(ports: Any, loop: Any, quantity: str) -> str:
+    """Unit of ``"<loop>.y"`` (``quantity="y"``) or ``"<loop>.u"`` (``"u"``) on a model with ``ports``
+    (:class:`~ctmm.planar.ports.PlanarPorts`, :class:`~ctmm.spatial.ports.SpatialPorts`; ``""`` when the
+    terms mix units)."""
     names = [t for t, _ in (loop.terms if quantity == "y" else loop.actuator_terms)]
     unit = ports.sensor_unit if quantity == "y" else ports.actuator_unit
     units = {unit(name) for name in names}
@@ -137,21 +145,24 @@ def loop_unit(ports: PlanarPorts, loop: Any, quantity: str) -> str:
 
 
 class _ClosedLoop:
-    """State ``y = [q, qdot, controller states]`` and its rate with every actuator input applied."""
+    """State ``y = [q, v, controller states]`` and its rate with every actuator input applied."""
 
-    def __init__(self, ports: PlanarPorts, loops: list[_Loop], controllers: Sequence[Any],
+    def __init__(self, plant: Plant, loops: list[_Loop], controllers: Sequence[Any],
                  inputs: Mapping[str, Any], references: Mapping[str, Any], step: float | None,
                  coupling: str, history_step: float) -> None:
-        self.ports = ports
-        self.model = model = ports.model
-        self.n = model.n_coordinates
+        self.plant = plant
+        self.ports = ports = plant.ports
+        self.model = plant.model
+        self.n = plant.n_positions              # q = y[:n], v = y[n:n + nv]
+        self.nv = plant.n_velocities
+        self.base = self.n + self.nv            # controller states from here
         self.loops = loops
         self.all_names = list(dict.fromkeys(name for lp in loops for name in lp.sensors))
         self.now_names = list(dict.fromkeys(name for lp in loops if lp.delay == 0.0 for name in lp.sensors))
         self.all_sensors, self.now_sensors = ports.resolve(self.all_names), ports.resolve(self.now_names)
         self.all_index = {name: k for k, name in enumerate(self.all_names)}
         self.now_index = {name: k for k, name in enumerate(self.now_names)}
-        self.size = 2 * self.n + sum(lp.A.shape[0] for lp in loops)
+        self.size = self.base + sum(lp.A.shape[0] for lp in loops)
         self.input_names = list(inputs)
         for name in self.input_names:
             ports.check_actuator(name, "input")
@@ -194,7 +205,7 @@ class _ClosedLoop:
         """``(y now, e, u)`` of every loop at state ``y`` and time ``t``, with the error
         ``e = y(t - tau) - r(t - tau)`` and ``u = -C e`` (``y now`` is NaN for a delayed loop
         unless ``record``: the integrator needs only ``u``)."""
-        q, v = y[:self.n], y[self.n:2 * self.n]
+        q, v = y[:self.n], y[self.n:self.base]
         names, sensors = (self.all_names, self.all_sensors) if record else (self.now_names, self.now_sensors)
         now = self.ports.values(sensors, q, v, t) if names else np.zeros(0)
         index = self.all_index if record else self.now_index
@@ -225,6 +236,9 @@ class _ClosedLoop:
                                    signal_values(self.input_functions, t, self.input_names, "input")):
                 values[name] = values.get(name, 0.0) + float(value)
         for lp, (_, _, u) in zip(self.loops, loop_values):
+            if not math.isfinite(u):        # a stage of a diverging step: a run failure, not bad input
+                raise SimulationError(f"loop {lp.name!r}: non-finite output u = {u} at t = {t:.6g} s (the state "
+                                      "diverged inside the step)", time=float(t), element=lp.name)
             for name, weight in lp.actuators:
                 values[name] = values.get(name, 0.0) + weight * u
         if self.master is not None:
@@ -238,13 +252,13 @@ class _ClosedLoop:
         cached = self._cache
         if self.use_cache and cached is not None and cached[0] == t and cached[1] is y:
             return cached[2]
-        q, v = y[:self.n], y[self.n:2 * self.n]
+        q, v = y[:self.n], y[self.n:self.base]
         loop_values = self.loop_values(t, y)
         values = self.actuator_values(t, y, loop_values)
         inputs = self.ports.inputs(values) if values else None
         out = np.empty(self.size)
-        out[:self.n] = v
-        out[self.n:2 * self.n] = accelerations(self.model, q, v, t, inputs=inputs)
+        out[:self.n] = self.plant.position_rates(q, v)
+        out[self.n:self.base] = self.plant.accelerations(q, v, t, inputs)
         for lp, (_, e, _) in zip(self.loops, loop_values):
             z = y[lp.states]
             if z.size:
@@ -255,17 +269,18 @@ class _ClosedLoop:
 
     # -- history and controllers ----------------------------------------------------------
     def _delayed_now(self, t: float, y: np.ndarray, rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Delayed sensors at ``(t, y)`` and their time derivatives ``J_q qdot + J_qdot qddot``: the
+        """Delayed sensors at ``(t, y)`` and their time derivatives ``J_q qdot + J_v vdot``: the
         derivative along the state's own motion, by a fourth-order central difference (exact
         Jacobians would cost one column per coordinate; this costs four sensor evaluations)."""
-        q, v, a = y[:self.n], y[self.n:2 * self.n], rate[self.n:2 * self.n]
+        q, v = y[:self.n], y[self.n:self.base]
+        qdot, a = rate[:self.n], rate[self.n:self.base]
         values = np.asarray(self.ports.values(self.delayed_sensors, q, v, t), float)
         speed = max(float(np.max(np.abs(v), initial=0.0)) / max(1.0, float(np.max(np.abs(q), initial=0.0))),
                     float(np.max(np.abs(a), initial=0.0)) / max(1.0, float(np.max(np.abs(v), initial=0.0))))
         h = 1e-3 / max(speed, 1.0)      # the state moves by ~1e-3 of its size: truncation ~1e-12
 
         def along(s: float) -> np.ndarray:
-            return np.asarray(self.ports.values(self.delayed_sensors, q + s * v, v + s * a, t + s), float)
+            return np.asarray(self.ports.values(self.delayed_sensors, q + s * qdot, v + s * a, t + s), float)
 
         derivative = (8.0 * (along(h) - along(-h)) - (along(2 * h) - along(-2 * h))) / (12.0 * h)
         return values, derivative
@@ -273,7 +288,7 @@ class _ClosedLoop:
     def begin(self, t0: float, y0: np.ndarray) -> None:
         """Start the delay history at ``t0`` (the initial state, held before ``t0``)."""
         if self.delayed_names:
-            q, v = y0[:self.n], y0[self.n:2 * self.n]
+            q, v = y0[:self.n], y0[self.n:self.base]
             values = np.asarray(self.ports.values(self.delayed_sensors, q, v, t0), float)
             self.history = DelayHistory(t0, values, None, delay=self.max_delay, step=self.history_step)
 
@@ -293,7 +308,7 @@ class _ClosedLoop:
         whether one was sampled (its held outputs may have jumped)."""
         if self.master is None:
             return False
-        q, v = y[:self.n], y[self.n:2 * self.n]
+        q, v = y[:self.n], y[self.n:self.base]
 
         def measure(i: int) -> np.ndarray:
             c, delay = self.controllers[i], self.controller_delays[i]
@@ -332,7 +347,7 @@ def _result(rows: _Rows, outputs: Sequence[str], method: str, info: dict) -> Sim
     model, n = system.model, system.n
     t = np.array(rows.t)
     y = np.array(rows.y).reshape(len(t), system.size)
-    signals, units = model_signals(model, t, y[:, :n], y[:, n:2 * n], outputs)
+    signals, units = system.plant.signals(t, y[:, :n], y[:, n:system.base], outputs)
     saturated_time = {}
     for k, lp in enumerate(system.loops):
         values = np.array([row[k] for row in rows.loops]).reshape(len(t), 3)
@@ -366,28 +381,28 @@ def _saturation_signals(lp: _Loop, z: np.ndarray, e: np.ndarray) -> tuple[np.nda
 
 
 def _check_state(system: _ClosedLoop, guard, t: float, y: np.ndarray, step: float | None, method: str) -> None:
-    n = system.n
-    check_state(system.model, guard, t, y, step, method)
-    if not np.all(np.isfinite(y[2 * n:])):
+    guard(t, y, step, method)
+    if not np.all(np.isfinite(y[system.base:])):
         name = next(lp.name for lp in system.loops if not np.all(np.isfinite(y[lp.states])))
         raise SimulationError(f"non-finite controller state of loop {name!r} at t = {t:.6g} s", time=float(t),
                               element=name)
 
 
-def simulate_closed_loop(model: PlanarModel, q0: np.ndarray, qdot0: np.ndarray, t_final: float,
+def simulate_closed_loop(model: Any, q0: np.ndarray, qdot0: np.ndarray, t_final: float,
                          dt: float | None, *, method: str | Scheme = "rk4", loops: Sequence[Any] = (),
                          controllers: Sequence[Any] = (), inputs: Mapping[str, Any] | None = None,
                          references: Mapping[str, Any] | None = None, outputs: Sequence[str] = (),
                          coupling: str = "hold", rtol: float = 1e-8, atol: float = 1e-10,
                          max_step: float = math.inf, store_every: int = 1, progress: bool | None = None,
                          stability_check: str = "warn", divergence_bound: float | None = None) -> SimulationResult:
-    """Integrate a planar model with its loops, controllers and inputs (module docstring).
+    """Integrate a planar or spatial model with its loops, controllers and inputs (module docstring).
 
     Parameters
     ----------
-    model : PlanarModel
+    model : PlanarModel or SpatialModel
+        The plant (:func:`ctmm.control.plants.plant_of`).
     q0, qdot0 : ndarray
-        Initial coordinates and rates (checked by the caller).
+        Initial coordinates ``q`` and velocities ``v`` (checked by the caller; planar: ``v = qdot``).
     t_final : float
         End time [s].
     dt : float or None
@@ -395,10 +410,10 @@ def simulate_closed_loop(model: PlanarModel, q0: np.ndarray, qdot0: np.ndarray, 
         these); for a scipy method with ``dt`` the result is stored on the grid ``k dt`` (dense
         output), without it at every accepted step.
     method : str or Scheme
-        ``"rk4"``, a name of :data:`~ctmm.planar.integrate.SCIPY_METHODS`, or a DT-TMM scheme
-        (a name of :data:`ctmm.schemes.SCHEMES` or a :mod:`ctmm.schemes` object).
+        ``"rk4"``, a name of :data:`~ctmm.planar.integrate.SCIPY_METHODS`, or (planar models) a DT-TMM
+        scheme (a name of :data:`ctmm.schemes.SCHEMES` or a :mod:`ctmm.schemes` object).
     loops : sequence of Feedback
-        Loops on named sensors and actuators of :mod:`ctmm.planar.ports`.
+        Loops on named sensors and actuators of :mod:`ctmm.planar.ports` / :mod:`ctmm.spatial.ports`.
     controllers : sequence of Controller
         Co-simulated controllers (validated by the caller).
     inputs : mapping, optional
@@ -436,8 +451,12 @@ def simulate_closed_loop(model: PlanarModel, q0: np.ndarray, qdot0: np.ndarray, 
     SimulationError
         Divergence, non-finite states, failing controller or user code; ``partial_result``.
     """
+    plant = plant_of(model)
     scheme = as_scheme(method) if isinstance(method, Scheme) or (isinstance(method, str) and method in SCHEMES) \
         else None
+    if scheme is not None and not plant.schemes:
+        raise ModelError(f"method={method!r}: the DT-TMM schemes are not implemented for {plant.label} models yet; "
+                         f"use method='rk4' or a solve_ivp method {SCIPY_METHODS}")
     if method != "rk4" and method not in SCIPY_METHODS and scheme is None:
         raise ModelError(f"method must be 'rk4', one of {SCIPY_METHODS} or a DT-TMM scheme "
                          f"{tuple(sorted(SCHEMES))} for a planar model with loops, controllers or inputs, "
@@ -451,9 +470,8 @@ def simulate_closed_loop(model: PlanarModel, q0: np.ndarray, qdot0: np.ndarray, 
     if controllers and dt is None:
         raise ModelError("dt is required with co-simulated controllers: it is the sample grid [s] "
                          "(each controller's sample_time is a whole multiple of it)")
-    n = model.n_coordinates
-    ports = PlanarPorts(model)
-    resolved = _resolve(ports, loops, dt if fixed else None, n)
+    n, nv = plant.n_positions, plant.n_velocities
+    resolved = _resolve(plant.ports, loops, dt if fixed else None, n + nv)
     delays = [lp.delay for lp in resolved if lp.delay > 0]
     if scheme is not None:
         check_scheme_delays(resolved, scheme, dt)
@@ -471,17 +489,17 @@ def simulate_closed_loop(model: PlanarModel, q0: np.ndarray, qdot0: np.ndarray, 
     history_step = dt if fixed else (min(delays) if delays else t_final) * 1e-5
     label = method if scheme is None else f"dt-tmm/{type(scheme).__name__}"
     try:
-        system = _ClosedLoop(ports, resolved, controllers, inputs or {}, references or {}, dt, coupling,
+        system = _ClosedLoop(plant, resolved, controllers, inputs or {}, references or {}, dt, coupling,
                              history_step=max(history_step, 1e-300))
     except SimulationError as exc:     # a controller's init failed: nothing was simulated
         def empty() -> SimulationResult:
-            signals, units = model_signals(model, np.zeros(0), np.zeros((0, n)), np.zeros((0, n)), outputs)
+            signals, units = plant.signals(np.zeros(0), np.zeros((0, n)), np.zeros((0, nv)), outputs)
             return signal_result(SignalSystem(model, units, loops), np.zeros(0), signals, label, {"dt": dt})
 
         raise with_partial(exc, empty) from exc.__cause__
     try:
-        y0 = np.concatenate([q0, qdot0, np.zeros(system.size - 2 * n)])
-        guard = divergence_guard(model, q0, divergence_bound)
+        y0 = np.concatenate([q0, qdot0, np.zeros(system.size - n - nv)])
+        guard = plant.guard(q0, divergence_bound)
         rows = _Rows(system)
         start = _time.perf_counter()
         info = {"dt": dt, "method": label}
@@ -498,7 +516,7 @@ def simulate_closed_loop(model: PlanarModel, q0: np.ndarray, qdot0: np.ndarray, 
                 from ..planar.integrate import step_total
 
                 n_steps = step_total(t_final, dt)
-                check_scheme(model, q0, qdot0, dt, scheme="rk4", policy=stability_check)
+                plant.check_step(q0, qdot0, dt, stability_check)
                 _run_rk4(system, rows, guard, dt, n_steps, store_every, progress)
             elif scheme is not None:
                 info.update(run_implicit(system, rows, q0, qdot0, t_final, dt, scheme, store_every, progress,
@@ -522,7 +540,7 @@ def _run_rk4(system: _ClosedLoop, rows: _Rows, guard, dt: float, n_steps: int, s
 
     run_fixed_step(system.rate, rows.y[0], h=dt, n_steps=n_steps, store_every=store_every,
                    check=lambda t, y: _check_state(system, guard, t, y, dt, "rk4"), record=rows.add,
-                   on_step=on_step, progress=progress, description="ctmm.simulate (planar, rk4)")
+                   on_step=on_step, progress=progress, description=f"ctmm.simulate ({system.plant.label}, rk4)")
 
 
 def _run_scipy(system: _ClosedLoop, rows: _Rows, guard, y0: np.ndarray, t_final: float, dt: float | None,
@@ -539,7 +557,7 @@ def _run_scipy(system: _ClosedLoop, rows: _Rows, guard, y0: np.ndarray, t_final:
     grid_next = 1
     y, t = y0, 0.0
     solver_type: Callable = getattr(scipy.integrate, method)
-    bar = progress_bar(len(ends), f"ctmm.simulate (planar, {method})", enabled=progress and len(ends) > 1)
+    bar = progress_bar(len(ends), f"ctmm.simulate ({system.plant.label}, {method})", enabled=progress and len(ends) > 1)
     try:
         for k, t_end in enumerate(ends):
             if k > 0:

@@ -47,6 +47,7 @@ import numpy as np
 
 from .. import validation
 from ..errors import ModelError, UnknownNameError
+from ..named_ports import NamedPorts
 from .model import BUSHING, DRIVEN, REVOLUTE, PlanarModel
 
 __all__ = [
@@ -149,7 +150,7 @@ def _build(model: PlanarModel) -> tuple[dict, dict]:
     return sensors, actuators
 
 
-class PlanarPorts:
+class PlanarPorts(NamedPorts):
     """The sensors and actuators of one model, resolved once (hold one in a time loop).
 
     Parameters
@@ -188,22 +189,6 @@ class PlanarPorts:
                                  "station moments are available")
             raise _unknown(what, name, self.model, self.actuators)
         return name
-
-    def sensor_unit(self, name: str) -> str:
-        """SI unit of sensor ``name``."""
-        return self.sensors[self.check_sensor(name)].unit
-
-    def actuator_unit(self, name: str) -> str:
-        """SI unit of actuator ``name``."""
-        return self.actuators[self.check_actuator(name)].unit
-
-    def resolve(self, names: Sequence[str]) -> list:
-        """The resolved sensors ``names`` (for :meth:`values` in a loop)."""
-        if isinstance(names, str):
-            raise ModelError(f"names must be a sequence of sensor names, got the string {names!r}")
-        if not isinstance(names, (list, tuple)):
-            raise ModelError(f"names must be a list or tuple of sensor names (str), got {names!r}")
-        return [self.sensors[self.check_sensor(name)] for name in names]
 
     def values(self, sensors: list, q: np.ndarray, qdot: np.ndarray, t: float) -> np.ndarray:
         """Values of resolved ``sensors`` (no validation of the state: for inner loops)."""

@@ -256,7 +256,8 @@ class SpatialScene:
         self._outboard = [{name: p for name, p in body.points.items() if name in names}
                           for body, names in zip(model.bodies, used)]
 
-    def terms(self, ops: Ops, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | None = None
+    def terms(self, ops: Ops, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | None = None,
+              wrenches: Mapping[int, Sequence[tuple[np.ndarray, Any]]] | None = None
               ) -> tuple[list[BodyTerms], list[JointTerms], list[BodyState]]:
         """Body terms, joint terms (world axes) and body states at ``(q, v, t)``.
 
@@ -266,6 +267,9 @@ class SpatialScene:
         t : float
             Time [s] (signals of loads and driven joints are evaluated numerically).
         inputs : mapping of input name to ops column ``(k, 1)`` (numpy ``(B, k, 1)``), optional
+        wrenches : mapping of body index to a list of (point (3,) body axes [m], ops column (6, 1)
+            ``[f ; m]`` world axes [N, N m]), optional
+            Extra applied loads (the body-force actuators of :mod:`ctmm.spatial.ports`).
         """
         model = self.model
         inputs = inputs or {}
@@ -328,15 +332,16 @@ class SpatialScene:
                 else:
                     wrench = constant(ops, values)
                 loads.append((body.points[load.point], wrench))
+            loads += list((wrenches or {}).get(j, ()))
             bodies.append(rigid_body_terms(ops, mass=body.mass, inertia=body.inertia,
                                            center_of_mass=body.center_of_mass, points=self._outboard[j], rotation=R_c,
                                            offset=offset, omega=w_c, gravity=model.gravity, loads=loads))
         return bodies, joints, states
 
-    def sweep(self, ops: Ops, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | None = None
-              ) -> Articulated:
-        """The one articulated sweep (explicit context) at ``(q, v, t)``."""
-        bodies, joints, _ = self.terms(ops, q, v, t, inputs)
+    def sweep(self, ops: Ops, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | None = None,
+              wrenches: Mapping[int, Sequence[tuple[np.ndarray, Any]]] | None = None) -> Articulated:
+        """The one articulated sweep (explicit context) at ``(q, v, t)`` (``wrenches`` as in :meth:`terms`)."""
+        bodies, joints, _ = self.terms(ops, q, v, t, inputs, wrenches)
         return articulated_sweep(ops, self.tree, bodies, joints)
 
     def velocity_rates(self, solution: Articulated) -> list:
@@ -348,10 +353,12 @@ class SpatialScene:
         """Actuator inputs at ``t`` as numpy batched columns ``(B, k, 1)``."""
         return {name: batch_column(value) for name, value in input_values(self.model, inputs, t, batch).items()}
 
-    def solve(self, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | None = None) -> Articulated:
-        """Numpy sweep of a batch ``q (B, nq)``, ``v (B, nv)`` (inputs as in :func:`input_values`)."""
+    def solve(self, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | None = None,
+              wrenches: Mapping[int, Sequence[tuple[np.ndarray, Any]]] | None = None) -> Articulated:
+        """Numpy sweep of a batch ``q (B, nq)``, ``v (B, nv)`` (inputs as in :func:`input_values`,
+        ``wrenches`` as in :meth:`terms`)."""
         q, v = self.model.check_state(q, v)
-        return self.sweep(NUMPY, q, v, t, self.numpy_inputs(inputs, t, q.shape[0]))
+        return self.sweep(NUMPY, q, v, t, self.numpy_inputs(inputs, t, q.shape[0]), wrenches)
 
 
 def _add(a: Any, b: Any) -> Any:

@@ -39,8 +39,8 @@ class SpatialSolution:
     point_accelerations: np.ndarray
 
 
-def solve(model: SpatialModel, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | None = None
-          ) -> SpatialSolution:
+def solve(model: SpatialModel, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | None = None,
+          wrenches: Mapping[int, Any] | None = None) -> SpatialSolution:
     """Accelerations and reactions at one state (or a batch of states).
 
     Parameters
@@ -54,6 +54,9 @@ def solve(model: SpatialModel, q: Any, v: Any, t: float = 0.0, inputs: Mapping[s
         Time [s].
     inputs : mapping, optional
         ``{"<joint>.torque" | "<joint>.force" | "<joint>.wrench": value or f(t)}`` (missing: zero).
+    wrenches : mapping, optional
+        Extra applied loads ``{body index: [(point (3,) body axes [m], (6, 1) [f ; m] world axes)]}``
+        (the body-force actuators of :mod:`ctmm.spatial.ports`).
 
     Raises
     ------
@@ -63,7 +66,7 @@ def solve(model: SpatialModel, q: Any, v: Any, t: float = 0.0, inputs: Mapping[s
         A singular articulated pivot (e.g. a free joint carrying no mass).
     """
     scene = scene_of(model)
-    solution = scene.solve(q, v, t, inputs)
+    solution = scene.solve(q, v, t, inputs, wrenches)
     batch = np.asarray(solution.force[0]).shape[0]
     parts = [np.broadcast_to(np.asarray(a), (batch,) + np.asarray(a).shape[1:])[:, :, 0]
              for a in scene.velocity_rates(solution)]
@@ -81,10 +84,10 @@ def _unbatch(array: np.ndarray, q: Any) -> np.ndarray:
     return array[0] if np.ndim(q) == 1 else array
 
 
-def accelerations(model: SpatialModel, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | None = None
-                  ) -> np.ndarray:
+def accelerations(model: SpatialModel, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | None = None,
+                  wrenches: Mapping[int, Any] | None = None) -> np.ndarray:
     """``v_dot`` (nv,) or (B, nv) of a spatial model (:func:`solve`)."""
-    return _unbatch(solve(model, q, v, t, inputs).velocity_rates, q)
+    return _unbatch(solve(model, q, v, t, inputs, wrenches).velocity_rates, q)
 
 
 def reactions(model: SpatialModel, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | None = None

@@ -49,7 +49,10 @@ def initial_state(model: SpatialModel, x0: Any = None, v0: Any = None) -> np.nda
     and ``v0`` (velocities: array or ``{velocity: value}`` over zeros)."""
     q0 = _initial(model, "x0", x0, model.coordinates, model.neutral())
     v = _initial(model, "v0", v0, model.velocities, np.zeros(model.n_velocities))
-    model.check_state(q0, v)
+    try:
+        model.check_state(q0, v)
+    except ModelError as exc:
+        raise ModelError(f"x0 = {q0.tolist()}, v0 = {v.tolist()}: {exc}") from None
     return np.concatenate([q0, v])
 
 

@@ -1,0 +1,158 @@
+"""The plant protocol of the one loop-closing time driver (:mod:`ctmm.control.planar_time`).
+
+A loop or a co-simulated controller sees a model only through its **ports** -- named sensors and
+actuators -- and the time driver needs a few dynamics on top.  :class:`Plant` is that small explicit
+protocol; :class:`PlanarPlant` (:class:`~ctmm.planar.model.PlanarModel`, ports
+:class:`~ctmm.planar.ports.PlanarPorts`) and :class:`SpatialPlant`
+(:class:`~ctmm.spatial.model.SpatialModel`, ports :class:`~ctmm.spatial.ports.SpatialPorts`) are its
+two implementations, and :func:`plant_of` picks one.
+
+Ports (``plant.ports``)
+    ``sensors``, ``actuators`` (mappings by name), ``check_sensor(name, what)``,
+    ``check_actuator(name, what)``, ``sensor_unit(name)``, ``actuator_unit(name)``,
+    ``resolve(names)`` (resolved sensors), ``values(resolved, q, v, t)`` (sensor values),
+    ``inputs({actuator: value})`` (actuator values arranged for the sweep).
+Dynamics (``plant``)
+    ``n_positions``, ``n_velocities`` (``q``, ``v`` sizes), ``position_rates(q, v)`` (``q_dot``),
+    ``accelerations(q, v, t, inputs)`` (``v_dot`` from the one articulated sweep),
+    ``signals(t, q, v, outputs)`` (named histories and units), ``guard(q0, bound)`` (per-step
+    check), ``check_step(q0, v0, dt, policy)`` (RK4 step against the plant's stability limit),
+    ``element_names`` (loop names must differ from them), ``schemes`` (whether the implicit
+    DT-TMM schemes apply).
+"""
+from __future__ import annotations
+
+from typing import Any, Callable, Protocol, Sequence
+
+import numpy as np
+
+from ..errors import ModelError, SimulationError
+from ..planar.guards import check_scheme, divergence_guard
+from ..planar.integrate import check_state, model_signals
+from ..planar.model import PlanarModel
+from ..planar.ports import PlanarPorts
+from ..planar.sweep import accelerations as planar_accelerations
+from ..spatial.integrate import spatial_signals
+from ..spatial.model import SpatialModel
+from ..spatial.ports import SpatialPorts
+
+__all__ = ["Plant", "PlanarPlant", "SpatialPlant", "plant_of", "is_plant_model"]
+
+
+class Plant(Protocol):
+    """What the loop-closing time driver needs of a model (module docstring)."""
+
+    model: Any
+    ports: Any
+    label: str
+    schemes: bool
+    n_positions: int
+    n_velocities: int
+    element_names: tuple[str, ...]
+
+    def position_rates(self, q: np.ndarray, v: np.ndarray) -> np.ndarray: ...
+
+    def accelerations(self, q: np.ndarray, v: np.ndarray, t: float, inputs: Any) -> np.ndarray: ...
+
+    def signals(self, t: np.ndarray, q: np.ndarray, v: np.ndarray, outputs: Sequence[str]) -> tuple[dict, dict]: ...
+
+    def guard(self, q0: np.ndarray, bound: float | None) -> Callable[[float, np.ndarray, float | None, str], None]: ...
+
+    def check_step(self, q0: np.ndarray, v0: np.ndarray, dt: float, policy: str) -> None: ...
+
+
+class PlanarPlant:
+    """A :class:`~ctmm.planar.model.PlanarModel` (rigid or with modal beams) as a :class:`Plant`."""
+
+    label = "planar"
+    schemes = True
+
+    def __init__(self, model: PlanarModel) -> None:
+        self.model = model
+        self.ports = PlanarPorts(model)
+        self.n_positions = self.n_velocities = model.n_coordinates
+        self.element_names = tuple(model.body_names) + tuple(model.joint_names)
+
+    def position_rates(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        return v
+
+    def accelerations(self, q: np.ndarray, v: np.ndarray, t: float, inputs: Any) -> np.ndarray:
+        return planar_accelerations(self.model, q, v, t, inputs=inputs)
+
+    def signals(self, t: np.ndarray, q: np.ndarray, v: np.ndarray, outputs: Sequence[str]) -> tuple[dict, dict]:
+        return model_signals(self.model, t, q, v, outputs)
+
+    def guard(self, q0: np.ndarray, bound: float | None) -> Callable[[float, np.ndarray, float | None, str], None]:
+        guard = divergence_guard(self.model, q0, bound)
+        return lambda t, y, step, method: check_state(self.model, guard, t, y, step, method)
+
+    def check_step(self, q0: np.ndarray, v0: np.ndarray, dt: float, policy: str) -> None:
+        check_scheme(self.model, q0, v0, dt, scheme="rk4", policy=policy)
+
+
+class SpatialPlant:
+    """A :class:`~ctmm.spatial.model.SpatialModel` as a :class:`Plant` (its ports carry the dynamics)."""
+
+    label = "spatial"
+    schemes = False
+
+    def __init__(self, model: SpatialModel) -> None:
+        self.model = model
+        self.ports = ports = SpatialPorts(model)
+        self.n_positions, self.n_velocities = model.n_positions, model.n_velocities
+        self.element_names = ports.element_names
+        self.position_rates = ports.position_rates
+        self.accelerations = ports.accelerations
+
+    def signals(self, t: np.ndarray, q: np.ndarray, v: np.ndarray, outputs: Sequence[str]) -> tuple[dict, dict]:
+        """Every coordinate and velocity, body positions and angular velocities (:func:`spatial_signals`)
+        and the sensor ``outputs``."""
+        nq, nv = self.n_positions, self.n_velocities
+        states = np.concatenate([np.reshape(q, (len(t), nq)), np.reshape(v, (len(t), nv))], axis=1)
+        signals, units = spatial_signals(self.model, np.asarray(t), states)
+        outputs = list(dict.fromkeys(outputs))
+        if outputs:
+            sensors = self.ports.resolve(outputs)
+            values = np.array([self.ports.values(sensors, states[k, :nq], states[k, nq:], float(t[k]))
+                               for k in range(len(t))]).reshape(len(t), len(outputs))
+            for k, name in enumerate(outputs):
+                signals[name] = values[:, k]
+                units[name] = self.ports.sensor_unit(name)
+        return signals, units
+
+    def guard(self, q0: np.ndarray, bound: float | None) -> Callable[[float, np.ndarray, float | None, str], None]:
+        names = list(self.model.coordinates) + list(self.model.velocities)
+        size = self.n_positions + self.n_velocities
+        start = np.concatenate([q0, np.zeros(self.n_velocities)])
+
+        def check(t: float, y: np.ndarray, step: float | None, method: str) -> None:
+            x = y[:size]
+            if not np.all(np.isfinite(x)):
+                k = int(np.flatnonzero(~np.isfinite(x))[0])
+                raise SimulationError(f"{self.model.name}: non-finite {names[k]!r} at t = {t:.6g} s ({method})",
+                                      time=float(t), element=names[k])
+            if bound is not None:
+                distance = np.abs(x - start)
+                if float(distance.max(initial=0.0)) > bound:
+                    k = int(np.argmax(distance))
+                    raise SimulationError(f"{self.model.name}: {names[k]!r} moved {distance[k]:.6g} from its start, "
+                                          f"beyond divergence_bound = {bound} at t = {t:.6g} s ({method})",
+                                          time=float(t), element=names[k])
+        return check
+
+    def check_step(self, q0: np.ndarray, v0: np.ndarray, dt: float, policy: str) -> None:
+        """No pre-run limit for spatial models yet (the run's own guards apply)."""
+
+
+def is_plant_model(model: Any) -> bool:
+    """Whether ``model`` is a model the loop-closing driver integrates (planar or spatial)."""
+    return isinstance(model, (PlanarModel, SpatialModel))
+
+
+def plant_of(model: Any) -> PlanarPlant | SpatialPlant:
+    """The :class:`Plant` of a planar or spatial model."""
+    if isinstance(model, PlanarModel):
+        return PlanarPlant(model)
+    if isinstance(model, SpatialModel):
+        return SpatialPlant(model)
+    raise ModelError(f"model must be a ctmm.planar.PlanarModel or a ctmm.spatial.SpatialModel, got {model!r}")

@@ -1,0 +1,418 @@
+"""Named sensors and actuators of a spatial model: the signals loops and controllers connect to.
+
+A :class:`~ctmm.spatial.model.SpatialModel` exposes
+
+Sensors (measured signals)
+    * joint coordinates and rates: ``"<joint>.angle"`` [rad] / ``"<joint>.rate"`` [rad/s] of a
+      revolute joint, ``"<joint>.position"`` [m] / ``"<joint>.rate"`` [m/s] of a prismatic one,
+      ``"<joint>.q1"``, ``"<joint>.q2"`` [rad] and ``"<joint>.q1_rate"``, ``"<joint>.q2_rate"``
+      [rad/s] of a universal one; and every entry of ``q`` and ``v`` under its own name
+      (``model.coordinates``, ``model.velocities``: quaternion components [1], free-joint
+      positions [m], spherical / free angular velocities ``"<joint>.wx|wy|wz"`` [rad/s] and
+      linear velocities ``"<joint>.vx|vy|vz"`` [m/s], child axes);
+    * ``"<body>.omega_x|y|z"`` -- angular velocity about the world axes [rad/s];
+      ``"<body>.omega_body_x|y|z"`` -- the same vector in the body's axes [rad/s];
+    * ``"<body>.angle_x|y|z"`` -- the book's x-y-z angles of the body (seed 002 §7.3.4): the body
+      rotation ``R = Rx(angle_x) Ry(angle_y) Rz(angle_z)`` (turn about x, then the new y, then the
+      new z) [rad].  Limits: ``angle_y`` in ``[-pi/2, pi/2]``, ``angle_x``, ``angle_z`` in
+      ``(-pi, pi]`` (they jump by ``2 pi`` when they cross ``pi``); at ``|angle_y| = pi/2`` (gimbal
+      lock) only ``angle_x + angle_z`` (or the difference) is defined and the angles are ill
+      conditioned near it (the sensor is exact, but a loop on it sees an amplified noise).  For
+      small rotations they equal the rotation vector to first order (the book's linearisation);
+    * ``"<body>.rotation_x|y|z"`` -- the rotation vector ``phi = angle * axis`` of the body
+      (``R = exp([phi]x)``, ``|phi| <= pi``; at ``|phi| = pi`` it flips to ``-phi``) [rad];
+    * ``"<body>.<point>.x|y|z"`` [m] and ``".vx|vy|vz"`` [m/s] -- world position and velocity of
+      a body point: ``origin``, ``com`` (centre of mass) and every named point of the body.
+
+Actuators (inputs, added to what the model's own laws and loads apply)
+    * joint inputs of actuated joints (``actuated=True``; their model inputs
+      ``model.inputs``): ``"<joint>.torque"`` [N m] (revolute), ``"<joint>.force"`` [N]
+      (prismatic), ``"<joint>.torque1|torque2"`` [N m] (universal, per coordinate),
+      ``"<joint>.torque_x|y|z"`` [N m] (spherical, child axes), ``"<joint>.force_x|y|z"`` [N] and
+      ``"<joint>.torque_x|y|z"`` [N m] (free and elastic6: the wrench input, child axes);
+    * ``"<body>.force_x|y|z"`` [N] -- force at the centre of mass, world axes;
+      ``"<body>.moment_x|y|z"`` [N m] -- moment on the body, world axes;
+      ``"<body>.<point>.force_x|y|z"`` [N] -- force at a named point (or ``origin``), world axes.
+
+Sensors are kinematic: a position-like sensor depends on ``q`` (and ``t`` through driven
+joints) only, a rate sensor is linear in ``v``.  :func:`sensor_jacobians` gives the Jacobians in
+the **tangent coordinates** of ``v`` (a perturbation ``delta`` moves ``q`` along ``G(q) delta``):
+``dy/dv`` of rate sensors exactly (unit velocities), the rest by a fourth-order central
+difference.
+
+Accelerations are not sensors (they would close an algebraic loop through the sweep: the
+actuator values would depend on the accelerations they cause); measure positions, angles or
+rates.  Driven joints have no sensors (their motion is the signal you gave) and no inputs.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import validation
+from ..errors import ModelError, UnknownNameError
+from ..named_ports import NamedPorts
+from ..ops import NUMPY
+from .body_forms import SpatialScene
+from .dynamics import accelerations as sweep_accelerations
+from .model import SpatialModel
+
+__all__ = ["SpatialPorts", "SpatialInputs", "sensor_values", "sensor_jacobians", "xyz_angles", "rotation_vector"]
+
+_AXES = "xyz"
+_RATE_PARTS = ("rate", "q1_rate", "q2_rate", "omega", "omega_body", "v", "velocity")
+
+
+@dataclass(frozen=True)
+class _Sensor:
+    """One resolved sensor: what it reads (``kind``, ``index``, ``component``) and its unit."""
+
+    name: str
+    kind: str            # "q", "v" (state entries), "omega", "omega_body", "angles", "rotation", "point", "point_v"
+    index: int           # state index, or body index
+    component: int = 0   # axis 0, 1, 2
+    point: tuple = ()    # body-axes point of kind "point" / "point_v"
+    unit: str = ""
+
+    @property
+    def is_rate(self) -> bool:
+        return self.kind in ("v", "omega", "omega_body", "point_v")
+
+
+@dataclass(frozen=True)
+class _Actuator:
+    name: str
+    kind: str            # "joint" or "body"
+    target: str | int    # model input name, or body index
+    component: int       # entry of the joint input; body: 0..2 force, 3..5 moment
+    point: tuple         # body-axes point of a force (body actuators)
+    unit: str
+
+
+@dataclass(frozen=True)
+class SpatialInputs:
+    """Actuator values of one instant, arranged for the sweep.
+
+    Attributes
+    ----------
+    joint : dict of str to ndarray
+        Joint inputs by model input name (``"<joint>.torque"``: (k,) [N m, N]).
+    wrenches : dict of int to list
+        Extra loads by body index: ``(point (3,) body axes [m], numpy batched column (1, 6, 1) [f ; m] world
+        axes [N, N m])``.
+    """
+
+    joint: Mapping[str, np.ndarray] = field(default_factory=dict)
+    wrenches: Mapping[int, list] = field(default_factory=dict)
+
+
+def _joint_sensor_names(joint) -> list[tuple[str, str, int, str]]:
+    """``(suffix, "q" | "v", offset in the joint's block, unit)`` of a lawful joint's own sensors."""
+    if joint.kind == "revolute":
+        return [("angle", "q", 0, "rad"), ("rate", "v", 0, "rad/s")]
+    if joint.kind == "prismatic":
+        return [("position", "q", 0, "m"), ("rate", "v", 0, "m/s")]
+    if joint.kind == "universal":
+        return [("q1", "q", 0, "rad"), ("q2", "q", 1, "rad"), ("q1_rate", "v", 0, "rad/s"),
+                ("q2_rate", "v", 1, "rad/s")]
+    return []
+
+
+def _joint_actuator_names(joint) -> list[tuple[str, int, str]]:
+    """``(name, component of the model input, unit)`` of an actuated joint."""
+    if not joint.inputs:
+        return []
+    base = joint.name
+    if joint.kind == "revolute":
+        return [(f"{base}.torque", 0, "N m")]
+    if joint.kind == "prismatic":
+        return [(f"{base}.force", 0, "N")]
+    if joint.kind == "universal":
+        return [(f"{base}.torque1", 0, "N m"), (f"{base}.torque2", 1, "N m")]
+    if joint.kind == "spherical":
+        return [(f"{base}.torque_{a}", k, "N m") for k, a in enumerate(_AXES)]
+    return [(f"{base}.force_{a}", k, "N") for k, a in enumerate(_AXES)] + \
+        [(f"{base}.torque_{a}", 3 + k, "N m") for k, a in enumerate(_AXES)]
+
+
+def _state_unit(name: str, rate: bool) -> str:
+    part = name.rsplit(".", 1)[-1]
+    if rate:
+        return "m/s" if part in ("vx", "vy", "vz", "position_rate") else "rad/s"
+    if part in ("x", "y", "z", "position"):
+        return "m"
+    return "1" if part in ("qw", "qx", "qy", "qz") else "rad"
+
+
+def _build(model: SpatialModel) -> tuple[dict, dict]:
+    sensors: dict[str, _Sensor] = {}
+    actuators: dict[str, _Actuator] = {}
+    for joint, layout in zip(model.joints, model.layout):
+        if joint.driven:
+            continue
+        for suffix, which, offset, unit in _joint_sensor_names(joint):
+            start = (layout.position if which == "q" else layout.velocity).start
+            sensors[f"{joint.name}.{suffix}"] = _Sensor(f"{joint.name}.{suffix}", which, start + offset, unit=unit)
+        for name, component, unit in _joint_actuator_names(joint):
+            actuators[name] = _Actuator(name, "joint", joint.inputs[0], component, (), unit)
+    for k, name in enumerate(model.coordinates):
+        sensors.setdefault(name, _Sensor(name, "q", k, unit=_state_unit(name, False)))
+    for k, name in enumerate(model.velocities):
+        sensors.setdefault(name, _Sensor(name, "v", k, unit=_state_unit(name, True)))
+    for j, body in enumerate(model.bodies):
+        for c, a in enumerate(_AXES):
+            for kind, label, unit in (("omega", "omega", "rad/s"), ("omega_body", "omega_body", "rad/s"),
+                                      ("angles", "angle", "rad"), ("rotation", "rotation", "rad")):
+                sensors[f"{body.name}.{label}_{a}"] = _Sensor(f"{body.name}.{label}_{a}", kind, j, c, unit=unit)
+        points = {"com": tuple(body.center_of_mass), **{p: tuple(r) for p, r in body.points.items()}}
+        for point, r in points.items():
+            for c, a in enumerate(_AXES):
+                sensors[f"{body.name}.{point}.{a}"] = _Sensor(f"{body.name}.{point}.{a}", "point", j, c, r, "m")
+                sensors[f"{body.name}.{point}.v{a}"] = _Sensor(f"{body.name}.{point}.v{a}", "point_v", j, c, r,
+                                                               "m/s")
+            if point != "com":
+                for c, a in enumerate(_AXES):
+                    label = f"{body.name}.{point}.force_{a}"
+                    actuators[label] = _Actuator(label, "body", j, c, r, "N")
+        for c, a in enumerate(_AXES):
+            actuators[f"{body.name}.force_{a}"] = _Actuator(f"{body.name}.force_{a}", "body", j, c,
+                                                            tuple(body.center_of_mass), "N")
+            actuators[f"{body.name}.moment_{a}"] = _Actuator(f"{body.name}.moment_{a}", "body", j, 3 + c,
+                                                             (0.0, 0.0, 0.0), "N m")
+    return sensors, actuators
+
+
+def xyz_angles(rotation: np.ndarray) -> np.ndarray:
+    """The x-y-z angles ``(a_x, a_y, a_z)`` [rad] of ``R = Rx(a_x) Ry(a_y) Rz(a_z)`` (module docstring)."""
+    r = np.asarray(rotation, dtype=float)
+    return np.array([np.arctan2(-r[1, 2], r[2, 2]), np.arcsin(np.clip(r[0, 2], -1.0, 1.0)),
+                     np.arctan2(-r[0, 1], r[0, 0])])
+
+
+def rotation_vector(rotation: np.ndarray) -> np.ndarray:
+    """Rotation vector ``phi`` [rad] of a rotation matrix (``R = exp([phi]x)``, ``|phi| <= pi``), through the
+    unit quaternion (the largest of its four components is formed first: well conditioned everywhere)."""
+    r = np.asarray(rotation, dtype=float)
+    trace = np.trace(r)
+    k = int(np.argmax([trace, r[0, 0], r[1, 1], r[2, 2]]))
+    if k == 0:
+        w = 0.5 * np.sqrt(max(1.0 + trace, 0.0))
+        vec = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]]) / (4.0 * w)
+    else:
+        i = k - 1
+        j, m = (i + 1) % 3, (i + 2) % 3
+        vec = np.zeros(3)
+        vec[i] = 0.5 * np.sqrt(max(1.0 + r[i, i] - r[j, j] - r[m, m], 0.0))
+        w = (r[m, j] - r[j, m]) / (4.0 * vec[i])
+        vec[j] = (r[j, i] + r[i, j]) / (4.0 * vec[i])
+        vec[m] = (r[m, i] + r[i, m]) / (4.0 * vec[i])
+    if w < 0.0:
+        w, vec = -w, -vec
+    s = float(np.linalg.norm(vec))
+    if s < 1e-300:
+        return 2.0 * vec
+    return (2.0 * np.arctan2(s, w) / s) * vec
+
+
+class SpatialPorts(NamedPorts):
+    """The sensors and actuators of one spatial model, resolved once (hold one in a time loop).
+
+    Parameters
+    ----------
+    model : SpatialModel
+    """
+
+    def __init__(self, model: SpatialModel) -> None:
+        if not isinstance(model, SpatialModel):
+            raise ModelError(f"model must be a ctmm.spatial.SpatialModel, got {model!r}")
+        self.model = model
+        self.scene = SpatialScene(model)
+        self.sensors, self.actuators = _build(model)
+
+    # -- sizes and dynamics -------------------------------------------------------------------
+    @property
+    def n_positions(self) -> int:
+        """Entries of ``q``."""
+        return self.model.n_positions
+
+    @property
+    def n_velocities(self) -> int:
+        """Entries of ``v``."""
+        return self.model.n_velocities
+
+    @property
+    def element_names(self) -> tuple[str, ...]:
+        """Names of the model's bodies and joints (loop names must differ from them)."""
+        return tuple(b.name for b in self.model.bodies) + tuple(j.name for j in self.model.joints)
+
+    def position_rates(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``q_dot = G(q) v`` (1-D)."""
+        return self.model.position_rates(q[None], v[None])[0]
+
+    def accelerations(self, q: np.ndarray, v: np.ndarray, t: float, inputs: SpatialInputs | None) -> np.ndarray:
+        """``v_dot`` (1-D) with the actuator ``inputs`` (:meth:`inputs`) applied."""
+        if inputs is None:
+            return sweep_accelerations(self.model, q, v, t)
+        return sweep_accelerations(self.model, q, v, t, inputs.joint, inputs.wrenches)
+
+    # -- names ----------------------------------------------------------------------------------
+    def check_sensor(self, name: str, what: str = "sensor") -> str:
+        """``name`` if it is a sensor, else an error listing the sensors."""
+        if not isinstance(name, str) or name not in self.sensors:
+            last = name.rsplit(".", 1)[-1] if isinstance(name, str) and "." in name else ""
+            if last in ("a", "ax", "ay", "az", "alpha") or last.startswith(("alpha_", "acceleration")):
+                raise ModelError(f"{what} {name!r}: accelerations are not sensors of spatial models (they would "
+                                 "close an algebraic loop through the sweep: the actuator values would depend on "
+                                 "the accelerations they cause); measure positions, angles or rates")
+            if isinstance(name, str) and name.split(".", 1)[0] in {j.name for j in self.model.joints if j.driven}:
+                raise ModelError(f"{what} {name!r}: joint {name.split('.', 1)[0]!r} is driven (its motion is the "
+                                 "signal you prescribed); it has no sensors")
+            raise UnknownNameError(f"unknown {what} {name!r} of spatial model {self.model.name!r}; available: "
+                                   f"{', '.join(sorted(self.sensors)) or '(none)'}")
+        return name
+
+    def check_actuator(self, name: str, what: str = "actuator") -> str:
+        """``name`` if it is an actuator, else an error listing the actuators."""
+        if not isinstance(name, str) or name not in self.actuators:
+            joints = {j.name: j for j in self.model.joints}
+            head = name.split(".", 1)[0] if isinstance(name, str) else None
+            if head in joints:
+                joint = joints[head]
+                reason = ("is driven (its motion is prescribed)" if joint.driven else
+                          "is welded (it has no free direction)" if joint.kind == "weld" else
+                          "is not actuated: declare it with actuated=True to give it an input")
+                raise ModelError(f"{what} {name!r}: joint {head!r} {reason}; the actuators of {head!r} are "
+                                 f"{[a for a in self.actuators if a.startswith(head + '.')]}")
+            raise UnknownNameError(f"unknown {what} {name!r} of spatial model {self.model.name!r}; available: "
+                                   f"{', '.join(sorted(self.actuators)) or '(none)'}")
+        return name
+
+    def values(self, sensors: list, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        """Values of resolved ``sensors`` at ``(q, v, t)`` (no validation of the state: for inner loops)."""
+        out = np.empty(len(sensors))
+        states = None
+        for n, s in enumerate(sensors):
+            if s.kind == "q":
+                out[n] = q[s.index]
+                continue
+            if s.kind == "v":
+                out[n] = v[s.index]
+                continue
+            if states is None:
+                states = self.scene.terms(NUMPY, np.asarray(q, float)[None], np.asarray(v, float)[None], t)[2]
+            state = states[s.index]
+            rotation = np.asarray(state.rotation)[0]
+            omega = np.asarray(state.omega).reshape(-1, 3)[0]
+            if s.kind == "omega":
+                out[n] = omega[s.component]
+            elif s.kind == "omega_body":
+                out[n] = rotation[:, s.component] @ omega
+            elif s.kind == "angles":
+                out[n] = xyz_angles(rotation)[s.component]
+            elif s.kind == "rotation":
+                out[n] = rotation_vector(rotation)[s.component]
+            else:
+                arm = rotation @ np.asarray(s.point, float)
+                if s.kind == "point":
+                    out[n] = np.asarray(state.origin).reshape(-1, 3)[0][s.component] + arm[s.component]
+                else:
+                    velocity = np.asarray(state.velocity).reshape(-1, 3)[0] + np.cross(omega, arm)
+                    out[n] = velocity[s.component]
+        return out
+
+    def inputs(self, values: Mapping[str, float]) -> SpatialInputs:
+        """Arrange actuator ``values`` (``{actuator name: value}``, SI units) for the sweep; several
+        entries on one actuator add up."""
+        if not isinstance(values, Mapping):
+            raise ModelError(f"values must be a mapping of actuator name to value, got {values!r}")
+        joint: dict[str, np.ndarray] = {}
+        body: dict[tuple[int, tuple], np.ndarray] = {}
+        for name, value in values.items():
+            actuator = self.actuators[self.check_actuator(name)]
+            value = validation.finite(f"actuator {name!r}", value)
+            if actuator.kind == "joint":
+                size = next(j.velocity_count for j in self.model.joints if actuator.target in j.inputs)
+                joint.setdefault(actuator.target, np.zeros(size))[actuator.component] += value
+            else:
+                body.setdefault((actuator.target, actuator.point), np.zeros(6))[actuator.component] += value
+        wrenches: dict[int, list] = {}
+        for (j, point), wrench in body.items():
+            wrenches.setdefault(j, []).append((np.asarray(point, float), wrench.reshape(1, 6, 1)))
+        return SpatialInputs(joint, wrenches)
+
+
+def _state(model: SpatialModel, q, v, t) -> tuple[np.ndarray, np.ndarray, float]:
+    given = {"q": q, "v": v}
+    q, v = validation.finite_array("q", q, ndim=1), validation.finite_array("v", v, ndim=1)
+    for label, array, names in (("q", q, model.coordinates), ("v", v, model.velocities)):
+        if array.shape != (len(names),):
+            raise ModelError(f"{label} must have {len(names)} entries {names}, got {given[label]!r}")
+    try:
+        q, v = model.check_state(q, v)
+    except ModelError as exc:
+        raise ModelError(f"q = {given['q']!r}: {exc}") from None
+    if q.shape[0] != 1:
+        raise ModelError(f"q and v must be one state ({model.n_positions},), ({model.n_velocities},), got a batch "
+                         f"of {q.shape[0]}")
+    return q[0], v[0], validation.finite("t", t)
+
+
+def sensor_values(model: SpatialModel, names: Sequence[str], q, v, t: float = 0.0) -> np.ndarray:
+    """Values of the sensors ``names`` at the state ``(q, v)`` and time ``t``.
+
+    Parameters
+    ----------
+    model : SpatialModel
+    names : sequence of str
+        Sensor names (``SpatialPorts(model).sensors``).
+    q : array_like, shape (n_positions,)
+        Coordinates (quaternions need not be unit).
+    v : array_like, shape (n_velocities,)
+        Velocities.
+    t : float
+        Time [s] (driven joints).
+
+    Returns
+    -------
+    ndarray, shape (len(names),)
+        In the sensors' units (:meth:`SpatialPorts.sensor_unit`).
+    """
+    ports = SpatialPorts(model)
+    sensors = ports.resolve(names)
+    q, v, t = _state(model, q, v, t)
+    return ports.values(sensors, q, v, t)
+
+
+def sensor_jacobians(model: SpatialModel, names: Sequence[str], q, v, t: float = 0.0, *, step: float = 1e-3
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Jacobians of the sensors ``names`` in tangent coordinates at ``(q, v, t)``.
+
+    ``dy_dx[:, k]`` is the derivative of ``y`` when ``q`` moves along ``G(q) e_k`` (the motion of unit
+    velocity ``k``: for quaternion joints the rotation about a child axis) at fixed ``v``; ``dy_dv`` the
+    derivative in ``v``.  ``dy_dv`` of rate sensors is exact (they are linear in ``v``); the rest is a
+    fourth-order central difference with step ``step`` (scaled by the state's size).
+
+    Returns
+    -------
+    dy_dx, dy_dv : ndarray, shape (len(names), n_velocities)
+    """
+    ports = SpatialPorts(model)
+    sensors = ports.resolve(names)
+    step = validation.positive("step", step)
+    q, v, t = _state(model, q, v, t)
+    nv = model.n_velocities
+    dy_dx = np.zeros((len(sensors), nv))
+    dy_dv = np.zeros((len(sensors), nv))
+    rates = np.array([s.is_rate for s in sensors], dtype=bool)
+    base = ports.values(sensors, q, np.zeros(nv), t)
+    h = step * max(1.0, float(np.max(np.abs(q[:]), initial=0.0)))
+    for k in range(nv):
+        unit = np.zeros(nv)
+        unit[k] = 1.0
+        dy_dv[rates, k] = (ports.values(sensors, q, unit, t) - base)[rates]
+        direction = ports.position_rates(q, unit)
+        shifted = [ports.values(sensors, q + s * h * direction, v, t) for s in (-2.0, -1.0, 1.0, 2.0)]
+        dy_dx[:, k] = (shifted[0] - 8.0 * shifted[1] + 8.0 * shifted[2] - shifted[3]) / (12.0 * h)
+    return dy_dx, dy_dv
