@@ -75,8 +75,13 @@ def _simulate_spatial(parts: tuple[SpatialModel, tuple], t_final: float, dt: flo
         raise ModelError(f"inputs must be a mapping {{actuator name: number or f(t)}}, got {inputs!r}")
     port_inputs = any(name not in model.inputs for name in inputs or {})
     controlled = bool(loops or controllers or references or tuple(outputs) or port_inputs)
-    closed = ("loops, controllers, references, outputs and port actuator inputs" if controlled else "")
+    closed = "loops, controllers, references, outputs and port actuator inputs"
     if validation.flag("compiled", compiled, optional=True):        # the generated RK4 (ctmm.compiled_spatial)
+        if port_inputs and not (loops or controllers or references or tuple(outputs)):
+            known = SpatialPorts(model).actuators
+            for name in inputs:
+                if name not in model.inputs and name not in known:
+                    raise unknown_name("spatial input", name, list(model.inputs) + list(known))
         if controlled:
             raise ModelError(f"compiled=True does not take {closed} of spatial models yet; run without "
                              "compiled=True (the Python RK4 or solve_ivp closes them)")
