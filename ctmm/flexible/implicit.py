@@ -34,19 +34,21 @@ class FlexibleNewtonStep:
         self.S = system_of(model)
         self.bh2, self.gh = bh2, gh
         self.kappa = (model.stiffness * bh2 + model.damping * gh).tolist()
+        self.children = [[c for c in range(self.S.nb) if self.S.parent[c] == j] for j in range(self.S.nb)]
         self.last = None
 
     def start(self, q, v, t: float) -> None:
         """Iterate data from the explicit solution at the initial state."""
         S = self.S
-        terms, (theta, omega, _, _, _) = S.all_terms(np.asarray(q, float), np.asarray(v, float), t)
+        driven = self.model.driven(t)
+        terms, (theta, omega, _, _, _) = S.all_terms(np.asarray(q, float), np.asarray(v, float), t, driven)
         tau = S.hinge_torques(q, v, theta, omega, t)
-        self.last = S.sweep(terms, [0.0] * S.nb, tau.tolist(), S.driven_alpha(t))
+        self.last = S.sweep(terms, [0.0] * S.nb, tau.tolist(), S.driven_alpha(t, driven))
 
-    def _linearised_terms(self, q, v, t):
+    def _linearised_terms(self, q, v, t, driven):
         S = self.S
         x_k, F_k, AO_k, _ = self.last
-        theta, omega, eta, eta_dot = S.state(q, v, t)
+        theta, omega, eta, eta_dot = S.state(q, v, t, driven)
         loads = self.model.loads(t) if len(self.model.load_body) else np.zeros((0, 3))
         bh2, gh = self.bh2, self.gh
         terms = []
@@ -57,8 +59,10 @@ class FlexibleNewtonStep:
             om = np.full(nd, omega[j], dtype=complex)
             th[0] += 1j * _EPS * bh2
             om[0] += 1j * _EPS * gh
-            et = np.tile(np.asarray(eta[j], complex), (nd, 1))
-            etd = np.tile(np.asarray(eta_dot[j], complex), (nd, 1))
+            et = np.empty((nd, n), dtype=complex)
+            et[:] = eta[j]
+            etd = np.empty((nd, n), dtype=complex)
+            etd[:] = eta_dot[j]
             if n:
                 idx = np.arange(n)
                 et[1 + idx, idx] += 1j * _EPS * bh2
@@ -67,12 +71,12 @@ class FlexibleNewtonStep:
             xk = x_k[j]
             # forces at each end from the children's iterate
             Fend = [np.zeros(3) for _ in ends]
-            for c in self._children(j):
+            for c in self.children[j]:
                 Fend[S.pend[c]] = Fend[S.pend[c]] + F_k[c]
             rows = M @ xk + h
             for (Kin, cc, RF, _, _), fe in zip(ends, Fend):
                 rows = rows + RF @ fe
-            own = [2] + list(range(3, 3 + n))
+            own = slice(2, 3 + n)                       # the columns of alpha and eta''
             T = rows.imag.T / _EPS                      # (3 + n, 1 + n)
             Mr = M[0].real.copy()
             hr = h[0].real.copy()
@@ -91,12 +95,6 @@ class FlexibleNewtonStep:
             terms.append([Mr, hr, ends_r])
         return terms, theta, omega
 
-    def _children(self, j):
-        cache = self.__dict__.setdefault("_child_cache", {})
-        if j not in cache:
-            cache[j] = [c for c in range(self.S.nb) if self.S.parent[c] == j]
-        return cache[j]
-
     def sweep(self, q, v, t, A=None, F=None, x=None, inputs=None):
         """One Newton iteration about ``(q, v)`` (the integrator's state for the iterate).
 
@@ -110,11 +108,12 @@ class FlexibleNewtonStep:
         if self.last is None:
             self.start(q, v, t)
         x_k, _, AO_k, _ = self.last
-        terms, theta, omega = self._linearised_terms(q, v, t)
+        driven = self.model.driven(t)                  # once: angles and prescribed accelerations
+        terms, theta, omega = self._linearised_terms(q, v, t, driven)
         tau = S.hinge_torques(q, v, theta, omega, t)
         rel = np.array([x_k[j][2] - AO_k[j][2] for j in range(S.nb)])
         tau_tilde = tau + np.array(self.kappa) * rel
-        return dict(terms=terms, theta=theta, tau_tilde=tau_tilde, x_k=x_k, alpha_d=S.driven_alpha(t))
+        return dict(terms=terms, theta=theta, tau_tilde=tau_tilde, x_k=x_k, alpha_d=S.driven_alpha(t, driven))
 
     def solve(self, tangent: dict, inputs=None):
         """One sweep of the tangent relations of :meth:`linearise` with actuator ``inputs``

@@ -134,16 +134,16 @@ class FlexibleSystem:
             return self.beam_data[j].terms(theta, omega, eta, eta_dot, t, self.model.gravity)
         return self.rigid_terms(j, theta, omega, t, loads)
 
-    def state(self, q, qdot, t: float):
-        """Angles, rates and modal coordinates of all bodies."""
+    def state(self, q, qdot, t: float, driven: list | None = None):
+        """Angles, rates and modal coordinates of all bodies (``driven``: ``model.driven(t)`` if known)."""
         m = self.model
-        theta, omega = m.body_angles(q, qdot, t)
+        theta, omega = m.body_angles(q, qdot, t, driven)
         eta = [q[idx] for idx in self.modal_index]
         eta_dot = [qdot[idx] for idx in self.modal_index]
         return theta, omega, eta, eta_dot
 
-    def all_terms(self, q, qdot, t: float):
-        theta, omega, eta, eta_dot = self.state(q, qdot, t)
+    def all_terms(self, q, qdot, t: float, driven: list | None = None):
+        theta, omega, eta, eta_dot = self.state(q, qdot, t, driven)
         loads = self.model.loads(t) if len(self.model.load_body) else np.zeros((0, 3))
         terms = []
         for j in range(self.nb):
@@ -158,9 +158,10 @@ class FlexibleSystem:
         reference, rate, torque = m.hinge_laws(t)
         return torque - m.stiffness * (dtheta - reference) - m.damping * (domega - rate)
 
-    def driven_alpha(self, t: float) -> list:
+    def driven_alpha(self, t: float, driven: list | None = None) -> list:
+        """Prescribed joint accelerations [rad/s^2] per body (``driven``: ``model.driven(t)`` if known)."""
         alpha = [0.0] * self.nb
-        for i, _, _, acceleration in self.model.driven(t):
+        for i, _, _, acceleration in (self.model.driven(t) if driven is None else driven):
             alpha[i] = acceleration
         return alpha
 
@@ -260,9 +261,10 @@ class FlexibleSystem:
     def solve(self, q, qdot, t: float = 0.0, inputs=None) -> FlexibleSolution:
         """Explicit forward dynamics (one sweep), with optional actuator ``inputs``."""
         q, qdot = self.model.state(q, qdot)
-        terms, (theta, omega, _, _, _) = self.all_terms(q, qdot, t)
+        driven = self.model.driven(t)
+        terms, (theta, omega, _, _, _) = self.all_terms(q, qdot, t, driven)
         tau = self.apply_inputs(terms, theta, self.hinge_torques(q, qdot, theta, omega, t), inputs)
-        x, F, AO, alpha = self.sweep(terms, None, tau.tolist(), self.driven_alpha(t))
+        x, F, AO, alpha = self.sweep(terms, None, tau.tolist(), self.driven_alpha(t, driven))
         A = np.array([xj[:3] for xj in x])
         modal = {self.model.body_names[j]: x[j][3:].copy() for j in self.beam_data}
         return FlexibleSolution(self.qddot(x), A, F, alpha, AO, modal)
@@ -272,9 +274,10 @@ class FlexibleSystem:
         ``q, qdot`` checked by :meth:`PlanarModel.state` (``checked=True``: the caller did)."""
         if not checked:
             q, qdot = self.model.state(q, qdot)
-        terms, (theta, omega, _, _, _) = self.all_terms(q, qdot, t)
+        driven = self.model.driven(t)
+        terms, (theta, omega, _, _, _) = self.all_terms(q, qdot, t, driven)
         tau = self.apply_inputs(terms, theta, self.hinge_torques(q, qdot, theta, omega, t), inputs)
-        x, _, _, _ = self.sweep(terms, None, tau.tolist(), self.driven_alpha(t), full=False)
+        x, _, _, _ = self.sweep(terms, None, tau.tolist(), self.driven_alpha(t, driven), full=False)
         return self.qddot(x)
 
 

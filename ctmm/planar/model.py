@@ -509,9 +509,9 @@ class PlanarModel:
         return [(i, float(v[0]), float(v[1]), float(v[2])) for (i, *_), v in zip(self._driven, values)]
 
     # -- kinematics ---------------------------------------------------------------------------
-    def body_angles(self, q: np.ndarray, qdot: np.ndarray, t: float
+    def body_angles(self, q: np.ndarray, qdot: np.ndarray, t: float, driven: list | None = None
                     ) -> tuple[np.ndarray, np.ndarray]:
-        """Absolute angles and angular velocities of all bodies [rad, rad/s]."""
+        """Absolute angles and angular velocities of all bodies [rad, rad/s] (``driven``: :meth:`driven` at ``t``)."""
         if len(q) != self.n_coordinates or len(qdot) != self.n_coordinates:
             self.state(q, qdot)                        # raises the ModelError with the shapes
         theta = np.empty(self.n_bodies)
@@ -519,7 +519,7 @@ class PlanarModel:
         cb = self.coordinate_bodies
         theta[cb] = q[self.theta_index[cb]]
         omega[cb] = qdot[self.theta_index[cb]]
-        for i, angle, rate, _ in self.driven(t):
+        for i, angle, rate, _ in (self.driven(t) if driven is None else driven):
             p = self.parent[i]
             theta[i] = angle + (theta[p] if p >= 0 else self.ground_angle[i])
             omega[i] = rate + (omega[p] if p >= 0 else 0.0)
