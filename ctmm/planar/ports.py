@@ -163,6 +163,9 @@ class PlanarPorts(NamedPorts):
             raise ModelError(f"model must be a ctmm.planar.PlanarModel, got {model!r}")
         self.model = model
         self.sensors, self.actuators = _build(model)
+        # mode-shape rows of beam stations, computed on first use (the model is immutable); they were
+        # recomputed on every evaluation, most of a station-loop step
+        self._station_rows: dict = {}
 
     def check_sensor(self, name: str, what: str = "sensor") -> str:
         """``name`` if it is a sensor, else an error listing the sensors."""
@@ -192,7 +195,7 @@ class PlanarPorts(NamedPorts):
 
     def values(self, sensors: list, q: np.ndarray, qdot: np.ndarray, t: float) -> np.ndarray:
         """Values of resolved ``sensors`` (no validation of the state: for inner loops)."""
-        return _evaluate(self.model, sensors, q, qdot, t)
+        return _evaluate(self.model, sensors, q, qdot, t, self._station_rows)
 
     def inputs(self, values: Mapping[str, float]) -> ActuatorInputs:
         """Arrange actuator ``values`` (``{actuator name: value}``, SI units) for the sweeps;
@@ -218,21 +221,28 @@ class PlanarPorts(NamedPorts):
                     row[actuator.component] += value
                 else:
                     _station_load(model.beams[actuator.index], actuator, value, row,
-                                  frame.setdefault(actuator.index, np.zeros(3)))
+                                  frame.setdefault(actuator.index, np.zeros(3)), self._station_rows)
         return ActuatorInputs(torque, force, modal, frame)
 
 
-def _station_load(beam, actuator: _Actuator, value: float, modal_row: np.ndarray, frame_row: np.ndarray) -> None:
+def _station_load(beam, actuator: _Actuator, value: float, modal_row: np.ndarray, frame_row: np.ndarray,
+                  shape_rows: dict | None = None) -> None:
     """Add the loads of ``value`` on station actuator ``actuator`` (in place): modal
-    ``phi_k(x) F`` or ``phi_k'(x) M`` and frame ``(0, F, x F)`` or ``(0, 0, M)``."""
+    ``phi_k(x) F`` or ``phi_k'(x) M`` and frame ``(0, F, x F)`` or ``(0, 0, M)``; ``shape_rows``
+    keeps the mode-shape rows of the stations between calls (keyed by beam body, station and
+    derivative, as the sensors' rows)."""
     x = beam.stations[actuator.station]
     nq = beam.n_modes
+    derivative = 0 if actuator.component == 1 else 1
+    key = (actuator.index, actuator.station, derivative)
+    rows = {} if shape_rows is None else shape_rows
+    if key not in rows:
+        rows[key] = beam.shapes([x], derivative)[:, 0]
+    modal_row[:nq] += value * rows[key][:nq]
     if actuator.component == 1:
-        modal_row[:nq] += value * beam.shapes([x], 0)[:, 0]
         frame_row[1] += value
         frame_row[2] += x * value
     else:
-        modal_row[:nq] += value * beam.shapes([x], 1)[:, 0]
         frame_row[2] += value
 
 
@@ -282,7 +292,8 @@ def _point_kinematics(model: PlanarModel, q, qdot, t: float) -> dict:
     return out, theta, omega
 
 
-def _evaluate(model: PlanarModel, sensors: Sequence[_Sensor], q, qdot, t: float) -> np.ndarray:
+def _evaluate(model: PlanarModel, sensors: Sequence[_Sensor], q, qdot, t: float,
+              station_rows: dict | None = None) -> np.ndarray:
     need_points = any(s.kind == "point" for s in sensors)
     need_angles = any(s.kind in ("body_angle", "hinge") for s in sensors)
     points = theta = omega = None
@@ -292,7 +303,7 @@ def _evaluate(model: PlanarModel, sensors: Sequence[_Sensor], q, qdot, t: float)
         theta, omega = model.body_angles(q, qdot, t)
     relative = None
     values = np.empty(len(sensors))
-    station_rows = {}
+    station_rows = {} if station_rows is None else station_rows     # (beam, station, derivative) -> shape row
     for n, sensor in enumerate(sensors):
         if sensor.kind == "coordinate":
             values[n] = (qdot if sensor.part == "dot" else q)[sensor.index]
