@@ -1,0 +1,33 @@
+"""The spatial scenarios (issue 14 item 4) in their quick form: accuracy bounds against the global
+Newton–Euler reference, and motion large enough for the comparison to mean something."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from ctmm import scenario
+
+
+@pytest.mark.parametrize("name", ["spatial_chain", "branch_system"])
+def test_spatial_scenario_quick_meets_its_bounds(name, tmp_path):
+    summary = scenario.run_scenario(name, tmp_path, quick=True)
+    data = json.loads((tmp_path / f"{name}.json").read_text())
+    assert data["passed"] and len(data["accuracy"]) == 2
+    for figure in data["accuracy"]:
+        assert figure["unit"] == "rad/s" and figure["value"] <= figure["bound"] == 1e-6, figure
+    assert summary["omega_range_rad_s"] > 1.0                 # the bodies really turn (rad/s)
+    assert summary["velocity_max_error_rk4"] < 1e-6
+    assert data["wall_time_s"] > 0 and data["reference_wall_time_s"] > 0
+    assert np.isclose(data["parameters"]["dt_s"], 1e-3)
+
+
+def test_reference_conversion_puts_quaternion_scalar_last():
+    from ctmm.scenarios.spatial_chain import initial_state, model
+    from ctmm.scenarios.spatial_common import to_reference
+
+    q0, _ = initial_state()
+    converted = to_reference(model(), q0)[0]
+    np.testing.assert_array_equal(converted[:4], np.r_[q0[1:4], q0[0]])
+    np.testing.assert_array_equal(converted[4], q0[4])
