@@ -29,6 +29,7 @@ from .assembly import (SOLVERS, BoundaryEnd, BoundaryStart, clamped_start_solve,
                        shift_forces)
 from .elements.base import Linearisation
 from .chain_ode import ChainDynamics
+from .massless_points import algebraic_point_rates, algebraic_points
 from .chain_start import initial_acceleration, initial_forces, initial_state, point_labels, rest_positions
 from .elements.beam_time import bending_mesh
 from .errors import ModelError, SimulationError
@@ -429,7 +430,7 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
             states[i + 1, :, d:2 * d] = scheme.interpolate_force(f_new.reshape(n_pts, d), states[i, :, d:2 * d])
             vel[i + 1], acc[i + 1] = history.v, history.a
             if np.any(algebraic):
-                _algebraic_rates(states, vel, acc, i + 1, dt, algebraic, consistent)
+                algebraic_point_rates(states, vel, acc, i + 1, dt, algebraic, consistent)
             if _after_step is not None:
                 _after_step(i + 1, float(times[i + 1]), history, states[i + 1])
             done = i + 2
@@ -477,49 +478,6 @@ def _start_state(system: Chain, x0, v0, t0: float) -> tuple[np.ndarray, np.ndarr
         except ModelError:                    # no closed-form rate: the support starts at rest as before
             pass
     return x, v, consistent
-
-
-def algebraic_points(system: Chain) -> np.ndarray:
-    """Mask ``(n_points,)`` of the connection points at **algebraic massless nodes** of a 1-D chain.
-
-    A massless node (:func:`~ctmm.lumped_forms.massless_nodes`) whose velocity enters no force (only
-    springs, no damper or inerter acts on it) is placed by its static balance at every instant: its
-    position is algebraic, not a state of any integrator.  The scheme's kinematic update
-    (``v = v_hat + gamma h a``) is then no derivative of it: a start or a load jump off the balance
-    makes the trapezoidal velocity ring ``v_{n+1} = 2 (x_{n+1} - x_n) / h - v_n`` for ever (a reported
-    velocity of twice, then zero times, the true one).  :func:`simulate` reports the velocity of these
-    points from their positions instead (:func:`_algebraic_rates`) and their acceleration as ``NaN``.
-    Massless nodes next to a damper are first-order states: their scheme velocity satisfies the balance
-    at every step and is kept.  Chains off the ``d = 1`` protocol have none (all ``False``).
-    """
-    try:
-        dynamics = ChainDynamics(system)
-    except ModelError:
-        return np.zeros(system.n_points, dtype=bool)
-    q = dynamics.index_Q
-    if not q.size:
-        return np.zeros(system.n_points, dtype=bool)
-    first_order = np.linalg.norm(dynamics.P_r, axis=1) > 1e-9 if dynamics.n_r else np.zeros(q.size, dtype=bool)
-    nodes = q[~first_order]
-    return np.isin(dynamics.node_of_point, nodes) & (dynamics.node_of_point >= 0)
-
-
-def _algebraic_rates(states: np.ndarray, vel: np.ndarray, acc: np.ndarray, row: int, dt: float,
-                     algebraic: np.ndarray, consistent: bool) -> None:
-    """Velocity [m/s] of the algebraic massless points at ``row`` from their positions, acceleration ``NaN``.
-
-    Second-order backward difference ``(3 x_n - 4 x_{n-1} + x_{n-2}) / (2 h)``; on the first step
-    ``2 (x_1 - x_0) / h - v_0`` after a consistent start (second order), ``(x_1 - x_0) / h`` otherwise
-    (the start was off the balance, so ``v_0`` is no derivative). A jump of the load (a step) gives a
-    finite spike over two steps (the true velocity is an impulse there), then the right values."""
-    x = states[:, algebraic, 0]
-    if row >= 2:
-        vel[row, algebraic, 0] = (3.0 * x[row] - 4.0 * x[row - 1] + x[row - 2]) / (2.0 * dt)
-    elif consistent:
-        vel[row, algebraic, 0] = 2.0 * (x[row] - x[row - 1]) / dt - vel[row - 1, algebraic, 0]
-    else:
-        vel[row, algebraic, 0] = (x[row] - x[row - 1]) / dt
-    acc[row, algebraic] = np.nan
 
 
 def _fast_step(system: Chain, kernel: _LumpedKernel, coeffs, load, t_eval: float, cache: dict,
