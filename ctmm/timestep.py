@@ -29,6 +29,7 @@ from .assembly import (SOLVERS, BoundaryEnd, BoundaryStart, clamped_start_solve,
                        shift_forces)
 from .elements.base import Linearisation
 from .chain_ode import ChainDynamics
+from .massless_points import algebraic_point_rates, algebraic_points
 from .chain_start import initial_acceleration, initial_forces, initial_state, point_labels, rest_positions
 from .elements.beam_time import bending_mesh
 from .errors import ModelError, SimulationError
@@ -360,7 +361,9 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
     n_steps = int(round((t_final - t0) / dt))
     if n_steps < 1 or abs(n_steps * dt - (t_final - t0)) > 1e-9 * max(1.0, abs(t_final)):
         raise ModelError(f"(t_final - t0) = {t_final - t0!r} s must be a whole number of steps dt={dt!r} (>= 1)")
-    x, v = mesh.initial_state(x0, v0) if mesh else _start_state(system, x0, v0, t0)
+    x, v, consistent = (*mesh.initial_state(x0, v0), False) if mesh else _start_state(system, x0, v0, t0)
+    algebraic = np.zeros(system.n_points, dtype=bool) if mesh else algebraic_points(system)
+    consistent = consistent and force_hook is None    # a loop force's rate at t0 is not known here
     check_scheme_step(system, scheme, dt, stability_check)
     guard = DivergenceGuard.from_start(point_labels(system), 0 * x[:, 0] if mesh else rest_positions(system), x[:, 0],
                                        bound=divergence_bound, hint=_divergence_hint)
@@ -379,6 +382,9 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
         a = motion[0] if mesh else initial_acceleration(system, x, v, t0, extra0)
         history = History(x.copy(), v.copy(), a.copy(), [x.copy(), x.copy()], 0)
         states[0, :, :d], vel[0], acc[0] = x, v, a
+        acc[0, algebraic] = np.nan
+        if not consistent:                # off the balance at t0: its rate there is unknown
+            vel[0, algebraic] = np.nan
         states[0, :, d:2 * d] = motion[1] if mesh else initial_forces(system, x, v, extra0, a, t0)[:, None]
         done = 1
         kernel = _LumpedKernel(system) if fast else None
@@ -423,6 +429,8 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
             states[i + 1, :, :d] = history.x
             states[i + 1, :, d:2 * d] = scheme.interpolate_force(f_new.reshape(n_pts, d), states[i, :, d:2 * d])
             vel[i + 1], acc[i + 1] = history.v, history.a
+            if np.any(algebraic):
+                algebraic_point_rates(states, vel, acc, i + 1, dt, algebraic, consistent)
             if _after_step is not None:
                 _after_step(i + 1, float(times[i + 1]), history, states[i + 1])
             done = i + 2
@@ -444,28 +452,32 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
                             scheme.name, info)
 
 
-def _start_state(system: Chain, x0, v0, t0: float) -> tuple[np.ndarray, np.ndarray]:
+def _start_state(system: Chain, x0, v0, t0: float) -> tuple[np.ndarray, np.ndarray, bool]:
     """:func:`~ctmm.chain_start.initial_state` with the massless points of a lumped chain at their
     consistent start (:meth:`ctmm.chain_ode.ChainDynamics.start_points`: static balance under the given
     positions, velocities from the balance), so the first step sees the right connector forces.  Chains
     off the ``d = 1`` protocol, or whose support or massless-node force has no closed-form rate, keep
-    :func:`initial_state` (massless points at rest length)."""
+    :func:`initial_state` (massless points at rest length).  The flag says whether the massless points
+    start consistently."""
     try:
         dynamics = ChainDynamics(system)
     except ModelError:
-        return initial_state(system, x0, v0)
+        x, v = initial_state(system, x0, v0)
+        return x, v, False
+    consistent = True
     try:
         x, v = dynamics.start_points(t0, x0, v0)
     except ModelError as exc:
         if "closed-form rate" not in str(exc):
             raise
         x, v = initial_state(system, x0, v0)
+        consistent = False
     for points, motion in dynamics.held_points():
         try:
             x[points, 0], v[points, 0] = motion(t0)[:2]
         except ModelError:                    # no closed-form rate: the support starts at rest as before
             pass
-    return x, v
+    return x, v, consistent
 
 
 def _fast_step(system: Chain, kernel: _LumpedKernel, coeffs, load, t_eval: float, cache: dict,
