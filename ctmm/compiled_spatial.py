@@ -272,7 +272,6 @@ def folded_velocity_rate(model: SpatialModel, period: int) -> Any:
     virtual_parent = BodyTerms(M=ca.DM.zeros(d, d), h=zero, Kin={"in": eye}, c={"in": zero}, RF={"in": eye})
     carried = ca.SX.sym("carried", d * d + d)
     virtual_child = BodyTerms(M=ca.reshape(carried[:d * d], d, d), h=carried[d * d:])
-
     tree = Tree(tuple(range(-1, period + 1)), (None, "in") + tuple(model.joints[(i + 1) % n].point for i in segment),
                 dimension=d)
     weld = JointTerms(S=ca.DM.zeros(d, 0))
