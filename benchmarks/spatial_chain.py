@@ -25,6 +25,9 @@ Peers (optional imports, benchmarks only):
   in C generated from the spatial body and joint terms, :mod:`ctmm.compiled_spatial`): the compiled
   loop alone is timed (every 10th state stored; compiling and the verb's result assembly outside
   the timing; first compile time, ``gcc -O1``, and instructions per rate evaluation in the JSON).
+  Chains of ``FOLD_MIN_BODIES`` (100) or more revolute links compile as folds over their segments
+  (``fold_period`` in the JSON; their instruction count is of the calling code only); ``--fold on |
+  off`` forces the fold or the straight-line code.
 
 (A thinner rod, axial inertia 1e-4 kg m^2 as in the planar benchmark, made the ball chain of
 N = 100 blow up (NaN) in Pinocchio ABA + RK4 within 0.3 s at h = 1 ms while N = 30 and 60 ran
@@ -45,7 +48,7 @@ there.)  Pinocchio's ``Data`` grows like N^3 (measured 0.13 / 0.45 / 1.8 GB for 
 60 / 100), so ball chains with N > 100 have no reference and are skipped, as are runs whose
 estimated wall time exceeds ``RUN_BUDGET_S``.
 
-Run ``python benchmarks/spatial_chain.py`` (``--quick``: N = 5, 10); writes
+Run ``python benchmarks/spatial_chain.py`` (``--quick``: N = 5, 10; ``--sizes``, ``--kinds`` to choose); writes
 ``benchmarks/results/spatial_chain.json`` and ``spatial_chain.png``.
 """
 from __future__ import annotations
@@ -217,6 +220,7 @@ def mujoco_run(n: int, kind: str, dt: float, steps: int):
 # -- ctmm -------------------------------------------------------------------------------------
 CTMM_STORE_EVERY = 10        # every dt of the halvings gives a whole number of strides (100 2^k steps)
 CTMM_SCENES: dict = {}       # (n, kind) -> compiled scene (compiled once per chain, outside the timing)
+CTMM_FOLD = None             # ctmm.compiled_spatial: None = the library's rule (fold from FOLD_MIN_BODIES bodies)
 
 
 def ctmm_model(n: int, kind: str):
@@ -239,7 +243,8 @@ def ctmm_scene(n: int, kind: str):
     from ctmm.compiled_spatial import CompiledSpatialScene
 
     if (n, kind) not in CTMM_SCENES:
-        CTMM_SCENES[(n, kind)] = CompiledSpatialScene(ctmm_model(n, kind), store_every=CTMM_STORE_EVERY)
+        CTMM_SCENES[(n, kind)] = CompiledSpatialScene(ctmm_model(n, kind), store_every=CTMM_STORE_EVERY,
+                                                      fold=CTMM_FOLD)
     return CTMM_SCENES[(n, kind)]
 
 
@@ -400,7 +405,8 @@ def run_case(n: int, kind: str, log) -> dict:
             case["methods"]["ctmm_rk4"].update({
                 "first_compile_s": scene.compile_time_s,
                 "compile_note": "generate C, compile (gcc -O1) or load from the cache; once per chain",
-                "instructions_per_rate": int(scene.rates.velocity_rate.n_instructions())})
+                "instructions_per_rate": int(scene.rates.velocity_rate.n_instructions()),
+                "fold_period": scene.rates.period})
             log(f"{label} ctmm_rk4 first compile {scene.compile_time_s:.1f} s")
         except NotImplementedError as exc:
             case["methods"]["ctmm_rk4"] = {"skipped": str(exc)}
@@ -459,8 +465,14 @@ def plot(results: dict, path: Path) -> None:
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="N = 5, 10 only")
+    parser.add_argument("--sizes", type=int, nargs="+", help="chain lengths N (default 5 10 30 100 300)")
+    parser.add_argument("--kinds", nargs="+", choices=KINDS, default=list(KINDS))
+    parser.add_argument("--fold", choices=("auto", "on", "off"), default="auto",
+                        help="ctmm: fold over segments (on), straight-line code (off), or the library's rule")
     parser.add_argument("--out", default=str(ROOT / "benchmarks" / "results"))
     args = parser.parse_args(argv)
+    global CTMM_FOLD
+    CTMM_FOLD = {"auto": None, "on": True, "off": False}[args.fold]
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
 
@@ -475,8 +487,9 @@ def main(argv=None) -> dict:
                           f"{platform.python_version()}, numpy {np.__version__}",
                "load_average_start": os.getloadavg(), "cases": []}
     results["reference_check"] = reference_check(log)
-    for n in ([5, 10] if args.quick else [5, 10, 30, 100, 300]):
-        for kind in KINDS:
+    results["ctmm_fold"] = args.fold
+    for n in args.sizes or ([5, 10] if args.quick else [5, 10, 30, 100, 300]):
+        for kind in args.kinds:
             results["cases"].append(run_case(n, kind, log))
     results["load_average_end"] = os.getloadavg()
     results["note"] = ("wall-clock on a shared 2-core machine (see load averages): compare "

@@ -12,8 +12,10 @@ Generated functions (all with the inputs ``y, u, h, p, t0, k``: state, held actu
 * ``step`` -- RK4 step ``k`` from ``t0 + k h``: :func:`ctmm.ode.rk4_step` run on symbols (the one
   scheme statement);
 * ``stride`` -- ``store_every`` steps (``fold``);
-* ``block<size>`` -- ``size`` strides (``mapaccum``) with every stored state returned, for
-  ``size = rows, rows/2, rows/4, ... > 1``, so a whole interval runs inside the generated C with one
+* ``block<size>`` -- ``size`` strides with every stored state returned, for
+  ``size = rows, rows/2, rows/4, ... > 1`` (the smallest a ``mapaccum`` of strides, each larger
+  one two calls of the next smaller and, for an odd size, a stride: building them costs little
+  whatever the rate), so a whole interval runs inside the generated C with one
   call per block and a remainder costs one call per binary digit.
 
 :func:`run_blocks` runs them over an interval (and a batch of members through
@@ -73,10 +75,19 @@ def time_loop_functions(step: Any, store_every: int, rows: int) -> tuple[Any, li
         store_every, k + ca.DM(np.arange(store_every, dtype=float)).T)) if store_every > 1 else step(*arguments)])
     sizes = [rows >> j for j in range(rows.bit_length()) if rows >> j > 1]
     blocks = []
-    for size in sizes:
-        accumulated = stride.mapaccum(f"block{size}_acc", size)
-        first = k + ca.DM(store_every * np.arange(size, dtype=float)).T
-        blocks.append(ca.Function(f"block{size}", arguments, [accumulated(*repeated(size, first))]))
+    for size in reversed(sizes):                # ascending: each block two calls of the one before
+        if not blocks or size // 2 != sizes[len(sizes) - len(blocks)]:
+            first = k + ca.DM(store_every * np.arange(size, dtype=float)).T
+            output = stride.mapaccum(f"block{size}_acc", size)(*repeated(size, first))
+        else:
+            half, count = blocks[-1], size // 2
+            head = half(y, u, h, p, t0, k)
+            parts = [head, half(head[:, -1], u, h, p, t0, k + store_every * count)]
+            if size % 2:                        # an odd size: one stride more
+                parts.append(stride(parts[-1][:, -1], u, h, p, t0, k + store_every * (size - 1)))
+            output = ca.horzcat(*parts)
+        blocks.append(ca.Function(f"block{size}", arguments, [output]))
+    blocks.reverse()
     return stride, sizes, blocks
 
 
