@@ -31,3 +31,21 @@ def test_reference_conversion_puts_quaternion_scalar_last():
     converted = to_reference(model(), q0)[0]
     np.testing.assert_array_equal(converted[:4], np.r_[q0[1:4], q0[0]])
     np.testing.assert_array_equal(converted[4], q0[4])
+
+
+def test_elastic_hinge_control_quick_meets_its_bounds(tmp_path):
+    """theta_z of the uncontrolled and PD runs against the reference (1e-6 rad), the delay margin a
+    crossing of the reference's characteristic determinant (1e-8), the PD really acting."""
+    name = "spatial_elastic_hinge_control"
+    summary = scenario.run_scenario(name, tmp_path, quick=True)
+    data = json.loads((tmp_path / f"{name}.json").read_text())
+    assert data["passed"] and len(data["accuracy"]) == 3
+    for figure in data["accuracy"]:
+        assert figure["value"] <= figure["bound"], figure
+    assert [f["unit"] for f in data["accuracy"]] == ["rad", "rad", "1"]
+    assert [f["bound"] for f in data["accuracy"]] == [1e-6, 1e-6, 1e-8]
+    ranges = summary["theta_z_range_rad"]
+    assert ranges["uncontrolled"] > 0.3                              # the body really twists (rad)
+    assert ranges["PD"] < 0.9 * ranges["uncontrolled"]               # and the loop damps it
+    assert 0.0 < summary["delay_s"] < summary["delay_margin_s"] < 1.0
+    assert data["wall_time_s"] > 0 and data["reference_wall_time_s"] > 0
