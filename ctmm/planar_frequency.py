@@ -216,20 +216,12 @@ def eigenvalue_count(system: Any, omega: Any, *, operating_point: Any = None) ->
 
 def _modes(system: Any, verb: str, n_modes, omega_max, operating_point):
     model, stiffness, op = _undamped_stiffness(system, verb, operating_point)
-    if (n_modes is None) == (omega_max is None):
-        raise ModelError("give exactly one of n_modes (int >= 1) or omega_max (rad/s > 0)")
+    validation.one_mode_limit(n_modes, omega_max)
     values, vectors, top = _checked_eig(model, stiffness, op, verb)
     order = np.argsort(values)
     omega = np.sqrt(values[order])
     shapes = np.real(vectors[:, order])
-    if n_modes is not None:
-        n_modes = validation.integer("n_modes", n_modes, minimum=1)
-        if n_modes > omega.size:
-            raise ModelError(f"model {model.name!r} has {omega.size} natural frequencies (one per coordinate), "
-                             f"n_modes={n_modes} requested")
-        keep = np.arange(n_modes)
-    else:
-        keep = np.flatnonzero(omega < validation.positive("omega_max", omega_max))
+    keep = validation.selected_modes(omega, n_modes, omega_max, f"model {model.name!r} (one per coordinate)")
     exact = _counted_frequencies(model, op, keep.size, omega_max)
     if exact is None:
         return model, omega[keep], shapes[:, keep]

@@ -183,18 +183,11 @@ def natural_frequencies(system: Any, *, n_modes: int | None = None, omega_max: f
 
 
 def _selected(system, verb, n_modes, omega_max, operating_point):
-    if (n_modes is None) == (omega_max is None):
-        raise ModelError("give exactly one of n_modes (int >= 1) or omega_max (rad/s > 0)")
+    validation.one_mode_limit(n_modes, omega_max)
     modes = _modes(system, verb, operating_point)
     omega, vectors = modes.solve(verb)
-    if n_modes is not None:
-        n_modes = validation.integer("n_modes", n_modes, minimum=1)
-        if n_modes > omega.size:
-            raise ModelError(f"model {system.name!r} has {omega.size} natural frequencies (one per tangent "
-                             f"coordinate), n_modes={n_modes} requested")
-        keep = np.arange(n_modes)
-    else:
-        keep = np.flatnonzero(omega < validation.positive("omega_max", omega_max))
+    keep = validation.selected_modes(omega, n_modes, omega_max,
+                                     f"model {system.name!r} (one per tangent coordinate)")
     return omega[keep], vectors[:, keep], modes
 
 

@@ -266,3 +266,21 @@ def weight_rows(name: str, value: Any, n_terms: int) -> np.ndarray:
         raise ModelError(f"{name} must have shape (n_terms,) or (n_sets, n_terms) with n_terms = {n_terms} (the "
                          f"sensor terms of the loop), got shape {array.shape}: {_shown(value)}")
     return array
+
+
+def one_mode_limit(n_modes: Any, omega_max: Any) -> None:
+    """Refuse unless exactly one of ``n_modes`` and ``omega_max`` is given (mode selection of the
+    frequency verbs)."""
+    if (n_modes is None) == (omega_max is None):
+        raise ModelError("give exactly one of n_modes (int >= 1) or omega_max (rad/s > 0)")
+
+
+def selected_modes(omega: np.ndarray, n_modes: Any, omega_max: Any, owner: str) -> np.ndarray:
+    """Indices of the ascending natural frequencies ``omega`` [rad/s] to keep: the first ``n_modes``
+    (refused when there are fewer; ``owner`` says what they belong to) or those below ``omega_max``."""
+    if n_modes is not None:
+        n_modes = integer("n_modes", n_modes, minimum=1)
+        if n_modes > omega.size:
+            raise ModelError(f"{owner} has {omega.size} natural frequencies, n_modes={n_modes} requested")
+        return np.arange(n_modes)
+    return np.flatnonzero(omega < positive("omega_max", omega_max))
