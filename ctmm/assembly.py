@@ -28,7 +28,7 @@ cancellation as ``log det`` of the ``G_j`` and of the final boundary matrix.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -54,10 +54,21 @@ class BoundaryEnd:
 
 @dataclass
 class ChainSolution:
-    """States at all connection points, shape ``(N + 1, B, n)``, and ``log det`` of the BVP."""
+    """States at the connection points, shape ``(N + 1, B, n)``, and ``log det`` of the BVP.
+
+    With ``points`` set (a solve asked for some points only), ``states`` holds those points'
+    states in that order, shape ``(len(points), B, n)``; :meth:`at` reads either form.
+    """
 
     states: np.ndarray
     log_det: np.ndarray  # (B,) complex: log of the characteristic determinant (up to a constant)
+    points: tuple[int, ...] | None = None
+
+    def at(self, point: int) -> np.ndarray:
+        """States ``(B, n)`` at connection point ``point`` (0 = start)."""
+        if self.points is None:
+            return self.states[point]
+        return self.states[self.points.index(point)]
 
 
 def _solve_small(G: np.ndarray, rhs: np.ndarray) -> np.ndarray:
@@ -171,32 +182,63 @@ def _riccati_scalar(Us, us, start: BoundaryStart, end: BoundaryEnd, f: int, e: i
     return riccati_scalar_entries(entries, start, end, f, e, want_log_det)
 
 
+def _scalar(value: Any, constant: float) -> bool:
+    """``value`` is a Python number equal to ``constant`` (a unit or zero entry kept as a scalar)."""
+    return isinstance(value, (int, float)) and value == constant
+
+
 def riccati_scalar_entries(entries, start: BoundaryStart, end: BoundaryEnd, f: int, e: int,
-                           want_log_det: bool = False) -> ChainSolution:
+                           want_log_det: bool = False, points: Sequence[int] | None = None) -> ChainSolution:
     """Riccati transfer of a 2-component chain given element *entries* instead of matrices.
 
     ``entries[j] = (U_ff, U_fe, U_ef, U_ee, u_f, u_e)`` in the start partition (``f`` known at
     the start, ``e`` unknown), each a ``(B,)`` array or a Python scalar (identity and zero entries
-    of lumped elements stay scalars, which saves most of the work).
+    of lumped elements stay scalars, which saves most of the work: a connector in compliance form
+    costs one array operation forward, a mass five).  ``points``: return the states of these
+    connection points only (memory ``O(len(points) B)`` for the Riccati pairs instead of ``O(N B)``;
+    :attr:`ChainSolution.points`).
     """
     S = start.S0[:, 0, 0]
     P = start.P0[:, 0]
     B = S.shape[0]
+    keep = None if points is None else {int(j) for j in points}
     G_all, R_all, S_all, P_all = [], [], [S], [P]
     log_det = np.zeros(B, dtype=complex)
     N = len(entries)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         for U11, U12, U21, U22, uf, ue in entries:
-            G = U21 * S + U22
-            S = (U11 * S + U12) / G
-            r = U21 * P + ue
-            # U11 P + uf - S r with U11 - S U21 = det(U) / G: no cancellation when S U21 ~ U11
-            # (e.g. a soft connector after a stiff part in stiffness form)
-            P = (U11 * U22 - U12 * U21) / G * P + uf - S * ue
+            if _scalar(U21, 0.0) and _scalar(U11, 1.0) and _scalar(U22, 1.0):
+                # field type (a connector in compliance form): G = 1, det(U) = 1
+                G = 1.0
+                if not _scalar(U12, 0.0):
+                    S = S + U12
+                r = ue
+                if not _scalar(ue, 0.0):
+                    P = P - S * ue
+                if not _scalar(uf, 0.0):
+                    P = P + uf
+            elif _scalar(U12, 0.0) and _scalar(U11, 1.0) and _scalar(U22, 1.0):
+                # point type (a mass in compliance form): G = U21 S + 1, det(U) = 1
+                G = U21 * S + 1.0
+                S = S / G
+                r = U21 * P + ue
+                P = P / G
+                if not _scalar(ue, 0.0):
+                    P = P - S * ue
+                if not _scalar(uf, 0.0):
+                    P = P + uf
+            else:
+                G = U21 * S + U22
+                S = (U11 * S + U12) / G
+                r = U21 * P + ue
+                # U11 P + uf - S r with U11 - S U21 = det(U) / G: no cancellation when S U21 ~ U11
+                # (e.g. a soft connector after a stiff part in stiffness form)
+                P = (U11 * U22 - U12 * U21) / G * P + uf - S * ue
             G_all.append(G)
             R_all.append(r)
-            S_all.append(S)
-            P_all.append(P)
+            wanted = keep is None or len(S_all) in keep
+            S_all.append(S if wanted else None)
+            P_all.append(P if wanted else None)
         Bf, Be = end.Bm[:, 0, f], end.Bm[:, 0, e]
         H = Bf * S + Be
         ev = (end.b[:, 0] - Bf * P) / H
@@ -208,14 +250,25 @@ def riccati_scalar_entries(entries, start: BoundaryStart, end: BoundaryEnd, f: i
         raise SingularSystemError(
             f"the boundary equations are singular for batch entries {bad[:10].tolist()}"
             " (e.g. a free-free chain under a static load, or a frequency exactly at a natural frequency)")
-    dtype = np.result_type(ev, S_all[-1], P_all[-1])
-    states = np.empty((N + 1, B, 2), dtype=dtype)
+    dtype = np.result_type(ev, S, P)
+    rows = list(range(N + 1)) if points is None else [int(j) for j in points]
+    if any(not 0 <= j <= N for j in rows):
+        raise ValueError(f"points must lie in 0..{N}, got {list(points)}")
+    row_of: dict[int, list[int]] = {}
+    for k, j in enumerate(rows):
+        row_of.setdefault(j, []).append(k)
+    states = np.empty((len(rows), B, 2), dtype=dtype)
     for j in range(N, -1, -1):
-        states[j, :, e] = ev
-        states[j, :, f] = S_all[j] * ev + P_all[j]
+        for k in row_of.get(j, ()):
+            states[k, :, e] = ev
+            states[k, :, f] = S_all[j] * ev + P_all[j]
         if j:
-            ev = (ev - R_all[j - 1]) / G_all[j - 1]
-    return ChainSolution(states, log_det)
+            r, G = R_all[j - 1], G_all[j - 1]
+            if not _scalar(r, 0.0):
+                ev = ev - r
+            if not _scalar(G, 1.0):
+                ev = ev / G
+    return ChainSolution(states, log_det, None if points is None else tuple(rows))
 
 
 def clamped_start_solve(Us: Sequence[np.ndarray], us: Sequence[np.ndarray], start: BoundaryStart,

@@ -115,12 +115,19 @@ def assemble_body(system: Chain, body: Sequence, points: Sequence[int], s: np.nd
 
 
 def solve(system: Chain, s: np.ndarray, amplitudes=None, *, solver: str = "riccati",
-          want_log_det: bool = False) -> ChainSolution:
+          want_log_det: bool = False, points: Sequence[int] | None = None) -> ChainSolution:
     """States at every connection point for harmonic loads (phasors), batched over ``s``
-    (with ``want_log_det``, the Riccati solvers also return the characteristic log-determinant)."""
+    (with ``want_log_det``, the Riccati solvers also return the characteristic log-determinant).
+
+    ``points``: the connection points whose states are needed.  Lumped chains then keep only
+    those (:attr:`~ctmm.assembly.ChainSolution.points`, memory ``O(len(points) B)``); other chains
+    return every point.  Read the result with :meth:`~ctmm.assembly.ChainSolution.at`.
+    """
     solver = validation.option("solver", solver, SOLVERS)
     if solver == "riccati" and not hasattr(system, "assemble_frequency") and _lumped(system):
-        sol = _solve_lumped(system, np.asarray(s, dtype=complex), amplitudes or {}, want_log_det)
+        index = getattr(system, "state_index", None)
+        sol = _solve_lumped(system, np.asarray(s, dtype=complex), amplitudes or {}, want_log_det,
+                            points if index is None else None)
     else:
         Us, us, start, end = assemble(system, s, amplitudes)
         sol = SOLVERS[solver](Us, us, start, end, want_log_det=want_log_det) if solver == "riccati" else \
@@ -135,7 +142,33 @@ def _lumped(system) -> bool:
     return system.layout.size == 2 and all(isinstance(e, (AxialBody, AxialJoint)) for e in system.body)
 
 
-def _solve_lumped(system: Chain, s: np.ndarray, amplitudes: Mapping, want_log_det: bool = False) -> ChainSolution:
+class _PolynomialCache:
+    """``a2 s^2 + a1 s + a0`` (or its reciprocal) over the frequency batch, computed once per distinct
+    coefficient triple of one solve (a chain of equal elements evaluates one array, not one per element)."""
+
+    def __init__(self, s: np.ndarray) -> None:
+        self.s = s
+        self.s2 = s * s
+        self.values: dict[tuple, np.ndarray] = {}
+
+    def __call__(self, a2: Any, a1: Any, a0: Any, reciprocal: bool = False) -> np.ndarray:
+        key = (a2, a1, a0, reciprocal)
+        try:
+            cached = self.values.get(key)
+        except TypeError:                         # array coefficients: not hashable, not cached
+            cached, key = None, None
+        if cached is not None:
+            return cached
+        value = a0 + a1 * self.s + a2 * self.s2 if (a2 or a1) else np.full(self.s.shape, a0, dtype=complex)
+        if reciprocal:
+            value = 1.0 / value
+        if key is not None:
+            self.values[key] = value
+        return value
+
+
+def _solve_lumped(system: Chain, s: np.ndarray, amplitudes: Mapping, want_log_det: bool = False,
+                  points: Sequence[int] | None = None) -> ChainSolution:
     """Riccati solve of a 1-D lumped chain from element scalars (impedance, compliance).
 
     Same recursion as :func:`ctmm.assembly.riccati_solve`; the unit and zero entries of the
@@ -148,21 +181,25 @@ def _solve_lumped(system: Chain, s: np.ndarray, amplitudes: Mapping, want_log_de
     e = e_idx[0]
     f = 1 - e
     entries = []
+    polynomial = _PolynomialCache(s)
     for pos, element in enumerate(system.body, start=1):
         amps = amplitudes.get(pos)
         load = 0.0
         if amps:                            # d tau / d u (joints), d h / d u (bodies) of the derived form
             inputs = element.axial_coefficients().inputs
             load = sum((inputs[key] * value for key, value in amps.items()), 0.0)
+        co = element.axial_coefficients()
         if isinstance(element, AxialJoint):   # x_out = x_in - F/k_c (+ F_act/k_c)
-            compliance = 1.0 / element.connector_stiffness(s)
+            compliance = polynomial(co.inertia, co.damping, co.stiffness, reciprocal=True)
+            minus_compliance = polynomial(-co.inertia, -co.damping, -co.stiffness, reciprocal=True)
             ux, uF = (load * compliance if load else 0.0), 0.0
-            Uxx, UxF, UFx, UFF = 1.0, -compliance, 0.0, 1.0
+            Uxx, UxF, UFx, UFF = 1.0, minus_compliance, 0.0, 1.0
         else:                                # F_out = F_in - Z x + F
-            Uxx, UxF, UFx, UFF = 1.0, 0.0, -element.impedance(s), 1.0
+            Uxx, UxF, UFx, UFF = 1.0, 0.0, polynomial(-co.inertia, -co.damping, -co.stiffness), 1.0
             ux, uF = 0.0, -load
         if f == 0:   # partition f = x (displacement known at the start), e = force
             entries.append((Uxx, UxF, UFx, UFF, ux, uF))
         else:        # f = force, e = x
             entries.append((UFF, UFx, UxF, Uxx, uF, ux))
-    return riccati_scalar_entries(entries, BoundaryStart(e_idx, S0, P0), BoundaryEnd(Bm, b), f, e, want_log_det)
+    return riccati_scalar_entries(entries, BoundaryStart(e_idx, S0, P0), BoundaryEnd(Bm, b), f, e, want_log_det,
+                                  points)

@@ -16,7 +16,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from . import validation
-from .assembly import SOLVERS
+from .assembly import SOLVERS, ChainSolution
 from . import planar_frequency, spatial_frequency
 from .capabilities import require_chain
 from .chain_assembly import assemble, laplace_variables, solve  # noqa: F401  (assemble, solve: public here too)
@@ -30,14 +30,15 @@ from .signal_units import signal_unit
 from .system import Chain, require_system
 
 
-def _output_value(system, states: np.ndarray, s: np.ndarray, name: str,
+def _output_value(system, solution: ChainSolution, s: np.ndarray, name: str,
                   amplitudes: Mapping | None = None) -> np.ndarray:
     sig = system.signal(name)
+    value = solution.at(sig.point)[:, sig.component]
     if sig.derivative == -1:  # control force of a loop: u = -C(s) e^{-s tau} (y - r)
         loop = system.loop(name.split(".")[0])
         ref = (amplitudes or {}).get(loop.name, {}).get("reference", 0.0)
-        return -loop.loop_gain(s) * (states[sig.point, :, sig.component] - ref)
-    return states[sig.point, :, sig.component] * s ** sig.derivative
+        return -loop.loop_gain(s) * (value - ref)
+    return value * s ** sig.derivative
 
 
 def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],  # noqa: A002
@@ -105,16 +106,15 @@ def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],
     outputs = validation.names("output", output)
     solver = validation.option("solver", solver, SOLVERS)
     s = laplace_variables(omega)
-    for o in outputs:
-        system.signal(o)
+    points = sorted({system.signal(o).point for o in outputs})
     resolved = [system.input(i) for i in inputs]
     response = np.empty((len(outputs), len(inputs), s.size), dtype=complex)
     started = time.perf_counter()
     for k, inp in enumerate(resolved):
         amps = {inp.position: {inp.input: 1.0}}
-        sol = solve(system, s, amps, solver=solver)
+        sol = solve(system, s, amps, solver=solver, points=points)
         for j, o in enumerate(outputs):
-            response[j, k] = _output_value(system, sol.states, s, o, amps)
+            response[j, k] = _output_value(system, sol, s, o, amps)
     units = {name: signal_unit(name, system) for name in (*inputs, *outputs)}
     info = {"solver": solver, "wall_time_s": time.perf_counter() - started, "n_frequencies": int(s.size)}
     return FrequencyResponse(np.imag(s), response, inputs, outputs, system.name, info=info, units=units)
@@ -160,7 +160,7 @@ def steady_state_response(system: Chain, omega: float, *, outputs: Sequence[str]
             amplitudes[pos] = amps
     sol = solve(system, s, amplitudes, solver=solver)
     names = names or system.signal_names()
-    return {n: complex(_output_value(system, sol.states, s, n)[0]) for n in names}
+    return {n: complex(_output_value(system, sol, s, n)[0]) for n in names}
 
 
 def characteristic_function(system, s: Any, *, normalize: bool = True) -> np.ndarray:

@@ -200,3 +200,32 @@ def test_free_free_rigid_mode_is_exactly_zero(seed, n):
     w = ctmm.natural_frequencies(chain, n_modes=exact.size)
     assert w[0] == 0.0 and exact[0] < 1e-6 * exact[-1]
     np.testing.assert_allclose(w[1:], exact[1:], rtol=1e-10)
+
+
+def test_frf_of_many_outputs_from_points_only_solve():
+    """frequency_response keeps only the requested points of a lumped chain; several outputs at
+    several points, a connector force and a repeated point still equal the dense global solve, and
+    the point-restricted solve equals the full one at those points."""
+    from ctmm.chain_assembly import laplace_variables, solve
+
+    chain = random_chain(np.random.default_rng(7), 12, start="elastic", end="fixed", damped=True, grounded=True)
+    g = to_global(chain)
+    omega = np.linspace(0.3, 60.0, 90)
+    outputs = ["m11.x", "m2.v", "k5.f", "m2.a", "m7.x"]
+    frf = ctmm.frequency_response(chain, omega, input="m4.force", output=outputs)
+    for name, (index, quantity) in {"m11.x": (11, "displacement"), "m2.v": (2, "velocity"),
+                                    "k5.f": (5, "force"), "m2.a": (2, "acceleration"),
+                                    "m7.x": (7, "displacement")}.items():
+        np.testing.assert_allclose(frf(name, "m4.force"), ref.frequency_response(g, omega, 4, index, quantity),
+                                   rtol=1e-10, atol=0)
+    s = laplace_variables(omega)
+    amplitudes = {chain.input("m4.force").position: {"force": 1.0}}
+    full = solve(chain, s, amplitudes)
+    points = [9, 2, 9, 0]
+    part = solve(chain, s, amplitudes, points=points)
+    assert part.points == (9, 2, 9, 0) and part.states.shape[0] == 4
+    for j in points:
+        np.testing.assert_array_equal(part.at(j), full.at(j))
+        np.testing.assert_array_equal(full.at(j), full.states[j])
+    with pytest.raises(ValueError, match="points must lie"):
+        solve(chain, s, amplitudes, points=[len(full.states)])
