@@ -256,3 +256,32 @@ def test_refusals_name_what_is_not_supported() -> None:
     saturating = with_feedback(arm(), [Feedback("pd", sensor="yaw.angle", actuator="yaw.torque", saturation=(-1, 1))])
     with pytest.raises(ctmm.ModelError, match=r"ctmm\.linearize needs linear loops, but loop 'pd' saturates"):
         ctmm.linearize(saturating)
+
+
+def test_real_time_lti_controller_states_are_appended_as_the_reference_lag() -> None:
+    """A first-order lag ``C(s) = k / (T s + 1)`` on the tip's sensed y: its state joins ``A``."""
+    import control
+
+    gain, lag = 15.0, 0.05
+    loop = Feedback("lag", sensor="link.tip.y", actuator="link.tip.force_y", gain=control.tf([gain], [lag, 1.0]))
+    system = with_feedback(arm(), [loop])
+    lin = ctmm.linearize(system, inputs=["yaw.torque"], outputs=["link.tip.y", "lag.u"])
+    assert lin.state_space.state_labels[-1] == "lag_controller0" and lin.delays == ()
+    mass, damping, stiffness, tip = reference_dynamics(lin.operating_point.q)
+    n, J = mass.shape[0], tip[1]
+    # x' = v, M v' = -K x - C v - J^T xi (u = -xi), xi' = (k J x - xi) / T
+    A_ref = np.zeros((2 * n + 1, 2 * n + 1))
+    A_ref[:n, n:2 * n] = np.eye(n)
+    A_ref[n:2 * n, :n], A_ref[n:2 * n, n:2 * n] = -np.linalg.solve(mass, stiffness), -np.linalg.solve(mass, damping)
+    A_ref[n:2 * n, 2 * n] = -np.linalg.solve(mass, J)
+    A_ref[2 * n, :n], A_ref[2 * n, 2 * n] = gain * J / lag, -1.0 / lag
+    np.testing.assert_allclose(np.sort_complex(np.linalg.eigvals(lin.state_space.A)),
+                               np.sort_complex(np.linalg.eigvals(A_ref)), rtol=1e-9, atol=1e-9)
+    omega = np.array([0.7, 9.0])
+    frf = ctmm.frequency_response(system, omega, input="yaw.torque", output=["link.tip.y", "lag.u"])
+    e = yaw_unit(n)
+    for k, w in enumerate(omega):
+        s = 1j * w
+        law = gain / (lag * s + 1.0)
+        x = np.linalg.solve(mass * s * s + damping * s + stiffness + law * np.outer(J, J), e)
+        np.testing.assert_allclose(frf.response[:, 0, k], [J @ x, -law * (J @ x)], rtol=1e-9)
