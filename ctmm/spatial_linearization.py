@@ -45,7 +45,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from . import validation
-from .errors import ModelError, unknown_name
+from .errors import ModelError, UnknownNameError, unknown_name
 from .controlled_linearization import close_model_loops, loop_ports
 from .linearized import LinearizedSystem, OperatingPoint
 from .ops import NUMPY
@@ -315,10 +315,13 @@ def input_matrix(model: Any, names: Sequence[str], point: OperatingPoint) -> np.
     for k, name in enumerate(names):
         if name in components:
             continue
-        ports = ports or SpatialPorts(model)
-        if name not in ports.actuators:
+        if ports is None:
+            ports = SpatialPorts(model)
+        try:
+            ports.check_actuator(name, "input")                # says why for driven, welded, unactuated joints
+        except UnknownNameError:
             raise unknown_name("spatial input (input component or actuator port)", name,
-                               list(components) + list(ports.actuators))
+                               list(components) + list(ports.actuators)) from None
         up, down = (ports.accelerations(point.q, point.qdot, point.t, ports.inputs({name: sign}))
                     for sign in (1.0, -1.0))
         columns[:, k] = 0.5 * (np.asarray(up) - np.asarray(down))
@@ -345,7 +348,6 @@ def output_matrix(model: Any, names: Sequence[str], point: OperatingPoint) -> np
     Sensor rows by complex step through :func:`ctmm.spatial_sensors_complex.complex_sensor_values` (exact to
     round-off); a name that is both (joint angles, velocities, free-joint positions) is the sensor: for
     ``"<free joint>.x|y|z"`` the world position, equal to the tangent coordinate where ``R0 = I``."""
-    from .errors import UnknownNameError
     from .spatial.ports import SpatialPorts
 
     n = model.n_velocities
