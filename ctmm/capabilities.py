@@ -28,6 +28,13 @@ _OTHER_PACKAGES = {
                      "ctmm.stability with loops",
     "ctmm.manipulator": "ctmm.manipulator.manipulator_scene (a ControlledModel for every verb; exact beam fields "
                         "with fields='exact'; the PZT voltage limit as loop saturation, on_limit='saturate')",
+    "ctmm.spatial": "the verbs that answer every model: ctmm.simulate, ctmm.linearize, ctmm.frequency_response, "
+                    "ctmm.natural_frequencies, ctmm.mode_shapes, ctmm.eigenvalue_count (through the linearisation), "
+                    "ctmm.stability with loops (ctmm.control.with_feedback)",
+    "ctmm.control.controlled_model": "the verbs that answer every model (planar and spatial plants with loops): "
+                                     "ctmm.simulate, ctmm.linearize, ctmm.frequency_response, "
+                                     "ctmm.control.loop_transfer_function / margins, ctmm.stability (delay_margin, "
+                                     "stability_chart, characteristic_roots)",
 }
 
 

@@ -49,9 +49,9 @@ def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],
     Parameters
     ----------
     system : Chain, ControlledChain, PlanarModel, ControlledModel or SpatialModel
-        The model.  A spatial model is answered through its linearisation
-        (:func:`ctmm.spatial_frequency.frequency_response`: input components, tangent coordinates and
-        velocities as outputs).  A planar model is answered through its linearisation about
+        The model.  A spatial model (or a ControlledModel on one) is answered through its linearisation
+        (:func:`ctmm.spatial_frequency.frequency_response`: actuator ports and input components as inputs,
+        sensor ports, tangent coordinates and velocities as outputs, loops closed).  A planar model is answered through its linearisation about
         ``operating_point`` (:func:`ctmm.planar_frequency.frequency_response`: actuator inputs,
         sensor outputs of :mod:`ctmm.planar.ports`).
     omega : array_like
@@ -216,9 +216,7 @@ def _scale(system, s: np.ndarray) -> np.ndarray:
 
 
 def _is_spatial(system: Any) -> bool:
-    from .spatial.model import SpatialModel
-
-    return isinstance(system, SpatialModel)
+    return spatial_frequency.is_spatial_system(system)
 
 
 def natural_frequencies(system: Any, **options: Any) -> np.ndarray:

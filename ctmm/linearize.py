@@ -11,8 +11,10 @@ delay-free part with named states, inputs and outputs, the delayed loops left op
   ``ctmm.control.ControlledModel``: the tangent of ``qddot = f(q, qdot, u)`` at an operating
   point (:class:`OperatingPoint`), states ``[q, qdot]`` named by the coordinates
   (``"arm.q1"``, ``"arm.q1_dot"``), deviations from the operating point.
-* :class:`~ctmm.spatial.model.SpatialModel`: the same tangent in tangent coordinates (rotation
-  vectors for quaternion joints) and velocities, :mod:`ctmm.spatial_linearization`.
+* :class:`~ctmm.spatial.model.SpatialModel` and a ``ControlledModel`` on one: the same tangent in
+  tangent coordinates (rotation vectors for quaternion joints) and velocities, sensor and actuator ports of
+  :mod:`ctmm.spatial.ports`, :mod:`ctmm.spatial_linearization`; the loops closed as for planar models
+  (:mod:`ctmm.controlled_linearization`).
 
 On the package, ``ctmm.linearize`` is the function; the result types are importable as
 ``from ctmm.linearize import LinearizedSystem, DelayedLoop, OperatingPoint`` (defined in
@@ -74,7 +76,7 @@ def linearize(system: Any, operating_point: Any = None, *, inputs: str | Sequenc
 
     Parameters
     ----------
-    system : Chain, ControlledChain, PlanarModel, ControlledModel or SpatialModel
+    system : Chain, ControlledChain, PlanarModel, SpatialModel or ControlledModel (planar or spatial plant)
         The model; loops with a delay are returned open beside the state space.
     operating_point : OperatingPoint, (q, qdot), mapping or None
         Spatial models: ``(q, v)``, ``{"q", "v", "t"}`` or ``None`` (the static equilibrium by
@@ -87,13 +89,15 @@ def linearize(system: Any, operating_point: Any = None, *, inputs: str | Sequenc
     inputs : str or sequence of str, optional
         Exogenous inputs: chain force inputs / loop references; planar actuator names of
         :func:`ctmm.planar.ports.actuator_names` (default: every actuator not used by a loop);
-        spatial input components of :func:`ctmm.spatial_linearization.input_names` (default: all);
+        spatial input components of :func:`ctmm.spatial_linearization.input_names` and actuator ports
+        (default: the input components not driven by a loop);
         ``[]``: no exogenous input (e.g. for the eigenvalues of ``A``; refused with a single
         output and no delayed loop, a shape python-control cannot hold).
     outputs : str or sequence of str, optional
         Chain signal names; planar sensor names of :mod:`ctmm.planar.ports` (default: every
         coordinate); ``"<loop>.y"`` (sensed value) and ``"<loop>.u"`` (loop force) of a loop
-        without delay; spatial tangent coordinates and velocities (default: the tangent coordinates).
+        without delay; spatial sensor ports, tangent coordinates and velocities (default: the tangent
+        coordinates).
     allow_nonequilibrium : bool
         Planar and spatial models: accept an operating point that is not an equilibrium (nonzero rates or
         accelerations, now or a little later: a driven hinge in motion, a time-varying load).  The result is then the tangent at that instant only (the constant
@@ -132,11 +136,13 @@ def linearize(system: Any, operating_point: Any = None, *, inputs: str | Sequenc
         model = system if _is_planar(system) else plant
         return linearize_planar(model, loops if not _is_planar(system) else (), operating_point,
                                 inputs=inputs, outputs=outputs, allow_nonequilibrium=allow_nonequilibrium)
-    if _is_spatial(system):
+    if _is_spatial(system) or (_is_spatial(plant) and hasattr(system, "loops")):
         from .spatial_linearization import linearize_spatial
 
-        return linearize_spatial(system, operating_point, inputs=inputs, outputs=outputs,
-                                 allow_nonequilibrium=allow_nonequilibrium)
+        model = system if _is_spatial(system) else plant
+        return linearize_spatial(model, operating_point, inputs=inputs, outputs=outputs,
+                                 allow_nonequilibrium=allow_nonequilibrium,
+                                 loops=loops if not _is_spatial(system) else ())
     raise ModelError(f"linearize: system must be a ctmm.Chain, ctmm.control.ControlledChain, "
                      f"ctmm.planar.PlanarModel, ctmm.control.ControlledModel or ctmm.spatial.SpatialModel, got "
                      f"{type(system).__name__} ({system!r:.80})")

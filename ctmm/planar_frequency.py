@@ -25,7 +25,7 @@ import numpy as np
 from . import validation
 from .errors import ModelError
 from .saturation import refuse_saturation
-from .loop_phasors import close_loops
+from .controlled_linearization import delayed_loop_response
 from .planar_linearization import linearize_planar, tangent
 from .planar_linearization import operating_point as planar_operating_point
 from .results import FrequencyResponse, ModalResult
@@ -99,29 +99,17 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
     outputs = list(validation.names("output", output))
     s = 1j * validation.frequencies("omega", omega)
     started = time.perf_counter()
-    delayed = {lp.name: j for j, lp in enumerate(lp for lp in loops if lp.delay > 0.0)}
 
-    def delayed_signal(name: str, parts: tuple) -> tuple | None:
-        head, _, tail = name.partition(".")
-        return (delayed[head], tail) if head in delayed and tail in parts else None
+    def solve(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+        try:
+            return np.linalg.solve(s[:, None, None] * np.eye(A.shape[0]) - A, np.broadcast_to(B, (s.size,) + B.shape))
+        except np.linalg.LinAlgError as exc:
+            raise ModelError(f"frequency_response: s I - A is singular at one of the frequencies (a pole on the "
+                             f"imaginary axis, e.g. a rigid-body mode at omega = 0): {exc}") from None
 
-    lin_in = [x for x in inputs if delayed_signal(x, ("reference",)) is None]
-    lin_out = [x for x in outputs if delayed_signal(x, ("y", "u")) is None]
-    lin = linearize_planar(model, loops, operating_point, inputs=lin_in, outputs=lin_out)
-    ss = lin.state_space
-    A, B, C, D = (np.asarray(m, dtype=float) for m in (ss.A, ss.B, ss.C, ss.D))
-    try:
-        X = np.linalg.solve(s[:, None, None] * np.eye(A.shape[0]) - A, np.broadcast_to(B, (s.size,) + B.shape))
-    except np.linalg.LinAlgError as exc:
-        raise ModelError(f"frequency_response: s I - A is singular at one of the frequencies (a pole on the imaginary "
-                         f"axis, e.g. a rigid-body mode at omega = 0): {exc}") from None
-    G = C @ X + D                                        # (frequencies, lin_out + delayed y, lin_in + delayed u)
-    n_i, n_o, n_d = len(lin_in), len(lin_out), len(delayed)
-    blocks = (G[:, :n_o, :n_i], G[:, :n_o, n_i:], G[:, n_o:, :n_i], G[:, n_o:, n_i:])
-    K = np.zeros((s.size, n_d, n_d), dtype=complex)
-    for j, loop in enumerate(lin.delays):
-        K[:, j, j] = _controller_response(loop.gain, s) * np.exp(-s * loop.delay)
-    response = close_loops(blocks, K, inputs, outputs, lin_in, lin_out, delayed_signal)
+    response, lin = delayed_loop_response(
+        lambda lin_in, lin_out: linearize_planar(model, loops, operating_point, inputs=lin_in, outputs=lin_out),
+        loops, s, inputs, outputs, solve)
     sensors, actuators = set(ports.sensor_names(model)), set(ports.actuator_names(model))
     units = {name: ports.actuator_unit(model, name) for name in inputs if name in actuators}
     units.update({name: ports.sensor_unit(model, name) for name in outputs if name in sensors})
@@ -137,12 +125,6 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
             "n_frequencies": int(s.size), "operating_point_q": lin.operating_point.q.tolist(),
             "jacobian_error": lin.operating_point.jacobian_error}
     return FrequencyResponse(np.imag(s), response, tuple(inputs), tuple(outputs), model.name, info=info, units=units)
-
-
-def _controller_response(gain: Any, s: np.ndarray) -> np.ndarray:
-    if callable(gain):                                  # a python-control LTI C(s)
-        return np.asarray(gain(s), dtype=complex).reshape(s.shape)
-    return np.full(s.shape, float(gain), dtype=complex)
 
 
 def _undamped_stiffness(system: Any, verb: str, operating_point: Any):

@@ -25,8 +25,8 @@ import numpy as np
 from . import validation
 from .errors import ModelError, unknown_name
 from .saturation import refuse_saturation
-from .linearized import DelayedLoop, LinearizedSystem, OperatingPoint, control_name
-from .loop_closure import close_loops
+from .controlled_linearization import close_model_loops, loop_ports
+from .linearized import LinearizedSystem, OperatingPoint
 
 __all__ = ["linearize_planar", "operating_point", "tangent", "jacobian", "input_matrix", "output_matrix",
            "JACOBIAN_TOLERANCE", "EQUILIBRIUM_TOLERANCE"]
@@ -170,12 +170,6 @@ def operating_point(model: Any, point: Any = None, *, allow_nonequilibrium: bool
     return OperatingPoint(q, qdot, t, tuple(model.coordinates), bool(equilibrium), 0.0)
 
 
-def _loop_ports(loops: Sequence[Any]) -> tuple[list[str], list[str]]:
-    actuators = list(dict.fromkeys(name for lp in loops for name, _ in lp.actuator_terms))
-    sensors = list(dict.fromkeys(name for lp in loops for name, _ in lp.terms))
-    return actuators, sensors
-
-
 def input_matrix(model: Any, names: Sequence[str], point: OperatingPoint) -> np.ndarray:
     """``df/du`` (n_coordinates, len(names)) of the actuator inputs ``names`` (exact: ``f`` is affine in u)."""
     if not names:
@@ -211,49 +205,6 @@ def output_matrix(model: Any, names: Sequence[str], point: OperatingPoint) -> np
         else:
             rows[k] = other_rows[others.index(name)]
     return rows
-
-
-def _exogenous_inputs(model: Any, loops: Sequence[Any], inputs: Any) -> tuple[list[str], dict[int, int]]:
-    """Requested inputs and ``{input index: loop index}`` of the ``"<loop>.reference"`` among them."""
-    if inputs is None:
-        from .planar import ports
-
-        actuated = set(_loop_ports(loops)[0])
-        return [name for name in ports.actuator_names(model) if name not in actuated], {}
-    if isinstance(inputs, (list, tuple)) and not inputs:
-        return [], {}                               # no exogenous input (e.g. for eigenvalues only)
-    exo = list(validation.names("inputs", inputs))
-    index = {lp.name: j for j, lp in enumerate(loops)}
-    references = {}
-    for k, name in enumerate(exo):
-        head, _, tail = name.partition(".")
-        if head in index:
-            if tail != "reference" or loops[index[head]].delay > 0.0:
-                raise ModelError(f"linearize: input {name!r}: the inputs of a loop are '<loop>.reference' of a "
-                                 "loop without delay; a delayed loop is left open (its force is the input "
-                                 "'<loop>_u')")
-            references[k] = index[head]
-    return exo, references
-
-
-def _requested_outputs(model: Any, loops: Sequence[Any], outputs: Any) -> tuple[list[str], dict[int, tuple]]:
-    """Requested outputs and ``{output index: (loop index, "y" or "u")}`` of the loop signals among them."""
-    if outputs is None:
-        req = list(model.coordinates)
-    elif isinstance(outputs, (list, tuple)) and not outputs:
-        req = []                                    # only the ports of the delayed loops
-    else:
-        req = list(validation.names("outputs", outputs))
-    index = {lp.name: j for j, lp in enumerate(loops)}
-    loop_outputs = {}
-    for k, name in enumerate(req):
-        head, _, tail = name.partition(".")
-        if head in index and tail in ("y", "u"):
-            if loops[index[head]].delay > 0.0:
-                raise ModelError(f"linearize: output {name!r}: the delayed loop {head!r} is left open, its "
-                                 f"sensed value and force are the ports '{head}_y' and '{head}_u' already")
-            loop_outputs[k] = (index[head], tail)
-    return req, loop_outputs
 
 
 def _one_sweep_applies(model: Any) -> bool:
@@ -323,57 +274,19 @@ def tangent(model: Any, point: OperatingPoint) -> tuple[np.ndarray, OperatingPoi
 
 def linearize_planar(model: Any, loops: Sequence[Any], point: Any, *, inputs=None, outputs=None,
                      allow_nonequilibrium: bool = False) -> LinearizedSystem:
-    """:func:`ctmm.linearize` of a planar model closed by ``loops`` (module docstring)."""
-    import control
+    """:func:`ctmm.linearize` of a planar model closed by ``loops`` (module docstring; the loops by
+    :func:`ctmm.controlled_linearization.close_model_loops`)."""
+    from .planar import ports
 
     refuse_saturation(loops, "ctmm.linearize")
 
     A, op = tangent(model, operating_point(model, point, allow_nonequilibrium=allow_nonequilibrium))
     n = model.n_coordinates
-    exo, references = _exogenous_inputs(model, loops, inputs)
-    req, loop_outputs = _requested_outputs(model, loops, outputs)
-    loop_actuators, loop_sensors = _loop_ports(loops)
-    plant_in = list(dict.fromkeys([x for k, x in enumerate(exo) if k not in references] + loop_actuators))
-    plant_out = list(dict.fromkeys([x for k, x in enumerate(req) if k not in loop_outputs] + loop_sensors))
-    col = {name: k for k, name in enumerate(plant_in)}
-    row = {name: k for k, name in enumerate(plant_out)}
-    # plant ports -> [exogenous inputs, one force per loop], [requested outputs, one sensed sum per loop]
-    S_in = np.zeros((len(plant_in), len(exo) + len(loops)))
-    S_out = np.zeros((len(req) + len(loops), len(plant_out)))
-    for k, name in enumerate(exo):
-        if k not in references:
-            S_in[col[name], k] = 1.0
-    for k, name in enumerate(req):
-        if k not in loop_outputs:
-            S_out[k, row[name]] = 1.0
-        elif loop_outputs[k][1] == "y":             # the sensed value (not y - r)
-            for sensor, weight in loops[loop_outputs[k][0]].terms:
-                S_out[k, row[sensor]] += weight
-    for j, lp in enumerate(loops):
-        for name, weight in lp.actuator_terms:
-            S_in[col[name], len(exo) + j] += weight
-        for name, weight in lp.terms:
-            S_out[len(req) + j, row[name]] += weight
-    B = np.vstack([np.zeros((n, len(plant_in))), input_matrix(model, plant_in, op)]) @ S_in
-    C = S_out @ output_matrix(model, plant_out, op)
-    D = np.zeros((C.shape[0], B.shape[1]))
-    for k, j in references.items():
-        D[len(req) + j, k] = -1.0                   # the loop acts on y - r
-    A_cl, B_cl, C_cl, D_cl, sizes, C_u, D_u = close_loops((A, B, C, D), loops, len(exo))
-    real_time = [lp for lp in loops if lp.delay == 0.0]
-    for k, (j, part) in loop_outputs.items():
-        if part == "u":                             # the loop force, from the closure
-            C_cl[k], D_cl[k] = C_u[real_time.index(loops[j])], D_u[real_time.index(loops[j])]
-    delayed = [lp for lp in loops if lp.delay > 0.0]
+    actuated = set(loop_ports(loops)[0])
+    default_inputs = [name for name in ports.actuator_names(model) if name not in actuated] if inputs is None else []
     states = list(model.coordinates) + [f"{c}_dot" for c in model.coordinates]
-    states += [f"{lp.name}.controller{k}" for lp, size in zip(real_time, sizes) for k in range(size)]
-    labels_in = [control_name(x) for x in exo] + [control_name(f"{lp.name}.u") for lp in delayed]
-    labels_out = [control_name(x) for x in req] + [control_name(f"{lp.name}.y") for lp in delayed]
-    if not labels_in and len(labels_out) == 1:
-        raise ModelError(f"linearize: inputs={inputs!r} leaves the linearisation of {model.name!r} with no input and "
-                         f"the one output {req + [lp.name for lp in delayed]}, a state space python-control cannot "
-                         "hold (its D would be 1 x 0); name an input (an actuator or '<loop>.reference'), a "
-                         "second output, or leave inputs=None")
-    ss = control.ss(A_cl, B_cl, C_cl, D_cl, inputs=labels_in, outputs=labels_out,
-                    states=[control_name(x) for x in states], name=control_name(model.name))
-    return LinearizedSystem(ss, tuple(DelayedLoop(lp.name, lp.gain, lp.delay) for lp in delayed), op)
+    return close_model_loops(
+        A, loops, inputs=inputs, outputs=outputs, default_inputs=default_inputs,
+        default_outputs=list(model.coordinates),
+        input_columns=lambda names: np.vstack([np.zeros((n, len(names))), input_matrix(model, names, op)]),
+        output_rows=lambda names: output_matrix(model, names, op), states=states, name=model.name, point=op)

@@ -1,7 +1,8 @@
 """Frequency verbs on spatial models through their linearisation (issue 14, ``docs/spatial.md`` §9).
 
 :func:`ctmm.natural_frequencies`, :func:`ctmm.mode_shapes`, :func:`ctmm.eigenvalue_count` and
-:func:`ctmm.frequency_response` dispatch here for a :class:`~ctmm.spatial.model.SpatialModel`.  About a
+:func:`ctmm.frequency_response` dispatch here for a :class:`~ctmm.spatial.model.SpatialModel` and a
+``ControlledModel`` on one (the frequency response with the loops closed; the other verbs refuse loops).  About a
 static operating point ``q0`` (default: the static equilibrium of :func:`ctmm.linearize`) in the tangent
 coordinates of :mod:`ctmm.spatial_linearization`, small motions obey ``M x'' + C x' + K x = B u`` with
 
@@ -37,8 +38,9 @@ from .counting import PIVOT_TOLERANCE, certified_count
 from .errors import ModelError
 from .ops import NUMPY
 from .results import FrequencyResponse, ModalResult
+from .saturation import refuse_saturation
 
-__all__ = ["mass_matrix", "SpatialModes", "natural_frequencies", "mode_shapes", "eigenvalue_count",
+__all__ = ["is_spatial_system", "mass_matrix", "SpatialModes", "natural_frequencies", "mode_shapes", "eigenvalue_count",
            "frequency_response", "SINGULAR_CONDITION", "SYMMETRY_TOLERANCE", "UNDAMPED_TOLERANCE"]
 
 SYMMETRY_TOLERANCE = 1e-8
@@ -143,11 +145,34 @@ class SpatialModes:
         return omega, vectors
 
 
+def is_spatial_system(system: Any) -> bool:
+    """True for a SpatialModel or a ControlledModel whose plant is one."""
+    from .spatial.model import SpatialModel
+
+    return isinstance(system, SpatialModel) or (isinstance(getattr(system, "plant", None), SpatialModel)
+                                                and hasattr(system, "loops"))
+
+
+def _split(system: Any, verb: str) -> tuple[Any, tuple]:
+    """``(plant, loops)`` of a spatial model or of a controlled one (saturating loops refused)."""
+    from .spatial.model import SpatialModel
+
+    if isinstance(system, SpatialModel):
+        return system, ()
+    refuse_saturation(system.loops, verb)
+    return system.plant, tuple(system.loops)
+
+
 def _modes(system: Any, verb: str, operating_point: Any) -> SpatialModes:
     from .spatial_linearization import operating_point as spatial_operating_point
     from .spatial_linearization import tangent, tangent_names
 
-    model = system
+    model, loops = _split(system, verb)
+    if loops:
+        raise ModelError(f"{verb} cannot honour the feedback loops {[lp.name for lp in loops]} of {model.name!r}: it "
+                         "describes an uncontrolled model; for the closed loop use ctmm.linearize (eigenvalues of the "
+                         "closed-loop A, delays beside it) or ctmm.stability.characteristic_roots; for the plant pass "
+                         "system.plant")
     A, op = tangent(model, spatial_operating_point(model, operating_point))
     n = model.n_velocities
     M = mass_matrix(model, op.q, op.t)
@@ -216,46 +241,58 @@ def eigenvalue_count(system: Any, omega: Any, *, operating_point: Any = None) ->
 
 def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  # noqa: A002
                        output: str | Sequence[str], operating_point: Any = None) -> FrequencyResponse:
-    """Frequency response ``C (i omega I - A)^-1 B`` of a spatial model's linearisation.
+    """Frequency response ``C (i omega I - A)^-1 B`` of a spatial model's linearisation, loops closed.
+
+    Loops of a ``ControlledModel`` without delay are closed inside the linearisation
+    (:func:`ctmm.linearize`); each delayed loop ``u = -C(s) e^{-s tau} (y - r)`` is closed here at every
+    frequency, exactly (:func:`ctmm.controlled_linearization.delayed_loop_response`, as for planar models).
 
     Parameters
     ----------
-    system : SpatialModel
+    system : SpatialModel or ControlledModel
     omega : array_like
         Angular frequencies [rad/s], >= 0.
     input : str or sequence of str
-        Input components (:func:`ctmm.spatial_linearization.input_names`, e.g. ``"yaw.torque"`` [N m],
-        ``"base.wrench_fz"`` [N]).
+        Actuator ports (``"yaw.torque"`` [N m], ``"link.tip.force_x"`` [N]), input components
+        (:func:`ctmm.spatial_linearization.input_names`, ``"base.wrench_fz"`` [N]) or ``"<loop>.reference"``.
     output : str or sequence of str
-        Tangent coordinates [rad, m] and velocities [rad/s, m/s] (:func:`ctmm.linearize`).
+        Sensor ports (:mod:`ctmm.spatial.ports`), tangent coordinates [rad, m] and velocities [rad/s, m/s]
+        (:func:`ctmm.linearize`), ``"<loop>.y"``, ``"<loop>.u"``.
     operating_point : optional
-        As for :func:`ctmm.linearize` (default: the static equilibrium).
+        As for :func:`ctmm.linearize` (default: the plant's static equilibrium).
 
     Returns
     -------
     FrequencyResponse
         ``response[i_out, i_in, k]``: output deviation phasor per unit input phasor.
     """
+    from .controlled_linearization import delayed_loop_response
+    from .spatial.ports import SpatialPorts
     from .spatial_linearization import linearize_spatial
 
+    model, loops = _split(system, "the frequency-domain verbs")
     inputs = list(validation.names("input", input))
     outputs = list(validation.names("output", output))
     s = 1j * validation.frequencies("omega", omega)
     started = time.perf_counter()
-    lin = linearize_spatial(system, operating_point, inputs=inputs, outputs=outputs)
-    ss = lin.state_space
-    A, B, C, D = (np.asarray(m, dtype=float) for m in (ss.A, ss.B, ss.C, ss.D))
-    pencil = s[:, None, None] * np.eye(A.shape[0]) - A
-    condition = np.linalg.cond(pencil) if A.size else np.ones(s.size)
-    if not np.all(condition < SINGULAR_CONDITION):
-        bad = float(np.imag(s)[np.argmax(~(condition < SINGULAR_CONDITION))])
-        raise ModelError(f"frequency_response: s I - A of {system.name!r} is singular at omega = {bad!r} rad/s (a pole "
-                         "on the imaginary axis, e.g. a rigid-body mode or a free rotation at omega = 0); leave that "
-                         "frequency out")
-    X = np.linalg.solve(pencil, np.broadcast_to(B, (s.size,) + B.shape))
-    G = C @ X + D                                        # (frequencies, outputs, inputs)
-    info = {"method": "linearisation (ctmm.linearize)", "wall_time_s": time.perf_counter() - started,
+
+    def solve(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+        pencil = s[:, None, None] * np.eye(A.shape[0]) - A
+        condition = np.linalg.cond(pencil) if A.size else np.ones(s.size)
+        if not np.all(condition < SINGULAR_CONDITION):
+            bad = float(np.imag(s)[np.argmax(~(condition < SINGULAR_CONDITION))])
+            raise ModelError(f"frequency_response: s I - A of {model.name!r} is singular at omega = {bad!r} rad/s (a "
+                             "pole on the imaginary axis, e.g. a rigid-body mode or a free rotation at omega = 0); "
+                             "leave that frequency out")
+        return np.linalg.solve(pencil, np.broadcast_to(B, (s.size,) + B.shape))
+
+    response, lin = delayed_loop_response(
+        lambda lin_in, lin_out: linearize_spatial(model, operating_point, inputs=lin_in, outputs=lin_out, loops=loops),
+        loops, s, inputs, outputs, solve)
+    ports = SpatialPorts(model)
+    units = {name: ports.actuator_unit(name) for name in inputs if name in ports.actuators}
+    units.update({name: ports.sensor_unit(name) for name in outputs if name in ports.sensors})
+    info = {"method": "linearisation (ctmm.linearize), delays exact", "wall_time_s": time.perf_counter() - started,
             "n_frequencies": int(s.size), "operating_point_q": lin.operating_point.q.tolist(),
             "jacobian_error": lin.operating_point.jacobian_error}
-    return FrequencyResponse(np.imag(s), np.moveaxis(G, 0, -1), tuple(inputs), tuple(outputs), system.name,
-                             info=info)
+    return FrequencyResponse(np.imag(s), response, tuple(inputs), tuple(outputs), model.name, info=info, units=units)

@@ -21,7 +21,15 @@ followed by the velocities ``v`` (``model.velocities``, their deviations).  Name
 * ``B = [[0], [df/du]]`` -- ``f`` is affine in the actuator inputs, a symmetric unit difference is
   exact; one input per component (:func:`input_names`: ``"yaw.torque"``, ``"ball.torque_x"``,
   ``"base.wrench_fx"``, ... in the joint's own axes, child axes for spherical and free joints);
-* ``C`` selects tangent coordinates and velocities (``D = 0``).
+* ``B`` columns of actuator ports (:mod:`ctmm.spatial.ports`: ``"link.tip.force_y"``, ``"base.moment_z"``) by the
+  same exact differences through :meth:`ctmm.spatial.ports.SpatialPorts.accelerations`;
+* ``C``: rows of sensor ports by complex step through
+  :func:`ctmm.spatial_sensors_complex.complex_sensor_values` (exact to round-off; a name that is both a port and
+  a tangent coordinate is the port), and the selection of tangent coordinates that are not ports (``D = 0``).
+
+The loops of a ``ControlledModel`` on a spatial plant are closed around this linearisation by
+:func:`ctmm.controlled_linearization.close_model_loops` (real-time loops in ``A``, delayed loops beside it), the
+function the planar path uses.
 
 The operating point is the static equilibrium when none is given: the root of the sweep's
 accelerations ``f(q0 (+) r, 0) = 0`` from the neutral configuration by pseudo-transient continuation
@@ -37,13 +45,16 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from . import validation
-from .errors import ModelError, unknown_name
-from .linearized import LinearizedSystem, OperatingPoint, control_name
+from .errors import ModelError, UnknownNameError, unknown_name
+from .controlled_linearization import close_model_loops, loop_ports
+from .linearized import LinearizedSystem, OperatingPoint
 from .ops import NUMPY
 from .planar_linearization import EQUILIBRIUM_TOLERANCE, JACOBIAN_TOLERANCE, TIME_PROBES, jacobian
+from .saturation import refuse_saturation
+from .spatial_sensors_complex import complex_sensor_values
 
 __all__ = ["linearize_spatial", "tangent_names", "input_names", "retract", "static_equilibrium",
-           "operating_point", "tangent", "input_matrix", "NEWTON_ITERATIONS"]
+           "operating_point", "tangent", "input_matrix", "output_matrix", "NEWTON_ITERATIONS"]
 
 NEWTON_ITERATIONS = 200
 """Largest number of (pseudo-transient Newton) steps of :func:`static_equilibrium`."""
@@ -292,66 +303,121 @@ def tangent(model: Any, point: OperatingPoint) -> tuple[np.ndarray, OperatingPoi
 
 
 def input_matrix(model: Any, names: Sequence[str], point: OperatingPoint) -> np.ndarray:
-    """``df/du`` (nv, len(names)) of input components ``names`` (:func:`input_names`; exact)."""
+    """``df/du`` (nv, len(names)) of input components ``names`` (:func:`input_names`) and actuator ports
+    (:class:`ctmm.spatial.ports.SpatialPorts`: joint torques and forces, body forces and moments); exact
+    (``f`` is affine in the inputs: symmetric unit differences)."""
+    from .spatial.ports import SpatialPorts
+
     components = {name: (base, i) for name, base, i in _input_components(model)}
-    for name in names:
-        if name not in components:
-            raise unknown_name("spatial input", name, list(components))
-    if not names:
-        return np.zeros((model.n_velocities, 0))
-    m = len(names)
-    values: dict[str, np.ndarray] = {}
+    ports = None
+    columns = np.zeros((model.n_velocities, len(names)))
+    own = [k for k, name in enumerate(names) if name in components]
     for k, name in enumerate(names):
-        base, i = components[name]
+        if name in components:
+            continue
+        if ports is None:
+            ports = SpatialPorts(model)
+        try:
+            ports.check_actuator(name, "input")                # says why for driven, welded, unactuated joints
+        except UnknownNameError:
+            raise unknown_name("spatial input (input component or actuator port)", name,
+                               list(components) + list(ports.actuators)) from None
+        up, down = (ports.accelerations(point.q, point.qdot, point.t, ports.inputs({name: sign}))
+                    for sign in (1.0, -1.0))
+        columns[:, k] = 0.5 * (np.asarray(up) - np.asarray(down))
+    if not own:
+        return columns
+    m = len(own)
+    values: dict[str, np.ndarray] = {}
+    for row, k in enumerate(own):
+        base, i = components[names[k]]
         size = next(j.velocity_count for j in model.joints if base in j.inputs)
         block = values.setdefault(base, np.zeros((2 * m, size)))
-        block[k, i], block[m + k, i] = 1.0, -1.0
+        block[row, i], block[m + row, i] = 1.0, -1.0
     q = np.repeat(point.q[None], 2 * m, axis=0)
     v = np.repeat(point.qdot[None], 2 * m, axis=0)
     rates = _rates(model, q, v, point.t, values)
-    return (0.5 * (rates[:m] - rates[m:])).T
+    columns[:, own] = (0.5 * (rates[:m] - rates[m:])).T
+    return columns
+
+
+def output_matrix(model: Any, names: Sequence[str], point: OperatingPoint) -> np.ndarray:
+    """``dy/dx`` (len(names), 2 nv) of sensor ports (:class:`ctmm.spatial.ports.SpatialPorts`) and of the
+    tangent coordinates that are not ports (``"ball.rx"``, ``"u.angle1"``), in the state ``x = [r ; v]``.
+
+    Sensor rows by complex step through :func:`ctmm.spatial_sensors_complex.complex_sensor_values` (exact to
+    round-off); a name that is both (joint angles, velocities, free-joint positions) is the sensor: for
+    ``"<free joint>.x|y|z"`` the world position, equal to the tangent coordinate where ``R0 = I``."""
+    from .spatial.ports import SpatialPorts
+
+    n = model.n_velocities
+    states = list(tangent_names(model)) + list(model.velocities)
+    index = {name: k for k, name in enumerate(states)}
+    ports = SpatialPorts(model)
+    rows = np.zeros((len(names), 2 * n))
+    sensed = []
+    for k, name in enumerate(names):
+        if isinstance(name, str) and name in ports.sensors:
+            sensed.append(k)
+        elif isinstance(name, str) and name in index:
+            rows[k, index[name]] = 1.0
+        else:
+            try:
+                ports.check_sensor(name, "output")
+            except UnknownNameError:
+                raise unknown_name("output of a spatial linearisation (sensor port or tangent coordinate)", name,
+                                   sorted(set(states) | set(ports.sensors))) from None
+    if sensed and n:
+        step = 1e-30
+        perturb = 1j * step * np.eye(2 * n)
+        q = retract(model, point.q, perturb[:, :n])
+        v = point.qdot[None, :] + perturb[:, n:]
+        values = complex_sensor_values(model, [names[k] for k in sensed], q, v, point.t)
+        rows[sensed] = (values.imag / step).T
+    return rows
 
 
 def linearize_spatial(model: Any, point: Any = None, *, inputs: Any = None, outputs: Any = None,
-                      allow_nonequilibrium: bool = False) -> LinearizedSystem:
-    """:func:`ctmm.linearize` of a spatial model (module docstring).
+                      allow_nonequilibrium: bool = False, loops: Sequence[Any] = ()) -> LinearizedSystem:
+    """:func:`ctmm.linearize` of a spatial model, closed by the ``loops`` of a ``ControlledModel``
+    (module docstring).
 
     Parameters
     ----------
     model : SpatialModel
     point : optional
-        ``None`` (static equilibrium), ``(q, v)``, ``(q, v, t)``, ``{"q", "v", "t"}`` or an OperatingPoint.
+        ``None`` (static equilibrium of ``model``), ``(q, v)``, ``(q, v, t)``, ``{"q", "v", "t"}`` or an
+        OperatingPoint.
     inputs : str or sequence of str, optional
-        Input components (:func:`input_names`; default all); ``[]`` for none.
+        Input components (:func:`input_names`), actuator ports (``"body.force_x"``, ``"ball.torque_x"``)
+        and ``"<loop>.reference"`` of a loop without delay; default: the input components not driven by
+        a loop; ``[]`` for none.
     outputs : str or sequence of str, optional
-        Tangent coordinates (:func:`tangent_names`) and velocities (``model.velocities``); default the
-        tangent coordinates.
+        Sensor ports (:mod:`ctmm.spatial.ports`), tangent coordinates (:func:`tangent_names`) and
+        velocities, ``"<loop>.y"`` / ``"<loop>.u"`` of a loop without delay; default the tangent coordinates.
     allow_nonequilibrium : bool
         Accept a point that is not an equilibrium (rates of 1-/2-DOF joints, accelerations): the
         tangent at that instant only.
+    loops : sequence of Feedback
+        Loops without delay are closed inside ``A``, delayed loops left open beside it
+        (:func:`ctmm.controlled_linearization.close_model_loops`).
     """
-    import control
+    from .spatial.ports import SpatialPorts
 
     validation.flag("allow_nonequilibrium", allow_nonequilibrium)
+    loops = tuple(loops)
+    refuse_saturation(loops, "ctmm.linearize")
     A, op = tangent(model, operating_point(model, point, allow_nonequilibrium=allow_nonequilibrium))
     n = model.n_velocities
-    available = input_names(model)
-    exo = list(available) if inputs is None else list(validation.names("inputs", inputs)) if inputs else []
+    default_inputs: list[str] = []
+    if inputs is None:
+        actuators = SpatialPorts(model).actuators
+        driven = {(actuators[name].target, actuators[name].component) for name in loop_ports(loops)[0]
+                  if actuators[name].kind == "joint"}
+        default_inputs = [name for name, base, i in _input_components(model) if (base, i) not in driven]
     states = list(tangent_names(model)) + list(model.velocities)
-    index = {name: k for k, name in enumerate(states)}
-    req = list(tangent_names(model)) if outputs is None else (
-        list(validation.names("outputs", outputs)) if outputs else [])
-    C = np.zeros((len(req), 2 * n))
-    for k, name in enumerate(req):
-        if name not in index:
-            raise unknown_name("output of a spatial linearisation (tangent coordinate or velocity)", name, states)
-        C[k, index[name]] = 1.0
-    B = np.vstack([np.zeros((n, len(exo))), input_matrix(model, exo, op)])
-    if not exo and len(req) == 1:
-        raise ModelError(f"linearize: inputs={inputs!r} leaves the linearisation of {model.name!r} with no input and "
-                         f"the one output {req}, a state space python-control cannot hold; name an input or a "
-                         "second output")
-    ss = control.ss(A, B, C, np.zeros((len(req), len(exo))), inputs=[control_name(x) for x in exo],
-                    outputs=[control_name(x) for x in req], states=[control_name(x) for x in states],
-                    name=control_name(model.name))
-    return LinearizedSystem(ss, (), op)
+    return close_model_loops(
+        A, loops, inputs=inputs, outputs=outputs, default_inputs=default_inputs,
+        default_outputs=list(tangent_names(model)),
+        input_columns=lambda names: np.vstack([np.zeros((n, len(names))), input_matrix(model, names, op)]),
+        output_rows=lambda names: output_matrix(model, names, op), states=states, name=model.name, point=op)

@@ -9,7 +9,7 @@ realisation, so the same tools accept
 
 * a :class:`ctmm.linearize.LinearizedSystem` (``state_space`` with the delayed loops left open as
   input ``"<loop>_u"`` and output ``"<loop>_y"``, closed by ``u(t) = -gain y(t - delay)``), and
-* a ``ctmm.control.ControlledModel`` (planar plant + loops): the plant is linearised by
+* a ``ctmm.control.ControlledModel`` (planar or spatial plant + loops): the plant is linearised by
   :func:`ctmm.linearize` about its static (hanging) equilibrium with the loops' actuators as inputs
   and their sensor terms as outputs; the sensor weights stay parameters (a chart over ``kp, kd``).
 

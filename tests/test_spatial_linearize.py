@@ -108,8 +108,10 @@ def test_given_operating_point_and_refusals() -> None:
 
 
 def test_free_body_in_zero_gravity_is_a_double_integrator_in_its_own_axes() -> None:
-    """About a turned pose, a force along the body's x axis moves the tangent coordinate x (child axes
-    at q0) as 1 / (m s^2), a moment about a principal axis turns r_x as 1 / (I_xx s^2)."""
+    """About a turned pose, a force along the body's x axis moves the body along its x axis as
+    1 / (m s^2): the sensed world position ``"base.x|y"`` (a port, not the tangent coordinate of that
+    name) by the first column of the rotation ``R0``; a moment about a principal axis turns r_x as
+    1 / (I_xx s^2)."""
     model = sp.SpatialModel("floating", [sp.SpatialBody("b", 3.0, (0.2, 0.3, 0.4)),
                                          sp.Free(name="base", parent=None, child="b", actuated=True)],
                             gravity=(0, 0, 0))
@@ -118,7 +120,11 @@ def test_free_body_in_zero_gravity_is_a_double_integrator_in_its_own_axes() -> N
     frf = ctmm.frequency_response(model, omega, input=["base.wrench_fx", "base.wrench_mx"],
                                   output=["base.x", "base.y", "base.rx"], operating_point=(turned, np.zeros(6)))
     expected = np.zeros((3, 2, 2), dtype=complex)
-    expected[0, 0] = -1.0 / (3.0 * omega ** 2)
+    w, axis = turned[3], turned[4:]
+    cross = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    rotation = np.eye(3) + 2.0 * w * cross + 2.0 * cross @ cross            # R0 of the unit quaternion
+    expected[0, 0] = -rotation[0, 0] / (3.0 * omega ** 2)
+    expected[1, 0] = -rotation[1, 0] / (3.0 * omega ** 2)
     expected[2, 1] = -1.0 / (0.2 * omega ** 2)
     np.testing.assert_allclose(frf.response, expected, rtol=1e-12, atol=1e-14)
     np.testing.assert_array_equal(ctmm.natural_frequencies(model, n_modes=6), np.zeros(6))

@@ -131,6 +131,29 @@ def test_chain_verbs_refuse_other_models(verb):
         CHAIN_VERBS[verb](planar_model())
 
 
+def spatial_pendulum():
+    import ctmm.spatial as sp
+    from ctmm.control import with_feedback
+
+    plant = sp.SpatialModel("swing", [sp.SpatialBody("b", 1.0, (0.1, 0.1, 0.1), center_of_mass=(0, 0, -0.5)),
+                                      sp.Revolute(name="hinge", parent=None, child="b", axis=(1, 0, 0), actuated=True)])
+    return plant, with_feedback(plant, [Feedback("pd", [("hinge.angle", 5.0), ("hinge.rate", 1.0)], "hinge.torque",
+                                                 gain=1.0, delay=0.01)])
+
+
+@pytest.mark.parametrize("verb", ["simulate_controlled", "steady_state_response", "characteristic_function"])
+def test_chain_verbs_refuse_spatial_models_naming_the_verbs_that_answer_them(verb):
+    """A spatial model and a controlled one are answered by the verbs of every model (the linear ones through
+    the linearisation: tests/test_spatial_controlled_linear.py); the chain-only verbs refuse and name them."""
+    plant, controlled = spatial_pendulum()
+    with pytest.raises(ctmm.ModelError, match=r"got SpatialModel .*ctmm\.linearize, ctmm\.frequency_response.*"
+                                              r"ctmm\.stability with loops"):
+        CHAIN_VERBS[verb](plant)
+    with pytest.raises(ctmm.ModelError, match=r"got ControlledModel .*planar and spatial plants with loops.*"
+                                              r"ctmm\.linearize, ctmm\.frequency_response.*delay_margin"):
+        CHAIN_VERBS[verb](controlled)
+
+
 # ------------------------------------------------------------------------ honoured: loops + loads
 def test_steady_state_of_loaded_controlled_chain_equals_dense_closed_loop_solve():
     """``steady_state_response`` closes every loop (real-time and delayed, exact ``e^{-i w tau}``)

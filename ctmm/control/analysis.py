@@ -360,7 +360,10 @@ def margins(source: Any, loop: str | None = None, omega: Any = None, *, fields: 
                     found.append(x)
         gcs, pcs = sorted(gcs), sorted(pcs)
         if isinstance(source, ControlledModel):
-            notes.append("planar model: L is that of the linearisation about the operating point")
+            from ..spatial.model import SpatialModel
+
+            kind = "spatial" if isinstance(source.plant, SpatialModel) else "planar"
+            notes.append(f"{kind} model: L is that of the linearisation about the operating point")
         if certificate is not None and (wg[0] > 0.0 or wg[-1] < certificate.im_max):
             notes.append(f"stability_margin (min |1 + L|) searched on the grid only, [{wg[0]:.6g}, "
                          f"{wg[-1]:.6g}] rad/s")

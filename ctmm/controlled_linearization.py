@@ -1,0 +1,222 @@
+"""The loops of a ``ControlledModel`` around the linearisation of its plant (planar and spatial).
+
+One function for every plant that :func:`ctmm.linearize` linearises about an operating point
+(:mod:`ctmm.planar_linearization`, :mod:`ctmm.spatial_linearization`): given the plant's tangent
+``A`` (states ``x``, deviations from the operating point) and two maps from port names to the
+columns of ``B`` (actuators) and the rows of ``C`` (sensors), :func:`close_model_loops` builds the
+state space of the controlled model:
+
+* each loop ``u = -C(s) e^{-s tau} (y - r)``, ``y = sum_i c_i sensor_i``, acts through its weighted
+  actuator terms; loops without delay are closed inside ``A`` by the linear fractional
+  transformation of :func:`ctmm.loop_closure.close_loops` (an LTI controller's states appended as
+  ``"<loop>.controller<k>"``);
+* a loop with ``tau > 0`` stays open beside the state space: input ``"<loop>_u"`` (the loop force),
+  output ``"<loop>_y"`` (the weighted sensor sum), :class:`~ctmm.linearized.DelayedLoop`;
+* exogenous inputs are actuator ports (or ``"<loop>.reference"`` of a loop without delay: ``D = -1``
+  on its sensed sum), outputs are sensor ports, ``"<loop>.y"`` (the sensed value) and ``"<loop>.u"``
+  (the loop force, from the closure) of a loop without delay.
+
+The sensed values are deviations from their values at the operating point, so a loop acts on the
+deviation of its sensors (its reference equals the sensed value at the operating point).
+
+:func:`delayed_loop_response` is the frequency-domain side: the response of such a linearisation
+with its delayed loops closed exactly by ``e^{-s tau}`` at every frequency
+(:func:`ctmm.loop_phasors.close_loops`).
+"""
+from __future__ import annotations
+
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from . import validation
+from .errors import ModelError
+from .linearized import DelayedLoop, LinearizedSystem, control_name
+from .loop_closure import close_loops
+from .loop_phasors import close_loops as close_phasor_loops
+
+__all__ = ["loop_ports", "exogenous_inputs", "requested_outputs", "close_model_loops", "controller_response",
+           "delayed_loop_response"]
+
+
+def loop_ports(loops: Sequence[Any]) -> tuple[list[str], list[str]]:
+    """The actuators and the sensors the ``loops`` use (each once, in loop order)."""
+    actuators = list(dict.fromkeys(name for lp in loops for name, _ in lp.actuator_terms))
+    sensors = list(dict.fromkeys(name for lp in loops for name, _ in lp.terms))
+    return actuators, sensors
+
+
+def exogenous_inputs(loops: Sequence[Any], inputs: Any, default: Sequence[str]) -> tuple[list[str], dict[int, int]]:
+    """Requested inputs (``default`` for ``None``, none for ``[]``) and ``{input index: loop index}``
+    of the ``"<loop>.reference"`` among them (refused for a delayed loop)."""
+    if inputs is None:
+        return list(default), {}
+    if isinstance(inputs, (list, tuple)) and not inputs:
+        return [], {}                               # no exogenous input (e.g. for eigenvalues only)
+    exo = list(validation.names("inputs", inputs))
+    index = {lp.name: j for j, lp in enumerate(loops)}
+    references = {}
+    for k, name in enumerate(exo):
+        head, _, tail = name.partition(".")
+        if head in index:
+            if tail != "reference" or loops[index[head]].delay > 0.0:
+                raise ModelError(f"linearize: input {name!r}: the inputs of a loop are '<loop>.reference' of a "
+                                 "loop without delay; a delayed loop is left open (its force is the input "
+                                 "'<loop>_u')")
+            references[k] = index[head]
+    return exo, references
+
+
+def requested_outputs(loops: Sequence[Any], outputs: Any, default: Sequence[str]
+                      ) -> tuple[list[str], dict[int, tuple]]:
+    """Requested outputs (``default`` for ``None``, only the delayed loops' ports for ``[]``) and
+    ``{output index: (loop index, "y" or "u")}`` of the loop signals among them."""
+    if outputs is None:
+        req = list(default)
+    elif isinstance(outputs, (list, tuple)) and not outputs:
+        req = []
+    else:
+        req = list(validation.names("outputs", outputs))
+    index = {lp.name: j for j, lp in enumerate(loops)}
+    loop_outputs = {}
+    for k, name in enumerate(req):
+        head, _, tail = name.partition(".")
+        if head in index and tail in ("y", "u"):
+            if loops[index[head]].delay > 0.0:
+                raise ModelError(f"linearize: output {name!r}: the delayed loop {head!r} is left open, its "
+                                 f"sensed value and force are the ports '{head}_y' and '{head}_u' already")
+            loop_outputs[k] = (index[head], tail)
+    return req, loop_outputs
+
+
+def close_model_loops(A: np.ndarray, loops: Sequence[Any], *, inputs: Any, outputs: Any,
+                      default_inputs: Sequence[str], default_outputs: Sequence[str],
+                      input_columns: Callable[[list[str]], np.ndarray],
+                      output_rows: Callable[[list[str]], np.ndarray],
+                      states: Sequence[str], name: str, point: Any) -> LinearizedSystem:
+    """The :class:`LinearizedSystem` of a plant's tangent ``A`` with ``loops`` (module docstring).
+
+    Parameters
+    ----------
+    A : ndarray, shape (n, n)
+        The plant's tangent (states ``states``).
+    loops : sequence of Feedback
+        The controlled model's loops (port names of the plant).
+    inputs, outputs : as for :func:`ctmm.linearize`
+        ``None`` gives ``default_inputs`` / ``default_outputs``.
+    default_inputs, default_outputs : sequence of str
+        The plant's default exogenous actuator ports and sensed outputs.
+    input_columns : callable
+        Actuator port names -> ``B`` columns ``(n, len(names))``.
+    output_rows : callable
+        Sensor port names -> ``C`` rows ``(len(names), n)``.
+    states : sequence of str
+        Names of the plant's states (controller states are appended).
+    name : str
+        The model's name.
+    point : OperatingPoint
+        Where ``A`` was taken.
+
+    Returns
+    -------
+    LinearizedSystem
+    """
+    import control
+
+    exo, references = exogenous_inputs(loops, inputs, default_inputs)
+    req, loop_outputs = requested_outputs(loops, outputs, default_outputs)
+    loop_actuators, loop_sensors = loop_ports(loops)
+    plant_in = list(dict.fromkeys([x for k, x in enumerate(exo) if k not in references] + loop_actuators))
+    plant_out = list(dict.fromkeys([x for k, x in enumerate(req) if k not in loop_outputs] + loop_sensors))
+    col = {port: k for k, port in enumerate(plant_in)}
+    row = {port: k for k, port in enumerate(plant_out)}
+    # plant ports -> [exogenous inputs, one force per loop], [requested outputs, one sensed sum per loop]
+    S_in = np.zeros((len(plant_in), len(exo) + len(loops)))
+    S_out = np.zeros((len(req) + len(loops), len(plant_out)))
+    for k, port in enumerate(exo):
+        if k not in references:
+            S_in[col[port], k] = 1.0
+    for k, port in enumerate(req):
+        if k not in loop_outputs:
+            S_out[k, row[port]] = 1.0
+        elif loop_outputs[k][1] == "y":             # the sensed value (not y - r)
+            for sensor, weight in loops[loop_outputs[k][0]].terms:
+                S_out[k, row[sensor]] += weight
+    for j, lp in enumerate(loops):
+        for port, weight in lp.actuator_terms:
+            S_in[col[port], len(exo) + j] += weight
+        for port, weight in lp.terms:
+            S_out[len(req) + j, row[port]] += weight
+    n = A.shape[0]
+    B = np.asarray(input_columns(plant_in), dtype=float).reshape(n, len(plant_in)) @ S_in
+    C = S_out @ np.asarray(output_rows(plant_out), dtype=float).reshape(len(plant_out), n)
+    D = np.zeros((C.shape[0], B.shape[1]))
+    for k, j in references.items():
+        D[len(req) + j, k] = -1.0                   # the loop acts on y - r
+    A_cl, B_cl, C_cl, D_cl, sizes, C_u, D_u = close_loops((A, B, C, D), loops, len(exo))
+    real_time = [lp for lp in loops if lp.delay == 0.0]
+    for k, (j, part) in loop_outputs.items():
+        if part == "u":                             # the loop force, from the closure
+            C_cl[k], D_cl[k] = C_u[real_time.index(loops[j])], D_u[real_time.index(loops[j])]
+    delayed = [lp for lp in loops if lp.delay > 0.0]
+    all_states = list(states) + [f"{lp.name}.controller{k}" for lp, size in zip(real_time, sizes)
+                                 for k in range(size)]
+    labels_in = [control_name(x) for x in exo] + [control_name(f"{lp.name}.u") for lp in delayed]
+    labels_out = [control_name(x) for x in req] + [control_name(f"{lp.name}.y") for lp in delayed]
+    if not labels_in and len(labels_out) == 1:
+        raise ModelError(f"linearize: inputs={inputs!r} leaves the linearisation of {name!r} with no input and "
+                         f"the one output {req + [lp.name for lp in delayed]}, a state space python-control cannot "
+                         "hold (its D would be 1 x 0); name an input (an actuator or '<loop>.reference'), a "
+                         "second output, or leave inputs=None")
+    ss = control.ss(A_cl, B_cl, C_cl, D_cl, inputs=labels_in, outputs=labels_out,
+                    states=[control_name(x) for x in all_states], name=control_name(name))
+    return LinearizedSystem(ss, tuple(DelayedLoop(lp.name, lp.gain, lp.delay) for lp in delayed), point)
+
+
+def controller_response(gain: Any, s: np.ndarray) -> np.ndarray:
+    """``C(s)`` of a loop's gain at ``s``: a python-control LTI evaluated, or the static gain."""
+    if callable(gain):                                  # a python-control LTI C(s)
+        return np.asarray(gain(s), dtype=complex).reshape(s.shape)
+    return np.full(s.shape, float(gain), dtype=complex)
+
+
+def delayed_loop_response(linearize: Callable[[list[str], list[str]], LinearizedSystem], loops: Sequence[Any],
+                          s: np.ndarray, inputs: Sequence[str], outputs: Sequence[str],
+                          solve: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> tuple[np.ndarray, Any]:
+    """Response ``[i_out, i_in, k]`` of a controlled model's linearisation, delayed loops closed exactly.
+
+    Parameters
+    ----------
+    linearize : callable
+        ``(inputs, outputs) -> LinearizedSystem`` of the model with its ``loops`` (delayed loops open).
+    loops : sequence of Feedback
+    s : ndarray
+        Laplace variables ``i omega``.
+    inputs, outputs : sequence of str
+        Requested ports, ``"<loop>.reference"``, ``"<loop>.y"``, ``"<loop>.u"`` of any loop.
+    solve : callable
+        ``(A, B) -> (s I - A)^-1 B`` batched over ``s`` (the caller's refusal of singular frequencies).
+
+    Returns
+    -------
+    response : ndarray, shape (len(outputs), len(inputs), len(s))
+    linearized : LinearizedSystem
+    """
+    delayed = {lp.name: j for j, lp in enumerate(lp for lp in loops if lp.delay > 0.0)}
+
+    def delayed_signal(name: str, parts: tuple) -> tuple | None:
+        head, _, tail = name.partition(".")
+        return (delayed[head], tail) if head in delayed and tail in parts else None
+
+    lin_in = [x for x in inputs if delayed_signal(x, ("reference",)) is None]
+    lin_out = [x for x in outputs if delayed_signal(x, ("y", "u")) is None]
+    lin = linearize(lin_in, lin_out)
+    ss = lin.state_space
+    A, B, C, D = (np.asarray(m, dtype=float) for m in (ss.A, ss.B, ss.C, ss.D))
+    G = C @ solve(A, B) + D                         # (frequencies, lin_out + delayed y, lin_in + delayed u)
+    n_i, n_o, n_d = len(lin_in), len(lin_out), len(delayed)
+    blocks = (G[:, :n_o, :n_i], G[:, :n_o, n_i:], G[:, n_o:, :n_i], G[:, n_o:, n_i:])
+    K = np.zeros((s.size, n_d, n_d), dtype=complex)
+    for j, loop in enumerate(lin.delays):
+        K[:, j, j] = controller_response(loop.gain, s) * np.exp(-s * loop.delay)
+    return close_phasor_loops(blocks, K, inputs, outputs, lin_in, lin_out, delayed_signal), lin
