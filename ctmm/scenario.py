@@ -25,7 +25,7 @@ import tempfile
 import time
 from pathlib import Path
 from types import ModuleType
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -213,7 +213,8 @@ def _remove_dead_staging(output_dir: Path, name: str) -> None:
             shutil.rmtree(folder, ignore_errors=True)
 
 
-def run_scenario(name: str, output_dir: str | Path = "results", *, quick: bool = False) -> dict:
+def run_scenario(name: str, output_dir: str | Path = "results", *, quick: bool = False,
+                 write_results: Callable[..., dict] | None = None) -> dict:
     """Run scenario ``name`` and write its PNG(s) and ``<output_dir>/<name>.json`` atomically.
 
     Parameters
@@ -224,6 +225,11 @@ def run_scenario(name: str, output_dir: str | Path = "results", *, quick: bool =
         Output folder (created if needed).
     quick : bool
         Run the short version.
+    write_results : callable, optional
+        ``write_results(results, folder, name, provenance=...) -> dict`` writes the runs the scenario
+        returns under ``"results"`` (``{label: result}``) into the run's folder, e.g. HDF5 files and
+        animations (``ctmm run --save --animate``: :func:`ctmm.scene_files_run.write_results`); its
+        answer is added to the JSON. ``"results"`` itself never enters the JSON.
 
     Returns
     -------
@@ -257,7 +263,11 @@ def run_scenario(name: str, output_dir: str | Path = "results", *, quick: bool =
             if not isinstance(summary, dict):
                 raise ModelError(f"scenario {name!r}: run() must return a dict, got {type(summary).__name__}")
             summary = dict(summary, total_wall_time_s=time.perf_counter() - started)
+            results = summary.pop("results", {})
             figures = _accuracy_figures(name, summary)
+            if write_results is not None:
+                summary.update(write_results(results, staging, name, provenance={
+                    "scenario": name, "quick": quick, "accuracy": figures}))
             summary.setdefault("scenario", name)
             summary["quick"] = quick
             summary["passed"] = all(f["passed"] for f in figures)

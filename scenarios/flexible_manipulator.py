@@ -84,6 +84,7 @@ class _Run:
     voltages: np.ndarray
     wall_time_s: float
     info: dict
+    result: object = None          # the SimulationResult (ctmm run --save / --animate)
 
     @property
     def peak_voltage(self) -> float:
@@ -99,7 +100,7 @@ def _simulate_scene(arm, pd: HubPD, law, t_final: float, store_every: int, metho
     patches = [patch.name for patch in arm.patches] if law is not None else []
     voltages = np.column_stack([result[f"{name}.u"] for name in patches]) if patches else np.zeros((len(q), 0))
     return _Run(result.time, result["hub.theta"], np.array([SEED_MOVE.angle(t) for t in result.time]),
-                tip_deflection(scene.plant, q, "arm"), voltages, result.info["wall_time_s"], result.info)
+                tip_deflection(scene.plant, q, "arm"), voltages, result.info["wall_time_s"], result.info, result)
 
 
 def _tip_per_desired_angle(scene, pd: HubPD, omega: np.ndarray) -> np.ndarray:
@@ -250,6 +251,7 @@ def run(output_dir: Path, quick: bool = False) -> dict:
             "Lagrange, DOP853 rtol 1e-11 (1e-10 quick)",
             source="docs/manipulator.md: real-time target, tip error << 0.1 % of the peak")],
         "errors": errors,
+        "results": {label.replace(" ", ""): s.result for label, s in sims.items()},   # --save / --animate, not in JSON
         "wall_time_s": wall,
         "real_time_factor": float(simulated / wall),
         "reference_wall_time_s": ref_wall,

@@ -111,6 +111,7 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     save_figure(fig, output_dir, NAME)
     return {
         "accuracy": angle_accuracy(t_rk4, err_rk4, "over both links, PD-motor arm, h = 1 ms, DOP853 1e-12 reference"),
+        "results": {"rk4": rk4, "driven_hub": sim_d},    # ctmm run --save / --animate (not in the JSON)
         "angle_max_error_whole_run_rad": float(err_rk4.max()),
         "newmark_max_error": float(err_nm.max()),
         "newton_iterations_mean": newmark.info["newton_iterations_mean"],

@@ -86,6 +86,7 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     save_figure(fig, output_dir, NAME)
     return {
         "accuracy": angle_accuracy(rk4.time, err_rk4, "over the links, h = 1 ms, reference DOP853 rtol = atol = 1e-12"),
+        "results": {"rk4": rk4, "newmark": newmark},     # ctmm run --save / --animate (not in the JSON)
         "angle_max_error_whole_run_rad": float(err_rk4.max()),
         "newmark_max_error": float(err_nm.max()),
         "newmark_ladder_at_1s": ladder,

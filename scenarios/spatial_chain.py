@@ -81,6 +81,6 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     axes[2].bar(["ctmm RK4", "ctmm DOP853", f"reference RK4 (h/{runs['refinement']})"], walls)
     axes[2].set(ylabel="wall time [s]")
     save_figure(fig, output_dir, NAME)
-    return scenario_summary(runs, len(MASSES) - 1, "link 4", {"masses_kg": MASSES, "lengths_m": LENGTHS,
-                            "dt_s": runs["dt"], "t_final_s": runs["t_final"], "q0": q0, "v0": v0,
-                            "gravity_m_s2": 9.81})
+    return dict(scenario_summary(runs, len(MASSES) - 1, "link 4", {"masses_kg": MASSES, "lengths_m": LENGTHS,
+                                 "dt_s": runs["dt"], "t_final_s": runs["t_final"], "q0": q0, "v0": v0,
+                                 "gravity_m_s2": 9.81}), results={"rk4": runs["rk4"]})   # ctmm run --save / --animate

@@ -78,6 +78,7 @@ def run(output_dir: Path, quick: bool = False) -> dict:
         x_dt = np.column_stack([sim[f"{n}.x"] for n in names])
         x_modal = np.column_stack([modal[n] for n in names])
         results[reading] = (sim.time, exact, x_dt, x_modal)
+        summary.setdefault("results", {})[f"reading_{reading}"] = sim     # ctmm run --save (not in the JSON)
         summary[f"reading_{reading}"] = {
             "dt_tmm_max_error_m": float(np.max(np.abs(x_dt - exact))),
             "linear_mstmm_max_error_m": float(np.max(np.abs(x_modal - exact))),
