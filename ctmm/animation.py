@@ -235,6 +235,8 @@ def animate(result: Any, path: str | os.PathLike, *, frames: int | None = 60, fp
                          "(install ffmpeg, e.g. apt-get install ffmpeg, or write a .gif)")
     if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not 0 < fps < 1000:
         raise ModelError(f"fps must be a number of pictures per second in (0, 1000), got {fps!r}")
+    if isinstance(dpi, bool) or not isinstance(dpi, (int, np.integer)) or not 10 <= dpi <= 1000:
+        raise ModelError(f"dpi must be an integer resolution in [10, 1000] dots per inch, got {dpi!r}")
     model = _model(result)
     drawn = mechanism_frames(result, frame_rows(len(result.time), frames), stations=stations,
                              exaggeration=exaggeration)

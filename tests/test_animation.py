@@ -124,3 +124,18 @@ def test_frame_rows_spread_evenly():
     assert frame_rows(11, 3).tolist() == [0, 5, 10]
     assert frame_rows(2, 5).tolist() == [0, 1]
     assert frame_rows(4, None).tolist() == [0, 1, 2, 3]
+
+
+def test_write_results_animates_a_spatial_run_without_stored_points(tmp_path):
+    from ctmm.scene_files_run import write_results
+
+    _, spatial = _run("spatial_chain", t_final=0.01)
+    chain = load_scene(FILES / "table7_1.toml")
+    written = write_results({"rk4": spatial, "chain": ctmm.simulate(chain.system, 0.01, 1e-3)}, tmp_path, "demo",
+                            save=False, animate=True, frames=2)
+    assert written == {"saved": [], "animations": ["demo_rk4.gif"], "notes": []}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["demo_rk4.gif"]
+    with pytest.raises(ModelError, match="dpi must be an integer"):
+        spatial.animate(tmp_path / "x.gif", dpi=0)
+    assert write_results({}, tmp_path, "none", save=True, animate=True)["notes"] == [
+        "'none' returns no time history or response to save", "'none' returns no planar or spatial run to animate"]

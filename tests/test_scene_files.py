@@ -212,3 +212,17 @@ def test_docs_hold_the_generated_schema():
     assert block, "docs/scene_files.md lacks the schema markers"
     assert block.group(1) == schema.schema_markdown(), ("docs/scene_files.md is out of date: paste "
                                                         "ctmm.scene_files_schema.schema_markdown() between the markers")
+
+
+def test_stability_chart_study_matches_the_python_call(tmp_path):
+    loop = '\n[[loops]]\ntype = "Feedback"\nname = "pd"\nsensor = "m.x"\nactuator = "m"\ngain = 1.0\ndelay = 0.1\n'
+    study = ('verb = "stability_chart"\nx = ["gain", { type = "linspace", start = -50.0, stop = 150.0, num = 6 }]\n'
+             'y = ["delay", { type = "linspace", start = 0.0, stop = 0.5, num = 5 }]')
+    text = CHAIN.replace("[study]", loop + "\n[study]").replace('verb = "natural_frequencies"\nn_modes = 1', study)
+    text = text.replace('type = "Spring"', 'type = "SpringDamper"').replace("stiffness = 100.0",
+                                                                          "stiffness = 100.0\ndamping = 2.0")
+    scene = load_scene(_write(tmp_path, text))
+    chart = scene.run()
+    from ctmm.stability import stability_chart
+    expected = stability_chart(scene.system, ("gain", np.linspace(-50.0, 150.0, 6)), ("delay", np.linspace(0.0, 0.5, 5)))
+    assert np.array_equal(chart.stable, expected.stable) and chart.stable.any() and not chart.stable.all()
