@@ -25,8 +25,10 @@
 Every table with a ``type`` calls the Python constructor of that name with the other keys
 (:mod:`ctmm.scene_files_schema` derives the allowed types and keys from the code); ``[study]``
 calls the verb with the system first. Inline tables ``{type = "Harmonic", ...}`` build values
-(time signals, grids, transfer functions) and ``{python = "module:attribute"}`` names a Python
-object (e.g. a reference motion ``f(t)``) imported from an installed module. A mistake is a
+(time signals, grids, transfer functions), ``{python = "module:attribute"}`` names a Python
+object (e.g. a reference motion ``f(t)``) imported from an installed module and
+``{call = "module:attribute", ...}`` calls one with the other keys (checked against its
+signature). A mistake is a
 :class:`SceneError` naming the file, the line, the table and the key, and what is allowed.
 ``docs/scene_files.md`` is the reference.
 """
@@ -224,8 +226,14 @@ class _Reader:
             return value
         if "python" in value:
             if set(value) != {"python"}:
-                raise self.fail(where, f"a {{python = ...}} value takes no other key, got {sorted(value)}")
+                raise self.fail(where, f"a {{python = ...}} value takes no other key (to call it with keys use "
+                                f"{{call = ...}}), got {sorted(value)}")
             return self.python(value["python"], where + ("python",))
+        if "call" in value:
+            target = self.python(value["call"], where + ("call",))
+            if not callable(target):
+                raise self.fail(where + ("call",), f"{value['call']!r} is not callable")
+            return self.call(schema.constructor(str(value["call"]), target), value, where, skip=("call",))
         if "type" in value:
             return self.typed(value, where, {**schema.value_types(), **self.types}, "value")
         return {key: self.value(item, where + (key,)) for key, item in value.items()}

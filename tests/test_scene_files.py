@@ -65,6 +65,27 @@ def test_shipped_file_builds_the_scenario_system_with_the_same_numbers(name):
     assert np.ptp(from_file[from_file.time_signals()[0]]) > 0        # the run moved: not a vacuous match
 
 
+def test_flagship_file_builds_the_manipulator_scene_with_the_same_numbers():
+    from ctmm.manipulator import (SEED_KD, SEED_KP, SEED_MOVE, SEED_PZT_GAIN, HubPD, PZTFeedback, manipulator_scene,
+                                  scene_references, seed_manipulator)
+
+    scene = load_scene(FILES / "flexible_manipulator.toml")
+    arm, pd = seed_manipulator(), HubPD(SEED_KP, SEED_KD)
+    system = manipulator_scene(arm, pd=pd, pzt=PZTFeedback.per_patch([SEED_PZT_GAIN] * arm.n_patches))
+    assert repr(scene.system) == repr(system)
+    assert [repr(e) for e in scene.plant.elements] == [repr(e) for e in system.plant.elements]
+    assert [(loop.name, loop.terms, loop.actuator_terms, loop.gain, loop.delay) for loop in scene.system.loops] == \
+        [(loop.name, loop.terms, loop.actuator_terms, loop.gain, loop.delay) for loop in system.loops]
+    scene.arguments = _short(scene, 0.1)
+    from_file = scene.run()
+    from_python = ctmm.simulate(system, 0.1, 0.002, method="rk4", store_every=5, outputs=["arm.tip.w"],
+                                references=scene_references(pd, SEED_MOVE))
+    assert from_file.signals() == from_python.signals()
+    for signal in from_python.time_signals():
+        assert np.array_equal(from_file[signal], from_python[signal]), signal
+    assert np.abs(from_file["arm.tip.w"]).max() > 1e-4
+
+
 def test_scene_run_equals_the_scenario_run():
     """``Scene.run`` is the verb with the file's arguments (here shortened): same numbers as the scenario."""
     scene = load_scene(FILES / "pendulum_chain.toml")
@@ -143,6 +164,11 @@ def test_small_scene_runs_natural_frequencies(tmp_path):
      ["unknown value type 'Harmonc'", "Harmonic"]),
     ("mass = 1.0", 'mass = 1.0\nforce = { python = "ctmm.signals:nothing_here" }', 18,
      "system.elements[2].force.python", ["cannot be imported"]),
+    ("mass = 1.0", 'mass = 1.0\nforce = { call = "ctmm.signals:Harmonic", amplitud = 1.0, omega = 2.0 }', 18,
+     "system.elements[2].force.amplitud", ["unknown key 'amplitud' of ctmm.signals:Harmonic",
+                                           "allowed keys: amplitude, omega, phase"]),
+    ("mass = 1.0", 'mass = 1.0\nforce = { call = "ctmm.version:__version__", x = 1 }', 18,
+     "system.elements[2].force.call", ["'ctmm.version:__version__' is not callable"]),
 ])
 def test_mistakes_name_line_key_and_allowed_values(tmp_path, old, new, line, key, words):
     assert old in CHAIN
