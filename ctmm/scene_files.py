@@ -59,7 +59,7 @@ OUTPUT_KEYS = {"plot": "signal names drawn by `ctmm run` (default: the coordinat
                "description": "one line shown by `ctmm run` and written into the JSON"}
 """Keys of the optional ``[output]`` table."""
 
-Path_ = tuple  # a key path in the file: ("system", "elements", 2, "mass")
+KeyPath = tuple  # where a key is in the file: ("system", "elements", 2, "mass")
 
 
 class SceneError(ModelError):
@@ -121,15 +121,15 @@ def _code(line: str) -> str:
     return "".join(out)
 
 
-def key_lines(text: str) -> dict[Path_, int]:
+def key_lines(text: str) -> dict[KeyPath, int]:
     """Line (1-based) of every table header and top-level key of a TOML text, by key path.
 
     Arrays of tables are indexed (``("system", "elements", 0)``); keys inside inline tables or
     multi-line arrays are found through their enclosing key.
     """
-    lines: dict[Path_, int] = {}
-    counts: dict[Path_, int] = {}
-    table: Path_ = ()
+    lines: dict[KeyPath, int] = {}
+    counts: dict[KeyPath, int] = {}
+    table: KeyPath = ()
     depth = 0
     for number, raw in enumerate(text.splitlines(), 1):
         code = _code(raw)
@@ -138,7 +138,7 @@ def key_lines(text: str) -> dict[Path_, int]:
             array = stripped.startswith("[[")
             inner = raw.strip()[2:raw.strip().index("]]")] if array else raw.strip()[1:raw.strip().index("]")]
             parts = _split_key(inner)
-            path: Path_ = ()
+            path: KeyPath = ()
             for n, part in enumerate(parts):
                 path += (part,)
                 if path in counts and n < len(parts) - 1:      # inside the latest table of an array
@@ -156,7 +156,7 @@ def key_lines(text: str) -> dict[Path_, int]:
     return lines
 
 
-def _dotted(path: Path_) -> str:
+def _dotted(path: KeyPath) -> str:
     text = ""
     for part in path:
         text += f"[{part}]" if isinstance(part, int) else (f".{part}" if text else str(part))
@@ -168,16 +168,17 @@ class _Reader:
     """Builds objects from the parsed file, raising :class:`SceneError` with line and key."""
 
     path: str
-    lines: dict[Path_, int]
+    lines: dict[KeyPath, int]
     types: dict[str, schema.Constructor] = field(default_factory=dict)
+    values: dict[str, schema.Constructor] = field(default_factory=schema.value_types)
 
-    def fail(self, where: Path_, message: str) -> SceneError:
+    def fail(self, where: KeyPath, message: str) -> SceneError:
         probe = tuple(where)
         while probe and probe not in self.lines:
             probe = probe[:-1]
         return SceneError(message, path=self.path, line=self.lines.get(probe), key=_dotted(where))
 
-    def call(self, item: schema.Constructor, table: dict, where: Path_, skip: tuple[str, ...] = ("type",),
+    def call(self, item: schema.Constructor, table: dict, where: KeyPath, skip: tuple[str, ...] = ("type",),
              extra: dict | None = None) -> Any:
         """Call ``item`` with the keys of ``table`` (checked against its parameters)."""
         keys = item.keys()
@@ -204,12 +205,12 @@ class _Reader:
             raise self.fail(where, f"{item.name}: {type(exc).__name__}: {exc}") from exc
 
     @staticmethod
-    def _named_key(where: Path_, table: dict, message: str) -> Path_:
+    def _named_key(where: KeyPath, table: dict, message: str) -> KeyPath:
         """The key a constructor's message names (when exactly one key of the table is named), else the table."""
         named = [key for key in table if key not in ("type", "name") and re.search(rf"\b{re.escape(key)}\b", message)]
         return where + (named[0],) if len(named) == 1 else where
 
-    def typed(self, table: dict, where: Path_, types: dict[str, schema.Constructor], what: str) -> Any:
+    def typed(self, table: dict, where: KeyPath, types: dict[str, schema.Constructor], what: str) -> Any:
         """Build the object of a table with a ``type`` key from ``types``."""
         kind = table.get("type")
         if kind is None:
@@ -218,7 +219,7 @@ class _Reader:
             raise self.fail(where + ("type",), f"unknown {what} type {kind!r}; allowed types: {', '.join(types)}")
         return self.call(types[kind], table, where)
 
-    def value(self, value: Any, where: Path_) -> Any:
+    def value(self, value: Any, where: KeyPath) -> Any:
         """A key's value: inline tables with ``type`` or ``python`` built, lists element by element."""
         if isinstance(value, list):
             return [self.value(item, where + (index,)) for index, item in enumerate(value)]
@@ -235,10 +236,10 @@ class _Reader:
                 raise self.fail(where + ("call",), f"{value['call']!r} is not callable")
             return self.call(schema.constructor(str(value["call"]), target), value, where, skip=("call",))
         if "type" in value:
-            return self.typed(value, where, {**schema.value_types(), **self.types}, "value")
+            return self.typed(value, where, {**self.values, **self.types}, "value")
         return {key: self.value(item, where + (key,)) for key, item in value.items()}
 
-    def python(self, reference: Any, where: Path_) -> Any:
+    def python(self, reference: Any, where: KeyPath) -> Any:
         module, _, attribute = str(reference).partition(":")
         if not module or not attribute:
             raise self.fail(where, f"python reference must be 'module:attribute', got {reference!r}")

@@ -11,6 +11,7 @@
 from __future__ import annotations
 
 import copy
+import json
 import os
 import re
 import shutil
@@ -190,11 +191,14 @@ def run_scene_file(path: str | os.PathLike, output_dir: str | os.PathLike = "res
     SceneError
         The file cannot be read or built (line and key named).
     ModelError, SimulationError
-        From the study; nothing of the run is left behind.
+        From the study; nothing of the run is left behind, and the outputs of an earlier run of the
+        same scene (its JSON and the files it lists) are removed. A successful run replaces them:
+        the old JSON first, the new files, then files of the old run not written again, the JSON last.
     """
     scene = load_scene(path)
     output = check_output_folder(output_dir)
     staging = Path(tempfile.mkdtemp(dir=output, prefix=f".{scene.name}-{os.getpid()}-"))
+    earlier = _earlier_outputs(output, scene.name)
     try:
         arguments = quick_arguments(scene) if quick else scene.arguments
         started = time.perf_counter()
@@ -212,9 +216,32 @@ def run_scene_file(path: str | os.PathLike, output_dir: str | os.PathLike = "res
                    "results": _key_numbers(scene, result), "ctmm_version": __version__, **files}
         summary["figures"] = figures + files["saved"] + files["animations"]
         write_json_atomic(staging / f"{scene.name}.json", summary)
+    except Exception:
+        _remove(earlier)                   # the folder never shows a result this run did not produce
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    try:
+        _remove(earlier[:1])               # old JSON out first, new files in, new JSON last
         for name in summary["figures"]:
             os.replace(staging / name, output / name)
+        _remove([p for p in earlier[1:] if p.name not in summary["figures"]])
         os.replace(staging / f"{scene.name}.json", output / f"{scene.name}.json")
     finally:
         shutil.rmtree(staging, ignore_errors=True)
     return summary
+
+
+def _earlier_outputs(output: Path, name: str) -> list[Path]:
+    """``<name>.json`` of an earlier run and the files it lists (first the JSON)."""
+    record = output / f"{name}.json"
+    try:
+        listed = json.loads(record.read_text()).get("figures", [])
+    except (OSError, ValueError, AttributeError):
+        return [record] if record.is_file() else []
+    files = [output / str(f) for f in listed if isinstance(f, str) and (output / f).parent == output]
+    return [record] + [f for f in files if f.is_file()]
+
+
+def _remove(paths: list[Path]) -> None:
+    for path in paths:
+        path.unlink(missing_ok=True)

@@ -104,3 +104,17 @@ def test_scene_file_errors_are_one_line(tmp_path, capsys):
     assert f"{scene}, line 13, key 'system.elements[1].lenght': unknown key 'lenght'" in error
     assert main(["run", str(tmp_path / "missing.toml")]) == 2
     assert "scene file" in capsys.readouterr().err
+
+
+def test_scene_rerun_replaces_and_a_failed_run_removes_earlier_outputs(tmp_path, capsys):
+    scene = tmp_path / "pendulum.toml"
+    scene.write_text(PENDULUM)
+    out = tmp_path / "out"
+    assert main(["run", str(scene), "--save", "--output", str(out)]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["pendulum.h5", "pendulum.json", "pendulum.png"]
+    assert main(["run", str(scene), "--output", str(out)]) == 0          # without --save: the old .h5 goes
+    assert sorted(p.name for p in out.iterdir()) == ["pendulum.json", "pendulum.png"]
+    scene.write_text(PENDULUM.replace("t_final = 0.01", "t_final = -1.0"))
+    assert main(["run", str(scene), "--output", str(out)]) == 1
+    assert "t_final" in capsys.readouterr().err
+    assert list(out.iterdir()) == []
