@@ -234,7 +234,12 @@ class _Reader:
             target = self.python(value["call"], where + ("call",))
             if not callable(target):
                 raise self.fail(where + ("call",), f"{value['call']!r} is not callable")
-            return self.call(schema.constructor(str(value["call"]), target), value, where, skip=("call",))
+            try:
+                item = schema.constructor(str(value["call"]), target)
+            except (TypeError, ValueError):    # no inspectable signature (some builtins)
+                raise self.fail(where + ("call",), f"{value['call']!r} has no signature to check keys against; "
+                                "call a Python function or class") from None
+            return self.call(item, value, where, skip=("call",))
         if "type" in value:
             return self.typed(value, where, {**self.values, **self.types}, "value")
         return {key: self.value(item, where + (key,)) for key, item in value.items()}
