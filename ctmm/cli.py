@@ -186,10 +186,11 @@ def _run_one(name: str, output: str, quick: bool, save: bool, animate: bool) -> 
 
     if name.lower().endswith(".toml"):
         return run_scene_file(name, output, quick=quick, save=save, animate=animate)
-    writer = None
-    if save or animate:
-        def writer(results, folder, scenario_name, provenance):
-            return write_results(results, folder, scenario_name, save=save, animate=animate, provenance=provenance)
+    if not (save or animate):
+        return scenario.run_scenario(name, output, quick=quick)
+
+    def writer(results, folder, scenario_name, provenance):
+        return write_results(results, folder, scenario_name, save=save, animate=animate, provenance=provenance)
     return scenario.run_scenario(name, output, quick=quick, write_results=writer)
 
 

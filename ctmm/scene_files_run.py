@@ -4,9 +4,10 @@
   study, ``<scene>.json`` (system, study, arguments, wall time, the result's key numbers), and with
   ``save`` the whole result as ``<scene>.h5`` (``ctmm.results.load`` reads it), with ``animate``
   ``<scene>.gif``. Files are written to a staging folder first and moved into place, the JSON last.
-* :func:`write_results` writes the runs a scenario returns under ``"results"`` (``{label: result}``)
-  as ``<scenario>_<label>.h5`` (``save``) and ``<scenario>_<label>.gif`` (``animate``), the provenance
-  (scenario, ctmm version, accuracy figures) added to each file's ``info``.
+* :func:`write_results` writes the runs a scenario hands over in its ``results`` argument
+  (``{label: result}``, :mod:`ctmm.scenario`) as ``<scenario>_<label>.h5`` (``save``) and
+  ``<scenario>_<label>.gif`` (``animate``), the provenance (scenario, ctmm version, accuracy
+  figures) added to each file's ``info``.
 """
 from __future__ import annotations
 

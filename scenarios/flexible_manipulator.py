@@ -126,7 +126,7 @@ def _error(sim, ref) -> dict:
             "voltage_error_V": float(np.abs(sim.voltages - ref.voltages).max()) if sim.voltages.size else 0.0}
 
 
-def run(output_dir: Path, quick: bool = False) -> dict:
+def run(output_dir: Path, quick: bool = False, results: dict | None = None) -> dict:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -243,6 +243,8 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     if "dt_tmm_newmark" in extra:
         max_error = max(max_error, extra["dt_tmm_newmark"]["tip_error_percent_of_peak"])
     simulated = sum(s.t[-1] for s in sims.values())
+    if results is not None:                      # ctmm run --save / --animate
+        results.update({label.replace(" ", ""): s.result for label, s in sims.items()})
     return {
         "accuracy": [accuracy(
             "tip deflection error vs Lagrange", float(max_error), "% of peak", 0.1,
@@ -251,7 +253,6 @@ def run(output_dir: Path, quick: bool = False) -> dict:
             "Lagrange, DOP853 rtol 1e-11 (1e-10 quick)",
             source="docs/manipulator.md: real-time target, tip error << 0.1 % of the peak")],
         "errors": errors,
-        "results": {label.replace(" ", ""): s.result for label, s in sims.items()},   # --save / --animate, not in JSON
         "wall_time_s": wall,
         "real_time_factor": float(simulated / wall),
         "reference_wall_time_s": ref_wall,
