@@ -11,10 +11,11 @@ from .frequency import (characteristic_function, eigenvalue_count, frequency_res
 from .system import Chain
 from .linearize import LinearizedSystem, linearize
 from .simulation import simulate
+from .scene_files import load_scene
 from .version import __version__
 
 from . import control, stability  # noqa: E402  (submodules used as ctmm.control / ctmm.stability)
 
 __all__ = ["Chain", "simulate", "linearize", "LinearizedSystem", "characteristic_function", "frequency_response", "natural_frequencies", "mode_shapes", "eigenvalue_count",
            "steady_state_response", "signals", "ModelError", "SimulationError", "ConvergenceError",
-           "SingularSystemError", "UnknownNameError", "control", "stability", "__version__"]
+           "SingularSystemError", "UnknownNameError", "control", "stability", "__version__", "load_scene"]

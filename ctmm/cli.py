@@ -1,4 +1,10 @@
-"""Command line: ``ctmm list``, ``ctmm run NAME... [--quick] [--output DIR] [--debug]``, ``ctmm --version``.
+"""Command line: ``ctmm list``, ``ctmm run NAME|FILE.toml... [--quick] [--save] [--animate] [--output DIR]
+[--debug]``, ``ctmm --version``.
+
+``NAME`` is a scenario (``ctmm list``); a path ending in ``.toml`` is a scene file
+(:mod:`ctmm.scene_files`). ``--save`` also writes the runs as HDF5 result files, ``--animate`` the
+planar and spatial runs as GIF animations (:mod:`ctmm.scene_files_run`). With several runs on a
+terminal a progress bar counts them (:mod:`ctmm.progress`; quiet in pipes and CI).
 
 Exit status: 0 when every scenario ran and met its accuracy bounds; 1 when a scenario failed
 (it raised, or an accuracy figure exceeded its bound); 2 for a usage error (unknown scenario,
@@ -13,10 +19,12 @@ import sys
 import time
 import traceback
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Iterator, Sequence
 
 from . import __version__, scenario
 from .errors import ModelError, SimulationError
+from .progress import progress_bar
 
 EXIT_FAILED = 1
 EXIT_USAGE = 2
@@ -45,9 +53,11 @@ def summary_line(name: str, summary: dict) -> str:
         parts.append(f"TMM wall time {summary['wall_time_s']:.3g} s")
     if isinstance(summary.get("reference_wall_time_s"), (int, float)):
         parts.append(f"reference {summary['reference_wall_time_s']:.3g} s")
-    for png in summary.get("figures", []):
-        parts.append(f"plot {png}")
-    return " | ".join(parts)
+    kinds = {".h5": "data", ".gif": "animation", ".mp4": "animation"}
+    for file_name in summary.get("figures", []):
+        parts.append(f"{kinds.get(Path(file_name).suffix, 'plot')} {file_name}")
+    parts += [f"note: {note}" for note in summary.get("notes", [])]
+    return " | ".join(p for p in parts if p)
 
 
 def failure_text(name: str, exc: BaseException) -> str:
@@ -90,10 +100,13 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"ctmm {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     sub.add_parser("list", help="list the scenarios")
-    run = sub.add_parser("run", help="run scenarios and write PNG + JSON")
-    run.add_argument("names", nargs="+", metavar="NAME", help="scenario name(s) or 'all'")
+    run = sub.add_parser("run", help="run scenarios or scene files and write PNG + JSON")
+    run.add_argument("names", nargs="+", metavar="NAME", help="scenario name(s), 'all', or scene files (.toml)")
     run.add_argument("--output", default="results", help="output folder (default: results)")
     run.add_argument("--quick", action="store_true", help="shorter version (smoke test)")
+    run.add_argument("--save", action="store_true", help="also write the time histories / responses as HDF5 "
+                     "(read back with ctmm.results.load)")
+    run.add_argument("--animate", action="store_true", help="also write GIF animations of planar and spatial runs")
     run.add_argument("--debug", action="store_true", help="print Python tracebacks of failures")
     return parser
 
@@ -106,7 +119,7 @@ def _list() -> int:
     return 0
 
 
-def _run(names: list[str], output: str, quick: bool, debug: bool) -> int:
+def _run(names: list[str], output: str, quick: bool, debug: bool, save: bool = False, animate: bool = False) -> int:
     known = scenario.available()
     broken = scenario.broken()
     rows = []
@@ -116,7 +129,12 @@ def _run(names: list[str], output: str, quick: bool, debug: bool) -> int:
         for name, error in broken.items():          # reported, and the run goes on
             _error(f"scenario module {name!r} cannot be imported: {error}")
             rows.append((name, "FAIL", f"cannot be imported: {error}", 0.0))
-    unknown = [n for n in names if n not in known]
+    missing_files = [n for n in names if n.lower().endswith(".toml") and not Path(n).is_file()]
+    for name in missing_files:
+        _error(f"scene file {name!r} does not exist")
+    unknown = [n for n in names if n not in known and not n.lower().endswith(".toml")]
+    if missing_files and not unknown:
+        return EXIT_USAGE
     if unknown:
         for name in unknown:
             if name in broken:
@@ -129,11 +147,13 @@ def _run(names: list[str], output: str, quick: bool, debug: bool) -> int:
     except ModelError as exc:
         _error(str(exc))
         return EXIT_USAGE
+    bar = progress_bar(len(names), "runs", min_total=2)
     for name in names:
         started = time.perf_counter()
         try:
-            summary = scenario.run_scenario(name, output, quick=quick)
+            summary = _run_one(name, output, quick, save, animate)
         except KeyboardInterrupt:
+            bar.close()
             _error(f"scenario {name!r} interrupted; its earlier results (if any) are unchanged, "
                    "scenarios after it did not run")
             if rows:
@@ -145,16 +165,33 @@ def _run(names: list[str], output: str, quick: bool, debug: bool) -> int:
             text = failure_text(name, exc)
             _error(text)
             rows.append((name, "FAIL", text, time.perf_counter() - started))
+            bar.update()
             continue
+        bar.update()
         print(summary_line(name, summary))
         rows.append((name, "pass" if summary["passed"] else "FAIL",
                      accuracy_text(summary["accuracy"]), time.perf_counter() - started))
         if not summary["passed"]:
             _error(f"scenario {name!r} failed: an accuracy figure exceeds its bound "
                    f"({accuracy_text([f for f in summary['accuracy'] if not f['passed']])})")
+    bar.close()
     if len(rows) > 1:
         print(_table(rows))
     return 0 if all(r[1] == "pass" for r in rows) else EXIT_FAILED
+
+
+def _run_one(name: str, output: str, quick: bool, save: bool, animate: bool) -> dict:
+    """One scenario or scene file (``.toml``), with its HDF5 files / animations on request."""
+    from .scene_files_run import run_scene_file, write_results
+
+    if name.lower().endswith(".toml"):
+        return run_scene_file(name, output, quick=quick, save=save, animate=animate)
+    if not (save or animate):
+        return scenario.run_scenario(name, output, quick=quick)
+
+    def writer(results, folder, scenario_name, provenance):
+        return write_results(results, folder, scenario_name, save=save, animate=animate, provenance=provenance)
+    return scenario.run_scenario(name, output, quick=quick, write_results=writer)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -163,7 +200,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command == "list":
         return _list()
     with _terminate_as_interrupt():
-        return _run(args.names, args.output, args.quick, args.debug)
+        return _run(args.names, args.output, args.quick, args.debug, args.save, args.animate)
 
 
 @contextmanager

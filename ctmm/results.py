@@ -378,23 +378,25 @@ class SimulationResult:
         shared = len(set(units)) == 1
         for n, unit in zip(names, units):
             ax.plot(self.time, self[n], label=n if shared else unit_label(n, unit))
-        if shared and names:
-            ax.set_ylabel(unit_label(", ".join(names), units[0]))
-        else:
-            ax.set_ylabel(", ".join(unit_label(n, u) for n, u in zip(names, units)))
+        ax.set_ylabel(unit_label(", ".join(names), units[0]) if shared
+                      else ", ".join(unit_label(n, u) for n, u in zip(names, units)))
         ax.set_xlabel("time [s]")
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8)
         return fig
 
+    def animate(self, path: str | os.PathLike, **options: Any) -> Path:
+        """Animate a planar or spatial run into a GIF or MP4 file (:func:`ctmm.animation.animate`, its options)."""
+        from .animation import animate
+        return animate(self, path, **options)
+
     def save(self, path: str | os.PathLike, signals: Sequence[str] | None = None) -> Path:
         """Save the whole result to an HDF5 file, written atomically (temporary file + ``os.replace``).
 
-        Stored: time [s], the raw ``states``/``velocity``/``acceleration`` arrays with the map from
-        every signal name to them, signals by name with their unit (``/signals/<name>``), the
-        system's element parameters, and the provenance (ctmm version, creation time (UTC), system
-        name, scheme, :attr:`info`: dt, wall time, error figures, failure time of a partial
-        result). The format is described in ``docs/results.md``; read it back with :func:`load`.
+        Stored: time [s], the raw ``states``/``velocity``/``acceleration`` arrays with the map from every signal name
+        to them, signals by name with their unit (``/signals/<name>``), the system's element parameters, and the
+        provenance (ctmm version, creation time (UTC), system name, scheme, :attr:`info`: dt, wall time, error
+        figures, failure time of a partial result). Format: ``docs/results.md``; :func:`load` reads it back.
 
         Parameters
         ----------
@@ -432,8 +434,7 @@ class SimulationResult:
             "time": (np.asarray(self.time), {"unit": "s"}),
             "states": (np.asarray(self.states), {"axes": ["time", "point", "component"]}),
             "velocity": (np.asarray(self.velocity), {"axes": ["time", "point", "displacement component"]}),
-            "acceleration": (np.asarray(self.acceleration),
-                             {"axes": ["time", "point", "displacement component"]}),
+            "acceleration": (np.asarray(self.acceleration), {"axes": ["time", "point", "displacement component"]}),
         }
         for name in stored:
             values = np.asarray(self[name])

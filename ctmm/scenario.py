@@ -4,7 +4,10 @@ A scenario is a module of the ``scenarios/`` folder (installed as ``ctmm.scenari
 defines ``NAME: str``, ``DESCRIPTION: str`` and ``run(output_dir: Path, quick: bool = False)
 -> dict``.  ``run`` writes its PNG(s) into ``output_dir`` and returns a JSON-serialisable
 summary containing ``"accuracy"`` (a list of figures made by :func:`accuracy`: name, value,
-unit, definition and the scenario's own bound) and ``"wall_time_s"``.
+unit, definition and the scenario's own bound) and ``"wall_time_s"``.  A scenario whose ``run``
+also takes ``results: dict | None = None`` puts its runs there (``results[label] = result``, a
+``SimulationResult`` or ``FrequencyResponse``) when given a dict: ``ctmm run NAME --save / --animate``
+writes them (:func:`run_scenario`, ``write_results``); the summary stays JSON-serialisable.
 
 :func:`run_scenario` runs a scenario in a private staging folder inside the output folder and
 only then moves its files into place, each by ``os.replace`` (atomic on one file system), the
@@ -16,6 +19,7 @@ too, so the folder never shows a result the current code did not produce.
 from __future__ import annotations
 
 import importlib
+import inspect
 import json
 import math
 import os
@@ -25,7 +29,7 @@ import tempfile
 import time
 from pathlib import Path
 from types import ModuleType
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -213,7 +217,8 @@ def _remove_dead_staging(output_dir: Path, name: str) -> None:
             shutil.rmtree(folder, ignore_errors=True)
 
 
-def run_scenario(name: str, output_dir: str | Path = "results", *, quick: bool = False) -> dict:
+def run_scenario(name: str, output_dir: str | Path = "results", *, quick: bool = False,
+                 write_results: Callable[..., dict] | None = None) -> dict:
     """Run scenario ``name`` and write its PNG(s) and ``<output_dir>/<name>.json`` atomically.
 
     Parameters
@@ -224,6 +229,11 @@ def run_scenario(name: str, output_dir: str | Path = "results", *, quick: bool =
         Output folder (created if needed).
     quick : bool
         Run the short version.
+    write_results : callable, optional
+        ``write_results(results, folder, name, provenance=...) -> dict`` writes the runs the scenario
+        put into its ``results`` argument (``{label: result}``; see the module docstring) into the
+        run's folder, e.g. HDF5 files and animations (``ctmm run --save --animate``:
+        :func:`ctmm.scene_files_run.write_results`); its answer is added to the JSON.
 
     Returns
     -------
@@ -253,11 +263,18 @@ def run_scenario(name: str, output_dir: str | Path = "results", *, quick: bool =
     try:
         try:
             started = time.perf_counter()
-            summary = scenarios[name].run(staging, quick=quick)
+            results: dict = {}
+            if write_results is not None and "results" in inspect.signature(scenarios[name].run).parameters:
+                summary = scenarios[name].run(staging, quick=quick, results=results)
+            else:
+                summary = scenarios[name].run(staging, quick=quick)
             if not isinstance(summary, dict):
                 raise ModelError(f"scenario {name!r}: run() must return a dict, got {type(summary).__name__}")
             summary = dict(summary, total_wall_time_s=time.perf_counter() - started)
             figures = _accuracy_figures(name, summary)
+            if write_results is not None:
+                summary.update(write_results(results, staging, name, provenance={
+                    "scenario": name, "quick": quick, "accuracy": figures}))
             summary.setdefault("scenario", name)
             summary["quick"] = quick
             summary["passed"] = all(f["passed"] for f in figures)

@@ -84,6 +84,7 @@ class _Run:
     voltages: np.ndarray
     wall_time_s: float
     info: dict
+    result: object = None          # the SimulationResult (ctmm run --save / --animate)
 
     @property
     def peak_voltage(self) -> float:
@@ -99,7 +100,7 @@ def _simulate_scene(arm, pd: HubPD, law, t_final: float, store_every: int, metho
     patches = [patch.name for patch in arm.patches] if law is not None else []
     voltages = np.column_stack([result[f"{name}.u"] for name in patches]) if patches else np.zeros((len(q), 0))
     return _Run(result.time, result["hub.theta"], np.array([SEED_MOVE.angle(t) for t in result.time]),
-                tip_deflection(scene.plant, q, "arm"), voltages, result.info["wall_time_s"], result.info)
+                tip_deflection(scene.plant, q, "arm"), voltages, result.info["wall_time_s"], result.info, result)
 
 
 def _tip_per_desired_angle(scene, pd: HubPD, omega: np.ndarray) -> np.ndarray:
@@ -125,7 +126,7 @@ def _error(sim, ref) -> dict:
             "voltage_error_V": float(np.abs(sim.voltages - ref.voltages).max()) if sim.voltages.size else 0.0}
 
 
-def run(output_dir: Path, quick: bool = False) -> dict:
+def run(output_dir: Path, quick: bool = False, results: dict | None = None) -> dict:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -242,6 +243,8 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     if "dt_tmm_newmark" in extra:
         max_error = max(max_error, extra["dt_tmm_newmark"]["tip_error_percent_of_peak"])
     simulated = sum(s.t[-1] for s in sims.values())
+    if results is not None:                      # ctmm run --save / --animate
+        results.update({label.replace(" ", ""): s.result for label, s in sims.items()})
     return {
         "accuracy": [accuracy(
             "tip deflection error vs Lagrange", float(max_error), "% of peak", 0.1,

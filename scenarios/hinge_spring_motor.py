@@ -52,7 +52,7 @@ def arm(hub) -> PlanarModel:
     return PlanarModel.chain("arm", [Fixed("ground"), hub, upper, elbow, fore])
 
 
-def run(output_dir: Path, quick: bool = False) -> dict:
+def run(output_dir: Path, quick: bool = False, results: dict | None = None) -> dict:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -109,6 +109,8 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     axes[1].legend(fontsize="small")
     plot_angle_errors(axes[2], rk4, err_rk4, newmark, err_nm, "max angle error vs Lagrange [rad]")
     save_figure(fig, output_dir, NAME)
+    if results is not None:                      # ctmm run --save / --animate
+        results.update(rk4=rk4, driven_hub=sim_d)
     return {
         "accuracy": angle_accuracy(t_rk4, err_rk4, "over both links, PD-motor arm, h = 1 ms, DOP853 1e-12 reference"),
         "angle_max_error_whole_run_rad": float(err_rk4.max()),

@@ -39,7 +39,7 @@ def model(damping: float = 0.3) -> PlanarModel:
         RigidBody("b3", mass=0.5, inertia=0.03, center_of_mass=(0.35, -0.02), outboard=(0.6, 0.0))])
 
 
-def run(output_dir: Path, quick: bool = False) -> dict:
+def run(output_dir: Path, quick: bool = False, results: dict | None = None) -> dict:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -84,6 +84,8 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     axes[2].set(xlabel="t [s]", ylabel="E(t) - E(0) [J]")
     axes[2].legend(fontsize="small")
     save_figure(fig, output_dir, NAME)
+    if results is not None:                      # ctmm run --save / --animate
+        results.update(rk4=rk4, newmark=newmark)
     return {
         "accuracy": angle_accuracy(rk4.time, err_rk4, "over the links, h = 1 ms, reference DOP853 rtol = atol = 1e-12"),
         "angle_max_error_whole_run_rad": float(err_rk4.max()),

@@ -57,7 +57,7 @@ def initial_state() -> tuple[np.ndarray, np.ndarray]:
     return q0, v0
 
 
-def run(output_dir: Path, quick: bool = False) -> dict:
+def run(output_dir: Path, quick: bool = False, results: dict | None = None) -> dict:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -81,6 +81,8 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     axes[2].bar(["ctmm RK4", "ctmm DOP853", f"reference RK4 (h/{runs['refinement']})"], walls)
     axes[2].set(ylabel="wall time [s]")
     save_figure(fig, output_dir, NAME)
+    if results is not None:                      # ctmm run --save / --animate
+        results.update(rk4=runs["rk4"])
     return scenario_summary(runs, len(MASSES) - 1, "link 4", {"masses_kg": MASSES, "lengths_m": LENGTHS,
                             "dt_s": runs["dt"], "t_final_s": runs["t_final"], "q0": q0, "v0": v0,
                             "gravity_m_s2": 9.81})

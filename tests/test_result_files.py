@@ -195,7 +195,7 @@ def test_docs_examples_run(tmp_path, monkeypatch):
     matplotlib.use("Agg")
     text = (Path(__file__).resolve().parents[1] / "docs" / "results.md").read_text()
     blocks = re.findall(r"```python\n(.*?)```", text, flags=re.S)
-    assert len(blocks) == 3
+    assert len(blocks) == 4
     monkeypatch.chdir(tmp_path)
     namespace: dict = {}
     for block in blocks:

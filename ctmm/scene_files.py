@@ -1,0 +1,392 @@
+"""Scene files: a system, its feedback loops and its study in one TOML file (``ctmm run scene.toml``).
+
+::
+
+    [system]
+    kind = "planar_chain"          # chain | planar | planar_chain | spatial
+    name = "pendulum"
+    gravity = [0.0, -9.81]
+
+    [[system.elements]]
+    type = "Pinned"
+    name = "o"
+
+    [[system.elements]]
+    type = "RigidBody.uniform_link"
+    name = "link"
+    mass = 1.0
+    length = 0.5
+
+    [study]
+    verb = "simulate"
+    t_final = 1.0
+    dt = 0.001
+
+Every table with a ``type`` calls the Python constructor of that name with the other keys
+(:mod:`ctmm.scene_files_schema` derives the allowed types and keys from the code); ``[study]``
+calls the verb with the system first. Inline tables ``{type = "Harmonic", ...}`` build values
+(time signals, grids, transfer functions), ``{python = "module:attribute"}`` names a Python
+object (e.g. a reference motion ``f(t)``) imported from an installed module and
+``{call = "module:attribute", ...}`` calls one with the other keys (checked against its
+signature). A mistake is a
+:class:`SceneError` naming the file, the line, the table and the key, and what is allowed.
+``docs/scene_files.md`` is the reference.
+"""
+from __future__ import annotations
+
+import importlib
+import os
+import re
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from . import scene_files_schema as schema
+from .errors import ModelError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - python 3.10
+    import tomli as tomllib
+
+__all__ = ["Scene", "SceneError", "load_scene", "key_lines", "TOP_LEVEL_TABLES", "OUTPUT_KEYS"]
+
+TOP_LEVEL_TABLES = ("system", "loops", "study", "output")
+"""Tables of a scene file: ``[system]`` (required), ``[[loops]]``, ``[study]`` (required), ``[output]``."""
+
+OUTPUT_KEYS = {"plot": "signal names drawn by `ctmm run` (default: the coordinates or the first 6 signals)",
+               "description": "one line shown by `ctmm run` and written into the JSON"}
+"""Keys of the optional ``[output]`` table."""
+
+KeyPath = tuple  # where a key is in the file: ("system", "elements", 2, "mass")
+
+
+class SceneError(ModelError):
+    """A scene file that cannot be read or built: names the file, line, table and key.
+
+    Attributes
+    ----------
+    path : str
+        The scene file.
+    line : int or None
+        Line of the offending key or table (1-based), if known.
+    key : str
+        Dotted key path, e.g. ``"system.elements[2].mass"``.
+    """
+
+    def __init__(self, message: str, *, path: str = "", line: int | None = None, key: str = "") -> None:
+        where = ", ".join(part for part in (path, f"line {line}" if line else "", f"key {key!r}" if key else "") if part)
+        super().__init__(f"{where}: {message}" if where else message)
+        self.path, self.line, self.key = path, line, key
+
+
+# ------------------------------------------------------------------------------------------------
+# where every key is: TOML parsers keep no line numbers, so the file is scanned once more
+# ------------------------------------------------------------------------------------------------
+_BARE = re.compile(r"[A-Za-z0-9_-]+")
+
+
+def _split_key(text: str) -> list[str]:
+    parts, text = [], text.strip()
+    while text:
+        if text[0] in "\"'":
+            end = text.index(text[0], 1)
+            parts.append(text[1:end])
+            text = text[end + 1:].strip()
+        else:
+            match = _BARE.match(text)
+            if not match:
+                return parts
+            parts.append(match.group())
+            text = text[match.end():].strip()
+        text = text[1:].strip() if text.startswith(".") else ""
+    return parts
+
+
+def _code(line: str) -> str:
+    """The line without its comment and with string contents blanked (brackets in strings do not count)."""
+    out, quote = [], ""
+    for char in line:
+        if quote:
+            out.append(char if char == quote else "_")
+            quote = "" if char == quote else quote
+        elif char in "\"'":
+            quote = char
+            out.append(char)
+        elif char == "#":
+            break
+        else:
+            out.append(char)
+    return "".join(out)
+
+
+def key_lines(text: str) -> dict[KeyPath, int]:
+    """Line (1-based) of every table header and top-level key of a TOML text, by key path.
+
+    Arrays of tables are indexed (``("system", "elements", 0)``); keys inside inline tables or
+    multi-line arrays are found through their enclosing key.
+    """
+    lines: dict[KeyPath, int] = {}
+    counts: dict[KeyPath, int] = {}
+    table: KeyPath = ()
+    depth = 0
+    for number, raw in enumerate(text.splitlines(), 1):
+        code = _code(raw)
+        stripped = code.strip()
+        if depth == 0 and stripped.startswith("["):
+            array = stripped.startswith("[[")
+            inner = raw.strip()[2:raw.strip().index("]]")] if array else raw.strip()[1:raw.strip().index("]")]
+            parts = _split_key(inner)
+            path: KeyPath = ()
+            for n, part in enumerate(parts):
+                path += (part,)
+                if path in counts and n < len(parts) - 1:      # inside the latest table of an array
+                    path += (counts[path],)
+            if array:
+                counts[path] = counts.get(path, -1) + 1
+                path += (counts[path],)
+            table = path
+            lines.setdefault(table, number)
+            continue
+        if depth == 0 and "=" in code:
+            lines.setdefault(table + tuple(_split_key(raw[:code.index("=")])), number)
+        depth += code.count("[") + code.count("{") - code.count("]") - code.count("}")
+        depth = max(depth, 0)
+    return lines
+
+
+def _dotted(path: KeyPath) -> str:
+    text = ""
+    for part in path:
+        text += f"[{part}]" if isinstance(part, int) else (f".{part}" if text else str(part))
+    return text
+
+
+@dataclass
+class _Reader:
+    """Builds objects from the parsed file, raising :class:`SceneError` with line and key."""
+
+    path: str
+    lines: dict[KeyPath, int]
+    types: dict[str, schema.Constructor] = field(default_factory=dict)
+    values: dict[str, schema.Constructor] = field(default_factory=schema.value_types)
+
+    def fail(self, where: KeyPath, message: str) -> SceneError:
+        probe = tuple(where)
+        while probe and probe not in self.lines:
+            probe = probe[:-1]
+        return SceneError(message, path=self.path, line=self.lines.get(probe), key=_dotted(where))
+
+    def call(self, item: schema.Constructor, table: dict, where: KeyPath, skip: tuple[str, ...] = ("type",),
+             extra: dict | None = None) -> Any:
+        """Call ``item`` with the keys of ``table`` (checked against its parameters)."""
+        keys = item.keys()
+        arguments = dict(extra or {})
+        for key, value in table.items():
+            if key in skip:
+                continue
+            if key not in keys and not item.open:
+                raise self.fail(where + (key,), f"unknown key {key!r} of {item.name}; allowed keys: "
+                                f"{', '.join(keys)}")
+            arguments[key] = self.value(value, where + (key,))
+        missing = [key for key in item.required() if key not in arguments]
+        if missing:
+            raise self.fail(where, f"{item.name} needs the key(s) {', '.join(missing)} (allowed keys: "
+                            f"{', '.join(keys)})")
+        for parameter in item.parameters:           # TOML has no null: a left-out key that admits None
+            if parameter.required and parameter.name not in arguments:
+                arguments[parameter.name] = None
+        try:
+            return item.target(**arguments)
+        except ModelError as exc:
+            raise self.fail(self._named_key(where, table, str(exc)), f"{item.name}: {exc}") from exc
+        except (TypeError, ValueError) as exc:
+            raise self.fail(where, f"{item.name}: {type(exc).__name__}: {exc}") from exc
+
+    @staticmethod
+    def _named_key(where: KeyPath, table: dict, message: str) -> KeyPath:
+        """The key a constructor's message names (when exactly one key of the table is named), else the table."""
+        named = [key for key in table if key not in ("type", "name") and re.search(rf"\b{re.escape(key)}\b", message)]
+        return where + (named[0],) if len(named) == 1 else where
+
+    def typed(self, table: dict, where: KeyPath, types: dict[str, schema.Constructor], what: str) -> Any:
+        """Build the object of a table with a ``type`` key from ``types``."""
+        kind = table.get("type")
+        if kind is None:
+            raise self.fail(where, f"{what} needs a key 'type'; allowed types: {', '.join(types)}")
+        if kind not in types:
+            raise self.fail(where + ("type",), f"unknown {what} type {kind!r}; allowed types: {', '.join(types)}")
+        return self.call(types[kind], table, where)
+
+    def value(self, value: Any, where: KeyPath) -> Any:
+        """A key's value: inline tables with ``type`` or ``python`` built, lists element by element."""
+        if isinstance(value, list):
+            return [self.value(item, where + (index,)) for index, item in enumerate(value)]
+        if not isinstance(value, dict):
+            return value
+        if "python" in value:
+            if set(value) != {"python"}:
+                raise self.fail(where, f"a {{python = ...}} value takes no other key (to call it with keys use "
+                                f"{{call = ...}}), got {sorted(value)}")
+            return self.python(value["python"], where + ("python",))
+        if "call" in value:
+            target = self.python(value["call"], where + ("call",))
+            if not callable(target):
+                raise self.fail(where + ("call",), f"{value['call']!r} is not callable")
+            try:
+                item = schema.constructor(str(value["call"]), target)
+            except (TypeError, ValueError):    # no inspectable signature (some builtins)
+                raise self.fail(where + ("call",), f"{value['call']!r} has no signature to check keys against; "
+                                "call a Python function or class") from None
+            return self.call(item, value, where, skip=("call",))
+        if "type" in value:
+            return self.typed(value, where, {**self.values, **self.types}, "value")
+        return {key: self.value(item, where + (key,)) for key, item in value.items()}
+
+    def python(self, reference: Any, where: KeyPath) -> Any:
+        module, _, attribute = str(reference).partition(":")
+        if not module or not attribute:
+            raise self.fail(where, f"python reference must be 'module:attribute', got {reference!r}")
+        try:
+            target: Any = importlib.import_module(module)
+            for part in attribute.split("."):
+                target = getattr(target, part)
+        except (ImportError, AttributeError) as exc:
+            raise self.fail(where, f"python reference {reference!r} cannot be imported: {exc}") from None
+        return target
+
+
+@dataclass
+class Scene:
+    """A loaded scene file.
+
+    Attributes
+    ----------
+    path : Path
+        The file.
+    name : str
+        The scene name (the file name without ``.toml``): names the outputs of ``ctmm run``.
+    system : object
+        The model (``Chain``, ``PlanarModel``, ``SpatialModel``), with its loops closed
+        (``ctmm.control.with_feedback``) when the file has ``[[loops]]``.
+    plant : object
+        The model without loops.
+    verb : str
+        The study (``"simulate"``, ``"frequency_response"``, ``"natural_frequencies"``, ``"stability_chart"``).
+    arguments : dict
+        The study's keyword arguments, built.
+    output : dict
+        The ``[output]`` table (``plot``, ``description``).
+    """
+
+    path: Path
+    name: str
+    system: Any
+    plant: Any
+    verb: str
+    arguments: dict
+    output: dict
+
+    def run(self) -> Any:
+        """Run the study: ``verb(system, **arguments)`` (a ``SimulationResult``, ``FrequencyResponse`` ...)."""
+        return schema.verb(self.verb).target(self.system, **self.arguments)
+
+
+def _check_table(reader: _Reader, data: dict, key: str, want: type, required: bool) -> Any:
+    value = data.get(key)
+    if value is None:
+        if required:
+            raise reader.fail((), f"a scene file needs a [{key}] table")
+        return want()
+    if not isinstance(value, want):
+        shape = "[[loops]] tables (an array of tables)" if want is list else f"a [{key}] table"
+        raise reader.fail((key,), f"{key!r} must be {shape}, got {type(value).__name__}")
+    return value
+
+
+def _system(reader: _Reader, table: dict) -> Any:
+    kind = table.get("kind")
+    if kind not in schema.SYSTEM_KINDS:
+        where = ("system", "kind") if "kind" in table else ("system",)
+        raise reader.fail(where, f"[system] kind must be one of {', '.join(schema.SYSTEM_KINDS)}, got {kind!r}")
+    reader.types = schema.element_types(kind)
+    elements = table.get("elements")
+    if not isinstance(elements, list) or not elements or not all(isinstance(e, dict) for e in elements):
+        raise reader.fail(("system",), "[system] needs its elements as [[system.elements]] tables, each with a "
+                          f"'type' ({', '.join(reader.types)})")
+    built = [reader.typed(element, ("system", "elements", i), reader.types, f"{kind} element")
+             for i, element in enumerate(elements)]
+    return reader.call(schema.system_constructor(kind), table, ("system",), skip=("kind", "elements"),
+                       extra={"elements": built})
+
+
+def load_scene(path: str | os.PathLike) -> Scene:
+    """Read, check and build a scene file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A TOML file (``.toml``) with ``[system]``, optional ``[[loops]]``, ``[study]`` and optional
+        ``[output]`` (``docs/scene_files.md``).
+
+    Returns
+    -------
+    Scene
+        The built system and study; :meth:`Scene.run` runs it.
+
+    Raises
+    ------
+    SceneError
+        No such file, not TOML (the parser's line and column), or a table, key or value that is not
+        allowed: the message names the file, the line, the key and the allowed values; a
+        constructor's own :class:`~ctmm.errors.ModelError` is passed on with the line and key of its table.
+    """
+    source = Path(path)
+    if source.suffix.lower() != ".toml":
+        raise SceneError(f"a scene file is TOML and its name must end with .toml, got {str(source)!r}")
+    try:
+        text = source.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise SceneError(f"cannot read the scene file: {exc.strerror or exc}", path=str(source)) from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"not valid TOML: {exc}", path=str(source)) from None
+    reader = _Reader(str(source), key_lines(text))
+    for key in data:
+        if key not in TOP_LEVEL_TABLES:
+            raise reader.fail((key,), f"unknown table {key!r}; allowed: {', '.join(TOP_LEVEL_TABLES)}")
+    system_table = _check_table(reader, data, "system", dict, True)
+    loops_tables = _check_table(reader, data, "loops", list, False)
+    study = _check_table(reader, data, "study", dict, True)
+    output = _check_table(reader, data, "output", dict, False)
+    plant = _system(reader, system_table)
+    system = plant
+    if loops_tables:
+        from .control import with_feedback
+
+        loops = [reader.typed(loop, ("loops", i), schema.loop_types(), "loop") for i, loop in enumerate(loops_tables)]
+        try:
+            system = with_feedback(plant, loops)
+        except ModelError as exc:
+            raise reader.fail(("loops",), f"the loops cannot be closed on the system: {exc}") from exc
+    verb = study.get("verb")
+    if verb not in schema.VERBS:
+        where = ("study", "verb") if "verb" in study else ("study",)
+        raise reader.fail(where, f"[study] verb must be one of {', '.join(schema.VERBS)}, got {verb!r}")
+    item = schema.verb(verb)
+    arguments = {}
+    for key, value in study.items():
+        if key == "verb":
+            continue
+        if key not in item.keys() and not item.open:
+            raise reader.fail(("study", key), f"unknown key {key!r} of {verb}; allowed keys: {', '.join(item.keys())}")
+        arguments[key] = reader.value(value, ("study", key))
+    missing = [key for key in item.required() if key not in arguments]
+    if missing:
+        raise reader.fail(("study",), f"{verb} needs the key(s) {', '.join(missing)}")
+    for key in output:
+        if key not in OUTPUT_KEYS:
+            raise reader.fail(("output", key), f"unknown key {key!r} of [output]; allowed keys: {', '.join(OUTPUT_KEYS)}")
+    return Scene(source, source.stem, system, plant, verb, arguments, dict(output))
