@@ -83,6 +83,9 @@ _XZ_SIGNS = np.array([1.0, -1.0, 1.0, -1.0])
 #: Largest dimensionless wave number (bending ``beta``, axial / torsional ``k L``, tension
 #: ``sqrt(|T|/EI) L``) of a piece made by :meth:`SpatialBeamField.subdivide`.
 SUBDIVISION_LIMIT = 4.0
+#: Largest wave number for which :meth:`SpatialBeamField.transfer_matrix` answers: the Riccati
+#: transfer through one field loses about ``e^beta eps`` (2e-9 at 16); longer fields must be split.
+MAX_WAVE_NUMBER = 16.0
 
 
 def rotation_matrix_check(name: str, rotation: Any) -> np.ndarray:
@@ -278,7 +281,26 @@ class SpatialBeamField(Element):
 
     # -- frequency domain --------------------------------------------------------------
     def transfer_matrix(self, s: Any) -> np.ndarray:
-        """Exact ``U(s) = expm(A(s) L)`` in chain axes, shape ``np.shape(s) + (12, 12)``."""
+        """The exact field matrix (:meth:`field_matrix`) for the chain solvers, shape ``np.shape(s) + (12, 12)``.
+
+        Raises
+        ------
+        ModelError
+            When a wave number at ``max |s|`` exceeds :data:`MAX_WAVE_NUMBER`: a solver would lose
+            ``e^beta eps`` through this one field (a wrong answer); split the beam
+            (``*beam.split(beam.pieces_for(omega_max))``).  The counting verbs subdivide by
+            themselves (:meth:`subdivide`).
+        """
+        s = laplace_array(s)
+        largest = float(np.max(np.abs(s), initial=0.0))
+        if max(self._wave_numbers(largest)) > MAX_WAVE_NUMBER:
+            raise ModelError(f"{self.name}: at |s| = {largest:.6g} 1/s the field's wave number is "
+                             f"{max(self._wave_numbers(largest)):.3g} > {MAX_WAVE_NUMBER} (a transfer through it "
+                             f"loses e^beta eps); split the beam: *{self.name}.split({self.pieces_for(largest)})")
+        return self.field_matrix(s)
+
+    def field_matrix(self, s: Any) -> np.ndarray:
+        """Exact ``U(s) = expm(A(s) L)`` in chain axes, shape ``np.shape(s) + (12, 12)`` (any size)."""
         s = laplace_array(s)
         factor = self.stiffness_factor(s)
         L = self.length
@@ -308,6 +330,12 @@ class SpatialBeamField(Element):
                     for stiffness in (self.bending_stiffness_y, self.bending_stiffness_z)]
         return numbers
 
+    def pieces_for(self, omega_max: float, *, limit: float = SUBDIVISION_LIMIT) -> int:
+        """Number of equal pieces that keep every wave number ``<= limit`` up to ``omega_max`` [rad/s]."""
+        omega_max = validation.nonnegative("omega_max", omega_max)
+        limit = validation.positive("limit", limit)
+        return max(1, math.ceil(max(self._wave_numbers(omega_max)) / limit))
+
     def split(self, pieces: int) -> tuple["SpatialBeamField", ...]:
         """``pieces`` equal segments ``"<name>_1" ...`` whose product equals this field."""
         pieces = validation.integer(f"{self.name}: pieces", pieces, minimum=1)
@@ -317,8 +345,7 @@ class SpatialBeamField(Element):
 
     def subdivide(self, omega_max: float) -> list["SpatialBeamField"]:
         """Equal pieces with every wave number ``<= SUBDIVISION_LIMIT`` up to ``omega_max`` [rad/s]."""
-        omega_max = validation.nonnegative("omega_max", omega_max)
-        pieces = max(1, math.ceil(max(self._wave_numbers(omega_max)) / SUBDIVISION_LIMIT))
+        pieces = self.pieces_for(omega_max)
         if pieces == 1:
             return [self]
         return [self.split(pieces)[0]] * pieces   # one object: solvers evaluate its matrix once

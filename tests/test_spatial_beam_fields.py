@@ -71,7 +71,7 @@ def test_field_matrix_equals_expm_of_the_system_matrix(s):
                              bending_stiffness_z=400.0, mass_per_length=2.0, polar_inertia_per_length=0.01,
                              axial_force=120.0, loss_factor=0.02, kelvin_voigt_time=1e-4, viscous_damping=0.3,
                              torsional_damping=0.01, rotation=Rotation.from_euler("zyx", [0.3, -0.5, 1.1]).as_matrix())
-    U = field.transfer_matrix(np.array([s]))[0]
+    U = field.field_matrix(np.array([s]))[0]
     reference = scipy.linalg.expm(field.state_matrix(s) * field.length)
     scale = np.abs(reference).max(axis=1, keepdims=True) * np.abs(reference).max(axis=0, keepdims=True)
     assert np.max(np.abs(U - reference) / np.sqrt(scale)) < 1e-11
@@ -81,14 +81,14 @@ def test_field_matrix_is_symplectic_and_pieces_multiply_to_the_whole():
     """Reciprocity (U^T J U = J in the work-conjugate pairs) and U(L) = U(L/3)^3 (compression too)."""
     field = beam("b", 1.7, tension=-40.0, rotation=TURN)
     s = np.array([77j, 2300j])
-    U = field.transfer_matrix(s).real
+    U = field.field_matrix(s).real
     J = np.block([[np.zeros((6, 6)), np.eye(6)], [-np.eye(6), np.zeros((6, 6))]])
     for Uk in U:
         lhs = Uk.T @ J @ Uk
         assert np.max(np.abs(lhs - J) / (np.abs(Uk).T @ np.abs(J) @ np.abs(Uk) + 1.0)) < 1e-12
-    piece = field.split(3)[0].transfer_matrix(s)
+    piece = field.split(3)[0].field_matrix(s)
     product = piece @ piece @ piece
-    np.testing.assert_allclose(product, field.transfer_matrix(s), rtol=0, atol=1e-10 * np.abs(product).max())
+    np.testing.assert_allclose(product, field.field_matrix(s), rtol=0, atol=1e-10 * np.abs(product).max())
 
 
 # ----------------------------------------------------------------------------------------------
@@ -120,10 +120,39 @@ def test_modes_beyond_60_of_a_long_chain_keep_round_off_accuracy():
     reference = cantilever_spectrum(**SECTION, L=sum(lengths), omega_max=1.001 * omega[-1], n_grid=4000)
     assert reference.size == 70
     np.testing.assert_allclose(omega, reference, rtol=1e-9)
-    whole = beam("whole", sum(lengths)).transfer_matrix(1j * omega[-1:])
-    assert np.abs(whole).max() > 1e50          # a plain product of this field has no digits left
+    whole = beam("whole", sum(lengths))
+    assert np.abs(whole.field_matrix(1j * omega[-1:])).max() > 1e50     # a plain product keeps no digit
+    with pytest.raises(ModelError, match=r"split the beam: \*whole.split\(\d+\)"):
+        whole.transfer_matrix(1j * omega[-1:])            # nor would one Riccati step through it: refused
     counts = ctmm.eigenvalue_count(chain, np.concatenate([omega * (1 - 1e-7), omega * (1 + 1e-7)]))
     np.testing.assert_array_equal(counts, np.concatenate([np.arange(70), np.arange(1, 71)]))
+
+
+def test_high_frequency_tip_receptances_of_a_split_long_cantilever_are_exact():
+    """FRFs up to bending beta L ~ 100 (a 7 m cantilever cut into pieces_for(omega_max) pieces) equal
+    the analytic tip receptances of both bending planes (Bishop & Johnson), of the bar and of the shaft:
+    ``tan(kL) / (K k)``."""
+    from ctmm.reference.beams import cantilever_tip_receptance
+
+    length = 7.0
+    whole = beam("b", length)
+    omega = np.array([3.0, 41.0, 333.0, 1234.5, 2900.0])
+    chain = Chain("long", [SpatialClamped("root"), *whole.split(whole.pieces_for(omega.max())),
+                           SpatialPointLoad("t"), SpatialFree("tip")])
+    names = ["t.fx", "t.fy", "t.fz", "t.mx"]
+    outputs = ["t.ux", "t.uy", "t.uz", "t.theta_x"]
+    response = ctmm.frequency_response(chain, omega, input=names, output=outputs).response
+    s = SECTION
+    k_axial, k_torsion = omega * np.sqrt(s["rhoA"] / s["EA"]), omega * np.sqrt(s["rhoIp"] / s["GJ"])
+    expected = [np.tan(k_axial * length) / (s["EA"] * k_axial),
+                cantilever_tip_receptance(omega, length, s["EIz"], s["rhoA"]),
+                cantilever_tip_receptance(omega, length, s["EIy"], s["rhoA"]),
+                np.tan(k_torsion * length) / (s["GJ"] * k_torsion)]
+    for i in range(4):
+        np.testing.assert_allclose(response[i, i].real, expected[i], rtol=1e-9)
+        assert np.max(np.abs(response[i, i].imag)) == 0.0
+    off_diagonal = response - np.einsum("ij,ik->ijk", np.eye(4), response[np.arange(4), np.arange(4)])
+    assert np.max(np.abs(off_diagonal)) == 0.0           # the four families decouple
 
 
 # ----------------------------------------------------------------------------------------------
