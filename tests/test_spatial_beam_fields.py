@@ -62,6 +62,21 @@ def general_fe(elements, loss_factor=0.0, damper=None, **ends):
                     FEGround(SUPPORT), FEMarker("tip_load")], **ends)
 
 
+def bare_cantilever_spectrum(length, count):
+    """All frequencies [rad/s] of a cantilever without tip body up to the lowest of the four families'
+    ``count``-th (so none is missing), ascending: bending ``beta_k^2 / L^2 sqrt(EI / rhoA)``
+    (``ctmm.reference.beams``), bar and shaft ``(2n - 1) pi / (2 L) sqrt(K / rho)``."""
+    from ctmm.reference.beams import beta_roots
+
+    s, n = SECTION, np.arange(1, count + 1)
+    families = [beta_roots("clamped-free", count) ** 2 / length ** 2 * np.sqrt(stiffness / s["rhoA"])
+                for stiffness in (s["EIy"], s["EIz"])]
+    families += [(2 * n - 1) * np.pi / (2 * length) * np.sqrt(s[k] / s[rho]) for k, rho in (("EA", "rhoA"),
+                                                                                          ("GJ", "rhoIp"))]
+    merged = np.sort(np.concatenate(families))
+    return merged[merged <= min(family.max() for family in families)]
+
+
 # ----------------------------------------------------------------------------------------------
 # the field matrix
 @pytest.mark.parametrize("s", [3j, 300j, 0.5 + 40j, 2.0 - 1000j, 25000j])
@@ -117,7 +132,7 @@ def test_modes_beyond_60_of_a_long_chain_keep_round_off_accuracy():
         elements += [beam(f"b{i}", length), SpatialPointLoad(f"p{i}")]
     chain = Chain("long", elements + [SpatialFree("tip")])
     omega = ctmm.natural_frequencies(chain, n_modes=70)
-    reference = cantilever_spectrum(**SECTION, L=sum(lengths), omega_max=1.001 * omega[-1], n_grid=4000)
+    reference = bare_cantilever_spectrum(sum(lengths), 79)[:70]
     assert reference.size == 70
     np.testing.assert_allclose(omega, reference, rtol=1e-9)
     whole = beam("whole", sum(lengths))
@@ -174,6 +189,42 @@ def test_general_chain_frequencies_are_the_limit_of_the_fe_beam_at_h4(general_fr
     assert np.all(errors[0] > errors[1]) and np.all(errors[1] > errors[2])
     assert np.all((ratio_2[1:] > 12.0) & (ratio_2[1:] < 20.0)) and np.all((ratio_1 > 12.0) & (ratio_1 < 20.0))
     assert errors[2].max() < 4e-5
+
+
+def test_compressed_clamped_pinned_chain_converges_to_the_fe_beam():
+    """Compression at half the clamped-pinned buckling load of the weak plane, a point body between two
+    fields, a spherical pin at the end: bending modes converge as h^4 (ratio ~16), the torsional /
+    axial mode of linear FE elements as h^2 (ratio ~4)."""
+    tension = -0.5 * 20.19 * SECTION["EIy"] / 1.5 ** 2
+    inertia = (1e-4, 1e-4, 1e-4)
+    chain = Chain("compressed", [SpatialClamped("root"), beam("b1", 0.6, tension=tension),
+                                 SpatialRigidBody("m", 0.2, inertia), beam("b2", 0.9, tension=tension),
+                                 SpatialPinned("pin")])
+    omega = ctmm.natural_frequencies(chain, n_modes=10)
+    errors = []
+    for elements in (8, 16):
+        fe = FEChain([fe_beam(0.6, elements, tension=tension), FEBody(0.2, inertia),
+                      fe_beam(0.9, elements, tension=tension)], end_held=("ux", "uy", "uz"))
+        errors.append(np.abs(fe.frequencies(10) - omega) / omega)
+    ratio = errors[0] / errors[1]
+    assert np.sum((ratio > 13.0) & (ratio < 17.0)) == 9 and np.sum((ratio > 3.5) & (ratio < 4.5)) == 1
+    assert errors[1].max() < 1e-4
+
+
+def test_count_is_exact_at_the_members_clamped_clamped_frequencies():
+    """A cantilever of two equal halves, counted exactly at the halves' clamped-clamped bending, axial
+    and torsional frequencies (a zero pivot and a singular field block at once): the analytic count."""
+    from ctmm.elements.beams import clamped_clamped_beta
+
+    chain = Chain("halves", [SpatialClamped("root"), beam("h1", 0.6), SpatialPointLoad("joint"), beam("h2", 0.6),
+                             SpatialFree("tip")])
+    s = SECTION
+    trial = np.concatenate([clamped_clamped_beta(np.arange(1, 4)) ** 2 / 0.6 ** 2 * np.sqrt(s["EIy"] / s["rhoA"]),
+                            np.arange(1, 3) * np.pi / 0.6 * np.sqrt(s["EA"] / s["rhoA"]),
+                            np.arange(1, 3) * np.pi / 0.6 * np.sqrt(s["GJ"] / s["rhoIp"])])
+    reference = bare_cantilever_spectrum(1.2, 40)
+    assert reference[-1] > trial.max()
+    np.testing.assert_array_equal(ctmm.eigenvalue_count(chain, trial), np.searchsorted(reference, trial))
 
 
 def test_frequency_response_with_pinned_and_mixed_ends_matches_the_fe_beam():
