@@ -12,7 +12,8 @@ Shares no code with ctmm's transfer-matrix solvers (only numpy / scipy).  Global
   ``S = skew(c)``; an outboard point at offset ``r`` is a new node slaved rigidly to the inboard one
   (``u_b = u_a - skew(r) theta_a``, ``theta_b = theta_a``);
 * **springs** between coincident nodes (``[[K, -K], [-K, K]]``), **ground springs** at a node;
-* **boundaries** at the first and last node: any subset of the six displacements held.
+* **boundaries** at the first and last node: any subset of the six displacements held;
+* **branches** (``FEBranch``): side chains hung at a node, each with its own end condition.
 
 Every node's six DOFs are a linear map ``T_node`` of the reduced unknowns; constraints are removed
 by a null-space basis.  Convergence: bending frequencies ``O(h^4)``, axial and torsional
@@ -26,7 +27,7 @@ from typing import Any, Sequence
 import numpy as np
 import scipy.linalg
 
-__all__ = ["FEBeam", "FEBody", "FESpring", "FEGround", "FEMarker", "FEChain", "COMPONENTS"]
+__all__ = ["FEBeam", "FEBody", "FESpring", "FEGround", "FEMarker", "FEBranch", "FEChain", "COMPONENTS"]
 
 COMPONENTS = ("ux", "uy", "uz", "theta_x", "theta_y", "theta_z")
 
@@ -79,6 +80,15 @@ class FEGround:
 
     stiffness: Any
     damping: Any = None
+
+
+@dataclass
+class FEBranch:
+    """A side chain of parts hung at the current node, its last node holding ``end_held``; the main
+    chain continues from the attachment node."""
+
+    parts: Sequence[Any]
+    end_held: Sequence[str] = ()
 
 
 @dataclass
@@ -146,9 +156,17 @@ class FEChain:
             return len(maps) - 1
 
         markers: dict[str, int] = {}
-        node = new_node()
-        for part in self.parts:
-            if isinstance(part, FEBeam):
+        held: list[tuple[int, Sequence[str]]] = []
+
+        def walk(parts: Sequence[Any], node: int) -> int:
+            for part in parts:
+                node = add(part, node)
+            return node
+
+        def add(part: Any, node: int) -> int:
+            if isinstance(part, FEBranch):
+                held.append((walk(part.parts, node), part.end_held))
+            elif isinstance(part, FEBeam):
                 l = part.length / part.elements
                 K, Kg, M = _beam_matrices(part, l)
                 for _ in range(part.elements):
@@ -182,6 +200,11 @@ class FEChain:
                 markers[part.name] = node
             else:
                 raise TypeError(f"unknown part {part!r}")
+            return node
+
+        start = new_node()
+        node = walk(self.parts, start)
+        held += [(start, self.start_held), (node, self.end_held)]
         # resolve node maps to n_free columns
         resolved: list[np.ndarray] = []
         for entry in maps:
@@ -202,8 +225,7 @@ class FEChain:
             Kg += T.T @ Kge @ T
             M += T.T @ Me @ T
             C += T.T @ (Ce + tau * Ke) @ T
-        rows = [resolved[0][COMPONENTS.index(c)] for c in self.start_held]
-        rows += [resolved[node][COMPONENTS.index(c)] for c in self.end_held]
+        rows = [resolved[k][COMPONENTS.index(c)] for k, names in held for c in names]
         N = scipy.linalg.null_space(np.array(rows)) if rows else np.eye(n)
         self._built = {"K": N.T @ (K + Kg) @ N, "M": (N.T @ M @ N).real, "C": N.T @ C @ N,
                        "maps": [T @ N for T in resolved], "markers": markers}
