@@ -22,6 +22,10 @@ those clamped frequencies, so the determinant-sign refinement of :func:`ctmm.nat
 (which assumes pole-free element matrices) must not be used: :meth:`SpatialBeamTree.natural_frequencies`
 bisects on the certified count alone (to ``rtol``), which cannot be fooled by a pole.
 
+Near a pole of ``K_b`` (relative singular value of the balanced root block below
+:data:`POLE_LIMIT`) :meth:`SpatialBeamTree.frequency_response` refuses the frequency (the
+condensed stiffness would lose ``eps / ratio``).
+
 Not supported (:class:`~ctmm.errors.ModelError`): loads on branches (inputs on the main chain
 only), branches of branches, mode shapes, feedback loops, the time domain.
 """
@@ -41,10 +45,13 @@ from .spatial_beam_elements import SpatialClamped, SpatialFree, SpatialSupport
 from .spatial_beam_fields import SPATIAL_BEAM
 from .system import Chain
 
-__all__ = ["SpatialBeamTree", "RIGID_LIMIT"]
+__all__ = ["SpatialBeamTree", "RIGID_LIMIT", "POLE_LIMIT"]
 
 #: Natural frequencies below this fraction of the search bracket are rigid-body modes, returned as 0 [-].
 RIGID_LIMIT = 1e-10
+#: Smallest relative singular value of a branch's balanced root block for which frequency_response
+#: answers (the condensed stiffness loses about eps / ratio) [-].
+POLE_LIMIT = 1e-7
 
 
 def _balance(Us: Sequence[np.ndarray], sweeps: int = 8) -> np.ndarray:
@@ -104,9 +111,11 @@ class _BranchStiffness(Element):
     def parameters(self) -> dict[str, Any]:
         return {"elements": [e.name for e in self.clamped.elements[1:]]}
 
-    def subspaces(self, s: np.ndarray) -> tuple[list[np.ndarray], list[np.ndarray]]:
-        """Orthonormal admissible bases ``Z_p`` (B, 12, 6) at the branch's connection points ``p = 0..n``
-        (unscaled units) and the triangular factors ``R`` between consecutive points (module docstring)."""
+    def subspaces(self, s: np.ndarray) -> tuple[list[np.ndarray], list[np.ndarray], np.ndarray]:
+        """Admissible bases ``Z_p`` (B, 12, 6) at the branch's connection points ``p = 0..n`` (unscaled
+        units; orthonormal in balanced units), the triangular factors ``R`` between consecutive points
+        (module docstring) and the smallest over largest singular value of the balanced root
+        displacement block ``X`` (B,): ~0 at the branch's attachment-clamped frequencies."""
         s = np.atleast_1d(np.asarray(s, dtype=complex))
         omega_max = float(np.max(np.abs(s), initial=0.0))
         pieces, owner = [], []
@@ -136,6 +145,8 @@ class _BranchStiffness(Element):
             if j == 0 or owner[j - 1] != owner[j]:
                 bases[owner[j] - 1] = Z
         n = len(self.clamped.body)
+        singular = np.linalg.svd(bases[0][:, :6, :], compute_uv=False)
+        ratio = singular[:, -1] / np.maximum(singular[:, 0], np.finfo(float).tiny)
         Zs = [bases[p] / D for p in range(n + 1)]
         Rs = []
         for p in range(1, n + 1):              # c_p = R^-1 c_(p-1) over the pieces of element p (inboard first)
@@ -143,7 +154,7 @@ class _BranchStiffness(Element):
             for R in factors[p]:               # appended outboard-first: total = R_inner ... R_outer
                 total = R @ total
             Rs.append(total)
-        return Zs, Rs
+        return Zs, Rs, ratio
 
     def dynamic_stiffness(self, s: Any) -> np.ndarray:
         """``K_b(s)`` (B, 6, 6): force and moment on the branch per unit displacement / rotation of the
@@ -173,9 +184,13 @@ class _BranchStiffness(Element):
         omega = np.asarray(omega, dtype=float)
         return eigenvalue_count(self.clamped, omega.reshape(-1)).reshape(omega.shape)
 
+    def pole_ratio(self, s: np.ndarray) -> np.ndarray:
+        """Relative singularity of the root block ``X`` (B,) (:meth:`subspaces`)."""
+        return self.subspaces(s)[2]
+
     def states(self, s: np.ndarray, root: np.ndarray) -> np.ndarray:
         """Branch states (B, n + 1, 12) at its connection points for attachment displacements ``root`` (B, 6)."""
-        Zs, Rs = self.subspaces(s)
+        Zs, Rs, _ = self.subspaces(s)
         c = np.linalg.solve(Zs[0][:, :6, :], root[..., None])
         out = [Zs[0] @ c]
         for p in range(1, len(Zs)):
@@ -292,6 +307,13 @@ class SpatialBeamTree:
                 raise ModelError(f"tree {self.name!r}: input {name!r} is on a branch; loads on branches are not "
                                  "supported (give the loaded path as the main chain)")
         s = 1j * omega
+        for point, branch in self._branches.items():
+            near = np.flatnonzero(branch.pole_ratio(s) < POLE_LIMIT)
+            if near.size:
+                raise ModelError(f"tree {self.name!r}: omega = {omega[near].tolist()} rad/s lies within ~"
+                                 f"{POLE_LIMIT:g} of a natural frequency of the branch at {point!r} with its "
+                                 "attachment clamped, where the condensed branch stiffness is singular (the "
+                                 "response would lose its digits); evaluate beside it, e.g. omega (1 +- 1e-6)")
         main = [name for name in outputs if name.split(".")[0] not in self._owner]
         needed = {self._owner[name.split(".")[0]] for name in outputs if name.split(".")[0] in self._owner}
         root_names = {b: [f"{b.name}.{c}" for c in SPATIAL_BEAM.displacements] for b in needed}

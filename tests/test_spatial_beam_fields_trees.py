@@ -107,6 +107,20 @@ def test_tree_frequency_response_reaches_into_the_branches():
     assert np.all(np.isfinite(body)) and np.all(np.abs(body) > 0)
 
 
+def test_frequency_response_beside_a_branch_pole_and_refused_on_it():
+    """At a natural frequency of a branch with its attachment clamped the condensed stiffness is singular:
+    refused there; 2e-7 beside it the response still matches the FE tree (20 elements) to 1e-7."""
+    t = tree()
+    pole = ctmm.natural_frequencies(t._branches["hub"].clamped, n_modes=2)[1]
+    with pytest.raises(ModelError, match="evaluate beside it"):
+        t.frequency_response([pole], input="tip.fy", output="tip.uy")
+    beside = np.array([pole * (1 + 2e-7)])
+    response = t.frequency_response(beside, input="tip.fy", output=["branch_tip.uy", "tip.uy"]).response[:, 0, 0]
+    fe = fe_tree(20)
+    expected = [fe.frf(beside, ("tip", "uy"), point)[0] for point in (("branch_tip", "uy"), ("tip", "uy"))]
+    np.testing.assert_allclose(response, expected, rtol=1e-7)
+
+
 def test_tree_refusals():
     t = tree()
     with pytest.raises(ModelError, match="must be a ctmm.Chain"):

@@ -221,10 +221,12 @@ class FEChain:
             nodes, Ke, Kge, Me, eta, tau = block[:6]
             Ce = block[6] if len(block) > 6 else np.zeros_like(Ke)
             T = np.vstack([resolved[k] for k in nodes])
-            K += T.T @ (Ke * (1 + 1j * eta)) @ T
-            Kg += T.T @ Kge @ T
-            M += T.T @ Me @ T
-            C += T.T @ (Ce + tau * Ke) @ T
+            cols = np.flatnonzero(np.any(T != 0.0, axis=0))          # the few unknowns the block touches
+            T, at = T[:, cols], np.ix_(cols, cols)
+            K[at] += T.T @ (Ke * (1 + 1j * eta)) @ T
+            Kg[at] += T.T @ Kge @ T
+            M[at] += T.T @ Me @ T
+            C[at] += T.T @ (Ce + tau * Ke) @ T
         rows = [resolved[k][COMPONENTS.index(c)] for k, names in held for c in names]
         N = scipy.linalg.null_space(np.array(rows)) if rows else np.eye(n)
         self._built = {"K": N.T @ (K + Kg) @ N, "M": (N.T @ M @ N).real, "C": N.T @ C @ N,
