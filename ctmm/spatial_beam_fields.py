@@ -1,0 +1,369 @@
+"""Exact frequency-domain field transfer matrix of a straight spatial Euler-Bernoulli beam.
+
+State layout :data:`SPATIAL_BEAM` (``d = 6``, ``n = 12``) at a station, in the chain's (global) axes::
+
+    z = [ux, uy, uz, theta_x, theta_y, theta_z, fx, fy, fz, mx, my, mz]
+
+displacements ``u`` [m], small rotations ``theta`` [rad] (right-handed), and the force ``f`` [N] and
+moment ``m`` [N m] **exerted by the inboard part on the outboard part** about the station
+(``docs/spatial.md`` §3 at displacement level: ``[A ; F]`` with ``F = [f ; m]``; displacement
+component ``i`` and force component ``i`` are work-conjugate, as every ctmm layout requires).  The
+book's order ``[.., m, q, 1]`` (seed 003 eq. 6.1) swaps the force and moment triples.
+
+Derivation (``docs/spatial_beams.md`` §1).  Beam along its local ``x`` axis, constant axial tension
+``T`` (the preload: ``f0 = -T e_x``), a slice ``[x, x + dx]`` with ``q(s) = rhoA s^2 + c_v s``:
+
+* Newton: ``f(x) - f(x + dx) = q u dx``, so ``f' = -q u``;
+* Euler about ``x`` on the deformed axis ``e_x + u'``: ``m' = -(e_x + u') x f`` linearised about
+  ``f0``: ``m' = -e_x x f + T u' x e_x`` plus the torsional inertia ``-(rhoIp s^2 + c_t s) theta_x``;
+* constitutive laws (section resultants on the inboard part's positive face are ``-f``, ``-m``):
+  ``ux' = -fx / EA``, ``theta_x' = -mx / GJ``, ``theta_y' = -my / EI_y``, ``theta_z' = -mz / EI_z``;
+  Euler-Bernoulli kinematics ``uy' = theta_z``, ``uz' = -theta_y``.
+
+The system ``z' = A(s) z`` (:func:`spatial_beam_state_matrix`) splits into four decoupled sub-fields,
+each solved in closed form:
+
+* **axial** ``(ux, fx)``: ``ux'' = k^2 ux``, ``k^2 = q / EA*``::
+
+      [ux; fx](L) = [[cosh kL, -L sinhc(kL) / EA*], [-EA* k^2 L sinhc(kL), cosh kL]] [ux; fx](0)
+
+  (``sinhc z = sinh z / z``; ``cosh`` and ``sinhc`` are even in ``k``, so no branch of the root is
+  chosen; for ``s = i omega`` undamped they are ``cos`` and ``sin``);
+* **torsion** ``(theta_x, mx)``: the same with ``GJ*`` and ``q_t = rhoIp s^2 + c_t s``;
+* **bending in the x-y plane** ``(uy, theta_z, fy, mz)``: exactly the planar field of
+  :class:`ctmm.elements.beams.BeamField` (``w = uy``, ``theta = theta_z``, ``shear = fy``,
+  ``moment = mz``, ``EI = EI_z``): ``uy' = theta_z``, ``theta_z' = -mz/EI_z``, ``fy' = -q uy``,
+  ``mz' = -fy - T theta_z``;
+* **bending in the x-z plane** ``(uz, theta_y, fz, my)``: the planar field with ``EI = EI_y`` in
+  ``(w, theta, shear, moment) = (uz, -theta_y, fz, -my)``, i.e. ``U_xz = D U_planar D`` with
+  ``D = diag(1, -1, 1, -1)`` (``uz' = -theta_y``, ``theta_y' = -my/EI_y``, ``fz' = -q uz``,
+  ``my' = fz - T theta_y``).
+
+Damping: a structural loss factor ``eta`` and a Kelvin-Voigt time ``tau`` multiply every stiffness
+(``EA, GJ, EI_y, EI_z``) by ``1 + i eta sgn(Im s) + tau s``; ``c_v`` [N s/m^2] is external viscous
+damping of the translations, ``c_t`` [N m s/m] of the twist.  A beam turned by ``rotation`` (local
+to chain axes, its local ``x`` is ``rotation[:, 0]``) has ``U = R4 U_local R4^T``,
+``R4 = diag(R, R, R, R)``.  Not modelled: shear deformation and rotary inertia of bending
+(Timoshenko), the tension's effect on torsion (Wagner), warping, the axial-bending coupling of
+an unsymmetric section (the section's principal axes are the local ``y``, ``z``).
+
+``tests/test_spatial_beam_fields.py`` checks ``U`` against ``scipy.linalg.expm(A L)`` (with tension,
+damping and rotation) and that ``U`` is symplectic (reciprocity).
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import scipy.linalg
+
+from . import validation
+from .elements.base import Element
+from .elements.beams import BeamField
+from .elements.bending import laplace_array
+from .errors import ModelError
+from .layouts import StateLayout
+
+__all__ = ["SPATIAL_BEAM", "SpatialBeamField", "spatial_beam_state_matrix", "rotation_matrix_check",
+           "AXIAL", "TORSION", "BENDING_XY", "BENDING_XZ"]
+
+SPATIAL_BEAM = StateLayout("spatial_beam", ("ux", "uy", "uz", "theta_x", "theta_y", "theta_z"),
+                           ("fx", "fy", "fz", "mx", "my", "mz"))
+"""Spatial beam chain, small motion: displacements [m], rotations [rad], force [N] and moment
+[N m] by the inboard on the outboard part, chain axes (module docstring)."""
+
+#: State indices of the decoupled sub-fields in the local frame.
+AXIAL = (0, 6)
+TORSION = (3, 9)
+BENDING_XY = (1, 5, 7, 11)
+BENDING_XZ = (2, 4, 8, 10)
+_XZ_SIGNS = np.array([1.0, -1.0, 1.0, -1.0])
+
+#: Largest dimensionless wave number (bending ``beta``, axial / torsional ``k L``, tension
+#: ``sqrt(|T|/EI) L``) of a piece made by :meth:`SpatialBeamField.subdivide`.
+SUBDIVISION_LIMIT = 4.0
+#: Largest wave number for which :meth:`SpatialBeamField.transfer_matrix` answers: the Riccati
+#: transfer through one field loses about ``e^beta eps`` (2e-9 at 16); longer fields must be split.
+MAX_WAVE_NUMBER = 16.0
+
+
+def rotation_matrix_check(name: str, rotation: Any) -> np.ndarray:
+    """``rotation`` as a proper orthonormal 3 x 3 matrix, or a :class:`ModelError`."""
+    try:
+        R = np.array(rotation, dtype=float)
+    except (TypeError, ValueError):
+        raise ModelError(f"{name} must be a 3 x 3 rotation matrix, got {rotation!r}") from None
+    if R.shape != (3, 3) or not np.all(np.isfinite(R)):
+        raise ModelError(f"{name} must be a finite 3 x 3 rotation matrix, got shape {R.shape}")
+    if np.max(np.abs(R.T @ R - np.eye(3))) > 1e-10 or np.linalg.det(R) < 0:
+        raise ModelError(f"{name} must be orthonormal with determinant +1 (a rotation), got {R.tolist()}")
+    return R
+
+
+def spatial_beam_state_matrix(s: complex, *, axial_stiffness: complex, torsional_stiffness: complex,
+                              bending_stiffness_y: complex, bending_stiffness_z: complex,
+                              mass_per_length: float, polar_inertia_per_length: float,
+                              axial_force: float = 0.0, viscous_damping: float = 0.0,
+                              torsional_damping: float = 0.0) -> np.ndarray:
+    """System matrix ``A`` (12 x 12) of ``z' = A z`` in the beam's local frame, one ``s``.
+
+    Parameters
+    ----------
+    s : complex
+        Laplace variable [1/s].
+    axial_stiffness, torsional_stiffness, bending_stiffness_y, bending_stiffness_z : complex
+        Effective ``EA*`` [N], ``GJ*`` [N m^2], ``EI_y*``, ``EI_z*`` [N m^2].
+    mass_per_length : float
+        ``rhoA`` [kg/m].
+    polar_inertia_per_length : float
+        ``rhoIp`` [kg m], mass moment of inertia per length about the beam axis.
+    axial_force : float
+        Tension ``T`` [N] (negative: compression).
+    viscous_damping, torsional_damping : float
+        ``c_v`` [N s/m^2], ``c_t`` [N m s/m].
+    """
+    q = mass_per_length * s * s + viscous_damping * s
+    q_t = polar_inertia_per_length * s * s + torsional_damping * s
+    T = axial_force
+    A = np.zeros((12, 12), dtype=complex)
+    A[0, 6] = -1 / axial_stiffness
+    A[1, 5] = 1.0
+    A[2, 4] = -1.0
+    A[3, 9] = -1 / torsional_stiffness
+    A[4, 10] = -1 / bending_stiffness_y
+    A[5, 11] = -1 / bending_stiffness_z
+    A[6, 0] = A[7, 1] = A[8, 2] = -q
+    A[9, 3] = -q_t
+    A[10, 8], A[10, 4] = 1.0, -T          # my' = fz - T theta_y
+    A[11, 7], A[11, 5] = -1.0, -T         # mz' = -fy - T theta_z
+    return A
+
+
+def _cosh_sinhc(z2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``cosh z`` and ``sinh z / z`` from ``z^2`` (both even in ``z``; Taylor series for small ``|z|``)."""
+    z = np.sqrt(z2.astype(complex))
+    small = np.abs(z) < 1e-3
+    zs = np.where(small, 1.0, z)
+    cosh = np.where(small, 1 + z2 / 2 + z2 * z2 / 24, np.cosh(zs))
+    sinhc = np.where(small, 1 + z2 / 6 + z2 * z2 / 120, np.sinh(zs) / zs)
+    return cosh, sinhc
+
+
+def _bar(length: float, stiffness: np.ndarray, inertia_term: np.ndarray) -> np.ndarray:
+    """Field matrix ``(..., 2, 2)`` of ``[y; f]' = [[0, -1/K], [-q, 0]] [y; f]`` over the length."""
+    ch, shc = _cosh_sinhc(inertia_term / stiffness * length * length)
+    U = np.empty(np.shape(ch) + (2, 2), dtype=complex)
+    U[..., 0, 0] = U[..., 1, 1] = ch
+    U[..., 0, 1] = -length * shc / stiffness
+    U[..., 1, 0] = -inertia_term * length * shc
+    return U
+
+
+def _clamped_bar_count(length: float, stiffness: float, density: float, omega: np.ndarray) -> np.ndarray:
+    """Clamped-clamped natural frequencies ``n pi / L sqrt(K / rho)`` (n >= 1) strictly below ``omega``."""
+    x = omega * length / (math.pi * math.sqrt(stiffness / density))
+    return np.maximum(np.ceil(x) - 1, 0).astype(np.int64)
+
+
+class SpatialBeamField(Element):
+    """Uniform straight spatial Euler-Bernoulli beam with its exact field transfer matrix.
+
+    Parameters
+    ----------
+    name : str
+        Element name.
+    length : float
+        ``L`` [m], > 0.
+    axial_stiffness : float
+        ``EA`` [N], > 0.
+    torsional_stiffness : float
+        ``GJ`` [N m^2], > 0.
+    bending_stiffness_y, bending_stiffness_z : float
+        ``EI_y`` (bending in the local x-z plane, about y) and ``EI_z`` (x-y plane, about z)
+        [N m^2], > 0.
+    mass_per_length : float
+        ``rhoA`` [kg/m], > 0.
+    polar_inertia_per_length : float
+        ``rhoIp`` [kg m], > 0: mass moment of inertia per length about the axis (``rho (I_y + I_z)``
+        for a homogeneous section).
+    axial_force : float, optional
+        Constant tension ``T`` [N] (negative: compression); geometric stiffening of both
+        bending planes.
+    loss_factor : float, optional
+        Structural loss factor ``eta >= 0`` on every stiffness (exact for ``s = i omega``).
+    kelvin_voigt_time : float, optional
+        Strain-rate damping time ``tau >= 0`` [s] on every stiffness.
+    viscous_damping : float, optional
+        External viscous damping of the translations ``c_v >= 0`` [N s/m^2].
+    torsional_damping : float, optional
+        External viscous damping of the twist ``c_t >= 0`` [N m s/m].
+    rotation : array_like (3, 3), optional
+        Local to chain axes (default identity: the beam lies along the chain's ``x``).
+
+    Notes
+    -----
+    ``transfer_matrix(s)`` maps :data:`SPATIAL_BEAM` states from the inboard end to the outboard
+    end (module docstring).  ``subdivide`` cuts the beam into pieces that keep every sub-field's
+    wave number ``<= 4`` (Riccati transfer and Wittrick-Williams count at round-off level for
+    high modes); ``clamped_frequency_count`` is the sum of the four sub-fields' clamped-clamped
+    counts (``J0`` of Wittrick-Williams).
+    """
+
+    layout = SPATIAL_BEAM
+    is_point = False
+
+    def __init__(self, name: str, length: float, *, axial_stiffness: float, torsional_stiffness: float,
+                 bending_stiffness_y: float, bending_stiffness_z: float, mass_per_length: float,
+                 polar_inertia_per_length: float, axial_force: float = 0.0, loss_factor: float = 0.0,
+                 kelvin_voigt_time: float = 0.0, viscous_damping: float = 0.0, torsional_damping: float = 0.0,
+                 rotation: Any = None) -> None:
+        super().__init__(name)
+        self.length = validation.positive(f"{name}: length", length)
+        self.axial_stiffness = validation.positive(f"{name}: axial_stiffness", axial_stiffness)
+        self.torsional_stiffness = validation.positive(f"{name}: torsional_stiffness", torsional_stiffness)
+        self.bending_stiffness_y = validation.positive(f"{name}: bending_stiffness_y", bending_stiffness_y)
+        self.bending_stiffness_z = validation.positive(f"{name}: bending_stiffness_z", bending_stiffness_z)
+        self.mass_per_length = validation.positive(f"{name}: mass_per_length", mass_per_length)
+        self.polar_inertia_per_length = validation.positive(f"{name}: polar_inertia_per_length",
+                                                            polar_inertia_per_length)
+        self.axial_force = validation.finite(f"{name}: axial_force", axial_force)
+        self.loss_factor = validation.nonnegative(f"{name}: loss_factor", loss_factor)
+        self.kelvin_voigt_time = validation.nonnegative(f"{name}: kelvin_voigt_time", kelvin_voigt_time)
+        self.viscous_damping = validation.nonnegative(f"{name}: viscous_damping", viscous_damping)
+        self.torsional_damping = validation.nonnegative(f"{name}: torsional_damping", torsional_damping)
+        self.rotation = np.eye(3) if rotation is None else rotation_matrix_check(f"{name}: rotation", rotation)
+        damping = {"loss_factor": self.loss_factor, "kelvin_voigt_time": self.kelvin_voigt_time,
+                   "viscous_damping": self.viscous_damping}
+        self._planes = tuple(BeamField(f"{name}__{plane}", self.length, stiffness, self.mass_per_length,
+                                       axial_force=self.axial_force, **damping)
+                             for plane, stiffness in (("xy", self.bending_stiffness_z),
+                                                      ("xz", self.bending_stiffness_y)))
+
+    # -- parameters --------------------------------------------------------------------
+    def parameters(self) -> dict[str, Any]:
+        return {"length": self.length, "axial_stiffness": self.axial_stiffness,
+                "torsional_stiffness": self.torsional_stiffness, "bending_stiffness_y": self.bending_stiffness_y,
+                "bending_stiffness_z": self.bending_stiffness_z, "mass_per_length": self.mass_per_length,
+                "polar_inertia_per_length": self.polar_inertia_per_length, "axial_force": self.axial_force,
+                "loss_factor": self.loss_factor, "kelvin_voigt_time": self.kelvin_voigt_time,
+                "viscous_damping": self.viscous_damping, "torsional_damping": self.torsional_damping,
+                "rotation": self.rotation.tolist()}
+
+    @property
+    def is_conservative(self) -> bool:
+        """False when any damping parameter is non-zero (checked by ``natural_frequencies``)."""
+        return not (self.loss_factor or self.kelvin_voigt_time or self.viscous_damping or self.torsional_damping)
+
+    def stiffness_factor(self, s: Any) -> np.ndarray:
+        """``1 + i eta sgn(Im s) + tau s`` over ``s`` (multiplies every stiffness)."""
+        s = laplace_array(s)
+        return 1 + 1j * self.loss_factor * np.where(s.imag < 0, -1.0, 1.0) + self.kelvin_voigt_time * s
+
+    def state_matrix(self, s: complex) -> np.ndarray:
+        """``A(s)`` of ``z' = A z`` in chain axes (12 x 12, one ``s``); ``U = expm(A L)``."""
+        s = complex(s)
+        factor = complex(self.stiffness_factor(s))
+        A = spatial_beam_state_matrix(
+            s, axial_stiffness=self.axial_stiffness * factor, torsional_stiffness=self.torsional_stiffness * factor,
+            bending_stiffness_y=self.bending_stiffness_y * factor,
+            bending_stiffness_z=self.bending_stiffness_z * factor,
+            mass_per_length=self.mass_per_length, polar_inertia_per_length=self.polar_inertia_per_length,
+            axial_force=self.axial_force, viscous_damping=self.viscous_damping,
+            torsional_damping=self.torsional_damping)
+        R4 = scipy.linalg.block_diag(*([self.rotation] * 4))
+        return R4 @ A @ R4.T
+
+    def discretize(self, scheme: Any):
+        """Refused: the spatial beam field is a frequency-domain element."""
+        raise ModelError(f"element {self.name!r} (SpatialBeamField) has no time-domain form; in time use the modal "
+                         "spatial beam body, or the frequency-domain verbs on this chain")
+
+    # -- frequency domain --------------------------------------------------------------
+    def transfer_matrix(self, s: Any) -> np.ndarray:
+        """The exact field matrix (:meth:`field_matrix`) for the chain solvers, shape ``np.shape(s) + (12, 12)``.
+
+        Raises
+        ------
+        ModelError
+            When a wave number at ``max |s|`` exceeds :data:`MAX_WAVE_NUMBER`: a solver would lose
+            ``e^beta eps`` through this one field (a wrong answer); split the beam
+            (``*beam.split(beam.pieces_for(omega_max))``).  The counting verbs subdivide by
+            themselves (:meth:`subdivide`).
+        """
+        s = laplace_array(s)
+        largest = float(np.max(np.abs(s), initial=0.0))
+        if max(self._wave_numbers(largest)) > MAX_WAVE_NUMBER:
+            raise ModelError(f"{self.name}: at |s| = {largest:.6g} 1/s the field's wave number is "
+                             f"{max(self._wave_numbers(largest)):.3g} > {MAX_WAVE_NUMBER} (a transfer through it "
+                             f"loses e^beta eps); split the beam: *{self.name}.split({self.pieces_for(largest)})")
+        return self.field_matrix(s)
+
+    def field_matrix(self, s: Any) -> np.ndarray:
+        """Exact ``U(s) = expm(A(s) L)`` in chain axes, shape ``np.shape(s) + (12, 12)`` (any size)."""
+        s = laplace_array(s)
+        factor = self.stiffness_factor(s)
+        L = self.length
+        U = np.zeros(s.shape + (12, 12), dtype=complex)
+        axial = _bar(L, self.axial_stiffness * factor, self.mass_per_length * s * s + self.viscous_damping * s)
+        torsion = _bar(L, self.torsional_stiffness * factor,
+                       self.polar_inertia_per_length * s * s + self.torsional_damping * s)
+        for index, block in ((AXIAL, axial), (TORSION, torsion)):
+            U[..., np.array(index)[:, None], np.array(index)[None, :]] = block
+        xy = self._planes[0].transfer_matrix(s)
+        xz = self._planes[1].transfer_matrix(s) * _XZ_SIGNS[:, None] * _XZ_SIGNS[None, :]
+        for index, block in ((BENDING_XY, xy), (BENDING_XZ, xz)):
+            U[..., np.array(index)[:, None], np.array(index)[None, :]] = block
+        if np.array_equal(self.rotation, np.eye(3)):
+            return U
+        R4 = scipy.linalg.block_diag(*([self.rotation] * 4))
+        return R4 @ U @ R4.T
+
+    def _wave_numbers(self, omega_max: float) -> list[float]:
+        L, w = self.length, omega_max
+        rho = self.mass_per_length
+        numbers = [L * (rho * w * w / stiffness) ** 0.25
+                   for stiffness in (self.bending_stiffness_y, self.bending_stiffness_z)]
+        numbers += [w * L * math.sqrt(rho / self.axial_stiffness),
+                    w * L * math.sqrt(self.polar_inertia_per_length / self.torsional_stiffness)]
+        numbers += [math.sqrt(abs(self.axial_force) / stiffness) * L
+                    for stiffness in (self.bending_stiffness_y, self.bending_stiffness_z)]
+        return numbers
+
+    def pieces_for(self, omega_max: float, *, limit: float = SUBDIVISION_LIMIT) -> int:
+        """Number of equal pieces that keep every wave number ``<= limit`` up to ``omega_max`` [rad/s]."""
+        omega_max = validation.nonnegative("omega_max", omega_max)
+        limit = validation.positive("limit", limit)
+        return max(1, math.ceil(max(self._wave_numbers(omega_max)) / limit))
+
+    def split(self, pieces: int) -> tuple["SpatialBeamField", ...]:
+        """``pieces`` equal segments ``"<name>_1" ...`` whose product equals this field."""
+        pieces = validation.integer(f"{self.name}: pieces", pieces, minimum=1)
+        params = self.parameters()
+        params["length"] = self.length / pieces
+        return tuple(SpatialBeamField(f"{self.name}_{i + 1}", **params) for i in range(pieces))
+
+    def subdivide(self, omega_max: float) -> list["SpatialBeamField"]:
+        """Equal pieces with every wave number ``<= SUBDIVISION_LIMIT`` up to ``omega_max`` [rad/s]."""
+        pieces = self.pieces_for(omega_max)
+        if pieces == 1:
+            return [self]
+        return [self.split(pieces)[0]] * pieces   # one object: solvers evaluate its matrix once
+
+    # -- Wittrick-Williams -------------------------------------------------------------
+    def clamped_frequency_count(self, omega: Any) -> np.ndarray:
+        """Natural frequencies of the beam clamped at both ends strictly below ``omega`` [rad/s].
+
+        ``J0`` of the Wittrick-Williams count: the sum over the four decoupled sub-fields, axial
+        and torsional ``n pi / L sqrt(K / rho)`` (n >= 1) and each bending plane's count
+        (:meth:`ctmm.elements.beams.BeamField.clamped_frequency_count`, with the tension).
+        Damping parameters are ignored (undamped count).
+        """
+        omega = np.asarray(omega, dtype=float)
+        if not np.all(np.isfinite(omega)) or np.any(omega < 0):
+            raise ModelError(f"{self.name}: omega must be finite and >= 0 rad/s, got {omega!r}")
+        count = _clamped_bar_count(self.length, self.axial_stiffness, self.mass_per_length, omega)
+        count = count + _clamped_bar_count(self.length, self.torsional_stiffness, self.polar_inertia_per_length, omega)
+        for plane in self._planes:
+            count = count + np.asarray(plane.clamped_frequency_count(omega), dtype=np.int64)
+        return count
