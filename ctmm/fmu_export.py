@@ -7,10 +7,11 @@ No Python runs in the FMU.  The archive holds the model description, the two C s
 for this platform; it is built by :func:`ctmm.control.fmu_build.build_fmu` (cached by a hash of the
 sources, the FMI headers, the compiler and the flags) and checked by :func:`fmpy.validation.validate_fmu`.
 
-What exports (``docs/fmu_export.md``): planar models (rigid trees, modal beams, hub-beam scenes) and
-controlled planar models (``ctmm.control.with_feedback``) that ``compiled=True`` runs.  Refused by name
-(:class:`~ctmm.errors.ModelError`): spatial models, 1-D chains and controlled chains (their generated
-steps are not exported yet), FMI 3.0 (not written yet).
+What exports (``docs/fmu_export.md``): planar models (rigid trees, modal beams, hub-beam scenes),
+controlled planar models (``ctmm.control.with_feedback``) and spatial models (:mod:`ctmm.fmu_export_spatial`)
+that ``compiled=True`` runs.  Refused by name (:class:`~ctmm.errors.ModelError`): controlled spatial
+models (no generated step with loops yet), 1-D chains and controlled chains (no generated step),
+FMI 3.0 (not written yet).
 """
 from __future__ import annotations
 
@@ -29,7 +30,9 @@ from .control.fmu_build import build_fmu
 from .errors import ModelError
 from .fmu_export_files import write_sources
 from .fmu_export_model import planar_export
+from .fmu_export_spatial import spatial_export
 from .planar.model import PlanarModel
+from .spatial.model import SpatialModel
 
 __all__ = ["FMI_VERSIONS", "export_fmu"]
 
@@ -49,9 +52,9 @@ def export_fmu(system: Any, path: str | os.PathLike, *, step: float, inputs: Seq
 
     Parameters
     ----------
-    system : PlanarModel or ControlledModel
-        A planar model (rigid, modal beams) or a controlled planar model whose loops close inside the
-        FMU's step; what ``ctmm.simulate(..., compiled=True)`` compiles.
+    system : PlanarModel, ControlledModel or SpatialModel
+        A planar model (rigid, modal beams), a controlled planar model whose loops close inside the
+        FMU's step, or a spatial model; what ``ctmm.simulate(..., compiled=True)`` compiles.
     path : path
         The ``.fmu`` file to write; its stem is the model identifier (a C identifier: letters, digits,
         ``_``, not starting with a digit).  Its folder is created if missing.
@@ -59,20 +62,25 @@ def export_fmu(system: Any, path: str | os.PathLike, *, step: float, inputs: Seq
         RK4 step of the FMU [s]; every communication step must be a whole multiple of it (the FMU
         runs ``H / step`` steps with the inputs held), and each loop delay too.
     inputs : sequence of str, optional
-        Actuators exposed as inputs (``"<hinge>.torque"``, ``"<body>.force_x"``, modal forces);
-        default every actuator of the generated kernel; the others are held at 0.
+        Actuators exposed as inputs (``"<hinge>.torque"``, ``"<body>.force_x"``, modal forces; spatial:
+        joint inputs, ``"<input>[k]"`` per component of a vector input); default every actuator of the
+        generated kernel; the others are held at 0.
     outputs : sequence of str, optional
         Sensors exposed as outputs (any sensor of :mod:`ctmm.planar.ports`, and ``"<loop>.y"`` of a
-        controlled model); default every coordinate and its rate ``"<coordinate>_dot"``.
+        controlled model; spatial: coordinates, velocities, ``"<body>.position_x"``,
+        ``"<body>.omega_x"`` ...); default every coordinate and its rate (``"<coordinate>_dot"``;
+        spatial: the velocities).
     parameters : sequence of str, optional
         Model numbers exposed as fixed parameters (:func:`ctmm.fmu_export_model.parameter_names`:
         masses, inertias, gravity, hinge stiffnesses and dampings, hinge-law and load signal
-        parameters that are not zero); default all of them; ``()`` none.
+        parameters that are not zero); default all of them; ``()`` none; spatial models have none.
     fmi_version : {"2.0"}
         FMI version; ``"3.0"`` is refused (not written yet).
     q0, qdot0 : array_like, optional
-        Start values of the coordinates [rad, m, modal] and rates (default zeros); the FMU exposes
-        them as parameters ``"<coordinate>_start"`` and ``"<coordinate>_dot_start"``.
+        Start values of the coordinates [rad, m, modal] and rates (default zeros; spatial: as ``x0``,
+        ``v0`` of ``ctmm.simulate``, default the neutral configuration at rest); the FMU exposes them
+        as parameters ``"<coordinate>_start"`` and ``"<coordinate>_dot_start"`` (spatial:
+        ``"<velocity>_start"``).
     references : mapping, optional
         ``{loop: number or symbolic signal}`` references of a controlled model [sensed unit]
         (constants of the code, as in ``ctmm.simulate``).
@@ -123,16 +131,23 @@ def export_fmu(system: Any, path: str | os.PathLike, *, step: float, inputs: Seq
     if stability_check not in ("warn", "error", "ignore"):
         raise ModelError(f"stability_check must be 'warn', 'error' or 'ignore', got {stability_check!r}")
     plant = system.plant if isinstance(system, ControlledModel) else system
-    if not isinstance(plant, PlanarModel):
+    if isinstance(system, SpatialModel):
+        if references:
+            raise ModelError(f"export_fmu: references apply to a ControlledModel (its loops), got {references!r} for "
+                             f"the spatial model {system.name!r}")
+        exported = spatial_export(system, inputs=inputs, outputs=outputs, parameters=parameters, q0=q0, qdot0=qdot0)
+    elif isinstance(plant, PlanarModel):
+        if references and not isinstance(system, ControlledModel):
+            raise ModelError(f"export_fmu: references apply to a ControlledModel (its loops), got {references!r} "
+                             f"for the model {plant.name!r} without loops")
+        exported = planar_export(system, step=step, inputs=inputs, outputs=outputs, parameters=parameters, q0=q0,
+                                 qdot0=qdot0, references=references, stability_check=stability_check,
+                                 cache_dir=cache_dir)
+    else:
         kind = type(plant).__name__ if plant is system else f"ControlledModel on a {type(plant).__name__}"
-        raise ModelError(f"export_fmu: system must be a ctmm.planar.PlanarModel or a ControlledModel on one, got "
-                         f"{kind}; spatial models, 1-D chains and controlled chains are not exported yet")
-    if references and not isinstance(system, ControlledModel):
-        raise ModelError(f"export_fmu: references apply to a ControlledModel (its loops), got {references!r} for "
-                         f"the model {plant.name!r} without loops")
-    exported = planar_export(system, step=step, inputs=inputs, outputs=outputs, parameters=parameters, q0=q0,
-                             qdot0=qdot0, references=references, stability_check=stability_check,
-                             cache_dir=cache_dir)
+        raise ModelError(f"export_fmu: system must be a ctmm.planar.PlanarModel, a ControlledModel on one or a "
+                         f"ctmm.spatial.SpatialModel, got {kind}; controlled spatial models, 1-D chains and "
+                         "controlled chains are not exported yet")
     identifier = target.stem
     cache = cache_directory(cache_dir, subfolder="fmu_export")
     with tempfile.TemporaryDirectory(prefix=f".{identifier}-", dir=cache) as work:

@@ -48,7 +48,7 @@ from .planar.model import REVOLUTE, PlanarModel
 from .planar.ports import PlanarPorts
 from .signals import SYMBOLIC_FIELDS
 
-__all__ = ["ExportedSystem", "ExportedVariable", "parameter_names", "planar_export"]
+__all__ = ["ExportedSystem", "ExportedVariable", "chosen_names", "parameter_names", "planar_export"]
 
 
 @dataclass(frozen=True)
@@ -177,8 +177,10 @@ def _signal_names(prefix: str, signal: Any, unit: str) -> list[tuple[str, str, b
     return [(f"{prefix}.{field}", _FIELD_UNITS.get(field, unit), True) for field in fields]
 
 
-def _names(label: str, given: Sequence[str] | None, allowed: Sequence[str], default: Sequence[str]) -> list[str]:
-    """The names chosen by the argument ``label`` (default ``default``), each one of ``allowed``."""
+def chosen_names(label: str, given: Sequence[str] | None, allowed: Sequence[str],
+                 default: Sequence[str]) -> list[str]:
+    """The names chosen by the argument ``label`` of :func:`ctmm.export_fmu` (default ``default``), each one of
+    ``allowed`` (:class:`ModelError` naming the argument, the unknown name and the allowed ones)."""
     if given is None:
         return list(default)
     if isinstance(given, str) or not all(isinstance(name, str) for name in given):
@@ -240,7 +242,7 @@ def planar_export(system: PlanarModel | ControlledModel, *, step: float, inputs:
     loop_signals = {} if loops is None else {f"{law.name}.y": k for k, law in enumerate(loops.laws)}
     sensors = list(ports.sensors) + list(loop_signals)
     default_outputs = list(model.coordinates) + [name + "_dot" for name in model.coordinates]
-    output_names = _names("outputs", outputs, sensors, default_outputs)
+    output_names = chosen_names("outputs", outputs, sensors, default_outputs)
     loop_values = loops.sensors(q_sym, v_sym) if loops is not None and loops.laws else None
     expressions = [loop_values[loop_signals[name]] if name in loop_signals else
                    sensor_expression(ports, name, kinematics) for name in output_names]
@@ -267,7 +269,7 @@ def planar_export(system: PlanarModel | ControlledModel, *, step: float, inputs:
     arguments = [ca.MX.sym(label, *symbolic.size_in(i)) for i, label in enumerate(("y", "u", "h", "p", "t0", "k"))]
     step_function = ca.Function("ctmm_step", arguments, [symbolic(*arguments)])
 
-    input_names = _names("inputs", inputs, scene.actuators, scene.actuators)
+    input_names = chosen_names("inputs", inputs, scene.actuators, scene.actuators)
     input_variables = tuple(ExportedVariable(name, scene.actuators.index(name), 0.0, ports.actuator_unit(name),
                                              f"actuator {name}, held over a communication step")
                             for name in input_names)
@@ -280,7 +282,7 @@ def planar_export(system: PlanarModel | ControlledModel, *, step: float, inputs:
     used = set(step_function.jac_sparsity(0, 3).get_col())     # entries of p the step depends on
     exposable = {name: (k, unit) for k, (name, unit, exposed) in enumerate(layout)
                  if exposed and values[k] != 0.0 and k in used}
-    chosen = _names("parameters", parameters, list(exposable), list(exposable))
+    chosen = chosen_names("parameters", parameters, list(exposable), list(exposable))
     parameter_variables = tuple(ExportedVariable(name, exposable[name][0], float(values[exposable[name][0]]),
                                                  exposable[name][1], f"model number {name}")
                                 for name in chosen)

@@ -309,7 +309,7 @@ def test_bad_arguments_name_the_parameter_and_value(tmp_path, change, words):
 
 
 def test_unsupported_systems_are_refused_by_name(tmp_path):
-    """1-D chains, spatial models (plain and controlled) and non-models: ModelError naming the type."""
+    """1-D chains, controlled spatial models and non-models: ModelError naming the type."""
     import ctmm.spatial as sp
     from ctmm.control import Feedback, with_feedback
     from ctmm.elements import Fixed as ChainFixed, Free, Mass, Spring
@@ -319,14 +319,41 @@ def test_unsupported_systems_are_refused_by_name(tmp_path):
         sp.SpatialBody("body", 4.0, np.diag([0.05, 0.08, 0.06]), center_of_mass=(0.0, 0.0, 0.25)),
         sp.Elastic6(name="hinge", parent=None, child="body", stiffness=np.eye(6), damping=np.zeros((6, 6)),
                     actuated=True)])
-    loop = Feedback("pd", "body.theta_z", "hinge.torque_z", gain=1.0)
-    cases = [(chain, "got Chain"), ("arm", "got str"), (body, "got SpatialModel")]
-    try:
-        cases.append((with_feedback(body, [loop]), "got ControlledModel on a SpatialModel"))
-    except ModelError:          # port names of the spatial model differ: the plain model is refused above
-        pass
+    loop = Feedback("pd", "body.angle_z", "hinge.torque_z", gain=1.0)
+    cases = [(chain, "got Chain"), ("arm", "got str"),
+             (with_feedback(body, [loop]), "got ControlledModel on a SpatialModel")]
     for system, words in cases:
         with pytest.raises(ModelError, match=words) as error:
             ctmm.export_fmu(system, tmp_path / "x.fmu", step=H)
         assert "system" in str(error.value)
     assert not (tmp_path / "x.fmu").exists()
+
+
+def test_a_spatial_tree_equals_ctmm_simulate(tmp_path):
+    """A random spatial tree (free base, every joint kind, loads, vector inputs; quaternions): the FMU's
+    coordinates, velocities, body positions and angular velocities equal ctmm.simulate (numpy RK4)."""
+    pytest.importorskip("pinocchio")
+    from test_spatial_compiled import random_tree, start
+
+    model = random_tree(2, 4, "free")
+    q0, v0, inputs = start(2, model)
+    extra = ["b3.position_x", "b2.omega_z"]
+    path = ctmm.export_fmu(model, tmp_path / "tree.fmu", step=1e-3, q0=q0, qdot0=v0,
+                           outputs=list(model.coordinates) + list(model.velocities) + extra)
+    assert validate_fmu(str(path)) == []
+    description = fmpy.read_model_description(str(path))
+    assert [v.name for v in description.modelVariables if v.causality == "parameter"] == \
+        [f"{name}_start" for name in list(model.coordinates) + list(model.velocities)]
+    start_values = {}
+    for name, value in inputs.items():
+        values = np.atleast_1d(value)
+        start_values.update({name: float(value)} if np.ndim(value) == 0 else
+                            {f"{name}[{k}]": float(x) for k, x in enumerate(values)})
+    out = fmpy.simulate_fmu(str(path), stop_time=0.05, output_interval=0.01, start_values=start_values)
+    native = ctmm.simulate(model, 0.05, 1e-3, x0=q0, v0=v0, inputs=inputs, method="rk4")
+    rows = at(native, out["time"])
+    for name in out.dtype.names[1:]:
+        assert_round_off(out[name], native[name][rows], name)
+    assert max(np.ptp(native[name]) for name in model.coordinates) > 1e-3          # it moved
+    with pytest.raises(ModelError, match="parameters .*constants of its generated code"):
+        ctmm.export_fmu(model, tmp_path / "tree.fmu", step=1e-3, parameters=["b0.mass"])
