@@ -2,7 +2,7 @@
 
 The FMU runs the generated C of the system's RK4 step -- the step of ``ctmm.simulate(...,
 compiled=True)``, from the same casadi terms (:mod:`ctmm.fmu_export_model`), embedded loops and LTI
-controllers closed inside it -- behind a hand-written FMI 2.0 interface (:mod:`ctmm.fmu_export_runtime`).
+controllers closed inside it -- behind a hand-written FMI 2.0 or 3.0 interface (:mod:`ctmm.fmu_export_runtime`).
 No Python runs in the FMU.  The archive holds the model description, the two C sources and a binary
 for this platform; it is built by :func:`ctmm.control.fmu_build.build_fmu` (cached by a hash of the
 sources, the FMI headers, the compiler and the flags) and checked by :func:`fmpy.validation.validate_fmu`.
@@ -10,8 +10,8 @@ sources, the FMI headers, the compiler and the flags) and checked by :func:`fmpy
 What exports (``docs/fmu_export.md``): planar models (rigid trees, modal beams, hub-beam scenes),
 controlled planar models (``ctmm.control.with_feedback``) and spatial models (:mod:`ctmm.fmu_export_spatial`)
 that ``compiled=True`` runs.  Refused by name (:class:`~ctmm.errors.ModelError`): controlled spatial
-models (no generated step with loops yet), 1-D chains and controlled chains (no generated step),
-FMI 3.0 (not written yet).
+models (no generated step with loops yet), 1-D chains and controlled chains (no generated step).
+FMI 2.0 and 3.0 co-simulation are written (:mod:`ctmm.fmu_export_fmi3`).
 """
 from __future__ import annotations
 
@@ -36,7 +36,7 @@ from .spatial.model import SpatialModel
 
 __all__ = ["FMI_VERSIONS", "export_fmu"]
 
-FMI_VERSIONS = ("2.0",)
+FMI_VERSIONS = ("2.0", "3.0")
 """FMI versions :func:`export_fmu` writes."""
 _KEY_FORMAT = b"ctmm.export_fmu/1"
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
@@ -74,8 +74,9 @@ def export_fmu(system: Any, path: str | os.PathLike, *, step: float, inputs: Seq
         Model numbers exposed as fixed parameters (:func:`ctmm.fmu_export_model.parameter_names`:
         masses, inertias, gravity, hinge stiffnesses and dampings, hinge-law and load signal
         parameters that are not zero); default all of them; ``()`` none; spatial models have none.
-    fmi_version : {"2.0"}
-        FMI version; ``"3.0"`` is refused (not written yet).
+    fmi_version : {"2.0", "3.0"}
+        FMI version of the co-simulation FMU (3.0: Float64 variables, the independent variable
+        ``time``, no event mode).
     q0, qdot0 : array_like, optional
         Start values of the coordinates [rad, m, modal] and rates (default zeros; spatial: as ``x0``,
         ``v0`` of ``ctmm.simulate``, default the neutral configuration at rest); the FMU exposes them
@@ -114,7 +115,7 @@ def export_fmu(system: Any, path: str | os.PathLike, *, step: float, inputs: Seq
     """
     if fmi_version not in FMI_VERSIONS:
         raise ModelError(f"export_fmu: fmi_version {fmi_version!r} is not written; allowed: "
-                         f"{', '.join(map(repr, FMI_VERSIONS))} (FMI 3.0 export is not implemented yet)")
+                         f"{', '.join(map(repr, FMI_VERSIONS))}")
     step = validation.positive("step", step)
     if not math.isfinite(step):
         raise ModelError(f"step must be a finite number > 0 [s], got {step!r}")
@@ -152,7 +153,7 @@ def export_fmu(system: Any, path: str | os.PathLike, *, step: float, inputs: Seq
     cache = cache_directory(cache_dir, subfolder="fmu_export")
     with tempfile.TemporaryDirectory(prefix=f".{identifier}-", dir=cache) as work:
         folder = Path(work)
-        write_sources(exported, folder, identifier, step, start_time, stop_time)
+        write_sources(exported, folder, identifier, step, start_time, stop_time, fmi_version)
         files = sorted(p for p in folder.rglob("*") if p.is_file())
         key = cache_key(_KEY_FORMAT, [(p.relative_to(folder).as_posix(), p.read_bytes()) for p in files])
         built = build_fmu(folder, cache / key[:24], compiler=compiler)
