@@ -66,8 +66,8 @@ def export_fmu(system: Any, path: str | os.PathLike, *, step: float, inputs: Seq
         joint inputs, ``"<input>[k]"`` per component of a vector input); default every actuator of the
         generated kernel; the others are held at 0.
     outputs : sequence of str, optional
-        Sensors exposed as outputs (any sensor of :mod:`ctmm.planar.ports`, and ``"<loop>.y"`` of a
-        controlled model; spatial: coordinates, velocities, ``"<body>.position_x"``,
+        Sensors exposed as outputs (any sensor of :mod:`ctmm.planar.ports`, and ``"<loop>.y"``,
+        ``"<loop>.u"`` of a controlled model; spatial: coordinates, velocities, ``"<body>.position_x"``,
         ``"<body>.omega_x"`` ...); default every coordinate and its rate (``"<coordinate>_dot"``;
         spatial: the velocities).
     parameters : sequence of str, optional

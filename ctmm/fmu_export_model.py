@@ -17,7 +17,8 @@ Variables (names as in ctmm):
   laws and the loops' outputs;
 * outputs -- sensors of :mod:`ctmm.planar.ports` (coordinates ``"<coordinate>"`` and
   ``"<coordinate>_dot"``, angles, rates, point positions and velocities, beam stations) and, of a
-  controlled model, each loop's measured signal ``"<loop>.y"``;
+  controlled model, each loop's measured signal ``"<loop>.y"`` and output ``"<loop>.u"``
+  (:func:`loop_expressions`);
 * parameters (:func:`parameter_names`) -- the numbers of the rigid bodies and hinge laws that the
   generated code takes as its input ``p`` and that do not enter the sensors: masses, inertias,
   gravity (no beams), hinge stiffnesses and dampings, hinge-law and load signal parameters.  Geometry
@@ -36,7 +37,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from .compiled_loops import SymbolicKinematics, sensor_expression
+from .compiled_loops import ClosedLoops, SymbolicKinematics, SymbolicReference, sensor_expression
 from .compiled_parameters import compile_refusal, parameter_vector
 from .compiled_scene import CompiledScene
 from .control.controlled_model import ControlledModel
@@ -46,9 +47,10 @@ from .planar.guards import check_scheme
 from .planar.integrate import initial_coordinates
 from .planar.model import REVOLUTE, PlanarModel
 from .planar.ports import PlanarPorts
-from .signals import SYMBOLIC_FIELDS
+from .signals import SYMBOLIC_FIELDS, signal_parameters, symbolic_signal
 
-__all__ = ["ExportedSystem", "ExportedVariable", "chosen_names", "parameter_names", "planar_export"]
+__all__ = ["ExportedSystem", "ExportedVariable", "chosen_names", "loop_expressions", "parameter_names",
+           "planar_export"]
 
 
 @dataclass(frozen=True)
@@ -236,34 +238,24 @@ def planar_export(system: PlanarModel | ControlledModel, *, step: float, inputs:
                  accelerations=lambda m, a, b, t: scene.accelerations(a, b, t=t))
     ports = PlanarPorts(model)
     loops = scene.loops
-    y_sym = ca.SX.sym("y", scene.state_size)
-    q_sym, v_sym = y_sym[:n], y_sym[n:2 * n]
-    kinematics = SymbolicKinematics(model, q_sym, v_sym)
-    loop_signals = {} if loops is None else {f"{law.name}.y": k for k, law in enumerate(loops.laws)}
-    sensors = list(ports.sensors) + list(loop_signals)
+    y_sym, t_sym = ca.SX.sym("y", scene.state_size), ca.SX.sym("t")
+    loop_signals = {} if loops is None else loop_expressions(loops, y_sym, t_sym)
     default_outputs = list(model.coordinates) + [name + "_dot" for name in model.coordinates]
-    output_names = chosen_names("outputs", outputs, sensors, default_outputs)
-    loop_values = loops.sensors(q_sym, v_sym) if loops is not None and loops.laws else None
-    expressions = [loop_values[loop_signals[name]] if name in loop_signals else
-                   sensor_expression(ports, name, kinematics) for name in output_names]
-    t_sym = ca.SX.sym("t")
+    output_names = chosen_names("outputs", outputs, list(ports.sensors) + list(loop_signals), default_outputs)
+    kinematics = SymbolicKinematics(model, y_sym[:n], y_sym[n:2 * n])
+    expressions = [loop_signals[name] if name in loop_signals else sensor_expression(ports, name, kinematics)
+                   for name in output_names]
     outputs_function = ca.Function("ctmm_outputs", [y_sym, t_sym],
                                    [ca.vertcat(*expressions) if expressions else ca.SX(0, 1)])
-
-    start, p_sym = ca.SX.sym("start", 2 * n), ca.SX.sym("p", scene.parameters.size)
-    pieces = [start]
-    if loops is not None:
-        pieces.append(ca.SX.zeros(loops.n_controller_states, 1))
-        if loops.delayed:
-            y0 = loops.sensors(start[:n], start[n:])
-            column = ca.vertcat(*[y0[k] for k in loops.delayed], ca.SX.zeros(len(loops.delayed), 1))
-            pieces.append(ca.repmat(column, loops.ring_columns, 1))
-    initial = ca.Function("ctmm_initial", [start, p_sym], [ca.vertcat(*pieces)])
+    initial = _initial_function(loops, n, scene.parameters.size)
     expected = np.concatenate([q, v]) if loops is None else loops.initial_state(q, v)
     got = np.asarray(initial(np.concatenate([q, v]), scene.parameters), dtype=float).reshape(-1)
     if got.shape != expected.shape or not np.array_equal(got, expected):
         raise ModelError(f"export_fmu: the exported initial state of {model.name!r} does not equal the one of the "
                          "compiled scene (a state layout this version does not know); not exported")
+    if loop_signals:
+        _check_loop_signals(loops, ca.Function("loops", [y_sym, t_sym], [ca.vertcat(*loop_signals.values())]),
+                            scene.run(q, v, step, 3), step)
 
     symbolic = scene.symbolic_step
     arguments = [ca.MX.sym(label, *symbolic.size_in(i)) for i, label in enumerate(("y", "u", "h", "p", "t0", "k"))]
@@ -275,8 +267,8 @@ def planar_export(system: PlanarModel | ControlledModel, *, step: float, inputs:
                             for name in input_names)
     output_variables = tuple(ExportedVariable(name, k, None, _sensor_unit(ports, controlled, name, loop_signals),
                                               f"sensor {name}" if name not in loop_signals else
-                                              f"measured signal of loop {name[:-2]!r}")
-                             for k, name in enumerate(output_names))
+                                              f"{'measured signal' if name.endswith('.y') else 'output'} of loop "
+                                              f"{name[:-2]!r}") for k, name in enumerate(output_names))
     values = scene.parameters
     layout = parameter_names(model)
     used = set(step_function.jac_sparsity(0, 3).get_col())     # entries of p the step depends on
@@ -301,7 +293,64 @@ def planar_export(system: PlanarModel | ControlledModel, *, step: float, inputs:
 
 
 def _sensor_unit(ports: PlanarPorts, controlled: ControlledModel | None, name: str, loop_signals: Mapping) -> str:
-    """Unit of a sensor, or of a loop's measured signal."""
+    """Unit of a sensor, or of a loop's measured signal or output."""
     if name in loop_signals:
-        return loop_unit(controlled.ports, controlled.loop(name[:-2]), "y")
+        return loop_unit(controlled.ports, controlled.loop(name[:-2]), name[-1])
     return ports.sensor_unit(name)
+
+
+def _initial_function(loops: ClosedLoops | None, n: int, n_parameters: int) -> Any:
+    """``ctmm_initial(start, p) -> Y0``: ``[q0, qdot0]``, with loops ``[q0, qdot0, z = 0, ring]``, the ring
+    holding the initial signal of each delayed loop with rate 0 in every column (the history before the
+    start is the initial state held; :meth:`ClosedLoops.initial_state`)."""
+    import casadi as ca
+
+    start, p_sym = ca.SX.sym("start", 2 * n), ca.SX.sym("p", n_parameters)
+    pieces = [start]
+    if loops is not None:
+        pieces.append(ca.SX.zeros(loops.n_controller_states, 1))
+        if loops.delayed:
+            y0 = loops.sensors(start[:n], start[n:])
+            column = ca.vertcat(*[y0[k] for k in loops.delayed], ca.SX.zeros(len(loops.delayed), 1))
+            pieces.append(ca.repmat(column, loops.ring_columns, 1))
+    return ca.Function("ctmm_initial", [start, p_sym], [ca.vertcat(*pieces)])
+
+
+def loop_expressions(loops: ClosedLoops, y: Any, t: Any) -> dict[str, Any]:
+    """``{"<loop>.y": signal now, "<loop>.u": output}`` of every loop on the state symbol ``y``
+    (:attr:`ClosedLoops.state_size`: ``[q, qdot, z, ring]``, the ring column-major with one row per
+    delayed loop's signal, then one per its rate) at the time symbol ``t`` [s]: ``u = -C z - D e``,
+    ``e`` the signal (a delayed loop's: its sample ``steps`` columns back in the ring) minus the
+    reference at ``t - delay``.  :func:`planar_export` checks them against :meth:`ClosedLoops.signals`."""
+    import casadi as ca
+
+    n, nz = loops.n, loops.n_controller_states
+    now = loops.sensors(y[:n], y[n:2 * n])
+    z = y[2 * n:2 * n + nz]
+    ring = ca.reshape(y[2 * n + nz:], 2 * len(loops.delayed), loops.ring_columns) if loops.delayed else None
+    out, offset = {}, 0
+    for k, law in enumerate(loops.laws):
+        signal = ring[loops.delayed.index(k), loops.ring_columns - law.steps] if law.steps else now[k]
+        reference = law.reference
+        at = t - law.delay
+        r = reference.symbolic(at) if isinstance(reference, SymbolicReference) else \
+            symbolic_signal(type(reference), at, signal_parameters(reference))
+        size = law.A.shape[0]
+        controller = ca.dot(ca.DM(law.C), z[offset:offset + size]) if size else 0.0
+        offset += size
+        out[f"{law.name}.y"] = now[k]
+        out[f"{law.name}.u"] = -controller - law.D * (signal - r)
+    return out
+
+
+def _check_loop_signals(loops: ClosedLoops, function: Any, states: np.ndarray, step: float) -> None:
+    """Refuse the export when :func:`loop_expressions` differ from :meth:`ClosedLoops.signals` on a few
+    stored states (a state layout this version does not know)."""
+    times = step * np.arange(1, len(states) + 1)
+    y, u = loops.signals()(states, times)
+    expected = np.stack([y, u], axis=2).reshape(len(states), -1)          # y0, u0, y1, u1, ...
+    got = np.array([np.asarray(function(row, t), dtype=float).reshape(-1) for row, t in zip(states, times)])
+    scale = max(1.0, float(np.max(np.abs(expected)))) if expected.size else 1.0
+    if got.shape != expected.shape or not np.all(np.abs(got - expected) <= 1e-12 * scale):
+        raise ModelError("export_fmu: the exported loop signals do not equal those of the compiled scene (a state "
+                         "layout this version does not know); not exported")

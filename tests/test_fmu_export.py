@@ -124,7 +124,8 @@ def test_loops_with_delays_and_controllers_inside_the_fmu(tmp_path):
     """A controlled hub-beam (real-time PD, LTI loops, two delayed loops, references) exported whole."""
     system, signals = controlled_hub_beam()
     q0, v0 = _state(system.plant, 4)
-    outputs = list(system.plant.coordinates) + ["tip.com.x"] + [f"{loop.name}.y" for loop in system.loops]
+    outputs = list(system.plant.coordinates) + ["tip.com.x"] + [f"{loop.name}.{part}" for loop in system.loops
+                                                                for part in ("y", "u")]
     path = ctmm.export_fmu(system, tmp_path / "hub_loops.fmu", step=2e-3, q0=q0, qdot0=v0, outputs=outputs,
                            references=signals["references"], inputs=["tip.force_x", "o.torque"])
     assert validate_fmu(str(path)) == []
