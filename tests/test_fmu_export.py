@@ -328,6 +328,15 @@ def test_bad_arguments_name_the_parameter_and_value(tmp_path, change, words):
     assert not path.exists()
 
 
+def test_a_step_beyond_the_rk4_limit_is_refused_or_warned(tmp_path):
+    """The step is checked against the plant's linearised RK4 limit at the start values (as ctmm.simulate)."""
+    with pytest.raises(ModelError, match=r"omega_max \* dt = 26\.11 exceeds its limit"):
+        ctmm.export_fmu(arm(), tmp_path / "arm.fmu", step=10.0, stability_check="error")
+    assert not (tmp_path / "arm.fmu").exists()
+    with pytest.raises(ModelError, match="stability_check must be"):
+        ctmm.export_fmu(arm(), tmp_path / "arm.fmu", step=H, stability_check="loud")
+
+
 def test_unsupported_systems_are_refused_by_name(tmp_path):
     """1-D chains, controlled spatial models and non-models: ModelError naming the type."""
     import ctmm.spatial as sp
