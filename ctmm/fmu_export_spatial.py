@@ -19,7 +19,6 @@ Variables (names as in ctmm):
 """
 from __future__ import annotations
 
-import os
 from typing import Any, Sequence
 
 import numpy as np
@@ -37,8 +36,7 @@ __all__ = ["spatial_export"]
 
 
 def spatial_export(model: SpatialModel, *, inputs: Sequence[str] | None, outputs: Sequence[str] | None,
-                   parameters: Sequence[str] | None, q0: Any, qdot0: Any,
-                   cache_dir: str | os.PathLike | None = None) -> ExportedSystem:
+                   parameters: Sequence[str] | None, q0: Any, qdot0: Any) -> ExportedSystem:
     """The :class:`~ctmm.fmu_export_model.ExportedSystem` of a spatial model.
 
     Parameters
@@ -51,8 +49,6 @@ def spatial_export(model: SpatialModel, *, inputs: Sequence[str] | None, outputs
     q0, qdot0 : array_like, mapping or None
         Start positions and velocities, as ``x0`` and ``v0`` of ``ctmm.simulate`` (default the neutral
         configuration at rest).
-    cache_dir : path, optional
-        Unused (nothing is compiled natively); kept for the signature of :func:`ctmm.export_fmu`.
 
     Raises
     ------
@@ -61,7 +57,6 @@ def spatial_export(model: SpatialModel, *, inputs: Sequence[str] | None, outputs
     """
     import casadi as ca
 
-    del cache_dir
     reason = spatial_compile_refusal(model)
     if reason:
         raise ModelError(f"export_fmu: system: {reason}")

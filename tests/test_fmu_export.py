@@ -15,7 +15,6 @@ import numpy as np
 import pytest
 
 import ctmm
-from ctmm.control.controlled_model import ControlledModel
 from ctmm.errors import ModelError
 from ctmm.planar import Fixed, PlanarModel, RigidBody, SmoothHinge, SpringDamperHinge
 
