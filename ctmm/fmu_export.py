@@ -157,11 +157,12 @@ def export_fmu(system: Any, path: str | os.PathLike, *, step: float, inputs: Seq
         files = sorted(p for p in folder.rglob("*") if p.is_file())
         key = cache_key(_KEY_FORMAT, [(p.relative_to(folder).as_posix(), p.read_bytes()) for p in files])
         built = build_fmu(folder, cache / key[:24], compiler=compiler)
+    partial = target.with_name(f".{target.name}.partial")
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
-        partial = target.with_name(f".{target.name}.partial")
         shutil.copyfile(built, partial)
-        os.replace(partial, target)
+        os.replace(partial, target)            # the FMU appears whole or not at all
     except OSError as exc:
+        partial.unlink(missing_ok=True)
         raise ModelError(f"path {str(path)!r} cannot be written: {exc}") from None
     return target

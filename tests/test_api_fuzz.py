@@ -50,6 +50,7 @@ PUBLIC_API: dict[str, str] = {
     "ctmm.ModelError": "exception type", "ctmm.SimulationError": "exception type",
     "ctmm.ConvergenceError": "exception type", "ctmm.SingularSystemError": "exception type",
     "ctmm.UnknownNameError": "exception type", "ctmm.__version__": "string",
+    "ctmm.export_fmu": "tests/test_fmu_export.py (bad arguments, refusals, fmpy round trips)",
     # ctmm.elements
     "ctmm.elements.Element": "abstract base", "ctmm.elements.DiscreteElement": "abstract base",
     "ctmm.elements.Linearisation": "internal record of the stepper", "ctmm.elements.Boundary": "abstract base",
