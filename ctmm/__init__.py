@@ -15,7 +15,8 @@ from .scene_files import load_scene
 from .version import __version__
 
 from . import control, stability  # noqa: E402  (submodules used as ctmm.control / ctmm.stability)
+from .fmu_export import export_fmu  # noqa: E402
 
 __all__ = ["Chain", "simulate", "linearize", "LinearizedSystem", "characteristic_function", "frequency_response", "natural_frequencies", "mode_shapes", "eigenvalue_count",
            "steady_state_response", "signals", "ModelError", "SimulationError", "ConvergenceError",
-           "SingularSystemError", "UnknownNameError", "control", "stability", "__version__", "load_scene"]
+           "SingularSystemError", "UnknownNameError", "control", "stability", "__version__", "load_scene", "export_fmu"]

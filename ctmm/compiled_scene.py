@@ -114,6 +114,8 @@ class CompiledScene:
         :func:`structure_key` of the model (the scenes it serves, :meth:`with_model`).
     compile_time_s : float
         Wall time of building the expressions, generating C and compiling (or loading) [s].
+    symbolic_step : casadi.Function
+        ``step(y, u, h, p, t0, k)`` before compilation (what :func:`ctmm.export_fmu` generates C of).
     """
 
     def __init__(self, model: PlanarModel | ControlledModel, *, store_every: int = 1, rows: int = DEFAULT_ROWS,
@@ -165,6 +167,7 @@ class CompiledScene:
             step = rk4_step_function(rate)
         else:           # the loops closed at every stage, the delayed ones from the ring in the state
             step = self.loops.step(acceleration, len(self.actuators), n_p)
+        self.symbolic_step = step                       # the generated step on symbols (ctmm.fmu_export)
         stride, self._sizes, blocks = time_loop_functions(step, store_every, self.rows)
         name = f"scene_{model.n_bodies}b{n}q" + (f"{len(self.loops.laws)}l" if self.loops else "")
         options = {"cache_dir": cache_dir, "compiler": compiler}

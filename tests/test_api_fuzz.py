@@ -51,6 +51,7 @@ PUBLIC_API: dict[str, str] = {
     "ctmm.ConvergenceError": "exception type", "ctmm.SingularSystemError": "exception type",
     "ctmm.UnknownNameError": "exception type", "ctmm.__version__": "string",
     "ctmm.load_scene": "tests/test_scene_files.py (every error: file, line, key, allowed values)",
+    "ctmm.export_fmu": "tests/test_fmu_export.py (bad arguments, refusals, fmpy round trips)",
     # ctmm.elements
     "ctmm.elements.Element": "abstract base", "ctmm.elements.DiscreteElement": "abstract base",
     "ctmm.elements.Linearisation": "internal record of the stepper", "ctmm.elements.Boundary": "abstract base",

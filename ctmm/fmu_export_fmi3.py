@@ -1,0 +1,346 @@
+"""The FMI 3.0 co-simulation functions of an exported plant FMU (C text; :mod:`ctmm.fmu_export_runtime`).
+
+:data:`FMI3_INTERFACE` wraps the shared core of :data:`ctmm.fmu_export_runtime.CORE` (instance data,
+value references, initialisation, the communication step) in the FMI 3.0 functions: Float64 variables
+(the inputs, outputs, parameters and start values, and the independent variable ``time``), FMU state
+get/set, ``fmi3DoStep`` without event mode, intermediate update or early return.  Every other function
+the standard requires is exported and returns ``fmi3Error`` (or ``fmi3OK`` for an empty call), and
+model-exchange or scheduled-execution instantiation returns ``NULL``.
+"""
+from __future__ import annotations
+
+__all__ = ["FMI3_INTERFACE"]
+
+FMI3_INTERFACE = r"""
+/* ================================================================ FMI 3.0 co-simulation */
+
+typedef struct {
+    Core *core;
+    fmi3InstanceEnvironment environment;
+    fmi3LogMessageCallback logMessage;
+    fmi3Boolean loggingOn;
+} Instance;
+
+static void interface_log(void *owner, int error, const char *text) {
+    Instance *inst = (Instance *)owner;
+    if (inst == NULL || inst->logMessage == NULL || (!error && !inst->loggingOn)) return;
+    inst->logMessage(inst->environment, error ? fmi3Error : fmi3OK, error ? "logStatusError" : "logAll", text);
+}
+
+static fmi3Status not_supported(fmi3Instance instance, const char *function) {
+    report(instance, 1, "%s is not supported by this FMU", function);
+    return fmi3Error;
+}
+
+#define CORE_OF(c) (((Instance *)(c))->core)
+#define STATUS(failed) ((failed) ? fmi3Error : fmi3OK)
+#define UNSUPPORTED(function) { return not_supported(instance, #function); }
+
+const char *fmi3GetVersion(void) { return fmi3Version; }
+
+fmi3Status fmi3SetDebugLogging(fmi3Instance instance, fmi3Boolean loggingOn, size_t nCategories,
+                               const fmi3String categories[]) {
+    (void)nCategories;
+    (void)categories;
+    if (instance == NULL) return fmi3Error;
+    ((Instance *)instance)->loggingOn = loggingOn;
+    return fmi3OK;
+}
+
+fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String instantiationToken,
+                                         fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
+                                         fmi3Boolean eventModeUsed, fmi3Boolean earlyReturnAllowed,
+                                         const fmi3ValueReference requiredIntermediateVariables[],
+                                         size_t nRequiredIntermediateVariables,
+                                         fmi3InstanceEnvironment instanceEnvironment,
+                                         fmi3LogMessageCallback logMessage,
+                                         fmi3IntermediateUpdateCallback intermediateUpdate) {
+    Instance tmp, *inst;
+    (void)instanceName;
+    (void)resourcePath;
+    (void)visible;
+    (void)earlyReturnAllowed;
+    (void)requiredIntermediateVariables;
+    (void)intermediateUpdate;
+    memset(&tmp, 0, sizeof(tmp));
+    tmp.environment = instanceEnvironment;
+    tmp.logMessage = logMessage;
+    tmp.loggingOn = loggingOn;
+    if (eventModeUsed || nRequiredIntermediateVariables > 0) {
+        report(&tmp, 1, "%s has no event mode and no intermediate variables", MODEL_IDENTIFIER);
+        return NULL;
+    }
+    if (instantiationToken == NULL || strcmp(instantiationToken, MODEL_TOKEN) != 0) {
+        report(&tmp, 1, "wrong instantiationToken %s, expected %s",
+               instantiationToken != NULL ? instantiationToken : "(null)", MODEL_TOKEN);
+        return NULL;
+    }
+    inst = (Instance *)calloc(1, sizeof(Instance));
+    if (inst != NULL) {
+        *inst = tmp;
+        inst->core = core_new();
+    }
+    if (inst == NULL || inst->core == NULL) {
+        report(&tmp, 1, "fmi3InstantiateCoSimulation: out of memory");
+        free(inst);
+        return NULL;
+    }
+    return (fmi3Instance)inst;
+}
+
+fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3String instantiationToken,
+                                          fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
+                                          fmi3InstanceEnvironment instanceEnvironment,
+                                          fmi3LogMessageCallback logMessage) {
+    Instance tmp;
+    (void)instanceName;
+    (void)instantiationToken;
+    (void)resourcePath;
+    (void)visible;
+    memset(&tmp, 0, sizeof(tmp));
+    tmp.environment = instanceEnvironment;
+    tmp.logMessage = logMessage;
+    tmp.loggingOn = loggingOn;
+    report(&tmp, 1, "%s supports co-simulation only", MODEL_IDENTIFIER);
+    return NULL;
+}
+
+fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceName, fmi3String instantiationToken,
+                                               fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
+                                               fmi3InstanceEnvironment instanceEnvironment,
+                                               fmi3LogMessageCallback logMessage, fmi3ClockUpdateCallback clockUpdate,
+                                               fmi3LockPreemptionCallback lockPreemption,
+                                               fmi3UnlockPreemptionCallback unlockPreemption) {
+    (void)clockUpdate;
+    (void)lockPreemption;
+    (void)unlockPreemption;
+    return fmi3InstantiateModelExchange(instanceName, instantiationToken, resourcePath, visible, loggingOn,
+                                        instanceEnvironment, logMessage);
+}
+
+void fmi3FreeInstance(fmi3Instance instance) {
+    if (instance == NULL) return;
+    core_free(CORE_OF(instance));
+    free(instance);
+}
+
+fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean toleranceDefined, fmi3Float64 tolerance,
+                                       fmi3Float64 startTime, fmi3Boolean stopTimeDefined, fmi3Float64 stopTime) {
+    (void)toleranceDefined;
+    (void)tolerance;
+    (void)stopTimeDefined;
+    (void)stopTime;
+    if (instance == NULL) return fmi3Error;
+    if (CORE_OF(instance)->data.mode != MODE_INSTANTIATED || !isfinite(startTime)) {
+        report(instance, 1, "fmi3EnterInitializationMode: called twice or startTime %g not finite", startTime);
+        return fmi3Error;
+    }
+    CORE_OF(instance)->data.start_time = startTime;
+    CORE_OF(instance)->data.time = startTime;
+    CORE_OF(instance)->data.mode = MODE_INITIALIZATION;
+    return fmi3OK;
+}
+
+fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) {
+    if (instance == NULL) return fmi3Error;
+    return STATUS(core_exit_initialization(CORE_OF(instance), instance));
+}
+
+fmi3Status fmi3EnterStepMode(fmi3Instance instance) {
+    if (instance == NULL) return fmi3Error;
+    return CORE_OF(instance)->data.mode == MODE_STEP ? fmi3OK : not_supported(instance, "fmi3EnterStepMode here");
+}
+
+fmi3Status fmi3Terminate(fmi3Instance instance) {
+    if (instance == NULL) return fmi3Error;
+    CORE_OF(instance)->data.mode = MODE_TERMINATED;
+    return fmi3OK;
+}
+
+fmi3Status fmi3Reset(fmi3Instance instance) {
+    if (instance == NULL) return fmi3Error;
+    core_reset(CORE_OF(instance));
+    return fmi3OK;
+}
+
+fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                          size_t nValueReferences, fmi3Float64 values[], size_t nValues) {
+    if (instance == NULL || nValues != nValueReferences) return fmi3Error;
+    return STATUS(core_get(CORE_OF(instance), instance, valueReferences, nValueReferences, values));
+}
+
+fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                          size_t nValueReferences, const fmi3Float64 values[], size_t nValues) {
+    if (instance == NULL || nValues != nValueReferences) return fmi3Error;
+    return STATUS(core_set(CORE_OF(instance), instance, valueReferences, nValueReferences, values));
+}
+
+fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoint, fmi3Float64 communicationStepSize,
+                      fmi3Boolean noSetFMUStatePriorToCurrentPoint, fmi3Boolean *eventHandlingNeeded,
+                      fmi3Boolean *terminateSimulation, fmi3Boolean *earlyReturn, fmi3Float64 *lastSuccessfulTime) {
+    int failed;
+    (void)noSetFMUStatePriorToCurrentPoint;
+    if (instance == NULL) return fmi3Error;
+    failed = core_do_step(CORE_OF(instance), instance, currentCommunicationPoint, communicationStepSize);
+    if (eventHandlingNeeded != NULL) *eventHandlingNeeded = fmi3False;
+    if (terminateSimulation != NULL) *terminateSimulation = fmi3False;
+    if (earlyReturn != NULL) *earlyReturn = fmi3False;
+    if (lastSuccessfulTime != NULL) *lastSuccessfulTime = CORE_OF(instance)->data.time;
+    return STATUS(failed);
+}
+
+fmi3Status fmi3GetFMUState(fmi3Instance instance, fmi3FMUState *FMUState) {
+    Data *copy;
+    if (instance == NULL || FMUState == NULL) return fmi3Error;
+    copy = core_save(CORE_OF(instance), (Data *)*FMUState);
+    if (copy == NULL) return not_supported(instance, "fmi3GetFMUState (out of memory)");
+    *FMUState = (fmi3FMUState)copy;
+    return fmi3OK;
+}
+
+fmi3Status fmi3SetFMUState(fmi3Instance instance, fmi3FMUState FMUState) {
+    if (instance == NULL || FMUState == NULL) return fmi3Error;
+    CORE_OF(instance)->data = *(const Data *)FMUState;
+    return fmi3OK;
+}
+
+fmi3Status fmi3FreeFMUState(fmi3Instance instance, fmi3FMUState *FMUState) {
+    if (instance == NULL || FMUState == NULL) return fmi3Error;
+    free(*FMUState);
+    *FMUState = NULL;
+    return fmi3OK;
+}
+
+/* variables of other types: none (calls with no value references are fine) */
+#define NO_VARIABLES(function, qualifier, type)                                                            \
+    fmi3Status function(fmi3Instance instance, const fmi3ValueReference valueReferences[],                 \
+                        size_t nValueReferences, qualifier type values[], size_t nValues) {                \
+        (void)valueReferences;                                                                              \
+        (void)values;                                                                                       \
+        (void)nValues;                                                                                      \
+        return nValueReferences == 0 ? fmi3OK : not_supported(instance, #function " (Float64 variables only)"); \
+    }
+NO_VARIABLES(fmi3GetFloat32, , fmi3Float32)
+NO_VARIABLES(fmi3GetInt8, , fmi3Int8)
+NO_VARIABLES(fmi3GetUInt8, , fmi3UInt8)
+NO_VARIABLES(fmi3GetInt16, , fmi3Int16)
+NO_VARIABLES(fmi3GetUInt16, , fmi3UInt16)
+NO_VARIABLES(fmi3GetInt32, , fmi3Int32)
+NO_VARIABLES(fmi3GetUInt32, , fmi3UInt32)
+NO_VARIABLES(fmi3GetInt64, , fmi3Int64)
+NO_VARIABLES(fmi3GetUInt64, , fmi3UInt64)
+NO_VARIABLES(fmi3GetBoolean, , fmi3Boolean)
+NO_VARIABLES(fmi3GetString, , fmi3String)
+NO_VARIABLES(fmi3SetFloat32, const, fmi3Float32)
+NO_VARIABLES(fmi3SetInt8, const, fmi3Int8)
+NO_VARIABLES(fmi3SetUInt8, const, fmi3UInt8)
+NO_VARIABLES(fmi3SetInt16, const, fmi3Int16)
+NO_VARIABLES(fmi3SetUInt16, const, fmi3UInt16)
+NO_VARIABLES(fmi3SetInt32, const, fmi3Int32)
+NO_VARIABLES(fmi3SetUInt32, const, fmi3UInt32)
+NO_VARIABLES(fmi3SetInt64, const, fmi3Int64)
+NO_VARIABLES(fmi3SetUInt64, const, fmi3UInt64)
+NO_VARIABLES(fmi3SetBoolean, const, fmi3Boolean)
+NO_VARIABLES(fmi3SetString, const, fmi3String)
+
+fmi3Status fmi3GetBinary(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                         size_t valueSizes[], fmi3Binary values[], size_t nValues) {
+    (void)valueReferences;
+    (void)valueSizes;
+    (void)values;
+    (void)nValues;
+    return nValueReferences == 0 ? fmi3OK : not_supported(instance, "fmi3GetBinary");
+}
+
+fmi3Status fmi3SetBinary(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                         const size_t valueSizes[], const fmi3Binary values[], size_t nValues) {
+    (void)valueReferences;
+    (void)valueSizes;
+    (void)values;
+    (void)nValues;
+    return nValueReferences == 0 ? fmi3OK : not_supported(instance, "fmi3SetBinary");
+}
+
+#if defined(__GNUC__)
+#pragma GCC diagnostic ignored "-Wunused-parameter"
+#endif
+
+fmi3Status fmi3GetClock(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                        fmi3Clock values[]) UNSUPPORTED(fmi3GetClock)
+fmi3Status fmi3SetClock(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                        const fmi3Clock values[]) UNSUPPORTED(fmi3SetClock)
+fmi3Status fmi3GetNumberOfVariableDependencies(fmi3Instance instance, fmi3ValueReference valueReference,
+                                               size_t *nDependencies) UNSUPPORTED(fmi3GetNumberOfVariableDependencies)
+fmi3Status fmi3GetVariableDependencies(fmi3Instance instance, fmi3ValueReference dependent,
+                                       size_t elementIndicesOfDependent[], fmi3ValueReference independents[],
+                                       size_t elementIndicesOfIndependents[], fmi3DependencyKind dependencyKinds[],
+                                       size_t nDependencies) UNSUPPORTED(fmi3GetVariableDependencies)
+fmi3Status fmi3SerializedFMUStateSize(fmi3Instance instance, fmi3FMUState FMUState,
+                                      size_t *size) UNSUPPORTED(fmi3SerializedFMUStateSize)
+fmi3Status fmi3SerializeFMUState(fmi3Instance instance, fmi3FMUState FMUState, fmi3Byte serializedState[],
+                                 size_t size) UNSUPPORTED(fmi3SerializeFMUState)
+fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte serializedState[], size_t size,
+                                   fmi3FMUState *FMUState) UNSUPPORTED(fmi3DeserializeFMUState)
+fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[], size_t nUnknowns,
+                                        const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
+                                        size_t nSeed, fmi3Float64 sensitivity[],
+                                        size_t nSensitivity) UNSUPPORTED(fmi3GetDirectionalDerivative)
+fmi3Status fmi3GetAdjointDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[], size_t nUnknowns,
+                                    const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
+                                    size_t nSeed, fmi3Float64 sensitivity[],
+                                    size_t nSensitivity) UNSUPPORTED(fmi3GetAdjointDerivative)
+fmi3Status fmi3EnterConfigurationMode(fmi3Instance instance) UNSUPPORTED(fmi3EnterConfigurationMode)
+fmi3Status fmi3ExitConfigurationMode(fmi3Instance instance) UNSUPPORTED(fmi3ExitConfigurationMode)
+fmi3Status fmi3GetIntervalDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                                  size_t nValueReferences, fmi3Float64 intervals[],
+                                  fmi3IntervalQualifier qualifiers[]) UNSUPPORTED(fmi3GetIntervalDecimal)
+fmi3Status fmi3GetIntervalFraction(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                                   size_t nValueReferences, fmi3UInt64 counters[], fmi3UInt64 resolutions[],
+                                   fmi3IntervalQualifier qualifiers[]) UNSUPPORTED(fmi3GetIntervalFraction)
+fmi3Status fmi3GetShiftDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                               size_t nValueReferences, fmi3Float64 shifts[]) UNSUPPORTED(fmi3GetShiftDecimal)
+fmi3Status fmi3GetShiftFraction(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                                size_t nValueReferences, fmi3UInt64 counters[],
+                                fmi3UInt64 resolutions[]) UNSUPPORTED(fmi3GetShiftFraction)
+fmi3Status fmi3SetIntervalDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                                  size_t nValueReferences,
+                                  const fmi3Float64 intervals[]) UNSUPPORTED(fmi3SetIntervalDecimal)
+fmi3Status fmi3SetIntervalFraction(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                                   size_t nValueReferences, const fmi3UInt64 counters[],
+                                   const fmi3UInt64 resolutions[]) UNSUPPORTED(fmi3SetIntervalFraction)
+fmi3Status fmi3SetShiftDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                               size_t nValueReferences, const fmi3Float64 shifts[]) UNSUPPORTED(fmi3SetShiftDecimal)
+fmi3Status fmi3SetShiftFraction(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                                size_t nValueReferences, const fmi3UInt64 counters[],
+                                const fmi3UInt64 resolutions[]) UNSUPPORTED(fmi3SetShiftFraction)
+fmi3Status fmi3EvaluateDiscreteStates(fmi3Instance instance) UNSUPPORTED(fmi3EvaluateDiscreteStates)
+fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *discreteStatesNeedUpdate,
+                                    fmi3Boolean *terminateSimulation, fmi3Boolean *nominalsOfContinuousStatesChanged,
+                                    fmi3Boolean *valuesOfContinuousStatesChanged, fmi3Boolean *nextEventTimeDefined,
+                                    fmi3Float64 *nextEventTime) UNSUPPORTED(fmi3UpdateDiscreteStates)
+fmi3Status fmi3EnterEventMode(fmi3Instance instance) UNSUPPORTED(fmi3EnterEventMode)
+fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance instance) UNSUPPORTED(fmi3EnterContinuousTimeMode)
+fmi3Status fmi3CompletedIntegratorStep(fmi3Instance instance, fmi3Boolean noSetFMUStatePriorToCurrentPoint,
+                                       fmi3Boolean *enterEventMode,
+                                       fmi3Boolean *terminateSimulation) UNSUPPORTED(fmi3CompletedIntegratorStep)
+fmi3Status fmi3SetTime(fmi3Instance instance, fmi3Float64 time) UNSUPPORTED(fmi3SetTime)
+fmi3Status fmi3SetContinuousStates(fmi3Instance instance, const fmi3Float64 continuousStates[],
+                                   size_t nContinuousStates) UNSUPPORTED(fmi3SetContinuousStates)
+fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance instance, fmi3Float64 derivatives[],
+                                             size_t nContinuousStates) UNSUPPORTED(fmi3GetContinuousStateDerivatives)
+fmi3Status fmi3GetEventIndicators(fmi3Instance instance, fmi3Float64 eventIndicators[],
+                                  size_t nEventIndicators) UNSUPPORTED(fmi3GetEventIndicators)
+fmi3Status fmi3GetContinuousStates(fmi3Instance instance, fmi3Float64 continuousStates[],
+                                   size_t nContinuousStates) UNSUPPORTED(fmi3GetContinuousStates)
+fmi3Status fmi3GetNominalsOfContinuousStates(fmi3Instance instance, fmi3Float64 nominals[],
+                                             size_t nContinuousStates) UNSUPPORTED(fmi3GetNominalsOfContinuousStates)
+fmi3Status fmi3GetNumberOfEventIndicators(fmi3Instance instance,
+                                          size_t *nEventIndicators) UNSUPPORTED(fmi3GetNumberOfEventIndicators)
+fmi3Status fmi3GetNumberOfContinuousStates(fmi3Instance instance,
+                                           size_t *nContinuousStates) UNSUPPORTED(fmi3GetNumberOfContinuousStates)
+fmi3Status fmi3GetOutputDerivatives(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                                    size_t nValueReferences, const fmi3Int32 orders[], fmi3Float64 values[],
+                                    size_t nValues) UNSUPPORTED(fmi3GetOutputDerivatives)
+fmi3Status fmi3ActivateModelPartition(fmi3Instance instance, fmi3ValueReference clockReference,
+                                      fmi3Float64 activationTime) UNSUPPORTED(fmi3ActivateModelPartition)
+"""

@@ -1,0 +1,106 @@
+"""What an exported FMU of a spatial model computes and shows (:mod:`ctmm.fmu_export`).
+
+:func:`spatial_export` states a :class:`~ctmm.spatial.model.SpatialModel` that
+``ctmm.simulate(..., compiled=True)`` compiles as an :class:`~ctmm.fmu_export_model.ExportedSystem`:
+the step is :func:`ctmm.generated_loop.rk4_step_function` of the model's
+:class:`~ctmm.compiled_spatial.SpatialRates` (the one articulated sweep at ``d = 6``, quaternion
+coordinates), the step of ``compiled=True``.
+
+Variables (names as in ctmm):
+
+* inputs -- the model's joint inputs (:attr:`~ctmm.compiled_spatial.SpatialRates.actuators`); an input
+  of ``k > 1`` components (a spherical joint's torque) is ``"<input>[0]"`` ... ``"<input>[k-1]"``;
+* outputs -- coordinates and velocities (``model.coordinates``, ``model.velocities``), each body's
+  origin ``"<body>.position_x|y|z"`` [m] and angular velocity ``"<body>.omega_x|y|z"`` [rad/s] in world
+  axes (the signals of ``ctmm.simulate``); default the coordinates and velocities;
+* parameters -- none: spatial kernels keep every number as a constant of the code;
+* start values -- ``"<coordinate>_start"`` (quaternion entries as given: set a unit quaternion) and
+  ``"<velocity>_start"``.
+"""
+from __future__ import annotations
+
+from typing import Any, Sequence
+
+import numpy as np
+
+from .compiled_spatial import SpatialRates, spatial_compile_refusal
+from .errors import ModelError
+from .fmu_export_model import ExportedSystem, ExportedVariable, chosen_names
+from .generated_loop import rk4_step_function
+from .ops import CASADI
+from .spatial.body_forms import SpatialScene
+from .spatial.integrate import initial_state, spatial_signals
+from .spatial.model import SpatialModel
+
+__all__ = ["spatial_export"]
+
+
+def spatial_export(model: SpatialModel, *, inputs: Sequence[str] | None, outputs: Sequence[str] | None,
+                   parameters: Sequence[str] | None, q0: Any, qdot0: Any) -> ExportedSystem:
+    """The :class:`~ctmm.fmu_export_model.ExportedSystem` of a spatial model.
+
+    Parameters
+    ----------
+    model : SpatialModel
+    inputs, outputs : sequence of str or None
+        Names to expose (module docstring); ``None``: every input component; every coordinate and velocity.
+    parameters : sequence of str or None
+        ``None`` or empty: a spatial FMU has no parameters.
+    q0, qdot0 : array_like, mapping or None
+        Start positions and velocities, as ``x0`` and ``v0`` of ``ctmm.simulate`` (default the neutral
+        configuration at rest).
+
+    Raises
+    ------
+    ModelError
+        A model the generated kernels refuse (named), unknown names, parameters asked for, bad start values.
+    """
+    import casadi as ca
+
+    reason = spatial_compile_refusal(model)
+    if reason:
+        raise ModelError(f"export_fmu: system: {reason}")
+    if parameters:
+        raise ModelError(f"export_fmu: parameters {list(parameters)!r}: a spatial model's numbers are constants of "
+                         "its generated code; allowed: None or ()")
+    start_values = initial_state(model, q0, qdot0)
+    rates = SpatialRates(model, fold=False)
+    step = rk4_step_function(rates.rate)
+    arguments = [ca.MX.sym(label, *step.size_in(i)) for i, label in enumerate(("y", "u", "h", "p", "t0", "k"))]
+    step_function = ca.Function("ctmm_step", arguments, [step(*arguments)])
+    nq, nv = model.n_positions, model.n_velocities
+    y_sym = ca.SX.sym("y", nq + nv)
+    q_sym, v_sym = y_sym[:nq], y_sym[nq:]
+    zero_inputs = {name: ca.SX.zeros(width, 1) for name, width in zip(rates.actuators, rates.widths)}
+    bodies = SpatialScene(model).terms(CASADI, q_sym, v_sym, 0.0, zero_inputs)[2]
+    expressions = {name: y_sym[k] for k, name in enumerate(list(model.coordinates) + list(model.velocities))}
+    for body, state in zip(model.bodies, bodies):
+        for axis, label in enumerate("xyz"):
+            expressions[f"{body.name}.position_{label}"] = state.origin[axis]
+            expressions[f"{body.name}.omega_{label}"] = state.omega[axis]
+    default_outputs = list(model.coordinates) + list(model.velocities)
+    output_names = chosen_names("outputs", outputs, list(expressions), default_outputs)
+    t_sym = ca.SX.sym("t")
+    output_function = ca.Function("ctmm_outputs", [y_sym, t_sym],
+                                  [ca.vertcat(*[expressions[name] for name in output_names])
+                                   if output_names else ca.SX(0, 1)])
+    start, p_sym = ca.SX.sym("start", nq + nv), ca.SX.sym("p", 0)
+    initial_function = ca.Function("ctmm_initial", [start, p_sym], [start])
+
+    _, units = spatial_signals(model, np.zeros(1), start_values[None, :])
+    components, offset = [], 0
+    for name, width in zip(rates.actuators, rates.widths):
+        components += [(name if width == 1 else f"{name}[{k}]", offset + k) for k in range(width)]
+        offset += width
+    index = dict(components)
+    input_names = chosen_names("inputs", inputs, list(index), list(index))
+    input_variables = tuple(ExportedVariable(name, index[name], 0.0, "", f"joint input {name}, held over a "
+                                             "communication step [N or N m]") for name in input_names)
+    output_variables = tuple(ExportedVariable(name, k, None, units.get(name, ""), f"signal {name}")
+                             for k, name in enumerate(output_names))
+    starts = tuple(ExportedVariable(f"{name}_start", k, float(start_values[k]), units.get(name, ""),
+                                    f"start value of {name}")
+                   for k, name in enumerate(list(model.coordinates) + list(model.velocities)))
+    notes = ("spatial model: every number (masses, geometry, laws, loads, gravity) is a constant of the code",)
+    return ExportedSystem(model.name, initial_function, step_function, output_function, np.zeros(0), offset,
+                          nq + nv, input_variables, output_variables, (), starts, notes)
