@@ -153,7 +153,8 @@ class GlobalChain:
 
     # -- kinematics of all mass points ------------------------------------------------------
     def _points(self, q: np.ndarray, qd: np.ndarray):
-        """Per mass point: mass, position, Jacobian (2, n), bias (2,); rotary inertias (index, J)."""
+        """Per rigid link (one point) or beam (its P points): mass, position (2,) / (P, 2), Jacobian (2, n) /
+        (P, 2, n), bias (2,) / (P, 2), segment; and the rotary inertias (index, J)."""
         nq = self.n
         base = np.zeros(2)
         J_base = np.zeros((2, nq), dtype=q.dtype)
@@ -168,13 +169,12 @@ class GlobalChain:
                 bm = self.beams[j]
                 iu = self.u_index[j]
                 u, ud = q[iu], qd[iu]
-                for p in range(len(bm.weights)):
-                    rho = np.array([bm.points_x[p], 0.0]) + bm.shape[p] @ u
-                    Jp = J_base.copy()
-                    Jp[:, it] += R @ _J @ rho
-                    Jp[:, iu] += R @ bm.shape[p]
-                    bias = b_base - w * w * (R @ rho) + 2 * w * (R @ _J @ (bm.shape[p] @ ud))
-                    out.append((bm.weights[p], base + R @ rho, Jp, bias, j))
+                rho = np.stack([bm.points_x, np.zeros_like(bm.points_x)], axis=1) + bm.shape @ u     # (P, 2)
+                Jp = np.broadcast_to(J_base, (len(bm.weights),) + J_base.shape).copy()               # (P, 2, n)
+                Jp[:, :, it] += rho @ (R @ _J).T
+                Jp[:, :, iu] += R @ bm.shape
+                bias = b_base - w * w * rho @ R.T + 2 * w * (bm.shape @ ud) @ (R @ _J).T
+                out.append((bm.weights, base + rho @ R.T, Jp, bias, j))
                 rho = np.array([seg.length, 0.0]) + bm.end @ u
                 Jn = J_base.copy()
                 Jn[:, it] += R @ _J @ rho
@@ -212,9 +212,10 @@ class GlobalChain:
         dtype = np.result_type(q, qd, float)
         M = np.zeros((self.n, self.n), dtype=dtype)
         rhs = np.zeros(self.n, dtype=dtype)
-        for m, _, Jp, bias, _ in pts:
-            M += m * Jp.T @ Jp
-            rhs += m * Jp.T @ (self.gravity - bias)
+        for m, _, Jp, bias, _ in pts:                 # a rigid link's point, or all points of a beam (batched)
+            m, Jp, bias = np.atleast_1d(m), Jp.reshape(-1, 2, self.n), bias.reshape(-1, 2)
+            M += np.einsum("p,pik,pil->kl", m, Jp, Jp)
+            rhs += np.einsum("p,pik,pi->k", m, Jp, self.gravity - bias)
         for it, inertia in rotary:
             M[it, it] += inertia
         # hinge laws: tau_j = -k phi - c phi_dot acts on theta_j and (-) on the parent cross-section
@@ -240,20 +241,35 @@ class GlobalChain:
         M, rhs = self._generalised(np.asarray(q), np.asarray(qd), t)
         return np.linalg.solve(M, rhs)
 
+    def hinge_positions(self, q: np.ndarray) -> np.ndarray:
+        """Global positions [m] of the hinge of each segment (its inboard point), ``(n_segments, 2)``."""
+        q = np.asarray(q, float)
+        out, base = [], np.zeros(2)
+        for j, seg in enumerate(self.segments):
+            out.append(base.copy())
+            th = q[self.theta_index[j]]
+            R = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
+            rho = np.array([seg.length, 0.0])
+            if j in self.beams:
+                rho = rho + self.beams[j].end @ q[self.u_index[j]]
+            base = base + R @ rho
+        return np.array(out)
+
     def interaction_force(self, q: np.ndarray, qd: np.ndarray, j: int, t: float = 0.0) -> np.ndarray:
         """Force [N] (global axes) exerted on segment ``j`` by its parent at the hinge: the momentum rate of
         segments ``j, j+1, ...`` minus their weight."""
         qdd = self.accelerations(q, qd, t)
         pts, _ = self._points(np.asarray(q, float), np.asarray(qd, float))
-        return sum(m * (Jp @ qdd + bias - self.gravity) for m, _, Jp, bias, k in pts if k >= j)
+        return sum(np.einsum("p,pi->i", np.atleast_1d(m), Jp.reshape(-1, 2, self.n) @ qdd + bias.reshape(-1, 2)
+                             - self.gravity) for m, _, Jp, bias, k in pts if k >= j)
 
     def energy(self, q: np.ndarray, qd: np.ndarray) -> float:
         """Kinetic + gravity + strain + hinge-spring energy [J] (no ``force`` potential)."""
         pts, rotary = self._points(np.asarray(q, float), np.asarray(qd, float))
         e = 0.0
         for m, r, Jp, _, _ in pts:
-            v = Jp @ qd
-            e += 0.5 * m * v @ v - m * self.gravity @ r
+            m, v = np.atleast_1d(m), Jp.reshape(-1, 2, self.n) @ qd
+            e += float(0.5 * m @ np.sum(v * v, axis=1) - m @ (r.reshape(-1, 2) @ self.gravity))
         for it, inertia in rotary:
             e += 0.5 * inertia * qd[it] ** 2
         for j, bm in self.beams.items():
