@@ -299,6 +299,7 @@ class SubsystemData:
             if len(dofs) == 3:
                 self.end_dphi[k, local[dofs[2]]] = 1.0
         self.laws = [] if body.nonlinear_force is None else [("nonlinear_force", body.nonlinear_force)]
+        self.forces, self.constant_distributed = [], True        # no time loads (read by the code generator)
         self.size = max([float(np.linalg.norm(p)) for p in self.position.values()] + [1e-3])
         self.translational = np.array([kinds[i] < 2 for i in keep], dtype=bool)
 
