@@ -120,3 +120,13 @@ def test_lumped_global_subsystem_conserves_energy_on_a_pendulum():
     energy = np.array([model.energy(Q[k], V[k]) for k in range(0, Q.shape[0], 60)])
     assert np.ptp(energy) < 1e-8 * np.max(np.abs(energy))
     assert np.max(np.abs(V[:, names.index("net.p3_uy")])) > 0.05          # the net moves
+
+
+def test_a_large_deformation_is_reported():
+    import ctmm
+    from ctmm.fem import SmallDeformationWarning
+    fe = FiniteElementModel("soft", {"n0": (0.0, 0.0), "n1": (0.5, 0.0), "n2": (1.0, 0.0)},
+                            [BeamElement(f"e{k}", f"n{k}", f"n{k + 1}", 0.5, 1e3, 1.0) for k in (0, 1)])
+    model = PlanarModel.chain("floppy", [Pinned("base"), fe.subsystem("soft", ("n0", "n2"))])
+    with pytest.warns(SmallDeformationWarning, match="soft"):
+        ctmm.simulate(model, 0.15, 1e-3, method="newmark")

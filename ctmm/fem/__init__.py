@@ -14,8 +14,8 @@ Derivation and validation: ``docs/mixed.md``.
 """
 from .assembly import FiniteElementModel
 from .elements import BeamElement, NodeSpring, PointMass, beam_local_matrices
-from .family import SubsystemFamily, subsystem_energy
+from .family import SmallDeformationWarning, SubsystemFamily, subsystem_energy
 from .subsystem import FloatingInertia, GlobalSubsystem
 
 __all__ = ["FiniteElementModel", "BeamElement", "PointMass", "NodeSpring", "beam_local_matrices", "GlobalSubsystem",
-           "FloatingInertia", "SubsystemFamily", "subsystem_energy"]
+           "FloatingInertia", "SubsystemFamily", "SmallDeformationWarning", "subsystem_energy"]

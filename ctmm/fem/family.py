@@ -9,6 +9,7 @@ are this family's own.
 """
 from __future__ import annotations
 
+import warnings
 from typing import Any
 
 import numpy as np
@@ -16,7 +17,16 @@ import numpy as np
 from ..errors import SimulationError
 from ..flexible.family import ModalBeamFamily
 
-__all__ = ["SubsystemFamily", "subsystem_energy"]
+__all__ = ["SubsystemFamily", "SmallDeformationWarning", "subsystem_energy", "SMALL_DEFORMATION"]
+
+#: Largest displacement of a subsystem node, as a fraction of the subsystem's size, inside the
+#: small-deformation range of the floating frame; beyond it a :class:`SmallDeformationWarning` is issued.
+SMALL_DEFORMATION = 0.1
+
+
+class SmallDeformationWarning(UserWarning):
+    """A subsystem deforms beyond :data:`SMALL_DEFORMATION` of its size: the linear elasticity in its
+    floating frame no longer describes it (the run goes on; the answer is the model's, not the structure's)."""
 
 
 def subsystem_energy(model: Any, q: np.ndarray, qdot: np.ndarray, t: float = 0.0) -> float:
@@ -56,12 +66,16 @@ class SubsystemFamily(ModalBeamFamily):
 
     @staticmethod
     def check_divergence(model: Any, q: np.ndarray, t: float, dt: float | None, method: str) -> None:
-        """Raise :class:`SimulationError` when a subsystem's displacement leaves the small-deformation range
-        (larger than the subsystem itself)."""
+        """Raise :class:`SimulationError` when a subsystem's displacement is larger than the subsystem itself
+        (divergence); warn (:class:`SmallDeformationWarning`) beyond :data:`SMALL_DEFORMATION` of its size."""
         for j, body in model.beams.items():
             d = body.data
             u = np.asarray(q)[model.modal_index[j]]
             bound = float(np.max(np.abs(u[d.translational]), initial=0.0))
+            if np.isfinite(bound) and SMALL_DEFORMATION * d.size < bound <= d.size:
+                warnings.warn(f"subsystem {body.name!r}: a node moves by more than {SMALL_DEFORMATION:g} of the "
+                              f"subsystem's size {d.size:.3g} m: outside the small-deformation range of its floating "
+                              "frame (docs/mixed.md §5)", SmallDeformationWarning, stacklevel=2)
             if not np.isfinite(bound) or bound > d.size:
                 raise SimulationError(
                     f"simulation diverged at t = {t:.6g} s: subsystem {body.name!r} displacement {bound:.3g} m exceeds "
