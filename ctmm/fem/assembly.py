@@ -186,8 +186,8 @@ class FiniteElementModel:
                     gamma[dofs[2]] += e.inertia
         return FloatingInertia(mass, first, polar, S1, sigma, gamma, G, Mt)
 
-    def subsystem(self, name: str, boundary: Sequence[str], *, nonlinear_force: Callable | None = None
-                  ) -> GlobalSubsystem:
+    def subsystem(self, name: str, boundary: Sequence[str], *, nonlinear_force: Callable | None = None,
+                  frame_nodes: Sequence[str] = ()) -> GlobalSubsystem:
         """This model as a body of a planar model (:class:`~ctmm.fem.GlobalSubsystem`).
 
         Parameters
@@ -195,10 +195,11 @@ class FiniteElementModel:
         name : str
             Body name (coordinates ``"name.theta"``, ``"name.<node>_ux"`` ...).
         boundary : sequence of str
-            Boundary nodes, the inboard one first (it needs a rotation DOF: a beam node); the others are
-            the body's points.
+            Boundary nodes, the inboard one first (it carries the frame); the others are the body's points.
         nonlinear_force : callable, optional
             ``f(u, u_dot, t)`` over all DOFs (:class:`~ctmm.fem.GlobalSubsystem`).
+        frame_nodes : sequence of str
+            Nodes fixed in the frame (:class:`~ctmm.fem.GlobalSubsystem`).
         """
         boundary = tuple(boundary)
         if not boundary or boundary[0] not in self.positions:
@@ -209,7 +210,7 @@ class FiniteElementModel:
         nodes = {node: (tuple(self.positions[node] - o), self.dofs[node]) for node in self.positions}
         return GlobalSubsystem(name, mass_matrix=self.mass, damping_matrix=self.damping,
                                stiffness_matrix=self.stiffness, nodes=nodes, boundary=boundary,
-                               nonlinear_force=nonlinear_force, inertia_integrals=inertia)
+                               nonlinear_force=nonlinear_force, inertia_integrals=inertia, frame_nodes=frame_nodes)
 
     def natural_frequencies(self, clamped: Sequence[str] = ()) -> np.ndarray:
         """Natural frequencies [rad/s] with the DOFs of the ``clamped`` nodes held (``eigh(K, M)``)."""

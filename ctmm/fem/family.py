@@ -67,12 +67,13 @@ class SubsystemFamily(ModalBeamFamily):
     @staticmethod
     def check_divergence(model: Any, q: np.ndarray, t: float, dt: float | None, method: str) -> None:
         """Raise :class:`SimulationError` when a subsystem's displacement is larger than the subsystem itself
-        (divergence); warn (:class:`SmallDeformationWarning`) beyond :data:`SMALL_DEFORMATION` of its size."""
+        (divergence); warn (:class:`SmallDeformationWarning`) beyond :data:`SMALL_DEFORMATION` of its size when
+        it has a linear stiffness (the kinematics are exact for any displacement: only ``K u`` is linearised)."""
         for j, body in model.beams.items():
             d = body.data
             u = np.asarray(q)[model.modal_index[j]]
             bound = float(np.max(np.abs(u[d.translational]), initial=0.0))
-            if np.isfinite(bound) and SMALL_DEFORMATION * d.size < bound <= d.size:
+            if d.linear_elastic and np.isfinite(bound) and SMALL_DEFORMATION * d.size < bound <= d.size:
                 warnings.warn(f"subsystem {body.name!r}: a node moves by more than {SMALL_DEFORMATION:g} of the "
                               f"subsystem's size {d.size:.3g} m: outside the small-deformation range of its floating "
                               "frame (docs/mixed.md §5)", SmallDeformationWarning, stacklevel=2)

@@ -139,8 +139,9 @@ class GlobalSubsystem(DeformableBody):
     nodes : mapping of str to ((x, y), dofs)
         Node position in the frame [m] and its DOF indices ``(ix, iy)`` or ``(ix, iy, irz)``.
     boundary : sequence of str
-        Boundary nodes: the first is the inboard one (it needs a rotation DOF; it is the frame), the
-        others are the body's points, named after their nodes.
+        Boundary nodes: the first is the inboard one (it carries the frame: origin at the node, angle =
+        its rotation DOF, or the joint's angle when it has none), the others are the body's points,
+        named after their nodes.
     nonlinear_force : callable, optional
         ``f(u, u_dot, t) -> (n,)`` [N, N m]: extra generalised force over all DOFs (inboard DOFs are passed
         as 0; their rows are ignored).  Must accept complex arrays (complex-step tangents of the implicit
@@ -149,6 +150,16 @@ class GlobalSubsystem(DeformableBody):
         Inertia integrals about the *inboard node* (default: from a lumped ``M``).
     frame_inertia : float
         Rotary inertia [kg m^2] of particles without rotation DOFs (they turn with the frame).
+    frame_nodes : sequence of str
+        Further nodes fixed in the frame (their DOFs are held, e.g. anchor points of springs on the rigid
+        body the subsystem is mounted on).
+
+    Notes
+    -----
+    An inboard node without a rotation DOF (a particle) leaves the frame's angle to the joint: a weld
+    (:class:`~ctmm.planar.FixedMounting`) to a rigid body, or a hinge when frame-fixed nodes or
+    ``frame_inertia`` give the frame its own rotary inertia (else the articulated inertia is singular and
+    the run stops with a :class:`~ctmm.errors.SimulationError`).
     """
 
     name: str
@@ -161,6 +172,7 @@ class GlobalSubsystem(DeformableBody):
     nonlinear_force: Callable | None = None
     inertia_integrals: FloatingInertia | None = None
     frame_inertia: float = 0.0
+    frame_nodes: Sequence[str] = ()
     family: ClassVar[type[SubsystemFamily]] = SubsystemFamily
 
     def __post_init__(self) -> None:
@@ -199,9 +211,11 @@ class GlobalSubsystem(DeformableBody):
             raise ModelError(f"{owner}: boundary must name distinct nodes, the inboard one first; got {self.boundary!r}, "
                              f"nodes: {', '.join(node_dofs)}")
         inboard = boundary[0]
-        if len(node_dofs[inboard]) != 3:
-            raise ModelError(f"{owner}: the inboard boundary node {inboard!r} needs a rotation DOF (ix, iy, irz): "
-                             "it carries the floating frame")
+        frame_nodes = tuple(self.frame_nodes)
+        wrong = [f for f in frame_nodes if f not in node_dofs or f in boundary]
+        if wrong:
+            raise ModelError(f"{owner}: frame_nodes {wrong} must be nodes that are not boundary nodes; nodes: "
+                             f"{', '.join(node_dofs)}")
         if self.nonlinear_force is not None and not callable(self.nonlinear_force):
             raise ModelError(f"{owner}: nonlinear_force must be callable f(u, u_dot, t), got {self.nonlinear_force!r}")
         frame_inertia = validation.nonnegative(f"{owner}: frame_inertia", self.frame_inertia)
@@ -213,7 +227,8 @@ class GlobalSubsystem(DeformableBody):
         else:
             raise ModelError(f"{owner}: inertia must be a FloatingInertia, got {self.inertia_integrals!r}")
         for attribute, value in (("mass_matrix", M), ("damping_matrix", C), ("stiffness_matrix", K),
-                                 ("boundary", boundary), ("frame_inertia", frame_inertia)):
+                                 ("boundary", boundary), ("frame_inertia", frame_inertia),
+                                 ("frame_nodes", frame_nodes)):
             object.__setattr__(self, attribute, value)
         object.__setattr__(self, "node_dofs", node_dofs)
         object.__setattr__(self, "origin", origin)
@@ -276,15 +291,20 @@ class SubsystemData:
                  ) -> None:
         self.body, self.inertia = body, inertia
         n_all = kinds.size
-        frame = set(body.node_dofs[body.boundary[0]])
+        frame = {i for node in (body.boundary[0],) + body.frame_nodes for i in body.node_dofs[node]}
         keep = np.array([i for i in range(n_all) if i not in frame], dtype=int)
         self.keep, self.n_all, self.n = keep, n_all, keep.size
+        self.position = {node: positions[dofs[0]] for node, dofs in body.node_dofs.items()}
         names = {i: f"{node}_{('ux', 'uy', 'rz')[k]}" for node, dofs in body.node_dofs.items()
                  for k, i in enumerate(dofs)}
         self.suffixes = tuple(names[i] for i in keep)
-        self.position = {node: positions[dofs[0]] for node, dofs in body.node_dofs.items()}
         sub = np.ix_(keep, keep)
         self.M, self.C, self.K = body.mass_matrix[sub], body.damping_matrix[sub], body.stiffness_matrix[sub]
+        if self.n and not np.min(np.linalg.eigvalsh(self.M)) > 1e-12 * np.max(np.abs(self.M), initial=0.0):
+            massless = [names[i] for i in keep if body.mass_matrix[i, i] <= 0.0] or "none on the diagonal, but M is singular"
+            raise ModelError(f"{body.name}: the mass matrix of the internal DOFs must be positive definite (a massless "
+                             f"DOF has no acceleration of its own); massless: {massless}; hold such nodes in the frame "
+                             "(frame_nodes) or give them mass")
         self.m, self.s0, self.I0 = float(inertia.mass), np.asarray(inertia.first_moment, float), float(inertia.polar)
         self.S1 = inertia.translation[:, keep]
         self.sigma, self.gamma = inertia.sigma[keep], inertia.gamma[keep]
@@ -299,6 +319,7 @@ class SubsystemData:
             if len(dofs) == 3:
                 self.end_dphi[k, local[dofs[2]]] = 1.0
         self.laws = [] if body.nonlinear_force is None else [("nonlinear_force", body.nonlinear_force)]
+        self.linear_elastic = bool(np.any(self.K) or np.any(self.C))  # K u, C u': linearised about the frame
         self.forces, self.constant_distributed = [], True        # no time loads (read by the code generator)
         self.size = max([float(np.linalg.norm(p)) for p in self.position.values()] + [1e-3])
         self.translational = np.array([kinds[i] < 2 for i in keep], dtype=bool)

@@ -9,6 +9,10 @@ segment's frame (node 0 carries the frame: origin at the joint, x along the unde
 ``theta_j``; small deformation).  The next segment hangs at the outboard point (rigid link) or at the
 last node (beam), its hinge angle measured from the node's cross-section ``theta_j + r_z,n``.
 
+A :class:`ParticleNet` (seed 001 Example 9.1's reticulated particle-spring system, here welded to the
+last rigid link) adds the particles' displacements in the link's axes; its springs are exact (length
+from the global positions), not linearised.
+
 Mass is lumped into points: a rigid link is its centre of mass (plus rotary inertia on ``theta``),
 a beam element is ``rhoA L w_k`` at its four Gauss-Legendre points (exact for the cubic Hermite
 kinetic energy).  The displacement field of an element is written here once more: axial linear,
@@ -27,7 +31,7 @@ import numpy as np
 import scipy.integrate
 import scipy.linalg
 
-__all__ = ["RigidSegment", "BeamSegment", "GlobalChain"]
+__all__ = ["RigidSegment", "BeamSegment", "ParticleNet", "GlobalChain"]
 
 _J = np.array([[0.0, -1.0], [1.0, 0.0]])
 
@@ -61,6 +65,22 @@ class BeamSegment:
     rayleigh: tuple = (0.0, 0.0)
     force: Callable | None = None
     stiffness: float = 0.0
+    damping: float = 0.0
+
+
+@dataclass(frozen=True)
+class ParticleNet:
+    """Particles welded to the previous (rigid) segment: in its axes, origin at its outboard point.
+
+    ``positions`` (P, 2) [m] undeformed, ``masses`` (P,) [kg]; ``springs``: ``(a, b, stiffness)`` with ``a, b``
+    particle indices or ``(x, y)`` anchor points fixed on the segment (same axes) -- exact springs with the
+    undeformed distance as rest length, force ``k (|r_b - r_a| - l0)`` along the line; ``damping`` [N s/m] on
+    every spring, along the line.  Coordinates: the displacements ``[u_x, u_y]`` of each particle in the
+    segment's axes.  It must be the last segment."""
+
+    positions: tuple
+    masses: tuple
+    springs: tuple
     damping: float = 0.0
 
 
@@ -140,6 +160,14 @@ class GlobalChain:
         self.theta_index, self.u_index, self.beams = [], [], {}
         k = 0
         for j, seg in enumerate(self.segments):
+            if isinstance(seg, ParticleNet):
+                if j != len(self.segments) - 1 or j == 0 or not isinstance(self.segments[j - 1], RigidSegment):
+                    raise ValueError("a ParticleNet is the last segment, welded to a rigid one")
+                self.theta_index.append(self.theta_index[j - 1])
+                count = 2 * len(seg.masses)
+                self.u_index.append(np.arange(k, k + count))
+                k += count
+                continue
             self.theta_index.append(k)
             k += 1
             if isinstance(seg, BeamSegment):
@@ -160,11 +188,37 @@ class GlobalChain:
         J_base = np.zeros((2, nq), dtype=q.dtype)
         b_base = np.zeros(2, dtype=q.dtype)
         base = base.astype(q.dtype)
-        out, rotary = [], []
+        out, rotary, springs = [], [], []
         for j, seg in enumerate(self.segments):
             it = self.theta_index[j]
             th, w = q[it], qd[it]
             R = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
+            if isinstance(seg, ParticleNet):
+                iu = self.u_index[j]
+                X = np.asarray(seg.positions, float)
+                u, ud = q[iu].reshape(-1, 2), qd[iu].reshape(-1, 2)
+                rho = X + u
+                P = X.shape[0]
+                Jp = np.broadcast_to(J_base, (P,) + J_base.shape).copy()
+                Jp[:, :, it] += rho @ (R @ _J).T
+                for p in range(P):
+                    Jp[p][:, iu[2 * p:2 * p + 2]] += R
+                bias = b_base - w * w * rho @ R.T + 2 * w * ud @ (R @ _J).T
+                out.append((np.asarray(seg.masses, float), base + rho @ R.T, Jp, bias, j))
+                for a, b, k in seg.springs:                     # ends: (position, Jacobian) of particle or anchor
+                    ends = []
+                    for e in (a, b):
+                        if isinstance(e, (int, np.integer)):
+                            ends.append((base + R @ rho[e], Jp[e]))
+                        else:
+                            anchor = np.asarray(e, float)
+                            Ja = J_base.copy()
+                            Ja[:, it] += R @ _J @ anchor
+                            ends.append((base + R @ anchor, Ja))
+                    rest = np.linalg.norm((X[b] if isinstance(b, (int, np.integer)) else np.asarray(b, float))
+                                          - (X[a] if isinstance(a, (int, np.integer)) else np.asarray(a, float)))
+                    springs.append((ends[0], ends[1], k, rest, seg.damping))
+                continue
             if j in self.beams:
                 bm = self.beams[j]
                 iu = self.u_index[j]
@@ -192,7 +246,7 @@ class GlobalChain:
                 Jn[:, it] += R @ _J @ rho
                 b_base = b_base - w * w * (R @ rho)
                 base, J_base = base + R @ rho, Jn
-        return out, rotary
+        return out, rotary, springs
 
     def hinge_angles(self, q: np.ndarray) -> np.ndarray:
         """Relative hinge angles (from the parent's outboard cross-section) [rad]."""
@@ -208,7 +262,7 @@ class GlobalChain:
 
     def _generalised(self, q, qd, t):
         """``M (n, n)`` and ``Q - sum m J^T b`` (n,)."""
-        pts, rotary = self._points(q, qd)
+        pts, rotary, springs = self._points(q, qd)
         dtype = np.result_type(q, qd, float)
         M = np.zeros((self.n, self.n), dtype=dtype)
         rhs = np.zeros(self.n, dtype=dtype)
@@ -222,12 +276,21 @@ class GlobalChain:
         phi = self.hinge_angles(q)
         phid = self.hinge_angles(qd)
         for j, seg in enumerate(self.segments):
+            if isinstance(seg, ParticleNet):
+                continue
             tau = -seg.stiffness * phi[j] - seg.damping * phid[j]
             rhs[self.theta_index[j]] += tau
             if j > 0:
                 rhs[self.theta_index[j - 1]] -= tau
                 if j - 1 in self.beams:
                     rhs[self.u_index[j - 1]] -= tau * self.beams[j - 1].end_rotation
+        for (ra, Ja), (rb, Jb), k, rest, c in springs:     # exact springs of particle nets
+            d = rb - ra
+            length = np.sqrt(d @ d)
+            e = d / length
+            rate = e @ ((Jb - Ja) @ qd)
+            force = -(k * (length - rest) + c * rate) * e     # on end b
+            rhs += Jb.T @ force - Ja.T @ force
         for j, bm in self.beams.items():
             iu = self.u_index[j]
             u, ud = q[iu], qd[iu]
@@ -247,6 +310,8 @@ class GlobalChain:
         out, base = [], np.zeros(2)
         for j, seg in enumerate(self.segments):
             out.append(base.copy())
+            if isinstance(seg, ParticleNet):
+                break
             th = q[self.theta_index[j]]
             R = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
             rho = np.array([seg.length, 0.0])
@@ -259,14 +324,14 @@ class GlobalChain:
         """Force [N] (global axes) exerted on segment ``j`` by its parent at the hinge: the momentum rate of
         segments ``j, j+1, ...`` minus their weight."""
         qdd = self.accelerations(q, qd, t)
-        pts, _ = self._points(np.asarray(q, float), np.asarray(qd, float))
+        pts, _, _ = self._points(np.asarray(q, float), np.asarray(qd, float))
         return sum(np.einsum("p,pi->i", np.atleast_1d(m), Jp.reshape(-1, 2, self.n) @ qdd + bias.reshape(-1, 2)
                              - self.gravity) for m, _, Jp, bias, k in pts if k >= j)
 
     def energy(self, q: np.ndarray, qd: np.ndarray) -> float:
         """Kinetic + gravity + strain + hinge-spring energy [J] (no ``force`` potential)."""
-        pts, rotary = self._points(np.asarray(q, float), np.asarray(qd, float))
-        e = 0.0
+        pts, rotary, springs = self._points(np.asarray(q, float), np.asarray(qd, float))
+        e = sum(0.5 * k * (np.linalg.norm(rb - ra) - rest) ** 2 for (ra, _), (rb, _), k, rest, _ in springs)
         for m, r, Jp, _, _ in pts:
             m, v = np.atleast_1d(m), Jp.reshape(-1, 2, self.n) @ qd
             e += float(0.5 * m @ np.sum(v * v, axis=1) - m @ (r.reshape(-1, 2) @ self.gravity))
@@ -276,7 +341,8 @@ class GlobalChain:
             u = q[self.u_index[j]]
             e += 0.5 * u @ bm.stiffness @ u
         phi = self.hinge_angles(q)
-        e += sum(0.5 * seg.stiffness * phi[j] ** 2 for j, seg in enumerate(self.segments))
+        e += sum(0.5 * seg.stiffness * phi[j] ** 2 for j, seg in enumerate(self.segments)
+                 if not isinstance(seg, ParticleNet))
         return float(e)
 
     # -- integration ----------------------------------------------------------------------
