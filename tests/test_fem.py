@@ -1,6 +1,8 @@
 """ctmm.fem: beam elements against closed forms, assembly, refusals, a lumped global subsystem."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -71,6 +73,12 @@ def test_quadrature_inertia_matches_the_consistent_mass_and_rigid_body_sums():
     (lambda: FiniteElementModel("m", {"a": (0, 0), "b": (1, 0)}, [NodeSpring("s", "a", "b", 1.0)]).subsystem(
         "s", ("a", "b")), "positive definite.*massless: \\['b_ux', 'b_uy'\\]"),
     (lambda: straight_beam(2).subsystem("s", ("n0",), frame_nodes=("n7",)), "frame_nodes"),
+    (lambda: GlobalSubsystem("g", mass_matrix=straight_beam(1).mass, damping_matrix=np.zeros((6, 6)),
+                             stiffness_matrix=straight_beam(1).stiffness,
+                             nodes={"n0": ((0, 0), (0, 1, 2)), "n1": ((2, 0), (3, 4, 5))}, boundary=("n0",),
+                             inertia_integrals=dataclasses.replace(straight_beam(1).floating_inertia("n0"),
+                                                                   sigma=np.zeros(3))),
+     r"inertia_integrals.sigma must have shape \(6,\)"),
     (lambda: straight_beam(2).subsystem("s", ("n9",)), "inboard node"),
     (lambda: GlobalSubsystem("g", mass_matrix=straight_beam(1).mass, damping_matrix=np.zeros((6, 6)),
                              stiffness_matrix=straight_beam(1).stiffness,

@@ -30,6 +30,7 @@ inertias).  A consistent ``M`` from elsewhere does not determine ``G`` and ``M_t
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import KW_ONLY, dataclass
 from typing import Any, Callable, ClassVar, Mapping, Sequence
 
@@ -117,6 +118,24 @@ def lumped_inertia(owner: str, M: np.ndarray, positions: np.ndarray, kinds: np.n
     return FloatingInertia(mass, first, polar, S1, sigma, gamma, G, Mt)
 
 
+def _checked_inertia(owner: str, inertia: FloatingInertia, n: int) -> FloatingInertia:
+    """``inertia`` with float arrays of the shapes of ``n`` DOFs, else :class:`ModelError`."""
+    shapes = {"first_moment": (2,), "translation": (2, n), "sigma": (n,), "gamma": (n,), "gyroscopic": (n, n),
+              "translational_mass": (n, n)}
+    values = {}
+    for attribute, shape in shapes.items():
+        value = validation.finite_array(f"{owner}: inertia_integrals.{attribute}", getattr(inertia, attribute))
+        if value.shape != shape:
+            raise ModelError(f"{owner}: inertia_integrals.{attribute} must have shape {shape} ({n} DOFs), got "
+                             f"{value.shape}")
+        values[attribute] = value
+    return FloatingInertia(validation.nonnegative(f"{owner}: inertia_integrals.mass", inertia.mass),
+                           values["first_moment"],
+                           validation.nonnegative(f"{owner}: inertia_integrals.polar", inertia.polar),
+                           values["translation"], values["sigma"], values["gamma"], values["gyroscopic"],
+                           values["translational_mass"])
+
+
 def _matrix(owner: str, label: str, value: Any, n: int | None) -> np.ndarray:
     a = validation.finite_array(f"{owner}: {label}", value, ndim=2)
     if a.shape[0] != a.shape[1] or (n is not None and a.shape[0] != n):
@@ -133,9 +152,9 @@ class GlobalSubsystem(DeformableBody):
     ----------
     name : str
         Body name.
-    mass, damping, stiffness : array (n, n)
-        ``M`` (symmetric positive semidefinite, positive definite on the internal DOFs) [kg, kg m, kg m^2],
-        ``C`` [N s/m ...] and ``K`` [N/m ...] over all DOFs, frame axes.
+    mass_matrix, damping_matrix, stiffness_matrix : array (n, n)
+        Symmetric ``M`` (positive definite on the internal DOFs) [kg, kg m, kg m^2], ``C`` [N s/m ...] and
+        ``K`` [N/m ...] over all DOFs, frame axes.
     nodes : mapping of str to ((x, y), dofs)
         Node position in the frame [m] and its DOF indices ``(ix, iy)`` or ``(ix, iy, irz)``.
     boundary : sequence of str
@@ -146,10 +165,10 @@ class GlobalSubsystem(DeformableBody):
         ``f(u, u_dot, t) -> (n,)`` [N, N m]: extra generalised force over all DOFs (inboard DOFs are passed
         as 0; their rows are ignored).  Must accept complex arrays (complex-step tangents of the implicit
         schemes and of ``ctmm.linearize``; plain arithmetic and numpy ufuncs do).
-    inertia : FloatingInertia, optional
-        Inertia integrals about the *inboard node* (default: from a lumped ``M``).
+    inertia_integrals : FloatingInertia, optional
+        Inertia integrals over all DOFs about the *inboard node* (default: from a lumped ``M``).
     frame_inertia : float
-        Rotary inertia [kg m^2] of particles without rotation DOFs (they turn with the frame).
+        Extra rotary inertia [kg m^2] turning with the frame (e.g. of particles without rotation DOFs).
     frame_nodes : sequence of str
         Further nodes fixed in the frame (their DOFs are held, e.g. anchor points of springs on the rigid
         body the subsystem is mounted on).
@@ -223,9 +242,10 @@ class GlobalSubsystem(DeformableBody):
         if self.inertia_integrals is None:
             inertia = lumped_inertia(owner, M, positions - origin, kinds, pairs, frame_inertia)
         elif isinstance(self.inertia_integrals, FloatingInertia):
-            inertia = self.inertia_integrals
+            inertia = _checked_inertia(owner, self.inertia_integrals, n)
+            inertia = dataclasses.replace(inertia, polar=inertia.polar + frame_inertia)
         else:
-            raise ModelError(f"{owner}: inertia must be a FloatingInertia, got {self.inertia_integrals!r}")
+            raise ModelError(f"{owner}: inertia_integrals must be a FloatingInertia, got {self.inertia_integrals!r}")
         for attribute, value in (("mass_matrix", M), ("damping_matrix", C), ("stiffness_matrix", K),
                                  ("boundary", boundary), ("frame_inertia", frame_inertia),
                                  ("frame_nodes", frame_nodes)):
