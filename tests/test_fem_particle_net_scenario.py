@@ -12,4 +12,5 @@ def test_particle_net_scenario_quick(tmp_path):
     (figure,) = summary["accuracy"]
     assert figure["passed"] and figure["value"] < 1e-12
     assert summary["energy_drift_relative"] < 1e-9                # undamped: RK4 error only
+    assert summary["energy_vs_global_model_relative"] < 1e-12
     assert 1e-3 < summary["largest_particle_displacement_m"] < 0.05

@@ -96,6 +96,14 @@ def test_rk4_history_equals_the_global_model_with_the_same_integrator(force):
         assert e == pytest.approx(e_ref, rel=1e-10)
 
 
+def test_energy_of_a_subsystem_with_a_nonlinear_force_needs_its_potential():
+    from ctmm.errors import ModelError
+    model, _ = build(cubic_tip_spring)
+    q0 = initial_state(model)
+    with pytest.raises(ModelError, match="potential"):
+        model.energy(q0, np.zeros_like(q0))
+
+
 def test_implicit_dt_tmm_with_a_nonlinear_subsystem_converges_to_the_global_model_at_second_order():
     model, reference = build(cubic_tip_spring, (0.5, 1e-4))
     q0 = initial_state(model)

@@ -47,8 +47,16 @@ def net_subsystem() -> GlobalSubsystem:
             f[dofs[a]] -= force
         return f
 
+    def potential(u):
+        total = 0.0
+        for a, b, k in ends:
+            d = position[b] + u[dofs[b]] - position[a] - u[dofs[a]]
+            total += 0.5 * k * (np.sqrt(d @ d) - np.linalg.norm(position[b] - position[a])) ** 2
+        return total
+
     return GlobalSubsystem("net", mass_matrix=M, damping_matrix=np.zeros((n, n)), stiffness_matrix=np.zeros((n, n)),
-                           nodes=nodes, boundary=("hub",), frame_nodes=tuple(ANCHORS), nonlinear_force=springs)
+                           nodes=nodes, boundary=("hub",), frame_nodes=tuple(ANCHORS), nonlinear_force=springs,
+                           potential=potential)
 
 
 def build():
@@ -80,6 +88,7 @@ def test_accelerations_equal_the_global_model_at_large_deformation():
         a = accelerations(model, q, v, 0.0)
         a_ref = reference.accelerations(q, v)
         assert np.max(np.abs(a - a_ref)) <= 1e-11 * np.max(np.abs(a_ref))
+        assert model.energy(q, v) == pytest.approx(reference.energy(q, v), rel=1e-12)   # with the springs' potential
 
 
 def test_swing_equals_the_global_model_in_time_with_rk4_and_newmark():

@@ -187,7 +187,7 @@ class FiniteElementModel:
         return FloatingInertia(mass, first, polar, S1, sigma, gamma, G, Mt)
 
     def subsystem(self, name: str, boundary: Sequence[str], *, nonlinear_force: Callable | None = None,
-                  frame_nodes: Sequence[str] = ()) -> GlobalSubsystem:
+                  frame_nodes: Sequence[str] = (), potential: Callable | None = None) -> GlobalSubsystem:
         """This model as a body of a planar model (:class:`~ctmm.fem.GlobalSubsystem`).
 
         Parameters
@@ -200,6 +200,8 @@ class FiniteElementModel:
             ``f(u, u_dot, t)`` over all DOFs (:class:`~ctmm.fem.GlobalSubsystem`).
         frame_nodes : sequence of str
             Nodes fixed in the frame (:class:`~ctmm.fem.GlobalSubsystem`).
+        potential : callable, optional
+            ``V(u)`` [J] of ``nonlinear_force`` (:class:`~ctmm.fem.GlobalSubsystem`), for the energy.
         """
         boundary = tuple(boundary)
         if not boundary or boundary[0] not in self.positions:
@@ -210,7 +212,8 @@ class FiniteElementModel:
         nodes = {node: (tuple(self.positions[node] - o), self.dofs[node]) for node in self.positions}
         return GlobalSubsystem(name, mass_matrix=self.mass, damping_matrix=self.damping,
                                stiffness_matrix=self.stiffness, nodes=nodes, boundary=boundary,
-                               nonlinear_force=nonlinear_force, inertia_integrals=inertia, frame_nodes=frame_nodes)
+                               nonlinear_force=nonlinear_force, inertia_integrals=inertia, frame_nodes=frame_nodes,
+                               potential=potential)
 
     def natural_frequencies(self, clamped: Sequence[str] = ()) -> np.ndarray:
         """Natural frequencies [rad/s] with the DOFs of the ``clamped`` nodes held (``eigh(K, M)``)."""

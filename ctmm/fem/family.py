@@ -35,7 +35,7 @@ def subsystem_energy(model: Any, q: np.ndarray, qdot: np.ndarray, t: float = 0.0
 
     The kinetic energy of a subsystem is ``xi^T M(u) xi / 2`` with ``xi = [v_I, omega, u_dot]`` and ``M``
     its mass matrix of the transfer relations (global axes); gravity ``-g . (m r_I + R s(u))``; strain
-    ``u^T K u / 2``.  The potential of a ``nonlinear_force`` is not known here and is not included.
+    ``u^T K u / 2``; the ``potential`` of a ``nonlinear_force`` (refused without it).
     """
     q, qdot = model.state(q, qdot)
     pts = model.points(q, qdot, t)
@@ -53,7 +53,8 @@ def subsystem_energy(model: Any, q: np.ndarray, qdot: np.ndarray, t: float = 0.0
         xi = np.concatenate([pts["inboard_velocity"][j], [w], etad])
         sv = d.s0 + d.S1 @ eta
         rs = np.array([np.cos(th) * sv[0] - np.sin(th) * sv[1], np.sin(th) * sv[0] + np.cos(th) * sv[1]])
-        energy += 0.5 * xi @ M[0] @ xi + 0.5 * eta @ d.K @ eta - g @ (d.m * pts["inboard"][j] + rs)
+        energy += (0.5 * xi @ M[0] @ xi + 0.5 * eta @ d.K @ eta - g @ (d.m * pts["inboard"][j] + rs)
+                   + d.nonlinear_energy(eta))
     dtheta, _ = model.relative_angles(pts["theta"], pts["omega"], q, qdot)
     reference, _, _ = model.hinge_laws(t)
     energy += 0.5 * np.sum(model.stiffness * (dtheta - reference) ** 2)

@@ -172,6 +172,10 @@ class GlobalSubsystem(DeformableBody):
     frame_nodes : sequence of str
         Further nodes fixed in the frame (their DOFs are held, e.g. anchor points of springs on the rigid
         body the subsystem is mounted on).
+    potential : callable, optional
+        ``V(u) -> float`` [J]: the potential of the conservative part of ``nonlinear_force`` (same ``u``), for
+        :meth:`ctmm.planar.PlanarModel.energy`; without it the energy of a model whose subsystem has a
+        ``nonlinear_force`` is refused (it cannot be integrated here).
 
     Notes
     -----
@@ -192,6 +196,7 @@ class GlobalSubsystem(DeformableBody):
     inertia_integrals: FloatingInertia | None = None
     frame_inertia: float = 0.0
     frame_nodes: Sequence[str] = ()
+    potential: Callable | None = None
     family: ClassVar[type[SubsystemFamily]] = SubsystemFamily
 
     def __post_init__(self) -> None:
@@ -237,6 +242,8 @@ class GlobalSubsystem(DeformableBody):
                              f"{', '.join(node_dofs)}")
         if self.nonlinear_force is not None and not callable(self.nonlinear_force):
             raise ModelError(f"{owner}: nonlinear_force must be callable f(u, u_dot, t), got {self.nonlinear_force!r}")
+        if self.potential is not None and not callable(self.potential):
+            raise ModelError(f"{owner}: potential must be callable V(u) [J], got {self.potential!r}")
         frame_inertia = validation.nonnegative(f"{owner}: frame_inertia", self.frame_inertia)
         origin = positions[node_dofs[inboard][0]].copy()
         if self.inertia_integrals is None:
@@ -367,6 +374,19 @@ class SubsystemData:
     def centroid_local(self, eta: np.ndarray, eta_dot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Deformed centre of mass in the frame and its velocity relative to the frame."""
         return (self.s0 + self.S1 @ eta) / self.m, (self.S1 @ eta_dot) / self.m
+
+    def nonlinear_energy(self, eta: np.ndarray) -> float:
+        """Potential [J] of ``nonlinear_force`` at the internal coordinates ``eta`` (0 without a force), else
+        :class:`ModelError` when the force has no ``potential``."""
+        body = self.body
+        if body.nonlinear_force is None:
+            return 0.0
+        if body.potential is None:
+            raise ModelError(f"the energy of subsystem {body.name!r} needs the potential of its nonlinear_force: pass "
+                             "potential=V(u) [J] (GlobalSubsystem / FiniteElementModel.subsystem)")
+        u = np.zeros(self.n_all)
+        u[self.keep] = eta
+        return float(body.potential(u))
 
     def generalised_force(self, eta: np.ndarray, eta_dot: np.ndarray, t: float) -> np.ndarray:
         """``f(u, u_dot, t)`` on the internal DOFs, batched ``(B, n)`` (complex allowed)."""
