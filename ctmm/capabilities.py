@@ -26,6 +26,8 @@ _OTHER_PACKAGES = {
     "ctmm.flexible": "the verbs that answer every model (planar models with ctmm.flexible beams): ctmm.simulate, "
                      "ctmm.linearize, ctmm.frequency_response, ctmm.natural_frequencies, ctmm.mode_shapes, "
                      "ctmm.stability with loops",
+    "ctmm.fem": "a ctmm.planar.PlanarModel holding it as a body (FiniteElementModel.subsystem(...) or a "
+                "GlobalSubsystem in the element list), then every planar verb (docs/mixed.md)",
     "ctmm.manipulator": "ctmm.manipulator.manipulator_scene (a ControlledModel for every verb; exact beam fields "
                         "with fields='exact'; the PZT voltage limit as loop saturation, on_limit='saturate')",
     "ctmm.spatial": "the verbs that answer every model: ctmm.simulate, ctmm.linearize, ctmm.frequency_response, "

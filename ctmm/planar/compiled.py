@@ -173,6 +173,8 @@ def _arrays(model: PlanarModel) -> tuple:
         problems.append("only revolute hinges (no driven hinges, no floating base)")
     if len(model.load_body):
         problems.append("no external loads")
+    if model.beams:
+        problems.append(f"rigid bodies only (not {', '.join(model.body_names[j] for j in model.beams)})")
     if not model._constant_laws:
         problems.append("constant hinge references and torques")
     if problems:

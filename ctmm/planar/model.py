@@ -627,10 +627,10 @@ class PlanarModel:
         com = r_in + np.column_stack([rcx, rcy])
         v_com = v_in + omega[:, None] * np.column_stack([-rcy, rcx])
         for j, beam in self.beams.items():           # deformed centroid s_bar / m of a beam
-            d = beam.data
-            eta, eta_dot = q[self.modal_index[j]], qdot[self.modal_index[j]]
-            sb = np.array([d.Sx + eta[d.nq:] @ d.b_p, eta[:d.nq] @ d.b_q]) / d.m
-            sbd = np.array([eta_dot[d.nq:] @ d.b_p, eta_dot[:d.nq] @ d.b_q]) / d.m
+            d, eta, eta_dot = beam.data, q[self.modal_index[j]], qdot[self.modal_index[j]]
+            sb, sbd = d.centroid_local(eta, eta_dot) if hasattr(d, "centroid_local") else (  # ctmm.fem: its own
+                np.array([d.Sx + eta[d.nq:] @ d.b_p, eta[:d.nq] @ d.b_q]) / d.m,
+                np.array([eta_dot[d.nq:] @ d.b_p, eta_dot[:d.nq] @ d.b_q]) / d.m)
             rot = np.array([[c[j], -s[j]], [s[j], c[j]]])
             com[j] = r_in[j] + rot @ sb
             v_com[j] = v_in[j] + omega[j] * (rot @ np.array([-sb[1], sb[0]])) + rot @ sbd
@@ -641,10 +641,10 @@ class PlanarModel:
         """Deformed end ``end`` of beam ``j`` in its frame (position, velocity rel. frame)."""
         d = self.beams[j].data
         eta, eta_dot = q[self.modal_index[j]], qdot[self.modal_index[j]]
-        nq = d.nq
-        pos = np.array([d.end_x[end] + eta[nq:] @ d.end_psi[end], eta[:nq] @ d.end_phi[end]])
-        vel = np.array([eta_dot[nq:] @ d.end_psi[end], eta_dot[:nq] @ d.end_phi[end]])
-        return pos, vel
+        if hasattr(d, "point_local"):                # ctmm.fem subsystems state their own
+            return d.point_local(end, eta, eta_dot)
+        return (np.array([d.end_x[end] + eta[d.nq:] @ d.end_psi[end], eta[:d.nq] @ d.end_phi[end]]),
+                np.array([eta_dot[d.nq:] @ d.end_psi[end], eta_dot[:d.nq] @ d.end_phi[end]]))
 
     def energy(self, q: np.ndarray, qdot: np.ndarray, t: float = 0.0) -> float:
         """Kinetic + gravitational + hinge-spring energy [J] (constant references only)."""

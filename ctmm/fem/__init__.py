@@ -1,0 +1,21 @@
+"""Finite-element and global-equation subsystems coupled to planar transfer systems (mixed MSTMM).
+
+* :mod:`ctmm.fem.elements` -- planar Euler-Bernoulli beam elements (consistent mass, stiffness,
+  geometric stiffness), point masses, spring-dampers between nodes;
+* :mod:`ctmm.fem.assembly` -- :class:`FiniteElementModel`: named nodes, assembled ``M, C, K`` (Rayleigh
+  damping), floating-frame inertia integrals by quadrature;
+* :mod:`ctmm.fem.subsystem` -- :class:`GlobalSubsystem`: a subsystem given by global equations
+  ``M u'' + C u' + K u = f(u, u', t)`` as a body of :class:`ctmm.planar.PlanarModel` (floating frame
+  at its inboard boundary node; outboard boundary nodes are its points), so every planar verb
+  (``ctmm.simulate`` with RK4, solve_ivp and the DT-TMM schemes, ``ctmm.linearize``,
+  ``ctmm.frequency_response``, ``ctmm.natural_frequencies``) runs on the mixed system.
+
+Derivation and validation: ``docs/mixed.md``.
+"""
+from .assembly import FiniteElementModel
+from .elements import BeamElement, NodeSpring, PointMass, beam_local_matrices
+from .family import SmallDeformationWarning, SubsystemFamily, subsystem_energy
+from .subsystem import FloatingInertia, GlobalSubsystem
+
+__all__ = ["FiniteElementModel", "BeamElement", "PointMass", "NodeSpring", "beam_local_matrices", "GlobalSubsystem",
+           "FloatingInertia", "SubsystemFamily", "SmallDeformationWarning", "subsystem_energy"]

@@ -1,0 +1,224 @@
+"""Assembly of planar finite elements with named nodes into global matrices and a subsystem.
+
+:class:`FiniteElementModel` numbers the DOFs (per node ``u_x, u_y`` and, where a beam touches it,
+``r_z``), assembles ``M``, ``K`` (elastic plus geometric) and ``C`` (discrete dampers plus Rayleigh
+``a M + b K``), and integrates the floating-frame inertia integrals of
+:class:`~ctmm.fem.subsystem.FloatingInertia` by Gauss quadrature of the element shape functions
+(exact: the integrands are polynomials of degree <= 6, five points per element).
+:meth:`FiniteElementModel.subsystem` turns it into a :class:`~ctmm.fem.GlobalSubsystem`, a body of a
+planar model.
+"""
+from __future__ import annotations
+
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+from .. import validation
+from ..errors import ModelError
+from .elements import BeamElement, NodeSpring, PointMass, beam_local_matrices, beam_rotation, beam_shape_functions
+from .subsystem import FloatingInertia, GlobalSubsystem
+
+__all__ = ["FiniteElementModel"]
+
+_J = np.array([[0.0, -1.0], [1.0, 0.0]])
+_GAUSS_X, _GAUSS_W = np.polynomial.legendre.leggauss(5)
+_XI, _WEIGHT = 0.5 * (_GAUSS_X + 1.0), 0.5 * _GAUSS_W
+
+
+class FiniteElementModel:
+    """Planar finite-element model with named nodes.
+
+    Parameters
+    ----------
+    name : str
+    nodes : mapping of str to (x, y)
+        Undeformed node positions [m].
+    elements : sequence
+        :class:`BeamElement`, :class:`PointMass`, :class:`NodeSpring`.
+    rayleigh : (float, float)
+        Rayleigh damping ``C += a M + b K`` with ``(a [1/s], b [s])``, >= 0; default none.
+
+    Examples
+    --------
+    >>> from ctmm.fem import BeamElement, FiniteElementModel
+    >>> fe = FiniteElementModel("beam", {"n0": (0, 0), "n1": (0.5, 0), "n2": (1, 0)},
+    ...     [BeamElement(f"e{k}", f"n{k}", f"n{k + 1}", 2.0, 1e4, 0.5) for k in (0, 1)])
+    >>> fe.n_dofs
+    9
+    """
+
+    def __init__(self, name: str, nodes: Mapping[str, Sequence[float]], elements: Sequence[Any], *,
+                 rayleigh: Sequence[float] = (0.0, 0.0)) -> None:
+        self.name = validation.name("model", name)
+        if not isinstance(nodes, Mapping) or not nodes:
+            raise ModelError(f"{name}: nodes must be a non-empty mapping {{name: (x, y)}}, got {nodes!r}")
+        self.positions: dict[str, np.ndarray] = {}
+        for node, xy in nodes.items():
+            validation.name(f"{name}: node", node)
+            p = validation.finite_array(f"{name}: node {node!r}", xy)
+            if p.shape != (2,):
+                raise ModelError(f"{name}: node {node!r} must be (x, y) [m], got {xy!r}")
+            self.positions[node] = p
+        self.elements = tuple(elements)
+        seen = set()
+        for e in self.elements:
+            if not isinstance(e, (BeamElement, PointMass, NodeSpring)):
+                raise ModelError(f"{name}: elements must be BeamElement, PointMass or NodeSpring, got {e!r}")
+            if e.name in seen:
+                raise ModelError(f"{name}: duplicate element name {e.name!r}")
+            seen.add(e.name)
+            for node in ((e.node,) if isinstance(e, PointMass) else (e.start, e.end)):
+                if node not in self.positions:
+                    raise ModelError(f"{name}: element {e.name!r} names unknown node {node!r}; nodes: "
+                                     f"{', '.join(self.positions)}")
+        ray = validation.finite_array(f"{name}: rayleigh", rayleigh)
+        if ray.shape != (2,) or np.any(ray < 0):
+            raise ModelError(f"{name}: rayleigh must be (a [1/s], b [s]) >= 0, got {rayleigh!r}")
+        self.rayleigh = ray
+        rotating = {n for e in self.elements if isinstance(e, BeamElement) for n in (e.start, e.end)}
+        self.dofs: dict[str, tuple[int, ...]] = {}
+        count = 0
+        for node in self.positions:
+            k = 3 if node in rotating else 2
+            self.dofs[node] = tuple(range(count, count + k))
+            count += k
+        self.n_dofs = count
+        for e in self.elements:
+            if isinstance(e, NodeSpring) and (e.rotational_stiffness or e.rotational_damping):
+                if len(self.dofs[e.start]) != 3 or len(self.dofs[e.end]) != 3:
+                    raise ModelError(f"{name}: {e.name!r} has a rotational spring but its nodes {e.start!r}, {e.end!r} "
+                                     "need rotation DOFs (a beam at each)")
+            if isinstance(e, NodeSpring) and (e.stiffness or e.damping):
+                if not np.linalg.norm(self.positions[e.end] - self.positions[e.start]) > 0:
+                    raise ModelError(f"{name}: {e.name!r} joins coincident nodes; its line of action is undefined")
+        self.mass, self.stiffness, self.damping = self._assemble()
+
+    # ------------------------------------------------------------------------------------
+    def _beam(self, e: BeamElement) -> tuple[np.ndarray, float, np.ndarray]:
+        idx = np.array(self.dofs[e.start] + self.dofs[e.end])
+        length, T = beam_rotation(self.positions[e.start], self.positions[e.end], f"{self.name}: {e.name}")
+        return idx, length, T
+
+    def _assemble(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        n = self.n_dofs
+        M, K, C = np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, n))
+        for e in self.elements:
+            if isinstance(e, BeamElement):
+                idx, length, T = self._beam(e)
+                k, m, kg = beam_local_matrices(length, e.bending_stiffness, e.axial_stiffness, e.mass_per_length,
+                                               e.axial_force)
+                sub = np.ix_(idx, idx)
+                K[sub] += T.T @ (k + kg) @ T
+                M[sub] += T.T @ m @ T
+            elif isinstance(e, PointMass):
+                dofs = self.dofs[e.node]
+                M[dofs[0], dofs[0]] += e.mass
+                M[dofs[1], dofs[1]] += e.mass
+                if len(dofs) == 3:
+                    M[dofs[2], dofs[2]] += e.inertia
+            else:
+                a, b = self.dofs[e.start], self.dofs[e.end]
+                if e.stiffness or e.damping:
+                    d = self.positions[e.end] - self.positions[e.start]
+                    u = d / np.linalg.norm(d)
+                    row = np.zeros(n)
+                    row[[b[0], b[1]]] = u
+                    row[[a[0], a[1]]] -= u
+                    K += e.stiffness * np.outer(row, row)
+                    C += e.damping * np.outer(row, row)
+                if e.rotational_stiffness or e.rotational_damping:
+                    row = np.zeros(n)
+                    row[b[2]], row[a[2]] = 1.0, -1.0
+                    K += e.rotational_stiffness * np.outer(row, row)
+                    C += e.rotational_damping * np.outer(row, row)
+        C += self.rayleigh[0] * M + self.rayleigh[1] * K
+        return M, K, C
+
+    def floating_inertia(self, origin: str) -> FloatingInertia:
+        """Inertia integrals about node ``origin`` (:class:`~ctmm.fem.subsystem.FloatingInertia`), by quadrature."""
+        if origin not in self.positions:
+            raise ModelError(f"{self.name}: unknown node {origin!r}; nodes: {', '.join(self.positions)}")
+        o = self.positions[origin]
+        n = self.n_dofs
+        mass, first, polar = 0.0, np.zeros(2), 0.0
+        S1, sigma, gamma = np.zeros((2, n)), np.zeros(n), np.zeros(n)
+        G, Mt = np.zeros((n, n)), np.zeros((n, n))
+        for e in self.elements:
+            if isinstance(e, BeamElement):
+                if e.mass_per_length == 0.0:
+                    continue
+                idx, length, T = self._beam(e)
+                r2 = T[:2, :2]
+                a = self.positions[e.start] - o
+                direction = (self.positions[e.end] - self.positions[e.start]) / length
+                N = beam_shape_functions(_XI, length)                           # (5, 2, 6) local
+                S = np.einsum("ji,pjk,kl->pil", r2, N, T)                        # (5, 2, 6) frame axes
+                X = a[None, :] + _XI[:, None] * length * direction[None, :]     # (5, 2)
+                w = _WEIGHT * e.mass_per_length * length                         # (5,)
+                mass += w.sum()
+                first += w @ X
+                polar += float(w @ (X * X).sum(1))
+                S1[:, idx] += np.einsum("p,pik->ik", w, S)
+                sigma[idx] += np.einsum("p,pi,pik->k", w, X, S)
+                gamma[idx] += np.einsum("p,pik,ij,pj->k", w, S, _J, X)
+                G[np.ix_(idx, idx)] += np.einsum("p,pik,ij,pjl->kl", w, S, _J, S)
+                Mt[np.ix_(idx, idx)] += np.einsum("p,pik,pil->kl", w, S, S)
+            elif isinstance(e, PointMass):
+                dofs = self.dofs[e.node]
+                X = self.positions[e.node] - o
+                ix, iy = dofs[:2]
+                m = e.mass
+                mass += m
+                first += m * X
+                polar += m * float(X @ X) + e.inertia
+                S1[0, ix] += m
+                S1[1, iy] += m
+                sigma[ix] += m * X[0]
+                sigma[iy] += m * X[1]
+                gamma[ix] += -m * X[1]
+                gamma[iy] += m * X[0]
+                G[ix, iy] += -m
+                G[iy, ix] += m
+                Mt[ix, ix] += m
+                Mt[iy, iy] += m
+                if len(dofs) == 3:               # else it turns with the frame: in polar only
+                    gamma[dofs[2]] += e.inertia
+        return FloatingInertia(mass, first, polar, S1, sigma, gamma, G, Mt)
+
+    def subsystem(self, name: str, boundary: Sequence[str], *, nonlinear_force: Callable | None = None,
+                  frame_nodes: Sequence[str] = (), potential: Callable | None = None) -> GlobalSubsystem:
+        """This model as a body of a planar model (:class:`~ctmm.fem.GlobalSubsystem`).
+
+        Parameters
+        ----------
+        name : str
+            Body name (coordinates ``"name.theta"``, ``"name.<node>_ux"`` ...).
+        boundary : sequence of str
+            Boundary nodes, the inboard one first (it carries the frame); the others are the body's points.
+        nonlinear_force : callable, optional
+            ``f(u, u_dot, t)`` over all DOFs (:class:`~ctmm.fem.GlobalSubsystem`).
+        frame_nodes : sequence of str
+            Nodes fixed in the frame (:class:`~ctmm.fem.GlobalSubsystem`).
+        potential : callable, optional
+            ``V(u)`` [J] of ``nonlinear_force`` (:class:`~ctmm.fem.GlobalSubsystem`), for the energy.
+        """
+        boundary = tuple(boundary)
+        if not boundary or boundary[0] not in self.positions:
+            raise ModelError(f"{self.name}: boundary must start with the inboard node (one of "
+                             f"{', '.join(self.positions)}), got {boundary!r}")
+        inertia = self.floating_inertia(boundary[0])
+        o = self.positions[boundary[0]]
+        nodes = {node: (tuple(self.positions[node] - o), self.dofs[node]) for node in self.positions}
+        return GlobalSubsystem(name, mass_matrix=self.mass, damping_matrix=self.damping,
+                               stiffness_matrix=self.stiffness, nodes=nodes, boundary=boundary,
+                               nonlinear_force=nonlinear_force, inertia_integrals=inertia, frame_nodes=frame_nodes,
+                               potential=potential)
+
+    def natural_frequencies(self, clamped: Sequence[str] = ()) -> np.ndarray:
+        """Natural frequencies [rad/s] with the DOFs of the ``clamped`` nodes held (``eigh(K, M)``)."""
+        held = {i for node in clamped for i in self.dofs[node]}
+        keep = [i for i in range(self.n_dofs) if i not in held]
+        from scipy.linalg import eigh
+        values = eigh(self.stiffness[np.ix_(keep, keep)], self.mass[np.ix_(keep, keep)], eigvals_only=True)
+        return np.sqrt(np.clip(values, 0.0, None))

@@ -1,0 +1,195 @@
+"""Planar finite elements: Euler-Bernoulli beam, point mass, spring-damper between nodes.
+
+Every element lives between named nodes of a :class:`~ctmm.fem.assembly.FiniteElementModel`.  A node
+has the displacement degrees of freedom ``(u_x, u_y)`` [m] in the model's axes and, when a beam
+touches it, a rotation ``r_z`` [rad].
+
+**Beam** (``docs/mixed.md`` §2): local axis ``x'`` from node ``a`` to node ``b`` (length ``L``, angle
+``beta``), local DOFs ``[u_a, v_a, r_a, u_b, v_b, r_b]``; axial displacement linear, transverse Hermite
+cubic::
+
+    u(xi) = (1 - xi) u_a + xi u_b
+    v(xi) = H1 v_a + L H2 r_a + H3 v_b + L H4 r_b,   H1 = 1 - 3 xi^2 + 2 xi^3, H2 = xi - 2 xi^2 + xi^3,
+                                                     H3 = 3 xi^2 - 2 xi^3,     H4 = -xi^2 + xi^3
+
+Stiffness ``EA/L`` (axial) and ``EI/L^3 [[12, 6L, -12, 6L], ...]``, consistent mass
+``rhoA L/6 [[2, 1], [1, 2]]`` and ``rhoA L/420 [[156, 22L, 54, -13L], ...]``, geometric stiffness of a
+constant axial force ``N`` (tension > 0) ``N/(30 L) [[36, 3L, -36, 3L], ...]`` (Przemieniecki,
+"Theory of Matrix Structural Analysis", 1968, ch. 5 and 11).  Global = ``T^T k T`` with
+``T = diag(r, r)``, ``r = [[c, s, 0], [-s, c, 0], [0, 0, 1]]``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import validation
+from ..errors import ModelError
+
+__all__ = ["BeamElement", "PointMass", "NodeSpring", "beam_local_matrices", "beam_shape_functions"]
+
+
+def _node(owner: str, label: str, value: object) -> str:
+    if not isinstance(value, str) or not value:
+        raise ModelError(f"{owner}: {label} must be a node name (non-empty str), got {value!r}")
+    return value
+
+
+@dataclass(frozen=True)
+class BeamElement:
+    """Planar Euler-Bernoulli beam element between two nodes (module docstring).
+
+    Parameters
+    ----------
+    name : str
+        Element name.
+    start, end : str
+        Node names.
+    bending_stiffness : float
+        ``EI`` [N m^2], > 0.
+    axial_stiffness : float
+        ``EA`` [N], > 0.
+    mass_per_length : float
+        ``rhoA`` [kg/m], >= 0.
+    axial_force : float
+        Constant axial force ``N`` [N] (tension > 0) of the geometric stiffness; default 0 (off).
+    """
+
+    name: str
+    start: str
+    end: str
+    bending_stiffness: float
+    axial_stiffness: float
+    mass_per_length: float
+    axial_force: float = 0.0
+
+    def __post_init__(self) -> None:
+        validation.name("element", self.name)
+        n = self.name
+        _node(n, "start", self.start)
+        _node(n, "end", self.end)
+        if self.start == self.end:
+            raise ModelError(f"{n}: start and end must be different nodes, got {self.start!r} twice")
+        object.__setattr__(self, "bending_stiffness", validation.positive(f"{n}: bending_stiffness",
+                                                                          self.bending_stiffness))
+        object.__setattr__(self, "axial_stiffness", validation.positive(f"{n}: axial_stiffness",
+                                                                        self.axial_stiffness))
+        object.__setattr__(self, "mass_per_length", validation.nonnegative(f"{n}: mass_per_length",
+                                                                           self.mass_per_length))
+        object.__setattr__(self, "axial_force", validation.finite(f"{n}: axial_force", self.axial_force))
+
+
+@dataclass(frozen=True)
+class PointMass:
+    """A mass (and rotary inertia) at a node.
+
+    Parameters
+    ----------
+    name : str
+    node : str
+    mass : float
+        [kg], >= 0.
+    inertia : float
+        Rotary inertia about the node [kg m^2], >= 0.  On a node without a rotation DOF it turns with
+        the subsystem's floating frame.
+    """
+
+    name: str
+    node: str
+    mass: float
+    inertia: float = 0.0
+
+    def __post_init__(self) -> None:
+        validation.name("element", self.name)
+        _node(self.name, "node", self.node)
+        object.__setattr__(self, "mass", validation.nonnegative(f"{self.name}: mass", self.mass))
+        object.__setattr__(self, "inertia", validation.nonnegative(f"{self.name}: inertia", self.inertia))
+
+
+@dataclass(frozen=True)
+class NodeSpring:
+    """Linear spring and viscous damper between two nodes, along the line joining their undeformed
+    positions (small displacements), optionally a rotational spring-damper between their rotations.
+
+    Parameters
+    ----------
+    name : str
+    start, end : str
+        Node names (distinct positions when ``stiffness`` or ``damping`` is set).
+    stiffness, damping : float
+        Axial [N/m], [N s/m], >= 0.
+    rotational_stiffness, rotational_damping : float
+        [N m/rad], [N m s/rad], >= 0; both nodes need rotation DOFs (a beam at each).
+    """
+
+    name: str
+    start: str
+    end: str
+    stiffness: float = 0.0
+    damping: float = 0.0
+    rotational_stiffness: float = 0.0
+    rotational_damping: float = 0.0
+
+    def __post_init__(self) -> None:
+        validation.name("element", self.name)
+        _node(self.name, "start", self.start)
+        _node(self.name, "end", self.end)
+        for attribute in ("stiffness", "damping", "rotational_stiffness", "rotational_damping"):
+            object.__setattr__(self, attribute, validation.nonnegative(f"{self.name}: {attribute}",
+                                                                       getattr(self, attribute)))
+
+
+def beam_local_matrices(length: float, bending_stiffness: float, axial_stiffness: float, mass_per_length: float,
+                        axial_force: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Local ``(K, M, K_G)`` (6 x 6) of a beam element, DOFs ``[u_a, v_a, r_a, u_b, v_b, r_b]``.
+
+    Parameters
+    ----------
+    length : float
+        [m].
+    bending_stiffness, axial_stiffness, mass_per_length, axial_force : float
+        ``EI`` [N m^2], ``EA`` [N], ``rhoA`` [kg/m], ``N`` [N].
+    """
+    L, EI, EA, rA = length, bending_stiffness, axial_stiffness, mass_per_length
+    K = np.zeros((6, 6))
+    M = np.zeros((6, 6))
+    G = np.zeros((6, 6))
+    ax, tr = [0, 3], [1, 2, 4, 5]
+    K[np.ix_(ax, ax)] = EA / L * np.array([[1.0, -1.0], [-1.0, 1.0]])
+    K[np.ix_(tr, tr)] = EI / L ** 3 * np.array([[12, 6 * L, -12, 6 * L], [6 * L, 4 * L * L, -6 * L, 2 * L * L],
+                                                [-12, -6 * L, 12, -6 * L], [6 * L, 2 * L * L, -6 * L, 4 * L * L]])
+    M[np.ix_(ax, ax)] = rA * L / 6 * np.array([[2.0, 1.0], [1.0, 2.0]])
+    M[np.ix_(tr, tr)] = rA * L / 420 * np.array([[156, 22 * L, 54, -13 * L], [22 * L, 4 * L * L, 13 * L, -3 * L * L],
+                                                 [54, 13 * L, 156, -22 * L], [-13 * L, -3 * L * L, -22 * L, 4 * L * L]])
+    G[np.ix_(tr, tr)] = axial_force / (30 * L) * np.array([[36, 3 * L, -36, 3 * L], [3 * L, 4 * L * L, -3 * L, -L * L],
+                                                          [-36, -3 * L, 36, -3 * L], [3 * L, -L * L, -3 * L, 4 * L * L]])
+    return K, M, G
+
+
+def beam_shape_functions(xi: np.ndarray, length: float) -> np.ndarray:
+    """Local displacement interpolation ``[u, v](xi) = N(xi) d_local``: ``(len(xi), 2, 6)``."""
+    xi = np.asarray(xi, dtype=float)
+    L = length
+    N = np.zeros(xi.shape + (2, 6))
+    N[..., 0, 0] = 1 - xi
+    N[..., 0, 3] = xi
+    N[..., 1, 1] = 1 - 3 * xi ** 2 + 2 * xi ** 3
+    N[..., 1, 2] = L * (xi - 2 * xi ** 2 + xi ** 3)
+    N[..., 1, 4] = 3 * xi ** 2 - 2 * xi ** 3
+    N[..., 1, 5] = L * (-xi ** 2 + xi ** 3)
+    return N
+
+
+def beam_rotation(start: np.ndarray, end: np.ndarray, owner: str) -> tuple[float, np.ndarray]:
+    """Length [m] and ``T`` (6 x 6, local = ``T`` global) of a beam between two node positions."""
+    d = np.asarray(end, float) - np.asarray(start, float)
+    length = math.hypot(d[0], d[1])
+    if not length > 0.0:
+        raise ModelError(f"{owner}: its nodes coincide (length 0); a beam needs two distinct node positions")
+    c, s = d / length
+    r = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+    T = np.zeros((6, 6))
+    T[:3, :3] = T[3:, 3:] = r
+    return length, T

@@ -1,0 +1,405 @@
+"""Independent global model of a planar pendulum chain of rigid links and finite-element beams.
+
+No code of :mod:`ctmm.fem`, of the planar model or of any transfer / Riccati sweep is used: the
+whole system is one set of Lagrange (Kane) equations in minimal coordinates, assembled globally.
+
+Coordinates, segment by segment from the ground pivot: the absolute angle ``theta_j`` of each
+segment and, for a beam segment, the displacements ``[u_x, u_y, r_z]`` of its nodes ``1..n`` in the
+segment's frame (node 0 carries the frame: origin at the joint, x along the undeformed beam, angle
+``theta_j``; small deformation).  The next segment hangs at the outboard point (rigid link) or at the
+last node (beam), its hinge angle measured from the node's cross-section ``theta_j + r_z,n``.
+
+A :class:`ParticleNet` (seed 001 Example 9.1's reticulated particle-spring system, here welded to the
+last rigid link) adds the particles' displacements in the link's axes; its springs are exact (length
+from the global positions), not linearised.
+
+Mass is lumped into points: a rigid link is its centre of mass (plus rotary inertia on ``theta``),
+a beam element is ``rhoA L w_k`` at its four Gauss-Legendre points (exact for the cubic Hermite
+kinetic energy).  The displacement field of an element is written here once more: axial linear,
+transverse Hermite cubic.  With ``r_P(q)`` the position of point ``P``, ``J_P = dr_P/dq`` and
+``b_P = (d J_P/dt) q_dot`` (analytic: ``R J rho`` per angle, ``-omega^2 R rho + 2 omega R J E u'``),
+``sum_P m_P J_P^T (J_P q'' + b_P - g) + J_rot q'' = Q`` with ``Q`` the hinge laws, the elastic
+forces ``-K u - C u'`` (``K`` from the strain energy ``1/2 int EA u'^2 + EI v''^2`` by quadrature;
+``C = a M_e + b K``, ``M_e`` the element mass by quadrature) and an optional ``f(u, u', t)``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+import scipy.integrate
+import scipy.linalg
+
+__all__ = ["RigidSegment", "BeamSegment", "ParticleNet", "GlobalChain"]
+
+_J = np.array([[0.0, -1.0], [1.0, 0.0]])
+
+
+@dataclass(frozen=True)
+class RigidSegment:
+    """Rigid link: ``length`` [m] (outboard point at ``(length, 0)``), centre of mass at ``(com, 0)``,
+    ``mass`` [kg], ``inertia`` about the centre [kg m^2]; hinge to its parent ``stiffness`` [N m/rad],
+    ``damping`` [N m s/rad]."""
+
+    length: float
+    mass: float
+    inertia: float
+    com: float
+    stiffness: float = 0.0
+    damping: float = 0.0
+
+
+@dataclass(frozen=True)
+class BeamSegment:
+    """Straight beam of ``elements`` equal elements on its frame's x axis, clamped to the frame at node 0.
+
+    ``force(u, u_dot, t)``: optional generalised force on the ``3 elements`` node DOFs ``[u_x, u_y, r_z]``
+    of nodes ``1..n``; ``rayleigh = (a, b)``.  Hinge law as for :class:`RigidSegment`."""
+
+    length: float
+    elements: int
+    bending_stiffness: float
+    axial_stiffness: float
+    mass_per_length: float
+    rayleigh: tuple = (0.0, 0.0)
+    force: Callable | None = None
+    stiffness: float = 0.0
+    damping: float = 0.0
+
+
+@dataclass(frozen=True)
+class ParticleNet:
+    """Particles welded to the previous (rigid) segment: in its axes, origin at its outboard point.
+
+    ``positions`` (P, 2) [m] undeformed, ``masses`` (P,) [kg]; ``springs``: ``(a, b, stiffness)`` with ``a, b``
+    particle indices or ``(x, y)`` anchor points fixed on the segment (same axes) -- exact springs with the
+    undeformed distance as rest length, force ``k (|r_b - r_a| - l0)`` along the line; ``damping`` [N s/m] on
+    every spring, along the line.  Coordinates: the displacements ``[u_x, u_y]`` of each particle in the
+    segment's axes.  It must be the last segment."""
+
+    positions: tuple
+    masses: tuple
+    springs: tuple
+    damping: float = 0.0
+
+
+def _hermite(xi: np.ndarray, le: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rows of ``(u, v)`` interpolation and ``u'``, ``v''`` for element DOFs ``[ua, va, ra, ub, vb, rb]``."""
+    n = np.zeros(xi.shape + (2, 6))
+    n[..., 0, 0], n[..., 0, 3] = 1 - xi, xi
+    n[..., 1, 1] = 2 * xi ** 3 - 3 * xi ** 2 + 1
+    n[..., 1, 2] = le * (xi ** 3 - 2 * xi ** 2 + xi)
+    n[..., 1, 4] = -2 * xi ** 3 + 3 * xi ** 2
+    n[..., 1, 5] = le * (xi ** 3 - xi ** 2)
+    du = np.zeros(xi.shape + (6,))
+    du[..., 0], du[..., 3] = -1 / le, 1 / le
+    d2v = np.zeros(xi.shape + (6,))
+    d2v[..., 1] = (12 * xi - 6) / le ** 2
+    d2v[..., 2] = (6 * xi - 4) / le
+    d2v[..., 4] = (-12 * xi + 6) / le ** 2
+    d2v[..., 5] = (6 * xi - 2) / le
+    return n, du, d2v
+
+
+@dataclass
+class _Beam:
+    points_x: np.ndarray          # (P,) undeformed x of the mass points
+    weights: np.ndarray           # (P,) masses [kg]
+    shape: np.ndarray             # (P, 2, n) displacement of the points per DOF
+    stiffness: np.ndarray         # (n, n)
+    damping: np.ndarray           # (n, n)
+    end: np.ndarray               # (2, n): tip translation
+    end_rotation: np.ndarray      # (n,)
+    force: Callable | None = field(default=None)
+
+
+def _beam(seg: BeamSegment) -> _Beam:
+    ne, L = seg.elements, seg.length
+    le = L / ne
+    n = 3 * ne                                   # nodes 1..ne
+    gx, gw = np.polynomial.legendre.leggauss(4)
+    xi, w = 0.5 * (gx + 1), 0.5 * gw
+    nn, du, d2v = _hermite(xi, le)
+    xs, ws, shapes = [], [], []
+    K, Me = np.zeros((n, n)), np.zeros((n, n))
+    for e in range(ne):
+        cols = np.arange(3 * e - 3, 3 * e + 3)    # DOFs of nodes e, e+1 (node 0 held: negative)
+        live = cols >= 0
+        for k in range(4):
+            row = np.zeros((2, n))
+            row[:, cols[live]] = nn[k][:, live]
+            xs.append((e + xi[k]) * le)
+            ws.append(seg.mass_per_length * le * w[k])
+            shapes.append(row)
+            a, b = np.zeros(n), np.zeros(n)
+            a[cols[live]], b[cols[live]] = du[k][live], d2v[k][live]
+            K += le * w[k] * (seg.axial_stiffness * np.outer(a, a) + seg.bending_stiffness * np.outer(b, b))
+            Me += seg.mass_per_length * le * w[k] * row.T @ row
+    end = np.zeros((2, n))
+    end[0, n - 3], end[1, n - 2] = 1.0, 1.0
+    rot = np.zeros(n)
+    rot[n - 1] = 1.0
+    a, b = seg.rayleigh
+    return _Beam(np.array(xs), np.array(ws), np.array(shapes), K, a * Me + b * K, end, rot, seg.force)
+
+
+class GlobalChain:
+    """Serial planar chain from a ground pivot at the origin (module docstring).
+
+    Parameters
+    ----------
+    segments : sequence of RigidSegment or BeamSegment
+    gravity : (2,)
+        [m/s^2].
+    """
+
+    def __init__(self, segments: Sequence[object], gravity: Sequence[float] = (0.0, -9.81)) -> None:
+        self.segments = list(segments)
+        self.gravity = np.asarray(gravity, float)
+        self.theta_index, self.u_index, self.beams = [], [], {}
+        k = 0
+        for j, seg in enumerate(self.segments):
+            if isinstance(seg, ParticleNet):
+                if j != len(self.segments) - 1 or j == 0 or not isinstance(self.segments[j - 1], RigidSegment):
+                    raise ValueError("a ParticleNet is the last segment, welded to a rigid one")
+                self.theta_index.append(self.theta_index[j - 1])
+                count = 2 * len(seg.masses)
+                self.u_index.append(np.arange(k, k + count))
+                k += count
+                continue
+            self.theta_index.append(k)
+            k += 1
+            if isinstance(seg, BeamSegment):
+                self.beams[j] = _beam(seg)
+                n = self.beams[j].stiffness.shape[0]
+                self.u_index.append(np.arange(k, k + n))
+                k += n
+            else:
+                self.u_index.append(np.zeros(0, dtype=int))
+        self.n = k
+
+    # -- kinematics of all mass points ------------------------------------------------------
+    def _points(self, q: np.ndarray, qd: np.ndarray):
+        """Per rigid link (one point) or beam (its P points): mass, position (2,) / (P, 2), Jacobian (2, n) /
+        (P, 2, n), bias (2,) / (P, 2), segment; and the rotary inertias (index, J)."""
+        nq = self.n
+        base = np.zeros(2)
+        J_base = np.zeros((2, nq), dtype=q.dtype)
+        b_base = np.zeros(2, dtype=q.dtype)
+        base = base.astype(q.dtype)
+        out, rotary, springs = [], [], []
+        for j, seg in enumerate(self.segments):
+            it = self.theta_index[j]
+            th, w = q[it], qd[it]
+            R = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
+            if isinstance(seg, ParticleNet):
+                iu = self.u_index[j]
+                X = np.asarray(seg.positions, float)
+                u, ud = q[iu].reshape(-1, 2), qd[iu].reshape(-1, 2)
+                rho = X + u
+                P = X.shape[0]
+                Jp = np.broadcast_to(J_base, (P,) + J_base.shape).copy()
+                Jp[:, :, it] += rho @ (R @ _J).T
+                for p in range(P):
+                    Jp[p][:, iu[2 * p:2 * p + 2]] += R
+                bias = b_base - w * w * rho @ R.T + 2 * w * ud @ (R @ _J).T
+                out.append((np.asarray(seg.masses, float), base + rho @ R.T, Jp, bias, j))
+                for a, b, k in seg.springs:                     # ends: (position, Jacobian) of particle or anchor
+                    ends = []
+                    for e in (a, b):
+                        if isinstance(e, (int, np.integer)):
+                            ends.append((base + R @ rho[e], Jp[e]))
+                        else:
+                            anchor = np.asarray(e, float)
+                            Ja = J_base.copy()
+                            Ja[:, it] += R @ _J @ anchor
+                            ends.append((base + R @ anchor, Ja))
+                    rest = np.linalg.norm((X[b] if isinstance(b, (int, np.integer)) else np.asarray(b, float))
+                                          - (X[a] if isinstance(a, (int, np.integer)) else np.asarray(a, float)))
+                    springs.append((ends[0], ends[1], k, rest, seg.damping))
+                continue
+            if j in self.beams:
+                bm = self.beams[j]
+                iu = self.u_index[j]
+                u, ud = q[iu], qd[iu]
+                rho = np.stack([bm.points_x, np.zeros_like(bm.points_x)], axis=1) + bm.shape @ u     # (P, 2)
+                Jp = np.broadcast_to(J_base, (len(bm.weights),) + J_base.shape).copy()               # (P, 2, n)
+                Jp[:, :, it] += rho @ (R @ _J).T
+                Jp[:, :, iu] += R @ bm.shape
+                bias = b_base - w * w * rho @ R.T + 2 * w * (bm.shape @ ud) @ (R @ _J).T
+                out.append((bm.weights, base + rho @ R.T, Jp, bias, j))
+                rho = np.array([seg.length, 0.0]) + bm.end @ u
+                Jn = J_base.copy()
+                Jn[:, it] += R @ _J @ rho
+                Jn[:, iu] += R @ bm.end
+                b_base = b_base - w * w * (R @ rho) + 2 * w * (R @ _J @ (bm.end @ ud))
+                base, J_base = base + R @ rho, Jn
+            else:
+                rho = np.array([seg.com, 0.0])
+                Jp = J_base.copy()
+                Jp[:, it] += R @ _J @ rho
+                out.append((seg.mass, base + R @ rho, Jp, b_base - w * w * (R @ rho), j))
+                rotary.append((it, seg.inertia))
+                rho = np.array([seg.length, 0.0])
+                Jn = J_base.copy()
+                Jn[:, it] += R @ _J @ rho
+                b_base = b_base - w * w * (R @ rho)
+                base, J_base = base + R @ rho, Jn
+        return out, rotary, springs
+
+    def hinge_angles(self, q: np.ndarray) -> np.ndarray:
+        """Relative hinge angles (from the parent's outboard cross-section) [rad]."""
+        out = []
+        for j in range(len(self.segments)):
+            parent = 0.0
+            if j > 0:
+                parent = q[self.theta_index[j - 1]]
+                if j - 1 in self.beams:
+                    parent = parent + self.beams[j - 1].end_rotation @ q[self.u_index[j - 1]]
+            out.append(q[self.theta_index[j]] - parent)
+        return np.array(out)
+
+    def _generalised(self, q, qd, t):
+        """``M (n, n)`` and ``Q - sum m J^T b`` (n,)."""
+        pts, rotary, springs = self._points(q, qd)
+        dtype = np.result_type(q, qd, float)
+        M = np.zeros((self.n, self.n), dtype=dtype)
+        rhs = np.zeros(self.n, dtype=dtype)
+        for m, _, Jp, bias, _ in pts:                 # a rigid link's point, or all points of a beam (batched)
+            m, Jp, bias = np.atleast_1d(m), Jp.reshape(-1, 2, self.n), bias.reshape(-1, 2)
+            M += np.einsum("p,pik,pil->kl", m, Jp, Jp)
+            rhs += np.einsum("p,pik,pi->k", m, Jp, self.gravity - bias)
+        for it, inertia in rotary:
+            M[it, it] += inertia
+        # hinge laws: tau_j = -k phi - c phi_dot acts on theta_j and (-) on the parent cross-section
+        phi = self.hinge_angles(q)
+        phid = self.hinge_angles(qd)
+        for j, seg in enumerate(self.segments):
+            if isinstance(seg, ParticleNet):
+                continue
+            tau = -seg.stiffness * phi[j] - seg.damping * phid[j]
+            rhs[self.theta_index[j]] += tau
+            if j > 0:
+                rhs[self.theta_index[j - 1]] -= tau
+                if j - 1 in self.beams:
+                    rhs[self.u_index[j - 1]] -= tau * self.beams[j - 1].end_rotation
+        for (ra, Ja), (rb, Jb), k, rest, c in springs:     # exact springs of particle nets
+            d = rb - ra
+            length = np.sqrt(d @ d)
+            e = d / length
+            rate = e @ ((Jb - Ja) @ qd)
+            force = -(k * (length - rest) + c * rate) * e     # on end b
+            rhs += Jb.T @ force - Ja.T @ force
+        for j, bm in self.beams.items():
+            iu = self.u_index[j]
+            u, ud = q[iu], qd[iu]
+            rhs[iu] -= bm.stiffness @ u + bm.damping @ ud
+            if bm.force is not None:
+                rhs[iu] += np.asarray(bm.force(u, ud, t))
+        return M, rhs
+
+    def accelerations(self, q: np.ndarray, qd: np.ndarray, t: float = 0.0) -> np.ndarray:
+        """``q''`` [rad/s^2, m/s^2]."""
+        M, rhs = self._generalised(np.asarray(q), np.asarray(qd), t)
+        return np.linalg.solve(M, rhs)
+
+    def hinge_positions(self, q: np.ndarray) -> np.ndarray:
+        """Global positions [m] of the hinge of each segment (its inboard point), ``(n_segments, 2)``."""
+        q = np.asarray(q, float)
+        out, base = [], np.zeros(2)
+        for j, seg in enumerate(self.segments):
+            out.append(base.copy())
+            if isinstance(seg, ParticleNet):
+                break
+            th = q[self.theta_index[j]]
+            R = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
+            rho = np.array([seg.length, 0.0])
+            if j in self.beams:
+                rho = rho + self.beams[j].end @ q[self.u_index[j]]
+            base = base + R @ rho
+        return np.array(out)
+
+    def interaction_force(self, q: np.ndarray, qd: np.ndarray, j: int, t: float = 0.0) -> np.ndarray:
+        """Force [N] (global axes) exerted on segment ``j`` by its parent at the hinge: the momentum rate of
+        segments ``j, j+1, ...`` minus their weight."""
+        qdd = self.accelerations(q, qd, t)
+        pts, _, _ = self._points(np.asarray(q, float), np.asarray(qd, float))
+        return sum(np.einsum("p,pi->i", np.atleast_1d(m), Jp.reshape(-1, 2, self.n) @ qdd + bias.reshape(-1, 2)
+                             - self.gravity) for m, _, Jp, bias, k in pts if k >= j)
+
+    def energy(self, q: np.ndarray, qd: np.ndarray) -> float:
+        """Kinetic + gravity + strain + hinge-spring energy [J] (no ``force`` potential)."""
+        pts, rotary, springs = self._points(np.asarray(q, float), np.asarray(qd, float))
+        e = sum(0.5 * k * (np.linalg.norm(rb - ra) - rest) ** 2 for (ra, _), (rb, _), k, rest, _ in springs)
+        for m, r, Jp, _, _ in pts:
+            m, v = np.atleast_1d(m), Jp.reshape(-1, 2, self.n) @ qd
+            e += float(0.5 * m @ np.sum(v * v, axis=1) - m @ (r.reshape(-1, 2) @ self.gravity))
+        for it, inertia in rotary:
+            e += 0.5 * inertia * qd[it] ** 2
+        for j, bm in self.beams.items():
+            u = q[self.u_index[j]]
+            e += 0.5 * u @ bm.stiffness @ u
+        phi = self.hinge_angles(q)
+        e += sum(0.5 * seg.stiffness * phi[j] ** 2 for j, seg in enumerate(self.segments)
+                 if not isinstance(seg, ParticleNet))
+        return float(e)
+
+    # -- integration ----------------------------------------------------------------------
+    def rk4(self, q0, qd0, t_final: float, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Classical fixed-step RK4: times, ``q`` and ``q_dot`` histories."""
+        steps = int(round(t_final / dt))
+        y = np.concatenate([np.asarray(q0, float), np.asarray(qd0, float)])
+        n = self.n
+        out = np.empty((steps + 1, 2 * n))
+        out[0] = y
+
+        def f(t, y):
+            return np.concatenate([y[n:], self.accelerations(y[:n], y[n:], t)])
+        for k in range(steps):
+            t = k * dt
+            k1 = f(t, y)
+            k2 = f(t + dt / 2, y + dt / 2 * k1)
+            k3 = f(t + dt / 2, y + dt / 2 * k2)
+            k4 = f(t + dt, y + dt * k3)
+            y = y + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+            out[k + 1] = y
+        return np.arange(steps + 1) * dt, out[:, :n], out[:, n:]
+
+    def solve(self, q0, qd0, times: np.ndarray, rtol: float = 1e-12, atol: float = 1e-13):
+        """``solve_ivp`` (DOP853) at ``times``: ``q`` and ``q_dot`` histories."""
+        n = self.n
+        sol = scipy.integrate.solve_ivp(lambda t, y: np.concatenate([y[n:], self.accelerations(y[:n], y[n:], t)]),
+                                        (times[0], times[-1]), np.concatenate([q0, qd0]), method="DOP853",
+                                        t_eval=times, rtol=rtol, atol=atol)
+        return sol.y[:n].T, sol.y[n:].T
+
+    # -- linearisation ----------------------------------------------------------------------
+    def equilibrium(self, q_guess) -> np.ndarray:
+        """Static equilibrium by Newton on the generalised forces (complex-step tangent)."""
+        q = np.asarray(q_guess, float).copy()
+        for _ in range(50):
+            _, rhs = self._generalised(q, np.zeros(self.n), 0.0)
+            Kt = self._stiffness(q)
+            dq = np.linalg.solve(Kt, rhs)
+            q = q + dq
+            if np.max(np.abs(dq)) < 1e-14 * (1 + np.max(np.abs(q))):
+                break
+        return q
+
+    def _stiffness(self, q) -> np.ndarray:
+        """``K = -dQ/dq`` at rest, by complex step."""
+        K = np.zeros((self.n, self.n))
+        for i in range(self.n):
+            dq = np.zeros(self.n, complex)
+            dq[i] = 1e-30j
+            _, rhs = self._generalised(q + dq, np.zeros(self.n), 0.0)
+            K[:, i] = -rhs.imag / 1e-30
+        return K
+
+    def natural_frequencies(self, q0) -> np.ndarray:
+        """Undamped natural frequencies [rad/s] about the rest point ``q0``: ``eigh(K, M)``."""
+        M, _ = self._generalised(np.asarray(q0, float), np.zeros(self.n), 0.0)
+        K = self._stiffness(np.asarray(q0, float))
+        values = scipy.linalg.eigh(0.5 * (K + K.T), M, eigvals_only=True)
+        return np.sqrt(np.clip(values, 0.0, None))
