@@ -28,6 +28,7 @@ from ..articulated import Articulated, Tree, articulated_sweep, frequency_kappa
 from ..errors import ModelError, SimulationError
 from ..ops import NUMPY, Ops
 from ..protocol import BodyTerms, JointTerms
+from .hinge_laws import law_joint_terms
 from .model import BUSHING, FREE, PlanarModel
 
 __all__ = ["rigid_body_terms", "revolute_terms", "driven_terms", "free_base_terms", "bushing_terms", "beam_terms",
@@ -360,6 +361,11 @@ class PlanarScene:
                     rate=om - om_end, translational_stiffness=m.translational_stiffness[j],
                     translational_damping=m.translational_damping[j], stiffness=numbers.stiffness[j],
                     damping=numbers.damping[j], reference=laws[0][j], reference_rate=laws[1][j], torque=torque))
+            elif j in m.nonlinear_hinges:
+                torque = 0.0 if inputs is None else _value(inputs.hinge_torque[j])
+                tau, tau_q, tau_v = law_joint_terms(ops, m.nonlinear_hinges[j], th - th_end, om - om_end, torque)
+                joints.append(JointTerms(S=ops.block([[0.0], [0.0], [1.0]]), tau=ops.block([[tau]]),
+                                         tau_q=ops.block([[tau_q]]), tau_v=ops.block([[tau_v]]), axis=2))
             else:
                 torque = laws[2][j] + (0.0 if inputs is None else _value(inputs.hinge_torque[j]))
                 joints.append(revolute_terms(ops, angle=th - th_end, rate=om - om_end, stiffness=numbers.stiffness[j],

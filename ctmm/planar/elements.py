@@ -414,6 +414,40 @@ class FixedMounting(DrivenHinge):
         super().__post_init__()
 
 
+@dataclass(frozen=True, kw_only=True)
+class NonlinearHinge(Hinge):
+    """Revolute hinge with a nonlinear rotary spring / damper law (seed 002 section 7.6.1).
+
+    ``tau = -law(dtheta - rest_angle, dtheta_dot)`` on the child (:mod:`ctmm.nonlinear_laws`: cubic
+    ``K1 theta + K2 theta^3``, clearance / stop, power-law damper, user callables, and their sums).
+    Time integration uses the law itself (the implicit DT-TMM Newton its tangents ``tau_q``, ``tau_v``);
+    the frequency verbs linearise it about the operating point (tangent stiffness and damping).
+
+    Parameters
+    ----------
+    law : ctmm.nonlinear_laws.Law
+        Restoring moment ``f(delta, rate)`` [N m] of the relative angle [rad] and rate [rad/s].
+    rest_angle : float
+        Relative angle at which ``delta = 0`` [rad].
+    """
+
+    moment_law: object = None
+    rest_angle: float = 0.0
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        from ..nonlinear_laws import Law
+        if not isinstance(self.moment_law, Law):
+            raise ModelError(f"{self.name}: moment_law must be a ctmm.nonlinear_laws.Law (CubicSpring, "
+                             f"ClearanceSpring, PowerDamper, CallableLaw, LinearLaw or their sum), got "
+                             f"{self.moment_law!r}")
+        object.__setattr__(self, "rest_angle", validation.finite(f"{self.name}: rest_angle", self.rest_angle))
+
+    def moment(self, dtheta, dtheta_dot):
+        """Hinge moment on the child ``-law(dtheta - rest_angle, dtheta_dot)`` [N m]."""
+        return -self.moment_law.force(dtheta - self.rest_angle, dtheta_dot)
+
+
 # ------------------------------------------------------------------------------------------
 # boundaries
 # ------------------------------------------------------------------------------------------
@@ -473,7 +507,7 @@ class Free:
 
 
 HINGE_TYPES = (SmoothHinge, ElasticHinge, DamperHinge, SpringDamperHinge, ActuatedHinge,
-               DrivenHinge, FixedMounting)
+               DrivenHinge, FixedMounting, NonlinearHinge)
 """All hinge classes."""
 
 
@@ -486,5 +520,5 @@ def law_arrays(hinge: Hinge) -> tuple[float, float]:
 
 
 __all__ = ["Load", "RigidBody", "SmoothHinge", "ElasticHinge", "DamperHinge",
-           "SpringDamperHinge", "ActuatedHinge", "DrivenHinge", "FixedMounting", "Fixed", "Pinned",
+           "SpringDamperHinge", "ActuatedHinge", "DrivenHinge", "FixedMounting", "NonlinearHinge", "Fixed", "Pinned",
            "FreeBase", "Free", "HINGE_TYPES"]
