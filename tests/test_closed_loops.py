@@ -1,0 +1,133 @@
+"""Closed kinematic loops by cut joints with boundary unknowns (ctmm.planar.closed_loops).
+
+Independent reference: the global DAE of :mod:`ctmm.reference.planar_dae` (absolute coordinates,
+Lagrange multipliers, Baumgarte, DOP853 at 1e-11), which shares no code with the TMM sweep or the
+cut-joint mechanism.  Checked: angles and cut forces of a four-bar linkage (rigid coupler, a nonlinear
+rocker spring), a body with two input ends (a plate hung from two links, seed 002 section 7.4.2.1),
+energy conservation of the undamped loop, the drift report, and the refusals.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ctmm.errors import ModelError
+from ctmm.nonlinear_laws import CubicSpring, PowerDamper
+from ctmm.planar import Fixed, NonlinearHinge, PlanarModel, RigidBody, SmoothHinge
+from ctmm.planar.closed_loops import ClosedLoopModel, CutJoint, simulate_closed_loop
+from ctmm.reference.planar_dae import PlanarDAE
+
+CRANK, COUPLER, ROCKER, GROUND = 0.2, 0.6, 0.5, 0.7          # lengths [m], a Grashof crank-rocker
+MASSES = {"crank": 0.4, "coupler": 1.0, "rocker": 0.8}
+SPRING = CubicSpring(2.0, 15.0)
+
+
+def four_bar(rocker_law=None):
+    rocker_hinge = (SmoothHinge("h4", parent="g4", child="rocker") if rocker_law is None else
+                    NonlinearHinge("h4", parent="g4", child="rocker", moment_law=rocker_law, rest_angle=1.9))
+    tree = PlanarModel("four_bar", [
+        Fixed("g", position=(0.0, 0.0)), Fixed("g4", position=(GROUND, 0.0)),
+        RigidBody.uniform_link("crank", mass=MASSES["crank"], length=CRANK), SmoothHinge("h1", parent="g", child="crank"),
+        RigidBody.uniform_link("coupler", mass=MASSES["coupler"], length=COUPLER),
+        SmoothHinge("h2", parent="crank", child="coupler"),
+        RigidBody.uniform_link("rocker", mass=MASSES["rocker"], length=ROCKER), rocker_hinge], gravity=(0.0, -9.81))
+    return ClosedLoopModel(tree, [CutJoint("h3", parent="rocker.out", child="coupler.out")])
+
+
+def four_bar_dae(rocker_law=None):
+    dae = PlanarDAE(gravity=(0.0, -9.81))
+    for name, length in (("crank", CRANK), ("coupler", COUPLER), ("rocker", ROCKER)):
+        m = MASSES[name]
+        dae.add_body(name, mass=m, inertia=m * length ** 2 / 12, points={"in": (-length / 2, 0.0), "out": (length / 2, 0.0)})
+    dae.add_revolute(None, (0.0, 0.0), "crank", "in")
+    dae.add_revolute("crank", "out", "coupler", "in")
+    dae.add_revolute(None, (GROUND, 0.0), "rocker", "in",
+                     moment=None if rocker_law is None else (lambda d, v: rocker_law.force(d, v)), rest=1.9)
+    dae.add_revolute("rocker", "out", "coupler", "out")
+    return dae
+
+
+def start(loop):
+    return loop.consistent_state([math.pi / 2, 0.5, 1.8], [3.0, 0.0, 0.0], keep=["crank.theta"])
+
+
+def compare(loop, dae, names, q0, v0, t_final, **kwargs):
+    simulation = simulate_closed_loop(loop, q0, v0, t_final=t_final, **kwargs)
+    state = dae.assemble(dict(zip(names, q0)), dict(zip(names, v0)))
+    assert np.max(np.abs(dae.constraints(*state)[0])) < 1e-12         # the same assembled configuration
+    reference = dae.simulate(state, t_final, t_eval=simulation.t)
+    angle_error = max(np.max(np.abs(simulation.coordinate(f"{n}.theta") - reference.angle(n))) for n in names)
+    return simulation, reference, angle_error
+
+
+@pytest.mark.parametrize("law", [None, SPRING + PowerDamper(0.02, 2.0)], ids=["smooth", "cubic spring + damper"])
+def test_four_bar_matches_the_global_dae(law):
+    loop = four_bar(law)
+    q0, v0 = start(loop)
+    assert v0[0] == 3.0 and q0[0] == pytest.approx(math.pi / 2)     # crank held, the others assembled
+    simulation, reference, error = compare(loop, four_bar_dae(law), ["crank", "coupler", "rocker"], q0, v0, 0.4,
+                                           dt=1e-3)
+    assert error < 2e-7
+    force_error = np.max(np.abs(simulation.cut_force[:, 0] - reference.forces[:, 3]))
+    assert force_error < 1e-4 * np.max(np.abs(reference.forces[:, 3]))
+    assert np.max(simulation.drift) < 1e-12 and np.max(simulation.drift_rate) < 1e-12     # projected
+    assert np.ptp(simulation.coordinate("crank.theta")) > 0.8                          # it moves
+
+
+def test_undamped_loop_conserves_energy_with_baumgarte_only():
+    loop = four_bar(SPRING)
+    q0, v0 = start(loop)
+    simulation = simulate_closed_loop(loop, q0, v0, t_final=1.0, method="DOP853", rtol=1e-11, atol=1e-12)
+    energy = simulation.energy()
+    assert np.max(np.abs(energy - energy[0])) < 1e-7 * np.max(np.abs(energy))
+    assert np.max(simulation.drift) < 1e-9
+
+
+def test_drift_is_reported_and_controlled():
+    q0, v0 = start(four_bar())
+    free = ClosedLoopModel(four_bar().tree, four_bar().cuts, baumgarte=0.0)
+    loose = simulate_closed_loop(free, q0, v0, t_final=1.0, dt=5e-3, projection=False)
+    held = simulate_closed_loop(four_bar(), q0, v0, t_final=1.0, dt=5e-3, projection=False)
+    projected = simulate_closed_loop(four_bar(), q0, v0, t_final=1.0, dt=5e-3)
+    assert loose.drift[-1] > 1e-7                                    # truncation error drifts unchecked
+    assert held.drift[-1] < 0.1 * loose.drift[-1]                    # Baumgarte keeps it bounded
+    assert np.max(projected.drift) < 1e-12
+
+
+def test_body_with_two_input_ends():
+    """A triangular plate hangs from two links (seed 002 section 7.4.2.1): its inboard end on link a, its
+    second input end 'b_end' cut-jointed to link b's tip."""
+    plate = RigidBody("plate", mass=2.0, inertia=0.05, center_of_mass=(0.25, -0.12), inboard=(0.0, 0.0),
+                      outboard={"b_end": (0.5, 0.0)})
+    tree = PlanarModel("swing", [
+        Fixed("ga", position=(0.0, 0.0)), Fixed("gb", position=(0.6, 0.0)),
+        RigidBody.uniform_link("a", mass=0.3, length=0.8), SmoothHinge("ha", parent="ga", child="a"),
+        plate, NonlinearHinge("hp", parent="a", child="plate", moment_law=CubicSpring(1.0, 5.0), rest_angle=1.2),
+        RigidBody.uniform_link("b", mass=0.3, length=0.7), SmoothHinge("hb", parent="gb", child="b")],
+        gravity=(0.0, -9.81))
+    loop = ClosedLoopModel(tree, [CutJoint("hb_plate", parent="b.out", child="plate.b_end")])
+    q0, v0 = loop.consistent_state([-1.2, 0.1, -1.6], [1.0, 0.0, 0.0], keep=["a.theta"])
+    dae = PlanarDAE(gravity=(0.0, -9.81))
+    dae.add_body("a", mass=0.3, inertia=0.3 * 0.64 / 12, points={"in": (-0.4, 0.0), "out": (0.4, 0.0)})
+    dae.add_body("plate", mass=2.0, inertia=0.05, points={"in": (-0.25, 0.12), "b_end": (0.25, 0.12)})
+    dae.add_body("b", mass=0.3, inertia=0.3 * 0.49 / 12, points={"in": (-0.35, 0.0), "out": (0.35, 0.0)})
+    dae.add_revolute(None, (0.0, 0.0), "a", "in")
+    dae.add_revolute("a", "out", "plate", "in", moment=lambda d, v: 1.0 * d + 5.0 * d ** 3, rest=1.2)
+    dae.add_revolute(None, (0.6, 0.0), "b", "in")
+    dae.add_revolute("b", "out", "plate", "b_end")
+    _, _, error = compare(loop, dae, ["a", "plate", "b"], q0, v0, 0.5, dt=1e-3)
+    assert error < 1e-6
+
+
+def test_refusals_name_the_problem():
+    tree = four_bar().tree
+    with pytest.raises(ModelError, match="no end 'tip'"):
+        ClosedLoopModel(tree, [CutJoint("h3", parent="rocker.tip", child="coupler.out")])
+    with pytest.raises(ModelError, match="names no body"):
+        ClosedLoopModel(tree, [CutJoint("h3", parent="wheel.out", child="coupler.out")])
+    with pytest.raises(ModelError, match="violates the cut joints"):
+        simulate_closed_loop(four_bar(), [math.pi / 2, 0.5, 1.8], [0.0, 0.0, 0.0], t_final=0.1, dt=1e-3)
+    with pytest.raises(ModelError, match="baumgarte"):
+        ClosedLoopModel(tree, four_bar().cuts, baumgarte=-1.0)
