@@ -14,43 +14,19 @@ import numpy as np
 import pytest
 
 from ctmm.errors import ModelError
-from ctmm.nonlinear_laws import CubicSpring, PowerDamper
+from ctmm.nonlinear_laws import CubicSpring
 from ctmm.planar import Fixed, NonlinearHinge, PlanarModel, RigidBody, SmoothHinge
 from ctmm.planar.closed_loops import ClosedLoopModel, CutJoint, simulate_closed_loop
 from ctmm.reference.planar_dae import PlanarDAE
-
-CRANK, COUPLER, ROCKER, GROUND = 0.2, 0.6, 0.5, 0.7          # lengths [m], a Grashof crank-rocker
-MASSES = {"crank": 0.4, "coupler": 1.0, "rocker": 0.8}
-SPRING = CubicSpring(2.0, 15.0)
-
-
-def four_bar(rocker_law=None):
-    rocker_hinge = (SmoothHinge("h4", parent="g4", child="rocker") if rocker_law is None else
-                    NonlinearHinge("h4", parent="g4", child="rocker", moment_law=rocker_law, rest_angle=1.9))
-    tree = PlanarModel("four_bar", [
-        Fixed("g", position=(0.0, 0.0)), Fixed("g4", position=(GROUND, 0.0)),
-        RigidBody.uniform_link("crank", mass=MASSES["crank"], length=CRANK), SmoothHinge("h1", parent="g", child="crank"),
-        RigidBody.uniform_link("coupler", mass=MASSES["coupler"], length=COUPLER),
-        SmoothHinge("h2", parent="crank", child="coupler"),
-        RigidBody.uniform_link("rocker", mass=MASSES["rocker"], length=ROCKER), rocker_hinge], gravity=(0.0, -9.81))
-    return ClosedLoopModel(tree, [CutJoint("h3", parent="rocker.out", child="coupler.out")])
-
-
-def four_bar_dae(rocker_law=None):
-    dae = PlanarDAE(gravity=(0.0, -9.81))
-    for name, length in (("crank", CRANK), ("coupler", COUPLER), ("rocker", ROCKER)):
-        m = MASSES[name]
-        dae.add_body(name, mass=m, inertia=m * length ** 2 / 12, points={"in": (-length / 2, 0.0), "out": (length / 2, 0.0)})
-    dae.add_revolute(None, (0.0, 0.0), "crank", "in")
-    dae.add_revolute("crank", "out", "coupler", "in")
-    dae.add_revolute(None, (GROUND, 0.0), "rocker", "in",
-                     moment=None if rocker_law is None else (lambda d, v: rocker_law.force(d, v)), rest=1.9)
-    dae.add_revolute("rocker", "out", "coupler", "out")
-    return dae
+from ctmm.scenarios.four_bar import DAMPER, SPRING, mechanism as four_bar, reference as four_bar_dae
+from ctmm.scenarios.four_bar import start as four_bar_start
 
 
 def start(loop):
-    return loop.consistent_state([math.pi / 2, 0.5, 1.8], [3.0, 0.0, 0.0], keep=["crank.theta"])
+    """Crank at 90 deg with 3 rad/s, coupler and rocker assembled (the four_bar scenario's start)."""
+    q0, v0 = four_bar_start(loop)
+    assert v0[0] == 3.0 and q0[0] == pytest.approx(math.pi / 2)     # crank held, the others assembled
+    return q0, v0
 
 
 def compare(loop, dae, names, q0, v0, t_final, **kwargs):
@@ -62,11 +38,10 @@ def compare(loop, dae, names, q0, v0, t_final, **kwargs):
     return simulation, reference, angle_error
 
 
-@pytest.mark.parametrize("law", [None, SPRING + PowerDamper(0.02, 2.0)], ids=["smooth", "cubic spring + damper"])
+@pytest.mark.parametrize("law", [None, SPRING + DAMPER], ids=["smooth", "cubic spring + damper"])
 def test_four_bar_matches_the_global_dae(law):
     loop = four_bar(law)
     q0, v0 = start(loop)
-    assert v0[0] == 3.0 and q0[0] == pytest.approx(math.pi / 2)     # crank held, the others assembled
     simulation, reference, error = compare(loop, four_bar_dae(law), ["crank", "coupler", "rocker"], q0, v0, 0.4,
                                            dt=1e-3)
     assert error < 2e-7
@@ -131,3 +106,4 @@ def test_refusals_name_the_problem():
         simulate_closed_loop(four_bar(), [math.pi / 2, 0.5, 1.8], [0.0, 0.0, 0.0], t_final=0.1, dt=1e-3)
     with pytest.raises(ModelError, match="baumgarte"):
         ClosedLoopModel(tree, four_bar().cuts, baumgarte=-1.0)
+

@@ -187,10 +187,10 @@ class ClosedLoopModel:
         n = self.tree.n_coordinates
         return np.column_stack([self.constraints(q, np.eye(n)[k], t)[1] for k in range(n)])
 
-    def _solution(self, q, qdot, t, forces: np.ndarray):
-        """Tree solution with cut forces ``forces`` (n_cuts, 2): qddot and point accelerations."""
+    def _solution(self, q, qdot, t, forces: np.ndarray, points: dict):
+        """Tree solution with cut forces ``forces`` (n_cuts, 2): qddot and point accelerations
+        (``points``: :meth:`PlanarModel.points` at ``(q, qdot, t)``)."""
         m = self.tree
-        points = m.points(q, qdot, t)
         body_force = np.zeros((m.n_bodies, 3))
         levers = []
         for k, ((jp, ep), (jc, ec)) in enumerate(self._points):
@@ -224,13 +224,14 @@ class ClosedLoopModel:
         """``(qddot, cut forces (n_cuts, 2))`` at ``(q, qdot, t)`` (module docstring)."""
         nc = len(self.cuts)
         zero = np.zeros((nc, 2))
-        qdd0, a0 = self._solution(q, qdot, t, zero)
+        points = self.tree.points(q, qdot, t)
+        qdd0, a0 = self._solution(q, qdot, t, zero, points)
         G = np.empty((2 * nc, 2 * nc))
         dqdd = np.empty((len(qdd0), 2 * nc))
         for k in range(2 * nc):
             unit = zero.copy().reshape(-1)
             unit[k] = 1.0
-            qdd_k, a_k = self._solution(q, qdot, t, unit.reshape(nc, 2))
+            qdd_k, a_k = self._solution(q, qdot, t, unit.reshape(nc, 2), points)
             G[:, k], dqdd[:, k] = a_k - a0, qdd_k - qdd0
         phi, phi_dot = self.constraints(q, qdot, t)
         alpha = self.baumgarte
