@@ -228,3 +228,50 @@ def test_linearisation_at_a_clearance_corner_is_refused():
     inside = ctmm.natural_frequencies(single_link(ClearanceSpring(20.0, clearance=0.05) + LinearLaw(1.0)), n_modes=1,
                                       operating_point={"l.theta": 0.0})
     assert inside[0] == pytest.approx(math.sqrt(1.0 / INERTIA))        # only the linear part inside the gap
+
+
+# ------------------------------------------------------------------------------------------------
+# spatial lawful joints
+# ------------------------------------------------------------------------------------------------
+def spatial_pendulum(law):
+    import ctmm.spatial as sp
+
+    return sp.SpatialModel("duffing3d", [sp.SpatialBody("b", 1.0, (0.1, 0.2, 0.3), (0.5, 0.0, 0.0)),
+                                         sp.Revolute(name="h", parent=None, child="b", axis=(0, 0, 1), law=law)],
+                           gravity=(0.0, 0.0, 0.0))
+
+
+@pytest.mark.parametrize("kwargs, tolerance", [(dict(method="rk4", dt=5e-4, compiled=True), 1e-8),
+                                               (dict(method="DOP853", rtol=1e-11, atol=1e-12), 1e-6),
+                                               (dict(method="newmark", dt=2e-3), 1e-4)])
+def test_spatial_revolute_with_a_cubic_law_has_the_duffing_period(kwargs, tolerance):
+    law = CubicSpring(10.0, 60.0)
+    inertia = 0.3 + 1.0 * 0.5 ** 2            # about the joint axis [kg m^2]
+    amplitude = 0.6
+    V = law.potential
+    integrand = lambda p: amplitude * math.cos(p) / math.sqrt(2.0 * (V(amplitude) - V(amplitude * math.sin(p))) / inertia)  # noqa: E731,E501
+    expected = 4.0 * scipy.integrate.quad(integrand, 0.0, math.pi / 2, epsabs=1e-14, epsrel=1e-13)[0]
+    result = ctmm.simulate(spatial_pendulum(law), 2.0, x0={"h.angle": amplitude}, **kwargs)
+    assert crossing_period(result, "h.angle") == pytest.approx(expected, rel=tolerance)
+
+
+def test_spatial_law_energy_and_linearisation():
+    from ctmm.spatial.dynamics import energy
+
+    law = CubicSpring(10.0, 60.0)
+    model = spatial_pendulum(law)
+    assert ctmm.natural_frequencies(model, n_modes=1)[0] == pytest.approx(math.sqrt(10.0 / 0.55), rel=1e-9)
+    result = ctmm.simulate(model, 1.0, method="DOP853", x0={"h.angle": 0.6}, rtol=1e-11, atol=1e-12)
+    values = energy(model, result["h.angle"][:, None], result["h.angle_rate"][:, None])
+    assert values[0] == pytest.approx(law.potential(0.6), rel=1e-12)
+    assert np.max(np.abs(values - values[0])) < 1e-8 * values[0]
+    import ctmm.spatial as sp
+    with pytest.raises(ModelError, match="law must be"):
+        sp.Revolute(name="h", parent=None, child="b", law=lambda d, v: d)
+
+
+def test_spatial_generated_kernel_refuses_a_user_law_by_joint_name():
+    law = CallableLaw(lambda d, v: 3.0 * d + np.sinh(d), stiffness=lambda d, v: 3.0 + np.cosh(d),
+                      damping=lambda d, v: 0.0, name="sinh spring")
+    with pytest.raises(ModelError, match="'h' .*sinh spring"):
+        ctmm.simulate(spatial_pendulum(law), 0.01, 1e-3, method="rk4", compiled=True, x0={"h.angle": 0.1})
