@@ -5,7 +5,7 @@ Own parameters (the seeds give none): a Grashof crank-rocker with ground pivots 
 0.8 kg; gravity -9.81 m/s^2 along y.  The rocker pivot carries a hardening cubic spring
 ``M = K1 d + K2 d^3`` (K1 = 2 N m/rad, K2 = 15 N m/rad^3, seed 002 Fig. 7.12 form) about the rest
 angle 1.9 rad, parallel to a quadratic damper ``0.02 d' |d'|`` N m.  The crank starts at 90 deg with
-3 rad/s, the coupler and rocker assembled (:meth:`ClosedLoopModel.consistent_state`) and free.
+3 rad/s, the coupler and rocker assembled (:meth:`KinematicLoopModel.consistent_state`) and free.
 
 The tree is crank -> coupler from the ground and the rocker from the second ground pivot; the cut
 joint ``h3`` joins the coupler's outboard end to the rocker's (the coupler is a body with two input
@@ -24,7 +24,7 @@ import numpy as np
 
 from ctmm.nonlinear_laws import CubicSpring, Law, PowerDamper
 from ctmm.planar import Fixed, NonlinearHinge, PlanarModel, RigidBody, SmoothHinge
-from ctmm.planar.closed_loops import ClosedLoopModel, CutJoint, simulate_closed_loop
+from ctmm.planar.closed_loops import KinematicLoopModel, CutJoint, simulate_kinematic_loops
 from ctmm.reference.planar_dae import PlanarDAE
 from ctmm.scenario import accuracy
 
@@ -42,7 +42,7 @@ DAMPER = PowerDamper(0.02, 2.0)
 BODIES = ("crank", "coupler", "rocker")
 
 
-def mechanism(rocker_law: Law | None = None) -> ClosedLoopModel:
+def mechanism(rocker_law: Law | None = None) -> KinematicLoopModel:
     """The linkage as a tree plus the cut joint ``h3``; ``rocker_law`` on the rocker pivot (None: smooth)."""
     rocker_hinge = (SmoothHinge("h4", parent="g4", child="rocker") if rocker_law is None else
                     NonlinearHinge("h4", parent="g4", child="rocker", moment_law=rocker_law, rest_angle=REST))
@@ -52,7 +52,7 @@ def mechanism(rocker_law: Law | None = None) -> ClosedLoopModel:
         links["crank"], SmoothHinge("h1", parent="g", child="crank"),
         links["coupler"], SmoothHinge("h2", parent="crank", child="coupler"),
         links["rocker"], rocker_hinge], gravity=(0.0, -9.81))
-    return ClosedLoopModel(tree, [CutJoint("h3", parent="rocker.out", child="coupler.out")])
+    return KinematicLoopModel(tree, [CutJoint("h3", parent="rocker.out", child="coupler.out")])
 
 
 def reference(rocker_law: Law | None = None) -> PlanarDAE:
@@ -70,7 +70,7 @@ def reference(rocker_law: Law | None = None) -> PlanarDAE:
     return dae
 
 
-def start(loop: ClosedLoopModel) -> tuple[np.ndarray, np.ndarray]:
+def start(loop: KinematicLoopModel) -> tuple[np.ndarray, np.ndarray]:
     """Crank at 90 deg with 3 rad/s; coupler and rocker assembled."""
     return loop.consistent_state([math.pi / 2, 0.5, 1.8], [3.0, 0.0, 0.0], keep=["crank.theta"])
 
@@ -88,8 +88,8 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     law = SPRING + DAMPER
     loop = mechanism(law)
     q0, v0 = start(loop)
-    rk4 = simulate_closed_loop(loop, q0, v0, t_final=t_final, dt=h)
-    dop = simulate_closed_loop(loop, q0, v0, t_final=t_final, method="DOP853", rtol=1e-11, atol=1e-12)
+    rk4 = simulate_kinematic_loops(loop, q0, v0, t_final=t_final, dt=h)
+    dop = simulate_kinematic_loops(loop, q0, v0, t_final=t_final, method="DOP853", rtol=1e-11, atol=1e-12)
     dae = reference(law)
     state = dae.assemble(dict(zip(BODIES, q0)), dict(zip(BODIES, v0)))
     began = time.perf_counter()
@@ -101,7 +101,7 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     force_error = float(np.max(np.abs(rk4.cut_force[:, 0] - ref.forces[:, 3]))) / force_scale
     # energy: the undamped linkage (spring only)
     undamped = mechanism(SPRING)
-    conservative = simulate_closed_loop(undamped, q0, v0, t_final=t_final, dt=h)
+    conservative = simulate_kinematic_loops(undamped, q0, v0, t_final=t_final, dt=h)
     energy = conservative.energy()
     energy_drift = float(np.max(np.abs(energy - energy[0])) / np.max(np.abs(energy)))
 

@@ -16,7 +16,7 @@ import pytest
 from ctmm.errors import ModelError
 from ctmm.nonlinear_laws import CubicSpring
 from ctmm.planar import Fixed, NonlinearHinge, PlanarModel, RigidBody, SmoothHinge
-from ctmm.planar.closed_loops import ClosedLoopModel, CutJoint, simulate_closed_loop
+from ctmm.planar.closed_loops import KinematicLoopModel, CutJoint, simulate_kinematic_loops
 from ctmm.reference.planar_dae import PlanarDAE
 from ctmm.scenarios.four_bar import DAMPER, SPRING, mechanism as four_bar, reference as four_bar_dae
 from ctmm.scenarios.four_bar import start as four_bar_start
@@ -30,7 +30,7 @@ def start(loop):
 
 
 def compare(loop, dae, names, q0, v0, t_final, **kwargs):
-    simulation = simulate_closed_loop(loop, q0, v0, t_final=t_final, **kwargs)
+    simulation = simulate_kinematic_loops(loop, q0, v0, t_final=t_final, **kwargs)
     state = dae.assemble(dict(zip(names, q0)), dict(zip(names, v0)))
     assert np.max(np.abs(dae.constraints(*state)[0])) < 1e-12         # the same assembled configuration
     reference = dae.simulate(state, t_final, t_eval=simulation.t)
@@ -54,7 +54,7 @@ def test_four_bar_matches_the_global_dae(law):
 def test_undamped_loop_conserves_energy_with_baumgarte_only():
     loop = four_bar(SPRING)
     q0, v0 = start(loop)
-    simulation = simulate_closed_loop(loop, q0, v0, t_final=1.0, method="DOP853", rtol=1e-11, atol=1e-12)
+    simulation = simulate_kinematic_loops(loop, q0, v0, t_final=1.0, method="DOP853", rtol=1e-11, atol=1e-12)
     energy = simulation.energy()
     assert np.max(np.abs(energy - energy[0])) < 1e-7 * np.max(np.abs(energy))
     assert np.max(simulation.drift) < 1e-9
@@ -62,10 +62,10 @@ def test_undamped_loop_conserves_energy_with_baumgarte_only():
 
 def test_drift_is_reported_and_controlled():
     q0, v0 = start(four_bar())
-    free = ClosedLoopModel(four_bar().tree, four_bar().cuts, baumgarte=0.0)
-    loose = simulate_closed_loop(free, q0, v0, t_final=1.0, dt=5e-3, projection=False)
-    held = simulate_closed_loop(four_bar(), q0, v0, t_final=1.0, dt=5e-3, projection=False)
-    projected = simulate_closed_loop(four_bar(), q0, v0, t_final=1.0, dt=5e-3)
+    free = KinematicLoopModel(four_bar().tree, four_bar().cuts, baumgarte=0.0)
+    loose = simulate_kinematic_loops(free, q0, v0, t_final=1.0, dt=5e-3, projection=False)
+    held = simulate_kinematic_loops(four_bar(), q0, v0, t_final=1.0, dt=5e-3, projection=False)
+    projected = simulate_kinematic_loops(four_bar(), q0, v0, t_final=1.0, dt=5e-3)
     assert loose.drift[-1] > 1e-7                                    # truncation error drifts unchecked
     assert held.drift[-1] < 0.1 * loose.drift[-1]                    # Baumgarte keeps it bounded
     assert np.max(projected.drift) < 1e-12
@@ -82,7 +82,7 @@ def test_body_with_two_input_ends():
         plate, NonlinearHinge("hp", parent="a", child="plate", moment_law=CubicSpring(1.0, 5.0), rest_angle=1.2),
         RigidBody.uniform_link("b", mass=0.3, length=0.7), SmoothHinge("hb", parent="gb", child="b")],
         gravity=(0.0, -9.81))
-    loop = ClosedLoopModel(tree, [CutJoint("hb_plate", parent="b.out", child="plate.b_end")])
+    loop = KinematicLoopModel(tree, [CutJoint("hb_plate", parent="b.out", child="plate.b_end")])
     q0, v0 = loop.consistent_state([-1.2, 0.1, -1.6], [1.0, 0.0, 0.0], keep=["a.theta"])
     dae = PlanarDAE(gravity=(0.0, -9.81))
     dae.add_body("a", mass=0.3, inertia=0.3 * 0.64 / 12, points={"in": (-0.4, 0.0), "out": (0.4, 0.0)})
@@ -99,11 +99,11 @@ def test_body_with_two_input_ends():
 def test_refusals_name_the_problem():
     tree = four_bar().tree
     with pytest.raises(ModelError, match="no end 'tip'"):
-        ClosedLoopModel(tree, [CutJoint("h3", parent="rocker.tip", child="coupler.out")])
+        KinematicLoopModel(tree, [CutJoint("h3", parent="rocker.tip", child="coupler.out")])
     with pytest.raises(ModelError, match="names no body"):
-        ClosedLoopModel(tree, [CutJoint("h3", parent="wheel.out", child="coupler.out")])
+        KinematicLoopModel(tree, [CutJoint("h3", parent="wheel.out", child="coupler.out")])
     with pytest.raises(ModelError, match="violates the cut joints"):
-        simulate_closed_loop(four_bar(), [math.pi / 2, 0.5, 1.8], [0.0, 0.0, 0.0], t_final=0.1, dt=1e-3)
+        simulate_kinematic_loops(four_bar(), [math.pi / 2, 0.5, 1.8], [0.0, 0.0, 0.0], t_final=0.1, dt=1e-3)
     with pytest.raises(ModelError, match="baumgarte"):
-        ClosedLoopModel(tree, four_bar().cuts, baumgarte=-1.0)
+        KinematicLoopModel(tree, four_bar().cuts, baumgarte=-1.0)
 

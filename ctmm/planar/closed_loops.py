@@ -22,7 +22,7 @@ stay the state; the drift of ``Phi`` (which the exact acceleration-level constra
 from round-off and truncation) is controlled by Baumgarte (``alpha`` [1/s]) and, in the fixed-step
 integrator, by projection after every step onto ``Phi = 0`` and ``Phi' = 0`` (minimum-norm Gauss-Newton
 with the constraint Jacobian ``J = dPhi'/dqdot``, exact).  The drift is reported in the result
-(:attr:`ClosedLoopSimulation.drift`, ``.drift_rate``), with the cut forces.
+(:attr:`KinematicLoopSimulation.drift`, ``.drift_rate``), with the cut forces.
 
 Not yet: cut points on modal beams (a flexible coupler), cut joints with laws, implicit DT-TMM schemes
 and the frequency verbs for closed loops (each refused by name).
@@ -43,7 +43,7 @@ from .model import PlanarModel
 from .ports import ActuatorInputs
 from .sweep import solve_instant
 
-__all__ = ["CutJoint", "ClosedLoopModel", "ClosedLoopSimulation", "simulate_closed_loop"]
+__all__ = ["CutJoint", "KinematicLoopModel", "KinematicLoopSimulation", "simulate_kinematic_loops"]
 
 
 @dataclass(frozen=True)
@@ -74,12 +74,12 @@ class CutJoint:
 
 
 @dataclass(frozen=True)
-class ClosedLoopSimulation:
+class KinematicLoopSimulation:
     """Time history of a closed-loop run.
 
     Attributes
     ----------
-    model : ClosedLoopModel
+    model : KinematicLoopModel
     t : ndarray (N,)
         Times [s].
     q, qdot : ndarray (N, n_coordinates)
@@ -94,7 +94,7 @@ class ClosedLoopSimulation:
         Evaluations of the closed-loop accelerations (each ``1 + 2 n_cuts`` sweeps).
     """
 
-    model: "ClosedLoopModel"
+    model: "KinematicLoopModel"
     t: np.ndarray
     q: np.ndarray
     qdot: np.ndarray
@@ -116,7 +116,7 @@ class ClosedLoopSimulation:
         return np.array([self.model.tree.energy(q, v, t) for t, q, v in zip(self.t, self.q, self.qdot)])
 
 
-class ClosedLoopModel:
+class KinematicLoopModel:
     """A planar spanning tree plus cut joints (module docstring).
 
     Parameters
@@ -131,10 +131,10 @@ class ClosedLoopModel:
 
     def __init__(self, tree: PlanarModel, cuts: Sequence[CutJoint], *, baumgarte: float = 20.0) -> None:
         if not isinstance(tree, PlanarModel):
-            raise ModelError(f"ClosedLoopModel: tree must be a ctmm.planar.PlanarModel, got {tree!r}")
+            raise ModelError(f"KinematicLoopModel: tree must be a ctmm.planar.PlanarModel, got {tree!r}")
         cuts = tuple(cuts)
         if not cuts or not all(isinstance(c, CutJoint) for c in cuts):
-            raise ModelError(f"ClosedLoopModel: cuts must be a non-empty sequence of CutJoint, got {cuts!r}")
+            raise ModelError(f"KinematicLoopModel: cuts must be a non-empty sequence of CutJoint, got {cuts!r}")
         self.tree, self.cuts = tree, cuts
         self.baumgarte = validation.nonnegative("baumgarte", baumgarte)
         grounds = {e.name: e for e in tree.elements if isinstance(e, Fixed)}
@@ -238,7 +238,7 @@ class ClosedLoopModel:
         target = -a0 - 2.0 * alpha * phi_dot - alpha * alpha * phi
         condition = np.linalg.cond(G)
         if not np.isfinite(condition) or condition > 1e12:
-            raise SimulationError(f"closed loop {self.name!r}: the cut joints' boundary compliance is singular "
+            raise SimulationError(f"kinematic loop {self.name!r}: the cut joints' boundary compliance is singular "
                                   f"(condition {condition:.2e}) at t = {t} s: a singular configuration of the loop "
                                   "or redundant cut joints", time=t, element=self.cuts[0].name)
         lam = np.linalg.solve(G, target)
@@ -259,7 +259,7 @@ class ClosedLoopModel:
             J = self.jacobian(q)[:, free]
             q[free] -= np.linalg.lstsq(J, phi, rcond=None)[0]
         else:
-            raise ModelError(f"closed loop {self.name!r}: no assembled configuration near the given coordinates "
+            raise ModelError(f"kinematic loop {self.name!r}: no assembled configuration near the given coordinates "
                              f"(|Phi| = {np.max(np.abs(phi)):.3e} m after 50 Gauss-Newton steps); check the "
                              "geometry and the held coordinates")
         J = self.jacobian(q)
@@ -278,14 +278,14 @@ class ClosedLoopModel:
         return q, qdot - np.linalg.lstsq(J, J @ qdot, rcond=None)[0]
 
 
-def simulate_closed_loop(model: ClosedLoopModel, q0, qdot0, *, t_final: float, dt: float | None = None,
+def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: float, dt: float | None = None,
                          method: str = "rk4", projection: bool = True, rtol: float = 1e-9, atol: float = 1e-11,
-                         store_every: int = 1) -> ClosedLoopSimulation:
-    """Integrate a closed-loop model from a consistent state (:meth:`ClosedLoopModel.consistent_state`).
+                         store_every: int = 1) -> KinematicLoopSimulation:
+    """Integrate a closed-loop model from a consistent state (:meth:`KinematicLoopModel.consistent_state`).
 
     Parameters
     ----------
-    model : ClosedLoopModel
+    model : KinematicLoopModel
     q0, qdot0 : array_like (n_coordinates,)
         Initial tree coordinates and rates (checked against the constraints: ``|Phi| <= 1e-8`` m).
     t_final : float
@@ -309,17 +309,17 @@ def simulate_closed_loop(model: ClosedLoopModel, q0, qdot0, *, t_final: float, d
     SimulationError
         A singular loop configuration or a non-finite state (time and cut joint named).
     """
-    if not isinstance(model, ClosedLoopModel):
-        raise ModelError(f"model must be a ClosedLoopModel, got {model!r}")
+    if not isinstance(model, KinematicLoopModel):
+        raise ModelError(f"model must be a KinematicLoopModel, got {model!r}")
     t_final = validation.positive("t_final", t_final)
     store_every = validation.integer("store_every", store_every)
     q, v = model.tree.state(q0, qdot0)
     q, v = np.asarray(q, float).copy(), np.asarray(v, float).copy()
     phi, phi_dot = model.constraints(q, v)
     if np.max(np.abs(phi)) > 1e-8 or np.max(np.abs(phi_dot)) > 1e-8:
-        raise ModelError(f"closed loop {model.name!r}: the initial state violates the cut joints (|Phi| = "
+        raise ModelError(f"kinematic loop {model.name!r}: the initial state violates the cut joints (|Phi| = "
                          f"{np.max(np.abs(phi)):.3e} m, |Phi'| = {np.max(np.abs(phi_dot)):.3e} m/s); start from "
-                         "ClosedLoopModel.consistent_state")
+                         "KinematicLoopModel.consistent_state")
     n = len(q)
     evaluations = [0]
 
@@ -344,7 +344,7 @@ def simulate_closed_loop(model: ClosedLoopModel, q0, qdot0, *, t_final: float, d
             if projection:
                 y = np.concatenate(model.project(y[:n], y[n:], k * h))
             if not np.all(np.isfinite(y)):
-                raise SimulationError(f"closed loop {model.name!r}: non-finite state at t = {k * h} s",
+                raise SimulationError(f"kinematic loop {model.name!r}: non-finite state at t = {k * h} s",
                                       time=k * h, element=model.cuts[0].name,
                                       partial_result={"t": np.array(ts), "q": np.array(ys)[:, :n],
                                                       "qdot": np.array(ys)[:, n:]})
@@ -357,7 +357,7 @@ def simulate_closed_loop(model: ClosedLoopModel, q0, qdot0, *, t_final: float, d
         sol = scipy.integrate.solve_ivp(rate, (0.0, t_final), np.concatenate([q, v]), method=method, rtol=rtol,
                                         atol=atol, max_step=np.inf if dt is None else dt)
         if not sol.success:
-            raise SimulationError(f"closed loop {model.name!r}: solve_ivp failed: {sol.message}",
+            raise SimulationError(f"kinematic loop {model.name!r}: solve_ivp failed: {sol.message}",
                                   time=float(sol.t[-1]), element=model.cuts[0].name)
         t_out, y_out = sol.t, sol.y.T
     wall = _time.perf_counter() - start
@@ -367,5 +367,5 @@ def simulate_closed_loop(model: ClosedLoopModel, q0, qdot0, *, t_final: float, d
         drift.append(np.max(np.abs(phi)))
         drift_rate.append(np.max(np.abs(phi_dot)))
         forces.append(model.solve(y[:n], y[n:], t)[1])
-    return ClosedLoopSimulation(model, t_out, y_out[:, :n], y_out[:, n:], np.array(forces), np.array(drift),
+    return KinematicLoopSimulation(model, t_out, y_out[:, :n], y_out[:, n:], np.array(forces), np.array(drift),
                                 np.array(drift_rate), method, wall, evaluations[0])
