@@ -124,7 +124,7 @@ def crossing_period(result, name):
     return float(np.mean(np.diff(times)))
 
 
-@pytest.mark.parametrize("method, dt", [("rk4", 5e-4), ("DOP853", None), ("newmark", 2e-4)])
+@pytest.mark.parametrize("method, dt", [("rk4", 5e-4), ("DOP853", None), ("newmark", 5e-4)])
 def test_duffing_period_matches_the_energy_quadrature(method, dt):
     law = CubicSpring(10.0, 60.0)
     amplitude = 0.6                      # K2 A^2 / K1 = 2.2: strongly hardening
@@ -132,7 +132,7 @@ def test_duffing_period_matches_the_energy_quadrature(method, dt):
     assert expected < 2 * math.pi / math.sqrt(10.0 / INERTIA) * 0.8      # the law matters
     kwargs = dict(rtol=1e-11, atol=1e-12) if dt is None else {}
     result = ctmm.simulate(single_link(law), 3.0, dt, method=method, x0={"l.theta": amplitude}, **kwargs)
-    tolerance = 1e-6 if method != "newmark" else 1e-4
+    tolerance = 1e-6 if method != "newmark" else 1e-5      # Newmark: period error ~ (w h)^2 / 12
     assert crossing_period(result, "l.theta") == pytest.approx(expected, rel=tolerance)
 
 
@@ -164,7 +164,7 @@ def two_link(law_1, law_2):
 
 def test_undamped_two_link_conserves_energy():
     model = two_link(CubicSpring(10.0, 50.0), ClearanceSpring(8.0, clearance=0.05, stop=0.4, stop_stiffness=80.0))
-    result = ctmm.simulate(model, 2.0, method="DOP853", x0={"a.theta": 0.5, "b.theta": -0.6}, rtol=1e-11,
+    result = ctmm.simulate(model, 1.0, method="DOP853", x0={"a.theta": 0.5, "b.theta": -0.6}, rtol=1e-11,
                            atol=1e-12, max_step=1e-3)
     q = np.column_stack([result["a.theta"], result["b.theta"]])
     v = np.column_stack([result["a.theta_dot"], result["b.theta_dot"]])
@@ -184,21 +184,21 @@ def test_linear_law_keeps_the_numbers_of_the_linear_hinge():
 @pytest.mark.parametrize("kwargs, tolerance", [(dict(method="rk4", dt=5e-4), 2e-6),
                                                (dict(method="rk4", dt=5e-4, compiled=True), 2e-6),
                                                (dict(method="RK45", rtol=1e-10, atol=1e-12), 1e-8),
-                                               (dict(method="newmark", dt=2e-4), 2e-5),
-                                               (dict(method="generalized_alpha", dt=2e-4), 2e-5)])
+                                               (dict(method="newmark", dt=5e-4), 5e-5),
+                                               (dict(method="generalized_alpha", dt=5e-4), 5e-5)])
 def test_every_time_method_against_the_dae_reference(kwargs, tolerance):
     from ctmm.reference.planar_dae import PlanarDAE
 
     law_1 = CubicSpring(10.0, 50.0) + PowerDamper(0.3, 2.0)
     law_2 = ClearanceSpring(8.0, clearance=0.05) + PowerDamper(0.05, 0.5, regularization_rate=0.05)
     model = two_link(law_1, law_2)
-    result = ctmm.simulate(model, 1.0, x0={"a.theta": 0.5, "b.theta": -0.3}, **kwargs)
+    result = ctmm.simulate(model, 0.5, x0={"a.theta": 0.5, "b.theta": -0.3}, **kwargs)
     dae = PlanarDAE(gravity=(0.0, -9.81))
     dae.add_body("a", mass=1.0, inertia=1 / 12, points={"in": (-0.5, 0.0), "out": (0.5, 0.0)})
     dae.add_body("b", mass=0.5, inertia=0.5 * 0.64 / 12, points={"in": (-0.4, 0.0)})
     dae.add_revolute(None, (0.0, 0.0), "a", "in", moment=lambda d, v: law_1.force(d, v))
     dae.add_revolute("a", "out", "b", "in", moment=lambda d, v: law_2.force(d, v))
-    reference = dae.simulate(dae.assemble({"a": 0.5, "b": -0.3}, {"a": 0.0, "b": 0.0}), 1.0, t_eval=result.time)
+    reference = dae.simulate(dae.assemble({"a": 0.5, "b": -0.3}, {"a": 0.0, "b": 0.0}), 0.5, t_eval=result.time)
     error = max(np.max(np.abs(result["a.theta"] - reference.angle("a"))),
                 np.max(np.abs(result["b.theta"] - reference.angle("b"))))
     assert error < tolerance
@@ -275,3 +275,46 @@ def test_spatial_generated_kernel_refuses_a_user_law_by_joint_name():
                       damping=lambda d, v: 0.0, name="sinh spring")
     with pytest.raises(ModelError, match="'h' .*sinh spring"):
         ctmm.simulate(spatial_pendulum(law), 0.01, 1e-3, method="rk4", compiled=True, x0={"h.angle": 0.1})
+
+
+def test_frequency_response_about_the_static_equilibrium_uses_the_tangent():
+    """Hanging link on a cubic spring + linear damper: the FRF about the static equilibrium (found by
+    the verb) is the 1-DOF ``1 / (k_t - J w^2 + i c w)`` with the tangent and gravity stiffness."""
+    law = CubicSpring(10.0, 60.0) + PowerDamper(0.5, 1.0)
+    model = single_link(law, gravity=(0.0, -9.81))
+    theta0 = scipy.optimize.brentq(lambda th: law.force(th) + 9.81 * 0.5 * math.cos(th), -1.5, 0.0)
+    omega = np.array([1.0, 5.0, 9.0])
+    response = ctmm.frequency_response(model, omega, input="h.torque", output="l.theta").response[0, 0]
+    k_t = law.tangents(theta0)[0] - 9.81 * 0.5 * math.sin(theta0)
+    np.testing.assert_allclose(response, 1.0 / (k_t - INERTIA * omega ** 2 + 0.5j * omega), rtol=1e-8)
+
+
+def test_modal_beam_path_carries_the_law():
+    """Modal-beam models run the hinge law in their own kernels (explicit and DT-TMM Newton): a LinearLaw
+    reproduces the ElasticHinge numbers exactly (wiring), and a cubic law changes the motion accordingly
+    (Newmark converges to DOP853 at 1e-11 with order 2)."""
+    from ctmm.flexible import ModalBeam
+    from ctmm.planar import ElasticHinge
+
+    def hub(hinge):
+        beam = ModalBeam("b", length=1.0, bending_stiffness=5.0, mass_per_length=0.7, n_modes=2)
+        return PlanarModel("hub", [Fixed("g"), beam, hinge], gravity=(0.0, 0.0))
+
+    linear = hub(ElasticHinge("h", parent="g", child="b", stiffness=4.0))
+    wrapped = hub(NonlinearHinge("h", parent="g", child="b", moment_law=LinearLaw(4.0)))
+    q, v = np.array([0.5, 0.01, -0.002]), np.array([0.1, 0.2, 0.0])
+    np.testing.assert_array_equal(accelerations(wrapped, q, v), accelerations(linear, q, v))
+    x0 = {"b.theta": 0.5}
+    for method in ("rk4", "newmark"):
+        a = ctmm.simulate(linear, 0.05, 1e-3, method=method, x0=x0)
+        b = ctmm.simulate(wrapped, 0.05, 1e-3, method=method, x0=x0)
+        assert np.max(np.abs(a["b.q1"] - b["b.q1"])) < 1e-13
+    cubic = hub(NonlinearHinge("h", parent="g", child="b", moment_law=CubicSpring(4.0, 40.0)))
+    tight = ctmm.simulate(cubic, 0.3, method="DOP853", x0=x0, rtol=1e-11, atol=1e-12)
+    errors = []
+    for dt in (1e-3, 5e-4):
+        newmark = ctmm.simulate(cubic, 0.3, dt, method="newmark", x0=x0)
+        errors.append(abs(newmark["b.theta"][-1] - tight["b.theta"][-1]))
+    assert errors[1] < 1e-4 and 3.0 < errors[0] / errors[1] < 5.0                # second order
+    stiffer = ctmm.simulate(linear, 0.3, method="DOP853", x0=x0, rtol=1e-11, atol=1e-12)
+    assert abs(stiffer["b.theta"][-1] - tight["b.theta"][-1]) > 1e-2           # the cubic term acts
