@@ -107,3 +107,38 @@ def test_refusals_name_the_problem():
     with pytest.raises(ModelError, match="baumgarte"):
         KinematicLoopModel(tree, four_bar().cuts, baumgarte=-1.0)
 
+
+
+def test_linearisation_on_the_constraint_manifold_matches_the_dae():
+    """Equilibrium and natural frequency of the four-bar with the rocker spring (gravity on): the equilibrium
+    is one of the global DAE (its accelerations vanish there) and the frequency is the DAE's small-oscillation
+    period (1e-4 rad free vibration about it, zero crossings)."""
+    loop = four_bar(SPRING)
+    guess, _ = loop.consistent_state([-1.5, 0.5, 1.8], [0.0, 0.0, 0.0], keep=["crank.theta"])
+    q_eq = loop.equilibrium(guess)
+    dae = four_bar_dae(SPRING)
+    names = ["crank", "coupler", "rocker"]
+    state = dae.assemble(dict(zip(names, q_eq)), dict(zip(names, [0.0, 0.0, 0.0])))
+    assert np.max(np.abs(dae.solve(*state)[0])) < 1e-9
+    (omega,) = loop.natural_frequencies(q_eq)
+    A, basis, _ = loop.linearize(q_eq)
+    q1, v1 = loop.consistent_state(q_eq + basis[:, 0] * 1e-4, np.zeros(3), keep=["crank.theta"])
+    period = 2 * math.pi / omega
+    t = np.linspace(0.0, 3 * period, 3001)
+    x = dae.simulate(dae.assemble(dict(zip(names, q1)), dict(zip(names, v1))), 3 * period, t_eval=t).angle("crank")
+    x = x - q_eq[0]
+    up = np.flatnonzero((x[:-1] < 0.0) & (x[1:] >= 0.0))
+    crossings = t[up] - x[up] * (t[up + 1] - t[up]) / (x[up + 1] - x[up])
+    assert np.mean(np.diff(crossings)) == pytest.approx(period, rel=1e-6)
+    upright = loop.equilibrium(loop.consistent_state([1.5, 0.5, 1.8], [0.0, 0.0, 0.0], keep=["crank.theta"])[0])
+    with pytest.raises(ModelError, match="not a stable equilibrium"):
+        loop.natural_frequencies(upright)
+    with pytest.raises(ModelError, match="not an equilibrium"):
+        loop.natural_frequencies(guess)
+
+
+def test_the_verbs_point_to_the_loop_functions():
+    import ctmm
+
+    with pytest.raises(ModelError, match="simulate_kinematic_loops"):
+        ctmm.simulate(four_bar(), 1.0, 1e-3)

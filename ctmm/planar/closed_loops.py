@@ -277,6 +277,85 @@ class KinematicLoopModel:
         J = self.jacobian(q, t)
         return q, qdot - np.linalg.lstsq(J, J @ qdot, rcond=None)[0]
 
+    # -- linearisation on the constraint manifold ---------------------------------------------------
+    def _chart(self, q0: np.ndarray, basis: np.ndarray, normal: np.ndarray, z: np.ndarray, zdot: np.ndarray,
+               t: float) -> tuple[np.ndarray, np.ndarray]:
+        """The state on the constraints with independent coordinates ``z = N^T (q - q0)`` and rates ``zdot``:
+        ``q = q0 + N z + J0^T y``, ``qdot = N zdot + J0^T w`` with ``y``, ``w`` from ``Phi = 0``, ``J qdot = 0``."""
+        q = q0 + basis @ z
+        for _ in range(30):
+            phi, _ = self.constraints(q, np.zeros_like(q), t)
+            if np.max(np.abs(phi)) < 1e-14:
+                break
+            q = q - normal @ np.linalg.solve(self.jacobian(q, t) @ normal, phi)
+        J = self.jacobian(q, t)
+        qdot = basis @ zdot
+        return q, qdot - normal @ np.linalg.solve(J @ normal, J @ qdot)
+
+    def linearize(self, q0, t: float = 0.0, *, step: float = 1e-5) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Linearisation about the resting state ``q0`` (projected onto the constraints) in independent
+        coordinates ``z = N^T (q - q0)`` (``N``: orthonormal null space of ``J(q0)``, ``f`` columns).
+
+        Returns ``(A, N, q0)`` with ``A = [[0, I], [dz''/dz, dz''/dz']]`` (2 f x 2 f) by central differences
+        (step ``step`` [rad]) of the closed-loop accelerations ``z'' = N^T q''`` on the manifold.
+        """
+        n = self.tree.n_coordinates
+        q0, _ = self.project(np.asarray(self.tree.state(q0, np.zeros(n))[0], float), np.zeros(n), t, iterations=30)
+        J = self.jacobian(q0, t)
+        _, values, vt = np.linalg.svd(J)
+        rank = int(np.sum(values > 1e-10 * max(values[0], 1e-300)))
+        basis, normal = vt[rank:].T, J.T
+        f = basis.shape[1]
+        if f == 0:
+            raise ModelError(f"kinematic loop {self.name!r}: no degree of freedom is left by the cut joints")
+
+        def rates(x: np.ndarray) -> np.ndarray:
+            q, qdot = self._chart(q0, basis, normal, x[:f], x[f:], t)
+            return basis.T @ self.solve(q, qdot, t)[0]
+
+        columns = []
+        for k in range(2 * f):
+            e = np.zeros(2 * f)
+            e[k] = step
+            columns.append((rates(e) - rates(-e)) / (2.0 * step))
+        A = np.zeros((2 * f, 2 * f))
+        A[:f, f:] = np.eye(f)
+        A[f:] = np.column_stack(columns)
+        return A, basis, q0
+
+    def natural_frequencies(self, q0, t: float = 0.0) -> np.ndarray:
+        """Undamped natural frequencies [rad/s] about the resting state ``q0`` (an equilibrium: refused
+        otherwise), ascending, from :meth:`linearize`."""
+        n = self.tree.n_coordinates
+        A, _, q0 = self.linearize(q0, t)
+        rest = np.max(np.abs(self.solve(q0, np.zeros(n), t)[0]), initial=0.0)
+        if rest > 1e-8:
+            raise ModelError(f"kinematic loop {self.name!r}: q0 is not an equilibrium (largest acceleration "
+                             f"{rest:.3e}); find one with KinematicLoopModel.equilibrium")
+        f = A.shape[0] // 2
+        if np.max(np.abs(A[f:, f:]), initial=0.0) > 1e-6 * np.sqrt(np.max(np.abs(A[f:, :f]), initial=1e-300)):
+            raise ModelError(f"kinematic loop {self.name!r}: natural_frequencies needs an undamped model (velocity-"
+                             "dependent forces at q0)")
+        squared = np.linalg.eigvals(-A[f:, :f])
+        if np.any(squared.real < 0.0) or np.max(np.abs(squared.imag), initial=0.0) > 1e-8 * np.max(np.abs(squared)):
+            raise ModelError(f"kinematic loop {self.name!r}: q0 is not a stable equilibrium (omega^2 = {squared})")
+        return np.sort(np.sqrt(squared.real))
+
+    def equilibrium(self, q_guess, t: float = 0.0, *, tolerance: float = 1e-10) -> np.ndarray:
+        """A static equilibrium near ``q_guess`` (Newton on the independent coordinates)."""
+        n = self.tree.n_coordinates
+        q = np.asarray(self.tree.state(q_guess, np.zeros(n))[0], float)
+        for _ in range(40):
+            A, basis, q = self.linearize(q, t)
+            f = basis.shape[1]
+            residual = basis.T @ self.solve(q, np.zeros(n), t)[0]
+            if np.max(np.abs(residual)) < tolerance:
+                return q
+            q, _ = self._chart(q, basis, self.jacobian(q, t).T, -np.linalg.solve(A[f:, :f], residual),
+                               np.zeros(f), t)
+        raise ModelError(f"kinematic loop {self.name!r}: no equilibrium found near the guess (residual "
+                         f"{np.max(np.abs(residual)):.3e} after 40 Newton steps)")
+
 
 def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: float, dt: float | None = None,
                          method: str = "rk4", projection: bool = True, rtol: float = 1e-9, atol: float = 1e-11,
