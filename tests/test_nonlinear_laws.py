@@ -318,3 +318,72 @@ def test_modal_beam_path_carries_the_law():
     assert errors[1] < 1e-4 and 3.0 < errors[0] / errors[1] < 5.0                # second order
     stiffer = ctmm.simulate(linear, 0.3, method="DOP853", x0=x0, rtol=1e-11, atol=1e-12)
     assert abs(stiffer["b.theta"][-1] - tight["b.theta"][-1]) > 1e-2           # the cubic term acts
+
+
+# ------------------------------------------------------------------------------------------------
+# radial (translational) springs of a planar hinge
+# ------------------------------------------------------------------------------------------------
+RADIAL = CubicSpring(2000.0, 5e6)
+MOMENT = CubicSpring(1.0, 3.0)
+
+
+def bushing_link(radial, moment=MOMENT):
+    return PlanarModel("bushing", [Fixed("g"), RigidBody.uniform_link("l", mass=1.0, length=1.0),
+                                   NonlinearHinge("h", parent="g", child="l", moment_law=moment, radial_law=radial)],
+                       gravity=(0.0, -9.81))
+
+
+@pytest.mark.parametrize("radial", [RADIAL, ClearanceSpring(3000.0, clearance=0.002)], ids=["cubic", "clearance"])
+@pytest.mark.parametrize("kwargs, tolerance", [(dict(method="DOP853", rtol=1e-11, atol=1e-13, max_step=1e-3), 1e-7),
+                                               (dict(method="newmark", dt=2e-4), 2e-4)])
+def test_radial_spring_against_the_dae_reference(radial, kwargs, tolerance):
+    """A link on a hinge whose pin moves in a radial spring (a clearance: a pin in a hole), released
+    sideways: ctmm's coordinates (offset d, angle) against the DAE with the same force element."""
+    from ctmm.reference.planar_dae import PlanarDAE
+
+    model = bushing_link(radial)
+    x0 = {"l.dx": 0.003, "l.dy": 0.0, "l.theta": 0.4}
+    result = ctmm.simulate(model, 0.3, x0=x0, **kwargs)
+    dae = PlanarDAE(gravity=(0.0, -9.81))
+    dae.add_body("l", mass=1.0, inertia=1 / 12, points={"in": (-0.5, 0.0)})
+    dae.add_bushing(None, (0.0, 0.0), "l", "in", radial=lambda r: float(radial.force(r)),
+                    moment=lambda d, v: float(MOMENT.force(d, v)))
+    state = dae.assemble({"l": 0.4}, {"l": 0.0}, offsets={"l": (0.003, 0.0)})
+    reference = dae.simulate(state, 0.3, t_eval=result.time)
+    inboard = reference.q[:, :2] + np.column_stack([-0.5 * np.cos(reference.angle("l")),
+                                                    -0.5 * np.sin(reference.angle("l"))])
+    assert np.max(np.abs(result["l.theta"] - reference.angle("l"))) < tolerance
+    assert np.max(np.abs(result["l.dx"] - inboard[:, 0])) < tolerance * 0.1
+    assert np.max(np.abs(result["l.dy"] - inboard[:, 1])) < tolerance * 0.1
+    assert np.ptp(result["l.dy"]) > 1e-3                                   # the pin moves in its hole
+
+
+def test_radial_spring_energy_and_tangent():
+    model = bushing_link(RADIAL, moment=CubicSpring(1.0, 3.0))
+    result = ctmm.simulate(model, 0.3, method="DOP853", x0={"l.dx": 0.003, "l.theta": 0.4}, rtol=1e-12,
+                           atol=1e-14, max_step=5e-4)
+    names = model.coordinates
+    energy = np.array([model.energy(np.array([result[n][k] for n in names]),
+                                    np.array([result[n + "_dot"][k] for n in names])) for k in range(len(result.time))])
+    assert np.max(np.abs(energy - energy[0])) < 1e-8 * np.max(np.abs(energy))
+    from ctmm.planar.hinge_laws import radial_force
+    hinge = model.nonlinear_hinges[0]
+    for d in ([0.003, -0.001], [0.0, 0.0], [-2e-4, 5e-4]):
+        _, slope = radial_force(hinge, np.array(d))
+        for k in range(2):
+            e = np.zeros(2)
+            e[k] = 1e-9
+            numeric = (radial_force(hinge, np.array(d) + e)[0] - radial_force(hinge, np.array(d) - e)[0]) / 2e-9
+            np.testing.assert_allclose(slope[:, k], numeric, rtol=1e-5, atol=1e-3)
+    with pytest.raises(ModelError, match="radial_law must be a spring"):
+        NonlinearHinge("h", parent="g", child="l", radial_law=PowerDamper(1.0, 2.0))
+
+
+def test_generated_kernel_refuses_translational_and_radial_springs_by_name():
+    from ctmm.planar import ElasticHinge
+
+    linear = PlanarModel("p", [Fixed("g"), RigidBody.uniform_link("l", mass=1.0, length=1.0),
+                               ElasticHinge("h", parent="g", child="l", stiffness=3.0, translational_stiffness=1e3)])
+    for model in (linear, bushing_link(RADIAL)):
+        with pytest.raises(ModelError, match="translational or radial springs \\(h\\)"):
+            ctmm.simulate(model, 0.01, 1e-3, method="rk4", compiled=True, x0={"l.theta": 0.1})

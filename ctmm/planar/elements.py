@@ -416,35 +416,52 @@ class FixedMounting(DrivenHinge):
 
 @dataclass(frozen=True, kw_only=True)
 class NonlinearHinge(Hinge):
-    """Revolute hinge with a nonlinear rotary spring / damper law (seed 002 section 7.6.1).
+    """Hinge with a nonlinear rotary spring / damper law and, optionally, a nonlinear radial spring
+    (seed 002 section 7.6.1; :mod:`ctmm.nonlinear_laws`: cubic ``K1 theta + K2 theta^3``, clearance /
+    stop, power-law damper, user callables, and their sums).
 
-    ``tau = -law(dtheta - rest_angle, dtheta_dot)`` on the child (:mod:`ctmm.nonlinear_laws`: cubic
-    ``K1 theta + K2 theta^3``, clearance / stop, power-law damper, user callables, and their sums).
-    Time integration uses the law itself (the implicit DT-TMM Newton its tangents ``tau_q``, ``tau_v``);
-    the frequency verbs linearise it about the operating point (tangent stiffness and damping).
+    Moment on the child ``tau = -moment_law(dtheta - rest_angle, dtheta_dot)``.  With a ``radial_law``
+    the child's inboard end may move by ``d`` from the parent end (coordinates ``"child.dx"``,
+    ``"child.dy"``, global axes, as the translational springs of :class:`ElasticHinge`) and the force
+    on the child is ``f = -radial_law(|d|) d / |d|`` (a radial spring: a pin in a hole with a clearance
+    is ``ClearanceSpring(k, clearance=gap)``).  Time integration uses the laws themselves (the implicit
+    DT-TMM Newton their tangents); the frequency verbs linearise them about the operating point.
 
     Parameters
     ----------
-    law : ctmm.nonlinear_laws.Law
-        Restoring moment ``f(delta, rate)`` [N m] of the relative angle [rad] and rate [rad/s].
+    moment_law : ctmm.nonlinear_laws.Law, optional
+        Restoring moment ``f(delta, rate)`` [N m] of the relative angle [rad] and rate [rad/s]
+        (None: no moment, a smooth hinge).
+    radial_law : ctmm.nonlinear_laws.Law, optional
+        Restoring force [N] of the radial offset ``|d|`` [m]; a spring (no rate dependence).
     rest_angle : float
         Relative angle at which ``delta = 0`` [rad].
     """
 
     moment_law: object = None
+    radial_law: object = None
     rest_angle: float = 0.0
 
     def __post_init__(self) -> None:
         super().__post_init__()
         from ..nonlinear_laws import Law
-        if not isinstance(self.moment_law, Law):
-            raise ModelError(f"{self.name}: moment_law must be a ctmm.nonlinear_laws.Law (CubicSpring, "
-                             f"ClearanceSpring, PowerDamper, CallableLaw, LinearLaw or their sum), got "
-                             f"{self.moment_law!r}")
+        for label in ("moment_law", "radial_law"):
+            value = getattr(self, label)
+            if value is not None and not isinstance(value, Law):
+                raise ModelError(f"{self.name}: {label} must be a ctmm.nonlinear_laws.Law (CubicSpring, "
+                                 f"ClearanceSpring, PowerDamper, CallableLaw, LinearLaw or their sum) or None, got "
+                                 f"{value!r}")
+        if self.moment_law is None and self.radial_law is None:
+            raise ModelError(f"{self.name}: give a moment_law, a radial_law or both (got neither)")
+        if self.radial_law is not None and self.radial_law.velocity_dependent:
+            raise ModelError(f"{self.name}: radial_law must be a spring (no rate dependence), got "
+                             f"{self.radial_law!r}")
         object.__setattr__(self, "rest_angle", validation.finite(f"{self.name}: rest_angle", self.rest_angle))
 
     def moment(self, dtheta, dtheta_dot):
-        """Hinge moment on the child ``-law(dtheta - rest_angle, dtheta_dot)`` [N m]."""
+        """Hinge moment on the child ``-moment_law(dtheta - rest_angle, dtheta_dot)`` [N m] (0 without one)."""
+        if self.moment_law is None:
+            return 0.0 * dtheta
         return -self.moment_law.force(dtheta - self.rest_angle, dtheta_dot)
 
 

@@ -55,7 +55,7 @@ from .model import BUSHING, DRIVEN, REVOLUTE, PlanarModel
 from .ports import ActuatorInputs
 from .signals import SignalError
 from .fast_sweep import riccati_kernel
-from .hinge_laws import law_kappa
+from .hinge_laws import law_kappa, radial_force
 from .sweep import accelerations, body_terms, coordinate_accelerations, hinge_torques, solve_instant
 
 _E3 = np.array([[0.0], [0.0], [1.0]])
@@ -172,23 +172,28 @@ class _NewtonStep:
                                              tangent["kappa"].tolist(), tau_tilde.tolist(), tangent["alpha_d"])
             A_new = np.array(A_new)
             return A_new, np.array(F_new), coordinate_accelerations(m, A_new)
-        joint_force = None
+        joint_force, radial_kappa = None, None
         if len(m.bushing_bodies):
             # translational springs, exactly implicit: f = f(iterate) - kappa_t (d'' - d''_iterate)
             xy = m.xy_index
             x = tangent["x"]
             offset, offset_rate = m.bushing_offsets(tangent["q"], tangent["v"])
-            joint_force = {}
+            joint_force, radial_kappa = {}, {}
             for j in m.bushing_bodies.tolist():
+                if j in m.nonlinear_hinges:     # radial spring: its 2 x 2 tangent at the iterate (Newton)
+                    f, slope = radial_force(m.nonlinear_hinges[j], offset[j])
+                    radial_kappa[j] = -slope * self.bh2
+                    joint_force[j] = f + radial_kappa[j] @ np.array([x[xy[j, 0]], x[xy[j, 1]]])
+                    continue
                 f = -m.translational_stiffness[j] * offset[j] - m.translational_damping[j] * offset_rate[j]
                 joint_force[j] = f + self.kappa_t[j] * np.array([x[xy[j, 0]], x[xy[j, 1]]])
         A_new, F_new, translation = self.tangent_sweep(K, b, tangent["E"], tau_tilde, tangent["alpha_d"],
-                                                       joint_force, tangent["kappa"])
+                                                       joint_force, tangent["kappa"], radial_kappa)
         return A_new, F_new, coordinate_accelerations(m, A_new, translation)
 
     def tangent_sweep(self, K: np.ndarray, b: np.ndarray, E: Any, tau: np.ndarray, alpha_driven: list,
-                      joint_force: dict | None, hinge_kappa: np.ndarray | None = None
-                      ) -> tuple[np.ndarray, np.ndarray, dict]:
+                      joint_force: dict | None, hinge_kappa: np.ndarray | None = None,
+                      radial_kappa: dict | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
         """The one articulated sweep (:func:`ctmm.articulated.articulated_sweep`) of the tangent relations.
 
         Body ``j``: ``M = K_j`` (3 x 3), ``h = b_j``; the point each child ``c`` hangs on has the
@@ -233,7 +238,10 @@ class _NewtonStep:
             elif kind == BUSHING:
                 f = joint_force[j]
                 joints.append(JointTerms(S=_I3, tau=np.array([[f[0]], [f[1]], [tau_c[j, 0, 0]]])))
-                kappa.append(np.diag([self.kappa_t[j], self.kappa_t[j], self.kappa[j]]))
+                block = np.diag([self.kappa_t[j], self.kappa_t[j], self.kappa[j] if hinge_kappa is None else hinge_kappa[j]])
+                if radial_kappa and j in radial_kappa:
+                    block[:2, :2] = radial_kappa[j]
+                kappa.append(block)
             else:                                   # free base
                 joints.append(JointTerms(S=_I3, tau=_ZERO3))
                 kappa.append(None)

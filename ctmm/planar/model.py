@@ -194,7 +194,7 @@ class PlanarModel:
                                     f"(got parent={element.parent!r}, child={element.child!r})")
                     continue
                 kind = DRIVEN if isinstance(element, DrivenHinge) else REVOLUTE
-                if kind == REVOLUTE and sum(translational_law(element)) > 0.0:
+                if kind == REVOLUTE and (sum(translational_law(element)) > 0.0 or getattr(element, "radial_law", None)):
                     kind = BUSHING
                 parent_name, _, end = element.parent.partition(".")
                 if parent_name in grounds:
@@ -656,7 +656,7 @@ class PlanarModel:
             return self.deformable_family.energy(self, q, qdot, t)
         dtheta, _ = self.relative_angles(pts["theta"], pts["omega"])
         reference, _, _ = self.hinge_laws(t)
-        spring = 0.5 * np.sum(self.stiffness * (dtheta - reference) ** 2) + law_potential(self, dtheta)
+        spring = 0.5 * np.sum(self.stiffness * (dtheta - reference) ** 2) + law_potential(self, dtheta, q)
         bb = self.bushing_bodies
         if len(bb):
             d = np.asarray(q)[self.xy_index[bb]]

@@ -15,7 +15,8 @@ coincide with point ``s_b`` of body ``b``::
 with the Jacobian ``Phi_q = [I, R'(theta_a) s_a | -I, -R'(theta_b) s_b]`` and
 ``Phi_q q'' = gamma = R(theta_a) s_a w_a^2 - R(theta_b) s_b w_b^2``.  The joint may carry a moment law:
 ``f(delta, rate)`` with ``delta = theta_b - theta_a - rest``, the moment ``-f`` acting on ``b`` and ``+f``
-on ``a``.  Index-1 form with Baumgarte stabilisation (``gamma - 2 alpha Phi' - beta^2 Phi``)::
+on ``a``.  A bushing (:meth:`PlanarDAE.add_bushing`) is a force element instead of a constraint: the
+radial force ``-f(|d|) d / |d|`` on ``b`` of the separation ``d = P_b - P_a`` (and its moment law).  Index-1 form with Baumgarte stabilisation (``gamma - 2 alpha Phi' - beta^2 Phi``)::
 
     [[M, Phi_q^T], [Phi_q, 0]] [q''; mu] = [Q; gamma - 2 alpha Phi' - beta^2 Phi]
 
@@ -59,6 +60,17 @@ class _Revolute:
     point_a: np.ndarray          # body-frame vector from the centre of mass (or ground position)
     b: int
     point_b: np.ndarray
+    moment: Callable | None
+    rest: float
+
+
+@dataclass
+class _Bushing:
+    a: int | None
+    point_a: np.ndarray
+    b: int
+    point_b: np.ndarray
+    radial: Callable
     moment: Callable | None
     rest: float
 
@@ -115,6 +127,7 @@ class PlanarDAE:
         self.gravity = np.asarray(gravity, float)
         self.bodies: list[_Body] = []
         self.joints: list[_Revolute] = []
+        self.bushings: list[_Bushing] = []
 
     def add_body(self, name: str, *, mass: float, inertia: float, points: Mapping[str, Sequence[float]]) -> None:
         """A body with ``mass`` [kg], ``inertia`` about its centre of mass [kg m^2] and named ``points``
@@ -135,31 +148,46 @@ class PlanarDAE:
         """Revolute joint between ``body_a`` point ``point_a`` (or the ground point ``point_a`` = (x, y) when
         ``body_a`` is None) and ``body_b`` point ``point_b``, with an optional moment law ``moment(delta, rate)``
         (restoring moment [N m] of ``delta = theta_b - theta_a - rest``)."""
+        self.joints.append(_Revolute(*self._ends(body_a, point_a, body_b, point_b), moment, float(rest)))
+
+    def _ends(self, body_a: str | None, point_a, body_b: str, point_b: str) -> tuple:
+        """``(a, s_a, b, s_b)``: body indices (None: ground) and body-frame vectors (ground: the position)."""
         if body_a is None:
             a, sa = None, np.asarray(point_a, float)
         else:
             a = self._index(body_a)
             sa = self.bodies[a].points[point_a]
         b = self._index(body_b)
-        self.joints.append(_Revolute(a, sa, b, self.bodies[b].points[point_b], moment, float(rest)))
+        return a, sa, b, self.bodies[b].points[point_b]
+
+    def add_bushing(self, body_a: str | None, point_a, body_b: str, point_b: str, *,
+                    radial: Callable[[float], float], moment: Callable[[float, float], float] | None = None,
+                    rest: float = 0.0) -> None:
+        """A force element (no constraint) between ``body_a`` point ``point_a`` (or the ground point) and
+        ``body_b`` point ``point_b``: with ``d = P_b - P_a`` the force on ``b`` is ``-radial(|d|) d / |d|``
+        (``-`` of it on ``a``), plus the optional moment law of :meth:`add_revolute`."""
+        self.bushings.append(_Bushing(*self._ends(body_a, point_a, body_b, point_b), radial, moment, float(rest)))
 
     # ------------------------------------------------------------------------------------------------
-    def assemble(self, angles: Mapping[str, float], rates: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray]:
-        """Consistent ``(q, v)`` from every body's absolute angle and rate: positions follow the joints from
-        the ground; joints closing a loop are only checked afterwards (:meth:`constraints`)."""
+    def assemble(self, angles: Mapping[str, float], rates: Mapping[str, float],
+                 offsets: Mapping[str, Sequence[float]] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Consistent ``(q, v)`` from every body's absolute angle and rate: positions follow the joints (and
+        bushings, with the body's ``offsets`` [m] of its bushing point from the other point, at rest relative
+        to it) from the ground; joints closing a loop are only checked afterwards (:meth:`constraints`)."""
+        offsets = {name: np.asarray(value, float) for name, value in (offsets or {}).items()}
         nb = len(self.bodies)
         q, v = np.zeros(3 * nb), np.zeros(3 * nb)
         for i, body in enumerate(self.bodies):
             q[3 * i + 2], v[3 * i + 2] = angles[body.name], rates[body.name]
         placed: set = set()
         for _ in range(nb):
-            for joint in self.joints:
+            for joint in self.joints + self.bushings:
                 if joint.b in placed or (joint.a is not None and joint.a not in placed):
                     continue
                 point, velocity = self._point(q, v, joint.a, joint.point_a)
                 i = joint.b
                 r = _rotation(q[3 * i + 2]) @ joint.point_b
-                q[3 * i:3 * i + 2] = point - r
+                q[3 * i:3 * i + 2] = point - r + offsets.get(self.bodies[i].name, 0.0)
                 v[3 * i:3 * i + 2] = velocity - v[3 * i + 2] * (_TURN @ r)
                 placed.add(i)
         if len(placed) != nb:
@@ -196,7 +224,19 @@ class PlanarDAE:
         Q = np.zeros(3 * nb)
         for i, body in enumerate(self.bodies):
             Q[3 * i:3 * i + 2] = body.mass * self.gravity
-        for joint in self.joints:
+        for bushing in self.bushings:
+            pa, _ = self._point(q, v, bushing.a, bushing.point_a)
+            pb, _ = self._point(q, v, bushing.b, bushing.point_b)
+            d = pb - pa
+            r = math.hypot(d[0], d[1])
+            force = -float(bushing.radial(r)) * d / r if r > 0.0 else np.zeros(2)
+            for i, s, sign in ((bushing.b, bushing.point_b, 1.0), (bushing.a, bushing.point_a, -1.0)):
+                if i is None:
+                    continue
+                arm = _rotation(q[3 * i + 2]) @ s
+                Q[3 * i:3 * i + 2] += sign * force
+                Q[3 * i + 2] += sign * (arm[0] * force[1] - arm[1] * force[0])
+        for joint in self.joints + self.bushings:
             if joint.moment is None:
                 continue
             ta = 0.0 if joint.a is None else q[3 * joint.a + 2]
@@ -243,13 +283,14 @@ class PlanarDAE:
         return DAESolution(sol.t, q, v, drift, forces, tuple(b.name for b in self.bodies))
 
     def energy(self, q: np.ndarray, v: np.ndarray, potentials: Sequence[Callable | None] = ()) -> float:
-        """Kinetic + gravitational energy [J], plus ``potentials[k](delta)`` of joint ``k`` when given."""
+        """Kinetic + gravitational energy [J], plus ``potentials[k](delta)`` of joint ``k`` (joints, then bushings:
+        of their moment law) when given."""
         energy = 0.0
         for i, body in enumerate(self.bodies):
             vel = v[3 * i:3 * i + 2]
             energy += 0.5 * body.mass * vel @ vel + 0.5 * body.inertia * v[3 * i + 2] ** 2
             energy -= body.mass * self.gravity @ q[3 * i:3 * i + 2]
-        for joint, potential in zip(self.joints, potentials):
+        for joint, potential in zip(self.joints + self.bushings, potentials):
             if potential is not None:
                 ta = 0.0 if joint.a is None else q[3 * joint.a + 2]
                 energy += float(potential(q[3 * joint.b + 2] - ta - joint.rest))
