@@ -387,3 +387,14 @@ def test_generated_kernel_refuses_translational_and_radial_springs_by_name():
     for model in (linear, bushing_link(RADIAL)):
         with pytest.raises(ModelError, match="translational or radial springs \\(h\\)"):
             ctmm.simulate(model, 0.01, 1e-3, method="rk4", compiled=True, x0={"l.theta": 0.1})
+
+
+def test_linear_references_refuse_nonlinear_hinges():
+    """The linear Lagrange references read the hinge-law arrays (0 for a nonlinear hinge): they refuse."""
+    from ctmm.reference.planar_lagrange import PlanarLagrange, newton_euler_kkt
+
+    model = single_link(CubicSpring(1.0, 2.0))
+    with pytest.raises(ValueError, match="planar_dae"):
+        PlanarLagrange(model)
+    with pytest.raises(ValueError, match="planar_dae"):
+        newton_euler_kkt(model, [0.1], [0.0])
