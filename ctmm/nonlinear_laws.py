@@ -413,6 +413,7 @@ class CallableLaw(Law):
             raise ModelError(f"CallableLaw {self.name!r}: without stiffness and damping derivatives, force must "
                              f"accept casadi symbols (automatic differentiation); it raised {type(exc).__name__}: "
                              f"{exc}") from exc
+        self._expression = str(f)        # the law's content: part of its repr (generated-kernel structure keys)
         self._casadi = casadi.Function(self.name.replace(" ", "_") or "law", [d, v],
                                        [f, casadi.jacobian(f, d), casadi.jacobian(f, v)])
         self.stiffness_function = lambda a, b: self._numeric(1, a, b)
@@ -475,4 +476,5 @@ class CallableLaw(Law):
         return np.array([float(self.potential_function(x)) for x in np.ravel(delta)]).reshape(np.shape(delta))
 
     def __repr__(self) -> str:
-        return f"CallableLaw({self.name!r})"
+        expression = self.__dict__.get("_expression")
+        return f"CallableLaw({self.name!r})" if expression is None else f"CallableLaw({self.name!r}, force={expression})"

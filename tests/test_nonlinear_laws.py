@@ -398,3 +398,16 @@ def test_linear_references_refuse_nonlinear_hinges():
         PlanarLagrange(model)
     with pytest.raises(ValueError, match="planar_dae"):
         newton_euler_kkt(model, [0.1], [0.0])
+
+
+def test_casadi_user_laws_with_one_name_are_told_apart_by_the_generated_kernels():
+    """Two AD user laws named alike but different must not share a generated kernel (structure key)."""
+    import casadi
+
+    from ctmm.compiled_parameters import structure_key
+
+    def law(k):
+        return CallableLaw(lambda d, v: k * d + (casadi.sinh(d) if isinstance(d, casadi.SX) else np.sinh(d)), name="u")
+
+    assert structure_key(single_link(law(3.0))) != structure_key(single_link(law(4.0)))
+    assert structure_key(single_link(law(3.0))) == structure_key(single_link(law(3.0)))
