@@ -31,6 +31,16 @@ def compile_refusal(model: Any) -> str:
         return f"a ctmm.planar.PlanarModel is compiled, got {type(model).__name__}"
     reasons = [f"time-dependent signals without a symbolic form in {name!r}"
                for name in _time_dependent_elements(model)]
+    if len(model.bushing_bodies):       # documented as refused (compiled_scene); the generated sweep has no offsets
+        return (f"model {model.name!r} has hinges with translational or radial springs "
+                f"({', '.join(model.joint_names[j] for j in model.bushing_bodies)}), not in the generated kernels; "
+                "use the numpy path, compiled=False")
+    laws = [f"{model.joint_names[j]!r} ({law!r})" for j, hinge in model.nonlinear_hinges.items()
+            for law in (hinge.moment_law, hinge.radial_law) if law is not None and not law.expressible]
+    if laws:
+        return (f"model {model.name!r} has nonlinear hinge laws without a casadi form: {', '.join(laws)} (user code "
+                "with given derivatives; give CallableLaw a casadi-compatible force and no derivatives, or use the "
+                "numpy path, compiled=False)")
     for j, beam in model.beams.items():
         data = beam.data
         if not data.constant_distributed or data.forces or data.laws:
@@ -159,7 +169,9 @@ def structure_key(model: PlanarModel) -> str:
                         [np.asarray(idx).tolist() for idx in model.xy_index], model.n_coordinates,
                         model.parent_end, model.parent_end_index, list(compiled_actuators(model)), model.driven(0.0),
                         [type(signal).__name__ for signal in _signals(model)],
-                        np.flatnonzero(parameter_vector(model) == 0.0)]
+                        np.flatnonzero(parameter_vector(model) == 0.0),
+                        [(j, repr(h.moment_law), repr(h.radial_law), h.rest_angle)
+                         for j, h in sorted(model.nonlinear_hinges.items())]]
     # the actuators' unit patterns follow from their names (a hinge torque, a force at a centre of mass)
     # and, on beams, from the beam definitions below
     if model.beams:

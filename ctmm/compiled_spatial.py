@@ -80,6 +80,11 @@ def spatial_compile_refusal(model: Any) -> str:
         return f"a ctmm.spatial.SpatialModel is compiled here, got {type(model).__name__}"
     if model.n_velocities == 0:
         return f"model {model.name!r} has no coordinates (every joint is welded or driven): nothing to integrate"
+    laws = [f"{joint.name!r} ({joint.law!r})" for joint in model.joints
+            if getattr(joint, "law", None) is not None and not joint.law.expressible]
+    if laws:
+        return (f"model {model.name!r} has nonlinear joint laws without a casadi form: {', '.join(laws)}; give "
+                "CallableLaw a casadi-compatible force and no derivatives, or use ctmm.simulate without compiled=True")
     reasons = [f"driven joint {joint.name!r}" for joint in model.joints if joint.driven and not all(
         isinstance(f, Constant) for f in joint.position + joint.rate + joint.acceleration)]
     reasons += [f"load {load.name!r}" for load in model.loads
@@ -202,7 +207,8 @@ def chain_period(model: SpatialModel) -> int:
         body, joint = model.bodies[j], model.joints[j]
         return (joint.kind,) + numbers([body.mass, body.inertia, body.center_of_mass, joint.rotation, joint.stiffness,
                                         joint.damping, joint.reference] + [getattr(joint, name, None) for name in
-                                                                           ("axis", "axis1", "axis2")])
+                                                                           ("axis", "axis1", "axis2")]) + (
+            repr(getattr(joint, "law", None)),)
 
     def outboard(j: int, period: int) -> Any:         # the last body: the point of its place in segment 0
         name = model.joints[j + 1].point if j + 1 < n else model.joints[j % period + 1].point

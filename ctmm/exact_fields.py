@@ -110,6 +110,9 @@ def _check_model(model: Any, operating_point: Any) -> float:
     if np.any(model.joint_kind == BUSHING):
         names = [model.joint_names[j] for j in np.flatnonzero(model.joint_kind == BUSHING)]
         raise _refuse(model, f"hinges {names} have translational springs")
+    if model.nonlinear_hinges:
+        raise _refuse(model, f"hinges {[model.joint_names[j] for j in model.nonlinear_hinges]} have nonlinear laws "
+                             "(use the linearised fields, the default)")
     if len(model.load_body):
         raise _refuse(model, "its bodies carry loads (a preload; the exact form has no load terms)")
     for i in range(nb):

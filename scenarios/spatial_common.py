@@ -23,7 +23,7 @@ def reference_tree(model: sp.SpatialModel) -> ref.SpatialTree:
     for j, (body, joint) in enumerate(zip(model.bodies, model.joints)):
         if joint.kind not in ("spherical", "revolute", "universal") or np.any(getattr(joint, "stiffness", 0.0)) \
                 or np.any(getattr(joint, "damping", 0.0)) or getattr(joint, "actuated", False) \
-                or getattr(joint, "position", None) is not None:
+                or getattr(joint, "position", None) is not None or getattr(joint, "law", None) is not None:
             raise ValueError(f"reference_tree: joint {joint.name!r} ({joint.kind}) has a law, an input or a driven "
                              "motion, which this converter does not carry: write the reference for it")
         parent = model.parent[j]

@@ -94,7 +94,7 @@ PUBLIC_API: dict[str, str] = {
     "ctmm.planar.Fixed": "tests/test_planar_model.py", "ctmm.planar.Free": "tests/test_planar_model.py",
     "ctmm.planar.FreeBase": "tests/test_planar_model.py", "ctmm.planar.Load": FUZZED,
     "ctmm.planar.Pinned": "tests/test_planar_model.py", "ctmm.planar.RigidBody": FUZZED,
-    "ctmm.planar.SmoothHinge": "tests/test_planar_model.py",
+    "ctmm.planar.SmoothHinge": "tests/test_planar_model.py", "ctmm.planar.NonlinearHinge": "tests/test_nonlinear_laws.py",
     "ctmm.planar.SpringDamperHinge": "tests/test_planar_model.py", "ctmm.planar.PlanarModel": FUZZED,
     "ctmm.planar.InstantaneousSolution": "result record", "ctmm.planar.accelerations": FUZZED,
     "ctmm.planar.ode_rhs": "tests/test_planar_integration.py", "ctmm.planar.solve_instant": FUZZED,

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..planar.hinge_laws import law_potential
+
 
 def flexible_energy(model, q, qdot, t: float = 0.0) -> float:
     """Kinetic + gravitational + hinge-spring + modal strain energy [J].
@@ -40,7 +42,7 @@ def flexible_energy(model, q, qdot, t: float = 0.0) -> float:
             energy -= model.mass[j] * g @ pts["com"][j]
     dtheta, _ = model.relative_angles(pts["theta"], pts["omega"], q, qdot)
     reference, _, _ = model.hinge_laws(t)
-    energy += 0.5 * np.sum(model.stiffness * (dtheta - reference) ** 2)
+    energy += 0.5 * np.sum(model.stiffness * (dtheta - reference) ** 2) + law_potential(model, dtheta, q)
     return float(energy)
 
 

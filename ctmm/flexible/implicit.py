@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..planar.hinge_laws import law_kappa
 from .kernel import system_of
 
 _EPS = 1e-30
@@ -112,8 +113,12 @@ class FlexibleNewtonStep:
         terms, theta, omega = self._linearised_terms(q, v, t, driven)
         tau = S.hinge_torques(q, v, theta, omega, t)
         rel = np.array([x_k[j][2] - AO_k[j][2] for j in range(S.nb)])
-        tau_tilde = tau + np.array(self.kappa) * rel
-        return dict(terms=terms, theta=theta, tau_tilde=tau_tilde, x_k=x_k, alpha_d=S.driven_alpha(t, driven))
+        kappa = np.array(self.kappa)            # nonlinear hinge laws: their tangent at the iterate (Newton)
+        if self.model.nonlinear_hinges:
+            kappa = kappa + law_kappa(self.model, *self.model.relative_angles(theta, omega, q, v), self.bh2, self.gh)
+        tau_tilde = tau + kappa * rel
+        return dict(terms=terms, theta=theta, tau_tilde=tau_tilde, x_k=x_k, alpha_d=S.driven_alpha(t, driven),
+                    kappa=kappa.tolist())
 
     def solve(self, tangent: dict, inputs=None):
         """One sweep of the tangent relations of :meth:`linearise` with actuator ``inputs``
@@ -145,7 +150,7 @@ class FlexibleNewtonStep:
                     h[:3] -= wrench[j].real - turn * x_k[j][2]
                 terms[j][1] = h
             tau_tilde = tau_tilde + inputs.hinge_torque
-        result = S.sweep(terms, self.kappa, tau_tilde.tolist(), tangent["alpha_d"])
+        result = S.sweep(terms, tangent["kappa"], tau_tilde.tolist(), tangent["alpha_d"])
         self.last = result
         x, F_new, _, _ = result
         A_new = np.array([xj[:3] for xj in x])

@@ -33,6 +33,7 @@ from ..articulated import Tree, articulated_sweep
 from ..errors import ModelError, SimulationError
 from ..ops import NUMPY
 from ..planar.body_forms import rigid_body_terms
+from ..planar.hinge_laws import law_torques
 from ..planar.model import DRIVEN, FREE, REVOLUTE, PlanarModel
 from ..protocol import BodyTerms, JointTerms
 
@@ -156,7 +157,8 @@ class FlexibleSystem:
         m = self.model
         dtheta, domega = m.relative_angles(theta, omega, q, qdot)
         reference, rate, torque = m.hinge_laws(t)
-        return torque - m.stiffness * (dtheta - reference) - m.damping * (domega - rate)
+        tau = torque - m.stiffness * (dtheta - reference) - m.damping * (domega - rate)
+        return tau + law_torques(m, dtheta, domega) if m.nonlinear_hinges else tau
 
     def driven_alpha(self, t: float, driven: list | None = None) -> list:
         """Prescribed joint accelerations [rad/s^2] per body (``driven``: ``model.driven(t)`` if known)."""

@@ -8,7 +8,7 @@ forward dynamics), :mod:`~ctmm.planar.integrate` (RK4, ``solve_ivp``),
 about it: the verbs ``ctmm.natural_frequencies`` etc.),
 :mod:`~ctmm.planar.compiled` (C fast path).  Derivations: ``docs/planar.md``.
 """
-from .elements import (ActuatedHinge, DamperHinge, DrivenHinge, ElasticHinge, Fixed, Free,
+from .elements import (ActuatedHinge, DamperHinge, DrivenHinge, ElasticHinge, Fixed, Free, NonlinearHinge,
                        FreeBase, Load, Pinned, RigidBody, SmoothHinge, SpringDamperHinge)
 from .implicit import simulate_implicit
 from .integrate import PlanarSimulation, simulate_rk4, simulate_scipy
@@ -16,6 +16,6 @@ from .model import PlanarModel
 from .sweep import InstantaneousSolution, accelerations, ode_rhs, solve_instant
 
 __all__ = ["ActuatedHinge", "DamperHinge", "DrivenHinge", "ElasticHinge", "Fixed", "Free",
-           "FreeBase", "Load", "Pinned", "RigidBody", "SmoothHinge", "SpringDamperHinge",
+           "FreeBase", "Load", "NonlinearHinge", "Pinned", "RigidBody", "SmoothHinge", "SpringDamperHinge",
            "PlanarModel", "InstantaneousSolution", "accelerations", "ode_rhs", "solve_instant",
            "PlanarSimulation", "simulate_rk4", "simulate_scipy", "simulate_implicit"]

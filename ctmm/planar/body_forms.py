@@ -28,6 +28,7 @@ from ..articulated import Articulated, Tree, articulated_sweep, frequency_kappa
 from ..errors import ModelError, SimulationError
 from ..ops import NUMPY, Ops
 from ..protocol import BodyTerms, JointTerms
+from .hinge_laws import law_joint_terms, radial_terms
 from .model import BUSHING, FREE, PlanarModel
 
 __all__ = ["rigid_body_terms", "revolute_terms", "driven_terms", "free_base_terms", "bushing_terms", "beam_terms",
@@ -187,6 +188,17 @@ def bushing_terms(ops: Ops, *, offset: Sequence[Any], offset_rate: Sequence[Any]
     return JointTerms(S=ops.eye(3), tau=ops.block([[fx], [fy], [tau]]),
                       tau_q=ops.block([[-kt, 0.0, 0.0], [0.0, -kt, 0.0], [0.0, 0.0, -k]]),
                       tau_v=ops.block([[-ct, 0.0, 0.0], [0.0, -ct, 0.0], [0.0, 0.0, -c]]))
+
+
+def nonlinear_bushing_terms(ops: Ops, hinge: Any, dx: Any, dy: Any, angle: Any, rate: Any, torque: Any) -> JointTerms:
+    """A :class:`~ctmm.planar.elements.NonlinearHinge` with a radial spring: every direction free (``S = I3``),
+    the radial force and its 2 x 2 tangent (:func:`ctmm.planar.hinge_laws.radial_terms`) and the moment law."""
+    fx, fy, kxx, kxy, kyy = radial_terms(ops, hinge, dx, dy)
+    tau, tau_q, tau_v = law_joint_terms(ops, hinge, angle, rate, torque)
+    zero = 0.0 * tau_q
+    return JointTerms(S=ops.eye(3), tau=ops.block([[fx], [fy], [tau]]),
+                      tau_q=ops.block([[kxx, kxy, zero], [kxy, kyy, zero], [zero, zero, tau_q]]),
+                      tau_v=ops.block([[zero, zero, zero], [zero, zero, zero], [zero, zero, tau_v]]))
 
 
 def beam_terms(data: Any, points: Sequence[str], theta: np.ndarray, omega: np.ndarray, eta: np.ndarray,
@@ -351,6 +363,11 @@ class PlanarScene:
                 joints.append(driven_terms(ops, driven[j][2]))
             elif kind == FREE:
                 joints.append(free_base_terms(ops))
+            elif kind == BUSHING and j in m.nonlinear_hinges:
+                ix, iy = (int(i) for i in m.xy_index[j])
+                torque = 0.0 if inputs is None else _value(inputs.hinge_torque[j])
+                joints.append(nonlinear_bushing_terms(ops, m.nonlinear_hinges[j], _entry(ops, q, ix), _entry(ops, q, iy),
+                                                      th - th_end, om - om_end, torque))
             elif kind == BUSHING:
                 ix, iy = (int(i) for i in m.xy_index[j])
                 torque = laws[2][j] + (0.0 if inputs is None else _value(inputs.hinge_torque[j]))
@@ -360,6 +377,11 @@ class PlanarScene:
                     rate=om - om_end, translational_stiffness=m.translational_stiffness[j],
                     translational_damping=m.translational_damping[j], stiffness=numbers.stiffness[j],
                     damping=numbers.damping[j], reference=laws[0][j], reference_rate=laws[1][j], torque=torque))
+            elif j in m.nonlinear_hinges:
+                torque = 0.0 if inputs is None else _value(inputs.hinge_torque[j])
+                tau, tau_q, tau_v = law_joint_terms(ops, m.nonlinear_hinges[j], th - th_end, om - om_end, torque)
+                joints.append(JointTerms(S=ops.block([[0.0], [0.0], [1.0]]), tau=ops.block([[tau]]),
+                                         tau_q=ops.block([[tau_q]]), tau_v=ops.block([[tau_v]]), axis=2))
             else:
                 torque = laws[2][j] + (0.0 if inputs is None else _value(inputs.hinge_torque[j]))
                 joints.append(revolute_terms(ops, angle=th - th_end, rate=om - om_end, stiffness=numbers.stiffness[j],

@@ -177,6 +177,9 @@ def _arrays(model: PlanarModel) -> tuple:
         problems.append(f"rigid bodies only (not {', '.join(model.body_names[j] for j in model.beams)})")
     if not model._constant_laws:
         problems.append("constant hinge references and torques")
+    if model.nonlinear_hinges:
+        problems.append("linear hinge laws (nonlinear: " + ", ".join(model.joint_names[j] for j in model.nonlinear_hinges)
+                        + "; the generated kernels, compiled=True, hold casadi-expressible ones)")
     if problems:
         raise ModelError(f"model {model.name!r} is not supported by the compiled kernel; it needs "
                          + ", ".join(problems) + "; use simulate_rk4 instead")

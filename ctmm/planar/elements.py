@@ -414,6 +414,57 @@ class FixedMounting(DrivenHinge):
         super().__post_init__()
 
 
+@dataclass(frozen=True, kw_only=True)
+class NonlinearHinge(Hinge):
+    """Hinge with a nonlinear rotary spring / damper law and, optionally, a nonlinear radial spring
+    (seed 002 section 7.6.1; :mod:`ctmm.nonlinear_laws`: cubic ``K1 theta + K2 theta^3``, clearance /
+    stop, power-law damper, user callables, and their sums).
+
+    Moment on the child ``tau = -moment_law(dtheta - rest_angle, dtheta_dot)``.  With a ``radial_law``
+    the child's inboard end may move by ``d`` from the parent end (coordinates ``"child.dx"``,
+    ``"child.dy"``, global axes, as the translational springs of :class:`ElasticHinge`) and the force
+    on the child is ``f = -radial_law(|d|) d / |d|`` (a radial spring: a pin in a hole with a clearance
+    is ``ClearanceSpring(k, clearance=gap)``).  Time integration uses the laws themselves (the implicit
+    DT-TMM Newton their tangents); the frequency verbs linearise them about the operating point.
+
+    Parameters
+    ----------
+    moment_law : ctmm.nonlinear_laws.Law, optional
+        Restoring moment ``f(delta, rate)`` [N m] of the relative angle [rad] and rate [rad/s]
+        (None: no moment, a smooth hinge).
+    radial_law : ctmm.nonlinear_laws.Law, optional
+        Restoring force [N] of the radial offset ``|d|`` [m]; a spring (no rate dependence).
+    rest_angle : float
+        Relative angle at which ``delta = 0`` [rad].
+    """
+
+    moment_law: object = None
+    radial_law: object = None
+    rest_angle: float = 0.0
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        from ..nonlinear_laws import Law
+        for label in ("moment_law", "radial_law"):
+            value = getattr(self, label)
+            if value is not None and not isinstance(value, Law):
+                raise ModelError(f"{self.name}: {label} must be a ctmm.nonlinear_laws.Law (CubicSpring, "
+                                 f"ClearanceSpring, PowerDamper, CallableLaw, LinearLaw or their sum) or None, got "
+                                 f"{value!r}")
+        if self.moment_law is None and self.radial_law is None:
+            raise ModelError(f"{self.name}: give a moment_law, a radial_law or both (got neither)")
+        if self.radial_law is not None and self.radial_law.velocity_dependent:
+            raise ModelError(f"{self.name}: radial_law must be a spring (no rate dependence), got "
+                             f"{self.radial_law!r}")
+        object.__setattr__(self, "rest_angle", validation.finite(f"{self.name}: rest_angle", self.rest_angle))
+
+    def moment(self, dtheta, dtheta_dot):
+        """Hinge moment on the child ``-moment_law(dtheta - rest_angle, dtheta_dot)`` [N m] (0 without one)."""
+        if self.moment_law is None:
+            return 0.0 * dtheta
+        return -self.moment_law.force(dtheta - self.rest_angle, dtheta_dot)
+
+
 # ------------------------------------------------------------------------------------------
 # boundaries
 # ------------------------------------------------------------------------------------------
@@ -473,7 +524,7 @@ class Free:
 
 
 HINGE_TYPES = (SmoothHinge, ElasticHinge, DamperHinge, SpringDamperHinge, ActuatedHinge,
-               DrivenHinge, FixedMounting)
+               DrivenHinge, FixedMounting, NonlinearHinge)
 """All hinge classes."""
 
 
@@ -486,5 +537,5 @@ def law_arrays(hinge: Hinge) -> tuple[float, float]:
 
 
 __all__ = ["Load", "RigidBody", "SmoothHinge", "ElasticHinge", "DamperHinge",
-           "SpringDamperHinge", "ActuatedHinge", "DrivenHinge", "FixedMounting", "Fixed", "Pinned",
+           "SpringDamperHinge", "ActuatedHinge", "DrivenHinge", "FixedMounting", "NonlinearHinge", "Fixed", "Pinned",
            "FreeBase", "Free", "HINGE_TYPES"]

@@ -55,6 +55,7 @@ from .model import BUSHING, DRIVEN, REVOLUTE, PlanarModel
 from .ports import ActuatorInputs
 from .signals import SignalError
 from .fast_sweep import riccati_kernel
+from .hinge_laws import law_kappa, radial_force
 from .sweep import accelerations, body_terms, coordinate_accelerations, hinge_torques, solve_instant
 
 _E3 = np.array([[0.0], [0.0], [1.0]])
@@ -140,12 +141,15 @@ class _NewtonStep:
         # exactly implicit hinge laws: tau = tau(iterate) - kappa (alpha_rel - alpha_rel_iterate)
         tau = hinge_torques(m, theta, omega, t)
         rel = alpha - np.where(self.has_parent, alpha[p], 0.0)
-        tau_tilde = tau + self.kappa * rel
+        kappa = self.kappa                      # nonlinear hinge laws: their tangent at the iterate (Newton)
+        if m.nonlinear_hinges:
+            kappa = kappa + law_kappa(m, *m.relative_angles(theta, omega), bh2, gh)
+        tau_tilde = tau + kappa * rel
         alpha_d = [0.0] * m.n_bodies
         for i, _, _, acc in m.driven(t):
             alpha_d[i] = acc
         return dict(q=q, v=v, x=x, F=F, theta=theta, alpha=alpha, rc=(rcx, rcy), K=K, b=b, E=E.tolist(),
-                    tau_tilde=tau_tilde, alpha_d=alpha_d)
+                    tau_tilde=tau_tilde, alpha_d=alpha_d, kappa=kappa)
 
     def solve(self, tangent: dict, inputs: ActuatorInputs | None = None):
         """One O(n) sweep of the tangent relations of :meth:`linearise` with actuator ``inputs``.
@@ -165,25 +169,31 @@ class _NewtonStep:
             tau_tilde = tau_tilde + inputs.hinge_torque
         if not len(m.bushing_bodies):           # rigid revolute trees: the registered fast path
             A_new, F_new, _ = riccati_kernel(self.parent, self.kind, K.tolist(), b.tolist(), tangent["E"],
-                                             self.kappa.tolist(), tau_tilde.tolist(), tangent["alpha_d"])
+                                             tangent["kappa"].tolist(), tau_tilde.tolist(), tangent["alpha_d"])
             A_new = np.array(A_new)
             return A_new, np.array(F_new), coordinate_accelerations(m, A_new)
-        joint_force = None
+        joint_force, radial_kappa = None, None
         if len(m.bushing_bodies):
             # translational springs, exactly implicit: f = f(iterate) - kappa_t (d'' - d''_iterate)
             xy = m.xy_index
             x = tangent["x"]
             offset, offset_rate = m.bushing_offsets(tangent["q"], tangent["v"])
-            joint_force = {}
+            joint_force, radial_kappa = {}, {}
             for j in m.bushing_bodies.tolist():
+                if j in m.nonlinear_hinges:     # radial spring: its 2 x 2 tangent at the iterate (Newton)
+                    f, slope = radial_force(m.nonlinear_hinges[j], offset[j])
+                    radial_kappa[j] = -slope * self.bh2
+                    joint_force[j] = f + radial_kappa[j] @ np.array([x[xy[j, 0]], x[xy[j, 1]]])
+                    continue
                 f = -m.translational_stiffness[j] * offset[j] - m.translational_damping[j] * offset_rate[j]
                 joint_force[j] = f + self.kappa_t[j] * np.array([x[xy[j, 0]], x[xy[j, 1]]])
         A_new, F_new, translation = self.tangent_sweep(K, b, tangent["E"], tau_tilde, tangent["alpha_d"],
-                                                       joint_force)
+                                                       joint_force, tangent["kappa"], radial_kappa)
         return A_new, F_new, coordinate_accelerations(m, A_new, translation)
 
     def tangent_sweep(self, K: np.ndarray, b: np.ndarray, E: Any, tau: np.ndarray, alpha_driven: list,
-                      joint_force: dict | None) -> tuple[np.ndarray, np.ndarray, dict]:
+                      joint_force: dict | None, hinge_kappa: np.ndarray | None = None,
+                      radial_kappa: dict | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
         """The one articulated sweep (:func:`ctmm.articulated.articulated_sweep`) of the tangent relations.
 
         Body ``j``: ``M = K_j`` (3 x 3), ``h = b_j``; the point each child ``c`` hangs on has the
@@ -220,14 +230,18 @@ class _NewtonStep:
         for j, kind in enumerate(self.kind):
             if kind == REVOLUTE:
                 joints.append(JointTerms(S=_E3, tau=tau_c[j], axis=2))
-                kappa.append(self.kappa_column[j])
+                kappa.append(self.kappa_column[j] if hinge_kappa is None or hinge_kappa[j] == self.kappa[j]
+                             else np.full((1, 1), hinge_kappa[j]))
             elif kind == DRIVEN:
                 joints.append(JointTerms(S=_E3, prescribed=driven_c[j], axis=2))
                 kappa.append(None)
             elif kind == BUSHING:
                 f = joint_force[j]
                 joints.append(JointTerms(S=_I3, tau=np.array([[f[0]], [f[1]], [tau_c[j, 0, 0]]])))
-                kappa.append(np.diag([self.kappa_t[j], self.kappa_t[j], self.kappa[j]]))
+                block = np.diag([self.kappa_t[j], self.kappa_t[j], self.kappa[j] if hinge_kappa is None else hinge_kappa[j]])
+                if radial_kappa and j in radial_kappa:
+                    block[:2, :2] = radial_kappa[j]
+                kappa.append(block)
             else:                                   # free base
                 joints.append(JointTerms(S=_I3, tau=_ZERO3))
                 kappa.append(None)

@@ -29,8 +29,9 @@ import numpy as np
 from .. import validation
 from ..errors import ModelError, unknown_name
 from ..signals import Constant
-from .elements import (DrivenHinge, Fixed, Free, FreeBase, HINGE_TYPES, Pinned, RigidBody,
-                       Hinge, SmoothHinge, translational_law)
+from .elements import (DrivenHinge, Fixed, Free, FreeBase, HINGE_TYPES, Pinned, RigidBody, Hinge, NonlinearHinge,
+                       SmoothHinge, translational_law)
+from .hinge_laws import law_potential
 from .deformable import DeformableBody, DeformableFamily, DeformableSystem
 from .signals import signal_values
 
@@ -42,6 +43,7 @@ def is_body(element) -> bool:
 
 def _end_points(body) -> dict:
     return body.end_points if hasattr(body, "end_points") else body.outboard
+
 
 REVOLUTE, DRIVEN, FREE, BUSHING = 0, 1, 2, 3
 """Joint kinds in :attr:`PlanarModel.joint_kind` (BUSHING: hinge with translational springs)."""
@@ -192,7 +194,7 @@ class PlanarModel:
                                     f"(got parent={element.parent!r}, child={element.child!r})")
                     continue
                 kind = DRIVEN if isinstance(element, DrivenHinge) else REVOLUTE
-                if kind == REVOLUTE and sum(translational_law(element)) > 0.0:
+                if kind == REVOLUTE and (sum(translational_law(element)) > 0.0 or getattr(element, "radial_law", None)):
                     kind = BUSHING
                 parent_name, _, end = element.parent.partition(".")
                 if parent_name in grounds:
@@ -311,12 +313,9 @@ class PlanarModel:
                 self.ground_position[i] = joint.ground.position
                 self.ground_angle[i] = joint.ground.angle
         # hinge laws tau = u - k (dtheta - r) - c (dtheta_dot - r_dot)
-        self.stiffness = np.zeros(nb)
-        self.damping = np.zeros(nb)
-        self.translational_stiffness = np.zeros(nb)
-        self.translational_damping = np.zeros(nb)
-        self._reference, self._reference_rate, self._torque = [], [], []
-        self._driven = []
+        self.stiffness, self.damping = np.zeros(nb), np.zeros(nb)
+        self.translational_stiffness, self.translational_damping = np.zeros(nb), np.zeros(nb)
+        self._reference, self._reference_rate, self._torque, self._driven = [], [], [], []
         for i, joint in enumerate(self._joints):
             if joint.kind == BUSHING:
                 kt, ct = translational_law(joint.hinge)
@@ -335,6 +334,7 @@ class PlanarModel:
             if joint.kind == DRIVEN:
                 self._driven.append((i, joint.hinge.angle, joint.hinge.rate,
                                      joint.hinge.acceleration))
+        self.nonlinear_hinges = {i: j.hinge for i, j in enumerate(self._joints) if isinstance(j.hinge, NonlinearHinge)}
         self._constant_laws = all(isinstance(f, Constant) for f in
                                   self._reference + self._reference_rate + self._torque)
         if self._constant_laws:
@@ -656,7 +656,7 @@ class PlanarModel:
             return self.deformable_family.energy(self, q, qdot, t)
         dtheta, _ = self.relative_angles(pts["theta"], pts["omega"])
         reference, _, _ = self.hinge_laws(t)
-        spring = 0.5 * np.sum(self.stiffness * (dtheta - reference) ** 2)
+        spring = 0.5 * np.sum(self.stiffness * (dtheta - reference) ** 2) + law_potential(self, dtheta, q)
         bb = self.bushing_bodies
         if len(bb):
             d = np.asarray(q)[self.xy_index[bb]]

@@ -23,6 +23,7 @@ import numpy as np
 from .. import validation
 from ..errors import ModelError, SimulationError
 from .fast_sweep import riccati_kernel
+from .hinge_laws import law_torques
 from .model import PlanarModel
 from .ports import ActuatorInputs
 
@@ -102,7 +103,8 @@ def hinge_torques(model: PlanarModel, theta: np.ndarray, omega: np.ndarray, t: f
     """Explicit hinge-law torques ``u - k (dtheta - r) - c (dtheta_dot - r_dot)`` [N m]."""
     dtheta, domega = model.relative_angles(theta, omega)
     reference, rate, torque = model.hinge_laws(t)
-    return torque - model.stiffness * (dtheta - reference) - model.damping * (domega - rate)
+    tau = torque - model.stiffness * (dtheta - reference) - model.damping * (domega - rate)
+    return tau + law_torques(model, dtheta, domega) if model.nonlinear_hinges else tau
 
 
 def _driven_alpha(model: PlanarModel, t: float) -> list:

@@ -120,6 +120,8 @@ class FlexibleLagrange:
     """
 
     def __init__(self, model) -> None:
+        if getattr(model, "nonlinear_hinges", None):      # the linear law arrays would silently drop them
+            raise ValueError("this Lagrange reference holds linear hinge laws only (nonlinear hinges given)")
         self.model = model
         self.nb = len(model.mass)
         self.n = len(model.coordinates)

@@ -55,6 +55,9 @@ class PlanarLagrange:
     """
 
     def __init__(self, model) -> None:
+        if getattr(model, "nonlinear_hinges", None):      # the linear law arrays would silently drop them
+            raise ValueError("PlanarLagrange holds linear hinge laws only; for nonlinear hinges use "
+                             "ctmm.reference.planar_dae")
         self.model = model
         self.nb = len(model.mass)
         self.n = len(model.coordinates)
@@ -344,6 +347,8 @@ def newton_euler_kkt(model, q, qdot, t: float = 0.0) -> KKTSolution:
     Euler (about the centre of mass) for every body, and the acceleration-level constraint of
     every joint (coincident points, prescribed relative angle).  Sparse LU solve.
     """
+    if getattr(model, "nonlinear_hinges", None):
+        raise ValueError("newton_euler_kkt holds linear hinge laws only; for nonlinear hinges use ctmm.reference.planar_dae")
     lag = PlanarLagrange.__new__(PlanarLagrange)
     lag.model, lag.nb, lag.n = model, len(model.mass), len(model.coordinates)
     lag.src = np.full(lag.nb, -1, dtype=int)

@@ -128,13 +128,21 @@ class JointMotion:
 def _law(ops: Ops, joint, q: list, v: list, u: Any) -> tuple[Any, Any, Any]:
     """``tau = u - k (q - q_ref) - c v`` of a 1- or 2-DOF joint, with its tangents."""
     k, c, ref = joint.stiffness, joint.damping, joint.reference
-    if not (np.any(k) or np.any(c)) and u is None:
+    law = getattr(joint, "law", None)
+    if not (np.any(k) or np.any(c)) and u is None and law is None:
         return None, None, None
     terms = [q[i] * -k[i] + k[i] * ref[i] - v[i] * c[i] for i in range(len(v))]
+    tau_q, tau_v = constant(ops, -np.diag(k)), constant(ops, -np.diag(c))
+    if law is not None:                     # nonlinear law per coordinate, its tangents on the diagonal
+        tangents = [law.tangents(q[i] - ref[i], v[i]) for i in range(len(v))]
+        terms = [terms[i] - law.force(q[i] - ref[i], v[i]) for i in range(len(v))]
+        n = len(v)
+        tau_q = tau_q + ops.block([[-tangents[i][0] if i == j else 0.0 for j in range(n)] for i in range(n)])
+        tau_v = tau_v + ops.block([[-tangents[i][1] if i == j else 0.0 for j in range(n)] for i in range(n)])
     tau = column(ops, terms)
     if u is not None:
         tau = tau + u
-    return tau, constant(ops, -np.diag(k)), constant(ops, -np.diag(c))
+    return tau, tau_q, tau_v
 
 
 def joint_motion(ops: Ops, joint, q: list, v: list, u: Any = None, acceleration: list | None = None) -> JointMotion:

@@ -136,6 +136,8 @@ def energy(model: SpatialModel, q: Any, v: Any, t: float = 0.0) -> np.ndarray:
         qj = q_rows[:, layout.position]
         if joint.kind in ("revolute", "prismatic", "universal"):
             total = total + 0.5 * np.sum(joint.stiffness * (qj - joint.reference) ** 2, axis=1)
+            if joint.law is not None:
+                total = total + np.sum(joint.law.potential(qj - joint.reference), axis=1)
         elif joint.kind == "spherical":
             k = joint.stiffness[0, 0]
             if not np.allclose(joint.stiffness, k * np.eye(3)):

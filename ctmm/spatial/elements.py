@@ -25,7 +25,8 @@ Joint coordinates ``q`` and velocities ``v`` (velocities in the **child frame**,
 
 Joint laws (generalised force along ``v`` on the child, dual to ``v``)
 --------------------------------------------------------------------
-1- and 2-DOF joints: ``tau = u(t) - k (q - q_ref) - c v`` (``u`` the actuator input
+1- and 2-DOF joints: ``tau = u(t) - k (q - q_ref) - c v - law(q - q_ref, v)`` (``law`` an optional nonlinear
+law of :mod:`ctmm.nonlinear_laws`, applied per coordinate; ``u`` the actuator input
 ``"<joint>.torque"`` / ``"<joint>.force"`` when ``actuated``); driven variants prescribe
 ``q(t), q_dot(t), q_ddot(t)`` (no coordinate; the generalised force is an output).  Spherical
 (optional rotary spring / damper, "non-zero output torque"): ``tau = u - k s - c omega`` with
@@ -214,12 +215,14 @@ class _Joint:
 
 @dataclass(frozen=True, kw_only=True)
 class _Lawful(_Joint):
-    """A 1- or 2-DOF joint with ``tau = u - stiffness (q - reference) - damping v`` (per coordinate),
-    or driven by ``position, rate, acceleration`` signals (one each per coordinate)."""
+    """A 1- or 2-DOF joint with ``tau = u - stiffness (q - reference) - damping v - law(q - reference, v)``
+    (per coordinate; ``law`` an optional :mod:`ctmm.nonlinear_laws` law, restoring force [N] or moment
+    [N m]), or driven by ``position, rate, acceleration`` signals (one each per coordinate)."""
 
     stiffness: Any = 0.0
     damping: Any = 0.0
     reference: Any = 0.0
+    law: Any = None
     actuated: bool = False
     position: Any = None
     rate: Any = None
@@ -236,14 +239,19 @@ class _Lawful(_Joint):
                                                             nonnegative=True))
         object.__setattr__(self, "reference", _per_coordinate(f"{self.name}: reference", self.reference, n))
         validation.flag(f"{self.name}: actuated", self.actuated)
+        if self.law is not None:
+            from ..nonlinear_laws import Law
+            if not isinstance(self.law, Law):
+                raise ModelError(f"{self.name}: law must be None or a ctmm.nonlinear_laws.Law (CubicSpring, "
+                                 f"ClearanceSpring, PowerDamper, CallableLaw, ...), got {self.law!r}")
         given = [self.position is not None, self.rate is not None, self.acceleration is not None]
         if any(given) and not all(given):
             raise ModelError(f"{self.name}: a driven joint needs position, rate and acceleration (signals), got "
                              f"position={self.position!r}, rate={self.rate!r}, acceleration={self.acceleration!r}")
         if all(given):
-            if self.actuated or np.any(self.stiffness) or np.any(self.damping):
-                raise ModelError(f"{self.name}: a driven joint has no law; leave stiffness, damping at 0 and "
-                                 "actuated at False")
+            if self.actuated or np.any(self.stiffness) or np.any(self.damping) or self.law is not None:
+                raise ModelError(f"{self.name}: a driven joint has no law; leave stiffness, damping at 0, law at None "
+                                 "and actuated at False")
             for attribute in ("position", "rate", "acceleration"):
                 object.__setattr__(self, attribute, _signals(f"{self.name}: {attribute}", getattr(self, attribute), n))
             _check_derivatives(self)

@@ -1,0 +1,450 @@
+"""Closed kinematic loops and bodies with several input ends: cut joints with boundary unknowns.
+
+A planar mechanism with closed loops (a four-bar linkage) or a body hanging from several parents
+(seed 002 section 7.4.2.1, bodies with several input ends) is modelled as a spanning tree -- an
+ordinary :class:`~ctmm.planar.model.PlanarModel` -- plus **cut joints** (:class:`CutJoint`): smooth
+revolute joints that make a point of one body coincide with a point of another body or of the ground.
+Derivation: ``docs/closed_loops.md``.
+
+Mechanism (the boundary unknowns of the mixed transfer matrix method, seed 001 section 9.2)
+------------------------------------------------------------------------------------------
+The cut joint's force ``lambda_k`` (global axes [N]; on the child point ``+lambda_k``, on the parent point
+``-lambda_k``) is the unknown that closes the transfer equations.  At fixed ``(q, qdot, t)`` the tree's
+O(n) articulated sweep (:func:`ctmm.planar.sweep.solve_instant`) is affine in applied forces, so one sweep
+without and ``2 m`` sweeps with unit boundary forces give the relative acceleration of the cut points as
+``a_rel = a_0 + G lambda`` (``G``: the ``2 m x 2 m`` boundary compliance).  The constraint at the
+acceleration level with Baumgarte stabilisation::
+
+    G lambda = -a_0 - 2 alpha Phi' - alpha^2 Phi          (Phi: the cut points' separation [m])
+
+fixes ``lambda`` and then ``qddot = qddot_0 + sum_k (dqddot / dlambda_k) lambda_k``.  The tree coordinates
+stay the state; the drift of ``Phi`` (which the exact acceleration-level constraint would let grow
+from round-off and truncation) is controlled by Baumgarte (``alpha`` [1/s]) and, in the fixed-step
+integrator, by projection after every step onto ``Phi = 0`` and ``Phi' = 0`` (minimum-norm Gauss-Newton
+with the constraint Jacobian ``J = dPhi'/dqdot``, exact).  The drift is reported in the result
+(:attr:`KinematicLoopSimulation.drift`, ``.drift_rate``), with the cut forces.
+
+Not yet: cut points on modal beams (a flexible coupler), cut joints with laws, implicit DT-TMM schemes
+and the frequency verbs for closed loops (each refused by name).
+"""
+from __future__ import annotations
+
+import time as _time
+from dataclasses import dataclass
+from typing import Mapping, Sequence
+
+import numpy as np
+import scipy.integrate
+
+from .. import validation
+from ..errors import ModelError, SimulationError
+from .elements import Fixed
+from .model import PlanarModel
+from .ports import ActuatorInputs
+from .sweep import solve_instant
+
+__all__ = ["CutJoint", "KinematicLoopModel", "KinematicLoopSimulation", "simulate_kinematic_loops"]
+
+
+@dataclass(frozen=True)
+class CutJoint:
+    """Smooth revolute joint closing a loop: point ``child`` coincides with point ``parent``.
+
+    Parameters
+    ----------
+    name : str
+        Joint name.
+    parent : str
+        ``"body.end"`` (an end of a rigid body, :attr:`RigidBody.outboard`) or the name of a
+        :class:`~ctmm.planar.elements.Fixed` ground point of the tree model.
+    child : str
+        ``"body.end"``.
+    """
+
+    name: str
+    parent: str
+    child: str
+
+    def __post_init__(self) -> None:
+        validation.name("cut joint", self.name)
+        for label in ("parent", "child"):
+            value = getattr(self, label)
+            if not isinstance(value, str) or not value:
+                raise ModelError(f"cut joint {self.name!r}: {label} must be 'body.end' or a ground name, got {value!r}")
+
+
+@dataclass(frozen=True)
+class KinematicLoopSimulation:
+    """Time history of a closed-loop run.
+
+    Attributes
+    ----------
+    model : KinematicLoopModel
+    t : ndarray (N,)
+        Times [s].
+    q, qdot : ndarray (N, n_coordinates)
+        Tree coordinates and rates (``model.tree.coordinates``).
+    cut_force : ndarray (N, n_cuts, 2)
+        Force of each cut joint on its child point, global axes [N].
+    drift, drift_rate : ndarray (N,)
+        ``max |Phi|`` [m] and ``max |Phi'|`` [m/s] of the cut joints (constraint drift).
+    method : str
+    wall_time_s : float
+    n_evaluations : int
+        Evaluations of the closed-loop accelerations (each ``1 + 2 n_cuts`` sweeps).
+    """
+
+    model: "KinematicLoopModel"
+    t: np.ndarray
+    q: np.ndarray
+    qdot: np.ndarray
+    cut_force: np.ndarray
+    drift: np.ndarray
+    drift_rate: np.ndarray
+    method: str
+    wall_time_s: float
+    n_evaluations: int
+
+    def coordinate(self, name: str) -> np.ndarray:
+        """History of tree coordinate ``name`` (``name + "_dot"`` for its rate)."""
+        if name.endswith("_dot"):
+            return self.qdot[:, self.model.tree.coordinate_index(name[:-4])]
+        return self.q[:, self.model.tree.coordinate_index(name)]
+
+    def energy(self) -> np.ndarray:
+        """Mechanical energy [J] at every stored time (:meth:`PlanarModel.energy` of the tree)."""
+        return np.array([self.model.tree.energy(q, v, t) for t, q, v in zip(self.t, self.q, self.qdot)])
+
+
+class KinematicLoopModel:
+    """A planar spanning tree plus cut joints (module docstring).
+
+    Parameters
+    ----------
+    tree : PlanarModel
+        The mechanism with the cut joints removed (rigid bodies at the cut points).
+    cuts : sequence of CutJoint
+        The joints closing the loops.
+    baumgarte : float
+        Stabilisation rate ``alpha`` [1/s] (>= 0; 0: none).  Default 20.
+    """
+
+    def __init__(self, tree: PlanarModel, cuts: Sequence[CutJoint], *, baumgarte: float = 20.0) -> None:
+        if not isinstance(tree, PlanarModel):
+            raise ModelError(f"KinematicLoopModel: tree must be a ctmm.planar.PlanarModel, got {tree!r}")
+        cuts = tuple(cuts)
+        if not cuts or not all(isinstance(c, CutJoint) for c in cuts):
+            raise ModelError(f"KinematicLoopModel: cuts must be a non-empty sequence of CutJoint, got {cuts!r}")
+        self.tree, self.cuts = tree, cuts
+        self.baumgarte = validation.nonnegative("baumgarte", baumgarte)
+        grounds = {e.name: e for e in tree.elements if isinstance(e, Fixed)}
+        self._points = [(self._resolve(cut, cut.parent, grounds), self._resolve(cut, cut.child, {}))
+                        for cut in cuts]
+        self.name = tree.name
+
+    def _resolve(self, cut: CutJoint, label: str, grounds: Mapping[str, Fixed]) -> tuple[int, np.ndarray]:
+        """``(body index or -1 for ground, body-frame vector from the inboard end or ground position)``."""
+        m = self.tree
+        if label in grounds:
+            return -1, np.asarray(grounds[label].position, float)
+        body, _, end = label.partition(".")
+        if body not in m.body_names:
+            raise ModelError(f"cut joint {cut.name!r}: {label!r} names no body of {m.name!r} (bodies: "
+                             f"{', '.join(m.body_names)}; grounds: {', '.join(grounds) or 'none'})")
+        j = m.body_names.index(body)
+        if j in m.beams:
+            raise ModelError(f"cut joint {cut.name!r}: {label!r} is on the modal beam {body!r}; cut points on "
+                             "flexible bodies are not supported yet (cut at a rigid body)")
+        if end not in m.ends[j]:
+            raise ModelError(f"cut joint {cut.name!r}: body {body!r} has no end {end!r}; ends: "
+                             f"{', '.join(m.ends[j]) or '(none)'}")
+        return j, np.asarray(m.ends[j][end], float)
+
+    # ------------------------------------------------------------------------------------------------
+    def _point_kinematics(self, points: dict, j: int, e: np.ndarray):
+        """Position, velocity, lever ``r`` (from the inboard end, global) and centre lever of a point."""
+        if j < 0:
+            return e, np.zeros(2), None
+        th, om = points["theta"][j], points["omega"][j]
+        c, s = np.cos(th), np.sin(th)
+        r = np.array([c * e[0] - s * e[1], s * e[0] + c * e[1]])
+        return points["inboard"][j] + r, points["inboard_velocity"][j] + om * np.array([-r[1], r[0]]), r
+
+    def constraints(self, q, qdot, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """``Phi`` (child point minus parent point [m]) and ``Phi'`` [m/s] of every cut, stacked (2 n_cuts,)."""
+        points = self.tree.points(q, qdot, t)
+        phi, rate = [], []
+        for (jp, ep), (jc, ec) in self._points:
+            pp, vp, _ = self._point_kinematics(points, jp, ep)
+            pc, vc, _ = self._point_kinematics(points, jc, ec)
+            phi.append(pc - pp)
+            rate.append(vc - vp)
+        return np.concatenate(phi), np.concatenate(rate)
+
+    def jacobian(self, q, t: float = 0.0) -> np.ndarray:
+        """``J = dPhi/dq`` (2 n_cuts, n): ``Phi' = J qdot`` is linear in ``qdot``, so column ``k`` is
+        ``Phi'(q, e_k)``."""
+        n = self.tree.n_coordinates
+        return np.column_stack([self.constraints(q, np.eye(n)[k], t)[1] for k in range(n)])
+
+    def _solution(self, q, qdot, t, forces: np.ndarray, points: dict):
+        """Tree solution with cut forces ``forces`` (n_cuts, 2): qddot and point accelerations
+        (``points``: :meth:`PlanarModel.points` at ``(q, qdot, t)``)."""
+        m = self.tree
+        body_force = np.zeros((m.n_bodies, 3))
+        levers = []
+        for k, ((jp, ep), (jc, ec)) in enumerate(self._points):
+            for j, e, sign in ((jc, ec, 1.0), (jp, ep, -1.0)):
+                if j < 0:
+                    continue
+                _, _, r = self._point_kinematics(points, j, e)
+                th = points["theta"][j]
+                com = np.array([np.cos(th) * m.com[j, 0] - np.sin(th) * m.com[j, 1],
+                                np.sin(th) * m.com[j, 0] + np.cos(th) * m.com[j, 1]])
+                f = sign * forces[k]
+                arm = r - com
+                body_force[j] += (f[0], f[1], arm[0] * f[1] - arm[1] * f[0])
+            levers.append(((jp, ep), (jc, ec)))
+        solution = solve_instant(m, q, qdot, t, ActuatorInputs(np.zeros(m.n_bodies), body_force))
+        A = solution.body_acceleration
+        relative = []
+        for (jp, ep), (jc, ec) in levers:
+            acc = []
+            for j, e in ((jp, ep), (jc, ec)):
+                if j < 0:
+                    acc.append(np.zeros(2))
+                    continue
+                _, _, r = self._point_kinematics(points, j, e)
+                om2, al = points["omega"][j] ** 2, A[j, 2]
+                acc.append(A[j, :2] + al * np.array([-r[1], r[0]]) - om2 * r)
+            relative.append(acc[1] - acc[0])
+        return solution.qddot, np.concatenate(relative)
+
+    def solve(self, q, qdot, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """``(qddot, cut forces (n_cuts, 2))`` at ``(q, qdot, t)`` (module docstring)."""
+        nc = len(self.cuts)
+        zero = np.zeros((nc, 2))
+        points = self.tree.points(q, qdot, t)
+        qdd0, a0 = self._solution(q, qdot, t, zero, points)
+        G = np.empty((2 * nc, 2 * nc))
+        dqdd = np.empty((len(qdd0), 2 * nc))
+        for k in range(2 * nc):
+            unit = zero.copy().reshape(-1)
+            unit[k] = 1.0
+            qdd_k, a_k = self._solution(q, qdot, t, unit.reshape(nc, 2), points)
+            G[:, k], dqdd[:, k] = a_k - a0, qdd_k - qdd0
+        phi, phi_dot = self.constraints(q, qdot, t)
+        alpha = self.baumgarte
+        target = -a0 - 2.0 * alpha * phi_dot - alpha * alpha * phi
+        condition = np.linalg.cond(G)
+        if not np.isfinite(condition) or condition > 1e12:
+            raise SimulationError(f"kinematic loop {self.name!r}: the cut joints' boundary compliance is singular "
+                                  f"(condition {condition:.2e}) at t = {t} s: a singular configuration of the loop "
+                                  "or redundant cut joints", time=t, element=self.cuts[0].name)
+        lam = np.linalg.solve(G, target)
+        return qdd0 + dqdd @ lam, lam.reshape(nc, 2)
+
+    def consistent_state(self, q, qdot, *, keep: Sequence[str] = (), tolerance: float = 1e-12
+                         ) -> tuple[np.ndarray, np.ndarray]:
+        """A state on the constraints near ``(q, qdot)`` with the coordinates ``keep`` held (e.g. the crank
+        angle and rate of a four-bar): Gauss-Newton on ``Phi = 0`` and a least-squares ``J qdot = 0``."""
+        q, qdot = self.tree.state(q, qdot)
+        q, qdot = q.astype(float).copy(), qdot.astype(float).copy()
+        held = [self.tree.coordinate_index(name) for name in keep]
+        free = [k for k in range(len(q)) if k not in held]
+        for _ in range(50):
+            phi, _ = self.constraints(q, qdot)
+            if np.max(np.abs(phi)) < tolerance:
+                break
+            J = self.jacobian(q)[:, free]
+            q[free] -= np.linalg.lstsq(J, phi, rcond=None)[0]
+        else:
+            raise ModelError(f"kinematic loop {self.name!r}: no assembled configuration near the given coordinates "
+                             f"(|Phi| = {np.max(np.abs(phi)):.3e} m after 50 Gauss-Newton steps); check the "
+                             "geometry and the held coordinates")
+        J = self.jacobian(q)
+        qdot[free] -= np.linalg.lstsq(J[:, free], J @ qdot, rcond=None)[0]
+        return q, qdot
+
+    def project(self, q: np.ndarray, qdot: np.ndarray, t: float = 0.0, iterations: int = 3
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """Minimum-norm projection of ``(q, qdot)`` onto ``Phi = 0``, ``Phi' = 0`` (a few Gauss-Newton steps)."""
+        for _ in range(iterations):
+            phi, _ = self.constraints(q, qdot, t)
+            if np.max(np.abs(phi)) < 1e-14:
+                break
+            q = q - np.linalg.lstsq(self.jacobian(q, t), phi, rcond=None)[0]
+        J = self.jacobian(q, t)
+        return q, qdot - np.linalg.lstsq(J, J @ qdot, rcond=None)[0]
+
+    # -- linearisation on the constraint manifold ---------------------------------------------------
+    def _chart(self, q0: np.ndarray, basis: np.ndarray, normal: np.ndarray, z: np.ndarray, zdot: np.ndarray,
+               t: float) -> tuple[np.ndarray, np.ndarray]:
+        """The state on the constraints with independent coordinates ``z = N^T (q - q0)`` and rates ``zdot``:
+        ``q = q0 + N z + J0^T y``, ``qdot = N zdot + J0^T w`` with ``y``, ``w`` from ``Phi = 0``, ``J qdot = 0``."""
+        q = q0 + basis @ z
+        for _ in range(30):
+            phi, _ = self.constraints(q, np.zeros_like(q), t)
+            if np.max(np.abs(phi)) < 1e-14:
+                break
+            q = q - normal @ np.linalg.solve(self.jacobian(q, t) @ normal, phi)
+        J = self.jacobian(q, t)
+        qdot = basis @ zdot
+        return q, qdot - normal @ np.linalg.solve(J @ normal, J @ qdot)
+
+    def linearize(self, q0, t: float = 0.0, *, step: float = 1e-5) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Linearisation about the resting state ``q0`` (projected onto the constraints) in independent
+        coordinates ``z = N^T (q - q0)`` (``N``: orthonormal null space of ``J(q0)``, ``f`` columns).
+
+        Returns ``(A, N, q0)`` with ``A = [[0, I], [dz''/dz, dz''/dz']]`` (2 f x 2 f) by central differences
+        (step ``step`` [rad]) of the closed-loop accelerations ``z'' = N^T q''`` on the manifold.
+        """
+        n = self.tree.n_coordinates
+        q0, _ = self.project(np.asarray(self.tree.state(q0, np.zeros(n))[0], float), np.zeros(n), t, iterations=30)
+        J = self.jacobian(q0, t)
+        _, values, vt = np.linalg.svd(J)
+        rank = int(np.sum(values > 1e-10 * max(values[0], 1e-300)))
+        basis, normal = vt[rank:].T, J.T
+        f = basis.shape[1]
+        if f == 0:
+            raise ModelError(f"kinematic loop {self.name!r}: no degree of freedom is left by the cut joints")
+
+        def rates(x: np.ndarray) -> np.ndarray:
+            q, qdot = self._chart(q0, basis, normal, x[:f], x[f:], t)
+            return basis.T @ self.solve(q, qdot, t)[0]
+
+        columns = []
+        for k in range(2 * f):
+            e = np.zeros(2 * f)
+            e[k] = step
+            columns.append((rates(e) - rates(-e)) / (2.0 * step))
+        A = np.zeros((2 * f, 2 * f))
+        A[:f, f:] = np.eye(f)
+        A[f:] = np.column_stack(columns)
+        return A, basis, q0
+
+    def natural_frequencies(self, q0, t: float = 0.0) -> np.ndarray:
+        """Undamped natural frequencies [rad/s] about the resting state ``q0`` (an equilibrium: refused
+        otherwise), ascending, from :meth:`linearize`."""
+        n = self.tree.n_coordinates
+        A, _, q0 = self.linearize(q0, t)
+        rest = np.max(np.abs(self.solve(q0, np.zeros(n), t)[0]), initial=0.0)
+        if rest > 1e-8:
+            raise ModelError(f"kinematic loop {self.name!r}: q0 is not an equilibrium (largest acceleration "
+                             f"{rest:.3e}); find one with KinematicLoopModel.equilibrium")
+        f = A.shape[0] // 2
+        if np.max(np.abs(A[f:, f:]), initial=0.0) > 1e-6 * np.sqrt(np.max(np.abs(A[f:, :f]), initial=1e-300)):
+            raise ModelError(f"kinematic loop {self.name!r}: natural_frequencies needs an undamped model (velocity-"
+                             "dependent forces at q0)")
+        squared = np.linalg.eigvals(-A[f:, :f])
+        if np.any(squared.real < 0.0) or np.max(np.abs(squared.imag), initial=0.0) > 1e-8 * np.max(np.abs(squared)):
+            raise ModelError(f"kinematic loop {self.name!r}: q0 is not a stable equilibrium (omega^2 = {squared})")
+        return np.sort(np.sqrt(squared.real))
+
+    def equilibrium(self, q_guess, t: float = 0.0, *, tolerance: float = 1e-10) -> np.ndarray:
+        """A static equilibrium near ``q_guess`` (Newton on the independent coordinates)."""
+        n = self.tree.n_coordinates
+        q = np.asarray(self.tree.state(q_guess, np.zeros(n))[0], float)
+        for _ in range(40):
+            A, basis, q = self.linearize(q, t)
+            f = basis.shape[1]
+            residual = basis.T @ self.solve(q, np.zeros(n), t)[0]
+            if np.max(np.abs(residual)) < tolerance:
+                return q
+            q, _ = self._chart(q, basis, self.jacobian(q, t).T, -np.linalg.solve(A[f:, :f], residual),
+                               np.zeros(f), t)
+        raise ModelError(f"kinematic loop {self.name!r}: no equilibrium found near the guess (residual "
+                         f"{np.max(np.abs(residual)):.3e} after 40 Newton steps)")
+
+
+def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: float, dt: float | None = None,
+                         method: str = "rk4", projection: bool = True, rtol: float = 1e-9, atol: float = 1e-11,
+                         store_every: int = 1) -> KinematicLoopSimulation:
+    """Integrate a closed-loop model from a consistent state (:meth:`KinematicLoopModel.consistent_state`).
+
+    Parameters
+    ----------
+    model : KinematicLoopModel
+    q0, qdot0 : array_like (n_coordinates,)
+        Initial tree coordinates and rates (checked against the constraints: ``|Phi| <= 1e-8`` m).
+    t_final : float
+        End time [s].
+    dt : float, optional
+        Fixed step [s] (required for ``"rk4"``).
+    method : str
+        ``"rk4"`` (fixed step, projection after every step when ``projection``) or a ``solve_ivp`` method
+        (``"RK45"``, ``"DOP853"``, ...; Baumgarte only).
+    projection : bool
+        Project onto the constraints after every RK4 step.
+    rtol, atol : float
+        ``solve_ivp`` tolerances.
+    store_every : int
+        Store every k-th RK4 step.
+
+    Raises
+    ------
+    ModelError
+        Bad arguments or an inconsistent initial state.
+    SimulationError
+        A singular loop configuration or a non-finite state (time and cut joint named).
+    """
+    if not isinstance(model, KinematicLoopModel):
+        raise ModelError(f"model must be a KinematicLoopModel, got {model!r}")
+    t_final = validation.positive("t_final", t_final)
+    store_every = validation.integer("store_every", store_every)
+    q, v = model.tree.state(q0, qdot0)
+    q, v = np.asarray(q, float).copy(), np.asarray(v, float).copy()
+    phi, phi_dot = model.constraints(q, v)
+    if np.max(np.abs(phi)) > 1e-8 or np.max(np.abs(phi_dot)) > 1e-8:
+        raise ModelError(f"kinematic loop {model.name!r}: the initial state violates the cut joints (|Phi| = "
+                         f"{np.max(np.abs(phi)):.3e} m, |Phi'| = {np.max(np.abs(phi_dot)):.3e} m/s); start from "
+                         "KinematicLoopModel.consistent_state")
+    n = len(q)
+    evaluations = [0]
+
+    def rate(t, y):
+        evaluations[0] += 1
+        qdd, _ = model.solve(y[:n], y[n:], t)
+        return np.concatenate([y[n:], qdd])
+
+    start = _time.perf_counter()
+    if method == "rk4":
+        h = validation.positive("dt", dt)
+        steps = max(1, int(round(t_final / h)))
+        ts, ys = [0.0], [np.concatenate([q, v])]
+        y = ys[0]
+        for k in range(1, steps + 1):
+            t = (k - 1) * h
+            k1 = rate(t, y)
+            k2 = rate(t + h / 2, y + h / 2 * k1)
+            k3 = rate(t + h / 2, y + h / 2 * k2)
+            k4 = rate(t + h, y + h * k3)
+            y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+            if projection:
+                y = np.concatenate(model.project(y[:n], y[n:], k * h))
+            if not np.all(np.isfinite(y)):
+                raise SimulationError(f"kinematic loop {model.name!r}: non-finite state at t = {k * h} s",
+                                      time=k * h, element=model.cuts[0].name,
+                                      partial_result={"t": np.array(ts), "q": np.array(ys)[:, :n],
+                                                      "qdot": np.array(ys)[:, n:]})
+            if k % store_every == 0 or k == steps:
+                ts.append(k * h)
+                ys.append(y)
+        t_out, y_out = np.array(ts), np.array(ys)
+    else:
+        validation.option("method", method, ("rk4", "RK45", "RK23", "DOP853", "Radau", "BDF", "LSODA"))
+        sol = scipy.integrate.solve_ivp(rate, (0.0, t_final), np.concatenate([q, v]), method=method, rtol=rtol,
+                                        atol=atol, max_step=np.inf if dt is None else dt)
+        if not sol.success:
+            raise SimulationError(f"kinematic loop {model.name!r}: solve_ivp failed: {sol.message}",
+                                  time=float(sol.t[-1]), element=model.cuts[0].name)
+        t_out, y_out = sol.t, sol.y.T
+    wall = _time.perf_counter() - start
+    forces, drift, drift_rate = [], [], []
+    for t, y in zip(t_out, y_out):
+        phi, phi_dot = model.constraints(y[:n], y[n:], t)
+        drift.append(np.max(np.abs(phi)))
+        drift_rate.append(np.max(np.abs(phi_dot)))
+        forces.append(model.solve(y[:n], y[n:], t)[1])
+    return KinematicLoopSimulation(model, t_out, y_out[:, :n], y_out[:, n:], np.array(forces), np.array(drift),
+                                np.array(drift_rate), method, wall, evaluations[0])

@@ -1,0 +1,297 @@
+"""Independent global DAE reference for planar rigid-body systems with closed loops (no transfer matrices).
+
+Written from scratch for the closed-loop and nonlinear-law checks (issue 16); it shares no code with
+:mod:`ctmm.planar`, :mod:`ctmm.nonlinear_laws` or the closed-loop mechanism -- its inputs are plain
+numbers and plain functions.
+
+Formulation
+-----------
+Absolute coordinates ``q = (x_C, y_C, theta)`` of every body's centre of mass; the mass matrix
+``M = diag(m, m, J_C)``.  A revolute joint makes point ``s_a`` of body ``a`` (or a ground point)
+coincide with point ``s_b`` of body ``b``::
+
+    Phi = r_a + R(theta_a) s_a - r_b - R(theta_b) s_b = 0          (2 equations)
+
+with the Jacobian ``Phi_q = [I, R'(theta_a) s_a | -I, -R'(theta_b) s_b]`` and
+``Phi_q q'' = gamma = R(theta_a) s_a w_a^2 - R(theta_b) s_b w_b^2``.  The joint may carry a moment law:
+``f(delta, rate)`` with ``delta = theta_b - theta_a - rest``, the moment ``-f`` acting on ``b`` and ``+f``
+on ``a``.  A bushing (:meth:`PlanarDAE.add_bushing`) is a force element instead of a constraint: the
+radial force ``-f(|d|) d / |d|`` on ``b`` of the separation ``d = P_b - P_a`` (and its moment law).  Index-1 form with Baumgarte stabilisation (``gamma - 2 alpha Phi' - beta^2 Phi``)::
+
+    [[M, Phi_q^T], [Phi_q, 0]] [q''; mu] = [Q; gamma - 2 alpha Phi' - beta^2 Phi]
+
+solved at every right-hand side by a dense solve, integrated by ``scipy.integrate.solve_ivp`` (DOP853) at
+tight tolerance.  The joint force on body ``b`` is ``+mu`` (on ``a``: ``-mu``); the position drift
+``max |Phi|`` is reported (:attr:`DAESolution.max_drift`).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable, Mapping, Sequence
+
+import numpy as np
+import scipy.integrate
+
+from ..errors import ModelError
+
+__all__ = ["PlanarDAE", "DAESolution"]
+
+
+def _rotation(theta: float) -> np.ndarray:
+    c, s = math.cos(theta), math.sin(theta)
+    return np.array([[c, -s], [s, c]])
+
+
+_TURN = np.array([[0.0, -1.0], [1.0, 0.0]])
+
+
+@dataclass
+class _Body:
+    name: str
+    mass: float
+    inertia: float
+    points: dict
+
+
+@dataclass
+class _Revolute:
+    a: int | None                # body index; None = ground
+    point_a: np.ndarray          # body-frame vector from the centre of mass (or ground position)
+    b: int
+    point_b: np.ndarray
+    moment: Callable | None
+    rest: float
+
+
+@dataclass
+class _Bushing:
+    a: int | None
+    point_a: np.ndarray
+    b: int
+    point_b: np.ndarray
+    radial: Callable
+    moment: Callable | None
+    rest: float
+
+
+@dataclass
+class DAESolution:
+    """Time history of a :class:`PlanarDAE` run.
+
+    Attributes
+    ----------
+    t : ndarray (N,)
+        Times [s].
+    q, v : ndarray (N, 3 n_bodies)
+        ``(x_C, y_C, theta)`` per body [m, m, rad] and their rates.
+    drift : ndarray (N,)
+        ``max |Phi|`` of all joints [m].
+    forces : ndarray (N, n_joints, 2)
+        Joint force on body ``b`` of each joint, global axes [N].
+    names : tuple of str
+        Body names.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    drift: np.ndarray
+    forces: np.ndarray
+    names: tuple
+
+    def angle(self, body: str) -> np.ndarray:
+        """Absolute angle history of ``body`` [rad]."""
+        return self.q[:, 3 * self.names.index(body) + 2]
+
+    def rate(self, body: str) -> np.ndarray:
+        """Angular velocity history of ``body`` [rad/s]."""
+        return self.v[:, 3 * self.names.index(body) + 2]
+
+    @property
+    def max_drift(self) -> float:
+        """Largest constraint violation over the run [m]."""
+        return float(np.max(self.drift))
+
+
+class PlanarDAE:
+    """Planar rigid bodies joined by revolute joints (any topology, closed loops included).
+
+    Parameters
+    ----------
+    gravity : (float, float)
+        [m/s^2].
+    """
+
+    def __init__(self, gravity: Sequence[float] = (0.0, -9.81)) -> None:
+        self.gravity = np.asarray(gravity, float)
+        self.bodies: list[_Body] = []
+        self.joints: list[_Revolute] = []
+        self.bushings: list[_Bushing] = []
+
+    def add_body(self, name: str, *, mass: float, inertia: float, points: Mapping[str, Sequence[float]]) -> None:
+        """A body with ``mass`` [kg], ``inertia`` about its centre of mass [kg m^2] and named ``points``
+        (body-frame vectors from the centre of mass [m])."""
+        if not (mass > 0 and inertia > 0):
+            raise ModelError(f"PlanarDAE body {name!r}: mass and inertia must be > 0, got {mass!r}, {inertia!r}")
+        self.bodies.append(_Body(name, float(mass), float(inertia),
+                                 {k: np.asarray(p, float) for k, p in points.items()}))
+
+    def _index(self, name: str) -> int:
+        for i, body in enumerate(self.bodies):
+            if body.name == name:
+                return i
+        raise ModelError(f"PlanarDAE: no body {name!r}")
+
+    def add_revolute(self, body_a: str | None, point_a, body_b: str, point_b: str, *,
+                     moment: Callable[[float, float], float] | None = None, rest: float = 0.0) -> None:
+        """Revolute joint between ``body_a`` point ``point_a`` (or the ground point ``point_a`` = (x, y) when
+        ``body_a`` is None) and ``body_b`` point ``point_b``, with an optional moment law ``moment(delta, rate)``
+        (restoring moment [N m] of ``delta = theta_b - theta_a - rest``)."""
+        self.joints.append(_Revolute(*self._ends(body_a, point_a, body_b, point_b), moment, float(rest)))
+
+    def _ends(self, body_a: str | None, point_a, body_b: str, point_b: str) -> tuple:
+        """``(a, s_a, b, s_b)``: body indices (None: ground) and body-frame vectors (ground: the position)."""
+        if body_a is None:
+            a, sa = None, np.asarray(point_a, float)
+        else:
+            a = self._index(body_a)
+            sa = self.bodies[a].points[point_a]
+        b = self._index(body_b)
+        return a, sa, b, self.bodies[b].points[point_b]
+
+    def add_bushing(self, body_a: str | None, point_a, body_b: str, point_b: str, *,
+                    radial: Callable[[float], float], moment: Callable[[float, float], float] | None = None,
+                    rest: float = 0.0) -> None:
+        """A force element (no constraint) between ``body_a`` point ``point_a`` (or the ground point) and
+        ``body_b`` point ``point_b``: with ``d = P_b - P_a`` the force on ``b`` is ``-radial(|d|) d / |d|``
+        (``-`` of it on ``a``), plus the optional moment law of :meth:`add_revolute`."""
+        self.bushings.append(_Bushing(*self._ends(body_a, point_a, body_b, point_b), radial, moment, float(rest)))
+
+    # ------------------------------------------------------------------------------------------------
+    def assemble(self, angles: Mapping[str, float], rates: Mapping[str, float],
+                 offsets: Mapping[str, Sequence[float]] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Consistent ``(q, v)`` from every body's absolute angle and rate: positions follow the joints (and
+        bushings, with the body's ``offsets`` [m] of its bushing point from the other point, at rest relative
+        to it) from the ground; joints closing a loop are only checked afterwards (:meth:`constraints`)."""
+        offsets = {name: np.asarray(value, float) for name, value in (offsets or {}).items()}
+        nb = len(self.bodies)
+        q, v = np.zeros(3 * nb), np.zeros(3 * nb)
+        for i, body in enumerate(self.bodies):
+            q[3 * i + 2], v[3 * i + 2] = angles[body.name], rates[body.name]
+        placed: set = set()
+        for _ in range(nb):
+            for joint in self.joints + self.bushings:
+                if joint.b in placed or (joint.a is not None and joint.a not in placed):
+                    continue
+                point, velocity = self._point(q, v, joint.a, joint.point_a)
+                i = joint.b
+                r = _rotation(q[3 * i + 2]) @ joint.point_b
+                q[3 * i:3 * i + 2] = point - r + offsets.get(self.bodies[i].name, 0.0)
+                v[3 * i:3 * i + 2] = velocity - v[3 * i + 2] * (_TURN @ r)
+                placed.add(i)
+        if len(placed) != nb:
+            raise ModelError("PlanarDAE.assemble: some bodies are not connected to the ground")
+        return q, v
+
+    def _point(self, q, v, i, s):
+        if i is None:
+            return s.copy(), np.zeros(2)
+        r = _rotation(q[3 * i + 2]) @ s
+        return q[3 * i:3 * i + 2] + r, v[3 * i:3 * i + 2] + v[3 * i + 2] * (_TURN @ r)
+
+    def constraints(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``Phi``, ``Phi'``, ``Phi_q`` and ``gamma`` of all joints."""
+        nb, nj = len(self.bodies), len(self.joints)
+        phi, phi_dot = np.zeros(2 * nj), np.zeros(2 * nj)
+        jac, gamma = np.zeros((2 * nj, 3 * nb)), np.zeros(2 * nj)
+        for k, joint in enumerate(self.joints):
+            rows = slice(2 * k, 2 * k + 2)
+            pa, va = self._point(q, v, joint.a, joint.point_a)
+            pb, vb = self._point(q, v, joint.b, joint.point_b)
+            phi[rows], phi_dot[rows] = pa - pb, va - vb
+            for i, s, sign in ((joint.a, joint.point_a, 1.0), (joint.b, joint.point_b, -1.0)):
+                if i is None:
+                    continue
+                r = _rotation(q[3 * i + 2]) @ s
+                jac[rows, 3 * i:3 * i + 2] = sign * np.eye(2)
+                jac[rows, 3 * i + 2] = sign * (_TURN @ r)
+                gamma[rows] += sign * r * v[3 * i + 2] ** 2
+        return phi, phi_dot, jac, gamma
+
+    def _generalised_forces(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        nb = len(self.bodies)
+        Q = np.zeros(3 * nb)
+        for i, body in enumerate(self.bodies):
+            Q[3 * i:3 * i + 2] = body.mass * self.gravity
+        for bushing in self.bushings:
+            pa, _ = self._point(q, v, bushing.a, bushing.point_a)
+            pb, _ = self._point(q, v, bushing.b, bushing.point_b)
+            d = pb - pa
+            r = math.hypot(d[0], d[1])
+            force = -float(bushing.radial(r)) * d / r if r > 0.0 else np.zeros(2)
+            for i, s, sign in ((bushing.b, bushing.point_b, 1.0), (bushing.a, bushing.point_a, -1.0)):
+                if i is None:
+                    continue
+                arm = _rotation(q[3 * i + 2]) @ s
+                Q[3 * i:3 * i + 2] += sign * force
+                Q[3 * i + 2] += sign * (arm[0] * force[1] - arm[1] * force[0])
+        for joint in self.joints + self.bushings:
+            if joint.moment is None:
+                continue
+            ta = 0.0 if joint.a is None else q[3 * joint.a + 2]
+            wa = 0.0 if joint.a is None else v[3 * joint.a + 2]
+            f = float(joint.moment(q[3 * joint.b + 2] - ta - joint.rest, v[3 * joint.b + 2] - wa))
+            Q[3 * joint.b + 2] -= f
+            if joint.a is not None:
+                Q[3 * joint.a + 2] += f
+        return Q
+
+    def solve(self, q: np.ndarray, v: np.ndarray, baumgarte: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """Accelerations ``q''`` and multipliers ``mu`` (joint forces on the ``b`` bodies) at ``(q, v)``."""
+        nb = len(self.bodies)
+        mass = np.concatenate([[b.mass, b.mass, b.inertia] for b in self.bodies])
+        phi, phi_dot, jac, gamma = self.constraints(q, v)
+        m = len(phi)
+        A = np.zeros((3 * nb + m, 3 * nb + m))
+        A[:3 * nb, :3 * nb] = np.diag(mass)
+        A[:3 * nb, 3 * nb:] = jac.T
+        A[3 * nb:, :3 * nb] = jac
+        rhs = np.concatenate([self._generalised_forces(q, v),
+                              gamma - 2.0 * baumgarte * phi_dot - baumgarte ** 2 * phi])
+        x = np.linalg.solve(A, rhs)
+        # M q'' = Q - Phi_q^T x: the force on body b of joint k is +x_k (Phi_q block of b is -I)
+        return x[:3 * nb], x[3 * nb:]
+
+    def simulate(self, state: tuple[np.ndarray, np.ndarray], t_final: float, *, t_eval: np.ndarray | None = None,
+                 baumgarte: float = 10.0, rtol: float = 1e-11, atol: float = 1e-12) -> DAESolution:
+        """Integrate from ``state = (q0, v0)`` (:meth:`assemble`) to ``t_final`` [s] (DOP853, tight)."""
+        q0, v0 = state
+        n = len(q0)
+
+        def rhs(t, y):
+            a, _ = self.solve(y[:n], y[n:], baumgarte)
+            return np.concatenate([y[n:], a])
+
+        sol = scipy.integrate.solve_ivp(rhs, (0.0, t_final), np.concatenate([q0, v0]), method="DOP853",
+                                        t_eval=t_eval, rtol=rtol, atol=atol)
+        if not sol.success:
+            raise ModelError(f"PlanarDAE.simulate failed: {sol.message}")
+        q, v = sol.y[:n].T, sol.y[n:].T
+        drift = np.array([np.max(np.abs(self.constraints(qi, vi)[0]), initial=0.0) for qi, vi in zip(q, v)])
+        forces = np.array([self.solve(qi, vi, baumgarte)[1].reshape(-1, 2) for qi, vi in zip(q, v)])
+        return DAESolution(sol.t, q, v, drift, forces, tuple(b.name for b in self.bodies))
+
+    def energy(self, q: np.ndarray, v: np.ndarray, potentials: Sequence[Callable | None] = ()) -> float:
+        """Kinetic + gravitational energy [J], plus ``potentials[k](delta)`` of joint ``k`` (joints, then bushings:
+        of their moment law) when given."""
+        energy = 0.0
+        for i, body in enumerate(self.bodies):
+            vel = v[3 * i:3 * i + 2]
+            energy += 0.5 * body.mass * vel @ vel + 0.5 * body.inertia * v[3 * i + 2] ** 2
+            energy -= body.mass * self.gravity @ q[3 * i:3 * i + 2]
+        for joint, potential in zip(self.joints + self.bushings, potentials):
+            if potential is not None:
+                ta = 0.0 if joint.a is None else q[3 * joint.a + 2]
+                energy += float(potential(q[3 * joint.b + 2] - ta - joint.rest))
+        return float(energy)

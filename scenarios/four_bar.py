@@ -1,0 +1,151 @@
+"""Four-bar linkage closed by a cut joint, with a nonlinear rocker spring (issue 16, items 2 and 3).
+
+Own parameters (the seeds give none): a Grashof crank-rocker with ground pivots ``(0, 0)`` and
+``(0.7, 0)`` m; uniform slender links crank 0.2 m / 0.4 kg, coupler 0.6 m / 1.0 kg, rocker 0.5 m /
+0.8 kg; gravity -9.81 m/s^2 along y.  The rocker pivot carries a hardening cubic spring
+``M = K1 d + K2 d^3`` (K1 = 2 N m/rad, K2 = 15 N m/rad^3, seed 002 Fig. 7.12 form) about the rest
+angle 1.9 rad, parallel to a quadratic damper ``0.02 d' |d'|`` N m.  The crank starts at 90 deg with
+3 rad/s, the coupler and rocker assembled (:meth:`KinematicLoopModel.consistent_state`) and free.
+
+The tree is crank -> coupler from the ground and the rocker from the second ground pivot; the cut
+joint ``h3`` joins the coupler's outboard end to the rocker's (the coupler is a body with two input
+ends).  ctmm: the TMM sweep with the cut force as boundary unknowns
+(:mod:`ctmm.planar.closed_loops`), RK4 at 1 ms with projection, and DOP853 with Baumgarte only.
+Reference: the global DAE (:mod:`ctmm.reference.planar_dae`, absolute coordinates and Lagrange
+multipliers, DOP853 at 1e-11).  Energy check: the same linkage without the damper.
+"""
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ctmm.nonlinear_laws import CubicSpring, Law, PowerDamper
+from ctmm.planar import Fixed, NonlinearHinge, PlanarModel, RigidBody, SmoothHinge
+from ctmm.planar.closed_loops import KinematicLoopModel, CutJoint, simulate_kinematic_loops
+from ctmm.reference.planar_dae import PlanarDAE
+from ctmm.scenario import accuracy
+
+from .planar_common import save_figure
+
+NAME = "four_bar"
+DESCRIPTION = ("Four-bar linkage closed by a cut joint (boundary unknowns), nonlinear rocker spring and "
+               "damper; angles, cut force, drift and energy vs the global DAE reference")
+CRANK, COUPLER, ROCKER, GROUND = 0.2, 0.6, 0.5, 0.7            # [m]
+MASSES = {"crank": 0.4, "coupler": 1.0, "rocker": 0.8}          # [kg]
+LENGTHS = {"crank": CRANK, "coupler": COUPLER, "rocker": ROCKER}
+REST = 1.9                                                       # rocker spring rest angle [rad]
+SPRING = CubicSpring(2.0, 15.0)
+DAMPER = PowerDamper(0.02, 2.0)
+BODIES = ("crank", "coupler", "rocker")
+
+
+def mechanism(rocker_law: Law | None = None) -> KinematicLoopModel:
+    """The linkage as a tree plus the cut joint ``h3``; ``rocker_law`` on the rocker pivot (None: smooth)."""
+    rocker_hinge = (SmoothHinge("h4", parent="g4", child="rocker") if rocker_law is None else
+                    NonlinearHinge("h4", parent="g4", child="rocker", moment_law=rocker_law, rest_angle=REST))
+    links = {name: RigidBody.uniform_link(name, mass=MASSES[name], length=LENGTHS[name]) for name in BODIES}
+    tree = PlanarModel("four_bar", [
+        Fixed("g", position=(0.0, 0.0)), Fixed("g4", position=(GROUND, 0.0)),
+        links["crank"], SmoothHinge("h1", parent="g", child="crank"),
+        links["coupler"], SmoothHinge("h2", parent="crank", child="coupler"),
+        links["rocker"], rocker_hinge], gravity=(0.0, -9.81))
+    return KinematicLoopModel(tree, [CutJoint("h3", parent="rocker.out", child="coupler.out")])
+
+
+def reference(rocker_law: Law | None = None) -> PlanarDAE:
+    """The same linkage as a global DAE (the law handed over as a plain function)."""
+    dae = PlanarDAE(gravity=(0.0, -9.81))
+    for name in BODIES:
+        m, length = MASSES[name], LENGTHS[name]
+        dae.add_body(name, mass=m, inertia=m * length ** 2 / 12,
+                     points={"in": (-length / 2, 0.0), "out": (length / 2, 0.0)})
+    dae.add_revolute(None, (0.0, 0.0), "crank", "in")
+    dae.add_revolute("crank", "out", "coupler", "in")
+    dae.add_revolute(None, (GROUND, 0.0), "rocker", "in",
+                     moment=None if rocker_law is None else (lambda d, v: float(rocker_law.force(d, v))), rest=REST)
+    dae.add_revolute("rocker", "out", "coupler", "out")
+    return dae
+
+
+def start(loop: KinematicLoopModel) -> tuple[np.ndarray, np.ndarray]:
+    """Crank at 90 deg with 3 rad/s; coupler and rocker assembled."""
+    return loop.consistent_state([math.pi / 2, 0.5, 1.8], [3.0, 0.0, 0.0], keep=["crank.theta"])
+
+
+def _angle_error(simulation, solution) -> np.ndarray:
+    return np.max([np.abs(simulation.coordinate(f"{n}.theta") - solution.angle(n)) for n in BODIES], axis=0)
+
+
+def run(output_dir: Path, quick: bool = False) -> dict:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t_final, h = (0.25 if quick else 2.0), 1e-3
+    law = SPRING + DAMPER
+    loop = mechanism(law)
+    q0, v0 = start(loop)
+    rk4 = simulate_kinematic_loops(loop, q0, v0, t_final=t_final, dt=h)
+    dop = simulate_kinematic_loops(loop, q0, v0, t_final=t_final, method="DOP853", rtol=1e-11, atol=1e-12)
+    dae = reference(law)
+    state = dae.assemble(dict(zip(BODIES, q0)), dict(zip(BODIES, v0)))
+    began = time.perf_counter()
+    ref = dae.simulate(state, t_final, t_eval=rk4.t)
+    reference_wall = time.perf_counter() - began
+    ref_dop = dae.simulate(state, t_final, t_eval=dop.t)
+    error_rk4, error_dop = _angle_error(rk4, ref), _angle_error(dop, ref_dop)
+    force_scale = float(np.max(np.abs(ref.forces[:, 3])))
+    force_error = float(np.max(np.abs(rk4.cut_force[:, 0] - ref.forces[:, 3]))) / force_scale
+    # energy: the undamped linkage (spring only)
+    undamped = mechanism(SPRING)
+    conservative = simulate_kinematic_loops(undamped, q0, v0, t_final=t_final, dt=h)
+    energy = conservative.energy()
+    energy_drift = float(np.max(np.abs(energy - energy[0])) / np.max(np.abs(energy)))
+
+    fig, axes = plt.subplots(2, 2, figsize=(12, 8))
+    for n in BODIES:
+        axes[0, 0].plot(rk4.t, rk4.coordinate(f"{n}.theta"), label=f"{n} (ctmm)")
+        axes[0, 0].plot(ref.t, ref.angle(n), "k--", lw=0.8)
+    axes[0, 0].set(xlabel="t [s]", ylabel="absolute angle [rad]", title="angles (dashed: global DAE)")
+    axes[0, 0].legend(fontsize="small")
+    axes[0, 1].plot(rk4.t, rk4.cut_force[:, 0, 0], label="f_x (ctmm)")
+    axes[0, 1].plot(rk4.t, rk4.cut_force[:, 0, 1], label="f_y (ctmm)")
+    axes[0, 1].plot(ref.t, ref.forces[:, 3, 0], "k--", lw=0.8, label="global DAE")
+    axes[0, 1].plot(ref.t, ref.forces[:, 3, 1], "k--", lw=0.8)
+    axes[0, 1].set(xlabel="t [s]", ylabel="cut-joint force on the coupler [N]")
+    axes[0, 1].legend(fontsize="small")
+    axes[1, 0].semilogy(rk4.t, error_rk4 + 1e-17, label="RK4 1 ms + projection")
+    axes[1, 0].semilogy(dop.t, error_dop + 1e-17, label="DOP853 1e-11 + Baumgarte")
+    axes[1, 0].set(xlabel="t [s]", ylabel="max angle error vs DAE [rad]")
+    axes[1, 0].legend(fontsize="small")
+    axes[1, 1].semilogy(rk4.t, rk4.drift + 1e-17, label="RK4 + projection")
+    axes[1, 1].semilogy(dop.t, dop.drift + 1e-17, label="DOP853 + Baumgarte (alpha = 20/s)")
+    axes[1, 1].semilogy(conservative.t, np.abs(energy - energy[0]) + 1e-17, label="energy error, undamped [J]")
+    axes[1, 1].set(xlabel="t [s]", ylabel="constraint drift |Phi| [m]")
+    axes[1, 1].legend(fontsize="small")
+    save_figure(fig, output_dir, NAME)
+    source = "docs/closed_loops.md: four-bar targets"
+    return {
+        "accuracy": [
+            accuracy("angle error vs global DAE", float(np.max(error_rk4)), "rad", 1e-6,
+                     "max over the run and the three links of |theta_ctmm (RK4 1 ms, projection) - theta_DAE|",
+                     source=source),
+            accuracy("cut force error vs global DAE", force_error, "relative", 1e-4,
+                     "max |lambda_ctmm - lambda_DAE| / max |lambda_DAE| of the cut joint h3 (RK4 run)", source=source),
+            accuracy("constraint drift", float(max(np.max(rk4.drift), np.max(dop.drift))), "m", 1e-9,
+                     "max |Phi| of the cut joint, RK4 with projection and DOP853 with Baumgarte", source=source),
+            accuracy("energy drift, undamped", energy_drift, "relative", 1e-6,
+                     "max |E - E0| / max |E| of the linkage without the damper (RK4 1 ms, projection)",
+                     source=source)],
+        "angle_max_error_dop853_rad": float(np.max(error_dop)),
+        "max_cut_force_N": force_scale,
+        "crank_turns": float(np.ptp(rk4.coordinate("crank.theta")) / (2 * np.pi)),
+        "wall_time_s": rk4.wall_time_s,
+        "dop853_wall_time_s": dop.wall_time_s,
+        "reference_wall_time_s": reference_wall,
+        "energy_drift": energy_drift,
+        "evaluations_rk4": rk4.n_evaluations,
+    }

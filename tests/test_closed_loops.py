@@ -1,0 +1,144 @@
+"""Closed kinematic loops by cut joints with boundary unknowns (ctmm.planar.closed_loops).
+
+Independent reference: the global DAE of :mod:`ctmm.reference.planar_dae` (absolute coordinates,
+Lagrange multipliers, Baumgarte, DOP853 at 1e-11), which shares no code with the TMM sweep or the
+cut-joint mechanism.  Checked: angles and cut forces of a four-bar linkage (rigid coupler, a nonlinear
+rocker spring), a body with two input ends (a plate hung from two links, seed 002 section 7.4.2.1),
+energy conservation of the undamped loop, the drift report, and the refusals.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ctmm.errors import ModelError
+from ctmm.nonlinear_laws import CubicSpring
+from ctmm.planar import Fixed, NonlinearHinge, PlanarModel, RigidBody, SmoothHinge
+from ctmm.planar.closed_loops import KinematicLoopModel, CutJoint, simulate_kinematic_loops
+from ctmm.reference.planar_dae import PlanarDAE
+from ctmm.scenarios.four_bar import DAMPER, SPRING, mechanism as four_bar, reference as four_bar_dae
+from ctmm.scenarios.four_bar import start as four_bar_start
+
+
+def start(loop):
+    """Crank at 90 deg with 3 rad/s, coupler and rocker assembled (the four_bar scenario's start)."""
+    q0, v0 = four_bar_start(loop)
+    assert v0[0] == 3.0 and q0[0] == pytest.approx(math.pi / 2)     # crank held, the others assembled
+    return q0, v0
+
+
+def compare(loop, dae, names, q0, v0, t_final, **kwargs):
+    simulation = simulate_kinematic_loops(loop, q0, v0, t_final=t_final, **kwargs)
+    state = dae.assemble(dict(zip(names, q0)), dict(zip(names, v0)))
+    assert np.max(np.abs(dae.constraints(*state)[0])) < 1e-12         # the same assembled configuration
+    reference = dae.simulate(state, t_final, t_eval=simulation.t)
+    angle_error = max(np.max(np.abs(simulation.coordinate(f"{n}.theta") - reference.angle(n))) for n in names)
+    return simulation, reference, angle_error
+
+
+@pytest.mark.parametrize("law", [None, SPRING + DAMPER], ids=["smooth", "cubic spring + damper"])
+def test_four_bar_matches_the_global_dae(law):
+    loop = four_bar(law)
+    q0, v0 = start(loop)
+    simulation, reference, error = compare(loop, four_bar_dae(law), ["crank", "coupler", "rocker"], q0, v0, 0.4,
+                                           dt=1e-3)
+    assert error < 2e-7
+    force_error = np.max(np.abs(simulation.cut_force[:, 0] - reference.forces[:, 3]))
+    assert force_error < 1e-4 * np.max(np.abs(reference.forces[:, 3]))
+    assert np.max(simulation.drift) < 1e-12 and np.max(simulation.drift_rate) < 1e-12     # projected
+    assert np.ptp(simulation.coordinate("crank.theta")) > 0.8                          # it moves
+
+
+def test_undamped_loop_conserves_energy_with_baumgarte_only():
+    loop = four_bar(SPRING)
+    q0, v0 = start(loop)
+    simulation = simulate_kinematic_loops(loop, q0, v0, t_final=1.0, method="DOP853", rtol=1e-11, atol=1e-12)
+    energy = simulation.energy()
+    assert np.max(np.abs(energy - energy[0])) < 1e-7 * np.max(np.abs(energy))
+    assert np.max(simulation.drift) < 1e-9
+
+
+def test_drift_is_reported_and_controlled():
+    q0, v0 = start(four_bar())
+    free = KinematicLoopModel(four_bar().tree, four_bar().cuts, baumgarte=0.0)
+    loose = simulate_kinematic_loops(free, q0, v0, t_final=1.0, dt=5e-3, projection=False)
+    held = simulate_kinematic_loops(four_bar(), q0, v0, t_final=1.0, dt=5e-3, projection=False)
+    projected = simulate_kinematic_loops(four_bar(), q0, v0, t_final=1.0, dt=5e-3)
+    assert loose.drift[-1] > 1e-7                                    # truncation error drifts unchecked
+    assert held.drift[-1] < 0.1 * loose.drift[-1]                    # Baumgarte keeps it bounded
+    assert np.max(projected.drift) < 1e-12
+
+
+def test_body_with_two_input_ends():
+    """A triangular plate hangs from two links (seed 002 section 7.4.2.1): its inboard end on link a, its
+    second input end 'b_end' cut-jointed to link b's tip."""
+    plate = RigidBody("plate", mass=2.0, inertia=0.05, center_of_mass=(0.25, -0.12), inboard=(0.0, 0.0),
+                      outboard={"b_end": (0.5, 0.0)})
+    tree = PlanarModel("swing", [
+        Fixed("ga", position=(0.0, 0.0)), Fixed("gb", position=(0.6, 0.0)),
+        RigidBody.uniform_link("a", mass=0.3, length=0.8), SmoothHinge("ha", parent="ga", child="a"),
+        plate, NonlinearHinge("hp", parent="a", child="plate", moment_law=CubicSpring(1.0, 5.0), rest_angle=1.2),
+        RigidBody.uniform_link("b", mass=0.3, length=0.7), SmoothHinge("hb", parent="gb", child="b")],
+        gravity=(0.0, -9.81))
+    loop = KinematicLoopModel(tree, [CutJoint("hb_plate", parent="b.out", child="plate.b_end")])
+    q0, v0 = loop.consistent_state([-1.2, 0.1, -1.6], [1.0, 0.0, 0.0], keep=["a.theta"])
+    dae = PlanarDAE(gravity=(0.0, -9.81))
+    dae.add_body("a", mass=0.3, inertia=0.3 * 0.64 / 12, points={"in": (-0.4, 0.0), "out": (0.4, 0.0)})
+    dae.add_body("plate", mass=2.0, inertia=0.05, points={"in": (-0.25, 0.12), "b_end": (0.25, 0.12)})
+    dae.add_body("b", mass=0.3, inertia=0.3 * 0.49 / 12, points={"in": (-0.35, 0.0), "out": (0.35, 0.0)})
+    dae.add_revolute(None, (0.0, 0.0), "a", "in")
+    dae.add_revolute("a", "out", "plate", "in", moment=lambda d, v: 1.0 * d + 5.0 * d ** 3, rest=1.2)
+    dae.add_revolute(None, (0.6, 0.0), "b", "in")
+    dae.add_revolute("b", "out", "plate", "b_end")
+    _, _, error = compare(loop, dae, ["a", "plate", "b"], q0, v0, 0.5, dt=1e-3)
+    assert error < 1e-6
+
+
+def test_refusals_name_the_problem():
+    tree = four_bar().tree
+    with pytest.raises(ModelError, match="no end 'tip'"):
+        KinematicLoopModel(tree, [CutJoint("h3", parent="rocker.tip", child="coupler.out")])
+    with pytest.raises(ModelError, match="names no body"):
+        KinematicLoopModel(tree, [CutJoint("h3", parent="wheel.out", child="coupler.out")])
+    with pytest.raises(ModelError, match="violates the cut joints"):
+        simulate_kinematic_loops(four_bar(), [math.pi / 2, 0.5, 1.8], [0.0, 0.0, 0.0], t_final=0.1, dt=1e-3)
+    with pytest.raises(ModelError, match="baumgarte"):
+        KinematicLoopModel(tree, four_bar().cuts, baumgarte=-1.0)
+
+
+
+def test_linearisation_on_the_constraint_manifold_matches_the_dae():
+    """Equilibrium and natural frequency of the four-bar with the rocker spring (gravity on): the equilibrium
+    is one of the global DAE (its accelerations vanish there) and the frequency is the DAE's small-oscillation
+    period (1e-4 rad free vibration about it, zero crossings)."""
+    loop = four_bar(SPRING)
+    guess, _ = loop.consistent_state([-1.5, 0.5, 1.8], [0.0, 0.0, 0.0], keep=["crank.theta"])
+    q_eq = loop.equilibrium(guess)
+    dae = four_bar_dae(SPRING)
+    names = ["crank", "coupler", "rocker"]
+    state = dae.assemble(dict(zip(names, q_eq)), dict(zip(names, [0.0, 0.0, 0.0])))
+    assert np.max(np.abs(dae.solve(*state)[0])) < 1e-9
+    (omega,) = loop.natural_frequencies(q_eq)
+    A, basis, _ = loop.linearize(q_eq)
+    q1, v1 = loop.consistent_state(q_eq + basis[:, 0] * 1e-4, np.zeros(3), keep=["crank.theta"])
+    period = 2 * math.pi / omega
+    t = np.linspace(0.0, 3 * period, 3001)
+    x = dae.simulate(dae.assemble(dict(zip(names, q1)), dict(zip(names, v1))), 3 * period, t_eval=t).angle("crank")
+    x = x - q_eq[0]
+    up = np.flatnonzero((x[:-1] < 0.0) & (x[1:] >= 0.0))
+    crossings = t[up] - x[up] * (t[up + 1] - t[up]) / (x[up + 1] - x[up])
+    assert np.mean(np.diff(crossings)) == pytest.approx(period, rel=1e-6)
+    upright = loop.equilibrium(loop.consistent_state([1.5, 0.5, 1.8], [0.0, 0.0, 0.0], keep=["crank.theta"])[0])
+    with pytest.raises(ModelError, match="not a stable equilibrium"):
+        loop.natural_frequencies(upright)
+    with pytest.raises(ModelError, match="not an equilibrium"):
+        loop.natural_frequencies(guess)
+
+
+def test_the_verbs_point_to_the_loop_functions():
+    import ctmm
+
+    with pytest.raises(ModelError, match="simulate_kinematic_loops"):
+        ctmm.simulate(four_bar(), 1.0, 1e-3)
