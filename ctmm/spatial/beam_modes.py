@@ -1,0 +1,147 @@
+"""Shapes and modal integrals of the modal spatial beam (:class:`~ctmm.spatial.beam.SpatialBeam`).
+
+Floating frame: the **root tangent frame** (origin at the inboard end ``I``, body ``x`` along the
+undeformed axis, ``y`` and ``z`` the principal axes of the cross-section).  A point of the axis at
+abscissa ``x`` is at ``rho(x) = [x, 0, 0] + Phi(x) eta`` (body axes) and its cross-section is twisted
+by ``gamma(x) = chi(x) . eta``, with the modal coordinates
+
+``eta = [q_y (n_y) ; q_z (n_z) ; r (n_t) ; p (n_a)]``
+
+(bending deflections along ``y`` and ``z``, twist, axial extension).  ``Phi`` has three rows
+``Phi_x = psi`` (axial shapes on the ``p`` columns), ``Phi_y = phi`` (on ``q_y``), ``Phi_z = phi``
+(on ``q_z``); every shape is clamped at the root and free at the tip:
+
+* bending: the clamped-free Euler-Bernoulli eigenfunctions of :mod:`ctmm.flexible.modes`
+  (``int phi^2 = L``), one set per plane;
+* twist and axial: the clamped-free rod shapes ``sqrt(2) sin((2k - 1) pi x / (2 L))`` (same scaling).
+
+All integrals are over ``[0, L]`` on Gauss-Legendre points (``rhoA`` uniform)::
+
+    E[k][i] = rhoA int Phi_k^T Phi_i      (n x n, k, i in x, y, z)
+    b_i     = rhoA int Phi_i,  c_i = rhoA int x Phi_i
+    b_t     = j_p int chi,     M_t = j_p int chi chi^T          (j_p: polar mass moment per length)
+    K       = diag(EI_y int phi''^2, EI_z int phi''^2, GJ int chi'^2, EA int psi'^2)
+    G1(x_e) = int_0^x_e w' w'^T,  G2 = int (L - x) w' w'^T,  G3 = int (L^2 - x^2)/2 w' w'^T
+
+(``w' = [phi' on q_y ; phi' on q_z]``: the geometric stiffness of the axial force in both bending planes).
+End rotation of a station ``x_e``: ``theta = Lambda(x_e) eta = [gamma ; -w_z' ; w_y']`` (body axes).
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ..flexible.modes import ModeSet, gauss_points
+
+__all__ = ["rod_shapes", "SpatialBeamData"]
+
+
+def rod_shapes(x: Any, length: float, count: int, derivative: int = 0) -> np.ndarray:
+    """Clamped-free rod shapes ``sqrt(2) sin((2k - 1) pi x / (2 L))`` or their ``derivative`` (0, 1):
+    ``(count, len(x))``; ``int_0^L shape^2 = L``."""
+    x = np.atleast_1d(np.asarray(x, dtype=float))
+    k = np.arange(1, count + 1)[:, None]
+    a = (2 * k - 1) * math.pi / (2 * length)
+    y = a * x[None, :]
+    return math.sqrt(2.0) * (np.sin(y) if derivative == 0 else a * np.cos(y))
+
+
+class SpatialBeamData:
+    """Modal integrals of a :class:`~ctmm.spatial.beam.SpatialBeam` (module notation), numpy constants.
+
+    Parameters
+    ----------
+    beam : SpatialBeam
+        The validated element (reads its lengths, stiffnesses, mode counts, switches and hooks).
+    """
+
+    def __init__(self, beam: Any) -> None:
+        L, rhoA = beam.length, beam.mass_per_length
+        ny, nz, nt, na = beam.n_modes_y, beam.n_modes_z, beam.n_torsion_modes, beam.n_axial_modes
+        n = ny + nz + nt + na
+        self.n, self.L, self.rhoA = n, L, rhoA
+        self.columns = {"y": slice(0, ny), "z": slice(ny, ny + nz), "t": slice(ny + nz, ny + nz + nt),
+                        "a": slice(ny + nz + nt, n)}
+        self.mode_sets = {"y": ModeSet.clamped_free(ny), "z": ModeSet.clamped_free(nz)}
+        x, w = gauss_points(beam.quadrature, L)
+        Phi = self.shapes(x)                                    # (3, n, G)
+        self.E = [[rhoA * (Phi[k] * w) @ Phi[i].T for i in range(3)] for k in range(3)]
+        self.b = rhoA * Phi @ w                                 # (3, n)
+        self.c = rhoA * Phi @ (w * x)                           # (3, n)
+        self.m = rhoA * L
+        self.first_moment = rhoA * L * L / 2
+        self.second_moment = rhoA * L ** 3 / 3
+        chi = np.zeros((n, len(x)))
+        chi[self.columns["t"]] = rod_shapes(x, L, nt)
+        jp = beam.polar_inertia_per_length
+        self.jp = jp
+        self.b_t = jp * chi @ w
+        self.M_t = jp * (chi * w) @ chi.T
+        K = np.zeros((n, n))
+        for plane, stiffness in (("y", beam.bending_stiffness_y), ("z", beam.bending_stiffness_z)):
+            betas = np.array(self.mode_sets[plane].betas)
+            K[self.columns[plane], self.columns[plane]] = np.diag(stiffness * betas ** 4 / L ** 3)
+        k = np.arange(1, nt + 1)
+        K[self.columns["t"], self.columns["t"]] = np.diag((beam.torsional_stiffness or 0.0)
+                                                          * ((2 * k - 1) * math.pi / (2 * L)) ** 2 * L)
+        k = np.arange(1, na + 1)
+        K[self.columns["a"], self.columns["a"]] = np.diag((beam.axial_stiffness or 0.0)
+                                                          * ((2 * k - 1) * math.pi / (2 * L)) ** 2 * L)
+        self.modal_mass = self.E[0][0] + self.E[1][1] + self.E[2][2] + self.M_t
+        D = beam.stiffness_damping * K + 2 * beam.damping_ratio * np.diag(
+            np.sqrt(np.clip(np.diag(K) * np.diag(self.modal_mass), 0.0, None)))
+        self.K, self.D = K, D
+        self.frequencies = np.sqrt(np.diag(K) / np.diag(self.modal_mass))
+        slopes = self.slopes(x)                                 # (n, G): w' of both bending planes
+        self.G2 = (slopes * (w * (L - x))) @ slopes.T
+        self.G3 = (slopes * (w * (L * L - x * x) / 2)) @ slopes.T
+        self.stiffening = beam.geometric_stiffening
+        self.K_total, self.D_total = K.copy(), D.copy()
+        self.forces = []
+        for hook in beam.modal_forces:
+            if hook.stiffness is not None:
+                self.K_total = self.K_total + hook.stiffness
+            if hook.damping is not None:
+                self.D_total = self.D_total + hook.damping
+            if hook.force is not None:
+                self.forces.append((hook.label, hook.force))
+        self.quadrature = beam.quadrature
+        self.stations = {name: self.station(float(point[0])) for name, point in beam.points.items()}
+        """``{point name: (Phi (3, n), Lambda (3, n), G1 (n, n))}`` of every point of the beam."""
+
+    def shapes(self, x: Any) -> np.ndarray:
+        """``Phi`` at stations ``x`` [m]: ``(3, n, len(x))`` (rows ``x, y, z``)."""
+        x = np.atleast_1d(np.asarray(x, dtype=float))
+        out = np.zeros((3, self.n, len(x)))
+        out[0, self.columns["a"]] = rod_shapes(x, self.L, self.columns["a"].stop - self.columns["a"].start)
+        for row, plane in ((1, "y"), (2, "z")):
+            if len(self.mode_sets[plane]):
+                out[row, self.columns[plane]] = self.mode_sets[plane].evaluate(x / self.L, 0)
+        return out
+
+    def slopes(self, x: Any) -> np.ndarray:
+        """Bending slopes ``w'`` at ``x``: ``(n, len(x))`` (``phi'`` on the ``q_y`` and ``q_z`` columns) [1/m]."""
+        x = np.atleast_1d(np.asarray(x, dtype=float))
+        out = np.zeros((self.n, len(x)))
+        for plane in ("y", "z"):
+            if len(self.mode_sets[plane]):
+                out[self.columns[plane]] = self.mode_sets[plane].evaluate(x / self.L, 1) / self.L
+        return out
+
+    def station(self, x_e: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(Phi(x_e) (3, n), Lambda(x_e) (3, n), G1(x_e) (n, n))`` of a station at ``x_e`` [m]."""
+        Phi = self.shapes([x_e])[:, :, 0]
+        slopes = self.slopes([x_e])[:, 0]
+        Lam = np.zeros((3, self.n))
+        twist = self.columns["t"]
+        Lam[0, twist] = rod_shapes([x_e], self.L, twist.stop - twist.start)[:, 0]
+        Lam[1, self.columns["z"]] = -slopes[self.columns["z"]]
+        Lam[2, self.columns["y"]] = slopes[self.columns["y"]]
+        G1 = np.zeros((self.n, self.n))
+        if x_e > 0.0:
+            xs, ws = gauss_points(self.quadrature, x_e)
+            s = self.slopes(xs)
+            G1 = (s * ws) @ s.T
+        return Phi, Lam, G1
