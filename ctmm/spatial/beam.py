@@ -25,7 +25,7 @@ from .. import validation
 from ..errors import ModelError
 from ..flexible.beam import ModalForce
 from ..flexible.modes import check_quadrature
-from ..signals import SignalLike, as_signal
+from ..signals import Constant, SignalLike, as_signal
 from .beam_modes import SpatialBeamData
 
 __all__ = ["SpatialBeam", "ModalForce"]
@@ -212,9 +212,20 @@ class SpatialBeam:
                 + tuple(f"u{i + 1}" for i in range(self.n_axial_modes)))
 
     @property
+    def time_dependent(self) -> bool:
+        """True when modal force hooks or a non-constant distributed load make the terms depend on time
+        (generated code cannot follow them: ``compiled=True`` refuses such a beam)."""
+        return bool(self.data.forces) or not all(isinstance(f, Constant) for f in self.distributed_load)
+
+    @property
     def frequencies(self) -> np.ndarray:
         """Uncoupled modal frequencies ``sqrt(K_ii / M_ii)`` of the clamped root [rad/s]."""
         return self.data.frequencies.copy()
+
+    def modal_tangent(self, position_weight: float, velocity_weight: float) -> np.ndarray:
+        """``b' h^2 K + g' h D`` (n x n): the modal stiffness and damping (with the linear hooks) in the
+        implicit DT-TMM's Newton tangent, ``position_weight = b' h^2`` [s^2], ``velocity_weight = g' h`` [s]."""
+        return position_weight * self.data.K_total + velocity_weight * self.data.D_total
 
     def moment_pair(self, x1: float, x2: float, moment: SignalLike, *, axis: str = "z",
                     label: str = "moment pair") -> ModalForce:
