@@ -125,6 +125,9 @@ def retract(model: Any, q0: np.ndarray, delta: np.ndarray) -> np.ndarray:
             q[:, start + 3:start + 7] = _quaternion_product(q[:, start + 3:start + 7], _quaternion_exp(d[:, 3:]))
         else:
             q[:, qs] = q[:, qs] + d
+    for layout in model.modal:                      # beams' modal coordinates: plain increments
+        if layout is not None:
+            q[:, layout.position] = q[:, layout.position] + delta[:, layout.velocity]
     return q
 
 
