@@ -108,8 +108,9 @@ class SpatialBeamData:
             if hook.force is not None:
                 self.forces.append((hook.label, hook.force))
         self.quadrature = beam.quadrature
-        self.stations = {name: self.station(float(point[0])) for name, point in beam.points.items()}
-        """``{point name: (Phi (3, n), Lambda (3, n), G1 (n, n))}`` of every point of the beam."""
+        self.abscissae: dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}     # filled next, by station()
+        self.abscissae = {float(point[0]): self.station(float(point[0])) for point in beam.points.values()}
+        """``{x: (Phi (3, n), Lambda (3, n), G1 (n, n))}`` of every point of the beam (computed once)."""
 
     def shapes(self, x: Any) -> np.ndarray:
         """``Phi`` at stations ``x`` [m]: ``(3, n, len(x))`` (rows ``x, y, z``)."""
@@ -132,6 +133,8 @@ class SpatialBeamData:
 
     def station(self, x_e: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(Phi(x_e) (3, n), Lambda(x_e) (3, n), G1(x_e) (n, n))`` of a station at ``x_e`` [m]."""
+        if x_e in self.abscissae:
+            return self.abscissae[x_e]
         Phi = self.shapes([x_e])[:, :, 0]
         slopes = self.slopes([x_e])[:, 0]
         Lam = np.zeros((3, self.n))
