@@ -218,6 +218,11 @@ class SpatialBeam:
         return bool(self.data.forces) or not all(isinstance(f, Constant) for f in self.distributed_load)
 
     @property
+    def coordinate_units(self) -> tuple[str, ...]:
+        """Units of the modal coordinates (``"m"``; ``"rad"`` for twist), in the order of ``eta``."""
+        return tuple("rad" if suffix.startswith("twist") else "m" for suffix in self.coordinate_suffixes)
+
+    @property
     def frequencies(self) -> np.ndarray:
         """Uncoupled modal frequencies ``sqrt(K_ii / M_ii)`` of the clamped root [rad/s]."""
         return self.data.frequencies.copy()
