@@ -277,3 +277,22 @@ def test_bad_input_is_refused_with_the_parameter_named(change, match):
     base = dict(length=1.0, mass_per_length=1.0, bending_stiffness_y=1.0, bending_stiffness_z=1.0)
     with pytest.raises(ModelError, match=match):
         SpatialBeam("b", **{**base, **change})
+
+
+# -- a rotating hub-beam in 3-D: Kane, Ryan & Banerjee's spin-up ---------------------------------------
+@pytest.mark.parametrize("stiffening", [True, False])
+def test_driven_spin_up_equals_kane_ryan_banerjee(stiffening):
+    from ctmm.reference.beams import clamped_free_mode, kane_spinup, spinup_angle
+
+    law = [lambda t, k=k: float(spinup_angle(t)[k]) for k in range(3)]
+    model = SpatialModel("spin", [
+        SpatialBody("hub", 1.0, (1.0, 1.0, 1.0)),
+        Revolute(name="h", parent=None, child="hub", axis=(0, 0, 1), position=law[0], rate=law[1], acceleration=law[2]),
+        SpatialBeam("b", length=10.0, mass_per_length=1.2, bending_stiffness_y=1.4e4, bending_stiffness_z=1.4e4,
+                    n_modes_y=3, n_modes_z=1, geometric_stiffening=stiffening),
+        Weld(name="w", parent="hub", child="b")], gravity=(0, 0, 0))
+    result = ctmm.simulate(model, 8.0, 0.02, method="rk4", store_every=10)
+    reference = kane_spinup(n_modes=3, geometric_stiffening=stiffening, t_eval=result.time, t_final=8.0)
+    tip = sum(result[f"b.qy{i + 1}"] * clamped_free_mode(b, 1.0) for i, b in enumerate(beta_roots("clamped-free", 3)))
+    assert np.abs(tip - reference.tip_deflection).max() <= 1e-6 * np.abs(reference.tip_deflection).max()
+    assert np.abs(result["b.qz1"]).max() == 0.0                   # nothing drives the out-of-plane mode

@@ -21,7 +21,8 @@ matrices); ``V = 1/2 eta^T K eta - sum m g . r`` plus joint springs.  Lagrange's
 
 with the geometric stiffness of the axial force of the overall motion (both bending planes)
 
-``G(N) = (g_1 - a_1) rhoA G2 + rhoA (omega_2^2 + omega_3^2) G3 - f_1 G1(L)``,
+``G(N) = (g_1 - a_1) rhoA G2 + rhoA (omega_2^2 + omega_3^2) G3 - f_1 G1(L)`` (``int N w' w'^T`` in each bending
+plane: ``int N (w_y' delta w_y' + w_z' delta w_z')``, no coupling of the planes),
 
 ``a_1``, ``g_1``, ``f_1`` the beam-axis components of the root acceleration, gravity and the force of
 the beam on the tip body (``m_tip (a_c - g)``), affine in ``u_dot`` -- the consistent first-order
@@ -35,6 +36,7 @@ from typing import Sequence
 
 import casadi as ca
 import numpy as np
+import scipy.linalg
 
 from .beams import beta_roots, clamped_free_mode
 
@@ -203,11 +205,12 @@ class SpatialBeamLagrange:
                 a_c = ca.mtimes(ca.jacobian(tip["velocity"], q), u) + ca.mtimes(ca.jacobian(tip["velocity"], u), ud)
                 f_tip = p.tip_mass * (a_c - g)
             frame_f = ca.mtimes(R_b.T, f_tip)
-            slopes = np.zeros((ny + nz, p.points))
-            slopes[:ny], slopes[ny:] = bend(betas_y, x, 1), bend(betas_z, x, 1)
-            G1 = (slopes * w) @ slopes.T
-            G2 = (slopes * (w * (L - x))) @ slopes.T
-            G3 = (slopes * (w * (L * L - x * x) / 2)) @ slopes.T
+            blocks = [bend(betas_y, x, 1), bend(betas_z, x, 1)]     # int N (w_y' dw_y' + w_z' dw_z'): per plane
+
+            def gram(weights):
+                return scipy.linalg.block_diag(*[(s * weights) @ s.T for s in blocks])
+
+            G1, G2, G3 = gram(w), gram(w * (L - x)), gram(w * (L * L - x * x) / 2)
             G = (ca.DM(G2) * (rhoA * (frame_g[0] - frame_a[0])) + ca.DM(G3) * (rhoA * (w_b[1] ** 2 + w_b[2] ** 2))
                  - ca.DM(G1) * frame_f[0])
             generalized[nh:nh + ny + nz] -= ca.mtimes(G, q[nh:nh + ny + nz])

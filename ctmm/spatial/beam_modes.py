@@ -23,7 +23,8 @@ All integrals are over ``[0, L]`` on Gauss-Legendre points (``rhoA`` uniform)::
     K       = diag(EI_y int phi''^2, EI_z int phi''^2, GJ int chi'^2, EA int psi'^2)
     G1(x_e) = int_0^x_e w' w'^T,  G2 = int (L - x) w' w'^T,  G3 = int (L^2 - x^2)/2 w' w'^T
 
-(``w' = [phi' on q_y ; phi' on q_z]``: the geometric stiffness of the axial force in both bending planes).
+(``w' w'^T`` of each bending plane, ``phi'`` on its columns: the geometric stiffness of the axial force in both
+planes, block diagonal -- the axial force couples no plane to the other).
 End rotation of a station ``x_e``: ``theta = Lambda(x_e) eta = [gamma ; -w_z' ; w_y']`` (body axes).
 """
 from __future__ import annotations
@@ -94,9 +95,8 @@ class SpatialBeamData:
             np.sqrt(np.clip(np.diag(K) * np.diag(self.modal_mass), 0.0, None)))
         self.K, self.D = K, D
         self.frequencies = np.sqrt(np.diag(K) / np.diag(self.modal_mass))
-        slopes = self.slopes(x)                                 # (n, G): w' of both bending planes
-        self.G2 = (slopes * (w * (L - x))) @ slopes.T
-        self.G3 = (slopes * (w * (L * L - x * x) / 2)) @ slopes.T
+        self.G2 = self.geometric(x, w * (L - x))
+        self.G3 = self.geometric(x, w * (L * L - x * x) / 2)
         self.stiffening = beam.geometric_stiffening
         self.K_total, self.D_total = K.copy(), D.copy()
         self.forces = []
@@ -131,6 +131,16 @@ class SpatialBeamData:
                 out[self.columns[plane]] = self.mode_sets[plane].evaluate(x / self.L, 1) / self.L
         return out
 
+    def geometric(self, x: np.ndarray, weights: np.ndarray) -> np.ndarray:
+        """``sum_k weights_k (w_y' w_y'^T + w_z' w_z'^T)(x_k)`` (n x n): the geometric stiffness integral, one
+        block per bending plane (the axial force couples no plane to the other)."""
+        slopes = self.slopes(x)
+        out = np.zeros((self.n, self.n))
+        for plane in ("y", "z"):
+            rows = self.columns[plane]
+            out[rows, rows] = (slopes[rows] * weights) @ slopes[rows].T
+        return out
+
     def station(self, x_e: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(Phi(x_e) (3, n), Lambda(x_e) (3, n), G1(x_e) (n, n))`` of a station at ``x_e`` [m]."""
         if x_e in self.abscissae:
@@ -145,6 +155,5 @@ class SpatialBeamData:
         G1 = np.zeros((self.n, self.n))
         if x_e > 0.0:
             xs, ws = gauss_points(self.quadrature, x_e)
-            s = self.slopes(xs)
-            G1 = (s * ws) @ s.T
+            G1 = self.geometric(xs, ws)
         return Phi, Lam, G1
