@@ -35,7 +35,9 @@ def rotation(axis, angle):
 
 
 # -- (a) the planar restriction ---------------------------------------------------------------------
-def planar_pair():
+def planar_pair(plane: str):
+    """The planar hub-beam-beam-tip model and the spatial one moving in the ``x-y`` plane (hinge axis z)
+    or in the ``x-z`` plane (hinge axis -y: planar ``y`` is spatial ``z``, bending in the beam's z plane)."""
     load = PlanarLoad(point=(0.7, 0.0), force_x=0.3, force_y=lambda t: math.sin(t), moment=0.2)
     beam = ModalBeam("b", length=1.3, bending_stiffness=5.0, mass_per_length=0.7, n_modes=3, n_axial_modes=1,
                      axial_stiffness=300.0, damping_ratio=0.02, loads=(load,))
@@ -44,26 +46,34 @@ def planar_pair():
         Pinned("o"), RigidBody("hub", mass=2.0, inertia=0.1, center_of_mass=(0.05, 0.02), outboard=(0.2, 0.0)),
         FixedMounting("mount", angle=0.3), beam, FixedMounting("m2", angle=-0.2), second, FixedMounting("m3"),
         RigidBody("tip", mass=0.2, inertia=0.01, center_of_mass=(0.03, 0.01), outboard=(0.1, 0.0))])
+    if plane == "xy":
+        axis, vector, modes = (0, 0, 1), (lambda a, b: (a, b, 0.0)), dict(n_modes_y=3, n_modes_z=0)
+        inertia, small = np.diag([0.05, 0.06, 0.1]), np.diag([0.006, 0.005, 0.01])
+        second_modes = dict(n_modes_y=2, n_modes_z=0)
+    else:
+        axis, vector, modes = (0, -1, 0), (lambda a, b: (a, 0.0, b)), dict(n_modes_y=0, n_modes_z=3)
+        inertia, small = np.diag([0.05, 0.1, 0.06]), np.diag([0.006, 0.01, 0.005])
+        second_modes = dict(n_modes_y=0, n_modes_z=2)
+    moment = tuple(0.2 * np.asarray(axis, float))
     spatial = SpatialModel("s", [
-        SpatialBody("hub", mass=2.0, inertia=np.diag([0.05, 0.06, 0.1]), center_of_mass=(0.05, 0.02, 0),
-                    points={"out": (0.2, 0, 0)}),
-        Revolute(name="o", parent=None, child="hub", axis=(0, 0, 1)),
-        SpatialBeam("b", length=1.3, bending_stiffness_y=5.0, bending_stiffness_z=7.0, mass_per_length=0.7,
-                    n_modes_y=3, n_modes_z=0, n_axial_modes=1, axial_stiffness=300.0, damping_ratio=0.02,
-                    stations={"l": 0.7}),
-        Weld(name="mount", parent="hub", child="b", point="out", rotation=rotation((0, 0, 1), 0.3)),
-        SpatialBeam("c", length=0.6, bending_stiffness_y=2.0, bending_stiffness_z=3.0, mass_per_length=0.4,
-                    n_modes_y=2, n_modes_z=0),
-        Weld(name="m2", parent="b", child="c", point="tip", rotation=rotation((0, 0, 1), -0.2)),
-        SpatialBody("tip", mass=0.2, inertia=np.diag([0.006, 0.005, 0.01]), center_of_mass=(0.03, 0.01, 0)),
+        SpatialBody("hub", mass=2.0, inertia=inertia, center_of_mass=vector(0.05, 0.02), points={"out": (0.2, 0, 0)}),
+        Revolute(name="o", parent=None, child="hub", axis=axis),
+        SpatialBeam("b", length=1.3, bending_stiffness_y=5.0, bending_stiffness_z=5.0, mass_per_length=0.7, **modes,
+                    n_axial_modes=1, axial_stiffness=300.0, damping_ratio=0.02, stations={"l": 0.7}),
+        Weld(name="mount", parent="hub", child="b", point="out", rotation=rotation(axis, 0.3)),
+        SpatialBeam("c", length=0.6, bending_stiffness_y=2.0, bending_stiffness_z=2.0, mass_per_length=0.4,
+                    **second_modes),
+        Weld(name="m2", parent="b", child="c", point="tip", rotation=rotation(axis, -0.2)),
+        SpatialBody("tip", mass=0.2, inertia=small, center_of_mass=vector(0.03, 0.01)),
         Weld(name="m3", parent="c", child="tip", point="tip"),
-        Load("ld", body="b", point="l", force=(0.3, lambda t: math.sin(t), 0.0), moment=(0, 0, 0.2)),
-    ], gravity=(0, -9.81, 0))
+        Load("ld", body="b", point="l", force=vector(0.3, lambda t: math.sin(t)), moment=moment),
+    ], gravity=vector(0.0, -9.81))
     return planar, spatial
 
 
-def test_the_spatial_beam_restricted_to_a_plane_is_the_planar_modal_beam():
-    planar, spatial = planar_pair()
+@pytest.mark.parametrize("plane", ["xy", "xz"])
+def test_the_spatial_beam_restricted_to_a_plane_is_the_planar_modal_beam(plane):
+    planar, spatial = planar_pair(plane)
     assert [c.split(".")[1] for c in planar.coordinates[1:]] == ["q1", "q2", "q3", "u1", "q1", "q2"]
     rng = np.random.default_rng(1)
     for _ in range(3):
