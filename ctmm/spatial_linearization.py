@@ -65,6 +65,8 @@ def tangent_names(model: Any) -> tuple[str, ...]:
         else:
             parts = ("angle",) if joint.kind == "revolute" else ("position",)
         names += [f"{joint.name}.{p}" for p in parts]
+    names += [f"{body.name}.{c}" for body, layout in zip(model.bodies, model.modal) if layout is not None
+              for c in body.coordinate_suffixes]                 # beams' modal coordinates
     return tuple(names)
 
 

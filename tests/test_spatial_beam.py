@@ -306,3 +306,32 @@ def test_driven_spin_up_equals_kane_ryan_banerjee(stiffening):
     tip = sum(result[f"b.qy{i + 1}"] * clamped_free_mode(b, 1.0) for i, b in enumerate(beta_roots("clamped-free", 3)))
     assert np.abs(tip - reference.tip_deflection).max() <= 1e-6 * np.abs(reference.tip_deflection).max()
     assert np.abs(result["b.qz1"]).max() == 0.0                   # nothing drives the out-of-plane mode
+
+
+def test_linearize_names_the_modes_and_its_eigenvalues_are_the_natural_frequencies():
+    model = SpatialModel("c", [
+        SpatialBeam("b", length=1.0, mass_per_length=1.0, bending_stiffness_y=1.0, bending_stiffness_z=2.0,
+                    n_modes_y=2, n_modes_z=2, n_torsion_modes=1, torsional_stiffness=0.5, polar_inertia_per_length=0.01),
+        Weld(name="clamp", parent=None, child="b"),
+        SpatialBody("tip", mass=0.5, inertia=np.diag([0.02, 0.03, 0.04])),
+        Weld(name="w", parent="b", child="tip", point="tip")], gravity=(0, 0, 0))
+    linear = ctmm.linearize(model)
+    assert linear.state_space.nstates == 10
+    poles = np.sort(np.abs(np.linalg.eigvals(linear.state_space.A).imag))[::2]
+    assert np.allclose(poles, ctmm.natural_frequencies(model, n_modes=5), rtol=1e-9)
+
+
+def test_natural_frequencies_refuse_the_one_directional_stiffening_about_a_sagged_equilibrium():
+    def hanging(stiffening):
+        return SpatialModel("sag", [
+            SpatialBody("hub", 2.0, (0.1, 0.1, 0.15), points={"out": (0.2, 0, 0)}),
+            Revolute(name="hinge", parent=None, child="hub", axis=(0, 0, 1)),
+            SpatialBeam("b", length=1.1, mass_per_length=0.9, bending_stiffness_y=6.0, bending_stiffness_z=9.0,
+                        n_modes_y=1, n_modes_z=2, n_axial_modes=1, axial_stiffness=400.0,
+                        geometric_stiffening=stiffening),
+            Weld(name="mount", parent="hub", child="b", point="out"),
+            SpatialBody("payload", 0.3, (0.004, 0.005, 0.006)),
+            Weld(name="grip", parent="b", child="payload", point="tip")], gravity=(0, 0, -9.81))
+    with pytest.raises(ModelError, match="not symmetric"):
+        ctmm.natural_frequencies(hanging(True), n_modes=3)
+    assert np.all(ctmm.natural_frequencies(hanging(False), n_modes=3)[1:] > 0)
