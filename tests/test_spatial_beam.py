@@ -205,6 +205,44 @@ def test_linearised_frequencies_with_a_tip_body_converge_to_the_analytic_frequen
     assert np.abs(error[1][:2]).max() < 3e-4                           # first bending pair, 16 modes
 
 
+def test_static_shapes_give_the_tip_body_frequencies_to_1e_8_with_six_modes():
+    analytic = np.sort(np.concatenate([
+        beta_roots("tip-mass", 2, tip_mass_ratio=0.5, tip_inertia_ratio=0.04) ** 2,
+        beta_roots("tip-mass", 2, tip_mass_ratio=0.5, tip_inertia_ratio=0.03) ** 2 * math.sqrt(2.0),
+        _rod_frequencies(0.01 / 0.02, 2, math.sqrt(0.5 / 0.01)), _rod_frequencies(1.0 / 0.5, 2, math.sqrt(50.0))]))
+    beam = SpatialBeam("b", length=1.0, mass_per_length=1.0, bending_stiffness_y=1.0, bending_stiffness_z=2.0,
+                       n_modes_y=6, n_modes_z=6, n_torsion_modes=6, torsional_stiffness=0.5,
+                       polar_inertia_per_length=0.01, n_axial_modes=6, axial_stiffness=50.0, static_shapes=True)
+    assert beam.coordinate_suffixes[6:8] == ("qy_force", "qy_moment") and beam.n_eta == 30
+    model = SpatialModel("c", [beam, Weld(name="clamp", parent=None, child="b"),
+                               SpatialBody("tip", mass=0.5, inertia=np.diag([0.02, 0.03, 0.04])),
+                               Weld(name="w", parent="b", child="tip", point="tip")], gravity=(0, 0, 0))
+    error = ctmm.natural_frequencies(model, n_modes=6) / analytic[:6] - 1
+    assert np.all(error > -1e-11) and np.all(error < 1e-8)
+    with pytest.raises(ModelError, match="nearly linearly dependent"):
+        SpatialBeam("b", length=1.0, mass_per_length=1.0, bending_stiffness_y=1.0, bending_stiffness_z=1.0,
+                    n_modes_y=8, n_modes_z=1, static_shapes=True)
+    with pytest.raises(ModelError, match="stiffness_damping"):
+        SpatialBeam("b", length=1.0, mass_per_length=1.0, bending_stiffness_y=1.0, bending_stiffness_z=1.0,
+                    static_shapes=True, damping_ratio=0.01)
+
+
+def test_static_shapes_conserve_energy_on_a_spinning_hub():
+    model = SpatialModel("h", [
+        SpatialBody("hub", 2.0, (0.1, 0.1, 0.15), points={"out": (0.2, 0, 0)}),
+        Revolute(name="hinge", parent=None, child="hub", axis=(0, 0, 1)),
+        SpatialBeam("b", length=1.0, mass_per_length=1.0, bending_stiffness_y=3.0, bending_stiffness_z=4.0,
+                    n_modes_y=2, n_modes_z=2, n_torsion_modes=1, torsional_stiffness=1.0, polar_inertia_per_length=0.01,
+                    geometric_stiffening=False, static_shapes=True),
+        Weld(name="mount", parent="hub", child="b", point="out"),
+        SpatialBody("tip", mass=0.2, inertia=np.diag([0.002, 0.003, 0.004]), center_of_mass=(0.02, 0.01, 0)),
+        Weld(name="w", parent="b", child="tip", point="tip")], gravity=(0, 0, -9.81))
+    result = ctmm.simulate(model, 0.05, 2.5e-4, method="rk4", v0={"hinge.angle_rate": 3.0}, x0={"b.qz_force": 0.01})
+    states = np.stack([result[name] for name in model.coordinates + model.velocities], axis=1)
+    values = energy(model, states[:, :model.n_positions], states[:, model.n_positions:])
+    assert np.ptp(values) <= 1e-8 * np.abs(values).max()
+
+
 # -- the rotation of a point frame: casadi AD of Rz Ry Rx --------------------------------------------
 def test_point_frame_angular_velocity_and_acceleration_equal_automatic_differentiation():
     beam = SpatialBeam("b", length=1.0, mass_per_length=1.0, bending_stiffness_y=1.0, bending_stiffness_z=2.0,

@@ -78,6 +78,13 @@ class SpatialBeam:
     modal_forces : sequence of ModalForce
         Generalised forces on the modal equations (actuators, modal feedback): ``force(t)``,
         ``stiffness``, ``damping`` (``law`` is refused: give a linear hook or use the control ports).
+    static_shapes : bool
+        Add to the modes of every direction that has some the static tip-load shapes (bending: tip force
+        and tip moment deflections; twist and axial: the linear shape) -- coordinates ``"qy_force"``,
+        ``"qy_moment"``, ``"qz_force"``, ``"qz_moment"``, ``"twist_static"``, ``"u_static"``.  The free-end
+        modes alone cannot bend or strain the tip, so a tip body's frequencies converge as ``1/n``; with
+        these shapes a few modes reach 1e-8 (``docs/spatial_beams.md``).  Not orthogonal to the modes:
+        ``damping_ratio`` must be 0 (use ``stiffness_damping``).  Default False.
     quadrature : int
         Gauss-Legendre points of the modal integrals (>= 2 max(mode counts) + 8; default 160).
 
@@ -105,6 +112,7 @@ class SpatialBeam:
     geometric_stiffening: bool = True
     damping_ratio: float = 0.0
     stiffness_damping: float = 0.0
+    static_shapes: bool = False
     stations: Mapping[str, float] | None = None
     distributed_load: Sequence[SignalLike] = (0.0, 0.0, 0.0)
     modal_forces: Sequence[ModalForce] = ()
@@ -137,8 +145,12 @@ class SpatialBeam:
             raise ModelError(f"{n}: polar_inertia_per_length (rho I_p [kg m]) must be > 0 with twist modes "
                              f"(n_torsion_modes = {self.n_torsion_modes}), got 0.0")
         validation.flag(f"{n}: geometric_stiffening", self.geometric_stiffening)
+        validation.flag(f"{n}: static_shapes", self.static_shapes)
         for attribute in ("damping_ratio", "stiffness_damping"):
             object.__setattr__(self, attribute, validation.nonnegative(f"{n}: {attribute}", getattr(self, attribute)))
+        if self.static_shapes and self.damping_ratio:
+            raise ModelError(f"{n}: damping_ratio = {self.damping_ratio!r} needs orthogonal modes, but static_shapes=True "
+                             "adds shapes that are not; use stiffness_damping (D = mu K) instead")
         stations = {} if self.stations is None else self.stations
         if not isinstance(stations, Mapping):
             raise ModelError(f"{n}: stations must be a mapping {{name: x [m]}}, got {self.stations!r}")
@@ -200,16 +212,30 @@ class SpatialBeam:
         return np.diag([self.polar_inertia_per_length * self.length, transverse, transverse])
 
     @property
+    def direction_counts(self) -> dict[str, int]:
+        """Modal coordinates per direction ``{"y", "z", "t" (twist), "a" (axial): count}`` (modes plus static
+        shapes)."""
+        extra = {"y": 2, "z": 2, "t": 1, "a": 1} if self.static_shapes else {"y": 0, "z": 0, "t": 0, "a": 0}
+        counts = {"y": self.n_modes_y, "z": self.n_modes_z, "t": self.n_torsion_modes, "a": self.n_axial_modes}
+        return {key: count + extra[key] if count else 0 for key, count in counts.items()}
+
+    @property
     def n_eta(self) -> int:
         """Number of modal coordinates."""
-        return self.n_modes_y + self.n_modes_z + self.n_torsion_modes + self.n_axial_modes
+        return sum(self.direction_counts.values())
 
     @property
     def coordinate_suffixes(self) -> tuple[str, ...]:
         """Names of the modal coordinates (after ``"<name>."``), in the order of ``eta``."""
-        return (tuple(f"qy{i + 1}" for i in range(self.n_modes_y)) + tuple(f"qz{i + 1}" for i in range(self.n_modes_z))
-                + tuple(f"twist{i + 1}" for i in range(self.n_torsion_modes))
-                + tuple(f"u{i + 1}" for i in range(self.n_axial_modes)))
+        names = []
+        for prefix, count, static in (("qy", self.n_modes_y, ("qy_force", "qy_moment")),
+                                      ("qz", self.n_modes_z, ("qz_force", "qz_moment")),
+                                      ("twist", self.n_torsion_modes, ("twist_static",)),
+                                      ("u", self.n_axial_modes, ("u_static",))):
+            names += [f"{prefix}{i + 1}" for i in range(count)]
+            if count and self.static_shapes:
+                names += list(static)
+        return tuple(names)
 
     @property
     def time_dependent(self) -> bool:
