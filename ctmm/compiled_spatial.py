@@ -89,6 +89,8 @@ def spatial_compile_refusal(model: Any) -> str:
         isinstance(f, Constant) for f in joint.position + joint.rate + joint.acceleration)]
     reasons += [f"load {load.name!r}" for load in model.loads
                 if not all(isinstance(f, Constant) for f in load.force + load.moment)]
+    reasons += [f"beam {body.name!r} (modal forces or distributed load)" for body in model.bodies
+                if getattr(body, "time_dependent", False)]
     if reasons:
         return (f"model {model.name!r} has signals that are not constants in " + ", ".join(reasons) + " (the spatial "
                 "terms evaluate them numerically, so generated code cannot follow them in time); use ctmm.simulate "
@@ -195,7 +197,7 @@ def chain_period(model: SpatialModel) -> int:
     the second segment on the parent point of the joint).
     """
     n = model.n_bodies
-    if model.loads or any(model.parent[j] != j - 1 for j in range(n)):
+    if model.loads or any(model.parent[j] != j - 1 for j in range(n)) or any(model.modal):
         return 0
     if any(joint.kind not in FOLD_KINDS or joint.driven or joint.inputs for joint in model.joints):
         return 0
@@ -353,6 +355,7 @@ def position_rates(model: SpatialModel, q: Any, v: Any) -> Any:
             parts += [ca.mtimes(rotation, vj[:3]), _quaternion_rate(qj[3:], vj[3:])]
         elif layout.position.stop > layout.position.start:
             parts.append(vj)
+    parts += [v[layout.velocity] for layout in model.modal if layout is not None]      # beams: eta_dot
     return ca.vertcat(*parts)
 
 

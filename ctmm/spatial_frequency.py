@@ -73,6 +73,11 @@ def mass_matrix(model: Any, q: np.ndarray, t: float = 0.0) -> np.ndarray:
             continue
         extra = unit[:, layout.velocity][:, :, None]
         forced.append(dataclasses.replace(terms, tau=extra if terms.tau is None else terms.tau + extra))
+    for j, layout in enumerate(model.modal):                # beams: unit generalised forces on the modal equations
+        if layout is not None:
+            h = np.array(np.broadcast_to(bodies[j].h, (n + 1,) + bodies[j].h.shape[1:]))
+            h[:, 6:, :] -= unit[:, layout.velocity][:, :, None]
+            bodies[j] = dataclasses.replace(bodies[j], h=h)
     solution = articulated_sweep(NUMPY, scene.tree, bodies, forced)
     parts = [np.broadcast_to(np.asarray(a), (n + 1,) + np.asarray(a).shape[1:])[:, :, 0]
              for a in scene.velocity_rates(solution)]

@@ -76,6 +76,8 @@ def tangent_names(model: Any) -> tuple[str, ...]:
         else:
             parts = ("angle",) if joint.kind == "revolute" else ("position",)
         names += [f"{joint.name}.{p}" for p in parts]
+    names += [f"{body.name}.{c}" for body, layout in zip(model.bodies, model.modal) if layout is not None
+              for c in body.coordinate_suffixes]                 # beams' modal coordinates
     return tuple(names)
 
 
@@ -136,6 +138,9 @@ def retract(model: Any, q0: np.ndarray, delta: np.ndarray) -> np.ndarray:
             q[:, start + 3:start + 7] = _quaternion_product(q[:, start + 3:start + 7], _quaternion_exp(d[:, 3:]))
         else:
             q[:, qs] = q[:, qs] + d
+    for layout in model.modal:                      # beams' modal coordinates: plain increments
+        if layout is not None:
+            q[:, layout.position] = q[:, layout.position] + delta[:, layout.velocity]
     return q
 
 

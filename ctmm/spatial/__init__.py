@@ -3,9 +3,11 @@ free, elastic and welded joints, solved by the one articulated sweep (:mod:`ctmm
 
 Modules: :mod:`~ctmm.spatial.elements` (descriptions), :mod:`~ctmm.spatial.model` (trees, coordinates),
 :mod:`~ctmm.spatial.frames` (rotations in :mod:`ctmm.ops`), :mod:`~ctmm.spatial.body_forms` (protocol
-terms, :class:`SpatialScene`), :mod:`~ctmm.spatial.dynamics` (accelerations, reactions).
+terms, :class:`SpatialScene`), :mod:`~ctmm.spatial.dynamics` (accelerations, reactions); the modal spatial
+beam :class:`SpatialBeam` (:mod:`~ctmm.spatial.beam`, ``docs/spatial_modal_beam.md``).
 Conventions and derivations: ``docs/spatial.md``.
 """
+from .beam import SpatialBeam
 from .body_forms import SpatialScene
 from .dynamics import SpatialSolution, accelerations, energy, reactions, solve, state_rates
 from .integrate import simulate_spatial
@@ -13,4 +15,4 @@ from .elements import Elastic6, Free, Load, Prismatic, Revolute, SpatialBody, Sp
 from .model import SpatialModel
 
 __all__ = ["SpatialBody", "Revolute", "Prismatic", "Universal", "Spherical", "Free", "Elastic6", "Weld", "Load",
-           "SpatialModel", "SpatialScene", "SpatialSolution", "solve", "accelerations", "reactions", "state_rates", "energy", "simulate_spatial"]
+           "SpatialModel", "SpatialScene", "SpatialSolution", "solve", "accelerations", "reactions", "state_rates", "energy", "simulate_spatial", "SpatialBeam"]

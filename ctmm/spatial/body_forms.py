@@ -22,6 +22,7 @@ from ..articulated import Articulated, Tree, articulated_sweep
 from ..ops import NUMPY, Ops, batch_column, batch_scalars
 from ..protocol import BodyTerms, JointTerms
 from .frames import axis_rotation, block_diagonal, column, constant, cross, entry, quaternion_rotation, skew
+from .beam_terms import spatial_beam_terms
 from .model import SpatialModel, input_values
 
 __all__ = ["rigid_body_terms", "JointMotion", "joint_motion", "SpatialScene", "BodyState"]
@@ -283,6 +284,7 @@ class SpatialScene:
         inputs = inputs or {}
         qs, vs = _scalars(ops, q, model.n_positions), _scalars(ops, v, model.n_velocities)
         states: list[BodyState] = []
+        point_frames: list[dict] = []
         bodies, joints = [], []
         for j, (body, joint, layout) in enumerate(zip(model.bodies, model.joints, model.layout)):
             if joint.driven:
@@ -301,9 +303,14 @@ class SpatialScene:
             else:
                 ps = states[par]
                 R_p, o_p, v_p, w_p = ps.rotation, ps.origin, ps.velocity, ps.omega
-                arm = ops.matmul(R_p, constant(ops, model.bodies[par].points[joint.point]))
-                P = o_p + arm
-                v_P = v_p + cross(ops, w_p, arm)
+                frame = point_frames[par].get(joint.point)
+                if frame is None:
+                    arm = ops.matmul(R_p, constant(ops, model.bodies[par].points[joint.point]))
+                    P = o_p + arm
+                    v_P = v_p + cross(ops, w_p, arm)
+                else:                                   # a beam point: its frame follows the deformation
+                    P, v_P = o_p + frame.arm, v_p + frame.velocity
+                    R_p, w_p = frame.rotation, frame.omega
             R_J = constant(ops, joint.rotation)
             R_PJ = R_J if R_p is None else ops.matmul(R_p, R_J)
             R_c = ops.matmul(R_PJ, rel.rotation)
@@ -341,6 +348,16 @@ class SpatialScene:
                     wrench = constant(ops, values)
                 loads.append((body.points[load.point], wrench))
             loads += list((wrenches or {}).get(j, ()))
+            modal = model.modal[j]
+            if modal is not None:
+                terms, frames = spatial_beam_terms(
+                    ops, body, rotation=R_c, offset=offset, omega=w_c, eta=_modal(ops, q, modal.position),
+                    eta_dot=_modal(ops, v, modal.velocity), t=t, gravity=model.gravity, loads=loads,
+                    points=self._outboard[j], frames=tuple(self._outboard[j]))
+                bodies.append(terms)
+                point_frames.append(frames)
+                continue
+            point_frames.append({})
             bodies.append(rigid_body_terms(ops, mass=body.mass, inertia=body.inertia,
                                            center_of_mass=body.center_of_mass, points=self._outboard[j], rotation=R_c,
                                            offset=offset, omega=w_c, gravity=model.gravity, loads=loads))
@@ -353,9 +370,11 @@ class SpatialScene:
         return articulated_sweep(ops, self.tree, bodies, joints)
 
     def velocity_rates(self, solution: Articulated) -> list:
-        """``v_dot`` pieces (one ops column per non-driven, non-welded joint, in state order)."""
-        return [solution.relative[j] for j, joint in enumerate(self.model.joints)
-                if not joint.driven and joint.kind != "weld"]
+        """``v_dot`` pieces (one ops column per non-driven, non-welded joint, then one per beam: its modal
+        accelerations; in state order)."""
+        model = self.model
+        joints = [solution.relative[j] for j, joint in enumerate(model.joints) if not joint.driven and joint.kind != "weld"]
+        return joints + [_modal_rows(solution.x[j]) for j, layout in enumerate(model.modal) if layout is not None]
 
     def numpy_inputs(self, inputs: Mapping[str, Any] | None, t: float, batch: int) -> dict:
         """Actuator inputs at ``t`` as numpy batched columns ``(B, k, 1)``."""
@@ -367,6 +386,18 @@ class SpatialScene:
         ``wrenches`` as in :meth:`terms`)."""
         q, v = self.model.check_state(q, v)
         return self.sweep(NUMPY, q, v, t, self.numpy_inputs(inputs, t, q.shape[0]), wrenches)
+
+
+def _modal(ops: Ops, values: Any, rows: slice) -> Any:
+    """Modal coordinates (or rates) ``values[rows]`` as an ops column."""
+    if ops.name == "numpy":
+        return np.asarray(values)[:, rows, None]
+    return values[rows.start:rows.stop]
+
+
+def _modal_rows(x: Any) -> Any:
+    """``eta''``: the rows of a beam's ``x = [A_in (6) ; eta'']`` after the point state."""
+    return x[..., 6:, :] if isinstance(x, np.ndarray) else x[6:, :]
 
 
 def _add(a: Any, b: Any) -> Any:

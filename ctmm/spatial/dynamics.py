@@ -8,6 +8,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..errors import ModelError, SimulationError
+from .beam_terms import beam_energy
 from .body_forms import SpatialScene
 from .model import SpatialModel
 
@@ -111,6 +112,8 @@ def state_rates(model: SpatialModel, x: np.ndarray, t: float, inputs: Mapping[st
 def energy(model: SpatialModel, q: Any, v: Any, t: float = 0.0) -> np.ndarray:
     """Kinetic + gravitational + joint-spring energy [J] (scalar, or (B,) for a batch).
 
+    Beams (:class:`~ctmm.spatial.beam.SpatialBeam`): kinetic, modal elastic ``1/2 eta^T K eta`` and
+    gravitational energy (the geometric stiffening has no potential here).
     Springs counted: revolute, prismatic and universal ``1/2 k (q - q_ref)^2``; spherical joints with a
     scalar stiffness ``k I``: ``2 k (1 - w^2)`` (unit quaternion).  A spherical joint with an anisotropic
     stiffness and :class:`~ctmm.spatial.elements.Elastic6` have no potential here (``ModelError``).
@@ -120,7 +123,15 @@ def energy(model: SpatialModel, q: Any, v: Any, t: float = 0.0) -> np.ndarray:
     q_rows, v_rows = model.check_state(q, v)
     _, _, states = scene_of(model).terms(NUMPY, q_rows, v_rows, t)
     total = np.zeros(q_rows.shape[0])
-    for body, state in zip(model.bodies, states):
+    for body, state, modal in zip(model.bodies, states, model.modal):
+        if modal is not None:                          # a beam: kinetic, elastic and gravitational energy
+            B = len(total)
+            total = total + beam_energy(body, np.broadcast_to(state.rotation, (B, 3, 3)),
+                                        np.broadcast_to(state.origin, (B, 3, 1)),
+                                        np.broadcast_to(state.velocity, (B, 3, 1)),
+                                        np.broadcast_to(state.omega, (B, 3, 1)), q_rows[:, modal.position],
+                                        v_rows[:, modal.velocity], model.gravity)
+            continue
         R = state.rotation
         arm = R @ body.center_of_mass[:, None]
         v_com = (state.velocity + np.cross(state.omega, arm, axis=1))[..., 0]

@@ -94,6 +94,13 @@ def implicit_rates(scene: SpatialScene, q: np.ndarray, v: np.ndarray, t: float, 
         column = iterate[layout.velocity][None, :, None]
         kappa.append(tangent)
         implicit.append(dataclasses.replace(terms, tau=terms.tau + tangent @ column))
+    for j, layout in enumerate(model.modal):          # beams: modal stiffness and damping in the tangent
+        if layout is not None:
+            tangent = model.bodies[j].modal_tangent(position_weight, velocity_weight)
+            M, h = bodies[j].M.copy(), bodies[j].h.copy()
+            M[..., 6:, 6:] += tangent
+            h[..., 6:, :] -= tangent @ iterate[layout.velocity][:, None]
+            bodies[j] = dataclasses.replace(bodies[j], M=M, h=h)
     solution = articulated_sweep(NUMPY, scene.tree, bodies, implicit, kappa)
     parts = [np.asarray(a)[0, :, 0] for a in scene.velocity_rates(solution)]
     return np.concatenate(parts) if parts else np.zeros(0)

@@ -70,6 +70,10 @@ def spatial_signals(model: SpatialModel, time: np.ndarray, states: np.ndarray) -
     for k, name in enumerate(model.velocities):
         signals[name] = v[:, k]
         units[name] = "m/s" if name.split(".")[-1] in ("vx", "vy", "vz", "position_rate") else "rad/s"
+    for body, layout in zip(model.bodies, model.modal):           # beams: modal coordinates [m], twist [rad]
+        if layout is not None:
+            for suffix, unit in zip(body.coordinate_suffixes, body.coordinate_units):
+                units[f"{body.name}.{suffix}"], units[f"{body.name}.{suffix}_rate"] = unit, f"{unit}/s"
     scene = SpatialScene(model)
     driven = any(joint.driven for joint in model.joints)        # body poses depend on t only through driven joints
     chunks = [(q[i:i + 1], v[i:i + 1], float(t)) for i, t in enumerate(time)] if driven else [(q, v, 0.0)]

@@ -7,7 +7,7 @@ the joint frame and quaternion).  An increment ``delta`` has the size of the vel
 same meaning (child axes for rotations and for the 6-DOF translation), so ``q(s) = q (+) s v`` is the
 motion at constant ``v``:
 
-* scalar joints: ``q + delta``;
+* scalar joints and the modal coordinates of beams: ``q + delta``;
 * spherical: ``quat (x) exp(phi)``, ``exp(phi) = (cos(|phi|/2), sin(|phi|/2) phi/|phi|)``: the
   incremental rotation vector ``phi`` in child axes (no gimbal lock: no angles are stored);
 * free / elastic6 with ``delta = [u ; phi]``: ``quat (x) exp(phi)`` and ``t + R(quat) J(phi) u``
@@ -102,6 +102,9 @@ def retract(model: SpatialModel, q: np.ndarray, delta: np.ndarray) -> np.ndarray
                 _unit(quaternion_product(quaternion, quaternion_exponential(dj[3:])))
         else:
             out[layout.position] = qj + dj
+    for layout in model.modal:                       # beams' modal coordinates: a vector space
+        if layout is not None:
+            out[layout.position] = out[layout.position] + np.asarray(delta[layout.velocity], dtype=float)
     return out
 
 
@@ -123,6 +126,9 @@ def local_coordinates(model: SpatialModel, q_base: np.ndarray, q: np.ndarray) ->
             delta[layout.velocity] = np.concatenate([u, phi])
         else:
             delta[layout.velocity] = target - base
+    for layout in model.modal:
+        if layout is not None:
+            delta[layout.velocity] = q[layout.position] - q_base[layout.position]
     return delta
 
 

@@ -21,6 +21,7 @@ import numpy as np
 
 from .. import validation
 from ..errors import ModelError, unknown_name
+from .beam import SpatialBeam
 from .elements import JOINT_TYPES, Load, SpatialBody
 from .frames import quaternion_rate
 
@@ -72,20 +73,20 @@ class SpatialModel:
         loads: list[Load] = []
         names: set[str] = set()
         for element in elements:
-            if not isinstance(element, (SpatialBody, Load) + JOINT_TYPES):
-                raise ModelError(f"{name}: elements must be SpatialBody, a joint ({', '.join(t.__name__ for t in JOINT_TYPES)}) "
+            if not isinstance(element, (SpatialBody, SpatialBeam, Load) + JOINT_TYPES):
+                raise ModelError(f"{name}: elements must be SpatialBody, SpatialBeam, a joint ({', '.join(t.__name__ for t in JOINT_TYPES)}) "
                                  f"or Load, got {element!r}")
             if element.name in names:
                 raise ModelError(f"{name}: duplicate element name {element.name!r}")
             names.add(element.name)
-            if isinstance(element, SpatialBody):
+            if isinstance(element, (SpatialBody, SpatialBeam)):
                 bodies[element.name] = element
             elif isinstance(element, Load):
                 loads.append(element)
             else:
                 joints[element.name] = element
         if not bodies:
-            raise ModelError(f"{name}: a spatial model needs at least one SpatialBody")
+            raise ModelError(f"{name}: a spatial model needs at least one SpatialBody or SpatialBeam")
         inboard: dict[str, object] = {}
         for joint in joints.values():
             if joint.child not in bodies:
@@ -132,11 +133,19 @@ class SpatialModel:
             layouts.append(Layout(slice(nq, nq + k_q), slice(nv, nv + k_v)))
             nq, nv = nq + k_q, nv + k_v
         self.layout = tuple(layouts)
+        modal = []
+        for body in self._bodies:                      # modal coordinates of beams follow all joint coordinates
+            count = body.n_eta if isinstance(body, SpatialBeam) else 0
+            modal.append(Layout(slice(nq, nq + count), slice(nv, nv + count)) if count else None)
+            nq, nv = nq + count, nv + count
+        self.modal = tuple(modal)
+        """Per body: where a beam's modal coordinates ``eta`` live in ``q`` and their rates in ``v``
+        (``None`` for rigid bodies); after every joint coordinate, in body order."""
         self.n_positions, self.n_velocities = nq, nv
         self.inputs = tuple(name for joint in self._joints for name in joint.inputs)
 
     @property
-    def bodies(self) -> tuple[SpatialBody, ...]:
+    def bodies(self) -> tuple[SpatialBody | SpatialBeam, ...]:
         """Bodies in topological order."""
         return self._bodies
 
@@ -165,7 +174,7 @@ class SpatialModel:
             if joint.driven:
                 continue
             names += [f"{joint.name}.{c}" for c in _coordinate_names(joint.kind, joint.coordinate_count)]
-        return tuple(names)
+        return tuple(names) + self._modal_names("")
 
     @property
     def velocities(self) -> tuple[str, ...]:
@@ -181,7 +190,11 @@ class SpatialModel:
             else:
                 parts = tuple(f"{c}_rate" for c in _coordinate_names(joint.kind, joint.coordinate_count))
             names += [f"{joint.name}.{c}" for c in parts]
-        return tuple(names)
+        return tuple(names) + self._modal_names("_rate")
+
+    def _modal_names(self, suffix: str) -> tuple[str, ...]:
+        return tuple(f"{body.name}.{c}{suffix}" for body, layout in zip(self._bodies, self.modal) if layout is not None
+                     for c in body.coordinate_suffixes)
 
     def neutral(self) -> np.ndarray:
         """The zero configuration ``q`` (zero angles and positions, identity quaternions)."""
@@ -209,6 +222,9 @@ class SpatialModel:
                 out[..., layout.position.start + 3:layout.position.stop] = quaternion_rate(quat, vj[..., 3:])
             else:
                 out[..., layout.position] = vj
+        for layout in self.modal:
+            if layout is not None:
+                out[..., layout.position] = v[..., layout.velocity]
         return out
 
     def normalized(self, q: np.ndarray) -> np.ndarray:

@@ -22,7 +22,9 @@ Sensors (measured signals)
     * ``"<body>.rotation_x|y|z"`` -- the rotation vector ``phi = angle * axis`` of the body
       (``R = exp([phi]x)``, ``|phi| <= pi``; at ``|phi| = pi`` it flips to ``-phi``) [rad];
     * ``"<body>.<point>.x|y|z"`` [m] and ``".vx|vy|vz"`` [m/s] -- world position and velocity of
-      a body point: ``origin``, ``com`` (centre of mass) and every named point of the body.
+      a body point: ``origin``, ``com`` (centre of mass) and every named point of the body (of a beam:
+      the deformed points);
+    * beams (:class:`~ctmm.spatial.beam.SpatialBeam`): the station sensors of :mod:`ctmm.spatial.beam_ports`.
 
 Actuators (inputs, added to what the model's own laws and loads apply)
     * joint inputs of actuated joints (``actuated=True``; their model inputs
@@ -32,7 +34,8 @@ Actuators (inputs, added to what the model's own laws and loads apply)
       ``"<joint>.torque_x|y|z"`` [N m] (free and elastic6: the wrench input, child axes);
     * ``"<body>.force_x|y|z"`` [N] -- force at the centre of mass, world axes;
       ``"<body>.moment_x|y|z"`` [N m] -- moment on the body, world axes;
-      ``"<body>.<point>.force_x|y|z"`` [N] -- force at a named point (or ``origin``), world axes.
+      ``"<body>.<point>.force_x|y|z"`` [N] -- force at a named point (or ``origin``), world axes;
+      beams also ``"<beam>.<point>.moment_x|y|z"`` [N m] (world axes) at their points.
 
 Sensors are kinematic: a position-like sensor depends on ``q`` (and ``t`` through driven
 joints) only, a rate sensor is linear in ``v``.  :func:`sensor_jacobians` gives the Jacobians in
@@ -55,6 +58,7 @@ from .. import validation
 from ..errors import ModelError, UnknownNameError
 from ..named_ports import NamedPorts
 from ..ops import NUMPY
+from .beam_ports import beam_actuator_rows, beam_sensor_rows, deformed_point
 from .body_forms import SpatialScene
 from .dynamics import accelerations as sweep_accelerations
 from .model import SpatialModel
@@ -75,10 +79,11 @@ class _Sensor:
     component: int = 0   # axis 0, 1, 2
     point: tuple = ()    # body-axes point of kind "point" / "point_v"
     unit: str = ""
+    weights: tuple = ()  # kinds "modal" / "modal_v": y = weights . eta (or eta_dot) of the body's beam
 
     @property
     def is_rate(self) -> bool:
-        return self.kind in ("v", "omega", "omega_body", "point_v")
+        return self.kind in ("v", "omega", "omega_body", "point_v", "modal_v")
 
 
 @dataclass(frozen=True)
@@ -157,6 +162,12 @@ def _build(model: SpatialModel) -> tuple[dict, dict]:
             sensors[f"{joint.name}.{suffix}"] = _Sensor(f"{joint.name}.{suffix}", which, start + offset, unit=unit)
         for name, component, unit in _joint_actuator_names(joint):
             actuators[name] = _Actuator(name, "joint", joint.inputs[0], component, (), unit)
+    for body, layout in zip(model.bodies, model.modal):      # beams' modal coordinates and rates
+        if layout is not None:
+            for k, (suffix, unit) in enumerate(zip(body.coordinate_suffixes, body.coordinate_units)):
+                name = f"{body.name}.{suffix}"
+                sensors[name] = _Sensor(name, "q", layout.position.start + k, unit=unit)
+                sensors[f"{name}_rate"] = _Sensor(f"{name}_rate", "v", layout.velocity.start + k, unit=f"{unit}/s")
     for k, name in enumerate(model.coordinates):
         sensors.setdefault(name, _Sensor(name, "q", k, unit=_state_unit(name, False)))
     for k, name in enumerate(model.velocities):
@@ -166,7 +177,14 @@ def _build(model: SpatialModel) -> tuple[dict, dict]:
             for kind, label, unit in (("omega", "omega", "rad/s"), ("omega_body", "omega_body", "rad/s"),
                                       ("angles", "angle", "rad"), ("rotation", "rotation", "rad")):
                 sensors[f"{body.name}.{label}_{a}"] = _Sensor(f"{body.name}.{label}_{a}", kind, j, c, unit=unit)
-        points = {"com": tuple(body.center_of_mass), **{p: tuple(r) for p, r in body.points.items()}}
+        points = {p: tuple(r) for p, r in body.points.items()}
+        if model.modal[j] is None:
+            points["com"] = tuple(body.center_of_mass)
+        else:                                                # a beam: station sensors, point moments
+            for name, rate, weights, unit in beam_sensor_rows(body):
+                sensors[name] = _Sensor(name, "modal_v" if rate else "modal", j, unit=unit, weights=tuple(weights))
+            for name, component, point, unit in beam_actuator_rows(body):
+                actuators[name] = _Actuator(name, "body", j, component, point, unit)
         for point, r in points.items():
             for c, a in enumerate(_AXES):
                 sensors[f"{body.name}.{point}.{a}"] = _Sensor(f"{body.name}.{point}.{a}", "point", j, c, r, "m")
@@ -300,6 +318,10 @@ class SpatialPorts(NamedPorts):
             if s.kind == "v":
                 out[n] = v[s.index]
                 continue
+            if s.kind in ("modal", "modal_v"):             # beam station sensors: linear in eta or eta_dot
+                layout = self.model.modal[s.index]
+                out[n] = np.dot(s.weights, q[layout.position] if s.kind == "modal" else v[layout.velocity])
+                continue
             if states is None:
                 states = self.scene.terms(NUMPY, np.asarray(q, float)[None], np.asarray(v, float)[None], t)[2]
             state = states[s.index]
@@ -314,11 +336,19 @@ class SpatialPorts(NamedPorts):
             elif s.kind == "rotation":
                 out[n] = rotation_vector(rotation)[s.component]
             else:
-                arm = rotation @ np.asarray(s.point, float)
+                modal = self.model.modal[s.index]
+                if modal is None:
+                    arm = rotation @ np.asarray(s.point, float)
+                    omega_arm = np.cross(omega, arm)
+                else:                                       # a beam point moves with the deformation
+                    body = self.model.bodies[s.index]
+                    arm = rotation @ deformed_point(body, s.point, q[modal.position])
+                    omega_arm = np.cross(omega, arm) + rotation @ deformed_point(body, s.point, v[modal.velocity],
+                                                                                  rate=True)
                 if s.kind == "point":
                     out[n] = np.asarray(state.origin).reshape(-1, 3)[0][s.component] + arm[s.component]
                 else:
-                    velocity = np.asarray(state.velocity).reshape(-1, 3)[0] + np.cross(omega, arm)
+                    velocity = np.asarray(state.velocity).reshape(-1, 3)[0] + omega_arm
                     out[n] = velocity[s.component]
         return out
 

@@ -1,0 +1,248 @@
+"""Independent assumed-modes Lagrange model of a hub + spatial beam (+ tip body) (issue 15, item 5).
+
+No transfer matrices and no code of :mod:`ctmm.spatial` or :mod:`ctmm.flexible`: plain parameters in,
+the equations from the energy by casadi automatic differentiation.  Shapes from
+:func:`ctmm.reference.beams.clamped_free_mode` (bending, both planes) and the rod shapes
+``sqrt(2) sin((2k - 1) pi x / (2 L))`` (twist, axial), written here.
+
+System: a rigid **hub** on a revolute (``axes = (a,)``) or universal (``axes = (a1, a2)``: ``R =
+Rot(a1, q1) Rot(a2, q2)``) joint at the ground origin, with an optional spring / damper per angle; a
+**beam** welded to the hub at ``mount`` (hub axes) with the rotation ``mount_rotation``; an optional
+rigid **tip body** welded at the beam tip, its axes those of the tip section
+``R_tip = R_beam Rz(w_y'(L)) Ry(-w_z'(L)) Rx(gamma(L))``.  Coordinates ``[hub angles ; q_y ; q_z ; r ; p]``.
+
+Energy: the beam lumped into Gauss-Legendre mass points ``dm = rhoA w_k`` at
+``r_k = r_I + R_b [x_k + psi . p, phi . q_y, phi . q_z]`` (Euler-Bernoulli, no bending rotary
+inertia), the twist's section inertia ``1/2 j_p w_k (omega_b1 + chi . r_dot)^2``; hub and tip body
+``1/2 m v_c^2 + 1/2 omega^T I omega`` with ``omega`` from ``[omega]x = R_dot R^T`` (AD of the rotation
+matrices); ``V = 1/2 eta^T K eta - sum m g . r`` plus joint springs.  Lagrange's equations
+
+``d/dt dT/du - dT/dq + dV/dq = -D eta_dot - G(N) eta - c u_hub``
+
+with the geometric stiffness of the axial force of the overall motion (both bending planes)
+
+``G(N) = (g_1 - a_1) rhoA G2 + rhoA (omega_2^2 + omega_3^2) G3 - f_1 G1(L)`` (``int N w' w'^T`` in each bending
+plane: ``int N (w_y' delta w_y' + w_z' delta w_z')``, no coupling of the planes),
+
+``a_1``, ``g_1``, ``f_1`` the beam-axis components of the root acceleration, gravity and the force of
+the beam on the tip body (``m_tip (a_c - g)``), affine in ``u_dot`` -- the consistent first-order
+geometric stiffness (Kane, Ryan, Banerjee 1987 for the spinning beam).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+import casadi as ca
+import numpy as np
+import scipy.linalg
+
+from .beams import beta_roots, clamped_free_mode
+
+__all__ = ["HubBeam", "SpatialBeamLagrange"]
+
+
+@dataclass(frozen=True)
+class HubBeam:
+    """Plain parameters of the hub + beam + tip body (SI units; see the module docstring)."""
+
+    length: float
+    mass_per_length: float
+    bending_stiffness_y: float
+    bending_stiffness_z: float
+    n_modes_y: int
+    n_modes_z: int
+    hub_mass: float = 1.0
+    hub_inertia: Sequence = ((0.1, 0, 0), (0, 0.1, 0), (0, 0, 0.1))
+    hub_center: Sequence[float] = (0.0, 0.0, 0.0)
+    axes: Sequence[Sequence[float]] = ((0.0, 0.0, 1.0),)
+    joint_stiffness: Sequence[float] = ()
+    joint_damping: Sequence[float] = ()
+    mount: Sequence[float] = (0.0, 0.0, 0.0)
+    mount_rotation: Sequence = ((1, 0, 0), (0, 1, 0), (0, 0, 1))
+    n_torsion_modes: int = 0
+    torsional_stiffness: float = 0.0
+    polar_inertia_per_length: float = 0.0
+    n_axial_modes: int = 0
+    axial_stiffness: float = 0.0
+    geometric_stiffening: bool = True
+    damping_ratio: float = 0.0
+    stiffness_damping: float = 0.0
+    tip_mass: float = 0.0
+    tip_inertia: Sequence = ((0, 0, 0), (0, 0, 0), (0, 0, 0))
+    tip_center: Sequence[float] = (0.0, 0.0, 0.0)
+    gravity: Sequence[float] = (0.0, 0.0, -9.81)
+    points: int = 64
+
+
+def _rot(axis: np.ndarray, angle) -> ca.SX:
+    a = np.asarray(axis, float) / np.linalg.norm(axis)
+    K = ca.DM([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    return ca.DM.eye(3) + K * ca.sin(angle) + ca.mtimes(K, K) * (1 - ca.cos(angle))
+
+
+def _vee_rate(R: ca.SX, q: ca.SX, u: ca.SX) -> ca.SX:
+    """World angular velocity of ``R(q)``: ``[omega]x = R_dot R^T``."""
+    Rdot = ca.reshape(ca.mtimes(ca.jacobian(ca.reshape(R, 9, 1), q), u), 3, 3)
+    W = ca.mtimes(Rdot, R.T)
+    return ca.vertcat(W[2, 1], W[0, 2], W[1, 0])
+
+
+def _rod(x: np.ndarray, length: float, count: int, derivative: int = 0) -> np.ndarray:
+    k = np.arange(1, count + 1)[:, None]
+    a = (2 * k - 1) * math.pi / (2 * length)
+    return math.sqrt(2) * (np.sin(a * x[None]) if derivative == 0 else a * np.cos(a * x[None]))
+
+
+class SpatialBeamLagrange:
+    """Forward dynamics ``u_dot = f(q, u)`` of a :class:`HubBeam` (casadi function, numeric calls).
+
+    Parameters
+    ----------
+    p : HubBeam
+    """
+
+    def __init__(self, p: HubBeam) -> None:
+        self.p = p
+        L, rhoA = float(p.length), float(p.mass_per_length)
+        ny, nz, nt, na = p.n_modes_y, p.n_modes_z, p.n_torsion_modes, p.n_axial_modes
+        nh = len(p.axes)
+        ne = ny + nz + nt + na
+        self.n_hub, self.n_eta = nh, ne
+        n = nh + ne
+        q, u, ud = ca.SX.sym("q", n), ca.SX.sym("u", n), ca.SX.sym("ud", n)
+        qy, qz = q[nh:nh + ny], q[nh + ny:nh + ny + nz]
+        tw, ax = q[nh + ny + nz:nh + ny + nz + nt], q[nh + ny + nz + nt:]
+        eta_dot = u[nh:]
+        betas_y = beta_roots("clamped-free", ny) if ny else np.zeros(0)
+        betas_z = beta_roots("clamped-free", nz) if nz else np.zeros(0)
+
+        def bend(betas, x, d):
+            return (np.array([clamped_free_mode(b, np.asarray(x) / L, d) for b in betas]).reshape(len(betas), -1)
+                    / L ** d)
+
+        xg, wg = np.polynomial.legendre.leggauss(p.points)
+        x, w = (xg + 1) / 2 * L, wg / 2 * L
+        # hub rotation and beam frame
+        R_h = ca.DM.eye(3)
+        for i, axis in enumerate(p.axes):
+            R_h = ca.mtimes(R_h, _rot(axis, q[i]))
+        R_b = ca.mtimes(R_h, ca.DM(np.asarray(p.mount_rotation, float)))
+        r_I = ca.mtimes(R_h, ca.DM(np.asarray(p.mount, float)))
+        g = ca.DM(np.asarray(p.gravity, float))
+        T, V = 0, 0
+        # hub
+        c_h = ca.mtimes(R_h, ca.DM(np.asarray(p.hub_center, float)))
+        v_h = ca.mtimes(ca.jacobian(c_h, q), u)
+        w_h = _vee_rate(R_h, q, u)
+        I_h = ca.mtimes(ca.mtimes(R_h, ca.DM(np.asarray(p.hub_inertia, float))), R_h.T)
+        T += 0.5 * p.hub_mass * ca.dot(v_h, v_h) + 0.5 * ca.mtimes(ca.mtimes(w_h.T, I_h), w_h)
+        V -= p.hub_mass * ca.dot(g, c_h)
+        # beam mass points
+        phi_y, phi_z = bend(betas_y, x, 0), bend(betas_z, x, 0)
+        psi, chi = _rod(x, L, na), _rod(x, L, nt)
+        w_b = ca.mtimes(R_b.T, _vee_rate(R_b, q, u))              # frame angular velocity, frame axes
+        for k in range(p.points):
+            rho = ca.vertcat(x[k] + (ca.dot(ca.DM(psi[:, k]), ax) if na else 0),
+                             ca.dot(ca.DM(phi_y[:, k]), qy) if ny else 0,
+                             ca.dot(ca.DM(phi_z[:, k]), qz) if nz else 0)
+            r = r_I + ca.mtimes(R_b, rho)
+            v = ca.mtimes(ca.jacobian(r, q), u)
+            T += 0.5 * rhoA * w[k] * ca.dot(v, v)
+            V -= rhoA * w[k] * ca.dot(g, r)
+            if nt:
+                spin = w_b[0] + ca.dot(ca.DM(chi[:, k]), u[nh + ny + nz:nh + ny + nz + nt])
+                T += 0.5 * p.polar_inertia_per_length * w[k] * spin * spin
+        # stiffness and damping
+        K = np.zeros((ne, ne))
+        K[:ny, :ny] = np.diag(p.bending_stiffness_y * betas_y ** 4 / L ** 3)
+        K[ny:ny + nz, ny:ny + nz] = np.diag(p.bending_stiffness_z * betas_z ** 4 / L ** 3)
+        dchi, dpsi = _rod(x, L, nt, 1), _rod(x, L, na, 1)
+        K[ny + nz:ny + nz + nt, ny + nz:ny + nz + nt] = p.torsional_stiffness * (dchi * w) @ dchi.T
+        K[ny + nz + nt:, ny + nz + nt:] = p.axial_stiffness * (dpsi * w) @ dpsi.T
+        Mm = np.concatenate([np.full(ny + nz, rhoA * L), np.full(nt, p.polar_inertia_per_length * L),
+                             np.full(na, rhoA * L)])
+        D = p.stiffness_damping * K + 2 * p.damping_ratio * np.diag(np.sqrt(np.diag(K) * Mm))
+        self.K = K
+        eta = q[nh:]
+        V += 0.5 * ca.mtimes(ca.mtimes(eta.T, ca.DM(K)), eta)
+        for i, k_joint in enumerate(p.joint_stiffness):
+            V += 0.5 * k_joint * q[i] ** 2
+        # tip body
+        tip = {}
+        if p.tip_mass > 0:
+            x_tip = np.array([L])
+            rho_L = ca.vertcat(L + (ca.dot(ca.DM(_rod(x_tip, L, na)[:, 0]), ax) if na else 0),
+                               ca.dot(ca.DM(bend(betas_y, x_tip, 0)[:, 0]), qy) if ny else 0,
+                               ca.dot(ca.DM(bend(betas_z, x_tip, 0)[:, 0]), qz) if nz else 0)
+            twist = ca.dot(ca.DM(_rod(x_tip, L, nt)[:, 0]), tw) if nt else 0
+            slope_y = ca.dot(ca.DM(bend(betas_y, x_tip, 1)[:, 0]), qy) if ny else 0
+            slope_z = ca.dot(ca.DM(bend(betas_z, x_tip, 1)[:, 0]), qz) if nz else 0
+            R_t = ca.mtimes(R_b, ca.mtimes(_rot([0, 0, 1], slope_y), ca.mtimes(_rot([0, 1, 0], -slope_z),
+                                                                               _rot([1, 0, 0], twist))))
+            c_t = r_I + ca.mtimes(R_b, rho_L) + ca.mtimes(R_t, ca.DM(np.asarray(p.tip_center, float)))
+            v_t = ca.mtimes(ca.jacobian(c_t, q), u)
+            w_t = _vee_rate(R_t, q, u)
+            I_t = ca.mtimes(ca.mtimes(R_t, ca.DM(np.asarray(p.tip_inertia, float))), R_t.T)
+            T += 0.5 * p.tip_mass * ca.dot(v_t, v_t) + 0.5 * ca.mtimes(ca.mtimes(w_t.T, I_t), w_t)
+            V -= p.tip_mass * ca.dot(g, c_t)
+            tip = {"center": c_t, "velocity": v_t}
+        # Lagrange residual
+        dT_du = ca.gradient(T, u)
+        residual = (ca.mtimes(ca.jacobian(dT_du, q), u) + ca.mtimes(ca.jacobian(dT_du, u), ud)
+                    - ca.gradient(T, q) + ca.gradient(V, q))
+        generalized = ca.SX.zeros(n)
+        for i, c_joint in enumerate(p.joint_damping):
+            generalized[i] -= c_joint * u[i]
+        generalized[nh:] -= ca.mtimes(ca.DM(D), eta_dot)
+        if p.geometric_stiffening and (ny or nz):
+            a_I = ca.mtimes(ca.jacobian(ca.mtimes(ca.jacobian(r_I, q), u), q), u) + ca.mtimes(ca.jacobian(r_I, q), ud)
+            frame_a = ca.mtimes(R_b.T, a_I)
+            frame_g = ca.mtimes(R_b.T, g)
+            f_tip = ca.SX.zeros(3)
+            if tip:
+                a_c = ca.mtimes(ca.jacobian(tip["velocity"], q), u) + ca.mtimes(ca.jacobian(tip["velocity"], u), ud)
+                f_tip = p.tip_mass * (a_c - g)
+            frame_f = ca.mtimes(R_b.T, f_tip)
+            blocks = [bend(betas_y, x, 1), bend(betas_z, x, 1)]     # int N (w_y' dw_y' + w_z' dw_z'): per plane
+
+            def gram(weights):
+                return scipy.linalg.block_diag(*[(s * weights) @ s.T for s in blocks])
+
+            G1, G2, G3 = gram(w), gram(w * (L - x)), gram(w * (L * L - x * x) / 2)
+            G = (ca.DM(G2) * (rhoA * (frame_g[0] - frame_a[0])) + ca.DM(G3) * (rhoA * (w_b[1] ** 2 + w_b[2] ** 2))
+                 - ca.DM(G1) * frame_f[0])
+            generalized[nh:nh + ny + nz] -= ca.mtimes(G, q[nh:nh + ny + nz])
+        residual = residual - generalized
+        M = ca.jacobian(residual, ud)
+        rhs = -ca.substitute(residual, ud, ca.SX.zeros(n))
+        self._rates = ca.Function("rates", [q, u], [ca.solve(M, rhs)])
+        self._energy = ca.Function("energy", [q, u], [T + V])
+        self.n = n
+
+    def accelerations(self, q: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """``u_dot`` at ``(q, u)``."""
+        return np.asarray(self._rates(q, u)).ravel()
+
+    def energy(self, q: np.ndarray, u: np.ndarray) -> float:
+        """``T + V`` [J] (joint springs and the elastic energy included; no geometric stiffness)."""
+        return float(self._energy(q, u))
+
+    def rk4(self, q0: np.ndarray, u0: np.ndarray, dt: float, steps: int) -> np.ndarray:
+        """Classical RK4 on ``[q ; u]``: states ``(steps + 1, 2 n)``."""
+        n = self.n
+
+        def f(state):
+            return np.concatenate([state[n:], self.accelerations(state[:n], state[n:])])
+
+        state = np.concatenate([q0, u0]).astype(float)
+        out = [state.copy()]
+        for _ in range(steps):
+            k1 = f(state)
+            k2 = f(state + dt / 2 * k1)
+            k3 = f(state + dt / 2 * k2)
+            k4 = f(state + dt * k3)
+            state = state + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+            out.append(state.copy())
+        return np.array(out)

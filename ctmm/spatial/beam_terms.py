@@ -1,0 +1,291 @@
+"""Protocol terms (``d = 6``, ``n`` modal coordinates) of the modal spatial beam, in :mod:`ctmm.ops`.
+
+Notation of :mod:`ctmm.spatial.beam_modes`.  Frame axes (subscript-free below): ``a``, ``alpha`` the
+acceleration of the root ``I`` and the frame's angular acceleration, ``omega`` its angular velocity,
+``g`` gravity, ``q`` the distributed follower load [N/m].  A mass point of the axis has
+``rho = rho0 + Phi eta`` (``rho0 = [x, 0, 0]``) and the acceleration
+
+``a_P = a + alpha x rho + omega x (omega x rho) + 2 omega x Phi eta_dot + Phi eta''``.
+
+**Newton-Euler about I** (integrals of ``rhoA dx``; derivation in ``docs/spatial_modal_beam.md``)::
+
+    F_I = m a - [s]x alpha + B eta'' + omega x (omega x s) + 2 omega x B eta_dot - m g - L q + sum_e f_e
+    M_I = [s]x a + J alpha + (Gamma + e1 b_t^T) eta'' + omega x (J omega) + omega x e1 (b_t . eta_dot)
+          + 2 (omega tr P - P^T omega) - s x g - s/rhoA x q + sum_e (rho_e x f_e + m_e)
+
+with ``s = int rho`` (``= s0 + B eta``), ``J = tr(S) I - S + j_p L e1 e1^T`` (``S = int rho rho^T``),
+``Gamma = int [rho]x Phi``, ``P = int rho (Phi eta_dot)^T``, and the twist's section inertia
+``j_p (omega_1 + chi . eta_dot)`` about the axis.  **Modal equations** (virtual work, ``delta rho =
+Phi delta eta``, ``delta theta = Theta Lambda delta eta`` at the points)::
+
+    0 = B^T a + (Gamma^T + b_t e1^T) alpha + M_mod eta'' + int Phi^T (omega x (omega x rho) + 2 omega x Phi eta_dot)
+        - B^T g - B^T q / rhoA + K eta + D eta_dot - Q_hooks(t)
+        + sum_e ((Phi_e)^T f_e + (Theta Lambda_e)^T m_e) + G(N) eta
+
+with the geometric stiffness ``G(N) = int N w' w'^T`` of the axial force of the overall motion,
+``N(x) = rhoA (L - x)(g_1 - a_1) + rhoA (omega_2^2 + omega_3^2)(L^2 - x^2)/2 + q_1 (L - x)
++ sum_(x_l > x) f_l1 - sum_(x_e > x) f_e1`` (``- rhoA G2 eta`` in the ``a_1`` column of the mass
+matrix; ``-G1(x_e) eta`` in the axial column of the point's force map).  The rotation of the frame of
+a point is ``E(theta) = Rz(theta_z) Ry(theta_y) Rx(theta_x)`` with ``theta = Lambda eta``; its relative
+angular velocity ``Theta(theta) theta_dot``, ``Theta = [Rz Ry e1, Rz e2, e3]``.  Points::
+
+    A_e = [[I, -[rho_e]x, Phi_e], [0, I, Theta Lambda_e]] x + c_e,    RF_e = Kin_e^T (+ stiffening)
+    c_e = [omega x (omega x rho_e) + 2 omega x Phi_e eta_dot ;
+           omega x Theta Lambda_e eta_dot + Theta_dot theta_dot]
+
+All in frame axes, then turned to world axes with ``T = diag(R, R, I_n)``.  Restricted to the ``x-y``
+plane (``omega = omega_3 e3``, no ``z`` or twist modes) every term is the planar
+:class:`~ctmm.flexible.beam.ModalBeam`'s.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from ..ops import Ops
+from ..protocol import BodyTerms
+from .frames import axis_rotation, block_diagonal, column, constant, cross, entry, skew
+
+__all__ = ["PointFrame", "spatial_beam_terms", "beam_energy"]
+
+_E = np.eye(3)
+
+
+@dataclass(frozen=True)
+class PointFrame:
+    """Frame of a beam point (ops values, world axes): ``arm`` (point minus body origin [m]),
+    ``velocity`` (point velocity minus the origin's [m/s]), ``rotation`` (point frame to world) and
+    ``omega`` (its angular velocity [rad/s])."""
+
+    arm: Any
+    velocity: Any
+    rotation: Any
+    omega: Any
+
+
+def _scalar_sum(ops: Ops, items: Sequence[Any]) -> Any:
+    total = items[0]
+    for item in items[1:]:
+        total = total + item
+    return total
+
+
+def _rotation_jacobian(ops: Ops, theta: Any) -> tuple[Any, Any, Any]:
+    """``(Theta, Rz e2, Rz Ry e1)`` of the point rotation ``Rz Ry Rx`` at ``theta`` (3 x 1)."""
+    ty, tz = entry(ops, theta, 1), entry(ops, theta, 2)
+    cy, sy, cz, sz = ops.cos(ty), ops.sin(ty), ops.cos(tz), ops.sin(tz)
+    second = ops.block([[sz * -1.0], [cz], [0.0 * cz]])
+    first = ops.block([[cz * cy], [sz * cy], [sy * -1.0]])
+    return ops.block([[first, second, constant(ops, _E[:, 2])]]), second, first
+
+
+def spatial_beam_terms(ops: Ops, beam: Any, *, rotation: Any, offset: Any, omega: Any, eta: Any, eta_dot: Any,
+                       t: float, gravity: np.ndarray, loads: Sequence[tuple[np.ndarray, Any]] = (),
+                       points: Mapping[str, np.ndarray] | None = None,
+                       frames: Sequence[str] = ()) -> tuple[BodyTerms, dict[str, PointFrame]]:
+    """Body terms of a :class:`~ctmm.spatial.beam.SpatialBeam` about its inboard point (world axes).
+
+    Parameters
+    ----------
+    ops : Ops
+    beam : SpatialBeam
+    rotation : ops (3, 3)
+        Floating frame to world.
+    offset : ops (3, 1) or None
+        Beam root minus the inboard point ``P`` [m] (``None``: the root is ``P``).
+    omega : ops (3, 1) or None
+        Frame angular velocity, world axes [rad/s].
+    eta, eta_dot : ops (n, 1)
+        Modal coordinates and rates.
+    t : float
+        Time [s] (distributed load and hook forces).
+    gravity : (3,) array
+        [m/s^2].
+    loads : sequence of (point (3,) body axes, wrench ops (6, 1) world axes)
+        Applied force [N] and moment [N m] at beam points (``point[0]`` is the station).
+    points : mapping of str to (3,) array
+        Outboard points carrying children (``point[0]`` the station).
+    frames : sequence of str
+        Points whose :class:`PointFrame` is wanted.
+
+    Returns
+    -------
+    (BodyTerms, dict of PointFrame)
+    """
+    data = beam.data
+    n, rhoA = data.n, data.rhoA
+    R = rotation
+    Rt = ops.transpose(R)
+    w = ops.zeros(3, 1) if omega is None else ops.matmul(Rt, omega)
+    g = ops.matmul(Rt, constant(ops, gravity))
+    qv = constant(ops, [float(f(t)) for f in beam.distributed_load])
+    eye3 = ops.eye(3)
+    Bmat, Cmat = constant(ops, data.b), constant(ops, data.c)
+    Ee = [[constant(ops, data.E[i][k]) for k in range(3)] for i in range(3)]
+    E_eta = [[ops.matmul(Ee[i][k], eta) for k in range(3)] for i in range(3)]
+    E_rate = [[ops.matmul(Ee[i][k], eta_dot) for k in range(3)] for i in range(3)]
+    # Q_k = int rho_k Phi (3 x n): row i = delta_k0 c_i + (E[i][k] eta)^T
+    Q = []
+    for k in range(3):
+        rows = ops.block([[ops.transpose(E_eta[i][k])] for i in range(3)])
+        Q.append(rows + Cmat if k == 0 else rows)
+    s = constant(ops, [data.first_moment, 0.0, 0.0]) + ops.matmul(Bmat, eta)
+    C_eta = ops.matmul(Cmat, eta)
+    top = ops.block([[data.second_moment + entry(ops, C_eta, 0), entry(ops, C_eta, 1), entry(ops, C_eta, 2)]])
+    S = ops.block([[ops.matmul(Q[0], eta), ops.matmul(Q[1], eta), ops.matmul(Q[2], eta)]]) + \
+        ops.matmul(constant(ops, _E[:, :1]), top)
+    trace = _scalar_sum(ops, [entry(ops, S, i, i) for i in range(3)])
+    e1e1 = constant(ops, np.diag([1.0, 0.0, 0.0]))
+    J = eye3 * trace - S + e1e1 * (data.jp * data.L)
+    Gamma = _scalar_sum(ops, [ops.matmul(constant(ops, skew_constant(k)), Q[k]) for k in range(3)])
+    P = ops.block([[ops.transpose(ops.matmul(Q[k], eta_dot))] for k in range(3)])
+    trace_P = _scalar_sum(ops, [entry(ops, P, i, i) for i in range(3)])
+    bt = constant(ops, data.b_t)                                      # (n, 1)
+    e1 = constant(ops, _E[:, 0])
+    e1_bt = ops.matmul(e1, ops.transpose(bt))                          # (3, n)
+    s_x = skew(ops, s)
+    lower_left = ops.transpose(Bmat)
+    w_parts = [entry(ops, w, i) for i in range(3)]
+    twist_rate = ops.matmul(ops.transpose(bt), eta_dot)
+    Jw = ops.matmul(J, w)
+    h_lin = cross(ops, w, cross(ops, w, s)) + cross(ops, w, ops.matmul(Bmat, eta_dot)) * 2.0 - g * data.m - qv * data.L
+    h_ang = (cross(ops, w, Jw) + cross(ops, w, e1) * twist_rate
+             + (w * trace_P - ops.matmul(ops.transpose(P), w)) * 2.0 - cross(ops, s, g) - cross(ops, s, qv) * (1 / rhoA))
+    # modal rows: int Phi^T (Omega2 rho + 2 [omega]x Phi eta_dot), Omega2 = omega omega^T - |omega|^2 I
+    w2 = _scalar_sum(ops, [w_parts[i] * w_parts[i] for i in range(3)])
+    h_mod = ops.zeros(n, 1)
+    for i in range(3):
+        for k in range(3):
+            coefficient = w_parts[i] * w_parts[k] - w2 if i == k else w_parts[i] * w_parts[k]
+            h_mod = h_mod + E_eta[i][k] * coefficient
+        coefficient = w_parts[i] * w_parts[0] - w2 if i == 0 else w_parts[i] * w_parts[0]
+        h_mod = h_mod + ops.transpose(ops.sub(Cmat, slice(i, i + 1), slice(0, n))) * coefficient
+    cross_w = [[None, w_parts[2] * -1.0, w_parts[1]], [w_parts[2], None, w_parts[0] * -1.0],
+               [w_parts[1] * -1.0, w_parts[0], None]]
+    for i in range(3):
+        for k in range(3):
+            if i != k:
+                h_mod = h_mod + E_rate[i][k] * (cross_w[i][k] * 2.0)
+    h_mod = h_mod - ops.matmul(ops.transpose(Bmat), g + qv * (1 / rhoA))
+    h_mod = h_mod + ops.matmul(constant(ops, data.K_total), eta) + ops.matmul(constant(ops, data.D_total), eta_dot)
+    for _, force in data.forces:
+        h_mod = h_mod - constant(ops, np.asarray(force(t), dtype=float).reshape(n))
+    modal_left = lower_left
+    if data.stiffening:
+        stiff = constant(ops, data.G2) * rhoA
+        G2_eta = ops.matmul(constant(ops, data.G2), eta)
+        axial = entry(ops, g, 0) * rhoA + entry(ops, qv, 0)
+        h_mod = h_mod + G2_eta * axial + ops.matmul(constant(ops, data.G3), eta) * (
+            (w_parts[1] * w_parts[1] + w_parts[2] * w_parts[2]) * rhoA)
+        modal_left = lower_left - ops.matmul(ops.matmul(stiff, eta), ops.transpose(e1))
+    for point, wrench in loads:
+        Phi_l, Lam_l, G1_l = data.station(float(point[0]))
+        f = ops.matmul(Rt, ops.sub(wrench, slice(0, 3), slice(0, 1)))
+        m = ops.matmul(Rt, ops.sub(wrench, slice(3, 6), slice(0, 1)))
+        rho_l = constant(ops, [float(point[0]), 0.0, 0.0]) + ops.matmul(constant(ops, Phi_l), eta)
+        Theta, _, _ = _rotation_jacobian(ops, ops.matmul(constant(ops, Lam_l), eta))
+        h_lin = h_lin - f
+        h_ang = h_ang - cross(ops, rho_l, f) - m
+        h_mod = h_mod - ops.matmul(constant(ops, Phi_l.T), f) - ops.matmul(
+            ops.transpose(ops.matmul(Theta, constant(ops, Lam_l))), m)
+        if data.stiffening:
+            h_mod = h_mod + ops.matmul(constant(ops, G1_l), eta) * entry(ops, f, 0)
+    M_b = ops.block([[eye3 * data.m, s_x * -1.0, Bmat],
+                     [s_x, J, Gamma + e1_bt],
+                     [modal_left, ops.transpose(Gamma) + ops.matmul(bt, ops.transpose(e1)),
+                      constant(ops, data.modal_mass)]])
+    h_b = ops.block([[h_lin], [h_ang], [h_mod]])
+    T6 = block_diagonal(ops, R, R, 3, 3)
+    T = ops.block([[T6, ops.zeros(6, n)], [ops.zeros(n, 6), ops.eye(n)]])
+    Tt = ops.transpose(T)
+    M = ops.matmul(ops.matmul(T, M_b), Tt)
+    h = ops.matmul(T, h_b)
+    Kin, c, RF, out = {}, {}, {}, {}
+    for name in set(points or {}) | set(frames):
+        x_e = float(beam.points[name][0])
+        Phi_e, Lam_e, G1_e = data.station(x_e)
+        rho = constant(ops, [x_e, 0.0, 0.0]) + ops.matmul(constant(ops, Phi_e), eta)
+        theta = ops.matmul(constant(ops, Lam_e), eta)
+        theta_dot = ops.matmul(constant(ops, Lam_e), eta_dot)
+        Theta, second, first = _rotation_jacobian(ops, theta)
+        ThetaLam = ops.matmul(Theta, constant(ops, Lam_e))
+        rho_dot = ops.matmul(constant(ops, Phi_e), eta_dot)
+        relative = ops.matmul(Theta, theta_dot)
+        if name in (points or {}):
+            K_b = ops.block([[eye3, skew(ops, rho) * -1.0, constant(ops, Phi_e)],
+                             [ops.zeros(3, 3), eye3, ThetaLam]])
+            tx, ty, tz = (entry(ops, theta_dot, i) for i in range(3))
+            spin = cross(ops, constant(ops, _E[:, 2]) * tz, second) * ty + cross(
+                ops, constant(ops, _E[:, 2]) * tz + second * ty, first) * tx
+            c_b = ops.block([[cross(ops, w, cross(ops, w, rho)) + cross(ops, w, rho_dot) * 2.0],
+                             [cross(ops, w, relative) + spin]])
+            RF_b = ops.transpose(K_b)
+            if data.stiffening:
+                RF_b = RF_b - ops.block([[ops.zeros(6, 6)],
+                                         [ops.block([[ops.matmul(constant(ops, G1_e), eta), ops.zeros(n, 5)]])]])
+            Kin[name] = ops.matmul(ops.matmul(T6, K_b), Tt)
+            c[name] = ops.matmul(T6, c_b)
+            RF[name] = ops.matmul(ops.matmul(T, RF_b), ops.transpose(T6))
+        if name in frames:
+            arm = ops.matmul(R, rho)
+            world_omega = ops.zeros(3, 1) if omega is None else omega
+            point_rotation = ops.matmul(R, ops.matmul(axis_rotation(ops, _E[:, 2], entry(ops, theta, 2)), ops.matmul(
+                axis_rotation(ops, _E[:, 1], entry(ops, theta, 1)), axis_rotation(ops, _E[:, 0], entry(ops, theta, 0)))))
+            out[name] = PointFrame(arm, cross(ops, world_omega, arm) + ops.matmul(R, rho_dot), point_rotation,
+                                   world_omega + ops.matmul(R, relative))
+    terms = BodyTerms(M=M, h=h, Kin=Kin, c=c, RF=RF)
+    if offset is not None:
+        terms = _about_inboard(ops, terms, offset, omega, n)
+    return terms, out
+
+
+def skew_constant(k: int) -> np.ndarray:
+    """``[e_k]x`` (3 x 3)."""
+    e = _E[:, k]
+    return np.array([[0.0, -e[2], e[1]], [e[2], 0.0, -e[0]], [-e[1], e[0], 0.0]])
+
+
+def _about_inboard(ops: Ops, terms: BodyTerms, offset: Any, omega: Any, n: int) -> BodyTerms:
+    """Terms about the origin ``O = P + offset`` moved to the inboard point ``P``: ``x_O = Tx x_P + c``,
+    ``Tx = diag(X(offset), I_n)``, ``c = [omega x (omega x offset) ; 0 ; 0]``."""
+    eye3 = ops.eye(3)
+    X = ops.block([[eye3, skew(ops, offset) * -1.0], [ops.zeros(3, 3), eye3]])
+    Tx = ops.block([[X, ops.zeros(6, n)], [ops.zeros(n, 6), ops.eye(n)]])
+    Txt = ops.transpose(Tx)
+    if omega is None:
+        shift = None
+    else:
+        shift = ops.block([[cross(ops, omega, cross(ops, omega, offset))], [ops.zeros(3 + n, 1)]])
+    h = terms.h if shift is None else terms.h + ops.matmul(terms.M, shift)
+    return BodyTerms(M=ops.matmul(ops.matmul(Txt, terms.M), Tx), h=ops.matmul(Txt, h),
+                     Kin={e: ops.matmul(K, Tx) for e, K in terms.Kin.items()},
+                     c={e: (terms.c[e] if shift is None else terms.c[e] + ops.matmul(terms.Kin[e], shift))
+                        for e in terms.Kin},
+                     RF={e: ops.matmul(Txt, F) for e, F in terms.RF.items()})
+
+
+def beam_energy(beam: Any, rotation: np.ndarray, origin: np.ndarray, velocity: np.ndarray, omega: np.ndarray,
+                eta: np.ndarray, eta_dot: np.ndarray, gravity: np.ndarray) -> np.ndarray:
+    """Kinetic, elastic and gravitational energy [J] of a beam (numpy, batch ``B``): ``rotation (B, 3, 3)``,
+    ``origin, velocity, omega (B, 3, 1)`` (root position and velocity, frame angular velocity, world axes),
+    ``eta, eta_dot (B, n)``.  Kinetic: ``1/2 V^T M_b V`` with ``V = [R^T v ; R^T omega ; eta_dot]`` and the
+    mass matrix without geometric stiffening (the exact kinetic energy of the modal kinematics)."""
+    from ..ops import NUMPY
+
+    data = beam.data
+    B = eta.shape[0]
+    eye = np.broadcast_to(np.eye(3), (B, 3, 3))
+    terms, _ = spatial_beam_terms(NUMPY, beam, rotation=eye, offset=None, omega=None, eta=eta[:, :, None],
+                                  eta_dot=np.zeros_like(eta)[:, :, None], t=0.0, gravity=np.zeros(3))
+    M_b = np.broadcast_to(terms.M, (B,) + terms.M.shape[-2:]).copy()
+    M_b[:, 6:, :3] = np.swapaxes(M_b[:, :3, 6:], 1, 2)      # the mass matrix proper (without stiffening)
+    Rt = np.swapaxes(rotation, 1, 2)
+    V = np.concatenate([Rt @ velocity, Rt @ omega, eta_dot[:, :, None]], axis=1)
+    kinetic = 0.5 * (np.swapaxes(V, 1, 2) @ M_b @ V)[:, 0, 0]
+    elastic = 0.5 * np.einsum("bi,ij,bj->b", eta, data.K, eta)
+    s = data.b @ eta.T                                                  # (3, B)
+    s = s.T[:, :, None] + np.array([data.first_moment, 0.0, 0.0])[None, :, None]
+    height = (data.m * origin + rotation @ s)[:, :, 0] @ gravity
+    return kinetic + elastic - height
