@@ -90,21 +90,20 @@ def _simulate_spatial(parts: tuple[SpatialModel, tuple], t_final: float, dt: flo
         from .compiled_spatial import simulate_spatial_generated
         return simulate_spatial_generated(model, t_final, dt, x0=x0, v0=v0, inputs=inputs, store_every=store_every,
                                           divergence_bound=divergence_bound)
-    if isinstance(method, Scheme) or method in SCHEMES:          # the implicit DT-TMM (docs/spatial.md §6a)
-        if controlled:
-            raise ModelError(f"the DT-TMM scheme {method!r} does not take {closed} of spatial models yet; use "
-                             "method='rk4' or a solve_ivp method")
+    scheme = isinstance(method, Scheme) or method in SCHEMES     # the implicit DT-TMM (docs/spatial.md §6a)
+    if scheme:
         solve_ivp_options = {"rtol": (rtol, 1e-8), "atol": (atol, 1e-10), "max_step": (max_step, None)}
         for name, (value, default) in solve_ivp_options.items():
             if value != default:
                 raise ModelError(f"{name}={value!r} applies to solve_ivp methods, not to the DT-TMM scheme {method!r}")
+    if scheme and not controlled:
         for name, (value, default) in {"progress": (progress, None), "stability_check": (stability_check, None)}.items():
             if value is not default and value != default:
                 raise ModelError(f"{name}={value!r} is not available for DT-TMM runs of spatial models yet; leave "
                                  f"{name} at {default!r}")
         return simulate_spatial_implicit(model, t_final, dt, scheme=method, x0=x0, v0=v0, inputs=inputs,
                                          store_every=store_every, divergence_bound=divergence_bound)
-    if not isinstance(method, str):
+    if not isinstance(method, (str, Scheme)):
         raise ModelError(f"method for a spatial model must be 'rk4', a solve_ivp method or a DT-TMM scheme "
                          f"{tuple(SCHEMES)}, got {method!r}")
     if controlled:

@@ -336,8 +336,6 @@ def test_refusals():
     model = arm()
     with pytest.raises(ModelError, match="accelerations are not sensors"):
         with_feedback(model, [Feedback("a", "hand.alpha_x", "yaw.torque", gain=1.0)])
-    with pytest.raises(ModelError, match="does not take loops.*of spatial models yet"):
-        ctmm.simulate(with_feedback(model, LOOPS[:1]), 0.1, 1e-3, method="newmark")
     with pytest.raises(ModelError, match="also an element"):
         with_feedback(model, [Feedback("yaw", "yaw.angle", "yaw.torque", gain=1.0)])
     with pytest.raises(ModelError, match="already has loops"):
