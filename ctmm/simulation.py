@@ -82,11 +82,24 @@ def _simulate_spatial(parts: tuple[SpatialModel, tuple], t_final: float, dt: flo
             for name in inputs:
                 if name not in model.inputs and name not in known:
                     raise unknown_name("spatial input", name, list(model.inputs) + list(known))
-        if controlled:
-            raise ModelError(f"compiled=True does not take {closed} of spatial models yet; run without "
-                             "compiled=True (the Python RK4 or solve_ivp closes them)")
+        if controllers:
+            raise ModelError("compiled=True does not take co-simulated controllers (Python objects, FMUs) of spatial "
+                             "models: they are sampled in Python between steps; run without compiled=True, or state "
+                             "the controller as Feedback loops")
         if not isinstance(method, str) or method != "rk4":
             raise ModelError(f"compiled=True runs the generated RK4 of a spatial model; got method={method!r}")
+        if controlled:                  # loops closed in the generated step (ctmm.compiled_spatial_loops)
+            from .compiled_control import simulate_spatial_controlled_generated
+            from .control.controlled_model import ControlledModel
+
+            for name in outputs:
+                SpatialPorts(model).check_sensor(name, "output (sensor)")
+            inputs, references = _loop_references(loops, inputs, references)
+            state = initial_state(model, x0, v0)
+            return simulate_spatial_controlled_generated(
+                ControlledModel(model, loops), state[:model.n_positions], state[model.n_positions:], t_final=t_final,
+                dt=dt, inputs=inputs, references=references, outputs=tuple(outputs), store_every=store_every,
+                divergence_bound=divergence_bound)
         from .compiled_spatial import simulate_spatial_generated
         return simulate_spatial_generated(model, t_final, dt, x0=x0, v0=v0, inputs=inputs, store_every=store_every,
                                           divergence_bound=divergence_bound)

@@ -343,8 +343,6 @@ def test_refusals():
     with pytest.raises(ModelError, match="shorter than the step"):
         ctmm.simulate(with_feedback(model, [Feedback("d", "yaw.angle", "yaw.torque", gain=1.0, delay=1e-4)]),
                       0.1, 1e-3)
-    with pytest.raises(ModelError, match="compiled"):
-        ctmm.simulate(with_feedback(model, LOOPS[:1]), 0.1, 1e-3, compiled=True)
     unactuated = sp.SpatialModel("u", [sp.SpatialBody("b", 1.0, (1, 1, 1)),
                                        sp.Revolute(name="r", parent=None, child="b")])
     with pytest.raises(ModelError, match="actuated=True"):
