@@ -1,6 +1,7 @@
 """Feedback loops closed inside generated kernels (issue 13: real-time and delayed loops, LTI controllers).
 
-A :class:`~ctmm.control.controlled_model.ControlledModel` is a planar plant with
+A :class:`~ctmm.control.controlled_model.ControlledModel` is a planar (or spatial:
+:mod:`ctmm.compiled_spatial_loops` gives its symbols) plant with
 :class:`~ctmm.control.loops.Feedback` loops ``u = -C [ y(t - tau) - r(t - tau) ]``,
 ``y = sum_i c_i sensor_i``.  :class:`ClosedLoops` states every loop on casadi symbols so that
 :class:`~ctmm.compiled_scene.CompiledScene` closes it inside the generated RK4 step, exactly as the
@@ -11,6 +12,8 @@ numpy path of :mod:`ctmm.control.planar_time` does:
   slopes and their rates -- every port of :mod:`ctmm.planar.ports` (all are functions of the
   state ``(q, qdot)``; no port reads an acceleration, so no loop is algebraic);
 * **real-time loops** (``tau = 0``): evaluated at the state of every RK4 stage (no added lag);
+* **saturation** ``(low, high)``: ``u`` clipped at every evaluation (the controller states integrate
+  the unclipped error, as on the numpy path);
 * **LTI controllers** ``C(s)`` (proper, SISO; the realisation of ``control.ss``): their states
   ``z`` are appended to the integrated state, ``z' = A z + B e``, ``u = -(C z + D e)``;
 * **delayed loops** with ``tau = m dt`` (``m >= 1`` whole): the loop signal ``y`` and its time
