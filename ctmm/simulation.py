@@ -241,7 +241,8 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         (``"newmark"`` (chain default), ``"generalized_alpha"``, ``"wilson_theta"``, ``"houbolt"``,
         ``"forward_euler"`` or a :mod:`ctmm.schemes` object); on a planar model every scheme closes
         loops, ``inputs`` and ``controllers`` (``docs/planar.md``, ``docs/control.md`` §4c); on a
-        spatial model the schemes run in Lie-group form (``docs/spatial.md`` §6a).
+        spatial model the schemes run in Lie-group form, with loops and controllers too
+        (``docs/spatial.md`` §6a).
     scheme : str or Scheme, optional
         Alias of ``method`` (giving both is an error).
     x0, v0 : mapping or array, optional
@@ -281,7 +282,8 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         ``dt``, beam station forces or moments, co-simulated controllers) raises :class:`ModelError`
         naming it.  Spatial, ``"rk4"``: ``True`` runs the generated RK4 of
         :func:`ctmm.compiled_spatial.simulate_spatial_generated` (inputs held numbers; same result as
-        the numpy path to round-off).  Default: the numpy path.
+        the numpy path to round-off); with loops :func:`ctmm.compiled_control.simulate_spatial_controlled_generated`
+        (as planar; ``docs/spatial.md`` §6b).  Default: the numpy path.
     progress : bool, optional
         Show a progress bar (default: long runs on a terminal).
     stability_check : {"warn", "error", "ignore"}, optional
