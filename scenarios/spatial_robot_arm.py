@@ -240,7 +240,7 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     labels = [f"{key}\n{case}" for case in cases for key in walls[case]]
     axes[2].bar(range(len(labels)), [walls[case][key] for case in cases for key in walls[case]])
     axes[2].set_xticks(range(len(labels)), labels, rotation=70, fontsize="x-small")
-    axes[2].set(ylabel="wall time [s]")
+    axes[2].set(ylabel="wall time [s]", yscale="log")
     save_figure(fig, output_dir, NAME)
     tcp = data["real-time"]["runs"]["RK4"]
     return {
