@@ -240,7 +240,9 @@ def simulate_spatial_implicit(model: SpatialModel, t_final: float, dt: float, *,
     ConvergenceError
         A step whose iterations do not converge (time, joint, residual; ``partial_result``).
     SimulationError
-        A non-finite or diverging state (time, model, ``partial_result``).
+        A non-finite or diverging state (time, model, ``partial_result``); ``input_map`` that raises
+        or returns something else than actuator values (:class:`~ctmm.planar.actuated_newton.InputError`,
+        naming the time and the loop or ``"inputs"``).
     """
     scheme = as_scheme(scheme)
     if dt is None:
