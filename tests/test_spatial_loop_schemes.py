@@ -18,6 +18,7 @@ from ctmm.control import Feedback, with_feedback
 from ctmm.errors import SimulationError
 
 from _controllers_import import load_controllers
+from spatial_control_helpers import quaternion_joint_state, random_model
 from test_spatial_control_time import (KZ, LOOPS, REFERENCE_Z, V0, X0, Reference, _law, _max_state_error,
                                        _method_of_steps, arm, initial)
 
@@ -142,3 +143,31 @@ def test_diverging_loop_under_a_scheme_stops_with_the_partial_result():
         ctmm.simulate(with_feedback(arm(), [wild]), 1.0, 5e-3, method="newmark", x0=X0, divergence_bound=50.0)
     partial = info.value.partial_result
     assert partial is not None and 0 < partial.time[-1] < 1.0 and "wild.u" in partial.signals()
+
+
+@pytest.mark.parametrize("free_base", [False, True])
+def test_input_response_is_the_difference_of_two_sweeps(free_base):
+    """The input sweep of the iteration matrix (the changed joint forces and body loads alone through the
+    iterate's articulated inertias) equals the difference of two full implicit sweeps, on random trees with
+    every lawful joint kind, joint inputs, body forces at points and moments."""
+    from ctmm.spatial.body_forms import SpatialScene
+    from ctmm.spatial.implicit import implicit_rates, implicit_terms, input_response
+    from ctmm.spatial.ports import SpatialPorts
+
+    rng = np.random.default_rng(7 + free_base)
+    model = random_model(rng, free_base=free_base)
+    ports, scene = SpatialPorts(model), SpatialScene(model)
+    q, v = quaternion_joint_state(rng, model)
+    iterate = rng.normal(size=model.n_velocities)
+    names = sorted(ports.actuators)
+
+    def values():
+        return ports.inputs({name: float(rng.normal()) for name in rng.choice(names, 8, replace=False)})
+
+    before, after = values(), values()
+    weights = (0.3e-4, 0.5e-2)
+    terms = implicit_terms(scene, q, v, 0.1, before.joint, *weights, iterate, before.wrenches)
+    change = input_response(scene, terms, before, after)
+    full = [implicit_rates(scene, q, v, 0.1, u.joint, *weights, iterate, u.wrenches) for u in (before, after)]
+    assert np.abs(change).max() > 1e-2
+    np.testing.assert_allclose(change, full[1] - full[0], rtol=0, atol=1e-10 * np.abs(full).max())
