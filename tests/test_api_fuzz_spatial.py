@@ -101,7 +101,7 @@ CASES: list[tuple[Case, list]] = [
     (Case("ctmm.simulate", "controllers", "spatial", lambda v: ctmm.simulate(model(), 0.02, 0.01, controllers=v)),
      [3, [3], "x", [Opaque()]]),
     (Case("ctmm.simulate", "compiled", "spatial", lambda v: ctmm.simulate(controlled(), 0.02, 0.01, compiled=v)),
-     [True, 1, "yes"]),
+     [1, "yes"]),
     (Case("ctmm.simulate", "t0", "spatial", lambda v: ctmm.simulate(controlled(), 0.02, 0.01, t0=v)), [1.0, -1.0]),
     (Case("ctmm.simulate", "delay", "shorter than the step",
           lambda v: ctmm.simulate(with_feedback(model(), [pd(v)]), 0.02, 0.01)), [1e-3, 5e-3]),
