@@ -101,13 +101,9 @@ def simulate_controlled_generated(controlled: ControlledModel, q0: Any, qdot0: A
     def result(rows: int) -> SimulationResult:
         time, block = t[:rows], full[:rows]
         signals, units = model_signals(model, time, block[:, :n], block[:, n:2 * n], outputs)
-        y, u = signals_of(block, time)
-        for k, law in enumerate(scene.loops.laws):
-            loop = controlled.loop(law.name)
-            signals[f"{law.name}.y"], signals[f"{law.name}.u"] = y[:, k], u[:, k]
-            units[f"{law.name}.y"] = loop_unit(controlled.ports, loop, "y")
-            units[f"{law.name}.u"] = loop_unit(controlled.ports, loop, "u")
-        return signal_result(SignalSystem(model, units, list(controlled.loops)), time, signals, "rk4-generated", info)
+        extra = _add_loop_signals(controlled, scene.loops, signals_of, block, time, signals, units)
+        return signal_result(SignalSystem(model, units, list(controlled.loops)), time, signals, "rk4-generated",
+                             {**info, **extra})
 
     check_stored(guard, t, full[:, :n], full[:, n:2 * n], result)
     controller = full[:, 2 * n:]
@@ -192,19 +188,7 @@ def simulate_spatial_controlled_generated(controlled: ControlledModel, q0: np.nd
     def result(rows: int) -> SimulationResult:
         time_rows, block = t[:rows], full[:rows]
         signals, units = plant.signals(time_rows, block[:, :nq], block[:, nq:nq + nv], outputs)
-        y, u, demand = signals_of(block, time_rows, demand=True)
-        saturated_time = {}
-        for k, law in enumerate(scene.loops.laws):
-            loop = controlled.loop(law.name)
-            signals[f"{law.name}.y"], signals[f"{law.name}.u"] = y[:, k], u[:, k]
-            units[f"{law.name}.y"] = loop_unit(controlled.ports, loop, "y")
-            units[f"{law.name}.u"] = loop_unit(controlled.ports, loop, "u")
-            if law.saturation is not None:           # as the numpy path: the demand and where it is clipped
-                at_limit = (demand[:, k] < law.saturation[0]) | (demand[:, k] > law.saturation[1])
-                signals[f"{law.name}.u_demand"], units[f"{law.name}.u_demand"] = demand[:, k], units[f"{law.name}.u"]
-                signals[f"{law.name}.saturated"], units[f"{law.name}.saturated"] = at_limit.astype(float), ""
-                saturated_time[law.name] = float(np.sum(np.diff(time_rows)[at_limit[:-1]])) if rows > 1 else 0.0
-        extra = {"time_saturated_s": saturated_time} if saturated_time else {}
+        extra = _add_loop_signals(controlled, scene.loops, signals_of, block, time_rows, signals, units)
         return signal_result(SignalSystem(model, units, list(controlled.loops)), time_rows, signals, "rk4-generated",
                              {**info, **extra})
 
@@ -219,3 +203,23 @@ def simulate_spatial_controlled_generated(controlled: ControlledModel, q0: np.nd
                               f"t = {t[k]:.6g} s (rk4-generated; checked on the stored rows)", time=float(t[k]),
                               element=model.name, partial_result=result(k))
     return result(len(t))
+
+
+def _add_loop_signals(controlled: ControlledModel, loops: Any, signals_of: Any, block: np.ndarray, time: np.ndarray,
+                      signals: dict, units: dict) -> dict:
+    """Add ``"<loop>.y"``, ``"<loop>.u"`` and, for a saturating loop, ``"<loop>.u_demand"`` and
+    ``"<loop>.saturated"`` of the stored rows ``block`` at ``time`` [s] (as the numpy path); returns the
+    ``info`` entry ``time_saturated_s`` (seconds at a limit, summed over the rows) when there is one."""
+    y, u, demand = signals_of(block, time, demand=True)
+    saturated_time = {}
+    for k, law in enumerate(loops.laws):
+        loop = controlled.loop(law.name)
+        signals[f"{law.name}.y"], signals[f"{law.name}.u"] = y[:, k], u[:, k]
+        units[f"{law.name}.y"] = loop_unit(controlled.ports, loop, "y")
+        units[f"{law.name}.u"] = loop_unit(controlled.ports, loop, "u")
+        if law.saturation is not None:
+            at_limit = (demand[:, k] < law.saturation[0]) | (demand[:, k] > law.saturation[1])
+            signals[f"{law.name}.u_demand"], units[f"{law.name}.u_demand"] = demand[:, k], units[f"{law.name}.u"]
+            signals[f"{law.name}.saturated"], units[f"{law.name}.saturated"] = at_limit.astype(float), ""
+            saturated_time[law.name] = float(np.sum(np.diff(time)[at_limit[:-1]])) if len(time) > 1 else 0.0
+    return {"time_saturated_s": saturated_time} if saturated_time else {}

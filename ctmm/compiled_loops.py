@@ -46,7 +46,8 @@ from .planar.model import FREE, PlanarModel
 from .planar.ports import ActuatorInputs, PlanarPorts
 from .signals import as_signal, signal_parameters, symbolic_signal
 
-__all__ = ["ClosedLoops", "PlanarSymbols", "LoopLaw", "SymbolicKinematics", "SymbolicReference", "delay_steps", "sensor_expression"]
+__all__ = ["ClosedLoops", "PlanarSymbols", "LoopLaw", "SymbolicKinematics", "SymbolicReference", "delay_steps",
+           "sensor_expression"]
 
 _POINT_AXES = {"x": (0, 0), "y": (0, 1), "vx": (1, 0), "vy": (1, 1)}
 _STATION_PARTS = {"w": (0, False), "slope": (1, False), "w_dot": (0, True), "slope_rate": (1, True)}

@@ -94,5 +94,6 @@ def test_planar_saturated_loop_is_clipped_in_generated_code():
     generated = ctmm.simulate(system, 0.5, 4e-3, x0=[-1.5], references={"pd": -36.0}, compiled=True)
     python = ctmm.simulate(system, 0.5, 4e-3, x0=[-1.5], references={"pd": -36.0})
     assert np.max(np.abs(python["pd.u"])) == pytest.approx(5.0)        # the limit is reached
-    for name in ("rod.theta", "pd.u"):
+    for name in ("rod.theta", "pd.u", "pd.u_demand", "pd.saturated"):
         assert np.max(np.abs(generated[name] - python[name])) < 1e-10, name
+    assert generated.info["time_saturated_s"]["pd"] == pytest.approx(python.info["time_saturated_s"]["pd"])

@@ -45,8 +45,9 @@ exactly as the joint laws are.  ``P`` has the rank of that dependence (one per s
 actuator), so it is never formed: a minimal-residual Krylov solve (:func:`_low_rank_update`) ends
 after ``rank + 1`` products, each a directional difference of ``U`` (relative step ``1e-7``) and one
 sweep of the changed inputs alone through the iterate's articulated inertias (:func:`input_response`:
-no body or joint terms formed again, about a third of the cost of a full sweep).  Inputs that do not depend on the state (delayed loops read from the
-history, held controller outputs, time signals) cost one evaluation of ``U`` and no sweep.  The
+no body or joint terms formed again, about a third of the cost of a full sweep).  Inputs that do
+not depend on the state (delayed loops read from the history, held controller outputs, time
+signals) cost one evaluation of ``U`` and no sweep.  The
 geometric terms stay at the iterate as above (linear convergence, measured 6-7 sweeps per step at
 ``h |omega| ~ 0.05``); two stiff coupled loops at ``omega h ~ 1`` converge in at most 10 iterations,
 where inputs taken at the previous iterate need 24-37 or diverge (``tests/test_spatial_loop_schemes.py``).
