@@ -1,15 +1,19 @@
-"""RK4 of a controlled planar model with its loops closed inside generated C (issue 13).
+"""RK4 of a controlled planar or spatial model with its loops closed inside generated C (issues 13, 14).
 
 :func:`simulate_controlled_generated` is what ``ctmm.simulate(controlled_model, ..., compiled=True)``
-runs: one :class:`~ctmm.compiled_scene.CompiledScene` of the
+runs on a planar plant: one :class:`~ctmm.compiled_scene.CompiledScene` of the
 :class:`~ctmm.control.controlled_model.ControlledModel` (the loops stated by
 :class:`~ctmm.compiled_loops.ClosedLoops`), one call per block of stored rows, and the same result
 as the numpy path of :func:`ctmm.control.planar_time.simulate_closed_loop` -- coordinates, rates,
 ``outputs``, ``"<loop>.y"`` and ``"<loop>.u"`` -- equal to it to round-off.
+:func:`simulate_spatial_controlled_generated` is the same for a spatial plant
+(:class:`~ctmm.compiled_spatial_loops.CompiledControlledSpatial`: the same
+:class:`~ctmm.compiled_loops.ClosedLoops` on the spatial plant's symbols).
 """
 from __future__ import annotations
 
 import os
+import time
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -21,9 +25,10 @@ from .errors import ModelError, SimulationError
 from .planar.guards import check_stored, divergence_guard
 from .planar.integrate import check_store_every, initial_coordinates, model_signals, step_total
 from .results import SimulationResult
+from .spatial.model import SpatialModel
 from .signal_results import SignalSystem, signal_result
 
-__all__ = ["simulate_controlled_generated"]
+__all__ = ["simulate_controlled_generated", "simulate_spatial_controlled_generated"]
 
 
 def simulate_controlled_generated(controlled: ControlledModel, q0: Any, qdot0: Any, *, t_final: float, dt: float,
@@ -96,13 +101,9 @@ def simulate_controlled_generated(controlled: ControlledModel, q0: Any, qdot0: A
     def result(rows: int) -> SimulationResult:
         time, block = t[:rows], full[:rows]
         signals, units = model_signals(model, time, block[:, :n], block[:, n:2 * n], outputs)
-        y, u = signals_of(block, time)
-        for k, law in enumerate(scene.loops.laws):
-            loop = controlled.loop(law.name)
-            signals[f"{law.name}.y"], signals[f"{law.name}.u"] = y[:, k], u[:, k]
-            units[f"{law.name}.y"] = loop_unit(controlled.ports, loop, "y")
-            units[f"{law.name}.u"] = loop_unit(controlled.ports, loop, "u")
-        return signal_result(SignalSystem(model, units, list(controlled.loops)), time, signals, "rk4-generated", info)
+        extra = _add_loop_signals(controlled, scene.loops, signals_of, block, time, signals, units)
+        return signal_result(SignalSystem(model, units, list(controlled.loops)), time, signals, "rk4-generated",
+                             {**info, **extra})
 
     check_stored(guard, t, full[:, :n], full[:, n:2 * n], result)
     controller = full[:, 2 * n:]
@@ -111,3 +112,114 @@ def simulate_controlled_generated(controlled: ControlledModel, q0: Any, qdot0: A
         raise SimulationError(f"non-finite controller state or delay history at t = {t[k]:.6g} s", time=float(t[k]),
                               partial_result=result(k))
     return result(len(t))
+
+
+def simulate_spatial_controlled_generated(controlled: ControlledModel, q0: np.ndarray, v0: np.ndarray, *,
+                                          t_final: float, dt: float, inputs: Mapping[str, Any] | None = None,
+                                          references: Mapping[str, Any] | None = None, outputs: Sequence[str] = (),
+                                          store_every: int = 1, divergence_bound: float | None = None,
+                                          cache_dir: str | os.PathLike | None = None,
+                                          scene: Any = None) -> SimulationResult:
+    """Fixed-step RK4 of a controlled spatial model with its loops closed in generated C.
+
+    Parameters
+    ----------
+    controlled : ControlledModel
+        A spatial plant and its loops (:mod:`ctmm.compiled_spatial_loops`).
+    q0, v0 : ndarray
+        Initial coordinates and velocities (checked by the caller).
+    t_final, dt : float
+        End time and step [s]: ``t_final`` and each loop delay whole multiples of ``dt``.
+    inputs, references : mapping, optional
+        ``{actuator: value}`` open-loop port inputs [SI], ``{loop: r}`` [sensed unit]: numbers or
+        symbolic signals.
+    outputs : sequence of str
+        Sensor names stored at every row.
+    store_every : int
+        Keep every ``store_every``-th step (the last one always).
+    divergence_bound : float, optional
+        Largest allowed distance of a coordinate or velocity from its start (checked on the stored rows).
+    cache_dir : path, optional
+        Of :func:`ctmm.codegen.shared_library`.
+    scene : CompiledControlledSpatial, optional
+        A compiled kernel of ``controlled`` with this step, ``store_every``, inputs and references, to reuse.
+
+    Returns
+    -------
+    SimulationResult
+        As :func:`ctmm.control.planar_time.simulate_closed_loop` with ``"rk4"``; method label
+        ``"rk4-generated"``, ``info["compile_time_s"]``, ``info["loops"]``.
+
+    Raises
+    ------
+    ModelError
+        What the generated kernel cannot do (named), bad arguments, no compiler.
+    SimulationError
+        A non-finite or diverging stored state, with ``partial_result``.
+    """
+    from .compiled_spatial_loops import CompiledControlledSpatial
+    from .control.plants import plant_of
+
+    model = controlled.plant
+    if not isinstance(model, SpatialModel):
+        raise ModelError(f"simulate_spatial_controlled_generated: the plant must be a spatial model, got {model!r}")
+    n_steps = step_total(t_final, dt)
+    h = t_final / n_steps
+    store_every = check_store_every(store_every)
+    if scene is None:
+        scene = CompiledControlledSpatial(controlled, h, references=references, inputs=inputs,
+                                          store_every=store_every, cache_dir=cache_dir)
+    elif not isinstance(scene, CompiledControlledSpatial) or scene.controlled is not controlled or \
+            scene.store_every != store_every:
+        raise ModelError(f"scene must be a CompiledControlledSpatial of this controlled model with store_every="
+                         f"{store_every!r}, got {scene!r}")
+    start = time.perf_counter()
+    first, states = scene.run(q0, v0, h, n_steps)
+    wall = time.perf_counter() - start
+    steps = np.array([k for k in range(1, n_steps + 1) if k % store_every == 0 or k == n_steps])[:len(states)]
+    t = np.concatenate([[0.0], steps * h])
+    full = np.vstack([first[None], states])
+    nq, nv = model.n_positions, model.n_velocities
+    plant, signals_of = plant_of(model), scene.loops.signals()
+    info = {"dt": h, "method": "rk4-generated", "compile_time_s": scene.compile_time_s, "wall_time_s": wall,
+            "loops": {law.name: ("real-time" if law.steps == 0 else "history") for law in scene.loops.laws},
+            "n_evaluations": 4 * n_steps}
+
+    def result(rows: int) -> SimulationResult:
+        time_rows, block = t[:rows], full[:rows]
+        signals, units = plant.signals(time_rows, block[:, :nq], block[:, nq:nq + nv], outputs)
+        extra = _add_loop_signals(controlled, scene.loops, signals_of, block, time_rows, signals, units)
+        return signal_result(SignalSystem(model, units, list(controlled.loops)), time_rows, signals, "rk4-generated",
+                             {**info, **extra})
+
+    distance = np.abs(full[:, :nq + nv] - full[:1, :nq + nv])
+    bad = ~np.all(np.isfinite(full), axis=1)
+    if divergence_bound is not None:
+        bad |= np.any(np.where(np.isfinite(distance), distance, 0.0) > divergence_bound, axis=1)
+    if np.any(bad):
+        k = int(np.flatnonzero(bad)[0])
+        what = "non-finite" if not np.all(np.isfinite(full[k])) else f"beyond divergence_bound = {divergence_bound}"
+        raise SimulationError(f"{model.name}: the state (with controller states and delay ring) became {what} at "
+                              f"t = {t[k]:.6g} s (rk4-generated; checked on the stored rows)", time=float(t[k]),
+                              element=model.name, partial_result=result(k))
+    return result(len(t))
+
+
+def _add_loop_signals(controlled: ControlledModel, loops: Any, signals_of: Any, block: np.ndarray, time: np.ndarray,
+                      signals: dict, units: dict) -> dict:
+    """Add ``"<loop>.y"``, ``"<loop>.u"`` and, for a saturating loop, ``"<loop>.u_demand"`` and
+    ``"<loop>.saturated"`` of the stored rows ``block`` at ``time`` [s] (as the numpy path); returns the
+    ``info`` entry ``time_saturated_s`` (seconds at a limit, summed over the rows) when there is one."""
+    y, u, demand = signals_of(block, time, demand=True)
+    saturated_time = {}
+    for k, law in enumerate(loops.laws):
+        loop = controlled.loop(law.name)
+        signals[f"{law.name}.y"], signals[f"{law.name}.u"] = y[:, k], u[:, k]
+        units[f"{law.name}.y"] = loop_unit(controlled.ports, loop, "y")
+        units[f"{law.name}.u"] = loop_unit(controlled.ports, loop, "u")
+        if law.saturation is not None:
+            at_limit = (demand[:, k] < law.saturation[0]) | (demand[:, k] > law.saturation[1])
+            signals[f"{law.name}.u_demand"], units[f"{law.name}.u_demand"] = demand[:, k], units[f"{law.name}.u"]
+            signals[f"{law.name}.saturated"], units[f"{law.name}.saturated"] = at_limit.astype(float), ""
+            saturated_time[law.name] = float(np.sum(np.diff(time)[at_limit[:-1]])) if len(time) > 1 else 0.0
+    return {"time_saturated_s": saturated_time} if saturated_time else {}

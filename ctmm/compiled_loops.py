@@ -1,6 +1,7 @@
 """Feedback loops closed inside generated kernels (issue 13: real-time and delayed loops, LTI controllers).
 
-A :class:`~ctmm.control.controlled_model.ControlledModel` is a planar plant with
+A :class:`~ctmm.control.controlled_model.ControlledModel` is a planar (or spatial:
+:mod:`ctmm.compiled_spatial_loops` gives its symbols) plant with
 :class:`~ctmm.control.loops.Feedback` loops ``u = -C [ y(t - tau) - r(t - tau) ]``,
 ``y = sum_i c_i sensor_i``.  :class:`ClosedLoops` states every loop on casadi symbols so that
 :class:`~ctmm.compiled_scene.CompiledScene` closes it inside the generated RK4 step, exactly as the
@@ -11,6 +12,8 @@ numpy path of :mod:`ctmm.control.planar_time` does:
   slopes and their rates -- every port of :mod:`ctmm.planar.ports` (all are functions of the
   state ``(q, qdot)``; no port reads an acceleration, so no loop is algebraic);
 * **real-time loops** (``tau = 0``): evaluated at the state of every RK4 stage (no added lag);
+* **saturation** ``(low, high)``: ``u`` clipped at every evaluation (the controller states integrate
+  the unclipped error, as on the numpy path);
 * **LTI controllers** ``C(s)`` (proper, SISO; the realisation of ``control.ss``): their states
   ``z`` are appended to the integrated state, ``z' = A z + B e``, ``u = -(C z + D e)``;
 * **delayed loops** with ``tau = m dt`` (``m >= 1`` whole): the loop signal ``y`` and its time
@@ -43,7 +46,8 @@ from .planar.model import FREE, PlanarModel
 from .planar.ports import ActuatorInputs, PlanarPorts
 from .signals import as_signal, signal_parameters, symbolic_signal
 
-__all__ = ["ClosedLoops", "LoopLaw", "SymbolicKinematics", "SymbolicReference", "delay_steps", "sensor_expression"]
+__all__ = ["ClosedLoops", "PlanarSymbols", "LoopLaw", "SymbolicKinematics", "SymbolicReference", "delay_steps",
+           "sensor_expression"]
 
 _POINT_AXES = {"x": (0, 0), "y": (0, 1), "vx": (1, 0), "vy": (1, 1)}
 _STATION_PARTS = {"w": (0, False), "slope": (1, False), "w_dot": (0, True), "slope_rate": (1, True)}
@@ -68,6 +72,9 @@ class LoopLaw:
         ``tau / dt`` (0 for a real-time loop).
     reference : callable
         ``r(t)`` [sensed unit], a :mod:`ctmm.signals` object with a symbolic form.
+    saturation : tuple of float or None
+        ``(low, high)`` limits of ``u`` [actuator unit] (the controller states integrate the unclipped
+        error, as on the numpy path).
     """
 
     name: str
@@ -80,6 +87,16 @@ class LoopLaw:
     delay: float
     steps: int
     reference: Any
+    saturation: Any = None
+
+    def output(self, demand: Any) -> Any:
+        """The applied ``u``: ``demand`` clipped to :attr:`saturation` on symbols."""
+        if self.saturation is None:
+            return demand
+        import casadi as ca
+
+        low, high = self.saturation
+        return ca.fmin(ca.fmax(demand, float(low)), float(high))
 
 
 def delay_steps(name: str, delay: float, dt: float | None) -> int:
@@ -308,6 +325,25 @@ def sensor_expression(ports: PlanarPorts, name: str, kinematics: SymbolicKinemat
     return kinematics.point(sensor.index, sensor.point)[which][axis]
 
 
+class PlanarSymbols:
+    """A planar plant on symbols for :class:`ClosedLoops`: ``q`` and ``v = qdot`` of ``n_coordinates``
+    each, sensors by :func:`sensor_expression`."""
+
+    def __init__(self, model: PlanarModel, ports: PlanarPorts) -> None:
+        self.model, self.ports = model, ports
+        self.n_positions = self.n_velocities = model.n_coordinates
+        self._kinematics: tuple[Any, Any, SymbolicKinematics] | None = None
+
+    def position_rates(self, q: Any, v: Any) -> Any:
+        return v
+
+    def sensor(self, name: str, q: Any, v: Any) -> Any:
+        """Sensor ``name`` as an expression of the symbols ``q``, ``v``."""
+        if self._kinematics is None or self._kinematics[0] is not q or self._kinematics[1] is not v:
+            self._kinematics = (q, v, SymbolicKinematics(self.model, q, v))
+        return sensor_expression(self.ports, name, self._kinematics[2])
+
+
 # ------------------------------------------------------------------------------------------
 # the closed loop on symbols
 # ------------------------------------------------------------------------------------------
@@ -325,6 +361,10 @@ class ClosedLoops:
         ``{loop name: number or symbolic signal}`` [sensed unit] (default 0).
     inputs : mapping, optional
         ``{actuator name: number or symbolic signal}`` open-loop actuator values [SI], added to the loops'.
+    symbols : object, optional
+        The plant on symbols (``n_positions``, ``n_velocities``, ``position_rates(q, v)``,
+        ``sensor(name, q, v)``); default :class:`PlanarSymbols` of a planar plant
+        (:class:`ctmm.compiled_spatial_loops.SpatialSymbols` for spatial plants).
 
     Attributes
     ----------
@@ -336,11 +376,12 @@ class ClosedLoops:
     ring_columns : int
         Stored samples per delayed loop (``max tau / dt + 1``; 0 without delayed loops).
     state_size : int
-        Length of the integrated and folded state ``[q, qdot, z, ring]``.
+        Length of the integrated and folded state ``[q, v, z, ring]``.
     """
 
     def __init__(self, controlled: ControlledModel, actuators: Sequence[str], dt: float | None = None,
-                 references: Mapping[str, Any] | None = None, inputs: Mapping[str, Any] | None = None) -> None:
+                 references: Mapping[str, Any] | None = None, inputs: Mapping[str, Any] | None = None,
+                 symbols: Any = None) -> None:
         if not isinstance(controlled, ControlledModel):
             raise ModelError(f"ClosedLoops: controlled must be a ctmm.control.ControlledModel, got {controlled!r}")
         import casadi as ca
@@ -365,25 +406,28 @@ class ClosedLoops:
             A, B, C, D = _controller(loop)
             reference = _symbolic(f"references[{loop.name!r}]", references.get(loop.name, 0.0))
             laws.append(LoopLaw(loop.name, tuple(loop.terms), tuple(loop.actuator_terms), A, B, C, D,
-                                float(loop.delay), delay_steps(loop.name, loop.delay, dt), reference))
+                                float(loop.delay), delay_steps(loop.name, loop.delay, dt), reference,
+                                loop.saturation))
         self.laws = tuple(laws)
-        self.n = plant.n_coordinates
+        symbols = PlanarSymbols(plant, ports) if symbols is None else symbols
+        self.nq, self.nv = symbols.n_positions, symbols.n_velocities
+        self.base = self.nq + self.nv           # [q, v] (planar: v = qdot), then z and the ring
+        self.position_rates = symbols.position_rates
         self.n_controller_states = sum(law.A.shape[0] for law in laws)
         self.delayed = [k for k, law in enumerate(laws) if law.steps]
         self.ring_columns = max((law.steps for law in laws), default=0) + 1 if self.delayed else 0
-        self.state_size = 2 * self.n + self.n_controller_states + 2 * len(self.delayed) * self.ring_columns
-        q, v, a = (ca.SX.sym(label, self.n) for label in ("q", "v", "a"))
-        kinematics = SymbolicKinematics(plant, q, v)
+        self.state_size = self.base + self.n_controller_states + 2 * len(self.delayed) * self.ring_columns
+        q, v, a = ca.SX.sym("q", self.nq), ca.SX.sym("v", self.nv), ca.SX.sym("a", self.nv)
         cache: dict[str, Any] = {}
 
         def sensed(name: str) -> Any:
             if name not in cache:
-                cache[name] = sensor_expression(ports, name, kinematics)
+                cache[name] = symbols.sensor(name, q, v)
             return cache[name]
 
         y = ca.vertcat(*[sum((w * sensed(s) for s, w in law.sensors), 0.0) for law in laws]) if laws else ca.SX(0, 1)
         self.sensors = ca.Function("loop_sensors", [q, v], [y])
-        rates = ca.jtimes(y, ca.vertcat(q, v), ca.vertcat(v, a)) if laws else ca.SX(0, 1)
+        rates = ca.jtimes(y, ca.vertcat(q, v), ca.vertcat(self.position_rates(q, v), a)) if laws else ca.SX(0, 1)
         self.sensor_rates = ca.Function("loop_sensor_rates", [q, v, a], [rates])
         weights = np.zeros((len(self.actuators), len(laws)))
         channelled = {k for k, _ in self.channels}
@@ -411,13 +455,13 @@ class ClosedLoops:
 
     # -- pieces of the state -----------------------------------------------------------------
     def _split(self, x: Any) -> tuple:
-        n, nz = self.n, self.n_controller_states
-        return x[:n], x[n:2 * n], x[2 * n:2 * n + nz]
+        nq, base, nz = self.nq, self.base, self.n_controller_states
+        return x[:nq], x[nq:base], x[base:base + nz]
 
     def _ring(self, state: Any) -> Any:
         import casadi as ca
 
-        start = 2 * self.n + self.n_controller_states
+        start = self.base + self.n_controller_states
         return ca.reshape(state[start:], 2 * len(self.delayed), self.ring_columns)
 
     def initial_state(self, q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
@@ -443,7 +487,7 @@ class ClosedLoops:
             size = law.A.shape[0]
             zk = z[offset:offset + size]
             offset += size
-            outputs.append(-(ca.dot(ca.DM(law.C), zk) if size else 0.0) - law.D * e)
+            outputs.append(law.output(-(ca.dot(ca.DM(law.C), zk) if size else 0.0) - law.D * e))
             if size:
                 rates.append(ca.mtimes(ca.DM(law.A), zk) + ca.DM(law.B) * e)
         total = u
@@ -455,7 +499,7 @@ class ClosedLoops:
             total = total + ca.DM(unit) * _at(signal, t)
         total = ca.vertcat(total, *[outputs[k] for k, _ in self.channels])
         qddot = acceleration(q, v, total, p, t)
-        return ca.vertcat(v, qddot, *rates), qddot
+        return ca.vertcat(self.position_rates(q, v), qddot, *rates), qddot
 
     def step(self, acceleration: Any, n_inputs: int, n_parameters: int) -> Any:
         """``step(Y, u, h, p, t0, k)``: RK4 step ``k`` (from ``t0 + k h``) of the closed loop, ``Y`` the
@@ -466,7 +510,7 @@ class ClosedLoops:
 
         Y, u, h = ca.MX.sym("y", self.state_size), ca.MX.sym("u", n_inputs), ca.MX.sym("h")
         p, t0, k = ca.MX.sym("p", n_parameters), ca.MX.sym("t0"), ca.MX.sym("k")
-        x = Y[:2 * self.n + self.n_controller_states]
+        x = Y[:self.base + self.n_controller_states]
         t = t0 + k * h
         if not self.delayed:
             def rate(stage: Any, state: Any) -> Any:
@@ -508,32 +552,37 @@ class ClosedLoops:
         out = ca.vertcat(rk4_step(rate, t, x, h), ca.reshape(table, -1, 1))
         return ca.Function("step", [Y, u, h, p, t0, k], [out])
 
-    def signals(self) -> Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+    def signals(self) -> Callable[..., tuple]:
         """``(y, u)`` (rows, loops) of stored states ``Y`` (rows, :attr:`state_size`) at times ``t``
         (rows,): each loop's signal now and its output (the delayed sample of the row time from the
-        ring; as the numpy path's ``<loop>.y`` and ``<loop>.u``)."""
+        ring; as the numpy path's ``<loop>.y`` and ``<loop>.u``); ``evaluate(Y, t, demand=True)``
+        adds the unclipped demand (``<loop>.u_demand`` of a saturating loop)."""
         import casadi as ca
 
         Y, t = ca.SX.sym("y", self.state_size), ca.SX.sym("t")
-        x = Y[:2 * self.n + self.n_controller_states]
+        x = Y[:self.base + self.n_controller_states]
         q, v, z = self._split(x)
         now = self.sensors(q, v)
         ring = self._ring(Y) if self.delayed else None
-        outputs, offset = [], 0
+        demands, offset = [], 0
         for k, law in enumerate(self.laws):
             signal = ring[self.delayed.index(k), self.ring_columns - law.steps] if law.steps else now[k]
             e = signal - _at(law.reference, t - law.delay)
             size = law.A.shape[0]
-            outputs.append(-(ca.dot(ca.DM(law.C), z[offset:offset + size]) if size else 0.0) - law.D * e)
+            demands.append(-(ca.dot(ca.DM(law.C), z[offset:offset + size]) if size else 0.0) - law.D * e)
             offset += size
-        function = ca.Function("loop_signals", [Y, t], [now, ca.vertcat(*outputs) if outputs else ca.SX(0, 1)])
+        empty = ca.SX(0, 1)
+        function = ca.Function("loop_signals", [Y, t], [
+            now, ca.vertcat(*[law.output(d) for law, d in zip(self.laws, demands)]) if demands else empty,
+            ca.vertcat(*demands) if demands else empty])
 
-        def evaluate(states: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        def evaluate(states: np.ndarray, times: np.ndarray, demand: bool = False) -> tuple:
             rows = len(times)
             if rows == 0 or not self.laws:
-                return np.zeros((rows, len(self.laws))), np.zeros((rows, len(self.laws)))
-            mapped = function.map(rows)
-            y, u = mapped(np.asarray(states, float).T, np.asarray(times, float)[None, :])
-            return np.asarray(y).T, np.asarray(u).T
+                out = tuple(np.zeros((rows, len(self.laws))) for _ in range(3))
+            else:
+                out = tuple(np.asarray(a).T for a in function.map(rows)(np.asarray(states, float).T,
+                                                                        np.asarray(times, float)[None, :]))
+            return out if demand else out[:2]
 
         return evaluate

@@ -82,29 +82,41 @@ def _simulate_spatial(parts: tuple[SpatialModel, tuple], t_final: float, dt: flo
             for name in inputs:
                 if name not in model.inputs and name not in known:
                     raise unknown_name("spatial input", name, list(model.inputs) + list(known))
-        if controlled:
-            raise ModelError(f"compiled=True does not take {closed} of spatial models yet; run without "
-                             "compiled=True (the Python RK4 or solve_ivp closes them)")
+        if controllers:
+            raise ModelError("compiled=True does not take co-simulated controllers (Python objects, FMUs) of spatial "
+                             "models: they are sampled in Python between steps; run without compiled=True, or state "
+                             "the controller as Feedback loops")
         if not isinstance(method, str) or method != "rk4":
             raise ModelError(f"compiled=True runs the generated RK4 of a spatial model; got method={method!r}")
+        if controlled:                  # loops closed in the generated step (ctmm.compiled_spatial_loops)
+            from .compiled_control import simulate_spatial_controlled_generated
+            from .control.controlled_model import ControlledModel
+
+            for name in outputs:
+                SpatialPorts(model).check_sensor(name, "output (sensor)")
+            inputs, references = _loop_references(loops, inputs, references)
+            state = initial_state(model, x0, v0)
+            return simulate_spatial_controlled_generated(
+                ControlledModel(model, loops), state[:model.n_positions], state[model.n_positions:], t_final=t_final,
+                dt=dt, inputs=inputs, references=references, outputs=tuple(outputs), store_every=store_every,
+                divergence_bound=divergence_bound)
         from .compiled_spatial import simulate_spatial_generated
         return simulate_spatial_generated(model, t_final, dt, x0=x0, v0=v0, inputs=inputs, store_every=store_every,
                                           divergence_bound=divergence_bound)
-    if isinstance(method, Scheme) or method in SCHEMES:          # the implicit DT-TMM (docs/spatial.md §6a)
-        if controlled:
-            raise ModelError(f"the DT-TMM scheme {method!r} does not take {closed} of spatial models yet; use "
-                             "method='rk4' or a solve_ivp method")
+    scheme = isinstance(method, Scheme) or method in SCHEMES     # the implicit DT-TMM (docs/spatial.md §6a)
+    if scheme:
         solve_ivp_options = {"rtol": (rtol, 1e-8), "atol": (atol, 1e-10), "max_step": (max_step, None)}
         for name, (value, default) in solve_ivp_options.items():
             if value != default:
                 raise ModelError(f"{name}={value!r} applies to solve_ivp methods, not to the DT-TMM scheme {method!r}")
+    if scheme and not controlled:
         for name, (value, default) in {"progress": (progress, None), "stability_check": (stability_check, None)}.items():
             if value is not default and value != default:
                 raise ModelError(f"{name}={value!r} is not available for DT-TMM runs of spatial models yet; leave "
                                  f"{name} at {default!r}")
         return simulate_spatial_implicit(model, t_final, dt, scheme=method, x0=x0, v0=v0, inputs=inputs,
                                          store_every=store_every, divergence_bound=divergence_bound)
-    if not isinstance(method, str):
+    if not isinstance(method, (str, Scheme)):
         raise ModelError(f"method for a spatial model must be 'rk4', a solve_ivp method or a DT-TMM scheme "
                          f"{tuple(SCHEMES)}, got {method!r}")
     if controlled:
@@ -229,7 +241,8 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         (``"newmark"`` (chain default), ``"generalized_alpha"``, ``"wilson_theta"``, ``"houbolt"``,
         ``"forward_euler"`` or a :mod:`ctmm.schemes` object); on a planar model every scheme closes
         loops, ``inputs`` and ``controllers`` (``docs/planar.md``, ``docs/control.md`` §4c); on a
-        spatial model the schemes run in Lie-group form (``docs/spatial.md`` §6a).
+        spatial model the schemes run in Lie-group form, with loops and controllers too
+        (``docs/spatial.md`` §6a).
     scheme : str or Scheme, optional
         Alias of ``method`` (giving both is an error).
     x0, v0 : mapping or array, optional
@@ -269,7 +282,8 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         ``dt``, beam station forces or moments, co-simulated controllers) raises :class:`ModelError`
         naming it.  Spatial, ``"rk4"``: ``True`` runs the generated RK4 of
         :func:`ctmm.compiled_spatial.simulate_spatial_generated` (inputs held numbers; same result as
-        the numpy path to round-off).  Default: the numpy path.
+        the numpy path to round-off); with loops :func:`ctmm.compiled_control.simulate_spatial_controlled_generated`
+        (as planar; ``docs/spatial.md`` §6b).  Default: the numpy path.
     progress : bool, optional
         Show a progress bar (default: long runs on a terminal).
     stability_check : {"warn", "error", "ignore"}, optional

@@ -49,3 +49,17 @@ def test_elastic_hinge_control_quick_meets_its_bounds(tmp_path):
     assert ranges["PD"] < 0.9 * ranges["uncontrolled"]               # and the loop damps it
     assert 0.0 < summary["delay_s"] < summary["delay_margin_s"] < 1.0
     assert data["wall_time_s"] > 0 and data["reference_wall_time_s"] > 0
+
+
+def test_robot_arm_quick_meets_its_bounds(tmp_path):
+    """PD joint control of a 3-D arm, real-time and delayed: Python RK4 against the Newton-Euler reference
+    (1e-6 rad), generated RK4 equal to it (1e-10), Newmark within 1e-4 rad; the arm really moves."""
+    summary = scenario.run_scenario("spatial_robot_arm", tmp_path, quick=True)
+    data = json.loads((tmp_path / "spatial_robot_arm.json").read_text())
+    figures = data["accuracy"]
+    assert data["passed"] and all(f["value"] <= f["bound"] for f in figures), figures
+    assert [f["bound"] for f in figures] == [1e-6, 1e-10, 1e-4] * 2
+    assert summary["tcp_travel_m"] > 1e-3                            # the tool point moves (m)
+    errors = summary["joint_errors_rad"]
+    assert errors["real-time"]["Newmark"] > errors["real-time"]["RK4"]     # order 2 against order 4
+    assert data["wall_time_s"] > 0 and data["reference_wall_time_s"] > 0

@@ -336,8 +336,6 @@ def test_refusals():
     model = arm()
     with pytest.raises(ModelError, match="accelerations are not sensors"):
         with_feedback(model, [Feedback("a", "hand.alpha_x", "yaw.torque", gain=1.0)])
-    with pytest.raises(ModelError, match="does not take loops.*of spatial models yet"):
-        ctmm.simulate(with_feedback(model, LOOPS[:1]), 0.1, 1e-3, method="newmark")
     with pytest.raises(ModelError, match="also an element"):
         with_feedback(model, [Feedback("yaw", "yaw.angle", "yaw.torque", gain=1.0)])
     with pytest.raises(ModelError, match="already has loops"):
@@ -345,8 +343,6 @@ def test_refusals():
     with pytest.raises(ModelError, match="shorter than the step"):
         ctmm.simulate(with_feedback(model, [Feedback("d", "yaw.angle", "yaw.torque", gain=1.0, delay=1e-4)]),
                       0.1, 1e-3)
-    with pytest.raises(ModelError, match="compiled"):
-        ctmm.simulate(with_feedback(model, LOOPS[:1]), 0.1, 1e-3, compiled=True)
     unactuated = sp.SpatialModel("u", [sp.SpatialBody("b", 1.0, (1, 1, 1)),
                                        sp.Revolute(name="r", parent=None, child="b")])
     with pytest.raises(ModelError, match="actuated=True"):

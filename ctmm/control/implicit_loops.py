@@ -1,7 +1,9 @@
-"""Loops, inputs and controllers of a planar model closed by an implicit DT-TMM scheme.
+"""Loops, inputs and controllers of a planar or spatial model closed by an implicit DT-TMM scheme.
 
 :func:`run_implicit` is the scheme path of :func:`ctmm.control.planar_time.simulate_closed_loop`:
-one :func:`ctmm.planar.implicit.simulate_implicit` run whose
+one :func:`ctmm.planar.implicit.simulate_implicit` run (planar plants) or one
+:func:`ctmm.spatial.implicit.simulate_spatial_implicit` run (spatial plants, Lie-group form; its
+``input_map`` and ``after_step`` are the same two hooks) whose
 
 * ``inputs`` hook (:meth:`LoopSteps.actuator_inputs`) gives every actuator value at each Newton
   iterate: open-loop inputs, real-time loops (implicit in the step: their state dependence is in
@@ -75,13 +77,13 @@ class LoopSteps:
 
     def __init__(self, system: Any) -> None:
         self.system = system
-        self.n = system.n
-        self.stateful = system.size > 2 * system.n
-        self.start: tuple[float, np.ndarray, list] = (0.0, np.zeros(system.size - 2 * system.n), [])
+        self.base = system.base                 # [q, v] (planar: 2 n; spatial: nq + nv) before the states z
+        self.stateful = system.size > self.base
+        self.start: tuple[float, np.ndarray, list] = (0.0, np.zeros(system.size - self.base), [])
 
     def begin(self, t: float, y: np.ndarray) -> None:
-        """Start the next step at the accepted full state ``y = [q, qdot, z]`` at ``t`` [s]."""
-        self.start = (t, y[2 * self.n:].copy(), [e for _, e, _ in self.system.loop_values(t, y)])
+        """Start the next step at the accepted full state ``y = [q, v, z]`` at ``t`` [s]."""
+        self.start = (t, y[self.base:].copy(), [e for _, e, _ in self.system.loop_values(t, y)])
 
     def _states_at(self, t: float, loop_values: list) -> tuple[np.ndarray, list]:
         """Controller states at ``t`` (trapezoidal rule from the step start) and the loop values
@@ -91,7 +93,7 @@ class LoopSteps:
         for k, loop in enumerate(self.system.loops):
             if not loop.A.shape[0]:
                 continue
-            i = loop.states.start - 2 * self.n
+            i = loop.states.start - self.base
             j = i + loop.A.shape[0]
             e = loop_values[k][1]
             if step > 0.0:
@@ -113,7 +115,7 @@ class LoopSteps:
         return system.ports.inputs(values) if values else None
 
     def end(self, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """The full state ``[q, qdot, z]`` after an accepted step to ``t`` [s]; starts the next one.
+        """The full state ``[q, v, z]`` after an accepted step to ``t`` [s]; starts the next one.
 
         Raises
         ------
@@ -122,7 +124,7 @@ class LoopSteps:
         """
         y = np.concatenate([q, v, self.start[1]])
         if self.stateful:
-            y[2 * self.n:] = self._states_at(t, self.system.loop_values(t, y))[0]
+            y[self.base:] = self._states_at(t, self.system.loop_values(t, y))[0]
             bad = [loop.name for loop in self.system.loops if not np.all(np.isfinite(y[loop.states]))]
             if bad:
                 raise SimulationError(f"non-finite controller state of loop {bad[0]!r} at t = {t:.6g} s",
@@ -170,12 +172,13 @@ def run_implicit(system: Any, rows: Any, q0: np.ndarray, qdot0: np.ndarray, t_fi
     """
     from ..planar.implicit import simulate_implicit
     from ..planar.integrate import step_total
+    from ..spatial.implicit import simulate_spatial_implicit
 
     n_steps = step_total(t_final, dt)
     store_every = validation.integer("store_every", store_every, minimum=1)
     steps = LoopSteps(system)
     driven = bool(system.loops or system.input_functions or system.master is not None)
-    bar = progress_bar(n_steps, f"ctmm.simulate (planar, {type(scheme).__name__})", enabled=progress)
+    bar = progress_bar(n_steps, f"ctmm.simulate ({system.plant.label}, {type(scheme).__name__})", enabled=progress)
 
     def after_step(k: int, t: float, q: np.ndarray, v: np.ndarray) -> bool:
         y = steps.end(t, q, v)
@@ -186,17 +189,24 @@ def run_implicit(system: Any, rows: Any, q0: np.ndarray, qdot0: np.ndarray, t_fi
         bar.update()
         return jumped
 
-    steps.begin(0.0, np.concatenate([q0, qdot0, np.zeros(system.size - 2 * system.n)]))
+    steps.begin(0.0, np.concatenate([q0, qdot0, np.zeros(system.size - system.base)]))
     try:
-        simulation = simulate_implicit(system.model, q0, qdot0, t_final=t_final, dt=dt, scheme=scheme,
-                                       store_every=n_steps, divergence_bound=divergence_bound,
-                                       stability_check=stability_check,
-                                       inputs=steps.actuator_inputs if driven else None, after_step=after_step)
+        if system.plant.label == "spatial":
+            simulation = simulate_spatial_implicit(system.model, t_final, dt, scheme=scheme, x0=q0, v0=qdot0,
+                                                   store_every=n_steps, divergence_bound=divergence_bound,
+                                                   input_map=steps.actuator_inputs if driven else None,
+                                                   after_step=after_step)
+            iterations, evaluations = simulation.info["iterations"], simulation.info["n_evaluations"]
+        else:
+            simulation = simulate_implicit(system.model, q0, qdot0, t_final=t_final, dt=dt, scheme=scheme,
+                                           store_every=n_steps, divergence_bound=divergence_bound,
+                                           stability_check=stability_check,
+                                           inputs=steps.actuator_inputs if driven else None, after_step=after_step)
+            iterations, evaluations = simulation.iterations, simulation.n_evaluations
     except SimulationError as exc:
         exc.partial_result = None          # the caller's rows are the partial result
         raise
     finally:
         bar.close()
-    system.evaluations += int(simulation.n_evaluations)
-    return {"newton_iterations_mean": float(np.mean(simulation.iterations)),
-            "newton_iterations_max": int(np.max(simulation.iterations))}
+    system.evaluations += int(evaluations)
+    return {"newton_iterations_mean": float(np.mean(iterations)), "newton_iterations_max": int(np.max(iterations))}

@@ -35,8 +35,8 @@ per-step callback samples the controllers and appends to the delay history; a st
 sample starts from the acceleration with the new held outputs; the states of an LTI controller
 advance by the trapezoidal rule from the step start to the iterate's time (implicit in the
 step, second order).  A loop delay must be 0 or at least one step (``theta dt`` with
-Wilson-theta, whose equations are imposed at ``t_n + theta dt``).  The schemes are planar only; a
-spatial model takes ``"rk4"`` and the scipy methods.  The plant's guards apply (planar: those of
+Wilson-theta, whose equations are imposed at ``t_n + theta dt``), on planar and spatial plants
+(``docs/spatial.md`` §6d).  The plant's guards apply (planar: those of
 :mod:`ctmm.planar.guards`, step limit of the plant before the run; every plant: divergence bound,
 non-finite states) and a failed run raises :class:`~ctmm.errors.SimulationError` with the result up
 to the last good step.
@@ -410,7 +410,7 @@ def simulate_closed_loop(model: Any, q0: np.ndarray, qdot0: np.ndarray, t_final:
         these); for a scipy method with ``dt`` the result is stored on the grid ``k dt`` (dense
         output), without it at every accepted step.
     method : str or Scheme
-        ``"rk4"``, a name of :data:`~ctmm.planar.integrate.SCIPY_METHODS`, or (planar models) a DT-TMM
+        ``"rk4"``, a name of :data:`~ctmm.planar.integrate.SCIPY_METHODS`, or a DT-TMM
         scheme (a name of :data:`ctmm.schemes.SCHEMES` or a :mod:`ctmm.schemes` object).
     loops : sequence of Feedback
         Loops on named sensors and actuators of :mod:`ctmm.planar.ports` / :mod:`ctmm.spatial.ports`.

@@ -94,7 +94,7 @@ class SpatialPlant:
     """A :class:`~ctmm.spatial.model.SpatialModel` as a :class:`Plant` (its ports carry the dynamics)."""
 
     label = "spatial"
-    schemes = False
+    schemes = True
 
     def __init__(self, model: SpatialModel) -> None:
         self.model = model

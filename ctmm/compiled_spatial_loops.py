@@ -1,0 +1,204 @@
+"""Feedback loops of spatial models closed inside generated C (issues 13 and 14).
+
+A :class:`~ctmm.control.controlled_model.ControlledModel` on a
+:class:`~ctmm.spatial.model.SpatialModel` compiles through the loops of planar scenes,
+:class:`ctmm.compiled_loops.ClosedLoops` (real-time loops at every RK4 stage, LTI controller states
+integrated with the plant, delayed loops ``tau = m dt`` from a ring of samples and their rates in
+the fold state, references and open-loop inputs with a symbolic form); this module gives it the
+spatial plant on symbols:
+
+* :class:`SpatialSymbols` -- sizes ``nq``, ``nv``, ``q_dot = G(q) v``
+  (:func:`ctmm.compiled_spatial.position_rates`) and every sensor of :mod:`ctmm.spatial.ports` that is a
+  smooth function of the state, from the body states of
+  :meth:`~ctmm.spatial.body_forms.SpatialScene.terms` on casadi symbols (joint coordinates and rates,
+  body angular velocities in world and body axes, x-y-z angles, positions and velocities of named
+  points); the loop signal's time derivative for the ring is its forward derivative along
+  ``(G(q) v, v_dot)``, exact;
+* :func:`loop_acceleration` -- ``v_dot(q, v, u, p, t)`` with ``u`` one scalar per port actuator (joint
+  torques and forces, body forces at points and moments), through the one articulated sweep;
+* :class:`CompiledControlledSpatial` -- the generated step, strides and blocks
+  (:mod:`ctmm.generated_loop`) of the closed loop, compiled once and cached by :mod:`ctmm.codegen`.
+
+Refused by name (:class:`~ctmm.errors.ModelError`): the rotation-vector sensors
+``"<body>.rotation_x|y|z"`` (their branch at ``|phi| = pi`` is not stated on symbols yet), what
+:func:`~ctmm.compiled_spatial.spatial_compile_refusal` refuses, and (by the caller) co-simulated
+controllers.
+"""
+from __future__ import annotations
+
+import os
+import time as clock
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from .codegen import load_casadi
+from .compiled_loops import ClosedLoops
+from .compiled_spatial import DEFAULT_ROWS, SPATIAL_FLAGS, position_rates, spatial_compile_refusal
+from .control.controlled_model import ControlledModel
+from .errors import ModelError
+from .generated_loop import run_blocks, time_loop_functions
+from .ops import CASADI
+from .spatial.body_forms import SpatialScene
+from .spatial.model import SpatialModel
+from .spatial.ports import SpatialPorts
+
+__all__ = ["SpatialSymbols", "loop_acceleration", "CompiledControlledSpatial"]
+
+
+class SpatialSymbols:
+    """A spatial plant on casadi symbols for :class:`~ctmm.compiled_loops.ClosedLoops` (module docstring).
+
+    Parameters
+    ----------
+    model : SpatialModel
+    ports : SpatialPorts
+        Its sensors and actuators.
+    """
+
+    def __init__(self, model: SpatialModel, ports: SpatialPorts) -> None:
+        self.model, self.ports = model, ports
+        self.n_positions, self.n_velocities = model.n_positions, model.n_velocities
+        self._states: tuple[Any, Any, list] | None = None
+
+    def position_rates(self, q: Any, v: Any) -> Any:
+        """``q_dot = G(q) v`` on symbols."""
+        return position_rates(self.model, q, v)
+
+    def _body_states(self, q: Any, v: Any) -> list:
+        if self._states is None or self._states[0] is not q or self._states[1] is not v:
+            self._states = (q, v, SpatialScene(self.model).terms(CASADI, q, v, 0.0)[2])
+        return self._states[2]
+
+    def sensor(self, name: str, q: Any, v: Any) -> Any:
+        """Sensor ``name`` of :mod:`ctmm.spatial.ports` as an expression of the symbols ``q`` (nq), ``v`` (nv).
+
+        Raises
+        ------
+        ModelError
+            A rotation-vector sensor (not on symbols yet).
+        """
+        import casadi as ca
+
+        sensor = self.ports.resolve([name])[0]
+        if sensor.kind == "q":
+            return q[sensor.index]
+        if sensor.kind == "v":
+            return v[sensor.index]
+        if sensor.kind == "rotation":
+            raise ModelError(f"sensor {name!r}: rotation-vector sensors are not stated on symbols yet, so "
+                             "compiled=True cannot close a loop on it; use the x-y-z angles "
+                             f"'{name.split('.')[0]}.angle_x|y|z', body rates, or compiled=False")
+        state = self._body_states(q, v)[sensor.index]
+        rotation, omega, c = state.rotation, state.omega, sensor.component
+        if sensor.kind == "omega":
+            return omega[c]
+        if sensor.kind == "omega_body":
+            return ca.dot(rotation[:, c], omega)
+        if sensor.kind == "angles":
+            return [ca.atan2(-rotation[1, 2], rotation[2, 2]), ca.asin(ca.fmin(ca.fmax(rotation[0, 2], -1.0), 1.0)),
+                    ca.atan2(-rotation[0, 1], rotation[0, 0])][c]
+        arm = ca.mtimes(rotation, ca.DM(np.asarray(sensor.point, float)))
+        if sensor.kind == "point":
+            return state.origin[c] + arm[c]
+        return state.velocity[c] + ca.cross(omega, arm)[c]
+
+
+def loop_acceleration(model: SpatialModel, ports: SpatialPorts, actuators: Sequence[str]) -> Any:
+    """``v_dot = acceleration(q, v, u, p, t)`` (a ``casadi.Function``, ``p`` empty) of ``model`` with
+    ``u`` one value per entry of ``actuators`` (port actuator names [N m, N]): joint actuators add to
+    their joint's input, body actuators are forces at their points and moments, world axes."""
+    import casadi as ca
+
+    nq, nv = model.n_positions, model.n_velocities
+    q, v, u = ca.SX.sym("q", nq), ca.SX.sym("v", nv), ca.SX.sym("u", len(actuators))
+    p, t = ca.SX.sym("p", 0), ca.SX.sym("t")
+    widths = {name: joint.velocity_count for joint in model.joints for name in joint.inputs}
+    inputs: dict[str, Any] = {}
+    loads: dict[tuple[int, tuple], Any] = {}
+    for k, name in enumerate(actuators):
+        actuator = ports.actuators[ports.check_actuator(name)]
+        if actuator.kind == "joint":
+            size = widths[actuator.target]
+            unit = np.zeros((size, 1))
+            unit[actuator.component] = 1.0
+            inputs[actuator.target] = inputs.get(actuator.target, ca.SX.zeros(size, 1)) + ca.DM(unit) * u[k]
+        else:
+            unit = np.zeros((6, 1))
+            unit[actuator.component] = 1.0
+            key = (int(actuator.target), tuple(actuator.point))
+            loads[key] = loads.get(key, ca.SX.zeros(6, 1)) + ca.DM(unit) * u[k]
+    wrenches: dict[int, list] = {}
+    for (body, point), wrench in loads.items():
+        wrenches.setdefault(body, []).append((np.asarray(point, float), wrench))
+    scene = SpatialScene(model)
+    solution = scene.sweep(CASADI, q, v, 0.0, inputs, wrenches)
+    return ca.Function("loop_acceleration", [q, v, u, p, t], [ca.vertcat(*scene.velocity_rates(solution))])
+
+
+class CompiledControlledSpatial:
+    """Generated and compiled RK4 of a controlled spatial model with its loops closed in the step.
+
+    Parameters
+    ----------
+    controlled : ControlledModel
+        A spatial plant (:func:`~ctmm.compiled_spatial.spatial_compile_refusal`) and its loops.
+    dt : float
+        Step [s] (each loop delay a whole multiple of it).
+    references, inputs : mapping, optional
+        ``{loop: r}``, ``{actuator: value}``: numbers or symbolic signals (constants of the code).
+    store_every, rows : int
+        Steps per stored state; stored states per block call.
+    cache_dir, compiler, flags
+        Of :func:`ctmm.codegen.shared_library` (``flags`` default :data:`ctmm.compiled_spatial.SPATIAL_FLAGS`).
+
+    Attributes
+    ----------
+    loops : ClosedLoops
+        The loops on symbols (state ``[q, v, z, ring]``, :attr:`ClosedLoops.state_size`).
+    actuators : tuple of str
+        Port actuators of the kernel (those of the loops and of ``inputs``).
+    compile_time_s : float
+        Building the expressions, generating C and compiling (or loading) [s].
+    """
+
+    def __init__(self, controlled: ControlledModel, dt: float, *, references: Mapping[str, Any] | None = None,
+                 inputs: Mapping[str, Any] | None = None, store_every: int = 1, rows: int = DEFAULT_ROWS,
+                 cache_dir: str | os.PathLike | None = None, compiler: str | None = None,
+                 flags: Sequence[str] | None = None) -> None:
+        if not isinstance(controlled, ControlledModel) or not isinstance(controlled.plant, SpatialModel):
+            raise ModelError(f"CompiledControlledSpatial: controlled must be a ControlledModel of a spatial model, "
+                             f"got {controlled!r}")
+        model = controlled.plant
+        reason = spatial_compile_refusal(model)
+        if reason:
+            raise ModelError(f"compiled=True: {reason}")
+        start = clock.perf_counter()
+        ports = controlled.ports
+        names = [name for loop in controlled.loops for name, _ in loop.actuator_terms] + list(inputs or {})
+        for name in inputs or {}:
+            ports.check_actuator(name, "inputs: actuator")
+        self.controlled, self.model, self.store_every, self.rows = controlled, model, int(store_every), int(rows)
+        self.actuators = tuple(dict.fromkeys(names))
+        self.loops = ClosedLoops(controlled, self.actuators, dt, references, inputs,
+                                 symbols=SpatialSymbols(model, ports))
+        acceleration = loop_acceleration(model, ports, self.actuators)
+        step = self.loops.step(acceleration, len(self.actuators), 0)
+        stride, sizes, blocks = time_loop_functions(step, self.store_every, self.rows)
+        name = (f"spatial_loops_{model.n_bodies}b{model.n_positions}q{len(self.loops.laws)}l"
+                f"{self.loops.n_controller_states}z{self.loops.ring_columns}r")
+        options = {"cache_dir": cache_dir, "compiler": compiler,
+                   "flags": SPATIAL_FLAGS if flags is None else tuple(flags)}
+        loaded = load_casadi([step, stride, *blocks], name, **options)
+        self._step, self._stride = loaded[:2]
+        self._blocks = list(zip(sizes, loaded[2:]))
+        self.compile_time_s = clock.perf_counter() - start
+
+    def run(self, q0: np.ndarray, v0: np.ndarray, dt: float, n_steps: int) -> tuple[np.ndarray, np.ndarray]:
+        """The initial state ``[q, v, z, ring]`` and the stored states (rows, state size) after each
+        ``store_every`` steps and after the last of ``n_steps`` RK4 steps of ``dt`` [s] from ``t = 0``;
+        stops after the first block holding a non-finite state."""
+        first = self.loops.initial_state(np.asarray(q0, float), np.asarray(v0, float))
+        states = run_blocks(self._blocks, self._stride, self._step, self.store_every, first[:, None],
+                            np.zeros(len(self.actuators)), dt, n_steps, 0.0, np.zeros((0, 1)))[0]
+        return first, states
