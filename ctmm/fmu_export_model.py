@@ -318,16 +318,16 @@ def _initial_function(loops: ClosedLoops | None, n: int, n_parameters: int) -> A
 
 def loop_expressions(loops: ClosedLoops, y: Any, t: Any) -> dict[str, Any]:
     """``{"<loop>.y": signal now, "<loop>.u": output}`` of every loop on the state symbol ``y``
-    (:attr:`ClosedLoops.state_size`: ``[q, qdot, z, ring]``, the ring column-major with one row per
+    (:attr:`ClosedLoops.state_size`: ``[q, v, z, ring]``, the ring column-major with one row per
     delayed loop's signal, then one per its rate) at the time symbol ``t`` [s]: ``u = -C z - D e``,
     ``e`` the signal (a delayed loop's: its sample ``steps`` columns back in the ring) minus the
     reference at ``t - delay``.  :func:`planar_export` checks them against :meth:`ClosedLoops.signals`."""
     import casadi as ca
 
-    n, nz = loops.n, loops.n_controller_states
-    now = loops.sensors(y[:n], y[n:2 * n])
-    z = y[2 * n:2 * n + nz]
-    ring = ca.reshape(y[2 * n + nz:], 2 * len(loops.delayed), loops.ring_columns) if loops.delayed else None
+    nq, base, nz = loops.nq, loops.base, loops.n_controller_states
+    now = loops.sensors(y[:nq], y[nq:base])
+    z = y[base:base + nz]
+    ring = ca.reshape(y[base + nz:], 2 * len(loops.delayed), loops.ring_columns) if loops.delayed else None
     out, offset = {}, 0
     for k, law in enumerate(loops.laws):
         signal = ring[loops.delayed.index(k), loops.ring_columns - law.steps] if law.steps else now[k]
