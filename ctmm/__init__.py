@@ -14,7 +14,9 @@ from .simulation import simulate
 from .version import __version__
 
 from . import control, stability  # noqa: E402  (submodules used as ctmm.control / ctmm.stability)
+from . import sensitivity  # noqa: E402  (ctmm.sensitivity: exact derivatives for tuning)
 
 __all__ = ["Chain", "simulate", "linearize", "LinearizedSystem", "characteristic_function", "frequency_response", "natural_frequencies", "mode_shapes", "eigenvalue_count",
            "steady_state_response", "signals", "ModelError", "SimulationError", "ConvergenceError",
            "SingularSystemError", "UnknownNameError", "control", "stability", "__version__"]
+__all__ += ["sensitivity"]
