@@ -23,7 +23,8 @@ The values (crossovers, roots) come from the library's verbs on the TMM (:func:`
 :func:`ctmm.stability.spectral_abscissa`) or, delay-free with static gains, from the quadratic
 eigenvalue problem of ``Delta``; each is checked against ``Delta`` before it is differentiated (a
 mismatch is refused).  What cannot be differentiated is refused by name: non-lumped elements,
-connector forces as signals, planar/spatial models, time-domain outputs (``simulation_sensitivity``).
+connector forces as signals, spatial models; time-domain outputs (:func:`simulation_sensitivity`)
+are differentiated for planar models only (:mod:`ctmm.sensitivity_time`).
 Accuracy and limits: ``docs/sensitivity.md``.
 """
 from __future__ import annotations
@@ -511,16 +512,27 @@ def spectral_abscissa_sensitivity(system: Any, parameters: str | Sequence[str], 
 
 
 # ---------------------------------------------------------------------------- time domain
-def simulation_sensitivity(system: Any, parameters: str | Sequence[str], *args: Any, **kwargs: Any) -> None:
-    """Derivatives of simulation outputs: not available yet (always refused by name).
+def simulation_sensitivity(system: Any, parameters: str | Sequence[str], *, t_final: float, dt: float, q0: Any,
+                           qdot0: Any = None, outputs: str | Sequence[str] | None = None) -> Any:
+    """Outputs of an RK4 run of a planar model and their exact parameter derivatives.
+
+    Forward sensitivities of the generated RK4 step by casadi (:mod:`ctmm.sensitivity_time`, where the
+    arguments are described); returns a :class:`ctmm.sensitivity_time.TimeSensitivity`.
 
     Raises
     ------
     ModelError
-        Always: forward sensitivities through the generated step of planar models (casadi) are
-        not implemented yet (``docs/sensitivity.md``, limits).
+        Chains and controlled models (not implemented yet), models that cannot be compiled, unknown
+        or zero parameters.
     """
-    raise ModelError(f"simulation_sensitivity: derivatives of time-domain outputs of {type(system).__name__} "
-                     f"with respect to {parameters!r} are not implemented yet (planned: casadi forward "
-                     "sensitivities of the generated RK4 step of planar models); use the frequency-domain, "
-                     "margin and spectral-abscissa sensitivities of ctmm.sensitivity")
+    from .planar.model import PlanarModel
+
+    if not isinstance(system, PlanarModel):
+        raise ModelError(f"simulation_sensitivity: derivatives of time-domain outputs are implemented for a "
+                         f"ctmm.planar.PlanarModel without loops (casadi forward sensitivities of the RK4 step); "
+                         f"{type(system).__name__} is not supported yet (chains, controlled models); use the "
+                         "frequency-domain, margin and spectral-abscissa sensitivities of ctmm.sensitivity")
+    from .sensitivity_time import planar_simulation_sensitivity
+
+    return planar_simulation_sensitivity(system, parameters, t_final=t_final, dt=dt, q0=q0, qdot0=qdot0,
+                                         outputs=outputs)
