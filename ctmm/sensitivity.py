@@ -436,8 +436,10 @@ def _quadratic_roots(model: LoopCharacteristicMatrix) -> np.ndarray:
     n = model.n
     A = np.block([[np.zeros((n, n)), np.eye(n)], [-K2, -C2]])
     B = np.block([[np.eye(n), np.zeros((n, n))], [np.zeros((n, n)), M2]])
-    values = eig(A, B, right=False)
-    return values[np.isfinite(values)]
+    alpha, beta = eig(A, B, right=False, homogeneous_eigvals=True)
+    # infinite eigenvalues of the massless DOFs come out with beta at round-off (0 or ~eps |B|)
+    finite = np.abs(beta) > 1e-10 * np.linalg.norm(B, 1)
+    return alpha[finite] / beta[finite]
 
 
 def _power(signal: str) -> int:

@@ -164,3 +164,19 @@ def test_refusals_name_what_is_not_differentiable():
     chain = ctmm.Chain("s", [Fixed("w"), Spring("k", 1.0), Mass("m", 1.0), Free("e")])
     with pytest.raises(ModelError, match="loop"):
         S.margin_sensitivity(chain, "pd", ["m.mass"], [1.0])
+
+
+def test_spectral_abscissa_with_a_massless_point():
+    """A massless point between a spring-damper and a spring: the pencil has infinite eigenvalues,
+    which must not be taken for roots."""
+    chain = ctmm.Chain("c", [Fixed("w"), SpringDamper("k1", 10.0, 0.3), Spring("k2", 5.0), Mass("m", 1.0),
+                             Free("e")])
+    names = ["k1.damping", "k2.stiffness", "m.mass"]
+    found = S.spectral_abscissa_sensitivity(chain, names)
+
+    def abscissa(s):
+        return np.max(np.linalg.eigvals(ctmm.interop.to_state_space(s).A).real)
+
+    assert abs(found.value - abscissa(chain)) < 1e-12
+    for name in names:
+        assert relative(found.gradient[name], richardson(abscissa, chain, name)) < 1e-6, name
