@@ -20,19 +20,10 @@ from .protocol import Controller, ControllerStep
 from .measurement_delay import DelayedController
 from .static_gain import StaticGainController
 from .simulate import simulate_controlled
+from .tuning import Constraint, Quantity, TuningResult, tune
 
 __all__ = ["Controller", "ControllerStep", "DelayedController", "StaticGainController", "Feedback", "ControlledChain", "ControlledModel", "with_feedback", "simulate_controlled",
            "FMUController", "build_fmu", "loop_transfer_function", "margins", "closed_loop_response",
            "bode_plot", "nyquist_plot", "encirclements", "PlantCache"]
 __all__ += ["tune", "Quantity", "Constraint", "TuningResult"]
 
-
-def __getattr__(name: str):
-    """``tune``, ``Quantity``, ``Constraint``, ``TuningResult`` from :mod:`ctmm.control.tuning`, loaded on
-    first use (it builds on :mod:`ctmm.sensitivity`, which needs the chain realisation that imports
-    this package's loops)."""
-    if name in ("tune", "Quantity", "Constraint", "TuningResult"):
-        from . import tuning
-
-        return getattr(tuning, name)
-    raise AttributeError(f"module 'ctmm.control' has no attribute {name!r}")

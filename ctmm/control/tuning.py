@@ -25,7 +25,6 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from .. import sensitivity as sens
 from ..errors import ModelError
 
 __all__ = ["Quantity", "Constraint", "TuningStep", "TuningResult", "tune"]
@@ -86,6 +85,8 @@ class Quantity:
 
     def evaluate(self, system: Any, parameters: Sequence[str]) -> tuple[float, np.ndarray]:
         """Value and gradient (in the order of ``parameters``) at ``system``."""
+        from .. import sensitivity as sens        # builds on the chain realisation, which imports this package
+
         names = list(parameters)
         if self.kind == "spectral_abscissa":
             found = sens.spectral_abscissa_sensitivity(system, names, re_min=self.re_min, im_max=self.im_max)
@@ -267,6 +268,8 @@ def tune(system: Any, parameters: Sequence[str], objective: Quantity, constraint
         be differentiated at an iterate (named with the parameter values).
     """
     from scipy.optimize import Bounds, NonlinearConstraint, minimize
+
+    from .. import sensitivity as sens        # builds on the chain realisation, which imports this package
 
     if method not in ("SLSQP", "trust-constr"):
         raise ModelError(f"tune: method must be 'SLSQP' or 'trust-constr', got {method!r}")
