@@ -67,7 +67,7 @@ from .planar.model import FREE, PlanarModel
 from .planar.ports import ActuatorInputs, PlanarPorts
 
 __all__ = ["CompiledScene", "compile_refusal", "compiled_actuators", "parameter_vector", "simulate_batch",
-           "simulate_rk4_generated", "structure_key"]
+           "simulate_rk4_generated", "structure_key", "symbolic_plant_accelerations"]
 
 DEFAULT_ROWS = 64
 """Stored states per generated block call."""
@@ -458,3 +458,21 @@ def simulate_rk4_generated(model: PlanarModel, q0: Any, qdot0: Any, *, t_final: 
     check_stored(guard, t, qs, vs, lambda k: PlanarSimulation(model, t[:k], qs[:k], vs[:k], "rk4-generated", wall))
     return PlanarSimulation(model, t, qs, vs, "rk4-generated", wall, n_evaluations=4 * n_steps,
                             extra={"compile_time_s": scene.compile_time_s})
+
+
+def symbolic_plant_accelerations(model: PlanarModel) -> Any:
+    """``qddot = acceleration(q, qdot, p, t)`` of a compilable planar model without actuator inputs, on
+    casadi SX symbols with its numbers ``p`` (:func:`parameter_vector` order) as an input: the expression
+    :class:`CompiledScene` compiles, for algorithmic differentiation (:mod:`ctmm.sensitivity_time`).
+    Entries that are zero in ``model`` are constants 0 of the expression (:func:`symbolic_numbers`)."""
+    import casadi as ca
+
+    reason = compile_refusal(model)
+    if reason:
+        raise ModelError(f"symbolic_plant_accelerations: {reason}")
+    n, n_p = model.n_coordinates, parameter_vector(model).size
+    q, v, p, t = ca.SX.sym("q", n), ca.SX.sym("v", n), ca.SX.sym("p", n_p), ca.SX.sym("t")
+    scene = PlanarScene(model)
+    bodies, joints = scene.terms(CASADI, q, v, 0.0, None, symbolic_numbers(model, p, t))
+    solution = articulated_sweep(CASADI, scene.tree, bodies, joints)
+    return ca.Function("acceleration", [q, v, p, t], [_coordinate_accelerations(model, solution.x)])

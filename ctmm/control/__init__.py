@@ -9,6 +9,7 @@
 * :class:`FMUController`, :func:`build_fmu` -- FMI 2.0/3.0 co-simulation and model-exchange FMUs through fmpy.
 * :func:`loop_transfer_function`, :func:`margins` (gain/phase/delay), :func:`bode_plot`,
   :func:`nyquist_plot`, :class:`PlantCache` (cheap re-evaluation in control-design loops).
+* :func:`tune` -- gradient-based tuning on the exact sensitivities of :mod:`ctmm.sensitivity`.
 """
 from .analysis import bode_plot, closed_loop_response, encirclements, loop_transfer_function, margins, nyquist_plot
 from .design import PlantCache
@@ -19,7 +20,10 @@ from .protocol import Controller, ControllerStep
 from .measurement_delay import DelayedController
 from .static_gain import StaticGainController
 from .simulate import simulate_controlled
+from .tuning import Constraint, Quantity, TuningResult, tune
 
 __all__ = ["Controller", "ControllerStep", "DelayedController", "StaticGainController", "Feedback", "ControlledChain", "ControlledModel", "with_feedback", "simulate_controlled",
            "FMUController", "build_fmu", "loop_transfer_function", "margins", "closed_loop_response",
            "bode_plot", "nyquist_plot", "encirclements", "PlantCache"]
+__all__ += ["tune", "Quantity", "Constraint", "TuningResult"]
+

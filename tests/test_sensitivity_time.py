@@ -1,0 +1,73 @@
+"""Forward sensitivities of planar RK4 runs (ctmm.sensitivity_time) against a closed form and against
+Richardson differences of ctmm.simulate on rebuilt models."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import ctmm
+from ctmm import sensitivity as S
+from ctmm.errors import ModelError
+from ctmm.planar import ElasticHinge, Fixed, PlanarModel, RigidBody
+
+
+def link(name: str, mass: float, length: float, inertia: float) -> RigidBody:
+    return RigidBody(name, mass=mass, inertia=inertia, center_of_mass=(length / 2, 0.0), inboard=(0.0, 0.0),
+                     outboard=(length, 0.0))
+
+
+def test_hinge_oscillator_against_the_closed_form():
+    """No gravity: J theta'' = -k theta, J = I + m (L/2)^2, theta = theta0 cos(w t), w = sqrt(k/J)."""
+    m, L, inertia, k, theta0 = 1.0, 0.5, 0.02, 3.0, 0.3
+    model = PlanarModel.chain("osc", [Fixed("g"), ElasticHinge("hinge", stiffness=k), link("bar", m, L, inertia)],
+                              gravity=(0.0, 0.0))
+    run = S.simulation_sensitivity(model, ["bar.mass", "bar.inertia", "hinge.stiffness"], t_final=1.0, dt=1e-3,
+                                   q0=[theta0], outputs=["bar.theta", "bar.theta_dot"])
+    J = inertia + m * L * L / 4
+    w = np.sqrt(k / J)
+    t = run.time
+    assert np.max(np.abs(run.values[0] - theta0 * np.cos(w * t))) < 1e-9
+    dtheta_dw = -theta0 * t * np.sin(w * t)
+    dw = {"bar.mass": -w / (2 * J) * L * L / 4, "bar.inertia": -w / (2 * J), "hinge.stiffness": w / (2 * k)}
+    for i, name in enumerate(run.parameters):
+        exact = dtheta_dw * dw[name]
+        assert np.max(np.abs(run.derivative[i, 0] - exact)) < 1e-7 * np.max(np.abs(exact)), name
+        rate = -theta0 * (np.sin(w * t) + w * t * np.cos(w * t)) * dw[name]
+        assert np.max(np.abs(run.derivative[i, 1] - rate)) < 1e-7 * np.max(np.abs(rate)), name
+
+
+def double_pendulum(upper_mass: float = 1.0, elbow: float = 2.0, lower_inertia: float = 0.0067) -> PlanarModel:
+    return PlanarModel.chain("dp", [Fixed("g"), ElasticHinge("motor", stiffness=3.0), link("upper", upper_mass, 0.5, 0.02),
+                                    ElasticHinge("elbow", stiffness=elbow), link("lower", 0.5, 0.4, lower_inertia)])
+
+
+@pytest.mark.parametrize("name, value, builder", [
+    ("upper.mass", 1.0, lambda v: double_pendulum(upper_mass=v)),
+    ("elbow.stiffness", 2.0, lambda v: double_pendulum(elbow=v)),
+    ("lower.inertia", 0.0067, lambda v: double_pendulum(lower_inertia=v))])
+def test_double_pendulum_history_against_richardson_differences(name, value, builder):
+    run = S.simulation_sensitivity(double_pendulum(), [name], t_final=0.5, dt=1e-3, q0=[-1.2, -1.0],
+                                   outputs=["lower.theta", "upper.theta_dot"])
+
+    def history(v: float) -> np.ndarray:
+        sim = ctmm.simulate(builder(v), t_final=0.5, dt=1e-3, method="rk4",
+                            x0={"upper.theta": -1.2, "lower.theta": -1.0})
+        return np.array([sim["lower.theta"], sim["upper.theta_dot"]])
+
+    h = 1e-3 * max(abs(value), 1e-2)
+    central = [(history(value + s) - history(value - s)) / (2 * s) for s in (h, h / 2)]
+    difference = (4 * central[1] - central[0]) / 3
+    assert np.max(np.abs(run.values - history(value))) < 1e-12
+    assert np.max(np.abs(run.derivative[0] - difference)) < 1e-6 * np.max(np.abs(difference))
+
+
+def test_refusals():
+    model = double_pendulum()
+    with pytest.raises(ModelError, match="motor.damping.*is 0"):
+        S.simulation_sensitivity(model, ["motor.damping"], t_final=0.1, dt=0.01, q0=[-1.2, -1.0])
+    with pytest.raises(ModelError, match="allowed: '<body>.mass'"):
+        S.simulation_sensitivity(model, ["upper.length"], t_final=0.1, dt=0.01, q0=[-1.2, -1.0])
+    with pytest.raises(ModelError, match="unknown body"):
+        S.simulation_sensitivity(model, ["middle.mass"], t_final=0.1, dt=0.01, q0=[-1.2, -1.0])
+    with pytest.raises(ModelError, match="unknown output"):
+        S.simulation_sensitivity(model, ["upper.mass"], t_final=0.1, dt=0.01, q0=[-1.2, -1.0], outputs=["x"])
