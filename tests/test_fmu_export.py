@@ -246,11 +246,6 @@ def test_no_exposed_parameter_is_a_constant_of_the_code():
     assert len(parameter_names(model)) == exported.parameter_values.size
 
 
-# fmpy's logger proxy keeps the logger of the last callbacks it wrapped in a process-wide variable: the
-# callbacks of the test below stay referenced for the whole session so that no later FMU logs into freed memory
-_CALLBACKS_KEPT_ALIVE: list = []
-
-
 def test_fmi_calls_outside_the_contract_fail_loudly(arm_fmu):
     """A communication step that is not a multiple of the FMU step, a wrong communication point, a fixed
     parameter set after initialisation, a non-finite input: fmi2Error with a logged message naming it;
@@ -264,7 +259,6 @@ def test_fmi_calls_outside_the_contract_fail_loudly(arm_fmu):
     folder = fmpy.extract(str(arm_fmu))
     log: collections.deque = collections.deque(maxlen=20)
     callbacks = fmi2_callbacks(log)
-    _CALLBACKS_KEPT_ALIVE.append((callbacks, log))
     plant = FMU2Slave(guid=description.guid, unzipDirectory=folder, modelIdentifier="arm", instanceName="p")
     try:
         plant.instantiate(callbacks=callbacks)
