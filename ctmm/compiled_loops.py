@@ -24,8 +24,11 @@ numpy path of :mod:`ctmm.control.planar_time` does:
 
 References ``r(t)`` and open-loop inputs are numbers or :mod:`ctmm.signals` objects with a
 symbolic form (constants, sines, steps, square waves), evaluated in the generated code at the
-stage times; the loop gains, controller matrices, delays, references and inputs are constants of
-the generated code (one library per loop set).  Refused: user callables as references or inputs,
+stage times.  The loop gains, controller realisations ``(A, B, C, D)`` and the references' signal
+parameters are entries of the step's parameter vector ``p`` after the model's numbers
+(:func:`ctmm.compiled_parameters.loop_parameter_layout`; :attr:`ClosedLoops.parameter_values`), so
+one library serves a sweep of them; the sensors, delays, controller orders, reference classes and
+open-loop inputs are constants of the code.  Refused: user callables as references or inputs,
 loops acting on beam station forces or moments (not on the element protocol yet,
 :func:`ctmm.compiled_scene.compiled_actuators`), co-simulated controllers.
 """
@@ -41,6 +44,7 @@ from .errors import ModelError
 from .ode import rk4_step
 from .planar.model import FREE, PlanarModel
 from .planar.ports import ActuatorInputs, PlanarPorts
+from .compiled_parameters import LoopNumbers, loop_parameter_layout, parameter_vector, symbolic_loop_numbers
 from .signals import as_signal, signal_parameters, symbolic_signal
 
 __all__ = ["ClosedLoops", "LoopLaw", "SymbolicKinematics", "SymbolicReference", "delay_steps", "sensor_expression"]
@@ -333,6 +337,13 @@ class ClosedLoops:
         Loops acting on beam station forces or moments whose floating-frame wrenches cancel: the loop's
         index and its loads per unit output (extra inputs of the sweep after ``actuators``).
     n_controller_states : int
+    plant_parameter_count : int
+        Length of the plant's :func:`~ctmm.compiled_parameters.parameter_vector` (the first entries of ``p``).
+    parameter_layout : list of (str, str, float)
+        ``(name, role, value)`` of the loop numbers that follow in ``p``
+        (:func:`~ctmm.compiled_parameters.loop_parameter_layout`).
+    parameter_values : ndarray
+        Their values (this controlled model's gains, controllers and references).
     ring_columns : int
         Stored samples per delayed loop (``max tau / dt + 1``; 0 without delayed loops).
     state_size : int
@@ -368,6 +379,9 @@ class ClosedLoops:
                                 float(loop.delay), delay_steps(loop.name, loop.delay, dt), reference))
         self.laws = tuple(laws)
         self.n = plant.n_coordinates
+        self.plant_parameter_count = parameter_vector(plant).size
+        self.parameter_layout = loop_parameter_layout(self.laws)
+        self.parameter_values = np.array([value for _, _, value in self.parameter_layout], dtype=float)
         self.n_controller_states = sum(law.A.shape[0] for law in laws)
         self.delayed = [k for k, law in enumerate(laws) if law.steps]
         self.ring_columns = max((law.steps for law in laws), default=0) + 1 if self.delayed else 0
@@ -429,23 +443,43 @@ class ClosedLoops:
         return np.concatenate([q, qdot, np.zeros(self.n_controller_states), ring])
 
     # -- the closed-loop rate and step -----------------------------------------------------
+    def numbers(self, p: Any) -> list[LoopNumbers]:
+        """The laws' numbers from the whole parameter column ``p`` (the plant's, then the loops'), or
+        the laws' own numbers for ``p = None``."""
+        return symbolic_loop_numbers(self.laws, None if p is None else p[self.plant_parameter_count:])
+
+    @staticmethod
+    def law_output(law: LoopLaw, numbers: LoopNumbers, signal: Any, z: Any, t: Any) -> tuple:
+        """``(u, e)`` of one loop: ``e = signal - r(t - tau)``, ``u = -(C z + D e)`` (``z`` its controller
+        states), on symbols."""
+        import casadi as ca
+
+        reference = law.reference
+        at = t - law.delay
+        r = reference.symbolic(at) if isinstance(reference, SymbolicReference) else \
+            symbolic_signal(type(reference), at, numbers.reference)
+        e = signal - r
+        controller = ca.dot(numbers.C, z) if law.A.shape[0] else 0.0
+        return -controller - numbers.D * e, e
+
     def rate(self, acceleration: Any, u: Any, p: Any, t: Any, x: Any, delayed: Sequence[Any]) -> tuple:
         """``(dx/dt, qddot)`` at time ``t`` and ``x = [q, qdot, z]`` with the delayed loop signals
-        ``delayed`` (one per delayed loop, in order)."""
+        ``delayed`` (one per delayed loop, in order); ``p`` the whole parameter column (the plant's
+        numbers, then :attr:`parameter_layout`)."""
         import casadi as ca
 
         q, v, z = self._split(x)
         now = self.sensors(q, v)
         outputs, rates, offset = [], [], 0
-        for k, law in enumerate(self.laws):
+        for k, (law, numbers) in enumerate(zip(self.laws, self.numbers(p))):
             signal = delayed[self.delayed.index(k)] if law.steps else now[k]
-            e = signal - _at(law.reference, t - law.delay)
             size = law.A.shape[0]
             zk = z[offset:offset + size]
             offset += size
-            outputs.append(-(ca.dot(ca.DM(law.C), zk) if size else 0.0) - law.D * e)
+            output, e = self.law_output(law, numbers, signal, zk, t)
+            outputs.append(output)
             if size:
-                rates.append(ca.mtimes(ca.DM(law.A), zk) + ca.DM(law.B) * e)
+                rates.append(ca.mtimes(numbers.A, zk) + numbers.B * e)
         total = u
         if self.laws:
             total = total + ca.mtimes(ca.DM(self.weights), ca.vertcat(*outputs))
@@ -454,17 +488,19 @@ class ClosedLoops:
             unit[index] = 1.0
             total = total + ca.DM(unit) * _at(signal, t)
         total = ca.vertcat(total, *[outputs[k] for k, _ in self.channels])
-        qddot = acceleration(q, v, total, p, t)
+        qddot = acceleration(q, v, total, p[:self.plant_parameter_count], t)
         return ca.vertcat(v, qddot, *rates), qddot
 
-    def step(self, acceleration: Any, n_inputs: int, n_parameters: int) -> Any:
+    def step(self, acceleration: Any, n_inputs: int) -> Any:
         """``step(Y, u, h, p, t0, k)``: RK4 step ``k`` (from ``t0 + k h``) of the closed loop, ``Y`` the
-        state ``[q, qdot, z, ring]`` (:attr:`state_size`), ``u`` the ``n_inputs`` held actuator values;
-        ``acceleration(q, v, [u; channels], p, t)`` the plant's generated sweep (a casadi Function) whose
-        inputs continue with one per :attr:`channels` entry."""
+        state ``[q, qdot, z, ring]`` (:attr:`state_size`), ``u`` the ``n_inputs`` held actuator values,
+        ``p`` the plant's numbers then the loops' (:attr:`plant_parameter_count` + :attr:`parameter_values`
+        entries); ``acceleration(q, v, [u; channels], p_plant, t)`` the plant's generated sweep (a casadi
+        Function) whose inputs continue with one per :attr:`channels` entry."""
         import casadi as ca
 
         Y, u, h = ca.MX.sym("y", self.state_size), ca.MX.sym("u", n_inputs), ca.MX.sym("h")
+        n_parameters = self.plant_parameter_count + self.parameter_values.size
         p, t0, k = ca.MX.sym("p", n_parameters), ca.MX.sym("t0"), ca.MX.sym("k")
         x = Y[:2 * self.n + self.n_controller_states]
         t = t0 + k * h
@@ -508,25 +544,32 @@ class ClosedLoops:
         out = ca.vertcat(rk4_step(rate, t, x, h), ca.reshape(table, -1, 1))
         return ca.Function("step", [Y, u, h, p, t0, k], [out])
 
-    def signals(self) -> Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
-        """``(y, u)`` (rows, loops) of stored states ``Y`` (rows, :attr:`state_size`) at times ``t``
-        (rows,): each loop's signal now and its output (the delayed sample of the row time from the
-        ring; as the numpy path's ``<loop>.y`` and ``<loop>.u``)."""
+    def loop_signals(self, Y: Any, t: Any, p: Any) -> tuple:
+        """``(y, u)`` columns (one entry per loop) at the stored state ``Y`` (:attr:`state_size`) and time
+        ``t`` [s] on symbols: each loop's signal now and its output (a delayed loop's from its sample
+        ``steps`` columns back in the ring); ``p`` the whole parameter column, or ``None`` for the laws'
+        own numbers."""
         import casadi as ca
 
-        Y, t = ca.SX.sym("y", self.state_size), ca.SX.sym("t")
-        x = Y[:2 * self.n + self.n_controller_states]
-        q, v, z = self._split(x)
+        q, v, z = self._split(Y[:2 * self.n + self.n_controller_states])
         now = self.sensors(q, v)
         ring = self._ring(Y) if self.delayed else None
         outputs, offset = [], 0
-        for k, law in enumerate(self.laws):
+        for k, (law, numbers) in enumerate(zip(self.laws, self.numbers(p))):
             signal = ring[self.delayed.index(k), self.ring_columns - law.steps] if law.steps else now[k]
-            e = signal - _at(law.reference, t - law.delay)
             size = law.A.shape[0]
-            outputs.append(-(ca.dot(ca.DM(law.C), z[offset:offset + size]) if size else 0.0) - law.D * e)
+            outputs.append(self.law_output(law, numbers, signal, z[offset:offset + size], t)[0])
             offset += size
-        function = ca.Function("loop_signals", [Y, t], [now, ca.vertcat(*outputs) if outputs else ca.SX(0, 1)])
+        return now, ca.vertcat(*outputs) if outputs else ca.SX(0, 1)
+
+    def signals(self) -> Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+        """``(y, u)`` (rows, loops) of stored states ``Y`` (rows, :attr:`state_size`) at times ``t``
+        (rows,): :meth:`loop_signals` with the laws' own numbers (:attr:`parameter_values`; as the numpy
+        path's ``<loop>.y`` and ``<loop>.u``)."""
+        import casadi as ca
+
+        Y, t = ca.SX.sym("y", self.state_size), ca.SX.sym("t")
+        function = ca.Function("loop_signals", [Y, t], list(self.loop_signals(Y, t, None)))
 
         def evaluate(states: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             rows = len(times)

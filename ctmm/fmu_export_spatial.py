@@ -80,8 +80,8 @@ def spatial_export(model: SpatialModel, *, inputs: Sequence[str] | None, outputs
             expressions[f"{body.name}.omega_{label}"] = state.omega[axis]
     default_outputs = list(model.coordinates) + list(model.velocities)
     output_names = chosen_names("outputs", outputs, list(expressions), default_outputs)
-    t_sym = ca.SX.sym("t")
-    output_function = ca.Function("ctmm_outputs", [y_sym, t_sym],
+    t_sym, p_outputs = ca.SX.sym("t"), ca.SX.sym("p", step.size1_in(3))
+    output_function = ca.Function("ctmm_outputs", [y_sym, t_sym, p_outputs],
                                   [ca.vertcat(*[expressions[name] for name in output_names])
                                    if output_names else ca.SX(0, 1)])
     start, p_sym = ca.SX.sym("start", nq + nv), ca.SX.sym("p", 0)
