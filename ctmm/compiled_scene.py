@@ -96,7 +96,8 @@ class CompiledScene:
         With loops: the step [s] the delayed loops' rings are built for (each delay a whole multiple).
     references, signals : mapping, optional
         With loops: ``{loop: r}`` references and ``{actuator: value}`` open-loop inputs, numbers or
-        symbolic signals (constants of the code; :class:`~ctmm.compiled_loops.ClosedLoops`).
+        symbolic signals (the references' numbers are entries of ``p``, the inputs constants of the code;
+        :class:`~ctmm.compiled_loops.ClosedLoops`).
 
     Attributes
     ----------

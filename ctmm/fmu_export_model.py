@@ -218,7 +218,7 @@ def planar_export(system: PlanarModel | ControlledModel, *, step: float, inputs:
     q0, qdot0 : array_like or None
         Start values [rad, m, modal] (default zeros).
     references : mapping, optional
-        ``{loop: number or symbolic signal}`` of a controlled model (constants of the code).
+        ``{loop: number or symbolic signal}`` of a controlled model (their numbers are parameters of the FMU).
     stability_check : {"warn", "error", "ignore"}
         Policy when ``step`` exceeds the plant's linearised RK4 limit at the start values.
     cache_dir : path, optional
