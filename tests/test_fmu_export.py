@@ -364,7 +364,10 @@ def test_a_spatial_tree_equals_ctmm_simulate(tmp_path):
                            outputs=list(model.coordinates) + list(model.velocities) + extra)
     assert validate_fmu(str(path)) == []
     description = fmpy.read_model_description(str(path))
+    from ctmm.compiled_spatial_parameters import spatial_parameter_layout
+
     assert [v.name for v in description.modelVariables if v.causality == "parameter"] == \
+        [entry.name for entry in spatial_parameter_layout(model)] + \
         [f"{name}_start" for name in list(model.coordinates) + list(model.velocities)]
     start_values = {}
     for name, value in inputs.items():
@@ -377,5 +380,5 @@ def test_a_spatial_tree_equals_ctmm_simulate(tmp_path):
     for name in out.dtype.names[1:]:
         assert_round_off(out[name], native[name][rows], name)
     assert max(np.ptp(native[name]) for name in model.coordinates) > 1e-3          # it moved
-    with pytest.raises(ModelError, match="parameters .*constants of its generated code"):
-        ctmm.export_fmu(model, tmp_path / "tree.fmu", step=1e-3, parameters=["b0.mass"])
+    with pytest.raises(ModelError, match="parameters has the unknown name 'b0.center_of_mass.x'; allowed: b0.mass"):
+        ctmm.export_fmu(model, tmp_path / "tree.fmu", step=1e-3, parameters=["b0.center_of_mass.x"])
