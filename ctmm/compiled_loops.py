@@ -24,11 +24,13 @@ numpy path of :mod:`ctmm.control.planar_time` does:
 
 References ``r(t)`` and open-loop inputs are numbers or :mod:`ctmm.signals` objects with a
 symbolic form (constants, sines, steps, square waves), evaluated in the generated code at the
-stage times.  The loop gains, controller realisations ``(A, B, C, D)`` and the references' signal
-parameters are entries of the step's parameter vector ``p`` after the model's numbers
+stage times.  With ``numbers="inputs"`` (what :class:`~ctmm.compiled_scene.CompiledScene` asks for)
+the loop gains, controller realisations ``(A, B, C, D)`` and the references' signal parameters are
+entries of the step's parameter vector ``p`` after the plant's numbers
 (:func:`ctmm.compiled_parameters.loop_parameter_layout`; :attr:`ClosedLoops.parameter_values`), so
-one library serves a sweep of them; the sensors, delays, controller orders, reference classes and
-open-loop inputs are constants of the code.  Refused: user callables as references or inputs,
+one library serves a sweep of them; with ``numbers="constants"`` they are constants of the code.  The
+sensors, delays, controller orders, reference classes and open-loop inputs are always constants.
+Refused: user callables as references or inputs,
 loops acting on beam station forces or moments (not on the element protocol yet,
 :func:`ctmm.compiled_scene.compiled_actuators`), co-simulated controllers.
 """
@@ -329,6 +331,9 @@ class ClosedLoops:
         ``{loop name: number or symbolic signal}`` [sensed unit] (default 0).
     inputs : mapping, optional
         ``{actuator name: number or symbolic signal}`` open-loop actuator values [SI], added to the loops'.
+    numbers : {"constants", "inputs"}
+        The loops' gains, controller realisations and references as constants of the code, or as entries
+        of ``p`` after the plant's :func:`~ctmm.compiled_parameters.parameter_vector` (planar plants).
 
     Attributes
     ----------
@@ -338,10 +343,11 @@ class ClosedLoops:
         index and its loads per unit output (extra inputs of the sweep after ``actuators``).
     n_controller_states : int
     plant_parameter_count : int
-        Length of the plant's :func:`~ctmm.compiled_parameters.parameter_vector` (the first entries of ``p``).
+        Length of the plant's :func:`~ctmm.compiled_parameters.parameter_vector` (the first entries of ``p``;
+        0 for other plants).
     parameter_layout : list of (str, str, float)
         ``(name, role, value)`` of the loop numbers that follow in ``p``
-        (:func:`~ctmm.compiled_parameters.loop_parameter_layout`).
+        (:func:`~ctmm.compiled_parameters.loop_parameter_layout`; empty with ``numbers="constants"``).
     parameter_values : ndarray
         Their values (this controlled model's gains, controllers and references).
     ring_columns : int
@@ -351,9 +357,13 @@ class ClosedLoops:
     """
 
     def __init__(self, controlled: ControlledModel, actuators: Sequence[str], dt: float | None = None,
-                 references: Mapping[str, Any] | None = None, inputs: Mapping[str, Any] | None = None) -> None:
+                 references: Mapping[str, Any] | None = None, inputs: Mapping[str, Any] | None = None,
+                 numbers: str = "constants") -> None:
         if not isinstance(controlled, ControlledModel):
             raise ModelError(f"ClosedLoops: controlled must be a ctmm.control.ControlledModel, got {controlled!r}")
+        if numbers not in ("constants", "inputs"):
+            raise ModelError(f"ClosedLoops: numbers must be 'constants' or 'inputs' (the loops' gains, controllers and "
+                             f"references as entries of p), got {numbers!r}")
         import casadi as ca
 
         plant, ports = controlled.plant, controlled.ports
@@ -379,8 +389,8 @@ class ClosedLoops:
                                 float(loop.delay), delay_steps(loop.name, loop.delay, dt), reference))
         self.laws = tuple(laws)
         self.n = plant.n_coordinates
-        self.plant_parameter_count = parameter_vector(plant).size
-        self.parameter_layout = loop_parameter_layout(self.laws)
+        self.plant_parameter_count = parameter_vector(plant).size if isinstance(plant, PlanarModel) else 0
+        self.parameter_layout = loop_parameter_layout(self.laws) if numbers == "inputs" else []
         self.parameter_values = np.array([value for _, _, value in self.parameter_layout], dtype=float)
         self.n_controller_states = sum(law.A.shape[0] for law in laws)
         self.delayed = [k for k, law in enumerate(laws) if law.steps]
@@ -445,8 +455,9 @@ class ClosedLoops:
     # -- the closed-loop rate and step -----------------------------------------------------
     def numbers(self, p: Any) -> list[LoopNumbers]:
         """The laws' numbers from the whole parameter column ``p`` (the plant's, then the loops'), or
-        the laws' own numbers for ``p = None``."""
-        return symbolic_loop_numbers(self.laws, None if p is None else p[self.plant_parameter_count:])
+        the laws' own numbers (constants) for ``p = None`` or ``numbers="constants"``."""
+        inputs = p is not None and self.parameter_layout
+        return symbolic_loop_numbers(self.laws, p[self.plant_parameter_count:] if inputs else None)
 
     @staticmethod
     def law_output(law: LoopLaw, numbers: LoopNumbers, signal: Any, z: Any, t: Any) -> tuple:
@@ -488,20 +499,29 @@ class ClosedLoops:
             unit[index] = 1.0
             total = total + ca.DM(unit) * _at(signal, t)
         total = ca.vertcat(total, *[outputs[k] for k, _ in self.channels])
-        qddot = acceleration(q, v, total, p[:self.plant_parameter_count], t)
+        qddot = acceleration(q, v, total, p[:self.plant_parameter_count] if self.parameter_layout else p, t)
         return ca.vertcat(v, qddot, *rates), qddot
 
-    def step(self, acceleration: Any, n_inputs: int) -> Any:
+    def step(self, acceleration: Any, n_inputs: int, n_parameters: int) -> Any:
         """``step(Y, u, h, p, t0, k)``: RK4 step ``k`` (from ``t0 + k h``) of the closed loop, ``Y`` the
         state ``[q, qdot, z, ring]`` (:attr:`state_size`), ``u`` the ``n_inputs`` held actuator values,
-        ``p`` the plant's numbers then the loops' (:attr:`plant_parameter_count` + :attr:`parameter_values`
-        entries); ``acceleration(q, v, [u; channels], p_plant, t)`` the plant's generated sweep (a casadi
-        Function) whose inputs continue with one per :attr:`channels` entry."""
+        ``p`` the plant's ``n_parameters`` numbers, then the loops' :attr:`parameter_values` entries;
+        ``acceleration(q, v, [u; channels], p_plant, t)`` the plant's generated sweep (a casadi Function)
+        whose inputs continue with one per :attr:`channels` entry.
+
+        Raises
+        ------
+        ModelError
+            Loop numbers as inputs with ``n_parameters`` other than :attr:`plant_parameter_count`.
+        """
         import casadi as ca
 
+        if self.parameter_layout and n_parameters != self.plant_parameter_count:
+            raise ModelError(f"ClosedLoops.step: n_parameters = {n_parameters!r}, the loops' numbers follow the "
+                             f"plant's {self.plant_parameter_count} numbers")
         Y, u, h = ca.MX.sym("y", self.state_size), ca.MX.sym("u", n_inputs), ca.MX.sym("h")
-        n_parameters = self.plant_parameter_count + self.parameter_values.size
-        p, t0, k = ca.MX.sym("p", n_parameters), ca.MX.sym("t0"), ca.MX.sym("k")
+        p = ca.MX.sym("p", n_parameters + self.parameter_values.size)
+        t0, k = ca.MX.sym("t0"), ca.MX.sym("k")
         x = Y[:2 * self.n + self.n_controller_states]
         t = t0 + k * h
         if not self.delayed:

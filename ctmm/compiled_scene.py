@@ -146,7 +146,8 @@ class CompiledScene:
         self.actuators = compiled_actuators(model)
         self.numbers = numbers
         self.controlled = controlled
-        self.loops = None if controlled is None else ClosedLoops(controlled, self.actuators, dt, references, signals)
+        self.loops = None if controlled is None else ClosedLoops(controlled, self.actuators, dt, references, signals,
+                                                                 numbers=numbers)
         self.state_size = 2 * model.n_coordinates if self.loops is None else self.loops.state_size
         self.structure = structure_key(model) if numbers == "inputs" else constants_key(model)
         self.parameters = parameter_vector(model)      # with loops: then the loops' numbers (ClosedLoops)
@@ -170,7 +171,7 @@ class CompiledScene:
                                                                                            t))])
             step = rk4_step_function(rate)
         else:           # the loops closed at every stage, the delayed ones from the ring in the state
-            step = self.loops.step(acceleration, len(self.actuators))
+            step = self.loops.step(acceleration, len(self.actuators), n_p)
         self.symbolic_step = step                       # the generated step on symbols (ctmm.fmu_export)
         stride, self._sizes, blocks = time_loop_functions(step, store_every, self.rows)
         name = f"scene_{model.n_bodies}b{n}q" + (f"{len(self.loops.laws)}l" if self.loops else "")

@@ -11,9 +11,11 @@ import numpy as np
 import pytest
 
 import ctmm
+from ctmm.compiled_loops import ClosedLoops
 from ctmm.compiled_scene import CompiledScene
 from ctmm.control import Feedback
 from ctmm.control.controlled_model import ControlledModel
+from ctmm.errors import ModelError
 from ctmm.planar import Fixed, PlanarModel, RigidBody, SmoothHinge
 from ctmm.signals import Harmonic
 
@@ -71,6 +73,12 @@ def test_a_gain_sweep_runs_on_one_library_and_equals_the_numpy_path(tmp_path, mo
                       "lag.reference"]
     assert scene.parameters.size == scene.loops.plant_parameter_count + len(layout)
     assert scene.parameters[scene.loops.plant_parameter_count] == 11.0
+    constants = CompiledScene(controlled(*numbers[1][0]), dt=DT, references=references(*numbers[1][1]),
+                              numbers="constants")                  # one library per model: loops too
+    assert constants.loops.parameter_layout == [] and constants.parameters.size == scene.loops.plant_parameter_count
+    assert len(libraries(tmp_path)) == 2
+    with pytest.raises(ModelError, match="numbers must be 'constants' or 'inputs'.*got 'gains'"):
+        ClosedLoops(controlled(*numbers[0][0]), scene.actuators, DT, numbers="gains")
 
 
 def test_gains_and_references_set_through_fmi_equal_ctmm_simulate(tmp_path):
