@@ -331,7 +331,7 @@ def loop_expressions(loops: ClosedLoops, y: Any, t: Any, p: Any) -> dict[str, An
     (:attr:`ClosedLoops.state_size`: ``[q, qdot, z, ring]``) at the time symbol ``t`` [s] with the
     parameter symbol ``p`` (the plant's numbers, then the loops'): :meth:`ClosedLoops.loop_signals`.
     :func:`planar_export` checks them against :meth:`ClosedLoops.signals`."""
-    now, outputs = loops.loop_signals(y, t, p)
+    now, outputs = loops.loop_signals(y, t, p)[:2]
     out = {}
     for k, law in enumerate(loops.laws):
         out[f"{law.name}.y"] = now[k]
