@@ -27,8 +27,13 @@ numpy path of :mod:`ctmm.control.planar_time` does:
 
 References ``r(t)`` and open-loop inputs are numbers or :mod:`ctmm.signals` objects with a
 symbolic form (constants, sines, steps, square waves), evaluated in the generated code at the
-stage times; the loop gains, controller matrices, delays, references and inputs are constants of
-the generated code (one library per loop set).  Refused: user callables as references or inputs,
+stage times.  With ``numbers="inputs"`` (what :class:`~ctmm.compiled_scene.CompiledScene` asks for)
+the loop gains, controller realisations ``(A, B, C, D)`` and the references' signal parameters are
+entries of the step's parameter vector ``p`` after the plant's numbers
+(:func:`ctmm.compiled_parameters.loop_parameter_layout`; :attr:`ClosedLoops.parameter_values`), so
+one library serves a sweep of them; with ``numbers="constants"`` they are constants of the code.  The
+sensors, delays, controller orders, reference classes and open-loop inputs are always constants.
+Refused: user callables as references or inputs,
 loops acting on beam station forces or moments (not on the element protocol yet,
 :func:`ctmm.compiled_scene.compiled_actuators`), co-simulated controllers.
 """
@@ -44,7 +49,9 @@ from .errors import ModelError
 from .ode import rk4_step
 from .planar.model import FREE, PlanarModel
 from .planar.ports import ActuatorInputs, PlanarPorts
-from .signals import as_signal, signal_parameters, symbolic_signal
+from .compiled_parameters import LoopNumbers, loop_parameter_layout, parameter_vector, symbolic_loop_numbers
+from .compiled_references import SymbolicReference, reference_at, symbolic_reference
+from .signals import symbolic_signal
 
 __all__ = ["ClosedLoops", "PlanarSymbols", "LoopLaw", "SymbolicKinematics", "SymbolicReference", "delay_steps",
            "sensor_expression"]
@@ -138,62 +145,8 @@ def _controller(loop: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
         float(np.asarray(system.D, float).reshape(-1)[0])
 
 
-@dataclass(frozen=True)
-class SymbolicReference:
-    """A time signal given twice: as numbers and on casadi symbols (for references and inputs that
-    :mod:`ctmm.signals` has no class for, e.g. a cycloidal move).  Callable as ``r(t)`` [float], so the
-    numpy path takes it too.
-
-    Parameters
-    ----------
-    numeric : callable
-        ``t [s] -> float``.
-    symbolic : callable
-        ``t`` (casadi symbol) ``->`` casadi expression, the same operations.
-    """
-
-    numeric: Callable[[float], float]
-    symbolic: Callable[[Any], Any]
-
-    def __call__(self, t: float) -> float:
-        return float(self.numeric(t))
-
-
-def _symbolic(label: str, value: Any) -> Any:
-    """A number, a :mod:`ctmm.signals` object with a symbolic form or a :class:`SymbolicReference`, as a
-    signal; ModelError otherwise."""
-    if isinstance(value, SymbolicReference):
-        _check_forms(label, value)
-        return value
-    signal = as_signal(label, value)
-    if signal_parameters(signal) is None:
-        raise ModelError(f"{label} is a Python callable of time, which generated kernels cannot evaluate; give a "
-                         "number, a ctmm.signals Constant, Harmonic, Step or SquareWave, or a "
-                         "ctmm.compiled_loops.SymbolicReference, or use compiled=False")
-    return signal
-
-
-def _check_forms(label: str, reference: SymbolicReference) -> None:
-    """Refuse a :class:`SymbolicReference` whose two forms differ (relative 1e-12) at a few times [s]."""
-    import casadi as ca
-
-    t = ca.SX.sym("t")
-    try:
-        function = ca.Function("reference", [t], [reference.symbolic(t)])
-    except Exception as exc:  # noqa: BLE001 - report what the user's symbolic form did
-        raise ModelError(f"{label}: the symbolic form of the SymbolicReference failed on a casadi symbol "
-                         f"({exc!r})") from None
-    for time in (0.0, 0.013, 0.31, 0.77, 1.9, 4.3):
-        numeric, symbolic = reference(time), float(function(time))
-        if not abs(numeric - symbolic) <= 1e-12 * max(1.0, abs(numeric)):
-            raise ModelError(f"{label}: the SymbolicReference's numeric and symbolic forms differ at t = {time} s "
-                             f"({numeric!r} and {symbolic!r}); they must be the same signal")
-
-
-def _at(signal: Any, t: Any) -> Any:
-    if isinstance(signal, SymbolicReference):
-        return signal.symbolic(t)
-    return symbolic_signal(type(signal), t, signal_parameters(signal))
+# the references' own module; the short names keep the call sites below unchanged
+_symbolic, _at = symbolic_reference, reference_at
 
 
 # ------------------------------------------------------------------------------------------
@@ -365,6 +318,9 @@ class ClosedLoops:
         The plant on symbols (``n_positions``, ``n_velocities``, ``position_rates(q, v)``,
         ``sensor(name, q, v)``); default :class:`PlanarSymbols` of a planar plant
         (:class:`ctmm.compiled_spatial_loops.SpatialSymbols` for spatial plants).
+    numbers : {"constants", "inputs"}
+        The loops' gains, controller realisations and references as constants of the code, or as entries
+        of ``p`` after the plant's :func:`~ctmm.compiled_parameters.parameter_vector` (planar plants).
 
     Attributes
     ----------
@@ -373,6 +329,14 @@ class ClosedLoops:
         Loops acting on beam station forces or moments whose floating-frame wrenches cancel: the loop's
         index and its loads per unit output (extra inputs of the sweep after ``actuators``).
     n_controller_states : int
+    plant_parameter_count : int
+        Length of the plant's :func:`~ctmm.compiled_parameters.parameter_vector` (the first entries of ``p``;
+        0 for other plants).
+    parameter_layout : list of (str, str, float)
+        ``(name, role, value)`` of the loop numbers that follow in ``p``
+        (:func:`~ctmm.compiled_parameters.loop_parameter_layout`; empty with ``numbers="constants"``).
+    parameter_values : ndarray
+        Their values (this controlled model's gains, controllers and references).
     ring_columns : int
         Stored samples per delayed loop (``max tau / dt + 1``; 0 without delayed loops).
     state_size : int
@@ -381,9 +345,12 @@ class ClosedLoops:
 
     def __init__(self, controlled: ControlledModel, actuators: Sequence[str], dt: float | None = None,
                  references: Mapping[str, Any] | None = None, inputs: Mapping[str, Any] | None = None,
-                 symbols: Any = None) -> None:
+                 symbols: Any = None, numbers: str = "constants") -> None:
         if not isinstance(controlled, ControlledModel):
             raise ModelError(f"ClosedLoops: controlled must be a ctmm.control.ControlledModel, got {controlled!r}")
+        if numbers not in ("constants", "inputs"):
+            raise ModelError(f"ClosedLoops: numbers must be 'constants' or 'inputs' (the loops' gains, controllers and "
+                             f"references as entries of p), got {numbers!r}")
         import casadi as ca
 
         plant, ports = controlled.plant, controlled.ports
@@ -413,6 +380,9 @@ class ClosedLoops:
         self.nq, self.nv = symbols.n_positions, symbols.n_velocities
         self.base = self.nq + self.nv           # [q, v] (planar: v = qdot), then z and the ring
         self.position_rates = symbols.position_rates
+        self.plant_parameter_count = parameter_vector(plant).size if isinstance(plant, PlanarModel) else 0
+        self.parameter_layout = loop_parameter_layout(self.laws) if numbers == "inputs" else []
+        self.parameter_values = np.array([value for _, _, value in self.parameter_layout], dtype=float)
         self.n_controller_states = sum(law.A.shape[0] for law in laws)
         self.delayed = [k for k, law in enumerate(laws) if law.steps]
         self.ring_columns = max((law.steps for law in laws), default=0) + 1 if self.delayed else 0
@@ -473,23 +443,44 @@ class ClosedLoops:
         return np.concatenate([q, qdot, np.zeros(self.n_controller_states), ring])
 
     # -- the closed-loop rate and step -----------------------------------------------------
+    def numbers(self, p: Any) -> list[LoopNumbers]:
+        """The laws' numbers from the whole parameter column ``p`` (the plant's, then the loops'), or
+        the laws' own numbers (constants) for ``p = None`` or ``numbers="constants"``."""
+        inputs = p is not None and self.parameter_layout
+        return symbolic_loop_numbers(self.laws, p[self.plant_parameter_count:] if inputs else None)
+
+    @staticmethod
+    def law_output(law: LoopLaw, numbers: LoopNumbers, signal: Any, z: Any, t: Any) -> tuple:
+        """``(u, e)`` of one loop: ``e = signal - r(t - tau)``, ``u = -(C z + D e)`` (``z`` its controller
+        states), on symbols."""
+        import casadi as ca
+
+        reference = law.reference
+        at = t - law.delay
+        r = reference.symbolic(at) if isinstance(reference, SymbolicReference) else \
+            symbolic_signal(type(reference), at, numbers.reference)
+        e = signal - r
+        controller = ca.dot(numbers.C, z) if law.A.shape[0] else 0.0
+        return -controller - numbers.D * e, e
+
     def rate(self, acceleration: Any, u: Any, p: Any, t: Any, x: Any, delayed: Sequence[Any]) -> tuple:
         """``(dx/dt, qddot)`` at time ``t`` and ``x = [q, qdot, z]`` with the delayed loop signals
-        ``delayed`` (one per delayed loop, in order)."""
+        ``delayed`` (one per delayed loop, in order); ``p`` the whole parameter column (the plant's
+        numbers, then :attr:`parameter_layout`)."""
         import casadi as ca
 
         q, v, z = self._split(x)
         now = self.sensors(q, v)
         outputs, rates, offset = [], [], 0
-        for k, law in enumerate(self.laws):
+        for k, (law, numbers) in enumerate(zip(self.laws, self.numbers(p))):
             signal = delayed[self.delayed.index(k)] if law.steps else now[k]
-            e = signal - _at(law.reference, t - law.delay)
             size = law.A.shape[0]
             zk = z[offset:offset + size]
             offset += size
-            outputs.append(law.output(-(ca.dot(ca.DM(law.C), zk) if size else 0.0) - law.D * e))
+            demand, e = self.law_output(law, numbers, signal, zk, t)
+            outputs.append(law.output(demand))
             if size:
-                rates.append(ca.mtimes(ca.DM(law.A), zk) + ca.DM(law.B) * e)
+                rates.append(ca.mtimes(numbers.A, zk) + numbers.B * e)
         total = u
         if self.laws:
             total = total + ca.mtimes(ca.DM(self.weights), ca.vertcat(*outputs))
@@ -498,18 +489,29 @@ class ClosedLoops:
             unit[index] = 1.0
             total = total + ca.DM(unit) * _at(signal, t)
         total = ca.vertcat(total, *[outputs[k] for k, _ in self.channels])
-        qddot = acceleration(q, v, total, p, t)
+        qddot = acceleration(q, v, total, p[:self.plant_parameter_count] if self.parameter_layout else p, t)
         return ca.vertcat(self.position_rates(q, v), qddot, *rates), qddot
 
     def step(self, acceleration: Any, n_inputs: int, n_parameters: int) -> Any:
         """``step(Y, u, h, p, t0, k)``: RK4 step ``k`` (from ``t0 + k h``) of the closed loop, ``Y`` the
-        state ``[q, qdot, z, ring]`` (:attr:`state_size`), ``u`` the ``n_inputs`` held actuator values;
-        ``acceleration(q, v, [u; channels], p, t)`` the plant's generated sweep (a casadi Function) whose
-        inputs continue with one per :attr:`channels` entry."""
+        state ``[q, qdot, z, ring]`` (:attr:`state_size`), ``u`` the ``n_inputs`` held actuator values,
+        ``p`` the plant's ``n_parameters`` numbers, then the loops' :attr:`parameter_values` entries;
+        ``acceleration(q, v, [u; channels], p_plant, t)`` the plant's generated sweep (a casadi Function)
+        whose inputs continue with one per :attr:`channels` entry.
+
+        Raises
+        ------
+        ModelError
+            Loop numbers as inputs with ``n_parameters`` other than :attr:`plant_parameter_count`.
+        """
         import casadi as ca
 
+        if self.parameter_layout and n_parameters != self.plant_parameter_count:
+            raise ModelError(f"ClosedLoops.step: n_parameters = {n_parameters!r}, the loops' numbers follow the "
+                             f"plant's {self.plant_parameter_count} numbers")
         Y, u, h = ca.MX.sym("y", self.state_size), ca.MX.sym("u", n_inputs), ca.MX.sym("h")
-        p, t0, k = ca.MX.sym("p", n_parameters), ca.MX.sym("t0"), ca.MX.sym("k")
+        p = ca.MX.sym("p", n_parameters + self.parameter_values.size)
+        t0, k = ca.MX.sym("t0"), ca.MX.sym("k")
         x = Y[:self.base + self.n_controller_states]
         t = t0 + k * h
         if not self.delayed:
@@ -552,29 +554,35 @@ class ClosedLoops:
         out = ca.vertcat(rk4_step(rate, t, x, h), ca.reshape(table, -1, 1))
         return ca.Function("step", [Y, u, h, p, t0, k], [out])
 
-    def signals(self) -> Callable[..., tuple]:
-        """``(y, u)`` (rows, loops) of stored states ``Y`` (rows, :attr:`state_size`) at times ``t``
-        (rows,): each loop's signal now and its output (the delayed sample of the row time from the
-        ring; as the numpy path's ``<loop>.y`` and ``<loop>.u``); ``evaluate(Y, t, demand=True)``
-        adds the unclipped demand (``<loop>.u_demand`` of a saturating loop)."""
+    def loop_signals(self, Y: Any, t: Any, p: Any) -> tuple:
+        """``(y, u, u_demand)`` columns (one entry per loop) at the stored state ``Y`` (:attr:`state_size`) and
+        time ``t`` [s] on symbols: each loop's signal now, its output (clipped to its saturation) and its
+        unclipped demand (a delayed loop's from its sample ``steps`` columns back in the ring); ``p`` the
+        whole parameter column, or ``None`` for the laws' own numbers."""
         import casadi as ca
 
-        Y, t = ca.SX.sym("y", self.state_size), ca.SX.sym("t")
-        x = Y[:self.base + self.n_controller_states]
-        q, v, z = self._split(x)
+        q, v, z = self._split(Y[:self.base + self.n_controller_states])
         now = self.sensors(q, v)
         ring = self._ring(Y) if self.delayed else None
         demands, offset = [], 0
-        for k, law in enumerate(self.laws):
+        for k, (law, numbers) in enumerate(zip(self.laws, self.numbers(p))):
             signal = ring[self.delayed.index(k), self.ring_columns - law.steps] if law.steps else now[k]
-            e = signal - _at(law.reference, t - law.delay)
             size = law.A.shape[0]
-            demands.append(-(ca.dot(ca.DM(law.C), z[offset:offset + size]) if size else 0.0) - law.D * e)
+            demands.append(self.law_output(law, numbers, signal, z[offset:offset + size], t)[0])
             offset += size
         empty = ca.SX(0, 1)
-        function = ca.Function("loop_signals", [Y, t], [
-            now, ca.vertcat(*[law.output(d) for law, d in zip(self.laws, demands)]) if demands else empty,
-            ca.vertcat(*demands) if demands else empty])
+        outputs = ca.vertcat(*[law.output(d) for law, d in zip(self.laws, demands)]) if demands else empty
+        return now, outputs, ca.vertcat(*demands) if demands else empty
+
+    def signals(self) -> Callable[..., tuple]:
+        """``(y, u)`` (rows, loops) of stored states ``Y`` (rows, :attr:`state_size`) at times ``t``
+        (rows,): :meth:`loop_signals` with the laws' own numbers (:attr:`parameter_values`; as the numpy
+        path's ``<loop>.y`` and ``<loop>.u``); ``evaluate(Y, t, demand=True)`` adds the unclipped demand
+        (``<loop>.u_demand`` of a saturating loop)."""
+        import casadi as ca
+
+        Y, t = ca.SX.sym("y", self.state_size), ca.SX.sym("t")
+        function = ca.Function("loop_signals", [Y, t], list(self.loop_signals(Y, t, None)))
 
         def evaluate(states: np.ndarray, times: np.ndarray, demand: bool = False) -> tuple:
             rows = len(times)

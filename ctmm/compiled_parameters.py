@@ -5,11 +5,17 @@ numbers a kernel takes as its input ``p`` and :func:`symbolic_numbers` states th
 :func:`structure_key` hashes what the generated code keeps as constants (the scenes one library
 serves); :func:`compiled_actuators` lists the actuator inputs ``u``.  Used by
 :class:`ctmm.compiled_scene.CompiledScene`.
+
+Loops closed inside the step (:class:`ctmm.compiled_loops.ClosedLoops`) append their numbers to ``p``
+(:func:`loop_parameter_layout`, :func:`symbolic_loop_numbers`): each loop's static gain or controller
+realisation ``(A, B, C, D)`` and its reference's signal parameters, so one library serves every gain,
+controller coefficient and reference of a loop structure.
 """
 from __future__ import annotations
 
 import hashlib
-from typing import Any
+from dataclasses import dataclass
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -21,8 +27,8 @@ from .planar.model import REVOLUTE, PlanarModel
 from .planar.ports import PlanarPorts
 from .signals import SYMBOLIC_FIELDS, Constant, signal_parameters, symbolic_signal
 
-__all__ = ["compile_refusal", "compiled_actuators", "constants_key", "parameter_vector", "structure_key",
-           "symbolic_numbers"]
+__all__ = ["LoopNumbers", "compile_refusal", "compiled_actuators", "constants_key", "loop_parameter_layout",
+           "parameter_vector", "structure_key", "symbolic_loop_numbers", "symbolic_numbers"]
 
 
 def compile_refusal(model: Any) -> str:
@@ -206,3 +212,93 @@ def compiled_actuators(model: PlanarModel) -> tuple[str, ...]:
     forces and moments of beams (their floating-frame part is not on the element protocol yet)."""
     ports = PlanarPorts(model)
     return tuple(name for name, actuator in ports.actuators.items() if actuator.kind != "station")
+
+
+# ------------------------------------------------------------------------------------------
+# numbers of the loops closed inside the step
+# ------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class LoopNumbers:
+    """The numbers of one loop law on symbols (or numbers): ``u = -(C z + D e)``, ``z' = A z + B e``.
+
+    Attributes
+    ----------
+    A : casadi matrix ``(k, k)``; B, C : casadi columns ``(k,)``; D : scalar
+        Controller realisation; a static gain is ``D`` alone (``k = 0``).
+    reference : sequence
+        The reference's :func:`ctmm.signals.signal_parameters` (empty for a
+        :class:`~ctmm.compiled_loops.SymbolicReference`, whose numbers stay constants of the code).
+    """
+
+    A: Any
+    B: Any
+    C: Any
+    D: Any
+    reference: Sequence[Any]
+
+
+def _reference_fields(reference: Any) -> tuple[str, ...]:
+    """Field names of a reference with a symbolic form (none for other callables)."""
+    return SYMBOLIC_FIELDS.get(type(reference), ())
+
+
+def loop_parameter_layout(laws: Sequence[Any]) -> list[tuple[str, str, float]]:
+    """``(name, role, value)`` of the loop numbers a generated step with loops takes after the model's
+    :func:`parameter_vector`, in order, loop by loop: a static loop's ``"<loop>.gain"`` (role ``"gain"``);
+    an LTI controller's realisation ``"<loop>.A[i,j]"`` (row by row), ``"<loop>.B[i]"``, ``"<loop>.C[i]"``,
+    ``"<loop>.D"`` (role ``"controller"``, the state-space form of ``control.ss``, not the transfer
+    function's coefficients); then every loop's reference ``"<loop>.reference"`` (one field) or
+    ``"<loop>.reference.<field>"`` (role ``"reference"`` or ``"reference.<field>"``).
+
+    ``laws`` are :class:`~ctmm.compiled_loops.LoopLaw` objects (``name``, ``A``, ``B``, ``C``, ``D``,
+    ``reference``).
+    """
+    layout: list[tuple[str, str, float]] = []
+    for law in laws:
+        k = law.A.shape[0]
+        if k == 0:
+            layout.append((f"{law.name}.gain", "gain", float(law.D)))
+            continue
+        layout += [(f"{law.name}.A[{i},{j}]", "controller", float(law.A[i, j])) for i in range(k) for j in range(k)]
+        layout += [(f"{law.name}.B[{i}]", "controller", float(law.B[i])) for i in range(k)]
+        layout += [(f"{law.name}.C[{i}]", "controller", float(law.C[i])) for i in range(k)]
+        layout.append((f"{law.name}.D", "controller", float(law.D)))
+    for law in laws:
+        fields = _reference_fields(law.reference)
+        values = signal_parameters(law.reference) if fields else ()
+        if len(fields) == 1:
+            layout.append((f"{law.name}.reference", "reference", float(values[0])))
+        else:
+            layout += [(f"{law.name}.reference.{field}", f"reference.{field}", float(value))
+                       for field, value in zip(fields, values)]
+    return layout
+
+
+def symbolic_loop_numbers(laws: Sequence[Any], theta: Any) -> list[LoopNumbers]:
+    """:class:`LoopNumbers` of every law from the entries of ``theta`` (a casadi column in
+    :func:`loop_parameter_layout` order, or ``None``: the laws' own numbers as constants)."""
+    import casadi as ca
+
+    if theta is None:
+        theta = ca.DM([value for _, _, value in loop_parameter_layout(laws)])
+    cursor = [0]
+
+    def take(count: int) -> Any:
+        start = cursor[0]
+        cursor[0] += count
+        return theta[start:start + count]
+
+    gains = []
+    for law in laws:
+        k = law.A.shape[0]
+        if k == 0:
+            gains.append((ca.DM(0, 0), ca.DM(0, 1), ca.DM(0, 1), take(1)))
+        else:
+            A = ca.reshape(take(k * k), k, k).T                  # stored row by row
+            gains.append((A, take(k), take(k), take(1)))
+    numbers = []
+    for law, (A, B, C, D) in zip(laws, gains):
+        count = len(_reference_fields(law.reference))
+        reference = take(count) if count else None
+        numbers.append(LoopNumbers(A, B, C, D, [] if reference is None else [reference[i] for i in range(count)]))
+    return numbers

@@ -96,7 +96,8 @@ class CompiledScene:
         With loops: the step [s] the delayed loops' rings are built for (each delay a whole multiple).
     references, signals : mapping, optional
         With loops: ``{loop: r}`` references and ``{actuator: value}`` open-loop inputs, numbers or
-        symbolic signals (constants of the code; :class:`~ctmm.compiled_loops.ClosedLoops`).
+        symbolic signals (the references' numbers are entries of ``p``, the inputs constants of the code;
+        :class:`~ctmm.compiled_loops.ClosedLoops`).
 
     Attributes
     ----------
@@ -109,7 +110,8 @@ class CompiledScene:
     state_size : int
         Length of the stored states: ``2 n``, with loops ``[q, qdot, z, ring]``.
     parameters : ndarray
-        The model's :func:`parameter_vector` (the input ``p``).
+        The model's :func:`parameter_vector` (the input ``p``); with loops followed by their gains,
+        controllers and references (:attr:`ctmm.compiled_loops.ClosedLoops.parameter_values`).
     structure : str
         :func:`structure_key` of the model (the scenes it serves, :meth:`with_model`).
     compile_time_s : float
@@ -144,11 +146,14 @@ class CompiledScene:
         self.actuators = compiled_actuators(model)
         self.numbers = numbers
         self.controlled = controlled
-        self.loops = None if controlled is None else ClosedLoops(controlled, self.actuators, dt, references, signals)
+        self.loops = None if controlled is None else ClosedLoops(controlled, self.actuators, dt, references, signals,
+                                                                 numbers=numbers)
         self.state_size = 2 * model.n_coordinates if self.loops is None else self.loops.state_size
         self.structure = structure_key(model) if numbers == "inputs" else constants_key(model)
-        self.parameters = parameter_vector(model)
+        self.parameters = parameter_vector(model)      # with loops: then the loops' numbers (ClosedLoops)
         n, n_p = model.n_coordinates, self.parameters.size
+        if self.loops is not None:
+            self.parameters = np.concatenate([self.parameters, self.loops.parameter_values])
         scene = PlanarScene(model)
         ports = PlanarPorts(model)                        # resolved once (was once per actuator)
         units = [ports.inputs({name: 1.0}) for name in self.actuators]
@@ -177,7 +182,7 @@ class CompiledScene:
         self._closed_rate = None
         if self.loops is not None and not self.loops.delayed:       # the closed loop's rate, on the library
             x, u_all = ca.MX.sym("x", self.state_size), ca.MX.sym("u", len(self.actuators))
-            p_mx, t_mx = ca.MX.sym("p", n_p), ca.MX.sym("t")
+            p_mx, t_mx = ca.MX.sym("p", self.parameters.size), ca.MX.sym("t")
             self._closed_rate = ca.Function("closed_rate", [x, u_all, p_mx, t_mx], [
                 self.loops.rate(self._acceleration, u_all, p_mx, t_mx, x, ())[0]])
         self.compile_time_s = _time.perf_counter() - start
@@ -225,7 +230,7 @@ class CompiledScene:
         ``t`` [s]."""
         q, qdot = self.model.state(q, qdot)
         held = np.concatenate([self._inputs(inputs), np.zeros(len(self.loops.channels) if self.loops else 0)])
-        return np.asarray(self._acceleration(q, qdot, held, self.parameters,
+        return np.asarray(self._acceleration(q, qdot, held, self.parameters[:self._acceleration.size1_in(3)],
                                              validation.finite("t", t))).reshape(-1)
 
     def closed_loop_rates(self, state: Any, t: float = 0.0, inputs: Mapping[str, float] | None = None

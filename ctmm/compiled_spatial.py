@@ -22,10 +22,14 @@ Long serial chains of equal segments (:func:`chain_period`; from :data:`FOLD_MIN
 code of one segment, called once per segment, instead of straight-line code of every body, so the C
 and its compile time do not grow with N.
 
-Numbers are constants of the generated code (one library per model, cached by the hash of its C
-text): :func:`~ctmm.spatial.body_forms.rigid_body_terms` and the joint laws take the model's masses,
-inertias, points, stiffnesses and dampings as numeric constants, so a parameter input ``p`` would
-need those terms to accept symbols; the kernels keep an empty ``p`` for that.  Actuator inputs
+Numbers: with ``numbers="constants"`` (the default of ``compiled=True``) they are constants of the
+generated code (one library per model, cached by the hash of its C text; ``p`` empty).  With
+``numbers="inputs"`` the masses, non-zero inertia entries, the 1- and 2-DOF joint laws and gravity are
+the parameter column ``p`` (:mod:`ctmm.compiled_spatial_parameters`: the body terms summed from
+:func:`~ctmm.spatial.body_forms.rigid_body_terms` of unit numbers, the laws on the symbols), so one
+library serves every model of one structure (its zeros, geometry, axes, loads and driven motions;
+the applied loads' part of a body's terms keeps that body's numbers in the code); the folded chain
+takes one column of ``p`` per segment.  Actuator inputs
 (``"<joint>.torque" | ".force" | ".wrench"``) are inputs ``u`` of every function, numbers held over
 a run.
 
@@ -55,6 +59,8 @@ from .spatial.body_forms import SpatialScene, joint_motion, rigid_body_terms
 from .spatial.frames import block_diagonal, constant, cross, quaternion_rate, quaternion_rotation
 from .spatial.integrate import initial_state, spatial_signals
 from .spatial.model import SpatialModel
+from .compiled_spatial_parameters import (SpatialNumbers, parametrised_body_terms, parametrised_joint_law,
+                                          spatial_parameter_layout, spatial_parameter_vector)
 
 __all__ = ["SpatialRates", "CompiledSpatialScene", "spatial_compile_refusal", "simulate_spatial_generated",
            "chain_period"]
@@ -110,27 +116,36 @@ class SpatialRates:
         ``True``: the folds over equal segments (:func:`folded_velocity_rate`; refused for a model
         :func:`chain_period` does not fold); ``False``: straight-line; ``None``: the fold for foldable
         models of at least :data:`FOLD_MIN_BODIES` bodies.
+    numbers : {"constants", "inputs"}
+        The model's numbers as constants of the code (``p`` empty) or as the parameter column ``p``
+        (:func:`~ctmm.compiled_spatial_parameters.spatial_parameter_layout`).
 
     Attributes
     ----------
     period : int
         Bodies per folded segment (0: straight-line code).
     rate : casadi.Function
-        ``(y, u, p, t) -> y_dot`` (``p`` empty: numbers are constants), calling
-        :attr:`velocity_rate`.
+        ``(y, u, p, t) -> y_dot``, calling :attr:`velocity_rate`.
     velocity_rate : casadi.Function
-        ``(q, v, u) -> v_dot``.
+        ``(q, v, u, p) -> v_dot``.
+    layout : list of SpatialParameter
+        The entries of ``p`` (empty with ``numbers="constants"``).
     actuators : tuple of str
         Input names, in the order of ``u``; :attr:`widths` their sizes.
     """
 
-    def __init__(self, model: SpatialModel, *, fold: bool | None = None) -> None:
+    def __init__(self, model: SpatialModel, *, fold: bool | None = None, numbers: str = "constants") -> None:
         import casadi as ca
 
         reason = spatial_compile_refusal(model)
         if reason:
             raise ModelError(f"SpatialRates: {reason}")
+        if numbers not in ("constants", "inputs"):
+            raise ModelError(f"SpatialRates: numbers must be 'constants' (one library per model) or 'inputs' (one "
+                             f"library per structure), got {numbers!r}")
         self.model = model
+        self.layout = spatial_parameter_layout(model) if numbers == "inputs" else []
+        n_p = len(self.layout)
         nq, nv = model.n_positions, model.n_velocities
         self.actuators = tuple(model.inputs)
         self.widths = tuple(joint.velocity_count for joint in model.joints for _ in joint.inputs)
@@ -140,26 +155,56 @@ class SpatialRates:
                              f"{', '.join(FOLD_KINDS)} joints without loads or inputs; model {model.name!r} is not one")
         self.period = period if (fold or (fold is None and model.n_bodies >= FOLD_MIN_BODIES)) else 0
         if self.period:
-            self.velocity_rate = folded_velocity_rate(model, self.period)
-            y, u_mx, p, t = ca.MX.sym("y", nq + nv), ca.MX.sym("u", 0), ca.MX.sym("p", 0), ca.MX.sym("t")
+            self.velocity_rate = folded_velocity_rate(model, self.period, self.layout)
+            y, u_mx, p, t = ca.MX.sym("y", nq + nv), ca.MX.sym("u", 0), ca.MX.sym("p", n_p), ca.MX.sym("t")
             self.rate = ca.Function("rate", [y, u_mx, p, t], [ca.vertcat(y[nq:], self.velocity_rate(
-                y[:nq], y[nq:], u_mx))])
+                y[:nq], y[nq:], u_mx, p))])
             return
         q, v = ca.SX.sym("q", nq), ca.SX.sym("v", nv)
         u = ca.SX.sym("u", sum(self.widths))
         offsets = np.concatenate([[0], np.cumsum(self.widths)]).astype(int)
         inputs = {name: u[int(offsets[i]):int(offsets[i + 1])] for i, name in enumerate(self.actuators)}
         scene = SpatialScene(model)
-        bodies, joints, _ = scene.terms(CASADI, q, v, 0.0, inputs)
+        bodies, joints, states = scene.terms(CASADI, q, v, 0.0, inputs)
+        p_sx = ca.SX.sym("p", n_p)
+        if self.layout:
+            bodies, joints = self._parametrised(SpatialNumbers(self.layout, p_sx), bodies, joints, states, q, v,
+                                                inputs)
         solution = articulated_sweep(CASADI, scene.tree, bodies, joints)
         v_dot = ca.vertcat(*scene.velocity_rates(solution))
-        self.velocity_rate = ca.Function("velocity_rate", [q, v, u], [v_dot])
+        self.velocity_rate = ca.Function("velocity_rate", [q, v, u, p_sx], [v_dot])
         position_rate = ca.Function("position_rate", [q, v], [position_rates(model, q, v)])
         # on MX symbols the sweep stays one C function (an SX call would inline a second copy of it)
-        y, u_mx, p, t = ca.MX.sym("y", nq + nv), ca.MX.sym("u", u.size1()), ca.MX.sym("p", 0), ca.MX.sym("t")
+        y, u_mx, p, t = ca.MX.sym("y", nq + nv), ca.MX.sym("u", u.size1()), ca.MX.sym("p", n_p), ca.MX.sym("t")
         q_y, v_y = y[:nq], y[nq:]
         self.rate = ca.Function("rate", [y, u_mx, p, t], [ca.vertcat(position_rate(q_y, v_y),
-                                                                     self.velocity_rate(q_y, v_y, u_mx))])
+                                                                     self.velocity_rate(q_y, v_y, u_mx, p))])
+
+    def _parametrised(self, numbers: SpatialNumbers, bodies: list, joints: list, states: list, q: Any, v: Any,
+                      inputs: Mapping[str, Any]) -> tuple[list, list]:
+        """The scene's body and joint terms with the numbers of ``numbers`` in place of the model's (the
+        applied loads' part of a body's ``h`` kept from the numeric terms)."""
+        model = self.model
+        bodies, joints = list(bodies), list(joints)
+        loaded = {load.body for load in model.loads}
+        for j, (body, joint, state) in enumerate(zip(model.bodies, model.joints, states)):
+            offset = state.origin - state.inboard if joint.kind in ("prismatic", "free", "elastic6") else None
+            pose = dict(center_of_mass=body.center_of_mass, points={name: body.points[name] for name in bodies[j].Kin},
+                        rotation=state.rotation, offset=offset, omega=state.omega)
+            extra = None
+            if body.name in loaded:        # the loads' part: the numeric terms less those without loads
+                extra = bodies[j].h - rigid_body_terms(CASADI, mass=body.mass, inertia=body.inertia,
+                                                       gravity=model.gravity, **pose).h
+            mass, inertia = numbers.body(j)
+            bodies[j] = parametrised_body_terms(mass, inertia, numbers.gravity, extra_h=extra, **pose)
+            count = joint.velocity_count
+            if numbers.has_law(j, count):
+                layout = model.layout[j]
+                joints[j] = parametrised_joint_law(
+                    joints[j], numbers.law(j, count), [q[i] for i in range(layout.position.start, layout.position.stop)],
+                    [v[i] for i in range(layout.velocity.start, layout.velocity.stop)],
+                    inputs.get(joint.inputs[0]) if joint.inputs else None)
+        return bodies, joints
 
     def input_vector(self, inputs: Mapping[str, Any] | None) -> np.ndarray:
         """``u`` from ``{input name: number or (k,) numbers}`` held over a run (missing inputs zero).
@@ -229,8 +274,8 @@ def chain_period(model: SpatialModel) -> int:
     return 0
 
 
-def folded_velocity_rate(model: SpatialModel, period: int) -> Any:
-    """``velocity_rate(q, v, u) -> v_dot`` of a chain of equal segments (:func:`chain_period`) as three
+def folded_velocity_rate(model: SpatialModel, period: int, layout: Sequence[Any] = ()) -> Any:
+    """``velocity_rate(q, v, u, p) -> v_dot`` of a chain of equal segments (:func:`chain_period`) as three
     folds over its ``N / period`` segments, so the generated code holds one segment whatever N:
 
     * ``kinematics`` (base to tip): pose and velocity of each segment's parent;
@@ -242,7 +287,9 @@ def folded_velocity_rate(model: SpatialModel, period: int) -> Any:
       (the inboard point's), giving the segment's joint accelerations and the acceleration carried on.
 
     The segment's terms are formed twice (once per sweep): about twice the arithmetic of the
-    straight-line sweep, in code whose size does not grow with N.
+    straight-line sweep, in code whose size does not grow with N.  With a parameter ``layout``
+    (:func:`~ctmm.compiled_spatial_parameters.spatial_parameter_layout`, body by body, then gravity)
+    each segment takes its own column of the bodies' entries and every segment the gravity entries.
     """
     import casadi as ca
 
@@ -255,6 +302,13 @@ def folded_velocity_rate(model: SpatialModel, period: int) -> Any:
     first_point = np.asarray(model.bodies[period - 1].points[child_point], dtype=float)
     ground = np.asarray(model.joints[0].point, dtype=float) - first_point
     state, q, v = ca.SX.sym("parent", 18), ca.SX.sym("q", nq_segment), ca.SX.sym("v", nq_segment)
+    segment_layout = [entry for entry in layout if entry.kind != "gravity" and entry.index < period]
+    gravity_layout = [entry for entry in layout if entry.kind == "gravity"]
+    p_segment, p_gravity = ca.SX.sym("p", len(segment_layout)), ca.SX.sym("g", len(gravity_layout))
+    numbers = None
+    if layout:
+        gravity = SpatialNumbers(gravity_layout, p_gravity).gravity
+        numbers = SpatialNumbers(segment_layout, p_segment, gravity)
 
     def terms(parent: Any) -> tuple[list, list, Any]:
         rotation, origin, velocity, omega = ca.reshape(parent[:9], 3, 3), parent[9:12], parent[12:15], parent[15:18]
@@ -267,7 +321,7 @@ def folded_velocity_rate(model: SpatialModel, period: int) -> Any:
             offset += nq[i]
             outboard = model.joints[(i + 1) % n].point
             rotation, origin, velocity, omega, body_terms, joint_terms = _segment_body(
-                model, body, joint, qi, vi, rotation, origin, velocity, omega, inboard, outboard)
+                model, body, joint, qi, vi, rotation, origin, velocity, omega, inboard, outboard, numbers, i)
             bodies.append(body_terms)
             joints.append(joint_terms)
             inboard = np.asarray(body.points[outboard], dtype=float)
@@ -285,32 +339,37 @@ def folded_velocity_rate(model: SpatialModel, period: int) -> Any:
     weld = JointTerms(S=ca.DM.zeros(d, 0))
     solution = articulated_sweep(CASADI, tree, [virtual_parent, *bodies, virtual_child], [weld, *joints, weld])
     reduced = ca.vertcat(ca.reshape(solution.inertia[0], d * d, 1), solution.force[0])
-    eliminate = ca.Function("eliminate", [carried, state, q, v], [reduced, carried])
+    eliminate = ca.Function("eliminate", [carried, state, q, v, p_segment, p_gravity], [reduced, carried])
     inboard_acceleration = ca.SX.sym("A", d)
     prescribed = JointTerms(S=eye, prescribed=inboard_acceleration)
     solution = articulated_sweep(CASADI, tree, [virtual_parent, *bodies, virtual_child],
                                  [prescribed, *joints, weld])
-    accelerate = ca.Function("accelerate", [inboard_acceleration, carried, state, q, v],
+    accelerate = ca.Function("accelerate", [inboard_acceleration, carried, state, q, v, p_segment, p_gravity],
                              [solution.x[period + 1], ca.vertcat(*solution.relative[1:period + 1])])
     # the folds: columns are segments; the tip-to-base fold runs on columns reversed by a constant
     q_all, v_all, u = ca.MX.sym("q", model.n_positions), ca.MX.sym("v", model.n_velocities), ca.MX.sym("u", 0)
+    p_all = ca.MX.sym("p", len(layout))
     Q, V = ca.reshape(q_all, nq_segment, count), ca.reshape(v_all, nq_segment, count)
+    P = ca.reshape(p_all[:count * len(segment_layout)], len(segment_layout), count)
+    G = ca.repmat(p_all[count * len(segment_layout):], 1, count)
     start = ca.DM(np.r_[np.eye(3).ravel(), ground, np.zeros(6)])
     _, parents = kinematics.mapaccum("kinematics_fold", count)(start, Q, V)
     reverse = ca.DM(ca.Sparsity.triplet(count, count, list(range(count)), list(range(count - 1, -1, -1))),
                     np.ones(count))
     _, carried_reversed = eliminate.mapaccum("eliminate_fold", count)(
-        ca.DM.zeros(d * d + d, 1), ca.mtimes(parents, reverse), ca.mtimes(Q, reverse), ca.mtimes(V, reverse))
+        ca.DM.zeros(d * d + d, 1), ca.mtimes(parents, reverse), ca.mtimes(Q, reverse), ca.mtimes(V, reverse),
+        ca.mtimes(P, reverse), G)
     _, accelerations = accelerate.mapaccum("accelerate_fold", count)(
-        ca.DM.zeros(d, 1), ca.mtimes(carried_reversed, reverse), parents, Q, V)
-    return ca.Function("velocity_rate", [q_all, v_all, u], [ca.reshape(accelerations, model.n_velocities, 1)])
+        ca.DM.zeros(d, 1), ca.mtimes(carried_reversed, reverse), parents, Q, V, P, G)
+    return ca.Function("velocity_rate", [q_all, v_all, u, p_all], [ca.reshape(accelerations, model.n_velocities, 1)])
 
 
 def _segment_body(model: SpatialModel, body: Any, joint: Any, q: list, v: list, rotation: Any, origin: Any,
-                  velocity: Any, omega: Any, inboard: np.ndarray, outboard: str) -> tuple:
+                  velocity: Any, omega: Any, inboard: np.ndarray, outboard: str,
+                  numbers: SpatialNumbers | None = None, index: int = 0) -> tuple:
     """Pose, velocity, body and joint terms of one body of a folded chain on its parent's pose and
     velocity (the statements of :meth:`SpatialScene.terms` for a non-driven joint without loads on a
-    moving parent)."""
+    moving parent); with ``numbers``, body ``index`` of the segment takes them."""
     import casadi as ca
 
     rel = joint_motion(CASADI, joint, q, v, None, None)
@@ -335,9 +394,15 @@ def _segment_body(model: SpatialModel, body: Any, joint: Any, q: list, v: list, 
     if w_rel is not None:
         c_ang = c_ang + cross(CASADI, omega, w_rel)
     joint_terms = JointTerms(S=S, c=ca.vertcat(c_lin, c_ang), tau=rel.tau, tau_q=rel.tau_q, tau_v=rel.tau_v)
-    body_terms = rigid_body_terms(CASADI, mass=body.mass, inertia=body.inertia, center_of_mass=body.center_of_mass,
-                                  points={outboard: body.points[outboard]}, rotation=child_rotation, offset=offset,
-                                  omega=child_omega, gravity=model.gravity)
+    pose = dict(center_of_mass=body.center_of_mass, points={outboard: body.points[outboard]}, rotation=child_rotation,
+                offset=offset, omega=child_omega)
+    if numbers is None:
+        body_terms = rigid_body_terms(CASADI, mass=body.mass, inertia=body.inertia, gravity=model.gravity, **pose)
+    else:
+        mass, inertia = numbers.body(index)
+        body_terms = parametrised_body_terms(mass, inertia, numbers.gravity, **pose)
+        if numbers.has_law(index, len(v)):
+            joint_terms = parametrised_joint_law(joint_terms, numbers.law(index, len(v)), q, v, None)
     return child_rotation, child_origin, child_velocity, child_omega, body_terms, joint_terms
 
 
@@ -386,18 +451,24 @@ class CompiledSpatialScene:
         Compile the rates as folds over equal segments (:func:`chain_period`, :func:`folded_velocity_rate`):
         ``True`` (refused for a model that is not such a chain), ``False`` straight-line code, ``None``
         (default) the fold for foldable models of at least :data:`FOLD_MIN_BODIES` bodies.
+    numbers : {"constants", "inputs"}
+        The model's numbers as constants of the code (one library per model) or as the parameter
+        column ``p`` (one library per structure; :mod:`ctmm.compiled_spatial_parameters`).
 
     Attributes
     ----------
     rates : SpatialRates
         The rates on symbols.
+    parameters : ndarray
+        The model's :func:`~ctmm.compiled_spatial_parameters.spatial_parameter_vector` (empty with
+        ``numbers="constants"``), the ``p`` of every call.
     compile_time_s : float
         Wall time of building the expressions, generating C and compiling (or loading) [s].
     """
 
     def __init__(self, model: SpatialModel, *, store_every: int = 1, rows: int = DEFAULT_ROWS,
                  cache_dir: str | os.PathLike | None = None, compiler: str | None = None,
-                 flags: Sequence[str] | None = None, fold: bool | None = None) -> None:
+                 flags: Sequence[str] | None = None, fold: bool | None = None, numbers: str = "constants") -> None:
         reason = spatial_compile_refusal(model)
         if reason:
             raise ModelError(f"CompiledSpatialScene: {reason}")
@@ -407,7 +478,8 @@ class CompiledSpatialScene:
                              f"{rows!r}")
         start = clock.perf_counter()
         self.model, self.store_every, self.rows = model, store_every, int(rows)
-        self.rates = SpatialRates(model, fold=fold)
+        self.rates = SpatialRates(model, fold=fold, numbers=numbers)
+        self.parameters = spatial_parameter_vector(model) if numbers == "inputs" else np.zeros(0)
         step = rk4_step_function(self.rates.rate)
         stride, sizes, blocks = time_loop_functions(step, store_every, self.rows)
         name = f"spatial_{model.n_bodies}b{model.n_positions}q{model.n_velocities}v" + (
@@ -422,7 +494,8 @@ class CompiledSpatialScene:
     def accelerations(self, q: Any, v: Any, inputs: Mapping[str, Any] | None = None) -> np.ndarray:
         """``v_dot`` (nv,) at ``q`` (nq,), ``v`` (nv,) with held ``inputs`` (generated code)."""
         q, v = self.model.check_state(q, v)
-        return np.asarray(self._velocity_rate(q[0], v[0], self.rates.input_vector(inputs))).reshape(-1)
+        return np.asarray(self._velocity_rate(q[0], v[0], self.rates.input_vector(inputs), self.parameters)
+                          ).reshape(-1)
 
     def run(self, x0: np.ndarray, dt: float, n_steps: int, inputs: Mapping[str, Any] | None = None) -> np.ndarray:
         """Stored states ``[q ; v]`` (rows, nq + nv) after each ``store_every`` steps and after the last of
@@ -433,7 +506,7 @@ class CompiledSpatialScene:
         self.model.check_state(x0[:nq], x0[nq:])
         return run_blocks(self._blocks, self._stride, self._step, self.store_every, x0[:, None],
                           self.rates.input_vector(inputs), validation.positive("dt", dt),
-                          validation.integer("n_steps", n_steps, minimum=1), 0.0, np.zeros((0, 1)))[0]
+                          validation.integer("n_steps", n_steps, minimum=1), 0.0, self.parameters[:, None])[0]
 
 
 def simulate_spatial_generated(model: SpatialModel, t_final: float, dt: float, *, x0: Any = None, v0: Any = None,

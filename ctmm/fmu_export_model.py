@@ -25,9 +25,14 @@ Variables (names as in ctmm):
   (centres of mass, points, load points) enters the sensors as constants and is not exposed; numbers
   that are zero in the model are constants 0 of the code and are not exposed; modal beams keep their
   data (and loads) as constants; an entry the generated step does not depend on (its Jacobian
-  sparsity) is not exposed, so no exposed parameter is a silent no-op; loop gains and controllers are
-  constants of the code;
+  sparsity) is not exposed, so no exposed parameter is a silent no-op; of a controlled model, each
+  static loop's gain ``"<loop>.gain"`` and each loop's reference ``"<loop>.reference"`` (or
+  ``"<loop>.reference.<field>"``, a sine's amplitude, ...; :func:`loop_parameter_names`) -- the loop
+  outputs ``"<loop>.u"`` use them too; an LTI controller's realisation is an input of the code but not
+  exposed (it is the state-space form, not the transfer function's coefficients);
 * start values -- ``"<coordinate>_start"`` and ``"<coordinate>_dot_start"``.
+
+The outputs function takes the parameters too (``ctmm_outputs(Y, t, p)``).
 """
 from __future__ import annotations
 
@@ -37,7 +42,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from .compiled_loops import ClosedLoops, SymbolicKinematics, SymbolicReference, sensor_expression
+from .compiled_loops import ClosedLoops, SymbolicKinematics, sensor_expression
 from .compiled_parameters import compile_refusal, parameter_vector
 from .compiled_scene import CompiledScene
 from .control.controlled_model import ControlledModel
@@ -47,9 +52,10 @@ from .planar.guards import check_scheme
 from .planar.integrate import initial_coordinates
 from .planar.model import REVOLUTE, PlanarModel
 from .planar.ports import PlanarPorts
-from .signals import SYMBOLIC_FIELDS, signal_parameters, symbolic_signal
+from .signals import SYMBOLIC_FIELDS
 
-__all__ = ["ExportedSystem", "ExportedVariable", "chosen_names", "loop_expressions", "parameter_names",
+__all__ = ["ExportedSystem", "ExportedVariable", "chosen_names", "loop_expressions", "loop_parameter_names",
+           "parameter_names",
            "planar_export"]
 
 
@@ -91,7 +97,7 @@ class ExportedSystem:
     step_function : casadi.Function
         ``ctmm_step(Y, u, h, p, t0, k) -> Y``: RK4 step ``k`` from ``t0 + k h``.
     output_function : casadi.Function
-        ``ctmm_outputs(Y, t) -> y``.
+        ``ctmm_outputs(Y, t, p) -> y``.
     parameter_values : ndarray
         The whole input ``p`` (exposed or not).
     n_inputs_total : int
@@ -212,7 +218,7 @@ def planar_export(system: PlanarModel | ControlledModel, *, step: float, inputs:
     q0, qdot0 : array_like or None
         Start values [rad, m, modal] (default zeros).
     references : mapping, optional
-        ``{loop: number or symbolic signal}`` of a controlled model (constants of the code).
+        ``{loop: number or symbolic signal}`` of a controlled model (their numbers are parameters of the FMU).
     stability_check : {"warn", "error", "ignore"}
         Policy when ``step`` exceeds the plant's linearised RK4 limit at the start values.
     cache_dir : path, optional
@@ -238,14 +244,14 @@ def planar_export(system: PlanarModel | ControlledModel, *, step: float, inputs:
                  accelerations=lambda m, a, b, t: scene.accelerations(a, b, t=t))
     ports = PlanarPorts(model)
     loops = scene.loops
-    y_sym, t_sym = ca.SX.sym("y", scene.state_size), ca.SX.sym("t")
-    loop_signals = {} if loops is None else loop_expressions(loops, y_sym, t_sym)
+    y_sym, t_sym, p_sym = ca.SX.sym("y", scene.state_size), ca.SX.sym("t"), ca.SX.sym("p", scene.parameters.size)
+    loop_signals = {} if loops is None else loop_expressions(loops, y_sym, t_sym, p_sym)
     default_outputs = list(model.coordinates) + [name + "_dot" for name in model.coordinates]
     output_names = chosen_names("outputs", outputs, list(ports.sensors) + list(loop_signals), default_outputs)
     kinematics = SymbolicKinematics(model, y_sym[:n], y_sym[n:2 * n])
     expressions = [loop_signals[name] if name in loop_signals else sensor_expression(ports, name, kinematics)
                    for name in output_names]
-    outputs_function = ca.Function("ctmm_outputs", [y_sym, t_sym],
+    outputs_function = ca.Function("ctmm_outputs", [y_sym, t_sym, p_sym],
                                    [ca.vertcat(*expressions) if expressions else ca.SX(0, 1)])
     initial = _initial_function(loops, n, scene.parameters.size)
     expected = np.concatenate([q, v]) if loops is None else loops.initial_state(q, v)
@@ -254,8 +260,9 @@ def planar_export(system: PlanarModel | ControlledModel, *, step: float, inputs:
         raise ModelError(f"export_fmu: the exported initial state of {model.name!r} does not equal the one of the "
                          "compiled scene (a state layout this version does not know); not exported")
     if loop_signals:
-        _check_loop_signals(loops, ca.Function("loops", [y_sym, t_sym], [ca.vertcat(*loop_signals.values())]),
-                            scene.run(q, v, step, 3), step)
+        bound = ca.Function("loops", [y_sym, t_sym], [ca.substitute(ca.vertcat(*loop_signals.values()), p_sym,
+                                                                      ca.DM(scene.parameters))])
+        _check_loop_signals(loops, bound, scene.run(q, v, step, 3), step)
 
     symbolic = scene.symbolic_step
     arguments = [ca.MX.sym(label, *symbolic.size_in(i)) for i, label in enumerate(("y", "u", "h", "p", "t0", "k"))]
@@ -271,9 +278,12 @@ def planar_export(system: PlanarModel | ControlledModel, *, step: float, inputs:
                                               f"{name[:-2]!r}") for k, name in enumerate(output_names))
     values = scene.parameters
     layout = parameter_names(model)
+    plant_count = len(layout)
+    layout += [] if loops is None else loop_parameter_names(controlled, loops)
     used = set(step_function.jac_sparsity(0, 3).get_col())     # entries of p the step depends on
+    # the plant's zero numbers are constants 0 of the code; the loops' numbers are inputs of it, zero or not
     exposable = {name: (k, unit) for k, (name, unit, exposed) in enumerate(layout)
-                 if exposed and values[k] != 0.0 and k in used}
+                 if exposed and (values[k] != 0.0 or k >= plant_count) and k in used}
     chosen = chosen_names("parameters", parameters, list(exposable), list(exposable))
     parameter_variables = tuple(ExportedVariable(name, exposable[name][0], float(values[exposable[name][0]]),
                                                  exposable[name][1], f"model number {name}")
@@ -285,8 +295,8 @@ def planar_export(system: PlanarModel | ControlledModel, *, step: float, inputs:
                                      f"start value of {name}_dot") for k, name in enumerate(model.coordinates)])
     notes = ["geometry (centres of mass, points), zero numbers and modal beam data are constants of the code"]
     if loops is not None:
-        notes.append(f"loops {', '.join(law.name for law in loops.laws)} closed inside the step; their gains, "
-                     "controllers and references are constants of the code")
+        notes.append(f"loops {', '.join(law.name for law in loops.laws)} closed inside the step; static gains and "
+                     "references are parameters, sensors, delays and controller orders constants of the code")
     return ExportedSystem(controlled.plant.name if controlled is not None else model.name, initial, step_function,
                           outputs_function, np.asarray(values, dtype=float), len(scene.actuators), scene.state_size,
                           input_variables, output_variables, parameter_variables, starts, tuple(notes))
@@ -316,31 +326,38 @@ def _initial_function(loops: ClosedLoops | None, n: int, n_parameters: int) -> A
     return ca.Function("ctmm_initial", [start, p_sym], [ca.vertcat(*pieces)])
 
 
-def loop_expressions(loops: ClosedLoops, y: Any, t: Any) -> dict[str, Any]:
+def loop_expressions(loops: ClosedLoops, y: Any, t: Any, p: Any) -> dict[str, Any]:
     """``{"<loop>.y": signal now, "<loop>.u": output}`` of every loop on the state symbol ``y``
-    (:attr:`ClosedLoops.state_size`: ``[q, v, z, ring]``, the ring column-major with one row per
-    delayed loop's signal, then one per its rate) at the time symbol ``t`` [s]: ``u = -C z - D e``,
-    ``e`` the signal (a delayed loop's: its sample ``steps`` columns back in the ring) minus the
-    reference at ``t - delay``.  :func:`planar_export` checks them against :meth:`ClosedLoops.signals`."""
-    import casadi as ca
-
-    nq, base, nz = loops.nq, loops.base, loops.n_controller_states
-    now = loops.sensors(y[:nq], y[nq:base])
-    z = y[base:base + nz]
-    ring = ca.reshape(y[base + nz:], 2 * len(loops.delayed), loops.ring_columns) if loops.delayed else None
-    out, offset = {}, 0
+    (:attr:`ClosedLoops.state_size`: ``[q, v, z, ring]``) at the time symbol ``t`` [s] with the
+    parameter symbol ``p`` (the plant's numbers, then the loops'): :meth:`ClosedLoops.loop_signals`.
+    :func:`planar_export` checks them against :meth:`ClosedLoops.signals`."""
+    now, outputs = loops.loop_signals(y, t, p)[:2]
+    out = {}
     for k, law in enumerate(loops.laws):
-        signal = ring[loops.delayed.index(k), loops.ring_columns - law.steps] if law.steps else now[k]
-        reference = law.reference
-        at = t - law.delay
-        r = reference.symbolic(at) if isinstance(reference, SymbolicReference) else \
-            symbolic_signal(type(reference), at, signal_parameters(reference))
-        size = law.A.shape[0]
-        controller = ca.dot(ca.DM(law.C), z[offset:offset + size]) if size else 0.0
-        offset += size
         out[f"{law.name}.y"] = now[k]
-        out[f"{law.name}.u"] = -controller - law.D * (signal - r)
+        out[f"{law.name}.u"] = outputs[k]
     return out
+
+
+def loop_parameter_names(controlled: ControlledModel, loops: ClosedLoops) -> list[tuple[str, str, bool]]:
+    """``(name, unit, exposed)`` of the loops' entries of the parameter vector
+    (:attr:`ClosedLoops.parameter_layout`): ``"<loop>.gain"`` (a static loop's, unit of ``u`` per unit of
+    ``y`` when both are known, else ``""``) and the reference's fields (unit of ``y``, or the field's) are
+    exposed; an LTI controller's realisation entries are not."""
+    units = {law.name: (loop_unit(controlled.ports, controlled.loop(law.name), "y"),
+                        loop_unit(controlled.ports, controlled.loop(law.name), "u")) for law in loops.laws}
+    names = []
+    for name, role, _ in loops.parameter_layout:
+        if role == "gain":
+            y_unit, u_unit = units[name[:-len(".gain")]]
+            names.append((name, f"{u_unit}/{y_unit}" if y_unit and u_unit else "", True))
+        elif role == "controller":
+            names.append((name, "", False))
+        else:
+            field = role.split(".")[1] if "." in role else ""
+            owner = name[:name.index(".reference")]
+            names.append((name, _FIELD_UNITS.get(field, units[owner][0]), True))
+    return names
 
 
 def _check_loop_signals(loops: ClosedLoops, function: Any, states: np.ndarray, step: float) -> None:

@@ -7,7 +7,7 @@ beside it (``ctmm_fmu_source.c``, :mod:`ctmm.fmu_export_model`):
   ``[q0; qdot0]`` (controller states 0, delay rings holding the initial loop signals);
 * ``ctmm_step(Y, u, h, p, t0, k) -> Y`` -- one RK4 step ``k`` (from ``t0 + k h``) of the system's
   generated step (:mod:`ctmm.generated_loop`, loops closed inside), inputs ``u`` held;
-* ``ctmm_outputs(Y, t) -> y`` -- the exposed outputs (sensors) of a state.
+* ``ctmm_outputs(Y, t, p) -> y`` -- the exposed outputs (sensors, loop signals) of a state.
 
 :data:`CORE` holds what every FMI version shares: the instance data, the value references (inputs,
 outputs, parameters, start values, then the time), getting and setting values, initialisation and
@@ -174,6 +174,7 @@ static int core_initial(Core *core) {
     t = d->time;
     core->arg[0] = d->y;
     core->arg[1] = &t;
+    core->arg[2] = d->p;
     core->res[0] = d->outputs;
     return ctmm_outputs(core->arg, core->res, core->iw, core->w, 0);
 }
@@ -295,6 +296,7 @@ static int core_do_step(Core *core, void *owner, double t, double H) {
         now = d->time;
         core->arg[0] = d->y;
         core->arg[1] = &now;
+        core->arg[2] = d->p;
         core->res[0] = d->outputs;
         if (ctmm_outputs(core->arg, core->res, core->iw, core->w, 0)) {
             d->mode = MODE_ERROR;

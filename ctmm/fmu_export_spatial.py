@@ -13,7 +13,12 @@ Variables (names as in ctmm):
 * outputs -- coordinates and velocities (``model.coordinates``, ``model.velocities``), each body's
   origin ``"<body>.position_x|y|z"`` [m] and angular velocity ``"<body>.omega_x|y|z"`` [rad/s] in world
   axes (the signals of ``ctmm.simulate``); default the coordinates and velocities;
-* parameters -- none: spatial kernels keep every number as a constant of the code;
+* parameters -- the numbers the generated step takes as inputs
+  (:func:`~ctmm.compiled_spatial_parameters.spatial_parameter_layout`): ``"<body>.mass"``, the non-zero
+  ``"<body>.inertia.xx"`` ... ``".yz"``, the non-zero ``"<joint>.stiffness"`` and ``".damping"`` of
+  revolute, prismatic and universal joints (``"[k]"`` on a 2-DOF joint) with ``".reference"`` of each
+  stiff coordinate, the non-zero ``"gravity.x|y|z"``; geometry, axes, loads, driven motions, zeros and
+  the laws of spherical, free and elastic joints are constants of the code;
 * start values -- ``"<coordinate>_start"`` (quaternion entries as given: set a unit quaternion) and
   ``"<velocity>_start"``.
 """
@@ -45,7 +50,7 @@ def spatial_export(model: SpatialModel, *, inputs: Sequence[str] | None, outputs
     inputs, outputs : sequence of str or None
         Names to expose (module docstring); ``None``: every input component; every coordinate and velocity.
     parameters : sequence of str or None
-        ``None`` or empty: a spatial FMU has no parameters.
+        Parameters to expose (module docstring); ``None``: all of them.
     q0, qdot0 : array_like, mapping or None
         Start positions and velocities, as ``x0`` and ``v0`` of ``ctmm.simulate`` (default the neutral
         configuration at rest).
@@ -53,18 +58,16 @@ def spatial_export(model: SpatialModel, *, inputs: Sequence[str] | None, outputs
     Raises
     ------
     ModelError
-        A model the generated kernels refuse (named), unknown names, parameters asked for, bad start values.
+        A model the generated kernels refuse (named), unknown names, bad start values.
     """
     import casadi as ca
 
     reason = spatial_compile_refusal(model)
     if reason:
         raise ModelError(f"export_fmu: system: {reason}")
-    if parameters:
-        raise ModelError(f"export_fmu: parameters {list(parameters)!r}: a spatial model's numbers are constants of "
-                         "its generated code; allowed: None or ()")
     start_values = initial_state(model, q0, qdot0)
-    rates = SpatialRates(model, fold=False)
+    rates = SpatialRates(model, fold=False, numbers="inputs")
+    layout = rates.layout
     step = rk4_step_function(rates.rate)
     arguments = [ca.MX.sym(label, *step.size_in(i)) for i, label in enumerate(("y", "u", "h", "p", "t0", "k"))]
     step_function = ca.Function("ctmm_step", arguments, [step(*arguments)])
@@ -80,11 +83,11 @@ def spatial_export(model: SpatialModel, *, inputs: Sequence[str] | None, outputs
             expressions[f"{body.name}.omega_{label}"] = state.omega[axis]
     default_outputs = list(model.coordinates) + list(model.velocities)
     output_names = chosen_names("outputs", outputs, list(expressions), default_outputs)
-    t_sym = ca.SX.sym("t")
-    output_function = ca.Function("ctmm_outputs", [y_sym, t_sym],
+    t_sym, p_outputs = ca.SX.sym("t"), ca.SX.sym("p", len(layout))
+    output_function = ca.Function("ctmm_outputs", [y_sym, t_sym, p_outputs],
                                   [ca.vertcat(*[expressions[name] for name in output_names])
                                    if output_names else ca.SX(0, 1)])
-    start, p_sym = ca.SX.sym("start", nq + nv), ca.SX.sym("p", 0)
+    start, p_sym = ca.SX.sym("start", nq + nv), ca.SX.sym("p", len(layout))
     initial_function = ca.Function("ctmm_initial", [start, p_sym], [start])
 
     _, units = spatial_signals(model, np.zeros(1), start_values[None, :])
@@ -101,6 +104,12 @@ def spatial_export(model: SpatialModel, *, inputs: Sequence[str] | None, outputs
     starts = tuple(ExportedVariable(f"{name}_start", k, float(start_values[k]), units.get(name, ""),
                                     f"start value of {name}")
                    for k, name in enumerate(list(model.coordinates) + list(model.velocities)))
-    notes = ("spatial model: every number (masses, geometry, laws, loads, gravity) is a constant of the code",)
-    return ExportedSystem(model.name, initial_function, step_function, output_function, np.zeros(0), offset,
-                          nq + nv, input_variables, output_variables, (), starts, notes)
+    exposable = {entry.name: (k, entry) for k, entry in enumerate(layout)}
+    chosen = chosen_names("parameters", parameters, list(exposable), list(exposable))
+    parameter_variables = tuple(ExportedVariable(name, exposable[name][0], exposable[name][1].value,
+                                                 exposable[name][1].unit, f"model number {name}") for name in chosen)
+    notes = ("spatial model: masses, inertias, 1- and 2-DOF joint laws and gravity are parameters; geometry, axes, "
+             "loads, zeros and the other joint laws are constants of the code",)
+    return ExportedSystem(model.name, initial_function, step_function, output_function,
+                          np.array([entry.value for entry in layout], dtype=float), offset, nq + nv, input_variables,
+                          output_variables, parameter_variables, starts, notes)

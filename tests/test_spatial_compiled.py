@@ -231,7 +231,7 @@ def test_fold_equals_the_numpy_sweep_with_every_foldable_joint() -> None:
     rng = np.random.default_rng(3)
     q, v = 0.4 * rng.normal(size=model.n_positions), rng.normal(size=model.n_velocities)
     expected = sp.accelerations(model, q, v, 0.0, {})
-    folded = np.asarray(rates.velocity_rate(q, v, np.zeros(0))).reshape(-1)
+    folded = np.asarray(rates.velocity_rate(q, v, np.zeros(0), np.zeros(0))).reshape(-1)
     assert np.max(np.abs(folded - expected)) < 1e-12 * np.max(np.abs(expected))
 
 
