@@ -192,11 +192,16 @@ class ChainDynamics:
             if body >= 0 and tree.node[body] in q:
                 self._load_rates.append((position, name, signal_derivatives(element.name, name, signal)))
 
-    def inputs(self, t: float) -> dict[int, dict[str, float]]:
-        """``{position: {input: value}}`` at ``t`` [s] for the explicit context (prescribed start: acceleration)."""
+    def inputs(self, t: float, extra: Mapping[int, Mapping[str, float]] | None = None) -> dict[int, dict[str, float]]:
+        """``{position: {input: value}}`` at ``t`` [s] for the explicit context (prescribed start: acceleration),
+        with the ``extra`` actuator values [N] (loops, controllers; :mod:`ctmm.control.chain_plant`) added."""
         out: dict[int, dict[str, float]] = {}
         for position, name, signal, _ in self._loads:
             out.setdefault(position, {})[name] = float(signal(t))
+        for position, values in (extra or {}).items():
+            slot = out.setdefault(position, {})
+            for name, value in values.items():
+                slot[name] = slot.get(name, 0.0) + float(value)
         if self._start_motion is not None and hasattr(self.chain.start, "displacement"):
             out.setdefault(0, {})["displacement"] = self._start_motion(t)[2]
         return out
@@ -252,26 +257,36 @@ class ChainDynamics:
         return -self._S_n_inv @ (self.P_n.T @ linear)
 
     # -- the ODE -------------------------------------------------------------------------------
-    def nodes(self, t: float, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Node positions, velocities and accelerations (``NaN`` at massless nodes) from the state ``y``."""
+    def kinematics(self, t: float, y: np.ndarray, extra: Mapping[int, Mapping[str, float]] | None = None
+                   ) -> tuple[np.ndarray, np.ndarray, dict, tuple]:
+        """Node positions [m] and velocities [m/s] from the state ``y`` (massless nodes from their
+        balance), with the inputs and the wall motion at ``t`` [s] they were computed with."""
         n, I, q = self.tree.n_nodes, self.index_I, self.index_Q
         x, v = np.zeros(n), np.zeros(n)
         x[I], v[I] = y[:I.size], y[I.size:2 * I.size]
         if self.n_r:
             x[q] = self.P_r @ y[2 * I.size:]
         self._held(t, x, v)
-        inputs, wall = self.inputs(t), self._wall_motion(t)
+        inputs, wall = self.inputs(t, extra), self._wall_motion(t)
         self.condense(t, x, v, inputs, wall)
+        return x, v, inputs, wall
+
+    def nodes(self, t: float, y: np.ndarray, extra: Mapping[int, Mapping[str, float]] | None = None
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Node positions, velocities and accelerations (``NaN`` at massless nodes) from the state ``y``
+        (``extra``: actuator values ``{position: {input: value}}`` [N] on top of the chain's own loads)."""
+        q = self.index_Q
+        x, v, inputs, wall = self.kinematics(t, y, extra)
         a = self._forces(x[None], v[None], t, inputs, wall)[0]
         a[q] = np.nan
         if self._start_motion is not None:
             a[self.held] = self._start_motion(t)[2]
         return x, v, a
 
-    def rate(self, t: float, y: np.ndarray) -> np.ndarray:
-        """``y' = [v_I, a_I, z_r']`` at ``t`` [s]."""
+    def rate(self, t: float, y: np.ndarray, extra: Mapping[int, Mapping[str, float]] | None = None) -> np.ndarray:
+        """``y' = [v_I, a_I, z_r']`` at ``t`` [s] (``extra`` as in :meth:`nodes`)."""
         I, q = self.index_I, self.index_Q
-        x, v, a = self.nodes(t, y)
+        x, v, a = self.nodes(t, y, extra)
         parts = [v[I], a[I]]
         if self.n_r:
             parts.append(self.P_r.T @ v[q])
@@ -370,16 +385,19 @@ class ChainDynamics:
         out[self.node_of_point < 0] = self._wall_motion(t)[0]
         return out
 
-    def point_values(self, t: float, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Positions, velocities, accelerations and forces at every connection point (``(n_points,)`` each)."""
-        x, v, a = self.nodes(t, y)
+    def point_values(self, t: float, y: np.ndarray, extra: Mapping[int, Mapping[str, float]] | None = None
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Positions, velocities, accelerations and forces at every connection point (``(n_points,)`` each;
+        ``extra`` as in :meth:`nodes`, acting on point elements and across connectors)."""
+        x, v, a = self.nodes(t, y, extra)
         wall = self._wall_motion(t)
         k = self.node_of_point
         on_wall = k < 0
         xp, vp, ap = x[k], v[k], a[k]
         xp[on_wall], vp[on_wall], ap[on_wall] = wall
         a_for_forces = np.where(np.isnan(ap), 0.0, ap)            # massless: no inertia term
-        forces = initial_forces(self.chain, xp[:, None], vp[:, None], {}, a_for_forces[:, None], t)
+        across = {position: sum(values.values()) for position, values in (extra or {}).items()}
+        forces = initial_forces(self.chain, xp[:, None], vp[:, None], across, a_for_forces[:, None], t)
         return xp, vp, ap, forces
 
 
