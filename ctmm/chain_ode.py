@@ -30,7 +30,8 @@ from __future__ import annotations
 
 import math
 import time as clock
-from typing import Any, Callable, Mapping
+from dataclasses import dataclass
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -44,7 +45,7 @@ from .ode import rk4_step
 from .results import SimulationResult
 from .signals import Constant, Harmonic
 
-__all__ = ["ChainDynamics", "simulate_chain_ode", "SCIPY_METHODS"]
+__all__ = ["AffineRates", "ChainDynamics", "chain_result", "simulate_chain_ode", "SCIPY_METHODS"]
 
 SCIPY_METHODS = ("RK45", "RK23", "DOP853", "Radau", "BDF", "LSODA")
 """``solve_ivp`` methods accepted for chains (as for planar models)."""
@@ -256,6 +257,47 @@ class ChainDynamics:
             linear = linear + (loaded - unloaded)[0, q]
         return -self._S_n_inv @ (self.P_n.T @ linear)
 
+    # -- the affine form (generated kernels) ----------------------------------------------
+    def affine_form(self, actuators: Sequence[Mapping[int, Mapping[str, float]]] = ()) -> "AffineRates":
+        """The accelerations as ``a = Ax x_I + Av v_I + B u + a0 + sum_j L_j s_j(t)`` (exact for the
+        lumped families, whose terms are affine in the motion and the inputs): one batched sweep of
+        unit probes, one per actuator (``actuators``: unit inputs ``{position: {input: 1}}``) and one
+        per load of the chain's elements (``s_j`` its signal).
+
+        Raises
+        ------
+        ModelError
+            Massless nodes (their condensation is not generated yet), a prescribed start or end
+            motion (its rates enter the form in time), a connector with inertance (the form couples
+            every node: allowed, but dense).
+        """
+        chain = self.chain
+        if self.index_Q.size:
+            raise ModelError(f"chain {chain.name!r}: points without inertia ({', '.join(self._node_name(k) for k in self.index_Q)}) "
+                             "are condensed in Python only; generated kernels need a mass at every moving point "
+                             "(or use compiled=False)")
+        for boundary in (chain.start, chain.end):
+            if hasattr(boundary, "displacement"):
+                raise ModelError(f"chain {chain.name!r}: the prescribed motion of {boundary.name!r} is not generated yet "
+                                 "(use compiled=False)")
+        I, n = self.index_I, self.tree.n_nodes
+        m = I.size
+        x, v = np.zeros((1 + 2 * m, n)), np.zeros((1 + 2 * m, n))
+        x[1 + np.arange(m), I] = 1.0
+        v[1 + m + np.arange(m), I] = 1.0
+        self._held(0.0, x, v)
+        wall = self._wall_motion(0.0)
+        probes = self._forces(x, v, 0.0, {}, wall)[:, I]
+        base = probes[0]
+        Ax, Av = (probes[1:1 + m] - base).T, (probes[1 + m:] - base).T
+
+        def column(inputs: Mapping[int, Mapping[str, float]]) -> np.ndarray:
+            return self._forces(x[:1], v[:1], 0.0, inputs, wall)[0, I] - base
+
+        B = np.column_stack([column(unit) for unit in actuators]) if len(actuators) else np.zeros((m, 0))
+        loads = [(column({position: {name: 1.0}}), signal) for position, name, signal, _ in self._loads]
+        return AffineRates(Ax, Av, B, base, loads)
+
     # -- the ODE -------------------------------------------------------------------------------
     def kinematics(self, t: float, y: np.ndarray, extra: Mapping[int, Mapping[str, float]] | None = None
                    ) -> tuple[np.ndarray, np.ndarray, dict, tuple]:
@@ -401,6 +443,19 @@ class ChainDynamics:
         return xp, vp, ap, forces
 
 
+@dataclass(frozen=True)
+class AffineRates:
+    """``a = Ax x_I + Av v_I + B u + a0 + sum_j L_j s_j(t)`` of a lumped chain
+    (:meth:`ChainDynamics.affine_form`): ``Ax`` [1/s^2], ``Av`` [1/s] (m, m), ``B`` (m, actuators)
+    [1/kg], ``a0`` [m/s^2] (m,), ``loads`` ``[(L_j [1/kg] (m,), signal s_j [N])]``."""
+
+    Ax: np.ndarray
+    Av: np.ndarray
+    B: np.ndarray
+    a0: np.ndarray
+    loads: list
+
+
 def simulate_chain_ode(chain, t_final: float, dt: float | None, *, method: str = "rk4",
                        x0: Mapping[str, float] | None = None, v0: Mapping[str, float] | None = None,
                        t0: float = 0.0, rtol: float = 1e-8, atol: float = 1e-10, max_step: float | None = None,
@@ -459,7 +514,7 @@ def simulate_chain_ode(chain, t_final: float, dt: float | None, *, method: str =
     info: dict[str, Any] = {"method": method, "path": "ode-explicit-sweep"}
 
     def result() -> SimulationResult:
-        return _result(dynamics, times, states, method, info)
+        return chain_result(dynamics, times, states, method, info)
 
     started = clock.perf_counter()
     if method == "rk4":
@@ -527,7 +582,9 @@ def _check(dynamics: ChainDynamics, guard: DivergenceGuard, t: float, y: np.ndar
     guard.check(t, watched)
 
 
-def _result(dynamics: ChainDynamics, times: list, states: list, method: str, info: dict) -> SimulationResult:
+def chain_result(dynamics: ChainDynamics, times: Sequence[float], states: Sequence[np.ndarray], method: str,
+                 info: dict) -> SimulationResult:
+    """The result of a plain chain run (point positions, forces, velocities, accelerations) from its states."""
     chain = dynamics.chain
     n_points = chain.n_points
     count = len(times)

@@ -43,7 +43,8 @@ from .planar.model import FREE, PlanarModel
 from .planar.ports import ActuatorInputs, PlanarPorts
 from .signals import as_signal, signal_parameters, symbolic_signal
 
-__all__ = ["ClosedLoops", "LoopLaw", "SymbolicKinematics", "SymbolicReference", "delay_steps", "sensor_expression"]
+__all__ = ["ClosedLoops", "LoopLaw", "SymbolicKinematics", "SymbolicReference", "controller_realisation", "delay_steps",
+           "sensor_expression", "symbolic_value"]
 
 _POINT_AXES = {"x": (0, 0), "y": (0, 1), "vx": (1, 0), "vy": (1, 1)}
 _STATION_PARTS = {"w": (0, False), "slope": (1, False), "w_dot": (0, True), "slope_rate": (1, True)}
@@ -104,7 +105,7 @@ def delay_steps(name: str, delay: float, dt: float | None) -> int:
     return steps
 
 
-def _controller(loop: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+def controller_realisation(loop: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """``(A, B, C, D)`` of the loop's controller, ``B`` and ``C`` flat; a static gain is ``D`` alone."""
     if not loop.is_lti:
         return np.zeros((0, 0)), np.zeros(0), np.zeros(0), float(loop.gain)
@@ -142,7 +143,7 @@ class SymbolicReference:
         return float(self.numeric(t))
 
 
-def _symbolic(label: str, value: Any) -> Any:
+def symbolic_value(label: str, value: Any) -> Any:
     """A number, a :mod:`ctmm.signals` object with a symbolic form or a :class:`SymbolicReference`, as a
     signal; ModelError otherwise."""
     if isinstance(value, SymbolicReference):
@@ -357,13 +358,13 @@ class ClosedLoops:
                 raise ModelError(f"inputs[{name!r}]: generated kernels drive the actuators "
                                  f"{', '.join(self.actuators) or '(none)'}; station forces and moments of beams are "
                                  "not on the element protocol yet (use compiled=False)")
-            self.inputs.append((self.actuators.index(name), _symbolic(f"inputs[{name!r}]", value)))
+            self.inputs.append((self.actuators.index(name), symbolic_value(f"inputs[{name!r}]", value)))
         laws, self.channels = [], []
         for loop in controlled.loops:
             if any(actuator not in self.actuators for actuator, _ in loop.actuator_terms):
                 self.channels.append((len(laws), self._channel(ports, loop)))
-            A, B, C, D = _controller(loop)
-            reference = _symbolic(f"references[{loop.name!r}]", references.get(loop.name, 0.0))
+            A, B, C, D = controller_realisation(loop)
+            reference = symbolic_value(f"references[{loop.name!r}]", references.get(loop.name, 0.0))
             laws.append(LoopLaw(loop.name, tuple(loop.terms), tuple(loop.actuator_terms), A, B, C, D,
                                 float(loop.delay), delay_steps(loop.name, loop.delay, dt), reference))
         self.laws = tuple(laws)

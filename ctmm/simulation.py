@@ -323,11 +323,15 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
                                 progress=progress, stability_check=stability_check,
                                 divergence_bound=divergence_bound, rtol=rtol, atol=atol, max_step=max_step,
                                 store_every=store_every, compiled=compiled)
-    if compiled is not None:
-        raise ModelError(f"compiled={compiled!r} applies to planar models (the generated RK4 of "
-                         "ctmm.compiled_scene); leave compiled at None for a 1-D chain")
     require_chain(system, "ctmm.simulate")
     chosen = _method(method, scheme, "newmark")
+    if validation.flag("compiled", compiled, optional=True):
+        return _simulate_chain_generated(system, t_final, dt, method=chosen, x0=x0, v0=v0, t0=t0, inputs=inputs,
+                                         outputs=outputs, controllers=controllers, references=references,
+                                         store_every=store_every, divergence_bound=divergence_bound,
+                                         others={"solver": (solver, "riccati"), "fast": (fast, None),
+                                                 "force_hook": (force_hook, None), "rtol": (rtol, 1e-8),
+                                                 "atol": (atol, 1e-10), "max_step": (max_step, None)})
     if isinstance(chosen, str) and chosen not in (*SCHEMES, *FIXED_STEP_METHODS, *SCIPY_METHODS):
         raise ModelError(f"unknown scheme {chosen!r}; available: {', '.join(sorted(SCHEMES))} or a ctmm.schemes "
                          f"object; the method of a chain may also be 'rk4' or a solve_ivp method {SCIPY_METHODS}")
@@ -407,6 +411,33 @@ def _simulate_chain_ode(system: Any, t_final: float, dt: float | None, *, method
                                 rtol=rtol, atol=atol, max_step=math.inf if max_step is None else max_step,
                                 store_every=store_every, progress=progress, stability_check=policy,
                                 divergence_bound=divergence_bound)
+
+
+def _simulate_chain_generated(system: Any, t_final: float, dt: float | None, *, method: Any, x0: Any, v0: Any,
+                              t0: float, inputs: Any, outputs: Sequence[str], controllers: list, references: dict,
+                              store_every: int, divergence_bound: float | None, others: dict) -> SimulationResult:
+    """:func:`simulate` of a chain with ``compiled=True``: the generated RK4 (:mod:`ctmm.compiled_chain`)."""
+    if method != "rk4" or controllers:
+        raise ModelError(f"compiled=True runs the generated RK4 of a chain with its loops, inputs and references; "
+                         f"got method={method!r}" + (" with co-simulated controllers (they sample in Python)"
+                                                     if controllers else "") + " (leave compiled at None)")
+    for name, (value, default) in {**others, "t0": (t0, 0.0)}.items():
+        if value is not default and value != default:
+            raise ModelError(f"{name}={value!r} does not apply to the generated RK4 of a chain (leave {name} at "
+                             f"{default!r})")
+    if dt is None:
+        raise ModelError("dt is required with method='rk4' (a fixed step [s], > 0), got None")
+    if inputs is not None and not isinstance(inputs, Mapping):
+        raise ModelError(f"inputs must be a mapping {{actuator name: number or signal}}, got {inputs!r}")
+    loops = system.loops if isinstance(system, ControlledChain) else ()
+    inputs, references = _loop_references(loops, inputs, references)
+    for name in outputs:
+        system.signal(name)
+    from .compiled_chain import simulate_chain_generated
+
+    return simulate_chain_generated(system, t_final, dt, x0=x0, v0=v0, inputs=inputs or None,
+                                    references=references or None, outputs=tuple(outputs), store_every=store_every,
+                                    divergence_bound=divergence_bound)
 
 
 def _loop_references(loops: Sequence[Any], inputs: Mapping[str, Any] | None, references: dict
