@@ -261,15 +261,16 @@ class ChainDynamics:
     def affine_form(self, actuators: Sequence[Mapping[int, Mapping[str, float]]] = ()) -> "AffineRates":
         """The accelerations as ``a = Ax x_I + Av v_I + B u + a0 + sum_j L_j s_j(t)`` (exact for the
         lumped families, whose terms are affine in the motion and the inputs): one batched sweep of
-        unit probes, one per actuator (``actuators``: unit inputs ``{position: {input: 1}}``) and one
-        per load of the chain's elements (``s_j`` its signal).
+        unit probes, one sweep per actuator (``actuators``: unit inputs ``{position: {input: 1}}``) and
+        one per time-varying load of the chain's elements (``s_j`` its signal; constant loads are in
+        ``a0``).
 
         Raises
         ------
         ModelError
             Massless nodes (their condensation is not generated yet), a prescribed start or end
-            motion (its rates enter the form in time), a connector with inertance (the form couples
-            every node: allowed, but dense).
+            motion (its rates enter the form in time).  (A connector with inertance couples every
+            node: its form is exact but dense.)
         """
         chain = self.chain
         if self.index_Q.size:
@@ -287,15 +288,25 @@ class ChainDynamics:
         v[1 + m + np.arange(m), I] = 1.0
         self._held(0.0, x, v)
         wall = self._wall_motion(0.0)
-        probes = self._forces(x, v, 0.0, {}, wall)[:, I]
+        constant: dict[int, dict[str, float]] = {}
+        for position, name, signal, _ in self._loads:
+            if isinstance(signal, Constant) and signal.value != 0.0:
+                constant.setdefault(position, {})[name] = signal.value
+        probes = self._forces(x, v, 0.0, constant, wall)[:, I]
         base = probes[0]
         Ax, Av = (probes[1:1 + m] - base).T, (probes[1 + m:] - base).T
 
         def column(inputs: Mapping[int, Mapping[str, float]]) -> np.ndarray:
-            return self._forces(x[:1], v[:1], 0.0, inputs, wall)[0, I] - base
+            both = {position: dict(values) for position, values in constant.items()}
+            for position, values in inputs.items():
+                slot = both.setdefault(position, {})
+                for name, value in values.items():
+                    slot[name] = slot.get(name, 0.0) + value
+            return self._forces(x[:1], v[:1], 0.0, both, wall)[0, I] - base
 
         B = np.column_stack([column(unit) for unit in actuators]) if len(actuators) else np.zeros((m, 0))
-        loads = [(column({position: {name: 1.0}}), signal) for position, name, signal, _ in self._loads]
+        loads = [(column({position: {name: 1.0}}), signal) for position, name, signal, _ in self._loads
+                 if not isinstance(signal, Constant)]
         return AffineRates(Ax, Av, B, base, loads)
 
     # -- the ODE -------------------------------------------------------------------------------
@@ -440,6 +451,49 @@ class ChainDynamics:
         a_for_forces = np.where(np.isnan(ap), 0.0, ap)            # massless: no inertia term
         across = {position: sum(values.values()) for position, values in (extra or {}).items()}
         forces = initial_forces(self.chain, xp[:, None], vp[:, None], across, a_for_forces[:, None], t)
+        return xp, vp, ap, forces
+
+
+    def point_values_rows(self, times: np.ndarray, states: np.ndarray,
+                          extras: Sequence[Mapping[int, Mapping[str, float]] | None] | None = None
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`point_values` of many rows (``(rows, n_points)`` each; ``extras`` per row): one batched
+        sweep for the accelerations when no node is massless (else one sweep per row)."""
+        times = np.asarray(times, dtype=float)
+        rows = len(times)
+        extras = list(extras) if extras is not None else [None] * rows
+        if self.index_Q.size or rows < 2:
+            out = np.zeros((4, rows, self.chain.n_points))
+            for i in range(rows):
+                out[:, i] = self.point_values(float(times[i]), np.asarray(states[i]), extras[i])
+            return out[0], out[1], out[2], out[3]
+        n, I = self.tree.n_nodes, self.index_I
+        m = I.size
+        x, v = np.zeros((rows, n)), np.zeros((rows, n))
+        x[:, I], v[:, I] = states[:, :m], states[:, m:2 * m]
+        motion = np.array([self._start_motion(t) for t in times]) if self._start_motion is not None else None
+        if motion is not None:
+            x[:, self.held], v[:, self.held] = motion[:, [0]], motion[:, [1]]
+        walls = np.array([self._wall_motion(t) for t in times], dtype=float).reshape(rows, 3)
+        merged: dict[int, dict[str, np.ndarray]] = {}
+        for i, t in enumerate(times):
+            for position, values in self.inputs(float(t), extras[i]).items():
+                for name, value in values.items():
+                    merged.setdefault(position, {}).setdefault(name, np.zeros(rows))[i] = value
+        inputs = {position: {name: column[:, None, None] for name, column in values.items()}
+                  for position, values in merged.items()}
+        a = self._forces(x, v, float(times[0]), inputs, (walls[:, 0], walls[:, 1], walls[:, 2]))
+        if motion is not None:
+            a[:, self.held] = motion[:, [2]]
+        k = self.node_of_point
+        on_wall = k < 0
+        xp, vp, ap = x[:, k], v[:, k], a[:, k]
+        for values, part in ((xp, 0), (vp, 1), (ap, 2)):
+            values[:, on_wall] = walls[:, [part]]
+        forces = np.empty_like(xp)
+        for i, t in enumerate(times):
+            across = {position: sum(values.values()) for position, values in (extras[i] or {}).items()}
+            forces[i] = initial_forces(self.chain, xp[i][:, None], vp[i][:, None], across, ap[i][:, None], float(t))
         return xp, vp, ap, forces
 
 

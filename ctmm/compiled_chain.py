@@ -42,7 +42,7 @@ from .errors import ModelError, SimulationError
 from .generated_loop import rk4_step_function, run_blocks, time_loop_functions
 from .results import SimulationResult
 from .signal_results import SignalSystem, signal_result
-from .signals import Constant, signal_parameters, symbolic_signal
+from .signals import signal_parameters, symbolic_signal
 
 __all__ = ["ChainLoops", "CompiledChain", "simulate_chain_generated"]
 
@@ -187,18 +187,14 @@ class CompiledChain:
         acceleration = ca.mtimes(stiffness, ca.vertcat(q, v))
         if units:
             acceleration += ca.mtimes(ca.DM(scipy.sparse.csc_matrix(form.B)), u)
-        constant = form.a0.copy()
         for column, signal in form.loads:
             parameters = signal_parameters(signal)
             if parameters is None:
                 raise ModelError(f"chain {plant.chain.name!r}: a load signal {signal!r} is a Python callable of time, "
                                  "which generated kernels cannot evaluate; give a ctmm.signals Constant, Harmonic, "
                                  "Step or SquareWave, or use compiled=False")
-            if isinstance(signal, Constant):
-                constant += column * signal.value
-            else:
-                acceleration += ca.DM(column) * symbolic_signal(type(signal), t, parameters)
-        acceleration += ca.DM(constant)
+            acceleration += ca.DM(column) * symbolic_signal(type(signal), t, parameters)
+        acceleration += ca.DM(form.a0)
         accelerations = ca.Function("acceleration", [q, v, u, p, t], [acceleration])
         self.loops = None if not (loops or inputs) else ChainLoops(plant, loops, self.actuators, dt, references,
                                                                     inputs)

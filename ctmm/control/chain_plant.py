@@ -237,11 +237,8 @@ class ChainPlant:
         values ``inputs`` of every row (forces and accelerations depend on them)."""
         chain, count = self.chain, len(t)
         q, v = np.reshape(q, (count, self.n_positions)), np.reshape(v, (count, self.n_velocities))
-        series = np.zeros((4, count, chain.n_points))
-        for i in range(count):
-            extra = inputs[i] if inputs is not None else None
-            series[:, i] = self.dynamics.point_values(float(t[i]), np.concatenate([q[i], v[i]]), extra)
-        x, f, vel, acc = series[0], series[3], series[1], series[2]
+        x, vel, acc, f = self.dynamics.point_values_rows(np.asarray(t, dtype=float), np.concatenate([q, v], axis=1),
+                                                         inputs)
         signals, units = {}, {}
         for name in dict.fromkeys([*chain.signal_names(), *outputs]):
             signal = chain.signal(name)
