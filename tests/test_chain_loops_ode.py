@@ -200,3 +200,41 @@ def test_start_time_other_than_zero_is_refused_on_the_loop_path():
     setup = seed_setup(REAL_TIME)
     with pytest.raises(ModelError, match="t0"):
         ctmm.simulate(setup.system, 0.1, 0.01, method="rk4", t0=0.5)
+
+
+@pytest.fixture(scope="module")
+def pd_fmu(tmp_path_factory):
+    import shutil
+
+    from ctmm.control import build_fmu
+
+    if not shutil.which("gcc"):
+        pytest.skip("gcc is required to build the test FMU")
+    return build_fmu(controllers.fmu_source("pd_controller"), tmp_path_factory.mktemp("fmu_ode"), compiler="gcc")
+
+
+def test_fmu_and_python_controllers_give_the_same_closed_loop_on_the_ode_path(pd_fmu):
+    from ctmm.control import FMUController
+
+    plant = seed_setup([]).plant
+    h, kp, kd, limit = 2e-3, 60.0, 5.0, 4.0
+    fmu = FMUController(pd_fmu, inputs={"y": "m2.x", "ydot": "m2.v"}, outputs={"u": "m0.force"},
+                        parameters={"kp": kp, "kd": kd, "limit": limit, "reference": 0.02}, sample_time=2 * h)
+    python = controllers.SaturatedPD(("m2.x", "m2.v"), ("m0.force",), kp=kp, kd=kd, limit=limit, reference=0.02,
+                                     sample_time=2 * h)
+    a, b = (run(plant, 0.5, h, controllers=[c]) for c in (fmu, python))
+    samples = a["m0.force@samples"]
+    assert np.any(np.abs(samples[:, 1]) == limit)          # the saturation is exercised
+    np.testing.assert_array_equal(samples, b["m0.force@samples"])
+    np.testing.assert_allclose(positions(a), positions(b), rtol=0, atol=1e-15)
+
+
+def test_a_diverging_loop_stops_with_the_partial_result():
+    setup = seed_setup([(2, "displacement", 2, -6.5e4, 0.0, None, False)])        # real-time positive feedback
+    with pytest.raises(ctmm.SimulationError) as caught:
+        run(setup.system, 5.0, 0.001)
+    error = caught.value
+    assert error.time is not None and 0.0 < error.time < 5.0
+    partial = error.partial_result
+    assert partial is not None and 1 < len(partial.time) and partial.time[-1] < error.time
+    assert np.all(np.isfinite(partial["m2.x"])) and "loop0.u" in partial.extra
