@@ -3,7 +3,7 @@
 ``ctmm.simulate(chain_or_controlled_chain, t_final, dt, method="rk4", compiled=True)`` runs here.
 The rate is the chain's explicit form (:mod:`ctmm.chain_ode`: the one articulated sweep of the element
 terms), which for the lumped families is affine in the motion and the inputs:
-:meth:`~ctmm.chain_ode.ChainDynamics.affine_form` reads it exactly from one batched sweep of unit
+:func:`affine_form` reads it exactly from one batched sweep of unit
 probes, ``a = Ax x + Av v + B u + a0 + sum_j L_j s_j(t)``, and :class:`CompiledChain` certifies it
 against the Python sweep at random states, times and inputs before anything is generated (a family
 whose terms were not affine would be refused, not silently linearised).  The generated functions are
@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import os
 import time as _time
+from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -42,12 +43,78 @@ from .errors import ModelError, SimulationError
 from .generated_loop import rk4_step_function, run_blocks, time_loop_functions
 from .results import SimulationResult
 from .signal_results import SignalSystem, signal_result
-from .signals import signal_parameters, symbolic_signal
+from .signals import Constant, signal_parameters, symbolic_signal
 
-__all__ = ["ChainLoops", "CompiledChain", "simulate_chain_generated"]
+__all__ = ["AffineRates", "ChainLoops", "CompiledChain", "affine_form", "simulate_chain_generated"]
 
 DEFAULT_ROWS = 64
 """Stored states per generated block call."""
+
+
+@dataclass(frozen=True)
+class AffineRates:
+    """``a = Ax x_I + Av v_I + B u + a0 + sum_j L_j s_j(t)`` of a lumped chain
+    (:func:`affine_form`): ``Ax`` [1/s^2], ``Av`` [1/s] (m, m), ``B`` (m, actuators)
+    [1/kg], ``a0`` [m/s^2] (m,), ``loads`` ``[(L_j [1/kg] (m,), signal s_j [N])]``."""
+
+    Ax: np.ndarray
+    Av: np.ndarray
+    B: np.ndarray
+    a0: np.ndarray
+    loads: list
+
+
+def affine_form(dynamics: ChainDynamics, actuators: Sequence[Mapping[int, Mapping[str, float]]] = ()) -> AffineRates:
+    """The accelerations as ``a = Ax x_I + Av v_I + B u + a0 + sum_j L_j s_j(t)`` (exact for the
+    lumped families, whose terms are affine in the motion and the inputs): one batched sweep of
+    unit probes, one sweep per actuator (``actuators``: unit inputs ``{position: {input: 1}}``) and
+    one per time-varying load of the chain's elements (``s_j`` its signal; constant loads are in
+    ``a0``).
+
+    Raises
+    ------
+    ModelError
+        Massless nodes (their condensation is not generated yet), a prescribed start or end
+        motion (its rates enter the form in time).  (A connector with inertance couples every
+        node: its form is exact but dense.)
+    """
+    chain = dynamics.chain
+    if dynamics.index_Q.size:
+        names = ", ".join(dynamics.node_name(k) for k in dynamics.index_Q)
+        raise ModelError(f"chain {chain.name!r}: points without inertia ({names}) are condensed in Python only; "
+                         "generated kernels need a mass at every moving point (or use compiled=False)")
+    for boundary in (chain.start, chain.end):
+        if hasattr(boundary, "displacement"):
+            raise ModelError(f"chain {chain.name!r}: the prescribed motion of {boundary.name!r} is not generated "
+                             "yet (use compiled=False)")
+    I, n = dynamics.index_I, dynamics.tree.n_nodes
+    m = I.size
+    x, v = np.zeros((1 + 2 * m, n)), np.zeros((1 + 2 * m, n))
+    x[1 + np.arange(m), I] = 1.0
+    v[1 + m + np.arange(m), I] = 1.0
+    dynamics.hold(0.0, x, v)
+    wall = dynamics.wall_motion(0.0)
+    constant: dict[int, dict[str, float]] = {}
+    for position, name, signal, _ in dynamics.loads:
+        if isinstance(signal, Constant) and signal.value != 0.0:
+            constant.setdefault(position, {})[name] = signal.value
+    probes = dynamics.forces(x, v, 0.0, constant, wall)[:, I]
+    base = probes[0]
+    Ax, Av = (probes[1:1 + m] - base).T, (probes[1 + m:] - base).T
+
+    def column(inputs: Mapping[int, Mapping[str, float]]) -> np.ndarray:
+        both = {position: dict(values) for position, values in constant.items()}
+        for position, values in inputs.items():
+            slot = both.setdefault(position, {})
+            for name, value in values.items():
+                slot[name] = slot.get(name, 0.0) + value
+        return dynamics.forces(x[:1], v[:1], 0.0, both, wall)[0, I] - base
+
+    B = np.column_stack([column(unit) for unit in actuators]) if len(actuators) else np.zeros((m, 0))
+    loads = [(column({position: {name: 1.0}}), signal) for position, name, signal, _ in dynamics.loads
+             if not isinstance(signal, Constant)]
+    return AffineRates(Ax, Av, B, base, loads)
+
 
 
 class ChainLoops(ClosedLoops):
@@ -178,7 +245,7 @@ class CompiledChain:
                                              + list(inputs or {})))
         dynamics: ChainDynamics = plant.dynamics
         units = [plant.ports.inputs({name: 1.0}) for name in self.actuators]
-        form = dynamics.affine_form(units)
+        form = affine_form(dynamics, units)
         m = plant.n_positions
         self._certify(dynamics, form, units)
         q, v = ca.MX.sym("q", m), ca.MX.sym("v", m)
