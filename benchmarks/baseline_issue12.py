@@ -25,7 +25,8 @@ dt = 10 ms, compiled RK4 at dt = 10 ms; ``stability_chart`` the 100 x 100 chart;
 (issue 13, added after the baseline run: its two cases were measured alone) the generated RK4 of
 the hub-beam and of the N = 5 chain; ``spatial_chain`` (issue 14, added later and measured
 alone) one forward dynamics of the spatial reference model at N = 5; ``spatial_schemes`` (issue 14,
-added later, measured alone) Newmark on the spatial double pendulum at dt = 10 ms.  Left out (too long
+added later, measured alone) Newmark on the spatial double pendulum at dt = 10 ms; ``chain_compiled``
+(issues 12/13, added later, measured alone) the generated RK4 of the 100-mass chain with a real-time loop.  Left out (too long
 for a baseline under ~3 min, or needing a build): larger sizes and step ladders, the external
 libraries and references the benchmarks compare with (python-control, pinocchio, MuJoCo, global
 and Lagrange models), the FMU controller variant (builds an FMU with gcc), ``flexible``'s chain of
@@ -354,8 +355,20 @@ def _spatial_schemes(t: Timings) -> None:
                         f"{steps} steps (benchmark: 0.5 s)")
 
 
+def _chain_compiled(t: Timings) -> None:
+    bench = importlib.import_module("chain_compiled")
+    system, n, steps = bench.model(100), 100, 1000
+    x0 = {f"m{i}": float(value) for i, value in enumerate(bench.start(n))}
+    chain = importlib.import_module("ctmm.compiled_chain").CompiledChain(system, dt=bench.DT, store_every=steps)
+    first = np.concatenate(chain.plant.start(x0, None))
+    t.add("chain_compiled", "generated_rk4_real_time_loop_n100", lambda: chain.run(first, bench.DT, steps),
+          per="step", count=steps,
+          configuration=f"chain of 100 masses, real-time loop m99.x -> m0, RK4 generated (CompiledChain.run, library "
+                        f"loaded), dt={bench.DT:g} s, {steps} steps")
+
+
 TIMING_PARTS = (_work_precision, _scaling, _control, _delay_history, _planar, _flexible, _manipulator,
-                _stability_chart, _compiled_scenes, _spatial_chain, _spatial_schemes)
+                _stability_chart, _compiled_scenes, _spatial_chain, _spatial_schemes, _chain_compiled)
 
 
 def timings() -> dict:

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 import time as clock
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -44,7 +44,7 @@ from .ode import rk4_step
 from .results import SimulationResult
 from .signals import Constant, Harmonic
 
-__all__ = ["ChainDynamics", "simulate_chain_ode", "SCIPY_METHODS"]
+__all__ = ["ChainDynamics", "chain_result", "simulate_chain_ode", "SCIPY_METHODS"]
 
 SCIPY_METHODS = ("RK45", "RK23", "DOP853", "Radau", "BDF", "LSODA")
 """``solve_ivp`` methods accepted for chains (as for planar models)."""
@@ -98,16 +98,16 @@ class ChainDynamics:
         self.massless = massless_nodes(tree)
         self.inertial = ~self.held & ~self.massless
         self.index_I, self.index_Q = np.flatnonzero(self.inertial), np.flatnonzero(self.massless)
-        self._loads = self._load_signals()
+        self.loads = self._load_signals()
         start = chain.start
         self._start_motion = None
         if start.known == "displacement":
             self._start_motion = (signal_derivatives(start.name, "displacement", start.displacement)
                                   if hasattr(start, "displacement") else (lambda t, p=start.position: (p, 0.0, 0.0)))
         end = chain.end
-        self._wall_motion = lambda t: (0.0, 0.0, 0.0)
+        self.wall_motion = lambda t: (0.0, 0.0, 0.0)
         if end.known == "displacement":
-            self._wall_motion = (signal_derivatives(end.name, "displacement", end.displacement)
+            self.wall_motion = (signal_derivatives(end.name, "displacement", end.displacement)
                                  if hasattr(end, "displacement") else (lambda t, p=end.position: (p, 0.0, 0.0)))
         self.node_of_point = np.array([tree.node[b] if b >= 0 else -1 for b in tree.point_body])
         q = self.index_Q
@@ -120,7 +120,7 @@ class ChainDynamics:
             in_range = values > 1e-10 * scale if scale > 0.0 else np.zeros(q.size, dtype=bool)
             self.P_r, self.P_n = vectors[:, in_range], vectors[:, ~in_range]
             self.n_r = int(in_range.sum())
-            names = ", ".join(self._node_name(k) for k in q)
+            names = ", ".join(self.node_name(k) for k in q)
             S_n = self.P_n.T @ self.Jx @ self.P_n
             S_r = self.P_r.T @ self.Jv @ self.P_r
             for label, matrix in (("stiffness", S_n), ("damping", S_r)):
@@ -147,7 +147,7 @@ class ChainDynamics:
         zero = np.zeros((1, n))
         x = np.concatenate([zero, probes, np.zeros((3, n))])
         v = np.concatenate([zero, np.zeros((3, n)), probes])
-        forces = self._forces(x, v, 0.0, {}, (0.0, 0.0, 0.0))
+        forces = self.forces(x, v, 0.0, {}, (0.0, 0.0, 0.0))
         base = forces[0, q]
         row_of = {int(k): row for row, k in enumerate(q)}
         Jx, Jv = np.zeros((q.size, q.size)), np.zeros((q.size, q.size))
@@ -160,7 +160,8 @@ class ChainDynamics:
                     Jv[row, column] = forces[4 + c, j] - base[row]
         return Jx, Jv
 
-    def _node_name(self, k: int) -> str:
+    def node_name(self, k: int) -> str:
+        """Names of the elements at node ``k`` (``"a/b"``)."""
         return "/".join(self.tree.bodies[j].name for j in range(len(self.tree.bodies)) if self.tree.node[j] == k)
 
     def _load_signals(self) -> list[tuple[int, str, Any, Element]]:
@@ -180,7 +181,7 @@ class ChainDynamics:
         """A varying force on a massless node: its velocity needs the force's rate (closed form)."""
         q, tree = set(self.index_Q.tolist()), self.tree
         self._load_rates = []
-        for position, name, signal, element in self._loads:
+        for position, name, signal, element in self.loads:
             if isinstance(signal, Constant):
                 continue
             if position == 0:
@@ -192,20 +193,26 @@ class ChainDynamics:
             if body >= 0 and tree.node[body] in q:
                 self._load_rates.append((position, name, signal_derivatives(element.name, name, signal)))
 
-    def inputs(self, t: float) -> dict[int, dict[str, float]]:
-        """``{position: {input: value}}`` at ``t`` [s] for the explicit context (prescribed start: acceleration)."""
+    def inputs(self, t: float, extra: Mapping[int, Mapping[str, float]] | None = None) -> dict[int, dict[str, float]]:
+        """``{position: {input: value}}`` at ``t`` [s] for the explicit context (prescribed start: acceleration),
+        with the ``extra`` actuator values [N] (loops, controllers; :mod:`ctmm.control.chain_plant`) added."""
         out: dict[int, dict[str, float]] = {}
-        for position, name, signal, _ in self._loads:
+        for position, name, signal, _ in self.loads:
             out.setdefault(position, {})[name] = float(signal(t))
+        for position, values in (extra or {}).items():
+            slot = out.setdefault(position, {})
+            for name, value in values.items():
+                slot[name] = slot.get(name, 0.0) + float(value)
         if self._start_motion is not None and hasattr(self.chain.start, "displacement"):
             out.setdefault(0, {})["displacement"] = self._start_motion(t)[2]
         return out
 
-    def _forces(self, x: np.ndarray, v: np.ndarray, t: float, inputs: Mapping, wall) -> np.ndarray:
+    def forces(self, x: np.ndarray, v: np.ndarray, t: float, inputs: Mapping, wall) -> np.ndarray:
         """Accelerations of the inertial nodes, forces [N] on the massless ones (explicit context)."""
         return explicit_accelerations(self.tree, x, v, t, inputs, wall=wall, massless="residual")
 
-    def _held(self, t: float, x: np.ndarray, v: np.ndarray) -> None:
+    def hold(self, t: float, x: np.ndarray, v: np.ndarray) -> None:
+        """Put the held nodes of ``x``, ``v`` (``(..., n_nodes)``, in place) on the start's motion at ``t`` [s]."""
         if self._start_motion is not None:
             position, rate, _ = self._start_motion(t)
             x[..., self.held] = position
@@ -220,7 +227,7 @@ class ChainDynamics:
             return
         x[q] = self.P_r @ (self.P_r.T @ x[q])
         v[q] = 0.0
-        residual = self._forces(x[None], v[None], t, inputs, wall)[0, q]
+        residual = self.forces(x[None], v[None], t, inputs, wall)[0, q]
         if self.P_n.shape[1]:
             z_n = -self._S_n_inv @ (self.P_n.T @ residual)
             x[q] += self.P_n @ z_n
@@ -243,35 +250,45 @@ class ChainDynamics:
         zero = np.zeros_like(pair_x)
         _, wall_rate, wall_second = wall
         walls = (np.array([wall_rate, 0.0]), np.zeros(2), np.zeros(2))
-        forces = self._forces(pair_x, zero, t, {}, walls)
+        forces = self.forces(pair_x, zero, t, {}, walls)
         linear = forces[0, q] - forces[1, q]
         if rates_in:
-            loaded = self._forces(np.zeros((1, len(x))), np.zeros((1, len(x))), t, rates_in, (0.0, 0.0, 0.0))
-            unloaded = self._forces(np.zeros((1, len(x))), np.zeros((1, len(x))), t, {}, (0.0, 0.0, 0.0))
+            loaded = self.forces(np.zeros((1, len(x))), np.zeros((1, len(x))), t, rates_in, (0.0, 0.0, 0.0))
+            unloaded = self.forces(np.zeros((1, len(x))), np.zeros((1, len(x))), t, {}, (0.0, 0.0, 0.0))
             linear = linear + (loaded - unloaded)[0, q]
         return -self._S_n_inv @ (self.P_n.T @ linear)
 
     # -- the ODE -------------------------------------------------------------------------------
-    def nodes(self, t: float, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Node positions, velocities and accelerations (``NaN`` at massless nodes) from the state ``y``."""
+    def kinematics(self, t: float, y: np.ndarray, extra: Mapping[int, Mapping[str, float]] | None = None
+                   ) -> tuple[np.ndarray, np.ndarray, dict, tuple]:
+        """Node positions [m] and velocities [m/s] from the state ``y`` (massless nodes from their
+        balance), with the inputs and the wall motion at ``t`` [s] they were computed with."""
         n, I, q = self.tree.n_nodes, self.index_I, self.index_Q
         x, v = np.zeros(n), np.zeros(n)
         x[I], v[I] = y[:I.size], y[I.size:2 * I.size]
         if self.n_r:
             x[q] = self.P_r @ y[2 * I.size:]
-        self._held(t, x, v)
-        inputs, wall = self.inputs(t), self._wall_motion(t)
+        self.hold(t, x, v)
+        inputs, wall = self.inputs(t, extra), self.wall_motion(t)
         self.condense(t, x, v, inputs, wall)
-        a = self._forces(x[None], v[None], t, inputs, wall)[0]
+        return x, v, inputs, wall
+
+    def nodes(self, t: float, y: np.ndarray, extra: Mapping[int, Mapping[str, float]] | None = None
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Node positions, velocities and accelerations (``NaN`` at massless nodes) from the state ``y``
+        (``extra``: actuator values ``{position: {input: value}}`` [N] on top of the chain's own loads)."""
+        q = self.index_Q
+        x, v, inputs, wall = self.kinematics(t, y, extra)
+        a = self.forces(x[None], v[None], t, inputs, wall)[0]
         a[q] = np.nan
         if self._start_motion is not None:
             a[self.held] = self._start_motion(t)[2]
         return x, v, a
 
-    def rate(self, t: float, y: np.ndarray) -> np.ndarray:
-        """``y' = [v_I, a_I, z_r']`` at ``t`` [s]."""
+    def rate(self, t: float, y: np.ndarray, extra: Mapping[int, Mapping[str, float]] | None = None) -> np.ndarray:
+        """``y' = [v_I, a_I, z_r']`` at ``t`` [s] (``extra`` as in :meth:`nodes`)."""
         I, q = self.index_I, self.index_Q
-        x, v, a = self.nodes(t, y)
+        x, v, a = self.nodes(t, y, extra)
         parts = [v[I], a[I]]
         if self.n_r:
             parts.append(self.P_r.T @ v[q])
@@ -294,14 +311,14 @@ class ChainDynamics:
             if k >= 0:
                 x[k], v[k] = x_points[p, 0], v_points[p, 0]
         if held_from_signals:
-            self._held(t0, x, v)
+            self.hold(t0, x, v)
         if q.size:
-            inputs, wall = self.inputs(t0), self._wall_motion(t0)
+            inputs, wall = self.inputs(t0), self.wall_motion(t0)
             given = {name: int(self.node_of_point[point_of_element(self.chain, name)]) for name in (x0 or {})}
             given = {name: k for name, k in given.items() if k >= 0 and self.massless[k]}
             values = {k: x[k] for k in given.values()}
             still = np.zeros(n)
-            residual = self._forces(x[None], still[None], t0, inputs, (wall[0], 0.0, 0.0))[0, q]
+            residual = self.forces(x[None], still[None], t0, inputs, (wall[0], 0.0, 0.0))[0, q]
             x[q] += np.linalg.lstsq(self.Jx, -residual, rcond=None)[0]
             for k, value in values.items():                   # a given first-order part is an initial value
                 x[k] = value
@@ -332,7 +349,7 @@ class ChainDynamics:
         if self._start_motion is not None:
             out.append((np.flatnonzero(np.isin(self.node_of_point, np.flatnonzero(self.held))), self._start_motion))
         if self.chain.end.known == "displacement" and np.any(self.node_of_point < 0):
-            out.append((np.flatnonzero(self.node_of_point < 0), self._wall_motion))
+            out.append((np.flatnonzero(self.node_of_point < 0), self.wall_motion))
         return out
 
     def start_points(self, t0: float, x0: Mapping[str, float] | None, v0: Mapping[str, float] | None
@@ -351,7 +368,7 @@ class ChainDynamics:
         x[I], v[I] = y[:I.size], y[I.size:2 * I.size]
         if self.n_r:
             x[q] = self.P_r @ y[2 * I.size:]
-        wall = self._wall_motion(t0) if self.chain.end.known == "displacement" else (0.0, 0.0, 0.0)
+        wall = self.wall_motion(t0) if self.chain.end.known == "displacement" else (0.0, 0.0, 0.0)
         self.condense(t0, x, v, self.inputs(t0), wall)
         massless_points = np.isin(self.node_of_point, q)
         x_points[massless_points, 0] = x[self.node_of_point[massless_points]]
@@ -365,21 +382,67 @@ class ChainDynamics:
         x, v = np.zeros(n), np.zeros(n)
         x[I] = y[:I.size]
         x[q] = np.nan
-        self._held(t, x, v)
+        self.hold(t, x, v)
         out = x[self.node_of_point]
-        out[self.node_of_point < 0] = self._wall_motion(t)[0]
+        out[self.node_of_point < 0] = self.wall_motion(t)[0]
         return out
 
-    def point_values(self, t: float, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Positions, velocities, accelerations and forces at every connection point (``(n_points,)`` each)."""
-        x, v, a = self.nodes(t, y)
-        wall = self._wall_motion(t)
+    def point_values(self, t: float, y: np.ndarray, extra: Mapping[int, Mapping[str, float]] | None = None
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Positions, velocities, accelerations and forces at every connection point (``(n_points,)`` each;
+        ``extra`` as in :meth:`nodes`, acting on point elements and across connectors)."""
+        x, v, a = self.nodes(t, y, extra)
+        wall = self.wall_motion(t)
         k = self.node_of_point
         on_wall = k < 0
         xp, vp, ap = x[k], v[k], a[k]
         xp[on_wall], vp[on_wall], ap[on_wall] = wall
         a_for_forces = np.where(np.isnan(ap), 0.0, ap)            # massless: no inertia term
-        forces = initial_forces(self.chain, xp[:, None], vp[:, None], {}, a_for_forces[:, None], t)
+        across = {position: sum(values.values()) for position, values in (extra or {}).items()}
+        forces = initial_forces(self.chain, xp[:, None], vp[:, None], across, a_for_forces[:, None], t)
+        return xp, vp, ap, forces
+
+
+    def point_values_rows(self, times: np.ndarray, states: np.ndarray,
+                          extras: Sequence[Mapping[int, Mapping[str, float]] | None] | None = None
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`point_values` of many rows (``(rows, n_points)`` each; ``extras`` per row): one batched
+        sweep for the accelerations when no node is massless (else one sweep per row)."""
+        times = np.asarray(times, dtype=float)
+        rows = len(times)
+        extras = list(extras) if extras is not None else [None] * rows
+        if self.index_Q.size or rows < 2:
+            out = np.zeros((4, rows, self.chain.n_points))
+            for i in range(rows):
+                out[:, i] = self.point_values(float(times[i]), np.asarray(states[i]), extras[i])
+            return out[0], out[1], out[2], out[3]
+        n, I = self.tree.n_nodes, self.index_I
+        m = I.size
+        x, v = np.zeros((rows, n)), np.zeros((rows, n))
+        x[:, I], v[:, I] = states[:, :m], states[:, m:2 * m]
+        motion = np.array([self._start_motion(t) for t in times]) if self._start_motion is not None else None
+        if motion is not None:
+            x[:, self.held], v[:, self.held] = motion[:, [0]], motion[:, [1]]
+        walls = np.array([self.wall_motion(t) for t in times], dtype=float).reshape(rows, 3)
+        merged: dict[int, dict[str, np.ndarray]] = {}
+        for i, t in enumerate(times):
+            for position, values in self.inputs(float(t), extras[i]).items():
+                for name, value in values.items():
+                    merged.setdefault(position, {}).setdefault(name, np.zeros(rows))[i] = value
+        inputs = {position: {name: column[:, None, None] for name, column in values.items()}
+                  for position, values in merged.items()}
+        a = self.forces(x, v, float(times[0]), inputs, (walls[:, 0], walls[:, 1], walls[:, 2]))
+        if motion is not None:
+            a[:, self.held] = motion[:, [2]]
+        k = self.node_of_point
+        on_wall = k < 0
+        xp, vp, ap = x[:, k], v[:, k], a[:, k]
+        for values, part in ((xp, 0), (vp, 1), (ap, 2)):
+            values[:, on_wall] = walls[:, [part]]
+        forces = np.empty_like(xp)
+        for i, t in enumerate(times):
+            across = {position: sum(values.values()) for position, values in (extras[i] or {}).items()}
+            forces[i] = initial_forces(self.chain, xp[i][:, None], vp[i][:, None], across, ap[i][:, None], float(t))
         return xp, vp, ap, forces
 
 
@@ -441,7 +504,7 @@ def simulate_chain_ode(chain, t_final: float, dt: float | None, *, method: str =
     info: dict[str, Any] = {"method": method, "path": "ode-explicit-sweep"}
 
     def result() -> SimulationResult:
-        return _result(dynamics, times, states, method, info)
+        return chain_result(dynamics, times, states, method, info)
 
     started = clock.perf_counter()
     if method == "rk4":
@@ -509,7 +572,9 @@ def _check(dynamics: ChainDynamics, guard: DivergenceGuard, t: float, y: np.ndar
     guard.check(t, watched)
 
 
-def _result(dynamics: ChainDynamics, times: list, states: list, method: str, info: dict) -> SimulationResult:
+def chain_result(dynamics: ChainDynamics, times: Sequence[float], states: Sequence[np.ndarray], method: str,
+                 info: dict) -> SimulationResult:
+    """The result of a plain chain run (point positions, forces, velocities, accelerations) from its states."""
     chain = dynamics.chain
     n_points = chain.n_points
     count = len(times)

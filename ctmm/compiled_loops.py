@@ -53,8 +53,8 @@ from .compiled_parameters import LoopNumbers, loop_parameter_layout, parameter_v
 from .compiled_references import SymbolicReference, reference_at, symbolic_reference
 from .signals import symbolic_signal
 
-__all__ = ["ClosedLoops", "PlanarSymbols", "LoopLaw", "SymbolicKinematics", "SymbolicReference", "delay_steps",
-           "sensor_expression"]
+__all__ = ["ClosedLoops", "PlanarSymbols", "LoopLaw", "SymbolicKinematics", "SymbolicReference", "controller_realisation",
+           "delay_steps", "sensor_expression", "symbolic_value"]
 
 _POINT_AXES = {"x": (0, 0), "y": (0, 1), "vx": (1, 0), "vy": (1, 1)}
 _STATION_PARTS = {"w": (0, False), "slope": (1, False), "w_dot": (0, True), "slope_rate": (1, True)}
@@ -128,7 +128,7 @@ def delay_steps(name: str, delay: float, dt: float | None) -> int:
     return steps
 
 
-def _controller(loop: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+def controller_realisation(loop: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """``(A, B, C, D)`` of the loop's controller, ``B`` and ``C`` flat; a static gain is ``D`` alone."""
     if not loop.is_lti:
         return np.zeros((0, 0)), np.zeros(0), np.zeros(0), float(loop.gain)
@@ -145,8 +145,8 @@ def _controller(loop: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
         float(np.asarray(system.D, float).reshape(-1)[0])
 
 
-# the references' own module; the short names keep the call sites below unchanged
-_symbolic, _at = symbolic_reference, reference_at
+# the references' own module (:mod:`ctmm.compiled_references`)
+symbolic_value, _at = symbolic_reference, reference_at
 
 
 # ------------------------------------------------------------------------------------------
@@ -365,13 +365,13 @@ class ClosedLoops:
                 raise ModelError(f"inputs[{name!r}]: generated kernels drive the actuators "
                                  f"{', '.join(self.actuators) or '(none)'}; station forces and moments of beams are "
                                  "not on the element protocol yet (use compiled=False)")
-            self.inputs.append((self.actuators.index(name), _symbolic(f"inputs[{name!r}]", value)))
+            self.inputs.append((self.actuators.index(name), symbolic_value(f"inputs[{name!r}]", value)))
         laws, self.channels = [], []
         for loop in controlled.loops:
             if any(actuator not in self.actuators for actuator, _ in loop.actuator_terms):
                 self.channels.append((len(laws), self._channel(ports, loop)))
-            A, B, C, D = _controller(loop)
-            reference = _symbolic(f"references[{loop.name!r}]", references.get(loop.name, 0.0))
+            A, B, C, D = controller_realisation(loop)
+            reference = symbolic_value(f"references[{loop.name!r}]", references.get(loop.name, 0.0))
             laws.append(LoopLaw(loop.name, tuple(loop.terms), tuple(loop.actuator_terms), A, B, C, D,
                                 float(loop.delay), delay_steps(loop.name, loop.delay, dt), reference,
                                 loop.saturation))

@@ -5,7 +5,9 @@
   method (state equations from the explicit context of the one sweep, massless nodes condensed);
   a :class:`~ctmm.control.loops.ControlledChain`, or a chain with co-simulated ``controllers`` or
   loop ``references``, goes to the controlled stepper
-  (:func:`ctmm.control.simulate.simulate_controlled`), so that no loop is ever dropped.  Both
+  (:func:`ctmm.control.simulate.simulate_controlled`) with a scheme, or with ``"rk4"`` / a
+  ``solve_ivp`` method to :func:`ctmm.control.planar_time.simulate_closed_loop` on its plant
+  (:class:`ctmm.control.chain_plant.ChainPlant`), so that no loop is ever dropped.  Both
   share the pre-run stability check of the scheme (:mod:`ctmm.step_limit`) and the divergence
   guard (:mod:`ctmm.guard`).
 * A :class:`~ctmm.planar.model.PlanarModel` (rigid or with flexible beams), or a controlled
@@ -237,7 +239,8 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
     method : str or Scheme, optional
         ``"rk4"`` (fixed step; planar default), a ``scipy.integrate.solve_ivp`` method
         (``"RK45"``, ``"DOP853"``, ``"Radau"``, ``"BDF"``, ...; planar models and plain lumped chains,
-        :mod:`ctmm.chain_ode`; loops of a chain need a scheme) or a DT-TMM scheme
+        :mod:`ctmm.chain_ode`; a chain's loops, controllers and actuator ``inputs`` close in the one
+        loop driver, :mod:`ctmm.control.chain_plant`) or a DT-TMM scheme
         (``"newmark"`` (chain default), ``"generalized_alpha"``, ``"wilson_theta"``, ``"houbolt"``,
         ``"forward_euler"`` or a :mod:`ctmm.schemes` object); on a planar model every scheme closes
         loops, ``inputs`` and ``controllers`` (``docs/planar.md``, ``docs/control.md`` §4c); on a
@@ -253,7 +256,8 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
     inputs : mapping, optional
         Planar: ``{actuator name: number or f(t)}`` open-loop actuator values
         (:mod:`ctmm.planar.ports`, e.g. ``"motor.torque"`` [N m]); ``"<loop>.reference"`` is the
-        loop's reference (as in ``references``).
+        loop's reference (as in ``references``).  Chains with ``"rk4"`` or a ``solve_ivp`` method:
+        ``{"<element>.<input>" or "<element>": ...}`` forces [N] (:mod:`ctmm.control.chain_plant`).
     outputs : sequence of str
         Planar: sensor names stored at every time (``"fore.outboard.y"``); every coordinate and
         its rate are always stored.
@@ -308,7 +312,7 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
     ------
     ModelError
         Bad input; a system of another kind; options that do not apply to the run (e.g.
-        ``inputs`` for a chain, ``fast`` with loops); with a DT-TMM scheme on a planar model, a
+        ``inputs`` for a chain on a DT-TMM scheme, ``fast`` with loops); with a DT-TMM scheme on a planar model, a
         loop delay shorter than the step (Wilson-theta: ``theta dt``).
     SimulationError
         A failed run (divergence, non-finite state, failing user code), with ``partial_result``.
@@ -333,11 +337,15 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
                                 progress=progress, stability_check=stability_check,
                                 divergence_bound=divergence_bound, rtol=rtol, atol=atol, max_step=max_step,
                                 store_every=store_every, compiled=compiled)
-    if compiled is not None:
-        raise ModelError(f"compiled={compiled!r} applies to planar models (the generated RK4 of "
-                         "ctmm.compiled_scene); leave compiled at None for a 1-D chain")
     require_chain(system, "ctmm.simulate")
     chosen = _method(method, scheme, "newmark")
+    if validation.flag("compiled", compiled, optional=True):
+        return _simulate_chain_generated(system, t_final, dt, method=chosen, x0=x0, v0=v0, t0=t0, inputs=inputs,
+                                         outputs=outputs, controllers=controllers, references=references,
+                                         store_every=store_every, divergence_bound=divergence_bound,
+                                         others={"solver": (solver, "riccati"), "fast": (fast, None),
+                                                 "force_hook": (force_hook, None), "rtol": (rtol, 1e-8),
+                                                 "atol": (atol, 1e-10), "max_step": (max_step, None)})
     if isinstance(chosen, str) and chosen not in (*SCHEMES, *FIXED_STEP_METHODS, *SCIPY_METHODS):
         raise ModelError(f"unknown scheme {chosen!r}; available: {', '.join(sorted(SCHEMES))} or a ctmm.schemes "
                          f"object; the method of a chain may also be 'rk4' or a solve_ivp method {SCIPY_METHODS}")
@@ -346,7 +354,7 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
                                    outputs=outputs, controllers=controllers, references=references, solver=solver,
                                    fast=fast, force_hook=force_hook, progress=progress,
                                    stability_check=stability_check, divergence_bound=divergence_bound, rtol=rtol,
-                                   atol=atol, max_step=max_step, store_every=store_every)
+                                   atol=atol, max_step=max_step, store_every=store_every, coupling=coupling)
     planar_only = {"inputs": (inputs, None), "outputs": (tuple(outputs), ()), "rtol": (rtol, 1e-8),
                    "atol": (atol, 1e-10), "max_step": (max_step, None), "store_every": (store_every, 1)}
     for name, (value, default) in planar_only.items():
@@ -374,25 +382,76 @@ def _simulate_chain_ode(system: Any, t_final: float, dt: float | None, *, method
                         inputs: Any, outputs: Sequence[str], controllers: list, references: dict, solver: str,
                         fast: Any, force_hook: Any, progress: Any, stability_check: Any,
                         divergence_bound: float | None, rtol: float, atol: float, max_step: float | None,
-                        store_every: int) -> SimulationResult:
-    """:func:`simulate` of a plain chain with ``"rk4"`` or a ``solve_ivp`` method (:mod:`ctmm.chain_ode`)."""
-    if isinstance(system, ControlledChain) or controllers or references:
-        what = "loops" if isinstance(system, ControlledChain) else ("controllers" if controllers else "references")
-        raise ModelError(f"method={method!r} on a chain with {what}: the ODE path of 1-D chains does not close "
-                         "feedback loops yet (it would drop them); use a DT-TMM scheme "
-                         f"({', '.join(sorted(SCHEMES))}), which closes real-time and delayed loops")
-    unsupported = {"inputs": (inputs, None), "outputs": (tuple(outputs), ()), "solver": (solver, "riccati"),
-                   "fast": (fast, None), "force_hook": (force_hook, None), "progress": (progress, None),
-                   "stability_check": (stability_check, None)}
+                        store_every: int, coupling: str = "hold") -> SimulationResult:
+    """:func:`simulate` of a chain with ``"rk4"`` or a ``solve_ivp`` method: a plain chain by
+    :mod:`ctmm.chain_ode`; a :class:`ControlledChain`, or a chain with ``controllers``, ``references``
+    or actuator ``inputs``, by the one loop-closing driver (:func:`simulate_closed_loop` on a
+    :class:`~ctmm.control.chain_plant.ChainPlant`)."""
+    loops = system.loops if isinstance(system, ControlledChain) else ()
+    if inputs is not None and not isinstance(inputs, Mapping):
+        raise ModelError(f"inputs must be a mapping {{actuator name: number or f(t)}}, got {inputs!r}")
+    inputs, references = _loop_references(loops, inputs, references)
+    controlled = bool(loops) or bool(controllers) or bool(references) or bool(inputs)
+    unsupported = {"solver": (solver, "riccati"), "fast": (fast, None), "force_hook": (force_hook, None)}
+    if not controlled:
+        unsupported.update({"outputs": (tuple(outputs), ()), "progress": (progress, None),
+                            "stability_check": (stability_check, None)})
     for name, (value, default) in unsupported.items():
         if value is not default and value != default:
             raise ModelError(f"{name}={value!r} does not apply to an ODE run of a chain (method={method!r}: loads "
                              f"and prescribed motions come from its elements; every signal is stored); leave "
                              f"{name} at {default!r}")
-    from .chain_ode import simulate_chain_ode
+    if not controlled:
+        from .chain_ode import simulate_chain_ode
 
-    return simulate_chain_ode(system, t_final, dt, method=method, x0=x0, v0=v0, t0=t0, rtol=rtol, atol=atol,
-                              max_step=max_step, store_every=store_every, divergence_bound=divergence_bound)
+        return simulate_chain_ode(system, t_final, dt, method=method, x0=x0, v0=v0, t0=t0, rtol=rtol, atol=atol,
+                                  max_step=max_step, store_every=store_every, divergence_bound=divergence_bound)
+    if t0 != 0.0:
+        raise ModelError(f"t0={t0!r}: a chain with loops, controllers or inputs on the ODE path starts at t = 0 "
+                         "(leave t0 at 0, or use a DT-TMM scheme)")
+    if isinstance(outputs, (str, Mapping)) or not isinstance(outputs, (list, tuple)) or \
+            not all(isinstance(o, str) for o in outputs):
+        raise ModelError(f"outputs must be a list or tuple of signal names (str), got {outputs!r}")
+    for name in outputs:
+        system.signal(name)
+    from .control.chain_plant import ChainPlant
+
+    plant = ChainPlant(system)
+    q0, qdot0 = plant.start(x0, v0)
+    policy = "warn" if stability_check is None else validation.option("stability_check", stability_check,
+                                                                       ("warn", "error", "ignore"))
+    return simulate_closed_loop(system, q0, qdot0, t_final, dt, method=method, loops=loops, controllers=controllers,
+                                inputs=inputs, references=references, outputs=outputs, coupling=coupling,
+                                rtol=rtol, atol=atol, max_step=math.inf if max_step is None else max_step,
+                                store_every=store_every, progress=progress, stability_check=policy,
+                                divergence_bound=divergence_bound)
+
+
+def _simulate_chain_generated(system: Any, t_final: float, dt: float | None, *, method: Any, x0: Any, v0: Any,
+                              t0: float, inputs: Any, outputs: Sequence[str], controllers: list, references: dict,
+                              store_every: int, divergence_bound: float | None, others: dict) -> SimulationResult:
+    """:func:`simulate` of a chain with ``compiled=True``: the generated RK4 (:mod:`ctmm.compiled_chain`)."""
+    if method != "rk4" or controllers:
+        raise ModelError(f"compiled=True runs the generated RK4 of a chain with its loops, inputs and references; "
+                         f"got method={method!r}" + (" with co-simulated controllers (they sample in Python)"
+                                                     if controllers else "") + " (leave compiled at None)")
+    for name, (value, default) in {**others, "t0": (t0, 0.0)}.items():
+        if value is not default and value != default:
+            raise ModelError(f"{name}={value!r} does not apply to the generated RK4 of a chain (leave {name} at "
+                             f"{default!r})")
+    if dt is None:
+        raise ModelError("dt is required with method='rk4' (a fixed step [s], > 0), got None")
+    if inputs is not None and not isinstance(inputs, Mapping):
+        raise ModelError(f"inputs must be a mapping {{actuator name: number or signal}}, got {inputs!r}")
+    loops = system.loops if isinstance(system, ControlledChain) else ()
+    inputs, references = _loop_references(loops, inputs, references)
+    for name in outputs:
+        system.signal(name)
+    from .compiled_chain import simulate_chain_generated
+
+    return simulate_chain_generated(system, t_final, dt, x0=x0, v0=v0, inputs=inputs or None,
+                                    references=references or None, outputs=tuple(outputs), store_every=store_every,
+                                    divergence_bound=divergence_bound)
 
 
 def _loop_references(loops: Sequence[Any], inputs: Mapping[str, Any] | None, references: dict

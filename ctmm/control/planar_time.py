@@ -335,11 +335,16 @@ class _Rows:
         self.t: list[float] = []
         self.y: list[np.ndarray] = []
         self.loops: list[list[tuple[float, float, float]]] = []
+        self.inputs: list[Any] | None = [] if getattr(system.plant, "signals_need_inputs", False) else None
 
     def add(self, t: float, y: np.ndarray) -> None:
         self.t.append(float(t))
         self.y.append(np.array(y, dtype=float))
-        self.loops.append(self.system.loop_values(t, y, record=True) if self.system.loops else [])
+        values = self.system.loop_values(t, y, record=True) if self.system.loops else []
+        self.loops.append(values)
+        if self.inputs is not None:     # a plant whose stored signals depend on the actuators (chains)
+            actuators = self.system.actuator_values(t, y, values)
+            self.inputs.append(self.system.ports.inputs(actuators) if actuators else None)
 
 
 def _result(rows: _Rows, outputs: Sequence[str], method: str, info: dict) -> SimulationResult:
@@ -347,7 +352,8 @@ def _result(rows: _Rows, outputs: Sequence[str], method: str, info: dict) -> Sim
     model, n = system.model, system.n
     t = np.array(rows.t)
     y = np.array(rows.y).reshape(len(t), system.size)
-    signals, units = system.plant.signals(t, y[:, :n], y[:, n:system.base], outputs)
+    extra = {} if rows.inputs is None else {"inputs": rows.inputs}
+    signals, units = system.plant.signals(t, y[:, :n], y[:, n:system.base], outputs, **extra)
     saturated_time = {}
     for k, lp in enumerate(system.loops):
         values = np.array([row[k] for row in rows.loops]).reshape(len(t), 3)

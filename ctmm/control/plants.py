@@ -3,9 +3,12 @@
 A loop or a co-simulated controller sees a model only through its **ports** -- named sensors and
 actuators -- and the time driver needs a few dynamics on top.  :class:`Plant` is that small explicit
 protocol; :class:`PlanarPlant` (:class:`~ctmm.planar.model.PlanarModel`, ports
-:class:`~ctmm.planar.ports.PlanarPorts`) and :class:`SpatialPlant`
-(:class:`~ctmm.spatial.model.SpatialModel`, ports :class:`~ctmm.spatial.ports.SpatialPorts`) are its
-two implementations, and :func:`plant_of` picks one.
+:class:`~ctmm.planar.ports.PlanarPorts`), :class:`SpatialPlant`
+(:class:`~ctmm.spatial.model.SpatialModel`, ports :class:`~ctmm.spatial.ports.SpatialPorts`) and
+:class:`~ctmm.control.chain_plant.ChainPlant` (a lumped 1-D chain on its explicit context, ports
+:class:`~ctmm.control.chain_plant.ChainPorts`) are its implementations, and :func:`plant_of` picks one.
+A plant with ``signals_need_inputs = True`` gets the actuator values of every stored row in
+``signals(..., inputs=...)`` (a chain's accelerations and point forces depend on them).
 
 Ports (``plant.ports``)
     ``sensors``, ``actuators`` (mappings by name), ``check_sensor(name, what)``,
@@ -35,6 +38,9 @@ from ..planar.sweep import accelerations as planar_accelerations
 from ..spatial.integrate import spatial_signals
 from ..spatial.model import SpatialModel
 from ..spatial.ports import SpatialPorts
+from ..system import Chain
+from .chain_plant import ChainPlant
+from .loops import ControlledChain
 
 __all__ = ["Plant", "PlanarPlant", "SpatialPlant", "plant_of", "is_plant_model"]
 
@@ -149,8 +155,11 @@ def is_plant_model(model: Any) -> bool:
     return isinstance(model, (PlanarModel, SpatialModel))
 
 
-def plant_of(model: Any) -> PlanarPlant | SpatialPlant:
-    """The :class:`Plant` of a planar or spatial model."""
+def plant_of(model: Any) -> Plant:
+    """The :class:`Plant` of a planar or spatial model, or of a lumped 1-D chain
+    (:class:`~ctmm.control.chain_plant.ChainPlant`: ``Chain`` or ``ControlledChain``)."""
+    if isinstance(model, (Chain, ControlledChain)):
+        return ChainPlant(model)
     if isinstance(model, PlanarModel):
         return PlanarPlant(model)
     if isinstance(model, SpatialModel):
