@@ -156,6 +156,12 @@ class ChainLoops(ClosedLoops):
                                 float(loop.delay), delay_steps(loop.name, loop.delay, dt), reference))
         self.laws = tuple(laws)
         self.n = n = plant.n_positions
+        self.nq = self.nv = n
+        self.base = 2 * n                       # [q, v], then z and the ring (the ClosedLoops layout)
+        self.position_rates = lambda q, v: v
+        self.plant_parameter_count = 0          # the chain's numbers and the loops' are constants of the code
+        self.parameter_layout = []
+        self.parameter_values = np.zeros(0)
         self.n_controller_states = sum(law.A.shape[0] for law in laws)
         self.delayed = [k for k, law in enumerate(laws) if law.steps]
         self.ring_columns = max((law.steps for law in laws), default=0) + 1 if self.delayed else 0
