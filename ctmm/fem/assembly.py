@@ -164,22 +164,16 @@ class FiniteElementModel:
         mass, first, polar = 0.0, np.zeros(2), 0.0
         S1, sigma, gamma = np.zeros((2, n)), np.zeros(n), np.zeros(n)
         G, Mt = np.zeros((n, n)), np.zeros((n, n))
+        points = []                                     # (masses (P,), positions (P, 2), shapes (P, 2, k), DOFs)
         for e in self.elements:
             if isinstance(e, MembraneElement):
                 if e.density == 0.0:
                     continue
                 idx, corners = self._membrane(e)
-                points, area, S = membrane_shape_points(corners, f"{self.name}: {e.name}")
-                X = points - o                                                   # (9, 2)
+                quadrature, area, S = membrane_shape_points(corners, f"{self.name}: {e.name}")
+                X = quadrature - o                                               # (9, 2)
                 w = e.density * e.thickness * area                               # (9,) [kg]
-                mass += w.sum()
-                first += w @ X
-                polar += float(w @ (X * X).sum(1))
-                S1[:, idx] += np.einsum("p,pik->ik", w, S)
-                sigma[idx] += np.einsum("p,pi,pik->k", w, X, S)
-                gamma[idx] += np.einsum("p,pik,ij,pj->k", w, S, _J, X)
-                G[np.ix_(idx, idx)] += np.einsum("p,pik,ij,pjl->kl", w, S, _J, S)
-                Mt[np.ix_(idx, idx)] += np.einsum("p,pik,pil->kl", w, S, S)
+                points.append((w, X, S, idx))
             elif isinstance(e, BeamElement):
                 if e.mass_per_length == 0.0:
                     continue
@@ -191,14 +185,7 @@ class FiniteElementModel:
                 S = np.einsum("ji,pjk,kl->pil", r2, N, T)                        # (5, 2, 6) frame axes
                 X = a[None, :] + _XI[:, None] * length * direction[None, :]     # (5, 2)
                 w = _WEIGHT * e.mass_per_length * length                         # (5,)
-                mass += w.sum()
-                first += w @ X
-                polar += float(w @ (X * X).sum(1))
-                S1[:, idx] += np.einsum("p,pik->ik", w, S)
-                sigma[idx] += np.einsum("p,pi,pik->k", w, X, S)
-                gamma[idx] += np.einsum("p,pik,ij,pj->k", w, S, _J, X)
-                G[np.ix_(idx, idx)] += np.einsum("p,pik,ij,pjl->kl", w, S, _J, S)
-                Mt[np.ix_(idx, idx)] += np.einsum("p,pik,pil->kl", w, S, S)
+                points.append((w, X, S, idx))
             elif isinstance(e, PointMass):
                 dofs = self.dofs[e.node]
                 X = self.positions[e.node] - o
@@ -219,6 +206,15 @@ class FiniteElementModel:
                 Mt[iy, iy] += m
                 if len(dofs) == 3:               # else it turns with the frame: in polar only
                     gamma[dofs[2]] += e.inertia
+        for w, X, S, idx in points:                     # mass points of beams and membranes (quadrature)
+            mass += w.sum()
+            first += w @ X
+            polar += float(w @ (X * X).sum(1))
+            S1[:, idx] += np.einsum("p,pik->ik", w, S)
+            sigma[idx] += np.einsum("p,pi,pik->k", w, X, S)
+            gamma[idx] += np.einsum("p,pik,ij,pj->k", w, S, _J, X)
+            G[np.ix_(idx, idx)] += np.einsum("p,pik,ij,pjl->kl", w, S, _J, S)
+            Mt[np.ix_(idx, idx)] += np.einsum("p,pik,pil->kl", w, S, S)
         return FloatingInertia(mass, first, polar, S1, sigma, gamma, G, Mt)
 
     def subsystem(self, name: str, boundary: Sequence[str], *, nonlinear_force: Callable | None = None,
