@@ -31,7 +31,7 @@ import numpy as np
 import scipy.integrate
 import scipy.linalg
 
-__all__ = ["RigidSegment", "BeamSegment", "ParticleNet", "GlobalChain"]
+__all__ = ["RigidSegment", "BeamSegment", "ParticleNet", "MembranePlate", "GlobalChain"]
 
 _J = np.array([[0.0, -1.0], [1.0, 0.0]])
 
@@ -82,6 +82,75 @@ class ParticleNet:
     masses: tuple
     springs: tuple
     damping: float = 0.0
+
+
+@dataclass(frozen=True)
+class MembranePlate:
+    """Plane-stress plate moving in its own plane, welded to the previous (rigid) segment: in its axes, origin
+    at its outboard point (seed 001 Example 9.2's equivalent flexible plate).
+
+    ``positions`` (N, 2) [m] undeformed nodes; ``quads`` (Q, 4) node indices of axis-parallel rectangles
+    (counter-clockwise); ``clamped`` node indices held on the segment; ``thickness`` [m], ``youngs_modulus``
+    [Pa], ``poisson_ratio``, ``density`` [kg/m^3], ``rayleigh = (a, b)``.  Coordinates: ``[u_x, u_y]`` of every
+    other node in the segment's axes, in node order.  Written here once more: bilinear interpolation on
+    each rectangle, mass lumped at its 3 x 3 Gauss points (exact kinetic energy), stiffness from the strain
+    energy ``t/2 int eps^T D eps dA`` by the same quadrature.  It must be the last segment."""
+
+    positions: tuple
+    quads: tuple
+    clamped: tuple
+    thickness: float
+    youngs_modulus: float
+    poisson_ratio: float
+    density: float
+    rayleigh: tuple = (0.0, 0.0)
+
+
+@dataclass
+class _Plate:
+    points: np.ndarray            # (P, 2) undeformed mass points
+    weights: np.ndarray           # (P,) masses [kg]
+    shape: np.ndarray             # (P, 2, n)
+    stiffness: np.ndarray         # (n, n)
+    damping: np.ndarray           # (n, n)
+
+
+def _plate(seg: MembranePlate) -> _Plate:
+    X = np.asarray(seg.positions, float)
+    free = [k for k in range(len(X)) if k not in set(seg.clamped)]
+    column = {node: 2 * i for i, node in enumerate(free)}
+    n = 2 * len(free)
+    E, nu, t = seg.youngs_modulus, seg.poisson_ratio, seg.thickness
+    D = E / (1 - nu ** 2) * np.array([[1, nu, 0], [nu, 1, 0], [0, 0, (1 - nu) / 2]])
+    gx, gw = np.polynomial.legendre.leggauss(3)
+    pts, ws, shapes = [], [], []
+    K, Me = np.zeros((n, n)), np.zeros((n, n))
+    for quad in seg.quads:
+        corner = X[list(quad)]
+        lo, hi = corner.min(0), corner.max(0)
+        half, centre = (hi - lo) / 2, (hi + lo) / 2
+        for a, wa in zip(gx, gw):
+            for b, wb in zip(gx, gw):
+                p = centre + half * np.array([a, b])
+                area = wa * wb * half[0] * half[1]
+                row, strain = np.zeros((2, n)), np.zeros((3, n))
+                for node in quad:
+                    if node not in column:
+                        continue
+                    sx, sy = np.sign(X[node] - centre)
+                    value = (1 + sx * a) * (1 + sy * b) / 4
+                    dx, dy = sx * (1 + sy * b) / (4 * half[0]), sy * (1 + sx * a) / (4 * half[1])
+                    c = column[node]
+                    row[0, c] = row[1, c + 1] = value
+                    strain[0, c], strain[1, c + 1] = dx, dy
+                    strain[2, c], strain[2, c + 1] = dy, dx
+                pts.append(p)
+                ws.append(seg.density * t * area)
+                shapes.append(row)
+                K += t * area * strain.T @ D @ strain
+                Me += seg.density * t * area * row.T @ row
+    a, b = seg.rayleigh
+    return _Plate(np.array(pts), np.array(ws), np.array(shapes), K, a * Me + b * K)
 
 
 def _hermite(xi: np.ndarray, le: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -157,14 +226,16 @@ class GlobalChain:
     def __init__(self, segments: Sequence[object], gravity: Sequence[float] = (0.0, -9.81)) -> None:
         self.segments = list(segments)
         self.gravity = np.asarray(gravity, float)
-        self.theta_index, self.u_index, self.beams = [], [], {}
+        self.theta_index, self.u_index, self.beams, self.plates = [], [], {}, {}
         k = 0
         for j, seg in enumerate(self.segments):
-            if isinstance(seg, ParticleNet):
+            if isinstance(seg, (ParticleNet, MembranePlate)):
                 if j != len(self.segments) - 1 or j == 0 or not isinstance(self.segments[j - 1], RigidSegment):
-                    raise ValueError("a ParticleNet is the last segment, welded to a rigid one")
+                    raise ValueError("a ParticleNet or MembranePlate is the last segment, welded to a rigid one")
                 self.theta_index.append(self.theta_index[j - 1])
-                count = 2 * len(seg.masses)
+                if isinstance(seg, MembranePlate):
+                    self.plates[j] = _plate(seg)
+                count = self.plates[j].stiffness.shape[0] if j in self.plates else 2 * len(seg.masses)
                 self.u_index.append(np.arange(k, k + count))
                 k += count
                 continue
@@ -193,6 +264,16 @@ class GlobalChain:
             it = self.theta_index[j]
             th, w = q[it], qd[it]
             R = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
+            if j in self.plates:
+                pl = self.plates[j]
+                iu = self.u_index[j]
+                rho = pl.points + pl.shape @ q[iu]                                                   # (P, 2)
+                Jp = np.broadcast_to(J_base, (len(pl.weights),) + J_base.shape).copy()
+                Jp[:, :, it] += rho @ (R @ _J).T
+                Jp[:, :, iu] += R @ pl.shape
+                bias = b_base - w * w * rho @ R.T + 2 * w * (pl.shape @ qd[iu]) @ (R @ _J).T
+                out.append((pl.weights, base + rho @ R.T, Jp, bias, j))
+                continue
             if isinstance(seg, ParticleNet):
                 iu = self.u_index[j]
                 X = np.asarray(seg.positions, float)
@@ -276,7 +357,7 @@ class GlobalChain:
         phi = self.hinge_angles(q)
         phid = self.hinge_angles(qd)
         for j, seg in enumerate(self.segments):
-            if isinstance(seg, ParticleNet):
+            if isinstance(seg, (ParticleNet, MembranePlate)):
                 continue
             tau = -seg.stiffness * phi[j] - seg.damping * phid[j]
             rhs[self.theta_index[j]] += tau
@@ -291,6 +372,9 @@ class GlobalChain:
             rate = e @ ((Jb - Ja) @ qd)
             force = -(k * (length - rest) + c * rate) * e     # on end b
             rhs += Jb.T @ force - Ja.T @ force
+        for j, pl in self.plates.items():
+            iu = self.u_index[j]
+            rhs[iu] -= pl.stiffness @ q[iu] + pl.damping @ qd[iu]
         for j, bm in self.beams.items():
             iu = self.u_index[j]
             u, ud = q[iu], qd[iu]
@@ -310,7 +394,7 @@ class GlobalChain:
         out, base = [], np.zeros(2)
         for j, seg in enumerate(self.segments):
             out.append(base.copy())
-            if isinstance(seg, ParticleNet):
+            if isinstance(seg, (ParticleNet, MembranePlate)):
                 break
             th = q[self.theta_index[j]]
             R = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
@@ -337,12 +421,12 @@ class GlobalChain:
             e += float(0.5 * m @ np.sum(v * v, axis=1) - m @ (r.reshape(-1, 2) @ self.gravity))
         for it, inertia in rotary:
             e += 0.5 * inertia * qd[it] ** 2
-        for j, bm in self.beams.items():
+        for j, bm in list(self.beams.items()) + list(self.plates.items()):
             u = q[self.u_index[j]]
             e += 0.5 * u @ bm.stiffness @ u
         phi = self.hinge_angles(q)
         e += sum(0.5 * seg.stiffness * phi[j] ** 2 for j, seg in enumerate(self.segments)
-                 if not isinstance(seg, ParticleNet))
+                 if not isinstance(seg, (ParticleNet, MembranePlate)))
         return float(e)
 
     # -- integration ----------------------------------------------------------------------
