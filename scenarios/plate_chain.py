@@ -30,13 +30,13 @@ from pathlib import Path
 
 import numpy as np
 
-import ctmm
 from ctmm.fem import FiniteElementModel, MembraneElement
 from ctmm.planar import PlanarModel, Pinned, RigidBody, SmoothHinge
 from ctmm.planar.elements import FixedMounting
 from ctmm.reference.mixed_global import GlobalChain, MembranePlate, RigidSegment
 from ctmm.scenario import accuracy
 
+from .mixed_common import same_step_run
 from .planar_common import save_figure
 
 NAME = "plate_chain"
@@ -109,16 +109,8 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     order = reference_columns(names)
     q0 = np.zeros(mixed.n_coordinates)
     q0[[names.index(f"{b}.theta") for b in BODY_NAMES]] = INITIAL_ANGLE
-    result = ctmm.simulate(mixed, t_final, STEP, method="rk4", x0=q0)
-    q = np.column_stack([result[c] for c in names])
-    v = np.column_stack([result[c + "_dot"] for c in names])
-    _, q_ref, v_ref = ref.rk4(q0[order], np.zeros(len(order)), t_final, STEP)
-    error = float(np.max(np.abs(q[:, order] - q_ref)))
-    every = max(1, q.shape[0] // 200)
-    energy = np.array([mixed.energy(q[k], v[k]) for k in range(0, q.shape[0], every)])
-    energy_ref = np.array([ref.energy(q_ref[k], v_ref[k]) for k in range(0, q.shape[0], every)])
-    energy_error = float(np.max(np.abs(energy - energy_ref)) / np.max(np.abs(energy_ref)))
-    drift = float(np.ptp(energy) / np.max(np.abs(energy)))
+    run_ = same_step_run(mixed, ref, q0, t_final, STEP, order)
+    t, q, q_ref, every, energy, energy_ref = run_.time, run_.q, run_.q_ref, run_.every, run_.energy, run_.energy_ref
     nodes, _ = geometry()
 
     def node_global(k: int, row: np.ndarray) -> np.ndarray:
@@ -128,7 +120,6 @@ def run(output_dir: Path, quick: bool = False) -> dict:
         R = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
         return tip + R @ (np.asarray(nodes[f"p{k}"]) + row[4 + 2 * (k - 1):6 + 2 * (k - 1)])
 
-    t = result.time
     mine_rows = q[:, order]
     fig, axes = plt.subplots(2, 3, figsize=(15, 7.5))
     for i, body in enumerate(BODY_NAMES):
@@ -158,18 +149,18 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     same = f"same RK4 step h = {STEP * 1e3:g} ms, global Lagrange model of ctmm.reference.mixed_global"
     displacement = q[:, [i for i, c in enumerate(names) if c.startswith("plate.p")]]
     return {
-        "accuracy": [accuracy("coordinates vs global model, same integrator", error, "rad or m", BOUND_SAME_INTEGRATOR,
+        "accuracy": [accuracy("coordinates vs global model, same integrator", run_.error, "rad or m", BOUND_SAME_INTEGRATOR,
                               f"max over t and all coordinates (angles, plate node displacements) of "
                               f"|q_TMM - q_global|, {same}",
                               source="issue 16: mixed model vs global reference to 1e-8 with the same integrator")],
-        "energy_drift_relative": drift,
+        "energy_drift_relative": run_.energy_drift,
         "energy_drift_definition": "(max - min) / max |E| of the kinetic + gravity + strain energy of the mixed run "
                                    "(model.energy; undamped: RK4 error only)",
-        "energy_vs_global_model_relative": energy_error,
+        "energy_vs_global_model_relative": run_.energy_error,
         "largest_node_displacement_m": float(np.max(np.abs(displacement))),
         "lowest_clamped_plate_frequency_rad_s": float(plate_model().natural_frequencies(
             clamped=[f"e{r}" for r in range(ROWS)])[0]),
-        "wall_time_s": result.info["wall_time_s"],
+        "wall_time_s": run_.wall_time_s,
         "parameters": {"masses_kg": MASSES, "link_length_m": LINK, "spacing_m": SPACING, "columns": COLUMNS,
                        "rows": ROWS, "thickness_m": THICKNESS, "density_kg_m3": DENSITY, "youngs_modulus_Pa": YOUNG,
                        "poisson_ratio": POISSON, "step_s": STEP, "t_final_s": t_final,

@@ -76,12 +76,16 @@ class ParticleNet:
     particle indices or ``(x, y)`` anchor points fixed on the segment (same axes) -- exact springs with the
     undeformed distance as rest length, force ``k (|r_b - r_a| - l0)`` along the line; ``damping`` [N s/m] on
     every spring, along the line.  Coordinates: the displacements ``[u_x, u_y]`` of each particle in the
-    segment's axes.  It must be the last segment."""
+    segment's axes.  ``linear=True``: the springs act along their undeformed line in the segment's axes,
+    ``f = -k n n^T (u_b - u_a)`` (no damping), as a small-deformation net.  ``outboard``: index of the
+    particle where the next segment hangs (pinned); ``None``: it must be the last segment."""
 
     positions: tuple
     masses: tuple
     springs: tuple
     damping: float = 0.0
+    linear: bool = False
+    outboard: int | None = None
 
 
 @dataclass(frozen=True)
@@ -151,6 +155,21 @@ def _plate(seg: MembranePlate) -> _Plate:
                 Me += seg.density * t * area * row.T @ row
     a, b = seg.rayleigh
     return _Plate(np.array(pts), np.array(ws), np.array(shapes), K, a * Me + b * K)
+
+
+def _linear_net(seg: ParticleNet) -> np.ndarray:
+    """Stiffness (2P x 2P) of a net's springs along their undeformed lines (anchors carry no coordinates)."""
+    X = np.asarray(seg.positions, float)
+    K = np.zeros((2 * len(X), 2 * len(X)))
+    for a, b, k in seg.springs:
+        ends = [np.asarray(e, float) if not isinstance(e, (int, np.integer)) else X[e] for e in (a, b)]
+        n = (ends[1] - ends[0]) / np.linalg.norm(ends[1] - ends[0])
+        row = np.zeros(2 * len(X))
+        for e, sign in ((a, -1.0), (b, 1.0)):
+            if isinstance(e, (int, np.integer)):
+                row[2 * e:2 * e + 2] = sign * n
+        K += k * np.outer(row, row)
+    return K
 
 
 def _hermite(xi: np.ndarray, le: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -226,15 +245,18 @@ class GlobalChain:
     def __init__(self, segments: Sequence[object], gravity: Sequence[float] = (0.0, -9.81)) -> None:
         self.segments = list(segments)
         self.gravity = np.asarray(gravity, float)
-        self.theta_index, self.u_index, self.beams, self.plates = [], [], {}, {}
+        self.theta_index, self.u_index, self.beams, self.plates, self.net_stiffness = [], [], {}, {}, {}
         k = 0
         for j, seg in enumerate(self.segments):
             if isinstance(seg, (ParticleNet, MembranePlate)):
-                if j != len(self.segments) - 1 or j == 0 or not isinstance(self.segments[j - 1], RigidSegment):
+                last = j == len(self.segments) - 1 or getattr(seg, "outboard", None) is not None
+                if not last or j == 0 or not isinstance(self.segments[j - 1], RigidSegment):
                     raise ValueError("a ParticleNet or MembranePlate is the last segment, welded to a rigid one")
                 self.theta_index.append(self.theta_index[j - 1])
                 if isinstance(seg, MembranePlate):
                     self.plates[j] = _plate(seg)
+                elif seg.linear:
+                    self.net_stiffness[j] = _linear_net(seg)
                 count = self.plates[j].stiffness.shape[0] if j in self.plates else 2 * len(seg.masses)
                 self.u_index.append(np.arange(k, k + count))
                 k += count
@@ -286,7 +308,10 @@ class GlobalChain:
                     Jp[p][:, iu[2 * p:2 * p + 2]] += R
                 bias = b_base - w * w * rho @ R.T + 2 * w * ud @ (R @ _J).T
                 out.append((np.asarray(seg.masses, float), base + rho @ R.T, Jp, bias, j))
-                for a, b, k in seg.springs:                     # ends: (position, Jacobian) of particle or anchor
+                if seg.outboard is not None:                       # the next segment hangs at this particle
+                    e = seg.outboard
+                    base, J_base, b_base = base + R @ rho[e], Jp[e], bias[e]
+                for a, b, k in () if seg.linear else seg.springs:                     # ends: (position, Jacobian) of particle or anchor
                     ends = []
                     for e in (a, b):
                         if isinstance(e, (int, np.integer)):
@@ -375,6 +400,8 @@ class GlobalChain:
         for j, pl in self.plates.items():
             iu = self.u_index[j]
             rhs[iu] -= pl.stiffness @ q[iu] + pl.damping @ qd[iu]
+        for j, K in self.net_stiffness.items():
+            rhs[self.u_index[j]] -= K @ q[self.u_index[j]]
         for j, bm in self.beams.items():
             iu = self.u_index[j]
             u, ud = q[iu], qd[iu]
@@ -394,10 +421,14 @@ class GlobalChain:
         out, base = [], np.zeros(2)
         for j, seg in enumerate(self.segments):
             out.append(base.copy())
-            if isinstance(seg, (ParticleNet, MembranePlate)):
-                break
             th = q[self.theta_index[j]]
             R = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
+            if isinstance(seg, ParticleNet) and seg.outboard is not None:
+                e = seg.outboard
+                base = base + R @ (np.asarray(seg.positions[e], float) + q[self.u_index[j][2 * e:2 * e + 2]])
+                continue
+            if isinstance(seg, (ParticleNet, MembranePlate)):
+                break
             rho = np.array([seg.length, 0.0])
             if j in self.beams:
                 rho = rho + self.beams[j].end @ q[self.u_index[j]]
@@ -421,9 +452,11 @@ class GlobalChain:
             e += float(0.5 * m @ np.sum(v * v, axis=1) - m @ (r.reshape(-1, 2) @ self.gravity))
         for it, inertia in rotary:
             e += 0.5 * inertia * qd[it] ** 2
-        for j, bm in list(self.beams.items()) + list(self.plates.items()):
+        stiffness = [bm.stiffness for bm in self.beams.values()] + [pl.stiffness for pl in self.plates.values()]
+        for j, K in zip(list(self.beams) + list(self.plates) + list(self.net_stiffness),
+                        stiffness + list(self.net_stiffness.values())):
             u = q[self.u_index[j]]
-            e += 0.5 * u @ bm.stiffness @ u
+            e += 0.5 * u @ K @ u
         phi = self.hinge_angles(q)
         e += sum(0.5 * seg.stiffness * phi[j] ** 2 for j, seg in enumerate(self.segments)
                  if not isinstance(seg, (ParticleNet, MembranePlate)))
