@@ -7,7 +7,7 @@ and (c) of particles 4 and 5 -- a chain whose elements 2 and 6 are rigid bodies 
 scenario builds such a system with its own parameters (SI): a ground pivot, rigid body 2 (uniform link
 0.5 m, 1 kg), a particle-spring subsystem welded to its tip (particles 2, 3, 4, 5 of 0.2 kg at
 ``(0.15, 0.1), (0.15, -0.1), (0.3, 0.1), (0.35, 0)`` in body 2's axes from its tip; ten springs of
-800 N/m along their undeformed lines -- small deformation -- between the particles, the tip and two
+3000 N/m along their undeformed lines -- small deformation -- between the particles, the tip and two
 anchors ``(0, +-0.1)`` on body 2) and rigid body 6 (uniform link 0.4 m, 0.5 kg) pinned to particle 5:
 the subsystem sits *between* two transfer chains, so its boundary has an inboard side (body 2) and an
 outboard one (particle 5, where body 6's hinge force is a boundary unknown).  Released at rest with
@@ -43,7 +43,7 @@ PARTICLES = {"p2": (0.15, 0.1), "p3": (0.15, -0.1), "p4": (0.3, 0.1), "p5": (0.3
 ANCHORS = {"hub": (0.0, 0.0), "a_up": (0.0, 0.1), "a_down": (0.0, -0.1)}
 SPRINGS = (("a_up", "p2"), ("a_down", "p3"), ("hub", "p2"), ("hub", "p3"), ("p2", "p3"), ("p2", "p4"),
            ("p3", "p4"), ("p3", "p5"), ("p4", "p5"), ("p2", "p5"))
-PARTICLE_MASS, STIFFNESS = 0.2, 800.0
+PARTICLE_MASS, STIFFNESS = 0.2, 3000.0
 STEP = 5e-4
 INITIAL = (-np.pi / 2 + 0.6, -np.pi / 2 + 1.0)
 BOUND_SAME_INTEGRATOR = 1e-8
