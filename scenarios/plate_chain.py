@@ -103,7 +103,7 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    t_final = 0.025 if quick else 1.0
+    t_final = 0.01 if quick else 1.0
     mixed, ref = model(), reference()
     names = mixed.coordinates
     order = reference_columns(names)
