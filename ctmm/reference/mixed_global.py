@@ -9,9 +9,12 @@ segment's frame (node 0 carries the frame: origin at the joint, x along the unde
 ``theta_j``; small deformation).  The next segment hangs at the outboard point (rigid link) or at the
 last node (beam), its hinge angle measured from the node's cross-section ``theta_j + r_z,n``.
 
-A :class:`ParticleNet` (seed 001 Example 9.1's reticulated particle-spring system, here welded to the
-last rigid link) adds the particles' displacements in the link's axes; its springs are exact (length
-from the global positions), not linearised.
+A :class:`ParticleNet` (seed 001 Example 9.1's reticulated particle-spring system, here welded to a
+rigid link) adds the particles' displacements in the link's axes; its springs are exact (length from
+the global positions) or, with ``linear=True``, act along their undeformed lines; with ``outboard``
+the next segment hangs (pinned) at one of its particles (seed 001 Figs. 9.8-9.9).  A
+:class:`MembranePlate` (Example 9.2's equivalent flexible plate, in its own plane) adds the nodal
+displacements of plane-stress bilinear rectangles welded to the last rigid link.
 
 Mass is lumped into points: a rigid link is its centre of mass (plus rotary inertia on ``theta``),
 a beam element is ``rhoA L w_k`` at its four Gauss-Legendre points (exact for the cubic Hermite
