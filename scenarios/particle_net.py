@@ -25,13 +25,13 @@ from pathlib import Path
 
 import numpy as np
 
-import ctmm
 from ctmm.fem import GlobalSubsystem
 from ctmm.planar import PlanarModel, Pinned, RigidBody, SmoothHinge
 from ctmm.planar.elements import FixedMounting
 from ctmm.reference.mixed_global import GlobalChain, ParticleNet, RigidSegment
 from ctmm.scenario import accuracy
 
+from .mixed_common import same_step_run
 from .planar_common import save_figure
 
 NAME = "particle_net"
@@ -131,16 +131,9 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     names = mixed.coordinates
     q0 = np.zeros(mixed.n_coordinates)
     q0[[names.index(f"{b}.theta") for b in BODY_NAMES]] = INITIAL_ANGLE
-    result = ctmm.simulate(mixed, t_final, STEP, method="rk4", x0=q0)
-    q = np.column_stack([result[c] for c in names])
-    v = np.column_stack([result[c + "_dot"] for c in names])
-    _, q_ref, v_ref = ref.rk4(q0, np.zeros_like(q0), t_final, STEP)
-    error = float(np.max(np.abs(q - q_ref)))
-    every = max(1, q.shape[0] // 200)
-    energy = np.array([mixed.energy(q[k], v[k]) for k in range(0, q.shape[0], every)])
-    energy_ref = np.array([ref.energy(q_ref[k], v_ref[k]) for k in range(0, q.shape[0], every)])
-    energy_error = float(np.max(np.abs(energy - energy_ref)) / np.max(np.abs(energy_ref)))
-    drift = float(np.ptp(energy) / np.max(np.abs(energy)))
+    run_ = same_step_run(mixed, ref, q0, t_final, STEP)
+    q, q_ref, every, energy, energy_ref = run_.q, run_.q_ref, run_.every, run_.energy, run_.energy_ref
+    error, energy_error, drift = run_.error, run_.energy_error, run_.energy_drift
     positions, _ = geometry()
 
     def particle_global(k: int, history: np.ndarray) -> np.ndarray:
@@ -154,7 +147,7 @@ def run(output_dir: Path, quick: bool = False) -> dict:
             out.append(tip + R @ (positions[k - 1] + u))
         return np.array(out)
 
-    t = result.time
+    t = run_.time
     fig, axes = plt.subplots(2, 3, figsize=(15, 7.5))
     for body in BODY_NAMES:
         i = names.index(f"{body}.theta")
@@ -198,7 +191,7 @@ def run(output_dir: Path, quick: bool = False) -> dict:
                                    "(model.energy with the net's spring potential; undamped: RK4 error only)",
         "energy_vs_global_model_relative": energy_error,
         "largest_particle_displacement_m": float(np.max(np.abs(q[:, [i for i, c in enumerate(names) if c.startswith("net.")]]))),
-        "wall_time_s": result.info["wall_time_s"],
+        "wall_time_s": run_.wall_time_s,
         "parameters": {"masses_kg": MASSES, "link_length_m": LINK, "spacing_m": SPACING, "grid": GRID,
                        "particle_mass_kg": PARTICLE, "axial_stiffness_N_per_m": AXIAL,
                        "diagonal_stiffness_N_per_m": DIAGONAL, "step_s": STEP, "t_final_s": t_final,

@@ -15,7 +15,8 @@ Derivation and validation: ``docs/mixed.md``.
 from .assembly import FiniteElementModel
 from .elements import BeamElement, NodeSpring, PointMass, beam_local_matrices
 from .family import SmallDeformationWarning, SubsystemFamily, subsystem_energy
+from .membrane import MembraneElement
 from .subsystem import FloatingInertia, GlobalSubsystem
 
-__all__ = ["FiniteElementModel", "BeamElement", "PointMass", "NodeSpring", "beam_local_matrices", "GlobalSubsystem",
+__all__ = ["FiniteElementModel", "BeamElement", "MembraneElement", "PointMass", "NodeSpring", "beam_local_matrices", "GlobalSubsystem",
            "FloatingInertia", "SubsystemFamily", "SmallDeformationWarning", "subsystem_energy"]

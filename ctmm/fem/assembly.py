@@ -4,7 +4,8 @@
 ``r_z``), assembles ``M``, ``K`` (elastic plus geometric) and ``C`` (discrete dampers plus Rayleigh
 ``a M + b K``), and integrates the floating-frame inertia integrals of
 :class:`~ctmm.fem.subsystem.FloatingInertia` by Gauss quadrature of the element shape functions
-(exact: the integrands are polynomials of degree <= 6, five points per element).
+(exact: the integrands are polynomials of degree <= 6, five points per beam element; 3 x 3 points per
+membrane quadrilateral, degree <= 3 in each of its parameters).
 :meth:`FiniteElementModel.subsystem` turns it into a :class:`~ctmm.fem.GlobalSubsystem`, a body of a
 planar model.
 """
@@ -17,6 +18,7 @@ import numpy as np
 from .. import validation
 from ..errors import ModelError
 from .elements import BeamElement, NodeSpring, PointMass, beam_local_matrices, beam_rotation, beam_shape_functions
+from .membrane import MembraneElement, membrane_matrices, membrane_shape_points
 from .subsystem import FloatingInertia, GlobalSubsystem
 
 __all__ = ["FiniteElementModel"]
@@ -24,6 +26,14 @@ __all__ = ["FiniteElementModel"]
 _J = np.array([[0.0, -1.0], [1.0, 0.0]])
 _GAUSS_X, _GAUSS_W = np.polynomial.legendre.leggauss(5)
 _XI, _WEIGHT = 0.5 * (_GAUSS_X + 1.0), 0.5 * _GAUSS_W
+
+
+def _element_nodes(element: Any) -> tuple[str, ...]:
+    if isinstance(element, PointMass):
+        return (element.node,)
+    if isinstance(element, MembraneElement):
+        return element.nodes
+    return (element.start, element.end)
 
 
 class FiniteElementModel:
@@ -35,7 +45,7 @@ class FiniteElementModel:
     nodes : mapping of str to (x, y)
         Undeformed node positions [m].
     elements : sequence
-        :class:`BeamElement`, :class:`PointMass`, :class:`NodeSpring`.
+        :class:`BeamElement`, :class:`PointMass`, :class:`NodeSpring`, :class:`~ctmm.fem.MembraneElement`.
     rayleigh : (float, float)
         Rayleigh damping ``C += a M + b K`` with ``(a [1/s], b [s])``, >= 0; default none.
 
@@ -63,12 +73,13 @@ class FiniteElementModel:
         self.elements = tuple(elements)
         seen = set()
         for e in self.elements:
-            if not isinstance(e, (BeamElement, PointMass, NodeSpring)):
-                raise ModelError(f"{name}: elements must be BeamElement, PointMass or NodeSpring, got {e!r}")
+            if not isinstance(e, (BeamElement, PointMass, NodeSpring, MembraneElement)):
+                raise ModelError(f"{name}: elements must be BeamElement, PointMass, NodeSpring or MembraneElement, "
+                                 f"got {e!r}")
             if e.name in seen:
                 raise ModelError(f"{name}: duplicate element name {e.name!r}")
             seen.add(e.name)
-            for node in ((e.node,) if isinstance(e, PointMass) else (e.start, e.end)):
+            for node in _element_nodes(e):
                 if node not in self.positions:
                     raise ModelError(f"{name}: element {e.name!r} names unknown node {node!r}; nodes: "
                                      f"{', '.join(self.positions)}")
@@ -100,11 +111,20 @@ class FiniteElementModel:
         length, T = beam_rotation(self.positions[e.start], self.positions[e.end], f"{self.name}: {e.name}")
         return idx, length, T
 
+    def _membrane(self, e: MembraneElement) -> tuple[np.ndarray, np.ndarray]:
+        idx = np.array([i for node in e.nodes for i in self.dofs[node][:2]])
+        return idx, np.array([self.positions[node] for node in e.nodes])
+
     def _assemble(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         n = self.n_dofs
         M, K, C = np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, n))
         for e in self.elements:
-            if isinstance(e, BeamElement):
+            if isinstance(e, MembraneElement):
+                idx, corners = self._membrane(e)
+                k, m = membrane_matrices(e, corners, self.name)
+                K[np.ix_(idx, idx)] += k
+                M[np.ix_(idx, idx)] += m
+            elif isinstance(e, BeamElement):
                 idx, length, T = self._beam(e)
                 k, m, kg = beam_local_matrices(length, e.bending_stiffness, e.axial_stiffness, e.mass_per_length,
                                                e.axial_force)
@@ -144,8 +164,17 @@ class FiniteElementModel:
         mass, first, polar = 0.0, np.zeros(2), 0.0
         S1, sigma, gamma = np.zeros((2, n)), np.zeros(n), np.zeros(n)
         G, Mt = np.zeros((n, n)), np.zeros((n, n))
+        points = []                                     # (masses (P,), positions (P, 2), shapes (P, 2, k), DOFs)
         for e in self.elements:
-            if isinstance(e, BeamElement):
+            if isinstance(e, MembraneElement):
+                if e.density == 0.0:
+                    continue
+                idx, corners = self._membrane(e)
+                quadrature, area, S = membrane_shape_points(corners, f"{self.name}: {e.name}")
+                X = quadrature - o                                               # (9, 2)
+                w = e.density * e.thickness * area                               # (9,) [kg]
+                points.append((w, X, S, idx))
+            elif isinstance(e, BeamElement):
                 if e.mass_per_length == 0.0:
                     continue
                 idx, length, T = self._beam(e)
@@ -156,14 +185,7 @@ class FiniteElementModel:
                 S = np.einsum("ji,pjk,kl->pil", r2, N, T)                        # (5, 2, 6) frame axes
                 X = a[None, :] + _XI[:, None] * length * direction[None, :]     # (5, 2)
                 w = _WEIGHT * e.mass_per_length * length                         # (5,)
-                mass += w.sum()
-                first += w @ X
-                polar += float(w @ (X * X).sum(1))
-                S1[:, idx] += np.einsum("p,pik->ik", w, S)
-                sigma[idx] += np.einsum("p,pi,pik->k", w, X, S)
-                gamma[idx] += np.einsum("p,pik,ij,pj->k", w, S, _J, X)
-                G[np.ix_(idx, idx)] += np.einsum("p,pik,ij,pjl->kl", w, S, _J, S)
-                Mt[np.ix_(idx, idx)] += np.einsum("p,pik,pil->kl", w, S, S)
+                points.append((w, X, S, idx))
             elif isinstance(e, PointMass):
                 dofs = self.dofs[e.node]
                 X = self.positions[e.node] - o
@@ -184,6 +206,15 @@ class FiniteElementModel:
                 Mt[iy, iy] += m
                 if len(dofs) == 3:               # else it turns with the frame: in polar only
                     gamma[dofs[2]] += e.inertia
+        for w, X, S, idx in points:                     # mass points of beams and membranes (quadrature)
+            mass += w.sum()
+            first += w @ X
+            polar += float(w @ (X * X).sum(1))
+            S1[:, idx] += np.einsum("p,pik->ik", w, S)
+            sigma[idx] += np.einsum("p,pi,pik->k", w, X, S)
+            gamma[idx] += np.einsum("p,pik,ij,pj->k", w, S, _J, X)
+            G[np.ix_(idx, idx)] += np.einsum("p,pik,ij,pjl->kl", w, S, _J, S)
+            Mt[np.ix_(idx, idx)] += np.einsum("p,pik,pil->kl", w, S, S)
         return FloatingInertia(mass, first, polar, S1, sigma, gamma, G, Mt)
 
     def subsystem(self, name: str, boundary: Sequence[str], *, nonlinear_force: Callable | None = None,

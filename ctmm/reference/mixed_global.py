@@ -9,9 +9,12 @@ segment's frame (node 0 carries the frame: origin at the joint, x along the unde
 ``theta_j``; small deformation).  The next segment hangs at the outboard point (rigid link) or at the
 last node (beam), its hinge angle measured from the node's cross-section ``theta_j + r_z,n``.
 
-A :class:`ParticleNet` (seed 001 Example 9.1's reticulated particle-spring system, here welded to the
-last rigid link) adds the particles' displacements in the link's axes; its springs are exact (length
-from the global positions), not linearised.
+A :class:`ParticleNet` (seed 001 Example 9.1's reticulated particle-spring system, here welded to a
+rigid link) adds the particles' displacements in the link's axes; its springs are exact (length from
+the global positions) or, with ``linear=True``, act along their undeformed lines; with ``outboard``
+the next segment hangs (pinned) at one of its particles (seed 001 Figs. 9.8-9.9).  A
+:class:`MembranePlate` (Example 9.2's equivalent flexible plate, in its own plane) adds the nodal
+displacements of plane-stress bilinear rectangles welded to the last rigid link.
 
 Mass is lumped into points: a rigid link is its centre of mass (plus rotary inertia on ``theta``),
 a beam element is ``rhoA L w_k`` at its four Gauss-Legendre points (exact for the cubic Hermite
@@ -31,7 +34,7 @@ import numpy as np
 import scipy.integrate
 import scipy.linalg
 
-__all__ = ["RigidSegment", "BeamSegment", "ParticleNet", "GlobalChain"]
+__all__ = ["RigidSegment", "BeamSegment", "ParticleNet", "MembranePlate", "GlobalChain"]
 
 _J = np.array([[0.0, -1.0], [1.0, 0.0]])
 
@@ -76,12 +79,100 @@ class ParticleNet:
     particle indices or ``(x, y)`` anchor points fixed on the segment (same axes) -- exact springs with the
     undeformed distance as rest length, force ``k (|r_b - r_a| - l0)`` along the line; ``damping`` [N s/m] on
     every spring, along the line.  Coordinates: the displacements ``[u_x, u_y]`` of each particle in the
-    segment's axes.  It must be the last segment."""
+    segment's axes.  ``linear=True``: the springs act along their undeformed line in the segment's axes,
+    ``f = -k n n^T (u_b - u_a)`` (no damping), as a small-deformation net.  ``outboard``: index of the
+    particle where the next segment hangs (pinned); ``None``: it must be the last segment."""
 
     positions: tuple
     masses: tuple
     springs: tuple
     damping: float = 0.0
+    linear: bool = False
+    outboard: int | None = None
+
+
+@dataclass(frozen=True)
+class MembranePlate:
+    """Plane-stress plate moving in its own plane, welded to the previous (rigid) segment: in its axes, origin
+    at its outboard point (seed 001 Example 9.2's equivalent flexible plate).
+
+    ``positions`` (N, 2) [m] undeformed nodes; ``quads`` (Q, 4) node indices of axis-parallel rectangles
+    (counter-clockwise); ``clamped`` node indices held on the segment; ``thickness`` [m], ``youngs_modulus``
+    [Pa], ``poisson_ratio``, ``density`` [kg/m^3], ``rayleigh = (a, b)``.  Coordinates: ``[u_x, u_y]`` of every
+    other node in the segment's axes, in node order.  Written here once more: bilinear interpolation on
+    each rectangle, mass lumped at its 3 x 3 Gauss points (exact kinetic energy), stiffness from the strain
+    energy ``t/2 int eps^T D eps dA`` by the same quadrature.  It must be the last segment."""
+
+    positions: tuple
+    quads: tuple
+    clamped: tuple
+    thickness: float
+    youngs_modulus: float
+    poisson_ratio: float
+    density: float
+    rayleigh: tuple = (0.0, 0.0)
+
+
+@dataclass
+class _Plate:
+    points: np.ndarray            # (P, 2) undeformed mass points
+    weights: np.ndarray           # (P,) masses [kg]
+    shape: np.ndarray             # (P, 2, n)
+    stiffness: np.ndarray         # (n, n)
+    damping: np.ndarray           # (n, n)
+
+
+def _plate(seg: MembranePlate) -> _Plate:
+    X = np.asarray(seg.positions, float)
+    free = [k for k in range(len(X)) if k not in set(seg.clamped)]
+    column = {node: 2 * i for i, node in enumerate(free)}
+    n = 2 * len(free)
+    E, nu, t = seg.youngs_modulus, seg.poisson_ratio, seg.thickness
+    D = E / (1 - nu ** 2) * np.array([[1, nu, 0], [nu, 1, 0], [0, 0, (1 - nu) / 2]])
+    gx, gw = np.polynomial.legendre.leggauss(3)
+    pts, ws, shapes = [], [], []
+    K, Me = np.zeros((n, n)), np.zeros((n, n))
+    for quad in seg.quads:
+        corner = X[list(quad)]
+        lo, hi = corner.min(0), corner.max(0)
+        half, centre = (hi - lo) / 2, (hi + lo) / 2
+        for a, wa in zip(gx, gw):
+            for b, wb in zip(gx, gw):
+                p = centre + half * np.array([a, b])
+                area = wa * wb * half[0] * half[1]
+                row, strain = np.zeros((2, n)), np.zeros((3, n))
+                for node in quad:
+                    if node not in column:
+                        continue
+                    sx, sy = np.sign(X[node] - centre)
+                    value = (1 + sx * a) * (1 + sy * b) / 4
+                    dx, dy = sx * (1 + sy * b) / (4 * half[0]), sy * (1 + sx * a) / (4 * half[1])
+                    c = column[node]
+                    row[0, c] = row[1, c + 1] = value
+                    strain[0, c], strain[1, c + 1] = dx, dy
+                    strain[2, c], strain[2, c + 1] = dy, dx
+                pts.append(p)
+                ws.append(seg.density * t * area)
+                shapes.append(row)
+                K += t * area * strain.T @ D @ strain
+                Me += seg.density * t * area * row.T @ row
+    a, b = seg.rayleigh
+    return _Plate(np.array(pts), np.array(ws), np.array(shapes), K, a * Me + b * K)
+
+
+def _linear_net(seg: ParticleNet) -> np.ndarray:
+    """Stiffness (2P x 2P) of a net's springs along their undeformed lines (anchors carry no coordinates)."""
+    X = np.asarray(seg.positions, float)
+    K = np.zeros((2 * len(X), 2 * len(X)))
+    for a, b, k in seg.springs:
+        ends = [np.asarray(e, float) if not isinstance(e, (int, np.integer)) else X[e] for e in (a, b)]
+        n = (ends[1] - ends[0]) / np.linalg.norm(ends[1] - ends[0])
+        row = np.zeros(2 * len(X))
+        for e, sign in ((a, -1.0), (b, 1.0)):
+            if isinstance(e, (int, np.integer)):
+                row[2 * e:2 * e + 2] = sign * n
+        K += k * np.outer(row, row)
+    return K
 
 
 def _hermite(xi: np.ndarray, le: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -157,14 +248,19 @@ class GlobalChain:
     def __init__(self, segments: Sequence[object], gravity: Sequence[float] = (0.0, -9.81)) -> None:
         self.segments = list(segments)
         self.gravity = np.asarray(gravity, float)
-        self.theta_index, self.u_index, self.beams = [], [], {}
+        self.theta_index, self.u_index, self.beams, self.plates, self.net_stiffness = [], [], {}, {}, {}
         k = 0
         for j, seg in enumerate(self.segments):
-            if isinstance(seg, ParticleNet):
-                if j != len(self.segments) - 1 or j == 0 or not isinstance(self.segments[j - 1], RigidSegment):
-                    raise ValueError("a ParticleNet is the last segment, welded to a rigid one")
+            if isinstance(seg, (ParticleNet, MembranePlate)):
+                last = j == len(self.segments) - 1 or getattr(seg, "outboard", None) is not None
+                if not last or j == 0 or not isinstance(self.segments[j - 1], RigidSegment):
+                    raise ValueError("a ParticleNet or MembranePlate is the last segment, welded to a rigid one")
                 self.theta_index.append(self.theta_index[j - 1])
-                count = 2 * len(seg.masses)
+                if isinstance(seg, MembranePlate):
+                    self.plates[j] = _plate(seg)
+                elif seg.linear:
+                    self.net_stiffness[j] = _linear_net(seg)
+                count = self.plates[j].stiffness.shape[0] if j in self.plates else 2 * len(seg.masses)
                 self.u_index.append(np.arange(k, k + count))
                 k += count
                 continue
@@ -193,6 +289,16 @@ class GlobalChain:
             it = self.theta_index[j]
             th, w = q[it], qd[it]
             R = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
+            if j in self.plates:
+                pl = self.plates[j]
+                iu = self.u_index[j]
+                rho = pl.points + pl.shape @ q[iu]                                                   # (P, 2)
+                Jp = np.broadcast_to(J_base, (len(pl.weights),) + J_base.shape).copy()
+                Jp[:, :, it] += rho @ (R @ _J).T
+                Jp[:, :, iu] += R @ pl.shape
+                bias = b_base - w * w * rho @ R.T + 2 * w * (pl.shape @ qd[iu]) @ (R @ _J).T
+                out.append((pl.weights, base + rho @ R.T, Jp, bias, j))
+                continue
             if isinstance(seg, ParticleNet):
                 iu = self.u_index[j]
                 X = np.asarray(seg.positions, float)
@@ -205,7 +311,10 @@ class GlobalChain:
                     Jp[p][:, iu[2 * p:2 * p + 2]] += R
                 bias = b_base - w * w * rho @ R.T + 2 * w * ud @ (R @ _J).T
                 out.append((np.asarray(seg.masses, float), base + rho @ R.T, Jp, bias, j))
-                for a, b, k in seg.springs:                     # ends: (position, Jacobian) of particle or anchor
+                if seg.outboard is not None:                       # the next segment hangs at this particle
+                    e = seg.outboard
+                    base, J_base, b_base = base + R @ rho[e], Jp[e], bias[e]
+                for a, b, k in () if seg.linear else seg.springs:                     # ends: (position, Jacobian) of particle or anchor
                     ends = []
                     for e in (a, b):
                         if isinstance(e, (int, np.integer)):
@@ -276,7 +385,7 @@ class GlobalChain:
         phi = self.hinge_angles(q)
         phid = self.hinge_angles(qd)
         for j, seg in enumerate(self.segments):
-            if isinstance(seg, ParticleNet):
+            if isinstance(seg, (ParticleNet, MembranePlate)):
                 continue
             tau = -seg.stiffness * phi[j] - seg.damping * phid[j]
             rhs[self.theta_index[j]] += tau
@@ -291,6 +400,11 @@ class GlobalChain:
             rate = e @ ((Jb - Ja) @ qd)
             force = -(k * (length - rest) + c * rate) * e     # on end b
             rhs += Jb.T @ force - Ja.T @ force
+        for j, pl in self.plates.items():
+            iu = self.u_index[j]
+            rhs[iu] -= pl.stiffness @ q[iu] + pl.damping @ qd[iu]
+        for j, K in self.net_stiffness.items():
+            rhs[self.u_index[j]] -= K @ q[self.u_index[j]]
         for j, bm in self.beams.items():
             iu = self.u_index[j]
             u, ud = q[iu], qd[iu]
@@ -310,10 +424,14 @@ class GlobalChain:
         out, base = [], np.zeros(2)
         for j, seg in enumerate(self.segments):
             out.append(base.copy())
-            if isinstance(seg, ParticleNet):
-                break
             th = q[self.theta_index[j]]
             R = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
+            if isinstance(seg, ParticleNet) and seg.outboard is not None:
+                e = seg.outboard
+                base = base + R @ (np.asarray(seg.positions[e], float) + q[self.u_index[j][2 * e:2 * e + 2]])
+                continue
+            if isinstance(seg, (ParticleNet, MembranePlate)):
+                break
             rho = np.array([seg.length, 0.0])
             if j in self.beams:
                 rho = rho + self.beams[j].end @ q[self.u_index[j]]
@@ -337,12 +455,14 @@ class GlobalChain:
             e += float(0.5 * m @ np.sum(v * v, axis=1) - m @ (r.reshape(-1, 2) @ self.gravity))
         for it, inertia in rotary:
             e += 0.5 * inertia * qd[it] ** 2
-        for j, bm in self.beams.items():
+        stiffness = [bm.stiffness for bm in self.beams.values()] + [pl.stiffness for pl in self.plates.values()]
+        for j, K in zip(list(self.beams) + list(self.plates) + list(self.net_stiffness),
+                        stiffness + list(self.net_stiffness.values())):
             u = q[self.u_index[j]]
-            e += 0.5 * u @ bm.stiffness @ u
+            e += 0.5 * u @ K @ u
         phi = self.hinge_angles(q)
         e += sum(0.5 * seg.stiffness * phi[j] ** 2 for j, seg in enumerate(self.segments)
-                 if not isinstance(seg, ParticleNet))
+                 if not isinstance(seg, (ParticleNet, MembranePlate)))
         return float(e)
 
     # -- integration ----------------------------------------------------------------------

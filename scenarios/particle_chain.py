@@ -1,0 +1,128 @@
+"""A multi-rigid-flexible chain with a particle-spring subsystem between two rigid bodies (seed 001 §9.2,
+Figs. 9.8-9.9).
+
+What the seed keeps: Fig. 9.8 ("MRFS model") is lost; Fig. 9.9 plots, for the mixed method against the
+Newton-Euler method, (a) the rotations of rigid bodies 2 and 6, (b) the coordinates of particles 2 and 3
+and (c) of particles 4 and 5 -- a chain whose elements 2 and 6 are rigid bodies and 2-5 particles.  This
+scenario builds such a system with its own parameters (SI): a ground pivot, rigid body 2 (uniform link
+0.5 m, 1 kg), a particle-spring subsystem welded to its tip (particles 2, 3, 4, 5 of 0.2 kg at
+``(0.15, 0.1), (0.15, -0.1), (0.3, 0.1), (0.35, 0)`` in body 2's axes from its tip; ten springs of
+3000 N/m along their undeformed lines -- small deformation -- between the particles, the tip and two
+anchors ``(0, +-0.1)`` on body 2) and rigid body 6 (uniform link 0.4 m, 0.5 kg) pinned to particle 5:
+the subsystem sits *between* two transfer chains, so its boundary has an inboard side (body 2) and an
+outboard one (particle 5, where body 6's hinge force is a boundary unknown).  Released at rest with
+body 2 at 0.6 rad and body 6 at 1.0 rad from hanging, gravity ``(0, -9.81)``, no damping.
+
+Mixed model: :class:`ctmm.fem.FiniteElementModel` (point masses, node springs) as a
+:class:`ctmm.fem.GlobalSubsystem` with boundary ``("hub", "p5")``, welded to body 2
+(:class:`ctmm.planar.elements.FixedMounting`), body 6 on a smooth hinge at ``p5``.  Reference (the
+"Newton-Euler" curves): the global Lagrange model of :mod:`ctmm.reference.mixed_global`
+(:class:`~ctmm.reference.mixed_global.ParticleNet` with ``linear=True, outboard=3``), same RK4 step.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ctmm.fem import FiniteElementModel, NodeSpring, PointMass
+from ctmm.planar import PlanarModel, Pinned, RigidBody, SmoothHinge
+from ctmm.planar.elements import FixedMounting
+from ctmm.reference.mixed_global import GlobalChain, ParticleNet, RigidSegment
+from ctmm.scenario import accuracy
+
+from .mixed_common import same_step_run
+from .planar_common import save_figure
+
+NAME = "particle_chain"
+DESCRIPTION = ("Rigid bodies 2 and 6 joined by a particle-spring subsystem (seed 001 §9.2, Figs. 9.8-9.9): the "
+               "subsystem between two transfer chains on the one sweep vs a global Lagrange model")
+
+BODY2, BODY6 = (0.5, 1.0), (0.4, 0.5)                     # (length [m], mass [kg])
+PARTICLES = {"p2": (0.15, 0.1), "p3": (0.15, -0.1), "p4": (0.3, 0.1), "p5": (0.35, 0.0)}
+ANCHORS = {"hub": (0.0, 0.0), "a_up": (0.0, 0.1), "a_down": (0.0, -0.1)}
+SPRINGS = (("a_up", "p2"), ("a_down", "p3"), ("hub", "p2"), ("hub", "p3"), ("p2", "p3"), ("p2", "p4"),
+           ("p3", "p4"), ("p3", "p5"), ("p4", "p5"), ("p2", "p5"))
+PARTICLE_MASS, STIFFNESS = 0.2, 3000.0
+STEP = 5e-4
+INITIAL = (-np.pi / 2 + 0.6, -np.pi / 2 + 1.0)
+BOUND_SAME_INTEGRATOR = 1e-8
+
+
+def model() -> PlanarModel:
+    """Body 2, the welded particle subsystem, body 6 pinned at particle 5."""
+    elements = [PointMass(f"m_{p}", p, PARTICLE_MASS) for p in PARTICLES]
+    elements += [NodeSpring(f"k{i}", a, b, STIFFNESS) for i, (a, b) in enumerate(SPRINGS)]
+    fe = FiniteElementModel("net", {**ANCHORS, **PARTICLES}, elements)
+    net = fe.subsystem("net", boundary=("hub", "p5"), frame_nodes=("a_up", "a_down"))
+    return PlanarModel.chain(NAME, [Pinned("base"), RigidBody.uniform_link("body2", mass=BODY2[1], length=BODY2[0]),
+                                    FixedMounting("weld"), net, SmoothHinge("h6"),
+                                    RigidBody.uniform_link("body6", mass=BODY6[1], length=BODY6[0])])
+
+
+def reference() -> GlobalChain:
+    """The same system as one global Lagrange model (coordinates as :func:`model`'s)."""
+    names = list(PARTICLES)
+    ends = {**{p: i for i, p in enumerate(names)}, **ANCHORS}
+    net = ParticleNet(tuple(PARTICLES.values()), (PARTICLE_MASS,) * len(names),
+                      tuple((ends[a], ends[b], STIFFNESS) for a, b in SPRINGS), linear=True, outboard=names.index("p5"))
+    return GlobalChain([RigidSegment(BODY2[0], BODY2[1], BODY2[1] * BODY2[0] ** 2 / 12, BODY2[0] / 2), net,
+                        RigidSegment(BODY6[0], BODY6[1], BODY6[1] * BODY6[0] ** 2 / 12, BODY6[0] / 2)])
+
+
+def particle_positions(q: np.ndarray, names: tuple) -> dict:
+    """Global positions [m] of the particles over a history ``q`` (T, n), by the reference's kinematics."""
+    ref = reference()
+    out = {p: [] for p in PARTICLES}
+    for row in q:
+        tip = ref.hinge_positions(row)[1]
+        th = row[names.index("body2.theta")]
+        R = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
+        for p, xy in PARTICLES.items():
+            out[p].append(tip + R @ (np.asarray(xy) + row[[names.index(f"net.{p}_ux"), names.index(f"net.{p}_uy")]]))
+    return {p: np.array(v) for p, v in out.items()}
+
+
+def run(output_dir: Path, quick: bool = False) -> dict:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t_final = 0.05 if quick else 2.0
+    mixed, ref = model(), reference()
+    names = mixed.coordinates
+    q0 = np.zeros(mixed.n_coordinates)
+    q0[[names.index("body2.theta"), names.index("body6.theta")]] = INITIAL
+    run_ = same_step_run(mixed, ref, q0, t_final, STEP)
+    t, q, q_ref, every, energy, energy_ref = run_.time, run_.q, run_.q_ref, run_.every, run_.energy, run_.energy_ref
+    mine, theirs = particle_positions(q[::every], names), particle_positions(q_ref[::every * 4], names)
+    fig, axes = plt.subplots(1, 4, figsize=(19, 4.5))
+    for body in ("body2", "body6"):
+        i = names.index(f"{body}.theta")
+        axes[0].plot(t, q[:, i], label=f"{body} (mixed)")
+        axes[0].plot(t[::every * 4], q_ref[::every * 4, i], "kx")
+    axes[0].set(xlabel="t [s]", ylabel="rotation [rad]", title="rigid bodies 2 and 6 (Fig. 9.9a; x: global model)")
+    for ax, pair, label in ((axes[1], ("p2", "p3"), "b"), (axes[2], ("p4", "p5"), "c")):
+        for p in pair:
+            ax.plot(t[::every], mine[p][:, 0], label=f"{p} x")
+            ax.plot(t[::every], mine[p][:, 1], label=f"{p} y")
+            ax.plot(t[::every * 4], theirs[p][:, 0], "kx", t[::every * 4], theirs[p][:, 1], "kx")
+        ax.set(xlabel="t [s]", ylabel="coordinate [m]", title=f"particles {pair[0][1]} and {pair[1][1]} (Fig. 9.9{label})")
+    axes[3].plot(t[::every], energy - energy[0], label="mixed (RK4)")
+    axes[3].plot(t[::every], energy_ref - energy_ref[0], "k--", label="global model (RK4)")
+    axes[3].set(xlabel="t [s]", ylabel="E(t) - E(0) [J]", title="total mechanical energy")
+    for ax in axes:
+        ax.legend(fontsize="x-small")
+    save_figure(fig, output_dir, NAME)
+    return {
+        "accuracy": [accuracy("coordinates vs global model, same integrator", run_.error, "rad or m", BOUND_SAME_INTEGRATOR,
+                              f"max over t and all coordinates (angles, particle displacements) of |q_TMM - q_global|, "
+                              f"same RK4 step h = {STEP * 1e3:g} ms, global Lagrange model of "
+                              "ctmm.reference.mixed_global",
+                              source="issue 16: mixed model vs global reference to 1e-8 with the same integrator")],
+        "energy_drift_relative": run_.energy_drift,
+        "energy_vs_global_model_relative": run_.energy_error,
+        "largest_particle_displacement_m": float(np.max(np.abs(q[:, [i for i, c in enumerate(names)
+                                                                     if c.startswith("net.")]]))),
+        "wall_time_s": run_.wall_time_s,
+    }
