@@ -66,6 +66,7 @@ from .. import validation
 from ..articulated import articulated_sweep
 from ..errors import ConvergenceError, ModelError, SimulationError
 from ..guard import StabilityLimitWarning
+from ..low_rank import low_rank_solve
 from ..ops import NUMPY
 from ..planar.actuated_newton import InputError
 from ..planar.integrate import step_total
@@ -203,34 +204,13 @@ def _result(model: SpatialModel, times: list, states: list, method: str, info: d
     signals, units = spatial_signals(model, time_array, state_array)
     return signal_result(SignalSystem(model, units), time_array, signals, method, info)
 
-
 def _low_rank_update(residual: np.ndarray, product: Callable[[np.ndarray], np.ndarray], limit: int) -> np.ndarray:
-    """``d`` with ``(I - P) d = residual``, ``P`` of low rank given by ``product(direction)``.
-
-    Minimal residual over the Krylov space of ``I - P`` started at ``residual``: an orthonormal
-    basis ``V`` grows by the part of each new image ``(I - P) v`` outside it, ``d = V c`` with ``c``
-    the least-squares solution of ``(V - P V) c = residual``.  The space stops growing after
-    ``rank P + 1`` directions (one per state-dependent actuator), at most ``limit``.
-    """
-    size = float(np.linalg.norm(residual))
-    if size == 0.0:
+    """``d`` with ``(I - P) d = residual``, ``P`` of low rank given by ``product(direction)``
+    (:func:`ctmm.low_rank.low_rank_solve`: ``rank P + 1`` directions, at most ``limit``)."""
+    coefficients, directions = low_rank_solve(residual, product, limit)
+    if not directions:
         return np.zeros_like(residual)
-    basis, images = [residual / size], []
-    solution = residual
-    for _ in range(limit):
-        images.append(basis[-1] - product(basis[-1]))
-        V, W = np.column_stack(basis), np.column_stack(images)
-        coefficients = np.linalg.lstsq(W, residual, rcond=None)[0]
-        solution = V @ coefficients
-        if float(np.linalg.norm(W @ coefficients - residual)) <= 1e-13 * size:
-            break
-        fresh = images[-1] - V @ (V.T @ images[-1])
-        fresh -= V @ (V.T @ fresh)                          # once more: orthogonal to round-off
-        length = float(np.linalg.norm(fresh))
-        if length <= 1e-13 * size:
-            break
-        basis.append(fresh / length)
-    return solution
+    return np.column_stack(directions) @ coefficients
 
 
 def _check_inputs(value: Any, t: float) -> Any:
