@@ -452,7 +452,7 @@ def simulate_spatial_generated(model: SpatialModel, t_final: float, dt: float, *
     ModelError
         A model the generated path cannot compile (:func:`spatial_compile_refusal`), bad arguments.
     SimulationError
-        A non-finite stored state, or one beyond ``divergence_bound`` (checked on the stored states),
+        A non-finite stored state, or one farther than ``divergence_bound`` from the start (checked on the stored states),
         with the result up to the last good stored state.
     """
     t_final = validation.positive("t_final", t_final)
@@ -484,7 +484,7 @@ def simulate_spatial_generated(model: SpatialModel, t_final: float, dt: float, *
             "compile_time_s": scene.compile_time_s}
     bad = ~np.all(np.isfinite(states), axis=1)
     if divergence_bound is not None:
-        bad |= np.any(np.abs(np.where(np.isfinite(states), states, 0.0)) > divergence_bound, axis=1)
+        bad |= np.any(np.abs(np.where(np.isfinite(states), states - states[:1], 0.0)) > divergence_bound, axis=1)
     if np.any(bad):
         first = int(np.flatnonzero(bad)[0])
         finite = np.all(np.isfinite(states[first]))

@@ -75,7 +75,7 @@ from ..schemes import History, Houbolt, Scheme, as_scheme
 from ..signal_results import SignalSystem, signal_result
 from .body_forms import SpatialScene
 from .dynamics import accelerations
-from .integrate import initial_state, spatial_signals
+from .integrate import divergence_check, initial_state, spatial_signals
 from .lie import bracket, local_coordinates, retract
 from .model import SpatialModel, input_values
 
@@ -260,7 +260,8 @@ def simulate_spatial_implicit(model: SpatialModel, t_final: float, dt: float, *,
     store_every : int
         Keep every ``store_every``-th step (and the last).
     divergence_bound : float, optional
-        Largest allowed ``|q|``, ``|v|`` entry.
+        Largest allowed distance of an entry of ``q`` or ``v`` from its initial value
+        (:func:`ctmm.spatial.integrate.divergence_check`).
     input_map : callable, optional
         ``input_map(t, q, v) -> SpatialInputs | None``: actuator values that may depend on the state
         (:meth:`ctmm.spatial.ports.SpatialPorts.inputs`; real-time feedback, delayed loops, held
@@ -346,6 +347,7 @@ def simulate_spatial_implicit(model: SpatialModel, t_final: float, dt: float, *,
     algorithmic, earlier = rates.copy(), [q.copy(), q.copy()]
     zero = np.zeros(model.n_velocities)
     times, states = [0.0], [np.concatenate([q, v])]
+    check = divergence_check(model, states[0], divergence_bound)
     iterations = np.zeros(n_steps, dtype=int)
     sweeps = 1
 
@@ -443,10 +445,7 @@ def simulate_spatial_implicit(model: SpatialModel, t_final: float, dt: float, *,
         algorithmic = new.a
         rates = new.equation_acceleration if new.equation_acceleration is not None else new.a
         x = np.concatenate([q, v])
-        if not np.all(np.isfinite(x)) or (divergence_bound is not None and float(np.abs(x).max()) > divergence_bound):
-            what = "non-finite" if not np.all(np.isfinite(x)) else f"beyond divergence_bound = {divergence_bound}"
-            raise SimulationError(f"{model.name}: the state became {what} at t = {t1} s ({method})", time=t1,
-                                  element=model.name, partial_result=partial())
+        check(t1, x, method, partial)
         if after_step is not None and after_step(step + 1, t1, q.copy(), v.copy()):
             rates = solved(t1, q, v)                  # new held inputs: restart from the acceleration with them
             algorithmic = rates.copy()
