@@ -63,7 +63,7 @@ from typing import Any, Callable, Mapping, NamedTuple
 import numpy as np
 
 from .. import validation
-from ..articulated import articulated_sweep
+from ..articulated import SingularPivotError, articulated_sweep
 from ..errors import ConvergenceError, ModelError, SimulationError
 from ..guard import StabilityLimitWarning
 from ..low_rank import low_rank_solve
@@ -343,10 +343,15 @@ def simulate_spatial_implicit(model: SpatialModel, t_final: float, dt: float, *,
             return accelerations(model, q_at, v_at, t, inputs)
         return accelerations(model, q_at, v_at, t, u.joint, u.wrenches)
 
-    rates = solved(0.0, q, v)
+    times, states = [0.0], [np.concatenate([q, v])]
+    try:
+        rates = solved(0.0, q, v)
+    except SimulationError as exc:                 # the start's accelerations: the partial result is the start
+        if exc.partial_result is None:
+            exc.partial_result = _result(model, times, states, method, dict(info, n_evaluations=0))
+        raise
     algorithmic, earlier = rates.copy(), [q.copy(), q.copy()]
     zero = np.zeros(model.n_velocities)
-    times, states = [0.0], [np.concatenate([q, v])]
     check = divergence_check(model, states[0], divergence_bound)
     iterations = np.zeros(n_steps, dtype=int)
     sweeps = 1
@@ -419,8 +424,9 @@ def simulate_spatial_implicit(model: SpatialModel, t_final: float, dt: float, *,
             except InputError:
                 raise
             except (SimulationError, np.linalg.LinAlgError) as exc:
+                where = model.joints[exc.body].name if isinstance(exc, SingularPivotError) else model.name
                 raise ConvergenceError(f"{model.name}: implicit DT-TMM step {step + 1} ({scheme.name}) at t = {t1:.6g} "
-                                       f"s failed in iteration {iteration}: {exc}", time=t1, element=model.name,
+                                       f"s failed in iteration {iteration}: {exc}", time=t1, element=where,
                                        partial_result=partial()) from exc
             sweeps += 1
             change = np.abs(a_new - a)

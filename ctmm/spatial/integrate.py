@@ -224,7 +224,7 @@ def simulate_spatial(model: SpatialModel, t_final: float, dt: float | None, *, m
                 k3 = rates(t + dt / 2, x + dt / 2 * k2)
                 k4 = rates(t + dt, x + dt * k3)
             except SimulationError as exc:
-                raise SimulationError(f"{exc} (RK4 step from t = {t} s)", time=t, element=model.name,
+                raise SimulationError(f"{exc} (RK4 step from t = {t} s)", time=t, element=exc.element or model.name,
                                       partial_result=_result(model, times, states, method, info)) from exc
             x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
             check(t + dt, x, method, lambda: _result(model, times, states, method, info))
@@ -248,7 +248,7 @@ def simulate_spatial(model: SpatialModel, t_final: float, dt: float | None, *, m
             solution = solve_ivp(rates, (0.0, t_final), x, method=method, t_eval=grid, rtol=rtol, atol=atol,
                                  **options)
         except SimulationError as exc:
-            raise SimulationError(f"{exc} ({method})", time=exc.time, element=model.name) from exc
+            raise SimulationError(f"{exc} ({method})", time=exc.time, element=exc.element or model.name) from exc
         times, states = list(solution.t), list(solution.y.T)
         if not solution.success:
             raise SimulationError(f"{model.name}: solve_ivp ({method}) failed: {solution.message}",
