@@ -51,8 +51,8 @@ from .results import SimulationResult
 from .signal_results import SignalSystem, signal_result
 from .protocol import BodyTerms, JointTerms
 from .signals import Constant
-from .spatial.body_forms import SpatialScene, joint_motion, rigid_body_terms
-from .spatial.frames import block_diagonal, constant, cross, quaternion_rate, quaternion_rotation
+from .spatial.body_forms import SpatialScene, child_motion, joint_motion, rigid_body_terms
+from .spatial.frames import constant, cross, quaternion_rate, quaternion_rotation
 from .spatial.integrate import initial_state, spatial_signals
 from .spatial.model import SpatialModel
 
@@ -309,36 +309,19 @@ def folded_velocity_rate(model: SpatialModel, period: int) -> Any:
 def _segment_body(model: SpatialModel, body: Any, joint: Any, q: list, v: list, rotation: Any, origin: Any,
                   velocity: Any, omega: Any, inboard: np.ndarray, outboard: str) -> tuple:
     """Pose, velocity, body and joint terms of one body of a folded chain on its parent's pose and
-    velocity (the statements of :meth:`SpatialScene.terms` for a non-driven joint without loads on a
-    moving parent)."""
+    velocity (:func:`ctmm.spatial.body_forms.child_motion`, the per-body statements of
+    :meth:`SpatialScene.terms`, for a non-driven joint without loads on a moving parent)."""
     import casadi as ca
 
     rel = joint_motion(CASADI, joint, q, v, None, None)
     arm = ca.mtimes(rotation, constant(CASADI, inboard))
-    point = origin + arm
-    point_velocity = velocity + cross(CASADI, omega, arm)
-    frame = ca.mtimes(rotation, constant(CASADI, joint.rotation))
-    child_rotation = ca.mtimes(frame, rel.rotation)
-    offset = None if rel.translation is None else ca.mtimes(frame, rel.translation)
-    child_origin = point if offset is None else point + offset
-    w_rel = None if rel.angular is None else ca.mtimes(frame, rel.angular)
-    u_rel = None if rel.linear is None else ca.mtimes(frame, rel.linear)
-    child_omega = omega if w_rel is None else omega + w_rel
-    child_velocity = point_velocity if u_rel is None else point_velocity + u_rel
-    if offset is not None:
-        child_velocity = child_velocity + cross(CASADI, child_omega, offset)
-    S = ca.mtimes(block_diagonal(CASADI, frame, frame, 3, 3), rel.S)
-    c_lin = ca.DM.zeros(3, 1) if rel.bias is None else ca.mtimes(frame, rel.bias[:3, :])
-    c_ang = ca.DM.zeros(3, 1) if rel.bias is None else ca.mtimes(frame, rel.bias[3:, :])
-    if u_rel is not None:
-        c_lin = c_lin + cross(CASADI, omega, u_rel) * 2.0
-    if w_rel is not None:
-        c_ang = c_ang + cross(CASADI, omega, w_rel)
-    joint_terms = JointTerms(S=S, c=ca.vertcat(c_lin, c_ang), tau=rel.tau, tau_q=rel.tau_q, tau_v=rel.tau_v)
+    motion = child_motion(CASADI, joint.rotation, rel, rotation, origin + arm, velocity + cross(CASADI, omega, arm),
+                          omega)
+    state = motion.state
     body_terms = rigid_body_terms(CASADI, mass=body.mass, inertia=body.inertia, center_of_mass=body.center_of_mass,
-                                  points={outboard: body.points[outboard]}, rotation=child_rotation, offset=offset,
-                                  omega=child_omega, gravity=model.gravity)
-    return child_rotation, child_origin, child_velocity, child_omega, body_terms, joint_terms
+                                  points={outboard: body.points[outboard]}, rotation=state.rotation,
+                                  offset=motion.offset, omega=motion.omega, gravity=model.gravity)
+    return state.rotation, state.origin, state.velocity, state.omega, body_terms, motion.joint
 
 
 def position_rates(model: SpatialModel, q: Any, v: Any) -> Any:
