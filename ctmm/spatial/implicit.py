@@ -72,10 +72,9 @@ from ..planar.actuated_newton import InputError
 from ..planar.integrate import step_total
 from ..results import SimulationResult
 from ..schemes import History, Houbolt, Scheme, as_scheme
-from ..signal_results import SignalSystem, signal_result
 from .body_forms import SpatialScene
 from .dynamics import accelerations
-from .integrate import divergence_check, initial_state, spatial_signals
+from .integrate import divergence_check, initial_state, state_result
 from .lie import bracket, local_coordinates, retract
 from .model import SpatialModel, input_values
 
@@ -198,11 +197,6 @@ def _joint_of(model: SpatialModel, index: int) -> str:
             return joint.name
     return model.name
 
-
-def _result(model: SpatialModel, times: list, states: list, method: str, info: dict) -> SimulationResult:
-    time_array, state_array = np.asarray(times), np.asarray(states)
-    signals, units = spatial_signals(model, time_array, state_array)
-    return signal_result(SignalSystem(model, units), time_array, signals, method, info)
 
 def _low_rank_update(residual: np.ndarray, product: Callable[[np.ndarray], np.ndarray], limit: int) -> np.ndarray:
     """``d`` with ``(I - P) d = residual``, ``P`` of low rank given by ``product(direction)``
@@ -348,7 +342,7 @@ def simulate_spatial_implicit(model: SpatialModel, t_final: float, dt: float, *,
         rates = solved(0.0, q, v)
     except SimulationError as exc:                 # the start's accelerations: the partial result is the start
         if exc.partial_result is None:
-            exc.partial_result = _result(model, times, states, method, dict(info, n_evaluations=0))
+            exc.partial_result = state_result(model, times, states, method, dict(info, n_evaluations=0))
         raise
     algorithmic, earlier = rates.copy(), [q.copy(), q.copy()]
     zero = np.zeros(model.n_velocities)
@@ -357,7 +351,7 @@ def simulate_spatial_implicit(model: SpatialModel, t_final: float, dt: float, *,
     sweeps = 1
 
     def partial() -> SimulationResult:
-        return _result(model, times, states, method, dict(info, iterations=iterations.copy(), n_evaluations=sweeps,
+        return state_result(model, times, states, method, dict(info, iterations=iterations.copy(), n_evaluations=sweeps,
                                                           wall_time_s=clock.perf_counter() - start))
 
     for step in range(n_steps):
@@ -460,4 +454,4 @@ def simulate_spatial_implicit(model: SpatialModel, t_final: float, dt: float, *,
             times.append(t1)
             states.append(x)
     info.update({"iterations": iterations, "n_evaluations": sweeps, "wall_time_s": clock.perf_counter() - start})
-    return _result(model, times, states, method, info)
+    return state_result(model, times, states, method, info)

@@ -21,7 +21,7 @@ from .body_forms import SpatialScene
 from .dynamics import state_rates
 from .model import SpatialModel
 
-__all__ = ["simulate_spatial", "initial_state", "spatial_signals", "SCIPY_METHODS"]
+__all__ = ["simulate_spatial", "initial_state", "spatial_signals", "state_result", "divergence_check", "SCIPY_METHODS"]
 
 SCIPY_METHODS = ("RK45", "RK23", "DOP853", "Radau", "BDF", "LSODA")
 """``solve_ivp`` methods accepted for spatial models."""
@@ -93,7 +93,9 @@ def spatial_signals(model: SpatialModel, time: np.ndarray, states: np.ndarray) -
     return signals, units
 
 
-def _result(model: SpatialModel, time: list, states: list, method: str, info: dict) -> SimulationResult:
+def state_result(model: SpatialModel, time: list, states: list, method: str, info: dict) -> SimulationResult:
+    """The :class:`SimulationResult` of stored states ``[q ; v]`` at ``time`` [s] (signals of
+    :func:`spatial_signals`; also the partial result of a failed run)."""
     time_array, state_array = np.asarray(time), np.asarray(states)
     signals, units = spatial_signals(model, time_array, state_array)
     return signal_result(SignalSystem(model, units), time_array, signals, method, info)
@@ -225,9 +227,9 @@ def simulate_spatial(model: SpatialModel, t_final: float, dt: float | None, *, m
                 k4 = rates(t + dt, x + dt * k3)
             except SimulationError as exc:
                 raise SimulationError(f"{exc} (RK4 step from t = {t} s)", time=t, element=exc.element or model.name,
-                                      partial_result=_result(model, times, states, method, info)) from exc
+                                      partial_result=state_result(model, times, states, method, info)) from exc
             x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-            check(t + dt, x, method, lambda: _result(model, times, states, method, info))
+            check(t + dt, x, method, lambda: state_result(model, times, states, method, info))
             if (step + 1) % store_every == 0 or step == n - 1:
                 times.append((step + 1) * dt)
                 states.append(x.copy())
@@ -253,12 +255,12 @@ def simulate_spatial(model: SpatialModel, t_final: float, dt: float | None, *, m
         if not solution.success:
             raise SimulationError(f"{model.name}: solve_ivp ({method}) failed: {solution.message}",
                                   time=float(times[-1]) if times else 0.0, element=model.name,
-                                  partial_result=_result(model, times, states, method, info) if times else None)
+                                  partial_result=state_result(model, times, states, method, info) if times else None)
         try:
             check(np.asarray(times), np.asarray(states), method)
         except SimulationError as exc:                     # the partial result: the stored rows before it
             good = int(np.searchsorted(np.asarray(times), exc.time))
-            exc.partial_result = _result(model, times[:good], states[:good], method, info) if good else None
+            exc.partial_result = state_result(model, times[:good], states[:good], method, info) if good else None
             raise
     info.update({"method": method, "wall_time_s": clock.perf_counter() - start, "n_evaluations": count[0]})
-    return _result(model, times, states, method, info)
+    return state_result(model, times, states, method, info)
