@@ -26,11 +26,39 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Sequence
 
+import numpy as np
+
 from .errors import ModelError
 from .ops import Ops
 from .protocol import BodyTerms, JointTerms
 
-__all__ = ["Tree", "Articulated", "articulated_sweep", "explicit_kappa", "frequency_kappa"]
+__all__ = ["Tree", "Articulated", "SingularPivotError", "articulated_sweep", "explicit_kappa", "frequency_kappa"]
+
+
+class SingularPivotError(np.linalg.LinAlgError):
+    """An exactly singular pivot of the numpy sweep: the ``free x free`` block ``D_j`` of a joint with more
+    than one free direction, or the modal block ``C_j`` of a flexible body (a ``LinAlgError``: handlers of
+    singular sweeps keep working).
+
+    Parameters
+    ----------
+    message : str
+        What was singular.
+    body : int
+        Index of the body in the tree (its inboard joint has the same index).
+    """
+
+    def __init__(self, message: str, body: int) -> None:
+        super().__init__(message)
+        self.body = body
+
+
+def _solve(ops: Ops, a: Any, b: Any, body: int, what: str) -> Any:
+    """``ops.solve(a, b)``; numpy's ``LinAlgError`` becomes :class:`SingularPivotError` naming the body."""
+    try:
+        return ops.solve(a, b)
+    except np.linalg.LinAlgError as exc:
+        raise SingularPivotError(f"singular {what} of body {body}: {exc}", body) from exc
 
 
 @dataclass(frozen=True)
@@ -134,7 +162,8 @@ def articulated_sweep(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints:
     -------
     Articulated
         Singular pivots are not detected here (no branching on values): numpy callers check the
-        result for finiteness.
+        result for finiteness; an exactly singular multi-direction pivot (numpy) raises
+        :class:`SingularPivotError` naming the body.
     """
     nb = len(tree.parent)
     if len(bodies) != nb or len(joints) != nb:
@@ -154,7 +183,8 @@ def articulated_sweep(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints:
             rest = slice(d, size)
             C[j] = ops.sub(Mj, rest, rest)
             Mre = ops.sub(Mj, rd, rest)
-            W = ops.solve(C[j], ops.block([[ops.sub(Mj, rest, rd), ops.sub(hj, rest, slice(0, 1))]]))
+            W = _solve(ops, C[j], ops.block([[ops.sub(Mj, rest, rd), ops.sub(hj, rest, slice(0, 1))]]), j,
+                       "modal mass block")
             WA[j], Wh[j] = ops.sub(W, slice(0, size - d), rd), ops.sub(W, slice(0, size - d), slice(d, d + 1))
             MW = ops.matmul(Mre, W)                 # [M_re W_A, M_re W_h] in one product
             P = ops.sub(Mj, rd, rd) - ops.sub(MW, rd, rd)
@@ -208,7 +238,7 @@ def articulated_sweep(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints:
                 P_hat = P - ops.matmul(PS, StP / Dj)
                 p_hat = p + PS * (rhs / Dj)
             else:
-                P_hat = P - ops.matmul(PS, ops.solve(Dj, StP))
+                P_hat = P - ops.matmul(PS, _solve(ops, Dj, StP, j, "joint pivot"))
                 p_hat = p + ops.matmul(PS, ops.solve(Dj, rhs))
         e = tree.point[j]
         parent = bodies[par]
@@ -238,7 +268,7 @@ def articulated_sweep(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints:
         else:
             load = ops.matmul(St[j], psi[j] if A_O is None else ops.matmul(Phi[j], A_O) + psi[j])
             rhs = load * -1.0 if joint.tau is None else joint.tau - load
-            a = rhs / D[j] if joint.free == 1 else ops.solve(D[j], rhs)
+            a = rhs / D[j] if joint.free == 1 else _solve(ops, D[j], rhs, j, "joint pivot")
         if a is None:
             A = ops.zeros(d, 1) if A_O is None else A_O
         elif joint.axis is not None:                # S a = a in row `axis`

@@ -55,8 +55,8 @@ from .results import SimulationResult
 from .signal_results import SignalSystem, signal_result
 from .protocol import BodyTerms, JointTerms
 from .signals import Constant
-from .spatial.body_forms import SpatialScene, joint_motion, rigid_body_terms
-from .spatial.frames import block_diagonal, constant, cross, quaternion_rate, quaternion_rotation
+from .spatial.body_forms import SpatialScene, child_motion, joint_motion, rigid_body_terms
+from .spatial.frames import constant, cross, quaternion_rate, quaternion_rotation
 from .spatial.integrate import initial_state, spatial_signals
 from .spatial.model import SpatialModel
 from .compiled_spatial_parameters import (SpatialNumbers, parametrised_body_terms, parametrised_joint_law,
@@ -368,34 +368,19 @@ def _segment_body(model: SpatialModel, body: Any, joint: Any, q: list, v: list, 
                   velocity: Any, omega: Any, inboard: np.ndarray, outboard: str,
                   numbers: SpatialNumbers | None = None, index: int = 0) -> tuple:
     """Pose, velocity, body and joint terms of one body of a folded chain on its parent's pose and
-    velocity (the statements of :meth:`SpatialScene.terms` for a non-driven joint without loads on a
-    moving parent); with ``numbers``, body ``index`` of the segment takes them."""
+    velocity (:func:`ctmm.spatial.body_forms.child_motion`, the per-body statements of
+    :meth:`SpatialScene.terms`, for a non-driven joint without loads on a moving parent); with ``numbers``,
+    body ``index`` of the segment takes them."""
     import casadi as ca
 
     rel = joint_motion(CASADI, joint, q, v, None, None)
     arm = ca.mtimes(rotation, constant(CASADI, inboard))
-    point = origin + arm
-    point_velocity = velocity + cross(CASADI, omega, arm)
-    frame = ca.mtimes(rotation, constant(CASADI, joint.rotation))
-    child_rotation = ca.mtimes(frame, rel.rotation)
-    offset = None if rel.translation is None else ca.mtimes(frame, rel.translation)
-    child_origin = point if offset is None else point + offset
-    w_rel = None if rel.angular is None else ca.mtimes(frame, rel.angular)
-    u_rel = None if rel.linear is None else ca.mtimes(frame, rel.linear)
-    child_omega = omega if w_rel is None else omega + w_rel
-    child_velocity = point_velocity if u_rel is None else point_velocity + u_rel
-    if offset is not None:
-        child_velocity = child_velocity + cross(CASADI, child_omega, offset)
-    S = ca.mtimes(block_diagonal(CASADI, frame, frame, 3, 3), rel.S)
-    c_lin = ca.DM.zeros(3, 1) if rel.bias is None else ca.mtimes(frame, rel.bias[:3, :])
-    c_ang = ca.DM.zeros(3, 1) if rel.bias is None else ca.mtimes(frame, rel.bias[3:, :])
-    if u_rel is not None:
-        c_lin = c_lin + cross(CASADI, omega, u_rel) * 2.0
-    if w_rel is not None:
-        c_ang = c_ang + cross(CASADI, omega, w_rel)
-    joint_terms = JointTerms(S=S, c=ca.vertcat(c_lin, c_ang), tau=rel.tau, tau_q=rel.tau_q, tau_v=rel.tau_v)
-    pose = dict(center_of_mass=body.center_of_mass, points={outboard: body.points[outboard]}, rotation=child_rotation,
-                offset=offset, omega=child_omega)
+    motion = child_motion(CASADI, joint.rotation, rel, rotation, origin + arm, velocity + cross(CASADI, omega, arm),
+                          omega)
+    state = motion.state
+    joint_terms = motion.joint
+    pose = dict(center_of_mass=body.center_of_mass, points={outboard: body.points[outboard]}, rotation=state.rotation,
+                offset=motion.offset, omega=motion.omega)
     if numbers is None:
         body_terms = rigid_body_terms(CASADI, mass=body.mass, inertia=body.inertia, gravity=model.gravity, **pose)
     else:
@@ -403,7 +388,7 @@ def _segment_body(model: SpatialModel, body: Any, joint: Any, q: list, v: list, 
         body_terms = parametrised_body_terms(mass, inertia, numbers.gravity, **pose)
         if numbers.has_law(index, len(v)):
             joint_terms = parametrised_joint_law(joint_terms, numbers.law(index, len(v)), q, v, None)
-    return child_rotation, child_origin, child_velocity, child_omega, body_terms, joint_terms
+    return state.rotation, state.origin, state.velocity, state.omega, body_terms, joint_terms
 
 
 def position_rates(model: SpatialModel, q: Any, v: Any) -> Any:
@@ -525,7 +510,7 @@ def simulate_spatial_generated(model: SpatialModel, t_final: float, dt: float, *
     ModelError
         A model the generated path cannot compile (:func:`spatial_compile_refusal`), bad arguments.
     SimulationError
-        A non-finite stored state, or one beyond ``divergence_bound`` (checked on the stored states),
+        A non-finite stored state, or one farther than ``divergence_bound`` from the start (checked on the stored states),
         with the result up to the last good stored state.
     """
     t_final = validation.positive("t_final", t_final)
@@ -557,7 +542,7 @@ def simulate_spatial_generated(model: SpatialModel, t_final: float, dt: float, *
             "compile_time_s": scene.compile_time_s}
     bad = ~np.all(np.isfinite(states), axis=1)
     if divergence_bound is not None:
-        bad |= np.any(np.abs(np.where(np.isfinite(states), states, 0.0)) > divergence_bound, axis=1)
+        bad |= np.any(np.abs(np.where(np.isfinite(states), states - states[:1], 0.0)) > divergence_bound, axis=1)
     if np.any(bad):
         first = int(np.flatnonzero(bad)[0])
         finite = np.all(np.isfinite(states[first]))

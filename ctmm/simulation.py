@@ -293,8 +293,11 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
     stability_check : {"warn", "error", "ignore"}, optional
         Pre-run check of ``dt`` against the method's stability limit (plant only).
     divergence_bound : float, optional
-        Largest allowed distance from the start (chains: of a point [m]; planar: of a
-        coordinate, its own unit).
+        Largest allowed distance from the start, on every path (numpy, DT-TMM schemes, generated
+        kernels, loops): chains: of a point from its rest position [m] (default ``1e6 * max(1,
+        initial excursion)``); planar: of a coordinate from its initial value, its own unit (same
+        default); spatial: of each entry of ``q`` and of ``v`` from its initial value, its own unit
+        (default: none, finiteness only).
     rtol, atol, max_step : float
         ``solve_ivp`` tolerances and largest step [s] (planar models, chains).
     store_every : int

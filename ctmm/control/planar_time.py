@@ -505,7 +505,7 @@ def simulate_closed_loop(model: Any, q0: np.ndarray, qdot0: np.ndarray, t_final:
         raise with_partial(exc, empty) from exc.__cause__
     try:
         y0 = np.concatenate([q0, qdot0, np.zeros(system.size - n - nv)])
-        guard = plant.guard(q0, divergence_bound)
+        guard = plant.guard(q0, divergence_bound, qdot0)
         rows = _Rows(system)
         start = _time.perf_counter()
         info = {"dt": dt, "method": label}

@@ -18,8 +18,8 @@ Ports (``plant.ports``)
 Dynamics (``plant``)
     ``n_positions``, ``n_velocities`` (``q``, ``v`` sizes), ``position_rates(q, v)`` (``q_dot``),
     ``accelerations(q, v, t, inputs)`` (``v_dot`` from the one articulated sweep),
-    ``signals(t, q, v, outputs)`` (named histories and units), ``guard(q0, bound)`` (per-step
-    check), ``check_step(q0, v0, dt, policy)`` (RK4 step against the plant's stability limit),
+    ``signals(t, q, v, outputs)`` (named histories and units), ``guard(q0, bound, v0)`` (per-step
+    check: ``divergence_bound``, distance from the start), ``check_step(q0, v0, dt, policy)`` (RK4 step against the plant's stability limit),
     ``element_names`` (loop names must differ from them), ``schemes`` (whether the implicit
     DT-TMM schemes apply).
 """
@@ -29,13 +29,13 @@ from typing import Any, Callable, Protocol, Sequence
 
 import numpy as np
 
-from ..errors import ModelError, SimulationError
+from ..errors import ModelError
 from ..planar.guards import check_scheme, divergence_guard
 from ..planar.integrate import check_state, model_signals
 from ..planar.model import PlanarModel
 from ..planar.ports import PlanarPorts
 from ..planar.sweep import accelerations as planar_accelerations
-from ..spatial.integrate import spatial_signals
+from ..spatial.integrate import divergence_check, spatial_signals
 from ..spatial.model import SpatialModel
 from ..spatial.ports import SpatialPorts
 from ..system import Chain
@@ -62,7 +62,8 @@ class Plant(Protocol):
 
     def signals(self, t: np.ndarray, q: np.ndarray, v: np.ndarray, outputs: Sequence[str]) -> tuple[dict, dict]: ...
 
-    def guard(self, q0: np.ndarray, bound: float | None) -> Callable[[float, np.ndarray, float | None, str], None]: ...
+    def guard(self, q0: np.ndarray, bound: float | None, v0: np.ndarray | None = None
+              ) -> Callable[[float, np.ndarray, float | None, str], None]: ...
 
     def check_step(self, q0: np.ndarray, v0: np.ndarray, dt: float, policy: str) -> None: ...
 
@@ -88,7 +89,8 @@ class PlanarPlant:
     def signals(self, t: np.ndarray, q: np.ndarray, v: np.ndarray, outputs: Sequence[str]) -> tuple[dict, dict]:
         return model_signals(self.model, t, q, v, outputs)
 
-    def guard(self, q0: np.ndarray, bound: float | None) -> Callable[[float, np.ndarray, float | None, str], None]:
+    def guard(self, q0: np.ndarray, bound: float | None, v0: np.ndarray | None = None
+              ) -> Callable[[float, np.ndarray, float | None, str], None]:
         guard = divergence_guard(self.model, q0, bound)
         return lambda t, y, step, method: check_state(self.model, guard, t, y, step, method)
 
@@ -126,25 +128,12 @@ class SpatialPlant:
                 units[name] = self.ports.sensor_unit(name)
         return signals, units
 
-    def guard(self, q0: np.ndarray, bound: float | None) -> Callable[[float, np.ndarray, float | None, str], None]:
-        names = list(self.model.coordinates) + list(self.model.velocities)
+    def guard(self, q0: np.ndarray, bound: float | None, v0: np.ndarray | None = None
+              ) -> Callable[[float, np.ndarray, float | None, str], None]:
         size = self.n_positions + self.n_velocities
-        start = np.concatenate([q0, np.zeros(self.n_velocities)])
-
-        def check(t: float, y: np.ndarray, step: float | None, method: str) -> None:
-            x = y[:size]
-            if not np.all(np.isfinite(x)):
-                k = int(np.flatnonzero(~np.isfinite(x))[0])
-                raise SimulationError(f"{self.model.name}: non-finite {names[k]!r} at t = {t:.6g} s ({method})",
-                                      time=float(t), element=names[k])
-            if bound is not None:
-                distance = np.abs(x - start)
-                if float(distance.max(initial=0.0)) > bound:
-                    k = int(np.argmax(distance))
-                    raise SimulationError(f"{self.model.name}: {names[k]!r} moved {distance[k]:.6g} from its start, "
-                                          f"beyond divergence_bound = {bound} at t = {t:.6g} s ({method})",
-                                          time=float(t), element=names[k])
-        return check
+        start = np.concatenate([q0, np.zeros(self.n_velocities) if v0 is None else v0])
+        check = divergence_check(self.model, start, bound)
+        return lambda t, y, step, method: check(t, y[:size], method)
 
     def check_step(self, q0: np.ndarray, v0: np.ndarray, dt: float, policy: str) -> None:
         """No pre-run limit for spatial models yet (the run's own guards apply)."""

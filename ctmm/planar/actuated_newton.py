@@ -13,7 +13,7 @@ inputs ``u`` for a fixed linearisation, ``S(u + du) = S(u) + T du``; with ``u = 
     (I - T J) d = r,        r = S(U(x)) - x.
 
 ``T J`` has the rank of the inputs' state dependence (one per feedback actuator), so it is never
-formed: GMRES on ``I - T J`` ends after ``rank + 1`` products, each a **directional finite
+formed: GMRES on ``I - T J`` (:func:`ctmm.low_rank.low_rank_solve`) ends after ``rank + 1`` products, each a **directional finite
 difference** of the input map (``(U(x + eps v) - U(x)) / eps``, step ``1e-7`` of the state's size)
 and one sweep with those inputs.  The new iterate is one more sweep with the extrapolated inputs
 ``U(x) + J d``, so body accelerations, joint forces and modal accelerations stay consistent.
@@ -30,6 +30,7 @@ import numpy as np
 
 from ..errors import SimulationError
 from ..guard import call_user
+from ..low_rank import low_rank_solve
 from .model import PlanarModel
 from .ports import ActuatorInputs
 
@@ -141,38 +142,10 @@ class ActuatedNewton:
             self.sweeps += 1
             return (stepper.solve(tangent, u)[2] - x_s) / eps
 
-        weights = _low_rank_solve(residual, product, len(x))
+        weights, _ = low_rank_solve(residual, product, len(x))
         if not any(unit for _, unit in shifts):                # no state dependence along the way
             return A_s, F_s, x_s
         extrapolated = _combine(u0, [(u, weight * unit) for (u, unit), weight in zip(shifts, weights)])
         self.sweeps += 1
         return stepper.solve(tangent, extrapolated)          # also the flexible stepper's new iterate
 
-
-def _low_rank_solve(r: np.ndarray, product: Callable[[np.ndarray], np.ndarray], limit: int) -> np.ndarray:
-    """GMRES on ``(I - P) d = r`` with ``P`` given by ``product``; returns the coefficients of
-    ``d`` in the Krylov basis (the directions ``product`` was called with).
-
-    The caller needs ``d`` only through the input changes of those directions; since ``d``
-    itself is ``r + P d`` it follows from the final sweep.
-    """
-    beta = float(np.linalg.norm(r))
-    if beta == 0.0 or limit == 0:
-        return np.zeros(0)
-    basis = [r / beta]
-    H = np.zeros((limit + 1, limit))
-    coefficients = np.zeros(0)
-    for j in range(limit):
-        w = basis[j] - product(basis[j])
-        for i in range(j + 1):
-            H[i, j] = basis[i] @ w
-            w = w - H[i, j] * basis[i]
-        H[j + 1, j] = float(np.linalg.norm(w))
-        rhs = np.zeros(j + 2)
-        rhs[0] = beta
-        coefficients = np.linalg.lstsq(H[:j + 2, :j + 1], rhs, rcond=None)[0]
-        left = float(np.linalg.norm(H[:j + 2, :j + 1] @ coefficients - rhs))
-        if left <= 1e-13 * beta or H[j + 1, j] <= 1e-13 * beta:
-            break
-        basis.append(w / H[j + 1, j])
-    return coefficients

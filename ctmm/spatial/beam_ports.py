@@ -49,7 +49,9 @@ def beam_actuator_rows(beam: Any) -> list[tuple[str, int, tuple, str]]:
 
 def deformed_point(beam: Any, point: Any, eta: np.ndarray, *, rate: bool = False) -> np.ndarray:
     """Body-axes position ``rho0 + Phi eta`` [m] of the beam axis point at ``point[0]`` (``rate``: its
-    velocity relative to the frame ``Phi eta_dot`` [m/s])."""
+    velocity relative to the frame ``Phi eta_dot`` [m/s]); ``eta`` (n_eta,) or a batch (B, n_eta), real or
+    complex step (:mod:`ctmm.spatial.sensor_maps`) -> (3,) or (B, 3)."""
     Phi = beam.data.station(float(point[0]))[0]
-    moved = Phi @ np.asarray(eta, dtype=float)
+    eta = np.asarray(eta)
+    moved = (eta if np.iscomplexobj(eta) else eta.astype(float)) @ Phi.T
     return moved if rate else moved + np.array([float(point[0]), 0.0, 0.0])

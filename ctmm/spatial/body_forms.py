@@ -25,7 +25,7 @@ from .frames import axis_rotation, block_diagonal, column, constant, cross, entr
 from .beam_terms import spatial_beam_terms
 from .model import SpatialModel, input_values
 
-__all__ = ["rigid_body_terms", "JointMotion", "joint_motion", "SpatialScene", "BodyState"]
+__all__ = ["rigid_body_terms", "JointMotion", "joint_motion", "SpatialScene", "BodyState", "ChildMotion", "child_motion"]
 
 
 def rigid_body_terms(ops: Ops, *, mass: float, inertia: np.ndarray, center_of_mass: np.ndarray,
@@ -239,6 +239,76 @@ class BodyState:
     inboard: Any
 
 
+@dataclass(frozen=True)
+class ChildMotion:
+    """The pose, velocity and world-axes joint terms of one body (:func:`child_motion`).
+
+    Attributes
+    ----------
+    state : BodyState
+        The body's pose and velocity (zero columns where the motion has none).
+    joint : JointTerms
+        Its inboard joint's terms in world axes (``S``, bias ``c``, laws; ``prescribed`` of a driven joint).
+    offset : ops (3, 1) or None
+        The joint's translation in world axes [m] (``None``: none, the origin is the inboard point).
+    omega : ops (3, 1) or None
+        The body's angular velocity [rad/s] (``None``: the body does not turn, for the body terms).
+    """
+
+    state: BodyState
+    joint: JointTerms
+    offset: Any
+    omega: Any
+
+
+def child_motion(ops: Ops, joint_rotation: np.ndarray, rel: JointMotion, parent_rotation: Any, point: Any,
+                 point_velocity: Any, parent_omega: Any) -> ChildMotion:
+    """The body kinematics of the sweep for one body: its pose and velocity from the inboard point's and the
+    joint's relative motion, and the joint terms in world axes (the statements of :meth:`SpatialScene.terms`
+    per body, also the segment of :mod:`ctmm.compiled_spatial`'s folds).
+
+    Parameters
+    ----------
+    ops : Ops
+    joint_rotation : ndarray, shape (3, 3)
+        The joint frame in the parent's axes (``joint.rotation``).
+    rel : JointMotion
+        The joint's relative motion (:func:`joint_motion`).
+    parent_rotation : ops (3, 3) or None
+        The parent's axes (``None``: the ground).
+    point, point_velocity : ops (3, 1); point_velocity may be None
+        The inboard point [m] and its velocity [m/s] (``None``: at rest).
+    parent_omega : ops (3, 1) or None
+        The parent's angular velocity [rad/s] (``None``: not turning).
+    """
+    R_J = constant(ops, joint_rotation)
+    R_PJ = R_J if parent_rotation is None else ops.matmul(parent_rotation, R_J)
+    R_c = ops.matmul(R_PJ, rel.rotation)
+    offset = None if rel.translation is None else ops.matmul(R_PJ, rel.translation)
+    o_c = point if offset is None else point + offset
+    w_rel = None if rel.angular is None else ops.matmul(R_PJ, rel.angular)
+    u_rel = None if rel.linear is None else ops.matmul(R_PJ, rel.linear)
+    w_c = _add(parent_omega, w_rel)
+    v_C = _add(point_velocity, u_rel)
+    v_o = v_C if (offset is None or w_c is None) else _add(v_C, cross(ops, w_c, offset))
+    state = BodyState(R_c, o_c, v_o if v_o is not None else ops.zeros(3, 1), w_c if w_c is not None else ops.zeros(3, 1),
+                      point)
+    S = ops.matmul(block_diagonal(ops, R_PJ, R_PJ, 3, 3), rel.S) if rel.S is not None else None
+    c_lin = None if rel.bias is None else ops.matmul(R_PJ, ops.sub(rel.bias, slice(0, 3), slice(0, 1)))
+    c_ang = None if rel.bias is None else ops.matmul(R_PJ, ops.sub(rel.bias, slice(3, 6), slice(0, 1)))
+    if parent_omega is not None:
+        if u_rel is not None:
+            c_lin = _add(c_lin, cross(ops, parent_omega, u_rel) * 2.0)
+        if w_rel is not None:
+            c_ang = _add(c_ang, cross(ops, parent_omega, w_rel))
+    c = None
+    if c_lin is not None or c_ang is not None:
+        c = ops.block([[c_lin if c_lin is not None else ops.zeros(3, 1)],
+                       [c_ang if c_ang is not None else ops.zeros(3, 1)]])
+    joint = JointTerms(S=S, c=c, tau=rel.tau, tau_q=rel.tau_q, tau_v=rel.tau_v, prescribed=rel.prescribed)
+    return ChildMotion(state, joint, offset, w_c)
+
+
 def _scalars(ops: Ops, values: Any, count: int) -> list:
     if ops.name == "numpy":
         return batch_scalars(values) if count else []
@@ -311,33 +381,10 @@ class SpatialScene:
                 else:                                   # a beam point: its frame follows the deformation
                     P, v_P = o_p + frame.arm, v_p + frame.velocity
                     R_p, w_p = frame.rotation, frame.omega
-            R_J = constant(ops, joint.rotation)
-            R_PJ = R_J if R_p is None else ops.matmul(R_p, R_J)
-            R_c = ops.matmul(R_PJ, rel.rotation)
-            offset = None if rel.translation is None else ops.matmul(R_PJ, rel.translation)
-            o_c = P if offset is None else P + offset
-            w_rel = None if rel.angular is None else ops.matmul(R_PJ, rel.angular)
-            u_rel = None if rel.linear is None else ops.matmul(R_PJ, rel.linear)
-            w_c = _add(w_p, w_rel)
-            v_C = _add(v_P, u_rel)
-            v_o = v_C if (offset is None or w_c is None) else _add(v_C, cross(ops, w_c, offset))
-            states.append(BodyState(R_c, o_c, v_o if v_o is not None else ops.zeros(3, 1),
-                                    w_c if w_c is not None else ops.zeros(3, 1), P))
-            # joint terms in world axes
-            S = ops.matmul(block_diagonal(ops, R_PJ, R_PJ, 3, 3), rel.S) if rel.S is not None else None
-            c_lin = None if rel.bias is None else ops.matmul(R_PJ, ops.sub(rel.bias, slice(0, 3), slice(0, 1)))
-            c_ang = None if rel.bias is None else ops.matmul(R_PJ, ops.sub(rel.bias, slice(3, 6), slice(0, 1)))
-            if w_p is not None:
-                if u_rel is not None:
-                    c_lin = _add(c_lin, cross(ops, w_p, u_rel) * 2.0)
-                if w_rel is not None:
-                    c_ang = _add(c_ang, cross(ops, w_p, w_rel))
-            c = None
-            if c_lin is not None or c_ang is not None:
-                c = ops.block([[c_lin if c_lin is not None else ops.zeros(3, 1)],
-                               [c_ang if c_ang is not None else ops.zeros(3, 1)]])
-            joints.append(JointTerms(S=S, c=c, tau=rel.tau, tau_q=rel.tau_q, tau_v=rel.tau_v,
-                                     prescribed=rel.prescribed))
+            motion = child_motion(ops, joint.rotation, rel, R_p, P, v_P, w_p)
+            states.append(motion.state)
+            joints.append(motion.joint)
+            R_c, offset, w_c = motion.state.rotation, motion.offset, motion.omega
             loads = []
             for load in self._loads[j]:
                 values = load.values(t)

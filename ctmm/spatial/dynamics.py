@@ -7,6 +7,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from ..articulated import SingularPivotError
 from ..errors import ModelError, SimulationError
 from .beam_terms import beam_energy
 from .body_forms import SpatialScene
@@ -64,10 +65,18 @@ def solve(model: SpatialModel, q: Any, v: Any, t: float = 0.0, inputs: Mapping[s
     ModelError
         Wrong sizes, non-finite or zero-quaternion states, unknown inputs.
     SimulationError
-        A singular articulated pivot (e.g. a free joint carrying no mass).
+        A singular articulated pivot (a joint whose free directions carry no inertia to round-off), naming the
+        time and the joint (``element``).
     """
     scene = scene_of(model)
-    solution = scene.solve(q, v, t, inputs, wrenches)
+    try:
+        solution = scene.solve(q, v, t, inputs, wrenches)
+    except SingularPivotError as exc:
+        joint = model.joints[exc.body]
+        raise SimulationError(f"{model.name}: the articulated pivot of joint {joint.name!r} ({joint.kind}, "
+                              f"{joint.velocity_count} free directions) is singular at t = {t} s: the subtree "
+                              "it carries has no inertia in some free direction (to round-off)", time=t,
+                              element=joint.name) from exc
     batch = np.asarray(solution.force[0]).shape[0]
     parts = [np.broadcast_to(np.asarray(a), (batch,) + np.asarray(a).shape[1:])[:, :, 0]
              for a in scene.velocity_rates(solution)]

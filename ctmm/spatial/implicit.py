@@ -63,18 +63,18 @@ from typing import Any, Callable, Mapping, NamedTuple
 import numpy as np
 
 from .. import validation
-from ..articulated import articulated_sweep
+from ..articulated import SingularPivotError, articulated_sweep
 from ..errors import ConvergenceError, ModelError, SimulationError
 from ..guard import StabilityLimitWarning
+from ..low_rank import low_rank_solve
 from ..ops import NUMPY
 from ..planar.actuated_newton import InputError
 from ..planar.integrate import step_total
 from ..results import SimulationResult
 from ..schemes import History, Houbolt, Scheme, as_scheme
-from ..signal_results import SignalSystem, signal_result
 from .body_forms import SpatialScene
 from .dynamics import accelerations
-from .integrate import initial_state, spatial_signals
+from .integrate import divergence_check, initial_state, state_result
 from .lie import bracket, local_coordinates, retract
 from .model import SpatialModel, input_values
 
@@ -198,39 +198,13 @@ def _joint_of(model: SpatialModel, index: int) -> str:
     return model.name
 
 
-def _result(model: SpatialModel, times: list, states: list, method: str, info: dict) -> SimulationResult:
-    time_array, state_array = np.asarray(times), np.asarray(states)
-    signals, units = spatial_signals(model, time_array, state_array)
-    return signal_result(SignalSystem(model, units), time_array, signals, method, info)
-
-
 def _low_rank_update(residual: np.ndarray, product: Callable[[np.ndarray], np.ndarray], limit: int) -> np.ndarray:
-    """``d`` with ``(I - P) d = residual``, ``P`` of low rank given by ``product(direction)``.
-
-    Minimal residual over the Krylov space of ``I - P`` started at ``residual``: an orthonormal
-    basis ``V`` grows by the part of each new image ``(I - P) v`` outside it, ``d = V c`` with ``c``
-    the least-squares solution of ``(V - P V) c = residual``.  The space stops growing after
-    ``rank P + 1`` directions (one per state-dependent actuator), at most ``limit``.
-    """
-    size = float(np.linalg.norm(residual))
-    if size == 0.0:
+    """``d`` with ``(I - P) d = residual``, ``P`` of low rank given by ``product(direction)``
+    (:func:`ctmm.low_rank.low_rank_solve`: ``rank P + 1`` directions, at most ``limit``)."""
+    coefficients, directions = low_rank_solve(residual, product, limit)
+    if not directions:
         return np.zeros_like(residual)
-    basis, images = [residual / size], []
-    solution = residual
-    for _ in range(limit):
-        images.append(basis[-1] - product(basis[-1]))
-        V, W = np.column_stack(basis), np.column_stack(images)
-        coefficients = np.linalg.lstsq(W, residual, rcond=None)[0]
-        solution = V @ coefficients
-        if float(np.linalg.norm(W @ coefficients - residual)) <= 1e-13 * size:
-            break
-        fresh = images[-1] - V @ (V.T @ images[-1])
-        fresh -= V @ (V.T @ fresh)                          # once more: orthogonal to round-off
-        length = float(np.linalg.norm(fresh))
-        if length <= 1e-13 * size:
-            break
-        basis.append(fresh / length)
-    return solution
+    return np.column_stack(directions) @ coefficients
 
 
 def _check_inputs(value: Any, t: float) -> Any:
@@ -280,7 +254,8 @@ def simulate_spatial_implicit(model: SpatialModel, t_final: float, dt: float, *,
     store_every : int
         Keep every ``store_every``-th step (and the last).
     divergence_bound : float, optional
-        Largest allowed ``|q|``, ``|v|`` entry.
+        Largest allowed distance of an entry of ``q`` or ``v`` from its initial value
+        (:func:`ctmm.spatial.integrate.divergence_check`).
     input_map : callable, optional
         ``input_map(t, q, v) -> SpatialInputs | None``: actuator values that may depend on the state
         (:meth:`ctmm.spatial.ports.SpatialPorts.inputs`; real-time feedback, delayed loops, held
@@ -362,15 +337,21 @@ def simulate_spatial_implicit(model: SpatialModel, t_final: float, dt: float, *,
             return accelerations(model, q_at, v_at, t, inputs)
         return accelerations(model, q_at, v_at, t, u.joint, u.wrenches)
 
-    rates = solved(0.0, q, v)
+    times, states = [0.0], [np.concatenate([q, v])]
+    try:
+        rates = solved(0.0, q, v)
+    except SimulationError as exc:                 # the start's accelerations: the partial result is the start
+        if exc.partial_result is None:
+            exc.partial_result = state_result(model, times, states, method, dict(info, n_evaluations=0))
+        raise
     algorithmic, earlier = rates.copy(), [q.copy(), q.copy()]
     zero = np.zeros(model.n_velocities)
-    times, states = [0.0], [np.concatenate([q, v])]
+    check = divergence_check(model, states[0], divergence_bound)
     iterations = np.zeros(n_steps, dtype=int)
     sweeps = 1
 
     def partial() -> SimulationResult:
-        return _result(model, times, states, method, dict(info, iterations=iterations.copy(), n_evaluations=sweeps,
+        return state_result(model, times, states, method, dict(info, iterations=iterations.copy(), n_evaluations=sweeps,
                                                           wall_time_s=clock.perf_counter() - start))
 
     for step in range(n_steps):
@@ -437,8 +418,9 @@ def simulate_spatial_implicit(model: SpatialModel, t_final: float, dt: float, *,
             except InputError:
                 raise
             except (SimulationError, np.linalg.LinAlgError) as exc:
+                where = model.joints[exc.body].name if isinstance(exc, SingularPivotError) else model.name
                 raise ConvergenceError(f"{model.name}: implicit DT-TMM step {step + 1} ({scheme.name}) at t = {t1:.6g} "
-                                       f"s failed in iteration {iteration}: {exc}", time=t1, element=model.name,
+                                       f"s failed in iteration {iteration}: {exc}", time=t1, element=where,
                                        partial_result=partial()) from exc
             sweeps += 1
             change = np.abs(a_new - a)
@@ -463,10 +445,7 @@ def simulate_spatial_implicit(model: SpatialModel, t_final: float, dt: float, *,
         algorithmic = new.a
         rates = new.equation_acceleration if new.equation_acceleration is not None else new.a
         x = np.concatenate([q, v])
-        if not np.all(np.isfinite(x)) or (divergence_bound is not None and float(np.abs(x).max()) > divergence_bound):
-            what = "non-finite" if not np.all(np.isfinite(x)) else f"beyond divergence_bound = {divergence_bound}"
-            raise SimulationError(f"{model.name}: the state became {what} at t = {t1} s ({method})", time=t1,
-                                  element=model.name, partial_result=partial())
+        check(t1, x, method, partial)
         if after_step is not None and after_step(step + 1, t1, q.copy(), v.copy()):
             rates = solved(t1, q, v)                  # new held inputs: restart from the acceleration with them
             algorithmic = rates.copy()
@@ -475,4 +454,4 @@ def simulate_spatial_implicit(model: SpatialModel, t_final: float, dt: float, *,
             times.append(t1)
             states.append(x)
     info.update({"iterations": iterations, "n_evaluations": sweeps, "wall_time_s": clock.perf_counter() - start})
-    return _result(model, times, states, method, info)
+    return state_result(model, times, states, method, info)

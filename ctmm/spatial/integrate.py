@@ -9,7 +9,7 @@ integrated (``model.normalized(q)`` gives unit ones).
 from __future__ import annotations
 
 import time as clock
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -21,7 +21,7 @@ from .body_forms import SpatialScene
 from .dynamics import state_rates
 from .model import SpatialModel
 
-__all__ = ["simulate_spatial", "initial_state", "spatial_signals", "SCIPY_METHODS"]
+__all__ = ["simulate_spatial", "initial_state", "spatial_signals", "state_result", "divergence_check", "SCIPY_METHODS"]
 
 SCIPY_METHODS = ("RK45", "RK23", "DOP853", "Radau", "BDF", "LSODA")
 """``solve_ivp`` methods accepted for spatial models."""
@@ -93,22 +93,59 @@ def spatial_signals(model: SpatialModel, time: np.ndarray, states: np.ndarray) -
     return signals, units
 
 
-def _result(model: SpatialModel, time: list, states: list, method: str, info: dict) -> SimulationResult:
+def state_result(model: SpatialModel, time: list, states: list, method: str, info: dict) -> SimulationResult:
+    """The :class:`SimulationResult` of stored states ``[q ; v]`` at ``time`` [s] (signals of
+    :func:`spatial_signals`; also the partial result of a failed run)."""
     time_array, state_array = np.asarray(time), np.asarray(states)
     signals, units = spatial_signals(model, time_array, state_array)
     return signal_result(SignalSystem(model, units), time_array, signals, method, info)
 
 
-def _check(model: SpatialModel, t: float, x: np.ndarray, bound: float | None, times: list, states: list,
-           method: str, info: dict) -> None:
-    bad = not np.all(np.isfinite(x))
-    if not bad and bound is not None and float(np.abs(x).max()) > bound:
-        bad = True
-    if bad:
-        partial = _result(model, times, states, method, info) if times else None
-        what = "non-finite" if not np.all(np.isfinite(x)) else f"beyond divergence_bound = {bound}"
-        raise SimulationError(f"{model.name}: the state became {what} at t = {t} s ({method})", time=t,
-                              element=model.name, partial_result=partial)
+def divergence_check(model: SpatialModel, start: np.ndarray, bound: float | None
+                     ) -> Callable[..., None]:
+    """The run guard of spatial models: the one meaning of ``divergence_bound`` (:func:`ctmm.simulate`).
+
+    Parameters
+    ----------
+    model : SpatialModel
+    start : ndarray, shape (n_positions + n_velocities,)
+        The initial state ``[q0 ; v0]``.
+    bound : float or None
+        Largest allowed distance ``|x_i - start_i|`` of each entry of the state ``x = [q ; v]`` from its
+        initial value, in its own unit (coordinates [rad, m, 1], velocities [rad/s, m/s]); ``None``: only
+        finiteness is checked.
+
+    Returns
+    -------
+    callable
+        ``check(t, x, method, partial=None)``: ``x`` one state (size,) at time ``t`` [s], or stored states
+        (n, size) at times ``t`` (n,) (the first bad row is reported).  Raises :class:`SimulationError`
+        (time, the model as element, ``partial()`` as the partial result) on a non-finite entry or one
+        beyond the bound.
+    """
+    names = list(model.coordinates) + list(model.velocities)
+    start = np.array(start, dtype=float).reshape(-1)
+
+    def check(t: Any, x: np.ndarray, method: str, partial: Callable[[], Any] | None = None) -> None:
+        rows = np.atleast_2d(np.asarray(x, dtype=float))
+        distance = np.abs(rows - start)
+        finite = np.isfinite(rows)
+        if np.all(finite) and (bound is None or float(distance.max(initial=0.0)) <= bound):
+            return
+        bad = ~np.all(finite, axis=1)
+        if bound is not None:
+            bad |= np.any(np.where(finite, distance, 0.0) > bound, axis=1)
+        row = int(np.flatnonzero(bad)[0])
+        time = float(np.atleast_1d(t)[row] if np.ndim(t) else t)
+        if not np.all(finite[row]):
+            k = int(np.flatnonzero(~finite[row])[0])
+            what = f"the state became non-finite in {names[k]!r}"
+        else:
+            k = int(np.argmax(distance[row]))
+            what = f"{names[k]!r} moved {distance[row, k]:.6g} from its start, beyond divergence_bound = {bound}"
+        raise SimulationError(f"{model.name}: {what} at t = {time:.6g} s ({method})", time=time, element=model.name,
+                              partial_result=partial() if partial is not None else None)
+    return check
 
 
 def simulate_spatial(model: SpatialModel, t_final: float, dt: float | None, *, method: str = "rk4", x0: Any = None,
@@ -136,7 +173,7 @@ def simulate_spatial(model: SpatialModel, t_final: float, dt: float | None, *, m
     store_every : int
         RK4: keep every ``store_every``-th step (and the last).
     divergence_bound : float, optional
-        Largest allowed ``|q|``, ``|v|`` entry.
+        Largest allowed distance of an entry of ``q`` or ``v`` from its initial value (:func:`divergence_check`).
 
     Returns
     -------
@@ -164,6 +201,7 @@ def simulate_spatial(model: SpatialModel, t_final: float, dt: float | None, *, m
         raise ModelError(f"model {model.name!r} has no coordinates (every joint is welded or driven): nothing to "
                          "integrate")
     x = initial_state(model, x0, v0)
+    check = divergence_check(model, x, divergence_bound)
     count = [0]
 
     def rates(t: float, state: np.ndarray) -> np.ndarray:
@@ -188,10 +226,10 @@ def simulate_spatial(model: SpatialModel, t_final: float, dt: float | None, *, m
                 k3 = rates(t + dt / 2, x + dt / 2 * k2)
                 k4 = rates(t + dt, x + dt * k3)
             except SimulationError as exc:
-                raise SimulationError(f"{exc} (RK4 step from t = {t} s)", time=t, element=model.name,
-                                      partial_result=_result(model, times, states, method, info)) from exc
+                raise SimulationError(f"{exc} (RK4 step from t = {t} s)", time=t, element=exc.element or model.name,
+                                      partial_result=state_result(model, times, states, method, info)) from exc
             x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-            _check(model, t + dt, x, divergence_bound, times, states, method, info)
+            check(t + dt, x, method, lambda: state_result(model, times, states, method, info))
             if (step + 1) % store_every == 0 or step == n - 1:
                 times.append((step + 1) * dt)
                 states.append(x.copy())
@@ -212,12 +250,17 @@ def simulate_spatial(model: SpatialModel, t_final: float, dt: float | None, *, m
             solution = solve_ivp(rates, (0.0, t_final), x, method=method, t_eval=grid, rtol=rtol, atol=atol,
                                  **options)
         except SimulationError as exc:
-            raise SimulationError(f"{exc} ({method})", time=exc.time, element=model.name) from exc
+            raise SimulationError(f"{exc} ({method})", time=exc.time, element=exc.element or model.name) from exc
         times, states = list(solution.t), list(solution.y.T)
         if not solution.success:
             raise SimulationError(f"{model.name}: solve_ivp ({method}) failed: {solution.message}",
                                   time=float(times[-1]) if times else 0.0, element=model.name,
-                                  partial_result=_result(model, times, states, method, info) if times else None)
-        _check(model, float(times[-1]), np.asarray(states), divergence_bound, [], [], method, info)
+                                  partial_result=state_result(model, times, states, method, info) if times else None)
+        try:
+            check(np.asarray(times), np.asarray(states), method)
+        except SimulationError as exc:                     # the partial result: the stored rows before it
+            good = int(np.searchsorted(np.asarray(times), exc.time))
+            exc.partial_result = state_result(model, times[:good], states[:good], method, info) if good else None
+            raise
     info.update({"method": method, "wall_time_s": clock.perf_counter() - start, "n_evaluations": count[0]})
-    return _result(model, times, states, method, info)
+    return state_result(model, times, states, method, info)

@@ -39,9 +39,9 @@ Actuators (inputs, added to what the model's own laws and loads apply)
 
 Sensors are kinematic: a position-like sensor depends on ``q`` (and ``t`` through driven
 joints) only, a rate sensor is linear in ``v``.  :func:`sensor_jacobians` gives the Jacobians in
-the **tangent coordinates** of ``v`` (a perturbation ``delta`` moves ``q`` along ``G(q) delta``):
-``dy/dv`` of rate sensors exactly (unit velocities), the rest by a fourth-order central
-difference.
+the **tangent coordinates** of ``v`` (a perturbation ``delta`` moves ``q`` along ``G(q) delta``),
+exact to round-off: by complex step through the complex-step-safe sensor maps of
+:mod:`ctmm.spatial.sensor_maps` (the one statement of every sensor, also behind :meth:`SpatialPorts.values`).
 
 Accelerations are not sensors (they would close an algebraic loop through the sweep: the
 actuator values would depend on the accelerations they cause); measure positions, angles or
@@ -57,11 +57,12 @@ import numpy as np
 from .. import validation
 from ..errors import ModelError, UnknownNameError
 from ..named_ports import NamedPorts
-from ..ops import NUMPY
-from .beam_ports import beam_actuator_rows, beam_sensor_rows, deformed_point
+from . import sensor_maps as maps
+from .beam_ports import beam_actuator_rows, beam_sensor_rows
 from .body_forms import SpatialScene
 from .dynamics import accelerations as sweep_accelerations
 from .model import SpatialModel
+from .sensor_maps import rotation_vector, xyz_angles
 
 __all__ = ["SpatialPorts", "SpatialInputs", "sensor_values", "sensor_jacobians", "xyz_angles", "rotation_vector"]
 
@@ -202,37 +203,6 @@ def _build(model: SpatialModel) -> tuple[dict, dict]:
     return sensors, actuators
 
 
-def xyz_angles(rotation: np.ndarray) -> np.ndarray:
-    """The x-y-z angles ``(a_x, a_y, a_z)`` [rad] of ``R = Rx(a_x) Ry(a_y) Rz(a_z)`` (module docstring)."""
-    r = np.asarray(rotation, dtype=float)
-    return np.array([np.arctan2(-r[1, 2], r[2, 2]), np.arcsin(np.clip(r[0, 2], -1.0, 1.0)),
-                     np.arctan2(-r[0, 1], r[0, 0])])
-
-
-def rotation_vector(rotation: np.ndarray) -> np.ndarray:
-    """Rotation vector ``phi`` [rad] of a rotation matrix (``R = exp([phi]x)``, ``|phi| <= pi``), through the
-    unit quaternion (the largest of its four components is formed first: well conditioned everywhere)."""
-    r = np.asarray(rotation, dtype=float)
-    trace = np.trace(r)
-    k = int(np.argmax([trace, r[0, 0], r[1, 1], r[2, 2]]))
-    if k == 0:
-        w = 0.5 * np.sqrt(max(1.0 + trace, 0.0))
-        vec = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]]) / (4.0 * w)
-    else:
-        i = k - 1
-        j, m = (i + 1) % 3, (i + 2) % 3
-        vec = np.zeros(3)
-        vec[i] = 0.5 * np.sqrt(max(1.0 + r[i, i] - r[j, j] - r[m, m], 0.0))
-        w = (r[m, j] - r[j, m]) / (4.0 * vec[i])
-        vec[j] = (r[j, i] + r[i, j]) / (4.0 * vec[i])
-        vec[m] = (r[m, i] + r[i, m]) / (4.0 * vec[i])
-    if w < 0.0:
-        w, vec = -w, -vec
-    s = float(np.linalg.norm(vec))
-    if s < 1e-300:
-        return 2.0 * vec
-    return (2.0 * np.arctan2(s, w) / s) * vec
-
 
 class SpatialPorts(NamedPorts):
     """The sensors and actuators of one spatial model, resolved once (hold one in a time loop).
@@ -308,49 +278,10 @@ class SpatialPorts(NamedPorts):
         return name
 
     def values(self, sensors: list, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
-        """Values of resolved ``sensors`` at ``(q, v, t)`` (no validation of the state: for inner loops)."""
-        out = np.empty(len(sensors))
-        states = None
-        for n, s in enumerate(sensors):
-            if s.kind == "q":
-                out[n] = q[s.index]
-                continue
-            if s.kind == "v":
-                out[n] = v[s.index]
-                continue
-            if s.kind in ("modal", "modal_v"):             # beam station sensors: linear in eta or eta_dot
-                layout = self.model.modal[s.index]
-                out[n] = np.dot(s.weights, q[layout.position] if s.kind == "modal" else v[layout.velocity])
-                continue
-            if states is None:
-                states = self.scene.terms(NUMPY, np.asarray(q, float)[None], np.asarray(v, float)[None], t)[2]
-            state = states[s.index]
-            rotation = np.asarray(state.rotation)[0]
-            omega = np.asarray(state.omega).reshape(-1, 3)[0]
-            if s.kind == "omega":
-                out[n] = omega[s.component]
-            elif s.kind == "omega_body":
-                out[n] = rotation[:, s.component] @ omega
-            elif s.kind == "angles":
-                out[n] = xyz_angles(rotation)[s.component]
-            elif s.kind == "rotation":
-                out[n] = rotation_vector(rotation)[s.component]
-            else:
-                modal = self.model.modal[s.index]
-                if modal is None:
-                    arm = rotation @ np.asarray(s.point, float)
-                    omega_arm = np.cross(omega, arm)
-                else:                                       # a beam point moves with the deformation
-                    body = self.model.bodies[s.index]
-                    arm = rotation @ deformed_point(body, s.point, q[modal.position])
-                    omega_arm = np.cross(omega, arm) + rotation @ deformed_point(body, s.point, v[modal.velocity],
-                                                                                  rate=True)
-                if s.kind == "point":
-                    out[n] = np.asarray(state.origin).reshape(-1, 3)[0][s.component] + arm[s.component]
-                else:
-                    velocity = np.asarray(state.velocity).reshape(-1, 3)[0] + omega_arm
-                    out[n] = velocity[s.component]
-        return out
+        """Values of resolved ``sensors`` at ``(q, v, t)`` (no validation of the state: for inner loops;
+        the maps of :func:`ctmm.spatial.sensor_maps.sensor_values`)."""
+        return maps.sensor_values(self.model, self.scene, sensors, np.asarray(q, float)[None],
+                                  np.asarray(v, float)[None], t)[0]
 
     def inputs(self, values: Mapping[str, float]) -> SpatialInputs:
         """Arrange actuator ``values`` (``{actuator name: value}``, SI units) for the sweep; several
@@ -417,32 +348,43 @@ def sensor_values(model: SpatialModel, names: Sequence[str], q, v, t: float = 0.
 
 def sensor_jacobians(model: SpatialModel, names: Sequence[str], q, v, t: float = 0.0, *, step: float = 1e-3
                      ) -> tuple[np.ndarray, np.ndarray]:
-    """Jacobians of the sensors ``names`` in tangent coordinates at ``(q, v, t)``.
+    """Jacobians of the sensors ``names`` in tangent coordinates at ``(q, v, t)``, exact to round-off.
 
     ``dy_dx[:, k]`` is the derivative of ``y`` when ``q`` moves along ``G(q) e_k`` (the motion of unit
     velocity ``k``: for quaternion joints the rotation about a child axis) at fixed ``v``; ``dy_dv`` the
-    derivative in ``v``.  ``dy_dv`` of rate sensors is exact (they are linear in ``v``); the rest is a
-    fourth-order central difference with step ``step`` (scaled by the state's size).
+    derivative in ``v``.  Both by complex step (step ``1e-30``) through the complex-step-safe sensor maps
+    (:mod:`ctmm.spatial.sensor_maps`): ``2 n_velocities`` states in one batched evaluation.
+
+    Parameters
+    ----------
+    model, names, q, v, t
+        As in :func:`sensor_values`.
+    step : float
+        Checked (``> 0``) and otherwise unused: kept from the finite-difference version (the complex step
+        has no step to choose).
 
     Returns
     -------
     dy_dx, dy_dv : ndarray, shape (len(names), n_velocities)
+
+    Raises
+    ------
+    ModelError
+        Bad arguments; an x-y-z angle sensor at gimbal lock or a rotation vector of length ``pi`` (no
+        derivative there).
     """
     ports = SpatialPorts(model)
     sensors = ports.resolve(names)
-    step = validation.positive("step", step)
+    validation.positive("step", step)
     q, v, t = _state(model, q, v, t)
     nv = model.n_velocities
-    dy_dx = np.zeros((len(sensors), nv))
-    dy_dv = np.zeros((len(sensors), nv))
-    rates = np.array([s.is_rate for s in sensors], dtype=bool)
-    base = ports.values(sensors, q, np.zeros(nv), t)
-    h = step * max(1.0, float(np.max(np.abs(q[:]), initial=0.0)))
-    for k in range(nv):
-        unit = np.zeros(nv)
-        unit[k] = 1.0
-        dy_dv[rates, k] = (ports.values(sensors, q, unit, t) - base)[rates]
-        direction = ports.position_rates(q, unit)
-        shifted = [ports.values(sensors, q + s * h * direction, v, t) for s in (-2.0, -1.0, 1.0, 2.0)]
-        dy_dx[:, k] = (shifted[0] - 8.0 * shifted[1] + 8.0 * shifted[2] - shifted[3]) / (12.0 * h)
-    return dy_dx, dy_dv
+    if nv == 0 or not sensors:
+        return np.zeros((len(sensors), nv)), np.zeros((len(sensors), nv))
+    h = 1e-30
+    unit = np.eye(nv)
+    directions = model.position_rates(np.repeat(q[None], nv, axis=0), unit)      # G(q) e_k
+    q_batch = np.concatenate([q[None] + 1j * h * directions, np.repeat(q[None], nv, axis=0)])
+    v_batch = np.concatenate([np.repeat(v[None], nv, axis=0), v[None] + 1j * h * unit])
+    values = maps.sensor_values(model, ports.scene, sensors, q_batch, v_batch, t,
+                                differentiable="sensor_jacobians").imag / h
+    return values[:nv].T.copy(), values[nv:].T.copy()
