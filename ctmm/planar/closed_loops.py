@@ -24,8 +24,10 @@ integrator, by projection after every step onto ``Phi = 0`` and ``Phi' = 0`` (mi
 with the constraint Jacobian ``J = dPhi'/dqdot``, exact).  The drift is reported in the result
 (:attr:`KinematicLoopSimulation.drift`, ``.drift_rate``), with the cut forces.
 
-Not yet: cut points on modal beams (a flexible coupler), cut joints with laws, implicit DT-TMM schemes
-and the frequency verbs for closed loops (each refused by name).
+The library verbs (``ctmm.simulate`` with every method, ``ctmm.linearize``, ``ctmm.natural_frequencies``,
+``ctmm.frequency_response``) call this model's functions (:mod:`ctmm.planar.loop_verbs`).  Not yet: cut points
+on modal beams (a flexible coupler), cut joints with laws, feedback loops on a kinematic loop model (each
+refused by name).
 """
 from __future__ import annotations
 
@@ -187,12 +189,11 @@ class KinematicLoopModel:
         n = self.tree.n_coordinates
         return np.column_stack([self.constraints(q, np.eye(n)[k], t)[1] for k in range(n)])
 
-    def _solution(self, q, qdot, t, forces: np.ndarray, points: dict):
-        """Tree solution with cut forces ``forces`` (n_cuts, 2): qddot and point accelerations
-        (``points``: :meth:`PlanarModel.points` at ``(q, qdot, t)``)."""
+    def _cut_body_force(self, points: dict, forces: np.ndarray) -> np.ndarray:
+        """Cut forces ``forces`` (n_cuts, 2) as body forces at the centres of mass with the moment of their
+        lever, shape (n_bodies, 3) (``points``: :meth:`PlanarModel.points`)."""
         m = self.tree
         body_force = np.zeros((m.n_bodies, 3))
-        levers = []
         for k, ((jp, ep), (jc, ec)) in enumerate(self._points):
             for j, e, sign in ((jc, ec, 1.0), (jp, ep, -1.0)):
                 if j < 0:
@@ -204,11 +205,30 @@ class KinematicLoopModel:
                 f = sign * forces[k]
                 arm = r - com
                 body_force[j] += (f[0], f[1], arm[0] * f[1] - arm[1] * f[0])
-            levers.append(((jp, ep), (jc, ec)))
-        solution = solve_instant(m, q, qdot, t, ActuatorInputs(np.zeros(m.n_bodies), body_force))
+        return body_force
+
+    def cut_inputs(self, q, qdot, t: float = 0.0, inputs: ActuatorInputs | None = None) -> ActuatorInputs:
+        """The cut forces at ``(q, qdot, t)`` (:meth:`solve`) as actuator inputs of the tree, added to ``inputs``:
+        with them the tree's own sweep (e.g. the Newton iterate of a DT-TMM scheme) moves as the closed loop."""
+        q, qdot = self.tree.state(q, qdot)
+        forces = self.solve(q, qdot, t, inputs)[1]
+        return self._with_inputs(self._cut_body_force(self.tree.points(q, qdot, t), forces), inputs)
+
+    def _with_inputs(self, body_force: np.ndarray, inputs: ActuatorInputs | None) -> ActuatorInputs:
+        if inputs is None:
+            return ActuatorInputs(np.zeros(self.tree.n_bodies), body_force)
+        return ActuatorInputs(inputs.hinge_torque, inputs.body_force + body_force, inputs.modal_force,
+                              inputs.frame_wrench)
+
+    def _solution(self, q, qdot, t, forces: np.ndarray, points: dict, inputs: ActuatorInputs | None = None):
+        """Tree solution with cut forces ``forces`` (n_cuts, 2) and actuator ``inputs``: qddot and the cut
+        points' relative accelerations (``points``: :meth:`PlanarModel.points` at ``(q, qdot, t)``)."""
+        m = self.tree
+        body_force = self._cut_body_force(points, forces)
+        solution = solve_instant(m, q, qdot, t, self._with_inputs(body_force, inputs))
         A = solution.body_acceleration
         relative = []
-        for (jp, ep), (jc, ec) in levers:
+        for (jp, ep), (jc, ec) in self._points:
             acc = []
             for j, e in ((jp, ep), (jc, ec)):
                 if j < 0:
@@ -220,18 +240,19 @@ class KinematicLoopModel:
             relative.append(acc[1] - acc[0])
         return solution.qddot, np.concatenate(relative)
 
-    def solve(self, q, qdot, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-        """``(qddot, cut forces (n_cuts, 2))`` at ``(q, qdot, t)`` (module docstring)."""
+    def solve(self, q, qdot, t: float = 0.0, inputs: ActuatorInputs | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """``(qddot, cut forces (n_cuts, 2))`` at ``(q, qdot, t)`` (module docstring), with the tree's actuator
+        ``inputs`` (:func:`ctmm.planar.ports.actuator_inputs`) if given."""
         nc = len(self.cuts)
         zero = np.zeros((nc, 2))
         points = self.tree.points(q, qdot, t)
-        qdd0, a0 = self._solution(q, qdot, t, zero, points)
+        qdd0, a0 = self._solution(q, qdot, t, zero, points, inputs)
         G = np.empty((2 * nc, 2 * nc))
         dqdd = np.empty((len(qdd0), 2 * nc))
         for k in range(2 * nc):
             unit = zero.copy().reshape(-1)
             unit[k] = 1.0
-            qdd_k, a_k = self._solution(q, qdot, t, unit.reshape(nc, 2), points)
+            qdd_k, a_k = self._solution(q, qdot, t, unit.reshape(nc, 2), points, inputs)
             G[:, k], dqdd[:, k] = a_k - a0, qdd_k - qdd0
         phi, phi_dot = self.constraints(q, qdot, t)
         alpha = self.baumgarte
@@ -278,10 +299,11 @@ class KinematicLoopModel:
         return q, qdot - np.linalg.lstsq(J, J @ qdot, rcond=None)[0]
 
     # -- linearisation on the constraint manifold ---------------------------------------------------
-    def _chart(self, q0: np.ndarray, basis: np.ndarray, normal: np.ndarray, z: np.ndarray, zdot: np.ndarray,
-               t: float) -> tuple[np.ndarray, np.ndarray]:
+    def chart(self, q0: np.ndarray, basis: np.ndarray, normal: np.ndarray, z: np.ndarray, zdot: np.ndarray,
+              t: float) -> tuple[np.ndarray, np.ndarray]:
         """The state on the constraints with independent coordinates ``z = N^T (q - q0)`` and rates ``zdot``:
-        ``q = q0 + N z + J0^T y``, ``qdot = N zdot + J0^T w`` with ``y``, ``w`` from ``Phi = 0``, ``J qdot = 0``."""
+        ``q = q0 + N z + J0^T y``, ``qdot = N zdot + J0^T w`` with ``y``, ``w`` from ``Phi = 0``, ``J qdot = 0``
+        (``basis``: ``N``, the null space of ``J0 = J(q0)``; ``normal``: ``J0^T``; angles [rad], rates [rad/s])."""
         q = q0 + basis @ z
         for _ in range(30):
             phi, _ = self.constraints(q, np.zeros_like(q), t)
@@ -310,7 +332,7 @@ class KinematicLoopModel:
             raise ModelError(f"kinematic loop {self.name!r}: no degree of freedom is left by the cut joints")
 
         def rates(x: np.ndarray) -> np.ndarray:
-            q, qdot = self._chart(q0, basis, normal, x[:f], x[f:], t)
+            q, qdot = self.chart(q0, basis, normal, x[:f], x[f:], t)
             return basis.T @ self.solve(q, qdot, t)[0]
 
         columns = []
@@ -351,7 +373,7 @@ class KinematicLoopModel:
             residual = basis.T @ self.solve(q, np.zeros(n), t)[0]
             if np.max(np.abs(residual)) < tolerance:
                 return q
-            q, _ = self._chart(q, basis, self.jacobian(q, t).T, -np.linalg.solve(A[f:, :f], residual),
+            q, _ = self.chart(q, basis, self.jacobian(q, t).T, -np.linalg.solve(A[f:, :f], residual),
                                np.zeros(f), t)
         raise ModelError(f"kinematic loop {self.name!r}: no equilibrium found near the guess (residual "
                          f"{np.max(np.abs(residual)):.3e} after 40 Newton steps)")
@@ -359,7 +381,8 @@ class KinematicLoopModel:
 
 def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: float, dt: float | None = None,
                          method: str = "rk4", projection: bool = True, rtol: float = 1e-9, atol: float = 1e-11,
-                         store_every: int = 1) -> KinematicLoopSimulation:
+                         store_every: int = 1, t_eval: np.ndarray | None = None,
+                         max_step: float | None = None) -> KinematicLoopSimulation:
     """Integrate a closed-loop model from a consistent state (:meth:`KinematicLoopModel.consistent_state`).
 
     Parameters
@@ -380,6 +403,10 @@ def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: f
         ``solve_ivp`` tolerances.
     store_every : int
         Store every k-th RK4 step.
+    t_eval : ndarray, optional
+        ``solve_ivp`` methods: the times [s] to store (default: every accepted step).
+    max_step : float, optional
+        ``solve_ivp`` methods: the largest step [s] (default ``dt``, else no limit).
 
     Raises
     ------
@@ -434,7 +461,8 @@ def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: f
     else:
         validation.option("method", method, ("rk4", "RK45", "RK23", "DOP853", "Radau", "BDF", "LSODA"))
         sol = scipy.integrate.solve_ivp(rate, (0.0, t_final), np.concatenate([q, v]), method=method, rtol=rtol,
-                                        atol=atol, max_step=np.inf if dt is None else dt)
+                                        atol=atol, t_eval=t_eval,
+                                        max_step=max_step if max_step is not None else (np.inf if dt is None else dt))
         if not sol.success:
             raise SimulationError(f"kinematic loop {model.name!r}: solve_ivp failed: {sol.message}",
                                   time=float(sol.t[-1]), element=model.cuts[0].name)
