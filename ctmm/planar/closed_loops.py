@@ -25,9 +25,10 @@ with the constraint Jacobian ``J = dPhi'/dqdot``, exact).  The drift is reported
 (:attr:`KinematicLoopSimulation.drift`, ``.drift_rate``), with the cut forces.
 
 The library verbs (``ctmm.simulate`` with every method, ``ctmm.linearize``, ``ctmm.natural_frequencies``,
-``ctmm.frequency_response``) call this model's functions (:mod:`ctmm.planar.loop_verbs`).  Not yet: cut points
-on modal beams (a flexible coupler), cut joints with laws, feedback loops on a kinematic loop model (each
-refused by name).
+``ctmm.frequency_response``) call this model's functions (:mod:`ctmm.planar.loop_verbs`).  Not yet: cut joints
+with laws, feedback loops on a kinematic loop model (each refused by name).  Cut points may be ends of a
+``ctmm.flexible.ModalBeam`` (a flexible coupler): the cut force enters the beam's frame wrench and modal
+equations as its virtual work (``docs/closed_loops.md`` §4a).
 """
 from __future__ import annotations
 
@@ -57,7 +58,7 @@ class CutJoint:
     name : str
         Joint name.
     parent : str
-        ``"body.end"`` (an end of a rigid body, :attr:`RigidBody.outboard`) or the name of a
+        ``"body.end"`` (an end of a rigid body, :attr:`RigidBody.outboard`, or of a ``ModalBeam``) or the name of a
         :class:`~ctmm.planar.elements.Fixed` ground point of the tree model.
     child : str
         ``"body.end"``.
@@ -144,8 +145,9 @@ class KinematicLoopModel:
                         for cut in cuts]
         self.name = tree.name
 
-    def _resolve(self, cut: CutJoint, label: str, grounds: Mapping[str, Fixed]) -> tuple[int, np.ndarray]:
-        """``(body index or -1 for ground, body-frame vector from the inboard end or ground position)``."""
+    def _resolve(self, cut: CutJoint, label: str, grounds: Mapping[str, Fixed]) -> tuple[int, np.ndarray | int]:
+        """``(body index or -1 for ground, body-frame vector from the inboard end or ground position)``; on a modal
+        beam ``(body index, end index)``."""
         m = self.tree
         if label in grounds:
             return -1, np.asarray(grounds[label].position, float)
@@ -155,26 +157,44 @@ class KinematicLoopModel:
                              f"{', '.join(m.body_names)}; grounds: {', '.join(grounds) or 'none'})")
         j = m.body_names.index(body)
         if j in m.beams:
-            raise ModelError(f"cut joint {cut.name!r}: {label!r} is on the modal beam {body!r}; cut points on "
-                             "flexible bodies are not supported yet (cut at a rigid body)")
+            data = m.beams[j].data
+            if hasattr(data, "point_local") or not hasattr(data, "end_names"):
+                raise ModelError(f"cut joint {cut.name!r}: {label!r} is on {body!r}, a deformable body without modal "
+                                 "end shapes (a ctmm.fem subsystem); cut points on deformable bodies must be ends of "
+                                 "a ctmm.flexible.ModalBeam")
+            if end not in data.end_names:
+                raise ModelError(f"cut joint {cut.name!r}: beam {body!r} has no end {end!r}; ends: "
+                                 f"{', '.join(data.end_names) or '(none)'} (ModalBeam(outboard=...))")
+            return j, list(data.end_names).index(end)
         if end not in m.ends[j]:
             raise ModelError(f"cut joint {cut.name!r}: body {body!r} has no end {end!r}; ends: "
                              f"{', '.join(m.ends[j]) or '(none)'}")
         return j, np.asarray(m.ends[j][end], float)
 
     # ------------------------------------------------------------------------------------------------
-    def _point_kinematics(self, points: dict, j: int, e: np.ndarray):
-        """Position, velocity, lever ``r`` (from the inboard end, global) and centre lever of a point."""
+    def _point_kinematics(self, points: dict, j: int, e: np.ndarray | int):
+        """Position, velocity and lever ``r`` (from the inboard end, global) of a point (:meth:`_resolve`;
+        ``points``: :meth:`_points_at`)."""
         if j < 0:
             return e, np.zeros(2), None
         th, om = points["theta"][j], points["omega"][j]
         c, s = np.cos(th), np.sin(th)
+        velocity = np.zeros(2)
+        if not isinstance(e, np.ndarray):               # end ``e`` of a modal beam: deformed, moving in the frame
+            e, local = self.tree.beam_point_local(j, e, points["q"], points["qdot"])
+            velocity = np.array([c * local[0] - s * local[1], s * local[0] + c * local[1]])
         r = np.array([c * e[0] - s * e[1], s * e[0] + c * e[1]])
-        return points["inboard"][j] + r, points["inboard_velocity"][j] + om * np.array([-r[1], r[0]]), r
+        return points["inboard"][j] + r, points["inboard_velocity"][j] + om * np.array([-r[1], r[0]]) + velocity, r
+
+    def _points_at(self, q, qdot, t: float) -> dict:
+        """:meth:`PlanarModel.points` with the state itself (``"q"``, ``"qdot"``: the modal ends read it)."""
+        points = self.tree.points(q, qdot, t)
+        points["q"], points["qdot"] = q, qdot
+        return points
 
     def constraints(self, q, qdot, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """``Phi`` (child point minus parent point [m]) and ``Phi'`` [m/s] of every cut, stacked (2 n_cuts,)."""
-        points = self.tree.points(q, qdot, t)
+        points = self._points_at(q, qdot, t)
         phi, rate = [], []
         for (jp, ep), (jc, ec) in self._points:
             pp, vp, _ = self._point_kinematics(points, jp, ep)
@@ -189,43 +209,50 @@ class KinematicLoopModel:
         n = self.tree.n_coordinates
         return np.column_stack([self.constraints(q, np.eye(n)[k], t)[1] for k in range(n)])
 
-    def _cut_body_force(self, points: dict, forces: np.ndarray) -> np.ndarray:
-        """Cut forces ``forces`` (n_cuts, 2) as body forces at the centres of mass with the moment of their
-        lever, shape (n_bodies, 3) (``points``: :meth:`PlanarModel.points`)."""
+    def _cut_loads(self, points: dict, forces: np.ndarray, inputs: ActuatorInputs | None = None) -> ActuatorInputs:
+        """Cut forces ``forces`` (n_cuts, 2) as actuator inputs of the tree, added to ``inputs``: on a rigid body a
+        force at the centre of mass with the moment of its lever; on a modal beam's end the frame wrench
+        ``(f_x, f_y, x_P f_y - y_P f_x)`` in the beam frame (``(x_P, y_P)``: the deformed end) and the modal
+        forces ``phi(x_e) f_y``, ``psi(x_e) f_x`` (its virtual work).  ``points``: :meth:`_points_at`."""
         m = self.tree
         body_force = np.zeros((m.n_bodies, 3))
+        modal = {j: np.array(v, dtype=float) for j, v in (inputs.modal_force if inputs else {}).items()}
+        frame = {j: np.array(v, dtype=float) for j, v in (inputs.frame_wrench if inputs else {}).items()}
         for k, ((jp, ep), (jc, ec)) in enumerate(self._points):
             for j, e, sign in ((jc, ec, 1.0), (jp, ep, -1.0)):
                 if j < 0:
                     continue
-                _, _, r = self._point_kinematics(points, j, e)
-                th = points["theta"][j]
-                com = np.array([np.cos(th) * m.com[j, 0] - np.sin(th) * m.com[j, 1],
-                                np.sin(th) * m.com[j, 0] + np.cos(th) * m.com[j, 1]])
                 f = sign * forces[k]
+                th = points["theta"][j]
+                c, s = np.cos(th), np.sin(th)
+                if not isinstance(e, np.ndarray):
+                    data = m.beams[j].data
+                    local, _ = m.beam_point_local(j, e, points["q"], points["qdot"])
+                    fx, fy = c * f[0] + s * f[1], -s * f[0] + c * f[1]
+                    frame[j] = frame.get(j, np.zeros(3)) + (fx, fy, local[0] * fy - local[1] * fx)
+                    shape = np.concatenate([data.end_phi[e] * fy, data.end_psi[e] * fx])
+                    modal[j] = modal.get(j, np.zeros(len(m.modal_index[j]))) + shape
+                    continue
+                _, _, r = self._point_kinematics(points, j, e)
+                com = np.array([c * m.com[j, 0] - s * m.com[j, 1], s * m.com[j, 0] + c * m.com[j, 1]])
                 arm = r - com
                 body_force[j] += (f[0], f[1], arm[0] * f[1] - arm[1] * f[0])
-        return body_force
+        if inputs is None:
+            return ActuatorInputs(np.zeros(m.n_bodies), body_force, modal, frame)
+        return ActuatorInputs(inputs.hinge_torque, inputs.body_force + body_force, modal, frame)
 
     def cut_inputs(self, q, qdot, t: float = 0.0, inputs: ActuatorInputs | None = None) -> ActuatorInputs:
         """The cut forces at ``(q, qdot, t)`` (:meth:`solve`) as actuator inputs of the tree, added to ``inputs``:
         with them the tree's own sweep (e.g. the Newton iterate of a DT-TMM scheme) moves as the closed loop."""
         q, qdot = self.tree.state(q, qdot)
         forces = self.solve(q, qdot, t, inputs)[1]
-        return self._with_inputs(self._cut_body_force(self.tree.points(q, qdot, t), forces), inputs)
-
-    def _with_inputs(self, body_force: np.ndarray, inputs: ActuatorInputs | None) -> ActuatorInputs:
-        if inputs is None:
-            return ActuatorInputs(np.zeros(self.tree.n_bodies), body_force)
-        return ActuatorInputs(inputs.hinge_torque, inputs.body_force + body_force, inputs.modal_force,
-                              inputs.frame_wrench)
+        return self._cut_loads(self._points_at(q, qdot, t), forces, inputs)
 
     def _solution(self, q, qdot, t, forces: np.ndarray, points: dict, inputs: ActuatorInputs | None = None):
         """Tree solution with cut forces ``forces`` (n_cuts, 2) and actuator ``inputs``: qddot and the cut
         points' relative accelerations (``points``: :meth:`PlanarModel.points` at ``(q, qdot, t)``)."""
         m = self.tree
-        body_force = self._cut_body_force(points, forces)
-        solution = solve_instant(m, q, qdot, t, self._with_inputs(body_force, inputs))
+        solution = solve_instant(m, q, qdot, t, self._cut_loads(points, forces, inputs))
         A = solution.body_acceleration
         relative = []
         for (jp, ep), (jc, ec) in self._points:
@@ -235,8 +262,16 @@ class KinematicLoopModel:
                     acc.append(np.zeros(2))
                     continue
                 _, _, r = self._point_kinematics(points, j, e)
-                om2, al = points["omega"][j] ** 2, A[j, 2]
-                acc.append(A[j, :2] + al * np.array([-r[1], r[0]]) - om2 * r)
+                om, al = points["omega"][j], A[j, 2]
+                acc.append(A[j, :2] + al * np.array([-r[1], r[0]]) - om * om * r)
+                if not isinstance(e, np.ndarray):       # a modal beam's end: Coriolis and deformation terms
+                    th = points["theta"][j]
+                    c, s = np.cos(th), np.sin(th)
+                    _, local_v = m.beam_point_local(j, e, q, qdot)
+                    _, local_a = m.beam_point_local(j, e, q, solution.qddot)     # linear in the rates
+                    v = np.array([c * local_v[0] - s * local_v[1], s * local_v[0] + c * local_v[1]])
+                    a = np.array([c * local_a[0] - s * local_a[1], s * local_a[0] + c * local_a[1]])
+                    acc[-1] = acc[-1] + 2.0 * om * np.array([-v[1], v[0]]) + a
             relative.append(acc[1] - acc[0])
         return solution.qddot, np.concatenate(relative)
 
@@ -245,7 +280,7 @@ class KinematicLoopModel:
         ``inputs`` (:func:`ctmm.planar.ports.actuator_inputs`) if given."""
         nc = len(self.cuts)
         zero = np.zeros((nc, 2))
-        points = self.tree.points(q, qdot, t)
+        points = self._points_at(q, qdot, t)
         qdd0, a0 = self._solution(q, qdot, t, zero, points, inputs)
         G = np.empty((2 * nc, 2 * nc))
         dqdd = np.empty((len(qdd0), 2 * nc))
