@@ -5,10 +5,9 @@ from .beams import (BeamClamped, BeamField, BeamFree, BeamHinge, BeamPinned, Bea
 from .boundary import Boundary, Elastic, Fixed, Free, PrescribedDisplacement, PrescribedForce
 from .inerter import Inerter
 from .lumped import Connector, Damper, GroundedSpring, Mass, PointElement, Spring, SpringDamper
-from .nonlinear_connector import NonlinearSpring
 
 __all__ = ["Element", "DiscreteElement", "Linearisation", "LumpedCoefficients", "Boundary", "Fixed", "Free", "Elastic",
            "PrescribedDisplacement", "PrescribedForce", "PointElement", "Mass", "GroundedSpring",
-           "Connector", "Spring", "Damper", "SpringDamper", "Inerter", "NonlinearSpring",
+           "Connector", "Spring", "Damper", "SpringDamper", "Inerter",
            "BeamField", "BeamPointMass", "BeamSpring", "BeamHinge", "BeamPointLoad",
            "BeamClamped", "BeamFree", "BeamPinned", "BeamSliding"]
