@@ -20,8 +20,9 @@ from .system import Chain
 __all__ = ["SystemContents", "describe", "require_chain", "require_planar", "refuse_loops", "refuse_damping"]
 
 _OTHER_PACKAGES = {
-    "ctmm.planar.closed_loops": "its own functions: ctmm.planar.closed_loops.simulate_kinematic_loops and the "
-                                "methods equilibrium, linearize, natural_frequencies (docs/closed_loops.md)",
+    "ctmm.planar.closed_loops": "the verbs ctmm.simulate, ctmm.linearize, ctmm.natural_frequencies, "
+                                "ctmm.eigenvalue_count, ctmm.frequency_response (no feedback loops or stability tools "
+                                "yet; docs/closed_loops.md)",
     "ctmm.planar": "the verbs that answer every model: ctmm.simulate, ctmm.linearize, ctmm.frequency_response, "
                    "ctmm.natural_frequencies, ctmm.mode_shapes (through the linearisation), ctmm.stability with "
                    "loops (ctmm.control.with_feedback)",

@@ -27,7 +27,8 @@ def rest_positions(system: Chain) -> np.ndarray:
     x[0] = getattr(system.start, "position", 0.0) if system.start.known == "displacement" else 0.0
     for j, e in enumerate(system.body, start=1):
         lumped = e.lumped_coefficients()
-        x[j] = x[j - 1] + (lumped.free_length if lumped is not None and lumped.connector else 0.0)
+        x[j] = x[j - 1] + (lumped.free_length if lumped is not None and lumped.connector else
+                           getattr(e, "free_length", 0.0) if not e.is_point else 0.0)
     return x
 
 
@@ -107,6 +108,8 @@ def _connector_forces(system: Chain, x: np.ndarray, v: np.ndarray,
             forces[j] = -lumped.stiffness * dx - lumped.damping * (v[j, 0] - v[j - 1, 0]) + across.get(j, 0.0)
             if lumped.mass and a is not None:
                 forces[j] -= lumped.mass * (a[j, 0] - a[j - 1, 0])
+        elif hasattr(e, "transmitted_force"):         # a connector with a law (NonlinearSpring)
+            forces[j] = e.transmitted_force(x[j, 0] - x[j - 1, 0], v[j, 0] - v[j - 1, 0], across.get(j, 0.0))
     return forces
 
 

@@ -82,6 +82,13 @@ def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],
     >>> np.allclose(frf("m.x", "m.force"), 1 / (100.0 - np.array([0.0, 25.0])))
     True
     """
+    if _is_kinematic_loop(system):
+        if solver != "riccati" or fields not in (None, "modal"):
+            raise ModelError(f"frequency_response: solver={solver!r} and fields={fields!r} are for chains and planar "
+                             "models; a kinematic loop model is answered through its linearisation (leave the defaults)")
+        from .planar.loop_verbs import frequency_response_loops
+
+        return frequency_response_loops(system, omega, input=input, output=output, operating_point=operating_point)
     if _is_spatial(system):
         if solver != "riccati" or fields not in (None, "modal"):
             raise ModelError(f"frequency_response: solver={solver!r} and fields={fields!r} are for chains and planar "
@@ -219,6 +226,12 @@ def _is_spatial(system: Any) -> bool:
     return spatial_frequency.is_spatial_system(system)
 
 
+def _is_kinematic_loop(system: Any) -> bool:
+    from .planar.closed_loops import KinematicLoopModel
+
+    return isinstance(system, KinematicLoopModel)
+
+
 def natural_frequencies(system: Any, **options: Any) -> np.ndarray:
     """Undamped natural frequencies [rad/s] of a chain, a planar or a spatial model.
 
@@ -230,6 +243,10 @@ def natural_frequencies(system: Any, **options: Any) -> np.ndarray:
     :func:`ctmm.spatial_frequency.natural_frequencies` (options ``n_modes``, ``omega_max``,
     ``operating_point``).  Damped systems and systems with loops are refused.
     """
+    if _is_kinematic_loop(system):
+        from .planar.loop_verbs import natural_frequencies_loops
+
+        return natural_frequencies_loops(system, **options)
     if is_planar_system(system):
         return planar_frequency.natural_frequencies(system, **options)
     if _is_spatial(system):
@@ -247,6 +264,10 @@ def eigenvalue_count(system: Any, omega: Any, **options: Any) -> np.ndarray:
     :func:`ctmm.planar_frequency.eigenvalue_count` (option ``operating_point``); spatial models:
     :func:`ctmm.spatial_frequency.eigenvalue_count`.
     """
+    if _is_kinematic_loop(system):
+        from .planar.loop_verbs import eigenvalue_count_loops
+
+        return eigenvalue_count_loops(system, omega, **options)
     if is_planar_system(system):
         return planar_frequency.eigenvalue_count(system, omega, **options)
     if _is_spatial(system):
@@ -261,6 +282,9 @@ def mode_shapes(system: Any, **options: Any):
     :func:`ctmm.planar_frequency.mode_shapes` (shapes in the generalised coordinates); spatial models:
     :func:`ctmm.spatial_frequency.mode_shapes` (shapes in the tangent coordinates).
     """
+    if _is_kinematic_loop(system):
+        raise ModelError(f"mode_shapes does not take the kinematic loop model {system.name!r} yet; use "
+                         "ctmm.natural_frequencies and ctmm.linearize (states z = N^T (q - q0), docs/closed_loops.md)")
     if is_planar_system(system):
         return planar_frequency.mode_shapes(system, **options)
     if _is_spatial(system):

@@ -123,6 +123,13 @@ def linearize(system: Any, operating_point: Any = None, *, inputs: str | Sequenc
     (['m_force'], ['m_x'], ())
     """
     validation.flag("allow_nonequilibrium", allow_nonequilibrium)
+    from .planar.closed_loops import KinematicLoopModel
+
+    if isinstance(system, KinematicLoopModel):       # on the constraint manifold (docs/closed_loops.md §3a)
+        from .planar.loop_verbs import linearize_loops
+
+        return linearize_loops(system, operating_point, inputs=inputs, outputs=outputs,
+                               allow_nonequilibrium=allow_nonequilibrium)
     plant = getattr(system, "plant", None)
     loops = tuple(getattr(system, "loops", ()))
     if isinstance(system, Chain) or (isinstance(plant, Chain) and hasattr(system, "loops")):

@@ -506,12 +506,12 @@ def node_inertia(tree: LumpedTree) -> np.ndarray:
     inertance = {}
     for j, entry in enumerate(tree.joints):
         if entry is not None and entry[1] is None:                  # a connector
-            b = entry[0].axial_coefficients().inertia
+            b = _inertance(entry[0])
             inertance[tree.node[j]] = inertance.get(tree.node[j], 0.0) + b
             if j > 0:
                 inertance[tree.node[j - 1]] = inertance.get(tree.node[j - 1], 0.0) + b
     if tree.cap[1] is None:
-        b = tree.cap[0].axial_coefficients().inertia
+        b = _inertance(tree.cap[0])
         inertance[tree.node[-1]] = inertance.get(tree.node[-1], 0.0) + b
     out = np.zeros(tree.n_nodes)
     for j, body in enumerate(tree.bodies):
@@ -520,6 +520,13 @@ def node_inertia(tree: LumpedTree) -> np.ndarray:
     for k, b in inertance.items():
         out[k] += b
     return out
+
+
+def _inertance(joint: Any) -> float:
+    """A connector's inertance [kg]: its ``inertance`` attribute where it states one (a connector with a
+    nonlinear law has no constant coefficients to read it from), else from its affine form."""
+    stated = getattr(joint, "inertance", None)
+    return float(stated) if stated is not None else joint.axial_coefficients().inertia
 
 
 def massless_nodes(tree: LumpedTree) -> np.ndarray:

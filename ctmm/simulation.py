@@ -39,6 +39,7 @@ from .control.planar_time import simulate_closed_loop
 from .control.protocol import Controller, check_controllers, check_references
 from .control.simulate import simulate_controlled
 from .errors import ModelError, SimulationError, unknown_name
+from .planar.closed_loops import KinematicLoopModel
 from .planar.guards import check_resolution
 from .planar.integrate import SCIPY_METHODS, PlanarSimulation, initial_coordinates, to_result
 from .planar.model import PlanarModel
@@ -325,6 +326,16 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
     if coupling != "hold" and not controllers:
         raise ModelError(f"coupling={coupling!r} only applies to co-simulated controllers, but controllers is "
                          f"empty; leave coupling at 'hold' (embedded loops are always solved implicitly)")
+    if isinstance(system, KinematicLoopModel):                      # cut joints: docs/closed_loops.md §7
+        from .planar.loop_verbs import simulate_loops
+
+        return simulate_loops(system, t_final, dt, method=_method(method, scheme, "rk4"), x0=x0, v0=v0,
+                              outputs=outputs, rtol=rtol, atol=atol, max_step=max_step, store_every=store_every,
+                              divergence_bound=divergence_bound, stability_check=stability_check,
+                              other_options={"inputs": inputs, "controllers": list(controllers),
+                                             "references": dict(references), "coupling": coupling, "solver": solver,
+                                             "fast": fast, "force_hook": force_hook, "progress": progress, "t0": t0,
+                                             "compiled": compiled})
     spatial = _model_parts(system, SpatialModel)
     if spatial is not None:
         return _simulate_spatial(spatial, t_final, dt, method=_method(method, scheme, "rk4"), x0=x0, v0=v0, t0=t0,

@@ -32,6 +32,7 @@ from .chain_ode import ChainDynamics
 from .massless_points import algebraic_point_rates, algebraic_points
 from .chain_start import initial_acceleration, initial_forces, initial_state, point_labels, rest_positions
 from .elements.beam_time import bending_mesh
+from .elements.nonlinear_connector import newton_step
 from .errors import ModelError, SimulationError
 from .guard import DivergenceGuard
 from .progress import progress_bar
@@ -388,6 +389,7 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
         states[0, :, d:2 * d] = motion[1] if mesh else initial_forces(system, x, v, extra0, a, t0)[:, None]
         done = 1
         kernel = _LumpedKernel(system) if fast else None
+        newton = [] if any(getattr(disc, "newton", False) for disc in discrete or ()) else None  # iterations
         cache: dict = {}
         for i in range(n_steps):
             t_n = times[i]
@@ -411,7 +413,8 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
                             across[pos - 1] += value
                     x_new, f_new = _fast_step(system, kernel, coeffs, load, t_eval, cache, across)
                 else:
-                    x_new, f_new = _generic_step(system, discrete, coeffs, t_n, dt, w, t_eval, extra, solver)
+                    solve = lambda: _generic_step(system, discrete, coeffs, t_n, dt, w, t_eval, extra, solver)  # noqa: E731
+                    x_new, f_new = newton_step(solve, discrete, coeffs, t_eval, newton) if newton is not None else solve()
             except np.linalg.LinAlgError as exc:
                 raise SimulationError(f"the step to t = {times[i + 1]:.6g} s is singular ({exc}): the chain "
                                       "equations have no unique solution at this step", time=float(times[i + 1]),
@@ -447,9 +450,14 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
     finally:
         bar.close()
     info = {"wall_time_s": _time.perf_counter() - started, "n_steps": n_steps, "dt": dt,
-            "path": "lumped-fast" if fast else f"generic-{solver}"}
+            "path": "lumped-fast" if fast else f"generic-{solver}", **_newton_info(newton)}
     return SimulationResult(times, states[:, rows], vel[:, rows], acc[:, rows], _system_for_result or original,
                             scheme.name, info)
+
+
+def _newton_info(iterations: list | None) -> dict:
+    return {"newton_iterations_max": max(iterations), "newton_iterations_mean": float(np.mean(iterations))} \
+        if iterations else {}
 
 
 def _start_state(system: Chain, x0, v0, t0: float) -> tuple[np.ndarray, np.ndarray, bool]:

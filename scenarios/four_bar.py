@@ -70,6 +70,54 @@ def reference(rocker_law: Law | None = None) -> PlanarDAE:
     return dae
 
 
+def flexible_mechanism(bending_stiffness: float, *, n_modes: int = 3, geometric_stiffening: bool = True
+                       ) -> KinematicLoopModel:
+    """The smooth linkage with the coupler a ``ModalBeam`` (``EI`` [N m^2], 1 kg over 0.6 m, ``n_modes``
+    clamped-free modes in its root-tangent frame, axially rigid), cut at its outboard end ``"out"``."""
+    from ctmm.flexible import ModalBeam
+
+    coupler = ModalBeam("coupler", length=COUPLER, bending_stiffness=bending_stiffness,
+                        mass_per_length=MASSES["coupler"] / COUPLER, n_modes=n_modes,
+                        geometric_stiffening=geometric_stiffening)
+    tree = PlanarModel("four_bar_flexible", [
+        Fixed("g", position=(0.0, 0.0)), Fixed("g4", position=(GROUND, 0.0)),
+        RigidBody.uniform_link("crank", mass=MASSES["crank"], length=CRANK), SmoothHinge("h1", parent="g", child="crank"),
+        coupler, SmoothHinge("h2", parent="crank", child="coupler"),
+        RigidBody.uniform_link("rocker", mass=MASSES["rocker"], length=ROCKER),
+        SmoothHinge("h4", parent="g4", child="rocker")], gravity=(0.0, -9.81))
+    return KinematicLoopModel(tree, [CutJoint("h3", parent="rocker.out", child="coupler.out")])
+
+
+def flexible_start(loop: KinematicLoopModel) -> tuple[np.ndarray, np.ndarray]:
+    """Crank at 90 deg with 3 rad/s, the coupler straight (modal coordinates and rates 0), the rest assembled."""
+    names = loop.tree.coordinates
+    modal = [name for name in names if name.startswith("coupler.q")]
+    q = [math.pi / 2 if n == "crank.theta" else 0.5 if n == "coupler.theta" else 1.8 if n == "rocker.theta" else 0.0
+         for n in names]
+    v = [3.0 if n == "crank.theta" else 0.0 for n in names]
+    return loop.consistent_state(q, v, keep=["crank.theta", *modal])
+
+
+def flexible_reference(bending_stiffness: float, n_segments: int) -> PlanarDAE:
+    """The flexible linkage as a global DAE: the coupler ``n_segments`` rigid segments (mass and inertia of their
+    share of the uniform bar) joined by revolute joints with rotational springs ``EI / h`` (finite segments)."""
+    dae = PlanarDAE(gravity=(0.0, -9.81))
+    for name in ("crank", "rocker"):
+        m, length = MASSES[name], LENGTHS[name]
+        dae.add_body(name, mass=m, inertia=m * length ** 2 / 12,
+                     points={"in": (-length / 2, 0.0), "out": (length / 2, 0.0)})
+    h, m = COUPLER / n_segments, MASSES["coupler"] / n_segments
+    for i in range(n_segments):
+        dae.add_body(f"s{i}", mass=m, inertia=m * h * h / 12, points={"in": (-h / 2, 0.0), "out": (h / 2, 0.0)})
+    dae.add_revolute(None, (0.0, 0.0), "crank", "in")
+    dae.add_revolute("crank", "out", "s0", "in")
+    for i in range(1, n_segments):
+        dae.add_revolute(f"s{i - 1}", "out", f"s{i}", "in", moment=lambda d, v: bending_stiffness / h * d)
+    dae.add_revolute(None, (GROUND, 0.0), "rocker", "in")
+    dae.add_revolute("rocker", "out", f"s{n_segments - 1}", "out")
+    return dae
+
+
 def start(loop: KinematicLoopModel) -> tuple[np.ndarray, np.ndarray]:
     """Crank at 90 deg with 3 rad/s; coupler and rocker assembled."""
     return loop.consistent_state([math.pi / 2, 0.5, 1.8], [3.0, 0.0, 0.0], keep=["crank.theta"])

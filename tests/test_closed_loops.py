@@ -137,8 +137,3 @@ def test_linearisation_on_the_constraint_manifold_matches_the_dae():
         loop.natural_frequencies(guess)
 
 
-def test_the_verbs_point_to_the_loop_functions():
-    import ctmm
-
-    with pytest.raises(ModelError, match="simulate_kinematic_loops"):
-        ctmm.simulate(four_bar(), 1.0, 1e-3)

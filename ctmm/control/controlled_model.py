@@ -26,6 +26,7 @@ from typing import Any
 
 from .. import validation
 from ..errors import ModelError, unknown_name
+from ..planar.closed_loops import KinematicLoopModel
 from ..planar.model import PlanarModel
 from ..spatial.model import SpatialModel
 from ..system import Chain
@@ -188,6 +189,10 @@ def with_feedback(plant: Any, loops: Sequence[Feedback]) -> ControlledChain | Co
         return ControlledChain(plant, loops)
     if is_plant_model(plant):
         return ControlledModel(plant, loops)
+    if isinstance(plant, KinematicLoopModel):
+        raise ModelError(f"with_feedback does not close feedback loops on the kinematic loop model {plant.name!r} yet "
+                         "(cut joints: docs/closed_loops.md §7); its open-loop verbs ctmm.simulate, ctmm.linearize "
+                         "(actuator inputs, sensor outputs) and ctmm.frequency_response answer it")
     if isinstance(plant, (ControlledChain, ControlledModel)):
         raise ModelError(f"plant {plant!r} already has loops; use plant.with_loops(...) to "
                          "replace them or build from the open-loop plant")

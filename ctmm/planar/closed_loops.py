@@ -24,8 +24,11 @@ integrator, by projection after every step onto ``Phi = 0`` and ``Phi' = 0`` (mi
 with the constraint Jacobian ``J = dPhi'/dqdot``, exact).  The drift is reported in the result
 (:attr:`KinematicLoopSimulation.drift`, ``.drift_rate``), with the cut forces.
 
-Not yet: cut points on modal beams (a flexible coupler), cut joints with laws, implicit DT-TMM schemes
-and the frequency verbs for closed loops (each refused by name).
+The library verbs (``ctmm.simulate`` with every method, ``ctmm.linearize``, ``ctmm.natural_frequencies``,
+``ctmm.frequency_response``) call this model's functions (:mod:`ctmm.planar.loop_verbs`).  Not yet: cut joints
+with laws, feedback loops on a kinematic loop model (each refused by name).  Cut points may be ends of a
+``ctmm.flexible.ModalBeam`` (a flexible coupler): the cut force enters the beam's frame wrench and modal
+equations as its virtual work (``docs/closed_loops.md`` §4a).
 """
 from __future__ import annotations
 
@@ -55,7 +58,7 @@ class CutJoint:
     name : str
         Joint name.
     parent : str
-        ``"body.end"`` (an end of a rigid body, :attr:`RigidBody.outboard`) or the name of a
+        ``"body.end"`` (an end of a rigid body, :attr:`RigidBody.outboard`, or of a ``ModalBeam``) or the name of a
         :class:`~ctmm.planar.elements.Fixed` ground point of the tree model.
     child : str
         ``"body.end"``.
@@ -142,8 +145,9 @@ class KinematicLoopModel:
                         for cut in cuts]
         self.name = tree.name
 
-    def _resolve(self, cut: CutJoint, label: str, grounds: Mapping[str, Fixed]) -> tuple[int, np.ndarray]:
-        """``(body index or -1 for ground, body-frame vector from the inboard end or ground position)``."""
+    def _resolve(self, cut: CutJoint, label: str, grounds: Mapping[str, Fixed]) -> tuple[int, np.ndarray | int]:
+        """``(body index or -1 for ground, body-frame vector from the inboard end or ground position)``; on a modal
+        beam ``(body index, end index)``."""
         m = self.tree
         if label in grounds:
             return -1, np.asarray(grounds[label].position, float)
@@ -153,26 +157,44 @@ class KinematicLoopModel:
                              f"{', '.join(m.body_names)}; grounds: {', '.join(grounds) or 'none'})")
         j = m.body_names.index(body)
         if j in m.beams:
-            raise ModelError(f"cut joint {cut.name!r}: {label!r} is on the modal beam {body!r}; cut points on "
-                             "flexible bodies are not supported yet (cut at a rigid body)")
+            data = m.beams[j].data
+            if hasattr(data, "point_local") or not hasattr(data, "end_names"):
+                raise ModelError(f"cut joint {cut.name!r}: {label!r} is on {body!r}, a deformable body without modal "
+                                 "end shapes (a ctmm.fem subsystem); cut points on deformable bodies must be ends of "
+                                 "a ctmm.flexible.ModalBeam")
+            if end not in data.end_names:
+                raise ModelError(f"cut joint {cut.name!r}: beam {body!r} has no end {end!r}; ends: "
+                                 f"{', '.join(data.end_names) or '(none)'} (ModalBeam(outboard=...))")
+            return j, list(data.end_names).index(end)
         if end not in m.ends[j]:
             raise ModelError(f"cut joint {cut.name!r}: body {body!r} has no end {end!r}; ends: "
                              f"{', '.join(m.ends[j]) or '(none)'}")
         return j, np.asarray(m.ends[j][end], float)
 
     # ------------------------------------------------------------------------------------------------
-    def _point_kinematics(self, points: dict, j: int, e: np.ndarray):
-        """Position, velocity, lever ``r`` (from the inboard end, global) and centre lever of a point."""
+    def _point_kinematics(self, points: dict, j: int, e: np.ndarray | int):
+        """Position, velocity and lever ``r`` (from the inboard end, global) of a point (:meth:`_resolve`;
+        ``points``: :meth:`_points_at`)."""
         if j < 0:
             return e, np.zeros(2), None
         th, om = points["theta"][j], points["omega"][j]
         c, s = np.cos(th), np.sin(th)
+        velocity = np.zeros(2)
+        if not isinstance(e, np.ndarray):               # end ``e`` of a modal beam: deformed, moving in the frame
+            e, local = self.tree.beam_point_local(j, e, points["q"], points["qdot"])
+            velocity = np.array([c * local[0] - s * local[1], s * local[0] + c * local[1]])
         r = np.array([c * e[0] - s * e[1], s * e[0] + c * e[1]])
-        return points["inboard"][j] + r, points["inboard_velocity"][j] + om * np.array([-r[1], r[0]]), r
+        return points["inboard"][j] + r, points["inboard_velocity"][j] + om * np.array([-r[1], r[0]]) + velocity, r
+
+    def _points_at(self, q, qdot, t: float) -> dict:
+        """:meth:`PlanarModel.points` with the state itself (``"q"``, ``"qdot"``: the modal ends read it)."""
+        points = self.tree.points(q, qdot, t)
+        points["q"], points["qdot"] = q, qdot
+        return points
 
     def constraints(self, q, qdot, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """``Phi`` (child point minus parent point [m]) and ``Phi'`` [m/s] of every cut, stacked (2 n_cuts,)."""
-        points = self.tree.points(q, qdot, t)
+        points = self._points_at(q, qdot, t)
         phi, rate = [], []
         for (jp, ep), (jc, ec) in self._points:
             pp, vp, _ = self._point_kinematics(points, jp, ep)
@@ -187,51 +209,85 @@ class KinematicLoopModel:
         n = self.tree.n_coordinates
         return np.column_stack([self.constraints(q, np.eye(n)[k], t)[1] for k in range(n)])
 
-    def _solution(self, q, qdot, t, forces: np.ndarray, points: dict):
-        """Tree solution with cut forces ``forces`` (n_cuts, 2): qddot and point accelerations
-        (``points``: :meth:`PlanarModel.points` at ``(q, qdot, t)``)."""
+    def _cut_loads(self, points: dict, forces: np.ndarray, inputs: ActuatorInputs | None = None) -> ActuatorInputs:
+        """Cut forces ``forces`` (n_cuts, 2) as actuator inputs of the tree, added to ``inputs``: on a rigid body a
+        force at the centre of mass with the moment of its lever; on a modal beam's end the frame wrench
+        ``(f_x, f_y, x_P f_y - y_P f_x)`` in the beam frame (``(x_P, y_P)``: the deformed end) and the modal
+        forces ``phi(x_e) f_y``, ``psi(x_e) f_x`` (its virtual work).  ``points``: :meth:`_points_at`."""
         m = self.tree
         body_force = np.zeros((m.n_bodies, 3))
-        levers = []
+        modal = {j: np.array(v, dtype=float) for j, v in (inputs.modal_force if inputs else {}).items()}
+        frame = {j: np.array(v, dtype=float) for j, v in (inputs.frame_wrench if inputs else {}).items()}
         for k, ((jp, ep), (jc, ec)) in enumerate(self._points):
             for j, e, sign in ((jc, ec, 1.0), (jp, ep, -1.0)):
                 if j < 0:
                     continue
-                _, _, r = self._point_kinematics(points, j, e)
-                th = points["theta"][j]
-                com = np.array([np.cos(th) * m.com[j, 0] - np.sin(th) * m.com[j, 1],
-                                np.sin(th) * m.com[j, 0] + np.cos(th) * m.com[j, 1]])
                 f = sign * forces[k]
+                th = points["theta"][j]
+                c, s = np.cos(th), np.sin(th)
+                if not isinstance(e, np.ndarray):
+                    data = m.beams[j].data
+                    local, _ = m.beam_point_local(j, e, points["q"], points["qdot"])
+                    fx, fy = c * f[0] + s * f[1], -s * f[0] + c * f[1]
+                    frame[j] = frame.get(j, np.zeros(3)) + (fx, fy, local[0] * fy - local[1] * fx)
+                    shape = np.concatenate([data.end_phi[e] * fy, data.end_psi[e] * fx])
+                    modal[j] = modal.get(j, np.zeros(len(m.modal_index[j]))) + shape
+                    continue
+                _, _, r = self._point_kinematics(points, j, e)
+                com = np.array([c * m.com[j, 0] - s * m.com[j, 1], s * m.com[j, 0] + c * m.com[j, 1]])
                 arm = r - com
                 body_force[j] += (f[0], f[1], arm[0] * f[1] - arm[1] * f[0])
-            levers.append(((jp, ep), (jc, ec)))
-        solution = solve_instant(m, q, qdot, t, ActuatorInputs(np.zeros(m.n_bodies), body_force))
+        if inputs is None:
+            return ActuatorInputs(np.zeros(m.n_bodies), body_force, modal, frame)
+        return ActuatorInputs(inputs.hinge_torque, inputs.body_force + body_force, modal, frame)
+
+    def cut_inputs(self, q, qdot, t: float = 0.0, inputs: ActuatorInputs | None = None) -> ActuatorInputs:
+        """The cut forces at ``(q, qdot, t)`` (:meth:`solve`) as actuator inputs of the tree, added to ``inputs``:
+        with them the tree's own sweep (e.g. the Newton iterate of a DT-TMM scheme) moves as the closed loop."""
+        q, qdot = self.tree.state(q, qdot)
+        forces = self.solve(q, qdot, t, inputs)[1]
+        return self._cut_loads(self._points_at(q, qdot, t), forces, inputs)
+
+    def _solution(self, q, qdot, t, forces: np.ndarray, points: dict, inputs: ActuatorInputs | None = None):
+        """Tree solution with cut forces ``forces`` (n_cuts, 2) and actuator ``inputs``: qddot and the cut
+        points' relative accelerations (``points``: :meth:`PlanarModel.points` at ``(q, qdot, t)``)."""
+        m = self.tree
+        solution = solve_instant(m, q, qdot, t, self._cut_loads(points, forces, inputs))
         A = solution.body_acceleration
         relative = []
-        for (jp, ep), (jc, ec) in levers:
+        for (jp, ep), (jc, ec) in self._points:
             acc = []
             for j, e in ((jp, ep), (jc, ec)):
                 if j < 0:
                     acc.append(np.zeros(2))
                     continue
                 _, _, r = self._point_kinematics(points, j, e)
-                om2, al = points["omega"][j] ** 2, A[j, 2]
-                acc.append(A[j, :2] + al * np.array([-r[1], r[0]]) - om2 * r)
+                om, al = points["omega"][j], A[j, 2]
+                acc.append(A[j, :2] + al * np.array([-r[1], r[0]]) - om * om * r)
+                if not isinstance(e, np.ndarray):       # a modal beam's end: Coriolis and deformation terms
+                    th = points["theta"][j]
+                    c, s = np.cos(th), np.sin(th)
+                    _, local_v = m.beam_point_local(j, e, q, qdot)
+                    _, local_a = m.beam_point_local(j, e, q, solution.qddot)     # linear in the rates
+                    v = np.array([c * local_v[0] - s * local_v[1], s * local_v[0] + c * local_v[1]])
+                    a = np.array([c * local_a[0] - s * local_a[1], s * local_a[0] + c * local_a[1]])
+                    acc[-1] = acc[-1] + 2.0 * om * np.array([-v[1], v[0]]) + a
             relative.append(acc[1] - acc[0])
         return solution.qddot, np.concatenate(relative)
 
-    def solve(self, q, qdot, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-        """``(qddot, cut forces (n_cuts, 2))`` at ``(q, qdot, t)`` (module docstring)."""
+    def solve(self, q, qdot, t: float = 0.0, inputs: ActuatorInputs | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """``(qddot, cut forces (n_cuts, 2))`` at ``(q, qdot, t)`` (module docstring), with the tree's actuator
+        ``inputs`` (:func:`ctmm.planar.ports.actuator_inputs`) if given."""
         nc = len(self.cuts)
         zero = np.zeros((nc, 2))
-        points = self.tree.points(q, qdot, t)
-        qdd0, a0 = self._solution(q, qdot, t, zero, points)
+        points = self._points_at(q, qdot, t)
+        qdd0, a0 = self._solution(q, qdot, t, zero, points, inputs)
         G = np.empty((2 * nc, 2 * nc))
         dqdd = np.empty((len(qdd0), 2 * nc))
         for k in range(2 * nc):
             unit = zero.copy().reshape(-1)
             unit[k] = 1.0
-            qdd_k, a_k = self._solution(q, qdot, t, unit.reshape(nc, 2), points)
+            qdd_k, a_k = self._solution(q, qdot, t, unit.reshape(nc, 2), points, inputs)
             G[:, k], dqdd[:, k] = a_k - a0, qdd_k - qdd0
         phi, phi_dot = self.constraints(q, qdot, t)
         alpha = self.baumgarte
@@ -278,10 +334,11 @@ class KinematicLoopModel:
         return q, qdot - np.linalg.lstsq(J, J @ qdot, rcond=None)[0]
 
     # -- linearisation on the constraint manifold ---------------------------------------------------
-    def _chart(self, q0: np.ndarray, basis: np.ndarray, normal: np.ndarray, z: np.ndarray, zdot: np.ndarray,
-               t: float) -> tuple[np.ndarray, np.ndarray]:
+    def chart(self, q0: np.ndarray, basis: np.ndarray, normal: np.ndarray, z: np.ndarray, zdot: np.ndarray,
+              t: float) -> tuple[np.ndarray, np.ndarray]:
         """The state on the constraints with independent coordinates ``z = N^T (q - q0)`` and rates ``zdot``:
-        ``q = q0 + N z + J0^T y``, ``qdot = N zdot + J0^T w`` with ``y``, ``w`` from ``Phi = 0``, ``J qdot = 0``."""
+        ``q = q0 + N z + J0^T y``, ``qdot = N zdot + J0^T w`` with ``y``, ``w`` from ``Phi = 0``, ``J qdot = 0``
+        (``basis``: ``N``, the null space of ``J0 = J(q0)``; ``normal``: ``J0^T``; angles [rad], rates [rad/s])."""
         q = q0 + basis @ z
         for _ in range(30):
             phi, _ = self.constraints(q, np.zeros_like(q), t)
@@ -310,7 +367,7 @@ class KinematicLoopModel:
             raise ModelError(f"kinematic loop {self.name!r}: no degree of freedom is left by the cut joints")
 
         def rates(x: np.ndarray) -> np.ndarray:
-            q, qdot = self._chart(q0, basis, normal, x[:f], x[f:], t)
+            q, qdot = self.chart(q0, basis, normal, x[:f], x[f:], t)
             return basis.T @ self.solve(q, qdot, t)[0]
 
         columns = []
@@ -351,7 +408,7 @@ class KinematicLoopModel:
             residual = basis.T @ self.solve(q, np.zeros(n), t)[0]
             if np.max(np.abs(residual)) < tolerance:
                 return q
-            q, _ = self._chart(q, basis, self.jacobian(q, t).T, -np.linalg.solve(A[f:, :f], residual),
+            q, _ = self.chart(q, basis, self.jacobian(q, t).T, -np.linalg.solve(A[f:, :f], residual),
                                np.zeros(f), t)
         raise ModelError(f"kinematic loop {self.name!r}: no equilibrium found near the guess (residual "
                          f"{np.max(np.abs(residual)):.3e} after 40 Newton steps)")
@@ -359,7 +416,8 @@ class KinematicLoopModel:
 
 def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: float, dt: float | None = None,
                          method: str = "rk4", projection: bool = True, rtol: float = 1e-9, atol: float = 1e-11,
-                         store_every: int = 1) -> KinematicLoopSimulation:
+                         store_every: int = 1, t_eval: np.ndarray | None = None,
+                         max_step: float | None = None) -> KinematicLoopSimulation:
     """Integrate a closed-loop model from a consistent state (:meth:`KinematicLoopModel.consistent_state`).
 
     Parameters
@@ -380,6 +438,10 @@ def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: f
         ``solve_ivp`` tolerances.
     store_every : int
         Store every k-th RK4 step.
+    t_eval : ndarray, optional
+        ``solve_ivp`` methods: the times [s] to store (default: every accepted step).
+    max_step : float, optional
+        ``solve_ivp`` methods: the largest step [s] (default ``dt``, else no limit).
 
     Raises
     ------
@@ -434,7 +496,8 @@ def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: f
     else:
         validation.option("method", method, ("rk4", "RK45", "RK23", "DOP853", "Radau", "BDF", "LSODA"))
         sol = scipy.integrate.solve_ivp(rate, (0.0, t_final), np.concatenate([q, v]), method=method, rtol=rtol,
-                                        atol=atol, max_step=np.inf if dt is None else dt)
+                                        atol=atol, t_eval=t_eval,
+                                        max_step=max_step if max_step is not None else (np.inf if dt is None else dt))
         if not sol.success:
             raise SimulationError(f"kinematic loop {model.name!r}: solve_ivp failed: {sol.message}",
                                   time=float(sol.t[-1]), element=model.cuts[0].name)

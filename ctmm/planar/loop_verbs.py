@@ -1,0 +1,347 @@
+"""The library verbs on closed kinematic loops (:class:`~ctmm.planar.closed_loops.KinematicLoopModel`).
+
+:func:`ctmm.simulate`, :func:`ctmm.linearize`, :func:`ctmm.natural_frequencies`,
+:func:`ctmm.eigenvalue_count` and :func:`ctmm.frequency_response` hand a kinematic loop model to the
+functions of this module, which call the model's own mechanism (the cut forces as boundary unknowns,
+``docs/closed_loops.md`` §2):
+
+* time: ``"rk4"`` (fixed step, projection onto the constraints after every step) and the ``solve_ivp``
+  methods (Baumgarte only) through :func:`~ctmm.planar.closed_loops.simulate_kinematic_loops`; every
+  DT-TMM scheme through the tree's implicit stepper (:func:`ctmm.planar.implicit.simulate_implicit`)
+  with the cut forces re-solved from the boundary compliance at every Newton iterate
+  (:meth:`KinematicLoopModel.cut_inputs`; their state dependence enters the Newton tangent by
+  directional differences), Baumgarte only.  Every result holds the tree coordinates and rates, the
+  cut forces ``"<cut>.force_x"``, ``"<cut>.force_y"`` [N] (on the child point, global axes) and the
+  constraint drift ``"drift"`` [m] and ``"drift_rate"`` [m/s].
+* frequency: the linearisation on the constraint manifold (:meth:`KinematicLoopModel.linearize`) in
+  the independent coordinates ``z = N^T (q - q0)`` (states ``"z1"``, ..., ``"z1_dot"``, ...; ``N`` the
+  orthonormal null space of the constraint Jacobian at ``q0``), with the tree's actuators as inputs and
+  its sensors and the cut forces as outputs.
+
+Feedback loops on a kinematic loop model are refused by :func:`ctmm.control.with_feedback`.
+"""
+from __future__ import annotations
+
+import time
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from .. import validation
+from ..errors import ModelError, unknown_name
+from ..linearized import LinearizedSystem, OperatingPoint, control_name
+from ..results import FrequencyResponse, SimulationResult
+from ..schemes import SCHEMES, Scheme, as_scheme
+from ..signal_results import SignalSystem, signal_result
+from .closed_loops import KinematicLoopModel, KinematicLoopSimulation, simulate_kinematic_loops
+from .equilibrium import hanging_configuration
+from .integrate import SCIPY_METHODS, model_signals
+from .ports import PlanarPorts, actuator_names
+
+__all__ = ["simulate_loops", "linearize_loops", "natural_frequencies_loops", "eigenvalue_count_loops",
+           "frequency_response_loops", "cut_signal_names"]
+
+_DEFAULTS: dict[str, Any] = {"inputs": None, "controllers": [], "references": {}, "coupling": "hold",
+                             "solver": "riccati", "fast": None, "force_hook": None, "progress": None, "t0": 0.0,
+                             "compiled": None}
+_STEP = 1e-5            # central-difference step of the output rows [rad, rad/s]
+
+
+def cut_signal_names(model: KinematicLoopModel) -> tuple[str, ...]:
+    """``"<cut>.force_x"``, ``"<cut>.force_y"`` of every cut joint (force on the child point, global axes [N])."""
+    return tuple(f"{cut.name}.force_{axis}" for cut in model.cuts for axis in "xy")
+
+
+def _state(model: KinematicLoopModel, label: str, value: Any) -> np.ndarray:
+    """``x0``/``v0``: a mapping by tree coordinate name (others 0) or an array ordered as the tree's coordinates."""
+    tree = model.tree
+    if value is None:
+        return np.zeros(tree.n_coordinates)
+    if isinstance(value, Mapping):
+        out = np.zeros(tree.n_coordinates)
+        for key, number in value.items():
+            if key not in tree.coordinates:
+                raise unknown_name(f"coordinate of {label}", key, list(tree.coordinates))
+            out[tree.coordinate_index(key)] = validation.finite(f"{label}[{key!r}]", number)
+        return out
+    return np.array(tree.state(value, np.zeros(tree.n_coordinates))[0], dtype=float)
+
+
+def _history_result(model: KinematicLoopModel, run: KinematicLoopSimulation, outputs: Sequence[str],
+                    info: dict) -> SimulationResult:
+    signals, units = model_signals(model.tree, run.t, run.q, run.qdot, outputs)
+    for k, cut in enumerate(model.cuts):
+        for axis, column in (("x", 0), ("y", 1)):
+            signals[f"{cut.name}.force_{axis}"] = run.cut_force[:, k, column]
+            units[f"{cut.name}.force_{axis}"] = "N"
+    signals["drift"], units["drift"] = run.drift, "m"
+    signals["drift_rate"], units["drift_rate"] = run.drift_rate, "m/s"
+    details = {"method": run.method, "wall_time_s": float(run.wall_time_s), "n_evaluations": int(run.n_evaluations),
+               "baumgarte": model.baumgarte, "max_drift_m": float(np.max(run.drift))}
+    details.update(info)
+    return signal_result(SignalSystem(model, units), run.t, signals, run.method, details)
+
+
+def simulate_loops(model: KinematicLoopModel, t_final: float, dt: float | None, *, method: Any, x0: Any, v0: Any,
+                   outputs: Sequence[str], rtol: float, atol: float, max_step: float | None, store_every: int,
+                   divergence_bound: float | None, stability_check: str | None,
+                   other_options: Mapping[str, Any] | None = None) -> SimulationResult:
+    """:func:`ctmm.simulate` of a kinematic loop model (module docstring).
+
+    Parameters
+    ----------
+    model : KinematicLoopModel
+    t_final, dt : float
+        End time and step [s] (``dt``: the output grid of a ``solve_ivp`` method).
+    method : str or Scheme
+        ``"rk4"``, a ``solve_ivp`` method or a DT-TMM scheme.
+    x0, v0 : mapping or array
+        A consistent initial state of the tree coordinates (:meth:`KinematicLoopModel.consistent_state`);
+        checked against the cut joints (``|Phi| <= 1e-8`` m, ``|Phi'| <= 1e-8`` m/s).
+    outputs : sequence of str
+        Sensor names of the tree (:mod:`ctmm.planar.ports`) to store.
+    rtol, atol, max_step, store_every, divergence_bound, stability_check
+        As for :func:`ctmm.simulate`; ``divergence_bound`` and ``stability_check`` apply to the DT-TMM schemes.
+    other_options : mapping, optional
+        The other options of :func:`ctmm.simulate` as given (``inputs``, ``controllers``, ``references``,
+        ``coupling``, ``solver``, ``fast``, ``force_hook``, ``progress``, ``t0``, ``compiled``): each must be at
+        its default (refused by name otherwise: a kinematic loop model takes no actuator inputs or controllers yet).
+
+    Returns
+    -------
+    SimulationResult
+        Coordinates, rates, outputs, cut forces [N], ``drift`` [m], ``drift_rate`` [m/s].
+    """
+    for name, value in (other_options or {}).items():
+        default = _DEFAULTS[name]
+        if value is not default and value != default:
+            raise ModelError(f"{name}={value!r} is not available for a kinematic loop model {model.name!r} (no actuator "
+                             f"inputs, controllers or compiled runs through cut joints yet; runs start at t = 0); "
+                             f"leave {name} at {default!r}")
+    tree = model.tree
+    if isinstance(outputs, (str, Mapping)) or not isinstance(outputs, (list, tuple)):
+        raise ModelError(f"outputs must be a list or tuple of sensor names (str), got {outputs!r}")
+    ports = PlanarPorts(tree)
+    for name in outputs:
+        ports.check_sensor(name, "output (sensor)")
+    q0, v0 = _state(model, "x0", x0), _state(model, "v0", v0)
+    phi, phi_dot = model.constraints(q0, v0)
+    if np.max(np.abs(phi)) > 1e-8 or np.max(np.abs(phi_dot)) > 1e-8:
+        raise ModelError(f"x0, v0 violate the cut joints of {model.name!r} (|Phi| = {np.max(np.abs(phi)):.3e} m, "
+                         f"|Phi'| = {np.max(np.abs(phi_dot)):.3e} m/s; allowed <= 1e-8): start from "
+                         "KinematicLoopModel.consistent_state(q, qdot, keep=[...])")
+    store_every = validation.integer("store_every", store_every, minimum=1)
+    t_final = validation.positive("t_final", t_final)
+    if isinstance(method, Scheme) or method in SCHEMES:
+        for name, (value, default) in {"rtol": (rtol, 1e-8), "atol": (atol, 1e-10), "max_step": (max_step, None)
+                                       }.items():
+            if value != default:
+                raise ModelError(f"{name}={value!r} applies to solve_ivp methods, not to the DT-TMM scheme {method!r}")
+        if dt is None:
+            raise ModelError(f"dt is required with the DT-TMM scheme {method!r} (a fixed step [s], > 0), got None")
+        from .implicit import simulate_implicit
+
+        policy = "warn" if stability_check is None else validation.option("stability_check", stability_check,
+                                                                           ("warn", "error", "ignore"))
+        started = time.perf_counter()
+        implicit = simulate_implicit(tree, q0, v0, t_final=t_final, dt=dt, scheme=as_scheme(method),
+                                     store_every=store_every, divergence_bound=divergence_bound,
+                                     stability_check=policy, inputs=lambda t, q, v: model.cut_inputs(q, v, t))
+        wall = time.perf_counter() - started
+        forces, drift, rate = [], [], []
+        for t, q, v in zip(implicit.t, implicit.q, implicit.qdot):
+            phi, phi_dot = model.constraints(q, v, t)
+            drift.append(np.max(np.abs(phi)))
+            rate.append(np.max(np.abs(phi_dot)))
+            forces.append(model.solve(q, v, t)[1])
+        run = KinematicLoopSimulation(model, implicit.t, implicit.q, implicit.qdot, np.array(forces), np.array(drift),
+                                      np.array(rate), implicit.method, wall, implicit.n_evaluations)
+        info = {"dt": dt, "projection": False}
+        if implicit.iterations is not None and len(implicit.iterations):
+            info["newton_iterations_mean"] = float(np.mean(implicit.iterations))
+            info["newton_iterations_max"] = int(np.max(implicit.iterations))
+        return _history_result(model, run, outputs, info)
+    for name, value in (("divergence_bound", divergence_bound), ("stability_check", stability_check)):
+        if value is not None:
+            raise ModelError(f"{name}={value!r} applies to the DT-TMM schemes on a kinematic loop model, not to "
+                             f"method={method!r} (its drift is reported instead); leave {name} at None")
+    if method == "rk4":
+        for name, (value, default) in {"rtol": (rtol, 1e-8), "atol": (atol, 1e-10), "max_step": (max_step, None)
+                                       }.items():
+            if value != default:
+                raise ModelError(f"{name}={value!r} applies to solve_ivp methods {SCIPY_METHODS}, not to 'rk4'")
+        if dt is None:
+            raise ModelError("dt is required with method='rk4' (a fixed step [s], > 0), got None")
+        run = simulate_kinematic_loops(model, q0, v0, t_final=t_final, dt=dt, method="rk4", store_every=store_every)
+        return _history_result(model, run, outputs, {"dt": dt, "projection": True})
+    if method not in SCIPY_METHODS:
+        raise ModelError(f"method must be 'rk4', a solve_ivp method {SCIPY_METHODS} or a DT-TMM scheme "
+                         f"{tuple(sorted(SCHEMES))}, got {method!r}")
+    if store_every != 1:
+        raise ModelError(f"store_every={store_every!r} applies to fixed-step methods; with {method!r} give dt to "
+                         "store the result on the grid k dt")
+    grid = None
+    if dt is not None:
+        h = validation.positive("dt", dt)
+        grid = np.linspace(0.0, t_final, max(1, int(round(t_final / h))) + 1)
+    run = simulate_kinematic_loops(model, q0, v0, t_final=t_final, method=method, rtol=rtol, atol=atol, t_eval=grid,
+                                   max_step=np.inf if max_step is None else validation.positive("max_step", max_step))
+    return _history_result(model, run, outputs, {"dt": dt, "projection": False})
+
+
+def _operating_q(model: KinematicLoopModel, operating_point: Any) -> tuple[np.ndarray, float]:
+    """Tree coordinates of the operating point (at rest) and its time; ``None``: the static equilibrium
+    reached by Newton (:meth:`KinematicLoopModel.equilibrium`) from the tree's hanging configuration
+    assembled onto the cut joints."""
+    tree = model.tree
+    n = tree.n_coordinates
+    if operating_point is None:
+        guess = np.asarray(hanging_configuration(tree), dtype=float)
+        try:
+            guess, _ = model.consistent_state(guess, np.zeros(n))
+            return model.equilibrium(guess), 0.0
+        except ModelError as exc:
+            raise ModelError(f"no static equilibrium of {model.name!r} found from the hanging configuration ({exc}); "
+                             "give operating_point=(q, qdot) (e.g. KinematicLoopModel.equilibrium(q_guess), rates 0)"
+                             ) from None
+    t = 0.0
+    if isinstance(operating_point, OperatingPoint):
+        q, qdot, t = operating_point.q, operating_point.qdot, operating_point.t
+    elif isinstance(operating_point, Mapping) and "q" in operating_point:
+        q, qdot, t = operating_point["q"], operating_point.get("qdot", np.zeros(n)), operating_point.get("t", 0.0)
+    elif isinstance(operating_point, Mapping):
+        q, qdot = _state(model, "operating_point", operating_point), np.zeros(n)
+    elif isinstance(operating_point, (tuple, list)) and len(operating_point) == 2:
+        q, qdot = operating_point
+    else:
+        raise ModelError(f"operating_point must be None, (q, qdot), {{'q': ..., 'qdot': ..., 't': ...}} or a mapping "
+                         f"of coordinate names, got {operating_point!r}")
+    q, qdot = tree.state(q, qdot)
+    if np.max(np.abs(qdot), initial=0.0) > 0.0:
+        raise ModelError(f"operating_point of {model.name!r}: the rates must be zero (a kinematic loop is linearised "
+                         f"about a resting state), got qdot={np.asarray(qdot).tolist()}")
+    return np.array(q, dtype=float), validation.finite("operating_point t", t)
+
+
+def linearize_loops(model: KinematicLoopModel, operating_point: Any = None, *, inputs: Any = None, outputs: Any = None,
+                    allow_nonequilibrium: bool = False) -> LinearizedSystem:
+    """:func:`ctmm.linearize` of a kinematic loop model: the tangent on the constraint manifold.
+
+    Parameters
+    ----------
+    model : KinematicLoopModel
+    operating_point : None, (q, qdot), mapping or OperatingPoint
+        A resting state (rates zero), projected onto the cut joints; ``None``: the static equilibrium
+        (:func:`_operating_q`).
+    inputs : str or sequence of str, optional
+        Actuators of the tree (:func:`ctmm.planar.ports.actuator_names`; default: all of them).
+    outputs : str or sequence of str, optional
+        Sensors of the tree and the cut forces ``"<cut>.force_x|y"`` [N] (default: the tree coordinates).
+    allow_nonequilibrium : bool
+        Accept a resting state that is not an equilibrium (the constant term is then dropped).
+
+    Returns
+    -------
+    LinearizedSystem
+        States ``z1..zf`` [rad] and ``z1_dot..zf_dot`` (``z = N^T (q - q0)``); no delays.
+    """
+    validation.flag("allow_nonequilibrium", allow_nonequilibrium)
+    import control
+
+    tree = model.tree
+    ports = PlanarPorts(tree)
+    q_rest, t = _operating_q(model, operating_point)
+    input_names = list(actuator_names(tree)) if inputs is None else list(validation.names("input", inputs))
+    output_names = list(tree.coordinates) if outputs is None else list(validation.names("output", outputs))
+    for name in input_names:
+        ports.check_actuator(name, "input (actuator)")
+    forces = cut_signal_names(model)
+    sensor_names = [name for name in output_names if name not in forces]
+    sensors = ports.resolve([ports.check_sensor(name, "output (sensor)") for name in sensor_names])
+    A, basis, q0 = model.linearize(q_rest, t)
+    A_coarse, _, _ = model.linearize(q0, t, step=2e-5)
+    jacobian_error = float(np.max(np.abs(A - A_coarse)) / max(np.max(np.abs(A)), 1e-300))
+    n, f = tree.n_coordinates, basis.shape[1]
+    rest = np.zeros(n)
+    qdd0, lam0 = model.solve(q0, rest, t)
+    equilibrium = bool(np.max(np.abs(qdd0), initial=0.0) <= 1e-8)
+    if not equilibrium and not allow_nonequilibrium:
+        raise ModelError(f"linearize: the operating point of {model.name!r} is not an equilibrium (largest "
+                         f"acceleration {np.max(np.abs(qdd0)):.3e}); give operating_point=None (the static "
+                         "equilibrium) or allow_nonequilibrium=True")
+    normal = model.jacobian(q0, t).T
+
+    def output(q: np.ndarray, qdot: np.ndarray, lam: np.ndarray) -> np.ndarray:
+        values = dict(zip(sensor_names, ports.values(sensors, q, qdot, t))) if sensor_names else {}
+        values.update(zip(forces, lam.reshape(-1)))
+        return np.array([values[name] for name in output_names], dtype=float)
+
+    def row(x: np.ndarray) -> np.ndarray:
+        q, qdot = model.chart(q0, basis, normal, x[:f], x[f:], t)
+        return output(q, qdot, model.solve(q, qdot, t)[1])
+
+    C = np.column_stack([(row(e) - row(-e)) / (2.0 * _STEP) for e in _STEP * np.eye(2 * f)])
+    B = np.zeros((2 * f, len(input_names)))
+    D = np.zeros((len(output_names), len(input_names)))
+    for k, name in enumerate(input_names):
+        qdd, lam = model.solve(q0, rest, t, ports.inputs({name: 1.0}))      # affine in the input: exact
+        B[f:, k] = basis.T @ (qdd - qdd0)
+        D[:, k] = output(q0, rest, lam) - output(q0, rest, lam0)
+    states = [f"z{k + 1}" for k in range(f)] + [f"z{k + 1}_dot" for k in range(f)]
+    if not input_names and len(output_names) == 1:
+        raise ModelError(f"linearize: inputs={inputs!r} leaves {model.name!r} with no input and one output, a state "
+                         "space python-control cannot hold; name an input or a second output")
+    state_space = control.ss(A, B, C, D, inputs=[control_name(x) for x in input_names],
+                             outputs=[control_name(x) for x in output_names], states=states,
+                             name=control_name(model.name))
+    point = OperatingPoint(q0, rest, t, tuple(tree.coordinates), equilibrium, jacobian_error)
+    return LinearizedSystem(state_space, (), point)
+
+
+def natural_frequencies_loops(model: KinematicLoopModel, *, n_modes: int | None = None,
+                              omega_max: float | None = None, operating_point: Any = None) -> np.ndarray:
+    """:func:`ctmm.natural_frequencies` of a kinematic loop model: undamped frequencies [rad/s] about its
+    static equilibrium (:meth:`KinematicLoopModel.natural_frequencies`), ascending; at most ``n_modes``,
+    those up to ``omega_max`` [rad/s]."""
+    q0, t = _operating_q(model, operating_point)
+    omega = model.natural_frequencies(q0, t)
+    if omega_max is not None:
+        omega = omega[omega <= validation.positive("omega_max", omega_max)]
+    if n_modes is not None:
+        omega = omega[:validation.integer("n_modes", n_modes, minimum=1)]
+    return omega
+
+
+def eigenvalue_count_loops(model: KinematicLoopModel, omega: Any, *, operating_point: Any = None) -> np.ndarray:
+    """:func:`ctmm.eigenvalue_count` of a kinematic loop model: natural frequencies strictly below each
+    ``omega`` [rad/s]."""
+    frequencies = natural_frequencies_loops(model, operating_point=operating_point)
+    omega = np.asarray(validation.frequencies("omega", omega), dtype=float)
+    return np.sum(frequencies[None, :] < omega.reshape(-1, 1), axis=1).reshape(omega.shape)
+
+
+def frequency_response_loops(model: KinematicLoopModel, omega: Any, *, input: Any, output: Any,  # noqa: A002
+                             operating_point: Any = None) -> FrequencyResponse:
+    """:func:`ctmm.frequency_response` of a kinematic loop model: ``C (s I - A)^-1 B + D`` of
+    :func:`linearize_loops` at ``s = i omega`` [rad/s]; inputs: tree actuators, outputs: tree sensors and
+    cut forces."""
+    started = time.perf_counter()
+    inputs, outputs = list(validation.names("input", input)), list(validation.names("output", output))
+    lin = linearize_loops(model, operating_point, inputs=inputs, outputs=outputs)
+    ss = lin.state_space
+    A, B, C, D = (np.asarray(x, dtype=float) for x in (ss.A, ss.B, ss.C, ss.D))
+    omega = validation.frequencies("omega", omega)
+    response = np.empty((len(outputs), len(inputs), omega.size), dtype=complex)
+    for k, w in enumerate(omega):
+        try:
+            response[:, :, k] = C @ np.linalg.solve(1j * w * np.eye(A.shape[0]) - A, B) + D
+        except np.linalg.LinAlgError:
+            raise ModelError(f"frequency_response: s I - A of {model.name!r} is singular at omega = {w} rad/s (an "
+                             "undamped natural frequency)") from None
+    ports = PlanarPorts(model.tree)
+    units = {name: ports.actuator_unit(name) for name in inputs}
+    units.update({name: "N" if name in cut_signal_names(model) else ports.sensor_unit(name) for name in outputs})
+    info = {"method": "linearisation on the constraint manifold (KinematicLoopModel.linearize)",
+            "wall_time_s": time.perf_counter() - started, "n_frequencies": int(omega.size),
+            "operating_point_q": lin.operating_point.q.tolist(), "jacobian_error": lin.operating_point.jacobian_error}
+    return FrequencyResponse(omega, response, tuple(inputs), tuple(outputs), model.name, info=info, units=units)
