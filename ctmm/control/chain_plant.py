@@ -249,8 +249,10 @@ class ChainPlant:
                 signals[name], units[name] = f[:, signal.point], "N"
         return signals, units
 
-    def guard(self, q0: np.ndarray, bound: float | None) -> Callable[[float, np.ndarray, float | None, str], None]:
-        """The chain's divergence guard on the points that are states or held, and finiteness."""
+    def guard(self, q0: np.ndarray, bound: float | None, v0: np.ndarray | None = None
+              ) -> Callable[[float, np.ndarray, float | None, str], None]:
+        """The chain's divergence guard on the points that are states or held, and finiteness (``v0`` is
+        accepted for the :class:`~ctmm.control.plants.Plant` protocol; a chain's bound is on positions)."""
         dynamics, chain, size = self.dynamics, self.chain, self.n_positions + self.n_velocities
         y0 = np.concatenate([q0, np.zeros(self.n_velocities)])
         start = dynamics.point_positions(0.0, y0)
