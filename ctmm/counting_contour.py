@@ -22,11 +22,11 @@ from typing import Sequence
 import numpy as np
 
 from . import validation
-from .certification import MAX_EIGEN_STATES, ContourCertificate, StabilityWarning, loop_bound
+from .certification import MAX_EIGEN_STATES, ContourCertificate, StabilityWarning, fixed_roots, loop_bound
 from .errors import ModelError, SingularSystemError
 from .sweeps import TINY, LoopCharacteristic
 
-__all__ = ["Contour", "build_contour", "contour_height", "count"]
+__all__ = ["Contour", "build_contour", "contour_height", "count", "refuse_fixed_roots"]
 
 _MAX_STEP = 0.4          # largest complex-log step of a component between samples
 _COUNT_STEP = 1.0        # largest phase step of Delta(s; p) between samples when counting
@@ -178,6 +178,31 @@ def _neutral_error(model: LoopCharacteristic, detail: str) -> ModelError:
         "to count roots in a bounded frequency range (the result is then reported as not certified)")
 
 
+def listed_roots(roots: np.ndarray) -> str:
+    """``"0, ±5.81615j, -1±2j"``: roots with ``Im >= 0`` and their conjugates, 6 digits."""
+    out = []
+    for p in roots:
+        tiny = 1e-6 * max(1.0, abs(p))
+        re = "" if abs(p.real) <= tiny else f"{p.real:.6g}"
+        out.append(re or "0" if abs(p.imag) <= tiny else f"{re}±{p.imag:.6g}j")
+    return ", ".join(dict.fromkeys(out))
+
+
+def refuse_fixed_roots(model: LoopCharacteristic, sigma: float) -> None:
+    """Raise :class:`ModelError` if ``Delta`` has roots on the counting line ``Re s = sigma``
+    that no gain or delay of the loop moves (:func:`ctmm.certification.fixed_roots`): undamped
+    modes or free motions the loop neither drives nor senses.  The system is then at best
+    marginally stable for every delay and a count of roots right of the line is ill-posed."""
+    fixed = fixed_roots(model, sigma)
+    if fixed.size:
+        raise ModelError(
+            f"loop {model.loop.name!r}: the characteristic function has roots on Re s = {sigma:g} that no gain or "
+            f"delay of the loop moves, at s = {listed_roots(fixed)} (modes the loop neither drives nor senses: undamped modes "
+            "or free motions); the system is at best marginally stable for every delay and roots on the counting "
+            "line cannot be counted. Damp or constrain those modes, or sense/drive them by the loop; "
+            "characteristic_roots(re_min < 0) lists them on the imaginary axis")
+
+
 def contour_height(model: LoopCharacteristic, weight_bound: np.ndarray, sigma: float, tau_max: float,
             im_max: float | None) -> tuple[float, np.ndarray, ContourCertificate]:
     """Contour height ``R`` [rad/s], open-loop poles (line seeds) and the certificate of the
@@ -186,7 +211,12 @@ def contour_height(model: LoopCharacteristic, weight_bound: np.ndarray, sigma: f
     growth = math.exp(max(0.0, -sigma) * tau_max)
     if im_max is not None:
         im_max = validation.positive("im_max", im_max)
+    refuse_fixed_roots(model, sigma)
     notes: list[str] = []
+    axis = fixed_roots(model, 0.0) if sigma < 0 else np.zeros(0)
+    if axis.size:
+        notes.append(f"roots on the imaginary axis that no gain or delay moves (modes the loop neither drives "
+                     f"nor senses): s = {listed_roots(axis)}; the system is at best marginally stable")
     try:
         bound = loop_bound(model, weight_bound)
     except ModelError as exc:

@@ -1,0 +1,80 @@
+"""Delay stability with roots on the imaginary axis that the loop cannot move (marginal systems).
+
+Finding checked (issue: "no silent wrong answer"): on the undamped arm of docs/spatial.md §9 with a
+delayed yaw loop, delay_margin reported "6 unstable roots at zero delay" with an uncertified
+height of 6e27 rad/s and stability_chart "unstable": the link's pendulum modes and spin are
+neither driven nor sensed by the yaw loop, so they stay on the imaginary axis for every gain and
+delay.  Contract: the counting tools (delay_margin, stability_chart, gain_margin, root counts)
+refuse such a model naming those roots; characteristic_roots lists them on the axis and notes
+them.  Reference: the closed form of an undamped oscillator ``s^2 + w0^2 + (kp + kd s) e^{-s tau}``
+(crossing where ``(w0^2 - W^2)^2 = kp^2 + kd^2 W^2``, ``e^{-i W tau} = (W^2 - w0^2)/(kp + i kd W)``),
+with a second oscillator ``s^2 + 9`` (or ``s^2 + 0.2 s + 9``) beside it, not coupled to the loop.
+"""
+from __future__ import annotations
+
+import math
+
+import control
+import numpy as np
+import pytest
+
+from ctmm.errors import ModelError
+from ctmm.linearize import DelayedLoop, LinearizedSystem
+from ctmm.stability import characteristic_roots, delay_margin
+from ctmm.stability_chart import stability_chart
+
+W0, KP, KD, DELAY = 2.0, 1.0, 0.5, 0.1
+
+
+def _system(other_damping: float | None, delay: float = DELAY) -> LinearizedSystem:
+    """Oscillator ``x'' + W0^2 x = u``, ``u = -(KP x + KD x')(t - delay)``; optionally a second
+    oscillator ``z'' + c z' + 9 z = 0`` beside it that the loop neither drives nor senses."""
+    A = np.array([[0.0, 1.0], [-W0 ** 2, 0.0]])
+    B = np.array([[0.0], [1.0]])
+    C = np.array([[KP, KD]])
+    if other_damping is not None:
+        A = np.block([[A, np.zeros((2, 2))], [np.zeros((2, 2)), np.array([[0.0, 1.0], [-9.0, -other_damping]])]])
+        B = np.vstack([B, np.zeros((2, 1))])
+        C = np.hstack([C, np.zeros((1, 2))])
+    plant = control.ss(A, B, C, 0.0, inputs=["pd_u"], outputs=["pd_y"], name="oscillator")
+    return LinearizedSystem(plant, (DelayedLoop("pd", 1.0, delay),), None)
+
+
+def _closed_form() -> tuple[float, float]:
+    """First crossing: frequency W [rad/s] and delay [s] of the characteristic quasi-polynomial."""
+    squares = np.roots([1.0, -(2 * W0 ** 2 + KD ** 2), W0 ** 4 - KP ** 2])
+    crossings = []
+    for w in np.sqrt(squares[squares.real > 0].real):
+        rotation = (w ** 2 - W0 ** 2) / (KP + 1j * KD * w)                  # = e^{-i W tau}, |.| = 1
+        assert abs(abs(rotation) - 1) < 1e-12
+        crossings.append((np.mod(-np.angle(rotation), 2 * math.pi) / w, w))
+    tau, w = min(crossings)
+    return float(w), float(tau)
+
+
+@pytest.mark.parametrize("other_damping", [None, 0.2])
+def test_delay_margin_of_the_undamped_oscillator_is_the_closed_form(other_damping):
+    omega, tau = _closed_form()
+    margin = delay_margin(_system(other_damping))
+    assert margin.critical_delay == pytest.approx(tau, rel=1e-10)
+    assert margin.critical_frequency == pytest.approx(omega, rel=1e-10)
+    assert margin.stable and margin.unstable_roots_at_zero_delay == 0
+    assert margin.margin == pytest.approx(tau - DELAY, rel=1e-9)
+    roots = characteristic_roots(_system(other_damping, delay=tau), re_min=-0.5, im_max=10.0)
+    near = np.argmin(np.abs(roots.roots - 1j * omega))
+    assert abs(roots.roots[near] - 1j * omega) <= max(roots.error_estimates[near], 1e-9)
+
+
+def test_roots_the_loop_cannot_move_are_refused_by_the_counting_tools_and_listed_by_the_root_finder():
+    system = _system(0.0)
+    with pytest.raises(ModelError, match=r"loop 'pd': .* roots on Re s = 0 that no gain or delay .* s = ±3j"):
+        delay_margin(system)
+    with pytest.raises(ModelError, match=r"s = ±3j .* at best marginally stable"):
+        stability_chart(system, ("delay", np.linspace(0.0, 0.5, 3)), ("gain", np.array([0.5, 1.0])))
+    roots = characteristic_roots(system, re_min=-0.5, im_max=10.0)
+    fixed = np.abs(np.abs(roots.roots) - 3.0) < 1e-4
+    assert fixed.sum() == 2 and np.allclose(roots.roots[fixed].imag, [-3.0, 3.0], atol=1e-4)
+    assert np.all(np.abs(roots.roots[fixed].real) <= np.maximum(roots.error_estimates[fixed], 1e-9))
+    assert any("±3j" in note and "marginally stable" in note for note in roots.certificate.notes)
+    loop_roots = characteristic_roots(_system(None), re_min=-0.5, im_max=10.0).roots
+    np.testing.assert_allclose(np.sort_complex(roots.roots[~fixed]), np.sort_complex(loop_roots), atol=1e-8)
