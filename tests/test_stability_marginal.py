@@ -78,3 +78,28 @@ def test_roots_the_loop_cannot_move_are_refused_by_the_counting_tools_and_listed
     assert any("±3j" in note and "marginally stable" in note for note in roots.certificate.notes)
     loop_roots = characteristic_roots(_system(None), re_min=-0.5, im_max=10.0).roots
     np.testing.assert_allclose(np.sort_complex(roots.roots[~fixed]), np.sort_complex(loop_roots), atol=1e-8)
+
+
+def test_undamped_arm_of_the_spatial_guide_is_refused_naming_its_pendulum_modes_and_spin():
+    """docs/spatial.md §9: the link hangs from a frictionless ball joint on the yaw axis, so the yaw
+    loop neither drives nor senses it: compound-pendulum swings ``w^2 = m g d / (I + m d^2)`` about
+    the link's y and z axes (inertias 0.01, 0.002 kg m^2, d = 0.25 m, m = 1 kg) and a free spin."""
+    import re
+
+    import ctmm.spatial as sp
+    from ctmm.control import Feedback, with_feedback
+
+    arm = sp.SpatialModel("arm", [
+        sp.SpatialBody("base", 2.0, (0.02, 0.02, 0.01), center_of_mass=(0, 0, 0.1), points={"top": (0, 0, 0.2)}),
+        sp.SpatialBody("link", 1.0, (0.01, 0.01, 0.002), center_of_mass=(0.25, 0, 0), points={"tip": (0.5, 0, 0)}),
+        sp.Revolute(name="yaw", parent=None, child="base", axis=(0, 0, 1), actuated=True),
+        sp.Spherical(name="ball", parent="base", point="top", child="link"),
+    ], gravity=(0, 0, -9.81))
+    pd = Feedback("pd", [("base.rotation_z", 3.0), ("base.omega_z", 0.4)], "yaw.torque", gain=1.0, delay=0.05)
+    with pytest.raises(ModelError, match="at best marginally stable") as info:
+        delay_margin(with_feedback(arm, [pd]))
+    listed = re.search(r"at s = (.*?) \(modes", str(info.value)).group(1)
+    swings = sorted(float(w) for w in re.findall(r"±([0-9.]+)j", listed))
+    exact = sorted(math.sqrt(1.0 * 9.81 * 0.25 / (inertia + 0.25 ** 2)) for inertia in (0.01, 0.002))
+    np.testing.assert_allclose(swings, exact, rtol=1e-5)
+    assert "0" in listed.split(", ")                          # the free spin of the link
