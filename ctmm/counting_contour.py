@@ -26,7 +26,7 @@ from .certification import MAX_EIGEN_STATES, ContourCertificate, StabilityWarnin
 from .errors import ModelError, SingularSystemError
 from .sweeps import TINY, LoopCharacteristic
 
-__all__ = ["Contour", "build_contour", "contour_height", "count", "refuse_fixed_roots"]
+__all__ = ["Contour", "build_contour", "contour_height", "count", "fixed_root_note", "listed_roots"]
 
 _MAX_STEP = 0.4          # largest complex-log step of a component between samples
 _COUNT_STEP = 1.0        # largest phase step of Delta(s; p) between samples when counting
@@ -147,6 +147,7 @@ class Contour:
     far_phase: float               # phase change of Delta_0 along sigma+R -> sigma+R+iR -> sigma+iR
     notes: list = field(default_factory=list)
     certificate: ContourCertificate | None = None
+    fixed: np.ndarray = field(default_factory=lambda: np.zeros(0, complex))   # roots on the line no set moves
 
     @property
     def omega(self) -> np.ndarray:
@@ -188,19 +189,11 @@ def listed_roots(roots: np.ndarray) -> str:
     return ", ".join(dict.fromkeys(out))
 
 
-def refuse_fixed_roots(model: LoopCharacteristic, sigma: float) -> None:
-    """Raise :class:`ModelError` if ``Delta`` has roots on the counting line ``Re s = sigma``
-    that no gain or delay of the loop moves (:func:`ctmm.certification.fixed_roots`): undamped
-    modes or free motions the loop neither drives nor senses.  The system is then at best
-    marginally stable for every delay and a count of roots right of the line is ill-posed."""
-    fixed = fixed_roots(model, sigma)
-    if fixed.size:
-        raise ModelError(
-            f"loop {model.loop.name!r}: the characteristic function has roots on Re s = {sigma:g} that no gain or "
-            f"delay of the loop moves, at s = {listed_roots(fixed)} (modes the loop neither drives nor senses: undamped modes "
-            "or free motions); the system is at best marginally stable for every delay and roots on the counting "
-            "line cannot be counted. Damp or constrain those modes, or sense/drive them by the loop; "
-            "characteristic_roots(re_min < 0) lists them on the imaginary axis")
+def fixed_root_note(roots: np.ndarray, sigma: float) -> str:
+    """The note that reports roots on ``Re s = sigma`` no gain or delay moves (a marginal system)."""
+    return (f"roots on Re s = {sigma:g} that no gain or delay of the loop moves (modes it neither drives nor "
+            f"senses: undamped modes or free motions): s = {listed_roots(roots)}; the system is at best "
+            "marginally stable for every delay")
 
 
 def contour_height(model: LoopCharacteristic, weight_bound: np.ndarray, sigma: float, tau_max: float,
@@ -211,12 +204,11 @@ def contour_height(model: LoopCharacteristic, weight_bound: np.ndarray, sigma: f
     growth = math.exp(max(0.0, -sigma) * tau_max)
     if im_max is not None:
         im_max = validation.positive("im_max", im_max)
-    refuse_fixed_roots(model, sigma)
     notes: list[str] = []
-    axis = fixed_roots(model, 0.0) if sigma < 0 else np.zeros(0)
-    if axis.size:
-        notes.append(f"roots on the imaginary axis that no gain or delay moves (modes the loop neither drives "
-                     f"nor senses): s = {listed_roots(axis)}; the system is at best marginally stable")
+    for line in (sigma, 0.0) if sigma < 0 else (sigma,):
+        fixed = fixed_roots(model, line)
+        if fixed.size:
+            notes.append(fixed_root_note(fixed, line) + ("; counts on this line are -1" if line == sigma else ""))
     try:
         bound = loop_bound(model, weight_bound)
     except ModelError as exc:
@@ -346,7 +338,7 @@ def build_contour(model: LoopCharacteristic, weight_bound: np.ndarray, tau_max: 
     seeds = _resonance_samples(poles, sigma, radius)
     line = _VerticalPath(model, [complex(sigma, 0.0), complex(sigma, radius)], n0, tau_max,
                          1e-13 * radius, seeds)
-    return Contour(model, sigma, radius, line, float(steps.sum()), notes, certificate)
+    return Contour(model, sigma, radius, line, float(steps.sum()), notes, certificate, fixed_roots(model, sigma))
 
 
 def _resonance_samples(poles: np.ndarray, sigma: float, radius: float) -> np.ndarray:
@@ -375,11 +367,15 @@ def count(contour: Contour, gain: np.ndarray, delay: np.ndarray, weights: np.nda
 
     Samples are added to the line where a set's phase step exceeds ``_COUNT_STEP`` (sets that
     are resolved keep their count).  ``counts`` is -1 where ``Delta`` vanishes at a sample of the
-    line (a root on it).  Intervals are not split below ``min_step`` [rad/s]: sets that need
-    finer samples (a root that close to the line) are returned as not reliable."""
+    line (a root on it), and for every set when the line carries roots no set moves
+    (``contour.fixed``, named in ``contour.notes``).  Intervals are not split below ``min_step``
+    [rad/s]: sets that need finer samples (a root that close to the line) are returned as not
+    reliable."""
     n = gain.size
     counts = np.full(n, -1, dtype=int)
     reliable = np.zeros(n, dtype=bool)
+    if contour.fixed.size:           # a root on the line for every set (contour.notes names it)
+        return counts, np.ones(n, dtype=bool)
     line = contour.line
     pending = np.arange(n)
     for round_ in range(rounds):

@@ -4,9 +4,9 @@ Finding checked (issue: "no silent wrong answer"): on the undamped arm of docs/s
 delayed yaw loop, delay_margin reported "6 unstable roots at zero delay" with an uncertified
 height of 6e27 rad/s and stability_chart "unstable": the link's pendulum modes and spin are
 neither driven nor sensed by the yaw loop, so they stay on the imaginary axis for every gain and
-delay.  Contract: the counting tools (delay_margin, stability_chart, gain_margin, root counts)
-refuse such a model naming those roots; characteristic_roots lists them on the axis and notes
-them.  Reference: the closed form of an undamped oscillator ``s^2 + w0^2 + (kp + kd s) e^{-s tau}``
+delay.  Contract (as issue 11's "-1: a root on the imaginary axis"): every count of the counting
+tools (delay_margin, stability_chart, root counts) is -1 and their certificate notes name those
+roots as marginal; characteristic_roots lists them on the axis and notes them too.  Reference: the closed form of an undamped oscillator ``s^2 + w0^2 + (kp + kd s) e^{-s tau}``
 (crossing where ``(w0^2 - W^2)^2 = kp^2 + kd^2 W^2``, ``e^{-i W tau} = (W^2 - w0^2)/(kp + i kd W)``),
 with a second oscillator ``s^2 + 9`` (or ``s^2 + 0.2 s + 9``) beside it, not coupled to the loop.
 """
@@ -18,7 +18,6 @@ import control
 import numpy as np
 import pytest
 
-from ctmm.errors import ModelError
 from ctmm.linearize import DelayedLoop, LinearizedSystem
 from ctmm.stability import characteristic_roots, delay_margin
 from ctmm.stability_chart import stability_chart
@@ -65,22 +64,29 @@ def test_delay_margin_of_the_undamped_oscillator_is_the_closed_form(other_dampin
     assert abs(roots.roots[near] - 1j * omega) <= max(roots.error_estimates[near], 1e-9)
 
 
-def test_roots_the_loop_cannot_move_are_refused_by_the_counting_tools_and_listed_by_the_root_finder():
+def _named(notes, marginal: str = "±3j") -> bool:
+    return any(f"s = {marginal}" in note and "at best marginally stable" in note for note in notes)
+
+
+def test_roots_the_loop_cannot_move_are_reported_marginal_by_every_tool():
     system = _system(0.0)
-    with pytest.raises(ModelError, match=r"loop 'pd': .* roots on Re s = 0 that no gain or delay .* s = ±3j"):
-        delay_margin(system)
-    with pytest.raises(ModelError, match=r"s = ±3j .* at best marginally stable"):
-        stability_chart(system, ("delay", np.linspace(0.0, 0.5, 3)), ("gain", np.array([0.5, 1.0])))
+    margin = delay_margin(system)
+    assert margin.unstable_roots_at_zero_delay == -1 and not margin.stable and margin.margin == 0.0
+    assert margin.stable_intervals == () and _named(margin.certificate.notes)
+    omega, tau = _closed_form()                   # the loop's own crossings are still exact
+    assert margin.critical_delay == pytest.approx(tau, rel=1e-10)
+    chart = stability_chart(system, ("delay", np.linspace(0.0, 0.5, 3)), ("gain", np.array([0.5, 1.0])))
+    assert np.all(chart.unstable_roots == -1) and _named(chart.notes)
     roots = characteristic_roots(system, re_min=-0.5, im_max=10.0)
     fixed = np.abs(np.abs(roots.roots) - 3.0) < 1e-4
     assert fixed.sum() == 2 and np.allclose(roots.roots[fixed].imag, [-3.0, 3.0], atol=1e-4)
     assert np.all(np.abs(roots.roots[fixed].real) <= np.maximum(roots.error_estimates[fixed], 1e-9))
-    assert any("±3j" in note and "marginally stable" in note for note in roots.certificate.notes)
+    assert _named(roots.certificate.notes)
     loop_roots = characteristic_roots(_system(None), re_min=-0.5, im_max=10.0).roots
     np.testing.assert_allclose(np.sort_complex(roots.roots[~fixed]), np.sort_complex(loop_roots), atol=1e-8)
 
 
-def test_undamped_arm_of_the_spatial_guide_is_refused_naming_its_pendulum_modes_and_spin():
+def test_undamped_arm_of_the_spatial_guide_is_reported_marginal_naming_its_pendulum_modes_and_spin():
     """docs/spatial.md §9: the link hangs from a frictionless ball joint on the yaw axis, so the yaw
     loop neither drives nor senses it: compound-pendulum swings ``w^2 = m g d / (I + m d^2)`` about
     the link's y and z axes (inertias 0.01, 0.002 kg m^2, d = 0.25 m, m = 1 kg) and a free spin."""
@@ -96,9 +102,10 @@ def test_undamped_arm_of_the_spatial_guide_is_refused_naming_its_pendulum_modes_
         sp.Spherical(name="ball", parent="base", point="top", child="link"),
     ], gravity=(0, 0, -9.81))
     pd = Feedback("pd", [("base.rotation_z", 3.0), ("base.omega_z", 0.4)], "yaw.torque", gain=1.0, delay=0.05)
-    with pytest.raises(ModelError, match="at best marginally stable") as info:
-        delay_margin(with_feedback(arm, [pd]))
-    listed = re.search(r"at s = (.*?) \(modes", str(info.value)).group(1)
+    margin = delay_margin(with_feedback(arm, [pd]))
+    assert margin.unstable_roots_at_zero_delay == -1 and not margin.stable
+    note = next(n for n in margin.certificate.notes if "at best marginally stable" in n)
+    listed = re.search(r"s = (.*?); the system", note).group(1)
     swings = sorted(float(w) for w in re.findall(r"±([0-9.]+)j", listed))
     exact = sorted(math.sqrt(1.0 * 9.81 * 0.25 / (inertia + 0.25 ** 2)) for inertia in (0.01, 0.002))
     np.testing.assert_allclose(swings, exact, rtol=1e-5)
