@@ -186,6 +186,73 @@ def _factor(A: np.ndarray, b: np.ndarray, C: np.ndarray, d: np.ndarray,
     return g * (1 + 1e-9), beta * (1 + 1e-9), h * (1 + 1e-12)
 
 
+def plant_realisation(model: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(A, b, C, d)`` of the open loop: ``x' = A x + b f``, sensor terms ``y = C x + d f``.
+
+    A state-space characteristic gives its own (controller states included); a chain's open
+    system is realised by :func:`ctmm.interop.to_state_space` (its LTI controller is not included).
+    Raises :class:`~ctmm.errors.ModelError` when there is no realisation (distributed elements,
+    other delayed loops).
+    """
+    from .control.loops import actuator_inputs
+    from .interop import to_state_space
+
+    realisation = getattr(model, "open_loop_realisation", None)
+    if realisation is not None:
+        return realisation()
+    lp = model.loop
+    actuators = actuator_inputs(model.system, lp.name)
+    inputs = list(dict.fromkeys(name for name, _ in actuators))
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            ss = to_state_space(model.open_system, inputs=inputs, outputs=list(model.term_names))
+    except (ModelError, ValueError, TypeError, KeyError) as exc:
+        raise ModelError(f"loop {lp.name!r}: the open chain has no state-space realisation ({exc})") from exc
+    A, Bm, C, D = (np.atleast_2d(np.asarray(m, float)) for m in (ss.A, ss.B, ss.C, ss.D))
+    A = A.reshape(A.shape[0], A.shape[0]) if A.size else np.zeros((0, 0))
+    b = np.zeros(A.shape[0])
+    d = np.zeros(len(model.term_names))
+    for name, weight in actuators:
+        column = inputs.index(name)
+        if A.size:
+            b = b + weight * Bm[:, column]
+        d = d + weight * D[:, column]
+    return A, b, C.reshape(len(model.term_names), A.shape[0]), d
+
+
+def fixed_roots(model: Any, sigma: float = 0.0) -> np.ndarray:
+    """Characteristic roots on the line ``Re s = sigma`` that the loop cannot move [1/s].
+
+    Eigenvalues ``p`` of the open loop's ``A`` (:func:`plant_realisation`) with
+    ``|Re p - sigma| <= 1e-6 max(1, |p|)`` that are uncontrollable from the loop's actuator or
+    unobservable through every sensor term (Popov-Belevitch-Hautus: ``[pI - A, b]`` or
+    ``[pI - A; C]`` rank deficient, smallest singular value ``<= 1e-7`` of the matrix's norm).
+    They are roots of ``Delta`` for every gain, delay and weighting: undamped modes and free
+    motions the loop neither drives nor senses.  Returns those with ``Im p >= 0`` (one per
+    distinct value); empty when the model has no realisation or more than ``MAX_EIGEN_STATES``.
+    """
+    try:
+        A, b, C, _ = plant_realisation(model)
+    except ModelError:
+        return np.zeros(0, complex)
+    n = A.shape[0]
+    if not 0 < n <= MAX_EIGEN_STATES:
+        return np.zeros(0, complex)
+    found: list[complex] = []
+    for p in np.linalg.eigvals(A):
+        if p.imag < 0 or abs(p.real - sigma) > 1e-6 * max(1.0, abs(p)) or \
+                any(abs(p - q) <= 1e-6 * max(1.0, abs(p)) for q in found):
+            continue
+        shifted = complex(sigma, p.imag) * np.eye(n) - A
+        reach = np.column_stack([shifted, b])
+        sense = np.vstack([shifted, np.atleast_2d(C)])
+        if min(np.linalg.svd(m, compute_uv=False)[-1] / max(np.linalg.norm(m, 2), 1e-300)
+               for m in (reach, sense)) <= 1e-7:
+            found.append(complex(sigma, p.imag))
+    return np.array(found, dtype=complex)
+
+
 def loop_bound(model: Any, weight_bound: np.ndarray) -> LoopBound:
     """A :class:`LoopBound` for the loop of a :class:`ctmm.sweeps.LoopCharacteristic`.
 
@@ -205,34 +272,12 @@ def loop_bound(model: Any, weight_bound: np.ndarray) -> LoopBound:
     """
     import control
 
-    from .control.loops import actuator_inputs
-    from .interop import to_state_space
-
-    realisation = getattr(model, "open_loop_realisation", None)
-    if realisation is not None:             # a state-space model: controller states included
-        A, b, C, d = realisation()
+    A, b, C, d = plant_realisation(model)
+    if getattr(model, "open_loop_realisation", None) is not None:   # controller states included
         poles = np.linalg.eigvals(A) if 0 < A.shape[0] <= MAX_EIGEN_STATES else np.zeros(0)
         return LoopBound((_factor(A, b, C, d, np.asarray(weight_bound, float)),), poles.astype(complex),
                          int(A.shape[0]))
     lp = model.loop
-    actuators = actuator_inputs(model.system, lp.name)
-    inputs = list(dict.fromkeys(name for name, _ in actuators))
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            ss = to_state_space(model.open_system, inputs=inputs, outputs=list(model.term_names))
-    except (ModelError, ValueError, TypeError, KeyError) as exc:
-        raise ModelError(f"loop {lp.name!r}: the open chain has no state-space realisation ({exc})") from exc
-    A, Bm, C, D = (np.atleast_2d(np.asarray(m, float)) for m in (ss.A, ss.B, ss.C, ss.D))
-    A = A.reshape(A.shape[0], A.shape[0]) if A.size else np.zeros((0, 0))
-    b = np.zeros(A.shape[0])
-    d = np.zeros(len(model.term_names))
-    for name, weight in actuators:
-        column = inputs.index(name)
-        if A.size:
-            b = b + weight * Bm[:, column]
-        d = d + weight * D[:, column]
-    C = C.reshape(len(model.term_names), A.shape[0])
     factors = [_factor(A, b, C, d, np.asarray(weight_bound, float))]
     poles = [np.linalg.eigvals(A)] if 0 < A.shape[0] <= MAX_EIGEN_STATES else []
     if lp.is_lti:

@@ -118,6 +118,8 @@ def solve(system: Chain, s: np.ndarray, amplitudes=None, *, solver: str = "ricca
           want_log_det: bool = False, points: Sequence[int] | None = None) -> ChainSolution:
     """States at every connection point for harmonic loads (phasors), batched over ``s``
     (with ``want_log_det``, the Riccati solvers also return the characteristic log-determinant).
+    The Riccati solve of a chain cuts elements with a ``subdivide`` hook (long beams) into exact
+    pieces for ``max |s|`` (:func:`subdivided`) and returns the states at the chain's own points.
 
     ``points``: the connection points whose states are needed.  Lumped chains then keep only
     those (:attr:`~ctmm.assembly.ChainSolution.points`, memory ``O(len(points) B)``); other chains
@@ -128,6 +130,16 @@ def solve(system: Chain, s: np.ndarray, amplitudes=None, *, solver: str = "ricca
         index = getattr(system, "state_index", None)
         sol = _solve_lumped(system, np.asarray(s, dtype=complex), amplitudes or {}, want_log_det,
                             points if index is None else None)
+    elif solver == "riccati" and not hasattr(system, "assemble_frequency"):
+        # long fields (BeamField: entries ~ cosh(beta)) lose every digit in one piece at high
+        # frequency; their pieces of the subdivide hook keep the transfer exact (states are read
+        # back at the system's connection points; log det is a product over pieces, unchanged)
+        s = np.asarray(s, dtype=complex)
+        body, pieces = subdivided(system, float(np.max(np.abs(s), initial=0.0)))
+        Us, us, start, end = assemble_body(system, body, pieces, s, amplitudes or {})
+        sol = SOLVERS[solver](Us, us, start, end, want_log_det=want_log_det)
+        if len(body) != len(system.body):
+            sol.states = sol.states[np.asarray(pieces)]
     else:
         Us, us, start, end = assemble(system, s, amplitudes)
         sol = SOLVERS[solver](Us, us, start, end, want_log_det=want_log_det) if solver == "riccati" else \

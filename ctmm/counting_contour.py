@@ -22,11 +22,11 @@ from typing import Sequence
 import numpy as np
 
 from . import validation
-from .certification import MAX_EIGEN_STATES, ContourCertificate, StabilityWarning, loop_bound
+from .certification import MAX_EIGEN_STATES, ContourCertificate, StabilityWarning, fixed_roots, loop_bound
 from .errors import ModelError, SingularSystemError
 from .sweeps import TINY, LoopCharacteristic
 
-__all__ = ["Contour", "build_contour", "contour_height", "count"]
+__all__ = ["Contour", "build_contour", "contour_height", "count", "fixed_root_note", "listed_roots"]
 
 _MAX_STEP = 0.4          # largest complex-log step of a component between samples
 _COUNT_STEP = 1.0        # largest phase step of Delta(s; p) between samples when counting
@@ -147,6 +147,7 @@ class Contour:
     far_phase: float               # phase change of Delta_0 along sigma+R -> sigma+R+iR -> sigma+iR
     notes: list = field(default_factory=list)
     certificate: ContourCertificate | None = None
+    fixed: np.ndarray = field(default_factory=lambda: np.zeros(0, complex))   # roots on the line no set moves
 
     @property
     def omega(self) -> np.ndarray:
@@ -178,6 +179,23 @@ def _neutral_error(model: LoopCharacteristic, detail: str) -> ModelError:
         "to count roots in a bounded frequency range (the result is then reported as not certified)")
 
 
+def listed_roots(roots: np.ndarray) -> str:
+    """``"0, ±5.81615j, -1±2j"``: roots with ``Im >= 0`` and their conjugates, 6 digits."""
+    out = []
+    for p in roots:
+        tiny = 1e-6 * max(1.0, abs(p))
+        re = "" if abs(p.real) <= tiny else f"{p.real:.6g}"
+        out.append(re or "0" if abs(p.imag) <= tiny else f"{re}±{p.imag:.6g}j")
+    return ", ".join(dict.fromkeys(out))
+
+
+def fixed_root_note(roots: np.ndarray, sigma: float) -> str:
+    """The note that reports roots on ``Re s = sigma`` no gain or delay moves (a marginal system)."""
+    return (f"roots on Re s = {sigma:g} that no gain or delay of the loop moves (modes it neither drives nor "
+            f"senses: undamped modes or free motions): s = {listed_roots(roots)}; the system is at best "
+            "marginally stable for every delay")
+
+
 def contour_height(model: LoopCharacteristic, weight_bound: np.ndarray, sigma: float, tau_max: float,
             im_max: float | None) -> tuple[float, np.ndarray, ContourCertificate]:
     """Contour height ``R`` [rad/s], open-loop poles (line seeds) and the certificate of the
@@ -187,6 +205,10 @@ def contour_height(model: LoopCharacteristic, weight_bound: np.ndarray, sigma: f
     if im_max is not None:
         im_max = validation.positive("im_max", im_max)
     notes: list[str] = []
+    for line in (sigma, 0.0) if sigma < 0 else (sigma,):
+        fixed = fixed_roots(model, line)
+        if fixed.size:
+            notes.append(fixed_root_note(fixed, line) + ("; counts on this line are -1" if line == sigma else ""))
     try:
         bound = loop_bound(model, weight_bound)
     except ModelError as exc:
@@ -316,7 +338,7 @@ def build_contour(model: LoopCharacteristic, weight_bound: np.ndarray, tau_max: 
     seeds = _resonance_samples(poles, sigma, radius)
     line = _VerticalPath(model, [complex(sigma, 0.0), complex(sigma, radius)], n0, tau_max,
                          1e-13 * radius, seeds)
-    return Contour(model, sigma, radius, line, float(steps.sum()), notes, certificate)
+    return Contour(model, sigma, radius, line, float(steps.sum()), notes, certificate, fixed_roots(model, sigma))
 
 
 def _resonance_samples(poles: np.ndarray, sigma: float, radius: float) -> np.ndarray:
@@ -345,11 +367,15 @@ def count(contour: Contour, gain: np.ndarray, delay: np.ndarray, weights: np.nda
 
     Samples are added to the line where a set's phase step exceeds ``_COUNT_STEP`` (sets that
     are resolved keep their count).  ``counts`` is -1 where ``Delta`` vanishes at a sample of the
-    line (a root on it).  Intervals are not split below ``min_step`` [rad/s]: sets that need
-    finer samples (a root that close to the line) are returned as not reliable."""
+    line (a root on it), and for every set when the line carries roots no set moves
+    (``contour.fixed``, named in ``contour.notes``).  Intervals are not split below ``min_step``
+    [rad/s]: sets that need finer samples (a root that close to the line) are returned as not
+    reliable."""
     n = gain.size
     counts = np.full(n, -1, dtype=int)
     reliable = np.zeros(n, dtype=bool)
+    if contour.fixed.size:           # a root on the line for every set (contour.notes names it)
+        return counts, np.ones(n, dtype=bool)
     line = contour.line
     pending = np.arange(n)
     for round_ in range(rounds):

@@ -206,7 +206,7 @@ def _log_delta(system, s: np.ndarray) -> np.ndarray:
     zero of a connector's stiffness, e.g. s = 0 for a pure damper, or a substructure resonance;
     :func:`ctmm.entire_values.entire_logs` then evaluates the finite value by a circle mean)."""
     with np.errstate(divide="ignore", invalid="ignore"):
-        Us, us, start, end = assemble(system, s)
+        Us, us, start, end = assemble(system, s, subdivide=True)     # long beams: exact pieces
         sol = SOLVERS["riccati"](Us, us, start, end, want_states=False)
         return sol.log_det + np.log(_scale(system, s).astype(complex))
 

@@ -198,7 +198,7 @@ class DelayMargin:
     stable : bool
         The loop is stable at its current delay.
     unstable_roots_at_zero_delay : int
-        Roots in Re s > 0 without delay (-1: a root on the imaginary axis, e.g. an unsensed rigid mode).
+        Roots in Re s > 0 without delay (-1: a root on the imaginary axis; certificate.notes names fixed ones).
     crossing_delays, crossing_frequencies : tuple of float
         All crossings up to ``delay_max`` [s], [rad/s], ascending in delay.
     crossing_directions : tuple of int

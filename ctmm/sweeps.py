@@ -111,7 +111,7 @@ def _log_characteristic(system: Any, s: np.ndarray) -> np.ndarray:
 def _direct_log_characteristic(system: Any, s: np.ndarray) -> np.ndarray:
     """``log Delta(s)`` by one Riccati sweep (NaN or ``LinAlgError`` where the sweep fails)."""
     with np.errstate(divide="ignore", invalid="ignore"):
-        Us, us, start, end = assemble(system, s)
+        Us, us, start, end = assemble(system, s, subdivide=True)     # long beams: exact pieces
         sol = SOLVERS["riccati"](Us, us, start, end, want_states=False)
         return sol.log_det + _log_pole_factor(system, s)
 

@@ -364,6 +364,7 @@ class ControlledChain:
         from ..frequency import assemble as assemble_plant
 
         s = np.asarray(s, dtype=complex)
+        self._refuse_long_fields(float(np.max(np.abs(s), initial=0.0)))
         plant_amps = {k: v for k, v in amplitudes.items() if not isinstance(k, str)}
         refs = {k: v for k, v in amplitudes.items() if isinstance(k, str)}
         Us_p, us_p, start_p, end_p = assemble_plant(self.plant, s, plant_amps)
@@ -373,6 +374,18 @@ class ControlledChain:
                     for pos, name, weight in r.actuators] for r in self._resolved]
         return self._extend(s, Us_p, us_p, start_p, end_p, gains, ref_amp,
                             lambda point, comp, deriv: s ** deriv, columns=columns)
+
+    def _refuse_long_fields(self, omega_max: float) -> None:
+        """Refuse a plant element that one transfer matrix cannot hold exactly up to ``omega_max``
+        [rad/s] (a long :class:`~ctmm.elements.beams.BeamField`: entries ``~ cosh beta`` lose
+        ``~ e^beta eps``); plain chains subdivide it themselves, the loop matrices are per element."""
+        for element in self.plant.body:
+            hook = getattr(element, "subdivide", None)
+            pieces = len(hook(omega_max)) if hook is not None and omega_max > 0 else 1
+            if pieces > 1:
+                raise ModelError(f"element {element.name!r} of controlled chain {self.plant.name!r} is too long "
+                                 f"for one transfer matrix up to |s| = {omega_max:.6g} rad/s (digits would be "
+                                 f"lost); put its pieces *{element.name}.split({pieces}) in its place in the plant")
 
     def _extend(self, s, Us_p, us_p, start_p, end_p, gains, ref_amp, derivative_factor,
                 sensing_offset=None, columns=None):

@@ -647,7 +647,7 @@ class PlanarModel:
                 np.array([eta_dot[d.nq:] @ d.end_psi[end], eta_dot[:d.nq] @ d.end_phi[end]]))
 
     def energy(self, q: np.ndarray, qdot: np.ndarray, t: float = 0.0) -> float:
-        """Kinetic + gravitational + hinge-spring energy [J] (constant references only)."""
+        """Kinetic + gravity + hinge-spring energy [J], constant references (stiffened beams: flexible.md §1.3)."""
         pts = self.points(q, qdot, t)
         kinetic = 0.5 * np.sum(self.mass * np.sum(pts["com_velocity"] ** 2, axis=1)
                                + self.inertia * pts["omega"] ** 2)

@@ -312,8 +312,9 @@ class FlexibleLagrange:
             Q += tau * (f["Jth"] - f["Jth_e"])
         return Q, ext
 
-    def _system(self, q, u, t):
-        """``A udot = b`` (non-symmetric with stiffening) and the pieces for joint forces."""
+    def _system(self, q, u, t, stiffening: bool = True):
+        """``A udot = b`` (non-symmetric with stiffening) and the pieces for joint forces
+        (``stiffening=False``: the equations without the geometric stiffening of any beam)."""
         m = self.model
         n = self.n
         frames = self._frames(q, u, t)
@@ -332,7 +333,7 @@ class FlexibleLagrange:
         g = np.asarray(m.gravity, float)
         # geometric stiffening: -G(N) q with N affine in udot
         for j, bm in self.beams.items():
-            if not bm.stiffening:
+            if not (bm.stiffening and stiffening):
                 continue
             f = frames[j]
             e1 = np.array([math.cos(f["th"]), math.sin(f["th"])])
@@ -379,6 +380,49 @@ class FlexibleLagrange:
         u = np.asarray(qdot, float)
         A, b, *_ = self._system(q, u, t)
         return np.linalg.solve(A, b)
+
+    def energy(self, q, qdot, t: float = 0.0) -> float:
+        """Kinetic + gravitational + modal strain + hinge-spring energy [J] from the mass points.
+
+        ``sum dm |J u|^2 / 2 + sum I (J_theta u)^2 / 2 - sum dm g . r + eta^T K eta / 2
+        + sum k (dtheta - reference)^2 / 2``; models without driven joints (their rates are not
+        in ``J u``).  Without stiffening and damping it is conserved; with stiffening it changes
+        by the work of :meth:`stiffening_force`.
+        """
+        q = np.asarray(q, float)
+        u = np.asarray(qdot, float)
+        m = self.model
+        if len(list(m.driven(t))):
+            raise ValueError("energy: models with driven joints are not covered by this reference")
+        frames = self._frames(q, u, t)
+        pts = self._points(q, u, t, frames)
+        g = np.asarray(m.gravity, float)
+        energy = 0.0
+        for j in range(self.nb):
+            P = pts[j]
+            v = np.einsum("kin,n->ki", P["J"], u)
+            energy += 0.5 * np.sum(P["m"] * np.sum(v * v, axis=1)) - np.sum(P["m"] * (P["r"] @ g))
+            if j in self.beams:
+                eta = q[self.eta_index[j]]
+                energy += 0.5 * eta @ self.beams[j].K @ eta
+            else:
+                energy += 0.5 * m.inertia[j] * (frames[j]["Jth"] @ u) ** 2
+        reference, _, _ = m.hinge_laws(t)
+        for j in range(self.nb):
+            if m.joint_kind[j] == REVOLUTE:
+                f = frames[j]
+                energy += 0.5 * m.stiffness[j] * (f["th"] - f["th_e"] - reference[j]) ** 2
+        return float(energy)
+
+    def stiffening_force(self, q, qdot, t: float = 0.0) -> np.ndarray:
+        """Generalised force ``-G(N) q`` [N, N m] of the geometric stiffening at the model's own
+        accelerations (the residual of the equations without stiffening; zero without it)."""
+        q = np.asarray(q, float)
+        u = np.asarray(qdot, float)
+        A, b, *_ = self._system(q, u, t)
+        udot = np.linalg.solve(A, b)
+        A0, b0, *_ = self._system(q, u, t, stiffening=False)
+        return A0 @ udot - b0
 
     def joint_forces(self, q, qdot, t: float = 0.0) -> np.ndarray:
         """``(n_bodies, 3)``: force and moment (about the inboard point) on each body from its
