@@ -34,8 +34,8 @@ frequency that depends on a rigid direction's stiffness).
 Refused (:class:`~ctmm.errors.ModelError`, naming the part): trees and children at mid-span
 stations, other joint kinds, a free revolute between bodies (no transfer matrix), joint
 references, actuated joints other than revolute, gravity, loads, distributed loads and modal
-hooks (a preload or no field counterpart), modal damping ratios, a given operating point, loops
-(``ControlledModel``), and ports without an exact-field counterpart (modal coordinates, body
+hooks (a preload or no field counterpart), modal damping ratios, a given operating point, loops in
+:func:`natural_frequencies` (pass ``system.plant``; :func:`frequency_response` closes them), and ports without an exact-field counterpart (modal coordinates, body
 angles and rotation vectors).
 """
 from __future__ import annotations
@@ -392,8 +392,8 @@ def exact_form(model: Any, operating_point: Any = None, *, rigid_factor: float =
 
     if not isinstance(model, SpatialModel):
         loops = [lp.name for lp in getattr(model, "loops", ())]
-        raise ModelError(f"fields='exact' converts a SpatialModel; got {type(model).__name__} (loops {loops} are not "
-                         "mapped yet: pass system.plant, or use the modal form, fields='modal')")
+        raise ModelError(f"fields='exact' converts a SpatialModel; got {type(model).__name__} (for the loops {loops} "
+                         "use frequency_response; natural_frequencies describes the plant: pass system.plant)")
     _check(model, operating_point)
     return _Builder(model, float(rigid_factor), omega_max).build()
 
@@ -442,17 +442,21 @@ def natural_frequencies(system: Any, *, n_modes: int | None = None, omega_max: f
 
 def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  # noqa: A002
                        output: str | Sequence[str], operating_point: Any = None) -> FrequencyResponse:
-    """Frequency response of a spatial chain's exact-field form between its ports.
+    """Frequency response of a spatial chain's exact-field form between its ports, loops closed with exact delays.
 
     Parameters
     ----------
-    system : SpatialModel
+    system : SpatialModel or ControlledModel
+        A controlled model's :class:`~ctmm.control.Feedback` loops ``u = -C(s) e^{-s tau} (y - r)`` are
+        closed at every frequency (:func:`ctmm.exact_fields.form_response`).
     omega : array_like
         Angular frequencies [rad/s], >= 0.
     input : str or sequence of str
-        Actuator port names (``"<joint>.torque"``, ``"<body>.<point>.force_x"`` ... world axes).
+        Actuator port names (``"<joint>.torque"``, ``"<body>.<point>.force_x"`` ... world axes) or
+        ``"<loop>.reference"``.
     output : str or sequence of str
-        Sensor port names (``"<joint>.angle"``, ``"<body>.<point>.x"``, ``"<beam>.<station>.w_y"`` ...).
+        Sensor port names (``"<joint>.angle"``, ``"<body>.<point>.x"``, ``"<beam>.<station>.w_y"`` ...) or
+        ``"<loop>.y"``, ``"<loop>.u"``.
     operating_point : None
         As for :func:`exact_form`.
 
@@ -461,37 +465,23 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
     FrequencyResponse
         ``response[i_out, i_in, k]``: output phasor per unit input phasor.
     """
-    from .chain_assembly import solve
+    from .exact_fields import form_response
+    from .saturation import refuse_saturation
+    from .spatial.model import SpatialModel
     from .spatial.ports import SpatialPorts
 
     started = time.perf_counter()
+    model, loops = (system, ()) if isinstance(system, SpatialModel) else (system.plant, tuple(system.loops))
+    refuse_saturation(loops, "the frequency-domain verbs (fields='exact')")
     inputs = list(validation.names("input", input))
     outputs = list(validation.names("output", output))
     omega = validation.frequencies("omega", omega)
-    form = exact_form(system, operating_point, omega_max=float(np.max(omega, initial=0.0)))
-    in_terms = {name: form.actuator(name) for name in inputs}
-    out_terms = {name: form.sensor(name) for name in outputs}
-    chain_out = list(dict.fromkeys(n for terms in out_terms.values() for n, _ in terms))
-    response = np.zeros((len(outputs), len(inputs), omega.size), dtype=complex)
-    s = 1j * omega
-    signals = [form.chain.signal(name) for name in chain_out]
-    for b, name_in in enumerate(inputs):
-        loads: dict = {}
-        for n_in, w_in in in_terms[name_in]:
-            entry = form.chain.input(n_in)
-            loads.setdefault(entry.position, {})[entry.input] = w_in
-        if not loads:
-            continue
-        states = solve(form.chain, s, loads).states
-        values = {name: states[sig.point, :, sig.component] * s ** sig.derivative
-                  for name, sig in zip(chain_out, signals)}
-        for a, name_out in enumerate(outputs):
-            for n_out, w_out in out_terms[name_out]:
-                response[a, b] += w_out * values[n_out]
-    ports = SpatialPorts(system)
-    units = {name: ports.actuator_unit(name) for name in inputs}
-    units.update({name: ports.sensor_unit(name) for name in outputs})
-    info = {"method": "exact spatial beam fields (ctmm.spatial_exact_fields), Riccati transfer",
+    form = exact_form(model, operating_point, omega_max=float(np.max(omega, initial=0.0)))
+    response = form_response(form, loops, omega, inputs, outputs)
+    ports = SpatialPorts(model)
+    units = {name: ports.actuator_unit(name) for name in inputs if name in ports.actuators}
+    units.update({name: ports.sensor_unit(name) for name in outputs if name in ports.sensors})
+    info = {"method": "exact spatial beam fields (ctmm.spatial_exact_fields), Riccati transfer, delays exact",
             "wall_time_s": time.perf_counter() - started, "n_frequencies": int(omega.size),
             "chain_elements": len(form.chain.elements), "rigid_directions": list(form.rigid)}
-    return FrequencyResponse(omega, response, tuple(inputs), tuple(outputs), system.name, info=info, units=units)
+    return FrequencyResponse(omega, response, tuple(inputs), tuple(outputs), model.name, info=info, units=units)

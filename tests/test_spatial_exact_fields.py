@@ -176,3 +176,22 @@ def test_a_beam_turned_obliquely_to_the_base_axis_is_refused_not_answered_wrongl
                          rotation=Rotation.from_euler("y", 20, degrees=True).as_matrix())], gravity=(0.0, 0.0, 0.0))
     with pytest.raises(ModelError, match="rigid-body modes"):
         ctmm.natural_frequencies(model, n_modes=4, fields="exact")
+
+
+def test_a_feedback_loop_is_closed_on_the_exact_fields_and_matches_the_converged_modal_beam():
+    """A delayed PD on the hub (two loops, hinge.angle and hinge.rate -> hinge.torque, 10 ms): the
+    closed-loop response reference -> hub angle and -> loop force on the exact fields equals the
+    modal beam's (static shapes, 4 modes per direction) below the first flexible resonance."""
+    from ctmm.control import Feedback, with_feedback
+
+    loop = [Feedback("p", "hinge.angle", "hinge.torque", gain=20.0, delay=0.01),
+            Feedback("d", "hinge.rate", "hinge.torque", gain=3.0, delay=0.01)]
+    omega = np.array([0.5, 2.0, 4.0])
+    outputs = ["hinge.angle", "p.u", "arm.tip.w_y"]
+    exact = ctmm.frequency_response(with_feedback(hub_beam(beam(1)), loop), omega, input="p.reference",
+                                    output=outputs, fields="exact").response
+    modal = ctmm.frequency_response(with_feedback(hub_beam(beam(4, static=True)), loop), omega,
+                                    input="p.reference", output=outputs[:2]).response
+    np.testing.assert_allclose(exact[:2], modal, rtol=1e-6)            # measured 5e-8
+    assert np.all(np.abs(exact[2]) > 1e-3)              # the beam bends (m per rad of reference)
+    assert np.abs(exact[0, 0, 0]) > 0.5                 # the loop tracks at low frequency
