@@ -45,7 +45,7 @@ from .saturation import refuse_saturation
 from .loop_phasors import close_loops
 from .results import FrequencyResponse
 
-__all__ = ["ExactForm", "exact_form", "frequency_response", "natural_frequencies"]
+__all__ = ["ExactForm", "exact_form", "form_response", "frequency_response", "natural_frequencies"]
 
 #: Largest hinge angle [rad], modal coordinate and rate counted as zero at the operating point.
 STRAIGHT_TOLERANCE = 1e-9
@@ -356,9 +356,28 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
     inputs = list(validation.names("input", input))
     outputs = list(validation.names("output", output))
     omega = validation.frequencies("omega", omega)
-    s = 1j * omega
     started = time.perf_counter()
     form = exact_form(model, operating_point)
+    response = form_response(form, loops, omega, inputs, outputs)
+    sensors, actuators = set(ports.sensor_names(model)), set(ports.actuator_names(model))
+    units = {name: ports.actuator_unit(model, name) for name in inputs if name in actuators}
+    units.update({name: ports.sensor_unit(model, name) for name in outputs if name in sensors})
+    info = {"method": "exact fields (bending chain of BeamField pieces, ctmm.exact_fields), delays exact",
+            "wall_time_s": time.perf_counter() - started, "n_frequencies": int(omega.size),
+            "chain_elements": len(form.chain.elements)}
+    return FrequencyResponse(omega, response, tuple(inputs), tuple(outputs), model.name, info=info, units=units)
+
+
+def form_response(form: Any, loops: Sequence[Any], omega: np.ndarray, inputs: list[str],
+                  outputs: list[str]) -> np.ndarray:
+    """``response[i_out, i_in, k]`` of an exact-field form with its :class:`~ctmm.control.Feedback` loops closed.
+
+    ``form`` maps port names to weighted chain terms (``form.sensor(name)``, ``form.actuator(name)``,
+    ``form.chain``: :class:`ExactForm` or :class:`ctmm.spatial_exact_fields.SpatialExactForm`);
+    inputs are actuator names or ``"<loop>.reference"``, outputs sensor names or ``"<loop>.y"`` /
+    ``"<loop>.u"``; each loop ``u = -C(s) e^{-s tau} (y - r)`` is closed at every frequency.
+    """
+    s = 1j * omega
     index = {lp.name: j for j, lp in enumerate(loops)}
 
     def loop_part(name: str, parts: tuple) -> tuple | None:
@@ -384,14 +403,7 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
     K = np.zeros((s.size, len(loops), len(loops)), dtype=complex)
     for j, loop in enumerate(loops):
         K[:, j, j] = loop.loop_gain(s)
-    response = close_loops(blocks, K, inputs, outputs, plain_in, plain_out, loop_part)
-    sensors, actuators = set(ports.sensor_names(model)), set(ports.actuator_names(model))
-    units = {name: ports.actuator_unit(model, name) for name in inputs if name in actuators}
-    units.update({name: ports.sensor_unit(model, name) for name in outputs if name in sensors})
-    info = {"method": "exact fields (bending chain of BeamField pieces, ctmm.exact_fields), delays exact",
-            "wall_time_s": time.perf_counter() - started, "n_frequencies": int(omega.size),
-            "chain_elements": len(form.chain.elements)}
-    return FrequencyResponse(omega, response, tuple(inputs), tuple(outputs), model.name, info=info, units=units)
+    return close_loops(blocks, K, inputs, outputs, plain_in, plain_out, loop_part)
 
 
 def natural_frequencies(system: Any, *, n_modes: int | None = None, omega_max: float | None = None,

@@ -17,7 +17,7 @@ import numpy as np
 
 from . import validation
 from .assembly import SOLVERS, ChainSolution
-from . import planar_frequency, spatial_frequency
+from . import planar_frequency, spatial_exact_fields, spatial_frequency
 from .capabilities import require_chain
 from .chain_assembly import assemble, laplace_variables, solve  # noqa: F401  (assemble, solve: public here too)
 from .elements.axial import AxialJoint
@@ -65,8 +65,8 @@ def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],
     operating_point : optional
         Planar models only (:func:`ctmm.linearize`; default: the static equilibrium).
     fields : {"modal", "exact"}, optional
-        Planar models only: ``"exact"`` answers a straight chain with beams by exact beam fields
-        (:mod:`ctmm.exact_fields`); default ``"modal"`` (the model as built).
+        Planar and spatial models: ``"exact"`` answers a straight chain with beams by exact beam fields
+        (:mod:`ctmm.exact_fields`, :mod:`ctmm.spatial_exact_fields`); default ``"modal"`` (the model as built).
 
     Returns
     -------
@@ -90,9 +90,12 @@ def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],
 
         return frequency_response_loops(system, omega, input=input, output=output, operating_point=operating_point)
     if _is_spatial(system):
-        if solver != "riccati" or fields not in (None, "modal"):
-            raise ModelError(f"frequency_response: solver={solver!r} and fields={fields!r} are for chains and planar "
-                             "models; a spatial model is answered through its linearisation (leave the defaults)")
+        if solver != "riccati" or fields not in (None, "modal", "exact"):
+            raise ModelError(f"frequency_response: solver={solver!r} and fields={fields!r}: a spatial model takes "
+                             "fields='modal' (its linearisation, the default) or 'exact' (ctmm.spatial_exact_fields)")
+        if fields == "exact":
+            return spatial_exact_fields.frequency_response(system, omega, input=input, output=output,
+                                                           operating_point=operating_point)
         return spatial_frequency.frequency_response(system, omega, input=input, output=output,
                                                     operating_point=operating_point)
     if is_planar_system(system):
@@ -241,7 +244,8 @@ def natural_frequencies(system: Any, **options: Any) -> np.ndarray:
     ``omega_max``, ``operating_point``, ``fields="exact"`` for the exact-field form of a straight
     chain with beams, :mod:`ctmm.exact_fields`); a ``SpatialModel`` by
     :func:`ctmm.spatial_frequency.natural_frequencies` (options ``n_modes``, ``omega_max``,
-    ``operating_point``).  Damped systems and systems with loops are refused.
+    ``operating_point``; ``fields="exact"`` for the exact spatial beam fields of a straight chain,
+    :mod:`ctmm.spatial_exact_fields`).  Damped systems and systems with loops are refused.
     """
     if _is_kinematic_loop(system):
         from .planar.loop_verbs import natural_frequencies_loops
@@ -250,6 +254,11 @@ def natural_frequencies(system: Any, **options: Any) -> np.ndarray:
     if is_planar_system(system):
         return planar_frequency.natural_frequencies(system, **options)
     if _is_spatial(system):
+        fields = options.pop("fields", "modal")
+        if fields == "exact":
+            return spatial_exact_fields.natural_frequencies(system, **options)
+        if fields != "modal":
+            raise ModelError(f"natural_frequencies: fields must be 'modal' or 'exact', got {fields!r}")
         return spatial_frequency.natural_frequencies(system, **options)
     if "fields" in options:
         raise ModelError(f"natural_frequencies: fields={options['fields']!r} is for planar models; a chain's beam "

@@ -63,3 +63,38 @@ def test_robot_arm_quick_meets_its_bounds(tmp_path):
     errors = summary["joint_errors_rad"]
     assert errors["real-time"]["Newmark"] > errors["real-time"]["RK4"]     # order 2 against order 4
     assert data["wall_time_s"] > 0 and data["reference_wall_time_s"] > 0
+
+
+@pytest.mark.parametrize("name", ["spatial_hub_beam", "spatial_hub_beam_tip_body"])
+def test_spatial_hub_beam_quick_meets_its_bounds(name, tmp_path):
+    """Hub rate, longitudinal (axial mode) and transverse tip deformation of the SpatialBeam run against
+    the independent assumed-modes Lagrange model with the axial mode (0.1 % of peak), the beam really
+    bending in the plane of rotation and stretching, nothing out of that plane."""
+    summary = scenario.run_scenario(name, tmp_path, quick=True)
+    data = json.loads((tmp_path / f"{name}.json").read_text())
+    assert data["passed"] and [f["unit"] for f in data["accuracy"]] == ["% of peak"] * 3
+    for figure in data["accuracy"]:
+        assert figure["value"] <= figure["bound"] == 0.1, figure
+    assert summary["peak_transverse_tip_m"] > 5e-3               # the beam really bends (m)
+    assert summary["peak_longitudinal_tip_m"] > 1e-10            # and really stretches (m)
+    assert summary["peak_out_of_plane_tip_m"] == 0.0             # planar motion stays planar
+    assert summary["longitudinal_tip_max_error_m"] < 1e-3 * summary["peak_longitudinal_tip_m"]
+    assert data["wall_time_s"] > 0 and data["reference_wall_time_s"] > 0
+
+
+def test_spatial_spin_up_quick_is_bounded_with_stiffening_and_diverges_without(tmp_path):
+    """In-plane and out-of-plane tip deflection of the stiffened spin-up under out-of-plane gravity
+    against the independent Lagrange model (0.1 % of peak); without stiffening the in-plane
+    deflection diverges once the spin passes omega_1 (the contrast, asserted)."""
+    name = "spatial_spin_up"
+    summary = scenario.run_scenario(name, tmp_path, quick=True)
+    data = json.loads((tmp_path / f"{name}.json").read_text())
+    assert data["passed"] and len(data["accuracy"]) == 2
+    for figure in data["accuracy"]:
+        assert figure["value"] <= figure["bound"] == 0.1, figure
+    assert summary["peak_in_plane_tip_m"] > 0.5                       # the spin-up bends the beam (m)
+    assert summary["static_sag_tip_m"] < -1.0                          # gravity acts out of plane (m)
+    assert summary["peak_out_of_plane_tip_m"] < 1.5 * abs(summary["static_sag_tip_m"])   # bounded
+    assert summary["unstiffened_diverged"]
+    assert summary["unstiffened_peak_in_plane_tip_m"] > 10 * summary["peak_in_plane_tip_m"]
+    assert summary["unstiffened_tip_max_error_m"] < 1e-3 * 10.0        # same divergence in the reference

@@ -192,7 +192,8 @@ class SpatialBeamLagrange:
         dT_du = ca.gradient(T, u)
         residual = (ca.mtimes(ca.jacobian(dT_du, q), u) + ca.mtimes(ca.jacobian(dT_du, u), ud)
                     - ca.gradient(T, q) + ca.gradient(V, q))
-        generalized = ca.SX.zeros(n)
+        tau = ca.SX.sym("tau", n)                                     # applied generalised forces
+        generalized = ca.SX(tau)
         for i, c_joint in enumerate(p.joint_damping):
             generalized[i] -= c_joint * u[i]
         generalized[nh:] -= ca.mtimes(ca.DM(D), eta_dot)
@@ -217,32 +218,66 @@ class SpatialBeamLagrange:
         residual = residual - generalized
         M = ca.jacobian(residual, ud)
         rhs = -ca.substitute(residual, ud, ca.SX.zeros(n))
-        self._rates = ca.Function("rates", [q, u], [ca.solve(M, rhs)])
+        self._rates = ca.Function("rates", [q, u, tau], [ca.solve(M, rhs)])
+        self._mass_bias = ca.Function("mass_bias", [q, u], [M, ca.substitute(rhs, tau, ca.SX.zeros(n))])
         self._energy = ca.Function("energy", [q, u], [T + V])
         self.n = n
 
-    def accelerations(self, q: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """``u_dot`` at ``(q, u)``."""
-        return np.asarray(self._rates(q, u)).ravel()
+    def accelerations(self, q: np.ndarray, u: np.ndarray, force: np.ndarray | None = None) -> np.ndarray:
+        """``u_dot`` at ``(q, u)`` with applied generalised forces ``force`` (``(n,)``, along ``u``: hub
+        torques [N m] first; default none)."""
+        return np.asarray(self._rates(q, u, np.zeros(self.n) if force is None else force)).ravel()
 
     def energy(self, q: np.ndarray, u: np.ndarray) -> float:
         """``T + V`` [J] (joint springs and the elastic energy included; no geometric stiffness)."""
         return float(self._energy(q, u))
 
-    def rk4(self, q0: np.ndarray, u0: np.ndarray, dt: float, steps: int) -> np.ndarray:
-        """Classical RK4 on ``[q ; u]``: states ``(steps + 1, 2 n)``."""
+    def rk4(self, q0: np.ndarray, u0: np.ndarray, dt: float, steps: int, force=None) -> np.ndarray:
+        """Classical RK4 on ``[q ; u]``: states ``(steps + 1, 2 n)``; ``force`` an optional constant
+        generalised force (``(n,)``, see :meth:`accelerations`) over the run."""
         n = self.n
 
         def f(state):
-            return np.concatenate([state[n:], self.accelerations(state[:n], state[n:])])
+            return np.concatenate([state[n:], self.accelerations(state[:n], state[n:], force)])
 
-        state = np.concatenate([q0, u0]).astype(float)
-        out = [state.copy()]
-        for _ in range(steps):
-            k1 = f(state)
-            k2 = f(state + dt / 2 * k1)
-            k3 = f(state + dt / 2 * k2)
-            k4 = f(state + dt * k3)
-            state = state + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-            out.append(state.copy())
-        return np.array(out)
+        return _rk4(lambda _t, state: f(state), np.concatenate([q0, u0]).astype(float), dt, steps)
+
+    def mass_and_bias(self, q: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(M, rhs)`` of ``M u_dot = rhs`` at ``(q, u)`` without applied forces."""
+        M, rhs = self._mass_bias(q, u)
+        return np.asarray(M), np.asarray(rhs).ravel()
+
+    def driven_rk4(self, hub, eta0: np.ndarray, eta_dot0: np.ndarray, dt: float, steps: int) -> np.ndarray:
+        """Classical RK4 of the modal coordinates with the hub angles prescribed (one hub axis).
+
+        ``hub(t)`` returns ``(angle [rad], rate [rad/s], acceleration [rad/s^2])``; the modal
+        accelerations solve the modal rows of ``M u_dot = rhs`` with the hub acceleration given (its
+        row is the driving torque).  States ``[eta ; eta_dot]``, ``(steps + 1, 2 n_eta)``.
+        """
+        nh, ne = self.n_hub, self.n_eta
+        if nh != 1:
+            raise ValueError("driven_rk4 prescribes one hub angle (axes = (a,))")
+
+        def f(t, state):
+            angle, rate, acceleration = hub(t)
+            q = np.concatenate([[angle], state[:ne]])
+            u = np.concatenate([[rate], state[ne:]])
+            M, rhs = self.mass_and_bias(q, u)
+            eta_ddot = np.linalg.solve(M[nh:, nh:], rhs[nh:] - M[nh:, :nh] @ np.array([acceleration]))
+            return np.concatenate([state[ne:], eta_ddot])
+
+        return _rk4(f, np.concatenate([eta0, eta_dot0]).astype(float), dt, steps)
+
+
+def _rk4(f, state: np.ndarray, dt: float, steps: int) -> np.ndarray:
+    """Classical RK4 of ``y' = f(t, y)`` from ``t = 0``: states ``(steps + 1, len(state))``."""
+    out = [state.copy()]
+    for k in range(steps):
+        t = k * dt
+        k1 = f(t, state)
+        k2 = f(t + dt / 2, state + dt / 2 * k1)
+        k3 = f(t + dt / 2, state + dt / 2 * k2)
+        k4 = f(t + dt, state + dt * k3)
+        state = state + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        out.append(state.copy())
+    return np.array(out)

@@ -1,0 +1,487 @@
+"""Exact-field frequency form of a straight spatial chain of beams and rigid bodies (``fields="exact"``).
+
+The bridge from a :class:`~ctmm.spatial.model.SpatialModel` built of modal
+:class:`~ctmm.spatial.beam.SpatialBeam` bodies to the exact 12 x 12 spatial beam fields of
+:mod:`ctmm.spatial_beam_fields` (docs/spatial_beams.md): about its rest configuration (no gravity,
+no loads, joints at zero, beams undeformed, nothing moving) a serial spatial chain vibrates as a
+spatial beam chain, answered by the Riccati transfer and the Wittrick-Williams count, so its
+frequencies are exact at any mode number -- the limit the modal beam reaches as its modes increase.
+:func:`exact_form` converts, in **chain axes** (the world axes turned so that a base revolute axis
+is the chain's ``z``; the world axes for a welded base):
+
+* the base: a ground :class:`~ctmm.spatial.elements.Weld` -> :class:`SpatialClamped`; a ground
+  :class:`~ctmm.spatial.elements.Revolute` -> :class:`SpatialSupport` holding all but ``theta_z``,
+  its law ``k + c s`` a :class:`SpatialGroundSpring` and its torque input a point moment;
+* a weld between bodies -> continuity; a revolute with ``k + c > 0`` -> :class:`SpatialHinge`;
+* a :class:`~ctmm.spatial.elements.SpatialBody` -> :class:`SpatialRigidBody` (mass, inertia and
+  centre of mass turned to chain axes, its child's point as the offset);
+* a :class:`~ctmm.spatial.beam.SpatialBeam` -> :class:`SpatialBeamField` pieces between its stations
+  (``EA``, ``GJ``, ``rho I_p``, Kelvin-Voigt ``stiffness_damping``; the modal beam's
+  ``bending_stiffness_y`` governs ``w_y``, bending in the x-y plane, which is the field's
+  ``bending_stiffness_z``) with a :class:`SpatialPointLoad` marker at the root, every station and
+  the tip;
+* the free outboard end -> :class:`SpatialFree`.
+
+**Rigid directions.**  A direction of a beam without modes (``n_axial_modes = 0``: inextensible,
+``n_torsion_modes = 0``: torsionally rigid, ``n_modes_y = 0`` or ``n_modes_z = 0``: rigid in that
+plane) is rigid in the modal beam.  The field needs a finite stiffness there: it is given
+``RIGID_FACTOR`` times a stiffness scale of the beam (and a section inertia ``rhoA L^2 /
+RIGID_FACTOR`` when ``polar_inertia_per_length = 0``), and :func:`natural_frequencies` answers
+only if the frequencies with ``RIGID_FACTOR`` and ``RIGID_FACTOR / RIGID_CHECK_RATIO`` agree to
+``RIGID_TOLERANCE`` (relative); otherwise a :class:`ModelError` names the rigid directions (a
+frequency that depends on a rigid direction's stiffness).
+
+Refused (:class:`~ctmm.errors.ModelError`, naming the part): trees and children at mid-span
+stations, other joint kinds, a free revolute between bodies (no transfer matrix), joint
+references, actuated joints other than revolute, gravity, loads, distributed loads and modal
+hooks (a preload or no field counterpart), modal damping ratios, a given operating point, loops in
+:func:`natural_frequencies` (pass ``system.plant``; :func:`frequency_response` closes them), and ports without an exact-field counterpart (modal coordinates, body
+angles and rotation vectors).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+
+from . import validation
+from .errors import ModelError
+from .results import FrequencyResponse
+
+__all__ = ["SpatialExactForm", "exact_form", "natural_frequencies", "frequency_response", "RIGID_FACTOR"]
+
+#: Stiffness of a rigid direction relative to the beam's stiffness scale (module docstring).
+RIGID_FACTOR = 1e12
+#: The rigid-direction check compares with ``RIGID_FACTOR / RIGID_CHECK_RATIO``.
+RIGID_CHECK_RATIO = 100.0
+#: Largest relative change of a frequency between the two rigid stiffnesses.
+RIGID_TOLERANCE = 1e-9
+
+Terms = list[tuple[str, float]]
+_DISPLACEMENTS = ("ux", "uy", "uz", "theta_x", "theta_y", "theta_z")
+
+
+@dataclass(frozen=True)
+class SpatialExactForm:
+    """A spatial chain as a spatial beam chain of exact fields, with its port map.
+
+    Attributes
+    ----------
+    chain : ctmm.Chain
+        The spatial beam chain (layout ``SPATIAL_BEAM``, chain axes).
+    axes : (3, 3) ndarray
+        ``Q``: chain axes from world axes (``v_chain = Q v_world``).
+    sensors : dict of str to list of (str, float)
+        Sensor name -> weighted chain displacement signals (``"_dot"`` for rates).
+    actuators : dict of str to list of (str, float)
+        Actuator name -> weighted chain inputs (``"<marker>.fx"`` ...).
+    rigid : list of str
+        Rigid beam directions given the stiffness ``RIGID_FACTOR`` (``"<beam>.axial"`` ...).
+    """
+
+    chain: Any
+    axes: np.ndarray
+    sensors: dict
+    actuators: dict
+    rigid: list
+
+    def sensor(self, name: str) -> Terms:
+        """Chain signal terms of sensor ``name`` (or a :class:`ModelError`)."""
+        if name not in self.sensors:
+            raise ModelError(f"sensor {name!r} has no exact-field counterpart (fields='exact' maps joint angles and "
+                             f"rates, point positions and velocities, body angular velocities and beam station "
+                             f"sensors); available: {', '.join(sorted(self.sensors))}")
+        return self.sensors[name]
+
+    def actuator(self, name: str) -> Terms:
+        """Chain input terms of actuator ``name`` (or a :class:`ModelError`)."""
+        if name not in self.actuators:
+            raise ModelError(f"actuator {name!r} has no exact-field counterpart; available: "
+                             f"{', '.join(sorted(self.actuators))}")
+        return self.actuators[name]
+
+
+def _refuse(model: Any, reason: str) -> ModelError:
+    return ModelError(f"fields='exact' cannot convert spatial model {model.name!r}: {reason}")
+
+
+def _axis_rotation(axis: np.ndarray) -> np.ndarray:
+    """A proper rotation ``Q`` with ``Q axis = e_z``."""
+    e3 = axis / np.linalg.norm(axis)
+    helper = np.eye(3)[int(np.argmin(np.abs(e3)))]
+    e1 = np.cross(helper, e3)
+    e1 /= np.linalg.norm(e1)
+    return np.array([e1, np.cross(e3, e1), e3])
+
+
+def _chain_axes(model: Any) -> np.ndarray:
+    """``Q`` (chain from world axes): a base revolute axis is the chain's ``z``; the first beam's axes
+    are the chain axes (up to a signed permutation when a base revolute axis is one of them), so
+    that its field is not turned (the static rigid-mode count of turned fields is less robust)."""
+    from .spatial.beam import SpatialBeam
+
+    base = model.joints[0]
+    axis = base.rotation @ base.axis if base.kind == "revolute" else None
+    R = np.eye(3)
+    beam_axes = None
+    for body, joint in zip(model.bodies, model.joints):
+        R = R @ joint.rotation
+        if isinstance(body, SpatialBeam):
+            beam_axes = R
+            break
+    if beam_axes is None:
+        return np.eye(3) if axis is None else _axis_rotation(axis)
+    if axis is None:
+        return beam_axes.T
+    b = [beam_axes[:, i] for i in range(3)]
+    for i in range(3):
+        sign = float(b[i] @ axis)
+        if abs(sign) > 1.0 - 1e-12:
+            j, k = (i + 1) % 3, (i + 2) % 3          # (b_j, b_k, b_i) is right-handed
+            return np.array([b[j], np.sign(sign) * b[k], np.sign(sign) * b[i]])
+    return _axis_rotation(axis)
+
+
+def _snap(rotation: np.ndarray) -> np.ndarray:
+    """Entries within ``1e-12`` of 0 or +-1 made exact (a signed permutation stays one exactly)."""
+    out = np.where(np.abs(rotation) < 1e-12, 0.0, rotation)
+    return np.where(np.abs(np.abs(out) - 1.0) < 1e-12, np.sign(out), out)
+
+
+def _skew(r: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+
+
+def _check(model: Any, operating_point: Any) -> None:
+    from .spatial.beam import SpatialBeam
+
+    if operating_point is not None:
+        raise _refuse(model, "an operating point is given; the exact form is about the rest configuration (leave "
+                             "operating_point=None)")
+    if np.any(np.asarray(model.gravity) != 0.0):
+        raise _refuse(model, f"gravity = {np.asarray(model.gravity).tolist()} m/s^2 preloads the chain (give "
+                             "gravity=(0, 0, 0))")
+    if model.loads:
+        raise _refuse(model, f"loads {[load.name for load in model.loads]} preload the chain")
+    if list(model.parent) != list(range(-1, model.n_bodies - 1)):
+        raise _refuse(model, "it is not a serial chain (a body with several children, or several bases)")
+    for body, joint in zip(model.bodies, model.joints):
+        if joint.kind not in ("weld", "revolute"):
+            raise _refuse(model, f"joint {joint.name!r} is a {joint.kind} joint (welds and revolute joints convert)")
+        if joint.kind == "revolute":
+            if joint.driven or joint.law is not None or np.any(joint.reference):
+                raise _refuse(model, f"revolute joint {joint.name!r} is driven, has a nonlinear law or a non-zero "
+                                     "reference")
+        if isinstance(body, SpatialBeam):
+            if body.damping_ratio:
+                raise _refuse(model, f"beam {body.name!r} has damping_ratio = {body.damping_ratio!r} (no field "
+                                     "counterpart; use stiffness_damping, Kelvin-Voigt)")
+            if body.modal_forces:
+                raise _refuse(model, f"beam {body.name!r} has modal-force hooks (use station ports)")
+            if any(getattr(q, "value", None) != 0.0 for q in body.distributed_load):
+                raise _refuse(model, f"beam {body.name!r} carries a distributed load (a preload)")
+
+
+class _Builder:
+    """Walks a checked serial spatial chain and collects the field elements and the port map."""
+
+    def __init__(self, model: Any, rigid_factor: float, omega_max: float | None) -> None:
+        self.model = model
+        self.rigid_factor = rigid_factor
+        self.omega_max = omega_max
+        self.elements: list = []
+        self.sensors: dict[str, Terms] = {}
+        self.actuators: dict[str, Terms] = {}
+        self.rigid: list[str] = []
+        self.Q = _chain_axes(model)
+
+    # -- port helpers -------------------------------------------------------------------------
+    def marker(self, name: str) -> str:
+        from .spatial_beam_elements import SpatialPointLoad
+        self.elements.append(SpatialPointLoad(name))
+        return name
+
+    def rigid_point(self, marker: str, offset: np.ndarray) -> list[Terms]:
+        """Chain displacement terms of ``u`` (3 chain components) at ``marker`` + ``offset`` (chain axes)."""
+        S = _skew(offset)
+        rows = []
+        for i in range(3):
+            terms = [(f"{marker}.{_DISPLACEMENTS[i]}", 1.0)]
+            terms += [(f"{marker}.{_DISPLACEMENTS[3 + k]}", -S[i, k]) for k in range(3) if S[i, k]]
+            rows.append(terms)
+        return rows
+
+    def world(self, rows: list[Terms]) -> list[Terms]:
+        """World components ``Q^T`` of chain-axes rows."""
+        return [[(n, self.Q[k, i] * w) for k in range(3) for n, w in rows[k] if self.Q[k, i]] for i in range(3)]
+
+    def point_sensors(self, label: str, rows: list[Terms]) -> None:
+        for axis, terms in zip("xyz", self.world(rows)):
+            self.sensors[f"{label}.{axis}"] = terms
+            self.sensors[f"{label}.v{axis}"] = [(f"{n}_dot", w) for n, w in terms]
+
+    def force_inputs(self, label: str, marker: str, offset: np.ndarray, kinds: Sequence[str]) -> None:
+        """World-axes force (at ``offset`` from ``marker``) and moment inputs ``label.force_x`` ..."""
+        S = _skew(offset)                      # moment at the marker = offset x force
+        for i, axis in enumerate("xyz"):
+            f = self.Q[:, i]                   # unit world force in chain axes
+            if "force" in kinds:
+                terms = [(f"{marker}.f{c}", f[k]) for k, c in enumerate("xyz") if f[k]]
+                moment = S @ f
+                terms += [(f"{marker}.m{c}", moment[k]) for k, c in enumerate("xyz") if moment[k]]
+                self.actuators[f"{label}.force_{axis}"] = terms
+            if "moment" in kinds:
+                self.actuators[f"{label}.moment_{axis}"] = [(f"{marker}.m{c}", f[k]) for k, c in enumerate("xyz")
+                                                            if f[k]]
+
+    # -- elements -----------------------------------------------------------------------------
+    def build(self) -> SpatialExactForm:
+        from .spatial.beam import SpatialBeam
+        from .spatial_beam_elements import (SpatialClamped, SpatialFree, SpatialGroundSpring, SpatialHinge,
+                                            SpatialSupport)
+        from .system import Chain
+
+        model = self.model
+        R = np.eye(3)                          # world rotation of the parent body
+        for j, (body, joint) in enumerate(zip(model.bodies, model.joints)):
+            R_joint = (np.eye(3) if j == 0 else R) @ joint.rotation
+            axis = self.Q @ R_joint @ joint.axis if joint.kind == "revolute" else None
+            k = float(joint.stiffness[0]) if axis is not None else 0.0
+            c = float(joint.damping[0]) if axis is not None else 0.0
+            if j == 0:
+                if axis is None:
+                    self.elements.append(SpatialClamped(f"{joint.name}__base"))
+                else:
+                    self.elements.append(SpatialSupport(f"{joint.name}__base", _DISPLACEMENTS[:5]))
+                    if k or c:
+                        self.elements.append(SpatialGroundSpring(f"{joint.name}__law", np.diag([0, 0, 0, 0, 0, k]),
+                                                                 damping=np.diag([0, 0, 0, 0, 0, c])))
+            before = self.marker(f"{joint.name}__before") if j > 0 and axis is not None else None
+            if before is not None:
+                if not (k or c):
+                    raise _refuse(model, f"revolute joint {joint.name!r} between bodies is free (no stiffness or "
+                                         "damping): a free joint inside the chain has no transfer matrix")
+                self.elements.append(SpatialHinge(joint.name, axis, k, damping=c))
+            root = self.marker(f"{body.name}__root")
+            if axis is not None:
+                angle = [(f"{root}.theta_{c_}", a) for c_, a in zip("xyz", axis) if a]
+                if before is not None:
+                    angle += [(f"{before}.theta_{c_}", -a) for c_, a in zip("xyz", axis) if a]
+                self.sensors[f"{joint.name}.angle"] = angle
+                self.sensors[f"{joint.name}.rate"] = [(f"{n}_dot", w) for n, w in angle]
+                if joint.actuated:
+                    torque = [(f"{root}.m{c_}", a) for c_, a in zip("xyz", axis) if a]
+                    if before is not None:
+                        torque += [(f"{before}.m{c_}", -a) for c_, a in zip("xyz", axis) if a]
+                    self.actuators[f"{joint.name}.torque"] = torque
+            elif getattr(joint, "actuated", False):
+                raise _refuse(model, f"joint {joint.name!r} ({joint.kind}) is actuated")
+            R = R_joint                        # the body's world rotation at rest
+            B = _snap(self.Q @ R)              # body axes -> chain axes
+            for i, axis_name in enumerate("xyz"):      # world angular velocity: Q^T theta_dot (chain axes)
+                self.sensors[f"{body.name}.omega_{axis_name}"] = [
+                    (f"{root}.theta_{c_}_dot", self.Q[k_, i]) for k_, c_ in enumerate("xyz") if self.Q[k_, i]]
+            child = model.joints[j + 1].point if j + 1 < model.n_bodies else None
+            if isinstance(body, SpatialBeam):
+                self.beam(body, root, B, child)
+            else:
+                self.rigid_body(body, root, B, child)
+        self.elements.append(SpatialFree(f"{model.bodies[-1].name}__end"))
+        return SpatialExactForm(Chain(f"{model.name}_exact", self.elements), self.Q, self.sensors, self.actuators,
+                                self.rigid)
+
+    def rigid_body(self, body: Any, root: str, B: np.ndarray, child: str | None) -> None:
+        from .spatial_beam_elements import SpatialRigidBody
+
+        points = dict(body.points)
+        points["com"] = body.center_of_mass
+        for name, p in points.items():
+            self.point_sensors(f"{body.name}.{name}", self.rigid_point(root, B @ p))
+            self.force_inputs(f"{body.name}.{name}", root, B @ p, ("force",))
+        self.force_inputs(body.name, root, B @ body.center_of_mass, ("force",))
+        self.force_inputs(body.name, root, np.zeros(3), ("moment",))
+        offset = B @ body.points[child] if child is not None else np.zeros(3)
+        self.elements.append(SpatialRigidBody(body.name, body.mass, B @ body.inertia @ B.T,
+                                              center_of_mass=B @ body.center_of_mass, offset=offset))
+
+    def stiffness(self, beam: Any) -> dict:
+        """Field parameters of ``beam``, rigid directions at ``rigid_factor`` times its stiffness scale."""
+        L, rhoA = beam.length, beam.mass_per_length
+        scale = max(beam.bending_stiffness_y, beam.bending_stiffness_z) / (L * L)
+        out = {"bending_stiffness_z": beam.bending_stiffness_y, "bending_stiffness_y": beam.bending_stiffness_z,
+               "axial_stiffness": beam.axial_stiffness, "torsional_stiffness": beam.torsional_stiffness,
+               "polar_inertia_per_length": beam.polar_inertia_per_length}
+        for count, key, value, label in (
+                (beam.n_modes_y, "bending_stiffness_z", self.rigid_factor * scale * L * L, "bending_y"),
+                (beam.n_modes_z, "bending_stiffness_y", self.rigid_factor * scale * L * L, "bending_z"),
+                (beam.n_axial_modes, "axial_stiffness", self.rigid_factor * scale, "axial"),
+                (beam.n_torsion_modes, "torsional_stiffness", self.rigid_factor * scale * L * L, "torsion")):
+            if count == 0:
+                out[key] = value
+                self.rigid.append(f"{beam.name}.{label}")
+        if out["axial_stiffness"] is None:
+            out["axial_stiffness"] = self.rigid_factor * scale
+        if out["torsional_stiffness"] is None:
+            out["torsional_stiffness"] = self.rigid_factor * scale * L * L
+        if out["polar_inertia_per_length"] == 0.0:
+            out["polar_inertia_per_length"] = rhoA * L * L / self.rigid_factor
+            self.rigid.append(f"{beam.name}.polar_inertia")
+        return out
+
+    def beam(self, beam: Any, root: str, B: np.ndarray, child: str | None) -> None:
+        from .spatial_beam_fields import SpatialBeamField
+
+        if child is not None and child != "tip" and beam.points[child][0] < beam.length * (1 - 1e-12):
+            raise _refuse(self.model, f"the child of beam {beam.name!r} hangs at point {child!r} (x = "
+                                      f"{beam.points[child][0]} m < L): a mid-span branch")
+        parameters = self.stiffness(beam)
+        places = sorted([(x, name) for name, x in beam.stations.items() if 0.0 < x < beam.length]
+                        + [(beam.length, "tip")])
+        markers = {"origin": (root, 0.0)}
+        markers.update({name: (root, 0.0) for name, x in beam.stations.items() if x == 0.0})
+        position, pieces = 0.0, 0
+        for x, name in places:
+            if x - position > 1e-12 * beam.length:
+                pieces += 1
+                field = SpatialBeamField(f"{beam.name}__{pieces}", x - position, rotation=B,
+                                         kelvin_voigt_time=beam.stiffness_damping, **parameters,
+                                         mass_per_length=beam.mass_per_length)
+                self.elements += ([field] if self.omega_max is None
+                                  else list(field.split(field.pieces_for(self.omega_max))))
+                position = x
+            markers[name] = (self.marker(f"{beam.name}__at_{name}"), x)
+            if name == "tip":
+                markers.update({n: markers["tip"] for n, xs in beam.stations.items() if xs == x})
+        b1 = B[:, 0]
+        for name, (marker, x) in markers.items():
+            self.point_sensors(f"{beam.name}.{name}", self.rigid_point(marker, np.zeros(3)))
+            self.force_inputs(f"{beam.name}.{name}", marker, np.zeros(3), ("force", "moment"))
+            if name == "origin":
+                continue
+            rigid = self.rigid_point(root, x * b1)          # the root frame's motion at x
+            relative = [[(n, w) for n, w in self.rigid_point(marker, np.zeros(3))[i]]
+                        + [(n, -w) for n, w in rigid[i]] for i in range(3)]
+            local = [[(n, B[k, i] * w) for k in range(3) for n, w in relative[k] if B[k, i]] for i in range(3)]
+            turn = [[(f"{marker}.theta_{c}", B[k, i]) for k, c in enumerate("xyz") if B[k, i]]
+                    + [(f"{root}.theta_{c}", -B[k, i]) for k, c in enumerate("xyz") if B[k, i]] for i in range(3)]
+            for label, terms in (("axial", local[0]), ("w_y", local[1]), ("w_z", local[2]), ("twist", turn[0]),
+                                 ("slope_y", turn[2]), ("slope_z", [(n, -w) for n, w in turn[1]])):
+                self.sensors[f"{beam.name}.{name}.{label}"] = terms
+                self.sensors[f"{beam.name}.{name}.{label}_rate"] = [(f"{n}_dot", w) for n, w in terms]
+
+
+def exact_form(model: Any, operating_point: Any = None, *, rigid_factor: float = RIGID_FACTOR,
+               omega_max: float | None = None) -> SpatialExactForm:
+    """The exact-field spatial beam chain of a straight spatial chain and its port map (module docstring).
+
+    Parameters
+    ----------
+    model : SpatialModel
+    operating_point : None
+        The rest configuration only (anything else is refused).
+    rigid_factor : float, optional
+        Stiffness of rigid beam directions relative to the beam's stiffness scale (default
+        ``RIGID_FACTOR``).
+    omega_max : float, optional
+        Split every field into pieces well conditioned up to ``omega_max`` [rad/s] (for frequency
+        responses; the counting verbs subdivide by themselves).
+    """
+    from .spatial.model import SpatialModel
+
+    if not isinstance(model, SpatialModel):
+        loops = [lp.name for lp in getattr(model, "loops", ())]
+        raise ModelError(f"fields='exact' converts a SpatialModel; got {type(model).__name__} (for the loops {loops} "
+                         "use frequency_response; natural_frequencies describes the plant: pass system.plant)")
+    _check(model, operating_point)
+    return _Builder(model, float(rigid_factor), omega_max).build()
+
+
+def natural_frequencies(system: Any, *, n_modes: int | None = None, omega_max: float | None = None,
+                        operating_point: Any = None) -> np.ndarray:
+    """Undamped natural frequencies [rad/s] of a spatial chain's exact-field form (ascending, rigid as 0).
+
+    The spatial beam chain of :func:`exact_form` is counted by Wittrick-Williams
+    (:func:`ctmm.natural.natural_frequencies`): no mode is missed.  Frequencies that depend on the
+    stiffness given to a rigid beam direction are refused (module docstring).
+
+    Parameters
+    ----------
+    system : SpatialModel
+    n_modes : int, optional
+        Number of lowest frequencies.
+    omega_max : float, optional
+        All frequencies below ``omega_max`` [rad/s] instead.
+    operating_point : None
+        As for :func:`exact_form`.
+    """
+    from .natural import natural_frequencies as chain_natural
+
+    form = exact_form(system, operating_point, rigid_factor=RIGID_FACTOR)
+    omega = chain_natural(form.chain, n_modes=n_modes, omega_max=omega_max)
+    base = system.joints[0]
+    rigid_modes = int(base.kind == "revolute" and not base.stiffness[0])
+    if np.count_nonzero(omega == 0.0) > rigid_modes:
+        raise _refuse(system, f"the chain count found {np.count_nonzero(omega == 0.0)} rigid-body modes where the "
+                              f"model has {rigid_modes}: the static rigid-mode count of ctmm.natural is not "
+                              "reliable for beams turned obliquely to the chain axes (here: to the base revolute "
+                              "axis); use fields='modal'")
+    if form.rigid:
+        softer = exact_form(system, operating_point, rigid_factor=RIGID_FACTOR / RIGID_CHECK_RATIO)
+        check = chain_natural(softer.chain, n_modes=n_modes, omega_max=omega_max)
+        scale = max(float(np.max(omega, initial=0.0)), 1e-300)
+        if check.shape != omega.shape or np.max(np.abs(check - omega) / np.maximum(omega, 1e-6 * scale),
+                                                initial=0.0) > RIGID_TOLERANCE:
+            raise _refuse(system, f"its frequencies depend on the stiffness given to the rigid beam directions "
+                                  f"{form.rigid} (no modes there; changes of up to "
+                                  f"{np.max(np.abs(check - omega)) if check.shape == omega.shape else 'count'} rad/s): "
+                                  "give those directions modes")
+    return omega
+
+
+def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  # noqa: A002
+                       output: str | Sequence[str], operating_point: Any = None) -> FrequencyResponse:
+    """Frequency response of a spatial chain's exact-field form between its ports, loops closed with exact delays.
+
+    Parameters
+    ----------
+    system : SpatialModel or ControlledModel
+        A controlled model's :class:`~ctmm.control.Feedback` loops ``u = -C(s) e^{-s tau} (y - r)`` are
+        closed at every frequency (:func:`ctmm.exact_fields.form_response`).
+    omega : array_like
+        Angular frequencies [rad/s], >= 0.
+    input : str or sequence of str
+        Actuator port names (``"<joint>.torque"``, ``"<body>.<point>.force_x"`` ... world axes) or
+        ``"<loop>.reference"``.
+    output : str or sequence of str
+        Sensor port names (``"<joint>.angle"``, ``"<body>.<point>.x"``, ``"<beam>.<station>.w_y"`` ...) or
+        ``"<loop>.y"``, ``"<loop>.u"``.
+    operating_point : None
+        As for :func:`exact_form`.
+
+    Returns
+    -------
+    FrequencyResponse
+        ``response[i_out, i_in, k]``: output phasor per unit input phasor.
+    """
+    from .exact_fields import form_response
+    from .saturation import refuse_saturation
+    from .spatial.model import SpatialModel
+    from .spatial.ports import SpatialPorts
+
+    started = time.perf_counter()
+    model, loops = (system, ()) if isinstance(system, SpatialModel) else (system.plant, tuple(system.loops))
+    refuse_saturation(loops, "the frequency-domain verbs (fields='exact')")
+    inputs = list(validation.names("input", input))
+    outputs = list(validation.names("output", output))
+    omega = validation.frequencies("omega", omega)
+    form = exact_form(model, operating_point, omega_max=float(np.max(omega, initial=0.0)))
+    response = form_response(form, loops, omega, inputs, outputs)
+    ports = SpatialPorts(model)
+    units = {name: ports.actuator_unit(name) for name in inputs if name in ports.actuators}
+    units.update({name: ports.sensor_unit(name) for name in outputs if name in ports.sensors})
+    info = {"method": "exact spatial beam fields (ctmm.spatial_exact_fields), Riccati transfer, delays exact",
+            "wall_time_s": time.perf_counter() - started, "n_frequencies": int(omega.size),
+            "chain_elements": len(form.chain.elements), "rigid_directions": list(form.rigid)}
+    return FrequencyResponse(omega, response, tuple(inputs), tuple(outputs), model.name, info=info, units=units)
