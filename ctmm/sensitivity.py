@@ -51,6 +51,16 @@ _MISMATCH = 1e-7     # largest relative disagreement between a library value and
 
 
 # -------------------------------------------------------------------------------- parameters
+def characteristic_matrix(system: Any, names: Sequence[str]) -> LoopCharacteristicMatrix:
+    """``Delta(s)`` of ``system`` with its derivatives: a chain's (:mod:`ctmm.sensitivity_model`) or a
+    planar model's (:mod:`ctmm.sensitivity_planar`, linearised about its static equilibrium)."""
+    from .sensitivity_planar import PlanarCharacteristicMatrix, is_planar_system
+
+    if is_planar_system(system):
+        return PlanarCharacteristicMatrix(system, names)
+    return LoopCharacteristicMatrix(system, names)
+
+
 def _names(parameters: Any) -> tuple[str, ...]:
     names = validation.names("parameters", parameters, allow_empty=True)
     if len(set(names)) != len(names):
@@ -69,7 +79,11 @@ def parameter_values(system: Any, parameters: str | Sequence[str]) -> dict[str, 
 
     ``"<loop>.gain"`` of a loop with an LTI controller is a factor on that controller (value 1).
     """
-    model = LoopCharacteristicMatrix(system, _names(parameters))
+    from .sensitivity_planar import is_planar_system, planar_parameter_values
+
+    if is_planar_system(system):
+        return planar_parameter_values(system, _names(parameters))
+    model = characteristic_matrix(system, _names(parameters))
     return {p.name: p.value for p in model.parameters}
 
 
@@ -90,9 +104,13 @@ def with_parameters(system: Any, values: Mapping[str, float]) -> Any:
     """
     from .stability import with_loop_parameters
 
+    from .sensitivity_planar import is_planar_system, planar_with_parameters
+
     if not isinstance(values, Mapping):
         raise ModelError(f"values must be a mapping {{parameter name: value}}, got {values!r}")
-    model = LoopCharacteristicMatrix(system, _names(list(values)))
+    if is_planar_system(system):
+        return planar_with_parameters(system, {name: values[name] for name in _names(list(values))})
+    model = characteristic_matrix(system, _names(list(values)))
     chain = model.chain
     elements = list(chain.elements)
     per_loop: dict[str, dict] = {}
@@ -251,7 +269,7 @@ def frequency_response_sensitivity(system: Any, parameters: str | Sequence[str],
     -------
     FrequencySensitivity
     """
-    model = LoopCharacteristicMatrix(system, _names(parameters))
+    model = characteristic_matrix(system, _names(parameters))
     w = validation.frequencies("omega", omega)
     b = model.input_vector(_single("input", input))
     _single("output", output)
@@ -265,7 +283,8 @@ def frequency_response_sensitivity(system: Any, parameters: str | Sequence[str],
         y = np.linalg.solve(D.T, c)               # Delta^{-T} c
         H[k] = c @ x
         for i in range(len(model.parameters)):
-            dH[i, k] = -(y @ (model.delta_p(s, i) @ x))
+            dH[i, k] = -(y @ (model.delta_p(s, i) @ x)) + y @ model.input_vector_p(input, i) \
+                + model.output_row_p(output, s, i) @ x
     mag = np.abs(H)
     with np.errstate(divide="ignore", invalid="ignore"):
         dmag = np.real(np.conj(H) * dH) / mag
@@ -320,7 +339,8 @@ def _loop_terms(model: LoopCharacteristicMatrix, loop: int, s: complex) -> tuple
     L_s = dK * g + K * g_s
     L_p = np.empty(len(model.parameters), dtype=complex)
     for i in range(len(model.parameters)):
-        g_p = model.sensor_p(i, loop, s) @ x - y @ (model.delta_p(s, i, skip=loop) @ x)
+        g_p = model.sensor_p(i, loop, s) @ x - y @ (model.delta_p(s, i, skip=loop) @ x) \
+            + y @ model.actuator_p(i, loop)
         L_p[i] = model.loop_gain_p(s, i, loop) * g + K * g_p
     return complex(L), complex(L_s), L_p
 
@@ -335,7 +355,7 @@ def _loop_index(model: LoopCharacteristicMatrix, loop: str) -> int:
 def stability_margin_sensitivity(system: Any, loop: str, parameters: str | Sequence[str],
                                  omega: Any) -> PeakSensitivity:
     """``min_w |1 + L(i w)|`` of ``loop`` (refined) and its gradient (``1 / max |S|``)."""
-    model = LoopCharacteristicMatrix(system, _names(parameters))
+    model = characteristic_matrix(system, _names(parameters))
     i = _loop_index(model, loop)
     w = validation.frequencies("omega", omega)
 
@@ -396,7 +416,7 @@ def margin_sensitivity(system: ControlledChain, loop: str, parameters: str | Seq
     from .control.analysis import margins as compute_margins
 
     names = _names(parameters)
-    model = LoopCharacteristicMatrix(system, names)
+    model = characteristic_matrix(system, names)
     i = _loop_index(model, loop)
     found = compute_margins(system, loop, omega)
     crossover: dict = {}
@@ -422,31 +442,6 @@ def margin_sensitivity(system: ControlledChain, loop: str, parameters: str | Seq
 
 
 # ------------------------------------------------------------------------ spectral abscissa
-def _quadratic_roots(model: LoopCharacteristicMatrix) -> np.ndarray:
-    """Finite roots of ``det Delta(s)`` for static gains without delay (companion pencil)."""
-    from scipy.linalg import eig
-
-    M2, C2, K2 = model.M.astype(float).copy(), model.C.astype(float).copy(), model.K.astype(float).copy()
-    for i, lp in enumerate(model.loops):
-        b = model.actuator(i)
-        for sig, weight in lp.terms:
-            row = model.output_row(sig, 1.0).real
-            target = (K2, C2, M2)[_power(sig)]
-            target += float(lp.gain) * weight * np.outer(b, row)
-    n = model.n
-    A = np.block([[np.zeros((n, n)), np.eye(n)], [-K2, -C2]])
-    B = np.block([[np.eye(n), np.zeros((n, n))], [np.zeros((n, n)), M2]])
-    alpha, beta = eig(A, B, right=False, homogeneous_eigvals=True)
-    # infinite eigenvalues of the massless DOFs come out with beta at round-off (0 or ~eps |B|)
-    finite = np.abs(beta) > 1e-10 * np.linalg.norm(B, 1)
-    return alpha[finite] / beta[finite]
-
-
-def _power(signal: str) -> int:
-    """Derivative order of a signal name: ``.x`` 0, ``.v`` 1, ``.a`` 2."""
-    return {"x": 0, "v": 1, "a": 2}[signal.rpartition(".")[2]]
-
-
 def spectral_abscissa_sensitivity(system: Any, parameters: str | Sequence[str], *,
                                   re_min: float | None = None, im_max: float | None = None
                                   ) -> AbscissaSensitivity:
@@ -471,9 +466,9 @@ def spectral_abscissa_sensitivity(system: Any, parameters: str | Sequence[str], 
         No root found right of ``re_min``, a multiple rightmost root (not differentiable), a root
         that is not one of ``Delta`` (model mismatch), a missing region.
     """
-    model = LoopCharacteristicMatrix(system, _names(parameters))
+    model = characteristic_matrix(system, _names(parameters))
     if all(lp.delay == 0.0 and not lp.is_lti for lp in model.loops):
-        roots = _quadratic_roots(model)
+        roots = model.delay_free_roots()
         method = "quadratic eigenvalues"
     else:
         from .stability import spectral_abscissa

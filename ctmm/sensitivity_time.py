@@ -26,7 +26,7 @@ import numpy as np
 from . import validation
 from .errors import ModelError, unknown_name
 
-__all__ = ["TimeSensitivity", "planar_simulation_sensitivity"]
+__all__ = ["TimeSensitivity", "parameter_index", "planar_simulation_sensitivity"]
 
 
 @dataclass(frozen=True)
@@ -63,8 +63,9 @@ class TimeSensitivity:
         return self.derivative[:, :, -1]
 
 
-def _parameter_index(model: Any, name: str, values: np.ndarray) -> int:
-    """Index of a named number in :func:`ctmm.compiled_parameters.parameter_vector`."""
+def parameter_index(model: Any, name: str, values: np.ndarray) -> int:
+    """Index of a named number (module docstring) in ``values``, the model's
+    :func:`ctmm.compiled_parameters.parameter_vector`; a zero number is refused."""
     nb = model.n_bodies
     ends = sum(len(points) for points in model.ends)
     stiffness = 4 * nb + 2 * ends + 2
@@ -127,7 +128,7 @@ def planar_simulation_sensitivity(model: Any, parameters: str | Sequence[str], *
                          f"{type(model).__name__}")
     names = validation.names("parameters", parameters)
     p0 = parameter_vector(model)
-    indices = [_parameter_index(model, name, p0) for name in names]
+    indices = [parameter_index(model, name, p0) for name in names]
     n = model.n_coordinates
     labels = list(model.coordinates) + [f"{c}_dot" for c in model.coordinates]
     wanted = list(model.coordinates) if outputs is None else list(validation.names("outputs", outputs))
