@@ -474,10 +474,13 @@ def symbolic_plant_accelerations(model: PlanarModel) -> Any:
     return ca.Function("acceleration", [q, v, p, t], [acceleration(q, v, ca.SX(0, 1), p, t)])
 
 
-def symbolic_accelerations_with_inputs(model: PlanarModel, actuators: Sequence[str]) -> Any:
+def symbolic_accelerations_with_inputs(model: PlanarModel, actuators: Sequence[str],
+                                       channels: Sequence[ActuatorInputs] = ()) -> Any:
     """``qddot = acceleration(q, qdot, u, p, t)`` with the actuator inputs ``u`` (the ports ``actuators``,
-    :func:`compiled_actuators`) on casadi SX symbols: the expression :class:`CompiledScene` compiles, for
-    algorithmic differentiation of linearisations (:mod:`ctmm.sensitivity_planar`)."""
+    :func:`compiled_actuators`, then one input per loop channel's loads ``channels``,
+    :attr:`ctmm.compiled_loops.ClosedLoops.channels`) on casadi SX symbols: the expression
+    :class:`CompiledScene` compiles, for algorithmic differentiation (:mod:`ctmm.sensitivity_planar`,
+    :mod:`ctmm.sensitivity_time`)."""
     import casadi as ca
 
     reason = compile_refusal(model)
@@ -485,7 +488,7 @@ def symbolic_accelerations_with_inputs(model: PlanarModel, actuators: Sequence[s
         raise ModelError(f"symbolic accelerations: {reason}")
     n, n_p = model.n_coordinates, parameter_vector(model).size
     ports = PlanarPorts(model)
-    units = [ports.inputs({name: 1.0}) for name in actuators]
+    units = [ports.inputs({name: 1.0}) for name in actuators] + list(channels)
     q, v, u = ca.SX.sym("q", n), ca.SX.sym("v", n), ca.SX.sym("u", len(units))
     p, t = ca.SX.sym("p", n_p), ca.SX.sym("t")
     scene = PlanarScene(model)

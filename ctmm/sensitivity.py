@@ -511,7 +511,8 @@ def spectral_abscissa_sensitivity(system: Any, parameters: str | Sequence[str], 
 # ---------------------------------------------------------------------------- time domain
 def simulation_sensitivity(system: Any, parameters: str | Sequence[str], *, t_final: float, dt: float, q0: Any,
                            qdot0: Any = None, outputs: str | Sequence[str] | None = None) -> Any:
-    """Outputs of an RK4 run of a planar model and their exact parameter derivatives.
+    """Outputs of an RK4 run of a planar model (loops closed: real-time, LTI, delayed) and their exact
+    derivatives with respect to plant numbers.
 
     Forward sensitivities of the generated RK4 step by casadi (:mod:`ctmm.sensitivity_time`, where the
     arguments are described); returns a :class:`ctmm.sensitivity_time.TimeSensitivity`.
@@ -519,16 +520,17 @@ def simulation_sensitivity(system: Any, parameters: str | Sequence[str], *, t_fi
     Raises
     ------
     ModelError
-        Chains and controlled models (not implemented yet), models that cannot be compiled, unknown
-        or zero parameters.
+        Chains and spatial models (not implemented yet), loop numbers (constants of the generated
+        step), models that cannot be compiled, unknown or zero parameters.
     """
-    from .planar.model import PlanarModel
+    from .sensitivity_planar import is_planar_system
 
-    if not isinstance(system, PlanarModel):
+    if not is_planar_system(system):
         raise ModelError(f"simulation_sensitivity: derivatives of time-domain outputs are implemented for a "
-                         f"ctmm.planar.PlanarModel without loops (casadi forward sensitivities of the RK4 step); "
-                         f"{type(system).__name__} is not supported yet (chains, controlled models); use the "
-                         "frequency-domain, margin and spectral-abscissa sensitivities of ctmm.sensitivity")
+                         f"ctmm.planar.PlanarModel, alone or in a ControlledModel (casadi forward sensitivities of "
+                         f"the generated RK4 step); {type(system).__name__} is not supported yet (chains, spatial "
+                         "models); use the frequency-domain, margin and spectral-abscissa sensitivities of "
+                         "ctmm.sensitivity")
     from .sensitivity_time import planar_simulation_sensitivity
 
     return planar_simulation_sensitivity(system, parameters, t_final=t_final, dt=dt, q0=q0, qdot0=qdot0,

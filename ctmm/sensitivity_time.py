@@ -117,16 +117,28 @@ def planar_simulation_sensitivity(model: Any, parameters: str | Sequence[str], *
     """
     import casadi as ca
 
-    from .compiled_parameters import parameter_vector
-    from .compiled_scene import symbolic_plant_accelerations
+    from .compiled_loops import ClosedLoops
+    from .compiled_parameters import compiled_actuators, parameter_vector
+    from .compiled_scene import symbolic_accelerations_with_inputs
+    from .control.controlled_model import ControlledModel
     from .generated_loop import rk4_step_function
     from .planar.integrate import initial_coordinates, step_total
     from .planar.model import PlanarModel
 
+    controlled = model if isinstance(model, ControlledModel) else None
+    if controlled is not None:
+        model = controlled.plant
     if not isinstance(model, PlanarModel):
-        raise ModelError(f"planar_simulation_sensitivity: model must be a ctmm.planar.PlanarModel, got "
-                         f"{type(model).__name__}")
+        raise ModelError(f"planar_simulation_sensitivity: model must be a ctmm.planar.PlanarModel or a "
+                         f"ControlledModel on one, got {type(model).__name__}")
     names = validation.names("parameters", parameters)
+    loop_names = [lp.name for lp in (controlled.loops if controlled else ())]
+    for name in names:
+        if str(name).partition(".")[0] in loop_names:
+            raise ModelError(f"planar_simulation_sensitivity: parameter {name!r} is a loop number; the loops' gains, "
+                             "weights and delays are constants of the generated step, so time histories are "
+                             "differentiated with respect to plant numbers only (use the frequency-domain, margin "
+                             "and spectral-abscissa sensitivities for loop numbers)")
     p0 = parameter_vector(model)
     indices = [parameter_index(model, name, p0) for name in names]
     n = model.n_coordinates
@@ -140,27 +152,36 @@ def planar_simulation_sensitivity(model: Any, parameters: str | Sequence[str], *
     n_steps = step_total(t_final, dt)
     h = t_final / n_steps
 
-    acceleration = symbolic_plant_accelerations(model)
-    y_sx, u_sx, p_sx, t_sx = ca.SX.sym("y", 2 * n), ca.SX.sym("u", 0), ca.SX.sym("p", p0.size), ca.SX.sym("t")
-    rate = ca.Function("rate", [y_sx, u_sx, p_sx, t_sx],
-                       [ca.vertcat(y_sx[n:], acceleration(y_sx[:n], y_sx[n:], p_sx, t_sx))])
-    step = rk4_step_function(rate)
+    actuators = compiled_actuators(model)
+    loops = None if controlled is None else ClosedLoops(controlled, actuators, h)
+    acceleration = symbolic_accelerations_with_inputs(model, actuators,
+                                                      [unit for _, unit in loops.channels] if loops else ())
+    if loops is None:
+        y_sx, u_sx, p_sx, t_sx = ca.SX.sym("y", 2 * n), ca.SX.sym("u", len(actuators)), ca.SX.sym("p", p0.size), \
+            ca.SX.sym("t")
+        rate = ca.Function("rate", [y_sx, u_sx, p_sx, t_sx],
+                           [ca.vertcat(y_sx[n:], acceleration(y_sx[:n], y_sx[n:], u_sx, p_sx, t_sx))])
+        step = rk4_step_function(rate)
+        size, first = 2 * n, np.concatenate([q, v])
+    else:           # the loops closed at every stage, delayed ones from the ring in the state (as generated)
+        step = loops.step(acceleration, len(actuators), p0.size)
+        size, first = loops.state_size, loops.initial_state(q, v)
     m = len(indices)
     select = np.zeros((p0.size, m))
     select[indices, range(m)] = 1.0
-    Y, S, d, k = ca.MX.sym("y", 2 * n), ca.MX.sym("S", 2 * n, m), ca.MX.sym("d", m), ca.MX.sym("k")
-    y_next = step(Y, ca.MX(0, 1), h, ca.DM(p0) + ca.DM(select) @ d, 0.0, k)
+    Y, S, d, k = ca.MX.sym("y", size), ca.MX.sym("S", size, m), ca.MX.sym("d", m), ca.MX.sym("k")
+    y_next = step(Y, ca.DM.zeros(len(actuators)), h, ca.DM(p0) + ca.DM(select) @ d, 0.0, k)
     S_next = ca.jacobian(y_next, Y) @ S + ca.jacobian(y_next, d)
     forward = ca.Function("forward", [Y, S, d, k], [y_next, S_next]).expand()
-    states = np.empty((n_steps + 1, 2 * n))
-    tangents = np.empty((n_steps + 1, 2 * n, m))
-    states[0] = np.concatenate([q, v])
+    states = np.empty((n_steps + 1, size))
+    tangents = np.empty((n_steps + 1, size, m))
+    states[0] = first
     tangents[0] = 0.0
     zero = np.zeros(m)
     for index in range(n_steps):
         y_new, S_new = forward(states[index], tangents[index], zero, float(index))
         states[index + 1] = np.asarray(y_new).reshape(-1)
-        tangents[index + 1] = np.asarray(S_new).reshape(2 * n, m)
+        tangents[index + 1] = np.asarray(S_new).reshape(size, m)
         if not np.all(np.isfinite(states[index + 1])):
             raise ModelError(f"planar_simulation_sensitivity: the run diverged at t = {(index + 1) * h:g} s "
                              f"(non-finite state); reduce dt")

@@ -142,3 +142,26 @@ def test_tune_a_planar_pd_arm_for_damping_under_a_delay_margin():
     A = np.asarray(ctmm.linearize(tuned, inputs=[]).state_space.A)
     assert abs(result.objective - np.max(np.linalg.eigvals(A).real)) < 1e-10
     assert result.objective < -4.9                          # from -0.70 1/s at the start
+
+
+@pytest.mark.parametrize("delay, lti", [(0.0, False), (0.02, False), (0.0, True)])
+def test_controlled_planar_histories_match_differences_of_the_simulation(delay, lti):
+    # loops inside the generated RK4: real-time, delayed (ring of samples), LTI controller (its states)
+    import control
+
+    gain = control.tf([1.0], [0.05, 1.0]) if lti else 1.0
+    pd = Feedback("pd", [("motor.angle", 8.0), ("motor.rate", 1.5)], "motor.torque", gain=gain, delay=delay)
+    system = with_feedback(two_link(), [pd])
+    names = ["upper.mass", "elbow.stiffness"]
+    found = S.simulation_sensitivity(system, names, t_final=0.5, dt=0.01, q0=[0.5, -0.3],
+                                     outputs=["lower.theta", "upper.theta_dot"])
+
+    def history(s):
+        sim = ctmm.simulate(s, t_final=0.5, dt=0.01, method="rk4", x0={"upper.theta": 0.5, "lower.theta": -0.3})
+        return np.array([sim["lower.theta"], sim["upper.theta_dot"]])
+
+    assert np.max(np.abs(found.values - history(system))) < 1e-12
+    for i, name in enumerate(names):
+        assert relative(found.derivative[i], richardson(history, system, name)) < 1e-6, name
+    with pytest.raises(ModelError, match="loop number"):
+        S.simulation_sensitivity(system, ["pd.motor.rate"], t_final=0.1, dt=0.01, q0=[0.5, -0.3])
