@@ -1,7 +1,10 @@
 """``ctmm.sensitivity``: exact derivatives of frequency responses, margins and the spectral abscissa.
 
 Derivatives with respect to **named parameters** of a lumped 1-D chain closed by embedded loops
-(:class:`~ctmm.control.loops.ControlledChain`): element numbers (``"m3.mass"``,
+(:class:`~ctmm.control.loops.ControlledChain`) -- and of planar models, controlled or not, through
+the same ``Delta(s) = s I - A + sum K_l b_l c_l^T`` of their linearisation, with ``A``, ``B`` and the
+equilibrium differentiated by casadi (:mod:`ctmm.sensitivity_planar`; parameters ``"<body>.mass"``,
+``"<body>.inertia"``, ``"<hinge>.stiffness"``, ``"<hinge>.damping"``) -- for chains: element numbers (``"m3.mass"``,
 ``"K1.stiffness"``, ``"C1.damping"``) and loop parameters (``"<loop>.gain"``, ``"<loop>.delay"``,
 ``"<loop>.<sensed signal>"`` -- the weight of a sensor term, e.g. ``kp``, ``kd`` of a PD loop
 ``[("m6.x", kp), ("m6.v", kd)]``).  Everything is built from the closed-loop characteristic
@@ -24,7 +27,7 @@ The values (crossovers, roots) come from the library's verbs on the TMM (:func:`
 eigenvalue problem of ``Delta``; each is checked against ``Delta`` before it is differentiated (a
 mismatch is refused).  What cannot be differentiated is refused by name: non-lumped elements,
 connector forces as signals, spatial models; time-domain outputs (:func:`simulation_sensitivity`)
-are differentiated for planar models only (:mod:`ctmm.sensitivity_time`).
+are differentiated for planar models, loops included, in plant numbers (:mod:`ctmm.sensitivity_time`).
 Accuracy and limits: ``docs/sensitivity.md``.
 """
 from __future__ import annotations

@@ -1,9 +1,11 @@
 """Exact derivatives of planar RK4 simulations: forward sensitivities of the generated step.
 
 For a planar model (rigid bodies, hinges; compilable, :func:`ctmm.compiled_parameters.compile_refusal`)
-without actuator inputs, the RK4 step ``y_{k+1} = Phi(y_k, p, t_k)`` of ``y = [q, qdot]`` is stated
-on casadi symbols with the model's numbers ``p`` as an input (the expression the generated kernels
-compile, :func:`ctmm.compiled_scene.symbolic_plant_accelerations`). The forward sensitivities
+without open-loop actuator inputs, alone or closed by loops (a ``ControlledModel``), the RK4 step
+``y_{k+1} = Phi(y_k, p, t_k)`` of ``y = [q, qdot]`` (with loops ``[q, qdot, z, ring]``: controller
+states and the delayed loops' samples, :class:`ctmm.compiled_loops.ClosedLoops`) is stated on casadi
+symbols with the model's numbers ``p`` as an input (the expression the generated kernels compile,
+:func:`ctmm.compiled_scene.symbolic_accelerations_with_inputs`). The forward sensitivities
 ``S_k = dy_k/dp`` follow the fold exactly:
 
     S_{k+1} = dPhi/dy (y_k) S_k + dPhi/dp (y_k),     S_0 = 0,
@@ -15,6 +17,7 @@ round-off (not of the exact ODE solution; the two differ by the RK4 error, O(dt^
 Parameters: ``"<body>.mass"`` [kg], ``"<body>.inertia"`` (about the centre of mass) [kg m^2],
 ``"<hinge>.stiffness"`` [N m/rad], ``"<hinge>.damping"`` [N m s/rad].  A number that is zero in
 the model is a constant of the generated expression and is refused (give it a nonzero value).
+Loop numbers (gains, weights, delays) are constants of the generated step and are refused.
 """
 from __future__ import annotations
 
@@ -94,8 +97,8 @@ def planar_simulation_sensitivity(model: Any, parameters: str | Sequence[str], *
 
     Parameters
     ----------
-    model : PlanarModel
-        Compilable, no actuator inputs used (loops: not yet).
+    model : PlanarModel or ControlledModel (planar plant)
+        Compilable; no open-loop actuator inputs; loops closed in the step (references 0).
     parameters : str or sequence of str
     t_final, dt : float
         [s]; ``t_final / dt`` whole (as :func:`ctmm.simulate`, ``method="rk4"``).

@@ -12,8 +12,10 @@ import ctmm
 from ctmm import sensitivity as S
 from ctmm.control import Constraint, Feedback, Quantity, margins, tune, with_feedback
 from ctmm.errors import ModelError
+from ctmm.flexible import ModalBeam
+from ctmm.planar import ActuatedHinge, DamperHinge, Fixed, PlanarModel, RigidBody, SpringDamperHinge
+from ctmm.planar.elements import FixedMounting
 from tests.test_sensitivity import relative, richardson
-from ctmm.planar import DamperHinge, Fixed, PlanarModel, RigidBody, SpringDamperHinge
 
 G, LENGTH = 9.81, 0.5
 
@@ -76,6 +78,21 @@ def test_planar_frequency_response_derivatives_match_differences_of_the_verb():
     omega = np.array([0.4, 1.7, 3.3, 8.0])
     names = ["upper.mass", "lower.inertia", "motor.stiffness", "elbow.damping"]
     check_response(model, names, omega, "elbow.torque", "lower.theta")
+
+
+def test_hub_with_a_modal_beam_and_an_actuated_hinge_match_differences_of_the_verb():
+    hub_beam = PlanarModel.chain("hub_beam", [
+        Fixed("base"), SpringDamperHinge("motor", stiffness=20.0, damping=0.5, rest_angle=0.2),
+        RigidBody("hub", mass=2.0, inertia=0.1, center_of_mass=(0.05, 0.0), outboard=(0.2, 0.0)),
+        FixedMounting("mount"), ModalBeam("b", length=1.0, bending_stiffness=5.0, mass_per_length=0.7, n_modes=2,
+                                          damping_ratio=0.02)])
+    omega = np.array([0.5, 3.0, 12.0])
+    check_response(hub_beam, ["hub.mass", "hub.inertia", "motor.stiffness", "motor.damping"], omega,
+                   "motor.torque", "b.q2")
+    actuated = PlanarModel.chain("actuated", [Fixed("base"), ActuatedHinge("motor", kp=5.0, kd=0.3, reference=0.2),
+                                              RigidBody.uniform_link("link", mass=1.0, length=LENGTH)])
+    check_response(actuated, ["motor.stiffness", "motor.damping", "link.mass"], omega, "motor.torque",
+                   "link.theta")
 
 
 def test_controlled_planar_derivatives_match_differences_with_a_delayed_pd_loop():
