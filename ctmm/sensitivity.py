@@ -512,29 +512,34 @@ def spectral_abscissa_sensitivity(system: Any, parameters: str | Sequence[str], 
 
 
 # ---------------------------------------------------------------------------- time domain
-def simulation_sensitivity(system: Any, parameters: str | Sequence[str], *, t_final: float, dt: float, q0: Any,
-                           qdot0: Any = None, outputs: str | Sequence[str] | None = None) -> Any:
-    """Outputs of an RK4 run of a planar model (loops closed: real-time, LTI, delayed) and their exact
-    derivatives with respect to plant numbers.
+def simulation_sensitivity(system: Any, parameters: str | Sequence[str], *, t_final: float, dt: float, q0: Any = None,
+                           qdot0: Any = None, outputs: str | Sequence[str] | None = None,
+                           x0: Mapping[str, float] | None = None, v0: Mapping[str, float] | None = None) -> Any:
+    """Outputs of an RK4 run of a planar model (loops closed: real-time, LTI, delayed) or of a lumped
+    chain (free response) and their exact derivatives with respect to plant numbers.
 
-    Forward sensitivities of the generated RK4 step by casadi (:mod:`ctmm.sensitivity_time`, where the
-    arguments are described); returns a :class:`ctmm.sensitivity_time.TimeSensitivity`.
+    Planar models: forward sensitivities of the generated RK4 step by casadi
+    (:func:`ctmm.sensitivity_time.planar_simulation_sensitivity`: ``q0``, ``qdot0``, outputs
+    ``"<coordinate>"`` / ``"<coordinate>_dot"``); chains: the RK4 of their explicit form with its
+    stages differentiated (:func:`ctmm.sensitivity_time.chain_simulation_sensitivity`: ``x0``, ``v0``
+    by point name, outputs ``"<point>.x"`` / ``".v"``).  Returns a
+    :class:`ctmm.sensitivity_time.TimeSensitivity`.
 
     Raises
     ------
     ModelError
-        Chains and spatial models (not implemented yet), loop numbers (constants of the generated
-        step), models that cannot be compiled, unknown or zero parameters.
+        Controlled chains and spatial models (not implemented yet), loop numbers (constants of the
+        generated step), models that cannot be compiled, unknown or zero parameters.
     """
     from .sensitivity_planar import is_planar_system
+    from .sensitivity_time import chain_simulation_sensitivity, planar_simulation_sensitivity
 
+    if isinstance(system, Chain):
+        return chain_simulation_sensitivity(system, parameters, t_final=t_final, dt=dt, x0=x0, v0=v0, outputs=outputs)
     if not is_planar_system(system):
         raise ModelError(f"simulation_sensitivity: derivatives of time-domain outputs are implemented for a "
-                         f"ctmm.planar.PlanarModel, alone or in a ControlledModel (casadi forward sensitivities of "
-                         f"the generated RK4 step); {type(system).__name__} is not supported yet (chains, spatial "
-                         "models); use the frequency-domain, margin and spectral-abscissa sensitivities of "
-                         "ctmm.sensitivity")
-    from .sensitivity_time import planar_simulation_sensitivity
-
+                         f"ctmm.Chain of lumped elements and a ctmm.planar.PlanarModel, alone or in a ControlledModel; "
+                         f"{type(system).__name__} is not supported yet (controlled chains, spatial models); use the "
+                         "frequency-domain, margin and spectral-abscissa sensitivities of ctmm.sensitivity")
     return planar_simulation_sensitivity(system, parameters, t_final=t_final, dt=dt, q0=q0, qdot0=qdot0,
                                          outputs=outputs)

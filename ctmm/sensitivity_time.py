@@ -22,14 +22,14 @@ Loop numbers (gains, weights, delays) are constants of the generated step and ar
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from . import validation
 from .errors import ModelError, unknown_name
 
-__all__ = ["TimeSensitivity", "parameter_index", "planar_simulation_sensitivity"]
+__all__ = ["TimeSensitivity", "chain_simulation_sensitivity", "parameter_index", "planar_simulation_sensitivity"]
 
 
 @dataclass(frozen=True)
@@ -192,3 +192,98 @@ def planar_simulation_sensitivity(model: Any, parameters: str | Sequence[str], *
     values = states[:, rows].T
     derivative = np.transpose(tangents[:, rows, :], (2, 1, 0))
     return TimeSensitivity(time, tuple(wanted), tuple(names), values, derivative)
+
+
+def chain_simulation_sensitivity(chain: Any, parameters: str | Sequence[str], *, t_final: float, dt: float,
+                                 x0: Mapping[str, float] | None = None, v0: Mapping[str, float] | None = None,
+                                 outputs: str | Sequence[str] | None = None) -> TimeSensitivity:
+    """RK4 run of a lumped 1-D chain (free response) with the exact derivatives of its outputs.
+
+    The explicit form of a chain whose every free point has a mass, ``M u'' + C u' + K u = 0`` over
+    the displacements ``u`` from the rest positions (:func:`ctmm.interop.assemble_matrices`), is the
+    linear rate ``y' = E(p) y``, ``y = [u, u']``; RK4 is stepped with its stages differentiated
+    exactly (``dk_i = dE y_i + E dy_i``, ``dE`` from ``dM``, ``dC``, ``dK`` of
+    :class:`ctmm.sensitivity_model.LoopCharacteristicMatrix` and ``d(M^-1) = -M^-1 dM M^-1``): the
+    derivative of the RK4 solution ``ctmm.simulate(chain, ..., method="rk4")`` computes (the same
+    RK4 of the same ODE; its rates come from the sweep, equal to round-off).
+
+    Parameters
+    ----------
+    chain : Chain
+        Lumped elements; every point that is not held has a mass (massless points are condensed
+        in the explicit form: refused here); no inputs.
+    parameters : str or sequence of str
+        ``"<point>.mass"``, ``"<point>.damping"``, ``"<point>.stiffness"``, ``"<connector>.stiffness"``,
+        ``"<connector>.damping"``.
+    t_final, dt : float
+        [s]; ``t_final / dt`` whole.
+    x0, v0 : mapping, optional
+        Initial absolute positions [m] and velocities [m/s] by point element name (as :func:`ctmm.simulate`).
+    outputs : str or sequence of str, optional
+        ``"<point>.x"`` (absolute position [m]) and ``"<point>.v"`` [m/s]; default every mass's ``.x``.
+
+    Returns
+    -------
+    TimeSensitivity
+    """
+    from .chain_start import point_of_element, rest_positions
+    from .planar.integrate import step_total
+    from .sensitivity_model import LoopCharacteristicMatrix
+
+    from .system import Chain
+
+    if not isinstance(chain, Chain):
+        raise ModelError("chain_simulation_sensitivity: a plain ctmm.Chain is differentiated in time; controlled "
+                         f"chains (loops) are not implemented yet; got {type(chain).__name__}")
+    model = LoopCharacteristicMatrix(chain, validation.names("parameters", parameters))
+    n = model.n
+    if np.any(np.diag(model.M) <= 0.0):
+        raise ModelError(f"chain_simulation_sensitivity: chain {chain.name!r} has massless free points (condensed in "
+                         "its explicit form); time histories are differentiated for chains whose every free point "
+                         "has a mass")
+    rest = rest_positions(chain)
+    masses = [e.name for e in chain.body if e.is_point and getattr(e, "mass", 0.0) > 0.0]
+    wanted = [f"{name}.x" for name in masses] if outputs is None else list(validation.names("outputs", outputs))
+    rows = np.array([np.concatenate([model.output_row(name, 1.0).real, np.zeros(n)]) if name.endswith(".x") else
+                     np.concatenate([np.zeros(n), model.output_row(name[:-2] + ".x", 1.0).real])
+                     if name.endswith(".v") else _refuse_output(name) for name in wanted])
+    offsets = np.array([rest[point_of_element(chain, name[:-2])] if name.endswith(".x") else 0.0 for name in wanted])
+    y = np.zeros(2 * n)
+    for values, half in ((x0 or {}), 0), ((v0 or {}), n):
+        for name, value in values.items():
+            row = model.output_row(f"{name}.x", 1.0).real
+            base = rest[point_of_element(chain, name)] if half == 0 else 0.0
+            y[half:half + n] += row * (validation.finite(f"initial value of {name!r}", value) - base)
+    Minv = np.linalg.inv(model.M)
+    E = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ model.K, -Minv @ model.C]])
+    dE = []
+    for p in model.parameters:
+        dM, dC, dK = (p.pattern if p.kind == kind else np.zeros((n, n)) for kind in ("mass", "damping", "stiffness"))
+        dE.append(np.block([[np.zeros((n, n)), np.zeros((n, n))],
+                            [Minv @ (dM @ Minv @ model.K - dK), Minv @ (dM @ Minv @ model.C - dC)]]))
+    n_steps = step_total(t_final, dt)
+    h = t_final / n_steps
+    m = len(dE)
+    S = np.zeros((m, 2 * n))
+    values = np.empty((len(wanted), n_steps + 1))
+    derivative = np.empty((m, len(wanted), n_steps + 1))
+    for k in range(n_steps + 1):
+        values[:, k] = rows @ y + offsets
+        derivative[:, :, k] = S @ rows.T
+        if k == n_steps:
+            break
+        stages, tangents = [], []
+        for c in (0.0, 0.5, 0.5, 1.0):
+            ys = y + c * h * stages[-1] if stages else y
+            Ss = S + c * h * tangents[-1] if tangents else S
+            stages.append(E @ ys)
+            tangents.append(np.array([dE[i] @ ys for i in range(m)]).reshape(m, 2 * n) + Ss @ E.T)
+        y = y + h / 6.0 * (stages[0] + 2 * stages[1] + 2 * stages[2] + stages[3])
+        S = S + h / 6.0 * (tangents[0] + 2 * tangents[1] + 2 * tangents[2] + tangents[3])
+    return TimeSensitivity(h * np.arange(n_steps + 1), tuple(wanted), tuple(p.name for p in model.parameters),
+                           values, derivative)
+
+
+def _refuse_output(name: str) -> np.ndarray:
+    raise ModelError(f"chain_simulation_sensitivity: output {name!r} is not supported; allowed: '<point>.x', "
+                     "'<point>.v'")
