@@ -139,6 +139,16 @@ def test_refusals_name_what_is_allowed():
                                               RigidBody.uniform_link("link", mass=1.0, length=LENGTH)])
         S.frequency_response_sensitivity(damped, ["motor.stiffness"], [1.0], input="motor.torque",
                                          output="link.theta")
+    # spatial models: not differentiated yet, refused by name (not silently answered)
+    import ctmm.spatial as sp
+
+    spatial = sp.SpatialModel("hinge", [sp.SpatialBody("body", 4.0, np.diag([0.05, 0.08, 0.06])),
+                                        sp.Elastic6(name="hinge", parent=None, child="body",
+                                                    stiffness=np.eye(6) * 50.0, damping=np.eye(6), actuated=True)])
+    with pytest.raises(ModelError, match="spatial models are not differentiated yet"):
+        S.spectral_abscissa_sensitivity(spatial, [])
+    with pytest.raises(ModelError, match="SpatialModel is not supported yet"):
+        S.simulation_sensitivity(spatial, [], t_final=0.1, dt=0.01)
     # a point position moves with the equilibrium: refused, not silently wrong
     with pytest.raises(ModelError, match="depends on the configuration"):
         S.frequency_response_sensitivity(link(), ["motor.stiffness"], [1.0], input="motor.torque",
