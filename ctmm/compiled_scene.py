@@ -67,7 +67,8 @@ from .planar.model import FREE, PlanarModel
 from .planar.ports import ActuatorInputs, PlanarPorts
 
 __all__ = ["CompiledScene", "compile_refusal", "compiled_actuators", "parameter_vector", "simulate_batch",
-           "simulate_rk4_generated", "structure_key", "symbolic_plant_accelerations"]
+           "simulate_rk4_generated", "structure_key", "symbolic_accelerations_with_inputs",
+           "symbolic_plant_accelerations"]
 
 DEFAULT_ROWS = 64
 """Stored states per generated block call."""
@@ -472,12 +473,30 @@ def symbolic_plant_accelerations(model: PlanarModel) -> Any:
     Entries that are zero in ``model`` are constants 0 of the expression (:func:`symbolic_numbers`)."""
     import casadi as ca
 
-    reason = compile_refusal(model)
-    if reason:
-        raise ModelError(f"symbolic_plant_accelerations: {reason}")
+    acceleration = symbolic_accelerations_with_inputs(model, ())
     n, n_p = model.n_coordinates, parameter_vector(model).size
     q, v, p, t = ca.SX.sym("q", n), ca.SX.sym("v", n), ca.SX.sym("p", n_p), ca.SX.sym("t")
+    return ca.Function("acceleration", [q, v, p, t], [acceleration(q, v, ca.SX(0, 1), p, t)])
+
+
+def symbolic_accelerations_with_inputs(model: PlanarModel, actuators: Sequence[str],
+                                       channels: Sequence[ActuatorInputs] = ()) -> Any:
+    """``qddot = acceleration(q, qdot, u, p, t)`` with the actuator inputs ``u`` (the ports ``actuators``,
+    :func:`compiled_actuators`, then one input per loop channel's loads ``channels``,
+    :attr:`ctmm.compiled_loops.ClosedLoops.channels`) on casadi SX symbols: the expression
+    :class:`CompiledScene` compiles, for algorithmic differentiation (:mod:`ctmm.sensitivity_planar`,
+    :mod:`ctmm.sensitivity_time`)."""
+    import casadi as ca
+
+    reason = compile_refusal(model)
+    if reason:
+        raise ModelError(f"symbolic accelerations: {reason}")
+    n, n_p = model.n_coordinates, parameter_vector(model).size
+    ports = PlanarPorts(model)
+    units = [ports.inputs({name: 1.0}) for name in actuators] + list(channels)
+    q, v, u = ca.SX.sym("q", n), ca.SX.sym("v", n), ca.SX.sym("u", len(units))
+    p, t = ca.SX.sym("p", n_p), ca.SX.sym("t")
     scene = PlanarScene(model)
-    bodies, joints = scene.terms(CASADI, q, v, 0.0, None, symbolic_numbers(model, p, t))
+    bodies, joints = scene.terms(CASADI, q, v, 0.0, _symbolic_inputs(model, units, u), symbolic_numbers(model, p, t))
     solution = articulated_sweep(CASADI, scene.tree, bodies, joints)
-    return ca.Function("acceleration", [q, v, p, t], [_coordinate_accelerations(model, solution.x)])
+    return ca.Function("acceleration", [q, v, u, p, t], [_coordinate_accelerations(model, solution.x)])

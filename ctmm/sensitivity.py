@@ -1,7 +1,10 @@
 """``ctmm.sensitivity``: exact derivatives of frequency responses, margins and the spectral abscissa.
 
 Derivatives with respect to **named parameters** of a lumped 1-D chain closed by embedded loops
-(:class:`~ctmm.control.loops.ControlledChain`): element numbers (``"m3.mass"``,
+(:class:`~ctmm.control.loops.ControlledChain`) -- and of planar models, controlled or not, through
+the same ``Delta(s) = s I - A + sum K_l b_l c_l^T`` of their linearisation, with ``A``, ``B`` and the
+equilibrium differentiated by casadi (:mod:`ctmm.sensitivity_planar`; parameters ``"<body>.mass"``,
+``"<body>.inertia"``, ``"<hinge>.stiffness"``, ``"<hinge>.damping"``) -- for chains: element numbers (``"m3.mass"``,
 ``"K1.stiffness"``, ``"C1.damping"``) and loop parameters (``"<loop>.gain"``, ``"<loop>.delay"``,
 ``"<loop>.<sensed signal>"`` -- the weight of a sensor term, e.g. ``kp``, ``kd`` of a PD loop
 ``[("m6.x", kp), ("m6.v", kd)]``).  Everything is built from the closed-loop characteristic
@@ -24,7 +27,7 @@ The values (crossovers, roots) come from the library's verbs on the TMM (:func:`
 eigenvalue problem of ``Delta``; each is checked against ``Delta`` before it is differentiated (a
 mismatch is refused).  What cannot be differentiated is refused by name: non-lumped elements,
 connector forces as signals, spatial models; time-domain outputs (:func:`simulation_sensitivity`)
-are differentiated for planar models only (:mod:`ctmm.sensitivity_time`).
+are differentiated for planar models, loops included, in plant numbers (:mod:`ctmm.sensitivity_time`).
 Accuracy and limits: ``docs/sensitivity.md``.
 """
 from __future__ import annotations
@@ -51,6 +54,16 @@ _MISMATCH = 1e-7     # largest relative disagreement between a library value and
 
 
 # -------------------------------------------------------------------------------- parameters
+def characteristic_matrix(system: Any, names: Sequence[str]) -> LoopCharacteristicMatrix:
+    """``Delta(s)`` of ``system`` with its derivatives: a chain's (:mod:`ctmm.sensitivity_model`) or a
+    planar model's (:mod:`ctmm.sensitivity_planar`, linearised about its static equilibrium)."""
+    from .sensitivity_planar import PlanarCharacteristicMatrix, is_planar_system
+
+    if is_planar_system(system):
+        return PlanarCharacteristicMatrix(system, names)
+    return LoopCharacteristicMatrix(system, names)
+
+
 def _names(parameters: Any) -> tuple[str, ...]:
     names = validation.names("parameters", parameters, allow_empty=True)
     if len(set(names)) != len(names):
@@ -69,7 +82,11 @@ def parameter_values(system: Any, parameters: str | Sequence[str]) -> dict[str, 
 
     ``"<loop>.gain"`` of a loop with an LTI controller is a factor on that controller (value 1).
     """
-    model = LoopCharacteristicMatrix(system, _names(parameters))
+    from .sensitivity_planar import is_planar_system, planar_parameter_values
+
+    if is_planar_system(system):
+        return planar_parameter_values(system, _names(parameters))
+    model = characteristic_matrix(system, _names(parameters))
     return {p.name: p.value for p in model.parameters}
 
 
@@ -90,9 +107,13 @@ def with_parameters(system: Any, values: Mapping[str, float]) -> Any:
     """
     from .stability import with_loop_parameters
 
+    from .sensitivity_planar import is_planar_system, planar_with_parameters
+
     if not isinstance(values, Mapping):
         raise ModelError(f"values must be a mapping {{parameter name: value}}, got {values!r}")
-    model = LoopCharacteristicMatrix(system, _names(list(values)))
+    if is_planar_system(system):
+        return planar_with_parameters(system, {name: values[name] for name in _names(list(values))})
+    model = characteristic_matrix(system, _names(list(values)))
     chain = model.chain
     elements = list(chain.elements)
     per_loop: dict[str, dict] = {}
@@ -251,7 +272,7 @@ def frequency_response_sensitivity(system: Any, parameters: str | Sequence[str],
     -------
     FrequencySensitivity
     """
-    model = LoopCharacteristicMatrix(system, _names(parameters))
+    model = characteristic_matrix(system, _names(parameters))
     w = validation.frequencies("omega", omega)
     b = model.input_vector(_single("input", input))
     _single("output", output)
@@ -265,7 +286,8 @@ def frequency_response_sensitivity(system: Any, parameters: str | Sequence[str],
         y = np.linalg.solve(D.T, c)               # Delta^{-T} c
         H[k] = c @ x
         for i in range(len(model.parameters)):
-            dH[i, k] = -(y @ (model.delta_p(s, i) @ x))
+            dH[i, k] = -(y @ (model.delta_p(s, i) @ x)) + y @ model.input_vector_p(input, i) \
+                + model.output_row_p(output, s, i) @ x
     mag = np.abs(H)
     with np.errstate(divide="ignore", invalid="ignore"):
         dmag = np.real(np.conj(H) * dH) / mag
@@ -320,7 +342,8 @@ def _loop_terms(model: LoopCharacteristicMatrix, loop: int, s: complex) -> tuple
     L_s = dK * g + K * g_s
     L_p = np.empty(len(model.parameters), dtype=complex)
     for i in range(len(model.parameters)):
-        g_p = model.sensor_p(i, loop, s) @ x - y @ (model.delta_p(s, i, skip=loop) @ x)
+        g_p = model.sensor_p(i, loop, s) @ x - y @ (model.delta_p(s, i, skip=loop) @ x) \
+            + y @ model.actuator_p(i, loop)
         L_p[i] = model.loop_gain_p(s, i, loop) * g + K * g_p
     return complex(L), complex(L_s), L_p
 
@@ -335,7 +358,7 @@ def _loop_index(model: LoopCharacteristicMatrix, loop: str) -> int:
 def stability_margin_sensitivity(system: Any, loop: str, parameters: str | Sequence[str],
                                  omega: Any) -> PeakSensitivity:
     """``min_w |1 + L(i w)|`` of ``loop`` (refined) and its gradient (``1 / max |S|``)."""
-    model = LoopCharacteristicMatrix(system, _names(parameters))
+    model = characteristic_matrix(system, _names(parameters))
     i = _loop_index(model, loop)
     w = validation.frequencies("omega", omega)
 
@@ -396,7 +419,7 @@ def margin_sensitivity(system: ControlledChain, loop: str, parameters: str | Seq
     from .control.analysis import margins as compute_margins
 
     names = _names(parameters)
-    model = LoopCharacteristicMatrix(system, names)
+    model = characteristic_matrix(system, names)
     i = _loop_index(model, loop)
     found = compute_margins(system, loop, omega)
     crossover: dict = {}
@@ -422,31 +445,6 @@ def margin_sensitivity(system: ControlledChain, loop: str, parameters: str | Seq
 
 
 # ------------------------------------------------------------------------ spectral abscissa
-def _quadratic_roots(model: LoopCharacteristicMatrix) -> np.ndarray:
-    """Finite roots of ``det Delta(s)`` for static gains without delay (companion pencil)."""
-    from scipy.linalg import eig
-
-    M2, C2, K2 = model.M.astype(float).copy(), model.C.astype(float).copy(), model.K.astype(float).copy()
-    for i, lp in enumerate(model.loops):
-        b = model.actuator(i)
-        for sig, weight in lp.terms:
-            row = model.output_row(sig, 1.0).real
-            target = (K2, C2, M2)[_power(sig)]
-            target += float(lp.gain) * weight * np.outer(b, row)
-    n = model.n
-    A = np.block([[np.zeros((n, n)), np.eye(n)], [-K2, -C2]])
-    B = np.block([[np.eye(n), np.zeros((n, n))], [np.zeros((n, n)), M2]])
-    alpha, beta = eig(A, B, right=False, homogeneous_eigvals=True)
-    # infinite eigenvalues of the massless DOFs come out with beta at round-off (0 or ~eps |B|)
-    finite = np.abs(beta) > 1e-10 * np.linalg.norm(B, 1)
-    return alpha[finite] / beta[finite]
-
-
-def _power(signal: str) -> int:
-    """Derivative order of a signal name: ``.x`` 0, ``.v`` 1, ``.a`` 2."""
-    return {"x": 0, "v": 1, "a": 2}[signal.rpartition(".")[2]]
-
-
 def spectral_abscissa_sensitivity(system: Any, parameters: str | Sequence[str], *,
                                   re_min: float | None = None, im_max: float | None = None
                                   ) -> AbscissaSensitivity:
@@ -471,9 +469,9 @@ def spectral_abscissa_sensitivity(system: Any, parameters: str | Sequence[str], 
         No root found right of ``re_min``, a multiple rightmost root (not differentiable), a root
         that is not one of ``Delta`` (model mismatch), a missing region.
     """
-    model = LoopCharacteristicMatrix(system, _names(parameters))
+    model = characteristic_matrix(system, _names(parameters))
     if all(lp.delay == 0.0 and not lp.is_lti for lp in model.loops):
-        roots = _quadratic_roots(model)
+        roots = model.delay_free_roots()
         method = "quadratic eigenvalues"
     else:
         from .stability import spectral_abscissa
@@ -514,27 +512,34 @@ def spectral_abscissa_sensitivity(system: Any, parameters: str | Sequence[str], 
 
 
 # ---------------------------------------------------------------------------- time domain
-def simulation_sensitivity(system: Any, parameters: str | Sequence[str], *, t_final: float, dt: float, q0: Any,
-                           qdot0: Any = None, outputs: str | Sequence[str] | None = None) -> Any:
-    """Outputs of an RK4 run of a planar model and their exact parameter derivatives.
+def simulation_sensitivity(system: Any, parameters: str | Sequence[str], *, t_final: float, dt: float, q0: Any = None,
+                           qdot0: Any = None, outputs: str | Sequence[str] | None = None,
+                           x0: Mapping[str, float] | None = None, v0: Mapping[str, float] | None = None) -> Any:
+    """Outputs of an RK4 run of a planar model (loops closed: real-time, LTI, delayed) or of a lumped
+    chain (free response) and their exact derivatives with respect to plant numbers.
 
-    Forward sensitivities of the generated RK4 step by casadi (:mod:`ctmm.sensitivity_time`, where the
-    arguments are described); returns a :class:`ctmm.sensitivity_time.TimeSensitivity`.
+    Planar models: forward sensitivities of the generated RK4 step by casadi
+    (:func:`ctmm.sensitivity_time.planar_simulation_sensitivity`: ``q0``, ``qdot0``, outputs
+    ``"<coordinate>"`` / ``"<coordinate>_dot"``); chains: the RK4 of their explicit form with its
+    stages differentiated (:func:`ctmm.sensitivity_time.chain_simulation_sensitivity`: ``x0``, ``v0``
+    by point name, outputs ``"<point>.x"`` / ``".v"``).  Returns a
+    :class:`ctmm.sensitivity_time.TimeSensitivity`.
 
     Raises
     ------
     ModelError
-        Chains and controlled models (not implemented yet), models that cannot be compiled, unknown
-        or zero parameters.
+        Controlled chains and spatial models (not implemented yet), loop numbers (constants of the
+        generated step), models that cannot be compiled, unknown or zero parameters.
     """
-    from .planar.model import PlanarModel
+    from .sensitivity_planar import is_planar_system
+    from .sensitivity_time import chain_simulation_sensitivity, planar_simulation_sensitivity
 
-    if not isinstance(system, PlanarModel):
+    if isinstance(system, Chain):
+        return chain_simulation_sensitivity(system, parameters, t_final=t_final, dt=dt, x0=x0, v0=v0, outputs=outputs)
+    if not is_planar_system(system):
         raise ModelError(f"simulation_sensitivity: derivatives of time-domain outputs are implemented for a "
-                         f"ctmm.planar.PlanarModel without loops (casadi forward sensitivities of the RK4 step); "
-                         f"{type(system).__name__} is not supported yet (chains, controlled models); use the "
+                         f"ctmm.Chain of lumped elements and a ctmm.planar.PlanarModel, alone or in a ControlledModel; "
+                         f"{type(system).__name__} is not supported yet (controlled chains, spatial models); use the "
                          "frequency-domain, margin and spectral-abscissa sensitivities of ctmm.sensitivity")
-    from .sensitivity_time import planar_simulation_sensitivity
-
     return planar_simulation_sensitivity(system, parameters, t_final=t_final, dt=dt, q0=q0, qdot0=qdot0,
                                          outputs=outputs)

@@ -39,7 +39,7 @@ from .errors import ModelError, unknown_name
 from .interop import assemble_matrices
 from .system import Chain
 
-__all__ = ["LoopCharacteristicMatrix", "ParameterDerivative"]
+__all__ = ["LoopCharacteristicMatrix", "ParameterDerivative", "controller_polynomials", "loop_parameter"]
 
 _POWERS = {"x": 0, "v": 1, "a": 2}
 _ELEMENT_KINDS = ("mass", "damping", "stiffness")
@@ -73,14 +73,32 @@ class ParameterDerivative:
     value: float
 
 
-def _controller(lp: Feedback) -> tuple[np.ndarray, np.ndarray]:
-    """Numerator and denominator polynomial coefficients of ``C_l(s)`` (highest power first)."""
+def controller_polynomials(lp: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Numerator and denominator polynomial coefficients of ``C_l(s)`` of a loop (highest power first)."""
     if not lp.is_lti:
         return np.array([float(lp.gain)]), np.array([1.0])
     import control
 
     tf = control.tf(lp.gain)
     return np.asarray(tf.num[0][0], dtype=float), np.asarray(tf.den[0][0], dtype=float)
+
+
+def loop_parameter(loops: Sequence[Any], name: str) -> ParameterDerivative | None:
+    """``"<loop>.gain"``, ``"<loop>.delay"`` or ``"<loop>.<sensed signal>"`` of one of ``loops``; None when
+    ``name`` does not start with a loop's name (an element number), an unknown loop number refused."""
+    head, _, tail = name.partition(".")
+    for i, lp in enumerate(loops):
+        if lp.name != head:
+            continue
+        if tail == "gain":
+            return ParameterDerivative(name, "gain", None, i, -1, 1.0 if lp.is_lti else float(lp.gain))
+        if tail == "delay":
+            return ParameterDerivative(name, "delay", None, i, -1, float(lp.delay))
+        for k, (sig, w) in enumerate(lp.terms):
+            if sig == tail:
+                return ParameterDerivative(name, "weight", None, i, k, float(w))
+        raise unknown_name(f"parameter of loop {head!r}", tail, ["gain", "delay"] + [s for s, _ in lp.terms])
+    return None
 
 
 class LoopCharacteristicMatrix:
@@ -107,17 +125,18 @@ class LoopCharacteristicMatrix:
             chain, loops = system.plant, tuple(system.loops)
         else:
             raise ModelError(f"ctmm.sensitivity: the exact derivative matrices are built for a ctmm.Chain or "
-                             f"ctmm.control.ControlledChain of lumped elements; got {type(system).__name__} "
-                             f"({system!r:.80})")
+                             f"ctmm.control.ControlledChain of lumped elements and for planar models (controlled or "
+                             f"not); got {type(system).__name__} ({system!r:.80}); spatial models are not "
+                             "differentiated yet")
         self.system = system
         self.chain = chain
         self.M, self.C, self.K, self.point_dof = assemble_matrices(chain)
         self.n = self.M.shape[0]
         self.loops: tuple[Feedback, ...] = loops
-        self._controllers = [_controller(lp) for lp in loops]
-        self._b = [sum(w * self.input_vector(name) for name, w in actuator_inputs(system, lp.name))
+        self.controller_coefficients = [controller_polynomials(lp) for lp in loops]
+        self.actuator_vectors = [sum(w * self.input_vector(name) for name, w in actuator_inputs(system, lp.name))
                    for lp in loops]
-        self._sensors = [[(self._dof_vector(sig, f"loop {lp.name!r} sensor"), self._power(sig), w)
+        self.sensor_terms = [[(self._dof_vector(sig, f"loop {lp.name!r} sensor"), self._power(sig), w)
                           for sig, w in lp.terms] for lp in loops]
         self.parameters = tuple(self._parameter(name) for name in parameters)
 
@@ -177,17 +196,9 @@ class LoopCharacteristicMatrix:
             raise ModelError(f"ctmm.sensitivity: parameter {name!r} must be '<element>.<number>' or "
                              "'<loop>.gain' / '<loop>.delay' / '<loop>.<sensed signal>'")
         head, _, tail = name.partition(".")
-        for i, lp in enumerate(self.loops):
-            if lp.name != head:
-                continue
-            if tail == "gain":
-                return ParameterDerivative(name, "gain", None, i, -1, 1.0 if lp.is_lti else float(lp.gain))
-            if tail == "delay":
-                return ParameterDerivative(name, "delay", None, i, -1, float(lp.delay))
-            for k, (sig, w) in enumerate(lp.terms):
-                if sig == tail:
-                    return ParameterDerivative(name, "weight", None, i, k, float(w))
-            raise unknown_name(f"parameter of loop {head!r}", tail, ["gain", "delay"] + [s for s, _ in lp.terms])
+        loop = loop_parameter(self.loops, name)
+        if loop is not None:
+            return loop
         element, j = self._element(head, "parameter")
         allowed = ("mass", "damping", "stiffness") if element.is_point else ("damping", "stiffness")
         if tail not in allowed or type(element).__name__ == "Inerter":
@@ -201,7 +212,7 @@ class LoopCharacteristicMatrix:
     # -- loop pieces ---------------------------------------------------------------------------
     def controller(self, i: int, s: complex) -> tuple[complex, complex]:
         """``C_l(s)`` and ``dC_l/ds``."""
-        num, den = self._controllers[i]
+        num, den = self.controller_coefficients[i]
         n, d = np.polyval(num, s), np.polyval(den, s)
         dn, dd = np.polyval(np.polyder(num), s) if num.size > 1 else 0.0, \
             np.polyval(np.polyder(den), s) if den.size > 1 else 0.0
@@ -217,7 +228,7 @@ class LoopCharacteristicMatrix:
         """``c_l(s)`` and ``dc_l/ds``."""
         c = np.zeros(self.n, dtype=complex)
         dc = np.zeros(self.n, dtype=complex)
-        for vec, p, w in self._sensors[i]:
+        for vec, p, w in self.sensor_terms[i]:
             c += w * s ** p * vec
             if p:
                 dc += w * p * s ** (p - 1) * vec
@@ -225,7 +236,7 @@ class LoopCharacteristicMatrix:
 
     def actuator(self, i: int) -> np.ndarray:
         """``b_l``."""
-        return self._b[i]
+        return self.actuator_vectors[i]
 
     # -- Delta ---------------------------------------------------------------------------------
     def delta(self, s: complex, *, skip: int = -1) -> np.ndarray:
@@ -233,7 +244,7 @@ class LoopCharacteristicMatrix:
         D = s * s * self.M + s * self.C + self.K + 0j
         for i in range(len(self.loops)):
             if i != skip:
-                D += self.loop_gain(i, s)[0] * np.outer(self._b[i], self.sensor(i, s)[0])
+                D += self.loop_gain(i, s)[0] * np.outer(self.actuator_vectors[i], self.sensor(i, s)[0])
         return D
 
     def loop_transfer(self, loop: int, s: np.ndarray) -> np.ndarray:
@@ -244,8 +255,8 @@ class LoopCharacteristicMatrix:
             if i != loop:
                 k = np.array([self.loop_gain(i, x)[0] for x in s])
                 c = np.array([self.sensor(i, x)[0] for x in s])
-                D += k[:, None, None] * self._b[i][None, :, None] * c[:, None, :]
-        x = np.linalg.solve(D, np.broadcast_to(self._b[loop], (s.size, self.n))[..., None])[..., 0]
+                D += k[:, None, None] * self.actuator_vectors[i][None, :, None] * c[:, None, :]
+        x = np.linalg.solve(D, np.broadcast_to(self.actuator_vectors[loop], (s.size, self.n))[..., None])[..., 0]
         c = np.array([self.sensor(loop, v)[0] for v in s])
         k = np.array([self.loop_gain(loop, v)[0] for v in s])
         return k * np.einsum("wn,wn->w", c, x)
@@ -256,7 +267,7 @@ class LoopCharacteristicMatrix:
         total = abs(s) ** 2 * np.linalg.norm(self.M, 2) + abs(s) * np.linalg.norm(self.C, 2) \
             + np.linalg.norm(self.K, 2)
         for i in range(len(self.loops)):
-            total += abs(self.loop_gain(i, s)[0]) * np.linalg.norm(self._b[i]) * np.linalg.norm(self.sensor(i, s)[0])
+            total += abs(self.loop_gain(i, s)[0]) * np.linalg.norm(self.actuator_vectors[i]) * np.linalg.norm(self.sensor(i, s)[0])
         return float(total)
 
     def delta_s(self, s: complex, *, skip: int = -1) -> np.ndarray:
@@ -266,7 +277,7 @@ class LoopCharacteristicMatrix:
             if i != skip:
                 k, dk = self.loop_gain(i, s)
                 c, dc = self.sensor(i, s)
-                D += np.outer(self._b[i], dk * c + k * dc)
+                D += np.outer(self.actuator_vectors[i], dk * c + k * dc)
         return D
 
     def delta_p(self, s: complex, index: int, *, skip: int = -1) -> np.ndarray:
@@ -276,7 +287,7 @@ class LoopCharacteristicMatrix:
             return {"mass": s * s, "damping": s, "stiffness": 1.0}[p.kind] * p.pattern + 0j
         if p.loop == skip:
             return np.zeros((self.n, self.n), dtype=complex)
-        return np.outer(self._b[p.loop], self.loop_row_p(s, index))
+        return np.outer(self.actuator_vectors[p.loop], self.loop_row_p(s, index))
 
     def loop_row_p(self, s: complex, index: int) -> np.ndarray:
         """``d(K_l c_l^T)/dp`` of a loop parameter (the row multiplying ``b_l``)."""
@@ -286,7 +297,7 @@ class LoopCharacteristicMatrix:
         c = self.sensor(i, s)[0]
         if p.kind in ("gain", "delay"):
             return self.loop_gain_p(s, index, i) * c
-        vec, power, _ = self._sensors[i][p.term]
+        vec, power, _ = self.sensor_terms[i][p.term]
         return k * s ** power * vec
 
     def loop_gain_p(self, s: complex, index: int, loop: int) -> complex:
@@ -306,5 +317,37 @@ class LoopCharacteristicMatrix:
         p = self.parameters[index]
         if p.loop != loop or p.kind != "weight":
             return np.zeros(self.n, dtype=complex)
-        vec, power, _ = self._sensors[loop][p.term]
+        vec, power, _ = self.sensor_terms[loop][p.term]
         return vec * s ** power + 0j
+
+    # -- plant-number dependence of the ports (none for a chain: b and c are geometry) ----------
+    def actuator_p(self, index: int, loop: int) -> np.ndarray:
+        """``db_l/dp`` (zero here: a chain's load vectors do not depend on its numbers)."""
+        return np.zeros(self.n, dtype=complex)
+
+    def input_vector_p(self, name: str, index: int) -> np.ndarray:
+        """``db/dp`` of an input (zero here)."""
+        return np.zeros(self.n, dtype=complex)
+
+    def output_row_p(self, name: str, s: complex, index: int) -> np.ndarray:
+        """``dc(s)/dp`` of an output (zero here)."""
+        return np.zeros(self.n, dtype=complex)
+
+    def delay_free_roots(self) -> np.ndarray:
+        """Finite roots of ``det Delta(s)`` for static gains without delay (companion pencil of the
+        quadratic ``s^2 M + s C + K`` with the loops folded into ``K``, ``C``, ``M`` by their sensor
+        powers; QZ)."""
+        from scipy.linalg import eig
+
+        M2, C2, K2 = (np.asarray(X, dtype=float).copy() for X in (self.M, self.C, self.K))
+        for i, lp in enumerate(self.loops):
+            b = self.actuator_vectors[i]
+            for vec, power, weight in self.sensor_terms[i]:
+                (K2, C2, M2)[power][...] += float(lp.gain) * weight * np.outer(b, vec)
+        n = self.n
+        A = np.block([[np.zeros((n, n)), np.eye(n)], [-K2, -C2]])
+        B = np.block([[np.eye(n), np.zeros((n, n))], [np.zeros((n, n)), M2]])
+        alpha, beta = eig(A, B, right=False, homogeneous_eigvals=True)
+        # infinite eigenvalues of the massless DOFs come out with beta at round-off (0 or ~eps |B|)
+        finite = np.abs(beta) > 1e-10 * np.linalg.norm(B, 1)
+        return alpha[finite] / beta[finite]

@@ -1,9 +1,11 @@
 """Exact derivatives of planar RK4 simulations: forward sensitivities of the generated step.
 
 For a planar model (rigid bodies, hinges; compilable, :func:`ctmm.compiled_parameters.compile_refusal`)
-without actuator inputs, the RK4 step ``y_{k+1} = Phi(y_k, p, t_k)`` of ``y = [q, qdot]`` is stated
-on casadi symbols with the model's numbers ``p`` as an input (the expression the generated kernels
-compile, :func:`ctmm.compiled_scene.symbolic_plant_accelerations`). The forward sensitivities
+without open-loop actuator inputs, alone or closed by loops (a ``ControlledModel``), the RK4 step
+``y_{k+1} = Phi(y_k, p, t_k)`` of ``y = [q, qdot]`` (with loops ``[q, qdot, z, ring]``: controller
+states and the delayed loops' samples, :class:`ctmm.compiled_loops.ClosedLoops`) is stated on casadi
+symbols with the model's numbers ``p`` as an input (the expression the generated kernels compile,
+:func:`ctmm.compiled_scene.symbolic_accelerations_with_inputs`). The forward sensitivities
 ``S_k = dy_k/dp`` follow the fold exactly:
 
     S_{k+1} = dPhi/dy (y_k) S_k + dPhi/dp (y_k),     S_0 = 0,
@@ -15,18 +17,19 @@ round-off (not of the exact ODE solution; the two differ by the RK4 error, O(dt^
 Parameters: ``"<body>.mass"`` [kg], ``"<body>.inertia"`` (about the centre of mass) [kg m^2],
 ``"<hinge>.stiffness"`` [N m/rad], ``"<hinge>.damping"`` [N m s/rad].  A number that is zero in
 the model is a constant of the generated expression and is refused (give it a nonzero value).
+Loop numbers (gains, weights, delays) are constants of the generated step and are refused.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from . import validation
 from .errors import ModelError, unknown_name
 
-__all__ = ["TimeSensitivity", "planar_simulation_sensitivity"]
+__all__ = ["TimeSensitivity", "chain_simulation_sensitivity", "parameter_index", "planar_simulation_sensitivity"]
 
 
 @dataclass(frozen=True)
@@ -63,8 +66,9 @@ class TimeSensitivity:
         return self.derivative[:, :, -1]
 
 
-def _parameter_index(model: Any, name: str, values: np.ndarray) -> int:
-    """Index of a named number in :func:`ctmm.compiled_parameters.parameter_vector`."""
+def parameter_index(model: Any, name: str, values: np.ndarray) -> int:
+    """Index of a named number (module docstring) in ``values``, the model's
+    :func:`ctmm.compiled_parameters.parameter_vector`; a zero number is refused."""
     nb = model.n_bodies
     ends = sum(len(points) for points in model.ends)
     stiffness = 4 * nb + 2 * ends + 2
@@ -93,8 +97,8 @@ def planar_simulation_sensitivity(model: Any, parameters: str | Sequence[str], *
 
     Parameters
     ----------
-    model : PlanarModel
-        Compilable, no actuator inputs used (loops: not yet).
+    model : PlanarModel or ControlledModel (planar plant)
+        Compilable; no open-loop actuator inputs; loops closed in the step (references 0).
     parameters : str or sequence of str
     t_final, dt : float
         [s]; ``t_final / dt`` whole (as :func:`ctmm.simulate`, ``method="rk4"``).
@@ -116,18 +120,30 @@ def planar_simulation_sensitivity(model: Any, parameters: str | Sequence[str], *
     """
     import casadi as ca
 
-    from .compiled_parameters import parameter_vector
-    from .compiled_scene import symbolic_plant_accelerations
+    from .compiled_loops import ClosedLoops
+    from .compiled_parameters import compiled_actuators, parameter_vector
+    from .compiled_scene import symbolic_accelerations_with_inputs
+    from .control.controlled_model import ControlledModel
     from .generated_loop import rk4_step_function
     from .planar.integrate import initial_coordinates, step_total
     from .planar.model import PlanarModel
 
+    controlled = model if isinstance(model, ControlledModel) else None
+    if controlled is not None:
+        model = controlled.plant
     if not isinstance(model, PlanarModel):
-        raise ModelError(f"planar_simulation_sensitivity: model must be a ctmm.planar.PlanarModel, got "
-                         f"{type(model).__name__}")
+        raise ModelError(f"planar_simulation_sensitivity: model must be a ctmm.planar.PlanarModel or a "
+                         f"ControlledModel on one, got {type(model).__name__}")
     names = validation.names("parameters", parameters)
+    loop_names = [lp.name for lp in (controlled.loops if controlled else ())]
+    for name in names:
+        if str(name).partition(".")[0] in loop_names:
+            raise ModelError(f"planar_simulation_sensitivity: parameter {name!r} is a loop number; the loops' gains, "
+                             "weights and delays are constants of the generated step, so time histories are "
+                             "differentiated with respect to plant numbers only (use the frequency-domain, margin "
+                             "and spectral-abscissa sensitivities for loop numbers)")
     p0 = parameter_vector(model)
-    indices = [_parameter_index(model, name, p0) for name in names]
+    indices = [parameter_index(model, name, p0) for name in names]
     n = model.n_coordinates
     labels = list(model.coordinates) + [f"{c}_dot" for c in model.coordinates]
     wanted = list(model.coordinates) if outputs is None else list(validation.names("outputs", outputs))
@@ -139,27 +155,36 @@ def planar_simulation_sensitivity(model: Any, parameters: str | Sequence[str], *
     n_steps = step_total(t_final, dt)
     h = t_final / n_steps
 
-    acceleration = symbolic_plant_accelerations(model)
-    y_sx, u_sx, p_sx, t_sx = ca.SX.sym("y", 2 * n), ca.SX.sym("u", 0), ca.SX.sym("p", p0.size), ca.SX.sym("t")
-    rate = ca.Function("rate", [y_sx, u_sx, p_sx, t_sx],
-                       [ca.vertcat(y_sx[n:], acceleration(y_sx[:n], y_sx[n:], p_sx, t_sx))])
-    step = rk4_step_function(rate)
+    actuators = compiled_actuators(model)
+    loops = None if controlled is None else ClosedLoops(controlled, actuators, h)
+    acceleration = symbolic_accelerations_with_inputs(model, actuators,
+                                                      [unit for _, unit in loops.channels] if loops else ())
+    if loops is None:
+        y_sx, u_sx, p_sx, t_sx = ca.SX.sym("y", 2 * n), ca.SX.sym("u", len(actuators)), ca.SX.sym("p", p0.size), \
+            ca.SX.sym("t")
+        rate = ca.Function("rate", [y_sx, u_sx, p_sx, t_sx],
+                           [ca.vertcat(y_sx[n:], acceleration(y_sx[:n], y_sx[n:], u_sx, p_sx, t_sx))])
+        step = rk4_step_function(rate)
+        size, first = 2 * n, np.concatenate([q, v])
+    else:           # the loops closed at every stage, delayed ones from the ring in the state (as generated)
+        step = loops.step(acceleration, len(actuators), p0.size)
+        size, first = loops.state_size, loops.initial_state(q, v)
     m = len(indices)
     select = np.zeros((p0.size, m))
     select[indices, range(m)] = 1.0
-    Y, S, d, k = ca.MX.sym("y", 2 * n), ca.MX.sym("S", 2 * n, m), ca.MX.sym("d", m), ca.MX.sym("k")
-    y_next = step(Y, ca.MX(0, 1), h, ca.DM(p0) + ca.DM(select) @ d, 0.0, k)
+    Y, S, d, k = ca.MX.sym("y", size), ca.MX.sym("S", size, m), ca.MX.sym("d", m), ca.MX.sym("k")
+    y_next = step(Y, ca.DM.zeros(len(actuators)), h, ca.DM(p0) + ca.DM(select) @ d, 0.0, k)
     S_next = ca.jacobian(y_next, Y) @ S + ca.jacobian(y_next, d)
     forward = ca.Function("forward", [Y, S, d, k], [y_next, S_next]).expand()
-    states = np.empty((n_steps + 1, 2 * n))
-    tangents = np.empty((n_steps + 1, 2 * n, m))
-    states[0] = np.concatenate([q, v])
+    states = np.empty((n_steps + 1, size))
+    tangents = np.empty((n_steps + 1, size, m))
+    states[0] = first
     tangents[0] = 0.0
     zero = np.zeros(m)
     for index in range(n_steps):
         y_new, S_new = forward(states[index], tangents[index], zero, float(index))
         states[index + 1] = np.asarray(y_new).reshape(-1)
-        tangents[index + 1] = np.asarray(S_new).reshape(2 * n, m)
+        tangents[index + 1] = np.asarray(S_new).reshape(size, m)
         if not np.all(np.isfinite(states[index + 1])):
             raise ModelError(f"planar_simulation_sensitivity: the run diverged at t = {(index + 1) * h:g} s "
                              f"(non-finite state); reduce dt")
@@ -167,3 +192,98 @@ def planar_simulation_sensitivity(model: Any, parameters: str | Sequence[str], *
     values = states[:, rows].T
     derivative = np.transpose(tangents[:, rows, :], (2, 1, 0))
     return TimeSensitivity(time, tuple(wanted), tuple(names), values, derivative)
+
+
+def chain_simulation_sensitivity(chain: Any, parameters: str | Sequence[str], *, t_final: float, dt: float,
+                                 x0: Mapping[str, float] | None = None, v0: Mapping[str, float] | None = None,
+                                 outputs: str | Sequence[str] | None = None) -> TimeSensitivity:
+    """RK4 run of a lumped 1-D chain (free response) with the exact derivatives of its outputs.
+
+    The explicit form of a chain whose every free point has a mass, ``M u'' + C u' + K u = 0`` over
+    the displacements ``u`` from the rest positions (:func:`ctmm.interop.assemble_matrices`), is the
+    linear rate ``y' = E(p) y``, ``y = [u, u']``; RK4 is stepped with its stages differentiated
+    exactly (``dk_i = dE y_i + E dy_i``, ``dE`` from ``dM``, ``dC``, ``dK`` of
+    :class:`ctmm.sensitivity_model.LoopCharacteristicMatrix` and ``d(M^-1) = -M^-1 dM M^-1``): the
+    derivative of the RK4 solution ``ctmm.simulate(chain, ..., method="rk4")`` computes (the same
+    RK4 of the same ODE; its rates come from the sweep, equal to round-off).
+
+    Parameters
+    ----------
+    chain : Chain
+        Lumped elements; every point that is not held has a mass (massless points are condensed
+        in the explicit form: refused here); no inputs.
+    parameters : str or sequence of str
+        ``"<point>.mass"``, ``"<point>.damping"``, ``"<point>.stiffness"``, ``"<connector>.stiffness"``,
+        ``"<connector>.damping"``.
+    t_final, dt : float
+        [s]; ``t_final / dt`` whole.
+    x0, v0 : mapping, optional
+        Initial absolute positions [m] and velocities [m/s] by point element name (as :func:`ctmm.simulate`).
+    outputs : str or sequence of str, optional
+        ``"<point>.x"`` (absolute position [m]) and ``"<point>.v"`` [m/s]; default every mass's ``.x``.
+
+    Returns
+    -------
+    TimeSensitivity
+    """
+    from .chain_start import point_of_element, rest_positions
+    from .planar.integrate import step_total
+    from .sensitivity_model import LoopCharacteristicMatrix
+
+    from .system import Chain
+
+    if not isinstance(chain, Chain):
+        raise ModelError("chain_simulation_sensitivity: a plain ctmm.Chain is differentiated in time; controlled "
+                         f"chains (loops) are not implemented yet; got {type(chain).__name__}")
+    model = LoopCharacteristicMatrix(chain, validation.names("parameters", parameters))
+    n = model.n
+    if np.any(np.diag(model.M) <= 0.0):
+        raise ModelError(f"chain_simulation_sensitivity: chain {chain.name!r} has massless free points (condensed in "
+                         "its explicit form); time histories are differentiated for chains whose every free point "
+                         "has a mass")
+    rest = rest_positions(chain)
+    masses = [e.name for e in chain.body if e.is_point and getattr(e, "mass", 0.0) > 0.0]
+    wanted = [f"{name}.x" for name in masses] if outputs is None else list(validation.names("outputs", outputs))
+    rows = np.array([np.concatenate([model.output_row(name, 1.0).real, np.zeros(n)]) if name.endswith(".x") else
+                     np.concatenate([np.zeros(n), model.output_row(name[:-2] + ".x", 1.0).real])
+                     if name.endswith(".v") else _refuse_output(name) for name in wanted])
+    offsets = np.array([rest[point_of_element(chain, name[:-2])] if name.endswith(".x") else 0.0 for name in wanted])
+    y = np.zeros(2 * n)
+    for values, half in ((x0 or {}), 0), ((v0 or {}), n):
+        for name, value in values.items():
+            row = model.output_row(f"{name}.x", 1.0).real
+            base = rest[point_of_element(chain, name)] if half == 0 else 0.0
+            y[half:half + n] += row * (validation.finite(f"initial value of {name!r}", value) - base)
+    Minv = np.linalg.inv(model.M)
+    E = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ model.K, -Minv @ model.C]])
+    dE = []
+    for p in model.parameters:
+        dM, dC, dK = (p.pattern if p.kind == kind else np.zeros((n, n)) for kind in ("mass", "damping", "stiffness"))
+        dE.append(np.block([[np.zeros((n, n)), np.zeros((n, n))],
+                            [Minv @ (dM @ Minv @ model.K - dK), Minv @ (dM @ Minv @ model.C - dC)]]))
+    n_steps = step_total(t_final, dt)
+    h = t_final / n_steps
+    m = len(dE)
+    S = np.zeros((m, 2 * n))
+    values = np.empty((len(wanted), n_steps + 1))
+    derivative = np.empty((m, len(wanted), n_steps + 1))
+    for k in range(n_steps + 1):
+        values[:, k] = rows @ y + offsets
+        derivative[:, :, k] = S @ rows.T
+        if k == n_steps:
+            break
+        stages, tangents = [], []
+        for c in (0.0, 0.5, 0.5, 1.0):
+            ys = y + c * h * stages[-1] if stages else y
+            Ss = S + c * h * tangents[-1] if tangents else S
+            stages.append(E @ ys)
+            tangents.append(np.array([dE[i] @ ys for i in range(m)]).reshape(m, 2 * n) + Ss @ E.T)
+        y = y + h / 6.0 * (stages[0] + 2 * stages[1] + 2 * stages[2] + stages[3])
+        S = S + h / 6.0 * (tangents[0] + 2 * tangents[1] + 2 * tangents[2] + tangents[3])
+    return TimeSensitivity(h * np.arange(n_steps + 1), tuple(wanted), tuple(p.name for p in model.parameters),
+                           values, derivative)
+
+
+def _refuse_output(name: str) -> np.ndarray:
+    raise ModelError(f"chain_simulation_sensitivity: output {name!r} is not supported; allowed: '<point>.x', "
+                     "'<point>.v'")

@@ -71,3 +71,39 @@ def test_refusals():
         S.simulation_sensitivity(model, ["middle.mass"], t_final=0.1, dt=0.01, q0=[-1.2, -1.0])
     with pytest.raises(ModelError, match="unknown output"):
         S.simulation_sensitivity(model, ["upper.mass"], t_final=0.1, dt=0.01, q0=[-1.2, -1.0], outputs=["x"])
+
+
+def test_chain_history_against_richardson_differences_of_the_simulation():
+    from tests.test_sensitivity import relative, richardson, seed_chain
+
+    chain = seed_chain()
+    names = ["m4.mass", "K3.stiffness", "K1.damping"]
+    found = S.simulation_sensitivity(chain, names, t_final=1.0, dt=0.01, x0={"m6": 0.1}, v0={"m2": 0.2},
+                                     outputs=["m4.x", "m6.v"])
+
+    def history(c):
+        sim = ctmm.simulate(c, 1.0, 0.01, method="rk4", x0={"m6": 0.1}, v0={"m2": 0.2})
+        return np.array([sim["m4.x"], sim["m6.v"]])
+
+    assert np.max(np.abs(found.values - history(chain))) < 1e-12
+    for i, name in enumerate(names):
+        assert relative(found.derivative[i], richardson(history, chain, name)) < 1e-6, name
+
+
+def test_chain_history_derivatives_match_the_oscillator_closed_form():
+    # m x'' + k x = 0 from x0: x = x0 cos(w t), w = sqrt(k/m); dx/dk = -x0 t sin(w t) / (2 sqrt(k m)),
+    # dx/dm = x0 t sin(w t) w / (2 m); RK4 with dt = 1 ms agrees to its O(dt^4) error
+    from ctmm.elements import Fixed, Free, Mass, Spring
+
+    m, k, x0 = 2.0, 5.0, 0.1
+    chain = ctmm.Chain("sdof", [Fixed("w"), Spring("k", k), Mass("m", m), Free("e")])
+    rest = ctmm.simulate(chain, 0.001, 0.001, method="rk4")["m.x"][0]
+    found = S.simulation_sensitivity(chain, ["k.stiffness", "m.mass"], t_final=2.0, dt=1e-3, x0={"m": rest + x0},
+                                     outputs=["m.x"])
+    t, w = found.time, np.sqrt(k / m)
+    assert np.max(np.abs(found.values[0] - rest - x0 * np.cos(w * t))) < 1e-9
+    expected = [-x0 * t * np.sin(w * t) / (2 * np.sqrt(k * m)), x0 * t * np.sin(w * t) * w / (2 * m)]
+    for i in range(2):
+        assert np.max(np.abs(found.derivative[i, 0] - expected[i])) < 1e-7 * np.max(np.abs(expected[i]))
+    with pytest.raises(ModelError, match="not supported"):
+        S.simulation_sensitivity(chain, ["k.stiffness"], t_final=0.1, dt=0.01, outputs=["m.f"])
