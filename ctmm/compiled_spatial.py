@@ -57,7 +57,7 @@ from .protocol import BodyTerms, JointTerms
 from .signals import Constant
 from .spatial.body_forms import SpatialScene, child_motion, joint_motion, rigid_body_terms
 from .spatial.frames import constant, cross, quaternion_rate, quaternion_rotation
-from .spatial.integrate import initial_state, spatial_signals
+from .spatial.integrate import beam_deflection_weights, check_beam_deflection, initial_state, spatial_signals
 from .spatial.model import SpatialModel
 from .compiled_spatial_parameters import (SpatialNumbers, parametrised_body_terms, parametrised_joint_law,
                                           spatial_parameter_layout, spatial_parameter_vector)
@@ -510,8 +510,9 @@ def simulate_spatial_generated(model: SpatialModel, t_final: float, dt: float, *
     ModelError
         A model the generated path cannot compile (:func:`spatial_compile_refusal`), bad arguments.
     SimulationError
-        A non-finite stored state, or one farther than ``divergence_bound`` from the start (checked on the stored states),
-        with the result up to the last good stored state.
+        A non-finite stored state, one farther than ``divergence_bound`` from the start, or one in which a
+        :class:`~ctmm.spatial.SpatialBeam`'s deflection bound exceeds its length (checked on the stored states, after
+        the run), with the result up to the last good stored state.
     """
     t_final = validation.positive("t_final", t_final)
     if dt is None:
@@ -543,6 +544,14 @@ def simulate_spatial_generated(model: SpatialModel, t_final: float, dt: float, *
     bad = ~np.all(np.isfinite(states), axis=1)
     if divergence_bound is not None:
         bad |= np.any(np.abs(np.where(np.isfinite(states), states - states[:1], 0.0)) > divergence_bound, axis=1)
+    good = int(np.flatnonzero(bad)[0]) if np.any(bad) else len(times)
+    try:                                       # a beam's deflection beyond its length, before any other failure
+        check_beam_deflection(model, beam_deflection_weights(model), times[:good], states[:good],
+                              "rk4-generated; checked on the stored states")
+    except SimulationError as exc:
+        first = int(np.searchsorted(times, exc.time))
+        exc.partial_result = _result(model, times[:first], states[:first], info) if first else None
+        raise
     if np.any(bad):
         first = int(np.flatnonzero(bad)[0])
         finite = np.all(np.isfinite(states[first]))

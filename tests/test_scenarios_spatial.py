@@ -96,5 +96,6 @@ def test_spatial_spin_up_quick_is_bounded_with_stiffening_and_diverges_without(t
     assert summary["static_sag_tip_m"] < -1.0                          # gravity acts out of plane (m)
     assert summary["peak_out_of_plane_tip_m"] < 1.5 * abs(summary["static_sag_tip_m"])   # bounded
     assert summary["unstiffened_diverged"]
-    assert summary["unstiffened_peak_in_plane_tip_m"] > 10 * summary["peak_in_plane_tip_m"]
+    assert summary["unstiffened_stopped_at_s"] is not None               # the beam's deflection guard stopped it
+    assert summary["unstiffened_peak_in_plane_tip_m"] > 1.5 * summary["peak_in_plane_tip_m"]
     assert summary["unstiffened_tip_max_error_m"] < 1e-3 * 10.0        # same divergence in the reference

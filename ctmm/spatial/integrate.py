@@ -21,7 +21,8 @@ from .body_forms import SpatialScene
 from .dynamics import state_rates
 from .model import SpatialModel
 
-__all__ = ["simulate_spatial", "initial_state", "spatial_signals", "state_result", "divergence_check", "SCIPY_METHODS"]
+__all__ = ["simulate_spatial", "initial_state", "spatial_signals", "state_result", "divergence_check", "beam_deflection_weights",
+           "check_beam_deflection", "SCIPY_METHODS"]
 
 SCIPY_METHODS = ("RK45", "RK23", "DOP853", "Radau", "BDF", "LSODA")
 """``solve_ivp`` methods accepted for spatial models."""
@@ -101,6 +102,49 @@ def state_result(model: SpatialModel, time: list, states: list, method: str, inf
     return signal_result(SignalSystem(model, units), time_array, signals, method, info)
 
 
+def beam_deflection_weights(model: SpatialModel) -> list[tuple[Any, np.ndarray, np.ndarray]]:
+    """Per :class:`~ctmm.spatial.SpatialBeam` of ``model``: ``(beam, indices, weights)``, the state indices of
+    its translational modal coordinates (bending ``y``, ``z`` and axial, [m]) and the largest ``|phi_i(x)|``
+    of each shape on the beam (sampled at 401 stations), so that ``sum_i weights_i |eta_i|`` bounds the
+    deflection [m] (twist [rad] is left out)."""
+    index = {name: k for k, name in enumerate(model.coordinates)}
+    out = []
+    for body in model.bodies:
+        data = getattr(body, "data", None)
+        if data is None or not hasattr(data, "direction_shapes") or not getattr(body, "n_eta", 0):
+            continue
+        stations = np.linspace(0.0, body.length, 401)
+        suffixes = body.coordinate_suffixes
+        weights = np.zeros(len(suffixes))
+        for direction, prefix in (("y", "qy"), ("z", "qz"), ("a", "u")):
+            columns = [k for k, suffix in enumerate(suffixes) if suffix.startswith(prefix)]
+            if columns:
+                weights[columns] = np.abs(data.direction_shapes(direction, stations)).max(axis=1)
+        indices = np.array([index[f"{body.name}.{suffix}"] for suffix in suffixes])
+        out.append((body, indices, weights))
+    return out
+
+
+def check_beam_deflection(model: SpatialModel, beams: list, t: Any, rows: np.ndarray, method: str,
+                          partial: Callable[[], Any] | None = None) -> None:
+    """Raise :class:`SimulationError` (time, beam, ``partial()``) when a beam's deflection bound
+    ``sum_i max|phi_i| |eta_i|`` of a state row exceeds the beam's length: far outside the small-deformation
+    model (a diverging run, e.g. a spin-up above the first critical speed without geometric stiffening).
+    ``beams`` from :func:`beam_deflection_weights`; ``rows`` (n, size) at times ``t`` (n,) or one state."""
+    for beam, indices, weights in beams:
+        deflection = np.abs(rows[:, indices]) @ weights
+        bad = np.flatnonzero(deflection > beam.length)
+        if len(bad):
+            row = int(bad[0])
+            time = float(np.atleast_1d(t)[row] if np.ndim(t) else t)
+            raise SimulationError(
+                f"{model.name}: simulation diverged at t = {time:.6g} s ({method}): beam {beam.name!r} deflection "
+                f"bound {deflection[row]:.3g} m exceeds its length {beam.length:g} m (far outside the "
+                f"small-deformation model; a diverging model, e.g. geometric_stiffening=False above the first "
+                f"critical speed, or too large a step)", time=time, element=beam.name,
+                partial_result=partial() if partial is not None else None)
+
+
 def divergence_check(model: SpatialModel, start: np.ndarray, bound: float | None
                      ) -> Callable[..., None]:
     """The run guard of spatial models: the one meaning of ``divergence_bound`` (:func:`ctmm.simulate`).
@@ -121,21 +165,26 @@ def divergence_check(model: SpatialModel, start: np.ndarray, bound: float | None
         ``check(t, x, method, partial=None)``: ``x`` one state (size,) at time ``t`` [s], or stored states
         (n, size) at times ``t`` (n,) (the first bad row is reported).  Raises :class:`SimulationError`
         (time, the model as element, ``partial()`` as the partial result) on a non-finite entry or one
-        beyond the bound.
+        beyond the bound, or when a :class:`~ctmm.spatial.SpatialBeam`'s deflection bound exceeds its length
+        (:func:`check_beam_deflection`, whatever ``bound``).
     """
     names = list(model.coordinates) + list(model.velocities)
     start = np.array(start, dtype=float).reshape(-1)
+    beams = beam_deflection_weights(model)
 
     def check(t: Any, x: np.ndarray, method: str, partial: Callable[[], Any] | None = None) -> None:
         rows = np.atleast_2d(np.asarray(x, dtype=float))
         distance = np.abs(rows - start)
         finite = np.isfinite(rows)
         if np.all(finite) and (bound is None or float(distance.max(initial=0.0)) <= bound):
+            check_beam_deflection(model, beams, t, rows, method, partial)
             return
         bad = ~np.all(finite, axis=1)
         if bound is not None:
             bad |= np.any(np.where(finite, distance, 0.0) > bound, axis=1)
         row = int(np.flatnonzero(bad)[0])
+        if row:                                             # a beam that left its range before this row
+            check_beam_deflection(model, beams, np.atleast_1d(t)[:row], rows[:row], method, partial)
         time = float(np.atleast_1d(t)[row] if np.ndim(t) else t)
         if not np.all(finite[row]):
             k = int(np.flatnonzero(~finite[row])[0])
