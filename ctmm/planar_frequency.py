@@ -159,10 +159,20 @@ def _checked_eig(model: Any, stiffness: np.ndarray, op: Any, verb: str) -> tuple
         raise ModelError(f"{verb}: the linearisation of {model.name!r} is not a symmetric mass-stiffness pair "
                          "(complex omega^2: circulatory forces such as follower loads); use ctmm.linearize")
     values = values.real
-    if np.any(values < -1e-9 * top):
+    unstable = np.flatnonzero(values < -1e-9 * top)
+    if unstable.size:
+        names = list(model.coordinates)
+        directions = []
+        for k in unstable[np.argsort(values[unstable])]:
+            shape = np.real(vectors[:, k])
+            shape = shape / shape[np.argmax(np.abs(shape))]
+            main = [f"{names[i]} {shape[i]:+.3g}" for i in np.argsort(-np.abs(shape))[:3] if abs(shape[i]) > 1e-3]
+            directions.append(f"omega^2 = {values[k]:.6g} rad^2/s^2 along ({', '.join(main)})")
         raise ModelError(f"model {model.name!r} is statically unstable about q = {op.q.tolist()}: "
-                         f"{int(np.sum(values < -1e-9 * top))} mode(s) with negative stiffness (omega^2 < 0, e.g. "
-                         "a link held against gravity); natural frequencies exist only about a stable equilibrium")
+                         f"{unstable.size} mode(s) with negative stiffness (imaginary roots, e.g. a link held "
+                         f"against gravity): {'; '.join(directions)}; natural frequencies exist only about a stable "
+                         "equilibrium: pass operating_point=(q, qdot) at a stable equilibrium (e.g. the links hanging), "
+                         "or use ctmm.linearize for the unstable linearisation")
     return np.where(np.abs(values) <= 1e-9 * top, 0.0, values), vectors, top
 
 
