@@ -563,12 +563,15 @@ class _Determinant:
         return _balance(self._matrices(omega)[0])
 
     def static_nullity(self) -> int:
-        """Number of rigid-body modes: ``dim null(Bm Z_N)`` at ``omega = 0`` (singular values
-        below ``1e-9`` of the largest, balanced coordinates)."""
+        """Number of rigid-body modes: ``dim null(Bm Z_N)`` at ``omega = 0`` (singular values below ``1e-9``
+        of the largest, balanced coordinates, rows and columns equilibrated: scale-aware for turned fields)."""
         Us, start, end = self._matrices(np.zeros(1))
         M = self._final(Us, start, end, _balance(Us))[0]
         if M.size == 0:
             return 0
+        for _ in range(3):  # row/column equilibration: a turned field mixes stiff and soft directions
+            M = M / np.maximum(np.linalg.norm(M, axis=1, keepdims=True), np.finfo(float).tiny)
+            M = M / np.maximum(np.linalg.norm(M, axis=0, keepdims=True), np.finfo(float).tiny)
         sv = np.linalg.svd(M, compute_uv=False)
         return int(np.sum(sv <= 1e-9 * sv[0]))
 

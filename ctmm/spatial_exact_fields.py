@@ -424,9 +424,8 @@ def natural_frequencies(system: Any, *, n_modes: int | None = None, omega_max: f
     rigid_modes = int(base.kind == "revolute" and not base.stiffness[0])
     if np.count_nonzero(omega == 0.0) > rigid_modes:
         raise _refuse(system, f"the chain count found {np.count_nonzero(omega == 0.0)} rigid-body modes where the "
-                              f"model has {rigid_modes}: the static rigid-mode count of ctmm.natural is not "
-                              "reliable for beams turned obliquely to the chain axes (here: to the base revolute "
-                              "axis); use fields='modal'")
+                              f"model has {rigid_modes} (a safety check of the chain's static rigid-mode count); "
+                              "use fields='modal'")
     if form.rigid:
         softer = exact_form(system, operating_point, rigid_factor=RIGID_FACTOR / RIGID_CHECK_RATIO)
         check = chain_natural(softer.chain, n_modes=n_modes, omega_max=omega_max)

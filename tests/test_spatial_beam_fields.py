@@ -339,3 +339,14 @@ def test_bad_input_and_unsupported_requests_are_refused():
         ctmm.natural_frequencies(damped, n_modes=1)
     with pytest.raises(ModelError, match="no time-domain form"):
         beam("b", 1.0).discretize(None)
+
+
+@pytest.mark.parametrize("tilt", [1e-17, 1e-9, 0.3, 1.0, 2.5])
+def test_a_tilted_cantilever_has_no_rigid_mode_and_its_analytic_frequencies(tilt):
+    """A clamped-free field turned by any rotation has the frequencies of the straight one (the analytic
+    cantilever spectrum), none at 0 rad/s: the static rigid-mode count of ctmm.natural equilibrates the
+    rows and columns of its omega = 0 matrix (it once counted three rigid modes for a turned field)."""
+    rotation = Rotation.from_rotvec(tilt * np.array([0.2, 1.0, 0.7])).as_matrix()
+    chain = Chain("tilted", [SpatialClamped("g"), beam("b", 1.0, rotation=rotation), SpatialFree("f")])
+    omega = ctmm.natural_frequencies(chain, n_modes=8)
+    np.testing.assert_allclose(omega, bare_cantilever_spectrum(1.0, 8)[:8], rtol=1e-9)
