@@ -323,7 +323,7 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
     """
     controllers = check_controllers(controllers)
     references = check_references(references)
-    _refuse_too_many_steps(t_final, t0, dt)
+    validation.step_budget(t_final, t0, dt)
     if coupling != "hold" and not controllers:
         raise ModelError(f"coupling={coupling!r} only applies to co-simulated controllers, but controllers is "
                          f"empty; leave coupling at 'hold' (embedded loops are always solved implicitly)")
@@ -391,20 +391,6 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
     return simulate_controlled(system, t_final, dt, scheme=chosen, x0=x0, v0=v0, t0=t0, references=references,
                                controllers=controllers, coupling=coupling, progress=progress,
                                stability_check=stability_check, divergence_bound=divergence_bound)
-
-
-def _refuse_too_many_steps(t_final: Any, t0: Any, dt: Any) -> None:
-    """Refuse, before any work, a run whose step or output grid ``dt`` has more than
-    :data:`ctmm.validation.MAX_STEPS` points over ``[t0, t_final]`` -- on every path (chains, planar,
-    spatial, generated kernels, ``solve_ivp`` output grids).  Values that are not finite positive numbers
-    are left to each path's own validation (which names the parameter)."""
-    values = (t_final, t0, dt)
-    if not all(isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
-               for v in values):
-        return
-    if not all(math.isfinite(float(v)) for v in values) or float(dt) <= 0.0 or float(t_final) <= float(t0):
-        return
-    validation.step_count(float(t_final), float(t0), float(dt))
 
 
 def _simulate_chain_ode(system: Any, t_final: float, dt: float | None, *, method: str, x0: Any, v0: Any, t0: float,

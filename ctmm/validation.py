@@ -284,3 +284,25 @@ def selected_modes(omega: np.ndarray, n_modes: Any, omega_max: Any, owner: str) 
             raise ModelError(f"{owner} has {omega.size} natural frequencies, n_modes={n_modes} requested")
         return np.arange(n_modes)
     return np.flatnonzero(omega < positive("omega_max", omega_max))
+
+
+def step_budget(t_final: Any, t0: Any, dt: Any) -> None:
+    """Refuse, before any work, a run whose step or output grid ``dt`` has more than :data:`MAX_STEPS`
+    points over ``[t0, t_final]`` (:func:`step_count`); :func:`ctmm.simulate` calls it on every path
+    (chains, planar, spatial, generated kernels, ``solve_ivp`` output grids).  Values that are not finite
+    positive numbers are left to each path's own validation, which names the parameter.
+
+    Parameters
+    ----------
+    t_final, t0 : Any
+        End and start time [s], as the user gave them.
+    dt : Any
+        Step or output grid spacing [s], as the user gave it (``None``: nothing to check).
+    """
+    values = (t_final, t0, dt)
+    if not all(isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
+               for v in values):
+        return
+    if not all(math.isfinite(float(v)) for v in values) or float(dt) <= 0.0 or float(t_final) <= float(t0):
+        return
+    step_count(float(t_final), float(t0), float(dt))
