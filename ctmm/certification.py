@@ -13,7 +13,7 @@ Arg(1 + L e^{-s tau})`` with a principal argument, which the counting uses.
 How ``R`` is proved (lumped chains, state-space models)
 ------------------------------------------------------
 The open chain (the loop removed, every other delay-free loop closed) has a finite-dimensional
-realisation ``x' = A x + b f``, ``y_j = c_j x + d_j f`` (:func:`ctmm.interop.to_state_space`), and
+realisation ``x' = A x + b f``, ``y_j = c_j x + d_j f`` (:func:`ctmm.lumped_realisation.chain_state_space`), and
 an LTI controller one of its own.  A linear(ised) state-space model
 (:class:`ctmm.state_space_characteristic.StateSpaceCharacteristic`) gives its realisation with
 the controller states appended (``open_loop_realisation()``): one factor below.  Balance ``A`` by a diagonal similarity ``B = T^-1 A T``
@@ -190,12 +190,12 @@ def plant_realisation(model: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, n
     """``(A, b, C, d)`` of the open loop: ``x' = A x + b f``, sensor terms ``y = C x + d f``.
 
     A state-space characteristic gives its own (controller states included); a chain's open
-    system is realised by :func:`ctmm.interop.to_state_space` (its LTI controller is not included).
+    system is realised by :func:`ctmm.lumped_realisation.chain_state_space` (its LTI controller is not included).
     Raises :class:`~ctmm.errors.ModelError` when there is no realisation (distributed elements,
     other delayed loops).
     """
     from .control.loops import actuator_inputs
-    from .interop import to_state_space
+    from .lumped_realisation import chain_state_space
 
     realisation = getattr(model, "open_loop_realisation", None)
     if realisation is not None:
@@ -206,7 +206,7 @@ def plant_realisation(model: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, n
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            ss = to_state_space(model.open_system, inputs=inputs, outputs=list(model.term_names))
+            ss = chain_state_space(model.open_system, inputs=inputs, outputs=list(model.term_names))
     except (ModelError, ValueError, TypeError, KeyError) as exc:
         raise ModelError(f"loop {lp.name!r}: the open chain has no state-space realisation ({exc})") from exc
     A, Bm, C, D = (np.atleast_2d(np.asarray(m, float)) for m in (ss.A, ss.B, ss.C, ss.D))

@@ -5,7 +5,7 @@ delay-free part with named states, inputs and outputs, the delayed loops left op
 (:class:`DelayedLoop`), and the operating point.
 
 * 1-D :class:`~ctmm.system.Chain` / :class:`~ctmm.control.loops.ControlledChain`: the exact
-  lumped realisation of :func:`ctmm.interop.to_state_space` (the chain is linear; no operating
+  lumped realisation of :func:`ctmm.lumped_realisation.chain_state_space` (the chain is linear; no operating
   point).
 * :class:`~ctmm.planar.model.PlanarModel` (rigid or with :mod:`ctmm.flexible` beams) and
   ``ctmm.control.ControlledModel``: the tangent of ``qddot = f(q, qdot, u)`` at an operating
@@ -56,7 +56,7 @@ import numpy as np
 
 from . import validation
 from .errors import ModelError
-from .interop import default_signal_names, to_state_space
+from .lumped_realisation import chain_state_space, default_signal_names
 from .linearized import DelayedLoop, LinearizedSystem, OperatingPoint, control_name
 from .system import Chain
 
@@ -185,7 +185,7 @@ def _linearize_chain(system: Any, inputs, outputs) -> LinearizedSystem:
     sensors = {lp.name: lp.terms for lp in delayed}
     all_in = list(dict.fromkeys(exo + [n for lp in delayed for n, _ in forces[lp.name]]))
     all_out = list(dict.fromkeys(req + [n for lp in delayed for n, _ in sensors[lp.name]]))
-    ss = to_state_space(base, inputs=all_in, outputs=all_out)
+    ss = chain_state_space(base, inputs=all_in, outputs=all_out)
     A, B, C, D = (np.asarray(m, dtype=float) for m in (ss.A, ss.B, ss.C, ss.D))
     col = {n: k for k, n in enumerate(all_in)}
     row = {n: k for k, n in enumerate(all_out)}

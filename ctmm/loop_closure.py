@@ -1,6 +1,6 @@
 """Closing delay-free feedback loops of a state-space plant (linear fractional transformation).
 
-Used by :func:`ctmm.interop.to_state_space` (controller realisations) and by the planar
+Used by :func:`ctmm.lumped_realisation.chain_state_space` (controller realisations) and by the planar
 linearisation (:mod:`ctmm.planar_linearization`).
 """
 from __future__ import annotations

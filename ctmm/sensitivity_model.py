@@ -36,7 +36,7 @@ import numpy as np
 
 from .control.loops import ControlledChain, Feedback, actuator_inputs
 from .errors import ModelError, unknown_name
-from .interop import assemble_matrices
+from .lumped_realisation import assemble_matrices
 from .system import Chain
 
 __all__ = ["LoopCharacteristicMatrix", "ParameterDerivative", "controller_polynomials", "loop_parameter"]

@@ -99,7 +99,7 @@ def characteristic_roots(system: Any, *, re_min: float, im_max: float, re_max: f
 def spectral_seeds(system: Any, *, nodes: int = 24) -> np.ndarray:
     """Approximate characteristic roots from a finite-dimensional realisation, when there is one.
 
-    A lumped chain is realised as ``x' = A x + B u``, ``y = C x`` (:func:`ctmm.interop.to_state_space`,
+    A lumped chain is realised as ``x' = A x + B u``, ``y = C x`` (:func:`ctmm.lumped_realisation.chain_state_space`,
     loop actuators as inputs, sensed signals as outputs); static-gain loops
     ``u_l = -g_l c_l^T y(t - tau_l)`` make it the delay equation
     ``x' = A x - sum_l g_l B_l c_l^T C x(t - tau_l)``, whose rightmost roots come from Chebyshev
@@ -108,7 +108,7 @@ def spectral_seeds(system: Any, *, nodes: int = 24) -> np.ndarray:
     acceleration or force sensing).
     """
     from .delay_collocation import generator_eigenvalues
-    from .interop import to_state_space
+    from .lumped_realisation import chain_state_space
 
     loops = system.loops if isinstance(system, ControlledChain) else ()
     plant = system.plant if isinstance(system, ControlledChain) else system
@@ -117,7 +117,7 @@ def spectral_seeds(system: Any, *, nodes: int = 24) -> np.ndarray:
     outputs = list(dict.fromkeys(sig for lp in loops for sig, _ in lp.terms))
     inputs = list(dict.fromkeys(f"{lp.actuator}.force" for lp in loops))
     try:
-        ss = to_state_space(plant, inputs=inputs or None, outputs=outputs or None)
+        ss = chain_state_space(plant, inputs=inputs or None, outputs=outputs or None)
     except (ModelError, ValueError, TypeError):
         return np.zeros(0, complex)
     A, B, C, D = (np.atleast_2d(np.asarray(m, float)) for m in (ss.A, ss.B, ss.C, ss.D))

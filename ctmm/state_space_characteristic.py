@@ -58,7 +58,7 @@ import numpy as np
 from .control.controlled_model import ControlledModel
 from .control.loops import ControlledChain
 from .errors import ModelError, unknown_name
-from .interop import control_name
+from .linearized import control_name
 from .planar.model import PlanarModel
 from .saturation import refuse_saturation
 from .sweeps import (AffineCharacteristic, LoopCharacteristic, as_controlled, characteristic_callable,
