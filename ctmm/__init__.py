@@ -17,6 +17,7 @@ from .version import __version__
 from . import control, stability  # noqa: E402  (submodules used as ctmm.control / ctmm.stability)
 from .fmu_export import export_fmu  # noqa: E402
 from . import sensitivity  # noqa: E402  (ctmm.sensitivity: exact derivatives for tuning)
+from . import interop  # noqa: E402  (ctmm.interop: python-control export of any model)
 
 __all__ = ["Chain", "simulate", "linearize", "LinearizedSystem", "characteristic_function", "frequency_response",
            "natural_frequencies", "mode_shapes", "eigenvalue_count",
