@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
+import uuid
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -137,7 +137,9 @@ def write(path: str | os.PathLike, kind: str, attributes: Mapping[str, Any],
     h5py = require_h5py("saving a result")
     target = _check_path(path, for_writing=True)
     try:
-        descriptor, temporary = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+        # O_EXCL on a unique name, mode 0666 filtered by the umask: an ordinary file (mkstemp would make it 0600)
+        temporary = str(target.parent / f".{target.name}.{os.getpid()}.{uuid.uuid4().hex}.tmp")
+        descriptor = os.open(temporary, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o666)
     except (OSError, ValueError) as exc:   # read-only or special folder, NUL in the name
         raise ResultFileError(f"path {str(target)!r} cannot be written: {exc}") from None
     os.close(descriptor)

@@ -133,6 +133,19 @@ def test_save_is_atomic_and_replaces(controlled_result, tmp_path):
     assert load(path).time.shape == controlled_result.time.shape
 
 
+def test_saved_file_has_ordinary_permissions_under_the_umask(controlled_result, tmp_path):
+    """A saved result is an ordinary file (mode 0666 filtered by the umask, like ``open``), not the 0600
+    of a temporary file; a colleague in the group can read it."""
+    previous = os.umask(0o022)
+    try:
+        path = controlled_result.save(tmp_path / "shared.h5")
+        written = tmp_path / "plain.txt"
+        written.write_text("x")
+    finally:
+        os.umask(previous)
+    assert oct(os.stat(path).st_mode & 0o777) == oct(os.stat(written).st_mode & 0o777) == oct(0o644)
+
+
 @pytest.mark.parametrize("name, match", [
     ("missing_folder/run.h5", "does not exist"),
     ("run.csv", "must end with"),
