@@ -94,36 +94,6 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
     return (fmi3Instance)inst;
 }
 
-fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3String instantiationToken,
-                                          fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
-                                          fmi3InstanceEnvironment instanceEnvironment,
-                                          fmi3LogMessageCallback logMessage) {
-    Instance tmp;
-    (void)instanceName;
-    (void)instantiationToken;
-    (void)resourcePath;
-    (void)visible;
-    memset(&tmp, 0, sizeof(tmp));
-    tmp.environment = instanceEnvironment;
-    tmp.logMessage = logMessage;
-    tmp.loggingOn = loggingOn;
-    report(&tmp, 1, "%s supports co-simulation only", MODEL_IDENTIFIER);
-    return NULL;
-}
-
-fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceName, fmi3String instantiationToken,
-                                               fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
-                                               fmi3InstanceEnvironment instanceEnvironment,
-                                               fmi3LogMessageCallback logMessage, fmi3ClockUpdateCallback clockUpdate,
-                                               fmi3LockPreemptionCallback lockPreemption,
-                                               fmi3UnlockPreemptionCallback unlockPreemption) {
-    (void)clockUpdate;
-    (void)lockPreemption;
-    (void)unlockPreemption;
-    return fmi3InstantiateModelExchange(instanceName, instantiationToken, resourcePath, visible, loggingOn,
-                                        instanceEnvironment, logMessage);
-}
-
 void fmi3FreeInstance(fmi3Instance instance) {
     if (instance == NULL) return;
     core_free(CORE_OF(instance));
@@ -248,24 +218,6 @@ NO_VARIABLES(fmi3SetInt64, const, fmi3Int64)
 NO_VARIABLES(fmi3SetUInt64, const, fmi3UInt64)
 NO_VARIABLES(fmi3SetBoolean, const, fmi3Boolean)
 NO_VARIABLES(fmi3SetString, const, fmi3String)
-
-fmi3Status fmi3GetBinary(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
-                         size_t valueSizes[], fmi3Binary values[], size_t nValues) {
-    (void)valueReferences;
-    (void)valueSizes;
-    (void)values;
-    (void)nValues;
-    return nValueReferences == 0 ? fmi3OK : not_supported(instance, "fmi3GetBinary");
-}
-
-fmi3Status fmi3SetBinary(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
-                         const size_t valueSizes[], const fmi3Binary values[], size_t nValues) {
-    (void)valueReferences;
-    (void)valueSizes;
-    (void)values;
-    (void)nValues;
-    return nValueReferences == 0 ? fmi3OK : not_supported(instance, "fmi3SetBinary");
-}
 
 #if defined(__GNUC__)
 #pragma GCC diagnostic ignored "-Wunused-parameter"

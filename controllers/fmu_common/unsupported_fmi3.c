@@ -1,5 +1,6 @@
 /*
- * FMI 3.0 entry points that the ctmm FMUs do not support (ctmm): clocks, variable dependencies,
+ * FMI 3.0 entry points that the ctmm FMUs do not support (ctmm): model-exchange and scheduled-execution
+ * instantiation (NULL, with an error logged), binary variables, clocks, variable dependencies,
  * serialisation, directional and adjoint derivatives, configuration and event modes, intervals and
  * shifts, the model-exchange and scheduled-execution calls, output derivatives.
  *
@@ -20,6 +21,36 @@ __attribute__((visibility("hidden")))   /* not an exported symbol of the FMU's b
 fmi3Status ctmm_fmi3_not_supported(fmi3Instance instance, const char *function);
 
 #define UNSUPPORTED(name) { return ctmm_fmi3_not_supported(instance, #name); }
+
+fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3String instantiationToken,
+                                          fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
+                                          fmi3InstanceEnvironment instanceEnvironment,
+                                          fmi3LogMessageCallback logMessage) {
+    if (logMessage != NULL) logMessage(instanceEnvironment, fmi3Error, "logStatusError",
+                                       "model exchange is not supported: this FMU is for co-simulation only");
+    return NULL;
+}
+
+fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceName, fmi3String instantiationToken,
+                                               fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
+                                               fmi3InstanceEnvironment instanceEnvironment,
+                                               fmi3LogMessageCallback logMessage, fmi3ClockUpdateCallback clockUpdate,
+                                               fmi3LockPreemptionCallback lockPreemption,
+                                               fmi3UnlockPreemptionCallback unlockPreemption) {
+    if (logMessage != NULL) logMessage(instanceEnvironment, fmi3Error, "logStatusError",
+                                       "scheduled execution is not supported: this FMU is for co-simulation only");
+    return NULL;
+}
+
+fmi3Status fmi3GetBinary(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                         size_t valueSizes[], fmi3Binary values[], size_t nValues) {
+    return nValueReferences == 0 ? fmi3OK : ctmm_fmi3_not_supported(instance, "fmi3GetBinary (no Binary variables)");
+}
+
+fmi3Status fmi3SetBinary(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                         const size_t valueSizes[], const fmi3Binary values[], size_t nValues) {
+    return nValueReferences == 0 ? fmi3OK : ctmm_fmi3_not_supported(instance, "fmi3SetBinary (no Binary variables)");
+}
 
 fmi3Status fmi3GetClock(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
                         fmi3Clock values[]) UNSUPPORTED(fmi3GetClock)

@@ -319,22 +319,6 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
         return unsupported(instance, #name " (the FMU has only Float64 variables)");                       \
     }
 
-fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3String instantiationToken,
-                                          fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
-                                          fmi3InstanceEnvironment instanceEnvironment,
-                                          fmi3LogMessageCallback logMessage) {
-    return NULL; /* co-simulation only */
-}
-
-fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceName, fmi3String instantiationToken,
-                                               fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
-                                               fmi3InstanceEnvironment instanceEnvironment,
-                                               fmi3LogMessageCallback logMessage, fmi3ClockUpdateCallback clockUpdate,
-                                               fmi3LockPreemptionCallback lockPreemption,
-                                               fmi3UnlockPreemptionCallback unlockPreemption) {
-    return NULL; /* co-simulation only */
-}
-
 GET_SET(fmi3GetFloat32, fmi3Float32, )
 GET_SET(fmi3GetInt8, fmi3Int8, )
 GET_SET(fmi3GetUInt8, fmi3UInt8, )
@@ -357,16 +341,4 @@ GET_SET(fmi3SetInt64, fmi3Int64, const)
 GET_SET(fmi3SetUInt64, fmi3UInt64, const)
 GET_SET(fmi3SetBoolean, fmi3Boolean, const)
 GET_SET(fmi3SetString, fmi3String, const)
-
-fmi3Status fmi3GetBinary(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
-                         size_t valueSizes[], fmi3Binary values[], size_t nValues) {
-    if (nValueReferences == 0) return fmi3OK;
-    return unsupported(instance, "fmi3GetBinary");
-}
-
-fmi3Status fmi3SetBinary(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
-                         const size_t valueSizes[], const fmi3Binary values[], size_t nValues) {
-    if (nValueReferences == 0) return fmi3OK;
-    return unsupported(instance, "fmi3SetBinary");
-}
 
