@@ -90,10 +90,25 @@ def _root(model: PlanarModel, q_guess: np.ndarray, t: float, tolerance: float) -
 
 
 def unstable_directions(model: PlanarModel, q, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-    """The directions of negative stiffness of the equilibrium ``q``: eigenvalues ``omega^2 < 0``
-    [rad^2/s^2] of ``-d qddot / d q`` at rest (``M^-1 K``, by central differences; below
-    ``-1e-8 max |omega^2|``), most negative first, and their eigenvectors (columns, largest entry 1).
-    Empty for a statically stable (or neutral) equilibrium."""
+    """The directions of negative stiffness of the equilibrium ``q`` of a planar model.
+
+    Parameters
+    ----------
+    model : PlanarModel
+    q : array_like
+        Coordinates [rad, m, modal] of an equilibrium (at rest).
+    t : float
+        Time [s] of the loads.
+
+    Returns
+    -------
+    values : ndarray
+        The eigenvalues ``omega^2 < 0`` [rad^2/s^2] of ``-d qddot / d q`` at rest (``M^-1 K``, by central
+        differences) below ``-1e-8 max |omega^2|``, most negative first; empty for a statically stable
+        (or neutral) equilibrium.
+    vectors : ndarray, shape (n_coordinates, len(values))
+        Their eigenvectors (columns, largest entry 1).
+    """
     q = np.asarray(q, dtype=float)
     n = q.size
     jacobian = np.empty((n, n))
