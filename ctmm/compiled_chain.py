@@ -11,9 +11,8 @@ those of every scene (:mod:`ctmm.generated_loop`: ``step``, ``stride``, ``block`
 sparse constants of the C (a banded mat-vec per stage), the load signals symbolic
 (:func:`ctmm.signals.symbolic_signal`).
 
-Loops (:class:`ChainLoops`, the laws of :class:`ctmm.compiled_loops.ClosedLoops` on the chain's
-sensors): real-time loops at every RK4 stage, LTI controller states integrated with the chain, delayed
-loops with ``delay = m dt`` from the ring of samples carried in the fold state (cubic Hermite at the
+Loops (:class:`ctmm.compiled_loops.ClosedLoops` on the chain's :class:`ChainSymbols`): real-time loops at
+every RK4 stage, LTI controller states integrated with the chain, delayed loops with ``delay = m dt`` from the ring of samples carried in the fold state (cubic Hermite at the
 half steps, the initial value held before ``t = 0``), references and open-loop ``inputs`` numbers or
 :mod:`ctmm.signals` signals with a symbolic form.  Sensors and actuators are those of
 :class:`ctmm.control.chain_plant.ChainPorts` (positions, velocities, connector law forces; forces on
@@ -36,7 +35,8 @@ import scipy.sparse
 from . import validation
 from .chain_ode import ChainDynamics, chain_result
 from .codegen import load_casadi
-from .compiled_loops import ClosedLoops, LoopLaw, controller_realisation, delay_steps, symbolic_value
+from .compiled_loops import ClosedLoops
+from .control.loops import ControlledChain
 from .control.chain_plant import ChainPlant
 from .control.planar_time import loop_unit
 from .errors import ModelError, SimulationError
@@ -45,7 +45,7 @@ from .results import SimulationResult
 from .signal_results import SignalSystem, signal_result
 from .signals import Constant, signal_parameters, symbolic_signal
 
-__all__ = ["AffineRates", "ChainLoops", "CompiledChain", "affine_form", "simulate_chain_generated"]
+__all__ = ["AffineRates", "ChainSymbols", "CompiledChain", "affine_form", "simulate_chain_generated"]
 
 DEFAULT_ROWS = 64
 """Stored states per generated block call."""
@@ -117,88 +117,34 @@ def affine_form(dynamics: ChainDynamics, actuators: Sequence[Mapping[int, Mappin
 
 
 
-class ChainLoops(ClosedLoops):
-    """The loops of a controlled chain on casadi symbols: the laws, ring and step of
-    :class:`~ctmm.compiled_loops.ClosedLoops` with the chain's affine sensors.
+class ChainSymbols:
+    """A lumped chain on casadi symbols for :class:`~ctmm.compiled_loops.ClosedLoops` (as
+    :class:`~ctmm.compiled_loops.PlanarSymbols` and :class:`~ctmm.compiled_spatial_loops.SpatialSymbols`
+    are for planar and spatial plants): ``q = x_I`` [m] and ``v = q_dot`` [m/s] of the ``m`` moving masses,
+    every sensor of :class:`~ctmm.control.chain_plant.ChainPorts` affine in them (read exactly by unit probes).
 
     Parameters
     ----------
     plant : ChainPlant
-        The chain's plant (its ports resolve the sensors and actuators).
-    loops : sequence of Feedback
-    actuators : sequence of str
-        The actuator inputs ``u`` of the generated kernel, in order.
-    dt : float or None
-        Step [s]; required with delayed loops (each delay a whole multiple of it).
-    references, inputs : mapping, optional
-        ``{loop: r}`` [sensed unit] and ``{actuator: value}`` [N], numbers or symbolic signals.
+        The chain's plant (its ports resolve the sensors).
     """
 
-    def __init__(self, plant: ChainPlant, loops: Sequence[Any], actuators: Sequence[str], dt: float | None = None,
-                 references: Mapping[str, Any] | None = None, inputs: Mapping[str, Any] | None = None) -> None:
+    def __init__(self, plant: ChainPlant) -> None:
+        self.ports = plant.ports
+        self.n_positions = self.n_velocities = plant.n_positions
+
+    def position_rates(self, q: Any, v: Any) -> Any:
+        return v
+
+    def sensor(self, name: str, q: Any, v: Any) -> Any:
+        """Sensor ``name`` as ``row [q; v] + offset`` on the symbols ``q``, ``v`` (rows by unit probes)."""
         import casadi as ca
 
-        ports = plant.ports
-        references = dict(references or {})
-        names = [loop.name for loop in loops]
-        for name in references:
-            if name not in names:
-                raise ModelError(f"references[{name!r}]: not a loop; loops: {', '.join(names) or '(none)'}")
-        self.actuators = tuple(actuators)
-        self.inputs = [(self.actuators.index(name), symbolic_value(f"inputs[{name!r}]", value))
-                       for name, value in dict(inputs or {}).items()]
-        self.channels = []
-        laws = []
-        for loop in loops:
-            A, B, C, D = controller_realisation(loop)
-            reference = symbolic_value(f"references[{loop.name!r}]", references.get(loop.name, 0.0))
-            laws.append(LoopLaw(loop.name, tuple(loop.terms), tuple(loop.actuator_terms), A, B, C, D,
-                                float(loop.delay), delay_steps(loop.name, loop.delay, dt), reference))
-        self.laws = tuple(laws)
-        self.n = n = plant.n_positions
-        self.nq = self.nv = n
-        self.base = 2 * n                       # [q, v], then z and the ring (the ClosedLoops layout)
-        self.position_rates = lambda q, v: v
-        self.plant_parameter_count = 0          # the chain's numbers and the loops' are constants of the code
-        self.parameter_layout = []
-        self.parameter_values = np.zeros(0)
-        self.n_controller_states = sum(law.A.shape[0] for law in laws)
-        self.delayed = [k for k, law in enumerate(laws) if law.steps]
-        self.ring_columns = max((law.steps for law in laws), default=0) + 1 if self.delayed else 0
-        self.state_size = 2 * n + self.n_controller_states + 2 * len(self.delayed) * self.ring_columns
-        q, v, a = (ca.SX.sym(label, n) for label in ("q", "v", "a"))
-        rows = [self._law_row(ports, law, 2 * n) for law in laws]
-        y = ca.vertcat(*[ca.mtimes(ca.DM(row[None, :]), ca.vertcat(q, v)) + offset for row, offset in rows]) \
-            if laws else ca.SX(0, 1)
-        self.sensors = ca.Function("loop_sensors", [q, v], [y])
-        rates = ca.jtimes(y, ca.vertcat(q, v), ca.vertcat(v, a)) if laws else ca.SX(0, 1)
-        self.sensor_rates = ca.Function("loop_sensor_rates", [q, v, a], [rates])
-        weights = np.zeros((len(self.actuators), len(laws)))
-        for k, law in enumerate(laws):
-            for actuator, w in law.actuators:
-                weights[self.actuators.index(actuator), k] += float(w)
-        self.weights = weights
-
-    @staticmethod
-    def _law_row(ports: Any, law: LoopLaw, size: int) -> tuple[np.ndarray, float]:
-        """``(row, offset)`` of the law's sensed signal ``y = row [q; v] + offset`` (unit probes: the chain's
-        sensors are affine in its state)."""
-        names = [name for name, _ in law.sensors]
-        weights = np.array([w for _, w in law.sensors], dtype=float)
-        sensors = ports.resolve(names)
-        half = size // 2
-
-        def value(state: np.ndarray) -> float:
-            return float(weights @ ports.values(sensors, state[:half], state[half:], 0.0))
-
-        zero = np.zeros(size)
-        offset = value(zero)
-        row = np.zeros(size)
-        for i in range(size):
-            zero[i] = 1.0
-            row[i] = value(zero) - offset
-            zero[i] = 0.0
-        return row, offset
+        sensor, m = self.ports.resolve([name]), self.n_positions
+        probes = np.vstack([np.zeros(2 * m), np.eye(2 * m)])
+        values = np.array([float(self.ports.values(sensor, row[:m], row[m:], 0.0)[0]) for row in probes])
+        row = values[1:] - values[0]
+        return ca.mtimes(ca.DM(row[None, :]), ca.vertcat(q, v)) + values[0]
 
 
 class CompiledChain:
@@ -222,7 +168,7 @@ class CompiledChain:
     Attributes
     ----------
     plant : ChainPlant
-    loops : ChainLoops or None
+    loops : ClosedLoops or None
         ``None`` for a chain without loops and inputs.
     state_size : int
         ``2 m`` (``m`` moving masses), with loops ``[x, v, z, ring]``.
@@ -269,8 +215,9 @@ class CompiledChain:
             acceleration += ca.DM(column) * symbolic_signal(type(signal), t, parameters)
         acceleration += ca.DM(form.a0)
         accelerations = ca.Function("acceleration", [q, v, u, p, t], [acceleration])
-        self.loops = None if not (loops or inputs) else ChainLoops(plant, loops, self.actuators, dt, references,
-                                                                    inputs)
+        controlled = system if loops else ControlledChain(plant.chain, ())
+        self.loops = None if not (loops or inputs) else ClosedLoops(controlled, self.actuators, dt, references, inputs,
+                                                                     symbols=ChainSymbols(plant))
         if self.loops is None:
             y = ca.MX.sym("y", 2 * m)
             step = rk4_step_function(ca.Function("rate", [y, u, p, t], [ca.vertcat(y[m:], accelerations(

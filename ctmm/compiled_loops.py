@@ -305,7 +305,7 @@ class ClosedLoops:
 
     Parameters
     ----------
-    controlled : ControlledModel
+    controlled : ControlledModel, or a ControlledChain with its ``symbols``
     actuators : sequence of str
         The actuator inputs ``u`` of the generated kernel, in order.
     dt : float or None
@@ -315,9 +315,9 @@ class ClosedLoops:
     inputs : mapping, optional
         ``{actuator name: number or symbolic signal}`` open-loop actuator values [SI], added to the loops'.
     symbols : object, optional
-        The plant on symbols (``n_positions``, ``n_velocities``, ``position_rates(q, v)``,
-        ``sensor(name, q, v)``); default :class:`PlanarSymbols` of a planar plant
-        (:class:`ctmm.compiled_spatial_loops.SpatialSymbols` for spatial plants).
+        The plant on symbols (``ports``, ``n_positions``, ``n_velocities``, ``position_rates(q, v)``,
+        ``sensor(name, q, v)``); default :class:`PlanarSymbols` of a planar plant (spatial and chain plants:
+        :class:`ctmm.compiled_spatial_loops.SpatialSymbols`, :class:`ctmm.compiled_chain.ChainSymbols`).
     numbers : {"constants", "inputs"}
         The loops' gains, controller realisations and references as constants of the code, or as entries
         of ``p`` after the plant's :func:`~ctmm.compiled_parameters.parameter_vector` (planar plants).
@@ -346,14 +346,14 @@ class ClosedLoops:
     def __init__(self, controlled: ControlledModel, actuators: Sequence[str], dt: float | None = None,
                  references: Mapping[str, Any] | None = None, inputs: Mapping[str, Any] | None = None,
                  symbols: Any = None, numbers: str = "constants") -> None:
-        if not isinstance(controlled, ControlledModel):
+        if not isinstance(controlled, ControlledModel) and symbols is None:   # (chains come with their symbols)
             raise ModelError(f"ClosedLoops: controlled must be a ctmm.control.ControlledModel, got {controlled!r}")
         if numbers not in ("constants", "inputs"):
             raise ModelError(f"ClosedLoops: numbers must be 'constants' or 'inputs' (the loops' gains, controllers and "
                              f"references as entries of p), got {numbers!r}")
         import casadi as ca
 
-        plant, ports = controlled.plant, controlled.ports
+        plant, ports = controlled.plant, controlled.ports if symbols is None else symbols.ports
         references = dict(references or {})
         for name in references:
             controlled.loop(name)                   # unknown loop names raise

@@ -21,13 +21,15 @@ deviation of its sensors (its reference equals the sensed value at the operating
 
 :func:`delayed_loop_response` is the frequency-domain side: the response of such a linearisation
 with its delayed loops closed exactly by ``e^{-s tau}`` at every frequency
-(:func:`ctmm.loop_phasors.close_loops`).
+(:func:`ctmm.loop_phasors.close_loops`), through :func:`resolvent`: ``(s I - A)^-1 B`` that refuses a
+frequency at or next to a pole on the imaginary axis (one rule for planar and spatial models).
 """
 from __future__ import annotations
 
 from typing import Any, Callable, Sequence
 
 import numpy as np
+import scipy.linalg
 
 from . import validation
 from .errors import ModelError
@@ -36,7 +38,12 @@ from .loop_closure import close_loops
 from .loop_phasors import close_loops as close_phasor_loops
 
 __all__ = ["loop_ports", "exogenous_inputs", "requested_outputs", "close_model_loops", "controller_response",
-           "delayed_loop_response"]
+           "delayed_loop_response", "resolvent", "FrequencyAtPoleError", "RESOLVENT_CONDITION"]
+
+RESOLVENT_CONDITION = 1.0 / float(np.sqrt(np.finfo(float).eps))
+"""Largest accepted 2-norm condition number of the balanced ``s I - A`` (``1/sqrt(eps)``, about 6.7e7):
+beyond it the solve may lose more than half the digits, and ``s`` lies within about ``2 sqrt(eps)``
+(relative) of a pole -- :func:`resolvent` refuses it."""
 
 
 def loop_ports(loops: Sequence[Any]) -> tuple[list[str], list[str]]:
@@ -182,7 +189,7 @@ def controller_response(gain: Any, s: np.ndarray) -> np.ndarray:
 
 def delayed_loop_response(linearize: Callable[[list[str], list[str]], LinearizedSystem], loops: Sequence[Any],
                           s: np.ndarray, inputs: Sequence[str], outputs: Sequence[str],
-                          solve: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> tuple[np.ndarray, Any]:
+                          name: str) -> tuple[np.ndarray, Any]:
     """Response ``[i_out, i_in, k]`` of a controlled model's linearisation, delayed loops closed exactly.
 
     Parameters
@@ -194,8 +201,8 @@ def delayed_loop_response(linearize: Callable[[list[str], list[str]], Linearized
         Laplace variables ``i omega``.
     inputs, outputs : sequence of str
         Requested ports, ``"<loop>.reference"``, ``"<loop>.y"``, ``"<loop>.u"`` of any loop.
-    solve : callable
-        ``(A, B) -> (s I - A)^-1 B`` batched over ``s`` (the caller's refusal of singular frequencies).
+    name : str
+        The model's name (for :func:`resolvent`'s refusal of a frequency at a pole).
 
     Returns
     -------
@@ -213,10 +220,69 @@ def delayed_loop_response(linearize: Callable[[list[str], list[str]], Linearized
     lin = linearize(lin_in, lin_out)
     ss = lin.state_space
     A, B, C, D = (np.asarray(m, dtype=float) for m in (ss.A, ss.B, ss.C, ss.D))
-    G = C @ solve(A, B) + D                         # (frequencies, lin_out + delayed y, lin_in + delayed u)
+    G = C @ resolvent(A, B, s, name) + D                         # (frequencies, lin_out + delayed y, lin_in + delayed u)
     n_i, n_o, n_d = len(lin_in), len(lin_out), len(delayed)
     blocks = (G[:, :n_o, :n_i], G[:, :n_o, n_i:], G[:, n_o:, :n_i], G[:, n_o:, n_i:])
     K = np.zeros((s.size, n_d, n_d), dtype=complex)
     for j, loop in enumerate(lin.delays):
         K[:, j, j] = controller_response(loop.gain, s) * np.exp(-s * loop.delay)
     return close_phasor_loops(blocks, K, inputs, outputs, lin_in, lin_out, delayed_signal), lin
+
+
+class FrequencyAtPoleError(ModelError):
+    """:func:`resolvent` refused a frequency at or next to a pole on the imaginary axis (a
+    :class:`~ctmm.errors.ModelError`; the margins' crossing search tells such a sign change of ``L``
+    through infinity from a crossing by it)."""
+
+
+def resolvent(A: np.ndarray, B: np.ndarray, s: np.ndarray, name: str) -> np.ndarray:
+    """``(s I - A)^-1 B`` at every Laplace variable ``s``, refusing a frequency at or next to a pole.
+
+    ``A`` is balanced first (:func:`scipy.linalg.matrix_balance`: a similarity by a diagonal of powers
+    of two, exact in floating point), so that the condition number measures the distance of ``s`` to
+    the nearest pole relative to the system's own scale, not the units of its states.  A frequency
+    where ``cond_2(s I - A_bal) > RESOLVENT_CONDITION`` (``1/sqrt(eps)``) is refused: there the
+    response is unbounded or its digits are lost (an undamped mode at ``omega``, a rigid-body mode or
+    a free rotation at ``omega = 0``), and no number is returned rather than a wrong one.
+
+    Parameters
+    ----------
+    A : ndarray, shape (n, n)
+        State matrix [1/s].
+    B : ndarray, shape (n, m)
+        Input matrix.
+    s : ndarray of complex, shape (k,)
+        ``i omega`` [rad/s].
+    name : str
+        The model's name (for the message).
+
+    Returns
+    -------
+    ndarray of complex, shape (k, n, m)
+
+    Raises
+    ------
+    FrequencyAtPoleError
+        A frequency at or next to a pole (a :class:`~ctmm.errors.ModelError`): names ``omega`` [rad/s], the condition number and the
+        nearest pole of ``A``.
+    """
+    n = A.shape[0]
+    if n == 0:
+        return np.zeros((s.size, 0, B.shape[1]), dtype=complex)
+    balanced, (scaling, _) = scipy.linalg.matrix_balance(A, permute=False, separate=True)   # T^-1 A T, T = diag
+    pencil = s[:, None, None] * np.eye(n) - balanced
+    with np.errstate(all="ignore"):
+        condition = np.linalg.cond(pencil)
+    bad = np.flatnonzero(~(condition <= RESOLVENT_CONDITION))
+    if bad.size:
+        k = int(bad[0])
+        poles = np.linalg.eigvals(A)
+        pole = complex(poles[np.argmin(np.abs(poles - s[k]))])
+        raise FrequencyAtPoleError(f"frequency_response: s I - A of {name!r} is singular at omega = "
+                         f"{float(np.imag(s[k]))!r} rad/s, or nearly so (condition number {float(condition[k]):.3g} of the balanced "
+                         f"s I - A > 1/sqrt(eps) = {RESOLVENT_CONDITION:.3g}); the nearest pole is "
+                         f"{pole.real:.9g}{pole.imag:+.9g}j 1/s (an undamped mode on the imaginary axis, or a rigid-body "
+                         "mode or free rotation at omega = 0), where the response is unbounded: leave that frequency "
+                         "out or move it off the pole")
+    solution = np.linalg.solve(pencil, np.broadcast_to(B / scaling[:, None], (s.size,) + B.shape))
+    return solution * scaling[None, :, None]

@@ -5,10 +5,12 @@
 * ``modelDescription.xml`` -- FMI 2.0 or 3.0 co-simulation, flat names, value references in the order
   inputs, outputs, parameters, start values (:class:`~ctmm.fmu_export_model.ExportedSystem`) and, FMI
   3, the independent variable ``time``; FMI 2 ``<SourceFiles>`` (FMI 3: ``sources/buildDescription.xml``)
-  list the two C files, so the FMU also ships its sources (rebuild it elsewhere);
+  list the C files, so the FMU also ships its sources (rebuild it elsewhere);
 * ``sources/<identifier>.c`` -- the FMI interface (:mod:`ctmm.fmu_export_runtime`);
 * ``sources/ctmm_fmu_source.c`` -- casadi-generated C of ``ctmm_initial``, ``ctmm_step`` and
-  ``ctmm_outputs`` (no exported symbols: two exported FMUs load in one process).
+  ``ctmm_outputs`` (no exported symbols: two exported FMUs load in one process);
+* ``sources/unsupported_fmi2.c`` or ``unsupported_fmi3.c`` -- the stubs of the calls the FMU does not support, the one
+  source shared with the shipped controller FMUs (``controllers/fmu_common``, :func:`unsupported_source`).
 
 The GUID is derived from the SHA-256 of the C text and the description, so the same system gives the
 same files (and the build cache of :func:`~ctmm.control.fmu_build.build_fmu` finds them).
@@ -16,6 +18,7 @@ same files (and the build cache of :func:`~ctmm.control.fmu_build.build_fmu` fin
 from __future__ import annotations
 
 import hashlib
+import importlib.resources
 import tempfile
 import uuid
 from pathlib import Path
@@ -26,10 +29,24 @@ from .fmu_export_model import ExportedSystem, ExportedVariable
 from .fmu_export_runtime import runtime_source
 from .version import __version__
 
-__all__ = ["UNIT_EXPONENTS", "build_description", "casadi_text", "model_description", "write_sources"]
+__all__ = ["UNIT_EXPONENTS", "UNSUPPORTED_FILES", "build_description", "casadi_text", "model_description",
+           "unsupported_source", "write_sources"]
 
 GENERATED_FILE = "ctmm_fmu_source.c"
 """Name of the casadi-generated C file inside ``sources/``."""
+
+UNSUPPORTED_FILES = {"2": "unsupported_fmi2.c", "3": "unsupported_fmi3.c"}
+"""``{FMI major version: file}`` of the shared stubs of unsupported calls (``controllers/fmu_common``)."""
+
+
+def unsupported_source(fmi_version: str) -> tuple[str, str] | None:
+    """``(file name, C text)`` of the stubs of the calls an FMI ``fmi_version`` FMU does not support, shared
+    by the exported FMUs and the shipped controller FMUs; ``None`` where the interface keeps its own."""
+    name = UNSUPPORTED_FILES.get(fmi_version.split(".")[0])
+    if name is None:
+        return None
+    return name, importlib.resources.files("ctmm.controllers").joinpath("fmu_common", name).read_text()
+
 
 UNIT_EXPONENTS: dict[str, dict[str, int]] = {
     "rad": {"rad": 1}, "rad/s": {"rad": 1, "s": -1}, "rad/s^2": {"rad": 1, "s": -2},
@@ -122,7 +139,8 @@ def model_description(system: ExportedSystem, identifier: str, guid: str, step: 
                 '    canGetAndSetFMUstate="true" canSerializeFMUstate="false"\n'
                 '    canNotUseMemoryManagementFunctions="true"\n'
                 '    canBeInstantiatedOnlyOncePerProcess="false" providesDirectionalDerivative="false">\n'
-                f'    <SourceFiles><File name="{identifier}.c"/><File name="{GENERATED_FILE}"/></SourceFiles>\n'
+                f'    <SourceFiles><File name="{identifier}.c"/><File name="{GENERATED_FILE}"/>'
+                f'<File name="{UNSUPPORTED_FILES["2"]}"/></SourceFiles>\n'
                 '  </CoSimulation>\n')
         structure = ("".join(f'      <Unknown index="{k}" dependencies=""/>\n' for k in outputs),
                      "".join(f'      <Unknown index="{k}" dependencies="{depends}"/>\n' for k in outputs))
@@ -136,10 +154,11 @@ def model_description(system: ExportedSystem, identifier: str, guid: str, step: 
 
 
 def build_description(identifier: str) -> str:
-    """``sources/buildDescription.xml`` of an FMI 3.0 FMU: the two C files of the model identifier."""
+    """``sources/buildDescription.xml`` of an FMI 3.0 FMU: the C files of the model identifier."""
     return ('<?xml version="1.0" encoding="UTF-8"?>\n<fmiBuildDescription fmiVersion="3.0">\n'
             f'  <BuildConfiguration modelIdentifier="{identifier}">\n    <SourceFileSet language="C99">\n'
             f'      <SourceFile name="{identifier}.c"/>\n      <SourceFile name="{GENERATED_FILE}"/>\n'
+            f'      <SourceFile name="{UNSUPPORTED_FILES["3"]}"/>\n'
             "    </SourceFileSet>\n  </BuildConfiguration>\n</fmiBuildDescription>\n")
 
 
@@ -158,13 +177,16 @@ def write_sources(system: ExportedSystem, folder: Path, identifier: str, step: f
               "START_VALUES": _numbers(v.start for v in system.starts)}
     draft = model_description(system, identifier, "{GUID}", step, start_time, stop_time, fmi_version)
     digest = hashlib.sha256()
-    for part in (generated, runtime_source({**values, "GUID": "{GUID}"}, fmi_version), draft):
+    stubs = unsupported_source(fmi_version)
+    for part in (generated, runtime_source({**values, "GUID": "{GUID}"}, fmi_version), draft, *(stubs or ())):
         digest.update(part.encode() + b"\0")
     guid = "{" + str(uuid.UUID(digest.hexdigest()[:32])) + "}"
     sources = folder / "sources"
     sources.mkdir(parents=True, exist_ok=True)
     (sources / GENERATED_FILE).write_text(generated)
     (sources / f"{identifier}.c").write_text(runtime_source({**values, "GUID": guid}, fmi_version))
+    if stubs is not None:
+        (sources / stubs[0]).write_text(stubs[1])
     if fmi_version.startswith("3"):
         (sources / "buildDescription.xml").write_text(build_description(identifier))
     (folder / "modelDescription.xml").write_text(draft.replace("{GUID}", guid))

@@ -4,7 +4,9 @@
 value references, initialisation, the communication step) in the FMI 2.0 functions: Real variables,
 FMU state get/set, ``fmi2DoStep``, ``fmi2GetRealStatus(fmi2LastSuccessfulTime)``.  Integer, Boolean
 and String access with values, serialisation, directional and input/output derivatives and
-``fmi2CancelStep`` return ``fmi2Error`` (an empty get or set is fine).  The FMU allocates with
+``fmi2CancelStep`` return ``fmi2Error`` (an empty get or set is fine); all but the variable access are the
+stubs shared with the shipped controller FMUs (``controllers/fmu_common/unsupported_fmi2.c``, copied beside
+this source by :func:`ctmm.fmu_export_files.write_sources`), logging through ``ctmm_fmi2_not_supported``.  The FMU allocates with
 ``calloc``/``free`` (``canNotUseMemoryManagementFunctions="true"``).
 """
 from __future__ import annotations
@@ -32,6 +34,10 @@ static fmi2Status not_supported(fmi2Component c, const char *function) {
     report(c, 1, "%s is not supported by this FMU", function);
     return fmi2Error;
 }
+
+/* the logger of the shared stubs of unsupported calls (unsupported_fmi2.c, compiled beside this file) */
+fmi2Status ctmm_fmi2_not_supported(fmi2Component c, const char *function);
+fmi2Status ctmm_fmi2_not_supported(fmi2Component c, const char *function) { return not_supported(c, function); }
 
 #define CORE_OF(c) (((Instance *)(c))->core)
 #define STATUS(failed) ((failed) ? fmi2Error : fmi2OK)
@@ -184,70 +190,11 @@ fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
     return fmi2OK;
 }
 
-fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size) {
-    (void)FMUstate;
-    (void)size;
-    return not_supported(c, "fmi2SerializedFMUstateSize");
-}
-
-fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte serializedState[], size_t size) {
-    (void)FMUstate;
-    (void)serializedState;
-    (void)size;
-    return not_supported(c, "fmi2SerializeFMUstate");
-}
-
-fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size,
-                                   fmi2FMUstate *FMUstate) {
-    (void)serializedState;
-    (void)size;
-    (void)FMUstate;
-    return not_supported(c, "fmi2DeSerializeFMUstate");
-}
-
-fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
-                                        const fmi2ValueReference vKnown_ref[], size_t nKnown,
-                                        const fmi2Real dvKnown[], fmi2Real dvUnknown[]) {
-    (void)vUnknown_ref;
-    (void)nUnknown;
-    (void)vKnown_ref;
-    (void)nKnown;
-    (void)dvKnown;
-    (void)dvUnknown;
-    return not_supported(c, "fmi2GetDirectionalDerivative");
-}
-
-fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                                       const fmi2Integer order[], const fmi2Real value[]) {
-    (void)vr;
-    (void)nvr;
-    (void)order;
-    (void)value;
-    return not_supported(c, "fmi2SetRealInputDerivatives (inputs are held over a communication step)");
-}
-
-fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                                        const fmi2Integer order[], fmi2Real value[]) {
-    (void)vr;
-    (void)nvr;
-    (void)order;
-    (void)value;
-    return not_supported(c, "fmi2GetRealOutputDerivatives");
-}
-
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2Real communicationStepSize,
                       fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
     (void)noSetFMUStatePriorToCurrentPoint;
     if (c == NULL) return fmi2Error;
     return STATUS(core_do_step(CORE_OF(c), c, currentCommunicationPoint, communicationStepSize));
-}
-
-fmi2Status fmi2CancelStep(fmi2Component c) { return not_supported(c, "fmi2CancelStep (doStep is synchronous)"); }
-
-fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value) {
-    (void)s;
-    (void)value;
-    return not_supported(c, "fmi2GetStatus (doStep never returns fmi2Pending)");
 }
 
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value) {
@@ -263,14 +210,4 @@ fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boo
     *value = fmi2False;
     return fmi2OK;
 }
-
-#define NO_STATUS(function, type)                                                 \
-    fmi2Status function(fmi2Component c, const fmi2StatusKind s, type *value) {   \
-        (void)c;                                                                  \
-        (void)s;                                                                  \
-        (void)value;                                                              \
-        return fmi2Discard;                                                       \
-    }
-NO_STATUS(fmi2GetIntegerStatus, fmi2Integer)
-NO_STATUS(fmi2GetStringStatus, fmi2String)
 """

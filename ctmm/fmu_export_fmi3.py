@@ -5,7 +5,10 @@ value references, initialisation, the communication step) in the FMI 3.0 functio
 (the inputs, outputs, parameters and start values, and the independent variable ``time``), FMU state
 get/set, ``fmi3DoStep`` without event mode, intermediate update or early return.  Every other function
 the standard requires is exported and returns ``fmi3Error`` (or ``fmi3OK`` for an empty call), and
-model-exchange or scheduled-execution instantiation returns ``NULL``.
+model-exchange or scheduled-execution instantiation returns ``NULL``; the calls no ctmm FMU supports are
+the stubs shared with the shipped controller FMUs (``controllers/fmu_common/unsupported_fmi3.c``, copied
+beside this source by :func:`ctmm.fmu_export_files.write_sources`), logging through
+``ctmm_fmi3_not_supported``.
 """
 from __future__ import annotations
 
@@ -32,9 +35,12 @@ static fmi3Status not_supported(fmi3Instance instance, const char *function) {
     return fmi3Error;
 }
 
+/* the logger of the shared stubs of unsupported calls (unsupported_fmi3.c, compiled beside this file) */
+fmi3Status ctmm_fmi3_not_supported(fmi3Instance instance, const char *function);
+fmi3Status ctmm_fmi3_not_supported(fmi3Instance instance, const char *function) { return not_supported(instance, function); }
+
 #define CORE_OF(c) (((Instance *)(c))->core)
 #define STATUS(failed) ((failed) ? fmi3Error : fmi3OK)
-#define UNSUPPORTED(function) { return not_supported(instance, #function); }
 
 const char *fmi3GetVersion(void) { return fmi3Version; }
 
@@ -86,36 +92,6 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
         return NULL;
     }
     return (fmi3Instance)inst;
-}
-
-fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3String instantiationToken,
-                                          fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
-                                          fmi3InstanceEnvironment instanceEnvironment,
-                                          fmi3LogMessageCallback logMessage) {
-    Instance tmp;
-    (void)instanceName;
-    (void)instantiationToken;
-    (void)resourcePath;
-    (void)visible;
-    memset(&tmp, 0, sizeof(tmp));
-    tmp.environment = instanceEnvironment;
-    tmp.logMessage = logMessage;
-    tmp.loggingOn = loggingOn;
-    report(&tmp, 1, "%s supports co-simulation only", MODEL_IDENTIFIER);
-    return NULL;
-}
-
-fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceName, fmi3String instantiationToken,
-                                               fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
-                                               fmi3InstanceEnvironment instanceEnvironment,
-                                               fmi3LogMessageCallback logMessage, fmi3ClockUpdateCallback clockUpdate,
-                                               fmi3LockPreemptionCallback lockPreemption,
-                                               fmi3UnlockPreemptionCallback unlockPreemption) {
-    (void)clockUpdate;
-    (void)lockPreemption;
-    (void)unlockPreemption;
-    return fmi3InstantiateModelExchange(instanceName, instantiationToken, resourcePath, visible, loggingOn,
-                                        instanceEnvironment, logMessage);
 }
 
 void fmi3FreeInstance(fmi3Instance instance) {
@@ -243,104 +219,8 @@ NO_VARIABLES(fmi3SetUInt64, const, fmi3UInt64)
 NO_VARIABLES(fmi3SetBoolean, const, fmi3Boolean)
 NO_VARIABLES(fmi3SetString, const, fmi3String)
 
-fmi3Status fmi3GetBinary(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
-                         size_t valueSizes[], fmi3Binary values[], size_t nValues) {
-    (void)valueReferences;
-    (void)valueSizes;
-    (void)values;
-    (void)nValues;
-    return nValueReferences == 0 ? fmi3OK : not_supported(instance, "fmi3GetBinary");
-}
-
-fmi3Status fmi3SetBinary(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
-                         const size_t valueSizes[], const fmi3Binary values[], size_t nValues) {
-    (void)valueReferences;
-    (void)valueSizes;
-    (void)values;
-    (void)nValues;
-    return nValueReferences == 0 ? fmi3OK : not_supported(instance, "fmi3SetBinary");
-}
-
 #if defined(__GNUC__)
 #pragma GCC diagnostic ignored "-Wunused-parameter"
 #endif
 
-fmi3Status fmi3GetClock(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
-                        fmi3Clock values[]) UNSUPPORTED(fmi3GetClock)
-fmi3Status fmi3SetClock(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
-                        const fmi3Clock values[]) UNSUPPORTED(fmi3SetClock)
-fmi3Status fmi3GetNumberOfVariableDependencies(fmi3Instance instance, fmi3ValueReference valueReference,
-                                               size_t *nDependencies) UNSUPPORTED(fmi3GetNumberOfVariableDependencies)
-fmi3Status fmi3GetVariableDependencies(fmi3Instance instance, fmi3ValueReference dependent,
-                                       size_t elementIndicesOfDependent[], fmi3ValueReference independents[],
-                                       size_t elementIndicesOfIndependents[], fmi3DependencyKind dependencyKinds[],
-                                       size_t nDependencies) UNSUPPORTED(fmi3GetVariableDependencies)
-fmi3Status fmi3SerializedFMUStateSize(fmi3Instance instance, fmi3FMUState FMUState,
-                                      size_t *size) UNSUPPORTED(fmi3SerializedFMUStateSize)
-fmi3Status fmi3SerializeFMUState(fmi3Instance instance, fmi3FMUState FMUState, fmi3Byte serializedState[],
-                                 size_t size) UNSUPPORTED(fmi3SerializeFMUState)
-fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte serializedState[], size_t size,
-                                   fmi3FMUState *FMUState) UNSUPPORTED(fmi3DeserializeFMUState)
-fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[], size_t nUnknowns,
-                                        const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
-                                        size_t nSeed, fmi3Float64 sensitivity[],
-                                        size_t nSensitivity) UNSUPPORTED(fmi3GetDirectionalDerivative)
-fmi3Status fmi3GetAdjointDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[], size_t nUnknowns,
-                                    const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
-                                    size_t nSeed, fmi3Float64 sensitivity[],
-                                    size_t nSensitivity) UNSUPPORTED(fmi3GetAdjointDerivative)
-fmi3Status fmi3EnterConfigurationMode(fmi3Instance instance) UNSUPPORTED(fmi3EnterConfigurationMode)
-fmi3Status fmi3ExitConfigurationMode(fmi3Instance instance) UNSUPPORTED(fmi3ExitConfigurationMode)
-fmi3Status fmi3GetIntervalDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-                                  size_t nValueReferences, fmi3Float64 intervals[],
-                                  fmi3IntervalQualifier qualifiers[]) UNSUPPORTED(fmi3GetIntervalDecimal)
-fmi3Status fmi3GetIntervalFraction(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-                                   size_t nValueReferences, fmi3UInt64 counters[], fmi3UInt64 resolutions[],
-                                   fmi3IntervalQualifier qualifiers[]) UNSUPPORTED(fmi3GetIntervalFraction)
-fmi3Status fmi3GetShiftDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-                               size_t nValueReferences, fmi3Float64 shifts[]) UNSUPPORTED(fmi3GetShiftDecimal)
-fmi3Status fmi3GetShiftFraction(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-                                size_t nValueReferences, fmi3UInt64 counters[],
-                                fmi3UInt64 resolutions[]) UNSUPPORTED(fmi3GetShiftFraction)
-fmi3Status fmi3SetIntervalDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-                                  size_t nValueReferences,
-                                  const fmi3Float64 intervals[]) UNSUPPORTED(fmi3SetIntervalDecimal)
-fmi3Status fmi3SetIntervalFraction(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-                                   size_t nValueReferences, const fmi3UInt64 counters[],
-                                   const fmi3UInt64 resolutions[]) UNSUPPORTED(fmi3SetIntervalFraction)
-fmi3Status fmi3SetShiftDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-                               size_t nValueReferences, const fmi3Float64 shifts[]) UNSUPPORTED(fmi3SetShiftDecimal)
-fmi3Status fmi3SetShiftFraction(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-                                size_t nValueReferences, const fmi3UInt64 counters[],
-                                const fmi3UInt64 resolutions[]) UNSUPPORTED(fmi3SetShiftFraction)
-fmi3Status fmi3EvaluateDiscreteStates(fmi3Instance instance) UNSUPPORTED(fmi3EvaluateDiscreteStates)
-fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *discreteStatesNeedUpdate,
-                                    fmi3Boolean *terminateSimulation, fmi3Boolean *nominalsOfContinuousStatesChanged,
-                                    fmi3Boolean *valuesOfContinuousStatesChanged, fmi3Boolean *nextEventTimeDefined,
-                                    fmi3Float64 *nextEventTime) UNSUPPORTED(fmi3UpdateDiscreteStates)
-fmi3Status fmi3EnterEventMode(fmi3Instance instance) UNSUPPORTED(fmi3EnterEventMode)
-fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance instance) UNSUPPORTED(fmi3EnterContinuousTimeMode)
-fmi3Status fmi3CompletedIntegratorStep(fmi3Instance instance, fmi3Boolean noSetFMUStatePriorToCurrentPoint,
-                                       fmi3Boolean *enterEventMode,
-                                       fmi3Boolean *terminateSimulation) UNSUPPORTED(fmi3CompletedIntegratorStep)
-fmi3Status fmi3SetTime(fmi3Instance instance, fmi3Float64 time) UNSUPPORTED(fmi3SetTime)
-fmi3Status fmi3SetContinuousStates(fmi3Instance instance, const fmi3Float64 continuousStates[],
-                                   size_t nContinuousStates) UNSUPPORTED(fmi3SetContinuousStates)
-fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance instance, fmi3Float64 derivatives[],
-                                             size_t nContinuousStates) UNSUPPORTED(fmi3GetContinuousStateDerivatives)
-fmi3Status fmi3GetEventIndicators(fmi3Instance instance, fmi3Float64 eventIndicators[],
-                                  size_t nEventIndicators) UNSUPPORTED(fmi3GetEventIndicators)
-fmi3Status fmi3GetContinuousStates(fmi3Instance instance, fmi3Float64 continuousStates[],
-                                   size_t nContinuousStates) UNSUPPORTED(fmi3GetContinuousStates)
-fmi3Status fmi3GetNominalsOfContinuousStates(fmi3Instance instance, fmi3Float64 nominals[],
-                                             size_t nContinuousStates) UNSUPPORTED(fmi3GetNominalsOfContinuousStates)
-fmi3Status fmi3GetNumberOfEventIndicators(fmi3Instance instance,
-                                          size_t *nEventIndicators) UNSUPPORTED(fmi3GetNumberOfEventIndicators)
-fmi3Status fmi3GetNumberOfContinuousStates(fmi3Instance instance,
-                                           size_t *nContinuousStates) UNSUPPORTED(fmi3GetNumberOfContinuousStates)
-fmi3Status fmi3GetOutputDerivatives(fmi3Instance instance, const fmi3ValueReference valueReferences[],
-                                    size_t nValueReferences, const fmi3Int32 orders[], fmi3Float64 values[],
-                                    size_t nValues) UNSUPPORTED(fmi3GetOutputDerivatives)
-fmi3Status fmi3ActivateModelPartition(fmi3Instance instance, fmi3ValueReference clockReference,
-                                      fmi3Float64 activationTime) UNSUPPORTED(fmi3ActivateModelPartition)
 """

@@ -85,7 +85,7 @@ def linearize(system: Any, operating_point: Any = None, *, inputs: str | Sequenc
         mapping from coordinate names to values (rates zero); ``None``: the static equilibrium
         found by :func:`ctmm.planar.equilibrium.static_equilibrium` from
         :func:`ctmm.planar.equilibrium.hanging_configuration` (every centre of mass straight below
-        its hinge; refine-by-root-search, so hinge springs and loads are honoured).  Must be ``None`` for chains.
+        its hinge; refine-by-root-search, so hinge springs and loads are honoured; ``stable=True``: a statically stable one).  Must be ``None`` for chains.
     inputs : str or sequence of str, optional
         Exogenous inputs: chain force inputs / loop references; planar actuator names of
         :func:`ctmm.planar.ports.actuator_names` (default: every actuator not used by a loop);

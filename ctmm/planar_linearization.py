@@ -93,7 +93,7 @@ def operating_point(model: Any, point: Any = None, *, allow_nonequilibrium: bool
         A mapping has keys ``"q"``, ``"qdot"``, ``"t"`` or coordinate names (values [rad, m,
         modal]; the others 0, rates 0).  ``None``: the static equilibrium found by
         :func:`ctmm.planar.equilibrium.static_equilibrium` at ``t = 0`` from
-        :func:`ctmm.planar.equilibrium.hanging_configuration` (every centre of mass below its hinge).
+        :func:`ctmm.planar.equilibrium.hanging_configuration` (every centre of mass below its hinge), ``stable=True``.
     allow_nonequilibrium : bool
         Accept nonzero rates or accelerations (otherwise :class:`ModelError`).
 
@@ -112,7 +112,7 @@ def operating_point(model: Any, point: Any = None, *, allow_nonequilibrium: bool
     t = 0.0
     if point is None:
         try:
-            q = static_equilibrium(model, hanging_configuration(model))
+            q = static_equilibrium(model, hanging_configuration(model), stable=True)
         except ModelError as exc:
             raise ModelError(f"linearize: no operating point given and {exc}; pass operating_point=(q, qdot) "
                              "(with allow_nonequilibrium=True for a point that is not an equilibrium, e.g. a "

@@ -38,6 +38,7 @@ from ctmm.planar import PlanarModel, Pinned, RigidBody, SmoothHinge
 from ctmm.reference.mixed_global import BeamSegment, GlobalChain, RigidSegment
 from ctmm.scenario import accuracy
 
+from .mixed_common import coordinates_accuracy, histories, same_step
 from .planar_common import save_figure
 
 NAME = "fem_chain"
@@ -78,10 +79,6 @@ def reference() -> GlobalChain:
     return GlobalChain(rigid[:3] + [beam] + rigid[3:])
 
 
-def _histories(result, names):
-    return (np.column_stack([result.extra[c] for c in names]), np.column_stack([result.extra[c + "_dot"] for c in names]))
-
-
 def run(output_dir: Path, quick: bool = False) -> dict:
     import matplotlib
     matplotlib.use("Agg")
@@ -94,8 +91,8 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     q0[[names.index(c) for c in names if c.endswith(".theta")]] = INITIAL_ANGLE
     rk4 = ctmm.simulate(mixed, t_final, STEP, method="rk4", x0=q0, outputs=("body3.out.y",))
     newmark = ctmm.simulate(mixed, t_final, STEP, method="newmark", x0=q0)
-    q, v = _histories(rk4, names)
-    q_nm, _ = _histories(newmark, names)
+    q, v = histories(rk4, names)
+    q_nm, _ = histories(newmark, names)
     start = time.perf_counter()
     _, q_ref, v_ref = ref.rk4(q0, np.zeros_like(q0), t_final, STEP)
     reference_rk4_time = time.perf_counter() - start
@@ -147,12 +144,11 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     for ax in axes.flat[:5]:
         ax.legend(fontsize="small")
     save_figure(fig, output_dir, NAME)
-    same = "same RK4 step h = 0.25 ms, global Lagrange model of ctmm.reference.mixed_global"
+    same = same_step(STEP)
     return {
         "accuracy": [
-            accuracy("coordinates vs global model, same integrator", error_same, "rad or m", BOUND_SAME_INTEGRATOR,
-                     f"max over t and all coordinates (angles, FE node displacements) of |q_TMM - q_global|, {same}",
-                     source="issue 16 / task H5: mixed model vs global reference to 1e-8 with the same integrator"),
+            coordinates_accuracy(error_same, BOUND_SAME_INTEGRATOR, "angles, FE node displacements", STEP,
+                                 "issue 16 / task H5: mixed model vs global reference to 1e-8 with the same integrator"),
             accuracy("interaction force vs global model", error_force, "relative", BOUND_FORCE,
                      f"max |F_TMM - F_global| / max |F_global| of the force of body 3 on beam 1 (global x, y), {same}; "
                      "F_global = momentum rate of the beam and bodies 4, 5 minus their weight",

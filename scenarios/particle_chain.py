@@ -29,9 +29,9 @@ from ctmm.fem import FiniteElementModel, NodeSpring, PointMass
 from ctmm.planar import PlanarModel, Pinned, RigidBody, SmoothHinge
 from ctmm.planar.elements import FixedMounting
 from ctmm.reference.mixed_global import GlobalChain, ParticleNet, RigidSegment
-from ctmm.scenario import accuracy
 
-from .mixed_common import same_step_run
+from .mixed_common import (coordinates_accuracy, largest_net_displacement, particle_positions, plot_energy,
+                           plot_rotations, same_step_run)
 from .planar_common import save_figure
 
 NAME = "particle_chain"
@@ -70,19 +70,6 @@ def reference() -> GlobalChain:
                         RigidSegment(BODY6[0], BODY6[1], BODY6[1] * BODY6[0] ** 2 / 12, BODY6[0] / 2)])
 
 
-def particle_positions(q: np.ndarray, names: tuple) -> dict:
-    """Global positions [m] of the particles over a history ``q`` (T, n), by the reference's kinematics."""
-    ref = reference()
-    out = {p: [] for p in PARTICLES}
-    for row in q:
-        tip = ref.hinge_positions(row)[1]
-        th = row[names.index("body2.theta")]
-        R = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
-        for p, xy in PARTICLES.items():
-            out[p].append(tip + R @ (np.asarray(xy) + row[[names.index(f"net.{p}_ux"), names.index(f"net.{p}_uy")]]))
-    return {p: np.array(v) for p, v in out.items()}
-
-
 def run(output_dir: Path, quick: bool = False) -> dict:
     import matplotlib
     matplotlib.use("Agg")
@@ -94,13 +81,11 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     q0 = np.zeros(mixed.n_coordinates)
     q0[[names.index("body2.theta"), names.index("body6.theta")]] = INITIAL
     run_ = same_step_run(mixed, ref, q0, t_final, STEP)
-    t, q, q_ref, every, energy, energy_ref = run_.time, run_.q, run_.q_ref, run_.every, run_.energy, run_.energy_ref
-    mine, theirs = particle_positions(q[::every], names), particle_positions(q_ref[::every * 4], names)
+    t, q, q_ref, every = run_.time, run_.q, run_.q_ref, run_.every
+    mine, theirs = (particle_positions(ref, history, names, "body2", 1, PARTICLES)
+                    for history in (q[::every], q_ref[::every * 4]))
     fig, axes = plt.subplots(1, 4, figsize=(19, 4.5))
-    for body in ("body2", "body6"):
-        i = names.index(f"{body}.theta")
-        axes[0].plot(t, q[:, i], label=f"{body} (mixed)")
-        axes[0].plot(t[::every * 4], q_ref[::every * 4, i], "kx")
+    plot_rotations(axes[0], run_, names, ("body2", "body6"), lambda body: f"{body} (mixed)")
     axes[0].set(xlabel="t [s]", ylabel="rotation [rad]", title="rigid bodies 2 and 6 (Fig. 9.9a; x: global model)")
     for ax, pair, label in ((axes[1], ("p2", "p3"), "b"), (axes[2], ("p4", "p5"), "c")):
         for p in pair:
@@ -108,21 +93,15 @@ def run(output_dir: Path, quick: bool = False) -> dict:
             ax.plot(t[::every], mine[p][:, 1], label=f"{p} y")
             ax.plot(t[::every * 4], theirs[p][:, 0], "kx", t[::every * 4], theirs[p][:, 1], "kx")
         ax.set(xlabel="t [s]", ylabel="coordinate [m]", title=f"particles {pair[0][1]} and {pair[1][1]} (Fig. 9.9{label})")
-    axes[3].plot(t[::every], energy - energy[0], label="mixed (RK4)")
-    axes[3].plot(t[::every], energy_ref - energy_ref[0], "k--", label="global model (RK4)")
-    axes[3].set(xlabel="t [s]", ylabel="E(t) - E(0) [J]", title="total mechanical energy")
+    plot_energy(axes[3], run_, "total mechanical energy")
     for ax in axes:
         ax.legend(fontsize="x-small")
     save_figure(fig, output_dir, NAME)
     return {
-        "accuracy": [accuracy("coordinates vs global model, same integrator", run_.error, "rad or m", BOUND_SAME_INTEGRATOR,
-                              f"max over t and all coordinates (angles, particle displacements) of |q_TMM - q_global|, "
-                              f"same RK4 step h = {STEP * 1e3:g} ms, global Lagrange model of "
-                              "ctmm.reference.mixed_global",
-                              source="issue 16: mixed model vs global reference to 1e-8 with the same integrator")],
+        "accuracy": [coordinates_accuracy(run_.error, BOUND_SAME_INTEGRATOR, "angles, particle displacements", STEP,
+                                          "issue 16: mixed model vs global reference to 1e-8 with the same integrator")],
         "energy_drift_relative": run_.energy_drift,
         "energy_vs_global_model_relative": run_.energy_error,
-        "largest_particle_displacement_m": float(np.max(np.abs(q[:, [i for i, c in enumerate(names)
-                                                                     if c.startswith("net.")]]))),
+        "largest_particle_displacement_m": largest_net_displacement(q, names),
         "wall_time_s": run_.wall_time_s,
     }

@@ -29,9 +29,9 @@ from ctmm.fem import GlobalSubsystem
 from ctmm.planar import PlanarModel, Pinned, RigidBody, SmoothHinge
 from ctmm.planar.elements import FixedMounting
 from ctmm.reference.mixed_global import GlobalChain, ParticleNet, RigidSegment
-from ctmm.scenario import accuracy
 
-from .mixed_common import same_step_run
+from .mixed_common import (coordinates_accuracy, largest_net_displacement, particle_positions, plot_energy,
+                           plot_rotations, same_step_run)
 from .planar_common import save_figure
 
 NAME = "particle_net"
@@ -132,27 +132,18 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     q0 = np.zeros(mixed.n_coordinates)
     q0[[names.index(f"{b}.theta") for b in BODY_NAMES]] = INITIAL_ANGLE
     run_ = same_step_run(mixed, ref, q0, t_final, STEP)
-    q, q_ref, every, energy, energy_ref = run_.q, run_.q_ref, run_.every, run_.energy, run_.energy_ref
+    q, q_ref, every, energy = run_.q, run_.q_ref, run_.every, run_.energy
     error, energy_error, drift = run_.error, run_.energy_error, run_.energy_drift
     positions, _ = geometry()
+    particles = {f"p{k + 1}": xy for k, xy in enumerate(positions)}
 
     def particle_global(k: int, history: np.ndarray) -> np.ndarray:
         """Global position of particle ``k`` (1-based) over the run, from the reference's kinematics."""
-        out = []
-        for row in history:
-            tip = ref.hinge_positions(row)[-1]
-            th = row[names.index("body5.theta")]
-            R = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
-            u = row[[names.index(f"net.p{k}_ux"), names.index(f"net.p{k}_uy")]]
-            out.append(tip + R @ (positions[k - 1] + u))
-        return np.array(out)
+        return particle_positions(ref, history, names, "body5", -1, {f"p{k}": positions[k - 1]})[f"p{k}"]
 
     t = run_.time
     fig, axes = plt.subplots(2, 3, figsize=(15, 7.5))
-    for body in BODY_NAMES:
-        i = names.index(f"{body}.theta")
-        axes[0, 0].plot(t, q[:, i], label=body)
-        axes[0, 0].plot(t[::every * 4], q_ref[::every * 4, i], "kx")
+    plot_rotations(axes[0, 0], run_, names, BODY_NAMES, lambda body: body)
     axes[0, 0].set(xlabel="t [s]", ylabel="rotation angle [rad]", title="bodies 1, 3, 4, 5 (Fig. 9.4a-d)")
     for k, ax in zip((2, 17, 24), (axes[0, 1], axes[0, 2], axes[1, 0])):
         mine = particle_global(k, q[::every])
@@ -161,17 +152,9 @@ def run(output_dir: Path, quick: bool = False) -> dict:
         ax.plot(t[::every], mine[:, 1], label="y mixed")
         ax.plot(t[::every * 4], theirs[:, 0], "kx", t[::every * 4], theirs[:, 1], "kx")
         ax.set(xlabel="t [s]", ylabel="coordinate [m]", title=f"particle {k} (Fig. 9.4e-g)")
-    axes[1, 1].plot(t[::every], energy - energy[0], label="mixed (RK4)")
-    axes[1, 1].plot(t[::every], energy_ref - energy_ref[0], "k--", label="global model (RK4)")
-    axes[1, 1].set(xlabel="t [s]", ylabel="E(t) - E(0) [J]", title=f"total mechanical energy, E(0) = {energy[0]:.4g} J "
-                   "(Fig. 9.4h)")
+    plot_energy(axes[1, 1], run_, f"total mechanical energy, E(0) = {energy[0]:.4g} J (Fig. 9.4h)")
     last = q[-1]
-    net = np.array([ref.hinge_positions(last)[-1] + np.array([[np.cos(last[names.index('body5.theta')]),
-                                                                -np.sin(last[names.index('body5.theta')])],
-                                                               [np.sin(last[names.index('body5.theta')]),
-                                                                np.cos(last[names.index('body5.theta')])]])
-                    @ (positions[i] + last[[names.index(f"net.p{i + 1}_ux"), names.index(f"net.p{i + 1}_uy")]])
-                    for i in range(len(positions))])
+    net = np.array([xy[0] for xy in particle_positions(ref, q[-1:], names, "body5", -1, particles).values()])
     hinges = ref.hinge_positions(last)
     axes[1, 2].plot(hinges[:, 0], hinges[:, 1], "o-k")
     axes[1, 2].plot(net[:, 0], net[:, 1], ".")
@@ -179,18 +162,15 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     for ax in axes.flat[:5]:
         ax.legend(fontsize="small")
     save_figure(fig, output_dir, NAME)
-    same = f"same RK4 step h = {STEP * 1e3:g} ms, global Lagrange model of ctmm.reference.mixed_global"
     return {
-        "accuracy": [accuracy("coordinates vs global model, same integrator", error, "rad or m", BOUND_SAME_INTEGRATOR,
-                              f"max over t and all coordinates (angles, particle displacements) of |q_TMM - q_global|, "
-                              f"{same}",
-                              source="issue 16 / task H5: mixed model vs global reference to 1e-8 with the same "
-                                     "integrator")],
+        "accuracy": [coordinates_accuracy(error, BOUND_SAME_INTEGRATOR, "angles, particle displacements", STEP,
+                                          "issue 16 / task H5: mixed model vs global reference to 1e-8 with the same "
+                                          "integrator")],
         "energy_drift_relative": drift,
         "energy_drift_definition": "(max - min) / max |E| of the kinetic + gravity + spring energy of the mixed run "
                                    "(model.energy with the net's spring potential; undamped: RK4 error only)",
         "energy_vs_global_model_relative": energy_error,
-        "largest_particle_displacement_m": float(np.max(np.abs(q[:, [i for i, c in enumerate(names) if c.startswith("net.")]]))),
+        "largest_particle_displacement_m": largest_net_displacement(q, names),
         "wall_time_s": run_.wall_time_s,
         "parameters": {"masses_kg": MASSES, "link_length_m": LINK, "spacing_m": SPACING, "grid": GRID,
                        "particle_mass_kg": PARTICLE, "axial_stiffness_N_per_m": AXIAL,

@@ -31,9 +31,11 @@ def test_natural_frequencies_equal_eigh_of_the_global_linearisation():
     q_rest = np.zeros(reference.n)
     q_rest[[0, -1]] = -np.pi / 2
     q_rest = reference.equilibrium(q_rest)
-    hanging = (q_rest, np.zeros(reference.n))            # the library's own search from q = 0 finds body 6 inverted
+    hanging = (q_rest, np.zeros(reference.n))
     omega = ctmm.natural_frequencies(model, n_modes=6, operating_point=hanging)
     assert omega == pytest.approx(reference.natural_frequencies(q_rest)[:6], rel=1e-9)
+    # the default operating point is the stable equilibrium (the plain root search finds body 6 inverted)
+    assert ctmm.natural_frequencies(model, n_modes=6) == pytest.approx(omega, rel=1e-9)
 
 
 def test_particle_chain_scenario_quick(tmp_path):

@@ -454,8 +454,8 @@ def test_build_honours_the_declared_source_list(tmp_path):
     text = description.read_text()
     start = text.index("<CoSimulation")
     end = text.index("/>", start)
-    description.write_text(text[:end] + '>\n    <SourceFiles><File name="pd_controller.c"/></SourceFiles>\n  '
-                           '</CoSimulation>' + text[end + 2:])
+    description.write_text(text[:end] + '>\n    <SourceFiles><File name="pd_controller.c"/>'
+                           '<File name="unsupported_fmi2.c"/></SourceFiles>\n  </CoSimulation>' + text[end + 2:])
     built = build_fmu(source, tmp_path / "out1", compiler="gcc")
     assert FMUController(built, **PD_IO, sample_time=0.01).fmi_version == 2
     description.write_text(description.read_text().replace('File name="pd_controller.c"', 'File name="gone.c"'))

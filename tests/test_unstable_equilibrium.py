@@ -35,7 +35,13 @@ def test_inverted_pendulum_is_refused_with_its_closed_form_negative_stiffness(ve
 
 
 def test_particle_chain_from_rest_names_the_inverted_link():
+    from ctmm.planar.equilibrium import hanging_configuration, static_equilibrium
     from ctmm.scenarios.particle_chain import model
 
+    plant = model()
+    upright = static_equilibrium(plant, hanging_configuration(plant))       # the plain search: body 6 upright
     with pytest.raises(ModelError, match=r"statically unstable.*along \(body6\.theta \+1"):
-        ctmm.natural_frequencies(model(), n_modes=3)
+        ctmm.natural_frequencies(plant, n_modes=3, operating_point=(upright, np.zeros_like(upright)))
+    # the default operating point is the stable equilibrium (static_equilibrium(..., stable=True)): body 6 hangs
+    assert ctmm.linearize(plant).operating_point.q[-1] == pytest.approx(-np.pi / 2, abs=1e-9)
+    assert np.all(ctmm.natural_frequencies(plant, n_modes=3) > 0.0)

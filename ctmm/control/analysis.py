@@ -33,6 +33,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from .. import validation
+from ..controlled_linearization import FrequencyAtPoleError
 from ..errors import ModelError
 from ..frequency import frequency_response
 from ..results import FrequencyResponse
@@ -342,8 +343,23 @@ def margins(source: Any, loop: str | None = None, omega: Any = None, *, fields: 
     def f_imag(x: float) -> float:
         return evaluate(x).imag
 
-    gcs = _dedupe([_refine(f_mag, wg, x) for x in gc_est])
-    pcs = _dedupe([_refine(f_imag, wg, x) for x in pc_est])
+    def at(x: float) -> complex | None:
+        """``L(i x)``, or ``None`` at an undamped pole of the plant (refused there: no crossing)."""
+        try:
+            return evaluate(x)
+        except FrequencyAtPoleError:
+            return None
+
+    def crossings(fun: Callable[[float], float], estimates: list[float]) -> list[float]:
+        found = []
+        for x in estimates:
+            try:
+                found.append(_refine(fun, wg, x))
+            except FrequencyAtPoleError:        # L changes sign through infinity at an undamped pole: no crossing
+                continue
+        return _dedupe(found)
+
+    gcs, pcs = crossings(f_mag, gc_est), crossings(f_imag, pc_est)
     notes: list[str] = []
     certificate = None
     if fields == "exact":
@@ -353,6 +369,8 @@ def margins(source: Any, loop: str | None = None, omega: Any = None, *, fields: 
         gc_cert, pc_cert, certificate, notes = _certified_crossovers(source, lp.name)
         for kind, found, exact in (("gain", gcs, gc_cert), ("phase", pcs, pc_cert)):
             for x in exact:
+                if at(x) is None:           # a pole of the plant on the imaginary axis, not a crossover
+                    continue
                 if not any(abs(x - y) <= 1e-7 * max(1.0, x) for y in found):
                     where = "between the samples of" if wg[0] <= x <= wg[-1] else "outside"
                     notes.append(f"{kind} crossover at {x:.6g} rad/s {where} the grid: added from the "
@@ -367,8 +385,10 @@ def margins(source: Any, loop: str | None = None, omega: Any = None, *, fields: 
         if certificate is not None and (wg[0] > 0.0 or wg[-1] < certificate.im_max):
             notes.append(f"stability_margin (min |1 + L|) searched on the grid only, [{wg[0]:.6g}, "
                          f"{wg[-1]:.6g}] rad/s")
-    gcs = [x for x in gcs if abs(f_mag(x)) < 1e-6]
-    pcs = [x for x in pcs if evaluate(x).real < 0 and abs(f_imag(x)) < 1e-6 * max(1.0, abs(evaluate(x)))]
+    values = {x: at(x) for x in gcs + pcs}
+    gcs = [x for x in gcs if values[x] is not None and abs(abs(values[x]) - 1.0) < 1e-6]
+    pcs = [x for x in pcs if values[x] is not None and values[x].real < 0
+           and abs(values[x].imag) < 1e-6 * max(1.0, abs(values[x]))]
     pms = []
     dms = []
     for x in gcs:

@@ -3,11 +3,12 @@ from a guess) and its guess for a hanging model, :func:`hanging_configuration`.
 
 The operating point of :func:`ctmm.linearize` and of the frequency verbs (``ctmm.natural_frequencies``,
 ``ctmm.eigenvalue_count``, ``ctmm.mode_shapes`` on a :class:`~ctmm.planar.PlanarModel`) defaults to
-``static_equilibrium(model, hanging_configuration(model))``.
+``static_equilibrium(model, hanging_configuration(model), stable=True)`` (a statically stable one).
 """
 from __future__ import annotations
 
 import numpy as np
+import scipy.integrate
 import scipy.optimize
 
 from ..capabilities import require_planar
@@ -16,31 +17,135 @@ from .model import PlanarModel
 from .sweep import accelerations
 
 
-def static_equilibrium(model: PlanarModel, q_guess, *, t: float = 0.0,
-                       tolerance: float = 1e-12) -> np.ndarray:
+def static_equilibrium(model: PlanarModel, q_guess, *, t: float = 0.0, tolerance: float = 1e-12,
+                       stable: bool = False) -> np.ndarray:
     """Coordinates where all accelerations vanish at rest (``scipy.optimize.root`` from ``q_guess``).
 
     Absolute body angles (coordinates ``"<body>.theta"``) are returned wrapped into
     ``[-pi, pi)``.  Which equilibrium is found depends on the guess (a pendulum also balances
     upright); :func:`hanging_configuration` is the guess for the hanging one.
+
+    Parameters
+    ----------
+    model : PlanarModel
+    q_guess : array_like
+        Start of the search [rad, m, modal].
+    t : float
+        Time [s] of the loads.
+    tolerance : float
+        Of ``scipy.optimize.root``.
+    stable : bool
+        Find a statically stable equilibrium (no direction of negative stiffness, :func:`unstable_directions`):
+        from an unstable root, the search follows the descent of the potential energy in the mass
+        metric (``q' = qddot(q, 0)``, started off the root along its unstable directions) to a stable
+        one and polishes it -- e.g. a double pendulum whose search from ``q = 0`` lands on a link
+        balanced upright ends hanging.  The default (``False``) returns the root nearest the guess.
+
+    Raises
+    ------
+    ModelError
+        No equilibrium found; with ``stable=True`` also when the equilibrium reached is still unstable
+        (its unstable directions named).
     """
     require_planar(model, "ctmm.planar.equilibrium")
     q_guess, _ = model.state(q_guess, np.zeros(model.n_coordinates))
-    sol = scipy.optimize.root(lambda q: accelerations(model, q, np.zeros_like(q), t),
-                              q_guess, tol=tolerance, method="hybr")
+    q = _root(model, q_guess, t, tolerance)
+    for _ in range(STABLE_RESTARTS if stable else 0):
+        values, vectors = unstable_directions(model, q, t)
+        if not values.size:
+            return q
+        q = _root(model, _descend(model, q, vectors[:, 0], -values[0], t), t, tolerance)
+    if stable:
+        values, vectors = unstable_directions(model, q, t)
+        if values.size:
+            names = list(model.coordinates)
+            main = [f"{names[i]} {vectors[i, 0]:+.3g}" for i in np.argsort(-np.abs(vectors[:, 0]))[:3]]
+            raise ModelError(f"no statically stable equilibrium of {model.name!r} found from q = {q_guess.tolist()}: "
+                             f"the one reached, q = {q.tolist()}, has {values.size} direction(s) of negative stiffness "
+                             f"(omega^2 = {values[0]:.6g} rad^2/s^2 along ({', '.join(main)})); give a guess nearer a "
+                             "stable one (e.g. hanging_configuration(model))")
+    return q
+
+
+STABLE_RESTARTS = 4
+"""Descents from an unstable root that :func:`static_equilibrium` tries with ``stable=True``."""
+
+
+def _root(model: PlanarModel, q_guess: np.ndarray, t: float, tolerance: float) -> np.ndarray:
+    """A root of the accelerations at rest from ``q_guess``, body angles wrapped into ``[-pi, pi)``."""
+    def residual(q: np.ndarray) -> np.ndarray:
+        return accelerations(model, q, np.zeros_like(q), t)
+
+    sol = scipy.optimize.root(residual, q_guess, tol=tolerance, method="hybr")
     q = sol.x.copy()
     angles = np.array([c.endswith(".theta") for c in model.coordinates], dtype=bool)
     q[angles] = (q[angles] + np.pi) % (2.0 * np.pi) - np.pi
-    residual = np.max(np.abs(accelerations(model, q, np.zeros_like(q), t)))
-    if residual > 1e-8:        # a root at a huge angle loses digits when wrapped: polish the wrapped point
-        sol = scipy.optimize.root(lambda x: accelerations(model, x, np.zeros_like(x), t), q, tol=tolerance,
-                                  method="hybr")
-        q = sol.x.copy()
+    if np.max(np.abs(residual(q))) > 1e-8:   # a root at a huge angle loses digits when wrapped: polish the wrapped point
+        q = scipy.optimize.root(residual, q, tol=tolerance, method="hybr").x.copy()
         q[angles] = (q[angles] + np.pi) % (2.0 * np.pi) - np.pi
-        residual = np.max(np.abs(accelerations(model, q, np.zeros_like(q), t)))
-    if residual > 1e-8:
-        raise ModelError(f"no static equilibrium found near {q_guess!r} (residual {residual:.2e})")
+    error = np.max(np.abs(residual(q)))
+    if error > 1e-8:
+        raise ModelError(f"no static equilibrium found near {q_guess!r} (residual {error:.2e})")
     return q
+
+
+def unstable_directions(model: PlanarModel, q, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """The directions of negative stiffness of the equilibrium ``q`` of a planar model.
+
+    Parameters
+    ----------
+    model : PlanarModel
+    q : array_like
+        Coordinates [rad, m, modal] of an equilibrium (at rest).
+    t : float
+        Time [s] of the loads.
+
+    Returns
+    -------
+    values : ndarray
+        The eigenvalues ``omega^2 < 0`` [rad^2/s^2] of ``-d qddot / d q`` at rest (``M^-1 K``, by central
+        differences) below ``-1e-8 max |omega^2|``, most negative first; empty for a statically stable
+        (or neutral) equilibrium.
+    vectors : ndarray, shape (n_coordinates, len(values))
+        Their eigenvectors (columns, largest entry 1).
+    """
+    q = np.asarray(q, dtype=float)
+    n = q.size
+    jacobian = np.empty((n, n))
+    for k in range(n):
+        h = 1e-6 * max(1.0, abs(q[k]))
+        up, down = q.copy(), q.copy()
+        up[k] += h
+        down[k] -= h
+        jacobian[:, k] = (accelerations(model, up, np.zeros(n), t) - accelerations(model, down, np.zeros(n), t)) / (2 * h)
+    values, vectors = np.linalg.eig(-jacobian)
+    values, vectors = values.real, vectors.real
+    top = max(float(np.max(np.abs(values), initial=0.0)), 1e-300)
+    keep = np.flatnonzero(values < -1e-8 * top)
+    keep = keep[np.argsort(values[keep])]
+    vectors = vectors[:, keep]
+    vectors = vectors / vectors[np.argmax(np.abs(vectors), axis=0), np.arange(keep.size)] if keep.size else vectors
+    return values[keep], vectors
+
+
+def _descend(model: PlanarModel, q: np.ndarray, direction: np.ndarray, rate: float, t: float) -> np.ndarray:
+    """Follow ``q' = qddot(q, 0)`` (the potential energy falls along it: ``dV/dtau = -F^T M^-1 F``) from
+    ``q`` pushed by 1e-3 along the unstable ``direction`` (growth rate ``rate`` [1/s^2] in this flow)
+    until the accelerations nearly vanish; the point reached (a guess for the polishing root)."""
+    n = q.size
+
+    def flow(_: float, x: np.ndarray) -> np.ndarray:
+        return accelerations(model, x, np.zeros(n), t)
+
+    def settled(_: float, x: np.ndarray) -> float:
+        return float(np.max(np.abs(flow(0.0, x)))) - 1e-6 * rate
+
+    settled.terminal = True
+    start = q + 1e-3 * direction / max(float(np.max(np.abs(direction))), 1e-300)
+    horizon = 1e4 / rate           # escape takes ~ ln(1e3) / rate; the descent towards the stable point its own rate
+    solution = scipy.integrate.solve_ivp(flow, (0.0, horizon), start, method="Radau", events=settled,
+                                         rtol=1e-6, atol=1e-9)
+    return solution.y[:, -1]
 
 
 def hanging_configuration(model: PlanarModel) -> np.ndarray:
@@ -80,4 +185,4 @@ def hanging_configuration(model: PlanarModel) -> np.ndarray:
     return q
 
 
-__all__ = ["static_equilibrium", "hanging_configuration"]
+__all__ = ["static_equilibrium", "hanging_configuration", "unstable_directions", "STABLE_RESTARTS"]

@@ -28,6 +28,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from .. import validation
+from ..controlled_linearization import resolvent
 from ..errors import ModelError, unknown_name
 from ..linearized import LinearizedSystem, OperatingPoint, control_name
 from ..results import FrequencyResponse, SimulationResult
@@ -331,13 +332,7 @@ def frequency_response_loops(model: KinematicLoopModel, omega: Any, *, input: An
     ss = lin.state_space
     A, B, C, D = (np.asarray(x, dtype=float) for x in (ss.A, ss.B, ss.C, ss.D))
     omega = validation.frequencies("omega", omega)
-    response = np.empty((len(outputs), len(inputs), omega.size), dtype=complex)
-    for k, w in enumerate(omega):
-        try:
-            response[:, :, k] = C @ np.linalg.solve(1j * w * np.eye(A.shape[0]) - A, B) + D
-        except np.linalg.LinAlgError:
-            raise ModelError(f"frequency_response: s I - A of {model.name!r} is singular at omega = {w} rad/s (an "
-                             "undamped natural frequency)") from None
+    response = np.transpose(C @ resolvent(A, B, 1j * omega, model.name) + D, (1, 2, 0))
     ports = PlanarPorts(model.tree)
     units = {name: ports.actuator_unit(name) for name in inputs}
     units.update({name: "N" if name in cut_signal_names(model) else ports.sensor_unit(name) for name in outputs})

@@ -52,6 +52,12 @@ static fmi2Status not_supported(fmi2Component c, const char *function) {
     return fmi2Error;
 }
 
+/* the logger of the shared stubs of unsupported calls (unsupported_fmi2.c, a link to
+   controllers/fmu_common/unsupported_fmi2.c, compiled beside this file; its co-simulation stubs are
+   exported too, unused by a model-exchange importer) */
+fmi2Status ctmm_fmi2_not_supported(fmi2Component c, const char *function);
+fmi2Status ctmm_fmi2_not_supported(fmi2Component c, const char *function) { return not_supported(c, function); }
+
 static void compute(Instance *inst) {
     fmi2Real *r = inst->r;
     r[VR_DER_X] = inst->frozen ? 0.0 : (r[VR_U] - r[VR_X]) / r[VR_TIME_CONSTANT];
@@ -333,36 +339,4 @@ fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate s) {
 fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *s) {
     (void)s;
     return not_supported(c, "fmi2FreeFMUstate");
-}
-
-fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate s, size_t *size) {
-    (void)s;
-    (void)size;
-    return not_supported(c, "fmi2SerializedFMUstateSize");
-}
-
-fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate s, fmi2Byte bytes[], size_t size) {
-    (void)s;
-    (void)bytes;
-    (void)size;
-    return not_supported(c, "fmi2SerializeFMUstate");
-}
-
-fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte bytes[], size_t size, fmi2FMUstate *s) {
-    (void)bytes;
-    (void)size;
-    (void)s;
-    return not_supported(c, "fmi2DeSerializeFMUstate");
-}
-
-fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown[], size_t nUnknown,
-                                        const fmi2ValueReference vKnown[], size_t nKnown, const fmi2Real dvKnown[],
-                                        fmi2Real dvUnknown[]) {
-    (void)vUnknown;
-    (void)nUnknown;
-    (void)vKnown;
-    (void)nKnown;
-    (void)dvKnown;
-    (void)dvUnknown;
-    return not_supported(c, "fmi2GetDirectionalDerivative");
 }

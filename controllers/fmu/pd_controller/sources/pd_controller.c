@@ -88,6 +88,11 @@ static fmi2Status not_supported(fmi2Component c, const char *function) {
     return fmi2Error;
 }
 
+/* the logger of the shared stubs of unsupported calls (unsupported_fmi2.c, a link to
+   controllers/fmu_common/unsupported_fmi2.c, compiled beside this file) */
+fmi2Status ctmm_fmi2_not_supported(fmi2Component c, const char *function);
+fmi2Status ctmm_fmi2_not_supported(fmi2Component c, const char *function) { return not_supported(c, function); }
+
 /* The control law; returns 1 if the output was clipped. */
 static int compute_output(Data *d) {
     const fmi2Real *r = d->r;
@@ -338,58 +343,7 @@ fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
     return fmi2OK;
 }
 
-fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size) {
-    (void)FMUstate;
-    (void)size;
-    return not_supported(c, "fmi2SerializedFMUstateSize");
-}
-
-fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte serializedState[], size_t size) {
-    (void)FMUstate;
-    (void)serializedState;
-    (void)size;
-    return not_supported(c, "fmi2SerializeFMUstate");
-}
-
-fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size,
-                                   fmi2FMUstate *FMUstate) {
-    (void)serializedState;
-    (void)size;
-    (void)FMUstate;
-    return not_supported(c, "fmi2DeSerializeFMUstate");
-}
-
-fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
-                                        const fmi2ValueReference vKnown_ref[], size_t nKnown,
-                                        const fmi2Real dvKnown[], fmi2Real dvUnknown[]) {
-    (void)vUnknown_ref;
-    (void)nUnknown;
-    (void)vKnown_ref;
-    (void)nKnown;
-    (void)dvKnown;
-    (void)dvUnknown;
-    return not_supported(c, "fmi2GetDirectionalDerivative");
-}
-
 /* ---------------------------------------------------------------- co-simulation */
-
-fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                                       const fmi2Integer order[], const fmi2Real value[]) {
-    (void)vr;
-    (void)nvr;
-    (void)order;
-    (void)value;
-    return not_supported(c, "fmi2SetRealInputDerivatives");
-}
-
-fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                                        const fmi2Integer order[], fmi2Real value[]) {
-    (void)vr;
-    (void)nvr;
-    (void)order;
-    (void)value;
-    return not_supported(c, "fmi2GetRealOutputDerivatives");
-}
 
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2Real communicationStepSize,
                       fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
@@ -424,14 +378,6 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
     return fmi2OK;
 }
 
-fmi2Status fmi2CancelStep(fmi2Component c) { return not_supported(c, "fmi2CancelStep (doStep is synchronous)"); }
-
-fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value) {
-    (void)s;
-    (void)value;
-    return not_supported(c, "fmi2GetStatus (doStep never returns fmi2Pending)");
-}
-
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value) {
     Instance *inst = (Instance *)c;
     if (inst == NULL || value == NULL) return fmi2Error;
@@ -442,13 +388,6 @@ fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *
     return fmi2Discard;
 }
 
-fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *value) {
-    (void)c;
-    (void)s;
-    (void)value;
-    return fmi2Discard;
-}
-
 fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value) {
     Instance *inst = (Instance *)c;
     if (inst == NULL || value == NULL) return fmi2Error;
@@ -456,12 +395,5 @@ fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boo
         *value = fmi2False;
         return fmi2OK;
     }
-    return fmi2Discard;
-}
-
-fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *value) {
-    (void)c;
-    (void)s;
-    (void)value;
     return fmi2Discard;
 }

@@ -71,6 +71,11 @@ static fmi3Status fail(Instance *inst, fmi3Status status, const char *format, ..
     return status;
 }
 
+/* the logger of the shared stubs of unsupported calls (unsupported_fmi3.c, a link to
+   controllers/fmu_common/unsupported_fmi3.c, compiled beside this file) */
+fmi3Status ctmm_fmi3_not_supported(fmi3Instance instance, const char *function);
+fmi3Status ctmm_fmi3_not_supported(fmi3Instance instance, const char *function) { return fail((Instance *)instance, fmi3Error, "%s is not supported by this FMU", function); }
+
 static fmi3Float32 command(const Data *d) {
     fmi3Float32 value;
     if (!d->enable) return 0.0f;

@@ -1,0 +1,1 @@
+../../../fmu_common/unsupported_fmi2.c

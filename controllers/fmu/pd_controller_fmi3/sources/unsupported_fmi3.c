@@ -1,0 +1,1 @@
+../../../fmu_common/unsupported_fmi3.c
