@@ -223,8 +223,8 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
              references: Mapping[str, Any] | None = None, coupling: str = "hold", solver: str = "riccati",
              fast: bool | None = None, force_hook: ForceHook | None = None, progress: bool | None = None,
              stability_check: str | None = None, divergence_bound: float | None = None,
-             rtol: float = 1e-8, atol: float = 1e-10, max_step: float | None = None,
-             store_every: int = 1, compiled: bool | None = None) -> SimulationResult:
+             rtol: float = 1e-8, atol: float = 1e-10, max_step: float | None = None, store_every: int = 1,
+             compiled: bool | None = None, parameters: Mapping[str, float] | None = None) -> SimulationResult:
     """Simulate a chain, a planar or flexible model, with or without loops, in the time domain.
 
     Parameters
@@ -275,20 +275,20 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         ``fast=True`` runs ``"rk4"`` in compiled C (:func:`ctmm.planar.compiled.simulate_rk4_compiled`;
         revolute trees with constant hinge laws, no loops; same numbers to round-off).
     compiled : bool, optional
-        Planar, ``"rk4"``: ``True`` runs the RK4 time loop in C generated from the element
-        definitions (:func:`ctmm.compiled_scene.simulate_rk4_generated`; planar scenes -- rigid trees,
-        modal beams, hub-beam, hinge and load signals with a symbolic form; compiled once per structure
-        and cached on disk; same numbers as the numpy path to round-off).  A controlled planar model's
-        loops close inside the generated step (:func:`ctmm.compiled_control.simulate_controlled_generated`:
-        real-time loops at every stage, LTI controller states integrated, delayed loops with
-        ``delay = m dt`` from a ring of stored samples; references and inputs numbers or
-        :mod:`ctmm.signals` signals with a symbolic form).  What it cannot compile (user callables of
-        time, driven motions, translational hinge springs, delays that are not whole multiples of
-        ``dt``, beam station forces or moments, co-simulated controllers) raises :class:`ModelError`
-        naming it.  Spatial, ``"rk4"``: ``True`` runs the generated RK4 of
-        :func:`ctmm.compiled_spatial.simulate_spatial_generated` (inputs held numbers; same result as
-        the numpy path to round-off); with loops :func:`ctmm.compiled_control.simulate_spatial_controlled_generated`
-        (as planar; ``docs/spatial.md`` §6b).  Default: the numpy path.
+        Planar, ``"rk4"``: ``True`` runs the RK4 time loop in C generated from the element definitions
+        (:func:`ctmm.compiled_scene.simulate_rk4_generated`; planar scenes -- rigid trees, modal beams, hub-beam,
+        hinge and load signals with a symbolic form; compiled once per structure and cached on disk; same numbers as
+        the numpy path to round-off).  A controlled planar model's loops close inside the generated step
+        (:func:`ctmm.compiled_control.simulate_controlled_generated`: real-time loops at every stage, LTI controller
+        states integrated, delayed loops with ``delay = m dt`` from a ring of stored samples; references and inputs
+        numbers or :mod:`ctmm.signals` signals with a symbolic form).  What it cannot compile (user callables of time,
+        driven motions, translational hinge springs, delays that are not whole multiples of ``dt``, beam station
+        forces or moments, co-simulated controllers) raises :class:`ModelError` naming it.  Spatial, ``"rk4"``:
+        ``True`` runs the generated RK4 of :func:`ctmm.compiled_spatial.simulate_spatial_generated` (inputs held
+        numbers; the numpy path's result to round-off); with loops
+        :func:`ctmm.compiled_control.simulate_spatial_controlled_generated` (docs/spatial.md §6b).  Default: numpy.
+    parameters : mapping, optional
+        ``compiled=True``: ``{name: number}`` set at run time in the kernel compiled once (:mod:`ctmm.batch`).
     progress : bool, optional
         Show a progress bar (default: long runs on a terminal).
     stability_check : {"warn", "error", "ignore"}, optional
@@ -321,6 +321,9 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
     SimulationError
         A failed run (divergence, non-finite state, failing user code), with ``partial_result``.
     """
+    if parameters is not None:                  # a generated kernel's numbers at run time (ctmm.batch)
+        from .batch import simulate_with_parameters
+        return simulate_with_parameters(system, parameters, {**locals(), "method": _method(method, scheme, "rk4")})
     controllers = check_controllers(controllers)
     references = check_references(references)
     if coupling != "hold" and not controllers:
