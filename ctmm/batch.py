@@ -7,19 +7,17 @@ numbers (certified), whose parameter vector enters the one compiled kernel and w
 signals give the result, the same :class:`~ctmm.results.SimulationResult` as ``ctmm.simulate(member,
 compiled=True)``.
 
-==========================================  ===========================================================
-system                                      kernel
-==========================================  ===========================================================
-planar model                                :class:`~ctmm.compiled_scene.CompiledScene` (numbers as
-                                            inputs), another model through ``with_model``
-planar model with loops, ``inputs`` or      the scene of the controlled model; each set's loops
-``references``                              (gains as entries of ``p``) on the same compiled code
-spatial model (held joint ``inputs``)       :class:`~ctmm.compiled_spatial.CompiledSpatialScene` with
-                                            ``numbers="inputs"``
-spatial model with loops, port inputs,      not shared yet: each set compiles its own kernel (numbers
-``references`` or ``outputs``               as constants, cached on disk by its C text;
-                                            ``info["kernel"] == "per set"``)
-==========================================  ===========================================================
+=========================================  ============================================================
+system                                     kernel (compiled once, numbers as inputs ``p``)
+=========================================  ============================================================
+planar model                               :class:`~ctmm.compiled_scene.CompiledScene`, each set's model
+                                           through ``with_model``
+planar model with loops, ``inputs`` or     the scene of the controlled model; each set's loop laws
+``references``                             (gains as entries of ``p``) on the same compiled functions
+spatial model (held joint ``inputs``)      :class:`~ctmm.compiled_spatial.CompiledSpatialScene`
+spatial model with loops, port inputs,     :class:`~ctmm.compiled_spatial_loops.CompiledControlledSpatial`
+``references`` or ``outputs``              (plant numbers and loop gains in ``p``), each set's loop laws
+=========================================  ============================================================
 
 :func:`simulate_batch` runs the sets in a loop (or on any executor, :mod:`ctmm.executors`) with
 progress output; a set that fails is reported with its index and exception and the others are kept.
@@ -122,11 +120,11 @@ class ParameterKernel:
         return {**self.__dict__, "_scene": None}
 
     def scene(self) -> Any:
-        """The shared compiled scene, built (or loaded from the cache) on first use; ``None`` for
-        ``"spatial loops"`` (each set compiles its own)."""
-        if self._scene is None and self.kind != "spatial loops":
+        """The shared compiled scene (numbers as inputs), built (or loaded from the cache) on first use."""
+        if self._scene is None:
             from .compiled_scene import CompiledScene
             from .compiled_spatial import CompiledSpatialScene
+            from .compiled_spatial_loops import CompiledControlledSpatial
 
             start = time.perf_counter()
             options = {"store_every": self.store_every, "cache_dir": self.cache_dir}
@@ -135,8 +133,12 @@ class ParameterKernel:
             elif self.kind == "planar loops":
                 self._scene = CompiledScene(ControlledModel(self.plant, self.loops), dt=self.step,
                                             references=self.references, signals=self.inputs, **options)
-            else:
+            elif self.kind == "spatial":
                 self._scene = CompiledSpatialScene(self.plant, numbers="inputs", **options)
+            else:
+                self._scene = CompiledControlledSpatial(ControlledModel(self.plant, self.loops), self.step,
+                                                        references=self.references, inputs=self.inputs,
+                                                        numbers="inputs", **options)
             self.compile_time_s = time.perf_counter() - start
         return self._scene
 
@@ -147,7 +149,7 @@ class ParameterKernel:
     def run(self, values: Mapping[str, Any], *, x0: Any = None, v0: Any = None,
             divergence_bound: float | None = None, stability_check: str | None = None) -> SimulationResult:
         """The run of the parameter set ``values`` (``{name: number}``) from ``x0``, ``v0`` (as
-        ``ctmm.simulate``): ``info["parameters"]`` the set, ``info["kernel"]`` ``"shared"`` or ``"per set"``.
+        ``ctmm.simulate``): ``info["parameters"]`` the set, ``info["kernel"]`` ``"shared"``.
 
         Raises
         ------
@@ -168,7 +170,7 @@ class ParameterKernel:
             result = self._run_spatial(plant, loops, x0, v0, divergence_bound)
         else:
             result = self._run_planar(plant, loops, x0, v0, divergence_bound, policy)
-        result.info.update(parameters=dict(values), kernel="per set" if self.kind == "spatial loops" else "shared")
+        result.info.update(parameters=dict(values), kernel="shared")
         return result
 
     def _run_planar(self, plant: PlanarModel, loops: tuple, x0: Any, v0: Any, bound: Any,
@@ -190,16 +192,10 @@ class ParameterKernel:
                 raise
             return to_result(simulation, outputs=self.outputs, info={"dt": self.dt})
         controlled = ControlledModel(plant, loops)
-        scene = copy.copy(base)             # the same compiled functions, this set's numbers and loop laws
-        scene.controlled, scene.model = controlled, plant
-        scene.loops = ClosedLoops(controlled, base.actuators, self.step, self.references, self.inputs,
-                                  numbers="inputs")
-        scene.parameters = np.concatenate([parameter_vector(plant), scene.loops.parameter_values])
-        if structure_key(plant) != base.structure or scene.parameters.shape != base.parameters.shape or \
-                [entry[0] for entry in scene.loops.parameter_layout] != \
-                [entry[0] for entry in base.loops.parameter_layout]:
-            raise ModelError(f"parameters: the controlled model {plant.name!r} with these numbers has another "
-                             "structure than the compiled one; run it with ctmm.simulate without parameters=")
+        scene = self._loop_scene(controlled, None, parameter_vector(plant))
+        if structure_key(plant) != base.structure:
+            raise ModelError(f"parameters: model {plant.name!r} with these numbers has another structure than the "
+                             "compiled one; run it with ctmm.simulate without parameters=")
         return simulate_controlled_generated(controlled, q0, qdot0, t_final=self.t_final, dt=self.dt,
                                              inputs=self.inputs, references=self.references, outputs=self.outputs,
                                              store_every=self.store_every, divergence_bound=bound,
@@ -217,11 +213,32 @@ class ParameterKernel:
                                  "than the compiled one; run it with ctmm.simulate without parameters=")
             return simulate_spatial_generated(plant, self.t_final, self.dt, x0=x0, v0=v0, inputs=self.inputs or None,
                                               store_every=self.store_every, divergence_bound=bound, scene=scene)
+        from .compiled_spatial_loops import SpatialSymbols
+
+        controlled = ControlledModel(plant, loops)
+        numbers = spatial_parameter_vector(plant)
+        scene = self._loop_scene(controlled, SpatialSymbols(plant, controlled.ports, numbers.size), numbers)
         state = initial_state(plant, x0, v0)
         return simulate_spatial_controlled_generated(
-            ControlledModel(plant, loops), state[:plant.n_positions], state[plant.n_positions:], t_final=self.t_final,
-            dt=self.dt, inputs=self.inputs, references=self.references, outputs=self.outputs,
-            store_every=self.store_every, divergence_bound=bound, cache_dir=self.cache_dir)
+            controlled, state[:plant.n_positions], state[plant.n_positions:], t_final=self.t_final, dt=self.dt,
+            inputs=self.inputs, references=self.references, outputs=self.outputs, store_every=self.store_every,
+            divergence_bound=bound, scene=scene)
+
+    def _loop_scene(self, controlled: ControlledModel, symbols: Any, numbers: np.ndarray) -> Any:
+        """The shared scene with loops for the set's ``controlled`` model: the same compiled functions, its
+        loop laws (:class:`~ctmm.compiled_loops.ClosedLoops`, numbers as inputs; they give the stored loop
+        signals) and its parameter column (the plant's ``numbers``, then the loops')."""
+        base = self.scene()
+        scene = copy.copy(base)
+        scene.controlled, scene.model = controlled, controlled.plant
+        scene.loops = ClosedLoops(controlled, base.actuators, self.step, self.references, self.inputs,
+                                  symbols=symbols, numbers="inputs")
+        scene.parameters = np.concatenate([numbers, scene.loops.parameter_values])
+        if scene.parameters.shape != base.parameters.shape or [entry[0] for entry in scene.loops.parameter_layout] \
+                != [entry[0] for entry in base.loops.parameter_layout]:
+            raise ModelError(f"parameters: the controlled model of {controlled.plant.name!r} with these numbers has "
+                             "another structure than the compiled one; run it with ctmm.simulate without parameters=")
+        return scene
 
 
 def _coordinates(model: PlanarModel, label: str, value: Any) -> Any:

@@ -129,19 +129,28 @@ def test_spatial_sets_on_one_library_equal_the_numpy_path_and_the_reference(tmp_
         assert_round_off(batch.results[0][name], run.q[:, i], name, 1e-11)
 
 
-def test_controlled_spatial_sets_compile_per_set_and_equal_the_numpy_path(tmp_path, monkeypatch):
+def test_controlled_spatial_sets_on_one_library_equal_the_numpy_path(tmp_path, monkeypatch):
+    """Plant numbers and loop gains as inputs of one CompiledControlledSpatial: a joint-torque loop, a delayed
+    body-force loop at a point (its wrench part of the body's terms kept from the numeric terms), an output."""
     monkeypatch.setenv("CTMM_CACHE", str(tmp_path))
     q0, v0 = np.array([0.3, -0.5, 0.2]), np.zeros(3)
 
-    def controlled(gain, mass):
-        plant = spatial_arm(masses=(mass, 0.7, 0.5))
-        return ControlledModel(plant, [Feedback("hold", "j1.angle", "j1.torque", gain=gain)])
+    def controlled(gain, push, mass, stiffness):
+        plant = spatial_arm(masses=(1.0, 0.7, mass), stiffness=stiffness)
+        return ControlledModel(plant, [Feedback("hold", "j1.angle", "j1.torque", gain=gain),
+                                       Feedback("push", "l2.end.vz", "l2.end.force_z", gain=push, delay=2 * DT)])
 
-    batch = ctmm.simulate_batch(controlled(2.0, 1.0), {"hold.gain": [5.0], "l0.mass": [1.3]}, 0.05, DT, x0=q0, v0=v0)
-    numpy_run = ctmm.simulate(controlled(5.0, 1.3), 0.05, DT, method="rk4", x0=q0, v0=v0)
-    assert batch.results[0].info["kernel"] == "per set"
-    for name in ["j0.angle", "j1.angle", "hold.u"]:
-        assert_round_off(batch.results[0][name], numpy_run[name], name)
+    sets = {"hold.gain": [5.0, 1.5], "push.gain": [0.8, 2.0], "l2.mass": [0.5, 0.9], "j2.stiffness": [2.0, 7.0]}
+    batch = ctmm.simulate_batch(controlled(2.0, 1.0, 0.5, 2.0), sets, 0.1, DT, x0=q0, v0=v0, outputs=["l2.end.z"],
+                                references={"hold": 0.05})
+    assert not batch.failures and len(libraries(tmp_path)) == 1
+    for k in range(2):
+        model = controlled(*(sets[name][k] for name in sets))
+        numpy_run = ctmm.simulate(model, 0.1, DT, method="rk4", x0=q0, v0=v0, outputs=["l2.end.z"],
+                                  references={"hold": 0.05})
+        assert batch.results[k].info["kernel"] == "shared"
+        for name in ["j0.angle", "j1.angle", "j2.angle_rate", "hold.u", "push.u", "l2.end.z"]:
+            assert_round_off(batch.results[k][name], numpy_run[name], (k, name))
 
 
 def test_a_failing_set_is_reported_by_index_and_the_others_kept(tmp_path, monkeypatch):
