@@ -190,26 +190,27 @@ def _spatial(model: SpatialModel, values: Mapping[str, float]) -> SpatialModel:
     if not values:
         return model
     layout = {entry.name: entry for entry in spatial_parameter_layout(model)}
-    bodies, joints = list(model.bodies), list(model.joints)
+    joints = list(model.joints)
+    # a body's numbers are replaced at once (its inertia is checked as a whole, not entry by entry)
+    bodies = [{"mass": body.mass, "inertia": np.array(body.inertia, dtype=float)} for body in model.bodies]
     gravity = np.array(model.gravity, dtype=float)
     for name, value in values.items():
         entry = layout[name]
         if entry.kind == "gravity":
             gravity[entry.entry] = value
         elif entry.kind == "mass":
-            bodies[entry.index] = dataclasses.replace(bodies[entry.index], mass=value)
+            bodies[entry.index]["mass"] = value
         elif entry.kind == "inertia":
-            body = bodies[entry.index]
-            inertia = np.array(body.inertia, dtype=float)
             _, a, b = INERTIA_ENTRIES[entry.entry]
-            inertia[a, b] = inertia[b, a] = value
-            bodies[entry.index] = dataclasses.replace(body, inertia=inertia)
+            bodies[entry.index]["inertia"][a, b] = bodies[entry.index]["inertia"][b, a] = value
         else:                                   # stiffness, damping, reference of a 1- or 2-DOF joint
             joint = joints[entry.index]
             numbers = np.array(getattr(joint, entry.kind), dtype=float).reshape(-1)
             numbers[entry.entry] = value
             joints[entry.index] = dataclasses.replace(joint, **{entry.kind: numbers if numbers.size > 1 else
                                                                 float(numbers[0])})
+    touched = {layout[name].index for name in values if layout[name].kind in ("mass", "inertia")}
+    bodies = [dataclasses.replace(body, **bodies[j]) if j in touched else body for j, body in enumerate(model.bodies)]
     changed = SpatialModel(model.name, bodies + joints + list(model.loads), gravity=gravity)
     order = list(layout)
     expected = spatial_parameter_vector(model)

@@ -165,6 +165,16 @@ def test_a_failing_set_is_reported_by_index_and_the_others_kept(tmp_path, monkey
     assert_round_off(batch.results[2]["fore.theta"], numpy_run["fore.theta"], "set 2 on a thread")
 
 
+def test_a_body_inertia_is_set_as_a_whole():
+    """xx, yy, zz together (one at a time the second would break the triangle inequality) equal a hand-built
+    body; a set that breaks it as a whole is refused by the body's own check."""
+    values = {"l1.inertia.xx": 0.03, "l1.inertia.yy": 0.08, "l1.inertia.zz": 0.1}
+    changed = ctmm.parameter_sets.with_parameters(spatial_arm(), values)
+    assert np.array_equal(changed.bodies[1].inertia, np.diag([0.03, 0.08, 0.1]))
+    with pytest.raises(ModelError, match="triangle inequality"):
+        ctmm.parameter_sets.with_parameters(spatial_arm(), {"l1.inertia.zz": 0.2})
+
+
 def test_bad_parameters_are_refused_by_name(tmp_path, monkeypatch):
     monkeypatch.setenv("CTMM_CACHE", str(tmp_path))
     with pytest.raises(ModelError, match=r"unknown parameter 'rod.length'; allowed: rod.mass, fore.mass"):
