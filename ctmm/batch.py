@@ -158,8 +158,8 @@ class ParameterKernel:
         SimulationError
             A diverging or non-finite run, with ``partial_result``.
         """
-        values = parameter_values(self.system, values)
-        member = self.member(values)
+        member = self.member(values)                # checks the names and values
+        values = {name: float(value) for name, value in values.items()}
         plant, loops = plant_and_loops(member)
         policy = "warn" if stability_check is None else validation.option("stability_check", stability_check,
                                                                            ("warn", "error", "ignore"))
@@ -363,7 +363,9 @@ def simulate_batch(system: Any, parameter_sets: Any, t_final: float, dt: float, 
         As :func:`ctmm.simulate` with ``compiled=True`` (the same for every set).
     executor : None, "threads", "processes" or Executor
         Where the sets run (:func:`ctmm.executors.parallel_map`; process workers load the kernel from
-        the disk cache).
+        the disk cache).  Each set also builds and checks its model and, on planar models, its step
+        against the linearised RK4 limit (``stability_check="ignore"`` skips that), a few milliseconds
+        to tens of milliseconds of Python per set (``benchmarks/batch_parameters.py``).
     progress : bool, optional
         Progress bar over the sets (default: on terminals from 50 sets).
     cache_dir : path, optional

@@ -175,6 +175,14 @@ def test_a_body_inertia_is_set_as_a_whole():
         ctmm.parameter_sets.with_parameters(spatial_arm(), {"l1.inertia.zz": 0.2})
 
 
+def test_sets_on_worker_processes_load_the_kernel_from_the_cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("CTMM_CACHE", str(tmp_path))
+    batch = ctmm.simulate_batch(arm(), {"fore.mass": [0.5, 0.9]}, 0.05, DT, x0=X0, executor="processes")
+    assert not batch.failures and len(libraries(tmp_path)) == 1
+    numpy_run = ctmm.simulate(arm(fore_mass=0.9), 0.05, DT, method="rk4", x0=X0)
+    assert_round_off(batch.stacked("fore.theta")[1], numpy_run["fore.theta"], "set 1 in a worker process")
+
+
 def test_bad_parameters_are_refused_by_name(tmp_path, monkeypatch):
     monkeypatch.setenv("CTMM_CACHE", str(tmp_path))
     with pytest.raises(ModelError, match=r"unknown parameter 'rod.length'; allowed: rod.mass, fore.mass"):
