@@ -38,7 +38,7 @@ from .compiled_spatial_parameters import spatial_parameter_vector
 from .control.controlled_model import ControlledModel
 from .errors import ModelError, SimulationError, unknown_name
 from .executors import parallel_map
-from .parameter_sets import parameter_values, plant_and_loops, with_parameters
+from .parameter_sets import ParameterSpace, plant_and_loops
 from .planar.integrate import initial_coordinates, step_total, to_result
 from .planar.model import PlanarModel
 from .results import SimulationResult
@@ -78,7 +78,8 @@ class ParameterKernel:
                  inputs: Mapping[str, Any] | None = None, references: Mapping[str, Any] | None = None,
                  outputs: Sequence[str] = (), cache_dir: Any = None) -> None:
         self.system = system
-        self.plant, self.loops = plant_and_loops(system)
+        self.space = ParameterSpace(system)
+        self.plant, self.loops = self.space.plant, self.space.loops
         if dt is None:
             raise ModelError("dt is required with compiled=True (the generated RK4; a fixed step [s], > 0), got None")
         self.t_final, self.dt = validation.positive("t_final", t_final), validation.positive("dt", dt)
@@ -143,8 +144,8 @@ class ParameterKernel:
         return self._scene
 
     def member(self, values: Mapping[str, Any]) -> Any:
-        """The system with the numbers ``values`` (:func:`ctmm.parameter_sets.with_parameters`)."""
-        return with_parameters(self.system, values)
+        """The system with the numbers ``values`` (:meth:`ctmm.parameter_sets.ParameterSpace.system_with`)."""
+        return self.space.system_with(values)
 
     def run(self, values: Mapping[str, Any], *, x0: Any = None, v0: Any = None,
             divergence_bound: float | None = None, stability_check: str | None = None) -> SimulationResult:
@@ -383,13 +384,13 @@ def simulate_batch(system: Any, parameter_sets: Any, t_final: float, dt: float, 
         Bad arguments; a set with unknown names (the allowed ones listed) or bad values, with its index.
     """
     sets = _parameter_sets(parameter_sets)
-    for index, values in enumerate(sets):
-        try:
-            sets[index] = parameter_values(system, values)
-        except ModelError as exc:
-            raise ModelError(f"parameter_sets[{index}]: {exc}") from None
     kernel = ParameterKernel(system, t_final, dt, store_every=store_every, inputs=inputs, references=references,
                              outputs=outputs, cache_dir=cache_dir)
+    for index, values in enumerate(sets):
+        try:
+            sets[index] = kernel.space.check(values)
+        except ModelError as exc:
+            raise ModelError(f"parameter_sets[{index}]: {exc}") from None
     kernel.scene()                                  # compiled (or loaded) once, before the sets
     start = {"x0": x0, "v0": v0, "divergence_bound": divergence_bound, "stability_check": stability_check}
     clock = time.perf_counter()

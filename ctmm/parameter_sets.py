@@ -40,7 +40,7 @@ from .planar.model import PlanarModel
 from .signals import SYMBOLIC_FIELDS
 from .spatial.model import SpatialModel
 
-__all__ = ["parameter_names", "parameter_values", "plant_and_loops", "with_parameters"]
+__all__ = ["ParameterSpace", "parameter_names", "parameter_values", "plant_and_loops", "with_parameters"]
 
 _HINGE_FIELDS = {"stiffness": ("stiffness", "kp"), "damping": ("damping", "kd"),
                  "reference": ("reference", "rest_angle"), "reference_rate": ("reference_rate",),
@@ -67,80 +67,121 @@ def plant_and_loops(system: Any) -> tuple[PlanarModel | SpatialModel, tuple]:
                      "kernel: build the chain with the numbers)")
 
 
+class ParameterSpace:
+    """The named numbers of one system (module docstring) and that system with other numbers.
+
+    Parameters
+    ----------
+    system : PlanarModel, SpatialModel or controlled model
+
+    Attributes
+    ----------
+    names : dict of str to (str, float)
+        ``{name: (unit, value)}`` a run may set, in the order of the kernel's parameter vector, the
+        loops' last.
+    """
+
+    def __init__(self, system: Any) -> None:
+        self.system = system
+        self.plant, self.loops = plant_and_loops(system)
+        plant = self.plant
+        if isinstance(plant, SpatialModel):
+            layout = spatial_parameter_layout(plant)
+            self._order = [entry.name for entry in layout]
+            self._layout = {entry.name: entry for entry in layout}
+            self.names = {entry.name: (entry.unit, entry.value) for entry in layout}
+            # entries of p whatever their value: the references of sprung joints
+            free = {entry.name for entry in layout if entry.kind == "reference"}
+        else:
+            from .fmu_export_model import parameter_names as planar_names
+
+            vector = parameter_vector(plant)
+            entries = planar_names(plant)
+            self._order = [name for name, _, _ in entries]
+            self._structure = structure_key(plant)
+            self.names = {name: (unit, float(value)) for (name, unit, exposed), value in zip(entries, vector)
+                          if exposed and value != 0.0}
+            free = set()
+        self._vector = spatial_parameter_vector(plant) if isinstance(plant, SpatialModel) else vector
+        self._gains = {f"{loop.name}.gain": loop.name for loop in self.loops if not loop.is_lti}
+        self.names.update({name: ("", float(self.loop(loop).gain)) for name, loop in self._gains.items()})
+        self._free = free | set(self._gains)
+
+    def loop(self, name: str) -> Any:
+        """The loop ``name`` of the system."""
+        return next(loop for loop in self.loops if loop.name == name)
+
+    def check(self, values: Mapping[str, Any]) -> dict[str, float]:
+        """``values`` checked against :attr:`names`: known names, finite numbers, none zero (a zero is a
+        constant of the code) but loop gains and spatial joint references."""
+        if not isinstance(values, Mapping):
+            raise ModelError(f"parameters must be a mapping {{name: number}}, got {values!r}")
+        checked = {}
+        for name, value in values.items():
+            if name not in self.names:
+                shown = ", ".join(list(self.names)[:60]) + (" ..." if len(self.names) > 60 else "")
+                raise ModelError(f"parameters: unknown parameter {name!r}; allowed: {shown or '(none)'} (numbers that "
+                                 "are zero in the model, geometry and the data of modal beams are constants of the "
+                                 "generated code: build a model with them instead)")
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not math.isfinite(value):
+                raise ModelError(f"parameters[{name!r}] must be a finite number [{self.names[name][0] or '-'}], got "
+                                 f"{value!r}")
+            if value == 0.0 and name not in self._free:
+                raise ModelError(f"parameters[{name!r}] = 0: a zero number is a constant 0 of the generated code (part "
+                                 "of its structure), not a parameter; build the model with it, or give a non-zero value")
+            checked[name] = float(value)
+        return checked
+
+    def system_with(self, values: Mapping[str, Any]) -> Any:
+        """The system with the numbers ``values`` (``{name: number}``), everything else the same: a
+        :class:`PlanarModel`, :class:`SpatialModel` or :class:`ControlledModel` of the same structure.
+
+        Raises
+        ------
+        ModelError
+            Unknown names (the allowed ones listed), non-finite or zero values, an element whose class
+            keeps the number where this class does not set it (certified, module docstring).
+        """
+        checked = self.check(values)
+        plant_values = {name: value for name, value in checked.items() if name not in self._gains}
+        if not plant_values:
+            changed = self.plant
+        elif isinstance(self.plant, SpatialModel):
+            changed = _spatial(self.plant, plant_values, self._layout)
+        else:
+            changed = _planar(self.plant, plant_values)
+        expected = self._vector.copy()
+        expected[[self._order.index(name) for name in plant_values]] = list(plant_values.values())
+        if isinstance(changed, SpatialModel):
+            same = [entry.name for entry in spatial_parameter_layout(changed)] == self._order
+            _certify(changed.name, spatial_parameter_vector(changed) if same else np.zeros(0), expected, same)
+        else:
+            _certify(changed.name, parameter_vector(changed), expected, structure_key(changed) == self._structure)
+        if not self.loops and self.system is self.plant:
+            return changed
+        gains = {self._gains[name]: value for name, value in checked.items() if name in self._gains}
+        loops = [loop.with_parameters(gain=gains[loop.name]) if loop.name in gains else loop for loop in self.loops]
+        return ControlledModel(changed, loops)
+
+
 def parameter_names(system: Any) -> dict[str, tuple[str, float]]:
     """``{name: (unit, value)}`` of the numbers of ``system`` that a run may set (module docstring), in
-    the order of the kernel's parameter vector, the loops' last."""
-    plant, loops = plant_and_loops(system)
-    if isinstance(plant, SpatialModel):
-        names = {entry.name: (entry.unit, entry.value) for entry in spatial_parameter_layout(plant)}
-    else:
-        from .fmu_export_model import parameter_names as planar_names
-
-        values = parameter_vector(plant)
-        names = {name: (unit, float(value)) for (name, unit, exposed), value in zip(planar_names(plant), values)
-                 if exposed and value != 0.0}
-    for loop in loops:
-        if not loop.is_lti:
-            names[f"{loop.name}.gain"] = ("", float(loop.gain))
-    return names
+    the order of the kernel's parameter vector, the loops' last (:class:`ParameterSpace`)."""
+    return ParameterSpace(system).names
 
 
 def parameter_values(system: Any, values: Mapping[str, Any]) -> dict[str, float]:
-    """``values`` checked against :func:`parameter_names` of ``system``: known names, finite numbers,
-    none zero (a zero is a constant of the code)."""
-    if not isinstance(values, Mapping):
-        raise ModelError(f"parameters must be a mapping {{name: number}}, got {values!r}")
-    allowed = parameter_names(system)
-    plant, loops = plant_and_loops(system)
-    # entries of p whatever their value: loop gains and the references of sprung spatial joints
-    free = {f"{loop.name}.gain" for loop in loops} | ({entry.name for entry in spatial_parameter_layout(plant)
-                                                       if entry.kind == "reference"}
-                                                      if isinstance(plant, SpatialModel) else set())
-    checked = {}
-    for name, value in values.items():
-        if name not in allowed:
-            shown = ", ".join(list(allowed)[:60]) + (" ..." if len(allowed) > 60 else "")
-            raise ModelError(f"parameters: unknown parameter {name!r}; allowed: {shown or '(none)'} (numbers that are "
-                             "zero in the model, geometry and the data of modal beams are constants of the generated "
-                             "code: build a model with them instead)")
-        if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not math.isfinite(value):
-            raise ModelError(f"parameters[{name!r}] must be a finite number [{allowed[name][0] or '-'}], got {value!r}")
-        if value == 0.0 and name not in free:
-            raise ModelError(f"parameters[{name!r}] = 0: a zero number is a constant 0 of the generated code (part of "
-                             "its structure), not a parameter; build the model with it, or give a non-zero value")
-        checked[name] = float(value)
-    return checked
+    """``values`` checked against :func:`parameter_names` of ``system`` (:meth:`ParameterSpace.check`)."""
+    return ParameterSpace(system).check(values)
 
 
 def with_parameters(system: Any, values: Mapping[str, Any]) -> Any:
-    """``system`` with the numbers ``values`` (``{name: number}``, :func:`parameter_names`), everything
-    else the same: a :class:`PlanarModel`, :class:`SpatialModel` or :class:`ControlledModel` of the
-    same structure.
-
-    Raises
-    ------
-    ModelError
-        Unknown names (the allowed ones listed), non-finite or zero values, an element whose class
-        keeps the number where this function does not set it (certified, module docstring).
-    """
-    checked = parameter_values(system, values)
-    plant, loops = plant_and_loops(system)
-    plant_values = {name: value for name, value in checked.items() if name not in
-                    {f"{loop.name}.gain" for loop in loops}}
-    changed = _spatial(plant, plant_values) if isinstance(plant, SpatialModel) else _planar(plant, plant_values)
-    if not loops and system is plant:
-        return changed
-    gains = {loop.name: checked[f"{loop.name}.gain"] for loop in loops if f"{loop.name}.gain" in checked}
-    new_loops = [loop.with_parameters(gain=gains[loop.name]) if loop.name in gains else loop for loop in loops]
-    return ControlledModel(changed, new_loops)
+    """``system`` with the numbers ``values`` (:meth:`ParameterSpace.system_with`)."""
+    return ParameterSpace(system).system_with(values)
 
 
 def _planar(model: PlanarModel, values: Mapping[str, float]) -> PlanarModel:
-    """The planar model with the named numbers replaced (certified against its parameter vector)."""
-    if not values:
-        return model
-    from .fmu_export_model import parameter_names as planar_names
-
+    """The planar model with the named numbers replaced (certified by the caller)."""
     elements = {element.name: element for element in model.elements}
     gravity = np.array(model.gravity, dtype=float)
     for name, value in values.items():
@@ -159,12 +200,7 @@ def _planar(model: PlanarModel, values: Mapping[str, float]) -> PlanarModel:
             loads = list(element.loads)
             loads[k] = _set_attribute(loads[k], (parts[1],), parts[2:], value, name)
             elements[owner] = dataclasses.replace(element, loads=tuple(loads))
-    changed = PlanarModel(model.name, [elements[element.name] for element in model.elements], gravity=gravity)
-    index = {entry[0]: k for k, entry in enumerate(planar_names(model))}
-    expected = parameter_vector(model)
-    expected[[index[name] for name in values]] = list(values.values())
-    _certify(model.name, parameter_vector(changed), expected, structure_key(changed) == structure_key(model))
-    return changed
+    return PlanarModel(model.name, [elements[element.name] for element in model.elements], gravity=gravity)
 
 
 def _set_attribute(element: Any, attributes: tuple[str, ...], field: list[str] | None, value: float,
@@ -185,11 +221,9 @@ def _set_attribute(element: Any, attributes: tuple[str, ...], field: list[str] |
     return dataclasses.replace(element, **{attribute: dataclasses.replace(current, **{chosen: value})})
 
 
-def _spatial(model: SpatialModel, values: Mapping[str, float]) -> SpatialModel:
-    """The spatial model with the named numbers replaced (certified against its parameter vector)."""
-    if not values:
-        return model
-    layout = {entry.name: entry for entry in spatial_parameter_layout(model)}
+def _spatial(model: SpatialModel, values: Mapping[str, float], layout: Mapping[str, Any]) -> SpatialModel:
+    """The spatial model with the named numbers (entries of ``layout`` by name) replaced (certified by the
+    caller)."""
     joints = list(model.joints)
     # a body's numbers are replaced at once (its inertia is checked as a whole, not entry by entry)
     bodies = [{"mass": body.mass, "inertia": np.array(body.inertia, dtype=float)} for body in model.bodies]
@@ -211,13 +245,7 @@ def _spatial(model: SpatialModel, values: Mapping[str, float]) -> SpatialModel:
                                                                 float(numbers[0])})
     touched = {layout[name].index for name in values if layout[name].kind in ("mass", "inertia")}
     bodies = [dataclasses.replace(body, **bodies[j]) if j in touched else body for j, body in enumerate(model.bodies)]
-    changed = SpatialModel(model.name, bodies + joints + list(model.loads), gravity=gravity)
-    order = list(layout)
-    expected = spatial_parameter_vector(model)
-    expected[[order.index(name) for name in values]] = list(values.values())
-    same = [entry.name for entry in spatial_parameter_layout(changed)] == order
-    _certify(model.name, spatial_parameter_vector(changed) if same else np.zeros(0), expected, same)
-    return changed
+    return SpatialModel(model.name, bodies + joints + list(model.loads), gravity=gravity)
 
 
 def _certify(name: str, got: np.ndarray, expected: np.ndarray, same_structure: bool) -> None:
