@@ -78,7 +78,9 @@ class ParameterKernel:
                  inputs: Mapping[str, Any] | None = None, references: Mapping[str, Any] | None = None,
                  outputs: Sequence[str] = (), cache_dir: Any = None) -> None:
         self.system = system
-        self.space = ParameterSpace(system)
+        if references is not None and not isinstance(references, Mapping):
+            raise ModelError(f"references must be a mapping {{loop: number or signal}}, got {references!r}")
+        self.space = ParameterSpace(system, references)
         self.plant, self.loops = self.space.plant, self.space.loops
         if dt is None:
             raise ModelError("dt is required with compiled=True (the generated RK4; a fixed step [s], > 0), got None")
@@ -160,6 +162,7 @@ class ParameterKernel:
             A diverging or non-finite run, with ``partial_result``.
         """
         member = self.member(values)                # checks the names and values
+        references = self.space.references_with(values)
         values = {name: float(value) for name, value in values.items()}
         plant, loops = plant_and_loops(member)
         policy = "warn" if stability_check is None else validation.option("stability_check", stability_check,
@@ -168,13 +171,13 @@ class ParameterKernel:
             if stability_check is not None:
                 raise ModelError(f"stability_check={stability_check!r} is not available for the generated RK4 of "
                                  "spatial models yet; leave it at None")
-            result = self._run_spatial(plant, loops, x0, v0, divergence_bound)
+            result = self._run_spatial(plant, loops, references, x0, v0, divergence_bound)
         else:
-            result = self._run_planar(plant, loops, x0, v0, divergence_bound, policy)
+            result = self._run_planar(plant, loops, references, x0, v0, divergence_bound, policy)
         result.info.update(parameters=dict(values), kernel="shared")
         return result
 
-    def _run_planar(self, plant: PlanarModel, loops: tuple, x0: Any, v0: Any, bound: Any,
+    def _run_planar(self, plant: PlanarModel, loops: tuple, references: dict, x0: Any, v0: Any, bound: Any,
                     policy: str) -> SimulationResult:
         from .compiled_control import simulate_controlled_generated
         from .compiled_scene import simulate_rk4_generated
@@ -193,16 +196,17 @@ class ParameterKernel:
                 raise
             return to_result(simulation, outputs=self.outputs, info={"dt": self.dt})
         controlled = ControlledModel(plant, loops)
-        scene = self._loop_scene(controlled, None, parameter_vector(plant))
+        scene = self._loop_scene(controlled, references, None, parameter_vector(plant))
         if structure_key(plant) != base.structure:
             raise ModelError(f"parameters: model {plant.name!r} with these numbers has another structure than the "
                              "compiled one; run it with ctmm.simulate without parameters=")
         return simulate_controlled_generated(controlled, q0, qdot0, t_final=self.t_final, dt=self.dt,
-                                             inputs=self.inputs, references=self.references, outputs=self.outputs,
+                                             inputs=self.inputs, references=references, outputs=self.outputs,
                                              store_every=self.store_every, divergence_bound=bound,
                                              stability_check=policy, scene=scene)
 
-    def _run_spatial(self, plant: SpatialModel, loops: tuple, x0: Any, v0: Any, bound: Any) -> SimulationResult:
+    def _run_spatial(self, plant: SpatialModel, loops: tuple, references: dict, x0: Any, v0: Any, bound: Any
+                     ) -> SimulationResult:
         from .compiled_control import simulate_spatial_controlled_generated
         from .compiled_spatial import simulate_spatial_generated
 
@@ -218,21 +222,21 @@ class ParameterKernel:
 
         controlled = ControlledModel(plant, loops)
         numbers = spatial_parameter_vector(plant)
-        scene = self._loop_scene(controlled, SpatialSymbols(plant, controlled.ports, numbers.size), numbers)
+        scene = self._loop_scene(controlled, references, SpatialSymbols(plant, controlled.ports, numbers.size), numbers)
         state = initial_state(plant, x0, v0)
         return simulate_spatial_controlled_generated(
             controlled, state[:plant.n_positions], state[plant.n_positions:], t_final=self.t_final, dt=self.dt,
-            inputs=self.inputs, references=self.references, outputs=self.outputs, store_every=self.store_every,
+            inputs=self.inputs, references=references, outputs=self.outputs, store_every=self.store_every,
             divergence_bound=bound, scene=scene)
 
-    def _loop_scene(self, controlled: ControlledModel, symbols: Any, numbers: np.ndarray) -> Any:
-        """The shared scene with loops for the set's ``controlled`` model: the same compiled functions, its
-        loop laws (:class:`~ctmm.compiled_loops.ClosedLoops`, numbers as inputs; they give the stored loop
-        signals) and its parameter column (the plant's ``numbers``, then the loops')."""
+    def _loop_scene(self, controlled: ControlledModel, references: dict, symbols: Any, numbers: np.ndarray) -> Any:
+        """The shared scene with loops for the set's ``controlled`` model and ``references``: the same compiled
+        functions, its loop laws (:class:`~ctmm.compiled_loops.ClosedLoops`, numbers as inputs; they give the
+        stored loop signals) and its parameter column (the plant's ``numbers``, then the loops')."""
         base = self.scene()
         scene = copy.copy(base)
         scene.controlled, scene.model = controlled, controlled.plant
-        scene.loops = ClosedLoops(controlled, base.actuators, self.step, self.references, self.inputs,
+        scene.loops = ClosedLoops(controlled, base.actuators, self.step, references, self.inputs,
                                   symbols=symbols, numbers="inputs")
         scene.parameters = np.concatenate([numbers, scene.loops.parameter_values])
         if scene.parameters.shape != base.parameters.shape or [entry[0] for entry in scene.loops.parameter_layout] \
@@ -285,8 +289,8 @@ def simulate_with_parameters(system: Any, parameters: Mapping[str, Any], options
     for name, default in _NOT_APPLICABLE.items():
         value = options.get(name, default)
         if value is not default and value != default:
-            raise ModelError(f"{name}={value!r} does not apply to a run with parameters= (the generated RK4 from t = 0); "
-                             f"leave {name} at {default!r}")
+            raise ModelError(f"{name}={value!r} does not apply to a run with parameters= (the generated RK4 from "
+                             f"t = 0); leave {name} at {default!r}")
     kernel = ParameterKernel(system, options["t_final"], options.get("dt"), store_every=options.get("store_every", 1),
                              inputs=options.get("inputs"), references=options.get("references"),
                              outputs=options.get("outputs", ()))

@@ -16,13 +16,16 @@ Names:
   and the data of modal beams stay constants of the code);
 * spatial plants: :func:`~ctmm.compiled_spatial_parameters.spatial_parameter_layout` (masses, non-zero
   inertia entries, 1-/2-DOF joint laws, gravity);
-* loops: ``"<loop>.gain"`` of every loop with a static gain.
+* loops: ``"<loop>.gain"`` of every loop with a static gain and, given the run's ``references``, each
+  loop's reference ``"<loop>.reference"`` (a number or constant) or ``"<loop>.reference.<field>"`` (a
+  :mod:`ctmm.signals` signal with a symbolic form: ``amplitude``, ``omega``, ``phase``, ...).
 
 A number that is zero in the system is a constant 0 of the generated code (part of its structure):
 it is not a parameter, and a parameter may not be set to 0 (refused, naming it) -- but loop gains and
-the references of sprung spatial joints, which are entries of ``p`` whatever their value.  Every built system
-is certified: its kernel parameter vector equals the original one with exactly the named entries
-replaced, else :class:`~ctmm.errors.ModelError` (never a silently different model).
+references and the references of sprung spatial joints, which are entries of ``p`` whatever their
+value.  Every built system is certified: its kernel parameter vector equals the original one with
+exactly the named entries replaced, else :class:`~ctmm.errors.ModelError` (never a silently different
+model).
 """
 from __future__ import annotations
 
@@ -37,7 +40,7 @@ from .compiled_spatial_parameters import INERTIA_ENTRIES, spatial_parameter_layo
 from .control.controlled_model import ControlledModel
 from .errors import ModelError
 from .planar.model import PlanarModel
-from .signals import SYMBOLIC_FIELDS
+from .signals import SYMBOLIC_FIELDS, as_signal, signal_parameters
 from .spatial.model import SpatialModel
 
 __all__ = ["ParameterSpace", "parameter_names", "parameter_values", "plant_and_loops", "with_parameters"]
@@ -73,6 +76,8 @@ class ParameterSpace:
     Parameters
     ----------
     system : PlanarModel, SpatialModel or controlled model
+    references : mapping, optional
+        ``{loop: number or signal}`` of a run (default 0): their fields are parameters too.
 
     Attributes
     ----------
@@ -81,7 +86,7 @@ class ParameterSpace:
         loops' last.
     """
 
-    def __init__(self, system: Any) -> None:
+    def __init__(self, system: Any, references: Mapping[str, Any] | None = None) -> None:
         self.system = system
         self.plant, self.loops = plant_and_loops(system)
         plant = self.plant
@@ -105,7 +110,17 @@ class ParameterSpace:
         self._vector = spatial_parameter_vector(plant) if isinstance(plant, SpatialModel) else vector
         self._gains = {f"{loop.name}.gain": loop.name for loop in self.loops if not loop.is_lti}
         self.names.update({name: ("", float(self.loop(loop).gain)) for name, loop in self._gains.items()})
-        self._free = free | set(self._gains)
+        self.references = dict(references or {})
+        self._signals = {loop.name: as_signal(f"references[{loop.name!r}]", self.references.get(loop.name, 0.0))
+                         for loop in self.loops}
+        self._fields: dict[str, tuple[str, str]] = {}          # name -> (loop, field of its reference)
+        for loop, signal in self._signals.items():
+            fields = SYMBOLIC_FIELDS.get(type(signal), ())
+            for field, value in zip(fields, signal_parameters(signal) or ()):
+                name = f"{loop}.reference" + (f".{field}" if len(fields) > 1 else "")
+                self._fields[name] = (loop, field)
+                self.names[name] = ("", float(value))
+        self._free = free | set(self._gains) | set(self._fields)
 
     def loop(self, name: str) -> Any:
         """The loop ``name`` of the system."""
@@ -128,7 +143,8 @@ class ParameterSpace:
                                  f"{value!r}")
             if value == 0.0 and name not in self._free:
                 raise ModelError(f"parameters[{name!r}] = 0: a zero number is a constant 0 of the generated code (part "
-                                 "of its structure), not a parameter; build the model with it, or give a non-zero value")
+                                 "of its structure), not a parameter; build the model with it, or give a non-zero "
+                                 "value")
             checked[name] = float(value)
         return checked
 
@@ -143,7 +159,8 @@ class ParameterSpace:
             keeps the number where this class does not set it (certified, module docstring).
         """
         checked = self.check(values)
-        plant_values = {name: value for name, value in checked.items() if name not in self._gains}
+        plant_values = {name: value for name, value in checked.items()
+                        if name not in self._gains and name not in self._fields}
         if not plant_values:
             changed = self.plant
         elif isinstance(self.plant, SpatialModel):
@@ -164,10 +181,23 @@ class ParameterSpace:
         return ControlledModel(changed, loops)
 
 
-def parameter_names(system: Any) -> dict[str, tuple[str, float]]:
+    def references_with(self, values: Mapping[str, Any]) -> dict[str, Any]:
+        """The run's references with the reference fields of ``values`` set (:meth:`check`ed)."""
+        signals = dict(self._signals)
+        changed = set()
+        for name, value in self.check(values).items():
+            if name in self._fields:
+                loop, field = self._fields[name]
+                signals[loop] = dataclasses.replace(signals[loop], **{field: value})
+                changed.add(loop)
+        return {**self.references, **{loop: signals[loop] for loop in changed}}
+
+
+def parameter_names(system: Any, references: Mapping[str, Any] | None = None) -> dict[str, tuple[str, float]]:
     """``{name: (unit, value)}`` of the numbers of ``system`` that a run may set (module docstring), in
-    the order of the kernel's parameter vector, the loops' last (:class:`ParameterSpace`)."""
-    return ParameterSpace(system).names
+    the order of the kernel's parameter vector, the loops' last (:class:`ParameterSpace`; ``references``
+    of a run add the loops' reference fields)."""
+    return ParameterSpace(system, references).names
 
 
 def parameter_values(system: Any, values: Mapping[str, Any]) -> dict[str, float]:
