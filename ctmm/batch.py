@@ -78,10 +78,6 @@ class ParameterKernel:
                  inputs: Mapping[str, Any] | None = None, references: Mapping[str, Any] | None = None,
                  outputs: Sequence[str] = (), cache_dir: Any = None) -> None:
         self.system = system
-        if references is not None and not isinstance(references, Mapping):
-            raise ModelError(f"references must be a mapping {{loop: number or signal}}, got {references!r}")
-        self.space = ParameterSpace(system, references)
-        self.plant, self.loops = self.space.plant, self.space.loops
         if dt is None:
             raise ModelError("dt is required with compiled=True (the generated RK4; a fixed step [s], > 0), got None")
         self.t_final, self.dt = validation.positive("t_final", t_final), validation.positive("dt", dt)
@@ -91,6 +87,8 @@ class ParameterKernel:
             if value is not None and not isinstance(value, Mapping):
                 raise ModelError(f"{label} must be a mapping {{name: number or signal}}, got {value!r}")
         self.inputs, self.references = dict(inputs or {}), dict(references or {})
+        self.space = ParameterSpace(system, references)
+        self.plant, self.loops = self.space.plant, self.space.loops
         if isinstance(outputs, (str, Mapping)) or not all(isinstance(name, str) for name in outputs):
             raise ModelError(f"outputs must be a list or tuple of sensor names (str), got {outputs!r}")
         self.outputs, self.cache_dir = tuple(outputs), cache_dir
@@ -145,6 +143,22 @@ class ParameterKernel:
             self.compile_time_s = time.perf_counter() - start
         return self._scene
 
+    def start(self, x0: Any, v0: Any) -> tuple[Any, Any]:
+        """The initial state checked once for every set (coordinates are part of the structure): planar
+        ``(q0, qdot0)`` arrays, spatial ``(x0, v0)`` as given (checked by :func:`initial_state`)."""
+        if isinstance(self.plant, SpatialModel):
+            initial_state(self.plant, x0, v0)
+            return x0, v0
+        return initial_coordinates(self.plant, _coordinates(self.plant, "x0", x0), _coordinates(self.plant, "v0", v0))
+
+    def policy(self, stability_check: str | None) -> str:
+        """The step-check policy of a run (``"warn"`` by default; spatial kernels have none yet)."""
+        if self.kind.startswith("spatial") and stability_check is not None:
+            raise ModelError(f"stability_check={stability_check!r} is not available for the generated RK4 of spatial "
+                             "models yet; leave it at None")
+        return "warn" if stability_check is None else validation.option("stability_check", stability_check,
+                                                                         ("warn", "error", "ignore"))
+
     def member(self, values: Mapping[str, Any]) -> Any:
         """The system with the numbers ``values`` (:meth:`ctmm.parameter_sets.ParameterSpace.system_with`)."""
         return self.space.system_with(values)
@@ -165,12 +179,11 @@ class ParameterKernel:
         references = self.space.references_with(values)
         values = {name: float(value) for name, value in values.items()}
         plant, loops = plant_and_loops(member)
-        policy = "warn" if stability_check is None else validation.option("stability_check", stability_check,
-                                                                           ("warn", "error", "ignore"))
+        policy = self.policy(stability_check)
+        if divergence_bound is not None:
+            divergence_bound = validation.positive("divergence_bound", divergence_bound)
+        x0, v0 = self.start(x0, v0)
         if self.kind.startswith("spatial"):
-            if stability_check is not None:
-                raise ModelError(f"stability_check={stability_check!r} is not available for the generated RK4 of "
-                                 "spatial models yet; leave it at None")
             result = self._run_spatial(plant, loops, references, x0, v0, divergence_bound)
         else:
             result = self._run_planar(plant, loops, references, x0, v0, divergence_bound, policy)
@@ -182,7 +195,7 @@ class ParameterKernel:
         from .compiled_control import simulate_controlled_generated
         from .compiled_scene import simulate_rk4_generated
 
-        q0, qdot0 = initial_coordinates(plant, _coordinates(plant, "x0", x0), _coordinates(plant, "v0", v0))
+        q0, qdot0 = x0, v0
         base = self.scene()
         if self.kind == "planar":
             try:
@@ -395,6 +408,9 @@ def simulate_batch(system: Any, parameter_sets: Any, t_final: float, dt: float, 
             sets[index] = kernel.space.check(values)
         except ModelError as exc:
             raise ModelError(f"parameter_sets[{index}]: {exc}") from None
+    kernel.start(x0, v0), kernel.policy(stability_check)        # bad arguments refused before any set runs
+    if divergence_bound is not None:
+        validation.positive("divergence_bound", divergence_bound)
     kernel.scene()                                  # compiled (or loaded) once, before the sets
     start = {"x0": x0, "v0": v0, "divergence_bound": divergence_bound, "stability_check": stability_check}
     clock = time.perf_counter()
