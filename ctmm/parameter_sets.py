@@ -128,7 +128,7 @@ class ParameterSpace:
 
     def check(self, values: Mapping[str, Any]) -> dict[str, float]:
         """``values`` checked against :attr:`names`: known names, finite numbers, none zero (a zero is a
-        constant of the code) but loop gains and spatial joint references."""
+        constant of the code) but loop gains and references and spatial joint references."""
         if not isinstance(values, Mapping):
             raise ModelError(f"parameters must be a mapping {{name: number}}, got {values!r}")
         checked = {}
@@ -179,7 +179,6 @@ class ParameterSpace:
         gains = {self._gains[name]: value for name, value in checked.items() if name in self._gains}
         loops = [loop.with_parameters(gain=gains[loop.name]) if loop.name in gains else loop for loop in self.loops]
         return ControlledModel(changed, loops)
-
 
     def references_with(self, values: Mapping[str, Any]) -> dict[str, Any]:
         """The run's references with the reference fields of ``values`` set (:meth:`check`ed)."""
