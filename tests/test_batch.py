@@ -88,12 +88,12 @@ def test_controlled_planar_gain_sweep_equals_the_numpy_loop_driver(tmp_path, mon
     references = {"pd": Harmonic(0.1, 7.0, 0.2)}
     assert {"pd.reference.amplitude", "pd.reference.omega", "late.reference"} <= set(
         ctmm.parameter_names(controlled_arm(4.0), references))
-    batch = ctmm.simulate_batch(controlled_arm(4.0), sets, T_FINAL, DT, x0=X0, v0=V0, references=references)
+    batch = ctmm.simulate_batch(controlled_arm(4.0), sets, 0.1, DT, x0=X0, v0=V0, references=references)
     assert not batch.failures and len(libraries(tmp_path)) == 1
     for k in range(2):
         model = controlled_arm(sets["pd.gain"][k], sets["rod.mass"][k])
         model = ControlledModel(model.plant, [model.loops[0], model.loops[1].with_parameters(gain=sets["late.gain"][k])])
-        numpy_run = ctmm.simulate(model, T_FINAL, DT, method="rk4", x0=X0, v0=V0,
+        numpy_run = ctmm.simulate(model, 0.1, DT, method="rk4", x0=X0, v0=V0,
                                   references={"pd": Harmonic(sets["pd.reference.amplitude"][k], 7.0, 0.2),
                                               "late": sets["late.reference"][k]})
         for name in ["rod.theta", "fore.theta_dot", "pd.u", "late.u", "late.y"]:
