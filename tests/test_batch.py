@@ -16,7 +16,9 @@ import ctmm.spatial as sp
 from ctmm.control import Feedback
 from ctmm.control.controlled_model import ControlledModel
 from ctmm.errors import ModelError, SimulationError
+from ctmm.flexible import ModalBeam
 from ctmm.planar import ActuatedHinge, Fixed, PlanarModel, RigidBody, SpringDamperHinge
+from ctmm.planar.elements import FixedMounting
 from ctmm.reference import spatial_tree as ref
 from ctmm.signals import Harmonic
 
@@ -74,6 +76,30 @@ def test_planar_sets_on_one_library_equal_models_built_with_their_numbers(tmp_pa
     assert len(libraries(tmp_path)) == 1
 
 
+def hub_beam(hub_inertia: float = 0.05, torque: float = 2.0) -> PlanarModel:
+    """A hub on a harmonic motor carrying a modal beam (3 modes, stiffening): the beam's data stay constants."""
+    beam = ModalBeam("beam", length=1.0, bending_stiffness=12.0, mass_per_length=0.8, n_modes=3,
+                     geometric_stiffening=True, damping_ratio=0.005)
+    return PlanarModel.chain("hub_beam", [
+        Fixed("ground"), ActuatedHinge("motor", torque=Harmonic(torque, 3.0, 0.0)),
+        RigidBody("hub", mass=2.0, inertia=hub_inertia, center_of_mass=(0.0, 0.0), outboard=(0.1, 0.0)),
+        FixedMounting("mount"), beam], gravity=(0.0, 0.0))
+
+
+def test_hub_beam_sets_keep_the_beam_and_equal_the_numpy_path(tmp_path, monkeypatch):
+    monkeypatch.setenv("CTMM_CACHE", str(tmp_path))
+    assert list(ctmm.parameter_names(hub_beam())) == ["hub.mass", "hub.inertia", "motor.law.torque.amplitude",
+                                                      "motor.law.torque.omega"]
+    sets = [(0.05, 2.0), (0.08, 3.5)]
+    batch = ctmm.simulate_batch(hub_beam(), [{"hub.inertia": inertia, "motor.law.torque.amplitude": torque}
+                                             for inertia, torque in sets], 0.1, 1e-3)
+    assert not batch.failures and len(libraries(tmp_path)) == 1
+    for k, (inertia, torque) in enumerate(sets):
+        numpy_run = ctmm.simulate(hub_beam(inertia, torque), 0.1, 1e-3, method="rk4")
+        for name in hub_beam().coordinates:
+            assert_round_off(batch.results[k][name], numpy_run[name], (k, name))
+
+
 def controlled_arm(gain: float, rod_mass: float = 1.0) -> ControlledModel:
     """The arm with a real-time PD on the shoulder and a delayed loop (3 steps) on the elbow."""
     loops = [Feedback("pd", [("rod.theta", 1.0), ("rod.omega", 0.3)], "pivot.torque", gain=gain),
@@ -129,6 +155,9 @@ def test_spatial_sets_on_one_library_equal_the_numpy_path_and_the_reference(tmp_
         numpy_run = ctmm.simulate(model, T_FINAL, DT, method="rk4", x0=q0, v0=v0)
         for name in list(model.coordinates) + list(model.velocities):
             assert_round_off(batch.results[k][name], numpy_run[name], (k, name))
+    single = ctmm.simulate(spatial_arm(), T_FINAL, DT, x0=q0, v0=v0, compiled=True, parameters=SPATIAL_SETS[1][0])
+    assert_round_off(single["j2.angle"], batch.results[1]["j2.angle"], "simulate(parameters=)", 1e-15)
+    assert len(libraries(tmp_path)) == 1
     model = spatial_arm(**SPATIAL_SETS[0][1])                    # the independent global reference
     run = ref.simulate(reference_tree(model), q0, v0, T_FINAL, DT)
     for i, name in enumerate(model.coordinates):
