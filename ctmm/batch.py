@@ -380,8 +380,9 @@ def simulate_batch(system: Any, parameter_sets: Any, t_final: float, dt: float, 
     x0, v0, inputs, references, outputs, store_every, divergence_bound, stability_check
         As :func:`ctmm.simulate` with ``compiled=True`` (the same for every set).
     executor : None, "threads", "processes" or Executor
-        Where the sets run (:func:`ctmm.executors.parallel_map`; process workers load the kernel from
-        the disk cache).  Each set also builds and checks its model and, on planar models, its step
+        Where the sets run (:func:`ctmm.executors.parallel_map`; a process worker receives the kernel
+        without its compiled scene and builds it again for each set from the disk cache: the C text is
+        generated again, nothing is compiled).  Each set also builds and checks its model and, on planar models, its step
         against the linearised RK4 limit (``stability_check="ignore"`` skips that), a few milliseconds
         to tens of milliseconds of Python per set (``benchmarks/batch_parameters.py``).
     progress : bool, optional
