@@ -25,7 +25,10 @@ progress output; a set that fails is reported with its index and exception and t
 from __future__ import annotations
 
 import copy
+import math
+import os
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
@@ -361,6 +364,12 @@ def _run_set(item: tuple) -> tuple:
         return None, exc
 
 
+def _run_chunk(item: tuple) -> list:
+    """:func:`_run_set` of each set of a chunk on one kernel (its scene built once per chunk in a worker)."""
+    kernel, chunk, start = item
+    return [_run_set((kernel, values, start)) for values in chunk]
+
+
 def simulate_batch(system: Any, parameter_sets: Any, t_final: float, dt: float, *, x0: Any = None, v0: Any = None,
                    inputs: Mapping[str, Any] | None = None, references: Mapping[str, Any] | None = None,
                    outputs: Sequence[str] = (), store_every: int = 1, divergence_bound: float | None = None,
@@ -380,9 +389,10 @@ def simulate_batch(system: Any, parameter_sets: Any, t_final: float, dt: float, 
     x0, v0, inputs, references, outputs, store_every, divergence_bound, stability_check
         As :func:`ctmm.simulate` with ``compiled=True`` (the same for every set).
     executor : None, "threads", "processes" or Executor
-        Where the sets run (:func:`ctmm.executors.parallel_map`; a process worker receives the kernel
-        without its compiled scene and builds it again for each set from the disk cache: the C text is
-        generated again, nothing is compiled).  Each set also builds and checks its model and, on planar models, its step
+        Where the sets run (:func:`ctmm.executors.parallel_map`): sequentially or on threads every set
+        runs on the one compiled scene; a process pool or another executor receives chunks of sets
+        (about four per CPU) and the kernel without its scene, which each chunk builds again from the disk
+        cache (the C text generated again, nothing compiled).  Each set also builds and checks its model and, on planar models, its step
         against the linearised RK4 limit (``stability_check="ignore"`` skips that), a few milliseconds
         to tens of milliseconds of Python per set (``benchmarks/batch_parameters.py``).
     progress : bool, optional
@@ -415,8 +425,15 @@ def simulate_batch(system: Any, parameter_sets: Any, t_final: float, dt: float, 
     kernel.scene()                                  # compiled (or loaded) once, before the sets
     start = {"x0": x0, "v0": v0, "divergence_bound": divergence_bound, "stability_check": stability_check}
     clock = time.perf_counter()
-    runs = parallel_map(_run_set, [(kernel, values, start) for values in sets], executor=executor,
-                        progress=progress, description="simulate_batch")
+    if executor is None or (isinstance(executor, str) and executor == "threads") or \
+            isinstance(executor, ThreadPoolExecutor):       # one scene shared by every set
+        runs = parallel_map(_run_set, [(kernel, values, start) for values in sets], executor=executor,
+                            progress=progress, description="simulate_batch")
+    else:           # workers receive the kernel without its scene: chunks of sets, one scene build each
+        size = max(1, math.ceil(len(sets) / (4 * (os.cpu_count() or 1))))
+        chunks = [(kernel, sets[k:k + size], start) for k in range(0, len(sets), size)]
+        runs = [run for chunk in parallel_map(_run_chunk, chunks, executor=executor, progress=progress,
+                                              description="simulate_batch (chunks of sets)") for run in chunk]
     wall = time.perf_counter() - clock
     return BatchResult(sets, [result for result, _ in runs],
                        {k: error for k, (_, error) in enumerate(runs) if error is not None},

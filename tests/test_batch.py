@@ -212,10 +212,13 @@ def test_a_body_inertia_is_set_as_a_whole():
 
 def test_sets_on_worker_processes_load_the_kernel_from_the_cache(tmp_path, monkeypatch):
     monkeypatch.setenv("CTMM_CACHE", str(tmp_path))
-    batch = ctmm.simulate_batch(arm(), {"fore.mass": [0.5, 0.9]}, 0.05, DT, x0=X0, executor="processes")
-    assert not batch.failures and len(libraries(tmp_path)) == 1
-    numpy_run = ctmm.simulate(arm(fore_mass=0.9), 0.05, DT, method="rk4", x0=X0)
-    assert_round_off(batch.stacked("fore.theta")[1], numpy_run["fore.theta"], "set 1 in a worker process")
+    sets = [{"fore.mass": 0.5}, {"pivot.law.torque.amplitude": 400.0}, {"fore.mass": 0.9}]
+    batch = ctmm.simulate_batch(arm(), sets, T_FINAL, DT, x0=X0, executor="processes", divergence_bound=2.0)
+    assert list(batch.failures) == [1] and isinstance(batch.failures[1], SimulationError)
+    assert batch.failures[1].time > 0.0 and batch.failures[1].partial_result is not None
+    assert len(libraries(tmp_path)) == 1
+    numpy_run = ctmm.simulate(arm(fore_mass=0.9), T_FINAL, DT, method="rk4", x0=X0)
+    assert_round_off(batch.stacked("fore.theta")[2], numpy_run["fore.theta"], "set 2 in a worker process")
 
 
 def test_bad_parameters_are_refused_by_name(tmp_path, monkeypatch):
