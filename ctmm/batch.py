@@ -391,10 +391,11 @@ def simulate_batch(system: Any, parameter_sets: Any, t_final: float, dt: float, 
     executor : None, "threads", "processes" or Executor
         Where the sets run (:func:`ctmm.executors.parallel_map`): sequentially or on threads every set
         runs on the one compiled scene; a process pool or another executor receives chunks of sets
-        (about four per CPU) and the kernel without its scene, which each chunk builds again from the disk
-        cache (the C text generated again, nothing compiled).  Each set also builds and checks its model and, on planar models, its step
-        against the linearised RK4 limit (``stability_check="ignore"`` skips that), a few milliseconds
-        to tens of milliseconds of Python per set (``benchmarks/batch_parameters.py``).
+        (about four per CPU) and the kernel without its scene, which each chunk builds again from the
+        disk cache (the C text generated again, nothing compiled).  Each set also builds and checks its
+        model and, on planar models, its step against the linearised RK4 limit
+        (``stability_check="ignore"`` skips that): milliseconds to tens of milliseconds of Python per
+        set (``benchmarks/batch_parameters.py``).
     progress : bool, optional
         Progress bar over the sets (default: on terminals from 50 sets).
     cache_dir : path, optional

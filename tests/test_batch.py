@@ -118,7 +118,8 @@ def test_controlled_planar_gain_sweep_equals_the_numpy_loop_driver(tmp_path, mon
     assert not batch.failures and len(libraries(tmp_path)) == 1
     for k in range(2):
         model = controlled_arm(sets["pd.gain"][k], sets["rod.mass"][k])
-        model = ControlledModel(model.plant, [model.loops[0], model.loops[1].with_parameters(gain=sets["late.gain"][k])])
+        late = model.loops[1].with_parameters(gain=sets["late.gain"][k])
+        model = ControlledModel(model.plant, [model.loops[0], late])
         numpy_run = ctmm.simulate(model, 0.1, DT, method="rk4", x0=X0, v0=V0,
                                   references={"pd": Harmonic(sets["pd.reference.amplitude"][k], 7.0, 0.2),
                                               "late": sets["late.reference"][k]})
