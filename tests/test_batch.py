@@ -244,5 +244,10 @@ def test_bad_parameters_are_refused_by_name(tmp_path, monkeypatch):
         ctmm.simulate_batch(spatial_arm(), [{"l0.mass": 2.0}], T_FINAL, DT, stability_check="error")
     with pytest.raises(ModelError, match="divergence_bound"):
         ctmm.simulate_batch(arm(), [{"rod.mass": 2.0}], T_FINAL, DT, divergence_bound=-1.0)
+    control = pytest.importorskip("control")
+    lagged = ControlledModel(arm(), [Feedback("lag", "fore.omega", "elbow.torque", gain=control.tf([2.0], [1.0, 5.0]))])
+    assert "lag.gain" not in ctmm.parameter_names(lagged) and "lag.reference" in ctmm.parameter_names(lagged)
+    with pytest.raises(ModelError, match=r"unknown parameter 'lag.gain'; allowed: .*elbow.stiffness"):
+        ctmm.simulate(lagged, T_FINAL, DT, compiled=True, parameters={"lag.gain": 3.0})
     with pytest.raises(ModelError, match="equally long 1-D columns"):
         ctmm.simulate_batch(arm(), {"rod.mass": [1.0, 2.0], "fore.mass": [1.0]}, T_FINAL, DT)
