@@ -18,9 +18,11 @@ from . import control, stability  # noqa: E402  (submodules used as ctmm.control
 from .fmu_export import export_fmu  # noqa: E402
 from . import sensitivity  # noqa: E402  (ctmm.sensitivity: exact derivatives for tuning)
 from . import interop  # noqa: E402  (ctmm.interop: python-control export of any model)
+from .batch import simulate_batch  # noqa: E402  (one generated kernel over parameter sets)
+from .parameter_sets import parameter_names  # noqa: E402
 
 __all__ = ["Chain", "simulate", "linearize", "LinearizedSystem", "characteristic_function", "frequency_response",
            "natural_frequencies", "mode_shapes", "eigenvalue_count",
            "steady_state_response", "signals", "ModelError", "SimulationError", "ConvergenceError",
            "SingularSystemError", "UnknownNameError", "control", "stability", "__version__", "load_scene", "export_fmu",
-           "sensitivity"]
+           "sensitivity", "simulate_batch", "parameter_names"]

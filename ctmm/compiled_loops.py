@@ -320,7 +320,8 @@ class ClosedLoops:
         :class:`ctmm.compiled_spatial_loops.SpatialSymbols`, :class:`ctmm.compiled_chain.ChainSymbols`).
     numbers : {"constants", "inputs"}
         The loops' gains, controller realisations and references as constants of the code, or as entries
-        of ``p`` after the plant's :func:`~ctmm.compiled_parameters.parameter_vector` (planar plants).
+        of ``p`` after the plant's numbers (planar: :func:`~ctmm.compiled_parameters.parameter_vector`; spatial:
+        ``symbols.parameter_count`` entries, :class:`~ctmm.compiled_spatial_loops.SpatialSymbols`).
 
     Attributes
     ----------
@@ -330,8 +331,8 @@ class ClosedLoops:
         index and its loads per unit output (extra inputs of the sweep after ``actuators``).
     n_controller_states : int
     plant_parameter_count : int
-        Length of the plant's :func:`~ctmm.compiled_parameters.parameter_vector` (the first entries of ``p``;
-        0 for other plants).
+        Length of the plant's numbers, the first entries of ``p`` (0 for a spatial plant with its numbers
+        in the code).
     parameter_layout : list of (str, str, float)
         ``(name, role, value)`` of the loop numbers that follow in ``p``
         (:func:`~ctmm.compiled_parameters.loop_parameter_layout`; empty with ``numbers="constants"``).
@@ -380,7 +381,8 @@ class ClosedLoops:
         self.nq, self.nv = symbols.n_positions, symbols.n_velocities
         self.base = self.nq + self.nv           # [q, v] (planar: v = qdot), then z and the ring
         self.position_rates = symbols.position_rates
-        self.plant_parameter_count = parameter_vector(plant).size if isinstance(plant, PlanarModel) else 0
+        self.plant_parameter_count = parameter_vector(plant).size if isinstance(plant, PlanarModel) else \
+            getattr(symbols, "parameter_count", 0) if numbers == "inputs" else 0
         self.parameter_layout = loop_parameter_layout(self.laws) if numbers == "inputs" else []
         self.parameter_values = np.array([value for _, _, value in self.parameter_layout], dtype=float)
         self.n_controller_states = sum(law.A.shape[0] for law in laws)

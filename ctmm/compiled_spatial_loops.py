@@ -17,7 +17,9 @@ spatial plant on symbols:
 * :func:`loop_acceleration` -- ``v_dot(q, v, u, p, t)`` with ``u`` one scalar per port actuator (joint
   torques and forces, body forces at points and moments), through the one articulated sweep;
 * :class:`CompiledControlledSpatial` -- the generated step, strides and blocks
-  (:mod:`ctmm.generated_loop`) of the closed loop, compiled once and cached by :mod:`ctmm.codegen`.
+  (:mod:`ctmm.generated_loop`) of the closed loop, compiled once and cached by :mod:`ctmm.codegen`;
+  with ``numbers="inputs"`` the plant's numbers (:mod:`ctmm.compiled_spatial_parameters`) and the loops'
+  gains, controllers and references are its input ``p`` (one library per structure, :mod:`ctmm.batch`).
 
 Refused by name (:class:`~ctmm.errors.ModelError`): the rotation-vector sensors
 ``"<body>.rotation_x|y|z"`` (their branch at ``|phi| = pi`` is not stated on symbols yet), what
@@ -34,7 +36,10 @@ import numpy as np
 
 from .codegen import load_casadi
 from .compiled_loops import ClosedLoops
+from .articulated import articulated_sweep
 from .compiled_spatial import DEFAULT_ROWS, SPATIAL_FLAGS, position_rates, spatial_compile_refusal
+from .compiled_spatial_parameters import (SpatialNumbers, parametrised_scene_terms, spatial_parameter_layout,
+                                          spatial_parameter_vector)
 from .control.controlled_model import ControlledModel
 from .errors import ModelError
 from .generated_loop import run_blocks, time_loop_functions
@@ -54,10 +59,12 @@ class SpatialSymbols:
     model : SpatialModel
     ports : SpatialPorts
         Its sensors and actuators.
+    parameter_count : int
+        Length of the plant's part of the parameter column ``p`` (0: its numbers are constants of the code).
     """
 
-    def __init__(self, model: SpatialModel, ports: SpatialPorts) -> None:
-        self.model, self.ports = model, ports
+    def __init__(self, model: SpatialModel, ports: SpatialPorts, parameter_count: int = 0) -> None:
+        self.model, self.ports, self.parameter_count = model, ports, parameter_count
         self.n_positions, self.n_velocities = model.n_positions, model.n_velocities
         self._states: tuple[Any, Any, list] | None = None
 
@@ -104,15 +111,17 @@ class SpatialSymbols:
         return state.velocity[c] + ca.cross(omega, arm)[c]
 
 
-def loop_acceleration(model: SpatialModel, ports: SpatialPorts, actuators: Sequence[str]) -> Any:
-    """``v_dot = acceleration(q, v, u, p, t)`` (a ``casadi.Function``, ``p`` empty) of ``model`` with
-    ``u`` one value per entry of ``actuators`` (port actuator names [N m, N]): joint actuators add to
-    their joint's input, body actuators are forces at their points and moments, world axes."""
+def loop_acceleration(model: SpatialModel, ports: SpatialPorts, actuators: Sequence[str], layout: Sequence[Any] = ()
+                      ) -> Any:
+    """``v_dot = acceleration(q, v, u, p, t)`` (a ``casadi.Function``) of ``model`` with ``u`` one value per
+    entry of ``actuators`` (port actuator names [N m, N]): joint actuators add to their joint's input, body
+    actuators are forces at their points and moments, world axes; ``p`` the numbers of ``layout``
+    (:func:`~ctmm.compiled_spatial_parameters.spatial_parameter_layout`; empty: the model's numbers in the code)."""
     import casadi as ca
 
     nq, nv = model.n_positions, model.n_velocities
     q, v, u = ca.SX.sym("q", nq), ca.SX.sym("v", nv), ca.SX.sym("u", len(actuators))
-    p, t = ca.SX.sym("p", 0), ca.SX.sym("t")
+    p, t = ca.SX.sym("p", len(layout)), ca.SX.sym("t")
     widths = {name: joint.velocity_count for joint in model.joints for name in joint.inputs}
     inputs: dict[str, Any] = {}
     loads: dict[tuple[int, tuple], Any] = {}
@@ -132,7 +141,11 @@ def loop_acceleration(model: SpatialModel, ports: SpatialPorts, actuators: Seque
     for (body, point), wrench in loads.items():
         wrenches.setdefault(body, []).append((np.asarray(point, float), wrench))
     scene = SpatialScene(model)
-    solution = scene.sweep(CASADI, q, v, 0.0, inputs, wrenches)
+    bodies, joints, states = scene.terms(CASADI, q, v, 0.0, inputs, wrenches)
+    if layout:                          # the numbers as inputs (ctmm.compiled_spatial_parameters)
+        bodies, joints = parametrised_scene_terms(model, SpatialNumbers(layout, p), bodies, joints, states, q, v,
+                                                  inputs, applied=list(wrenches))
+    solution = articulated_sweep(CASADI, scene.tree, bodies, joints)
     return ca.Function("loop_acceleration", [q, v, u, p, t], [ca.vertcat(*scene.velocity_rates(solution))])
 
 
@@ -151,6 +164,10 @@ class CompiledControlledSpatial:
         Steps per stored state; stored states per block call.
     cache_dir, compiler, flags
         Of :func:`ctmm.codegen.shared_library` (``flags`` default :data:`ctmm.compiled_spatial.SPATIAL_FLAGS`).
+    numbers : {"constants", "inputs"}
+        The plant's numbers (:func:`~ctmm.compiled_spatial_parameters.spatial_parameter_layout`) and the loops'
+        gains, controllers and references as constants of the code, or as the input ``p`` (one library per
+        structure; :mod:`ctmm.batch`).
 
     Attributes
     ----------
@@ -160,12 +177,15 @@ class CompiledControlledSpatial:
         Port actuators of the kernel (those of the loops and of ``inputs``).
     compile_time_s : float
         Building the expressions, generating C and compiling (or loading) [s].
+    parameters : ndarray
+        ``p``: the plant's numbers, then the loops' (:attr:`ClosedLoops.parameter_values`); empty with
+        ``numbers="constants"``.
     """
 
     def __init__(self, controlled: ControlledModel, dt: float, *, references: Mapping[str, Any] | None = None,
                  inputs: Mapping[str, Any] | None = None, store_every: int = 1, rows: int = DEFAULT_ROWS,
                  cache_dir: str | os.PathLike | None = None, compiler: str | None = None,
-                 flags: Sequence[str] | None = None) -> None:
+                 flags: Sequence[str] | None = None, numbers: str = "constants") -> None:
         if not isinstance(controlled, ControlledModel) or not isinstance(controlled.plant, SpatialModel):
             raise ModelError(f"CompiledControlledSpatial: controlled must be a ControlledModel of a spatial model, "
                              f"got {controlled!r}")
@@ -180,10 +200,13 @@ class CompiledControlledSpatial:
             ports.check_actuator(name, "inputs: actuator")
         self.controlled, self.model, self.store_every, self.rows = controlled, model, int(store_every), int(rows)
         self.actuators = tuple(dict.fromkeys(names))
+        layout = spatial_parameter_layout(model) if numbers == "inputs" else []
         self.loops = ClosedLoops(controlled, self.actuators, dt, references, inputs,
-                                 symbols=SpatialSymbols(model, ports))
-        acceleration = loop_acceleration(model, ports, self.actuators)
-        step = self.loops.step(acceleration, len(self.actuators), 0)
+                                 symbols=SpatialSymbols(model, ports, len(layout)), numbers=numbers)
+        self.parameters = np.concatenate([spatial_parameter_vector(model), self.loops.parameter_values]) \
+            if layout else np.zeros(0)
+        acceleration = loop_acceleration(model, ports, self.actuators, layout)
+        step = self.loops.step(acceleration, len(self.actuators), len(layout))
         stride, sizes, blocks = time_loop_functions(step, self.store_every, self.rows)
         name = (f"spatial_loops_{model.n_bodies}b{model.n_positions}q{len(self.loops.laws)}l"
                 f"{self.loops.n_controller_states}z{self.loops.ring_columns}r")
@@ -200,5 +223,5 @@ class CompiledControlledSpatial:
         stops after the first block holding a non-finite state."""
         first = self.loops.initial_state(np.asarray(q0, float), np.asarray(v0, float))
         states = run_blocks(self._blocks, self._stride, self._step, self.store_every, first[:, None],
-                            np.zeros(len(self.actuators)), dt, n_steps, 0.0, np.zeros((0, 1)))[0]
+                            np.zeros(len(self.actuators)), dt, n_steps, 0.0, self.parameters[:, None])[0]
         return first, states

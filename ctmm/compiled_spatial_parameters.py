@@ -13,7 +13,9 @@ laws of spherical, free and elastic joints stay constants.
 code: the terms are linear in the mass and the inertia (and in mass times gravity), so they are
 summed from :func:`~ctmm.spatial.body_forms.rigid_body_terms` of unit numbers on the same pose
 (unit mass, each unit inertia entry, each unit gravity component), which keeps the one statement of
-the Newton-Euler terms.  :func:`parametrised_joint_law` gives a joint's law on the symbols.
+the Newton-Euler terms.  :func:`parametrised_joint_law` gives a joint's law on the symbols, and
+:func:`parametrised_scene_terms` a whole scene's terms (used by :class:`~ctmm.compiled_spatial.SpatialRates`
+and by the loops of :class:`~ctmm.compiled_spatial_loops.CompiledControlledSpatial` with ``numbers="inputs"``).
 """
 from __future__ import annotations
 
@@ -28,7 +30,7 @@ from .spatial.body_forms import rigid_body_terms
 from .spatial.model import SpatialModel
 
 __all__ = ["INERTIA_ENTRIES", "LAW_KINDS", "SpatialNumbers", "SpatialParameter", "parametrised_body_terms",
-           "parametrised_joint_law", "spatial_parameter_layout", "spatial_parameter_vector"]
+           "parametrised_joint_law", "parametrised_scene_terms", "spatial_parameter_layout", "spatial_parameter_vector"]
 
 INERTIA_ENTRIES = (("xx", 0, 0), ("yy", 1, 1), ("zz", 2, 2), ("xy", 0, 1), ("xz", 0, 2), ("yz", 1, 2))
 """Names and (row, column) of the inertia entries (the tensor is symmetric)."""
@@ -182,3 +184,34 @@ def parametrised_joint_law(terms: JointTerms, law: Sequence[tuple[Any, Any, Any]
         tau = tau + u
     return replace(terms, tau=tau, tau_q=ca.diag(column([-k for k, _, _ in law])),
                    tau_v=ca.diag(column([-c for _, c, _ in law])))
+
+
+def parametrised_scene_terms(model: SpatialModel, numbers: SpatialNumbers, bodies: list, joints: list, states: list,
+                             q: Any, v: Any, inputs: Mapping[str, Any], applied: Sequence[int] = ()
+                             ) -> tuple[list, list]:
+    """A scene's body and joint terms (casadi, :meth:`~ctmm.spatial.body_forms.SpatialScene.terms` at the
+    symbols ``q``, ``v`` with the joint ``inputs``) with the numbers of ``numbers`` in place of the
+    model's: every rigid body by :func:`parametrised_body_terms`, every joint with a law by
+    :func:`parametrised_joint_law`.  The applied loads' part of a body's ``h`` -- of the model's loads and
+    of the bodies ``applied`` (indices; e.g. body-force actuators passed as ``wrenches`` to ``terms``) --
+    is kept from the numeric terms (their ``h`` less the terms without loads)."""
+    bodies, joints = list(bodies), list(joints)
+    loaded = {load.body for load in model.loads} | {model.bodies[j].name for j in applied}
+    for j, (body, joint, state) in enumerate(zip(model.bodies, model.joints, states)):
+        offset = state.origin - state.inboard if joint.kind in ("prismatic", "free", "elastic6") else None
+        pose = dict(center_of_mass=body.center_of_mass, points={name: body.points[name] for name in bodies[j].Kin},
+                    rotation=state.rotation, offset=offset, omega=state.omega)
+        extra = None
+        if body.name in loaded:        # the loads' part: the numeric terms less those without loads
+            extra = bodies[j].h - rigid_body_terms(CASADI, mass=body.mass, inertia=body.inertia,
+                                                   gravity=model.gravity, **pose).h
+        mass, inertia = numbers.body(j)
+        bodies[j] = parametrised_body_terms(mass, inertia, numbers.gravity, extra_h=extra, **pose)
+        count = joint.velocity_count
+        if numbers.has_law(j, count):
+            layout = model.layout[j]
+            joints[j] = parametrised_joint_law(
+                joints[j], numbers.law(j, count), [q[i] for i in range(layout.position.start, layout.position.stop)],
+                [v[i] for i in range(layout.velocity.start, layout.velocity.stop)],
+                inputs.get(joint.inputs[0]) if joint.inputs else None)
+    return bodies, joints

@@ -36,7 +36,7 @@ from . import validation
 from .capabilities import require_chain
 from .control.loops import ControlledChain
 from .control.planar_time import simulate_closed_loop
-from .control.protocol import Controller, check_controllers, check_references
+from .control.protocol import Controller, check_controllers, check_references, split_loop_references
 from .control.simulate import simulate_controlled
 from .errors import ModelError, SimulationError, unknown_name
 from .planar.closed_loops import KinematicLoopModel
@@ -45,10 +45,8 @@ from .planar.integrate import SCIPY_METHODS, PlanarSimulation, initial_coordinat
 from .planar.model import PlanarModel
 from .results import SimulationResult
 from .schemes import SCHEMES, Scheme, as_scheme
-from .spatial.implicit import simulate_spatial_implicit
-from .spatial.integrate import initial_state, simulate_spatial
 from .spatial.model import SpatialModel
-from .spatial.ports import SpatialPorts
+from .spatial_simulation import simulate_spatial_system
 from .system import Chain
 from .timestep import ForceHook
 from .timestep import simulate as simulate_chain
@@ -57,97 +55,6 @@ __all__ = ["simulate", "FIXED_STEP_METHODS"]
 
 FIXED_STEP_METHODS = ("rk4",)
 """Explicit fixed-step methods of :func:`simulate` (planar models)."""
-
-
-def _simulate_spatial(parts: tuple[SpatialModel, tuple], t_final: float, dt: float | None, *, method: Any, x0: Any,
-                      v0: Any, t0: float, inputs: Any, outputs: Sequence[str], controllers: list, references: dict,
-                      coupling: str, solver: str, fast: Any, force_hook: Any, progress: Any, stability_check: Any,
-                      divergence_bound: float | None, rtol: float, atol: float, max_step: float | None,
-                      store_every: int, compiled: Any) -> SimulationResult:
-    """:func:`simulate` of a :class:`~ctmm.spatial.model.SpatialModel` or a controlled one (RK4, ``solve_ivp`` or a
-    DT-TMM scheme; ``docs/spatial.md`` §6, §6a, §6b): loops, controllers, references, outputs or port actuator
-    inputs go to the one loop-closing driver :func:`~ctmm.control.planar_time.simulate_closed_loop`."""
-    model, loops = parts
-    unsupported = {"solver": (solver, "riccati"), "fast": (fast, None), "force_hook": (force_hook, None),
-                   "t0": (t0, 0.0)}
-    for name, (value, default) in unsupported.items():
-        if value is not default and value != default:
-            raise ModelError(f"{name}={value!r} is not available for spatial models yet (runs start at t = 0); "
-                             f"leave {name} at {default!r}")
-    if inputs is not None and not isinstance(inputs, Mapping):
-        raise ModelError(f"inputs must be a mapping {{actuator name: number or f(t)}}, got {inputs!r}")
-    port_inputs = any(name not in model.inputs for name in inputs or {})
-    controlled = bool(loops or controllers or references or tuple(outputs) or port_inputs)
-    closed = "loops, controllers, references, outputs and port actuator inputs"
-    if validation.flag("compiled", compiled, optional=True):        # the generated RK4 (ctmm.compiled_spatial)
-        if port_inputs and not (loops or controllers or references or tuple(outputs)):
-            known = SpatialPorts(model).actuators
-            for name in inputs:
-                if name not in model.inputs and name not in known:
-                    raise unknown_name("spatial input", name, list(model.inputs) + list(known))
-        if controllers:
-            raise ModelError("compiled=True does not take co-simulated controllers (Python objects, FMUs) of spatial "
-                             "models: they are sampled in Python between steps; run without compiled=True, or state "
-                             "the controller as Feedback loops")
-        if not isinstance(method, str) or method != "rk4":
-            raise ModelError(f"compiled=True runs the generated RK4 of a spatial model; got method={method!r}")
-        if controlled:                  # loops closed in the generated step (ctmm.compiled_spatial_loops)
-            from .compiled_control import simulate_spatial_controlled_generated
-            from .control.controlled_model import ControlledModel
-
-            for name in outputs:
-                SpatialPorts(model).check_sensor(name, "output (sensor)")
-            inputs, references = _loop_references(loops, inputs, references)
-            state = initial_state(model, x0, v0)
-            return simulate_spatial_controlled_generated(
-                ControlledModel(model, loops), state[:model.n_positions], state[model.n_positions:], t_final=t_final,
-                dt=dt, inputs=inputs, references=references, outputs=tuple(outputs), store_every=store_every,
-                divergence_bound=divergence_bound)
-        from .compiled_spatial import simulate_spatial_generated
-        return simulate_spatial_generated(model, t_final, dt, x0=x0, v0=v0, inputs=inputs, store_every=store_every,
-                                          divergence_bound=divergence_bound)
-    scheme = isinstance(method, Scheme) or method in SCHEMES     # the implicit DT-TMM (docs/spatial.md §6a)
-    if scheme:
-        solve_ivp_options = {"rtol": (rtol, 1e-8), "atol": (atol, 1e-10), "max_step": (max_step, None)}
-        for name, (value, default) in solve_ivp_options.items():
-            if value != default:
-                raise ModelError(f"{name}={value!r} applies to solve_ivp methods, not to the DT-TMM scheme {method!r}")
-    if scheme and not controlled:
-        for name, (value, default) in {"progress": (progress, None), "stability_check": (stability_check, None)}.items():
-            if value is not default and value != default:
-                raise ModelError(f"{name}={value!r} is not available for DT-TMM runs of spatial models yet; leave "
-                                 f"{name} at {default!r}")
-        return simulate_spatial_implicit(model, t_final, dt, scheme=method, x0=x0, v0=v0, inputs=inputs,
-                                         store_every=store_every, divergence_bound=divergence_bound)
-    if not isinstance(method, (str, Scheme)):
-        raise ModelError(f"method for a spatial model must be 'rk4', a solve_ivp method or a DT-TMM scheme "
-                         f"{tuple(SCHEMES)}, got {method!r}")
-    if controlled:
-        if isinstance(outputs, (str, Mapping)) or not isinstance(outputs, (list, tuple)):
-            raise ModelError(f"outputs must be a list or tuple of sensor names (str), got {outputs!r}")
-        ports = SpatialPorts(model)
-        for name in outputs:
-            ports.check_sensor(name, "output (sensor)")
-        if model.n_velocities == 0:
-            raise ModelError(f"model {model.name!r} has no coordinates (every joint is welded or driven): nothing "
-                             "to integrate")
-        inputs, references = _loop_references(loops, inputs, references)
-        state = initial_state(model, x0, v0)
-        policy = "warn" if stability_check is None else validation.option("stability_check", stability_check,
-                                                                           ("warn", "error", "ignore"))
-        return simulate_closed_loop(model, state[:model.n_positions], state[model.n_positions:], t_final, dt,
-                                    method=method, loops=loops, controllers=controllers, inputs=inputs,
-                                    references=references, outputs=tuple(outputs), coupling=coupling, rtol=rtol,
-                                    atol=atol, max_step=math.inf if max_step is None else max_step,
-                                    store_every=validation.integer("store_every", store_every, minimum=1),
-                                    progress=validation.flag("progress", progress, optional=True),
-                                    stability_check=policy, divergence_bound=divergence_bound)
-    for name, (value, default) in {"progress": (progress, None), "stability_check": (stability_check, None)}.items():
-        if value is not default and value != default:
-            raise ModelError(f"{name}={value!r} is not available for uncontrolled spatial models yet; leave {name} "
-                             f"at {default!r}")
-    return simulate_spatial(model, t_final, dt, method=method, x0=x0, v0=v0, inputs=inputs, rtol=rtol, atol=atol,
-                            max_step=max_step, store_every=store_every, divergence_bound=divergence_bound)
 
 
 def _model_parts(system: Any, kind: type) -> tuple[Any, tuple] | None:
@@ -223,8 +130,8 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
              references: Mapping[str, Any] | None = None, coupling: str = "hold", solver: str = "riccati",
              fast: bool | None = None, force_hook: ForceHook | None = None, progress: bool | None = None,
              stability_check: str | None = None, divergence_bound: float | None = None,
-             rtol: float = 1e-8, atol: float = 1e-10, max_step: float | None = None,
-             store_every: int = 1, compiled: bool | None = None) -> SimulationResult:
+             rtol: float = 1e-8, atol: float = 1e-10, max_step: float | None = None, store_every: int = 1,
+             compiled: bool | None = None, parameters: Mapping[str, float] | None = None) -> SimulationResult:
     """Simulate a chain, a planar or flexible model, with or without loops, in the time domain.
 
     Parameters
@@ -275,20 +182,20 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         ``fast=True`` runs ``"rk4"`` in compiled C (:func:`ctmm.planar.compiled.simulate_rk4_compiled`;
         revolute trees with constant hinge laws, no loops; same numbers to round-off).
     compiled : bool, optional
-        Planar, ``"rk4"``: ``True`` runs the RK4 time loop in C generated from the element
-        definitions (:func:`ctmm.compiled_scene.simulate_rk4_generated`; planar scenes -- rigid trees,
-        modal beams, hub-beam, hinge and load signals with a symbolic form; compiled once per structure
-        and cached on disk; same numbers as the numpy path to round-off).  A controlled planar model's
-        loops close inside the generated step (:func:`ctmm.compiled_control.simulate_controlled_generated`:
-        real-time loops at every stage, LTI controller states integrated, delayed loops with
-        ``delay = m dt`` from a ring of stored samples; references and inputs numbers or
-        :mod:`ctmm.signals` signals with a symbolic form).  What it cannot compile (user callables of
-        time, driven motions, translational hinge springs, delays that are not whole multiples of
-        ``dt``, beam station forces or moments, co-simulated controllers) raises :class:`ModelError`
-        naming it.  Spatial, ``"rk4"``: ``True`` runs the generated RK4 of
-        :func:`ctmm.compiled_spatial.simulate_spatial_generated` (inputs held numbers; same result as
-        the numpy path to round-off); with loops :func:`ctmm.compiled_control.simulate_spatial_controlled_generated`
-        (as planar; ``docs/spatial.md`` §6b).  Default: the numpy path.
+        Planar, ``"rk4"``: ``True`` runs the RK4 time loop in C generated from the element definitions
+        (:func:`ctmm.compiled_scene.simulate_rk4_generated`; planar scenes -- rigid trees, modal beams, hub-beam,
+        hinge and load signals with a symbolic form; compiled once per structure and cached on disk; same numbers as
+        the numpy path to round-off).  A controlled planar model's loops close inside the generated step
+        (:func:`ctmm.compiled_control.simulate_controlled_generated`: real-time loops at every stage, LTI controller
+        states integrated, delayed loops with ``delay = m dt`` from a ring of stored samples; references and inputs
+        numbers or :mod:`ctmm.signals` signals with a symbolic form).  What it cannot compile (user callables of time,
+        driven motions, translational hinge springs, delays that are not whole multiples of ``dt``, beam station
+        forces or moments, co-simulated controllers) raises :class:`ModelError` naming it.  Spatial, ``"rk4"``:
+        ``True`` runs the generated RK4 of :func:`ctmm.compiled_spatial.simulate_spatial_generated` (inputs held
+        numbers; the numpy path's result to round-off); with loops
+        :func:`ctmm.compiled_control.simulate_spatial_controlled_generated` (docs/spatial.md §6b).  Default: numpy.
+    parameters : mapping, optional
+        ``compiled=True``: ``{name: number}`` set at run time in the kernel compiled once (:mod:`ctmm.batch`).
     progress : bool, optional
         Show a progress bar (default: long runs on a terminal).
     stability_check : {"warn", "error", "ignore"}, optional
@@ -321,6 +228,9 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
     SimulationError
         A failed run (divergence, non-finite state, failing user code), with ``partial_result``.
     """
+    if parameters is not None:                  # a generated kernel's numbers at run time (ctmm.batch)
+        from .batch import simulate_with_parameters
+        return simulate_with_parameters(system, parameters, {**locals(), "method": _method(method, scheme, "rk4")})
     controllers = check_controllers(controllers)
     references = check_references(references)
     validation.step_budget(t_final, t0, dt)
@@ -339,7 +249,7 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
                                              "compiled": compiled})
     spatial = _model_parts(system, SpatialModel)
     if spatial is not None:
-        return _simulate_spatial(spatial, t_final, dt, method=_method(method, scheme, "rk4"), x0=x0, v0=v0, t0=t0,
+        return simulate_spatial_system(spatial, t_final, dt, method=_method(method, scheme, "rk4"), x0=x0, v0=v0, t0=t0,
                                  inputs=inputs, outputs=outputs, controllers=controllers, references=references,
                                  coupling=coupling, solver=solver, fast=fast, force_hook=force_hook, progress=progress,
                                  stability_check=stability_check, divergence_bound=divergence_bound, rtol=rtol,
@@ -405,7 +315,7 @@ def _simulate_chain_ode(system: Any, t_final: float, dt: float | None, *, method
     loops = system.loops if isinstance(system, ControlledChain) else ()
     if inputs is not None and not isinstance(inputs, Mapping):
         raise ModelError(f"inputs must be a mapping {{actuator name: number or f(t)}}, got {inputs!r}")
-    inputs, references = _loop_references(loops, inputs, references)
+    inputs, references = split_loop_references(loops, inputs, references)
     controlled = bool(loops) or bool(controllers) or bool(references) or bool(inputs)
     unsupported = {"solver": (solver, "riccati"), "fast": (fast, None), "force_hook": (force_hook, None)}
     if not controlled:
@@ -459,7 +369,7 @@ def _simulate_chain_generated(system: Any, t_final: float, dt: float | None, *, 
     if inputs is not None and not isinstance(inputs, Mapping):
         raise ModelError(f"inputs must be a mapping {{actuator name: number or signal}}, got {inputs!r}")
     loops = system.loops if isinstance(system, ControlledChain) else ()
-    inputs, references = _loop_references(loops, inputs, references)
+    inputs, references = split_loop_references(loops, inputs, references)
     for name in outputs:
         system.signal(name)
     from .compiled_chain import simulate_chain_generated
@@ -467,25 +377,6 @@ def _simulate_chain_generated(system: Any, t_final: float, dt: float | None, *, 
     return simulate_chain_generated(system, t_final, dt, x0=x0, v0=v0, inputs=inputs or None,
                                     references=references or None, outputs=tuple(outputs), store_every=store_every,
                                     divergence_bound=divergence_bound)
-
-
-def _loop_references(loops: Sequence[Any], inputs: Mapping[str, Any] | None, references: dict
-                     ) -> tuple[dict, dict]:
-    """Move ``"<loop>.reference"`` entries of ``inputs`` (the loop's input name in the frequency
-    domain) to ``references``; the same loop in both is an error."""
-    if not inputs:
-        return {}, references
-    names = {f"{loop.name}.reference": loop.name for loop in loops}
-    actuators, references = {}, dict(references)
-    for key, value in inputs.items():
-        if key in names:
-            if names[key] in references:
-                raise ModelError(f"loop {names[key]!r} has a reference in both inputs[{key!r}] and references; "
-                                 "give it once")
-            references[names[key]] = value
-        else:
-            actuators[key] = value
-    return actuators, references
 
 
 @contextlib.contextmanager
@@ -526,7 +417,7 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
             raise unknown_name("output (sensor)", name, sorted(known))
     if inputs is not None and not isinstance(inputs, Mapping):
         raise ModelError(f"inputs must be a mapping {{actuator name: number or f(t)}}, got {inputs!r}")
-    inputs, references = _loop_references(loops, inputs, references)
+    inputs, references = split_loop_references(loops, inputs, references)
     fast = validation.flag("fast", fast, optional=True)
     compiled = validation.flag("compiled", compiled, optional=True)
     if compiled and fast:

@@ -135,3 +135,36 @@ def check_references(references: Any) -> dict:
         if not isinstance(name, str):
             raise ModelError(f"references must be keyed by loop names (str), got the key {name!r}")
     return dict(references)
+
+
+def split_loop_references(loops: Any, inputs: Mapping[str, Any] | None, references: dict) -> tuple[dict, dict]:
+    """Move ``"<loop>.reference"`` entries of ``inputs`` (the loop's input name in the frequency
+    domain) to ``references``; the same loop in both is an error.
+
+    Parameters
+    ----------
+    loops : sequence of Feedback
+        The system's loops.
+    inputs : mapping or None
+        The run's ``inputs`` (actuator values and ``"<loop>.reference"`` entries).
+    references : dict
+        The run's checked ``references`` (:func:`check_references`).
+
+    Returns
+    -------
+    tuple of dict
+        ``(actuator inputs, references)``.
+    """
+    if not inputs:
+        return {}, references
+    names = {f"{loop.name}.reference": loop.name for loop in loops}
+    actuators, references = {}, dict(references)
+    for key, value in inputs.items():
+        if key in names:
+            if names[key] in references:
+                raise ModelError(f"loop {names[key]!r} has a reference in both inputs[{key!r}] and references; "
+                                 "give it once")
+            references[names[key]] = value
+        else:
+            actuators[key] = value
+    return actuators, references

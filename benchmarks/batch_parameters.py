@@ -1,0 +1,204 @@
+"""Parameter sets on one generated kernel (issue 13): ``ctmm.simulate_batch`` against one compile per set
+and against the numpy path.
+
+Rows (time and error together, ratios from one run, ``benchmarks/results/batch_parameters.json``), each
+a sweep of ``B`` parameter sets of one scene:
+
+1. **Planar chain** of N = 20 links on sprung, damped hinges (gravity): link masses and hinge stiffnesses.
+2. **Controlled planar double pendulum**: a real-time PD and a delayed loop (3 steps): loop gains and a mass.
+3. **Spatial chain** of N = 10 links on sprung revolute joints about alternating axes: masses, stiffnesses,
+   gravity.
+4. **Controlled spatial chain** (N = 6) with a joint-torque loop: its gain and masses.
+
+Columns per row: (a) ``simulate_batch`` from a fresh cache folder (one compile, then every set on the
+same library; wall time of the whole call, and its first compile); (b) one compile per set (each set's
+model through ``ctmm.simulate(..., compiled=True)`` in a fresh cache folder: numbers as constants for
+spatial models, the behaviour before this issue); (c) the numpy path (``ctmm.simulate`` without
+``compiled``).  (b) and (c) run on the first ``min(B, 4)`` sets and are given per set.  Errors: the
+largest difference of (a) and (b) from (c) over the stored coordinates of those sets, relative to their
+peak (round-off: the same RK4), and for row 3 of set 0 against the independent global reference
+``ctmm.reference.spatial_tree`` (its own RK4).  Ratios: per set, (b) and (c) over (a) with its compile
+spread over the sets, and (c) over the runs of (a) alone (what many sets tend to).
+
+Run: ``python benchmarks/batch_parameters.py [--quick]``.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+for path in (ROOT, ROOT / "tests"):
+    if str(path) not in sys.path:
+        sys.path.insert(0, str(path))
+
+import ctmm  # noqa: E402
+import ctmm.spatial as sp  # noqa: E402
+from ctmm.control import Feedback  # noqa: E402
+from ctmm.control.controlled_model import ControlledModel  # noqa: E402
+from ctmm.planar import Fixed, PlanarModel, RigidBody, SpringDamperHinge  # noqa: E402
+from ctmm.reference import spatial_tree as ref  # noqa: E402
+from spatial_linear_helpers import reference_tree  # noqa: E402
+
+
+def planar_chain(masses, stiffnesses) -> PlanarModel:
+    items: list = [Fixed("ground")]
+    for i, (mass, k) in enumerate(zip(masses, stiffnesses)):
+        items += [SpringDamperHinge(f"h{i}", stiffness=k, damping=0.05),
+                  RigidBody(f"l{i}", mass=mass, inertia=mass / 12.0, center_of_mass=(0.5, 0.0), outboard=(1.0, 0.0))]
+    return PlanarModel.chain("chain", items)
+
+
+def controlled_pendulum(pd_gain, late_gain, rod_mass) -> ControlledModel:
+    plant = planar_chain([rod_mass, 0.5], [0.5, 0.5])
+    loops = [Feedback("pd", [("l0.theta", 1.0), ("l0.omega", 0.3)], "h0.torque", gain=pd_gain),
+             Feedback("late", "h1.angle", "h1.torque", gain=late_gain, delay=3e-3)]
+    return ControlledModel(plant, loops)
+
+
+def spatial_chain(masses, stiffnesses, gravity_z=-9.81, actuated=False) -> sp.SpatialModel:
+    elements = []
+    for i, (mass, k) in enumerate(zip(masses, stiffnesses)):
+        elements.append(sp.SpatialBody(f"l{i}", mass, np.diag([0.01, 0.04, 0.045]) * mass, (0.25, 0.0, 0.0),
+                                       {"end": (0.5, 0.0, 0.0)}))
+        elements.append(sp.Revolute(name=f"j{i}", parent=None if i == 0 else f"l{i - 1}", child=f"l{i}",
+                                    point=(0.0, 0.0, 0.0) if i == 0 else "end", axis=(0, 1, 0) if i % 2 else (0, 0, 1),
+                                    stiffness=k, damping=0.05, actuated=actuated and i == 1))
+    return sp.SpatialModel("chain", elements, gravity=(0.0, 0.3, gravity_z))
+
+
+def controlled_spatial(gain, masses) -> ControlledModel:
+    return ControlledModel(spatial_chain(masses, [1.0] * len(masses), actuated=True),
+                           [Feedback("hold", "j1.angle", "j1.torque", gain=gain)])
+
+
+def scenes(quick: bool) -> list[dict]:
+    """Each scene: a builder of the system from a set's numbers, the sets (names and values), the run."""
+    rng = np.random.default_rng(13)
+    count = 4 if quick else 16
+    n_planar, n_spatial = (6, 4) if quick else (20, 10)
+    rows = []
+    masses = rng.uniform(0.5, 2.0, (count, n_planar))
+    stiff = rng.uniform(0.5, 5.0, (count, n_planar))
+    rows.append(dict(label=f"planar chain N = {n_planar}", t_final=0.5, dt=1e-3,
+                     sets=[{**{f"l{i}.mass": m[i] for i in range(n_planar)},
+                            **{f"l{i}.inertia": m[i] / 12.0 for i in range(n_planar)},
+                            **{f"h{i}.stiffness": k[i] for i in range(n_planar)}} for m, k in zip(masses, stiff)],
+                     build=lambda s: planar_chain([s[f"l{i}.mass"] for i in range(n_planar)],
+                                                  [s[f"h{i}.stiffness"] for i in range(n_planar)]),
+                     x0=np.full(n_planar, 0.2)))
+    gains = rng.uniform(2.0, 12.0, (count, 3))
+    rows.append(dict(label="controlled planar pendulum (PD + delayed loop)", t_final=0.5, dt=1e-3,
+                     sets=[{"pd.gain": g[0], "late.gain": -0.2 * g[1], "l0.mass": g[2] / 6.0,
+                            "l0.inertia": g[2] / 72.0} for g in gains],
+                     build=lambda s: controlled_pendulum(s["pd.gain"], s["late.gain"], s["l0.mass"]),
+                     x0=np.array([0.4, -0.3])))
+    masses = rng.uniform(0.5, 2.0, (count, n_spatial))
+    stiff = rng.uniform(0.5, 5.0, (count, n_spatial))
+    inertia = np.array([0.01, 0.04, 0.045])
+    rows.append(dict(label=f"spatial chain N = {n_spatial}", t_final=0.25, dt=1e-3, reference=True,
+                     sets=[{**{f"l{i}.mass": m[i] for i in range(n_spatial)},
+                            **{f"l{i}.inertia.{axis}": m[i] * inertia[a] for i in range(n_spatial)
+                               for a, axis in enumerate(("xx", "yy", "zz"))},
+                            **{f"j{i}.stiffness": k[i] for i in range(n_spatial)}, "gravity.z": -9.81 * m[0]}
+                           for m, k in zip(masses, stiff)],
+                     build=lambda s: spatial_chain([s[f"l{i}.mass"] for i in range(n_spatial)],
+                                                   [s[f"j{i}.stiffness"] for i in range(n_spatial)], s["gravity.z"]),
+                     x0=np.full(n_spatial, 0.2)))
+    rows.append(dict(label="controlled spatial chain N = 4 (joint-torque loop)", t_final=0.25, dt=1e-3,
+                     sets=[{"hold.gain": 4.0 * m[0], **{f"l{i}.mass": m[i] for i in range(4)},
+                            **{f"l{i}.inertia.{axis}": m[i] * inertia[a] for i in range(4)
+                               for a, axis in enumerate(("xx", "yy", "zz"))}} for m in masses],
+                     build=lambda s: controlled_spatial(s["hold.gain"], [s[f"l{i}.mass"] for i in range(4)]),
+                     x0=np.full(4, 0.2)))
+    return rows
+
+
+def coordinates(system) -> list[str]:
+    plant = getattr(system, "plant", system)
+    return list(plant.coordinates)
+
+
+def largest(runs, others, names) -> float:
+    worst = 0.0
+    for run, other in zip(runs, others):
+        for name in names:
+            scale = max(1.0, float(np.max(np.abs(other[name]))))
+            worst = max(worst, float(np.max(np.abs(run[name] - other[name]))) / scale)
+    return worst
+
+
+def measure(row: dict) -> dict:
+    sets, build, dt, t_final, x0 = row["sets"], row["build"], row["dt"], row["t_final"], row["x0"]
+    base = build(sets[0])
+    names = coordinates(base)
+    with tempfile.TemporaryDirectory() as folder:
+        os.environ["CTMM_CACHE"] = folder
+        start = time.perf_counter()
+        batch = ctmm.simulate_batch(base, sets, t_final, dt, x0=x0)
+        batch_wall = time.perf_counter() - start
+    assert not batch.failures, batch.failures
+    few = min(len(sets), 4)
+    separate, separate_wall = [], 0.0
+    for values in sets[:few]:
+        with tempfile.TemporaryDirectory() as folder:
+            os.environ["CTMM_CACHE"] = folder
+            start = time.perf_counter()
+            separate.append(ctmm.simulate(build(values), t_final, dt, x0=x0, compiled=True))
+            separate_wall += time.perf_counter() - start
+    numpy_runs, numpy_wall = [], 0.0
+    for values in sets[:few]:
+        start = time.perf_counter()
+        numpy_runs.append(ctmm.simulate(build(values), t_final, dt, x0=x0, method="rk4"))
+        numpy_wall += time.perf_counter() - start
+    out = {"scene": row["label"], "sets": len(sets), "steps": int(round(t_final / dt)),
+           "batch_wall_s": batch_wall, "batch_compile_s": batch.compile_time_s,
+           "batch_per_set_s": batch_wall / len(sets), "batch_runs_per_set_s": batch.wall_time_s / len(sets),
+           "separate_per_set_s": separate_wall / few, "numpy_per_set_s": numpy_wall / few,
+           "batch_error": largest(batch.results[:few], numpy_runs, names),
+           "separate_error": largest(separate, numpy_runs, names)}
+    out["ratio_separate_to_batch"] = out["separate_per_set_s"] / out["batch_per_set_s"]
+    out["ratio_numpy_to_batch"] = out["numpy_per_set_s"] / out["batch_per_set_s"]
+    out["ratio_numpy_to_batch_runs"] = out["numpy_per_set_s"] / out["batch_runs_per_set_s"]
+    if row.get("reference"):
+        model = build(sets[0])
+        run = ref.simulate(reference_tree(model), x0, np.zeros(len(x0)), t_final, dt)
+        scale = max(1.0, float(np.max(np.abs(run.q))))
+        out["reference_error"] = max(float(np.max(np.abs(batch.results[0][name] - run.q[:, i]))) / scale
+                                     for i, name in enumerate(names))
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="small scenes and 4 sets (a smoke run)")
+    args = parser.parse_args()
+    rows = [measure(row) for row in scenes(args.quick)]
+    for row in rows:
+        print(f"{row['scene']}: {row['sets']} sets x {row['steps']} steps | batch {row['batch_wall_s']:.2f} s "
+              f"(compile {row['batch_compile_s']:.2f} s, runs {row['batch_runs_per_set_s'] * 1e3:.1f} ms/set) | "
+              f"per set: batch {row['batch_per_set_s'] * 1e3:.1f} ms, separate compiles "
+              f"{row['separate_per_set_s'] * 1e3:.0f} ms ({row['ratio_separate_to_batch']:.1f}x), numpy "
+              f"{row['numpy_per_set_s'] * 1e3:.0f} ms ({row['ratio_numpy_to_batch']:.1f}x; "
+              f"{row['ratio_numpy_to_batch_runs']:.1f}x the runs alone) | error vs numpy: batch "
+              f"{row['batch_error']:.1e}, separate {row['separate_error']:.1e}"
+              + (f", batch vs reference {row['reference_error']:.1e}" if "reference_error" in row else ""))
+    if not args.quick:
+        target = ROOT / "benchmarks" / "results" / "batch_parameters.json"
+        target.write_text(json.dumps({"machine": platform.platform(), "python": platform.python_version(),
+                                      "cpus": os.cpu_count(), "rows": rows}, indent=2) + "\n")
+        print(f"written {target}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,458 @@
+"""One generated kernel run over parameter sets (issue 13): ``ctmm.simulate(..., compiled=True,
+parameters={...})`` and :func:`simulate_batch`.
+
+:class:`ParameterKernel` compiles the generated RK4 of a system once with its numbers as inputs and
+runs it for named parameter sets (:mod:`ctmm.parameter_sets`): each set builds the system with those
+numbers (certified), whose parameter vector enters the one compiled kernel and whose sensors and loop
+signals give the result, the same :class:`~ctmm.results.SimulationResult` as ``ctmm.simulate(member,
+compiled=True)``.
+
+=========================================  ============================================================
+system                                     kernel (compiled once, numbers as inputs ``p``)
+=========================================  ============================================================
+planar model                               :class:`~ctmm.compiled_scene.CompiledScene`, each set's model
+                                           through ``with_model``
+planar model with loops, ``inputs`` or     the scene of the controlled model; each set's loop laws
+``references``                             (gains as entries of ``p``) on the same compiled functions
+spatial model (held joint ``inputs``)      :class:`~ctmm.compiled_spatial.CompiledSpatialScene`
+spatial model with loops, port inputs,     :class:`~ctmm.compiled_spatial_loops.CompiledControlledSpatial`
+``references`` or ``outputs``              (plant numbers and loop gains in ``p``), each set's loop laws
+=========================================  ============================================================
+
+:func:`simulate_batch` runs the sets in a loop (or on any executor, :mod:`ctmm.executors`) with
+progress output; a set that fails is reported with its index and exception and the others are kept.
+"""
+from __future__ import annotations
+
+import copy
+import math
+import os
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from . import validation
+from .compiled_loops import ClosedLoops
+from .compiled_parameters import parameter_vector, structure_key
+from .compiled_spatial_parameters import spatial_parameter_vector
+from .control.controlled_model import ControlledModel
+from .errors import ModelError, SimulationError, unknown_name
+from .executors import parallel_map
+from .parameter_sets import ParameterSpace, plant_and_loops
+from .planar.integrate import initial_coordinates, step_total, to_result
+from .planar.model import PlanarModel
+from .results import SimulationResult
+from .spatial.integrate import initial_state
+from .spatial.model import SpatialModel
+
+__all__ = ["BatchResult", "ParameterKernel", "simulate_batch", "simulate_with_parameters"]
+
+
+class ParameterKernel:
+    """The generated RK4 of ``system`` with its numbers as inputs, compiled once, run per parameter set.
+
+    Parameters
+    ----------
+    system : PlanarModel, SpatialModel or ControlledModel
+        The structure (and the numbers not set by a parameter set).
+    t_final, dt : float
+        End time and step [s] (``t_final`` a whole multiple of ``dt``, as ``ctmm.simulate``).
+    store_every : int
+        Keep every ``store_every``-th step (the last one always).
+    inputs, references : mapping, optional
+        ``{actuator: value}`` and ``{loop: r}`` as in ``ctmm.simulate(..., compiled=True)`` (all sets).
+    outputs : sequence of str
+        Sensor names stored at every row.
+    cache_dir : path, optional
+        Of :func:`ctmm.codegen.shared_library`.
+
+    Attributes
+    ----------
+    kind : str
+        ``"planar"``, ``"planar loops"``, ``"spatial"`` or ``"spatial loops"`` (module table).
+    compile_time_s : float
+        Building (or loading) the shared kernel [s] (0 before the first run).
+    """
+
+    def __init__(self, system: Any, t_final: float, dt: float, *, store_every: int = 1,
+                 inputs: Mapping[str, Any] | None = None, references: Mapping[str, Any] | None = None,
+                 outputs: Sequence[str] = (), cache_dir: Any = None) -> None:
+        self.system = system
+        if dt is None:
+            raise ModelError("dt is required with compiled=True (the generated RK4; a fixed step [s], > 0), got None")
+        self.t_final, self.dt = validation.positive("t_final", t_final), validation.positive("dt", dt)
+        self.step = self.t_final / step_total(self.t_final, self.dt)
+        self.store_every = validation.integer("store_every", store_every, minimum=1)
+        for label, value in (("inputs", inputs), ("references", references)):
+            if value is not None and not isinstance(value, Mapping):
+                raise ModelError(f"{label} must be a mapping {{name: number or signal}}, got {value!r}")
+        self.inputs, self.references = dict(inputs or {}), dict(references or {})
+        self.space = ParameterSpace(system, references)
+        self.plant, self.loops = self.space.plant, self.space.loops
+        if isinstance(outputs, (str, Mapping)) or not all(isinstance(name, str) for name in outputs):
+            raise ModelError(f"outputs must be a list or tuple of sensor names (str), got {outputs!r}")
+        self.outputs, self.cache_dir = tuple(outputs), cache_dir
+        self._check_outputs()
+        spatial = isinstance(self.plant, SpatialModel)
+        port_inputs = spatial and any(name not in self.plant.inputs for name in self.inputs)
+        controlled = bool(self.loops or self.references or (self.inputs and not spatial) or port_inputs
+                          or (spatial and self.outputs))
+        self.kind = ("spatial" if spatial else "planar") + (" loops" if controlled else "")
+        self.compile_time_s = 0.0
+        self._scene: Any = None
+
+    def _check_outputs(self) -> None:
+        if isinstance(self.plant, SpatialModel):
+            from .spatial.ports import SpatialPorts
+
+            ports = SpatialPorts(self.plant)
+            for name in self.outputs:
+                ports.check_sensor(name, "output (sensor)")
+            return
+        from .planar.ports import sensor_names
+
+        known = sensor_names(self.plant)
+        for name in self.outputs:
+            if name not in known:
+                raise unknown_name("output (sensor)", name, sorted(known))
+
+    def __getstate__(self) -> dict:
+        """Picklable (process pools): the compiled scene is loaded again from the disk cache."""
+        return {**self.__dict__, "_scene": None}
+
+    def scene(self) -> Any:
+        """The shared compiled scene (numbers as inputs), built (or loaded from the cache) on first use."""
+        if self._scene is None:
+            from .compiled_scene import CompiledScene
+            from .compiled_spatial import CompiledSpatialScene
+            from .compiled_spatial_loops import CompiledControlledSpatial
+
+            start = time.perf_counter()
+            options = {"store_every": self.store_every, "cache_dir": self.cache_dir}
+            if self.kind == "planar":
+                self._scene = CompiledScene(self.plant, **options)
+            elif self.kind == "planar loops":
+                self._scene = CompiledScene(ControlledModel(self.plant, self.loops), dt=self.step,
+                                            references=self.references, signals=self.inputs, **options)
+            elif self.kind == "spatial":
+                self._scene = CompiledSpatialScene(self.plant, numbers="inputs", **options)
+            else:
+                self._scene = CompiledControlledSpatial(ControlledModel(self.plant, self.loops), self.step,
+                                                        references=self.references, inputs=self.inputs,
+                                                        numbers="inputs", **options)
+            self.compile_time_s = time.perf_counter() - start
+        return self._scene
+
+    def start(self, x0: Any, v0: Any) -> tuple[Any, Any]:
+        """The initial state checked once for every set (coordinates are part of the structure): planar
+        ``(q0, qdot0)`` arrays, spatial ``(x0, v0)`` as given (checked by :func:`initial_state`)."""
+        if isinstance(self.plant, SpatialModel):
+            initial_state(self.plant, x0, v0)
+            return x0, v0
+        return initial_coordinates(self.plant, _coordinates(self.plant, "x0", x0), _coordinates(self.plant, "v0", v0))
+
+    def policy(self, stability_check: str | None) -> str:
+        """The step-check policy of a run (``"warn"`` by default; spatial kernels have none yet)."""
+        if self.kind.startswith("spatial") and stability_check is not None:
+            raise ModelError(f"stability_check={stability_check!r} is not available for the generated RK4 of spatial "
+                             "models yet; leave it at None")
+        return "warn" if stability_check is None else validation.option("stability_check", stability_check,
+                                                                         ("warn", "error", "ignore"))
+
+    def member(self, values: Mapping[str, Any]) -> Any:
+        """The system with the numbers ``values`` (:meth:`ctmm.parameter_sets.ParameterSpace.system_with`)."""
+        return self.space.system_with(values)
+
+    def run(self, values: Mapping[str, Any], *, x0: Any = None, v0: Any = None,
+            divergence_bound: float | None = None, stability_check: str | None = None) -> SimulationResult:
+        """The run of the parameter set ``values`` (``{name: number}``) from ``x0``, ``v0`` (as
+        ``ctmm.simulate``): ``info["parameters"]`` the set, ``info["kernel"]`` ``"shared"``.
+
+        Raises
+        ------
+        ModelError
+            Bad names or values, a system the generated path refuses.
+        SimulationError
+            A diverging or non-finite run, with ``partial_result``.
+        """
+        member = self.member(values)                # checks the names and values
+        references = self.space.references_with(values)
+        values = {name: float(value) for name, value in values.items()}
+        plant, loops = plant_and_loops(member)
+        policy = self.policy(stability_check)
+        if divergence_bound is not None:
+            divergence_bound = validation.positive("divergence_bound", divergence_bound)
+        x0, v0 = self.start(x0, v0)
+        if self.kind.startswith("spatial"):
+            result = self._run_spatial(plant, loops, references, x0, v0, divergence_bound)
+        else:
+            result = self._run_planar(plant, loops, references, x0, v0, divergence_bound, policy)
+        result.info.update(parameters=dict(values), kernel="shared")
+        return result
+
+    def _run_planar(self, plant: PlanarModel, loops: tuple, references: dict, x0: Any, v0: Any, bound: Any,
+                    policy: str) -> SimulationResult:
+        from .compiled_control import simulate_controlled_generated
+        from .compiled_scene import simulate_rk4_generated
+
+        q0, qdot0 = x0, v0
+        base = self.scene()
+        if self.kind == "planar":
+            try:
+                simulation = simulate_rk4_generated(plant, q0, qdot0, t_final=self.t_final, dt=self.dt,
+                                                    store_every=self.store_every, divergence_bound=bound,
+                                                    stability_check=policy, scene=base.with_model(plant))
+            except SimulationError as exc:
+                if exc.partial_result is not None:
+                    exc.partial_result = to_result(exc.partial_result, outputs=self.outputs,
+                                                   info={"dt": self.dt, "failed": True})
+                raise
+            return to_result(simulation, outputs=self.outputs, info={"dt": self.dt})
+        controlled = ControlledModel(plant, loops)
+        scene = self._loop_scene(controlled, references, None, parameter_vector(plant))
+        if structure_key(plant) != base.structure:
+            raise ModelError(f"parameters: model {plant.name!r} with these numbers has another structure than the "
+                             "compiled one; run it with ctmm.simulate without parameters=")
+        return simulate_controlled_generated(controlled, q0, qdot0, t_final=self.t_final, dt=self.dt,
+                                             inputs=self.inputs, references=references, outputs=self.outputs,
+                                             store_every=self.store_every, divergence_bound=bound,
+                                             stability_check=policy, scene=scene)
+
+    def _run_spatial(self, plant: SpatialModel, loops: tuple, references: dict, x0: Any, v0: Any, bound: Any
+                     ) -> SimulationResult:
+        from .compiled_control import simulate_spatial_controlled_generated
+        from .compiled_spatial import simulate_spatial_generated
+
+        if self.kind == "spatial":
+            scene = copy.copy(self.scene())     # the same compiled functions with this set's numbers
+            scene.model, scene.parameters = plant, spatial_parameter_vector(plant)
+            if scene.parameters.shape != self.scene().parameters.shape:
+                raise ModelError(f"parameters: model {plant.name!r} with these numbers has another parameter layout "
+                                 "than the compiled one; run it with ctmm.simulate without parameters=")
+            return simulate_spatial_generated(plant, self.t_final, self.dt, x0=x0, v0=v0, inputs=self.inputs or None,
+                                              store_every=self.store_every, divergence_bound=bound, scene=scene)
+        from .compiled_spatial_loops import SpatialSymbols
+
+        controlled = ControlledModel(plant, loops)
+        numbers = spatial_parameter_vector(plant)
+        scene = self._loop_scene(controlled, references, SpatialSymbols(plant, controlled.ports, numbers.size), numbers)
+        state = initial_state(plant, x0, v0)
+        return simulate_spatial_controlled_generated(
+            controlled, state[:plant.n_positions], state[plant.n_positions:], t_final=self.t_final, dt=self.dt,
+            inputs=self.inputs, references=references, outputs=self.outputs, store_every=self.store_every,
+            divergence_bound=bound, scene=scene)
+
+    def _loop_scene(self, controlled: ControlledModel, references: dict, symbols: Any, numbers: np.ndarray) -> Any:
+        """The shared scene with loops for the set's ``controlled`` model and ``references``: the same compiled
+        functions, its loop laws (:class:`~ctmm.compiled_loops.ClosedLoops`, numbers as inputs; they give the
+        stored loop signals) and its parameter column (the plant's ``numbers``, then the loops')."""
+        base = self.scene()
+        scene = copy.copy(base)
+        scene.controlled, scene.model = controlled, controlled.plant
+        scene.loops = ClosedLoops(controlled, base.actuators, self.step, references, self.inputs,
+                                  symbols=symbols, numbers="inputs")
+        scene.parameters = np.concatenate([numbers, scene.loops.parameter_values])
+        if scene.parameters.shape != base.parameters.shape or [entry[0] for entry in scene.loops.parameter_layout] \
+                != [entry[0] for entry in base.loops.parameter_layout]:
+            raise ModelError(f"parameters: the controlled model of {controlled.plant.name!r} with these numbers has "
+                             "another structure than the compiled one; run it with ctmm.simulate without parameters=")
+        return scene
+
+
+def _coordinates(model: PlanarModel, label: str, value: Any) -> Any:
+    """Initial coordinates or rates of a planar model: ``None`` (zeros), ``{coordinate: value}`` or an
+    array in the order of ``model.coordinates``."""
+    if value is None:
+        return np.zeros(model.n_coordinates)
+    if not isinstance(value, Mapping):
+        return value
+    out = np.zeros(model.n_coordinates)
+    for key, number in value.items():
+        if key not in model.coordinates:
+            raise unknown_name(f"coordinate of {label}", key, list(model.coordinates))
+        out[model.coordinate_index(key)] = validation.finite(f"{label}[{key!r}]", number)
+    return out
+
+
+_NOT_APPLICABLE = {"t0": 0.0, "coupling": "hold", "solver": "riccati", "fast": None, "force_hook": None,
+                   "rtol": 1e-8, "atol": 1e-10, "max_step": None, "progress": None}
+"""Options of ``ctmm.simulate`` that a run with ``parameters`` leaves at their defaults."""
+
+
+def simulate_with_parameters(system: Any, parameters: Mapping[str, Any], options: Mapping[str, Any]
+                             ) -> SimulationResult:
+    """``ctmm.simulate(system, ..., compiled=True, parameters=parameters)``: the run of one parameter set
+    on the kernel of ``system`` with its numbers as inputs (:class:`ParameterKernel`); ``options`` the
+    other arguments of :func:`ctmm.simulate` by name (``method`` resolved).
+
+    Raises
+    ------
+    ModelError
+        ``compiled`` not True, a method other than ``"rk4"``, co-simulated controllers, options that do
+        not apply (named), unknown parameter names (the allowed ones listed), bad values.
+    """
+    if options.get("compiled") is not True:
+        raise ModelError(f"parameters= sets the numbers of a generated kernel at run time; give compiled=True (got "
+                         f"compiled={options.get('compiled')!r}), or build the model with these numbers")
+    if options.get("method") != "rk4":
+        raise ModelError(f"parameters= runs the generated RK4; got method={options.get('method')!r}")
+    if options.get("controllers"):
+        raise ModelError("parameters= does not take co-simulated controllers (they sample in Python); state them as "
+                         "Feedback loops")
+    for name, default in _NOT_APPLICABLE.items():
+        value = options.get(name, default)
+        if value is not default and value != default:
+            raise ModelError(f"{name}={value!r} does not apply to a run with parameters= (the generated RK4 from "
+                             f"t = 0); leave {name} at {default!r}")
+    kernel = ParameterKernel(system, options["t_final"], options.get("dt"), store_every=options.get("store_every", 1),
+                             inputs=options.get("inputs"), references=options.get("references"),
+                             outputs=options.get("outputs", ()))
+    return kernel.run(parameters, x0=options.get("x0"), v0=options.get("v0"),
+                      divergence_bound=options.get("divergence_bound"), stability_check=options.get("stability_check"))
+
+
+@dataclass
+class BatchResult:
+    """The runs of :func:`simulate_batch`.
+
+    Attributes
+    ----------
+    parameter_sets : list of dict
+        ``{name: number}`` of each set, in order.
+    results : list of SimulationResult or None
+        One per set (``None`` where it failed).
+    failures : dict of int to Exception
+        The exception of each failed set by index (a :class:`~ctmm.errors.SimulationError` carries
+        its ``partial_result``).
+    compile_time_s : float
+        Building or loading the shared kernel, once [s].
+    wall_time_s : float
+        All runs [s].
+    """
+
+    parameter_sets: list
+    results: list
+    failures: dict = field(default_factory=dict)
+    compile_time_s: float = 0.0
+    wall_time_s: float = 0.0
+
+    @property
+    def time(self) -> np.ndarray:
+        """Times of the stored rows [s] (of the first set that ran; every set has the same grid)."""
+        done = [result for result in self.results if result is not None]
+        return done[0].time if done else np.zeros(0)
+
+    def stacked(self, name: str) -> np.ndarray:
+        """Signal ``name`` of every set, ``(sets, rows)``; rows of failed sets NaN."""
+        rows = len(self.time)
+        out = np.full((len(self.results), rows), np.nan)
+        for k, result in enumerate(self.results):
+            if result is not None:
+                out[k] = result[name]
+        return out
+
+
+def _run_set(item: tuple) -> tuple:
+    """``(result, None)`` or ``(None, exception)`` of one set (module level: picklable)."""
+    kernel, values, start = item
+    try:
+        return kernel.run(values, **start), None
+    except Exception as exc:  # noqa: BLE001 - a failed set is reported with its index, the others kept
+        return None, exc
+
+
+def _run_chunk(item: tuple) -> list:
+    """:func:`_run_set` of each set of a chunk on one kernel (its scene built once per chunk in a worker)."""
+    kernel, chunk, start = item
+    return [_run_set((kernel, values, start)) for values in chunk]
+
+
+def simulate_batch(system: Any, parameter_sets: Any, t_final: float, dt: float, *, x0: Any = None, v0: Any = None,
+                   inputs: Mapping[str, Any] | None = None, references: Mapping[str, Any] | None = None,
+                   outputs: Sequence[str] = (), store_every: int = 1, divergence_bound: float | None = None,
+                   stability_check: str | None = None, executor: Any = None, progress: bool | None = None,
+                   cache_dir: Any = None) -> BatchResult:
+    """Generated RK4 runs of ``system`` for a batch of parameter sets, compiled once.
+
+    Parameters
+    ----------
+    system : PlanarModel, SpatialModel or controlled model
+        The structure; its numbers not named in a set stay.
+    parameter_sets : sequence of mappings, or mapping of str to sequence
+        ``[{name: number}, ...]`` or ``{name: [number per set]}`` (:func:`ctmm.parameter_names`:
+        ``"<body>.mass"``, ``"<joint>.stiffness"``, ``"gravity.y"``, ``"<loop>.gain"``, ... in SI units).
+    t_final, dt : float
+        End time and step [s].
+    x0, v0, inputs, references, outputs, store_every, divergence_bound, stability_check
+        As :func:`ctmm.simulate` with ``compiled=True`` (the same for every set).
+    executor : None, "threads", "processes" or Executor
+        Where the sets run (:func:`ctmm.executors.parallel_map`): sequentially or on threads every set
+        runs on the one compiled scene; a process pool or another executor receives chunks of sets
+        (about four per CPU) and the kernel without its scene, which each chunk builds again from the
+        disk cache (the C text generated again, nothing compiled).  Each set also builds and checks its
+        model and, on planar models, its step against the linearised RK4 limit
+        (``stability_check="ignore"`` skips that): milliseconds to tens of milliseconds of Python per
+        set (``benchmarks/batch_parameters.py``).
+    progress : bool, optional
+        Progress bar over the sets (default: on terminals from 50 sets).
+    cache_dir : path, optional
+        Of :func:`ctmm.codegen.shared_library`.
+
+    Returns
+    -------
+    BatchResult
+        One :class:`~ctmm.results.SimulationResult` per set (``info["parameters"]``), the failures by
+        index, :meth:`BatchResult.stacked` signals.
+
+    Raises
+    ------
+    ModelError
+        Bad arguments; a set with unknown names (the allowed ones listed) or bad values, with its index.
+    """
+    sets = _parameter_sets(parameter_sets)
+    kernel = ParameterKernel(system, t_final, dt, store_every=store_every, inputs=inputs, references=references,
+                             outputs=outputs, cache_dir=cache_dir)
+    for index, values in enumerate(sets):
+        try:
+            sets[index] = kernel.space.check(values)
+        except ModelError as exc:
+            raise ModelError(f"parameter_sets[{index}]: {exc}") from None
+    kernel.start(x0, v0), kernel.policy(stability_check)        # bad arguments refused before any set runs
+    if divergence_bound is not None:
+        validation.positive("divergence_bound", divergence_bound)
+    kernel.scene()                                  # compiled (or loaded) once, before the sets
+    start = {"x0": x0, "v0": v0, "divergence_bound": divergence_bound, "stability_check": stability_check}
+    clock = time.perf_counter()
+    if executor is None or (isinstance(executor, str) and executor == "threads") or \
+            isinstance(executor, ThreadPoolExecutor):       # one scene shared by every set
+        runs = parallel_map(_run_set, [(kernel, values, start) for values in sets], executor=executor,
+                            progress=progress, description="simulate_batch")
+    else:           # workers receive the kernel without its scene: chunks of sets, one scene build each
+        size = max(1, math.ceil(len(sets) / (4 * (os.cpu_count() or 1))))
+        chunks = [(kernel, sets[k:k + size], start) for k in range(0, len(sets), size)]
+        runs = [run for chunk in parallel_map(_run_chunk, chunks, executor=executor, progress=progress,
+                                              description="simulate_batch (chunks of sets)") for run in chunk]
+    wall = time.perf_counter() - clock
+    return BatchResult(sets, [result for result, _ in runs],
+                       {k: error for k, (_, error) in enumerate(runs) if error is not None},
+                       kernel.compile_time_s, wall)
+
+
+def _parameter_sets(parameter_sets: Any) -> list[dict]:
+    """A list of ``{name: number}`` from a sequence of mappings or a mapping of columns."""
+    if isinstance(parameter_sets, Mapping):
+        columns = {name: np.atleast_1d(np.asarray(values, dtype=float)) for name, values in parameter_sets.items()}
+        lengths = {column.shape for column in columns.values()}
+        if len(lengths) != 1 or len(next(iter(lengths))) != 1 or next(iter(lengths))[0] < 1:
+            raise ModelError(f"parameter_sets as a mapping must hold equally long 1-D columns {{name: [value per "
+                             f"set]}}, got shapes {sorted(lengths)}")
+        count = next(iter(lengths))[0]
+        return [{name: float(column[k]) for name, column in columns.items()} for k in range(count)]
+    if isinstance(parameter_sets, (str, bytes)) or not isinstance(parameter_sets, Sequence) or not parameter_sets \
+            or not all(isinstance(values, Mapping) for values in parameter_sets):
+        raise ModelError(f"parameter_sets must be a non-empty sequence of mappings {{name: number}} or a mapping "
+                         f"{{name: [value per set]}}, got {parameter_sets!r}")
+    return [dict(values) for values in parameter_sets]
