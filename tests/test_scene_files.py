@@ -159,7 +159,7 @@ def test_small_scene_runs_natural_frequencies(tmp_path):
     ('verb = "natural_frequencies"\nn_modes = 1', 'verb = "simulate"', 23, "study",
      ["simulate needs the key(s) t_final"]),
     ('name = "end"', 'name = "end"\n\n[outputs]\nplot = ["m.x"]', 23, "outputs", ["unknown table 'outputs'",
-                                                                               "system, loops, study, output"]),
+                                                                               "system, loops, controllers, study, output"]),
     ("mass = 1.0", 'mass = 1.0\nforce = { type = "Harmonc", amplitude = 1.0 }', 18, "system.elements[2].force.type",
      ["unknown value type 'Harmonc'", "Harmonic"]),
     ("mass = 1.0", 'mass = 1.0\nforce = { python = "ctmm.signals:nothing_here" }', 18,
@@ -187,8 +187,8 @@ def test_mistakes_name_line_key_and_allowed_values(tmp_path, old, new, line, key
 def test_not_toml_bad_name_and_missing_file(tmp_path):
     with pytest.raises(SceneError, match=r"not valid TOML: .*line 3"):
         load_scene(_write(tmp_path, '[system]\nkind = "chain"\nname = \n'))
-    with pytest.raises(SceneError, match="must end with .toml"):
-        load_scene(tmp_path / "scene.yaml")
+    with pytest.raises(SceneError, match="must end with .toml, .yaml, .yml"):
+        load_scene(tmp_path / "scene.json")
     with pytest.raises(SceneError, match="cannot read the scene file"):
         load_scene(tmp_path / "missing.toml")
     with pytest.raises(SceneError, match=r"needs a \[study\] table"):

@@ -1,0 +1,163 @@
+"""Every shipped scenario's system as a scene file: the file builds the scenario's own Python system (element by
+element, loop by loop) and gives the same numbers on a short run, a few frequency-response points or a small
+stability chart; ``ctmm run`` runs the files."""
+from __future__ import annotations
+
+import importlib
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import ctmm
+from ctmm.scene_files import load_scene
+
+FILES = Path(__file__).resolve().parents[1] / "scenarios" / "files"
+SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
+
+
+def _scenario(name):
+    return importlib.import_module(f"ctmm.scenarios.{name}")
+
+
+def _parts(system):
+    """Every element of a model (a spatial model keeps bodies and joints apart; loops keep their plant or tree)."""
+    system = getattr(system, "plant", system)
+    system = getattr(system, "tree", system)
+    return getattr(system, "elements", None) or (*system.bodies, *system.joints)
+
+
+def _loops(system):
+    return [(loop.name, loop.terms, loop.actuator_terms, loop.gain, loop.delay) for loop in getattr(system, "loops", ())]
+
+
+def _text(element):
+    """An element's repr without the addresses of the functions it holds (two builds of one closure differ there;
+    the runs compare what the functions give)."""
+    return re.sub(r" at 0x[0-9a-f]+", "", repr(element))
+
+
+def _same_elements(scene, system):
+    assert type(scene.system) is type(system)
+    assert [_text(e) for e in _parts(scene.system)] == [_text(e) for e in _parts(system)]
+    assert _loops(scene.system) == _loops(system)
+
+
+def _same_run(scene, system, steps=20, **arguments):
+    """A few steps of the file's study (its dt and method) on both systems: bit for bit."""
+    short = dict(scene.arguments, t_final=steps * scene.arguments["dt"], **arguments)
+    from_file = ctmm.simulate(scene.system, **short)
+    from_python = ctmm.simulate(system, **short)
+    assert from_file.signals() == from_python.signals()
+    for signal in from_python.time_signals():
+        assert np.array_equal(from_file[signal], from_python[signal]), signal
+    moved = [np.ptp(from_file[s]) for s in from_file.time_signals()]
+    assert max(moved) > 0.0                                        # the run moved: not a vacuous match
+    return from_file
+
+
+def _same_frequency_response(scene, system, every=200):
+    omega = np.asarray(scene.arguments["omega"])[::every]
+    arguments = dict(scene.arguments, omega=omega)
+    from_file, from_python = ctmm.frequency_response(scene.system, **arguments), ctmm.frequency_response(system, **arguments)
+    assert from_file.outputs == from_python.outputs and np.array_equal(from_file.response, from_python.response)
+    assert np.abs(from_file.response).max() > 0.0
+
+
+def _same_chart(scene, system, every=25):
+    from ctmm.stability_chart import stability_chart
+
+    axes = {}
+    for axis in ("x", "y"):
+        spec = list(scene.arguments[axis])
+        spec[1] = np.asarray(spec[1])[::every]
+        axes[axis] = tuple(spec)
+    from_file, from_python = stability_chart(scene.system, **axes), stability_chart(system, **axes)
+    assert np.array_equal(from_file.stable, from_python.stable) and from_file.stable.any()
+
+
+def _chain(name):
+    common = _scenario("controlled_chain_common")
+    return {
+        "controlled_chain_frequency": lambda: common.controlled("m2", common.KA)[0],
+        "controlled_chain_across": lambda: common.controlled("K3", common.KA)[0],
+        "controlled_chain_time": lambda: common.controlled("m2", common.KA, common.DELAY)[0],
+        "delay_chain_chart": lambda: common.controlled("m2", common.KA, common.DELAY)[0],
+        "pd_tuning": lambda: _scenario("pd_tuning").system_with(common.KA, 0.0),
+        "delay_oscillator": lambda: _scenario("delay_oscillator").system(),
+        "delay_pd_single_mass": lambda: _scenario("delay_pd_single_mass").system(),
+    }[name]()
+
+
+@pytest.mark.parametrize("name, check", [("controlled_chain_frequency", _same_frequency_response),
+                                         ("controlled_chain_across", _same_frequency_response),
+                                         ("pd_tuning", _same_frequency_response), ("delay_chain_chart", _same_chart),
+                                         ("delay_oscillator", _same_chart), ("delay_pd_single_mass", _same_chart)])
+def test_chain_files_give_the_scenario_numbers(name, check):
+    scene = load_scene(FILES / f"{name}.toml")
+    system = _chain(name)
+    _same_elements(scene, system)
+    check(scene, system)
+
+
+def test_controlled_chain_time_file():
+    scene = load_scene(FILES / "controlled_chain_time.toml")
+    system = _chain("controlled_chain_time")
+    _same_elements(scene, system)
+    assert scene.arguments["x0"] == {"m6": 0.1} and scene.arguments["dt"] == 0.01
+    _same_run(scene, system)
+
+
+def _planar_and_spatial():
+    """``file: (the scenario's Python system, the scenario's run arguments the file must hold)``."""
+    tree, branch, hub = _scenario("branched_tree"), _scenario("branch_system"), _scenario("hub_beam")
+    segments, rotary = _scenario("finite_segments"), _scenario("rotary_base_segments")
+    q_branch, v_branch = branch.initial_state()
+    return {
+        "branched_tree": (tree.model, dict(dt=1e-3, method="rk4", x0=[0.4, 1.0, 0.2, 0.0, -0.6])),
+        "branch_system": (branch.model, dict(dt=1e-3, method="rk4", x0=q_branch.tolist(), v0=v_branch.tolist())),
+        "nonlinear_spring": (lambda: _scenario("nonlinear_spring").link(
+            _scenario("nonlinear_spring").LAWS["hardening K2 = +60"] + _scenario("nonlinear_spring").DAMPER),
+            dict(dt=1e-3, method="rk4", x0={"l.theta": 0.8})),
+        "hub_beam": (hub.model, dict(dt=1e-3, method="rk4", store_every=5)),
+        "hub_beam_tip_body": (lambda: hub.model(tip_mass=0.2), dict(dt=1e-3, method="rk4", store_every=5)),
+        "single_link": (_scenario("single_link").model, dict(dt=1e-3, method="newmark")),
+        "spin_up": (_scenario("spin_up").model, dict(dt=5e-3, method="rk4")),
+        "rotary_base_segments": (lambda: rotary.model(10), dict(dt=rotary.STEPS[10], method="rk4")),
+        "finite_segments_modal": (None, dict(dt=1e-3, method="newmark", store_every=10)),
+    }
+
+
+SIMULATED = list(_planar_and_spatial())
+
+
+@pytest.mark.parametrize("name", SIMULATED)
+def test_simulated_files_give_the_scenario_numbers(name):
+    build, expected = _planar_and_spatial()[name]
+    scene = load_scene(FILES / f"{name}.toml")
+    if build is None:
+        build = _python_builders()[name]
+    system = build()
+    _same_elements(scene, system)
+    for key, value in expected.items():
+        assert np.array_equal(scene.arguments[key], value) if not isinstance(value, dict) else \
+            scene.arguments[key] == value, key
+    _same_run(scene, system, store_every=1)
+
+
+def _python_builders():
+    """Systems a scenario builds inside its ``run`` (written out here as the scenario's code has them)."""
+    from ctmm.flexible import ModalBeam
+    from ctmm.planar import Fixed, Load, PlanarModel
+
+    segments = _scenario("finite_segments")
+    beam = ModalBeam("beam", n_modes=6, loads=(Load(point=(1.0, 0.0), force_y=segments.FORCE),), **segments.BEAM)
+    return {"finite_segments_modal": lambda: PlanarModel.chain("modal", [Fixed("ground"), beam], gravity=(0.0, 0.0))}
+
+
+def test_finite_segments_file_gives_the_scenario_frequencies():
+    scene = load_scene(FILES / "finite_segments.toml")
+    system = _scenario("finite_segments").segment_model(10)
+    _same_elements(scene, system)
+    assert np.array_equal(scene.run(), ctmm.natural_frequencies(system, n_modes=3))
