@@ -42,6 +42,7 @@ def _same_elements(scene, system):
     assert type(scene.system) is type(system)
     assert [_text(e) for e in _parts(scene.system)] == [_text(e) for e in _parts(system)]
     assert _loops(scene.system) == _loops(system)
+    assert [repr(cut) for cut in getattr(scene.system, "cuts", ())] == [repr(cut) for cut in getattr(system, "cuts", ())]
 
 
 def _same_run(scene, system, steps=20, **arguments):
@@ -87,12 +88,24 @@ def _chain(name):
         "pd_tuning": lambda: _scenario("pd_tuning").system_with(common.KA, 0.0),
         "delay_oscillator": lambda: _scenario("delay_oscillator").system(),
         "delay_pd_single_mass": lambda: _scenario("delay_pd_single_mass").system(),
+        "delay_hub_beam_chart": _hub_pd,
     }[name]()
+
+
+def _hub_pd():
+    """The plant and hub loop of ``delay_hub_beam_chart`` (its chart runs on the exact fields of this plant)."""
+    from ctmm.control import Feedback, with_feedback
+    from ctmm.manipulator import manipulator_plant
+    from ctmm.manipulator.parameters import SEED_KD, SEED_KP, seed_manipulator
+
+    loop = Feedback("pd", [("motor.angle", SEED_KP), ("motor.rate", SEED_KD)], "motor.torque", gain=1.0, delay=0.01)
+    return with_feedback(manipulator_plant(seed_manipulator()), [loop])
 
 
 @pytest.mark.parametrize("name, check", [("controlled_chain_frequency", _same_frequency_response),
                                          ("controlled_chain_across", _same_frequency_response),
                                          ("pd_tuning", _same_frequency_response), ("delay_chain_chart", _same_chart),
+                                         ("delay_hub_beam_chart", _same_frequency_response),
                                          ("delay_oscillator", _same_chart), ("delay_pd_single_mass", _same_chart)])
 def test_chain_files_give_the_scenario_numbers(name, check):
     scene = load_scene(FILES / f"{name}.toml")
@@ -107,6 +120,44 @@ def test_controlled_chain_time_file():
     _same_elements(scene, system)
     assert scene.arguments["x0"] == {"m6": 0.1} and scene.arguments["dt"] == 0.01
     _same_run(scene, system)
+
+
+def _thetas(name):
+    """The scenario's start vector as its ``run`` computes it (angles of its links, the rest 0)."""
+    scenario = _scenario(name)
+    names = scenario.model().coordinates
+    q0 = np.zeros(len(names))
+    if name == "fem_chain":
+        q0[[names.index(c) for c in names if c.endswith(".theta")]] = scenario.INITIAL_ANGLE
+    elif name == "particle_chain":
+        q0[[names.index("body2.theta"), names.index("body6.theta")]] = scenario.INITIAL
+    else:
+        q0[[names.index(f"{b}.theta") for b in scenario.BODY_NAMES]] = scenario.INITIAL_ANGLE
+    return q0
+
+
+def _spin_up_sag():
+    scenario = _scenario("spatial_spin_up")
+    return scenario.static_sag(scenario.reference(True))
+
+
+def _elastic_hinge():
+    from ctmm.control import with_feedback
+
+    scenario = _scenario("spatial_elastic_hinge_control")
+    return with_feedback(scenario.model(), [scenario.loop()])
+
+
+def _robot_arm():
+    from ctmm.control import with_feedback
+
+    scenario = _scenario("spatial_robot_arm")
+    return with_feedback(scenario.model(), scenario.loops(scenario.DELAY))
+
+
+def _four_bar_start():
+    scenario = _scenario("four_bar")
+    return scenario.start(scenario.mechanism(scenario.SPRING + scenario.DAMPER))
 
 
 def _planar_and_spatial():
@@ -126,6 +177,20 @@ def _planar_and_spatial():
         "spin_up": (_scenario("spin_up").model, dict(dt=5e-3, method="rk4")),
         "rotary_base_segments": (lambda: rotary.model(10), dict(dt=rotary.STEPS[10], method="rk4")),
         "finite_segments_modal": (None, dict(dt=1e-3, method="newmark", store_every=10)),
+        "fem_chain": (_scenario("fem_chain").model, dict(dt=2.5e-4, method="rk4", x0=_thetas("fem_chain"))),
+        "particle_chain": (_scenario("particle_chain").model, dict(dt=5e-4, method="rk4", x0=_thetas("particle_chain"))),
+        "plate_chain": (_scenario("plate_chain").model, dict(dt=2.5e-4, method="rk4", x0=_thetas("plate_chain"))),
+        "four_bar": (lambda: _scenario("four_bar").mechanism(_scenario("four_bar").SPRING + _scenario("four_bar").DAMPER),
+                     dict(dt=1e-3, method="rk4", x0=list(_four_bar_start()[0]), v0=list(_four_bar_start()[1]))),
+        "spatial_hub_beam": (_scenario("spatial_hub_beam").model, dict(dt=5e-5, method="rk4", store_every=20)),
+        "spatial_hub_beam_tip_body": (lambda: _scenario("spatial_hub_beam").model(tip_mass=0.2),
+                                      dict(dt=5e-5, method="rk4", store_every=20)),
+        "spatial_spin_up": (lambda: _scenario("spatial_spin_up").model(True, _scenario("spatial_spin_up").FULL),
+                            dict(dt=1e-2, method="rk4", x0=_spin_up_sag())),
+        "spatial_elastic_hinge_control": (_elastic_hinge, dict(dt=1e-3, x0=list(_scenario(
+            "spatial_elastic_hinge_control").initial_state()[0]), outputs=["body.angle_z"])),
+        "spatial_robot_arm": (_robot_arm, dict(dt=1e-3, x0=list(_scenario("spatial_robot_arm").initial_state()[0]))),
+        "particle_net": (_scenario("particle_net").model, dict(dt=5e-4, method="rk4", x0=_thetas("particle_net"))),
     }
 
 
@@ -141,8 +206,10 @@ def test_simulated_files_give_the_scenario_numbers(name):
     system = build()
     _same_elements(scene, system)
     for key, value in expected.items():
-        assert np.array_equal(scene.arguments[key], value) if not isinstance(value, dict) else \
-            scene.arguments[key] == value, key
+        given = scene.arguments[key]
+        if isinstance(given, dict) and not isinstance(value, dict):      # {coordinate: value} against a vector
+            given = [given.get(name, 0.0) for name in scene.system.coordinates]
+        assert np.array_equal(given, value) if not isinstance(value, dict) else given == value, key
     _same_run(scene, system, store_every=1)
 
 
