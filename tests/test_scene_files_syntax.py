@@ -86,47 +86,20 @@ def test_yaml_syntax_errors_and_missing_pyyaml(tmp_path, monkeypatch):
         load_scene(_write(tmp_path, YAML, "scene.yaml"))
 
 
-CHAIN = """[system]
-kind = "chain"
-name = "two_mass"
+def _tables(*elements: str) -> str:
+    """``[[system.elements]]`` tables from ``"Type name key=value ..."`` lines."""
+    text = ""
+    for element in elements:
+        kind, name, *pairs = element.split()
+        text += f'[[system.elements]]\ntype = "{kind}"\nname = "{name}"\n' + "".join(
+            f"{pair.replace('=', ' = ')}\n" for pair in pairs) + "\n"
+    return text
 
-[[system.elements]]
-type = "Fixed"
-name = "wall"
 
-[[system.elements]]
-type = "SpringDamper"
-name = "k1"
-stiffness = 40.0
-damping = 0.4
-
-[[system.elements]]
-type = "Mass"
-name = "m1"
-mass = 1.0
-
-[[system.elements]]
-type = "SpringDamper"
-name = "k2"
-stiffness = 40.0
-damping = 0.4
-
-[[system.elements]]
-type = "Mass"
-name = "m2"
-mass = 0.5
-
-[[system.elements]]
-type = "Free"
-name = "end"
-
-CONTROLLER
-[study]
-verb = "simulate"
-t_final = 0.5
-dt = 0.001
-x0 = { m2 = 0.05 }
-"""
+CHAIN = ('[system]\nkind = "chain"\nname = "two_mass"\n\n'
+         + _tables("Fixed wall", "SpringDamper k1 stiffness=40.0 damping=0.4", "Mass m1 mass=1.0",
+                   "SpringDamper k2 stiffness=40.0 damping=0.4", "Mass m2 mass=0.5", "Free end")
+         + 'CONTROLLER\n[study]\nverb = "simulate"\nt_final = 0.5\ndt = 0.001\nx0 = { m2 = 0.05 }\n')
 
 PYTHON_CONTROLLER = """[[controllers]]
 call = "ctmm.controllers:SaturatedPD"
