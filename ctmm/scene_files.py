@@ -1,9 +1,10 @@
-"""Scene files: a system, its feedback loops and its study in one TOML file (``ctmm run scene.toml``).
+"""Scene files: a system, its feedback loops, its co-simulated controllers and its study in one TOML or YAML
+file (``ctmm run scene.toml``).
 
 ::
 
     [system]
-    kind = "planar_chain"          # chain | planar | planar_chain | spatial
+    kind = "planar_chain"          # chain | planar | planar_chain | planar_closed | spatial
     name = "pendulum"
     gravity = [0.0, -9.81]
 
@@ -28,9 +29,10 @@ calls the verb with the system first. Inline tables ``{type = "Harmonic", ...}``
 (time signals, grids, transfer functions), ``{python = "module:attribute"}`` names a Python
 object (e.g. a reference motion ``f(t)``) imported from an installed module and
 ``{call = "module:attribute", ...}`` calls one with the other keys (checked against its
-signature). A mistake is a
-:class:`SceneError` naming the file, the line, the table and the key, and what is allowed.
-``docs/scene_files.md`` is the reference.
+signature). ``[[controllers]]`` tables name co-simulated controllers (``call``, ``python`` or an
+``fmu`` path relative to the scene file) passed to ``simulate``. The same tables may be written in
+YAML (:mod:`ctmm.scene_files_syntax`). A mistake is a :class:`SceneError` naming the file, the line,
+the table and the key, and what is allowed. ``docs/scene_files.md`` is the reference.
 """
 from __future__ import annotations
 
@@ -184,7 +186,7 @@ class Scene:
     path : Path
         The file.
     name : str
-        The scene name (the file name without ``.toml``): names the outputs of ``ctmm run``.
+        The scene name (the file name without its ``.toml`` / ``.yaml`` ending): names the outputs of ``ctmm run``.
     system : object
         The model (``Chain``, ``PlanarModel``, ``SpatialModel``), with its loops closed
         (``ctmm.control.with_feedback``) when the file has ``[[loops]]``.
@@ -300,8 +302,8 @@ def load_scene(path: str | os.PathLike) -> Scene:
     Parameters
     ----------
     path : str or os.PathLike
-        A TOML file (``.toml``) with ``[system]``, optional ``[[loops]]``, ``[study]`` and optional
-        ``[output]`` (``docs/scene_files.md``).
+        A TOML (``.toml``) or YAML (``.yaml``, ``.yml``; needs PyYAML) file with ``[system]``, optional
+        ``[[loops]]`` and ``[[controllers]]``, ``[study]`` and optional ``[output]`` (``docs/scene_files.md``).
 
     Returns
     -------
@@ -311,7 +313,8 @@ def load_scene(path: str | os.PathLike) -> Scene:
     Raises
     ------
     SceneError
-        No such file, not TOML (the parser's line and column), or a table, key or value that is not
+        No such file, not TOML / YAML (the parser's line and column), PyYAML missing for a YAML file, or a
+        table, key or value that is not
         allowed: the message names the file, the line, the key and the allowed values; a
         constructor's own :class:`~ctmm.errors.ModelError` is passed on with the line and key of its table.
     """

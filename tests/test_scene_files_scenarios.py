@@ -228,3 +228,31 @@ def test_finite_segments_file_gives_the_scenario_frequencies():
     system = _scenario("finite_segments").segment_model(10)
     _same_elements(scene, system)
     assert np.array_equal(scene.run(), ctmm.natural_frequencies(system, n_modes=3))
+
+
+def _scenario_names():
+    return sorted(path.stem for path in SCENARIOS.glob("*.py")
+                  if any(line.startswith("NAME = ") for line in path.read_text().splitlines()))
+
+
+def test_every_scenario_has_a_scene_file_and_every_file_is_checked():
+    names = _scenario_names()
+    assert len(names) >= 30
+    assert [name for name in names if not (FILES / f"{name}.toml").is_file()] == []
+    checked = {*SIMULATED, "controlled_chain_frequency", "controlled_chain_across", "pd_tuning", "delay_chain_chart",
+               "delay_hub_beam_chart", "delay_oscillator", "delay_pd_single_mass", "controlled_chain_time",
+               "finite_segments",
+               # tests/test_scene_files.py and tests/test_scene_files_syntax.py
+               "pendulum_chain", "hinge_spring_motor", "spatial_chain", "table7_1", "flexible_manipulator",
+               "controlled_chain_delay_frequency", "pendulum_chain_yaml"}
+    assert sorted(path.stem for path in FILES.iterdir() if path.stem not in checked) == []
+
+
+@pytest.mark.parametrize("name", ["pendulum_chain_yaml.yaml", "controlled_chain_across.toml"])
+def test_ctmm_run_runs_the_files(tmp_path, name):
+    from ctmm.scene_files_run import run_scene_file
+
+    summary = run_scene_file(FILES / name, tmp_path, quick=True)
+    stem = Path(name).stem
+    assert summary["passed"] and summary["scene"] == stem
+    assert (tmp_path / f"{stem}.png").is_file() and (tmp_path / f"{stem}.json").is_file()
