@@ -162,12 +162,11 @@ def _four_bar_start():
 
 def _planar_and_spatial():
     """``file: (the scenario's Python system, the scenario's run arguments the file must hold)``."""
-    tree, branch, hub = _scenario("branched_tree"), _scenario("branch_system"), _scenario("hub_beam")
-    segments, rotary = _scenario("finite_segments"), _scenario("rotary_base_segments")
+    branch, hub, rotary = _scenario("branch_system"), _scenario("hub_beam"), _scenario("rotary_base_segments")
     q_branch, v_branch = branch.initial_state()
     return {
-        "branched_tree": (tree.model, dict(dt=1e-3, method="rk4", x0=[0.4, 1.0, 0.2, 0.0, -0.6])),
-        "branch_system": (branch.model, dict(dt=1e-3, method="rk4", x0=q_branch.tolist(), v0=v_branch.tolist())),
+        "branched_tree": (None, dict(dt=1e-3, method="rk4", x0=[0.4, 1.0, 0.2, 0.0, -0.6])),
+        "branch_system": (None, dict(dt=1e-3, method="rk4", x0=q_branch.tolist(), v0=v_branch.tolist())),
         "nonlinear_spring": (lambda: _scenario("nonlinear_spring").link(
             _scenario("nonlinear_spring").LAWS["hardening K2 = +60"] + _scenario("nonlinear_spring").DAMPER),
             dict(dt=1e-3, method="rk4", x0={"l.theta": 0.8})),
@@ -177,8 +176,8 @@ def _planar_and_spatial():
         "spin_up": (_scenario("spin_up").model, dict(dt=5e-3, method="rk4")),
         "rotary_base_segments": (lambda: rotary.model(10), dict(dt=rotary.STEPS[10], method="rk4")),
         "finite_segments_modal": (None, dict(dt=1e-3, method="newmark", store_every=10)),
-        "fem_chain": (_scenario("fem_chain").model, dict(dt=2.5e-4, method="rk4", x0=_thetas("fem_chain"))),
-        "particle_chain": (_scenario("particle_chain").model, dict(dt=5e-4, method="rk4", x0=_thetas("particle_chain"))),
+        "fem_chain": (None, dict(dt=2.5e-4, method="rk4", x0=_thetas("fem_chain"))),
+        "particle_chain": (None, dict(dt=5e-4, method="rk4", x0=_thetas("particle_chain"))),
         "plate_chain": (_scenario("plate_chain").model, dict(dt=2.5e-4, method="rk4", x0=_thetas("plate_chain"))),
         "four_bar": (lambda: _scenario("four_bar").mechanism(_scenario("four_bar").SPRING + _scenario("four_bar").DAMPER),
                      dict(dt=1e-3, method="rk4", x0=list(_four_bar_start()[0]), v0=list(_four_bar_start()[1]))),
@@ -214,13 +213,88 @@ def test_simulated_files_give_the_scenario_numbers(name):
 
 
 def _python_builders():
-    """Systems a scenario builds inside its ``run`` (written out here as the scenario's code has them)."""
+    """Systems written in Python here: one a scenario builds inside its ``run``, and those of the scenarios whose
+    ``model()`` loads its scene file (their former Python construction, the independent side of the check)."""
     from ctmm.flexible import ModalBeam
     from ctmm.planar import Fixed, Load, PlanarModel
 
     segments = _scenario("finite_segments")
     beam = ModalBeam("beam", n_modes=6, loads=(Load(point=(1.0, 0.0), force_y=segments.FORCE),), **segments.BEAM)
-    return {"finite_segments_modal": lambda: PlanarModel.chain("modal", [Fixed("ground"), beam], gravity=(0.0, 0.0))}
+    return {"finite_segments_modal": lambda: PlanarModel.chain("modal", [Fixed("ground"), beam], gravity=(0.0, 0.0)),
+            "branched_tree": _python_branched_tree, "branch_system": _python_branch_system,
+            "fem_chain": _python_fem_chain, "particle_chain": _python_particle_chain}
+
+
+def _python_branched_tree():
+    from ctmm.planar import ElasticHinge, Pinned, PlanarModel, RigidBody, SmoothHinge
+
+    trunk = RigidBody("trunk", mass=2.0, inertia=0.3, center_of_mass=(0.6, 0.0),
+                      outboard={"left": (1.2, 0.3), "right": (1.1, -0.3)})
+    links = [RigidBody.uniform_link(n, mass=m, length=l) for n, m, l in
+             (("l1", 0.8, 0.8), ("l2", 0.5, 0.6), ("r1", 0.7, 0.7), ("r2", 0.4, 0.5))]
+    return PlanarModel("tree", [trunk, *links, Pinned("root", child="trunk"),
+                                SmoothHinge("hl1", parent="trunk.left", child="l1"),
+                                SmoothHinge("hl2", parent="l1", child="l2"),
+                                ElasticHinge("kr1", parent="trunk.right", child="r1", stiffness=15.0, rest_angle=-0.5),
+                                ElasticHinge("kr2", parent="r1", child="r2", stiffness=6.0, rest_angle=0.4)])
+
+
+def _python_branch_system():
+    import ctmm.spatial as sp
+
+    link = _scenario("spatial_chain").link
+    bodies = [link(name, mass, length) for name, mass, length in _scenario("branch_system").BODIES]
+    trunk = bodies[0]
+    bodies[0] = sp.SpatialBody(trunk.name, trunk.mass, trunk.inertia, trunk.center_of_mass,
+                               {"left": (0.3, 0.0, -0.8), "right": (-0.3, 0.0, -0.8)})
+    return sp.SpatialModel("branch_system", [
+        *bodies,
+        sp.Spherical(name="j1", parent=None, child="e1"),
+        sp.Universal(name="j2", parent="e1", point="left", child="e2", axis1=(1, 0, 0), axis2=(0, 1, 0)),
+        sp.Revolute(name="j3", parent="e2", point="tip", child="e3", axis=(0, 1, 0)),
+        sp.Spherical(name="j4", parent="e1", point="right", child="e4"),
+        sp.Revolute(name="j5", parent="e4", point="tip", child="e5", axis=(1, 1, 0)),
+        sp.Revolute(name="j6", parent="e5", point="tip", child="e6", axis=(1, 0, 0))])
+
+
+def _python_fem_chain():
+    from ctmm.fem import BeamElement, FiniteElementModel
+    from ctmm.planar import Pinned, PlanarModel, RigidBody, SmoothHinge
+
+    scenario = _scenario("fem_chain")
+    b = scenario.BEAM
+    le = b["length"] / b["elements"]
+    nodes = {f"n{k}": (k * le, 0.0) for k in range(b["elements"] + 1)}
+    fe = FiniteElementModel("beam1", nodes, [BeamElement(f"e{k}", f"n{k}", f"n{k + 1}", b["bending_stiffness"],
+                                                         b["axial_stiffness"], b["mass_per_length"])
+                                             for k in range(b["elements"])], rayleigh=scenario.RAYLEIGH)
+    beam = fe.subsystem("beam1", ("n0", f"n{b['elements']}"))
+    links = [RigidBody.uniform_link(f"body{k + 1}", mass=m, length=scenario.LINK) for k, m in enumerate(scenario.MASSES)]
+    items = [Pinned("base"), links[0], SmoothHinge("h2"), links[1], SmoothHinge("h3"), links[2],
+             SmoothHinge("connection"), beam, SmoothHinge("h4"), links[3], SmoothHinge("h5"), links[4]]
+    return PlanarModel.chain("fem_chain", items)
+
+
+def _python_particle_chain():
+    from ctmm.fem import FiniteElementModel, NodeSpring, PointMass
+    from ctmm.planar import Pinned, PlanarModel, RigidBody, SmoothHinge
+    from ctmm.planar.elements import FixedMounting
+
+    s = _scenario("particle_chain")
+    elements = [PointMass(f"m_{p}", p, s.PARTICLE_MASS) for p in s.PARTICLES]
+    elements += [NodeSpring(f"k{i}", a, b, s.STIFFNESS) for i, (a, b) in enumerate(s.SPRINGS)]
+    fe = FiniteElementModel("net", {**s.ANCHORS, **s.PARTICLES}, elements)
+    net = fe.subsystem("net", boundary=("hub", "p5"), frame_nodes=("a_up", "a_down"))
+    return PlanarModel.chain(s.NAME, [Pinned("base"), RigidBody.uniform_link("body2", mass=s.BODY2[1], length=s.BODY2[0]),
+                                      FixedMounting("weld"), net, SmoothHinge("h6"),
+                                      RigidBody.uniform_link("body6", mass=s.BODY6[1], length=s.BODY6[0])])
+
+
+@pytest.mark.parametrize("name", ["branched_tree", "branch_system", "fem_chain", "particle_chain"])
+def test_scenarios_built_from_their_files(name):
+    """These scenarios' ``model()`` loads the file: the same elements as the Python construction above."""
+    model, python = _scenario(name).model(), _python_builders()[name]()
+    assert [_text(e) for e in _parts(model)] == [_text(e) for e in _parts(python)]
 
 
 def test_finite_segments_file_gives_the_scenario_frequencies():
