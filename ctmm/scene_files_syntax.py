@@ -118,13 +118,27 @@ def _yaml_loader() -> Any:
 
 
 def yaml_key_lines(node: Any, path: KeyPath = (), lines: dict | None = None) -> dict[KeyPath, int]:
-    """Line (1-based) of every key and list item of a composed YAML node, by key path."""
+    """Line (1-based) of every key and list item of a composed YAML node, by key path.
+
+    Raises
+    ------
+    ValueError
+        A key given twice in one mapping (PyYAML would keep the last one silently).
+    """
     lines = {} if lines is None else lines
     kind = type(node).__name__
     if kind == "MappingNode":
+        seen: dict[Any, int] = {}
         for key, value in node.value:
+            line = key.start_mark.line + 1
+            if not isinstance(key.value, str):
+                raise ValueError(f"not valid for a scene file: the key at line {line} is not a name")
+            if key.value in seen:          # PyYAML would keep the last one silently; TOML refuses it too
+                raise ValueError(f"not valid YAML: duplicate key {key.value!r} at line {line} (first at line "
+                                 f"{seen[key.value]})")
+            seen[key.value] = line
             child = path + (key.value,)
-            lines.setdefault(child, key.start_mark.line + 1)
+            lines.setdefault(child, line)
             yaml_key_lines(value, child, lines)
     elif kind == "SequenceNode":
         for index, item in enumerate(node.value):
@@ -166,9 +180,10 @@ def parse(text: str, syntax: str) -> tuple[Any, dict[KeyPath, int]]:
     loader = loader_class(text)
     try:
         node = loader.get_single_node()
+        lines = yaml_key_lines(node) if node is not None else {}
         data = loader.construct_document(node) if node is not None else None
     except yaml.YAMLError as exc:
         raise ValueError(f"not valid YAML: {exc}".replace("\n", " ")) from None
     finally:
         loader.dispose()
-    return data, (yaml_key_lines(node) if node is not None else {})
+    return data, lines

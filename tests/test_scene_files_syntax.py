@@ -79,6 +79,10 @@ def test_yaml_syntax_errors_and_missing_pyyaml(tmp_path, monkeypatch):
     pytest.importorskip("yaml")
     with pytest.raises(SceneError, match=r"not valid YAML: .*line 3"):
         load_scene(_write(tmp_path, "system:\n  kind: chain\n  name: [c\n", "bad.yaml"))
+    with pytest.raises(SceneError, match=r"duplicate key 'mass' at line 13 \(first at line 12\)"):
+        load_scene(_write(tmp_path, YAML.replace("mass: 1.0", "mass: 1.0\n      mass: 2.0"), "twice.yaml"))
+    with pytest.raises(SceneError, match="the key at line 1 is not a name"):
+        load_scene(_write(tmp_path, "? [a, b]\n: 1\n", "key.yaml"))
     with pytest.raises(SceneError, match="a scene file holds the tables system, loops"):
         load_scene(_write(tmp_path, "- 1\n- 2\n", "list.yaml"))
     monkeypatch.setitem(sys.modules, "yaml", None)                        # as if PyYAML were not installed
