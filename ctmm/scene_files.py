@@ -57,6 +57,7 @@ OUTPUT_KEYS = {"plot": "signal names drawn by `ctmm run` (default: the coordinat
                "description": "one line shown by `ctmm run` and written into the JSON"}
 """Keys of the optional ``[output]`` table."""
 
+
 class SceneError(ModelError):
     """A scene file that cannot be read or built: names the file, line, table and key.
 
@@ -220,7 +221,7 @@ def _check_table(reader: _Reader, data: dict, key: str, want: type, required: bo
             raise reader.fail((), f"a scene file needs a [{key}] table")
         return want()
     if not isinstance(value, want):
-        shape = "[[loops]] tables (an array of tables)" if want is list else f"a [{key}] table"
+        shape = f"[[{key}]] tables (an array of tables)" if want is list else f"a [{key}] table"
         raise reader.fail((key,), f"{key!r} must be {shape}, got {type(value).__name__}")
     return value
 
@@ -350,8 +351,11 @@ def load_scene(path: str | os.PathLike) -> Scene:
     if loops_tables:
         from .control import with_feedback
 
-        loops = [reader.typed(loop, ("loops", i), schema.loop_types(), "loop") if isinstance(loop, dict) else
-                 reader.typed({}, ("loops", i), schema.loop_types(), "loop") for i, loop in enumerate(loops_tables)]
+        for i, loop in enumerate(loops_tables):
+            if not isinstance(loop, dict):
+                raise reader.fail(("loops", i), "a loop must be a table with a 'type' "
+                                  f"({', '.join(schema.loop_types())}), got {type(loop).__name__}")
+        loops = [reader.typed(loop, ("loops", i), schema.loop_types(), "loop") for i, loop in enumerate(loops_tables)]
         try:
             system = with_feedback(plant, loops)
         except ModelError as exc:

@@ -83,6 +83,8 @@ def test_yaml_syntax_errors_and_missing_pyyaml(tmp_path, monkeypatch):
         load_scene(_write(tmp_path, YAML.replace("mass: 1.0", "mass: 1.0\n      mass: 2.0"), "twice.yaml"))
     with pytest.raises(SceneError, match="the key at line 1 is not a name"):
         load_scene(_write(tmp_path, "? [a, b]\n: 1\n", "key.yaml"))
+    with pytest.raises(SceneError, match=r"line 19, key 'loops\[0\]': a loop must be a table with a 'type' \(Feedback\)"):
+        load_scene(_write(tmp_path, YAML + "loops:\n  - 1\n", "loop.yaml"))
     with pytest.raises(SceneError, match="a scene file holds the tables system, loops"):
         load_scene(_write(tmp_path, "- 1\n- 2\n", "list.yaml"))
     monkeypatch.setitem(sys.modules, "yaml", None)                        # as if PyYAML were not installed
@@ -150,7 +152,11 @@ def test_controller_mistakes_name_line_and_key(tmp_path, controller, line, key, 
         assert word in str(info.value)
 
 
-def test_controllers_need_a_simulate_study(tmp_path):
+def test_controllers_once_and_in_a_simulate_study(tmp_path):
+    both = CHAIN.replace("CONTROLLER", PYTHON_CONTROLLER).replace(
+        "x0 = { m2 = 0.05 }", 'x0 = { m2 = 0.05 }\ncontrollers = { python = "ctmm.controllers:SaturatedPD" }')
+    with pytest.raises(SceneError, match="either as \\[\\[controllers\\]\\] tables or as \\[study\\] controllers"):
+        load_scene(_write(tmp_path, both, "pd.toml"))
     text = CHAIN.replace("CONTROLLER", PYTHON_CONTROLLER).replace(
         'verb = "simulate"\nt_final = 0.5\ndt = 0.001\nx0 = { m2 = 0.05 }', 'verb = "natural_frequencies"')
     with pytest.raises(SceneError, match="co-simulated .*must be simulate, got 'natural_frequencies'"):
