@@ -196,7 +196,8 @@ class Scene:
     verb : str
         The study (``"simulate"``, ``"frequency_response"``, ``"natural_frequencies"``, ``"stability_chart"``).
     arguments : dict
-        The study's keyword arguments, built.
+        The study's keyword arguments, built (the co-simulated controllers of ``[[controllers]]`` under
+        ``"controllers"``).
     output : dict
         The ``[output]`` table (``plot``, ``description``).
     """
