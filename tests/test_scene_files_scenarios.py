@@ -144,15 +144,14 @@ def _spin_up_sag():
 def _elastic_hinge():
     from ctmm.control import with_feedback
 
-    scenario = _scenario("spatial_elastic_hinge_control")
-    return with_feedback(scenario.model(), [scenario.loop()])
+    return with_feedback(_python_elastic_hinge_plant(), [_scenario("spatial_elastic_hinge_control").loop()])
 
 
 def _robot_arm():
     from ctmm.control import with_feedback
 
     scenario = _scenario("spatial_robot_arm")
-    return with_feedback(scenario.model(), scenario.loops(scenario.DELAY))
+    return with_feedback(_python_robot_arm_plant(), scenario.loops(scenario.DELAY))
 
 
 def _four_bar_start():
@@ -172,7 +171,7 @@ def _planar_and_spatial():
             dict(dt=1e-3, method="rk4", x0={"l.theta": 0.8})),
         "hub_beam": (hub.model, dict(dt=1e-3, method="rk4", store_every=5)),
         "hub_beam_tip_body": (lambda: hub.model(tip_mass=0.2), dict(dt=1e-3, method="rk4", store_every=5)),
-        "single_link": (_scenario("single_link").model, dict(dt=1e-3, method="newmark")),
+        "single_link": (None, dict(dt=1e-3, method="newmark")),
         "spin_up": (_scenario("spin_up").model, dict(dt=5e-3, method="rk4")),
         "rotary_base_segments": (lambda: rotary.model(10), dict(dt=rotary.STEPS[10], method="rk4")),
         "finite_segments_modal": (None, dict(dt=1e-3, method="newmark", store_every=10)),
@@ -189,7 +188,7 @@ def _planar_and_spatial():
         "spatial_elastic_hinge_control": (_elastic_hinge, dict(dt=1e-3, x0=list(_scenario(
             "spatial_elastic_hinge_control").initial_state()[0]), outputs=["body.angle_z"])),
         "spatial_robot_arm": (_robot_arm, dict(dt=1e-3, x0=list(_scenario("spatial_robot_arm").initial_state()[0]))),
-        "particle_net": (_scenario("particle_net").model, dict(dt=5e-4, method="rk4", x0=_thetas("particle_net"))),
+        "particle_net": (None, dict(dt=5e-4, method="rk4", x0=_thetas("particle_net"))),
     }
 
 
@@ -222,7 +221,56 @@ def _python_builders():
     beam = ModalBeam("beam", n_modes=6, loads=(Load(point=(1.0, 0.0), force_y=segments.FORCE),), **segments.BEAM)
     return {"finite_segments_modal": lambda: PlanarModel.chain("modal", [Fixed("ground"), beam], gravity=(0.0, 0.0)),
             "branched_tree": _python_branched_tree, "branch_system": _python_branch_system,
-            "fem_chain": _python_fem_chain, "particle_chain": _python_particle_chain}
+            "fem_chain": _python_fem_chain, "particle_chain": _python_particle_chain,
+            "single_link": _python_single_link, "particle_net": _python_particle_net,
+            "spatial_elastic_hinge_control": _python_elastic_hinge_plant, "spatial_robot_arm": _python_robot_arm_plant}
+
+
+def _python_single_link():
+    from ctmm.flexible import ModalBeam
+    from ctmm.flexible.outputs import spinup_law
+    from ctmm.planar import DrivenHinge, Fixed, PlanarModel
+
+    angle, rate, acceleration = spinup_law(4.0, 2.0)
+    return PlanarModel.chain("single_link", [
+        Fixed("base"), DrivenHinge("motor", angle=angle, rate=rate, acceleration=acceleration),
+        ModalBeam("link", **_scenario("single_link").LINK)], gravity=(0.0, 0.0))
+
+
+def _python_particle_net():
+    from ctmm.planar import Pinned, PlanarModel, RigidBody, SmoothHinge
+    from ctmm.planar.elements import FixedMounting
+
+    s = _scenario("particle_net")
+    links = [RigidBody.uniform_link(name, mass=m, length=s.LINK) for name, m in zip(s.BODY_NAMES, s.MASSES)]
+    items = [Pinned("base"), links[0]]
+    for k, link in enumerate(links[1:]):
+        items += [SmoothHinge(f"h{k + 2}"), link]
+    return PlanarModel.chain(s.NAME, items + [FixedMounting("weld"), s.net_subsystem()])
+
+
+def _python_elastic_hinge_plant():
+    import ctmm.spatial as sp
+
+    s = _scenario("spatial_elastic_hinge_control")
+    return sp.SpatialModel("hinge_body", [
+        sp.SpatialBody("body", s.MASS, np.diag(s.INERTIA), center_of_mass=s.COM),
+        sp.Elastic6(name="hinge", parent=None, child="body", stiffness=s.stiffness(), damping=np.diag(s.DAMPING),
+                    actuated=True)], gravity=s.GRAVITY)
+
+
+def _python_robot_arm_plant():
+    import ctmm.spatial as sp
+
+    s = _scenario("spatial_robot_arm")
+    names = list(s.BODIES)
+    bodies = [sp.SpatialBody(name, mass, inertia, center_of_mass=com, points={"tip": tip} if name != "hand" else
+                             {"tcp": tip}) for name, (mass, inertia, com, tip) in s.BODIES.items()]
+    joints = [sp.Revolute(name=joint, parent=None if k == 0 else names[k - 1], point=None if k == 0 else "tip",
+                          child=names[k], axis=axis, actuated=True)
+              for k, (joint, axis) in enumerate(zip(s.JOINTS, s.AXES))]
+    joints.append(sp.Spherical(name="wrist", parent="fore", point="tip", child="hand", actuated=True))
+    return sp.SpatialModel("robot_arm", bodies + joints, gravity=s.GRAVITY)
 
 
 def _python_branched_tree():
@@ -290,7 +338,8 @@ def _python_particle_chain():
                                       RigidBody.uniform_link("body6", mass=s.BODY6[1], length=s.BODY6[0])])
 
 
-@pytest.mark.parametrize("name", ["branched_tree", "branch_system", "fem_chain", "particle_chain"])
+@pytest.mark.parametrize("name", ["branched_tree", "branch_system", "fem_chain", "particle_chain", "single_link",
+                                  "particle_net", "spatial_elastic_hinge_control", "spatial_robot_arm"])
 def test_scenarios_built_from_their_files(name):
     """These scenarios' ``model()`` loads the file: the same elements as the Python construction above."""
     model, python = _scenario(name).model(), _python_builders()[name]()
