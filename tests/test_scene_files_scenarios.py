@@ -379,3 +379,16 @@ def test_ctmm_run_runs_the_files(tmp_path, name):
     stem = Path(name).stem
     assert summary["passed"] and summary["scene"] == stem
     assert (tmp_path / f"{stem}.png").is_file() and (tmp_path / f"{stem}.json").is_file()
+
+
+def test_value_type_mistakes_in_a_shipped_file_name_line_and_key(tmp_path):
+    text = (FILES / "single_link.toml").read_text()
+    path = tmp_path / "single_link.toml"
+    path.write_text(text.replace('quantity = "rate"', 'quantity = "speed"'))
+    with pytest.raises(ctmm.ModelError, match=r"line 19, key 'system\.elements\[1\]\.rate\.quantity': SpinUpLaw: "
+                                              r"quantity must be one of angle, rate, acceleration, got 'speed'"):
+        load_scene(path)
+    path.write_text(text.replace('n_modes = 3', 'n_modes = 3\nmodes = 4'))
+    with pytest.raises(ctmm.ModelError, match=r"line 29, key 'system\.elements\[2\]\.modes': unknown key 'modes' of "
+                                              r"ModalBeam"):
+        load_scene(path)
