@@ -6,8 +6,12 @@ are the public element classes of its package (``ctmm.elements``, ``ctmm.planar`
 ``ctmm.flexible``, ``ctmm.spatial``), the allowed keys of each type the parameters of its
 constructor (:func:`inspect.signature`, i.e. the dataclass fields), and the allowed keys of the
 study those of the verb (``ctmm.simulate`` ...). A new element class or field is therefore in the
-schema as soon as it is exported. ``docs/scene_files.md`` holds :func:`schema_markdown` (checked
-by a test).
+schema as soon as it is exported. A few builders that are not classes are named here so that the
+shipped scenarios can be files: :func:`finite_element_subsystem` (a ``ctmm.fem`` model as a planar
+body), ``finite_segment_beam`` (one table, several elements), :func:`closed_planar_model` (``kind =
+"planar_closed"``), :func:`spin_up_law` and :func:`parallel_law` (values); the FMU controller's keys
+come from ``FMUController`` (:func:`controller_kinds`). ``docs/scene_files.md`` holds
+:func:`schema_markdown` (checked by a test).
 """
 from __future__ import annotations
 
