@@ -1,7 +1,7 @@
 """Command line: ``ctmm list``, ``ctmm run NAME|FILE.toml... [--quick] [--save] [--animate] [--output DIR]
 [--debug]``, ``ctmm --version``.
 
-``NAME`` is a scenario (``ctmm list``); a path ending in ``.toml`` is a scene file
+``NAME`` is a scenario (``ctmm list``); a path ending in ``.toml``, ``.yaml`` or ``.yml`` is a scene file
 (:mod:`ctmm.scene_files`). ``--save`` also writes the runs as HDF5 result files, ``--animate`` the
 planar and spatial runs as GIF animations (:mod:`ctmm.scene_files_run`). With several runs on a
 terminal a progress bar counts them (:mod:`ctmm.progress`; quiet in pipes and CI).
@@ -25,6 +25,9 @@ from typing import Iterator, Sequence
 from . import __version__, scenario
 from .errors import ModelError, SimulationError
 from .progress import progress_bar
+from .scene_files_syntax import SUFFIXES
+
+SCENE_SUFFIXES = tuple(SUFFIXES)   # scene files: .toml, .yaml, .yml
 
 EXIT_FAILED = 1
 EXIT_USAGE = 2
@@ -101,7 +104,7 @@ def _parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     sub.add_parser("list", help="list the scenarios")
     run = sub.add_parser("run", help="run scenarios or scene files and write PNG + JSON")
-    run.add_argument("names", nargs="+", metavar="NAME", help="scenario name(s), 'all', or scene files (.toml)")
+    run.add_argument("names", nargs="+", metavar="NAME", help="scenario name(s), 'all', or scene files (.toml, .yaml)")
     run.add_argument("--output", default="results", help="output folder (default: results)")
     run.add_argument("--quick", action="store_true", help="shorter version (smoke test)")
     run.add_argument("--save", action="store_true", help="also write the time histories / responses as HDF5 "
@@ -129,10 +132,10 @@ def _run(names: list[str], output: str, quick: bool, debug: bool, save: bool = F
         for name, error in broken.items():          # reported, and the run goes on
             _error(f"scenario module {name!r} cannot be imported: {error}")
             rows.append((name, "FAIL", f"cannot be imported: {error}", 0.0))
-    missing_files = [n for n in names if n.lower().endswith(".toml") and not Path(n).is_file()]
+    missing_files = [n for n in names if n.lower().endswith(SCENE_SUFFIXES) and not Path(n).is_file()]
     for name in missing_files:
         _error(f"scene file {name!r} does not exist")
-    unknown = [n for n in names if n not in known and not n.lower().endswith(".toml")]
+    unknown = [n for n in names if n not in known and not n.lower().endswith(SCENE_SUFFIXES)]
     if missing_files and not unknown:
         return EXIT_USAGE
     if unknown:
@@ -181,10 +184,10 @@ def _run(names: list[str], output: str, quick: bool, debug: bool, save: bool = F
 
 
 def _run_one(name: str, output: str, quick: bool, save: bool, animate: bool) -> dict:
-    """One scenario or scene file (``.toml``), with its HDF5 files / animations on request."""
+    """One scenario or scene file (``.toml``, ``.yaml``), with its HDF5 files / animations on request."""
     from .scene_files_run import run_scene_file, write_results
 
-    if name.lower().endswith(".toml"):
+    if name.lower().endswith(SCENE_SUFFIXES):
         return run_scene_file(name, output, quick=quick, save=save, animate=animate)
     if not (save or animate):
         return scenario.run_scenario(name, output, quick=quick)

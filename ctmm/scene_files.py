@@ -1,9 +1,10 @@
-"""Scene files: a system, its feedback loops and its study in one TOML file (``ctmm run scene.toml``).
+"""Scene files: a system, its feedback loops, its co-simulated controllers and its study in one TOML or YAML
+file (``ctmm run scene.toml``).
 
 ::
 
     [system]
-    kind = "planar_chain"          # chain | planar | planar_chain | spatial
+    kind = "planar_chain"          # chain | planar | planar_chain | planar_closed | spatial
     name = "pendulum"
     gravity = [0.0, -9.81]
 
@@ -28,38 +29,33 @@ calls the verb with the system first. Inline tables ``{type = "Harmonic", ...}``
 (time signals, grids, transfer functions), ``{python = "module:attribute"}`` names a Python
 object (e.g. a reference motion ``f(t)``) imported from an installed module and
 ``{call = "module:attribute", ...}`` calls one with the other keys (checked against its
-signature). A mistake is a
-:class:`SceneError` naming the file, the line, the table and the key, and what is allowed.
-``docs/scene_files.md`` is the reference.
+signature). ``[[controllers]]`` tables name co-simulated controllers (``call``, ``python`` or an
+``fmu`` path relative to the scene file) passed to ``simulate``. The same tables may be written in
+YAML (:mod:`ctmm.scene_files_syntax`). A mistake is a :class:`SceneError` naming the file, the line,
+the table and the key, and what is allowed. ``docs/scene_files.md`` is the reference.
 """
 from __future__ import annotations
 
 import importlib
 import os
 import re
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from . import scene_files_schema as schema
 from .errors import ModelError
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - python 3.10
-    import tomli as tomllib
+from .scene_files_syntax import SUFFIXES, KeyPath, key_lines, parse
 
 __all__ = ["Scene", "SceneError", "load_scene", "key_lines", "TOP_LEVEL_TABLES", "OUTPUT_KEYS"]
 
-TOP_LEVEL_TABLES = ("system", "loops", "study", "output")
-"""Tables of a scene file: ``[system]`` (required), ``[[loops]]``, ``[study]`` (required), ``[output]``."""
+TOP_LEVEL_TABLES = ("system", "loops", "controllers", "study", "output")
+"""Tables of a scene file: ``[system]`` (required), ``[[loops]]``, ``[[controllers]]``, ``[study]`` (required),
+``[output]``."""
 
 OUTPUT_KEYS = {"plot": "signal names drawn by `ctmm run` (default: the coordinates or the first 6 signals)",
                "description": "one line shown by `ctmm run` and written into the JSON"}
 """Keys of the optional ``[output]`` table."""
-
-KeyPath = tuple  # where a key is in the file: ("system", "elements", 2, "mass")
 
 
 class SceneError(ModelError):
@@ -79,81 +75,6 @@ class SceneError(ModelError):
         where = ", ".join(part for part in (path, f"line {line}" if line else "", f"key {key!r}" if key else "") if part)
         super().__init__(f"{where}: {message}" if where else message)
         self.path, self.line, self.key = path, line, key
-
-
-# ------------------------------------------------------------------------------------------------
-# where every key is: TOML parsers keep no line numbers, so the file is scanned once more
-# ------------------------------------------------------------------------------------------------
-_BARE = re.compile(r"[A-Za-z0-9_-]+")
-
-
-def _split_key(text: str) -> list[str]:
-    parts, text = [], text.strip()
-    while text:
-        if text[0] in "\"'":
-            end = text.index(text[0], 1)
-            parts.append(text[1:end])
-            text = text[end + 1:].strip()
-        else:
-            match = _BARE.match(text)
-            if not match:
-                return parts
-            parts.append(match.group())
-            text = text[match.end():].strip()
-        text = text[1:].strip() if text.startswith(".") else ""
-    return parts
-
-
-def _code(line: str) -> str:
-    """The line without its comment and with string contents blanked (brackets in strings do not count)."""
-    out, quote = [], ""
-    for char in line:
-        if quote:
-            out.append(char if char == quote else "_")
-            quote = "" if char == quote else quote
-        elif char in "\"'":
-            quote = char
-            out.append(char)
-        elif char == "#":
-            break
-        else:
-            out.append(char)
-    return "".join(out)
-
-
-def key_lines(text: str) -> dict[KeyPath, int]:
-    """Line (1-based) of every table header and top-level key of a TOML text, by key path.
-
-    Arrays of tables are indexed (``("system", "elements", 0)``); keys inside inline tables or
-    multi-line arrays are found through their enclosing key.
-    """
-    lines: dict[KeyPath, int] = {}
-    counts: dict[KeyPath, int] = {}
-    table: KeyPath = ()
-    depth = 0
-    for number, raw in enumerate(text.splitlines(), 1):
-        code = _code(raw)
-        stripped = code.strip()
-        if depth == 0 and stripped.startswith("["):
-            array = stripped.startswith("[[")
-            inner = raw.strip()[2:raw.strip().index("]]")] if array else raw.strip()[1:raw.strip().index("]")]
-            parts = _split_key(inner)
-            path: KeyPath = ()
-            for n, part in enumerate(parts):
-                path += (part,)
-                if path in counts and n < len(parts) - 1:      # inside the latest table of an array
-                    path += (counts[path],)
-            if array:
-                counts[path] = counts.get(path, -1) + 1
-                path += (counts[path],)
-            table = path
-            lines.setdefault(table, number)
-            continue
-        if depth == 0 and "=" in code:
-            lines.setdefault(table + tuple(_split_key(raw[:code.index("=")])), number)
-        depth += code.count("[") + code.count("{") - code.count("]") - code.count("}")
-        depth = max(depth, 0)
-    return lines
 
 
 def _dotted(path: KeyPath) -> str:
@@ -266,7 +187,7 @@ class Scene:
     path : Path
         The file.
     name : str
-        The scene name (the file name without ``.toml``): names the outputs of ``ctmm run``.
+        The scene name (the file name without its ``.toml`` / ``.yaml`` ending): names the outputs of ``ctmm run``.
     system : object
         The model (``Chain``, ``PlanarModel``, ``SpatialModel``), with its loops closed
         (``ctmm.control.with_feedback``) when the file has ``[[loops]]``.
@@ -275,7 +196,8 @@ class Scene:
     verb : str
         The study (``"simulate"``, ``"frequency_response"``, ``"natural_frequencies"``, ``"stability_chart"``).
     arguments : dict
-        The study's keyword arguments, built.
+        The study's keyword arguments, built (the co-simulated controllers of ``[[controllers]]`` under
+        ``"controllers"``).
     output : dict
         The ``[output]`` table (``plot``, ``description``).
     """
@@ -300,9 +222,22 @@ def _check_table(reader: _Reader, data: dict, key: str, want: type, required: bo
             raise reader.fail((), f"a scene file needs a [{key}] table")
         return want()
     if not isinstance(value, want):
-        shape = "[[loops]] tables (an array of tables)" if want is list else f"a [{key}] table"
+        shape = f"[[{key}]] tables (an array of tables)" if want is list else f"a [{key}] table"
         raise reader.fail((key,), f"{key!r} must be {shape}, got {type(value).__name__}")
     return value
+
+
+def _element(reader: _Reader, element: Any, where: KeyPath, kind: str) -> list:
+    """The element(s) of one ``[[system.elements]]`` table: a ``type`` of the kind, or ``call = "module:attribute"``
+    (a Python function returning an element or a list of elements); a list (``finite_segment_beam``) is spliced in."""
+    if not isinstance(element, dict):
+        raise reader.fail(where, f"an element must be a table with a 'type' ({', '.join(reader.types)}), "
+                          f"got {type(element).__name__}")
+    if "call" in element and "type" not in element:
+        built = reader.value(element, where)
+    else:
+        built = reader.typed(element, where, reader.types, f"{kind} element")
+    return list(built) if isinstance(built, (list, tuple)) else [built]
 
 
 def _system(reader: _Reader, table: dict) -> Any:
@@ -312,65 +247,39 @@ def _system(reader: _Reader, table: dict) -> Any:
         raise reader.fail(where, f"[system] kind must be one of {', '.join(schema.SYSTEM_KINDS)}, got {kind!r}")
     reader.types = schema.element_types(kind)
     elements = table.get("elements")
-    if not isinstance(elements, list) or not elements or not all(isinstance(e, dict) for e in elements):
+    if not isinstance(elements, list) or not elements:
         raise reader.fail(("system",), "[system] needs its elements as [[system.elements]] tables, each with a "
                           f"'type' ({', '.join(reader.types)})")
-    built = [reader.typed(element, ("system", "elements", i), reader.types, f"{kind} element")
-             for i, element in enumerate(elements)]
+    built = [part for i, element in enumerate(elements)
+             for part in _element(reader, element, ("system", "elements", i), kind)]
     return reader.call(schema.system_constructor(kind), table, ("system",), skip=("kind", "elements"),
                        extra={"elements": built})
 
 
-def load_scene(path: str | os.PathLike) -> Scene:
-    """Read, check and build a scene file.
+def _controller(reader: _Reader, table: Any, where: KeyPath, folder: Path) -> Any:
+    """One ``[[controllers]]`` table: ``fmu = "path"`` (relative to the scene file) with the keys of
+    ``FMUController``, ``call = "module:attribute"`` with the keys of that callable, or ``python = "module:attribute"``
+    (an object used as it is)."""
+    kinds = ("fmu", "call", "python")
+    given = [kind for kind in kinds if isinstance(table, dict) and kind in table]
+    if len(given) != 1:
+        raise reader.fail(where, "a [[controllers]] table needs exactly one of the keys fmu (an FMU file, relative to "
+                          "the scene file), call (a Python controller class or function 'module:attribute', called "
+                          "with the other keys) or python (a Python controller object 'module:attribute'), got "
+                          f"{sorted(table) if isinstance(table, dict) else type(table).__name__}")
+    if given[0] != "fmu":
+        return reader.value(table, where)
+    path = table["fmu"]
+    if not isinstance(path, str) or not path:
+        raise reader.fail(where + ("fmu",), f"fmu must be the path of an .fmu file or FMU folder, got {path!r}")
+    resolved = Path(path) if Path(path).is_absolute() else folder / path
+    if not resolved.exists():
+        raise reader.fail(where + ("fmu",), f"FMU not found: {path!r} (looked for {str(resolved)!r}; a relative "
+                          "path is relative to the scene file's folder)")
+    return reader.call(schema.controller_kinds()["fmu"], table, where, skip=("fmu",), extra={"path": resolved})
 
-    Parameters
-    ----------
-    path : str or os.PathLike
-        A TOML file (``.toml``) with ``[system]``, optional ``[[loops]]``, ``[study]`` and optional
-        ``[output]`` (``docs/scene_files.md``).
 
-    Returns
-    -------
-    Scene
-        The built system and study; :meth:`Scene.run` runs it.
-
-    Raises
-    ------
-    SceneError
-        No such file, not TOML (the parser's line and column), or a table, key or value that is not
-        allowed: the message names the file, the line, the key and the allowed values; a
-        constructor's own :class:`~ctmm.errors.ModelError` is passed on with the line and key of its table.
-    """
-    source = Path(path)
-    if source.suffix.lower() != ".toml":
-        raise SceneError(f"a scene file is TOML and its name must end with .toml, got {str(source)!r}")
-    try:
-        text = source.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise SceneError(f"cannot read the scene file: {exc.strerror or exc}", path=str(source)) from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"not valid TOML: {exc}", path=str(source)) from None
-    reader = _Reader(str(source), key_lines(text))
-    for key in data:
-        if key not in TOP_LEVEL_TABLES:
-            raise reader.fail((key,), f"unknown table {key!r}; allowed: {', '.join(TOP_LEVEL_TABLES)}")
-    system_table = _check_table(reader, data, "system", dict, True)
-    loops_tables = _check_table(reader, data, "loops", list, False)
-    study = _check_table(reader, data, "study", dict, True)
-    output = _check_table(reader, data, "output", dict, False)
-    plant = _system(reader, system_table)
-    system = plant
-    if loops_tables:
-        from .control import with_feedback
-
-        loops = [reader.typed(loop, ("loops", i), schema.loop_types(), "loop") for i, loop in enumerate(loops_tables)]
-        try:
-            system = with_feedback(plant, loops)
-        except ModelError as exc:
-            raise reader.fail(("loops",), f"the loops cannot be closed on the system: {exc}") from exc
+def _study(reader: _Reader, study: dict) -> tuple[str, dict]:
     verb = study.get("verb")
     if verb not in schema.VERBS:
         where = ("study", "verb") if "verb" in study else ("study",)
@@ -386,6 +295,82 @@ def load_scene(path: str | os.PathLike) -> Scene:
     missing = [key for key in item.required() if key not in arguments]
     if missing:
         raise reader.fail(("study",), f"{verb} needs the key(s) {', '.join(missing)}")
+    return verb, arguments
+
+
+def load_scene(path: str | os.PathLike) -> Scene:
+    """Read, check and build a scene file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A TOML (``.toml``) or YAML (``.yaml``, ``.yml``; needs PyYAML) file with ``[system]``, optional
+        ``[[loops]]`` and ``[[controllers]]``, ``[study]`` and optional ``[output]`` (``docs/scene_files.md``).
+
+    Returns
+    -------
+    Scene
+        The built system and study; :meth:`Scene.run` runs it.
+
+    Raises
+    ------
+    SceneError
+        No such file, not TOML / YAML (the parser's line and column), PyYAML missing for a YAML file, or a
+        table, key or value that is not
+        allowed: the message names the file, the line, the key and the allowed values; a
+        constructor's own :class:`~ctmm.errors.ModelError` is passed on with the line and key of its table.
+    """
+    source = Path(path)
+    syntax = SUFFIXES.get(source.suffix.lower())
+    if syntax is None:
+        raise SceneError(f"a scene file is TOML or YAML and its name must end with {', '.join(SUFFIXES)}, "
+                         f"got {str(source)!r}")
+    try:
+        text = source.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise SceneError(f"cannot read the scene file: {exc.strerror or exc}", path=str(source)) from None
+    try:
+        data, lines = parse(text, syntax)
+    except ValueError as exc:
+        raise SceneError(str(exc), path=str(source)) from None
+    except ModelError as exc:
+        raise SceneError(str(exc), path=str(source)) from None
+    reader = _Reader(str(source), lines)
+    if not isinstance(data, dict):
+        raise reader.fail((), f"a scene file holds the tables {', '.join(TOP_LEVEL_TABLES)}, got "
+                          f"{type(data).__name__}")
+    for key in data:
+        if key not in TOP_LEVEL_TABLES:
+            raise reader.fail((key,), f"unknown table {key!r}; allowed: {', '.join(TOP_LEVEL_TABLES)}")
+    system_table = _check_table(reader, data, "system", dict, True)
+    loops_tables = _check_table(reader, data, "loops", list, False)
+    controller_tables = _check_table(reader, data, "controllers", list, False)
+    study = _check_table(reader, data, "study", dict, True)
+    output = _check_table(reader, data, "output", dict, False)
+    plant = _system(reader, system_table)
+    system = plant
+    if loops_tables:
+        from .control import with_feedback
+
+        for i, loop in enumerate(loops_tables):
+            if not isinstance(loop, dict):
+                raise reader.fail(("loops", i), "a loop must be a table with a 'type' "
+                                  f"({', '.join(schema.loop_types())}), got {type(loop).__name__}")
+        loops = [reader.typed(loop, ("loops", i), schema.loop_types(), "loop") for i, loop in enumerate(loops_tables)]
+        try:
+            system = with_feedback(plant, loops)
+        except ModelError as exc:
+            raise reader.fail(("loops",), f"the loops cannot be closed on the system: {exc}") from exc
+    verb, arguments = _study(reader, study)
+    if controller_tables:
+        if verb != "simulate":
+            raise reader.fail(("controllers",), f"co-simulated [[controllers]] run in time: the study verb must be "
+                              f"simulate, got {verb!r}")
+        if "controllers" in arguments:
+            raise reader.fail(("study", "controllers"), "give the controllers either as [[controllers]] tables or as "
+                              "[study] controllers, not both")
+        arguments["controllers"] = [_controller(reader, table, ("controllers", i), source.parent)
+                                    for i, table in enumerate(controller_tables)]
     for key in output:
         if key not in OUTPUT_KEYS:
             raise reader.fail(("output", key), f"unknown key {key!r} of [output]; allowed keys: {', '.join(OUTPUT_KEYS)}")

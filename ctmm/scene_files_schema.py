@@ -6,8 +6,12 @@ are the public element classes of its package (``ctmm.elements``, ``ctmm.planar`
 ``ctmm.flexible``, ``ctmm.spatial``), the allowed keys of each type the parameters of its
 constructor (:func:`inspect.signature`, i.e. the dataclass fields), and the allowed keys of the
 study those of the verb (``ctmm.simulate`` ...). A new element class or field is therefore in the
-schema as soon as it is exported. ``docs/scene_files.md`` holds :func:`schema_markdown` (checked
-by a test).
+schema as soon as it is exported. A few builders that are not classes are named here so that the
+shipped scenarios can be files: :func:`finite_element_subsystem` (a ``ctmm.fem`` model as a planar
+body), ``finite_segment_beam`` (one table, several elements), :func:`closed_planar_model` (``kind =
+"planar_closed"``), :func:`spin_up_law` and :func:`parallel_law` (values); the FMU controller's keys
+come from ``FMUController`` (:func:`controller_kinds`). ``docs/scene_files.md`` holds
+:func:`schema_markdown` (checked by a test).
 """
 from __future__ import annotations
 
@@ -20,7 +24,8 @@ from typing import Any, Callable
 import numpy as np
 
 __all__ = ["Parameter", "Constructor", "SYSTEM_KINDS", "VERBS", "element_types", "value_types", "loop_types",
-           "system_constructor", "verb", "constructor", "schema_markdown", "transfer_function"]
+           "controller_kinds", "system_constructor", "verb", "constructor", "schema_markdown", "transfer_function",
+           "finite_element_subsystem", "closed_planar_model", "spin_up_law", "parallel_law"]
 
 
 @dataclass(frozen=True)
@@ -134,7 +139,78 @@ def _is_planar_element(cls: type) -> bool:
 
 
 def _is_spatial_element(cls: type) -> bool:
-    return dataclasses.is_dataclass(cls) and cls.__module__ == "ctmm.spatial.elements"
+    return dataclasses.is_dataclass(cls) and cls.__module__ in ("ctmm.spatial.elements", "ctmm.spatial.beam")
+
+
+def finite_element_subsystem(name: str, nodes: dict, elements: list, boundary: list, *,
+                             rayleigh: tuple[float, float] = (0.0, 0.0), frame_nodes: tuple[str, ...] = ()) -> Any:
+    """A ``ctmm.fem`` model as a body of a planar model:
+    ``FiniteElementModel(name, nodes, elements, rayleigh=rayleigh).subsystem(name, boundary, frame_nodes=frame_nodes)``.
+
+    Parameters
+    ----------
+    name : str
+        Model and body name.
+    nodes : dict of str to (x, y)
+        Undeformed node positions [m].
+    elements : list
+        ``BeamElement``, ``PointMass``, ``NodeSpring``, ``MembraneElement`` (value tables ``{type = ...}``).
+    boundary : list of str
+        Boundary nodes, the inboard one first.
+    rayleigh : (float, float)
+        Rayleigh damping ``(a [1/s], b [s])``.
+    frame_nodes : sequence of str
+        Nodes held in the frame.
+    """
+    from .fem import FiniteElementModel
+
+    model = FiniteElementModel(name, nodes, elements, rayleigh=rayleigh)
+    return model.subsystem(name, boundary, frame_nodes=tuple(frame_nodes))
+
+
+def closed_planar_model(name: str, elements: list, cuts: list, *, gravity: tuple[float, float] = (0.0, -9.81),
+                        baumgarte: float = 20.0) -> Any:
+    """A planar tree closed by cut joints: ``KinematicLoopModel(PlanarModel(name, elements, gravity=gravity),
+    cuts, baumgarte=baumgarte)``.
+
+    Parameters
+    ----------
+    name : str
+        Model name.
+    elements : list
+        The tree's elements (as for ``kind = "planar"``).
+    cuts : list of CutJoint
+        The loop-closing joints (value tables ``{type = "CutJoint", ...}``).
+    gravity : (float, float)
+        [m/s^2].
+    baumgarte : float
+        Constraint stabilisation rate [1/s] of ``KinematicLoopModel``.
+    """
+    from .planar.closed_loops import KinematicLoopModel
+    from .planar.model import PlanarModel
+
+    return KinematicLoopModel(PlanarModel(name, elements, gravity=gravity), cuts, baumgarte=baumgarte)
+
+
+def parallel_law(laws: list) -> Any:
+    """Laws acting in parallel (their forces added): ``ctmm.nonlinear_laws.ParallelLaw(*laws)``, as ``law1 + law2``."""
+    from .nonlinear_laws import ParallelLaw
+
+    return ParallelLaw(*laws)
+
+
+SPIN_UP_QUANTITIES = ("angle", "rate", "acceleration")
+
+
+def spin_up_law(final_rate: float, ramp_time: float, quantity: str) -> Callable[[float], float]:
+    """One function of ``ctmm.flexible.outputs.spinup_law(final_rate, ramp_time)``: the hub ``"angle"`` [rad],
+    ``"rate"`` [rad/s] or ``"acceleration"`` [rad/s^2] of the Kane-Ryan-Banerjee spin-up, for ``DrivenHinge``."""
+    from .errors import ModelError
+    from .flexible.outputs import spinup_law
+
+    if quantity not in SPIN_UP_QUANTITIES:
+        raise ModelError(f"quantity must be one of {', '.join(SPIN_UP_QUANTITIES)}, got {quantity!r}")
+    return spinup_law(final_rate, ramp_time)[SPIN_UP_QUANTITIES.index(quantity)]
 
 
 SYSTEM_KINDS: dict[str, tuple[str, str]] = {
@@ -143,6 +219,8 @@ SYSTEM_KINDS: dict[str, tuple[str, str]] = {
     "planar_chain": ("ctmm.planar.model:PlanarModel.chain", "planar serial chain: hinge connections from the "
                      "element order"),
     "spatial": ("ctmm.spatial.model:SpatialModel", "spatial tree: every joint names its parent and child"),
+    "planar_closed": ("ctmm.scene_files_schema:closed_planar_model", "planar tree closed by cut joints "
+                      "(`KinematicLoopModel`): elements as for `planar`, `cuts = [{ type = \"CutJoint\", ... }]`"),
 }
 """``[system] kind`` values: the model constructor (``module:attribute``) and what it builds."""
 
@@ -179,12 +257,18 @@ def element_types(kind: str) -> dict[str, Constructor]:
     """``type`` values allowed in ``[[system.elements]]`` of a system ``kind``, with their keys."""
     if kind == "chain":
         return _with_factories(_public_classes("ctmm.elements", _is_chain_element))
-    if kind in ("planar", "planar_chain"):
+    if kind in ("planar", "planar_chain", "planar_closed"):
         classes = _public_classes("ctmm.planar.elements", _is_planar_element)
         classes.update(_public_classes("ctmm.flexible", _is_planar_element))
-        return _with_factories(classes)
+        out = _with_factories(classes)
+        out["FiniteElementSubsystem"] = constructor("FiniteElementSubsystem", finite_element_subsystem)
+        out["finite_segment_beam"] = constructor("finite_segment_beam", _resolve(
+            "ctmm.flexible.segments:finite_segment_beam"))
+        return out
     if kind == "spatial":
-        return _with_factories(_public_classes("ctmm.spatial.elements", _is_spatial_element))
+        classes = _public_classes("ctmm.spatial.elements", _is_spatial_element)
+        classes.update(_public_classes("ctmm.spatial", _is_spatial_element))
+        return _with_factories(classes)
     raise KeyError(kind)
 
 
@@ -212,7 +296,22 @@ def value_types() -> dict[str, Constructor]:
             Parameter("start", True, "float", ""), Parameter("stop", True, "float", ""),
             Parameter("num", False, "int", "50")))
     out["TransferFunction"] = constructor("TransferFunction", transfer_function)
+    out["SpinUpLaw"] = constructor("SpinUpLaw", spin_up_law)
+    out["ParallelLaw"] = constructor("ParallelLaw", parallel_law)
+    for module, names in (("ctmm.nonlinear_laws", ("LinearLaw", "CubicSpring", "ClearanceSpring", "PowerDamper")),
+                          ("ctmm.fem", ("BeamElement", "PointMass", "NodeSpring", "MembraneElement")),
+                          ("ctmm.planar.closed_loops", ("CutJoint",))):
+        for name in names:
+            out[name] = constructor(name, _resolve(f"{module}:{name}"))
     return out
+
+
+def controller_kinds() -> dict[str, Constructor]:
+    """Keys of ``[[controllers]]`` tables besides ``call`` / ``python``: an FMU (``fmu = "path"``, relative to the
+    scene file) takes the keys of ``ctmm.control.fmu.FMUController``."""
+    from .control.fmu import FMUController
+
+    return {"fmu": constructor("fmu", FMUController, skip=("path",))}
 
 
 def _table(constructors: dict[str, Constructor], where: str) -> list[str]:
@@ -238,9 +337,10 @@ def schema_markdown() -> str:
                      + ", ".join(f"`{p.name}`" for p in system.parameters) + ".")
         lines.append("")
     for kind in ("chain", "planar", "spatial"):
-        label = "planar and planar_chain" if kind == "planar" else kind
+        label = "planar, planar_chain and planar_closed" if kind == "planar" else kind
         lines += _table(element_types(kind), f"`[[system.elements]]` of kind {label}")
     lines += _table(loop_types(), "`[[loops]]`")
+    lines += _table(controller_kinds(), "`[[controllers]]` with `fmu = \"path\"` (else `call` / `python`)")
     lines += _table({name: verb(name) for name in VERBS}, "`[study]` (`verb` = `type`)")
     lines += _table(value_types(), "values: inline tables `{type = ...}` anywhere")
     return "\n".join(lines).rstrip() + "\n"

@@ -27,9 +27,9 @@ from pathlib import Path
 import numpy as np
 
 import ctmm.spatial as sp
+from ctmm.scene_files import load_scene
 
 from .planar_common import save_figure
-from .spatial_chain import link
 from .spatial_common import scenario_runs, scenario_summary
 
 NAME = "branch_system"
@@ -40,18 +40,8 @@ BODIES = (("e1", 2.0, 0.8), ("e2", 1.0, 0.5), ("e3", 0.8, 0.4), ("e4", 1.2, 0.6)
 
 
 def model() -> sp.SpatialModel:
-    bodies = [link(name, mass, length) for name, mass, length in BODIES]
-    trunk = bodies[0]
-    bodies[0] = sp.SpatialBody(trunk.name, trunk.mass, trunk.inertia, trunk.center_of_mass,
-                               {"left": (0.3, 0.0, -0.8), "right": (-0.3, 0.0, -0.8)})
-    return sp.SpatialModel("branch_system", [
-        *bodies,
-        sp.Spherical(name="j1", parent=None, child="e1"),
-        sp.Universal(name="j2", parent="e1", point="left", child="e2", axis1=(1, 0, 0), axis2=(0, 1, 0)),
-        sp.Revolute(name="j3", parent="e2", point="tip", child="e3", axis=(0, 1, 0)),
-        sp.Spherical(name="j4", parent="e1", point="right", child="e4"),
-        sp.Revolute(name="j5", parent="e4", point="tip", child="e5", axis=(1, 1, 0)),
-        sp.Revolute(name="j6", parent="e5", point="tip", child="e6", axis=(1, 0, 0))])
+    """The tree, built from its scene file ``scenarios/files/branch_system.toml`` (the one source)."""
+    return load_scene(Path(__file__).resolve().parent / "files" / "branch_system.toml").system
 
 
 def initial_state() -> tuple[np.ndarray, np.ndarray]:

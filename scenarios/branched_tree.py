@@ -13,8 +13,9 @@ from pathlib import Path
 import numpy as np
 
 import ctmm
-from ctmm.planar import ElasticHinge, Pinned, PlanarModel, RigidBody, SmoothHinge
+from ctmm.planar import PlanarModel
 from ctmm.reference.planar_lagrange import PlanarLagrange, newton_euler_kkt
+from ctmm.scene_files import load_scene
 from ctmm.signal_results import coordinate_histories, energy_history
 from ctmm.planar import solve_instant
 
@@ -26,18 +27,8 @@ DESCRIPTION = ("Pinned trunk with two two-link branches (smooth and elastic hing
 
 
 def model() -> PlanarModel:
-    trunk = RigidBody("trunk", mass=2.0, inertia=0.3, center_of_mass=(0.6, 0.0),
-                      outboard={"left": (1.2, 0.3), "right": (1.1, -0.3)})
-    links = [RigidBody.uniform_link(n, mass=m, length=l) for n, m, l in
-             (("l1", 0.8, 0.8), ("l2", 0.5, 0.6), ("r1", 0.7, 0.7), ("r2", 0.4, 0.5))]
-    return PlanarModel("tree", [trunk, *links,
-                                Pinned("root", child="trunk"),
-                                SmoothHinge("hl1", parent="trunk.left", child="l1"),
-                                SmoothHinge("hl2", parent="l1", child="l2"),
-                                ElasticHinge("kr1", parent="trunk.right", child="r1",
-                                             stiffness=15.0, rest_angle=-0.5),
-                                ElasticHinge("kr2", parent="r1", child="r2", stiffness=6.0,
-                                             rest_angle=0.4)])
+    """The tree, built from its scene file ``scenarios/files/branched_tree.toml`` (the one source)."""
+    return load_scene(Path(__file__).resolve().parent / "files" / "branched_tree.toml").system
 
 
 def run(output_dir: Path, quick: bool = False) -> dict:

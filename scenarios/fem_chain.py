@@ -32,11 +32,11 @@ from pathlib import Path
 import numpy as np
 
 import ctmm
-from ctmm.fem import BeamElement, FiniteElementModel
 from ctmm.flexible import solve_flexible
-from ctmm.planar import PlanarModel, Pinned, RigidBody, SmoothHinge
+from ctmm.planar import PlanarModel
 from ctmm.reference.mixed_global import BeamSegment, GlobalChain, RigidSegment
 from ctmm.scenario import accuracy
+from ctmm.scene_files import load_scene
 
 from .mixed_common import coordinates_accuracy, histories, same_step
 from .planar_common import save_figure
@@ -56,18 +56,9 @@ BOUND_FORCE = 1e-8
 
 
 def model() -> PlanarModel:
-    """The mixed model (module docstring)."""
-    b = BEAM
-    le = b["length"] / b["elements"]
-    nodes = {f"n{k}": (k * le, 0.0) for k in range(b["elements"] + 1)}
-    fe = FiniteElementModel("beam1", nodes, [BeamElement(f"e{k}", f"n{k}", f"n{k + 1}", b["bending_stiffness"],
-                                                         b["axial_stiffness"], b["mass_per_length"])
-                                             for k in range(b["elements"])], rayleigh=RAYLEIGH)
-    beam = fe.subsystem("beam1", ("n0", f"n{b['elements']}"))
-    links = [RigidBody.uniform_link(f"body{k + 1}", mass=m, length=LINK) for k, m in enumerate(MASSES)]
-    items = [Pinned("base"), links[0], SmoothHinge("h2"), links[1], SmoothHinge("h3"), links[2],
-             SmoothHinge("connection"), beam, SmoothHinge("h4"), links[3], SmoothHinge("h5"), links[4]]
-    return PlanarModel.chain("fem_chain", items)
+    """The mixed model (module docstring), built from its scene file ``scenarios/files/fem_chain.toml``
+    (the one source of the TMM model; :func:`reference` builds the global model from the constants above)."""
+    return load_scene(Path(__file__).resolve().parent / "files" / "fem_chain.toml").system
 
 
 def reference() -> GlobalChain:

@@ -25,10 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ctmm.fem import FiniteElementModel, NodeSpring, PointMass
-from ctmm.planar import PlanarModel, Pinned, RigidBody, SmoothHinge
-from ctmm.planar.elements import FixedMounting
+from ctmm.planar import PlanarModel
 from ctmm.reference.mixed_global import GlobalChain, ParticleNet, RigidSegment
+from ctmm.scene_files import load_scene
 
 from .mixed_common import (coordinates_accuracy, largest_net_displacement, particle_positions, plot_energy,
                            plot_rotations, same_step_run)
@@ -50,14 +49,10 @@ BOUND_SAME_INTEGRATOR = 1e-8
 
 
 def model() -> PlanarModel:
-    """Body 2, the welded particle subsystem, body 6 pinned at particle 5."""
-    elements = [PointMass(f"m_{p}", p, PARTICLE_MASS) for p in PARTICLES]
-    elements += [NodeSpring(f"k{i}", a, b, STIFFNESS) for i, (a, b) in enumerate(SPRINGS)]
-    fe = FiniteElementModel("net", {**ANCHORS, **PARTICLES}, elements)
-    net = fe.subsystem("net", boundary=("hub", "p5"), frame_nodes=("a_up", "a_down"))
-    return PlanarModel.chain(NAME, [Pinned("base"), RigidBody.uniform_link("body2", mass=BODY2[1], length=BODY2[0]),
-                                    FixedMounting("weld"), net, SmoothHinge("h6"),
-                                    RigidBody.uniform_link("body6", mass=BODY6[1], length=BODY6[0])])
+    """Body 2, the welded particle subsystem, body 6 pinned at particle 5, built from the scene file
+    ``scenarios/files/particle_chain.toml`` (the one source of the TMM model; :func:`reference` builds the global
+    model from the constants above)."""
+    return load_scene(Path(__file__).resolve().parent / "files" / "particle_chain.toml").system
 
 
 def reference() -> GlobalChain:

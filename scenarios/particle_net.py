@@ -26,9 +26,9 @@ from pathlib import Path
 import numpy as np
 
 from ctmm.fem import GlobalSubsystem
-from ctmm.planar import PlanarModel, Pinned, RigidBody, SmoothHinge
-from ctmm.planar.elements import FixedMounting
+from ctmm.planar import PlanarModel
 from ctmm.reference.mixed_global import GlobalChain, ParticleNet, RigidSegment
+from ctmm.scene_files import load_scene
 
 from .mixed_common import (coordinates_accuracy, largest_net_displacement, particle_positions, plot_energy,
                            plot_rotations, same_step_run)
@@ -106,12 +106,10 @@ def net_subsystem() -> GlobalSubsystem:
 
 
 def model() -> PlanarModel:
-    """Four links and the welded net (module docstring)."""
-    links = [RigidBody.uniform_link(name, mass=m, length=LINK) for name, m in zip(BODY_NAMES, MASSES)]
-    items = [Pinned("base"), links[0]]
-    for k, link in enumerate(links[1:]):
-        items += [SmoothHinge(f"h{k + 2}"), link]
-    return PlanarModel.chain(NAME, items + [FixedMounting("weld"), net_subsystem()])
+    """Four links and the welded net (module docstring), built from the scene file
+    ``scenarios/files/particle_net.toml`` (it takes the net from :func:`net_subsystem`; :func:`reference` builds the
+    global model from the constants above)."""
+    return load_scene(Path(__file__).resolve().parent / "files" / "particle_net.toml").system
 
 
 def reference() -> GlobalChain:

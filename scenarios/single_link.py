@@ -21,11 +21,11 @@ from pathlib import Path
 import numpy as np
 
 import ctmm
-from ctmm.flexible import ModalBeam
-from ctmm.flexible.outputs import mape, spinup_law, tip_deflection
-from ctmm.planar import DrivenHinge, Fixed, PlanarModel
+from ctmm.flexible.outputs import mape, tip_deflection
+from ctmm.planar import PlanarModel
 from ctmm.reference.flexible_lagrange import FlexibleLagrange
 from ctmm.scenario import accuracy
+from ctmm.scene_files import load_scene
 from ctmm.schemes import Newmark
 from ctmm.signal_results import coordinate_histories
 
@@ -39,10 +39,8 @@ TARGET_MAPE = 0.05
 
 
 def model() -> PlanarModel:
-    angle, rate, acceleration = spinup_law(4.0, 2.0)
-    return PlanarModel.chain("single_link", [
-        Fixed("base"), DrivenHinge("motor", angle=angle, rate=rate, acceleration=acceleration),
-        ModalBeam("link", **LINK)], gravity=(0.0, 0.0))
+    """The driven link, built from its scene file ``scenarios/files/single_link.toml`` (the one source)."""
+    return load_scene(Path(__file__).resolve().parent / "files" / "single_link.toml").system
 
 
 def run(output_dir: Path, quick: bool = False) -> dict:

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 import ctmm.spatial as sp
+from ctmm.scene_files import load_scene
 
 from .planar_common import save_figure
 from .spatial_common import scenario_runs, scenario_summary
@@ -38,13 +39,8 @@ def link(name: str, mass: float, length: float) -> sp.SpatialBody:
 
 
 def model() -> sp.SpatialModel:
-    links = [link(f"link{k + 1}", m, l) for k, (m, l) in enumerate(zip(MASSES, LENGTHS))]
-    return sp.SpatialModel("spatial_chain", [
-        *links,
-        sp.Spherical(name="j1", parent=None, child="link1"),
-        sp.Revolute(name="j2", parent="link1", point="tip", child="link2", axis=(1, 0, 0)),
-        sp.Spherical(name="j3", parent="link2", point="tip", child="link3"),
-        sp.Revolute(name="j4", parent="link3", point="tip", child="link4", axis=(0, 1, 1))])
+    """The chain, built from its scene file ``scenarios/files/spatial_chain.toml`` (the one source)."""
+    return load_scene(Path(__file__).resolve().parent / "files" / "spatial_chain.toml").system
 
 
 def initial_state() -> tuple[np.ndarray, np.ndarray]:

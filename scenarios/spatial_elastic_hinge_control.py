@@ -39,6 +39,7 @@ from ctmm.linearize import DelayedLoop, LinearizedSystem
 from ctmm.reference import spatial_tree as ref
 from ctmm.reference.spatial_kinematics import kinematics, quaternion_matrix
 from ctmm.scenario import accuracy
+from ctmm.scene_files import load_scene
 from ctmm.stability import delay_margin
 
 from .planar_common import save_figure
@@ -61,10 +62,9 @@ def stiffness() -> np.ndarray:
 
 
 def model() -> sp.SpatialModel:
-    return sp.SpatialModel("hinge_body", [
-        sp.SpatialBody("body", MASS, np.diag(INERTIA), center_of_mass=COM),
-        sp.Elastic6(name="hinge", parent=None, child="body", stiffness=stiffness(), damping=np.diag(DAMPING),
-                    actuated=True)], gravity=GRAVITY)
+    """The body on its hinge (no loop), built from the scene file ``scenarios/files/spatial_elastic_hinge_control.toml``
+    (the one source of the plant; :func:`reference_tree` builds the reference from the constants above)."""
+    return load_scene(Path(__file__).resolve().parent / "files" / "spatial_elastic_hinge_control.toml").plant
 
 
 def initial_state() -> tuple[np.ndarray, np.ndarray]:

@@ -42,6 +42,7 @@ from ctmm.control import Feedback, with_feedback
 from ctmm.reference import spatial_tree as ref
 from ctmm.reference.spatial_kinematics import kinematics
 from ctmm.scenario import accuracy
+from ctmm.scene_files import load_scene
 
 from .planar_common import save_figure
 
@@ -68,14 +69,9 @@ NEWMARK_BOUND = 1e-4     # [rad] a second-order scheme at 1-2 ms on 10-40 rad/s 
 
 
 def model() -> sp.SpatialModel:
-    names = list(BODIES)
-    bodies = [sp.SpatialBody(name, mass, inertia, center_of_mass=com, points={"tip": tip} if name != "hand" else
-                             {"tcp": tip}) for name, (mass, inertia, com, tip) in BODIES.items()]
-    joints = [sp.Revolute(name=joint, parent=None if k == 0 else names[k - 1], point=None if k == 0 else "tip",
-                          child=names[k], axis=axis, actuated=True)
-              for k, (joint, axis) in enumerate(zip(JOINTS, AXES))]
-    joints.append(sp.Spherical(name="wrist", parent="fore", point="tip", child="hand", actuated=True))
-    return sp.SpatialModel("robot_arm", bodies + joints, gravity=GRAVITY)
+    """The arm (no loops), built from the scene file ``scenarios/files/spatial_robot_arm.toml`` (the one source of the
+    plant; :func:`reference_tree` builds the reference from the constants above)."""
+    return load_scene(Path(__file__).resolve().parent / "files" / "spatial_robot_arm.toml").plant
 
 
 def desired(k: int, t: float, *, ops=np) -> tuple:

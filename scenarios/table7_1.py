@@ -30,16 +30,11 @@ STIFFNESS, FREE_LENGTH, MASS, FORCE = 1000.0, 0.1, 0.1, 100.0
 
 
 def build_chain():
-    """The Table 7.1 chain with the book's element numbering (springs odd, masses even)."""
-    import ctmm
-    from ctmm.elements import Fixed, Free, Mass, Spring
+    """The Table 7.1 chain with the book's element numbering (springs odd, masses even), built from its scene file
+    ``scenarios/files/table7_1.toml`` (the one source of the TMM chain; the exact reference uses the constants above)."""
+    from ctmm.scene_files import load_scene
 
-    elements = [Fixed("wall")]
-    for i in range(5):
-        elements.append(Spring(f"K{2 * i + 1}", STIFFNESS, free_length=FREE_LENGTH))
-        elements.append(Mass(f"m{2 * i + 2}", MASS, force=FORCE if i == 0 else 0.0))
-    elements.append(Free("end"))
-    return ctmm.Chain("table7_1", elements)
+    return load_scene(Path(__file__).resolve().parent / "files" / "table7_1.toml").system
 
 
 def _exact(chain, times: np.ndarray, u0: np.ndarray) -> np.ndarray:
