@@ -93,10 +93,12 @@ class FEFrame:
 
 
 class SpatialFEChain:
-    """Global model of ``segments`` (``Link``s and one ``FEFrame``) in chain order, gravity [m/s^2]."""
+    """Global model of ``segments`` (``Link``s and one ``FEFrame``) in chain order, gravity [m/s^2] and an
+    extra generalised force ``force(u, u_dot) -> (n_u,)`` on the frame's DOFs."""
 
-    def __init__(self, segments: Sequence[Any], gravity=(0.0, 0.0, -9.81)) -> None:
+    def __init__(self, segments: Sequence[Any], gravity=(0.0, 0.0, -9.81), force: Any = None) -> None:
         self.segments = list(segments)
+        self.force = force
         self.gravity = np.asarray(gravity, dtype=float)
         frames = [k for k, s in enumerate(self.segments) if isinstance(s, FEFrame)]
         assert len(frames) == 1
@@ -302,6 +304,8 @@ class SpatialFEChain:
             rhs -= J.T @ I @ Jd @ qd + Jd.T @ I @ Omega - dT
         u, ud = q[self.n_joints:], qd[self.n_joints:]
         rhs[self.n_joints:] -= self.K @ u + self.C @ ud
+        if self.force is not None:
+            rhs[self.n_joints:] += self.force(u, ud)
         return M, rhs, kin, kin_d
 
     def frame_joints(self) -> int:
@@ -360,9 +364,9 @@ class SpatialFEChain:
             out.append(x.copy())
         return np.arange(steps + 1) * dt, np.array(out)
 
-    def natural_frequencies(self, q0) -> np.ndarray:
-        """Undamped natural frequencies [rad/s] about the static equilibrium ``q0``: ``eigh(K_t, M)`` with the
-        tangent stiffness ``K_t = -d(Q - b)/dq`` at rest by complex step."""
+    def linear_matrices(self, q0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``M, K_t, C`` about the static equilibrium ``q0``: the tangent stiffness ``K_t = -d(Q - b)/dq`` at rest
+        by complex step; ``C`` the frame's damping (the velocity terms are quadratic: no tangent at rest)."""
         q0 = np.asarray(q0, float)
         n = self.n
         M, _, _, _ = self._terms(q0, np.zeros(n))
@@ -372,9 +376,21 @@ class SpatialFEChain:
             e[k] = 1.0
             _, rhs, _, _ = self._terms_complex(q0 + 1j * _H * e)
             Kt[:, k] = -rhs.imag / _H
-        Kt = 0.5 * (Kt + Kt.T)
-        values = scipy.linalg.eigh(Kt, M, eigvals_only=True)
-        return np.sqrt(np.clip(values, 0.0, None))
+        C = np.zeros((n, n))
+        C[self.n_joints:, self.n_joints:] = self.C
+        return M, 0.5 * (Kt + Kt.T), C
+
+    def natural_frequencies(self, q0) -> np.ndarray:
+        """Undamped natural frequencies [rad/s] about the static equilibrium ``q0``: ``eigh(K_t, M)``."""
+        M, Kt, _ = self.linear_matrices(q0)
+        return np.sqrt(np.clip(scipy.linalg.eigh(Kt, M, eigvals_only=True), 0.0, None))
+
+    def frequency_response(self, q0, omega, load: int, output: int) -> np.ndarray:
+        """Phasor of coordinate ``output`` per unit harmonic generalised force on coordinate ``load``."""
+        M, Kt, C = self.linear_matrices(q0)
+        e = np.zeros(self.n)
+        e[load] = 1.0
+        return np.array([np.linalg.solve(Kt - w * w * M + 1j * w * C, e)[output] for w in np.atleast_1d(omega)])
 
     def _terms_complex(self, q: np.ndarray):
         """Generalised forces at rest for a complex ``q`` (gravity and elastic only: ``q' = 0``)."""
@@ -386,4 +402,6 @@ class SpatialFEChain:
         _, J_p = kin["points"]
         rhs += np.einsum("p,pik,i->k", self.m, J_p, self.gravity)
         rhs[self.n_joints:] -= self.K @ q[self.n_joints:]
+        if self.force is not None:
+            rhs[self.n_joints:] += self.force(q[self.n_joints:], np.zeros(self.n_u))
         return None, rhs, kin, None
