@@ -197,3 +197,14 @@ def test_lumped_particle_subsystem_matches_its_finite_element_twin():
         q[1:5] = np.array([0.9, 0.1, -0.3, 0.2]) / np.linalg.norm([0.9, 0.1, -0.3, 0.2])
         a = [sp.accelerations(m, q, v) for m in models]
         assert np.max(np.abs(a[0] - a[1])) < 1e-11 * np.max(np.abs(a[0]))
+
+
+def test_small_deformation_warning_beyond_a_tenth_of_the_size():
+    """A soft cantilever sagging under gravity past 10 % of its length: the run goes on with a warning."""
+    nodes = {"a": (0.0, 0.0, 0.0), "b": (0.5, 0.0, 0.0), "c": (1.0, 0.0, 0.0)}
+    fe = SpatialFiniteElementModel("soft", nodes, [SpatialBeamElement(e, s, t, 1e3, 5.0, 4.0, 4.0, 0.9, 1e-2)
+                                                   for e, s, t in (("e0", "a", "b"), ("e1", "b", "c"))])
+    model = sp.SpatialModel("sag", [fe.subsystem("beam", ("a", "c")), sp.Weld(name="clamp", parent=None, child="beam")])
+    with pytest.warns(SmallDeformationWarning, match="beam"):
+        result = ctmm.simulate(model, 0.25, 5e-3, method="rk4")
+    assert np.max(np.abs(result["beam.c_uz"])) > 0.1

@@ -30,6 +30,7 @@ import numpy as np
 
 from .. import validation
 from ..errors import ModelError
+from .model_parts import node_name
 
 __all__ = ["SpatialBeamElement", "SpatialPointMass", "SpatialNodeSpring", "spatial_beam_axes", "spatial_beam_shapes",
            "spatial_beam_local_matrices", "node_rotation_block", "GAUSS_POINTS", "GAUSS_WEIGHTS"]
@@ -37,12 +38,6 @@ __all__ = ["SpatialBeamElement", "SpatialPointMass", "SpatialNodeSpring", "spati
 _X, _W = np.polynomial.legendre.leggauss(5)
 GAUSS_POINTS, GAUSS_WEIGHTS = 0.5 * (_X + 1.0), 0.5 * _W
 """Five Gauss-Legendre points on ``[0, 1]`` and their weights (exact to degree 9)."""
-
-
-def _node(owner: str, label: str, value: object) -> str:
-    if not isinstance(value, str) or not value:
-        raise ModelError(f"{owner}: {label} must be a node name (non-empty str), got {value!r}")
-    return value
 
 
 @dataclass(frozen=True)
@@ -85,8 +80,8 @@ class SpatialBeamElement:
 
     def __post_init__(self) -> None:
         n = validation.name("element", self.name)
-        _node(n, "start", self.start)
-        _node(n, "end", self.end)
+        node_name(n, "start", self.start)
+        node_name(n, "end", self.end)
         if self.start == self.end:
             raise ModelError(f"{n}: start and end must be different nodes, got {self.start!r} twice")
         for attribute in ("axial_stiffness", "torsional_stiffness", "bending_stiffness_y", "bending_stiffness_z"):
@@ -123,7 +118,7 @@ class SpatialPointMass:
 
     def __post_init__(self) -> None:
         n = validation.name("element", self.name)
-        _node(n, "node", self.node)
+        node_name(n, "node", self.node)
         object.__setattr__(self, "mass", validation.nonnegative(f"{n}: mass", self.mass))
         inertia = validation.finite_array(f"{n}: inertia", self.inertia)
         inertia = np.diag(inertia) if inertia.shape == (3,) else inertia
@@ -158,8 +153,8 @@ class SpatialNodeSpring:
 
     def __post_init__(self) -> None:
         n = validation.name("element", self.name)
-        _node(n, "start", self.start)
-        _node(n, "end", self.end)
+        node_name(n, "start", self.start)
+        node_name(n, "end", self.end)
         for attribute in ("stiffness", "damping", "rotational_stiffness", "rotational_damping"):
             object.__setattr__(self, attribute, validation.nonnegative(f"{n}: {attribute}", getattr(self, attribute)))
 

@@ -28,6 +28,7 @@ from ..errors import ModelError, SimulationError
 from ..ops import NUMPY, Ops
 from ..protocol import BodyTerms
 from .family import SMALL_DEFORMATION, SmallDeformationWarning
+from .model_parts import square_matrix
 from .spatial_terms import subsystem_terms
 
 __all__ = ["SpatialInertia", "SpatialSubsystem", "SpatialSubsystemData", "lumped_spatial_inertia"]
@@ -106,15 +107,6 @@ def lumped_spatial_inertia(owner: str, M: np.ndarray, positions: np.ndarray, nod
     return SpatialInertia(mass, first, second, S1, D, E, J_r, R_c)
 
 
-def _matrix(owner: str, label: str, value: Any, n: int | None) -> np.ndarray:
-    a = validation.finite_array(f"{owner}: {label}", value, ndim=2)
-    if a.shape[0] != a.shape[1] or (n is not None and a.shape[0] != n):
-        raise ModelError(f"{owner}: {label} must be square{'' if n is None else f' ({n} x {n})'}, got shape {a.shape}")
-    if np.max(np.abs(a - a.T), initial=0.0) > 1e-10 * max(np.max(np.abs(a), initial=0.0), 1e-300):
-        raise ModelError(f"{owner}: the {label} matrix must be symmetric")
-    return a
-
-
 def _inertia_tensor(owner: str, value: Any) -> np.ndarray:
     a = validation.finite_array(f"{owner}: frame_inertia", value)
     a = np.diag(a) if a.shape == (3,) else a
@@ -168,10 +160,10 @@ class SpatialSubsystem:
 
     def __post_init__(self) -> None:
         owner = validation.name("element", self.name)
-        M = _matrix(owner, "mass", self.mass_matrix, None)
+        M = square_matrix(owner, "mass", self.mass_matrix, None)
         n = M.shape[0]
-        C = _matrix(owner, "damping", self.damping_matrix, n)
-        K = _matrix(owner, "stiffness", self.stiffness_matrix, n)
+        C = square_matrix(owner, "damping", self.damping_matrix, n)
+        K = square_matrix(owner, "stiffness", self.stiffness_matrix, n)
         if not isinstance(self.nodes, Mapping) or not self.nodes:
             raise ModelError(f"{owner}: nodes must be a non-empty mapping {{name: ((x, y, z), dofs)}}, got {self.nodes!r}")
         owners, positions, node_dofs = [None] * n, {}, {}
