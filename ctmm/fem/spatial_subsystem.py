@@ -223,6 +223,10 @@ class SpatialSubsystem:
     def __hash__(self) -> int:
         return hash(self.name)
 
+    def __repr__(self) -> str:
+        return (f"SpatialSubsystem({self.name!r}, {self.data.n} internal DOFs, boundary={self.boundary}, "
+                f"mass {self.mass:.6g} kg)")
+
     # -- body interface of SpatialModel ------------------------------------------------------------
     @property
     def points(self) -> dict[str, np.ndarray]:

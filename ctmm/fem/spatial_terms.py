@@ -251,7 +251,7 @@ def _moved_to_inboard(ops: Ops, terms: BodyTerms, offset: Any, omega: Any, n: in
     ``M -> X^T M X``, ``h -> X^T (h + M c)``, ``Kin_e -> Kin_e X``, ``c_e -> c_e + Kin_e c``, ``RF_e -> X^T RF_e``."""
     eye3 = ops.eye(3)
     X = ops.block([[eye3, skew(ops, offset) * -1.0, ops.zeros(3, n)], [ops.zeros(3, 3), eye3, ops.zeros(3, n)],
-                   [ops.zeros(n, 6), ops.eye(n)]])
+                   [ops.zeros(n, 3), ops.zeros(n, 3), ops.eye(n)]])
     Xt = ops.transpose(X)
     bias = None if omega is None else ops.block([[cross(ops, omega, cross(ops, omega, offset))],
                                                  [ops.zeros(3 + n, 1)]])
