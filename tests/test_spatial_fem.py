@@ -239,3 +239,18 @@ def test_energy_is_conserved_on_translating_joints(joint):
         start, end = (sp.energy(model, q, v) for q, v in rows)
         drift.append(abs(end - start) / abs(start))
     assert drift[1] < 1e-4 and drift[0] / drift[1] > 10.0      # RK4's own dissipation, order 4: no model drift
+
+
+def test_node_ports_match_global_model():
+    """Port actuators and sensors at a boundary node: a world force at n3 -> the node's world height and its
+    displacement coordinate, vs the global linearisation with the load ``J^T f`` and the output row ``J``."""
+    model, ref = chain(damping=3e-4)
+    q0 = np.asarray(ctmm.linearize(model).operating_point.q)
+    _, J = ref.node_point(q0, "n3")
+    w = np.array([1.5, 25.0, 70.0])
+    response = np.asarray(ctmm.frequency_response(model, w, input="frame.n3.force_z",
+                                                  output=["frame.n3.z", "frame.n3_uz"]).response)
+    index = model.coordinates.index("frame.n3_uz")
+    for row, output in enumerate((J[2], index)):
+        expected = ref.frequency_response(q0, w, load=J[2], output=output)
+        assert np.max(np.abs(response[row, 0] - expected) / np.abs(expected)) < 1e-7

@@ -301,7 +301,7 @@ class SpatialSubsystem:
         d = self.data
         key = tuple(np.round(np.asarray(point, dtype=float), 12))
         if key not in d.node_at_position:
-            raise ModelError(f"subsystem {self.name!r}: {list(point)} m is not a node (sensors read nodes)")
+            raise ModelError(f"subsystem {self.name!r}: {np.asarray(point).tolist()} m is not a node (sensors read nodes)")
         X, trans, _ = d.point_rows[d.node_at_position[key]]
         eta = np.asarray(eta)
         moved = eta[..., list(trans)] if trans is not None else np.zeros(eta.shape[:-1] + (3,))

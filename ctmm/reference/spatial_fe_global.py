@@ -261,6 +261,15 @@ class SpatialFEChain:
         J_p = Jv_F[None] - hats @ Jw_F[None] + np.einsum("ij,pjk,kl->pil", R_F, self.S, Su)
         return {"links": links, "frame": frame, "points": (r_p, J_p), "Su": Su}
 
+    def node_point(self, q, node: str) -> tuple[np.ndarray, np.ndarray]:
+        """World position [m] of a frame node and its Jacobian ``d r / d q`` (3 x n)."""
+        q = np.asarray(q, float)
+        R_F, o_F, Jv_F, Jw_F = self.kinematics(q)["frame"]
+        rho, _, _, Smap = self._node_frame(q[self.n_joints:], node)
+        Su = np.zeros((self.n_u, self.n))
+        Su[:, self.n_joints:] = np.eye(self.n_u)
+        return o_F + R_F @ rho, Jv_F - _hat(R_F @ rho) @ Jw_F + R_F @ Smap @ Su
+
     def _rotary_jacobians(self, kin: dict) -> list:
         R_F, _, _, Jw_F = kin["frame"]
         out = []
@@ -385,12 +394,13 @@ class SpatialFEChain:
         M, Kt, _ = self.linear_matrices(q0)
         return np.sqrt(np.clip(scipy.linalg.eigh(Kt, M, eigvals_only=True), 0.0, None))
 
-    def frequency_response(self, q0, omega, load: int, output: int) -> np.ndarray:
-        """Phasor of coordinate ``output`` per unit harmonic generalised force on coordinate ``load``."""
+    def frequency_response(self, q0, omega, load: Any, output: Any) -> np.ndarray:
+        """Phasor of an output per unit harmonic load: ``load`` a coordinate index (a generalised force) or a
+        vector ``(n,)`` of generalised forces; ``output`` a coordinate index or a row ``(n,)``."""
         M, Kt, C = self.linear_matrices(q0)
-        e = np.zeros(self.n)
-        e[load] = 1.0
-        return np.array([np.linalg.solve(Kt - w * w * M + 1j * w * C, e)[output] for w in np.atleast_1d(omega)])
+        b = np.eye(self.n)[load] if np.ndim(load) == 0 else np.asarray(load, float)
+        c = np.eye(self.n)[output] if np.ndim(output) == 0 else np.asarray(output, float)
+        return np.array([c @ np.linalg.solve(Kt - w * w * M + 1j * w * C, b) for w in np.atleast_1d(omega)])
 
     def _terms_complex(self, q: np.ndarray):
         """Generalised forces at rest for a complex ``q`` (gravity and elastic only: ``q' = 0``)."""
