@@ -200,7 +200,7 @@ def subsystem_terms(ops: Ops, data: Any, *, rotation: Any, offset: Any, omega: A
         key = tuple(np.round(np.asarray(position, dtype=float), 12))
         if key not in by_position:
             raise ModelError(f"subsystem {data.body.name!r}: a load or actuator acts at {np.asarray(position).tolist()} m, "
-                             "which is not a node; loads on a subsystem act at its nodes ({', '.join(data.point_rows)})")
+                             f"which is not a node; loads on a subsystem act at its nodes ({', '.join(data.point_rows)})")
         S_e, rho, _, _, TP, _, _ = point(by_position[key])
         f = ops.matmul(Rt, ops.sub(wrench, slice(0, 3), slice(0, 1)))
         m_l = ops.matmul(Rt, ops.sub(wrench, slice(3, 6), slice(0, 1)))
