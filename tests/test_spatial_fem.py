@@ -254,3 +254,21 @@ def test_node_ports_match_global_model():
     for row, output in enumerate((J[2], index)):
         expected = ref.frequency_response(q0, w, load=J[2], output=output)
         assert np.max(np.abs(response[row, 0] - expected) / np.abs(expected)) < 1e-7
+
+
+def test_feedback_loop_on_the_mixed_model_matches_a_joint_spring_of_the_global_model():
+    """A PD loop (ctmm.control.with_feedback) on the yaw of the mixed model = a yaw spring-damper of the
+    global model, RK4 same step."""
+    from ctmm.control import Feedback, with_feedback
+
+    model, _ = chain(child=False)
+    _, ref = chain(child=False)
+    ref.joint_springs = {0: (6.0, 0.5)}
+    controlled = with_feedback(model, [Feedback("pd", [("yaw.angle", 6.0), ("yaw.angle_rate", 0.5)], "yaw.torque",
+                                                gain=1.0)])
+    q0 = np.zeros(model.n_positions)
+    q0[0], q0[1], q0[5] = 0.3, 0.4, 0.004
+    result = ctmm.simulate(controlled, 0.02, 5e-4, method="rk4", x0=q0)
+    _, reference = ref.rk4(q0, np.zeros(model.n_velocities), 0.02, 5e-4)
+    for k, name in enumerate(model.coordinates):
+        assert np.max(np.abs(result[name] - reference[:, k])) < 1e-9 * max(1.0, np.max(np.abs(reference[:, k])))

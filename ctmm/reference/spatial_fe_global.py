@@ -94,11 +94,14 @@ class FEFrame:
 
 class SpatialFEChain:
     """Global model of ``segments`` (``Link``s and one ``FEFrame``) in chain order, gravity [m/s^2] and an
-    extra generalised force ``force(u, u_dot) -> (n_u,)`` on the frame's DOFs."""
+    extra generalised force ``force(u, u_dot) -> (n_u,)`` on the frame's DOFs; ``joint_springs`` ``{joint
+    index: (k [N m/rad], c [N m s/rad])}`` adds ``-k q - c q'`` on those joint angles."""
 
-    def __init__(self, segments: Sequence[Any], gravity=(0.0, 0.0, -9.81), force: Any = None) -> None:
+    def __init__(self, segments: Sequence[Any], gravity=(0.0, 0.0, -9.81), force: Any = None,
+                 joint_springs: Any = None) -> None:
         self.segments = list(segments)
         self.force = force
+        self.joint_springs = {} if joint_springs is None else dict(joint_springs)    # {joint index: (k, c)}
         self.gravity = np.asarray(gravity, dtype=float)
         frames = [k for k, s in enumerate(self.segments) if isinstance(s, FEFrame)]
         assert len(frames) == 1
@@ -315,6 +318,8 @@ class SpatialFEChain:
         rhs[self.n_joints:] -= self.K @ u + self.C @ ud
         if self.force is not None:
             rhs[self.n_joints:] += self.force(u, ud)
+        for k, (stiffness, damping) in self.joint_springs.items():
+            rhs[k] -= stiffness * q[k] + damping * qd[k]
         return M, rhs, kin, kin_d
 
     def frame_joints(self) -> int:
