@@ -97,7 +97,7 @@ def reference() -> SpatialFEChain:
     ], gravity=(0.0, 0.0, -9.81))
 
 
-def run(output_dir: Path, quick: bool = False) -> dict:
+def run(output_dir: Path, quick: bool = False, results: dict | None = None) -> dict:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -112,6 +112,8 @@ def run(output_dir: Path, quick: bool = False) -> dict:
         v0[rates.index(key)] = value
     rk4 = ctmm.simulate(mixed, t_final, STEP, method="rk4", x0=q0, v0=v0)
     newmark = ctmm.simulate(mixed, t_final, STEP, method="newmark", x0=q0, v0=v0)
+    if results is not None:                      # ctmm run --save / --animate
+        results.update(rk4=rk4, newmark=newmark)
     q = np.column_stack([rk4[c] for c in names])
     v = np.column_stack([rk4[c] for c in rates])
     q_nm = np.column_stack([newmark[c] for c in names])

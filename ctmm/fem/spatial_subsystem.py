@@ -190,6 +190,9 @@ class SpatialSubsystem:
         if not boundary or any(b not in node_dofs for b in boundary) or len(set(boundary)) != len(boundary):
             raise ModelError(f"{owner}: boundary must name distinct nodes, the inboard one first; got {self.boundary!r}, "
                              f"nodes: {', '.join(node_dofs)}")
+        if "origin" in node_dofs and boundary[0] != "origin":
+            raise ModelError(f"{owner}: the point name 'origin' is the inboard node; name node 'origin' otherwise "
+                             f"(it is not the inboard node {boundary[0]!r})")
         frame_nodes = tuple(self.frame_nodes)
         wrong = [f for f in frame_nodes if f not in node_dofs or f in boundary]
         if wrong:
@@ -230,8 +233,8 @@ class SpatialSubsystem:
     # -- body interface of SpatialModel ------------------------------------------------------------
     @property
     def points(self) -> dict[str, np.ndarray]:
-        """Boundary nodes in the frame [m] (the inboard node at the origin)."""
-        return {node: self.data.position[node].copy() for node in self.boundary}
+        """``"origin"`` (the inboard node) and the boundary nodes in the frame [m]."""
+        return {"origin": np.zeros(3), **{node: self.data.position[node].copy() for node in self.boundary}}
 
     @property
     def mass(self) -> float:
@@ -291,7 +294,7 @@ class SpatialSubsystem:
         return []
 
     def actuator_rows(self) -> list[tuple[str, int, tuple, str]]:
-        """Moment actuators ``"<name>.<node>.moment_x|y|z"`` (world axes) at the boundary nodes."""
+        """Moment actuators ``"<name>.<node>.moment_x|y|z"`` (world axes) at the points (``origin``, boundary nodes)."""
         return [(f"{self.name}.{node}.moment_{a}", 3 + c, tuple(r), "N m") for node, r in self.points.items()
                 for c, a in enumerate("xyz")]
 
@@ -409,6 +412,7 @@ class SpatialSubsystemData:
             rot = tuple(local[i] for i in dofs[3:]) if len(dofs) == 6 and dofs[3] in local else None
             self.point_rows[node] = (self.position[node], trans, rot)
             self.node_at_position.setdefault(tuple(np.round(self.position[node], 12)), node)
+        self.point_rows["origin"] = self.point_rows[body.boundary[0]]
         for node in body.boundary:                                      # boundary nodes win shared positions
             self.node_at_position[tuple(np.round(self.position[node], 12))] = node
         self.translational = np.array([not s[-2] == "r" for s in self.suffixes], dtype=bool)
