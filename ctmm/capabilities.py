@@ -30,7 +30,9 @@ _OTHER_PACKAGES = {
                      "ctmm.linearize, ctmm.frequency_response, ctmm.natural_frequencies, ctmm.mode_shapes, "
                      "ctmm.stability with loops",
     "ctmm.fem": "a ctmm.planar.PlanarModel holding it as a body (FiniteElementModel.subsystem(...) or a "
-                "GlobalSubsystem in the element list), then every planar verb (docs/mixed.md)",
+                "GlobalSubsystem in the element list), then every planar verb (docs/mixed.md); spatial: a "
+                "ctmm.spatial.SpatialModel holding a SpatialSubsystem (SpatialFiniteElementModel.subsystem(...)), "
+                "then every spatial verb (docs/mixed.md §7)",
     "ctmm.manipulator": "ctmm.manipulator.manipulator_scene (a ControlledModel for every verb; exact beam fields "
                         "with fields='exact'; the PZT voltage limit as loop saturation, on_limit='saturate')",
     "ctmm.spatial": "the verbs that answer every model: ctmm.simulate, ctmm.linearize, ctmm.frequency_response, "

@@ -8,7 +8,11 @@
   ``M u'' + C u' + K u = f(u, u', t)`` as a body of :class:`ctmm.planar.PlanarModel` (floating frame
   at its inboard boundary node; outboard boundary nodes are its points), so every planar verb
   (``ctmm.simulate`` with RK4, solve_ivp and the DT-TMM schemes, ``ctmm.linearize``,
-  ``ctmm.frequency_response``, ``ctmm.natural_frequencies``) runs on the mixed system.
+  ``ctmm.frequency_response``, ``ctmm.natural_frequencies``) runs on the mixed system;
+* spatial counterparts (``docs/mixed.md`` §7): :mod:`ctmm.fem.spatial_elements` (12-DOF beam, point mass with
+  inertia, node spring), :mod:`ctmm.fem.spatial_assembly` (:class:`SpatialFiniteElementModel`),
+  :mod:`ctmm.fem.spatial_subsystem` (:class:`SpatialSubsystem`, a body of :class:`ctmm.spatial.SpatialModel`
+  with ``d = 6`` boundary points; its terms in :mod:`ctmm.fem.spatial_terms`).
 
 Derivation and validation: ``docs/mixed.md``.
 """
@@ -17,6 +21,11 @@ from .elements import BeamElement, NodeSpring, PointMass, beam_local_matrices
 from .family import SmallDeformationWarning, SubsystemFamily, subsystem_energy
 from .membrane import MembraneElement
 from .subsystem import FloatingInertia, GlobalSubsystem
+from .spatial_assembly import SpatialFiniteElementModel
+from .spatial_elements import SpatialBeamElement, SpatialNodeSpring, SpatialPointMass
+from .spatial_subsystem import SpatialInertia, SpatialSubsystem
 
 __all__ = ["FiniteElementModel", "BeamElement", "MembraneElement", "PointMass", "NodeSpring", "beam_local_matrices", "GlobalSubsystem",
-           "FloatingInertia", "SubsystemFamily", "SmallDeformationWarning", "subsystem_energy"]
+           "FloatingInertia", "SubsystemFamily", "SmallDeformationWarning", "subsystem_energy",
+           "SpatialFiniteElementModel", "SpatialBeamElement", "SpatialPointMass", "SpatialNodeSpring", "SpatialInertia",
+           "SpatialSubsystem"]

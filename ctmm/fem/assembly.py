@@ -19,6 +19,7 @@ from .. import validation
 from ..errors import ModelError
 from .elements import BeamElement, NodeSpring, PointMass, beam_local_matrices, beam_rotation, beam_shape_functions
 from .membrane import MembraneElement, membrane_matrices, membrane_shape_points
+from .model_parts import check_springs, checked_elements, clamped_frequencies, node_positions, number_dofs, rayleigh_pair
 from .subsystem import FloatingInertia, GlobalSubsystem
 
 __all__ = ["FiniteElementModel"]
@@ -61,48 +62,13 @@ class FiniteElementModel:
     def __init__(self, name: str, nodes: Mapping[str, Sequence[float]], elements: Sequence[Any], *,
                  rayleigh: Sequence[float] = (0.0, 0.0)) -> None:
         self.name = validation.name("model", name)
-        if not isinstance(nodes, Mapping) or not nodes:
-            raise ModelError(f"{name}: nodes must be a non-empty mapping {{name: (x, y)}}, got {nodes!r}")
-        self.positions: dict[str, np.ndarray] = {}
-        for node, xy in nodes.items():
-            validation.name(f"{name}: node", node)
-            p = validation.finite_array(f"{name}: node {node!r}", xy)
-            if p.shape != (2,):
-                raise ModelError(f"{name}: node {node!r} must be (x, y) [m], got {xy!r}")
-            self.positions[node] = p
-        self.elements = tuple(elements)
-        seen = set()
-        for e in self.elements:
-            if not isinstance(e, (BeamElement, PointMass, NodeSpring, MembraneElement)):
-                raise ModelError(f"{name}: elements must be BeamElement, PointMass, NodeSpring or MembraneElement, "
-                                 f"got {e!r}")
-            if e.name in seen:
-                raise ModelError(f"{name}: duplicate element name {e.name!r}")
-            seen.add(e.name)
-            for node in _element_nodes(e):
-                if node not in self.positions:
-                    raise ModelError(f"{name}: element {e.name!r} names unknown node {node!r}; nodes: "
-                                     f"{', '.join(self.positions)}")
-        ray = validation.finite_array(f"{name}: rayleigh", rayleigh)
-        if ray.shape != (2,) or np.any(ray < 0):
-            raise ModelError(f"{name}: rayleigh must be (a [1/s], b [s]) >= 0, got {rayleigh!r}")
-        self.rayleigh = ray
+        self.positions = node_positions(name, nodes, 2)
+        self.elements = checked_elements(name, elements, (BeamElement, PointMass, NodeSpring, MembraneElement),
+                                         _element_nodes, self.positions)
+        self.rayleigh = rayleigh_pair(name, rayleigh)
         rotating = {n for e in self.elements if isinstance(e, BeamElement) for n in (e.start, e.end)}
-        self.dofs: dict[str, tuple[int, ...]] = {}
-        count = 0
-        for node in self.positions:
-            k = 3 if node in rotating else 2
-            self.dofs[node] = tuple(range(count, count + k))
-            count += k
-        self.n_dofs = count
-        for e in self.elements:
-            if isinstance(e, NodeSpring) and (e.rotational_stiffness or e.rotational_damping):
-                if len(self.dofs[e.start]) != 3 or len(self.dofs[e.end]) != 3:
-                    raise ModelError(f"{name}: {e.name!r} has a rotational spring but its nodes {e.start!r}, {e.end!r} "
-                                     "need rotation DOFs (a beam at each)")
-            if isinstance(e, NodeSpring) and (e.stiffness or e.damping):
-                if not np.linalg.norm(self.positions[e.end] - self.positions[e.start]) > 0:
-                    raise ModelError(f"{name}: {e.name!r} joins coincident nodes; its line of action is undefined")
+        self.dofs, self.n_dofs = number_dofs(self.positions, rotating, 2, 1)
+        check_springs(name, [e for e in self.elements if isinstance(e, NodeSpring)], self.dofs, self.positions, 3)
         self.mass, self.stiffness, self.damping = self._assemble()
 
     # ------------------------------------------------------------------------------------
@@ -248,8 +214,4 @@ class FiniteElementModel:
 
     def natural_frequencies(self, clamped: Sequence[str] = ()) -> np.ndarray:
         """Natural frequencies [rad/s] with the DOFs of the ``clamped`` nodes held (``eigh(K, M)``)."""
-        held = {i for node in clamped for i in self.dofs[node]}
-        keep = [i for i in range(self.n_dofs) if i not in held]
-        from scipy.linalg import eigh
-        values = eigh(self.stiffness[np.ix_(keep, keep)], self.mass[np.ix_(keep, keep)], eigvals_only=True)
-        return np.sqrt(np.clip(values, 0.0, None))
+        return clamped_frequencies(self.stiffness, self.mass, self.dofs, clamped)

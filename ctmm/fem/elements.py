@@ -27,14 +27,9 @@ import numpy as np
 
 from .. import validation
 from ..errors import ModelError
+from .model_parts import node_name
 
 __all__ = ["BeamElement", "PointMass", "NodeSpring", "beam_local_matrices", "beam_shape_functions"]
-
-
-def _node(owner: str, label: str, value: object) -> str:
-    if not isinstance(value, str) or not value:
-        raise ModelError(f"{owner}: {label} must be a node name (non-empty str), got {value!r}")
-    return value
 
 
 @dataclass(frozen=True)
@@ -68,8 +63,8 @@ class BeamElement:
     def __post_init__(self) -> None:
         validation.name("element", self.name)
         n = self.name
-        _node(n, "start", self.start)
-        _node(n, "end", self.end)
+        node_name(n, "start", self.start)
+        node_name(n, "end", self.end)
         if self.start == self.end:
             raise ModelError(f"{n}: start and end must be different nodes, got {self.start!r} twice")
         object.__setattr__(self, "bending_stiffness", validation.positive(f"{n}: bending_stiffness",
@@ -103,7 +98,7 @@ class PointMass:
 
     def __post_init__(self) -> None:
         validation.name("element", self.name)
-        _node(self.name, "node", self.node)
+        node_name(self.name, "node", self.node)
         object.__setattr__(self, "mass", validation.nonnegative(f"{self.name}: mass", self.mass))
         object.__setattr__(self, "inertia", validation.nonnegative(f"{self.name}: inertia", self.inertia))
 
@@ -134,8 +129,8 @@ class NodeSpring:
 
     def __post_init__(self) -> None:
         validation.name("element", self.name)
-        _node(self.name, "start", self.start)
-        _node(self.name, "end", self.end)
+        node_name(self.name, "start", self.start)
+        node_name(self.name, "end", self.end)
         for attribute in ("stiffness", "damping", "rotational_stiffness", "rotational_damping"):
             object.__setattr__(self, attribute, validation.nonnegative(f"{self.name}: {attribute}",
                                                                        getattr(self, attribute)))

@@ -40,6 +40,7 @@ from .. import validation
 from ..errors import ModelError, SimulationError
 from ..planar.deformable import DeformableBody
 from .family import SubsystemFamily
+from .model_parts import square_matrix
 
 __all__ = ["FloatingInertia", "GlobalSubsystem", "SubsystemData", "lumped_inertia"]
 
@@ -136,13 +137,6 @@ def _checked_inertia(owner: str, inertia: FloatingInertia, n: int) -> FloatingIn
                            values["translational_mass"])
 
 
-def _matrix(owner: str, label: str, value: Any, n: int | None) -> np.ndarray:
-    a = validation.finite_array(f"{owner}: {label}", value, ndim=2)
-    if a.shape[0] != a.shape[1] or (n is not None and a.shape[0] != n):
-        raise ModelError(f"{owner}: {label} must be square{'' if n is None else f' ({n} x {n})'}, got shape {a.shape}")
-    return a
-
-
 @dataclass(frozen=True, eq=False)
 class GlobalSubsystem(DeformableBody):
     """A subsystem given by global equations ``M u'' + C u' + K u = f(u, u', t)`` in its floating frame,
@@ -201,13 +195,10 @@ class GlobalSubsystem(DeformableBody):
 
     def __post_init__(self) -> None:
         owner = validation.name("element", self.name)
-        M = _matrix(owner, "mass", self.mass_matrix, None)
+        M = square_matrix(owner, "mass", self.mass_matrix, None)
         n = M.shape[0]
-        C = _matrix(owner, "damping", self.damping_matrix, n)
-        K = _matrix(owner, "stiffness", self.stiffness_matrix, n)
-        for label, a in (("mass", M), ("damping", C), ("stiffness", K)):
-            if np.max(np.abs(a - a.T), initial=0.0) > 1e-10 * max(np.max(np.abs(a), initial=0.0), 1e-300):
-                raise ModelError(f"{owner}: the {label} matrix must be symmetric")
+        C = square_matrix(owner, "damping", self.damping_matrix, n)
+        K = square_matrix(owner, "stiffness", self.stiffness_matrix, n)
         if not isinstance(self.nodes, Mapping) or not self.nodes:
             raise ModelError(f"{owner}: nodes must be a non-empty mapping {{name: ((x, y), dofs)}}, got {self.nodes!r}")
         positions, kinds, pairs, node_dofs = np.full((n, 2), np.nan), np.full(n, -1), [], {}

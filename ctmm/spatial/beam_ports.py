@@ -28,6 +28,8 @@ _AXES = "xyz"
 
 def beam_sensor_rows(beam: Any) -> list[tuple[str, bool, np.ndarray, str]]:
     """``(name, rate, weights (n_eta,), unit)`` of the station sensors of ``beam`` (module docstring)."""
+    if hasattr(beam, "sensor_rows"):                                    # a ctmm.fem.SpatialSubsystem
+        return beam.sensor_rows()
     rows = []
     for point in beam.points:
         if point == "origin":
@@ -43,6 +45,8 @@ def beam_sensor_rows(beam: Any) -> list[tuple[str, bool, np.ndarray, str]]:
 
 def beam_actuator_rows(beam: Any) -> list[tuple[str, int, tuple, str]]:
     """``(name, wrench component 3..5, point (3,) body axes, unit)`` of the point moment actuators."""
+    if hasattr(beam, "actuator_rows"):                                  # a ctmm.fem.SpatialSubsystem
+        return beam.actuator_rows()
     return [(f"{beam.name}.{point}.moment_{a}", 3 + c, tuple(r), "N m") for point, r in beam.points.items()
             for c, a in enumerate(_AXES)]
 
@@ -51,6 +55,8 @@ def deformed_point(beam: Any, point: Any, eta: np.ndarray, *, rate: bool = False
     """Body-axes position ``rho0 + Phi eta`` [m] of the beam axis point at ``point[0]`` (``rate``: its
     velocity relative to the frame ``Phi eta_dot`` [m/s]); ``eta`` (n_eta,) or a batch (B, n_eta), real or
     complex step (:mod:`ctmm.spatial.sensor_maps`) -> (3,) or (B, 3)."""
+    if hasattr(beam, "deformed_point"):                                 # a ctmm.fem.SpatialSubsystem: its nodes
+        return beam.deformed_point(point, eta, rate=rate)
     Phi = beam.data.station(float(point[0]))[0]
     eta = np.asarray(eta)
     moved = (eta if np.iscomplexobj(eta) else eta.astype(float)) @ Phi.T

@@ -14,6 +14,7 @@ translation has carried to ``P``), so that ``A_child = A_parent(P) + S a_rel + c
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -397,8 +398,9 @@ class SpatialScene:
             loads += list((wrenches or {}).get(j, ()))
             modal = model.modal[j]
             if modal is not None:
-                terms, frames = spatial_beam_terms(
-                    ops, body, rotation=R_c, offset=offset, omega=w_c, eta=_modal(ops, q, modal.position),
+                form = getattr(body, "spatial_terms", None) or partial(spatial_beam_terms, beam=body)  # or ctmm.fem's
+                terms, frames = form(
+                    ops, rotation=R_c, offset=offset, omega=w_c, eta=_modal(ops, q, modal.position),
                     eta_dot=_modal(ops, v, modal.velocity), t=t, gravity=model.gravity, loads=loads,
                     points=self._outboard[j], frames=tuple(self._outboard[j]))
                 bodies.append(terms)

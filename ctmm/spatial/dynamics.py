@@ -3,6 +3,7 @@ reactions and the first-order ODE right-hand side (issue 14, ``docs/spatial.md``
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 from typing import Any, Mapping
 
 import numpy as np
@@ -135,7 +136,8 @@ def energy(model: SpatialModel, q: Any, v: Any, t: float = 0.0) -> np.ndarray:
     for body, state, modal in zip(model.bodies, states, model.modal):
         if modal is not None:                          # a beam: kinetic, elastic and gravitational energy
             B = len(total)
-            total = total + beam_energy(body, np.broadcast_to(state.rotation, (B, 3, 3)),
+            energy_of = getattr(body, "energy", None) or partial(beam_energy, body)      # or ctmm.fem's subsystem
+            total = total + energy_of(np.broadcast_to(state.rotation, (B, 3, 3)),
                                         np.broadcast_to(state.origin, (B, 3, 1)),
                                         np.broadcast_to(state.velocity, (B, 3, 1)),
                                         np.broadcast_to(state.omega, (B, 3, 1)), q_rows[:, modal.position],

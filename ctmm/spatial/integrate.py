@@ -110,6 +110,9 @@ def beam_deflection_weights(model: SpatialModel) -> list[tuple[Any, np.ndarray, 
     index = {name: k for k, name in enumerate(model.coordinates)}
     out = []
     for body in model.bodies:
+        if hasattr(body, "check_deformation"):                  # a ctmm.fem.SpatialSubsystem: its own guard
+            out.append((body, np.array([index[f"{body.name}.{s}"] for s in body.coordinate_suffixes]), None))
+            continue
         data = getattr(body, "data", None)
         if data is None or not hasattr(data, "direction_shapes") or not getattr(body, "n_eta", 0):
             continue
@@ -132,6 +135,9 @@ def check_beam_deflection(model: SpatialModel, beams: list, t: Any, rows: np.nda
     model (a diverging run, e.g. a spin-up above the first critical speed without geometric stiffening).
     ``beams`` from :func:`beam_deflection_weights`; ``rows`` (n, size) at times ``t`` (n,) or one state."""
     for beam, indices, weights in beams:
+        if weights is None:
+            beam.check_deformation(model.name, t, rows[:, indices], method, partial)
+            continue
         deflection = np.abs(rows[:, indices]) @ weights
         bad = np.flatnonzero(deflection > beam.length)
         if len(bad):

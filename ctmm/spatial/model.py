@@ -73,13 +73,14 @@ class SpatialModel:
         loads: list[Load] = []
         names: set[str] = set()
         for element in elements:
-            if not isinstance(element, (SpatialBody, SpatialBeam, Load) + JOINT_TYPES):
+            if not (isinstance(element, (SpatialBody, SpatialBeam, Load) + JOINT_TYPES)
+                    or hasattr(element, "spatial_terms")):             # ctmm.fem.SpatialSubsystem
                 raise ModelError(f"{name}: elements must be SpatialBody, SpatialBeam, a joint ({', '.join(t.__name__ for t in JOINT_TYPES)}) "
                                  f"or Load, got {element!r}")
             if element.name in names:
                 raise ModelError(f"{name}: duplicate element name {element.name!r}")
             names.add(element.name)
-            if isinstance(element, (SpatialBody, SpatialBeam)):
+            if isinstance(element, (SpatialBody, SpatialBeam)) or hasattr(element, "spatial_terms"):
                 bodies[element.name] = element
             elif isinstance(element, Load):
                 loads.append(element)
@@ -135,7 +136,7 @@ class SpatialModel:
         self.layout = tuple(layouts)
         modal = []
         for body in self._bodies:                      # modal coordinates of beams follow all joint coordinates
-            count = body.n_eta if isinstance(body, SpatialBeam) else 0
+            count = body.n_eta if isinstance(body, SpatialBeam) or hasattr(body, "spatial_terms") else 0
             modal.append(Layout(slice(nq, nq + count), slice(nv, nv + count)) if count else None)
             nq, nv = nq + count, nv + count
         self.modal = tuple(modal)

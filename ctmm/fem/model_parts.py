@@ -1,0 +1,107 @@
+"""Checks shared by the planar and spatial finite-element models (:mod:`ctmm.fem.assembly`,
+:mod:`ctmm.fem.spatial_assembly`): node names and positions, the element list, Rayleigh damping, DOF
+numbering and spring sanity."""
+from __future__ import annotations
+
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+from .. import validation
+from ..errors import ModelError
+
+__all__ = ["node_name", "node_positions", "checked_elements", "rayleigh_pair", "number_dofs", "check_springs",
+           "square_matrix", "clamped_frequencies"]
+
+
+def node_name(owner: str, label: str, value: object) -> str:
+    """``value`` as a node name (non-empty str), else :class:`ModelError` naming ``owner`` and ``label``."""
+    if not isinstance(value, str) or not value:
+        raise ModelError(f"{owner}: {label} must be a node name (non-empty str), got {value!r}")
+    return value
+
+
+def node_positions(name: str, nodes: Any, dimension: int) -> dict[str, np.ndarray]:
+    """Validated undeformed node positions ``{node: (dimension,) array}`` [m]."""
+    shape = "(x, y)" if dimension == 2 else "(x, y, z)"
+    if not isinstance(nodes, Mapping) or not nodes:
+        raise ModelError(f"{name}: nodes must be a non-empty mapping {{name: {shape}}}, got {nodes!r}")
+    positions: dict[str, np.ndarray] = {}
+    for node, xyz in nodes.items():
+        validation.name(f"{name}: node", node)
+        p = validation.finite_array(f"{name}: node {node!r}", xyz)
+        if p.shape != (dimension,):
+            raise ModelError(f"{name}: node {node!r} must be {shape} [m], got {xyz!r}")
+        positions[node] = p
+    return positions
+
+
+def checked_elements(name: str, elements: Sequence[Any], allowed: tuple, nodes_of: Callable[[Any], tuple],
+                     positions: Mapping[str, np.ndarray]) -> tuple:
+    """The elements as a tuple: each of an ``allowed`` type, names unique, nodes known."""
+    elements = tuple(elements)
+    seen = set()
+    for e in elements:
+        if not isinstance(e, allowed):
+            kinds = ", ".join(t.__name__ for t in allowed)
+            raise ModelError(f"{name}: elements must be {kinds}, got {e!r}")
+        if e.name in seen:
+            raise ModelError(f"{name}: duplicate element name {e.name!r}")
+        seen.add(e.name)
+        for node in nodes_of(e):
+            if node not in positions:
+                raise ModelError(f"{name}: element {e.name!r} names unknown node {node!r}; nodes: "
+                                 f"{', '.join(positions)}")
+    return elements
+
+
+def rayleigh_pair(name: str, rayleigh: Any) -> np.ndarray:
+    """``(a [1/s], b [s])`` >= 0 of ``C += a M + b K``."""
+    ray = validation.finite_array(f"{name}: rayleigh", rayleigh)
+    if ray.shape != (2,) or np.any(ray < 0):
+        raise ModelError(f"{name}: rayleigh must be (a [1/s], b [s]) >= 0, got {rayleigh!r}")
+    return ray
+
+
+def number_dofs(positions: Mapping[str, np.ndarray], rotating: set, translations: int, rotations: int
+                ) -> tuple[dict[str, tuple[int, ...]], int]:
+    """DOF indices per node in node order (``translations``, plus ``rotations`` at ``rotating`` nodes) and
+    their count."""
+    dofs, count = {}, 0
+    for node in positions:
+        k = translations + (rotations if node in rotating else 0)
+        dofs[node] = tuple(range(count, count + k))
+        count += k
+    return dofs, count
+
+
+def check_springs(name: str, springs: Sequence[Any], dofs: Mapping[str, tuple], positions: Mapping[str, np.ndarray],
+                  full: int) -> None:
+    """Rotational springs need rotation DOFs at both nodes (``full`` DOFs); axial ones distinct positions."""
+    for e in springs:
+        if (e.rotational_stiffness or e.rotational_damping) and (len(dofs[e.start]) != full or len(dofs[e.end]) != full):
+            raise ModelError(f"{name}: {e.name!r} has a rotational spring but its nodes {e.start!r}, {e.end!r} need "
+                             "rotation DOFs (a beam at each)")
+        if (e.stiffness or e.damping) and not np.linalg.norm(positions[e.end] - positions[e.start]) > 0:
+            raise ModelError(f"{name}: {e.name!r} joins coincident nodes; its line of action is undefined")
+
+
+def square_matrix(owner: str, label: str, value: Any, n: int | None) -> np.ndarray:
+    """A finite symmetric square matrix (``n x n`` when given), else :class:`ModelError`."""
+    a = validation.finite_array(f"{owner}: {label}", value, ndim=2)
+    if a.shape[0] != a.shape[1] or (n is not None and a.shape[0] != n):
+        raise ModelError(f"{owner}: {label} must be square{'' if n is None else f' ({n} x {n})'}, got shape {a.shape}")
+    if np.max(np.abs(a - a.T), initial=0.0) > 1e-10 * max(np.max(np.abs(a), initial=0.0), 1e-300):
+        raise ModelError(f"{owner}: the {label} matrix must be symmetric")
+    return a
+
+
+def clamped_frequencies(stiffness: np.ndarray, mass: np.ndarray, dofs: Mapping[str, tuple], clamped: Sequence[str]
+                        ) -> np.ndarray:
+    """Natural frequencies [rad/s] with the DOFs of the ``clamped`` nodes held (``eigh(K, M)``)."""
+    from scipy.linalg import eigh
+
+    held = {i for node in clamped for i in dofs[node]}
+    keep = [i for i in range(stiffness.shape[0]) if i not in held]
+    values = eigh(stiffness[np.ix_(keep, keep)], mass[np.ix_(keep, keep)], eigvals_only=True)
+    return np.sqrt(np.clip(values, 0.0, None))

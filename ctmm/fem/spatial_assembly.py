@@ -1,0 +1,176 @@
+"""Assembly of spatial finite elements with named nodes into global matrices and a spatial subsystem.
+
+:class:`SpatialFiniteElementModel` numbers the DOFs (per node ``u_x, u_y, u_z`` and, where a beam
+touches it, ``r_x, r_y, r_z``), assembles ``M`` (translational and rotary), ``K`` (elastic plus
+geometric) and ``C`` (dampers plus Rayleigh ``a M + b K``), and integrates the floating-frame inertia
+integrals of :class:`~ctmm.fem.SpatialInertia` by five-point Gauss quadrature of the element shape
+functions (exact: polynomials of degree <= 6).  :meth:`SpatialFiniteElementModel.subsystem` turns it
+into a :class:`~ctmm.fem.SpatialSubsystem`, a body of a :class:`ctmm.spatial.SpatialModel`.
+"""
+from __future__ import annotations
+
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+from .. import validation
+from ..errors import ModelError
+from .model_parts import check_springs, checked_elements, clamped_frequencies, node_positions, number_dofs, rayleigh_pair
+from .spatial_elements import (GAUSS_POINTS, GAUSS_WEIGHTS, SpatialBeamElement, SpatialNodeSpring, SpatialPointMass,
+                               node_rotation_block, spatial_beam_axes, spatial_beam_local_matrices, spatial_beam_shapes)
+from .spatial_subsystem import SpatialInertia, SpatialSubsystem
+
+__all__ = ["SpatialFiniteElementModel"]
+
+
+def _element_nodes(element: Any) -> tuple[str, ...]:
+    return (element.node,) if isinstance(element, SpatialPointMass) else (element.start, element.end)
+
+
+class SpatialFiniteElementModel:
+    """Spatial finite-element model with named nodes.
+
+    Parameters
+    ----------
+    name : str
+    nodes : mapping of str to (x, y, z)
+        Undeformed node positions [m].
+    elements : sequence
+        :class:`~ctmm.fem.SpatialBeamElement`, :class:`~ctmm.fem.SpatialPointMass`,
+        :class:`~ctmm.fem.SpatialNodeSpring`.
+    rayleigh : (float, float)
+        Rayleigh damping ``C += a M + b K`` with ``(a [1/s], b [s])``, >= 0; default none.
+
+    Examples
+    --------
+    >>> from ctmm.fem import SpatialBeamElement, SpatialFiniteElementModel
+    >>> fe = SpatialFiniteElementModel("beam", {"n0": (0, 0, 0), "n1": (0.5, 0, 0)},
+    ...     [SpatialBeamElement("e0", "n0", "n1", 1e4, 3.0, 2.0, 2.0, 0.5)])
+    >>> fe.n_dofs
+    12
+    """
+
+    def __init__(self, name: str, nodes: Mapping[str, Sequence[float]], elements: Sequence[Any], *,
+                 rayleigh: Sequence[float] = (0.0, 0.0)) -> None:
+        self.name = validation.name("model", name)
+        self.positions = node_positions(name, nodes, 3)
+        self.elements = checked_elements(name, elements, (SpatialBeamElement, SpatialPointMass, SpatialNodeSpring),
+                                         _element_nodes, self.positions)
+        self.rayleigh = rayleigh_pair(name, rayleigh)
+        rotating = {n for e in self.elements if isinstance(e, SpatialBeamElement) for n in (e.start, e.end)}
+        self.dofs, self.n_dofs = number_dofs(self.positions, rotating, 3, 3)
+        check_springs(name, [e for e in self.elements if isinstance(e, SpatialNodeSpring)], self.dofs, self.positions, 6)
+        self.mass, self.stiffness, self.damping = self._assemble()
+
+    def _beam(self, e: SpatialBeamElement) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
+        idx = np.array(self.dofs[e.start] + self.dofs[e.end])
+        length, axes = spatial_beam_axes(self.positions[e.start], self.positions[e.end], e.orientation,
+                                         f"{self.name}: {e.name}")
+        return idx, length, axes, node_rotation_block(axes)
+
+    def _assemble(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        n = self.n_dofs
+        M, K, C = np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, n))
+        for e in self.elements:
+            if isinstance(e, SpatialBeamElement):
+                idx, length, _, T = self._beam(e)
+                k, m_t, m_r, kg = spatial_beam_local_matrices(e, length)
+                sub = np.ix_(idx, idx)
+                K[sub] += T.T @ (k + kg) @ T
+                M[sub] += T.T @ (m_t + m_r) @ T
+            elif isinstance(e, SpatialPointMass):
+                dofs = self.dofs[e.node]
+                for i in dofs[:3]:
+                    M[i, i] += e.mass
+                if len(dofs) == 6:
+                    M[np.ix_(dofs[3:], dofs[3:])] += e.inertia
+            else:
+                a, b = self.dofs[e.start], self.dofs[e.end]
+                if e.stiffness or e.damping:
+                    d = self.positions[e.end] - self.positions[e.start]
+                    row = np.zeros(n)
+                    row[list(b[:3])] = d / np.linalg.norm(d)
+                    row[list(a[:3])] -= d / np.linalg.norm(d)
+                    K += e.stiffness * np.outer(row, row)
+                    C += e.damping * np.outer(row, row)
+                if e.rotational_stiffness or e.rotational_damping:
+                    for k in range(3):
+                        row = np.zeros(n)
+                        row[b[3 + k]], row[a[3 + k]] = 1.0, -1.0
+                        K += e.rotational_stiffness * np.outer(row, row)
+                        C += e.rotational_damping * np.outer(row, row)
+        C += self.rayleigh[0] * M + self.rayleigh[1] * K
+        return M, K, C
+
+    def floating_inertia(self, origin: str) -> SpatialInertia:
+        """Inertia integrals about node ``origin`` (:class:`~ctmm.fem.SpatialInertia`), by quadrature."""
+        if origin not in self.positions:
+            raise ModelError(f"{self.name}: unknown node {origin!r}; nodes: {', '.join(self.positions)}")
+        o = self.positions[origin]
+        n = self.n_dofs
+        mass, first, second = 0.0, np.zeros(3), np.zeros((3, 3))
+        S1, D, E = np.zeros((3, n)), np.zeros((3, 3, n)), np.zeros((3, 3, n, n))
+        J_r, R_c = np.zeros((3, 3)), np.zeros((3, n))
+        for e in self.elements:
+            if isinstance(e, SpatialBeamElement):
+                idx, length, axes, T = self._beam(e)
+                N, _, _ = spatial_beam_shapes(GAUSS_POINTS, length)
+                X = (self.positions[e.start] - o)[None, :] + GAUSS_POINTS[:, None] * length * axes[0][None, :]
+                if e.mass_per_length:
+                    S = np.einsum("ji,pjk,kl->pil", axes, N[:, :3], T)          # (P, 3, 12) model axes
+                    w = GAUSS_WEIGHTS * e.mass_per_length * length
+                    mass += w.sum()
+                    first += w @ X
+                    second += np.einsum("p,pi,pk->ik", w, X, X)
+                    S1[:, idx] += np.einsum("p,pik->ik", w, S)
+                    D[:, :, idx] += np.einsum("p,pi,pkl->ikl", w, X, S)
+                    E[np.ix_(range(3), range(3), idx, idx)] += np.einsum("p,pik,pjl->ijkl", w, S, S)
+                if e.polar_inertia_per_length:
+                    twist = N[:, 3] @ T                                       # (P, 12): phi = twist . d
+                    w = GAUSS_WEIGHTS * e.polar_inertia_per_length * length
+                    J_r += w.sum() * np.outer(axes[0], axes[0])
+                    R_c[:, idx] += np.outer(axes[0], w @ twist)
+            elif isinstance(e, SpatialPointMass):
+                dofs = self.dofs[e.node]
+                X = self.positions[e.node] - o
+                mass += e.mass
+                first += e.mass * X
+                second += e.mass * np.outer(X, X)
+                for k in range(3):
+                    S1[k, dofs[k]] += e.mass
+                    D[:, k, dofs[k]] += e.mass * X
+                    for i in range(3):                               # E_ik = m e_(dof i) e_(dof k)^T
+                        E[i, k, dofs[i], dofs[k]] += e.mass
+                J_r += e.inertia
+                if len(dofs) == 6:
+                    R_c[:, list(dofs[3:])] += e.inertia
+        return SpatialInertia(mass, first, second, S1, D, E, J_r, R_c)
+
+    def subsystem(self, name: str, boundary: Sequence[str], *, nonlinear_force: Callable | None = None,
+                  frame_nodes: Sequence[str] = (), potential: Callable | None = None) -> SpatialSubsystem:
+        """This model as a body of a spatial model (:class:`~ctmm.fem.SpatialSubsystem`).
+
+        Parameters
+        ----------
+        name : str
+            Body name (coordinates ``"name.<node>_ux"`` ...).
+        boundary : sequence of str
+            Boundary nodes, the inboard one first (it carries the frame); the others are the body's points.
+        nonlinear_force, frame_nodes, potential
+            As :class:`~ctmm.fem.SpatialSubsystem`.
+        """
+        boundary = tuple(boundary)
+        if not boundary or boundary[0] not in self.positions:
+            raise ModelError(f"{self.name}: boundary must start with the inboard node (one of "
+                             f"{', '.join(self.positions)}), got {boundary!r}")
+        inertia = self.floating_inertia(boundary[0])
+        o = self.positions[boundary[0]]
+        nodes = {node: (tuple(self.positions[node] - o), self.dofs[node]) for node in self.positions}
+        return SpatialSubsystem(name, mass_matrix=self.mass, damping_matrix=self.damping,
+                                stiffness_matrix=self.stiffness, nodes=nodes, boundary=boundary,
+                                nonlinear_force=nonlinear_force, inertia_integrals=inertia, frame_nodes=frame_nodes,
+                                potential=potential)
+
+    def natural_frequencies(self, clamped: Sequence[str] = ()) -> np.ndarray:
+        """Natural frequencies [rad/s] with the DOFs of the ``clamped`` nodes held (``eigh(K, M)``)."""
+        return clamped_frequencies(self.stiffness, self.mass, self.dofs, clamped)

@@ -1,0 +1,422 @@
+"""Independent reference: a spatial chain of rigid links on revolute joints carrying a finite-element
+frame, as one global model in minimal coordinates (tests only; no code of ``ctmm.fem``, of
+``ctmm.spatial`` or of a sweep).
+
+Coordinates ``q = [joint angles (chain order) ; u]``, ``u`` the frame's node DOFs (all nodes but the
+inboard one, in the given node order; per node ``ux, uy, uz`` and, at beam nodes, ``rx, ry, rz``, frame
+axes).  The FE frame's floating frame is its inboard node's frame (the child frame of its joint); a
+material point is at ``r = o_F + R_F (X + S(X) u)``.
+
+* **Interpolation** (own construction): per element local axes ``e1`` along it, ``e2`` the component
+  of ``orientation`` perpendicular to it, ``e3 = e1 x e2``; axial displacement and twist linear,
+  deflections cubic with the end values and slopes (``v' = r_z``, ``w' = -r_y``), their coefficients
+  from solving the 4 x 4 end-condition system numerically;
+* **mass**: four Gauss points per element (exact for the degree-6 integrands), particles' kinetic energy
+  by Kane (``J^T m (J q'' + J' q')``, ``J' q'`` by complex step along ``q'``); the section twist inertia
+  ``1/2 rho I_p (e1 . omega_F + phi')^2`` and node inertias ``1/2 Omega^T I Omega`` (``Omega = omega_F +
+  r'``, frame axes) by Lagrange's equations (``d/dt dT/dq' - dT/dq``, the derivatives by complex steps);
+* **stiffness** from the strain energy ``1/2 int EA u'^2 + EI_y v''^2 + EI_z w''^2 + GJ phi'^2`` by
+  quadrature; optional stiffness-proportional damping ``C = b K``;
+* **links**: rigid bodies, Kane with world angular velocities; a link after the frame hangs on a node
+  on a revolute joint whose axis is given in the node frame ``R_F Rz(r_z) Ry(r_y) Rx(r_x)``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Sequence
+
+import numpy as np
+import scipy.linalg
+
+__all__ = ["Link", "FrameBeam", "FrameMass", "FEFrame", "SpatialFEChain"]
+
+_G4, _W4 = np.polynomial.legendre.leggauss(4)
+_XI, _WT = 0.5 * (_G4 + 1.0), 0.5 * _W4
+_H = 1e-30
+
+
+def _hat(v) -> np.ndarray:
+    return np.array([[0.0 * v[0], -v[2], v[1]], [v[2], 0.0 * v[0], -v[0]], [-v[1], v[0], 0.0 * v[0]]])
+
+
+def _axis_rotation(axis, angle) -> np.ndarray:
+    a = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+    k = _hat(a)
+    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * (k @ k)
+
+
+@dataclass
+class Link:
+    """Rigid link on a revolute joint: mass [kg], inertia about the centre (3 x 3, body axes) [kg m^2],
+    centre ``com`` (body axes) [m], joint ``axis`` (parent point frame), ``point`` on the parent (a (3,)
+    vector in the parent's axes, a node name of a frame parent, or the world location for the first)."""
+
+    mass: float
+    inertia: Any
+    com: Any
+    axis: Any
+    point: Any = (0.0, 0.0, 0.0)
+
+
+@dataclass
+class FrameBeam:
+    start: str
+    end: str
+    EA: float
+    GJ: float
+    EIy: float
+    EIz: float
+    rhoA: float
+    rhoIp: float
+    orientation: Any
+
+
+@dataclass
+class FrameMass:
+    node: str
+    mass: float
+    inertia: Any = field(default_factory=lambda: np.zeros((3, 3)))
+
+
+@dataclass
+class FEFrame:
+    """FE frame welded (``axis=None``) or on a revolute joint at ``point`` of the previous link; ``nodes``
+    positions in the frame [m] relative to ``inboard`` (which must be at the origin)."""
+
+    nodes: dict
+    inboard: str
+    beams: Sequence[FrameBeam]
+    masses: Sequence[FrameMass] = ()
+    axis: Any = None
+    point: Any = (0.0, 0.0, 0.0)
+    stiffness_damping: float = 0.0
+
+
+class SpatialFEChain:
+    """Global model of ``segments`` (``Link``s and one ``FEFrame``) in chain order, gravity [m/s^2] and an
+    extra generalised force ``force(u, u_dot) -> (n_u,)`` on the frame's DOFs; ``joint_springs`` ``{joint
+    index: (k [N m/rad], c [N m s/rad])}`` adds ``-k q - c q'`` on those joint angles."""
+
+    def __init__(self, segments: Sequence[Any], gravity=(0.0, 0.0, -9.81), force: Any = None,
+                 joint_springs: Any = None) -> None:
+        self.segments = list(segments)
+        self.force = force
+        self.joint_springs = {} if joint_springs is None else dict(joint_springs)    # {joint index: (k, c)}
+        self.gravity = np.asarray(gravity, dtype=float)
+        frames = [k for k, s in enumerate(self.segments) if isinstance(s, FEFrame)]
+        assert len(frames) == 1
+        self.frame_index = frames[0]
+        fe = self.segments[self.frame_index]
+        rotating = {n for b in fe.beams for n in (b.start, b.end)}
+        self.n_joints = sum(1 for s in self.segments if isinstance(s, Link) or s.axis is not None)
+        self.node_index, count = {}, 0
+        for name in fe.nodes:
+            if name == fe.inboard:
+                continue
+            k = 6 if name in rotating else 3
+            self.node_index[name] = list(range(count, count + k))
+            count += k
+        self.n_u = count
+        self.n = self.n_joints + count
+        self._elements()
+
+    # -------------------------------------------------------------------------------- the frame
+    def _dofs(self, node: str) -> list:
+        """Indices into ``u`` of a node's six (or three) DOFs; None entries for the inboard node."""
+        fe = self.segments[self.frame_index]
+        if node == fe.inboard:
+            return [None] * 6
+        return self.node_index[node]
+
+    def _elements(self) -> None:
+        fe = self.segments[self.frame_index]
+        nu = self.n_u
+        points, masses, rotary = [], [], []               # (X (3,), S (3, nu)), m; (inertia k x k, A k x 3, B k x nu)
+        K = np.zeros((nu, nu))
+        cubic = np.linalg.inv
+        for b in fe.beams:
+            pa, pb = np.asarray(fe.nodes[b.start], float), np.asarray(fe.nodes[b.end], float)
+            L = np.linalg.norm(pb - pa)
+            e1 = (pb - pa) / L
+            y = np.asarray(b.orientation, float) - (np.asarray(b.orientation, float) @ e1) * e1
+            e2 = y / np.linalg.norm(y)
+            e3 = np.cross(e1, e2)
+            Q = np.vstack([e1, e2, e3])                    # local = Q frame
+            Ac = cubic(np.array([[1, 0, 0, 0], [0, 1, 0, 0], [1, L, L * L, L ** 3], [0, 1, 2 * L, 3 * L * L]], float))
+            Al = cubic(np.array([[1.0, 0.0], [1.0, L]]))
+            da, db = self._dofs(b.start), self._dofs(b.end)
+
+            def local(node_dofs, part):                   # (3, nu): local components of a node's vector part
+                out = np.zeros((3, nu))
+                for k in range(3):
+                    i = node_dofs[3 * part + k]
+                    if i is not None:
+                        out[:, i] += Q[:, k]
+                return out
+            ta, ra, tb, rb = local(da, 0), local(da, 1), local(db, 0), local(db, 1)
+            ends_v = np.vstack([ta[1], ra[2], tb[1], rb[2]])           # v, v', at a and b
+            ends_w = np.vstack([ta[2], -ra[1], tb[2], -rb[1]])
+            ends_u, ends_p = np.vstack([ta[0], tb[0]]), np.vstack([ra[0], rb[0]])
+            for xi, wt in zip(_XI, _WT):
+                x = xi * L
+                pc, dc2 = np.array([1, x, x * x, x ** 3]), np.array([0, 0, 2, 6 * x])
+                pl, dl = np.array([1, x]), np.array([0, 1.0])
+                u_row, phi_row = pl @ Al @ ends_u, pl @ Al @ ends_p
+                v_row, w_row = pc @ Ac @ ends_v, pc @ Ac @ ends_w
+                S = Q.T @ np.vstack([u_row, v_row, w_row])             # frame components
+                points.append((pa + x * e1, S))
+                masses.append(b.rhoA * L * wt)
+                if b.rhoIp:
+                    rotary.append((np.array([[b.rhoIp * L * wt]]), e1[None, :], phi_row[None, :]))
+                strains = [(b.EA, dl @ Al @ ends_u), (b.EIy, dc2 @ Ac @ ends_v), (b.EIz, dc2 @ Ac @ ends_w),
+                           (b.GJ, dl @ Al @ ends_p)]
+                for modulus, row in strains:
+                    K += modulus * L * wt * np.outer(row, row)
+        for pm in fe.masses:
+            d = self._dofs(pm.node)
+            S = np.zeros((3, nu))
+            for k in range(3):
+                if d[k] is not None:
+                    S[k, d[k]] = 1.0
+            points.append((np.asarray(fe.nodes[pm.node], float), S))
+            masses.append(pm.mass)
+            I = np.asarray(pm.inertia, float)
+            I = np.diag(I) if I.shape == (3,) else I
+            B = np.zeros((3, nu))
+            if len(d) == 6 and d[3] is not None:
+                for k in range(3):
+                    B[k, d[3 + k]] = 1.0
+            rotary.append((I, np.eye(3), B))
+        self.X = np.array([p[0] for p in points])
+        self.S = np.array([p[1] for p in points])
+        self.m = np.array(masses)
+        self.rotary = rotary
+        self.K = K
+        self.C = fe.stiffness_damping * K
+
+    # --------------------------------------------------------------------------- kinematics
+    def _node_frame(self, u, node: str):
+        """``(rho, E, Theta_cols)``: deformed node position, rotation ``Rz Ry Rx`` and the map of the node's
+        rotation rates to its angular velocity (frame axes, 3 x nu)."""
+        fe = self.segments[self.frame_index]
+        d = self._dofs(node)
+        X = np.asarray(fe.nodes[node], float)
+        rho = X + np.array([u[i] if i is not None else 0.0 for i in d[:3]])
+        Smap = np.zeros((3, self.n_u))
+        for k in range(3):
+            if d[k] is not None:
+                Smap[k, d[k]] = 1.0
+        if len(d) < 6 or d[3] is None:
+            return rho, np.eye(3), np.zeros((3, self.n_u)), Smap
+        a, b, c = u[d[3]], u[d[4]], u[d[5]]
+        Rx, Ry, Rz = _axis_rotation((1, 0, 0), a), _axis_rotation((0, 1, 0), b), _axis_rotation((0, 0, 1), c)
+        E = Rz @ Ry @ Rx
+        dE = [Rz @ Ry @ (_hat([1.0, 0, 0]) @ Rx), Rz @ (_hat([0, 1.0, 0]) @ Ry) @ Rx, (_hat([0, 0, 1.0]) @ Rz) @ Ry @ Rx]
+        W = np.zeros((3, self.n_u), dtype=np.result_type(u, float))
+        for k in range(3):
+            w = dE[k] @ E.T
+            W[:, d[3 + k]] = [w[2, 1], w[0, 2], w[1, 0]]
+        return rho, E, W, Smap
+
+    def kinematics(self, q) -> dict:
+        """Jacobians at ``q`` (complex allowed): links ``(R, r_com, Jv_com, Jw)``, the frame ``(R_F, o_F,
+        Jv_F, Jw_F)``, mass points ``(r_p, J_p)``."""
+        dtype = np.result_type(q, float)
+        n = self.n
+        u = q[self.n_joints:]
+        Su = np.zeros((self.n_u, n))
+        Su[:, self.n_joints:] = np.eye(self.n_u)
+        R, o = np.eye(3, dtype=dtype), np.zeros(3, dtype=dtype)
+        Jv, Jw = np.zeros((3, n), dtype=dtype), np.zeros((3, n), dtype=dtype)
+        links, frame, joint = [], None, 0
+        for k, seg in enumerate(self.segments):
+            point = seg.point
+            if k == 0:
+                Rp, op, Jvp, Jwp = R, np.asarray(point, float).astype(dtype), Jv, Jw
+            elif isinstance(self.segments[k - 1], FEFrame):
+                R_F, o_F, Jv_F, Jw_F = frame
+                rho, E, W, Smap = self._node_frame(u, point)
+                Rp, op = R_F @ E, o_F + R_F @ rho
+                Jvp = Jv_F - _hat(R_F @ rho) @ Jw_F + R_F @ Smap @ Su
+                Jwp = Jw_F + R_F @ W @ Su
+            else:
+                arm = R @ np.asarray(point, float)
+                Rp, op, Jvp, Jwp = R, o + arm, Jv - _hat(arm) @ Jw, Jw
+            if isinstance(seg, Link) or seg.axis is not None:
+                a = np.asarray(seg.axis, float)
+                R = Rp @ _axis_rotation(a, q[joint])
+                Jw = Jwp.copy()
+                Jw[:, joint] = Jw[:, joint] + Rp @ (a / np.linalg.norm(a))
+                joint += 1
+            else:
+                R, Jw = Rp, Jwp
+            o, Jv = op, Jvp
+            if isinstance(seg, Link):
+                arm = R @ np.asarray(seg.com, float)
+                links.append((R, o + arm, Jv - _hat(arm) @ Jw, Jw))
+            else:
+                frame = (R, o, Jv, Jw)
+        R_F, o_F, Jv_F, Jw_F = frame
+        rho = self.X + np.einsum("pij,j->pi", self.S, u)
+        arms = rho @ R_F.T
+        r_p = o_F[None, :] + arms
+        hats = np.array([_hat(a) for a in arms])
+        J_p = Jv_F[None] - hats @ Jw_F[None] + np.einsum("ij,pjk,kl->pil", R_F, self.S, Su)
+        return {"links": links, "frame": frame, "points": (r_p, J_p), "Su": Su}
+
+    def node_point(self, q, node: str) -> tuple[np.ndarray, np.ndarray]:
+        """World position [m] of a frame node and its Jacobian ``d r / d q`` (3 x n)."""
+        q = np.asarray(q, float)
+        R_F, o_F, Jv_F, Jw_F = self.kinematics(q)["frame"]
+        rho, _, _, Smap = self._node_frame(q[self.n_joints:], node)
+        Su = np.zeros((self.n_u, self.n))
+        Su[:, self.n_joints:] = np.eye(self.n_u)
+        return o_F + R_F @ rho, Jv_F - _hat(R_F @ rho) @ Jw_F + R_F @ Smap @ Su
+
+    def _rotary_jacobians(self, kin: dict) -> list:
+        R_F, _, _, Jw_F = kin["frame"]
+        out = []
+        for I, A, B in self.rotary:
+            out.append((I, A @ R_F.T @ Jw_F + B @ kin["Su"]))
+        return out
+
+    # ------------------------------------------------------------------------------ dynamics
+    def _terms(self, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict, dict]:
+        """``M``, ``Q - b`` (generalised forces minus velocity terms), the kinematics and their rates."""
+        kin = self.kinematics(q)
+        kin_d = self.kinematics(q + 1j * _H * qd)                     # J' = imag / h
+        n = self.n
+        M = np.zeros((n, n))
+        rhs = np.zeros(n)
+        g = self.gravity
+        for (R, _, Jv, Jw), (_, _, Jv_c, Jw_c), seg in zip(kin["links"], kin_d["links"],
+                                                         [s for s in self.segments if isinstance(s, Link)]):
+            Iw = R @ np.asarray(seg.inertia, float) @ R.T
+            w = Jw @ qd
+            M += seg.mass * Jv.T @ Jv + Jw.T @ Iw @ Jw
+            rhs += Jv.T @ (seg.mass * (g - (Jv_c.imag / _H) @ qd)) - Jw.T @ (Iw @ (Jw_c.imag / _H) @ qd
+                                                                              + np.cross(w, Iw @ w))
+        _, J_p = kin["points"]
+        Jd_p = kin_d["points"][1].imag / _H
+        M += np.einsum("p,pik,pil->kl", self.m, J_p, J_p)
+        rhs += np.einsum("p,pik,pi->k", self.m, J_p, g[None, :] - Jd_p @ qd)
+        rot, rot_d = self._rotary_jacobians(kin), self._rotary_jacobians(kin_d)
+        probes = []
+        for k in range(self.frame_joints()):
+            e = np.zeros(n)
+            e[k] = 1.0
+            probes.append(self._rotary_jacobians(self.kinematics(q + 1j * _H * e)))
+        for r, ((I, J), (_, Jc)) in enumerate(zip(rot, rot_d)):
+            Jd = Jc.imag / _H
+            Omega = J @ qd
+            dT = np.zeros(n)
+            for k, probe in enumerate(probes):
+                dT[k] = Omega @ I @ ((probe[r][1].imag / _H) @ qd)
+            M += J.T @ I @ J
+            rhs -= J.T @ I @ Jd @ qd + Jd.T @ I @ Omega - dT
+        u, ud = q[self.n_joints:], qd[self.n_joints:]
+        rhs[self.n_joints:] -= self.K @ u + self.C @ ud
+        if self.force is not None:
+            rhs[self.n_joints:] += self.force(u, ud)
+        for k, (stiffness, damping) in self.joint_springs.items():
+            rhs[k] -= stiffness * q[k] + damping * qd[k]
+        return M, rhs, kin, kin_d
+
+    def frame_joints(self) -> int:
+        """Number of joint angles inboard of (and including) the frame's joint."""
+        return sum(1 for s in self.segments[:self.frame_index + 1] if isinstance(s, Link) or s.axis is not None)
+
+    def accelerations(self, q, qd) -> np.ndarray:
+        """``q''`` at ``(q, q')``."""
+        M, rhs, _, _ = self._terms(np.asarray(q, float), np.asarray(qd, float))
+        return np.linalg.solve(M, rhs)
+
+    def interaction_force(self, q, qd) -> np.ndarray:
+        """Force [N] (world axes) of the frame on the links hung on it: ``sum m (a_com - g)`` over them."""
+        q, qd = np.asarray(q, float), np.asarray(qd, float)
+        M, rhs, kin, kin_d = self._terms(q, qd)
+        qdd = np.linalg.solve(M, rhs)
+        links = [s for s in self.segments if isinstance(s, Link)]
+        before = sum(1 for s in self.segments[:self.frame_index] if isinstance(s, Link))
+        force = np.zeros(3)
+        for seg, (_, _, Jv, _), (_, _, Jv_c, _) in list(zip(links, kin["links"], kin_d["links"]))[before:]:
+            force += seg.mass * (Jv @ qdd + (Jv_c.imag / _H) @ qd - self.gravity)
+        return force
+
+    def energy(self, q, qd) -> float:
+        """Kinetic + strain + gravitational energy [J]."""
+        q, qd = np.asarray(q, float), np.asarray(qd, float)
+        kin = self.kinematics(q)
+        total = 0.0
+        for (R, r_c, Jv, Jw), seg in zip(kin["links"], [s for s in self.segments if isinstance(s, Link)]):
+            v, w = Jv @ qd, Jw @ qd
+            total += 0.5 * seg.mass * v @ v + 0.5 * w @ R @ np.asarray(seg.inertia, float) @ R.T @ w \
+                - seg.mass * self.gravity @ r_c
+        r_p, J_p = kin["points"]
+        v_p = J_p @ qd
+        total += 0.5 * np.sum(self.m * np.sum(v_p * v_p, axis=1)) - np.sum(self.m * (r_p @ self.gravity))
+        for I, J in self._rotary_jacobians(kin):
+            total += 0.5 * (J @ qd) @ I @ (J @ qd)
+        u = q[self.n_joints:]
+        return float(total + 0.5 * u @ self.K @ u)
+
+    def rk4(self, q0, qd0, t_final: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """Fixed-step RK4 of ``[q ; q']``: times and states (steps + 1, 2 n)."""
+        n = self.n
+        x = np.concatenate([np.asarray(q0, float), np.asarray(qd0, float)])
+        steps = int(round(t_final / dt))
+        out = [x.copy()]
+
+        def f(y):
+            return np.concatenate([y[n:], self.accelerations(y[:n], y[n:])])
+        for _ in range(steps):
+            k1 = f(x)
+            k2 = f(x + dt / 2 * k1)
+            k3 = f(x + dt / 2 * k2)
+            k4 = f(x + dt * k3)
+            x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+            out.append(x.copy())
+        return np.arange(steps + 1) * dt, np.array(out)
+
+    def linear_matrices(self, q0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``M, K_t, C`` about the static equilibrium ``q0``: the tangent stiffness ``K_t = -d(Q - b)/dq`` at rest
+        by complex step; ``C`` the frame's damping (the velocity terms are quadratic: no tangent at rest)."""
+        q0 = np.asarray(q0, float)
+        n = self.n
+        M, _, _, _ = self._terms(q0, np.zeros(n))
+        Kt = np.zeros((n, n))
+        for k in range(n):
+            e = np.zeros(n)
+            e[k] = 1.0
+            _, rhs, _, _ = self._terms_complex(q0 + 1j * _H * e)
+            Kt[:, k] = -rhs.imag / _H
+        C = np.zeros((n, n))
+        C[self.n_joints:, self.n_joints:] = self.C
+        return M, 0.5 * (Kt + Kt.T), C
+
+    def natural_frequencies(self, q0) -> np.ndarray:
+        """Undamped natural frequencies [rad/s] about the static equilibrium ``q0``: ``eigh(K_t, M)``."""
+        M, Kt, _ = self.linear_matrices(q0)
+        return np.sqrt(np.clip(scipy.linalg.eigh(Kt, M, eigvals_only=True), 0.0, None))
+
+    def frequency_response(self, q0, omega, load: Any, output: Any) -> np.ndarray:
+        """Phasor of an output per unit harmonic load: ``load`` a coordinate index (a generalised force) or a
+        vector ``(n,)`` of generalised forces; ``output`` a coordinate index or a row ``(n,)``."""
+        M, Kt, C = self.linear_matrices(q0)
+        b = np.eye(self.n)[load] if np.ndim(load) == 0 else np.asarray(load, float)
+        c = np.eye(self.n)[output] if np.ndim(output) == 0 else np.asarray(output, float)
+        return np.array([c @ np.linalg.solve(Kt - w * w * M + 1j * w * C, b) for w in np.atleast_1d(omega)])
+
+    def _terms_complex(self, q: np.ndarray):
+        """Generalised forces at rest for a complex ``q`` (gravity and elastic only: ``q' = 0``)."""
+        kin = self.kinematics(q)
+        n = self.n
+        rhs = np.zeros(n, dtype=complex)
+        for (R, _, Jv, _), seg in zip(kin["links"], [s for s in self.segments if isinstance(s, Link)]):
+            rhs += Jv.T @ (seg.mass * self.gravity)
+        _, J_p = kin["points"]
+        rhs += np.einsum("p,pik,i->k", self.m, J_p, self.gravity)
+        rhs[self.n_joints:] -= self.K @ q[self.n_joints:]
+        if self.force is not None:
+            rhs[self.n_joints:] += self.force(q[self.n_joints:], np.zeros(self.n_u))
+        return None, rhs, kin, None
