@@ -62,14 +62,21 @@ def _nodes() -> dict:
     return {f"n{k}": (k * b["length"] / b["elements"], 0.0, 0.0) for k in range(b["elements"] + 1)}
 
 
-def model() -> sp.SpatialModel:
-    """The mixed model (module docstring)."""
+def beam_subsystem():
+    """The finite-element beam ``beam1`` (3 elements, a node mass at ``n2``, Rayleigh damping) as a body with the
+    boundary nodes ``n0`` (inboard) and the tip node (named by the scene file ``files/spatial_fem_chain.toml``)."""
     b, tip = BEAM, f"n{BEAM['elements']}"
     elements = [SpatialBeamElement(f"e{k}", f"n{k}", f"n{k + 1}", b["axial"], b["torsional"], b["bending_y"],
                                    b["bending_z"], b["mass_per_length"], b["polar_inertia_per_length"])
                 for k in range(b["elements"])]
     elements.append(SpatialPointMass("node_mass", NODE_MASS["node"], NODE_MASS["mass"], NODE_MASS["inertia"]))
-    beam = SpatialFiniteElementModel("beam1", _nodes(), elements, rayleigh=RAYLEIGH).subsystem("beam1", ("n0", tip))
+    return SpatialFiniteElementModel("beam1", _nodes(), elements, rayleigh=RAYLEIGH).subsystem("beam1", ("n0", tip))
+
+
+def model() -> sp.SpatialModel:
+    """The mixed model (module docstring)."""
+    tip = f"n{BEAM['elements']}"
+    beam = beam_subsystem()
     body = {name: sp.SpatialBody(name, p["mass"], np.diag(p["inertia"]), center_of_mass=p["center"],
                                  points=({"tip": (0.0, 0.0, 0.3)} if name == "body1" else
                                          {"tip": (0.3, 0.0, 0.0)} if name == "body2" else {}))
