@@ -144,6 +144,8 @@ class KinematicLoopModel:
         self._points = [(self._resolve(cut, cut.parent, grounds), self._resolve(cut, cut.child, {}))
                         for cut in cuts]
         self.name = tree.name
+        self._tangents: dict = {}           # (q0, t, baumgarte) -> (A, N, q0, jacobian error): resting_tangent
+        self._equilibria: dict = {}         # (guess, t, tolerance, largest step) -> equilibrium (the last 8)
 
     def _resolve(self, cut: CutJoint, label: str, grounds: Mapping[str, Fixed]) -> tuple[int, np.ndarray | int]:
         """``(body index or -1 for ground, body-frame vector from the inboard end or ground position)``; on a modal
@@ -380,6 +382,22 @@ class KinematicLoopModel:
         A[f:] = np.column_stack(columns)
         return A, basis, q0
 
+    def resting_tangent(self, q0, t: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+        """:meth:`linearize` about the resting state ``q0`` and its relative Jacobian error (against the step
+        2e-5), ``(A, N, q0, error)``; kept per ``(q0, t, baumgarte)`` on this model (the frequency-domain tools
+        ask for the same tangent at every frequency they refine; at most 8 kept)."""
+        q0 = np.asarray(q0, dtype=float)
+        key = (q0.tobytes(), float(t), self.baumgarte)
+        if key not in self._tangents:
+            A, basis, q_on = self.linearize(q0, t)
+            A_coarse, _, _ = self.linearize(q_on, t, step=2e-5)
+            error = float(np.max(np.abs(A - A_coarse)) / max(np.max(np.abs(A)), 1e-300))
+            if len(self._tangents) >= 8:
+                self._tangents.pop(next(iter(self._tangents)))
+            self._tangents[key] = (A, basis, q_on, error)
+        A, basis, q_on, error = self._tangents[key]
+        return A.copy(), basis.copy(), q_on.copy(), error
+
     def natural_frequencies(self, q0, t: float = 0.0) -> np.ndarray:
         """Undamped natural frequencies [rad/s] about the resting state ``q0`` (an equilibrium: refused
         otherwise), ascending, from :meth:`linearize`."""
@@ -398,20 +416,32 @@ class KinematicLoopModel:
             raise ModelError(f"kinematic loop {self.name!r}: q0 is not a stable equilibrium (omega^2 = {squared})")
         return np.sort(np.sqrt(squared.real))
 
-    def equilibrium(self, q_guess, t: float = 0.0, *, tolerance: float = 1e-10) -> np.ndarray:
-        """A static equilibrium near ``q_guess`` (Newton on the independent coordinates)."""
+    def equilibrium(self, q_guess, t: float = 0.0, *, tolerance: float = 1e-10, largest_step: float = 0.2
+                    ) -> np.ndarray:
+        """A static equilibrium near ``q_guess``: Newton on the independent coordinates ``z``, each step at most
+        ``largest_step`` [rad] (a far guess, e.g. the tree's hanging configuration, does not leap across the
+        mechanism's range), converged when the accelerations are below ``tolerance`` or the Newton step is below
+        ``tolerance`` [rad] (a stiff spring: the accelerations' round-off is ``|dz''/dz|`` times larger)."""
         n = self.tree.n_coordinates
         q = np.asarray(self.tree.state(q_guess, np.zeros(n))[0], float)
-        for _ in range(40):
+        key = (q.tobytes(), float(t), float(tolerance), float(largest_step), self.baumgarte)
+        if key in self._equilibria:
+            return self._equilibria[key].copy()
+        start = q.copy()
+        for _ in range(80):
             A, basis, q = self.linearize(q, t)
             f = basis.shape[1]
             residual = basis.T @ self.solve(q, np.zeros(n), t)[0]
-            if np.max(np.abs(residual)) < tolerance:
+            step = -np.linalg.solve(A[f:, :f], residual)
+            if np.max(np.abs(residual)) < tolerance or np.max(np.abs(step)) < tolerance:
+                if len(self._equilibria) >= 8:
+                    self._equilibria.pop(next(iter(self._equilibria)))
+                self._equilibria[(start.tobytes(), *key[1:])] = q.copy()
                 return q
-            q, _ = self.chart(q, basis, self.jacobian(q, t).T, -np.linalg.solve(A[f:, :f], residual),
-                               np.zeros(f), t)
+            step *= min(1.0, largest_step / np.max(np.abs(step)))
+            q, _ = self.chart(q, basis, self.jacobian(q, t).T, step, np.zeros(f), t)
         raise ModelError(f"kinematic loop {self.name!r}: no equilibrium found near the guess (residual "
-                         f"{np.max(np.abs(residual)):.3e} after 40 Newton steps)")
+                         f"{np.max(np.abs(residual)):.3e} after 80 Newton steps)")
 
 
 def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: float, dt: float | None = None,
