@@ -25,10 +25,12 @@ with the constraint Jacobian ``J = dPhi'/dqdot``, exact).  The drift is reported
 (:attr:`KinematicLoopSimulation.drift`, ``.drift_rate``), with the cut forces.
 
 The library verbs (``ctmm.simulate`` with every method, ``ctmm.linearize``, ``ctmm.natural_frequencies``,
-``ctmm.frequency_response``) call this model's functions (:mod:`ctmm.planar.loop_verbs`).  Not yet: cut joints
-with laws, feedback loops on a kinematic loop model (each refused by name).  Cut points may be ends of a
-``ctmm.flexible.ModalBeam`` (a flexible coupler): the cut force enters the beam's frame wrench and modal
-equations as its virtual work (``docs/closed_loops.md`` §4a).
+``ctmm.frequency_response``) call this model's functions (:mod:`ctmm.planar.loop_verbs`); feedback loops, actuator
+inputs and controllers act on the tree's ports (``ctmm.control.with_feedback(model, loops)``,
+:mod:`ctmm.planar.loop_plant`, ``docs/closed_loops.md`` §3c).  Not yet: cut joints with laws (refused by name).
+Cut points may be ends of a ``ctmm.flexible.ModalBeam`` (a flexible coupler): the cut force enters the beam's frame
+wrench and modal equations as its virtual work, through the end's foreshortening too (``docs/closed_loops.md``
+§4a-4b).
 """
 from __future__ import annotations
 
@@ -130,9 +132,15 @@ class KinematicLoopModel:
         The joints closing the loops.
     baumgarte : float
         Stabilisation rate ``alpha`` [1/s] (>= 0; 0: none).  Default 20.
+    foreshortening : bool
+        A cut point at a ``ModalBeam`` end moves axially by the second-order shortening
+        ``-1/2 q^T G1(x_e) q`` of the bent beam (``G1(x_e) = int_0^x_e phi' phi'^T``, ``docs/closed_loops.md``
+        §4b), and the cut force does its virtual work through it (the axial-load stiffening of the end force).
+        Default True; False: the linear end position.
     """
 
-    def __init__(self, tree: PlanarModel, cuts: Sequence[CutJoint], *, baumgarte: float = 20.0) -> None:
+    def __init__(self, tree: PlanarModel, cuts: Sequence[CutJoint], *, baumgarte: float = 20.0,
+                 foreshortening: bool = True) -> None:
         if not isinstance(tree, PlanarModel):
             raise ModelError(f"KinematicLoopModel: tree must be a ctmm.planar.PlanarModel, got {tree!r}")
         cuts = tuple(cuts)
@@ -140,6 +148,7 @@ class KinematicLoopModel:
             raise ModelError(f"KinematicLoopModel: cuts must be a non-empty sequence of CutJoint, got {cuts!r}")
         self.tree, self.cuts = tree, cuts
         self.baumgarte = validation.nonnegative("baumgarte", baumgarte)
+        self.foreshortening = validation.flag("foreshortening", foreshortening)
         grounds = {e.name: e for e in tree.elements if isinstance(e, Fixed)}
         self._points = [(self._resolve(cut, cut.parent, grounds), self._resolve(cut, cut.child, {}))
                         for cut in cuts]
@@ -174,6 +183,25 @@ class KinematicLoopModel:
         return j, np.asarray(m.ends[j][end], float)
 
     # ------------------------------------------------------------------------------------------------
+    def _end_local(self, j: int, e: int, q: np.ndarray, qdot: np.ndarray, qddot: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, ...]:
+        """End ``e`` of modal beam ``j`` in the beam frame: position, velocity relative to the frame and, with
+        ``qddot``, acceleration relative to the frame [m, m/s, m/s^2]; with the foreshortening
+        ``u = -1/2 w^T G1 w`` of the transverse modal coordinates ``w`` (``u' = -w^T G1 w'``,
+        ``u'' = -w'^T G1 w' - w^T G1 w''``) when :attr:`foreshortening`."""
+        m = self.tree
+        position, velocity = m.beam_point_local(j, e, q, qdot)
+        acceleration = None if qddot is None else m.beam_point_local(j, e, q, qddot)[1]   # linear in the rates
+        if self.foreshortening:
+            data = m.beams[j].data
+            index = m.modal_index[j][:data.nq]
+            G, w, w_dot = data.end_G1[e], q[index], qdot[index]
+            position[0] -= 0.5 * w @ G @ w
+            velocity[0] -= w @ G @ w_dot
+            if acceleration is not None:
+                acceleration[0] -= w_dot @ G @ w_dot + w @ G @ qddot[index]
+        return (position, velocity) if qddot is None else (position, velocity, acceleration)
+
     def _point_kinematics(self, points: dict, j: int, e: np.ndarray | int):
         """Position, velocity and lever ``r`` (from the inboard end, global) of a point (:meth:`_resolve`;
         ``points``: :meth:`_points_at`)."""
@@ -183,7 +211,7 @@ class KinematicLoopModel:
         c, s = np.cos(th), np.sin(th)
         velocity = np.zeros(2)
         if not isinstance(e, np.ndarray):               # end ``e`` of a modal beam: deformed, moving in the frame
-            e, local = self.tree.beam_point_local(j, e, points["q"], points["qdot"])
+            e, local = self._end_local(j, e, points["q"], points["qdot"])
             velocity = np.array([c * local[0] - s * local[1], s * local[0] + c * local[1]])
         r = np.array([c * e[0] - s * e[1], s * e[0] + c * e[1]])
         return points["inboard"][j] + r, points["inboard_velocity"][j] + om * np.array([-r[1], r[0]]) + velocity, r
@@ -229,10 +257,13 @@ class KinematicLoopModel:
                 c, s = np.cos(th), np.sin(th)
                 if not isinstance(e, np.ndarray):
                     data = m.beams[j].data
-                    local, _ = m.beam_point_local(j, e, points["q"], points["qdot"])
+                    local, _ = self._end_local(j, e, points["q"], points["qdot"])
                     fx, fy = c * f[0] + s * f[1], -s * f[0] + c * f[1]
                     frame[j] = frame.get(j, np.zeros(3)) + (fx, fy, local[0] * fy - local[1] * fx)
-                    shape = np.concatenate([data.end_phi[e] * fy, data.end_psi[e] * fx])
+                    transverse = data.end_phi[e] * fy
+                    if self.foreshortening:     # virtual work through the shortening d(-1/2 w^T G1 w) = -G1 w dw
+                        transverse = transverse - fx * (data.end_G1[e] @ points["q"][m.modal_index[j][:data.nq]])
+                    shape = np.concatenate([transverse, data.end_psi[e] * fx])
                     modal[j] = modal.get(j, np.zeros(len(m.modal_index[j]))) + shape
                     continue
                 _, _, r = self._point_kinematics(points, j, e)
@@ -269,8 +300,7 @@ class KinematicLoopModel:
                 if not isinstance(e, np.ndarray):       # a modal beam's end: Coriolis and deformation terms
                     th = points["theta"][j]
                     c, s = np.cos(th), np.sin(th)
-                    _, local_v = m.beam_point_local(j, e, q, qdot)
-                    _, local_a = m.beam_point_local(j, e, q, solution.qddot)     # linear in the rates
+                    _, local_v, local_a = self._end_local(j, e, q, qdot, solution.qddot)
                     v = np.array([c * local_v[0] - s * local_v[1], s * local_v[0] + c * local_v[1]])
                     a = np.array([c * local_a[0] - s * local_a[1], s * local_a[0] + c * local_a[1]])
                     acc[-1] = acc[-1] + 2.0 * om * np.array([-v[1], v[0]]) + a

@@ -18,7 +18,9 @@ functions of this module, which call the model's own mechanism (the cut forces a
   orthonormal null space of the constraint Jacobian at ``q0``), with the tree's actuators as inputs and
   its sensors and the cut forces as outputs.
 
-Feedback loops on a kinematic loop model are refused by :func:`ctmm.control.with_feedback`.
+Feedback loops (``ctmm.control.with_feedback(model, loops)``) close around the same linearisation
+(:func:`linearize_loops`, :func:`frequency_response_loops`; delays exact); in time they run in the loop driver
+(:mod:`ctmm.kinematic_loop_time`).
 """
 from __future__ import annotations
 
@@ -118,7 +120,7 @@ def simulate_loops(model: KinematicLoopModel, t_final: float, dt: float | None, 
     other_options : mapping, optional
         The other options of :func:`ctmm.simulate` as given (``inputs``, ``controllers``, ``references``,
         ``coupling``, ``solver``, ``fast``, ``force_hook``, ``progress``, ``t0``, ``compiled``): each must be at
-        its default (refused by name otherwise: a kinematic loop model takes no actuator inputs or controllers yet).
+        its default (refused by name otherwise; inputs, controllers and loops run in :mod:`ctmm.kinematic_loop_time`).
 
     Returns
     -------
@@ -128,8 +130,8 @@ def simulate_loops(model: KinematicLoopModel, t_final: float, dt: float | None, 
     for name, value in (other_options or {}).items():
         default = _DEFAULTS[name]
         if value is not default and value != default:
-            raise ModelError(f"{name}={value!r} is not available for a kinematic loop model {model.name!r} (no actuator "
-                             f"inputs, controllers or compiled runs through cut joints yet; runs start at t = 0); "
+            raise ModelError(f"{name}={value!r} is not available for a kinematic loop model {model.name!r} (no "
+                             f"compiled or fast runs through cut joints yet; runs start at t = 0); "
                              f"leave {name} at {default!r}")
     tree = model.tree
     if isinstance(outputs, (str, Mapping)) or not isinstance(outputs, (list, tuple)):
