@@ -116,6 +116,21 @@ def tangent():
     return k, b
 
 
+@pytest.fixture(scope="module")
+def cut_force_tangent():
+    """``(slope, gain)``: the DAE's cut-joint force on the coupler per crank angle on the constraints at rest
+    [N/rad] and per crank torque [N/(N m)], at the same equilibrium (joint 3 of the DAE is the cut h3)."""
+    q_eq = ctmm.linearize(mechanism(), inputs=["h1.torque"]).operating_point.q
+    dae, driven = reference(), reference()
+    driven.add_motor(None, "crank", lambda t, angle, rate: 1.0)
+    state = _assembled(dae, q_eq[0], q_eq[1:])
+    h = 1e-5
+    plus, minus = _assembled(dae, q_eq[0] + h, q_eq[1:]), _assembled(dae, q_eq[0] - h, q_eq[1:])
+    slope = (dae.solve(*plus)[1][6:8] - dae.solve(*minus)[1][6:8]) / (2 * h)
+    gain = driven.solve(*state)[1][6:8] - dae.solve(*state)[1][6:8]
+    return slope, gain
+
+
 def _critical_delay(k: float, b: float, kp: float, kd: float) -> tuple[float, float]:
     """Smallest delay [s] and frequency [rad/s] at which s^2 + k + b (kp + kd s) e^{-s tau} has a root i omega."""
     quadratic = np.roots([1.0, -(2 * k + b * b * kd * kd), k * k - b * b * kp * kp])
@@ -148,6 +163,34 @@ def test_linear_verbs_of_the_controlled_loop_match_the_closed_forms(tangent):
     assert found.delay_margin == pytest.approx(tau - 0.02, rel=1e-5)
 
 
+def test_cut_force_outputs_of_the_controlled_loop_match_the_closed_forms(tangent, cut_force_tangent):
+    """The cut force feeds through from the actuators: ``F = slope theta + gain u_total`` with the closed-loop crank
+    angle and the total crank torque (the input plus the loop's force)."""
+    k, b = tangent
+    slope, gain = cut_force_tangent
+    omega = np.array([0.0, 5.0, 20.0])
+    s = 1j * omega
+    real_time = with_feedback(mechanism(), [_pd(0.0)])
+    frf = ctmm.frequency_response(real_time, omega, input=["pd.reference", "h1.torque"],
+                                  output=["h3.force_x", "h3.force_y", "crank.theta"])
+    crank = b / (s * s + k + b * (KP + KD * s))             # per unit reference and per unit torque alike
+    torque = {"pd.reference": 1.0 - (KP + KD * s) * crank, "h1.torque": 1.0 - (KP + KD * s) * crank}
+    for name in torque:
+        np.testing.assert_allclose(frf("crank.theta", name), crank, rtol=1e-7)
+        for axis, column in (("x", 0), ("y", 1)):
+            expected = slope[column] * crank + gain[column] * torque[name]
+            np.testing.assert_allclose(frf(f"h3.force_{axis}", name), expected, rtol=1e-6,
+                                       atol=1e-6 * np.max(np.abs(expected)))
+    delayed = with_feedback(mechanism(), [_pd(0.02)])
+    frf = ctmm.frequency_response(delayed, omega, input="h1.torque", output="h3.force_y")
+    loop_term = (KP + KD * s) * np.exp(-0.02 * s)
+    crank = b / (s * s + k + b * loop_term)
+    expected = slope[1] * crank + gain[1] * (1.0 - loop_term * crank)
+    np.testing.assert_allclose(frf("h3.force_y", "h1.torque"), expected, rtol=1e-6, atol=1e-6 * np.max(np.abs(expected)))
+    lin = ctmm.linearize(delayed, inputs=["h1.torque"], outputs=["h3.force_y", "crank.theta"])
+    assert lin.state_space.output_labels == ["h3_force_y", "crank_theta", "pd_y"] and len(lin.delays) == 1
+
+
 def test_stability_chart_of_the_controlled_loop_matches_the_closed_form(tangent):
     k, b = tangent
     gains, delays = np.array([4.0, 12.0]), np.array([0.02, 0.08, 0.2])
@@ -162,8 +205,6 @@ def test_refusals_of_the_controlled_loop_model():
     loop = mechanism()
     q0, v0 = start(loop)
     controlled = with_feedback(loop, [_pd(0.0)])
-    with pytest.raises(ModelError, match="cut force"):
-        ctmm.linearize(controlled, outputs=["h3.force_x"])
     with pytest.raises(ModelError, match="natural_frequencies"):
         ctmm.natural_frequencies(controlled)
     with pytest.raises(ModelError, match="compiled"):

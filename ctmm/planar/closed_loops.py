@@ -156,6 +156,9 @@ class KinematicLoopModel:
         self._tangents: dict = {}           # (q0, t, baumgarte) -> (A, N, q0, jacobian error): resting_tangent
         self._equilibria: dict = {}         # (guess, t, tolerance, largest step) -> equilibrium (the last 8)
 
+    def __repr__(self) -> str:
+        return f"KinematicLoopModel({self.name!r}, cuts={[cut.name for cut in self.cuts]})"
+
     def _resolve(self, cut: CutJoint, label: str, grounds: Mapping[str, Fixed]) -> tuple[int, np.ndarray | int]:
         """``(body index or -1 for ground, body-frame vector from the inboard end or ground position)``; on a modal
         beam ``(body index, end index)``."""

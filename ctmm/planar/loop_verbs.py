@@ -30,7 +30,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from .. import validation
-from ..controlled_linearization import close_model_loops, delayed_loop_response
+from ..controlled_linearization import close_model_loops, delayed_loop_response, exogenous_inputs
 from ..errors import ModelError, unknown_name
 from ..linearized import LinearizedSystem, OperatingPoint, control_name
 from ..results import FrequencyResponse, SimulationResult
@@ -314,23 +314,22 @@ def _linearize_controlled(model: KinematicLoopModel, loops: tuple, operating_poi
     """:func:`linearize_loops` with feedback ``loops`` on the tree's ports: the plant's tangent on the constraint
     manifold with every actuator as input and the needed sensors as outputs, the loops closed around it by
     :func:`ctmm.controlled_linearization.close_model_loops` (real-time loops inside ``A``, delayed loops beside it;
-    the loops act on the deviations of their sensors from the operating point)."""
+    the loops act on the deviations of their sensors from the operating point).  Cut-force outputs feed through from
+    the actuators (the plant's ``D``): their rows are ``C_f x + D_f u`` with the actuator values ``u`` of the closed
+    system (exogenous actuator inputs, the real-time loops' forces, the delayed loops' force inputs)."""
+    import control
+
     tree = model.tree
     ports = PlanarPorts(tree)
     forces = cut_signal_names(model)
     empty = outputs is None or (isinstance(outputs, (list, tuple)) and not outputs)
     requested = [] if empty else list(validation.names("outputs", outputs))
-    for name in requested:
-        if name in forces:
-            raise ModelError(f"linearize: output {name!r} (a cut force) of the controlled kinematic loop model "
-                             f"{model.name!r} is not available: the cut forces depend on the loop forces directly "
-                             "(a feedthrough the loop closure does not carry); ctmm.simulate stores them, and "
-                             "ctmm.linearize of the plant gives them per actuator")
+    cut = [name for name in requested if name in forces]
     sensors = set(ports.sensors)
     needed = list(dict.fromkeys([name for name in list(tree.coordinates) + requested if name in sensors]
                                 + [name for lp in loops for name, _ in lp.terms]))
     actuators = list(actuator_names(tree))
-    plant = linearize_loops(model, operating_point, inputs=actuators, outputs=needed,
+    plant = linearize_loops(model, operating_point, inputs=actuators, outputs=needed + cut,
                             allow_nonequilibrium=allow_nonequilibrium)
     ss = plant.state_space
     B, C = np.asarray(ss.B, dtype=float), np.asarray(ss.C, dtype=float)
@@ -343,10 +342,44 @@ def _linearize_controlled(model: KinematicLoopModel, loops: tuple, operating_poi
             ports.check_sensor(name, "output (sensor)")
         return C[[needed.index(name) for name in names], :]
 
-    return close_model_loops(np.asarray(ss.A, dtype=float), loops, inputs=inputs, outputs=outputs,
-                             default_inputs=actuators, default_outputs=list(tree.coordinates), input_columns=columns,
-                             output_rows=rows, states=list(ss.state_labels), name=model.name,
-                             point=plant.operating_point)
+    real_time = [lp for lp in loops if lp.delay == 0.0]
+    others = [name for name in requested if name not in forces]
+    helpers = [f"{lp.name}.u" for lp in real_time if f"{lp.name}.u" not in others] if cut else []
+    closed = close_model_loops(np.asarray(ss.A, dtype=float), loops, inputs=inputs,
+                               outputs=outputs if not cut else others + helpers, default_inputs=actuators,
+                               default_outputs=list(tree.coordinates), input_columns=columns, output_rows=rows,
+                               states=list(ss.state_labels), name=model.name, point=plant.operating_point)
+    if not cut:
+        return closed
+    # the cut forces: C_f x + D_f u, u the actuator values of the closed system (module docstring of close_model_loops)
+    lin = closed.state_space
+    A_cl, B_cl, C_cl, D_cl = (np.asarray(m, dtype=float) for m in (lin.A, lin.B, lin.C, lin.D))
+    exo, _ = exogenous_inputs(loops, inputs, actuators)
+    delayed = [lp for lp in loops if lp.delay > 0.0]
+    U_x, U_in = np.zeros((len(actuators), A_cl.shape[0])), np.zeros((len(actuators), B_cl.shape[1]))
+    for k, name in enumerate(exo):
+        if name in actuators:
+            U_in[actuators.index(name), k] += 1.0
+    listed = others + helpers
+    for lp in real_time:
+        row = listed.index(f"{lp.name}.u")
+        for name, weight in lp.actuator_terms:
+            U_x[actuators.index(name)] += weight * C_cl[row]
+            U_in[actuators.index(name)] += weight * D_cl[row]
+    for j, lp in enumerate(delayed):
+        for name, weight in lp.actuator_terms:
+            U_in[actuators.index(name), len(exo) + j] += weight
+    C_f, D_f = C[len(needed):], np.asarray(ss.D, dtype=float)[len(needed):]
+    force_rows = np.hstack([C_f, np.zeros((len(cut), A_cl.shape[0] - C_f.shape[1]))]) + D_f @ U_x
+    force_feed = D_f @ U_in
+    C_new = np.vstack([force_rows[cut.index(name)] if name in forces else C_cl[listed.index(name)]
+                       for name in requested] + [C_cl[len(listed):]])
+    D_new = np.vstack([force_feed[cut.index(name)] if name in forces else D_cl[listed.index(name)]
+                       for name in requested] + [D_cl[len(listed):]])
+    labels = [control_name(x) for x in requested] + list(lin.output_labels)[len(listed):]
+    state_space = control.ss(A_cl, B_cl, C_new, D_new, inputs=list(lin.input_labels), outputs=labels,
+                             states=list(lin.state_labels), name=lin.name)
+    return LinearizedSystem(state_space, closed.delays, closed.operating_point)
 
 
 def natural_frequencies_loops(model: KinematicLoopModel, *, n_modes: int | None = None,
