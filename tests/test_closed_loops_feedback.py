@@ -88,6 +88,26 @@ def test_open_loop_torque_input_on_the_kinematic_loop_model():
     assert np.max(np.abs(free["crank.theta"] - run["crank.theta"])) > 1e-4          # the torque acts
 
 
+def test_sampled_controller_converges_to_the_continuous_loop_of_the_dae():
+    """A co-simulated static-gain PD sampled every step (zero-order hold) approaches the continuous PD of the DAE at
+    first order in the sample time (measured crank errors at 0.1 s: 6.7e-3, 3.3e-3 rad)."""
+    from ctmm.control.static_gain import StaticGainController
+
+    loop = mechanism()
+    q0, v0 = start(loop)
+    dae = reference()
+    dae.add_motor(None, "crank", lambda t, angle, rate: -(KP * angle + KD * rate))
+    crank = dae.simulate(dae.assemble(dict(zip(BODIES, q0)), dict(zip(BODIES, v0))), 0.1, t_eval=[0.0, 0.1]).angle(
+        "crank")[-1]
+    errors = []
+    for dt in (1e-3, 5e-4):
+        controller = StaticGainController(["h1.angle", "h1.rate"], ["h1.torque"], [[-KP, -KD]], sample_time=dt)
+        run = ctmm.simulate(loop, 0.1, dt, x0=q0, v0=v0, controllers=[controller])
+        errors.append(abs(run["crank.theta"][-1] - crank))
+        assert np.max(run["drift"]) < 1e-9
+    assert errors[0] < 1e-2 and errors[0] / errors[1] == pytest.approx(2.0, rel=0.05)
+
+
 def _assembled(dae, crank: float, guess):
     """DAE state at rest with the crank at ``crank`` [rad]; coupler and rocker from the DAE's loop constraint."""
     def residual(angles):
