@@ -70,7 +70,7 @@ def simulate_kinematic_loop_system(system: Any, t_final: float, dt: float | None
     loops = () if system is model else tuple(system.loops)
     if not (loops or inputs or controllers or references):
         others = {name: value for name, (value, _) in unsupported.items()}
-        others.update({"inputs": inputs, "controllers": list(controllers), "references": dict(references),
+        others.update({"inputs": inputs or None, "controllers": list(controllers), "references": dict(references),
                        "coupling": coupling, "progress": progress})
         return simulate_loops(model, t_final, dt, method=method, x0=x0, v0=v0, outputs=outputs, rtol=rtol, atol=atol,
                               max_step=max_step, store_every=store_every, divergence_bound=divergence_bound,
