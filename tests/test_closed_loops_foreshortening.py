@@ -94,3 +94,18 @@ def test_foreshortening_closes_most_of_the_gap_to_the_finite_segment_dae():
     assert gaps[True, 8] < gaps[True, 4]                       # closes toward the converging DAE
     assert gaps[True, 8] < 0.45 * gaps[False, 8]               # 2.33 % vs 6.09 %
     assert gaps[True, 8] < 0.025                               # measured 0.0233 (16 segments: 0.0228)
+
+
+def test_default_operating_point_of_the_flexible_linkage_is_at_rest():
+    """The linear verbs' default operating point (the hanging configuration assembled with the beam straight, then
+    Newton; accepted by the scale-aware equilibrium test: a stiff modal coordinate is at rest to round-off with
+    accelerations of |K| times that) is a static equilibrium: released there, the linkage stays put."""
+    loop = flexible_mechanism(80.0)
+    lin = ctmm.linearize(loop, inputs=["h1.torque"])
+    assert lin.operating_point.equilibrium
+    q_eq = lin.operating_point.q
+    run = ctmm.simulate(loop, 0.05, 2.5e-4, x0=q_eq, v0=np.zeros_like(q_eq))
+    moved = max(np.max(np.abs(run[name] - value)) for name, value in zip(loop.tree.coordinates, q_eq))
+    assert moved < 1e-9 and abs(run["coupler.q1"][0]) > 1e-5       # at rest, the beam bent by its own weight
+    omega = ctmm.natural_frequencies(loop, n_modes=2)
+    assert 7.0 < omega[0] < 7.1 and omega[1] > 100.0               # the mechanism mode, then the first bending mode

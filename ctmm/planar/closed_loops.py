@@ -48,7 +48,7 @@ from .model import PlanarModel
 from .ports import ActuatorInputs
 from .sweep import solve_instant
 
-__all__ = ["CutJoint", "KinematicLoopModel", "KinematicLoopSimulation", "simulate_kinematic_loops"]
+__all__ = ["CutJoint", "KinematicLoopModel", "KinematicLoopSimulation", "simulate_kinematic_loops", "at_equilibrium"]
 
 
 @dataclass(frozen=True)
@@ -435,9 +435,10 @@ class KinematicLoopModel:
         """Undamped natural frequencies [rad/s] about the resting state ``q0`` (an equilibrium: refused
         otherwise), ascending, from :meth:`linearize`."""
         n = self.tree.n_coordinates
-        A, _, q0 = self.linearize(q0, t)
-        rest = np.max(np.abs(self.solve(q0, np.zeros(n), t)[0]), initial=0.0)
-        if rest > 1e-8:
+        A, basis, q0 = self.linearize(q0, t)
+        accelerations = self.solve(q0, np.zeros(n), t)[0]
+        rest = np.max(np.abs(accelerations), initial=0.0)
+        if not at_equilibrium(A, basis, accelerations):
             raise ModelError(f"kinematic loop {self.name!r}: q0 is not an equilibrium (largest acceleration "
                              f"{rest:.3e}); find one with KinematicLoopModel.equilibrium")
         f = A.shape[0] // 2
@@ -475,6 +476,22 @@ class KinematicLoopModel:
             q, _ = self.chart(q, basis, self.jacobian(q, t).T, step, np.zeros(f), t)
         raise ModelError(f"kinematic loop {self.name!r}: no equilibrium found near the guess (residual "
                          f"{np.max(np.abs(residual)):.3e} after 80 Newton steps)")
+
+
+def at_equilibrium(A: np.ndarray, basis: np.ndarray, accelerations: np.ndarray, *, acceleration: float = 1e-8,
+                   offset: float = 1e-10) -> bool:
+    """Whether a resting state is a static equilibrium: its accelerations ``qddot`` [rad/s^2, m/s^2] are below
+    ``acceleration``, or the static offset to the equilibrium, ``K^-1 N^T qddot`` with the tangent stiffness
+    ``K = -dz''/dz`` (``A``, ``basis``: :meth:`KinematicLoopModel.linearize`), is below ``offset`` [rad, m] -- a
+    stiff elastic coordinate (a modal beam's) is at rest to round-off with accelerations of ``|K|`` times that."""
+    if np.max(np.abs(accelerations), initial=0.0) <= acceleration:
+        return True
+    f = basis.shape[1]
+    try:
+        shift = np.linalg.solve(-A[f:, :f], basis.T @ accelerations)
+    except np.linalg.LinAlgError:
+        return False
+    return bool(np.max(np.abs(shift), initial=0.0) <= offset)
 
 
 def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: float, dt: float | None = None,

@@ -36,7 +36,7 @@ from ..linearized import LinearizedSystem, OperatingPoint, control_name
 from ..results import FrequencyResponse, SimulationResult
 from ..schemes import SCHEMES, Scheme, as_scheme
 from ..signal_results import SignalSystem, signal_result
-from .closed_loops import KinematicLoopModel, KinematicLoopSimulation, simulate_kinematic_loops
+from .closed_loops import KinematicLoopModel, KinematicLoopSimulation, at_equilibrium, simulate_kinematic_loops
 from .equilibrium import hanging_configuration
 from .integrate import SCIPY_METHODS, model_signals
 from .ports import PlanarPorts, actuator_names
@@ -202,13 +202,14 @@ def simulate_loops(model: KinematicLoopModel, t_final: float, dt: float | None, 
 def _operating_q(model: KinematicLoopModel, operating_point: Any) -> tuple[np.ndarray, float]:
     """Tree coordinates of the operating point (at rest) and its time; ``None``: the static equilibrium
     reached by Newton (:meth:`KinematicLoopModel.equilibrium`) from the tree's hanging configuration
-    assembled onto the cut joints."""
+    assembled onto the cut joints (elastic coordinates held at zero while assembling)."""
     tree = model.tree
     n = tree.n_coordinates
     if operating_point is None:
         guess = np.asarray(hanging_configuration(tree), dtype=float)
+        elastic = [tree.coordinates[k] for index in tree.modal_index for k in index]   # held straight
         try:
-            guess, _ = model.consistent_state(guess, np.zeros(n))
+            guess, _ = model.consistent_state(guess, np.zeros(n), keep=elastic)
             return model.equilibrium(guess), 0.0
         except ModelError as exc:
             raise ModelError(f"no static equilibrium of {model.name!r} found from the hanging configuration ({exc}); "
@@ -275,7 +276,7 @@ def linearize_loops(model: KinematicLoopModel, operating_point: Any = None, *, i
     n, f = tree.n_coordinates, basis.shape[1]
     rest = np.zeros(n)
     qdd0, lam0 = model.solve(q0, rest, t)
-    equilibrium = bool(np.max(np.abs(qdd0), initial=0.0) <= 1e-8)
+    equilibrium = at_equilibrium(A, basis, qdd0)
     if not equilibrium and not allow_nonequilibrium:
         raise ModelError(f"linearize: the operating point of {model.name!r} is not an equilibrium (largest "
                          f"acceleration {np.max(np.abs(qdd0)):.3e}); give operating_point=None (the static "
