@@ -232,7 +232,7 @@ def _is_spatial(system: Any) -> bool:
 def _is_kinematic_loop(system: Any) -> bool:
     from .planar.closed_loops import KinematicLoopModel
 
-    return isinstance(system, KinematicLoopModel)
+    return isinstance(system, KinematicLoopModel) or isinstance(getattr(system, "plant", None), KinematicLoopModel)
 
 
 def natural_frequencies(system: Any, **options: Any) -> np.ndarray:

@@ -125,12 +125,12 @@ def linearize(system: Any, operating_point: Any = None, *, inputs: str | Sequenc
     validation.flag("allow_nonequilibrium", allow_nonequilibrium)
     from .planar.closed_loops import KinematicLoopModel
 
-    if isinstance(system, KinematicLoopModel):       # on the constraint manifold (docs/closed_loops.md §3a)
+    plant = getattr(system, "plant", None)
+    if isinstance(system, KinematicLoopModel) or isinstance(plant, KinematicLoopModel):   # docs/closed_loops.md §3a, 3c
         from .planar.loop_verbs import linearize_loops
 
         return linearize_loops(system, operating_point, inputs=inputs, outputs=outputs,
                                allow_nonequilibrium=allow_nonequilibrium)
-    plant = getattr(system, "plant", None)
     loops = tuple(getattr(system, "loops", ()))
     if isinstance(system, Chain) or (isinstance(plant, Chain) and hasattr(system, "loops")):
         if operating_point is not None:

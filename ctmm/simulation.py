@@ -237,16 +237,18 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
     if coupling != "hold" and not controllers:
         raise ModelError(f"coupling={coupling!r} only applies to co-simulated controllers, but controllers is "
                          f"empty; leave coupling at 'hold' (embedded loops are always solved implicitly)")
-    if isinstance(system, KinematicLoopModel):                      # cut joints: docs/closed_loops.md §7
-        from .planar.loop_verbs import simulate_loops
+    if isinstance(system, KinematicLoopModel) or isinstance(getattr(system, "plant", None), KinematicLoopModel):
+        from .kinematic_loop_time import simulate_kinematic_loop_system     # cut joints: docs/closed_loops.md §3b-c
 
-        return simulate_loops(system, t_final, dt, method=_method(method, scheme, "rk4"), x0=x0, v0=v0,
-                              outputs=outputs, rtol=rtol, atol=atol, max_step=max_step, store_every=store_every,
-                              divergence_bound=divergence_bound, stability_check=stability_check,
-                              other_options={"inputs": inputs, "controllers": list(controllers),
-                                             "references": dict(references), "coupling": coupling, "solver": solver,
-                                             "fast": fast, "force_hook": force_hook, "progress": progress, "t0": t0,
-                                             "compiled": compiled})
+        if isinstance(inputs, Mapping):
+            inputs, references = split_loop_references(getattr(system, "loops", ()), inputs, references)
+        return simulate_kinematic_loop_system(
+            system, t_final, dt, method=_method(method, scheme, "rk4"), x0=x0, v0=v0, outputs=outputs, inputs=inputs,
+            controllers=list(controllers), references=dict(references), coupling=coupling, rtol=rtol, atol=atol,
+            max_step=max_step, store_every=store_every, divergence_bound=divergence_bound,
+            stability_check=stability_check, progress=progress,
+            unsupported={"solver": (solver, "riccati"), "fast": (fast, None), "force_hook": (force_hook, None),
+                         "t0": (t0, 0.0), "compiled": (compiled, None)})
     spatial = _model_parts(system, SpatialModel)
     if spatial is not None:
         return simulate_spatial_system(spatial, t_final, dt, method=_method(method, scheme, "rk4"), x0=x0, v0=v0, t0=t0,

@@ -12,7 +12,9 @@ joint ``h3`` joins the coupler's outboard end to the rocker's (the coupler is a 
 ends).  ctmm: the TMM sweep with the cut force as boundary unknowns
 (:mod:`ctmm.planar.closed_loops`), RK4 at 1 ms with projection, and DOP853 with Baumgarte only.
 Reference: the global DAE (:mod:`ctmm.reference.planar_dae`, absolute coordinates and Lagrange
-multipliers, DOP853 at 1e-11).  Energy check: the same linkage without the damper.
+multipliers, DOP853 at 1e-11).  Energy check: the same linkage without the damper.  Extra panel: a PD
+crank-angle loop (``ctmm.control.with_feedback`` on the kinematic loop model; kp = 8 N m/rad, kd = 0.8 N m s/rad,
+set point 1.2 rad), real-time and with a 10 ms delay, against the DAE with the same law as a crank motor.
 """
 from __future__ import annotations
 
@@ -22,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+import ctmm
+from ctmm.control import ControlledModel, Feedback, with_feedback
 from ctmm.nonlinear_laws import CubicSpring, Law, PowerDamper
 from ctmm.planar import Fixed, NonlinearHinge, PlanarModel, RigidBody, SmoothHinge
 from ctmm.planar.closed_loops import KinematicLoopModel, CutJoint, simulate_kinematic_loops
@@ -40,6 +44,9 @@ REST = 1.9                                                       # rocker spring
 SPRING = CubicSpring(2.0, 15.0)
 DAMPER = PowerDamper(0.02, 2.0)
 BODIES = ("crank", "coupler", "rocker")
+PD_GAINS = (8.0, 0.8)            # crank-angle PD loop: kp [N m/rad], kd [N m s/rad]
+PD_TARGET = 1.2                  # its set point [rad]
+PD_DELAY = 0.01                  # the delayed variant's loop delay [s]
 
 
 def mechanism(rocker_law: Law | None = None) -> KinematicLoopModel:
@@ -118,6 +125,21 @@ def flexible_reference(bending_stiffness: float, n_segments: int) -> PlanarDAE:
     return dae
 
 
+def pd_loop(loop: KinematicLoopModel, delay: float) -> ControlledModel:
+    """``loop`` with the PD crank-angle loop ``u = -(KP theta + KD theta' - r)`` on the crank hinge torque
+    (``theta``, ``theta'`` read ``delay`` seconds late; ``r = KP * PD_TARGET``: the reference of :func:`run`)."""
+    return with_feedback(loop, [Feedback("pd", sensor=[("h1.angle", PD_GAINS[0]), ("h1.rate", PD_GAINS[1])],
+                                         actuator="h1.torque", gain=1.0, delay=delay)])
+
+
+def pd_reference(rocker_law: Law | None, delay: float) -> PlanarDAE:
+    """:func:`reference` with the same PD law as a motor on the crank (the DAE's method of steps for the delay)."""
+    kp, kd = PD_GAINS
+    dae = reference(rocker_law)
+    dae.add_motor(None, "crank", lambda t, angle, rate: -(kp * angle + kd * rate - kp * PD_TARGET), delay=delay)
+    return dae
+
+
 def start(loop: KinematicLoopModel) -> tuple[np.ndarray, np.ndarray]:
     """Crank at 90 deg with 3 rad/s; coupler and rocker assembled."""
     return loop.consistent_state([math.pi / 2, 0.5, 1.8], [3.0, 0.0, 0.0], keep=["crank.theta"])
@@ -153,7 +175,19 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     energy = conservative.energy()
     energy_drift = float(np.max(np.abs(energy - energy[0])) / np.max(np.abs(energy)))
 
-    fig, axes = plt.subplots(2, 2, figsize=(12, 8))
+    # the PD crank-angle loop (ctmm.control.with_feedback on the kinematic loop model), real-time and delayed
+    controlled, controlled_error, controlled_wall = {}, {}, {}
+    for delay in (0.0, PD_DELAY):
+        began = time.perf_counter()
+        controlled[delay] = ctmm.simulate(pd_loop(loop, delay), t_final, h, x0=q0, v0=v0,
+                                          references={"pd": PD_GAINS[0] * PD_TARGET})
+        controlled_wall[delay] = time.perf_counter() - began
+        dae_pd = pd_reference(law, delay)
+        ref_pd = dae_pd.simulate(state, t_final, t_eval=controlled[delay].time)
+        controlled_error[delay] = float(max(np.max(np.abs(controlled[delay][f"{n}.theta"] - ref_pd.angle(n)))
+                                            for n in BODIES))
+
+    fig, axes = plt.subplots(3, 2, figsize=(12, 12))
     for n in BODIES:
         axes[0, 0].plot(rk4.t, rk4.coordinate(f"{n}.theta"), label=f"{n} (ctmm)")
         axes[0, 0].plot(ref.t, ref.angle(n), "k--", lw=0.8)
@@ -174,6 +208,19 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     axes[1, 1].semilogy(conservative.t, np.abs(energy - energy[0]) + 1e-17, label="energy error, undamped [J]")
     axes[1, 1].set(xlabel="t [s]", ylabel="constraint drift |Phi| [m]")
     axes[1, 1].legend(fontsize="small")
+    for delay, style in ((0.0, "-"), (PD_DELAY, "--")):
+        run_pd = controlled[delay]
+        label = "real-time" if delay == 0.0 else f"delay {delay * 1e3:g} ms"
+        axes[2, 0].plot(run_pd.time, run_pd["crank.theta"], style, label=f"crank, PD {label}")
+        axes[2, 1].plot(run_pd.time, run_pd["pd.u"], style, label=f"torque, PD {label}")
+    axes[2, 0].plot(rk4.t, rk4.coordinate("crank.theta"), "k:", lw=0.8, label="crank, free")
+    axes[2, 0].axhline(PD_TARGET, color="grey", lw=0.5)
+    axes[2, 0].set(xlabel="t [s]", ylabel="crank angle [rad]",
+                   title=f"PD crank loop (kp, kd = {PD_GAINS}), set point {PD_TARGET} rad")
+    axes[2, 0].legend(fontsize="small")
+    axes[2, 1].set(xlabel="t [s]", ylabel="crank torque [N m]",
+                   title=f"max angle error vs DAE: {controlled_error[0.0]:.1e} / {controlled_error[PD_DELAY]:.1e} rad")
+    axes[2, 1].legend(fontsize="small")
     save_figure(fig, output_dir, NAME)
     source = "docs/closed_loops.md: four-bar targets"
     return {
@@ -187,6 +234,12 @@ def run(output_dir: Path, quick: bool = False) -> dict:
                      "max |Phi| of the cut joint, RK4 with projection and DOP853 with Baumgarte", source=source),
             accuracy("energy drift, undamped", energy_drift, "relative", 1e-6,
                      "max |E - E0| / max |E| of the linkage without the damper (RK4 1 ms, projection)",
+                     source=source),
+            accuracy("PD crank loop angle error vs DAE, real-time", controlled_error[0.0], "rad", 1e-8,
+                     "max |theta_ctmm - theta_DAE| of the with_feedback run (RK4 1 ms, Baumgarte) vs the DAE with "
+                     "the same PD law as a crank motor", source=source),
+            accuracy("PD crank loop angle error vs DAE, delayed", controlled_error[PD_DELAY], "rad", 1e-8,
+                     f"as above with the loop delay {PD_DELAY} s (ctmm: delay history; DAE: method of steps)",
                      source=source)],
         "angle_max_error_dop853_rad": float(np.max(error_dop)),
         "max_cut_force_N": force_scale,
@@ -196,4 +249,6 @@ def run(output_dir: Path, quick: bool = False) -> dict:
         "reference_wall_time_s": reference_wall,
         "energy_drift": energy_drift,
         "evaluations_rk4": rk4.n_evaluations,
+        "pd_loop_wall_time_s": controlled_wall,
+        "pd_loop_final_crank_rad": {delay: float(run_pd["crank.theta"][-1]) for delay, run_pd in controlled.items()},
     }

@@ -119,12 +119,13 @@ def test_the_verbs_refuse_what_they_cannot_honour():
     q0, v0 = start(loop)
     with pytest.raises(ModelError, match="consistent_state"):
         ctmm.simulate(loop, 0.1, 1e-3)                                   # zero angles: not assembled
-    with pytest.raises(ModelError, match="inputs"):
-        ctmm.simulate(loop, 0.1, 1e-3, x0=q0, v0=v0, inputs={"h1.torque": 1.0})
+    with pytest.raises(ModelError, match="fast"):      # inputs and feedback: tests/test_closed_loops_feedback.py
+        ctmm.simulate(loop, 0.1, 1e-3, x0=q0, v0=v0, inputs={"h1.torque": 1.0}, fast=True)
     with pytest.raises(ModelError, match="divergence_bound"):
         ctmm.simulate(loop, 0.1, 1e-3, x0=q0, v0=v0, divergence_bound=10.0)
-    with pytest.raises(ModelError, match="KinematicLoopModel|kinematic loop"):
-        with_feedback(loop, [Feedback("pd", sensor="h1.angle", actuator="h1.torque", gain=1.0)])
+    with pytest.raises(ModelError, match="natural_frequencies"):
+        ctmm.natural_frequencies(with_feedback(loop, [Feedback("pd", sensor="h1.angle", actuator="h1.torque",
+                                                               gain=1.0)]))
     with pytest.raises(ModelError, match="kinematic loop"):
         ctmm.mode_shapes(loop)
     with pytest.raises(ModelError, match="rates must be zero"):

@@ -41,8 +41,8 @@ class ControlledModel:
 
     Parameters
     ----------
-    plant : PlanarModel or SpatialModel
-        The open-loop model.
+    plant : PlanarModel, KinematicLoopModel or SpatialModel
+        The open-loop model (a kinematic loop model: the ports of its spanning tree).
     loops : sequence of Feedback
         A list (any iterable but a string or a mapping; a single Feedback is one loop) of
         loops whose sensor terms name sensors of ``plant`` and whose actuator terms name its
@@ -62,9 +62,9 @@ class ControlledModel:
     """
 
     def __init__(self, plant: PlanarModel | SpatialModel, loops: Sequence[Feedback]) -> None:
-        if not is_plant_model(plant):
-            raise ModelError(f"plant must be a ctmm.planar.PlanarModel or a ctmm.spatial.SpatialModel (use "
-                             f"with_feedback for any plant), got {plant!r}")
+        if not (is_plant_model(plant) or isinstance(plant, KinematicLoopModel)):
+            raise ModelError(f"plant must be a ctmm.planar.PlanarModel, a KinematicLoopModel or a "
+                             f"ctmm.spatial.SpatialModel (use with_feedback for any plant), got {plant!r}")
         if isinstance(loops, Feedback):
             loops = [loops]                         # one loop, as ControlledChain accepts it
         if isinstance(loops, (str, bytes, Mapping)) or not isinstance(loops, Iterable):
@@ -176,9 +176,10 @@ def with_feedback(plant: Any, loops: Sequence[Feedback]) -> ControlledChain | Co
 
     Parameters
     ----------
-    plant : Chain, PlanarModel or SpatialModel
+    plant : Chain, PlanarModel, KinematicLoopModel or SpatialModel
         A 1-D chain (loops embedded in its transfer matrices: :class:`ControlledChain`), a
-        planar model, rigid or with modal beams, or a spatial model (:class:`ControlledModel`).
+        planar model, rigid or with modal beams, a planar model with cut joints or a spatial model
+        (:class:`ControlledModel`).
     loops : sequence of Feedback
 
     Returns
@@ -187,12 +188,8 @@ def with_feedback(plant: Any, loops: Sequence[Feedback]) -> ControlledChain | Co
     """
     if isinstance(plant, Chain):
         return ControlledChain(plant, loops)
-    if is_plant_model(plant):
+    if is_plant_model(plant) or isinstance(plant, KinematicLoopModel):    # cut joints: docs/closed_loops.md §3c
         return ControlledModel(plant, loops)
-    if isinstance(plant, KinematicLoopModel):
-        raise ModelError(f"with_feedback does not close feedback loops on the kinematic loop model {plant.name!r} yet "
-                         "(cut joints: docs/closed_loops.md §7); its open-loop verbs ctmm.simulate, ctmm.linearize "
-                         "(actuator inputs, sensor outputs) and ctmm.frequency_response answer it")
     if isinstance(plant, (ControlledChain, ControlledModel)):
         raise ModelError(f"plant {plant!r} already has loops; use plant.with_loops(...) to "
                          "replace them or build from the open-loop plant")

@@ -198,10 +198,13 @@ def run_implicit(system: Any, rows: Any, q0: np.ndarray, qdot0: np.ndarray, t_fi
                                                    after_step=after_step)
             iterations, evaluations = simulation.info["iterations"], simulation.info["n_evaluations"]
         else:
-            simulation = simulate_implicit(system.model, q0, qdot0, t_final=t_final, dt=dt, scheme=scheme,
-                                           store_every=n_steps, divergence_bound=divergence_bound,
-                                           stability_check=stability_check,
-                                           inputs=steps.actuator_inputs if driven else None, after_step=after_step)
+            hook = steps.actuator_inputs if driven else None
+            if hasattr(system.plant, "implicit_inputs"):    # a kinematic loop: the tree, cut forces in the inputs
+                hook = system.plant.implicit_inputs(hook)
+            simulation = simulate_implicit(getattr(system.plant, "implicit_model", system.model), q0, qdot0,
+                                           t_final=t_final, dt=dt, scheme=scheme, store_every=n_steps,
+                                           divergence_bound=divergence_bound, stability_check=stability_check,
+                                           inputs=hook, after_step=after_step)
             iterations, evaluations = simulation.iterations, simulation.n_evaluations
     except SimulationError as exc:
         exc.partial_result = None          # the caller's rows are the partial result

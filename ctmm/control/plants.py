@@ -30,8 +30,10 @@ from typing import Any, Callable, Protocol, Sequence
 import numpy as np
 
 from ..errors import ModelError
+from ..planar.closed_loops import KinematicLoopModel
 from ..planar.guards import check_scheme, divergence_guard
 from ..planar.integrate import check_state, model_signals
+from ..planar.loop_plant import KinematicLoopPlant
 from ..planar.model import PlanarModel
 from ..planar.ports import PlanarPorts
 from ..planar.sweep import accelerations as planar_accelerations
@@ -145,12 +147,15 @@ def is_plant_model(model: Any) -> bool:
 
 
 def plant_of(model: Any) -> Plant:
-    """The :class:`Plant` of a planar or spatial model, or of a lumped 1-D chain
-    (:class:`~ctmm.control.chain_plant.ChainPlant`: ``Chain`` or ``ControlledChain``)."""
+    """The :class:`Plant` of a planar or spatial model, of a lumped 1-D chain
+    (:class:`~ctmm.control.chain_plant.ChainPlant`: ``Chain`` or ``ControlledChain``) or of a kinematic loop
+    model (:class:`~ctmm.planar.loop_plant.KinematicLoopPlant`)."""
     if isinstance(model, (Chain, ControlledChain)):
         return ChainPlant(model)
     if isinstance(model, PlanarModel):
         return PlanarPlant(model)
     if isinstance(model, SpatialModel):
         return SpatialPlant(model)
+    if isinstance(model, KinematicLoopModel):       # cut joints: ctmm.planar.loop_plant
+        return KinematicLoopPlant(model)
     raise ModelError(f"model must be a ctmm.planar.PlanarModel or a ctmm.spatial.SpatialModel, got {model!r}")

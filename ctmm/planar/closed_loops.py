@@ -25,10 +25,12 @@ with the constraint Jacobian ``J = dPhi'/dqdot``, exact).  The drift is reported
 (:attr:`KinematicLoopSimulation.drift`, ``.drift_rate``), with the cut forces.
 
 The library verbs (``ctmm.simulate`` with every method, ``ctmm.linearize``, ``ctmm.natural_frequencies``,
-``ctmm.frequency_response``) call this model's functions (:mod:`ctmm.planar.loop_verbs`).  Not yet: cut joints
-with laws, feedback loops on a kinematic loop model (each refused by name).  Cut points may be ends of a
-``ctmm.flexible.ModalBeam`` (a flexible coupler): the cut force enters the beam's frame wrench and modal
-equations as its virtual work (``docs/closed_loops.md`` §4a).
+``ctmm.frequency_response``) call this model's functions (:mod:`ctmm.planar.loop_verbs`); feedback loops, actuator
+inputs and controllers act on the tree's ports (``ctmm.control.with_feedback(model, loops)``,
+:mod:`ctmm.planar.loop_plant`, ``docs/closed_loops.md`` §3c).  Not yet: cut joints with laws (refused by name).
+Cut points may be ends of a ``ctmm.flexible.ModalBeam`` (a flexible coupler): the cut force enters the beam's frame
+wrench and modal equations as its virtual work, through the end's foreshortening too (``docs/closed_loops.md``
+§4a-4b).
 """
 from __future__ import annotations
 
@@ -46,7 +48,7 @@ from .model import PlanarModel
 from .ports import ActuatorInputs
 from .sweep import solve_instant
 
-__all__ = ["CutJoint", "KinematicLoopModel", "KinematicLoopSimulation", "simulate_kinematic_loops"]
+__all__ = ["CutJoint", "KinematicLoopModel", "KinematicLoopSimulation", "simulate_kinematic_loops", "at_equilibrium"]
 
 
 @dataclass(frozen=True)
@@ -130,9 +132,15 @@ class KinematicLoopModel:
         The joints closing the loops.
     baumgarte : float
         Stabilisation rate ``alpha`` [1/s] (>= 0; 0: none).  Default 20.
+    foreshortening : bool
+        A cut point at a ``ModalBeam`` end moves axially by the second-order shortening
+        ``-1/2 q^T G1(x_e) q`` of the bent beam (``G1(x_e) = int_0^x_e phi' phi'^T``, ``docs/closed_loops.md``
+        §4b), and the cut force does its virtual work through it (the axial-load stiffening of the end force).
+        Default True; False: the linear end position.
     """
 
-    def __init__(self, tree: PlanarModel, cuts: Sequence[CutJoint], *, baumgarte: float = 20.0) -> None:
+    def __init__(self, tree: PlanarModel, cuts: Sequence[CutJoint], *, baumgarte: float = 20.0,
+                 foreshortening: bool = True) -> None:
         if not isinstance(tree, PlanarModel):
             raise ModelError(f"KinematicLoopModel: tree must be a ctmm.planar.PlanarModel, got {tree!r}")
         cuts = tuple(cuts)
@@ -140,10 +148,16 @@ class KinematicLoopModel:
             raise ModelError(f"KinematicLoopModel: cuts must be a non-empty sequence of CutJoint, got {cuts!r}")
         self.tree, self.cuts = tree, cuts
         self.baumgarte = validation.nonnegative("baumgarte", baumgarte)
+        self.foreshortening = validation.flag("foreshortening", foreshortening)
         grounds = {e.name: e for e in tree.elements if isinstance(e, Fixed)}
         self._points = [(self._resolve(cut, cut.parent, grounds), self._resolve(cut, cut.child, {}))
                         for cut in cuts]
         self.name = tree.name
+        self._tangents: dict = {}           # (q0, t, baumgarte) -> (A, N, q0, jacobian error): resting_tangent
+        self._equilibria: dict = {}         # (guess, t, tolerance, largest step) -> equilibrium (the last 8)
+
+    def __repr__(self) -> str:
+        return f"KinematicLoopModel({self.name!r}, cuts={[cut.name for cut in self.cuts]})"
 
     def _resolve(self, cut: CutJoint, label: str, grounds: Mapping[str, Fixed]) -> tuple[int, np.ndarray | int]:
         """``(body index or -1 for ground, body-frame vector from the inboard end or ground position)``; on a modal
@@ -172,6 +186,25 @@ class KinematicLoopModel:
         return j, np.asarray(m.ends[j][end], float)
 
     # ------------------------------------------------------------------------------------------------
+    def _end_local(self, j: int, e: int, q: np.ndarray, qdot: np.ndarray, qddot: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, ...]:
+        """End ``e`` of modal beam ``j`` in the beam frame: position, velocity relative to the frame and, with
+        ``qddot``, acceleration relative to the frame [m, m/s, m/s^2]; with the foreshortening
+        ``u = -1/2 w^T G1 w`` of the transverse modal coordinates ``w`` (``u' = -w^T G1 w'``,
+        ``u'' = -w'^T G1 w' - w^T G1 w''``) when :attr:`foreshortening`."""
+        m = self.tree
+        position, velocity = m.beam_point_local(j, e, q, qdot)
+        acceleration = None if qddot is None else m.beam_point_local(j, e, q, qddot)[1]   # linear in the rates
+        if self.foreshortening:
+            data = m.beams[j].data
+            index = m.modal_index[j][:data.nq]
+            G, w, w_dot = data.end_G1[e], q[index], qdot[index]
+            position[0] -= 0.5 * w @ G @ w
+            velocity[0] -= w @ G @ w_dot
+            if acceleration is not None:
+                acceleration[0] -= w_dot @ G @ w_dot + w @ G @ qddot[index]
+        return (position, velocity) if qddot is None else (position, velocity, acceleration)
+
     def _point_kinematics(self, points: dict, j: int, e: np.ndarray | int):
         """Position, velocity and lever ``r`` (from the inboard end, global) of a point (:meth:`_resolve`;
         ``points``: :meth:`_points_at`)."""
@@ -181,7 +214,7 @@ class KinematicLoopModel:
         c, s = np.cos(th), np.sin(th)
         velocity = np.zeros(2)
         if not isinstance(e, np.ndarray):               # end ``e`` of a modal beam: deformed, moving in the frame
-            e, local = self.tree.beam_point_local(j, e, points["q"], points["qdot"])
+            e, local = self._end_local(j, e, points["q"], points["qdot"])
             velocity = np.array([c * local[0] - s * local[1], s * local[0] + c * local[1]])
         r = np.array([c * e[0] - s * e[1], s * e[0] + c * e[1]])
         return points["inboard"][j] + r, points["inboard_velocity"][j] + om * np.array([-r[1], r[0]]) + velocity, r
@@ -227,10 +260,13 @@ class KinematicLoopModel:
                 c, s = np.cos(th), np.sin(th)
                 if not isinstance(e, np.ndarray):
                     data = m.beams[j].data
-                    local, _ = m.beam_point_local(j, e, points["q"], points["qdot"])
+                    local, _ = self._end_local(j, e, points["q"], points["qdot"])
                     fx, fy = c * f[0] + s * f[1], -s * f[0] + c * f[1]
                     frame[j] = frame.get(j, np.zeros(3)) + (fx, fy, local[0] * fy - local[1] * fx)
-                    shape = np.concatenate([data.end_phi[e] * fy, data.end_psi[e] * fx])
+                    transverse = data.end_phi[e] * fy
+                    if self.foreshortening:     # virtual work through the shortening d(-1/2 w^T G1 w) = -G1 w dw
+                        transverse = transverse - fx * (data.end_G1[e] @ points["q"][m.modal_index[j][:data.nq]])
+                    shape = np.concatenate([transverse, data.end_psi[e] * fx])
                     modal[j] = modal.get(j, np.zeros(len(m.modal_index[j]))) + shape
                     continue
                 _, _, r = self._point_kinematics(points, j, e)
@@ -267,8 +303,7 @@ class KinematicLoopModel:
                 if not isinstance(e, np.ndarray):       # a modal beam's end: Coriolis and deformation terms
                     th = points["theta"][j]
                     c, s = np.cos(th), np.sin(th)
-                    _, local_v = m.beam_point_local(j, e, q, qdot)
-                    _, local_a = m.beam_point_local(j, e, q, solution.qddot)     # linear in the rates
+                    _, local_v, local_a = self._end_local(j, e, q, qdot, solution.qddot)
                     v = np.array([c * local_v[0] - s * local_v[1], s * local_v[0] + c * local_v[1]])
                     a = np.array([c * local_a[0] - s * local_a[1], s * local_a[0] + c * local_a[1]])
                     acc[-1] = acc[-1] + 2.0 * om * np.array([-v[1], v[0]]) + a
@@ -380,13 +415,30 @@ class KinematicLoopModel:
         A[f:] = np.column_stack(columns)
         return A, basis, q0
 
+    def resting_tangent(self, q0, t: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+        """:meth:`linearize` about the resting state ``q0`` and its relative Jacobian error (against the step
+        2e-5), ``(A, N, q0, error)``; kept per ``(q0, t, baumgarte)`` on this model (the frequency-domain tools
+        ask for the same tangent at every frequency they refine; at most 8 kept)."""
+        q0 = np.asarray(q0, dtype=float)
+        key = (q0.tobytes(), float(t), self.baumgarte)
+        if key not in self._tangents:
+            A, basis, q_on = self.linearize(q0, t)
+            A_coarse, _, _ = self.linearize(q_on, t, step=2e-5)
+            error = float(np.max(np.abs(A - A_coarse)) / max(np.max(np.abs(A)), 1e-300))
+            if len(self._tangents) >= 8:
+                self._tangents.pop(next(iter(self._tangents)))
+            self._tangents[key] = (A, basis, q_on, error)
+        A, basis, q_on, error = self._tangents[key]
+        return A.copy(), basis.copy(), q_on.copy(), error
+
     def natural_frequencies(self, q0, t: float = 0.0) -> np.ndarray:
         """Undamped natural frequencies [rad/s] about the resting state ``q0`` (an equilibrium: refused
         otherwise), ascending, from :meth:`linearize`."""
         n = self.tree.n_coordinates
-        A, _, q0 = self.linearize(q0, t)
-        rest = np.max(np.abs(self.solve(q0, np.zeros(n), t)[0]), initial=0.0)
-        if rest > 1e-8:
+        A, basis, q0 = self.linearize(q0, t)
+        accelerations = self.solve(q0, np.zeros(n), t)[0]
+        rest = np.max(np.abs(accelerations), initial=0.0)
+        if not at_equilibrium(A, basis, accelerations):
             raise ModelError(f"kinematic loop {self.name!r}: q0 is not an equilibrium (largest acceleration "
                              f"{rest:.3e}); find one with KinematicLoopModel.equilibrium")
         f = A.shape[0] // 2
@@ -398,20 +450,48 @@ class KinematicLoopModel:
             raise ModelError(f"kinematic loop {self.name!r}: q0 is not a stable equilibrium (omega^2 = {squared})")
         return np.sort(np.sqrt(squared.real))
 
-    def equilibrium(self, q_guess, t: float = 0.0, *, tolerance: float = 1e-10) -> np.ndarray:
-        """A static equilibrium near ``q_guess`` (Newton on the independent coordinates)."""
+    def equilibrium(self, q_guess, t: float = 0.0, *, tolerance: float = 1e-10, largest_step: float = 0.2
+                    ) -> np.ndarray:
+        """A static equilibrium near ``q_guess``: Newton on the independent coordinates ``z``, each step at most
+        ``largest_step`` [rad] (a far guess, e.g. the tree's hanging configuration, does not leap across the
+        mechanism's range), converged when the accelerations are below ``tolerance`` or the Newton step is below
+        ``tolerance`` [rad] (a stiff spring: the accelerations' round-off is ``|dz''/dz|`` times larger)."""
         n = self.tree.n_coordinates
         q = np.asarray(self.tree.state(q_guess, np.zeros(n))[0], float)
-        for _ in range(40):
+        key = (q.tobytes(), float(t), float(tolerance), float(largest_step), self.baumgarte)
+        if key in self._equilibria:
+            return self._equilibria[key].copy()
+        start = q.copy()
+        for _ in range(80):
             A, basis, q = self.linearize(q, t)
             f = basis.shape[1]
             residual = basis.T @ self.solve(q, np.zeros(n), t)[0]
-            if np.max(np.abs(residual)) < tolerance:
+            step = -np.linalg.solve(A[f:, :f], residual)
+            if np.max(np.abs(residual)) < tolerance or np.max(np.abs(step)) < tolerance:
+                if len(self._equilibria) >= 8:
+                    self._equilibria.pop(next(iter(self._equilibria)))
+                self._equilibria[(start.tobytes(), *key[1:])] = q.copy()
                 return q
-            q, _ = self.chart(q, basis, self.jacobian(q, t).T, -np.linalg.solve(A[f:, :f], residual),
-                               np.zeros(f), t)
+            step *= min(1.0, largest_step / np.max(np.abs(step)))
+            q, _ = self.chart(q, basis, self.jacobian(q, t).T, step, np.zeros(f), t)
         raise ModelError(f"kinematic loop {self.name!r}: no equilibrium found near the guess (residual "
-                         f"{np.max(np.abs(residual)):.3e} after 40 Newton steps)")
+                         f"{np.max(np.abs(residual)):.3e} after 80 Newton steps)")
+
+
+def at_equilibrium(A: np.ndarray, basis: np.ndarray, accelerations: np.ndarray, *, acceleration: float = 1e-8,
+                   offset: float = 1e-10) -> bool:
+    """Whether a resting state is a static equilibrium: its accelerations ``qddot`` [rad/s^2, m/s^2] are below
+    ``acceleration``, or the static offset to the equilibrium, ``K^-1 N^T qddot`` with the tangent stiffness
+    ``K = -dz''/dz`` (``A``, ``basis``: :meth:`KinematicLoopModel.linearize`), is below ``offset`` [rad, m] -- a
+    stiff elastic coordinate (a modal beam's) is at rest to round-off with accelerations of ``|K|`` times that."""
+    if np.max(np.abs(accelerations), initial=0.0) <= acceleration:
+        return True
+    f = basis.shape[1]
+    try:
+        shift = np.linalg.solve(-A[f:, :f], basis.T @ accelerations)
+    except np.linalg.LinAlgError:
+        return False
+    return bool(np.max(np.abs(shift), initial=0.0) <= offset)
 
 
 def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: float, dt: float | None = None,

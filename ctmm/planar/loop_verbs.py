@@ -18,7 +18,9 @@ functions of this module, which call the model's own mechanism (the cut forces a
   orthonormal null space of the constraint Jacobian at ``q0``), with the tree's actuators as inputs and
   its sensors and the cut forces as outputs.
 
-Feedback loops on a kinematic loop model are refused by :func:`ctmm.control.with_feedback`.
+Feedback loops (``ctmm.control.with_feedback(model, loops)``) close around the same linearisation
+(:func:`linearize_loops`, :func:`frequency_response_loops`; delays exact); in time they run in the loop driver
+(:mod:`ctmm.kinematic_loop_time`).
 """
 from __future__ import annotations
 
@@ -28,18 +30,18 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from .. import validation
-from ..controlled_linearization import resolvent
+from ..controlled_linearization import close_model_loops, delayed_loop_response, exogenous_inputs, resolvent
 from ..errors import ModelError, unknown_name
 from ..linearized import LinearizedSystem, OperatingPoint, control_name
 from ..results import FrequencyResponse, SimulationResult
 from ..schemes import SCHEMES, Scheme, as_scheme
 from ..signal_results import SignalSystem, signal_result
-from .closed_loops import KinematicLoopModel, KinematicLoopSimulation, simulate_kinematic_loops
+from .closed_loops import KinematicLoopModel, KinematicLoopSimulation, at_equilibrium, simulate_kinematic_loops
 from .equilibrium import hanging_configuration
 from .integrate import SCIPY_METHODS, model_signals
 from .ports import PlanarPorts, actuator_names
 
-__all__ = ["simulate_loops", "linearize_loops", "natural_frequencies_loops", "eigenvalue_count_loops",
+__all__ = ["initial_state", "simulate_loops", "linearize_loops", "natural_frequencies_loops", "eigenvalue_count_loops",
            "frequency_response_loops", "cut_signal_names"]
 
 _DEFAULTS: dict[str, Any] = {"inputs": None, "controllers": [], "references": {}, "coupling": "hold",
@@ -66,6 +68,18 @@ def _state(model: KinematicLoopModel, label: str, value: Any) -> np.ndarray:
             out[tree.coordinate_index(key)] = validation.finite(f"{label}[{key!r}]", number)
         return out
     return np.array(tree.state(value, np.zeros(tree.n_coordinates))[0], dtype=float)
+
+
+def initial_state(model: KinematicLoopModel, x0: Any, v0: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Tree coordinates and rates from ``x0``, ``v0`` (arrays or ``{coordinate: value}``, others 0), checked
+    against the cut joints (``|Phi| <= 1e-8`` m, ``|Phi'| <= 1e-8`` m/s; :class:`ModelError` otherwise)."""
+    q0, v0 = _state(model, "x0", x0), _state(model, "v0", v0)
+    phi, phi_dot = model.constraints(q0, v0)
+    if np.max(np.abs(phi)) > 1e-8 or np.max(np.abs(phi_dot)) > 1e-8:
+        raise ModelError(f"x0, v0 violate the cut joints of {model.name!r} (|Phi| = {np.max(np.abs(phi)):.3e} m, "
+                         f"|Phi'| = {np.max(np.abs(phi_dot)):.3e} m/s; allowed <= 1e-8): start from "
+                         "KinematicLoopModel.consistent_state(q, qdot, keep=[...])")
+    return q0, v0
 
 
 def _history_result(model: KinematicLoopModel, run: KinematicLoopSimulation, outputs: Sequence[str],
@@ -106,7 +120,7 @@ def simulate_loops(model: KinematicLoopModel, t_final: float, dt: float | None, 
     other_options : mapping, optional
         The other options of :func:`ctmm.simulate` as given (``inputs``, ``controllers``, ``references``,
         ``coupling``, ``solver``, ``fast``, ``force_hook``, ``progress``, ``t0``, ``compiled``): each must be at
-        its default (refused by name otherwise: a kinematic loop model takes no actuator inputs or controllers yet).
+        its default (refused by name otherwise; inputs, controllers and loops run in :mod:`ctmm.kinematic_loop_time`).
 
     Returns
     -------
@@ -116,8 +130,8 @@ def simulate_loops(model: KinematicLoopModel, t_final: float, dt: float | None, 
     for name, value in (other_options or {}).items():
         default = _DEFAULTS[name]
         if value is not default and value != default:
-            raise ModelError(f"{name}={value!r} is not available for a kinematic loop model {model.name!r} (no actuator "
-                             f"inputs, controllers or compiled runs through cut joints yet; runs start at t = 0); "
+            raise ModelError(f"{name}={value!r} is not available for a kinematic loop model {model.name!r} (no "
+                             f"compiled or fast runs through cut joints yet; runs start at t = 0); "
                              f"leave {name} at {default!r}")
     tree = model.tree
     if isinstance(outputs, (str, Mapping)) or not isinstance(outputs, (list, tuple)):
@@ -125,12 +139,7 @@ def simulate_loops(model: KinematicLoopModel, t_final: float, dt: float | None, 
     ports = PlanarPorts(tree)
     for name in outputs:
         ports.check_sensor(name, "output (sensor)")
-    q0, v0 = _state(model, "x0", x0), _state(model, "v0", v0)
-    phi, phi_dot = model.constraints(q0, v0)
-    if np.max(np.abs(phi)) > 1e-8 or np.max(np.abs(phi_dot)) > 1e-8:
-        raise ModelError(f"x0, v0 violate the cut joints of {model.name!r} (|Phi| = {np.max(np.abs(phi)):.3e} m, "
-                         f"|Phi'| = {np.max(np.abs(phi_dot)):.3e} m/s; allowed <= 1e-8): start from "
-                         "KinematicLoopModel.consistent_state(q, qdot, keep=[...])")
+    q0, v0 = initial_state(model, x0, v0)
     store_every = validation.integer("store_every", store_every, minimum=1)
     t_final = validation.positive("t_final", t_final)
     if isinstance(method, Scheme) or method in SCHEMES:
@@ -193,13 +202,14 @@ def simulate_loops(model: KinematicLoopModel, t_final: float, dt: float | None, 
 def _operating_q(model: KinematicLoopModel, operating_point: Any) -> tuple[np.ndarray, float]:
     """Tree coordinates of the operating point (at rest) and its time; ``None``: the static equilibrium
     reached by Newton (:meth:`KinematicLoopModel.equilibrium`) from the tree's hanging configuration
-    assembled onto the cut joints."""
+    assembled onto the cut joints (elastic coordinates held at zero while assembling)."""
     tree = model.tree
     n = tree.n_coordinates
     if operating_point is None:
         guess = np.asarray(hanging_configuration(tree), dtype=float)
+        elastic = [tree.coordinates[k] for index in tree.modal_index for k in index]   # held straight
         try:
-            guess, _ = model.consistent_state(guess, np.zeros(n))
+            guess, _ = model.consistent_state(guess, np.zeros(n), keep=elastic)
             return model.equilibrium(guess), 0.0
         except ModelError as exc:
             raise ModelError(f"no static equilibrium of {model.name!r} found from the hanging configuration ({exc}); "
@@ -249,6 +259,9 @@ def linearize_loops(model: KinematicLoopModel, operating_point: Any = None, *, i
     validation.flag("allow_nonequilibrium", allow_nonequilibrium)
     import control
 
+    if not isinstance(model, KinematicLoopModel):          # a ControlledModel on a kinematic loop model
+        return _linearize_controlled(model.plant, tuple(model.loops), operating_point, inputs=inputs,
+                                     outputs=outputs, allow_nonequilibrium=allow_nonequilibrium)
     tree = model.tree
     ports = PlanarPorts(tree)
     q_rest, t = _operating_q(model, operating_point)
@@ -259,13 +272,11 @@ def linearize_loops(model: KinematicLoopModel, operating_point: Any = None, *, i
     forces = cut_signal_names(model)
     sensor_names = [name for name in output_names if name not in forces]
     sensors = ports.resolve([ports.check_sensor(name, "output (sensor)") for name in sensor_names])
-    A, basis, q0 = model.linearize(q_rest, t)
-    A_coarse, _, _ = model.linearize(q0, t, step=2e-5)
-    jacobian_error = float(np.max(np.abs(A - A_coarse)) / max(np.max(np.abs(A)), 1e-300))
+    A, basis, q0, jacobian_error = model.resting_tangent(q_rest, t)
     n, f = tree.n_coordinates, basis.shape[1]
     rest = np.zeros(n)
     qdd0, lam0 = model.solve(q0, rest, t)
-    equilibrium = bool(np.max(np.abs(qdd0), initial=0.0) <= 1e-8)
+    equilibrium = at_equilibrium(A, basis, qdd0)
     if not equilibrium and not allow_nonequilibrium:
         raise ModelError(f"linearize: the operating point of {model.name!r} is not an equilibrium (largest "
                          f"acceleration {np.max(np.abs(qdd0)):.3e}); give operating_point=None (the static "
@@ -299,11 +310,89 @@ def linearize_loops(model: KinematicLoopModel, operating_point: Any = None, *, i
     return LinearizedSystem(state_space, (), point)
 
 
+def _linearize_controlled(model: KinematicLoopModel, loops: tuple, operating_point: Any, *, inputs: Any,
+                          outputs: Any, allow_nonequilibrium: bool) -> LinearizedSystem:
+    """:func:`linearize_loops` with feedback ``loops`` on the tree's ports: the plant's tangent on the constraint
+    manifold with every actuator as input and the needed sensors as outputs, the loops closed around it by
+    :func:`ctmm.controlled_linearization.close_model_loops` (real-time loops inside ``A``, delayed loops beside it;
+    the loops act on the deviations of their sensors from the operating point).  Cut-force outputs feed through from
+    the actuators (the plant's ``D``): their rows are ``C_f x + D_f u`` with the actuator values ``u`` of the closed
+    system (exogenous actuator inputs, the real-time loops' forces, the delayed loops' force inputs)."""
+    import control
+
+    tree = model.tree
+    ports = PlanarPorts(tree)
+    forces = cut_signal_names(model)
+    empty = outputs is None or (isinstance(outputs, (list, tuple)) and not outputs)
+    requested = [] if empty else list(validation.names("outputs", outputs))
+    cut = [name for name in requested if name in forces]
+    sensors = set(ports.sensors)
+    needed = list(dict.fromkeys([name for name in list(tree.coordinates) + requested if name in sensors]
+                                + [name for lp in loops for name, _ in lp.terms]))
+    actuators = list(actuator_names(tree))
+    plant = linearize_loops(model, operating_point, inputs=actuators, outputs=needed + cut,
+                            allow_nonequilibrium=allow_nonequilibrium)
+    ss = plant.state_space
+    B, C = np.asarray(ss.B, dtype=float), np.asarray(ss.C, dtype=float)
+
+    def columns(names: list[str]) -> np.ndarray:
+        return B[:, [actuators.index(ports.check_actuator(name, "input (actuator)")) for name in names]]
+
+    def rows(names: list[str]) -> np.ndarray:
+        for name in names:
+            ports.check_sensor(name, "output (sensor)")
+        return C[[needed.index(name) for name in names], :]
+
+    real_time = [lp for lp in loops if lp.delay == 0.0]
+    others = [name for name in requested if name not in forces]
+    helpers = [f"{lp.name}.u" for lp in real_time if f"{lp.name}.u" not in others] if cut else []
+    closed = close_model_loops(np.asarray(ss.A, dtype=float), loops, inputs=inputs,
+                               outputs=outputs if not cut else others + helpers, default_inputs=actuators,
+                               default_outputs=list(tree.coordinates), input_columns=columns, output_rows=rows,
+                               states=list(ss.state_labels), name=model.name, point=plant.operating_point)
+    if not cut:
+        return closed
+    # the cut forces: C_f x + D_f u, u the actuator values of the closed system (module docstring of close_model_loops)
+    lin = closed.state_space
+    A_cl, B_cl, C_cl, D_cl = (np.asarray(m, dtype=float) for m in (lin.A, lin.B, lin.C, lin.D))
+    exo, _ = exogenous_inputs(loops, inputs, actuators)
+    delayed = [lp for lp in loops if lp.delay > 0.0]
+    U_x, U_in = np.zeros((len(actuators), A_cl.shape[0])), np.zeros((len(actuators), B_cl.shape[1]))
+    for k, name in enumerate(exo):
+        if name in actuators:
+            U_in[actuators.index(name), k] += 1.0
+    listed = others + helpers
+    for lp in real_time:
+        row = listed.index(f"{lp.name}.u")
+        for name, weight in lp.actuator_terms:
+            U_x[actuators.index(name)] += weight * C_cl[row]
+            U_in[actuators.index(name)] += weight * D_cl[row]
+    for j, lp in enumerate(delayed):
+        for name, weight in lp.actuator_terms:
+            U_in[actuators.index(name), len(exo) + j] += weight
+    C_f, D_f = C[len(needed):], np.asarray(ss.D, dtype=float)[len(needed):]
+    force_rows = np.hstack([C_f, np.zeros((len(cut), A_cl.shape[0] - C_f.shape[1]))]) + D_f @ U_x
+    force_feed = D_f @ U_in
+    C_new = np.vstack([force_rows[cut.index(name)] if name in forces else C_cl[listed.index(name)]
+                       for name in requested] + [C_cl[len(listed):]])
+    D_new = np.vstack([force_feed[cut.index(name)] if name in forces else D_cl[listed.index(name)]
+                       for name in requested] + [D_cl[len(listed):]])
+    labels = [control_name(x) for x in requested] + list(lin.output_labels)[len(listed):]
+    state_space = control.ss(A_cl, B_cl, C_new, D_new, inputs=list(lin.input_labels), outputs=labels,
+                             states=list(lin.state_labels), name=lin.name)
+    return LinearizedSystem(state_space, closed.delays, closed.operating_point)
+
+
 def natural_frequencies_loops(model: KinematicLoopModel, *, n_modes: int | None = None,
                               omega_max: float | None = None, operating_point: Any = None) -> np.ndarray:
     """:func:`ctmm.natural_frequencies` of a kinematic loop model: undamped frequencies [rad/s] about its
     static equilibrium (:meth:`KinematicLoopModel.natural_frequencies`), ascending; at most ``n_modes``,
-    those up to ``omega_max`` [rad/s]."""
+    those up to ``omega_max`` [rad/s].  A controlled model (feedback loops) is refused: its closed-loop roots are
+    the eigenvalues of :func:`linearize_loops` (delays beside it) or the stability tools'."""
+    if not isinstance(model, KinematicLoopModel):
+        raise ModelError(f"natural_frequencies and eigenvalue_count answer the open kinematic loop model, not "
+                         f"{model!r:.80} with feedback loops: use ctmm.linearize (eigenvalues of the closed-loop A, "
+                         "delays beside it) or ctmm.stability for the closed-loop roots, or pass model.plant")
     q0, t = _operating_q(model, operating_point)
     omega = model.natural_frequencies(q0, t)
     if omega_max is not None:
@@ -321,22 +410,38 @@ def eigenvalue_count_loops(model: KinematicLoopModel, omega: Any, *, operating_p
     return np.sum(frequencies[None, :] < omega.reshape(-1, 1), axis=1).reshape(omega.shape)
 
 
-def frequency_response_loops(model: KinematicLoopModel, omega: Any, *, input: Any, output: Any,  # noqa: A002
+def frequency_response_loops(model: Any, omega: Any, *, input: Any, output: Any,  # noqa: A002
                              operating_point: Any = None) -> FrequencyResponse:
     """:func:`ctmm.frequency_response` of a kinematic loop model: ``C (s I - A)^-1 B + D`` of
     :func:`linearize_loops` at ``s = i omega`` [rad/s]; inputs: tree actuators, outputs: tree sensors and
-    cut forces."""
+    cut forces.  With feedback loops (a ``ControlledModel`` on the model) the real-time loops are closed in the
+    linearisation and the delayed ones exactly by ``e^{-s tau}`` at every frequency
+    (:func:`ctmm.controlled_linearization.delayed_loop_response`); inputs may be ``"<loop>.reference"``, outputs
+    ``"<loop>.y"``, ``"<loop>.u"``."""
     started = time.perf_counter()
     inputs, outputs = list(validation.names("input", input)), list(validation.names("output", output))
-    lin = linearize_loops(model, operating_point, inputs=inputs, outputs=outputs)
-    ss = lin.state_space
-    A, B, C, D = (np.asarray(x, dtype=float) for x in (ss.A, ss.B, ss.C, ss.D))
     omega = validation.frequencies("omega", omega)
-    response = np.transpose(C @ resolvent(A, B, 1j * omega, model.name) + D, (1, 2, 0))
-    ports = PlanarPorts(model.tree)
-    units = {name: ports.actuator_unit(name) for name in inputs}
-    units.update({name: "N" if name in cut_signal_names(model) else ports.sensor_unit(name) for name in outputs})
-    info = {"method": "linearisation on the constraint manifold (KinematicLoopModel.linearize)",
+    plant = model if isinstance(model, KinematicLoopModel) else model.plant
+    loops = () if plant is model else tuple(model.loops)
+    def solve(A: np.ndarray, B: np.ndarray) -> np.ndarray:     # refuses frequencies at or next to a pole
+        return resolvent(A, B, 1j * omega, plant.name)
+
+    response, lin = delayed_loop_response(
+        lambda lin_in, lin_out: linearize_loops(model, operating_point, inputs=lin_in, outputs=lin_out),
+        loops, 1j * omega, inputs, outputs, solve)
+    ports = PlanarPorts(plant.tree)
+    units = {name: ports.actuator_unit(name) for name in inputs if name in ports.actuators}
+    units.update({name: "N" if name in cut_signal_names(plant) else ports.sensor_unit(name) for name in outputs
+                  if name in ports.sensors or name in cut_signal_names(plant)})
+    for loop in loops:
+        for name, parts in ((f"{loop.name}.y", loop.terms), (f"{loop.name}.reference", loop.terms),
+                            (f"{loop.name}.u", loop.actuator_terms)):
+            plain = [w for _, w in parts] == [1.0]
+            unit = ports.actuator_unit if parts is loop.actuator_terms else ports.sensor_unit
+            if name in inputs or name in outputs:
+                units[name] = unit(parts[0][0]) if plain else ""
+    info = {"method": "linearisation on the constraint manifold (KinematicLoopModel.linearize)"
+                      + (", delayed loops exact" if loops else ""),
             "wall_time_s": time.perf_counter() - started, "n_frequencies": int(omega.size),
             "operating_point_q": lin.operating_point.q.tolist(), "jacobian_error": lin.operating_point.jacobian_error}
-    return FrequencyResponse(omega, response, tuple(inputs), tuple(outputs), model.name, info=info, units=units)
+    return FrequencyResponse(omega, response, tuple(inputs), tuple(outputs), plant.name, info=info, units=units)

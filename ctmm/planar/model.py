@@ -359,7 +359,7 @@ class PlanarModel:
         self.beams = {i: b for i, b in enumerate(self._bodies) if isinstance(b, DeformableBody)}
         families = sorted({type(b).__name__: type(b).family for b in self.beams.values()}.items())
         if len({id(f) for _, f in families}) > 1:   # one family's kernels run the whole sweep
-            raise ModelError(f"model {self.name!r}: bodies of one family only, got {[n for n, _ in families]}")
+            raise ModelError(f"{self.name!r}: one body family only (docs/mixed.md §5), got {[n for n, _ in families]}")
         self.deformable_family: DeformableFamily | None = families[0][1] if families else None
         self.flexible_bodies = np.array(sorted(self.beams), dtype=int)
         self.has_flexible = bool(self.beams)

@@ -16,7 +16,11 @@ with the Jacobian ``Phi_q = [I, R'(theta_a) s_a | -I, -R'(theta_b) s_b]`` and
 ``Phi_q q'' = gamma = R(theta_a) s_a w_a^2 - R(theta_b) s_b w_b^2``.  The joint may carry a moment law:
 ``f(delta, rate)`` with ``delta = theta_b - theta_a - rest``, the moment ``-f`` acting on ``b`` and ``+f``
 on ``a``.  A bushing (:meth:`PlanarDAE.add_bushing`) is a force element instead of a constraint: the
-radial force ``-f(|d|) d / |d|`` on ``b`` of the separation ``d = P_b - P_a`` (and its moment law).  Index-1 form with Baumgarte stabilisation (``gamma - 2 alpha Phi' - beta^2 Phi``)::
+radial force ``-f(|d|) d / |d|`` on ``b`` of the separation ``d = P_b - P_a`` (and its moment law).  A motor
+(:meth:`PlanarDAE.add_motor`) is a control input: the torque ``T = law(t, delta, rate)`` on ``b`` (``-T`` on ``a``)
+of the relative angle ``delta = theta_b - theta_a`` and its rate read ``delay`` seconds earlier (the initial state
+held before ``t = 0``); with a delay the run is the method of steps (segments of the shortest delay, each reading
+the dense output of the completed ones).  Index-1 form with Baumgarte stabilisation (``gamma - 2 alpha Phi' - beta^2 Phi``)::
 
     [[M, Phi_q^T], [Phi_q, 0]] [q''; mu] = [Q; gamma - 2 alpha Phi' - beta^2 Phi]
 
@@ -76,6 +80,14 @@ class _Bushing:
 
 
 @dataclass
+class _Motor:
+    a: int | None
+    b: int
+    law: Callable
+    delay: float
+
+
+@dataclass
 class DAESolution:
     """Time history of a :class:`PlanarDAE` run.
 
@@ -128,6 +140,8 @@ class PlanarDAE:
         self.bodies: list[_Body] = []
         self.joints: list[_Revolute] = []
         self.bushings: list[_Bushing] = []
+        self.motors: list[_Motor] = []
+        self._history: Callable | None = None       # t -> (q, v) of the completed run (delayed motors)
 
     def add_body(self, name: str, *, mass: float, inertia: float, points: Mapping[str, Sequence[float]]) -> None:
         """A body with ``mass`` [kg], ``inertia`` about its centre of mass [kg m^2] and named ``points``
@@ -167,6 +181,29 @@ class PlanarDAE:
         ``body_b`` point ``point_b``: with ``d = P_b - P_a`` the force on ``b`` is ``-radial(|d|) d / |d|``
         (``-`` of it on ``a``), plus the optional moment law of :meth:`add_revolute`."""
         self.bushings.append(_Bushing(*self._ends(body_a, point_a, body_b, point_b), radial, moment, float(rest)))
+
+    def add_motor(self, body_a: str | None, body_b: str, law: Callable[[float, float, float], float], *,
+                  delay: float = 0.0) -> None:
+        """A control torque ``T = law(t, delta, rate)`` [N m] on ``body_b`` (``-T`` on ``body_a``; ground when None)
+        of the relative angle ``delta = theta_b - theta_a`` [rad] and its rate [rad/s] at ``t - delay`` [s] (before
+        ``t = 0``: the initial state)."""
+        if not delay >= 0.0:
+            raise ModelError(f"PlanarDAE motor: delay must be >= 0 s, got {delay!r}")
+        self.motors.append(_Motor(None if body_a is None else self._index(body_a), self._index(body_b), law,
+                                  float(delay)))
+
+    def _motor_torques(self, t: float, q: np.ndarray, v: np.ndarray, Q: np.ndarray) -> None:
+        for motor in self.motors:
+            if motor.delay > 0.0:
+                qs, vs = self._history(t - motor.delay)
+            else:
+                qs, vs = q, v
+            ta = 0.0 if motor.a is None else qs[3 * motor.a + 2]
+            wa = 0.0 if motor.a is None else vs[3 * motor.a + 2]
+            torque = float(motor.law(t, qs[3 * motor.b + 2] - ta, vs[3 * motor.b + 2] - wa))
+            Q[3 * motor.b + 2] += torque
+            if motor.a is not None:
+                Q[3 * motor.a + 2] -= torque
 
     # ------------------------------------------------------------------------------------------------
     def assemble(self, angles: Mapping[str, float], rates: Mapping[str, float],
@@ -219,9 +256,10 @@ class PlanarDAE:
                 gamma[rows] += sign * r * v[3 * i + 2] ** 2
         return phi, phi_dot, jac, gamma
 
-    def _generalised_forces(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    def _generalised_forces(self, q: np.ndarray, v: np.ndarray, t: float = 0.0) -> np.ndarray:
         nb = len(self.bodies)
         Q = np.zeros(3 * nb)
+        self._motor_torques(t, q, v, Q)
         for i, body in enumerate(self.bodies):
             Q[3 * i:3 * i + 2] = body.mass * self.gravity
         for bushing in self.bushings:
@@ -247,8 +285,10 @@ class PlanarDAE:
                 Q[3 * joint.a + 2] += f
         return Q
 
-    def solve(self, q: np.ndarray, v: np.ndarray, baumgarte: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-        """Accelerations ``q''`` and multipliers ``mu`` (joint forces on the ``b`` bodies) at ``(q, v)``."""
+    def solve(self, q: np.ndarray, v: np.ndarray, baumgarte: float = 0.0, t: float = 0.0
+              ) -> tuple[np.ndarray, np.ndarray]:
+        """Accelerations ``q''`` and multipliers ``mu`` (joint forces on the ``b`` bodies) at ``(q, v)`` and time
+        ``t`` [s] (the motors' laws; delayed motors read the run in progress)."""
         nb = len(self.bodies)
         mass = np.concatenate([[b.mass, b.mass, b.inertia] for b in self.bodies])
         phi, phi_dot, jac, gamma = self.constraints(q, v)
@@ -257,7 +297,7 @@ class PlanarDAE:
         A[:3 * nb, :3 * nb] = np.diag(mass)
         A[:3 * nb, 3 * nb:] = jac.T
         A[3 * nb:, :3 * nb] = jac
-        rhs = np.concatenate([self._generalised_forces(q, v),
+        rhs = np.concatenate([self._generalised_forces(q, v, t),
                               gamma - 2.0 * baumgarte * phi_dot - baumgarte ** 2 * phi])
         x = np.linalg.solve(A, rhs)
         # M q'' = Q - Phi_q^T x: the force on body b of joint k is +x_k (Phi_q block of b is -I)
@@ -268,19 +308,50 @@ class PlanarDAE:
         """Integrate from ``state = (q0, v0)`` (:meth:`assemble`) to ``t_final`` [s] (DOP853, tight)."""
         q0, v0 = state
         n = len(q0)
+        y0 = np.concatenate([q0, v0])
 
         def rhs(t, y):
-            a, _ = self.solve(y[:n], y[n:], baumgarte)
+            a, _ = self.solve(y[:n], y[n:], baumgarte, t)
             return np.concatenate([y[n:], a])
 
-        sol = scipy.integrate.solve_ivp(rhs, (0.0, t_final), np.concatenate([q0, v0]), method="DOP853",
-                                        t_eval=t_eval, rtol=rtol, atol=atol)
-        if not sol.success:
-            raise ModelError(f"PlanarDAE.simulate failed: {sol.message}")
-        q, v = sol.y[:n].T, sol.y[n:].T
+        delays = [motor.delay for motor in self.motors if motor.delay > 0.0]
+        segments: list = []                         # (t_start, t_end, dense output) of the completed segments
+
+        def history(t: float) -> tuple[np.ndarray, np.ndarray]:
+            if t <= 0.0:
+                return q0, v0
+            for start, end, dense in reversed(segments):
+                if start <= t <= end + 1e-12 * max(1.0, end):     # round-off of the segment ends
+                    y = dense(min(t, end))
+                    return y[:n], y[n:]
+            raise ModelError(f"PlanarDAE: the delayed state at t = {t} s is not yet computed")  # pragma: no cover
+
+        self._history = history
+        span = min(delays) if delays else t_final
+        times, states, t_start, y = [], [], 0.0, y0
+        grid = None if t_eval is None else np.asarray(t_eval, float)
+        n_segments = max(1, math.ceil(t_final / span * (1.0 - 1e-12)))
+        for segment in range(n_segments):
+            last = segment == n_segments - 1
+            t_end = t_final if last else (segment + 1) * span
+            inside = None if grid is None else grid[(grid >= t_start) & ((grid <= t_end) if last else (grid < t_end))]
+            sol = scipy.integrate.solve_ivp(rhs, (t_start, t_end), y, method="DOP853", t_eval=inside, rtol=rtol,
+                                            atol=atol, dense_output=bool(delays))
+            if not sol.success:
+                raise ModelError(f"PlanarDAE.simulate failed: {sol.message}")
+            first = 1 if grid is None and times else 0  # without t_eval a segment starts at the previous end
+            times.append(sol.t[first:])
+            states.append(sol.y[:, first:])
+            if delays:                              # one segment only without delays
+                segments.append((t_start, t_end, sol.sol))
+                y = sol.sol(t_end)
+            t_start = t_end
+        t_out = np.concatenate(times)
+        y_out = np.concatenate(states, axis=1)
+        q, v = y_out[:n].T, y_out[n:].T
         drift = np.array([np.max(np.abs(self.constraints(qi, vi)[0]), initial=0.0) for qi, vi in zip(q, v)])
-        forces = np.array([self.solve(qi, vi, baumgarte)[1].reshape(-1, 2) for qi, vi in zip(q, v)])
-        return DAESolution(sol.t, q, v, drift, forces, tuple(b.name for b in self.bodies))
+        forces = np.array([self.solve(qi, vi, baumgarte, ti)[1].reshape(-1, 2) for ti, qi, vi in zip(t_out, q, v)])
+        return DAESolution(t_out, q, v, drift, forces, tuple(b.name for b in self.bodies))
 
     def energy(self, q: np.ndarray, v: np.ndarray, potentials: Sequence[Callable | None] = ()) -> float:
         """Kinetic + gravitational energy [J], plus ``potentials[k](delta)`` of joint ``k`` (joints, then bushings:
