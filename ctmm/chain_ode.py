@@ -41,36 +41,16 @@ from .errors import ModelError, SimulationError
 from .guard import DivergenceGuard
 from .lumped_forms import LumpedTree, explicit_accelerations, lumped_tree, massless_nodes
 from .ode import rk4_step
+from .chain_affine import LinearRates, linear_rates
+from .chain_point_forces import point_forces_rows
+from .closed_form_rates import signal_derivatives
 from .results import SimulationResult
-from .signals import Constant, Harmonic
+from .signals import Constant
 
 __all__ = ["ChainDynamics", "chain_result", "simulate_chain_ode", "SCIPY_METHODS"]
 
 SCIPY_METHODS = ("RK45", "RK23", "DOP853", "Radau", "BDF", "LSODA")
 """``solve_ivp`` methods accepted for chains (as for planar models)."""
-
-
-def signal_derivatives(owner: str, what: str, signal: Callable[[float], float]
-                       ) -> Callable[[float], tuple[float, float, float]]:
-    """``t -> (value, rate, second rate)`` of a signal whose derivatives are known exactly.
-
-    For any other signal the returned function raises :class:`ModelError` when called (an ODE
-    needs the rates of a prescribed motion, or of a force on a massless node, in closed form).
-    """
-    if isinstance(signal, Constant):
-        value = signal.value
-        return lambda t: (value, 0.0, 0.0)
-    if isinstance(signal, Harmonic):
-        a, w, p = signal.amplitude, signal.omega, signal.phase
-        return lambda t: (a * math.sin(w * t + p), a * w * math.cos(w * t + p), -a * w * w * math.sin(w * t + p))
-
-    def refuse(t: float) -> tuple[float, float, float]:
-        raise ModelError(f"{owner}: the {what} signal {signal!r} has no closed-form rate, which an ODE method "
-                         "needs (the velocity and acceleration of a prescribed motion, or the rate of a force on a "
-                         "massless node); give a Constant or Harmonic signal, or use a DT-TMM scheme "
-                         "(method='newmark', ...)")
-
-    return refuse
 
 
 class ChainDynamics:
@@ -110,6 +90,7 @@ class ChainDynamics:
             self.wall_motion = (signal_derivatives(end.name, "displacement", end.displacement)
                                  if hasattr(end, "displacement") else (lambda t, p=end.position: (p, 0.0, 0.0)))
         self.node_of_point = np.array([tree.node[b] if b >= 0 else -1 for b in tree.point_body])
+        self._linear: LinearRates | None | bool = False          # read on first use (:attr:`linear`)
         q = self.index_Q
         self.n_r = 0
         if q.size:
@@ -291,7 +272,29 @@ class ChainDynamics:
         return x, v, a
 
     def rate(self, t: float, y: np.ndarray, extra: Mapping[int, Mapping[str, float]] | None = None) -> np.ndarray:
-        """``y' = [v_I, a_I, z_r']`` at ``t`` [s] (``extra`` as in :meth:`nodes`)."""
+        """``y' = [v_I, a_I, z_r']`` at ``t`` [s] (``extra`` as in :meth:`nodes`): the certified affine form
+        (:mod:`ctmm.chain_affine`, one sparse mat-vec) where the chain has one, else :meth:`swept_rate`."""
+        linear = self.linear
+        if linear is not None:
+            m = self.index_I.size
+            return np.concatenate([y[m:2 * m], linear.accelerations(t, y[:m], y[m:2 * m], extra)])
+        return self.swept_rate(t, y, extra)
+
+    @property
+    def linear(self) -> LinearRates | None:
+        """The certified affine rates (:func:`ctmm.chain_affine.linear_rates`), ``None`` where the sweep stays."""
+        if self._linear is False:
+            self._linear = linear_rates(self)
+        return self._linear
+
+    def boundary_motion(self, t: float) -> tuple[float, float, float, float, float, float]:
+        """Position [m], velocity [m/s], acceleration [m/s^2] of the held start points, then of the end's wall."""
+        start = self._start_motion(t) if self._start_motion is not None else (0.0, 0.0, 0.0)
+        return (*start, *self.wall_motion(t))
+
+    def swept_rate(self, t: float, y: np.ndarray, extra: Mapping[int, Mapping[str, float]] | None = None
+                   ) -> np.ndarray:
+        """:meth:`rate` by one articulated sweep of the element terms (the reference of the affine form)."""
         I, q = self.index_I, self.index_Q
         x, v, a = self.nodes(t, y, extra)
         parts = [v[I], a[I]]
@@ -444,10 +447,11 @@ class ChainDynamics:
         xp, vp, ap = x[:, k], v[:, k], a[:, k]
         for values, part in ((xp, 0), (vp, 1), (ap, 2)):
             values[:, on_wall] = walls[:, [part]]
-        forces = np.empty_like(xp)
-        for i, t in enumerate(times):
-            across = {position: sum(values.values()) for position, values in (extras[i] or {}).items()}
-            forces[i] = initial_forces(self.chain, xp[i][:, None], vp[i][:, None], across, ap[i][:, None], float(t))
+        across = [{position: sum(values.values()) for position, values in (extra or {}).items()} for extra in extras]
+        forces = point_forces_rows(self.chain, times, xp, vp, ap, across)
+        if forces is None:                  # a nonlinear connector law: row by row
+            forces = np.array([initial_forces(self.chain, xp[i][:, None], vp[i][:, None], across[i], ap[i][:, None],
+                                              float(t)) for i, t in enumerate(times)])
         return xp, vp, ap, forces
 
 
@@ -585,7 +589,7 @@ def chain_result(dynamics: ChainDynamics, times: Sequence[float], states: Sequen
     count = len(times)
     array = np.zeros((count, n_points, 2))
     velocity, acceleration = np.zeros((count, n_points, 1)), np.zeros((count, n_points, 1))
-    for i, (t, y) in enumerate(zip(times, states)):
-        x, v, a, f = dynamics.point_values(t, np.asarray(y))
-        array[i, :, 0], array[i, :, 1], velocity[i, :, 0], acceleration[i, :, 0] = x, f, v, a
+    if count:
+        x, v, a, f = dynamics.point_values_rows(np.asarray(times, dtype=float), np.asarray(states, dtype=float))
+        array[:, :, 0], array[:, :, 1], velocity[:, :, 0], acceleration[:, :, 0] = x, f, v, a
     return SimulationResult(np.asarray(times, dtype=float), array, velocity, acceleration, chain, method, dict(info))

@@ -300,7 +300,7 @@ class CompiledChain:
                     for name, one in slot.items():
                         extra.setdefault(position, {})
                         extra[position][name] = extra[position].get(name, 0.0) + value * one
-            python = dynamics.rate(t, y, extra)[m:]
+            python = dynamics.swept_rate(t, y, extra)[m:]
             affine = form.Ax @ y[:m] + form.Av @ y[m:] + form.B @ u + form.a0 + \
                 sum((column * float(signal(t)) for column, signal in form.loads), np.zeros(m))
             scale = max(1.0, float(np.max(np.abs(python))))
