@@ -60,6 +60,9 @@ class ChainDynamics:
     ----------
     chain : Chain
         A plain chain of lumped 1-D elements (no loops, no beams).
+    affine : bool
+        Use the certified affine rates where the chain has them (:mod:`ctmm.chain_affine`); ``False``
+        keeps one sweep per rate (:meth:`swept_rate`, the reference).
 
     Raises
     ------
@@ -69,7 +72,7 @@ class ChainDynamics:
         massless node) without closed-form rates is refused when its rates are needed.
     """
 
-    def __init__(self, chain) -> None:
+    def __init__(self, chain, affine: bool = True) -> None:
         self.chain = chain
         self.tree: LumpedTree = lumped_tree(chain)
         tree = self.tree
@@ -90,7 +93,7 @@ class ChainDynamics:
             self.wall_motion = (signal_derivatives(end.name, "displacement", end.displacement)
                                  if hasattr(end, "displacement") else (lambda t, p=end.position: (p, 0.0, 0.0)))
         self.node_of_point = np.array([tree.node[b] if b >= 0 else -1 for b in tree.point_body])
-        self._linear: LinearRates | None | bool = False          # read on first use (:attr:`linear`)
+        self._linear: LinearRates | None | bool = False if affine else None      # read on first use
         q = self.index_Q
         self.n_r = 0
         if q.size:
