@@ -45,7 +45,7 @@ from .results import SimulationResult
 from .signal_results import SignalSystem, signal_result
 from .signals import Constant, signal_parameters, symbolic_signal
 
-__all__ = ["AffineRates", "ChainLoops", "CompiledChain", "affine_form", "simulate_chain_generated"]
+__all__ = ["AffineRates", "ChainLoops", "CompiledChain", "affine_form", "simulate_chain_generated", "whole_steps"]
 
 DEFAULT_ROWS = 64
 """Stored states per generated block call."""
@@ -153,7 +153,8 @@ class ChainLoops(ClosedLoops):
             A, B, C, D = controller_realisation(loop)
             reference = symbolic_value(f"references[{loop.name!r}]", references.get(loop.name, 0.0))
             laws.append(LoopLaw(loop.name, tuple(loop.terms), tuple(loop.actuator_terms), A, B, C, D,
-                                float(loop.delay), delay_steps(loop.name, loop.delay, dt), reference))
+                                float(loop.delay), delay_steps(loop.name, loop.delay, dt), reference,
+                                loop.saturation))
         self.laws = tuple(laws)
         self.n = n = plant.n_positions
         self.nq = self.nv = n
@@ -317,6 +318,16 @@ class CompiledChain:
                           held, dt, n_steps, 0.0, np.zeros((0, 1)))[0]
 
 
+def whole_steps(t_final: float, dt: float) -> tuple[float, float, int]:
+    """``(t_final, dt, n_steps)`` checked: positive, ``t_final`` [s] a whole number (>= 1) of steps ``dt`` [s]."""
+    t_final, dt = validation.positive("t_final", t_final), validation.positive("dt", dt)
+    n_steps = int(round(t_final / dt))
+    if n_steps < 1 or abs(n_steps * dt - t_final) > 1e-9 * max(1.0, t_final):
+        raise ModelError(f"t_final = {t_final!r} s must be a whole number of steps dt = {dt!r} s (>= 1)")
+    validation.step_count(t_final, 0.0, dt)
+    return t_final, dt, n_steps
+
+
 def simulate_chain_generated(system: Any, t_final: float, dt: float, *, x0: Mapping[str, float] | None = None,
                              v0: Mapping[str, float] | None = None, inputs: Mapping[str, Any] | None = None,
                              references: Mapping[str, Any] | None = None, outputs: Sequence[str] = (),
@@ -359,11 +370,7 @@ def simulate_chain_generated(system: Any, t_final: float, dt: float, *, x0: Mapp
     SimulationError
         Divergence or non-finite states, with ``partial_result``.
     """
-    t_final, dt = validation.positive("t_final", t_final), validation.positive("dt", dt)
-    n_steps = int(round(t_final / dt))
-    if n_steps < 1 or abs(n_steps * dt - t_final) > 1e-9 * max(1.0, t_final):
-        raise ModelError(f"t_final = {t_final!r} s must be a whole number of steps dt = {dt!r} s (>= 1)")
-    validation.step_count(t_final, 0.0, dt)
+    t_final, dt, n_steps = whole_steps(t_final, dt)
     if chain is None:
         chain = CompiledChain(system, dt=dt, store_every=store_every, references=references, inputs=inputs,
                               cache_dir=cache_dir)
