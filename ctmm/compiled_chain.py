@@ -45,7 +45,8 @@ from .results import SimulationResult
 from .signal_results import SignalSystem, signal_result
 from .signals import Constant, signal_parameters, symbolic_signal
 
-__all__ = ["AffineRates", "ChainLoops", "CompiledChain", "affine_form", "simulate_chain_generated", "whole_steps"]
+__all__ = ["AffineRates", "ChainLoops", "CompiledChain", "affine_form", "sensor_row", "simulate_chain_generated",
+           "whole_steps"]
 
 DEFAULT_ROWS = 64
 """Stored states per generated block call."""
@@ -117,6 +118,28 @@ def affine_form(dynamics: ChainDynamics, actuators: Sequence[Mapping[int, Mappin
 
 
 
+def sensor_row(ports: Any, terms: Sequence[tuple[str, float]], size: int) -> tuple[np.ndarray, float]:
+    """``(row, offset)`` of the weighted sensed signal ``y = row [q; v] + offset`` of a chain (``terms``
+    ``[(sensor, weight)]`` of :class:`ctmm.control.chain_plant.ChainPorts`; ``size = 2 m``): unit probes, exact
+    because the chain's sensors are affine in its state."""
+    names = [name for name, _ in terms]
+    weights = np.array([w for _, w in terms], dtype=float)
+    sensors = ports.resolve(names)
+    half = size // 2
+
+    def value(state: np.ndarray) -> float:
+        return float(weights @ ports.values(sensors, state[:half], state[half:], 0.0))
+
+    zero = np.zeros(size)
+    offset = value(zero)
+    row = np.zeros(size)
+    for i in range(size):
+        zero[i] = 1.0
+        row[i] = value(zero) - offset
+        zero[i] = 0.0
+    return row, offset
+
+
 class ChainLoops(ClosedLoops):
     """The loops of a controlled chain on casadi symbols: the laws, ring and step of
     :class:`~ctmm.compiled_loops.ClosedLoops` with the chain's affine sensors.
@@ -168,7 +191,7 @@ class ChainLoops(ClosedLoops):
         self.ring_columns = max((law.steps for law in laws), default=0) + 1 if self.delayed else 0
         self.state_size = 2 * n + self.n_controller_states + 2 * len(self.delayed) * self.ring_columns
         q, v, a = (ca.SX.sym(label, n) for label in ("q", "v", "a"))
-        rows = [self._law_row(ports, law, 2 * n) for law in laws]
+        rows = [sensor_row(ports, law.sensors, 2 * n) for law in laws]
         y = ca.vertcat(*[ca.mtimes(ca.DM(row[None, :]), ca.vertcat(q, v)) + offset for row, offset in rows]) \
             if laws else ca.SX(0, 1)
         self.sensors = ca.Function("loop_sensors", [q, v], [y])
@@ -179,27 +202,6 @@ class ChainLoops(ClosedLoops):
             for actuator, w in law.actuators:
                 weights[self.actuators.index(actuator), k] += float(w)
         self.weights = weights
-
-    @staticmethod
-    def _law_row(ports: Any, law: LoopLaw, size: int) -> tuple[np.ndarray, float]:
-        """``(row, offset)`` of the law's sensed signal ``y = row [q; v] + offset`` (unit probes: the chain's
-        sensors are affine in its state)."""
-        names = [name for name, _ in law.sensors]
-        weights = np.array([w for _, w in law.sensors], dtype=float)
-        sensors = ports.resolve(names)
-        half = size // 2
-
-        def value(state: np.ndarray) -> float:
-            return float(weights @ ports.values(sensors, state[:half], state[half:], 0.0))
-
-        zero = np.zeros(size)
-        offset = value(zero)
-        row = np.zeros(size)
-        for i in range(size):
-            zero[i] = 1.0
-            row[i] = value(zero) - offset
-            zero[i] = 0.0
-        return row, offset
 
 
 class CompiledChain:

@@ -34,7 +34,8 @@ from __future__ import annotations
 
 import os
 import time as _time
-from typing import Any, Mapping
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 import scipy.sparse
@@ -42,12 +43,17 @@ import scipy.sparse
 from . import validation
 from .chain_ode import ChainDynamics, chain_result
 from .codegen import load_casadi
-from .compiled_chain import affine_form, whole_steps
+from .compiled_chain import affine_form, sensor_row, whole_steps
+from .compiled_loops import delay_steps
+from .compiled_references import reference_at, symbolic_reference
 from .control.chain_plant import ChainPlant
+from .control.planar_time import loop_unit
 from .errors import ModelError, SimulationError
 from .generated_loop import run_blocks, time_loop_functions
 from .results import SimulationResult
+from .saturation import refuse_saturation
 from .schemes import History, Scheme, as_scheme
+from .signal_results import SignalSystem, signal_result
 from .signals import signal_parameters, symbolic_signal
 
 __all__ = ["SchemeMaps", "CompiledChainScheme", "simulate_chain_scheme_generated", "simulate_scheme_verb"]
@@ -73,6 +79,8 @@ class SchemeMaps:
         ``x_eval = cx delta + ...``, ``v_eval = A delta + ...`` [1/s], ``a_eval = C delta + ...`` [1/s^2].
     load_weight : float
         ``w`` of the new load.
+    offset : float
+        Time of the evaluation level after ``t_n`` [s].
     coefficients : ndarray, shape (3, 5)
         Rows ``dx``, ``B``, ``D`` on the history ``(x, v, a, x_{n-1}, x_{n-2})``.
     update : ndarray, shape (5, 6)
@@ -82,7 +90,7 @@ class SchemeMaps:
     def __init__(self, scheme: Scheme, h: float, steps: int = 0) -> None:
         self.scheme, self.h, self.steps = scheme, float(h), int(steps)
         zero = self._apply(np.zeros(5), 0.0)
-        self.cx, self.A, self.C, self.load_weight = zero[0]
+        self.cx, self.A, self.C, self.load_weight, self.offset = zero[0]
         self.coefficients = np.zeros((3, 5))
         self.update = np.zeros((5, 6))
         for k in range(6):
@@ -109,7 +117,7 @@ class SchemeMaps:
         coefficients = self.scheme.coefficients(state, self.h)
         new = self.scheme.update(state, np.array([[delta]]), self.h, coefficients)
         scalars = (float(coefficients.cx), float(coefficients.A), float(coefficients.C),
-                   float(coefficients.load_weight))
+                   float(coefficients.load_weight), float(coefficients.unknown_offset))
         parts = np.array([float(coefficients.dx[0, 0]), float(coefficients.B[0, 0]), float(coefficients.D[0, 0])])
         after = np.array([float(new.x[0, 0]), float(new.v[0, 0]), float(new.a[0, 0]), float(new.x_old[0][0, 0]),
                           float(new.x_old[1][0, 0])])
@@ -143,18 +151,38 @@ def _solver(matrix: np.ndarray) -> Any:
     return ca.Function("solve", [rhs], [ca.vertcat(*out)])
 
 
+@dataclass(frozen=True)
+class SchemeLoop:
+    """One static-gain loop of a controlled chain in the generated DT-TMM step: ``u = -gain (y - r)`` with
+    ``y = row [x; v] + offset`` [sensed unit], on the accelerations ``column`` [1/kg] (the weighted actuator
+    columns), delay ``steps * dt`` (``0``: real time, implicit in the step; else from the ring of the last
+    ``steps + 1`` samples of ``y`` in the generated state, starting at ``ring``)."""
+
+    loop: Any
+    gain: float
+    row: np.ndarray
+    offset: float
+    column: np.ndarray
+    steps: int
+    reference: Any
+    ring: int
+
+
 class CompiledChainScheme:
-    """Generated and compiled DT-TMM time loop of one plain lumped chain (module docstring).
+    """Generated and compiled DT-TMM time loop of one lumped chain, with its loops (module docstring).
 
     Parameters
     ----------
-    chain : Chain
-        A plain chain (a ``ControlledChain`` is refused: its loops keep the Python DT-TMM path).
+    system : Chain or ControlledChain
+        The chain; a controlled chain's static-gain loops (real-time or delayed by whole steps) are closed
+        in the step as the Python DT-TMM path closes them.
     dt : float
         Step [s] (a constant of the generated code).
     scheme : Scheme or str
     store_every, rows : int
         Steps per stored state, stored states per generated block.
+    references : mapping, optional
+        ``{loop: number or ctmm.signals signal}`` [sensed unit].
     cache_dir, compiler
         Of :func:`ctmm.codegen.shared_library`.
 
@@ -162,51 +190,61 @@ class CompiledChainScheme:
     ----------
     dynamics : ChainDynamics
     scheme : Scheme
+    loops : list of SchemeLoop
     state_size : int
-        ``5 m``: ``[x, v, a, x_{n-1}, x_{n-2}]`` of the ``m`` moving masses.
+        ``5 m`` (``[x, v, a, x_{n-1}, x_{n-2}]`` of the ``m`` moving masses), then the rings of the delayed loops.
     compile_time_s : float
     """
 
-    def __init__(self, chain: Any, dt: float, scheme: Any = "newmark", *, store_every: int = 1, rows: int = 64,
-                 cache_dir: str | os.PathLike | None = None, compiler: str | None = None) -> None:
+    def __init__(self, system: Any, dt: float, scheme: Any = "newmark", *, store_every: int = 1, rows: int = 64,
+                 references: Mapping[str, Any] | None = None, cache_dir: str | os.PathLike | None = None,
+                 compiler: str | None = None) -> None:
         import casadi as ca
 
         started = _time.perf_counter()
-        if getattr(chain, "loops", None) is not None:
-            raise ModelError(f"compiled=True with a DT-TMM scheme runs plain chains; {chain.name!r} closes loops "
-                             f"{[lp.name for lp in chain.loops]}, which keep the Python DT-TMM path (compiled=False) "
-                             "or run in the generated RK4 of a chain (method='rk4', compiled=True)")
+        self.system = system
         self.dt = validation.positive("dt", dt)
         self.scheme = as_scheme(scheme)
         self.store_every = validation.integer("store_every", store_every, minimum=1)
-        self.plant = ChainPlant(chain)
+        self.plant = ChainPlant(system)
         self.dynamics: ChainDynamics = self.plant.dynamics
-        form = affine_form(self.dynamics)
+        chain = self.plant.chain
+        loops = tuple(getattr(system, "loops", ()))
+        refuse_saturation(loops, "the generated DT-TMM step of a chain (its loops are linear in the step; use "
+                                 "method='rk4')")
+        ports = self.plant.ports
+        for loop in loops:
+            if loop.is_lti:
+                raise ModelError(f"loop {loop.name!r}: an LTI controller is not in the generated DT-TMM step of a "
+                                 "chain yet (use compiled=False, or method='rk4' with compiled=True)")
+            for name, _ in loop.terms:
+                ports.check_sensor(name, f"sensor of loop {loop.name!r}")
+            for name, _ in loop.actuator_terms:
+                ports.check_actuator(name, f"actuator of loop {loop.name!r}")
+        references = dict(references or {})
+        for name in references:
+            if name not in [loop.name for loop in loops]:
+                raise ModelError(f"references[{name!r}]: not a loop; loops: {', '.join(lp.name for lp in loops) or '(none)'}")
+        actuators = list(dict.fromkeys(name for loop in loops for name, _ in loop.actuator_terms))
+        form = affine_form(self.dynamics, [ports.inputs({name: 1.0}) for name in actuators])
         m = self.m = self.plant.n_positions
-        self.state_size = 5 * m
-        rates = np.hstack([form.Ax, form.Av])
-        python = self.dynamics.swept_rate
-        rng = np.random.default_rng(12)
-        for _ in range(2):                                      # the affine form is the sweep (certified)
-            y, t = rng.standard_normal(2 * m) * 0.01, float(rng.uniform(0.0, 3.0))
-            swept = python(t, y)[m:]
-            affine = rates @ y + form.a0 + sum((column * float(signal(t)) for column, signal in form.loads),
-                                               np.zeros(m))
-            if not np.all(np.abs(swept - affine) <= 1e-10 * max(1.0, float(np.max(np.abs(swept))))):
-                raise ModelError(f"chain {chain.name!r}: its rates are not affine in the state (an element family "
-                                 "with non-linear terms); the generated DT-TMM step needs the affine form: use "
-                                 "compiled=False")
-        for _, signal in form.loads:
-            if signal_parameters(signal) is None:
-                raise ModelError(f"chain {chain.name!r}: a load signal {signal!r} is a Python callable of time, "
-                                 "which generated kernels cannot evaluate; give a ctmm.signals Constant, Harmonic, "
-                                 "Step or SquareWave, or use compiled=False")
+        self._certify(form)
+        self.loops, size = [], 5 * m
+        for loop in loops:
+            row, offset = sensor_row(ports, loop.terms, 2 * m)
+            column = sum((weight * form.B[:, actuators.index(name)] for name, weight in loop.actuator_terms),
+                         np.zeros(m))
+            steps = delay_steps(loop.name, loop.delay, self.dt)
+            reference = symbolic_reference(f"references[{loop.name!r}]", references.get(loop.name, 0.0))
+            self.loops.append(SchemeLoop(loop, float(loop.gain), row, float(offset), column, steps, reference, size))
+            size += steps + 1 if steps else 0
+        self.state_size = size
         maps = [SchemeMaps(self.scheme, self.dt, 0)]
         later = SchemeMaps(self.scheme, self.dt, 2)
         if not (np.array_equal(later.coefficients, maps[0].coefficients) and
                 np.array_equal(later.update, maps[0].update)):
             maps.append(later)                                  # a start-up (Houbolt): steps 0 and 1 differ
-        y, u, h, p = ca.MX.sym("y", 5 * m), ca.MX.sym("u", 0), ca.MX.sym("h"), ca.MX.sym("p", 0)
+        y, u, h, p = ca.MX.sym("y", size), ca.MX.sym("u", 0), ca.MX.sym("h"), ca.MX.sym("p", 0)
         t0, k = ca.MX.sym("t0"), ca.MX.sym("k")
         branches = [self._step_function(f"step{j}", form, scheme_maps) for j, scheme_maps in enumerate(maps)]
         t_n = t0 + k * self.dt
@@ -214,26 +252,46 @@ class CompiledChainScheme:
                                                                   True)
         step = ca.Function("step", [y, u, h, p, t0, k], [new])
         stride, sizes, blocks = time_loop_functions(step, self.store_every, rows)
-        name = f"chain_{m}m_{self.scheme.name}"
+        name = f"chain_{m}m_{self.scheme.name}" + (f"_{len(self.loops)}l" if self.loops else "")
         loaded = load_casadi([step, stride, *blocks], name, cache_dir=cache_dir, compiler=compiler)
         self._step, self._stride = loaded[:2]
         self._blocks = list(zip(sizes, loaded[2:]))
         self.form = form
         self.compile_time_s = _time.perf_counter() - started
 
+    def _certify(self, form: Any) -> None:
+        """The affine form equals the sweep at random states and times (relative 1e-10), else ModelError."""
+        m, rng = self.m, np.random.default_rng(12)
+        for _ in range(2):
+            y, t = rng.standard_normal(2 * m) * 0.01, float(rng.uniform(0.0, 3.0))
+            swept = self.dynamics.swept_rate(t, y)[m:]
+            affine = form.Ax @ y[:m] + form.Av @ y[m:] + form.a0 + sum(
+                (column * float(signal(t)) for column, signal in form.loads), np.zeros(m))
+            if not np.all(np.abs(swept - affine) <= 1e-10 * max(1.0, float(np.max(np.abs(swept))))):
+                raise ModelError(f"chain {self.plant.chain.name!r}: its rates are not affine in the state (an element "
+                                 "family with non-linear terms); the generated DT-TMM step needs the affine form: use "
+                                 "compiled=False")
+        for _, signal in form.loads:
+            if signal_parameters(signal) is None:
+                raise ModelError(f"chain {self.plant.chain.name!r}: a load signal {signal!r} is a Python callable of "
+                                 "time, which generated kernels cannot evaluate; give a ctmm.signals Constant, "
+                                 "Harmonic, Step or SquareWave, or use compiled=False")
+
     def _step_function(self, label: str, form: Any, maps: SchemeMaps) -> Any:
-        """``(history, t_n) -> new history`` of every node for one set of scheme maps."""
+        """``(state, t_n) -> new state`` for one set of scheme maps: the equation of motion at the evaluation
+        level with the loads weighted by ``w``, the real-time loops implicit (their rank-``k`` part by the
+        Woodbury identity on the banded solve), the delayed loops' forces ``(1 - w) u_n + w u_{n+1}`` from the
+        rings, which then take the new sample."""
         import casadi as ca
 
-        m, dt = self.m, self.dt
+        m, dt, w = self.m, self.dt, maps.load_weight
         Ax, Av = form.Ax, form.Av
         matrix = maps.C * np.eye(m) - maps.cx * Ax - maps.A * Av
         solve = _solver(matrix)
-        y, t_n = ca.SX.sym("y", 5 * m), ca.SX.sym("t")
+        y, t_n = ca.SX.sym("y", self.state_size), ca.SX.sym("t")
         parts = [y[j * m:(j + 1) * m] for j in range(5)]
         dx, B, D = (sum((float(maps.coefficients[r, c]) * parts[c] for c in range(5) if maps.coefficients[r, c]),
                         ca.SX.zeros(m)) for r in range(3))
-        w = maps.load_weight
         forcing = ca.DM(form.a0)
         for column, signal in form.loads:
             symbolic = symbolic_signal(type(signal), t_n + dt, signal_parameters(signal))
@@ -242,18 +300,66 @@ class CompiledChainScheme:
             forcing = forcing + ca.DM(column) * symbolic
         rhs = ca.mtimes(ca.DM(scipy.sparse.csc_matrix(Ax)), dx) + ca.mtimes(ca.DM(scipy.sparse.csc_matrix(Av)), B) \
             + forcing - D
+        t_eval = t_n + maps.offset
+        now = [lp for lp in self.loops if lp.steps == 0]
+        for lp in self.loops:
+            if lp.steps == 0:                          # u_eval = -g (y_eval - r): the known part here
+                known = ca.dot(ca.DM(lp.row[:m]), dx) + ca.dot(ca.DM(lp.row[m:]), B) + lp.offset
+                rhs = rhs - lp.gain * ca.DM(lp.column) * (known - reference_at(lp.reference, t_eval))
+            else:
+                tau = lp.steps * dt
+                before = -lp.gain * (y[lp.ring] - reference_at(lp.reference, t_n - tau))
+                after = -lp.gain * (y[lp.ring + 1] - reference_at(lp.reference, t_n + dt - tau))
+                rhs = rhs + ca.DM(lp.column) * ((1.0 - w) * before + w * after if w != 1.0 else after)
         delta = solve(rhs)
+        if now:                                        # (S + b g r_delta^T) delta = rhs, r_delta = cx r_x + A r_v
+            columns = np.column_stack([lp.column for lp in now])
+            rows = np.array([lp.gain * (maps.cx * lp.row[:m] + maps.A * lp.row[m:]) for lp in now])
+            W = np.linalg.solve(matrix, columns)
+            small = np.eye(len(now)) + rows @ W
+            if np.linalg.cond(small) > 1e12:
+                raise ModelError(f"the real-time loops {[lp.loop.name for lp in now]} make the step singular at "
+                                 f"dt = {dt!r} s (their gains cancel the inertia); change their gains")
+            delta = delta - ca.mtimes(ca.DM(W), ca.mtimes(ca.DM(np.linalg.solve(small, rows)), delta))
         every = parts + [delta]
         new = [sum((float(maps.update[r, c]) * every[c] for c in range(6) if maps.update[r, c]), ca.SX.zeros(m))
                for r in range(5)]
+        for lp in self.loops:
+            if lp.steps:
+                sample = ca.dot(ca.DM(lp.row[:m]), new[0]) + ca.dot(ca.DM(lp.row[m:]), new[1]) + lp.offset
+                new.append(ca.vertcat(y[lp.ring + 1:lp.ring + lp.steps + 1], sample))
         return ca.Function(label, [y, t_n], [ca.vertcat(*new)])
+
+    def loop_forces(self, t: float, x: np.ndarray, v: np.ndarray, ring_values: np.ndarray | None = None
+                    ) -> list[float]:
+        """``u`` [actuator unit] of every loop at ``t`` [s] and state ``x``, ``v`` (a delayed loop's delayed sample
+        from the state's ring, or the held start)."""
+        out = []
+        for lp in self.loops:
+            y = float(lp.row @ np.concatenate([x, v])) + lp.offset
+            if lp.steps:
+                y = float(ring_values[lp.ring]) if ring_values is not None else y
+            out.append(-lp.gain * (y - float(lp.reference(t - lp.steps * self.dt))))
+        return out
+
+    def actuator_inputs(self, forces: Sequence[float]) -> dict | None:
+        """The loops' forces as ``{element position: {input: value}}`` [N] (None without loops)."""
+        values: dict[str, float] = {}
+        for lp, u in zip(self.loops, forces):
+            for name, weight in lp.loop.actuator_terms:
+                values[name] = values.get(name, 0.0) + weight * u
+        return self.plant.ports.inputs(values) if values else None
 
     def start(self, x0: Mapping[str, float] | None, v0: Mapping[str, float] | None) -> np.ndarray:
         """The generated state at ``t = 0``: positions, velocities, the acceleration of the equation of motion
-        and the positions as the older history (as :func:`ctmm.timestep.simulate` starts)."""
+        with the loops' start forces, the positions as the older history, and the rings holding the start's
+        sample (the state held before ``t = 0``, as :func:`ctmm.control.simulate.simulate_controlled` starts)."""
         q, w = self.plant.start(x0, v0)
-        a = self.dynamics.rate(0.0, np.concatenate([q, w]))[self.m:]
-        return np.concatenate([q, w, a, q, q])
+        forces = self.loop_forces(0.0, q, w)
+        a = self.dynamics.rate(0.0, np.concatenate([q, w]), self.actuator_inputs(forces))[self.m:]
+        rings = [np.full(lp.steps + 1, float(lp.row @ np.concatenate([q, w])) + lp.offset)
+                 for lp in self.loops if lp.steps]
+        return np.concatenate([q, w, a, q, q, *rings])
 
     def run(self, state: np.ndarray, n_steps: int) -> np.ndarray:
         """Stored states (rows, :attr:`state_size`) after every ``store_every`` steps and the last."""
@@ -261,34 +367,40 @@ class CompiledChainScheme:
                           np.zeros(0), self.dt, n_steps, 0.0, np.zeros((0, 1)))[0]
 
 
-def simulate_chain_scheme_generated(chain: Any, t_final: float, dt: float, scheme: Any = "newmark", *,
+def simulate_chain_scheme_generated(system: Any, t_final: float, dt: float, scheme: Any = "newmark", *,
                                     x0: Mapping[str, float] | None = None, v0: Mapping[str, float] | None = None,
+                                    references: Mapping[str, Any] | None = None, outputs: Sequence[str] = (),
                                     store_every: int = 1, divergence_bound: float | None = None,
                                     cache_dir: str | os.PathLike | None = None,
                                     compiled: CompiledChainScheme | None = None) -> SimulationResult:
-    """A DT-TMM scheme on a plain chain in generated C; the result of the ODE path's form.
+    """A DT-TMM scheme on a chain (with its loops) in generated C.
 
     Parameters
     ----------
-    chain : Chain
+    system : Chain or ControlledChain
     t_final, dt : float
-        End time and step [s] (``t_final`` a whole multiple of ``dt``).
+        End time and step [s] (``t_final`` and each loop delay whole multiples of ``dt``).
     scheme : Scheme or str
     x0, v0 : mapping, optional
         Initial positions [m] / velocities [m/s] by element name.
+    references : mapping, optional
+        ``{loop: number or signal}`` [sensed unit].
+    outputs : sequence of str
+        Extra signal names (every chain signal is stored).
     store_every : int
         Keep every ``store_every``-th step (the last one always).
     divergence_bound : float, optional
         As in :func:`ctmm.chain_ode.simulate_chain_ode` (checked on the stored rows).
     cache_dir : path, optional
     compiled : CompiledChainScheme, optional
-        A compiled kernel of this chain, step, scheme and ``store_every`` to reuse.
+        A compiled kernel of this system, step, scheme, references and ``store_every`` to reuse.
 
     Returns
     -------
     SimulationResult
-        The point signals of :func:`ctmm.chain_ode.simulate_chain_ode`; ``info["method"]`` is
-        ``"<scheme>-generated"``, with ``info["compile_time_s"]`` [s].
+        The point signals of :func:`ctmm.chain_ode.simulate_chain_ode` (with loops: named signals and
+        ``"<loop>.y"``, ``"<loop>.u"``); ``info["method"]`` is ``"<scheme>-generated"``, with
+        ``info["compile_time_s"]`` [s].
 
     Raises
     ------
@@ -299,11 +411,14 @@ def simulate_chain_scheme_generated(chain: Any, t_final: float, dt: float, schem
     """
     t_final, dt, n_steps = whole_steps(t_final, dt)
     if compiled is None:
-        compiled = CompiledChainScheme(chain, dt, scheme, store_every=store_every, cache_dir=cache_dir)
+        compiled = CompiledChainScheme(system, dt, scheme, store_every=store_every, references=references,
+                                       cache_dir=cache_dir)
     elif not isinstance(compiled, CompiledChainScheme) or compiled.dt != dt or compiled.store_every != store_every \
             or compiled.scheme != as_scheme(scheme):
         raise ModelError(f"compiled must be a CompiledChainScheme of this chain with dt={dt!r}, scheme={scheme!r} and "
                          f"store_every={store_every!r}, got {compiled!r}")
+    for name in outputs:
+        system.signal(name)
     first = compiled.start(x0, v0)
     started = _time.perf_counter()
     states = compiled.run(first, n_steps)
@@ -311,18 +426,40 @@ def simulate_chain_scheme_generated(chain: Any, t_final: float, dt: float, schem
     every, m = compiled.store_every, compiled.m
     steps = np.array([k for k in range(1, n_steps + 1) if k % every == 0 or k == n_steps])[:len(states)]
     times = np.concatenate([[0.0], steps * dt])
-    states = np.vstack([first[None], states])[:, :2 * m]
+    states = np.vstack([first[None], states])
     label = f"{compiled.scheme.name}-generated"
     info = {"dt": dt, "method": label, "path": "generated-dttmm", "compile_time_s": compiled.compile_time_s,
             "wall_time_s": wall, "n_steps": n_steps}
     guard = compiled.plant.guard(states[0, :m], divergence_bound)
     for k in range(len(times)):
         try:
-            guard(float(times[k]), states[k], dt, label)
+            guard(float(times[k]), states[k, :2 * m], dt, label)
         except SimulationError as exc:
-            exc.partial_result = chain_result(compiled.dynamics, list(times[:k]), list(states[:k]), label, dict(info))
+            exc.partial_result = _result(compiled, times[:k], states[:k], outputs, info)
             raise
-    return chain_result(compiled.dynamics, list(times), list(states), label, info)
+    return _result(compiled, times, states, outputs, info)
+
+
+def _result(compiled: CompiledChainScheme, times: np.ndarray, states: np.ndarray, outputs: Sequence[str],
+            info: dict) -> SimulationResult:
+    """The stored rows as a result: point signals from the states (accelerations and forces of the equation of
+    motion with the loops' forces of each row), and each loop's ``y`` and ``u``."""
+    m, label = compiled.m, info["method"]
+    if not compiled.loops:
+        return chain_result(compiled.dynamics, list(times), list(states[:, :2 * m]), label, dict(info))
+    forces = np.array([compiled.loop_forces(float(t), row[:m], row[m:2 * m], row) for t, row in zip(times, states)])
+    forces = forces.reshape(len(times), len(compiled.loops))
+    inputs = [compiled.actuator_inputs(row) for row in forces]
+    plant, system = compiled.plant, compiled.system
+    signals, units = plant.signals(times, states[:, :m], states[:, m:2 * m], outputs, inputs=inputs)
+    for j, lp in enumerate(compiled.loops):
+        name = lp.loop.name
+        signals[f"{name}.y"] = states[:, :2 * m] @ lp.row + lp.offset
+        signals[f"{name}.u"] = forces[:, j]
+        units[f"{name}.y"], units[f"{name}.u"] = loop_unit(plant.ports, lp.loop, "y"), loop_unit(plant.ports, lp.loop,
+                                                                                                  "u")
+    info = {**info, "loops": {lp.loop.name: ("real-time" if lp.steps == 0 else "history") for lp in compiled.loops}}
+    return signal_result(SignalSystem(system, units, list(system.loops)), times, signals, label, info)
 
 
 def simulate_scheme_verb(system: Any, t_final: float, dt: float | None, scheme: Any, x0: Any, v0: Any,
@@ -330,13 +467,13 @@ def simulate_scheme_verb(system: Any, t_final: float, dt: float | None, scheme: 
                          t0: float, inputs: Any, outputs: Any, references: Mapping[str, Any]) -> SimulationResult:
     """``ctmm.simulate(chain, method=<scheme>, compiled=True)``: the options that do not apply are refused by
     name (``others``: ``{name: (value, default)}`` of the verb), then :func:`simulate_chain_scheme_generated`."""
-    options = {**others, "t0": (t0, 0.0), "inputs": (inputs or None, None), "outputs": (tuple(outputs), ()),
-               "references": (dict(references or {}), {})}
+    options = {**others, "t0": (t0, 0.0), "inputs": (inputs or None, None)}
     for name, (value, default) in options.items():
         if value is not default and value != default:
             raise ModelError(f"{name}={value!r} does not apply to the generated DT-TMM step of a chain (leave {name} "
                              f"at {default!r}, or use compiled=False)")
     if dt is None:
         raise ModelError("dt is required to simulate a chain (the DT-TMM step [s], > 0), got None")
-    return simulate_chain_scheme_generated(system, t_final, dt, scheme, x0=x0, v0=v0, store_every=store_every,
+    return simulate_chain_scheme_generated(system, t_final, dt, scheme, x0=x0, v0=v0, references=references or None,
+                                           outputs=tuple(outputs), store_every=store_every,
                                            divergence_bound=divergence_bound)

@@ -16,6 +16,7 @@ from ctmm.control import ControlledChain, Feedback
 from ctmm.elements import Fixed, Free, Mass, Spring, SpringDamper
 from ctmm.errors import ModelError
 from ctmm.reference import chain as global_chain
+from ctmm.reference.delay_chain import GlobalLoop, method_of_steps
 from ctmm.schemes import Newmark, WilsonTheta
 from ctmm.signals import Harmonic
 from _chain_convert import inerter_chains, random_chain, to_global
@@ -110,11 +111,57 @@ def test_scheme_maps_read_houbolt_start_up_and_refuse_nothing_linear():
     assert np.array_equal(first.update, SchemeMaps(Newmark(), 1e-3, 0).update)
 
 
-def test_what_the_generated_step_refuses():
+def _controlled():
     chain, names, x0 = _chain()
-    controlled = ControlledChain(chain, [Feedback("pd", f"{names[-1]}.x", names[0], gain=10.0)])
-    with pytest.raises(ModelError, match="compiled=True"):
-        ctmm.simulate(controlled, 0.01, 1e-3, method="newmark", compiled=True)
+    loops = [Feedback("rt", [(f"{names[-1]}.x", 1.0), (f"{names[-1]}.v", 0.05)], names[0], gain=80.0),
+             Feedback("late", f"{names[2]}.v", names[1], gain=3.0, delay=0.004)]
+    return ControlledChain(chain, loops), names, x0
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_realtime_and_delayed_loops_close_as_the_python_dttmm_step(scheme):
+    system, names, x0 = _controlled()
+    references = {"rt": Harmonic(0.01, 20.0)}
+    generated = ctmm.simulate(system, 0.2, 1e-3, method=scheme, x0=x0, compiled=True, references=references)
+    python = ctmm.simulate(system, 0.2, 1e-3, method=scheme, x0=x0, references=references)
+    assert np.max(np.abs(_positions(generated, names) - _positions(python, names))) < 1e-12 * 0.05
+    for name in ("rt.u", "late.u", "rt.y", "late.y"):
+        assert np.max(np.abs(generated[name] - python[name])) < 1e-11 * np.max(np.abs(python[name])), name
+    assert generated.info["loops"] == {"rt": "real-time", "late": "history"}
+
+
+def test_generated_loops_converge_at_the_scheme_order_to_the_method_of_steps():
+    chain, names, x0 = _chain()
+    reference = to_global(chain)
+    index = {name: k for k, name in enumerate(names)}
+    loops = [Feedback("rt", f"{names[-1]}.x", names[0], gain=80.0),
+             Feedback("late", f"{names[2]}.x", names[1], gain=30.0, delay=0.02)]
+    system = ControlledChain(chain, loops)
+    global_loops = [GlobalLoop(index[names[-1]], "displacement", index[names[0]], 80.0, 0.0),
+                    GlobalLoop(index[names[2]], "displacement", index[names[1]], 30.0, 0.02)]
+    start = np.array([x0[n] for n in names])
+    exact = method_of_steps(reference, global_loops, 0.2, start, np.zeros(len(names)), rtol=1e-12, atol=1e-14)
+    errors = []
+    for dt in (2e-3, 1e-3):
+        result = ctmm.simulate(system, 0.2, dt, method="newmark", x0=x0, compiled=True)
+        errors.append(float(np.max(np.abs(_positions(result, names) - exact.evaluate(result.time).displacement))))
+    order = np.log2(errors[0] / errors[1])
+    assert abs(order - 2.0) < 0.3, (errors, order)
+
+
+def test_what_the_generated_step_refuses():
+    system, names, _ = _controlled()
+    lti = ControlledChain(system.plant, [Feedback("c", f"{names[-1]}.x", names[0], gain=ctmm_tf())])
+    with pytest.raises(ModelError, match="LTI controller"):
+        ctmm.simulate(lti, 0.01, 1e-3, method="newmark", compiled=True)
+    with pytest.raises(ModelError, match="whole multiple"):
+        ctmm.simulate(system, 0.012, 3e-3, method="newmark", compiled=True)
     massless = ctmm.Chain("springs", [Fixed("s"), Spring("k0", 10.0), Spring("k1", 10.0), Mass("m", 1.0), Free("e")])
     with pytest.raises(ModelError, match="without inertia"):
         ctmm.simulate(massless, 0.01, 1e-3, method="newmark", compiled=True)
+
+
+def ctmm_tf():
+    import control
+
+    return control.tf([5.0], [0.01, 1.0])
