@@ -17,8 +17,8 @@ The step imposes the equation of motion at the scheme's evaluation level, as the
 with the loads weighted ``(1 - w) s(t_n) + w s(t_n + h)`` (``w`` the scheme's load weight), so the
 correction of every node solves ``(C I - cx Ax - A Av) delta = Ax P_dx h + Av P_B h + f_eval - P_D h``:
 a tridiagonal matrix for chains without inerters, factorised once (its LU factors are constants of
-the C, the solve unrolled: ``O(n)`` per step), or the constant inverse for chains whose inerters couple
-every node.  Houbolt's two Newmark start-up steps are the other branch of a short-circuit
+the C, the two substitutions loops in it: ``O(n)`` per step, code size independent of ``n``), or the
+constant inverse for chains whose inerters couple every node.  Houbolt's two Newmark start-up steps are the other branch of a short-circuit
 ``if_else`` on the step index.  The step, ``store_every`` strides and blocks of stored states are those
 of every generated scene (:mod:`ctmm.generated_loop`); ``dt`` is a constant of the code (the cache key).
 
@@ -125,30 +125,31 @@ class SchemeMaps:
 
 
 def _solver(matrix: np.ndarray) -> Any:
-    """A casadi ``Function`` ``rhs -> matrix^-1 rhs`` [SX, unrolled]: the LU factors of a tridiagonal matrix
-    as constants (no pivoting: the step matrices are diagonally dominant), or the constant inverse."""
+    """A casadi ``Function`` ``rhs -> matrix^-1 rhs``: for a tridiagonal matrix its LU factors (no pivoting: the
+    step matrices are diagonally dominant) as constants and the two substitutions as ``mapaccum`` loops (a
+    loop in the C, so the code does not grow with the chain); else the constant inverse."""
     import casadi as ca
 
     m = matrix.shape[0]
-    rhs = ca.SX.sym("rhs", m)
-    banded = m < 3 or not np.any(np.triu(matrix, 2)) and not np.any(np.tril(matrix, -2))
+    rhs = ca.MX.sym("rhs", m)
+    banded = m >= 3 and not np.any(np.triu(matrix, 2)) and not np.any(np.tril(matrix, -2))
     if not banded:
         return ca.Function("solve", [rhs], [ca.mtimes(ca.DM(np.linalg.inv(matrix)), rhs)])
     diagonal = np.diag(matrix).astype(float).copy()
-    lower = np.diag(matrix, -1).astype(float)
-    upper = np.diag(matrix, 1).astype(float)
-    factors = np.zeros(max(m - 1, 0))
-    for i in range(1, m):                                        # Thomas: L U with unit lower L
-        factors[i - 1] = lower[i - 1] / diagonal[i - 1]
-        diagonal[i] -= factors[i - 1] * upper[i - 1]
-    forward = [rhs[0]]
+    lower, upper = np.diag(matrix, -1).astype(float), np.diag(matrix, 1).astype(float)
+    factors = np.zeros(m)                                        # Thomas: L U with unit lower L
     for i in range(1, m):
-        forward.append(rhs[i] - factors[i - 1] * forward[i - 1])
-    out = [None] * m
-    out[m - 1] = forward[m - 1] / diagonal[m - 1]
-    for i in range(m - 2, -1, -1):
-        out[i] = (forward[i] - upper[i] * out[i + 1]) / diagonal[i]
-    return ca.Function("solve", [rhs], [ca.vertcat(*out)])
+        factors[i] = lower[i - 1] / diagonal[i - 1]
+        diagonal[i] -= factors[i] * upper[i - 1]
+    previous, factor, value, scale = (ca.SX.sym(label) for label in ("previous", "factor", "value", "scale"))
+    forward = ca.Function("forward", [previous, factor, value], [value - factor * previous]).mapaccum("forward_all", m)
+    backward = ca.Function("backward", [previous, factor, value, scale],
+                           [(value - factor * previous) / scale]).mapaccum("backward_all", m)
+    reverse = list(range(m - 1, -1, -1))
+    partial = forward(0, ca.DM(factors).T, rhs.T)
+    solution = backward(0, ca.DM(np.concatenate([[0.0], upper[::-1]])).T, partial[:, reverse],
+                        ca.DM(diagonal[::-1]).T)
+    return ca.Function("solve", [rhs], [solution[:, reverse].T])
 
 
 @dataclass(frozen=True)
@@ -288,10 +289,10 @@ class CompiledChainScheme:
         Ax, Av = form.Ax, form.Av
         matrix = maps.C * np.eye(m) - maps.cx * Ax - maps.A * Av
         solve = _solver(matrix)
-        y, t_n = ca.SX.sym("y", self.state_size), ca.SX.sym("t")
+        y, t_n = ca.MX.sym("y", self.state_size), ca.MX.sym("t")
         parts = [y[j * m:(j + 1) * m] for j in range(5)]
         dx, B, D = (sum((float(maps.coefficients[r, c]) * parts[c] for c in range(5) if maps.coefficients[r, c]),
-                        ca.SX.zeros(m)) for r in range(3))
+                        ca.MX.zeros(m)) for r in range(3))
         forcing = ca.DM(form.a0)
         for column, signal in form.loads:
             symbolic = symbolic_signal(type(signal), t_n + dt, signal_parameters(signal))
@@ -322,7 +323,7 @@ class CompiledChainScheme:
                                  f"dt = {dt!r} s (their gains cancel the inertia); change their gains")
             delta = delta - ca.mtimes(ca.DM(W), ca.mtimes(ca.DM(np.linalg.solve(small, rows)), delta))
         every = parts + [delta]
-        new = [sum((float(maps.update[r, c]) * every[c] for c in range(6) if maps.update[r, c]), ca.SX.zeros(m))
+        new = [sum((float(maps.update[r, c]) * every[c] for c in range(6) if maps.update[r, c]), ca.MX.zeros(m))
                for r in range(5)]
         for lp in self.loops:
             if lp.steps:
