@@ -3,7 +3,8 @@
 ``ctmm.simulate(chain, t_final, dt, method="rk4" | <solve_ivp method>)`` integrates a plain
 :class:`~ctmm.system.Chain` of lumped elements as a first-order system built from the element terms
 (:mod:`ctmm.lumped_forms`, ``d = 1``): the accelerations of the nodes with inertia are
-:func:`~ctmm.lumped_forms.explicit_accelerations` (one articulated sweep per rate evaluation).
+:func:`~ctmm.lumped_forms.explicit_accelerations`, read once as certified affine rates (:mod:`ctmm.chain_affine`:
+one sparse mat-vec per rate) where the chain has them, else one articulated sweep per rate evaluation.
 
 Nodes (:class:`~ctmm.lumped_forms.LumpedTree`) fall in three kinds:
 

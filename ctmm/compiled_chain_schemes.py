@@ -26,9 +26,14 @@ Stored: positions and velocities of the scheme; accelerations and forces at the 
 equation of motion at the stored states (as the ODE path; the Python DT-TMM path stores the scheme's own
 acceleration, which differs from it by the scheme's error for Wilson-theta and generalized-alpha).
 
+Loops (:class:`SchemeLoop`) close as :mod:`ctmm.control.simulate` closes them: real-time loops implicit in
+the step (their rank-``k`` part by the Woodbury identity on the banded solve), delayed loops (``delay = m
+dt``) from rings of samples in the generated state with the scheme's load weighting, LTI controllers on
+the step grid by the trapezoidal rule, references as :mod:`ctmm.signals` signals.
+
 Refused (:class:`~ctmm.errors.ModelError`): what the generated RK4 of chains refuses (massless points,
-prescribed boundary motions, load signals without a symbolic form) and loops (a ``ControlledChain`` with a
-DT-TMM scheme keeps the Python path: ``compiled=False``).
+prescribed boundary motions, load signals without a symbolic form, delays that are not whole multiples
+of ``dt``), saturated loops (linear in the step) and co-simulated controllers.
 """
 from __future__ import annotations
 
@@ -44,7 +49,7 @@ from . import validation
 from .chain_ode import ChainDynamics, chain_result
 from .codegen import load_casadi
 from .compiled_chain import affine_form, sensor_row, whole_steps
-from .compiled_loops import delay_steps
+from .compiled_loops import controller_realisation, delay_steps
 from .compiled_references import reference_at, symbolic_reference
 from .control.chain_plant import ChainPlant
 from .control.planar_time import loop_unit
@@ -154,10 +159,13 @@ def _solver(matrix: np.ndarray) -> Any:
 
 @dataclass(frozen=True)
 class SchemeLoop:
-    """One static-gain loop of a controlled chain in the generated DT-TMM step: ``u = -gain (y - r)`` with
-    ``y = row [x; v] + offset`` [sensed unit], on the accelerations ``column`` [1/kg] (the weighted actuator
-    columns), delay ``steps * dt`` (``0``: real time, implicit in the step; else from the ring of the last
-    ``steps + 1`` samples of ``y`` in the generated state, starting at ``ring``)."""
+    """One loop of a controlled chain in the generated DT-TMM step: ``u = -C[y - r]`` with ``y = row [x; v] +
+    offset`` [sensed unit], on the accelerations ``column`` [1/kg] (the weighted actuator columns), delay
+    ``steps * dt`` (``0``: real time, implicit in the step; else from the ring of the last ``steps + 1``
+    samples of ``y`` in the generated state, starting at ``ring``).  The controller on the step grid as
+    :mod:`ctmm.control.simulate` realises it (trapezoidal rule): ``z' = M1 z + M2 (e_n + e_{n+1})``,
+    ``u = -(Cz z + D e)``, ``gain = Cz M2 + D`` (a static gain: ``k = 0``, ``gain = D``); ``[z, e_n, u_n]``
+    at ``memory`` in the generated state (``-1`` for a static real-time loop, which keeps none)."""
 
     loop: Any
     gain: float
@@ -167,6 +175,25 @@ class SchemeLoop:
     steps: int
     reference: Any
     ring: int
+    M1: np.ndarray
+    M2: np.ndarray
+    Cz: np.ndarray
+    D: float
+    memory: int
+
+    @property
+    def order(self) -> int:
+        """Controller states ``k``."""
+        return self.M2.size
+
+
+def _trapezoidal(loop: Any, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """``(M1, M2, Cz, D)`` of the loop's controller on steps ``dt`` [s] (trapezoidal rule; ``k = 0`` for a gain)."""
+    A, B, C, D = controller_realisation(loop)
+    if not A.size:
+        return np.zeros((0, 0)), np.zeros(0), np.zeros(0), float(D)
+    left = np.eye(A.shape[0]) - 0.5 * dt * A
+    return np.linalg.solve(left, np.eye(A.shape[0]) + 0.5 * dt * A), np.linalg.solve(left, 0.5 * dt * B), C, float(D)
 
 
 class CompiledChainScheme:
@@ -175,8 +202,8 @@ class CompiledChainScheme:
     Parameters
     ----------
     system : Chain or ControlledChain
-        The chain; a controlled chain's static-gain loops (real-time or delayed by whole steps) are closed
-        in the step as the Python DT-TMM path closes them.
+        The chain; a controlled chain's loops (static gains and LTI controllers, real-time or delayed by
+        whole steps) are closed in the step as the Python DT-TMM path closes them.
     dt : float
         Step [s] (a constant of the generated code).
     scheme : Scheme or str
@@ -193,7 +220,7 @@ class CompiledChainScheme:
     scheme : Scheme
     loops : list of SchemeLoop
     state_size : int
-        ``5 m`` (``[x, v, a, x_{n-1}, x_{n-2}]`` of the ``m`` moving masses), then the rings of the delayed loops.
+        ``5 m`` (``[x, v, a, x_{n-1}, x_{n-2}]`` of the ``m`` moving masses), then each loop's memory and ring.
     compile_time_s : float
     """
 
@@ -215,9 +242,6 @@ class CompiledChainScheme:
                                  "method='rk4')")
         ports = self.plant.ports
         for loop in loops:
-            if loop.is_lti:
-                raise ModelError(f"loop {loop.name!r}: an LTI controller is not in the generated DT-TMM step of a "
-                                 "chain yet (use compiled=False, or method='rk4' with compiled=True)")
             for name, _ in loop.terms:
                 ports.check_sensor(name, f"sensor of loop {loop.name!r}")
             for name, _ in loop.actuator_terms:
@@ -237,7 +261,11 @@ class CompiledChainScheme:
                          np.zeros(m))
             steps = delay_steps(loop.name, loop.delay, self.dt)
             reference = symbolic_reference(f"references[{loop.name!r}]", references.get(loop.name, 0.0))
-            self.loops.append(SchemeLoop(loop, float(loop.gain), row, float(offset), column, steps, reference, size))
+            M1, M2, Cz, D = _trapezoidal(loop, self.dt)
+            memory = size if (M2.size or steps) else -1
+            size += M2.size + 2 if memory >= 0 else 0
+            self.loops.append(SchemeLoop(loop, float(Cz @ M2) + D, row, float(offset), column, steps, reference,
+                                         size, M1, M2, Cz, D, memory))
             size += steps + 1 if steps else 0
         self.state_size = size
         maps = [SchemeMaps(self.scheme, self.dt, 0)]
@@ -303,15 +331,19 @@ class CompiledChainScheme:
             + forcing - D
         t_eval = t_n + maps.offset
         now = [lp for lp in self.loops if lp.steps == 0]
-        for lp in self.loops:
-            if lp.steps == 0:                          # u_eval = -g (y_eval - r): the known part here
+        for lp in self.loops:                          # u_eval = -(gain e_eval + controller offset)
+            k, memory = lp.order, lp.memory
+            offset = 0.0
+            if k:
+                z, e_n = y[memory:memory + k], y[memory + k]
+                offset = ca.dot(ca.DM(lp.Cz), ca.mtimes(ca.DM(lp.M1), z) + ca.DM(lp.M2) * e_n)
+            if lp.steps == 0:                          # real time: the known part here, the rest implicit
                 known = ca.dot(ca.DM(lp.row[:m]), dx) + ca.dot(ca.DM(lp.row[m:]), B) + lp.offset
-                rhs = rhs - lp.gain * ca.DM(lp.column) * (known - reference_at(lp.reference, t_eval))
+                rhs = rhs - ca.DM(lp.column) * (lp.gain * (known - reference_at(lp.reference, t_eval)) + offset)
             else:
                 tau = lp.steps * dt
-                before = -lp.gain * (y[lp.ring] - reference_at(lp.reference, t_n - tau))
-                after = -lp.gain * (y[lp.ring + 1] - reference_at(lp.reference, t_n + dt - tau))
-                rhs = rhs + ca.DM(lp.column) * ((1.0 - w) * before + w * after if w != 1.0 else after)
+                after = -(lp.gain * (y[lp.ring + 1] - reference_at(lp.reference, t_n + dt - tau)) + offset)
+                rhs = rhs + ca.DM(lp.column) * ((1.0 - w) * y[memory + k + 1] + w * after if w != 1.0 else after)
         delta = solve(rhs)
         if now:                                        # (S + b g r_delta^T) delta = rhs, r_delta = cx r_x + A r_v
             columns = np.column_stack([lp.column for lp in now])
@@ -325,22 +357,31 @@ class CompiledChainScheme:
         every = parts + [delta]
         new = [sum((float(maps.update[r, c]) * every[c] for c in range(6) if maps.update[r, c]), ca.MX.zeros(m))
                for r in range(5)]
-        for lp in self.loops:
+        for lp in self.loops:                          # the controller advances, the ring takes the new sample
+            k, memory = lp.order, lp.memory
+            sample = ca.dot(ca.DM(lp.row[:m]), new[0]) + ca.dot(ca.DM(lp.row[m:]), new[1]) + lp.offset
+            if memory < 0:
+                continue
+            t_next = t_n + dt - lp.steps * dt
+            e_now = (y[lp.ring + 1] if lp.steps else sample) - reference_at(lp.reference, t_next)
+            z = ca.mtimes(ca.DM(lp.M1), y[memory:memory + k]) + ca.DM(lp.M2) * (y[memory + k] + e_now) if k \
+                else ca.MX(0, 1)
+            u_now = -(ca.dot(ca.DM(lp.Cz), z) if k else 0.0) - lp.D * e_now
+            new.append(ca.vertcat(z, e_now, u_now))
             if lp.steps:
-                sample = ca.dot(ca.DM(lp.row[:m]), new[0]) + ca.dot(ca.DM(lp.row[m:]), new[1]) + lp.offset
                 new.append(ca.vertcat(y[lp.ring + 1:lp.ring + lp.steps + 1], sample))
         return ca.Function(label, [y, t_n], [ca.vertcat(*new)])
 
-    def loop_forces(self, t: float, x: np.ndarray, v: np.ndarray, ring_values: np.ndarray | None = None
-                    ) -> list[float]:
-        """``u`` [actuator unit] of every loop at ``t`` [s] and state ``x``, ``v`` (a delayed loop's delayed sample
-        from the state's ring, or the held start)."""
-        out = []
+    def loop_forces(self, t: float, state: np.ndarray) -> list[float]:
+        """``u`` [actuator unit] of every loop at ``t`` [s] in a generated ``state`` (a static real-time loop from
+        the positions and velocities; the others keep their last output in the state)."""
+        m, out = self.m, []
         for lp in self.loops:
-            y = float(lp.row @ np.concatenate([x, v])) + lp.offset
-            if lp.steps:
-                y = float(ring_values[lp.ring]) if ring_values is not None else y
-            out.append(-lp.gain * (y - float(lp.reference(t - lp.steps * self.dt))))
+            if lp.memory >= 0:
+                out.append(float(state[lp.memory + lp.order + 1]))
+            else:
+                y = float(lp.row @ state[:2 * m]) + lp.offset
+                out.append(-lp.gain * (y - float(lp.reference(t))))
         return out
 
     def actuator_inputs(self, forces: Sequence[float]) -> dict | None:
@@ -353,14 +394,20 @@ class CompiledChainScheme:
 
     def start(self, x0: Mapping[str, float] | None, v0: Mapping[str, float] | None) -> np.ndarray:
         """The generated state at ``t = 0``: positions, velocities, the acceleration of the equation of motion
-        with the loops' start forces, the positions as the older history, and the rings holding the start's
-        sample (the state held before ``t = 0``, as :func:`ctmm.control.simulate.simulate_controlled` starts)."""
+        with the loops' start forces ``u_0 = -D (y_0 - r(-tau))``, the positions as the older history, each
+        loop's ``[z = 0, e_0 = y_0 - r(0), u_0]`` and ring holding ``y_0`` (the state held before ``t = 0``, as
+        :func:`ctmm.control.simulate.simulate_controlled` starts)."""
         q, w = self.plant.start(x0, v0)
-        forces = self.loop_forces(0.0, q, w)
+        blocks, forces = [], []
+        for lp in self.loops:
+            y0 = float(lp.row @ np.concatenate([q, w])) + lp.offset
+            forces.append(-lp.D * (y0 - float(lp.reference(-lp.steps * self.dt))))
+            if lp.memory >= 0:
+                blocks.append(np.concatenate([np.zeros(lp.order), [y0 - float(lp.reference(0.0)), forces[-1]]]))
+            if lp.steps:
+                blocks.append(np.full(lp.steps + 1, y0))
         a = self.dynamics.rate(0.0, np.concatenate([q, w]), self.actuator_inputs(forces))[self.m:]
-        rings = [np.full(lp.steps + 1, float(lp.row @ np.concatenate([q, w])) + lp.offset)
-                 for lp in self.loops if lp.steps]
-        return np.concatenate([q, w, a, q, q, *rings])
+        return np.concatenate([q, w, a, q, q, *blocks])
 
     def run(self, state: np.ndarray, n_steps: int) -> np.ndarray:
         """Stored states (rows, :attr:`state_size`) after every ``store_every`` steps and the last."""
@@ -448,7 +495,7 @@ def _result(compiled: CompiledChainScheme, times: np.ndarray, states: np.ndarray
     m, label = compiled.m, info["method"]
     if not compiled.loops:
         return chain_result(compiled.dynamics, list(times), list(states[:, :2 * m]), label, dict(info))
-    forces = np.array([compiled.loop_forces(float(t), row[:m], row[m:2 * m], row) for t, row in zip(times, states)])
+    forces = np.array([compiled.loop_forces(float(t), row) for t, row in zip(times, states)])
     forces = forces.reshape(len(times), len(compiled.loops))
     inputs = [compiled.actuator_inputs(row) for row in forces]
     plant, system = compiled.plant, compiled.system

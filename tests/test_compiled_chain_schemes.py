@@ -149,19 +149,29 @@ def test_generated_loops_converge_at_the_scheme_order_to_the_method_of_steps():
     assert abs(order - 2.0) < 0.3, (errors, order)
 
 
+@pytest.mark.parametrize("scheme", ["newmark", "wilson_theta"])
+def test_lti_controllers_advance_as_the_python_dttmm_step(scheme):
+    control = pytest.importorskip("control")
+    system, names, x0 = _controlled()
+    loops = [Feedback("lag", [(f"{names[-1]}.x", 1.0), (f"{names[-1]}.v", 0.05)], names[0],
+                      gain=control.tf([40.0, 200.0], [0.02, 1.0])),
+             Feedback("late", f"{names[2]}.v", names[1], gain=control.tf([3.0], [0.01, 1.0]), delay=0.004)]
+    system = system.with_loops(loops)
+    references = {"lag": Harmonic(0.01, 20.0), "late": 0.02}
+    generated = ctmm.simulate(system, 0.2, 1e-3, method=scheme, x0=x0, compiled=True, references=references)
+    python = ctmm.simulate(system, 0.2, 1e-3, method=scheme, x0=x0, references=references)
+    assert np.max(np.abs(_positions(generated, names) - _positions(python, names))) < 1e-12 * 0.05
+    for name in ("lag.u", "late.u"):
+        assert np.max(np.abs(generated[name] - python[name])) < 1e-11 * np.max(np.abs(python[name])), name
+
+
 def test_what_the_generated_step_refuses():
     system, names, _ = _controlled()
-    lti = ControlledChain(system.plant, [Feedback("c", f"{names[-1]}.x", names[0], gain=ctmm_tf())])
-    with pytest.raises(ModelError, match="LTI controller"):
-        ctmm.simulate(lti, 0.01, 1e-3, method="newmark", compiled=True)
     with pytest.raises(ModelError, match="whole multiple"):
         ctmm.simulate(system, 0.012, 3e-3, method="newmark", compiled=True)
+    saturated = system.with_loops([Feedback("s", f"{names[-1]}.x", names[0], gain=5.0, saturation=(-1.0, 1.0))])
+    with pytest.raises(ModelError, match="saturates"):
+        ctmm.simulate(saturated, 0.01, 1e-3, method="newmark", compiled=True)
     massless = ctmm.Chain("springs", [Fixed("s"), Spring("k0", 10.0), Spring("k1", 10.0), Mass("m", 1.0), Free("e")])
     with pytest.raises(ModelError, match="without inertia"):
         ctmm.simulate(massless, 0.01, 1e-3, method="newmark", compiled=True)
-
-
-def ctmm_tf():
-    import control
-
-    return control.tf([5.0], [0.01, 1.0])
