@@ -59,6 +59,7 @@ from .results import SimulationResult
 from .saturation import refuse_saturation
 from .schemes import History, Scheme, as_scheme
 from .signal_results import SignalSystem, signal_result
+from .step_limit import check_scheme_step
 from .signals import signal_parameters, symbolic_signal
 
 __all__ = ["SchemeMaps", "CompiledChainScheme", "simulate_chain_scheme_generated", "simulate_scheme_verb"]
@@ -467,6 +468,7 @@ def simulate_chain_scheme_generated(system: Any, t_final: float, dt: float, sche
                          f"store_every={store_every!r}, got {compiled!r}")
     for name in outputs:
         system.signal(name)
+    check_scheme_step(compiled.plant.chain, compiled.scheme, dt, None)     # the scheme's step limit, as in Python
     first = compiled.start(x0, v0)
     started = _time.perf_counter()
     states = compiled.run(first, n_steps)

@@ -175,3 +175,5 @@ def test_what_the_generated_step_refuses():
     massless = ctmm.Chain("springs", [Fixed("s"), Spring("k0", 10.0), Spring("k1", 10.0), Mass("m", 1.0), Free("e")])
     with pytest.raises(ModelError, match="without inertia"):
         ctmm.simulate(massless, 0.01, 1e-3, method="newmark", compiled=True)
+    with pytest.raises(ModelError, match="gamma"):                   # no stable step: refused before the run
+        ctmm.simulate(system.plant, 0.01, 1e-3, method=Newmark(0.25, 0.4), compiled=True)
