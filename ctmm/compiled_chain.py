@@ -414,7 +414,7 @@ def _result(system: Any, chain: CompiledChain, times: np.ndarray, states: np.nda
     if chain.loops is None:
         return chain_result(plant.dynamics, list(times), list(states), "rk4-generated", dict(info))
     loops = chain.loops
-    y, u = loops.signals()(states, times)
+    y, u, demand = loops.signals()(states, times, demand=True)
     rows = []
     for k, t in enumerate(times):
         values: dict[str, float] = {}
@@ -431,6 +431,12 @@ def _result(system: Any, chain: CompiledChain, times: np.ndarray, states: np.nda
         signals[f"{law.name}.y"], signals[f"{law.name}.u"] = y[:, j], u[:, j]
         units[f"{law.name}.y"] = loop_unit(plant.ports, loop, "y")
         units[f"{law.name}.u"] = loop_unit(plant.ports, loop, "u")
+        if law.saturation is not None:          # as the loop driver: the demand, where it is beyond a limit
+            beyond = (demand[:, j] < law.saturation[0]) | (demand[:, j] > law.saturation[1])
+            signals[f"{law.name}.u_demand"], signals[f"{law.name}.saturated"] = demand[:, j], beyond.astype(float)
+            units[f"{law.name}.u_demand"], units[f"{law.name}.saturated"] = units[f"{law.name}.u"], ""
+            info = {**info, "time_saturated_s": {**info.get("time_saturated_s", {}),
+                                                 law.name: float(np.sum(np.diff(times)[beyond[:-1]]))}}
     info = {**info, "loops": {law.name: ("real-time" if law.steps == 0 else "history") for law in loops.laws}}
     return signal_result(SignalSystem(system, units, list(getattr(system, "loops", ()))), times, signals,
                          "rk4-generated", info)

@@ -114,6 +114,9 @@ def test_the_generated_rk4_clips_as_the_python_path():
     generated = ctmm.simulate(realtime(), 0.5, 1e-3, method="rk4", x0={"m1": X0}, compiled=True)
     assert np.max(np.abs(positions(generated) - positions(python))) < 1e-13
     assert np.max(np.abs(generated["pd.u"])) <= LIMIT
+    for name in ("pd.u", "pd.u_demand", "pd.saturated"):
+        assert np.max(np.abs(generated[name] - python[name])) < 1e-10 * np.max(np.abs(python[name])), name
+    assert generated.info["time_saturated_s"] == pytest.approx(python.info["time_saturated_s"])
 
 
 @pytest.mark.parametrize("verb", [
