@@ -25,7 +25,7 @@ Massless nodes (whose positions follow from a force balance, :mod:`ctmm.chain_od
 """
 from __future__ import annotations
 
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 import scipy.sparse
@@ -171,6 +171,19 @@ class LinearRates:
                 for name, value in values.items():
                     if value != 0.0:
                         out += float(value) * self.column(position, name)
+        return out
+
+    def accelerations_rows(self, times: np.ndarray, states: np.ndarray, motion: np.ndarray,
+                           extras: Sequence[Mapping[int, Mapping[str, float]] | None]) -> np.ndarray:
+        """:meth:`accelerations` of many rows ``(rows, m)``: states ``[x_I, v_I]`` ``(rows, 2 m)`` at ``times`` [s],
+        boundary motions ``m(t)`` ``(rows, 6)`` and the actuator inputs ``extras[i]`` of each row."""
+        out = np.asarray((self.stiffness @ states.T).T) + self.constant + motion @ self.motion.T
+        for column, signal in self.loads:
+            out += np.outer([float(signal(t)) for t in times], column)
+        for i, extra in enumerate(extras):
+            for position, values in (extra or {}).items():
+                for name, value in values.items():
+                    out[i] += float(value) * self.column(position, name)
         return out
 
     def certify(self, trials: int = 2, seed: int = 12) -> bool:

@@ -43,7 +43,7 @@ from .guard import DivergenceGuard
 from .lumped_forms import LumpedTree, explicit_accelerations, lumped_tree, massless_nodes
 from .ode import rk4_step
 from .chain_affine import LinearRates, linear_rates
-from .chain_point_forces import point_forces_rows
+from .chain_point_rows import point_values_rows
 from .closed_form_rates import signal_derivatives
 from .results import SimulationResult
 from .signals import Constant
@@ -418,45 +418,9 @@ class ChainDynamics:
     def point_values_rows(self, times: np.ndarray, states: np.ndarray,
                           extras: Sequence[Mapping[int, Mapping[str, float]] | None] | None = None
                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """:meth:`point_values` of many rows (``(rows, n_points)`` each; ``extras`` per row): one batched
-        sweep for the accelerations when no node is massless (else one sweep per row)."""
-        times = np.asarray(times, dtype=float)
-        rows = len(times)
-        extras = list(extras) if extras is not None else [None] * rows
-        if self.index_Q.size or rows < 2:
-            out = np.zeros((4, rows, self.chain.n_points))
-            for i in range(rows):
-                out[:, i] = self.point_values(float(times[i]), np.asarray(states[i]), extras[i])
-            return out[0], out[1], out[2], out[3]
-        n, I = self.tree.n_nodes, self.index_I
-        m = I.size
-        x, v = np.zeros((rows, n)), np.zeros((rows, n))
-        x[:, I], v[:, I] = states[:, :m], states[:, m:2 * m]
-        motion = np.array([self._start_motion(t) for t in times]) if self._start_motion is not None else None
-        if motion is not None:
-            x[:, self.held], v[:, self.held] = motion[:, [0]], motion[:, [1]]
-        walls = np.array([self.wall_motion(t) for t in times], dtype=float).reshape(rows, 3)
-        merged: dict[int, dict[str, np.ndarray]] = {}
-        for i, t in enumerate(times):
-            for position, values in self.inputs(float(t), extras[i]).items():
-                for name, value in values.items():
-                    merged.setdefault(position, {}).setdefault(name, np.zeros(rows))[i] = value
-        inputs = {position: {name: column[:, None, None] for name, column in values.items()}
-                  for position, values in merged.items()}
-        a = self.forces(x, v, float(times[0]), inputs, (walls[:, 0], walls[:, 1], walls[:, 2]))
-        if motion is not None:
-            a[:, self.held] = motion[:, [2]]
-        k = self.node_of_point
-        on_wall = k < 0
-        xp, vp, ap = x[:, k], v[:, k], a[:, k]
-        for values, part in ((xp, 0), (vp, 1), (ap, 2)):
-            values[:, on_wall] = walls[:, [part]]
-        across = [{position: sum(values.values()) for position, values in (extra or {}).items()} for extra in extras]
-        forces = point_forces_rows(self.chain, times, xp, vp, ap, across)
-        if forces is None:                  # a nonlinear connector law: row by row
-            forces = np.array([initial_forces(self.chain, xp[i][:, None], vp[i][:, None], across[i], ap[i][:, None],
-                                              float(t)) for i, t in enumerate(times)])
-        return xp, vp, ap, forces
+        """:meth:`point_values` of many rows (``(rows, n_points)`` each; ``extras`` per row), all at once
+        (:func:`ctmm.chain_point_rows.point_values_rows`)."""
+        return point_values_rows(self, times, states, extras)
 
 
 def simulate_chain_ode(chain, t_final: float, dt: float | None, *, method: str = "rk4",

@@ -1,5 +1,5 @@
 """The affine explicit rates of lumped chains (``ctmm/chain_affine.py``) and the row-batched point forces
-(``ctmm/chain_point_forces.py``) behind the fast ODE path of chains.
+(``ctmm/chain_point_rows.py``) behind the fast ODE path of chains.
 
 Independent references: the global ``M, C, K`` of ``reference/chain.py`` and ``reference/inerter_chain.py``
 (assembled from the element parameters only), and closed-form boundary forces.
