@@ -90,3 +90,23 @@ def test_fast_rk4_meets_the_matrix_exponential_at_many_masses():
     result = ctmm.simulate(chain, 0.05, 1e-3, method="rk4", x0=dict(zip(names, x0)))
     error = max(float(np.max(np.abs(result[f"{n}.x"] - exact[:, i]))) for i, n in enumerate(names))
     assert error < 1e-3 * np.max(np.abs(x0))
+
+
+def test_stored_accelerations_and_forces_of_a_controlled_run_obey_the_global_equations():
+    from ctmm.control import ControlledChain, Feedback
+
+    load = Harmonic(2.0, 5.0)
+    chain = ctmm.Chain("driven", [Fixed("s"), SpringDamper("k0", 100.0, 0.2), Mass("m0", 2.0, force=load),
+                                  SpringDamper("k1", 50.0, 0.1), Mass("m1", 0.5), Free("e")])
+    system = ControlledChain(chain, [Feedback("pd", [("m0.x", 30.0), ("m0.v", 2.0)], "m1", gain=1.0)])
+    result = ctmm.simulate(system, 0.3, 1e-3, method="rk4", x0={"m0": 0.05})
+    x = np.column_stack([result["m0.x"], result["m1.x"]])
+    v = np.column_stack([result["m0.v"], result["m1.v"]])
+    K = np.array([[150.0, -50.0], [-50.0, 50.0]])
+    C = np.array([[0.3, -0.1], [-0.1, 0.1]])
+    f = np.column_stack([2.0 * np.sin(5.0 * result.time), result["pd.u"]])
+    expected = (f - x @ K.T - v @ C.T) / np.array([2.0, 0.5])
+    assert np.allclose(np.column_stack([result["m0.a"], result["m1.a"]]), expected, rtol=1e-12, atol=1e-12)
+    # the spring-damper k1 carries -k dx - c dv at both of its points
+    assert np.allclose(result["k1.f"], -50.0 * (x[:, 1] - x[:, 0]) - 0.1 * (v[:, 1] - v[:, 0]), rtol=1e-12,
+                       atol=1e-12)
