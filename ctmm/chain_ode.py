@@ -3,7 +3,8 @@
 ``ctmm.simulate(chain, t_final, dt, method="rk4" | <solve_ivp method>)`` integrates a plain
 :class:`~ctmm.system.Chain` of lumped elements as a first-order system built from the element terms
 (:mod:`ctmm.lumped_forms`, ``d = 1``): the accelerations of the nodes with inertia are
-:func:`~ctmm.lumped_forms.explicit_accelerations` (one articulated sweep per rate evaluation).
+:func:`~ctmm.lumped_forms.explicit_accelerations`, read once as certified affine rates (:mod:`ctmm.chain_affine`:
+one sparse mat-vec per rate) where the chain has them, else one articulated sweep per rate evaluation.
 
 Nodes (:class:`~ctmm.lumped_forms.LumpedTree`) fall in three kinds:
 
@@ -41,36 +42,16 @@ from .errors import ModelError, SimulationError
 from .guard import DivergenceGuard
 from .lumped_forms import LumpedTree, explicit_accelerations, lumped_tree, massless_nodes
 from .ode import rk4_step
+from .chain_affine import LinearRates, linear_rates
+from .chain_point_rows import point_values_rows
+from .closed_form_rates import signal_derivatives
 from .results import SimulationResult
-from .signals import Constant, Harmonic
+from .signals import Constant
 
 __all__ = ["ChainDynamics", "chain_result", "simulate_chain_ode", "SCIPY_METHODS"]
 
 SCIPY_METHODS = ("RK45", "RK23", "DOP853", "Radau", "BDF", "LSODA")
 """``solve_ivp`` methods accepted for chains (as for planar models)."""
-
-
-def signal_derivatives(owner: str, what: str, signal: Callable[[float], float]
-                       ) -> Callable[[float], tuple[float, float, float]]:
-    """``t -> (value, rate, second rate)`` of a signal whose derivatives are known exactly.
-
-    For any other signal the returned function raises :class:`ModelError` when called (an ODE
-    needs the rates of a prescribed motion, or of a force on a massless node, in closed form).
-    """
-    if isinstance(signal, Constant):
-        value = signal.value
-        return lambda t: (value, 0.0, 0.0)
-    if isinstance(signal, Harmonic):
-        a, w, p = signal.amplitude, signal.omega, signal.phase
-        return lambda t: (a * math.sin(w * t + p), a * w * math.cos(w * t + p), -a * w * w * math.sin(w * t + p))
-
-    def refuse(t: float) -> tuple[float, float, float]:
-        raise ModelError(f"{owner}: the {what} signal {signal!r} has no closed-form rate, which an ODE method "
-                         "needs (the velocity and acceleration of a prescribed motion, or the rate of a force on a "
-                         "massless node); give a Constant or Harmonic signal, or use a DT-TMM scheme "
-                         "(method='newmark', ...)")
-
-    return refuse
 
 
 class ChainDynamics:
@@ -80,6 +61,9 @@ class ChainDynamics:
     ----------
     chain : Chain
         A plain chain of lumped 1-D elements (no loops, no beams).
+    affine : bool
+        Use the certified affine rates where the chain has them (:mod:`ctmm.chain_affine`); ``False``
+        keeps one sweep per rate (:meth:`swept_rate`, the reference).
 
     Raises
     ------
@@ -89,7 +73,7 @@ class ChainDynamics:
         massless node) without closed-form rates is refused when its rates are needed.
     """
 
-    def __init__(self, chain) -> None:
+    def __init__(self, chain, affine: bool = True) -> None:
         self.chain = chain
         self.tree: LumpedTree = lumped_tree(chain)
         tree = self.tree
@@ -110,6 +94,7 @@ class ChainDynamics:
             self.wall_motion = (signal_derivatives(end.name, "displacement", end.displacement)
                                  if hasattr(end, "displacement") else (lambda t, p=end.position: (p, 0.0, 0.0)))
         self.node_of_point = np.array([tree.node[b] if b >= 0 else -1 for b in tree.point_body])
+        self._linear: LinearRates | None | bool = False if affine else None      # read on first use
         q = self.index_Q
         self.n_r = 0
         if q.size:
@@ -291,7 +276,29 @@ class ChainDynamics:
         return x, v, a
 
     def rate(self, t: float, y: np.ndarray, extra: Mapping[int, Mapping[str, float]] | None = None) -> np.ndarray:
-        """``y' = [v_I, a_I, z_r']`` at ``t`` [s] (``extra`` as in :meth:`nodes`)."""
+        """``y' = [v_I, a_I, z_r']`` at ``t`` [s] (``extra`` as in :meth:`nodes`): the certified affine form
+        (:mod:`ctmm.chain_affine`, one sparse mat-vec) where the chain has one, else :meth:`swept_rate`."""
+        linear = self.linear
+        if linear is not None:
+            m = self.index_I.size
+            return np.concatenate([y[m:2 * m], linear.accelerations(t, y[:m], y[m:2 * m], extra)])
+        return self.swept_rate(t, y, extra)
+
+    @property
+    def linear(self) -> LinearRates | None:
+        """The certified affine rates (:func:`ctmm.chain_affine.linear_rates`), ``None`` where the sweep stays."""
+        if self._linear is False:
+            self._linear = linear_rates(self)
+        return self._linear
+
+    def boundary_motion(self, t: float) -> tuple[float, float, float, float, float, float]:
+        """Position [m], velocity [m/s], acceleration [m/s^2] of the held start points, then of the end's wall."""
+        start = self._start_motion(t) if self._start_motion is not None else (0.0, 0.0, 0.0)
+        return (*start, *self.wall_motion(t))
+
+    def swept_rate(self, t: float, y: np.ndarray, extra: Mapping[int, Mapping[str, float]] | None = None
+                   ) -> np.ndarray:
+        """:meth:`rate` by one articulated sweep of the element terms (the reference of the affine form)."""
         I, q = self.index_I, self.index_Q
         x, v, a = self.nodes(t, y, extra)
         parts = [v[I], a[I]]
@@ -411,44 +418,9 @@ class ChainDynamics:
     def point_values_rows(self, times: np.ndarray, states: np.ndarray,
                           extras: Sequence[Mapping[int, Mapping[str, float]] | None] | None = None
                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """:meth:`point_values` of many rows (``(rows, n_points)`` each; ``extras`` per row): one batched
-        sweep for the accelerations when no node is massless (else one sweep per row)."""
-        times = np.asarray(times, dtype=float)
-        rows = len(times)
-        extras = list(extras) if extras is not None else [None] * rows
-        if self.index_Q.size or rows < 2:
-            out = np.zeros((4, rows, self.chain.n_points))
-            for i in range(rows):
-                out[:, i] = self.point_values(float(times[i]), np.asarray(states[i]), extras[i])
-            return out[0], out[1], out[2], out[3]
-        n, I = self.tree.n_nodes, self.index_I
-        m = I.size
-        x, v = np.zeros((rows, n)), np.zeros((rows, n))
-        x[:, I], v[:, I] = states[:, :m], states[:, m:2 * m]
-        motion = np.array([self._start_motion(t) for t in times]) if self._start_motion is not None else None
-        if motion is not None:
-            x[:, self.held], v[:, self.held] = motion[:, [0]], motion[:, [1]]
-        walls = np.array([self.wall_motion(t) for t in times], dtype=float).reshape(rows, 3)
-        merged: dict[int, dict[str, np.ndarray]] = {}
-        for i, t in enumerate(times):
-            for position, values in self.inputs(float(t), extras[i]).items():
-                for name, value in values.items():
-                    merged.setdefault(position, {}).setdefault(name, np.zeros(rows))[i] = value
-        inputs = {position: {name: column[:, None, None] for name, column in values.items()}
-                  for position, values in merged.items()}
-        a = self.forces(x, v, float(times[0]), inputs, (walls[:, 0], walls[:, 1], walls[:, 2]))
-        if motion is not None:
-            a[:, self.held] = motion[:, [2]]
-        k = self.node_of_point
-        on_wall = k < 0
-        xp, vp, ap = x[:, k], v[:, k], a[:, k]
-        for values, part in ((xp, 0), (vp, 1), (ap, 2)):
-            values[:, on_wall] = walls[:, [part]]
-        forces = np.empty_like(xp)
-        for i, t in enumerate(times):
-            across = {position: sum(values.values()) for position, values in (extras[i] or {}).items()}
-            forces[i] = initial_forces(self.chain, xp[i][:, None], vp[i][:, None], across, ap[i][:, None], float(t))
-        return xp, vp, ap, forces
+        """:meth:`point_values` of many rows (``(rows, n_points)`` each; ``extras`` per row), all at once
+        (:func:`ctmm.chain_point_rows.point_values_rows`)."""
+        return point_values_rows(self, times, states, extras)
 
 
 def simulate_chain_ode(chain, t_final: float, dt: float | None, *, method: str = "rk4",
@@ -585,7 +557,7 @@ def chain_result(dynamics: ChainDynamics, times: Sequence[float], states: Sequen
     count = len(times)
     array = np.zeros((count, n_points, 2))
     velocity, acceleration = np.zeros((count, n_points, 1)), np.zeros((count, n_points, 1))
-    for i, (t, y) in enumerate(zip(times, states)):
-        x, v, a, f = dynamics.point_values(t, np.asarray(y))
-        array[i, :, 0], array[i, :, 1], velocity[i, :, 0], acceleration[i, :, 0] = x, f, v, a
+    if count:
+        x, v, a, f = dynamics.point_values_rows(np.asarray(times, dtype=float), np.asarray(states, dtype=float))
+        array[:, :, 0], array[:, :, 1], velocity[:, :, 0], acceleration[:, :, 0] = x, f, v, a
     return SimulationResult(np.asarray(times, dtype=float), array, velocity, acceleration, chain, method, dict(info))

@@ -2,12 +2,14 @@
 
 A :class:`~ctmm.control.Feedback` with ``saturation=(low, high)`` [actuator unit] applies its force
 clipped to the limits.  The clip is piecewise linear: slope 1 strictly inside the limits, 0 beyond
-them.  The time paths of planar models apply it at every evaluation (:func:`clip`: branch-free, so a
-complex-step or directional-difference tangent through it is the slope of the side it is on); the
-linear verbs (frequency responses, ``ctmm.linearize``, stability, loop transfer functions) and the
-1-D chains, whose loops are embedded linearly, refuse a saturated loop (:func:`refuse_saturation`)
-rather than silently linearising it: the small-signal loop about an operating point inside the
-limits is the loop without its saturation (``Feedback.unsaturated()``).
+them.  The time paths of planar and spatial models, and of 1-D chains with ``"rk4"`` or a
+``solve_ivp`` method (the one loop driver :mod:`ctmm.control.planar_time` and the generated RK4),
+apply it at every evaluation (:func:`clip`: branch-free, so a complex-step or directional-difference
+tangent through it is the slope of the side it is on); the linear verbs (frequency responses,
+``ctmm.linearize``, stability, loop transfer functions) and the DT-TMM schemes of 1-D chains, whose
+loops are embedded linearly, refuse a saturated loop (:func:`refuse_saturation`) rather than silently
+linearising it: the small-signal loop about an operating point inside the limits is the loop without
+its saturation (``Feedback.unsaturated()``).
 """
 from __future__ import annotations
 
@@ -63,6 +65,7 @@ def refuse_saturation(loops: Iterable[Any], what: str) -> None:
     for loop in loops:
         if getattr(loop, "saturation", None) is not None:
             raise ModelError(f"{what} needs linear loops, but loop {loop.name!r} saturates at {loop.saturation}: "
-                             "a saturation is honoured in time (ctmm.simulate on a planar model); for the "
+                             "a saturation is honoured in time (ctmm.simulate; a 1-D chain with method='rk4' or a "
+                             "solve_ivp method); for the "
                              "small-signal loop about an operating point inside the limits use loop.unsaturated() "
                              "(slope 1; a loop at its limit is open, slope 0)")

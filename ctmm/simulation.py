@@ -358,10 +358,13 @@ def _simulate_chain_generated(system: Any, t_final: float, dt: float | None, *, 
                               t0: float, inputs: Any, outputs: Sequence[str], controllers: list, references: dict,
                               store_every: int, divergence_bound: float | None, others: dict) -> SimulationResult:
     """:func:`simulate` of a chain with ``compiled=True``: the generated RK4 (:mod:`ctmm.compiled_chain`)."""
+    if method != "rk4" and not controllers and (isinstance(method, Scheme) or method in SCHEMES):
+        from .compiled_chain_schemes import simulate_scheme_verb
+        return simulate_scheme_verb(system, t_final, dt, method, x0, v0, store_every, divergence_bound, others,
+                                    t0=t0, inputs=inputs, outputs=outputs, references=references)
     if method != "rk4" or controllers:
-        raise ModelError(f"compiled=True runs the generated RK4 of a chain with its loops, inputs and references; "
-                         f"got method={method!r}" + (" with co-simulated controllers (they sample in Python)"
-                                                     if controllers else "") + " (leave compiled at None)")
+        raise ModelError(f"compiled=True runs the generated RK4 or DT-TMM of a chain, got method={method!r}" + (
+            " with co-simulated controllers (they sample in Python)" if controllers else "") + " (leave compiled at None)")
     for name, (value, default) in {**others, "t0": (t0, 0.0)}.items():
         if value is not default and value != default:
             raise ModelError(f"{name}={value!r} does not apply to the generated RK4 of a chain (leave {name} at "

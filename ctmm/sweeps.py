@@ -42,6 +42,7 @@ from .errors import ModelError, SingularSystemError, unknown_name
 from .frequency import assemble, characteristic_function, solve
 from .entire_values import entire_logs
 from .executors import executor_workers, managed_executor, parallel_map
+from .saturation import refuse_saturation
 
 __all__ = ["AffineCharacteristic", "LoopCharacteristic", "normalised_columns", "managed_executor", "executor_workers", "parallel_map",
            "as_controlled", "find_loop", "delay_free_answer"]
@@ -55,6 +56,7 @@ TINY = 1e-13             # components below this (relative to the largest at s) 
 def as_controlled(system: Any, what: str = "stability analysis") -> ControlledChain:
     """``system`` as a :class:`ControlledChain`, or a :class:`ModelError` that says why not."""
     if isinstance(system, ControlledChain):
+        refuse_saturation(system.loops, what)
         return system
     from .system import Chain
 

@@ -119,9 +119,13 @@ def test_the_linear_verbs_refuse_a_saturated_loop(seed):
     assert ctmm.frequency_response(linear, [1.0], input="motor.torque", output="motor.angle").response.shape == (1, 1, 1)
 
 
-def test_a_chain_refuses_a_saturated_loop():
+def test_a_chain_refuses_a_saturated_loop_where_it_embeds_loops_linearly():
     chain = ctmm.Chain("c", [ctmm.elements.Fixed("wall"), ctmm.elements.Spring("k", 10.0),
                              ctmm.elements.Mass("m", 1.0), ctmm.elements.Free("end")])
-    with pytest.raises(ModelError, match=r"1-D ControlledChain .*loop 'pd' saturates at \(-1.0, 1.0\)"):
-        ControlledChain(chain, [Feedback("pd", "m.x", "m", gain=5.0, saturation=(-1.0, 1.0))])
+    saturated = ControlledChain(chain, [Feedback("pd", "m.x", "m", gain=5.0, saturation=(-1.0, 1.0))])
+    with pytest.raises(ModelError, match=r"DT-TMM scheme on a 1-D ControlledChain .*loop 'pd' saturates at "
+                                         r"\(-1.0, 1.0\)"):
+        ctmm.simulate(saturated, 0.1, 0.01, method="newmark", x0={"m": 0.5})
+    with pytest.raises(ModelError, match=r"loop 'pd' saturates at \(-1.0, 1.0\)"):
+        ctmm.frequency_response(saturated, [1.0], input="m.force", output="m.x")
     assert ControlledChain(chain, [Feedback("pd", "m.x", "m", gain=5.0)]).loops[0].saturation is None

@@ -170,7 +170,14 @@ class ChainPorts(NamedPorts):
     def point_kinematics(self, y: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Positions [m] and velocities [m/s] of every connection point at chain state ``y``."""
         dynamics = self.dynamics
-        x, v, _, wall = dynamics.kinematics(t, y)
+        if dynamics.index_Q.size:
+            x, v, _, wall = dynamics.kinematics(t, y)
+        else:                           # no massless node to condense: the states and the held motion only
+            m, n = dynamics.index_I.size, dynamics.tree.n_nodes
+            x, v = np.zeros(n), np.zeros(n)
+            x[dynamics.index_I], v[dynamics.index_I] = y[:m], y[m:2 * m]
+            dynamics.hold(t, x, v)
+            wall = dynamics.wall_motion(t)
         k = dynamics.node_of_point
         xp, vp = x[k], v[k]
         on_wall = k < 0

@@ -232,7 +232,6 @@ class ControlledChain:
                     for i, lp in enumerate(self.loops) if not isinstance(lp, Feedback)]
         if problems:
             raise ModelError(f"controlled chain {self.name!r} is invalid:\n  - " + "\n  - ".join(problems))
-        refuse_saturation(self.loops, f"a 1-D ControlledChain ({self.name!r}: every path embeds its loops linearly)")
         names = [lp.name for lp in self.loops]
         if len(set(names)) != len(names):
             problems.append(f"loop names must be unique, got {names}")
@@ -363,6 +362,7 @@ class ControlledChain:
         """
         from ..frequency import assemble as assemble_plant
 
+        refuse_saturation(self.loops, "the frequency-domain verbs")
         s = np.asarray(s, dtype=complex)
         self._refuse_long_fields(float(np.max(np.abs(s), initial=0.0)))
         plant_amps = {k: v for k, v in amplitudes.items() if not isinstance(k, str)}
@@ -391,6 +391,7 @@ class ControlledChain:
                 sensing_offset=None, columns=None):
         """Extended matrices; ``columns[i]`` = ``[(element position, unit-input load vector), ...]``
         of loop ``i`` (the control force enters like that input)."""
+        refuse_saturation(self.loops, "the embedded (linear) loop matrices of a 1-D ControlledChain")
         nb = s.shape[0] if np.ndim(s) else 1
         d0 = self.plant.layout.size
         n = self.layout.size
@@ -485,6 +486,7 @@ def actuator_inputs(system: ControlledChain, loop: str) -> list[tuple[str, float
     realisation (:mod:`ctmm.interop`) and the certified contour height (:mod:`ctmm.certification`).
     """
     lp = system.loop(loop)
+    refuse_saturation([lp], "a linear model of the loop (state space, linearisation, sensitivity)")
     out = []
     for name, weight in lp.actuator_terms:
         if "." not in name:

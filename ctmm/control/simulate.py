@@ -37,6 +37,7 @@ from ..elements.base import Linearisation
 from ..elements.lumped import PointElement
 from ..errors import ModelError, SimulationError, unknown_name
 from ..results import SimulationResult
+from ..saturation import refuse_saturation
 from ..schemes import History, as_scheme
 from ..signals import as_signal
 from ..system import Chain, require_system
@@ -163,6 +164,8 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
     dt = validation.positive("dt", dt)
     validation.step_count(validation.finite("t_final", t_final), validation.finite("t0", t0), dt)
     controlled = system if isinstance(system, ControlledChain) else ControlledChain(system, [])
+    refuse_saturation(controlled.loops, "a DT-TMM scheme on a 1-D ControlledChain (its loops are embedded linearly "
+                      "in the step; use method='rk4' or a solve_ivp method)")
     plant = controlled.plant
     scheme = as_scheme(scheme)
     if coupling not in ("hold", "previous"):

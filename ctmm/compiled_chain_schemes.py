@@ -1,0 +1,529 @@
+"""Generated DT-TMM steps of 1-D lumped chains: every implicit scheme of :mod:`ctmm.schemes` in C (issue 13).
+
+``ctmm.simulate(chain, t_final, dt, method="newmark" | "generalized_alpha" | "wilson_theta" | "houbolt" |
+"forward_euler" | <Scheme>, compiled=True)`` runs here.  Two readings, both exact and both certified
+before anything is generated:
+
+* **the chain** -- its explicit rates are affine (:func:`ctmm.compiled_chain.affine_form`:
+  ``a = Ax x + Av v + a0 + sum_j L_j s_j(t)``, certified against the sweep);
+* **the scheme** -- its step is linear in the stored history ``h = (x_n, v_n, a_n, x_{n-1}, x_{n-2})``
+  of every point (:class:`SchemeMaps`: ``x_eval = cx delta + P_dx h``, ``v_eval = A delta + P_B h``,
+  ``a_eval = C delta + P_D h`` and the new history ``U [h; delta]``, read from
+  :meth:`~ctmm.schemes.Scheme.coefficients` and :meth:`~ctmm.schemes.Scheme.update` by unit probes on
+  one point and checked at random histories), so a new scheme compiles without touching this module.
+
+The step imposes the equation of motion at the scheme's evaluation level, as the Python DT-TMM path
+(:func:`ctmm.timestep.simulate`) does: ``a_eval = Ax x_eval + Av v_eval + a0 + sum_j L_j s_j^eval``
+with the loads weighted ``(1 - w) s(t_n) + w s(t_n + h)`` (``w`` the scheme's load weight), so the
+correction of every node solves ``(C I - cx Ax - A Av) delta = Ax P_dx h + Av P_B h + f_eval - P_D h``:
+a tridiagonal matrix for chains without inerters, factorised once (its LU factors are constants of
+the C, the two substitutions loops in it: ``O(n)`` per step, code size independent of ``n``), or the
+constant inverse for chains whose inerters couple every node.  Houbolt's two Newmark start-up steps are the other branch of a short-circuit
+``if_else`` on the step index.  The step, ``store_every`` strides and blocks of stored states are those
+of every generated scene (:mod:`ctmm.generated_loop`); ``dt`` is a constant of the code (the cache key).
+
+Stored: positions and velocities of the scheme; accelerations and forces at the points are those of the
+equation of motion at the stored states (as the ODE path; the Python DT-TMM path stores the scheme's own
+acceleration, which differs from it by the scheme's error for Wilson-theta and generalized-alpha).
+
+Loops (:class:`SchemeLoop`) close as :mod:`ctmm.control.simulate` closes them: real-time loops implicit in
+the step (their rank-``k`` part by the Woodbury identity on the banded solve), delayed loops (``delay = m
+dt``) from rings of samples in the generated state with the scheme's load weighting, LTI controllers on
+the step grid by the trapezoidal rule, references as :mod:`ctmm.signals` signals.
+
+Refused (:class:`~ctmm.errors.ModelError`): what the generated RK4 of chains refuses (massless points,
+prescribed boundary motions, load signals without a symbolic form, delays that are not whole multiples
+of ``dt``), saturated loops (linear in the step) and co-simulated controllers.
+"""
+from __future__ import annotations
+
+import os
+import time as _time
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+import scipy.sparse
+
+from . import validation
+from .chain_ode import ChainDynamics, chain_result
+from .codegen import load_casadi
+from .compiled_chain import affine_form, sensor_row, whole_steps
+from .compiled_loops import controller_realisation, delay_steps
+from .compiled_references import reference_at, symbolic_reference
+from .control.chain_plant import ChainPlant
+from .control.planar_time import loop_unit
+from .errors import ModelError, SimulationError
+from .generated_loop import run_blocks, time_loop_functions
+from .results import SimulationResult
+from .saturation import refuse_saturation
+from .schemes import History, Scheme, as_scheme
+from .signal_results import SignalSystem, signal_result
+from .step_limit import check_scheme_step
+from .signals import signal_parameters, symbolic_signal
+
+__all__ = ["SchemeMaps", "CompiledChainScheme", "simulate_chain_scheme_generated", "simulate_scheme_verb"]
+
+HISTORY = ("x", "v", "a", "x_old1", "x_old2")
+"""The stored history of every point, in the order of the generated state."""
+
+
+class SchemeMaps:
+    """A scheme's step of size ``h`` [s] as linear maps of one point's history (module docstring).
+
+    Parameters
+    ----------
+    scheme : Scheme
+    h : float
+        Step [s].
+    steps : int
+        Completed steps of the history the maps are read at (Houbolt starts with two Newmark steps).
+
+    Attributes
+    ----------
+    cx, A, C : float
+        ``x_eval = cx delta + ...``, ``v_eval = A delta + ...`` [1/s], ``a_eval = C delta + ...`` [1/s^2].
+    load_weight : float
+        ``w`` of the new load.
+    offset : float
+        Time of the evaluation level after ``t_n`` [s].
+    coefficients : ndarray, shape (3, 5)
+        Rows ``dx``, ``B``, ``D`` on the history ``(x, v, a, x_{n-1}, x_{n-2})``.
+    update : ndarray, shape (5, 6)
+        The new history from ``[history; delta]``.
+    """
+
+    def __init__(self, scheme: Scheme, h: float, steps: int = 0) -> None:
+        self.scheme, self.h, self.steps = scheme, float(h), int(steps)
+        zero = self._apply(np.zeros(5), 0.0)
+        self.cx, self.A, self.C, self.load_weight, self.offset = zero[0]
+        self.coefficients = np.zeros((3, 5))
+        self.update = np.zeros((5, 6))
+        for k in range(6):
+            unit = np.zeros(6)
+            unit[k] = 1.0
+            scalars, coefficients, new = self._apply(unit[:5], unit[5])
+            if k < 5:
+                self.coefficients[:, k] = coefficients
+            self.update[:, k] = new
+        rng = np.random.default_rng(3)
+        for _ in range(2):                         # linear: the maps reproduce the scheme at random histories
+            sample = rng.standard_normal(6)
+            scalars, coefficients, new = self._apply(sample[:5], sample[5])
+            if not (np.allclose(coefficients, self.coefficients @ sample[:5], rtol=1e-12, atol=1e-12 * (
+                    1.0 + np.max(np.abs(coefficients)))) and np.allclose(new, self.update @ sample, rtol=1e-12,
+                    atol=1e-12 * (1.0 + np.max(np.abs(new)))) and np.allclose(scalars, zero[0])):
+                raise ModelError(f"scheme {scheme!r}: its step is not linear in the stored history, which the "
+                                 "generated DT-TMM step of chains needs (use compiled=False)")
+
+    def _apply(self, history: np.ndarray, delta: float) -> tuple[tuple, np.ndarray, np.ndarray]:
+        """``((cx, A, C, w), (dx, B, D), new history)`` of one point with this history and correction."""
+        point = [np.array([[value]]) for value in history]
+        state = History(point[0], point[1], point[2], [point[3], point[4]], self.steps)
+        coefficients = self.scheme.coefficients(state, self.h)
+        new = self.scheme.update(state, np.array([[delta]]), self.h, coefficients)
+        scalars = (float(coefficients.cx), float(coefficients.A), float(coefficients.C),
+                   float(coefficients.load_weight), float(coefficients.unknown_offset))
+        parts = np.array([float(coefficients.dx[0, 0]), float(coefficients.B[0, 0]), float(coefficients.D[0, 0])])
+        after = np.array([float(new.x[0, 0]), float(new.v[0, 0]), float(new.a[0, 0]), float(new.x_old[0][0, 0]),
+                          float(new.x_old[1][0, 0])])
+        return scalars, parts, after
+
+
+def _solver(matrix: np.ndarray) -> Any:
+    """A casadi ``Function`` ``rhs -> matrix^-1 rhs``: for a tridiagonal matrix its LU factors (no pivoting: the
+    step matrices are diagonally dominant) as constants and the two substitutions as ``mapaccum`` loops (a
+    loop in the C, so the code does not grow with the chain); else the constant inverse."""
+    import casadi as ca
+
+    m = matrix.shape[0]
+    rhs = ca.MX.sym("rhs", m)
+    banded = m >= 3 and not np.any(np.triu(matrix, 2)) and not np.any(np.tril(matrix, -2))
+    if not banded:
+        return ca.Function("solve", [rhs], [ca.mtimes(ca.DM(np.linalg.inv(matrix)), rhs)])
+    diagonal = np.diag(matrix).astype(float).copy()
+    lower, upper = np.diag(matrix, -1).astype(float), np.diag(matrix, 1).astype(float)
+    factors = np.zeros(m)                                        # Thomas: L U with unit lower L
+    for i in range(1, m):
+        factors[i] = lower[i - 1] / diagonal[i - 1]
+        diagonal[i] -= factors[i] * upper[i - 1]
+    previous, factor, value, scale = (ca.SX.sym(label) for label in ("previous", "factor", "value", "scale"))
+    forward = ca.Function("forward", [previous, factor, value], [value - factor * previous]).mapaccum("forward_all", m)
+    backward = ca.Function("backward", [previous, factor, value, scale],
+                           [(value - factor * previous) / scale]).mapaccum("backward_all", m)
+    reverse = list(range(m - 1, -1, -1))
+    partial = forward(0, ca.DM(factors).T, rhs.T)
+    solution = backward(0, ca.DM(np.concatenate([[0.0], upper[::-1]])).T, partial[:, reverse],
+                        ca.DM(diagonal[::-1]).T)
+    return ca.Function("solve", [rhs], [solution[:, reverse].T])
+
+
+@dataclass(frozen=True)
+class SchemeLoop:
+    """One loop of a controlled chain in the generated DT-TMM step: ``u = -C[y - r]`` with ``y = row [x; v] +
+    offset`` [sensed unit], on the accelerations ``column`` [1/kg] (the weighted actuator columns), delay
+    ``steps * dt`` (``0``: real time, implicit in the step; else from the ring of the last ``steps + 1``
+    samples of ``y`` in the generated state, starting at ``ring``).  The controller on the step grid as
+    :mod:`ctmm.control.simulate` realises it (trapezoidal rule): ``z' = M1 z + M2 (e_n + e_{n+1})``,
+    ``u = -(Cz z + D e)``, ``gain = Cz M2 + D`` (a static gain: ``k = 0``, ``gain = D``); ``[z, e_n, u_n]``
+    at ``memory`` in the generated state (``-1`` for a static real-time loop, which keeps none)."""
+
+    loop: Any
+    gain: float
+    row: np.ndarray
+    offset: float
+    column: np.ndarray
+    steps: int
+    reference: Any
+    ring: int
+    M1: np.ndarray
+    M2: np.ndarray
+    Cz: np.ndarray
+    D: float
+    memory: int
+
+    @property
+    def order(self) -> int:
+        """Controller states ``k``."""
+        return self.M2.size
+
+
+def _trapezoidal(loop: Any, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """``(M1, M2, Cz, D)`` of the loop's controller on steps ``dt`` [s] (trapezoidal rule; ``k = 0`` for a gain)."""
+    A, B, C, D = controller_realisation(loop)
+    if not A.size:
+        return np.zeros((0, 0)), np.zeros(0), np.zeros(0), float(D)
+    left = np.eye(A.shape[0]) - 0.5 * dt * A
+    return np.linalg.solve(left, np.eye(A.shape[0]) + 0.5 * dt * A), np.linalg.solve(left, 0.5 * dt * B), C, float(D)
+
+
+class CompiledChainScheme:
+    """Generated and compiled DT-TMM time loop of one lumped chain, with its loops (module docstring).
+
+    Parameters
+    ----------
+    system : Chain or ControlledChain
+        The chain; a controlled chain's loops (static gains and LTI controllers, real-time or delayed by
+        whole steps) are closed in the step as the Python DT-TMM path closes them.
+    dt : float
+        Step [s] (a constant of the generated code).
+    scheme : Scheme or str
+    store_every, rows : int
+        Steps per stored state, stored states per generated block.
+    references : mapping, optional
+        ``{loop: number or ctmm.signals signal}`` [sensed unit].
+    cache_dir, compiler
+        Of :func:`ctmm.codegen.shared_library`.
+
+    Attributes
+    ----------
+    dynamics : ChainDynamics
+    scheme : Scheme
+    loops : list of SchemeLoop
+    state_size : int
+        ``5 m`` (``[x, v, a, x_{n-1}, x_{n-2}]`` of the ``m`` moving masses), then each loop's memory and ring.
+    compile_time_s : float
+    """
+
+    def __init__(self, system: Any, dt: float, scheme: Any = "newmark", *, store_every: int = 1, rows: int = 64,
+                 references: Mapping[str, Any] | None = None, cache_dir: str | os.PathLike | None = None,
+                 compiler: str | None = None) -> None:
+        import casadi as ca
+
+        started = _time.perf_counter()
+        self.system = system
+        self.dt = validation.positive("dt", dt)
+        self.scheme = as_scheme(scheme)
+        self.store_every = validation.integer("store_every", store_every, minimum=1)
+        self.plant = ChainPlant(system)
+        self.dynamics: ChainDynamics = self.plant.dynamics
+        chain = self.plant.chain
+        loops = tuple(getattr(system, "loops", ()))
+        refuse_saturation(loops, "the generated DT-TMM step of a chain (its loops are linear in the step; use "
+                                 "method='rk4')")
+        ports = self.plant.ports
+        for loop in loops:
+            for name, _ in loop.terms:
+                ports.check_sensor(name, f"sensor of loop {loop.name!r}")
+            for name, _ in loop.actuator_terms:
+                ports.check_actuator(name, f"actuator of loop {loop.name!r}")
+        references = dict(references or {})
+        for name in references:
+            if name not in [loop.name for loop in loops]:
+                raise ModelError(f"references[{name!r}]: not a loop; loops: {', '.join(lp.name for lp in loops) or '(none)'}")
+        actuators = list(dict.fromkeys(name for loop in loops for name, _ in loop.actuator_terms))
+        form = affine_form(self.dynamics, [ports.inputs({name: 1.0}) for name in actuators])
+        m = self.m = self.plant.n_positions
+        self._certify(form)
+        self.loops, size = [], 5 * m
+        for loop in loops:
+            row, offset = sensor_row(ports, loop.terms, 2 * m)
+            column = sum((weight * form.B[:, actuators.index(name)] for name, weight in loop.actuator_terms),
+                         np.zeros(m))
+            steps = delay_steps(loop.name, loop.delay, self.dt)
+            reference = symbolic_reference(f"references[{loop.name!r}]", references.get(loop.name, 0.0))
+            M1, M2, Cz, D = _trapezoidal(loop, self.dt)
+            memory = size if (M2.size or steps) else -1
+            size += M2.size + 2 if memory >= 0 else 0
+            self.loops.append(SchemeLoop(loop, float(Cz @ M2) + D, row, float(offset), column, steps, reference,
+                                         size, M1, M2, Cz, D, memory))
+            size += steps + 1 if steps else 0
+        self.state_size = size
+        maps = [SchemeMaps(self.scheme, self.dt, 0)]
+        later = SchemeMaps(self.scheme, self.dt, 2)
+        if not (np.array_equal(later.coefficients, maps[0].coefficients) and
+                np.array_equal(later.update, maps[0].update)):
+            maps.append(later)                                  # a start-up (Houbolt): steps 0 and 1 differ
+        y, u, h, p = ca.MX.sym("y", size), ca.MX.sym("u", 0), ca.MX.sym("h"), ca.MX.sym("p", 0)
+        t0, k = ca.MX.sym("t0"), ca.MX.sym("k")
+        branches = [self._step_function(f"step{j}", form, scheme_maps) for j, scheme_maps in enumerate(maps)]
+        t_n = t0 + k * self.dt
+        new = branches[0](y, t_n) if len(maps) == 1 else ca.if_else(k < 2, branches[0](y, t_n), branches[1](y, t_n),
+                                                                  True)
+        step = ca.Function("step", [y, u, h, p, t0, k], [new])
+        stride, sizes, blocks = time_loop_functions(step, self.store_every, rows)
+        name = f"chain_{m}m_{self.scheme.name}" + (f"_{len(self.loops)}l" if self.loops else "")
+        loaded = load_casadi([step, stride, *blocks], name, cache_dir=cache_dir, compiler=compiler)
+        self._step, self._stride = loaded[:2]
+        self._blocks = list(zip(sizes, loaded[2:]))
+        self.form = form
+        self.compile_time_s = _time.perf_counter() - started
+
+    def _certify(self, form: Any) -> None:
+        """The affine form equals the sweep at random states and times (relative 1e-10), else ModelError."""
+        m, rng = self.m, np.random.default_rng(12)
+        for _ in range(2):
+            y, t = rng.standard_normal(2 * m) * 0.01, float(rng.uniform(0.0, 3.0))
+            swept = self.dynamics.swept_rate(t, y)[m:]
+            affine = form.Ax @ y[:m] + form.Av @ y[m:] + form.a0 + sum(
+                (column * float(signal(t)) for column, signal in form.loads), np.zeros(m))
+            if not np.all(np.abs(swept - affine) <= 1e-10 * max(1.0, float(np.max(np.abs(swept))))):
+                raise ModelError(f"chain {self.plant.chain.name!r}: its rates are not affine in the state (an element "
+                                 "family with non-linear terms); the generated DT-TMM step needs the affine form: use "
+                                 "compiled=False")
+        for _, signal in form.loads:
+            if signal_parameters(signal) is None:
+                raise ModelError(f"chain {self.plant.chain.name!r}: a load signal {signal!r} is a Python callable of "
+                                 "time, which generated kernels cannot evaluate; give a ctmm.signals Constant, "
+                                 "Harmonic, Step or SquareWave, or use compiled=False")
+
+    def _step_function(self, label: str, form: Any, maps: SchemeMaps) -> Any:
+        """``(state, t_n) -> new state`` for one set of scheme maps: the equation of motion at the evaluation
+        level with the loads weighted by ``w``, the real-time loops implicit (their rank-``k`` part by the
+        Woodbury identity on the banded solve), the delayed loops' forces ``(1 - w) u_n + w u_{n+1}`` from the
+        rings, which then take the new sample."""
+        import casadi as ca
+
+        m, dt, w = self.m, self.dt, maps.load_weight
+        Ax, Av = form.Ax, form.Av
+        matrix = maps.C * np.eye(m) - maps.cx * Ax - maps.A * Av
+        solve = _solver(matrix)
+        y, t_n = ca.MX.sym("y", self.state_size), ca.MX.sym("t")
+        parts = [y[j * m:(j + 1) * m] for j in range(5)]
+        dx, B, D = (sum((float(maps.coefficients[r, c]) * parts[c] for c in range(5) if maps.coefficients[r, c]),
+                        ca.MX.zeros(m)) for r in range(3))
+        forcing = ca.DM(form.a0)
+        for column, signal in form.loads:
+            symbolic = symbolic_signal(type(signal), t_n + dt, signal_parameters(signal))
+            if w != 1.0:
+                symbolic = (1.0 - w) * symbolic_signal(type(signal), t_n, signal_parameters(signal)) + w * symbolic
+            forcing = forcing + ca.DM(column) * symbolic
+        rhs = ca.mtimes(ca.DM(scipy.sparse.csc_matrix(Ax)), dx) + ca.mtimes(ca.DM(scipy.sparse.csc_matrix(Av)), B) \
+            + forcing - D
+        t_eval = t_n + maps.offset
+        now = [lp for lp in self.loops if lp.steps == 0]
+        for lp in self.loops:                          # u_eval = -(gain e_eval + controller offset)
+            k, memory = lp.order, lp.memory
+            offset = 0.0
+            if k:
+                z, e_n = y[memory:memory + k], y[memory + k]
+                offset = ca.dot(ca.DM(lp.Cz), ca.mtimes(ca.DM(lp.M1), z) + ca.DM(lp.M2) * e_n)
+            if lp.steps == 0:                          # real time: the known part here, the rest implicit
+                known = ca.dot(ca.DM(lp.row[:m]), dx) + ca.dot(ca.DM(lp.row[m:]), B) + lp.offset
+                rhs = rhs - ca.DM(lp.column) * (lp.gain * (known - reference_at(lp.reference, t_eval)) + offset)
+            else:
+                tau = lp.steps * dt
+                after = -(lp.gain * (y[lp.ring + 1] - reference_at(lp.reference, t_n + dt - tau)) + offset)
+                rhs = rhs + ca.DM(lp.column) * ((1.0 - w) * y[memory + k + 1] + w * after if w != 1.0 else after)
+        delta = solve(rhs)
+        if now:                                        # (S + b g r_delta^T) delta = rhs, r_delta = cx r_x + A r_v
+            columns = np.column_stack([lp.column for lp in now])
+            rows = np.array([lp.gain * (maps.cx * lp.row[:m] + maps.A * lp.row[m:]) for lp in now])
+            W = np.linalg.solve(matrix, columns)
+            small = np.eye(len(now)) + rows @ W
+            if np.linalg.cond(small) > 1e12:
+                raise ModelError(f"the real-time loops {[lp.loop.name for lp in now]} make the step singular at "
+                                 f"dt = {dt!r} s (their gains cancel the inertia); change their gains")
+            delta = delta - ca.mtimes(ca.DM(W), ca.mtimes(ca.DM(np.linalg.solve(small, rows)), delta))
+        every = parts + [delta]
+        new = [sum((float(maps.update[r, c]) * every[c] for c in range(6) if maps.update[r, c]), ca.MX.zeros(m))
+               for r in range(5)]
+        for lp in self.loops:                          # the controller advances, the ring takes the new sample
+            k, memory = lp.order, lp.memory
+            sample = ca.dot(ca.DM(lp.row[:m]), new[0]) + ca.dot(ca.DM(lp.row[m:]), new[1]) + lp.offset
+            if memory < 0:
+                continue
+            t_next = t_n + dt - lp.steps * dt
+            e_now = (y[lp.ring + 1] if lp.steps else sample) - reference_at(lp.reference, t_next)
+            z = ca.mtimes(ca.DM(lp.M1), y[memory:memory + k]) + ca.DM(lp.M2) * (y[memory + k] + e_now) if k \
+                else ca.MX(0, 1)
+            u_now = -(ca.dot(ca.DM(lp.Cz), z) if k else 0.0) - lp.D * e_now
+            new.append(ca.vertcat(z, e_now, u_now))
+            if lp.steps:
+                new.append(ca.vertcat(y[lp.ring + 1:lp.ring + lp.steps + 1], sample))
+        return ca.Function(label, [y, t_n], [ca.vertcat(*new)])
+
+    def loop_forces(self, t: float, state: np.ndarray) -> list[float]:
+        """``u`` [actuator unit] of every loop at ``t`` [s] in a generated ``state`` (a static real-time loop from
+        the positions and velocities; the others keep their last output in the state)."""
+        m, out = self.m, []
+        for lp in self.loops:
+            if lp.memory >= 0:
+                out.append(float(state[lp.memory + lp.order + 1]))
+            else:
+                y = float(lp.row @ state[:2 * m]) + lp.offset
+                out.append(-lp.gain * (y - float(lp.reference(t))))
+        return out
+
+    def actuator_inputs(self, forces: Sequence[float]) -> dict | None:
+        """The loops' forces as ``{element position: {input: value}}`` [N] (None without loops)."""
+        values: dict[str, float] = {}
+        for lp, u in zip(self.loops, forces):
+            for name, weight in lp.loop.actuator_terms:
+                values[name] = values.get(name, 0.0) + weight * u
+        return self.plant.ports.inputs(values) if values else None
+
+    def start(self, x0: Mapping[str, float] | None, v0: Mapping[str, float] | None) -> np.ndarray:
+        """The generated state at ``t = 0``: positions, velocities, the acceleration of the equation of motion
+        with the loops' start forces ``u_0 = -D (y_0 - r(-tau))``, the positions as the older history, each
+        loop's ``[z = 0, e_0 = y_0 - r(0), u_0]`` and ring holding ``y_0`` (the state held before ``t = 0``, as
+        :func:`ctmm.control.simulate.simulate_controlled` starts)."""
+        q, w = self.plant.start(x0, v0)
+        blocks, forces = [], []
+        for lp in self.loops:
+            y0 = float(lp.row @ np.concatenate([q, w])) + lp.offset
+            forces.append(-lp.D * (y0 - float(lp.reference(-lp.steps * self.dt))))
+            if lp.memory >= 0:
+                blocks.append(np.concatenate([np.zeros(lp.order), [y0 - float(lp.reference(0.0)), forces[-1]]]))
+            if lp.steps:
+                blocks.append(np.full(lp.steps + 1, y0))
+        a = self.dynamics.rate(0.0, np.concatenate([q, w]), self.actuator_inputs(forces))[self.m:]
+        return np.concatenate([q, w, a, q, q, *blocks])
+
+    def run(self, state: np.ndarray, n_steps: int) -> np.ndarray:
+        """Stored states (rows, :attr:`state_size`) after every ``store_every`` steps and the last."""
+        return run_blocks(self._blocks, self._stride, self._step, self.store_every, np.asarray(state, float)[:, None],
+                          np.zeros(0), self.dt, n_steps, 0.0, np.zeros((0, 1)))[0]
+
+
+def simulate_chain_scheme_generated(system: Any, t_final: float, dt: float, scheme: Any = "newmark", *,
+                                    x0: Mapping[str, float] | None = None, v0: Mapping[str, float] | None = None,
+                                    references: Mapping[str, Any] | None = None, outputs: Sequence[str] = (),
+                                    store_every: int = 1, divergence_bound: float | None = None,
+                                    cache_dir: str | os.PathLike | None = None,
+                                    compiled: CompiledChainScheme | None = None) -> SimulationResult:
+    """A DT-TMM scheme on a chain (with its loops) in generated C.
+
+    Parameters
+    ----------
+    system : Chain or ControlledChain
+    t_final, dt : float
+        End time and step [s] (``t_final`` and each loop delay whole multiples of ``dt``).
+    scheme : Scheme or str
+    x0, v0 : mapping, optional
+        Initial positions [m] / velocities [m/s] by element name.
+    references : mapping, optional
+        ``{loop: number or signal}`` [sensed unit].
+    outputs : sequence of str
+        Extra signal names (every chain signal is stored).
+    store_every : int
+        Keep every ``store_every``-th step (the last one always).
+    divergence_bound : float, optional
+        As in :func:`ctmm.chain_ode.simulate_chain_ode` (checked on the stored rows).
+    cache_dir : path, optional
+    compiled : CompiledChainScheme, optional
+        A compiled kernel of this system, step, scheme, references and ``store_every`` to reuse.
+
+    Returns
+    -------
+    SimulationResult
+        The point signals of :func:`ctmm.chain_ode.simulate_chain_ode` (with loops: named signals and
+        ``"<loop>.y"``, ``"<loop>.u"``); ``info["method"]`` is ``"<scheme>-generated"``, with
+        ``info["compile_time_s"]`` [s].
+
+    Raises
+    ------
+    ModelError
+        Bad arguments, no compiler, or what the generated step cannot do (named).
+    SimulationError
+        A diverging or non-finite state (``partial_result``: the rows before it).
+    """
+    t_final, dt, n_steps = whole_steps(t_final, dt)
+    if compiled is None:
+        compiled = CompiledChainScheme(system, dt, scheme, store_every=store_every, references=references,
+                                       cache_dir=cache_dir)
+    elif not isinstance(compiled, CompiledChainScheme) or compiled.dt != dt or compiled.store_every != store_every \
+            or compiled.scheme != as_scheme(scheme):
+        raise ModelError(f"compiled must be a CompiledChainScheme of this chain with dt={dt!r}, scheme={scheme!r} and "
+                         f"store_every={store_every!r}, got {compiled!r}")
+    for name in outputs:
+        system.signal(name)
+    check_scheme_step(compiled.plant.chain, compiled.scheme, dt, None)     # the scheme's step limit, as in Python
+    first = compiled.start(x0, v0)
+    started = _time.perf_counter()
+    states = compiled.run(first, n_steps)
+    wall = _time.perf_counter() - started
+    every, m = compiled.store_every, compiled.m
+    steps = np.array([k for k in range(1, n_steps + 1) if k % every == 0 or k == n_steps])[:len(states)]
+    times = np.concatenate([[0.0], steps * dt])
+    states = np.vstack([first[None], states])
+    label = f"{compiled.scheme.name}-generated"
+    info = {"dt": dt, "method": label, "path": "generated-dttmm", "compile_time_s": compiled.compile_time_s,
+            "wall_time_s": wall, "n_steps": n_steps}
+    guard = compiled.plant.guard(states[0, :m], divergence_bound)
+    for k in range(len(times)):
+        try:
+            guard(float(times[k]), states[k, :2 * m], dt, label)
+        except SimulationError as exc:
+            exc.partial_result = _result(compiled, times[:k], states[:k], outputs, info)
+            raise
+    return _result(compiled, times, states, outputs, info)
+
+
+def _result(compiled: CompiledChainScheme, times: np.ndarray, states: np.ndarray, outputs: Sequence[str],
+            info: dict) -> SimulationResult:
+    """The stored rows as a result: point signals from the states (accelerations and forces of the equation of
+    motion with the loops' forces of each row), and each loop's ``y`` and ``u``."""
+    m, label = compiled.m, info["method"]
+    if not compiled.loops:
+        return chain_result(compiled.dynamics, list(times), list(states[:, :2 * m]), label, dict(info))
+    forces = np.array([compiled.loop_forces(float(t), row) for t, row in zip(times, states)])
+    forces = forces.reshape(len(times), len(compiled.loops))
+    inputs = [compiled.actuator_inputs(row) for row in forces]
+    plant, system = compiled.plant, compiled.system
+    signals, units = plant.signals(times, states[:, :m], states[:, m:2 * m], outputs, inputs=inputs)
+    for j, lp in enumerate(compiled.loops):
+        name = lp.loop.name
+        signals[f"{name}.y"] = states[:, :2 * m] @ lp.row + lp.offset
+        signals[f"{name}.u"] = forces[:, j]
+        units[f"{name}.y"], units[f"{name}.u"] = loop_unit(plant.ports, lp.loop, "y"), loop_unit(plant.ports, lp.loop,
+                                                                                                  "u")
+    info = {**info, "loops": {lp.loop.name: ("real-time" if lp.steps == 0 else "history") for lp in compiled.loops}}
+    return signal_result(SignalSystem(system, units, list(system.loops)), times, signals, label, info)
+
+
+def simulate_scheme_verb(system: Any, t_final: float, dt: float | None, scheme: Any, x0: Any, v0: Any,
+                         store_every: int, divergence_bound: float | None, others: Mapping[str, tuple], *,
+                         t0: float, inputs: Any, outputs: Any, references: Mapping[str, Any]) -> SimulationResult:
+    """``ctmm.simulate(chain, method=<scheme>, compiled=True)``: the options that do not apply are refused by
+    name (``others``: ``{name: (value, default)}`` of the verb), then :func:`simulate_chain_scheme_generated`."""
+    options = {**others, "t0": (t0, 0.0), "inputs": (inputs or None, None)}
+    for name, (value, default) in options.items():
+        if value is not default and value != default:
+            raise ModelError(f"{name}={value!r} does not apply to the generated DT-TMM step of a chain (leave {name} "
+                             f"at {default!r}, or use compiled=False)")
+    if dt is None:
+        raise ModelError("dt is required to simulate a chain (the DT-TMM step [s], > 0), got None")
+    return simulate_chain_scheme_generated(system, t_final, dt, scheme, x0=x0, v0=v0, references=references or None,
+                                           outputs=tuple(outputs), store_every=store_every,
+                                           divergence_bound=divergence_bound)
