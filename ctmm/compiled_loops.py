@@ -321,6 +321,8 @@ class ClosedLoops:
     numbers : {"constants", "inputs"}
         The loops' gains, controller realisations and references as constants of the code, or as entries
         of ``p`` after the plant's :func:`~ctmm.compiled_parameters.parameter_vector` (planar plants).
+    plant_parameters : int, optional
+        Plant numbers before the loops' in ``p`` (default: a planar plant's ``parameter_vector`` length, else 0).
 
     Attributes
     ----------
@@ -345,7 +347,7 @@ class ClosedLoops:
 
     def __init__(self, controlled: ControlledModel, actuators: Sequence[str], dt: float | None = None,
                  references: Mapping[str, Any] | None = None, inputs: Mapping[str, Any] | None = None,
-                 symbols: Any = None, numbers: str = "constants") -> None:
+                 symbols: Any = None, numbers: str = "constants", plant_parameters: int | None = None) -> None:
         if not isinstance(controlled, ControlledModel):
             raise ModelError(f"ClosedLoops: controlled must be a ctmm.control.ControlledModel, got {controlled!r}")
         if numbers not in ("constants", "inputs"):
@@ -380,7 +382,8 @@ class ClosedLoops:
         self.nq, self.nv = symbols.n_positions, symbols.n_velocities
         self.base = self.nq + self.nv           # [q, v] (planar: v = qdot), then z and the ring
         self.position_rates = symbols.position_rates
-        self.plant_parameter_count = parameter_vector(plant).size if isinstance(plant, PlanarModel) else 0
+        self.plant_parameter_count = int(plant_parameters) if plant_parameters is not None else \
+            parameter_vector(plant).size if isinstance(plant, PlanarModel) else 0
         self.parameter_layout = loop_parameter_layout(self.laws) if numbers == "inputs" else []
         self.parameter_values = np.array([value for _, _, value in self.parameter_layout], dtype=float)
         self.n_controller_states = sum(law.A.shape[0] for law in laws)

@@ -60,7 +60,7 @@ from .spatial.frames import constant, cross, quaternion_rate, quaternion_rotatio
 from .spatial.integrate import beam_deflection_weights, check_beam_deflection, initial_state, spatial_signals
 from .spatial.model import SpatialModel
 from .compiled_spatial_parameters import (SpatialNumbers, parametrised_body_terms, parametrised_joint_law,
-                                          spatial_parameter_layout, spatial_parameter_vector)
+                                          parametrised_scene_terms, spatial_parameter_layout, spatial_parameter_vector)
 
 __all__ = ["SpatialRates", "CompiledSpatialScene", "spatial_compile_refusal", "simulate_spatial_generated",
            "chain_period"]
@@ -168,8 +168,8 @@ class SpatialRates:
         bodies, joints, states = scene.terms(CASADI, q, v, 0.0, inputs)
         p_sx = ca.SX.sym("p", n_p)
         if self.layout:
-            bodies, joints = self._parametrised(SpatialNumbers(self.layout, p_sx), bodies, joints, states, q, v,
-                                                inputs)
+            bodies, joints = parametrised_scene_terms(model, SpatialNumbers(self.layout, p_sx), bodies, joints,
+                                                      states, q, v, inputs)
         solution = articulated_sweep(CASADI, scene.tree, bodies, joints)
         v_dot = ca.vertcat(*scene.velocity_rates(solution))
         self.velocity_rate = ca.Function("velocity_rate", [q, v, u, p_sx], [v_dot])
@@ -179,32 +179,6 @@ class SpatialRates:
         q_y, v_y = y[:nq], y[nq:]
         self.rate = ca.Function("rate", [y, u_mx, p, t], [ca.vertcat(position_rate(q_y, v_y),
                                                                      self.velocity_rate(q_y, v_y, u_mx, p))])
-
-    def _parametrised(self, numbers: SpatialNumbers, bodies: list, joints: list, states: list, q: Any, v: Any,
-                      inputs: Mapping[str, Any]) -> tuple[list, list]:
-        """The scene's body and joint terms with the numbers of ``numbers`` in place of the model's (the
-        applied loads' part of a body's ``h`` kept from the numeric terms)."""
-        model = self.model
-        bodies, joints = list(bodies), list(joints)
-        loaded = {load.body for load in model.loads}
-        for j, (body, joint, state) in enumerate(zip(model.bodies, model.joints, states)):
-            offset = state.origin - state.inboard if joint.kind in ("prismatic", "free", "elastic6") else None
-            pose = dict(center_of_mass=body.center_of_mass, points={name: body.points[name] for name in bodies[j].Kin},
-                        rotation=state.rotation, offset=offset, omega=state.omega)
-            extra = None
-            if body.name in loaded:        # the loads' part: the numeric terms less those without loads
-                extra = bodies[j].h - rigid_body_terms(CASADI, mass=body.mass, inertia=body.inertia,
-                                                       gravity=model.gravity, **pose).h
-            mass, inertia = numbers.body(j)
-            bodies[j] = parametrised_body_terms(mass, inertia, numbers.gravity, extra_h=extra, **pose)
-            count = joint.velocity_count
-            if numbers.has_law(j, count):
-                layout = model.layout[j]
-                joints[j] = parametrised_joint_law(
-                    joints[j], numbers.law(j, count), [q[i] for i in range(layout.position.start, layout.position.stop)],
-                    [v[i] for i in range(layout.velocity.start, layout.velocity.stop)],
-                    inputs.get(joint.inputs[0]) if joint.inputs else None)
-        return bodies, joints
 
     def input_vector(self, inputs: Mapping[str, Any] | None) -> np.ndarray:
         """``u`` from ``{input name: number or (k,) numbers}`` held over a run (missing inputs zero).

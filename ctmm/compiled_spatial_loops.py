@@ -32,6 +32,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from .articulated import articulated_sweep
 from .codegen import load_casadi
 from .compiled_loops import ClosedLoops
 from .compiled_spatial import DEFAULT_ROWS, SPATIAL_FLAGS, position_rates, spatial_compile_refusal
@@ -104,15 +105,21 @@ class SpatialSymbols:
         return state.velocity[c] + ca.cross(omega, arm)[c]
 
 
-def loop_acceleration(model: SpatialModel, ports: SpatialPorts, actuators: Sequence[str]) -> Any:
-    """``v_dot = acceleration(q, v, u, p, t)`` (a ``casadi.Function``, ``p`` empty) of ``model`` with
+def loop_acceleration(model: SpatialModel, ports: SpatialPorts, actuators: Sequence[str], *,
+                      numbers: str = "constants") -> Any:
+    """``v_dot = acceleration(q, v, u, p, t)`` (a ``casadi.Function``) of ``model`` with
     ``u`` one value per entry of ``actuators`` (port actuator names [N m, N]): joint actuators add to
-    their joint's input, body actuators are forces at their points and moments, world axes."""
+    their joint's input, body actuators are forces at their points and moments, world axes; ``p`` empty
+    (``numbers="constants"``) or the model's :func:`~ctmm.compiled_spatial_parameters.spatial_parameter_layout`
+    (``numbers="inputs"``, rigid bodies)."""
     import casadi as ca
+
+    from .compiled_spatial_parameters import SpatialNumbers, parametrised_scene_terms, spatial_parameter_layout
 
     nq, nv = model.n_positions, model.n_velocities
     q, v, u = ca.SX.sym("q", nq), ca.SX.sym("v", nv), ca.SX.sym("u", len(actuators))
-    p, t = ca.SX.sym("p", 0), ca.SX.sym("t")
+    layout = spatial_parameter_layout(model) if numbers == "inputs" else []
+    p, t = ca.SX.sym("p", len(layout)), ca.SX.sym("t")
     widths = {name: joint.velocity_count for joint in model.joints for name in joint.inputs}
     inputs: dict[str, Any] = {}
     loads: dict[tuple[int, tuple], Any] = {}
@@ -132,7 +139,11 @@ def loop_acceleration(model: SpatialModel, ports: SpatialPorts, actuators: Seque
     for (body, point), wrench in loads.items():
         wrenches.setdefault(body, []).append((np.asarray(point, float), wrench))
     scene = SpatialScene(model)
-    solution = scene.sweep(CASADI, q, v, 0.0, inputs, wrenches)
+    bodies, joints, states = scene.terms(CASADI, q, v, 0.0, inputs, wrenches)
+    if layout:
+        bodies, joints = parametrised_scene_terms(model, SpatialNumbers(layout, p), bodies, joints, states, q, v,
+                                                  inputs, loaded=tuple(wrenches))
+    solution = articulated_sweep(CASADI, scene.tree, bodies, joints)
     return ca.Function("loop_acceleration", [q, v, u, p, t], [ca.vertcat(*scene.velocity_rates(solution))])
 
 

@@ -28,7 +28,7 @@ from .spatial.body_forms import rigid_body_terms
 from .spatial.model import SpatialModel
 
 __all__ = ["INERTIA_ENTRIES", "LAW_KINDS", "SpatialNumbers", "SpatialParameter", "parametrised_body_terms",
-           "parametrised_joint_law", "spatial_parameter_layout", "spatial_parameter_vector"]
+           "parametrised_joint_law", "parametrised_scene_terms", "spatial_parameter_layout", "spatial_parameter_vector"]
 
 INERTIA_ENTRIES = (("xx", 0, 0), ("yy", 1, 1), ("zz", 2, 2), ("xy", 0, 1), ("xz", 0, 2), ("yz", 1, 2))
 """Names and (row, column) of the inertia entries (the tensor is symmetric)."""
@@ -182,3 +182,32 @@ def parametrised_joint_law(terms: JointTerms, law: Sequence[tuple[Any, Any, Any]
         tau = tau + u
     return replace(terms, tau=tau, tau_q=ca.diag(column([-k for k, _, _ in law])),
                    tau_v=ca.diag(column([-c for _, c, _ in law])))
+
+
+def parametrised_scene_terms(model: SpatialModel, numbers: SpatialNumbers, bodies: list, joints: list, states: list,
+                             q: Any, v: Any, inputs: Mapping[str, Any], loaded: Sequence[int] = ()
+                             ) -> tuple[list, list]:
+    """The body and joint terms of :meth:`~ctmm.spatial.body_forms.SpatialScene.terms` (casadi) with the
+    numbers of ``numbers`` in place of the model's: the applied loads' part of a body's ``h`` (its
+    :class:`~ctmm.spatial.elements.Load` objects and the bodies ``loaded`` by extra wrenches, by index)
+    kept from the numeric terms; rigid bodies only."""
+    bodies, joints = list(bodies), list(joints)
+    with_loads = {load.body for load in model.loads}
+    for j, (body, joint, state) in enumerate(zip(model.bodies, model.joints, states)):
+        offset = state.origin - state.inboard if joint.kind in ("prismatic", "free", "elastic6") else None
+        pose = dict(center_of_mass=body.center_of_mass, points={name: body.points[name] for name in bodies[j].Kin},
+                    rotation=state.rotation, offset=offset, omega=state.omega)
+        extra = None
+        if body.name in with_loads or j in loaded:        # the loads' part: the numeric terms less those without
+            extra = bodies[j].h - rigid_body_terms(CASADI, mass=body.mass, inertia=body.inertia,
+                                                   gravity=model.gravity, **pose).h
+        mass, inertia = numbers.body(j)
+        bodies[j] = parametrised_body_terms(mass, inertia, numbers.gravity, extra_h=extra, **pose)
+        count = joint.velocity_count
+        if numbers.has_law(j, count):
+            layout = model.layout[j]
+            joints[j] = parametrised_joint_law(
+                joints[j], numbers.law(j, count), [q[i] for i in range(layout.position.start, layout.position.stop)],
+                [v[i] for i in range(layout.velocity.start, layout.velocity.stop)],
+                inputs.get(joint.inputs[0]) if joint.inputs else None)
+    return bodies, joints

@@ -58,9 +58,12 @@ def characteristic_matrix(system: Any, names: Sequence[str]) -> LoopCharacterist
     """``Delta(s)`` of ``system`` with its derivatives: a chain's (:mod:`ctmm.sensitivity_model`) or a
     planar model's (:mod:`ctmm.sensitivity_planar`, linearised about its static equilibrium)."""
     from .sensitivity_planar import PlanarCharacteristicMatrix, is_planar_system
+    from .sensitivity_spatial import SpatialCharacteristicMatrix, is_spatial_system
 
     if is_planar_system(system):
         return PlanarCharacteristicMatrix(system, names)
+    if is_spatial_system(system):
+        return SpatialCharacteristicMatrix(system, names)
     return LoopCharacteristicMatrix(system, names)
 
 
@@ -83,9 +86,12 @@ def parameter_values(system: Any, parameters: str | Sequence[str]) -> dict[str, 
     ``"<loop>.gain"`` of a loop with an LTI controller is a factor on that controller (value 1).
     """
     from .sensitivity_planar import is_planar_system, planar_parameter_values
+    from .sensitivity_spatial import is_spatial_system, spatial_parameter_values
 
     if is_planar_system(system):
         return planar_parameter_values(system, _names(parameters))
+    if is_spatial_system(system):
+        return spatial_parameter_values(system, _names(parameters))
     model = characteristic_matrix(system, _names(parameters))
     return {p.name: p.value for p in model.parameters}
 
@@ -108,11 +114,14 @@ def with_parameters(system: Any, values: Mapping[str, float]) -> Any:
     from .stability import with_loop_parameters
 
     from .sensitivity_planar import is_planar_system, planar_with_parameters
+    from .sensitivity_spatial import is_spatial_system, spatial_with_parameters
 
     if not isinstance(values, Mapping):
         raise ModelError(f"values must be a mapping {{parameter name: value}}, got {values!r}")
     if is_planar_system(system):
         return planar_with_parameters(system, {name: values[name] for name in _names(list(values))})
+    if is_spatial_system(system):
+        return spatial_with_parameters(system, {name: values[name] for name in _names(list(values))})
     model = characteristic_matrix(system, _names(list(values)))
     chain = model.chain
     elements = list(chain.elements)
@@ -273,26 +282,34 @@ def frequency_response_sensitivity(system: Any, parameters: str | Sequence[str],
     FrequencySensitivity
     """
     model = characteristic_matrix(system, _names(parameters))
-    w = validation.frequencies("omega", omega)
-    b = model.input_vector(_single("input", input))
-    _single("output", output)
+    return _response(model, validation.frequencies("omega", omega), _single("input", input),
+                     _single("output", output), len(model.parameters))
+
+
+def _response(model: LoopCharacteristicMatrix, w: np.ndarray, input: str, output: str,
+              count: int) -> FrequencySensitivity:
+    """:func:`frequency_response_sensitivity` on a built ``Delta`` (derivatives of its first ``count``
+    parameters)."""
+    b = model.input_vector(input)
     H = np.empty(w.size, dtype=complex)
-    dH = np.empty((len(model.parameters), w.size), dtype=complex)
+    dH = np.empty((count, w.size), dtype=complex)
     for k, wk in enumerate(w):
         s = 1j * wk
         D = model.delta(s)
         c = model.output_row(output, s)
         x = np.linalg.solve(D, b)
-        y = np.linalg.solve(D.T, c)               # Delta^{-T} c
         H[k] = c @ x
-        for i in range(len(model.parameters)):
+        if not count:
+            continue
+        y = np.linalg.solve(D.T, c)               # Delta^{-T} c
+        for i in range(count):
             dH[i, k] = -(y @ (model.delta_p(s, i) @ x)) + y @ model.input_vector_p(input, i) \
                 + model.output_row_p(output, s, i) @ x
     mag = np.abs(H)
     with np.errstate(divide="ignore", invalid="ignore"):
         dmag = np.real(np.conj(H) * dH) / mag
         dphase = np.imag(dH / H)
-    return FrequencySensitivity(w, tuple(p.name for p in model.parameters), H, dH, mag, dmag,
+    return FrequencySensitivity(w, tuple(p.name for p in model.parameters[:count]), H, dH, mag, dmag,
                                 np.unwrap(np.angle(H)), dphase)
 
 
@@ -315,14 +332,16 @@ def peak_sensitivity(system: Any, parameters: str | Sequence[str], omega: Any, *
     partial one there (envelope theorem).  The grid must resolve the peak.
     """
     names = _names(parameters)
-    grid = frequency_response_sensitivity(system, (), omega, input=input, output=output)
+    model = characteristic_matrix(system, names)
+    input, output = _single("input", input), _single("output", output)
+    grid = _response(model, validation.frequencies("omega", omega), input, output, 0)
     k = int(np.argmax(grid.magnitude))
 
     def negative(x: float) -> float:
-        return -float(frequency_response_sensitivity(system, (), [x], input=input, output=output).magnitude[0])
+        return -float(_response(model, np.array([x]), input, output, 0).magnitude[0])
 
     wk = _refine_extremum(negative, grid.omega, k)
-    at = frequency_response_sensitivity(system, names, [wk], input=input, output=output)
+    at = _response(model, np.array([wk]), input, output, len(names))
     return PeakSensitivity(float(at.magnitude[0]), wk,
                            {n: float(at.magnitude_derivative[i, 0]) for i, n in enumerate(names)})
 
@@ -532,8 +551,13 @@ def simulation_sensitivity(system: Any, parameters: str | Sequence[str], *, t_fi
         generated step), models that cannot be compiled, unknown or zero parameters.
     """
     from .sensitivity_planar import is_planar_system
+    from .sensitivity_spatial import is_spatial_system
     from .sensitivity_time import chain_simulation_sensitivity, planar_simulation_sensitivity
+    from .sensitivity_time_spatial import spatial_simulation_sensitivity
 
+    if is_spatial_system(system):
+        return spatial_simulation_sensitivity(system, parameters, t_final=t_final, dt=dt, x0=x0, v0=v0,
+                                              outputs=outputs)
     if isinstance(system, Chain):
         return chain_simulation_sensitivity(system, parameters, t_final=t_final, dt=dt, x0=x0, v0=v0, outputs=outputs)
     if not is_planar_system(system):
