@@ -1,10 +1,12 @@
 """``ctmm.sensitivity``: exact derivatives of frequency responses, margins and the spectral abscissa.
 
 Derivatives with respect to **named parameters** of a lumped 1-D chain closed by embedded loops
-(:class:`~ctmm.control.loops.ControlledChain`) -- and of planar models, controlled or not, through
-the same ``Delta(s) = s I - A + sum K_l b_l c_l^T`` of their linearisation, with ``A``, ``B`` and the
-equilibrium differentiated by casadi (:mod:`ctmm.sensitivity_planar`; parameters ``"<body>.mass"``,
-``"<body>.inertia"``, ``"<hinge>.stiffness"``, ``"<hinge>.damping"``) -- for chains: element numbers (``"m3.mass"``,
+(:class:`~ctmm.control.loops.ControlledChain`) -- and of planar and spatial models, controlled or not,
+through the same ``Delta(s) = s I - A + sum K_l b_l c_l^T`` of their linearisation, with ``A``, ``B``,
+the sensor rows and the equilibrium differentiated by casadi (:mod:`ctmm.sensitivity_planar`: parameters
+``"<body>.mass"``, ``"<body>.inertia"``, ``"<hinge>.stiffness"``, ``"<hinge>.damping"``;
+:mod:`ctmm.sensitivity_spatial`: ``"<body>.inertia.xx"``, ``"<joint>.reference"``, ``"gravity.z"``, ...)
+-- for chains: element numbers (``"m3.mass"``,
 ``"K1.stiffness"``, ``"C1.damping"``) and loop parameters (``"<loop>.gain"``, ``"<loop>.delay"``,
 ``"<loop>.<sensed signal>"`` -- the weight of a sensor term, e.g. ``kp``, ``kd`` of a PD loop
 ``[("m6.x", kp), ("m6.v", kd)]``).  Everything is built from the closed-loop characteristic
@@ -26,8 +28,10 @@ The values (crossovers, roots) come from the library's verbs on the TMM (:func:`
 :func:`ctmm.stability.spectral_abscissa`) or, delay-free with static gains, from the quadratic
 eigenvalue problem of ``Delta``; each is checked against ``Delta`` before it is differentiated (a
 mismatch is refused).  What cannot be differentiated is refused by name: non-lumped elements,
-connector forces as signals, spatial models; time-domain outputs (:func:`simulation_sensitivity`)
-are differentiated for planar models, loops included, in plant numbers (:mod:`ctmm.sensitivity_time`).
+connector forces as signals, spatial beams; time-domain outputs (:func:`simulation_sensitivity`)
+are differentiated for planar and spatial models, loops included, in plant and loop numbers
+(:mod:`ctmm.sensitivity_time`, :mod:`ctmm.sensitivity_time_spatial`, :mod:`ctmm.sensitivity_loop_numbers`),
+and for free lumped chains.
 Accuracy and limits: ``docs/sensitivity.md``.
 """
 from __future__ import annotations
@@ -101,7 +105,7 @@ def with_parameters(system: Any, values: Mapping[str, float]) -> Any:
 
     Parameters
     ----------
-    system : Chain or ControlledChain
+    system : Chain, ControlledChain, PlanarModel, SpatialModel or ControlledModel
     values : mapping
         ``{parameter name: value}``; ``"<loop>.gain"`` of an LTI controller is a factor on it.
 
@@ -266,16 +270,16 @@ def frequency_response_sensitivity(system: Any, parameters: str | Sequence[str],
 
     Parameters
     ----------
-    system : Chain or ControlledChain
-        Lumped chain (module docstring).
+    system : Chain, ControlledChain, PlanarModel, SpatialModel or ControlledModel
+        Lumped chain, planar or spatial model (module docstring).
     parameters : str or sequence of str
         Parameter names.
     omega : array_like
         Angular frequencies [rad/s].
     input : str
-        ``"<element>.force"``.
+        Chains: ``"<element>.force"``; planar and spatial models: an actuator port.
     output : str
-        ``"<point>.x"``, ``".v"`` or ``".a"``.
+        Chains: ``"<point>.x"``, ``".v"`` or ``".a"``; planar and spatial models: a sensor port or coordinate.
 
     Returns
     -------
@@ -422,7 +426,7 @@ def margin_sensitivity(system: ControlledChain, loop: str, parameters: str | Seq
 
     Parameters
     ----------
-    system : ControlledChain
+    system : ControlledChain or ControlledModel (planar or spatial plant)
     loop : str
     parameters : str or sequence of str
     omega : array_like
@@ -471,7 +475,7 @@ def spectral_abscissa_sensitivity(system: Any, parameters: str | Sequence[str], 
 
     Parameters
     ----------
-    system : Chain or ControlledChain
+    system : Chain, ControlledChain, PlanarModel, SpatialModel or ControlledModel
     parameters : str or sequence of str
     re_min, im_max : float, optional
         Search region [1/s], [rad/s] of :func:`ctmm.stability.spectral_abscissa`; required when a
@@ -534,12 +538,16 @@ def spectral_abscissa_sensitivity(system: Any, parameters: str | Sequence[str], 
 def simulation_sensitivity(system: Any, parameters: str | Sequence[str], *, t_final: float, dt: float, q0: Any = None,
                            qdot0: Any = None, outputs: str | Sequence[str] | None = None,
                            x0: Mapping[str, float] | None = None, v0: Mapping[str, float] | None = None) -> Any:
-    """Outputs of an RK4 run of a planar model (loops closed: real-time, LTI, delayed) or of a lumped
-    chain (free response) and their exact derivatives with respect to plant numbers.
+    """Outputs of an RK4 run of a planar or spatial model (loops closed: real-time, LTI, delayed) or of a
+    lumped chain (free response) and their exact derivatives with respect to plant and loop numbers.
 
     Planar models: forward sensitivities of the generated RK4 step by casadi
     (:func:`ctmm.sensitivity_time.planar_simulation_sensitivity`: ``q0``, ``qdot0``, outputs
-    ``"<coordinate>"`` / ``"<coordinate>_dot"``); chains: the RK4 of their explicit form with its
+    ``"<coordinate>"`` / ``"<coordinate>_dot"``); spatial models: the same on the generated spatial step
+    (:func:`ctmm.sensitivity_time_spatial.spatial_simulation_sensitivity`: ``x0``, ``v0`` as
+    :func:`ctmm.simulate` takes them, outputs coordinates, velocities and sensor ports); loop numbers
+    (``"<loop>.gain"``, ``"<loop>.<sensor>"``, realisation entries ``"<loop>.A[i,j]"``...) as directions in the
+    step's parameters (:mod:`ctmm.sensitivity_loop_numbers`); chains: the RK4 of their explicit form with its
     stages differentiated (:func:`ctmm.sensitivity_time.chain_simulation_sensitivity`: ``x0``, ``v0``
     by point name, outputs ``"<point>.x"`` / ``".v"``).  Returns a
     :class:`ctmm.sensitivity_time.TimeSensitivity`.
@@ -547,8 +555,8 @@ def simulation_sensitivity(system: Any, parameters: str | Sequence[str], *, t_fi
     Raises
     ------
     ModelError
-        Controlled chains and spatial models (not implemented yet), loop numbers (constants of the
-        generated step), models that cannot be compiled, unknown or zero parameters.
+        Controlled chains (not implemented yet), loop delays (a whole number of steps of the generated
+        ring), spatial beams, models that cannot be compiled, unknown or zero parameters.
     """
     from .sensitivity_planar import is_planar_system
     from .sensitivity_spatial import is_spatial_system
@@ -562,8 +570,8 @@ def simulation_sensitivity(system: Any, parameters: str | Sequence[str], *, t_fi
         return chain_simulation_sensitivity(system, parameters, t_final=t_final, dt=dt, x0=x0, v0=v0, outputs=outputs)
     if not is_planar_system(system):
         raise ModelError(f"simulation_sensitivity: derivatives of time-domain outputs are implemented for a "
-                         f"ctmm.Chain of lumped elements and a ctmm.planar.PlanarModel, alone or in a ControlledModel; "
-                         f"{type(system).__name__} is not supported yet (controlled chains, spatial models); use the "
+                         f"ctmm.Chain of lumped elements and for planar and spatial models, alone or in a "
+                         f"ControlledModel; {type(system).__name__} is not supported yet (controlled chains); use the "
                          "frequency-domain, margin and spectral-abscissa sensitivities of ctmm.sensitivity")
     return planar_simulation_sensitivity(system, parameters, t_final=t_final, dt=dt, q0=q0, qdot0=qdot0,
                                          outputs=outputs)
