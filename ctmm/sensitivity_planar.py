@@ -39,8 +39,8 @@ from . import validation
 from .errors import ModelError, unknown_name
 from .sensitivity_model import LoopCharacteristicMatrix, ParameterDerivative, controller_polynomials, loop_parameter
 
-__all__ = ["PlanarCharacteristicMatrix", "equilibrium_motion", "is_planar_system", "selection", "planar_parameter_values",
-           "planar_with_parameters"]
+__all__ = ["PlanarCharacteristicMatrix", "equilibrium_motion", "is_planar_system", "selection",
+           "planar_parameter_values", "planar_with_parameters"]
 
 
 def is_planar_system(system: Any) -> bool:
@@ -145,21 +145,35 @@ def selection(size: int, indices: Sequence[int]) -> np.ndarray:
     return select
 
 
-def equilibrium_motion(f_q: np.ndarray, f_p: np.ndarray, name: str) -> np.ndarray:
+def equilibrium_motion(f_q: np.ndarray, f_p: np.ndarray, name: str, values: Sequence[float] = (),
+                       tolerance: float = 0.0, neutral: bool = False) -> np.ndarray:
     """``dq*/dp = -(df/dq)^{-1} df/dp`` of a static equilibrium ``f(q*(p), p) = 0`` (implicit function theorem),
-    zero when no parameter moves it.
+    zero for the parameters that do not move it: ``max |df/dp_j| |p_j| <= tolerance`` [acceleration] (round-off of
+    an equilibrium that ``p_j`` does not load, e.g. a spring at its rest position).  ``neutral``: the caller has
+    checked that nothing depends on the neutral directions of a singular ``df/dq``; the minimum-norm solution is
+    then used when ``df/dp`` lies in the range of ``df/dq``.
 
     Raises
     ------
     ModelError
-        A neutral equilibrium (``df/dq`` singular) that the parameters move.
+        A neutral equilibrium (``df/dq`` singular) that the parameters move (along a neutral direction, or at all
+        without ``neutral``).
     """
+    f_p = np.array(f_p, dtype=float)
+    for j, value in enumerate(values):
+        if np.max(np.abs(f_p[:, j]), initial=0.0) * abs(value) <= tolerance:
+            f_p[:, j] = 0.0
     if not np.any(f_p):
         return np.zeros((f_q.shape[1], f_p.shape[1]))
     if np.linalg.cond(f_q) > 1e12:
+        moving = [j for j in range(f_p.shape[1]) if np.any(f_p[:, j])]
+        if neutral:
+            motion = -np.linalg.lstsq(f_q, f_p, rcond=1e-12)[0]
+            if np.max(np.abs(f_q @ motion + f_p)) <= 1e-9 * np.max(np.abs(f_p)):
+                return motion
         raise ModelError(f"ctmm.sensitivity: the equilibrium of {name!r} is neutral (its acceleration Jacobian is "
-                         f"singular, condition {np.linalg.cond(f_q):.2e}) and the parameters move it; its "
-                         "linearisation has no derivative")
+                         f"singular, condition {np.linalg.cond(f_q):.2e}) and the parameters (positions {moving} in "
+                         "the list) move it; its linearisation has no derivative")
     return -np.linalg.solve(f_q, f_p)
 
 
@@ -186,7 +200,7 @@ class PlanarCharacteristicMatrix(LoopCharacteristicMatrix):
 
         from .compiled_parameters import compiled_actuators, parameter_vector
         from .compiled_scene import symbolic_accelerations_with_inputs
-        from .planar_linearization import operating_point
+        from .planar_linearization import EQUILIBRIUM_TOLERANCE, operating_point
 
         model, loops = _split(system)
         indices = self.bind(system, model, loops, _resolve(system, parameters), operating_point(model, None))
@@ -206,7 +220,9 @@ class PlanarCharacteristicMatrix(LoopCharacteristicMatrix):
         values = [np.asarray(x, dtype=float) for x in terms(self.point.q, np.zeros(n), np.zeros(m), np.zeros(k))]
         Jy, Ju, a_d, Jy_q, Jy_d, Ju_q, Ju_d = values
         # the equilibrium moves with p: a(q*(p), 0, 0, p) = 0 -> dq*/dp = -(da/dq)^-1 da/dp
-        self.equilibrium_derivative = equilibrium_motion(Jy[:, :n], a_d, model.name)
+        self.equilibrium_derivative = equilibrium_motion(
+            Jy[:, :n], a_d, model.name, [p.value for p in self.parameters],
+            1e-3 * EQUILIBRIUM_TOLERANCE * (1.0 + np.max(np.abs(model.gravity))))
         dq = self.equilibrium_derivative
         self.set_linearisation(Jy, Ju, Jy_d + Jy_q @ dq, Ju_d + Ju_q @ dq, self._sensor_row)
 

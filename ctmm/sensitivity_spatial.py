@@ -249,6 +249,7 @@ class SpatialCharacteristicMatrix(PlanarCharacteristicMatrix):
         from .compiled_spatial_loops import SpatialSymbols, loop_acceleration
         from .compiled_spatial_parameters import spatial_parameter_vector
         from .spatial.ports import SpatialPorts
+        from .planar_linearization import EQUILIBRIUM_TOLERANCE
         from .spatial_linearization import operating_point, tangent_names
 
         model, loops = _split(system)
@@ -273,11 +274,49 @@ class SpatialCharacteristicMatrix(PlanarCharacteristicMatrix):
             ca.jacobian(ca.vec(Ju), a), ca.jacobian(ca.vec(Ju), d)])
         zero = [np.zeros(nv), np.zeros(nv), np.zeros(nv), np.zeros(m), np.zeros(k)]
         J, Ju, f_a, f_d, J_a, J_d, Ju_a, Ju_d = (np.asarray(value, dtype=float) for value in terms(*zero))
-        self.equilibrium_derivative = equilibrium_motion(f_a, f_d, model.name)        # (nv, k) tangent motion
+        self._refuse_neutral(f_a, [J_a], J, indices)
+        self.input_slopes, self.checked_inputs = Ju_a.reshape(m, nv, nv), set()       # d B[:, j] / da per input j
+        self.equilibrium_derivative = equilibrium_motion(            # (nv, k): the equilibrium's tangent motion
+            f_a, f_d, model.name, [p.value for p in self.parameters],
+            1e-3 * EQUILIBRIUM_TOLERANCE * (1.0 + np.max(np.abs(model.gravity))), neutral=True)
         da = self.equilibrium_derivative
         self.symbols = (SpatialSymbols(model, ports), q, a, x, v)
         self.rows: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         self.set_linearisation(J, Ju, J_d + J_a @ da, Ju_d + Ju_a @ da, lambda name: self.output_row(name, 0.0))
+
+    def _refuse_neutral(self, f_a: np.ndarray, slopes: Sequence[np.ndarray], J: np.ndarray, indices: Sequence[int]
+                        ) -> None:
+        """Refuse plant numbers at a neutral equilibrium (``df/dr`` singular) whose linearisation depends on the
+        neutral directions: there the equilibrium the library finds (a search from the neutral configuration)
+        moves along them with the numbers in a path-dependent way, so the verbs' linearisation has no derivative."""
+        self.neutral = np.zeros((f_a.shape[1], 0))
+        if not any(index >= 0 for index in indices) or not f_a.size:
+            return
+        _, sigma, Vh = np.linalg.svd(f_a)
+        self.neutral = Vh[sigma <= 1e-12 * max(float(sigma[0]), 1e-300)].T
+        for slope in slopes:
+            self._check_neutral(slope, max(float(np.max(np.abs(J), initial=0.0)), 1.0), "its linearisation")
+
+    def _check_neutral(self, slope: np.ndarray, scale: float, what: str) -> None:
+        """Refuse when ``slope`` (``d vec(X) / da``) moves along the neutral directions (relative 1e-8 of ``scale``)."""
+        if not self.neutral.size:
+            return
+        moved = float(np.max(np.abs(slope.reshape(-1, self.neutral.shape[0]) @ self.neutral), initial=0.0))
+        if moved > 1e-8 * scale:
+            raise ModelError(f"ctmm.sensitivity: the equilibrium of {self.model.name!r} is neutral in "
+                             f"{self.neutral.shape[1]} direction(s) and {what} depends on them; the static equilibrium "
+                             "is found by a search from the neutral configuration that moves along them with the "
+                             "numbers, so it has no derivative in the plant numbers: add a restoring spring or gravity "
+                             "to make the equilibrium isolated (loop numbers are differentiated)")
+
+    def input_vector(self, name: str) -> np.ndarray:
+        """``b`` of an actuator port (a column of ``B``; refused at a neutral equilibrium that moves it)."""
+        column = super().input_vector(name)
+        if name not in self.checked_inputs:
+            self._check_neutral(self.input_slopes[self.actuator_names.index(name)],
+                                max(float(np.max(np.abs(column))), 1e-300), f"input {name!r}")
+            self.checked_inputs.add(name)
+        return column
 
     def _sensor(self, name: str) -> tuple[np.ndarray, np.ndarray] | None:
         """``(row, d row / dp)`` (``(2 nv,)``, ``(2 nv, k)``) of a sensor port stated on symbols, its row moving
@@ -296,6 +335,8 @@ class SpatialCharacteristicMatrix(PlanarCharacteristicMatrix):
             value, slope = ca.Function("row", [a, x], [row, ca.jacobian(row, a)])(np.zeros(a.size1()),
                                                                                    np.zeros(x.size1()))
             k = len(self.parameters)
+            self._check_neutral(np.asarray(slope, dtype=float), max(float(np.max(np.abs(value))), 1.0),
+                                f"sensor {name!r}")
             self.rows[name] = (np.asarray(value, dtype=float).reshape(-1),
                                np.asarray(slope, dtype=float).reshape(-1, a.size1()) @ self.equilibrium_derivative
                                if k else np.zeros((self.n, 0)))

@@ -198,8 +198,8 @@ def test_arm_response_and_abscissa_match_differences_with_a_moving_sensor():
 
 def test_spatial_histories_match_differences_of_the_simulation():
     # the arm alone (a point sensor as output) and the elastic-hinge body with a delayed PD (loop numbers)
-    cases = [(arm(), ARM_NAMES[1:4], {"shoulder.angle": 0.4, "elbow.angle1": -0.3}, {}, ["lower.tip.z", "elbow.q2_rate"],
-              0.2, 2e-3)]
+    cases = [(arm(), ARM_NAMES[1:4], {"shoulder.angle": 0.4, "elbow.angle1": -0.3}, {},
+              ["lower.tip.z", "elbow.q2_rate"], 0.2, 2e-3)]
     q0, v0 = hinge.initial_state()
     plant = hinge.model()
     cases.append((with_feedback(plant, [hinge.loop(0.004)]), ["body.mass", "gravity.z", "yaw_pd.body.angle_z",
@@ -216,6 +216,32 @@ def test_spatial_histories_match_differences_of_the_simulation():
         assert np.max(np.abs(found.values - history(system))) < 1e-12
         for i, name in enumerate(names):
             assert relative(found.derivative[i], richardson(history, system, name)) < 1e-6, name
+
+
+def spherical_pendulum() -> sp.SpatialModel:
+    return sp.SpatialModel("ball", [
+        sp.SpatialBody("bob", 0.7, [[0.02, 0.001, 0.0], [0.001, 0.03, 0.0], [0.0, 0.0, 0.015]],
+                       center_of_mass=(0.05, 0.02, -0.3)),
+        sp.Spherical(name="ball", parent=None, child="bob", actuated=True)], gravity=(0.0, 0.0, -9.81))
+
+
+def test_spherical_pendulum_with_a_neutral_yaw_matches_differences_or_is_refused():
+    # hanging from a ball joint the body may turn freely about the vertical (a neutral direction): what does not
+    # depend on that turn (child-axes rates and torques) is differentiated; a world position is refused
+    model = spherical_pendulum()
+    names = ["bob.mass", "bob.inertia.xy", "bob.inertia.zz", "gravity.z"]
+    omega = np.array([1.0, 4.0, 13.0])
+
+    def H(s):
+        return ctmm.frequency_response(s, omega, input="ball.torque_y", output="bob.omega_body_y")("bob.omega_body_y")
+
+    found = S.frequency_response_sensitivity(model, names, omega, input="ball.torque_y", output="bob.omega_body_y")
+    for i, name in enumerate(names):
+        assert relative(found.derivative[i], richardson(H, model, name)) < 1e-6, name
+    for output, input_name in (("bob.com.x", "ball.torque_y"), ("bob.omega_body_y", "bob.moment_x")):
+        with pytest.raises(ModelError, match="neutral in 1 direction"):
+            S.frequency_response_sensitivity(model, ["bob.mass"], omega, input=input_name, output=output)
+    assert S.frequency_response_sensitivity(model, [], omega, input="bob.moment_x", output="bob.com.x").response.size
 
 
 def test_spatial_refusals_name_what_is_allowed():
