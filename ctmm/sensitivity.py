@@ -549,13 +549,14 @@ def simulation_sensitivity(system: Any, parameters: str | Sequence[str], *, t_fi
     (``"<loop>.gain"``, ``"<loop>.<sensor>"``, realisation entries ``"<loop>.A[i,j]"``...) as directions in the
     step's parameters (:mod:`ctmm.sensitivity_loop_numbers`); chains: the RK4 of their explicit form with its
     stages differentiated (:func:`ctmm.sensitivity_time.chain_simulation_sensitivity`: ``x0``, ``v0``
-    by point name, outputs ``"<point>.x"`` / ``".v"``).  Returns a
+    by point name, outputs ``"<point>.x"`` / ``".v"``); controlled chains in their loop numbers through the
+    generated chain step (:func:`ctmm.sensitivity_time_chain.controlled_chain_simulation_sensitivity`).  Returns a
     :class:`ctmm.sensitivity_time.TimeSensitivity`.
 
     Raises
     ------
     ModelError
-        Controlled chains (not implemented yet), loop delays (a whole number of steps of the generated
+        Element numbers of controlled chains, loop delays (a whole number of steps of the generated
         ring), spatial beams, models that cannot be compiled, unknown or zero parameters.
     """
     from .sensitivity_planar import is_planar_system
@@ -566,12 +567,17 @@ def simulation_sensitivity(system: Any, parameters: str | Sequence[str], *, t_fi
     if is_spatial_system(system):
         return spatial_simulation_sensitivity(system, parameters, t_final=t_final, dt=dt, x0=x0, v0=v0,
                                               outputs=outputs)
+    if isinstance(system, ControlledChain):
+        from .sensitivity_time_chain import controlled_chain_simulation_sensitivity
+
+        return controlled_chain_simulation_sensitivity(system, parameters, t_final=t_final, dt=dt, x0=x0, v0=v0,
+                                                       outputs=outputs)
     if isinstance(system, Chain):
         return chain_simulation_sensitivity(system, parameters, t_final=t_final, dt=dt, x0=x0, v0=v0, outputs=outputs)
     if not is_planar_system(system):
         raise ModelError(f"simulation_sensitivity: derivatives of time-domain outputs are implemented for a "
-                         f"ctmm.Chain of lumped elements and for planar and spatial models, alone or in a "
-                         f"ControlledModel; {type(system).__name__} is not supported yet (controlled chains); use the "
-                         "frequency-domain, margin and spectral-abscissa sensitivities of ctmm.sensitivity")
+                         f"ctmm.Chain or ControlledChain of lumped elements and for planar and spatial models, alone "
+                         f"or in a ControlledModel; {type(system).__name__} is not supported; use the frequency-"
+                         "domain, margin and spectral-abscissa sensitivities of ctmm.sensitivity where they apply")
     return planar_simulation_sensitivity(system, parameters, t_final=t_final, dt=dt, q0=q0, qdot0=qdot0,
                                          outputs=outputs)

@@ -259,7 +259,7 @@ def chain_simulation_sensitivity(chain: Any, parameters: str | Sequence[str], *,
 
     if not isinstance(chain, Chain):
         raise ModelError("chain_simulation_sensitivity: a plain ctmm.Chain is differentiated in time; controlled "
-                         f"chains (loops) are not implemented yet; got {type(chain).__name__}")
+                         f"chains: ctmm.sensitivity_time_chain (loop numbers); got {type(chain).__name__}")
     model = LoopCharacteristicMatrix(chain, validation.names("parameters", parameters))
     n = model.n
     if np.any(np.diag(model.M) <= 0.0):
