@@ -520,6 +520,19 @@ def spectral_abscissa_sensitivity(system: Any, parameters: str | Sequence[str], 
         raise ModelError(f"spectral_abscissa_sensitivity: the root {root!r} is not a root of Delta (smallest "
                          f"singular value {sigma[-1]:.3g}, terms of size {size:.3g}); refusing a mismatched model")
     v, w = Vh[-1].conj(), U[:, -1]
+    if method == "characteristic roots":      # the root finder's tolerance: Newton on Delta to round-off
+        start = root
+        for _ in range(6):
+            step = -(w.conj() @ D @ v) / (w.conj() @ model.delta_s(root) @ v)
+            root += step
+            D = model.delta(root)
+            U, sigma, Vh = np.linalg.svd(D)
+            v, w = Vh[-1].conj(), U[:, -1]
+            if abs(step) <= 1e-15 * (1.0 + abs(root)):
+                break
+        if abs(root - start) > 1e-4 * (1.0 + abs(start)):
+            raise ModelError(f"spectral_abscissa_sensitivity: Newton on Delta moved the root {start!r} of "
+                             f"ctmm.stability.spectral_abscissa to {root!r}; refusing a mismatched model")
     denominator = w.conj() @ model.delta_s(root) @ v
     scale = np.linalg.norm(model.delta_s(root))
     if abs(denominator) <= 1e-8 * scale or (sigma.size > 1 and sigma[-2] <= 1e-8 * size):

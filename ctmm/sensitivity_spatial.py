@@ -332,14 +332,11 @@ class SpatialCharacteristicMatrix(PlanarCharacteristicMatrix):
                                  "coordinate")
             symbols, q, a, x, v = self.symbols
             row = ca.jacobian(symbols.sensor(name, q, v), x)
-            value, slope = ca.Function("row", [a, x], [row, ca.jacobian(row, a)])(np.zeros(a.size1()),
-                                                                                   np.zeros(x.size1()))
-            k = len(self.parameters)
-            self._check_neutral(np.asarray(slope, dtype=float), max(float(np.max(np.abs(value))), 1.0),
-                                f"sensor {name!r}")
-            self.rows[name] = (np.asarray(value, dtype=float).reshape(-1),
-                               np.asarray(slope, dtype=float).reshape(-1, a.size1()) @ self.equilibrium_derivative
-                               if k else np.zeros((self.n, 0)))
+            value, slope = (np.asarray(y, dtype=float) for y in ca.Function("row", [a, x], [row, ca.jacobian(
+                row, a)])(np.zeros(a.size1()), np.zeros(x.size1())))
+            self._check_neutral(slope, max(float(np.max(np.abs(value))), 1.0), f"sensor {name!r}")
+            self.rows[name] = (value.reshape(-1), slope.reshape(-1, a.size1()) @ self.equilibrium_derivative
+                               if len(self.parameters) else np.zeros((self.n, 0)))
         return self.rows[name]
 
     # -- ports ---------------------------------------------------------------------------------
