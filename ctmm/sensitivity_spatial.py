@@ -18,10 +18,13 @@ the sensors of :class:`ctmm.compiled_spatial_loops.SpatialSymbols`, and the retr
 derivatives are casadi's algorithmic differentiation, no differences:
 
 * ``dA/dp = partial_p A + partial_a A da*/dp`` with the equilibrium's tangent motion
-  ``da*/dp = -(df/da)^{-1} df/dp`` (implicit function theorem; a singular ``df/da`` with ``df/dp != 0``,
-  a neutral equilibrium, is refused), ``A`` at ``q* (+) a`` being the second derivative
-  ``d^2 f / da db`` -- likewise ``B`` and every sensor row ``C`` (a sensor that depends on the
+  ``da*/dp = -(df/da)^{-1} df/dp`` (implicit function theorem), ``A`` at ``q* (+) a`` being the second
+  derivative ``d^2 f / da db`` -- likewise ``B`` and every sensor row ``C`` (a sensor that depends on the
   configuration moves with the equilibrium: differentiated, not refused);
+* at a neutral equilibrium (``df/da`` singular: a pendulum on a ball joint turns freely about the vertical)
+  the library's equilibrium is the end of a search that may move along the neutral directions with the
+  numbers: plant numbers are differentiated only when ``A``, the input's column of ``B`` and the output's row
+  of ``C`` do not depend on those directions (else refused by name), with the minimum-norm ``da*/dp``;
 * loop numbers as for chains (:mod:`ctmm.sensitivity_model`).
 
 Parameters: the entries of :func:`ctmm.compiled_spatial_parameters.spatial_parameter_layout` --
