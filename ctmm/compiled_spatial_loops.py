@@ -34,9 +34,9 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from .articulated import articulated_sweep
 from .codegen import load_casadi
 from .compiled_loops import ClosedLoops
-from .articulated import articulated_sweep
 from .compiled_spatial import DEFAULT_ROWS, SPATIAL_FLAGS, position_rates, spatial_compile_refusal
 from .compiled_spatial_parameters import (SpatialNumbers, parametrised_scene_terms, spatial_parameter_layout,
                                           spatial_parameter_vector)

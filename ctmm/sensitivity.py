@@ -1,10 +1,12 @@
 """``ctmm.sensitivity``: exact derivatives of frequency responses, margins and the spectral abscissa.
 
 Derivatives with respect to **named parameters** of a lumped 1-D chain closed by embedded loops
-(:class:`~ctmm.control.loops.ControlledChain`) -- and of planar models, controlled or not, through
-the same ``Delta(s) = s I - A + sum K_l b_l c_l^T`` of their linearisation, with ``A``, ``B`` and the
-equilibrium differentiated by casadi (:mod:`ctmm.sensitivity_planar`; parameters ``"<body>.mass"``,
-``"<body>.inertia"``, ``"<hinge>.stiffness"``, ``"<hinge>.damping"``) -- for chains: element numbers (``"m3.mass"``,
+(:class:`~ctmm.control.loops.ControlledChain`) -- and of planar and spatial models, controlled or not,
+through the same ``Delta(s) = s I - A + sum K_l b_l c_l^T`` of their linearisation, with ``A``, ``B``,
+the sensor rows and the equilibrium differentiated by casadi (:mod:`ctmm.sensitivity_planar`: parameters
+``"<body>.mass"``, ``"<body>.inertia"``, ``"<hinge>.stiffness"``, ``"<hinge>.damping"``;
+:mod:`ctmm.sensitivity_spatial`: ``"<body>.inertia.xx"``, ``"<joint>.reference"``, ``"gravity.z"``, ...)
+-- for chains: element numbers (``"m3.mass"``,
 ``"K1.stiffness"``, ``"C1.damping"``) and loop parameters (``"<loop>.gain"``, ``"<loop>.delay"``,
 ``"<loop>.<sensed signal>"`` -- the weight of a sensor term, e.g. ``kp``, ``kd`` of a PD loop
 ``[("m6.x", kp), ("m6.v", kd)]``).  Everything is built from the closed-loop characteristic
@@ -26,8 +28,10 @@ The values (crossovers, roots) come from the library's verbs on the TMM (:func:`
 :func:`ctmm.stability.spectral_abscissa`) or, delay-free with static gains, from the quadratic
 eigenvalue problem of ``Delta``; each is checked against ``Delta`` before it is differentiated (a
 mismatch is refused).  What cannot be differentiated is refused by name: non-lumped elements,
-connector forces as signals, spatial models; time-domain outputs (:func:`simulation_sensitivity`)
-are differentiated for planar models, loops included, in plant numbers (:mod:`ctmm.sensitivity_time`).
+connector forces as signals, spatial beams; time-domain outputs (:func:`simulation_sensitivity`)
+are differentiated for planar and spatial models, loops included, in plant and loop numbers
+(:mod:`ctmm.sensitivity_time`, :mod:`ctmm.sensitivity_time_spatial`, :mod:`ctmm.sensitivity_loop_numbers`),
+and for free lumped chains.
 Accuracy and limits: ``docs/sensitivity.md``.
 """
 from __future__ import annotations
@@ -58,9 +62,12 @@ def characteristic_matrix(system: Any, names: Sequence[str]) -> LoopCharacterist
     """``Delta(s)`` of ``system`` with its derivatives: a chain's (:mod:`ctmm.sensitivity_model`) or a
     planar model's (:mod:`ctmm.sensitivity_planar`, linearised about its static equilibrium)."""
     from .sensitivity_planar import PlanarCharacteristicMatrix, is_planar_system
+    from .sensitivity_spatial import SpatialCharacteristicMatrix, is_spatial_system
 
     if is_planar_system(system):
         return PlanarCharacteristicMatrix(system, names)
+    if is_spatial_system(system):
+        return SpatialCharacteristicMatrix(system, names)
     return LoopCharacteristicMatrix(system, names)
 
 
@@ -83,9 +90,12 @@ def parameter_values(system: Any, parameters: str | Sequence[str]) -> dict[str, 
     ``"<loop>.gain"`` of a loop with an LTI controller is a factor on that controller (value 1).
     """
     from .sensitivity_planar import is_planar_system, planar_parameter_values
+    from .sensitivity_spatial import is_spatial_system, spatial_parameter_values
 
     if is_planar_system(system):
         return planar_parameter_values(system, _names(parameters))
+    if is_spatial_system(system):
+        return spatial_parameter_values(system, _names(parameters))
     model = characteristic_matrix(system, _names(parameters))
     return {p.name: p.value for p in model.parameters}
 
@@ -95,7 +105,7 @@ def with_parameters(system: Any, values: Mapping[str, float]) -> Any:
 
     Parameters
     ----------
-    system : Chain or ControlledChain
+    system : Chain, ControlledChain, PlanarModel, SpatialModel or ControlledModel
     values : mapping
         ``{parameter name: value}``; ``"<loop>.gain"`` of an LTI controller is a factor on it.
 
@@ -108,11 +118,14 @@ def with_parameters(system: Any, values: Mapping[str, float]) -> Any:
     from .stability import with_loop_parameters
 
     from .sensitivity_planar import is_planar_system, planar_with_parameters
+    from .sensitivity_spatial import is_spatial_system, spatial_with_parameters
 
     if not isinstance(values, Mapping):
         raise ModelError(f"values must be a mapping {{parameter name: value}}, got {values!r}")
     if is_planar_system(system):
         return planar_with_parameters(system, {name: values[name] for name in _names(list(values))})
+    if is_spatial_system(system):
+        return spatial_with_parameters(system, {name: values[name] for name in _names(list(values))})
     model = characteristic_matrix(system, _names(list(values)))
     chain = model.chain
     elements = list(chain.elements)
@@ -257,42 +270,50 @@ def frequency_response_sensitivity(system: Any, parameters: str | Sequence[str],
 
     Parameters
     ----------
-    system : Chain or ControlledChain
-        Lumped chain (module docstring).
+    system : Chain, ControlledChain, PlanarModel, SpatialModel or ControlledModel
+        Lumped chain, planar or spatial model (module docstring).
     parameters : str or sequence of str
         Parameter names.
     omega : array_like
         Angular frequencies [rad/s].
     input : str
-        ``"<element>.force"``.
+        Chains: ``"<element>.force"``; planar and spatial models: an actuator port.
     output : str
-        ``"<point>.x"``, ``".v"`` or ``".a"``.
+        Chains: ``"<point>.x"``, ``".v"`` or ``".a"``; planar and spatial models: a sensor port or coordinate.
 
     Returns
     -------
     FrequencySensitivity
     """
     model = characteristic_matrix(system, _names(parameters))
-    w = validation.frequencies("omega", omega)
-    b = model.input_vector(_single("input", input))
-    _single("output", output)
+    return _response(model, validation.frequencies("omega", omega), _single("input", input),
+                     _single("output", output), len(model.parameters))
+
+
+def _response(model: LoopCharacteristicMatrix, w: np.ndarray, input: str, output: str,
+              count: int) -> FrequencySensitivity:
+    """:func:`frequency_response_sensitivity` on a built ``Delta`` (derivatives of its first ``count``
+    parameters)."""
+    b = model.input_vector(input)
     H = np.empty(w.size, dtype=complex)
-    dH = np.empty((len(model.parameters), w.size), dtype=complex)
+    dH = np.empty((count, w.size), dtype=complex)
     for k, wk in enumerate(w):
         s = 1j * wk
         D = model.delta(s)
         c = model.output_row(output, s)
         x = np.linalg.solve(D, b)
-        y = np.linalg.solve(D.T, c)               # Delta^{-T} c
         H[k] = c @ x
-        for i in range(len(model.parameters)):
+        if not count:
+            continue
+        y = np.linalg.solve(D.T, c)               # Delta^{-T} c
+        for i in range(count):
             dH[i, k] = -(y @ (model.delta_p(s, i) @ x)) + y @ model.input_vector_p(input, i) \
                 + model.output_row_p(output, s, i) @ x
     mag = np.abs(H)
     with np.errstate(divide="ignore", invalid="ignore"):
         dmag = np.real(np.conj(H) * dH) / mag
         dphase = np.imag(dH / H)
-    return FrequencySensitivity(w, tuple(p.name for p in model.parameters), H, dH, mag, dmag,
+    return FrequencySensitivity(w, tuple(p.name for p in model.parameters[:count]), H, dH, mag, dmag,
                                 np.unwrap(np.angle(H)), dphase)
 
 
@@ -315,14 +336,16 @@ def peak_sensitivity(system: Any, parameters: str | Sequence[str], omega: Any, *
     partial one there (envelope theorem).  The grid must resolve the peak.
     """
     names = _names(parameters)
-    grid = frequency_response_sensitivity(system, (), omega, input=input, output=output)
+    model = characteristic_matrix(system, names)
+    input, output = _single("input", input), _single("output", output)
+    grid = _response(model, validation.frequencies("omega", omega), input, output, 0)
     k = int(np.argmax(grid.magnitude))
 
     def negative(x: float) -> float:
-        return -float(frequency_response_sensitivity(system, (), [x], input=input, output=output).magnitude[0])
+        return -float(_response(model, np.array([x]), input, output, 0).magnitude[0])
 
     wk = _refine_extremum(negative, grid.omega, k)
-    at = frequency_response_sensitivity(system, names, [wk], input=input, output=output)
+    at = _response(model, np.array([wk]), input, output, len(names))
     return PeakSensitivity(float(at.magnitude[0]), wk,
                            {n: float(at.magnitude_derivative[i, 0]) for i, n in enumerate(names)})
 
@@ -403,7 +426,7 @@ def margin_sensitivity(system: ControlledChain, loop: str, parameters: str | Seq
 
     Parameters
     ----------
-    system : ControlledChain
+    system : ControlledChain or ControlledModel (planar or spatial plant)
     loop : str
     parameters : str or sequence of str
     omega : array_like
@@ -452,7 +475,7 @@ def spectral_abscissa_sensitivity(system: Any, parameters: str | Sequence[str], 
 
     Parameters
     ----------
-    system : Chain or ControlledChain
+    system : Chain, ControlledChain, PlanarModel, SpatialModel or ControlledModel
     parameters : str or sequence of str
     re_min, im_max : float, optional
         Search region [1/s], [rad/s] of :func:`ctmm.stability.spectral_abscissa`; required when a
@@ -497,6 +520,19 @@ def spectral_abscissa_sensitivity(system: Any, parameters: str | Sequence[str], 
         raise ModelError(f"spectral_abscissa_sensitivity: the root {root!r} is not a root of Delta (smallest "
                          f"singular value {sigma[-1]:.3g}, terms of size {size:.3g}); refusing a mismatched model")
     v, w = Vh[-1].conj(), U[:, -1]
+    if method == "characteristic roots":      # the root finder's tolerance: Newton on Delta to round-off
+        start = root
+        for _ in range(6):
+            step = -(w.conj() @ D @ v) / (w.conj() @ model.delta_s(root) @ v)
+            root += step
+            D = model.delta(root)
+            U, sigma, Vh = np.linalg.svd(D)
+            v, w = Vh[-1].conj(), U[:, -1]
+            if abs(step) <= 1e-15 * (1.0 + abs(root)):
+                break
+        if abs(root - start) > 1e-4 * (1.0 + abs(start)):
+            raise ModelError(f"spectral_abscissa_sensitivity: Newton on Delta moved the root {start!r} of "
+                             f"ctmm.stability.spectral_abscissa to {root!r}; refusing a mismatched model")
     denominator = w.conj() @ model.delta_s(root) @ v
     scale = np.linalg.norm(model.delta_s(root))
     if abs(denominator) <= 1e-8 * scale or (sigma.size > 1 and sigma[-2] <= 1e-8 * size):
@@ -515,31 +551,46 @@ def spectral_abscissa_sensitivity(system: Any, parameters: str | Sequence[str], 
 def simulation_sensitivity(system: Any, parameters: str | Sequence[str], *, t_final: float, dt: float, q0: Any = None,
                            qdot0: Any = None, outputs: str | Sequence[str] | None = None,
                            x0: Mapping[str, float] | None = None, v0: Mapping[str, float] | None = None) -> Any:
-    """Outputs of an RK4 run of a planar model (loops closed: real-time, LTI, delayed) or of a lumped
-    chain (free response) and their exact derivatives with respect to plant numbers.
+    """Outputs of an RK4 run of a planar or spatial model (loops closed: real-time, LTI, delayed) or of a
+    lumped chain (free response) and their exact derivatives with respect to plant and loop numbers.
 
     Planar models: forward sensitivities of the generated RK4 step by casadi
     (:func:`ctmm.sensitivity_time.planar_simulation_sensitivity`: ``q0``, ``qdot0``, outputs
-    ``"<coordinate>"`` / ``"<coordinate>_dot"``); chains: the RK4 of their explicit form with its
+    ``"<coordinate>"`` / ``"<coordinate>_dot"``); spatial models: the same on the generated spatial step
+    (:func:`ctmm.sensitivity_time_spatial.spatial_simulation_sensitivity`: ``x0``, ``v0`` as
+    :func:`ctmm.simulate` takes them, outputs coordinates, velocities and sensor ports); loop numbers
+    (``"<loop>.gain"``, ``"<loop>.<sensor>"``, realisation entries ``"<loop>.A[i,j]"``...) as directions in the
+    step's parameters (:mod:`ctmm.sensitivity_loop_numbers`); chains: the RK4 of their explicit form with its
     stages differentiated (:func:`ctmm.sensitivity_time.chain_simulation_sensitivity`: ``x0``, ``v0``
-    by point name, outputs ``"<point>.x"`` / ``".v"``).  Returns a
+    by point name, outputs ``"<point>.x"`` / ``".v"``); controlled chains in their loop numbers through the
+    generated chain step (:func:`ctmm.sensitivity_time_chain.controlled_chain_simulation_sensitivity`).  Returns a
     :class:`ctmm.sensitivity_time.TimeSensitivity`.
 
     Raises
     ------
     ModelError
-        Controlled chains and spatial models (not implemented yet), loop numbers (constants of the
-        generated step), models that cannot be compiled, unknown or zero parameters.
+        Element numbers of controlled chains, loop delays (a whole number of steps of the generated
+        ring), spatial beams, models that cannot be compiled, unknown or zero parameters.
     """
     from .sensitivity_planar import is_planar_system
+    from .sensitivity_spatial import is_spatial_system
     from .sensitivity_time import chain_simulation_sensitivity, planar_simulation_sensitivity
+    from .sensitivity_time_spatial import spatial_simulation_sensitivity
 
+    if is_spatial_system(system):
+        return spatial_simulation_sensitivity(system, parameters, t_final=t_final, dt=dt, x0=x0, v0=v0,
+                                              outputs=outputs)
+    if isinstance(system, ControlledChain):
+        from .sensitivity_time_chain import controlled_chain_simulation_sensitivity
+
+        return controlled_chain_simulation_sensitivity(system, parameters, t_final=t_final, dt=dt, x0=x0, v0=v0,
+                                                       outputs=outputs)
     if isinstance(system, Chain):
         return chain_simulation_sensitivity(system, parameters, t_final=t_final, dt=dt, x0=x0, v0=v0, outputs=outputs)
     if not is_planar_system(system):
         raise ModelError(f"simulation_sensitivity: derivatives of time-domain outputs are implemented for a "
-                         f"ctmm.Chain of lumped elements and a ctmm.planar.PlanarModel, alone or in a ControlledModel; "
-                         f"{type(system).__name__} is not supported yet (controlled chains, spatial models); use the "
-                         "frequency-domain, margin and spectral-abscissa sensitivities of ctmm.sensitivity")
+                         f"ctmm.Chain or ControlledChain of lumped elements and for planar and spatial models, alone "
+                         f"or in a ControlledModel; {type(system).__name__} is not supported; use the frequency-"
+                         "domain, margin and spectral-abscissa sensitivities of ctmm.sensitivity where they apply")
     return planar_simulation_sensitivity(system, parameters, t_final=t_final, dt=dt, q0=q0, qdot0=qdot0,
                                          outputs=outputs)

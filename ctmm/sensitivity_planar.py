@@ -39,7 +39,8 @@ from . import validation
 from .errors import ModelError, unknown_name
 from .sensitivity_model import LoopCharacteristicMatrix, ParameterDerivative, controller_polynomials, loop_parameter
 
-__all__ = ["PlanarCharacteristicMatrix", "is_planar_system", "planar_parameter_values", "planar_with_parameters"]
+__all__ = ["PlanarCharacteristicMatrix", "equilibrium_motion", "is_planar_system", "selection",
+           "planar_parameter_values", "planar_with_parameters"]
 
 
 def is_planar_system(system: Any) -> bool:
@@ -135,6 +136,47 @@ def planar_with_parameters(system: Any, values: Mapping[str, float]) -> Any:
     return out
 
 
+def selection(size: int, indices: Sequence[int]) -> np.ndarray:
+    """``(size, len(indices))``: column ``j`` the unit vector of entry ``indices[j]`` (zero for ``-1``)."""
+    select = np.zeros((size, len(indices)))
+    for j, index in enumerate(indices):
+        if index >= 0:
+            select[index, j] = 1.0
+    return select
+
+
+def equilibrium_motion(f_q: np.ndarray, f_p: np.ndarray, name: str, values: Sequence[float] = (),
+                       tolerance: float = 0.0, neutral: bool = False) -> np.ndarray:
+    """``dq*/dp = -(df/dq)^{-1} df/dp`` of a static equilibrium ``f(q*(p), p) = 0`` (implicit function theorem),
+    zero for the parameters that do not move it: ``max |df/dp_j| |p_j| <= tolerance`` [acceleration] (round-off of
+    an equilibrium that ``p_j`` does not load, e.g. a spring at its rest position).  ``neutral``: the caller has
+    checked that nothing depends on the neutral directions of a singular ``df/dq``; the minimum-norm solution is
+    then used when ``df/dp`` lies in the range of ``df/dq``.
+
+    Raises
+    ------
+    ModelError
+        A neutral equilibrium (``df/dq`` singular) that the parameters move (along a neutral direction, or at all
+        without ``neutral``).
+    """
+    f_p = np.array(f_p, dtype=float)
+    for j, value in enumerate(values):
+        if np.max(np.abs(f_p[:, j]), initial=0.0) * abs(value) <= tolerance:
+            f_p[:, j] = 0.0
+    if not np.any(f_p):
+        return np.zeros((f_q.shape[1], f_p.shape[1]))
+    if np.linalg.cond(f_q) > 1e12:
+        moving = [j for j in range(f_p.shape[1]) if np.any(f_p[:, j])]
+        if neutral:
+            motion = -np.linalg.lstsq(f_q, f_p, rcond=1e-12)[0]
+            if np.max(np.abs(f_q @ motion + f_p)) <= 1e-9 * np.max(np.abs(f_p)):
+                return motion
+        raise ModelError(f"ctmm.sensitivity: the equilibrium of {name!r} is neutral (its acceleration Jacobian is "
+                         f"singular, condition {np.linalg.cond(f_q):.2e}) and the parameters (positions {moving} in "
+                         "the list) move it; its linearisation has no derivative")
+    return -np.linalg.solve(f_q, f_p)
+
+
 class PlanarCharacteristicMatrix(LoopCharacteristicMatrix):
     """``Delta(s) = s I - A + sum_l K_l b_l c_l^T`` of a planar (controlled) model (module docstring).
 
@@ -158,23 +200,16 @@ class PlanarCharacteristicMatrix(LoopCharacteristicMatrix):
 
         from .compiled_parameters import compiled_actuators, parameter_vector
         from .compiled_scene import symbolic_accelerations_with_inputs
-        from .planar_linearization import operating_point
-        from .saturation import refuse_saturation
+        from .planar_linearization import EQUILIBRIUM_TOLERANCE, operating_point
 
         model, loops = _split(system)
-        refuse_saturation(loops, "ctmm.sensitivity")
-        self.system, self.model, self.loops = system, model, loops
-        self.parameters, indices = _resolve(system, parameters)
-        self.point = operating_point(model, None)
+        indices = self.bind(system, model, loops, _resolve(system, parameters), operating_point(model, None))
         n = model.n_coordinates
         self.n = 2 * n
         self.actuator_names = tuple(compiled_actuators(model))
         m, k = len(self.actuator_names), len(self.parameters)
         p0 = parameter_vector(model)
-        select = np.zeros((p0.size, k))
-        for j, index in enumerate(indices):
-            if index >= 0:
-                select[index, j] = 1.0
+        select = selection(p0.size, indices)
         accelerations = symbolic_accelerations_with_inputs(model, self.actuator_names)
         q, v, u, d = ca.SX.sym("q", n), ca.SX.sym("v", n), ca.SX.sym("u", m), ca.SX.sym("d", k)
         a = accelerations(q, v, u, ca.DM(p0) + ca.DM(select) @ d, self.point.t)
@@ -185,28 +220,38 @@ class PlanarCharacteristicMatrix(LoopCharacteristicMatrix):
         values = [np.asarray(x, dtype=float) for x in terms(self.point.q, np.zeros(n), np.zeros(m), np.zeros(k))]
         Jy, Ju, a_d, Jy_q, Jy_d, Ju_q, Ju_d = values
         # the equilibrium moves with p: a(q*(p), 0, 0, p) = 0 -> dq*/dp = -(da/dq)^-1 da/dp
-        a_q = Jy[:, :n]
-        if k and np.any(a_d):
-            if np.linalg.cond(a_q) > 1e12:
-                raise ModelError(f"ctmm.sensitivity: the equilibrium of {model.name!r} is neutral (da/dq singular, "
-                                 f"condition {np.linalg.cond(a_q):.2e}); it does not move smoothly with the "
-                                 "parameters, so its linearisation has no derivative")
-            self.equilibrium_derivative = -np.linalg.solve(a_q, a_d)          # (n, k)
-        else:
-            self.equilibrium_derivative = np.zeros((n, k))
+        self.equilibrium_derivative = equilibrium_motion(
+            Jy[:, :n], a_d, model.name, [p.value for p in self.parameters],
+            1e-3 * EQUILIBRIUM_TOLERANCE * (1.0 + np.max(np.abs(model.gravity))))
         dq = self.equilibrium_derivative
-        dJy = (Jy_d + Jy_q @ dq).reshape(n, 2 * n, k, order="F")
-        dJu = (Ju_d + Ju_q @ dq).reshape(n, m, k, order="F")
-        self.A = np.block([[np.zeros((n, n)), np.eye(n)], [Jy]])
+        self.set_linearisation(Jy, Ju, Jy_d + Jy_q @ dq, Ju_d + Ju_q @ dq, self._sensor_row)
+
+    def bind(self, system: Any, model: Any, loops: tuple, resolved: tuple[list, list[int]], point: Any) -> list[int]:
+        """Hold the system, its plant, loops (saturated ones refused), parameters and operating point; the
+        plant numbers' indices in the parameter column (-1 for loop numbers)."""
+        from .saturation import refuse_saturation
+
+        refuse_saturation(loops, "ctmm.sensitivity")
+        self.system, self.model, self.loops, self.point = system, model, loops, point
+        self.parameters = tuple(resolved[0])
+        return resolved[1]
+
+    def set_linearisation(self, J: np.ndarray, Ju: np.ndarray, dJ: np.ndarray, dJu: np.ndarray,
+                          sensor_row: Any) -> None:
+        """``A = [[0, I], J]``, ``B = [0 ; Ju]`` and their derivatives from ``dJ = d vec(J)/dp`` ``(n 2n, k)``,
+        ``dJu = d vec(Ju)/dp`` (column-major vec), then the loops' ports (``sensor_row(name)`` a ``C`` row)."""
+        n, m, k = J.shape[0], Ju.shape[1], len(self.parameters)
+        self.A = np.block([[np.zeros((n, n)), np.eye(n)], [J]])
         self.B = np.vstack([np.zeros((n, m)), Ju])
-        self.A_p = np.concatenate([np.zeros((n, 2 * n, k)), dJy])            # (2n, 2n, k)
-        self.B_p = np.concatenate([np.zeros((n, m, k)), dJu])                # (2n, m, k)
+        self.A_p = np.concatenate([np.zeros((n, 2 * n, k)), dJ.reshape(n, 2 * n, k, order="F")])    # (2n, 2n, k)
+        self.B_p = np.concatenate([np.zeros((n, m, k)), dJu.reshape(n, m, k, order="F")])          # (2n, m, k)
         self.M, self.C, self.K = np.zeros((2 * n, 2 * n)), np.eye(2 * n), -self.A
+        loops = self.loops
         self.controller_coefficients = [controller_polynomials(lp) for lp in loops]
         self.actuator_vectors = [sum(w * self.input_vector(name) for name, w in lp.actuator_terms) for lp in loops]
-        self.sensor_terms = [[(self._sensor_row(sig), 0, w) for sig, w in lp.terms] for lp in loops]
-        self._actuator_p = [np.stack([sum(w * self.input_vector_p(name, i) for name, w in lp.actuator_terms)
-                                      for i in range(k)]) if k else np.zeros((0, self.n)) for lp in loops]
+        self.sensor_terms = [[(sensor_row(sig), 0, w) for sig, w in lp.terms] for lp in loops]
+        self.actuator_derivatives = [np.stack([sum(w * self.input_vector_p(name, i) for name, w in lp.actuator_terms)
+                                               for i in range(k)]) if k else np.zeros((0, self.n)) for lp in loops]
 
     # -- ports ---------------------------------------------------------------------------------
     def _sensor_row(self, name: str) -> np.ndarray:
@@ -244,18 +289,20 @@ class PlanarCharacteristicMatrix(LoopCharacteristicMatrix):
 
     def actuator_p(self, index: int, loop: int) -> np.ndarray:
         """``db_l/dp`` (plant numbers move ``B``)."""
-        return self._actuator_p[loop][index] + 0j
+        return self.actuator_derivatives[loop][index] + 0j
 
     # -- Delta ---------------------------------------------------------------------------------
     def delta_p(self, s: complex, index: int, *, skip: int = -1) -> np.ndarray:
-        """``dDelta/dp``: ``-dA/dp + sum_l K_l db_l/dp c_l^T`` of a plant number; loops as for chains."""
+        """``dDelta/dp``: ``-dA/dp + sum_l K_l (db_l/dp c_l^T + b_l dc_l/dp^T)`` of a plant number; loops as
+        for chains."""
         p = self.parameters[index]
         if p.kind != "plant":
             return super().delta_p(s, index, skip=skip)
         D = -self.A_p[:, :, index] + 0j
         for i in range(len(self.loops)):
             if i != skip:
-                D += self.loop_gain(i, s)[0] * np.outer(self._actuator_p[i][index], self.sensor(i, s)[0])
+                D += self.loop_gain(i, s)[0] * (np.outer(self.actuator_derivatives[i][index], self.sensor(i, s)[0])
+                                                + np.outer(self.actuator_vectors[i], self.sensor_p(index, i, s)))
         return D
 
     def delay_free_roots(self) -> np.ndarray:

@@ -17,7 +17,10 @@ round-off (not of the exact ODE solution; the two differ by the RK4 error, O(dt^
 Parameters: ``"<body>.mass"`` [kg], ``"<body>.inertia"`` (about the centre of mass) [kg m^2],
 ``"<hinge>.stiffness"`` [N m/rad], ``"<hinge>.damping"`` [N m s/rad].  A number that is zero in
 the model is a constant of the generated expression and is refused (give it a nonzero value).
-Loop numbers (gains, weights, delays) are constants of the generated step and are refused.
+Loop numbers -- ``"<loop>.gain"``, the sensor weights ``"<loop>.<sensor>"`` and an LTI controller's
+realisation entries -- are entries (directions) of the step's parameter column
+(:mod:`ctmm.sensitivity_loop_numbers`); delays are refused (a whole number of steps of the ring).
+Spatial models: :mod:`ctmm.sensitivity_time_spatial`.
 """
 from __future__ import annotations
 
@@ -29,7 +32,8 @@ import numpy as np
 from . import validation
 from .errors import ModelError, unknown_name
 
-__all__ = ["TimeSensitivity", "chain_simulation_sensitivity", "parameter_index", "planar_simulation_sensitivity"]
+__all__ = ["TimeSensitivity", "chain_simulation_sensitivity", "forward_sensitivities", "parameter_index",
+           "planar_simulation_sensitivity"]
 
 
 @dataclass(frozen=True)
@@ -90,6 +94,39 @@ def parameter_index(model: Any, name: str, values: np.ndarray) -> int:
     return index
 
 
+def forward_sensitivities(step: Any, first: np.ndarray, p0: np.ndarray, directions: np.ndarray, n_steps: int,
+                          h: float, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """States ``(n_steps + 1, size)`` and their derivatives ``(n_steps + 1, size, m)`` along the ``m`` columns of
+    ``directions`` (``(p0.size, m)``) of the generated ``step(y, u, h, p, t0, k)`` (no held inputs) from
+    ``first`` with ``p = p0``: ``S_{k+1} = dPhi/dy S_k + dPhi/dp directions`` by casadi's AD.
+
+    Raises
+    ------
+    ModelError
+        A non-finite state (the run diverged).
+    """
+    import casadi as ca
+
+    size, m = first.size, directions.shape[1]
+    n_inputs = step.size1_in(1)
+    Y, S, d, k = ca.MX.sym("y", size), ca.MX.sym("S", size, m), ca.MX.sym("d", m), ca.MX.sym("k")
+    y_next = step(Y, ca.DM.zeros(n_inputs), h, ca.DM(p0) + ca.DM(directions) @ d, 0.0, k)
+    S_next = ca.jacobian(y_next, Y) @ S + ca.jacobian(y_next, d)
+    forward = ca.Function("forward", [Y, S, d, k], [y_next, S_next]).expand()
+    states = np.empty((n_steps + 1, size))
+    tangents = np.empty((n_steps + 1, size, m))
+    states[0] = first
+    tangents[0] = 0.0
+    zero = np.zeros(m)
+    for index in range(n_steps):
+        y_new, S_new = forward(states[index], tangents[index], zero, float(index))
+        states[index + 1] = np.asarray(y_new).reshape(-1)
+        tangents[index + 1] = np.asarray(S_new).reshape(size, m)
+        if not np.all(np.isfinite(states[index + 1])):
+            raise ModelError(f"{what}: the run diverged at t = {(index + 1) * h:g} s (non-finite state); reduce dt")
+    return states, tangents
+
+
 def planar_simulation_sensitivity(model: Any, parameters: str | Sequence[str], *, t_final: float, dt: float,
                                   q0: Any, qdot0: Any = None,
                                   outputs: str | Sequence[str] | None = None) -> TimeSensitivity:
@@ -127,6 +164,7 @@ def planar_simulation_sensitivity(model: Any, parameters: str | Sequence[str], *
     from .generated_loop import rk4_step_function
     from .planar.integrate import initial_coordinates, step_total
     from .planar.model import PlanarModel
+    from .sensitivity_loop_numbers import is_loop_number, loop_directions, split_loops
 
     controlled = model if isinstance(model, ControlledModel) else None
     if controlled is not None:
@@ -135,15 +173,12 @@ def planar_simulation_sensitivity(model: Any, parameters: str | Sequence[str], *
         raise ModelError(f"planar_simulation_sensitivity: model must be a ctmm.planar.PlanarModel or a "
                          f"ControlledModel on one, got {type(model).__name__}")
     names = validation.names("parameters", parameters)
-    loop_names = [lp.name for lp in (controlled.loops if controlled else ())]
-    for name in names:
-        if str(name).partition(".")[0] in loop_names:
-            raise ModelError(f"planar_simulation_sensitivity: parameter {name!r} is a loop number; the loops' gains, "
-                             "weights and delays are constants of the generated step, so time histories are "
-                             "differentiated with respect to plant numbers only (use the frequency-domain, margin "
-                             "and spectral-abscissa sensitivities for loop numbers)")
+    original, loop_list = controlled, (controlled.loops if controlled else ())
+    if controlled is not None:
+        controlled = split_loops(controlled, names, "planar_simulation_sensitivity")
     p0 = parameter_vector(model)
-    indices = [parameter_index(model, name, p0) for name in names]
+    indices = {k: parameter_index(model, name, p0) for k, name in enumerate(names)
+               if not is_loop_number(loop_list, name)}
     n = model.n_coordinates
     labels = list(model.coordinates) + [f"{c}_dot" for c in model.coordinates]
     wanted = list(model.coordinates) if outputs is None else list(validation.names("outputs", outputs))
@@ -156,7 +191,7 @@ def planar_simulation_sensitivity(model: Any, parameters: str | Sequence[str], *
     h = t_final / n_steps
 
     actuators = compiled_actuators(model)
-    loops = None if controlled is None else ClosedLoops(controlled, actuators, h)
+    loops = None if controlled is None else ClosedLoops(controlled, actuators, h, numbers="inputs")
     acceleration = symbolic_accelerations_with_inputs(model, actuators,
                                                       [unit for _, unit in loops.channels] if loops else ())
     if loops is None:
@@ -169,25 +204,15 @@ def planar_simulation_sensitivity(model: Any, parameters: str | Sequence[str], *
     else:           # the loops closed at every stage, delayed ones from the ring in the state (as generated)
         step = loops.step(acceleration, len(actuators), p0.size)
         size, first = loops.state_size, loops.initial_state(q, v)
-    m = len(indices)
-    select = np.zeros((p0.size, m))
-    select[indices, range(m)] = 1.0
-    Y, S, d, k = ca.MX.sym("y", size), ca.MX.sym("S", size, m), ca.MX.sym("d", m), ca.MX.sym("k")
-    y_next = step(Y, ca.DM.zeros(len(actuators)), h, ca.DM(p0) + ca.DM(select) @ d, 0.0, k)
-    S_next = ca.jacobian(y_next, Y) @ S + ca.jacobian(y_next, d)
-    forward = ca.Function("forward", [Y, S, d, k], [y_next, S_next]).expand()
-    states = np.empty((n_steps + 1, size))
-    tangents = np.empty((n_steps + 1, size, m))
-    states[0] = first
-    tangents[0] = 0.0
-    zero = np.zeros(m)
-    for index in range(n_steps):
-        y_new, S_new = forward(states[index], tangents[index], zero, float(index))
-        states[index + 1] = np.asarray(y_new).reshape(-1)
-        tangents[index + 1] = np.asarray(S_new).reshape(size, m)
-        if not np.all(np.isfinite(states[index + 1])):
-            raise ModelError(f"planar_simulation_sensitivity: the run diverged at t = {(index + 1) * h:g} s "
-                             f"(non-finite state); reduce dt")
+    directions = np.zeros((p0.size, len(names)))
+    for column, index in indices.items():
+        directions[index, column] = 1.0
+    if loops is not None:
+        size_p = p0.size + loops.parameter_values.size
+        directions = np.vstack([directions, np.zeros((loops.parameter_values.size, len(names)))]) + loop_directions(
+            original, controlled, loops.parameter_layout, names, p0.size, size_p)
+        p0 = np.concatenate([p0, loops.parameter_values])
+    states, tangents = forward_sensitivities(step, first, p0, directions, n_steps, h, "planar_simulation_sensitivity")
     time = h * np.arange(n_steps + 1)
     values = states[:, rows].T
     derivative = np.transpose(tangents[:, rows, :], (2, 1, 0))
@@ -234,7 +259,7 @@ def chain_simulation_sensitivity(chain: Any, parameters: str | Sequence[str], *,
 
     if not isinstance(chain, Chain):
         raise ModelError("chain_simulation_sensitivity: a plain ctmm.Chain is differentiated in time; controlled "
-                         f"chains (loops) are not implemented yet; got {type(chain).__name__}")
+                         f"chains: ctmm.sensitivity_time_chain (loop numbers); got {type(chain).__name__}")
     model = LoopCharacteristicMatrix(chain, validation.names("parameters", parameters))
     n = model.n
     if np.any(np.diag(model.M) <= 0.0):

@@ -139,16 +139,6 @@ def test_refusals_name_what_is_allowed():
                                               RigidBody.uniform_link("link", mass=1.0, length=LENGTH)])
         S.frequency_response_sensitivity(damped, ["motor.stiffness"], [1.0], input="motor.torque",
                                          output="link.theta")
-    # spatial models: not differentiated yet, refused by name (not silently answered)
-    import ctmm.spatial as sp
-
-    spatial = sp.SpatialModel("hinge", [sp.SpatialBody("body", 4.0, np.diag([0.05, 0.08, 0.06])),
-                                        sp.Elastic6(name="hinge", parent=None, child="body",
-                                                    stiffness=np.eye(6) * 50.0, damping=np.eye(6), actuated=True)])
-    with pytest.raises(ModelError, match="spatial models are not differentiated yet"):
-        S.spectral_abscissa_sensitivity(spatial, [])
-    with pytest.raises(ModelError, match="SpatialModel is not supported yet"):
-        S.simulation_sensitivity(spatial, [], t_final=0.1, dt=0.01)
     # a point position moves with the equilibrium: refused, not silently wrong
     with pytest.raises(ModelError, match="depends on the configuration"):
         S.frequency_response_sensitivity(link(), ["motor.stiffness"], [1.0], input="motor.torque",
@@ -179,7 +169,7 @@ def test_controlled_planar_histories_match_differences_of_the_simulation(delay, 
     gain = control.tf([1.0], [0.05, 1.0]) if lti else 1.0
     pd = Feedback("pd", [("motor.angle", 8.0), ("motor.rate", 1.5)], "motor.torque", gain=gain, delay=delay)
     system = with_feedback(two_link(), [pd])
-    names = ["upper.mass", "elbow.stiffness"]
+    names = ["upper.mass", "elbow.stiffness", "pd.motor.rate", "pd.gain", "pd.motor.angle"]
     found = S.simulation_sensitivity(system, names, t_final=0.5, dt=0.01, q0=[0.5, -0.3],
                                      outputs=["lower.theta", "upper.theta_dot"])
 
@@ -190,5 +180,34 @@ def test_controlled_planar_histories_match_differences_of_the_simulation(delay, 
     assert np.max(np.abs(found.values - history(system))) < 1e-12
     for i, name in enumerate(names):
         assert relative(found.derivative[i], richardson(history, system, name)) < 1e-6, name
-    with pytest.raises(ModelError, match="loop number"):
-        S.simulation_sensitivity(system, ["pd.motor.rate"], t_final=0.1, dt=0.01, q0=[0.5, -0.3])
+    with pytest.raises(ModelError, match="whole number of steps"):
+        S.simulation_sensitivity(system, ["pd.delay"], t_final=0.1, dt=0.01, q0=[0.5, -0.3])
+
+
+def test_controller_realisation_entries_in_time_match_differences_of_the_simulation():
+    # "<loop>.A[0,0]", "<loop>.C[0]" of an LTI controller given as a state-space system, alone and together with
+    # a sensor weight (the loop then stated per sensor term: every term's controller moves)
+    import control
+
+    A, B, C, D = -20.0, 4.0, 5.0, 0.0
+
+    def system(a=A, c=C):
+        pd = Feedback("pd", [("motor.angle", 8.0), ("motor.rate", 1.5)], "motor.torque",
+                      gain=control.ss([[a]], [[B]], [[c]], [[D]]), delay=0.02)
+        return with_feedback(two_link(), [pd])
+
+    def history(s):
+        sim = ctmm.simulate(s, t_final=0.3, dt=0.01, method="rk4", x0={"upper.theta": 0.5, "lower.theta": -0.3})
+        return sim["lower.theta"]
+
+    for names in (["pd.A[0,0]", "pd.C[0]"], ["pd.A[0,0]", "pd.C[0]", "pd.motor.rate"]):
+        found = S.simulation_sensitivity(system(), names, t_final=0.3, dt=0.01, q0=[0.5, -0.3], outputs="lower.theta")
+        assert np.max(np.abs(found.values[0] - history(system()))) < 1e-12
+        for i, (name, build) in enumerate((("pd.A[0,0]", lambda h: system(a=A + h)),
+                                           ("pd.C[0]", lambda h: system(c=C + h)))):
+            h = 1e-3 * 20.0
+
+            def central(step):
+                return (history(build(step)) - history(build(-step))) / (2 * step)
+
+            assert relative(found.derivative[i, 0], (4 * central(h / 2) - central(h)) / 3) < 1e-6, (names, name)

@@ -38,7 +38,7 @@ _CLIP = 1e9     # an infinite margin (no crossover) is used as this value with a
 
 @dataclass(frozen=True)
 class Quantity:
-    """A differentiable scalar of a controlled chain or a planar model (controlled or not).
+    """A differentiable scalar of a controlled chain or a planar or spatial model (controlled or not).
 
     Parameters
     ----------
@@ -234,11 +234,11 @@ def _bounds(parameters: Sequence[str], bounds: Any, x0: np.ndarray) -> tuple[np.
 def tune(system: Any, parameters: Sequence[str], objective: Quantity, constraints: Sequence[Constraint] = (),
          bounds: Any = None, *, maximize: bool = False, method: str = "SLSQP", max_iterations: int = 100,
          tolerance: float = 1e-8, progress: bool | Callable[[TuningStep], None] = False) -> TuningResult:
-    """Tune named parameters of a controlled chain or planar model by gradient-based constrained optimisation.
+    """Tune named parameters of a controlled chain, planar or spatial model by gradient-based constrained optimisation.
 
     Parameters
     ----------
-    system : Chain, ControlledChain, PlanarModel or ControlledModel (planar plant)
+    system : Chain, ControlledChain, PlanarModel, SpatialModel or ControlledModel (planar or spatial plant)
         Start point (its current parameter values).
     parameters : sequence of str
         Names as in :mod:`ctmm.sensitivity` (``"pd.m6.x"``, ``"pd.delay"``, ``"K3.stiffness"``,
