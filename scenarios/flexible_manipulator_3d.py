@@ -39,7 +39,8 @@ Outputs, through the verbs on the one controlled model:
   closed by hand;
 * delay margin of the yaw PD (``ctmm.stability.delay_margin``, the other loops closed without delay) and
   its check: the smallest singular value of the reference's ``i w I - A_0 - A_1 e^{-i w tau}`` at the
-  reported crossing (0 at an exact root).
+  reported crossing (0 at an exact root); the stability chart of the yaw PD over its gain scale and delay
+  (``ctmm.stability_chart``), which must agree with the margin at gain 1.
 """
 from __future__ import annotations
 
@@ -53,6 +54,7 @@ from scipy.integrate import solve_ivp
 import ctmm
 import ctmm.spatial as sp
 import ctmm.stability
+from ctmm.stability_chart import stability_chart
 from ctmm.control import Feedback, with_feedback
 from ctmm.control.controlled_model import ControlledModel
 from ctmm.manipulator import CycloidalMove
@@ -255,6 +257,13 @@ def run(output_dir: Path, quick: bool = False, results: dict | None = None) -> d
         frf_error = max(frf_error, float(np.max(np.abs(frf[label] - frf_ref[label]) / scale)))
     damping = {label: _flexible_modes(controlled(pzt)) for label, pzt in labels.items()}
     margin = ctmm.stability.delay_margin(controlled(True, DELAY), "yaw_pd")
+    grid = 8 if quick else 24
+    chart = stability_chart(controlled(True, DELAY), ("gain", np.linspace(0.25, 2.0, grid), "yaw PD gain scale"),
+                            ("delay", np.linspace(0.0, 0.15, grid), "yaw PD delay [s]"), loop="yaw_pd")
+    unit_gain = int(np.argmin(np.abs(chart.x - 1.0)))
+    column = np.asarray(chart.unstable_roots)[:, unit_gain]
+    chart_agrees = bool(np.all(column[chart.y < margin.critical_delay - 1e-9] == 0)
+                        and np.all(column[chart.y > margin.critical_delay + 1e-9] > 0))
     closed, yaw, _ = _reference_closed(reference, True)
     w_c, tau_c = margin.critical_frequency, margin.critical_delay
     characteristic = 1j * w_c * np.eye(2 * n) - closed - yaw * np.exp(-1j * w_c * tau_c)
@@ -305,6 +314,15 @@ def run(output_dir: Path, quick: bool = False, results: dict | None = None) -> d
     save_figure(fig, output_dir, f"{NAME}_frf")
     figures.append(f"{NAME}_frf.png")
 
+    fig, ax = plt.subplots(figsize=(6.5, 4.8))
+    chart.plot(ax)
+    ax.plot([1.0], [tau_c], "r*", ms=10, label=f"delay margin {tau_c * 1e3:.1f} ms (gain 1)")
+    ax.plot([1.0], [DELAY], "ko", ms=5, label=f"the delayed variant ({DELAY * 1e3:g} ms)")
+    ax.legend(fontsize="small")
+    ax.set_title("yaw PD: stability chart over gain scale and delay (other loops real-time)", fontsize=10)
+    save_figure(fig, output_dir, f"{NAME}_chart")
+    figures.append(f"{NAME}_chart.png")
+
     if results is not None:                      # ctmm run --save / --animate
         results.update({label.replace(" ", "").replace("+", "_"): s["result"] for label, s in sims.items()})
     time_error = max(e["tip_error_percent_of_peak"] for e in errors.values())
@@ -342,6 +360,10 @@ def run(output_dir: Path, quick: bool = False, results: dict | None = None) -> d
         "delay_margin": {"loop": "yaw_pd", "delay_s": DELAY, "critical_delay_s": tau_c,
                          "critical_frequency_rad_s": w_c, "margin_s": margin.margin, "stable": margin.stable,
                          "reference_residual": margin_residual},
+        "stability_chart": {"gain_scale": [float(chart.x[0]), float(chart.x[-1]), grid],
+                            "delay_s": [float(chart.y[0]), float(chart.y[-1]), grid],
+                            "stable_fraction": float(chart.stable_fraction), "wall_time_s": float(chart.wall_time_s),
+                            "agrees_with_delay_margin_at_gain_1": chart_agrees},
         "delayed_wall_time_s": delayed["wall"],
         "parameters": {"arm": {k: v for k, v in ARM.items()}, "stations_m": STATIONS, "shoulder_m": SHOULDER,
                        "base_kg": BASE["mass"], "hub_kg": HUB["mass"], "payload_kg": PAYLOAD["mass"],
