@@ -92,6 +92,10 @@ class SpatialSymbols:
             return q[sensor.index]
         if sensor.kind == "v":
             return v[sensor.index]
+        if sensor.kind in ("modal", "modal_v"):               # beam station sensors: linear in eta or eta_dot
+            layout = self.model.modal[sensor.index]
+            values = q[layout.position] if sensor.kind == "modal" else v[layout.velocity]
+            return ca.dot(ca.DM(np.asarray(sensor.weights, float)), values)
         if sensor.kind == "rotation":
             raise ModelError(f"sensor {name!r}: rotation-vector sensors are not stated on symbols yet, so "
                              "compiled=True cannot close a loop on it; use the x-y-z angles "
@@ -105,17 +109,25 @@ class SpatialSymbols:
         if sensor.kind == "angles":
             return [ca.atan2(-rotation[1, 2], rotation[2, 2]), ca.asin(ca.fmin(ca.fmax(rotation[0, 2], -1.0), 1.0)),
                     ca.atan2(-rotation[0, 1], rotation[0, 0])][c]
-        arm = ca.mtimes(rotation, ca.DM(np.asarray(sensor.point, float)))
+        layout = self.model.modal[sensor.index]
+        if layout is None:
+            arm = ca.mtimes(rotation, ca.DM(np.asarray(sensor.point, float)))
+            relative = ca.DM.zeros(3, 1)
+        else:                                                  # a beam: the deformed point
+            Phi = ca.DM(self.model.bodies[sensor.index].data.station(float(sensor.point[0]))[0])
+            arm = ca.mtimes(rotation, ca.DM([float(sensor.point[0]), 0.0, 0.0]) + ca.mtimes(Phi, q[layout.position]))
+            relative = ca.mtimes(rotation, ca.mtimes(Phi, v[layout.velocity]))
         if sensor.kind == "point":
             return state.origin[c] + arm[c]
-        return state.velocity[c] + ca.cross(omega, arm)[c]
+        return state.velocity[c] + ca.cross(omega, arm)[c] + relative[c]
 
 
 def loop_acceleration(model: SpatialModel, ports: SpatialPorts, actuators: Sequence[str], layout: Sequence[Any] = ()
                       ) -> Any:
     """``v_dot = acceleration(q, v, u, p, t)`` (a ``casadi.Function``) of ``model`` with ``u`` one value per
     entry of ``actuators`` (port actuator names [N m, N]): joint actuators add to their joint's input, body
-    actuators are forces at their points and moments, world axes; ``p`` the numbers of ``layout``
+    actuators are forces at their points and moments, world axes (a beam's ``force_body`` / ``moment_body``: its
+    floating frame's axes); ``p`` the numbers of ``layout``
     (:func:`~ctmm.compiled_spatial_parameters.spatial_parameter_layout`; empty: the model's numbers in the code)."""
     import casadi as ca
 
@@ -135,11 +147,12 @@ def loop_acceleration(model: SpatialModel, ports: SpatialPorts, actuators: Seque
         else:
             unit = np.zeros((6, 1))
             unit[actuator.component] = 1.0
-            key = (int(actuator.target), tuple(actuator.point))
+            key = (int(actuator.target), tuple(actuator.point), actuator.axes)
             loads[key] = loads.get(key, ca.SX.zeros(6, 1)) + ca.DM(unit) * u[k]
     wrenches: dict[int, list] = {}
-    for (body, point), wrench in loads.items():
-        wrenches.setdefault(body, []).append((np.asarray(point, float), wrench))
+    for (body, point, axes), wrench in loads.items():
+        entry = (np.asarray(point, float), wrench)
+        wrenches.setdefault(body, []).append(entry if axes == "world" else entry + (axes,))
     scene = SpatialScene(model)
     bodies, joints, states = scene.terms(CASADI, q, v, 0.0, inputs, wrenches)
     if layout:                          # the numbers as inputs (ctmm.compiled_spatial_parameters)

@@ -189,6 +189,8 @@ def _planar_and_spatial():
             "spatial_elastic_hinge_control").initial_state()[0]), outputs=["body.angle_z"])),
         "spatial_robot_arm": (_robot_arm, dict(dt=1e-3, x0=list(_scenario("spatial_robot_arm").initial_state()[0]))),
         "particle_net": (None, dict(dt=5e-4, method="rk4", x0=_thetas("particle_net"))),
+        "flexible_manipulator_3d": (lambda: _scenario("flexible_manipulator_3d").controlled(True),
+                                    dict(dt=2e-3, method="rk4", store_every=5)),
         "spatial_fem_chain": (_scenario("spatial_fem_chain").model,
                               dict(dt=5e-4, method="rk4", x0=_scenario("spatial_fem_chain").INITIAL,
                                    v0=_scenario("spatial_fem_chain").INITIAL_RATE)),

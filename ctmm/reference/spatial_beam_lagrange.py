@@ -27,6 +27,19 @@ plane: ``int N (w_y' delta w_y' + w_z' delta w_z')``, no coupling of the planes)
 ``a_1``, ``g_1``, ``f_1`` the beam-axis components of the root acceleration, gravity and the force of
 the beam on the tip body (``m_tip (a_c - g)``), affine in ``u_dot`` -- the consistent first-order
 geometric stiffness (Kane, Ryan, Banerjee 1987 for the spinning beam).
+
+Two-link arms (the 3-D flexible manipulator): with two axes and ``shoulder`` the hub's origin is
+``Rot(a1, q1) shoulder`` (the second axis passes through it), and an optional rigid **base** body
+(``base_mass``, ``base_inertia``, ``base_center``) turns with ``Rot(a1, q1)`` only.
+
+**Body-axis actuators** (``actuators``: ``(x, "force" | "moment", axis)``): a force ``F e_axis`` or a
+moment ``M e_axis`` given in the beam frame's axes ``R_b`` (turning with the floating frame), applied at
+the deformed axis point ``r(x)`` (force) or on the section at ``x`` (moment).  Their generalised forces
+come from virtual power alone: ``Q = (dv(x)/du)^T R_b e_axis F`` with ``v(x)`` the velocity of the mass
+point (AD of ``r``), and ``Q = (domega_s(x)/du)^T R_b e_axis M`` with ``omega_s`` the angular velocity of the
+section frame ``R_s(x) = R_b Rz(w_y'(x)) Ry(-w_z'(x)) Rx(gamma(x))`` (the tip body's convention; AD of
+``R_s``, ``[omega_s]x = R_s_dot R_s^T``).  A force's beam-axis component ``F_1`` tensions ``0 < x' < x``:
+``- F_1 G1(x)`` in ``G(N)`` (``G1(x) = int_0^x w' w'^T``).
 """
 from __future__ import annotations
 
@@ -74,6 +87,11 @@ class HubBeam:
     tip_center: Sequence[float] = (0.0, 0.0, 0.0)
     gravity: Sequence[float] = (0.0, 0.0, -9.81)
     points: int = 64
+    shoulder: Sequence[float] = (0.0, 0.0, 0.0)
+    base_mass: float = 0.0
+    base_inertia: Sequence = ((0, 0, 0), (0, 0, 0), (0, 0, 0))
+    base_center: Sequence[float] = (0.0, 0.0, 0.0)
+    actuators: Sequence[tuple] = ()
 
 
 def _rot(axis: np.ndarray, angle) -> ca.SX:
@@ -128,12 +146,21 @@ class SpatialBeamLagrange:
         R_h = ca.DM.eye(3)
         for i, axis in enumerate(p.axes):
             R_h = ca.mtimes(R_h, _rot(axis, q[i]))
+        R_1 = _rot(p.axes[0], q[0])                                  # the first link (base) turns with q1 only
+        o_h = ca.mtimes(R_1, ca.DM(np.asarray(p.shoulder, float)))   # the hub's origin (on the second axis)
         R_b = ca.mtimes(R_h, ca.DM(np.asarray(p.mount_rotation, float)))
-        r_I = ca.mtimes(R_h, ca.DM(np.asarray(p.mount, float)))
+        r_I = o_h + ca.mtimes(R_h, ca.DM(np.asarray(p.mount, float)))
         g = ca.DM(np.asarray(p.gravity, float))
         T, V = 0, 0
+        if p.base_mass > 0:
+            c_1 = ca.mtimes(R_1, ca.DM(np.asarray(p.base_center, float)))
+            v_1 = ca.mtimes(ca.jacobian(c_1, q), u)
+            w_1 = _vee_rate(R_1, q, u)
+            I_1 = ca.mtimes(ca.mtimes(R_1, ca.DM(np.asarray(p.base_inertia, float))), R_1.T)
+            T += 0.5 * p.base_mass * ca.dot(v_1, v_1) + 0.5 * ca.mtimes(ca.mtimes(w_1.T, I_1), w_1)
+            V -= p.base_mass * ca.dot(g, c_1)
         # hub
-        c_h = ca.mtimes(R_h, ca.DM(np.asarray(p.hub_center, float)))
+        c_h = o_h + ca.mtimes(R_h, ca.DM(np.asarray(p.hub_center, float)))
         v_h = ca.mtimes(ca.jacobian(c_h, q), u)
         w_h = _vee_rate(R_h, q, u)
         I_h = ca.mtimes(ca.mtimes(R_h, ca.DM(np.asarray(p.hub_inertia, float))), R_h.T)
@@ -215,18 +242,90 @@ class SpatialBeamLagrange:
             G = (ca.DM(G2) * (rhoA * (frame_g[0] - frame_a[0])) + ca.DM(G3) * (rhoA * (w_b[1] ** 2 + w_b[2] ** 2))
                  - ca.DM(G1) * frame_f[0])
             generalized[nh:nh + ny + nz] -= ca.mtimes(G, q[nh:nh + ny + nz])
+        # body-axis actuators: generalised forces by virtual power (module docstring)
+        act = ca.SX.sym("act", len(p.actuators))
+        for k, (x_a, kind, axis) in enumerate(p.actuators):
+            x_a = np.array([float(x_a)])
+            direction = ca.mtimes(R_b, ca.DM(np.eye(3)[int(axis)]))
+            if kind == "force":
+                rho_a = ca.vertcat(x_a[0] + (ca.dot(ca.DM(_rod(x_a, L, na)[:, 0]), ax) if na else 0),
+                                   ca.dot(ca.DM(bend(betas_y, x_a, 0)[:, 0]), qy) if ny else 0,
+                                   ca.dot(ca.DM(bend(betas_z, x_a, 0)[:, 0]), qz) if nz else 0)
+                jac = ca.jacobian(ca.mtimes(ca.jacobian(r_I + ca.mtimes(R_b, rho_a), q), u), u)
+                if p.geometric_stiffening and (ny or nz) and int(axis) == 0:
+                    x_in, w_in = (xg + 1) / 2 * x_a[0], wg / 2 * x_a[0]       # Gauss points on [0, x]
+                    blocks_a = [bend(betas_y, x_in, 1), bend(betas_z, x_in, 1)]
+                    G1_a = scipy.linalg.block_diag(*[(s_ * w_in) @ s_.T for s_ in blocks_a])
+                    generalized[nh:nh + ny + nz] -= ca.mtimes(ca.DM(G1_a), q[nh:nh + ny + nz]) * act[k]
+            else:
+                twist_a = ca.dot(ca.DM(_rod(x_a, L, nt)[:, 0]), tw) if nt else 0
+                slope_ya = ca.dot(ca.DM(bend(betas_y, x_a, 1)[:, 0]), qy) if ny else 0
+                slope_za = ca.dot(ca.DM(bend(betas_z, x_a, 1)[:, 0]), qz) if nz else 0
+                R_s = ca.mtimes(R_b, ca.mtimes(_rot([0, 0, 1], slope_ya), ca.mtimes(_rot([0, 1, 0], -slope_za),
+                                                                                    _rot([1, 0, 0], twist_a))))
+                jac = ca.jacobian(_vee_rate(R_s, q, u), u)
+            generalized += ca.mtimes(jac.T, direction) * act[k]
         residual = residual - generalized
         M = ca.jacobian(residual, ud)
         rhs = -ca.substitute(residual, ud, ca.SX.zeros(n))
-        self._rates = ca.Function("rates", [q, u, tau], [ca.solve(M, rhs)])
-        self._mass_bias = ca.Function("mass_bias", [q, u], [M, ca.substitute(rhs, tau, ca.SX.zeros(n))])
+        rates = ca.solve(M, rhs)
+        self._rates = ca.Function("rates", [q, u, tau, act], [rates])
+        state = ca.vertcat(q, u)
+        self._linear = ca.Function("linear", [q, u, tau, act], [ca.jacobian(rates, state), ca.jacobian(rates, tau),
+                                                              ca.jacobian(rates, act)])
+        zero_act = ca.SX.zeros(len(p.actuators))
+        self._mass_bias = ca.Function("mass_bias", [q, u], [M, ca.substitute(ca.substitute(rhs, tau, ca.SX.zeros(n)),
+                                                                            act, zero_act)])
         self._energy = ca.Function("energy", [q, u], [T + V])
         self.n = n
 
-    def accelerations(self, q: np.ndarray, u: np.ndarray, force: np.ndarray | None = None) -> np.ndarray:
+    def accelerations(self, q: np.ndarray, u: np.ndarray, force: np.ndarray | None = None,
+                      actuation: np.ndarray | None = None) -> np.ndarray:
         """``u_dot`` at ``(q, u)`` with applied generalised forces ``force`` (``(n,)``, along ``u``: hub
-        torques [N m] first; default none)."""
-        return np.asarray(self._rates(q, u, np.zeros(self.n) if force is None else force)).ravel()
+        torques [N m] first; default none) and the values of the body-axis ``actuators`` (``(k,)`` [N, N m])."""
+        return np.asarray(self._rates(q, u, np.zeros(self.n) if force is None else force,
+                                      np.zeros(len(self.p.actuators)) if actuation is None else actuation)).ravel()
+
+    def linearize(self, q: np.ndarray, u: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(A, B_force, B_actuators)`` of ``d/dt [q ; u] = A [q ; u] + B_force force + B_actuators act``
+        about ``(q, u)`` with no applied forces (``A``: ``[[0, I], [du_dot/dq, du_dot/du]]``)."""
+        n, k = self.n, len(self.p.actuators)
+        u = np.zeros(n) if u is None else u
+        J, Bf, Ba = (np.asarray(x) for x in self._linear(q, u, np.zeros(n), np.zeros(k)))
+        A = np.zeros((2 * n, 2 * n))
+        A[:n, n:] = np.eye(n)
+        A[n:] = J
+        top = np.zeros((n, n))
+        return A, np.vstack([top, Bf]), np.vstack([np.zeros((n, k)), Ba])
+
+    def deflection_rows(self, x: float) -> np.ndarray:
+        """``(3, n)``: the axis point's displacement ``[psi . p, w_y, w_z](x) = rows @ q`` in the beam frame."""
+        p, L = self.p, float(self.p.length)
+        ny, nz, nt = p.n_modes_y, p.n_modes_z, p.n_torsion_modes
+        nh, out = self.n_hub, np.zeros((3, self.n))
+        if ny:
+            out[1, nh:nh + ny] = [clamped_free_mode(b, x / L) for b in beta_roots("clamped-free", ny)]
+        if nz:
+            out[2, nh + ny:nh + ny + nz] = [clamped_free_mode(b, x / L) for b in beta_roots("clamped-free", nz)]
+        if p.n_axial_modes:
+            out[0, nh + ny + nz + nt:] = _rod(np.array([float(x)]), L, p.n_axial_modes)[:, 0]
+        return out
+
+    def section_rows(self, x: float) -> np.ndarray:
+        """``(3, n)``: the section rotation ``[gamma, -w_z', w_y'](x) = rows @ q`` (modal part; its rates
+        ``rows @ u``), from this model's own shapes."""
+        p, L = self.p, float(self.p.length)
+        ny, nz, nt = p.n_modes_y, p.n_modes_z, p.n_torsion_modes
+        out = np.zeros((3, self.n))
+        nh = self.n_hub
+        xa = np.array([float(x)])
+        if ny:
+            out[2, nh:nh + ny] = [clamped_free_mode(b, x / L, 1) / L for b in beta_roots("clamped-free", ny)]
+        if nz:
+            out[1, nh + ny:nh + ny + nz] = [-clamped_free_mode(b, x / L, 1) / L for b in beta_roots("clamped-free", nz)]
+        if nt:
+            out[0, nh + ny + nz:nh + ny + nz + nt] = _rod(xa, L, nt)[:, 0]
+        return out
 
     def energy(self, q: np.ndarray, u: np.ndarray) -> float:
         """``T + V`` [J] (joint springs and the elastic energy included; no geometric stiffness)."""

@@ -262,7 +262,9 @@ class SpatialBeam:
                     label: str = "moment pair") -> ModalForce:
         """Hook for a piezo patch between stations ``x1 < x2`` [m] inducing the bending moment ``moment(t)``
         [N m] about body ``axis`` (``"z"``: bending in the ``x-y`` plane, ``"y"``: in the ``x-z`` plane):
-        ``-M`` at ``x1``, ``+M`` at ``x2``; generalised force ``M (theta(x2) - theta(x1))`` of that axis."""
+        ``-M`` at ``x1``, ``+M`` at ``x2``; generalised force ``M (theta(x2) - theta(x1))`` of that axis (linear:
+        the exact virtual work of the pair, with its second-order couplings, is the body-axes ports'
+        :func:`ctmm.spatial.beam_ports.patch_actuator`, also usable in :class:`ctmm.control.Feedback`)."""
         delta = self._rotation_difference(x1, x2, axis)
         signal = as_signal(f"{self.name}: {label}", moment)
         return ModalForce(force=lambda t, d=delta, f=signal: f(t) * d, label=label)

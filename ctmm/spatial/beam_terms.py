@@ -48,7 +48,7 @@ from ..ops import Ops
 from ..protocol import BodyTerms
 from .frames import axis_rotation, block_diagonal, column, constant, cross, entry, skew
 
-__all__ = ["PointFrame", "spatial_beam_terms", "beam_energy"]
+__all__ = ["PointFrame", "spatial_beam_terms", "beam_energy", "beam_load_vector"]
 
 _E = np.eye(3)
 
@@ -180,18 +180,9 @@ def spatial_beam_terms(ops: Ops, beam: Any, *, rotation: Any, offset: Any, omega
         h_mod = h_mod + G2_eta * axial + ops.matmul(constant(ops, data.G3), eta) * (
             (w_parts[1] * w_parts[1] + w_parts[2] * w_parts[2]) * rhoA)
         modal_left = lower_left - ops.matmul(ops.matmul(stiff, eta), ops.transpose(e1))
-    for point, wrench in loads:
-        Phi_l, Lam_l, G1_l = data.station(float(point[0]))
-        f = ops.matmul(Rt, ops.sub(wrench, slice(0, 3), slice(0, 1)))
-        m = ops.matmul(Rt, ops.sub(wrench, slice(3, 6), slice(0, 1)))
-        rho_l = constant(ops, [float(point[0]), 0.0, 0.0]) + ops.matmul(constant(ops, Phi_l), eta)
-        Theta, _, _ = _rotation_jacobian(ops, ops.matmul(constant(ops, Lam_l), eta))
-        h_lin = h_lin - f
-        h_ang = h_ang - cross(ops, rho_l, f) - m
-        h_mod = h_mod - ops.matmul(constant(ops, Phi_l.T), f) - ops.matmul(
-            ops.transpose(ops.matmul(Theta, constant(ops, Lam_l))), m)
-        if data.stiffening:
-            h_mod = h_mod + ops.matmul(constant(ops, G1_l), eta) * entry(ops, f, 0)
+    if loads:
+        load_lin, load_ang, load_mod = _load_rows(ops, data, Rt, eta, loads)
+        h_lin, h_ang, h_mod = h_lin + load_lin, h_ang + load_ang, h_mod + load_mod
     M_b = ops.block([[eye3 * data.m, s_x * -1.0, Bmat],
                      [s_x, J, Gamma + e1_bt],
                      [modal_left, ops.transpose(Gamma) + ops.matmul(bt, ops.transpose(e1)),
@@ -239,6 +230,59 @@ def spatial_beam_terms(ops: Ops, beam: Any, *, rotation: Any, offset: Any, omega
     if offset is not None:
         terms = _about_inboard(ops, terms, offset, omega, n)
     return terms, out
+
+
+def _load_rows(ops: Ops, data: Any, Rt: Any, eta: Any, loads: Sequence[tuple[np.ndarray, Any]]
+               ) -> tuple[Any, Any, Any]:
+    """The rows ``(h_lin, h_ang, h_mod)`` (frame axes, about the root) of applied wrenches ``[f ; m]`` (world
+    axes) at beam points: ``-f``, ``-(rho_l x f + m)``, ``-(Phi_l^T f + (Theta Lambda_l)^T m)`` (+ the
+    geometric stiffness of ``f_1``)."""
+    h_lin, h_ang, h_mod = None, None, None
+    for point, wrench in loads:
+        Phi_l, Lam_l, G1_l = data.station(float(point[0]))
+        f = ops.matmul(Rt, ops.sub(wrench, slice(0, 3), slice(0, 1)))
+        m = ops.matmul(Rt, ops.sub(wrench, slice(3, 6), slice(0, 1)))
+        rho_l = constant(ops, [float(point[0]), 0.0, 0.0]) + ops.matmul(constant(ops, Phi_l), eta)
+        Theta, _, _ = _rotation_jacobian(ops, ops.matmul(constant(ops, Lam_l), eta))
+        lin = f * -1.0
+        ang = (cross(ops, rho_l, f) + m) * -1.0
+        mod = (ops.matmul(constant(ops, Phi_l.T), f) + ops.matmul(
+            ops.transpose(ops.matmul(Theta, constant(ops, Lam_l))), m)) * -1.0
+        if data.stiffening:
+            mod = mod + ops.matmul(constant(ops, G1_l), eta) * entry(ops, f, 0)
+        h_lin = lin if h_lin is None else h_lin + lin
+        h_ang = ang if h_ang is None else h_ang + ang
+        h_mod = mod if h_mod is None else h_mod + mod
+    return h_lin, h_ang, h_mod
+
+
+def beam_load_vector(beam: Any, rotation: np.ndarray, offset: np.ndarray, eta: np.ndarray,
+                     loads: Sequence[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+    """The generalised-force rows ``h`` (6 + n,) of applied wrenches alone (numpy, one state): the part of
+    :func:`spatial_beam_terms`' ``h`` that the ``loads`` add, world axes, about the inboard point.
+
+    Parameters
+    ----------
+    beam : SpatialBeam
+    rotation : (3, 3) array
+        Floating frame to world.
+    offset : (3,) array
+        Beam root minus the inboard point [m] (zeros when the root is the inboard point).
+    eta : (n,) array
+        Modal coordinates.
+    loads : sequence of (point (3,) body axes, wrench (6,) ``[f ; m]`` world axes [N, N m])
+    """
+    from ..ops import NUMPY
+
+    n = beam.data.n
+    if not loads:
+        return np.zeros(6 + n)
+    R = np.asarray(rotation, float).reshape(1, 3, 3)
+    rows = _load_rows(NUMPY, beam.data, np.swapaxes(R, 1, 2), np.asarray(eta).reshape(1, n, 1),
+                      [(point, np.asarray(w).reshape(1, 6, 1)) for point, w in loads])
+    lin, ang, mod = (np.asarray(r).reshape(-1) for r in rows)
+    lin, ang = R[0] @ lin, R[0] @ ang
+    return np.concatenate([lin, ang + np.cross(np.asarray(offset, float).reshape(3), lin), mod])
 
 
 def skew_constant(k: int) -> np.ndarray:

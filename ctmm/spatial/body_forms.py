@@ -349,7 +349,8 @@ class SpatialScene:
         inputs : mapping of input name to ops column ``(k, 1)`` (numpy ``(B, k, 1)``), optional
         wrenches : mapping of body index to a list of (point (3,) body axes [m], ops column (6, 1)
             ``[f ; m]`` world axes [N, N m]), optional
-            Extra applied loads (the body-force actuators of :mod:`ctmm.spatial.ports`).
+            Extra applied loads (the body-force actuators of :mod:`ctmm.spatial.ports`); an entry
+            ``(point, column, "body")`` has ``[f ; m]`` in the body's axes.
         """
         model = self.model
         inputs = inputs or {}
@@ -395,7 +396,12 @@ class SpatialScene:
                 else:
                     wrench = constant(ops, values)
                 loads.append((body.points[load.point], wrench))
-            loads += list((wrenches or {}).get(j, ()))
+            for entry in (wrenches or {}).get(j, ()):       # (point, [f ; m] world) or (point, [f ; m], "body")
+                wrench = entry[1]
+                if len(entry) > 2 and entry[2] == "body":
+                    wrench = ops.block([[ops.matmul(R_c, ops.sub(wrench, slice(0, 3), slice(0, 1)))],
+                                        [ops.matmul(R_c, ops.sub(wrench, slice(3, 6), slice(0, 1)))]])
+                loads.append((entry[0], wrench))
             modal = model.modal[j]
             if modal is not None:
                 form = getattr(body, "spatial_terms", None) or partial(spatial_beam_terms, beam=body)  # or ctmm.fem's

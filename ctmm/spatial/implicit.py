@@ -72,6 +72,7 @@ from ..planar.actuated_newton import InputError
 from ..planar.integrate import step_total
 from ..results import SimulationResult
 from ..schemes import History, Houbolt, Scheme, as_scheme
+from .beam_terms import beam_load_vector
 from .body_forms import SpatialScene
 from .dynamics import accelerations
 from .integrate import divergence_check, initial_state, state_result
@@ -94,6 +95,7 @@ class ImplicitTerms(NamedTuple):
     joints: list
     kappa: list
     states: list
+    q: Any = None        # the configuration (nq,) of the iterate (beams' modal coordinates in input_response)
 
 
 def implicit_terms(scene: SpatialScene, q: np.ndarray, v: np.ndarray, t: float, inputs: Mapping[str, Any] | None,
@@ -137,7 +139,7 @@ def implicit_terms(scene: SpatialScene, q: np.ndarray, v: np.ndarray, t: float, 
             M[..., 6:, 6:] += tangent
             h[..., 6:, :] -= tangent @ iterate[layout.velocity][:, None]
             bodies[j] = dataclasses.replace(bodies[j], M=M, h=h)
-    return ImplicitTerms(bodies, implicit, kappa, states)
+    return ImplicitTerms(bodies, implicit, kappa, states, np.asarray(q))
 
 
 def _rates(scene: SpatialScene, bodies: list, joints: list, kappa: list) -> np.ndarray:
@@ -167,12 +169,23 @@ def input_response(scene: SpatialScene, terms: ImplicitTerms, before: Any, after
     model = scene.model
     bodies = []
     for j, (body, state) in enumerate(zip(terms.bodies, terms.states)):
-        h = np.zeros((1, 6, 1))
+        rotation = np.asarray(state.rotation)[0]
+        offset = (np.asarray(state.origin) - np.asarray(state.inboard)).reshape(3)
+        changed = []                                 # (point, signed wrench (6,) world axes)
         for sign, values in ((1.0, after), (-1.0, before)):
-            for point, wrench in ([] if values is None else values.wrenches.get(j, [])):
-                w = sign * np.asarray(wrench, dtype=float).reshape(6)
-                arm = np.asarray(state.rotation)[0] @ np.asarray(point, float) \
-                    + (np.asarray(state.origin) - np.asarray(state.inboard)).reshape(3)
+            for entry in ([] if values is None else values.wrenches.get(j, [])):
+                w = sign * np.asarray(entry[1], dtype=float).reshape(6)
+                if len(entry) > 2 and entry[2] == "body":
+                    w = np.concatenate([rotation @ w[:3], rotation @ w[3:]])
+                changed.append((np.asarray(entry[0], float), w))
+        layout = model.modal[j]
+        if layout is not None:                       # a beam: its modal rows too (exact virtual work)
+            h = beam_load_vector(model.bodies[j], rotation, offset, terms.q[layout.position], changed
+                                 ).reshape(1, -1, 1)
+        else:
+            h = np.zeros((1, 6, 1))
+            for point, w in changed:
+                arm = rotation @ point + offset
                 h[0, :3, 0] -= w[:3]
                 h[0, 3:, 0] -= w[3:] + np.cross(arm, w[:3])
         bodies.append(dataclasses.replace(body, h=h, c={name: np.zeros((1, 6, 1)) for name in body.c}))
@@ -221,8 +234,9 @@ def _same_inputs(a: Any, b: Any) -> bool:
     return (a.joint.keys() == b.joint.keys() and all(np.array_equal(a.joint[k], b.joint[k]) for k in a.joint)
             and a.wrenches.keys() == b.wrenches.keys()
             and all(len(a.wrenches[k]) == len(b.wrenches[k])
-                    and all(np.array_equal(pa, pb) and np.array_equal(wa, wb)
-                            for (pa, wa), (pb, wb) in zip(a.wrenches[k], b.wrenches[k])) for k in a.wrenches))
+                    and all(len(ea) == len(eb) and tuple(ea[2:]) == tuple(eb[2:]) and np.array_equal(ea[0], eb[0])
+                            and np.array_equal(ea[1], eb[1])
+                            for ea, eb in zip(a.wrenches[k], b.wrenches[k])) for k in a.wrenches))
 
 
 def simulate_spatial_implicit(model: SpatialModel, t_final: float, dt: float, *, scheme: Scheme | str = "newmark",

@@ -35,7 +35,9 @@ Actuators (inputs, added to what the model's own laws and loads apply)
     * ``"<body>.force_x|y|z"`` [N] -- force at the centre of mass, world axes;
       ``"<body>.moment_x|y|z"`` [N m] -- moment on the body, world axes;
       ``"<body>.<point>.force_x|y|z"`` [N] -- force at a named point (or ``origin``), world axes;
-      beams also ``"<beam>.<point>.moment_x|y|z"`` [N m] (world axes) at their points.
+      beams also ``"<beam>.<point>.moment_x|y|z"`` [N m] (world axes) at their points, and
+      ``"<beam>.<point>.force_body_x|y|z"`` [N], ``".moment_body_x|y|z"`` [N m] in the beam's floating frame
+      (turning with it: a piezo pair, :func:`ctmm.spatial.beam_ports.patch_actuator`).
 
 Sensors are kinematic: a position-like sensor depends on ``q`` (and ``t`` through driven
 joints) only, a rate sensor is linear in ``v``.  :func:`sensor_jacobians` gives the Jacobians in
@@ -95,6 +97,7 @@ class _Actuator:
     component: int       # entry of the joint input; body: 0..2 force, 3..5 moment
     point: tuple         # body-axes point of a force (body actuators)
     unit: str
+    axes: str = "world"  # body actuators: components in world axes, or "body" (a beam's floating frame)
 
 
 @dataclass(frozen=True)
@@ -107,7 +110,8 @@ class SpatialInputs:
         Joint inputs by model input name (``"<joint>.torque"``: (k,) [N m, N]).
     wrenches : dict of int to list
         Extra loads by body index: ``(point (3,) body axes [m], numpy batched column (1, 6, 1) [f ; m] world
-        axes [N, N m])``.
+        axes [N, N m])``, or ``(point, column, "body")`` with ``[f ; m]`` in the body's axes (a beam's
+        floating frame: the ``force_body`` / ``moment_body`` actuators).
     """
 
     joint: Mapping[str, np.ndarray] = field(default_factory=dict)
@@ -184,8 +188,8 @@ def _build(model: SpatialModel) -> tuple[dict, dict]:
         else:                                                # a beam: station sensors, point moments
             for name, rate, weights, unit in beam_sensor_rows(body):
                 sensors[name] = _Sensor(name, "modal_v" if rate else "modal", j, unit=unit, weights=tuple(weights))
-            for name, component, point, unit in beam_actuator_rows(body):
-                actuators[name] = _Actuator(name, "body", j, component, point, unit)
+            for name, component, point, unit, axes in beam_actuator_rows(body):
+                actuators[name] = _Actuator(name, "body", j, component, point, unit, axes)
         for point, r in points.items():
             for c, a in enumerate(_AXES):
                 sensors[f"{body.name}.{point}.{a}"] = _Sensor(f"{body.name}.{point}.{a}", "point", j, c, r, "m")
@@ -289,7 +293,7 @@ class SpatialPorts(NamedPorts):
         if not isinstance(values, Mapping):
             raise ModelError(f"values must be a mapping of actuator name to value, got {values!r}")
         joint: dict[str, np.ndarray] = {}
-        body: dict[tuple[int, tuple], np.ndarray] = {}
+        body: dict[tuple[int, tuple, str], np.ndarray] = {}
         for name, value in values.items():
             actuator = self.actuators[self.check_actuator(name)]
             value = validation.finite(f"actuator {name!r}", value)
@@ -297,10 +301,12 @@ class SpatialPorts(NamedPorts):
                 size = next(j.velocity_count for j in self.model.joints if actuator.target in j.inputs)
                 joint.setdefault(actuator.target, np.zeros(size))[actuator.component] += value
             else:
-                body.setdefault((actuator.target, actuator.point), np.zeros(6))[actuator.component] += value
+                key = (actuator.target, actuator.point, actuator.axes)
+                body.setdefault(key, np.zeros(6))[actuator.component] += value
         wrenches: dict[int, list] = {}
-        for (j, point), wrench in body.items():
-            wrenches.setdefault(j, []).append((np.asarray(point, float), wrench.reshape(1, 6, 1)))
+        for (j, point, axes), wrench in body.items():
+            entry = (np.asarray(point, float), wrench.reshape(1, 6, 1))
+            wrenches.setdefault(j, []).append(entry if axes == "world" else entry + (axes,))
         return SpatialInputs(joint, wrenches)
 
 

@@ -1,0 +1,31 @@
+"""The 3-D flexible manipulator scenario (issues 14/15) in its quick form: the tip deflections of the PD and
+PD + PZT runs against the independent Lagrange model (0.1 % of the peak), the controlled FRFs against the
+reference linearisation closed by hand (1e-8), the delay margin an exact root of the reference's
+characteristic (1e-8) and the stability chart agreeing with it; the forearm really bends in both planes and the body-axis patches really damp it."""
+from __future__ import annotations
+
+import json
+
+from ctmm import scenario
+
+
+def test_flexible_manipulator_3d_quick_meets_its_bounds(tmp_path):
+    name = "flexible_manipulator_3d"
+    summary = scenario.run_scenario(name, tmp_path, quick=True)
+    data = json.loads((tmp_path / f"{name}.json").read_text())
+    figures = data["accuracy"]
+    assert data["passed"] and [f["bound"] for f in figures] == [0.1, 1e-8, 1e-8], figures
+    assert all(f["value"] <= f["bound"] for f in figures), figures
+    peaks = summary["peak_tip_deflection_m"]["PD only"]
+    assert peaks[0] > 1e-2 and peaks[1] > 1e-3                       # both bending planes (m)
+    assert summary["errors"]["PD + PZT"]["voltage_error_V"] < 1e-3 * summary["peak_voltage_V"]
+    assert 10.0 < summary["peak_voltage_V"] < summary["voltage_limit_V"]
+    without, with_pzt = (summary["flexible_mode_damping"][k] for k in ("PD only", "PD + PZT"))
+    for (_, zeta_off), (_, zeta_on) in zip(without[:2], with_pzt[:2]):   # the first bending pair
+        assert zeta_on > 2.0 * zeta_off
+    margin = summary["delay_margin"]
+    assert margin["stable"] and margin["delay_s"] < margin["critical_delay_s"] < 1.0
+    assert summary["stability_chart"]["agrees_with_delay_margin_at_gain_1"]
+    assert 0.0 < summary["stability_chart"]["stable_fraction"] < 1.0
+    assert all(e < 0.05 * 0.5 for e in summary["joint_final_error_rad"])   # within 5 % of the moves (>= 30 deg)
+    assert data["wall_time_s"] > 0 and data["reference_wall_time_s"] > 0
