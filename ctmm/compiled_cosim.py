@@ -182,7 +182,7 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
         def measure(i: int) -> np.ndarray:
             if delays[i]:
                 then = step - delays[i]
-                past = history[0][1] if then <= 0 else next(y for k, y in history if k == then)
+                past = first if then <= 0 else next(y for k, y in history if k == then)
                 when = max(then, 0) * dt
                 return np.asarray(ports.values(sensors[i], past[:nq], past[nq:nq + nv], when), dtype=float)
             return np.asarray(ports.values(sensors[i], state[:nq], state[nq:nq + nv], t), dtype=float)

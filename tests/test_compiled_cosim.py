@@ -25,7 +25,8 @@ from ctmm.planar import ElasticHinge, Fixed, PlanarModel, RigidBody
 from ctmm.signals import Harmonic
 
 from _controllers_import import load_controllers
-from test_compiled_scene import rigid_tree
+from test_compiled_scene import hub_beam, rigid_tree
+from test_compiled_scene_loops import station_beam
 
 pytest.importorskip("casadi")
 
@@ -107,6 +108,24 @@ def test_planar_pid_fmu_and_loops_equal_the_numpy_path(pd_fmu):
     tree = rigid_tree()
     assert_same(generated, python, list(tree.coordinates) + [f"{c}_dot" for c in tree.coordinates] + [
         "a.tip.y", "rt.y", "rt.u", "late.y", "late.u"])
+
+
+def test_flexible_hub_beam_with_two_pids_equals_the_numpy_path():
+    """A modal hub-beam: one PID on the hub torque every 2 steps, one on the first modal force reading the tip
+    every 5 steps (plain model, no loops): equal to the numpy path to round-off."""
+    controllers = load_controllers()
+    hub = controllers.PID("hub.theta", "o.torque", kp=5.0, ki=1.0, kd=0.5, derivative_filter_time=0.01,
+                          sample_time=2e-3, reference=0.2)
+    tip = controllers.PID("tip.com.y", "b.q1.force", kp=2.0, ki=0.0, kd=0.1, derivative_filter_time=0.005,
+                          sample_time=5e-3)
+    model = hub_beam()
+    arguments = dict(controllers=[hub, tip], outputs=["tip.com.y"])
+    generated = ctmm.simulate(model, 0.1, 1e-3, compiled=True, **arguments)
+    python = ctmm.simulate(model, 0.1, 1e-3, **arguments)
+    assert_same(generated, python, list(model.coordinates) + [f"{c}_dot" for c in model.coordinates] + ["tip.com.y"])
+    with pytest.raises(ModelError, match="beam station load"):
+        ctmm.simulate(station_beam(), 0.01, 1e-3, compiled=True, controllers=[controllers.PID(
+            "link.theta", "arm.s1.force", kp=1.0, ki=0.0, kd=0.0, derivative_filter_time=0.0, sample_time=1e-3)])
 
 
 def test_spatial_pid_and_fmu_with_loops_equal_the_numpy_path(pd_fmu):
