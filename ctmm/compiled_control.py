@@ -28,7 +28,7 @@ from .results import SimulationResult
 from .spatial.model import SpatialModel
 from .signal_results import SignalSystem, signal_result
 
-__all__ = ["simulate_controlled_generated", "simulate_spatial_controlled_generated"]
+__all__ = ["add_loop_signals", "simulate_controlled_generated", "simulate_spatial_controlled_generated"]
 
 
 def simulate_controlled_generated(controlled: ControlledModel, q0: Any, qdot0: Any, *, t_final: float, dt: float,
@@ -101,7 +101,7 @@ def simulate_controlled_generated(controlled: ControlledModel, q0: Any, qdot0: A
     def result(rows: int) -> SimulationResult:
         time, block = t[:rows], full[:rows]
         signals, units = model_signals(model, time, block[:, :n], block[:, n:2 * n], outputs)
-        extra = _add_loop_signals(controlled, scene.loops, signals_of, block, time, signals, units)
+        extra = add_loop_signals(controlled, scene.loops, signals_of, block, time, signals, units)
         return signal_result(SignalSystem(model, units, list(controlled.loops)), time, signals, "rk4-generated",
                              {**info, **extra})
 
@@ -188,7 +188,7 @@ def simulate_spatial_controlled_generated(controlled: ControlledModel, q0: np.nd
     def result(rows: int) -> SimulationResult:
         time_rows, block = t[:rows], full[:rows]
         signals, units = plant.signals(time_rows, block[:, :nq], block[:, nq:nq + nv], outputs)
-        extra = _add_loop_signals(controlled, scene.loops, signals_of, block, time_rows, signals, units)
+        extra = add_loop_signals(controlled, scene.loops, signals_of, block, time_rows, signals, units)
         return signal_result(SignalSystem(model, units, list(controlled.loops)), time_rows, signals, "rk4-generated",
                              {**info, **extra})
 
@@ -205,7 +205,7 @@ def simulate_spatial_controlled_generated(controlled: ControlledModel, q0: np.nd
     return result(len(t))
 
 
-def _add_loop_signals(controlled: ControlledModel, loops: Any, signals_of: Any, block: np.ndarray, time: np.ndarray,
+def add_loop_signals(controlled: ControlledModel, loops: Any, signals_of: Any, block: np.ndarray, time: np.ndarray,
                       signals: dict, units: dict) -> dict:
     """Add ``"<loop>.y"``, ``"<loop>.u"`` and, for a saturating loop, ``"<loop>.u_demand"`` and
     ``"<loop>.saturated"`` of the stored rows ``block`` at ``time`` [s] (as the numpy path); returns the

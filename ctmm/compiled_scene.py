@@ -312,6 +312,14 @@ class CompiledScene:
         first = np.concatenate([q, qdot]) if self.loops is None else self.loops.initial_state(q, qdot)
         return np.concatenate([[0.0], steps * h]), np.vstack([first[None], states]), wall
 
+    def continue_run(self, state: np.ndarray, held: np.ndarray, dt: float, n_steps: int, first_step: int
+                     ) -> np.ndarray:
+        """Stored states (rows, :attr:`state_size`) of ``n_steps`` RK4 steps of ``dt`` [s] from the whole state
+        ``state`` at step ``first_step`` (time ``first_step dt``), the values ``held`` [SI] of :attr:`actuators`
+        held over them (one sample interval of co-simulated controllers, :mod:`ctmm.compiled_cosim`)."""
+        return run_blocks(self._blocks, self._stride, self._step, self.store_every, state[:, None], held, dt,
+                          n_steps, 0.0, self.parameters[:, None], first_step=first_step)[0]
+
     def _run(self, y: np.ndarray, u: np.ndarray, h: float, n_steps: int, t0: float) -> np.ndarray:
         return self._run_batch(y[:, None], u, h, n_steps, t0, self.parameters[:, None], "serial", 1)[0]
 

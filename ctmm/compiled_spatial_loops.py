@@ -230,6 +230,14 @@ class CompiledControlledSpatial:
         self._blocks = list(zip(sizes, loaded[2:]))
         self.compile_time_s = clock.perf_counter() - start
 
+    def continue_run(self, state: np.ndarray, held: np.ndarray, dt: float, n_steps: int, first_step: int
+                     ) -> np.ndarray:
+        """Stored states (rows, state size) of ``n_steps`` RK4 steps of ``dt`` [s] from the whole state ``state``
+        at step ``first_step`` (time ``first_step dt``), the values ``held`` [SI] of :attr:`actuators` held over
+        them (one sample interval of co-simulated controllers, :mod:`ctmm.compiled_cosim`)."""
+        return run_blocks(self._blocks, self._stride, self._step, self.store_every, state[:, None], held, dt,
+                          n_steps, 0.0, self.parameters[:, None], first_step=first_step)[0]
+
     def run(self, q0: np.ndarray, v0: np.ndarray, dt: float, n_steps: int) -> tuple[np.ndarray, np.ndarray]:
         """The initial state ``[q, v, z, ring]`` and the stored states (rows, state size) after each
         ``store_every`` steps and after the last of ``n_steps`` RK4 steps of ``dt`` [s] from ``t = 0``;

@@ -93,12 +93,13 @@ def time_loop_functions(step: Any, store_every: int, rows: int) -> tuple[Any, li
 
 def run_blocks(blocks: list[tuple[int, Any]], stride: Any, step: Any, store_every: int, y: np.ndarray,
                u: np.ndarray, h: float, n_steps: int, t0: float, p: np.ndarray, parallelization: str = "serial",
-               threads: int = 1) -> np.ndarray:
+               threads: int = 1, first_step: int = 0) -> np.ndarray:
     """Stored states (B, rows, state size) after each ``store_every`` steps and after the last step of
     ``n_steps`` RK4 steps of ``h`` [s] from ``t0`` [s], for the B members (columns of ``y`` (state size,
     B) and ``p``); compiled ``blocks`` ``[(size, function)]``, ``stride`` and ``step`` of
     :func:`time_loop_functions`, mapped over the batch by ``casadi.Function.map`` (nothing generated
-    or compiled); stops after the first block where every member holds a non-finite state."""
+    or compiled); stops after the first block where every member holds a non-finite state.  ``first_step``:
+    the index of the first step (steps at ``t0 + k h``, ``k`` from it: a run continued from a stored state)."""
     import casadi as ca
 
     every, batch = store_every, y.shape[1]
@@ -116,7 +117,7 @@ def run_blocks(blocks: list[tuple[int, Any]], stride: Any, step: Any, store_ever
     for size, function in blocks:
         function = mapped(function) if done + size <= strides else function
         while done + size <= strides:
-            block = members(function(y, u, h, p, t0, float(done * every)), size)
+            block = members(function(y, u, h, p, t0, float(first_step + done * every)), size)
             out.append(block)
             y = block[:, -1, :].T
             done += size
@@ -124,10 +125,10 @@ def run_blocks(blocks: list[tuple[int, Any]], stride: Any, step: Any, store_ever
                 return np.concatenate(out, axis=1)
     stride, step = mapped(stride), mapped(step)
     for j in range(done, strides):
-        y = np.asarray(stride(y, u, h, p, t0, float(j * every))).reshape(y.shape)
+        y = np.asarray(stride(y, u, h, p, t0, float(first_step + j * every))).reshape(y.shape)
         out.append(y.T[:, None, :])
     for j in range(rest):
-        y = np.asarray(step(y, u, h, p, t0, float(strides * every + j))).reshape(y.shape)
+        y = np.asarray(step(y, u, h, p, t0, float(first_step + strides * every + j))).reshape(y.shape)
     if rest:
         out.append(y.T[:, None, :])
     return np.concatenate(out, axis=1) if out else np.zeros((batch, 0, y.shape[0]))

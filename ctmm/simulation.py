@@ -190,7 +190,9 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         states integrated, delayed loops with ``delay = m dt`` from a ring of stored samples; references and inputs
         numbers or :mod:`ctmm.signals` signals with a symbolic form).  What it cannot compile (user callables of time,
         driven motions, translational hinge springs, delays that are not whole multiples of ``dt``, beam station
-        forces or moments, co-simulated controllers) raises :class:`ModelError` naming it.  Spatial, ``"rk4"``:
+        forces or moments) raises :class:`ModelError` naming it.  Co-simulated ``controllers`` (planar and spatial)
+        are sampled in Python between calls into the generated step, which runs each sample interval with their
+        held outputs (:func:`ctmm.compiled_cosim.simulate_cosimulated_generated`).  Spatial, ``"rk4"``:
         ``True`` runs the generated RK4 of :func:`ctmm.compiled_spatial.simulate_spatial_generated` (inputs held
         numbers; the numpy path's result to round-off); with loops
         :func:`ctmm.compiled_control.simulate_spatial_controlled_generated` (docs/spatial.md §6b).  Default: numpy.
@@ -440,10 +442,9 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
     what = [label for label, present in (("loops", loops), ("controllers", controllers), ("inputs", inputs),
                                          ("references", references)) if present]
     is_scheme = isinstance(method, Scheme) or (isinstance(method, str) and method in SCHEMES)
-    if compiled and (method != "rk4" or controllers):
-        raise ModelError(f"compiled=True runs the generated RK4 of a planar model with its loops, inputs and "
-                         f"references; got method={method!r}" + (" with co-simulated controllers (they sample "
-                         "in Python)" if controllers else "") + " (leave compiled at None)")
+    if compiled and method != "rk4":
+        raise ModelError(f"compiled=True runs the generated RK4 of a planar model with its loops, inputs, "
+                         f"references and controllers; got method={method!r} (leave compiled at None)")
     if fast and (method != "rk4" or controlled):
         raise ModelError(f"fast=True runs the compiled RK4 of an uncontrolled planar model; got method={method!r}"
                          + (f" with {', '.join(what)}" if controlled else "") + " (leave fast at None)")
@@ -471,6 +472,13 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
     if compiled or fast:
         if dt is None:
             raise ModelError("dt is required with method='rk4' (a fixed step [s], > 0), got None")
+        if compiled and controllers:        # C between the samples of the controllers (ctmm.compiled_cosim)
+            from .compiled_cosim import simulate_cosimulated_generated
+
+            return simulate_cosimulated_generated(
+                model, loops, q0, v0, t_final=t_final, dt=dt, controllers=controllers, inputs=inputs,
+                references=references, outputs=outputs, coupling=coupling, store_every=store_every,
+                progress=progress, stability_check=policy, divergence_bound=divergence_bound)
         if compiled and controlled:
             from .compiled_control import simulate_controlled_generated
             from .control.controlled_model import ControlledModel

@@ -49,12 +49,23 @@ def simulate_spatial_system(parts: tuple[SpatialModel, tuple], t_final: float, d
             for name in inputs:
                 if name not in model.inputs and name not in known:
                     raise unknown_name("spatial input", name, list(model.inputs) + list(known))
-        if controllers:
-            raise ModelError("compiled=True does not take co-simulated controllers (Python objects, FMUs) of spatial "
-                             "models: they are sampled in Python between steps; run without compiled=True, or state "
-                             "the controller as Feedback loops")
         if not isinstance(method, str) or method != "rk4":
             raise ModelError(f"compiled=True runs the generated RK4 of a spatial model; got method={method!r}")
+        if controllers:                 # C between the samples of the controllers (ctmm.compiled_cosim)
+            from .compiled_cosim import simulate_cosimulated_generated
+
+            for name in outputs:
+                SpatialPorts(model).check_sensor(name, "output (sensor)")
+            inputs, references = split_loop_references(loops, inputs, references)
+            state = initial_state(model, x0, v0)
+            policy = "warn" if stability_check is None else validation.option("stability_check", stability_check,
+                                                                               ("warn", "error", "ignore"))
+            return simulate_cosimulated_generated(
+                model, loops, state[:model.n_positions], state[model.n_positions:], t_final=t_final, dt=dt,
+                controllers=controllers, inputs=inputs, references=references, outputs=tuple(outputs),
+                coupling=coupling, store_every=validation.integer("store_every", store_every, minimum=1),
+                progress=validation.flag("progress", progress, optional=True), stability_check=policy,
+                divergence_bound=divergence_bound)
         for name, (value, default) in {"progress": (progress, None), "stability_check": (stability_check, None)}.items():
             if value is not default and value != default:
                 raise ModelError(f"{name}={value!r} is not available with compiled=True for spatial models (the whole "

@@ -15,7 +15,6 @@ from ctmm.control import Feedback, with_feedback
 from ctmm.errors import ModelError, SimulationError
 from ctmm.signals import Harmonic
 
-from _controllers_import import load_controllers
 from test_spatial_control_time import (KZ, LOOPS, REFERENCE_Z, V0, X0, Reference, _law, _max_state_error, arm,
                                        initial)
 
@@ -65,10 +64,6 @@ def test_lti_delayed_loops_inputs_equal_the_python_rk4():
 
 def test_refusals_and_divergence():
     model = arm()
-    pd = load_controllers().SaturatedPD(("yaw.angle", "yaw.rate"), ("yaw.torque",), kp=6.0, kd=1.0, reference=0.1,
-                                        limit=1.5, sample_time=0.02)
-    with pytest.raises(ModelError, match="co-simulated controllers"):
-        ctmm.simulate(model, 0.1, 5e-3, controllers=[pd], compiled=True)
     with pytest.raises(ModelError, match="rotation-vector sensors"):
         ctmm.simulate(with_feedback(model, [Feedback("r", "hand.rotation_x", "wrist.torque_x", gain=1.0)]), 0.1,
                       5e-3, compiled=True)

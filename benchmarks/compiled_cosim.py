@@ -1,0 +1,162 @@
+"""Co-simulated controllers around generated kernels (``compiled=True`` with ``controllers``, ctmm.compiled_cosim).
+
+Rows (time and error together, ratios from one run, ``benchmarks/results/compiled_cosim.json``); each row is
+the per-step wall time of the numpy path and of the generated path with the same controllers, their ratio,
+and the error:
+
+1. **Linear torsion plant** (one body on an elastic hinge, no gravity) with a sampled P controller
+   (``ctmm.controllers.PID``, h = 20 ms), dt = h / 4, ``T`` s: error of both paths against the exact
+   sampled-data solution (``scipy.linalg.expm`` of the plant with the held input) [rad].
+2. **Planar pendulum chain** N = 5 and 20 (unit links, smooth hinges, gravity), dt = 1 ms, a PID on the
+   first hinge sampled every 10 steps and every step (the worst case: one call into C per step): largest
+   difference generated - numpy over the coordinates [rad].
+3. **Spatial arm** (``tests/test_spatial_control_time.arm``: yaw, 2-axis elbow, ball wrist) with two of
+   its real-time loops in the step and a PID on the yaw joint every 10 steps, dt = 2 ms, 0.4 s (the arm
+   tumbles later): the same difference.
+
+The first compile is excluded (a warm-up run fills the kernel cache); each timed ``ctmm.simulate`` call still
+builds its kernel from the cache (expressions, C text and its hash, loading the library), which weighs on
+short runs (the spatial row: 200 steps); best of :data:`REPEATS`.
+
+Measured (2026-11-25, 2-core machine shared with other work, one run): torsion 367 / 51 us per step (7.2x),
+both 5.8e-7 rad from the exact ZOH solution (the RK4 error at dt = 5 ms); pendulum N = 5: 214 / 21 us (10x)
+every 10 steps, 290 / 126 us (2.3x) every step; N = 20: 409 / 59 us (6.9x), 326 / 112 us (2.9x); spatial arm
+5.2 ms / 430 us (12x); every difference generated - numpy <= 9e-15.
+
+Run: ``python benchmarks/compiled_cosim.py [--quick]``.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import scipy.linalg
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT))
+
+import ctmm  # noqa: E402
+from ctmm.control import with_feedback  # noqa: E402
+from ctmm.planar import ElasticHinge, Fixed, PlanarModel, Pinned, RigidBody, SmoothHinge  # noqa: E402
+
+from _controllers_import import load_controllers  # noqa: E402
+
+REPEATS = 3
+STIFFNESS, INERTIA = 40.0, 0.5
+
+
+def best(run, repeats: int = REPEATS):
+    """``(result, best wall time [s])`` of ``run()`` after one warm-up call."""
+    result = run()
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        result = run()
+        times.append(time.perf_counter() - start)
+    return result, min(times)
+
+
+def row(name: str, steps: int, numpy_run, compiled_run, error) -> dict:
+    python, t_python = best(numpy_run)
+    generated, t_generated = best(compiled_run)
+    out = {"case": name, "steps": steps, "numpy_us_per_step": 1e6 * t_python / steps,
+           "compiled_us_per_step": 1e6 * t_generated / steps, "speedup": t_python / t_generated,
+           **error(python, generated)}
+    print(json.dumps(out))
+    return out
+
+
+def torsion_case(t_final: float) -> dict:
+    kp, r, h, theta0 = 12.0, 0.2, 0.02, 0.1
+    dt = h / 4
+    model = PlanarModel.chain("torsion", [Fixed("g"), ElasticHinge("h", stiffness=STIFFNESS),
+                                          RigidBody("b", mass=1.0, inertia=INERTIA, center_of_mass=(0.0, 0.0))],
+                              gravity=(0.0, 0.0))
+    pid = load_controllers().PID("h.angle", "h.torque", kp=kp, ki=0.0, kd=0.0, derivative_filter_time=0.0,
+                                 sample_time=h, reference=r)
+    a = np.array([[0.0, 1.0], [-STIFFNESS / INERTIA, 0.0]])
+    b = np.array([[0.0], [1.0 / INERTIA]])
+    augmented = scipy.linalg.expm(np.block([[a, b], [np.zeros((1, 3))]]) * h)
+    samples = round(t_final / h)
+    z, exact = np.array([theta0, 0.0]), [theta0]
+    for _ in range(samples):
+        z = augmented[:2, :2] @ z + augmented[:2, 2] * kp * (r - z[0])
+        exact.append(z[0])
+    exact = np.array(exact)
+
+    def error(python, generated) -> dict:
+        return {"numpy_error_rad": float(np.max(np.abs(python["b.theta"][::4] - exact))),
+                "compiled_error_rad": float(np.max(np.abs(generated["b.theta"][::4] - exact)))}
+
+    def run(compiled):
+        return lambda: ctmm.simulate(model, t_final, dt, x0=[theta0], controllers=[pid], compiled=compiled)
+
+    return row("torsion P controller, h = 4 dt", round(t_final / dt), run(None), run(True), error)
+
+
+def pendulum(n: int) -> PlanarModel:
+    elements = [Pinned("o"), RigidBody.uniform_link("l0", mass=1.0, length=1.0)]
+    for i in range(1, n):
+        elements += [SmoothHinge(f"h{i}"), RigidBody.uniform_link(f"l{i}", mass=1.0, length=1.0)]
+    return PlanarModel.chain(f"pendulum{n}", elements)
+
+
+def difference(coordinates):
+    def error(python, generated) -> dict:
+        return {"largest_difference": float(max(np.max(np.abs(generated[c] - python[c])) for c in coordinates))}
+    return error
+
+
+def pendulum_case(n: int, every: int, t_final: float) -> dict:
+    dt = 1e-3
+    model = pendulum(n)
+    pid = load_controllers().PID("o.angle", "o.torque", kp=20.0, ki=5.0, kd=2.0, derivative_filter_time=0.01,
+                                 sample_time=every * dt, reference=0.3)
+    x0 = np.full(n, 0.1)
+
+    def run(compiled):
+        return lambda: ctmm.simulate(model, t_final, dt, x0=x0, controllers=[pid], compiled=compiled,
+                                     stability_check="ignore")
+
+    return row(f"pendulum N = {n}, PID every {every} steps", round(t_final / dt), run(None), run(True),
+               difference(model.coordinates))
+
+
+def spatial_case(t_final: float) -> dict:
+    from test_spatial_control_time import LOOPS, V0, X0, arm
+
+    dt = 2e-3
+    model = arm()
+    pid = load_controllers().PID("yaw.angle", "yaw.torque", kp=4.0, ki=2.0, kd=0.3, derivative_filter_time=0.02,
+                                 sample_time=10 * dt, reference=0.1)
+    controlled = with_feedback(model, LOOPS[1:])
+
+    def run(compiled):
+        return lambda: ctmm.simulate(controlled, t_final, dt, x0=X0, v0=V0, controllers=[pid], compiled=compiled)
+
+    return row("spatial arm, 2 loops + PID every 10 steps", round(t_final / dt), run(None), run(True),
+               difference(list(model.coordinates) + list(model.velocities)))
+
+
+def main(quick: bool) -> None:
+    scale = 0.2 if quick else 1.0
+    rows = [torsion_case(10.0 * scale)]
+    for n in (5, 20):
+        for every in (10, 1):
+            rows.append(pendulum_case(n, every, 2.0 * scale))
+    rows.append(spatial_case(0.4 * scale))
+    out = ROOT / "benchmarks" / "results" / "compiled_cosim.json"
+    out.parent.mkdir(exist_ok=True)
+    out.write_text(json.dumps({"quick": quick, "rows": rows}, indent=2))
+    print(f"wrote {out}")
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="short runs (a smoke test)")
+    main(parser.parse_args().quick)

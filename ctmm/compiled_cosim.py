@@ -1,0 +1,239 @@
+"""Co-simulated controllers (Python objects, FMUs) around generated kernels: ``compiled=True`` with ``controllers``.
+
+:func:`simulate_cosimulated_generated` is what ``ctmm.simulate(model, ..., compiled=True, controllers=[...])`` runs
+on a planar or spatial model, plain or controlled (its :class:`~ctmm.control.loops.Feedback` loops closed inside
+the generated step).  The controllers are sampled on the step grid and their outputs held (zero-order hold), so
+between two sample instants the plant is a run of the generated RK4 with the held outputs as its actuator inputs
+``u``: one call into C per sample interval (:meth:`ctmm.compiled_scene.CompiledScene.continue_run`,
+:meth:`ctmm.compiled_spatial_loops.CompiledControlledSpatial.continue_run`, continued at the interval's step
+index so that delayed loops' rings and time signals run on), and at each sample instant the one co-simulation
+master :class:`~ctmm.control.cosim.CoSimulation` calls the controllers in Python exactly as the numpy path
+(:func:`ctmm.control.planar_time.simulate_closed_loop`) does: the same sample instants, coupling policy,
+failure messages and ``"<output>@samples"`` records.  The result equals the numpy path's to round-off
+(``tests/test_compiled_cosim.py``).
+
+A :class:`~ctmm.control.measurement_delay.DelayedController` reads its inputs ``delay`` seconds late from the
+states of the run; the delay must be a whole multiple of ``dt`` here (the numpy path interpolates its delay
+history between steps; on the grid both read the stored step).  Before ``t = 0`` the initial state is held.
+Controller outputs must drive actuators of the generated kernel (planar: not beam station loads).
+"""
+from __future__ import annotations
+
+import math
+import time as clock
+from collections import deque
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from . import validation
+from .compiled_control import add_loop_signals
+from .control.controlled_model import ControlledModel
+from .control.cosim import CoSimulation
+from .control.plants import plant_of
+from .errors import ModelError, SimulationError
+from .planar.guards import with_partial
+from .planar.integrate import check_store_every, step_total
+from .progress import progress_bar
+from .results import SimulationResult
+from .signal_results import SignalSystem, signal_result
+from .spatial.model import SpatialModel
+
+__all__ = ["simulate_cosimulated_generated"]
+
+
+def _scene(controlled: ControlledModel, dt: float, controllers: Sequence[Any], inputs: Mapping[str, Any],
+           references: Mapping[str, Any]) -> Any:
+    """The generated kernel of ``controlled`` (every step stored) whose actuator inputs include every
+    controller output."""
+    if isinstance(controlled.plant, SpatialModel):
+        from .compiled_spatial_loops import CompiledControlledSpatial
+
+        held = {name: 0.0 for c in controllers for name in c.outputs if name not in inputs}
+        return CompiledControlledSpatial(controlled, dt, references=references, inputs={**inputs, **held},
+                                         store_every=1)
+    from .compiled_scene import CompiledScene
+
+    scene = CompiledScene(controlled, store_every=1, dt=dt, references=references, signals=inputs)
+    for c in controllers:
+        for name in c.outputs:
+            if name not in scene.actuators:
+                raise ModelError(f"compiled=True: controller output {name!r} drives a beam station load, which "
+                                 f"generated kernels do not drive yet (they drive {', '.join(scene.actuators)}); "
+                                 "run with compiled=False")
+    return scene
+
+
+def _delay_steps(controller: Any, dt: float) -> int:
+    """A controller's measurement delay in steps (0 without one); a delay off the step grid is refused."""
+    delay = validation.nonnegative("controller measurement_delay", getattr(controller, "measurement_delay", 0.0))
+    steps = int(round(delay / dt))
+    if abs(steps * dt - delay) > 1e-9 * max(delay, dt):
+        raise ModelError(f"controller with outputs {list(controller.outputs)}: measurement_delay = {delay!r} s is "
+                         f"not a whole multiple of dt = {dt!r} s, which compiled=True needs (it reads the stored "
+                         "step); choose such a delay or dt, or run with compiled=False")
+    return steps
+
+
+def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndarray, v0: np.ndarray, *,
+                                   t_final: float, dt: float, controllers: Sequence[Any],
+                                   inputs: Mapping[str, Any] | None = None,
+                                   references: Mapping[str, Any] | None = None, outputs: Sequence[str] = (),
+                                   coupling: str = "hold", store_every: int = 1, progress: bool | None = None,
+                                   stability_check: str = "warn", divergence_bound: float | None = None
+                                   ) -> SimulationResult:
+    """Fixed-step RK4 in generated C between the samples of co-simulated controllers (module docstring).
+
+    Parameters
+    ----------
+    model : PlanarModel or SpatialModel
+        The plant (compilable: :func:`ctmm.compiled_scene.compile_refusal`,
+        :func:`ctmm.compiled_spatial.spatial_compile_refusal`).
+    loops : sequence of Feedback
+        Loops closed inside the generated step (may be empty).
+    q0, v0 : ndarray
+        Initial coordinates and velocities (checked by the caller; planar: ``v = qdot``).
+    t_final, dt : float
+        End time and step [s]: ``t_final``, every sample time and every delay whole multiples of ``dt``.
+    controllers : sequence of Controller
+        Co-simulated controllers (validated by the caller, :func:`ctmm.control.protocol.check_controllers`).
+    inputs, references : mapping, optional
+        ``{actuator: value}`` [SI] and ``{loop: r}`` [sensed unit]: numbers or symbolic signals.
+    outputs : sequence of str
+        Sensor names stored at every row.
+    coupling : {"hold", "previous"}
+        As in :class:`~ctmm.control.cosim.CoSimulation`.
+    store_every : int
+        Keep every ``store_every``-th step (the last one always).
+    progress : bool, optional
+        Progress bar over the steps (long runs on a terminal by default).
+    stability_check : {"warn", "error", "ignore"}
+        The step against the plant's linearised RK4 limit before the run (as the numpy path).
+    divergence_bound : float, optional
+        As in :func:`ctmm.control.planar_time.simulate_closed_loop` (checked at every step).
+
+    Returns
+    -------
+    SimulationResult
+        As the numpy path: coordinates, rates, ``outputs``, ``"<loop>.y"``, ``"<loop>.u"`` and
+        ``"<controller output>@samples"``; method label ``"rk4-generated"``, ``info["compile_time_s"]``,
+        ``info["controllers"]``, ``info["intervals"]`` (calls into C).
+
+    Raises
+    ------
+    ModelError
+        What the generated kernel cannot do (named), bad wiring, an algebraic loop, no compiler.
+    SimulationError
+        Failing controller code, divergence or non-finite states, with ``partial_result``.
+    """
+    plant = plant_of(model)
+    ports = plant.ports
+    n_steps = step_total(t_final, dt)
+    store_every = check_store_every(store_every)
+    inputs, references = dict(inputs or {}), dict(references or {})
+    for c in controllers:
+        label = f"controller {getattr(c, 'name', None) or type(c).__name__!r}"
+        for name in c.inputs:
+            ports.check_sensor(name, f"input of {label}")
+        for name in c.outputs:
+            ports.check_actuator(name, f"output of {label}")
+    delays = [_delay_steps(c, dt) for c in controllers]
+    controlled = ControlledModel(model, loops)
+    scene = _scene(controlled, dt, controllers, inputs, references)
+    plant.check_step(q0, v0, dt, stability_check)
+    sensors = [ports.resolve(list(c.inputs)) for c in controllers]
+    index = {name: k for k, name in enumerate(scene.actuators)}
+    nq, nv = plant.n_positions, plant.n_velocities
+    first = scene.loops.initial_state(np.asarray(q0, float), np.asarray(v0, float))
+    guard = plant.guard(q0, divergence_bound, v0)
+    reference = first[:nq + nv]
+    bound = math.inf if divergence_bound is None else divergence_bound
+    history: deque = deque(maxlen=max(delays, default=0) + 1)     # (step, state) of the delayed reads
+    history.append((0, first))
+    times, rows = [0.0], [first]
+    info = {"dt": dt, "method": "rk4-generated", "compile_time_s": scene.compile_time_s,
+            "loops": {law.name: ("real-time" if law.steps == 0 else "history") for law in scene.loops.laws}}
+    done = [0]                                                    # steps run
+
+    def empty() -> SimulationResult:
+        signals, units = plant.signals(np.zeros(0), np.zeros((0, nq)), np.zeros((0, nv)), outputs)
+        return signal_result(SignalSystem(model, units, list(loops)), np.zeros(0), signals, "rk4-generated", info)
+
+    try:
+        master = CoSimulation(controllers, dt, 0.0, coupling=coupling, measurement_delays=True)
+    except SimulationError as exc:          # a controller's init failed: nothing was simulated
+        raise with_partial(exc, empty) from exc.__cause__
+    start = clock.perf_counter()
+
+    def result(count: int) -> SimulationResult:
+        t, block = np.array(times[:count]), np.array(rows[:count]).reshape(count, -1)
+        signals, units = plant.signals(t, block[:, :nq], block[:, nq:nq + nv], outputs)
+        extra = add_loop_signals(controlled, scene.loops, scene.loops.signals(), block, t, signals, units) \
+            if scene.loops.laws else {}
+        for name, samples in master.outputs(until=t[-1] if count else -math.inf).items():
+            signals[name], units[name] = samples, ports.actuator_unit(name.split("@")[0])
+        return signal_result(SignalSystem(model, units, list(loops)), t, signals, "rk4-generated", {
+            **info, **extra, "wall_time_s": clock.perf_counter() - start, "n_evaluations": 4 * done[0],
+            "controllers": master.describe(), "intervals": intervals})
+
+    def sample(step: int, state: np.ndarray) -> None:
+        t = step * dt
+
+        def measure(i: int) -> np.ndarray:
+            if delays[i]:
+                then = step - delays[i]
+                past = first if then <= 0 else next(y for k, y in history if k == then)
+                when = max(then, 0) * dt
+                return np.asarray(ports.values(sensors[i], past[:nq], past[nq:nq + nv], when), dtype=float)
+            return np.asarray(ports.values(sensors[i], state[:nq], state[nq:nq + nv], t), dtype=float)
+
+        master.sample(step, t, measure)
+
+    def first_bad(block: np.ndarray) -> int | None:
+        with np.errstate(invalid="ignore"):
+            bad = ~np.all(np.isfinite(block), axis=1) | (np.max(np.abs(block[:, :nq + nv] - reference), axis=1,
+                                                                initial=0.0) > bound)
+        return int(np.argmax(bad)) if np.any(bad) else None
+
+    def fail(step: int, row: np.ndarray) -> None:
+        t = float(step * dt)
+        guard(t, row, dt, "rk4")                    # the plant's own message where it applies
+        what = "non-finite" if not np.all(np.isfinite(row)) else f"beyond divergence_bound = {divergence_bound}"
+        raise SimulationError(f"{getattr(model, 'name', 'model')}: the state (with controller states and delay "
+                              f"ring) became {what} at t = {t:.6g} s (rk4-generated)", time=t,
+                              element=getattr(model, "name", None))
+
+    intervals = 0
+    bar = progress_bar(n_steps, f"ctmm.simulate ({plant.label}, rk4-generated)", enabled=progress)
+    try:
+        sample(0, first)
+        state, k = first, 0
+        while k < n_steps:
+            following = min(min((k // r + 1) * r for r in master.ratios), n_steps)
+            held = np.zeros(len(scene.actuators))
+            for c, values in zip(master.controllers, master.held):
+                for name, value in zip(c.outputs, values):
+                    held[index[name]] += value
+            block = scene.continue_run(state, held, dt, following - k, k)
+            intervals += 1
+            bad = first_bad(block)
+            for j, row in enumerate(block):
+                step = k + 1 + j
+                if j == bad:
+                    fail(step, row)
+                if any(delays):
+                    history.append((step, row))
+                if step == following:
+                    sample(step, row)
+                if step % store_every == 0 or step == n_steps:
+                    times.append(float(step * dt))
+                    rows.append(row)
+                done[0] = step
+            state, k = block[-1], following
+            bar.update(len(block))
+    except SimulationError as exc:
+        raise with_partial(exc, lambda: result(len(times))) from exc.__cause__
+    finally:
+        bar.close()
+        master.close()
+    return result(len(times))
