@@ -368,8 +368,8 @@ def test_refusals():
                                dt=1e-3, store_every=2, scene=CompiledScene(model))
     chain = ctmm.Chain("c", [elements.Fixed("w"), elements.Spring("k", 1.0), elements.Mass("m", 1.0),
                              elements.Free("e")])
-    with pytest.raises(ModelError, match="generated RK4 of a chain.*method='newmark'"):
-        ctmm.simulate(chain, 0.1, 1e-2, compiled=True)            # chains compile with method="rk4" only
+    with pytest.raises(ModelError, match="generated RK4 or DT-TMM of a chain.*method='DOP853'"):
+        ctmm.simulate(chain, 0.1, 1e-2, method="DOP853", compiled=True)   # rk4 and the DT-TMM schemes only
 
 
 def test_beam_station_loads_are_not_taken_by_generated_kernels_and_never_dropped():
