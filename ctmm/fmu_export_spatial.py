@@ -18,7 +18,10 @@ Variables (names as in ctmm):
   ``"<body>.inertia.xx"`` ... ``".yz"``, the non-zero ``"<joint>.stiffness"`` and ``".damping"`` of
   revolute, prismatic and universal joints (``"[k]"`` on a 2-DOF joint) with ``".reference"`` of each
   stiff coordinate, the non-zero ``"gravity.x|y|z"``; geometry, axes, loads, driven motions, zeros and
-  the laws of spherical, free and elastic joints are constants of the code;
+  the laws of spherical, free and elastic joints are constants of the code; a model with a flexible body
+  (:class:`~ctmm.spatial.SpatialBeam`, :class:`ctmm.fem.SpatialSubsystem`: terms that are not those of a
+  rigid body, so its numbers cannot be summed from unit numbers) has no parameters -- every number,
+  gravity included, is a constant of the code (:func:`flexible_bodies`);
 * start values -- ``"<coordinate>_start"`` (quaternion entries as given: set a unit quaternion) and
   ``"<velocity>_start"``.
 """
@@ -34,10 +37,18 @@ from .fmu_export_model import ExportedSystem, ExportedVariable, chosen_names
 from .generated_loop import rk4_step_function
 from .ops import CASADI
 from .spatial.body_forms import SpatialScene
+from .spatial.elements import SpatialBody
 from .spatial.integrate import initial_state, spatial_signals
 from .spatial.model import SpatialModel
 
-__all__ = ["spatial_export"]
+__all__ = ["spatial_export", "flexible_bodies"]
+
+
+def flexible_bodies(model: SpatialModel) -> list[str]:
+    """Names of the bodies of ``model`` that are not rigid :class:`~ctmm.spatial.SpatialBody` (beams,
+    finite-element subsystems): their terms are not :func:`~ctmm.spatial.body_forms.rigid_body_terms`,
+    so :mod:`ctmm.compiled_spatial_parameters` cannot make their numbers parameters."""
+    return [body.name for body in model.bodies if not isinstance(body, SpatialBody)]
 
 
 def spatial_export(model: SpatialModel, *, inputs: Sequence[str] | None, outputs: Sequence[str] | None,
@@ -66,7 +77,8 @@ def spatial_export(model: SpatialModel, *, inputs: Sequence[str] | None, outputs
     if reason:
         raise ModelError(f"export_fmu: system: {reason}")
     start_values = initial_state(model, q0, qdot0)
-    rates = SpatialRates(model, fold=False, numbers="inputs")
+    flexible = flexible_bodies(model)
+    rates = SpatialRates(model, fold=False, numbers="constants" if flexible else "inputs")
     layout = rates.layout
     step = rk4_step_function(rates.rate)
     arguments = [ca.MX.sym(label, *step.size_in(i)) for i, label in enumerate(("y", "u", "h", "p", "t0", "k"))]
@@ -108,8 +120,9 @@ def spatial_export(model: SpatialModel, *, inputs: Sequence[str] | None, outputs
     chosen = chosen_names("parameters", parameters, list(exposable), list(exposable))
     parameter_variables = tuple(ExportedVariable(name, exposable[name][0], exposable[name][1].value,
                                                  exposable[name][1].unit, f"model number {name}") for name in chosen)
-    notes = ("spatial model: masses, inertias, 1- and 2-DOF joint laws and gravity are parameters; geometry, axes, "
-             "loads, zeros and the other joint laws are constants of the code",)
+    notes = (f"spatial model with the flexible bodies {', '.join(flexible)}: every number is a constant of the code",
+             ) if flexible else ("spatial model: masses, inertias, 1- and 2-DOF joint laws and gravity are parameters; "
+                                 "geometry, axes, loads, zeros and the other joint laws are constants of the code",)
     return ExportedSystem(model.name, initial_function, step_function, output_function,
                           np.array([entry.value for entry in layout], dtype=float), offset, nq + nv, input_variables,
                           output_variables, parameter_variables, starts, notes)
