@@ -55,6 +55,7 @@ from .results import SimulationResult
 from .signal_results import SignalSystem, signal_result
 from .protocol import BodyTerms, JointTerms
 from .signals import Constant
+from .spatial.elements import SpatialBody
 from .spatial.body_forms import SpatialScene, child_motion, joint_motion, rigid_body_terms
 from .spatial.frames import constant, cross, quaternion_rate, quaternion_rotation
 from .spatial.integrate import beam_deflection_weights, check_beam_deflection, initial_state, spatial_signals
@@ -64,7 +65,7 @@ from .compiled_spatial_parameters import (SpatialNumbers, parametrised_body_term
                                           parametrised_scene_terms, spatial_parameter_layout, spatial_parameter_vector)
 
 __all__ = ["SpatialRates", "CompiledSpatialScene", "spatial_compile_refusal", "simulate_spatial_generated",
-           "chain_period"]
+           "chain_period", "flexible_bodies"]
 
 FOLD_MIN_BODIES = 100
 """Foldable models (:func:`chain_period`) with at least this many bodies are compiled through the fold
@@ -103,6 +104,13 @@ def spatial_compile_refusal(model: Any) -> str:
                 "terms evaluate them numerically, so generated code cannot follow them in time); use ctmm.simulate "
                 "without compiled=True")
     return ""
+
+
+def flexible_bodies(model: SpatialModel) -> list[str]:
+    """Names of the bodies of ``model`` that are not rigid :class:`~ctmm.spatial.SpatialBody` (beams,
+    finite-element subsystems): their terms are not :func:`~ctmm.spatial.body_forms.rigid_body_terms`,
+    so :mod:`ctmm.compiled_spatial_parameters` cannot make their numbers (nor gravity) parameters."""
+    return [body.name for body in model.bodies if not isinstance(body, SpatialBody)]
 
 
 class SpatialRates:
@@ -144,6 +152,12 @@ class SpatialRates:
         if numbers not in ("constants", "inputs"):
             raise ModelError(f"SpatialRates: numbers must be 'constants' (one library per model) or 'inputs' (one "
                              f"library per structure), got {numbers!r}")
+        flexible = flexible_bodies(model) if numbers == "inputs" else []
+        if flexible:
+            raise ModelError(f"SpatialRates: numbers='inputs' (one library per structure: parameters=, simulate_batch) "
+                             f"takes the numbers of rigid bodies; model {model.name!r} has the flexible bodies "
+                             f"{', '.join(map(repr, flexible))}; run it with ctmm.simulate(..., compiled=True) without "
+                             "parameters= (its numbers constants of the code)")
         self.model = model
         self.layout = spatial_parameter_layout(model) if numbers == "inputs" else []
         n_p = len(self.layout)

@@ -21,7 +21,7 @@ Variables (names as in ctmm):
   the laws of spherical, free and elastic joints are constants of the code; a model with a flexible body
   (:class:`~ctmm.spatial.SpatialBeam`, :class:`ctmm.fem.SpatialSubsystem`: terms that are not those of a
   rigid body, so its numbers cannot be summed from unit numbers) has no parameters -- every number,
-  gravity included, is a constant of the code (:func:`flexible_bodies`);
+  gravity included, is a constant of the code (:func:`~ctmm.compiled_spatial.flexible_bodies`);
 * start values -- ``"<coordinate>_start"`` (quaternion entries as given: set a unit quaternion) and
   ``"<velocity>_start"``.
 """
@@ -31,24 +31,16 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from .compiled_spatial import SpatialRates, spatial_compile_refusal
+from .compiled_spatial import SpatialRates, flexible_bodies, spatial_compile_refusal
 from .errors import ModelError
 from .fmu_export_model import ExportedSystem, ExportedVariable, chosen_names
 from .generated_loop import rk4_step_function
 from .ops import CASADI
 from .spatial.body_forms import SpatialScene
-from .spatial.elements import SpatialBody
 from .spatial.integrate import initial_state, spatial_signals
 from .spatial.model import SpatialModel
 
-__all__ = ["spatial_export", "flexible_bodies"]
-
-
-def flexible_bodies(model: SpatialModel) -> list[str]:
-    """Names of the bodies of ``model`` that are not rigid :class:`~ctmm.spatial.SpatialBody` (beams,
-    finite-element subsystems): their terms are not :func:`~ctmm.spatial.body_forms.rigid_body_terms`,
-    so :mod:`ctmm.compiled_spatial_parameters` cannot make their numbers parameters."""
-    return [body.name for body in model.bodies if not isinstance(body, SpatialBody)]
+__all__ = ["spatial_export"]
 
 
 def spatial_export(model: SpatialModel, *, inputs: Sequence[str] | None, outputs: Sequence[str] | None,

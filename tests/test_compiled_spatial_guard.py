@@ -68,3 +68,21 @@ def test_the_generated_run_stops_after_the_failing_step(tmp_path):
     stable = spinner(True)
     assert np.all(np.isfinite(CompiledSpatialScene(stable, rows=4, cache_dir=tmp_path).run(
         initial_state(stable, SPIN["x0"], SPIN["v0"]), 0.01, 200)))
+
+
+def test_numbers_as_inputs_refuse_flexible_bodies_by_name():
+    """One library per structure takes rigid bodies' numbers only: a model with a beam is refused by name (not a
+    casadi dimension mismatch), on the plain and the controlled kernels."""
+    from ctmm.compiled_spatial import SpatialRates
+    from ctmm.compiled_spatial_loops import CompiledControlledSpatial
+    from ctmm.control import Feedback, with_feedback
+    from ctmm.errors import ModelError
+
+    model = spinner(True)
+    with pytest.raises(ModelError, match="flexible bodies 'arm'"):
+        ctmm.simulate(model, 0.05, 0.01, method="rk4", compiled=True, parameters={"gravity.z": -9.0}, **SPIN)
+    with pytest.raises(ModelError, match="flexible bodies 'arm'"):
+        SpatialRates(model, numbers="inputs")
+    controlled = with_feedback(model, [Feedback("rate", "hub.angle_rate", "arm.force_y", gain=-1.0)])
+    with pytest.raises(ModelError, match="flexible bodies 'arm'"):
+        CompiledControlledSpatial(controlled, 0.01, numbers="inputs")
