@@ -4,7 +4,10 @@
 ``ctmm.simulate(..., compiled=True)`` compiles as an :class:`~ctmm.fmu_export_model.ExportedSystem`:
 the step is :func:`ctmm.generated_loop.rk4_step_function` of the model's
 :class:`~ctmm.compiled_spatial.SpatialRates` (the one articulated sweep at ``d = 6``, quaternion
-coordinates), the step of ``compiled=True``.
+coordinates), the step of ``compiled=True``, with the flexible bodies' guard
+(:func:`~ctmm.compiled_spatial_guard.guarded_step`): a step after which a beam's deflection bound
+exceeds its length or a finite-element subsystem leaves its small deformation gives a non-finite
+state, which ends the FMU's step with an error naming the time.
 
 Variables (names as in ctmm):
 
@@ -32,6 +35,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from .compiled_spatial import SpatialRates, flexible_bodies, spatial_compile_refusal
+from .compiled_spatial_guard import guarded_step
 from .errors import ModelError
 from .fmu_export_model import ExportedSystem, ExportedVariable, chosen_names
 from .generated_loop import rk4_step_function
@@ -72,7 +76,7 @@ def spatial_export(model: SpatialModel, *, inputs: Sequence[str] | None, outputs
     flexible = flexible_bodies(model)
     rates = SpatialRates(model, fold=False, numbers="constants" if flexible else "inputs")
     layout = rates.layout
-    step = rk4_step_function(rates.rate)
+    step = guarded_step(model, rk4_step_function(rates.rate))     # NaN once a flexible body leaves its bounds
     arguments = [ca.MX.sym(label, *step.size_in(i)) for i, label in enumerate(("y", "u", "h", "p", "t0", "k"))]
     step_function = ca.Function("ctmm_step", arguments, [step(*arguments)])
     nq, nv = model.n_positions, model.n_velocities

@@ -82,3 +82,43 @@ def test_the_spatial_fem_chain_equals_ctmm_simulate(tmp_path):
                      scenario.INITIAL_RATE, ["body3.position_z", "beam1.omega_x"])
     nodal = [name for name in model.coordinates if name.startswith("beam1.")]
     assert max(np.ptp(native[name]) for name in nodal) > 1e-5                              # the nodes moved
+
+
+def test_a_beam_past_its_deflection_bound_stops_the_fmu_at_the_time_of_ctmm_simulate(tmp_path):
+    """The FMU steps with the beam's guard: the spinner above its critical speed without stiffening stops with
+    fmi2Error and a logged message at the step whose end is the failure time of ctmm.simulate (0.19 s)."""
+    import collections
+
+    from fmpy.fmi2 import FMU2Slave
+
+    from ctmm.control.fmu_calls import fmi2_callbacks
+    from ctmm.errors import SimulationError
+    from test_spatial_beam_guard import spinner
+
+    model, x0, v0 = spinner(False), {"arm.qy1": 0.01}, {"hub.angle_rate": 8.0}
+    with pytest.raises(SimulationError) as caught:
+        ctmm.simulate(model, 2.0, 0.01, method="rk4", x0=x0, v0=v0)
+    assert caught.value.element == "arm"
+    failure = caught.value.time
+    path = ctmm.export_fmu(model, tmp_path / "spinner.fmu", step=0.01, q0=x0, qdot0=v0)
+    description = fmpy.read_model_description(str(path))
+    folder = fmpy.extract(str(path))
+    log: collections.deque = collections.deque(maxlen=20)
+    plant = FMU2Slave(guid=description.guid, unzipDirectory=folder, modelIdentifier="spinner", instanceName="s")
+    try:
+        plant.instantiate(callbacks=fmi2_callbacks(log))
+        plant.setupExperiment(startTime=0.0)
+        plant.enterInitializationMode()
+        plant.exitInitializationMode()
+        time = 0.0
+        with pytest.raises(Exception, match="status 3"):
+            for k in range(200):
+                plant.doStep(currentCommunicationPoint=time, communicationStepSize=0.01)
+                time = (k + 1) * 0.01
+        assert time == pytest.approx(failure - 0.01, abs=1e-12)
+        assert "state is not finite after the RK4 step from t = " in log[-1], list(log)
+        assert f"(step {round(failure / 0.01) - 1};" in log[-1], list(log)
+        assert "flexible body beyond its deformation bound" in log[-1]
+    finally:
+        plant.freeInstance()
+        shutil.rmtree(folder, ignore_errors=True)
