@@ -86,3 +86,15 @@ def test_numbers_as_inputs_refuse_flexible_bodies_by_name():
     controlled = with_feedback(model, [Feedback("rate", "hub.angle_rate", "arm.force_y", gain=-1.0)])
     with pytest.raises(ModelError, match="flexible bodies 'arm'"):
         CompiledControlledSpatial(controlled, 0.01, numbers="inputs")
+
+
+def test_a_controlled_spinner_stops_at_the_time_of_the_numpy_loop_driver():
+    """With a feedback loop (zero gain) the generated kernel with loops checks the beam too (on the stored rows,
+    store_every=1: the time, element and partial result of the numpy loop driver) instead of running on."""
+    from ctmm.control import Feedback, with_feedback
+
+    controlled = with_feedback(spinner(False), [Feedback("rate", "hub.angle_rate", "arm.force_y", gain=0.0)])
+    errors = [failure(controlled, 2.0, 0.01, 1, compiled, SPIN) for compiled in (False, True)]
+    assert errors[0].element == errors[1].element == "arm"
+    assert errors[0].time == errors[1].time and 0.0 < errors[1].time < 2.0
+    assert np.array_equal(errors[0].partial_result.time, errors[1].partial_result.time)
