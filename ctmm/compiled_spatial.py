@@ -544,7 +544,10 @@ def simulate_spatial_generated(model: SpatialModel, t_final: float, dt: float, *
         bad |= np.any(np.abs(np.where(np.isfinite(states), states - states[:1], 0.0)) > divergence_bound, axis=1)
     if np.any(bad):
         first = int(np.flatnonzero(bad)[0])
-        partial = lambda: _result(model, times[:first], states[:first], info)      # noqa: E731
+
+        def partial() -> SimulationResult:
+            return _result(model, times[:first], states[:first], info)
+
         # the guarded run stopped (NaN) or a stored state is bad: step again from the last good stored state,
         # checking every step as the numpy RK4 does (the same time and element, also between stored states)
         replay_failure(model, scene.plain_step, x, states[first - 1], scene.rates.input_vector(inputs),
