@@ -15,7 +15,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -38,7 +38,8 @@ class Frame:
     bodies : dict
         ``{body name: (k, d) array}``: a polyline through the body's points in world
         coordinates [m] (``d`` = 2 planar, 3 spatial): inboard point, then each outboard point (rigid
-        bodies, returning to the inboard point between ends) or the deformed stations (beams).
+        bodies, returning to the inboard point between ends), the deformed stations (beams) or the
+        deformed nodes in their order (finite-element subsystems).
     joints : ndarray
         ``(n_joints, d)`` positions of the hinges / joints (the inboard points) [m].
     """
@@ -70,6 +71,21 @@ def frame_rows(n_rows: int, frames: int | None) -> np.ndarray:
     return np.unique(np.round(np.linspace(0, n_rows - 1, min(int(frames), n_rows))).astype(int))
 
 
+def _finite_elements_planar(body: Any) -> bool:
+    """Whether a deformable planar body is a finite-element subsystem (:class:`ctmm.fem.GlobalSubsystem`)."""
+    return hasattr(body, "node_dofs") and hasattr(getattr(body, "data", None), "keep")
+
+
+def _deformed_nodes(body: Any, eta: np.ndarray, exaggeration: float) -> np.ndarray:
+    """``(n_nodes, 2)`` frame positions ``X + exaggeration u`` [m] of a planar finite-element subsystem's nodes
+    in their order, ``u`` their displacements among the internal coordinates ``eta`` (0 for nodes held in
+    the frame)."""
+    data = body.data
+    internal = {int(i): k for k, i in enumerate(data.keep)}
+    return np.array([np.asarray(data.position[node], float)[:2] + exaggeration * np.array(
+        [eta[internal[i]] if i in internal else 0.0 for i in dofs[:2]]) for node, dofs in body.node_dofs.items()])
+
+
 def _planar_frames(model: Any, result: Any, rows: np.ndarray, stations: int, exaggeration: float) -> list[Frame]:
     n_rows = len(result.time)
     q = np.array([result[name] for name in model.coordinates], dtype=float).reshape(-1, n_rows).T
@@ -83,7 +99,9 @@ def _planar_frames(model: Any, result: Any, rows: np.ndarray, stations: int, exa
             c, s = np.cos(points["theta"][i]), np.sin(points["theta"][i])
             rotation = np.array([[c, -s], [s, c]])
             inboard = points["inboard"][i]
-            if i in model.beams:
+            if i in model.beams and _finite_elements_planar(model.beams[i]):
+                local = _deformed_nodes(model.beams[i], q[row][model.modal_index[i]], exaggeration)
+            elif i in model.beams:
                 beam = model.beams[i]
                 x = np.linspace(0.0, beam.length, stations)
                 eta = q[row][model.modal_index[i]]
@@ -101,17 +119,31 @@ def _planar_frames(model: Any, result: Any, rows: np.ndarray, stations: int, exa
     return frames
 
 
+def _finite_elements(body: Any) -> bool:
+    """Whether a spatial body is a finite-element subsystem (nodes that move in its frame)."""
+    return hasattr(body, "deformed_point") and isinstance(getattr(body, "nodes", None), Mapping)
+
+
+def _drawn_points(body: Any) -> list[str]:
+    """The points a spatial body is drawn through after ``origin``: every node of a finite-element subsystem
+    (:class:`ctmm.fem.SpatialSubsystem`, in the order of its nodes), else the named points (the centre of mass
+    when the body names none)."""
+    if _finite_elements(body):
+        return [node for node in body.nodes if node != "origin"]
+    return [p for p in body.points if p != "origin"] or ["com"]
+
+
 def drawing_outputs(model: Any) -> list[str]:
     """The signals a spatial run needs for drawing: world positions [m] of every body's points.
 
     ``"<body>.<point>.x|y|z"`` for the ``origin`` and each named point (the centre of mass when a
-    body names none); pass them as ``ctmm.simulate(model, ..., outputs=drawing_outputs(model))``, or
-    add them to a finished run with :func:`ctmm.animation_spatial.with_pose_signals`.
+    body names none; every node of a finite-element subsystem, deformed); pass them as
+    ``ctmm.simulate(model, ..., outputs=drawing_outputs(model))``, or add them to a finished run with
+    :func:`ctmm.animation_spatial.with_pose_signals`.
     """
     names = []
     for body in getattr(model, "bodies", ()):
-        points = [p for p in body.points if p != "origin"] or ["com"]
-        names += [f"{body.name}.{point}.{axis}" for point in ["origin", *points] for axis in "xyz"]
+        names += [f"{body.name}.{point}.{axis}" for point in ["origin", *_drawn_points(body)] for axis in "xyz"]
     return names
 
 
@@ -127,13 +159,16 @@ def _spatial_frames(model: Any, result: Any, rows: np.ndarray) -> list[Frame]:
     for row in rows:
         bodies, joints = {}, []
         for body in model.bodies:
-            points = [p for p in body.points if p != "origin"] or ["com"]
+            points = _drawn_points(body)
             position = {p: np.array([result[f"{body.name}.{p}.{axis}"][row] for axis in "xyz"])
                         for p in ["origin", *points]}
-            polyline = [position["origin"]]
-            for point in points:
-                polyline += [position[point], position["origin"]]
-            bodies[body.name] = np.array(polyline[:-1])
+            if _finite_elements(body):
+                bodies[body.name] = np.array([position[p] for p in points])        # through its deformed nodes
+            else:
+                polyline = [position["origin"]]
+                for point in points:
+                    polyline += [position[point], position["origin"]]
+                bodies[body.name] = np.array(polyline[:-1])
             joints.append(position["origin"])
         frames.append(Frame(float(result.time[row]), bodies, np.array(joints)))
     return frames

@@ -3,7 +3,10 @@
 :mod:`ctmm.animation` draws a spatial run from the signals ``"<body>.<point>.x|y|z"`` (the point
 sensors of :mod:`ctmm.spatial.ports`, world axes [m]). A run simulated without them as ``outputs``
 gets them here, from its stored coordinates through the model's own kinematics
-(:class:`~ctmm.spatial.body_forms.SpatialScene`, all rows in one batch).
+(:class:`~ctmm.spatial.body_forms.SpatialScene`, all rows in one batch); the points of a flexible body
+(:class:`~ctmm.spatial.SpatialBeam`, every node of a :class:`ctmm.fem.SpatialSubsystem`) are drawn
+deformed, moved by :func:`ctmm.spatial.beam_ports.deformed_point` in the body's frame, as the point sensors
+of :mod:`ctmm.spatial.ports`.
 """
 from __future__ import annotations
 
@@ -15,6 +18,7 @@ from .animation import drawing_outputs
 from .errors import ModelError
 from .ops import NUMPY
 from .signal_results import SignalSystem, signal_result
+from .spatial.beam_ports import deformed_point
 from .spatial.dynamics import scene_of
 from .spatial.model import SpatialModel
 
@@ -44,15 +48,19 @@ def pose_signals(result: Any) -> dict[str, np.ndarray]:
     states = scene_of(model).terms(NUMPY, q, v, float(result.time[0]))[2]
     batch = len(q)
     out = {}
-    for body, state in zip(model.bodies, states):
+    for body, state, modal in zip(model.bodies, states, model.modal):
         rotation = np.broadcast_to(np.asarray(state.rotation).reshape(-1, 3, 3), (batch, 3, 3))
         origin = np.broadcast_to(np.asarray(state.origin).reshape(-1, 3), (batch, 3))
         local = dict(body.points)
         local["com"] = np.asarray(body.center_of_mass, float)
+        local.update({node: row[0] for node, row in getattr(getattr(body, "data", None), "point_rows", {}).items()})
         for name in drawing_outputs(model):
             owner, point, axis = name.rsplit(".", 2)
             if owner == body.name:
-                position = origin + rotation @ np.asarray(local[point], float)
+                # a flexible body's point moves with the deformation in its frame (the point sensors' statement)
+                arm = (np.asarray(local[point], float)[None] if modal is None else
+                       deformed_point(body, local[point], q[:, modal.position]))
+                position = origin + np.einsum("bij,bj->bi", rotation, np.broadcast_to(arm, (batch, 3)))
                 out[name] = np.array(position[:, "xyz".index(axis)])
     return out
 

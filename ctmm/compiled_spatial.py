@@ -55,15 +55,17 @@ from .results import SimulationResult
 from .signal_results import SignalSystem, signal_result
 from .protocol import BodyTerms, JointTerms
 from .signals import Constant
+from .spatial.elements import SpatialBody
 from .spatial.body_forms import SpatialScene, child_motion, joint_motion, rigid_body_terms
 from .spatial.frames import constant, cross, quaternion_rate, quaternion_rotation
 from .spatial.integrate import beam_deflection_weights, check_beam_deflection, initial_state, spatial_signals
 from .spatial.model import SpatialModel
+from .compiled_spatial_guard import guarded_step, replay_failure
 from .compiled_spatial_parameters import (SpatialNumbers, parametrised_body_terms, parametrised_joint_law,
                                           parametrised_scene_terms, spatial_parameter_layout, spatial_parameter_vector)
 
 __all__ = ["SpatialRates", "CompiledSpatialScene", "spatial_compile_refusal", "simulate_spatial_generated",
-           "chain_period"]
+           "chain_period", "flexible_bodies"]
 
 FOLD_MIN_BODIES = 100
 """Foldable models (:func:`chain_period`) with at least this many bodies are compiled through the fold
@@ -102,6 +104,13 @@ def spatial_compile_refusal(model: Any) -> str:
                 "terms evaluate them numerically, so generated code cannot follow them in time); use ctmm.simulate "
                 "without compiled=True")
     return ""
+
+
+def flexible_bodies(model: SpatialModel) -> list[str]:
+    """Names of the bodies of ``model`` that are not rigid :class:`~ctmm.spatial.SpatialBody` (beams,
+    finite-element subsystems): their terms are not :func:`~ctmm.spatial.body_forms.rigid_body_terms`,
+    so :mod:`ctmm.compiled_spatial_parameters` cannot make their numbers (nor gravity) parameters."""
+    return [body.name for body in model.bodies if not isinstance(body, SpatialBody)]
 
 
 class SpatialRates:
@@ -143,6 +152,12 @@ class SpatialRates:
         if numbers not in ("constants", "inputs"):
             raise ModelError(f"SpatialRates: numbers must be 'constants' (one library per model) or 'inputs' (one "
                              f"library per structure), got {numbers!r}")
+        flexible = flexible_bodies(model) if numbers == "inputs" else []
+        if flexible:
+            raise ModelError(f"SpatialRates: numbers='inputs' (one library per structure: parameters=, simulate_batch) "
+                             f"takes the numbers of rigid bodies; model {model.name!r} has the flexible bodies "
+                             f"{', '.join(map(repr, flexible))}; run it with ctmm.simulate(..., compiled=True) without "
+                             "parameters= (its numbers constants of the code)")
         self.model = model
         self.layout = spatial_parameter_layout(model) if numbers == "inputs" else []
         n_p = len(self.layout)
@@ -423,6 +438,9 @@ class CompiledSpatialScene:
         ``numbers="constants"``), the ``p`` of every call.
     compile_time_s : float
         Wall time of building the expressions, generating C and compiling (or loading) [s].
+    plain_step : callable
+        The compiled ``step(y, u, h, p, t0, k)`` without the flexible bodies' guard (the run steps with
+        :func:`~ctmm.compiled_spatial_guard.guarded_step`).
     """
 
     def __init__(self, model: SpatialModel, *, store_every: int = 1, rows: int = DEFAULT_ROWS,
@@ -439,15 +457,18 @@ class CompiledSpatialScene:
         self.model, self.store_every, self.rows = model, store_every, int(rows)
         self.rates = SpatialRates(model, fold=fold, numbers=numbers)
         self.parameters = spatial_parameter_vector(model) if numbers == "inputs" else np.zeros(0)
-        step = rk4_step_function(self.rates.rate)
+        plain_step = rk4_step_function(self.rates.rate)
+        step = guarded_step(model, plain_step)          # NaN once a flexible body leaves its bounds
         stride, sizes, blocks = time_loop_functions(step, store_every, self.rows)
         name = f"spatial_{model.n_bodies}b{model.n_positions}q{model.n_velocities}v" + (
             f"_fold{self.rates.period}" if self.rates.period else "")
         options = {"cache_dir": cache_dir, "compiler": compiler,
                    "flags": SPATIAL_FLAGS if flags is None else tuple(flags)}
-        loaded = load_casadi([self.rates.velocity_rate, step, stride, *blocks], name, **options)
+        plain = [] if step is plain_step else [plain_step]
+        loaded = load_casadi([self.rates.velocity_rate, step, stride, *plain, *blocks], name, **options)
         self._velocity_rate, self._step, self._stride = loaded[:3]
-        self._blocks = list(zip(sizes, loaded[3:]))
+        self.plain_step = loaded[3] if plain else self._step
+        self._blocks = list(zip(sizes, loaded[3 + len(plain):]))
         self.compile_time_s = clock.perf_counter() - start
 
     def accelerations(self, q: Any, v: Any, inputs: Mapping[str, Any] | None = None) -> np.ndarray:
@@ -458,8 +479,9 @@ class CompiledSpatialScene:
 
     def run(self, x0: np.ndarray, dt: float, n_steps: int, inputs: Mapping[str, Any] | None = None) -> np.ndarray:
         """Stored states ``[q ; v]`` (rows, nq + nv) after each ``store_every`` steps and after the last of
-        ``n_steps`` RK4 steps of ``dt`` [s] from ``x0`` at ``t = 0`` (initial state excluded); stops after
-        the first block holding a non-finite state."""
+        ``n_steps`` RK4 steps of ``dt`` [s] from ``x0`` at ``t = 0`` (initial state excluded); a step after which a
+        flexible body leaves its bounds gives NaN (:func:`~ctmm.compiled_spatial_guard.guarded_step`); stops
+        after the first block holding a non-finite state."""
         x0 = np.asarray(x0, dtype=float).reshape(-1)
         nq = self.model.n_positions
         self.model.check_state(x0[:nq], x0[nq:])
@@ -484,9 +506,11 @@ def simulate_spatial_generated(model: SpatialModel, t_final: float, dt: float, *
     ModelError
         A model the generated path cannot compile (:func:`spatial_compile_refusal`), bad arguments.
     SimulationError
-        A non-finite stored state, one farther than ``divergence_bound`` from the start, or one in which a
-        :class:`~ctmm.spatial.SpatialBeam`'s deflection bound exceeds its length (checked on the stored states, after
-        the run), with the result up to the last good stored state.
+        A non-finite stored state, one farther than ``divergence_bound`` from the start, or a step after which a
+        :class:`~ctmm.spatial.SpatialBeam`'s deflection bound exceeds its length or a
+        :class:`ctmm.fem.SpatialSubsystem` leaves its small deformation (checked inside the generated run after
+        every step, :mod:`ctmm.compiled_spatial_guard`; the time and element of the numpy RK4), with the result
+        up to the last good stored state.
     """
     t_final = validation.positive("t_final", t_final)
     if dt is None:
@@ -518,21 +542,28 @@ def simulate_spatial_generated(model: SpatialModel, t_final: float, dt: float, *
     bad = ~np.all(np.isfinite(states), axis=1)
     if divergence_bound is not None:
         bad |= np.any(np.abs(np.where(np.isfinite(states), states - states[:1], 0.0)) > divergence_bound, axis=1)
-    good = int(np.flatnonzero(bad)[0]) if np.any(bad) else len(times)
-    try:                                       # a beam's deflection beyond its length, before any other failure
-        check_beam_deflection(model, beam_deflection_weights(model), times[:good], states[:good],
-                              "rk4-generated; checked on the stored states")
-    except SimulationError as exc:
-        first = int(np.searchsorted(times, exc.time))
-        exc.partial_result = _result(model, times[:first], states[:first], info) if first else None
-        raise
     if np.any(bad):
         first = int(np.flatnonzero(bad)[0])
+
+        def partial() -> SimulationResult:
+            return _result(model, times[:first], states[:first], info)
+
+        # the guarded run stopped (NaN) or a stored state is bad: step again from the last good stored state,
+        # checking every step as the numpy RK4 does (the same time and element, also between stored states)
+        replay_failure(model, scene.plain_step, x, states[first - 1], scene.rates.input_vector(inputs),
+                       scene.parameters, dt, int(round(times[first - 1] / dt)), int(round(times[first] / dt)),
+                       divergence_bound, partial)
         finite = np.all(np.isfinite(states[first]))
         what = f"beyond divergence_bound = {divergence_bound}" if finite else "non-finite"
         raise SimulationError(f"{model.name}: the state became {what} at t = {times[first]} s (rk4-generated; checked "
                               f"on the stored states)", time=float(times[first]), element=model.name,
-                              partial_result=_result(model, times[:first], states[:first], info))
+                              partial_result=partial())
+    try:                    # the subsystems' small-deformation warnings (their bounds were checked in the run)
+        check_beam_deflection(model, beam_deflection_weights(model), times, states, "rk4-generated")
+    except SimulationError as exc:
+        first = int(np.searchsorted(times, exc.time))
+        exc.partial_result = _result(model, times[:first], states[:first], info) if first else None
+        raise
     return _result(model, times, states, info)
 
 

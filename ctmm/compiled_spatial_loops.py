@@ -37,7 +37,7 @@ import numpy as np
 from .articulated import articulated_sweep
 from .codegen import load_casadi
 from .compiled_loops import ClosedLoops
-from .compiled_spatial import DEFAULT_ROWS, SPATIAL_FLAGS, position_rates, spatial_compile_refusal
+from .compiled_spatial import DEFAULT_ROWS, SPATIAL_FLAGS, flexible_bodies, position_rates, spatial_compile_refusal
 from .compiled_spatial_parameters import (SpatialNumbers, parametrised_scene_terms, spatial_parameter_layout,
                                           spatial_parameter_vector)
 from .control.controlled_model import ControlledModel
@@ -213,6 +213,9 @@ class CompiledControlledSpatial:
             ports.check_actuator(name, "inputs: actuator")
         self.controlled, self.model, self.store_every, self.rows = controlled, model, int(store_every), int(rows)
         self.actuators = tuple(dict.fromkeys(names))
+        if numbers == "inputs" and flexible_bodies(model):      # their terms are not a rigid body's
+            raise ModelError(f"CompiledControlledSpatial: numbers='inputs' takes the numbers of rigid bodies; model "
+                             f"{model.name!r} has the flexible bodies {', '.join(map(repr, flexible_bodies(model)))}")
         layout = spatial_parameter_layout(model) if numbers == "inputs" else []
         self.loops = ClosedLoops(controlled, self.actuators, dt, references, inputs,
                                  symbols=SpatialSymbols(model, ports, len(layout)), numbers=numbers)

@@ -285,7 +285,7 @@ static int core_do_step(Core *core, void *owner, double t, double H) {
         memcpy(d->y, core->next, sizeof(d->y));
         if (!state_finite(d)) {
             report(owner, 1, "do step: the state is not finite after the RK4 step from t = %.17g s (step %.0f; "
-                   "diverged or a non-finite input)", t0 + d->steps * h, d->steps);
+                   "diverged, a flexible body beyond its deformation bound, or a non-finite input)", t0 + d->steps * h, d->steps);
             d->mode = MODE_ERROR;
             return 1;
         }

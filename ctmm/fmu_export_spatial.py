@@ -4,7 +4,10 @@
 ``ctmm.simulate(..., compiled=True)`` compiles as an :class:`~ctmm.fmu_export_model.ExportedSystem`:
 the step is :func:`ctmm.generated_loop.rk4_step_function` of the model's
 :class:`~ctmm.compiled_spatial.SpatialRates` (the one articulated sweep at ``d = 6``, quaternion
-coordinates), the step of ``compiled=True``.
+coordinates), the step of ``compiled=True``, with the flexible bodies' guard
+(:func:`~ctmm.compiled_spatial_guard.guarded_step`): a step after which a beam's deflection bound
+exceeds its length or a finite-element subsystem leaves its small deformation gives a non-finite
+state, which ends the FMU's step with an error naming the time.
 
 Variables (names as in ctmm):
 
@@ -18,7 +21,10 @@ Variables (names as in ctmm):
   ``"<body>.inertia.xx"`` ... ``".yz"``, the non-zero ``"<joint>.stiffness"`` and ``".damping"`` of
   revolute, prismatic and universal joints (``"[k]"`` on a 2-DOF joint) with ``".reference"`` of each
   stiff coordinate, the non-zero ``"gravity.x|y|z"``; geometry, axes, loads, driven motions, zeros and
-  the laws of spherical, free and elastic joints are constants of the code;
+  the laws of spherical, free and elastic joints are constants of the code; a model with a flexible body
+  (:class:`~ctmm.spatial.SpatialBeam`, :class:`ctmm.fem.SpatialSubsystem`: terms that are not those of a
+  rigid body, so its numbers cannot be summed from unit numbers) has no parameters -- every number,
+  gravity included, is a constant of the code (:func:`~ctmm.compiled_spatial.flexible_bodies`);
 * start values -- ``"<coordinate>_start"`` (quaternion entries as given: set a unit quaternion) and
   ``"<velocity>_start"``.
 """
@@ -28,7 +34,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from .compiled_spatial import SpatialRates, spatial_compile_refusal
+from .compiled_spatial import SpatialRates, flexible_bodies, spatial_compile_refusal
+from .compiled_spatial_guard import guarded_step
 from .errors import ModelError
 from .fmu_export_model import ExportedSystem, ExportedVariable, chosen_names
 from .generated_loop import rk4_step_function
@@ -66,9 +73,10 @@ def spatial_export(model: SpatialModel, *, inputs: Sequence[str] | None, outputs
     if reason:
         raise ModelError(f"export_fmu: system: {reason}")
     start_values = initial_state(model, q0, qdot0)
-    rates = SpatialRates(model, fold=False, numbers="inputs")
+    flexible = flexible_bodies(model)
+    rates = SpatialRates(model, fold=False, numbers="constants" if flexible else "inputs")
     layout = rates.layout
-    step = rk4_step_function(rates.rate)
+    step = guarded_step(model, rk4_step_function(rates.rate))     # NaN once a flexible body leaves its bounds
     arguments = [ca.MX.sym(label, *step.size_in(i)) for i, label in enumerate(("y", "u", "h", "p", "t0", "k"))]
     step_function = ca.Function("ctmm_step", arguments, [step(*arguments)])
     nq, nv = model.n_positions, model.n_velocities
@@ -108,8 +116,9 @@ def spatial_export(model: SpatialModel, *, inputs: Sequence[str] | None, outputs
     chosen = chosen_names("parameters", parameters, list(exposable), list(exposable))
     parameter_variables = tuple(ExportedVariable(name, exposable[name][0], exposable[name][1].value,
                                                  exposable[name][1].unit, f"model number {name}") for name in chosen)
-    notes = ("spatial model: masses, inertias, 1- and 2-DOF joint laws and gravity are parameters; geometry, axes, "
-             "loads, zeros and the other joint laws are constants of the code",)
+    notes = (f"spatial model with the flexible bodies {', '.join(flexible)}: every number is a constant of the code",
+             ) if flexible else ("spatial model: masses, inertias, 1- and 2-DOF joint laws and gravity are parameters; "
+                                 "geometry, axes, loads, zeros and the other joint laws are constants of the code",)
     return ExportedSystem(model.name, initial_function, step_function, output_function,
                           np.array([entry.value for entry in layout], dtype=float), offset, nq + nv, input_variables,
                           output_variables, parameter_variables, starts, notes)

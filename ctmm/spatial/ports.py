@@ -23,7 +23,8 @@ Sensors (measured signals)
       (``R = exp([phi]x)``, ``|phi| <= pi``; at ``|phi| = pi`` it flips to ``-phi``) [rad];
     * ``"<body>.<point>.x|y|z"`` [m] and ``".vx|vy|vz"`` [m/s] -- world position and velocity of
       a body point: ``origin``, ``com`` (centre of mass) and every named point of the body (of a beam:
-      the deformed points);
+      the deformed points; of a :class:`ctmm.fem.SpatialSubsystem`: also ``"<body>.<node>.x|y|z"`` of every node,
+      deformed);
     * beams (:class:`~ctmm.spatial.beam.SpatialBeam`): the station sensors of :mod:`ctmm.spatial.beam_ports`.
 
 Actuators (inputs, added to what the model's own laws and loads apply)
@@ -199,6 +200,10 @@ def _build(model: SpatialModel) -> tuple[dict, dict]:
                 for c, a in enumerate(_AXES):
                     label = f"{body.name}.{point}.force_{a}"
                     actuators[label] = _Actuator(label, "body", j, c, r, "N")
+        for node, (r, _, _) in getattr(getattr(body, "data", None), "point_rows", {}).items():   # every FE node
+            for c, a in enumerate(_AXES):
+                label = f"{body.name}.{node}.{a}"
+                sensors.setdefault(label, _Sensor(label, "point", j, c, tuple(r), "m"))
         for c, a in enumerate(_AXES):
             actuators[f"{body.name}.force_{a}"] = _Actuator(f"{body.name}.force_{a}", "body", j, c,
                                                             tuple(body.center_of_mass), "N")
