@@ -367,8 +367,60 @@ def _chain_compiled(t: Timings) -> None:
                         f"loaded), dt={bench.DT:g} s, {steps} steps")
 
 
+def _chain_schemes_generated(t: Timings) -> None:
+    bench = importlib.import_module("chain_compiled")
+    system, n, steps = bench.model(100), 100, 1000
+    x0 = {f"m{i}": float(value) for i, value in enumerate(bench.start(n))}
+    ctmm.simulate(system, steps * bench.DT, bench.DT, method="newmark", x0=x0, compiled=True, store_every=steps)
+    t.add("chain_schemes_generated", "generated_newmark_real_time_loop_n100",
+          lambda: ctmm.simulate(system, steps * bench.DT, bench.DT, method="newmark", x0=x0, compiled=True,
+                                store_every=steps),
+          per="step", count=steps,
+          configuration=f"chain of 100 masses, real-time loop m99.x -> m0, DT-TMM Newmark generated "
+                        f"(ctmm.simulate compiled=True, library cached), dt={bench.DT:g} s, {steps} steps")
+
+
+def _chain_ode_speed(t: Timings) -> None:
+    bench = importlib.import_module("chain_compiled")
+    system, n, steps = bench.model(100), 100, 200
+    x0 = {f"m{i}": float(value) for i, value in enumerate(bench.start(n))}
+    t.add("chain_ode_speed", "simulate_rk4_loop_n100",
+          lambda: ctmm.simulate(system, steps * bench.DT, bench.DT, method="rk4", x0=x0), per="step", count=steps,
+          configuration=f"chain of 100 masses, real-time loop m99.x -> m0, Python RK4 on the certified affine "
+                        f"rates (ctmm.simulate), dt={bench.DT:g} s, {steps} steps")
+
+
+def _compiled_cosim(t: Timings) -> None:
+    bench = importlib.import_module("compiled_cosim")
+    model = bench.pendulum(5)
+    dt, steps = 1e-3, 500
+    pid = bench.load_controllers().PID("o.angle", "o.torque", kp=20.0, ki=5.0, kd=2.0, derivative_filter_time=0.01,
+                                       sample_time=10 * dt, reference=0.3)
+    x0 = np.full(5, 0.1)
+    ctmm.simulate(model, steps * dt, dt, x0=x0, controllers=[pid], compiled=True)
+    t.add("compiled_cosim", "generated_rk4_pid_every_10_steps_n5",
+          lambda: ctmm.simulate(model, steps * dt, dt, x0=x0, controllers=[pid], compiled=True), per="step",
+          count=steps,
+          configuration=f"planar pendulum of 5 links, Python PID sampled every 10 steps, generated RK4 between "
+                        f"samples (library cached), dt={dt:g} s, {steps} steps")
+
+
+def _batch_parameters(t: Timings) -> None:
+    bench = importlib.import_module("batch_parameters")
+    n, count = 6, 4
+    sets = [{f"h{i}.stiffness": 1.0 + 0.5 * k + 0.1 * i for i in range(n)} for k in range(count)]
+    base = bench.planar_chain([1.0] * n, [1.0] * n)
+    x0 = np.full(n, 0.2)
+    ctmm.simulate_batch(base, sets, 0.2, 1e-3, x0=x0)
+    t.add("batch_parameters", "simulate_batch_planar_chain_n6_4_sets",
+          lambda: ctmm.simulate_batch(base, sets, 0.2, 1e-3, x0=x0), per="set", count=count,
+          configuration=f"planar chain of {n} links, {count} stiffness sets on one generated kernel (library cached), "
+                        "200 RK4 steps each")
+
+
 TIMING_PARTS = (_work_precision, _scaling, _control, _delay_history, _planar, _flexible, _manipulator,
-                _stability_chart, _compiled_scenes, _spatial_chain, _spatial_schemes, _chain_compiled)
+                _stability_chart, _compiled_scenes, _spatial_chain, _spatial_schemes, _chain_compiled,
+                _chain_schemes_generated, _chain_ode_speed, _compiled_cosim, _batch_parameters)
 
 
 def timings() -> dict:
