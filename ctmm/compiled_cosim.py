@@ -37,9 +37,9 @@ from .control.chain_plant import ChainPlant
 from .control.controlled_model import ControlledModel
 from .control.cosim import CoSimulation
 from .control.loops import ControlledChain
-from .control.plants import plant_of
+from .control.plants import PlanarPlant, plant_of
 from .errors import ModelError, SimulationError
-from .planar.guards import with_partial
+from .planar.guards import divergence_guard, with_partial
 from .planar.integrate import check_store_every, step_total
 from .progress import progress_bar
 from .results import SimulationResult
@@ -123,7 +123,9 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
     stability_check : {"warn", "error", "ignore"}
         The step against the plant's linearised RK4 limit before the run (as the numpy path).
     divergence_bound : float, optional
-        As in :func:`ctmm.control.planar_time.simulate_closed_loop` (checked at every step; a chain: its guard).
+        As in :func:`ctmm.control.planar_time.simulate_closed_loop`, checked at every step: planar, the coordinates
+        from ``q0`` (default ``1e6 max(1, .)``); spatial, ``q`` and ``v`` from the start (default none); a chain,
+        its guard (point positions from rest).
 
     Returns
     -------
@@ -164,8 +166,12 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
     nq, nv = plant.n_positions, plant.n_velocities
     first = scene.loops.initial_state(np.asarray(q0, float), np.asarray(v0, float))
     guard = plant.guard(q0, divergence_bound, v0)
-    reference = first[:nq + nv]
-    bound = math.inf if divergence_bound is None else divergence_bound
+    if isinstance(plant, PlanarPlant):      # the numpy path's bound: the coordinates from q0 (default 1e6 max(1, .))
+        planar = divergence_guard(model, np.asarray(q0, float), divergence_bound)
+        watched, reference, bound = nq, np.asarray(planar.reference, float), planar.bound
+    else:                                   # spatial: q and v from the start (default: finiteness only)
+        watched, reference = nq + nv, first[:nq + nv]
+        bound = math.inf if divergence_bound is None else divergence_bound
     history: deque = deque(maxlen=max(delays, default=0) + 1)     # (step, state) of the delayed reads
     history.append((0, first))
     times, rows = [0.0], [first]
@@ -229,7 +235,7 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
                     return j
             return None
         with np.errstate(invalid="ignore"):
-            bad = ~np.all(np.isfinite(block), axis=1) | (np.max(np.abs(block[:, :nq + nv] - reference), axis=1,
+            bad = ~np.all(np.isfinite(block), axis=1) | (np.max(np.abs(block[:, :watched] - reference), axis=1,
                                                                 initial=0.0) > bound)
         return int(np.argmax(bad)) if np.any(bad) else None
 

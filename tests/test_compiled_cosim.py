@@ -194,3 +194,23 @@ def test_failing_controller_and_refusals_carry_what_the_numpy_path_does():
         ctmm.simulate(model, 1.0, 5e-3, x0=[0.1], controllers=[wild], compiled=True, divergence_bound=10.0,
                       stability_check="ignore")
     assert diverged.value.partial_result is not None and 0 < diverged.value.time < 1.0
+
+
+def test_planar_divergence_bound_is_the_numpy_paths():
+    """The planar guard watches the coordinates from ``x0`` (not the rates), with the default bound
+    ``1e6 max(1, .)`` when none is given: the generated path stops exactly where the numpy path stops."""
+    idle = load_controllers().PID("h.angle", "h.torque", kp=0.0, ki=0.0, kd=0.0, derivative_filter_time=0.0,
+                                  sample_time=5e-3)
+    arguments = dict(x0=[0.1], controllers=[idle], divergence_bound=0.5)   # |theta - 0.1| <= 0.2, |omega| ~ 0.9
+    generated = ctmm.simulate(torsion(), 0.5, 5e-3, compiled=True, **arguments)
+    assert np.max(np.abs(generated["b.theta_dot"])) > 0.5
+    np.testing.assert_array_equal(generated.time, ctmm.simulate(torsion(), 0.5, 5e-3, **arguments).time)
+    wild = load_controllers().PID("h.angle", "h.torque", kp=-1e4, ki=0.0, kd=0.0, derivative_filter_time=0.0,
+                                  sample_time=5e-3)
+    stops = []
+    for compiled in (True, None):
+        with pytest.raises(SimulationError, match="beyond the bound 1e\\+06") as diverged:
+            ctmm.simulate(torsion(), 3.0, 5e-3, x0=[0.1], controllers=[wild], compiled=compiled,
+                          stability_check="ignore")
+        stops.append((diverged.value.time, len(diverged.value.partial_result.time)))
+    assert stops[0] == stops[1]
