@@ -2,10 +2,12 @@
 
 :func:`simulate_cosimulated_generated` is what ``ctmm.simulate(model, ..., compiled=True, controllers=[...])`` runs
 on a planar or spatial model, plain or controlled (its :class:`~ctmm.control.loops.Feedback` loops closed inside
-the generated step).  The controllers are sampled on the step grid and their outputs held (zero-order hold), so
-between two sample instants the plant is a run of the generated RK4 with the held outputs as its actuator inputs
-``u``: one call into C per sample interval (:meth:`ctmm.compiled_scene.CompiledScene.continue_run`,
-:meth:`ctmm.compiled_spatial_loops.CompiledControlledSpatial.continue_run`, continued at the interval's step
+the generated step), and on a lumped 1-D chain, plain or a :class:`~ctmm.control.loops.ControlledChain` (the
+generated RK4 of :mod:`ctmm.compiled_chain`).  The controllers are sampled on the step grid and their outputs held
+(zero-order hold), so between two sample instants the plant is a run of the generated RK4 with the held outputs as
+its actuator inputs ``u``: one call into C per sample interval (:meth:`ctmm.compiled_scene.CompiledScene.continue_run`,
+:meth:`ctmm.compiled_spatial_loops.CompiledControlledSpatial.continue_run`,
+:meth:`ctmm.compiled_chain.CompiledChain.continue_run`, continued at the interval's step
 index so that delayed loops' rings and time signals run on), and at each sample instant the one co-simulation
 master :class:`~ctmm.control.cosim.CoSimulation` calls the controllers in Python exactly as the numpy path
 (:func:`ctmm.control.planar_time.simulate_closed_loop`) does: the same sample instants, coupling policy,
@@ -15,7 +17,9 @@ failure messages and ``"<output>@samples"`` records.  The result equals the nump
 A :class:`~ctmm.control.measurement_delay.DelayedController` reads its inputs ``delay`` seconds late from the
 states of the run; the delay must be a whole multiple of ``dt`` here (the numpy path interpolates its delay
 history between steps; on the grid both read the stored step).  Before ``t = 0`` the initial state is held.
-Controller outputs must drive actuators of the generated kernel (planar: not beam station loads).
+Controller outputs must drive actuators of the generated kernel (planar: not beam station loads).  A chain's
+divergence guard is its own (point positions from rest, :class:`~ctmm.control.chain_plant.ChainPlant`), checked at
+every step as on the numpy path.
 """
 from __future__ import annotations
 
@@ -27,12 +31,15 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from . import validation
+from .compiled_chain import chain_loop_signals
 from .compiled_control import add_loop_signals
+from .control.chain_plant import ChainPlant
 from .control.controlled_model import ControlledModel
 from .control.cosim import CoSimulation
-from .control.plants import plant_of
+from .control.loops import ControlledChain
+from .control.plants import PlanarPlant, plant_of
 from .errors import ModelError, SimulationError
-from .planar.guards import with_partial
+from .planar.guards import divergence_guard, with_partial
 from .planar.integrate import check_store_every, step_total
 from .progress import progress_bar
 from .results import SimulationResult
@@ -42,14 +49,18 @@ from .spatial.model import SpatialModel
 __all__ = ["simulate_cosimulated_generated"]
 
 
-def _scene(controlled: ControlledModel, dt: float, controllers: Sequence[Any], inputs: Mapping[str, Any],
+def _scene(controlled: Any, dt: float, controllers: Sequence[Any], inputs: Mapping[str, Any],
            references: Mapping[str, Any]) -> Any:
-    """The generated kernel of ``controlled`` (every step stored) whose actuator inputs include every
-    controller output."""
+    """The generated kernel of ``controlled`` (a ControlledModel or a ControlledChain; every step stored) whose
+    actuator inputs include every controller output."""
+    held = {name: 0.0 for c in controllers for name in c.outputs if name not in inputs}
+    if isinstance(controlled, ControlledChain):
+        from .compiled_chain import CompiledChain
+
+        return CompiledChain(controlled, dt=dt, store_every=1, references=references, inputs={**inputs, **held})
     if isinstance(controlled.plant, SpatialModel):
         from .compiled_spatial_loops import CompiledControlledSpatial
 
-        held = {name: 0.0 for c in controllers for name in c.outputs if name not in inputs}
         return CompiledControlledSpatial(controlled, dt, references=references, inputs={**inputs, **held},
                                          store_every=1)
     from .compiled_scene import CompiledScene
@@ -86,13 +97,15 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
 
     Parameters
     ----------
-    model : PlanarModel or SpatialModel
+    model : PlanarModel, SpatialModel, Chain or ControlledChain
         The plant (compilable: :func:`ctmm.compiled_scene.compile_refusal`,
-        :func:`ctmm.compiled_spatial.spatial_compile_refusal`).
+        :func:`ctmm.compiled_spatial.spatial_compile_refusal`, :class:`ctmm.compiled_chain.CompiledChain`); a
+        ControlledChain carries its loops.
     loops : sequence of Feedback
-        Loops closed inside the generated step (may be empty).
+        Loops closed inside the generated step (may be empty; a chain's: ``model.loops``).
     q0, v0 : ndarray
-        Initial coordinates and velocities (checked by the caller; planar: ``v = qdot``).
+        Initial coordinates and velocities (checked by the caller; planar: ``v = qdot``; a chain: positions [m]
+        and velocities [m/s] of its masses, :meth:`ctmm.control.chain_plant.ChainPlant.start`).
     t_final, dt : float
         End time and step [s]: ``t_final``, every sample time and every delay whole multiples of ``dt``.
     controllers : sequence of Controller
@@ -110,7 +123,9 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
     stability_check : {"warn", "error", "ignore"}
         The step against the plant's linearised RK4 limit before the run (as the numpy path).
     divergence_bound : float, optional
-        As in :func:`ctmm.control.planar_time.simulate_closed_loop` (checked at every step).
+        As in :func:`ctmm.control.planar_time.simulate_closed_loop`, checked at every step: planar, the coordinates
+        from ``q0`` (default ``1e6 max(1, .)``); spatial, ``q`` and ``v`` from the start (default none); a chain,
+        its guard (point positions from rest).
 
     Returns
     -------
@@ -138,7 +153,12 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
         for name in c.outputs:
             ports.check_actuator(name, f"output of {label}")
     delays = [_delay_steps(c, dt) for c in controllers]
-    controlled = ControlledModel(model, loops)
+    chain = isinstance(plant, ChainPlant)
+    if chain and tuple(loops) != tuple(getattr(model, "loops", ())):
+        raise ModelError("simulate_cosimulated_generated: a chain's loops are those of its ControlledChain; give "
+                         "loops=model.loops")
+    controlled = (model if isinstance(model, ControlledChain) else ControlledChain(model, ())) if chain \
+        else ControlledModel(model, loops)
     scene = _scene(controlled, dt, controllers, inputs, references)
     plant.check_step(q0, v0, dt, stability_check)
     sensors = [ports.resolve(list(c.inputs)) for c in controllers]
@@ -146,11 +166,16 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
     nq, nv = plant.n_positions, plant.n_velocities
     first = scene.loops.initial_state(np.asarray(q0, float), np.asarray(v0, float))
     guard = plant.guard(q0, divergence_bound, v0)
-    reference = first[:nq + nv]
-    bound = math.inf if divergence_bound is None else divergence_bound
+    if isinstance(plant, PlanarPlant):      # the numpy path's bound: the coordinates from q0 (default 1e6 max(1, .))
+        planar = divergence_guard(model, np.asarray(q0, float), divergence_bound)
+        watched, reference, bound = nq, np.asarray(planar.reference, float), planar.bound
+    else:                                   # spatial: q and v from the start (default: finiteness only)
+        watched, reference = nq + nv, first[:nq + nv]
+        bound = math.inf if divergence_bound is None else divergence_bound
     history: deque = deque(maxlen=max(delays, default=0) + 1)     # (step, state) of the delayed reads
     history.append((0, first))
     times, rows = [0.0], [first]
+    held_rows: list[dict[str, float]] = []                         # a chain's held controller outputs per row
     info = {"dt": dt, "method": "rk4-generated", "compile_time_s": scene.compile_time_s,
             "loops": {law.name: ("real-time" if law.steps == 0 else "history") for law in scene.loops.laws}}
     done = [0]                                                    # steps run
@@ -167,9 +192,12 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
 
     def result(count: int) -> SimulationResult:
         t, block = np.array(times[:count]), np.array(rows[:count]).reshape(count, -1)
-        signals, units = plant.signals(t, block[:, :nq], block[:, nq:nq + nv], outputs)
-        extra = add_loop_signals(controlled, scene.loops, scene.loops.signals(), block, t, signals, units) \
-            if scene.loops.laws else {}
+        if chain:
+            signals, units, extra = chain_loop_signals(model, scene, t, block, outputs, held_rows[:count])
+        else:
+            signals, units = plant.signals(t, block[:, :nq], block[:, nq:nq + nv], outputs)
+            extra = add_loop_signals(controlled, scene.loops, scene.loops.signals(), block, t, signals, units) \
+                if scene.loops.laws else {}
         for name, samples in master.outputs(until=t[-1] if count else -math.inf).items():
             signals[name], units[name] = samples, ports.actuator_unit(name.split("@")[0])
         return signal_result(SignalSystem(model, units, list(loops)), t, signals, "rk4-generated", {
@@ -189,15 +217,31 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
 
         master.sample(step, t, measure)
 
-    def first_bad(block: np.ndarray) -> int | None:
+    def held_now() -> dict[str, float]:
+        values: dict[str, float] = {}
+        for c, outputs_held in zip(master.controllers, master.held):
+            for name, value in zip(c.outputs, outputs_held):
+                values[name] = values.get(name, 0.0) + float(value)
+        return values
+
+    def first_bad(block: np.ndarray, k: int) -> int | None:
+        if chain:                                   # positions from rest (the numpy path's guard), every step
+            for j, row in enumerate(block):
+                if not np.all(np.isfinite(row)):
+                    return j
+                try:
+                    guard((k + 1 + j) * dt, row, dt, "rk4-generated")
+                except SimulationError:
+                    return j
+            return None
         with np.errstate(invalid="ignore"):
-            bad = ~np.all(np.isfinite(block), axis=1) | (np.max(np.abs(block[:, :nq + nv] - reference), axis=1,
+            bad = ~np.all(np.isfinite(block), axis=1) | (np.max(np.abs(block[:, :watched] - reference), axis=1,
                                                                 initial=0.0) > bound)
         return int(np.argmax(bad)) if np.any(bad) else None
 
     def fail(step: int, row: np.ndarray) -> None:
         t = float(step * dt)
-        guard(t, row, dt, "rk4")                    # the plant's own message where it applies
+        guard(t, row, dt, "rk4-generated" if chain else "rk4")   # the plant's own message where it applies
         what = "non-finite" if not np.all(np.isfinite(row)) else f"beyond divergence_bound = {divergence_bound}"
         raise SimulationError(f"{getattr(model, 'name', 'model')}: the state (with controller states and delay "
                               f"ring) became {what} at t = {t:.6g} s (rk4-generated)", time=t,
@@ -207,6 +251,8 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
     bar = progress_bar(n_steps, f"ctmm.simulate ({plant.label}, rk4-generated)", enabled=progress)
     try:
         sample(0, first)
+        if chain:
+            held_rows.append(held_now())
         state, k = first, 0
         while k < n_steps:
             following = min(min((k // r + 1) * r for r in master.ratios), n_steps)
@@ -216,7 +262,7 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
                     held[index[name]] += value
             block = scene.continue_run(state, held, dt, following - k, k)
             intervals += 1
-            bad = first_bad(block)
+            bad = first_bad(block, k)
             for j, row in enumerate(block):
                 step = k + 1 + j
                 if j == bad:
@@ -228,6 +274,8 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
                 if step % store_every == 0 or step == n_steps:
                     times.append(float(step * dt))
                     rows.append(row)
+                    if chain:
+                        held_rows.append(held_now())
                 done[0] = step
             state, k = block[-1], following
             bar.update(len(block))

@@ -190,11 +190,11 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         states integrated, delayed loops with ``delay = m dt`` from a ring of stored samples; references and inputs
         numbers or :mod:`ctmm.signals` signals with a symbolic form).  What it cannot compile (user callables of time,
         driven motions, translational hinge springs, delays that are not whole multiples of ``dt``, beam station
-        forces or moments) raises :class:`ModelError` naming it.  Co-simulated ``controllers`` (planar and spatial)
-        are sampled in Python between calls into the generated step, which runs each sample interval with their
-        held outputs (:func:`ctmm.compiled_cosim.simulate_cosimulated_generated`).  Spatial, ``"rk4"``:
-        ``True`` runs the generated RK4 of :func:`ctmm.compiled_spatial.simulate_spatial_generated` (inputs held
-        numbers; the numpy path's result to round-off); with loops
+        forces or moments) raises :class:`ModelError` naming it.  Co-simulated ``controllers`` (planar, spatial,
+        chains with ``"rk4"``) are sampled in Python between calls into the generated step, which runs each sample
+        interval with their held outputs (:func:`ctmm.compiled_cosim.simulate_cosimulated_generated`).  Spatial,
+        ``"rk4"``: ``True`` runs the generated RK4 of :func:`ctmm.compiled_spatial.simulate_spatial_generated`
+        (inputs held numbers; the numpy path's result to round-off); with loops
         :func:`ctmm.compiled_control.simulate_spatial_controlled_generated` (docs/spatial.md §6b).  Default: numpy.
     parameters : mapping, optional
         ``compiled=True``: ``{name: number}`` set at run time in the kernel compiled once (:mod:`ctmm.batch`).
@@ -272,6 +272,7 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         return _simulate_chain_generated(system, t_final, dt, method=chosen, x0=x0, v0=v0, t0=t0, inputs=inputs,
                                          outputs=outputs, controllers=controllers, references=references,
                                          store_every=store_every, divergence_bound=divergence_bound,
+                                         coupling=coupling, progress=progress, stability_check=stability_check,
                                          others={"solver": (solver, "riccati"), "fast": (fast, None),
                                                  "force_hook": (force_hook, None), "rtol": (rtol, 1e-8),
                                                  "atol": (atol, 1e-10), "max_step": (max_step, None)})
@@ -358,15 +359,18 @@ def _simulate_chain_ode(system: Any, t_final: float, dt: float | None, *, method
 
 def _simulate_chain_generated(system: Any, t_final: float, dt: float | None, *, method: Any, x0: Any, v0: Any,
                               t0: float, inputs: Any, outputs: Sequence[str], controllers: list, references: dict,
-                              store_every: int, divergence_bound: float | None, others: dict) -> SimulationResult:
-    """:func:`simulate` of a chain with ``compiled=True``: the generated RK4 (:mod:`ctmm.compiled_chain`)."""
+                              store_every: int, divergence_bound: float | None, others: dict, coupling: str = "hold",
+                              progress: bool | None = None, stability_check: str | None = None) -> SimulationResult:
+    """:func:`simulate` of a chain with ``compiled=True``: the generated RK4 (:mod:`ctmm.compiled_chain`; with
+    ``controllers`` sampled between its calls, :mod:`ctmm.compiled_cosim`) or DT-TMM."""
     if method != "rk4" and not controllers and (isinstance(method, Scheme) or method in SCHEMES):
         from .compiled_chain_schemes import simulate_scheme_verb
         return simulate_scheme_verb(system, t_final, dt, method, x0, v0, store_every, divergence_bound, others,
                                     t0=t0, inputs=inputs, outputs=outputs, references=references)
-    if method != "rk4" or controllers:
+    if method != "rk4":
         raise ModelError(f"compiled=True runs the generated RK4 or DT-TMM of a chain, got method={method!r}" + (
-            " with co-simulated controllers (they sample in Python)" if controllers else "") + " (leave compiled at None)")
+            " with co-simulated controllers (the generated RK4 samples them; method='rk4')" if controllers else "")
+            + " (leave compiled at None)")
     for name, (value, default) in {**others, "t0": (t0, 0.0)}.items():
         if value is not default and value != default:
             raise ModelError(f"{name}={value!r} does not apply to the generated RK4 of a chain (leave {name} at "
@@ -379,6 +383,17 @@ def _simulate_chain_generated(system: Any, t_final: float, dt: float | None, *, 
     inputs, references = split_loop_references(loops, inputs, references)
     for name in outputs:
         system.signal(name)
+    if controllers:                     # C between the samples of the controllers (ctmm.compiled_cosim)
+        from .compiled_cosim import simulate_cosimulated_generated
+        from .control.chain_plant import ChainPlant
+
+        q0, w0 = ChainPlant(system).start(x0, v0)
+        return simulate_cosimulated_generated(
+            system, loops, q0, w0, t_final=t_final, dt=dt, controllers=controllers, inputs=inputs,
+            references=references, outputs=tuple(outputs), coupling=coupling, store_every=store_every,
+            progress=validation.flag("progress", progress, optional=True), divergence_bound=divergence_bound,
+            stability_check="warn" if stability_check is None else validation.option(
+                "stability_check", stability_check, ("warn", "error", "ignore")))
     from .compiled_chain import simulate_chain_generated
 
     return simulate_chain_generated(system, t_final, dt, x0=x0, v0=v0, inputs=inputs or None,

@@ -34,7 +34,7 @@ STIFFNESS, INERTIA = 40.0, 0.5
 
 
 @pytest.fixture(autouse=True, scope="module")
-def _cache(tmp_path_factory):
+def kernel_cache(tmp_path_factory):
     with pytest.MonkeyPatch.context() as patch:
         patch.setenv("CTMM_CACHE", str(tmp_path_factory.mktemp("kernels")))
         yield
@@ -66,19 +66,27 @@ def torsion() -> PlanarModel:
                              gravity=(0.0, 0.0))
 
 
+def sampled_p_loop(stiffness: float, inertia: float, kp: float, r: float, h: float, x0: float, n: int) -> np.ndarray:
+    """Exact sampled-data positions ``x_j`` of ``inertia x'' = -stiffness x + u_j``, ``u_j = kp (r - x_j)`` held on
+    ``[t_j, t_j + h)``, from ``x(0) = x0`` at rest: ``scipy.linalg.expm`` of the plant augmented with the held
+    input, ``n`` samples."""
+    a = np.array([[0.0, 1.0], [-stiffness / inertia, 0.0]])
+    b = np.array([[0.0], [1.0 / inertia]])
+    augmented = scipy.linalg.expm(np.block([[a, b], [np.zeros((1, 3))]]) * h)
+    z, exact = np.array([x0, 0.0]), [x0]
+    for _ in range(n):
+        z = augmented[:2, :2] @ z + augmented[:2, 2] * kp * (r - z[0])
+        exact.append(z[0])
+    return np.array(exact)
+
+
 def test_linear_plant_with_a_sampled_p_controller_equals_the_exact_zoh_solution():
     """theta'' = (-k theta + u_j) / I with u_j = kp (r - theta_j) held on [t_j, t_j + h): the generated RK4
     between the samples converges to the matrix-exponential solution (error ~ dt^4)."""
     kp, r, h, theta0 = 12.0, 0.2, 0.02, 0.1
     pid = load_controllers().PID("h.angle", "h.torque", kp=kp, ki=0.0, kd=0.0, derivative_filter_time=0.0,
                                  sample_time=h, reference=r)
-    a = np.array([[0.0, 1.0], [-STIFFNESS / INERTIA, 0.0]])
-    b = np.array([[0.0], [1.0 / INERTIA]])
-    augmented = scipy.linalg.expm(np.block([[a, b], [np.zeros((1, 3))]]) * h)
-    z, exact = np.array([theta0, 0.0]), [theta0]
-    for _ in range(50):
-        z = augmented[:2, :2] @ z + augmented[:2, 2] * kp * (r - z[0])
-        exact.append(z[0])
+    exact = sampled_p_loop(STIFFNESS, INERTIA, kp, r, h, theta0, 50)
     errors = []
     for dt in (h / 2, h / 4):
         run = ctmm.simulate(torsion(), 1.0, dt, x0=[theta0], controllers=[pid], compiled=True)
@@ -148,9 +156,12 @@ def test_spatial_pid_and_fmu_with_loops_equal_the_numpy_path(pd_fmu):
 
 
 class Failing:
-    """A controller that raises at its third sample."""
+    """A controller (``-5 y`` every 10 ms from ``sensor`` to ``actuator``) that raises at its third sample."""
 
-    inputs, outputs, sample_time, direct_feedthrough = ("h.angle",), ("h.torque",), 0.01, False
+    sample_time, direct_feedthrough = 0.01, False
+
+    def __init__(self, sensor: str = "h.angle", actuator: str = "h.torque") -> None:
+        self.inputs, self.outputs = (sensor,), (actuator,)
 
     def init(self, t0: float) -> int:
         return 0
@@ -183,3 +194,23 @@ def test_failing_controller_and_refusals_carry_what_the_numpy_path_does():
         ctmm.simulate(model, 1.0, 5e-3, x0=[0.1], controllers=[wild], compiled=True, divergence_bound=10.0,
                       stability_check="ignore")
     assert diverged.value.partial_result is not None and 0 < diverged.value.time < 1.0
+
+
+def test_planar_divergence_bound_is_the_numpy_paths():
+    """The planar guard watches the coordinates from ``x0`` (not the rates), with the default bound
+    ``1e6 max(1, .)`` when none is given: the generated path stops exactly where the numpy path stops."""
+    idle = load_controllers().PID("h.angle", "h.torque", kp=0.0, ki=0.0, kd=0.0, derivative_filter_time=0.0,
+                                  sample_time=5e-3)
+    arguments = dict(x0=[0.1], controllers=[idle], divergence_bound=0.5)   # |theta - 0.1| <= 0.2, |omega| ~ 0.9
+    generated = ctmm.simulate(torsion(), 0.5, 5e-3, compiled=True, **arguments)
+    assert np.max(np.abs(generated["b.theta_dot"])) > 0.5
+    np.testing.assert_array_equal(generated.time, ctmm.simulate(torsion(), 0.5, 5e-3, **arguments).time)
+    wild = load_controllers().PID("h.angle", "h.torque", kp=-1e4, ki=0.0, kd=0.0, derivative_filter_time=0.0,
+                                  sample_time=5e-3)
+    stops = []
+    for compiled in (True, None):
+        with pytest.raises(SimulationError, match="beyond the bound 1e\\+06") as diverged:
+            ctmm.simulate(torsion(), 3.0, 5e-3, x0=[0.1], controllers=[wild], compiled=compiled,
+                          stability_check="ignore")
+        stops.append((diverged.value.time, len(diverged.value.partial_result.time)))
+    assert stops[0] == stops[1]
