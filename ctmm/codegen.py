@@ -17,6 +17,12 @@ inside ``kernels/`` and published by one atomic rename, so concurrent processes 
 written library (the loser of a race discards its own build and uses the winner's).  An entry
 whose library does not match its checksum (truncated or overwritten file) is discarded and
 rebuilt.
+
+Keyed entries (:func:`load_casadi_keyed`, the generated kernels of ``compiled=True`` through
+:func:`ctmm.generated_loop.compiled_time_loop`): ``kernels/<name>-k<key>/``, same files and the same
+publishing, but ``key`` is computed by the caller BEFORE the functions and the C text are built
+(serialized casadi functions, sizes, the code that builds the rest, versions; then the compiler and
+flags), so a cached library loads by its functions' names without generating anything.
 """
 from __future__ import annotations
 
@@ -28,12 +34,12 @@ import subprocess
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any, Callable, Iterable, Sequence
 
 from .errors import ModelError
 
 __all__ = ["CompiledLibrary", "DEFAULT_FLAGS", "LINK_FLAGS", "cache_directory", "cache_key", "casadi_source",
-           "compiler_identity", "find_compiler", "load_casadi", "load_ctypes", "run_compiler",
+           "compiler_identity", "find_compiler", "load_casadi", "load_casadi_keyed", "load_ctypes", "run_compiler",
            "shared_library"]
 
 DEFAULT_FLAGS = ("-O2", "-shared", "-fPIC")
@@ -41,6 +47,8 @@ DEFAULT_FLAGS = ("-O2", "-shared", "-fPIC")
 LINK_FLAGS = ("-lm",)
 """Flags placed after the source file (libraries to link)."""
 _KEY_FORMAT = b"ctmm.codegen/1"
+_KEYED_FORMAT = b"ctmm.codegen.keyed/1"
+_CODEGEN_TEXT = Path(__file__).read_bytes()     # casadi_source's options: part of every keyed entry's key
 _COMPILE_TIMEOUT_S = 600.0
 
 
@@ -215,19 +223,33 @@ def shared_library(source: str, name: str, *, flags: Sequence[str] = DEFAULT_FLA
     """
     if not isinstance(source, str) or not source.strip():
         raise ModelError(f"source must be non-empty C text, got {type(source).__name__} {source!r:.60}")
-    if not isinstance(name, str) or not name or not all(c.isalnum() or c in "_-" for c in name):
-        raise ModelError(f"name must be a non-empty file stem of letters, digits, '_' and '-', got {name!r}")
-    if isinstance(flags, (str, bytes)) or not all(isinstance(flag, str) for flag in flags):
-        raise ModelError(f"flags must be a sequence of strings such as ('-O2', '-shared', '-fPIC'), got {flags!r}")
-    flags = list(flags)
+    _check_name(name)
+    flags = _checked_flags(flags)
     compiler_path = find_compiler(compiler)
     key = cache_key(_KEY_FORMAT, (("source", source.encode()), ("compiler", compiler_identity(compiler_path)),
                                   ("flags", "\0".join(flags + list(LINK_FLAGS)).encode())))
     folder = cache_directory(cache_dir, subfolder="kernels")
-    entry = folder / f"{name}-{key[:24]}"
-    library = entry / f"{name}.so"
+    library = folder / f"{name}-{key[:24]}" / f"{name}.so"
     if _intact(library):
         return CompiledLibrary(library, key, built=False)
+    return CompiledLibrary(library, key, built=_publish(source, library, compiler_path, flags))
+
+
+def _check_name(name: str) -> None:
+    if not isinstance(name, str) or not name or not all(c.isalnum() or c in "_-" for c in name):
+        raise ModelError(f"name must be a non-empty file stem of letters, digits, '_' and '-', got {name!r}")
+
+
+def _checked_flags(flags: Sequence[str]) -> list[str]:
+    if isinstance(flags, (str, bytes)) or not all(isinstance(flag, str) for flag in flags):
+        raise ModelError(f"flags must be a sequence of strings such as ('-O2', '-shared', '-fPIC'), got {flags!r}")
+    return list(flags)
+
+
+def _publish(source: str, library: Path, compiler_path: str, flags: list[str]) -> bool:
+    """Compile ``source`` into the cache entry ``library.parent`` (built in a private temporary folder,
+    published by one atomic rename); False when another process published an intact entry first."""
+    entry, folder, name = library.parent, library.parent.parent, library.stem
     _discard(entry, folder)
     try:
         work = Path(tempfile.mkdtemp(prefix=f".{name}-", dir=folder))
@@ -245,10 +267,10 @@ def shared_library(source: str, name: str, *, flags: Sequence[str] = DEFAULT_FLA
         except OSError:
             if not _intact(library):
                 raise ModelError(f"cannot publish the compiled library {name!r} into {str(entry)!r}") from None
-            return CompiledLibrary(library, key, built=False)
+            return False
     finally:
         shutil.rmtree(work, ignore_errors=True)
-    return CompiledLibrary(library, key, built=True)
+    return True
 
 
 def _file_digest(path: Path) -> str:
@@ -330,3 +352,65 @@ def load_casadi(functions: Sequence[Any], name: str, **options: Any) -> tuple[An
     names = [function.name() for function in functions]
     return _load(casadi_source(functions, name), name, options,
                  lambda path: tuple(ca.external(label, path) for label in names), (RuntimeError, OSError))
+
+
+def load_casadi_keyed(key_parts: Iterable[tuple[str, bytes]], names: Sequence[str], build: Callable[[], Sequence[Any]],
+                      name: str, *, flags: Sequence[str] = DEFAULT_FLAGS, compiler: str | os.PathLike | None = None,
+                      cache_dir: str | os.PathLike | None = None) -> tuple[Any, ...]:
+    """Casadi functions ``names`` loaded with ``casadi.external`` from the library cached under a key
+    the caller computes BEFORE building them; ``build()`` (the functions, C generation and the
+    compiler) runs only when no intact entry has that key.
+
+    The key is the SHA-256 of ``key_parts``, ``names``, this module's text (how the C is generated),
+    the casadi version, the compiler (resolved path and ``--version``) and the flags: the caller's
+    parts must determine the generated code entirely (serialized casadi functions, the code that
+    builds the rest from them, sizes), so a change of any number gives a new entry.  Entry
+    ``kernels/<name>-k<key[:24]>/`` (``k``: never a C-text key of :func:`shared_library`),
+    published atomically as there.
+
+    Parameters
+    ----------
+    key_parts : iterable of (str, bytes)
+        Labelled inputs that determine the functions (see :func:`cache_key`).
+    names : sequence of str
+        Names of the functions, in the order returned; ``build()`` must return functions of exactly
+        these names in this order.
+    build : callable
+        ``build() -> [casadi.Function]``, called on a cache miss only.
+    name : str
+        Library name (see :func:`shared_library`).
+    flags, compiler, cache_dir
+        As in :func:`shared_library`.
+
+    Raises
+    ------
+    ModelError
+        Bad ``name`` or ``flags``, no compiler, a compile error, an unusable cache folder, a library
+        that cannot be loaded after one rebuild, or ``build()`` returning other names than ``names``.
+    """
+    import casadi as ca
+
+    _check_name(name)
+    flags, names = _checked_flags(flags), list(names)
+    compiler_path = find_compiler(compiler)
+    key = cache_key(_KEYED_FORMAT, (*key_parts, ("names", "\0".join(names).encode()), ("codegen", _CODEGEN_TEXT),
+                                    ("casadi", ca.__version__.encode()),
+                                    ("compiler", compiler_identity(compiler_path)),
+                                    ("flags", "\0".join(flags + list(LINK_FLAGS)).encode())))
+    folder = cache_directory(cache_dir, subfolder="kernels")
+    library = folder / f"{name}-k{key[:24]}" / f"{name}.so"
+    for attempt in (0, 1):
+        if not _intact(library):
+            functions = list(build())
+            built_names = [function.name() for function in functions]
+            if built_names != names:
+                raise ModelError(f"library {name!r}: build() returned the functions {built_names}, the key names "
+                                 f"{names}; they must be the same, in the same order")
+            _publish(casadi_source(functions, name), library, compiler_path, flags)
+        try:
+            return tuple(ca.external(label, str(library)) for label in names)
+        except (RuntimeError, OSError) as exc:
+            if attempt:
+                raise ModelError(f"the compiled library {str(library)!r} cannot be loaded: {exc}") from exc
+            _discard(library.parent, folder)
+    raise AssertionError("unreachable")

@@ -36,13 +36,12 @@ import scipy.sparse
 
 from . import validation
 from .chain_ode import ChainDynamics, chain_result
-from .codegen import load_casadi
 from .compiled_loops import ClosedLoops
 from .control.loops import ControlledChain
 from .control.chain_plant import ChainPlant
 from .control.planar_time import loop_unit
 from .errors import ModelError, SimulationError
-from .generated_loop import rk4_step_function, run_blocks, time_loop_functions
+from .generated_loop import compiled_time_loop, rk4_step_function, run_blocks
 from .results import SimulationResult
 from .signal_results import SignalSystem, signal_result
 from .signals import Constant, signal_parameters, symbolic_signal
@@ -248,11 +247,9 @@ class CompiledChain:
         else:
             step = self.loops.step(accelerations, len(units), 0)
             self.state_size = self.loops.state_size
-        stride, sizes, blocks = time_loop_functions(step, self.store_every, self.rows)
         name = f"chain_{m}m" + (f"{len(self.loops.laws)}l" if self.loops else "")
-        loaded = load_casadi([step, stride, *blocks], name, cache_dir=cache_dir, compiler=compiler)
-        self._step, self._stride = loaded[:2]
-        self._blocks = list(zip(sizes, loaded[2:]))
+        loop = compiled_time_loop(step, self.store_every, self.rows, name, cache_dir=cache_dir, compiler=compiler)
+        self._step, self._stride, self._blocks = loop.step, loop.stride, loop.blocks
         self.compile_time_s = _time.perf_counter() - start
 
     def _certify(self, dynamics: ChainDynamics, form: Any, units: Sequence[Mapping]) -> None:

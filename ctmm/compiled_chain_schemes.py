@@ -47,14 +47,13 @@ import scipy.sparse
 
 from . import validation
 from .chain_ode import ChainDynamics, chain_result
-from .codegen import load_casadi
 from .compiled_chain import affine_form, sensor_row, whole_steps
 from .compiled_loops import controller_realisation, delay_steps
 from .compiled_references import reference_at, symbolic_reference
 from .control.chain_plant import ChainPlant
 from .control.planar_time import loop_unit
 from .errors import ModelError, SimulationError
-from .generated_loop import run_blocks, time_loop_functions
+from .generated_loop import compiled_time_loop, run_blocks
 from .results import SimulationResult
 from .saturation import refuse_saturation
 from .schemes import History, Scheme, as_scheme
@@ -281,11 +280,9 @@ class CompiledChainScheme:
         new = branches[0](y, t_n) if len(maps) == 1 else ca.if_else(k < 2, branches[0](y, t_n), branches[1](y, t_n),
                                                                   True)
         step = ca.Function("step", [y, u, h, p, t0, k], [new])
-        stride, sizes, blocks = time_loop_functions(step, self.store_every, rows)
         name = f"chain_{m}m_{self.scheme.name}" + (f"_{len(self.loops)}l" if self.loops else "")
-        loaded = load_casadi([step, stride, *blocks], name, cache_dir=cache_dir, compiler=compiler)
-        self._step, self._stride = loaded[:2]
-        self._blocks = list(zip(sizes, loaded[2:]))
+        loop = compiled_time_loop(step, self.store_every, rows, name, cache_dir=cache_dir, compiler=compiler)
+        self._step, self._stride, self._blocks = loop.step, loop.stride, loop.blocks
         self.form = form
         self.compile_time_s = _time.perf_counter() - started
 

@@ -52,13 +52,12 @@ import numpy as np
 
 from . import validation
 from .articulated import articulated_sweep
-from .codegen import load_casadi
 from .compiled_loops import ClosedLoops
 from .compiled_parameters import (compile_refusal, compiled_actuators, constants_key, parameter_vector,
                                   structure_key, symbolic_numbers)
 from .control.controlled_model import ControlledModel
 from .errors import ModelError
-from .generated_loop import rk4_step_function, run_blocks, time_loop_functions
+from .generated_loop import compiled_time_loop, rk4_step_function, run_blocks
 from .ops import CASADI
 from .planar.body_forms import PlanarScene
 from .planar.guards import check_scheme, check_stored, divergence_guard
@@ -174,12 +173,10 @@ class CompiledScene:
         else:           # the loops closed at every stage, the delayed ones from the ring in the state
             step = self.loops.step(acceleration, len(self.actuators), n_p)
         self.symbolic_step = step                       # the generated step on symbols (ctmm.fmu_export)
-        stride, self._sizes, blocks = time_loop_functions(step, store_every, self.rows)
         name = f"scene_{model.n_bodies}b{n}q" + (f"{len(self.loops.laws)}l" if self.loops else "")
-        options = {"cache_dir": cache_dir, "compiler": compiler}
-        loaded = load_casadi([acceleration, step, stride, *blocks], name, **options)
-        self._acceleration, self._step, self._stride = loaded[:3]
-        self._blocks = list(zip(self._sizes, loaded[3:]))
+        loop = compiled_time_loop(step, store_every, self.rows, name, extra=[acceleration], cache_dir=cache_dir,
+                                  compiler=compiler)
+        (self._acceleration,), self._step, self._stride, self._blocks = loop.extra, loop.step, loop.stride, loop.blocks
         self._closed_rate = None
         if self.loops is not None and not self.loops.delayed:       # the closed loop's rate, on the library
             x, u_all = ca.MX.sym("x", self.state_size), ca.MX.sym("u", len(self.actuators))

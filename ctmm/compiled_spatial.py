@@ -47,9 +47,8 @@ import numpy as np
 
 from . import validation
 from .articulated import Tree, articulated_sweep
-from .codegen import load_casadi
 from .errors import ModelError, SimulationError
-from .generated_loop import rk4_step_function, run_blocks, time_loop_functions
+from .generated_loop import compiled_time_loop, rk4_step_function, run_blocks
 from .ops import CASADI
 from .results import SimulationResult
 from .signal_results import SignalSystem, signal_result
@@ -459,16 +458,15 @@ class CompiledSpatialScene:
         self.parameters = spatial_parameter_vector(model) if numbers == "inputs" else np.zeros(0)
         plain_step = rk4_step_function(self.rates.rate)
         step = guarded_step(model, plain_step)          # NaN once a flexible body leaves its bounds
-        stride, sizes, blocks = time_loop_functions(step, store_every, self.rows)
         name = f"spatial_{model.n_bodies}b{model.n_positions}q{model.n_velocities}v" + (
             f"_fold{self.rates.period}" if self.rates.period else "")
         options = {"cache_dir": cache_dir, "compiler": compiler,
                    "flags": SPATIAL_FLAGS if flags is None else tuple(flags)}
         plain = [] if step is plain_step else [plain_step]
-        loaded = load_casadi([self.rates.velocity_rate, step, stride, *plain, *blocks], name, **options)
-        self._velocity_rate, self._step, self._stride = loaded[:3]
-        self.plain_step = loaded[3] if plain else self._step
-        self._blocks = list(zip(sizes, loaded[3 + len(plain):]))
+        loop = compiled_time_loop(step, store_every, self.rows, name, extra=[self.rates.velocity_rate, *plain],
+                                  **options)
+        self._velocity_rate, self._step, self._stride, self._blocks = loop.extra[0], loop.step, loop.stride, loop.blocks
+        self.plain_step = loop.extra[1] if plain else self._step
         self.compile_time_s = clock.perf_counter() - start
 
     def accelerations(self, q: Any, v: Any, inputs: Mapping[str, Any] | None = None) -> np.ndarray:

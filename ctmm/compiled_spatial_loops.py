@@ -35,14 +35,13 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from .articulated import articulated_sweep
-from .codegen import load_casadi
 from .compiled_loops import ClosedLoops
 from .compiled_spatial import DEFAULT_ROWS, SPATIAL_FLAGS, flexible_bodies, position_rates, spatial_compile_refusal
 from .compiled_spatial_parameters import (SpatialNumbers, parametrised_scene_terms, spatial_parameter_layout,
                                           spatial_parameter_vector)
 from .control.controlled_model import ControlledModel
 from .errors import ModelError
-from .generated_loop import run_blocks, time_loop_functions
+from .generated_loop import compiled_time_loop, run_blocks
 from .ops import CASADI
 from .spatial.body_forms import SpatialScene
 from .spatial.model import SpatialModel
@@ -223,14 +222,12 @@ class CompiledControlledSpatial:
             if layout else np.zeros(0)
         acceleration = loop_acceleration(model, ports, self.actuators, layout)
         step = self.loops.step(acceleration, len(self.actuators), len(layout))
-        stride, sizes, blocks = time_loop_functions(step, self.store_every, self.rows)
         name = (f"spatial_loops_{model.n_bodies}b{model.n_positions}q{len(self.loops.laws)}l"
                 f"{self.loops.n_controller_states}z{self.loops.ring_columns}r")
         options = {"cache_dir": cache_dir, "compiler": compiler,
                    "flags": SPATIAL_FLAGS if flags is None else tuple(flags)}
-        loaded = load_casadi([step, stride, *blocks], name, **options)
-        self._step, self._stride = loaded[:2]
-        self._blocks = list(zip(sizes, loaded[2:]))
+        loop = compiled_time_loop(step, self.store_every, self.rows, name, **options)
+        self._step, self._stride, self._blocks = loop.step, loop.stride, loop.blocks
         self.compile_time_s = clock.perf_counter() - start
 
     def continue_run(self, state: np.ndarray, held: np.ndarray, dt: float, n_steps: int, first_step: int

@@ -19,17 +19,27 @@ Generated functions (all with the inputs ``y, u, h, p, t0, k``: state, held actu
   call per block and a remainder costs one call per binary digit.
 
 :func:`run_blocks` runs them over an interval (and a batch of members through
-``casadi.Function.map``).
+``casadi.Function.map``).  :func:`compiled_time_loop` compiles them (every generated-kernel path goes
+through it): the cache key is computed from the serialized step before the blocks and the C text are
+built, so a call whose library is cached builds and generates nothing.
 """
 from __future__ import annotations
 
-from typing import Any, Protocol
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Protocol, Sequence
 
 import numpy as np
 
+from .codegen import load_casadi_keyed
+from .version import __version__
+
 from .ode import rk4_step
 
-__all__ = ["SymbolicRates", "rk4_step_function", "time_loop_functions", "run_blocks"]
+__all__ = ["SymbolicRates", "TimeLoop", "block_sizes", "compiled_time_loop", "rk4_step_function",
+           "time_loop_functions", "run_blocks"]
+
+_LOOP_CODE = Path(__file__).read_bytes()        # this module builds stride and blocks: part of every key
 
 
 class SymbolicRates(Protocol):
@@ -59,6 +69,71 @@ def rk4_step_function(rate: Any) -> Any:
                        [rk4_step(lambda stage, state: rate(state, u, p, stage), t0 + k * h, y, h)])
 
 
+def block_sizes(rows: int) -> list[int]:
+    """Strides per block of :func:`time_loop_functions`: ``rows, rows/2, rows/4, ... > 1`` (integer halves)."""
+    return [rows >> j for j in range(rows.bit_length()) if rows >> j > 1]
+
+
+@dataclass(frozen=True)
+class TimeLoop:
+    """The compiled functions of :func:`compiled_time_loop`.
+
+    Attributes
+    ----------
+    extra : tuple
+        The compiled ``extra`` functions, in the order given.
+    step, stride : casadi.Function
+        The compiled step and stride (:func:`time_loop_functions`).
+    blocks : list of (int, casadi.Function)
+        ``(size, block)`` for the sizes of :func:`block_sizes`, largest first (for :func:`run_blocks`).
+    """
+
+    extra: tuple
+    step: Any
+    stride: Any
+    blocks: list
+
+
+def compiled_time_loop(step: Any, store_every: int, rows: int, name: str, *, extra: Sequence[Any] = (),
+                       **options: Any) -> TimeLoop:
+    """The compiled ``step``, stride, blocks (:func:`time_loop_functions`) and ``extra`` functions of one
+    library, from the kernel cache when it holds them (nothing but the key computed) or built now.
+
+    The cache key (:func:`ctmm.codegen.load_casadi_keyed`) is computed before the time loop's graph
+    and the C text: the serialized ``step`` and ``extra`` functions (every number and the structure of
+    the model, options, the loops), ``store_every``, ``rows``, the text of this module (which builds
+    the rest from the step) and the ctmm version; codegen adds the casadi version, compiler and flags.
+
+    Parameters
+    ----------
+    step : casadi.Function
+        The generated ``step(y, u, h, p, t0, k)``.
+    store_every, rows : int
+        As in :func:`time_loop_functions`.
+    name : str
+        Library name (:func:`ctmm.codegen.shared_library`).
+    extra : sequence of casadi.Function, optional
+        Further functions of the same library (an acceleration, an unguarded step), named apart from
+        ``step``, ``stride`` and ``block<size>``.
+    **options
+        ``flags``, ``compiler``, ``cache_dir`` of :func:`ctmm.codegen.shared_library`.
+    """
+    sizes = block_sizes(rows)
+    names = [function.name() for function in (*extra, step)] + ["stride"] + [f"block{size}" for size in sizes]
+    functions = [*extra, step]
+    parts = [("ctmm", __version__.encode()), ("time loop", _LOOP_CODE),
+             ("store_every", str(int(store_every)).encode()), ("rows", str(int(rows)).encode())]
+    parts += [(f"function {function.name()}", function.serialize().encode()) for function in functions]
+
+    def build() -> list[Any]:
+        stride, _, blocks = time_loop_functions(step, store_every, rows)
+        return [*extra, step, stride, *blocks]
+
+    loaded = load_casadi_keyed(parts, names, build, name, **options)
+    count = len(extra)
+    return TimeLoop(tuple(loaded[:count]), loaded[count], loaded[count + 1], list(zip(sizes, loaded[count + 2:])))
+
+
 def time_loop_functions(step: Any, store_every: int, rows: int) -> tuple[Any, list[int], list[Any]]:
     """``(stride, sizes, blocks)`` of a generated ``step(y, u, h, p, t0, k)``: ``stride`` runs
     ``store_every`` steps, ``blocks[i]`` runs ``sizes[i]`` strides and returns every stored state
@@ -73,7 +148,7 @@ def time_loop_functions(step: Any, store_every: int, rows: int) -> tuple[Any, li
 
     stride = ca.Function("stride", arguments, [step.fold(store_every)(*repeated(
         store_every, k + ca.DM(np.arange(store_every, dtype=float)).T)) if store_every > 1 else step(*arguments)])
-    sizes = [rows >> j for j in range(rows.bit_length()) if rows >> j > 1]
+    sizes = block_sizes(rows)
     blocks = []
     for size in reversed(sizes):                # ascending: each block two calls of the one before
         if not blocks or size // 2 != sizes[len(sizes) - len(blocks)]:

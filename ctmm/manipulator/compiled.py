@@ -11,8 +11,9 @@ moment pairs cancel on the arm's floating frame, so they act as modal forces), w
 code as a :class:`~ctmm.compiled_loops.SymbolicReference`.  It replaced a hand-derived closed form of
 the same sweep (same results to round-off, measured in ``benchmarks/compiled_scenes.py``).
 
-The C library is cached on disk by :mod:`ctmm.codegen` (keyed by the hash of its text, the compiler
-and the flags; folder: :func:`ctmm.codegen.cache_directory`).
+The C library is cached on disk by :mod:`ctmm.codegen` (keyed by the serialized step and sizes, before
+any C is generated, the compiler and the flags: :func:`ctmm.generated_loop.compiled_time_loop`;
+folder: :func:`ctmm.codegen.cache_directory`).
 """
 from __future__ import annotations
 

@@ -1,0 +1,140 @@
+"""Per-call cost of ``compiled=True`` when the kernel library is already in the cache (issue 13).
+
+Before: every call rebuilt the symbolic time loop (``ctmm.generated_loop.time_loop_functions``: casadi
+``fold`` / ``mapaccum`` and the symbolic calls of the step) and generated the C text only to hash it
+into the cache key (reported in issue 13 as seconds per call; see the measurements below).  Now the key is
+computed from the serialized step before any of that (:func:`ctmm.generated_loop.compiled_time_loop`)
+and a cached library is loaded by its functions' names.
+
+Cases (each in a fresh cache folder): a 1-D chain of 100 masses with a real-time loop
+(``benchmarks/chain_compiled.py`` ``model(100)``, ``start(100)``), 1 s at dt = 1e-3, ``method="rk4"``
+and ``method="newmark"``; a planar pendulum chain of 10 links (RK4, 1 s at 1e-3); a spatial revolute
+chain of 6 and of 16 links (RK4, 1 s at 1e-3).  Rows: first call (generate + compile), then the
+best of seven further calls (library from the cache), each as the whole ``ctmm.simulate`` wall time,
+its CPU time (``time.process_time``: less sensitive to other jobs on the machine) and as
+``result.info["compile_time_s"]`` (building the kernel object: symbols, key, loading; the part this
+change acts on), and whether the further calls return the first call's numbers bit for bit.
+The machine is shared (2 cores, other jobs): whole-call times vary by tens of per cent between runs.
+
+Measured 2026-11-25 (2-core machine shared with other jobs; ``before1/2``: commit 83628ad, ``after1/2``:
+this change, alternated; best CPU time of a cached call over both runs, before -> after): chain 100 +
+loop RK4 0.094 -> 0.088 s, Newmark 0.098 -> 0.087 s, planar 10 links 0.031 -> 0.025 s, spatial 6
+links 0.040 -> 0.032 s, spatial 16 links 0.098 -> 0.087 s; results bit for bit equal.  On this commit
+the rebuild this change removes was already small (measured apart, best of 5 CPU: time loop + C text
++ hash 7.9 / 19.8 ms -> serialize + hash 2.8 / 9.2 ms for the spatial 6 / 16 links; the chain's time
+loop 3-11 ms, its C text 3-14 ms), so the gain is 6-20 % of a whole call; the seconds per
+call of the report did not reproduce on this commit.  What a cached
+call still pays: building the symbolic rates and step (the key needs them: 30-50 ms for the spatial
+chains), the chain's affine-form certification and the results' post-processing.
+
+Run ``python benchmarks/kernel_cache.py [--label after]``; adds the run under its label to
+``benchmarks/results/kernel_cache.json`` (``before``: the same file run from a checkout of the commit
+before the change, ``--out`` pointing here).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import ctmm  # noqa: E402
+from chain_compiled import model as controlled_chain, start  # noqa: E402
+from ctmm import planar, spatial  # noqa: E402
+
+
+REPEATS = 7
+
+
+def pendulum_chain(n: int) -> planar.PlanarModel:
+    elements: list = [planar.Fixed("ground")]
+    for i in range(n):
+        elements += [planar.SmoothHinge(f"h{i}"), planar.RigidBody(f"b{i}", mass=1.0, inertia=0.1,
+                                                             center_of_mass=(0.5, 0.0), outboard=(1.0, 0.0))]
+    return planar.PlanarModel.chain(f"pendulum_{n}", elements, gravity=(0.0, -9.81))
+
+
+def spatial_chain(n: int) -> spatial.SpatialModel:
+    elements: list = []
+    for i in range(n):
+        elements.append(spatial.SpatialBody(f"l{i}", 1.0, np.diag([0.01, 0.1, 0.1]), (0.5, 0.0, 0.0),
+                                            {"end": (1.0, 0.0, 0.0)}))
+        elements.append(spatial.Revolute(name=f"j{i}", parent=None if i == 0 else f"l{i - 1}", child=f"l{i}",
+                                         point=(0.0, 0.0, 0.0) if i == 0 else "end",
+                                         axis=(0.0, 1.0, 0.0) if i % 2 else (0.0, 0.0, 1.0)))
+    return spatial.SpatialModel(f"spatial_{n}", elements, gravity=(0.0, 0.0, -9.81))
+
+
+def cases() -> dict:
+    chain = controlled_chain(100)
+    x0 = {f"m{i}": value for i, value in enumerate(start(100))}
+    pendulum, arm, long_arm = pendulum_chain(10), spatial_chain(6), spatial_chain(16)
+    arm_q0 = 0.1 * (np.arange(arm.n_positions) % 2)
+    long_q0 = 0.1 * (np.arange(long_arm.n_positions) % 2)
+    return {
+        "chain100_loop_rk4": lambda: ctmm.simulate(chain, 1.0, 1e-3, method="rk4", compiled=True, x0=x0),
+        "chain100_loop_newmark": lambda: ctmm.simulate(chain, 1.0, 1e-3, method="newmark", compiled=True, x0=x0),
+        "planar_pendulum10_rk4": lambda: ctmm.simulate(pendulum, 1.0, 1e-3, method="rk4", compiled=True,
+                                                       x0=np.full(10, 0.2)),
+        "spatial_revolute6_rk4": lambda: ctmm.simulate(arm, 1.0, 1e-3, method="rk4", compiled=True, x0=arm_q0),
+        "spatial_revolute16_rk4": lambda: ctmm.simulate(long_arm, 1.0, 1e-3, method="rk4", compiled=True,
+                                                        x0=long_q0),
+    }
+
+
+def states(result) -> np.ndarray:
+    return np.asarray(result.states if hasattr(result, "states") else result.x, dtype=float)
+
+
+def main(label: str, out: Path) -> dict:
+    rows = []
+    for case, run in cases().items():
+        with tempfile.TemporaryDirectory() as folder:
+            os.environ["CTMM_CACHE"] = folder
+            began = time.perf_counter()
+            result = run()
+            first_s, first = time.perf_counter() - began, states(result)
+            first_kernel_s = result.info.get("compile_time_s", float("nan"))
+            again, cpu, kernel = [], [], []
+            equal = True
+            for _ in range(REPEATS):
+                began, began_cpu = time.perf_counter(), time.process_time()
+                result = run()
+                again.append(time.perf_counter() - began)
+                cpu.append(time.process_time() - began_cpu)
+                kernel.append(result.info.get("compile_time_s", float("nan")))
+                equal &= bool(np.array_equal(states(result), first, equal_nan=True))
+            row = {"case": case, "first_call_s": first_s, "first_kernel_s": first_kernel_s,
+                   "cached_call_s": min(again), "cached_call_cpu_s": min(cpu),
+                   "cached_kernel_s": min(kernel), "results_equal": equal}
+            rows.append(row)
+            print(f"{case:24s} first {first_s:7.3f} s (kernel {first_kernel_s:7.3f} s)  cached "
+                  f"{row['cached_call_s']:7.3f} s (cpu {row['cached_call_cpu_s']:7.3f} s, kernel "
+                  f"{row['cached_kernel_s']:7.4f} s)  equal {equal}", flush=True)
+    os.environ.pop("CTMM_CACHE", None)
+    measured = json.loads(out.read_text()) if out.exists() else {}
+    measured[label] = {"machine": platform.platform(), "python": sys.version.split()[0], "rows": rows}
+    out.parent.mkdir(exist_ok=True)
+    out.write_text(json.dumps(measured, indent=1))
+    return measured
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--label", default="after", help="name of this run in the results file (default 'after')")
+    parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "kernel_cache.json")
+    arguments = parser.parse_args()
+    main(arguments.label, arguments.out)
