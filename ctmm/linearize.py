@@ -80,7 +80,8 @@ def linearize(system: Any, operating_point: Any = None, *, inputs: str | Sequenc
         The model; loops with a delay are returned open beside the state space.
     operating_point : OperatingPoint, (q, qdot), mapping or None
         Spatial models: ``(q, v)``, ``{"q", "v", "t"}`` or ``None`` (the static equilibrium by
-        pseudo-transient Newton on the sweep, :func:`ctmm.spatial_linearization.static_equilibrium`).
+        pseudo-transient Newton on the sweep, :func:`ctmm.spatial_linearization.static_equilibrium`,
+        ``stable=True``: a statically stable one, or refused naming the directions of negative stiffness).
         Planar models: ``(q, qdot)`` or ``{"q": ..., "qdot": ..., "t": ...}`` or a
         mapping from coordinate names to values (rates zero); ``None``: the static equilibrium
         found by :func:`ctmm.planar.equilibrium.static_equilibrium` from

@@ -385,20 +385,23 @@ class CallableLaw(Law):
                  scale: tuple[float, float] = (1.0, 1.0), name: str = "user law") -> None:
         if not callable(force):
             raise ModelError(f"CallableLaw {name!r}: force must be callable force(delta, rate), got {force!r}")
-        self.name = str(name)
+        if not isinstance(name, str) or not name.strip():
+            raise ModelError(f"CallableLaw name must be a non-empty string, got {name!r:.80}")
+        self.name = name
         self.function = force
+        if not isinstance(scale, (tuple, list)) or len(scale) != 2:
+            raise ModelError(f"CallableLaw {name!r}: scale must be two numbers (delta, rate) > 0, got {scale!r:.80}")
         self.scale = (validation.positive(f"CallableLaw {name!r}: scale[0]", scale[0]),
                       validation.positive(f"CallableLaw {name!r}: scale[1]", scale[1]))
         self.potential_function = validation.callable_or_none(f"CallableLaw {name!r}: potential", potential)
+        for label, value in (("stiffness", stiffness), ("damping", damping)):
+            validation.callable_or_none(f"CallableLaw {name!r}: {label}", value)
         if (stiffness is None) != (damping is None):
             raise ModelError(f"CallableLaw {name!r}: give both stiffness and damping derivatives or neither "
                              "(casadi automatic differentiation)")
         if stiffness is None:
             self._casadi_derivatives()
         else:
-            for label, value in (("stiffness", stiffness), ("damping", damping)):
-                if not callable(value):
-                    raise ModelError(f"CallableLaw {name!r}: {label} must be callable (delta, rate), got {value!r}")
             self.stiffness_function, self.damping_function = stiffness, damping
             self.expressible = False
         self._check()

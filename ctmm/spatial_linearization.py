@@ -35,8 +35,9 @@ The operating point is the static equilibrium when none is given: the root of th
 accelerations ``f(q0 (+) r, 0) = 0`` from the neutral configuration by pseudo-transient continuation
 (implicit Euler steps of the overdamped fall ``r' = f``, which lowers the potential energy, with a
 step ``dt`` grown as ``|f|`` falls until they are Newton steps; minimum-norm solves, so neutral
-directions such as a free yaw stay where they are).  It heads for a stable equilibrium but may end
-on any (the eigenvalues of ``A`` tell).  A free joint under gravity has none: refused.
+directions such as a free yaw stay where they are).  The default is statically stable
+(``static_equilibrium(..., stable=True)``: pushed off an unstable one along its most unstable direction,
+:func:`unstable_directions`, or refused naming them).  A free joint under gravity has none: refused.
 """
 from __future__ import annotations
 
@@ -49,12 +50,14 @@ from .errors import ModelError, UnknownNameError, unknown_name
 from .controlled_linearization import close_model_loops, loop_ports
 from .linearized import LinearizedSystem, OperatingPoint
 from .ops import NUMPY
+from .planar.equilibrium import describe_directions, negative_stiffness
 from .planar_linearization import EQUILIBRIUM_TOLERANCE, JACOBIAN_TOLERANCE, TIME_PROBES, jacobian
 from .saturation import refuse_saturation
 from .spatial_sensors_complex import complex_sensor_values
 
 __all__ = ["linearize_spatial", "tangent_names", "input_names", "retract", "static_equilibrium",
-           "operating_point", "tangent", "input_matrix", "output_matrix", "NEWTON_ITERATIONS"]
+           "operating_point", "tangent", "input_matrix", "output_matrix", "NEWTON_ITERATIONS",
+           "unstable_directions", "STABLE_RESTARTS"]
 
 NEWTON_ITERATIONS = 200
 """Largest number of (pseudo-transient Newton) steps of :func:`static_equilibrium`."""
@@ -175,24 +178,75 @@ def _scale(model: Any) -> float:
     return EQUILIBRIUM_TOLERANCE * (1.0 + float(np.max(np.abs(model.gravity))))
 
 
-def static_equilibrium(model: Any, t: float = 0.0, start: Any = None) -> np.ndarray:
+def static_equilibrium(model: Any, t: float = 0.0, start: Any = None, *, stable: bool = False) -> np.ndarray:
     """A static equilibrium ``q0`` (unit quaternions) of a spatial model reached from ``start`` (default
     ``model.neutral()``) by pseudo-transient continuation on the sweep's accelerations at rest
     (module docstring).
+
+    Parameters
+    ----------
+    model : SpatialModel
+    t : float
+        Time [s] of the loads.
+    start : array_like, optional
+        Coordinates [rad, m, quaternions] where the search starts; default ``model.neutral()``.
+    stable : bool
+        Find a statically stable equilibrium (no direction of negative stiffness,
+        :func:`unstable_directions`): from an unstable one (e.g. a pendulum whose neutral configuration
+        is upright) the search is pushed along its most unstable direction and continued with its time
+        step kept below the inverse growth rate of the unstable directions it meets, so it falls to a
+        stable one (:data:`STABLE_RESTARTS` pushes).  The default (``False``) returns the equilibrium reached.
 
     Raises
     ------
     ModelError
         A free joint under gravity; no convergence (no equilibrium near ``start``, or loads that
-        keep a body moving).
+        keep a body moving); with ``stable=True`` an equilibrium reached that is still unstable (its
+        unstable directions named).
     """
+    validation.flag("stable", stable)
     free = [joint.name for joint in model.joints if joint.kind == "free" and not joint.driven]
     if free and np.any(model.gravity != 0.0):
         raise ModelError(f"linearize: {model.name!r} has the free joint(s) {free} under gravity "
                          f"{model.gravity.tolist()} m/s^2: it falls, there is no static equilibrium; hold the body "
                          "(Elastic6, Weld), set gravity=(0, 0, 0), or pass operating_point with "
                          "allow_nonequilibrium=True for the tangent at one instant")
-    q = model.normalized(model.neutral() if start is None else start)
+    q = _continuation(model, model.normalized(model.neutral() if start is None else start), t, capped=stable)
+    for _ in range(STABLE_RESTARTS if stable else 0):
+        values, vectors = unstable_directions(model, q, t)
+        if not values.size:
+            return q
+        push = 1e-2 * vectors[:, 0] / max(float(np.max(np.abs(vectors[:, 0]))), 1e-300)
+        q = _continuation(model, model.normalized(retract(model, q, push)[0]), t, capped=True)
+    if stable:
+        values, vectors = unstable_directions(model, q, t)
+        if values.size:
+            raise ModelError(f"linearize: no statically stable equilibrium of {model.name!r} found: the one reached, "
+                             f"q = {np.round(q, 12).tolist()}, has "
+                             f"{describe_directions(list(tangent_names(model)), values, vectors)}; pass "
+                             "operating_point=(q, v) to linearise about a chosen equilibrium")
+    return q
+
+
+STABLE_RESTARTS = 4
+"""Pushes off an unstable equilibrium that :func:`static_equilibrium` tries with ``stable=True``."""
+
+
+def unstable_directions(model: Any, q: Any, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """The directions of negative stiffness of the equilibrium ``q`` (coordinates [rad, m, quaternions], at
+    rest, loads at time ``t`` [s]) of a spatial model: :func:`ctmm.planar.equilibrium.negative_stiffness` of
+    ``d v_dot / d r`` by complex step, i.e. the values ``omega^2 < 0`` [rad^2/s^2] (most negative first; empty
+    for a statically stable or neutral equilibrium) and the vectors (columns) in the tangent coordinates
+    :func:`tangent_names`."""
+    q = model.normalized(np.asarray(q, dtype=float))
+    Jq, _ = _position_jacobian(model, q, np.zeros(model.n_velocities), t)
+    return negative_stiffness(Jq)
+
+
+def _continuation(model: Any, q: np.ndarray, t: float, *, capped: bool) -> np.ndarray:
+    """Pseudo-transient continuation from ``q`` to a root of the accelerations at rest (module docstring);
+    ``capped``: the step ``dt`` stays below ``0.5 / lambda`` of the fastest unstable direction at each
+    point (implicit Euler then follows the fall away from an unstable equilibrium instead of jumping back)."""
     zero = np.zeros((1, model.n_velocities))
     limit = _scale(model)
     residual = _rates(model, q[None], zero, t)[0]
@@ -205,16 +259,18 @@ def static_equilibrium(model: Any, t: float = 0.0, start: Any = None) -> np.ndar
         if size <= 1e-6 * limit:
             break
         Jq, _ = _position_jacobian(model, q, zero[0], t)
-        step = np.linalg.lstsq(eye / dt - Jq, residual, rcond=1e-13)[0]
+        values, _ = negative_stiffness(Jq) if capped else (np.zeros(0), None)
+        step_size = min(dt, -0.5 / values[0]) if values.size else dt
+        step = np.linalg.lstsq(eye / step_size - Jq, residual, rcond=1e-13)[0]
         trial = model.normalized(retract(model, q, step)[0])
         trial_residual = _rates(model, trial[None], zero, t)[0]
         trial_size = float(np.max(np.abs(trial_residual), initial=0.0))
-        if not (np.isfinite(trial_size) and trial_size < 2.0 * size):
+        if not (np.isfinite(trial_size) and (trial_size < 2.0 * size or values.size)):
             dt /= 4.0
             continue
         ratio = trial_size / max(size, 1e-300)
         q, residual, size = trial, trial_residual, trial_size
-        if size <= limit and ratio > 0.1:
+        if size <= limit and ratio > 0.1 and not values.size:
             break                                   # Newton's quadratic convergence has reached round-off
         dt *= min(10.0, 1.0 / max(ratio, 1e-300))
     if not size <= limit:
@@ -245,7 +301,7 @@ def operating_point(model: Any, point: Any = None, *, allow_nonequilibrium: bool
     (:func:`static_equilibrium`), else ``(q, v)``, ``(q, v, t)``, a mapping or an OperatingPoint,
     checked to be an equilibrium (at rest now and at a few later times) unless allowed."""
     if point is None:                       # then checked like a given point (time-varying loads)
-        q, v, t = static_equilibrium(model), np.zeros(model.n_velocities), 0.0
+        q, v, t = static_equilibrium(model, stable=True), np.zeros(model.n_velocities), 0.0
     else:
         q, v, t = _parse_point(model, point)
     try:

@@ -110,8 +110,11 @@ def test_damped_unstable_and_wrong_options_are_refused() -> None:
     inverted = sp.SpatialModel("inverted", [
         sp.SpatialBody("bob", 1.0, (0.01, 0.01, 0.01), center_of_mass=(0.0, 0.0, 0.5)),
         sp.Spherical(name="ball", parent=None, child="bob")], gravity=(0, 0, -9.81))
-    with pytest.raises(ModelError, match="statically unstable"):
-        ctmm.natural_frequencies(inverted, n_modes=1)
+    with pytest.raises(ModelError, match="statically unstable"):     # upright, asked for explicitly
+        ctmm.natural_frequencies(inverted, n_modes=1, operating_point=(inverted.neutral(), np.zeros(3)))
+    hanging = ctmm.natural_frequencies(inverted, n_modes=3)           # the default: the stable (hanging) one
+    swing = np.sqrt(9.81 * 0.5 / (0.25 + 0.01))                        # m g c / (m c^2 + I), and the free yaw
+    assert np.allclose(hanging, [0.0, swing, swing], rtol=1e-9, atol=1e-9)
     with pytest.raises(ModelError, match="spatial model"):
         ctmm.frequency_response(symmetric_pendulum(), [1.0], input="ball.torque_x", output="ball.rx",
                                 fields="exact")

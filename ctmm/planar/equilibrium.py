@@ -58,11 +58,9 @@ def static_equilibrium(model: PlanarModel, q_guess, *, t: float = 0.0, tolerance
     if stable:
         values, vectors = unstable_directions(model, q, t)
         if values.size:
-            names = list(model.coordinates)
-            main = [f"{names[i]} {vectors[i, 0]:+.3g}" for i in np.argsort(-np.abs(vectors[:, 0]))[:3]]
             raise ModelError(f"no statically stable equilibrium of {model.name!r} found from q = {q_guess.tolist()}: "
-                             f"the one reached, q = {q.tolist()}, has {values.size} direction(s) of negative stiffness "
-                             f"(omega^2 = {values[0]:.6g} rad^2/s^2 along ({', '.join(main)})); give a guess nearer a "
+                             f"the one reached, q = {q.tolist()}, has "
+                             f"{describe_directions(list(model.coordinates), values, vectors)}; give a guess nearer a "
                              "stable one (e.g. hanging_configuration(model))")
     return q
 
@@ -118,6 +116,27 @@ def unstable_directions(model: PlanarModel, q, t: float = 0.0) -> tuple[np.ndarr
         up[k] += h
         down[k] -= h
         jacobian[:, k] = (accelerations(model, up, np.zeros(n), t) - accelerations(model, down, np.zeros(n), t)) / (2 * h)
+    return negative_stiffness(jacobian)
+
+
+def negative_stiffness(jacobian: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The directions of negative stiffness of a Jacobian ``d qddot / d q`` at rest [1/s^2].
+
+    Parameters
+    ----------
+    jacobian : ndarray, shape (n, n)
+        ``d qddot / d q`` at an equilibrium (``-M^-1 K``) [1/s^2].
+
+    Returns
+    -------
+    values : ndarray
+        Real parts of the eigenvalues ``omega^2`` [rad^2/s^2] of ``-jacobian`` below ``-1e-8 max |omega^2|``,
+        most negative first.
+    vectors : ndarray, shape (n, len(values))
+        Their eigenvectors (real parts, columns, largest entry 1).
+    """
+    if not jacobian.size:
+        return np.zeros(0), np.zeros((jacobian.shape[0], 0))
     values, vectors = np.linalg.eig(-jacobian)
     values, vectors = values.real, vectors.real
     top = max(float(np.max(np.abs(values), initial=0.0)), 1e-300)
@@ -126,6 +145,14 @@ def unstable_directions(model: PlanarModel, q, t: float = 0.0) -> tuple[np.ndarr
     vectors = vectors[:, keep]
     vectors = vectors / vectors[np.argmax(np.abs(vectors), axis=0), np.arange(keep.size)] if keep.size else vectors
     return values[keep], vectors
+
+
+def describe_directions(names: list[str], values: np.ndarray, vectors: np.ndarray) -> str:
+    """``"<n> direction(s) of negative stiffness (omega^2 = ... rad^2/s^2 along (<name> <entry>, ...))"``: the
+    most negative of :func:`negative_stiffness` and the three largest entries of its vector, by coordinate name."""
+    main = [f"{names[i]} {vectors[i, 0]:+.3g}" for i in np.argsort(-np.abs(vectors[:, 0]))[:3]]
+    return (f"{values.size} direction(s) of negative stiffness (omega^2 = {values[0]:.6g} rad^2/s^2 along "
+            f"({', '.join(main)}))")
 
 
 def _descend(model: PlanarModel, q: np.ndarray, direction: np.ndarray, rate: float, t: float) -> np.ndarray:
@@ -185,4 +212,5 @@ def hanging_configuration(model: PlanarModel) -> np.ndarray:
     return q
 
 
-__all__ = ["static_equilibrium", "hanging_configuration", "unstable_directions", "STABLE_RESTARTS"]
+__all__ = ["static_equilibrium", "hanging_configuration", "unstable_directions", "negative_stiffness",
+           "describe_directions", "STABLE_RESTARTS"]

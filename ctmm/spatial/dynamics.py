@@ -8,6 +8,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from .. import validation
 from ..articulated import SingularPivotError
 from ..errors import ModelError, SimulationError
 from .beam_terms import beam_energy
@@ -18,7 +19,9 @@ __all__ = ["SpatialSolution", "solve", "accelerations", "reactions", "state_rate
 
 
 def scene_of(model: SpatialModel) -> SpatialScene:
-    """The :class:`SpatialScene` of a model (cheap; the model is immutable)."""
+    """The :class:`SpatialScene` of a model (cheap; the model is immutable); anything else is refused."""
+    if not isinstance(model, SpatialModel):
+        raise ModelError(f"model must be a ctmm.spatial.SpatialModel, got {model!r:.80}")
     return SpatialScene(model)
 
 
@@ -70,6 +73,9 @@ def solve(model: SpatialModel, q: Any, v: Any, t: float = 0.0, inputs: Mapping[s
         time and the joint (``element``).
     """
     scene = scene_of(model)
+    t = validation.finite("t", t)
+    if inputs is not None and not isinstance(inputs, Mapping):
+        raise ModelError(f"inputs must be a mapping {{input name: number or f(t)}}, got {inputs!r:.80}")
     try:
         solution = scene.solve(q, v, t, inputs, wrenches)
     except SingularPivotError as exc:
@@ -111,6 +117,10 @@ def reactions(model: SpatialModel, q: Any, v: Any, t: float = 0.0, inputs: Mappi
 def state_rates(model: SpatialModel, x: np.ndarray, t: float, inputs: Mapping[str, Any] | None = None
                 ) -> np.ndarray:
     """``x_dot = [G(q) v ; v_dot]`` of the state ``x = [q ; v]`` (1-D or ``(B, nq + nv)``)."""
+    scene_of(model)
+    size = model.n_positions + model.n_velocities
+    if isinstance(x, (str, bytes, bool, Mapping)) or x is None or np.shape(x)[-1:] != (size,):
+        raise ModelError(f"x must be the state [q ; v]: {size} numbers (or (B, {size})), got {x!r:.80}")
     x = np.asarray(x, dtype=float)
     q, v = x[..., :model.n_positions], x[..., model.n_positions:]
     rates = solve(model, q, v, t, inputs).velocity_rates

@@ -68,10 +68,10 @@ def _rotation(label: str, value: Any) -> np.ndarray:
         return np.eye(3)
     matrix = validation.finite_array(label, value)
     if matrix.shape != (3, 3):
-        raise ModelError(f"{label} must be a 3 x 3 rotation matrix, got shape {matrix.shape}")
+        raise ModelError(f"{label} must be a 3 x 3 rotation matrix, got shape {matrix.shape}: {value!r:.80}")
     if not np.allclose(matrix.T @ matrix, np.eye(3), atol=1e-9) or np.linalg.det(matrix) < 0:
         raise ModelError(f"{label} must be a proper rotation matrix (R^T R = I, det R = +1 to 1e-9), got "
-                         f"{matrix.tolist()}")
+                         f"{value!r:.200}")
     return matrix
 
 
@@ -94,12 +94,12 @@ def _matrix_law(label: str, value: Any, size: int) -> np.ndarray:
         array = np.diag(array)
     if array.shape != (size, size):
         raise ModelError(f"{label} must be a number, {size} numbers (diagonal) or a {size} x {size} matrix, got "
-                         f"shape {array.shape}")
+                         f"shape {array.shape}: {value!r:.80}")
     if not np.allclose(array, array.T, atol=1e-12 * max(1.0, np.abs(array).max())):
         raise ModelError(f"{label} must be symmetric, got {array.tolist()}")
     if np.linalg.eigvalsh(array).min() < -1e-12 * max(1.0, np.abs(array).max()):
         raise ModelError(f"{label} must be positive semi-definite, got eigenvalues "
-                         f"{np.linalg.eigvalsh(array).tolist()}")
+                         f"{np.linalg.eigvalsh(array).tolist()} of {value!r:.200}")
     return array
 
 
@@ -144,7 +144,7 @@ class SpatialBody:
             inertia = np.diag(inertia)
         if inertia.shape != (3, 3):
             raise ModelError(f"{self.name}: inertia must be a 3 x 3 matrix (or 3 principal moments) [kg m^2], "
-                             f"got shape {inertia.shape}")
+                             f"got shape {inertia.shape}: {self.inertia!r:.80}")
         scale = max(1e-300, float(np.abs(inertia).max()))
         if not np.allclose(inertia, inertia.T, atol=1e-12 * scale):
             raise ModelError(f"{self.name}: inertia must be symmetric, got {inertia.tolist()}")
@@ -428,7 +428,7 @@ class Load:
     def __post_init__(self) -> None:
         object.__setattr__(self, "name", validation.name("load", self.name))
         validation.name(f"{self.name}: body", self.body)
-        if not isinstance(self.point, str):
+        if not isinstance(self.point, str) or not self.point:
             raise ModelError(f"{self.name}: point must be a point name of body {self.body!r}, got {self.point!r}")
         object.__setattr__(self, "axes", validation.option(f"{self.name}: axes", self.axes, ("world", "body")))
         object.__setattr__(self, "force", _signals(f"{self.name}: force", self.force, 3))

@@ -240,7 +240,10 @@ def simulate_spatial(model: SpatialModel, t_final: float, dt: float | None, *, m
     ModelError
         Bad arguments; SimulationError a non-finite or diverging state (with the partial result).
     """
+    if not isinstance(model, SpatialModel):
+        raise ModelError(f"model must be a ctmm.spatial.SpatialModel, got {model!r:.80}")
     t_final = validation.positive("t_final", t_final)
+    validation.step_budget(t_final, 0.0, dt)           # a tiny dt or huge t_final is refused before any work
     store_every = validation.integer("store_every", store_every, minimum=1)
     if divergence_bound is not None:
         divergence_bound = validation.positive("divergence_bound", divergence_bound)
@@ -295,6 +298,7 @@ def simulate_spatial(model: SpatialModel, t_final: float, dt: float | None, *, m
             if value != default:
                 raise ModelError(f"{name}={value!r} applies to method='rk4'; give dt as the output grid")
         grid = None
+        rtol, atol = validation.positive("rtol", rtol), validation.positive("atol", atol)
         info = {"rtol": rtol, "atol": atol}
         if dt is not None:
             dt = validation.positive("dt", dt)

@@ -15,7 +15,7 @@ with ``q_dot = G(q) v`` (:meth:`SpatialModel.position_rates`).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Mapping, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -68,6 +68,9 @@ class SpatialModel:
         if gravity.shape != (3,):
             raise ModelError(f"gravity must be 3 numbers (world axes) [m/s^2], got {gravity.tolist()}")
         self.gravity = gravity
+        if not isinstance(elements, (list, tuple)):
+            raise ModelError(f"{self.name}: elements must be a list of SpatialBody, SpatialBeam, joints and Load, "
+                             f"got {elements!r:.80}")
         bodies: dict[str, SpatialBody] = {}
         joints: dict[str, object] = {}
         loads: list[Load] = []
@@ -240,16 +243,16 @@ class SpatialModel:
     def check_state(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(q, v)`` as float arrays ``(B, nq)``, ``(B, nv)``; raises :class:`ModelError` on wrong sizes,
         non-finite values or zero quaternions."""
-        q = np.asarray(q, dtype=float)
-        v = np.asarray(v, dtype=float)
+        given_q, given_v = q, v
+        q, v = (_numbers(self.name, label, value) for label, value in (("q", q), ("v", v)))
         q = q[None] if q.ndim == 1 else q
         v = v[None] if v.ndim == 1 else v
         if q.ndim != 2 or q.shape[1] != self.n_positions:
             raise ModelError(f"{self.name}: q must have {self.n_positions} entries {self.coordinates} (or be (B, "
-                             f"{self.n_positions})), got shape {q.shape}")
+                             f"{self.n_positions})), got shape {q.shape}: {given_q!r:.80}")
         if v.ndim != 2 or v.shape[1] != self.n_velocities:
             raise ModelError(f"{self.name}: v must have {self.n_velocities} entries {self.velocities} (or be (B, "
-                             f"{self.n_velocities})), got shape {v.shape}")
+                             f"{self.n_velocities})), got shape {v.shape}: {given_v!r:.80}")
         if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
             raise ModelError(f"{self.name}: q and v must be finite, got q={q.tolist()}, v={v.tolist()}")
         for joint, layout in zip(self._joints, self.layout):
@@ -308,3 +311,15 @@ def input_values(model: SpatialModel, inputs: Mapping[str, object] | None, t: fl
                                  f"{np.asarray(value).tolist()}")
             out[name] = np.broadcast_to(array, (batch, k))
     return out
+
+
+def _numbers(model_name: str, label: str, value: Any) -> np.ndarray:
+    """``value`` as a float array, or a :class:`ModelError` naming ``label`` and the value (strings, bools,
+    mappings and other objects are not numbers)."""
+    if isinstance(value, (str, bytes, bool, Mapping)) or value is None:
+        raise ModelError(f"{model_name}: {label} must be an array of numbers, got {value!r:.80}")
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ModelError(f"{model_name}: {label} must be an array of numbers, got {value!r:.80}") from None
+    return array
