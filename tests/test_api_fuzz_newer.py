@@ -338,6 +338,10 @@ NEWER_API: dict[str, str] = {
     "ctmm.fem.GlobalSubsystem": "tests/test_fem.py (bad matrices, unlumped subsystems)",
     "ctmm.fem.FloatingInertia": "record (tests/test_fem.py)", "ctmm.fem.SubsystemFamily": "tests/test_fem*.py",
     "ctmm.fem.SmallDeformationWarning": "warning type", "ctmm.fem.subsystem_energy": "tests/test_fem*.py",
+    **{f"ctmm.fem.{name}": "tests/test_spatial_fem.py (refusals: singular twist masses, unlumped M, loads off nodes)"
+       for name in ("SpatialBeamElement", "SpatialFiniteElementModel", "SpatialNodeSpring", "SpatialPointMass",
+                    "SpatialSubsystem")},
+    "ctmm.fem.SpatialInertia": "record (tests/test_spatial_fem.py)",
     **{f"ctmm.sensitivity.{name}": HERE for name in ("parameter_values", "with_parameters",
                                                      "frequency_response_sensitivity", "peak_sensitivity",
                                                      "stability_margin_sensitivity", "margin_sensitivity",
