@@ -42,7 +42,7 @@ from .control.controlled_model import ControlledModel
 from .errors import ModelError, SimulationError, unknown_name
 from .executors import parallel_map
 from .parameter_sets import ParameterSpace, plant_and_loops
-from .planar.integrate import initial_coordinates, step_total, to_result
+from .planar.integrate import coordinate_values, initial_coordinates, step_total, to_result
 from .planar.model import PlanarModel
 from .results import SimulationResult
 from .spatial.integrate import initial_state
@@ -152,7 +152,8 @@ class ParameterKernel:
         if isinstance(self.plant, SpatialModel):
             initial_state(self.plant, x0, v0)
             return x0, v0
-        return initial_coordinates(self.plant, _coordinates(self.plant, "x0", x0), _coordinates(self.plant, "v0", v0))
+        return initial_coordinates(self.plant, coordinate_values(self.plant, "x0", x0),
+                                   coordinate_values(self.plant, "v0", v0))
 
     def policy(self, stability_check: str | None) -> str:
         """The step-check policy of a run (``"warn"`` by default; spatial kernels have none yet)."""
@@ -260,21 +261,6 @@ class ParameterKernel:
             raise ModelError(f"parameters: the controlled model of {controlled.plant.name!r} with these numbers has "
                              "another structure than the compiled one; run it with ctmm.simulate without parameters=")
         return scene
-
-
-def _coordinates(model: PlanarModel, label: str, value: Any) -> Any:
-    """Initial coordinates or rates of a planar model: ``None`` (zeros), ``{coordinate: value}`` or an
-    array in the order of ``model.coordinates``."""
-    if value is None:
-        return np.zeros(model.n_coordinates)
-    if not isinstance(value, Mapping):
-        return value
-    out = np.zeros(model.n_coordinates)
-    for key, number in value.items():
-        if key not in model.coordinates:
-            raise unknown_name(f"coordinate of {label}", key, list(model.coordinates))
-        out[model.coordinate_index(key)] = validation.finite(f"{label}[{key!r}]", number)
-    return out
 
 
 _NOT_APPLICABLE = {"t0": 0.0, "coupling": "hold", "solver": "riccati", "fast": None, "force_hook": None,
