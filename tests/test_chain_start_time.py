@@ -6,7 +6,8 @@ Newmark's average acceleration integrates a linear acceleration exactly in ``v``
 ``dt^2 (t - t0) A / (12 m)`` in ``x`` (its position update's quadrature error); a start force taken
 at ``t = 0`` instead gives ``a(t0) = 0`` and a velocity offset ``dt A t0 / (2 m)`` for the whole run.
 With an inerter ``b`` between two masses the start accelerations solve
-``[[m1 + b, -b], [-b, m2 + b]] a = [A t0, 0]`` (the coupled start).
+``[[m1 + b, -b], [-b, m2 + b]] a = [A t0, 0]`` (the coupled start).  A delayed loop of a controlled
+chain reads the held start before ``t0``, with the boundary force at ``t0``.
 """
 from __future__ import annotations
 
@@ -14,7 +15,8 @@ import numpy as np
 import pytest
 
 import ctmm
-from ctmm.elements import Free, Inerter, Mass, PrescribedForce
+from ctmm.control import ControlledChain, Feedback
+from ctmm.elements import Fixed, Free, Inerter, Mass, PrescribedForce, Spring
 
 SLOPE, MASS, T0, DT, SPAN = 6.0, 2.0, 1.5, 1e-3, 0.2      # N/s, kg, s, s, s
 
@@ -42,3 +44,17 @@ def test_the_coupled_start_with_an_inerter_takes_the_force_at_t0():
     expected = np.linalg.solve([[m1 + b, -b], [-b, m2 + b]], [SLOPE * T0, 0.0])
     start = [np.ravel(result["m1.a"])[0], np.ravel(result["m2.a"])[0]]
     np.testing.assert_allclose(start, expected, rtol=1e-12, atol=0.0)
+
+
+def test_a_delayed_loop_reads_the_boundary_force_of_the_held_start_at_t0():
+    """Before ``t0`` the history is the start state held: a loop sensing the force at the loaded end reads
+    ``F(t0)`` there, so ``u(t) = -g A max(t - tau, t0)`` (the end force is the applied ``A t`` exactly)."""
+    gain, delay = 0.5, 0.05
+    chain = ctmm.Chain("c", [PrescribedForce("p", lambda t: SLOPE * t), Mass("m", MASS), Spring("k", 50.0),
+                             Fixed("wall")])
+    system = ControlledChain(chain, [Feedback("l", "p.f", "m", gain=gain, delay=delay)])
+    result = ctmm.simulate(system, T0 + 0.1, DT, t0=T0, method="newmark")
+    t = result.time
+    np.testing.assert_allclose(np.ravel(result["l.y"]), SLOPE * t, rtol=1e-12, atol=0.0)
+    np.testing.assert_allclose(np.ravel(result["l.u"]), -gain * SLOPE * np.maximum(t - delay, T0), rtol=1e-12,
+                               atol=0.0)
