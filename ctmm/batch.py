@@ -39,10 +39,11 @@ from .compiled_loops import ClosedLoops
 from .compiled_parameters import parameter_vector, structure_key
 from .compiled_spatial_parameters import spatial_parameter_vector
 from .control.controlled_model import ControlledModel
+from .control.protocol import check_controllers
 from .errors import ModelError, SimulationError, unknown_name
 from .executors import parallel_map
 from .parameter_sets import ParameterSpace, plant_and_loops
-from .planar.integrate import initial_coordinates, step_total, to_result
+from .planar.integrate import coordinate_values, initial_coordinates, step_total, to_result
 from .planar.model import PlanarModel
 from .results import SimulationResult
 from .spatial.integrate import initial_state
@@ -68,6 +69,13 @@ class ParameterKernel:
         Sensor names stored at every row.
     cache_dir : path, optional
         Of :func:`ctmm.codegen.shared_library`.
+    controllers : sequence of Controller, optional
+        Co-simulated controllers (checked, :func:`ctmm.control.protocol.check_controllers`): each set runs
+        the compiled co-simulation (:func:`ctmm.compiled_cosim.simulate_cosimulated_generated`) on the
+        shared kernel with its numbers (the kernel then stores every step and holds the controllers'
+        outputs as actuator inputs).
+    coupling : {"hold", "previous"}
+        Algebraic-loop policy of the ``controllers`` (:class:`~ctmm.control.cosim.CoSimulation`).
 
     Attributes
     ----------
@@ -79,7 +87,8 @@ class ParameterKernel:
 
     def __init__(self, system: Any, t_final: float, dt: float, *, store_every: int = 1,
                  inputs: Mapping[str, Any] | None = None, references: Mapping[str, Any] | None = None,
-                 outputs: Sequence[str] = (), cache_dir: Any = None) -> None:
+                 outputs: Sequence[str] = (), cache_dir: Any = None, controllers: Sequence[Any] = (),
+                 coupling: str = "hold") -> None:
         self.system = system
         if dt is None:
             raise ModelError("dt is required with compiled=True (the generated RK4; a fixed step [s], > 0), got None")
@@ -90,6 +99,7 @@ class ParameterKernel:
             if value is not None and not isinstance(value, Mapping):
                 raise ModelError(f"{label} must be a mapping {{name: number or signal}}, got {value!r}")
         self.inputs, self.references = dict(inputs or {}), dict(references or {})
+        self.controllers, self.coupling = tuple(check_controllers(controllers)), coupling
         self.space = ParameterSpace(system, references)
         self.plant, self.loops = self.space.plant, self.space.loops
         if isinstance(outputs, (str, Mapping)) or not all(isinstance(name, str) for name in outputs):
@@ -99,7 +109,9 @@ class ParameterKernel:
         spatial = isinstance(self.plant, SpatialModel)
         port_inputs = spatial and any(name not in self.plant.inputs for name in self.inputs)
         controlled = bool(self.loops or self.references or (self.inputs and not spatial) or port_inputs
-                          or (spatial and self.outputs))
+                          or (spatial and self.outputs) or self.controllers)
+        held = {name: 0.0 for c in self.controllers for name in c.outputs if name not in self.inputs}
+        self.scene_inputs = {**self.inputs, **held} if spatial else self.inputs     # as compiled_cosim
         self.kind = ("spatial" if spatial else "planar") + (" loops" if controlled else "")
         self.compile_time_s = 0.0
         self._scene: Any = None
@@ -131,7 +143,7 @@ class ParameterKernel:
             from .compiled_spatial_loops import CompiledControlledSpatial
 
             start = time.perf_counter()
-            options = {"store_every": self.store_every, "cache_dir": self.cache_dir}
+            options = {"store_every": 1 if self.controllers else self.store_every, "cache_dir": self.cache_dir}
             if self.kind == "planar":
                 self._scene = CompiledScene(self.plant, **options)
             elif self.kind == "planar loops":
@@ -141,7 +153,7 @@ class ParameterKernel:
                 self._scene = CompiledSpatialScene(self.plant, numbers="inputs", **options)
             else:
                 self._scene = CompiledControlledSpatial(ControlledModel(self.plant, self.loops), self.step,
-                                                        references=self.references, inputs=self.inputs,
+                                                        references=self.references, inputs=self.scene_inputs,
                                                         numbers="inputs", **options)
             self.compile_time_s = time.perf_counter() - start
         return self._scene
@@ -152,7 +164,8 @@ class ParameterKernel:
         if isinstance(self.plant, SpatialModel):
             initial_state(self.plant, x0, v0)
             return x0, v0
-        return initial_coordinates(self.plant, _coordinates(self.plant, "x0", x0), _coordinates(self.plant, "v0", v0))
+        return initial_coordinates(self.plant, coordinate_values(self.plant, "x0", x0),
+                                   coordinate_values(self.plant, "v0", v0))
 
     def policy(self, stability_check: str | None) -> str:
         """The step-check policy of a run (``"warn"`` by default; spatial kernels have none yet)."""
@@ -186,7 +199,9 @@ class ParameterKernel:
         if divergence_bound is not None:
             divergence_bound = validation.positive("divergence_bound", divergence_bound)
         x0, v0 = self.start(x0, v0)
-        if self.kind.startswith("spatial"):
+        if self.controllers:
+            result = self._run_cosimulated(plant, loops, references, x0, v0, divergence_bound, policy)
+        elif self.kind.startswith("spatial"):
             result = self._run_spatial(plant, loops, references, x0, v0, divergence_bound)
         else:
             result = self._run_planar(plant, loops, references, x0, v0, divergence_bound, policy)
@@ -245,6 +260,30 @@ class ParameterKernel:
             inputs=self.inputs, references=references, outputs=self.outputs, store_every=self.store_every,
             divergence_bound=bound, scene=scene)
 
+    def _run_cosimulated(self, plant: Any, loops: tuple, references: dict, x0: Any, v0: Any, bound: Any,
+                         policy: str) -> SimulationResult:
+        """The compiled co-simulation of the set's model on the shared kernel with its numbers."""
+        from .compiled_cosim import simulate_cosimulated_generated
+
+        controlled = ControlledModel(plant, loops)
+        if isinstance(plant, SpatialModel):
+            from .compiled_spatial_loops import SpatialSymbols
+
+            numbers = spatial_parameter_vector(plant)
+            symbols = SpatialSymbols(plant, controlled.ports, numbers.size)
+            state = initial_state(plant, x0, v0)
+            x0, v0 = state[:plant.n_positions], state[plant.n_positions:]
+        else:
+            numbers, symbols = parameter_vector(plant), None
+            if structure_key(plant) != self.scene().structure:
+                raise ModelError(f"parameters: model {plant.name!r} with these numbers has another structure than "
+                                 "the compiled one; run it with ctmm.simulate without parameters=")
+        return simulate_cosimulated_generated(
+            plant, loops, x0, v0, t_final=self.t_final, dt=self.dt, controllers=self.controllers, inputs=self.inputs,
+            references=references, outputs=self.outputs, coupling=self.coupling, store_every=self.store_every,
+            stability_check=policy, divergence_bound=bound,
+            scene=self._loop_scene(controlled, references, symbols, numbers))
+
     def _loop_scene(self, controlled: ControlledModel, references: dict, symbols: Any, numbers: np.ndarray) -> Any:
         """The shared scene with loops for the set's ``controlled`` model and ``references``: the same compiled
         functions, its loop laws (:class:`~ctmm.compiled_loops.ClosedLoops`, numbers as inputs; they give the
@@ -252,7 +291,7 @@ class ParameterKernel:
         base = self.scene()
         scene = copy.copy(base)
         scene.controlled, scene.model = controlled, controlled.plant
-        scene.loops = ClosedLoops(controlled, base.actuators, self.step, references, self.inputs,
+        scene.loops = ClosedLoops(controlled, base.actuators, self.step, references, self.scene_inputs,
                                   symbols=symbols, numbers="inputs")
         scene.parameters = np.concatenate([numbers, scene.loops.parameter_values])
         if scene.parameters.shape != base.parameters.shape or [entry[0] for entry in scene.loops.parameter_layout] \
@@ -260,21 +299,6 @@ class ParameterKernel:
             raise ModelError(f"parameters: the controlled model of {controlled.plant.name!r} with these numbers has "
                              "another structure than the compiled one; run it with ctmm.simulate without parameters=")
         return scene
-
-
-def _coordinates(model: PlanarModel, label: str, value: Any) -> Any:
-    """Initial coordinates or rates of a planar model: ``None`` (zeros), ``{coordinate: value}`` or an
-    array in the order of ``model.coordinates``."""
-    if value is None:
-        return np.zeros(model.n_coordinates)
-    if not isinstance(value, Mapping):
-        return value
-    out = np.zeros(model.n_coordinates)
-    for key, number in value.items():
-        if key not in model.coordinates:
-            raise unknown_name(f"coordinate of {label}", key, list(model.coordinates))
-        out[model.coordinate_index(key)] = validation.finite(f"{label}[{key!r}]", number)
-    return out
 
 
 _NOT_APPLICABLE = {"t0": 0.0, "coupling": "hold", "solver": "riccati", "fast": None, "force_hook": None,
@@ -291,25 +315,27 @@ def simulate_with_parameters(system: Any, parameters: Mapping[str, Any], options
     Raises
     ------
     ModelError
-        ``compiled`` not True, a method other than ``"rk4"``, co-simulated controllers, options that do
-        not apply (named), unknown parameter names (the allowed ones listed), bad values.
+        ``compiled`` not True, a method other than ``"rk4"``, options that do not apply (named), unknown
+        parameter names (the allowed ones listed), bad values.  Co-simulated ``controllers`` run the compiled
+        co-simulation with the set's numbers (:meth:`ParameterKernel.run`).
     """
     if options.get("compiled") is not True:
         raise ModelError(f"parameters= sets the numbers of a generated kernel at run time; give compiled=True (got "
                          f"compiled={options.get('compiled')!r}), or build the model with these numbers")
     if options.get("method") != "rk4":
         raise ModelError(f"parameters= runs the generated RK4; got method={options.get('method')!r}")
-    if options.get("controllers"):
-        raise ModelError("parameters= does not take co-simulated controllers (they sample in Python); state them as "
-                         "Feedback loops")
+    controllers = options.get("controllers") or ()
     for name, default in _NOT_APPLICABLE.items():
+        if name == "coupling" and controllers:
+            continue
         value = options.get(name, default)
         if value is not default and value != default:
             raise ModelError(f"{name}={value!r} does not apply to a run with parameters= (the generated RK4 from "
                              f"t = 0); leave {name} at {default!r}")
     kernel = ParameterKernel(system, options["t_final"], options.get("dt"), store_every=options.get("store_every", 1),
                              inputs=options.get("inputs"), references=options.get("references"),
-                             outputs=options.get("outputs", ()))
+                             outputs=options.get("outputs", ()), controllers=controllers,
+                             coupling=options.get("coupling", "hold"))
     return kernel.run(parameters, x0=options.get("x0"), v0=options.get("v0"),
                       divergence_bound=options.get("divergence_bound"), stability_check=options.get("stability_check"))
 

@@ -161,7 +161,7 @@ def _coupled_acceleration(system: Chain, x: np.ndarray, v: np.ndarray, t0: float
         F[i] -= f
     for boundary, point, start in ((system.start, 0, True), (system.end, -1, False)):
         if boundary.known == "force":
-            F[node[point]] += (1.0 if start else -1.0) * _boundary_force(boundary, x[point, 0], v[point, 0], start)
+            F[node[point]] += (1.0 if start else -1.0) * _boundary_force(boundary, x[point, 0], v[point, 0], start, t0)
     return inertia.solve(F)
 
 
@@ -291,20 +291,21 @@ def initial_acceleration(system: Chain, x: np.ndarray, v: np.ndarray, t0: float,
         if total_mass == 0.0:
             continue
         f_in = connector[first - 1] if (first - 1) in connector else \
-            (_boundary_force(system.start, x[0, 0], v[0, 0], start=True) if first == 1 else 0.0)
+            (_boundary_force(system.start, x[0, 0], v[0, 0], True, t0) if first == 1 else 0.0)
         f_out = connector[last + 1] if (last + 1) in connector else \
-            (_boundary_force(system.end, x[-1, 0], v[-1, 0], start=False) if last == len(body) else 0.0)
+            (_boundary_force(system.end, x[-1, 0], v[-1, 0], False, t0) if last == len(body) else 0.0)
         a[point:last + 1, 0] = (f_in - f_out + force) / total_mass
     return a
 
 
-def _boundary_force(boundary, x: float, v: float, start: bool) -> float:
+def _boundary_force(boundary, x: float, v: float, start: bool, t: float) -> float:
+    """Force [N] of a force-type boundary on its point at time ``t`` [s] (spring, damper, applied force)."""
     if boundary.known != "force":
         raise ModelError(f"cannot start from a point element attached directly to {boundary.name!r}"
                          " with a prescribed displacement; put a connector in between")
     k, c = getattr(boundary, "stiffness", 0.0), getattr(boundary, "damping", 0.0)
     spring = -k * (x - getattr(boundary, "anchor", 0.0)) - c * v
-    applied = float(boundary.force(0.0)) if hasattr(boundary, "force") else 0.0
+    applied = float(boundary.force(t)) if hasattr(boundary, "force") else 0.0
     return spring + applied if start else -(spring + applied)
 
 
@@ -325,7 +326,7 @@ def initial_forces(system: Chain, x: np.ndarray, v: np.ndarray,
         f[j - 1] = f[j] = val
     for boundary, point, start in ((system.start, 0, True), (system.end, n - 1, False)):
         if np.isnan(f[point]) and boundary.known == "force":
-            f[point] = _boundary_force(boundary, x[point, 0], v[point, 0], start=start)
+            f[point] = _boundary_force(boundary, x[point, 0], v[point, 0], start, t0)
     if a is None:
         return f
     body = system.body

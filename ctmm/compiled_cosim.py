@@ -65,14 +65,7 @@ def _scene(controlled: Any, dt: float, controllers: Sequence[Any], inputs: Mappi
                                          store_every=1)
     from .compiled_scene import CompiledScene
 
-    scene = CompiledScene(controlled, store_every=1, dt=dt, references=references, signals=inputs)
-    for c in controllers:
-        for name in c.outputs:
-            if name not in scene.actuators:
-                raise ModelError(f"compiled=True: controller output {name!r} drives a beam station load, which "
-                                 f"generated kernels do not drive yet (they drive {', '.join(scene.actuators)}); "
-                                 "run with compiled=False")
-    return scene
+    return CompiledScene(controlled, store_every=1, dt=dt, references=references, signals=inputs)
 
 
 def _delay_steps(controller: Any, dt: float) -> int:
@@ -91,8 +84,8 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
                                    inputs: Mapping[str, Any] | None = None,
                                    references: Mapping[str, Any] | None = None, outputs: Sequence[str] = (),
                                    coupling: str = "hold", store_every: int = 1, progress: bool | None = None,
-                                   stability_check: str = "warn", divergence_bound: float | None = None
-                                   ) -> SimulationResult:
+                                   stability_check: str = "warn", divergence_bound: float | None = None,
+                                   scene: Any = None) -> SimulationResult:
     """Fixed-step RK4 in generated C between the samples of co-simulated controllers (module docstring).
 
     Parameters
@@ -126,6 +119,9 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
         As in :func:`ctmm.control.planar_time.simulate_closed_loop`, checked at every step: planar, the coordinates
         from ``q0`` (default ``1e6 max(1, .)``); spatial, ``q`` and ``v`` from the start (default none); a chain,
         its guard (point positions from rest).
+    scene : compiled scene, optional
+        The kernel to run (every step stored, the controllers' outputs among its actuators): a parameter
+        set's scene on a shared kernel (:meth:`ctmm.batch.ParameterKernel.run`); by default compiled here.
 
     Returns
     -------
@@ -159,7 +155,13 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
                          "loops=model.loops")
     controlled = (model if isinstance(model, ControlledChain) else ControlledChain(model, ())) if chain \
         else ControlledModel(model, loops)
-    scene = _scene(controlled, dt, controllers, inputs, references)
+    scene = _scene(controlled, dt, controllers, inputs, references) if scene is None else scene
+    for c in controllers:
+        for name in c.outputs:
+            if name not in scene.actuators:
+                raise ModelError(f"compiled=True: controller output {name!r} drives a beam station load, which "
+                                 f"generated kernels do not drive yet (they drive {', '.join(scene.actuators)}); "
+                                 "run with compiled=False")
     plant.check_step(q0, v0, dt, stability_check)
     sensors = [ports.resolve(list(c.inputs)) for c in controllers]
     index = {name: k for k, name in enumerate(scene.actuators)}

@@ -41,7 +41,7 @@ from .control.simulate import simulate_controlled
 from .errors import ModelError, SimulationError, unknown_name
 from .planar.closed_loops import KinematicLoopModel
 from .planar.guards import check_resolution
-from .planar.integrate import SCIPY_METHODS, PlanarSimulation, initial_coordinates, to_result
+from .planar.integrate import SCIPY_METHODS, PlanarSimulation, coordinate_values, initial_coordinates, to_result
 from .planar.model import PlanarModel
 from .results import SimulationResult
 from .schemes import SCHEMES, Scheme, as_scheme
@@ -70,35 +70,6 @@ def _model_parts(system: Any, kind: type) -> tuple[Any, tuple] | None:
 def _planar_parts(system: Any) -> tuple[PlanarModel, tuple] | None:
     """``(model, loops)`` of a planar model or a controlled planar model, else ``None``."""
     return _model_parts(system, PlanarModel)
-
-
-def _initial(model: PlanarModel, name: str, value: Any) -> np.ndarray:
-    """``x0``/``v0`` of a planar model: ``None`` (zeros), a mapping by coordinate name, or an array."""
-    n = model.n_coordinates
-    if value is None:
-        return np.zeros(n)
-    if isinstance(value, Mapping):
-        out = np.zeros(n)
-        for key, number in value.items():
-            if key not in model.coordinates:
-                raise unknown_name(f"coordinate of {name}", key, list(model.coordinates))
-            out[model.coordinate_index(key)] = validation.finite(f"{name}[{key!r}]", number)
-        return out
-    array = np.asarray(value, dtype=float) if _numeric(value) else None
-    if array is None or array.shape != (n,):
-        raise ModelError(f"{name} must be a mapping {{coordinate: value}} or an array of length {n} "
-                         f"(coordinates {', '.join(model.coordinates)}), got {value!r}")
-    if not np.all(np.isfinite(array)):
-        raise ModelError(f"{name} must be finite, got {value!r}")
-    return array
-
-
-def _numeric(value: Any) -> bool:
-    try:
-        np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        return False
-    return True
 
 
 class _Default:
@@ -446,7 +417,7 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
         raise ModelError("give fast=True (hand-typed C, revolute trees) or compiled=True (generated C, any "
                          "time-invariant planar scene), not both")
     progress = validation.flag("progress", progress, optional=True)
-    q0, v0 = initial_coordinates(model, _initial(model, "x0", x0), _initial(model, "v0", v0))
+    q0, v0 = initial_coordinates(model, coordinate_values(model, "x0", x0), coordinate_values(model, "v0", v0))
     check_resolution(model, q0, "x0")
     policy = "warn" if stability_check is None else validation.option("stability_check", stability_check,
                                                                        ("warn", "error", "ignore"))

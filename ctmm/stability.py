@@ -490,7 +490,7 @@ def gain_margin(system: ControlledChain, loop: str | None = None, *, max_factor:
 # cross-check by simulation
 # --------------------------------------------------------------------------------------------
 def with_loop_parameters(system: ControlledChain, loop: str | None, parameters: dict) -> ControlledChain:
-    """The system with one loop's ``"gain"`` (factor), ``"delay"`` or sensor weights replaced."""
+    """The system with one loop's ``"gain"`` (factor), ``"delay"``, sensor weights replaced; saturation kept."""
     model_loop = find_loop(system, loop)
     names = ("gain", "delay") + tuple(sig for sig, _ in model_loop.terms)
     if not isinstance(parameters, dict):
@@ -504,7 +504,7 @@ def with_loop_parameters(system: ControlledChain, loop: str | None, parameters: 
         gain = factor * model_loop.gain if model_loop.is_lti else factor
     delay = validation.nonnegative("delay", parameters.get("delay", model_loop.delay))
     terms = [(sig, validation.finite(sig, parameters.get(sig, w))) for sig, w in model_loop.terms]
-    new = Feedback(model_loop.name, terms, model_loop.actuator, gain=gain, delay=delay)
+    new = Feedback(model_loop.name, terms, model_loop.actuator, gain, delay, model_loop.saturation)
     return system.with_loops([new if lp is model_loop else lp for lp in system.loops])
 
 

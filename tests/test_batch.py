@@ -238,7 +238,7 @@ def test_bad_parameters_are_refused_by_name(tmp_path, monkeypatch):
         ctmm.simulate_batch(object(), [{"m": 1.0}], T_FINAL, DT)
     with pytest.raises(ModelError, match=r"unknown parameter 'l0.inertia.xy'"):
         ctmm.parameter_sets.with_parameters(spatial_arm(), {"l0.inertia.xy": 0.001})
-    with pytest.raises(ModelError, match=r"q0 and qdot0 must have shape \(2,\)"):      # before any set runs
+    with pytest.raises(ModelError, match=r"x0 must be .* an array of length 2"):      # before any set runs
         ctmm.simulate_batch(arm(), [{"rod.mass": 2.0}], T_FINAL, DT, x0=[0.1, 0.2, 0.3])
     with pytest.raises(ModelError, match="stability_check='error' is not available .* spatial"):
         ctmm.simulate_batch(spatial_arm(), [{"l0.mass": 2.0}], T_FINAL, DT, stability_check="error")

@@ -35,6 +35,14 @@ def test_invalid_parameters(factory, pattern):
         factory()
 
 
+def test_a_loop_without_gain_is_refused_naming_gain():
+    """No default gain: a forgotten ``gain=`` must not build a silently open (zero-gain) loop."""
+    with pytest.raises(TypeError, match=r"missing 1 required positional argument: 'gain'"):
+        ctmm.control.Feedback("pd", "m.x", "m")
+    with pytest.raises(TypeError, match=r"'gain'"):
+        ctmm.control.Feedback("pd", "m.x", "m", delay=0.01)
+
+
 def test_model_error_is_value_error():
     assert issubclass(ctmm.ModelError, ValueError)
     assert issubclass(ctmm.SimulationError, RuntimeError)
@@ -93,7 +101,7 @@ def test_unknown_scenario_lists_available():
 
 @pytest.mark.parametrize("call, pattern", [
     (lambda c: c.position(["m"]), r"unknown element \"\['m'\]\"; available: e, k, m, w"),
-    (lambda c: ctmm.control.Feedback("L", [(3, 1.0)], "m"), r"sensor must be a signal name or a sequence of "
+    (lambda c: ctmm.control.Feedback("L", [(3, 1.0)], "m", 1.0), r"sensor must be a signal name or a sequence of "
                                                             r"\(signal, weight\) pairs, got \[\(3, 1\.0\)\]"),
     (lambda c: ctmm.simulate(c, 0.1, 0.01, x0={"m": "0.5"}), r"x0\['m'\] must be a real number, got '0\.5'"),
     (lambda c: Mass("m", "1.5"), r"m: mass must be a real number, got '1\.5'"),

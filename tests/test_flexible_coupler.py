@@ -3,9 +3,12 @@
 Independent reference: the same linkage as a global DAE with the coupler as rigid finite segments joined by
 rotational springs ``EI / h`` (:func:`ctmm.scenarios.four_bar.flexible_reference`, ctmm.reference.planar_dae:
 absolute coordinates, Lagrange multipliers), sharing no code with the sweep, the modal beam or the cut joints.
-The axially rigid linear modal beam has no foreshortening, so the two models differ at second order in the
-deflection: the check is that the modal coupler carries nearly all of the flexible effect (the difference
-between the rigid and the flexible linkage), and that the cut force on the beam end does no work.
+The modal beam's end is foreshortened in the cut joint (``u = -1/2 q^T G1 q``, the default
+``foreshortening=True``; ``docs/closed_loops.md`` §4b, checked in ``tests/test_closed_loops_foreshortening.py``),
+but the floating-frame beam leaves out the axial motion of its own mass points and is truncated to a few modes,
+so the two models still differ at second order in the deflection: the check is that the modal coupler carries
+nearly all of the flexible effect (the difference between the rigid and the flexible linkage), and that the cut
+force on the beam end does no work.
 """
 from __future__ import annotations
 

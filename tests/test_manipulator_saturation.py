@@ -85,8 +85,8 @@ def test_saturate_is_branch_free_and_complex_step_safe():
     h = 1e-30
     slopes = np.imag(loop.saturate(np.array([-5.0, 0.5, 7.0]) + 1j * h)) / h
     np.testing.assert_array_equal(slopes, [0.0, 1.0, 0.0])
-    assert Feedback("l", "m.x", "m").saturate(1e9) == 1e9
-    one_sided = Feedback("l", "m.x", "m", saturation=(-math.inf, 1.0))
+    assert Feedback("l", "m.x", "m", gain=1.0).saturate(1e9) == 1e9
+    one_sided = Feedback("l", "m.x", "m", gain=1.0, saturation=(-math.inf, 1.0))
     assert one_sided.saturate(-1e300) == -1e300 and one_sided.saturate(5.0) == 1.0
     assert loop.with_parameters(gain=2.0).saturation == (-2.0, 3.0)
     assert loop.unsaturated().saturation is None and loop.unsaturated().gain == 1.0
@@ -95,7 +95,7 @@ def test_saturate_is_branch_free_and_complex_step_safe():
 @pytest.mark.parametrize("bad", [(1.0, 1.0), (2.0, -2.0), (math.nan, 1.0), (1.0,), "ab", 5.0, (True, 2.0)])
 def test_a_bad_saturation_is_refused_naming_the_loop(bad):
     with pytest.raises(ModelError, match=r"loop 'l': saturation must"):
-        Feedback("l", "m.x", "m", saturation=bad)
+        Feedback("l", "m.x", "m", gain=1.0, saturation=bad)
 
 
 def test_the_linear_verbs_refuse_a_saturated_loop(seed):

@@ -189,7 +189,8 @@ def test_small_scene_runs_natural_frequencies(tmp_path):
      "system.elements[2].force.amplitud", ["unknown key 'amplitud' of ctmm.signals:Harmonic",
                                            "allowed keys: amplitude, omega, phase"]),
     ("mass = 1.0", 'mass = 1.0\nforce = { call = "ctmm.version:__version__", x = 1 }', 18,
-     "system.elements[2].force.call", ["'ctmm.version:__version__' is not callable"]),
+     "system.elements[2].force.call", ["'ctmm.version:__version__' is not callable"]),    ("[study]", '[[loops]]\ntype = "Feedback"\nname = "pd"\nsensor = "m.x"\nactuator = "m"\n\n[study]', 23,
+     "loops[0]", ["Feedback needs the key(s) gain"]),     # no silent zero-gain (open) loop
 ])
 def test_mistakes_name_line_key_and_allowed_values(tmp_path, old, new, line, key, words):
     assert old in CHAIN

@@ -255,7 +255,8 @@ def test_refusals_name_what_is_not_supported() -> None:
         ctmm.linearize(system, inputs=["link.torque"])
     with pytest.raises(ctmm.ModelError, match=r"input 'hip\.torque1': joint 'hip' is not actuated"):
         ctmm.linearize(system, inputs=["hip.torque1"])
-    saturating = with_feedback(arm(), [Feedback("pd", sensor="yaw.angle", actuator="yaw.torque", saturation=(-1, 1))])
+    saturating = with_feedback(arm(), [Feedback("pd", sensor="yaw.angle", actuator="yaw.torque", gain=1.0,
+                                                saturation=(-1, 1))])
     with pytest.raises(ctmm.ModelError, match=r"ctmm\.linearize needs linear loops, but loop 'pd' saturates"):
         ctmm.linearize(saturating)
 

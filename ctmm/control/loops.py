@@ -111,6 +111,7 @@ class Feedback:
         input would (the element's unit-input load vector is the loop's column).
     gain : float or control.LTI
         Static gain [N per sensed unit] or a SISO continuous-time python-control system ``C(s)``.
+        Required (no default: a loop built without it would silently do nothing).
     delay : float
         Loop delay ``tau`` [s], >= 0 (exact ``e^{-s tau}`` in the frequency domain; history in time).
     saturation : (float, float) or None
@@ -128,7 +129,7 @@ class Feedback:
     name: str
     sensor: Any
     actuator: str
-    gain: Any = 0.0
+    gain: Any
     delay: float = 0.0
     saturation: Any = None
     terms: tuple = field(init=False, repr=False, compare=False)

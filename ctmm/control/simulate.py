@@ -417,7 +417,7 @@ def _consistent_start(plant: Chain, loops, lti, refs, x, v, t0: float, forces: M
         return np.array([_sense(r.sensing, x, v, a, f, d)[0] for r in loops]), a, f
 
     n = len(loops)
-    f_held = np.nan_to_num(initial_forces(plant, x, v, forces))
+    f_held = np.nan_to_num(initial_forces(plant, x, v, forces, t0=t0))
     pre = {r.index: _sense(r.sensing, x, v, np.zeros_like(x), f_held, d)[0] for r in loops}
     if n == 0:
         a = initial_acceleration(plant, x, v, t0, forces)

@@ -4,7 +4,8 @@ The acceleration-based TMM (:mod:`ctmm.planar.sweep`) turns any planar model int
 ``y' = f(t, y)`` with ``y = [q, qdot]``; this module integrates it with a fixed-step classical
 Runge-Kutta scheme (:func:`ctmm.ode.integrate_rk4`, 4th order) or with any ``scipy.integrate.solve_ivp``
 method (RK45, DOP853, Radau, BDF, LSODA).  Results are :class:`PlanarSimulation` objects with
-named coordinates.
+named coordinates.  Initial states given by coordinate name become arrays by :func:`coordinate_values`
+(for :func:`ctmm.simulate`, :func:`ctmm.simulate_batch` and the kinematic-loop verbs alike).
 
 The per-step work of a fixed-step run (guards, storing, progress) is :func:`run_fixed_step` and
 the guards of one state :func:`check_state`, for every planar run: :func:`simulate_rk4` here, and
@@ -17,14 +18,14 @@ from __future__ import annotations
 
 import time as _time
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 import scipy.integrate
 
 from .. import validation
 from ..capabilities import require_planar
-from ..errors import ModelError, SimulationError
+from ..errors import ModelError, SimulationError, unknown_name
 from ..ode import integrate_rk4, second_order_rate
 from ..progress import progress_bar
 from .guards import check_scheme, divergence_guard, with_partial
@@ -86,6 +87,47 @@ class PlanarSimulation:
         ax.set_xlabel("t [s]")
         ax.legend(fontsize="small")
         return ax
+
+
+def coordinate_values(model: PlanarModel, label: str, value: Any) -> np.ndarray:
+    """Coordinates [m, rad, modal] or their rates of a planar model as one float array.
+
+    Parameters
+    ----------
+    model : PlanarModel
+        The model whose :attr:`~PlanarModel.coordinates` name and order the values.
+    label : str
+        The argument's name in messages (``"x0"``, ``"v0"``, ``"operating_point"``).
+    value : None, mapping or array_like
+        ``None`` (all 0), ``{coordinate name: value}`` (the others 0) or ``n_coordinates`` numbers in
+        the order of ``model.coordinates``.
+
+    Raises
+    ------
+    ModelError
+        An unknown coordinate name (the available ones listed), a value that is not a finite number,
+        an array of another length.
+    """
+    n = model.n_coordinates
+    if value is None:
+        return np.zeros(n)
+    if isinstance(value, Mapping):
+        out = np.zeros(n)
+        for key, number in value.items():
+            if key not in model.coordinates:
+                raise unknown_name(f"coordinate of {label}", key, list(model.coordinates))
+            out[model.coordinate_index(key)] = validation.finite(f"{label}[{key!r}]", number)
+        return out
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        array = None
+    if array is None or array.shape != (n,):
+        raise ModelError(f"{label} must be a mapping {{coordinate: value}} or an array of length {n} "
+                         f"(coordinates {', '.join(model.coordinates)}), got {value!r}")
+    if not np.all(np.isfinite(array)):
+        raise ModelError(f"{label} must be finite, got {value!r}")
+    return array
 
 
 def initial_coordinates(model: PlanarModel, q0, qdot0) -> tuple[np.ndarray, np.ndarray]:
@@ -381,4 +423,4 @@ def to_result(simulation: PlanarSimulation, *, outputs: Sequence[str] = (), info
 
 __all__ = ["PlanarSimulation", "simulate_rk4", "simulate_scipy", "guard_rates", "accepted_steps", "check_state",
            "run_fixed_step",
-           "check_store_every", "SCIPY_METHODS", "model_signals", "to_result"]
+           "check_store_every", "SCIPY_METHODS", "model_signals", "to_result", "coordinate_values"]

@@ -31,14 +31,14 @@ import numpy as np
 
 from .. import validation
 from ..controlled_linearization import close_model_loops, delayed_loop_response, exogenous_inputs, resolvent
-from ..errors import ModelError, unknown_name
+from ..errors import ModelError
 from ..linearized import LinearizedSystem, OperatingPoint, control_name
 from ..results import FrequencyResponse, SimulationResult
 from ..schemes import SCHEMES, Scheme, as_scheme
 from ..signal_results import SignalSystem, signal_result
 from .closed_loops import KinematicLoopModel, KinematicLoopSimulation, at_equilibrium, simulate_kinematic_loops
 from .equilibrium import hanging_configuration
-from .integrate import SCIPY_METHODS, model_signals
+from .integrate import SCIPY_METHODS, coordinate_values, model_signals
 from .ports import PlanarPorts, actuator_names
 
 __all__ = ["initial_state", "simulate_loops", "linearize_loops", "natural_frequencies_loops", "eigenvalue_count_loops",
@@ -55,25 +55,10 @@ def cut_signal_names(model: KinematicLoopModel) -> tuple[str, ...]:
     return tuple(f"{cut.name}.force_{axis}" for cut in model.cuts for axis in "xy")
 
 
-def _state(model: KinematicLoopModel, label: str, value: Any) -> np.ndarray:
-    """``x0``/``v0``: a mapping by tree coordinate name (others 0) or an array ordered as the tree's coordinates."""
-    tree = model.tree
-    if value is None:
-        return np.zeros(tree.n_coordinates)
-    if isinstance(value, Mapping):
-        out = np.zeros(tree.n_coordinates)
-        for key, number in value.items():
-            if key not in tree.coordinates:
-                raise unknown_name(f"coordinate of {label}", key, list(tree.coordinates))
-            out[tree.coordinate_index(key)] = validation.finite(f"{label}[{key!r}]", number)
-        return out
-    return np.array(tree.state(value, np.zeros(tree.n_coordinates))[0], dtype=float)
-
-
 def initial_state(model: KinematicLoopModel, x0: Any, v0: Any) -> tuple[np.ndarray, np.ndarray]:
     """Tree coordinates and rates from ``x0``, ``v0`` (arrays or ``{coordinate: value}``, others 0), checked
     against the cut joints (``|Phi| <= 1e-8`` m, ``|Phi'| <= 1e-8`` m/s; :class:`ModelError` otherwise)."""
-    q0, v0 = _state(model, "x0", x0), _state(model, "v0", v0)
+    q0, v0 = coordinate_values(model.tree, "x0", x0), coordinate_values(model.tree, "v0", v0)
     phi, phi_dot = model.constraints(q0, v0)
     if np.max(np.abs(phi)) > 1e-8 or np.max(np.abs(phi_dot)) > 1e-8:
         raise ModelError(f"x0, v0 violate the cut joints of {model.name!r} (|Phi| = {np.max(np.abs(phi)):.3e} m, "
@@ -221,7 +206,7 @@ def _operating_q(model: KinematicLoopModel, operating_point: Any) -> tuple[np.nd
     elif isinstance(operating_point, Mapping) and "q" in operating_point:
         q, qdot, t = operating_point["q"], operating_point.get("qdot", np.zeros(n)), operating_point.get("t", 0.0)
     elif isinstance(operating_point, Mapping):
-        q, qdot = _state(model, "operating_point", operating_point), np.zeros(n)
+        q, qdot = coordinate_values(model.tree, "operating_point", operating_point), np.zeros(n)
     elif isinstance(operating_point, (tuple, list)) and len(operating_point) == 2:
         q, qdot = operating_point
     else:
