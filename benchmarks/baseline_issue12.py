@@ -418,9 +418,18 @@ def _batch_parameters(t: Timings) -> None:
                         "200 RK4 steps each")
 
 
+def _kernel_cache(t: Timings) -> None:
+    bench = importlib.import_module("kernel_cache")
+    run = bench.cases()["spatial_revolute6_rk4"]
+    run()                                       # compile once (or find the library in the cache)
+    t.add("kernel_cache", "cached_call_spatial_revolute6_rk4", run, per="call", count=1,
+          configuration="ctmm.simulate(compiled=True) of a 6-link spatial revolute chain, 1 s at dt = 1 ms, the "
+                        "library already in the cache (key taken before the time loop is built)")
+
+
 TIMING_PARTS = (_work_precision, _scaling, _control, _delay_history, _planar, _flexible, _manipulator,
                 _stability_chart, _compiled_scenes, _spatial_chain, _spatial_schemes, _chain_compiled,
-                _chain_schemes_generated, _chain_ode_speed, _compiled_cosim, _batch_parameters)
+                _chain_schemes_generated, _chain_ode_speed, _compiled_cosim, _batch_parameters, _kernel_cache)
 
 
 def timings() -> dict:
