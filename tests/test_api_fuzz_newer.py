@@ -197,6 +197,15 @@ def spatial_subsystem(**changes) -> fem.SpatialSubsystem:
     return fem.SpatialSubsystem("s", **base)
 
 
+def planar_subsystem(**changes) -> fem.GlobalSubsystem:
+    valid = fe_beam().subsystem("s", ["a"])
+    base = dict(mass_matrix=valid.mass_matrix, damping_matrix=valid.damping_matrix,
+                stiffness_matrix=valid.stiffness_matrix, nodes=valid.nodes, boundary=valid.boundary,
+                inertia_integrals=valid.inertia_integrals)
+    base.update(changes)
+    return fem.GlobalSubsystem("s", **base)
+
+
 def modal_beam() -> sp.SpatialBeam:
     return sp.SpatialBeam("arm", length=1.0, mass_per_length=1.0, bending_stiffness_y=1.0, bending_stiffness_z=1.0,
                           stations={"p1": 0.2, "p2": 0.6})
@@ -233,7 +242,8 @@ CASES += [
  (Case("ctmm.fem.SpatialFiniteElementModel.floating_inertia", "node", "names", lambda v: spatial_fe().floating_inertia(v)), [3, "zz", None, Opaque()]),
  (Case("ctmm.fem.SpatialSubsystem", "mass_matrix", "matrix", lambda v: spatial_subsystem(mass_matrix=v)), MATRIX_12),
  (Case("ctmm.fem.SpatialSubsystem", "stiffness_matrix", "matrix", lambda v: spatial_subsystem(stiffness_matrix=v)), MATRIX_12),
- (Case("ctmm.fem.SpatialSubsystem", "boundary", "names", lambda v: spatial_subsystem(boundary=v)), [3, "zz", ["zz"], [1], None, Opaque(), [], ["a", "a"]]),
+ (Case("ctmm.fem.SpatialSubsystem", "boundary", "names", lambda v: spatial_subsystem(boundary=v)), [3, "ab", "zz", ["zz"], [1], None, Opaque(), [], ["a", "a"]]),
+ (Case("ctmm.fem.GlobalSubsystem", "boundary", "names", lambda v: planar_subsystem(boundary=v)), [3, "ab", ["zz"], None, Opaque(), [], ["a", "a"]]),
  (Case("ctmm.fem.SpatialSubsystem", "nodes", "mapping", lambda v: spatial_subsystem(nodes=v)), [None, 3, [], {"a": ((0, 0, 0), (0, 1, 2, 3, 4, 5))}, {"a": ((0, 0), tuple(range(6))), "b": ((1, 0, 0), tuple(range(6, 12)))}, {"a": ((0, 0, 0), tuple(range(6))), "b": ((1, 0, 0), tuple(range(5, 11)))}]),
  (Case("ctmm.fem.SpatialSubsystem", "frame_inertia", "matrix", lambda v: spatial_subsystem(frame_inertia=v)), [None, "abc", [1.0, 2.0], (-1.0, 0, 0), -np.eye(3), [math.nan, 0, 0]]),
  (Case("ctmm.fem.SpatialSubsystem", "nonlinear_force", "callable", lambda v: spatial_subsystem(nonlinear_force=v)), [1.0, "f", [], Opaque(), True]),
