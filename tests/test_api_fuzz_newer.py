@@ -188,22 +188,22 @@ def spatial_fe(**options) -> fem.SpatialFiniteElementModel:
                                          **options)
 
 
-def spatial_subsystem(**changes) -> fem.SpatialSubsystem:
-    valid = spatial_fe().subsystem("s", ["a"])
+def subsystem_with(model, kind: type, **changes):
+    """``kind`` (GlobalSubsystem or SpatialSubsystem) from the valid subsystem of ``model`` with ``changes``."""
+    valid = model.subsystem("s", ["a"])
     base = dict(mass_matrix=valid.mass_matrix, damping_matrix=valid.damping_matrix,
                 stiffness_matrix=valid.stiffness_matrix, nodes=valid.nodes, boundary=valid.boundary,
                 inertia_integrals=valid.inertia_integrals)
     base.update(changes)
-    return fem.SpatialSubsystem("s", **base)
+    return kind("s", **base)
+
+
+def spatial_subsystem(**changes) -> fem.SpatialSubsystem:
+    return subsystem_with(spatial_fe(), fem.SpatialSubsystem, **changes)
 
 
 def planar_subsystem(**changes) -> fem.GlobalSubsystem:
-    valid = fe_beam().subsystem("s", ["a"])
-    base = dict(mass_matrix=valid.mass_matrix, damping_matrix=valid.damping_matrix,
-                stiffness_matrix=valid.stiffness_matrix, nodes=valid.nodes, boundary=valid.boundary,
-                inertia_integrals=valid.inertia_integrals)
-    base.update(changes)
-    return fem.GlobalSubsystem("s", **base)
+    return subsystem_with(fe_beam(), fem.GlobalSubsystem, **changes)
 
 
 def modal_beam() -> sp.SpatialBeam:
