@@ -445,7 +445,7 @@ def simulate_batch(system: Any, parameter_sets: Any, t_final: float, dt: float, 
         try:
             sets[index] = kernel.space.check(values)
         except ModelError as exc:
-            raise ModelError(f"parameter_sets[{index}]: {exc}") from None
+            raise ModelError(f"parameter_sets[{index}]: {exc} (the set: {values!r:.80})") from None
     kernel.start(x0, v0), kernel.policy(stability_check)        # bad arguments refused before any set runs
     if divergence_bound is not None:
         validation.positive("divergence_bound", divergence_bound)
@@ -470,11 +470,12 @@ def simulate_batch(system: Any, parameter_sets: Any, t_final: float, dt: float, 
 def _parameter_sets(parameter_sets: Any) -> list[dict]:
     """A list of ``{name: number}`` from a sequence of mappings or a mapping of columns."""
     if isinstance(parameter_sets, Mapping):
-        columns = {name: np.atleast_1d(np.asarray(values, dtype=float)) for name, values in parameter_sets.items()}
+        columns = {name: np.atleast_1d(validation.finite_array(f"parameter_sets[{name!r}]", values))
+                   for name, values in parameter_sets.items()}
         lengths = {column.shape for column in columns.values()}
         if len(lengths) != 1 or len(next(iter(lengths))) != 1 or next(iter(lengths))[0] < 1:
-            raise ModelError(f"parameter_sets as a mapping must hold equally long 1-D columns {{name: [value per "
-                             f"set]}}, got shapes {sorted(lengths)}")
+            raise ModelError(f"parameter_sets as a mapping must hold equally long 1-D columns (non-empty) {{name: "
+                             f"[value per set]}}, got shapes {sorted(lengths)}: {parameter_sets!r:.80}")
         count = next(iter(lengths))[0]
         return [{name: float(column[k]) for name, column in columns.items()} for k in range(count)]
     if isinstance(parameter_sets, (str, bytes)) or not isinstance(parameter_sets, Sequence) or not parameter_sets \

@@ -130,7 +130,7 @@ class ParallelLaw(Law):
                 raise ModelError(f"ParallelLaw: every part must be a ctmm.nonlinear_laws.Law, got {law!r}")
             parts.extend(law.laws if isinstance(law, ParallelLaw) else (law,))
         if not parts:
-            raise ModelError("ParallelLaw: at least one law is needed, got none")
+            raise ModelError(f"ParallelLaw: laws must be one or more Law instances, got {list(laws)!r}")
         self.laws = tuple(parts)
         self.expressible = all(law.expressible for law in parts)
 

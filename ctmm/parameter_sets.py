@@ -65,8 +65,8 @@ def plant_and_loops(system: Any) -> tuple[PlanarModel | SpatialModel, tuple]:
     plant = getattr(system, "plant", None)
     if isinstance(plant, (PlanarModel, SpatialModel)) and hasattr(system, "loops"):
         return plant, tuple(system.loops)
-    raise ModelError(f"parameters apply to the generated kernels of planar and spatial models, with or without "
-                     f"loops; got {type(system).__name__} (1-D chains keep their numbers as constants of their "
+    raise ModelError(f"system must be a planar or spatial model, with or without loops (parameters apply to their "
+                     f"generated kernels); got {type(system).__name__} ({system!r:.60}) (1-D chains keep their numbers as constants of their "
                      "kernel: build the chain with the numbers)")
 
 
@@ -110,6 +110,8 @@ class ParameterSpace:
         self._vector = spatial_parameter_vector(plant) if isinstance(plant, SpatialModel) else vector
         self._gains = {f"{loop.name}.gain": loop.name for loop in self.loops if not loop.is_lti}
         self.names.update({name: ("", float(self.loop(loop).gain)) for name, loop in self._gains.items()})
+        if references is not None and not isinstance(references, Mapping):
+            raise ModelError(f"references must be a mapping {{loop name: number or signal}} or None, got {references!r:.80}")
         self.references = dict(references or {})
         self._signals = {loop.name: as_signal(f"references[{loop.name!r}]", self.references.get(loop.name, 0.0))
                          for loop in self.loops}

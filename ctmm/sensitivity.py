@@ -71,8 +71,8 @@ def characteristic_matrix(system: Any, names: Sequence[str]) -> LoopCharacterist
     return LoopCharacteristicMatrix(system, names)
 
 
-def _names(parameters: Any) -> tuple[str, ...]:
-    names = validation.names("parameters", parameters, allow_empty=True)
+def _names(parameters: Any, *, allow_empty: bool = True) -> tuple[str, ...]:
+    names = validation.names("parameters", parameters, allow_empty=allow_empty)
     if len(set(names)) != len(names):
         raise ModelError(f"parameters must not repeat a name, got {list(names)}")
     return tuple(names)
@@ -93,10 +93,10 @@ def parameter_values(system: Any, parameters: str | Sequence[str]) -> dict[str, 
     from .sensitivity_spatial import is_spatial_system, spatial_parameter_values
 
     if is_planar_system(system):
-        return planar_parameter_values(system, _names(parameters))
+        return planar_parameter_values(system, _names(parameters, allow_empty=False))
     if is_spatial_system(system):
-        return spatial_parameter_values(system, _names(parameters))
-    model = characteristic_matrix(system, _names(parameters))
+        return spatial_parameter_values(system, _names(parameters, allow_empty=False))
+    model = characteristic_matrix(system, _names(parameters, allow_empty=False))
     return {p.name: p.value for p in model.parameters}
 
 
@@ -371,7 +371,10 @@ def _loop_terms(model: LoopCharacteristicMatrix, loop: int, s: complex) -> tuple
     return complex(L), complex(L_s), L_p
 
 
-def _loop_index(model: LoopCharacteristicMatrix, loop: str) -> int:
+def _loop_index(model: LoopCharacteristicMatrix, loop: str, system: Any) -> int:
+    if not model.loops:
+        raise ModelError(f"system must have feedback loops (a ControlledChain or ControlledModel) for the margins of "
+                         f"loop {loop!r}, got {system!r:.80}")
     for i, lp in enumerate(model.loops):
         if lp.name == loop:
             return i
@@ -382,7 +385,7 @@ def stability_margin_sensitivity(system: Any, loop: str, parameters: str | Seque
                                  omega: Any) -> PeakSensitivity:
     """``min_w |1 + L(i w)|`` of ``loop`` (refined) and its gradient (``1 / max |S|``)."""
     model = characteristic_matrix(system, _names(parameters))
-    i = _loop_index(model, loop)
+    i = _loop_index(model, loop, system)
     w = validation.frequencies("omega", omega)
 
     def distance(x: float) -> float:
@@ -443,7 +446,7 @@ def margin_sensitivity(system: ControlledChain, loop: str, parameters: str | Seq
 
     names = _names(parameters)
     model = characteristic_matrix(system, names)
-    i = _loop_index(model, loop)
+    i = _loop_index(model, loop, system)
     found = compute_margins(system, loop, omega)
     crossover: dict = {}
     pm, dm, gm = {}, {}, {}

@@ -124,10 +124,9 @@ class LoopCharacteristicMatrix:
         elif isinstance(system, ControlledChain):
             chain, loops = system.plant, tuple(system.loops)
         else:
-            raise ModelError(f"ctmm.sensitivity: the exact derivative matrices are built for a ctmm.Chain or "
-                             f"ctmm.control.ControlledChain of lumped elements and for planar models (controlled or "
-                             f"not); got {type(system).__name__} ({system!r:.80}); spatial models are not "
-                             "differentiated yet")
+            raise ModelError(f"ctmm.sensitivity: system must be a ctmm.Chain or ctmm.control.ControlledChain of "
+                             f"lumped elements, or a planar or spatial model (controlled or not), for the exact "
+                             f"derivative matrices; got {type(system).__name__} ({system!r:.80})")
         self.system = system
         self.chain = chain
         self.M, self.C, self.K, self.point_dof = assemble_matrices(chain)
@@ -202,7 +201,8 @@ class LoopCharacteristicMatrix:
         element, j = self._element(head, "parameter")
         allowed = ("mass", "damping", "stiffness") if element.is_point else ("damping", "stiffness")
         if tail not in allowed or type(element).__name__ == "Inerter":
-            raise unknown_name(f"differentiable number of {type(element).__name__} {head!r}", tail, list(allowed))
+            raise unknown_name(f"differentiable number (parameter {name!r}) of {type(element).__name__} {head!r}", tail,
+                               list(allowed))
         if element.is_point:
             d = self._unit(int(self.point_dof[j]))
         else:

@@ -274,11 +274,13 @@ def chain_simulation_sensitivity(chain: Any, parameters: str | Sequence[str], *,
                      if name.endswith(".v") else _refuse_output(name) for name in wanted])
     offsets = np.array([rest[point_of_element(chain, name[:-2])] if name.endswith(".x") else 0.0 for name in wanted])
     y = np.zeros(2 * n)
-    for values, half in ((x0 or {}), 0), ((v0 or {}), n):
-        for name, value in values.items():
+    for label, values, half in ("x0", x0, 0), ("v0", v0, n):
+        for name, value in validation.number_mapping(label, values).items():
+            if name not in masses:
+                raise unknown_name(f"{label} entry (a mass element)", name, masses)
             row = model.output_row(f"{name}.x", 1.0).real
             base = rest[point_of_element(chain, name)] if half == 0 else 0.0
-            y[half:half + n] += row * (validation.finite(f"initial value of {name!r}", value) - base)
+            y[half:half + n] += row * (value - base)
     Minv = np.linalg.inv(model.M)
     E = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ model.K, -Minv @ model.C]])
     dE = []

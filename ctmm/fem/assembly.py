@@ -19,7 +19,8 @@ from .. import validation
 from ..errors import ModelError
 from .elements import BeamElement, NodeSpring, PointMass, beam_local_matrices, beam_rotation, beam_shape_functions
 from .membrane import MembraneElement, membrane_matrices, membrane_shape_points
-from .model_parts import check_springs, checked_elements, clamped_frequencies, node_positions, number_dofs, rayleigh_pair
+from .model_parts import (check_springs, checked_elements, clamped_frequencies, known_nodes, node_positions, number_dofs,
+                          rayleigh_pair)
 from .subsystem import FloatingInertia, GlobalSubsystem
 
 __all__ = ["FiniteElementModel"]
@@ -200,10 +201,7 @@ class FiniteElementModel:
         potential : callable, optional
             ``V(u)`` [J] of ``nonlinear_force`` (:class:`~ctmm.fem.GlobalSubsystem`), for the energy.
         """
-        boundary = tuple(boundary)
-        if not boundary or boundary[0] not in self.positions:
-            raise ModelError(f"{self.name}: boundary must start with the inboard node (one of "
-                             f"{', '.join(self.positions)}), got {boundary!r}")
+        boundary = known_nodes(self.name, "boundary (the inboard node first)", boundary, self.positions, allow_empty=False)
         inertia = self.floating_inertia(boundary[0])
         o = self.positions[boundary[0]]
         nodes = {node: (tuple(self.positions[node] - o), self.dofs[node]) for node in self.positions}
@@ -214,4 +212,4 @@ class FiniteElementModel:
 
     def natural_frequencies(self, clamped: Sequence[str] = ()) -> np.ndarray:
         """Natural frequencies [rad/s] with the DOFs of the ``clamped`` nodes held (``eigh(K, M)``)."""
-        return clamped_frequencies(self.stiffness, self.mass, self.dofs, clamped)
+        return clamped_frequencies(self.name, self.stiffness, self.mass, self.dofs, clamped)

@@ -47,7 +47,7 @@ class BeamElement:
     axial_stiffness : float
         ``EA`` [N], > 0.
     mass_per_length : float
-        ``rhoA`` [kg/m], >= 0.
+        ``rhoA`` [kg/m], > 0 (a massless beam would leave its rotation DOFs without inertia).
     axial_force : float
         Constant axial force ``N`` [N] (tension > 0) of the geometric stiffness; default 0 (off).
     """
@@ -71,7 +71,7 @@ class BeamElement:
                                                                           self.bending_stiffness))
         object.__setattr__(self, "axial_stiffness", validation.positive(f"{n}: axial_stiffness",
                                                                         self.axial_stiffness))
-        object.__setattr__(self, "mass_per_length", validation.nonnegative(f"{n}: mass_per_length",
+        object.__setattr__(self, "mass_per_length", validation.positive(f"{n}: mass_per_length",
                                                                            self.mass_per_length))
         object.__setattr__(self, "axial_force", validation.finite(f"{n}: axial_force", self.axial_force))
 
@@ -85,7 +85,7 @@ class PointMass:
     name : str
     node : str
     mass : float
-        [kg], >= 0.
+        [kg], > 0.
     inertia : float
         Rotary inertia about the node [kg m^2], >= 0.  On a node without a rotation DOF it turns with
         the subsystem's floating frame.
@@ -99,7 +99,7 @@ class PointMass:
     def __post_init__(self) -> None:
         validation.name("element", self.name)
         node_name(self.name, "node", self.node)
-        object.__setattr__(self, "mass", validation.nonnegative(f"{self.name}: mass", self.mass))
+        object.__setattr__(self, "mass", validation.positive(f"{self.name}: mass", self.mass))
         object.__setattr__(self, "inertia", validation.nonnegative(f"{self.name}: inertia", self.inertia))
 
 
@@ -143,11 +143,15 @@ def beam_local_matrices(length: float, bending_stiffness: float, axial_stiffness
     Parameters
     ----------
     length : float
-        [m].
+        [m], > 0.
     bending_stiffness, axial_stiffness, mass_per_length, axial_force : float
-        ``EI`` [N m^2], ``EA`` [N], ``rhoA`` [kg/m], ``N`` [N].
+        ``EI`` [N m^2] > 0, ``EA`` [N] > 0, ``rhoA`` [kg/m] >= 0, ``N`` [N] finite.
     """
-    L, EI, EA, rA = length, bending_stiffness, axial_stiffness, mass_per_length
+    L = validation.positive("beam_local_matrices: length", length)
+    EI = validation.positive("beam_local_matrices: bending_stiffness", bending_stiffness)
+    EA = validation.positive("beam_local_matrices: axial_stiffness", axial_stiffness)
+    rA = validation.nonnegative("beam_local_matrices: mass_per_length", mass_per_length)
+    axial_force = validation.finite("beam_local_matrices: axial_force", axial_force)
     K = np.zeros((6, 6))
     M = np.zeros((6, 6))
     G = np.zeros((6, 6))

@@ -11,7 +11,7 @@ from .. import validation
 from ..errors import ModelError
 
 __all__ = ["node_name", "node_positions", "checked_elements", "rayleigh_pair", "number_dofs", "check_springs",
-           "square_matrix", "clamped_frequencies"]
+           "square_matrix", "clamped_frequencies", "real_vector", "known_nodes"]
 
 
 def node_name(owner: str, label: str, value: object) -> str:
@@ -21,6 +21,29 @@ def node_name(owner: str, label: str, value: object) -> str:
     return value
 
 
+def real_vector(label: str, value: Any) -> np.ndarray:
+    """``value`` as a finite float array; booleans (also inside a list or tuple) are refused, not read as 0/1."""
+    items = value if isinstance(value, (list, tuple)) else (value,)
+    if any(isinstance(item, (bool, np.bool_)) for item in items):
+        raise ModelError(f"{label} must be real numbers (not booleans), got {value!r}")
+    return validation.finite_array(label, value)
+
+
+def known_nodes(owner: str, label: str, value: Any, positions: Mapping[str, np.ndarray], *,
+                allow_empty: bool) -> tuple[str, ...]:
+    """``value`` (a list or tuple of node names) as a tuple of known, distinct nodes, else :class:`ModelError`."""
+    allowed = f"a list of node names (one of {list(positions)})"
+    if not isinstance(value, (list, tuple)):
+        raise ModelError(f"{owner}: {label} must be {allowed}, got {value!r}")
+    for node in value:
+        if not isinstance(node, str) or node not in positions:
+            raise ModelError(f"{owner}: {label} must be {allowed}; {node!r} in {value!r} is not a node")
+    if len(set(value)) != len(value) or (not value and not allow_empty):
+        raise ModelError(f"{owner}: {label} must be {allowed}, {'distinct' if value else 'at least one'}, "
+                         f"got {value!r}")
+    return tuple(value)
+
+
 def node_positions(name: str, nodes: Any, dimension: int) -> dict[str, np.ndarray]:
     """Validated undeformed node positions ``{node: (dimension,) array}`` [m]."""
     shape = "(x, y)" if dimension == 2 else "(x, y, z)"
@@ -28,36 +51,39 @@ def node_positions(name: str, nodes: Any, dimension: int) -> dict[str, np.ndarra
         raise ModelError(f"{name}: nodes must be a non-empty mapping {{name: {shape}}}, got {nodes!r}")
     positions: dict[str, np.ndarray] = {}
     for node, xyz in nodes.items():
-        validation.name(f"{name}: node", node)
-        p = validation.finite_array(f"{name}: node {node!r}", xyz)
+        validation.name(f"{name}: nodes key {node!r}:", node)
+        if isinstance(xyz, (str, bytes)):
+            raise ModelError(f"{name}: nodes[{node!r}] must be {shape} [m], got {xyz!r}")
+        p = real_vector(f"{name}: nodes[{node!r}]", xyz)
         if p.shape != (dimension,):
-            raise ModelError(f"{name}: node {node!r} must be {shape} [m], got {xyz!r}")
+            raise ModelError(f"{name}: nodes[{node!r}] must be {shape} [m], got {xyz!r}")
         positions[node] = p
     return positions
 
 
 def checked_elements(name: str, elements: Sequence[Any], allowed: tuple, nodes_of: Callable[[Any], tuple],
                      positions: Mapping[str, np.ndarray]) -> tuple:
-    """The elements as a tuple: each of an ``allowed`` type, names unique, nodes known."""
+    """The elements as a non-empty tuple: each of an ``allowed`` type, names unique, nodes known."""
+    kinds = ", ".join(t.__name__ for t in allowed)
+    if not isinstance(elements, (list, tuple)) or not elements:
+        raise ModelError(f"{name}: elements must be a non-empty list of {kinds}, got {elements!r}")
     elements = tuple(elements)
     seen = set()
     for e in elements:
         if not isinstance(e, allowed):
-            kinds = ", ".join(t.__name__ for t in allowed)
             raise ModelError(f"{name}: elements must be {kinds}, got {e!r}")
         if e.name in seen:
             raise ModelError(f"{name}: duplicate element name {e.name!r}")
         seen.add(e.name)
         for node in nodes_of(e):
             if node not in positions:
-                raise ModelError(f"{name}: element {e.name!r} names unknown node {node!r}; nodes: "
-                                 f"{', '.join(positions)}")
+                raise ModelError(f"{name}: element {e.name!r} names unknown node {node!r}; nodes: {list(positions)}")
     return elements
 
 
 def rayleigh_pair(name: str, rayleigh: Any) -> np.ndarray:
     """``(a [1/s], b [s])`` >= 0 of ``C += a M + b K``."""
-    ray = validation.finite_array(f"{name}: rayleigh", rayleigh)
+    ray = real_vector(f"{name}: rayleigh", rayleigh)
     if ray.shape != (2,) or np.any(ray < 0):
         raise ModelError(f"{name}: rayleigh must be (a [1/s], b [s]) >= 0, got {rayleigh!r}")
     return ray
@@ -96,11 +122,12 @@ def square_matrix(owner: str, label: str, value: Any, n: int | None) -> np.ndarr
     return a
 
 
-def clamped_frequencies(stiffness: np.ndarray, mass: np.ndarray, dofs: Mapping[str, tuple], clamped: Sequence[str]
-                        ) -> np.ndarray:
+def clamped_frequencies(owner: str, stiffness: np.ndarray, mass: np.ndarray, dofs: Mapping[str, tuple],
+                        clamped: Sequence[str]) -> np.ndarray:
     """Natural frequencies [rad/s] with the DOFs of the ``clamped`` nodes held (``eigh(K, M)``)."""
     from scipy.linalg import eigh
 
+    clamped = known_nodes(owner, "clamped", clamped, dofs, allow_empty=True)
     held = {i for node in clamped for i in dofs[node]}
     keep = [i for i in range(stiffness.shape[0]) if i not in held]
     values = eigh(stiffness[np.ix_(keep, keep)], mass[np.ix_(keep, keep)], eigvals_only=True)

@@ -15,7 +15,8 @@ import numpy as np
 
 from .. import validation
 from ..errors import ModelError
-from .model_parts import check_springs, checked_elements, clamped_frequencies, node_positions, number_dofs, rayleigh_pair
+from .model_parts import (check_springs, checked_elements, clamped_frequencies, known_nodes, node_positions, number_dofs,
+                          rayleigh_pair)
 from .spatial_elements import (GAUSS_POINTS, GAUSS_WEIGHTS, SpatialBeamElement, SpatialNodeSpring, SpatialPointMass,
                                node_rotation_block, spatial_beam_axes, spatial_beam_local_matrices, spatial_beam_shapes)
 from .spatial_subsystem import SpatialInertia, SpatialSubsystem
@@ -159,10 +160,7 @@ class SpatialFiniteElementModel:
         nonlinear_force, frame_nodes, potential
             As :class:`~ctmm.fem.SpatialSubsystem`.
         """
-        boundary = tuple(boundary)
-        if not boundary or boundary[0] not in self.positions:
-            raise ModelError(f"{self.name}: boundary must start with the inboard node (one of "
-                             f"{', '.join(self.positions)}), got {boundary!r}")
+        boundary = known_nodes(self.name, "boundary (the inboard node first)", boundary, self.positions, allow_empty=False)
         inertia = self.floating_inertia(boundary[0])
         o = self.positions[boundary[0]]
         nodes = {node: (tuple(self.positions[node] - o), self.dofs[node]) for node in self.positions}
@@ -173,4 +171,4 @@ class SpatialFiniteElementModel:
 
     def natural_frequencies(self, clamped: Sequence[str] = ()) -> np.ndarray:
         """Natural frequencies [rad/s] with the DOFs of the ``clamped`` nodes held (``eigh(K, M)``)."""
-        return clamped_frequencies(self.stiffness, self.mass, self.dofs, clamped)
+        return clamped_frequencies(self.name, self.stiffness, self.mass, self.dofs, clamped)

@@ -109,10 +109,13 @@ def lumped_spatial_inertia(owner: str, M: np.ndarray, positions: np.ndarray, nod
 
 def _inertia_tensor(owner: str, value: Any) -> np.ndarray:
     a = validation.finite_array(f"{owner}: frame_inertia", value)
+    negative = a.shape == (3,) and bool(np.any(a < 0.0))       # principal values: exact signs
     a = np.diag(a) if a.shape == (3,) else a
-    if a.shape != (3, 3) or np.max(np.abs(a - a.T), initial=0.0) > 1e-12 * max(np.max(np.abs(a)), 1e-300):
-        raise ModelError(f"{owner}: frame_inertia must be 3 principal values or a symmetric 3 x 3 matrix [kg m^2], "
-                         f"got {value!r}")
+    scale = max(np.max(np.abs(a), initial=0.0), 1e-300)
+    if negative or a.shape != (3, 3) or np.max(np.abs(a - a.T), initial=0.0) > 1e-12 * scale \
+            or np.min(np.linalg.eigvalsh(a)) < -1e-12 * scale:
+        raise ModelError(f"{owner}: frame_inertia must be 3 principal values >= 0 or a symmetric positive "
+                         f"semi-definite 3 x 3 matrix [kg m^2], got {value!r}")
     return a
 
 
@@ -160,24 +163,24 @@ class SpatialSubsystem:
 
     def __post_init__(self) -> None:
         owner = validation.name("element", self.name)
-        M = square_matrix(owner, "mass", self.mass_matrix, None)
+        M = square_matrix(owner, "mass_matrix", self.mass_matrix, None)
         n = M.shape[0]
-        C = square_matrix(owner, "damping", self.damping_matrix, n)
-        K = square_matrix(owner, "stiffness", self.stiffness_matrix, n)
+        C = square_matrix(owner, "damping_matrix", self.damping_matrix, n)
+        K = square_matrix(owner, "stiffness_matrix", self.stiffness_matrix, n)
         if not isinstance(self.nodes, Mapping) or not self.nodes:
             raise ModelError(f"{owner}: nodes must be a non-empty mapping {{name: ((x, y, z), dofs)}}, got {self.nodes!r}")
         owners, positions, node_dofs = [None] * n, {}, {}
         for node, spec in self.nodes.items():
-            validation.name(f"{owner}: node", node)
+            validation.name(f"{owner}: nodes key {node!r}:", node)
             try:
                 xyz, dofs = spec
-                xyz = validation.finite_array(f"{owner}: node {node!r} position", xyz)
+                xyz = validation.finite_array(f"{owner}: nodes[{node!r}] position", xyz)
                 dofs = tuple(int(i) for i in dofs)
             except (TypeError, ValueError) as exc:
-                raise ModelError(f"{owner}: node {node!r} must be ((x, y, z), (ix, iy, iz[, irx, iry, irz])), got "
+                raise ModelError(f"{owner}: nodes[{node!r}] must be ((x, y, z), (ix, iy, iz[, irx, iry, irz])), got "
                                  f"{spec!r}") from exc
             if xyz.shape != (3,) or len(dofs) not in (3, 6) or any(not 0 <= i < n for i in dofs):
-                raise ModelError(f"{owner}: node {node!r} must be ((x, y, z), 3 or 6 DOF indices in 0..{n - 1}), got "
+                raise ModelError(f"{owner}: nodes[{node!r}] must be ((x, y, z), 3 or 6 DOF indices in 0..{n - 1}), got "
                                  f"{spec!r}")
             for i in dofs:
                 if owners[i] is not None:
@@ -185,7 +188,11 @@ class SpatialSubsystem:
                 owners[i] = node
             positions[node], node_dofs[node] = xyz, dofs
         if any(o is None for o in owners):
-            raise ModelError(f"{owner}: DOFs {[i for i, o in enumerate(owners) if o is None]} belong to no node")
+            raise ModelError(f"{owner}: nodes must hold every DOF 0..{n - 1}; DOFs "
+                             f"{[i for i, o in enumerate(owners) if o is None]} belong to no node (nodes: {list(node_dofs)})")
+        if not isinstance(self.boundary, (list, tuple)):
+            raise ModelError(f"{owner}: boundary must be a list of node names, the inboard one first; got "
+                             f"{self.boundary!r:.80}, nodes: {', '.join(node_dofs)}")
         boundary = tuple(self.boundary)
         if not boundary or any(b not in node_dofs for b in boundary) or len(set(boundary)) != len(boundary):
             raise ModelError(f"{owner}: boundary must name distinct nodes, the inboard one first; got {self.boundary!r}, "

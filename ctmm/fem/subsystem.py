@@ -221,6 +221,9 @@ class GlobalSubsystem(DeformableBody):
             node_dofs[node] = dofs
         if np.any(kinds < 0):
             raise ModelError(f"{owner}: DOFs {np.flatnonzero(kinds < 0).tolist()} belong to no node")
+        if not isinstance(self.boundary, (list, tuple)):
+            raise ModelError(f"{owner}: boundary must be a list of node names, the inboard one first; got "
+                             f"{self.boundary!r:.80}, nodes: {', '.join(node_dofs)}")
         boundary = tuple(self.boundary)
         if not boundary or any(b not in node_dofs for b in boundary) or len(set(boundary)) != len(boundary):
             raise ModelError(f"{owner}: boundary must name distinct nodes, the inboard one first; got {self.boundary!r}, "

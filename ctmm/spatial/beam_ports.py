@@ -30,6 +30,7 @@ import numpy as np
 
 from .. import validation
 from ..errors import ModelError
+from .beam import SpatialBeam
 
 __all__ = ["beam_sensor_rows", "beam_actuator_rows", "deformed_point", "patch_actuator", "patch_sensor",
            "ACTUATOR_AXES"]
@@ -74,7 +75,10 @@ def beam_actuator_rows(beam: Any) -> list[tuple[str, int, tuple, str, str]]:
 
 
 def _patch_points(beam: Any, first: str, second: str, axis: str) -> None:
-    if axis not in ("x", "y", "z"):
+    if not (isinstance(beam, SpatialBeam) or hasattr(beam, "spatial_terms")):   # or a ctmm.fem.SpatialSubsystem
+        raise ModelError(f"a patch beam must be a ctmm.spatial.SpatialBeam (or a ctmm.fem.SpatialSubsystem), got "
+                         f"{beam!r:.80}")
+    if not isinstance(axis, str) or axis not in ("x", "y", "z"):
         raise ModelError(f"{beam.name}: a patch axis must be 'x' (twist), 'y' (bending in the x-z plane) or 'z' "
                          f"(bending in the x-y plane), got {axis!r}")
     for label, point in (("first", first), ("second", second)):
@@ -110,6 +114,7 @@ def patch_sensor(beam: Any, first: str, second: str, *, axis: str = "z", gain: f
     the twist), for :class:`ctmm.control.Feedback`'s ``sensor``."""
     _patch_points(beam, first, second, axis)
     k = validation.finite(f"{beam.name}: patch sensor gain", gain)
+    rate = validation.flag(f"{beam.name}: patch sensor rate", rate)
     suffix = f"theta_{axis}_rate" if rate else f"theta_{axis}"
     return [(f"{beam.name}.{first}.{suffix}", -k), (f"{beam.name}.{second}.{suffix}", k)]
 

@@ -20,6 +20,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ..articulated import Articulated, Tree, articulated_sweep
+from ..errors import ModelError
 from ..ops import NUMPY, Ops, batch_column, batch_scalars
 from ..protocol import BodyTerms, JointTerms
 from .frames import axis_rotation, block_diagonal, column, constant, cross, entry, quaternion_rotation, skew
@@ -325,6 +326,8 @@ class SpatialScene:
     """
 
     def __init__(self, model: SpatialModel) -> None:
+        if not isinstance(model, SpatialModel):
+            raise ModelError(f"model must be a SpatialModel, got {model!r:.80}")
         self.model = model
         self.tree = Tree(model.parent, tuple(None if joint.parent is None else joint.point for joint in model.joints),
                          dimension=6)

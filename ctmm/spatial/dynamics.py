@@ -76,6 +76,7 @@ def solve(model: SpatialModel, q: Any, v: Any, t: float = 0.0, inputs: Mapping[s
     t = validation.finite("t", t)
     if inputs is not None and not isinstance(inputs, Mapping):
         raise ModelError(f"inputs must be a mapping {{input name: number or f(t)}}, got {inputs!r:.80}")
+    wrenches = _checked_wrenches(model, wrenches)
     try:
         solution = scene.solve(q, v, t, inputs, wrenches)
     except SingularPivotError as exc:
@@ -95,6 +96,33 @@ def solve(model: SpatialModel, q: Any, v: Any, t: float = 0.0, inputs: Mapping[s
                               "(a singular pivot: a joint whose free directions carry no inertia)", time=t,
                               element=model.name)
     return SpatialSolution(rates, forces, points)
+
+
+def _checked_wrenches(model: SpatialModel, wrenches: Any) -> Mapping[int, Any] | None:
+    """``wrenches`` of :func:`solve` checked: ``{body index: [(point, [f ; m]) or (point, [f ; m], "body")]}``
+    with a known body index, a finite (3,) point [m] and six finite load components [N, N m], else
+    :class:`ModelError` naming the entry."""
+    if wrenches is None:
+        return None
+    allowed = (f"a mapping {{body index 0..{len(model.bodies) - 1}: list of (point (3,) [m], [f ; m] (6, 1) "
+               "[N, N m]) or (point, [f ; m], 'body')}")
+    if not isinstance(wrenches, Mapping):
+        raise ModelError(f"wrenches must be {allowed}, got {wrenches!r:.80}")
+    for body, entries in wrenches.items():
+        if isinstance(body, bool) or not isinstance(body, (int, np.integer)) or not 0 <= body < len(model.bodies):
+            raise ModelError(f"wrenches must be {allowed}; the key {body!r} is not a body index")
+        if not isinstance(entries, (list, tuple)):
+            raise ModelError(f"wrenches[{body}] must be a list of (point, [f ; m]) entries, got {entries!r:.80}")
+        for entry in entries:
+            if not (isinstance(entry, tuple) and len(entry) in (2, 3) and (len(entry) == 2 or entry[2] == "body")):
+                raise ModelError(f"wrenches[{body}] entries must be (point, [f ; m]) or (point, [f ; m], 'body'), "
+                                 f"got {entry!r:.80}")
+            point = validation.finite_array(f"wrenches[{body}] point", entry[0])
+            load = validation.finite_array(f"wrenches[{body}] [f ; m]", entry[1])
+            if point.shape != (3,) or load.shape[-2:] != (6, 1):
+                raise ModelError(f"wrenches[{body}] entries must be (point (3,), [f ; m] (6, 1) or (B, 6, 1)), got "
+                                 f"shapes {point.shape} and {load.shape}")
+    return wrenches
 
 
 def _unbatch(array: np.ndarray, q: Any) -> np.ndarray:
@@ -121,7 +149,7 @@ def state_rates(model: SpatialModel, x: np.ndarray, t: float, inputs: Mapping[st
     size = model.n_positions + model.n_velocities
     if isinstance(x, (str, bytes, bool, Mapping)) or x is None or np.shape(x)[-1:] != (size,):
         raise ModelError(f"x must be the state [q ; v]: {size} numbers (or (B, {size})), got {x!r:.80}")
-    x = np.asarray(x, dtype=float)
+    x = validation.finite_array("x (the state [q ; v])", x)
     q, v = x[..., :model.n_positions], x[..., model.n_positions:]
     rates = solve(model, q, v, t, inputs).velocity_rates
     out = np.concatenate([model.position_rates(q if q.ndim == 2 else q[None], v if v.ndim == 2 else v[None]),

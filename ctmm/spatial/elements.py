@@ -88,6 +88,8 @@ def _per_coordinate(label: str, value: Any, count: int, *, nonnegative: bool = F
 
 def _matrix_law(label: str, value: Any, size: int) -> np.ndarray:
     array = validation.finite_array(label, value)
+    if array.ndim <= 1 and np.any(array < 0.0):             # a number or a diagonal: exact signs, no round-off
+        raise ModelError(f"{label} must be >= 0 (a number or a diagonal), got {value!r:.80}")
     if array.ndim == 0:
         array = float(array) * np.eye(size)
     elif array.shape == (size,):
@@ -163,7 +165,7 @@ class SpatialBody:
                              f"got {self.points!r}")
         points = {"origin": np.zeros(3)}
         for key, value in self.points.items():
-            validation.name(f"{self.name}: point", key)
+            validation.name(f"{self.name}: points key {key!r}:", key)
             points[key] = _vector(f"{self.name}: points[{key!r}]", value)
             if key == "origin" and np.any(points[key]):
                 raise ModelError(f"{self.name}: points['origin'] is the body origin (its inboard point) and must "
@@ -431,8 +433,11 @@ class Load:
         if not isinstance(self.point, str) or not self.point:
             raise ModelError(f"{self.name}: point must be a point name of body {self.body!r}, got {self.point!r}")
         object.__setattr__(self, "axes", validation.option(f"{self.name}: axes", self.axes, ("world", "body")))
-        object.__setattr__(self, "force", _signals(f"{self.name}: force", self.force, 3))
-        object.__setattr__(self, "moment", _signals(f"{self.name}: moment", self.moment, 3))
+        for label in ("force", "moment"):
+            if getattr(self, label) is None:
+                raise ModelError(f"{self.name}: {label} must be 3 signals (numbers or f(t)); for none give "
+                                 f"(0, 0, 0), got None")
+            object.__setattr__(self, label, _signals(f"{self.name}: {label}", getattr(self, label), 3))
 
     def values(self, t: float) -> np.ndarray:
         """``[force ; moment]`` (6,) at time ``t`` [N, N m]."""

@@ -41,7 +41,7 @@ def _initial(model: SpatialModel, label: str, value: Any, names: Sequence[str], 
     array = validation.finite_array(label, value)
     if array.shape != (len(names),):
         raise ModelError(f"{label} must be a mapping {{name: value}} or {len(names)} numbers ({', '.join(names)}), "
-                         f"got shape {array.shape}")
+                         f"got {value!r:.80} (shape {array.shape})")
     return array.astype(float)
 
 

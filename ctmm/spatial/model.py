@@ -90,7 +90,8 @@ class SpatialModel:
             else:
                 joints[element.name] = element
         if not bodies:
-            raise ModelError(f"{name}: a spatial model needs at least one SpatialBody or SpatialBeam")
+            raise ModelError(f"{name}: elements need at least one SpatialBody or SpatialBeam (a spatial model has a "
+                             f"body), got {elements!r:.120}")
         inboard: dict[str, object] = {}
         for joint in joints.values():
             if joint.child not in bodies:
@@ -108,7 +109,8 @@ class SpatialModel:
         missing = [b for b in bodies if b not in inboard]
         if missing:
             raise ModelError(f"{name}: bodies {missing} have no inboard joint; hang every body on a parent body or on "
-                             "the ground (parent=None) through a joint (Weld, Free or Elastic6 for boundaries)")
+                             "the ground (parent=None) through a joint (Weld, Free or Elastic6 for boundaries); "
+                             f"elements: {elements!r:.120}")
         order: list[str] = []
         placed: set[str] = set()
         pending = list(bodies)
