@@ -6,12 +6,10 @@ from __future__ import annotations
 
 import json
 
-from ctmm import scenario
 
-
-def test_flexible_manipulator_3d_quick_meets_its_bounds(tmp_path):
+def test_flexible_manipulator_3d_quick_meets_its_bounds(quick_scenario):
     name = "flexible_manipulator_3d"
-    summary = scenario.run_scenario(name, tmp_path, quick=True)
+    summary, tmp_path = quick_scenario(name)
     data = json.loads((tmp_path / f"{name}.json").read_text())
     figures = data["accuracy"]
     assert data["passed"] and [f["bound"] for f in figures] == [0.1, 1e-8, 1e-8], figures

@@ -16,8 +16,8 @@ def test_no_scenario_module_is_broken():
 
 
 @pytest.mark.parametrize("name", NAMES)
-def test_scenario_quick_run(name, tmp_path):
-    summary = scenario.run_scenario(name, tmp_path, quick=True)
+def test_scenario_quick_run(name, quick_scenario):
+    summary, tmp_path = quick_scenario(name)
     data = json.loads((tmp_path / f"{name}.json").read_text())
     assert data["scenario"] == name
     assert "wall_time_s" in data, f"{name}: summary lacks 'wall_time_s'"

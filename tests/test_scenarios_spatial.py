@@ -11,8 +11,8 @@ from ctmm import scenario
 
 
 @pytest.mark.parametrize("name", ["spatial_chain", "branch_system"])
-def test_spatial_scenario_quick_meets_its_bounds(name, tmp_path):
-    summary = scenario.run_scenario(name, tmp_path, quick=True)
+def test_spatial_scenario_quick_meets_its_bounds(name, quick_scenario):
+    summary, tmp_path = quick_scenario(name)
     data = json.loads((tmp_path / f"{name}.json").read_text())
     assert data["passed"] and len(data["accuracy"]) == 2
     for figure in data["accuracy"]:
@@ -33,11 +33,11 @@ def test_reference_conversion_puts_quaternion_scalar_last():
     np.testing.assert_array_equal(converted[4], q0[4])
 
 
-def test_elastic_hinge_control_quick_meets_its_bounds(tmp_path):
+def test_elastic_hinge_control_quick_meets_its_bounds(quick_scenario):
     """theta_z of the uncontrolled and PD runs against the reference (1e-6 rad), the delay margin a
     crossing of the reference's characteristic determinant (1e-8), the PD really acting."""
     name = "spatial_elastic_hinge_control"
-    summary = scenario.run_scenario(name, tmp_path, quick=True)
+    summary, tmp_path = quick_scenario(name)
     data = json.loads((tmp_path / f"{name}.json").read_text())
     assert data["passed"] and len(data["accuracy"]) == 3
     for figure in data["accuracy"]:
@@ -51,10 +51,10 @@ def test_elastic_hinge_control_quick_meets_its_bounds(tmp_path):
     assert data["wall_time_s"] > 0 and data["reference_wall_time_s"] > 0
 
 
-def test_robot_arm_quick_meets_its_bounds(tmp_path):
+def test_robot_arm_quick_meets_its_bounds(quick_scenario):
     """PD joint control of a 3-D arm, real-time and delayed: Python RK4 against the Newton-Euler reference
     (1e-6 rad), generated RK4 equal to it (1e-10), Newmark within 1e-4 rad; the arm really moves."""
-    summary = scenario.run_scenario("spatial_robot_arm", tmp_path, quick=True)
+    summary, tmp_path = quick_scenario("spatial_robot_arm")
     data = json.loads((tmp_path / "spatial_robot_arm.json").read_text())
     figures = data["accuracy"]
     assert data["passed"] and all(f["value"] <= f["bound"] for f in figures), figures
