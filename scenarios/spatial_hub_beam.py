@@ -43,6 +43,8 @@ from ctmm.reference.spatial_beam_lagrange import HubBeam, SpatialBeamLagrange
 from ctmm.scenario import accuracy
 from ctmm.spatial.ports import sensor_values
 
+from .planar_common import save_figure
+
 NAME = "spatial_hub_beam"
 DESCRIPTION = ("Hub-beam solved with the spatial beam (seed 003 6.6.1, Figs. 6.3-6.8): SpatialBeam with axial "
                "mode, generated-kernel RK4 vs assumed-modes Lagrange; hub rate, longitudinal and transverse tip "
@@ -192,10 +194,7 @@ def run_case(output_dir: Path, quick: bool, tip_mass: float | None, name: str) -
         axis.plot(t, scale * expected, "k--", lw=1, label="Lagrange (reference)")
         axis.set(xlabel="t [s]", ylabel=ylabel, title=title)
         axis.legend(fontsize="small")
-    fig.tight_layout()
-    Path(output_dir).mkdir(parents=True, exist_ok=True)
-    fig.savefig(Path(output_dir) / f"{name}.png", dpi=100)
-    plt.close(fig)
+    save_figure(fig, output_dir, name)
     return {
         "accuracy": figures,
         "hub_rate_max_error_rad_s": errors["hub_rate"][0],

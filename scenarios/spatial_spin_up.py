@@ -41,6 +41,8 @@ from ctmm.reference.spatial_beam_lagrange import HubBeam, SpatialBeamLagrange
 from ctmm.scenario import accuracy
 from ctmm.spatial.ports import sensor_values
 
+from .planar_common import save_figure
+
 NAME = "spatial_spin_up"
 DESCRIPTION = ("Spatial KRB spin-up with out-of-plane gravity: SpatialBeam TMM + RK4 with / without geometric "
                "stiffening vs the assumed-modes Lagrange model; in-plane and out-of-plane tip deflection")
@@ -145,10 +147,7 @@ def run(output_dir: Path, quick: bool = False) -> dict:
         bound = 2.5 * max(np.max(np.abs(on["tip"][:, k])), 0.1)
         axis.set(xlabel="t [s]", ylabel="[m]", title=title, ylim=(-bound, bound))
         axis.legend(fontsize="small")
-    fig.tight_layout()
-    Path(output_dir).mkdir(parents=True, exist_ok=True)
-    fig.savefig(Path(output_dir) / f"{NAME}.png", dpi=100)
-    plt.close(fig)
+    save_figure(fig, output_dir, NAME)
     return {
         "accuracy": figures,
         "in_plane_tip_max_error_m": errors["in-plane"][0],
