@@ -107,8 +107,12 @@ class GlobalLoop:
 
 
 @dataclass(frozen=True)
-class _Term:
-    """A loop reduced to numbers: force ``-gain * actuator * (sensor · y_p(t - delay))``."""
+class LoopTerm:
+    """A loop reduced to numbers: force ``-gain * actuator * (sensor · y_p(t - delay))``.
+
+    ``order`` is the derivative order ``p`` of the sensed quantity, ``delay`` in s, ``actuator`` and
+    ``sensor`` are vectors over the chain's masses (``+1`` / ``-1`` entries).
+    """
 
     order: int
     gain: float
@@ -121,7 +125,8 @@ class _Term:
         return self.gain * np.outer(self.actuator, self.sensor)
 
 
-def _terms(chain: GlobalChain, loops: Sequence[GlobalLoop]) -> list[_Term]:
+def loop_terms(chain: GlobalChain, loops: Sequence[GlobalLoop]) -> list[LoopTerm]:
+    """The loops of ``chain`` as :class:`LoopTerm` vectors (checked: a list or tuple of :class:`GlobalLoop`)."""
     if isinstance(loops, GlobalLoop) or not isinstance(loops, (list, tuple)) or not all(
             isinstance(loop, GlobalLoop) for loop in loops):
         raise ModelError(f"loops must be a list or tuple of GlobalLoop, got {loops!r}")
@@ -134,7 +139,7 @@ def _terms(chain: GlobalChain, loops: Sequence[GlobalLoop]) -> list[_Term]:
             b[mass_index(chain, f"loops[{number}].reaction_mass", loop.reaction_mass)] -= 1.0
         if loop.relative_to is not None:
             c[mass_index(chain, f"loops[{number}].relative_to", loop.relative_to)] -= 1.0
-        terms.append(_Term(loop.order, loop.gain, loop.delay, b, c))
+        terms.append(LoopTerm(loop.order, loop.gain, loop.delay, b, c))
     return terms
 
 
@@ -146,7 +151,7 @@ def closed_loop_dynamic_stiffness(chain: GlobalChain, loops: Sequence[GlobalLoop
     M, C, K = assemble(chain)
     z = s[..., None, None]
     D = z ** 2 * M + z * C + K + 0j
-    for term in _terms(chain, loops):
+    for term in loop_terms(chain, loops):
         D = D + term.matrix * (z ** term.order * np.exp(-z * term.delay))
     return D
 
@@ -196,7 +201,7 @@ def closed_loop_roots(chain: GlobalChain, loops: Sequence[GlobalLoop]) -> np.nda
         If a loop has a non-zero delay (the spectrum is then infinite; use
         :func:`closed_loop_characteristic`).
     """
-    terms = _terms(chain, loops)
+    terms = loop_terms(chain, loops)
     for number, term in enumerate(terms):
         if term.delay != 0.0:
             raise ModelError(f"closed_loop_roots needs delay-free loops, loops[{number}].delay = "
@@ -209,7 +214,7 @@ def closed_loop_roots(chain: GlobalChain, loops: Sequence[GlobalLoop]) -> np.nda
     return sort_roots(roots[np.isfinite(roots)])
 
 
-def _effective_matrices(chain: GlobalChain, terms: list[_Term]):
+def _effective_matrices(chain: GlobalChain, terms: list[LoopTerm]):
     """M, C, K with every zero-delay loop folded in by derivative order."""
     matrices = list(assemble(chain))            # M, C, K -> orders 2, 1, 0
     for term in terms:
@@ -266,7 +271,7 @@ class DelaySolution:
     acceleration of a neutral system, which may jump there).
     """
 
-    def __init__(self, chain: GlobalChain, terms: list[_Term], t_final: float,
+    def __init__(self, chain: GlobalChain, terms: list[LoopTerm], t_final: float,
                  history: HistoryFunction, force: Callable[[float], np.ndarray]) -> None:
         self.chain, self.t_final = chain, t_final
         self._history, self._force = history, force
@@ -385,7 +390,7 @@ def method_of_steps(chain: GlobalChain, loops: Sequence[GlobalLoop], t_final: fl
     """
     t_final = positive("t_final", t_final)
     rtol, atol = positive("rtol", rtol), positive("atol", atol)
-    terms = _terms(chain, loops)
+    terms = loop_terms(chain, loops)
     x0 = _vector(chain, "x0", x0)
     v0 = _vector(chain, "v0", v0)
     force = force_function(chain, force_fn)

@@ -9,7 +9,8 @@ the textbook acceleration-form Newmark method on the global matrices ``M, C, K``
 acting as ``+u_l`` on the actuator mass (``-u_l`` on a reaction mass), treated by the rule
 documented in :mod:`ctmm.control.simulate` -- and nothing else of ctmm (it imports no TMM
 code, only :mod:`ctmm.reference.chain`, :mod:`ctmm.reference.delay_chain`'s
-:class:`~ctmm.reference.delay_chain.GlobalLoop`, :mod:`ctmm.errors` and
+:class:`~ctmm.reference.delay_chain.GlobalLoop` and its loop vectors
+(:func:`~ctmm.reference.delay_chain.loop_terms`), :mod:`ctmm.errors` and
 :mod:`ctmm.validation`):
 
 * **real time** (``tau < h``): the force at ``t_{n+1}`` uses the unknown state.  With
@@ -40,7 +41,6 @@ Newmark (Newmark 1959; Hughes, *The Finite Element Method*, ch. 9): predictors
 from __future__ import annotations
 
 import bisect
-from dataclasses import dataclass
 from typing import Callable, NamedTuple, Sequence
 
 import numpy as np
@@ -48,8 +48,8 @@ import scipy.linalg as sla
 
 from ..errors import ModelError, SimulationError
 from ..validation import finite_array, nonnegative, positive
-from .chain import GlobalChain, assemble, force_function, mass_index, time_grid
-from .delay_chain import GlobalLoop
+from .chain import GlobalChain, assemble, force_function, time_grid
+from .delay_chain import GlobalLoop, loop_terms
 
 __all__ = ["ClosedLoopHistory", "newmark_closed_loop"]
 
@@ -75,15 +75,6 @@ class ClosedLoopHistory(NamedTuple):
     acceleration: np.ndarray
     sensed: np.ndarray
     control: np.ndarray
-
-
-@dataclass
-class _Loop:
-    gain: float
-    delay: float
-    order: int
-    b: np.ndarray
-    c: np.ndarray
 
 
 class _HermiteHistory:
@@ -126,23 +117,6 @@ class _HermiteHistory:
                 + (-2 * s ** 3 + 3 * s ** 2) * y1 + (s ** 3 - s ** 2) * h * d1)
 
 
-def _loops(chain: GlobalChain, loops: Sequence[GlobalLoop]) -> list[_Loop]:
-    if isinstance(loops, GlobalLoop) or not isinstance(loops, (list, tuple)) or not all(
-            isinstance(loop, GlobalLoop) for loop in loops):
-        raise ModelError(f"loops must be a list or tuple of GlobalLoop, got {loops!r}")
-    out = []
-    for number, loop in enumerate(loops):
-        b, c = np.zeros(chain.size), np.zeros(chain.size)
-        b[mass_index(chain, f"loops[{number}].actuator_mass", loop.actuator_mass)] += 1.0
-        c[mass_index(chain, f"loops[{number}].sensor_mass", loop.sensor_mass)] += 1.0
-        if loop.reaction_mass is not None:
-            b[mass_index(chain, f"loops[{number}].reaction_mass", loop.reaction_mass)] -= 1.0
-        if loop.relative_to is not None:
-            c[mass_index(chain, f"loops[{number}].relative_to", loop.relative_to)] -= 1.0
-        out.append(_Loop(loop.gain, loop.delay, loop.order, b, c))
-    return out
-
-
 def newmark_closed_loop(chain: GlobalChain, loops: Sequence[GlobalLoop], t_final: float, dt: float,
                         x0, v0, force_fn: Callable[[float], np.ndarray] | None = None, *,
                         beta: float = 0.25, gamma: float = 0.5) -> ClosedLoopHistory:
@@ -170,7 +144,7 @@ def newmark_closed_loop(chain: GlobalChain, loops: Sequence[GlobalLoop], t_final
     beta, gamma = positive("beta", beta), nonnegative("gamma", gamma)
     times = time_grid(t_final, dt)
     h = float(times[1] - times[0])
-    terms = _loops(chain, loops)
+    terms = loop_terms(chain, loops)
     force = force_function(chain, force_fn)
     M, C, K = assemble(chain)
     n, nl = chain.size, len(terms)
@@ -192,17 +166,17 @@ def newmark_closed_loop(chain: GlobalChain, loops: Sequence[GlobalLoop], t_final
     for lp in terms:
         if lp.order == 2:
             if lp.delay == 0.0:
-                M0 = M0 + lp.gain * np.outer(lp.b, lp.c)
+                M0 = M0 + lp.gain * np.outer(lp.actuator, lp.sensor)
         else:
-            load0 = load0 - lp.gain * lp.b * float(lp.c @ (x[0], v[0])[lp.order])
+            load0 = load0 - lp.gain * lp.actuator * float(lp.sensor @ (x[0], v[0])[lp.order])
     a[0] = np.linalg.solve(M0, load0)
     histories = []
     q = (x[0], v[0], a[0])
     for lp in terms:
         hist = _HermiteHistory(hermite=lp.order < 2,
-                               before=float(lp.c @ q[lp.order]) if lp.order < 2 else 0.0)
-        hist.append(float(times[0]), float(lp.c @ q[lp.order]),
-                    float(lp.c @ q[lp.order + 1]) if lp.order < 2 else 0.0)
+                               before=float(lp.sensor @ q[lp.order]) if lp.order < 2 else 0.0)
+        hist.append(float(times[0]), float(lp.sensor @ q[lp.order]),
+                    float(lp.sensor @ q[lp.order + 1]) if lp.order < 2 else 0.0)
         histories.append(hist)
     sensed = np.empty((times.size, nl))
     control = np.empty((times.size, nl))
@@ -213,7 +187,7 @@ def newmark_closed_loop(chain: GlobalChain, loops: Sequence[GlobalLoop], t_final
     for k in realtime:
         lp = terms[k]
         theta = lp.delay / h
-        effective = effective + lp.gain * (1.0 - theta) * kappa[lp.order] * np.outer(lp.b, lp.c)
+        effective = effective + lp.gain * (1.0 - theta) * kappa[lp.order] * np.outer(lp.actuator, lp.sensor)
     factors = sla.lu_factor(effective)
     for i in range(times.size - 1):
         t_next = float(times[i + 1])
@@ -224,10 +198,10 @@ def newmark_closed_loop(chain: GlobalChain, loops: Sequence[GlobalLoop], t_final
             lp = terms[k]
             theta = lp.delay / h
             q_pred = (x_pred, v_pred, np.zeros(n))[lp.order]
-            rhs = rhs - lp.gain * lp.b * ((1.0 - theta) * float(lp.c @ q_pred) + theta * histories[k].y[-1])
+            rhs = rhs - lp.gain * lp.actuator * ((1.0 - theta) * float(lp.sensor @ q_pred) + theta * histories[k].y[-1])
         for k in delayed:
             lp = terms[k]
-            rhs = rhs - lp.gain * lp.b * histories[k](t_next - lp.delay)
+            rhs = rhs - lp.gain * lp.actuator * histories[k](t_next - lp.delay)
         a[i + 1] = sla.lu_solve(factors, rhs)
         x[i + 1] = x_pred + beta * h * h * a[i + 1]
         v[i + 1] = v_pred + gamma * h * a[i + 1]
@@ -235,8 +209,8 @@ def newmark_closed_loop(chain: GlobalChain, loops: Sequence[GlobalLoop], t_final
             raise SimulationError(f"non-finite state at t = {t_next} s", time=t_next)
         q = (x[i + 1], v[i + 1], a[i + 1])
         for k, lp in enumerate(terms):
-            y = float(lp.c @ q[lp.order])
-            histories[k].append(t_next, y, float(lp.c @ q[lp.order + 1]) if lp.order < 2 else 0.0)
+            y = float(lp.sensor @ q[lp.order])
+            histories[k].append(t_next, y, float(lp.sensor @ q[lp.order + 1]) if lp.order < 2 else 0.0)
             sensed[i + 1, k] = y
             control[i + 1, k] = -lp.gain * histories[k](t_next - lp.delay)
     return ClosedLoopHistory(times, x, v, a, sensed, control)
