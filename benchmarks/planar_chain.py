@@ -1,4 +1,4 @@
-"""Speed against error: planar pendulum chains of N = 5, 20, 100, 1000 links.
+"""Speed against error: planar pendulum chains of N = 5, 20, 100, 300, 1000 links.
 
 Problem: N uniform links (length 1 m and mass 1 kg *each*, J_C = m L^2 / 12), smooth hinges,
 pinned to the ground, g = 9.81 m/s^2, released horizontally at rest, simulated for 1 s with
@@ -7,8 +7,13 @@ h = 1e-3 s.  Error = max over links of |theta_abs(1 s) - theta_ref(1 s)| [rad].
 Methods (all measured in one run, on the same machine):
 
 * ``tmm_rk4``       -- acceleration TMM (O(n) Riccati sweep, pure Python/numpy) + own RK4
-* ``tmm_rk4_compiled`` -- the same sweep and RK4 loop compiled (C via gcc, whole interval in
-                       one call; ``ctmm.planar.compiled``)
+* ``tmm_rk4_generated`` -- the same sweep and RK4 loop in C generated from the element
+                       definitions (``ctmm.simulate(..., compiled=True)``,
+                       :func:`ctmm.compiled_scene.simulate_rk4_generated`; whole interval in C, time
+                       loop only; ``compile_s``: first compile in a fresh cache folder); N <= 300
+                       (:data:`GENERATED_MAX_N`).  It replaced the hand-typed C of
+                       ``ctmm.planar.compiled`` (removed, issue 13), whose last run here measured
+                       6.5 / 33 / 25 / 895 us per step at N = 5 / 20 / 100 / 1000
 * ``dttmm_newmark`` -- implicit DT-TMM, Newmark(1/4, 1/2), Newton (O(n) tangent sweep)
 * ``lagrange_rk4``  -- global Lagrange model (dense M(q), Cholesky, O(n^3)) + the same RK4;
                        skipped when the estimate exceeds 2 minutes
@@ -19,8 +24,8 @@ Reference: the Lagrange model with DOP853 at rtol = atol = 1e-12 (N <= 100); for
 TMM right-hand side with DOP853 at the same tolerance (the independence of the TMM from the
 Lagrange model is established by the tests at N <= 100 and by the KKT check at N = 1000).
 
-Run ``python benchmarks/planar_chain.py`` (``--quick`` for N <= 20); writes
-``benchmarks/results/planar_chain.json`` and ``planar_chain.png``.
+Run ``python benchmarks/planar_chain.py`` (``--quick`` for N <= 20, ``--sizes 5 20 100 300`` for
+others); writes ``benchmarks/results/planar_chain.json`` and ``planar_chain.png``.
 """
 from __future__ import annotations
 
@@ -29,6 +34,7 @@ import json
 import os
 import platform
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -43,12 +49,15 @@ if str(ROOT) not in sys.path:
 from ctmm.planar import Pinned, PlanarModel, RigidBody, SmoothHinge  # noqa: E402
 from ctmm.planar.implicit import simulate_implicit  # noqa: E402
 from ctmm.planar.integrate import simulate_rk4, simulate_scipy  # noqa: E402
-from ctmm.planar.compiled import library, simulate_rk4_compiled  # noqa: E402
+from ctmm.compiled_scene import CompiledScene, simulate_rk4_generated  # noqa: E402
 from ctmm.reference.planar_lagrange import PlanarLagrange  # noqa: E402
 
 T_FINAL, H, G = 1.0, 1e-3, 9.81
 LAGRANGE_BUDGET_S = 120.0
 PINOCCHIO_MAX_N = 300
+GENERATED_MAX_N = 300
+"""Largest chain of ``tmm_rk4_generated``: its first compile grows faster than N (16 s at N = 100, 69 s at
+N = 300 on the loaded 2-core machine, 2026-11-25)."""
 
 
 def chain(n: int) -> PlanarModel:
@@ -137,9 +146,17 @@ def run_case(n: int, results: dict, log) -> None:
 
     sim = simulate_rk4(model, q0, v0, t_final=T_FINAL, dt=H, store_every=steps)
     record("tmm_rk4", sim.q[-1], sim.wall_time_s)
-    library()  # compile once, outside the timing
-    sim = simulate_rk4_compiled(model, q0, v0, t_final=T_FINAL, dt=H, store_every=steps)
-    record("tmm_rk4_compiled", sim.q[-1], sim.wall_time_s)
+    if n <= GENERATED_MAX_N:
+        with tempfile.TemporaryDirectory() as folder:     # first compile, outside the timing
+            scene = CompiledScene(model, store_every=steps, cache_dir=folder)
+            run = lambda: simulate_rk4_generated(model, q0, v0, t_final=T_FINAL, dt=H,  # noqa: E731
+                                                 store_every=steps, scene=scene)
+            run()                                           # warm-up (first call into the library)
+            sim = run()
+        record("tmm_rk4_generated", sim.q[-1], sim.wall_time_s, compile_s=scene.compile_time_s)
+    else:
+        case["methods"]["tmm_rk4_generated"] = {
+            "skipped": True, "reason": f"N > {GENERATED_MAX_N}: first compile too long for this benchmark"}
     sim = simulate_implicit(model, q0, v0, t_final=T_FINAL, dt=H, store_every=steps)
     record("dttmm_newmark", sim.q[-1], sim.wall_time_s,
            newton_iterations_mean=float(sim.iterations.mean()),
@@ -248,6 +265,7 @@ def plot(results: dict, path: Path) -> None:
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="N = 5, 20 only")
+    parser.add_argument("--sizes", type=int, nargs="+", help="chain sizes N (default 5 20 100 300 1000)")
     parser.add_argument("--out", default=str(ROOT / "benchmarks" / "results"))
     args = parser.parse_args(argv)
     out = Path(args.out)
@@ -259,7 +277,7 @@ def main(argv=None) -> dict:
                           f"{platform.python_version()}, numpy {np.__version__}",
                "cases": []}
     results["load_average_start"] = os.getloadavg()
-    for n in ([5, 20] if args.quick else [5, 20, 100, 1000]):
+    for n in args.sizes or ([5, 20] if args.quick else [5, 20, 100, 300, 1000]):
         run_case(n, results, lambda s: print(s, flush=True))
     results["where_time_goes"] = [where_time_goes(n) for n in (100, 1000)]
     results["load_average_end"] = os.getloadavg()

@@ -1,9 +1,9 @@
 """Compile C source into a shared library, cache it on disk, load it (the one compile-and-cache helper).
 
-Used by the compiled fast paths (:mod:`ctmm.planar.compiled`: hand-written C loaded with
-:mod:`ctypes`; :mod:`ctmm.manipulator.compiled`: casadi-generated C loaded with
-``casadi.external``) and by :func:`ctmm.control.fmu_build.build_fmu` (compiler lookup, compiler
-runs, the cache key of labelled build inputs, :func:`cache_key`, and the cache folder).
+Used by the compiled fast paths (:func:`load_ctypes`: C text loaded with :mod:`ctypes`;
+:mod:`ctmm.manipulator.compiled`: casadi-generated C loaded with ``casadi.external``) and by
+:func:`ctmm.control.fmu_build.build_fmu` (compiler lookup, compiler runs, the cache key of labelled
+build inputs, :func:`cache_key`, and the cache folder).
 
 Cache folder (:func:`cache_directory`): the ``folder`` argument, else ``$CTMM_CACHE``, else
 ``$XDG_CACHE_HOME/ctmm``, else ``~/.cache/ctmm``; when the default is not writable, the temp folder

@@ -8,9 +8,7 @@ stability limit on an undamped mode is :data:`ctmm.guard.RK4_LIMIT` (``omega h <
 checked by the callers before their runs.
 
 The scheme is written once, in :func:`rk4_step`.  The compiled paths do not transcribe it: the
-casadi path (``manipulator/compiled.py``) calls :func:`rk4_step` on casadi symbols, and the C
-kernel (``planar/compiled.py``) takes its step from :func:`second_order_rk4_c`, which runs
-:func:`rk4_step` on symbolic C operands and prints the expressions it builds.
+generated kernels (:mod:`ctmm.generated_loop`) call :func:`rk4_step` on casadi symbols.
 """
 from __future__ import annotations
 
@@ -20,7 +18,7 @@ import numpy as np
 
 from .errors import ModelError
 
-__all__ = ["rk4_step", "integrate_rk4", "second_order_rate", "second_order_rk4_c"]
+__all__ = ["rk4_step", "integrate_rk4", "second_order_rate"]
 
 #: ``f(t, y) -> y'``: rate of a vector state at time ``t`` [s].
 Rate = Callable[[float, np.ndarray], np.ndarray]
@@ -107,110 +105,3 @@ def second_order_rate(acceleration: Callable[[np.ndarray, np.ndarray, float], np
 
     return rate
 
-
-class _CExpression:
-    """A C expression (its text) standing for one element ``[i]`` of a state array while
-    :func:`rk4_step` is traced; arithmetic builds fully parenthesised C text."""
-
-    def __init__(self, text: str) -> None:
-        self.text = text
-
-    @staticmethod
-    def _of(value) -> "_CExpression":
-        if isinstance(value, _CExpression):
-            return value
-        if isinstance(value, (int, float, np.floating)) and not isinstance(value, bool):
-            return _CExpression(repr(float(value)))
-        raise TypeError(f"cannot write {value!r} into C")
-
-    def _combine(self, operator: str, other, reflected: bool):
-        if isinstance(other, _CState):
-            return NotImplemented
-        left, right = (self._of(other), self) if reflected else (self, self._of(other))
-        return _CExpression(f"({left.text} {operator} {right.text})")
-
-    def __add__(self, other):
-        return self._combine("+", other, False)
-
-    def __radd__(self, other):
-        return self._combine("+", other, True)
-
-    def __mul__(self, other):
-        return self._combine("*", other, False)
-
-    def __rmul__(self, other):
-        return self._combine("*", other, True)
-
-    def __truediv__(self, other):
-        return self._combine("/", other, False)
-
-
-class _CState:
-    """The traced state ``[q, v]`` of a second-order system: two :class:`_CExpression` halves."""
-
-    def __init__(self, position: _CExpression, velocity: _CExpression) -> None:
-        self.halves = (position, velocity)
-
-    def __add__(self, other):
-        if not isinstance(other, _CState):
-            return NotImplemented
-        return _CState(*(a + b for a, b in zip(self.halves, other.halves)))
-
-    def __rmul__(self, factor):
-        return _CState(*(factor * a for a in self.halves))
-
-
-def second_order_rk4_c(acceleration_call: Callable[[str, str, str], str], *, position: str = "th",
-                       velocity: str = "w", step: str = "h", count: str = "nb", index: str = "i") -> str:
-    """C statements of one :func:`rk4_step` of ``q'' = a(q, v)``, generated from :func:`rk4_step`.
-
-    :func:`rk4_step` is run on symbolic operands that write C: every stage state is stored in the
-    arrays ``q2, v2, q3, v3, q4, v4`` and every stage acceleration in ``a1 .. a4`` (the caller
-    declares them, ``count`` doubles each), and the new state overwrites ``position`` and
-    ``velocity`` in place.  The expressions keep the operations of :func:`rk4_step` in its order
-    (``y + 0.5 h k``, ``y + (h / 6) (k1 + 2 k2 + 2 k3 + k4)``), so the compiled step rounds as the
-    Python one does when the compiler keeps IEEE semantics (no ``-ffast-math``).
-
-    Parameters
-    ----------
-    acceleration_call : callable
-        ``acceleration_call(q, v, a)`` -> C statement that writes the accelerations of the
-        state arrays named ``q``, ``v`` into the array named ``a`` (the time is not passed: the
-        system must be autonomous).
-    position, velocity : str
-        Names of the C arrays of the coordinates [caller's units] and rates, updated in place.
-    step : str
-        Name of the C step variable ``h`` [s].
-    count : str
-        Name of the C variable with the number of coordinates.
-    index : str
-        Loop index name.
-
-    Returns
-    -------
-    str
-        C statements (one step; no declarations).
-    """
-    lines: list[str] = []
-    start = _CState(_CExpression(f"{position}[{index}]"), _CExpression(f"{velocity}[{index}]"))
-    stages = 0
-
-    def loop(targets: tuple[str, str], state: _CState) -> None:
-        body = " ".join(f"{name}[{index}] = {half.text};" for name, half in zip(targets, state.halves))
-        lines.append(f"for (int {index} = 0; {index} < {count}; {index}++) {{ {body} }}")
-
-    def rate(t, y: _CState) -> _CState:
-        nonlocal stages
-        stages += 1
-        names = (position, velocity)
-        if y is not start:
-            names = (f"q{stages}", f"v{stages}")
-            loop(names, y)
-        lines.append(acceleration_call(names[0], names[1], f"a{stages}"))
-        return _CState(_CExpression(f"{names[1]}[{index}]"), _CExpression(f"a{stages}[{index}]"))
-
-    new = rk4_step(rate, _CExpression("t"), start, _CExpression(step))
-    if f"{position}[" in new.halves[1].text:
-        raise ModelError("the traced RK4 step reads the coordinates in the rate update (internal error)")
-    loop((position, velocity), new)
-    return "\n".join(lines)

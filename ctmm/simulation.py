@@ -15,8 +15,8 @@
   :func:`ctmm.control.planar_time.simulate_closed_loop` when it has loops, controllers or
   open-loop ``inputs`` (``"rk4"``, the ``solve_ivp`` methods and every DT-TMM scheme, the last
   through the Newton-iterate input hook of :func:`ctmm.planar.implicit.simulate_implicit`), to
-  the hand-typed compiled RK4 with ``fast=True``, to the RK4 generated from the element definitions
-  with ``compiled=True`` (:mod:`ctmm.compiled_scene`), or else to :func:`~ctmm.planar.implicit.simulate_implicit`
+  the RK4 generated from the element definitions with ``compiled=True`` (:mod:`ctmm.compiled_scene`;
+  ``fast=True`` is a deprecated alias), or else to :func:`~ctmm.planar.implicit.simulate_implicit`
   for a scheme.
 * A :class:`~ctmm.spatial.model.SpatialModel` goes to :func:`ctmm.spatial.integrate.simulate_spatial`
   (``"rk4"`` or a ``solve_ivp`` method) or, with a DT-TMM scheme, to
@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import warnings
 from typing import Any, Iterator, Mapping, Sequence
 
 import numpy as np
@@ -150,8 +151,8 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         is refused (it would be ignored).
     solver, fast, force_hook
         Options of the uncontrolled chain stepper (:func:`ctmm.timestep.simulate`).  Planar:
-        ``fast=True`` runs ``"rk4"`` in compiled C (:func:`ctmm.planar.compiled.simulate_rk4_compiled`;
-        revolute trees with constant hinge laws, no loops; same numbers to round-off).
+        ``fast=True`` is a deprecated alias of ``compiled=True`` (``DeprecationWarning``; it ran a hand-typed C
+        RK4 of revolute trees, removed: the generated RK4 gives the same numbers to round-off).
     compiled : bool, optional
         Planar, ``"rk4"``: ``True`` runs the RK4 time loop in C generated from the element definitions
         (:func:`ctmm.compiled_scene.simulate_rk4_generated`; planar scenes -- rigid trees, modal beams, hub-beam,
@@ -196,7 +197,7 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
     ------
     ModelError
         Bad input; a system of another kind; options that do not apply to the run (e.g.
-        ``inputs`` for a chain on a DT-TMM scheme, ``fast`` with loops); with a DT-TMM scheme on a planar model, a
+        ``inputs`` for a chain on a DT-TMM scheme); with a DT-TMM scheme on a planar model, a
         loop delay shorter than the step (Wilson-theta: ``theta dt``).
     SimulationError
         A failed run (divergence, non-finite state, failing user code), with ``partial_result``.
@@ -413,9 +414,13 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
     inputs, references = split_loop_references(loops, inputs, references)
     fast = validation.flag("fast", fast, optional=True)
     compiled = validation.flag("compiled", compiled, optional=True)
-    if compiled and fast:
-        raise ModelError("give fast=True (hand-typed C, revolute trees) or compiled=True (generated C, any "
-                         "time-invariant planar scene), not both")
+    if fast and compiled is False:
+        raise ModelError("fast=True (a deprecated alias of compiled=True) contradicts compiled=False; give compiled")
+    if fast:
+        warnings.warn("ctmm.simulate(planar model, fast=True) is deprecated: it runs the generated RK4 of "
+                      "compiled=True (the hand-typed C it ran is removed); give compiled=True", DeprecationWarning,
+                      stacklevel=3)
+        compiled = True
     progress = validation.flag("progress", progress, optional=True)
     q0, v0 = initial_coordinates(model, coordinate_values(model, "x0", x0), coordinate_values(model, "v0", v0))
     check_resolution(model, q0, "x0")
@@ -425,15 +430,10 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
     if max_step is not None and not (isinstance(max_step, (int, float)) and max_step == math.inf):
         max_step = validation.positive("max_step", max_step)        # inf (no limit) is solve_ivp's default
     controlled = bool(loops) or bool(controllers) or bool(inputs) or bool(references)
-    what = [label for label, present in (("loops", loops), ("controllers", controllers), ("inputs", inputs),
-                                         ("references", references)) if present]
     is_scheme = isinstance(method, Scheme) or (isinstance(method, str) and method in SCHEMES)
     if compiled and method != "rk4":
         raise ModelError(f"compiled=True runs the generated RK4 of a planar model with its loops, inputs, "
                          f"references and controllers; got method={method!r} (leave compiled at None)")
-    if fast and (method != "rk4" or controlled):
-        raise ModelError(f"fast=True runs the compiled RK4 of an uncontrolled planar model; got method={method!r}"
-                         + (f" with {', '.join(what)}" if controlled else "") + " (leave fast at None)")
     adaptive_only = {"rtol": (rtol, 1e-8), "atol": (atol, 1e-10), "max_step": (max_step, None)}
     for name, (value, default) in adaptive_only.items():
         if value != default and method not in SCIPY_METHODS:
@@ -455,17 +455,17 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
     if not is_scheme and method not in FIXED_STEP_METHODS and method not in SCIPY_METHODS:
         raise ModelError(f"method must be 'rk4', a solve_ivp method {SCIPY_METHODS} or a DT-TMM scheme "
                          f"{tuple(sorted(SCHEMES))} (or a ctmm.schemes object), got {method!r}")
-    if compiled or fast:
+    if compiled:
         if dt is None:
             raise ModelError("dt is required with method='rk4' (a fixed step [s], > 0), got None")
-        if compiled and controllers:        # C between the samples of the controllers (ctmm.compiled_cosim)
+        if controllers:                     # C between the samples of the controllers (ctmm.compiled_cosim)
             from .compiled_cosim import simulate_cosimulated_generated
 
             return simulate_cosimulated_generated(
                 model, loops, q0, v0, t_final=t_final, dt=dt, controllers=controllers, inputs=inputs,
                 references=references, outputs=outputs, coupling=coupling, store_every=store_every,
                 progress=progress, stability_check=policy, divergence_bound=divergence_bound)
-        if compiled and controlled:
+        if controlled:
             from .compiled_control import simulate_controlled_generated
             from .control.controlled_model import ControlledModel
 
@@ -473,13 +473,11 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
                                                  inputs=inputs, references=references, outputs=outputs,
                                                  store_every=store_every, divergence_bound=divergence_bound,
                                                  stability_check=policy)
-        if compiled:
-            from .compiled_scene import simulate_rk4_generated as run_compiled
-        else:
-            from .planar.compiled import simulate_rk4_compiled as run_compiled
+        from .compiled_scene import simulate_rk4_generated
+
         with _partial_as_result(outputs, dt):
-            simulation = run_compiled(model, q0, v0, t_final=t_final, dt=dt, store_every=store_every,
-                                      divergence_bound=divergence_bound, stability_check=policy)
+            simulation = simulate_rk4_generated(model, q0, v0, t_final=t_final, dt=dt, store_every=store_every,
+                                                divergence_bound=divergence_bound, stability_check=policy)
         return to_result(simulation, outputs=outputs, info={"dt": dt})
     return simulate_closed_loop(model, q0, v0, t_final, dt, method=method, loops=loops, controllers=controllers,
                                 inputs=inputs, references=references, outputs=outputs, coupling=coupling,

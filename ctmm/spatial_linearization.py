@@ -50,7 +50,7 @@ from .errors import ModelError, UnknownNameError, unknown_name
 from .controlled_linearization import close_model_loops, loop_ports
 from .linearized import LinearizedSystem, OperatingPoint
 from .ops import NUMPY
-from .planar.equilibrium import describe_directions, negative_stiffness
+from .planar.equilibrium import STABLE_RESTARTS, describe_directions, negative_stiffness, restart_until_stable
 from .planar_linearization import EQUILIBRIUM_TOLERANCE, JACOBIAN_TOLERANCE, TIME_PROBES, jacobian
 from .saturation import refuse_saturation
 from .spatial_sensors_complex import complex_sensor_values
@@ -212,24 +212,20 @@ def static_equilibrium(model: Any, t: float = 0.0, start: Any = None, *, stable:
                          "(Elastic6, Weld), set gravity=(0, 0, 0), or pass operating_point with "
                          "allow_nonequilibrium=True for the tangent at one instant")
     q = _continuation(model, model.normalized(model.neutral() if start is None else start), t, capped=stable)
-    for _ in range(STABLE_RESTARTS if stable else 0):
-        values, vectors = unstable_directions(model, q, t)
-        if not values.size:
-            return q
-        push = 1e-2 * vectors[:, 0] / max(float(np.max(np.abs(vectors[:, 0]))), 1e-300)
-        q = _continuation(model, model.normalized(retract(model, q, push)[0]), t, capped=True)
-    if stable:
-        values, vectors = unstable_directions(model, q, t)
-        if values.size:
-            raise ModelError(f"linearize: no statically stable equilibrium of {model.name!r} found: the one reached, "
-                             f"q = {np.round(q, 12).tolist()}, has "
-                             f"{describe_directions(list(tangent_names(model)), values, vectors)}; pass "
-                             "operating_point=(q, v) to linearise about a chosen equilibrium")
-    return q
+    if not stable:
+        return q
 
+    def push(x: np.ndarray, direction: np.ndarray, value: float) -> np.ndarray:
+        step = 1e-2 * direction / max(float(np.max(np.abs(direction))), 1e-300)
+        return _continuation(model, model.normalized(retract(model, x, step)[0]), t, capped=True)
 
-STABLE_RESTARTS = 4
-"""Pushes off an unstable equilibrium that :func:`static_equilibrium` tries with ``stable=True``."""
+    return restart_until_stable(
+        q, directions=lambda x: unstable_directions(model, x, t), restart=push,
+        refusal=lambda x, values, vectors: (
+            f"linearize: no statically stable equilibrium of {model.name!r} found: the one reached, "
+            f"q = {np.round(x, 12).tolist()}, has {describe_directions(list(tangent_names(model)), values, vectors)}; "
+            "pass operating_point=(q, v) to linearise about a chosen equilibrium"),
+        restarts=STABLE_RESTARTS)
 
 
 def unstable_directions(model: Any, q: Any, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:

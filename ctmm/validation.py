@@ -56,9 +56,16 @@ def in_range(name: str, value: Any, low: float, high: float, *, low_open: bool =
 
 
 def finite_array(name: str, value: Any, *, ndim: int | None = None) -> np.ndarray:
-    """Return ``value`` as a float array with only finite entries or raise :class:`ModelError`."""
+    """Return ``value`` as a float array with only finite entries or raise :class:`ModelError`.
+
+    Booleans are refused, also inside a (nested) list or tuple and as a boolean array: ``[1.0, True]``
+    is not read as ``[1.0, 1.0]``.
+    """
     if value is None or isinstance(value, (bool, np.bool_, str, bytes, Mapping)):
         raise ModelError(f"{name} must be an array of real numbers, got {_shown(value)}")
+    if _holds_boolean(value):
+        raise ModelError(f"{name} must be an array of real numbers (a boolean is not read as 0 or 1), got "
+                         f"{_shown(value)}")
     try:
         array = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
@@ -69,6 +76,17 @@ def finite_array(name: str, value: Any, *, ndim: int | None = None) -> np.ndarra
         bad = array[~np.isfinite(array)].ravel()[0]
         raise ModelError(f"{name} must contain only finite values, found {bad!r}")
     return array
+
+
+def _holds_boolean(value: Any) -> bool:
+    """Whether ``value`` is a boolean or holds one (nested lists and tuples, boolean or object arrays)."""
+    if isinstance(value, (bool, np.bool_)):
+        return True
+    if isinstance(value, np.ndarray):
+        return value.dtype == np.bool_ or (value.dtype == object and any(_holds_boolean(item) for item in value.flat))
+    if isinstance(value, (list, tuple)):
+        return any(_holds_boolean(item) for item in value)
+    return False
 
 
 def name(kind: str, value: Any) -> str:

@@ -114,3 +114,29 @@ def test_unknown_scenario_lists_available():
 def test_invalid_calls_name_parameter_and_value(call, pattern):
     with pytest.raises(ctmm.ModelError, match=pattern):
         call(chain())
+
+
+@pytest.mark.parametrize("value", [[1.0, True], (0.5, np.True_), [[1.0, 2.0], [False, 3.0]], np.array([True, False]),
+                                   np.array([1.0, True], dtype=object)])
+def test_finite_arrays_refuse_booleans_inside_lists_and_arrays(value):
+    """A boolean is not a number: ``[1.0, True]`` is refused, not read as ``[1.0, 1.0]``."""
+    from ctmm import validation
+
+    with pytest.raises(ctmm.ModelError, match=r"gains must be an array of real numbers \(a boolean is not read"):
+        validation.finite_array("gains", value)
+
+
+def test_finite_arrays_take_integers_and_numpy_numbers():
+    from ctmm import validation
+
+    for value, expected in (([1, 2.5], [1.0, 2.5]), (np.arange(3), [0.0, 1.0, 2.0]), ((np.float32(0.5), np.int64(2)),
+                                                                                   [0.5, 2.0])):
+        array = validation.finite_array("gains", value)
+        assert array.dtype == np.float64 and array.tolist() == expected
+
+
+def test_a_planar_gravity_with_a_boolean_is_refused():
+    from ctmm.planar import Pinned, PlanarModel, RigidBody
+
+    with pytest.raises(ctmm.ModelError, match=r"gravity must be an array of real numbers.*\(0.0, True\)"):
+        PlanarModel.chain("p", [Pinned("o"), RigidBody.uniform_link("l", mass=1.0, length=1.0)], gravity=(0.0, True))

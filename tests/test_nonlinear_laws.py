@@ -210,8 +210,6 @@ def test_generated_kernel_refuses_a_user_law_without_casadi_form():
                       damping=lambda d, v: 0.0, name="sinh spring")
     with pytest.raises(ModelError, match="sinh spring"):
         ctmm.simulate(single_link(law), 0.01, 1e-3, method="rk4", compiled=True, x0={"l.theta": 0.1})
-    with pytest.raises(ModelError, match="nonlinear"):
-        ctmm.simulate(single_link(law), 0.01, 1e-3, method="rk4", fast=True, x0={"l.theta": 0.1})
 
 
 def test_newton_uses_the_law_tangent():

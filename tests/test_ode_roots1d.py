@@ -68,42 +68,6 @@ def test_callback_stops_the_run_and_bad_steps_are_refused():
         integrate_rk4(lambda t, y: y, [1.0], h=0.1, n_steps=-1)
 
 
-def test_generated_c_step_is_the_taylor_polynomial_and_rounds_as_rk4_step(tmp_path):
-    """The C step of ``second_order_rk4_c`` (compiled kernels) on q'' = -w^2 q against the degree-four
-    Taylor polynomial of exp(h A) (independent), and bit for bit against ``rk4_step`` (same rounding)."""
-    import ctypes
-
-    from ctmm import codegen
-    from ctmm.ode import second_order_rk4_c
-
-    step = second_order_rk4_c(lambda q, v, a: f"oscillator(nb, omega2, {q}, {v}, {a});")
-    source = ("static void oscillator(int nb, const double *omega2, const double *q, const double *v, double *a)\n"
-              "{ for (int i = 0; i < nb; i++) a[i] = -omega2[i] * q[i]; }\n"
-              "void rk4_steps(int nb, const double *omega2, double h, int n_steps, double *th, double *w,\n"
-              "               double *work)\n"
-              "{ double *a1 = work, *a2 = a1 + nb, *a3 = a2 + nb, *a4 = a3 + nb, *q2 = a4 + nb, *v2 = q2 + nb,\n"
-              "  *q3 = v2 + nb, *v3 = q3 + nb, *q4 = v3 + nb, *v4 = q4 + nb;\n"
-              "  for (int step = 0; step < n_steps; step++) {\n" + step + "\n} }\n")
-    lib = codegen.load_ctypes(source, "rk4_oscillator", cache_dir=tmp_path)
-    dp = ctypes.POINTER(ctypes.c_double)
-    lib.rk4_steps.argtypes = [ctypes.c_int, dp, ctypes.c_double, ctypes.c_int, dp, dp, dp]
-    lib.rk4_steps.restype = None
-    omega, h, n_steps = np.array([0.5, 2.0, 7.0]), 0.1, 3
-    th, w = np.array([1.0, -0.3, 0.2]), np.array([0.0, 1.5, -2.0])
-    work = np.zeros(10 * omega.size)
-    q_c, v_c = th.copy(), w.copy()
-    lib.rk4_steps(omega.size, (omega ** 2).ctypes.data_as(dp), h, n_steps, q_c.ctypes.data_as(dp),
-                  v_c.ctypes.data_as(dp), work.ctypes.data_as(dp))
-    for i, wi in enumerate(omega):
-        A = h * np.array([[0.0, 1.0], [-wi ** 2, 0.0]])
-        taylor = np.eye(2) + A + A @ A / 2 + A @ A @ A / 6 + A @ A @ A @ A / 24
-        expected = np.linalg.matrix_power(taylor, n_steps) @ [th[i], w[i]]
-        assert np.abs([q_c[i], v_c[i]] - expected).max() < 1e-14 * (1 + wi)
-    rate = second_order_rate(lambda q, v, t: -omega ** 2 * q, omega.size)
-    y = integrate_rk4(rate, np.concatenate((th, w)), h=h, n_steps=n_steps)
-    np.testing.assert_array_equal(np.concatenate((q_c, v_c)), y)
-
-
 # ----------------------------------------------------------------------------------- root refiner
 ROOTS = np.array([0.5, 1.0, 1.0 + 1e-12, 1.0 + 2e-12, 2.0, 2.0, 7.0])   # cluster and a double root
 

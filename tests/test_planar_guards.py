@@ -153,12 +153,13 @@ def test_wrong_state_lengths_are_refused_by_every_state_function():
 
 @pytest.mark.skipif(shutil.which("gcc") is None, reason="needs gcc")
 def test_compiled_rk4_truncates_a_diverged_run_at_the_last_good_block():
-    from ctmm.planar.compiled import simulate_rk4_compiled
+    pytest.importorskip("casadi")
+    from ctmm.compiled_scene import simulate_rk4_generated
 
     model = _pendulum()
     with pytest.warns(StabilityLimitWarning):
         with pytest.raises(SimulationError, match="'rod.theta'") as info:
-            simulate_rk4_compiled(model, [-1.4], [0.0], t_final=50.0, dt=1.0, store_every=2, divergence_bound=100.0)
+            simulate_rk4_generated(model, [-1.4], [0.0], t_final=50.0, dt=1.0, store_every=2, divergence_bound=100.0)
     partial = info.value.partial_result
     assert partial.t[-1] < info.value.time and np.all(np.abs(partial.q + 1.4) <= 100.0)
     assert partial.t.size >= 2

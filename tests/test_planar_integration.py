@@ -120,11 +120,14 @@ def test_integrator_argument_errors(case):
         simulate_scipy(model, q0, qdot0, t_final=1.0, method="Euler")
 
 
-def test_compiled_rk4_equals_python_rk4():
-    """The C kernel is a transcription of the Python sweep: same trajectory (round-off)."""
+def test_generated_rk4_of_a_branched_tree_equals_rk4_of_the_lagrange_model():
+    """The compiled RK4 (``ctmm.simulate(..., compiled=True)``, generated from the element definitions) on a
+    branched revolute tree with a tilted ground, spring-damper and actuated hinges: accelerations equal to
+    the independent Lagrange model, and its run equal to the same RK4 on the Lagrange equations (round-off)."""
+    pytest.importorskip("casadi")
+    from ctmm.compiled_scene import CompiledScene, simulate_rk4_generated
+    from ctmm.ode import integrate_rk4, second_order_rate
     from ctmm.planar import ActuatedHinge, Fixed, PlanarModel, RigidBody, SpringDamperHinge
-    from ctmm.planar.compiled import compiled_accelerations, simulate_rk4_compiled
-    from ctmm.planar.sweep import accelerations
     fork = RigidBody("fork", mass=1.2, inertia=0.1, center_of_mass=(0.4, 0.1),
                      outboard={"l": (1.0, 0.3), "r": (0.8, -0.4)})
     model = PlanarModel("t", [fork, RigidBody.uniform_link("a", mass=0.5, length=0.7),
@@ -136,15 +139,20 @@ def test_compiled_rk4_equals_python_rk4():
                                             kd=0.1, reference=0.2),
                               SpringDamperHinge("k2", parent="fork.r", child="b", stiffness=2.0,
                                                 damping=0.05)])
+    lagrange = PlanarLagrange(model)
     q, v = np.array([0.2, 1.0, -0.7]), np.array([0.5, -1.0, 2.0])
-    assert np.max(np.abs(compiled_accelerations(model, q, v) - accelerations(model, q, v))) < 1e-12
-    fast = simulate_rk4_compiled(model, q, v, t_final=0.5, dt=1e-3, store_every=10)
-    slow = simulate_rk4(model, q, v, t_final=0.5, dt=1e-3, store_every=10)
-    assert np.max(np.abs(fast.q - slow.q)) < 1e-12 and np.allclose(fast.t, slow.t)
-    with pytest.raises(ModelError, match="not supported by the compiled kernel"):
-        simulate_rk4_compiled(random_tree(5, 4, chain=True, base="pinned",
-                                          allow_translation=False), [0.0, 0.0],
-                              [0.0, 0.0], t_final=0.1, dt=0.01)
+    expected = lagrange.accelerations(q, v, 0.0)
+    assert np.max(np.abs(CompiledScene(model).accelerations(q, v) - expected)) <= 1e-12 * np.max(np.abs(expected))
+    generated = simulate_rk4_generated(model, q, v, t_final=0.5, dt=1e-3, store_every=10)
+    rate = second_order_rate(lambda x, y, t: lagrange.accelerations(x, y, t), 3)
+    rows = []
+    integrate_rk4(rate, np.concatenate([q, v]), h=1e-3, n_steps=500,
+                  after_step=lambda k, t, y: rows.append(y.copy()) if k % 10 == 0 else None)
+    rows = np.array(rows)
+    assert np.allclose(generated.t[1:], np.arange(1, 51) * 1e-2, rtol=0, atol=1e-14)
+    assert np.max(np.abs(generated.q[1:] - rows[:, :3])) < 1e-12
+    assert np.max(np.abs(generated.qdot[1:] - rows[:, 3:])) < 1e-12
+    assert np.max(np.abs(generated.q[-1] - q)) > 0.1                 # it moved
 
 
 @pytest.mark.parametrize("seed,base", [(11, "free"), (12, "fixed"), (13, "pinned")])

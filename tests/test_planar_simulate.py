@@ -3,7 +3,7 @@
 References: the Lagrange models (:mod:`ctmm.reference.planar_lagrange`,
 :mod:`ctmm.reference.flexible_lagrange`), integrated by ``solve_ivp`` at tight tolerance, and the
 closed-form geometry of a rod (tip at ``L (cos theta, sin theta)``).  The legacy planar drivers
-(``simulate_rk4``, ``simulate_rk4_compiled``) must give the same numbers through ``ctmm.simulate``.
+(``simulate_rk4``, ``simulate_rk4_generated``) must give the same numbers through ``ctmm.simulate``.
 """
 from __future__ import annotations
 
@@ -51,15 +51,21 @@ def test_every_method_matches_lagrange(double, method, dt, bound):
 
 
 def test_same_numbers_as_the_planar_drivers(double):
-    """RK4 through ctmm.simulate is the legacy simulate_rk4 bit for bit; fast=True is the compiled
-    RK4 (same arithmetic, same numbers to round-off)."""
+    """RK4 through ctmm.simulate is the legacy simulate_rk4 bit for bit; fast=True, a deprecated alias of
+    compiled=True, warns and runs the generated RK4 (same arithmetic, same numbers to round-off)."""
+    pytest.importorskip("casadi")
     model, q0, _, _ = double
     legacy = simulate_rk4(model, q0, np.zeros(2), t_final=0.2, dt=1e-3)
     result = ctmm.simulate(model, 0.2, 1e-3, x0=q0)
     np.testing.assert_array_equal(result["l2.theta"], legacy.q[:, 1])
-    fast = ctmm.simulate(model, 0.2, 1e-3, x0=q0, fast=True)
+    with pytest.warns(DeprecationWarning, match=r"fast=True\) is deprecated.*compiled=True"):
+        fast = ctmm.simulate(model, 0.2, 1e-3, x0=q0, fast=True)
     np.testing.assert_allclose(fast["l2.theta"], legacy.q[:, 1], rtol=0, atol=1e-12)
-    assert fast.scheme_name == "rk4-compiled"
+    assert fast.scheme_name == "rk4-generated"
+    compiled = ctmm.simulate(model, 0.2, 1e-3, x0=q0, compiled=True)
+    np.testing.assert_array_equal(fast["l2.theta"], compiled["l2.theta"])
+    with pytest.raises(ModelError, match="fast=True .* contradicts compiled=False"):
+        ctmm.simulate(model, 0.2, 1e-3, x0=q0, fast=True, compiled=False)
 
 
 def test_outputs_are_named_sensors_with_units_and_round_trip_through_files(tmp_path):
@@ -128,9 +134,11 @@ def test_divergence_gives_the_partial_result():
     assert info.value.time == pytest.approx(partial.time[-1] + 1e-3)
 
 
-@pytest.mark.parametrize("options", [dict(method="newmark"), dict(fast=True)])
+@pytest.mark.parametrize("options", [dict(method="newmark"), dict(compiled=True)])
 def test_partial_results_of_the_legacy_drivers_are_simulation_results(options):
     """Implicit and compiled runs keep their own drivers; their partial results are converted."""
+    if options.get("compiled"):
+        pytest.importorskip("casadi")
     rod = PlanarModel.chain("rod", [Fixed("g"), SmoothHinge("pin"), RigidBody.uniform_link("r", mass=1.0,
                                                                                            length=1.0)])
     with pytest.raises(SimulationError) as info:
@@ -154,7 +162,7 @@ def test_refusals_name_the_option():
         (dict(v0={"r.theta": "fast"}), "v0\\['r.theta'\\]"),
         (dict(outputs=["r.out.z"]), "r.out.z"),
         (dict(t0=1.0), "t0=1.0 applies to 1-D chains only"),
-        (dict(fast=True, inputs={"pin.torque": 1.0}), "fast=True runs the compiled RK4"),
+        (dict(compiled=True, method="houbolt"), "compiled=True runs the generated RK4"),
         (dict(method="houbolt", inputs={"pin.torque": 1.0}, dt=None), "dt is required with method='houbolt'"),
         (dict(coupling="previous"), "coupling='previous' only applies"),
         (dict(rtol=1e-6), "rtol=1e-06 applies to the solve_ivp methods"),

@@ -11,7 +11,7 @@ from .. import validation
 from ..errors import ModelError
 
 __all__ = ["node_name", "node_positions", "checked_elements", "rayleigh_pair", "number_dofs", "check_springs",
-           "square_matrix", "clamped_frequencies", "real_vector", "known_nodes"]
+           "square_matrix", "clamped_frequencies", "known_nodes"]
 
 
 def node_name(owner: str, label: str, value: object) -> str:
@@ -19,14 +19,6 @@ def node_name(owner: str, label: str, value: object) -> str:
     if not isinstance(value, str) or not value:
         raise ModelError(f"{owner}: {label} must be a node name (non-empty str), got {value!r}")
     return value
-
-
-def real_vector(label: str, value: Any) -> np.ndarray:
-    """``value`` as a finite float array; booleans (also inside a list or tuple) are refused, not read as 0/1."""
-    items = value if isinstance(value, (list, tuple)) else (value,)
-    if any(isinstance(item, (bool, np.bool_)) for item in items):
-        raise ModelError(f"{label} must be real numbers (not booleans), got {value!r}")
-    return validation.finite_array(label, value)
 
 
 def known_nodes(owner: str, label: str, value: Any, positions: Mapping[str, np.ndarray], *,
@@ -54,7 +46,7 @@ def node_positions(name: str, nodes: Any, dimension: int) -> dict[str, np.ndarra
         validation.name(f"{name}: nodes key {node!r}:", node)
         if isinstance(xyz, (str, bytes)):
             raise ModelError(f"{name}: nodes[{node!r}] must be {shape} [m], got {xyz!r}")
-        p = real_vector(f"{name}: nodes[{node!r}]", xyz)
+        p = validation.finite_array(f"{name}: nodes[{node!r}]", xyz)
         if p.shape != (dimension,):
             raise ModelError(f"{name}: nodes[{node!r}] must be {shape} [m], got {xyz!r}")
         positions[node] = p
@@ -83,7 +75,7 @@ def checked_elements(name: str, elements: Sequence[Any], allowed: tuple, nodes_o
 
 def rayleigh_pair(name: str, rayleigh: Any) -> np.ndarray:
     """``(a [1/s], b [s])`` >= 0 of ``C += a M + b K``."""
-    ray = real_vector(f"{name}: rayleigh", rayleigh)
+    ray = validation.finite_array(f"{name}: rayleigh", rayleigh)
     if ray.shape != (2,) or np.any(ray < 0):
         raise ModelError(f"{name}: rayleigh must be (a [1/s], b [s]) >= 0, got {rayleigh!r}")
     return ray

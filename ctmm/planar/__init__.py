@@ -5,8 +5,8 @@ Modules: :mod:`~ctmm.planar.elements` (bodies, hinges, boundaries), :mod:`~ctmm.
 forward dynamics), :mod:`~ctmm.planar.integrate` (RK4, ``solve_ivp``),
 :mod:`~ctmm.planar.implicit` (Newmark / generalized-alpha DT-TMM with Newton),
 :mod:`~ctmm.planar.equilibrium` (static equilibrium and its hanging guess; the frequency domain
-about it: the verbs ``ctmm.natural_frequencies`` etc.),
-:mod:`~ctmm.planar.compiled` (C fast path).  Derivations: ``docs/planar.md``.
+about it: the verbs ``ctmm.natural_frequencies`` etc.).  Compiled RK4: :mod:`ctmm.compiled_scene`
+(generated from the element definitions).  Derivations: ``docs/planar.md``.
 """
 from .elements import (ActuatedHinge, DamperHinge, DrivenHinge, ElasticHinge, Fixed, Free, NonlinearHinge,
                        FreeBase, Load, Pinned, RigidBody, SmoothHinge, SpringDamperHinge)

@@ -7,6 +7,8 @@ The operating point of :func:`ctmm.linearize` and of the frequency verbs (``ctmm
 """
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 import scipy.integrate
 import scipy.optimize
@@ -50,23 +52,65 @@ def static_equilibrium(model: PlanarModel, q_guess, *, t: float = 0.0, tolerance
     require_planar(model, "ctmm.planar.equilibrium")
     q_guess, _ = model.state(q_guess, np.zeros(model.n_coordinates))
     q = _root(model, q_guess, t, tolerance)
-    for _ in range(STABLE_RESTARTS if stable else 0):
-        values, vectors = unstable_directions(model, q, t)
-        if not values.size:
-            return q
-        q = _root(model, _descend(model, q, vectors[:, 0], -values[0], t), t, tolerance)
-    if stable:
-        values, vectors = unstable_directions(model, q, t)
-        if values.size:
-            raise ModelError(f"no statically stable equilibrium of {model.name!r} found from q = {q_guess.tolist()}: "
-                             f"the one reached, q = {q.tolist()}, has "
-                             f"{describe_directions(list(model.coordinates), values, vectors)}; give a guess nearer a "
-                             "stable one (e.g. hanging_configuration(model))")
-    return q
+    if not stable:
+        return q
+    return restart_until_stable(
+        q, directions=lambda x: unstable_directions(model, x, t),
+        restart=lambda x, direction, value: _root(model, _descend(model, x, direction, -value, t), t, tolerance),
+        refusal=lambda x, values, vectors: (
+            f"no statically stable equilibrium of {model.name!r} found from q = {q_guess.tolist()}: the one reached, "
+            f"q = {x.tolist()}, has {describe_directions(list(model.coordinates), values, vectors)}; give a guess "
+            "nearer a stable one (e.g. hanging_configuration(model))"),
+        restarts=STABLE_RESTARTS)
 
 
 STABLE_RESTARTS = 4
-"""Descents from an unstable root that :func:`static_equilibrium` tries with ``stable=True``."""
+"""Restarts from an unstable equilibrium that :func:`static_equilibrium` tries with ``stable=True``."""
+
+
+def restart_until_stable(q: np.ndarray, *, directions: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
+                         restart: Callable[[np.ndarray, np.ndarray, float], np.ndarray],
+                         refusal: Callable[[np.ndarray, np.ndarray, np.ndarray], str],
+                         restarts: int = STABLE_RESTARTS) -> np.ndarray:
+    """From the equilibrium ``q``, restart the search off its most unstable direction until it is statically
+    stable: the one loop of the stable-equilibrium searches (planar :func:`static_equilibrium`, spatial
+    :func:`ctmm.spatial_linearization.static_equilibrium`).
+
+    Parameters
+    ----------
+    q : ndarray
+        An equilibrium (coordinates [rad, m, modal, quaternions]).
+    directions : callable
+        ``directions(q) -> (values, vectors)``: the directions of negative stiffness of ``q``
+        (:func:`negative_stiffness`: ``omega^2 < 0`` [rad^2/s^2], most negative first, and vector columns).
+    restart : callable
+        ``restart(q, vector, value) -> q_new``: another equilibrium reached from ``q`` pushed along its most
+        unstable direction ``vector`` (``omega^2 = value`` [rad^2/s^2]).
+    refusal : callable
+        ``refusal(q, values, vectors) -> str``: the :class:`ModelError` message when the last equilibrium reached
+        is still unstable.
+    restarts : int
+        Largest number of restarts.
+
+    Returns
+    -------
+    ndarray
+        A statically stable (or neutral) equilibrium.
+
+    Raises
+    ------
+    ModelError
+        The equilibrium reached after ``restarts`` restarts is still unstable (``refusal``).
+    """
+    for _ in range(restarts):
+        values, vectors = directions(q)
+        if not values.size:
+            return q
+        q = restart(q, vectors[:, 0], float(values[0]))
+    values, vectors = directions(q)
+    if values.size:
+        raise ModelError(refusal(q, values, vectors))
+    return q
 
 
 def _root(model: PlanarModel, q_guess: np.ndarray, t: float, tolerance: float) -> np.ndarray:
@@ -213,4 +257,4 @@ def hanging_configuration(model: PlanarModel) -> np.ndarray:
 
 
 __all__ = ["static_equilibrium", "hanging_configuration", "unstable_directions", "negative_stiffness",
-           "describe_directions", "STABLE_RESTARTS"]
+           "describe_directions", "restart_until_stable", "STABLE_RESTARTS"]
