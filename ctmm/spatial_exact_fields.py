@@ -6,13 +6,18 @@ The bridge from a :class:`~ctmm.spatial.model.SpatialModel` built of modal
 no loads, joints at zero, beams undeformed, nothing moving) a serial spatial chain vibrates as a
 spatial beam chain, answered by the Riccati transfer and the Wittrick-Williams count, so its
 frequencies are exact at any mode number -- the limit the modal beam reaches as its modes increase.
-:func:`exact_form` converts, in **chain axes** (the world axes turned so that a base revolute axis
-is the chain's ``z``; the world axes for a welded base):
+:func:`exact_form` converts, in **chain axes** (the world axes turned so that a base revolute or
+prismatic axis, or a base universal joint's ``axis1 x axis2``, is the chain's ``z``; the first beam's
+axes where they allow it):
 
-* the base: a ground :class:`~ctmm.spatial.elements.Weld` -> :class:`SpatialClamped`; a ground
-  :class:`~ctmm.spatial.elements.Revolute` -> :class:`SpatialSupport` holding all but ``theta_z``,
-  its law ``k + c s`` a :class:`SpatialGroundSpring` and its torque input a point moment;
-* a weld between bodies -> continuity; a revolute with ``k + c > 0`` -> :class:`SpatialHinge`;
+* the joints (:mod:`ctmm.spatial_exact_joints`): at the ground a weld -> :class:`SpatialClamped`; a
+  revolute, prismatic, universal or spherical joint -> :class:`SpatialSupport` holding the directions it
+  does not free (a spherical joint: a pinned root; a prismatic joint: a sliding root); a free or elastic6
+  joint -> :class:`SpatialFree`; every linear law (``k + c s``, a spherical joint's 3 x 3 rotary spring, an
+  elastic6 joint's 6 x 6 spring) a :class:`SpatialGroundSpring`; between bodies a weld -> continuity, a
+  revolute -> :class:`SpatialHinge`, a universal joint -> two hinges, a spherical joint -> three hinges
+  about its stiffness's principal axes, an elastic6 joint -> :class:`SpatialSpring` (each needs a law in
+  every free direction); joint inputs -> point moments and forces on the markers on both sides;
 * a :class:`~ctmm.spatial.elements.SpatialBody` -> :class:`SpatialRigidBody` (mass, inertia and
   centre of mass turned to chain axes, its child's point as the offset);
 * a :class:`~ctmm.spatial.beam.SpatialBeam` -> :class:`SpatialBeamField` pieces between its stations
@@ -31,12 +36,18 @@ only if the frequencies with ``RIGID_FACTOR`` and ``RIGID_FACTOR / RIGID_CHECK_R
 ``RIGID_TOLERANCE`` (relative); otherwise a :class:`ModelError` names the rigid directions (a
 frequency that depends on a rigid direction's stiffness).
 
+Ports: joint coordinates and rates, body ``omega_x|y|z`` and ``omega_body_x|y|z``, point positions and
+velocities (world), point forces and moments in world and body axes (about the rest configuration the
+body axes stand still: their turning is second order), beam station sensors.
+
 Refused (:class:`~ctmm.errors.ModelError`, naming the part): trees and children at mid-span
-stations, other joint kinds, a free revolute between bodies (no transfer matrix), joint
-references, actuated joints other than revolute, gravity, loads, distributed loads and modal
+stations, prismatic and free joints between bodies and joints free in a direction between bodies (no
+transfer matrix), a spherical joint whose damping and stiffness have different principal axes,
+driven joints, nonlinear laws and joint references, gravity, loads, distributed loads and modal
 hooks (a preload or no field counterpart), modal damping ratios, a given operating point, loops in
-:func:`natural_frequencies` (pass ``system.plant``; :func:`frequency_response` closes them), and ports without an exact-field counterpart (modal coordinates, body
-angles and rotation vectors).
+:func:`natural_frequencies` (pass ``system.plant``; :func:`frequency_response` closes them), and
+ports without an exact-field counterpart (modal coordinates, quaternion components, body angles
+and rotation vectors).
 """
 from __future__ import annotations
 
@@ -49,6 +60,7 @@ import numpy as np
 from . import validation
 from .errors import ModelError
 from .results import FrequencyResponse
+from .spatial_exact_joints import CONVERTED_KINDS
 
 __all__ = ["SpatialExactForm", "exact_form", "natural_frequencies", "frequency_response", "RIGID_FACTOR"]
 
@@ -117,13 +129,14 @@ def _axis_rotation(axis: np.ndarray) -> np.ndarray:
 
 
 def _chain_axes(model: Any) -> np.ndarray:
-    """``Q`` (chain from world axes): a base revolute axis is the chain's ``z``; the first beam's axes
-    are the chain axes (up to a signed permutation when a base revolute axis is one of them), so
-    that its field is not turned (the static rigid-mode count of turned fields is less robust)."""
+    """``Q`` (chain from world axes): a base revolute or prismatic axis (a universal joint's ``axis1 x
+    axis2``) is the chain's ``z``; the first beam's axes are the chain axes (up to a signed permutation
+    when that axis is one of them), so that its field is not turned (the static rigid-mode count of
+    turned fields is less robust)."""
     from .spatial.beam import SpatialBeam
+    from .spatial_exact_joints import base_axis
 
-    base = model.joints[0]
-    axis = base.rotation @ base.axis if base.kind == "revolute" else None
+    axis = base_axis(model.joints[0])
     R = np.eye(3)
     beam_axes = None
     for body, joint in zip(model.bodies, model.joints):
@@ -168,11 +181,11 @@ def _check(model: Any, operating_point: Any) -> None:
     if list(model.parent) != list(range(-1, model.n_bodies - 1)):
         raise _refuse(model, "it is not a serial chain (a body with several children, or several bases)")
     for body, joint in zip(model.bodies, model.joints):
-        if joint.kind not in ("weld", "revolute"):
-            raise _refuse(model, f"joint {joint.name!r} is a {joint.kind} joint (welds and revolute joints convert)")
-        if joint.kind == "revolute":
+        if joint.kind not in CONVERTED_KINDS:
+            raise _refuse(model, f"joint {joint.name!r} is a {joint.kind} joint (converted: {', '.join(CONVERTED_KINDS)})")
+        if joint.kind in ("revolute", "prismatic", "universal"):
             if joint.driven or joint.law is not None or np.any(joint.reference):
-                raise _refuse(model, f"revolute joint {joint.name!r} is driven, has a nonlinear law or a non-zero "
+                raise _refuse(model, f"{joint.kind} joint {joint.name!r} is driven, has a nonlinear law or a non-zero "
                                      "reference")
         if isinstance(body, SpatialBeam):
             if body.damping_ratio:
@@ -222,67 +235,55 @@ class _Builder:
             self.sensors[f"{label}.{axis}"] = terms
             self.sensors[f"{label}.v{axis}"] = [(f"{n}_dot", w) for n, w in terms]
 
-    def force_inputs(self, label: str, marker: str, offset: np.ndarray, kinds: Sequence[str]) -> None:
-        """World-axes force (at ``offset`` from ``marker``) and moment inputs ``label.force_x`` ..."""
+    def force_inputs(self, label: str, marker: str, offset: np.ndarray, kinds: Sequence[str],
+                     body: np.ndarray | None = None) -> None:
+        """World-axes force (at ``offset`` from ``marker``) and moment inputs ``label.force_x`` ...; with the
+        body's rest axes ``body`` (body -> chain axes) also ``label.force_body_x`` ... (about the rest
+        configuration the body axes stand still: their turning is second order)."""
         S = _skew(offset)                      # moment at the marker = offset x force
-        for i, axis in enumerate("xyz"):
-            f = self.Q[:, i]                   # unit world force in chain axes
-            if "force" in kinds:
-                terms = [(f"{marker}.f{c}", f[k]) for k, c in enumerate("xyz") if f[k]]
-                moment = S @ f
-                terms += [(f"{marker}.m{c}", moment[k]) for k, c in enumerate("xyz") if moment[k]]
-                self.actuators[f"{label}.force_{axis}"] = terms
-            if "moment" in kinds:
-                self.actuators[f"{label}.moment_{axis}"] = [(f"{marker}.m{c}", f[k]) for k, c in enumerate("xyz")
-                                                            if f[k]]
+        axes = [("", self.Q)] + ([] if body is None else [("_body", body)])
+        for suffix, directions in axes:
+            for i, axis in enumerate("xyz"):
+                f = directions[:, i]           # unit force (world or body axis) in chain axes
+                if "force" in kinds:
+                    terms = [(f"{marker}.f{c}", f[k]) for k, c in enumerate("xyz") if f[k]]
+                    moment = S @ f
+                    terms += [(f"{marker}.m{c}", moment[k]) for k, c in enumerate("xyz") if moment[k]]
+                    self.actuators[f"{label}.force{suffix}_{axis}"] = terms
+                if "moment" in kinds:
+                    self.actuators[f"{label}.moment{suffix}_{axis}"] = [
+                        (f"{marker}.m{c}", f[k]) for k, c in enumerate("xyz") if f[k]]
 
     # -- elements -----------------------------------------------------------------------------
     def build(self) -> SpatialExactForm:
         from .spatial.beam import SpatialBeam
-        from .spatial_beam_elements import (SpatialClamped, SpatialFree, SpatialGroundSpring, SpatialHinge,
-                                            SpatialSupport)
+        from .spatial_beam_elements import SpatialFree
+        from .spatial_exact_joints import base_elements, inner_elements, joint_ports, motion_matrix
         from .system import Chain
 
         model = self.model
         R = np.eye(3)                          # world rotation of the parent body
         for j, (body, joint) in enumerate(zip(model.bodies, model.joints)):
             R_joint = (np.eye(3) if j == 0 else R) @ joint.rotation
-            axis = self.Q @ R_joint @ joint.axis if joint.kind == "revolute" else None
-            k = float(joint.stiffness[0]) if axis is not None else 0.0
-            c = float(joint.damping[0]) if axis is not None else 0.0
+            A = motion_matrix(joint, _snap(self.Q @ R_joint))
+            before = None
             if j == 0:
-                if axis is None:
-                    self.elements.append(SpatialClamped(f"{joint.name}__base"))
-                else:
-                    self.elements.append(SpatialSupport(f"{joint.name}__base", _DISPLACEMENTS[:5]))
-                    if k or c:
-                        self.elements.append(SpatialGroundSpring(f"{joint.name}__law", np.diag([0, 0, 0, 0, 0, k]),
-                                                                 damping=np.diag([0, 0, 0, 0, 0, c])))
-            before = self.marker(f"{joint.name}__before") if j > 0 and axis is not None else None
-            if before is not None:
-                if not (k or c):
-                    raise _refuse(model, f"revolute joint {joint.name!r} between bodies is free (no stiffness or "
-                                         "damping): a free joint inside the chain has no transfer matrix")
-                self.elements.append(SpatialHinge(joint.name, axis, k, damping=c))
+                self.elements += base_elements(model.name, joint, A)
+            elif joint.kind != "weld":
+                elements = inner_elements(model.name, joint, A)
+                before = self.marker(f"{joint.name}__before")
+                self.elements += elements
             root = self.marker(f"{body.name}__root")
-            if axis is not None:
-                angle = [(f"{root}.theta_{c_}", a) for c_, a in zip("xyz", axis) if a]
-                if before is not None:
-                    angle += [(f"{before}.theta_{c_}", -a) for c_, a in zip("xyz", axis) if a]
-                self.sensors[f"{joint.name}.angle"] = angle
-                self.sensors[f"{joint.name}.rate"] = [(f"{n}_dot", w) for n, w in angle]
-                if joint.actuated:
-                    torque = [(f"{root}.m{c_}", a) for c_, a in zip("xyz", axis) if a]
-                    if before is not None:
-                        torque += [(f"{before}.m{c_}", -a) for c_, a in zip("xyz", axis) if a]
-                    self.actuators[f"{joint.name}.torque"] = torque
-            elif getattr(joint, "actuated", False):
-                raise _refuse(model, f"joint {joint.name!r} ({joint.kind}) is actuated")
+            sensors, actuators = joint_ports(joint, A, root, before)
+            self.sensors.update(sensors)
+            self.actuators.update(actuators)
             R = R_joint                        # the body's world rotation at rest
             B = _snap(self.Q @ R)              # body axes -> chain axes
-            for i, axis_name in enumerate("xyz"):      # world angular velocity: Q^T theta_dot (chain axes)
+            for i, axis_name in enumerate("xyz"):      # angular velocity: Q^T theta_dot (world), B^T theta_dot (body)
                 self.sensors[f"{body.name}.omega_{axis_name}"] = [
                     (f"{root}.theta_{c_}_dot", self.Q[k_, i]) for k_, c_ in enumerate("xyz") if self.Q[k_, i]]
+                self.sensors[f"{body.name}.omega_body_{axis_name}"] = [
+                    (f"{root}.theta_{c_}_dot", B[k_, i]) for k_, c_ in enumerate("xyz") if B[k_, i]]
             child = model.joints[j + 1].point if j + 1 < model.n_bodies else None
             if isinstance(body, SpatialBeam):
                 self.beam(body, root, B, child)
@@ -299,9 +300,9 @@ class _Builder:
         points["com"] = body.center_of_mass
         for name, p in points.items():
             self.point_sensors(f"{body.name}.{name}", self.rigid_point(root, B @ p))
-            self.force_inputs(f"{body.name}.{name}", root, B @ p, ("force",))
-        self.force_inputs(body.name, root, B @ body.center_of_mass, ("force",))
-        self.force_inputs(body.name, root, np.zeros(3), ("moment",))
+            self.force_inputs(f"{body.name}.{name}", root, B @ p, ("force",), B if name != "com" else None)
+        self.force_inputs(body.name, root, B @ body.center_of_mass, ("force",), B)
+        self.force_inputs(body.name, root, np.zeros(3), ("moment",), B)
         offset = B @ body.points[child] if child is not None else np.zeros(3)
         self.elements.append(SpatialRigidBody(body.name, body.mass, B @ body.inertia @ B.T,
                                               center_of_mass=B @ body.center_of_mass, offset=offset))
@@ -357,7 +358,7 @@ class _Builder:
         b1 = B[:, 0]
         for name, (marker, x) in markers.items():
             self.point_sensors(f"{beam.name}.{name}", self.rigid_point(marker, np.zeros(3)))
-            self.force_inputs(f"{beam.name}.{name}", marker, np.zeros(3), ("force", "moment"))
+            self.force_inputs(f"{beam.name}.{name}", marker, np.zeros(3), ("force", "moment"), B)
             if name == "origin":
                 continue
             rigid = self.rigid_point(root, x * b1)          # the root frame's motion at x
@@ -417,11 +418,11 @@ def natural_frequencies(system: Any, *, n_modes: int | None = None, omega_max: f
         As for :func:`exact_form`.
     """
     from .natural import natural_frequencies as chain_natural
+    from .spatial_exact_joints import rigid_mode_count
 
     form = exact_form(system, operating_point, rigid_factor=RIGID_FACTOR)
     omega = chain_natural(form.chain, n_modes=n_modes, omega_max=omega_max)
-    base = system.joints[0]
-    rigid_modes = int(base.kind == "revolute" and not base.stiffness[0])
+    rigid_modes = rigid_mode_count(system.joints[0])
     if np.count_nonzero(omega == 0.0) > rigid_modes:
         raise _refuse(system, f"the chain count found {np.count_nonzero(omega == 0.0)} rigid-body modes where the "
                               f"model has {rigid_modes} (a safety check of the chain's static rigid-mode count); "
@@ -451,8 +452,8 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
     omega : array_like
         Angular frequencies [rad/s], >= 0.
     input : str or sequence of str
-        Actuator port names (``"<joint>.torque"``, ``"<body>.<point>.force_x"`` ... world axes) or
-        ``"<loop>.reference"``.
+        Actuator port names (``"<joint>.torque"``, ``"<body>.<point>.force_x"`` ... world axes,
+        ``"<body>.moment_body_x"`` ... body axes) or ``"<loop>.reference"``.
     output : str or sequence of str
         Sensor port names (``"<joint>.angle"``, ``"<body>.<point>.x"``, ``"<beam>.<station>.w_y"`` ...) or
         ``"<loop>.y"``, ``"<loop>.u"``.
