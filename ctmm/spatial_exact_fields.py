@@ -25,7 +25,11 @@ axes where they allow it):
   ``bending_stiffness_y`` governs ``w_y``, bending in the x-y plane, which is the field's
   ``bending_stiffness_z``) with a :class:`SpatialPointLoad` marker at the root, every station and
   the tip;
-* the free outboard end -> :class:`SpatialFree`.
+* the free outboard end -> :class:`SpatialFree`;
+* a **tree** (a body with several children) -> :class:`~ctmm.spatial_beam_trees.SpatialBeamTree`: the
+  main path is the base and every body's first child (in model order), every other child starts a
+  serial branch condensed onto the main chain at its point (a beam station's marker, or a rigid body's
+  root marker through a massless rigid link to the point); inputs on the main path only.
 
 **Rigid directions.**  A direction of a beam without modes (``n_axial_modes = 0``: inextensible,
 ``n_torsion_modes = 0``: torsionally rigid, ``n_modes_y = 0`` or ``n_modes_z = 0``: rigid in that
@@ -40,8 +44,8 @@ Ports: joint coordinates and rates, body ``omega_x|y|z`` and ``omega_body_x|y|z`
 velocities (world), point forces and moments in world and body axes (about the rest configuration the
 body axes stand still: their turning is second order), beam station sensors.
 
-Refused (:class:`~ctmm.errors.ModelError`, naming the part): trees and children at mid-span
-stations, prismatic and free joints between bodies and joints free in a direction between bodies (no
+Refused (:class:`~ctmm.errors.ModelError`, naming the part): several bases, branches of branches,
+actuators on a branch, a main path that goes on from a beam's mid-span station, prismatic and free joints between bodies and joints free in a direction between bodies (no
 transfer matrix), a spherical joint whose damping and stiffness have different principal axes,
 driven joints, nonlinear laws and joint references, gravity, loads, distributed loads and modal
 hooks (a preload or no field counterpart), modal damping ratios, a given operating point, loops in
@@ -139,7 +143,8 @@ def _chain_axes(model: Any) -> np.ndarray:
     axis = base_axis(model.joints[0])
     R = np.eye(3)
     beam_axes = None
-    for body, joint in zip(model.bodies, model.joints):
+    for j in _paths(model)[0]:
+        body, joint = model.bodies[j], model.joints[j]
         R = R @ joint.rotation
         if isinstance(body, SpatialBeam):
             beam_axes = R
@@ -155,6 +160,33 @@ def _chain_axes(model: Any) -> np.ndarray:
             j, k = (i + 1) % 3, (i + 2) % 3          # (b_j, b_k, b_i) is right-handed
             return np.array([b[j], np.sign(sign) * b[k], np.sign(sign) * b[i]])
     return _axis_rotation(axis)
+
+
+def _paths(model: Any) -> tuple[list[int], list[list[int]]]:
+    """The main path (from the base, every body's first child) and the branches (serial paths hung on it) of
+    a spatial model, or a :class:`ModelError` for several bases or a branch of a branch."""
+    children: list[list[int]] = [[] for _ in model.bodies]
+    bases = [j for j, p in enumerate(model.parent) if p < 0]
+    for j, p in enumerate(model.parent):
+        if p >= 0:
+            children[p].append(j)
+    if bases != [0]:
+        raise _refuse(model, f"it has several bases {[model.bodies[j].name for j in bases]}")
+
+    def path(start: int) -> list[int]:
+        out = [start]
+        while children[out[-1]]:
+            out.append(children[out[-1]][0])
+        return out
+
+    main = path(0)
+    branches = [path(c) for j in main for c in children[j][1:]]
+    for branch in branches:
+        nested = [model.bodies[j].name for j in branch if len(children[j]) > 1]
+        if nested:
+            raise _refuse(model, f"bodies {nested} carry a branch of a branch (the spatial beam tree has branches "
+                                 "on the main path only)")
+    return main, branches
 
 
 def _snap(rotation: np.ndarray) -> np.ndarray:
@@ -178,8 +210,7 @@ def _check(model: Any, operating_point: Any) -> None:
                              "gravity=(0, 0, 0))")
     if model.loads:
         raise _refuse(model, f"loads {[load.name for load in model.loads]} preload the chain")
-    if list(model.parent) != list(range(-1, model.n_bodies - 1)):
-        raise _refuse(model, "it is not a serial chain (a body with several children, or several bases)")
+    _paths(model)
     for body, joint in zip(model.bodies, model.joints):
         if joint.kind not in CONVERTED_KINDS:
             raise _refuse(model, f"joint {joint.name!r} is a {joint.kind} joint (converted: {', '.join(CONVERTED_KINDS)})")
@@ -209,6 +240,9 @@ class _Builder:
         self.actuators: dict[str, Terms] = {}
         self.rigid: list[str] = []
         self.Q = _chain_axes(model)
+        self.rotations: dict[int, np.ndarray] = {}      # world rotation of each body at rest
+        self.points: dict[int, dict] = {}               # body -> {point: (marker, offset from it, chain axes)}
+        self.beam_markers: dict[str, str] = {}          # the last beam's points -> their markers
 
     # -- port helpers -------------------------------------------------------------------------
     def marker(self, name: str) -> str:
@@ -256,18 +290,43 @@ class _Builder:
 
     # -- elements -----------------------------------------------------------------------------
     def build(self) -> SpatialExactForm:
-        from .spatial.beam import SpatialBeam
-        from .spatial_beam_elements import SpatialFree
-        from .spatial_exact_joints import base_elements, inner_elements, joint_ports, motion_matrix
+        from .spatial_beam_elements import SpatialPointLoad, SpatialRigidBody
+        from .spatial_beam_trees import SpatialBeamTree
         from .system import Chain
 
         model = self.model
-        R = np.eye(3)                          # world rotation of the parent body
-        for j, (body, joint) in enumerate(zip(model.bodies, model.joints)):
-            R_joint = (np.eye(3) if j == 0 else R) @ joint.rotation
+        main, branches = _paths(model)
+        self.walk(main, np.eye(3))
+        trunk, hung = self.elements, {}
+        for path in branches:                  # each hangs at a marker of the main chain
+            joint = model.joints[path[0]]
+            marker, offset = self.points[model.parent[path[0]]][joint.point]
+            if marker in hung:                 # a second branch there: a marker of its own just after
+                extra = SpatialPointLoad(f"{marker}__{len(hung)}")
+                trunk.insert(next(k for k, e in enumerate(trunk) if e.name == marker) + 1, extra)
+                marker = extra.name
+            self.elements = [] if not np.any(offset) else [SpatialRigidBody(f"{joint.name}__link", 0.0,
+                                                                            offset=offset)]
+            self.walk(path, self.rotations[model.parent[path[0]]])
+            hung[marker] = self.elements
+        chain = (SpatialBeamTree(f"{model.name}_exact", trunk, hung) if hung
+                 else Chain(f"{model.name}_exact", trunk))
+        return SpatialExactForm(chain, self.Q, self.sensors, self.actuators, self.rigid)
+
+    def walk(self, path: Sequence[int], parent_rotation: np.ndarray) -> None:
+        """Elements and ports of the serial ``path`` of bodies onto ``self.elements``, ending free."""
+        from .spatial.beam import SpatialBeam
+        from .spatial_beam_elements import SpatialFree
+        from .spatial_exact_joints import base_elements, inner_elements, joint_ports, motion_matrix
+
+        model = self.model
+        R = parent_rotation                    # world rotation of the parent body
+        for k, j in enumerate(path):
+            body, joint = model.bodies[j], model.joints[j]
+            R_joint = R @ joint.rotation
             A = motion_matrix(joint, _snap(self.Q @ R_joint))
             before = None
-            if j == 0:
+            if model.parent[j] < 0:
                 self.elements += base_elements(model.name, joint, A)
             elif joint.kind != "weld":
                 elements = inner_elements(model.name, joint, A)
@@ -277,21 +336,21 @@ class _Builder:
             sensors, actuators = joint_ports(joint, A, root, before)
             self.sensors.update(sensors)
             self.actuators.update(actuators)
-            R = R_joint                        # the body's world rotation at rest
+            R = self.rotations[j] = R_joint    # the body's world rotation at rest
             B = _snap(self.Q @ R)              # body axes -> chain axes
             for i, axis_name in enumerate("xyz"):      # angular velocity: Q^T theta_dot (world), B^T theta_dot (body)
                 self.sensors[f"{body.name}.omega_{axis_name}"] = [
                     (f"{root}.theta_{c_}_dot", self.Q[k_, i]) for k_, c_ in enumerate("xyz") if self.Q[k_, i]]
                 self.sensors[f"{body.name}.omega_body_{axis_name}"] = [
                     (f"{root}.theta_{c_}_dot", B[k_, i]) for k_, c_ in enumerate("xyz") if B[k_, i]]
-            child = model.joints[j + 1].point if j + 1 < model.n_bodies else None
+            child = model.joints[path[k + 1]].point if k + 1 < len(path) else None
             if isinstance(body, SpatialBeam):
                 self.beam(body, root, B, child)
+                self.points[j] = {name: (marker, np.zeros(3)) for name, marker in self.beam_markers.items()}
             else:
                 self.rigid_body(body, root, B, child)
-        self.elements.append(SpatialFree(f"{model.bodies[-1].name}__end"))
-        return SpatialExactForm(Chain(f"{model.name}_exact", self.elements), self.Q, self.sensors, self.actuators,
-                                self.rigid)
+                self.points[j] = {name: (root, B @ p) for name, p in body.points.items()}
+        self.elements.append(SpatialFree(f"{model.bodies[path[-1]].name}__end"))
 
     def rigid_body(self, body: Any, root: str, B: np.ndarray, child: str | None) -> None:
         from .spatial_beam_elements import SpatialRigidBody
@@ -335,8 +394,9 @@ class _Builder:
         from .spatial_beam_fields import SpatialBeamField
 
         if child is not None and child != "tip" and beam.points[child][0] < beam.length * (1 - 1e-12):
-            raise _refuse(self.model, f"the child of beam {beam.name!r} hangs at point {child!r} (x = "
-                                      f"{beam.points[child][0]} m < L): a mid-span branch")
+            raise _refuse(self.model, f"the first child of beam {beam.name!r} hangs at point {child!r} (x = "
+                                      f"{beam.points[child][0]} m < L): the path goes on from mid-span (later "
+                                      "children hang there as branches: list the body hung at the tip first)")
         parameters = self.stiffness(beam)
         places = sorted([(x, name) for name, x in beam.stations.items() if 0.0 < x < beam.length]
                         + [(beam.length, "tip")])
@@ -355,6 +415,7 @@ class _Builder:
             markers[name] = (self.marker(f"{beam.name}__at_{name}"), x)
             if name == "tip":
                 markers.update({n: markers["tip"] for n, xs in beam.stations.items() if xs == x})
+        self.beam_markers = {name: marker for name, (marker, _) in markers.items()}
         b1 = B[:, 0]
         for name, (marker, x) in markers.items():
             self.point_sensors(f"{beam.name}.{name}", self.rigid_point(marker, np.zeros(3)))
@@ -419,9 +480,15 @@ def natural_frequencies(system: Any, *, n_modes: int | None = None, omega_max: f
     """
     from .natural import natural_frequencies as chain_natural
     from .spatial_exact_joints import rigid_mode_count
+    from .system import Chain
 
     form = exact_form(system, operating_point, rigid_factor=RIGID_FACTOR)
-    omega = chain_natural(form.chain, n_modes=n_modes, omega_max=omega_max)
+    def count(chain: Any) -> np.ndarray:           # a chain (Wittrick-Williams) or a tree (its own count)
+        if isinstance(chain, Chain):
+            return chain_natural(chain, n_modes=n_modes, omega_max=omega_max)
+        return chain.natural_frequencies(n_modes=n_modes, omega_max=omega_max)
+
+    omega = count(form.chain)
     rigid_modes = rigid_mode_count(system.joints[0])
     if np.count_nonzero(omega == 0.0) > rigid_modes:
         raise _refuse(system, f"the chain count found {np.count_nonzero(omega == 0.0)} rigid-body modes where the "
@@ -429,7 +496,7 @@ def natural_frequencies(system: Any, *, n_modes: int | None = None, omega_max: f
                               "use fields='modal'")
     if form.rigid:
         softer = exact_form(system, operating_point, rigid_factor=RIGID_FACTOR / RIGID_CHECK_RATIO)
-        check = chain_natural(softer.chain, n_modes=n_modes, omega_max=omega_max)
+        check = count(softer.chain)
         scale = max(float(np.max(omega, initial=0.0)), 1e-300)
         if check.shape != omega.shape or np.max(np.abs(check - omega) / np.maximum(omega, 1e-6 * scale),
                                                 initial=0.0) > RIGID_TOLERANCE:
@@ -477,11 +544,17 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
     outputs = list(validation.names("output", output))
     omega = validation.frequencies("omega", omega)
     form = exact_form(model, operating_point, omega_max=float(np.max(omega, initial=0.0)))
+    if hasattr(form.chain, "on_branch"):       # a tree: inputs on the main path only
+        driven = [n for n in inputs if n in form.actuators] + [n for lp in loops for n, _ in lp.actuator_terms]
+        hung = [n for n in driven if any(form.chain.on_branch(term) for term, _ in form.actuator(n))]
+        if hung:
+            raise _refuse(model, f"actuators {hung} act on a branch of the tree (the exact tree takes inputs on its "
+                                 "main path: the base and every body's first child)")
     response = form_response(form, loops, omega, inputs, outputs)
     ports = SpatialPorts(model)
     units = {name: ports.actuator_unit(name) for name in inputs if name in ports.actuators}
     units.update({name: ports.sensor_unit(name) for name in outputs if name in ports.sensors})
     info = {"method": "exact spatial beam fields (ctmm.spatial_exact_fields), Riccati transfer, delays exact",
             "wall_time_s": time.perf_counter() - started, "n_frequencies": int(omega.size),
-            "chain_elements": len(form.chain.elements), "rigid_directions": list(form.rigid)}
+            "chain_elements": len(getattr(form.chain, "elements", ())), "rigid_directions": list(form.rigid)}
     return FrequencyResponse(omega, response, tuple(inputs), tuple(outputs), model.name, info=info, units=units)
