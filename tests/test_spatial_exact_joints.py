@@ -177,6 +177,36 @@ def test_a_universal_spring_with_oblique_axes_between_bodies_is_the_two_degree_o
     np.testing.assert_allclose(omega, expected, rtol=1e-10)
 
 
+def test_the_ports_of_a_universal_joint_between_bodies_are_its_coordinates_and_torques():
+    a1, a2 = np.array([1.0, 0.0, 0.0]), np.array([0.6, 0.8, 0.0])
+    joint = sp.Universal(name="u", parent="base", point="p", child="head", rotation=TURN, axis1=a1, axis2=a2,
+                         stiffness=(4.0, 2.5), damping=(0.1, 0.05), actuated=True)
+    model, inertia = _two_bodies(joint)
+    A = np.column_stack([a1, a2])
+    omega = np.array([0.5, 3.0, 9.0])
+    frf = ctmm.frequency_response(model, omega, input=["u.torque1", "u.torque2"], output=["u.q1", "u.q2_rate"],
+                                  fields="exact")
+    for k, w in enumerate(omega):                    # (K + i w C - w^2 A^T I A) q = tau
+        dynamic = np.diag([4.0, 2.5]) + 1j * w * np.diag([0.1, 0.05]) - w * w * (A.T @ inertia @ A)
+        expected = np.linalg.inv(dynamic)
+        np.testing.assert_allclose(frf.response[0, :, k], expected[0], rtol=1e-10)
+        np.testing.assert_allclose(frf.response[1, :, k], 1j * w * expected[1], rtol=1e-10)
+
+
+def test_the_ports_of_a_prismatic_root_are_its_position_and_force():
+    joint = sp.Prismatic(name="slide", parent=None, child="arm", axis=(0, 1, 0), stiffness=80.0, actuated=True)
+    model = sp.SpatialModel("m", [arm(), joint], gravity=(0.0, 0.0, 0.0))
+    omega = np.array([2.0, 11.0, 35.0])
+    frf = ctmm.frequency_response(model, omega, input="slide.force", output=["slide.position", "arm.tip.y"],
+                                  fields="exact")
+    chains = [FEChain([FEGround(np.diag([0, 80.0, 0, 0, 0, 0])), FEMarker("root"), _fe_beam(elements=n),
+                       FEMarker("tip")], start_held=("ux", "uz", "theta_x", "theta_y", "theta_z")) for n in (32, 64)]
+    for output, name in ((("root", "uy"), "slide.position"), (("tip", "uy"), "arm.tip.y")):
+        coarse, fine = (chain.frf(omega, ("root", "uy"), output) for chain in chains)
+        expected = (4.0 * fine - coarse) / 3.0
+        np.testing.assert_allclose(frf(name, "slide.force"), expected, rtol=1e-6)
+
+
 def test_a_spherical_spring_between_bodies_is_the_three_degree_of_freedom_pendulum():
     rotary = np.array([[4.0, 0.5, 0.0], [0.5, 3.0, 0.2], [0.0, 0.2, 2.0]])
     joint = sp.Spherical(name="s", parent="base", point="p", child="head", stiffness=rotary)
