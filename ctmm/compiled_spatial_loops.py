@@ -125,8 +125,8 @@ def loop_acceleration(model: SpatialModel, ports: SpatialPorts, actuators: Seque
                       ) -> Any:
     """``v_dot = acceleration(q, v, u, p, t)`` (a ``casadi.Function``) of ``model`` with ``u`` one value per
     entry of ``actuators`` (port actuator names [N m, N]): joint actuators add to their joint's input, body
-    actuators are forces at their points and moments, world axes (a beam's ``force_body`` / ``moment_body``: its
-    floating frame's axes); ``p`` the numbers of ``layout``
+    actuators are forces at their points and moments, world axes (``force_body`` / ``moment_body``: the body's
+    axes, of a beam its floating frame's); ``p`` the numbers of ``layout``
     (:func:`~ctmm.compiled_spatial_parameters.spatial_parameter_layout`; empty: the model's numbers in the code)."""
     import casadi as ca
 

@@ -312,6 +312,8 @@ def _open_loop(chain: Any, s: np.ndarray, inputs: list[str], outputs: list[str])
     """``G[k, i_out, i_in]``: chain displacement signals per unit chain input (Riccati sweep)."""
     from .chain_assembly import solve
 
+    if hasattr(chain, "open_loop"):            # a ctmm.spatial_beam_trees.SpatialBeamTree: branches condensed
+        return chain.open_loop(s, inputs, outputs)
     G = np.empty((s.size, len(outputs), len(inputs)), dtype=complex)
     signals = [chain.signal(name) for name in outputs]
     for b, name in enumerate(inputs):

@@ -27,7 +27,9 @@ Near a pole of ``K_b`` (relative singular value of the balanced root block below
 condensed stiffness would lose ``eps / ratio``).
 
 Not supported (:class:`~ctmm.errors.ModelError`): loads on branches (inputs on the main chain
-only), branches of branches, mode shapes, feedback loops, the time domain.
+only), branches of branches, mode shapes, the time domain.  Feedback loops are closed by
+:mod:`ctmm.spatial_exact_fields` (a :class:`~ctmm.spatial.model.SpatialModel` tree with ``fields="exact"``)
+on the open-loop block :meth:`SpatialBeamTree.open_loop`.
 """
 from __future__ import annotations
 
@@ -280,6 +282,19 @@ class SpatialBeamTree:
         roots = 0.5 * (lo + up)
         return np.where(up < RIGID_LIMIT * hi, 0.0, roots)
 
+    def on_branch(self, name: str) -> bool:
+        """True when the signal or input ``name`` (``"<element>.<component>"``) belongs to a branch element."""
+        return name.split(".")[0] in self._owner
+
+    def open_loop(self, s: np.ndarray, inputs: Sequence[str], outputs: Sequence[str]) -> np.ndarray:
+        """``G[k, i_out, i_in]`` at ``s = i omega`` (omega >= 0): signals per unit main-chain input (the
+        open-loop block :func:`ctmm.exact_fields.form_response` closes loops on)."""
+        s = np.asarray(s)
+        if np.any(np.real(s) != 0.0):
+            raise ModelError(f"tree {self.name!r}: the open-loop response is on the imaginary axis only, got s = {s!r}")
+        response = self.frequency_response(np.imag(s), input=list(inputs), output=list(outputs)).response
+        return np.moveaxis(response, -1, 0)
+
     def mode_shapes(self, **options: Any):
         """Refused: mode shapes of trees are not implemented (use frequency_response near a resonance)."""
         raise ModelError(f"mode_shapes of the spatial beam tree {self.name!r} is not implemented; give the path of "
@@ -296,7 +311,7 @@ class SpatialBeamTree:
         FrequencyResponse
             ``response[i_out, i_in, k]``.
         """
-        from .frequency import frequency_response
+        from .chain_assembly import solve
 
         started = time.perf_counter()
         inputs = list(validation.names("input", input))
@@ -318,7 +333,14 @@ class SpatialBeamTree:
         needed = {self._owner[name.split(".")[0]] for name in outputs if name.split(".")[0] in self._owner}
         root_names = {b: [f"{b.name}.{c}" for c in SPATIAL_BEAM.displacements] for b in needed}
         asked = list(dict.fromkeys(main + [n for names in root_names.values() for n in names]))
-        base = frequency_response(self._main, omega, input=inputs, output=asked).response
+        base = np.empty((len(asked), len(inputs), omega.size), dtype=complex)     # the main chain's responses
+        signals = [self._main.signal(name) for name in asked]
+        points = sorted({signal.point for signal in signals})
+        for i, name in enumerate(inputs):
+            entry = self._main.input(name)
+            solution = solve(self._main, s, {entry.position: {entry.input: 1.0}}, points=points)
+            for o, signal in enumerate(signals):
+                base[o, i] = solution.at(signal.point)[:, signal.component] * s ** signal.derivative
         response = np.empty((len(outputs), len(inputs), omega.size), dtype=complex)
         states = {}
         for branch in needed:

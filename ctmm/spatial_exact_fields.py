@@ -6,13 +6,18 @@ The bridge from a :class:`~ctmm.spatial.model.SpatialModel` built of modal
 no loads, joints at zero, beams undeformed, nothing moving) a serial spatial chain vibrates as a
 spatial beam chain, answered by the Riccati transfer and the Wittrick-Williams count, so its
 frequencies are exact at any mode number -- the limit the modal beam reaches as its modes increase.
-:func:`exact_form` converts, in **chain axes** (the world axes turned so that a base revolute axis
-is the chain's ``z``; the world axes for a welded base):
+:func:`exact_form` converts, in **chain axes** (the world axes turned so that a base revolute or
+prismatic axis, or a base universal joint's ``axis1 x axis2``, is the chain's ``z``; the first beam's
+axes where they allow it):
 
-* the base: a ground :class:`~ctmm.spatial.elements.Weld` -> :class:`SpatialClamped`; a ground
-  :class:`~ctmm.spatial.elements.Revolute` -> :class:`SpatialSupport` holding all but ``theta_z``,
-  its law ``k + c s`` a :class:`SpatialGroundSpring` and its torque input a point moment;
-* a weld between bodies -> continuity; a revolute with ``k + c > 0`` -> :class:`SpatialHinge`;
+* the joints (:mod:`ctmm.spatial_exact_joints`): at the ground a weld -> :class:`SpatialClamped`; a
+  revolute, prismatic, universal or spherical joint -> :class:`SpatialSupport` holding the directions it
+  does not free (a spherical joint: a pinned root; a prismatic joint: a sliding root); a free or elastic6
+  joint -> :class:`SpatialFree`; every linear law (``k + c s``, a spherical joint's 3 x 3 rotary spring, an
+  elastic6 joint's 6 x 6 spring) a :class:`SpatialGroundSpring`; between bodies a weld -> continuity, a
+  revolute -> :class:`SpatialHinge`, a universal joint -> two hinges, a spherical joint -> three hinges
+  about its stiffness's principal axes, an elastic6 joint -> :class:`SpatialSpring` (each needs a law in
+  every free direction); joint inputs -> point moments and forces on the markers on both sides;
 * a :class:`~ctmm.spatial.elements.SpatialBody` -> :class:`SpatialRigidBody` (mass, inertia and
   centre of mass turned to chain axes, its child's point as the offset);
 * a :class:`~ctmm.spatial.beam.SpatialBeam` -> :class:`SpatialBeamField` pieces between its stations
@@ -20,7 +25,11 @@ is the chain's ``z``; the world axes for a welded base):
   ``bending_stiffness_y`` governs ``w_y``, bending in the x-y plane, which is the field's
   ``bending_stiffness_z``) with a :class:`SpatialPointLoad` marker at the root, every station and
   the tip;
-* the free outboard end -> :class:`SpatialFree`.
+* the free outboard end -> :class:`SpatialFree`;
+* a **tree** (a body with several children) -> :class:`~ctmm.spatial_beam_trees.SpatialBeamTree`: the
+  main path is the base and every body's first child (in model order), every other child starts a
+  serial branch condensed onto the main chain at its point (a beam station's marker, or a rigid body's
+  root marker through a massless rigid link to the point); inputs on the main path only.
 
 **Rigid directions.**  A direction of a beam without modes (``n_axial_modes = 0``: inextensible,
 ``n_torsion_modes = 0``: torsionally rigid, ``n_modes_y = 0`` or ``n_modes_z = 0``: rigid in that
@@ -31,12 +40,18 @@ only if the frequencies with ``RIGID_FACTOR`` and ``RIGID_FACTOR / RIGID_CHECK_R
 ``RIGID_TOLERANCE`` (relative); otherwise a :class:`ModelError` names the rigid directions (a
 frequency that depends on a rigid direction's stiffness).
 
-Refused (:class:`~ctmm.errors.ModelError`, naming the part): trees and children at mid-span
-stations, other joint kinds, a free revolute between bodies (no transfer matrix), joint
-references, actuated joints other than revolute, gravity, loads, distributed loads and modal
+Ports: joint coordinates and rates, body ``omega_x|y|z`` and ``omega_body_x|y|z``, point positions and
+velocities (world), point forces and moments in world and body axes (about the rest configuration the
+body axes stand still: their turning is second order), beam station sensors.
+
+Refused (:class:`~ctmm.errors.ModelError`, naming the part): several bases, branches of branches,
+actuators on a branch, a main path that goes on from a beam's mid-span station, prismatic and free joints between bodies and joints free in a direction between bodies (no
+transfer matrix), a spherical joint whose damping and stiffness have different principal axes,
+driven joints, nonlinear laws and joint references, gravity, loads, distributed loads and modal
 hooks (a preload or no field counterpart), modal damping ratios, a given operating point, loops in
-:func:`natural_frequencies` (pass ``system.plant``; :func:`frequency_response` closes them), and ports without an exact-field counterpart (modal coordinates, body
-angles and rotation vectors).
+:func:`natural_frequencies` (pass ``system.plant``; :func:`frequency_response` closes them), and
+ports without an exact-field counterpart (modal coordinates, quaternion components, body angles
+and rotation vectors).
 """
 from __future__ import annotations
 
@@ -49,6 +64,7 @@ import numpy as np
 from . import validation
 from .errors import ModelError
 from .results import FrequencyResponse
+from .spatial_exact_joints import CONVERTED_KINDS
 
 __all__ = ["SpatialExactForm", "exact_form", "natural_frequencies", "frequency_response", "RIGID_FACTOR"]
 
@@ -117,16 +133,18 @@ def _axis_rotation(axis: np.ndarray) -> np.ndarray:
 
 
 def _chain_axes(model: Any) -> np.ndarray:
-    """``Q`` (chain from world axes): a base revolute axis is the chain's ``z``; the first beam's axes
-    are the chain axes (up to a signed permutation when a base revolute axis is one of them), so
-    that its field is not turned (the static rigid-mode count of turned fields is less robust)."""
+    """``Q`` (chain from world axes): a base revolute or prismatic axis (a universal joint's ``axis1 x
+    axis2``) is the chain's ``z``; the first beam's axes are the chain axes (up to a signed permutation
+    when that axis is one of them), so that its field is not turned (the static rigid-mode count of
+    turned fields is less robust)."""
     from .spatial.beam import SpatialBeam
+    from .spatial_exact_joints import base_axis
 
-    base = model.joints[0]
-    axis = base.rotation @ base.axis if base.kind == "revolute" else None
+    axis = base_axis(model.joints[0])
     R = np.eye(3)
     beam_axes = None
-    for body, joint in zip(model.bodies, model.joints):
+    for j in _paths(model)[0]:
+        body, joint = model.bodies[j], model.joints[j]
         R = R @ joint.rotation
         if isinstance(body, SpatialBeam):
             beam_axes = R
@@ -142,6 +160,33 @@ def _chain_axes(model: Any) -> np.ndarray:
             j, k = (i + 1) % 3, (i + 2) % 3          # (b_j, b_k, b_i) is right-handed
             return np.array([b[j], np.sign(sign) * b[k], np.sign(sign) * b[i]])
     return _axis_rotation(axis)
+
+
+def _paths(model: Any) -> tuple[list[int], list[list[int]]]:
+    """The main path (from the base, every body's first child) and the branches (serial paths hung on it) of
+    a spatial model, or a :class:`ModelError` for several bases or a branch of a branch."""
+    children: list[list[int]] = [[] for _ in model.bodies]
+    bases = [j for j, p in enumerate(model.parent) if p < 0]
+    for j, p in enumerate(model.parent):
+        if p >= 0:
+            children[p].append(j)
+    if bases != [0]:
+        raise _refuse(model, f"it has several bases {[model.bodies[j].name for j in bases]}")
+
+    def path(start: int) -> list[int]:
+        out = [start]
+        while children[out[-1]]:
+            out.append(children[out[-1]][0])
+        return out
+
+    main = path(0)
+    branches = [path(c) for j in main for c in children[j][1:]]
+    for branch in branches:
+        nested = [model.bodies[j].name for j in branch if len(children[j]) > 1]
+        if nested:
+            raise _refuse(model, f"bodies {nested} carry a branch of a branch (the spatial beam tree has branches "
+                                 "on the main path only)")
+    return main, branches
 
 
 def _snap(rotation: np.ndarray) -> np.ndarray:
@@ -165,14 +210,13 @@ def _check(model: Any, operating_point: Any) -> None:
                              "gravity=(0, 0, 0))")
     if model.loads:
         raise _refuse(model, f"loads {[load.name for load in model.loads]} preload the chain")
-    if list(model.parent) != list(range(-1, model.n_bodies - 1)):
-        raise _refuse(model, "it is not a serial chain (a body with several children, or several bases)")
+    _paths(model)
     for body, joint in zip(model.bodies, model.joints):
-        if joint.kind not in ("weld", "revolute"):
-            raise _refuse(model, f"joint {joint.name!r} is a {joint.kind} joint (welds and revolute joints convert)")
-        if joint.kind == "revolute":
+        if joint.kind not in CONVERTED_KINDS:
+            raise _refuse(model, f"joint {joint.name!r} is a {joint.kind} joint (converted: {', '.join(CONVERTED_KINDS)})")
+        if joint.kind in ("revolute", "prismatic", "universal"):
             if joint.driven or joint.law is not None or np.any(joint.reference):
-                raise _refuse(model, f"revolute joint {joint.name!r} is driven, has a nonlinear law or a non-zero "
+                raise _refuse(model, f"{joint.kind} joint {joint.name!r} is driven, has a nonlinear law or a non-zero "
                                      "reference")
         if isinstance(body, SpatialBeam):
             if body.damping_ratio:
@@ -196,6 +240,9 @@ class _Builder:
         self.actuators: dict[str, Terms] = {}
         self.rigid: list[str] = []
         self.Q = _chain_axes(model)
+        self.rotations: dict[int, np.ndarray] = {}      # world rotation of each body at rest
+        self.points: dict[int, dict] = {}               # body -> {point: (marker, offset from it, chain axes)}
+        self.beam_markers: dict[str, str] = {}          # the last beam's points -> their markers
 
     # -- port helpers -------------------------------------------------------------------------
     def marker(self, name: str) -> str:
@@ -222,75 +269,88 @@ class _Builder:
             self.sensors[f"{label}.{axis}"] = terms
             self.sensors[f"{label}.v{axis}"] = [(f"{n}_dot", w) for n, w in terms]
 
-    def force_inputs(self, label: str, marker: str, offset: np.ndarray, kinds: Sequence[str]) -> None:
-        """World-axes force (at ``offset`` from ``marker``) and moment inputs ``label.force_x`` ..."""
+    def force_inputs(self, label: str, marker: str, offset: np.ndarray, kinds: Sequence[str],
+                     body: np.ndarray | None = None) -> None:
+        """World-axes force (at ``offset`` from ``marker``) and moment inputs ``label.force_x`` ...; with the
+        body's rest axes ``body`` (body -> chain axes) also ``label.force_body_x`` ... (about the rest
+        configuration the body axes stand still: their turning is second order)."""
         S = _skew(offset)                      # moment at the marker = offset x force
-        for i, axis in enumerate("xyz"):
-            f = self.Q[:, i]                   # unit world force in chain axes
-            if "force" in kinds:
-                terms = [(f"{marker}.f{c}", f[k]) for k, c in enumerate("xyz") if f[k]]
-                moment = S @ f
-                terms += [(f"{marker}.m{c}", moment[k]) for k, c in enumerate("xyz") if moment[k]]
-                self.actuators[f"{label}.force_{axis}"] = terms
-            if "moment" in kinds:
-                self.actuators[f"{label}.moment_{axis}"] = [(f"{marker}.m{c}", f[k]) for k, c in enumerate("xyz")
-                                                            if f[k]]
+        axes = [("", self.Q)] + ([] if body is None else [("_body", body)])
+        for suffix, directions in axes:
+            for i, axis in enumerate("xyz"):
+                f = directions[:, i]           # unit force (world or body axis) in chain axes
+                if "force" in kinds:
+                    terms = [(f"{marker}.f{c}", f[k]) for k, c in enumerate("xyz") if f[k]]
+                    moment = S @ f
+                    terms += [(f"{marker}.m{c}", moment[k]) for k, c in enumerate("xyz") if moment[k]]
+                    self.actuators[f"{label}.force{suffix}_{axis}"] = terms
+                if "moment" in kinds:
+                    self.actuators[f"{label}.moment{suffix}_{axis}"] = [
+                        (f"{marker}.m{c}", f[k]) for k, c in enumerate("xyz") if f[k]]
 
     # -- elements -----------------------------------------------------------------------------
     def build(self) -> SpatialExactForm:
-        from .spatial.beam import SpatialBeam
-        from .spatial_beam_elements import (SpatialClamped, SpatialFree, SpatialGroundSpring, SpatialHinge,
-                                            SpatialSupport)
+        from .spatial_beam_elements import SpatialPointLoad, SpatialRigidBody
+        from .spatial_beam_trees import SpatialBeamTree
         from .system import Chain
 
         model = self.model
-        R = np.eye(3)                          # world rotation of the parent body
-        for j, (body, joint) in enumerate(zip(model.bodies, model.joints)):
-            R_joint = (np.eye(3) if j == 0 else R) @ joint.rotation
-            axis = self.Q @ R_joint @ joint.axis if joint.kind == "revolute" else None
-            k = float(joint.stiffness[0]) if axis is not None else 0.0
-            c = float(joint.damping[0]) if axis is not None else 0.0
-            if j == 0:
-                if axis is None:
-                    self.elements.append(SpatialClamped(f"{joint.name}__base"))
-                else:
-                    self.elements.append(SpatialSupport(f"{joint.name}__base", _DISPLACEMENTS[:5]))
-                    if k or c:
-                        self.elements.append(SpatialGroundSpring(f"{joint.name}__law", np.diag([0, 0, 0, 0, 0, k]),
-                                                                 damping=np.diag([0, 0, 0, 0, 0, c])))
-            before = self.marker(f"{joint.name}__before") if j > 0 and axis is not None else None
-            if before is not None:
-                if not (k or c):
-                    raise _refuse(model, f"revolute joint {joint.name!r} between bodies is free (no stiffness or "
-                                         "damping): a free joint inside the chain has no transfer matrix")
-                self.elements.append(SpatialHinge(joint.name, axis, k, damping=c))
+        main, branches = _paths(model)
+        self.walk(main, np.eye(3))
+        trunk, hung = self.elements, {}
+        for path in branches:                  # each hangs at a marker of the main chain
+            joint = model.joints[path[0]]
+            marker, offset = self.points[model.parent[path[0]]][joint.point]
+            if marker in hung:                 # a second branch there: a marker of its own just after
+                extra = SpatialPointLoad(f"{marker}__{len(hung)}")
+                trunk.insert(next(k for k, e in enumerate(trunk) if e.name == marker) + 1, extra)
+                marker = extra.name
+            self.elements = [] if not np.any(offset) else [SpatialRigidBody(f"{joint.name}__link", 0.0,
+                                                                            offset=offset)]
+            self.walk(path, self.rotations[model.parent[path[0]]])
+            hung[marker] = self.elements
+        chain = (SpatialBeamTree(f"{model.name}_exact", trunk, hung) if hung
+                 else Chain(f"{model.name}_exact", trunk))
+        return SpatialExactForm(chain, self.Q, self.sensors, self.actuators, self.rigid)
+
+    def walk(self, path: Sequence[int], parent_rotation: np.ndarray) -> None:
+        """Elements and ports of the serial ``path`` of bodies onto ``self.elements``, ending free."""
+        from .spatial.beam import SpatialBeam
+        from .spatial_beam_elements import SpatialFree
+        from .spatial_exact_joints import base_elements, inner_elements, joint_ports, motion_matrix
+
+        model = self.model
+        R = parent_rotation                    # world rotation of the parent body
+        for k, j in enumerate(path):
+            body, joint = model.bodies[j], model.joints[j]
+            R_joint = R @ joint.rotation
+            A = motion_matrix(joint, _snap(self.Q @ R_joint))
+            before = None
+            if model.parent[j] < 0:
+                self.elements += base_elements(model.name, joint, A)
+            elif joint.kind != "weld":
+                elements = inner_elements(model.name, joint, A)
+                before = self.marker(f"{joint.name}__before")
+                self.elements += elements
             root = self.marker(f"{body.name}__root")
-            if axis is not None:
-                angle = [(f"{root}.theta_{c_}", a) for c_, a in zip("xyz", axis) if a]
-                if before is not None:
-                    angle += [(f"{before}.theta_{c_}", -a) for c_, a in zip("xyz", axis) if a]
-                self.sensors[f"{joint.name}.angle"] = angle
-                self.sensors[f"{joint.name}.rate"] = [(f"{n}_dot", w) for n, w in angle]
-                if joint.actuated:
-                    torque = [(f"{root}.m{c_}", a) for c_, a in zip("xyz", axis) if a]
-                    if before is not None:
-                        torque += [(f"{before}.m{c_}", -a) for c_, a in zip("xyz", axis) if a]
-                    self.actuators[f"{joint.name}.torque"] = torque
-            elif getattr(joint, "actuated", False):
-                raise _refuse(model, f"joint {joint.name!r} ({joint.kind}) is actuated")
-            R = R_joint                        # the body's world rotation at rest
+            sensors, actuators = joint_ports(joint, A, root, before)
+            self.sensors.update(sensors)
+            self.actuators.update(actuators)
+            R = self.rotations[j] = R_joint    # the body's world rotation at rest
             B = _snap(self.Q @ R)              # body axes -> chain axes
-            for i, axis_name in enumerate("xyz"):      # world angular velocity: Q^T theta_dot (chain axes)
+            for i, axis_name in enumerate("xyz"):      # angular velocity: Q^T theta_dot (world), B^T theta_dot (body)
                 self.sensors[f"{body.name}.omega_{axis_name}"] = [
                     (f"{root}.theta_{c_}_dot", self.Q[k_, i]) for k_, c_ in enumerate("xyz") if self.Q[k_, i]]
-            child = model.joints[j + 1].point if j + 1 < model.n_bodies else None
+                self.sensors[f"{body.name}.omega_body_{axis_name}"] = [
+                    (f"{root}.theta_{c_}_dot", B[k_, i]) for k_, c_ in enumerate("xyz") if B[k_, i]]
+            child = model.joints[path[k + 1]].point if k + 1 < len(path) else None
             if isinstance(body, SpatialBeam):
                 self.beam(body, root, B, child)
+                self.points[j] = {name: (marker, np.zeros(3)) for name, marker in self.beam_markers.items()}
             else:
                 self.rigid_body(body, root, B, child)
-        self.elements.append(SpatialFree(f"{model.bodies[-1].name}__end"))
-        return SpatialExactForm(Chain(f"{model.name}_exact", self.elements), self.Q, self.sensors, self.actuators,
-                                self.rigid)
+                self.points[j] = {name: (root, B @ p) for name, p in body.points.items()}
+        self.elements.append(SpatialFree(f"{model.bodies[path[-1]].name}__end"))
 
     def rigid_body(self, body: Any, root: str, B: np.ndarray, child: str | None) -> None:
         from .spatial_beam_elements import SpatialRigidBody
@@ -299,9 +359,9 @@ class _Builder:
         points["com"] = body.center_of_mass
         for name, p in points.items():
             self.point_sensors(f"{body.name}.{name}", self.rigid_point(root, B @ p))
-            self.force_inputs(f"{body.name}.{name}", root, B @ p, ("force",))
-        self.force_inputs(body.name, root, B @ body.center_of_mass, ("force",))
-        self.force_inputs(body.name, root, np.zeros(3), ("moment",))
+            self.force_inputs(f"{body.name}.{name}", root, B @ p, ("force",), B if name != "com" else None)
+        self.force_inputs(body.name, root, B @ body.center_of_mass, ("force",), B)
+        self.force_inputs(body.name, root, np.zeros(3), ("moment",), B)
         offset = B @ body.points[child] if child is not None else np.zeros(3)
         self.elements.append(SpatialRigidBody(body.name, body.mass, B @ body.inertia @ B.T,
                                               center_of_mass=B @ body.center_of_mass, offset=offset))
@@ -334,8 +394,9 @@ class _Builder:
         from .spatial_beam_fields import SpatialBeamField
 
         if child is not None and child != "tip" and beam.points[child][0] < beam.length * (1 - 1e-12):
-            raise _refuse(self.model, f"the child of beam {beam.name!r} hangs at point {child!r} (x = "
-                                      f"{beam.points[child][0]} m < L): a mid-span branch")
+            raise _refuse(self.model, f"the first child of beam {beam.name!r} hangs at point {child!r} (x = "
+                                      f"{beam.points[child][0]} m < L): the path goes on from mid-span (later "
+                                      "children hang there as branches: list the body hung at the tip first)")
         parameters = self.stiffness(beam)
         places = sorted([(x, name) for name, x in beam.stations.items() if 0.0 < x < beam.length]
                         + [(beam.length, "tip")])
@@ -354,10 +415,11 @@ class _Builder:
             markers[name] = (self.marker(f"{beam.name}__at_{name}"), x)
             if name == "tip":
                 markers.update({n: markers["tip"] for n, xs in beam.stations.items() if xs == x})
+        self.beam_markers = {name: marker for name, (marker, _) in markers.items()}
         b1 = B[:, 0]
         for name, (marker, x) in markers.items():
             self.point_sensors(f"{beam.name}.{name}", self.rigid_point(marker, np.zeros(3)))
-            self.force_inputs(f"{beam.name}.{name}", marker, np.zeros(3), ("force", "moment"))
+            self.force_inputs(f"{beam.name}.{name}", marker, np.zeros(3), ("force", "moment"), B)
             if name == "origin":
                 continue
             rigid = self.rigid_point(root, x * b1)          # the root frame's motion at x
@@ -417,18 +479,24 @@ def natural_frequencies(system: Any, *, n_modes: int | None = None, omega_max: f
         As for :func:`exact_form`.
     """
     from .natural import natural_frequencies as chain_natural
+    from .spatial_exact_joints import rigid_mode_count
+    from .system import Chain
 
     form = exact_form(system, operating_point, rigid_factor=RIGID_FACTOR)
-    omega = chain_natural(form.chain, n_modes=n_modes, omega_max=omega_max)
-    base = system.joints[0]
-    rigid_modes = int(base.kind == "revolute" and not base.stiffness[0])
+    def count(chain: Any) -> np.ndarray:           # a chain (Wittrick-Williams) or a tree (its own count)
+        if isinstance(chain, Chain):
+            return chain_natural(chain, n_modes=n_modes, omega_max=omega_max)
+        return chain.natural_frequencies(n_modes=n_modes, omega_max=omega_max)
+
+    omega = count(form.chain)
+    rigid_modes = rigid_mode_count(system.joints[0])
     if np.count_nonzero(omega == 0.0) > rigid_modes:
         raise _refuse(system, f"the chain count found {np.count_nonzero(omega == 0.0)} rigid-body modes where the "
                               f"model has {rigid_modes} (a safety check of the chain's static rigid-mode count); "
                               "use fields='modal'")
     if form.rigid:
         softer = exact_form(system, operating_point, rigid_factor=RIGID_FACTOR / RIGID_CHECK_RATIO)
-        check = chain_natural(softer.chain, n_modes=n_modes, omega_max=omega_max)
+        check = count(softer.chain)
         scale = max(float(np.max(omega, initial=0.0)), 1e-300)
         if check.shape != omega.shape or np.max(np.abs(check - omega) / np.maximum(omega, 1e-6 * scale),
                                                 initial=0.0) > RIGID_TOLERANCE:
@@ -451,8 +519,8 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
     omega : array_like
         Angular frequencies [rad/s], >= 0.
     input : str or sequence of str
-        Actuator port names (``"<joint>.torque"``, ``"<body>.<point>.force_x"`` ... world axes) or
-        ``"<loop>.reference"``.
+        Actuator port names (``"<joint>.torque"``, ``"<body>.<point>.force_x"`` ... world axes,
+        ``"<body>.moment_body_x"`` ... body axes) or ``"<loop>.reference"``.
     output : str or sequence of str
         Sensor port names (``"<joint>.angle"``, ``"<body>.<point>.x"``, ``"<beam>.<station>.w_y"`` ...) or
         ``"<loop>.y"``, ``"<loop>.u"``.
@@ -476,11 +544,17 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
     outputs = list(validation.names("output", output))
     omega = validation.frequencies("omega", omega)
     form = exact_form(model, operating_point, omega_max=float(np.max(omega, initial=0.0)))
+    if hasattr(form.chain, "on_branch"):       # a tree: inputs on the main path only
+        driven = [n for n in inputs if n in form.actuators] + [n for lp in loops for n, _ in lp.actuator_terms]
+        hung = [n for n in driven if any(form.chain.on_branch(term) for term, _ in form.actuator(n))]
+        if hung:
+            raise _refuse(model, f"actuators {hung} act on a branch of the tree (the exact tree takes inputs on its "
+                                 "main path: the base and every body's first child)")
     response = form_response(form, loops, omega, inputs, outputs)
     ports = SpatialPorts(model)
     units = {name: ports.actuator_unit(name) for name in inputs if name in ports.actuators}
     units.update({name: ports.sensor_unit(name) for name in outputs if name in ports.sensors})
     info = {"method": "exact spatial beam fields (ctmm.spatial_exact_fields), Riccati transfer, delays exact",
             "wall_time_s": time.perf_counter() - started, "n_frequencies": int(omega.size),
-            "chain_elements": len(form.chain.elements), "rigid_directions": list(form.rigid)}
+            "chain_elements": len(getattr(form.chain, "elements", ())), "rigid_directions": list(form.rigid)}
     return FrequencyResponse(omega, response, tuple(inputs), tuple(outputs), model.name, info=info, units=units)

@@ -135,7 +135,8 @@ def test_actuators_equal_reference_generalised_forces() -> None:
     values = {name: rng.normal() for name in p.actuators}
     ours = p.accelerations(q, v, 0.0, p.inputs(values))
     # the same actuation as generalised forces of the reference: joint inputs in their velocity slots,
-    # body forces through point Jacobians (world axes), moments through angular Jacobians
+    # body forces through point Jacobians (world axes; body axes turned by the body's rotation), moments
+    # through angular Jacobians
     qr = q_to_reference(model, q)
     kin = kinematics(tree, qr, v)
     tau = np.zeros(model.n_velocities)
@@ -148,8 +149,10 @@ def test_actuators_equal_reference_generalised_forces() -> None:
         for point, r in {"com": body.center_of_mass, **body.points}.items():
             label = f"{body.name}.force" if point == "com" else f"{body.name}.{point}.force"
             force = np.array([values[f"{label}_{a}"] for a in "xyz"])
+            force += kin.rotation[j] @ np.array([values[f"{label}_body_{a}"] for a in "xyz"])
             tau += point_jacobian(kin, j, kin.origin[j] + kin.rotation[j] @ np.asarray(r, float)).T @ force
         moment = np.array([values[f"{body.name}.moment_{a}"] for a in "xyz"])
+        moment += kin.rotation[j] @ np.array([values[f"{body.name}.moment_body_{a}"] for a in "xyz"])
         tau += kin.jacobian_angular[j].T @ moment
     theirs = forward_dynamics(tree, qr, v, tau)
     np.testing.assert_allclose(ours, theirs, rtol=0, atol=1e-10 * np.max(np.abs(theirs)))

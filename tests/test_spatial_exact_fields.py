@@ -142,8 +142,9 @@ def test_hinge_torque_and_angle_ports_of_the_hub_beam():
 
 @pytest.mark.parametrize("change, words", [
     (lambda els: sp.SpatialModel("m", els, gravity=(0, 0, -9.81)), "gravity"),
-    (lambda els: sp.SpatialModel("m", [els[0], sp.Spherical(name="root", parent=None, child="arm")] + els[2:],
-                                 gravity=(0, 0, 0)), "spherical"),
+    (lambda els: sp.SpatialModel("m", els[:3] + [sp.Prismatic(name="grip", parent="arm", child="payload",
+                                                              point="tip", stiffness=5.0)],
+                                 gravity=(0, 0, 0)), "prismatic"),
     (lambda els: sp.SpatialModel("m", [sp.SpatialBeam("arm", **dict(ARM, damping_ratio=0.01)), els[1]],
                                  gravity=(0, 0, 0)), "damping_ratio"),
     (lambda els: sp.SpatialModel("m", [sp.SpatialBeam("arm", **dict(ARM, stations={"s": 0.5})), els[1], els[2],

@@ -36,6 +36,10 @@ Actuators (inputs, added to what the model's own laws and loads apply)
     * ``"<body>.force_x|y|z"`` [N] -- force at the centre of mass, world axes;
       ``"<body>.moment_x|y|z"`` [N m] -- moment on the body, world axes;
       ``"<body>.<point>.force_x|y|z"`` [N] -- force at a named point (or ``origin``), world axes;
+    * the same in the **body's axes** (components along the body axes, turning with the body: a thruster, a
+      reaction wheel's torque): ``"<body>.force_body_x|y|z"`` [N] (at the centre of mass),
+      ``"<body>.moment_body_x|y|z"`` [N m] and, on rigid bodies, ``"<body>.<point>.force_body_x|y|z"`` [N]
+      (of a beam or a :class:`ctmm.fem.SpatialSubsystem`: the axes of its floating frame);
       beams also ``"<beam>.<point>.moment_x|y|z"`` [N m] (world axes) at their points, and
       ``"<beam>.<point>.force_body_x|y|z"`` [N], ``".moment_body_x|y|z"`` [N m] in the beam's floating frame
       (turning with it: a piezo pair, :func:`ctmm.spatial.beam_ports.patch_actuator`).
@@ -98,7 +102,7 @@ class _Actuator:
     component: int       # entry of the joint input; body: 0..2 force, 3..5 moment
     point: tuple         # body-axes point of a force (body actuators)
     unit: str
-    axes: str = "world"  # body actuators: components in world axes, or "body" (a beam's floating frame)
+    axes: str = "world"  # body actuators: components in world axes, or "body" (the body's / floating frame's)
 
 
 @dataclass(frozen=True)
@@ -111,8 +115,8 @@ class SpatialInputs:
         Joint inputs by model input name (``"<joint>.torque"``: (k,) [N m, N]).
     wrenches : dict of int to list
         Extra loads by body index: ``(point (3,) body axes [m], numpy batched column (1, 6, 1) [f ; m] world
-        axes [N, N m])``, or ``(point, column, "body")`` with ``[f ; m]`` in the body's axes (a beam's
-        floating frame: the ``force_body`` / ``moment_body`` actuators).
+        axes [N, N m])``, or ``(point, column, "body")`` with ``[f ; m]`` in the body's axes (of a beam: its
+        floating frame; the ``force_body`` / ``moment_body`` actuators).
     """
 
     joint: Mapping[str, np.ndarray] = field(default_factory=dict)
@@ -200,6 +204,9 @@ def _build(model: SpatialModel) -> tuple[dict, dict]:
                 for c, a in enumerate(_AXES):
                     label = f"{body.name}.{point}.force_{a}"
                     actuators[label] = _Actuator(label, "body", j, c, r, "N")
+                    if model.modal[j] is None:                 # a beam's body-axes point forces: beam_actuator_rows
+                        label = f"{body.name}.{point}.force_body_{a}"
+                        actuators[label] = _Actuator(label, "body", j, c, r, "N", "body")
         for node, (r, _, _) in getattr(getattr(body, "data", None), "point_rows", {}).items():   # every FE node
             for c, a in enumerate(_AXES):
                 label = f"{body.name}.{node}.{a}"
@@ -209,6 +216,10 @@ def _build(model: SpatialModel) -> tuple[dict, dict]:
                                                             tuple(body.center_of_mass), "N")
             actuators[f"{body.name}.moment_{a}"] = _Actuator(f"{body.name}.moment_{a}", "body", j, 3 + c,
                                                              (0.0, 0.0, 0.0), "N m")
+            actuators[f"{body.name}.force_body_{a}"] = _Actuator(f"{body.name}.force_body_{a}", "body", j, c,
+                                                                 tuple(body.center_of_mass), "N", "body")
+            actuators[f"{body.name}.moment_body_{a}"] = _Actuator(f"{body.name}.moment_body_{a}", "body", j, 3 + c,
+                                                                  (0.0, 0.0, 0.0), "N m", "body")
     return sensors, actuators
 
 
