@@ -10,7 +10,8 @@
   (``ctmm.simulate`` with RK4, solve_ivp and the DT-TMM schemes, ``ctmm.linearize``,
   ``ctmm.frequency_response``, ``ctmm.natural_frequencies``) runs on the mixed system;
 * spatial counterparts (``docs/mixed.md`` §7): :mod:`ctmm.fem.spatial_elements` (12-DOF beam, point mass with
-  inertia, node spring), :mod:`ctmm.fem.spatial_assembly` (:class:`SpatialFiniteElementModel`),
+  inertia, node spring), :mod:`ctmm.fem.spatial_plate` (rectangular ACM plate with membrane action),
+  :mod:`ctmm.fem.spatial_assembly` (:class:`SpatialFiniteElementModel`),
   :mod:`ctmm.fem.spatial_subsystem` (:class:`SpatialSubsystem`, a body of :class:`ctmm.spatial.SpatialModel`
   with ``d = 6`` boundary points; its terms in :mod:`ctmm.fem.spatial_terms`).
 
@@ -23,9 +24,11 @@ from .membrane import MembraneElement
 from .subsystem import FloatingInertia, GlobalSubsystem
 from .spatial_assembly import SpatialFiniteElementModel
 from .spatial_elements import SpatialBeamElement, SpatialNodeSpring, SpatialPointMass
+from .spatial_plate import SpatialPlateElement
 from .spatial_subsystem import SpatialInertia, SpatialSubsystem
 
 __all__ = ["FiniteElementModel", "BeamElement", "MembraneElement", "PointMass", "NodeSpring", "beam_local_matrices", "GlobalSubsystem",
            "FloatingInertia", "SubsystemFamily", "SmallDeformationWarning", "subsystem_energy",
            "SpatialFiniteElementModel", "SpatialBeamElement", "SpatialPointMass", "SpatialNodeSpring", "SpatialInertia",
+           "SpatialPlateElement",
            "SpatialSubsystem"]
