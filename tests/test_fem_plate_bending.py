@@ -196,3 +196,44 @@ def test_simulation_matches_the_global_model():
     final = np.array([result[name][-1] for name in model.coordinates])
     moved = np.max(np.abs(states[-1, :model.n_positions] - q0))
     assert moved > 1e-5 and np.max(np.abs(final - states[-1, :model.n_positions])) < 1e-9 * moved
+
+
+def test_scene_file_builds_the_same_plate_subsystem(tmp_path):
+    """``type = "SpatialFiniteElementSubsystem"`` with plate, beam and point-mass value tables = the Python model."""
+    text = '''
+[system]
+kind = "spatial"
+name = "panel_scene"
+gravity = [0.0, 0.0, 0.0]
+
+[[system.elements]]
+type = "SpatialFiniteElementSubsystem"
+name = "panel"
+nodes = { a = [0.0, 0.0, 0.0], b = [0.3, 0.0, 0.0], c = [0.3, 0.2, 0.0], d = [0.0, 0.2, 0.0], tip = [0.5, 0.0, 0.0] }
+elements = [{ type = "SpatialPlateElement", name = "p", nodes = ["a", "b", "c", "d"], thickness = 0.003, youngs_modulus = 7e10, poisson_ratio = 0.33, density = 2700.0 },
+            { type = "SpatialBeamElement", name = "e", start = "b", end = "tip", axial_stiffness = 3e4, torsional_stiffness = 12.0, bending_stiffness_y = 20.0, bending_stiffness_z = 35.0, mass_per_length = 0.4, orientation = [0.0, 0.0, 1.0] },
+            { type = "SpatialPointMass", name = "m", node = "tip", mass = 0.05, inertia = [1e-4, 2e-4, 1e-4] }]
+boundary = ["a", "tip"]
+
+[[system.elements]]
+type = "Weld"
+name = "clamp"
+child = "panel"
+
+[study]
+verb = "natural_frequencies"
+n_modes = 6
+'''
+    path = tmp_path / "panel.toml"
+    path.write_text(text)
+    scene = ctmm.scene_files.load_scene(path)
+    nodes = {"a": (0.0, 0.0, 0.0), "b": (0.3, 0.0, 0.0), "c": (0.3, 0.2, 0.0), "d": (0.0, 0.2, 0.0), "tip": (0.5, 0, 0)}
+    fe = SpatialFiniteElementModel("panel", nodes, [
+        SpatialPlateElement("p", ("a", "b", "c", "d"), 0.003, 7e10, 0.33, 2700.0),
+        SpatialBeamElement("e", "b", "tip", 3e4, 12.0, 20.0, 35.0, 0.4, orientation=(0, 0, 1)),
+        SpatialPointMass("m", "tip", 0.05, (1e-4, 2e-4, 1e-4))])
+    model = sp.SpatialModel("panel_python", [fe.subsystem("panel", ("a", "tip")),
+                                             sp.Weld(name="clamp", parent=None, child="panel")], gravity=(0, 0, 0))
+    expected = ctmm.natural_frequencies(model, n_modes=6)
+    assert np.asarray(scene.run()) == pytest.approx(expected, rel=1e-12)
+    assert expected[0] > 1.0

@@ -23,7 +23,7 @@ from .spatial_plate import (PLATE_GAUSS_POINTS, PLATE_GAUSS_WEIGHTS, SpatialPlat
                             plate_drilling_inertia, plate_local_matrices, plate_rotation_block, plate_shapes)
 from .spatial_subsystem import SpatialInertia, SpatialSubsystem
 
-__all__ = ["SpatialFiniteElementModel"]
+__all__ = ["SpatialFiniteElementModel", "spatial_finite_element_subsystem"]
 
 
 def _element_nodes(element: Any) -> tuple[str, ...]:
@@ -210,3 +210,29 @@ class SpatialFiniteElementModel:
     def natural_frequencies(self, clamped: Sequence[str] = ()) -> np.ndarray:
         """Natural frequencies [rad/s] with the DOFs of the ``clamped`` nodes held (``eigh(K, M)``)."""
         return clamped_frequencies(self.name, self.stiffness, self.mass, self.dofs, clamped)
+
+
+def spatial_finite_element_subsystem(name: str, nodes: dict, elements: list, boundary: list, *,
+                                     rayleigh: tuple[float, float] = (0.0, 0.0),
+                                     frame_nodes: tuple[str, ...] = ()) -> SpatialSubsystem:
+    """A spatial finite-element model as a body of a spatial model, in one call (scene files:
+    ``type = "SpatialFiniteElementSubsystem"``):
+    ``SpatialFiniteElementModel(name, nodes, elements, rayleigh=rayleigh).subsystem(name, boundary, frame_nodes=...)``.
+
+    Parameters
+    ----------
+    name : str
+        Model and body name.
+    nodes : dict of str to (x, y, z)
+        Undeformed node positions [m].
+    elements : list
+        ``SpatialBeamElement``, ``SpatialPlateElement``, ``SpatialPointMass``, ``SpatialNodeSpring``.
+    boundary : list of str
+        Boundary nodes, the inboard one first.
+    rayleigh : (float, float)
+        Rayleigh damping ``(a [1/s], b [s])``.
+    frame_nodes : sequence of str
+        Nodes held in the frame.
+    """
+    model = SpatialFiniteElementModel(name, nodes, elements, rayleigh=rayleigh)
+    return model.subsystem(name, boundary, frame_nodes=tuple(frame_nodes))
