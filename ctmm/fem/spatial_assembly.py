@@ -18,7 +18,8 @@ from ..errors import ModelError
 from .model_parts import (check_springs, checked_elements, clamped_frequencies, known_nodes, node_positions, number_dofs,
                           rayleigh_pair)
 from .spatial_elements import (GAUSS_POINTS, GAUSS_WEIGHTS, SpatialBeamElement, SpatialNodeSpring, SpatialPointMass,
-                               node_rotation_block, spatial_beam_axes, spatial_beam_local_matrices, spatial_beam_shapes)
+                               node_rotation_block, section_rotary_inertia, spatial_beam_axes,
+                               spatial_beam_local_matrices, spatial_beam_shapes, spatial_shear_parameters)
 from .spatial_plate import (PLATE_GAUSS_POINTS, PLATE_GAUSS_WEIGHTS, SpatialPlateElement, plate_axes,
                             plate_drilling_inertia, plate_local_matrices, plate_rotation_block, plate_shapes)
 from .spatial_subsystem import SpatialInertia, SpatialSubsystem
@@ -149,16 +150,16 @@ class SpatialFiniteElementModel:
         for e in self.elements:
             if isinstance(e, SpatialBeamElement):
                 idx, length, axes, T = self._beam(e)
-                N, _, _ = spatial_beam_shapes(GAUSS_POINTS, length)
+                N, _, _, rotations = spatial_beam_shapes(GAUSS_POINTS, length, spatial_shear_parameters(e, length))
                 X = (self.positions[e.start] - o)[None, :] + GAUSS_POINTS[:, None] * length * axes[0][None, :]
                 if e.mass_per_length:
                     S = np.einsum("ji,pjk,kl->pil", axes, N[:, :3], T)          # (P, 3, 12) model axes
                     _add_mass_points(sums, GAUSS_WEIGHTS * e.mass_per_length * length, X, S, idx)
-                if e.polar_inertia_per_length:
-                    twist = N[:, 3] @ T                                       # (P, 12): phi = twist . d
-                    w = GAUSS_WEIGHTS * e.polar_inertia_per_length * length
-                    J_r += w.sum() * np.outer(axes[0], axes[0])
-                    R_c[:, idx] += np.outer(axes[0], w @ twist)
+                rotary = section_rotary_inertia(e)                            # local axes [kg m]
+                if np.any(rotary):                 # sections turn by Omega + r(x) (torsion; Timoshenko bending)
+                    tensor = axes.T @ np.diag(rotary) @ axes                  # model axes
+                    J_r += length * tensor
+                    R_c[:, idx] += tensor @ axes.T @ np.einsum("p,pik->ik", GAUSS_WEIGHTS * length, rotations) @ T
             elif isinstance(e, SpatialPlateElement):
                 idx, a, b, axes, T = self._plate(e)
                 S = np.einsum("ji,pjk,kl->pil", axes, plate_shapes(PLATE_GAUSS_POINTS, a, b), T)   # (P, 3, 24)
