@@ -171,3 +171,53 @@ def test_hinged_subsystems_have_the_frequencies_of_the_finite_element_matrices()
 def test_bad_timoshenko_options_are_refused_by_name(build, message):
     with pytest.raises(ModelError, match=message):
         build()
+
+
+def test_timoshenko_frame_in_a_spatial_chain_matches_the_global_model():
+    """Yaw link - an L-frame of Timoshenko elements with section rotary inertia (pitch joint) - link on a hinge at its
+    corner node, against ctmm/reference/spatial_fe_global.py (own Timoshenko interpolation): accelerations and energy
+    at moving, deformed states (the rotary terms of the sections are gyroscopic); natural frequencies."""
+    from ctmm.reference.spatial_fe_global import FEFrame, FrameBeam, Link, SpatialFEChain
+
+    nodes = {"n0": (0.0, 0.0, 0.0), "n1": (0.3, 0.0, 0.0), "n2": (0.6, 0.0, 0.0), "n3": (0.6, 0.25, 0.0)}
+    beams = [("e0", "n0", "n1", (0.0, 1.0, 0.0)), ("e1", "n1", "n2", (0.0, 0.0, 1.0)), ("e2", "n2", "n3", (0.3, 0, 1))]
+    section = dict(EA=4e4, GJ=40.0, EIy=60.0, EIz=90.0, rhoA=1.1, rhoIp=4e-3)
+    shear = dict(kGAy=9e3, kGAz=6e3, rhoIy=2e-3, rhoIz=3e-3)
+    I1, I2 = np.diag([0.01, 0.02, 0.015]), np.diag([0.004, 0.003, 0.002])
+    elements = [SpatialBeamElement(name, a, b, section["EA"], section["GJ"], section["EIy"], section["EIz"],
+                                   section["rhoA"], section["rhoIp"], orientation=o, shear_stiffness_y=shear["kGAy"],
+                                   shear_stiffness_z=shear["kGAz"], bending_rotary_inertia_y=shear["rhoIy"],
+                                   bending_rotary_inertia_z=shear["rhoIz"]) for name, a, b, o in beams]
+    fe = SpatialFiniteElementModel("fe", nodes, elements)
+
+    def build(gravity):
+        model = sp.SpatialModel("timoshenko_chain", [
+            sp.SpatialBody("link1", 1.2, I1, center_of_mass=(0.1, 0.0, 0.15), points={"tip": (0.2, 0.0, 0.3)}),
+            sp.Revolute(name="yaw", parent=None, child="link1", axis=(0, 0, 1)),
+            fe.subsystem("frame", boundary=("n0", "n3")),
+            sp.Revolute(name="pitch", parent="link1", point="tip", child="frame", axis=(0, 1, 0), stiffness=30.0),
+            sp.SpatialBody("link2", 0.5, I2, center_of_mass=(0.0, 0.05, -0.1)),
+            sp.Revolute(name="hinge", parent="frame", point="n3", child="link2", axis=(1, 0, 0), stiffness=2.0)],
+            gravity=(0.0, 0.0, -gravity))
+        reference = SpatialFEChain([
+            Link(1.2, I1, (0.1, 0.0, 0.15), (0, 0, 1), (0, 0, 0)),
+            FEFrame(nodes, "n0", [FrameBeam(a, b, *section.values(), o, **shear) for _, a, b, o in beams],
+                    axis=(0, 1, 0), point=(0.2, 0.0, 0.3)),
+            Link(0.5, I2, (0.0, 0.05, -0.1), (1, 0, 0), "n3")], gravity=(0.0, 0.0, -gravity),
+            joint_springs={1: (30.0, 0.0), 2: (2.0, 0.0)})
+        return model, reference
+    model, reference = build(9.81)
+    rng = np.random.default_rng(11)
+    for _ in range(3):
+        q = rng.normal(size=model.n_positions) * 0.8
+        q[3:] *= 0.02
+        v = rng.normal(size=model.n_velocities)
+        a, a_ref = sp.accelerations(model, q, v), reference.accelerations(q, v)
+        assert np.max(np.abs(a - a_ref)) < 1e-10 * np.max(np.abs(a_ref))
+        assert sp.energy(model, q, v) == pytest.approx(reference.energy(q, v), rel=1e-11)
+    model, reference = build(0.0)                            # no gravity: the neutral configuration is at rest
+    rest = (np.zeros(model.n_positions), np.zeros(model.n_velocities))
+    omega = ctmm.natural_frequencies(model, n_modes=6, operating_point=rest)
+    expected = reference.natural_frequencies(rest[0])[:6]
+    assert omega[0] == 0.0 and expected[0] < 1e-6
+    assert np.max(np.abs(omega[1:] / expected[1:] - 1)) < 1e-8

@@ -25,6 +25,11 @@ material point is at ``r = o_F + R_F (X + S(X) u)``.
   eps^T h C eps)`` by the same quadrature; the drilling rotation (about the normal) tied to the membrane's
   rotation ``(v_x - u_y)/2`` at each corner by the penalty ``k_d = ratio G h A / 4`` and a corner inertia
   ``rho h A (a^2 + b^2) / 192`` about the normal;
+* **Timoshenko beams** (``FrameBeam(kGAy=..., kGAz=..., rhoIy=..., rhoIz=...)``): per bending plane the
+  deflection cubic and the section rotation quadratic, their seven coefficients from the four end values and
+  the three polynomial identities of the static Timoshenko equations (solved numerically); strain energy
+  ``1/2 int (EI theta'^2 + kGA (v' - theta)^2)``, the sections' rotary inertia ``1/2 Omega_s^T I_s Omega_s``
+  with ``Omega_s`` the frame's angular velocity plus the section rotation rates ``[phi', r_y', r_z']``;
 * **links**: rigid bodies, Kane with world angular velocities; a link after the frame hangs on a node
   on a revolute joint whose axis is given in the node frame ``R_F Rz(r_z) Ry(r_y) Rx(r_x)``.
 """
@@ -77,6 +82,26 @@ class FrameBeam:
     rhoA: float
     rhoIp: float
     orientation: Any
+    kGAy: Any = None            # Timoshenko: kappa G A of the deflection along e2 / e3 (None: rigid in shear)
+    kGAz: Any = None
+    rhoIy: float = 0.0          # rotary inertia of the sections of the bending along e2 (about e3) / e3 (about e2)
+    rhoIz: float = 0.0
+
+
+def _bending_plane(L: float, EI: float, kGA: Any, ends: np.ndarray):
+    """Coefficients of ``v = [1, x, x^2, x^3] a`` and the section rotation ``theta = [1, x, x^2] b`` from the end
+    values ``ends`` (4, nu) ``[v_a, theta_a, v_b, theta_b]``: without shear ``theta = v'`` (the cubic through the
+    end values and slopes); with ``kGA`` the static Timoshenko solution (``v'' = theta'``, ``EI theta'' + kGA (v' -
+    theta) = 0`` as polynomial identities), solved numerically as a 7 x 7 system."""
+    if kGA is None:
+        a = np.linalg.solve(np.array([[1, 0, 0, 0], [0, 1, 0, 0], [1, L, L * L, L ** 3], [0, 1, 2 * L, 3 * L * L]],
+                                     float), ends)
+        return a, np.array([a[1], 2 * a[2], 3 * a[3]])
+    system = np.array([[1, 0, 0, 0, 0, 0, 0], [0, 0, 0, 0, 1, 0, 0], [1, L, L * L, L ** 3, 0, 0, 0],
+                       [0, 0, 0, 0, 1, L, L * L], [0, 0, 2, 0, 0, -1, 0], [0, 0, 0, 3, 0, 0, -1],
+                       [0, kGA, 0, 0, -kGA, 0, 2 * EI]], float)
+    c = np.linalg.solve(system, np.vstack([ends, np.zeros((3, ends.shape[1]))]))
+    return c[:4], c[4:]
 
 
 @dataclass
@@ -179,19 +204,32 @@ class SpatialFEChain:
             ends_v = np.vstack([ta[1], ra[2], tb[1], rb[2]])           # v, v', at a and b
             ends_w = np.vstack([ta[2], -ra[1], tb[2], -rb[1]])
             ends_u, ends_p = np.vstack([ta[0], tb[0]]), np.vstack([ra[0], rb[0]])
+            timoshenko = b.kGAy is not None or b.kGAz is not None or b.rhoIy or b.rhoIz
+            planes = [_bending_plane(L, b.EIy, b.kGAy, ends_v), _bending_plane(L, b.EIz, b.kGAz, ends_w)]
             for xi, wt in zip(_XI, _WT):
                 x = xi * L
                 pc, dc2 = np.array([1, x, x * x, x ** 3]), np.array([0, 0, 2, 6 * x])
                 pl, dl = np.array([1, x]), np.array([0, 1.0])
                 u_row, phi_row = pl @ Al @ ends_u, pl @ Al @ ends_p
-                v_row, w_row = pc @ Ac @ ends_v, pc @ Ac @ ends_w
+                if not timoshenko:
+                    v_row, w_row = pc @ Ac @ ends_v, pc @ Ac @ ends_w
+                    strains = [(b.EA, dl @ Al @ ends_u), (b.EIy, dc2 @ Ac @ ends_v), (b.EIz, dc2 @ Ac @ ends_w),
+                               (b.GJ, dl @ Al @ ends_p)]
+                else:
+                    dc1, pq, dq = np.array([0, 1, 2 * x, 3 * x * x]), np.array([1, x, x * x]), np.array([0, 1, 2 * x])
+                    (av, bv), (aw, bw) = planes
+                    v_row, w_row = pc @ av, pc @ aw
+                    strains = [(b.EA, dl @ Al @ ends_u), (b.EIy, dq @ bv), (b.EIz, dq @ bw), (b.GJ, dl @ Al @ ends_p)]
+                    for kGA, (a_, b_) in ((b.kGAy, planes[0]), (b.kGAz, planes[1])):
+                        if kGA is not None:
+                            strains.append((kGA, dc1 @ a_ - pq @ b_))
+                    rotation = np.vstack([phi_row, -(pq @ bw), pq @ bv])      # local [twist, r_y, r_z]
+                    rotary.append((np.diag([b.rhoIp, b.rhoIz, b.rhoIy]) * L * wt, Q, rotation))
                 S = Q.T @ np.vstack([u_row, v_row, w_row])             # frame components
                 points.append((pa + x * e1, S))
                 masses.append(b.rhoA * L * wt)
-                if b.rhoIp:
+                if b.rhoIp and not timoshenko:
                     rotary.append((np.array([[b.rhoIp * L * wt]]), e1[None, :], phi_row[None, :]))
-                strains = [(b.EA, dl @ Al @ ends_u), (b.EIy, dc2 @ Ac @ ends_v), (b.EIz, dc2 @ Ac @ ends_w),
-                           (b.GJ, dl @ Al @ ends_p)]
                 for modulus, row in strains:
                     K += modulus * L * wt * np.outer(row, row)
         for plate in fe.plates:
