@@ -184,14 +184,15 @@ def test_natural_frequencies_and_frequency_response_match_the_global_linearisati
     assert np.max(np.abs(values - expected) / np.abs(expected)) < 1e-7
 
 
-def test_simulation_matches_the_global_model():
+@pytest.mark.parametrize("compiled", [False, True])
+def test_simulation_matches_the_global_model(compiled):
     model, reference = chain(child=False)
     q0 = np.zeros(model.n_positions)
     q0[model.coordinates.index("panel.2_1_uz")] = 1e-4
     v0 = np.zeros(model.n_velocities)
     v0[0] = 0.5
     dt, steps = 2e-5, 10
-    result = ctmm.simulate(model, dt * steps, dt, method="rk4", x0=q0, v0=v0)
+    result = ctmm.simulate(model, dt * steps, dt, method="rk4", x0=q0, v0=v0, compiled=compiled)
     _, states = reference.rk4(q0, v0, dt * steps, dt)
     final = np.array([result[name][-1] for name in model.coordinates])
     moved = np.max(np.abs(states[-1, :model.n_positions] - q0))
