@@ -1,7 +1,8 @@
 """Finite-element and global-equation subsystems coupled to planar transfer systems (mixed MSTMM).
 
 * :mod:`ctmm.fem.elements` -- planar Euler-Bernoulli beam elements (consistent mass, stiffness,
-  geometric stiffness), point masses, spring-dampers between nodes;
+  geometric stiffness; the Timoshenko option of :mod:`ctmm.fem.timoshenko`), point masses, spring-dampers
+  between nodes;
 * :mod:`ctmm.fem.assembly` -- :class:`FiniteElementModel`: named nodes, assembled ``M, C, K`` (Rayleigh
   damping), floating-frame inertia integrals by quadrature;
 * :mod:`ctmm.fem.subsystem` -- :class:`GlobalSubsystem`: a subsystem given by global equations
