@@ -17,8 +17,8 @@ twist linear, deflections Hermite cubic (``xi = x / L``)::
 
 Stiffness ``int (EA u'^2 + EI_y v''^2 + EI_z w''^2 + GJ phi'^2) dx``, translational consistent mass
 ``rhoA int (u^2 + v^2 + w^2) dx``, torsional mass ``rho I_p int phi^2 dx`` (the section's rotary inertia
-about its axis; the bending rotary inertia of a slender section is neglected), geometric stiffness of a
-constant axial force ``N`` (tension > 0) ``N int (v'^2 + w'^2) dx`` -- all by five-point Gauss
+about its axis; the bending rotary inertia of a slender section is neglected unless given, below),
+geometric stiffness of a constant axial force ``N`` (tension > 0) ``N int (v'^2 + w'^2) dx`` -- all by five-point Gauss
 quadrature, exact for these polynomials (degree <= 6).  ``bending_stiffness_y`` is the ``EI`` of the
 deflection along ``y'`` (bending in the ``x'-y'`` plane), as for :class:`ctmm.spatial.SpatialBeam`.
 
@@ -41,7 +41,8 @@ from .model_parts import node_name
 from .timoshenko import bending_shapes, shear_parameter
 
 __all__ = ["SpatialBeamElement", "SpatialPointMass", "SpatialNodeSpring", "spatial_beam_axes", "spatial_beam_shapes",
-           "spatial_beam_local_matrices", "spatial_shear_parameters", "section_rotary_inertia", "node_rotation_block", "GAUSS_POINTS", "GAUSS_WEIGHTS"]
+           "spatial_beam_local_matrices", "spatial_shear_parameters", "section_rotary_inertia", "node_rotation_block",
+           "GAUSS_POINTS", "GAUSS_WEIGHTS"]
 
 _X, _W = np.polynomial.legendre.leggauss(5)
 GAUSS_POINTS, GAUSS_WEIGHTS = 0.5 * (_X + 1.0), 0.5 * _W
