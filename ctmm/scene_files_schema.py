@@ -268,7 +268,10 @@ def element_types(kind: str) -> dict[str, Constructor]:
     if kind == "spatial":
         classes = _public_classes("ctmm.spatial.elements", _is_spatial_element)
         classes.update(_public_classes("ctmm.spatial", _is_spatial_element))
-        return _with_factories(classes)
+        out = _with_factories(classes)
+        out["SpatialFiniteElementSubsystem"] = constructor("SpatialFiniteElementSubsystem", _resolve(
+            "ctmm.fem.spatial_assembly:spatial_finite_element_subsystem"))
+        return out
     raise KeyError(kind)
 
 
@@ -299,7 +302,8 @@ def value_types() -> dict[str, Constructor]:
     out["SpinUpLaw"] = constructor("SpinUpLaw", spin_up_law)
     out["ParallelLaw"] = constructor("ParallelLaw", parallel_law)
     for module, names in (("ctmm.nonlinear_laws", ("LinearLaw", "CubicSpring", "ClearanceSpring", "PowerDamper")),
-                          ("ctmm.fem", ("BeamElement", "PointMass", "NodeSpring", "MembraneElement")),
+                          ("ctmm.fem", ("BeamElement", "PointMass", "NodeSpring", "MembraneElement", "SpatialBeamElement",
+                                        "SpatialPlateElement", "SpatialPointMass", "SpatialNodeSpring")),
                           ("ctmm.planar.closed_loops", ("CutJoint",))):
         for name in names:
             out[name] = constructor(name, _resolve(f"{module}:{name}"))

@@ -17,11 +17,13 @@ import numpy as np
 
 from .. import validation
 from ..errors import ModelError
-from .elements import BeamElement, NodeSpring, PointMass, beam_local_matrices, beam_rotation, beam_shape_functions
+from .elements import (BeamElement, NodeSpring, PointMass, beam_local_matrices, beam_rotation, beam_section_rotation,
+                       beam_shape_functions)
 from .membrane import MembraneElement, membrane_matrices, membrane_shape_points
 from .model_parts import (check_springs, checked_elements, clamped_frequencies, known_nodes, node_positions, number_dofs,
                           rayleigh_pair)
 from .subsystem import FloatingInertia, GlobalSubsystem
+from .timoshenko import shear_parameter
 
 __all__ = ["FiniteElementModel"]
 
@@ -94,7 +96,8 @@ class FiniteElementModel:
             elif isinstance(e, BeamElement):
                 idx, length, T = self._beam(e)
                 k, m, kg = beam_local_matrices(length, e.bending_stiffness, e.axial_stiffness, e.mass_per_length,
-                                               e.axial_force)
+                                               e.axial_force, shear_stiffness=e.shear_stiffness,
+                                               rotary_inertia_per_length=e.rotary_inertia_per_length)
                 sub = np.ix_(idx, idx)
                 K[sub] += T.T @ (k + kg) @ T
                 M[sub] += T.T @ m @ T
@@ -148,11 +151,16 @@ class FiniteElementModel:
                 r2 = T[:2, :2]
                 a = self.positions[e.start] - o
                 direction = (self.positions[e.end] - self.positions[e.start]) / length
-                N = beam_shape_functions(_XI, length)                           # (5, 2, 6) local
+                shear = shear_parameter(e.name, e.bending_stiffness, e.shear_stiffness, length)
+                N = beam_shape_functions(_XI, length, shear)                    # (5, 2, 6) local
                 S = np.einsum("ji,pjk,kl->pil", r2, N, T)                        # (5, 2, 6) frame axes
                 X = a[None, :] + _XI[:, None] * length * direction[None, :]     # (5, 2)
                 w = _WEIGHT * e.mass_per_length * length                         # (5,)
                 points.append((w, X, S, idx))
+                if e.rotary_inertia_per_length:              # sections turn by omega + theta_dot (docs/mixed.md §7c)
+                    polar += e.rotary_inertia_per_length * length
+                    gamma[idx] += e.rotary_inertia_per_length * length * (_WEIGHT @ beam_section_rotation(
+                        _XI, length, shear)) @ T
             elif isinstance(e, PointMass):
                 dofs = self.dofs[e.node]
                 X = self.positions[e.node] - o

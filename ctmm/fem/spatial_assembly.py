@@ -1,7 +1,7 @@
 """Assembly of spatial finite elements with named nodes into global matrices and a spatial subsystem.
 
 :class:`SpatialFiniteElementModel` numbers the DOFs (per node ``u_x, u_y, u_z`` and, where a beam
-touches it, ``r_x, r_y, r_z``), assembles ``M`` (translational and rotary), ``K`` (elastic plus
+touches it or it is a plate corner, ``r_x, r_y, r_z``), assembles ``M`` (translational and rotary), ``K`` (elastic plus
 geometric) and ``C`` (dampers plus Rayleigh ``a M + b K``), and integrates the floating-frame inertia
 integrals of :class:`~ctmm.fem.SpatialInertia` by five-point Gauss quadrature of the element shape
 functions (exact: polynomials of degree <= 6).  :meth:`SpatialFiniteElementModel.subsystem` turns it
@@ -18,14 +18,31 @@ from ..errors import ModelError
 from .model_parts import (check_springs, checked_elements, clamped_frequencies, known_nodes, node_positions, number_dofs,
                           rayleigh_pair)
 from .spatial_elements import (GAUSS_POINTS, GAUSS_WEIGHTS, SpatialBeamElement, SpatialNodeSpring, SpatialPointMass,
-                               node_rotation_block, spatial_beam_axes, spatial_beam_local_matrices, spatial_beam_shapes)
+                               node_rotation_block, section_rotary_inertia, spatial_beam_axes,
+                               spatial_beam_local_matrices, spatial_beam_shapes, spatial_shear_parameters)
+from .spatial_plate import (PLATE_GAUSS_POINTS, PLATE_GAUSS_WEIGHTS, SpatialPlateElement, plate_axes,
+                            plate_drilling_inertia, plate_local_matrices, plate_rotation_block, plate_shapes)
 from .spatial_subsystem import SpatialInertia, SpatialSubsystem
 
-__all__ = ["SpatialFiniteElementModel"]
+__all__ = ["SpatialFiniteElementModel", "spatial_finite_element_subsystem"]
 
 
 def _element_nodes(element: Any) -> tuple[str, ...]:
+    if isinstance(element, SpatialPlateElement):
+        return element.nodes
     return (element.node,) if isinstance(element, SpatialPointMass) else (element.start, element.end)
+
+
+def _add_mass_points(sums: tuple, weights: np.ndarray, X: np.ndarray, S: np.ndarray, idx: np.ndarray) -> None:
+    """Add mass points (masses ``weights`` (P,) [kg], positions ``X`` (P, 3) [m], interpolation ``S`` (P, 3, k) onto
+    the DOFs ``idx``) to ``sums = (m, s0, int X X^T dm, S1, D, E)`` in place."""
+    mass, first, second, S1, D, E = sums
+    mass += weights.sum()
+    first += weights @ X
+    second += np.einsum("p,pi,pk->ik", weights, X, X)
+    S1[:, idx] += np.einsum("p,pik->ik", weights, S)
+    D[:, :, idx] += np.einsum("p,pi,pkl->ikl", weights, X, S)
+    E[np.ix_(range(3), range(3), idx, idx)] += np.einsum("p,pik,pjl->ijkl", weights, S, S)
 
 
 class SpatialFiniteElementModel:
@@ -37,8 +54,8 @@ class SpatialFiniteElementModel:
     nodes : mapping of str to (x, y, z)
         Undeformed node positions [m].
     elements : sequence
-        :class:`~ctmm.fem.SpatialBeamElement`, :class:`~ctmm.fem.SpatialPointMass`,
-        :class:`~ctmm.fem.SpatialNodeSpring`.
+        :class:`~ctmm.fem.SpatialBeamElement`, :class:`~ctmm.fem.SpatialPlateElement`,
+        :class:`~ctmm.fem.SpatialPointMass`, :class:`~ctmm.fem.SpatialNodeSpring`.
     rayleigh : (float, float)
         Rayleigh damping ``C += a M + b K`` with ``(a [1/s], b [s])``, >= 0; default none.
 
@@ -55,10 +72,12 @@ class SpatialFiniteElementModel:
                  rayleigh: Sequence[float] = (0.0, 0.0)) -> None:
         self.name = validation.name("model", name)
         self.positions = node_positions(name, nodes, 3)
-        self.elements = checked_elements(name, elements, (SpatialBeamElement, SpatialPointMass, SpatialNodeSpring),
+        self.elements = checked_elements(name, elements, (SpatialBeamElement, SpatialPlateElement, SpatialPointMass,
+                                                          SpatialNodeSpring),
                                          _element_nodes, self.positions)
         self.rayleigh = rayleigh_pair(name, rayleigh)
-        rotating = {n for e in self.elements if isinstance(e, SpatialBeamElement) for n in (e.start, e.end)}
+        rotating = {n for e in self.elements if isinstance(e, (SpatialBeamElement, SpatialPlateElement))
+                    for n in _element_nodes(e)}
         self.dofs, self.n_dofs = number_dofs(self.positions, rotating, 3, 3)
         check_springs(name, [e for e in self.elements if isinstance(e, SpatialNodeSpring)], self.dofs, self.positions, 6)
         self.mass, self.stiffness, self.damping = self._assemble()
@@ -69,9 +88,15 @@ class SpatialFiniteElementModel:
                                          f"{self.name}: {e.name}")
         return idx, length, axes, node_rotation_block(axes)
 
+    def _plate(self, e: SpatialPlateElement) -> tuple[np.ndarray, float, float, np.ndarray, np.ndarray]:
+        idx = np.array([i for node in e.nodes for i in self.dofs[node]])
+        a, b, axes = plate_axes(np.array([self.positions[node] for node in e.nodes]), f"{self.name}: {e.name}")
+        return idx, a, b, axes, plate_rotation_block(axes)
+
     def _assemble(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         n = self.n_dofs
         M, K, C = np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, n))
+        plates: dict[tuple, tuple] = {}
         for e in self.elements:
             if isinstance(e, SpatialBeamElement):
                 idx, length, _, T = self._beam(e)
@@ -79,6 +104,15 @@ class SpatialFiniteElementModel:
                 sub = np.ix_(idx, idx)
                 K[sub] += T.T @ (k + kg) @ T
                 M[sub] += T.T @ (m_t + m_r) @ T
+            elif isinstance(e, SpatialPlateElement):
+                idx, a, b, _, T = self._plate(e)
+                key = (e.thickness, e.youngs_modulus, e.poisson_ratio, e.density, e.drilling_stiffness_ratio, a, b)
+                if key not in plates:                                   # a regular mesh: one computation
+                    plates[key] = plate_local_matrices(e, a, b)
+                k, m, _ = plates[key]
+                sub = np.ix_(idx, idx)
+                K[sub] += T.T @ k @ T
+                M[sub] += T.T @ m @ T
             elif isinstance(e, SpatialPointMass):
                 dofs = self.dofs[e.node]
                 for i in dofs[:3]:
@@ -109,28 +143,33 @@ class SpatialFiniteElementModel:
             raise ModelError(f"{self.name}: unknown node {origin!r}; nodes: {', '.join(self.positions)}")
         o = self.positions[origin]
         n = self.n_dofs
-        mass, first, second = 0.0, np.zeros(3), np.zeros((3, 3))
-        S1, D, E = np.zeros((3, n)), np.zeros((3, 3, n)), np.zeros((3, 3, n, n))
+        sums = (np.zeros(()), np.zeros(3), np.zeros((3, 3)), np.zeros((3, n)), np.zeros((3, 3, n)),
+                np.zeros((3, 3, n, n)))
+        mass, first, second, S1, D, E = sums
         J_r, R_c = np.zeros((3, 3)), np.zeros((3, n))
         for e in self.elements:
             if isinstance(e, SpatialBeamElement):
                 idx, length, axes, T = self._beam(e)
-                N, _, _ = spatial_beam_shapes(GAUSS_POINTS, length)
+                N, _, _, rotations = spatial_beam_shapes(GAUSS_POINTS, length, spatial_shear_parameters(e, length))
                 X = (self.positions[e.start] - o)[None, :] + GAUSS_POINTS[:, None] * length * axes[0][None, :]
                 if e.mass_per_length:
                     S = np.einsum("ji,pjk,kl->pil", axes, N[:, :3], T)          # (P, 3, 12) model axes
-                    w = GAUSS_WEIGHTS * e.mass_per_length * length
-                    mass += w.sum()
-                    first += w @ X
-                    second += np.einsum("p,pi,pk->ik", w, X, X)
-                    S1[:, idx] += np.einsum("p,pik->ik", w, S)
-                    D[:, :, idx] += np.einsum("p,pi,pkl->ikl", w, X, S)
-                    E[np.ix_(range(3), range(3), idx, idx)] += np.einsum("p,pik,pjl->ijkl", w, S, S)
-                if e.polar_inertia_per_length:
-                    twist = N[:, 3] @ T                                       # (P, 12): phi = twist . d
-                    w = GAUSS_WEIGHTS * e.polar_inertia_per_length * length
-                    J_r += w.sum() * np.outer(axes[0], axes[0])
-                    R_c[:, idx] += np.outer(axes[0], w @ twist)
+                    _add_mass_points(sums, GAUSS_WEIGHTS * e.mass_per_length * length, X, S, idx)
+                rotary = section_rotary_inertia(e)                            # local axes [kg m]
+                if np.any(rotary):                 # sections turn by Omega + r(x) (torsion; Timoshenko bending)
+                    tensor = axes.T @ np.diag(rotary) @ axes                  # model axes
+                    J_r += length * tensor
+                    R_c[:, idx] += tensor @ axes.T @ np.einsum("p,pik->ik", GAUSS_WEIGHTS * length, rotations) @ T
+            elif isinstance(e, SpatialPlateElement):
+                idx, a, b, axes, T = self._plate(e)
+                S = np.einsum("ji,pjk,kl->pil", axes, plate_shapes(PLATE_GAUSS_POINTS, a, b), T)   # (P, 3, 24)
+                X = (self.positions[e.nodes[0]] - o)[None, :] + np.outer(PLATE_GAUSS_POINTS[:, 0] * a, axes[0]) \
+                    + np.outer(PLATE_GAUSS_POINTS[:, 1] * b, axes[1])
+                _add_mass_points(sums, PLATE_GAUSS_WEIGHTS * e.density * e.thickness * a * b, X, S, idx)
+                drilling = plate_drilling_inertia(e, a, b) * np.outer(axes[2], axes[2])   # lumped, about the normal
+                for node in e.nodes:
+                    J_r += drilling
+                    R_c[:, list(self.dofs[node][3:])] += drilling
             elif isinstance(e, SpatialPointMass):
                 dofs = self.dofs[e.node]
                 X = self.positions[e.node] - o
@@ -145,7 +184,7 @@ class SpatialFiniteElementModel:
                 J_r += e.inertia
                 if len(dofs) == 6:
                     R_c[:, list(dofs[3:])] += e.inertia
-        return SpatialInertia(mass, first, second, S1, D, E, J_r, R_c)
+        return SpatialInertia(float(mass), first, second, S1, D, E, J_r, R_c)
 
     def subsystem(self, name: str, boundary: Sequence[str], *, nonlinear_force: Callable | None = None,
                   frame_nodes: Sequence[str] = (), potential: Callable | None = None) -> SpatialSubsystem:
@@ -172,3 +211,29 @@ class SpatialFiniteElementModel:
     def natural_frequencies(self, clamped: Sequence[str] = ()) -> np.ndarray:
         """Natural frequencies [rad/s] with the DOFs of the ``clamped`` nodes held (``eigh(K, M)``)."""
         return clamped_frequencies(self.name, self.stiffness, self.mass, self.dofs, clamped)
+
+
+def spatial_finite_element_subsystem(name: str, nodes: dict, elements: list, boundary: list, *,
+                                     rayleigh: tuple[float, float] = (0.0, 0.0),
+                                     frame_nodes: tuple[str, ...] = ()) -> SpatialSubsystem:
+    """A spatial finite-element model as a body of a spatial model, in one call (scene files:
+    ``type = "SpatialFiniteElementSubsystem"``):
+    ``SpatialFiniteElementModel(name, nodes, elements, rayleigh=rayleigh).subsystem(name, boundary, frame_nodes=...)``.
+
+    Parameters
+    ----------
+    name : str
+        Model and body name.
+    nodes : dict of str to (x, y, z)
+        Undeformed node positions [m].
+    elements : list
+        ``SpatialBeamElement``, ``SpatialPlateElement``, ``SpatialPointMass``, ``SpatialNodeSpring``.
+    boundary : list of str
+        Boundary nodes, the inboard one first.
+    rayleigh : (float, float)
+        Rayleigh damping ``(a [1/s], b [s])``.
+    frame_nodes : sequence of str
+        Nodes held in the frame.
+    """
+    model = SpatialFiniteElementModel(name, nodes, elements, rayleigh=rayleigh)
+    return model.subsystem(name, boundary, frame_nodes=tuple(frame_nodes))

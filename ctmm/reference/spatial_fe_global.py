@@ -17,6 +17,19 @@ material point is at ``r = o_F + R_F (X + S(X) u)``.
   r'``, frame axes) by Lagrange's equations (``d/dt dT/dq' - dT/dq``, the derivatives by complex steps);
 * **stiffness** from the strain energy ``1/2 int EA u'^2 + EI_y v''^2 + EI_z w''^2 + GJ phi'^2`` by
   quadrature; optional stiffness-proportional damping ``C = b K``;
+* **plates** (:class:`FramePlate`, own construction of the flat rectangle of ``ctmm.fem.SpatialPlateElement``):
+  local axes from the corners; in-plane displacements bilinear in ``(x, y)`` and the deflection a
+  combination of the twelve ACM monomials ``1, x, y, x^2, x y, y^2, x^3, x^2 y, x y^2, y^3, x^3 y, x y^3``,
+  both with coefficients from solving the corner-value systems numerically (``w, dw/dy = r_x, -dw/dx = r_y``
+  at the corners); mass points at 5 x 5 Gauss points; strain energy ``1/2 int (kappa^T D_b kappa +
+  eps^T h C eps)`` by the same quadrature; the drilling rotation (about the normal) tied to the membrane's
+  rotation ``(v_x - u_y)/2`` at each corner by the penalty ``k_d = ratio G h A / 4`` and a corner inertia
+  ``rho h A (a^2 + b^2) / 192`` about the normal;
+* **Timoshenko beams** (``FrameBeam(kGAy=..., kGAz=..., rhoIy=..., rhoIz=...)``): per bending plane the
+  deflection cubic and the section rotation quadratic, their seven coefficients from the four end values and
+  the three polynomial identities of the static Timoshenko equations (solved numerically); strain energy
+  ``1/2 int (EI theta'^2 + kGA (v' - theta)^2)``, the sections' rotary inertia ``1/2 Omega_s^T I_s Omega_s``
+  with ``Omega_s`` the frame's angular velocity plus the section rotation rates ``[phi', r_y', r_z']``;
 * **links**: rigid bodies, Kane with world angular velocities; a link after the frame hangs on a node
   on a revolute joint whose axis is given in the node frame ``R_F Rz(r_z) Ry(r_y) Rx(r_x)``.
 """
@@ -28,7 +41,7 @@ from typing import Any, Sequence
 import numpy as np
 import scipy.linalg
 
-__all__ = ["Link", "FrameBeam", "FrameMass", "FEFrame", "SpatialFEChain"]
+__all__ = ["Link", "FrameBeam", "FrameMass", "FramePlate", "FEFrame", "SpatialFEChain"]
 
 _G4, _W4 = np.polynomial.legendre.leggauss(4)
 _XI, _WT = 0.5 * (_G4 + 1.0), 0.5 * _W4
@@ -69,6 +82,26 @@ class FrameBeam:
     rhoA: float
     rhoIp: float
     orientation: Any
+    kGAy: Any = None            # Timoshenko: kappa G A of the deflection along e2 / e3 (None: rigid in shear)
+    kGAz: Any = None
+    rhoIy: float = 0.0          # rotary inertia of the sections of the bending along e2 (about e3) / e3 (about e2)
+    rhoIz: float = 0.0
+
+
+def _bending_plane(L: float, EI: float, kGA: Any, ends: np.ndarray):
+    """Coefficients of ``v = [1, x, x^2, x^3] a`` and the section rotation ``theta = [1, x, x^2] b`` from the end
+    values ``ends`` (4, nu) ``[v_a, theta_a, v_b, theta_b]``: without shear ``theta = v'`` (the cubic through the
+    end values and slopes); with ``kGA`` the static Timoshenko solution (``v'' = theta'``, ``EI theta'' + kGA (v' -
+    theta) = 0`` as polynomial identities), solved numerically as a 7 x 7 system."""
+    if kGA is None:
+        a = np.linalg.solve(np.array([[1, 0, 0, 0], [0, 1, 0, 0], [1, L, L * L, L ** 3], [0, 1, 2 * L, 3 * L * L]],
+                                     float), ends)
+        return a, np.array([a[1], 2 * a[2], 3 * a[3]])
+    system = np.array([[1, 0, 0, 0, 0, 0, 0], [0, 0, 0, 0, 1, 0, 0], [1, L, L * L, L ** 3, 0, 0, 0],
+                       [0, 0, 0, 0, 1, L, L * L], [0, 0, 2, 0, 0, -1, 0], [0, 0, 0, 3, 0, 0, -1],
+                       [0, kGA, 0, 0, -kGA, 0, 2 * EI]], float)
+    c = np.linalg.solve(system, np.vstack([ends, np.zeros((3, ends.shape[1]))]))
+    return c[:4], c[4:]
 
 
 @dataclass
@@ -76,6 +109,19 @@ class FrameMass:
     node: str
     mass: float
     inertia: Any = field(default_factory=lambda: np.zeros((3, 3)))
+
+
+@dataclass
+class FramePlate:
+    """Rectangular plate: corner nodes (counter-clockwise about the normal), thickness [m], E [Pa], nu, rho
+    [kg/m^3], drilling penalty ratio."""
+
+    nodes: tuple
+    h: float
+    E: float
+    nu: float
+    rho: float
+    ratio: float = 0.1
 
 
 @dataclass
@@ -90,6 +136,7 @@ class FEFrame:
     axis: Any = None
     point: Any = (0.0, 0.0, 0.0)
     stiffness_damping: float = 0.0
+    plates: Sequence[FramePlate] = ()
 
 
 class SpatialFEChain:
@@ -107,7 +154,7 @@ class SpatialFEChain:
         assert len(frames) == 1
         self.frame_index = frames[0]
         fe = self.segments[self.frame_index]
-        rotating = {n for b in fe.beams for n in (b.start, b.end)}
+        rotating = {n for b in fe.beams for n in (b.start, b.end)} | {n for p in fe.plates for n in p.nodes}
         self.n_joints = sum(1 for s in self.segments if isinstance(s, Link) or s.axis is not None)
         self.node_index, count = {}, 0
         for name in fe.nodes:
@@ -157,21 +204,36 @@ class SpatialFEChain:
             ends_v = np.vstack([ta[1], ra[2], tb[1], rb[2]])           # v, v', at a and b
             ends_w = np.vstack([ta[2], -ra[1], tb[2], -rb[1]])
             ends_u, ends_p = np.vstack([ta[0], tb[0]]), np.vstack([ra[0], rb[0]])
+            timoshenko = b.kGAy is not None or b.kGAz is not None or b.rhoIy or b.rhoIz
+            planes = [_bending_plane(L, b.EIy, b.kGAy, ends_v), _bending_plane(L, b.EIz, b.kGAz, ends_w)]
             for xi, wt in zip(_XI, _WT):
                 x = xi * L
                 pc, dc2 = np.array([1, x, x * x, x ** 3]), np.array([0, 0, 2, 6 * x])
                 pl, dl = np.array([1, x]), np.array([0, 1.0])
                 u_row, phi_row = pl @ Al @ ends_u, pl @ Al @ ends_p
-                v_row, w_row = pc @ Ac @ ends_v, pc @ Ac @ ends_w
+                if not timoshenko:
+                    v_row, w_row = pc @ Ac @ ends_v, pc @ Ac @ ends_w
+                    strains = [(b.EA, dl @ Al @ ends_u), (b.EIy, dc2 @ Ac @ ends_v), (b.EIz, dc2 @ Ac @ ends_w),
+                               (b.GJ, dl @ Al @ ends_p)]
+                else:
+                    dc1, pq, dq = np.array([0, 1, 2 * x, 3 * x * x]), np.array([1, x, x * x]), np.array([0, 1, 2 * x])
+                    (av, bv), (aw, bw) = planes
+                    v_row, w_row = pc @ av, pc @ aw
+                    strains = [(b.EA, dl @ Al @ ends_u), (b.EIy, dq @ bv), (b.EIz, dq @ bw), (b.GJ, dl @ Al @ ends_p)]
+                    for kGA, (a_, b_) in ((b.kGAy, planes[0]), (b.kGAz, planes[1])):
+                        if kGA is not None:
+                            strains.append((kGA, dc1 @ a_ - pq @ b_))
+                    rotation = np.vstack([phi_row, -(pq @ bw), pq @ bv])      # local [twist, r_y, r_z]
+                    rotary.append((np.diag([b.rhoIp, b.rhoIz, b.rhoIy]) * L * wt, Q, rotation))
                 S = Q.T @ np.vstack([u_row, v_row, w_row])             # frame components
                 points.append((pa + x * e1, S))
                 masses.append(b.rhoA * L * wt)
-                if b.rhoIp:
+                if b.rhoIp and not timoshenko:
                     rotary.append((np.array([[b.rhoIp * L * wt]]), e1[None, :], phi_row[None, :]))
-                strains = [(b.EA, dl @ Al @ ends_u), (b.EIy, dc2 @ Ac @ ends_v), (b.EIz, dc2 @ Ac @ ends_w),
-                           (b.GJ, dl @ Al @ ends_p)]
                 for modulus, row in strains:
                     K += modulus * L * wt * np.outer(row, row)
+        for plate in fe.plates:
+            K += self._plate(plate, points, masses, rotary)
         for pm in fe.masses:
             d = self._dofs(pm.node)
             S = np.zeros((3, nu))
@@ -193,6 +255,72 @@ class SpatialFEChain:
         self.rotary = rotary
         self.K = K
         self.C = fe.stiffness_damping * K
+
+    def _plate(self, plate: FramePlate, points: list, masses: list, rotary: list) -> np.ndarray:
+        """Append a plate's mass points and drilling inertias; return its stiffness (n_u x n_u)."""
+        fe = self.segments[self.frame_index]
+        nu_ = self.n_u
+        corners = np.array([fe.nodes[k] for k in plate.nodes], float)
+        ex, ey = corners[1] - corners[0], corners[3] - corners[0]
+        a, b = np.linalg.norm(ex), np.linalg.norm(ey)
+        Q = np.vstack([ex / a, ey / b, np.cross(ex / a, ey / b)])            # local = Q frame
+        local_xy = np.array([[0.0, 0.0], [a, 0.0], [a, b], [0.0, b]])
+
+        def node_rows(node):                     # (6, nu): local [u, v, w, r_x, r_y, r_z] of a corner
+            out = np.zeros((6, nu_))
+            d = self._dofs(node)
+            for part in range(2):
+                for k in range(3):
+                    i = d[3 * part + k]
+                    if i is not None:
+                        out[3 * part:3 * part + 3, i] += Q[:, k]
+            return out
+        rows = [node_rows(k) for k in plate.nodes]
+
+        def mono(x, y):
+            return (np.array([1, x, y, x * x, x * y, y * y, x ** 3, x * x * y, x * y * y, y ** 3, x ** 3 * y, x * y ** 3]),
+                    np.array([0, 1, 0, 2 * x, y, 0, 3 * x * x, 2 * x * y, y * y, 0, 3 * x * x * y, y ** 3]),
+                    np.array([0, 0, 1, 0, x, 2 * y, 0, x * x, 2 * x * y, 3 * y * y, x ** 3, 3 * x * y * y]),
+                    np.array([0, 0, 0, 2, 0, 0, 6 * x, 2 * y, 0, 0, 6 * x * y, 0]),
+                    np.array([0, 0, 0, 0, 0, 2, 0, 0, 2 * x, 6 * y, 0, 6 * x * y]),
+                    np.array([0, 0, 0, 0, 1, 0, 0, 2 * x, 2 * y, 0, 3 * x * x, 3 * y * y]))
+        system, ends = [], []
+        for (x, y), r in zip(local_xy, rows):
+            p, px, py = mono(x, y)[:3]
+            system += [p, py, -px]
+            ends += [r[2], r[3], r[4]]
+        coeff_w = np.linalg.solve(np.array(system, float), np.array(ends))          # (12, nu)
+        bil = np.array([[1.0, x, y, x * y] for x, y in local_xy])
+        coeff_u = np.linalg.solve(bil, np.array([r[0] for r in rows]))             # (4, nu)
+        coeff_v = np.linalg.solve(bil, np.array([r[1] for r in rows]))
+        E, nu, h, rho = plate.E, plate.nu, plate.h, plate.rho
+        Dm = E / (1 - nu * nu) * np.array([[1.0, nu, 0.0], [nu, 1.0, 0.0], [0.0, 0.0, (1 - nu) / 2]])
+        Db = Dm * h ** 3 / 12
+        K = np.zeros((nu_, nu_))
+        g, wg = np.polynomial.legendre.leggauss(5)
+        for gx, wx in zip(0.5 * (g + 1) * a, 0.5 * wg * a):
+            for gy, wy in zip(0.5 * (g + 1) * b, 0.5 * wg * b):
+                p, _, _, pxx, pyy, pxy = mono(gx, gy)
+                lin, lin_x, lin_y = np.array([1.0, gx, gy, gx * gy]), np.array([0, 1.0, 0, gy]), np.array([0, 0, 1.0, gx])
+                S = Q.T @ np.vstack([lin @ coeff_u, lin @ coeff_v, p @ coeff_w])
+                points.append((corners[0] + gx * Q[0] + gy * Q[1], S))
+                masses.append(rho * h * wx * wy)
+                kappa = np.vstack([pxx @ coeff_w, pyy @ coeff_w, 2 * pxy @ coeff_w])
+                eps = np.vstack([lin_x @ coeff_u, lin_y @ coeff_v, lin_y @ coeff_u + lin_x @ coeff_v])
+                K += wx * wy * (kappa.T @ Db @ kappa + h * eps.T @ Dm @ eps)
+        k_d = plate.ratio * E / (2 * (1 + nu)) * h * a * b / 4
+        j = rho * h * a * b * (a * a + b * b) / 192
+        for (x, y), r, node in zip(local_xy, rows, plate.nodes):
+            omega = 0.5 * (np.array([0, 1.0, 0, y]) @ coeff_v - np.array([0, 0, 1.0, x]) @ coeff_u)
+            row = r[5] - omega
+            K += k_d * np.outer(row, row)
+            d = self._dofs(node)
+            B = np.zeros((3, nu_))
+            if d[3] is not None:
+                for k in range(3):
+                    B[k, d[3 + k]] = 1.0
+            rotary.append((j * np.outer(Q[2], Q[2]), np.eye(3), B))
+        return K
 
     # --------------------------------------------------------------------------- kinematics
     def _node_frame(self, u, node: str):
@@ -344,7 +472,7 @@ class SpatialFEChain:
         return force
 
     def energy(self, q, qd) -> float:
-        """Kinetic + strain + gravitational energy [J]."""
+        """Kinetic + strain (frame and joint springs) + gravitational energy [J]."""
         q, qd = np.asarray(q, float), np.asarray(qd, float)
         kin = self.kinematics(q)
         total = 0.0
@@ -358,6 +486,7 @@ class SpatialFEChain:
         for I, J in self._rotary_jacobians(kin):
             total += 0.5 * (J @ qd) @ I @ (J @ qd)
         u = q[self.n_joints:]
+        total += sum(0.5 * stiffness * q[k] ** 2 for k, (stiffness, _) in self.joint_springs.items())
         return float(total + 0.5 * u @ self.K @ u)
 
     def rk4(self, q0, qd0, t_final: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -380,7 +509,8 @@ class SpatialFEChain:
 
     def linear_matrices(self, q0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``M, K_t, C`` about the static equilibrium ``q0``: the tangent stiffness ``K_t = -d(Q - b)/dq`` at rest
-        by complex step; ``C`` the frame's damping (the velocity terms are quadratic: no tangent at rest)."""
+        by complex step; ``C`` the frame's damping and the joint dampers (the velocity terms are quadratic: no tangent
+        at rest)."""
         q0 = np.asarray(q0, float)
         n = self.n
         M, _, _, _ = self._terms(q0, np.zeros(n))
@@ -392,6 +522,8 @@ class SpatialFEChain:
             Kt[:, k] = -rhs.imag / _H
         C = np.zeros((n, n))
         C[self.n_joints:, self.n_joints:] = self.C
+        for k, (_, damping) in self.joint_springs.items():
+            C[k, k] += damping
         return M, 0.5 * (Kt + Kt.T), C
 
     def natural_frequencies(self, q0) -> np.ndarray:
@@ -408,7 +540,7 @@ class SpatialFEChain:
         return np.array([c @ np.linalg.solve(Kt - w * w * M + 1j * w * C, b) for w in np.atleast_1d(omega)])
 
     def _terms_complex(self, q: np.ndarray):
-        """Generalised forces at rest for a complex ``q`` (gravity and elastic only: ``q' = 0``)."""
+        """Generalised forces at rest for a complex ``q`` (gravity, elastic and joint springs: ``q' = 0``)."""
         kin = self.kinematics(q)
         n = self.n
         rhs = np.zeros(n, dtype=complex)
@@ -419,4 +551,6 @@ class SpatialFEChain:
         rhs[self.n_joints:] -= self.K @ q[self.n_joints:]
         if self.force is not None:
             rhs[self.n_joints:] += self.force(q[self.n_joints:], np.zeros(self.n_u))
+        for k, (stiffness, _) in self.joint_springs.items():
+            rhs[k] -= stiffness * q[k]
         return None, rhs, kin, None
