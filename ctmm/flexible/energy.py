@@ -38,7 +38,7 @@ def flexible_energy(model, q, qdot, t: float = 0.0) -> float:
                        + 0.5 * w * w * IP + w * ((d.c_q + d.N.T @ pp) @ qd - (d.N @ qq) @ pd)
                        + 0.5 * qd @ d.M_q @ qd + 0.5 * pd @ d.M_p @ pd)
             energy += 0.5 * eta @ d.K @ eta - g @ (d.m * pts["inboard"][j] + sg)
-            if d.second_order is not None:             # the shortening of the mass points (second_order.py)
+            if getattr(d, "second_order", None) is not None:     # the mass points' shortening (second_order.py)
                 energy += d.second_order.energy_delta(qq, qd, R.T @ vI, w, R.T @ g)
         else:
             v = pts["com_velocity"][j]

@@ -4,7 +4,7 @@ An axially rigid bent beam keeps the length of its centre line: the material poi
 
 ``rho(x) = [x + u(x), w(x)]``,  ``w = phi(x) . q``,  ``u(x) = -1/2 q^T G1(x) q``,  ``G1(x) = int_0^x phi' phi'^T``
 
-in the floating (root tangent) frame (``docs/flexible.md`` §1.4).  The first-order beam keeps ``u = 0`` in its mass
+in the floating (root tangent) frame (``docs/flexible.md`` §1.3.1).  The first-order beam keeps ``u = 0`` in its mass
 points and adds only the geometric stiffness of the axial inertia and weight to the modal equations (what ``u``
 contributes to them at first order in ``q``).  With ``u`` in every mass point the kinetic energy
 ``T = 1/2 int rhoA |v_I + omega k x R rho + R rho'|^2 dx`` and the weight's potential are exact for this
