@@ -21,7 +21,10 @@ Scene (our parameters; the spatial counterpart of the planar ``flexible_manipula
   theta_dot(x1))`` on the collocated section rotations ``theta_z = w_y'``, ``theta_y = -w_z'``
   (:func:`ctmm.spatial.beam_ports.patch_sensor`), ``Ka = 2000 V s/rad``;
 * manoeuvre: yaw 0 -> 60 deg and shoulder 0 -> -30 deg (the forearm lifts), cycloidal in 1 s.  Gravity is off
-  (a space arm, or joints with gravity compensation): the linearisation is about the start pose.
+  (a space arm, or joints with gravity compensation): the linearisation is about the start pose.  The full run adds
+  a panel with gravity on (``GRAVITY``, -9.81 m/s^2 along world z, no compensation: the PD joints hold the arm with
+  a steady error and the forearm bends under its own and the payload's weight), PD + PZT against the reference
+  with the same gravity (``gravity_on`` in the JSON; the numbers of the gravity-free runs are unchanged).
 
 Outputs, through the verbs on the one controlled model:
 
@@ -84,10 +87,12 @@ VOLTAGE_LIMIT = 200.0       # V (reported, not enforced)
 DELAY = 0.01                # s, the yaw PD of the delayed variant
 BOUND_TIME = 0.1            # % of peak
 BOUND_LINEAR = 1e-8
+GRAVITY = (0.0, 0.0, -9.81)  # m/s^2, the full run's gravity panel (world z up)
+NO_GRAVITY = (0.0, 0.0, 0.0)
 
 
-def plant() -> sp.SpatialModel:
-    """The open-loop arm (no laws of its own: the joints are actuated)."""
+def plant(gravity: tuple[float, float, float] = NO_GRAVITY) -> sp.SpatialModel:
+    """The open-loop arm (no laws of its own: the joints are actuated); ``gravity`` [m/s^2] in world axes."""
     return sp.SpatialModel(NAME, [
         sp.SpatialBody("base", BASE["mass"], BASE["inertia"], center_of_mass=BASE["center"],
                        points={"shoulder": SHOULDER}),
@@ -98,12 +103,12 @@ def plant() -> sp.SpatialModel:
         sp.Weld(name="mount", parent="hub", child="arm", point="out"),
         sp.SpatialBody("payload", PAYLOAD["mass"], PAYLOAD["inertia"]),
         sp.Weld(name="grip", parent="arm", child="payload", point="tip"),
-    ], gravity=(0.0, 0.0, 0.0))
+    ], gravity=gravity)
 
 
-def controlled(pzt: bool, delay: float = 0.0) -> ControlledModel:
+def controlled(pzt: bool, delay: float = 0.0, gravity: tuple[float, float, float] = NO_GRAVITY) -> ControlledModel:
     """The arm with its joint PD loops (the yaw one ``delay`` s late) and, if ``pzt``, the two patch loops."""
-    model = plant()
+    model = plant(gravity)
     beam = model.bodies[2]
     loops = [Feedback(name, [(f"{joint}.angle", kp), (f"{joint}.rate", kd)], f"{joint}.torque", gain=1.0,
                       delay=delay if name == "yaw_pd" else 0.0)
@@ -122,14 +127,14 @@ def references() -> dict:
 
 
 # -- the independent reference ---------------------------------------------------------------------------
-def lagrange() -> SpatialBeamLagrange:
+def lagrange(gravity: tuple[float, float, float] = NO_GRAVITY) -> SpatialBeamLagrange:
     """The assumed-modes Lagrange model of the same arm; actuators: the patch moments (body axes)."""
     x1, x2 = STATIONS["p1"], STATIONS["p2"]
     return SpatialBeamLagrange(HubBeam(
         **ARM, hub_mass=HUB["mass"], hub_inertia=HUB["inertia"], hub_center=HUB["center"],
         axes=((0, 0, 1), (0, 1, 0)), mount=HUB["mount"], shoulder=SHOULDER, base_mass=BASE["mass"],
         base_inertia=BASE["inertia"], base_center=BASE["center"], tip_mass=PAYLOAD["mass"],
-        tip_inertia=PAYLOAD["inertia"], gravity=(0.0, 0.0, 0.0),
+        tip_inertia=PAYLOAD["inertia"], gravity=gravity,
         actuators=((x1, "moment", 2), (x2, "moment", 2), (x1, "moment", 1), (x2, "moment", 1))))
 
 
@@ -183,8 +188,9 @@ def _reference_closed(reference: SpatialBeamLagrange, pzt: bool) -> tuple[np.nda
 
 
 # -- runs ------------------------------------------------------------------------------------------------
-def _simulate(pzt: bool, delay: float, t_final: float, store_every: int, method: str = "rk4") -> dict:
-    system = controlled(pzt, delay)
+def _simulate(pzt: bool, delay: float, t_final: float, store_every: int, method: str = "rk4",
+              gravity: tuple[float, float, float] = NO_GRAVITY) -> dict:
+    system = controlled(pzt, delay, gravity)
     result = ctmm.simulate(system, t_final, DT, method=method, references=references(), store_every=store_every)
     weights = [np.asarray(system.ports.sensors[f"arm.tip.{w}"].weights) for w in ("w_y", "w_z")]
     eta = np.column_stack([result[f"arm.{s}"] for s in system.plant.bodies[2].coordinate_suffixes])
@@ -201,6 +207,18 @@ def _flexible_modes(system: ControlledModel, above: float = 15.0) -> list[tuple[
     roots = roots[(roots.imag > 0) & (np.abs(roots) > above)]
     roots = roots[np.argsort(np.abs(roots))]
     return [(float(abs(r)), float(-r.real / abs(r))) for r in roots]
+
+
+def _gravity_panel(t_final: float, compare) -> dict:
+    """PD + PZT with gravity on (no compensation) against the reference with the same gravity: errors (as the
+    gravity-free runs), the joints' final errors and the forearm's final tip deflections (its static sag)."""
+    sim = _simulate(True, 0.0, t_final, store_every=5, gravity=GRAVITY)
+    ref = _reference_run(lagrange(GRAVITY), True, sim["t"], 1e-10)
+    return {"gravity_m_s2": list(GRAVITY), "errors": compare(sim, ref), "wall_time_s": sim["wall"],
+            "joint_final_error_rad": [float(sim["angles"][-1, k] - MOVES[name].angle(t_final))
+                                      for k, name in enumerate(GAINS)],
+            "final_tip_deflection_m": [float(v) for v in sim["tip"][-1]],
+            "reference_final_tip_deflection_m": [float(v) for v in ref["tip"][-1]]}
 
 
 def _after_move(t: np.ndarray) -> np.ndarray:
@@ -236,6 +254,7 @@ def run(output_dir: Path, quick: bool = False, results: dict | None = None) -> d
         errors["PD + PZT, DT-TMM Newmark"] = compare(newmark, refs["PD + PZT"])
         extra["dt_tmm_newmark"] = {"wall_time_s": newmark["wall"], "real_time_factor": t_final / newmark["wall"],
                                    "mean_newton_iterations": newmark["result"].info.get("newton_iterations_mean")}
+        extra["gravity_on"] = _gravity_panel(t_final, compare)
     delayed = _simulate(True, DELAY, t_final, store_every=5)
     after = _after_move(sims["PD + PZT"]["t"])
     rms = {label: [float(np.sqrt(np.mean(s["tip"][after, k] ** 2))) for k in range(2)]

@@ -40,10 +40,12 @@ from .. import validation
 from ..errors import ModelError
 from ..planar.deformable import DeformableBody
 from ..planar.elements import Load
-from ..planar.signals import SignalError, signal_values
+from ..planar.signals import signal_values
 from ..signals import Constant, SignalLike, as_signal
 from .family import ModalBeamFamily
+from .hooks import hook_value
 from .modes import ModeSet, check_quadrature, check_root_clamped, gauss_points
+from .second_order import SecondOrderInertia, check_second_order
 from .stations import check_stations
 
 
@@ -126,6 +128,10 @@ class ModalBeam(DeformableBody):
     geometric_stiffening : bool
         Add the geometric stiffness of the axial force of the overall motion (centrifugal
         stiffening): ``G(N) q`` with ``G_ij = int N phi_i' phi_j'``; default True.
+    second_order_inertia : bool
+        Move every mass point with the shortening ``-1/2 q^T G1(x) q`` of the bent beam: stiffening
+        and its reactions on the frame, energy-conserving (:mod:`ctmm.flexible.second_order`).
+        Default False.  Needs ``geometric_stiffening=True`` and no axial modes.
     damping_ratio : float
         Modal viscous damping ratio ``zeta`` of every mode (>= 0; 0 = off).
     stiffness_damping : float
@@ -164,6 +170,7 @@ class ModalBeam(DeformableBody):
     n_axial_modes: int = 0
     axial_stiffness: float | None = None
     geometric_stiffening: bool = True
+    second_order_inertia: bool = False
     damping_ratio: float = 0.0
     stiffness_damping: float = 0.0
     mode_set: ModeSet | None = None
@@ -194,6 +201,7 @@ class ModalBeam(DeformableBody):
                                validation.positive(f"{n}: axial_stiffness", self.axial_stiffness))
         if not isinstance(self.geometric_stiffening, bool):
             raise ModelError(f"{n}: geometric_stiffening must be True or False, got {self.geometric_stiffening!r}")
+        check_second_order(self)
         object.__setattr__(self, "damping_ratio", validation.nonnegative(f"{n}: damping_ratio", self.damping_ratio))
         object.__setattr__(self, "stiffness_damping",
                            validation.nonnegative(f"{n}: stiffness_damping", self.stiffness_damping))
@@ -373,6 +381,7 @@ class BeamData:
         self.G2 = (dphi * (w * (L - x))) @ dphi.T
         self.G3 = (dphi * (w * (L * L - x * x) / 2)) @ dphi.T
         self.stiffening = beam.geometric_stiffening
+        self.second_order = SecondOrderInertia(beam, x, w, phi, self.G2, self.G3) if beam.second_order_inertia else None
         # damping D = mu K + 2 zeta sqrt(K_ii M_ii)
         K = np.zeros((self.n, self.n))
         Mm = np.zeros((self.n, self.n))
@@ -426,19 +435,6 @@ class BeamData:
         self._eye = np.eye(3 + self.n)
         for constant in ("_constant_mass", "_constant_ends", "_functionals"):
             getattr(self, constant)   # computed here, once: the data of a beam never change afterwards
-
-    def _hook(self, what: str, function: Callable, args: tuple, t: float) -> np.ndarray:
-        """A :class:`ModalForce` ``force`` or ``law`` value (``n_eta`` finite numbers, complex
-        allowed for the complex-step tangent), else :class:`~ctmm.planar.signals.SignalError`."""
-        try:
-            value = np.asarray(function(*args))
-            if value.shape == (self.n,) and np.all(np.isfinite(value)):
-                return value
-        except Exception as exc:  # noqa: BLE001 - user code: named with the time
-            raise SignalError(f"{what} raised {type(exc).__name__} at t = {t:.6g} s: {exc}", time=float(t),
-                              element=self.beam.name) from exc
-        raise SignalError(f"{what} returned {value!r} at t = {t:.6g} s; expected {self.n} finite value(s)",
-                          time=float(t), element=self.beam.name)
 
     def _g1(self, x_end: float) -> np.ndarray:
         if x_end <= 0.0:
@@ -604,12 +600,16 @@ class BeamData:
                 hq = hq + f1[:, None] * V[:, sl[f"lG{k}"]]
         h[:, 3:3 + nq] = hq
         h[:, 3 + nq:] = hp
+        if self.second_order is not None:
+            self.second_order.add_terms(M, h, omega, q, qd, g2 + qy / self.rhoA)
         h[:, 3:] += eta @ self.K_total.T + eta_dot @ self.D_total.T
         for label, f in self.forces:
-            h[:, 3:] -= self._hook(f"force of {label!r} on beam {self.beam.name!r}", f, (t,), t)
+            h[:, 3:] -= hook_value(self.beam.name, self.n, f"force of {label!r} on beam {self.beam.name!r}", f,
+                                   (t,), t)
         for label, law in self.laws:
             what = f"law of {label!r} on beam {self.beam.name!r}"
-            h[:, 3:] -= np.stack([self._hook(what, law, (t, eta[b], eta_dot[b]), t) for b in range(B)])
+            h[:, 3:] -= np.stack([hook_value(self.beam.name, self.n, what, law, (t, eta[b], eta_dot[b]), t)
+                                  for b in range(B)])
         # -- rotate to global axes ----------------------------------------------------------
         T = np.zeros((B, N3, N3), dtype=dtype)
         T[:] = self._eye

@@ -13,7 +13,9 @@ def flexible_energy(model, q, qdot, t: float = 0.0) -> float:
     ``T = m |v_I|^2/2 + v_I . (omega k x s + R s_bar') + omega^2 I_P/2
     + omega ((c_q + N^T p) . q' - (N q) . p') + eta'^T M eta'/2``.  Conserved by the exact
     solution when the model has no damping, no time-varying inputs and no geometric stiffening
-    (the stiffening force is a first-order, non-conservative addition).
+    (the stiffening force is a first-order, non-conservative addition) -- or when every stiffened
+    beam has ``second_order_inertia=True``, whose terms this energy includes
+    (:meth:`ctmm.flexible.second_order.SecondOrderInertia.energy_delta`).
     """
     q, qdot = model.state(q, qdot)
     pts = model.points(q, qdot, t)
@@ -36,6 +38,8 @@ def flexible_energy(model, q, qdot, t: float = 0.0) -> float:
                        + 0.5 * w * w * IP + w * ((d.c_q + d.N.T @ pp) @ qd - (d.N @ qq) @ pd)
                        + 0.5 * qd @ d.M_q @ qd + 0.5 * pd @ d.M_p @ pd)
             energy += 0.5 * eta @ d.K @ eta - g @ (d.m * pts["inboard"][j] + sg)
+            if getattr(d, "second_order", None) is not None:     # the mass points' shortening (second_order.py)
+                energy += d.second_order.energy_delta(qq, qd, R.T @ vI, w, R.T @ g)
         else:
             v = pts["com_velocity"][j]
             energy += 0.5 * model.mass[j] * v @ v + 0.5 * model.inertia[j] * pts["omega"][j] ** 2
