@@ -4,9 +4,11 @@
 column ``p`` (one library per structure): every body's mass and the non-zero entries of its inertia
 tensor, the non-zero stiffnesses and dampings of the 1- and 2-DOF joint laws (revolute, prismatic,
 universal; ``tau = u - k (q - q_ref) - c v``) with the reference of every coordinate that has a
-stiffness, and the non-zero components of gravity.  Zeros of the model are constants 0 of the code
-(part of the structure, as for planar scenes); the geometry, joint axes, loads, driven motions and the
-laws of spherical, free and elastic joints stay constants.
+stiffness, the non-zero numbers of every modal beam (:mod:`ctmm.compiled_spatial_beam_numbers`: mass and polar
+inertia per length, bending, torsional and axial stiffnesses, damping ratio and Kelvin-Voigt coefficient; in place
+of a mass and inertia), and the non-zero components of gravity.  Zeros of the model are constants 0 of the code
+(part of the structure, as for planar scenes); the geometry, joint axes, loads, driven motions, the
+laws of spherical, free and elastic joints, beams' lengths and finite-element subsystems stay constants.
 
 :class:`SpatialNumbers` states them on the entries of a symbol column, and
 :func:`parametrised_body_terms` forms a rigid body's terms from them without the body's numbers in the

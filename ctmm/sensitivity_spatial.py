@@ -1,6 +1,6 @@
 """The closed-loop characteristic matrix of a spatial (controlled) model and its exact derivatives.
 
-A spatial model of rigid bodies (:class:`~ctmm.spatial.model.SpatialModel`; compilable,
+A spatial model of rigid bodies and modal beams (:class:`~ctmm.spatial.model.SpatialModel`; compilable,
 :func:`ctmm.compiled_spatial.spatial_compile_refusal`), alone or closed by loops
 (``ctmm.control.with_feedback``), is linearised as :func:`ctmm.linearize` does
 (:mod:`ctmm.spatial_linearization`): about the plant's static equilibrium ``q*``, in tangent coordinates
@@ -31,9 +31,13 @@ Parameters: the entries of :func:`ctmm.compiled_spatial_parameters.spatial_param
 ``"<body>.mass"`` [kg], ``"<body>.inertia.xx"`` (``yy``, ``zz``, ``xy``, ``xz``, ``yz``; about the centre
 of mass, body axes, the symmetric pair together) [kg m^2], ``"<joint>.stiffness"``, ``".damping"``,
 ``".reference"`` of revolute, prismatic and universal joints (``"[k]"`` appended on a universal joint),
-``"gravity.x|y|z"`` [m/s^2] -- and the loops' ``"<loop>.gain"``, ``"<loop>.delay"``,
-``"<loop>.<sensor>"``.  A number that is zero in the model is a constant of the generated expression
-and is refused (give it a nonzero value); beams, elastic-joint laws and geometry are not parameters.
+``"gravity.x|y|z"`` [m/s^2], a :class:`~ctmm.spatial.beam.SpatialBeam`'s ``"<beam>.mass_per_length"`` [kg/m],
+``".polar_inertia_per_length"`` [kg m], ``".bending_stiffness_y"``, ``".bending_stiffness_z"``,
+``".torsional_stiffness"`` [N m^2], ``".axial_stiffness"`` [N], ``".damping_ratio"`` [-], ``".stiffness_damping"``
+[s] (:mod:`ctmm.compiled_spatial_beam_numbers`; a beam's modal coordinates are plain tangent coordinates) -- and the
+loops' ``"<loop>.gain"``, ``"<loop>.delay"``, ``"<loop>.<sensor>"``.  A number that is zero in the model is a
+constant of the generated expression and is refused (give it a nonzero value); a beam's length, elastic-joint laws,
+finite-element subsystems and geometry are not parameters.
 """
 from __future__ import annotations
 
@@ -247,14 +251,14 @@ class SpatialCharacteristicMatrix(PlanarCharacteristicMatrix):
     Parameters
     ----------
     system : SpatialModel or ControlledModel (spatial plant)
-        Rigid bodies; compilable; linearised about the plant's static equilibrium.
+        Rigid bodies and modal beams; compilable; linearised about the plant's static equilibrium.
     parameters : sequence of str
         Plant numbers and loop parameters (module docstring).
 
     Raises
     ------
     ModelError
-        Beams, a model that cannot be compiled, a parameter that is zero in the model, a neutral
+        Finite-element subsystems, a model that cannot be compiled, a parameter that is zero in the model, a neutral
         equilibrium that moves with a parameter, saturated loops, rotation-vector sensors.
     """
 

@@ -4,7 +4,7 @@ ctmm.sensitivity_spatial and ctmm.sensitivity_time_spatial).
 The parametrised beam terms are checked against the terms of the model rebuilt with the changed numbers (every beam
 number at once, a free-floating beam with a child body and gravity on two axes: equal to round-off); the derivatives
 of the frequency response (``ctmm.frequency_response``), of the spectral abscissa (eigenvalues of
-``ctmm.linearize``), of the delay margin (secant-refined crossovers of ``ctmm.control.loop_transfer_function``, as
+``ctmm.linearize``), of a resonance peak, of the delay margin (secant-refined crossovers of ``ctmm.control.loop_transfer_function``, as
 ``ctmm.control.margins`` refines them) and of RK4 histories
 (``ctmm.simulate(method="rk4")``) against Richardson-extrapolated central differences of those verbs on rebuilt
 models (steps ``h, h/2``, ``h = 1e-3 |p|``, error ``O(h^4)``; bound 1e-6 relative, the existing standard).
@@ -103,6 +103,21 @@ def test_beam_frequency_response_derivatives_against_richardson_differences(pair
         expected = richardson(response, system, name)
         assert np.max(np.abs(expected)) > 1e-6 * np.max(np.abs(found.response))    # the number matters
         assert relative(found.derivative[i], expected) < 1e-6, name
+
+
+def test_beam_resonance_peak_derivative_against_richardson_differences():
+    # the bending resonance of the joint angle (29 rad/s; envelope theorem at the refined maximiser); the peak is
+    # the verb's own refined maximum, checked against the TMM response around it
+    system = arm(n_modes_y=1, n_modes_z=0, n_torsion_modes=0)
+    w = np.linspace(20.0, 60.0, 200)
+    found = S.peak_sensitivity(system, ["b.bending_stiffness_y"], w, input="j.torque", output="j.angle")
+    assert 25.0 < found.frequency < 35.0
+    near = found.frequency * np.array([0.999, 1.0, 1.001])
+    magnitude = np.abs(ctmm.frequency_response(system, near, input="j.torque", output="j.angle").response).ravel()
+    assert abs(magnitude[1] - found.value) < 1e-10 * found.value and magnitude[1] > max(magnitude[0], magnitude[2])
+    expected = richardson(lambda s: S.peak_sensitivity(s, [], w, input="j.torque", output="j.angle").value, system,
+                          "b.bending_stiffness_y")
+    assert relative(found.gradient["b.bending_stiffness_y"], expected) < 1e-6
 
 
 def test_beam_abscissa_derivatives_against_eigenvalues_of_the_linearisation():
