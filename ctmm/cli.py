@@ -1,8 +1,9 @@
 """Command line: ``ctmm list``, ``ctmm run NAME|FILE.toml... [--quick] [--save] [--animate] [--output DIR]
-[--debug]``, ``ctmm --version``.
+[--debug]``, ``ctmm scene schema [--output FILE]``, ``ctmm --version``.
 
-``NAME`` is a scenario (``ctmm list``); a path ending in ``.toml``, ``.yaml`` or ``.yml`` is a scene file
-(:mod:`ctmm.scene_files`). ``--save`` also writes the runs as HDF5 result files, ``--animate`` the
+``NAME`` is a scenario (``ctmm list``); a path ending in ``.toml``, ``.yaml``, ``.yml`` or ``.json`` is a scene
+file (:mod:`ctmm.scene_files`). ``ctmm scene schema`` writes the JSON Schema of scene files
+(:func:`ctmm.scene_files_schema.json_schema`) to a file or to standard output. ``--save`` also writes the runs as HDF5 result files, ``--animate`` the
 planar and spatial runs as GIF animations (:mod:`ctmm.scene_files_run`). With several runs on a
 terminal a progress bar counts them (:mod:`ctmm.progress`; quiet in pipes and CI).
 
@@ -27,7 +28,7 @@ from .errors import ModelError, SimulationError
 from .progress import progress_bar
 from .scene_files_syntax import SUFFIXES
 
-SCENE_SUFFIXES = tuple(SUFFIXES)   # scene files: .toml, .yaml, .yml
+SCENE_SUFFIXES = tuple(SUFFIXES)   # scene files: .toml, .yaml, .yml, .json
 
 EXIT_FAILED = 1
 EXIT_USAGE = 2
@@ -104,14 +105,37 @@ def _parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     sub.add_parser("list", help="list the scenarios")
     run = sub.add_parser("run", help="run scenarios or scene files and write PNG + JSON")
-    run.add_argument("names", nargs="+", metavar="NAME", help="scenario name(s), 'all', or scene files (.toml, .yaml)")
+    run.add_argument("names", nargs="+", metavar="NAME", help="scenario name(s), 'all', or scene files (.toml, .yaml, .json)")
     run.add_argument("--output", default="results", help="output folder (default: results)")
     run.add_argument("--quick", action="store_true", help="shorter version (smoke test)")
     run.add_argument("--save", action="store_true", help="also write the time histories / responses as HDF5 "
                      "(read back with ctmm.results.load)")
     run.add_argument("--animate", action="store_true", help="also write GIF animations of planar and spatial runs")
     run.add_argument("--debug", action="store_true", help="print Python tracebacks of failures")
+    scene = sub.add_parser("scene", help="scene-file tools")
+    tools = scene.add_subparsers(dest="scene_command", required=True)
+    schema = tools.add_parser("schema", help="write the JSON Schema (draft 2020-12) of scene files")
+    schema.add_argument("--output", default="-", help="file to write (default: standard output)")
     return parser
+
+
+def _scene_schema(output: str) -> int:
+    """Write :func:`ctmm.scene_files_schema.json_schema` as indented JSON to ``output`` (``"-"``: stdout)."""
+    import json
+
+    from .scene_files_schema import json_schema
+
+    text = json.dumps(json_schema(), indent=2) + "\n"
+    if output == "-":
+        sys.stdout.write(text)
+        return 0
+    try:
+        Path(output).write_text(text, encoding="utf-8")
+    except OSError as exc:
+        _error(f"cannot write the schema to {output!r}: {exc.strerror or exc}")
+        return EXIT_USAGE
+    print(f"wrote {output}")
+    return 0
 
 
 def _list() -> int:
@@ -184,7 +208,7 @@ def _run(names: list[str], output: str, quick: bool, debug: bool, save: bool = F
 
 
 def _run_one(name: str, output: str, quick: bool, save: bool, animate: bool) -> dict:
-    """One scenario or scene file (``.toml``, ``.yaml``), with its HDF5 files / animations on request."""
+    """One scenario or scene file (``.toml``, ``.yaml``, ``.json``), with its HDF5 files / animations on request."""
     from .scene_files_run import run_scene_file, write_results
 
     if name.lower().endswith(SCENE_SUFFIXES):
@@ -202,6 +226,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     if args.command == "list":
         return _list()
+    if args.command == "scene":
+        return _scene_schema(args.output)
     with _terminate_as_interrupt():
         return _run(args.names, args.output, args.quick, args.debug, args.save, args.animate)
 

@@ -4,9 +4,11 @@
 column ``p`` (one library per structure): every body's mass and the non-zero entries of its inertia
 tensor, the non-zero stiffnesses and dampings of the 1- and 2-DOF joint laws (revolute, prismatic,
 universal; ``tau = u - k (q - q_ref) - c v``) with the reference of every coordinate that has a
-stiffness, and the non-zero components of gravity.  Zeros of the model are constants 0 of the code
-(part of the structure, as for planar scenes); the geometry, joint axes, loads, driven motions and the
-laws of spherical, free and elastic joints stay constants.
+stiffness, the non-zero numbers of every modal beam (:mod:`ctmm.compiled_spatial_beam_numbers`: mass and polar
+inertia per length, bending, torsional and axial stiffnesses, damping ratio and Kelvin-Voigt coefficient; in place
+of a mass and inertia), and the non-zero components of gravity.  Zeros of the model are constants 0 of the code
+(part of the structure, as for planar scenes); the geometry, joint axes, loads, driven motions, the
+laws of spherical, free and elastic joints, beams' lengths and finite-element subsystems stay constants.
 
 :class:`SpatialNumbers` states them on the entries of a symbol column, and
 :func:`parametrised_body_terms` forms a rigid body's terms from them without the body's numbers in the
@@ -26,6 +28,8 @@ import numpy as np
 
 from .ops import CASADI
 from .protocol import BodyTerms, JointTerms
+from .compiled_spatial_beam_numbers import BEAM_NUMBERS, beam_numbers, parametrised_beam_terms
+from .spatial.beam import SpatialBeam
 from .spatial.body_forms import rigid_body_terms
 from .spatial.model import SpatialModel
 
@@ -78,10 +82,14 @@ def spatial_parameter_layout(model: SpatialModel) -> list[SpatialParameter]:
     then the non-zero gravity components (module docstring)."""
     layout = []
     for j, (body, joint) in enumerate(zip(model.bodies, model.joints)):
-        layout.append(SpatialParameter(f"{body.name}.mass", "kg", float(body.mass), "mass", j, 0))
-        inertia = np.asarray(body.inertia, dtype=float)
-        layout += [SpatialParameter(f"{body.name}.inertia.{label}", "kg m^2", float(inertia[a, b]), "inertia", j, e)
-                   for e, (label, a, b) in enumerate(INERTIA_ENTRIES) if inertia[a, b] != 0.0]
+        if isinstance(body, SpatialBeam):
+            layout += [SpatialParameter(f"{body.name}.{kind}", unit, value, kind, j, 0)
+                       for kind, unit, value in beam_numbers(body)]
+        else:
+            layout.append(SpatialParameter(f"{body.name}.mass", "kg", float(body.mass), "mass", j, 0))
+            inertia = np.asarray(body.inertia, dtype=float)
+            layout += [SpatialParameter(f"{body.name}.inertia.{label}", "kg m^2", float(inertia[a, b]), "inertia", j,
+                                        e) for e, (label, a, b) in enumerate(INERTIA_ENTRIES) if inertia[a, b] != 0.0]
         if not _has_law(joint):
             continue
         units = _LAW_UNITS[joint.kind]
@@ -130,6 +138,10 @@ class SpatialNumbers:
         inertia = [(a, b, self.entries[("inertia", j, e)]) for e, (_, a, b) in enumerate(INERTIA_ENTRIES)
                    if ("inertia", j, e) in self.entries]
         return self.entries[("mass", j, 0)], inertia
+
+    def beam(self, j: int) -> dict[str, Any]:
+        """``{attribute: expression}`` of the numbers of beam ``j`` in the layout (:data:`BEAM_NUMBERS`)."""
+        return {kind: self.entries[(kind, j, 0)] for kind, _ in BEAM_NUMBERS if (kind, j, 0) in self.entries}
 
     def law(self, j: int, count: int) -> list[tuple[Any, Any, Any]]:
         """``(k, c, q_ref)`` per coordinate of joint ``j`` (zeros of the model as 0)."""
@@ -191,7 +203,8 @@ def parametrised_scene_terms(model: SpatialModel, numbers: SpatialNumbers, bodie
                              ) -> tuple[list, list]:
     """A scene's body and joint terms (casadi, :meth:`~ctmm.spatial.body_forms.SpatialScene.terms` at the
     symbols ``q``, ``v`` with the joint ``inputs``) with the numbers of ``numbers`` in place of the
-    model's: every rigid body by :func:`parametrised_body_terms`, every joint with a law by
+    model's: every rigid body by :func:`parametrised_body_terms`, every modal beam by
+    :func:`~ctmm.compiled_spatial_beam_numbers.parametrised_beam_terms`, every joint with a law by
     :func:`parametrised_joint_law`.  The applied loads' part of a body's ``h`` -- of the model's loads and
     of the bodies ``applied`` (indices; e.g. body-force actuators passed as ``wrenches`` to ``terms``) --
     is kept from the numeric terms (their ``h`` less the terms without loads)."""
@@ -199,14 +212,21 @@ def parametrised_scene_terms(model: SpatialModel, numbers: SpatialNumbers, bodie
     loaded = {load.body for load in model.loads} | {model.bodies[j].name for j in applied}
     for j, (body, joint, state) in enumerate(zip(model.bodies, model.joints, states)):
         offset = state.origin - state.inboard if joint.kind in ("prismatic", "free", "elastic6") else None
-        pose = dict(center_of_mass=body.center_of_mass, points={name: body.points[name] for name in bodies[j].Kin},
-                    rotation=state.rotation, offset=offset, omega=state.omega)
-        extra = None
-        if body.name in loaded:        # the loads' part: the numeric terms less those without loads
-            extra = bodies[j].h - rigid_body_terms(CASADI, mass=body.mass, inertia=body.inertia,
-                                                   gravity=model.gravity, **pose).h
-        mass, inertia = numbers.body(j)
-        bodies[j] = parametrised_body_terms(mass, inertia, numbers.gravity, extra_h=extra, **pose)
+        if isinstance(body, SpatialBeam):          # the loads' rows carry no beam number: kept as they are
+            modal = model.modal[j]
+            bodies[j] = parametrised_beam_terms(
+                body, bodies[j], numbers.beam(j), numbers.gravity, model_gravity=model.gravity,
+                rotation=state.rotation, offset=offset, omega=state.omega,
+                eta=q[modal.position.start:modal.position.stop], eta_dot=v[modal.velocity.start:modal.velocity.stop])
+        else:
+            pose = dict(center_of_mass=body.center_of_mass, rotation=state.rotation, offset=offset,
+                        omega=state.omega, points={name: body.points[name] for name in bodies[j].Kin})
+            extra = None
+            if body.name in loaded:        # the loads' part: the numeric terms less those without loads
+                extra = bodies[j].h - rigid_body_terms(CASADI, mass=body.mass, inertia=body.inertia,
+                                                       gravity=model.gravity, **pose).h
+            mass, inertia = numbers.body(j)
+            bodies[j] = parametrised_body_terms(mass, inertia, numbers.gravity, extra_h=extra, **pose)
         count = joint.velocity_count
         if numbers.has_law(j, count):
             layout = model.layout[j]

@@ -36,12 +36,16 @@ from typing import Any, Mapping
 import numpy as np
 
 from .compiled_parameters import parameter_vector, structure_key
+from .compiled_spatial_beam_numbers import BEAM_NUMBERS
 from .compiled_spatial_parameters import INERTIA_ENTRIES, spatial_parameter_layout, spatial_parameter_vector
 from .control.controlled_model import ControlledModel
 from .errors import ModelError
 from .planar.model import PlanarModel
 from .signals import SYMBOLIC_FIELDS, as_signal, signal_parameters
+from .spatial.beam import SpatialBeam
 from .spatial.model import SpatialModel
+
+_BEAM_KINDS = tuple(kind for kind, _ in BEAM_NUMBERS)
 
 __all__ = ["ParameterSpace", "parameter_names", "parameter_values", "plant_and_loops", "with_parameters"]
 
@@ -257,7 +261,8 @@ def _spatial(model: SpatialModel, values: Mapping[str, float], layout: Mapping[s
     caller)."""
     joints = list(model.joints)
     # a body's numbers are replaced at once (its inertia is checked as a whole, not entry by entry)
-    bodies = [{"mass": body.mass, "inertia": np.array(body.inertia, dtype=float)} for body in model.bodies]
+    bodies = [{} if isinstance(body, SpatialBeam) else {"mass": body.mass, "inertia": np.array(body.inertia, dtype=float)}
+              for body in model.bodies]
     gravity = np.array(model.gravity, dtype=float)
     for name, value in values.items():
         entry = layout[name]
@@ -268,13 +273,15 @@ def _spatial(model: SpatialModel, values: Mapping[str, float], layout: Mapping[s
         elif entry.kind == "inertia":
             _, a, b = INERTIA_ENTRIES[entry.entry]
             bodies[entry.index]["inertia"][a, b] = bodies[entry.index]["inertia"][b, a] = value
+        elif entry.kind in _BEAM_KINDS:          # a modal beam's number (ctmm.compiled_spatial_beam_numbers)
+            bodies[entry.index][entry.kind] = value
         else:                                   # stiffness, damping, reference of a 1- or 2-DOF joint
             joint = joints[entry.index]
             numbers = np.array(getattr(joint, entry.kind), dtype=float).reshape(-1)
             numbers[entry.entry] = value
             joints[entry.index] = dataclasses.replace(joint, **{entry.kind: numbers if numbers.size > 1 else
                                                                 float(numbers[0])})
-    touched = {layout[name].index for name in values if layout[name].kind in ("mass", "inertia")}
+    touched = {layout[name].index for name in values if layout[name].kind in ("mass", "inertia") + _BEAM_KINDS}
     bodies = [dataclasses.replace(body, **bodies[j]) if j in touched else body for j, body in enumerate(model.bodies)]
     return SpatialModel(model.name, bodies + joints + list(model.loads), gravity=gravity)
 

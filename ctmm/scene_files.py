@@ -1,5 +1,5 @@
-"""Scene files: a system, its feedback loops, its co-simulated controllers and its study in one TOML or YAML
-file (``ctmm run scene.toml``).
+"""Scene files: a system, its feedback loops, its co-simulated controllers and its study in one TOML, YAML or
+JSON file (``ctmm run scene.toml``).
 
 ::
 
@@ -31,7 +31,8 @@ object (e.g. a reference motion ``f(t)``) imported from an installed module and
 ``{call = "module:attribute", ...}`` calls one with the other keys (checked against its
 signature). ``[[controllers]]`` tables name co-simulated controllers (``call``, ``python`` or an
 ``fmu`` path relative to the scene file) passed to ``simulate``. The same tables may be written in
-YAML (:mod:`ctmm.scene_files_syntax`). A mistake is a :class:`SceneError` naming the file, the line,
+YAML or JSON (:mod:`ctmm.scene_files_syntax`); :func:`ctmm.scene_files_schema.json_schema` states the format as a
+JSON Schema (``ctmm scene schema``). A mistake is a :class:`SceneError` naming the file, the line,
 the table and the key, and what is allowed. ``docs/scene_files.md`` is the reference.
 """
 from __future__ import annotations
@@ -187,7 +188,8 @@ class Scene:
     path : Path
         The file.
     name : str
-        The scene name (the file name without its ``.toml`` / ``.yaml`` ending): names the outputs of ``ctmm run``.
+        The scene name (the file name without its ``.toml`` / ``.yaml`` / ``.json`` ending): names the outputs of
+        ``ctmm run``.
     system : object
         The model (``Chain``, ``PlanarModel``, ``SpatialModel``), with its loops closed
         (``ctmm.control.with_feedback``) when the file has ``[[loops]]``.
@@ -304,7 +306,8 @@ def load_scene(path: str | os.PathLike) -> Scene:
     Parameters
     ----------
     path : str or os.PathLike
-        A TOML (``.toml``) or YAML (``.yaml``, ``.yml``; needs PyYAML) file with ``[system]``, optional
+        A TOML (``.toml``), YAML (``.yaml``, ``.yml``; needs PyYAML) or JSON (``.json``; key lines with PyYAML)
+        file with ``[system]``, optional
         ``[[loops]]`` and ``[[controllers]]``, ``[study]`` and optional ``[output]`` (``docs/scene_files.md``).
 
     Returns
@@ -315,7 +318,7 @@ def load_scene(path: str | os.PathLike) -> Scene:
     Raises
     ------
     SceneError
-        No such file, not TOML / YAML (the parser's line and column), PyYAML missing for a YAML file, or a
+        No such file, not TOML / YAML / JSON (the parser's line and column), PyYAML missing for a YAML file, or a
         table, key or value that is not
         allowed: the message names the file, the line, the key and the allowed values; a
         constructor's own :class:`~ctmm.errors.ModelError` is passed on with the line and key of its table.
@@ -323,7 +326,7 @@ def load_scene(path: str | os.PathLike) -> Scene:
     source = Path(path)
     syntax = SUFFIXES.get(source.suffix.lower())
     if syntax is None:
-        raise SceneError(f"a scene file is TOML or YAML and its name must end with {', '.join(SUFFIXES)}, "
+        raise SceneError(f"a scene file is TOML, YAML or JSON and its name must end with {', '.join(SUFFIXES)}, "
                          f"got {str(source)!r}")
     try:
         text = source.read_text(encoding="utf-8")

@@ -25,7 +25,7 @@ import numpy as np
 
 from .errors import ModelError
 from .scenario import check_output_folder, write_json_atomic
-from .scene_files import Scene, load_scene
+from .scene_files import Scene, SceneError, load_scene
 from .version import __version__
 
 __all__ = ["write_results", "run_scene_file", "quick_arguments", "QUICK_FACTOR"]
@@ -173,7 +173,7 @@ def run_scene_file(path: str | os.PathLike, output_dir: str | os.PathLike = "res
     Parameters
     ----------
     path : str or os.PathLike
-        The ``.toml`` scene file.
+        The scene file (``.toml``, ``.yaml``, ``.yml`` or ``.json``).
     output_dir : str or os.PathLike
         Output folder (created if needed).
     quick : bool
@@ -198,6 +198,10 @@ def run_scene_file(path: str | os.PathLike, output_dir: str | os.PathLike = "res
     """
     scene = load_scene(path)
     output = check_output_folder(output_dir)
+    if _holds_scene(output / f"{scene.name}.json"):      # a JSON scene file where the summary goes: keep it
+        raise SceneError(f"{str(output / (scene.name + '.json'))!r} is a scene file and the summary of this run "
+                         f"({scene.name}.json) would replace it; write the outputs to another folder (--output)",
+                         path=str(path))
     staging = Path(tempfile.mkdtemp(dir=output, prefix=f".{scene.name}-{os.getpid()}-"))
     earlier = _earlier_outputs(output, scene.name)
     try:
@@ -230,6 +234,15 @@ def run_scene_file(path: str | os.PathLike, output_dir: str | os.PathLike = "res
     finally:
         shutil.rmtree(staging, ignore_errors=True)
     return summary
+
+
+def _holds_scene(record: Path) -> bool:
+    """Whether ``record`` is a JSON scene file (a ``system`` and a ``study`` table), not a run's summary."""
+    try:
+        data = json.loads(record.read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(data, dict) and "system" in data and "study" in data
 
 
 def _earlier_outputs(output: Path, name: str) -> list[Path]:

@@ -11,7 +11,8 @@ shipped scenarios can be files: :func:`finite_element_subsystem` (a ``ctmm.fem``
 body), ``finite_segment_beam`` (one table, several elements), :func:`closed_planar_model` (``kind =
 "planar_closed"``), :func:`spin_up_law` and :func:`parallel_law` (values); the FMU controller's keys
 come from ``FMUController`` (:func:`controller_kinds`). ``docs/scene_files.md`` holds
-:func:`schema_markdown` (checked by a test).
+:func:`schema_markdown` (checked by a test); :func:`json_schema` states the same as a JSON Schema
+(draft 2020-12; ``ctmm scene schema`` writes it) for editors and other tools.
 """
 from __future__ import annotations
 
@@ -24,8 +25,9 @@ from typing import Any, Callable
 import numpy as np
 
 __all__ = ["Parameter", "Constructor", "SYSTEM_KINDS", "VERBS", "element_types", "value_types", "loop_types",
-           "controller_kinds", "system_constructor", "verb", "constructor", "schema_markdown", "transfer_function",
-           "finite_element_subsystem", "closed_planar_model", "spin_up_law", "parallel_law"]
+           "controller_kinds", "system_constructor", "verb", "constructor", "schema_markdown", "json_schema",
+           "JSON_SCHEMA_DIALECT", "transfer_function", "finite_element_subsystem", "closed_planar_model", "spin_up_law",
+           "parallel_law"]
 
 
 @dataclass(frozen=True)
@@ -348,3 +350,107 @@ def schema_markdown() -> str:
     lines += _table({name: verb(name) for name in VERBS}, "`[study]` (`verb` = `type`)")
     lines += _table(value_types(), "values: inline tables `{type = ...}` anywhere")
     return "\n".join(lines).rstrip() + "\n"
+
+
+JSON_SCHEMA_DIALECT = "https://json-schema.org/draft/2020-12/schema"
+"""The JSON Schema dialect of :func:`json_schema`."""
+
+
+def _keys_schema(item: Constructor, fixed: dict[str, Any], skip: tuple[str, ...] = ()) -> dict[str, Any]:
+    """An object schema of a table calling ``item``: the ``fixed`` keys (``{"type": {"const": ...}}``), every
+    parameter a value, the required ones required, no other key unless the callable takes ``**options``."""
+    properties = dict(fixed)
+    for parameter in item.parameters:
+        if parameter.name not in skip and parameter.name not in properties:
+            entry: dict[str, Any] = {"$ref": "#/$defs/value"}
+            if parameter.annotation:
+                entry["description"] = parameter.annotation + (f", default {parameter.default}" if parameter.default
+                                                               else "")
+            properties[parameter.name] = entry
+    required = list(fixed) + [key for key in item.required() if key not in skip and key not in fixed]
+    return {"type": "object", "properties": properties, "required": required, "additionalProperties": item.open}
+
+
+def _typed(constructors: dict[str, Constructor]) -> list[dict[str, Any]]:
+    """One object schema per ``type`` value."""
+    return [_keys_schema(item, {"type": {"const": name}}) for name, item in constructors.items()]
+
+
+def _python_reference(key: str) -> dict[str, Any]:
+    return {key: {"type": "string", "pattern": "^[^:]+:.+$", "description": "'module:attribute'"}}
+
+
+def json_schema() -> dict[str, Any]:
+    """The scene-file format (:mod:`ctmm.scene_files`) as a JSON Schema (draft 2020-12), generated from the same
+    constructors as :func:`schema_markdown`.
+
+    It states the tables, the allowed ``type`` values of every table and their keys (required ones required, no
+    others unless the callable takes further options), the ``kind`` of ``[system]`` and the ``verb`` of
+    ``[study]``; the values of keys are any JSON value (numbers, strings, lists, or inline tables with ``type``,
+    ``python`` or ``call``), their ranges being checked by the constructors when the file is loaded.  A file that
+    passes it may still be refused by :func:`ctmm.scene_files.load_scene` (a negative mass, an unknown Python
+    reference); a file it rejects is refused there too.
+
+    Returns
+    -------
+    dict
+        The schema, ready for ``json.dump``.
+    """
+    kinds = list(SYSTEM_KINDS)
+    element_sets = {"chain": "chain", "planar": "planar", "planar_chain": "planar", "planar_closed": "planar",
+                    "spatial": "spatial"}
+    defs: dict[str, Any] = {"value_table": {"anyOf": _typed(value_types())}}
+    for label in ("chain", "planar", "spatial"):
+        types = element_types(label)
+        call = {"type": "object", "properties": _python_reference("call"), "required": ["call"],
+                "not": {"required": ["type"]}, "description": "a Python function returning an element or a list"}
+        defs[f"{label}_element"] = {"anyOf": _typed(types) + [call]}
+    defs["value"] = {
+        "description": "a number, string, boolean, list of values, or inline table: {type = ...} (a value type or an "
+                       "element type), {python = 'module:attribute'}, {call = 'module:attribute', ...} or a plain "
+                       "mapping of values",
+        "anyOf": [
+            {"type": ["number", "string", "boolean"]},
+            {"type": "array", "items": {"$ref": "#/$defs/value"}},
+            {"type": "object", "properties": _python_reference("python"), "required": ["python"],
+             "additionalProperties": False},
+            {"type": "object", "properties": _python_reference("call"), "required": ["call"],
+             "additionalProperties": {"$ref": "#/$defs/value"}},
+            {"type": "object", "required": ["type"], "anyOf": [{"$ref": f"#/$defs/{name}"} for name in (
+                "value_table", "chain_element", "planar_element", "spatial_element")]},
+            {"type": "object", "not": {"anyOf": [{"required": [key]} for key in ("type", "python", "call")]},
+             "additionalProperties": {"$ref": "#/$defs/value"}}]}
+    systems = []
+    for kind in kinds:
+        item = system_constructor(kind)
+        fixed = {"kind": {"const": kind, "description": SYSTEM_KINDS[kind][1]},
+                 "elements": {"type": "array", "minItems": 1,
+                              "items": {"$ref": f"#/$defs/{element_sets[kind]}_element"}}}
+        systems.append(_keys_schema(item, fixed))
+    studies = [_keys_schema(verb(name), {"verb": {"const": name}}) for name in VERBS]
+    others = {"fmu": ("call", "python"), "call": ("fmu", "python"), "python": ("fmu", "call")}
+    fmu = _keys_schema(controller_kinds()["fmu"], {"fmu": {"type": "string", "minLength": 1,
+                                                           "description": "FMU path, relative to the scene file"}})
+    controllers = [fmu,
+                   {"type": "object", "properties": _python_reference("call"), "required": ["call"],
+                    "not": {"anyOf": [{"required": [key]} for key in others["call"]]},
+                    "additionalProperties": {"$ref": "#/$defs/value"}},
+                   {"type": "object", "properties": _python_reference("python"), "required": ["python"],
+                    "additionalProperties": False}]
+    output = {"type": "object", "properties": {"plot": {"$ref": "#/$defs/value"},
+                                               "description": {"type": "string"}},
+              "additionalProperties": False}
+    return {
+        "$schema": JSON_SCHEMA_DIALECT,
+        "title": "ctmm scene file",
+        "description": "A system, its feedback loops, its co-simulated controllers and its study (TOML, YAML or "
+                       "JSON; docs/scene_files.md). Generated by ctmm.scene_files_schema.json_schema().",
+        "type": "object",
+        "properties": {"system": {"oneOf": systems},
+                       "loops": {"type": "array", "items": {"oneOf": _typed(loop_types())}},
+                       "controllers": {"type": "array", "items": {"oneOf": controllers}},
+                       "study": {"oneOf": studies},
+                       "output": output},
+        "required": ["system", "study"],
+        "additionalProperties": False,
+        "$defs": defs}

@@ -1,14 +1,17 @@
-"""The two syntaxes of scene files, TOML and YAML: parsed data and the line of every key.
+"""The syntaxes of scene files, TOML, YAML and JSON: parsed data and the line of every key.
 
-:func:`parse` reads a ``.toml``, ``.yaml`` or ``.yml`` text into plain data (tables as ``dict``,
+:func:`parse` reads a ``.toml``, ``.yaml``, ``.yml`` or ``.json`` text into plain data (tables as ``dict``,
 arrays as ``list``) and a map from key paths (``("system", "elements", 2, "mass")``) to 1-based
 line numbers, so that :mod:`ctmm.scene_files` can name the line of a wrong key in either syntax.
 TOML parsers keep no line numbers, so a TOML text is scanned once more (:func:`key_lines`); a YAML
 text is composed into nodes, which carry their marks. YAML needs PyYAML (``pip install
-ctmm[scenes]``); a YAML null is a left-out key (as in TOML).
+ctmm[scenes]``); a YAML null is a left-out key (as in TOML). A JSON text is read by :mod:`json` (its numbers
+as JSON states them, not as YAML 1.1 would) and its key lines are those of PyYAML's composition of the same
+text when PyYAML is installed (JSON is YAML flow syntax), else unknown (messages then name the key only).
 """
 from __future__ import annotations
 
+import json
 import re
 import sys
 from typing import Any
@@ -22,7 +25,7 @@ else:  # pragma: no cover - python 3.10
 
 __all__ = ["SUFFIXES", "parse", "key_lines", "yaml_key_lines", "KeyPath"]
 
-SUFFIXES = {".toml": "TOML", ".yaml": "YAML", ".yml": "YAML"}
+SUFFIXES = {".toml": "TOML", ".yaml": "YAML", ".yml": "YAML", ".json": "JSON"}
 """File name endings of scene files and their syntax."""
 
 KeyPath = tuple  # where a key is in the file: ("system", "elements", 2, "mass")
@@ -155,7 +158,7 @@ def parse(text: str, syntax: str) -> tuple[Any, dict[KeyPath, int]]:
     text : str
         The file's text.
     syntax : str
-        ``"TOML"`` or ``"YAML"`` (:data:`SUFFIXES`).
+        ``"TOML"``, ``"YAML"`` or ``"JSON"`` (:data:`SUFFIXES`).
 
     Returns
     -------
@@ -167,7 +170,7 @@ def parse(text: str, syntax: str) -> tuple[Any, dict[KeyPath, int]]:
     Raises
     ------
     ValueError
-        Not valid TOML / YAML: the parser's message with its line and column.
+        Not valid TOML / YAML / JSON: the parser's message with its line and column.
     ModelError
         YAML without PyYAML installed.
     """
@@ -176,6 +179,12 @@ def parse(text: str, syntax: str) -> tuple[Any, dict[KeyPath, int]]:
             return tomllib.loads(text), key_lines(text)
         except tomllib.TOMLDecodeError as exc:
             raise ValueError(f"not valid TOML: {exc}") from None
+    if syntax == "JSON":
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"not valid JSON: {exc.msg} (line {exc.lineno}, column {exc.colno})") from None
+        return data, _json_key_lines(text)
     yaml, loader_class = _yaml_loader()
     loader = loader_class(text)
     try:
@@ -187,3 +196,20 @@ def parse(text: str, syntax: str) -> tuple[Any, dict[KeyPath, int]]:
     finally:
         loader.dispose()
     return data, lines
+
+
+def _json_key_lines(text: str) -> dict[KeyPath, int]:
+    """Key lines of a valid JSON text from PyYAML's composition of it (empty without PyYAML, or where YAML
+    reads the text otherwise)."""
+    try:
+        yaml, loader_class = _yaml_loader()
+    except ModelError:
+        return {}
+    loader = loader_class(text)
+    try:
+        node = loader.get_single_node()
+        return yaml_key_lines(node) if node is not None else {}
+    except yaml.YAMLError:
+        return {}
+    finally:
+        loader.dispose()

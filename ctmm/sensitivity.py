@@ -28,10 +28,11 @@ The values (crossovers, roots) come from the library's verbs on the TMM (:func:`
 :func:`ctmm.stability.spectral_abscissa`) or, delay-free with static gains, from the quadratic
 eigenvalue problem of ``Delta``; each is checked against ``Delta`` before it is differentiated (a
 mismatch is refused).  What cannot be differentiated is refused by name: non-lumped elements,
-connector forces as signals, spatial beams; time-domain outputs (:func:`simulation_sensitivity`)
-are differentiated for planar and spatial models, loops included, in plant and loop numbers
-(:mod:`ctmm.sensitivity_time`, :mod:`ctmm.sensitivity_time_spatial`, :mod:`ctmm.sensitivity_loop_numbers`),
-and for free lumped chains.
+connector forces as signals, finite-element subsystems of spatial models; time-domain outputs
+(:func:`simulation_sensitivity`) are differentiated for planar and spatial models (modal spatial beams included),
+loops included, in plant and loop numbers (:mod:`ctmm.sensitivity_time`, :mod:`ctmm.sensitivity_time_spatial`,
+:mod:`ctmm.sensitivity_loop_numbers`), for free lumped chains and for controlled chains in their element and loop
+numbers (:mod:`ctmm.sensitivity_time_chain`).
 Accuracy and limits: ``docs/sensitivity.md``.
 """
 from __future__ import annotations
@@ -565,15 +566,15 @@ def simulation_sensitivity(system: Any, parameters: str | Sequence[str], *, t_fi
     (``"<loop>.gain"``, ``"<loop>.<sensor>"``, realisation entries ``"<loop>.A[i,j]"``...) as directions in the
     step's parameters (:mod:`ctmm.sensitivity_loop_numbers`); chains: the RK4 of their explicit form with its
     stages differentiated (:func:`ctmm.sensitivity_time.chain_simulation_sensitivity`: ``x0``, ``v0``
-    by point name, outputs ``"<point>.x"`` / ``".v"``); controlled chains in their loop numbers through the
-    generated chain step (:func:`ctmm.sensitivity_time_chain.controlled_chain_simulation_sensitivity`).  Returns a
+    by point name, outputs ``"<point>.x"`` / ``".v"``); controlled chains in their element and loop numbers
+    through the generated chain step (:func:`ctmm.sensitivity_time_chain.controlled_chain_simulation_sensitivity`).  Returns a
     :class:`ctmm.sensitivity_time.TimeSensitivity`.
 
     Raises
     ------
     ModelError
-        Element numbers of controlled chains, loop delays (a whole number of steps of the generated
-        ring), spatial beams, models that cannot be compiled, unknown or zero parameters.
+        Loop delays (a whole number of steps of the generated ring), finite-element subsystems of spatial
+        models, models that cannot be compiled, unknown or zero parameters.
     """
     from .sensitivity_planar import is_planar_system
     from .sensitivity_spatial import is_spatial_system

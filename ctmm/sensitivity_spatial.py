@@ -1,6 +1,6 @@
 """The closed-loop characteristic matrix of a spatial (controlled) model and its exact derivatives.
 
-A spatial model of rigid bodies (:class:`~ctmm.spatial.model.SpatialModel`; compilable,
+A spatial model of rigid bodies and modal beams (:class:`~ctmm.spatial.model.SpatialModel`; compilable,
 :func:`ctmm.compiled_spatial.spatial_compile_refusal`), alone or closed by loops
 (``ctmm.control.with_feedback``), is linearised as :func:`ctmm.linearize` does
 (:mod:`ctmm.spatial_linearization`): about the plant's static equilibrium ``q*``, in tangent coordinates
@@ -31,9 +31,13 @@ Parameters: the entries of :func:`ctmm.compiled_spatial_parameters.spatial_param
 ``"<body>.mass"`` [kg], ``"<body>.inertia.xx"`` (``yy``, ``zz``, ``xy``, ``xz``, ``yz``; about the centre
 of mass, body axes, the symmetric pair together) [kg m^2], ``"<joint>.stiffness"``, ``".damping"``,
 ``".reference"`` of revolute, prismatic and universal joints (``"[k]"`` appended on a universal joint),
-``"gravity.x|y|z"`` [m/s^2] -- and the loops' ``"<loop>.gain"``, ``"<loop>.delay"``,
-``"<loop>.<sensor>"``.  A number that is zero in the model is a constant of the generated expression
-and is refused (give it a nonzero value); beams, elastic-joint laws and geometry are not parameters.
+``"gravity.x|y|z"`` [m/s^2], a :class:`~ctmm.spatial.beam.SpatialBeam`'s ``"<beam>.mass_per_length"`` [kg/m],
+``".polar_inertia_per_length"`` [kg m], ``".bending_stiffness_y"``, ``".bending_stiffness_z"``,
+``".torsional_stiffness"`` [N m^2], ``".axial_stiffness"`` [N], ``".damping_ratio"`` [-], ``".stiffness_damping"``
+[s] (:mod:`ctmm.compiled_spatial_beam_numbers`; a beam's modal coordinates are plain tangent coordinates) -- and the
+loops' ``"<loop>.gain"``, ``"<loop>.delay"``, ``"<loop>.<sensor>"``.  A number that is zero in the model is a
+constant of the generated expression and is refused (give it a nonzero value); a beam's length, elastic-joint laws,
+finite-element subsystems and geometry are not parameters.
 """
 from __future__ import annotations
 
@@ -68,18 +72,21 @@ def _split(system: Any) -> tuple[Any, tuple]:
 
 def check_differentiable(model: Any, what: str = "ctmm.sensitivity") -> None:
     """Refuse (``ModelError``) a spatial model whose numbers are not parameters of a generated expression:
-    one that cannot be compiled or that has beams."""
+    one that cannot be compiled or that has finite-element subsystems."""
     from .compiled_spatial import spatial_compile_refusal
 
     reason = spatial_compile_refusal(model)
     if reason:
         raise ModelError(f"{what}: the derivatives of a spatial model are taken on its generated expression, "
                          f"and {reason}")
-    beams = [body.name for body, layout in zip(model.bodies, model.modal) if layout is not None]
-    if beams:
-        raise ModelError(f"{what}: spatial model {model.name!r} has the beams {beams}; the derivatives are "
-                         "implemented for rigid bodies and 1-/2-DOF joint laws (beam numbers are not parameters "
-                         "of the generated expression yet)")
+    from .spatial.beam import SpatialBeam
+
+    others = [body.name for body, layout in zip(model.bodies, model.modal)
+              if layout is not None and not isinstance(body, SpatialBeam)]
+    if others:
+        raise ModelError(f"{what}: spatial model {model.name!r} has the finite-element subsystems {others}; the "
+                         "derivatives are implemented for rigid bodies, modal beams (SpatialBeam) and 1-/2-DOF joint "
+                         "laws (the numbers of ctmm.fem subsystems are not parameters of the generated expression)")
 
 
 def spatial_parameter_index(model: Any, name: str) -> int:
@@ -111,7 +118,8 @@ def _resolve(system: Any, names: Sequence[str]) -> tuple[list[ParameterDerivativ
     for name in names:
         if not isinstance(name, str) or "." not in name:
             raise ModelError(f"ctmm.sensitivity: parameter {name!r} must be '<body>.mass', '<body>.inertia.xx', "
-                             "'<joint>.stiffness', '<joint>.damping', '<joint>.reference', 'gravity.z' or "
+                             "'<joint>.stiffness', '<joint>.damping', '<joint>.reference', 'gravity.z', "
+                             "'<beam>.mass_per_length', '<beam>.bending_stiffness_y' (and the other beam numbers) or "
                              "'<loop>.gain' / '<loop>.delay' / '<loop>.<sensor>'")
         loop = loop_parameter(loops, name)
         if loop is not None:
@@ -131,16 +139,20 @@ def spatial_parameter_values(system: Any, names: Sequence[str]) -> dict[str, flo
 
 def _rebuilt(model: Any, changes: Mapping[int, float]) -> Any:
     """``model`` with layout entries ``{index: value}`` set (bodies, joints and gravity rebuilt)."""
+    from .compiled_spatial_beam_numbers import BEAM_NUMBERS
     from .compiled_spatial_parameters import INERTIA_ENTRIES, spatial_parameter_layout
     from .spatial.model import SpatialModel
 
+    beam_kinds = {kind for kind, _ in BEAM_NUMBERS}
     layout = spatial_parameter_layout(model)
     bodies, joints = list(model.bodies), list(model.joints)
     gravity = np.array(model.gravity, dtype=float)
     for k, value in changes.items():
         entry = layout[k]
         j = entry.index
-        if entry.kind == "mass":
+        if entry.kind in beam_kinds:
+            bodies[j] = dataclasses.replace(bodies[j], **{entry.kind: value})
+        elif entry.kind == "mass":
             bodies[j] = dataclasses.replace(bodies[j], mass=value)
         elif entry.kind == "inertia":
             inertia = np.array(bodies[j].inertia, dtype=float)
@@ -226,6 +238,10 @@ def symbolic_retraction(model: Any, q0: Any, delta: Any) -> Any:
             q[start + 3:start + 7] = _quaternion_product(q[start + 3:start + 7], _quaternion_exp(d[3:]))
         else:
             q[start:start + len(d)] = [q[start + i] + d[i] for i in range(len(d))]
+    for layout in model.modal:                      # beams' modal coordinates: plain increments
+        if layout is not None:
+            q[layout.position] = [q[i] + delta[k] for i, k in zip(range(layout.position.start, layout.position.stop),
+                                                                  range(layout.velocity.start, layout.velocity.stop))]
     return ca.vertcat(*q)
 
 
@@ -235,14 +251,14 @@ class SpatialCharacteristicMatrix(PlanarCharacteristicMatrix):
     Parameters
     ----------
     system : SpatialModel or ControlledModel (spatial plant)
-        Rigid bodies; compilable; linearised about the plant's static equilibrium.
+        Rigid bodies and modal beams; compilable; linearised about the plant's static equilibrium.
     parameters : sequence of str
         Plant numbers and loop parameters (module docstring).
 
     Raises
     ------
     ModelError
-        Beams, a model that cannot be compiled, a parameter that is zero in the model, a neutral
+        Finite-element subsystems, a model that cannot be compiled, a parameter that is zero in the model, a neutral
         equilibrium that moves with a parameter, saturated loops, rotation-vector sensors.
     """
 

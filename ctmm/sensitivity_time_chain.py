@@ -1,23 +1,35 @@
-"""Exact derivatives of RK4 simulations of controlled lumped chains in their loop numbers.
+"""Exact derivatives of RK4 simulations of controlled lumped chains in their element and loop numbers.
 
 A :class:`~ctmm.control.loops.ControlledChain` is stepped as its generated kernel states it
 (:mod:`ctmm.compiled_chain`): the chain's exact affine rate ``a = Ax x + Av v + B u + a0``
 (:func:`ctmm.compiled_chain.affine_form`, certified there against the Python sweep) closed by the loops of
-:class:`ctmm.compiled_loops.ClosedLoops` on :class:`ctmm.compiled_chain.ChainSymbols` (real-time loops at every RK4 stage, LTI controller states, delayed
-loops from the ring of samples), here with the loops' numbers as entries of the step's parameter column
-and the named loop numbers as directions in it (:mod:`ctmm.sensitivity_loop_numbers`: ``"<loop>.gain"``,
-the sensor weights ``"<loop>.<sensor>"``, an LTI controller's realisation entries).  The forward
-sensitivities are folded with the state by casadi's AD (:func:`ctmm.sensitivity_time.forward_sensitivities`):
-the exact derivative of the RK4 solution ``ctmm.simulate(system, ..., method="rk4")`` computes (the Python and
-generated RK4 agree to round-off).
+:class:`ctmm.compiled_loops.ClosedLoops` on :class:`ctmm.compiled_chain.ChainSymbols` (real-time loops at every
+RK4 stage, LTI controller states, delayed loops from the ring of samples), with the loops' numbers as entries of
+the step's parameter column and the named loop numbers as directions in it (:mod:`ctmm.sensitivity_loop_numbers`:
+``"<loop>.gain"``, the sensor weights ``"<loop>.<sensor>"``, an LTI controller's realisation entries).
 
-Refused (:class:`~ctmm.errors.ModelError`, by name): the chain's own numbers (their affine form is read
-numerically; free chains: :func:`ctmm.sensitivity_time.chain_simulation_sensitivity`; controlled chains:
-the frequency-domain, margin and abscissa derivatives), loop delays, time-varying loads, what
-:class:`~ctmm.compiled_loops.ClosedLoops` refuses.
+The chain's own numbers (``"<point>.mass"``, ``"<point>.stiffness"``, ``"<point>.damping"``,
+``"<connector>.stiffness"``, ``"<connector>.damping"``) are entries of the same column ahead of the loops'.  Over
+the nodes with inertia the rate is ``M a = F``, ``F = Fx x + Fv v + Fb u + F0`` (``Fx = M Ax``, ...), with ``M``
+the nodes' masses (:class:`ctmm.sensitivity_model.LoopCharacteristicMatrix`'s mass matrix, its degrees of freedom
+matched to the nodes by the ``"<point>.x"`` sensors).  The element forces are linear in each number, so
+
+    M(p) = M0 + sum_i (p_i - p_i0) dM/dp_i,    F(p) = F(p0) + sum_i (p_i - p_i0) dF/dp_i,
+
+``dFx/dk = -dK/dk``, ``dFv/dc = -dC/dc``, ``dM/dm`` the patterns of the characteristic matrix (each certified
+against the affine form of the chain rebuilt with that number changed), and ``dF0/dp_i`` (a spring's rest length,
+a prestressed end) the exact secant of the ``M a0`` of the two forms.  The rate ``a = M(p)^{-1} F(p)`` is stated on
+casadi symbols and the forward sensitivities are folded with the state by casadi's AD
+(:func:`ctmm.sensitivity_time.forward_sensitivities`): the exact derivative of the RK4 solution
+``ctmm.simulate(system, ..., method="rk4")`` computes (the Python and generated RK4 agree to round-off).
+
+Refused (:class:`~ctmm.errors.ModelError`, by name): loop delays, time-varying loads, massless points, inerter
+numbers, what :class:`~ctmm.compiled_loops.ClosedLoops` refuses.
 """
 from __future__ import annotations
 
+import copy
+from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -26,21 +38,22 @@ from . import validation
 from .errors import ModelError
 from .sensitivity_time import TimeSensitivity
 
-__all__ = ["controlled_chain_simulation_sensitivity"]
+__all__ = ["ElementForces", "controlled_chain_simulation_sensitivity"]
 
 
 def controlled_chain_simulation_sensitivity(system: Any, parameters: str | Sequence[str], *, t_final: float,
                                             dt: float, x0: Mapping[str, float] | None = None,
                                             v0: Mapping[str, float] | None = None,
                                             outputs: str | Sequence[str] | None = None) -> TimeSensitivity:
-    """RK4 run of a controlled lumped chain with the exact derivatives of its outputs in loop numbers.
+    """RK4 run of a controlled lumped chain with the exact derivatives of its outputs in element and loop numbers.
 
     Parameters
     ----------
     system : ControlledChain
         Lumped elements, every point with inertia; references 0.
     parameters : str or sequence of str
-        Loop numbers (module docstring).
+        Element numbers (``"<point>.mass"`` [kg], ``"<point>.stiffness"`` [N/m], ``"<connector>.damping"``
+        [N s/m], ...) and loop numbers (module docstring).
     t_final, dt : float
         [s]; ``t_final / dt`` whole, delays whole multiples of ``dt``.
     x0, v0 : mapping, optional
@@ -51,6 +64,12 @@ def controlled_chain_simulation_sensitivity(system: Any, parameters: str | Seque
     Returns
     -------
     TimeSensitivity
+
+    Raises
+    ------
+    ModelError
+        Unknown numbers, loop delays, saturated loops, time-varying loads, massless points, a chain whose affine
+        form does not match its mass, stiffness and damping matrices (certified), a diverging run.
     """
     import casadi as ca
 
@@ -64,11 +83,6 @@ def controlled_chain_simulation_sensitivity(system: Any, parameters: str | Seque
     what = "controlled_chain_simulation_sensitivity"
     names = validation.names("parameters", parameters)
     plant_numbers = [name for name in names if not is_loop_number(system.loops, name)]
-    if plant_numbers:
-        raise ModelError(f"{what}: {plant_numbers} are numbers of the chain; in time a controlled chain is "
-                         "differentiated in its loop numbers ('<loop>.gain', '<loop>.<sensor>', realisation entries): "
-                         "use ctmm.sensitivity's frequency-domain, margin and abscissa derivatives for its element "
-                         "numbers, or simulation_sensitivity on the free chain")
     saturated = [loop.name for loop in system.loops if loop.saturation is not None]
     if saturated:
         raise ModelError(f"{what}: loops {saturated} saturate; the generated chain step closes unsaturated loops")
@@ -79,20 +93,24 @@ def controlled_chain_simulation_sensitivity(system: Any, parameters: str | Seque
     if form.loads:
         raise ModelError(f"{what}: chain {plant.chain.name!r} has time-varying loads; the free response under its "
                          "loops is differentiated (constant loads are fine)")
+    forces = _element_forces(plant, form, plant_numbers, what)
     n_steps = step_total(t_final, dt)
     h = t_final / n_steps
     m = plant.n_positions
-    loops = ClosedLoops(split, actuators, h, symbols=ChainSymbols(plant), numbers="inputs")   # loop numbers in p
-    q, v, u, p, t = ca.MX.sym("q", m), ca.MX.sym("v", m), ca.MX.sym("u", len(actuators)), ca.MX.sym("p", 0), \
-        ca.MX.sym("t")
-    rate = ca.mtimes(ca.DM(form.Ax), q) + ca.mtimes(ca.DM(form.Av), v) + ca.DM(form.a0)
-    if actuators:
-        rate += ca.mtimes(ca.DM(form.B), u)
-    step = loops.step(ca.Function("acceleration", [q, v, u, p, t], [rate]), len(actuators), 0)
+    k = len(plant_numbers)
+    symbols = ChainSymbols(plant)
+    symbols.parameter_count = k                        # the element numbers lead the step's parameter column
+    loops = ClosedLoops(split, actuators, h, symbols=symbols, numbers="inputs")
+    q, v, u, p, t = (ca.MX.sym(label, size) for label, size in (("q", m), ("v", m), ("u", len(actuators)),
+                                                                ("p", k), ("t", 1)))
+    step = loops.step(ca.Function("acceleration", [q, v, u, p, t], [forces.rate(q, v, u, p)]), len(actuators), k)
     first = loops.initial_state(*plant.start(x0, v0))
-    size = loops.parameter_values.size
-    directions = loop_directions(system, split, loops.parameter_layout, names, 0, size)
-    states, tangents = forward_sensitivities(step, first, loops.parameter_values, directions, n_steps, h, what)
+    size = k + loops.parameter_values.size
+    directions = loop_directions(system, split, loops.parameter_layout, names, k, size)
+    for i, name in enumerate(plant_numbers):
+        directions[i, names.index(name)] = 1.0
+    values0 = np.concatenate([forces.values, loops.parameter_values])
+    states, tangents = forward_sensitivities(step, first, values0, directions, n_steps, h, what)
     points = [e.name for e in plant.chain.body if e.is_point and getattr(e, "mass", 0.0) > 0.0]
     wanted = [f"{name}.x" for name in points] if outputs is None else list(validation.names("outputs", outputs))
     rows, offsets = [], []
@@ -110,3 +128,114 @@ def controlled_chain_simulation_sensitivity(system: Any, parameters: str | Seque
     values = rows @ states[:, :2 * m].T + np.array(offsets)[:, None]
     derivative = np.einsum("ox,kxm->mok", rows, tangents[:, :2 * m, :])
     return TimeSensitivity(h * np.arange(n_steps + 1), tuple(wanted), tuple(names), values, derivative)
+
+
+@dataclass(frozen=True)
+class ElementForces:
+    """``M(p) a = F(p)`` over a chain's nodes with inertia (``M`` diagonal), affine in the named element numbers
+    (module docstring).
+
+    Attributes
+    ----------
+    values : ndarray
+        The numbers' current values ``p0`` (SI units).
+    M0, Fx, Fv, Fb, F0 : ndarray
+        ``M`` [kg] and the force form ``F = Fx x + Fv v + Fb u + F0`` [N] at ``p0``.
+    dM, dFx, dFv, dF0 : list of ndarray
+        Their derivatives per number.
+    """
+
+    values: np.ndarray
+    M0: np.ndarray
+    Fx: np.ndarray
+    Fv: np.ndarray
+    Fb: np.ndarray
+    F0: np.ndarray
+    dM: list
+    dFx: list
+    dFv: list
+    dF0: list
+
+    def rate(self, q: Any, v: Any, u: Any, p: Any) -> Any:
+        """``a = M(p)^{-1} F(p)`` on casadi symbols (``p`` the numbers' values; ``q``, ``v``, ``u`` columns)."""
+        import casadi as ca
+
+        M, Fx, Fv, F0 = ca.DM(np.diag(self.M0)), ca.DM(self.Fx), ca.DM(self.Fv), ca.DM(self.F0)
+        for i in range(self.values.size):
+            d = p[i] - float(self.values[i])
+            M, Fx, Fv, F0 = (X + d * ca.DM(dX) for X, dX in zip((M, Fx, Fv, F0), (np.diag(self.dM[i]), self.dFx[i],
+                                                                                  self.dFv[i], self.dF0[i])))
+        force = ca.mtimes(Fx, q) + ca.mtimes(Fv, v) + F0
+        if self.Fb.shape[1]:
+            force = force + ca.mtimes(ca.DM(self.Fb), u)
+        return force / M if self.values.size else force          # M diagonal (one mass per node)
+
+
+def _element_forces(plant: Any, form: Any, names: Sequence[str], what: str) -> ElementForces:
+    """The force form of ``plant`` (a ChainPlant) and its derivatives in the element numbers ``names``, certified
+    against the affine form ``form`` and against the forms of the chain rebuilt with each number changed."""
+    from .compiled_chain import affine_form
+    from .control.chain_plant import ChainPlant
+    from .sensitivity_model import LoopCharacteristicMatrix
+
+    chain, m = plant.chain, plant.n_positions
+    if not names:                                      # loop numbers only: the affine form as it is
+        return ElementForces(np.zeros(0), np.eye(m), form.Ax, form.Av, form.B, form.a0, [], [], [], [])
+    model = LoopCharacteristicMatrix(chain, list(names))
+    T = np.zeros((m, model.n))                         # nodes <- degrees of freedom of the characteristic matrix
+    for element in chain.body:
+        if element.is_point and getattr(element, "mass", 0.0) > 0.0:
+            sensor = plant.ports.resolve([f"{element.name}.x"])
+            node = np.array([plant.ports.values(sensor, row, np.zeros(m), 0.0)[0] for row in np.eye(m)]) - \
+                plant.ports.values(sensor, np.zeros(m), np.zeros(m), 0.0)[0]
+            T += np.outer(node, model.output_row(f"{element.name}.x", 1.0).real)
+    if T.shape[0] != T.shape[1] or not np.allclose(T @ T.T, np.eye(m), atol=1e-12) or \
+            np.any(model.M != np.diag(np.diag(model.M))):
+        raise ModelError(f"{what}: the nodes of chain {chain.name!r} are not one mass point each (massless points or "
+                         "points that share a node); element numbers are differentiated in time for chains whose "
+                         "every moving point has its own mass")
+
+    def nodal(X: np.ndarray) -> np.ndarray:
+        return T @ np.real(X) @ T.T
+
+    M0 = nodal(model.M)
+    scale = max(np.abs(M0 @ form.Ax).max(), np.abs(M0 @ form.Av).max(), 1e-300)
+    for X, Y, label in ((M0 @ form.Ax, -nodal(model.K), "stiffness"), (M0 @ form.Av, -nodal(model.C), "damping")):
+        if np.abs(X - Y).max() > 1e-9 * scale:
+            raise ModelError(f"{what}: chain {chain.name!r}: its affine form does not match its {label} matrix "
+                             f"(difference {np.abs(X - Y).max():.3g}); its element numbers cannot be differentiated here")
+    dM, dFx, dFv, dF0 = [], [], [], []
+    zero = np.zeros((m, m))
+    for p in model.parameters:
+        pattern = nodal(p.pattern)
+        step = 0.5 * abs(p.value) if p.value else 1.0
+        other = ChainPlant(_changed(chain, p.name, p.value + step))
+        changed = affine_form(other.dynamics)
+        M1 = M0 + step * pattern if p.kind == "mass" else M0
+        pairs = ((M1 @ changed.Ax - M0 @ form.Ax) / step, -pattern if p.kind == "stiffness" else zero), \
+            ((M1 @ changed.Av - M0 @ form.Av) / step, -pattern if p.kind == "damping" else zero)
+        for secant, expected in pairs:
+            if np.abs(secant - expected).max() > 1e-9 * max(scale, np.abs(expected).max()):
+                raise ModelError(f"{what}: {p.name!r} of chain {chain.name!r} does not enter its affine form as its "
+                                 "pattern in the characteristic matrix; it cannot be differentiated here")
+        dM.append(pattern if p.kind == "mass" else zero)
+        dFx.append(-pattern if p.kind == "stiffness" else zero)
+        dFv.append(-pattern if p.kind == "damping" else zero)
+        dF0.append((M1 @ changed.a0 - M0 @ form.a0) / step)       # exact: the forces are affine in the number
+    return ElementForces(np.array([p.value for p in model.parameters], dtype=float), M0, M0 @ form.Ax,
+                         M0 @ form.Av, M0 @ form.B, M0 @ form.a0, dM, dFx, dFv, dF0)
+
+
+def _changed(chain: Any, name: str, value: float) -> Any:
+    """``chain`` with the element number ``name`` (``"<element>.<number>"``) set to ``value`` (> 0), as
+    :func:`ctmm.sensitivity.with_parameters` sets it (the element's forms derived again)."""
+    from .system import Chain
+
+    head, _, tail = name.partition(".")
+    elements = list(chain.elements)
+    j = chain.position(head)
+    element = copy.copy(elements[j])
+    element.__dict__[tail] = value
+    element.derive_forms()
+    elements[j] = element
+    return Chain(chain.name, elements)

@@ -1,6 +1,6 @@
 """Exact derivatives of spatial RK4 simulations: forward sensitivities of the generated spatial step.
 
-For a spatial model of rigid bodies (compilable, :func:`ctmm.compiled_spatial.spatial_compile_refusal`),
+For a spatial model of rigid bodies and modal beams (compilable, :func:`ctmm.compiled_spatial.spatial_compile_refusal`),
 alone or closed by loops (``ctmm.control.with_feedback``), the RK4 step ``y_{k+1} = Phi(y_k, p, t_k)`` of
 ``y = [q, v]`` (quaternions integrated as coordinates, ``q_dot = G(q) v``; with loops ``[q, v, z, ring]``,
 :class:`ctmm.compiled_loops.ClosedLoops` on :class:`ctmm.compiled_spatial_loops.SpatialSymbols`) is stated on
@@ -13,7 +13,8 @@ solution ``ctmm.simulate(model, ..., method="rk4")`` computes (the numpy and gen
 round-off), not of the exact ODE solution.
 
 Parameters: the names of :mod:`ctmm.sensitivity_spatial` (``"<body>.mass"``, ``"<body>.inertia.xx"``,
-``"<joint>.stiffness"``, ``".damping"``, ``".reference"``, ``"gravity.z"``) and the loops' ``"<loop>.gain"``,
+``"<joint>.stiffness"``, ``".damping"``, ``".reference"``, ``"gravity.z"``, ``"<beam>.mass_per_length"``,
+``"<beam>.bending_stiffness_y"``, ...) and the loops' ``"<loop>.gain"``,
 ``"<loop>.<sensor>"`` and realisation entries; outputs: coordinates (``model.coordinates``), velocities
 (``model.velocities``) and sensor ports stated on symbols (``"body.angle_z"``, ``"link.tip.x"``; their
 derivative ``dy/dp = dy/dx S``).
@@ -39,7 +40,7 @@ def spatial_simulation_sensitivity(model: Any, parameters: str | Sequence[str], 
     Parameters
     ----------
     model : SpatialModel or ControlledModel (spatial plant)
-        Rigid bodies; compilable; no open-loop actuator inputs; loop references 0.
+        Rigid bodies and modal beams; compilable; no open-loop actuator inputs; loop references 0.
     parameters : str or sequence of str
         Plant and loop numbers (module docstring).
     t_final, dt : float
@@ -57,7 +58,7 @@ def spatial_simulation_sensitivity(model: Any, parameters: str | Sequence[str], 
     Raises
     ------
     ModelError
-        Beams, a model that cannot be compiled, unknown or zero plant numbers, loop delays, weights of
+        Finite-element subsystems, a model that cannot be compiled, unknown or zero plant numbers, loop delays, weights of
         saturated loops, unknown outputs, rotation-vector sensors, a diverging run.
     """
     import casadi as ca

@@ -209,8 +209,8 @@ def test_mistakes_name_line_key_and_allowed_values(tmp_path, old, new, line, key
 def test_not_toml_bad_name_and_missing_file(tmp_path):
     with pytest.raises(SceneError, match=r"not valid TOML: .*line 3"):
         load_scene(_write(tmp_path, '[system]\nkind = "chain"\nname = \n'))
-    with pytest.raises(SceneError, match="must end with .toml, .yaml, .yml"):
-        load_scene(tmp_path / "scene.json")
+    with pytest.raises(SceneError, match="must end with .toml, .yaml, .yml, .json"):
+        load_scene(tmp_path / "scene.txt")
     with pytest.raises(SceneError, match="cannot read the scene file"):
         load_scene(tmp_path / "missing.toml")
     with pytest.raises(SceneError, match=r"needs a \[study\] table"):

@@ -253,12 +253,7 @@ def test_spatial_refusals_name_what_is_allowed():
     with pytest.raises(ModelError, match="rotation-vector"):
         S.frequency_response_sensitivity(arm(), ["upper.mass"], [1.0], input="shoulder.torque",
                                          output="lower.rotation_x")
-    beam = sp.SpatialModel("beam", [
-        sp.SpatialBeam("b", length=1.0, bending_stiffness_y=5.0, bending_stiffness_z=5.0, mass_per_length=0.7,
-                       n_modes_y=1, n_modes_z=1),
-        sp.Revolute(name="j", parent=None, child="b", axis=(0, 0, 1), stiffness=3.0)], gravity=(0, 0, 0))
-    with pytest.raises(ModelError, match="beams"):
-        S.spectral_abscissa_sensitivity(beam, ["j.stiffness"])
+    # beams: tests/test_sensitivity_spatial_beam.py
 
 
 @pytest.mark.slow

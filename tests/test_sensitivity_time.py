@@ -110,8 +110,9 @@ def test_chain_history_derivatives_match_the_oscillator_closed_form():
 
 
 @pytest.mark.parametrize("delay, lti", [(0.05, False), (0.0, True)])
-def test_controlled_chain_history_in_loop_numbers_against_richardson_differences(delay, lti):
-    # the seed chain's PD loop (delayed; or a first-order LTI controller): gain and sensor weights
+def test_controlled_chain_history_in_loop_and_element_numbers_against_richardson_differences(delay, lti):
+    # the seed chain's PD loop (delayed; or a first-order LTI controller): gain, sensor weights and the chain's own
+    # mass, stiffness and damping numbers
     import control
 
     from ctmm.control import ControlledChain, Feedback
@@ -120,18 +121,19 @@ def test_controlled_chain_history_in_loop_numbers_against_richardson_differences
     gain = control.tf([1.0], [0.1, 1.0]) if lti else 1.0
     system = ControlledChain(seed_chain(), [Feedback("pd", [("m6.x", 5.0), ("m6.v", 1.0)], "m2", gain=gain,
                                                      delay=delay)])
-    names = ["pd.m6.x", "pd.m6.v", "pd.gain"]
-    found = S.simulation_sensitivity(system, names, t_final=2.0, dt=0.01, v0={"m4": 0.5}, outputs=["m6.x", "m2.v"])
+    names = ["pd.m6.x", "pd.m6.v", "pd.gain"] + (["K1.damping"] if lti else ["m4.mass", "K3.stiffness"])
+    found = S.simulation_sensitivity(system, names, t_final=2.0, dt=0.01, v0={"m4": 0.5}, x0={"m6": 0.3},
+                                     outputs=["m6.x", "m2.v"])
 
     def history(s):
-        run = ctmm.simulate(s, 2.0, 0.01, method="rk4", v0={"m4": 0.5})
+        run = ctmm.simulate(s, 2.0, 0.01, method="rk4", v0={"m4": 0.5}, x0={"m6": 0.3})
         return np.array([run["m6.x"], run["m2.v"]])
 
     assert np.max(np.abs(found.values - history(system))) < 1e-12
     for i, name in enumerate(names):
         assert relative(found.derivative[i], richardson(history, system, name)) < 1e-6, name
-    with pytest.raises(ModelError, match="numbers of the chain"):
-        S.simulation_sensitivity(system, ["m4.mass"], t_final=0.1, dt=0.01)
+    with pytest.raises(ModelError, match="unknown"):
+        S.simulation_sensitivity(system, ["m9.mass"], t_final=0.1, dt=0.01)
     if delay:
         with pytest.raises(ModelError, match="whole number of steps"):
             S.simulation_sensitivity(system, ["pd.delay"], t_final=0.1, dt=0.01)
