@@ -1,0 +1,211 @@
+"""Spatial kinematic loops (ctmm.spatial.closed_loops): cut joints with the cut loads as boundary unknowns,
+checked against an independent Newton-Euler DAE in absolute coordinates (ctmm.reference.spatial_loop_dae) and
+closed-form pendulum frequencies (docs/closed_loops.md section 6)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import ctmm
+import ctmm.spatial as sp
+from ctmm.errors import ModelError, SimulationError
+from ctmm.spatial import closed_loop_linear as linear
+from ctmm.spatial.closed_loop_time import simulate_spatial_loops
+from ctmm.spatial.closed_loops import SpatialCutJoint, SpatialKinematicLoopModel
+from spatial_loop_helpers import dae_of, hinged_pendulum, poses, rod, rusr, triangle, triangle_guess
+
+
+def _dae_errors(loop, run, baumgarte: float = 10.0):
+    """Largest differences of the bodies' rotation matrices [rad] and centre-of-mass positions [m] against the DAE
+    started from the same state, and the DAE's multipliers at the last time."""
+    dae = dae_of(loop, baumgarte)
+    y0 = dae.state(*poses(loop, run.q[0], run.v[0]))
+    t, Y = dae.simulate(y0, run.t)
+    angle = position = 0.0
+    for k in range(len(t)):
+        x, R, _, _ = poses(loop, run.q[k], run.v[k])
+        angle = max(angle, max(np.abs(a - b).max() for a, b in zip(R, dae.rotations(Y[k]))))
+        position = max(position, max(np.abs(a - b).max() for a, b in zip(x, dae.split(Y[k])[0])))
+    return angle, position, dae.accelerations(Y[-1])[1]
+
+
+@pytest.fixture(scope="module")
+def four_bar():
+    loop = rusr()
+    q, v = loop.consistent_state({"h1.angle": 0.1, "h4.angle": 0.1}, {"h1.angle_rate": 3.0}, keep=["h1"])
+    return loop, q, v
+
+
+@pytest.fixture(scope="module")
+def four_bar_equilibrium(four_bar):
+    loop, q, _ = four_bar
+    return linear.equilibrium(loop, q)
+
+
+def test_consistent_state_holds_the_kept_motion_and_closes_the_cut(four_bar):
+    loop, q, v = four_bar
+    phi, rate = loop.constraints(q, v)
+    assert np.max(np.abs(phi)) < 1e-12 and np.max(np.abs(rate)) < 1e-12
+    assert q[0] == 0.1 and v[0] == 3.0
+    assert loop.jacobian(q).shape == (3, 4) and np.linalg.matrix_rank(loop.jacobian(q)) == 3
+    # the DAE's own rows vanish on the mapped state: the tree kinematics and the cut rows agree independently
+    dae = dae_of(loop)
+    y0 = dae.state(*poses(loop, q, v))
+    phi_dae, J_dae, _ = dae.rows(y0)
+    assert np.max(np.abs(phi_dae)) < 1e-12 and np.max(np.abs(J_dae @ dae.velocities(y0))) < 1e-12
+
+
+def test_rusr_four_bar_rk4_matches_the_dae(four_bar):
+    loop, q, v = four_bar
+    run = simulate_spatial_loops(loop, q, v, t_final=0.06, dt=2e-3)
+    angle, position, mu = _dae_errors(loop, run)
+    assert angle < 1e-9 and position < 1e-9                      # measured 5e-11, 1e-11
+    assert np.max(np.abs(mu[-3:] - run.cut_force[-1, 0])) < 1e-7 * np.max(np.abs(mu[-3:]))
+    assert run.drift.max() < 1e-14 and run.drift_rate.max() < 1e-14       # projection after every step
+    assert run.cut_force.shape == (len(run.t), 1, 3) and not np.any(run.cut_moment)
+
+
+def test_rusr_four_bar_rk4_converges_at_fourth_order(four_bar):
+    loop, q, v = four_bar
+    errors = [_dae_errors(loop, simulate_spatial_loops(loop, q, v, t_final=0.064, dt=dt))[0] for dt in (8e-3, 4e-3)]
+    assert 10.0 < errors[0] / errors[1] < 24.0                   # 2^4 = 16
+
+
+def test_solve_ivp_with_baumgarte_matches_the_dae(four_bar):
+    loop, q, v = four_bar
+    run = simulate_spatial_loops(loop, q, v, t_final=0.1, dt=0.02, method="DOP853", rtol=1e-11, atol=1e-12)
+    angle, position, _ = _dae_errors(loop, run)
+    assert angle < 1e-9 and position < 1e-9 and run.drift.max() < 1e-10
+
+
+def test_drift_is_reported_and_controlled(four_bar):
+    loop, q, v = four_bar
+    free = SpatialKinematicLoopModel(loop.tree, loop.cuts, baumgarte=0.0)
+    loose = simulate_spatial_loops(free, q, v, t_final=0.1, dt=5e-3, projection=False)
+    held = simulate_spatial_loops(free, q, v, t_final=0.1, dt=5e-3)
+    assert loose.drift[-1] > 1e-10 and held.drift.max() < 1e-14       # measured 3e-9 without projection
+    phi, _ = free.constraints(loose.q[-1], loose.v[-1])
+    assert loose.drift[-1] == np.max(np.abs(phi))
+
+
+def test_rusr_natural_frequency_matches_the_dae_on_its_manifold(four_bar, four_bar_equilibrium):
+    loop, _, _ = four_bar
+    omega = linear.natural_frequencies(loop, four_bar_equilibrium)
+    dae = dae_of(loop)
+    y = dae.state(*poses(loop, four_bar_equilibrium, np.zeros(4)))
+    assert np.max(np.abs(dae.accelerations(y)[0])) < 1e-8         # an equilibrium of the DAE too
+    reference = dae.natural_frequencies(y)
+    assert omega.shape == (1,) and abs(omega[0] / reference[0] - 1.0) < 1e-7     # measured 7e-10 (8.442 rad/s)
+
+
+def test_revolute_cut_pendulum_frequency_and_motion():
+    loop = hinged_pendulum()
+    half = 0.25
+    q, v = loop.consistent_state({"free.qw": np.cos(half), "free.qy": np.sin(half), "free.x": 0.01},
+                                 {"free.wy": 2.0}, keep=["free.wy"])
+    run = simulate_spatial_loops(loop, q, v, t_final=0.06, dt=2e-3)
+    angle, position, mu = _dae_errors(loop, run)
+    assert angle < 1e-9 and position < 1e-9
+    assert np.max(np.abs(mu[:3] - run.cut_force[-1, 0])) < 1e-7 * np.max(np.abs(mu[:3]))
+    equilibrium = linear.equilibrium(loop, q)
+    mass, arm = 1.2, np.hypot(0.1, 0.3)
+    exact = np.sqrt(mass * 9.81 * arm / (0.03 + mass * arm ** 2))        # compound pendulum about the hinge
+    assert abs(linear.natural_frequencies(loop, equilibrium)[0] / exact - 1.0) < 1e-8   # measured 2e-11
+
+
+def test_revolute_cut_moment_is_perpendicular_to_the_hinge():
+    loop = hinged_pendulum()
+    q, v = loop.consistent_state({"free.qw": np.cos(0.3), "free.qy": np.sin(0.3)}, {"free.wy": 1.0, "free.wx": 0.4},
+                                 keep=["free.wy"])
+    _, lam = loop.solve(q, v)
+    (force, moment), = loop.cut_loads(q, lam)
+    assert lam.shape == (5,) and abs(moment[1]) < 1e-12 * max(1.0, np.abs(moment).max())
+
+
+def test_closed_triangle_of_bodies_matches_the_dae():
+    loop = triangle()
+    q, v = loop.consistent_state(triangle_guess(), {"ja.wx": 1.0, "jb.wz": 0.5, "jc.wy": -0.3})
+    run = simulate_spatial_loops(loop, q, v, t_final=0.06, dt=2e-3)
+    angle, position, mu = _dae_errors(loop, run)
+    assert angle < 1e-9 and position < 1e-9 and run.drift.max() < 1e-14
+    assert np.max(np.abs(mu[-3:] - run.cut_force[-1, 0])) < 1e-7 * np.max(np.abs(mu[-3:]))
+
+
+def test_simulate_verb_returns_named_signals(four_bar):
+    loop, q, v = four_bar
+    result = ctmm.simulate(loop, 0.02, 2e-3, x0=q, v0=v)
+    assert result["s3.force_z"].shape == (11,) and result["drift"].max() < 1e-14
+    assert result.info["max_drift"] < 1e-14 and "h1.angle" in result.extra
+    assert abs(result["h1.angle"][-1] - simulate_spatial_loops(loop, q, v, t_final=0.02, dt=2e-3).q[-1, 0]) < 1e-14
+    with pytest.raises(ModelError, match="newmark"):
+        ctmm.simulate(loop, 0.02, 2e-3, x0=q, v0=v, method="newmark")
+    with pytest.raises(ModelError, match="compiled"):
+        ctmm.simulate(loop, 0.02, 2e-3, x0=q, v0=v, compiled=True)
+    with pytest.raises(ModelError, match="violates the cut joints"):
+        ctmm.simulate(loop, 0.02, 2e-3, x0=loop.tree.neutral(), v0=v)
+
+
+def test_frequency_verbs(four_bar, four_bar_equilibrium):
+    loop, _, _ = four_bar
+    omega = ctmm.natural_frequencies(loop, operating_point=four_bar_equilibrium)
+    assert np.allclose(omega, linear.natural_frequencies(loop, four_bar_equilibrium), rtol=0, atol=0)
+    assert ctmm.eigenvalue_count(loop, [1.0, 10.0], operating_point=four_bar_equilibrium).tolist() == [0, 1]
+    lin = ctmm.linearize(loop, four_bar_equilibrium, inputs=["h1.torque"], outputs=["h1.angle", "s3.force_z"])
+    A = np.asarray(lin.state_space.A)
+    assert np.allclose(np.sort(np.abs(np.linalg.eigvals(A).imag)), [omega[0], omega[0]], rtol=1e-10)
+    frf = ctmm.frequency_response(loop, [0.0, 3.0], input="h1.torque", output="h1.angle",
+                                  operating_point=four_bar_equilibrium)
+    assert frf.response.shape == (1, 1, 2)
+    with pytest.raises(ModelError, match="operating_point"):
+        ctmm.natural_frequencies(loop)
+
+
+def test_torque_input_matches_the_dae(four_bar, four_bar_equilibrium):
+    """B of ctmm.linearize: at rest the crank's angular acceleration per unit crank torque, against the DAE with the
+    torque on the crank (about world x, the hinge axis)."""
+    loop, _, _ = four_bar
+    lin = ctmm.linearize(loop, four_bar_equilibrium, inputs=["h1.torque"], outputs=["h1.angle", "s3.force_z"])
+    basis = linear.tangent(loop, four_bar_equilibrium)[1]
+    crank = (basis @ np.asarray(lin.state_space.B)[1:, 0])[0]
+    dae = dae_of(loop)
+    y = dae.state(*poses(loop, four_bar_equilibrium, np.zeros(4)))
+    rest, mu0 = dae.accelerations(y)
+    pushed, mu1 = dae.accelerations(y, torques={0: np.array([1.0, 0.0, 0.0])})
+    assert abs(crank - (pushed - rest)[3]) < 1e-9 * abs(crank)
+    assert abs(np.asarray(lin.state_space.D)[1, 0] - (mu1 - mu0)[-1]) < 1e-8 * max(1.0, abs((mu1 - mu0)[-1]))
+
+
+def test_refusals(four_bar):
+    loop, q, v = four_bar
+    with pytest.raises(ModelError, match="kind"):
+        SpatialCutJoint(name="c", parent=None, child="crank", kind="prismatic")
+    with pytest.raises(ModelError, match="nope"):
+        SpatialKinematicLoopModel(loop.tree, [SpatialCutJoint(name="c", parent="nope", child="crank")])
+    with pytest.raises(ModelError, match="point of crank"):
+        SpatialKinematicLoopModel(loop.tree, [SpatialCutJoint(name="c", parent=None, child="crank",
+                                                              child_point="elbow")])
+    with pytest.raises(ModelError, match="duplicate"):
+        SpatialKinematicLoopModel(loop.tree, [SpatialCutJoint(name="h1", parent=None, child="crank")])
+    with pytest.raises(ModelError, match="not an equilibrium"):
+        linear.natural_frequencies(loop, q)
+    with pytest.raises(ModelError, match="allow_nonequilibrium"):
+        ctmm.linearize(loop, q, allow_nonequilibrium=True)
+
+
+def test_redundant_cut_of_a_planar_loop_is_refused_with_time_and_joint():
+    """A planar four-bar (parallel hinge axes) closed by a revolute cut: 5 rows, only 2 independent."""
+    down = np.diag([1.0, -1.0, -1.0])
+    tree = sp.SpatialModel("planar", [
+        rod("crank", 0.4, 0.2, direction=2), sp.Revolute(name="h1", parent=None, child="crank", axis=(1, 0, 0),
+                                                         rotation=down),
+        rod("coupler", 1.0, 0.5, direction=1), sp.Revolute(name="h2", parent="crank", point="tip", child="coupler",
+                                                           axis=(1, 0, 0)),
+        rod("rocker", 0.8, 0.2, direction=2), sp.Revolute(name="h4", parent=None, point=(0, 0.5, 0),
+                                                          child="rocker", axis=(1, 0, 0), rotation=down)])
+    loop = SpatialKinematicLoopModel(tree, [SpatialCutJoint(name="h3", parent="rocker", point="tip", child="coupler",
+                                                            child_point="tip", kind="revolute", axis=(1, 0, 0))])
+    q = {"h1.angle": 0.1, "h2.angle": np.pi, "h4.angle": 0.0}
+    q, v = loop.consistent_state(q, None, keep=["h1"])
+    with pytest.raises(SimulationError, match="singular") as caught:
+        loop.solve(q, v, 0.25)
+    assert caught.value.time == 0.25 and caught.value.element == "h3"
