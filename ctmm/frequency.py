@@ -238,7 +238,7 @@ def _is_kinematic_loop(system: Any) -> bool:
 
 
 def _is_spatial_loop(system: Any) -> bool:
-    from .spatial.closed_loops import SpatialKinematicLoopModel     # spatial cut joints: docs/closed_loops.md §6
+    from .spatial.closed_loops import SpatialKinematicLoopModel     # spatial cut joints: docs/closed_loops.md §8
 
     return isinstance(system, SpatialKinematicLoopModel)
 

@@ -224,7 +224,7 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
                          "t0": (t0, 0.0), "compiled": (compiled, None)})
     from .spatial.closed_loops import SpatialKinematicLoopModel
 
-    if isinstance(system, SpatialKinematicLoopModel):             # spatial cut joints: docs/closed_loops.md §6
+    if isinstance(system, SpatialKinematicLoopModel):             # spatial cut joints: docs/closed_loops.md §8
         from .spatial.closed_loop_time import simulate_spatial_loop_system
 
         return simulate_spatial_loop_system(

@@ -179,6 +179,11 @@ def test_refusals(four_bar):
     loop, q, v = four_bar
     with pytest.raises(ModelError, match="kind"):
         SpatialCutJoint(name="c", parent=None, child="crank", kind="prismatic")
+    with pytest.raises(ModelError, match="two different bodies"):
+        SpatialCutJoint(name="c", parent="crank", child="crank", child_point="tip")
+    with pytest.raises(ModelError, match="plant must be"):
+        ctmm.control.with_feedback(loop, [ctmm.control.Feedback("pd", sensor=[("h1.angle", 8.0)],
+                                                                actuator="h1.torque", gain=1.0)])
     with pytest.raises(ModelError, match="nope"):
         SpatialKinematicLoopModel(loop.tree, [SpatialCutJoint(name="c", parent="nope", child="crank")])
     with pytest.raises(ModelError, match="point of crank"):

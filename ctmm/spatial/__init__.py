@@ -6,7 +6,7 @@ Modules: :mod:`~ctmm.spatial.elements` (descriptions), :mod:`~ctmm.spatial.model
 terms, :class:`SpatialScene`), :mod:`~ctmm.spatial.dynamics` (accelerations, reactions); the modal spatial
 beam :class:`SpatialBeam` (:mod:`~ctmm.spatial.beam`, ``docs/spatial_modal_beam.md``); closed kinematic loops
 :class:`SpatialKinematicLoopModel` with :class:`SpatialCutJoint` (:mod:`~ctmm.spatial.closed_loops`,
-``docs/closed_loops.md`` section 6).
+``docs/closed_loops.md`` section 8).
 Conventions and derivations: ``docs/spatial.md``.
 """
 from .beam import SpatialBeam

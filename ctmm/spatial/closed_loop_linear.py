@@ -10,7 +10,7 @@ independent coordinates ``z`` parametrise the constrained configurations by the 
 exact to first order in ``z``: the tangent is exact **about an equilibrium** (the second-order terms of the chart
 multiply the accelerations, zero there), and the functions here refuse other resting states by name.  The tangent
 ``A = [[0, I], [dz''/dz, dz''/dz']]`` is formed by central differences (step 1e-5).  ``docs/closed_loops.md``
-section 6.
+section 8.
 """
 from __future__ import annotations
 

@@ -4,7 +4,7 @@
 the tangent on the constraint manifold about an equilibrium (:mod:`ctmm.spatial.closed_loop_linear`); the time verb
 is :func:`ctmm.spatial.closed_loop_time.simulate_spatial_loop_system`.  Inputs are the tree's actuator ports
 (:class:`~ctmm.spatial.ports.SpatialPorts`: joint torques, body forces and moments), outputs its sensors and the cut
-forces ``"<cut>.force_x|y|z"`` [N] (on the child, world axes).  ``docs/closed_loops.md`` section 6.
+forces ``"<cut>.force_x|y|z"`` [N] (on the child, world axes).  ``docs/closed_loops.md`` section 8.
 """
 from __future__ import annotations
 

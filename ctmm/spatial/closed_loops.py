@@ -4,7 +4,7 @@ A spatial mechanism with closed loops (a spatial four-bar, a ring of bodies) is 
 an ordinary :class:`~ctmm.spatial.model.SpatialModel` -- plus **cut joints** (:class:`SpatialCutJoint`): a
 spherical (ball) cut makes a point of the child coincide with a point of the parent (or of the ground); a
 revolute cut also keeps a child axis parallel to a parent axis.  The planar counterpart and the derivation are
-in :mod:`ctmm.planar.closed_loops` and ``docs/closed_loops.md`` (section 6 for this module).
+in :mod:`ctmm.planar.closed_loops` and ``docs/closed_loops.md`` (section 8 for this module).
 
 Mechanism (the boundary unknowns of the mixed transfer matrix method)
 ---------------------------------------------------------------------
@@ -115,6 +115,9 @@ class SpatialCutJoint:
             object.__setattr__(self, "point", _vector(f"cut joint {self.name!r}: point (ground location)",
                                                       (0.0, 0.0, 0.0) if self.point is None else self.point))
         validation.name(f"cut joint {self.name!r}: child", self.child)
+        if self.parent == self.child:
+            raise ModelError(f"cut joint {self.name!r}: parent and child are both {self.child!r}; a cut joint "
+                             "connects two different bodies (or a body and the ground, parent=None)")
         if not isinstance(self.child_point, str):
             raise ModelError(f"cut joint {self.name!r}: child_point must be the name of a point of {self.child!r}, "
                              f"got {self.child_point!r}")
