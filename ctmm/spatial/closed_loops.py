@@ -132,12 +132,20 @@ class SpatialCutJoint:
         return 3 if self.kind == "spherical" else 5
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a x b`` over the last axis (3) with broadcasting (``np.cross`` without its axis handling: it is called
+    many times per step on tiny arrays)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack(np.broadcast_arrays(a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0), axis=-1)
+
+
 def _perpendicular(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Two unit vectors completing ``axis`` to a right-handed orthonormal triad."""
     helper = np.eye(3)[int(np.argmin(np.abs(axis)))]
-    first = np.cross(axis, helper)
+    first = _cross(axis, helper)
     first /= np.linalg.norm(first)
-    return first, np.cross(axis, first)
+    return first, _cross(axis, first)
 
 
 @dataclass(frozen=True)
@@ -236,7 +244,7 @@ class SpatialKinematicLoopModel:
             return side.point[None], np.zeros((1, 3)), None
         R, origin, velocity, omega, _ = bodies[side.body]
         arm = R @ side.point
-        return origin + arm, velocity + np.cross(omega, arm), R
+        return origin + arm, velocity + _cross(omega, arm), R
 
     def _rows(self, bodies: list) -> tuple[np.ndarray, np.ndarray]:
         """``Phi`` and ``Phi'`` ``(B, m)`` from body states (:meth:`_bodies`)."""
@@ -255,7 +263,7 @@ class SpatialKinematicLoopModel:
             for b_local in normals:
                 b = np.broadcast_to(b_local, u.shape) if Rp is None else Rp @ b_local
                 phi.append(np.sum(u * b, axis=-1, keepdims=True))
-                rate.append(np.sum((omega_c - omega_p) * np.cross(u, b), axis=-1, keepdims=True))
+                rate.append(np.sum((omega_c - omega_p) * _cross(u, b), axis=-1, keepdims=True))
         batch = max(max(a.shape[0] for a in phi), max(a.shape[0] for a in rate))
         return (np.concatenate([np.broadcast_to(a, (batch, a.shape[1])) for a in phi], axis=1),
                 np.concatenate([np.broadcast_to(a, (batch, a.shape[1])) for a in rate], axis=1))
@@ -290,7 +298,7 @@ class SpatialKinematicLoopModel:
             R, origin, _, omega, inboard = (a[0] for a in bodies[side.body])
             r = origin + R @ side.point - inboard
             alpha = A[:, side.body, 3:]
-            return (A[:, side.body, :3] + np.cross(alpha, r) + np.cross(omega, np.cross(omega, r)), alpha)
+            return (A[:, side.body, :3] + _cross(alpha, r) + _cross(omega, _cross(omega, r)), alpha)
 
         rows = []
         for (parent, child), axes in zip(self._sides, self._axes):
@@ -305,8 +313,8 @@ class SpatialKinematicLoopModel:
             u = Rc @ u_local
             for b_local in normals:
                 b = b_local if parent.body < 0 else bodies[parent.body][0][0] @ b_local
-                n = np.cross(u, b)
-                n_dot = np.cross(np.cross(omega_c, u), b) + np.cross(u, np.cross(omega_p, b))
+                n = _cross(u, b)
+                n_dot = _cross(_cross(omega_c, u), b) + _cross(u, _cross(omega_p, b))
                 rows.append(((alpha_c - alpha_p) @ n + (omega_c - omega_p) @ n_dot)[:, None])
         return np.concatenate(rows, axis=1)
 
@@ -325,14 +333,14 @@ class SpatialKinematicLoopModel:
                 u = bodies[child.body][0][0] @ axes[0]
                 for i, b_local in enumerate(axes[1]):
                     b = b_local if parent.body < 0 else bodies[parent.body][0][0] @ b_local
-                    wrench[1 + row + 3 + i, 3:] = np.cross(u, b)
+                    wrench[1 + row + 3 + i, 3:] = _cross(u, b)
             row += 3 if axes is None else 5
             for side, sign in ((child, 1.0), (parent, -1.0)):
                 if side.body < 0:
                     continue
                 R, origin, _, _, inboard = (a[0] for a in bodies[side.body])
                 lever = origin + R @ side.point - inboard
-                about = np.concatenate([wrench[:, :3], wrench[:, 3:] + np.cross(lever, wrench[:, :3])], axis=1)
+                about = np.concatenate([wrench[:, :3], wrench[:, 3:] + _cross(lever, wrench[:, :3])], axis=1)
                 loads[side.body] = loads.get(side.body, 0.0) + sign * about
         return {j: load[:, :, None] for j, load in loads.items()}
 
@@ -411,7 +419,7 @@ class SpatialKinematicLoopModel:
                 u = bodies[child.body][0][0] @ axes[0]
                 for i, b_local in enumerate(axes[1]):
                     b = b_local if parent.body < 0 else bodies[parent.body][0][0] @ b_local
-                    moment += lam[row + 3 + i] * np.cross(u, b)
+                    moment += lam[row + 3 + i] * _cross(u, b)
             out.append((force, moment))
             row += 3 if axes is None else 5
         return out
