@@ -145,6 +145,21 @@ def test_simulate_verb_returns_named_signals(four_bar):
         ctmm.simulate(loop, 0.02, 2e-3, x0=loop.tree.neutral(), v0=v)
 
 
+def test_simulate_with_a_joint_torque_matches_the_dae(four_bar):
+    """``inputs`` of ctmm.simulate act on the tree before the cut force is solved: a constant crank torque (about
+    world x, the hinge axis), against the DAE with the torque on the crank."""
+    loop, q, v = four_bar
+    result = ctmm.simulate(loop, 0.04, 2e-3, x0=q, v0=v, inputs={"h1.torque": 0.3})
+    qs = np.array([result[name] for name in loop.tree.coordinates]).T
+    vs = np.array([result[name] for name in loop.tree.velocities]).T
+    dae = dae_of(loop)
+    _, Y = dae.simulate(dae.state(*poses(loop, q, v)), result.time, torques={0: np.array([0.3, 0.0, 0.0])})
+    _, R, _, _ = poses(loop, qs[-1], vs[-1])
+    assert max(np.abs(a - b).max() for a, b in zip(R, dae.rotations(Y[-1]))) < 1e-9
+    free = ctmm.simulate(loop, 0.04, 2e-3, x0=q, v0=v)
+    assert abs(free["h1.angle"][-1] - result["h1.angle"][-1]) > 1e-5            # the torque moved the crank
+
+
 def test_frequency_verbs(four_bar, four_bar_equilibrium):
     loop, _, _ = four_bar
     omega = ctmm.natural_frequencies(loop, operating_point=four_bar_equilibrium)
@@ -156,6 +171,13 @@ def test_frequency_verbs(four_bar, four_bar_equilibrium):
     frf = ctmm.frequency_response(loop, [0.0, 3.0], input="h1.torque", output="h1.angle",
                                   operating_point=four_bar_equilibrium)
     assert frf.response.shape == (1, 1, 2)
+    A, B = np.asarray(lin.state_space.A), np.asarray(lin.state_space.B)
+    C, D = np.asarray(lin.state_space.C), np.asarray(lin.state_space.D)
+    at_3 = (C @ np.linalg.solve(3j * np.eye(2) - A, B) + D)[0, 0]
+    assert abs(frf.response[0, 0, 1] - at_3) < 1e-12 * abs(at_3)
+    with pytest.raises(ModelError, match="pole"):
+        ctmm.frequency_response(loop, [omega[0]], input="h1.torque", output="h1.angle",
+                                operating_point=four_bar_equilibrium)
     with pytest.raises(ModelError, match="operating_point"):
         ctmm.natural_frequencies(loop)
 

@@ -214,9 +214,9 @@ class SpatialLoopDAE:
         solution = np.linalg.solve(K, np.concatenate([f, rhs]))
         return solution[:6 * self.n], solution[6 * self.n:]
 
-    def rate(self, t: float, y: np.ndarray) -> np.ndarray:
+    def rate(self, t: float, y: np.ndarray, torques: dict | None = None) -> np.ndarray:
         x, p, v, w = self.split(y)
-        acc, _ = self.accelerations(y)
+        acc, _ = self.accelerations(y, torques)
         pdot = []
         for i in range(self.n):
             q0, q1, q2, q3 = p[i]
@@ -226,14 +226,16 @@ class SpatialLoopDAE:
         acc = acc.reshape(self.n, 6)
         return np.concatenate([v.ravel(), np.ravel(pdot), acc[:, :3].ravel(), acc[:, 3:].ravel()])
 
-    def simulate(self, y0: np.ndarray, t_eval: np.ndarray, *, rtol: float = 1e-12, atol: float = 1e-13):
-        """``(t, Y)`` by DOP853 (the initial state must satisfy the rows to 1e-9)."""
+    def simulate(self, y0: np.ndarray, t_eval: np.ndarray, *, rtol: float = 1e-12, atol: float = 1e-13,
+                 torques: dict | None = None):
+        """``(t, Y)`` by DOP853 (the initial state must satisfy the rows to 1e-9); ``torques``: constant world
+        moments ``{body: (3,)}`` [N m] applied throughout."""
         phi, J, _ = self.rows(y0)
         if np.max(np.abs(phi)) > 1e-9 or np.max(np.abs(J @ self.velocities(y0))) > 1e-9:
             raise ValueError(f"inconsistent initial state: |Phi| = {np.max(np.abs(phi)):.3e}, |Phi'| = "
                              f"{np.max(np.abs(J @ self.velocities(y0))):.3e}")
-        sol = scipy.integrate.solve_ivp(self.rate, (t_eval[0], t_eval[-1]), y0, method="DOP853", rtol=rtol,
-                                        atol=atol, t_eval=t_eval)
+        sol = scipy.integrate.solve_ivp(lambda t, y: self.rate(t, y, torques), (t_eval[0], t_eval[-1]), y0,
+                                        method="DOP853", rtol=rtol, atol=atol, t_eval=t_eval)
         if not sol.success:
             raise RuntimeError(sol.message)
         return sol.t, sol.y.T

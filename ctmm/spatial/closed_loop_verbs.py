@@ -14,6 +14,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from .. import validation
+from ..controlled_linearization import resolvent
 from ..errors import ModelError
 from ..linearized import LinearizedSystem, OperatingPoint, control_name
 from ..results import FrequencyResponse
@@ -163,7 +164,8 @@ def eigenvalue_count_spatial_loops(model: Any, omega: Any, *, operating_point: A
 
 def frequency_response_spatial_loops(model: Any, omega: Any, *, input: Any, output: Any,  # noqa: A002
                                      operating_point: Any = None) -> FrequencyResponse:
-    """:func:`ctmm.frequency_response`: ``C (i omega I - A)^-1 B + D`` of :func:`linearize_spatial_loops`."""
+    """:func:`ctmm.frequency_response`: ``C (i omega I - A)^-1 B + D`` of :func:`linearize_spatial_loops` (a
+    frequency at or next to a pole refused: :func:`ctmm.controlled_linearization.resolvent`)."""
     started = time.perf_counter()
     model = _plain(model, "frequency_response")
     inputs, outputs = list(validation.names("input", input)), list(validation.names("output", output))
@@ -171,14 +173,8 @@ def frequency_response_spatial_loops(model: Any, omega: Any, *, input: Any, outp
     lin = linearize_spatial_loops(model, operating_point, inputs=inputs, outputs=outputs)
     A, B = np.asarray(lin.state_space.A), np.asarray(lin.state_space.B)
     C, D = np.asarray(lin.state_space.C), np.asarray(lin.state_space.D)
-    eye = np.eye(A.shape[0])
-    response = np.empty((len(outputs), len(inputs), len(omega)), dtype=complex)
-    for k, w in enumerate(omega):
-        matrix = 1j * w * eye - A
-        if np.linalg.cond(matrix) > 1e12:
-            raise ModelError(f"frequency_response: omega = {w} rad/s is at a natural frequency of {model.name!r} "
-                             "(undamped pole); leave it out of the grid")
-        response[:, :, k] = C @ np.linalg.solve(matrix, B) + D
+    states = resolvent(A, B, 1j * np.asarray(omega, dtype=float), model.name)       # refuses frequencies at a pole
+    response = np.moveaxis(np.einsum("ij,kjl->kil", C, states) + D[None], 0, -1)
     ports = SpatialPorts(model.tree)
     units = {name: ports.actuator_unit(name) for name in inputs}
     units.update({name: "N" if name in cut_force_names(model) else ports.sensor_unit(name) for name in outputs})
