@@ -240,7 +240,8 @@ def _is_kinematic_loop(system: Any) -> bool:
 def _is_spatial_loop(system: Any) -> bool:
     from .spatial.closed_loops import SpatialKinematicLoopModel     # spatial cut joints: docs/closed_loops.md §8
 
-    return isinstance(system, SpatialKinematicLoopModel)
+    return isinstance(system, SpatialKinematicLoopModel) or isinstance(getattr(system, "plant", None),
+                                                                       SpatialKinematicLoopModel)
 
 
 def natural_frequencies(system: Any, **options: Any) -> np.ndarray:

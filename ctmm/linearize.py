@@ -134,7 +134,7 @@ def linearize(system: Any, operating_point: Any = None, *, inputs: str | Sequenc
                                allow_nonequilibrium=allow_nonequilibrium)
     from .spatial.closed_loops import SpatialKinematicLoopModel
 
-    if isinstance(system, SpatialKinematicLoopModel):             # spatial cut joints: docs/closed_loops.md §8
+    if isinstance(system, SpatialKinematicLoopModel) or isinstance(plant, SpatialKinematicLoopModel):  # closed_loops §8
         from .spatial.closed_loop_verbs import linearize_spatial_loops
 
         return linearize_spatial_loops(system, operating_point, inputs=inputs, outputs=outputs,

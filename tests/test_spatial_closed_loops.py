@@ -160,6 +160,38 @@ def test_simulate_with_a_joint_torque_matches_the_dae(four_bar):
     assert abs(free["h1.angle"][-1] - result["h1.angle"][-1]) > 1e-5            # the torque moved the crank
 
 
+def test_feedback_loop_on_the_crank_matches_the_dae_with_the_law_as_a_motor(four_bar):
+    """``with_feedback(loop_model, [PD])``: the loop-closing driver on the closed-loop accelerations (cut force solved
+    with the loop torque applied), against the DAE with ``u = -(8 theta + 0.8 theta' - 1.6)`` on the crank."""
+    from ctmm.control import Feedback, with_feedback
+
+    loop, q, v = four_bar
+    pd = Feedback("pd", sensor=[("h1.angle", 8.0), ("h1.rate", 0.8)], actuator="h1.torque", gain=1.0)
+    controlled = with_feedback(loop, [pd])
+    result = ctmm.simulate(controlled, 0.04, 2e-3, x0=q, v0=v, references={"pd": 1.6}, outputs=["h4.angle"])
+    down = np.diag([1.0, -1.0, -1.0])
+
+    def law(t, y):
+        crank = down.T @ dae.rotations(y)[0]                       # Rot_x(theta)
+        theta, rate = np.arctan2(crank[2, 1], crank[1, 1]), dae.split(y)[3][0][0]
+        return {0: np.array([-(8.0 * theta + 0.8 * rate - 1.6), 0.0, 0.0])}
+
+    dae = dae_of(loop)
+    _, Y = dae.simulate(dae.state(*poses(loop, q, v)), result.time, torques=law)
+    qs = np.array([result[name] for name in loop.tree.coordinates]).T
+    vs = np.array([result[name] for name in loop.tree.velocities]).T
+    _, R, _, _ = poses(loop, qs[-1], vs[-1])
+    assert max(np.abs(a - b).max() for a, b in zip(R, dae.rotations(Y[-1]))) < 1e-9
+    u = -(8.0 * result["h1.angle"] + 0.8 * result["h1.angle_rate"] - 1.6)
+    assert np.max(np.abs(result["pd.u"] - u)) < 1e-12 and result["drift"].max() < 1e-8
+    force = dae.accelerations(Y[-1], law(0.0, Y[-1]))[1][-1]       # with the loop torque of the row (measured 3.5e-8)
+    assert abs(result["s3.force_z"][-1] - force) < 1e-7 * abs(force)
+    with pytest.raises(ModelError, match="time domain only"):
+        ctmm.linearize(controlled)
+    with pytest.raises(ModelError, match="DT-TMM schemes are not implemented"):
+        ctmm.simulate(controlled, 0.01, 1e-3, x0=q, v0=v, method="newmark")
+
+
 def test_frequency_verbs(four_bar, four_bar_equilibrium):
     loop, _, _ = four_bar
     omega = ctmm.natural_frequencies(loop, operating_point=four_bar_equilibrium)
@@ -203,9 +235,6 @@ def test_refusals(four_bar):
         SpatialCutJoint(name="c", parent=None, child="crank", kind="prismatic")
     with pytest.raises(ModelError, match="two different bodies"):
         SpatialCutJoint(name="c", parent="crank", child="crank", child_point="tip")
-    with pytest.raises(ModelError, match="plant must be"):
-        ctmm.control.with_feedback(loop, [ctmm.control.Feedback("pd", sensor=[("h1.angle", 8.0)],
-                                                                actuator="h1.torque", gain=1.0)])
     with pytest.raises(ModelError, match="nope"):
         SpatialKinematicLoopModel(loop.tree, [SpatialCutJoint(name="c", parent="nope", child="crank")])
     with pytest.raises(ModelError, match="point of crank"):

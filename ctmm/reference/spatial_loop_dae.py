@@ -214,9 +214,10 @@ class SpatialLoopDAE:
         solution = np.linalg.solve(K, np.concatenate([f, rhs]))
         return solution[:6 * self.n], solution[6 * self.n:]
 
-    def rate(self, t: float, y: np.ndarray, torques: dict | None = None) -> np.ndarray:
+    def rate(self, t: float, y: np.ndarray, torques=None) -> np.ndarray:
+        """``y'``; ``torques``: ``{body: world moment (3,)}`` [N m] or a function ``torques(t, y)`` giving one."""
         x, p, v, w = self.split(y)
-        acc, _ = self.accelerations(y, torques)
+        acc, _ = self.accelerations(y, torques(t, y) if callable(torques) else torques)
         pdot = []
         for i in range(self.n):
             q0, q1, q2, q3 = p[i]
@@ -227,9 +228,9 @@ class SpatialLoopDAE:
         return np.concatenate([v.ravel(), np.ravel(pdot), acc[:, :3].ravel(), acc[:, 3:].ravel()])
 
     def simulate(self, y0: np.ndarray, t_eval: np.ndarray, *, rtol: float = 1e-12, atol: float = 1e-13,
-                 torques: dict | None = None):
-        """``(t, Y)`` by DOP853 (the initial state must satisfy the rows to 1e-9); ``torques``: constant world
-        moments ``{body: (3,)}`` [N m] applied throughout."""
+                 torques=None):
+        """``(t, Y)`` by DOP853 (the initial state must satisfy the rows to 1e-9); ``torques``: world moments
+        ``{body: (3,)}`` [N m] applied throughout, or a function ``torques(t, y)`` giving them (a control law)."""
         phi, J, _ = self.rows(y0)
         if np.max(np.abs(phi)) > 1e-9 or np.max(np.abs(J @ self.velocities(y0))) > 1e-9:
             raise ValueError(f"inconsistent initial state: |Phi| = {np.max(np.abs(phi)):.3e}, |Phi'| = "

@@ -16,12 +16,10 @@ import scipy.integrate
 
 from .. import validation
 from ..errors import ModelError, SimulationError
-from ..results import SimulationResult
-from ..signal_results import SignalSystem, signal_result
 from .closed_loops import SpatialKinematicLoopModel
-from .integrate import SCIPY_METHODS, spatial_signals
+from .integrate import SCIPY_METHODS
 
-__all__ = ["SpatialLoopSimulation", "simulate_spatial_loops", "simulate_spatial_loop_system"]
+__all__ = ["SpatialLoopSimulation", "simulate_spatial_loops"]
 
 
 @dataclass(frozen=True)
@@ -165,48 +163,3 @@ def simulate_spatial_loops(model: SpatialKinematicLoopModel, q0: Any, v0: Any, *
         moments.append([m for _, m in loads])
     return SpatialLoopSimulation(model, t_out, y_out[:, :nq], y_out[:, nq:], np.array(forces), np.array(moments),
                                  np.array(drift), np.array(drift_rate), method, wall, evaluations[0])
-
-
-def simulate_spatial_loop_system(model: SpatialKinematicLoopModel, t_final: float, dt: float | None, *, method: Any,
-                                 x0: Any, v0: Any, inputs: Any, rtol: float, atol: float, max_step: float | None,
-                                 store_every: int, unsupported: Mapping[str, tuple[Any, Any]]) -> SimulationResult:
-    """:func:`ctmm.simulate` of a spatial kinematic loop model: RK4 with projection (default) or a ``solve_ivp``
-    method (:func:`simulate_spatial_loops`), as a named-signal result.
-
-    The result holds the tree's signals (:func:`ctmm.spatial.integrate.spatial_signals`: coordinates, velocities,
-    body positions and angular velocities), ``"<cut>.force_x|y|z"`` [N] and, for revolute cuts,
-    ``"<cut>.moment_x|y|z"`` [N m] (on the child, world axes), ``"drift"`` and ``"drift_rate"``;
-    ``info["max_drift"]``.
-
-    Raises
-    ------
-    ModelError
-        A DT-TMM scheme or another option that does not apply (``unsupported``: ``{option: (value, default)}``,
-        refused by name unless at the default), an inconsistent initial state.
-    """
-    for name, (value, default) in unsupported.items():
-        if value is not default and value != default:
-            raise ModelError(f"{name}={value!r} is not available for the spatial kinematic loop model {model.name!r} "
-                             f"(RK4 with projection or solve_ivp on the closed-loop accelerations; feedback loops, "
-                             f"controllers, DT-TMM schemes and compiled kernels are not supported yet); leave {name} "
-                             f"at {default!r}")
-    if not isinstance(method, str) or method not in ("rk4",) + SCIPY_METHODS:
-        raise ModelError(f"method={method!r} is not available for the spatial kinematic loop model {model.name!r}: "
-                         f"use 'rk4' (projection after every step) or a solve_ivp method {SCIPY_METHODS} (DT-TMM "
-                         "schemes are not supported for spatial cut joints yet)")
-    if inputs is not None and not isinstance(inputs, Mapping):
-        raise ModelError(f"inputs must be a mapping {{joint actuator name: number or f(t)}}, got {inputs!r:.80}")
-    run = simulate_spatial_loops(model, x0, v0, t_final=t_final, dt=dt, method=method, inputs=inputs, rtol=rtol,
-                                 atol=atol, store_every=store_every, max_step=max_step)
-    signals, units = spatial_signals(model.tree, run.t, np.concatenate([run.q, run.v], axis=1))
-    for j, cut in enumerate(model.cuts):
-        for axis, label in enumerate("xyz"):
-            signals[f"{cut.name}.force_{label}"], units[f"{cut.name}.force_{label}"] = run.cut_force[:, j, axis], "N"
-            if cut.kind == "revolute":
-                signals[f"{cut.name}.moment_{label}"] = run.cut_moment[:, j, axis]
-                units[f"{cut.name}.moment_{label}"] = "N m"
-    signals["drift"], units["drift"] = run.drift, ""
-    signals["drift_rate"], units["drift_rate"] = run.drift_rate, ""
-    info = {"wall_time_s": run.wall_time_s, "n_evaluations": run.n_evaluations, "max_drift": float(run.drift.max()),
-            "projection": method == "rk4", "baumgarte": model.baumgarte}
-    return signal_result(SignalSystem(model, units), run.t, signals, method, info)

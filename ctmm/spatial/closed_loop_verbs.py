@@ -2,7 +2,7 @@
 
 ``ctmm.linearize``, ``ctmm.natural_frequencies``, ``ctmm.eigenvalue_count`` and ``ctmm.frequency_response`` call
 the tangent on the constraint manifold about an equilibrium (:mod:`ctmm.spatial.closed_loop_linear`); the time verb
-is :func:`ctmm.spatial.closed_loop_time.simulate_spatial_loop_system`.  Inputs are the tree's actuator ports
+is :func:`ctmm.spatial_loop_time.simulate_spatial_loop_system`.  Inputs are the tree's actuator ports
 (:class:`~ctmm.spatial.ports.SpatialPorts`: joint torques, body forces and moments), outputs its sensors and the cut
 forces ``"<cut>.force_x|y|z"`` [N] (on the child, world axes).  ``docs/closed_loops.md`` section 8.
 """
@@ -35,8 +35,9 @@ def cut_force_names(model: SpatialKinematicLoopModel) -> tuple[str, ...]:
 
 def _plain(model: Any, verb: str) -> SpatialKinematicLoopModel:
     if not isinstance(model, SpatialKinematicLoopModel):
-        raise ModelError(f"{verb}: feedback loops on a spatial kinematic loop model are not supported yet; pass the "
-                         f"SpatialKinematicLoopModel itself, got {model!r:.80}")
+        raise ModelError(f"{verb}: a spatial kinematic loop model with feedback loops is answered in the time domain "
+                         f"only (ctmm.simulate); its linearisation with the loops closed is not implemented yet: pass "
+                         f"the open SpatialKinematicLoopModel (model.plant), got {model!r:.80}")
     return model
 
 
