@@ -186,10 +186,33 @@ def test_feedback_loop_on_the_crank_matches_the_dae_with_the_law_as_a_motor(four
     assert np.max(np.abs(result["pd.u"] - u)) < 1e-12 and result["drift"].max() < 1e-8
     force = dae.accelerations(Y[-1], law(0.0, Y[-1]))[1][-1]       # with the loop torque of the row (measured 3.5e-8)
     assert abs(result["s3.force_z"][-1] - force) < 1e-7 * abs(force)
-    with pytest.raises(ModelError, match="time domain only"):
-        ctmm.linearize(controlled)
+    with pytest.raises(ModelError, match="not available"):
+        ctmm.natural_frequencies(controlled, operating_point=q)
     with pytest.raises(ModelError, match="DT-TMM schemes are not implemented"):
         ctmm.simulate(controlled, 0.01, 1e-3, x0=q, v0=v, method="newmark")
+
+
+def test_closed_loop_poles_of_a_crank_pd_match_the_dae(four_bar, four_bar_equilibrium):
+    """``ctmm.linearize`` of the controlled spatial loop model (real-time PD on the crank) against
+    ``M s^2 + kd s + K + kp = 0`` with the crank's generalised mass ``M`` and stiffness ``K`` from the DAE (Lagrange on
+    its manifold, the crank angle as the coordinate)."""
+    from ctmm.control import Feedback, with_feedback
+
+    loop, _, _ = four_bar
+    kp, kd = 8.0, 0.8
+    pd = Feedback("pd", sensor=[("h1.angle", kp), ("h1.rate", kd)], actuator="h1.torque", gain=1.0)
+    lin = ctmm.linearize(with_feedback(loop, [pd]), four_bar_equilibrium, inputs=["pd.reference"],
+                         outputs=["h1.angle", "pd.u"])
+    poles = np.sort_complex(np.linalg.eigvals(np.asarray(lin.state_space.A)))
+    dae = dae_of(loop)
+    N, K, Mr = dae.small_oscillations(dae.state(*poses(loop, four_bar_equilibrium, np.zeros(4))))
+    crank_rate = N[3, 0]                                          # crank omega_x (= h1 rate) per unit z'
+    mass, stiffness = Mr[0, 0] / crank_rate ** 2, K[0, 0] / crank_rate ** 2
+    expected = np.sort_complex(np.roots([mass, kd, stiffness + kp]))
+    assert np.max(np.abs(poles - expected)) < 1e-6 * np.max(np.abs(expected))
+    static = (np.asarray(lin.state_space.D) - np.asarray(lin.state_space.C) @ np.linalg.solve(
+        np.asarray(lin.state_space.A), np.asarray(lin.state_space.B)))[0, 0]
+    assert abs(static - 1.0 / (stiffness + kp)) < 1e-6 / (stiffness + kp)     # theta per unit reference
 
 
 def test_frequency_verbs(four_bar, four_bar_equilibrium):

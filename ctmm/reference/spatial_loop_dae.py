@@ -255,8 +255,16 @@ class SpatialLoopDAE:
 
     def natural_frequencies(self, y0: np.ndarray, *, step: float = 1e-3) -> np.ndarray:
         """Small-oscillation frequencies [rad/s] about the resting configuration ``y0`` (gravity only, an
-        equilibrium): Lagrange on the manifold, ``M_r = N^T M N``, ``K`` the 5-point Hessian of the potential of
-        the Newton-projected configurations ``y0 (+) (N z + J^T s)``."""
+        equilibrium) from :meth:`small_oscillations`."""
+        _, K, Mr = self.small_oscillations(y0, step=step)
+        squared = scipy.linalg.eigh(K, Mr, eigvals_only=True)
+        return np.sqrt(np.clip(np.sort(squared), 0.0, None))
+
+    def small_oscillations(self, y0: np.ndarray, *, step: float = 1e-3) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(N, K, M_r)`` about the resting configuration ``y0`` (an equilibrium): ``N`` (6 n, f) the orthonormal
+        null space of ``J`` (body twists ``[v_i ; w_i]`` per unit independent rate), ``M_r = N^T M N`` and ``K`` the
+        5-point Hessian of the potential of the Newton-projected configurations ``y0 (+) (N z + J^T s)``
+        (Lagrange on the manifold: ``M_r z'' + K z = 0``)."""
         y0 = y0.copy()
         y0[7 * self.n:] = 0.0
         _, J0, _ = self.rows(y0)
@@ -294,6 +302,4 @@ class SpatialLoopDAE:
                 e[k] = offset * step
                 K[:, k] += weight * gradient(e) / step
         K = 0.5 * (K + K.T)
-        Mr = N.T @ self.mass_matrix(y0) @ N
-        squared = scipy.linalg.eigh(K, Mr, eigvals_only=True)
-        return np.sqrt(np.clip(np.sort(squared), 0.0, None))
+        return N, K, N.T @ self.mass_matrix(y0) @ N
