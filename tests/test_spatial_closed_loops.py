@@ -215,6 +215,27 @@ def test_closed_loop_poles_of_a_crank_pd_match_the_dae(four_bar, four_bar_equili
     assert abs(static - 1.0 / (stiffness + kp)) < 1e-6 / (stiffness + kp)     # theta per unit reference
 
 
+def test_delay_margin_of_the_linearised_controlled_loop_matches_the_closed_form(four_bar, four_bar_equilibrium):
+    """``ctmm.stability.delay_margin`` of ``ctmm.linearize`` of a delayed crank PD on the spatial loop model, against
+    ``M s^2 + K + (kp + kd s) e^{-s tau} = 0`` with ``M``, ``K`` of the crank from the DAE on its manifold: the
+    crossover ``|K - M w^2| = |kp + i kd w|`` and the delay from its phase."""
+    import scipy.optimize
+    from ctmm.control import Feedback, with_feedback
+
+    loop, _, _ = four_bar
+    kp, kd = 8.0, 0.8
+    pd = Feedback("pd", sensor=[("h1.angle", kp), ("h1.rate", kd)], actuator="h1.torque", gain=1.0, delay=0.01)
+    margin = ctmm.stability.delay_margin(ctmm.linearize(with_feedback(loop, [pd]), four_bar_equilibrium))
+    dae = dae_of(loop)
+    N, K, Mr = dae.small_oscillations(dae.state(*poses(loop, four_bar_equilibrium, np.zeros(4))))
+    mass, stiffness = Mr[0, 0] / N[3, 0] ** 2, K[0, 0] / N[3, 0] ** 2
+    crossing = scipy.optimize.brentq(lambda w: (stiffness - mass * w * w) ** 2 - kp ** 2 - (kd * w) ** 2,
+                                     np.sqrt(stiffness / mass), 1e3)
+    phase = np.angle((mass * crossing ** 2 - stiffness) / (kp + 1j * kd * crossing))
+    delay = (-phase) % (2 * np.pi) / crossing
+    assert abs(margin.critical_frequency / crossing - 1.0) < 1e-8 and abs(margin.critical_delay / delay - 1.0) < 1e-8
+
+
 def test_frequency_verbs(four_bar, four_bar_equilibrium):
     loop, _, _ = four_bar
     omega = ctmm.natural_frequencies(loop, operating_point=four_bar_equilibrium)
