@@ -188,6 +188,8 @@ def test_feedback_loop_on_the_crank_matches_the_dae_with_the_law_as_a_motor(four
     assert abs(result["s3.force_z"][-1] - force) < 1e-7 * abs(force)
     with pytest.raises(ModelError, match="not available"):
         ctmm.natural_frequencies(controlled, operating_point=q)
+    with pytest.raises(ModelError, match="cut forces"):
+        ctmm.linearize(controlled, q, outputs=["s3.force_z"])
     with pytest.raises(ModelError, match="DT-TMM schemes are not implemented"):
         ctmm.simulate(controlled, 0.01, 1e-3, x0=q, v0=v, method="newmark")
 
@@ -225,7 +227,8 @@ def test_delay_margin_of_the_linearised_controlled_loop_matches_the_closed_form(
     loop, _, _ = four_bar
     kp, kd = 8.0, 0.8
     pd = Feedback("pd", sensor=[("h1.angle", kp), ("h1.rate", kd)], actuator="h1.torque", gain=1.0, delay=0.01)
-    margin = ctmm.stability.delay_margin(ctmm.linearize(with_feedback(loop, [pd]), four_bar_equilibrium))
+    controlled = with_feedback(loop, [pd])
+    margin = ctmm.stability.delay_margin(ctmm.linearize(controlled, four_bar_equilibrium))
     dae = dae_of(loop)
     N, K, Mr = dae.small_oscillations(dae.state(*poses(loop, four_bar_equilibrium, np.zeros(4))))
     mass, stiffness = Mr[0, 0] / N[3, 0] ** 2, K[0, 0] / N[3, 0] ** 2
@@ -234,6 +237,12 @@ def test_delay_margin_of_the_linearised_controlled_loop_matches_the_closed_form(
     phase = np.angle((mass * crossing ** 2 - stiffness) / (kp + 1j * kd * crossing))
     delay = (-phase) % (2 * np.pi) / crossing
     assert abs(margin.critical_frequency / crossing - 1.0) < 1e-8 and abs(margin.critical_delay / delay - 1.0) < 1e-8
+    omega = np.array([2.0, 20.0])                      # the delayed loop closed exactly in the frequency response
+    frf = ctmm.frequency_response(controlled, omega, input="h1.torque", output="h1.angle",
+                                  operating_point=four_bar_equilibrium)
+    s = 1j * omega
+    expected = 1.0 / (mass * s ** 2 + stiffness + (kp + kd * s) * np.exp(-s * 0.01))
+    assert np.max(np.abs(frf.response[0, 0] - expected) / np.abs(expected)) < 1e-6
 
 
 def test_frequency_verbs(four_bar, four_bar_equilibrium):

@@ -14,7 +14,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from .. import validation
-from ..controlled_linearization import close_model_loops, resolvent
+from ..controlled_linearization import close_model_loops, delayed_loop_response
 from ..errors import ModelError
 from ..linearized import LinearizedSystem, OperatingPoint, control_name
 from ..results import FrequencyResponse
@@ -209,21 +209,27 @@ def eigenvalue_count_spatial_loops(model: Any, omega: Any, *, operating_point: A
 
 def frequency_response_spatial_loops(model: Any, omega: Any, *, input: Any, output: Any,  # noqa: A002
                                      operating_point: Any = None) -> FrequencyResponse:
-    """:func:`ctmm.frequency_response`: ``C (i omega I - A)^-1 B + D`` of :func:`linearize_spatial_loops` (a
-    frequency at or next to a pole refused: :func:`ctmm.controlled_linearization.resolvent`)."""
+    """:func:`ctmm.frequency_response`: ``C (i omega I - A)^-1 B + D`` of :func:`linearize_spatial_loops` about the
+    equilibrium ``operating_point``; with feedback loops (a ``ControlledModel`` on the model) the real-time loops are
+    closed in the linearisation and the delayed ones exactly by ``e^{-s tau}``
+    (:func:`ctmm.controlled_linearization.delayed_loop_response`); a frequency at or next to a pole is refused."""
     started = time.perf_counter()
-    model = _plain(model, "frequency_response")
+    plant = model if isinstance(model, SpatialKinematicLoopModel) else getattr(model, "plant", None)
+    if not isinstance(plant, SpatialKinematicLoopModel):
+        raise ModelError(f"frequency_response: model must be a SpatialKinematicLoopModel or a ControlledModel on one, "
+                         f"got {model!r:.80}")
+    loops = () if plant is model else tuple(model.loops)
     inputs, outputs = list(validation.names("input", input)), list(validation.names("output", output))
     omega = validation.frequencies("omega", omega)
-    lin = linearize_spatial_loops(model, operating_point, inputs=inputs, outputs=outputs)
-    A, B = np.asarray(lin.state_space.A), np.asarray(lin.state_space.B)
-    C, D = np.asarray(lin.state_space.C), np.asarray(lin.state_space.D)
-    states = resolvent(A, B, 1j * np.asarray(omega, dtype=float), model.name)       # refuses frequencies at a pole
-    response = np.moveaxis(np.einsum("ij,kjl->kil", C, states) + D[None], 0, -1)
-    ports = SpatialPorts(model.tree)
-    units = {name: ports.actuator_unit(name) for name in inputs}
-    units.update({name: "N" if name in cut_force_names(model) else ports.sensor_unit(name) for name in outputs})
-    info = {"method": "linearisation on the constraint manifold (ctmm.spatial.closed_loop_linear)",
+    response, lin = delayed_loop_response(
+        lambda lin_in, lin_out: linearize_spatial_loops(model, operating_point, inputs=lin_in, outputs=lin_out),
+        loops, 1j * np.asarray(omega, dtype=float), inputs, outputs, plant.name)
+    ports = SpatialPorts(plant.tree)
+    units = {name: ports.actuator_unit(name) for name in inputs if name in ports.actuators}
+    units.update({name: "N" if name in cut_force_names(plant) else ports.sensor_unit(name) for name in outputs
+                  if name in ports.sensors or name in cut_force_names(plant)})
+    info = {"method": "linearisation on the constraint manifold (ctmm.spatial.closed_loop_linear)"
+                      + (", delayed loops exact" if loops else ""),
             "wall_time_s": time.perf_counter() - started, "n_frequencies": int(omega.size),
             "operating_point_q": lin.operating_point.q.tolist()}
-    return FrequencyResponse(omega, response, tuple(inputs), tuple(outputs), model.name, info=info, units=units)
+    return FrequencyResponse(omega, response, tuple(inputs), tuple(outputs), plant.name, info=info, units=units)
