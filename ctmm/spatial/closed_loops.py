@@ -424,6 +424,26 @@ class SpatialKinematicLoopModel:
             row += 3 if axes is None else 5
         return out
 
+    def cut_inputs(self, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | SpatialInputs | None = None
+                   ) -> SpatialInputs:
+        """The cut loads at ``(q, v, t)`` (:meth:`solve` with the actuator ``inputs``) as actuator values of the tree
+        -- the force and moment on each cut's child point, their opposites on the parent point (world axes) --
+        together with ``inputs``: with them the tree's own sweep (e.g. an iterate of a DT-TMM scheme,
+        :func:`ctmm.spatial.implicit.simulate_spatial_implicit` ``input_map``) moves as the closed loop."""
+        q, v = np.asarray(q, float), np.asarray(v, float)
+        lam = self.solve(q, v, t, inputs)[1]
+        joint = dict(inputs.joint) if isinstance(inputs, SpatialInputs) else dict(inputs or {})
+        wrenches: dict[int, list] = {}
+        if isinstance(inputs, SpatialInputs):
+            for body, entries in inputs.wrenches.items():
+                wrenches[body] = list(entries)
+        for (parent, child), (force, moment) in zip(self._sides, self.cut_loads(q, lam, t)):
+            load = np.concatenate([force, moment]).reshape(1, 6, 1)
+            for side, sign in ((child, 1.0), (parent, -1.0)):
+                if side.body >= 0:
+                    wrenches.setdefault(side.body, []).append((side.point, sign * load))
+        return SpatialInputs(joint, wrenches)
+
     # -- assembly and projection -------------------------------------------------------------------------
     def _held(self, keep: Sequence[str]) -> list[int]:
         """Velocity indices held by ``keep`` (joint names, velocity names, or coordinate names of 1- and 2-DOF
