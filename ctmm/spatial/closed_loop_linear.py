@@ -29,6 +29,11 @@ def resting_configuration(model: SpatialKinematicLoopModel, q0: Any, t: float = 
     """``q0`` (array or ``{coordinate: value}`` mapping) projected onto the cut joints (at rest)."""
     if not isinstance(model, SpatialKinematicLoopModel):
         raise ModelError(f"model must be a SpatialKinematicLoopModel, got {model!r:.80}")
+    driven = [joint.name for joint in model.tree.joints if joint.driven]
+    if driven:
+        raise ModelError(f"spatial kinematic loop {model.name!r}: the driven joints {driven} prescribe a motion in "
+                         "time; the linearisation on the constraint manifold is about a resting equilibrium of a "
+                         "model without driven joints")
     q, v = model.state(q0, None)
     return model.project(q, np.zeros_like(v), t, iterations=30)[0]
 

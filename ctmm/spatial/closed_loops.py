@@ -274,12 +274,11 @@ class SpatialKinematicLoopModel:
         return phi[0], rate[0]
 
     def jacobian(self, q: Any, t: float = 0.0) -> np.ndarray:
-        """``J = dPhi'/dv`` ``(m, nv)``: ``Phi'`` is linear in ``v``, so column ``k`` is ``Phi'(q, e_k)`` (one
-        batched pass of the tree's kinematics).  ``dPhi = J dx`` along ``q (+) dx`` (:meth:`retract`)."""
-        nv = self.tree.n_velocities
+        """``J = dPhi'/dv`` ``(m, nv)``: ``Phi'`` is affine in ``v`` (linear without driven joints), so column ``k``
+        is ``Phi'(q, e_k) - Phi'(q, 0)`` (one batched pass of the tree's kinematics).  ``dPhi = J dx`` along
+        ``q (+) dx`` (:meth:`retract`)."""
         q = np.asarray(q, float)
-        _, rate = self._rows(self._bodies(np.broadcast_to(q, (nv, len(q))), np.eye(nv), t))
-        return rate.T.copy()
+        return self._rows_and_jacobian(q, np.zeros(self.tree.n_velocities), t)[2]
 
     def retract(self, q: np.ndarray, dx: np.ndarray) -> np.ndarray:
         """``q (+) dx``: the tree coordinates moved by the velocity-space increment ``dx`` (``q + G(q) dx``,
@@ -494,27 +493,28 @@ class SpatialKinematicLoopModel:
             raise ModelError(f"spatial kinematic loop {self.name!r}: no assembled configuration near the given "
                              f"coordinates (|Phi| = {np.max(np.abs(phi)):.3e} after 50 Gauss-Newton steps); check "
                              "the geometry, the cut points and the held motions")
-        J = self.jacobian(q)
+        _, rate, J = self._rows_and_jacobian(q, v, 0.0)
         v = v.copy()
-        v[free] -= np.linalg.lstsq(J[:, free], J @ v, rcond=None)[0]
+        v[free] -= np.linalg.lstsq(J[:, free], rate, rcond=None)[0]     # Phi'(q, v) = 0 (driven rates included)
         return q, v
 
     def _rows_and_jacobian(self, q: np.ndarray, v: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``Phi``, ``Phi'`` and ``J`` at ``(q, v)`` from one batched kinematics pass (states ``(q, v)``, ``(q, e_k)``)."""
+        """``Phi``, ``Phi'`` and ``J`` at ``(q, v)`` from one batched kinematics pass (states ``(q, v)``, ``(q, 0)``,
+        ``(q, e_k)``: ``J`` column ``k`` is ``Phi'(q, e_k) - Phi'(q, 0)``, the rate of driven joints taken out)."""
         nv = self.tree.n_velocities
-        phi, rate = self._rows(self._bodies(np.broadcast_to(q, (1 + nv, len(q))),
-                                            np.vstack([v[None], np.eye(nv)]), t))
-        return phi[0], rate[0], rate[1:].T.copy()
+        phi, rate = self._rows(self._bodies(np.broadcast_to(q, (2 + nv, len(q))),
+                                            np.vstack([v[None], np.zeros((1, nv)), np.eye(nv)]), t))
+        return phi[0], rate[0], (rate[2:] - rate[1]).T.copy()
 
     def project(self, q: np.ndarray, v: np.ndarray, t: float = 0.0, iterations: int = 3
                 ) -> tuple[np.ndarray, np.ndarray]:
         """Minimum-norm projection of ``(q, v)`` onto ``Phi = 0``, ``Phi' = 0`` (a few Gauss-Newton steps along
         ``q (+) dx``; quaternions renormalised)."""
         q = self.tree.normalized(q)
-        phi, _, J = self._rows_and_jacobian(q, v, t)
+        phi, rate, J = self._rows_and_jacobian(q, v, t)
         for _ in range(iterations):
             if np.max(np.abs(phi)) < 1e-14:
                 break
             q = self.retract(q, -np.linalg.lstsq(J, phi, rcond=None)[0])
-            phi, _, J = self._rows_and_jacobian(q, v, t)
-        return q, v - np.linalg.lstsq(J, J @ v, rcond=None)[0]
+            phi, rate, J = self._rows_and_jacobian(q, v, t)
+        return q, v - np.linalg.lstsq(J, rate, rcond=None)[0]          # Phi'(q, v) = 0 (driven rates included)
