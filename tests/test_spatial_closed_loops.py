@@ -12,6 +12,7 @@ from ctmm.errors import ModelError, SimulationError
 from ctmm.spatial import closed_loop_linear as linear
 from ctmm.spatial.closed_loop_time import simulate_spatial_loops
 from ctmm.spatial.closed_loops import SpatialCutJoint, SpatialKinematicLoopModel
+from ctmm.scenarios.spatial_four_bar import DOWN
 from spatial_loop_helpers import dae_of, hinged_pendulum, poses, rod, rusr, triangle, triangle_guess
 
 
@@ -101,15 +102,14 @@ def test_driven_crank_moves_the_loop_through_its_assembled_configurations():
     """The four-bar with the crank driven at 3 rad/s (no degree of freedom left): every stored configuration is the
     loop assembled at the crank's prescribed angle (a position solve, no dynamics), and the rates satisfy the cut
     with the driven rate included."""
-    scenario = __import__("ctmm.scenarios.spatial_four_bar", fromlist=["rod"])
     bodies = {b.name: b for b in rusr().tree.bodies}
     tree = sp.SpatialModel("driven", [
-        bodies["crank"], sp.Revolute(name="h1", parent=None, child="crank", axis=(1, 0, 0), rotation=scenario.DOWN,
+        bodies["crank"], sp.Revolute(name="h1", parent=None, child="crank", axis=(1, 0, 0), rotation=DOWN,
                                      position=lambda t: 0.1 + 3.0 * t, rate=lambda t: 3.0, acceleration=lambda t: 0.0),
         bodies["coupler"], sp.Universal(name="u2", parent="crank", point="tip", child="coupler", axis1=(0, 0, 1),
                                         axis2=(0, 1, 0)),
         bodies["rocker"], sp.Revolute(name="h4", parent=None, point=(0.5, 0.2, 0.0), child="rocker", axis=(0, 1, 0),
-                                      rotation=scenario.DOWN)])
+                                      rotation=DOWN)])
     loop = SpatialKinematicLoopModel(tree, rusr().cuts)
     q, v = loop.consistent_state({"h4.angle": -0.05, "u2.angle1": -0.32, "u2.angle2": -0.41}, None)
     assert np.max(np.abs(loop.constraints(q, v)[1])) < 1e-12           # J v = -(the driven rate's term)
