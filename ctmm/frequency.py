@@ -82,13 +82,15 @@ def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],
     >>> np.allclose(frf("m.x", "m.force"), 1 / (100.0 - np.array([0.0, 25.0])))
     True
     """
-    if _is_kinematic_loop(system):
+    if _is_kinematic_loop(system) or _is_spatial_loop(system):
         if solver != "riccati" or fields not in (None, "modal"):
             raise ModelError(f"frequency_response: solver={solver!r} and fields={fields!r} are for chains and planar "
                              "models; a kinematic loop model is answered through its linearisation (leave the defaults)")
         from .planar.loop_verbs import frequency_response_loops
+        from .spatial.closed_loop_verbs import frequency_response_spatial_loops
 
-        return frequency_response_loops(system, omega, input=input, output=output, operating_point=operating_point)
+        respond = frequency_response_spatial_loops if _is_spatial_loop(system) else frequency_response_loops
+        return respond(system, omega, input=input, output=output, operating_point=operating_point)
     if _is_spatial(system):
         if solver != "riccati" or fields not in (None, "modal", "exact"):
             raise ModelError(f"frequency_response: solver={solver!r} and fields={fields!r}: a spatial model takes "
@@ -235,6 +237,13 @@ def _is_kinematic_loop(system: Any) -> bool:
     return isinstance(system, KinematicLoopModel) or isinstance(getattr(system, "plant", None), KinematicLoopModel)
 
 
+def _is_spatial_loop(system: Any) -> bool:
+    from .spatial.closed_loops import SpatialKinematicLoopModel     # spatial cut joints: docs/closed_loops.md §8
+
+    return isinstance(system, SpatialKinematicLoopModel) or isinstance(getattr(system, "plant", None),
+                                                                       SpatialKinematicLoopModel)
+
+
 def natural_frequencies(system: Any, **options: Any) -> np.ndarray:
     """Undamped natural frequencies [rad/s] of a chain, a planar or a spatial model.
 
@@ -247,6 +256,10 @@ def natural_frequencies(system: Any, **options: Any) -> np.ndarray:
     ``operating_point``; ``fields="exact"`` for the exact spatial beam fields of a straight chain,
     :mod:`ctmm.spatial_exact_fields`).  Damped systems and systems with loops are refused.
     """
+    if _is_spatial_loop(system):
+        from .spatial.closed_loop_verbs import natural_frequencies_spatial_loops
+
+        return natural_frequencies_spatial_loops(system, **options)
     if _is_kinematic_loop(system):
         from .planar.loop_verbs import natural_frequencies_loops
 
@@ -273,6 +286,10 @@ def eigenvalue_count(system: Any, omega: Any, **options: Any) -> np.ndarray:
     :func:`ctmm.planar_frequency.eigenvalue_count` (option ``operating_point``); spatial models:
     :func:`ctmm.spatial_frequency.eigenvalue_count`.
     """
+    if _is_spatial_loop(system):
+        from .spatial.closed_loop_verbs import eigenvalue_count_spatial_loops
+
+        return eigenvalue_count_spatial_loops(system, omega, **options)
     if _is_kinematic_loop(system):
         from .planar.loop_verbs import eigenvalue_count_loops
 

@@ -132,6 +132,13 @@ def linearize(system: Any, operating_point: Any = None, *, inputs: str | Sequenc
 
         return linearize_loops(system, operating_point, inputs=inputs, outputs=outputs,
                                allow_nonequilibrium=allow_nonequilibrium)
+    from .spatial.closed_loops import SpatialKinematicLoopModel
+
+    if isinstance(system, SpatialKinematicLoopModel) or isinstance(plant, SpatialKinematicLoopModel):  # closed_loops §8
+        from .spatial.closed_loop_verbs import linearize_spatial_loops
+
+        return linearize_spatial_loops(system, operating_point, inputs=inputs, outputs=outputs,
+                                       allow_nonequilibrium=allow_nonequilibrium)
     loops = tuple(getattr(system, "loops", ()))
     if isinstance(system, Chain) or (isinstance(plant, Chain) and hasattr(system, "loops")):
         if operating_point is not None:

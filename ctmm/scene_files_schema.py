@@ -194,6 +194,30 @@ def closed_planar_model(name: str, elements: list, cuts: list, *, gravity: tuple
     return KinematicLoopModel(PlanarModel(name, elements, gravity=gravity), cuts, baumgarte=baumgarte)
 
 
+def closed_spatial_model(name: str, elements: list, cuts: list, *, gravity: tuple[float, float, float] = (0.0, 0.0, -9.81),
+                         baumgarte: float = 20.0) -> Any:
+    """A spatial tree closed by cut joints: ``SpatialKinematicLoopModel(SpatialModel(name, elements,
+    gravity=gravity), cuts, baumgarte=baumgarte)`` (``docs/closed_loops.md`` §8).
+
+    Parameters
+    ----------
+    name : str
+        Model name.
+    elements : list
+        The tree's elements (as for ``kind = "spatial"``).
+    cuts : list of SpatialCutJoint
+        The loop-closing joints (value tables ``{type = "SpatialCutJoint", ...}``).
+    gravity : (float, float, float)
+        [m/s^2].
+    baumgarte : float
+        Constraint stabilisation rate [1/s].
+    """
+    from .spatial.closed_loops import SpatialKinematicLoopModel
+    from .spatial.model import SpatialModel
+
+    return SpatialKinematicLoopModel(SpatialModel(name, elements, gravity=gravity), cuts, baumgarte=baumgarte)
+
+
 def parallel_law(laws: list) -> Any:
     """Laws acting in parallel (their forces added): ``ctmm.nonlinear_laws.ParallelLaw(*laws)``, as ``law1 + law2``."""
     from .nonlinear_laws import ParallelLaw
@@ -223,6 +247,9 @@ SYSTEM_KINDS: dict[str, tuple[str, str]] = {
     "spatial": ("ctmm.spatial.model:SpatialModel", "spatial tree: every joint names its parent and child"),
     "planar_closed": ("ctmm.scene_files_schema:closed_planar_model", "planar tree closed by cut joints "
                       "(`KinematicLoopModel`): elements as for `planar`, `cuts = [{ type = \"CutJoint\", ... }]`"),
+    "spatial_closed": ("ctmm.scene_files_schema:closed_spatial_model", "spatial tree closed by cut joints "
+                       "(`SpatialKinematicLoopModel`): elements as for `spatial`, "
+                       "`cuts = [{ type = \"SpatialCutJoint\", ... }]`"),
 }
 """``[system] kind`` values: the model constructor (``module:attribute``) and what it builds."""
 
@@ -267,7 +294,7 @@ def element_types(kind: str) -> dict[str, Constructor]:
         out["finite_segment_beam"] = constructor("finite_segment_beam", _resolve(
             "ctmm.flexible.segments:finite_segment_beam"))
         return out
-    if kind == "spatial":
+    if kind in ("spatial", "spatial_closed"):
         classes = _public_classes("ctmm.spatial.elements", _is_spatial_element)
         classes.update(_public_classes("ctmm.spatial", _is_spatial_element))
         out = _with_factories(classes)
@@ -306,7 +333,8 @@ def value_types() -> dict[str, Constructor]:
     for module, names in (("ctmm.nonlinear_laws", ("LinearLaw", "CubicSpring", "ClearanceSpring", "PowerDamper")),
                           ("ctmm.fem", ("BeamElement", "PointMass", "NodeSpring", "MembraneElement", "SpatialBeamElement",
                                         "SpatialPlateElement", "SpatialPointMass", "SpatialNodeSpring")),
-                          ("ctmm.planar.closed_loops", ("CutJoint",))):
+                          ("ctmm.planar.closed_loops", ("CutJoint",)),
+                          ("ctmm.spatial.closed_loops", ("SpatialCutJoint",))):
         for name in names:
             out[name] = constructor(name, _resolve(f"{module}:{name}"))
     return out
@@ -343,7 +371,7 @@ def schema_markdown() -> str:
                      + ", ".join(f"`{p.name}`" for p in system.parameters) + ".")
         lines.append("")
     for kind in ("chain", "planar", "spatial"):
-        label = "planar, planar_chain and planar_closed" if kind == "planar" else kind
+        label = {"planar": "planar, planar_chain and planar_closed", "spatial": "spatial and spatial_closed"}.get(kind, kind)
         lines += _table(element_types(kind), f"`[[system.elements]]` of kind {label}")
     lines += _table(loop_types(), "`[[loops]]`")
     lines += _table(controller_kinds(), "`[[controllers]]` with `fmu = \"path\"` (else `call` / `python`)")

@@ -223,6 +223,21 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
             stability_check=stability_check, progress=progress,
             unsupported={"solver": (solver, "riccati"), "fast": (fast, None), "force_hook": (force_hook, None),
                          "t0": (t0, 0.0), "compiled": (compiled, None)})
+    from .spatial.closed_loops import SpatialKinematicLoopModel
+
+    if isinstance(system, SpatialKinematicLoopModel) or isinstance(getattr(system, "plant", None),
+                                                                    SpatialKinematicLoopModel):   # closed_loops.md §8
+        from .spatial_loop_time import simulate_spatial_loop_system
+
+        if isinstance(inputs, Mapping):
+            inputs, references = split_loop_references(getattr(system, "loops", ()), inputs, references)
+        return simulate_spatial_loop_system(
+            system, t_final, dt, method=_method(method, scheme, "rk4"), x0=x0, v0=v0, inputs=inputs, outputs=outputs,
+            controllers=list(controllers), references=dict(references), coupling=coupling, rtol=rtol, atol=atol,
+            max_step=max_step, store_every=store_every, progress=progress, stability_check=stability_check,
+            divergence_bound=divergence_bound, unsupported={"solver": (solver, "riccati"), "fast": (fast, None),
+                                                            "force_hook": (force_hook, None), "t0": (t0, 0.0),
+                                                            "compiled": (compiled, None)})
     spatial = _model_parts(system, SpatialModel)
     if spatial is not None:
         return simulate_spatial_system(spatial, t_final, dt, method=_method(method, scheme, "rk4"), x0=x0, v0=v0, t0=t0,

@@ -333,6 +333,8 @@ NEWER_API: dict[str, str] = {
                                                  "solve", "accelerations", "reactions", "state_rates", "energy",
                                                  "simulate_spatial", "SpatialBeam")},
     "ctmm.spatial.SpatialSolution": "result record",
+    **{f"ctmm.spatial.{name}": "tests/test_spatial_closed_loops.py (refusals)"
+       for name in ("SpatialCutJoint", "SpatialKinematicLoopModel")},
     **{f"ctmm.fem.{name}": HERE for name in ("FiniteElementModel", "BeamElement", "MembraneElement", "PointMass",
                                              "NodeSpring", "beam_local_matrices")},
     "ctmm.fem.GlobalSubsystem": "tests/test_fem.py (bad matrices, unlumped subsystems)",

@@ -159,6 +159,11 @@ def _four_bar_start():
     return scenario.start(scenario.mechanism(scenario.SPRING + scenario.DAMPER))
 
 
+def _spatial_four_bar_start():
+    scenario = _scenario("spatial_four_bar")
+    return scenario.start(scenario.mechanism())
+
+
 def _planar_and_spatial():
     """``file: (the scenario's Python system, the scenario's run arguments the file must hold)``."""
     branch, hub, rotary = _scenario("branch_system"), _scenario("hub_beam"), _scenario("rotary_base_segments")
@@ -191,6 +196,8 @@ def _planar_and_spatial():
         "particle_net": (None, dict(dt=5e-4, method="rk4", x0=_thetas("particle_net"))),
         "flexible_manipulator_3d": (lambda: _scenario("flexible_manipulator_3d").controlled(True),
                                     dict(dt=2e-3, method="rk4", store_every=5)),
+        "spatial_four_bar": (_scenario("spatial_four_bar").mechanism, dict(dt=1e-3, method="rk4", x0=list(
+            _spatial_four_bar_start()[0]), v0=list(_spatial_four_bar_start()[1]))),
         "spatial_fem_chain": (_scenario("spatial_fem_chain").model,
                               dict(dt=5e-4, method="rk4", x0=_scenario("spatial_fem_chain").INITIAL,
                                    v0=_scenario("spatial_fem_chain").INITIAL_RATE)),

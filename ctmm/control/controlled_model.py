@@ -27,6 +27,7 @@ from typing import Any
 from .. import validation
 from ..errors import ModelError, unknown_name
 from ..planar.closed_loops import KinematicLoopModel
+from ..spatial.closed_loops import SpatialKinematicLoopModel
 from ..planar.model import PlanarModel
 from ..spatial.model import SpatialModel
 from ..system import Chain
@@ -62,9 +63,10 @@ class ControlledModel:
     """
 
     def __init__(self, plant: PlanarModel | SpatialModel, loops: Sequence[Feedback]) -> None:
-        if not (is_plant_model(plant) or isinstance(plant, KinematicLoopModel)):
-            raise ModelError(f"plant must be a ctmm.planar.PlanarModel, a KinematicLoopModel or a "
-                             f"ctmm.spatial.SpatialModel (use with_feedback for any plant), got {plant!r}")
+        if not (is_plant_model(plant) or isinstance(plant, (KinematicLoopModel, SpatialKinematicLoopModel))):
+            raise ModelError(f"plant must be a ctmm.planar.PlanarModel, a KinematicLoopModel, a "
+                             f"ctmm.spatial.SpatialModel or a SpatialKinematicLoopModel (use with_feedback for any "
+                             f"plant), got {plant!r}")
         if isinstance(loops, Feedback):
             loops = [loops]                         # one loop, as ControlledChain accepts it
         if isinstance(loops, (str, bytes, Mapping)) or not isinstance(loops, Iterable):
@@ -188,7 +190,7 @@ def with_feedback(plant: Any, loops: Sequence[Feedback]) -> ControlledChain | Co
     """
     if isinstance(plant, Chain):
         return ControlledChain(plant, loops)
-    if is_plant_model(plant) or isinstance(plant, KinematicLoopModel):    # cut joints: docs/closed_loops.md §3c
+    if is_plant_model(plant) or isinstance(plant, (KinematicLoopModel, SpatialKinematicLoopModel)):  # closed_loops.md
         return ControlledModel(plant, loops)
     if isinstance(plant, (ControlledChain, ControlledModel)):
         raise ModelError(f"plant {plant!r} already has loops; use plant.with_loops(...) to "

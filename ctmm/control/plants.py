@@ -37,6 +37,8 @@ from ..planar.loop_plant import KinematicLoopPlant
 from ..planar.model import PlanarModel
 from ..planar.ports import PlanarPorts
 from ..planar.sweep import accelerations as planar_accelerations
+from ..spatial.closed_loop_plant import SpatialLoopPlant
+from ..spatial.closed_loops import SpatialKinematicLoopModel
 from ..spatial.integrate import divergence_check, spatial_signals
 from ..spatial.model import SpatialModel
 from ..spatial.ports import SpatialPorts
@@ -158,4 +160,6 @@ def plant_of(model: Any) -> Plant:
         return SpatialPlant(model)
     if isinstance(model, KinematicLoopModel):       # cut joints: ctmm.planar.loop_plant
         return KinematicLoopPlant(model)
+    if isinstance(model, SpatialKinematicLoopModel):    # spatial cut joints: ctmm.spatial.closed_loop_plant
+        return SpatialLoopPlant(model)
     raise ModelError(f"model must be a ctmm.planar.PlanarModel or a ctmm.spatial.SpatialModel, got {model!r}")

@@ -1,0 +1,520 @@
+"""Closed kinematic loops in spatial models: cut joints whose loads are the boundary unknowns.
+
+A spatial mechanism with closed loops (a spatial four-bar, a ring of bodies) is modelled as a spanning tree --
+an ordinary :class:`~ctmm.spatial.model.SpatialModel` -- plus **cut joints** (:class:`SpatialCutJoint`): a
+spherical (ball) cut makes a point of the child coincide with a point of the parent (or of the ground); a
+revolute cut also keeps a child axis parallel to a parent axis.  The planar counterpart and the derivation are
+in :mod:`ctmm.planar.closed_loops` and ``docs/closed_loops.md`` (section 8 for this module).
+
+Mechanism (the boundary unknowns of the mixed transfer matrix method)
+---------------------------------------------------------------------
+A cut has ``3`` (spherical) or ``5`` (revolute) constraint rows: the separation of its points
+``Phi = r_Pc - r_Pp`` [m] and, for a revolute cut, the alignments ``Phi_i = u . b_i`` (``u`` the child axis,
+``b_1``, ``b_2`` perpendicular to the parent axis; small angles [rad]).  Their rates are linear in the tree
+velocities ``v``: ``Phi' = v_Pc - v_Pp`` and ``Phi_i' = (omega_c - omega_p) . n_i`` with ``n_i = u x b_i``.
+The dual loads -- the unknowns ``lambda`` -- are a force (world axes [N]) on the child point and its opposite on
+the parent point, and moments ``mu_i n_i`` [N m] on the child and their opposites on the parent.  At fixed
+``(q, v, t)`` the tree's articulated sweep (:func:`ctmm.spatial.dynamics.solve`) is affine in these loads, so one
+batched sweep with ``1 + m`` load cases gives ``Phi'' = c_0 + G lambda`` (``G``: the ``m x m`` boundary
+compliance, exact) and ``v' = v'_0 + D lambda``; the constraint at the acceleration level with Baumgarte
+stabilisation (rate ``alpha`` [1/s])::
+
+    G lambda = -c_0 - 2 alpha Phi' - alpha^2 Phi
+
+Drift of ``Phi`` is held by Baumgarte and, in the fixed-step RK4, by projection after every step (Gauss-Newton
+on ``Phi = 0`` along ``q (+) dx`` with the exact velocity Jacobian ``J = dPhi'/dv``, then ``v <- v - J^+ J v``);
+it is reported with the cut loads (:class:`SpatialLoopSimulation`).  Linearisation and natural frequencies
+about an equilibrium on the constraint manifold: :mod:`ctmm.spatial.closed_loop_linear`.
+
+Scope: cut points on rigid bodies (not on beams or ``ctmm.fem`` subsystems: refused by name); smooth cuts
+(no spring, damper or actuator in the cut).  The tree may have any joints, actuators and loads.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from .. import validation
+from ..articulated import SingularPivotError, articulated_sweep
+from ..errors import ModelError, SimulationError, unknown_name
+from ..ops import NUMPY
+from .body_forms import SpatialScene
+from .integrate import initial_state
+from .model import SpatialModel
+from .ports import SpatialInputs
+
+__all__ = ["SpatialCutJoint", "SpatialKinematicLoopModel", "CUT_KINDS"]
+
+CUT_KINDS = ("spherical", "revolute")
+"""Kinds of :class:`SpatialCutJoint`."""
+
+
+def _vector(label: str, value: Any) -> np.ndarray:
+    array = validation.finite_array(label, value)
+    if array.shape != (3,):
+        raise ModelError(f"{label} must be 3 finite numbers, got {value!r:.80}")
+    return array.astype(float)
+
+
+def _unit(label: str, value: Any) -> np.ndarray:
+    array = _vector(label, value)
+    norm = float(np.linalg.norm(array))
+    if norm < 1e-12:
+        raise ModelError(f"{label} must be a non-zero 3-vector (it is normalised), got {value!r}")
+    return array / norm
+
+
+@dataclass(frozen=True, kw_only=True)
+class SpatialCutJoint:
+    """A smooth joint closing a loop of a spatial tree.
+
+    Parameters
+    ----------
+    name : str
+        Joint name (distinct from the tree's element names).
+    parent : str or None
+        Parent body name, or ``None`` for the ground.
+    child : str
+        Child body name.
+    point : str or (3,) array, optional
+        The parent's point name (default ``"origin"``); at the ground a location in world axes [m] (default the
+        origin).
+    child_point : str
+        The child's point name (default ``"origin"``).
+    kind : str
+        ``"spherical"`` (ball: the points coincide, 3 rows) or ``"revolute"`` (also ``axis`` parallel to
+        ``parent_axis``, 5 rows).
+    axis : (3,) array
+        Revolute: the hinge axis in child body axes (normalised).
+    parent_axis : (3,) array, optional
+        Revolute: the hinge axis in parent body axes (world axes at the ground); default ``axis``.
+    """
+
+    name: str
+    parent: str | None
+    child: str
+    point: Any = None
+    child_point: str = "origin"
+    kind: str = "spherical"
+    axis: Any = (0.0, 0.0, 1.0)
+    parent_axis: Any = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "name", validation.name("cut joint", self.name))
+        validation.option(f"cut joint {self.name!r}: kind", self.kind, CUT_KINDS)
+        if self.parent is not None:
+            validation.name(f"cut joint {self.name!r}: parent", self.parent)
+            point = "origin" if self.point is None else self.point
+            if not isinstance(point, str):
+                raise ModelError(f"cut joint {self.name!r}: point must be the name of a point of the parent body "
+                                 f"{self.parent!r}, got {self.point!r}")
+            object.__setattr__(self, "point", point)
+        else:
+            object.__setattr__(self, "point", _vector(f"cut joint {self.name!r}: point (ground location)",
+                                                      (0.0, 0.0, 0.0) if self.point is None else self.point))
+        validation.name(f"cut joint {self.name!r}: child", self.child)
+        if self.parent == self.child:
+            raise ModelError(f"cut joint {self.name!r}: parent and child are both {self.child!r}; a cut joint "
+                             "connects two different bodies (or a body and the ground, parent=None)")
+        if not isinstance(self.child_point, str):
+            raise ModelError(f"cut joint {self.name!r}: child_point must be the name of a point of {self.child!r}, "
+                             f"got {self.child_point!r}")
+        axis = _unit(f"cut joint {self.name!r}: axis", self.axis)
+        object.__setattr__(self, "axis", axis)
+        object.__setattr__(self, "parent_axis", axis.copy() if self.parent_axis is None else
+                           _unit(f"cut joint {self.name!r}: parent_axis", self.parent_axis))
+
+    @property
+    def n_rows(self) -> int:
+        """Constraint rows: 3 (spherical) or 5 (revolute)."""
+        return 3 if self.kind == "spherical" else 5
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a x b`` over the last axis (3) with broadcasting (``np.cross`` without its axis handling: it is called
+    many times per step on tiny arrays)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack(np.broadcast_arrays(a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0), axis=-1)
+
+
+def _perpendicular(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors completing ``axis`` to a right-handed orthonormal triad."""
+    helper = np.eye(3)[int(np.argmin(np.abs(axis)))]
+    first = _cross(axis, helper)
+    first /= np.linalg.norm(first)
+    return first, _cross(axis, first)
+
+
+@dataclass(frozen=True)
+class _Side:
+    body: int                   # -1: the ground
+    point: np.ndarray           # body axes from the body origin [m]; at the ground world location
+
+
+class SpatialKinematicLoopModel:
+    """A spatial spanning tree plus cut joints (module docstring).
+
+    Parameters
+    ----------
+    tree : SpatialModel
+        The mechanism with the cut joints removed.
+    cuts : sequence of SpatialCutJoint
+        The joints closing the loops.
+    baumgarte : float
+        Stabilisation rate ``alpha`` [1/s] (>= 0; 0: none).  Default 20.
+
+    Raises
+    ------
+    ModelError
+        Not a spatial tree, no cuts, unknown bodies or points, cut points on beams, duplicate names.
+    """
+
+    def __init__(self, tree: SpatialModel, cuts: Sequence[SpatialCutJoint], *, baumgarte: float = 20.0) -> None:
+        if not isinstance(tree, SpatialModel):
+            raise ModelError(f"SpatialKinematicLoopModel: tree must be a ctmm.spatial.SpatialModel, got {tree!r:.80}")
+        cuts = tuple(cuts) if isinstance(cuts, (list, tuple)) else (cuts,)
+        if not cuts or not all(isinstance(c, SpatialCutJoint) for c in cuts):
+            raise ModelError(f"SpatialKinematicLoopModel: cuts must be a non-empty sequence of SpatialCutJoint, got "
+                             f"{cuts!r:.120}")
+        taken = {b.name for b in tree.bodies} | {j.name for j in tree.joints} | {ld.name for ld in tree.loads}
+        for k, cut in enumerate(cuts):
+            if cut.name in taken or cut.name in {c.name for c in cuts[:k]}:
+                raise ModelError(f"SpatialKinematicLoopModel: duplicate name {cut.name!r} (cut joint names must "
+                                 "differ from each other and from the tree's elements)")
+        self.tree, self.cuts = tree, cuts
+        self.name = tree.name
+        self.baumgarte = validation.nonnegative("baumgarte", baumgarte)
+        self._sides = [(self._side(cut, cut.parent, cut.point), self._side(cut, cut.child, cut.child_point))
+                       for cut in cuts]
+        self._axes = []                  # revolute: (child axis, (b1, b2) parent-fixed) else None
+        for cut in cuts:
+            self._axes.append((cut.axis, _perpendicular(cut.parent_axis)) if cut.kind == "revolute" else None)
+        self.n_constraints = sum(cut.n_rows for cut in cuts)
+        self._scene = SpatialScene(tree)
+        self.linear_cache: dict = {}
+        """Tangents of :func:`ctmm.spatial.closed_loop_linear.tangent` by ``(q0, t, step, baumgarte)`` (the last 8:
+        the frequency verbs ask for the same tangent repeatedly)."""
+
+    def __repr__(self) -> str:
+        return f"SpatialKinematicLoopModel({self.name!r}, cuts={[cut.name for cut in self.cuts]})"
+
+    def _side(self, cut: SpatialCutJoint, body: str | None, point: Any) -> _Side:
+        if body is None:
+            return _Side(-1, np.asarray(point, float))
+        names = [b.name for b in self.tree.bodies]
+        if body not in names:
+            raise unknown_name(f"cut joint {cut.name!r}: body", body, names)
+        j = names.index(body)
+        if self.tree.modal[j] is not None:
+            raise ModelError(f"cut joint {cut.name!r}: {body!r} is a deformable body (a SpatialBeam or ctmm.fem "
+                             "subsystem); spatial cut points must be on rigid bodies (SpatialBody)")
+        points = self.tree.bodies[j].points
+        if point not in points:
+            raise unknown_name(f"cut joint {cut.name!r}: point of {body}", point, sorted(points))
+        return _Side(j, np.asarray(points[point], float))
+
+    # -- kinematics ------------------------------------------------------------------------------------
+    def state(self, x0: Any = None, v0: Any = None) -> tuple[np.ndarray, np.ndarray]:
+        """``(q, v)`` from arrays or ``{coordinate: value}`` / ``{velocity: value}`` mappings over the tree's
+        neutral state (:func:`ctmm.spatial.integrate.initial_state`)."""
+        x = initial_state(self.tree, x0, v0)
+        return x[:self.tree.n_positions].copy(), x[self.tree.n_positions:].copy()
+
+    def _bodies(self, q: np.ndarray, v: np.ndarray, t: float) -> list[tuple[np.ndarray, ...]]:
+        """Per body ``(R, origin, velocity of the origin, omega, inboard point)`` (world, batched ``(B, ...)``)."""
+        q, v = self.tree.check_state(q, v)
+        return self._states(self._scene.terms(NUMPY, q, v, t)[2], q.shape[0])
+
+    @staticmethod
+    def _states(states: list, batch: int) -> list[tuple[np.ndarray, ...]]:
+        """:meth:`_bodies` of the body states of :meth:`SpatialScene.terms`."""
+        out = []
+        for s in states:
+            out.append(tuple(np.broadcast_to(np.asarray(a), (batch,) + np.asarray(a).shape[1:]).reshape(batch, -1)
+                             if k else np.broadcast_to(np.asarray(a), (batch, 3, 3))
+                             for k, a in enumerate((s.rotation, s.origin, s.velocity, s.omega, s.inboard))))
+        return out
+
+    def _point(self, bodies: list, side: _Side) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """World position, velocity (``(B, 3)``) and rotation ``(B, 3, 3)`` of a cut side (ground: fixed)."""
+        if side.body < 0:
+            return side.point[None], np.zeros((1, 3)), None
+        R, origin, velocity, omega, _ = bodies[side.body]
+        arm = R @ side.point
+        return origin + arm, velocity + _cross(omega, arm), R
+
+    def _rows(self, bodies: list) -> tuple[np.ndarray, np.ndarray]:
+        """``Phi`` and ``Phi'`` ``(B, m)`` from body states (:meth:`_bodies`)."""
+        phi, rate = [], []
+        for cut, (parent, child), axes in zip(self.cuts, self._sides, self._axes):
+            xp, vp, Rp = self._point(bodies, parent)
+            xc, vc, Rc = self._point(bodies, child)
+            phi.append(xc - xp)
+            rate.append(vc - vp)
+            if axes is None:
+                continue
+            u_local, normals = axes
+            u = Rc @ u_local
+            omega_c = bodies[child.body][3]
+            omega_p = np.zeros_like(omega_c) if parent.body < 0 else bodies[parent.body][3]
+            for b_local in normals:
+                b = np.broadcast_to(b_local, u.shape) if Rp is None else Rp @ b_local
+                phi.append(np.sum(u * b, axis=-1, keepdims=True))
+                rate.append(np.sum((omega_c - omega_p) * _cross(u, b), axis=-1, keepdims=True))
+        batch = max(max(a.shape[0] for a in phi), max(a.shape[0] for a in rate))
+        return (np.concatenate([np.broadcast_to(a, (batch, a.shape[1])) for a in phi], axis=1),
+                np.concatenate([np.broadcast_to(a, (batch, a.shape[1])) for a in rate], axis=1))
+
+    def constraints(self, q: Any, v: Any, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """``Phi`` (separations [m], alignments [rad]) and ``Phi'`` [m/s, rad/s] of every cut, stacked ``(m,)``."""
+        phi, rate = self._rows(self._bodies(np.asarray(q, float), np.asarray(v, float), t))
+        return phi[0], rate[0]
+
+    def jacobian(self, q: Any, t: float = 0.0) -> np.ndarray:
+        """``J = dPhi'/dv`` ``(m, nv)``: ``Phi'`` is affine in ``v`` (linear without driven joints), so column ``k``
+        is ``Phi'(q, e_k) - Phi'(q, 0)`` (one batched pass of the tree's kinematics).  ``dPhi = J dx`` along
+        ``q (+) dx`` (:meth:`retract`)."""
+        q = np.asarray(q, float)
+        return self._rows_and_jacobian(q, np.zeros(self.tree.n_velocities), t)[2]
+
+    def retract(self, q: np.ndarray, dx: np.ndarray) -> np.ndarray:
+        """``q (+) dx``: the tree coordinates moved by the velocity-space increment ``dx`` (``q + G(q) dx``,
+        quaternions renormalised; first order in ``dx``)."""
+        return self.tree.normalized(q + self.tree.position_rates(q[None], dx[None])[0])
+
+    # -- the boundary unknowns ---------------------------------------------------------------------------
+    def _accelerations(self, bodies: list, A: np.ndarray) -> np.ndarray:
+        """``Phi''`` ``(B, m)`` from the inboard point accelerations ``A`` ``(B, n_bodies, 6)`` (``[a ; alpha]``,
+        world) of a batched sweep at one state (body states :meth:`_bodies`)."""
+        batch = A.shape[0]
+
+        def side_acceleration(side: _Side) -> tuple[np.ndarray, np.ndarray]:
+            if side.body < 0:
+                return np.zeros((batch, 3)), np.zeros((batch, 3))
+            R, origin, _, omega, inboard = (a[0] for a in bodies[side.body])
+            r = origin + R @ side.point - inboard
+            alpha = A[:, side.body, 3:]
+            return (A[:, side.body, :3] + _cross(alpha, r) + _cross(omega, _cross(omega, r)), alpha)
+
+        rows = []
+        for (parent, child), axes in zip(self._sides, self._axes):
+            ap, alpha_p = side_acceleration(parent)
+            ac, alpha_c = side_acceleration(child)
+            rows.append(ac - ap)
+            if axes is None:
+                continue
+            u_local, normals = axes
+            Rc, omega_c = bodies[child.body][0][0], bodies[child.body][3][0]
+            omega_p = np.zeros(3) if parent.body < 0 else bodies[parent.body][3][0]
+            u = Rc @ u_local
+            for b_local in normals:
+                b = b_local if parent.body < 0 else bodies[parent.body][0][0] @ b_local
+                n = _cross(u, b)
+                n_dot = _cross(_cross(omega_c, u), b) + _cross(u, _cross(omega_p, b))
+                rows.append(((alpha_c - alpha_p) @ n + (omega_c - omega_p) @ n_dot)[:, None])
+        return np.concatenate(rows, axis=1)
+
+    def _unit_loads(self, bodies: list) -> dict[int, np.ndarray]:
+        """Per loaded body: the change ``[f ; m + r x f]`` (``(1 + m, 6, 1)``, world axes, about its inboard point)
+        of its applied load in the ``1 + m`` load cases: case 0 none, case ``1 + k`` the unit value of unknown
+        ``k`` (its force or moment on the child, the opposite on the parent; ``bodies``: :meth:`_bodies`)."""
+        m = self.n_constraints
+        loads: dict[int, np.ndarray] = {}
+        row = 0
+        for (parent, child), axes in zip(self._sides, self._axes):
+            wrench = np.zeros((1 + m, 6))
+            for axis in range(3):
+                wrench[1 + row + axis, axis] = 1.0
+            if axes is not None:
+                u = bodies[child.body][0][0] @ axes[0]
+                for i, b_local in enumerate(axes[1]):
+                    b = b_local if parent.body < 0 else bodies[parent.body][0][0] @ b_local
+                    wrench[1 + row + 3 + i, 3:] = _cross(u, b)
+            row += 3 if axes is None else 5
+            for side, sign in ((child, 1.0), (parent, -1.0)):
+                if side.body < 0:
+                    continue
+                R, origin, _, _, inboard = (a[0] for a in bodies[side.body])
+                lever = origin + R @ side.point - inboard
+                about = np.concatenate([wrench[:, :3], wrench[:, 3:] + _cross(lever, wrench[:, :3])], axis=1)
+                loads[side.body] = loads.get(side.body, 0.0) + sign * about
+        return {j: load[:, :, None] for j, load in loads.items()}
+
+    def _sweep(self, q: np.ndarray, v: np.ndarray, t: float, inputs: Mapping[str, Any] | None
+               ) -> tuple[list, np.ndarray, np.ndarray]:
+        """Body states (:meth:`_bodies`), ``v'`` ``(1 + m, nv)`` and inboard point accelerations
+        ``(1 + m, n_bodies, 6)`` of the ``1 + m`` load cases: the tree's terms once, the cut loads added to the
+        loaded bodies' applied terms (``h``), one batched articulated sweep."""
+        scene, tree = self._scene, self.tree
+        q_rows, v_rows = tree.check_state(q, v)
+        wrenches = None
+        if isinstance(inputs, SpatialInputs):               # the tree's ports (ctmm.spatial.ports)
+            inputs, wrenches = inputs.joint, inputs.wrenches
+        elif inputs is not None and not isinstance(inputs, Mapping):
+            raise ModelError(f"inputs must be a mapping {{joint input: value or f(t)}} or SpatialInputs, got "
+                             f"{inputs!r:.80}")
+        body_terms, joint_terms, states = scene.terms(NUMPY, q_rows, v_rows, t, scene.numpy_inputs(inputs, t, 1),
+                                                      wrenches)
+        bodies = self._states(states, 1)
+        for j, load in self._unit_loads(bodies).items():
+            body_terms[j] = replace(body_terms[j], h=body_terms[j].h - load)
+        try:
+            solution = articulated_sweep(NUMPY, scene.tree, body_terms, joint_terms)
+        except SingularPivotError as exc:
+            joint = tree.joints[exc.body]
+            raise SimulationError(f"{tree.name}: the articulated pivot of joint {joint.name!r} ({joint.kind}) is "
+                                  f"singular at t = {t} s: the subtree it carries has no inertia in some free "
+                                  "direction (to round-off)", time=t, element=joint.name) from exc
+        batch = 1 + self.n_constraints
+        parts = [np.broadcast_to(np.asarray(a), (batch,) + np.asarray(a).shape[1:])[:, :, 0]
+                 for a in scene.velocity_rates(solution)]
+        rates = np.concatenate(parts, axis=1) if parts else np.zeros((batch, 0))
+        points = np.stack([np.broadcast_to(np.asarray(x)[:, :6], (batch, 6, 1))[:, :, 0] for x in solution.x], axis=1)
+        if not (np.all(np.isfinite(rates)) and np.all(np.isfinite(points))):
+            raise SimulationError(f"spatial kinematic loop {self.name!r}: the articulated sweep gave non-finite "
+                                  f"accelerations at t = {t} s", time=t, element=self.cuts[0].name)
+        return bodies, rates, points
+
+    def solve(self, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | None = None
+              ) -> tuple[np.ndarray, np.ndarray]:
+        """``(v', lambda)`` at ``(q, v, t)`` with the tree's actuator ``inputs`` (``{"<joint>.torque": value or
+        f(t)}`` or the :class:`~ctmm.spatial.ports.SpatialInputs` of the tree's ports): the closed-loop accelerations
+        ``(nv,)`` and the cut loads ``(m,)`` (per cut: the force on the child [N], world axes, then for a revolute
+        cut the two moment multipliers [N m] along ``n_i``; :meth:`cut_loads` gives vectors).
+
+        Raises
+        ------
+        SimulationError
+            A singular boundary compliance (a singular configuration of the loop, or redundant cut rows), naming
+            the time and the first cut joint.
+        """
+        bodies, rates, points = self._sweep(np.asarray(q, float), np.asarray(v, float), t, inputs)
+        second = self._accelerations(bodies, points)
+        G = (second[1:] - second[0]).T
+        phi, phi_dot = self._rows(bodies)
+        alpha = self.baumgarte
+        target = -second[0] - 2.0 * alpha * phi_dot[0] - alpha * alpha * phi[0]
+        condition = np.linalg.cond(G)
+        if not np.isfinite(condition) or condition > 1e12:
+            raise SimulationError(f"spatial kinematic loop {self.name!r}: the cut joints' boundary compliance is "
+                                  f"singular (condition {condition:.2e}) at t = {t} s: a singular configuration of "
+                                  "the loop or redundant cut rows (e.g. a revolute cut closing a planar loop: use a "
+                                  "spherical cut there)", time=t, element=self.cuts[0].name)
+        lam = np.linalg.solve(G, target)
+        return rates[0] + (rates[1:] - rates[0]).T @ lam, lam
+
+    def cut_loads(self, q: Any, lam: np.ndarray, t: float = 0.0) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Per cut: ``(force, moment)`` on the child [N, N m], world axes, from the unknowns ``lam``
+        (:meth:`solve`) at ``q`` (a spherical cut's moment is zero)."""
+        q = np.asarray(q, float)
+        bodies = self._bodies(q, np.zeros(self.tree.n_velocities), t)
+        out, row = [], 0
+        for (parent, child), axes in zip(self._sides, self._axes):
+            force, moment = np.array(lam[row:row + 3]), np.zeros(3)
+            if axes is not None:
+                u = bodies[child.body][0][0] @ axes[0]
+                for i, b_local in enumerate(axes[1]):
+                    b = b_local if parent.body < 0 else bodies[parent.body][0][0] @ b_local
+                    moment += lam[row + 3 + i] * _cross(u, b)
+            out.append((force, moment))
+            row += 3 if axes is None else 5
+        return out
+
+    def cut_inputs(self, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | SpatialInputs | None = None
+                   ) -> SpatialInputs:
+        """The cut loads at ``(q, v, t)`` (:meth:`solve` with the actuator ``inputs``) as actuator values of the tree
+        -- the force and moment on each cut's child point, their opposites on the parent point (world axes) --
+        together with ``inputs``: with them the tree's own sweep (e.g. an iterate of a DT-TMM scheme,
+        :func:`ctmm.spatial.implicit.simulate_spatial_implicit` ``input_map``) moves as the closed loop."""
+        q, v = np.asarray(q, float), np.asarray(v, float)
+        lam = self.solve(q, v, t, inputs)[1]
+        joint = dict(inputs.joint) if isinstance(inputs, SpatialInputs) else dict(inputs or {})
+        wrenches: dict[int, list] = {}
+        if isinstance(inputs, SpatialInputs):
+            for body, entries in inputs.wrenches.items():
+                wrenches[body] = list(entries)
+        for (parent, child), (force, moment) in zip(self._sides, self.cut_loads(q, lam, t)):
+            load = np.concatenate([force, moment]).reshape(1, 6, 1)
+            for side, sign in ((child, 1.0), (parent, -1.0)):
+                if side.body >= 0:
+                    wrenches.setdefault(side.body, []).append((side.point, sign * load))
+        return SpatialInputs(joint, wrenches)
+
+    # -- assembly and projection -------------------------------------------------------------------------
+    def _held(self, keep: Sequence[str]) -> list[int]:
+        """Velocity indices held by ``keep`` (joint names, velocity names, or coordinate names of 1- and 2-DOF
+        joints)."""
+        tree = self.tree
+        names: dict[str, list[int]] = {}
+        for joint, layout in zip(tree.joints, tree.layout):
+            indices = list(range(layout.velocity.start, layout.velocity.stop))
+            if indices:
+                names[joint.name] = indices
+        for k, name in enumerate(tree.velocities):
+            names[name] = [k]
+        for joint, layout in zip(tree.joints, tree.layout):
+            if joint.kind in ("revolute", "prismatic", "universal") and not joint.driven:
+                for i, name in enumerate(tree.coordinates[layout.position]):
+                    names[name] = [layout.velocity.start + i]
+        if isinstance(keep, str):
+            keep = [keep]
+        held: list[int] = []
+        for name in keep:
+            if name not in names:
+                raise unknown_name("keep (joint, velocity or 1-/2-DOF coordinate)", name, list(names))
+            held += names[name]
+        return sorted(set(held))
+
+    def consistent_state(self, q: Any = None, v: Any = None, *, keep: Sequence[str] = (), tolerance: float = 1e-12
+                         ) -> tuple[np.ndarray, np.ndarray]:
+        """A state on the cut joints near ``(q, v)`` (arrays or mappings, :meth:`state`) with the motions ``keep``
+        held (joint names, e.g. the crank's, or coordinate / velocity names): Gauss-Newton on ``Phi = 0`` along
+        ``q (+) dx`` and a least-squares ``J v = 0`` over the free velocities.
+
+        Raises
+        ------
+        ModelError
+            No assembled configuration found (50 Gauss-Newton steps).
+        """
+        q, v = self.state(q, v)
+        held = self._held(keep)
+        free = [k for k in range(self.tree.n_velocities) if k not in held]
+        for _ in range(50):
+            phi, _ = self.constraints(q, v)
+            if np.max(np.abs(phi)) < tolerance:
+                break
+            dx = np.zeros(self.tree.n_velocities)
+            dx[free] = -np.linalg.lstsq(self.jacobian(q)[:, free], phi, rcond=None)[0]
+            q = self.retract(q, dx)
+        else:
+            raise ModelError(f"spatial kinematic loop {self.name!r}: no assembled configuration near the given "
+                             f"coordinates (|Phi| = {np.max(np.abs(phi)):.3e} after 50 Gauss-Newton steps); check "
+                             "the geometry, the cut points and the held motions")
+        _, rate, J = self._rows_and_jacobian(q, v, 0.0)
+        v = v.copy()
+        v[free] -= np.linalg.lstsq(J[:, free], rate, rcond=None)[0]     # Phi'(q, v) = 0 (driven rates included)
+        return q, v
+
+    def _rows_and_jacobian(self, q: np.ndarray, v: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``Phi``, ``Phi'`` and ``J`` at ``(q, v)`` from one batched kinematics pass (states ``(q, v)``, ``(q, 0)``,
+        ``(q, e_k)``: ``J`` column ``k`` is ``Phi'(q, e_k) - Phi'(q, 0)``, the rate of driven joints taken out)."""
+        nv = self.tree.n_velocities
+        phi, rate = self._rows(self._bodies(np.broadcast_to(q, (2 + nv, len(q))),
+                                            np.vstack([v[None], np.zeros((1, nv)), np.eye(nv)]), t))
+        return phi[0], rate[0], (rate[2:] - rate[1]).T.copy()
+
+    def project(self, q: np.ndarray, v: np.ndarray, t: float = 0.0, iterations: int = 3
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """Minimum-norm projection of ``(q, v)`` onto ``Phi = 0``, ``Phi' = 0`` (a few Gauss-Newton steps along
+        ``q (+) dx``; quaternions renormalised)."""
+        q = self.tree.normalized(q)
+        phi, rate, J = self._rows_and_jacobian(q, v, t)
+        for _ in range(iterations):
+            if np.max(np.abs(phi)) < 1e-14:
+                break
+            q = self.retract(q, -np.linalg.lstsq(J, phi, rcond=None)[0])
+            phi, rate, J = self._rows_and_jacobian(q, v, t)
+        return q, v - np.linalg.lstsq(J, rate, rcond=None)[0]          # Phi'(q, v) = 0 (driven rates included)

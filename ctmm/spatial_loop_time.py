@@ -1,0 +1,135 @@
+""":func:`ctmm.simulate` of a spatial kinematic loop model (``ctmm.spatial.SpatialKinematicLoopModel``), alone or with
+feedback loops, port actuator inputs, references, sensor outputs or controllers (``docs/closed_loops.md`` §8.3, §8.6).
+
+Alone (joint actuator inputs at most) it runs its own integrators
+(:func:`ctmm.spatial.closed_loop_time.simulate_spatial_loops`: RK4 with projection, ``solve_ivp`` with Baumgarte) or
+a DT-TMM scheme on the tree with the cut loads as iterate inputs (:func:`_scheme_run`);
+otherwise the one loop-closing driver (:func:`ctmm.control.planar_time.simulate_closed_loop`) on its plant
+(:class:`~ctmm.spatial.closed_loop_plant.SpatialLoopPlant`).  Top level (not in ``ctmm.spatial``): it reaches into
+``ctmm.control``, which imports ``ctmm.spatial``.
+"""
+from __future__ import annotations
+
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from . import validation
+from .control.planar_time import simulate_closed_loop
+from .errors import ModelError
+from .results import SimulationResult
+from .schemes import SCHEMES, Scheme
+from .signal_results import SignalSystem, signal_result
+from .spatial.closed_loop_plant import add_cut_signals
+from .spatial.closed_loop_time import simulate_spatial_loops
+from .spatial.closed_loops import SpatialKinematicLoopModel
+from .spatial.implicit import simulate_spatial_implicit
+from .spatial.integrate import SCIPY_METHODS, spatial_signals
+
+__all__ = ["simulate_spatial_loop_system"]
+
+
+def simulate_spatial_loop_system(system: Any, t_final: float, dt: float | None, *, method: Any, x0: Any, v0: Any,
+                                 inputs: Any, outputs: Sequence[str], controllers: list, references: dict,
+                                 coupling: str, rtol: float, atol: float, max_step: float | None, store_every: int,
+                                 progress: bool | None, stability_check: str | None, divergence_bound: float | None,
+                                 unsupported: Mapping[str, tuple[Any, Any]]) -> SimulationResult:
+    """:func:`ctmm.simulate` of a spatial kinematic loop model, alone or with feedback loops.
+
+    Alone, with joint actuator ``inputs`` only: RK4 with projection (default), a ``solve_ivp`` method
+    (:func:`simulate_spatial_loops`) or a DT-TMM scheme (:func:`_scheme_run`).  With feedback loops (``ctmm.control.with_feedback(loop_model, loops)``), port
+    actuator inputs, ``references``, sensor ``outputs`` or ``controllers``: the one loop-closing driver
+    (:func:`ctmm.control.planar_time.simulate_closed_loop`) on :class:`~ctmm.spatial.closed_loop_plant.SpatialLoopPlant`
+    (``"rk4"`` and ``solve_ivp``; drift held by Baumgarte only).
+
+    The result holds the tree's signals (:func:`ctmm.spatial.integrate.spatial_signals`: coordinates, velocities,
+    body positions and angular velocities), ``"<cut>.force_x|y|z"`` [N] and, for revolute cuts,
+    ``"<cut>.moment_x|y|z"`` [N m] (on the child, world axes), ``"drift"`` and ``"drift_rate"``, with loops
+    ``"<loop>.y"``, ``"<loop>.u"``.
+
+    Raises
+    ------
+    ModelError
+        A DT-TMM scheme or another option that does not apply (``unsupported``: ``{option: (value, default)}``,
+        refused by name unless at the default), an inconsistent initial state.
+    """
+    model = system if isinstance(system, SpatialKinematicLoopModel) else system.plant
+    loops = () if system is model else tuple(system.loops)
+    for name, (value, default) in unsupported.items():
+        if value is not default and value != default:
+            raise ModelError(f"{name}={value!r} is not available for the spatial kinematic loop model {model.name!r} "
+                             f"(RK4 or solve_ivp on the closed-loop accelerations, from t = 0); leave {name} at "
+                             f"{default!r}")
+    scheme = isinstance(method, Scheme) or (isinstance(method, str) and method in SCHEMES)
+    if not scheme and (not isinstance(method, str) or method not in ("rk4",) + SCIPY_METHODS):
+        raise ModelError(f"method={method!r} is not available for the spatial kinematic loop model {model.name!r}: "
+                         f"use 'rk4', a solve_ivp method {SCIPY_METHODS} or a DT-TMM scheme {tuple(SCHEMES)}")
+    if inputs is not None and not isinstance(inputs, Mapping):
+        raise ModelError(f"inputs must be a mapping {{actuator name: number or f(t)}}, got {inputs!r:.80}")
+    port_inputs = any(name not in model.tree.inputs for name in inputs or {})
+    q0, v0 = model.state(x0, v0)
+    driver = bool(loops or controllers or references or tuple(outputs) or port_inputs)
+    if driver or scheme:
+        phi, phi_dot = model.constraints(q0, v0)
+        if np.max(np.abs(phi)) > 1e-8 or np.max(np.abs(phi_dot)) > 1e-8:
+            raise ModelError(f"spatial kinematic loop {model.name!r}: the initial state violates the cut joints "
+                             f"(|Phi| = {np.max(np.abs(phi)):.3e}, |Phi'| = {np.max(np.abs(phi_dot)):.3e}); start "
+                             "from SpatialKinematicLoopModel.consistent_state")
+    if scheme:
+        if driver:
+            raise ModelError(f"method={method!r}: the DT-TMM schemes are not implemented for the spatial kinematic loop "
+                             f"model {model.name!r} with loops, controllers, references, outputs or port inputs yet; "
+                             "use 'rk4' or a solve_ivp method there")
+        return _scheme_run(model, t_final, dt, method, q0, v0, inputs, store_every, divergence_bound)
+    if driver:
+        if isinstance(outputs, (str, Mapping)) or not isinstance(outputs, (list, tuple)):
+            raise ModelError(f"outputs must be a list or tuple of sensor names (str), got {outputs!r}")
+        policy = "warn" if stability_check is None else validation.option("stability_check", stability_check,
+                                                                           ("warn", "error", "ignore"))
+        return simulate_closed_loop(model, q0, v0, t_final, dt, method=method, loops=loops, controllers=controllers,
+                                    inputs=dict(inputs or {}), references=references, outputs=tuple(outputs),
+                                    coupling=coupling, rtol=rtol, atol=atol,
+                                    max_step=np.inf if max_step is None else validation.positive("max_step", max_step),
+                                    store_every=store_every, progress=progress, stability_check=policy,
+                                    divergence_bound=divergence_bound)
+    for name, value, default in (("coupling", coupling, "hold"), ("progress", progress, None),
+                                 ("stability_check", stability_check, None),
+                                 ("divergence_bound", divergence_bound, None)):
+        if value is not default and value != default:
+            raise ModelError(f"{name}={value!r} applies to runs with loops, controllers or port inputs; the spatial "
+                             f"kinematic loop model {model.name!r} alone runs its own integrator: leave {name} at "
+                             f"{default!r}")
+    run = simulate_spatial_loops(model, q0, v0, t_final=t_final, dt=dt, method=method, inputs=inputs, rtol=rtol,
+                                 atol=atol, store_every=store_every, max_step=max_step)
+    signals, units = spatial_signals(model.tree, run.t, np.concatenate([run.q, run.v], axis=1))
+    add_cut_signals(model, signals, units, run.cut_force, run.cut_moment, run.drift, run.drift_rate)
+    info = {"wall_time_s": run.wall_time_s, "n_evaluations": run.n_evaluations, "max_drift": float(run.drift.max()),
+            "projection": method == "rk4", "baumgarte": model.baumgarte}
+    return signal_result(SignalSystem(model, units), run.t, signals, method, info)
+
+
+def _scheme_run(model: SpatialKinematicLoopModel, t_final: float, dt: float | None, scheme: Any, q0: np.ndarray,
+                v0: np.ndarray, inputs: Mapping[str, Any] | None, store_every: int,
+                divergence_bound: float | None) -> SimulationResult:
+    """A DT-TMM scheme on the spanning tree (:func:`ctmm.spatial.implicit.simulate_spatial_implicit`) with the cut
+    loads re-solved at every iterate from the boundary compliance and applied as actuator values
+    (:meth:`SpatialKinematicLoopModel.cut_inputs` as its ``input_map``: their state dependence enters the iteration
+    matrix); drift held by Baumgarte only (no projection), reported with the cut loads."""
+    tree = model.tree
+    run = simulate_spatial_implicit(tree, t_final, validation.positive("dt", dt), scheme=scheme, x0=q0, v0=v0,
+                                    input_map=lambda t, q, v: model.cut_inputs(q, v, t, inputs),
+                                    store_every=store_every, divergence_bound=divergence_bound)
+    q = np.array([run[name] for name in tree.coordinates]).T.reshape(len(run.time), tree.n_positions)
+    v = np.array([run[name] for name in tree.velocities]).T.reshape(len(run.time), tree.n_velocities)
+    forces = np.zeros((len(run.time), len(model.cuts), 3))
+    moments = np.zeros_like(forces)
+    drift, rate = np.zeros(len(run.time)), np.zeros(len(run.time))
+    for k, t in enumerate(run.time):
+        loads = model.cut_loads(q[k], model.solve(q[k], v[k], float(t), inputs)[1], float(t))
+        forces[k], moments[k] = [f for f, _ in loads], [m for _, m in loads]
+        phi, phi_dot = model.constraints(q[k], v[k], float(t))
+        drift[k], rate[k] = np.max(np.abs(phi)), np.max(np.abs(phi_dot))
+    signals, units = spatial_signals(tree, run.time, np.concatenate([q, v], axis=1))
+    add_cut_signals(model, signals, units, forces, moments, drift, rate)
+    info = {**run.info, "max_drift": float(drift.max()), "projection": False, "baumgarte": model.baumgarte}
+    return signal_result(SignalSystem(model, units), run.time, signals, run.scheme_name, info)
