@@ -58,6 +58,7 @@ from .control.chain_plant import ChainPlant
 from .control.planar_time import loop_unit
 from .errors import ModelError, SimulationError
 from .generated_loop import compiled_time_loop, run_blocks
+from .model_description import describe
 from .results import SimulationResult
 from .saturation import refuse_saturation
 from .schemes import History, Scheme, as_scheme
@@ -289,16 +290,25 @@ class CompiledChainScheme:
         if not (np.array_equal(later.coefficients, maps[0].coefficients) and
                 np.array_equal(later.update, maps[0].update)):
             maps.append(later)                                  # a start-up (Houbolt): steps 0 and 1 differ
-        y, u, h = ca.MX.sym("y", size), ca.MX.sym("u", len(self.actuators)), ca.MX.sym("h")
-        p, t0, k = ca.MX.sym("p", 0), ca.MX.sym("t0"), ca.MX.sym("k")
-        branches = [self._step_function(f"step{j}", form, scheme_maps) for j, scheme_maps in enumerate(maps)]
-        t_n = t0 + k * self.dt
-        new = branches[0](y, t_n, u) if len(maps) == 1 else ca.if_else(k < 2, branches[0](y, t_n, u),
-                                                                     branches[1](y, t_n, u), True)
-        step = ca.Function("step", [y, u, h, p, t0, k], [new])
+
+        def build() -> tuple[Any, list]:
+            y, u, h = ca.MX.sym("y", size), ca.MX.sym("u", len(self.actuators)), ca.MX.sym("h")
+            p, t0, k = ca.MX.sym("p", 0), ca.MX.sym("t0"), ca.MX.sym("k")
+            branches = [self._step_function(f"step{j}", form, scheme_maps) for j, scheme_maps in enumerate(maps)]
+            t_n = t0 + k * self.dt
+            new = branches[0](y, t_n, u) if len(maps) == 1 else ca.if_else(k < 2, branches[0](y, t_n, u),
+                                                                         branches[1](y, t_n, u), True)
+            return ca.Function("step", [y, u, h, p, t0, k], [new]), []
+
         name = f"chain_{m}m_{self.scheme.name}" + (f"_{len(self.loops)}l" if self.loops else "") + (
             f"_{len(self.actuators)}u" if self.actuators else "")
-        loop = compiled_time_loop(step, self.store_every, rows, name, cache_dir=cache_dir, compiler=compiler)
+        # the step reads the chain, dt, the scheme, the references and the held actuators only (and the code):
+        # described, a cached library loads without building it (else the key is the built step's)
+        description = describe((system, self.dt, self.scheme, references, self.actuators))
+        options = {"cache_dir": cache_dir, "compiler": compiler}
+        loop = compiled_time_loop(build()[0], self.store_every, rows, name, **options) if description is None else \
+            compiled_time_loop(build, self.store_every, rows, name, description=[("chain scheme", description)],
+                               **options)
         self._step, self._stride, self._blocks = loop.step, loop.stride, loop.blocks
         self.form = form
         self.compile_time_s = _time.perf_counter() - started
