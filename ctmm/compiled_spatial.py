@@ -49,7 +49,6 @@ from . import validation
 from .articulated import Tree, articulated_sweep
 from .errors import ModelError, SimulationError
 from .generated_loop import compiled_time_loop, rk4_step_function, run_blocks
-from .model_description import describe
 from .ops import CASADI
 from .results import SimulationResult
 from .signal_results import SignalSystem, signal_result
@@ -484,8 +483,9 @@ class CompiledSpatialScene:
             f"_fold{self.rates.period}" if self.rates.period else "")
         options = {"cache_dir": cache_dir, "compiler": compiler,
                    "flags": SPATIAL_FLAGS if flags is None else tuple(flags)}
-        # all the builder reads (with the code): no symbols if cached; numbers="inputs": the step's key (structure)
-        description = describe((model, fold, numbers)) if numbers == "constants" else None
+        from .model_description import describe   # what build() reads: a cached library loads without symbols
+
+        description = describe((model, fold, numbers)) if numbers == "constants" else None   # "inputs": by structure
         if description is not None:
             loop = compiled_time_loop(build, store_every, self.rows, name, description=[("spatial", description)],
                                       **options)
