@@ -24,8 +24,9 @@ through it): the cache key is computed from the serialized step before the block
 built, so a call whose library is cached builds and generates nothing; or, where a family describes
 everything its builder reads (``description``: the model and options by
 :func:`ctmm.model_description.describe`, with the package's code), before the step itself is built, so a
-cached call builds no symbol at all (spatial scenes with their numbers as constants, the DT-TMM schemes
-of chains; the other families, and models with Python callables or foreign objects, keep the step's key).
+cached call builds no symbol at all (spatial scenes and controlled spatial kernels with their numbers as
+constants, the DT-TMM schemes of chains; planar scenes and the chains' RK4, and models holding Python
+callables or foreign objects, keep the built step's key).
 """
 from __future__ import annotations
 
