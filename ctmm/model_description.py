@@ -10,9 +10,10 @@ first, :func:`package_digest` the second:
   bytes, every float exactly (``float.hex``), the class (module and qualified name) of every object, and shared or
   cyclic references as back-references (the graph's shape, not only its leaves).  Whatever it cannot describe
   exactly makes it return ``None``, and the caller keys on the built functions instead: a function or method other
-  than a module-level function of ``ctmm`` without closure (a user's ``lambda`` load, a bound method), a module, an
-  object or class from outside ``ctmm``, ``numpy`` and the builtins (a python-control transfer function, a user's
-  subclass, a casadi object), an object without ``__dict__`` or ``__slots__`` state.
+  than a module-level function of this package without closure or defaults (a user's ``lambda`` load, a bound
+  method), a module, an object or class from outside the package's own files, ``numpy`` and the builtins (a
+  python-control transfer function, a user's subclass, a casadi object, ``ctmm.controllers``, which is mapped from
+  another folder), an object without ``__dict__`` or ``__slots__`` state.
 * :func:`package_digest` is the SHA-256 of the text of every module of the installed ``ctmm`` package, so a change
   of any code that may read the model (element forms, sweeps, generators) gives a new key.
 
@@ -23,6 +24,7 @@ from __future__ import annotations
 
 import enum
 import hashlib
+import sys
 import types
 from pathlib import Path
 from typing import Any
@@ -71,11 +73,19 @@ def package_digest() -> bytes:
     return digest.hexdigest().encode()
 
 
+def _in_package(module_name: str) -> bool:
+    """True for a module loaded from a file of this package (its text is in :func:`package_digest`; not, e.g., the
+    ``ctmm.controllers`` folder mapped from outside it)."""
+    module = sys.modules.get(module_name)
+    path = getattr(module, "__file__", None)
+    return module_name.split(".")[0] == "ctmm" and path is not None and Path(path).resolve().is_relative_to(_PACKAGE)
+
+
 def _known(kind: type) -> bool:
-    """A class whose behaviour the key covers: defined in ctmm (its code is in :func:`package_digest`), numpy
-    or the builtins (versions: the caller's key)."""
+    """A class whose behaviour the key covers: defined in this package (its code is in :func:`package_digest`),
+    numpy or the builtins (versions: the caller's key)."""
     module = getattr(kind, "__module__", "") or ""
-    return module == "builtins" or module.split(".")[0] in ("ctmm", "numpy")
+    return module == "builtins" or module.split(".")[0] == "numpy" or _in_package(module)
 
 
 def _class_name(kind: type) -> bytes:
@@ -100,6 +110,9 @@ def _write(value: Any, out: list[bytes], seen: dict[int, int]) -> None:
         for item in (value.start, value.stop, value.step):
             _write(item, out, seen)
         out.append(b")")
+        return
+    if isinstance(value, np.dtype):
+        out.append(b"D" + value.str.encode() + b";")
         return
     if isinstance(value, np.generic):
         out.append(b"g" + value.dtype.str.encode() + b":" + value.tobytes() + b";")
@@ -150,7 +163,7 @@ def _write_function(value: Any, out: list[bytes]) -> None:
     """A module-level function of ctmm without closure: its name (its code is in :func:`package_digest`)."""
     module = getattr(value, "__module__", "") or ""
     name = getattr(value, "__qualname__", "")
-    if not isinstance(value, types.FunctionType) or module.split(".")[0] != "ctmm" or "<" in name or \
+    if not isinstance(value, types.FunctionType) or not _in_package(module) or "<" in name or \
             value.__closure__ or value.__defaults__ or value.__kwdefaults__:
         raise _NotDescribable(value)
     out.append(b"F" + f"{module}.{name}".encode() + b";")

@@ -17,6 +17,8 @@ from ctmm.elements import Fixed, Free, Mass, SpringDamper
 from ctmm.model_description import describe, package_digest
 from ctmm.signals import Harmonic
 
+from _controllers_import import load_controllers
+
 
 def chain(stiffness: float = 400.0, force=0.0, name: str = "m") -> ctmm.Chain:
     return ctmm.Chain("c", [Fixed("w"), SpringDamper("k", stiffness, 0.3), Mass(name, 2.0, force=force), Free("e")])
@@ -59,6 +61,9 @@ def test_what_cannot_be_described_exactly_is_refused():
         value = 1.0
 
     assert describe(Outside()) is None
+    pid = load_controllers().PID("m.x", "m.force", kp=1.0, ki=0.0, kd=0.0, derivative_filter_time=0.0,
+                                 sample_time=0.01)
+    assert describe(pid) is None                                         # ctmm.controllers: not the package's files
 
 
 def test_package_digest_reads_the_package_text():
