@@ -39,6 +39,15 @@ _FUNCTIONS = (types.FunctionType, types.BuiltinFunctionType, types.MethodType, t
               types.CodeType, types.FrameType, types.GeneratorType)
 
 
+class _Graph:
+    """The walk of one description: objects met so far (``id -> index``) and module verdicts (:func:`_in_package`)."""
+
+    def __init__(self, verdicts: dict[str, bool]) -> None:
+        self.seen: dict[int, int] = {}
+        self.alive: list = []              # every object met stays alive, so no id is reused during the walk
+        self.verdicts = verdicts
+
+
 class _NotDescribable(Exception):
     """Raised inside :func:`describe` at the first value it cannot describe exactly."""
 
@@ -58,7 +67,7 @@ def describe(value: Any) -> bytes | None:
     """
     out: list[bytes] = []
     try:
-        _write(value, out, {})
+        _write(value, out, _Graph({}))
     except (_NotDescribable, RecursionError):
         return None
     return b"".join(out)
@@ -73,28 +82,30 @@ def package_digest() -> bytes:
     return digest.hexdigest().encode()
 
 
-def _in_package(module_name: str) -> bool:
+def _in_package(module_name: str, verdicts: dict[str, bool]) -> bool:
     """True for a module loaded from a file of this package (its text is in :func:`package_digest`; not, e.g., the
-    ``ctmm.controllers`` folder mapped from outside it)."""
-    module = sys.modules.get(module_name)
-    path = getattr(module, "__file__", None)
-    return module_name.split(".")[0] == "ctmm" and path is not None and Path(path).resolve().is_relative_to(_PACKAGE)
+    ``ctmm.controllers`` folder mapped from outside it); ``verdicts`` caches the answers of one description."""
+    if module_name not in verdicts:
+        path = getattr(sys.modules.get(module_name), "__file__", None)
+        verdicts[module_name] = module_name.split(".")[0] == "ctmm" and path is not None and \
+            Path(path).resolve().is_relative_to(_PACKAGE)
+    return verdicts[module_name]
 
 
-def _known(kind: type) -> bool:
+def _known(kind: type, verdicts: dict[str, bool]) -> bool:
     """A class whose behaviour the key covers: defined in this package (its code is in :func:`package_digest`),
     numpy or the builtins (versions: the caller's key)."""
     module = getattr(kind, "__module__", "") or ""
-    return module == "builtins" or module.split(".")[0] == "numpy" or _in_package(module)
+    return module == "builtins" or module.split(".")[0] == "numpy" or _in_package(module, verdicts)
 
 
-def _class_name(kind: type) -> bytes:
-    if not _known(kind):
+def _class_name(kind: type, verdicts: dict[str, bool]) -> bytes:
+    if not _known(kind, verdicts):
         raise _NotDescribable(kind)
     return f"{kind.__module__}.{kind.__qualname__}".encode()
 
 
-def _write(value: Any, out: list[bytes], seen: dict[int, int]) -> None:
+def _write(value: Any, out: list[bytes], graph: "_Graph") -> None:
     kind = type(value)
     if kind in _ATOMS:
         out.append(b"a" + kind.__name__.encode() + b":" + repr(value).encode() + b";")
@@ -108,7 +119,7 @@ def _write(value: Any, out: list[bytes], seen: dict[int, int]) -> None:
     if kind in (slice, range):
         out.append(kind.__name__.encode() + b"(")
         for item in (value.start, value.stop, value.step):
-            _write(item, out, seen)
+            _write(item, out, graph)
         out.append(b")")
         return
     if isinstance(value, np.dtype):
@@ -117,17 +128,18 @@ def _write(value: Any, out: list[bytes], seen: dict[int, int]) -> None:
     if isinstance(value, np.generic):
         out.append(b"g" + value.dtype.str.encode() + b":" + value.tobytes() + b";")
         return
-    if id(value) in seen:                       # shared or cyclic: the graph's shape
-        out.append(b"r" + str(seen[id(value)]).encode() + b";")
+    if id(value) in graph.seen:                       # shared or cyclic: the graph's shape
+        out.append(b"r" + str(graph.seen[id(value)]).encode() + b";")
         return
-    seen[id(value)] = len(seen)
+    graph.seen[id(value)] = len(graph.seen)
+    graph.alive.append(value)
     if isinstance(value, type):
-        out.append(b"t" + _class_name(value) + b";")
+        out.append(b"t" + _class_name(value, graph.verdicts) + b";")
     elif isinstance(value, np.ndarray):
         if value.dtype.hasobject:
             out.append(b"O" + repr(value.shape).encode() + b"[")
             for item in value.reshape(-1):
-                _write(item, out, seen)
+                _write(item, out, graph)
             out.append(b"]")
         else:
             data = np.ascontiguousarray(value).tobytes()
@@ -136,55 +148,55 @@ def _write(value: Any, out: list[bytes], seen: dict[int, int]) -> None:
     elif kind in (tuple, list):
         out.append(kind.__name__.encode() + str(len(value)).encode() + b"[")
         for item in value:
-            _write(item, out, seen)
+            _write(item, out, graph)
         out.append(b"]")
     elif kind is dict:                          # insertion order: generators iterate in it
         out.append(b"d" + str(len(value)).encode() + b"{")
         for key, item in value.items():
-            _write(key, out, seen)
-            _write(item, out, seen)
+            _write(key, out, graph)
+            _write(item, out, graph)
         out.append(b"}")
     elif kind in (set, frozenset):
         parts = []
         for item in value:
             part: list[bytes] = []
-            _write(item, part, {})
+            _write(item, part, _Graph(graph.verdicts))
             parts.append(b"".join(part))
         out.append(b"s" + str(len(value)).encode() + b"{" + b"".join(sorted(parts)) + b"}")
     elif isinstance(value, _FUNCTIONS):
-        _write_function(value, out)
+        _write_function(value, out, graph.verdicts)
     elif isinstance(value, enum.Enum):
-        out.append(b"e" + _class_name(kind) + b"." + value.name.encode() + b";")
+        out.append(b"e" + _class_name(kind, graph.verdicts) + b"." + value.name.encode() + b";")
     else:
-        _write_object(value, out, seen)
+        _write_object(value, out, graph)
 
 
-def _write_function(value: Any, out: list[bytes]) -> None:
+def _write_function(value: Any, out: list[bytes], verdicts: dict[str, bool]) -> None:
     """A module-level function of ctmm without closure: its name (its code is in :func:`package_digest`)."""
     module = getattr(value, "__module__", "") or ""
     name = getattr(value, "__qualname__", "")
-    if not isinstance(value, types.FunctionType) or not _in_package(module) or "<" in name or \
+    if not isinstance(value, types.FunctionType) or not _in_package(module, verdicts) or "<" in name or \
             value.__closure__ or value.__defaults__ or value.__kwdefaults__:
         raise _NotDescribable(value)
     out.append(b"F" + f"{module}.{name}".encode() + b";")
 
 
-def _write_object(value: Any, out: list[bytes], seen: dict[int, int]) -> None:
+def _write_object(value: Any, out: list[bytes], graph: "_Graph") -> None:
     """An object of a ctmm (or numpy) class: its class and every attribute (``__dict__``, then ``__slots__``)."""
     kind = type(value)
-    out.append(b"o" + _class_name(kind) + b"{")
+    out.append(b"o" + _class_name(kind, graph.verdicts) + b"{")
     state = getattr(value, "__dict__", None)
     slots = [name for cls in kind.__mro__ for name in getattr(cls, "__slots__", ()) if name not in ("__dict__",
                                                                                                      "__weakref__")]
     if state is None and not slots:
         raise _NotDescribable(value)
     for name, item in (state or {}).items():
-        _write(name, out, seen)
-        _write(item, out, seen)
+        _write(name, out, graph)
+        _write(item, out, graph)
     for name in slots:
-        _write(name, out, seen)
+        _write(name, out, graph)
         if hasattr(value, name):
-            _write(getattr(value, name), out, seen)
+            _write(getattr(value, name), out, graph)
         else:
             out.append(b"unset;")
     out.append(b"}")
