@@ -76,6 +76,19 @@ def test_one_mass_with_a_sampled_p_controller_converges_to_the_exact_zoh_solutio
     assert 3.5 < errors[0] / errors[1] < 4.5            # second order: 4x per halving
 
 
+def test_stored_every_few_steps_are_the_rows_of_every_step():
+    """``store_every`` keeps every k-th step and the last (the Python path stores every step): the same rows as the
+    run storing every step, the accelerations formed with the held outputs of each row's step."""
+    arguments = dict(method="wilson_theta", x0={"m1": 0.02}, compiled=True,
+                     controllers=[pid("m2.x", "m2.force", 0.003, kp=40.0, reference=0.01)])
+    every = ctmm.simulate(three_masses(), 0.05, 1e-3, **arguments)
+    fourth = ctmm.simulate(three_masses(), 0.05, 1e-3, store_every=4, **arguments)
+    rows = list(range(0, 51, 4)) + [50]
+    np.testing.assert_array_equal(fourth.time, every.time[rows])
+    for name in ("m0.x", "m2.v", "m2.a", "k2.f"):
+        np.testing.assert_array_equal(fourth[name], every[name][rows], err_msg=name)
+
+
 def test_failures_stop_where_the_python_path_stops():
     failed = []
     for compiled in (True, None):
