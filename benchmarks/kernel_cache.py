@@ -10,9 +10,9 @@ Cases (each in a fresh cache folder): a 1-D chain of 100 masses with a real-time
 (``benchmarks/chain_compiled.py`` ``model(100)``, ``start(100)``), 1 s at dt = 1e-3, ``method="rk4"``
 and ``method="newmark"``; a planar pendulum chain of 10 links (RK4, 1 s at 1e-3); a spatial revolute
 chain of 6 and of 16 links (RK4, 1 s at 1e-3); a three-mass chain with a PID on the generated Newmark; the
-16-link chain with a real-time loop in the step and a PID co-simulated every 10 steps (0.2 s).  Rows: first call (generate + compile), then the
-best of seven further calls (library from the cache), each as the whole ``ctmm.simulate`` wall time,
-its CPU time (``time.process_time``: less sensitive to other jobs on the machine) and as
+16-link chain with a real-time loop in the step and a PID co-simulated every 10 steps (0.2 s).  Rows: first
+call (generate + compile), then the best of seven further calls (library from the cache), each as the whole
+``ctmm.simulate`` wall time, its CPU time (``time.process_time``: less sensitive to other jobs on the machine) and as
 ``result.info["compile_time_s"]`` (building the kernel object: symbols, key, loading; the part this
 change acts on), and whether the further calls return the first call's numbers bit for bit.
 The machine is shared (2 cores, other jobs): whole-call times vary by tens of per cent between runs.

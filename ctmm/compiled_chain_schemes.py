@@ -333,9 +333,9 @@ class CompiledChainScheme:
 
     def _step_function(self, label: str, form: Any, maps: SchemeMaps) -> Any:
         """``(state, t_n, u) -> new state`` for one set of scheme maps: the equation of motion at the evaluation
-        level with the loads weighted by ``w`` and the inputs ``u`` held over the step, the real-time loops implicit (their rank-``k`` part by the
-        Woodbury identity on the banded solve), the delayed loops' forces ``(1 - w) u_n + w u_{n+1}`` from the
-        rings, which then take the new sample."""
+        level with the loads weighted by ``w`` and the inputs ``u`` held over the step, the real-time loops
+        implicit (their rank-``k`` part by the Woodbury identity on the banded solve), the delayed loops' forces
+        ``(1 - w) u_n + w u_{n+1}`` from the rings, which then take the new sample."""
         import casadi as ca
 
         m, dt, w = self.m, self.dt, maps.load_weight
@@ -423,9 +423,9 @@ class CompiledChainScheme:
     def start(self, x0: Mapping[str, float] | None, v0: Mapping[str, float] | None,
               held: Mapping[str, float] | None = None) -> np.ndarray:
         """The generated state at ``t = 0``: positions, velocities, the acceleration of the equation of motion
-        with the loops' start forces ``u_0 = -D (y_0 - r(-tau))`` and the ``held`` inputs ``{actuator: value}`` [N], the positions as the older history, each
-        loop's ``[z = 0, e_0 = y_0 - r(0), u_0]`` and ring holding ``y_0`` (the state held before ``t = 0``, as
-        :func:`ctmm.control.simulate.simulate_controlled` starts)."""
+        with the loops' start forces ``u_0 = -D (y_0 - r(-tau))`` and the ``held`` inputs ``{actuator: value}``
+        [N], the positions as the older history, each loop's ``[z = 0, e_0 = y_0 - r(0), u_0]`` and ring holding
+        ``y_0`` (the state held before ``t = 0``, as :func:`ctmm.control.simulate.simulate_controlled` starts)."""
         q, w = self.plant.start(x0, v0)
         blocks, forces = [], []
         for lp in self.loops:

@@ -296,8 +296,9 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
     return result(len(times))
 
 
-def simulate_cosimulated_scheme(system: Any, t_final: float, dt: float | None, scheme: Any, *, controllers: Sequence[Any],
-                                x0: Mapping[str, float] | None = None, v0: Mapping[str, float] | None = None,
+def simulate_cosimulated_scheme(system: Any, t_final: float, dt: float | None, scheme: Any, *,
+                                controllers: Sequence[Any], x0: Mapping[str, float] | None = None,
+                                v0: Mapping[str, float] | None = None,
                                 references: Mapping[str, Any] | None = None, outputs: Sequence[str] = (),
                                 coupling: str = "hold", store_every: int = 1, progress: bool | None = None,
                                 stability_check: str | None = None, divergence_bound: float | None = None,
