@@ -18,6 +18,10 @@ and the error:
    (``scipy.linalg.expm``) [m]; and N = 50 masses (spring-dampers, wall to free end) with a PID on the last mass
    every 10 steps and a real-time loop inside the step, dt = 1 ms: the largest difference generated - numpy over
    the positions [m].
+5. **1-D chains on a DT-TMM scheme** (``method="newmark"`` / ``"houbolt"``, :mod:`ctmm.compiled_chain_schemes` with
+   the controllers' held outputs as its input, ``--only schemes``): the one-mass P loop of 4. (T = 10 s) with both
+   paths' error against the exact sampled-data solution and their difference; N = 5 and 50 masses, a real-time loop
+   in the step and a PID every 10 steps, 2 s at 1 ms: their difference [m].
 
 The first compile is excluded (a warm-up run fills the kernel cache); each timed ``ctmm.simulate`` call still
 builds its kernel from the cache (expressions, C text and its hash, loading the library), which weighs on
@@ -30,8 +34,13 @@ every 10 steps, 290 / 126 us (2.3x) every step; N = 20: 409 / 59 us (6.9x), 326 
 per step (3.3x), both 1.75e-8 m from the exact ZOH solution (T = 10 s, dt = 5 ms); N = 50 masses 247 / 73 us (3.4x),
 difference 0 (the chain's guard is checked at every step in Python on both paths, and the stored forces are
 formed in Python on both).
+  DT-TMM schemes (5., the same day, one run): one mass Newmark 261 / 128 us per step (2.0x), both
+2.800e-4 m from the exact ZOH solution (Newmark's error at dt = 5 ms), difference 2e-16 m; Houbolt 272 / 118 us
+(2.3x), both 1.85e-2 m from it (Houbolt's backward differences span the jumps of the held force), difference 0;
+N = 5 masses Newmark 2.41 ms / 116 us (21x), N = 50: 14.9 ms / 186 us (80x), differences <= 5e-16 m.  The generated
+side is a Python loop per sample interval (the chain's guard at every step, the sample, one call into C).
 
-Run: ``python benchmarks/compiled_cosim.py [--quick]``.
+Run: ``python benchmarks/compiled_cosim.py [--quick] [--only schemes]``.
 """
 from __future__ import annotations
 
@@ -143,7 +152,7 @@ def spatial_case(t_final: float) -> dict:
                difference(list(model.coordinates) + list(model.velocities)))
 
 
-def chain_zoh_case(t_final: float) -> dict:
+def chain_zoh_case(t_final: float, method: str = "rk4") -> dict:
     from ctmm.elements import Fixed as Wall, Free, Mass, Spring
 
     kp, r, h, x0, stiffness, mass = 30.0, 0.02, 0.02, 0.05, 50.0, 2.0
@@ -155,16 +164,18 @@ def chain_zoh_case(t_final: float) -> dict:
 
     def error(python, generated) -> dict:
         return {"numpy_error_m": float(np.max(np.abs(python["m.x"][::4] - exact))),
-                "compiled_error_m": float(np.max(np.abs(generated["m.x"][::4] - exact)))}
+                "compiled_error_m": float(np.max(np.abs(generated["m.x"][::4] - exact))),
+                "largest_difference": float(np.max(np.abs(generated["m.x"] - python["m.x"])))}
 
     def run(compiled):
-        return lambda: ctmm.simulate(chain, t_final, dt, method="rk4", x0={"m": x0}, controllers=[pid],
+        return lambda: ctmm.simulate(chain, t_final, dt, method=method, x0={"m": x0}, controllers=[pid],
                                      compiled=compiled)
 
-    return row("chain, one mass, P controller, h = 4 dt", round(t_final / dt), run(None), run(True), error)
+    return row(f"chain, one mass, P controller, h = 4 dt, {method}", round(t_final / dt), run(None), run(True),
+               error)
 
 
-def chain_case(n: int, t_final: float) -> dict:
+def chain_case(n: int, t_final: float, method: str = "rk4") -> dict:
     from ctmm.control import ControlledChain, Feedback
     from ctmm.elements import Fixed as Wall, Free, Mass, SpringDamper
 
@@ -179,14 +190,23 @@ def chain_case(n: int, t_final: float) -> dict:
                                  derivative_filter_time=0.01, sample_time=10 * dt, reference=0.05)
 
     def run(compiled):
-        return lambda: ctmm.simulate(system, t_final, dt, method="rk4", x0={"m0": 0.01}, controllers=[pid],
+        return lambda: ctmm.simulate(system, t_final, dt, method=method, x0={"m0": 0.01}, controllers=[pid],
                                      compiled=compiled)
 
-    return row(f"chain N = {n} masses, loop + PID every 10 steps", round(t_final / dt), run(None), run(True),
-               difference([f"m{i}.x" for i in range(n)]))
+    return row(f"chain N = {n} masses, loop + PID every 10 steps, {method}", round(t_final / dt), run(None),
+               run(True), difference([f"m{i}.x" for i in range(n)]))
 
 
-def main(quick: bool) -> None:
+def main(quick: bool, only: str | None = None) -> None:
+    scale = 0.2 if quick else 1.0
+    if only == "schemes":           # the DT-TMM rows only (5.)
+        rows = [chain_zoh_case(10.0 * scale, method) for method in ("newmark", "houbolt")]
+        rows += [chain_case(n, 2.0 * scale, "newmark") for n in (5, 50)]
+        out = ROOT / "benchmarks" / "results" / "compiled_cosim_schemes.json"
+        out.parent.mkdir(exist_ok=True)
+        out.write_text(json.dumps({"quick": quick, "rows": rows}, indent=2))
+        print(f"wrote {out}")
+        return
     scale = 0.2 if quick else 1.0
     rows = [torsion_case(10.0 * scale)]
     for n in (5, 20):
@@ -203,4 +223,6 @@ def main(quick: bool) -> None:
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="short runs (a smoke test)")
-    main(parser.parse_args().quick)
+    parser.add_argument("--only", choices=("schemes",), help="only the DT-TMM scheme rows (5.)")
+    arguments = parser.parse_args()
+    main(arguments.quick, arguments.only)

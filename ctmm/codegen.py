@@ -22,7 +22,9 @@ Keyed entries (:func:`load_casadi_keyed`, the generated kernels of ``compiled=Tr
 :func:`ctmm.generated_loop.compiled_time_loop`): ``kernels/<name>-k<key>/``, same files and the same
 publishing, but ``key`` is computed by the caller BEFORE the functions and the C text are built
 (serialized casadi functions, sizes, the code that builds the rest, versions; then the compiler and
-flags), so a cached library loads by its functions' names without generating anything.
+flags), so a cached library loads by its functions' names without generating anything.  A caller that
+keys on a description of its inputs (:mod:`ctmm.model_description`) before building any symbol lets the
+entry store the names too (``<name>.names``).
 """
 from __future__ import annotations
 
@@ -246,9 +248,10 @@ def _checked_flags(flags: Sequence[str]) -> list[str]:
     return list(flags)
 
 
-def _publish(source: str, library: Path, compiler_path: str, flags: list[str]) -> bool:
+def _publish(source: str, library: Path, compiler_path: str, flags: list[str], names: Sequence[str] = ()) -> bool:
     """Compile ``source`` into the cache entry ``library.parent`` (built in a private temporary folder,
-    published by one atomic rename); False when another process published an intact entry first."""
+    published by one atomic rename, with ``names`` (the functions, one per line) in ``<name>.names`` when given);
+    False when another process published an intact entry first."""
     entry, folder, name = library.parent, library.parent.parent, library.stem
     _discard(entry, folder)
     try:
@@ -261,6 +264,8 @@ def _publish(source: str, library: Path, compiler_path: str, flags: list[str]) -
         built = work / library.name
         run_compiler([compiler_path, *flags, "-o", str(built), str(source_file), *LINK_FLAGS],
                      f"{name!r} ({source_file})")
+        if names:
+            (work / f"{name}.names").write_text("".join(label + "\n" for label in names))
         built.with_name(built.name + ".sha256").write_text(_file_digest(built) + "\n")
         try:
             os.rename(work, entry)          # atomic publish; fails when another process won the race
@@ -354,7 +359,8 @@ def load_casadi(functions: Sequence[Any], name: str, **options: Any) -> tuple[An
                  lambda path: tuple(ca.external(label, path) for label in names), (RuntimeError, OSError))
 
 
-def load_casadi_keyed(key_parts: Iterable[tuple[str, bytes]], names: Sequence[str], build: Callable[[], Sequence[Any]],
+def load_casadi_keyed(key_parts: Iterable[tuple[str, bytes]], names: Sequence[str] | None,
+                      build: Callable[[], Sequence[Any]],
                       name: str, *, flags: Sequence[str] = DEFAULT_FLAGS, compiler: str | os.PathLike | None = None,
                       cache_dir: str | os.PathLike | None = None) -> tuple[Any, ...]:
     """Casadi functions ``names`` loaded with ``casadi.external`` from the library cached under a key
@@ -372,9 +378,11 @@ def load_casadi_keyed(key_parts: Iterable[tuple[str, bytes]], names: Sequence[st
     ----------
     key_parts : iterable of (str, bytes)
         Labelled inputs that determine the functions (see :func:`cache_key`).
-    names : sequence of str
+    names : sequence of str or None
         Names of the functions, in the order returned; ``build()`` must return functions of exactly
-        these names in this order.
+        these names in this order.  ``None``: the names are those ``build()`` returns, stored in the
+        entry (``<name>.names``) and read from it when the library is cached (then ``key_parts`` must
+        determine them too).
     build : callable
         ``build() -> [casadi.Function]``, called on a cache miss only.
     name : str
@@ -391,22 +399,28 @@ def load_casadi_keyed(key_parts: Iterable[tuple[str, bytes]], names: Sequence[st
     import casadi as ca
 
     _check_name(name)
-    flags, names = _checked_flags(flags), list(names)
+    flags, stored = _checked_flags(flags), names is None
+    names = [] if names is None else list(names)
     compiler_path = find_compiler(compiler)
-    key = cache_key(_KEYED_FORMAT, (*key_parts, ("names", "\0".join(names).encode()), ("codegen", _CODEGEN_TEXT),
+    key = cache_key(_KEYED_FORMAT, (*key_parts, ("names", "\0".join(names).encode() if names else b"\0stored"),
+                                    ("codegen", _CODEGEN_TEXT),
                                     ("casadi", ca.__version__.encode()),
                                     ("compiler", compiler_identity(compiler_path)),
                                     ("flags", "\0".join(flags + list(LINK_FLAGS)).encode())))
     folder = cache_directory(cache_dir, subfolder="kernels")
     library = folder / f"{name}-k{key[:24]}" / f"{name}.so"
     for attempt in (0, 1):
-        if not _intact(library):
+        if not _intact(library) or (stored and not library.with_suffix(".names").is_file()):
             functions = list(build())
             built_names = [function.name() for function in functions]
-            if built_names != names:
+            if stored:
+                names = built_names
+            elif built_names != names:
                 raise ModelError(f"library {name!r}: build() returned the functions {built_names}, the key names "
                                  f"{names}; they must be the same, in the same order")
-            _publish(casadi_source(functions, name), library, compiler_path, flags)
+            _publish(casadi_source(functions, name), library, compiler_path, flags, names if stored else ())
+        elif stored:
+            names = library.with_suffix(".names").read_text().split()
         try:
             return tuple(ca.external(label, str(library)) for label in names)
         except (RuntimeError, OSError) as exc:

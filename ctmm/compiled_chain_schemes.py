@@ -33,7 +33,11 @@ the step grid by the trapezoidal rule, references as :mod:`ctmm.signals` signals
 
 Refused (:class:`~ctmm.errors.ModelError`): what the generated RK4 of chains refuses (massless points,
 prescribed boundary motions, load signals without a symbolic form, delays that are not whole multiples
-of ``dt``), saturated loops (linear in the step) and co-simulated controllers.
+of ``dt``) and saturated loops (linear in the step).
+
+Co-simulated controllers: their held outputs are the input ``u`` of the step (``actuators``, constant over a
+step, so the load weighting leaves them unchanged), and :func:`ctmm.compiled_cosim.simulate_cosimulated_scheme`
+samples them in Python between calls into the C (:meth:`CompiledChainScheme.continue_run`).
 """
 from __future__ import annotations
 
@@ -54,6 +58,7 @@ from .control.chain_plant import ChainPlant
 from .control.planar_time import loop_unit
 from .errors import ModelError, SimulationError
 from .generated_loop import compiled_time_loop, run_blocks
+from .model_description import describe
 from .results import SimulationResult
 from .saturation import refuse_saturation
 from .schemes import History, Scheme, as_scheme
@@ -61,7 +66,8 @@ from .signal_results import SignalSystem, signal_result
 from .step_limit import check_scheme_step
 from .signals import signal_parameters, symbolic_signal
 
-__all__ = ["SchemeMaps", "CompiledChainScheme", "simulate_chain_scheme_generated", "simulate_scheme_verb"]
+__all__ = ["SchemeMaps", "CompiledChainScheme", "check_scheme_options", "scheme_result",
+           "simulate_chain_scheme_generated", "simulate_scheme_verb"]
 
 HISTORY = ("x", "v", "a", "x_old1", "x_old2")
 """The stored history of every point, in the order of the generated state."""
@@ -211,6 +217,9 @@ class CompiledChainScheme:
         Steps per stored state, stored states per generated block.
     references : mapping, optional
         ``{loop: number or ctmm.signals signal}`` [sensed unit].
+    actuators : sequence of str, optional
+        Actuators (first inputs of body elements, [N]) driven by values held over each step: the input ``u`` of
+        the generated step (the outputs of co-simulated controllers, :mod:`ctmm.compiled_cosim`).
     cache_dir, compiler
         Of :func:`ctmm.codegen.shared_library`.
 
@@ -221,12 +230,16 @@ class CompiledChainScheme:
     loops : list of SchemeLoop
     state_size : int
         ``5 m`` (``[x, v, a, x_{n-1}, x_{n-2}]`` of the ``m`` moving masses), then each loop's memory and ring.
+    actuators : tuple of str
+        The held inputs ``u``, in order.
+    held_columns : ndarray, shape (m, len(actuators))
+        Accelerations [m/s^2] of the moving masses per unit held input [N] (``M^-1`` of the unit forces).
     compile_time_s : float
     """
 
     def __init__(self, system: Any, dt: float, scheme: Any = "newmark", *, store_every: int = 1, rows: int = 64,
-                 references: Mapping[str, Any] | None = None, cache_dir: str | os.PathLike | None = None,
-                 compiler: str | None = None) -> None:
+                 references: Mapping[str, Any] | None = None, actuators: Sequence[str] = (),
+                 cache_dir: str | os.PathLike | None = None, compiler: str | None = None) -> None:
         import casadi as ca
 
         started = _time.perf_counter()
@@ -250,8 +263,12 @@ class CompiledChainScheme:
         for name in references:
             if name not in [loop.name for loop in loops]:
                 raise ModelError(f"references[{name!r}]: not a loop; loops: {', '.join(lp.name for lp in loops) or '(none)'}")
-        actuators = list(dict.fromkeys(name for loop in loops for name, _ in loop.actuator_terms))
+        self.actuators = tuple(ports.check_actuator(name, "held actuator") for name in actuators)
+        looped = list(dict.fromkeys(name for loop in loops for name, _ in loop.actuator_terms))
+        actuators = list(dict.fromkeys([*looped, *self.actuators]))
         form = affine_form(self.dynamics, [ports.inputs({name: 1.0}) for name in actuators])
+        self.held_columns = np.column_stack([form.B[:, actuators.index(name)] for name in self.actuators]) \
+            if self.actuators else np.zeros((form.Ax.shape[0], 0))
         m = self.m = self.plant.n_positions
         self._certify(form)
         self.loops, size = [], 5 * m
@@ -273,15 +290,25 @@ class CompiledChainScheme:
         if not (np.array_equal(later.coefficients, maps[0].coefficients) and
                 np.array_equal(later.update, maps[0].update)):
             maps.append(later)                                  # a start-up (Houbolt): steps 0 and 1 differ
-        y, u, h, p = ca.MX.sym("y", size), ca.MX.sym("u", 0), ca.MX.sym("h"), ca.MX.sym("p", 0)
-        t0, k = ca.MX.sym("t0"), ca.MX.sym("k")
-        branches = [self._step_function(f"step{j}", form, scheme_maps) for j, scheme_maps in enumerate(maps)]
-        t_n = t0 + k * self.dt
-        new = branches[0](y, t_n) if len(maps) == 1 else ca.if_else(k < 2, branches[0](y, t_n), branches[1](y, t_n),
-                                                                  True)
-        step = ca.Function("step", [y, u, h, p, t0, k], [new])
-        name = f"chain_{m}m_{self.scheme.name}" + (f"_{len(self.loops)}l" if self.loops else "")
-        loop = compiled_time_loop(step, self.store_every, rows, name, cache_dir=cache_dir, compiler=compiler)
+
+        def build() -> tuple[Any, list]:
+            y, u, h = ca.MX.sym("y", size), ca.MX.sym("u", len(self.actuators)), ca.MX.sym("h")
+            p, t0, k = ca.MX.sym("p", 0), ca.MX.sym("t0"), ca.MX.sym("k")
+            branches = [self._step_function(f"step{j}", form, scheme_maps) for j, scheme_maps in enumerate(maps)]
+            t_n = t0 + k * self.dt
+            new = branches[0](y, t_n, u) if len(maps) == 1 else ca.if_else(k < 2, branches[0](y, t_n, u),
+                                                                         branches[1](y, t_n, u), True)
+            return ca.Function("step", [y, u, h, p, t0, k], [new]), []
+
+        name = f"chain_{m}m_{self.scheme.name}" + (f"_{len(self.loops)}l" if self.loops else "") + (
+            f"_{len(self.actuators)}u" if self.actuators else "")
+        # the step reads the chain, dt, the scheme, the references and the held actuators only (and the code):
+        # described, a cached library loads without building it (else the key is the built step's)
+        description = describe((system, self.dt, self.scheme, references, self.actuators))
+        options = {"cache_dir": cache_dir, "compiler": compiler}
+        loop = compiled_time_loop(build()[0], self.store_every, rows, name, **options) if description is None else \
+            compiled_time_loop(build, self.store_every, rows, name, description=[("chain scheme", description)],
+                               **options)
         self._step, self._stride, self._blocks = loop.step, loop.stride, loop.blocks
         self.form = form
         self.compile_time_s = _time.perf_counter() - started
@@ -305,17 +332,17 @@ class CompiledChainScheme:
                                  "Harmonic, Step or SquareWave, or use compiled=False")
 
     def _step_function(self, label: str, form: Any, maps: SchemeMaps) -> Any:
-        """``(state, t_n) -> new state`` for one set of scheme maps: the equation of motion at the evaluation
-        level with the loads weighted by ``w``, the real-time loops implicit (their rank-``k`` part by the
-        Woodbury identity on the banded solve), the delayed loops' forces ``(1 - w) u_n + w u_{n+1}`` from the
-        rings, which then take the new sample."""
+        """``(state, t_n, u) -> new state`` for one set of scheme maps: the equation of motion at the evaluation
+        level with the loads weighted by ``w`` and the inputs ``u`` held over the step, the real-time loops
+        implicit (their rank-``k`` part by the Woodbury identity on the banded solve), the delayed loops' forces
+        ``(1 - w) u_n + w u_{n+1}`` from the rings, which then take the new sample."""
         import casadi as ca
 
         m, dt, w = self.m, self.dt, maps.load_weight
         Ax, Av = form.Ax, form.Av
         matrix = maps.C * np.eye(m) - maps.cx * Ax - maps.A * Av
         solve = _solver(matrix)
-        y, t_n = ca.MX.sym("y", self.state_size), ca.MX.sym("t")
+        y, t_n, u = ca.MX.sym("y", self.state_size), ca.MX.sym("t"), ca.MX.sym("u", len(self.actuators))
         parts = [y[j * m:(j + 1) * m] for j in range(5)]
         dx, B, D = (sum((float(maps.coefficients[r, c]) * parts[c] for c in range(5) if maps.coefficients[r, c]),
                         ca.MX.zeros(m)) for r in range(3))
@@ -325,6 +352,8 @@ class CompiledChainScheme:
             if w != 1.0:
                 symbolic = (1.0 - w) * symbolic_signal(type(signal), t_n, signal_parameters(signal)) + w * symbolic
             forcing = forcing + ca.DM(column) * symbolic
+        if self.actuators:                             # held over the step: (1 - w) u + w u = u
+            forcing = forcing + ca.mtimes(ca.DM(self.held_columns), u)
         rhs = ca.mtimes(ca.DM(scipy.sparse.csc_matrix(Ax)), dx) + ca.mtimes(ca.DM(scipy.sparse.csc_matrix(Av)), B) \
             + forcing - D
         t_eval = t_n + maps.offset
@@ -368,7 +397,7 @@ class CompiledChainScheme:
             new.append(ca.vertcat(z, e_now, u_now))
             if lp.steps:
                 new.append(ca.vertcat(y[lp.ring + 1:lp.ring + lp.steps + 1], sample))
-        return ca.Function(label, [y, t_n], [ca.vertcat(*new)])
+        return ca.Function(label, [y, t_n, u], [ca.vertcat(*new)])
 
     def loop_forces(self, t: float, state: np.ndarray) -> list[float]:
         """``u`` [actuator unit] of every loop at ``t`` [s] in a generated ``state`` (a static real-time loop from
@@ -382,19 +411,21 @@ class CompiledChainScheme:
                 out.append(-lp.gain * (y - float(lp.reference(t))))
         return out
 
-    def actuator_inputs(self, forces: Sequence[float]) -> dict | None:
-        """The loops' forces as ``{element position: {input: value}}`` [N] (None without loops)."""
-        values: dict[str, float] = {}
+    def actuator_inputs(self, forces: Sequence[float], held: Mapping[str, float] | None = None) -> dict | None:
+        """The loops' forces and the ``held`` inputs ``{actuator: value}`` as ``{element position: {input: value}}``
+        [N] (None without either)."""
+        values: dict[str, float] = dict(held or {})
         for lp, u in zip(self.loops, forces):
             for name, weight in lp.loop.actuator_terms:
                 values[name] = values.get(name, 0.0) + weight * u
         return self.plant.ports.inputs(values) if values else None
 
-    def start(self, x0: Mapping[str, float] | None, v0: Mapping[str, float] | None) -> np.ndarray:
+    def start(self, x0: Mapping[str, float] | None, v0: Mapping[str, float] | None,
+              held: Mapping[str, float] | None = None) -> np.ndarray:
         """The generated state at ``t = 0``: positions, velocities, the acceleration of the equation of motion
-        with the loops' start forces ``u_0 = -D (y_0 - r(-tau))``, the positions as the older history, each
-        loop's ``[z = 0, e_0 = y_0 - r(0), u_0]`` and ring holding ``y_0`` (the state held before ``t = 0``, as
-        :func:`ctmm.control.simulate.simulate_controlled` starts)."""
+        with the loops' start forces ``u_0 = -D (y_0 - r(-tau))`` and the ``held`` inputs ``{actuator: value}``
+        [N], the positions as the older history, each loop's ``[z = 0, e_0 = y_0 - r(0), u_0]`` and ring holding
+        ``y_0`` (the state held before ``t = 0``, as :func:`ctmm.control.simulate.simulate_controlled` starts)."""
         q, w = self.plant.start(x0, v0)
         blocks, forces = [], []
         for lp in self.loops:
@@ -404,13 +435,19 @@ class CompiledChainScheme:
                 blocks.append(np.concatenate([np.zeros(lp.order), [y0 - float(lp.reference(0.0)), forces[-1]]]))
             if lp.steps:
                 blocks.append(np.full(lp.steps + 1, y0))
-        a = self.dynamics.rate(0.0, np.concatenate([q, w]), self.actuator_inputs(forces))[self.m:]
+        a = self.dynamics.rate(0.0, np.concatenate([q, w]), self.actuator_inputs(forces, held))[self.m:]
         return np.concatenate([q, w, a, q, q, *blocks])
 
     def run(self, state: np.ndarray, n_steps: int) -> np.ndarray:
         """Stored states (rows, :attr:`state_size`) after every ``store_every`` steps and the last."""
+        return self.continue_run(state, np.zeros(len(self.actuators)), n_steps, 0)
+
+    def continue_run(self, state: np.ndarray, held: np.ndarray, n_steps: int, first_step: int) -> np.ndarray:
+        """Stored states (rows, :attr:`state_size`) of ``n_steps`` steps from the whole ``state`` at step
+        ``first_step`` (time ``first_step dt``), the values ``held`` [N] of :attr:`actuators` held over them (one
+        sample interval of co-simulated controllers, :mod:`ctmm.compiled_cosim`)."""
         return run_blocks(self._blocks, self._stride, self._step, self.store_every, np.asarray(state, float)[:, None],
-                          np.zeros(0), self.dt, n_steps, 0.0, np.zeros((0, 1)))[0]
+                          np.asarray(held, float), self.dt, n_steps, 0.0, np.zeros((0, 1)), first_step=first_step)[0]
 
 
 def simulate_chain_scheme_generated(system: Any, t_final: float, dt: float, scheme: Any = "newmark", *,
@@ -482,21 +519,22 @@ def simulate_chain_scheme_generated(system: Any, t_final: float, dt: float, sche
         try:
             guard(float(times[k]), states[k, :2 * m], dt, label)
         except SimulationError as exc:
-            exc.partial_result = _result(compiled, times[:k], states[:k], outputs, info)
+            exc.partial_result = scheme_result(compiled, times[:k], states[:k], outputs, info)
             raise
-    return _result(compiled, times, states, outputs, info)
+    return scheme_result(compiled, times, states, outputs, info)
 
 
-def _result(compiled: CompiledChainScheme, times: np.ndarray, states: np.ndarray, outputs: Sequence[str],
-            info: dict) -> SimulationResult:
+def scheme_result(compiled: CompiledChainScheme, times: np.ndarray, states: np.ndarray, outputs: Sequence[str],
+                  info: dict, held: Sequence[Mapping[str, float]] | None = None) -> SimulationResult:
     """The stored rows as a result: point signals from the states (accelerations and forces of the equation of
-    motion with the loops' forces of each row), and each loop's ``y`` and ``u``."""
+    motion with the loops' forces and the ``held`` inputs ``{actuator: value}`` [N] of each row), and each loop's
+    ``y`` and ``u``."""
     m, label = compiled.m, info["method"]
-    if not compiled.loops:
+    if not compiled.loops and held is None:
         return chain_result(compiled.dynamics, list(times), list(states[:, :2 * m]), label, dict(info))
     forces = np.array([compiled.loop_forces(float(t), row) for t, row in zip(times, states)])
     forces = forces.reshape(len(times), len(compiled.loops))
-    inputs = [compiled.actuator_inputs(row) for row in forces]
+    inputs = [compiled.actuator_inputs(row, None if held is None else held[k]) for k, row in enumerate(forces)]
     plant, system = compiled.plant, compiled.system
     signals, units = plant.signals(times, states[:, :m], states[:, m:2 * m], outputs, inputs=inputs)
     for j, lp in enumerate(compiled.loops):
@@ -506,7 +544,7 @@ def _result(compiled: CompiledChainScheme, times: np.ndarray, states: np.ndarray
         units[f"{name}.y"], units[f"{name}.u"] = loop_unit(plant.ports, lp.loop, "y"), loop_unit(plant.ports, lp.loop,
                                                                                                   "u")
     info = {**info, "loops": {lp.loop.name: ("real-time" if lp.steps == 0 else "history") for lp in compiled.loops}}
-    return signal_result(SignalSystem(system, units, list(system.loops)), times, signals, label, info)
+    return signal_result(SignalSystem(system, units, list(getattr(system, "loops", ()))), times, signals, label, info)
 
 
 def simulate_scheme_verb(system: Any, t_final: float, dt: float | None, scheme: Any, x0: Any, v0: Any,
@@ -514,13 +552,18 @@ def simulate_scheme_verb(system: Any, t_final: float, dt: float | None, scheme: 
                          t0: float, inputs: Any, outputs: Any, references: Mapping[str, Any]) -> SimulationResult:
     """``ctmm.simulate(chain, method=<scheme>, compiled=True)``: the options that do not apply are refused by
     name (``others``: ``{name: (value, default)}`` of the verb), then :func:`simulate_chain_scheme_generated`."""
-    options = {**others, "t0": (t0, 0.0), "inputs": (inputs or None, None)}
+    check_scheme_options(dt, {**others, "t0": (t0, 0.0), "inputs": (inputs or None, None)})
+    return simulate_chain_scheme_generated(system, t_final, dt, scheme, x0=x0, v0=v0, references=references or None,
+                                           outputs=tuple(outputs), store_every=store_every,
+                                           divergence_bound=divergence_bound)
+
+
+def check_scheme_options(dt: float | None, options: Mapping[str, tuple]) -> None:
+    """Refuse, by name, the options ``{name: (value, default)}`` of :func:`ctmm.simulate` that do not apply to the
+    generated DT-TMM step of a chain (any value but the default), and a missing ``dt``."""
     for name, (value, default) in options.items():
         if value is not default and value != default:
             raise ModelError(f"{name}={value!r} does not apply to the generated DT-TMM step of a chain (leave {name} "
                              f"at {default!r}, or use compiled=False)")
     if dt is None:
         raise ModelError("dt is required to simulate a chain (the DT-TMM step [s], > 0), got None")
-    return simulate_chain_scheme_generated(system, t_final, dt, scheme, x0=x0, v0=v0, references=references or None,
-                                           outputs=tuple(outputs), store_every=store_every,
-                                           divergence_bound=divergence_bound)

@@ -14,6 +14,13 @@ master :class:`~ctmm.control.cosim.CoSimulation` calls the controllers in Python
 failure messages and ``"<output>@samples"`` records.  The result equals the numpy path's to round-off
 (``tests/test_compiled_cosim.py``).
 
+With a DT-TMM scheme on a chain (``method="newmark"``, ... ``compiled=True``), :func:`simulate_cosimulated_scheme`
+does the same around the generated scheme step (:mod:`ctmm.compiled_chain_schemes`, the held outputs its input
+``u``) with the Python DT-TMM path's sampling (:func:`ctmm.control.simulate.simulate_controlled`: sampled at
+``t = 0`` before the start acceleration, the history's acceleration restarted by ``M^-1 dF`` where a held output
+jumps).  Planar and spatial models have no generated implicit step: ``compiled=True`` with a scheme is refused
+there (:mod:`ctmm.simulation`, :mod:`ctmm.spatial_simulation`), with or without controllers.
+
 A :class:`~ctmm.control.measurement_delay.DelayedController` reads its inputs ``delay`` seconds late from the
 states of the run; the delay must be a whole multiple of ``dt`` here (the numpy path interpolates its delay
 history between steps; on the grid both read the stored step).  Before ``t = 0`` the initial state is held.
@@ -46,7 +53,7 @@ from .results import SimulationResult
 from .signal_results import SignalSystem, signal_result
 from .spatial.model import SpatialModel
 
-__all__ = ["simulate_cosimulated_generated"]
+__all__ = ["simulate_cosimulated_generated", "simulate_cosimulated_scheme"]
 
 
 def _scene(controlled: Any, dt: float, controllers: Sequence[Any], inputs: Mapping[str, Any],
@@ -281,6 +288,192 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
                 done[0] = step
             state, k = block[-1], following
             bar.update(len(block))
+    except SimulationError as exc:
+        raise with_partial(exc, lambda: result(len(times))) from exc.__cause__
+    finally:
+        bar.close()
+        master.close()
+    return result(len(times))
+
+
+def simulate_cosimulated_scheme(system: Any, t_final: float, dt: float | None, scheme: Any, *,
+                                controllers: Sequence[Any], x0: Mapping[str, float] | None = None,
+                                v0: Mapping[str, float] | None = None,
+                                references: Mapping[str, Any] | None = None, outputs: Sequence[str] = (),
+                                coupling: str = "hold", store_every: int = 1, progress: bool | None = None,
+                                stability_check: str | None = None, divergence_bound: float | None = None,
+                                compiled: Any = None) -> SimulationResult:
+    """A DT-TMM scheme on a chain in generated C between the samples of co-simulated controllers:
+    ``ctmm.simulate(chain, method=<scheme>, compiled=True, controllers=[...])``.
+
+    The controllers' outputs are the held input ``u`` of the generated step
+    (:class:`~ctmm.compiled_chain_schemes.CompiledChainScheme` with ``actuators``): one call into C per sample
+    interval, continued at the interval's step index (Houbolt's start-up, delayed loops' rings and load signals run
+    on).  At each sample instant the master :class:`~ctmm.control.cosim.CoSimulation` calls the controllers exactly
+    as the Python DT-TMM path (:func:`ctmm.control.simulate.simulate_controlled`) does: sampled at ``t = 0`` before
+    the start acceleration (which includes their outputs), then at the end of each interval from the stored
+    positions and velocities, and where a held output jumps the acceleration of the history restarts by
+    ``M^-1 dF`` (the Python path's restart of a lumped chain), so the result equals the Python path's to round-off
+    (``tests/test_compiled_cosim_schemes.py``).
+
+    Parameters
+    ----------
+    system : Chain or ControlledChain
+    t_final, dt : float
+        End time and step [s] (whole multiples of ``dt``, as every sample time and loop delay).
+    scheme : Scheme or str
+    controllers : sequence of Controller
+        Co-simulated controllers (checked by the caller, :func:`ctmm.control.protocol.check_controllers`) reading
+        positions or velocities of points and writing the first input of body elements [N].  Accelerations and
+        forces as controller inputs, and measurement delays, are refused (:class:`ModelError`).
+    x0, v0 : mapping, optional
+        Initial positions [m] / velocities [m/s] by element name.
+    references : mapping, optional
+        ``{loop: number or ctmm.signals signal}`` [sensed unit].
+    outputs : sequence of str
+        Extra signal names (every chain signal is stored).
+    coupling : {"hold", "previous"}
+        As in :class:`~ctmm.control.cosim.CoSimulation`.
+    store_every : int
+        Keep every ``store_every``-th step (the last one always).
+    progress : bool, optional
+        Progress bar over the steps.
+    stability_check : {"warn", "error", "ignore"}, optional
+        ``dt`` against the scheme's step limit of the plant (:func:`ctmm.step_limit.check_scheme_step`).
+    divergence_bound : float, optional
+        Largest distance [m] of a point from rest (the chain's guard, checked at every step).
+    compiled : CompiledChainScheme, optional
+        A kernel of this system, ``dt``, scheme and references whose ``actuators`` are the controllers' outputs
+        (every step stored); by default compiled here (cached on disk).
+
+    Returns
+    -------
+    SimulationResult
+        The point signals (accelerations and forces of the equation of motion with the held outputs of the step
+        that ended at the row), ``"<loop>.y"``, ``"<loop>.u"``, ``"<output>@samples"``; method
+        ``"<scheme>-generated"``, ``info["intervals"]`` (calls into C), ``info["controllers"]``.
+
+    Raises
+    ------
+    ModelError
+        What the generated step or the co-simulation cannot do (named), bad wiring, no compiler.
+    SimulationError
+        Failing controller code, divergence or a non-finite state, with ``partial_result``.
+    """
+    from .compiled_chain import whole_steps
+    from .compiled_chain_schemes import CompiledChainScheme, scheme_result
+    from .schemes import as_scheme
+    from .step_limit import check_scheme_step
+
+    if dt is None:
+        raise ModelError("dt is required to simulate a chain (the DT-TMM step [s], > 0), got None")
+    t_final, dt, n_steps = whole_steps(t_final, dt)
+    store_every = check_store_every(store_every)
+    policy = None if stability_check is None else validation.option("stability_check", stability_check,
+                                                                    ("warn", "error", "ignore"))
+    plant = ChainPlant(system)
+    chain, ports = plant.chain, plant.ports
+    for name in outputs:
+        system.signal(name)
+    sensors, driven = [], []
+    for c in controllers:
+        label = f"controller {getattr(c, 'name', None) or type(c).__name__!r}"
+        if getattr(c, "measurement_delay", 0.0):
+            raise ModelError(f"{label} declares a measurement delay, which the DT-TMM schemes of a chain do not "
+                             "apply (it would be dropped); close a delayed measurement as a Feedback loop with "
+                             "delay=..., or use method='rk4'")
+        for name in c.inputs:
+            signal = chain.signal(name)
+            if signal.derivative >= 2 or signal.component != 0:
+                raise ModelError(f"input {name!r} of {label}: co-simulated controllers of the generated DT-TMM step "
+                                 "read positions and velocities of points (accelerations and forces come from the "
+                                 "Python step's solution); measure a position or velocity, or run with "
+                                 "compiled=False")
+            ports.check_sensor(name, f"input of {label}")
+        sensors.append(ports.resolve(list(c.inputs)))
+        for name in c.outputs:
+            chain.input(name)                       # the names of the Python DT-TMM path: '<element>.<input>'
+            actuator = ports.actuators[ports.check_actuator(name, f"output of {label}")]
+            element = chain.elements[actuator.position]
+            if actuator.input != element.inputs[0]:
+                raise ModelError(f"output {name!r} of {label} is not the first input of {element.name!r}, which "
+                                 "co-simulated controllers cannot drive in time on a DT-TMM scheme; drivable: "
+                                 + ", ".join(f"{e.name}.{e.inputs[0]}" for e in chain.body if e.inputs))
+            driven.append(name)
+    driven = list(dict.fromkeys(driven))
+    if compiled is None:
+        compiled = CompiledChainScheme(system, dt, scheme, store_every=1, references=references, actuators=driven)
+    elif not isinstance(compiled, CompiledChainScheme) or compiled.dt != dt or compiled.store_every != 1 or \
+            compiled.scheme != as_scheme(scheme) or not set(driven) <= set(compiled.actuators):
+        raise ModelError(f"compiled must be a CompiledChainScheme of this chain with dt={dt!r}, scheme={scheme!r}, "
+                         f"store_every=1 and the actuators {driven}, got {compiled!r}")
+    check_scheme_step(chain, compiled.scheme, dt, policy)
+    m, label = compiled.m, f"{compiled.scheme.name}-generated"
+    index = {name: k for k, name in enumerate(compiled.actuators)}
+    lumped = chain.layout.size == 2 and all(e.lumped_coefficients() is not None for e in chain.body)
+    q0, w0 = plant.start(x0, v0)
+    info = {"dt": dt, "method": label, "path": "generated-dttmm", "compile_time_s": compiled.compile_time_s,
+            "n_steps": n_steps}
+    times: list[float] = []
+    rows: list[np.ndarray] = []
+    held_rows: list[dict[str, float]] = []          # the held outputs of the step that ended at each row
+    intervals = 0
+    started = clock.perf_counter()
+
+    def result(count: int) -> SimulationResult:
+        t = np.array(times[:count])
+        block = np.array(rows[:count]).reshape(count, compiled.state_size)
+        out = scheme_result(compiled, t, block, outputs, {
+            **info, "wall_time_s": clock.perf_counter() - started, "intervals": intervals,
+            "controllers": master.describe()}, held_rows[:count])
+        for name, samples in master.outputs(until=t[-1] if count else -math.inf).items():
+            out.extra[name] = samples
+        return out
+
+    try:
+        master = CoSimulation(controllers, dt, 0.0, coupling=coupling)
+    except SimulationError as exc:                  # a controller's init failed: nothing was simulated
+        raise with_partial(exc, lambda: scheme_result(compiled, np.zeros(0), np.zeros((0, compiled.state_size)),
+                                                      outputs, info, [])) from exc.__cause__
+
+    def sample(step: int, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Sample the controllers due at ``step``; the held vector of :attr:`compiled.actuators` after it."""
+        master.sample(step, step * dt, lambda i: np.asarray(ports.values(sensors[i], q, v, step * dt), dtype=float))
+        held = np.zeros(len(index))
+        for c, values in zip(master.controllers, master.held):
+            for name, value in zip(c.outputs, values):
+                held[index[name]] += float(value)
+        return held
+
+    guard = plant.guard(q0, divergence_bound)
+    bar = progress_bar(n_steps, f"ctmm.simulate ({plant.label}, {label})",
+                       enabled=validation.flag("progress", progress, optional=True))
+    try:
+        held = sample(0, q0, w0)
+        state = compiled.start(x0, v0, dict(zip(compiled.actuators, held)))
+        times.append(0.0)
+        rows.append(state)
+        held_rows.append(dict(zip(compiled.actuators, held)))
+        k = 0
+        while k < n_steps:
+            following = min(min((k // r + 1) * r for r in master.ratios), n_steps)
+            block = compiled.continue_run(state, held, following - k, k)
+            intervals += 1
+            applied = dict(zip(compiled.actuators, held))
+            for j, row in enumerate(block):
+                step = k + 1 + j
+                guard(step * dt, row[:2 * m], dt, label)
+                if step % store_every == 0 or step == n_steps:
+                    times.append(float(step * dt))
+                    rows.append(row)
+                    held_rows.append(applied)
+            state, k = block[-1].copy(), following
+            bar.update(len(block))
+            if k < n_steps:
+                now = sample(k, state[:m], state[m:2 * m])
+                if lumped and np.any(now != held):      # the history's acceleration restarts: a_n + M^-1 dF
+                    state[2 * m:3 * m] += compiled.held_columns @ (now - held)
+                held = now
     except SimulationError as exc:
         raise with_partial(exc, lambda: result(len(times))) from exc.__cause__
     finally:

@@ -143,8 +143,6 @@ class SpatialRates:
     """
 
     def __init__(self, model: SpatialModel, *, fold: bool | None = None, numbers: str = "constants") -> None:
-        import casadi as ca
-
         reason = spatial_compile_refusal(model)
         if reason:
             raise ModelError(f"SpatialRates: {reason}")
@@ -159,8 +157,6 @@ class SpatialRates:
                              "parameters= (its numbers constants of the code)")
         self.model = model
         self.layout = spatial_parameter_layout(model) if numbers == "inputs" else []
-        n_p = len(self.layout)
-        nq, nv = model.n_positions, model.n_velocities
         self.actuators = tuple(model.inputs)
         self.widths = tuple(joint.velocity_count for joint in model.joints for _ in joint.inputs)
         period = chain_period(model)
@@ -168,12 +164,33 @@ class SpatialRates:
             raise ModelError(f"SpatialRates: fold=True needs a serial chain of at least two equal segments of "
                              f"{', '.join(FOLD_KINDS)} joints without loads or inputs; model {model.name!r} is not one")
         self.period = period if (fold or (fold is None and model.n_bodies >= FOLD_MIN_BODIES)) else 0
+        self._symbols: tuple | None = None      # (rate, velocity_rate): built when first read
+
+    @property
+    def rate(self) -> Any:
+        """``(y, u, p, t) -> y_dot`` (casadi.Function, built on first use)."""
+        if self._symbols is None:
+            self._symbols = self._build()
+        return self._symbols[0]
+
+    @property
+    def velocity_rate(self) -> Any:
+        """``(q, v, u, p) -> v_dot`` (casadi.Function, built on first use)."""
+        if self._symbols is None:
+            self._symbols = self._build()
+        return self._symbols[1]
+
+    def _build(self) -> tuple[Any, Any]:
+        """``(rate, velocity_rate)`` on casadi symbols."""
+        import casadi as ca
+
+        model, n_p = self.model, len(self.layout)
+        nq, nv = model.n_positions, model.n_velocities
         if self.period:
-            self.velocity_rate = folded_velocity_rate(model, self.period, self.layout)
+            velocity_rate = folded_velocity_rate(model, self.period, self.layout)
             y, u_mx, p, t = ca.MX.sym("y", nq + nv), ca.MX.sym("u", 0), ca.MX.sym("p", n_p), ca.MX.sym("t")
-            self.rate = ca.Function("rate", [y, u_mx, p, t], [ca.vertcat(y[nq:], self.velocity_rate(
-                y[:nq], y[nq:], u_mx, p))])
-            return
+            return ca.Function("rate", [y, u_mx, p, t], [ca.vertcat(y[nq:], velocity_rate(
+                y[:nq], y[nq:], u_mx, p))]), velocity_rate
         q, v = ca.SX.sym("q", nq), ca.SX.sym("v", nv)
         u = ca.SX.sym("u", sum(self.widths))
         offsets = np.concatenate([[0], np.cumsum(self.widths)]).astype(int)
@@ -186,13 +203,13 @@ class SpatialRates:
                                                       q, v, inputs)
         solution = articulated_sweep(CASADI, scene.tree, bodies, joints)
         v_dot = ca.vertcat(*scene.velocity_rates(solution))
-        self.velocity_rate = ca.Function("velocity_rate", [q, v, u, p_sx], [v_dot])
+        velocity_rate = ca.Function("velocity_rate", [q, v, u, p_sx], [v_dot])
         position_rate = ca.Function("position_rate", [q, v], [position_rates(model, q, v)])
         # on MX symbols the sweep stays one C function (an SX call would inline a second copy of it)
         y, u_mx, p, t = ca.MX.sym("y", nq + nv), ca.MX.sym("u", u.size1()), ca.MX.sym("p", n_p), ca.MX.sym("t")
         q_y, v_y = y[:nq], y[nq:]
-        self.rate = ca.Function("rate", [y, u_mx, p, t], [ca.vertcat(position_rate(q_y, v_y),
-                                                                     self.velocity_rate(q_y, v_y, u_mx, p))])
+        return ca.Function("rate", [y, u_mx, p, t], [ca.vertcat(position_rate(q_y, v_y),
+                                                                velocity_rate(q_y, v_y, u_mx, p))]), velocity_rate
 
     def input_vector(self, inputs: Mapping[str, Any] | None) -> np.ndarray:
         """``u`` from ``{input name: number or (k,) numbers}`` held over a run (missing inputs zero).
@@ -456,17 +473,27 @@ class CompiledSpatialScene:
         self.model, self.store_every, self.rows = model, store_every, int(rows)
         self.rates = SpatialRates(model, fold=fold, numbers=numbers)
         self.parameters = spatial_parameter_vector(model) if numbers == "inputs" else np.zeros(0)
-        plain_step = rk4_step_function(self.rates.rate)
-        step = guarded_step(model, plain_step)          # NaN once a flexible body leaves its bounds
+
+        def build() -> tuple[Any, list]:
+            plain_step = rk4_step_function(self.rates.rate)
+            step = guarded_step(model, plain_step)          # NaN once a flexible body leaves its bounds
+            return step, [self.rates.velocity_rate, *([] if step is plain_step else [plain_step])]
+
         name = f"spatial_{model.n_bodies}b{model.n_positions}q{model.n_velocities}v" + (
             f"_fold{self.rates.period}" if self.rates.period else "")
         options = {"cache_dir": cache_dir, "compiler": compiler,
                    "flags": SPATIAL_FLAGS if flags is None else tuple(flags)}
-        plain = [] if step is plain_step else [plain_step]
-        loop = compiled_time_loop(step, store_every, self.rows, name, extra=[self.rates.velocity_rate, *plain],
-                                  **options)
+        from .model_description import describe   # what build() reads: a cached library loads without symbols
+
+        description = describe((model, fold, numbers)) if numbers == "constants" else None   # "inputs": by structure
+        if description is not None:
+            loop = compiled_time_loop(build, store_every, self.rows, name, description=[("spatial", description)],
+                                      **options)
+        else:
+            step, extra = build()
+            loop = compiled_time_loop(step, store_every, self.rows, name, extra=extra, **options)
         self._velocity_rate, self._step, self._stride, self._blocks = loop.extra[0], loop.step, loop.stride, loop.blocks
-        self.plain_step = loop.extra[1] if plain else self._step
+        self.plain_step = loop.extra[1] if len(loop.extra) > 1 else self._step
         self.compile_time_s = clock.perf_counter() - start
 
     def accelerations(self, q: Any, v: Any, inputs: Mapping[str, Any] | None = None) -> np.ndarray:

@@ -206,6 +206,9 @@ class CompiledControlledSpatial:
         if reason:
             raise ModelError(f"compiled=True: {reason}")
         start = clock.perf_counter()
+        from .model_description import describe   # what the step reads: a cached library loads without symbols
+
+        description = describe((controlled, dt, references, inputs)) if numbers == "constants" else None
         ports = controlled.ports
         names = [name for loop in controlled.loops for name, _ in loop.actuator_terms] + list(inputs or {})
         for name in inputs or {}:
@@ -220,13 +223,18 @@ class CompiledControlledSpatial:
                                  symbols=SpatialSymbols(model, ports, len(layout)), numbers=numbers)
         self.parameters = np.concatenate([spatial_parameter_vector(model), self.loops.parameter_values]) \
             if layout else np.zeros(0)
-        acceleration = loop_acceleration(model, ports, self.actuators, layout)
-        step = self.loops.step(acceleration, len(self.actuators), len(layout))
+
+        def build() -> tuple[Any, list]:
+            acceleration = loop_acceleration(model, ports, self.actuators, layout)
+            return self.loops.step(acceleration, len(self.actuators), len(layout)), []
+
         name = (f"spatial_loops_{model.n_bodies}b{model.n_positions}q{len(self.loops.laws)}l"
                 f"{self.loops.n_controller_states}z{self.loops.ring_columns}r")
         options = {"cache_dir": cache_dir, "compiler": compiler,
                    "flags": SPATIAL_FLAGS if flags is None else tuple(flags)}
-        loop = compiled_time_loop(step, self.store_every, self.rows, name, **options)
+        loop = compiled_time_loop(build()[0], self.store_every, self.rows, name, **options) if description is None \
+            else compiled_time_loop(build, self.store_every, self.rows, name,
+                                    description=[("spatial loops", description)], **options)
         self._step, self._stride, self._blocks = loop.step, loop.stride, loop.blocks
         self.compile_time_s = clock.perf_counter() - start
 

@@ -21,10 +21,16 @@ Generated functions (all with the inputs ``y, u, h, p, t0, k``: state, held actu
 :func:`run_blocks` runs them over an interval (and a batch of members through
 ``casadi.Function.map``).  :func:`compiled_time_loop` compiles them (every generated-kernel path goes
 through it): the cache key is computed from the serialized step before the blocks and the C text are
-built, so a call whose library is cached builds and generates nothing.
+built, so a call whose library is cached builds and generates nothing; or, where a family describes
+everything its builder reads (``description``: the model and options by
+:func:`ctmm.model_description.describe`, with the package's code), before the step itself is built, so a
+cached call builds no symbol at all (spatial scenes and controlled spatial kernels with their numbers as
+constants, the DT-TMM schemes of chains; planar scenes and the chains' RK4, and models holding Python
+callables or foreign objects, keep the built step's key).
 """
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol, Sequence
@@ -95,34 +101,59 @@ class TimeLoop:
 
 
 def compiled_time_loop(step: Any, store_every: int, rows: int, name: str, *, extra: Sequence[Any] = (),
-                       **options: Any) -> TimeLoop:
+                       description: Sequence[tuple[str, bytes]] | None = None, **options: Any) -> TimeLoop:
     """The compiled ``step``, stride, blocks (:func:`time_loop_functions`) and ``extra`` functions of one
     library, from the kernel cache when it holds them (nothing but the key computed) or built now.
 
     The cache key (:func:`ctmm.codegen.load_casadi_keyed`) is computed before the time loop's graph
-    and the C text: the serialized ``step`` and ``extra`` functions (every number and the structure of
-    the model, options, the loops), ``store_every``, ``rows``, the text of this module (which builds
-    the rest from the step) and the ctmm version; codegen adds the casadi version, compiler and flags.
+    and the C text, from ``store_every``, ``rows``, the text of this module (which builds the rest from
+    the step), the ctmm version (codegen adds the casadi version, compiler and flags) and either
+
+    * the serialized ``step`` and ``extra`` functions (every number and the structure of the model,
+      options, the loops), which the caller built for it; or
+    * with ``description``: the caller's complete description of what its builder reads (the model and
+      options, :func:`ctmm.model_description.describe`), the text of every module of the package
+      (:func:`ctmm.model_description.package_digest`: the code that reads them), the Python, numpy and
+      scipy versions -- computed without building anything, so a cached call builds no symbols at all.
 
     Parameters
     ----------
-    step : casadi.Function
-        The generated ``step(y, u, h, p, t0, k)``.
+    step : casadi.Function or callable
+        The generated ``step(y, u, h, p, t0, k)``; with ``description``, a builder ``() -> (step, extra)``
+        called only when the library is not cached.
     store_every, rows : int
         As in :func:`time_loop_functions`.
     name : str
         Library name (:func:`ctmm.codegen.shared_library`).
     extra : sequence of casadi.Function, optional
         Further functions of the same library (an acceleration, an unguarded step), named apart from
-        ``step``, ``stride`` and ``block<size>``.
+        ``step``, ``stride`` and ``block<size>`` (with ``description``: the builder returns them).
+    description : sequence of (str, bytes), optional
+        Labelled parts that determine everything the builder generates (the caller's responsibility:
+        give it only when complete; else leave it out and pass the built step).
     **options
         ``flags``, ``compiler``, ``cache_dir`` of :func:`ctmm.codegen.shared_library`.
     """
     sizes = block_sizes(rows)
-    names = [function.name() for function in (*extra, step)] + ["stride"] + [f"block{size}" for size in sizes]
-    functions = [*extra, step]
     parts = [("ctmm", __version__.encode()), ("time loop", _LOOP_CODE),
              ("store_every", str(int(store_every)).encode()), ("rows", str(int(rows)).encode())]
+    if description is not None:
+        import scipy
+
+        from .model_description import PACKAGE_DIGEST
+
+        parts += [("package", PACKAGE_DIGEST), ("python", sys.version.encode()),
+                  ("numpy", np.__version__.encode()), ("scipy", scipy.__version__.encode()), *description]
+        def build_described() -> list[Any]:
+            function, more = step()
+            stride, _, blocks = time_loop_functions(function, store_every, rows)
+            return [*more, function, stride, *blocks]
+
+        loaded = load_casadi_keyed(parts, None, build_described, name, **options)
+        count = len(loaded) - 2 - len(sizes)
+        return TimeLoop(tuple(loaded[:count]), loaded[count], loaded[count + 1], list(zip(sizes, loaded[count + 2:])))
+    names = [function.name() for function in (*extra, step)] + ["stride"] + [f"block{size}" for size in sizes]
+    functions = [*extra, step]
     parts += [(f"function {function.name()}", function.serialize().encode()) for function in functions]
 
     def build() -> list[Any]:

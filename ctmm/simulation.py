@@ -350,14 +350,20 @@ def _simulate_chain_generated(system: Any, t_final: float, dt: float | None, *, 
                               progress: bool | None = None, stability_check: str | None = None) -> SimulationResult:
     """:func:`simulate` of a chain with ``compiled=True``: the generated RK4 (:mod:`ctmm.compiled_chain`; with
     ``controllers`` sampled between its calls, :mod:`ctmm.compiled_cosim`) or DT-TMM."""
-    if method != "rk4" and not controllers and (isinstance(method, Scheme) or method in SCHEMES):
-        from .compiled_chain_schemes import simulate_scheme_verb
+    if method != "rk4" and (isinstance(method, Scheme) or method in SCHEMES):
+        from .compiled_chain_schemes import check_scheme_options, simulate_scheme_verb
+        if controllers:                 # their held outputs: the input of the generated step (ctmm.compiled_cosim)
+            from .compiled_cosim import simulate_cosimulated_scheme
+            check_scheme_options(dt, {**others, "t0": (t0, 0.0), "inputs": (inputs or None, None)})
+            return simulate_cosimulated_scheme(
+                system, t_final, dt, method, controllers=controllers, x0=x0, v0=v0, references=references or None,
+                outputs=tuple(outputs), coupling=coupling, store_every=store_every, progress=progress,
+                stability_check=stability_check, divergence_bound=divergence_bound)
         return simulate_scheme_verb(system, t_final, dt, method, x0, v0, store_every, divergence_bound, others,
                                     t0=t0, inputs=inputs, outputs=outputs, references=references)
     if method != "rk4":
-        raise ModelError(f"compiled=True runs the generated RK4 or DT-TMM of a chain, got method={method!r}" + (
-            " with co-simulated controllers (the generated RK4 samples them; method='rk4')" if controllers else "")
-            + " (leave compiled at None)")
+        raise ModelError(f"compiled=True runs the generated RK4 or DT-TMM of a chain, got method={method!r} "
+                         "(leave compiled at None)")
     for name, (value, default) in {**others, "t0": (t0, 0.0)}.items():
         if value is not default and value != default:
             raise ModelError(f"{name}={value!r} does not apply to the generated RK4 of a chain (leave {name} at "
