@@ -426,7 +426,7 @@ def json_schema() -> dict[str, Any]:
     """
     kinds = list(SYSTEM_KINDS)
     element_sets = {"chain": "chain", "planar": "planar", "planar_chain": "planar", "planar_closed": "planar",
-                    "spatial": "spatial"}
+                    "spatial": "spatial", "spatial_closed": "spatial"}
     defs: dict[str, Any] = {"value_table": {"anyOf": _typed(value_types())}}
     for label in ("chain", "planar", "spatial"):
         types = element_types(label)
