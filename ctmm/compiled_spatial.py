@@ -109,8 +109,9 @@ def spatial_compile_refusal(model: Any) -> str:
 
 def flexible_bodies(model: SpatialModel) -> list[str]:
     """Names of the bodies of ``model`` that are not rigid :class:`~ctmm.spatial.SpatialBody` (beams,
-    finite-element subsystems): their terms are not :func:`~ctmm.spatial.body_forms.rigid_body_terms`,
-    so :mod:`ctmm.compiled_spatial_parameters` cannot make their numbers (nor gravity) parameters."""
+    finite-element subsystems): their terms are not :func:`~ctmm.spatial.body_forms.rigid_body_terms`
+    (the spatial FMU keeps their numbers constants; ``numbers="inputs"`` takes beams' numbers too and refuses
+    :func:`~ctmm.compiled_spatial_parameters.unparametrised_bodies`)."""
     return [body.name for body in model.bodies if not isinstance(body, SpatialBody)]
 
 
