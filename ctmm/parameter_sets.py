@@ -16,7 +16,8 @@ Names:
   and the data of modal beams stay constants of the code);
 * spatial plants: :func:`~ctmm.compiled_spatial_parameters.spatial_parameter_layout` (masses, non-zero
   inertia entries, the non-zero numbers of modal beams, 1-/2-DOF joint laws, gravity; a beam's length and
-  mode counts are refused with that reason: its shapes depend on them);
+  mode counts are refused with that reason: its shapes depend on them; a model with finite-element
+  subsystems has no parameters here, refused by name);
 * loops: ``"<loop>.gain"`` of every loop with a static gain and, given the run's ``references``, each
   loop's reference ``"<loop>.reference"`` (a number or constant) or ``"<loop>.reference.<field>"`` (a
   :mod:`ctmm.signals` signal with a symbolic form: ``amplitude``, ``omega``, ``phase``, ...).
@@ -38,7 +39,8 @@ import numpy as np
 
 from .compiled_parameters import parameter_vector, structure_key
 from .compiled_spatial_beam_numbers import BEAM_NUMBERS, beam_numbers
-from .compiled_spatial_parameters import INERTIA_ENTRIES, spatial_parameter_layout, spatial_parameter_vector
+from .compiled_spatial_parameters import (INERTIA_ENTRIES, spatial_parameter_layout, spatial_parameter_vector,
+                                          unparametrised_refusal)
 from .control.controlled_model import ControlledModel
 from .errors import ModelError
 from .planar.model import PlanarModel
@@ -96,6 +98,9 @@ class ParameterSpace:
         self.plant, self.loops = plant_and_loops(system)
         plant = self.plant
         if isinstance(plant, SpatialModel):
+            refusal = unparametrised_refusal(plant, "parameters")
+            if refusal:             # a finite-element body's numbers would be read as a rigid body's
+                raise ModelError(refusal)
             layout = spatial_parameter_layout(plant)
             self._order = [entry.name for entry in layout]
             self._layout = {entry.name: entry for entry in layout}

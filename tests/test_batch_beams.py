@@ -106,3 +106,11 @@ def test_a_diverging_beam_set_fails_by_index_and_a_length_is_refused(tmp_path, m
         ctmm.simulate(plant(), T_FINAL, DT, compiled=True, parameters={"b.length": 1.2}, **START)
     with pytest.raises(ModelError, match=r"parameter_sets\[1\]: .*'b.n_modes_y'.*part of the compiled structure"):
         ctmm.simulate_batch(plant(), [{"b.mass_per_length": 1.0}, {"b.n_modes_y": 3}], T_FINAL, DT)
+
+
+def test_finite_element_bodies_have_no_parameter_names():
+    """Their numbers are not a rigid body's nor a modal beam's: refused by name, not listed as "<body>.mass"."""
+    from scenarios import spatial_fem_chain
+
+    with pytest.raises(ModelError, match="parameters: .*finite-element bodies 'beam1'"):
+        ctmm.parameter_names(spatial_fem_chain.model())
