@@ -9,6 +9,8 @@ a sweep of ``B`` parameter sets of one scene:
 3. **Spatial chain** of N = 10 links on sprung revolute joints about alternating axes: masses, stiffnesses,
    gravity.
 4. **Controlled spatial chain** (N = 6) with a joint-torque loop: its gain and masses.
+5. **Spatial hub beam**: a modal ``SpatialBeam`` (2 + 1 bending, 1 torsion, 1 axial mode) on a sprung revolute
+   joint under gravity: its mass per length, ``EI_y``, ``EI_z``, ``GJ``, ``EA`` and damping ratio.
 
 Columns per row: (a) ``simulate_batch`` from a fresh cache folder (one compile, then every set on the
 same library; wall time of the whole call, and its first compile); (b) one compile per set (each set's
@@ -20,7 +22,8 @@ peak (round-off: the same RK4), and for row 3 of set 0 against the independent g
 ``ctmm.reference.spatial_tree`` (its own RK4).  Ratios: per set, (b) and (c) over (a) with its compile
 spread over the sets, and (c) over the runs of (a) alone (what many sets tend to).
 
-Run: ``python benchmarks/batch_parameters.py [--quick]``.
+Run: ``python benchmarks/batch_parameters.py [--quick] [--rows 5]`` (``--rows``: only those rows, the others kept
+in the results file).
 """
 from __future__ import annotations
 
@@ -77,6 +80,16 @@ def spatial_chain(masses, stiffnesses, gravity_z=-9.81, actuated=False) -> sp.Sp
     return sp.SpatialModel("chain", elements, gravity=(0.0, 0.3, gravity_z))
 
 
+def hub_beam(numbers) -> sp.SpatialModel:
+    """A modal beam on a sprung, damped revolute joint about a tilted axis, gravity bending and twisting it."""
+    beam = dict(length=1.0, mass_per_length=0.9, bending_stiffness_y=6.0, bending_stiffness_z=4.0, n_modes_y=2,
+                n_modes_z=1, n_torsion_modes=1, torsional_stiffness=1.5, polar_inertia_per_length=0.004,
+                n_axial_modes=1, axial_stiffness=300.0, damping_ratio=0.01, stiffness_damping=0.002)
+    beam.update({name.partition(".")[2]: value for name, value in numbers.items()})
+    return sp.SpatialModel("hubbeam", [sp.SpatialBeam("b", **beam), sp.Revolute(
+        name="j", parent=None, child="b", axis=(0.0, 0.3, 1.0), stiffness=3.0, damping=0.2)], gravity=(0.0, 0.5, -9.81))
+
+
 def controlled_spatial(gain, masses) -> ControlledModel:
     return ControlledModel(spatial_chain(masses, [1.0] * len(masses), actuated=True),
                            [Feedback("hold", "j1.angle", "j1.torque", gain=gain)])
@@ -121,6 +134,12 @@ def scenes(quick: bool) -> list[dict]:
                                for a, axis in enumerate(("xx", "yy", "zz"))}} for m in masses],
                      build=lambda s: controlled_spatial(s["hold.gain"], [s[f"l{i}.mass"] for i in range(4)]),
                      x0=np.full(4, 0.2)))
+    numbers = rng.uniform(0.5, 2.0, (count, 6))
+    rows.append(dict(label="spatial hub beam (6 modes)", t_final=0.25, dt=1e-3,
+                     sets=[{"b.mass_per_length": 0.9 * f[0], "b.bending_stiffness_y": 6.0 * f[1],
+                            "b.bending_stiffness_z": 4.0 * f[2], "b.torsional_stiffness": 1.5 * f[3],
+                            "b.axial_stiffness": 300.0 * f[4], "b.damping_ratio": 0.01 * f[5]} for f in numbers],
+                     build=hub_beam, x0=np.array([0.2, 0.01, 0.0, -0.02, 0.0, 0.0])))
     return rows
 
 
@@ -182,8 +201,15 @@ def measure(row: dict) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="small scenes and 4 sets (a smoke run)")
+    parser.add_argument("--rows", type=int, nargs="+", help="measure only these rows (1-based); the others are "
+                        "kept from the written results")
     args = parser.parse_args()
-    rows = [measure(row) for row in scenes(args.quick)]
+    chosen = scenes(args.quick)
+    if args.rows:
+        if not all(1 <= k <= len(chosen) for k in args.rows):
+            parser.error(f"--rows must be between 1 and {len(chosen)}, got {args.rows}")
+        chosen = [chosen[k - 1] for k in args.rows]
+    rows = [measure(row) for row in chosen]
     for row in rows:
         print(f"{row['scene']}: {row['sets']} sets x {row['steps']} steps | batch {row['batch_wall_s']:.2f} s "
               f"(compile {row['batch_compile_s']:.2f} s, runs {row['batch_runs_per_set_s'] * 1e3:.1f} ms/set) | "
@@ -195,6 +221,10 @@ def main() -> None:
               + (f", batch vs reference {row['reference_error']:.1e}" if "reference_error" in row else ""))
     if not args.quick:
         target = ROOT / "benchmarks" / "results" / "batch_parameters.json"
+        if args.rows and target.exists():         # the other rows as measured before, in the scenes' order
+            measured = {row["scene"]: row for row in json.loads(target.read_text())["rows"]}
+            measured.update({row["scene"]: row for row in rows})
+            rows = [measured[row["label"]] for row in scenes(False) if row["label"] in measured]
         target.write_text(json.dumps({"machine": platform.platform(), "python": platform.python_version(),
                                       "cpus": os.cpu_count(), "rows": rows}, indent=2) + "\n")
         print(f"written {target}")

@@ -14,7 +14,8 @@ planar model                               :class:`~ctmm.compiled_scene.Compiled
                                            through ``with_model``
 planar model with loops, ``inputs`` or     the scene of the controlled model; each set's loop laws
 ``references``                             (gains as entries of ``p``) on the same compiled functions
-spatial model (held joint ``inputs``)      :class:`~ctmm.compiled_spatial.CompiledSpatialScene`
+spatial model (held joint ``inputs``,      :class:`~ctmm.compiled_spatial.CompiledSpatialScene` (rigid
+modal beams; no FE subsystems)             bodies' and beams' numbers; a beam's length is structure)
 spatial model with loops, port inputs,     :class:`~ctmm.compiled_spatial_loops.CompiledControlledSpatial`
 ``references`` or ``outputs``              (plant numbers and loop gains in ``p``), each set's loop laws
 =========================================  ============================================================

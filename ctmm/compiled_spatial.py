@@ -24,9 +24,10 @@ and its compile time do not grow with N.
 
 Numbers: with ``numbers="constants"`` (the default of ``compiled=True``) they are constants of the
 generated code (one library per model, cached by the hash of its C text; ``p`` empty).  With
-``numbers="inputs"`` the masses, non-zero inertia entries, the 1- and 2-DOF joint laws and gravity are
-the parameter column ``p`` (:mod:`ctmm.compiled_spatial_parameters`: the body terms summed from
-:func:`~ctmm.spatial.body_forms.rigid_body_terms` of unit numbers, the laws on the symbols), so one
+``numbers="inputs"`` the masses, non-zero inertia entries, the numbers of modal beams (not their lengths),
+the 1- and 2-DOF joint laws and gravity are the parameter column ``p`` (:mod:`ctmm.compiled_spatial_parameters`:
+the body terms summed from :func:`~ctmm.spatial.body_forms.rigid_body_terms` of unit numbers, the beams'
+by :mod:`ctmm.compiled_spatial_beam_numbers`, the laws on the symbols; finite-element bodies refused), so one
 library serves every model of one structure (its zeros, geometry, axes, loads and driven motions;
 the applied loads' part of a body's terms keeps that body's numbers in the code); the folded chain
 takes one column of ``p`` per segment.  Actuator inputs
@@ -61,7 +62,8 @@ from .spatial.integrate import beam_deflection_weights, check_beam_deflection, i
 from .spatial.model import SpatialModel
 from .compiled_spatial_guard import guarded_step, replay_failure
 from .compiled_spatial_parameters import (SpatialNumbers, parametrised_body_terms, parametrised_joint_law,
-                                          parametrised_scene_terms, spatial_parameter_layout, spatial_parameter_vector)
+                                          parametrised_scene_terms, spatial_parameter_layout, spatial_parameter_vector,
+                                          unparametrised_refusal)
 
 __all__ = ["SpatialRates", "CompiledSpatialScene", "spatial_compile_refusal", "simulate_spatial_generated",
            "chain_period", "flexible_bodies"]
@@ -107,8 +109,9 @@ def spatial_compile_refusal(model: Any) -> str:
 
 def flexible_bodies(model: SpatialModel) -> list[str]:
     """Names of the bodies of ``model`` that are not rigid :class:`~ctmm.spatial.SpatialBody` (beams,
-    finite-element subsystems): their terms are not :func:`~ctmm.spatial.body_forms.rigid_body_terms`,
-    so :mod:`ctmm.compiled_spatial_parameters` cannot make their numbers (nor gravity) parameters."""
+    finite-element subsystems): their terms are not :func:`~ctmm.spatial.body_forms.rigid_body_terms`
+    (the spatial FMU keeps their numbers constants; ``numbers="inputs"`` takes beams' numbers too and refuses
+    :func:`~ctmm.compiled_spatial_parameters.unparametrised_bodies`)."""
     return [body.name for body in model.bodies if not isinstance(body, SpatialBody)]
 
 
@@ -149,12 +152,9 @@ class SpatialRates:
         if numbers not in ("constants", "inputs"):
             raise ModelError(f"SpatialRates: numbers must be 'constants' (one library per model) or 'inputs' (one "
                              f"library per structure), got {numbers!r}")
-        flexible = flexible_bodies(model) if numbers == "inputs" else []
-        if flexible:
-            raise ModelError(f"SpatialRates: numbers='inputs' (one library per structure: parameters=, simulate_batch) "
-                             f"takes the numbers of rigid bodies; model {model.name!r} has the flexible bodies "
-                             f"{', '.join(map(repr, flexible))}; run it with ctmm.simulate(..., compiled=True) without "
-                             "parameters= (its numbers constants of the code)")
+        refusal = unparametrised_refusal(model, "SpatialRates") if numbers == "inputs" else ""
+        if refusal:
+            raise ModelError(refusal)
         self.model = model
         self.layout = spatial_parameter_layout(model) if numbers == "inputs" else []
         self.actuators = tuple(model.inputs)

@@ -36,9 +36,9 @@ import numpy as np
 
 from .articulated import articulated_sweep
 from .compiled_loops import ClosedLoops
-from .compiled_spatial import DEFAULT_ROWS, SPATIAL_FLAGS, flexible_bodies, position_rates, spatial_compile_refusal
+from .compiled_spatial import DEFAULT_ROWS, SPATIAL_FLAGS, position_rates, spatial_compile_refusal
 from .compiled_spatial_parameters import (SpatialNumbers, parametrised_scene_terms, spatial_parameter_layout,
-                                          spatial_parameter_vector)
+                                          spatial_parameter_vector, unparametrised_refusal)
 from .control.controlled_model import ControlledModel
 from .errors import ModelError
 from .generated_loop import compiled_time_loop, run_blocks
@@ -215,9 +215,9 @@ class CompiledControlledSpatial:
             ports.check_actuator(name, "inputs: actuator")
         self.controlled, self.model, self.store_every, self.rows = controlled, model, int(store_every), int(rows)
         self.actuators = tuple(dict.fromkeys(names))
-        if numbers == "inputs" and flexible_bodies(model):      # their terms are not a rigid body's
-            raise ModelError(f"CompiledControlledSpatial: numbers='inputs' takes the numbers of rigid bodies; model "
-                             f"{model.name!r} has the flexible bodies {', '.join(map(repr, flexible_bodies(model)))}")
+        refusal = unparametrised_refusal(model, "CompiledControlledSpatial") if numbers == "inputs" else ""
+        if refusal:
+            raise ModelError(refusal)
         layout = spatial_parameter_layout(model) if numbers == "inputs" else []
         self.loops = ClosedLoops(controlled, self.actuators, dt, references, inputs,
                                  symbols=SpatialSymbols(model, ports, len(layout)), numbers=numbers)

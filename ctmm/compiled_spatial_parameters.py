@@ -31,10 +31,12 @@ from .protocol import BodyTerms, JointTerms
 from .compiled_spatial_beam_numbers import BEAM_NUMBERS, beam_numbers, parametrised_beam_terms
 from .spatial.beam import SpatialBeam
 from .spatial.body_forms import rigid_body_terms
+from .spatial.elements import SpatialBody
 from .spatial.model import SpatialModel
 
 __all__ = ["INERTIA_ENTRIES", "LAW_KINDS", "SpatialNumbers", "SpatialParameter", "parametrised_body_terms",
-           "parametrised_joint_law", "parametrised_scene_terms", "spatial_parameter_layout", "spatial_parameter_vector"]
+           "parametrised_joint_law", "parametrised_scene_terms", "spatial_parameter_layout", "spatial_parameter_vector",
+           "unparametrised_bodies", "unparametrised_refusal"]
 
 INERTIA_ENTRIES = (("xx", 0, 0), ("yy", 1, 1), ("zz", 2, 2), ("xy", 0, 1), ("xz", 0, 2), ("yz", 1, 2))
 """Names and (row, column) of the inertia entries (the tensor is symmetric)."""
@@ -74,6 +76,26 @@ class SpatialParameter:
 
 def _has_law(joint: Any) -> bool:
     return joint.kind in LAW_KINDS and not joint.driven
+
+
+def unparametrised_bodies(model: SpatialModel) -> list[str]:
+    """Names of the bodies of ``model`` whose numbers have no parametrised terms here: neither a rigid
+    :class:`~ctmm.spatial.SpatialBody` nor a modal :class:`~ctmm.spatial.SpatialBeam` (the
+    :class:`ctmm.fem.SpatialSubsystem` finite-element bodies).  A model with one has no kernel with its
+    numbers as inputs (``numbers="inputs"``: refused by name)."""
+    return [body.name for body in model.bodies if not isinstance(body, (SpatialBody, SpatialBeam))]
+
+
+def unparametrised_refusal(model: SpatialModel, caller: str) -> str:
+    """The refusal of ``numbers="inputs"`` for a model with :func:`unparametrised_bodies` (empty string
+    when there are none), starting with ``caller``."""
+    names = unparametrised_bodies(model)
+    if not names:
+        return ""
+    return (f"{caller}: numbers='inputs' (one library per structure: parameters=, simulate_batch) takes the numbers "
+            f"of rigid bodies and modal SpatialBeams; model {model.name!r} has the finite-element bodies "
+            f"{', '.join(map(repr, names))}; run it with ctmm.simulate(..., compiled=True) without parameters= (its "
+            "numbers constants of the code)")
 
 
 def spatial_parameter_layout(model: SpatialModel) -> list[SpatialParameter]:

@@ -15,7 +15,9 @@ Names:
   ``moment``) -- the names of :func:`ctmm.fmu_export_model.parameter_names` that it exposes (geometry
   and the data of modal beams stay constants of the code);
 * spatial plants: :func:`~ctmm.compiled_spatial_parameters.spatial_parameter_layout` (masses, non-zero
-  inertia entries, 1-/2-DOF joint laws, gravity);
+  inertia entries, the non-zero numbers of modal beams, 1-/2-DOF joint laws, gravity; a beam's length and
+  mode counts are refused with that reason: its shapes depend on them; a model with finite-element
+  subsystems has no parameters here, refused by name);
 * loops: ``"<loop>.gain"`` of every loop with a static gain and, given the run's ``references``, each
   loop's reference ``"<loop>.reference"`` (a number or constant) or ``"<loop>.reference.<field>"`` (a
   :mod:`ctmm.signals` signal with a symbolic form: ``amplitude``, ``omega``, ``phase``, ...).
@@ -36,8 +38,9 @@ from typing import Any, Mapping
 import numpy as np
 
 from .compiled_parameters import parameter_vector, structure_key
-from .compiled_spatial_beam_numbers import BEAM_NUMBERS
-from .compiled_spatial_parameters import INERTIA_ENTRIES, spatial_parameter_layout, spatial_parameter_vector
+from .compiled_spatial_beam_numbers import BEAM_NUMBERS, beam_numbers
+from .compiled_spatial_parameters import (INERTIA_ENTRIES, spatial_parameter_layout, spatial_parameter_vector,
+                                          unparametrised_refusal)
 from .control.controlled_model import ControlledModel
 from .errors import ModelError
 from .planar.model import PlanarModel
@@ -95,6 +98,9 @@ class ParameterSpace:
         self.plant, self.loops = plant_and_loops(system)
         plant = self.plant
         if isinstance(plant, SpatialModel):
+            refusal = unparametrised_refusal(plant, "parameters")
+            if refusal:             # a finite-element body's numbers would be read as a rigid body's
+                raise ModelError(refusal)
             layout = spatial_parameter_layout(plant)
             self._order = [entry.name for entry in layout]
             self._layout = {entry.name: entry for entry in layout}
@@ -140,6 +146,7 @@ class ParameterSpace:
         checked = {}
         for name, value in values.items():
             if name not in self.names:
+                _refuse_beam_structure(self.plant, name)
                 shown = ", ".join(list(self.names)[:60]) + (" ..." if len(self.names) > 60 else "")
                 raise ModelError(f"parameters: unknown parameter {name!r}; allowed: {shown or '(none)'} (numbers that "
                                  "are zero in the model, geometry and the data of modal beams are constants of the "
@@ -284,6 +291,21 @@ def _spatial(model: SpatialModel, values: Mapping[str, float], layout: Mapping[s
     touched = {layout[name].index for name in values if layout[name].kind in ("mass", "inertia") + _BEAM_KINDS}
     bodies = [dataclasses.replace(body, **bodies[j]) if j in touched else body for j, body in enumerate(model.bodies)]
     return SpatialModel(model.name, bodies + joints + list(model.loads), gravity=gravity)
+
+
+def _refuse_beam_structure(plant: Any, name: str) -> None:
+    """Refuse ``"<beam>.<attribute>"`` of a modal spatial beam's number that is not a parameter (its length,
+    mode counts, ...) with the reason, not as an unknown name."""
+    owner, _, attribute = name.partition(".")
+    beam = next((body for body in getattr(plant, "bodies", ()) if isinstance(body, SpatialBeam) and body.name == owner),
+                None)
+    if beam is None or attribute in _BEAM_KINDS or not hasattr(beam, attribute):
+        return
+    reason = "its mode shapes depend on it" if attribute == "length" else "it sets the beam's modes"
+    allowed = ", ".join(f"{owner}.{kind}" for kind, _, _ in beam_numbers(beam))
+    raise ModelError(f"parameters[{name!r}]: the {attribute} of beam {beam.name!r} is part of the compiled structure "
+                     f"({reason}), not a parameter; build the model with it and run it without "
+                     f"parameters= (the beam's parameters: {allowed or '(none)'})")
 
 
 def _certify(name: str, got: np.ndarray, expected: np.ndarray, same_structure: bool) -> None:

@@ -70,21 +70,23 @@ def test_the_generated_run_stops_after_the_failing_step(tmp_path):
         initial_state(stable, SPIN["x0"], SPIN["v0"]), 0.01, 200)))
 
 
-def test_numbers_as_inputs_refuse_flexible_bodies_by_name():
-    """One library per structure takes rigid bodies' numbers only: a model with a beam is refused by name (not a
-    casadi dimension mismatch), on the plain and the controlled kernels."""
+def test_numbers_as_inputs_refuse_finite_element_bodies_by_name():
+    """One library per structure takes the numbers of rigid bodies and modal beams (tests/test_batch_beams.py): a
+    model with a finite-element subsystem is refused by name (not a casadi dimension mismatch), on the plain and
+    the controlled kernels."""
     from ctmm.compiled_spatial import SpatialRates
     from ctmm.compiled_spatial_loops import CompiledControlledSpatial
     from ctmm.control import Feedback, with_feedback
     from ctmm.errors import ModelError
 
-    model = spinner(True)
-    with pytest.raises(ModelError, match="flexible bodies 'arm'"):
-        ctmm.simulate(model, 0.05, 0.01, method="rk4", compiled=True, parameters={"gravity.z": -9.0}, **SPIN)
-    with pytest.raises(ModelError, match="flexible bodies 'arm'"):
+    assert SpatialRates(spinner(True), numbers="inputs").layout          # a beam's numbers are inputs
+    model, start = fem_chain()
+    with pytest.raises(ModelError, match="finite-element bodies 'beam1'"):
+        ctmm.simulate(model, 0.05, 0.01, method="rk4", compiled=True, parameters={"gravity.z": -9.0}, **start)
+    with pytest.raises(ModelError, match="finite-element bodies 'beam1'"):
         SpatialRates(model, numbers="inputs")
-    controlled = with_feedback(model, [Feedback("rate", "hub.angle_rate", "arm.force_y", gain=-1.0)])
-    with pytest.raises(ModelError, match="flexible bodies 'arm'"):
+    controlled = with_feedback(model, [Feedback("rate", "yaw.angle_rate", "body3.force_y", gain=-1.0)])
+    with pytest.raises(ModelError, match="finite-element bodies 'beam1'"):
         CompiledControlledSpatial(controlled, 0.01, numbers="inputs")
 
 
