@@ -42,13 +42,14 @@ GRAVITY = (0.5, 0.2, -9.81)
 POINTS = 12                     # Gauss points of both models (the same rule: they agree for any count)
 
 
-def hub_beam(axes, second_order, tip_mass=0.3, reference=True):
-    """Hub on a revolute / universal joint, the beam welded to it at an angle, a tip body; and the Lagrange model."""
+def hub_beam(axes, second_order, tip_mass=0.3, reference=True, load=(0.0, 0.0, 0.0)):
+    """Hub on a revolute / universal joint, the beam welded to it at an angle (uniform follower ``load`` [N/m]), a
+    tip body; and the Lagrange model."""
     joint = (Revolute(name="hubj", parent=None, child="hub", axis=axes[0]) if len(axes) == 1 else
              Universal(name="hubj", parent=None, child="hub", axis1=axes[0], axis2=axes[1]))
     parts = [SpatialBody("hub", mass=2.0, inertia=HUB_INERTIA, center_of_mass=(0.03, 0.01, 0.02),
                          points={"out": (0.2, 0, 0.05)}), joint,
-             SpatialBeam("b", **BEAM, second_order_inertia=second_order, quadrature=POINTS),
+             SpatialBeam("b", **BEAM, second_order_inertia=second_order, quadrature=POINTS, distributed_load=load),
              Weld(name="mount", parent="hub", child="b", point="out", rotation=MOUNT)]
     if tip_mass:
         parts += [SpatialBody("tip", mass=tip_mass, inertia=TIP_INERTIA, center_of_mass=(0.03, 0.02, -0.01)),
@@ -59,7 +60,7 @@ def hub_beam(axes, second_order, tip_mass=0.3, reference=True):
     lagrange = SpatialBeamLagrange(HubBeam(
         **BEAM, hub_mass=2.0, hub_inertia=HUB_INERTIA, hub_center=(0.03, 0.01, 0.02), axes=axes, mount=(0.2, 0.0, 0.05),
         mount_rotation=MOUNT, tip_mass=tip_mass, tip_inertia=TIP_INERTIA, tip_center=(0.03, 0.02, -0.01),
-        gravity=GRAVITY, points=POINTS, second_order_inertia=second_order))
+        gravity=GRAVITY, points=POINTS, second_order_inertia=second_order, distributed_load=load))
     return model, lagrange
 
 
@@ -80,6 +81,20 @@ def test_accelerations_at_a_bent_spinning_state_equal_the_lagrange_model():
     assert energy(model, Q, U) == pytest.approx(lagrange.energy(Q, U), rel=1e-12)   # with the shortening's terms
     first_order, _ = hub_beam(axes, False, reference=False)
     assert np.abs(accelerations(first_order, Q, U) - expected).max() > 1e-2 * np.abs(expected).max()
+
+
+@pytest.mark.parametrize("second_order", [True, False])
+def test_a_follower_load_equals_its_virtual_power_in_the_lagrange_model(second_order):
+    """A uniform follower load (all three frame components) on the hub beam: the second-order beam's moment of the
+    shortened load line and the first-order beam's load stiffening both equal the Lagrange model's (the load's
+    virtual power at its mass points), revolute hub."""
+    load = (2.5, -1.5, 3.0)
+    model, lagrange = hub_beam(((0, 0, 1),), second_order, tip_mass=0.0, load=load)
+    q, u = np.r_[Q[0], Q[2:]], np.r_[U[0], U[2:]]
+    expected = lagrange.accelerations(q, u)
+    assert np.abs(accelerations(model, q, u) - expected).max() <= 1e-10 * np.abs(expected).max()
+    unloaded, _ = hub_beam(((0, 0, 1),), second_order, tip_mass=0.0, reference=False)
+    assert np.abs(accelerations(unloaded, q, u) - expected).max() > 1e-2 * np.abs(expected).max()
 
 
 def test_energy_is_conserved_unlike_the_first_order_beams():
