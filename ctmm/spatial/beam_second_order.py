@@ -1,6 +1,6 @@
 """Second-order (foreshortening) inertia of the modal spatial beam (``SpatialBeam(second_order_inertia=True)``).
 
-The spatial counterpart of :mod:`ctmm.flexible.second_order` (``docs/spatial_modal_beam.md`` §7).  An axially rigid
+The spatial counterpart of :mod:`ctmm.flexible.second_order` (``docs/spatial_modal_beam.md`` §2c).  An axially rigid
 bent beam keeps the length of its axis: the mass point at abscissa ``x`` sits at
 
 ``rho = rho1 + e1 u``,  ``rho1 = [x, 0, 0] + Phi eta``,  ``u(x) = -1/2 eta^T G1(x) eta``,
@@ -12,7 +12,7 @@ Newton-Euler / virtual-work statement of this kinematics (``delta rho = Phi_u de
 G1``), whose difference to the first-order terms with stiffening is, in frame axes about the root (integrals of
 ``rhoA dx``; ``Om2 = omega omega^T - |omega|^2 I``)::
 
-    ds = e1 rhoA U0,  U0 = int u / rhoA = -1/2 eta^T G2 eta
+    ds = e1 rhoA U0,  U0 = int u dx = -1/2 eta^T G2 eta
     dM[lin, ang] = -[ds]x,  dM[ang, lin] = [ds]x,  dM[lin, mod] = -e1 rhoA (G2 eta)^T
     dM[ang, ang] = tr(dS) I - dS,  dS = m_u e1^T + e1 m_u^T + e1 e1^T int rhoA u^2,  m_u = int rhoA u rho1
     dM[ang, mod] = dM[mod, ang]^T = [e1]x (Z + X),  Z = int rhoA u Phi,  X = int rhoA rho1 eta^T G1
@@ -31,7 +31,7 @@ polynomials in ``eta`` with the constant tensors (built once by :class:`SecondOr
 ``T_r[k, i, j] = int Phi_rk G1_ij`` (``r = y, z``),  ``H_ijkl = int G1_ij G1_kl``,  ``G2 = int G1``,  ``G3 = int x G1``.
 
 Restricted to a plane every term is the planar ``ModalBeam(second_order_inertia=True)``'s.  The points (children,
-loads, ports) keep their first-order position, as on the planar beam (a cut joint adds the end shortening itself).
+loads, ports) keep their first-order position, as on the planar beam.
 Not covered: axial modes (the extensible beam's shortening belongs to its axial strain) -- refused by
 :func:`ctmm.flexible.second_order.check_second_order` (the planar option's refusals, same attributes).
 """
