@@ -21,12 +21,18 @@ matrices); ``V = 1/2 eta^T K eta - sum m g . r`` plus joint springs.  Lagrange's
 
 with the geometric stiffness of the axial force of the overall motion (both bending planes)
 
-``G(N) = (g_1 - a_1) rhoA G2 + rhoA (omega_2^2 + omega_3^2) G3 - f_1 G1(L)`` (``int N w' w'^T`` in each bending
-plane: ``int N (w_y' delta w_y' + w_z' delta w_z')``, no coupling of the planes),
+``G(N) = (g_1 - a_1) rhoA G2 + rhoA (omega_2^2 + omega_3^2) G3 - f_1 G1(L) + q_1 G2`` (``int N w' w'^T`` in each
+bending plane: ``int N (w_y' delta w_y' + w_z' delta w_z')``, no coupling of the planes),
 
-``a_1``, ``g_1``, ``f_1`` the beam-axis components of the root acceleration, gravity and the force of
-the beam on the tip body (``m_tip (a_c - g)``), affine in ``u_dot`` -- the consistent first-order
-geometric stiffness (Kane, Ryan, Banerjee 1987 for the spinning beam).
+``a_1``, ``g_1``, ``f_1``, ``q_1`` the beam-axis components of the root acceleration, gravity, the force of
+the beam on the tip body (``m_tip (a_c - g)``, affine in ``u_dot``) and of the uniform follower load
+``distributed_load = (q_1, q_2, q_3)`` [N/m] in the beam frame (its generalised force: its virtual power at the
+mass points) -- the consistent first-order geometric stiffness (Kane, Ryan, Banerjee 1987 for the spinning beam).
+
+**Second-order inertia** (``second_order_inertia=True``, axially rigid beams only): every mass point also moves
+along the axis by its foreshortening ``u(x) = -1/2 int_0^x (w_y'^2 + w_z'^2)`` (inner Gauss-Legendre rule on
+``[0, x]``), in ``T`` and ``V`` exactly; the beam's own axial force then comes out of Lagrange's equations, and
+``G(N)`` keeps only the tip body's ``- f_1 G1(L)`` (the tip body sits at the first-order tip position).
 
 Two-link arms (the 3-D flexible manipulator): with two axes and ``shoulder`` the hub's origin is
 ``Rot(a1, q1) shoulder`` (the second axis passes through it), and an optional rigid **base** body
@@ -92,6 +98,8 @@ class HubBeam:
     base_inertia: Sequence = ((0, 0, 0), (0, 0, 0), (0, 0, 0))
     base_center: Sequence[float] = (0.0, 0.0, 0.0)
     actuators: Sequence[tuple] = ()
+    second_order_inertia: bool = False
+    distributed_load: Sequence[float] = (0.0, 0.0, 0.0)
 
 
 def _rot(axis: np.ndarray, angle) -> ca.SX:
@@ -142,6 +150,18 @@ class SpatialBeamLagrange:
 
         xg, wg = np.polynomial.legendre.leggauss(p.points)
         x, w = (xg + 1) / 2 * L, wg / 2 * L
+        shortening = [0.0] * p.points
+        if p.second_order_inertia:
+            if na:
+                raise ValueError("second_order_inertia needs an axially rigid beam (n_axial_modes = 0)")
+            for k in range(p.points):                  # u(x_k) = -1/2 int_0^x_k (w_y'^2 + w_z'^2), Gauss on [0, x_k]
+                s_in, s_w = (xg + 1) / 2 * x[k], wg / 2 * x[k]
+                slope2 = 0
+                for betas, coordinates in ((betas_y, qy), (betas_z, qz)):
+                    if len(betas):
+                        slopes = ca.mtimes(ca.DM(bend(betas, s_in, 1).T), coordinates)     # (points, 1)
+                        slope2 = slope2 + ca.dot(ca.DM(s_w), slopes * slopes)
+                shortening[k] = -0.5 * slope2
         # hub rotation and beam frame
         R_h = ca.DM.eye(3)
         for i, axis in enumerate(p.axes):
@@ -170,13 +190,17 @@ class SpatialBeamLagrange:
         phi_y, phi_z = bend(betas_y, x, 0), bend(betas_z, x, 0)
         psi, chi = _rod(x, L, na), _rod(x, L, nt)
         w_b = ca.mtimes(R_b.T, _vee_rate(R_b, q, u))              # frame angular velocity, frame axes
+        follower = ca.mtimes(R_b, ca.DM(np.asarray(p.distributed_load, float)))     # [N/m], world axes
+        load_force = ca.SX.zeros(n)
         for k in range(p.points):
-            rho = ca.vertcat(x[k] + (ca.dot(ca.DM(psi[:, k]), ax) if na else 0),
+            rho = ca.vertcat(x[k] + shortening[k] + (ca.dot(ca.DM(psi[:, k]), ax) if na else 0),
                              ca.dot(ca.DM(phi_y[:, k]), qy) if ny else 0,
                              ca.dot(ca.DM(phi_z[:, k]), qz) if nz else 0)
             r = r_I + ca.mtimes(R_b, rho)
             v = ca.mtimes(ca.jacobian(r, q), u)
             T += 0.5 * rhoA * w[k] * ca.dot(v, v)
+            if any(p.distributed_load):                # virtual power of the follower load at the mass point
+                load_force += w[k] * ca.mtimes(ca.jacobian(r, q).T, follower)
             V -= rhoA * w[k] * ca.dot(g, r)
             if nt:
                 spin = w_b[0] + ca.dot(ca.DM(chi[:, k]), u[nh + ny + nz:nh + ny + nz + nt])
@@ -224,6 +248,7 @@ class SpatialBeamLagrange:
         for i, c_joint in enumerate(p.joint_damping):
             generalized[i] -= c_joint * u[i]
         generalized[nh:] -= ca.mtimes(ca.DM(D), eta_dot)
+        generalized += load_force
         if p.geometric_stiffening and (ny or nz):
             a_I = ca.mtimes(ca.jacobian(ca.mtimes(ca.jacobian(r_I, q), u), q), u) + ca.mtimes(ca.jacobian(r_I, q), ud)
             frame_a = ca.mtimes(R_b.T, a_I)
@@ -240,7 +265,9 @@ class SpatialBeamLagrange:
 
             G1, G2, G3 = gram(w), gram(w * (L - x)), gram(w * (L * L - x * x) / 2)
             G = (ca.DM(G2) * (rhoA * (frame_g[0] - frame_a[0])) + ca.DM(G3) * (rhoA * (w_b[1] ** 2 + w_b[2] ** 2))
-                 - ca.DM(G1) * frame_f[0])
+                 - ca.DM(G1) * frame_f[0] + ca.DM(G2) * float(p.distributed_load[0]))
+            if p.second_order_inertia:                 # the beam's own axial force is in T and V; the tip's is not
+                G = -ca.DM(G1) * frame_f[0]
             generalized[nh:nh + ny + nz] -= ca.mtimes(G, q[nh:nh + ny + nz])
         # body-axis actuators: generalised forces by virtual power (module docstring)
         act = ca.SX.sym("act", len(p.actuators))

@@ -25,6 +25,7 @@ from .. import validation
 from ..errors import ModelError
 from ..flexible.beam import ModalForce
 from ..flexible.modes import check_quadrature
+from ..flexible.second_order import check_second_order
 from ..signals import Constant, SignalLike, as_signal
 from .beam_modes import SpatialBeamData
 
@@ -67,6 +68,10 @@ class SpatialBeam:
     geometric_stiffening : bool
         Geometric stiffness of the axial force of the overall motion in both bending planes (centrifugal
         stiffening, gravity, root acceleration, end and station loads); default True.
+    second_order_inertia : bool
+        Move every mass point with the shortening ``-1/2 eta^T G1(x) eta`` of the bent axis: the geometric
+        stiffness and its reactions on the frame, energy-conserving (:mod:`ctmm.spatial.beam_second_order`).
+        Default False.  Needs ``geometric_stiffening=True`` and no axial modes.
     damping_ratio : float
         Modal damping ratio ``zeta`` of every mode (>= 0).
     stiffness_damping : float
@@ -110,6 +115,7 @@ class SpatialBeam:
     n_axial_modes: int = 0
     axial_stiffness: float | None = None
     geometric_stiffening: bool = True
+    second_order_inertia: bool = False
     damping_ratio: float = 0.0
     stiffness_damping: float = 0.0
     static_shapes: bool = False
@@ -146,6 +152,7 @@ class SpatialBeam:
                              f"(n_torsion_modes = {self.n_torsion_modes}), got 0.0")
         validation.flag(f"{n}: geometric_stiffening", self.geometric_stiffening)
         validation.flag(f"{n}: static_shapes", self.static_shapes)
+        check_second_order(self)
         for attribute in ("damping_ratio", "stiffness_damping"):
             object.__setattr__(self, attribute, validation.nonnegative(f"{n}: {attribute}", getattr(self, attribute)))
         if self.static_shapes and self.damping_ratio:

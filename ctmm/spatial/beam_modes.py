@@ -42,6 +42,7 @@ import numpy as np
 
 from ..errors import ModelError
 from ..flexible.modes import ModeSet, gauss_points
+from .beam_second_order import SecondOrderTensors
 
 __all__ = ["rod_shapes", "SpatialBeamData", "STATIC_CONDITION"]
 
@@ -124,6 +125,7 @@ class SpatialBeamData:
         self.G2 = self.geometric(x, w * (L - x))
         self.G3 = self.geometric(x, w * (L * L - x * x) / 2)
         self.stiffening = beam.geometric_stiffening
+        self.second_order = SecondOrderTensors(self, beam.quadrature) if beam.second_order_inertia else None
         self.K_total, self.D_total = K.copy(), D.copy()
         self.forces = []
         for hook in beam.modal_forces:

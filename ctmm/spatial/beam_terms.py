@@ -46,6 +46,7 @@ import numpy as np
 
 from ..ops import Ops
 from ..protocol import BodyTerms
+from .beam_second_order import second_order_deltas
 from .frames import axis_rotation, block_diagonal, column, constant, cross, entry, skew
 
 __all__ = ["PointFrame", "spatial_beam_terms", "beam_energy", "beam_load_vector"]
@@ -188,6 +189,9 @@ def spatial_beam_terms(ops: Ops, beam: Any, *, rotation: Any, offset: Any, omega
                      [modal_left, ops.transpose(Gamma) + ops.matmul(bt, ops.transpose(e1)),
                       constant(ops, data.modal_mass)]])
     h_b = ops.block([[h_lin], [h_ang], [h_mod]])
+    if data.second_order is not None:                  # the mass points' shortening (beam_second_order.py)
+        dM, dh = second_order_deltas(ops, data, omega=w, gravity=g, load=qv, eta=eta, eta_dot=eta_dot)
+        M_b, h_b = M_b + dM, h_b + dh
     T6 = block_diagonal(ops, R, R, 3, 3)
     T = ops.block([[T6, ops.zeros(6, n)], [ops.zeros(n, 6), ops.eye(n)]])
     Tt = ops.transpose(T)
@@ -331,5 +335,7 @@ def beam_energy(beam: Any, rotation: np.ndarray, origin: np.ndarray, velocity: n
     elastic = 0.5 * np.einsum("bi,ij,bj->b", eta, data.K, eta)
     s = data.b @ eta.T                                                  # (3, B)
     s = s.T[:, :, None] + np.array([data.first_moment, 0.0, 0.0])[None, :, None]
+    if data.second_order is not None:                  # the shortening moves the centre of mass: int rhoA u e1
+        s[:, 0, 0] -= 0.5 * data.rhoA * np.einsum("bi,ij,bj->b", eta, data.G2, eta)
     height = (data.m * origin + rotation @ s)[:, :, 0] @ gravity
     return kinetic + elastic - height
