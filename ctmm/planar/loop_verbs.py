@@ -36,7 +36,8 @@ from ..linearized import LinearizedSystem, OperatingPoint, control_name
 from ..results import FrequencyResponse, SimulationResult
 from ..schemes import SCHEMES, Scheme, as_scheme
 from ..signal_results import SignalSystem, signal_result
-from .closed_loops import KinematicLoopModel, KinematicLoopSimulation, at_equilibrium, simulate_kinematic_loops
+from ..loop_manifold import at_equilibrium, input_output_matrices
+from .closed_loops import KinematicLoopModel, KinematicLoopSimulation, simulate_kinematic_loops
 from .equilibrium import hanging_configuration
 from .integrate import SCIPY_METHODS, coordinate_values, model_signals
 from .ports import PlanarPorts, actuator_names
@@ -260,30 +261,20 @@ def linearize_loops(model: KinematicLoopModel, operating_point: Any = None, *, i
     A, basis, q0, jacobian_error = model.resting_tangent(q_rest, t)
     n, f = tree.n_coordinates, basis.shape[1]
     rest = np.zeros(n)
-    qdd0, lam0 = model.solve(q0, rest, t)
+    qdd0 = model.solve(q0, rest, t)[0]
     equilibrium = at_equilibrium(A, basis, qdd0)
     if not equilibrium and not allow_nonequilibrium:
         raise ModelError(f"linearize: the operating point of {model.name!r} is not an equilibrium (largest "
                          f"acceleration {np.max(np.abs(qdd0)):.3e}); give operating_point=None (the static "
                          "equilibrium) or allow_nonequilibrium=True")
-    normal = model.jacobian(q0, t).T
 
     def output(q: np.ndarray, qdot: np.ndarray, lam: np.ndarray) -> np.ndarray:
         values = dict(zip(sensor_names, ports.values(sensors, q, qdot, t))) if sensor_names else {}
         values.update(zip(forces, lam.reshape(-1)))
         return np.array([values[name] for name in output_names], dtype=float)
 
-    def row(x: np.ndarray) -> np.ndarray:
-        q, qdot = model.chart(q0, basis, normal, x[:f], x[f:], t)
-        return output(q, qdot, model.solve(q, qdot, t)[1])
-
-    C = np.column_stack([(row(e) - row(-e)) / (2.0 * _STEP) for e in _STEP * np.eye(2 * f)])
-    B = np.zeros((2 * f, len(input_names)))
-    D = np.zeros((len(output_names), len(input_names)))
-    for k, name in enumerate(input_names):
-        qdd, lam = model.solve(q0, rest, t, ports.inputs({name: 1.0}))      # affine in the input: exact
-        B[f:, k] = basis.T @ (qdd - qdd0)
-        D[:, k] = output(q0, rest, lam) - output(q0, rest, lam0)
+    B, C, D = input_output_matrices(model, q0, basis, t, output, [ports.inputs({name: 1.0}) for name in input_names],
+                                    _STEP)
     states = [f"z{k + 1}" for k in range(f)] + [f"z{k + 1}_dot" for k in range(f)]
     if not input_names and len(output_names) == 1:
         raise ModelError(f"linearize: inputs={inputs!r} leaves {model.name!r} with no input and one output, a state "

@@ -18,7 +18,8 @@ from ..controlled_linearization import close_model_loops, delayed_loop_response
 from ..errors import ModelError
 from ..linearized import LinearizedSystem, OperatingPoint, control_name
 from ..results import FrequencyResponse
-from .closed_loop_linear import chart, tangent
+from ..loop_manifold import input_output_matrices
+from .closed_loop_linear import tangent
 from .closed_loops import SpatialKinematicLoopModel
 from .ports import SpatialPorts
 
@@ -114,7 +115,6 @@ def linearize_spatial_loops(model: Any, operating_point: Any = None, *, inputs: 
     jacobian_error = float(np.max(np.abs(A - coarse)) / max(np.max(np.abs(A)), 1e-300))
     f = basis.shape[1]
     rest = np.zeros(tree.n_velocities)
-    vdot0, lam0 = model.solve(q0, rest, t)
 
     def output(q: np.ndarray, v: np.ndarray, lam: np.ndarray) -> np.ndarray:
         values = dict(zip(sensor_names, ports.values(sensors, q, v, t))) if sensor_names else {}
@@ -122,17 +122,8 @@ def linearize_spatial_loops(model: Any, operating_point: Any = None, *, inputs: 
         values.update(zip(forces, np.concatenate([force for force, _ in loads])))
         return np.array([values[name] for name in output_names], dtype=float)
 
-    def row(x: np.ndarray) -> np.ndarray:
-        q, v = chart(model, q0, basis, x[:f], x[f:], t)
-        return output(q, v, model.solve(q, v, t)[1])
-
-    C = np.column_stack([(row(e) - row(-e)) / (2.0 * _STEP) for e in _STEP * np.eye(2 * f)])
-    B = np.zeros((2 * f, len(input_names)))
-    D = np.zeros((len(output_names), len(input_names)))
-    for k, name in enumerate(input_names):
-        vdot, lam = model.solve(q0, rest, t, ports.inputs({name: 1.0}))      # affine in the input: exact
-        B[f:, k] = basis.T @ (vdot - vdot0)
-        D[:, k] = output(q0, rest, lam) - output(q0, rest, lam0)
+    B, C, D = input_output_matrices(model, q0, basis, t, output, [ports.inputs({name: 1.0}) for name in input_names],
+                                    _STEP)
     if not input_names and len(output_names) == 1:
         raise ModelError(f"linearize: inputs={inputs!r} leaves {model.name!r} with no input and one output, a state "
                          "space python-control cannot hold; name an input or a second output")

@@ -280,6 +280,11 @@ class SpatialKinematicLoopModel:
         q = np.asarray(q, float)
         return self._rows_and_jacobian(q, np.zeros(self.tree.n_velocities), t)[2]
 
+    @property
+    def n_velocities(self) -> int:
+        """The size of the tree's velocity space (:mod:`ctmm.loop_manifold` protocol)."""
+        return self.tree.n_velocities
+
     def retract(self, q: np.ndarray, dx: np.ndarray) -> np.ndarray:
         """``q (+) dx``: the tree coordinates moved by the velocity-space increment ``dx`` (``q + G(q) dx``,
         quaternions renormalised; first order in ``dx``)."""
