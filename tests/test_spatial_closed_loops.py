@@ -13,7 +13,7 @@ from ctmm.spatial import closed_loop_linear as linear
 from ctmm.spatial.closed_loop_time import simulate_spatial_loops
 from ctmm.spatial.closed_loops import SpatialCutJoint, SpatialKinematicLoopModel
 from ctmm.scenarios.spatial_four_bar import DOWN
-from spatial_loop_helpers import dae_of, hinged_pendulum, poses, rod, rusr, triangle, triangle_guess
+from spatial_loop_helpers import dae_of, hinged_pendulum, hooke_pendulum, poses, rod, rusr, triangle, triangle_guess
 
 
 def _dae_errors(loop, run, baumgarte: float = 10.0):
@@ -166,6 +166,30 @@ def test_revolute_cut_moment_is_perpendicular_to_the_hinge():
     _, lam = loop.solve(q, v)
     (force, moment), = loop.cut_loads(q, lam)
     assert lam.shape == (5,) and abs(moment[1]) < 1e-12 * max(1.0, np.abs(moment).max())
+
+
+def test_universal_cut_pendulum_matches_the_dae_and_the_closed_form_frequencies():
+    """A universal (Hooke) cut, 4 rows: the motion and the cut loads (force and the moment multiplier along
+    ``u x b``) against the DAE with its own universal rows; about the hanging equilibrium the two compound-pendulum
+    frequencies ``m g L / (I_xx + m L^2)`` and ``m g L / (I_yy + m L^2)`` (the cross axes are the principal axes
+    there), and the spin about the vertical held."""
+    loop = hooke_pendulum()
+    q, v = loop.consistent_state({"free.qw": np.cos(0.15), "free.qx": np.sin(0.15), "free.x": 0.01},
+                                 {"free.wx": 1.5, "free.wy": -2.0, "free.wz": 0.7})
+    assert loop.jacobian(q).shape == (4, 6) and np.linalg.matrix_rank(loop.jacobian(q)) == 4
+    run = simulate_spatial_loops(loop, q, v, t_final=0.06, dt=2e-3)
+    angle, position, mu = _dae_errors(loop, run)
+    assert angle < 1e-9 and position < 1e-9 and run.drift.max() < 1e-14
+    _, lam = loop.solve(run.q[-1], run.v[-1], run.t[-1])
+    assert lam.shape == (4,) and np.max(np.abs(mu - lam)) < 1e-7 * np.max(np.abs(mu))
+    assert np.any(run.cut_moment[-1, 0])
+    assert ctmm.simulate(loop, 0.004, 2e-3, x0=q, v0=v)["hooke.moment_x"].shape == (3,)
+    equilibrium = linear.equilibrium(loop, q)
+    mass, arm = 1.2, 0.3
+    exact = np.sqrt(mass * 9.81 * arm / (np.array([0.02, 0.03]) + mass * arm ** 2))
+    assert np.max(np.abs(linear.natural_frequencies(loop, equilibrium) / np.sort(exact) - 1.0)) < 1e-8
+    with pytest.raises(ModelError, match="parent_axis"):
+        SpatialCutJoint(name="u", parent=None, child="p", kind="universal", axis=(0, 1, 0))
 
 
 def test_closed_triangle_of_bodies_matches_the_dae():
