@@ -258,8 +258,6 @@ def test_feedback_loop_on_the_crank_matches_the_dae_with_the_law_as_a_motor(four
     assert abs(result["s3.force_z"][-1] - force) < 1e-7 * abs(force)
     with pytest.raises(ModelError, match="not available"):
         ctmm.natural_frequencies(controlled, operating_point=q)
-    with pytest.raises(ModelError, match="cut forces"):
-        ctmm.linearize(controlled, q, outputs=["s3.force_z"])
     with pytest.raises(ModelError, match="DT-TMM schemes are not implemented"):
         ctmm.simulate(controlled, 0.01, 1e-3, x0=q, v0=v, method="newmark", references={"pd": 1.6})
 
@@ -285,6 +283,36 @@ def test_closed_loop_poles_of_a_crank_pd_match_the_dae(four_bar, four_bar_equili
     static = (np.asarray(lin.state_space.D) - np.asarray(lin.state_space.C) @ np.linalg.solve(
         np.asarray(lin.state_space.A), np.asarray(lin.state_space.B)))[0, 0]
     assert abs(static - 1.0 / (stiffness + kp)) < 1e-6 / (stiffness + kp)     # theta per unit reference
+
+
+def test_cut_force_output_of_the_controlled_loop_matches_the_dae(four_bar, four_bar_equilibrium):
+    """Cut-force outputs with a real-time crank PD: ``F = slope theta + gain u_total`` with the closed-loop crank angle
+    ``theta = u / (M s^2 + K + kp + kd s)`` and the total crank torque ``u_total = 1 - (kp + kd s) theta`` per unit
+    reference or torque; ``M``, ``K``, the slope (cut force per crank angle at rest on the manifold) and the gain (per
+    unit crank torque) from the DAE."""
+    from ctmm.control import Feedback, with_feedback
+
+    loop, _, _ = four_bar
+    kp, kd = 8.0, 0.8
+    pd = Feedback("pd", sensor=[("h1.angle", kp), ("h1.rate", kd)], actuator="h1.torque", gain=1.0)
+    omega = np.array([0.0, 5.0, 20.0])
+    frf = ctmm.frequency_response(with_feedback(loop, [pd]), omega, input=["pd.reference", "h1.torque"],
+                                  output=["s3.force_z", "h1.angle"], operating_point=four_bar_equilibrium)
+    dae = dae_of(loop)
+    y = dae.state(*poses(loop, four_bar_equilibrium, np.zeros(4)))
+    N, K, Mr = dae.small_oscillations(y)
+    crank = N[3, 0]                                                # crank angle per unit z
+    h = 1e-4
+    slope = (dae.accelerations(dae.manifold_configuration(y, [h]))[1][-1]
+             - dae.accelerations(dae.manifold_configuration(y, [-h]))[1][-1]) / (2 * h * crank)
+    gain = dae.accelerations(y, torques={0: np.array([1.0, 0.0, 0.0])})[1][-1] - dae.accelerations(y)[1][-1]
+    s = 1j * omega
+    theta = 1.0 / (Mr[0, 0] / crank ** 2 * s * s + K[0, 0] / crank ** 2 + kp + kd * s)
+    expected = slope * theta + gain * (1.0 - (kp + kd * s) * theta)
+    for name in ("pd.reference", "h1.torque"):
+        np.testing.assert_allclose(frf("h1.angle", name), theta, rtol=1e-6)
+        np.testing.assert_allclose(frf("s3.force_z", name), expected, rtol=1e-6,        # measured 1.4e-8
+                                   atol=1e-6 * np.max(np.abs(expected)))
 
 
 def test_delay_margin_of_the_linearised_controlled_loop_matches_the_closed_form(four_bar, four_bar_equilibrium):

@@ -14,11 +14,12 @@ from typing import Any, Mapping
 import numpy as np
 
 from .. import validation
-from ..controlled_linearization import close_model_loops, delayed_loop_response
+from ..controlled_linearization import delayed_loop_response
 from ..errors import ModelError
 from ..linearized import LinearizedSystem, OperatingPoint, control_name
 from ..results import FrequencyResponse
 from ..loop_manifold import input_output_matrices
+from ..loop_model_feedback import linearize_with_feedback
 from .closed_loop_linear import tangent
 from .closed_loops import SpatialKinematicLoopModel
 from .ports import SpatialPorts
@@ -137,41 +138,20 @@ def linearize_spatial_loops(model: Any, operating_point: Any = None, *, inputs: 
 def _linearize_controlled(model: SpatialKinematicLoopModel, loops: tuple, operating_point: Any, *, inputs: Any,
                           outputs: Any, allow_nonequilibrium: bool) -> LinearizedSystem:
     """:func:`linearize_spatial_loops` with feedback ``loops`` on the tree's ports: the plant's tangent about the
-    equilibrium with the needed actuators as inputs and the needed sensors as outputs, the loops closed around it by
-    :func:`ctmm.controlled_linearization.close_model_loops` (real-time loops inside ``A``, LTI controller states
-    appended, delayed loops beside it; the loops act on the deviations of their sensors from the operating point).
-    Cut-force outputs of a controlled model are refused by name (not implemented yet)."""
+    equilibrium with the default, given and loop actuators as inputs, the cut forces ``"<cut>.force_x|y|z"`` [N]
+    available as outputs (:func:`ctmm.loop_model_feedback.linearize_with_feedback`)."""
     ports = SpatialPorts(model.tree)
-    forces = set(cut_force_names(model))
-    requested_outputs = [] if outputs is None else list(validation.names("outputs", outputs)) if not (
-        isinstance(outputs, (list, tuple)) and not outputs) else []
-    if forces & set(requested_outputs):
-        raise ModelError(f"linearize: the cut forces {sorted(forces & set(requested_outputs))} are not outputs of a "
-                         f"spatial kinematic loop model with feedback loops yet; linearize the open model "
-                         "(model.plant) for them")
     default_inputs = [name for joint in model.tree.joints for name in joint.inputs if joint.velocity_count == 1]
     given_inputs = [] if inputs is None or (isinstance(inputs, (list, tuple)) and not inputs) else \
         list(validation.names("inputs", inputs))
     actuators = list(dict.fromkeys([name for name in default_inputs + given_inputs if name in ports.actuators]
                                    + [name for lp in loops for name, _ in lp.actuator_terms]))
-    default_outputs = [name for name in model.tree.coordinates if name in ports.sensors]
-    sensors = list(dict.fromkeys([name for name in default_outputs + requested_outputs if name in ports.sensors]
-                                 + [name for lp in loops for name, _ in lp.terms]))
-    plant = linearize_spatial_loops(model, operating_point, inputs=actuators, outputs=sensors,
-                                    allow_nonequilibrium=allow_nonequilibrium)
-    ss = plant.state_space
-    B, C = np.asarray(ss.B, dtype=float), np.asarray(ss.C, dtype=float)
-
-    def columns(names: list[str]) -> np.ndarray:
-        return B[:, [actuators.index(ports.check_actuator(name, "input (actuator)")) for name in names]]
-
-    def rows(names: list[str]) -> np.ndarray:
-        return C[[sensors.index(ports.check_sensor(name, "output (sensor)")) for name in names], :]
-
-    return close_model_loops(np.asarray(ss.A, dtype=float), loops, inputs=inputs, outputs=outputs,
-                             default_inputs=default_inputs, default_outputs=default_outputs, input_columns=columns,
-                             output_rows=rows, states=list(ss.state_labels), name=model.name,
-                             point=plant.operating_point)
+    return linearize_with_feedback(
+        lambda lin_in, lin_out: linearize_spatial_loops(model, operating_point, inputs=lin_in, outputs=lin_out,
+                                                        allow_nonequilibrium=allow_nonequilibrium),
+        loops, ports, inputs=inputs, outputs=outputs, actuators=actuators, default_inputs=default_inputs,
+        default_outputs=[name for name in model.tree.coordinates if name in ports.sensors],
+        cut_outputs=cut_force_names(model), name=model.name)
 
 
 def natural_frequencies_spatial_loops(model: Any, *, n_modes: int | None = None, omega_max: float | None = None,
