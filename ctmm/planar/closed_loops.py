@@ -34,15 +34,14 @@ wrench and modal equations as its virtual work, through the end's foreshortening
 """
 from __future__ import annotations
 
-import time as _time
 from dataclasses import dataclass
 from typing import Mapping, Sequence
 
 import numpy as np
-import scipy.integrate
 
 from .. import loop_manifold, validation
 from ..errors import ModelError, SimulationError
+from ..loop_integration import integrate_loop_model
 from .elements import Fixed
 from .model import PlanarModel
 from .ports import ActuatorInputs
@@ -480,7 +479,7 @@ def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: f
     if not isinstance(model, KinematicLoopModel):
         raise ModelError(f"model must be a KinematicLoopModel, got {model!r}")
     t_final = validation.positive("t_final", t_final)
-    store_every = validation.integer("store_every", store_every)
+    store_every = validation.integer("store_every", store_every, minimum=1)
     q, v = model.tree.state(q0, qdot0)
     q, v = np.asarray(q, float).copy(), np.asarray(v, float).copy()
     phi, phi_dot = model.constraints(q, v)
@@ -496,40 +495,13 @@ def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: f
         qdd, _ = model.solve(y[:n], y[n:], t)
         return np.concatenate([y[n:], qdd])
 
-    start = _time.perf_counter()
-    if method == "rk4":
-        h = validation.positive("dt", dt)
-        steps = max(1, int(round(t_final / h)))
-        ts, ys = [0.0], [np.concatenate([q, v])]
-        y = ys[0]
-        for k in range(1, steps + 1):
-            t = (k - 1) * h
-            k1 = rate(t, y)
-            k2 = rate(t + h / 2, y + h / 2 * k1)
-            k3 = rate(t + h / 2, y + h / 2 * k2)
-            k4 = rate(t + h, y + h * k3)
-            y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-            if projection:
-                y = np.concatenate(model.project(y[:n], y[n:], k * h))
-            if not np.all(np.isfinite(y)):
-                raise SimulationError(f"kinematic loop {model.name!r}: non-finite state at t = {k * h} s",
-                                      time=k * h, element=model.cuts[0].name,
-                                      partial_result={"t": np.array(ts), "q": np.array(ys)[:, :n],
-                                                      "qdot": np.array(ys)[:, n:]})
-            if k % store_every == 0 or k == steps:
-                ts.append(k * h)
-                ys.append(y)
-        t_out, y_out = np.array(ts), np.array(ys)
-    else:
-        validation.option("method", method, ("rk4", "RK45", "RK23", "DOP853", "Radau", "BDF", "LSODA"))
-        sol = scipy.integrate.solve_ivp(rate, (0.0, t_final), np.concatenate([q, v]), method=method, rtol=rtol,
-                                        atol=atol, t_eval=t_eval,
-                                        max_step=max_step if max_step is not None else (np.inf if dt is None else dt))
-        if not sol.success:
-            raise SimulationError(f"kinematic loop {model.name!r}: solve_ivp failed: {sol.message}",
-                                  time=float(sol.t[-1]), element=model.cuts[0].name)
-        t_out, y_out = sol.t, sol.y.T
-    wall = _time.perf_counter() - start
+    def finish(y: np.ndarray, t: float) -> np.ndarray:
+        return np.concatenate(model.project(y[:n], y[n:], t)) if projection else y
+
+    t_out, y_out, wall = integrate_loop_model(rate, np.concatenate([q, v]), n, t_final=t_final, dt=dt, method=method,
+                                              finish=finish, rtol=rtol, atol=atol, store_every=store_every,
+                                              t_eval=t_eval, max_step=max_step, label=f"kinematic loop {model.name!r}",
+                                              element=model.cuts[0].name, velocity_label="qdot")
     forces, drift, drift_rate = [], [], []
     for t, y in zip(t_out, y_out):
         phi, phi_dot = model.constraints(y[:n], y[n:], t)
