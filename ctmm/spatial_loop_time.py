@@ -43,7 +43,7 @@ def simulate_spatial_loop_system(system: Any, t_final: float, dt: float | None, 
     (``"rk4"`` and ``solve_ivp``; drift held by Baumgarte only).
 
     The result holds the tree's signals (:func:`ctmm.spatial.integrate.spatial_signals`: coordinates, velocities,
-    body positions and angular velocities), ``"<cut>.force_x|y|z"`` [N] and, for revolute cuts,
+    body positions and angular velocities), ``"<cut>.force_x|y|z"`` [N] and, for revolute and universal cuts,
     ``"<cut>.moment_x|y|z"`` [N m] (on the child, world axes), ``"drift"`` and ``"drift_rate"``, with loops
     ``"<loop>.y"``, ``"<loop>.u"``.
 

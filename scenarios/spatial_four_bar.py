@@ -97,7 +97,7 @@ def dae_of(loop: SpatialKinematicLoopModel, baumgarte: float = 10.0) -> SpatialL
     for cut in loop.cuts:
         parent, p_point = local(cut.parent, cut.point)
         child, c_point = local(cut.child, cut.child_point)
-        joints.append(DaeJoint(cut.name, "revolute" if cut.kind == "revolute" else "ball", parent, p_point, child,
+        joints.append(DaeJoint(cut.name, {"spherical": "ball"}.get(cut.kind, cut.kind), parent, p_point, child,
                                c_point, parent_axis=cut.parent_axis, child_axis=cut.axis))
     return SpatialLoopDAE([DaeBody(b.name, b.mass, b.inertia) for b in tree.bodies], joints, gravity=tree.gravity,
                           baumgarte=baumgarte)

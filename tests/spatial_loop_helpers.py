@@ -10,7 +10,7 @@ import ctmm.spatial as sp
 from ctmm.scenarios.spatial_four_bar import dae_of, mechanism as rusr, poses, rod
 from ctmm.spatial.closed_loops import SpatialCutJoint, SpatialKinematicLoopModel
 
-__all__ = ["dae_of", "rusr", "poses", "rod", "hinged_pendulum", "triangle", "triangle_guess"]
+__all__ = ["dae_of", "rusr", "poses", "rod", "hinged_pendulum", "hooke_pendulum", "triangle", "triangle_guess"]
 
 
 def hinged_pendulum(baumgarte: float = 20.0) -> SpatialKinematicLoopModel:
@@ -21,6 +21,17 @@ def hinged_pendulum(baumgarte: float = 20.0) -> SpatialKinematicLoopModel:
         sp.Free(name="free", parent=None, child="p")])
     return SpatialKinematicLoopModel(tree, [SpatialCutJoint(name="hinge", parent=None, child="p", kind="revolute",
                                                             axis=(0, 1, 0))], baumgarte=baumgarte)
+
+
+def hooke_pendulum(baumgarte: float = 20.0) -> SpatialKinematicLoopModel:
+    """A body on a free joint held at the ground by a universal (Hooke) cut at its origin, cross axes world x
+    (parent) and body y (child): 2 degrees of freedom, 4 cut rows; centre of mass at (0, 0, -0.3) body axes."""
+    tree = sp.SpatialModel("hooke", [
+        sp.SpatialBody("p", 1.2, np.diag([0.02, 0.03, 0.025]), center_of_mass=(0.0, 0.0, -0.3)),
+        sp.Free(name="free", parent=None, child="p")])
+    return SpatialKinematicLoopModel(tree, [SpatialCutJoint(name="hooke", parent=None, child="p", kind="universal",
+                                                            axis=(0, 1, 0), parent_axis=(1, 0, 0))],
+                                     baumgarte=baumgarte)
 
 
 def triangle(baumgarte: float = 20.0) -> SpatialKinematicLoopModel:

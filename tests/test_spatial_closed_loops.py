@@ -13,7 +13,7 @@ from ctmm.spatial import closed_loop_linear as linear
 from ctmm.spatial.closed_loop_time import simulate_spatial_loops
 from ctmm.spatial.closed_loops import SpatialCutJoint, SpatialKinematicLoopModel
 from ctmm.scenarios.spatial_four_bar import DOWN
-from spatial_loop_helpers import dae_of, hinged_pendulum, poses, rod, rusr, triangle, triangle_guess
+from spatial_loop_helpers import dae_of, hinged_pendulum, hooke_pendulum, poses, rod, rusr, triangle, triangle_guess
 
 
 def _dae_errors(loop, run, baumgarte: float = 10.0):
@@ -168,6 +168,30 @@ def test_revolute_cut_moment_is_perpendicular_to_the_hinge():
     assert lam.shape == (5,) and abs(moment[1]) < 1e-12 * max(1.0, np.abs(moment).max())
 
 
+def test_universal_cut_pendulum_matches_the_dae_and_the_closed_form_frequencies():
+    """A universal (Hooke) cut, 4 rows: the motion and the cut loads (force and the moment multiplier along
+    ``u x b``) against the DAE with its own universal rows; about the hanging equilibrium the two compound-pendulum
+    frequencies ``m g L / (I_xx + m L^2)`` and ``m g L / (I_yy + m L^2)`` (the cross axes are the principal axes
+    there), and the spin about the vertical held."""
+    loop = hooke_pendulum()
+    q, v = loop.consistent_state({"free.qw": np.cos(0.15), "free.qx": np.sin(0.15), "free.x": 0.01},
+                                 {"free.wx": 1.5, "free.wy": -2.0, "free.wz": 0.7})
+    assert loop.jacobian(q).shape == (4, 6) and np.linalg.matrix_rank(loop.jacobian(q)) == 4
+    run = simulate_spatial_loops(loop, q, v, t_final=0.06, dt=2e-3)
+    angle, position, mu = _dae_errors(loop, run)
+    assert angle < 1e-9 and position < 1e-9 and run.drift.max() < 1e-14
+    _, lam = loop.solve(run.q[-1], run.v[-1], run.t[-1])
+    assert lam.shape == (4,) and np.max(np.abs(mu - lam)) < 1e-7 * np.max(np.abs(mu))
+    assert np.any(run.cut_moment[-1, 0])
+    assert ctmm.simulate(loop, 0.004, 2e-3, x0=q, v0=v)["hooke.moment_x"].shape == (3,)
+    equilibrium = linear.equilibrium(loop, q)
+    mass, arm = 1.2, 0.3
+    exact = np.sqrt(mass * 9.81 * arm / (np.array([0.02, 0.03]) + mass * arm ** 2))
+    assert np.max(np.abs(linear.natural_frequencies(loop, equilibrium) / np.sort(exact) - 1.0)) < 1e-8
+    with pytest.raises(ModelError, match="parent_axis"):
+        SpatialCutJoint(name="u", parent=None, child="p", kind="universal", axis=(0, 1, 0))
+
+
 def test_closed_triangle_of_bodies_matches_the_dae():
     loop = triangle()
     q, v = loop.consistent_state(triangle_guess(), {"ja.wx": 1.0, "jb.wz": 0.5, "jc.wy": -0.3})
@@ -234,8 +258,6 @@ def test_feedback_loop_on_the_crank_matches_the_dae_with_the_law_as_a_motor(four
     assert abs(result["s3.force_z"][-1] - force) < 1e-7 * abs(force)
     with pytest.raises(ModelError, match="not available"):
         ctmm.natural_frequencies(controlled, operating_point=q)
-    with pytest.raises(ModelError, match="cut forces"):
-        ctmm.linearize(controlled, q, outputs=["s3.force_z"])
     with pytest.raises(ModelError, match="DT-TMM schemes are not implemented"):
         ctmm.simulate(controlled, 0.01, 1e-3, x0=q, v0=v, method="newmark", references={"pd": 1.6})
 
@@ -261,6 +283,36 @@ def test_closed_loop_poles_of_a_crank_pd_match_the_dae(four_bar, four_bar_equili
     static = (np.asarray(lin.state_space.D) - np.asarray(lin.state_space.C) @ np.linalg.solve(
         np.asarray(lin.state_space.A), np.asarray(lin.state_space.B)))[0, 0]
     assert abs(static - 1.0 / (stiffness + kp)) < 1e-6 / (stiffness + kp)     # theta per unit reference
+
+
+def test_cut_force_output_of_the_controlled_loop_matches_the_dae(four_bar, four_bar_equilibrium):
+    """Cut-force outputs with a real-time crank PD: ``F = slope theta + gain u_total`` with the closed-loop crank angle
+    ``theta = u / (M s^2 + K + kp + kd s)`` and the total crank torque ``u_total = 1 - (kp + kd s) theta`` per unit
+    reference or torque; ``M``, ``K``, the slope (cut force per crank angle at rest on the manifold) and the gain (per
+    unit crank torque) from the DAE."""
+    from ctmm.control import Feedback, with_feedback
+
+    loop, _, _ = four_bar
+    kp, kd = 8.0, 0.8
+    pd = Feedback("pd", sensor=[("h1.angle", kp), ("h1.rate", kd)], actuator="h1.torque", gain=1.0)
+    omega = np.array([0.0, 5.0, 20.0])
+    frf = ctmm.frequency_response(with_feedback(loop, [pd]), omega, input=["pd.reference", "h1.torque"],
+                                  output=["s3.force_z", "h1.angle"], operating_point=four_bar_equilibrium)
+    dae = dae_of(loop)
+    y = dae.state(*poses(loop, four_bar_equilibrium, np.zeros(4)))
+    N, K, Mr = dae.small_oscillations(y)
+    crank = N[3, 0]                                                # crank angle per unit z
+    h = 1e-4
+    slope = (dae.accelerations(dae.manifold_configuration(y, [h]))[1][-1]
+             - dae.accelerations(dae.manifold_configuration(y, [-h]))[1][-1]) / (2 * h * crank)
+    gain = dae.accelerations(y, torques={0: np.array([1.0, 0.0, 0.0])})[1][-1] - dae.accelerations(y)[1][-1]
+    s = 1j * omega
+    theta = 1.0 / (Mr[0, 0] / crank ** 2 * s * s + K[0, 0] / crank ** 2 + kp + kd * s)
+    expected = slope * theta + gain * (1.0 - (kp + kd * s) * theta)
+    for name in ("pd.reference", "h1.torque"):
+        np.testing.assert_allclose(frf("h1.angle", name), theta, rtol=1e-6)
+        np.testing.assert_allclose(frf("s3.force_z", name), expected, rtol=1e-6,        # measured 1.4e-8
+                                   atol=1e-6 * np.max(np.abs(expected)))
 
 
 def test_delay_margin_of_the_linearised_controlled_loop_matches_the_closed_form(four_bar, four_bar_equilibrium):

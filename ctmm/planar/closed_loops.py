@@ -34,21 +34,20 @@ wrench and modal equations as its virtual work, through the end's foreshortening
 """
 from __future__ import annotations
 
-import time as _time
 from dataclasses import dataclass
 from typing import Mapping, Sequence
 
 import numpy as np
-import scipy.integrate
 
-from .. import validation
+from .. import loop_manifold, validation
 from ..errors import ModelError, SimulationError
+from ..loop_integration import integrate_loop_model
 from .elements import Fixed
 from .model import PlanarModel
 from .ports import ActuatorInputs
 from .sweep import solve_instant
 
-__all__ = ["CutJoint", "KinematicLoopModel", "KinematicLoopSimulation", "simulate_kinematic_loops", "at_equilibrium"]
+__all__ = ["CutJoint", "KinematicLoopModel", "KinematicLoopSimulation", "simulate_kinematic_loops"]
 
 
 @dataclass(frozen=True)
@@ -368,52 +367,36 @@ class KinematicLoopModel:
         J = self.jacobian(q, t)
         return q, qdot - np.linalg.lstsq(J, J @ qdot, rcond=None)[0]
 
-    # -- linearisation on the constraint manifold ---------------------------------------------------
-    def chart(self, q0: np.ndarray, basis: np.ndarray, normal: np.ndarray, z: np.ndarray, zdot: np.ndarray,
-              t: float) -> tuple[np.ndarray, np.ndarray]:
+    # -- linearisation on the constraint manifold (the algorithm: :mod:`ctmm.loop_manifold`) -----------
+    @property
+    def n_velocities(self) -> int:
+        """The number of tree coordinates' rates (:mod:`ctmm.loop_manifold` protocol)."""
+        return self.tree.n_coordinates
+
+    def retract(self, q: np.ndarray, dx: np.ndarray) -> np.ndarray:
+        """``q + dx``: planar coordinates move additively (:mod:`ctmm.loop_manifold` protocol)."""
+        return q + dx
+
+    def chart(self, q0: np.ndarray, basis: np.ndarray, z: np.ndarray, zdot: np.ndarray, t: float = 0.0
+              ) -> tuple[np.ndarray, np.ndarray]:
         """The state on the constraints with independent coordinates ``z = N^T (q - q0)`` and rates ``zdot``:
         ``q = q0 + N z + J0^T y``, ``qdot = N zdot + J0^T w`` with ``y``, ``w`` from ``Phi = 0``, ``J qdot = 0``
-        (``basis``: ``N``, the null space of ``J0 = J(q0)``; ``normal``: ``J0^T``; angles [rad], rates [rad/s])."""
-        q = q0 + basis @ z
-        for _ in range(30):
-            phi, _ = self.constraints(q, np.zeros_like(q), t)
-            if np.max(np.abs(phi)) < 1e-14:
-                break
-            q = q - normal @ np.linalg.solve(self.jacobian(q, t) @ normal, phi)
-        J = self.jacobian(q, t)
-        qdot = basis @ zdot
-        return q, qdot - normal @ np.linalg.solve(J @ normal, J @ qdot)
+        (``basis``: ``N``, the null space of ``J0 = J(q0)``; angles [rad], rates [rad/s];
+        :func:`ctmm.loop_manifold.chart`)."""
+        return loop_manifold.chart(self, q0, basis, z, zdot, t)
 
     def linearize(self, q0, t: float = 0.0, *, step: float = 1e-5) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Linearisation about the resting state ``q0`` (projected onto the constraints) in independent
         coordinates ``z = N^T (q - q0)`` (``N``: orthonormal null space of ``J(q0)``, ``f`` columns).
 
         Returns ``(A, N, q0)`` with ``A = [[0, I], [dz''/dz, dz''/dz']]`` (2 f x 2 f) by central differences
-        (step ``step`` [rad]) of the closed-loop accelerations ``z'' = N^T q''`` on the manifold.
+        (step ``step`` [rad]) of the closed-loop accelerations ``z'' = N^T q''`` on the manifold
+        (:func:`ctmm.loop_manifold.tangent_matrix`).
         """
         n = self.tree.n_coordinates
         q0, _ = self.project(np.asarray(self.tree.state(q0, np.zeros(n))[0], float), np.zeros(n), t, iterations=30)
-        J = self.jacobian(q0, t)
-        _, values, vt = np.linalg.svd(J)
-        rank = int(np.sum(values > 1e-10 * max(values[0], 1e-300)))
-        basis, normal = vt[rank:].T, J.T
-        f = basis.shape[1]
-        if f == 0:
-            raise ModelError(f"kinematic loop {self.name!r}: no degree of freedom is left by the cut joints")
-
-        def rates(x: np.ndarray) -> np.ndarray:
-            q, qdot = self.chart(q0, basis, normal, x[:f], x[f:], t)
-            return basis.T @ self.solve(q, qdot, t)[0]
-
-        columns = []
-        for k in range(2 * f):
-            e = np.zeros(2 * f)
-            e[k] = step
-            columns.append((rates(e) - rates(-e)) / (2.0 * step))
-        A = np.zeros((2 * f, 2 * f))
-        A[:f, f:] = np.eye(f)
-        A[f:] = np.column_stack(columns)
-        return A, basis, q0
+        basis = loop_manifold.independent_basis(self, q0, t)
+        return loop_manifold.tangent_matrix(self, q0, basis, t, step), basis, q0
 
     def resting_tangent(self, q0, t: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
         """:meth:`linearize` about the resting state ``q0`` and its relative Jacobian error (against the step
@@ -433,65 +416,28 @@ class KinematicLoopModel:
 
     def natural_frequencies(self, q0, t: float = 0.0) -> np.ndarray:
         """Undamped natural frequencies [rad/s] about the resting state ``q0`` (an equilibrium: refused
-        otherwise), ascending, from :meth:`linearize`."""
-        n = self.tree.n_coordinates
+        otherwise), ascending, from :meth:`linearize` (:func:`ctmm.loop_manifold.undamped_frequencies`)."""
         A, basis, q0 = self.linearize(q0, t)
-        accelerations = self.solve(q0, np.zeros(n), t)[0]
-        rest = np.max(np.abs(accelerations), initial=0.0)
-        if not at_equilibrium(A, basis, accelerations):
-            raise ModelError(f"kinematic loop {self.name!r}: q0 is not an equilibrium (largest acceleration "
-                             f"{rest:.3e}); find one with KinematicLoopModel.equilibrium")
-        f = A.shape[0] // 2
-        if np.max(np.abs(A[f:, f:]), initial=0.0) > 1e-6 * np.sqrt(np.max(np.abs(A[f:, :f]), initial=1e-300)):
-            raise ModelError(f"kinematic loop {self.name!r}: natural_frequencies needs an undamped model (velocity-"
-                             "dependent forces at q0)")
-        squared = np.linalg.eigvals(-A[f:, :f])
-        if np.any(squared.real < 0.0) or np.max(np.abs(squared.imag), initial=0.0) > 1e-8 * np.max(np.abs(squared)):
-            raise ModelError(f"kinematic loop {self.name!r}: q0 is not a stable equilibrium (omega^2 = {squared})")
-        return np.sort(np.sqrt(squared.real))
+        loop_manifold.require_equilibrium(self, A, basis, q0, t, "KinematicLoopModel.equilibrium")
+        return loop_manifold.undamped_frequencies(self, A)
 
     def equilibrium(self, q_guess, t: float = 0.0, *, tolerance: float = 1e-10, largest_step: float = 0.2
                     ) -> np.ndarray:
-        """A static equilibrium near ``q_guess``: Newton on the independent coordinates ``z``, each step at most
-        ``largest_step`` [rad] (a far guess, e.g. the tree's hanging configuration, does not leap across the
-        mechanism's range), converged when the accelerations are below ``tolerance`` or the Newton step is below
-        ``tolerance`` [rad] (a stiff spring: the accelerations' round-off is ``|dz''/dz|`` times larger)."""
+        """A static equilibrium near ``q_guess`` (projected onto the constraints): Newton on the independent
+        coordinates ``z``, each step at most ``largest_step`` [rad] (a far guess, e.g. the tree's hanging
+        configuration, does not leap across the mechanism's range), converged when the accelerations are below
+        ``tolerance`` or the Newton step is below ``tolerance`` [rad] (:func:`ctmm.loop_manifold.newton_equilibrium`);
+        the last 8 kept on this model."""
         n = self.tree.n_coordinates
         q = np.asarray(self.tree.state(q_guess, np.zeros(n))[0], float)
         key = (q.tobytes(), float(t), float(tolerance), float(largest_step), self.baumgarte)
-        if key in self._equilibria:
-            return self._equilibria[key].copy()
-        start = q.copy()
-        for _ in range(80):
-            A, basis, q = self.linearize(q, t)
-            f = basis.shape[1]
-            residual = basis.T @ self.solve(q, np.zeros(n), t)[0]
-            step = -np.linalg.solve(A[f:, :f], residual)
-            if np.max(np.abs(residual)) < tolerance or np.max(np.abs(step)) < tolerance:
-                if len(self._equilibria) >= 8:
-                    self._equilibria.pop(next(iter(self._equilibria)))
-                self._equilibria[(start.tobytes(), *key[1:])] = q.copy()
-                return q
-            step *= min(1.0, largest_step / np.max(np.abs(step)))
-            q, _ = self.chart(q, basis, self.jacobian(q, t).T, step, np.zeros(f), t)
-        raise ModelError(f"kinematic loop {self.name!r}: no equilibrium found near the guess (residual "
-                         f"{np.max(np.abs(residual)):.3e} after 80 Newton steps)")
-
-
-def at_equilibrium(A: np.ndarray, basis: np.ndarray, accelerations: np.ndarray, *, acceleration: float = 1e-8,
-                   offset: float = 1e-10) -> bool:
-    """Whether a resting state is a static equilibrium: its accelerations ``qddot`` [rad/s^2, m/s^2] are below
-    ``acceleration``, or the static offset to the equilibrium, ``K^-1 N^T qddot`` with the tangent stiffness
-    ``K = -dz''/dz`` (``A``, ``basis``: :meth:`KinematicLoopModel.linearize`), is below ``offset`` [rad, m] -- a
-    stiff elastic coordinate (a modal beam's) is at rest to round-off with accelerations of ``|K|`` times that."""
-    if np.max(np.abs(accelerations), initial=0.0) <= acceleration:
-        return True
-    f = basis.shape[1]
-    try:
-        shift = np.linalg.solve(-A[f:, :f], basis.T @ accelerations)
-    except np.linalg.LinAlgError:
-        return False
-    return bool(np.max(np.abs(shift), initial=0.0) <= offset)
+        if key not in self._equilibria:
+            q_on, _ = self.project(q, np.zeros(n), t, iterations=30)
+            if len(self._equilibria) >= 8:
+                self._equilibria.pop(next(iter(self._equilibria)))
+            self._equilibria[key] = loop_manifold.newton_equilibrium(self, q_on, t, tolerance=tolerance,
+                                                                     largest_step=largest_step)
+        return self._equilibria[key].copy()
 
 
 def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: float, dt: float | None = None,
@@ -533,7 +479,7 @@ def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: f
     if not isinstance(model, KinematicLoopModel):
         raise ModelError(f"model must be a KinematicLoopModel, got {model!r}")
     t_final = validation.positive("t_final", t_final)
-    store_every = validation.integer("store_every", store_every)
+    store_every = validation.integer("store_every", store_every, minimum=1)
     q, v = model.tree.state(q0, qdot0)
     q, v = np.asarray(q, float).copy(), np.asarray(v, float).copy()
     phi, phi_dot = model.constraints(q, v)
@@ -549,40 +495,13 @@ def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: f
         qdd, _ = model.solve(y[:n], y[n:], t)
         return np.concatenate([y[n:], qdd])
 
-    start = _time.perf_counter()
-    if method == "rk4":
-        h = validation.positive("dt", dt)
-        steps = max(1, int(round(t_final / h)))
-        ts, ys = [0.0], [np.concatenate([q, v])]
-        y = ys[0]
-        for k in range(1, steps + 1):
-            t = (k - 1) * h
-            k1 = rate(t, y)
-            k2 = rate(t + h / 2, y + h / 2 * k1)
-            k3 = rate(t + h / 2, y + h / 2 * k2)
-            k4 = rate(t + h, y + h * k3)
-            y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-            if projection:
-                y = np.concatenate(model.project(y[:n], y[n:], k * h))
-            if not np.all(np.isfinite(y)):
-                raise SimulationError(f"kinematic loop {model.name!r}: non-finite state at t = {k * h} s",
-                                      time=k * h, element=model.cuts[0].name,
-                                      partial_result={"t": np.array(ts), "q": np.array(ys)[:, :n],
-                                                      "qdot": np.array(ys)[:, n:]})
-            if k % store_every == 0 or k == steps:
-                ts.append(k * h)
-                ys.append(y)
-        t_out, y_out = np.array(ts), np.array(ys)
-    else:
-        validation.option("method", method, ("rk4", "RK45", "RK23", "DOP853", "Radau", "BDF", "LSODA"))
-        sol = scipy.integrate.solve_ivp(rate, (0.0, t_final), np.concatenate([q, v]), method=method, rtol=rtol,
-                                        atol=atol, t_eval=t_eval,
-                                        max_step=max_step if max_step is not None else (np.inf if dt is None else dt))
-        if not sol.success:
-            raise SimulationError(f"kinematic loop {model.name!r}: solve_ivp failed: {sol.message}",
-                                  time=float(sol.t[-1]), element=model.cuts[0].name)
-        t_out, y_out = sol.t, sol.y.T
-    wall = _time.perf_counter() - start
+    def finish(y: np.ndarray, t: float) -> np.ndarray:
+        return np.concatenate(model.project(y[:n], y[n:], t)) if projection else y
+
+    t_out, y_out, wall = integrate_loop_model(rate, np.concatenate([q, v]), n, t_final=t_final, dt=dt, method=method,
+                                              finish=finish, rtol=rtol, atol=atol, store_every=store_every,
+                                              t_eval=t_eval, max_step=max_step, label=f"kinematic loop {model.name!r}",
+                                              element=model.cuts[0].name, velocity_label="qdot")
     forces, drift, drift_rate = [], [], []
     for t, y in zip(t_out, y_out):
         phi, phi_dot = model.constraints(y[:n], y[n:], t)

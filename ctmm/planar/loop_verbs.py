@@ -30,13 +30,15 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from .. import validation
-from ..controlled_linearization import close_model_loops, delayed_loop_response, exogenous_inputs, resolvent
+from ..controlled_linearization import delayed_loop_response, resolvent
 from ..errors import ModelError
 from ..linearized import LinearizedSystem, OperatingPoint, control_name
 from ..results import FrequencyResponse, SimulationResult
 from ..schemes import SCHEMES, Scheme, as_scheme
 from ..signal_results import SignalSystem, signal_result
-from .closed_loops import KinematicLoopModel, KinematicLoopSimulation, at_equilibrium, simulate_kinematic_loops
+from ..loop_manifold import at_equilibrium, input_output_matrices
+from ..loop_model_feedback import linearize_with_feedback
+from .closed_loops import KinematicLoopModel, KinematicLoopSimulation, simulate_kinematic_loops
 from .equilibrium import hanging_configuration
 from .integrate import SCIPY_METHODS, coordinate_values, model_signals
 from .ports import PlanarPorts, actuator_names
@@ -260,30 +262,20 @@ def linearize_loops(model: KinematicLoopModel, operating_point: Any = None, *, i
     A, basis, q0, jacobian_error = model.resting_tangent(q_rest, t)
     n, f = tree.n_coordinates, basis.shape[1]
     rest = np.zeros(n)
-    qdd0, lam0 = model.solve(q0, rest, t)
+    qdd0 = model.solve(q0, rest, t)[0]
     equilibrium = at_equilibrium(A, basis, qdd0)
     if not equilibrium and not allow_nonequilibrium:
         raise ModelError(f"linearize: the operating point of {model.name!r} is not an equilibrium (largest "
                          f"acceleration {np.max(np.abs(qdd0)):.3e}); give operating_point=None (the static "
                          "equilibrium) or allow_nonequilibrium=True")
-    normal = model.jacobian(q0, t).T
 
     def output(q: np.ndarray, qdot: np.ndarray, lam: np.ndarray) -> np.ndarray:
         values = dict(zip(sensor_names, ports.values(sensors, q, qdot, t))) if sensor_names else {}
         values.update(zip(forces, lam.reshape(-1)))
         return np.array([values[name] for name in output_names], dtype=float)
 
-    def row(x: np.ndarray) -> np.ndarray:
-        q, qdot = model.chart(q0, basis, normal, x[:f], x[f:], t)
-        return output(q, qdot, model.solve(q, qdot, t)[1])
-
-    C = np.column_stack([(row(e) - row(-e)) / (2.0 * _STEP) for e in _STEP * np.eye(2 * f)])
-    B = np.zeros((2 * f, len(input_names)))
-    D = np.zeros((len(output_names), len(input_names)))
-    for k, name in enumerate(input_names):
-        qdd, lam = model.solve(q0, rest, t, ports.inputs({name: 1.0}))      # affine in the input: exact
-        B[f:, k] = basis.T @ (qdd - qdd0)
-        D[:, k] = output(q0, rest, lam) - output(q0, rest, lam0)
+    B, C, D = input_output_matrices(model, q0, basis, t, output, [ports.inputs({name: 1.0}) for name in input_names],
+                                    _STEP)
     states = [f"z{k + 1}" for k in range(f)] + [f"z{k + 1}_dot" for k in range(f)]
     if not input_names and len(output_names) == 1:
         raise ModelError(f"linearize: inputs={inputs!r} leaves {model.name!r} with no input and one output, a state "
@@ -297,75 +289,14 @@ def linearize_loops(model: KinematicLoopModel, operating_point: Any = None, *, i
 
 def _linearize_controlled(model: KinematicLoopModel, loops: tuple, operating_point: Any, *, inputs: Any,
                           outputs: Any, allow_nonequilibrium: bool) -> LinearizedSystem:
-    """:func:`linearize_loops` with feedback ``loops`` on the tree's ports: the plant's tangent on the constraint
-    manifold with every actuator as input and the needed sensors as outputs, the loops closed around it by
-    :func:`ctmm.controlled_linearization.close_model_loops` (real-time loops inside ``A``, delayed loops beside it;
-    the loops act on the deviations of their sensors from the operating point).  Cut-force outputs feed through from
-    the actuators (the plant's ``D``): their rows are ``C_f x + D_f u`` with the actuator values ``u`` of the closed
-    system (exogenous actuator inputs, the real-time loops' forces, the delayed loops' force inputs)."""
-    import control
-
-    tree = model.tree
-    ports = PlanarPorts(tree)
-    forces = cut_signal_names(model)
-    empty = outputs is None or (isinstance(outputs, (list, tuple)) and not outputs)
-    requested = [] if empty else list(validation.names("outputs", outputs))
-    cut = [name for name in requested if name in forces]
-    sensors = set(ports.sensors)
-    needed = list(dict.fromkeys([name for name in list(tree.coordinates) + requested if name in sensors]
-                                + [name for lp in loops for name, _ in lp.terms]))
-    actuators = list(actuator_names(tree))
-    plant = linearize_loops(model, operating_point, inputs=actuators, outputs=needed + cut,
-                            allow_nonequilibrium=allow_nonequilibrium)
-    ss = plant.state_space
-    B, C = np.asarray(ss.B, dtype=float), np.asarray(ss.C, dtype=float)
-
-    def columns(names: list[str]) -> np.ndarray:
-        return B[:, [actuators.index(ports.check_actuator(name, "input (actuator)")) for name in names]]
-
-    def rows(names: list[str]) -> np.ndarray:
-        for name in names:
-            ports.check_sensor(name, "output (sensor)")
-        return C[[needed.index(name) for name in names], :]
-
-    real_time = [lp for lp in loops if lp.delay == 0.0]
-    others = [name for name in requested if name not in forces]
-    helpers = [f"{lp.name}.u" for lp in real_time if f"{lp.name}.u" not in others] if cut else []
-    closed = close_model_loops(np.asarray(ss.A, dtype=float), loops, inputs=inputs,
-                               outputs=outputs if not cut else others + helpers, default_inputs=actuators,
-                               default_outputs=list(tree.coordinates), input_columns=columns, output_rows=rows,
-                               states=list(ss.state_labels), name=model.name, point=plant.operating_point)
-    if not cut:
-        return closed
-    # the cut forces: C_f x + D_f u, u the actuator values of the closed system (module docstring of close_model_loops)
-    lin = closed.state_space
-    A_cl, B_cl, C_cl, D_cl = (np.asarray(m, dtype=float) for m in (lin.A, lin.B, lin.C, lin.D))
-    exo, _ = exogenous_inputs(loops, inputs, actuators)
-    delayed = [lp for lp in loops if lp.delay > 0.0]
-    U_x, U_in = np.zeros((len(actuators), A_cl.shape[0])), np.zeros((len(actuators), B_cl.shape[1]))
-    for k, name in enumerate(exo):
-        if name in actuators:
-            U_in[actuators.index(name), k] += 1.0
-    listed = others + helpers
-    for lp in real_time:
-        row = listed.index(f"{lp.name}.u")
-        for name, weight in lp.actuator_terms:
-            U_x[actuators.index(name)] += weight * C_cl[row]
-            U_in[actuators.index(name)] += weight * D_cl[row]
-    for j, lp in enumerate(delayed):
-        for name, weight in lp.actuator_terms:
-            U_in[actuators.index(name), len(exo) + j] += weight
-    C_f, D_f = C[len(needed):], np.asarray(ss.D, dtype=float)[len(needed):]
-    force_rows = np.hstack([C_f, np.zeros((len(cut), A_cl.shape[0] - C_f.shape[1]))]) + D_f @ U_x
-    force_feed = D_f @ U_in
-    C_new = np.vstack([force_rows[cut.index(name)] if name in forces else C_cl[listed.index(name)]
-                       for name in requested] + [C_cl[len(listed):]])
-    D_new = np.vstack([force_feed[cut.index(name)] if name in forces else D_cl[listed.index(name)]
-                       for name in requested] + [D_cl[len(listed):]])
-    labels = [control_name(x) for x in requested] + list(lin.output_labels)[len(listed):]
-    state_space = control.ss(A_cl, B_cl, C_new, D_new, inputs=list(lin.input_labels), outputs=labels,
-                             states=list(lin.state_labels), name=lin.name)
-    return LinearizedSystem(state_space, closed.delays, closed.operating_point)
+    """:func:`linearize_loops` with feedback ``loops`` on the tree's ports, every actuator a plant input, the cut
+    forces available as outputs (:func:`ctmm.loop_model_feedback.linearize_with_feedback`)."""
+    actuators = list(actuator_names(model.tree))
+    return linearize_with_feedback(
+        lambda lin_in, lin_out: linearize_loops(model, operating_point, inputs=lin_in, outputs=lin_out,
+                                                allow_nonequilibrium=allow_nonequilibrium),
+        loops, PlanarPorts(model.tree), inputs=inputs, outputs=outputs, actuators=actuators, default_inputs=actuators,
+        default_outputs=list(model.tree.coordinates), cut_outputs=cut_signal_names(model), name=model.name)
 
 
 def natural_frequencies_loops(model: KinematicLoopModel, *, n_modes: int | None = None,

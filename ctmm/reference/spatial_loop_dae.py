@@ -260,11 +260,8 @@ class SpatialLoopDAE:
         squared = scipy.linalg.eigh(K, Mr, eigvals_only=True)
         return np.sqrt(np.clip(np.sort(squared), 0.0, None))
 
-    def small_oscillations(self, y0: np.ndarray, *, step: float = 1e-3) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(N, K, M_r)`` about the resting configuration ``y0`` (an equilibrium): ``N`` (6 n, f) the orthonormal
-        null space of ``J`` (body twists ``[v_i ; w_i]`` per unit independent rate), ``M_r = N^T M N`` and ``K`` the
-        5-point Hessian of the potential of the Newton-projected configurations ``y0 (+) (N z + J^T s)``
-        (Lagrange on the manifold: ``M_r z'' + K z = 0``)."""
+    def _manifold(self, y0: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``y0`` at rest, the orthonormal null space ``N`` of ``J(y0)`` and the normal directions."""
         y0 = y0.copy()
         y0[7 * self.n:] = 0.0
         _, J0, _ = self.rows(y0)
@@ -272,16 +269,33 @@ class SpatialLoopDAE:
         rank = int(np.sum(values > 1e-10 * values[0]))
         N = vt[rank:].T
         normal = J0[:rank].T if rank == J0.shape[0] else vt[:rank].T
+        return y0, N, normal
+
+    def _chart(self, y0: np.ndarray, N: np.ndarray, normal: np.ndarray, z: np.ndarray) -> np.ndarray:
+        s = np.zeros(normal.shape[1])
+        for _ in range(50):
+            y = self._moved(y0, N @ z + normal @ s)
+            phi, J, _ = self.rows(y)
+            if np.max(np.abs(phi)) < 1e-15:
+                break
+            s -= np.linalg.lstsq(J @ normal, phi, rcond=None)[0]
+        return y
+
+    def manifold_configuration(self, y0: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """The resting configuration ``y0 (+) (N z + J^T s)`` on the constraints (Newton on ``s``; ``N`` the null
+        space of :meth:`small_oscillations`, ``z`` its independent coordinates)."""
+        y0, N, normal = self._manifold(y0)
+        return self._chart(y0, N, normal, np.asarray(z, float))
+
+    def small_oscillations(self, y0: np.ndarray, *, step: float = 1e-3) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(N, K, M_r)`` about the resting configuration ``y0`` (an equilibrium): ``N`` (6 n, f) the orthonormal
+        null space of ``J`` (body twists ``[v_i ; w_i]`` per unit independent rate), ``M_r = N^T M N`` and ``K`` the
+        5-point Hessian of the potential of the Newton-projected configurations ``y0 (+) (N z + J^T s)``
+        (Lagrange on the manifold: ``M_r z'' + K z = 0``)."""
+        y0, N, normal = self._manifold(y0)
 
         def chart(z: np.ndarray) -> np.ndarray:
-            s = np.zeros(normal.shape[1])
-            for _ in range(50):
-                y = self._moved(y0, N @ z + normal @ s)
-                phi, J, _ = self.rows(y)
-                if np.max(np.abs(phi)) < 1e-15:
-                    break
-                s -= np.linalg.lstsq(J @ normal, phi, rcond=None)[0]
-            return y
+            return self._chart(y0, N, normal, z)
 
         f = N.shape[1]
         weights = {-2: 1.0 / 12, -1: -2.0 / 3, 1: 2.0 / 3, 2: -1.0 / 12}

@@ -9,8 +9,9 @@ independent coordinates ``z`` parametrise the constrained configurations by the 
 (:meth:`SpatialKinematicLoopModel.retract`: quaternions move by ``G(q) dx`` and are renormalised), so the chart is
 exact to first order in ``z``: the tangent is exact **about an equilibrium** (the second-order terms of the chart
 multiply the accelerations, zero there), and the functions here refuse other resting states by name.  The tangent
-``A = [[0, I], [dz''/dz, dz''/dz']]`` is formed by central differences (step 1e-5).  ``docs/closed_loops.md``
-section 8.
+``A = [[0, I], [dz''/dz, dz''/dz']]`` is formed by central differences (step 1e-5).  The algorithm is the one of
+the planar loops (:mod:`ctmm.loop_manifold`); this module adds the spatial resting configuration and the tangent
+cache.  ``docs/closed_loops.md`` section 8.
 """
 from __future__ import annotations
 
@@ -18,8 +19,8 @@ from typing import Any
 
 import numpy as np
 
+from .. import loop_manifold
 from ..errors import ModelError
-from ..planar.closed_loops import at_equilibrium
 from .closed_loops import SpatialKinematicLoopModel
 
 __all__ = ["resting_configuration", "chart", "tangent", "equilibrium", "natural_frequencies"]
@@ -41,46 +42,13 @@ def resting_configuration(model: SpatialKinematicLoopModel, q0: Any, t: float = 
 def chart(model: SpatialKinematicLoopModel, q0: np.ndarray, basis: np.ndarray, z: np.ndarray, zdot: np.ndarray,
           t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """The constrained state ``(q, v)`` with independent coordinates ``z`` and rates ``zdot`` about ``q0``
-    (module docstring; ``basis``: ``N``)."""
-    normal = model.jacobian(q0, t).T
-    q = model.retract(q0, basis @ z)
-    for _ in range(30):
-        phi, _ = model.constraints(q, np.zeros(model.tree.n_velocities), t)
-        if np.max(np.abs(phi)) < 1e-14:
-            break
-        q = model.retract(q, -normal @ np.linalg.lstsq(model.jacobian(q, t) @ normal, phi, rcond=None)[0])
-    J = model.jacobian(q, t)
-    v = basis @ zdot
-    return q, v - normal @ np.linalg.lstsq(J @ normal, J @ v, rcond=None)[0]
-
-
-def _basis(model: SpatialKinematicLoopModel, q0: np.ndarray, t: float) -> np.ndarray:
-    J = model.jacobian(q0, t)
-    _, values, vt = np.linalg.svd(J)
-    rank = int(np.sum(values > 1e-10 * max(values[0], 1e-300)))
-    basis = vt[rank:].T
-    if basis.shape[1] == 0:
-        raise ModelError(f"spatial kinematic loop {model.name!r}: no degree of freedom is left by the cut joints")
-    return basis
+    (module docstring; ``basis``: ``N``; :func:`ctmm.loop_manifold.chart`)."""
+    return loop_manifold.chart(model, q0, basis, z, zdot, t)
 
 
 def _tangent(model: SpatialKinematicLoopModel, q0: np.ndarray, t: float, step: float) -> tuple[np.ndarray, np.ndarray]:
-    basis = _basis(model, q0, t)
-    f = basis.shape[1]
-
-    def rates(x: np.ndarray) -> np.ndarray:
-        q, v = chart(model, q0, basis, x[:f], x[f:], t)
-        return basis.T @ model.solve(q, v, t)[0]
-
-    columns = []
-    for k in range(2 * f):
-        e = np.zeros(2 * f)
-        e[k] = step
-        columns.append((rates(e) - rates(-e)) / (2.0 * step))
-    A = np.zeros((2 * f, 2 * f))
-    A[:f, f:] = np.eye(f)
-    A[f:] = np.column_stack(columns)
-    return A, basis
+    basis = loop_manifold.independent_basis(model, q0, t)
+    return loop_manifold.tangent_matrix(model, q0, basis, t, step), basis
 
 
 def tangent(model: SpatialKinematicLoopModel, q0: Any, t: float = 0.0, *, step: float = 1e-5
@@ -110,11 +78,7 @@ def tangent(model: SpatialKinematicLoopModel, q0: Any, t: float = 0.0, *, step: 
             cache.pop(next(iter(cache)))
         cache[key] = _tangent(model, q0, t, step)
     A, basis = (a.copy() for a in cache[key])
-    accelerations = model.solve(q0, np.zeros(model.tree.n_velocities), t)[0]
-    if not at_equilibrium(A, basis, accelerations):
-        raise ModelError(f"spatial kinematic loop {model.name!r}: q0 is not an equilibrium (largest acceleration "
-                         f"{np.max(np.abs(accelerations)):.3e}); the linearisation on the constraint manifold is "
-                         "taken about an equilibrium: find one with ctmm.spatial.closed_loop_linear.equilibrium")
+    loop_manifold.require_equilibrium(model, A, basis, q0, t, "ctmm.spatial.closed_loop_linear.equilibrium")
     return A, basis, q0
 
 
@@ -129,23 +93,7 @@ def equilibrium(model: SpatialKinematicLoopModel, q_guess: Any, t: float = 0.0, 
         No equilibrium after 80 Newton steps (a singular tangent stiffness included).
     """
     q = resting_configuration(model, q_guess, t)
-    nv = model.tree.n_velocities
-    residual = np.full(1, np.inf)
-    for _ in range(80):
-        A, basis = _tangent(model, q, t, 1e-5)
-        f = basis.shape[1]
-        residual = basis.T @ model.solve(q, np.zeros(nv), t)[0]
-        try:
-            step = -np.linalg.solve(A[f:, :f], residual)
-        except np.linalg.LinAlgError:
-            break
-        if np.max(np.abs(residual)) < tolerance or np.max(np.abs(step)) < tolerance:
-            return q
-        step *= min(1.0, largest_step / np.max(np.abs(step)))
-        q, _ = chart(model, q, basis, step, np.zeros(f), t)
-    raise ModelError(f"spatial kinematic loop {model.name!r}: no equilibrium found near the guess (residual "
-                     f"{np.max(np.abs(residual)):.3e}; a singular or neutral tangent stiffness stops Newton: give a "
-                     "better guess)")
+    return loop_manifold.newton_equilibrium(model, q, t, tolerance=tolerance, largest_step=largest_step)
 
 
 def natural_frequencies(model: SpatialKinematicLoopModel, q0: Any, t: float = 0.0) -> np.ndarray:
@@ -158,15 +106,4 @@ def natural_frequencies(model: SpatialKinematicLoopModel, q0: Any, t: float = 0.
         ``q0`` not an equilibrium (:func:`tangent`), velocity-dependent forces at ``q0`` (damping), an unstable
         equilibrium (``omega^2 < 0``).
     """
-    A, _, _ = tangent(model, q0, t)
-    f = A.shape[0] // 2
-    stiffness = np.max(np.abs(A[f:, :f]), initial=1e-300)
-    if np.max(np.abs(A[f:, f:]), initial=0.0) > 1e-6 * np.sqrt(stiffness):
-        raise ModelError(f"spatial kinematic loop {model.name!r}: natural_frequencies needs an undamped model "
-                         "(velocity-dependent forces at q0)")
-    squared = np.linalg.eigvals(-A[f:, :f])
-    scale = np.max(np.abs(squared), initial=1e-300)
-    if np.any(squared.real < -1e-8 * scale) or np.max(np.abs(squared.imag), initial=0.0) > 1e-8 * scale:
-        raise ModelError(f"spatial kinematic loop {model.name!r}: q0 is not a stable equilibrium "
-                         f"(omega^2 = {squared})")
-    return np.sort(np.sqrt(np.clip(squared.real, 0.0, None)))
+    return loop_manifold.undamped_frequencies(model, tangent(model, q0, t)[0])

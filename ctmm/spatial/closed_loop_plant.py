@@ -9,8 +9,8 @@ co-simulated controllers act on a spatial mechanism with cut joints:
 * the accelerations are the closed-loop ones with the actuator values of the stage applied to the tree **before**
   the cut loads are solved (:meth:`SpatialKinematicLoopModel.solve`: the sweep is affine in the applied loads, so
   the cut loads react to the drive);
-* the stored signals add the cut forces ``"<cut>.force_x|y|z"`` [N] (and moments of revolute cuts) with the row's
-  actuator values (``signals_need_inputs``), ``"drift"`` and ``"drift_rate"``.
+* the stored signals add the cut forces ``"<cut>.force_x|y|z"`` [N] (and moments of revolute and universal cuts)
+  with the row's actuator values (``signals_need_inputs``), ``"drift"`` and ``"drift_rate"``.
 
 ``"rk4"`` and the ``solve_ivp`` methods; drift held by Baumgarte only (the driver does not project).  The DT-TMM
 schemes are refused (``schemes = False``).
@@ -30,12 +30,13 @@ __all__ = ["SpatialLoopPlant", "add_cut_signals"]
 
 def add_cut_signals(model: SpatialKinematicLoopModel, signals: dict, units: dict, forces: np.ndarray,
                     moments: np.ndarray, drift: np.ndarray, drift_rate: np.ndarray) -> None:
-    """Add ``"<cut>.force_x|y|z"`` [N], ``"<cut>.moment_x|y|z"`` [N m] (revolute cuts; on the child, world axes),
-    ``"drift"`` and ``"drift_rate"`` to ``signals`` and ``units`` (``forces``, ``moments``: ``(N, n_cuts, 3)``)."""
+    """Add ``"<cut>.force_x|y|z"`` [N], ``"<cut>.moment_x|y|z"`` [N m] (revolute and universal cuts; on the child,
+    world axes), ``"drift"`` and ``"drift_rate"`` to ``signals`` and ``units`` (``forces``, ``moments``:
+    ``(N, n_cuts, 3)``)."""
     for j, cut in enumerate(model.cuts):
         for axis, label in enumerate("xyz"):
             signals[f"{cut.name}.force_{label}"], units[f"{cut.name}.force_{label}"] = forces[:, j, axis], "N"
-            if cut.kind == "revolute":
+            if cut.kind != "spherical":
                 signals[f"{cut.name}.moment_{label}"] = moments[:, j, axis]
                 units[f"{cut.name}.moment_{label}"] = "N m"
     signals["drift"], units["drift"] = drift, ""

@@ -7,17 +7,15 @@ result reports the drift ``max |Phi|`` and ``max |Phi'|`` and the cut loads (``d
 """
 from __future__ import annotations
 
-import time as _time
 from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
-import scipy.integrate
 
 from .. import validation
-from ..errors import ModelError, SimulationError
+from ..errors import ModelError
+from ..loop_integration import integrate_loop_model
 from .closed_loops import SpatialKinematicLoopModel
-from .integrate import SCIPY_METHODS
 
 __all__ = ["SpatialLoopSimulation", "simulate_spatial_loops"]
 
@@ -113,46 +111,17 @@ def simulate_spatial_loops(model: SpatialKinematicLoopModel, q0: Any, v0: Any, *
         vdot, _ = model.solve(y[:nq], y[nq:], t, inputs)
         return np.concatenate([tree.position_rates(y[None, :nq], y[None, nq:])[0], vdot])
 
-    start = _time.perf_counter()
-    if method == "rk4":
-        h = validation.positive("dt", dt)
-        steps = max(1, int(round(t_final / h)))
-        ts, ys = [0.0], [np.concatenate([q, v])]
-        y = ys[0]
-        for k in range(1, steps + 1):
-            t = (k - 1) * h
-            try:
-                k1 = rate(t, y)
-                k2 = rate(t + h / 2, y + h / 2 * k1)
-                k3 = rate(t + h / 2, y + h / 2 * k2)
-                k4 = rate(t + h, y + h * k3)
-            except SimulationError as exc:
-                raise SimulationError(str(exc), time=t, element=model.cuts[0].name,
-                                      partial_result={"t": np.array(ts), "q": np.array(ys)[:, :nq],
-                                                      "v": np.array(ys)[:, nq:]}) from exc
-            y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-            if not np.all(np.isfinite(y)):
-                raise SimulationError(f"spatial kinematic loop {model.name!r}: non-finite state at t = {k * h} s",
-                                      time=k * h, element=model.cuts[0].name,
-                                      partial_result={"t": np.array(ts), "q": np.array(ys)[:, :nq],
-                                                      "v": np.array(ys)[:, nq:]})
-            y = np.concatenate(model.project(y[:nq], y[nq:], k * h)) if projection else \
-                np.concatenate([tree.normalized(y[:nq]), y[nq:]])
-            if k % store_every == 0 or k == steps:
-                ts.append(k * h)
-                ys.append(y)
-        t_out, y_out = np.array(ts), np.array(ys)
-    else:
-        validation.option("method", method, ("rk4",) + SCIPY_METHODS)
-        grid = None if dt is None else np.linspace(0.0, t_final, max(1, int(round(t_final / dt))) + 1)
-        limit = max_step if max_step is not None else (np.inf if dt is None else dt)
-        sol = scipy.integrate.solve_ivp(rate, (0.0, t_final), np.concatenate([q, v]), method=method, rtol=rtol,
-                                        atol=atol, t_eval=grid, max_step=limit)
-        if not sol.success:
-            raise SimulationError(f"spatial kinematic loop {model.name!r}: solve_ivp failed: {sol.message}",
-                                  time=float(sol.t[-1]), element=model.cuts[0].name)
-        t_out, y_out = sol.t, sol.y.T
-    wall = _time.perf_counter() - start
+    def finish(y: np.ndarray, t: float) -> np.ndarray:
+        return np.concatenate(model.project(y[:nq], y[nq:], t)) if projection else \
+            np.concatenate([tree.normalized(y[:nq]), y[nq:]])
+
+    grid = None if method == "rk4" or dt is None else \
+        np.linspace(0.0, t_final, max(1, int(round(t_final / dt))) + 1)
+    t_out, y_out, wall = integrate_loop_model(rate, np.concatenate([q, v]), nq, t_final=t_final, dt=dt, method=method,
+                                              finish=finish, rtol=rtol, atol=atol, store_every=store_every,
+                                              t_eval=grid, max_step=max_step,
+                                              label=f"spatial kinematic loop {model.name!r}",
+                                              element=model.cuts[0].name, velocity_label="v")
     forces, moments, drift, drift_rate = [], [], [], []
     for t, y in zip(t_out, y_out):
         phi, phi_dot = model.constraints(y[:nq], y[nq:], t)

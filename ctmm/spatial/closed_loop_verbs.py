@@ -14,11 +14,13 @@ from typing import Any, Mapping
 import numpy as np
 
 from .. import validation
-from ..controlled_linearization import close_model_loops, delayed_loop_response
+from ..controlled_linearization import delayed_loop_response
 from ..errors import ModelError
 from ..linearized import LinearizedSystem, OperatingPoint, control_name
 from ..results import FrequencyResponse
-from .closed_loop_linear import chart, tangent
+from ..loop_manifold import input_output_matrices
+from ..loop_model_feedback import linearize_with_feedback
+from .closed_loop_linear import tangent
 from .closed_loops import SpatialKinematicLoopModel
 from .ports import SpatialPorts
 
@@ -114,7 +116,6 @@ def linearize_spatial_loops(model: Any, operating_point: Any = None, *, inputs: 
     jacobian_error = float(np.max(np.abs(A - coarse)) / max(np.max(np.abs(A)), 1e-300))
     f = basis.shape[1]
     rest = np.zeros(tree.n_velocities)
-    vdot0, lam0 = model.solve(q0, rest, t)
 
     def output(q: np.ndarray, v: np.ndarray, lam: np.ndarray) -> np.ndarray:
         values = dict(zip(sensor_names, ports.values(sensors, q, v, t))) if sensor_names else {}
@@ -122,17 +123,8 @@ def linearize_spatial_loops(model: Any, operating_point: Any = None, *, inputs: 
         values.update(zip(forces, np.concatenate([force for force, _ in loads])))
         return np.array([values[name] for name in output_names], dtype=float)
 
-    def row(x: np.ndarray) -> np.ndarray:
-        q, v = chart(model, q0, basis, x[:f], x[f:], t)
-        return output(q, v, model.solve(q, v, t)[1])
-
-    C = np.column_stack([(row(e) - row(-e)) / (2.0 * _STEP) for e in _STEP * np.eye(2 * f)])
-    B = np.zeros((2 * f, len(input_names)))
-    D = np.zeros((len(output_names), len(input_names)))
-    for k, name in enumerate(input_names):
-        vdot, lam = model.solve(q0, rest, t, ports.inputs({name: 1.0}))      # affine in the input: exact
-        B[f:, k] = basis.T @ (vdot - vdot0)
-        D[:, k] = output(q0, rest, lam) - output(q0, rest, lam0)
+    B, C, D = input_output_matrices(model, q0, basis, t, output, [ports.inputs({name: 1.0}) for name in input_names],
+                                    _STEP)
     if not input_names and len(output_names) == 1:
         raise ModelError(f"linearize: inputs={inputs!r} leaves {model.name!r} with no input and one output, a state "
                          "space python-control cannot hold; name an input or a second output")
@@ -146,41 +138,20 @@ def linearize_spatial_loops(model: Any, operating_point: Any = None, *, inputs: 
 def _linearize_controlled(model: SpatialKinematicLoopModel, loops: tuple, operating_point: Any, *, inputs: Any,
                           outputs: Any, allow_nonequilibrium: bool) -> LinearizedSystem:
     """:func:`linearize_spatial_loops` with feedback ``loops`` on the tree's ports: the plant's tangent about the
-    equilibrium with the needed actuators as inputs and the needed sensors as outputs, the loops closed around it by
-    :func:`ctmm.controlled_linearization.close_model_loops` (real-time loops inside ``A``, LTI controller states
-    appended, delayed loops beside it; the loops act on the deviations of their sensors from the operating point).
-    Cut-force outputs of a controlled model are refused by name (not implemented yet)."""
+    equilibrium with the default, given and loop actuators as inputs, the cut forces ``"<cut>.force_x|y|z"`` [N]
+    available as outputs (:func:`ctmm.loop_model_feedback.linearize_with_feedback`)."""
     ports = SpatialPorts(model.tree)
-    forces = set(cut_force_names(model))
-    requested_outputs = [] if outputs is None else list(validation.names("outputs", outputs)) if not (
-        isinstance(outputs, (list, tuple)) and not outputs) else []
-    if forces & set(requested_outputs):
-        raise ModelError(f"linearize: the cut forces {sorted(forces & set(requested_outputs))} are not outputs of a "
-                         f"spatial kinematic loop model with feedback loops yet; linearize the open model "
-                         "(model.plant) for them")
     default_inputs = [name for joint in model.tree.joints for name in joint.inputs if joint.velocity_count == 1]
     given_inputs = [] if inputs is None or (isinstance(inputs, (list, tuple)) and not inputs) else \
         list(validation.names("inputs", inputs))
     actuators = list(dict.fromkeys([name for name in default_inputs + given_inputs if name in ports.actuators]
                                    + [name for lp in loops for name, _ in lp.actuator_terms]))
-    default_outputs = [name for name in model.tree.coordinates if name in ports.sensors]
-    sensors = list(dict.fromkeys([name for name in default_outputs + requested_outputs if name in ports.sensors]
-                                 + [name for lp in loops for name, _ in lp.terms]))
-    plant = linearize_spatial_loops(model, operating_point, inputs=actuators, outputs=sensors,
-                                    allow_nonequilibrium=allow_nonequilibrium)
-    ss = plant.state_space
-    B, C = np.asarray(ss.B, dtype=float), np.asarray(ss.C, dtype=float)
-
-    def columns(names: list[str]) -> np.ndarray:
-        return B[:, [actuators.index(ports.check_actuator(name, "input (actuator)")) for name in names]]
-
-    def rows(names: list[str]) -> np.ndarray:
-        return C[[sensors.index(ports.check_sensor(name, "output (sensor)")) for name in names], :]
-
-    return close_model_loops(np.asarray(ss.A, dtype=float), loops, inputs=inputs, outputs=outputs,
-                             default_inputs=default_inputs, default_outputs=default_outputs, input_columns=columns,
-                             output_rows=rows, states=list(ss.state_labels), name=model.name,
-                             point=plant.operating_point)
+    return linearize_with_feedback(
+        lambda lin_in, lin_out: linearize_spatial_loops(model, operating_point, inputs=lin_in, outputs=lin_out,
+                                                        allow_nonequilibrium=allow_nonequilibrium),
+        loops, ports, inputs=inputs, outputs=outputs, actuators=actuators, default_inputs=default_inputs,
+        default_outputs=[name for name in model.tree.coordinates if name in ports.sensors],
+        cut_outputs=cut_force_names(model), name=model.name)
 
 
 def natural_frequencies_spatial_loops(model: Any, *, n_modes: int | None = None, omega_max: float | None = None,

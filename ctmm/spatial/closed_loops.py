@@ -3,15 +3,16 @@
 A spatial mechanism with closed loops (a spatial four-bar, a ring of bodies) is modelled as a spanning tree --
 an ordinary :class:`~ctmm.spatial.model.SpatialModel` -- plus **cut joints** (:class:`SpatialCutJoint`): a
 spherical (ball) cut makes a point of the child coincide with a point of the parent (or of the ground); a
-revolute cut also keeps a child axis parallel to a parent axis.  The planar counterpart and the derivation are
+revolute cut also keeps a child axis parallel to a parent axis, a universal (Hooke) cut a child axis
+perpendicular to a parent axis.  The planar counterpart and the derivation are
 in :mod:`ctmm.planar.closed_loops` and ``docs/closed_loops.md`` (section 8 for this module).
 
 Mechanism (the boundary unknowns of the mixed transfer matrix method)
 ---------------------------------------------------------------------
-A cut has ``3`` (spherical) or ``5`` (revolute) constraint rows: the separation of its points
-``Phi = r_Pc - r_Pp`` [m] and, for a revolute cut, the alignments ``Phi_i = u . b_i`` (``u`` the child axis,
-``b_1``, ``b_2`` perpendicular to the parent axis; small angles [rad]).  Their rates are linear in the tree
-velocities ``v``: ``Phi' = v_Pc - v_Pp`` and ``Phi_i' = (omega_c - omega_p) . n_i`` with ``n_i = u x b_i``.
+A cut has ``3`` (spherical), ``4`` (universal) or ``5`` (revolute) constraint rows: the separation of its points
+``Phi = r_Pc - r_Pp`` [m] and the alignments ``Phi_i = u . b_i`` (``u`` the child axis; revolute: ``b_1``, ``b_2``
+perpendicular to the parent axis; universal: ``b_1`` the parent axis; small angles [rad]).  Their rates are linear
+in the tree velocities ``v``: ``Phi' = v_Pc - v_Pp`` and ``Phi_i' = (omega_c - omega_p) . n_i`` with ``n_i = u x b_i``.
 The dual loads -- the unknowns ``lambda`` -- are a force (world axes [N]) on the child point and its opposite on
 the parent point, and moments ``mu_i n_i`` [N m] on the child and their opposites on the parent.  At fixed
 ``(q, v, t)`` the tree's articulated sweep (:func:`ctmm.spatial.dynamics.solve`) is affine in these loads, so one
@@ -47,7 +48,7 @@ from .ports import SpatialInputs
 
 __all__ = ["SpatialCutJoint", "SpatialKinematicLoopModel", "CUT_KINDS"]
 
-CUT_KINDS = ("spherical", "revolute")
+CUT_KINDS = ("spherical", "revolute", "universal")
 """Kinds of :class:`SpatialCutJoint`."""
 
 
@@ -84,12 +85,14 @@ class SpatialCutJoint:
     child_point : str
         The child's point name (default ``"origin"``).
     kind : str
-        ``"spherical"`` (ball: the points coincide, 3 rows) or ``"revolute"`` (also ``axis`` parallel to
-        ``parent_axis``, 5 rows).
+        ``"spherical"`` (ball: the points coincide, 3 rows), ``"revolute"`` (also ``axis`` parallel to
+        ``parent_axis``, 5 rows) or ``"universal"`` (Hooke: also ``axis`` perpendicular to ``parent_axis``, 4 rows).
     axis : (3,) array
-        Revolute: the hinge axis in child body axes (normalised).
+        Revolute: the hinge axis in child body axes; universal: the child's cross axis in child body axes
+        (normalised).
     parent_axis : (3,) array, optional
-        Revolute: the hinge axis in parent body axes (world axes at the ground); default ``axis``.
+        Revolute: the hinge axis in parent body axes (world axes at the ground), default ``axis``; universal: the
+        parent's cross axis there (required; perpendicular to ``axis`` in the assembled loop).
     """
 
     name: str
@@ -121,6 +124,9 @@ class SpatialCutJoint:
         if not isinstance(self.child_point, str):
             raise ModelError(f"cut joint {self.name!r}: child_point must be the name of a point of {self.child!r}, "
                              f"got {self.child_point!r}")
+        if self.kind == "universal" and self.parent_axis is None:
+            raise ModelError(f"cut joint {self.name!r}: a universal cut needs parent_axis (the parent's cross axis, "
+                             "a 3-vector perpendicular to axis in the assembled loop), got None")
         axis = _unit(f"cut joint {self.name!r}: axis", self.axis)
         object.__setattr__(self, "axis", axis)
         object.__setattr__(self, "parent_axis", axis.copy() if self.parent_axis is None else
@@ -128,8 +134,8 @@ class SpatialCutJoint:
 
     @property
     def n_rows(self) -> int:
-        """Constraint rows: 3 (spherical) or 5 (revolute)."""
-        return 3 if self.kind == "spherical" else 5
+        """Constraint rows: 3 (spherical), 4 (universal) or 5 (revolute)."""
+        return {"spherical": 3, "universal": 4, "revolute": 5}[self.kind]
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -189,9 +195,10 @@ class SpatialKinematicLoopModel:
         self.baumgarte = validation.nonnegative("baumgarte", baumgarte)
         self._sides = [(self._side(cut, cut.parent, cut.point), self._side(cut, cut.child, cut.child_point))
                        for cut in cuts]
-        self._axes = []                  # revolute: (child axis, (b1, b2) parent-fixed) else None
+        self._axes = []                  # (child axis, parent-fixed b_i): revolute (b1, b2), universal (axis,); None
         for cut in cuts:
-            self._axes.append((cut.axis, _perpendicular(cut.parent_axis)) if cut.kind == "revolute" else None)
+            self._axes.append((cut.axis, _perpendicular(cut.parent_axis)) if cut.kind == "revolute" else
+                              (cut.axis, (cut.parent_axis,)) if cut.kind == "universal" else None)
         self.n_constraints = sum(cut.n_rows for cut in cuts)
         self._scene = SpatialScene(tree)
         self.linear_cache: dict = {}
@@ -280,6 +287,11 @@ class SpatialKinematicLoopModel:
         q = np.asarray(q, float)
         return self._rows_and_jacobian(q, np.zeros(self.tree.n_velocities), t)[2]
 
+    @property
+    def n_velocities(self) -> int:
+        """The size of the tree's velocity space (:mod:`ctmm.loop_manifold` protocol)."""
+        return self.tree.n_velocities
+
     def retract(self, q: np.ndarray, dx: np.ndarray) -> np.ndarray:
         """``q (+) dx``: the tree coordinates moved by the velocity-space increment ``dx`` (``q + G(q) dx``,
         quaternions renormalised; first order in ``dx``)."""
@@ -333,7 +345,7 @@ class SpatialKinematicLoopModel:
                 for i, b_local in enumerate(axes[1]):
                     b = b_local if parent.body < 0 else bodies[parent.body][0][0] @ b_local
                     wrench[1 + row + 3 + i, 3:] = _cross(u, b)
-            row += 3 if axes is None else 5
+            row += 3 if axes is None else 3 + len(axes[1])
             for side, sign in ((child, 1.0), (parent, -1.0)):
                 if side.body < 0:
                     continue
@@ -383,7 +395,7 @@ class SpatialKinematicLoopModel:
         """``(v', lambda)`` at ``(q, v, t)`` with the tree's actuator ``inputs`` (``{"<joint>.torque": value or
         f(t)}`` or the :class:`~ctmm.spatial.ports.SpatialInputs` of the tree's ports): the closed-loop accelerations
         ``(nv,)`` and the cut loads ``(m,)`` (per cut: the force on the child [N], world axes, then for a revolute
-        cut the two moment multipliers [N m] along ``n_i``; :meth:`cut_loads` gives vectors).
+        or universal cut the moment multipliers [N m] along ``n_i = u x b_i``; :meth:`cut_loads` gives vectors).
 
         Raises
         ------
@@ -420,7 +432,7 @@ class SpatialKinematicLoopModel:
                     b = b_local if parent.body < 0 else bodies[parent.body][0][0] @ b_local
                     moment += lam[row + 3 + i] * _cross(u, b)
             out.append((force, moment))
-            row += 3 if axes is None else 5
+            row += 3 if axes is None else 3 + len(axes[1])
         return out
 
     def cut_inputs(self, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | SpatialInputs | None = None

@@ -1,0 +1,202 @@
+"""The linear layer of closed kinematic loops, planar and spatial: the tangent on the constraint manifold.
+
+One algorithm serves :class:`ctmm.planar.closed_loops.KinematicLoopModel` and
+:class:`ctmm.spatial.closed_loops.SpatialKinematicLoopModel`; both offer (duck-typed)
+
+* ``n_velocities``: the size of the tree's velocity space (planar: the coordinates' rates);
+* ``constraints(q, v, t) -> (Phi, Phi')`` and ``jacobian(q, t) -> J`` (``Phi' = J v`` at rest, ``(m, nv)``);
+* ``retract(q, dx)``: the tree coordinates moved by a velocity-space increment ``dx`` (planar: ``q + dx``; spatial:
+  quaternions moved by ``G(q) dx`` and renormalised, first order in ``dx``);
+* ``solve(q, v, t, inputs) -> (v', cut loads)``: the closed-loop accelerations with the cut loads as boundary
+  unknowns;
+* ``name``.
+
+About a resting configuration ``q0`` on the cut joints, with ``N`` the orthonormal null space of ``J0 = J(q0)``
+(``f`` columns: the mechanism's degrees of freedom), the independent coordinates ``z`` parametrise the constrained
+configurations by the chart ``q = (q0 (+) N z) (+) J0^T y`` with ``y`` from ``Phi(q) = 0`` (Gauss-Newton), and the
+rates by ``v = N z' + J0^T w`` with ``J(q) v = 0``; ``z'' = N^T v'``.  ``(+)`` is :meth:`retract`: exact for planar
+coordinates, first order for quaternions, so the spatial tangent is exact about an equilibrium (the chart's
+second-order terms multiply the accelerations, zero there).  The tangent ``A = [[0, I], [dz''/dz, dz''/dz']]`` is
+formed by central differences.  ``docs/closed_loops.md`` sections 2 and 8.
+"""
+from __future__ import annotations
+
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from .errors import ModelError
+
+__all__ = ["independent_basis", "chart", "tangent_matrix", "at_equilibrium", "require_equilibrium",
+           "newton_equilibrium", "undamped_frequencies", "input_output_matrices"]
+
+
+def _label(model: Any) -> str:
+    return f"{type(model).__name__} {model.name!r}"
+
+
+def independent_basis(model: Any, q0: np.ndarray, t: float = 0.0) -> np.ndarray:
+    """``N`` ``(nv, f)``: the orthonormal null space of ``J(q0)`` (singular values below ``1e-10`` of the largest
+    count as zero).
+
+    Raises
+    ------
+    ModelError
+        No degree of freedom is left by the cut joints.
+    """
+    _, values, vt = np.linalg.svd(model.jacobian(q0, t))
+    rank = int(np.sum(values > 1e-10 * max(values[0], 1e-300)))
+    basis = vt[rank:].T
+    if basis.shape[1] == 0:
+        raise ModelError(f"{_label(model)}: no degree of freedom is left by the cut joints")
+    return basis
+
+
+def chart(model: Any, q0: np.ndarray, basis: np.ndarray, z: np.ndarray, zdot: np.ndarray, t: float = 0.0
+          ) -> tuple[np.ndarray, np.ndarray]:
+    """The constrained state ``(q, v)`` with independent coordinates ``z`` [rad, m] and rates ``zdot``
+    [rad/s, m/s] about ``q0`` (module docstring; ``basis``: ``N``)."""
+    normal = model.jacobian(q0, t).T
+    q = model.retract(q0, basis @ z)
+    rest = np.zeros(model.n_velocities)
+    for _ in range(30):
+        phi, _ = model.constraints(q, rest, t)
+        if np.max(np.abs(phi)) < 1e-14:
+            break
+        q = model.retract(q, -normal @ np.linalg.lstsq(model.jacobian(q, t) @ normal, phi, rcond=None)[0])
+    J = model.jacobian(q, t)
+    v = basis @ zdot
+    return q, v - normal @ np.linalg.lstsq(J @ normal, J @ v, rcond=None)[0]
+
+
+def tangent_matrix(model: Any, q0: np.ndarray, basis: np.ndarray, t: float = 0.0, step: float = 1e-5
+                   ) -> np.ndarray:
+    """``A = [[0, I], [dz''/dz, dz''/dz']]`` ``(2 f, 2 f)`` [1/s^2, 1/s] about ``q0`` on the cut joints, by central
+    differences of ``z'' = N^T v'`` along the chart (step ``step`` [rad, m])."""
+    f = basis.shape[1]
+
+    def rates(x: np.ndarray) -> np.ndarray:
+        q, v = chart(model, q0, basis, x[:f], x[f:], t)
+        return basis.T @ model.solve(q, v, t)[0]
+
+    columns = []
+    for k in range(2 * f):
+        e = np.zeros(2 * f)
+        e[k] = step
+        columns.append((rates(e) - rates(-e)) / (2.0 * step))
+    A = np.zeros((2 * f, 2 * f))
+    A[:f, f:] = np.eye(f)
+    A[f:] = np.column_stack(columns)
+    return A
+
+
+def at_equilibrium(A: np.ndarray, basis: np.ndarray, accelerations: np.ndarray, *, acceleration: float = 1e-8,
+                   offset: float = 1e-10) -> bool:
+    """Whether a resting state is a static equilibrium: its accelerations [rad/s^2, m/s^2] are below
+    ``acceleration``, or the static offset to the equilibrium, ``K^-1 N^T v'`` with the tangent stiffness
+    ``K = -dz''/dz`` (``A``: :func:`tangent_matrix`, ``basis``: ``N``), is below ``offset`` [rad, m] -- a stiff
+    elastic coordinate (a modal beam's) is at rest to round-off with accelerations of ``|K|`` times that."""
+    if np.max(np.abs(accelerations), initial=0.0) <= acceleration:
+        return True
+    f = basis.shape[1]
+    try:
+        shift = np.linalg.solve(-A[f:, :f], basis.T @ accelerations)
+    except np.linalg.LinAlgError:
+        return False
+    return bool(np.max(np.abs(shift), initial=0.0) <= offset)
+
+
+def require_equilibrium(model: Any, A: np.ndarray, basis: np.ndarray, q0: np.ndarray, t: float, remedy: str) -> None:
+    """Refuse a resting state ``q0`` that is not an equilibrium (:func:`at_equilibrium`).
+
+    Raises
+    ------
+    ModelError
+        ``q0`` is not an equilibrium (the largest acceleration named; ``remedy``: where to find one).
+    """
+    accelerations = model.solve(q0, np.zeros(model.n_velocities), t)[0]
+    if not at_equilibrium(A, basis, accelerations):
+        raise ModelError(f"{_label(model)}: q0 is not an equilibrium (largest acceleration "
+                         f"{np.max(np.abs(accelerations)):.3e}); the linearisation on the constraint manifold is "
+                         f"taken about an equilibrium: find one with {remedy}")
+
+
+def newton_equilibrium(model: Any, q: np.ndarray, t: float = 0.0, *, tolerance: float = 1e-10,
+                       largest_step: float = 0.2) -> np.ndarray:
+    """A static equilibrium near ``q`` (on the cut joints, at rest): Newton on the independent coordinates, each
+    step at most ``largest_step`` [rad, m] (a far guess does not leap across the mechanism's range), converged when
+    the accelerations or the Newton step are below ``tolerance`` (a stiff spring: the accelerations' round-off is
+    ``|dz''/dz|`` times larger).
+
+    Raises
+    ------
+    ModelError
+        No equilibrium after 80 Newton steps, or a singular tangent stiffness.
+    """
+    rest = np.zeros(model.n_velocities)
+    residual = np.full(1, np.inf)
+    for _ in range(80):
+        basis = independent_basis(model, q, t)
+        A = tangent_matrix(model, q, basis, t)
+        f = basis.shape[1]
+        residual = basis.T @ model.solve(q, rest, t)[0]
+        try:
+            step = -np.linalg.solve(A[f:, :f], residual)
+        except np.linalg.LinAlgError:
+            break
+        if np.max(np.abs(residual)) < tolerance or np.max(np.abs(step)) < tolerance:
+            return q
+        step *= min(1.0, largest_step / np.max(np.abs(step)))
+        q, _ = chart(model, q, basis, step, np.zeros(f), t)
+    raise ModelError(f"{_label(model)}: no equilibrium found near the guess (residual {np.max(np.abs(residual)):.3e}; "
+                     "80 Newton steps, or a singular or neutral tangent stiffness: give a better guess)")
+
+
+def undamped_frequencies(model: Any, A: np.ndarray) -> np.ndarray:
+    """Undamped natural frequencies [rad/s] of the tangent ``A`` about an equilibrium, ascending (a neutral
+    direction, e.g. the free spin of a coupler between two ball joints, gives 0).
+
+    Raises
+    ------
+    ModelError
+        Velocity-dependent forces (damping), an unstable equilibrium (``omega^2 < 0`` beyond round-off ``1e-8`` of
+        the largest) or complex ``omega^2``.
+    """
+    f = A.shape[0] // 2
+    if np.max(np.abs(A[f:, f:]), initial=0.0) > 1e-6 * np.sqrt(np.max(np.abs(A[f:, :f]), initial=1e-300)):
+        raise ModelError(f"{_label(model)}: natural_frequencies needs an undamped model (velocity-dependent forces "
+                         "at q0)")
+    squared = np.linalg.eigvals(-A[f:, :f])
+    scale = np.max(np.abs(squared), initial=1e-300)
+    if np.any(squared.real < -1e-8 * scale) or np.max(np.abs(squared.imag), initial=0.0) > 1e-8 * scale:
+        raise ModelError(f"{_label(model)}: q0 is not a stable equilibrium (omega^2 = {squared})")
+    return np.sort(np.sqrt(np.clip(squared.real, 0.0, None)))
+
+
+def input_output_matrices(model: Any, q0: np.ndarray, basis: np.ndarray, t: float,
+                          output: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray],
+                          unit_inputs: Sequence[Any], step: float = 1e-5
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``B``, ``C``, ``D`` of the tangent about the resting ``q0``: the outputs ``output(q, v, cut loads)`` and the
+    inputs ``unit_inputs`` (one actuator-input object per input, at unit value, as ``model.solve`` takes them).
+
+    ``B`` and ``D`` are exact (the sweep is affine in the inputs); ``C`` by central differences along the chart
+    (step ``step`` [rad, m, rad/s, m/s]).
+    """
+    f = basis.shape[1]
+    rest = np.zeros(model.n_velocities)
+    rates0, loads0 = model.solve(q0, rest, t)
+    output0 = output(q0, rest, loads0)
+
+    def row(x: np.ndarray) -> np.ndarray:
+        q, v = chart(model, q0, basis, x[:f], x[f:], t)
+        return output(q, v, model.solve(q, v, t)[1])
+
+    C = np.column_stack([(row(e) - row(-e)) / (2.0 * step) for e in step * np.eye(2 * f)])
+    B = np.zeros((2 * f, len(unit_inputs)))
+    D = np.zeros((len(output0), len(unit_inputs)))
+    for k, inputs in enumerate(unit_inputs):
+        rates, loads = model.solve(q0, rest, t, inputs)
+        B[f:, k] = basis.T @ (rates - rates0)
+        D[:, k] = output(q0, rest, loads) - output0
+    return B, C, D
