@@ -92,3 +92,36 @@ def test_pendulum_beside_a_stiff_spring_keeps_its_frequency(stiffness):
     np.testing.assert_allclose(free.natural_frequencies, [0.0, twist], rtol=1e-9)
     assert abs(free.shapes[0, 0, 0]) == pytest.approx(1.0)                   # the rigid mode is the bob's swing
 
+
+def bare_beam(root, n_modes):
+    beam = sp.SpatialBeam("b", length=1.0, mass_per_length=1.0, bending_stiffness_y=1.0, bending_stiffness_z=2.0,
+                          n_modes_y=n_modes, n_modes_z=n_modes, polar_inertia_per_length=0.01)
+    joint = (sp.Spherical(name="root", parent=None, child="b") if root == "spherical"
+             else sp.Revolute(name="root", parent=None, child="b", axis=(0, 1, 0)))
+    return sp.SpatialModel("beam", [beam, joint], gravity=(0.0, 0.0, 0.0))
+
+
+@pytest.mark.parametrize("root", ["spherical", "revolute"])
+def test_a_bare_beam_with_many_modes_is_linearised_not_refused(root):
+    """The Richardson cross-check of the Jacobians no longer refuses the smooth high modal coordinates: the
+    assumed-modes frequencies converge from above to the exact-field ones (Wittrick-Williams on exact beam
+    fields, independent of the modal form)."""
+    exact = ctmm.natural_frequencies(bare_beam(root, 6), n_modes=5, fields="exact")
+    few, many = (ctmm.natural_frequencies(bare_beam(root, n), n_modes=5) for n in (3, 6))
+    elastic = exact > 0.0
+    assert np.array_equal(few > 0.0, elastic) and np.array_equal(many > 0.0, elastic)
+    assert np.all(many[elastic] >= exact[elastic] * (1.0 - 1e-12))                  # Rayleigh-Ritz: from above
+    assert np.all(many[elastic] <= few[elastic] * (1.0 + 1e-12))
+    np.testing.assert_allclose(many, exact, rtol=1e-5)
+
+
+def test_a_kink_in_a_spatial_joint_law_is_still_refused():
+    from ctmm.nonlinear_laws import ClearanceSpring
+
+    model = sp.SpatialModel("gap", [
+        sp.SpatialBody("arm", 1.0, np.diag([0.1, 0.1, 0.1]), center_of_mass=(0.5, 0.0, 0.0)),
+        sp.Revolute(name="hinge", parent=None, child="arm", axis=(0, 0, 1), law=ClearanceSpring(20.0, clearance=0.05))],
+        gravity=(0.0, 0.0, 0.0))
+    corner = (np.array([0.05]), np.zeros(1))
+    with pytest.raises(ctmm.ModelError, match="not smooth"):
+        ctmm.natural_frequencies(model, n_modes=1, operating_point=corner)
