@@ -21,6 +21,7 @@ import time
 from typing import Any, Sequence
 
 import numpy as np
+import scipy.linalg
 
 from . import validation
 from .errors import ModelError
@@ -30,13 +31,19 @@ from .planar_linearization import linearize_planar, tangent
 from .planar_linearization import operating_point as planar_operating_point
 from .results import FrequencyResponse, ModalResult
 
-__all__ = ["is_planar_system", "frequency_response", "natural_frequencies", "mode_shapes", "eigenvalue_count"]
+__all__ = ["is_planar_system", "frequency_response", "natural_frequencies", "mode_shapes", "eigenvalue_count",
+           "ZERO_MODE_FACTOR", "RESOLUTION"]
 
 _CLOSED_LOOP = ("ctmm.linearize (eigenvalues of the closed-loop A, delays beside it) or ctmm.stability "
                 "for the closed-loop roots")
 _DAMPED = "ctmm.frequency_response, or the eigenvalues of ctmm.linearize(model).state_space.A for damped roots"
 #: Largest |df/dqdot| counted as undamped, relative to sqrt(max |df/dq|) [1/s].
 UNDAMPED_TOLERANCE = 1e-8
+#: Round-off of an eigenvalue of M^-1 K in units of its first-order perturbation bound (``n eps max|M^-1 K|``
+#: times the eigenvector condition): below it a mode is rigid (omega = 0), below -it unstable.
+ZERO_MODE_FACTOR = 8.0
+#: Where the dense eig stands in for the exact count, modes within RESOLUTION times their round-off are refused.
+RESOLUTION = 1e2
 
 
 def is_planar_system(system: Any) -> bool:
@@ -143,16 +150,23 @@ def _undamped_stiffness(system: Any, verb: str, operating_point: Any):
     return model, -Jq, op
 
 
-def _checked_eig(model: Any, stiffness: np.ndarray, op: Any, verb: str) -> tuple[np.ndarray, np.ndarray, float]:
-    """``omega^2`` (real, tiny values as 0), eigenvectors and largest ``|omega^2|`` of ``M^{-1} K``,
+def _checked_eig(model: Any, stiffness: np.ndarray, op: Any, verb: str
+                 ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """``omega^2`` (real, values within their round-off as 0), eigenvectors, largest ``|omega^2|`` and the
+    round-off of each ``omega^2`` of ``M^{-1} K``,
     refusing a non-symmetric pair (circulatory forces) and an unstable operating point."""
-    values, vectors = np.linalg.eig(stiffness)
+    values, left, vectors = scipy.linalg.eig(stiffness, left=True, right=True)
     top = max(float(np.max(np.abs(values), initial=0.0)), 1e-300)
+    # round-off of each eigenvalue (first-order perturbation bound, entries of M^-1 K known to eps max|M^-1 K|):
+    # a mode is rigid only below its own round-off, never by a cut relative to the stiffest mode
+    overlap = np.maximum(np.abs(np.sum(left.conj() * vectors, axis=0)), 1e-300)
+    noise = (ZERO_MODE_FACTOR * stiffness.shape[0] * np.finfo(float).eps * float(np.max(np.abs(stiffness), initial=0.0))
+             * np.sum(np.abs(left), axis=0) * np.sum(np.abs(vectors), axis=0) / overlap)
     if np.max(np.abs(values.imag), initial=0.0) > 1e-6 * top:
         raise ModelError(f"{verb}: the linearisation of {model.name!r} is not a symmetric mass-stiffness pair "
                          "(complex omega^2: circulatory forces such as follower loads); use ctmm.linearize")
     values = values.real
-    unstable = np.flatnonzero(values < -1e-9 * top)
+    unstable = np.flatnonzero(values < -noise)
     if unstable.size:
         names = list(model.coordinates)
         directions = []
@@ -166,7 +180,17 @@ def _checked_eig(model: Any, stiffness: np.ndarray, op: Any, verb: str) -> tuple
                          f"against gravity): {'; '.join(directions)}; natural frequencies exist only about a stable "
                          "equilibrium: pass operating_point=(q, qdot) at a stable equilibrium (e.g. the links hanging), "
                          "or use ctmm.linearize for the unstable linearisation")
-    return np.where(np.abs(values) <= 1e-9 * top, 0.0, values), vectors, top
+    return np.where(np.abs(values) <= noise, 0.0, values), vectors, top, noise
+
+
+def _refuse_unresolved(model: Any, values: np.ndarray, noise: np.ndarray, verb: str) -> None:
+    """Refuse eigenvalues of ``M^-1 K`` that are above their round-off but within ``RESOLUTION`` times it
+    (where the dense eig stands in for the exact count: they cannot be told from rigid-body modes)."""
+    unresolved = (np.abs(values) > 0.0) & (np.abs(values) <= RESOLUTION * noise)
+    if np.any(unresolved):
+        raise ModelError(f"{verb}: the mode(s) of {model.name!r} with omega^2 = {values[unresolved].tolist()} "
+                         f"rad^2/s^2 cannot be told from rigid-body modes (round-off about {noise[unresolved].tolist()} "
+                         "rad^2/s^2: stiffness spread over too many decades); soften the stiffest part")
 
 
 def eigenvalue_count(system: Any, omega: Any, *, operating_point: Any = None) -> np.ndarray:
@@ -186,7 +210,7 @@ def eigenvalue_count(system: Any, omega: Any, *, operating_point: Any = None) ->
     from .planar_counting import FrequencyCounter
 
     model, stiffness, op = _undamped_stiffness(system, "eigenvalue_count", operating_point)
-    values, _, _ = _checked_eig(model, stiffness, op, "eigenvalue_count")
+    values, _, _, noise = _checked_eig(model, stiffness, op, "eigenvalue_count")
     omega = validation.frequencies("omega", omega)
     if not np.any(op.qdot != 0.0):
         try:
@@ -196,19 +220,21 @@ def eigenvalue_count(system: Any, omega: Any, *, operating_point: Any = None) ->
         if counter is not None:
             return counter.count(omega.reshape(-1)).reshape(omega.shape)
     # off the element protocol (hinges with translational springs): the dense eigenvalues
+    _refuse_unresolved(model, values, noise, "eigenvalue_count")
     return np.sum(np.sqrt(values)[None, :] < omega.reshape(-1, 1), axis=1).reshape(omega.shape)
 
 
 def _modes(system: Any, verb: str, n_modes, omega_max, operating_point):
     model, stiffness, op = _undamped_stiffness(system, verb, operating_point)
     validation.one_mode_limit(n_modes, omega_max)
-    values, vectors, top = _checked_eig(model, stiffness, op, verb)
+    values, vectors, top, noise = _checked_eig(model, stiffness, op, verb)
     order = np.argsort(values)
     omega = np.sqrt(values[order])
     shapes = np.real(vectors[:, order])
     keep = validation.selected_modes(omega, n_modes, omega_max, f"model {model.name!r} (one per coordinate)")
     exact = _counted_frequencies(model, op, keep.size, omega_max)
     if exact is None:
+        _refuse_unresolved(model, values, noise, verb)
         return model, omega[keep], shapes[:, keep]
     # eig of the dense M^-1 K loses eps * omega_max^2 / omega^2 on the low modes of stiff chains:
     # the frequencies come from the exact count, the shapes by inverse iteration at them (the exact

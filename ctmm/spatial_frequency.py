@@ -20,9 +20,12 @@ of the global matrices), certified next to a natural frequency by :func:`ctmm.co
 with the sign of ``det(K - omega^2 M)`` as its side test.  Natural frequencies come from the symmetric
 generalised eigenproblem ``eigh(K, M)`` and are certified by that independent count: every gap between
 them and the range above the highest must hold the count ``eigh`` claims, so no root is missed (a
-:class:`~ctmm.errors.ModelError` otherwise).  The articulated *frequency context* of the sweep with
-``d = 6`` (the planar :mod:`ctmm.planar_counting`) is not built for spatial bodies: their linear body
-terms need the geometric stiffness of joint axes that turn with the parent, not derived yet.
+:class:`~ctmm.errors.ModelError` otherwise).  A mode is rigid (``omega = 0``) only within its own round-off
+(:func:`rayleigh_modes`), never by a cut relative to the stiffest mode, so a slow mode beside a stiff part keeps its
+frequency; one above its round-off by less than :data:`RESOLUTION` is refused as unresolved.  The
+articulated *frequency context* of the sweep with ``d = 6`` (the planar :mod:`ctmm.planar_counting`) is not
+built for spatial bodies: their linear body terms need the geometric stiffness of joint axes that turn with
+the parent, not derived yet.
 """
 from __future__ import annotations
 
@@ -41,12 +44,17 @@ from .results import FrequencyResponse, ModalResult
 from .saturation import refuse_saturation
 
 __all__ = ["is_spatial_system", "mass_matrix", "SpatialModes", "natural_frequencies", "mode_shapes", "eigenvalue_count",
-           "frequency_response", "SYMMETRY_TOLERANCE", "UNDAMPED_TOLERANCE"]
+           "frequency_response", "SYMMETRY_TOLERANCE", "UNDAMPED_TOLERANCE",
+           "rayleigh_modes", "ZERO_MODE_FACTOR", "RESOLUTION"]
 
 SYMMETRY_TOLERANCE = 1e-8
 """Largest ``|K - K^T|`` accepted as symmetric, relative to ``max |K|``."""
 UNDAMPED_TOLERANCE = 1e-8
 """Largest ``|C|`` counted as undamped, relative to ``sqrt(max |K| max |M|)``."""
+ZERO_MODE_FACTOR = 8.0
+"""Round-off of ``omega_k^2`` in units of ``n eps max|K| |x_k|_1^2`` (:func:`rayleigh_modes`)."""
+RESOLUTION = 1e2
+"""Modes with ``noise < |omega^2| <= RESOLUTION * noise`` are refused as unresolved (fewer than two digits)."""
 
 
 def mass_matrix(model: Any, q: np.ndarray, t: float = 0.0) -> np.ndarray:
@@ -125,14 +133,22 @@ class SpatialModes:
     def solve(self, verb: str) -> tuple[np.ndarray, np.ndarray]:
         """Natural frequencies [rad/s] ascending (rigid-body modes 0) and M-orthonormal shapes, certified
         by :meth:`count` (module docstring)."""
-        values, vectors = scipy.linalg.eigh(self.stiffness, self.mass)
-        top = max(float(np.max(np.abs(values), initial=0.0)), 1e-300)
-        if np.any(values < -1e-9 * top):
+        values, vectors, noise = rayleigh_modes(self.stiffness, self.mass)
+        unstable = values < -noise
+        if np.any(unstable):
             raise ModelError(f"model {self.model.name!r} is statically unstable about q = "
-                             f"{self.operating_point.q.tolist()}: {int(np.sum(values < -1e-9 * top))} mode(s) with "
-                             "negative stiffness (omega^2 < 0); natural frequencies exist only about a stable "
-                             "equilibrium")
-        omega = np.sqrt(np.where(values <= 1e-9 * top, 0.0, values))
+                             f"{self.operating_point.q.tolist()}: {int(np.sum(unstable))} mode(s) with "
+                             f"negative stiffness (omega^2 = {values[unstable].tolist()} rad^2/s^2 < 0); natural "
+                             "frequencies exist only about a stable equilibrium")
+        unresolved = (np.abs(values) > noise) & (np.abs(values) <= RESOLUTION * noise)
+        if np.any(unresolved):
+            raise ModelError(f"{verb}: the mode(s) of {self.model.name!r} with omega^2 = {values[unresolved].tolist()} "
+                             f"rad^2/s^2 cannot be told from rigid-body modes (round-off of K - omega^2 M about "
+                             f"{noise[unresolved].tolist()} rad^2/s^2: stiffness spread over too many decades); "
+                             "soften the stiffest part or use a model without it")
+        omega = np.sqrt(np.where(np.abs(values) <= noise, 0.0, values))
+        order = np.argsort(omega, kind="stable")
+        omega, vectors = omega[order], vectors[:, order]
         positive = omega[omega > 0.0]
         if positive.size:
             distinct = np.unique(positive)
@@ -146,6 +162,26 @@ class SpatialModes:
                                  f"its eigenvalues (counts {counted.tolist()} != {expected.tolist()} at omega = "
                                  f"{probes.tolist()} rad/s); the linearisation is ill-conditioned")
         return omega, vectors
+
+
+def rayleigh_modes(stiffness: np.ndarray, mass: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``omega_k^2`` [rad^2/s^2], M-orthonormal shapes (columns) and the round-off of each ``omega_k^2`` of
+    the symmetric pencil ``(K, M)``.
+
+    ``omega_k^2`` is the Rayleigh quotient ``x_k^T K x_k`` of the shape of ``eigh(K, M)`` (``x_k^T M x_k = 1``):
+    exact to the round-off of ``K`` along ``x_k``, where ``eigh``'s own value carries ``eps omega_max^2``.
+    Each entry of ``K`` is known to ``eps max|K|`` (an entry that should be 0, such as the stiffness of a free
+    yaw, is the round-off of sums of terms as large as the stiffest), so ``x_k^T K x_k`` is known to
+    ``noise_k = ZERO_MODE_FACTOR n eps max|K| |x_k|_1^2``: a mode with ``|omega_k^2| <= noise_k`` cannot be
+    told from a rigid-body mode by any computation on ``K`` and is one (``omega_k = 0``); any larger value
+    is a mode, however far below ``omega_max`` (no cut relative to the stiffest mode).
+    """
+    _, vectors = scipy.linalg.eigh(stiffness, mass)
+    values = np.einsum("ik,ij,jk->k", vectors, stiffness, vectors)
+    size = float(np.max(np.abs(stiffness), initial=0.0))
+    noise = ZERO_MODE_FACTOR * stiffness.shape[0] * np.finfo(float).eps * size * np.sum(np.abs(vectors), axis=0) ** 2
+    order = np.argsort(values, kind="stable")
+    return values[order], vectors[:, order], noise[order]
 
 
 def is_spatial_system(system: Any) -> bool:
