@@ -131,8 +131,8 @@ I1, I2 = np.diag([0.01, 0.02, 0.015]), np.diag([0.004, 0.003, 0.002])
 def chain(*, child=True, damping=0.0, gravity=9.81):
     """link1 on a yaw joint; the plate (2 x 1 elements, oblique plane) with a beam from its corner 2_0 to a tip
     mass on a pitch joint (spring) at link1's tip; link2 on a hinge (spring) at the plate corner 2_1.  The joint
-    springs keep the lowest elastic mode far above sqrt(1e-9) omega_max, below which ctmm.natural_frequencies
-    reports 0 (see the report of this change)."""
+    springs keep the lowest elastic mode well above the round-off of the stiff plate's omega^2 (a mode within
+    100x of that round-off is refused by ctmm.natural_frequencies, tests/test_zero_modes.py)."""
     quads = [(f"{i}_0", f"{i + 1}_0", f"{i + 1}_1", f"{i}_1") for i in range(2)]
     elements = [SpatialPlateElement(f"p{i}", q, PLATE["h"], PLATE["E"], PLATE["nu"], PLATE["rho"])
                 for i, q in enumerate(quads)]
