@@ -59,3 +59,26 @@ def test_an_earlier_summary_is_replaced_whole(tmp_path, scene):
     assert sorted(p.name for p in out.iterdir()) == ["pendulum.json", "pendulum.png"]
     assert json.loads((out / "pendulum.json").read_text())["figures"] == second["figures"] == ["pendulum.png"]
     assert first["figures"] == ["pendulum.png", "pendulum.h5"]
+
+
+@pytest.mark.parametrize("content", ["my notes, not JSON", '{"scene": "table7_1", "figures": []}',
+                                     '{"scenario": "other", "figures": ["a.png"], "passed": true}'])
+def test_a_scenario_run_keeps_a_file_that_is_not_its_earlier_summary(tmp_path, monkeypatch, content):
+    """``ctmm run <scenario>`` follows the same rule (``ctmm.scenario.run_scenario``)."""
+    from ctmm import scenario
+    from ctmm.errors import ModelError
+
+    from test_cli import FAST, _fake_run, _module
+
+    monkeypatch.setattr(_module(FAST), "run", _fake_run())
+    (tmp_path / f"{FAST}.json").write_text(content)
+    (tmp_path / "a.png").write_text("the user's picture")
+    with pytest.raises(ModelError, match=rf"{FAST}.json' is where the summary of scenario '{FAST}' goes, but it is "
+                                         "not the summary of an earlier run"):
+        scenario.run_scenario(FAST, tmp_path)
+    assert (tmp_path / f"{FAST}.json").read_text() == content and (tmp_path / "a.png").read_text() == "the user's picture"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.png", f"{FAST}.json"]
+    (tmp_path / f"{FAST}.json").unlink()
+    scenario.run_scenario(FAST, tmp_path)                         # its own summary: replaced on a rerun
+    scenario.run_scenario(FAST, tmp_path)
+    assert json.loads((tmp_path / f"{FAST}.json").read_text())["scenario"] == FAST
