@@ -5,7 +5,8 @@
   ``save`` the whole result as ``<scene>.h5`` (``ctmm.results.load`` reads it), with ``animate``
   ``<scene>.gif``. Files are written to a staging folder first and moved into place, the JSON last (written
   whole, then renamed); a ``<scene>.json`` already there that is not the summary of an earlier run of
-  that scene is never replaced: the run is refused before anything is written.
+  that scene is never replaced (the run is refused before it starts), nor a file of the name of an output
+  that summary does not list (refused before anything is moved into place).
 * :func:`write_results` writes the runs a scenario hands over in its ``results`` argument
   (``{label: result}``, :mod:`ctmm.scenario`) as ``<scenario>_<label>.h5`` (``save``) and
   ``<scenario>_<label>.gif`` (``animate``), the provenance (scenario, ctmm version, accuracy
@@ -193,8 +194,8 @@ def run_scene_file(path: str | os.PathLike, output_dir: str | os.PathLike = "res
     ------
     SceneError
         The file cannot be read or built (line and key named); or ``<scene>.json`` in ``output_dir`` is not
-        the summary of an earlier run of this scene (a JSON scene file, any other file, a folder, a link):
-        it is kept and nothing is written.
+        the summary of an earlier run of this scene (a JSON scene file, any other file, a folder, a link), or
+        a file the run would write is there and not listed by that summary: it is kept and nothing is written.
     ModelError, SimulationError
         From the study; nothing of the run is left behind, and the outputs of an earlier run of the
         same scene (its JSON and the files it lists) are removed. A successful run replaces them:
@@ -226,6 +227,12 @@ def run_scene_file(path: str | os.PathLike, output_dir: str | os.PathLike = "res
         shutil.rmtree(staging, ignore_errors=True)
         raise
     try:
+        foreign = [name for name in summary["figures"]
+                   if os.path.lexists(output / name) and output / name not in earlier]
+        if foreign:                        # a file of the same name that no earlier run of this scene wrote
+            raise SceneError(f"the run wrote {', '.join(foreign)}, but {str(output)!r} already holds a file of that "
+                             "name that is not an output of an earlier run of this scene; it is kept and nothing "
+                             "is written: move it or write the outputs to another folder (--output)", path=str(path))
         _remove(earlier[:1])               # old JSON out first, new files in, new JSON last
         for name in summary["figures"]:
             os.replace(staging / name, output / name)

@@ -82,3 +82,13 @@ def test_a_scenario_run_keeps_a_file_that_is_not_its_earlier_summary(tmp_path, m
     scenario.run_scenario(FAST, tmp_path)                         # its own summary: replaced on a rerun
     scenario.run_scenario(FAST, tmp_path)
     assert json.loads((tmp_path / f"{FAST}.json").read_text())["scenario"] == FAST
+
+
+def test_an_output_name_taken_by_a_file_no_run_wrote_is_kept(tmp_path, scene):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "pendulum.png").write_text("the user's picture")
+    with pytest.raises(SceneError, match=r"the run wrote pendulum.png, but .* already holds a file of that name"):
+        run_scene_file(scene, out)
+    assert sorted(p.name for p in out.iterdir()) == ["pendulum.png"]
+    assert (out / "pendulum.png").read_text() == "the user's picture"
