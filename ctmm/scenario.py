@@ -308,7 +308,14 @@ def run_scenario(name: str, output_dir: str | Path = "results", *, quick: bool =
 
 def _commit(staging: Path, output_dir: Path, name: str, written: list[str], previous: list[Path]) -> None:
     """Move a finished run into place: old JSON out first, new files in, new JSON last (``previous``: the
-    earlier run's JSON and figures, :func:`_previous_outputs`)."""
+    earlier run's JSON and figures, :func:`_previous_outputs`); a file of the name of a new one that no
+    earlier run wrote is kept and the run refused (ModelError) before anything moves."""
+    foreign = [file_name for file_name in written
+               if os.path.lexists(output_dir / file_name) and output_dir / file_name not in previous]
+    if foreign:
+        raise ModelError(f"scenario {name!r} wrote {', '.join(foreign)}, but {str(output_dir)!r} already holds a file "
+                         "of that name that is not an output of an earlier run of it; it is kept and nothing is "
+                         "written: move it or write the outputs to another folder (--output)")
     _remove(previous[:1])                      # no old JSON may describe the new figures
     for file_name in written:
         os.replace(staging / file_name, output_dir / file_name)

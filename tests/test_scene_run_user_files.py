@@ -79,6 +79,11 @@ def test_a_scenario_run_keeps_a_file_that_is_not_its_earlier_summary(tmp_path, m
     assert (tmp_path / f"{FAST}.json").read_text() == content and (tmp_path / "a.png").read_text() == "the user's picture"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.png", f"{FAST}.json"]
     (tmp_path / f"{FAST}.json").unlink()
+    with pytest.raises(ModelError, match=rf"scenario '{FAST}' wrote a.png, but .* already holds a file of that name"):
+        scenario.run_scenario(FAST, tmp_path)                     # the user's a.png: not an output of a run
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.png"]
+    assert (tmp_path / "a.png").read_text() == "the user's picture"
+    (tmp_path / "a.png").unlink()
     scenario.run_scenario(FAST, tmp_path)                         # its own summary: replaced on a rerun
     scenario.run_scenario(FAST, tmp_path)
     assert json.loads((tmp_path / f"{FAST}.json").read_text())["scenario"] == FAST
