@@ -29,6 +29,7 @@ entry store the names too (``<name>.names``).
 from __future__ import annotations
 
 import ctypes
+import functools
 import hashlib
 import os
 import shutil
@@ -168,12 +169,29 @@ def find_compiler(compiler: str | os.PathLike | None = None) -> str:
 
 
 def compiler_identity(compiler_path: str) -> bytes:
-    """Resolved path and ``--version`` output of a compiler (part of every cache key)."""
+    """Resolved path and ``--version`` output of a compiler (part of every cache key).
+
+    The ``--version`` output is remembered per process, keyed on the path, the resolved path and that
+    file's modification time [ns], size [bytes], inode and device: a compiler replaced or re-linked
+    (another resolved file, or the same file rewritten) is asked again; a failed run is not remembered.
+    A wrapper script whose own file is unchanged while the compiler it calls changes is not detected.
+    """
+    real_path = os.path.realpath(compiler_path)
     try:
-        version = subprocess.run([compiler_path, "--version"], capture_output=True, timeout=60).stdout
-    except (OSError, subprocess.TimeoutExpired):
+        status = os.stat(real_path)
+        version = _remembered_version_output(compiler_path, real_path, status.st_mtime_ns, status.st_size,
+                                             status.st_ino, status.st_dev)
+    except (OSError, subprocess.TimeoutExpired):   # not runnable now: no version, nothing remembered
         version = b""
-    return os.path.realpath(compiler_path).encode() + b"\0" + version
+    return real_path.encode() + b"\0" + version
+
+
+@functools.lru_cache(maxsize=32)
+def _remembered_version_output(compiler_path: str, real_path: str, modified_ns: int, size: int, inode: int,
+                               device: int) -> bytes:
+    """``<compiler> --version`` standard output, once per compiler file state (the arguments after the
+    first are the key); raises (and so remembers nothing) when the compiler cannot run."""
+    return subprocess.run([compiler_path, "--version"], capture_output=True, timeout=60).stdout
 
 
 def run_compiler(command: Sequence[str], what: str) -> None:

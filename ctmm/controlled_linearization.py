@@ -38,7 +38,7 @@ from .loop_closure import close_loops
 from .loop_phasors import close_loops as close_phasor_loops
 
 __all__ = ["loop_ports", "exogenous_inputs", "requested_outputs", "close_model_loops", "controller_response",
-           "delayed_loop_response", "resolvent", "FrequencyAtPoleError", "RESOLVENT_CONDITION"]
+           "delayed_loop_response", "delayed_loop_response_function", "resolvent", "FrequencyAtPoleError", "RESOLVENT_CONDITION"]
 
 RESOLVENT_CONDITION = 1.0 / float(np.sqrt(np.finfo(float).eps))
 """Largest accepted 2-norm condition number of the balanced ``s I - A`` (``1/sqrt(eps)``, about 6.7e7):
@@ -233,6 +233,24 @@ class FrequencyAtPoleError(ModelError):
     """:func:`resolvent` refused a frequency at or next to a pole on the imaginary axis (a
     :class:`~ctmm.errors.ModelError`; the margins' crossing search tells such a sign change of ``L``
     through infinity from a crossing by it)."""
+
+
+def delayed_loop_response_function(linearize: Callable[[list[str], list[str]], LinearizedSystem],
+                                   loops: Sequence[Any], inputs: Sequence[str], outputs: Sequence[str],
+                                   name: str) -> Callable[[np.ndarray], np.ndarray]:
+    """``s -> response [i_out, i_in, k]`` of :func:`delayed_loop_response`, linearising once: ``linearize``
+    runs at the first call only (the ports it is asked for follow from ``inputs``, ``outputs`` and
+    ``loops``, the same at every call), and every call answers from that linearisation -- the numbers of
+    :func:`delayed_loop_response` at each ``s``, for the price of the resolvent (e.g. the repeated
+    evaluations of a crossover search, :func:`ctmm.control.margins`)."""
+    taken: list[LinearizedSystem] = []
+
+    def linearized(lin_in: list[str], lin_out: list[str]) -> LinearizedSystem:
+        if not taken:
+            taken.append(linearize(lin_in, lin_out))
+        return taken[0]
+
+    return lambda s: delayed_loop_response(linearized, loops, s, inputs, outputs, name)[0]
 
 
 def resolvent(A: np.ndarray, B: np.ndarray, s: np.ndarray, name: str) -> np.ndarray:

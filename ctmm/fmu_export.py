@@ -63,8 +63,9 @@ def export_fmu(system: Any, path: str | os.PathLike, *, step: float, inputs: Seq
         runs ``H / step`` steps with the inputs held), and each loop delay too.
     inputs : sequence of str, optional
         Actuators exposed as inputs (``"<hinge>.torque"``, ``"<body>.force_x"``, modal forces; spatial:
-        joint inputs, ``"<input>[k]"`` per component of a vector input); default every actuator of the
-        generated kernel; the others are held at 0.
+        joint inputs, ``"<input>[k]"`` per component of a vector input, and on request body actuators
+        ``"<body>.force_x"``, ``"<body>.moment_body_z"``, ...); default every actuator of the
+        generated kernel (spatial: the joint inputs); the others are held at 0.
     outputs : sequence of str, optional
         Sensors exposed as outputs (any sensor of :mod:`ctmm.planar.ports`, and ``"<loop>.y"``,
         ``"<loop>.u"`` of a controlled model; spatial: coordinates, velocities, ``"<body>.position_x"``,

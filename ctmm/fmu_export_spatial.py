@@ -11,8 +11,13 @@ state, which ends the FMU's step with an error naming the time.
 
 Variables (names as in ctmm):
 
-* inputs -- the model's joint inputs (:attr:`~ctmm.compiled_spatial.SpatialRates.actuators`); an input
-  of ``k > 1`` components (a spherical joint's torque) is ``"<input>[0]"`` ... ``"<input>[k-1]"``;
+* inputs -- the model's joint inputs (:attr:`~ctmm.compiled_spatial.SpatialRates.actuators`; the default); an
+  input of ``k > 1`` components (a spherical joint's torque) is ``"<input>[0]"`` ... ``"<input>[k-1]"``; on
+  request the body actuators of :mod:`ctmm.spatial.ports` (world-axis ``"<body>.force_x"``,
+  ``"<body>.moment_z"``, ``"<body>.<point>.force_y"``, body-axis ``"<body>.force_body_x"``,
+  ``"<body>.moment_body_z"``, beam ports), after the joint inputs in ``u``: the step is then that of
+  :func:`~ctmm.compiled_spatial_loops.loop_acceleration`, the generated acceleration of the compiled
+  controlled spatial models;
 * outputs -- coordinates and velocities (``model.coordinates``, ``model.velocities``), each body's
   origin ``"<body>.position_x|y|z"`` [m] and angular velocity ``"<body>.omega_x|y|z"`` [rad/s] in world
   axes (the signals of ``ctmm.simulate``); default the coordinates and velocities;
@@ -34,7 +39,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from .compiled_spatial import SpatialRates, flexible_bodies, spatial_compile_refusal
+from .compiled_spatial import SpatialRates, flexible_bodies, position_rates, spatial_compile_refusal
+from .compiled_spatial_loops import loop_acceleration
 from .compiled_spatial_guard import guarded_step
 from .errors import ModelError
 from .fmu_export_model import ExportedSystem, ExportedVariable, chosen_names
@@ -43,6 +49,7 @@ from .ops import CASADI
 from .spatial.body_forms import SpatialScene
 from .spatial.integrate import initial_state, spatial_signals
 from .spatial.model import SpatialModel
+from .spatial.ports import SpatialPorts
 
 __all__ = ["spatial_export"]
 
@@ -55,7 +62,8 @@ def spatial_export(model: SpatialModel, *, inputs: Sequence[str] | None, outputs
     ----------
     model : SpatialModel
     inputs, outputs : sequence of str or None
-        Names to expose (module docstring); ``None``: every input component; every coordinate and velocity.
+        Names to expose (module docstring); ``None``: every joint input component; every coordinate and
+        velocity.
     parameters : sequence of str or None
         Parameters to expose (module docstring); ``None``: all of them.
     q0, qdot0 : array_like, mapping or None
@@ -76,7 +84,18 @@ def spatial_export(model: SpatialModel, *, inputs: Sequence[str] | None, outputs
     flexible = flexible_bodies(model)
     rates = SpatialRates(model, fold=False, numbers="constants" if flexible else "inputs")
     layout = rates.layout
-    step = guarded_step(model, rk4_step_function(rates.rate))     # NaN once a flexible body leaves its bounds
+    components, offset = [], 0
+    for name, width in zip(rates.actuators, rates.widths):
+        components += [(name if width == 1 else f"{name}[{k}]", offset + k) for k in range(width)]
+        offset += width
+    index = dict(components)
+    ports = SpatialPorts(model)
+    body_actuators = [name for name, actuator in ports.actuators.items() if actuator.kind != "joint"]
+    input_names = chosen_names("inputs", inputs, list(index) + body_actuators, list(index))
+    applied = [name for name in input_names if name not in index]
+    index.update({name: offset + k for k, name in enumerate(applied)})
+    rate = _rate_with_body_actuators(model, ports, rates, applied) if applied else rates.rate
+    step = guarded_step(model, rk4_step_function(rate))     # NaN once a flexible body leaves its bounds
     arguments = [ca.MX.sym(label, *step.size_in(i)) for i, label in enumerate(("y", "u", "h", "p", "t0", "k"))]
     step_function = ca.Function("ctmm_step", arguments, [step(*arguments)])
     nq, nv = model.n_positions, model.n_velocities
@@ -99,14 +118,11 @@ def spatial_export(model: SpatialModel, *, inputs: Sequence[str] | None, outputs
     initial_function = ca.Function("ctmm_initial", [start, p_sym], [start])
 
     _, units = spatial_signals(model, np.zeros(1), start_values[None, :])
-    components, offset = [], 0
-    for name, width in zip(rates.actuators, rates.widths):
-        components += [(name if width == 1 else f"{name}[{k}]", offset + k) for k in range(width)]
-        offset += width
-    index = dict(components)
-    input_names = chosen_names("inputs", inputs, list(index), list(index))
-    input_variables = tuple(ExportedVariable(name, index[name], 0.0, "", f"joint input {name}, held over a "
-                                             "communication step [N or N m]") for name in input_names)
+    input_variables = tuple(
+        ExportedVariable(name, index[name], 0.0, ports.actuator_unit(name), f"body actuator {name}, held over a "
+                         f"communication step [{ports.actuator_unit(name)}]") if name in applied else
+        ExportedVariable(name, index[name], 0.0, "", f"joint input {name}, held over a communication step "
+                         "[N or N m]") for name in input_names)
     output_variables = tuple(ExportedVariable(name, k, None, units.get(name, ""), f"signal {name}")
                              for k, name in enumerate(output_names))
     starts = tuple(ExportedVariable(f"{name}_start", k, float(start_values[k]), units.get(name, ""),
@@ -120,5 +136,29 @@ def spatial_export(model: SpatialModel, *, inputs: Sequence[str] | None, outputs
              ) if flexible else ("spatial model: masses, inertias, 1- and 2-DOF joint laws and gravity are parameters; "
                                  "geometry, axes, loads, zeros and the other joint laws are constants of the code",)
     return ExportedSystem(model.name, initial_function, step_function, output_function,
-                          np.array([entry.value for entry in layout], dtype=float), offset, nq + nv, input_variables,
+                          np.array([entry.value for entry in layout], dtype=float), offset + len(applied), nq + nv,
+                          input_variables,
                           output_variables, parameter_variables, starts, notes)
+
+
+def _rate_with_body_actuators(model: SpatialModel, ports: SpatialPorts, rates: SpatialRates,
+                              applied: Sequence[str]) -> Any:
+    """``(y, u, p, t) -> y_dot`` of ``model`` with ``u`` the joint input components of ``rates`` followed by
+    one value per body actuator of ``applied`` (the generated acceleration of the compiled controlled
+    spatial models, :func:`~ctmm.compiled_spatial_loops.loop_acceleration`: forces at their points and
+    moments, world or body axes)."""
+    import casadi as ca
+
+    joint_ports = []                              # the port name of each joint input component, in u's order
+    for name, width in zip(rates.actuators, rates.widths):
+        for k in range(width):
+            joint_ports += [port for port, actuator in ports.actuators.items()
+                            if actuator.kind == "joint" and actuator.target == name and actuator.component == k]
+    acceleration = loop_acceleration(model, ports, joint_ports + list(applied), rates.layout)
+    nq, nv = model.n_positions, model.n_velocities
+    q, v = ca.SX.sym("q", nq), ca.SX.sym("v", nv)
+    position_rate = ca.Function("position_rate", [q, v], [position_rates(model, q, v)])
+    y, u = ca.MX.sym("y", nq + nv), ca.MX.sym("u", len(joint_ports) + len(applied))
+    p, t = ca.MX.sym("p", len(rates.layout)), ca.MX.sym("t")
+    return ca.Function("rate", [y, u, p, t], [ca.vertcat(position_rate(y[:nq], y[nq:]),
+                                                        acceleration(y[:nq], y[nq:], u, p, t))])

@@ -175,18 +175,31 @@ def _accuracy_figures(name: str, summary: dict) -> list[dict]:
 
 
 def _previous_outputs(output_dir: Path, name: str) -> list[Path]:
-    """Files of an earlier run of ``name``: its JSON and the figures it lists."""
+    """Files of an earlier run of ``name``: its JSON and the figures it lists; ``[]`` when there is none.
+
+    Raises
+    ------
+    ModelError
+        ``<name>.json`` exists but is not the summary of an earlier run of scenario ``name`` (any other
+        file, a folder, a link): a run would replace or remove it, so it is refused before anything is written.
+    """
     record = output_dir / f"{name}.json"
-    if not record.is_file():
+    if not os.path.lexists(record):
         return []
-    files = [record]
     try:
-        listed = json.loads(record.read_text()).get("figures", [])
-    except (OSError, ValueError, AttributeError):
-        listed = []
-    for figure in listed if isinstance(listed, list) else []:
+        data = json.loads(record.read_text()) if record.is_file() and not record.is_symlink() else None
+    except (OSError, ValueError, UnicodeDecodeError):
+        data = None
+    if not (isinstance(data, dict) and data.get("scenario") == name and isinstance(data.get("figures"), list)
+            and "passed" in data):
+        raise ModelError(f"{str(record)!r} is where the summary of scenario {name!r} goes, but it is not the summary "
+                         f"of an earlier run of it (a JSON object with scenario = {name!r}, figures and passed); "
+                         "ctmm run replaces only its own earlier summary: move that file or write the outputs to "
+                         "another folder (--output)")
+    files = [record]
+    for figure in data["figures"]:
         candidate = output_dir / str(figure)
-        if candidate.parent == output_dir and candidate.is_file():
+        if candidate.parent == output_dir and candidate.is_file() and candidate != record:
             files.append(candidate)
     return files
 
@@ -244,7 +257,9 @@ def run_scenario(name: str, output_dir: str | Path = "results", *, quick: bool =
     Raises
     ------
     ModelError
-        Unknown scenario, unwritable output folder, or a scenario that reports no accuracy.
+        Unknown scenario, unwritable output folder, a scenario that reports no accuracy, or a
+        ``<name>.json`` in the output folder that is not the summary of an earlier run of the scenario
+        (kept; nothing is written).
     Exception
         Whatever the scenario raised (e.g. :class:`~ctmm.errors.SimulationError`); the outputs of
         earlier runs of that scenario are then removed and nothing of this run is left behind.
@@ -259,6 +274,7 @@ def run_scenario(name: str, output_dir: str | Path = "results", *, quick: bool =
 
     matplotlib.use("Agg")
     _remove_dead_staging(output_dir, name)
+    previous = _previous_outputs(output_dir, name)        # refuses a <name>.json that is not an earlier summary
     staging = Path(tempfile.mkdtemp(dir=output_dir, prefix=f".{name}-{os.getpid()}-"))
     try:
         try:
@@ -282,17 +298,24 @@ def run_scenario(name: str, output_dir: str | Path = "results", *, quick: bool =
             summary["figures"] = written
             write_json_atomic(staging / f"{name}.json", summary)
         except Exception:
-            _remove(_previous_outputs(output_dir, name))
+            _remove(previous)
             raise
-        _commit(staging, output_dir, name, written)
+        _commit(staging, output_dir, name, written, previous)
     finally:
         shutil.rmtree(staging, ignore_errors=True)
     return summary
 
 
-def _commit(staging: Path, output_dir: Path, name: str, written: list[str]) -> None:
-    """Move a finished run into place: old JSON out first, new files in, new JSON last."""
-    previous = _previous_outputs(output_dir, name)
+def _commit(staging: Path, output_dir: Path, name: str, written: list[str], previous: list[Path]) -> None:
+    """Move a finished run into place: old JSON out first, new files in, new JSON last (``previous``: the
+    earlier run's JSON and figures, :func:`_previous_outputs`); a file of the name of a new one that no
+    earlier run wrote is kept and the run refused (ModelError) before anything moves."""
+    foreign = [file_name for file_name in written
+               if os.path.lexists(output_dir / file_name) and output_dir / file_name not in previous]
+    if foreign:
+        raise ModelError(f"scenario {name!r} wrote {', '.join(foreign)}, but {str(output_dir)!r} already holds a file "
+                         "of that name that is not an output of an earlier run of it; it is kept and nothing is "
+                         "written: move it or write the outputs to another folder (--output)")
     _remove(previous[:1])                      # no old JSON may describe the new figures
     for file_name in written:
         os.replace(staging / file_name, output_dir / file_name)

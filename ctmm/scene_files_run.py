@@ -3,7 +3,10 @@
 * :func:`run_scene_file` runs a scene file (:mod:`ctmm.scene_files`) like a scenario: a PNG of the
   study, ``<scene>.json`` (system, study, arguments, wall time, the result's key numbers), and with
   ``save`` the whole result as ``<scene>.h5`` (``ctmm.results.load`` reads it), with ``animate``
-  ``<scene>.gif``. Files are written to a staging folder first and moved into place, the JSON last.
+  ``<scene>.gif``. Files are written to a staging folder first and moved into place, the JSON last (written
+  whole, then renamed); a ``<scene>.json`` already there that is not the summary of an earlier run of
+  that scene is never replaced (the run is refused before it starts), nor a file of the name of an output
+  that summary does not list (refused before anything is moved into place).
 * :func:`write_results` writes the runs a scenario hands over in its ``results`` argument
   (``{label: result}``, :mod:`ctmm.scenario`) as ``<scenario>_<label>.h5`` (``save``) and
   ``<scenario>_<label>.gif`` (``animate``), the provenance (scenario, ctmm version, accuracy
@@ -190,7 +193,9 @@ def run_scene_file(path: str | os.PathLike, output_dir: str | os.PathLike = "res
     Raises
     ------
     SceneError
-        The file cannot be read or built (line and key named).
+        The file cannot be read or built (line and key named); or ``<scene>.json`` in ``output_dir`` is not
+        the summary of an earlier run of this scene (a JSON scene file, any other file, a folder, a link), or
+        a file the run would write is there and not listed by that summary: it is kept and nothing is written.
     ModelError, SimulationError
         From the study; nothing of the run is left behind, and the outputs of an earlier run of the
         same scene (its JSON and the files it lists) are removed. A successful run replaces them:
@@ -198,12 +203,8 @@ def run_scene_file(path: str | os.PathLike, output_dir: str | os.PathLike = "res
     """
     scene = load_scene(path)
     output = check_output_folder(output_dir)
-    if _holds_scene(output / f"{scene.name}.json"):      # a JSON scene file where the summary goes: keep it
-        raise SceneError(f"{str(output / (scene.name + '.json'))!r} is a scene file and the summary of this run "
-                         f"({scene.name}.json) would replace it; write the outputs to another folder (--output)",
-                         path=str(path))
+    earlier = _earlier_outputs(output, scene.name, path)      # refuses a file that is not an earlier summary
     staging = Path(tempfile.mkdtemp(dir=output, prefix=f".{scene.name}-{os.getpid()}-"))
-    earlier = _earlier_outputs(output, scene.name)
     try:
         arguments = quick_arguments(scene) if quick else scene.arguments
         started = time.perf_counter()
@@ -226,6 +227,12 @@ def run_scene_file(path: str | os.PathLike, output_dir: str | os.PathLike = "res
         shutil.rmtree(staging, ignore_errors=True)
         raise
     try:
+        foreign = [name for name in summary["figures"]
+                   if os.path.lexists(output / name) and output / name not in earlier]
+        if foreign:                        # a file of the same name that no earlier run of this scene wrote
+            raise SceneError(f"the run wrote {', '.join(foreign)}, but {str(output)!r} already holds a file of that "
+                             "name that is not an output of an earlier run of this scene; it is kept and nothing "
+                             "is written: move it or write the outputs to another folder (--output)", path=str(path))
         _remove(earlier[:1])               # old JSON out first, new files in, new JSON last
         for name in summary["figures"]:
             os.replace(staging / name, output / name)
@@ -236,24 +243,49 @@ def run_scene_file(path: str | os.PathLike, output_dir: str | os.PathLike = "res
     return summary
 
 
-def _holds_scene(record: Path) -> bool:
-    """Whether ``record`` is a JSON scene file (a ``system`` and a ``study`` table), not a run's summary."""
-    try:
-        data = json.loads(record.read_text())
-    except (OSError, ValueError):
-        return False
+def _holds_scene(data: Any) -> bool:
+    """Whether parsed JSON is a scene file (a ``system`` and a ``study`` table), not a run's summary."""
     return isinstance(data, dict) and "system" in data and "study" in data
 
 
-def _earlier_outputs(output: Path, name: str) -> list[Path]:
-    """``<name>.json`` of an earlier run and the files it lists (first the JSON)."""
+_SUMMARY_KEYS = ("scene", "scene_file", "verb", "figures", "ctmm_version", "passed")
+
+
+def _earlier_outputs(output: Path, name: str, scene_path: str | os.PathLike) -> list[Path]:
+    """``<name>.json`` of an earlier run and the files it lists (first the JSON); ``[]`` when there is none.
+
+    Raises
+    ------
+    SceneError
+        ``<name>.json`` exists but is not the summary of an earlier run of the scene ``name`` (a JSON scene
+        file, any other file, a folder or a link): the run would replace or remove it, so it is refused
+        before anything is written.
+    """
     record = output / f"{name}.json"
-    try:
-        listed = json.loads(record.read_text()).get("figures", [])
-    except (OSError, ValueError, AttributeError):
-        return [record] if record.is_file() else []
-    files = [output / str(f) for f in listed if isinstance(f, str) and (output / f).parent == output]
-    return [record] + [f for f in files if f.is_file()]
+    if not os.path.lexists(record):
+        return []
+    reason = None
+    if record.is_symlink() or not record.is_file():
+        reason = "it is not a regular file"
+    else:
+        try:
+            data = json.loads(record.read_text())
+        except (OSError, ValueError, UnicodeDecodeError) as exc:
+            data, reason = None, f"it is not readable JSON ({type(exc).__name__})"
+        if reason is None and _holds_scene(data):
+            raise SceneError(f"{str(record)!r} is a scene file and the summary of this run ({name}.json) would "
+                             "replace it; write the outputs to another folder (--output)", path=str(scene_path))
+        if reason is None and not (isinstance(data, dict) and all(key in data for key in _SUMMARY_KEYS)
+                                   and data["scene"] == name and isinstance(data["figures"], list)):
+            reason = (f"it is not the summary of a run of scene {name!r} (a JSON object with scene = {name!r} "
+                      f"and the keys {', '.join(_SUMMARY_KEYS)})")
+    if reason is not None:
+        raise SceneError(f"{str(record)!r} is where the summary of this run goes, but {reason}; ctmm run "
+                         "replaces only its own earlier summary: move that file or write the outputs to another "
+                         "folder (--output)", path=str(scene_path))
+    files = [output / f for f in data["figures"]
+             if isinstance(f, str) and f and (output / f).parent == output and f != record.name]
+    return [record] + [f for f in files if f.is_file() and not f.is_symlink()]
 
 
 def _remove(paths: list[Path]) -> None:

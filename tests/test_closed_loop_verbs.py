@@ -132,3 +132,16 @@ def test_the_verbs_refuse_what_they_cannot_honour():
         ctmm.linearize(loop, (q0, v0))
     with pytest.raises(ModelError, match="not an equilibrium"):
         ctmm.linearize(loop, (q0, np.zeros(3)))
+
+
+def test_a_frequency_at_a_pole_is_refused_naming_the_model():
+    """Was: the refusal named a function repr (``<function frequency_response_loops.<locals>.solve ...>``)."""
+    from ctmm.controlled_linearization import FrequencyAtPoleError
+
+    loop = four_bar(SPRING)
+    guess, _ = loop.consistent_state([-1.5, 0.5, 1.8], [0.0, 0.0, 0.0], keep=["crank.theta"])
+    point = (loop.equilibrium(guess), np.zeros(3))
+    (omega_n,) = ctmm.natural_frequencies(loop, operating_point=point)
+    with pytest.raises(FrequencyAtPoleError, match=rf"of '{loop.name}' is singular at omega = ") as caught:
+        ctmm.frequency_response(loop, [omega_n], input="h1.torque", output="crank.theta", operating_point=point)
+    assert "function" not in str(caught.value)

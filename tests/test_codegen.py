@@ -8,6 +8,7 @@ from __future__ import annotations
 import ctypes
 import hashlib
 import math
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -156,3 +157,37 @@ def test_cache_key_frames_each_labelled_part():
     keys = {codegen.cache_key(b"fmt/1", parts) for parts in ([("ab", b"c")], [("a", b"bc")], [("a", b"b"), ("c", b"")])}
     assert len(keys) == 3
     assert codegen.cache_key(b"fmt/2", [("source", b"abc"), ("flags", b"")]) != expected
+
+
+def _fake_compiler(path: Path, version: str) -> None:
+    """A 'compiler' that prints ``version`` and counts its runs in ``<path>.runs``."""
+    path.write_text(f"#!/bin/sh\necho run >> '{path}.runs'\necho '{version}'\n")
+    path.chmod(0o755)
+
+
+def _runs(path: Path) -> int:
+    runs = Path(f"{path}.runs")
+    return len(runs.read_text().splitlines()) if runs.exists() else 0
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="a POSIX shell script stands for the compiler")
+def test_compiler_identity_asks_the_compiler_once_per_file_state(tmp_path):
+    compiler = tmp_path / "cc"
+    _fake_compiler(compiler, "cc 1.0")
+    first = codegen.compiler_identity(str(compiler))
+    assert first == str(compiler.resolve()).encode() + b"\0cc 1.0\n"
+    assert codegen.compiler_identity(str(compiler)) == first and _runs(compiler) == 1      # remembered
+    _fake_compiler(compiler, "cc 2.0")                                 # replaced in place (size unchanged)
+    stamp = compiler.stat().st_mtime_ns + 10 ** 9
+    os.utime(compiler, ns=(stamp, stamp))
+    assert codegen.compiler_identity(str(compiler)).endswith(b"\0cc 2.0\n") and _runs(compiler) == 2
+    other = tmp_path / "cc-3"
+    _fake_compiler(other, "cc 3.0.0")
+    link = tmp_path / "gcc"
+    link.symlink_to(compiler)
+    assert codegen.compiler_identity(str(link)).endswith(b"\0cc 2.0\n")
+    link.unlink()
+    link.symlink_to(other)                                             # re-linked to another compiler
+    assert codegen.compiler_identity(str(link)) == str(other.resolve()).encode() + b"\0cc 3.0.0\n"
+    missing = str(tmp_path / "missing")
+    assert codegen.compiler_identity(missing) == os.path.realpath(missing).encode() + b"\0"

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
+import ctmm
 from ctmm.control import ControlledModel, Feedback, loop_transfer_function, margins
 from ctmm.errors import ModelError
 from ctmm.planar import ActuatedHinge, Fixed, PlanarModel, RigidBody
@@ -91,3 +92,37 @@ def test_exact_field_margins_of_the_manipulator_scene_equal_the_continuum_refere
     assert any("exact beam fields" in note for note in exact.notes)
     with pytest.raises(ModelError, match="fields"):
         loop_transfer_function(system(), "pd", [1.0], fields="exact")     # a rigid pendulum has no beam
+
+
+def _loop_from_the_frequency_response(model: ControlledModel, w) -> np.ndarray:
+    """``L`` as margins formed it before it linearised once: ctmm.frequency_response (a fresh linearisation)
+    of the open plant, summed over the loop's sensor terms in the same order."""
+    frf = ctmm.frequency_response(model.plant, np.atleast_1d(w), input="motor.torque",
+                                  output=["motor.angle", "motor.rate"])
+    P = np.zeros(np.size(w), dtype=complex)
+    for sensor, weight in (("motor.angle", KP), ("motor.rate", KD)):
+        P = P + 1.0 * weight * frf(sensor, "motor.torque")
+    return model.loop("pd").loop_gain(1j * np.atleast_1d(w)) * P
+
+
+def test_margins_linearise_once_per_call_with_the_numbers_of_fresh_linearisations(monkeypatch):
+    """Was: every evaluation of L in the crossover refinement linearised the model again (86 here)."""
+    import ctmm.planar_linearization as planar_linearization
+
+    calls = []
+    original = planar_linearization.tangent
+    monkeypatch.setattr(planar_linearization, "tangent", lambda *a, **k: calls.append(1) or original(*a, **k))
+    model, grid = system(), np.linspace(0.05, 60.0, 300)
+    result = margins(model, "pd", grid)
+    assert len(calls) == 3                  # L, and the certified search's gain crossovers and gain margins
+    for w_gc, pm in zip(result.gain_crossovers, result.phase_margins):
+        assert pm == (180.0 + np.degrees(np.angle(_loop_from_the_frequency_response(model, w_gc)[0])) + 180.0) \
+            % 360.0 - 180.0
+    for w_pc, gm in zip(result.phase_crossovers, result.gain_margins):
+        assert gm == 1.0 / abs(_loop_from_the_frequency_response(model, w_pc)[0])
+    np.testing.assert_array_equal(loop_transfer_function(model, "pd", grid)("pd.L"),
+                                  _loop_from_the_frequency_response(model, grid))
+    w_gc = brentq(lambda w: abs(exact_loop(w)) - 1.0, 1.0, 60.0)          # independent: the closed form
+    assert result.gain_crossovers == pytest.approx([w_gc], rel=1e-9)
+    w_pc = brentq(lambda w: exact_loop(w).imag, 20.0, 30.0)
+    assert result.phase_crossovers[0] == pytest.approx(w_pc, rel=1e-9)

@@ -108,3 +108,13 @@ def test_driven_joint_matches_pinocchio_partitioned_dynamics() -> None:
     axis = data.oMi[j2].rotation @ (np.array([0, 1.0, 1.0]) / np.sqrt(2))
     driven_torque = axis @ ours.reactions[0, 1, 3:]             # inboard point = joint origin: moment about it
     assert abs(driven_torque - torque[1]) < 1e-10 * max(1.0, abs(torque[1]))
+
+
+@pytest.mark.parametrize("call", [lambda m: sp.energy(m, [0.0], [0.0]), lambda m: sp.reactions(m, [0.0], [0.0]),
+                                  lambda m: sp.accelerations(m, [0.0], [0.0]), lambda m: sp.solve(m, [0.0], [0.0]),
+                                  lambda m: sp.state_rates(m, [0.0, 0.0], 0.0)])
+@pytest.mark.parametrize("other", [None, "arm", 1.0, object()])
+def test_the_dynamics_functions_refuse_what_is_not_a_spatial_model(call, other) -> None:
+    """Was: ``energy`` read ``model.check_state`` first and failed with AttributeError."""
+    with pytest.raises(ModelError, match="model must be a ctmm.spatial.SpatialModel, got"):
+        call(other)

@@ -33,7 +33,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from .. import validation
-from ..controlled_linearization import FrequencyAtPoleError
+from ..controlled_linearization import FrequencyAtPoleError, delayed_loop_response_function
 from ..errors import ModelError
 from ..frequency import frequency_response
 from ..results import FrequencyResponse
@@ -75,9 +75,16 @@ def open_loop_plant(system: ControlledChain | ControlledModel, loop: str, omega:
     removed and all other loops closed [sensed unit / N].  A planar model (:class:`ControlledModel`)
     is linearised about its operating point (:func:`ctmm.linearize`), or with ``fields="exact"``
     answered by exact beam fields (:mod:`ctmm.exact_fields`); delays stay exact."""
+    return _open_loop_plant_function(system, loop, fields)(_omega(omega))
+
+
+def _open_loop_plant_function(system: ControlledChain | ControlledModel, loop: str,
+                              fields: str | None) -> Callable[[np.ndarray], np.ndarray]:
+    """``omega [rad/s] (validated array) -> P_yu(i omega)`` of :func:`open_loop_plant`; a planar or spatial model
+    (``fields`` ``None`` / ``"modal"``) is linearised once, at the first call, and that answers every call
+    (:func:`ctmm.frequency_response`'s numbers); chains and exact fields answer each call afresh."""
     if not isinstance(system, (ControlledChain, ControlledModel)):
         raise ModelError(f"a loop transfer function needs a ControlledChain or a ControlledModel, got {system!r}")
-    w = _omega(omega)
     lp = system.loop(loop)
     refuse_saturation(system.loops, "a loop transfer function")
     others = [other for other in system.loops if other.name != lp.name]
@@ -85,16 +92,29 @@ def open_loop_plant(system: ControlledChain | ControlledModel, loop: str, omega:
     signals = list(dict.fromkeys(sig for sig, _ in lp.terms))
     actuators = (actuator_inputs(system, loop) if isinstance(system, ControlledChain)
                  else [(name, float(weight)) for name, weight in lp.actuator_terms])
+    inputs = list(dict.fromkeys(a for a, _ in actuators))
     if fields is not None and not isinstance(system, ControlledModel):
         raise ModelError(f"fields={fields!r} applies to planar models (ControlledModel), not to {type(system).__name__}")
     options = {} if fields is None else {"fields": fields}
-    frf = frequency_response(open_system, w, input=list(dict.fromkeys(a for a, _ in actuators)), output=signals,
-                             **options)
-    P = np.zeros(w.size, dtype=complex)
-    for inp, a_weight in actuators:
-        for sig, weight in lp.terms:
-            P = P + a_weight * weight * frf(sig, inp)
-    return P
+    modal = isinstance(system, ControlledModel) and validation.option("fields", fields or "modal",
+                                                                      ("modal", "exact")) == "modal"
+    if modal:                                   # one linearisation (at the first call) answers every call
+        from ..linearize import linearize
+
+        respond = delayed_loop_response_function(lambda lin_in, lin_out: linearize(open_system, inputs=lin_in,
+                                                                                  outputs=lin_out),
+                                                 getattr(open_system, "loops", ()), inputs, signals,
+                                                 getattr(open_system, "plant", open_system).name)
+
+    def plant(w: np.ndarray) -> np.ndarray:
+        frf = FrequencyResponse(w, respond(1j * w), tuple(inputs), tuple(signals), "P") if modal else \
+            frequency_response(open_system, w, input=inputs, output=signals, **options)
+        P = np.zeros(w.size, dtype=complex)
+        for inp, a_weight in actuators:
+            for sig, weight in lp.terms:
+                P = P + a_weight * weight * frf(sig, inp)
+        return P
+    return plant
 
 
 def loop_transfer_function(system: ControlledChain | ControlledModel, loop: str, omega: Any, *,
@@ -284,10 +304,12 @@ def margins(source: Any, loop: str | None = None, omega: Any = None, *, fields: 
                              f"(loops: {[lp.name for lp in source.loops]}), got loop={loop!r}, omega={omega!r:.80}")
         w = _omega(omega)
         lp = source.loop(loop)
-        L = loop_transfer_function(source, loop, w, fields=fields)("{}.L".format(lp.name))
+        plant = _open_loop_plant_function(source, loop, fields)     # planar / spatial: linearised once per call
+        L = lp.loop_gain(1j * w) * plant(w)
 
         def evaluate(x: float) -> complex:
-            return complex(loop_transfer_function(source, loop, [x], fields=fields)(f"{lp.name}.L")[0])
+            x_array = _omega([x])
+            return complex((lp.loop_gain(1j * x_array) * plant(x_array))[0])
     else:
         if isinstance(source, Chain):
             raise ModelError(f"margins needs a ControlledChain with loop {loop!r}, got the plain Chain "

@@ -30,7 +30,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from .. import validation
-from ..controlled_linearization import delayed_loop_response, resolvent
+from ..controlled_linearization import delayed_loop_response
 from ..errors import ModelError
 from ..linearized import LinearizedSystem, OperatingPoint, control_name
 from ..results import FrequencyResponse, SimulationResult
@@ -339,12 +339,9 @@ def frequency_response_loops(model: Any, omega: Any, *, input: Any, output: Any,
     omega = validation.frequencies("omega", omega)
     plant = model if isinstance(model, KinematicLoopModel) else model.plant
     loops = () if plant is model else tuple(model.loops)
-    def solve(A: np.ndarray, B: np.ndarray) -> np.ndarray:     # refuses frequencies at or next to a pole
-        return resolvent(A, B, 1j * omega, plant.name)
-
-    response, lin = delayed_loop_response(
+    response, lin = delayed_loop_response(          # refuses a frequency at or next to a pole, naming the model
         lambda lin_in, lin_out: linearize_loops(model, operating_point, inputs=lin_in, outputs=lin_out),
-        loops, 1j * omega, inputs, outputs, solve)
+        loops, 1j * omega, inputs, outputs, plant.name)
     ports = PlanarPorts(plant.tree)
     units = {name: ports.actuator_unit(name) for name in inputs if name in ports.actuators}
     units.update({name: "N" if name in cut_signal_names(plant) else ports.sensor_unit(name) for name in outputs

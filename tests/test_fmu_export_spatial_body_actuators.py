@@ -1,0 +1,64 @@
+"""Body actuators of a spatial model as inputs of an exported FMU (``ctmm.fmu_export_spatial``): world- and
+body-axis forces and moments beside the joint inputs.
+
+Independent reference, closed form: a slider of mass m on a prismatic rail along x pushed by a constant world
+force F has ``x = F t^2 / (2 m)``; a wheel on a revolute hub about z (inertia I_zz) driven by a hub torque T and
+a body-axis moment M about its own z axis (the hub axis) and a body-axis force P along its y axis at the rim
+(radius r on its x axis) has ``theta = (T + M + r P) t^2 / (2 I_zz)``.  RK4 is exact
+on these quadratics, so the FMU must agree to round-off.
+"""
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+import pytest
+
+import ctmm
+import ctmm.spatial as sp
+from ctmm.errors import ModelError
+
+fmpy = pytest.importorskip("fmpy")
+
+pytestmark = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
+
+MASS, INERTIA_ZZ = 2.0, 0.04
+FORCE, TORQUE, MOMENT, PUSH, RIM = 3.0, 0.5, -0.2, 0.4, 0.25
+
+
+@pytest.fixture(autouse=True)
+def _cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("CTMM_CACHE", str(tmp_path / "cache"))
+
+
+def slider_and_wheel() -> sp.SpatialModel:
+    return sp.SpatialModel("slider_wheel", [
+        sp.SpatialBody("slider", MASS, np.diag([0.1, 0.2, 0.3])),
+        sp.SpatialBody("wheel", 0.5, np.diag([0.02, 0.03, INERTIA_ZZ]), points={"rim": (RIM, 0.0, 0.0)}),
+        sp.Prismatic(name="rail", parent=None, child="slider", axis=(1.0, 0.0, 0.0)),
+        sp.Revolute(name="hub", parent=None, child="wheel", axis=(0.0, 0.0, 1.0), actuated=True)],
+        gravity=(0.0, 0.0, -9.81))
+
+
+def test_body_forces_and_moments_are_fmu_inputs_with_the_closed_form_motion(tmp_path):
+    model = slider_and_wheel()
+    inputs = ["hub.torque", "slider.force_x", "wheel.moment_body_z", "wheel.rim.force_body_y"]
+    path = ctmm.export_fmu(model, tmp_path / "slider_wheel.fmu", step=1e-3, inputs=inputs)
+    description = fmpy.read_model_description(str(path))
+    declared = {v.name: v for v in description.modelVariables if v.causality == "input"}
+    assert list(declared) == inputs
+    assert declared["slider.force_x"].unit == "N" and declared["wheel.moment_body_z"].unit == "N m"
+    out = fmpy.simulate_fmu(str(path), stop_time=0.2, output_interval=0.05,
+                            start_values={"hub.torque": TORQUE, "slider.force_x": FORCE,
+                                          "wheel.moment_body_z": MOMENT, "wheel.rim.force_body_y": PUSH})
+    t = out["time"]
+    np.testing.assert_allclose(out["rail.position"], FORCE * t ** 2 / (2 * MASS), rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(out["hub.angle"], (TORQUE + MOMENT + RIM * PUSH) * t ** 2 / (2 * INERTIA_ZZ), rtol=1e-12, atol=1e-15)
+    assert out["hub.angle"][-1] > 0.1                                                  # it moved
+
+
+def test_an_unknown_input_lists_the_body_actuators(tmp_path):
+    with pytest.raises(ModelError, match=r"inputs has the unknown name 'slider.force_w'; allowed: hub.torque, "
+                                         r".*slider.force_x"):
+        ctmm.export_fmu(slider_and_wheel(), tmp_path / "x.fmu", step=1e-3, inputs=["slider.force_w"])
+    assert not (tmp_path / "x.fmu").exists()
