@@ -174,14 +174,30 @@ def _accuracy_figures(name: str, summary: dict) -> list[dict]:
     return figures
 
 
+SCENE_SUMMARY_KEYS = ("scene", "scene_file", "verb", "figures", "ctmm_version", "passed")
+"""Keys of the JSON summary that ``ctmm run scene.toml`` writes (:mod:`ctmm.scene_files_run`)."""
+
+
+def is_run_summary(data: Any, name: str) -> bool:
+    """Whether ``data`` (a parsed JSON file) is a summary that ``ctmm run`` wrote for the study ``name``.
+
+    Either form counts -- a scenario's (``scenario = name``, ``figures``, ``passed``) or a scene file's
+    (:data:`SCENE_SUMMARY_KEYS`, ``scene = name``) -- because both write ``<name>.json`` into the same folder:
+    a run may replace the other's summary of the same study, never any other file.
+    """
+    if not isinstance(data, dict) or not isinstance(data.get("figures"), list) or "passed" not in data:
+        return False
+    return data.get("scenario") == name or (all(key in data for key in SCENE_SUMMARY_KEYS) and data["scene"] == name)
+
+
 def _previous_outputs(output_dir: Path, name: str) -> list[Path]:
     """Files of an earlier run of ``name``: its JSON and the figures it lists; ``[]`` when there is none.
 
     Raises
     ------
     ModelError
-        ``<name>.json`` exists but is not the summary of an earlier run of scenario ``name`` (any other
-        file, a folder, a link): a run would replace or remove it, so it is refused before anything is written.
+        ``<name>.json`` exists but is not the summary of an earlier run of scenario ``name`` or of a scene
+        file of that name (:func:`is_run_summary`; any other file, a folder, a link): a run would replace or remove it, so it is refused before anything is written.
     """
     record = output_dir / f"{name}.json"
     if not os.path.lexists(record):
@@ -190,10 +206,10 @@ def _previous_outputs(output_dir: Path, name: str) -> list[Path]:
         data = json.loads(record.read_text()) if record.is_file() and not record.is_symlink() else None
     except (OSError, ValueError, UnicodeDecodeError):
         data = None
-    if not (isinstance(data, dict) and data.get("scenario") == name and isinstance(data.get("figures"), list)
-            and "passed" in data):
+    if not is_run_summary(data, name):
         raise ModelError(f"{str(record)!r} is where the summary of scenario {name!r} goes, but it is not the summary "
-                         f"of an earlier run of it (a JSON object with scenario = {name!r}, figures and passed); "
+                         f"of an earlier run of it or of the scene file {name!r} (a JSON object with scenario = "
+                         f"{name!r}, figures and passed); "
                          "ctmm run replaces only its own earlier summary: move that file or write the outputs to "
                          "another folder (--output)")
     files = [record]

@@ -27,7 +27,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from .errors import ModelError
-from .scenario import check_output_folder, write_json_atomic
+from .scenario import SCENE_SUMMARY_KEYS, check_output_folder, is_run_summary, write_json_atomic
 from .scene_files import Scene, SceneError, load_scene
 from .version import __version__
 
@@ -248,8 +248,6 @@ def _holds_scene(data: Any) -> bool:
     return isinstance(data, dict) and "system" in data and "study" in data
 
 
-_SUMMARY_KEYS = ("scene", "scene_file", "verb", "figures", "ctmm_version", "passed")
-
 
 def _earlier_outputs(output: Path, name: str, scene_path: str | os.PathLike) -> list[Path]:
     """``<name>.json`` of an earlier run and the files it lists (first the JSON); ``[]`` when there is none.
@@ -257,7 +255,8 @@ def _earlier_outputs(output: Path, name: str, scene_path: str | os.PathLike) -> 
     Raises
     ------
     SceneError
-        ``<name>.json`` exists but is not the summary of an earlier run of the scene ``name`` (a JSON scene
+        ``<name>.json`` exists but is not the summary of an earlier run of the scene or scenario ``name``
+        (:func:`ctmm.scenario.is_run_summary`; a JSON scene
         file, any other file, a folder or a link): the run would replace or remove it, so it is refused
         before anything is written.
     """
@@ -275,10 +274,9 @@ def _earlier_outputs(output: Path, name: str, scene_path: str | os.PathLike) -> 
         if reason is None and _holds_scene(data):
             raise SceneError(f"{str(record)!r} is a scene file and the summary of this run ({name}.json) would "
                              "replace it; write the outputs to another folder (--output)", path=str(scene_path))
-        if reason is None and not (isinstance(data, dict) and all(key in data for key in _SUMMARY_KEYS)
-                                   and data["scene"] == name and isinstance(data["figures"], list)):
-            reason = (f"it is not the summary of a run of scene {name!r} (a JSON object with scene = {name!r} "
-                      f"and the keys {', '.join(_SUMMARY_KEYS)})")
+        if reason is None and not is_run_summary(data, name):
+            reason = (f"it is not the summary of a run of scene {name!r} or of the scenario {name!r} (a JSON object "
+                      f"with scene = {name!r} and the keys {', '.join(SCENE_SUMMARY_KEYS)})")
     if reason is not None:
         raise SceneError(f"{str(record)!r} is where the summary of this run goes, but {reason}; ctmm run "
                          "replaces only its own earlier summary: move that file or write the outputs to another "

@@ -97,3 +97,29 @@ def test_an_output_name_taken_by_a_file_no_run_wrote_is_kept(tmp_path, scene):
         run_scene_file(scene, out)
     assert sorted(p.name for p in out.iterdir()) == ["pendulum.png"]
     assert (out / "pendulum.png").read_text() == "the user's picture"
+
+
+def test_a_scene_file_and_the_scenario_of_the_same_name_replace_each_others_summary(tmp_path, monkeypatch):
+    """``ctmm run single_link`` then ``ctmm run scenarios/files/single_link.toml`` into one folder (and back): both
+    are ctmm's own summaries of the same study, so each run replaces the other's; a user's file stays protected."""
+    from ctmm import scenario
+
+    from test_cli import FAST, _fake_run, _module
+
+    monkeypatch.setattr(_module(FAST), "run", _fake_run())
+    scenario_summary = {"scenario": FAST, "figures": [f"{FAST}.png"], "passed": True}
+    scene_summary = {"scene": FAST, "scene_file": "x.toml", "verb": "simulate", "figures": [f"{FAST}.png"],
+                     "ctmm_version": "0", "passed": True}
+    assert scenario.is_run_summary(scenario_summary, FAST) and scenario.is_run_summary(scene_summary, FAST)
+    assert not scenario.is_run_summary(scene_summary, "other") and not scenario.is_run_summary({"scene": FAST}, FAST)
+    (tmp_path / f"{FAST}.json").write_text(json.dumps(scene_summary))
+    (tmp_path / f"{FAST}.png").write_text("the scene run's figure")
+    scenario.run_scenario(FAST, tmp_path)                         # replaces the scene file's summary
+    assert json.loads((tmp_path / f"{FAST}.json").read_text())["scenario"] == FAST
+    scene = tmp_path / f"{FAST}.toml"
+    scene.write_text(PENDULUM)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / f"{FAST}.json").write_text(json.dumps(scenario_summary))
+    run_scene_file(scene, out)                                    # and the other way round
+    assert json.loads((out / f"{FAST}.json").read_text())["scene"] == FAST
