@@ -195,8 +195,9 @@ def _numbers_map(entries: Any, u: Any, p: Any, t: Any) -> Any:
     flat = ca.reshape(entries, entries.numel(), 1)
     x = ca.vertcat(p, u)
     jacobian = ca.jacobian(flat, x)
-    bound = ca.vertcat(x, t)
-    timed = [i for i in range(flat.numel()) if ca.depends_on(flat[i], t) or ca.depends_on(jacobian[i, :], bound)]
+    nonlinear = np.asarray(ca.which_depends(flat, x, 2, True), dtype=bool)       # entries nonlinear in x
+    on_time = np.asarray(ca.which_depends(flat, t, 1, True), dtype=bool) if flat.numel() else nonlinear
+    timed = [int(i) for i in np.flatnonzero(nonlinear | on_time)]
     affine = ca.Function("affine", [x, t], [jacobian, flat])      # at x = 0: the rows without t are exact
     slope, offset = (ca.DM(value) for value in affine(ca.DM.zeros(x.numel()), 0.0))
     for i in timed:
