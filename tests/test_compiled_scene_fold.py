@@ -14,6 +14,7 @@ import pytest
 from ctmm.errors import ModelError
 from ctmm.planar import (ActuatedHinge, DamperHinge, ElasticHinge, Load, Pinned, PlanarModel, RigidBody,
                          SmoothHinge, SpringDamperHinge, ports)
+from ctmm.planar.elements import Fixed
 from ctmm.planar.integrate import simulate_rk4
 from ctmm.reference.planar_lagrange import PlanarLagrange
 from ctmm.signals import Harmonic
@@ -34,9 +35,11 @@ def kernels(tmp_path_factory):
     return tmp_path_factory.mktemp("kernels")
 
 
-def mixed_chain(n: int = 12, f: float = 1.0, loads: bool = False) -> PlanarModel:
-    """Serial chain of ``n`` unequal rigid bodies on every foldable hinge kind (``f`` scales the numbers)."""
-    elements = [Pinned("base")]
+def mixed_chain(n: int = 12, f: float = 1.0, loads: bool = False, ground_angle: float = 0.0) -> PlanarModel:
+    """Serial chain of ``n`` unequal rigid bodies on every foldable hinge kind (``f`` scales the numbers); with
+    a ``ground_angle`` [rad] the first hinge is elastic on a turned ground."""
+    elements = [Pinned("base")] if not ground_angle else [Fixed("ground", angle=ground_angle),
+                                                            ElasticHinge("base", stiffness=1.5, rest_angle=0.2)]
     for i in range(n):
         if i:
             kind = i % 5
@@ -85,9 +88,11 @@ def test_folded_generated_accelerations_equal_straight_line_and_lagrange(folded_
     assert np.max(np.abs(without - folded)) > 1e-3            # the inputs enter
 
 
-@pytest.mark.parametrize("period, numbers", [(1, "inputs"), (2, "constants"), (3, "inputs"), (6, "constants")])
-def test_every_period_and_number_mode_equals_the_straight_line_expression(period, numbers) -> None:
-    model = mixed_chain()
+@pytest.mark.parametrize("period, numbers, ground_angle", [(1, "inputs", 0.0), (2, "constants", 0.4),
+                                                          (3, "inputs", -0.7), (6, "constants", 0.0)])
+def test_every_period_and_number_mode_equals_the_straight_line_expression(period, numbers, ground_angle) -> None:
+    model = mixed_chain(ground_angle=ground_angle)
+    assert model.ground_angle[0] == ground_angle
     n, n_p = model.n_bodies, parameter_vector(model).size
     actuators = compiled_scene.compiled_actuators(model)
     port = ports.PlanarPorts(model)
