@@ -121,6 +121,19 @@ def test_folded_rk4_run_and_other_numbers_equal_the_numpy_path(folded_scene) -> 
         <= 1e-9 * np.max(np.abs(scaled.accelerations(q, v, t=0.2)))
 
 
+def test_simulate_rk4_generated_takes_fold(kernels) -> None:
+    model = mixed_chain()
+    q, v = _state(model.n_bodies, seed=4)
+    generated = compiled_scene.simulate_rk4_generated(model, q, 0.1 * v, t_final=0.01, dt=1e-3, store_every=10,
+                                                      cache_dir=kernels, fold=True)
+    numpy_path = simulate_rk4(model, q, 0.1 * v, t_final=0.01, dt=1e-3, store_every=10)
+    assert np.max(np.abs(generated.q - numpy_path.q)) <= 1e-12 * np.max(np.abs(numpy_path.q))
+    tree = rigid_tree()                                             # fold= reaches CompiledScene
+    with pytest.raises(ModelError, match="fold=True needs a serial chain"):
+        compiled_scene.simulate_rk4_generated(tree, np.zeros(tree.n_coordinates), np.zeros(tree.n_coordinates),
+                                              t_final=0.01, dt=1e-3, cache_dir=kernels, fold=True)
+
+
 def test_long_chains_fold_by_default(kernels) -> None:
     n = FOLD_MIN_BODIES + 2
     model = PlanarModel.chain("pendulums", [Pinned("base")] + [
