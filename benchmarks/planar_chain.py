@@ -10,8 +10,11 @@ Methods (all measured in one run, on the same machine):
 * ``tmm_rk4_generated`` -- the same sweep and RK4 loop in C generated from the element
                        definitions (``ctmm.simulate(..., compiled=True)``,
                        :func:`ctmm.compiled_scene.simulate_rk4_generated`; whole interval in C, time
-                       loop only; ``compile_s``: first compile in a fresh cache folder); N <= 300
-                       (:data:`GENERATED_MAX_N`).  It replaced the hand-typed C of
+                       loop only; ``compile_s``: first compile in a fresh cache folder); from
+                       ``FOLD_MIN_BODIES`` links folded over segments of the chain
+                       (:mod:`ctmm.compiled_scene_fold`, ``fold_period`` in the JSON); at N = 20, 100, 300
+                       also the other code (``_straight``: straight-line, ``fold=False``, N <= 300;
+                       ``_folded``: ``fold=True``).  It replaced the hand-typed C of
                        ``ctmm.planar.compiled`` (removed, issue 13), whose last run here measured
                        6.5 / 33 / 25 / 895 us per step at N = 5 / 20 / 100 / 1000
 * ``dttmm_newmark`` -- implicit DT-TMM, Newmark(1/4, 1/2), Newton (O(n) tangent sweep)
@@ -25,7 +28,8 @@ TMM right-hand side with DOP853 at the same tolerance (the independence of the T
 Lagrange model is established by the tests at N <= 100 and by the KKT check at N = 1000).
 
 Run ``python benchmarks/planar_chain.py`` (``--quick`` for N <= 20, ``--sizes 5 20 100 300`` for
-others); writes ``benchmarks/results/planar_chain.json`` and ``planar_chain.png``.
+others); writes ``benchmarks/results/planar_chain.json`` and ``planar_chain.png``
+(``--generated-only``: reference, numpy and generated RK4 only, ``planar_chain_generated.json``).
 """
 from __future__ import annotations
 
@@ -50,14 +54,20 @@ from ctmm.planar import Pinned, PlanarModel, RigidBody, SmoothHinge  # noqa: E40
 from ctmm.planar.implicit import simulate_implicit  # noqa: E402
 from ctmm.planar.integrate import simulate_rk4, simulate_scipy  # noqa: E402
 from ctmm.compiled_scene import CompiledScene, simulate_rk4_generated  # noqa: E402
+from ctmm.compiled_scene_fold import FOLD_MIN_BODIES  # noqa: E402
 from ctmm.reference.planar_lagrange import PlanarLagrange  # noqa: E402
 
 T_FINAL, H, G = 1.0, 1e-3, 9.81
 LAGRANGE_BUDGET_S = 120.0
 PINOCCHIO_MAX_N = 300
-GENERATED_MAX_N = 300
-"""Largest chain of ``tmm_rk4_generated``: its first compile grows faster than N (16 s at N = 100, 69 s at
-N = 300 on the loaded 2-core machine, 2026-11-25)."""
+GENERATED_MAX_N = 1000
+"""Largest chain of ``tmm_rk4_generated`` (from ``FOLD_MIN_BODIES`` links folded over segments: its first
+compile does not grow with N)."""
+STRAIGHT_MAX_N = 300
+"""Largest chain compiled as straight-line code too (``fold=False``): its first compile grows faster than N
+(16 s at N = 100, 69 s at N = 300 on the loaded 2-core machine, 2026-11-25)."""
+FOLD_COMPARE_SIZES = (20, 100, 300)
+"""Sizes where folded and straight-line generated code are both measured."""
 
 
 def chain(n: int) -> PlanarModel:
@@ -130,7 +140,21 @@ def mujoco_chain(n: int):
     return model, mujoco.MjData(model), mujoco
 
 
-def run_case(n: int, results: dict, log) -> None:
+def generated_variants(n: int) -> list[tuple[str, bool | None]]:
+    """``(method name, fold)`` of the generated RK4 runs at N = ``n``: the default (``fold=None``, as
+    ``ctmm.simulate(..., compiled=True)``: folded over segments from ``FOLD_MIN_BODIES`` links), and at
+    :data:`FOLD_COMPARE_SIZES` the other code too (``_straight``: ``fold=False`` up to
+    :data:`STRAIGHT_MAX_N`; ``_folded``: ``fold=True``)."""
+    variants: list[tuple[str, bool | None]] = [("tmm_rk4_generated", None)]
+    if n in FOLD_COMPARE_SIZES:
+        if n >= FOLD_MIN_BODIES and n <= STRAIGHT_MAX_N:
+            variants.append(("tmm_rk4_generated_straight", False))
+        elif n < FOLD_MIN_BODIES:
+            variants.append(("tmm_rk4_generated_folded", True))
+    return variants
+
+
+def run_case(n: int, results: dict, log, generated_only: bool = False) -> None:
     model = chain(n)
     q0, v0 = np.zeros(n), np.zeros(n)
     q_ref, ref_time, ref_kind = reference(n, model)
@@ -147,16 +171,20 @@ def run_case(n: int, results: dict, log) -> None:
     sim = simulate_rk4(model, q0, v0, t_final=T_FINAL, dt=H, store_every=steps)
     record("tmm_rk4", sim.q[-1], sim.wall_time_s)
     if n <= GENERATED_MAX_N:
-        with tempfile.TemporaryDirectory() as folder:     # first compile, outside the timing
-            scene = CompiledScene(model, store_every=steps, cache_dir=folder)
-            run = lambda: simulate_rk4_generated(model, q0, v0, t_final=T_FINAL, dt=H,  # noqa: E731
-                                                 store_every=steps, scene=scene)
-            run()                                           # warm-up (first call into the library)
-            sim = run()
-        record("tmm_rk4_generated", sim.q[-1], sim.wall_time_s, compile_s=scene.compile_time_s)
+        for name, fold in generated_variants(n):
+            with tempfile.TemporaryDirectory() as folder:     # first compile, outside the timing
+                scene = CompiledScene(model, store_every=steps, cache_dir=folder, fold=fold)
+                run = lambda: simulate_rk4_generated(model, q0, v0, t_final=T_FINAL, dt=H,  # noqa: E731
+                                                     store_every=steps, scene=scene)
+                run()                                           # warm-up (first call into the library)
+                sim = run()
+            record(name, sim.q[-1], sim.wall_time_s, compile_s=scene.compile_time_s, fold_period=scene.period)
     else:
         case["methods"]["tmm_rk4_generated"] = {
             "skipped": True, "reason": f"N > {GENERATED_MAX_N}: first compile too long for this benchmark"}
+    if generated_only:
+        results["cases"].append(case)
+        return
     sim = simulate_implicit(model, q0, v0, t_final=T_FINAL, dt=H, store_every=steps)
     record("dttmm_newmark", sim.q[-1], sim.wall_time_s,
            newton_iterations_mean=float(sim.iterations.mean()),
@@ -267,6 +295,8 @@ def main(argv=None) -> dict:
     parser.add_argument("--quick", action="store_true", help="N = 5, 20 only")
     parser.add_argument("--sizes", type=int, nargs="+", help="chain sizes N (default 5 20 100 300 1000)")
     parser.add_argument("--out", default=str(ROOT / "benchmarks" / "results"))
+    parser.add_argument("--generated-only", action="store_true",
+                        help="the reference, numpy RK4 and generated RK4 runs only (folded against straight-line)")
     args = parser.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -278,7 +308,11 @@ def main(argv=None) -> dict:
                "cases": []}
     results["load_average_start"] = os.getloadavg()
     for n in args.sizes or ([5, 20] if args.quick else [5, 20, 100, 300, 1000]):
-        run_case(n, results, lambda s: print(s, flush=True))
+        run_case(n, results, lambda s: print(s, flush=True), args.generated_only)
+    if args.generated_only:
+        results["note"] = "generated runs only (--generated-only)"
+        (out / "planar_chain_generated.json").write_text(json.dumps(results, indent=2) + "\n")
+        return results
     results["where_time_goes"] = [where_time_goes(n) for n in (100, 1000)]
     results["load_average_end"] = os.getloadavg()
     results["note"] = ("timings are wall-clock on a shared 2-core machine (other jobs running; see "

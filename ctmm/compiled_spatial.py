@@ -47,13 +47,13 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from . import validation
-from .articulated import Tree, articulated_sweep
+from .articulated import articulated_sweep
 from .errors import ModelError, SimulationError
 from .generated_loop import compiled_time_loop, rk4_step_function, run_blocks
 from .ops import CASADI
 from .results import SimulationResult
+from .segment_fold import fold_segments
 from .signal_results import SignalSystem, signal_result
-from .protocol import BodyTerms, JointTerms
 from .signals import Constant
 from .spatial.elements import SpatialBody
 from .spatial.body_forms import SpatialScene, child_motion, joint_motion, rigid_body_terms
@@ -284,12 +284,9 @@ def folded_velocity_rate(model: SpatialModel, period: int, layout: Sequence[Any]
     folds over its ``N / period`` segments, so the generated code holds one segment whatever N:
 
     * ``kinematics`` (base to tip): pose and velocity of each segment's parent;
-    * ``eliminate`` (tip to base): the segment's body and joint terms and the one articulated sweep
-      (:func:`~ctmm.articulated.articulated_sweep`) on the segment between a virtual parent (``Kin = I``)
-      and a virtual welded child holding the articulated inertia and bias of the rest of the chain; the
-      virtual parent's articulated terms are carried to the next segment;
-    * ``accelerate`` (base to tip): the same sweep with the virtual parent's acceleration prescribed
-      (the inboard point's), giving the segment's joint accelerations and the acceleration carried on.
+    * ``eliminate`` (tip to base) and ``accelerate`` (base to tip): the segment's articulated sweep between a
+      virtual parent and a virtual welded child (:func:`ctmm.segment_fold.fold_segments`), giving the
+      segment's joint accelerations.
 
     The segment's terms are formed twice (once per sweep): about twice the arithmetic of the
     straight-line sweep, in code whose size does not grow with N.  With a parameter ``layout``
@@ -334,24 +331,7 @@ def folded_velocity_rate(model: SpatialModel, period: int, layout: Sequence[Any]
 
     bodies, joints, last = terms(state)
     kinematics = ca.Function("kinematics", [state, q, v], [last, state])
-    d = 6
-    eye, zero = ca.DM.eye(d), ca.DM.zeros(d, 1)
-    virtual_parent = BodyTerms(M=ca.DM.zeros(d, d), h=zero, Kin={"in": eye}, c={"in": zero}, RF={"in": eye})
-    carried = ca.SX.sym("carried", d * d + d)
-    virtual_child = BodyTerms(M=ca.reshape(carried[:d * d], d, d), h=carried[d * d:])
-    tree = Tree(tuple(range(-1, period + 1)), (None, "in") + tuple(model.joints[(i + 1) % n].point for i in segment),
-                dimension=d)
-    weld = JointTerms(S=ca.DM.zeros(d, 0))
-    solution = articulated_sweep(CASADI, tree, [virtual_parent, *bodies, virtual_child], [weld, *joints, weld])
-    reduced = ca.vertcat(ca.reshape(solution.inertia[0], d * d, 1), solution.force[0])
-    eliminate = ca.Function("eliminate", [carried, state, q, v, p_segment, p_gravity], [reduced, carried])
-    inboard_acceleration = ca.SX.sym("A", d)
-    prescribed = JointTerms(S=eye, prescribed=inboard_acceleration)
-    solution = articulated_sweep(CASADI, tree, [virtual_parent, *bodies, virtual_child],
-                                 [prescribed, *joints, weld])
-    accelerate = ca.Function("accelerate", [inboard_acceleration, carried, state, q, v, p_segment, p_gravity],
-                             [solution.x[period + 1], ca.vertcat(*solution.relative[1:period + 1])])
-    # the folds: columns are segments; the tip-to-base fold runs on columns reversed by a constant
+    # the folds (ctmm.segment_fold): columns are segments
     q_all, v_all, u = ca.MX.sym("q", model.n_positions), ca.MX.sym("v", model.n_velocities), ca.MX.sym("u", 0)
     p_all = ca.MX.sym("p", len(layout))
     Q, V = ca.reshape(q_all, nq_segment, count), ca.reshape(v_all, nq_segment, count)
@@ -359,13 +339,9 @@ def folded_velocity_rate(model: SpatialModel, period: int, layout: Sequence[Any]
     G = ca.repmat(p_all[count * len(segment_layout):], 1, count)
     start = ca.DM(np.r_[np.eye(3).ravel(), ground, np.zeros(6)])
     _, parents = kinematics.mapaccum("kinematics_fold", count)(start, Q, V)
-    reverse = ca.DM(ca.Sparsity.triplet(count, count, list(range(count)), list(range(count - 1, -1, -1))),
-                    np.ones(count))
-    _, carried_reversed = eliminate.mapaccum("eliminate_fold", count)(
-        ca.DM.zeros(d * d + d, 1), ca.mtimes(parents, reverse), ca.mtimes(Q, reverse), ca.mtimes(V, reverse),
-        ca.mtimes(P, reverse), G)
-    _, accelerations = accelerate.mapaccum("accelerate_fold", count)(
-        ca.DM.zeros(d, 1), ca.mtimes(carried_reversed, reverse), parents, Q, V, P, G)
+    accelerations = fold_segments(bodies, joints, [model.joints[(i + 1) % n].point for i in segment],
+                                  [state, q, v, p_segment, p_gravity], [parents, Q, V, P, G],
+                                  lambda solution: ca.vertcat(*solution.relative[1:period + 1]))
     return ca.Function("velocity_rate", [q_all, v_all, u, p_all], [ca.reshape(accelerations, model.n_velocities, 1)])
 
 

@@ -1,0 +1,211 @@
+"""Generated planar accelerations of a serial chain folded over its segments (issue 13: first compile of
+a 100-body chain in seconds).
+
+A planar serial chain of rigid bodies on revolute hinges (:func:`planar_fold_refusal`) is swept by
+:func:`ctmm.segment_fold.fold_segments`: the code of one segment of ``period`` bodies, called once per
+segment, instead of straight-line code of every body, so the C text and its compile time do not grow
+with N.  Each segment takes its own column of numbers (masses, inertias, centres of mass, the point
+carrying the next body, gravity, hinge laws, actuator torques and forces: :func:`segment_numbers`), so
+the bodies need not be equal: only the structure (rigid bodies, revolute hinges with linear laws, no
+loads) repeats.  Planar coordinates are absolute angles, so each segment's inboard angle and rate are
+the previous segment's last coordinates (no kinematic fold).
+
+:class:`~ctmm.compiled_scene.CompiledScene` compiles through it with ``fold=True``, or by default for
+foldable chains of at least :data:`FOLD_MIN_BODIES` bodies.
+"""
+from __future__ import annotations
+
+from typing import Any, Sequence
+
+import numpy as np
+
+from .errors import ModelError
+from .ops import CASADI
+from .planar.body_forms import SceneNumbers, revolute_terms, rigid_body_terms
+from .planar.model import REVOLUTE, PlanarModel
+from .planar.ports import ActuatorInputs
+from .segment_fold import fold_segments
+
+__all__ = ["FOLD_MIN_BODIES", "SEGMENT_BODIES", "SEGMENT_ENTRIES", "fold_period", "folded_acceleration",
+           "planar_fold_refusal", "segment_numbers", "symbolic_inputs"]
+
+FOLD_MIN_BODIES = 30
+"""Foldable planar chains (:func:`planar_fold_refusal`) with at least this many bodies compile through the
+fold by default (``fold=None``).  Measured (``benchmarks/planar_chain.py``, pendulum chains, loaded 2-core
+machine): the straight-line code's first compile passes 3 s near N = 30 (1.8 s at 20, 16 s at 100, 69 s at
+300), the fold's stays near 1-2 s at N = 100-300; the folded step runs up to about 2x slower at N = 100
+(each segment's terms are formed twice) and as fast at N = 300."""
+SEGMENT_BODIES = 4
+"""Preferred bodies per folded segment (:func:`fold_period`): fewer calls per sweep than one body per
+segment, still short code."""
+SEGMENT_ENTRIES = 16
+"""Numbers per body of a segment's column (:func:`segment_numbers`)."""
+
+
+def symbolic_inputs(model: PlanarModel, units: Sequence[ActuatorInputs], u: Any) -> ActuatorInputs | None:
+    """Actuator inputs as affine expressions of the symbols ``u``: ``sum_k u_k units[k]`` (each input's
+    loads per unit value; :class:`~ctmm.compiled_scene.CompiledScene`, straight-line and folded).
+
+    Raises
+    ------
+    ModelError
+        A station force or moment on a beam's floating frame (not on the element protocol).
+    """
+    if not units:
+        return None
+    torque = np.zeros(model.n_bodies, dtype=object)
+    force = np.zeros((model.n_bodies, 3), dtype=object)
+    modal: dict[int, np.ndarray] = {}
+    for k, unit in enumerate(units):
+        if unit.frame_wrench:
+            raise ModelError(f"input {k}: a station force or moment on a beam's floating frame is not on the "
+                             "element protocol yet, so generated kernels cannot take it; use ctmm.simulate without "
+                             "compiled=True")
+        for j in np.flatnonzero(unit.hinge_torque):
+            torque[j] = torque[j] + u[k] * float(unit.hinge_torque[j])
+        for j, c in zip(*np.nonzero(unit.body_force)):
+            force[j, c] = force[j, c] + u[k] * float(unit.body_force[j, c])
+        for j, pattern in unit.modal_force.items():
+            pattern = np.asarray(pattern, dtype=float)
+            current = modal.get(j, np.zeros(pattern.size, dtype=object))
+            modal[j] = np.array([current[i] + (u[k] * pattern[i] if pattern[i] else 0.0)
+                                 for i in range(pattern.size)], dtype=object)
+    return ActuatorInputs(torque, force, modal)
+
+
+def planar_fold_refusal(model: PlanarModel, period: int = 1) -> str:
+    """Why ``model`` cannot be folded into segments of ``period`` bodies ("" when it can).
+
+    Foldable: a serial chain (body ``j`` on body ``j - 1``, body 0 on the ground) of at least two
+    segments of rigid bodies on revolute hinges with linear laws (smooth, elastic, damper,
+    spring-damper, actuated; not driven, free, translational-spring or nonlinear), without loads, whose
+    coordinates are the bodies' angles in order.
+    """
+    n = model.n_bodies
+    if isinstance(period, bool) or not isinstance(period, (int, np.integer)) or period < 1:
+        return f"the fold's period must be an integer >= 1 (bodies per segment), got {period!r}"
+    if n < 2 * period or n % period:
+        return (f"the fold needs at least two segments of {period} bodies (N a multiple of the period); model "
+                f"{model.name!r} has {n} bodies")
+    if any(int(model.parent[j]) != j - 1 for j in range(n)):
+        return f"model {model.name!r} is not a serial chain (body j on body j - 1, body 0 on the ground)"
+    if model.beams:
+        return f"model {model.name!r} has modal beams (the fold takes rigid bodies)"
+    kinds = [j for j in range(n) if int(model.joint_kind[j]) != REVOLUTE or j in model.nonlinear_hinges]
+    if kinds:
+        return (f"joint {model.joint_names[kinds[0]]!r} of model {model.name!r} is not a revolute hinge with a linear "
+                "law (driven, free-base, translational-spring and nonlinear hinges are not folded)")
+    if len(model.load_body):
+        return f"model {model.name!r} has rigid-body loads (not folded)"
+    if model.n_coordinates != n or list(np.asarray(model.theta_index, dtype=int)) != list(range(n)):
+        return f"the coordinates of model {model.name!r} are not the bodies' angles in order"
+    return ""
+
+
+def fold_period(model: PlanarModel) -> int:
+    """Bodies per segment the fold uses for ``model``: the largest of ``SEGMENT_BODIES, ..., 1`` that
+    :func:`planar_fold_refusal` accepts (0: the model does not fold)."""
+    return next((period for period in range(SEGMENT_BODIES, 0, -1) if not planar_fold_refusal(model, period)), 0)
+
+
+def segment_numbers(model: PlanarModel, numbers: SceneNumbers, inputs: ActuatorInputs | None, period: int) -> Any:
+    """The numbers of each segment: casadi SX ``(SEGMENT_ENTRIES period, N / period)``, column ``k`` those of
+    segment ``k``; per body ``[mass, inertia, com_x, com_y, point_x, point_y, g_x, g_y, stiffness, damping,
+    reference, reference_rate, torque, force_x, force_y, moment]`` (SI; ``point`` the body-frame point
+    carrying the next body, (0, 0) on the last body; ``torque`` the hinge law's and the actuators' at the
+    hinge; ``force``, ``moment`` the actuators' at the centre of mass), entries of ``numbers`` and ``inputs``
+    (numbers or symbols)."""
+    import casadi as ca
+
+    n = model.n_bodies
+    zero = (0.0, 0.0, 0.0)
+
+    def body(j: int) -> list:
+        point = numbers.ends[j][model.parent_end[j + 1]] if j + 1 < n else (0.0, 0.0)
+        torque = numbers.torque[j] + (0.0 if inputs is None else inputs.hinge_torque[j])
+        force = zero if inputs is None else tuple(inputs.body_force[j])
+        return [numbers.mass[j], numbers.inertia[j], *numbers.center_of_mass[j], *point, *numbers.gravity,
+                numbers.stiffness[j], numbers.damping[j], numbers.reference[j], numbers.reference_rate[j], torque,
+                *force]
+
+    columns = [ca.vertcat(*[ca.SX(entry) if not isinstance(entry, ca.SX) else entry
+                            for j in range(k, k + period) for entry in body(j)]) for k in range(0, n, period)]
+    return ca.horzcat(*columns)
+
+
+def folded_acceleration(model: PlanarModel, numbers: SceneNumbers, inputs: ActuatorInputs | None,
+                        symbols: tuple[Any, Any, Any], period: int = 1) -> Any:
+    """``acceleration(q, v, u, p, t) -> qddot`` (casadi.Function on MX) of a foldable chain
+    (:func:`planar_fold_refusal`) swept in segments of ``period`` bodies (:func:`ctmm.segment_fold.fold_segments`).
+
+    Parameters
+    ----------
+    model : PlanarModel
+    numbers : SceneNumbers
+        The model's numbers on the SX symbols ``symbols = (u, p, t)`` (actuator inputs, parameters, time
+        [s]; :func:`ctmm.compiled_parameters.symbolic_numbers`), or numbers.
+    inputs : ActuatorInputs or None
+        The actuators' loads as expressions of ``u``.
+    period : int
+        Bodies per segment [-].
+
+    Raises
+    ------
+    ModelError
+        A model that does not fold (:func:`planar_fold_refusal`).
+    """
+    import casadi as ca
+
+    reason = planar_fold_refusal(model, period)
+    if reason:
+        raise ModelError(f"folded planar accelerations: {reason}")
+    n = model.n_bodies
+    count = n // period
+    u_sx, p_sx, t_sx = symbols
+    per_segment = _numbers_map(segment_numbers(model, numbers, inputs, period), u_sx, p_sx, t_sx)
+    parent, q, v = ca.SX.sym("parent", 2), ca.SX.sym("q", period), ca.SX.sym("v", period)
+    s = ca.SX.sym("s", SEGMENT_ENTRIES * period)
+    bodies, joints = [], []
+    for i in range(period):
+        e = [s[SEGMENT_ENTRIES * i + k] for k in range(SEGMENT_ENTRIES)]
+        th_end, om_end = (parent[0], parent[1]) if i == 0 else (q[i - 1], v[i - 1])
+        bodies.append(rigid_body_terms(CASADI, mass=e[0], inertia=e[1], center_of_mass=(e[2], e[3]),
+                                       points={"out": (e[4], e[5])}, gravity=(e[6], e[7]), theta=q[i], omega=v[i],
+                                       body_force=(e[13], e[14], e[15])))
+        joints.append(revolute_terms(CASADI, angle=q[i] - th_end, rate=v[i] - om_end, stiffness=e[8], damping=e[9],
+                                     reference=e[10], reference_rate=e[11], torque=e[12]))
+    q_all, v_all = ca.MX.sym("q", n), ca.MX.sym("v", n)
+    u, p, t = ca.MX.sym("u", u_sx.numel()), ca.MX.sym("p", p_sx.numel()), ca.MX.sym("t")
+    Q, V = ca.reshape(q_all, period, count), ca.reshape(v_all, period, count)
+    ground = ca.DM([float(model.ground_angle[0]), 0.0])
+    parents = ground if count == 1 else ca.horzcat(ground, ca.vertcat(Q[period - 1, :count - 1],
+                                                                       V[period - 1, :count - 1]))
+    columns = ca.reshape(per_segment(u, p, t), SEGMENT_ENTRIES * period, count)
+    accelerations = fold_segments(bodies, joints, ["out"] * period, [parent, q, v, s], [parents, Q, V, columns],
+                                  lambda solution: ca.vertcat(*[solution.x[i][2] for i in range(1, period + 1)]))
+    return ca.Function("acceleration", [q_all, v_all, u, p, t], [ca.reshape(accelerations, n, 1)])
+
+
+def _numbers_map(entries: Any, u: Any, p: Any, t: Any) -> Any:
+    """``(u, p, t) -> entries`` (flattened column) as a casadi.Function whose code does not grow with the
+    entries: those affine in ``(p, u)`` (the numbers and actuators) as one product by a constant sparse
+    matrix, the others (time signals) from an SX function of their own, placed by a second one."""
+    import casadi as ca
+
+    flat = ca.reshape(entries, entries.numel(), 1)
+    x = ca.vertcat(p, u)
+    jacobian = ca.jacobian(flat, x)
+    nonlinear = np.asarray(ca.which_depends(flat, x, 2, True), dtype=bool)       # entries nonlinear in x
+    on_time = np.asarray(ca.which_depends(flat, t, 1, True), dtype=bool) if flat.numel() else nonlinear
+    timed = [int(i) for i in np.flatnonzero(nonlinear | on_time)]
+    affine = ca.Function("affine", [x, t], [jacobian, flat])      # at x = 0: the rows without t are exact
+    slope, offset = (ca.DM(value) for value in affine(ca.DM.zeros(x.numel()), 0.0))
+    for i in timed:
+        slope[i, :], offset[i] = 0.0, 0.0
+    u_mx, p_mx, t_mx = ca.MX.sym("u", u.numel()), ca.MX.sym("p", p.numel()), ca.MX.sym("t")
+    result = ca.mtimes(ca.sparsify(slope), ca.vertcat(p_mx, u_mx)) + ca.sparsify(offset)
+    if timed:
+        signals = ca.Function("timed_numbers", [u, p, t], [ca.vertcat(*[flat[i] for i in timed])])
+        place = ca.DM(ca.Sparsity.triplet(flat.numel(), len(timed), timed, list(range(len(timed)))), [1.0] * len(timed))
+        result = result + ca.mtimes(place, signals(u_mx, p_mx, t_mx))
+    return ca.Function("segment_numbers", [u_mx, p_mx, t_mx], [result])
