@@ -88,7 +88,9 @@ class SpatialBeam:
         and tip moment deflections; twist and axial: the linear shape) -- coordinates ``"qy_force"``,
         ``"qy_moment"``, ``"qz_force"``, ``"qz_moment"``, ``"twist_static"``, ``"u_static"``.  The free-end
         modes alone cannot bend or strain the tip, so a tip body's frequencies converge as ``1/n``; with
-        these shapes a few modes reach 1e-8 (``docs/spatial_modal_beam.md``).  Not orthogonal to the modes:
+        these shapes a few modes reach 1e-8 (``docs/spatial_modal_beam.md``).  Each is made orthogonal to the
+        modes and to the previous one and scaled to ``int shape^2 = L`` (the raw shapes lie nearly in the modes'
+        span: their modal mass would be ill-conditioned); their stiffness couples them to the modes, so
         ``damping_ratio`` must be 0 (use ``stiffness_damping``).  Default False.
     quadrature : int
         Gauss-Legendre points of the modal integrals (>= 2 max(mode counts) + 8; default 160).

@@ -18,8 +18,14 @@ by ``gamma(x) = chi(x) . eta``, with the modal coordinates
 With ``static_shapes`` every direction that has modes also gets the static tip-load shapes (bending:
 ``(3 xi^2 - xi^3)/2`` and ``xi^2``, the tip-force and tip-moment deflections; rods: ``sqrt(3) xi``), which
 the free-end modes cannot represent (no end strain), each made orthogonal to the modes and to the
-previous one (``int`` over the beam) and scaled to ``int shape^2 = L``: then ``K`` is the full integral
-below.
+previous one (``int`` over the beam, Gram-Schmidt twice on the quadrature: :func:`static_map`) and scaled to
+``int shape^2 = L``: then ``K`` is the full integral below.  The raw shapes lie nearly in the modes' span (their
+Gram condition is 2.5e9 with four bending modes), so with them the modal mass would be as badly conditioned and a
+round-off change of the numbers (numpy against generated code) would move the modal accelerations by 1e-8; the
+orthonormal shapes span the same space (the same physics, ``tests/test_spatial_beam_static_shapes.py``) with a
+modal mass of condition 1.  Their coefficients grow as the square root of the raw Gram condition, so each
+evaluation carries a round-off of about ``eps sqrt(condition)``: the raw condition is refused above
+:data:`STATIC_CONDITION` (round-off then below 1e-10).
 
 All integrals are over ``[0, L]`` on Gauss-Legendre points (``rhoA`` uniform)::
 
@@ -44,11 +50,12 @@ from ..errors import ModelError
 from ..flexible.modes import ModeSet, gauss_points
 from .beam_second_order import SecondOrderTensors
 
-__all__ = ["rod_shapes", "SpatialBeamData", "STATIC_CONDITION"]
+__all__ = ["rod_shapes", "static_map", "SpatialBeamData", "STATIC_CONDITION"]
 
 STATIC_CONDITION = 1e11
-"""Largest condition number of one direction's shape Gram matrix ``int shapes shapes^T / L`` accepted with
-static shapes (about 6 modes per direction with them; more add nothing but round-off)."""
+"""Largest condition number of one direction's raw shape Gram matrix ``int shapes shapes^T / L`` (modes and raw
+static shapes) accepted with static shapes (about 6 modes per direction with them; more add nothing but
+round-off): the orthonormalised static shapes then carry a round-off below 1e-10 relative."""
 
 
 def rod_shapes(x: Any, length: float, count: int, derivative: int = 0) -> np.ndarray:
@@ -59,6 +66,30 @@ def rod_shapes(x: Any, length: float, count: int, derivative: int = 0) -> np.nda
     a = (2 * k - 1) * math.pi / (2 * length)
     y = a * x[None, :]
     return math.sqrt(2.0) * (np.sin(y) if derivative == 0 else a * np.cos(y))
+
+
+def static_map(shapes: np.ndarray, count: int, weights: np.ndarray) -> np.ndarray:
+    """Coefficients ``T`` (``(count, len(shapes))``) of the last ``count`` rows of ``shapes`` (samples
+    ``(m + count, G)`` of the modes, then the raw static shapes, at quadrature points with ``weights``, the
+    inner product ``sum weights f g``) made orthogonal to the span of the rows before them (Gram-Schmidt,
+    twice: re-orthogonalisation keeps the round-off at ``eps`` times the shapes' Gram condition's square root)
+    and to unit norm: ``T @ shapes`` are the orthonormal static shapes, spanning with the modes what the raw
+    shapes span."""
+    root = np.sqrt(weights)
+    samples = shapes * root                                     # sum of squares = inner product
+    basis: list[tuple[np.ndarray, np.ndarray]] = []             # (coefficients, samples), orthonormal
+    for row in range(len(shapes)):
+        coefficients = np.zeros(len(shapes))
+        coefficients[row] = 1.0
+        vector = samples[row].copy()
+        for _ in range(2):
+            for known, known_samples in basis:
+                projection = known_samples @ vector
+                vector -= projection * known_samples
+                coefficients -= projection * known
+        norm = float(np.linalg.norm(vector))
+        basis.append((coefficients / norm, vector / norm))
+    return np.array([coefficients for coefficients, _ in basis[len(shapes) - count:]])
 
 
 class SpatialBeamData:
@@ -83,14 +114,20 @@ class SpatialBeamData:
             start += count
         n = self.n = start
         x, w = gauss_points(beam.quadrature, L)
+        self.static_maps: dict[str, np.ndarray] = {}
+        """``{direction: T}`` with static shapes: the orthonormalised static shapes are ``T @ [modes ; raw static
+        shapes]`` (``T``: ``(n_static, n_modes + n_static)``), for the shapes and every derivative."""
         for direction in ("y", "z", "t", "a") if self.static else ():
-            shapes = self.direction_shapes(direction, x)
-            condition = np.linalg.cond((shapes * w) @ shapes.T / L) if len(shapes) else 1.0
+            base, raw = self._raw(direction, x, 0)
+            if not len(base):
+                continue
+            shapes = np.vstack([base, raw])
+            condition = np.linalg.cond((shapes * w) @ shapes.T / L)
             if condition > STATIC_CONDITION:
-                raise ModelError(f"{beam.name}: static_shapes with {self.columns[direction].stop - self.columns[direction].start}"
-                                 f" shapes in direction {direction!r} are nearly linearly dependent (Gram condition "
-                                 f"{condition:.3g} > {STATIC_CONDITION:g}); use fewer modes with them (3 to 6 reach "
-                                 "1e-8 for a tip body), or static_shapes=False")
+                raise ModelError(f"{beam.name}: static_shapes with {len(shapes)} shapes in direction {direction!r} are "
+                                 f"nearly linearly dependent (Gram condition {condition:.3g} > {STATIC_CONDITION:g}); "
+                                 "use fewer modes with them (3 to 6 reach 1e-8 for a tip body), or static_shapes=False")
+            self.static_maps[direction] = static_map(shapes, len(raw), w / L)
         Phi = self.shapes(x)                                    # (3, n, G)
         self.E = [[rhoA * (Phi[k] * w) @ Phi[i].T for i in range(3)] for k in range(3)]
         self.b = rhoA * Phi @ w                                 # (3, n)
@@ -147,7 +184,9 @@ class SpatialBeamData:
         rod modes ``sqrt(3) xi`` (``xi = x / L``)."""
         x = np.atleast_1d(np.asarray(x, dtype=float))
         base, raw = self._raw(direction, x, derivative)
-        return np.vstack([base, raw]) if self.static and len(base) else base
+        if not self.static or not len(base):
+            return base
+        return np.vstack([base, self.static_maps[direction] @ np.vstack([base, raw])])
 
     def _raw(self, direction: str, x: np.ndarray, derivative: int) -> tuple[np.ndarray, np.ndarray]:
         """Modes and the raw static shapes of a direction (or their derivative) at ``x``."""
