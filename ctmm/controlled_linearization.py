@@ -41,9 +41,9 @@ __all__ = ["loop_ports", "exogenous_inputs", "requested_outputs", "close_model_l
            "delayed_loop_response", "delayed_loop_response_function", "resolvent", "FrequencyAtPoleError", "RESOLVENT_CONDITION"]
 
 RESOLVENT_CONDITION = 1.0 / float(np.sqrt(np.finfo(float).eps))
-"""Largest accepted 2-norm condition number of the balanced ``s I - A`` (``1/sqrt(eps)``, about 6.7e7):
-beyond it the solve may lose more than half the digits, and ``s`` lies within about ``2 sqrt(eps)``
-(relative) of a pole -- :func:`resolvent` refuses it."""
+"""Largest accepted 2-norm condition number of the system :func:`resolvent` solves (the balanced ``s I - A``
+scaled by rows and columns; ``1/sqrt(eps)``, about 6.7e7): beyond it the solve may lose more than half the
+digits, and ``s`` lies next to a pole -- :func:`resolvent` refuses it."""
 
 
 def loop_ports(loops: Sequence[Any]) -> tuple[list[str], list[str]]:
@@ -256,12 +256,25 @@ def delayed_loop_response_function(linearize: Callable[[list[str], list[str]], L
 def resolvent(A: np.ndarray, B: np.ndarray, s: np.ndarray, name: str) -> np.ndarray:
     """``(s I - A)^-1 B`` at every Laplace variable ``s``, refusing a frequency at or next to a pole.
 
-    ``A`` is balanced first (:func:`scipy.linalg.matrix_balance`: a similarity by a diagonal of powers
-    of two, exact in floating point), so that the condition number measures the distance of ``s`` to
-    the nearest pole relative to the system's own scale, not the units of its states.  A frequency
-    where ``cond_2(s I - A_bal) > RESOLVENT_CONDITION`` (``1/sqrt(eps)``) is refused: there the
-    response is unbounded or its digits are lost (an undamped mode at ``omega``, a rigid-body mode or
-    a free rotation at ``omega = 0``), and no number is returned rather than a wrong one.
+    ``A`` is balanced first (:func:`scipy.linalg.matrix_balance`: ``A_bal = T^-1 A T``, ``T`` a diagonal of
+    powers of two, exact in floating point), so that the test does not depend on the units of the states; then,
+    at each ``s``, the rows and columns of ``s I - A_bal`` are scaled by powers of two (``D_r``, ``D_c``: the
+    largest modulus of each row, then of each column, brought to about 1), and the system actually solved is
+    ``M_s Z = D_r T^-1 B``, ``M_s = D_r (s I - A_bal) D_c``, answer ``X = T D_c Z``.  The rule measures that
+    system: a frequency where ``cond_2(M_s) > RESOLVENT_CONDITION`` (``1/sqrt(eps)``) is refused -- there the
+    response is unbounded or its digits are lost (an undamped mode at ``omega``, a rigid-body mode or a free
+    rotation at ``omega = 0``), and no number is returned rather than a wrong one.  The row and column scaling
+    changes the answer by round-off only; it answers stiff models (a fast mode ``1e4`` times above a slow one,
+    e.g. a stiff plate subsystem beside soft joints) whose balanced ``s I - A`` alone is ill-conditioned at low
+    frequencies although the scaled solve is accurate.
+
+    What the bound certifies: the LU solve with partial pivoting is backward stable, so each column ``z`` of
+    ``Z`` has ``|z_computed - z|_2 <= cond_2(M_s) eps c |z|_2`` with ``c`` a modest safety factor (the
+    dimension times the pivot growth, in practice a few units): the relative error of every answered column,
+    measured in the scaled states ``(T D_c)^-1 x``, is at most ``cond_2(M_s) * eps * c <= sqrt(eps) c`` (about
+    half the digits at the limit, typically far more: 1e-10 for the stiff plate chain of
+    tests/test_resolvent_scaling.py).  A state much smaller than the others in those scaled units carries that
+    absolute error, not a relative one.
 
     Parameters
     ----------
@@ -281,26 +294,52 @@ def resolvent(A: np.ndarray, B: np.ndarray, s: np.ndarray, name: str) -> np.ndar
     Raises
     ------
     FrequencyAtPoleError
-        A frequency at or next to a pole (a :class:`~ctmm.errors.ModelError`): names ``omega`` [rad/s], the condition number and the
-        nearest pole of ``A``.
+        A frequency at or next to a pole (a :class:`~ctmm.errors.ModelError`): names ``omega`` [rad/s], the condition
+        number of ``M_s`` and the nearest pole of ``A``.
     """
     n = A.shape[0]
     if n == 0:
         return np.zeros((s.size, 0, B.shape[1]), dtype=complex)
     balanced, (scaling, _) = scipy.linalg.matrix_balance(A, permute=False, separate=True)   # T^-1 A T, T = diag
     pencil = s[:, None, None] * np.eye(n) - balanced
+    rows, columns = _equilibration(pencil)
+    scaled = rows[:, :, None] * pencil * columns[:, None, :]                 # D_r (s I - A_bal) D_c, exact
     with np.errstate(all="ignore"):
-        condition = np.linalg.cond(pencil)
+        condition = np.linalg.cond(scaled)
     bad = np.flatnonzero(~(condition <= RESOLVENT_CONDITION))
     if bad.size:
         k = int(bad[0])
         poles = np.linalg.eigvals(A)
         pole = complex(poles[np.argmin(np.abs(poles - s[k]))])
         raise FrequencyAtPoleError(f"frequency_response: s I - A of {name!r} is singular at omega = "
-                         f"{float(np.imag(s[k]))!r} rad/s, or nearly so (condition number {float(condition[k]):.3g} of the balanced "
-                         f"s I - A > 1/sqrt(eps) = {RESOLVENT_CONDITION:.3g}); the nearest pole is "
+                         f"{float(np.imag(s[k]))!r} rad/s, or nearly so (condition number {float(condition[k]):.3g} of the balanced, "
+                         f"row- and column-scaled s I - A > 1/sqrt(eps) = {RESOLVENT_CONDITION:.3g}); the nearest pole is "
                          f"{pole.real:.9g}{pole.imag:+.9g}j 1/s (an undamped mode on the imaginary axis, or a rigid-body "
                          "mode or free rotation at omega = 0), where the response is unbounded: leave that frequency "
                          "out or move it off the pole")
-    solution = np.linalg.solve(pencil, np.broadcast_to(B / scaling[:, None], (s.size,) + B.shape))
+    right = rows[:, :, None] * (B / scaling[:, None])[None, :, :]               # D_r T^-1 B
+    solution = np.linalg.solve(scaled, right) * columns[:, :, None]             # T^-1 X = D_c Z
     return solution * scaling[None, :, None]
+
+
+def _equilibration(pencil: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Row and column scale factors ``D_r``, ``D_c`` of a stack of square matrices ``M``: powers of two (exact in
+    floating point) that bring the largest modulus of each row of ``D_r M``, then of each column of ``D_r M D_c``,
+    into ``[1/sqrt(2), sqrt(2)]`` (LAPACK ``zgeequ``'s equilibration, rounded to powers of two).  A zero row or
+    column keeps the factor 1 (the matrix is singular: its condition number stays infinite).
+
+    Parameters
+    ----------
+    pencil : ndarray of complex, shape (k, n, n)
+
+    Returns
+    -------
+    rows, columns : ndarray, shape (k, n)
+    """
+    def reciprocal(largest: np.ndarray) -> np.ndarray:
+        return np.exp2(-np.round(np.log2(np.where(largest > 0.0, largest, 1.0))))
+
+    with np.errstate(all="ignore"):
+        rows = reciprocal(np.abs(pencil).max(axis=2))
+        columns = reciprocal(np.abs(rows[:, :, None] * pencil).max(axis=1))
+    return rows, columns
