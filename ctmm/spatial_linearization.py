@@ -67,8 +67,16 @@ RICHARDSON_STEPS = (1e-3, 1e-4, 1e-5)
 _COMPONENTS = {3: ("x", "y", "z"), 6: ("fx", "fy", "fz", "mx", "my", "mz"), 2: ("1", "2")}
 
 
+def _require_model(model: Any, function: str) -> None:
+    """Refuse anything that is not a spatial model (a clear ``ModelError`` instead of an ``AttributeError``)."""
+    if not all(hasattr(model, name) for name in ("joints", "bodies", "n_bodies", "name")):
+        raise ModelError(f"{function}: model must be a ctmm.spatial.SpatialModel, got {type(model).__name__} "
+                         f"{model!r:.80}")
+
+
 def tangent_names(model: Any) -> tuple[str, ...]:
     """Names of the tangent coordinates (one per velocity, module docstring)."""
+    _require_model(model, "tangent_names")
     names = []
     for joint in model.joints:
         if joint.driven or joint.kind == "weld":
@@ -90,6 +98,7 @@ def tangent_names(model: Any) -> tuple[str, ...]:
 def input_names(model: Any) -> tuple[str, ...]:
     """One name per actuator input component: the input's own name for a scalar input, else
     ``"<input>_<component>"`` (``x, y, z``; ``1, 2`` for universal joints; ``fx ... mz`` for wrenches)."""
+    _require_model(model, "input_names")
     return tuple(name for name, _, _ in _input_components(model))
 
 
@@ -127,6 +136,7 @@ def _quaternion_product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def retract(model: Any, q0: np.ndarray, delta: np.ndarray) -> np.ndarray:
     """``q0 (+) delta`` (module docstring) for a batch ``delta (B, nv)`` (complex allowed) -> ``(B, nq)``."""
+    _require_model(model, "retract")
     from .spatial.model import rotation_matrix
 
     delta = np.atleast_2d(delta)
@@ -207,6 +217,7 @@ def static_equilibrium(model: Any, t: float = 0.0, start: Any = None, *, stable:
         keep a body moving); with ``stable=True`` an equilibrium reached that is still unstable (its
         unstable directions named).
     """
+    _require_model(model, "static_equilibrium")
     validation.flag("stable", stable)
     free = [joint.name for joint in model.joints if joint.kind == "free" and not joint.driven]
     if free and np.any(model.gravity != 0.0):
@@ -237,6 +248,7 @@ def unstable_directions(model: Any, q: Any, t: float = 0.0) -> tuple[np.ndarray,
     ``d v_dot / d r`` by complex step, i.e. the values ``omega^2 < 0`` [rad^2/s^2] (most negative first; empty
     for a statically stable or neutral equilibrium) and the vectors (columns) in the tangent coordinates
     :func:`tangent_names`."""
+    _require_model(model, "unstable_directions")
     q = model.normalized(np.asarray(q, dtype=float))
     Jq, _ = _position_jacobian(model, q, np.zeros(model.n_velocities), t)
     return negative_stiffness(Jq)
@@ -299,6 +311,7 @@ def operating_point(model: Any, point: Any = None, *, allow_nonequilibrium: bool
     """The :class:`OperatingPoint` of a spatial model: the static equilibrium for ``None``
     (:func:`static_equilibrium`), else ``(q, v)``, ``(q, v, t)``, a mapping or an OperatingPoint,
     checked to be an equilibrium (at rest now and at a few later times) unless allowed."""
+    _require_model(model, "operating_point")
     if point is None:                       # then checked like a given point (time-varying loads)
         q, v, t = static_equilibrium(model, stable=True), np.zeros(model.n_velocities), 0.0
     else:
@@ -338,6 +351,7 @@ def operating_point(model: Any, point: Any = None, *, allow_nonequilibrium: bool
 def tangent(model: Any, point: OperatingPoint) -> tuple[np.ndarray, OperatingPoint]:
     """``A = [[0, I], [df/dr, df/dv]]`` (2 nv, 2 nv) at ``point`` and the point with its
     ``jacobian_error`` (complex step, cross-checked by a Richardson difference along one direction)."""
+    _require_model(model, "tangent")
     from .spatial.dynamics import accelerations
 
     n = model.n_velocities
@@ -375,6 +389,7 @@ def input_matrix(model: Any, names: Sequence[str], point: OperatingPoint) -> np.
     """``df/du`` (nv, len(names)) of input components ``names`` (:func:`input_names`) and actuator ports
     (:class:`ctmm.spatial.ports.SpatialPorts`: joint torques and forces, body forces and moments); exact
     (``f`` is affine in the inputs: symmetric unit differences)."""
+    _require_model(model, "input_matrix")
     from .spatial.ports import SpatialPorts
 
     components = {name: (base, i) for name, base, i in _input_components(model)}
@@ -417,6 +432,7 @@ def output_matrix(model: Any, names: Sequence[str], point: OperatingPoint) -> np
     Sensor rows by complex step through :func:`ctmm.spatial_sensors_complex.complex_sensor_values` (exact to
     round-off); a name that is both (joint angles, velocities, free-joint positions) is the sensor: for
     ``"<free joint>.x|y|z"`` the world position, equal to the tangent coordinate where ``R0 = I``."""
+    _require_model(model, "output_matrix")
     from .spatial.ports import SpatialPorts
 
     n = model.n_velocities
@@ -471,6 +487,7 @@ def linearize_spatial(model: Any, point: Any = None, *, inputs: Any = None, outp
         Loops without delay are closed inside ``A``, delayed loops left open beside it
         (:func:`ctmm.controlled_linearization.close_model_loops`).
     """
+    _require_model(model, "linearize_spatial")
     from .spatial.ports import SpatialPorts
 
     validation.flag("allow_nonequilibrium", allow_nonequilibrium)
