@@ -316,8 +316,9 @@ class SpatialKinematicLoopModel:
               ) -> tuple[np.ndarray, np.ndarray]:
         """``(v', lambda)`` at ``(q, v, t)`` with the tree's actuator ``inputs`` (``{"<joint>.torque": value or
         f(t)}`` or the :class:`~ctmm.spatial.ports.SpatialInputs` of the tree's ports): the closed-loop accelerations
-        ``(nv,)`` and the cut loads ``(m,)`` (per cut: the force on the child [N], world axes, then for a revolute
-        or universal cut the moment multipliers [N m] along ``n_i = u x b_i``; :meth:`cut_loads` gives vectors).
+        ``(nv,)`` and the cut loads ``(m,)`` (per cut: the force on the child [N], world axes -- prismatic: its two
+        components along ``p_1``, ``p_2`` -- then for a revolute, universal or prismatic cut the moment multipliers
+        [N m] along ``n_i = u_i x b_i``; :meth:`cut_loads` gives vectors).
 
         Raises
         ------
