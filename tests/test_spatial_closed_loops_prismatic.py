@@ -88,6 +88,12 @@ def crank():
 
 
 @pytest.fixture(scope="module")
+def crank_equilibrium(crank):
+    loop, q, _ = crank
+    return linear.equilibrium(loop, q)
+
+
+@pytest.fixture(scope="module")
 def pendulum():
     loop = sliding_pendulum()
     q, v = loop.consistent_state({"h1.angle": 0.4, "free.z": -0.3}, {"h1.angle_rate": 1.5, "free.vz": 0.2},
@@ -131,6 +137,22 @@ def test_solve_ivp_with_baumgarte_matches_the_dae(crank):
     assert angle < 1e-10 and position < 1e-10 and run.drift.max() < 1e-12     # measured 4e-15, 3e-15
 
 
+def test_linearize_torque_input_and_cut_force_output_match_the_dae(crank, crank_equilibrium):
+    """``B`` and ``D`` of ``ctmm.linearize`` at the slider-crank's equilibrium: the crank's angular acceleration and
+    the guide's force per unit crank torque (about world x, the hinge axis), against the DAE with the torque."""
+    loop, _, _ = crank
+    equilibrium = crank_equilibrium
+    lin = ctmm.linearize(loop, equilibrium, inputs=["h1.torque"], outputs=["h1.angle", "slide.force_z"])
+    crank_rate = (linear.tangent(loop, equilibrium)[1] @ np.asarray(lin.state_space.B)[1:, 0])[0]
+    model = dae(loop)
+    y = model.state(*poses(loop, equilibrium, np.zeros(loop.tree.n_velocities)))
+    rest, mu0 = model.accelerations(y)
+    pushed, mu1 = model.accelerations(y, torques={0: np.array([1.0, 0.0, 0.0])})
+    assert abs(crank_rate - (pushed - rest)[3]) < 1e-10 * abs(crank_rate)        # measured 9e-15
+    force = cut_load_of_dae(loop, model, y, mu1)[0] - cut_load_of_dae(loop, model, y, mu0)[0]
+    assert abs(np.asarray(lin.state_space.D)[1, 0] - force[2]) < 1e-10 * np.abs(force).max()     # measured 6e-15
+
+
 def test_drift_without_projection_is_reported(pendulum):
     loop, q, v = pendulum
     free = SpatialKinematicLoopModel(loop.tree, loop.cuts, baumgarte=0.0)
@@ -139,9 +161,9 @@ def test_drift_without_projection_is_reported(pendulum):
                                                                                           loose.v[-1])[0]))
 
 
-def test_natural_frequency_matches_the_dae_on_its_manifold(crank):
-    loop, q, _ = crank
-    equilibrium = linear.equilibrium(loop, q)
+def test_natural_frequency_matches_the_dae_on_its_manifold(crank, crank_equilibrium):
+    loop, _, _ = crank
+    equilibrium = crank_equilibrium
     omega = ctmm.natural_frequencies(loop, operating_point=equilibrium)
     model = dae(loop)
     y = model.state(*poses(loop, equilibrium, np.zeros(loop.tree.n_velocities)))
