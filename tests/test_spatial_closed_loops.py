@@ -383,7 +383,7 @@ def test_torque_input_matches_the_dae(four_bar, four_bar_equilibrium):
 def test_refusals(four_bar):
     loop, q, v = four_bar
     with pytest.raises(ModelError, match="kind"):
-        SpatialCutJoint(name="c", parent=None, child="crank", kind="prismatic")
+        SpatialCutJoint(name="c", parent=None, child="crank", kind="sliding")
     with pytest.raises(ModelError, match="two different bodies"):
         SpatialCutJoint(name="c", parent="crank", child="crank", child_point="tip")
     with pytest.raises(ModelError, match="nope"):

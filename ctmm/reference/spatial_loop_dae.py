@@ -10,7 +10,12 @@ cut ones alike -- is a set of constraint equations:
 * ``ball``: a point of the child coincides with a point of the parent (or of the ground), 3 rows;
 * ``revolute``: ball plus the child axis ``u`` perpendicular to two parent vectors ``b_1, b_2`` normal to the
   parent axis (``u . b_i = 0``), 5 rows;
-* ``universal``: ball plus the parent's first axis perpendicular to the child's second (``a_1 . a_2 = 0``), 4 rows.
+* ``universal``: ball plus the parent's first axis perpendicular to the child's second (``a_1 . a_2 = 0``), 4 rows;
+* ``prismatic``: the separation ``d`` of the points perpendicular to the parent axis (``d . b_i = 0``, ``b_1, b_2``
+  parent-fixed normal to the axis), 2 rows, and the child's triad ``(a, n, a x n)`` (``child_axis``,
+  ``child_normal``) equal to the parent's (``parent_axis``, ``parent_normal``) by the three rows
+  ``c_2 . p_3 = c_3 . p_1 = c_1 . p_2 = 0``, 5 rows.  The multipliers of the first two are the force ``mu_i b_i``
+  on the child at its point; the parent takes the opposite at the same place.
 
 The Newton-Euler equations ``m a = m g + f_c``, ``I alpha + w x I w = m_c`` with the constraint loads
 ``[f_c ; m_c] = J^T mu`` and the constraints at the acceleration level with Baumgarte terms form the KKT system::
@@ -69,6 +74,12 @@ def _rotation_vector(phi: np.ndarray) -> np.ndarray:
     return scipy.linalg.expm(_skew(phi))
 
 
+def _normal_to(a: np.ndarray) -> np.ndarray:
+    """A unit vector normal to the unit vector ``a``: ``a x e_k`` with ``e_k`` the axis least aligned with ``a``."""
+    b = np.cross(a, np.eye(3)[int(np.argmin(np.abs(a)))])
+    return b / np.linalg.norm(b)
+
+
 @dataclass(frozen=True)
 class DaeBody:
     """A rigid body: ``mass`` [kg], ``inertia`` about the centre of mass in body axes [kg m^2]."""
@@ -93,21 +104,34 @@ class DaeJoint:
     child_point: np.ndarray
     parent_axis: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
     child_axis: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
+    parent_normal: np.ndarray | None = None
+    child_normal: np.ndarray | None = None
 
     @property
     def n_rows(self) -> int:
-        return {"ball": 3, "revolute": 5, "universal": 4}[self.kind]
+        return {"ball": 3, "revolute": 5, "universal": 4, "prismatic": 5}[self.kind]
+
+    def pairs(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """``(u, b)`` of the alignment rows ``u . b = 0``: ``u`` child-fixed (child axes), ``b`` parent-fixed."""
+        u = np.asarray(self.child_axis, float) / np.linalg.norm(self.child_axis)
+        if self.kind != "prismatic":
+            return [(u, b) for b in self.parent_vectors()]
+        triads = []
+        for axis, normal in ((u, self.child_normal), (self.parent_axis, self.parent_normal)):
+            a = np.asarray(axis, float) / np.linalg.norm(axis)
+            n = _normal_to(a) if normal is None else np.asarray(normal, float) / np.linalg.norm(normal)
+            triads.append((a, n, np.cross(a, n)))
+        c, p = triads
+        return [(c[1], p[2]), (c[2], p[0]), (c[0], p[1])]
 
     def parent_vectors(self) -> list[np.ndarray]:
-        """Parent-fixed vectors ``b`` of the alignment rows ``u . b = 0``."""
+        """Parent-fixed vectors ``b`` of the alignment rows ``u . b = 0`` (prismatic: of the point rows ``d . b = 0``)."""
         a = np.asarray(self.parent_axis, float) / np.linalg.norm(self.parent_axis)
         if self.kind == "universal":
             return [a]
         if self.kind == "ball":
             return []
-        helper = np.eye(3)[int(np.argmin(np.abs(a)))]
-        b1 = np.cross(a, helper)
-        b1 /= np.linalg.norm(b1)
+        b1 = _normal_to(a)
         return [b1, np.cross(a, b1)]
 
 
@@ -158,18 +182,30 @@ class SpatialLoopDAE:
             return x[body] + r, v[body] + np.cross(w[body], r), r, w[body], np.cross(w[body], np.cross(w[body], r))
 
         for joint in self.joints:
-            xp, _, rp, wp, gp = side(joint.parent, joint.parent_point)
-            xc, _, rc, wc, gc = side(joint.child, joint.child_point)
+            xp, vp, rp, wp, gp = side(joint.parent, joint.parent_point)
+            xc, vc, rc, wc, gc = side(joint.child, joint.child_point)
             block = np.zeros((3, 6 * n))
             for body, r, sign in ((joint.child, rc, 1.0), (joint.parent, rp, -1.0)):
                 if body >= 0:
                     block[:, 6 * body:6 * body + 3] += sign * np.eye(3)
                     block[:, 6 * body + 3:6 * body + 6] += -sign * _skew(r)
-            phi.append(xc - xp)
-            J.append(block)
-            gamma.append(gc - gp)
-            u = R[joint.child] @ np.asarray(joint.child_axis, float) / np.linalg.norm(joint.child_axis)
-            for b_local in joint.parent_vectors():
+            if joint.kind != "prismatic":
+                phi.append(xc - xp)
+                J.append(block)
+                gamma.append(gc - gp)
+            else:
+                d = xc - xp
+                for b_local in joint.parent_vectors():
+                    b = b_local if joint.parent < 0 else R[joint.parent] @ b_local
+                    row = (b @ block)[None]          # (d . b)' = (v_c - v_p) . b + d . (w_p x b)
+                    if joint.parent >= 0:
+                        row[0, 6 * joint.parent + 3:6 * joint.parent + 6] += np.cross(b, d)
+                    phi.append(np.array([d @ b]))
+                    J.append(row)
+                    gamma.append(np.array([(gc - gp) @ b + 2 * (vc - vp) @ np.cross(wp, b)
+                                           + d @ np.cross(wp, np.cross(wp, b))]))
+            for u_local, b_local in joint.pairs():
+                u = R[joint.child] @ u_local
                 b = b_local if joint.parent < 0 else R[joint.parent] @ b_local
                 nvec = np.cross(u, b)
                 row = np.zeros((1, 6 * n))

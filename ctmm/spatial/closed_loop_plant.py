@@ -30,7 +30,7 @@ __all__ = ["SpatialLoopPlant", "add_cut_signals"]
 
 def add_cut_signals(model: SpatialKinematicLoopModel, signals: dict, units: dict, forces: np.ndarray,
                     moments: np.ndarray, drift: np.ndarray, drift_rate: np.ndarray) -> None:
-    """Add ``"<cut>.force_x|y|z"`` [N], ``"<cut>.moment_x|y|z"`` [N m] (revolute and universal cuts; on the child,
+    """Add ``"<cut>.force_x|y|z"`` [N], ``"<cut>.moment_x|y|z"`` [N m] (all but spherical cuts; on the child,
     world axes), ``"drift"`` and ``"drift_rate"`` to ``signals`` and ``units`` (``forces``, ``moments``:
     ``(N, n_cuts, 3)``)."""
     for j, cut in enumerate(model.cuts):

@@ -4,17 +4,22 @@ A spatial mechanism with closed loops (a spatial four-bar, a ring of bodies) is 
 an ordinary :class:`~ctmm.spatial.model.SpatialModel` -- plus **cut joints** (:class:`SpatialCutJoint`): a
 spherical (ball) cut makes a point of the child coincide with a point of the parent (or of the ground); a
 revolute cut also keeps a child axis parallel to a parent axis, a universal (Hooke) cut a child axis
-perpendicular to a parent axis.  The planar counterpart and the derivation are
+perpendicular to a parent axis; a prismatic (slider) cut keeps the child point on a parent-fixed line and the
+child's orientation fixed relative to the parent.  The planar counterpart and the derivation are
 in :mod:`ctmm.planar.closed_loops` and ``docs/closed_loops.md`` (section 8 for this module).
 
 Mechanism (the boundary unknowns of the mixed transfer matrix method)
 ---------------------------------------------------------------------
-A cut has ``3`` (spherical), ``4`` (universal) or ``5`` (revolute) constraint rows: the separation of its points
-``Phi = r_Pc - r_Pp`` [m] and the alignments ``Phi_i = u . b_i`` (``u`` the child axis; revolute: ``b_1``, ``b_2``
-perpendicular to the parent axis; universal: ``b_1`` the parent axis; small angles [rad]).  Their rates are linear
-in the tree velocities ``v``: ``Phi' = v_Pc - v_Pp`` and ``Phi_i' = (omega_c - omega_p) . n_i`` with ``n_i = u x b_i``.
-The dual loads -- the unknowns ``lambda`` -- are a force (world axes [N]) on the child point and its opposite on
-the parent point, and moments ``mu_i n_i`` [N m] on the child and their opposites on the parent.  At fixed
+A cut has ``3`` (spherical), ``4`` (universal) or ``5`` (revolute, prismatic) constraint rows: the separation of
+its points ``Phi = d = r_Pc - r_Pp`` [m] (prismatic: only ``d . p_j`` along the two parent-fixed ``p_1``, ``p_2``
+perpendicular to the slide axis) and the alignments ``Phi_i = u_i . b_i`` of child-fixed ``u_i`` and parent-fixed
+``b_i`` (revolute: ``u`` the child axis, ``b_1``, ``b_2`` perpendicular to the parent axis; universal: ``b_1`` the
+parent axis; prismatic: the revolute pair plus ``u_3`` the child ``normal``, ``b_3 = parent_axis x parent_normal``;
+small angles [rad]).  Their rates are linear in the tree velocities ``v``: ``Phi' = v_Pc - v_Pp`` (prismatic:
+``(v_Pc - v_Pp) . p_j + d . (omega_p x p_j)``) and ``Phi_i' = (omega_c - omega_p) . n_i`` with ``n_i = u_i x b_i``.
+The dual loads -- the unknowns ``lambda`` -- are a force (world axes [N]; prismatic: ``lambda_j p_j``) on the child
+point and its opposite on the parent at the same place, and moments ``mu_i n_i`` [N m] on the child and their
+opposites on the parent.  At fixed
 ``(q, v, t)`` the tree's articulated sweep (:func:`ctmm.spatial.dynamics.solve`) is affine in these loads, so one
 batched sweep with ``1 + m`` load cases gives ``Phi'' = c_0 + G lambda`` (``G``: the ``m x m`` boundary
 compliance, exact) and ``v' = v'_0 + D lambda``; the constraint at the acceleration level with Baumgarte
@@ -42,116 +47,12 @@ from ..articulated import SingularPivotError, articulated_sweep
 from ..errors import ModelError, SimulationError, unknown_name
 from ..ops import NUMPY
 from .body_forms import SpatialScene
+from .closed_loop_cuts import CUT_KINDS, CutFrame, SpatialCutJoint, cross, cut_frame
 from .integrate import initial_state
 from .model import SpatialModel
 from .ports import SpatialInputs
 
 __all__ = ["SpatialCutJoint", "SpatialKinematicLoopModel", "CUT_KINDS"]
-
-CUT_KINDS = ("spherical", "revolute", "universal")
-"""Kinds of :class:`SpatialCutJoint`."""
-
-
-def _vector(label: str, value: Any) -> np.ndarray:
-    array = validation.finite_array(label, value)
-    if array.shape != (3,):
-        raise ModelError(f"{label} must be 3 finite numbers, got {value!r:.80}")
-    return array.astype(float)
-
-
-def _unit(label: str, value: Any) -> np.ndarray:
-    array = _vector(label, value)
-    norm = float(np.linalg.norm(array))
-    if norm < 1e-12:
-        raise ModelError(f"{label} must be a non-zero 3-vector (it is normalised), got {value!r}")
-    return array / norm
-
-
-@dataclass(frozen=True, kw_only=True)
-class SpatialCutJoint:
-    """A smooth joint closing a loop of a spatial tree.
-
-    Parameters
-    ----------
-    name : str
-        Joint name (distinct from the tree's element names).
-    parent : str or None
-        Parent body name, or ``None`` for the ground.
-    child : str
-        Child body name.
-    point : str or (3,) array, optional
-        The parent's point name (default ``"origin"``); at the ground a location in world axes [m] (default the
-        origin).
-    child_point : str
-        The child's point name (default ``"origin"``).
-    kind : str
-        ``"spherical"`` (ball: the points coincide, 3 rows), ``"revolute"`` (also ``axis`` parallel to
-        ``parent_axis``, 5 rows) or ``"universal"`` (Hooke: also ``axis`` perpendicular to ``parent_axis``, 4 rows).
-    axis : (3,) array
-        Revolute: the hinge axis in child body axes; universal: the child's cross axis in child body axes
-        (normalised).
-    parent_axis : (3,) array, optional
-        Revolute: the hinge axis in parent body axes (world axes at the ground), default ``axis``; universal: the
-        parent's cross axis there (required; perpendicular to ``axis`` in the assembled loop).
-    """
-
-    name: str
-    parent: str | None
-    child: str
-    point: Any = None
-    child_point: str = "origin"
-    kind: str = "spherical"
-    axis: Any = (0.0, 0.0, 1.0)
-    parent_axis: Any = None
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "name", validation.name("cut joint", self.name))
-        validation.option(f"cut joint {self.name!r}: kind", self.kind, CUT_KINDS)
-        if self.parent is not None:
-            validation.name(f"cut joint {self.name!r}: parent", self.parent)
-            point = "origin" if self.point is None else self.point
-            if not isinstance(point, str):
-                raise ModelError(f"cut joint {self.name!r}: point must be the name of a point of the parent body "
-                                 f"{self.parent!r}, got {self.point!r}")
-            object.__setattr__(self, "point", point)
-        else:
-            object.__setattr__(self, "point", _vector(f"cut joint {self.name!r}: point (ground location)",
-                                                      (0.0, 0.0, 0.0) if self.point is None else self.point))
-        validation.name(f"cut joint {self.name!r}: child", self.child)
-        if self.parent == self.child:
-            raise ModelError(f"cut joint {self.name!r}: parent and child are both {self.child!r}; a cut joint "
-                             "connects two different bodies (or a body and the ground, parent=None)")
-        if not isinstance(self.child_point, str):
-            raise ModelError(f"cut joint {self.name!r}: child_point must be the name of a point of {self.child!r}, "
-                             f"got {self.child_point!r}")
-        if self.kind == "universal" and self.parent_axis is None:
-            raise ModelError(f"cut joint {self.name!r}: a universal cut needs parent_axis (the parent's cross axis, "
-                             "a 3-vector perpendicular to axis in the assembled loop), got None")
-        axis = _unit(f"cut joint {self.name!r}: axis", self.axis)
-        object.__setattr__(self, "axis", axis)
-        object.__setattr__(self, "parent_axis", axis.copy() if self.parent_axis is None else
-                           _unit(f"cut joint {self.name!r}: parent_axis", self.parent_axis))
-
-    @property
-    def n_rows(self) -> int:
-        """Constraint rows: 3 (spherical), 4 (universal) or 5 (revolute)."""
-        return {"spherical": 3, "universal": 4, "revolute": 5}[self.kind]
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``a x b`` over the last axis (3) with broadcasting (``np.cross`` without its axis handling: it is called
-    many times per step on tiny arrays)."""
-    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack(np.broadcast_arrays(a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0), axis=-1)
-
-
-def _perpendicular(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Two unit vectors completing ``axis`` to a right-handed orthonormal triad."""
-    helper = np.eye(3)[int(np.argmin(np.abs(axis)))]
-    first = _cross(axis, helper)
-    first /= np.linalg.norm(first)
-    return first, _cross(axis, first)
 
 
 @dataclass(frozen=True)
@@ -195,10 +96,7 @@ class SpatialKinematicLoopModel:
         self.baumgarte = validation.nonnegative("baumgarte", baumgarte)
         self._sides = [(self._side(cut, cut.parent, cut.point), self._side(cut, cut.child, cut.child_point))
                        for cut in cuts]
-        self._axes = []                  # (child axis, parent-fixed b_i): revolute (b1, b2), universal (axis,); None
-        for cut in cuts:
-            self._axes.append((cut.axis, _perpendicular(cut.parent_axis)) if cut.kind == "revolute" else
-                              (cut.axis, (cut.parent_axis,)) if cut.kind == "universal" else None)
+        self._frames = [cut_frame(cut) for cut in cuts]
         self.n_constraints = sum(cut.n_rows for cut in cuts)
         self._scene = SpatialScene(tree)
         self.linear_cache: dict = {}
@@ -251,26 +149,31 @@ class SpatialKinematicLoopModel:
             return side.point[None], np.zeros((1, 3)), None
         R, origin, velocity, omega, _ = bodies[side.body]
         arm = R @ side.point
-        return origin + arm, velocity + _cross(omega, arm), R
+        return origin + arm, velocity + cross(omega, arm), R
 
     def _rows(self, bodies: list) -> tuple[np.ndarray, np.ndarray]:
         """``Phi`` and ``Phi'`` ``(B, m)`` from body states (:meth:`_bodies`)."""
         phi, rate = [], []
-        for cut, (parent, child), axes in zip(self.cuts, self._sides, self._axes):
+        for (parent, child), frame in zip(self._sides, self._frames):
             xp, vp, Rp = self._point(bodies, parent)
             xc, vc, Rc = self._point(bodies, child)
-            phi.append(xc - xp)
-            rate.append(vc - vp)
-            if axes is None:
-                continue
-            u_local, normals = axes
-            u = Rc @ u_local
             omega_c = bodies[child.body][3]
             omega_p = np.zeros_like(omega_c) if parent.body < 0 else bodies[parent.body][3]
-            for b_local in normals:
-                b = np.broadcast_to(b_local, u.shape) if Rp is None else Rp @ b_local
+
+            def parent_fixed(b_local: np.ndarray) -> np.ndarray:
+                return np.broadcast_to(b_local, omega_c.shape) if Rp is None else Rp @ b_local
+
+            if frame.basis is None:
+                phi.append(xc - xp)
+                rate.append(vc - vp)
+            for b_local in frame.basis or ():
+                b = parent_fixed(b_local)
+                phi.append(np.sum((xc - xp) * b, axis=-1, keepdims=True))
+                rate.append(np.sum((vc - vp) * b + (xc - xp) * cross(omega_p, b), axis=-1, keepdims=True))
+            for u_local, b_local in frame.pairs:
+                u, b = Rc @ u_local, parent_fixed(b_local)
                 phi.append(np.sum(u * b, axis=-1, keepdims=True))
-                rate.append(np.sum((omega_c - omega_p) * _cross(u, b), axis=-1, keepdims=True))
+                rate.append(np.sum((omega_c - omega_p) * cross(u, b), axis=-1, keepdims=True))
         batch = max(max(a.shape[0] for a in phi), max(a.shape[0] for a in rate))
         return (np.concatenate([np.broadcast_to(a, (batch, a.shape[1])) for a in phi], axis=1),
                 np.concatenate([np.broadcast_to(a, (batch, a.shape[1])) for a in rate], axis=1))
@@ -303,29 +206,38 @@ class SpatialKinematicLoopModel:
         world) of a batched sweep at one state (body states :meth:`_bodies`)."""
         batch = A.shape[0]
 
-        def side_acceleration(side: _Side) -> tuple[np.ndarray, np.ndarray]:
+        def side_acceleration(side: _Side) -> tuple[np.ndarray, ...]:
+            """Position, velocity, acceleration of the point and angular acceleration of its body."""
             if side.body < 0:
-                return np.zeros((batch, 3)), np.zeros((batch, 3))
-            R, origin, _, omega, inboard = (a[0] for a in bodies[side.body])
-            r = origin + R @ side.point - inboard
+                return side.point, np.zeros(3), np.zeros((batch, 3)), np.zeros((batch, 3))
+            R, origin, velocity, omega, inboard = (a[0] for a in bodies[side.body])
+            arm = R @ side.point
+            r = origin + arm - inboard
             alpha = A[:, side.body, 3:]
-            return (A[:, side.body, :3] + _cross(alpha, r) + _cross(omega, _cross(omega, r)), alpha)
+            return (origin + arm, velocity + cross(omega, arm),
+                    A[:, side.body, :3] + cross(alpha, r) + cross(omega, cross(omega, r)), alpha)
 
         rows = []
-        for (parent, child), axes in zip(self._sides, self._axes):
-            ap, alpha_p = side_acceleration(parent)
-            ac, alpha_c = side_acceleration(child)
-            rows.append(ac - ap)
-            if axes is None:
-                continue
-            u_local, normals = axes
+        for (parent, child), frame in zip(self._sides, self._frames):
+            xp, vp, ap, alpha_p = side_acceleration(parent)
+            xc, vc, ac, alpha_c = side_acceleration(child)
             Rc, omega_c = bodies[child.body][0][0], bodies[child.body][3][0]
             omega_p = np.zeros(3) if parent.body < 0 else bodies[parent.body][3][0]
-            u = Rc @ u_local
-            for b_local in normals:
-                b = b_local if parent.body < 0 else bodies[parent.body][0][0] @ b_local
-                n = _cross(u, b)
-                n_dot = _cross(_cross(omega_c, u), b) + _cross(u, _cross(omega_p, b))
+
+            def parent_fixed(b_local: np.ndarray) -> np.ndarray:
+                return b_local if parent.body < 0 else bodies[parent.body][0][0] @ b_local
+
+            if frame.basis is None:
+                rows.append(ac - ap)
+            for b_local in frame.basis or ():      # (d . b)'' with d = xc - xp, b' = omega_p x b
+                b = parent_fixed(b_local)
+                spin = cross(omega_p, b)
+                rows.append(((ac - ap) @ b + 2.0 * (vc - vp) @ spin + cross(alpha_p, b) @ (xc - xp)
+                             + (xc - xp) @ cross(omega_p, spin))[:, None])
+            for u_local, b_local in frame.pairs:
+                u, b = Rc @ u_local, parent_fixed(b_local)
+                n = cross(u, b)
+                n_dot = cross(cross(omega_c, u), b) + cross(u, cross(omega_p, b))
                 rows.append(((alpha_c - alpha_p) @ n + (omega_c - omega_p) @ n_dot)[:, None])
         return np.concatenate(rows, axis=1)
 
@@ -336,24 +248,34 @@ class SpatialKinematicLoopModel:
         m = self.n_constraints
         loads: dict[int, np.ndarray] = {}
         row = 0
-        for (parent, child), axes in zip(self._sides, self._axes):
+        for (parent, child), frame in zip(self._sides, self._frames):
             wrench = np.zeros((1 + m, 6))
-            for axis in range(3):
-                wrench[1 + row + axis, axis] = 1.0
-            if axes is not None:
-                u = bodies[child.body][0][0] @ axes[0]
-                for i, b_local in enumerate(axes[1]):
-                    b = b_local if parent.body < 0 else bodies[parent.body][0][0] @ b_local
-                    wrench[1 + row + 3 + i, 3:] = _cross(u, b)
-            row += 3 if axes is None else 3 + len(axes[1])
+            unit = self._unit_wrenches(bodies, parent, child, frame)
+            wrench[1 + row:1 + row + len(unit)] = unit
+            row += len(unit)
             for side, sign in ((child, 1.0), (parent, -1.0)):
                 if side.body < 0:
                     continue
                 R, origin, _, _, inboard = (a[0] for a in bodies[side.body])
-                lever = origin + R @ side.point - inboard
-                about = np.concatenate([wrench[:, :3], wrench[:, 3:] + _cross(lever, wrench[:, :3])], axis=1)
+                lever = (origin + R @ side.point if frame.basis is None or side is child else  # prismatic: the
+                         self._point(bodies, child)[0][0]) - inboard                          # child point
+                about = np.concatenate([wrench[:, :3], wrench[:, 3:] + cross(lever, wrench[:, :3])], axis=1)
                 loads[side.body] = loads.get(side.body, 0.0) + sign * about
         return {j: load[:, :, None] for j, load in loads.items()}
+
+    @staticmethod
+    def _unit_wrenches(bodies: list, parent: _Side, child: _Side, frame: CutFrame) -> np.ndarray:
+        """``[force ; moment]`` (world) on the child per unit value of each unknown of one cut ``(rows, 6)``."""
+        rotation_p = None if parent.body < 0 else bodies[parent.body][0][0]
+        rotation_c = bodies[child.body][0][0]
+        basis = np.eye(3) if frame.basis is None else np.array([b if rotation_p is None else rotation_p @ b
+                                                                 for b in frame.basis])
+        out = np.zeros((len(basis) + len(frame.pairs), 6))
+        out[:len(basis), :3] = basis
+        for i, (u_local, b_local) in enumerate(frame.pairs):
+            b = b_local if rotation_p is None else rotation_p @ b_local
+            out[len(basis) + i, 3:] = cross(rotation_c @ u_local, b)
+        return out
 
     def _sweep(self, q: np.ndarray, v: np.ndarray, t: float, inputs: Mapping[str, Any] | None
                ) -> tuple[list, np.ndarray, np.ndarray]:
@@ -394,8 +316,9 @@ class SpatialKinematicLoopModel:
               ) -> tuple[np.ndarray, np.ndarray]:
         """``(v', lambda)`` at ``(q, v, t)`` with the tree's actuator ``inputs`` (``{"<joint>.torque": value or
         f(t)}`` or the :class:`~ctmm.spatial.ports.SpatialInputs` of the tree's ports): the closed-loop accelerations
-        ``(nv,)`` and the cut loads ``(m,)`` (per cut: the force on the child [N], world axes, then for a revolute
-        or universal cut the moment multipliers [N m] along ``n_i = u x b_i``; :meth:`cut_loads` gives vectors).
+        ``(nv,)`` and the cut loads ``(m,)`` (per cut: the force on the child [N], world axes -- prismatic: its two
+        components along ``p_1``, ``p_2`` -- then for a revolute, universal or prismatic cut the moment multipliers
+        [N m] along ``n_i = u_i x b_i``; :meth:`cut_loads` gives vectors).
 
         Raises
         ------
@@ -420,25 +343,23 @@ class SpatialKinematicLoopModel:
 
     def cut_loads(self, q: Any, lam: np.ndarray, t: float = 0.0) -> list[tuple[np.ndarray, np.ndarray]]:
         """Per cut: ``(force, moment)`` on the child [N, N m], world axes, from the unknowns ``lam``
-        (:meth:`solve`) at ``q`` (a spherical cut's moment is zero)."""
+        (:meth:`solve`) at ``q`` (a spherical cut's moment is zero; the parent carries their opposites at the child
+        point)."""
         q = np.asarray(q, float)
         bodies = self._bodies(q, np.zeros(self.tree.n_velocities), t)
         out, row = [], 0
-        for (parent, child), axes in zip(self._sides, self._axes):
-            force, moment = np.array(lam[row:row + 3]), np.zeros(3)
-            if axes is not None:
-                u = bodies[child.body][0][0] @ axes[0]
-                for i, b_local in enumerate(axes[1]):
-                    b = b_local if parent.body < 0 else bodies[parent.body][0][0] @ b_local
-                    moment += lam[row + 3 + i] * _cross(u, b)
-            out.append((force, moment))
-            row += 3 if axes is None else 3 + len(axes[1])
+        for (parent, child), frame in zip(self._sides, self._frames):
+            unit = self._unit_wrenches(bodies, parent, child, frame)
+            wrench = np.asarray(lam[row:row + len(unit)], float) @ unit
+            out.append((wrench[:3], wrench[3:]))
+            row += len(unit)
         return out
 
     def cut_inputs(self, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | SpatialInputs | None = None
                    ) -> SpatialInputs:
         """The cut loads at ``(q, v, t)`` (:meth:`solve` with the actuator ``inputs``) as actuator values of the tree
-        -- the force and moment on each cut's child point, their opposites on the parent point (world axes) --
+        -- the force and moment on each cut's child point, their opposites on the parent at the same place (world
+        axes; the parent point itself except for a prismatic cut) --
         together with ``inputs``: with them the tree's own sweep (e.g. an iterate of a DT-TMM scheme,
         :func:`ctmm.spatial.implicit.simulate_spatial_implicit` ``input_map``) moves as the closed loop."""
         q, v = np.asarray(q, float), np.asarray(v, float)
@@ -448,11 +369,14 @@ class SpatialKinematicLoopModel:
         if isinstance(inputs, SpatialInputs):
             for body, entries in inputs.wrenches.items():
                 wrenches[body] = list(entries)
-        for (parent, child), (force, moment) in zip(self._sides, self.cut_loads(q, lam, t)):
+        bodies = self._bodies(q, np.zeros(self.tree.n_velocities), t)
+        for (parent, child), frame, (force, moment) in zip(self._sides, self._frames, self.cut_loads(q, lam, t)):
             load = np.concatenate([force, moment]).reshape(1, 6, 1)
-            for side, sign in ((child, 1.0), (parent, -1.0)):
-                if side.body >= 0:
-                    wrenches.setdefault(side.body, []).append((side.point, sign * load))
+            wrenches.setdefault(child.body, []).append((child.point, load))
+            if parent.body >= 0:                       # prismatic: at the child point, in parent body axes
+                R, origin = bodies[parent.body][0][0], bodies[parent.body][1][0]
+                at = parent.point if frame.basis is None else R.T @ (self._point(bodies, child)[0][0] - origin)
+                wrenches.setdefault(parent.body, []).append((at, -load))
         return SpatialInputs(joint, wrenches)
 
     # -- assembly and projection -------------------------------------------------------------------------

@@ -1,0 +1,176 @@
+"""Cut joints of spatial kinematic loops: :class:`SpatialCutJoint` (spherical, revolute, universal, prismatic) and
+the geometry of their constraint rows (:class:`CutFrame`), used by :mod:`ctmm.spatial.closed_loops` (the mechanism
+and the derivation are in its docstring and ``docs/closed_loops.md`` section 8)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .. import validation
+from ..errors import ModelError
+
+__all__ = ["SpatialCutJoint", "CUT_KINDS", "CutFrame", "cut_frame", "cross", "perpendicular"]
+
+CUT_KINDS = ("spherical", "revolute", "universal", "prismatic")
+"""Kinds of :class:`SpatialCutJoint`."""
+
+
+def _vector(label: str, value: Any) -> np.ndarray:
+    array = validation.finite_array(label, value)
+    if array.shape != (3,):
+        raise ModelError(f"{label} must be 3 finite numbers, got {value!r:.80}")
+    return array.astype(float)
+
+
+def _unit(label: str, value: Any) -> np.ndarray:
+    array = _vector(label, value)
+    norm = float(np.linalg.norm(array))
+    if norm < 1e-12:
+        raise ModelError(f"{label} must be a non-zero 3-vector (it is normalised), got {value!r}")
+    return array / norm
+
+
+@dataclass(frozen=True, kw_only=True)
+class SpatialCutJoint:
+    """A smooth joint closing a loop of a spatial tree.
+
+    Parameters
+    ----------
+    name : str
+        Joint name (distinct from the tree's element names).
+    parent : str or None
+        Parent body name, or ``None`` for the ground.
+    child : str
+        Child body name.
+    point : str or (3,) array, optional
+        The parent's point name (default ``"origin"``); at the ground a location in world axes [m] (default the
+        origin).
+    child_point : str
+        The child's point name (default ``"origin"``).
+    kind : str
+        ``"spherical"`` (ball: the points coincide, 3 rows), ``"revolute"`` (also ``axis`` parallel to
+        ``parent_axis``, 5 rows), ``"universal"`` (Hooke: also ``axis`` perpendicular to ``parent_axis``, 4 rows) or
+        ``"prismatic"`` (slider: the child point on the line through the parent point along ``parent_axis``,
+        ``axis`` parallel to ``parent_axis`` and ``normal`` parallel to ``parent_normal``, 5 rows).
+    axis : (3,) array
+        Revolute: the hinge axis in child body axes; universal: the child's cross axis in child body axes;
+        prismatic: the slide axis in child body axes (normalised).
+    parent_axis : (3,) array, optional
+        Revolute, prismatic: the hinge or slide axis in parent body axes (world axes at the ground), default
+        ``axis``; universal: the parent's cross axis there (required; perpendicular to ``axis`` in the assembled
+        loop).
+    normal, parent_normal : (3,) array, optional
+        Prismatic only: a child vector perpendicular to ``axis`` (child body axes) and the parent vector
+        perpendicular to ``parent_axis`` (parent body axes, world at the ground) it stays parallel to (fixing the
+        roll about the slide axis); default for each a unit vector perpendicular to its axis, ``axis x e_k`` with
+        ``e_k`` the coordinate axis least aligned with it (the same vector for both when the axes are equal).
+    """
+
+    name: str
+    parent: str | None
+    child: str
+    point: Any = None
+    child_point: str = "origin"
+    kind: str = "spherical"
+    axis: Any = (0.0, 0.0, 1.0)
+    parent_axis: Any = None
+    normal: Any = None
+    parent_normal: Any = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "name", validation.name("cut joint", self.name))
+        validation.option(f"cut joint {self.name!r}: kind", self.kind, CUT_KINDS)
+        if self.parent is not None:
+            validation.name(f"cut joint {self.name!r}: parent", self.parent)
+            point = "origin" if self.point is None else self.point
+            if not isinstance(point, str):
+                raise ModelError(f"cut joint {self.name!r}: point must be the name of a point of the parent body "
+                                 f"{self.parent!r}, got {self.point!r}")
+            object.__setattr__(self, "point", point)
+        else:
+            object.__setattr__(self, "point", _vector(f"cut joint {self.name!r}: point (ground location)",
+                                                      (0.0, 0.0, 0.0) if self.point is None else self.point))
+        validation.name(f"cut joint {self.name!r}: child", self.child)
+        if self.parent == self.child:
+            raise ModelError(f"cut joint {self.name!r}: parent and child are both {self.child!r}; a cut joint "
+                             "connects two different bodies (or a body and the ground, parent=None)")
+        if not isinstance(self.child_point, str):
+            raise ModelError(f"cut joint {self.name!r}: child_point must be the name of a point of {self.child!r}, "
+                             f"got {self.child_point!r}")
+        if self.kind == "universal" and self.parent_axis is None:
+            raise ModelError(f"cut joint {self.name!r}: a universal cut needs parent_axis (the parent's cross axis, "
+                             "a 3-vector perpendicular to axis in the assembled loop), got None")
+        axis = _unit(f"cut joint {self.name!r}: axis", self.axis)
+        object.__setattr__(self, "axis", axis)
+        object.__setattr__(self, "parent_axis", axis.copy() if self.parent_axis is None else
+                           _unit(f"cut joint {self.name!r}: parent_axis", self.parent_axis))
+        for label, owner in (("normal", "axis"), ("parent_normal", "parent_axis")):
+            value = getattr(self, label)
+            if self.kind != "prismatic":
+                if value is not None:
+                    raise ModelError(f"cut joint {self.name!r}: {label} is used only by prismatic cuts (kind "
+                                     f"{self.kind!r}), got {value!r}")
+                continue
+            direction = getattr(self, owner)
+            vector = perpendicular(direction)[0] if value is None else _unit(f"cut joint {self.name!r}: {label}",
+                                                                              value)
+            if abs(float(vector @ direction)) > 1e-9:
+                raise ModelError(f"cut joint {self.name!r}: {label} must be perpendicular to {owner} "
+                                 f"{direction.tolist()}, got {value!r}")
+            object.__setattr__(self, label, vector)
+
+    @property
+    def n_rows(self) -> int:
+        """Constraint rows: 3 (spherical), 4 (universal) or 5 (revolute, prismatic)."""
+        return {"spherical": 3, "universal": 4, "revolute": 5, "prismatic": 5}[self.kind]
+
+
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a x b`` over the last axis (3) with broadcasting (``np.cross`` without its axis handling: it is called
+    many times per step on tiny arrays)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack(np.broadcast_arrays(a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0), axis=-1)
+
+
+def perpendicular(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors completing ``axis`` to a right-handed orthonormal triad."""
+    helper = np.eye(3)[int(np.argmin(np.abs(axis)))]
+    first = cross(axis, helper)
+    first /= np.linalg.norm(first)
+    return first, cross(axis, first)
+
+
+@dataclass(frozen=True)
+class CutFrame:
+    """The geometry of a cut's constraint rows (:mod:`ctmm.spatial.closed_loops` docstring).
+
+    Attributes
+    ----------
+    basis : tuple of (3,) arrays or None
+        Prismatic: the parent-fixed unit vectors ``p_j`` (parent body axes, world at the ground) of the point rows
+        ``d . p_j``; ``None``: the point rows are the 3 world components of ``d``.
+    pairs : tuple of ((3,), (3,)) arrays
+        The ``(u_i, b_i)`` of the alignment rows ``u_i . b_i`` [rad]: ``u_i`` child-fixed (child body axes),
+        ``b_i`` parent-fixed.
+    """
+
+    basis: tuple[np.ndarray, ...] | None
+    pairs: tuple[tuple[np.ndarray, np.ndarray], ...]
+
+
+def cut_frame(cut: SpatialCutJoint) -> CutFrame:
+    """The :class:`CutFrame` of a cut: revolute ``(u, b_1)``, ``(u, b_2)`` with ``b_1, b_2`` perpendicular to the
+    parent axis; universal ``(u, parent_axis)``; prismatic the point basis ``b_1, b_2`` and the revolute pairs plus
+    ``(normal, parent_axis x parent_normal)``; spherical nothing."""
+    across = perpendicular(cut.parent_axis)
+    if cut.kind == "revolute":
+        return CutFrame(None, tuple((cut.axis, b) for b in across))
+    if cut.kind == "universal":
+        return CutFrame(None, ((cut.axis, cut.parent_axis),))
+    if cut.kind == "prismatic":
+        return CutFrame(across, tuple((cut.axis, b) for b in across)
+                      + ((cut.normal, cross(cut.parent_axis, cut.parent_normal)),))
+    return CutFrame(None, ())
