@@ -74,8 +74,8 @@ def export_fmu(system: Any, path: str | os.PathLike, *, step: float, inputs: Seq
     parameters : sequence of str, optional
         Model numbers exposed as fixed parameters (:func:`ctmm.fmu_export_model.parameter_names`:
         masses, inertias, gravity, hinge stiffnesses and dampings, hinge-law and load signal
-        parameters that are not zero; spatial: :mod:`ctmm.fmu_export_spatial`, none with a flexible
-        body); default all of them; ``()`` none.
+        parameters that are not zero; spatial: :mod:`ctmm.fmu_export_spatial`, modal beams' numbers
+        included, none with a finite-element body); default all of them; ``()`` none.
     fmi_version : {"2.0", "3.0"}
         FMI version of the co-simulation FMU (3.0: Float64 variables, the independent variable
         ``time``, no event mode).

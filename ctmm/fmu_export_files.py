@@ -53,7 +53,8 @@ UNIT_EXPONENTS: dict[str, dict[str, int]] = {
     "m": {"m": 1}, "m/s": {"m": 1, "s": -1}, "m/s^2": {"m": 1, "s": -2}, "s": {"s": 1},
     "kg": {"kg": 1}, "kg m^2": {"kg": 1, "m": 2}, "N": {"kg": 1, "m": 1, "s": -2},
     "N m": {"kg": 1, "m": 2, "s": -2}, "N m/rad": {"kg": 1, "m": 2, "s": -2, "rad": -1},
-    "N m s/rad": {"kg": 1, "m": 2, "s": -1, "rad": -1}}
+    "N m s/rad": {"kg": 1, "m": 2, "s": -1, "rad": -1}, "N/m": {"kg": 1, "s": -2}, "N s/m": {"kg": 1, "s": -1},
+    "kg/m": {"kg": 1, "m": -1}, "kg m": {"kg": 1, "m": 1}, "N m^2": {"kg": 1, "m": 3, "s": -2}}
 """SI base-unit exponents of the unit texts ctmm uses (a variable with another unit text carries it in its
 description only)."""
 

@@ -25,11 +25,16 @@ Variables (names as in ctmm):
   (:func:`~ctmm.compiled_spatial_parameters.spatial_parameter_layout`): ``"<body>.mass"``, the non-zero
   ``"<body>.inertia.xx"`` ... ``".yz"``, the non-zero ``"<joint>.stiffness"`` and ``".damping"`` of
   revolute, prismatic and universal joints (``"[k]"`` on a 2-DOF joint) with ``".reference"`` of each
-  stiff coordinate, the non-zero ``"gravity.x|y|z"``; geometry, axes, loads, driven motions, zeros and
-  the laws of spherical, free and elastic joints are constants of the code; a model with a flexible body
-  (:class:`~ctmm.spatial.SpatialBeam`, :class:`ctmm.fem.SpatialSubsystem`: terms that are not those of a
-  rigid body, so its numbers cannot be summed from unit numbers) has no parameters -- every number,
-  gravity included, is a constant of the code (:func:`~ctmm.compiled_spatial.flexible_bodies`);
+  stiff coordinate, the non-zero numbers of each modal :class:`~ctmm.spatial.SpatialBeam`
+  (:mod:`ctmm.compiled_spatial_beam_numbers`: ``"<beam>.mass_per_length"`` [kg/m],
+  ``".polar_inertia_per_length"`` [kg m], ``".bending_stiffness_y|z"`` [N m^2], ``".torsional_stiffness"``
+  [N m^2], ``".axial_stiffness"`` [N], ``".damping_ratio"`` [-], ``".stiffness_damping"`` [s]; a stiffness of
+  a direction without modes enters nothing and is left out), the non-zero ``"gravity.x|y|z"`` -- the names
+  of ``ctmm.parameter_names``; geometry, axes, loads, driven motions, zeros, beams' lengths and mode counts
+  and the laws of spherical, free and elastic joints are constants of the code; a model with a
+  finite-element body (:class:`ctmm.fem.SpatialSubsystem`,
+  :func:`~ctmm.compiled_spatial_parameters.unparametrised_bodies`) has no parameters -- every number,
+  gravity included, is a constant of the code;
 * start values -- ``"<coordinate>_start"`` (quaternion entries as given: set a unit quaternion) and
   ``"<velocity>_start"``.
 """
@@ -39,8 +44,9 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from .compiled_spatial import SpatialRates, flexible_bodies, position_rates, spatial_compile_refusal
+from .compiled_spatial import SpatialRates, position_rates, spatial_compile_refusal
 from .compiled_spatial_loops import loop_acceleration
+from .compiled_spatial_parameters import unparametrised_bodies
 from .compiled_spatial_guard import guarded_step
 from .errors import ModelError
 from .fmu_export_model import ExportedSystem, ExportedVariable, chosen_names
@@ -81,8 +87,8 @@ def spatial_export(model: SpatialModel, *, inputs: Sequence[str] | None, outputs
     if reason:
         raise ModelError(f"export_fmu: system: {reason}")
     start_values = initial_state(model, q0, qdot0)
-    flexible = flexible_bodies(model)
-    rates = SpatialRates(model, fold=False, numbers="constants" if flexible else "inputs")
+    finite_element = unparametrised_bodies(model)
+    rates = SpatialRates(model, fold=False, numbers="constants" if finite_element else "inputs")
     layout = rates.layout
     components, offset = [], 0
     for name, width in zip(rates.actuators, rates.widths):
@@ -132,9 +138,10 @@ def spatial_export(model: SpatialModel, *, inputs: Sequence[str] | None, outputs
     chosen = chosen_names("parameters", parameters, list(exposable), list(exposable))
     parameter_variables = tuple(ExportedVariable(name, exposable[name][0], exposable[name][1].value,
                                                  exposable[name][1].unit, f"model number {name}") for name in chosen)
-    notes = (f"spatial model with the flexible bodies {', '.join(flexible)}: every number is a constant of the code",
-             ) if flexible else ("spatial model: masses, inertias, 1- and 2-DOF joint laws and gravity are parameters; "
-                                 "geometry, axes, loads, zeros and the other joint laws are constants of the code",)
+    notes = (f"spatial model with the finite-element bodies {', '.join(finite_element)}: every number is a constant "
+             "of the code",) if finite_element else (
+        "spatial model: masses, inertias, modal beams' numbers, 1- and 2-DOF joint laws and gravity are parameters; "
+        "geometry, axes, loads, zeros, beams' lengths and the other joint laws are constants of the code",)
     return ExportedSystem(model.name, initial_function, step_function, output_function,
                           np.array([entry.value for entry in layout], dtype=float), offset + len(applied), nq + nv,
                           input_variables,

@@ -2,8 +2,10 @@
 and the spatial_fem_chain model (a ctmm.fem.SpatialSubsystem between rigid bodies).
 
 Independent check: fmpy runs the exported FMU (generated C behind the FMI interface) and its coordinates,
-velocities and body signals equal ctmm.simulate's numpy RK4 (the Python sweep) to 1e-12.  The flexible bodies'
-numbers are constants of the code: the FMU has no model parameters, and asking for one is refused by name.
+velocities and body signals equal ctmm.simulate's numpy RK4 (the Python sweep) to 1e-12.  A modal beam's numbers
+are FMU parameters (names and units of ctmm.parameter_names): the FMU run with changed numbers equals
+ctmm.simulate(compiled=True) of the model rebuilt with them (the beam's data computed anew, its numbers constants of
+that code).  A finite-element subsystem's numbers are constants of the code: that FMU has no model parameters.
 """
 from __future__ import annotations
 
@@ -32,15 +34,16 @@ def _cache(tmp_path_factory):
         yield
 
 
-def hub_beam() -> sp.SpatialModel:
-    """A yaw hub (revolute about z, a torque input) carrying a 2 m beam bending in both planes, with gravity."""
+def hub_beam(gravity: float = -9.81, **beam_numbers) -> sp.SpatialModel:
+    """A yaw hub (revolute about z, a torque input) carrying a 2 m beam bending in both planes, with gravity
+    (``beam_numbers``: more or other keyword arguments of the beam)."""
     hub = sp.SpatialBody("hub", 2.0, np.diag([0.1, 0.1, 0.2]), points={"tip": (0.2, 0.0, 0.0)})
-    beam = sp.SpatialBeam("arm", length=2.0, mass_per_length=0.8, bending_stiffness_y=40.0, bending_stiffness_z=60.0,
-                          n_modes_y=2, n_modes_z=1)
+    numbers = dict(mass_per_length=0.8, bending_stiffness_y=40.0, bending_stiffness_z=60.0, n_modes_y=2, n_modes_z=1)
+    beam = sp.SpatialBeam("arm", length=2.0, **{**numbers, **beam_numbers})
     return sp.SpatialModel("hub_beam", [hub, sp.Revolute(name="yaw", parent=None, child="hub", axis=(0, 0, 1),
                                                          actuated=True),
                                         beam, sp.Weld(name="clamp", parent="hub", child="arm", point="tip")],
-                           gravity=(0.0, 0.0, -9.81))
+                           gravity=(0.0, 0.0, gravity))
 
 
 def assert_round_off(fmu_values, native, name):
@@ -48,13 +51,13 @@ def assert_round_off(fmu_values, native, name):
     assert np.max(np.abs(np.asarray(fmu_values) - native)) < 1e-12 * scale, name
 
 
-def compare(model, path, step, stop, q0, v0, extra, start_values=None, inputs=None):
+def compare(model, path, step, stop, q0, v0, extra, start_values=None, inputs=None, parameters=()):
     exported = ctmm.export_fmu(model, path, step=step, q0=q0, qdot0=v0,
                                outputs=list(model.coordinates) + list(model.velocities) + extra)
     assert validate_fmu(str(exported)) == []
     description = fmpy.read_model_description(str(exported))
     assert [v.name for v in description.modelVariables if v.causality == "parameter"] == \
-        [f"{name}_start" for name in list(model.coordinates) + list(model.velocities)]
+        list(parameters) + [f"{name}_start" for name in list(model.coordinates) + list(model.velocities)]
     out = fmpy.simulate_fmu(str(exported), stop_time=stop, output_interval=10 * step, start_values=start_values or {})
     native = ctmm.simulate(model, stop, step, x0=q0, v0=v0, inputs=inputs, method="rk4")
     rows = np.searchsorted(native.time, out["time"] - 1e-12)
@@ -68,10 +71,54 @@ def test_a_hub_with_a_spatial_beam_equals_ctmm_simulate(tmp_path):
     model = hub_beam()
     native = compare(model, tmp_path / "hub_beam.fmu", 1e-3, 0.1, {"arm.qy1": 0.02, "arm.qz1": -0.01},
                      {"yaw.angle_rate": 2.0}, ["arm.position_y", "arm.omega_z"], start_values={"yaw.torque": 0.5},
-                     inputs={"yaw.torque": 0.5})
+                     inputs={"yaw.torque": 0.5}, parameters=["hub.mass", "hub.inertia.xx", "hub.inertia.yy",
+                                                             "hub.inertia.zz", "arm.mass_per_length",
+                                                             "arm.bending_stiffness_y", "arm.bending_stiffness_z",
+                                                             "gravity.z"])
     assert np.ptp(native["arm.qy1"]) > 1e-3 and np.ptp(native["arm.qz1"]) > 1e-3          # it bent
     with pytest.raises(ModelError, match="parameters has the unknown name 'arm.mass'"):
         ctmm.export_fmu(model, tmp_path / "again.fmu", step=1e-3, parameters=["arm.mass"])
+
+
+BEAM_NUMBERS = {"mass_per_length": 0.8, "polar_inertia_per_length": 0.01, "bending_stiffness_y": 40.0,
+                "bending_stiffness_z": 60.0, "torsional_stiffness": 30.0, "axial_stiffness": 4000.0,
+                "damping_ratio": 0.02, "stiffness_damping": 1e-3}
+"""Every number of a modal spatial beam (one mode per direction)."""
+CHANGED = {"mass_per_length": 1.1, "polar_inertia_per_length": 0.015, "bending_stiffness_y": 55.0,
+           "bending_stiffness_z": 45.0, "torsional_stiffness": 20.0, "axial_stiffness": 3000.0,
+           "damping_ratio": 0.05, "stiffness_damping": 2e-3}
+
+
+def test_the_beam_numbers_are_parameters_and_a_changed_one_equals_the_rebuilt_model(tmp_path):
+    """Every beam number is an FMU parameter (name, unit and start value of ctmm.parameter_names); the FMU with
+    all of them and gravity changed equals ctmm.simulate(compiled=True) of the model built with those numbers."""
+    modes = dict(n_modes_y=1, n_modes_z=1, n_torsion_modes=1, n_axial_modes=1)
+    model = hub_beam(**BEAM_NUMBERS, **modes)
+    q0, v0, inputs = {"arm.qy1": 0.02, "arm.twist1": 0.01}, {"yaw.angle_rate": 2.0}, {"yaw.torque": 0.5}
+    path = ctmm.export_fmu(model, tmp_path / "beam_numbers.fmu", step=1e-3, q0=q0, qdot0=v0)
+    assert validate_fmu(str(path)) == []
+    description = fmpy.read_model_description(str(path))
+    declared = {v.name: v for v in description.modelVariables
+                if v.causality == "parameter" and not v.name.endswith("_start")}
+    names = ctmm.parameter_names(model)
+    assert list(declared) == list(names)
+    assert {f"arm.{number}" for number in BEAM_NUMBERS} <= set(names)
+    for name, (unit, value) in names.items():
+        assert float(declared[name].start) == value, name
+        assert (declared[name].unit or "-") == unit, name                  # damping_ratio: dimensionless
+        assert f"[{unit}]" in declared[name].description, name
+    changed = {f"arm.{number}": value for number, value in CHANGED.items()} | {"gravity.z": -7.0}
+    out = fmpy.simulate_fmu(str(path), stop_time=0.05, output_interval=0.01, start_values={**changed, **inputs})
+    rebuilt = ctmm.simulate(hub_beam(-7.0, **CHANGED, **modes), 0.05, 1e-3, x0=q0, v0=v0, inputs=inputs,
+                            method="rk4", compiled=True)
+    original = ctmm.simulate(model, 0.05, 1e-3, x0=q0, v0=v0, inputs=inputs, method="rk4", compiled=True)
+    rows = np.searchsorted(rebuilt.time, out["time"] - 1e-12)
+    for name in out.dtype.names[1:]:
+        expected = np.asarray(rebuilt[name])[rows]
+        scale = max(1.0, float(np.max(np.abs(expected))))
+        assert np.max(np.abs(out[name] - expected)) < 1e-10 * scale, name
+    moved = max(np.max(np.abs(out[name] - np.asarray(original[name])[rows])) for name in out.dtype.names[1:])
+    assert moved > 1e-4                                                 # the changed numbers mattered
 
 
 def test_the_spatial_fem_chain_equals_ctmm_simulate(tmp_path):
