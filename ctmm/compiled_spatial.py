@@ -55,7 +55,6 @@ from .results import SimulationResult
 from .segment_fold import fold_segments
 from .signal_results import SignalSystem, signal_result
 from .signals import Constant
-from .spatial.elements import SpatialBody
 from .spatial.body_forms import SpatialScene, child_motion, joint_motion, rigid_body_terms
 from .spatial.frames import constant, cross, quaternion_rate, quaternion_rotation
 from .spatial.integrate import beam_deflection_weights, check_beam_deflection, initial_state, spatial_signals
@@ -66,7 +65,7 @@ from .compiled_spatial_parameters import (SpatialNumbers, parametrised_body_term
                                           unparametrised_refusal)
 
 __all__ = ["SpatialRates", "CompiledSpatialScene", "spatial_compile_refusal", "simulate_spatial_generated",
-           "chain_period", "flexible_bodies"]
+           "chain_period"]
 
 FOLD_MIN_BODIES = 100
 """Foldable models (:func:`chain_period`) with at least this many bodies are compiled through the fold
@@ -105,14 +104,6 @@ def spatial_compile_refusal(model: Any) -> str:
                 "terms evaluate them numerically, so generated code cannot follow them in time); use ctmm.simulate "
                 "without compiled=True")
     return ""
-
-
-def flexible_bodies(model: SpatialModel) -> list[str]:
-    """Names of the bodies of ``model`` that are not rigid :class:`~ctmm.spatial.SpatialBody` (beams,
-    finite-element subsystems): their terms are not :func:`~ctmm.spatial.body_forms.rigid_body_terms`
-    (the spatial FMU keeps their numbers constants; ``numbers="inputs"`` takes beams' numbers too and refuses
-    :func:`~ctmm.compiled_spatial_parameters.unparametrised_bodies`)."""
-    return [body.name for body in model.bodies if not isinstance(body, SpatialBody)]
 
 
 class SpatialRates:
