@@ -1,5 +1,5 @@
 """The shared vector checks of ctmm.validation (``vector``, ``unit_vector``) as the spatial, planar and finite-element
-constructors use them."""
+constructors use them, and the scenario's ``dae_of`` carrying a prismatic cut's roll reference to the independent DAE."""
 from __future__ import annotations
 
 import numpy as np
@@ -10,7 +10,8 @@ from ctmm import validation
 from ctmm.errors import ModelError
 from ctmm.fem import SpatialBeamElement
 from ctmm.planar import RigidBody
-from ctmm.spatial.closed_loops import SpatialCutJoint
+from ctmm.spatial.closed_loops import SpatialCutJoint, SpatialKinematicLoopModel
+from spatial_loop_helpers import dae_of, poses, rod
 
 
 def test_vector_returns_the_components_and_refuses_other_sizes_naming_parameter_value_and_unit():
@@ -57,3 +58,23 @@ def test_constructors_refuse_bad_vectors_through_the_shared_checks(make, words):
     for word in words:
         assert word in str(error.value)
 
+
+def test_dae_of_passes_the_roll_reference_of_a_prismatic_cut():
+    """A sleeve sliding on a swinging rod, its body x kept along the rod's body y (a quarter turn from the default
+    roll reference): the independent DAE's own rows vanish on the state ctmm assembled only with both normals."""
+    tree = sp.SpatialModel("sleeve", [
+        rod("arm", 0.8, 0.6, direction=2),
+        sp.Revolute(name="h1", parent=None, child="arm", axis=(1, 0, 0), rotation=np.diag([1.0, -1.0, -1.0])),
+        sp.SpatialBody("sleeve", 0.3, np.diag([0.003, 0.002, 0.001]), center_of_mass=(0.02, 0.0, 0.0)),
+        sp.Free(name="free", parent=None, child="sleeve")])
+    cut = SpatialCutJoint(name="on_arm", parent="arm", child="sleeve", kind="prismatic", axis=(0, 0, 1),
+                          normal=(1, 0, 0), parent_normal=(0, 1, 0))
+    loop = SpatialKinematicLoopModel(tree, [cut])
+    turned = {"free.qw": 0.0, "free.qx": 0.5 ** 0.5, "free.qy": -0.5 ** 0.5}    # sleeve x along world -y at rest
+    q, v = loop.consistent_state({"h1.angle": 0.4, "free.z": -0.3, **turned}, {"h1.angle_rate": 1.5, "free.vz": 0.2},
+                                 keep=["h1"])
+    assert np.max(np.abs(loop.constraints(q, v)[0])) < 1e-12
+    dae = dae_of(loop)
+    y0 = dae.state(*poses(loop, q, v))
+    phi, J, _ = dae.rows(y0)
+    assert np.max(np.abs(phi)) < 1e-12 and np.max(np.abs(J @ dae.velocities(y0))) < 1e-12
