@@ -54,16 +54,6 @@ def _identity(s: np.ndarray) -> np.ndarray:
     return np.broadcast_to(np.eye(12, dtype=complex), s.shape + (12, 12)).copy()
 
 
-def _vector(name: str, value: Any) -> np.ndarray:
-    try:
-        v = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ModelError(f"{name} must be 3 numbers [m], got {value!r}") from None
-    if v.shape != (3,) or not np.all(np.isfinite(v)):
-        raise ModelError(f"{name} must be 3 finite numbers [m], got {value!r}")
-    return v
-
-
 def _matrix6(name: str, value: Any, *, definite: bool) -> np.ndarray:
     """A symmetric 6 x 6 matrix (6 numbers: its diagonal), positive (semi-)definite."""
     try:
@@ -121,8 +111,8 @@ class SpatialRigidBody(Element):
             raise ModelError(f"{name}: inertia must be positive semi-definite, got eigenvalues "
                              f"{np.linalg.eigvalsh(J).tolist()} kg m^2")
         self.inertia = J
-        self.center_of_mass = _vector(f"{name}: center_of_mass", center_of_mass)
-        self.offset = _vector(f"{name}: offset", offset)
+        self.center_of_mass = validation.vector(f"{name}: center_of_mass", center_of_mass, unit="m")
+        self.offset = validation.vector(f"{name}: offset", offset, unit="m")
         if self.mass == 0.0 and not np.any(J) and not np.any(self.offset):
             raise ModelError(f"{name}: mass, inertia and offset are all zero; give a body or leave it out")
 
@@ -220,10 +210,7 @@ class SpatialHinge(Element):
 
     def __init__(self, name: str, axis: Any, stiffness: float, *, damping: float = 0.0) -> None:
         super().__init__(name)
-        a = _vector(f"{name}: axis", axis)
-        if np.linalg.norm(a) == 0.0:
-            raise ModelError(f"{name}: axis must be a non-zero vector, got {axis!r}")
-        self.axis = a / np.linalg.norm(a)
+        self.axis = validation.unit_vector(f"{name}: axis", axis)
         self.stiffness = validation.nonnegative(f"{name}: stiffness", stiffness)
         self.damping = validation.nonnegative(f"{name}: damping", damping)
         if self.stiffness == 0.0 and self.damping == 0.0:

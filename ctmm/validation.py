@@ -78,6 +78,61 @@ def finite_array(name: str, value: Any, *, ndim: int | None = None) -> np.ndarra
     return array
 
 
+def vector(name: str, value: Any, size: int = 3, *, unit: str = "") -> np.ndarray:
+    """Return ``value`` as a 1-D float array of exactly ``size`` finite numbers or raise :class:`ModelError`.
+
+    For points, offsets, loads and gravity given as plain vectors (booleans refused, as in :func:`finite_array`).
+
+    Parameters
+    ----------
+    name : str
+        The parameter as the message names it (e.g. ``"b: center_of_mass"``).
+    value : Any
+        The value as the user gave it.
+    size : int
+        Number of components (3 in space, 2 in the plane).
+    unit : str
+        Unit shown in the message (e.g. ``"m"``, ``"m/s^2"``); empty for none.
+
+    Returns
+    -------
+    ndarray, shape (size,)
+        The components, in the unit of ``value`` (a new array: later changes to ``value`` do not reach it).
+    """
+    array = finite_array(name, value)
+    if array.shape != (size,):
+        unit_text = f" [{unit}]" if unit else ""
+        raise ModelError(f"{name} must be a {size}-vector ({size} finite numbers){unit_text}, got {_shown(value)} "
+                         f"(shape {array.shape})")
+    return array.copy()
+
+
+def unit_vector(name: str, value: Any, size: int = 3) -> np.ndarray:
+    """Return the direction ``value`` (``size`` finite numbers, not all zero) normalised to length 1, or raise.
+
+    For joint axes, slide directions and orientation hints, which are given at any length and normalised.
+
+    Parameters
+    ----------
+    name : str
+        The parameter as the message names it (e.g. ``"j: axis"``).
+    value : Any
+        The direction as the user gave it (any length > 1e-12, dimensionless).
+    size : int
+        Number of components (3 in space).
+
+    Returns
+    -------
+    ndarray, shape (size,)
+        ``value / |value|``.
+    """
+    array = vector(name, value, size)
+    length = float(np.linalg.norm(array))
+    if length < 1e-12:
+        raise ModelError(f"{name} must be a non-zero {size}-vector (it is normalised), got {_shown(value)}")
+    return array / length
+
+
 def _holds_boolean(value: Any) -> bool:
     """Whether ``value`` is a boolean or holds one (nested lists and tuples, boolean or object arrays)."""
     if isinstance(value, (bool, np.bool_)):

@@ -68,7 +68,8 @@ def start(loop: SpatialKinematicLoopModel) -> tuple[np.ndarray, np.ndarray]:
 
 def dae_of(loop: SpatialKinematicLoopModel, baumgarte: float = 10.0) -> SpatialLoopDAE:
     """The DAE of a loop model of rigid bodies on revolute, universal, spherical and free joints: every tree joint
-    and cut joint as constraint rows, points from the centres of mass (data only: no ctmm.spatial code runs)."""
+    and cut joint (spherical, revolute, universal, prismatic with its roll reference ``normal`` / ``parent_normal``)
+    as constraint rows, points from the centres of mass (data only: no ctmm.spatial code runs)."""
     tree = loop.tree
     names = [b.name for b in tree.bodies]
 
@@ -98,7 +99,8 @@ def dae_of(loop: SpatialKinematicLoopModel, baumgarte: float = 10.0) -> SpatialL
         parent, p_point = local(cut.parent, cut.point)
         child, c_point = local(cut.child, cut.child_point)
         joints.append(DaeJoint(cut.name, {"spherical": "ball"}.get(cut.kind, cut.kind), parent, p_point, child,
-                               c_point, parent_axis=cut.parent_axis, child_axis=cut.axis))
+                               c_point, parent_axis=cut.parent_axis, child_axis=cut.axis,
+                               parent_normal=cut.parent_normal, child_normal=cut.normal))   # None unless prismatic
     return SpatialLoopDAE([DaeBody(b.name, b.mass, b.inertia) for b in tree.bodies], joints, gravity=tree.gravity,
                           baumgarte=baumgarte)
 

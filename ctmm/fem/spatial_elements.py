@@ -114,10 +114,8 @@ class SpatialBeamElement:
                     f"{n}: {attribute} (kappa G A [N], or None for no shear deformation)", getattr(self, attribute)))
         object.__setattr__(self, "axial_force", validation.finite(f"{n}: axial_force", self.axial_force))
         if self.orientation is not None:
-            o = validation.finite_array(f"{n}: orientation", self.orientation)
-            if o.shape != (3,) or not np.linalg.norm(o) > 0:
-                raise ModelError(f"{n}: orientation must be a non-zero direction (x, y, z), got {self.orientation!r}")
-            object.__setattr__(self, "orientation", o / np.linalg.norm(o))
+            object.__setattr__(self, "orientation", validation.unit_vector(f"{n}: orientation (x, y, z)",
+                                                                           self.orientation))
 
 
 @dataclass(frozen=True)

@@ -62,10 +62,8 @@ def translational_law(hinge) -> tuple[float, float]:
 
 
 def _point(name: str, value) -> Vector2:
-    array = validation.finite_array(name, value)
-    if array.shape != (2,):
-        raise ModelError(f"{name} must be a 2-vector (x, y) [m], got {value!r}")
-    return (float(array[0]), float(array[1]))
+    x, y = validation.vector(name, value, 2, unit="m")
+    return (float(x), float(y))
 
 
 @dataclass(frozen=True)

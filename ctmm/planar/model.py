@@ -91,10 +91,7 @@ class PlanarModel:
     def __init__(self, name: str, elements: Sequence[object], *,
                  gravity: Sequence[float] = (0.0, -9.81)) -> None:
         self.name = validation.name("model", name)
-        g = validation.finite_array("gravity", gravity)
-        if g.shape != (2,):
-            raise ModelError(f"gravity must be a 2-vector [m/s^2], got {gravity!r}")
-        self.gravity = g.copy()
+        self.gravity = validation.vector("gravity", gravity, 2, unit="m/s^2")
         self.elements = tuple(elements)
         self._compile()
         family = self.deformable_family   # sweep data of bodies with internal coordinates, built once:

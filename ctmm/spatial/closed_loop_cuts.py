@@ -17,21 +17,6 @@ CUT_KINDS = ("spherical", "revolute", "universal", "prismatic")
 """Kinds of :class:`SpatialCutJoint`."""
 
 
-def _vector(label: str, value: Any) -> np.ndarray:
-    array = validation.finite_array(label, value)
-    if array.shape != (3,):
-        raise ModelError(f"{label} must be 3 finite numbers, got {value!r:.80}")
-    return array.astype(float)
-
-
-def _unit(label: str, value: Any) -> np.ndarray:
-    array = _vector(label, value)
-    norm = float(np.linalg.norm(array))
-    if norm < 1e-12:
-        raise ModelError(f"{label} must be a non-zero 3-vector (it is normalised), got {value!r}")
-    return array / norm
-
-
 @dataclass(frozen=True, kw_only=True)
 class SpatialCutJoint:
     """A smooth joint closing a loop of a spatial tree.
@@ -90,8 +75,9 @@ class SpatialCutJoint:
                                  f"{self.parent!r}, got {self.point!r}")
             object.__setattr__(self, "point", point)
         else:
-            object.__setattr__(self, "point", _vector(f"cut joint {self.name!r}: point (ground location)",
-                                                      (0.0, 0.0, 0.0) if self.point is None else self.point))
+            point = (0.0, 0.0, 0.0) if self.point is None else self.point
+            object.__setattr__(self, "point", validation.vector(f"cut joint {self.name!r}: point (ground location)",
+                                                                point, unit="m"))
         validation.name(f"cut joint {self.name!r}: child", self.child)
         if self.parent == self.child:
             raise ModelError(f"cut joint {self.name!r}: parent and child are both {self.child!r}; a cut joint "
@@ -102,10 +88,10 @@ class SpatialCutJoint:
         if self.kind == "universal" and self.parent_axis is None:
             raise ModelError(f"cut joint {self.name!r}: a universal cut needs parent_axis (the parent's cross axis, "
                              "a 3-vector perpendicular to axis in the assembled loop), got None")
-        axis = _unit(f"cut joint {self.name!r}: axis", self.axis)
+        axis = validation.unit_vector(f"cut joint {self.name!r}: axis", self.axis)
         object.__setattr__(self, "axis", axis)
         object.__setattr__(self, "parent_axis", axis.copy() if self.parent_axis is None else
-                           _unit(f"cut joint {self.name!r}: parent_axis", self.parent_axis))
+                           validation.unit_vector(f"cut joint {self.name!r}: parent_axis", self.parent_axis))
         for label, owner in (("normal", "axis"), ("parent_normal", "parent_axis")):
             value = getattr(self, label)
             if self.kind != "prismatic":
@@ -114,8 +100,8 @@ class SpatialCutJoint:
                                      f"{self.kind!r}), got {value!r}")
                 continue
             direction = getattr(self, owner)
-            vector = perpendicular(direction)[0] if value is None else _unit(f"cut joint {self.name!r}: {label}",
-                                                                              value)
+            vector = (perpendicular(direction)[0] if value is None else
+                      validation.unit_vector(f"cut joint {self.name!r}: {label}", value))
             if abs(float(vector @ direction)) > 1e-9:
                 raise ModelError(f"cut joint {self.name!r}: {label} must be perpendicular to {owner} "
                                  f"{direction.tolist()}, got {value!r}")

@@ -48,21 +48,6 @@ __all__ = ["SpatialBody", "Revolute", "Prismatic", "Universal", "Spherical", "Fr
            "Load", "JOINT_TYPES"]
 
 
-def _vector(label: str, value: Any, size: int = 3) -> np.ndarray:
-    array = validation.finite_array(label, value)
-    if array.shape != (size,):
-        raise ModelError(f"{label} must be {size} finite numbers, got {value!r} (shape {array.shape})")
-    return array
-
-
-def _axis(label: str, value: Any) -> np.ndarray:
-    axis = _vector(label, value)
-    norm = float(np.linalg.norm(axis))
-    if norm < 1e-12:
-        raise ModelError(f"{label} must be a non-zero 3-vector (it is normalised), got {value!r}")
-    return axis / norm
-
-
 def _rotation(label: str, value: Any) -> np.ndarray:
     if value is None:
         return np.eye(3)
@@ -159,14 +144,15 @@ class SpatialBody:
             raise ModelError(f"{self.name}: inertia principal moments {moments.tolist()} violate the triangle "
                              "inequality (largest <= sum of the other two) of a physical body")
         object.__setattr__(self, "inertia", inertia)
-        object.__setattr__(self, "center_of_mass", _vector(f"{self.name}: center_of_mass", self.center_of_mass))
+        object.__setattr__(self, "center_of_mass", validation.vector(f"{self.name}: center_of_mass",
+                                                                     self.center_of_mass, unit="m"))
         if not hasattr(self.points, "items"):
             raise ModelError(f"{self.name}: points must be a mapping of point name to (3,) body coordinates, "
                              f"got {self.points!r}")
         points = {"origin": np.zeros(3)}
         for key, value in self.points.items():
             validation.name(f"{self.name}: points key {key!r}:", key)
-            points[key] = _vector(f"{self.name}: points[{key!r}]", value)
+            points[key] = validation.vector(f"{self.name}: points[{key!r}]", value, unit="m")
             if key == "origin" and np.any(points[key]):
                 raise ModelError(f"{self.name}: points['origin'] is the body origin (its inboard point) and must "
                                  f"be (0, 0, 0), got {list(value)}; name the point differently")
@@ -198,8 +184,8 @@ class _Joint:
                 raise ModelError(f"{self.name}: point must be the name of a point of the parent body "
                                  f"{self.parent!r}, got {self.point!r}")
         else:
-            point = _vector(f"{self.name}: point (ground location)", (0.0, 0.0, 0.0) if self.point is None
-                            else self.point)
+            point = validation.vector(f"{self.name}: point (ground location)",
+                                      (0.0, 0.0, 0.0) if self.point is None else self.point, unit="m")
         object.__setattr__(self, "point", point)
         validation.name(f"{self.name}: child", self.child)
         object.__setattr__(self, "rotation", _rotation(f"{self.name}: rotation", self.rotation))
@@ -292,7 +278,7 @@ class Revolute(_Lawful):
     kind = "revolute"
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "axis", _axis(f"{getattr(self, 'name', '?')}: axis", self.axis))
+        object.__setattr__(self, "axis", validation.unit_vector(f"{getattr(self, 'name', '?')}: axis", self.axis))
         super().__post_init__()
 
 
@@ -307,7 +293,7 @@ class Prismatic(_Lawful):
     input_kind = "force"
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "axis", _axis(f"{getattr(self, 'name', '?')}: axis", self.axis))
+        object.__setattr__(self, "axis", validation.unit_vector(f"{getattr(self, 'name', '?')}: axis", self.axis))
         super().__post_init__()
 
 
@@ -323,8 +309,8 @@ class Universal(_Lawful):
 
     def __post_init__(self) -> None:
         label = getattr(self, "name", "?")
-        object.__setattr__(self, "axis1", _axis(f"{label}: axis1", self.axis1))
-        object.__setattr__(self, "axis2", _axis(f"{label}: axis2", self.axis2))
+        object.__setattr__(self, "axis1", validation.unit_vector(f"{label}: axis1", self.axis1))
+        object.__setattr__(self, "axis2", validation.unit_vector(f"{label}: axis2", self.axis2))
         if np.linalg.norm(np.cross(self.axis1, self.axis2)) < 1e-6:
             raise ModelError(f"{label}: axis1 {self.axis1.tolist()} and axis2 {self.axis2.tolist()} must not be "
                              "parallel")

@@ -64,10 +64,7 @@ class SpatialModel:
 
     def __init__(self, name: str, elements: Sequence[object], *, gravity: Sequence[float] = (0.0, 0.0, -9.81)):
         self.name = validation.name("model", name)
-        gravity = validation.finite_array("gravity", gravity)
-        if gravity.shape != (3,):
-            raise ModelError(f"gravity must be 3 numbers (world axes) [m/s^2], got {gravity.tolist()}")
-        self.gravity = gravity
+        self.gravity = validation.vector("gravity", gravity, unit="m/s^2")   # world axes
         if not isinstance(elements, (list, tuple)):
             raise ModelError(f"{self.name}: elements must be a list of SpatialBody, SpatialBeam, joints and Load, "
                              f"got {elements!r:.80}")
