@@ -17,6 +17,7 @@ import scipy.integrate
 
 from . import validation
 from .errors import SimulationError
+from .ode import rk4_step
 
 __all__ = ["SOLVE_IVP_METHODS", "integrate_loop_model"]
 
@@ -85,13 +86,9 @@ def integrate_loop_model(rate: Callable[[float, np.ndarray], np.ndarray], y0: np
         for k in range(1, steps + 1):
             t = (k - 1) * h
             try:
-                k1 = rate(t, y)
-                k2 = rate(t + h / 2, y + h / 2 * k1)
-                k3 = rate(t + h / 2, y + h / 2 * k2)
-                k4 = rate(t + h, y + h * k3)
+                y = rk4_step(rate, t, y, h)
             except SimulationError as exc:
                 raise SimulationError(str(exc), time=t, element=element, partial_result=partial()) from exc
-            y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
             if not np.all(np.isfinite(y)):
                 raise SimulationError(f"{label}: non-finite state at t = {k * h} s", time=k * h, element=element,
                                       partial_result=partial())

@@ -15,6 +15,7 @@ import numpy as np
 
 from .. import validation
 from ..errors import ModelError, SimulationError, unknown_name
+from ..ode import rk4_step
 from ..results import SimulationResult
 from ..signal_results import SignalSystem, signal_result
 from .body_forms import SpatialScene
@@ -279,14 +280,10 @@ def simulate_spatial(model: SpatialModel, t_final: float, dt: float | None, *, m
         for step in range(n):
             t = step * dt
             try:
-                k1 = rates(t, x)
-                k2 = rates(t + dt / 2, x + dt / 2 * k1)
-                k3 = rates(t + dt / 2, x + dt / 2 * k2)
-                k4 = rates(t + dt, x + dt * k3)
+                x = rk4_step(rates, t, x, dt)
             except SimulationError as exc:
                 raise SimulationError(f"{exc} (RK4 step from t = {t} s)", time=t, element=exc.element or model.name,
                                       partial_result=state_result(model, times, states, method, info)) from exc
-            x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
             check(t + dt, x, method, lambda: state_result(model, times, states, method, info))
             if (step + 1) % store_every == 0 or step == n - 1:
                 times.append((step + 1) * dt)
