@@ -264,12 +264,8 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
             held_rows.append(held_now())
         state, k = first, 0
         while k < n_steps:
-            following = min(min((k // r + 1) * r for r in master.ratios), n_steps)
-            held = np.zeros(len(scene.actuators))
-            for c, values in zip(master.controllers, master.held):
-                for name, value in zip(c.outputs, values):
-                    held[index[name]] += value
-            block = scene.continue_run(state, held, dt, following - k, k)
+            following = _next_sample(master, k, n_steps)
+            block = scene.continue_run(state, _held_inputs(master, index), dt, following - k, k)
             intervals += 1
             bad = first_bad(block, k)
             for j, row in enumerate(block):
@@ -439,11 +435,7 @@ def simulate_cosimulated_scheme(system: Any, t_final: float, dt: float | None, s
     def sample(step: int, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Sample the controllers due at ``step``; the held vector of :attr:`compiled.actuators` after it."""
         master.sample(step, step * dt, lambda i: np.asarray(ports.values(sensors[i], q, v, step * dt), dtype=float))
-        held = np.zeros(len(index))
-        for c, values in zip(master.controllers, master.held):
-            for name, value in zip(c.outputs, values):
-                held[index[name]] += float(value)
-        return held
+        return _held_inputs(master, index)
 
     guard = plant.guard(q0, divergence_bound)
     bar = progress_bar(n_steps, f"ctmm.simulate ({plant.label}, {label})",
@@ -456,7 +448,7 @@ def simulate_cosimulated_scheme(system: Any, t_final: float, dt: float | None, s
         held_rows.append(dict(zip(compiled.actuators, held)))
         k = 0
         while k < n_steps:
-            following = min(min((k // r + 1) * r for r in master.ratios), n_steps)
+            following = _next_sample(master, k, n_steps)
             block = compiled.continue_run(state, held, following - k, k)
             intervals += 1
             applied = dict(zip(compiled.actuators, held))
@@ -480,3 +472,19 @@ def simulate_cosimulated_scheme(system: Any, t_final: float, dt: float | None, s
         bar.close()
         master.close()
     return result(len(times))
+
+
+def _next_sample(master: CoSimulation, step: int, n_steps: int) -> int:
+    """The first step after ``step`` at which a controller of ``master`` is due (at most ``n_steps``): where the
+    generated interval that starts at ``step`` ends."""
+    return min(min((step // ratio + 1) * ratio for ratio in master.ratios), n_steps)
+
+
+def _held_inputs(master: CoSimulation, index: Mapping[str, int]) -> np.ndarray:
+    """The kernel's actuator inputs from the controllers' held outputs: ``index`` maps an actuator name to its
+    input position; outputs of several controllers on one actuator add, as on the numpy path."""
+    held = np.zeros(len(index))
+    for c, values in zip(master.controllers, master.held):
+        for name, value in zip(c.outputs, values):
+            held[index[name]] += float(value)
+    return held
