@@ -10,6 +10,7 @@ import numpy as np
 
 from .. import validation
 from ..errors import ModelError
+from .elements import parent_point
 
 __all__ = ["SpatialCutJoint", "CUT_KINDS", "CutFrame", "cut_frame", "cross", "perpendicular"]
 
@@ -69,15 +70,7 @@ class SpatialCutJoint:
         validation.option(f"cut joint {self.name!r}: kind", self.kind, CUT_KINDS)
         if self.parent is not None:
             validation.name(f"cut joint {self.name!r}: parent", self.parent)
-            point = "origin" if self.point is None else self.point
-            if not isinstance(point, str):
-                raise ModelError(f"cut joint {self.name!r}: point must be the name of a point of the parent body "
-                                 f"{self.parent!r}, got {self.point!r}")
-            object.__setattr__(self, "point", point)
-        else:
-            point = (0.0, 0.0, 0.0) if self.point is None else self.point
-            object.__setattr__(self, "point", validation.vector(f"cut joint {self.name!r}: point (ground location)",
-                                                                point, unit="m"))
+        object.__setattr__(self, "point", parent_point(f"cut joint {self.name!r}", self.parent, self.point))
         validation.name(f"cut joint {self.name!r}: child", self.child)
         if self.parent == self.child:
             raise ModelError(f"cut joint {self.name!r}: parent and child are both {self.child!r}; a cut joint "

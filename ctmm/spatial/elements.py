@@ -48,6 +48,37 @@ __all__ = ["SpatialBody", "Revolute", "Prismatic", "Universal", "Spherical", "Fr
            "Load", "JOINT_TYPES"]
 
 
+def parent_point(label: str, parent: str | None, point: Any) -> Any:
+    """A connection's point on its parent: the name of a point of the parent body (default ``"origin"``), or at the
+    ground (``parent=None``) a location [m] in world axes (default the world origin).
+
+    Parameters
+    ----------
+    label : str
+        The connection, for messages (e.g. ``"hinge"``, ``"cut joint 'c'"``).
+    parent : str or None
+        The parent body's name, ``None`` for the ground.
+    point : str, array_like or None
+        As given.
+
+    Returns
+    -------
+    str or ndarray (3,)
+        The point's name, or the ground location.
+
+    Raises
+    ------
+    ModelError
+        A non-name on a body, or a ground location that is not 3 finite numbers.
+    """
+    if parent is not None:
+        name = "origin" if point is None else point
+        if not isinstance(name, str):
+            raise ModelError(f"{label}: point must be the name of a point of the parent body {parent!r}, got {point!r}")
+        return name
+    return validation.vector(f"{label}: point (ground location)", (0.0, 0.0, 0.0) if point is None else point, unit="m")
+
+
 def _rotation(label: str, value: Any) -> np.ndarray:
     if value is None:
         return np.eye(3)
@@ -179,14 +210,7 @@ class _Joint:
         object.__setattr__(self, "name", validation.name("joint", self.name))
         if self.parent is not None:
             validation.name(f"{self.name}: parent", self.parent)
-            point = "origin" if self.point is None else self.point
-            if not isinstance(point, str):
-                raise ModelError(f"{self.name}: point must be the name of a point of the parent body "
-                                 f"{self.parent!r}, got {self.point!r}")
-        else:
-            point = validation.vector(f"{self.name}: point (ground location)",
-                                      (0.0, 0.0, 0.0) if self.point is None else self.point, unit="m")
-        object.__setattr__(self, "point", point)
+        object.__setattr__(self, "point", parent_point(self.name, self.parent, self.point))
         validation.name(f"{self.name}: child", self.child)
         object.__setattr__(self, "rotation", _rotation(f"{self.name}: rotation", self.rotation))
 
