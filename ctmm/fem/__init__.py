@@ -14,7 +14,9 @@
   inertia, node spring), :mod:`ctmm.fem.spatial_plate` (rectangular ACM plate with membrane action),
   :mod:`ctmm.fem.spatial_assembly` (:class:`SpatialFiniteElementModel`),
   :mod:`ctmm.fem.spatial_subsystem` (:class:`SpatialSubsystem`, a body of :class:`ctmm.spatial.SpatialModel`
-  with ``d = 6`` boundary points; its terms in :mod:`ctmm.fem.spatial_terms`).
+  with ``d = 6`` boundary points; its terms in :mod:`ctmm.fem.spatial_terms`);
+* flat shells of any shape (``docs/mixed.md`` §7d): :mod:`ctmm.fem.thick_plate` (Mindlin MITC4 quadrilateral),
+  :mod:`ctmm.fem.triangle_plate` (DKT triangle), their shared parts in :mod:`ctmm.fem.flat_shell`.
 
 Derivation and validation: ``docs/mixed.md``.
 """
@@ -27,9 +29,11 @@ from .spatial_assembly import SpatialFiniteElementModel
 from .spatial_elements import SpatialBeamElement, SpatialNodeSpring, SpatialPointMass
 from .spatial_plate import SpatialPlateElement
 from .spatial_subsystem import SpatialInertia, SpatialSubsystem
+from .thick_plate import SpatialThickPlateElement
+from .triangle_plate import SpatialTrianglePlateElement
 
 __all__ = ["FiniteElementModel", "BeamElement", "MembraneElement", "PointMass", "NodeSpring", "beam_local_matrices", "GlobalSubsystem",
            "FloatingInertia", "SubsystemFamily", "SmallDeformationWarning", "subsystem_energy",
            "SpatialFiniteElementModel", "SpatialBeamElement", "SpatialPointMass", "SpatialNodeSpring", "SpatialInertia",
            "SpatialPlateElement",
-           "SpatialSubsystem"]
+           "SpatialSubsystem", "SpatialThickPlateElement", "SpatialTrianglePlateElement"]

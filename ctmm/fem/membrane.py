@@ -23,7 +23,7 @@ import numpy as np
 from .. import validation
 from ..errors import ModelError
 
-__all__ = ["MembraneElement", "membrane_matrices", "membrane_shape_points"]
+__all__ = ["MembraneElement", "membrane_matrices", "membrane_shape_points", "bilinear_shape"]
 
 _CORNERS = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
 _G2 = np.polynomial.legendre.leggauss(2)
@@ -81,7 +81,7 @@ class MembraneElement:
         object.__setattr__(self, "poisson_ratio", nu)
 
 
-def _shape(xi: float, eta: float) -> tuple[np.ndarray, np.ndarray]:
+def bilinear_shape(xi: float, eta: float) -> tuple[np.ndarray, np.ndarray]:
     """``N`` (4,) and ``dN/d(xi, eta)`` (2, 4) of the bilinear quadrilateral."""
     n = 0.25 * (1 + _CORNERS[:, 0] * xi) * (1 + _CORNERS[:, 1] * eta)
     d = 0.25 * np.array([_CORNERS[:, 0] * (1 + _CORNERS[:, 1] * eta), _CORNERS[:, 1] * (1 + _CORNERS[:, 0] * xi)])
@@ -115,7 +115,7 @@ def membrane_matrices(element: MembraneElement, corners: np.ndarray, owner: str 
     label = f"{owner}: {element.name}" if owner else element.name
     for xi, wx in zip(*_G2):
         for eta, wy in zip(*_G2):
-            _, d = _shape(xi, eta)
+            _, d = bilinear_shape(xi, eta)
             det, jac = _jacobian(corners, d, label)
             dxy = np.linalg.solve(jac, d)                         # (2, 4): dN/d(x, y)
             B = np.zeros((3, 8))
@@ -134,7 +134,7 @@ def membrane_shape_points(corners: np.ndarray, owner: str = "") -> tuple[np.ndar
     points, weights, shapes = [], [], []
     for xi, wx in zip(*_G3):
         for eta, wy in zip(*_G3):
-            n, d = _shape(xi, eta)
+            n, d = bilinear_shape(xi, eta)
             det, _ = _jacobian(corners, d, owner)
             S = np.zeros((2, 8))
             S[0, 0::2], S[1, 1::2] = n, n

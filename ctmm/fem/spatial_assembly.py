@@ -1,7 +1,8 @@
 """Assembly of spatial finite elements with named nodes into global matrices and a spatial subsystem.
 
 :class:`SpatialFiniteElementModel` numbers the DOFs (per node ``u_x, u_y, u_z`` and, where a beam
-touches it or it is a plate corner, ``r_x, r_y, r_z``), assembles ``M`` (translational and rotary), ``K`` (elastic plus
+touches it or it is a plate corner, ``r_x, r_y, r_z``; thick and triangular plates: their model-axes parts from
+:mod:`ctmm.fem.thick_plate` and :mod:`ctmm.fem.triangle_plate`), assembles ``M`` (translational and rotary), ``K`` (elastic plus
 geometric) and ``C`` (dampers plus Rayleigh ``a M + b K``), and integrates the floating-frame inertia
 integrals of :class:`~ctmm.fem.SpatialInertia` by five-point Gauss quadrature of the element shape
 functions (exact: polynomials of degree <= 6).  :meth:`SpatialFiniteElementModel.subsystem` turns it
@@ -23,12 +24,16 @@ from .spatial_elements import (GAUSS_POINTS, GAUSS_WEIGHTS, SpatialBeamElement, 
 from .spatial_plate import (PLATE_GAUSS_POINTS, PLATE_GAUSS_WEIGHTS, SpatialPlateElement, plate_axes,
                             plate_drilling_inertia, plate_local_matrices, plate_rotation_block, plate_shapes)
 from .spatial_subsystem import SpatialInertia, SpatialSubsystem
+from .thick_plate import SpatialThickPlateElement, thick_plate_parts
+from .triangle_plate import SpatialTrianglePlateElement, triangle_plate_parts
 
 __all__ = ["SpatialFiniteElementModel", "spatial_finite_element_subsystem"]
 
+_FLAT_SHELLS = {SpatialThickPlateElement: thick_plate_parts, SpatialTrianglePlateElement: triangle_plate_parts}
+
 
 def _element_nodes(element: Any) -> tuple[str, ...]:
-    if isinstance(element, SpatialPlateElement):
+    if isinstance(element, (SpatialPlateElement, *_FLAT_SHELLS)):
         return element.nodes
     return (element.node,) if isinstance(element, SpatialPointMass) else (element.start, element.end)
 
@@ -55,6 +60,7 @@ class SpatialFiniteElementModel:
         Undeformed node positions [m].
     elements : sequence
         :class:`~ctmm.fem.SpatialBeamElement`, :class:`~ctmm.fem.SpatialPlateElement`,
+        :class:`~ctmm.fem.SpatialThickPlateElement`, :class:`~ctmm.fem.SpatialTrianglePlateElement`,
         :class:`~ctmm.fem.SpatialPointMass`, :class:`~ctmm.fem.SpatialNodeSpring`.
     rayleigh : (float, float)
         Rayleigh damping ``C += a M + b K`` with ``(a [1/s], b [s])``, >= 0; default none.
@@ -72,14 +78,16 @@ class SpatialFiniteElementModel:
                  rayleigh: Sequence[float] = (0.0, 0.0)) -> None:
         self.name = validation.name("model", name)
         self.positions = node_positions(name, nodes, 3)
-        self.elements = checked_elements(name, elements, (SpatialBeamElement, SpatialPlateElement, SpatialPointMass,
-                                                          SpatialNodeSpring),
+        self.elements = checked_elements(name, elements, (SpatialBeamElement, SpatialPlateElement,
+                                                          *_FLAT_SHELLS, SpatialPointMass, SpatialNodeSpring),
                                          _element_nodes, self.positions)
         self.rayleigh = rayleigh_pair(name, rayleigh)
-        rotating = {n for e in self.elements if isinstance(e, (SpatialBeamElement, SpatialPlateElement))
+        rotating = {n for e in self.elements
+                    if isinstance(e, (SpatialBeamElement, SpatialPlateElement, *_FLAT_SHELLS))
                     for n in _element_nodes(e)}
         self.dofs, self.n_dofs = number_dofs(self.positions, rotating, 3, 3)
         check_springs(name, [e for e in self.elements if isinstance(e, SpatialNodeSpring)], self.dofs, self.positions, 6)
+        self._shells: dict[tuple, Any] = {}
         self.mass, self.stiffness, self.damping = self._assemble()
 
     def _beam(self, e: SpatialBeamElement) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
@@ -92,6 +100,16 @@ class SpatialFiniteElementModel:
         idx = np.array([i for node in e.nodes for i in self.dofs[node]])
         a, b, axes = plate_axes(np.array([self.positions[node] for node in e.nodes]), f"{self.name}: {e.name}")
         return idx, a, b, axes, plate_rotation_block(axes)
+
+    def _flat_shell(self, e: Any) -> tuple[np.ndarray, Any]:
+        """DOF indices and :class:`~ctmm.fem.flat_shell.FlatShellParts` of a thick or triangular plate."""
+        idx = np.array([i for node in e.nodes for i in self.dofs[node]])
+        corners = np.array([self.positions[node] for node in e.nodes])
+        key = (type(e), e.thickness, e.youngs_modulus, e.poisson_ratio, e.density, e.drilling_stiffness_ratio,
+               getattr(e, "shear_correction", None), (corners - corners[0]).tobytes())   # a regular mesh: computed once
+        if key not in self._shells:
+            self._shells[key] = _FLAT_SHELLS[type(e)](e, corners, self.name)
+        return idx, self._shells[key]
 
     def _assemble(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         n = self.n_dofs
@@ -113,6 +131,10 @@ class SpatialFiniteElementModel:
                 sub = np.ix_(idx, idx)
                 K[sub] += T.T @ k @ T
                 M[sub] += T.T @ m @ T
+            elif isinstance(e, tuple(_FLAT_SHELLS)):
+                idx, parts = self._flat_shell(e)
+                K[np.ix_(idx, idx)] += parts.stiffness
+                M[np.ix_(idx, idx)] += parts.mass
             elif isinstance(e, SpatialPointMass):
                 dofs = self.dofs[e.node]
                 for i in dofs[:3]:
@@ -170,6 +192,12 @@ class SpatialFiniteElementModel:
                 for node in e.nodes:
                     J_r += drilling
                     R_c[:, list(self.dofs[node][3:])] += drilling
+            elif isinstance(e, tuple(_FLAT_SHELLS)):
+                idx, parts = self._flat_shell(e)
+                X = parts.points + (self.positions[e.nodes[0]] - o)[None, :]
+                _add_mass_points(sums, parts.point_masses, X, parts.shapes, idx)
+                J_r += parts.rotary
+                R_c[:, idx] += parts.rotary_coupling
             elif isinstance(e, SpatialPointMass):
                 dofs = self.dofs[e.node]
                 X = self.positions[e.node] - o
@@ -227,7 +255,8 @@ def spatial_finite_element_subsystem(name: str, nodes: dict, elements: list, bou
     nodes : dict of str to (x, y, z)
         Undeformed node positions [m].
     elements : list
-        ``SpatialBeamElement``, ``SpatialPlateElement``, ``SpatialPointMass``, ``SpatialNodeSpring``.
+        ``SpatialBeamElement``, ``SpatialPlateElement``, ``SpatialThickPlateElement``,
+        ``SpatialTrianglePlateElement``, ``SpatialPointMass``, ``SpatialNodeSpring``.
     boundary : list of str
         Boundary nodes, the inboard one first.
     rayleigh : (float, float)
