@@ -332,7 +332,8 @@ def value_types() -> dict[str, Constructor]:
     out["ParallelLaw"] = constructor("ParallelLaw", parallel_law)
     for module, names in (("ctmm.nonlinear_laws", ("LinearLaw", "CubicSpring", "ClearanceSpring", "PowerDamper")),
                           ("ctmm.fem", ("BeamElement", "PointMass", "NodeSpring", "MembraneElement", "SpatialBeamElement",
-                                        "SpatialPlateElement", "SpatialPointMass", "SpatialNodeSpring")),
+                                        "SpatialPlateElement", "SpatialPointMass", "SpatialNodeSpring",
+                                        "SpatialThickPlateElement", "SpatialTrianglePlateElement")),
                           ("ctmm.planar.closed_loops", ("CutJoint",)),
                           ("ctmm.spatial.closed_loops", ("SpatialCutJoint",))):
         for name in names:

@@ -11,7 +11,7 @@ import pytest
 import ctmm
 import ctmm.spatial as sp
 from ctmm.errors import ModelError
-from ctmm.fem import SpatialFiniteElementModel, SpatialTrianglePlateElement
+from ctmm.fem import SpatialFiniteElementModel, SpatialThickPlateElement, SpatialTrianglePlateElement
 from tests.plate_helpers import (STEEL, bending_frequencies, bending_patch_error, bending_stiffness,
                                  navier_frequencies, plate_model, rigid_motion_energies)
 
@@ -146,3 +146,40 @@ def test_refusals_name_the_problem():
         SpatialFiniteElementModel("bad", {"a": (0, 0, 0), "b": (1, 0, 0), "c": (2, 0, 0)}, [element])
     with pytest.raises(ModelError, match="no area"):
         SpatialFiniteElementModel("bad", {"a": (0, 0, 0), "b": (1, 0, 0), "c": (0, 0, 0)}, [element])
+
+
+def test_scene_file_builds_thick_and_triangular_plates(tmp_path):
+    """``type = "SpatialFiniteElementSubsystem"`` with a thick quadrilateral and a triangle = the Python model."""
+    path = tmp_path / "panel.toml"
+    path.write_text('''
+[system]
+kind = "spatial"
+name = "panel_scene"
+gravity = [0.0, 0.0, 0.0]
+
+[[system.elements]]
+type = "SpatialFiniteElementSubsystem"
+name = "panel"
+nodes = { a = [0.0, 0.0, 0.0], b = [0.3, 0.0, 0.0], c = [0.35, 0.2, 0.0], d = [0.0, 0.2, 0.0], e = [0.5, 0.1, 0.0] }
+elements = [{ type = "SpatialThickPlateElement", name = "q", nodes = ["a", "b", "c", "d"], thickness = 0.02, youngs_modulus = 7e10, poisson_ratio = 0.33, density = 2700.0, shear_correction = 0.8 },
+            { type = "SpatialTrianglePlateElement", name = "t", nodes = ["b", "e", "c"], thickness = 0.003, youngs_modulus = 7e10, poisson_ratio = 0.33, density = 2700.0 }]
+boundary = ["a"]
+
+[[system.elements]]
+type = "Weld"
+name = "clamp"
+child = "panel"
+
+[study]
+verb = "natural_frequencies"
+n_modes = 6
+''')
+    scene = ctmm.scene_files.load_scene(path)
+    nodes = {"a": (0.0, 0.0, 0.0), "b": (0.3, 0.0, 0.0), "c": (0.35, 0.2, 0.0), "d": (0.0, 0.2, 0.0), "e": (0.5, 0.1, 0)}
+    material = dict(youngs_modulus=7e10, poisson_ratio=0.33, density=2700.0)
+    fe = SpatialFiniteElementModel("panel", nodes, [
+        SpatialThickPlateElement("q", ("a", "b", "c", "d"), 0.02, **material, shear_correction=0.8),
+        SpatialTrianglePlateElement("t", ("b", "e", "c"), 0.003, **material)])
+    expected = fe.natural_frequencies(["a"])[:6]
+    assert np.asarray(scene.run()) == pytest.approx(expected, rel=1e-8)
+    assert expected[0] > 1.0
