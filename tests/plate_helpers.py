@@ -127,3 +127,22 @@ def bending_patch_error(fe: SpatialFiniteElementModel, curvature: tuple[float, f
     u = exact.copy()
     u[free] = np.linalg.solve(fe.stiffness[np.ix_(free, free)], -fe.stiffness[np.ix_(free, held)] @ exact[held])
     return float(np.max(np.abs(u[free] - exact[free])) / np.max(np.abs(exact))), float(u @ fe.stiffness @ u / 2)
+
+
+def hinged_frequencies(fe: SpatialFiniteElementModel, node: str, axis: int, count: int) -> tuple[np.ndarray, np.ndarray]:
+    """The elastic frequencies [rad/s] of ``fe`` pinned at ``node`` on a free hinge about model axis ``axis``
+    (0, 1, 2), no gravity, twice: ``ctmm.natural_frequencies`` of the subsystem (floating frame at ``node``) on a
+    ``Revolute``, and ``eigh`` of the assembled matrices with the node's translations and other rotations held
+    (its rotation about ``axis`` free).  The rigid hinge mode (0) is dropped from both."""
+    import ctmm
+    import ctmm.spatial as sp
+
+    model = sp.SpatialModel("hinged", [fe.subsystem("plate", boundary=(node,)),
+                                       sp.Revolute(name="hinge", parent=None, child="plate",
+                                                   axis=tuple(np.eye(3)[axis]))], gravity=(0.0, 0.0, 0.0))
+    omega = ctmm.natural_frequencies(model, n_modes=count + 1)
+    held = [i for k, i in enumerate(fe.dofs[node]) if k != 3 + axis]
+    keep = [i for i in range(fe.n_dofs) if i not in held]
+    values = scipy.linalg.eigh(fe.stiffness[np.ix_(keep, keep)], fe.mass[np.ix_(keep, keep)], eigvals_only=True,
+                               subset_by_index=[0, count])
+    return np.asarray(omega[1:]), np.sqrt(np.abs(values[1:]))

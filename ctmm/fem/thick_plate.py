@@ -91,14 +91,35 @@ class SpatialThickPlateElement(PlateMaterial):
         check_flat_shell(self, 4, "convex quadrilateral", ("shear_correction",))
 
 
-def _jacobian(p: np.ndarray, d: np.ndarray, owner: str) -> tuple[float, np.ndarray]:
-    jac = d @ p
-    det = float(np.linalg.det(jac))
-    if not det > 1e-9 * float(np.sum(p * p)):
-        raise ModelError(f"{owner}: the quadrilateral is degenerate or not convex (det J = {det:.3g} m^2 at a corner "
-                         f"or Gauss point, local corners {p.tolist()}); give four corners of a convex quadrilateral, "
-                         "counter-clockwise about its normal")
-    return det, jac
+def _grid(rule: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Points ``r, s`` and weights of the tensor-product Gauss rule ``rule`` on ``[-1, 1]^2``."""
+    points, weights = rule
+    return np.repeat(points, len(points)), np.tile(points, len(points)), np.outer(weights, weights).ravel()
+
+
+def _shapes(r: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`~ctmm.fem.membrane.bilinear_shape` at many points: ``N`` (P, 4) and ``dN/d(r, s)`` (P, 2, 4)."""
+    values = [bilinear_shape(a, b) for a, b in zip(r, s)]
+    return np.array([v[0] for v in values]), np.array([v[1] for v in values])
+
+
+_STIFFNESS_POINTS = _grid(_G2), _shapes(*_grid(_G2)[:2])
+"""``(r, s, weights)`` and ``(N, dN/d(r, s))`` at the 2 x 2 Gauss points."""
+_MASS_POINTS = _grid(_G3), _shapes(*_grid(_G3)[:2])
+"""The same at the 3 x 3 Gauss points."""
+_CORNER_GRADIENTS = _shapes(_CORNERS[:, 0], _CORNERS[:, 1])[1]
+"""``dN/d(r, s)`` (4, 2, 4) at the corners."""
+
+
+def _determinants(jac: np.ndarray, p: np.ndarray, owner: str) -> np.ndarray:
+    """``det J`` (P,) of the Jacobians ``jac`` (P, 2, 2), else :class:`ModelError` (not positive: degenerate,
+    crossed or non-convex quadrilateral)."""
+    det = np.linalg.det(jac)
+    if not np.all(det > 1e-9 * float(np.sum(p * p))):
+        raise ModelError(f"{owner}: the quadrilateral is degenerate or not convex (det J = {float(np.min(det)):.3g} "
+                         f"m^2 at a corner or Gauss point, local corners {p.tolist()}); give four corners of a convex "
+                         "quadrilateral, counter-clockwise about its normal")
+    return det
 
 
 def _covariant_shear(p: np.ndarray, r: float, s: float) -> np.ndarray:
@@ -118,51 +139,39 @@ def thick_plate_parts(element: SpatialThickPlateElement, corners: np.ndarray, ow
     element order); ``owner`` names it in error messages (module docstring)."""
     label = f"{owner}: {element.name}"
     axes, p = flat_shell_axes(corners, label)
-    for r, s in _CORNERS:                                     # det J > 0 at the corners: convex, counter-clockwise
-        _jacobian(p, bilinear_shape(r, s)[1], label)
+    _determinants(_CORNER_GRADIENTS @ p, p, label)           # > 0 at the corners: convex
     E, nu, h, rho = element.youngs_modulus, element.poisson_ratio, element.thickness, element.density
     Db = element.bending_stiffness * np.array([[1.0, nu, 0.0], [nu, 1.0, 0.0], [0.0, 0.0, (1 - nu) / 2]])
     shear = element.shear_correction * E / (2 * (1 + nu)) * h
     tying_r = _covariant_shear(p, 0.0, 1.0)[0], _covariant_shear(p, 0.0, -1.0)[0]          # A, C
     tying_s = _covariant_shear(p, 1.0, 0.0)[1], _covariant_shear(p, -1.0, 0.0)[1]          # D, B
-    K = np.zeros((24, 24))
-    for r, wr in zip(*_G2):
-        for s, ws in zip(*_G2):
-            n, d = bilinear_shape(r, s)
-            det, jac = _jacobian(p, d, label)
-            dxy = np.linalg.solve(jac, d)                     # dN/d(x', y')
-            Bb = np.zeros((3, 24))
-            Bb[0, 4::6] = dxy[0]                              # psi_x,x
-            Bb[1, 3::6] = -dxy[1]                             # psi_y,y
-            Bb[2, 4::6], Bb[2, 3::6] = dxy[1], -dxy[0]         # psi_x,y + psi_y,x
-            g = np.vstack([(1 + s) / 2 * tying_r[0] + (1 - s) / 2 * tying_r[1],
-                           (1 + r) / 2 * tying_s[0] + (1 - r) / 2 * tying_s[1]])
-            Bs = np.linalg.solve(jac, g)                      # (gamma_xz, gamma_yz)
-            K += wr * ws * det * (Bb.T @ Db @ Bb + shear * Bs.T @ Bs)
+    (r, s, w), (n, d) = _STIFFNESS_POINTS                    # (4, 4), (4, 2, 4) at the 2 x 2 points
+    jac = d @ p                                               # (4, 2, 2)
+    det = _determinants(jac, p, label)
+    dxy = np.linalg.solve(jac, d)                             # dN/d(x', y')
+    Bb = np.zeros((len(r), 3, 24))
+    Bb[:, 0, 4::6] = dxy[:, 0]                                # psi_x,x
+    Bb[:, 1, 3::6] = -dxy[:, 1]                               # psi_y,y
+    Bb[:, 2, 4::6], Bb[:, 2, 3::6] = dxy[:, 1], -dxy[:, 0]    # psi_x,y + psi_y,x
+    g = np.stack([np.outer((1 + s) / 2, tying_r[0]) + np.outer((1 - s) / 2, tying_r[1]),
+                  np.outer((1 + r) / 2, tying_s[0]) + np.outer((1 - r) / 2, tying_s[1])], 1)
+    Bs = np.linalg.solve(jac, g)                              # (gamma_xz, gamma_yz)
+    wd = (w * det)[:, None, None]
+    K = np.einsum("pik,pil->kl", Bb, wd * (Db @ Bb)) + shear * np.einsum("pik,pil->kl", Bs, wd * Bs)
     Km, _ = membrane_matrices(MembraneElement(element.name, element.nodes, h, E, nu, rho), p, label)
     membrane = [6 * k + j for k in range(4) for j in (0, 1)]
     K[np.ix_(membrane, membrane)] += Km
-    gradients = []
-    for r, s in _CORNERS:
-        _, d = bilinear_shape(r, s)
-        gradients.append(np.linalg.solve(d @ p, d))
-    points, weights, shapes, rotations = [], [], [], []
-    for r, wr in zip(*_G3):
-        for s, ws in zip(*_G3):
-            n, d = bilinear_shape(r, s)
-            det, _ = _jacobian(p, d, label)
-            S, R = np.zeros((3, 24)), np.zeros((3, 24))
-            for j in range(3):
-                S[j, j::6] = n
-            R[0, 3::6], R[1, 4::6] = n, n                      # section rotations (r_x, r_y), local
-            points.append(n @ p)
-            weights.append(wr * ws * det)
-            shapes.append(S)
-            rotations.append(R)
-    weights, shapes, rotations, points = np.array(weights), np.array(shapes), np.array(rotations), np.array(points)
+    d = _CORNER_GRADIENTS
+    gradients = list(np.linalg.solve(d @ p, d))
+    (r, s, w), (n, d) = _MASS_POINTS
+    weights, points = w * _determinants(d @ p, p, label), n @ p
+    shapes, rotations = np.zeros((len(r), 3, 24)), np.zeros((len(r), 3, 24))
+    for j in range(3):
+        shapes[:, j, j::6] = n
+    rotations[:, 0, 3::6], rotations[:, 1, 4::6] = n, n       # section rotations (r_x, r_y), local
     section = rho * h ** 3 / 12 * np.array([1.0, 1.0, 0.0])   # per area, about x', y', z' [kg]
-    M = rho * h * np.einsum("p,pik,pil->kl", weights, shapes, shapes) \
-        + np.einsum("p,i,pik,pil->kl", weights, section, rotations, rotations)
+    M = rho * h * np.einsum("pik,pil->kl", shapes, weights[:, None, None] * shapes) \
+        + np.einsum("pik,pil->kl", rotations, (weights[:, None] * section)[:, :, None] * rotations)
     area = float(weights.sum())
     centroid = weights @ points / area
     polar = rho * h * float(weights @ np.sum((points - centroid) ** 2, axis=1))
