@@ -18,8 +18,10 @@ with the loads weighted ``(1 - w) s(t_n) + w s(t_n + h)`` (``w`` the scheme's lo
 correction of every node solves ``(C I - cx Ax - A Av) delta = Ax P_dx h + Av P_B h + f_eval - P_D h``:
 a tridiagonal matrix for chains without inerters, factorised once (its LU factors are constants of
 the C, the two substitutions loops in it: ``O(n)`` per step, code size independent of ``n``), or the
-constant inverse for chains whose inerters couple every node.  Houbolt's two Newmark start-up steps are the other branch of a short-circuit
-``if_else`` on the step index.  The step, ``store_every`` strides and blocks of stored states are those
+constant inverse for chains whose inerters couple every node.  A scheme's start-up (Houbolt's two Newmark steps,
+:attr:`~ctmm.schemes.Scheme.start_up_steps`) is the other branch of a short-circuit ``if_else`` on the steps since the
+history (re)started, the last entry of the state: :mod:`ctmm.compiled_cosim` sets it to zero where a held input jumps
+(:meth:`~ctmm.schemes.Scheme.restart`, as the Python path does).  The step, ``store_every`` strides and blocks of stored states are those
 of every generated scene (:mod:`ctmm.generated_loop`); ``dt`` is a constant of the code (the cache key).
 
 Stored: positions and velocities of the scheme; accelerations and forces at the points are those of the
@@ -229,7 +231,10 @@ class CompiledChainScheme:
     scheme : Scheme
     loops : list of SchemeLoop
     state_size : int
-        ``5 m`` (``[x, v, a, x_{n-1}, x_{n-2}]`` of the ``m`` moving masses), then each loop's memory and ring.
+        ``5 m`` (``[x, v, a, x_{n-1}, x_{n-2}]`` of the ``m`` moving masses), then each loop's memory and ring, then
+        (a scheme with a start-up) the steps since the history (re)started.
+    start_up_index : int or None
+        Where the state holds the steps since the history (re)started (a scheme with a start-up), else None.
     actuators : tuple of str
         The held inputs ``u``, in order.
     held_columns : ndarray, shape (m, len(actuators))
@@ -284,20 +289,25 @@ class CompiledChainScheme:
             self.loops.append(SchemeLoop(loop, float(Cz @ M2) + D, row, float(offset), column, steps, reference,
                                          size, M1, M2, Cz, D, memory))
             size += steps + 1 if steps else 0
-        self.state_size = size
+        start_up = self.scheme.start_up_steps
         maps = [SchemeMaps(self.scheme, self.dt, 0)]
-        later = SchemeMaps(self.scheme, self.dt, 2)
-        if not (np.array_equal(later.coefficients, maps[0].coefficients) and
-                np.array_equal(later.update, maps[0].update)):
-            maps.append(later)                                  # a start-up (Houbolt): steps 0 and 1 differ
+        later = SchemeMaps(self.scheme, self.dt, max(start_up, 2))
+        if start_up:
+            maps.append(later)                                  # a start-up (Houbolt): its first steps differ
+        elif not (np.array_equal(later.coefficients, maps[0].coefficients) and
+                  np.array_equal(later.update, maps[0].update)):
+            raise ModelError(f"scheme {self.scheme!r}: its step depends on the completed steps but it declares no "
+                             "start_up_steps, which the generated DT-TMM step of chains needs (use compiled=False)")
+        self.start_up_index = size if start_up else None
+        self.state_size = size = size + (1 if start_up else 0)
 
         def build() -> tuple[Any, list]:
             y, u, h = ca.MX.sym("y", size), ca.MX.sym("u", len(self.actuators)), ca.MX.sym("h")
             p, t0, k = ca.MX.sym("p", 0), ca.MX.sym("t0"), ca.MX.sym("k")
             branches = [self._step_function(f"step{j}", form, scheme_maps) for j, scheme_maps in enumerate(maps)]
             t_n = t0 + k * self.dt
-            new = branches[0](y, t_n, u) if len(maps) == 1 else ca.if_else(k < 2, branches[0](y, t_n, u),
-                                                                         branches[1](y, t_n, u), True)
+            new = branches[0](y, t_n, u) if len(maps) == 1 else ca.if_else(
+                y[self.start_up_index] < start_up, branches[0](y, t_n, u), branches[1](y, t_n, u), True)
             return ca.Function("step", [y, u, h, p, t0, k], [new]), []
 
         name = f"chain_{m}m_{self.scheme.name}" + (f"_{len(self.loops)}l" if self.loops else "") + (
@@ -397,6 +407,8 @@ class CompiledChainScheme:
             new.append(ca.vertcat(z, e_now, u_now))
             if lp.steps:
                 new.append(ca.vertcat(y[lp.ring + 1:lp.ring + lp.steps + 1], sample))
+        if self.start_up_index is not None:            # one more step since the history (re)started
+            new.append(y[self.start_up_index] + 1.0)
         return ca.Function(label, [y, t_n, u], [ca.vertcat(*new)])
 
     def loop_forces(self, t: float, state: np.ndarray) -> list[float]:
@@ -425,7 +437,8 @@ class CompiledChainScheme:
         """The generated state at ``t = 0``: positions, velocities, the acceleration of the equation of motion
         with the loops' start forces ``u_0 = -D (y_0 - r(-tau))`` and the ``held`` inputs ``{actuator: value}``
         [N], the positions as the older history, each loop's ``[z = 0, e_0 = y_0 - r(0), u_0]`` and ring holding
-        ``y_0`` (the state held before ``t = 0``, as :func:`ctmm.control.simulate.simulate_controlled` starts)."""
+        ``y_0`` (the state held before ``t = 0``, as :func:`ctmm.control.simulate.simulate_controlled` starts), and zero
+        steps since the start (a scheme with a start-up)."""
         q, w = self.plant.start(x0, v0)
         blocks, forces = [], []
         for lp in self.loops:
@@ -436,7 +449,8 @@ class CompiledChainScheme:
             if lp.steps:
                 blocks.append(np.full(lp.steps + 1, y0))
         a = self.dynamics.rate(0.0, np.concatenate([q, w]), self.actuator_inputs(forces, held))[self.m:]
-        return np.concatenate([q, w, a, q, q, *blocks])
+        start_up = [0.0] if self.start_up_index is not None else []
+        return np.concatenate([q, w, a, q, q, *blocks, start_up])
 
     def run(self, state: np.ndarray, n_steps: int) -> np.ndarray:
         """Stored states (rows, :attr:`state_size`) after every ``store_every`` steps and the last."""

@@ -304,12 +304,13 @@ def simulate_cosimulated_scheme(system: Any, t_final: float, dt: float | None, s
 
     The controllers' outputs are the held input ``u`` of the generated step
     (:class:`~ctmm.compiled_chain_schemes.CompiledChainScheme` with ``actuators``): one call into C per sample
-    interval, continued at the interval's step index (Houbolt's start-up, delayed loops' rings and load signals run
-    on).  At each sample instant the master :class:`~ctmm.control.cosim.CoSimulation` calls the controllers exactly
+    interval, continued at the interval's step index (delayed loops' rings and load signals run on; Houbolt's
+    start-up only where a held output jumps).  At each sample instant the master :class:`~ctmm.control.cosim.CoSimulation` calls the controllers exactly
     as the Python DT-TMM path (:func:`ctmm.control.simulate.simulate_controlled`) does: sampled at ``t = 0`` before
     the start acceleration (which includes their outputs), then at the end of each interval from the stored
     positions and velocities, and where a held output jumps the acceleration of the history restarts by
-    ``M^-1 dF`` (the Python path's restart of a lumped chain), so the result equals the Python path's to round-off
+    ``M^-1 dF`` and a multistep scheme's start-up runs again (the Python path's restart of a lumped chain,
+    :meth:`ctmm.schemes.Scheme.restart`), so the result equals the Python path's to round-off
     (``tests/test_compiled_cosim_schemes.py``).
 
     Parameters
@@ -465,6 +466,8 @@ def simulate_cosimulated_scheme(system: Any, t_final: float, dt: float | None, s
                 now = sample(k, state[:m], state[m:2 * m])
                 if lumped and np.any(now != held):      # the history's acceleration restarts: a_n + M^-1 dF
                     state[2 * m:3 * m] += compiled.held_columns @ (now - held)
+                    if compiled.scheme.restart_on_input_jump:   # and a multistep scheme's start-up (Houbolt)
+                        state[compiled.start_up_index] = 0.0
                 held = now
     except SimulationError as exc:
         raise with_partial(exc, lambda: result(len(times))) from exc.__cause__

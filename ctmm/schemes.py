@@ -141,6 +141,27 @@ class Scheme:
 
     name: ClassVar[str] = "scheme"
     order: ClassVar[int] = 2
+    start_up_steps: ClassVar[int] = 0
+    """Steps after a start (``History.steps`` below it) that use the scheme's start-up formulas."""
+
+    @property
+    def restart_on_input_jump(self) -> bool:
+        """Whether the stepper restarts the history (:meth:`restart`) where a held input jumps.
+
+        True for multistep schemes (a start-up, :attr:`start_up_steps` > 0): their differences
+        would span the jump of the acceleration a zero-order-held input makes, which costs one
+        order; the one-step schemes only need the acceleration at the jump restarted.
+        """
+        return self.start_up_steps > 0
+
+    def restart(self, history: History) -> None:
+        """Forget the multistep memory of ``history`` in place: the next steps run the start-up.
+
+        Called at a sample where a held input jumps (after the acceleration ``a_n`` was restarted
+        with the new input): the steps from ``t_n`` then only difference states after the jump.
+        """
+        if self.restart_on_input_jump:
+            history.steps = 0
 
     def coefficients(self, history: History, h: float) -> StepCoefficients:
         """Linearisation coefficients of the next step of size ``h`` [s]."""
@@ -386,14 +407,16 @@ class Houbolt(Scheme):
     """Houbolt three-step backward-difference scheme with a second-order start-up.
 
     The first two steps use the average-acceleration Newmark rule (second order), so the
-    global order stays two.
+    global order stays two.  The start-up runs again after every jump of a held input
+    (:meth:`Scheme.restart`), which keeps sampled-data loops at order two (``docs/schemes.md``).
     """
 
     name: ClassVar[str] = "houbolt"
+    start_up_steps: ClassVar[int] = 2
 
     def coefficients(self, history, h):
         h = _check_step(h)
-        if history.steps < 2:
+        if history.steps < self.start_up_steps:
             return Newmark().coefficients(history, h)
         x1, (x2, x3) = history.x, history.x_old
         # a = 2/h^2 (x - x_pred), v = v_pred + 11/(6h) (x - x_pred): FORMULAS §3.1 rewritten
@@ -403,7 +426,7 @@ class Houbolt(Scheme):
                                 h, 1.0, x_pred)
 
     def update(self, history, delta, h, coeffs):
-        if history.steps < 2:
+        if history.steps < self.start_up_steps:
             return Newmark().update(history, delta, h, coeffs)
         return History(coeffs.x_pred + delta, coeffs.B + coeffs.A * delta, coeffs.C * delta,
                        [history.x, history.x_old[0]], history.steps + 1)

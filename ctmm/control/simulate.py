@@ -342,13 +342,15 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
         by ``a_n + M^-1 dF`` (positions and velocities are continuous; :func:`ctmm.chain_start.
         acceleration_change`: a force on a mass moves its node, a force across a connector both
         neighbours, inerters couple nodes).  Without this restart every switch acts ``dt/2`` late
-        and a sampled loop converges at first order in ``dt`` instead of the scheme's order."""
+        and a sampled loop converges at first order in ``dt`` instead of the scheme's order.  A
+        multistep scheme also restarts its history (:meth:`ctmm.schemes.Scheme.restart`)."""
         now = cosim.forces(t_n, history, _last_f[0])
         if i > 0 and lumped:
             jumps = {pos: now.get(pos, 0.0) - held_before.get(pos, 0.0) for pos in set(now) | set(held_before)}
             jumps = {pos: jump for pos, jump in jumps.items() if jump != 0.0}
             if jumps:
                 history.a += acceleration_change(plant, jumps, inertia)
+                scheme.restart(history)           # Houbolt: its start-up again (docs/schemes.md)
         held_before.clear()
         held_before.update(now)
 

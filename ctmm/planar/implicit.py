@@ -315,8 +315,8 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
         where a stepper samples controllers and appends to a delay history (the inputs of the
         next step may read both).  A true return value says the inputs jumped at ``t`` (new held
         outputs): the acceleration at ``t`` is then solved again with the new inputs and the
-        next step starts from it, as a restart of the run at ``t`` would (the multistep memory
-        of Houbolt is kept).  An exception ends the run as it is (``partial_result`` up to the
+        next step starts from it, as a restart of the run at ``t`` would (Houbolt runs its
+        start-up again, :meth:`ctmm.schemes.Scheme.restart`).  An exception ends the run as it is (``partial_result`` up to the
         previous stored step).
 
     Returns
@@ -419,6 +419,7 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
                 xdd, A, F = restart.qddot.copy(), restart.body_acceleration, restart.joint_force
                 history.a = xdd.copy()
                 history.equation_acceleration = xdd.copy()
+                scheme.restart(history)             # a multistep scheme (Houbolt) starts up again
             if (step + 1) % store_every == 0 or step + 1 == n_steps:
                 ts.append(t1)
                 qs.append(q.copy())

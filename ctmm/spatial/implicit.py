@@ -359,6 +359,7 @@ def simulate_spatial_implicit(model: SpatialModel, t_final: float, dt: float, *,
             exc.partial_result = state_result(model, times, states, method, dict(info, n_evaluations=0))
         raise
     algorithmic, earlier = rates.copy(), [q.copy(), q.copy()]
+    since = 0                                   # steps since the start or the last jump of held inputs
     zero = np.zeros(model.n_velocities)
     check = divergence_check(model, states[0], divergence_bound)
     iterations = np.zeros(n_steps, dtype=int)
@@ -371,13 +372,13 @@ def simulate_spatial_implicit(model: SpatialModel, t_final: float, dt: float, *,
     for step in range(n_steps):
         t1 = (step + 1) * dt
         x_old = [local_coordinates(model, q, earlier[0]), local_coordinates(model, q, earlier[1])] \
-            if step >= 2 else [zero.copy(), zero.copy()]
-        history = History(zero.copy(), v.copy(), algorithmic.copy(), x_old, step, rates.copy())
+            if since >= 2 else [zero.copy(), zero.copy()]
+        history = History(zero.copy(), v.copy(), algorithmic.copy(), x_old, since, rates.copy())
         plan = scheme.second_order_step(history, dt)
         t_eval = (step + plan.time_fraction) * dt
         a = rates.copy()
         residual = np.inf
-        chart = isinstance(scheme, Houbolt) and step >= 2      # velocities are differences of chart positions
+        chart = isinstance(scheme, Houbolt) and since >= 2     # velocities are differences of chart positions
 
         def configuration(acceleration: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             """Increment, configuration and body velocity of the acceleration iterate."""
@@ -454,7 +455,7 @@ def simulate_spatial_implicit(model: SpatialModel, t_final: float, dt: float, *,
                 f"largest at joint {joint!r} ({model.velocities[worst]}); reduce dt", time=t1, element=joint,
                 partial_result=partial())
         new = scheme.second_order_update(history, a, dt, plan)
-        earlier = [q, earlier[0]]
+        earlier, since = [q, earlier[0]], since + 1
         q, v = retract(model, q, new.x), (new.v - 0.5 * bracket(model, new.x, new.v) if chart else new.v)
         algorithmic = new.a
         rates = new.equation_acceleration if new.equation_acceleration is not None else new.a
@@ -464,6 +465,8 @@ def simulate_spatial_implicit(model: SpatialModel, t_final: float, dt: float, *,
             rates = solved(t1, q, v)                  # new held inputs: restart from the acceleration with them
             algorithmic = rates.copy()
             sweeps += 1
+            if scheme.restart_on_input_jump:      # Houbolt starts up again (Scheme.restart)
+                since = 0
         if (step + 1) % store_every == 0 or step + 1 == n_steps:
             times.append(t1)
             states.append(x)
