@@ -29,7 +29,8 @@ axes where they allow it):
 * a **tree** (a body with several children) -> :class:`~ctmm.spatial_beam_trees.SpatialBeamTree`: the
   main path is the base and every body's first child (in model order), every other child starts a
   serial branch condensed onto the main chain at its point (a beam station's marker, or a rigid body's
-  root marker through a massless rigid link to the point); inputs on the main path only.
+  root marker through a massless rigid link to the point); a branch's own further children start its
+  branches, condensed onto it first (any depth); inputs on the main path only.
 
 **Rigid directions.**  A direction of a beam without modes (``n_axial_modes = 0``: inextensible,
 ``n_torsion_modes = 0``: torsionally rigid, ``n_modes_y = 0`` or ``n_modes_z = 0``: rigid in that
@@ -44,7 +45,7 @@ Ports: joint coordinates and rates, body ``omega_x|y|z`` and ``omega_body_x|y|z`
 velocities (world), point forces and moments in world and body axes (about the rest configuration the
 body axes stand still: their turning is second order), beam station sensors.
 
-Refused (:class:`~ctmm.errors.ModelError`, naming the part): several bases, branches of branches,
+Refused (:class:`~ctmm.errors.ModelError`, naming the part): several bases,
 actuators on a branch, a main path that goes on from a beam's mid-span station, prismatic and free joints between bodies and joints free in a direction between bodies (no
 transfer matrix), a spherical joint whose damping and stiffness have different principal axes,
 driven joints, nonlinear laws and joint references, gravity, loads, distributed loads and modal
@@ -162,9 +163,9 @@ def _chain_axes(model: Any) -> np.ndarray:
     return _axis_rotation(axis)
 
 
-def _paths(model: Any) -> tuple[list[int], list[list[int]]]:
-    """The main path (from the base, every body's first child) and the branches (serial paths hung on it) of
-    a spatial model, or a :class:`ModelError` for several bases or a branch of a branch."""
+def _paths(model: Any) -> tuple[list[int], list[tuple]]:
+    """The main path (from the base, every body's first child) and the branches hung on it, each ``(path,
+    its own branches)`` (recursively), of a spatial model, or a :class:`ModelError` for several bases."""
     children: list[list[int]] = [[] for _ in model.bodies]
     bases = [j for j, p in enumerate(model.parent) if p < 0]
     for j, p in enumerate(model.parent):
@@ -179,14 +180,11 @@ def _paths(model: Any) -> tuple[list[int], list[list[int]]]:
             out.append(children[out[-1]][0])
         return out
 
+    def hung(on: list[int]) -> list[tuple]:
+        return [(path(c), hung(path(c))) for j in on for c in children[j][1:]]
+
     main = path(0)
-    branches = [path(c) for j in main for c in children[j][1:]]
-    for branch in branches:
-        nested = [model.bodies[j].name for j in branch if len(children[j]) > 1]
-        if nested:
-            raise _refuse(model, f"bodies {nested} carry a branch of a branch (the spatial beam tree has branches "
-                                 "on the main path only)")
-    return main, branches
+    return main, hung(main)
 
 
 def _snap(rotation: np.ndarray) -> np.ndarray:
@@ -290,28 +288,38 @@ class _Builder:
 
     # -- elements -----------------------------------------------------------------------------
     def build(self) -> SpatialExactForm:
-        from .spatial_beam_elements import SpatialPointLoad, SpatialRigidBody
         from .spatial_beam_trees import SpatialBeamTree
         from .system import Chain
 
         model = self.model
         main, branches = _paths(model)
         self.walk(main, np.eye(3))
-        trunk, hung = self.elements, {}
-        for path in branches:                  # each hangs at a marker of the main chain
+        trunk = self.elements
+        hung = self.hang(trunk, branches)
+        chain = (SpatialBeamTree(f"{model.name}_exact", trunk, hung) if hung
+                 else Chain(f"{model.name}_exact", trunk))
+        return SpatialExactForm(chain, self.Q, self.sensors, self.actuators, self.rigid)
+
+    def hang(self, on: list, branches: Sequence[tuple]) -> dict:
+        """``{marker: elements or (elements, their branches)}`` of ``branches`` hung on the elements ``on``."""
+        from .spatial_beam_elements import SpatialPointLoad, SpatialRigidBody
+
+        model = self.model
+        hung: dict = {}
+        for path, nested in branches:          # each hangs at a marker of the chain it hangs on
             joint = model.joints[path[0]]
             marker, offset = self.points[model.parent[path[0]]][joint.point]
             if marker in hung:                 # a second branch there: a marker of its own just after
                 extra = SpatialPointLoad(f"{marker}__{len(hung)}")
-                trunk.insert(next(k for k, e in enumerate(trunk) if e.name == marker) + 1, extra)
+                on.insert(next(k for k, e in enumerate(on) if e.name == marker) + 1, extra)
                 marker = extra.name
             self.elements = [] if not np.any(offset) else [SpatialRigidBody(f"{joint.name}__link", 0.0,
                                                                             offset=offset)]
             self.walk(path, self.rotations[model.parent[path[0]]])
-            hung[marker] = self.elements
-        chain = (SpatialBeamTree(f"{model.name}_exact", trunk, hung) if hung
-                 else Chain(f"{model.name}_exact", trunk))
-        return SpatialExactForm(chain, self.Q, self.sensors, self.actuators, self.rigid)
+            own = self.elements
+            below = self.hang(own, nested)
+            hung[marker] = (own, below) if below else own
+        return hung
 
     def walk(self, path: Sequence[int], parent_rotation: np.ndarray) -> None:
         """Elements and ports of the serial ``path`` of bodies onto ``self.elements``, ending free."""
