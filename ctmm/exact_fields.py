@@ -454,7 +454,8 @@ def natural_frequencies(system: Any, *, n_modes: int | None = None, omega_max: f
     """Undamped natural frequencies [rad/s] of a planar chain's exact-field form (ascending).
 
     The bending chain of :func:`exact_form` is counted by Wittrick-Williams
-    (:func:`ctmm.natural.natural_frequencies`): no mode is missed.  Loops and damping (hinge
+    (:func:`ctmm.natural.natural_frequencies`): no mode is missed; a statically unstable chain (standing
+    in gravity beyond its toppling or buckling load) is refused by that search.  Loops and damping (hinge
     dampers, Kelvin-Voigt beams) are refused as for chains.
 
     Parameters

@@ -84,6 +84,8 @@ def test_hanging_and_standing_beam_with_tip_mass_equal_the_finite_element_model(
     upright = ctmm.natural_frequencies(beam_with_tip(0.0, bending_stiffness=30.0, root_stiffness=40.0), n_modes=4,
                                       fields="exact")
     assert np.all(standing < upright * (1 - 1e-5))
+    with pytest.raises(ModelError, match="statically unstable"):        # the slender beam buckles standing
+        ctmm.natural_frequencies(beam_with_tip(-G), n_modes=1, fields="exact", operating_point={"q": np.zeros(2)})
 
 
 def test_hanging_beam_tip_receptance_equals_the_finite_element_model():
