@@ -135,8 +135,9 @@ def _check_model(model: Any, operating_point: Any) -> tuple[float, float]:
     modal = np.concatenate([op.q[index] for index in model.modal_index]) if nb else np.zeros(0)
     if (np.max(np.abs(relative[1:]), initial=0.0) > STRAIGHT_TOLERANCE
             or np.max(np.abs(modal), initial=0.0) > STRAIGHT_TOLERANCE):
+        stretch = " (a beam with axial modes stretches under gravity: give n_axial_modes=0)" if axial else ""
         raise _refuse(model, f"the operating point is not straight and undeformed (hinge angles "
-                             f"{np.round(relative, 12).tolist()} rad, modal coordinates {modal.tolist()})")
+                             f"{np.round(relative, 12).tolist()} rad, modal coordinates {modal.tolist()}){stretch}")
     if np.max(np.abs(op.qdot), initial=0.0) > STRAIGHT_TOLERANCE or np.max(np.abs(omega), initial=0.0) > 0.0:
         raise _refuse(model, "the operating point moves (a spin or a driven motion)")
     return float(theta[0]), axial

@@ -148,3 +148,12 @@ def test_a_hanging_or_standing_rigid_double_pendulum_equals_its_lagrange_lineari
 def test_gravity_across_the_chain_is_refused_by_name():
     with pytest.raises(ModelError, match=r"component 0\.5 m/s\^2 transverse.*hanging or standing"):
         ctmm.natural_frequencies(beam_with_tip((G, 0.5)), n_modes=1, fields="exact")
+    from ctmm.flexible import ModalBeam
+    from ctmm.planar import Fixed, PlanarModel
+    from ctmm.planar.elements import FixedMounting
+
+    extensible = ModalBeam("b", length=L, bending_stiffness=EI, mass_per_length=RHOA, n_modes=1, n_axial_modes=1,
+                           axial_stiffness=4000.0)
+    stretched = PlanarModel.chain("stretched", [Fixed("g"), FixedMounting("c"), extensible], gravity=(G, 0.0))
+    with pytest.raises(ModelError, match="stretches under gravity"):
+        ctmm.natural_frequencies(stretched, n_modes=1, fields="exact")
