@@ -19,7 +19,7 @@ small rotation); its axial motion decouples at first order.  :func:`exact_form` 
 * the free outboard end -> :class:`~ctmm.elements.bending.BeamFree`;
 * gravity ``g_a`` along the chain (``> 0`` hanging, ``< 0`` standing; :mod:`ctmm.elements.bending_preload`):
   the tension ``T = g_a m_outboard`` makes every beam piece a
-  :class:`~ctmm.elements.bending_preload.VaryingTensionBeamField` (linear ``T(x)``, certified
+  :class:`~ctmm.elements.bending_preload.VaryingTensionBeamField` (linear ``T(x)``, error-controlled
   sixth-order Magnus field) and adds after each rigid segment a
   :class:`~ctmm.elements.bending_preload.GeometricMoment` ``k_g = T_out l + m g_a a`` (the
   pendulum terms of the linearisation); a standing chain needs its straight ``operating_point``

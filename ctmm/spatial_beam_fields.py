@@ -48,7 +48,7 @@ to chain axes, its local ``x`` is ``rotation[:, 0]``) has ``U = R4 U_local R4^T`
 an unsymmetric section (the section's principal axes are the local ``y``, ``z``).
 
 :class:`SpatialVaryingTensionField`: the same field with a tension varying linearly along it (a beam
-hanging or standing in gravity); its bending planes are certified Magnus fields
+hanging or standing in gravity); its bending planes are error-controlled Magnus fields
 (:mod:`ctmm.elements.bending_preload`), checked against an ODE integration of ``A(x, s)``
 (``tests/test_spatial_exact_gravity.py``).
 
@@ -381,10 +381,10 @@ class SpatialVaryingTensionField(SpatialBeamField):
 
     The preload of a beam hanging or standing in gravity along its axis.  The axial and torsional
     bars are those of :class:`SpatialBeamField`; each bending plane is a
-    :class:`~ctmm.elements.bending_preload.VaryingTensionBeamField` (certified sixth-order Magnus
+    :class:`~ctmm.elements.bending_preload.VaryingTensionBeamField` (error-controlled sixth-order Magnus
     field, its own clamped count).  Parameters as :class:`SpatialBeamField` but ``axial_force``
     (``loss_factor``, ``viscous_damping`` and ``torsional_damping`` are not offered); ``tolerance``: the
-    planes' certified relative error.
+    planes' estimated relative error.
     """
 
     def __init__(self, name: str, length: float, *, inboard_tension: float, outboard_tension: float,

@@ -17,11 +17,13 @@ fields in gravity):
   alpha_1, alpha_2 + C_2] / 240`` (its leading terms are the fourth-order ``h A(x_m) - (T' h^3 /
   12) [A_0, B]``).
   ``expm(Omega)`` stays in the symplectic group (reciprocity is kept to round-off).  Every field
-  matrix is **certified**: it is computed with ``m`` and ``2 m`` sub-steps and the difference of
+  matrix is **error-controlled**: it is computed with ``m`` and ``2 m`` sub-steps and the difference of
   the dimensionless matrices ``D^-1 U D`` (``D = diag(L, 1, EI/L^2, EI/L)``), divided by 63 (the
   sixth-order Richardson estimate of the finer one's error), must be at most ``tolerance``
   times ``max(1, |D^-1 U D|)``; ``m`` doubles up to :data:`MAX_SUB_STEPS`, beyond which a
-  :class:`~ctmm.errors.ModelError` names the piece (split it).  The finer matrix is returned.
+  :class:`~ctmm.errors.ModelError` names the piece (split it).  The finer matrix is returned.  The
+  estimate is asymptotic (the ratio 64 per halving is observed from the first doubling on: 3.9e-5,
+  6.5e-7, 1.0e-8, 1.6e-10 for 3-6-12-24-48 sub-steps of a heavy piece), not a rigorous bound.
 * :class:`GeometricMoment` -- the preload's moment on a rigid segment, a grounded rotational
   stiffness ``moment_out = moment_in - k_g theta`` of either sign placed after
   :class:`~ctmm.elements.bending_bodies.RigidSegment` (``theta`` is constant along it).  For a
@@ -50,7 +52,7 @@ from .bending import identity_matrices, laplace_array
 
 __all__ = ["VaryingTensionBeamField", "GeometricMoment", "DEFAULT_TOLERANCE", "MAX_SUB_STEPS"]
 
-#: Largest certified relative error of a field matrix (dimensionless entries) by default.
+#: Largest estimated relative error of a field matrix (dimensionless entries) by default.
 DEFAULT_TOLERANCE = 1e-11
 #: Most Magnus sub-steps per field before the piece is refused.
 MAX_SUB_STEPS = 512
@@ -77,7 +79,7 @@ class VaryingTensionBeamField(Element):
     kelvin_voigt_time : float, optional
         Strain-rate damping time ``tau >= 0`` [s]: ``EI* = EI (1 + tau s)``.
     tolerance : float, optional
-        Largest certified relative error of the field matrix (default :data:`DEFAULT_TOLERANCE`).
+        Largest estimated relative error of the field matrix (default :data:`DEFAULT_TOLERANCE`).
     """
 
     layout = BENDING
