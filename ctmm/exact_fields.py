@@ -1,7 +1,7 @@
 """Exact-field frequency form of a straight planar chain with beams (``fields="exact"``).
 
-About a straight, unloaded rest configuration (no gravity, no spin, every hinge at zero
-relative angle, beams undeformed) a serial planar chain vibrates transversely as a bending
+About a straight rest configuration (no loads, no spin, every hinge at zero relative angle,
+beams undeformed; gravity only along the chain) a serial planar chain vibrates transversely as a bending
 chain (layout :data:`~ctmm.layouts.BENDING`, ``w`` transverse to the chain, ``theta`` the
 small rotation); its axial motion decouples at first order.  :func:`exact_form` converts
 
@@ -17,6 +17,13 @@ small rotation); its axial motion decouples at first order.  :func:`exact_form` 
   (``EI``, ``rhoA``, Kelvin-Voigt ``stiffness_damping``) between its named stations and ends,
   with a :class:`~ctmm.elements.bending.BeamPointLoad` at each (station force and moment inputs);
 * the free outboard end -> :class:`~ctmm.elements.bending.BeamFree`;
+* gravity ``g_a`` along the chain (``> 0`` hanging, ``< 0`` standing; :mod:`ctmm.elements.bending_preload`):
+  the tension ``T = g_a m_outboard`` makes every beam piece a
+  :class:`~ctmm.elements.bending_preload.VaryingTensionBeamField` (linear ``T(x)``, error-controlled
+  sixth-order Magnus field) and adds after each rigid segment a
+  :class:`~ctmm.elements.bending_preload.GeometricMoment` ``k_g = T_out l + m g_a a`` (the
+  pendulum terms of the linearisation); a standing chain needs its straight ``operating_point``
+  (the default equilibrium search starts hanging);
 
 and maps the ports (:mod:`ctmm.planar.ports`) to weighted chain signals and inputs: body
 angles and rates, hinge angles and rates, the transverse point coordinates (``y``/``vy`` of a
@@ -26,7 +33,7 @@ chain along x, ``x``/``vx`` of a chain along y), beam station signals (in the be
 loops are mapped term by term and closed by the chain's extended-state sweep with exact delays.
 
 Refused (:class:`~ctmm.errors.ModelError`): trees and mid-span branches, free or translational
-bases, gravity, loads or modal hooks (preload / no field counterpart), modal damping ratios,
+bases, gravity with a component across the chain (named; the equilibrium is not straight), loads or modal hooks (preload / no field counterpart), modal damping ratios,
 kinked or moving operating points, free hinges between bodies (no transfer matrix), and ports
 without an exact-field counterpart (modal coordinates, axial point coordinates, beam centres
 of mass).
@@ -49,6 +56,8 @@ __all__ = ["ExactForm", "exact_form", "form_response", "frequency_response", "na
 
 #: Largest hinge angle [rad], modal coordinate and rate counted as zero at the operating point.
 STRAIGHT_TOLERANCE = 1e-9
+#: Largest transverse gravity component, relative to ``|g|``, counted as zero.
+GRAVITY_ALIGNMENT = 1e-12
 
 Terms = list[tuple[str, float]]
 
@@ -95,16 +104,15 @@ def _refuse(model: Any, reason: str) -> ModelError:
     return ModelError(f"fields='exact' cannot convert model {model.name!r}: {reason}")
 
 
-def _check_model(model: Any, operating_point: Any) -> float:
-    """The chain direction ``theta_0`` [rad] of a straight, unloaded, resting serial chain."""
+def _check_model(model: Any, operating_point: Any) -> tuple[float, float]:
+    """The chain direction ``theta_0`` [rad] and the axial gravity ``g_a`` [m/s^2] (along the chain,
+    outward) of a straight, resting serial chain loaded at most by gravity along its axis."""
     from .planar.model import BUSHING, FREE
     from .planar_linearization import operating_point as planar_operating_point
 
     nb = model.n_bodies
     if not np.array_equal(model.parent, np.arange(-1, nb - 1)):
         raise _refuse(model, "it is not a serial chain (a tree: a body with several children, or several bases)")
-    if np.any(model.gravity != 0.0):
-        raise _refuse(model, f"gravity = {model.gravity.tolist()} m/s^2 preloads the chain (give gravity=(0, 0))")
     if np.any(model.joint_kind == FREE):
         raise _refuse(model, "its base is free (a floating chain): only a grounded base is supported")
     if np.any(model.joint_kind == BUSHING):
@@ -123,14 +131,29 @@ def _check_model(model: Any, operating_point: Any) -> float:
     op = planar_operating_point(model, operating_point)
     theta, omega = model.body_angles(op.q, op.qdot, op.t)
     relative, _ = model.relative_angles(theta, omega, op.q, op.qdot)
+    axial = _axial_gravity(model, float(theta[0]))
     modal = np.concatenate([op.q[index] for index in model.modal_index]) if nb else np.zeros(0)
     if (np.max(np.abs(relative[1:]), initial=0.0) > STRAIGHT_TOLERANCE
             or np.max(np.abs(modal), initial=0.0) > STRAIGHT_TOLERANCE):
+        stretch = " (a beam with axial modes stretches under gravity: give n_axial_modes=0)" if axial else ""
         raise _refuse(model, f"the operating point is not straight and undeformed (hinge angles "
-                             f"{np.round(relative, 12).tolist()} rad, modal coordinates {modal.tolist()})")
+                             f"{np.round(relative, 12).tolist()} rad, modal coordinates {modal.tolist()}){stretch}")
     if np.max(np.abs(op.qdot), initial=0.0) > STRAIGHT_TOLERANCE or np.max(np.abs(omega), initial=0.0) > 0.0:
         raise _refuse(model, "the operating point moves (a spin or a driven motion)")
-    return float(theta[0])
+    return float(theta[0]), axial
+
+
+def _axial_gravity(model: Any, theta0: float) -> float:
+    """Gravity's component along the chain direction ``theta_0`` [m/s^2], or a refusal if it has a
+    transverse one (the equilibrium would not be straight)."""
+    g = np.asarray(model.gravity, dtype=float)
+    c, s = np.cos(theta0), np.sin(theta0)
+    transverse = float(-s * g[0] + c * g[1])
+    if abs(transverse) > GRAVITY_ALIGNMENT * float(np.linalg.norm(g)):
+        raise _refuse(model, f"gravity = {g.tolist()} m/s^2 has a component {transverse:.6g} m/s^2 transverse to the "
+                             f"straight chain (direction {theta0:.6g} rad): its equilibrium is not straight; only "
+                             "gravity along the chain (hanging or standing) is allowed")
+    return float(c * g[0] + s * g[1])
 
 
 def _check_body_geometry(model: Any, i: int) -> None:
@@ -158,8 +181,12 @@ def _check_beam(model: Any, beam: Any) -> None:
 class _Builder:
     """Walks a checked serial chain and collects the bending elements and the port map."""
 
-    def __init__(self, model: Any, theta0: float) -> None:
+    def __init__(self, model: Any, theta0: float, axial_gravity: float = 0.0) -> None:
         self.model = model
+        self.gravity = axial_gravity
+        masses = np.asarray(model.mass, dtype=float)
+        # mass outboard of each body's child attachment [kg]
+        self.outboard_mass = [float(np.sum(masses[i + 1:])) for i in range(model.n_bodies)]
         self.elements: list = []
         self.sensors: dict[str, Terms] = {}
         self.actuators: dict[str, Terms] = {}
@@ -242,13 +269,30 @@ class _Builder:
             raise _refuse(model, f"body {body!r} carries its child at x = {length} m behind its inboard point")
         self.elements.append(RigidSegment(body, length=length, mass=float(model.mass[i]),
                                           inertia=float(model.inertia[i]), center=points["com"]))
+        preload = self.gravity * (self.outboard_mass[i] * length + float(model.mass[i]) * points["com"])
+        if preload:
+            from .elements.bending_preload import GeometricMoment
+            self.elements.append(GeometricMoment(f"{body}__gravity", preload))
         for part, weight in self.force_weight.items():
             self.actuators[f"{body}.{part}"] = [(f"{body}.force", weight)]
         self.actuators[f"{body}.moment"] = [(f"{body}.moment", 1.0)]
         return f"{body}.theta"
 
-    def beam(self, i: int, body: str, root: str, child_end: str | None) -> str:
+    def field(self, i: int, name: str, start: float, end: float):
+        """The field of beam ``i`` from ``start`` to ``end`` [m]: exact, or with the gravity tension."""
         from .elements.beams import BeamField
+        from .elements.bending_preload import VaryingTensionBeamField
+        beam = self.model.bodies[i]
+        if not self.gravity:
+            return BeamField(name, end - start, beam.bending_stiffness, beam.mass_per_length,
+                             kelvin_voigt_time=beam.stiffness_damping)
+        tension = [self.gravity * (self.outboard_mass[i] + beam.mass_per_length * (beam.length - x))
+                   for x in (start, end)]
+        return VaryingTensionBeamField(name, end - start, beam.bending_stiffness, beam.mass_per_length,
+                                       inboard_tension=tension[0], outboard_tension=tension[1],
+                                       kelvin_voigt_time=beam.stiffness_damping)
+
+    def beam(self, i: int, body: str, root: str, child_end: str | None) -> str:
         model = self.model
         beam = model.bodies[i]
         if child_end is not None and beam.outboard[child_end] < beam.length * (1 - 1e-12):
@@ -262,8 +306,7 @@ class _Builder:
         for x, suffix, label, kind in places:
             if x - position > 1e-12 * beam.length:
                 pieces += 1
-                self.elements.append(BeamField(f"{body}__{pieces}", x - position, beam.bending_stiffness,
-                                               beam.mass_per_length, kelvin_voigt_time=beam.stiffness_damping))
+                self.elements.append(self.field(i, f"{body}__{pieces}", position, x))
                 position = x
             marker = self.marker(f"{body}__{suffix}")
             w = [(f"{marker}.w", 1.0), (f"{root}.w", -1.0), (f"{root}.theta", -x)]
@@ -280,8 +323,7 @@ class _Builder:
             self.actuators[f"{body}.{label}.force"] = [(f"{marker}.force", 1.0)]
             self.actuators[f"{body}.{label}.moment"] = [(f"{marker}.moment", 1.0)]
         if beam.length - position > 1e-12 * beam.length:
-            self.elements.append(BeamField(f"{body}__{pieces + 1}", beam.length - position, beam.bending_stiffness,
-                                           beam.mass_per_length, kelvin_voigt_time=beam.stiffness_damping))
+            self.elements.append(self.field(i, f"{body}__{pieces + 1}", position, beam.length))
         for part in ("x", "y", "vx", "vy"):
             self.refused[f"{body}.com.{part}"] = "the centre of mass of a deformed beam is not a chain signal"
         return end_signal
@@ -297,8 +339,8 @@ def exact_form(model: Any, operating_point: Any = None) -> ExactForm:
         As for :func:`ctmm.linearize` (default: the static equilibrium); it must be straight,
         undeformed and at rest.
     """
-    theta0 = _check_model(model, operating_point)
-    return _Builder(model, theta0).build()
+    theta0, axial_gravity = _check_model(model, operating_point)
+    return _Builder(model, theta0, axial_gravity).build()
 
 
 def _expand(terms: Sequence[tuple[str, float]], lookup) -> Terms:
@@ -413,7 +455,8 @@ def natural_frequencies(system: Any, *, n_modes: int | None = None, omega_max: f
     """Undamped natural frequencies [rad/s] of a planar chain's exact-field form (ascending).
 
     The bending chain of :func:`exact_form` is counted by Wittrick-Williams
-    (:func:`ctmm.natural.natural_frequencies`): no mode is missed.  Loops and damping (hinge
+    (:func:`ctmm.natural.natural_frequencies`): no mode is missed; a statically unstable chain (standing
+    in gravity beyond its toppling or buckling load) is refused by that search.  Loops and damping (hinge
     dampers, Kelvin-Voigt beams) are refused as for chains.
 
     Parameters

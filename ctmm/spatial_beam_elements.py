@@ -19,6 +19,10 @@ outboard part (:mod:`ctmm.spatial_beam_fields`).  ``skew(r) x = r x x``.
 * :class:`SpatialGroundSpring` -- 6-DOF spring / damper from a point to the ground,
   ``F_out = F_in - (K + s C) d``: elastic supports anywhere, and the **elastic boundary**
   (``SpatialFree`` start or end next to a ``SpatialGroundSpring``).
+* :class:`SpatialGeometricStiffness` -- the rotational stiffness of an axial preload on a rigid body,
+  ``m_out = m_in - k (I - g g^T) theta`` (``g`` the unit preload direction, ``k`` of either sign):
+  constant forces ``F_i g`` at points ``a_i g`` on the body give ``d(r x F) = -(sum a_i F_i)
+  (I - g g^T) theta`` (:mod:`ctmm.spatial_exact_fields`, gravity along the chain).
 * :class:`SpatialPointLoad` -- inputs ``fx, fy, fz, mx, my, mz`` (force and moment on the point,
   chain axes): ``F_out = F_in + load``.
 * Boundaries: :class:`SpatialClamped` (``d = 0``), :class:`SpatialFree` (``F = 0``) and
@@ -40,7 +44,8 @@ from .errors import ModelError
 from .layouts import StateLayout
 from .spatial_beam_fields import SPATIAL_BEAM
 
-__all__ = ["SpatialRigidBody", "SpatialSpring", "SpatialHinge", "SpatialGroundSpring", "SpatialPointLoad",
+__all__ = ["SpatialRigidBody", "SpatialSpring", "SpatialHinge", "SpatialGroundSpring", "SpatialGeometricStiffness",
+           "SpatialPointLoad",
            "SpatialClamped", "SpatialFree", "SpatialSupport", "SpatialPinned", "skew"]
 
 
@@ -250,6 +255,40 @@ class SpatialGroundSpring(_SixDirectionSpring):
         s = laplace_array(s)
         U = _identity(s)
         U[..., 6:12, 0:6] = -self.impedance(s)
+        return U
+
+
+class SpatialGeometricStiffness(Element):
+    """Rotational stiffness of an axial preload on a rigid body (module docstring).
+
+    Parameters
+    ----------
+    name : str
+    stiffness : float
+        ``k`` [N m/rad], any finite sign (negative: a standing, compressed body).
+    direction : array_like (3,)
+        Preload direction ``g`` (chain axes; normalised).
+    """
+
+    layout = SPATIAL_BEAM
+    is_point = True
+
+    def __init__(self, name: str, stiffness: float, direction: Any) -> None:
+        super().__init__(name)
+        self.stiffness = validation.finite(f"{name}: stiffness", stiffness)
+        g = np.asarray(direction, dtype=float)
+        if g.shape != (3,) or not np.all(np.isfinite(g)) or not np.linalg.norm(g) > 0:
+            raise ModelError(f"{name}: direction must be 3 finite numbers, not all 0, got {direction!r}")
+        self.direction = g / np.linalg.norm(g)
+
+    def parameters(self) -> dict[str, Any]:
+        return {"stiffness": self.stiffness, "direction": self.direction.tolist()}
+
+    def transfer_matrix(self, s: Any) -> np.ndarray:
+        s = laplace_array(s)
+        U = _identity(s)
+        g = self.direction
+        U[..., 9:12, 3:6] = -self.stiffness * (np.eye(3) - np.outer(g, g))
         return U
 
 

@@ -47,6 +47,11 @@ to chain axes, its local ``x`` is ``rotation[:, 0]``) has ``U = R4 U_local R4^T`
 (Timoshenko), the tension's effect on torsion (Wagner), warping, the axial-bending coupling of
 an unsymmetric section (the section's principal axes are the local ``y``, ``z``).
 
+:class:`SpatialVaryingTensionField`: the same field with a tension varying linearly along it (a beam
+hanging or standing in gravity); its bending planes are error-controlled Magnus fields
+(:mod:`ctmm.elements.bending_preload`), checked against an ODE integration of ``A(x, s)``
+(``tests/test_spatial_exact_gravity.py``).
+
 ``tests/test_spatial_beam_fields.py`` checks ``U`` against ``scipy.linalg.expm(A L)`` (with tension,
 damping and rotation) and that ``U`` is symplectic (reciprocity).
 """
@@ -62,10 +67,12 @@ from . import validation
 from .elements.base import Element
 from .elements.beams import BeamField
 from .elements.bending import laplace_array
+from .elements.bending_preload import DEFAULT_TOLERANCE, VaryingTensionBeamField
 from .errors import ModelError
 from .layouts import StateLayout
 
-__all__ = ["SPATIAL_BEAM", "SpatialBeamField", "spatial_beam_state_matrix", "rotation_matrix_check",
+__all__ = ["SPATIAL_BEAM", "SpatialBeamField", "SpatialVaryingTensionField", "spatial_beam_state_matrix",
+           "rotation_matrix_check",
            "AXIAL", "TORSION", "BENDING_XY", "BENDING_XZ"]
 
 SPATIAL_BEAM = StateLayout("spatial_beam", ("ux", "uy", "uz", "theta_x", "theta_y", "theta_z"),
@@ -367,3 +374,73 @@ class SpatialBeamField(Element):
         for plane in self._planes:
             count = count + np.asarray(plane.clamped_frequency_count(omega), dtype=np.int64)
         return count
+
+
+class SpatialVaryingTensionField(SpatialBeamField):
+    """A :class:`SpatialBeamField` whose tension varies linearly from ``inboard_tension`` to ``outboard_tension`` [N].
+
+    The preload of a beam hanging or standing in gravity along its axis.  The axial and torsional
+    bars are those of :class:`SpatialBeamField`; each bending plane is a
+    :class:`~ctmm.elements.bending_preload.VaryingTensionBeamField` (error-controlled sixth-order Magnus
+    field, its own clamped count).  Parameters as :class:`SpatialBeamField` but ``axial_force``
+    (``loss_factor``, ``viscous_damping`` and ``torsional_damping`` are not offered); ``tolerance``: the
+    planes' estimated relative error.
+    """
+
+    def __init__(self, name: str, length: float, *, inboard_tension: float, outboard_tension: float,
+                 axial_stiffness: float, torsional_stiffness: float, bending_stiffness_y: float,
+                 bending_stiffness_z: float, mass_per_length: float, polar_inertia_per_length: float,
+                 kelvin_voigt_time: float = 0.0, rotation: Any = None, tolerance: float = DEFAULT_TOLERANCE) -> None:
+        tensions = (validation.finite(f"{name}: inboard_tension", inboard_tension),
+                    validation.finite(f"{name}: outboard_tension", outboard_tension))
+        super().__init__(name, length, axial_stiffness=axial_stiffness, torsional_stiffness=torsional_stiffness,
+                         bending_stiffness_y=bending_stiffness_y, bending_stiffness_z=bending_stiffness_z,
+                         mass_per_length=mass_per_length, polar_inertia_per_length=polar_inertia_per_length,
+                         axial_force=max(tensions, key=abs), kelvin_voigt_time=kelvin_voigt_time, rotation=rotation)
+        self.inboard_tension, self.outboard_tension = tensions
+        self.tolerance = tolerance
+        self._planes = tuple(VaryingTensionBeamField(f"{name}__{plane}", self.length, stiffness, self.mass_per_length,
+                                                     inboard_tension=tensions[0], outboard_tension=tensions[1],
+                                                     kelvin_voigt_time=self.kelvin_voigt_time, tolerance=tolerance)
+                             for plane, stiffness in (("xy", self.bending_stiffness_z),
+                                                      ("xz", self.bending_stiffness_y)))
+
+    def parameters(self) -> dict[str, Any]:
+        out = super().parameters()
+        for key in ("axial_force", "loss_factor", "viscous_damping", "torsional_damping"):
+            del out[key]
+        out.update(inboard_tension=self.inboard_tension, outboard_tension=self.outboard_tension,
+                   tolerance=self.tolerance)
+        return out
+
+    def state_matrix(self, s: complex) -> np.ndarray:
+        """Refused: ``A`` varies along the field (use :meth:`state_matrix_at`)."""
+        raise ModelError(f"{self.name}: the varying-tension field has no single A(s); use state_matrix_at(s, x)")
+
+    def state_matrix_at(self, s: complex, x: float) -> np.ndarray:
+        """``A(s)`` of ``z' = A z`` at ``x`` [m] from the inboard end, chain axes (12 x 12)."""
+        s = complex(s)
+        factor = complex(self.stiffness_factor(s))
+        tension = self.inboard_tension + (self.outboard_tension - self.inboard_tension) * float(x) / self.length
+        A = spatial_beam_state_matrix(
+            s, axial_stiffness=self.axial_stiffness * factor, torsional_stiffness=self.torsional_stiffness * factor,
+            bending_stiffness_y=self.bending_stiffness_y * factor, bending_stiffness_z=self.bending_stiffness_z * factor,
+            mass_per_length=self.mass_per_length, polar_inertia_per_length=self.polar_inertia_per_length,
+            axial_force=tension)
+        R4 = scipy.linalg.block_diag(*([self.rotation] * 4))
+        return R4 @ A @ R4.T
+
+    def split(self, pieces: int) -> tuple["SpatialVaryingTensionField", ...]:
+        """``pieces`` equal segments (tension continued linearly) whose product is this field."""
+        pieces = validation.integer(f"{self.name}: pieces", pieces, minimum=1)
+        edges = np.linspace(self.inboard_tension, self.outboard_tension, pieces + 1)
+        params = self.parameters()
+        params.update(length=self.length / pieces)
+        return tuple(SpatialVaryingTensionField(f"{self.name}_{i + 1}", **{**params, "inboard_tension": float(edges[i]),
+                                                                          "outboard_tension": float(edges[i + 1])})
+                     for i in range(pieces))
+
+    def subdivide(self, omega_max: float) -> list["SpatialVaryingTensionField"]:
+        """Pieces with every wave number ``<= SUBDIVISION_LIMIT`` up to ``omega_max`` [rad/s] (each its own tension)."""
+        pieces = self.pieces_for(omega_max)
+        return [self] if pieces == 1 else list(self.split(pieces))

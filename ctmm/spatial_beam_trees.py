@@ -26,8 +26,15 @@ Near a pole of ``K_b`` (relative singular value of the balanced root block below
 :data:`POLE_LIMIT`) :meth:`SpatialBeamTree.frequency_response` refuses the frequency (the
 condensed stiffness would lose ``eps / ratio``).
 
+Branches of branches.  A branch may carry its own branches (given as ``(elements, {point: ...})``):
+they are condensed onto the branch first, recursively, so the branch's subspace transfer crosses
+their ``K_b`` as point elements, and the branch's clamped count (its ``J0``) is the count of the
+branch with its own branches condensed plus their clamped counts: Wittrick-Williams applied at
+every level.  A branch's states at its sub-branch's point give the sub-branch's attachment
+displacements.
+
 Not supported (:class:`~ctmm.errors.ModelError`): loads on branches (inputs on the main chain
-only), branches of branches, mode shapes, the time domain.  Feedback loops are closed by
+only), mode shapes, the time domain.  Feedback loops are closed by
 :mod:`ctmm.spatial_exact_fields` (a :class:`~ctmm.spatial.model.SpatialModel` tree with ``fields="exact"``)
 on the open-loop block :meth:`SpatialBeamTree.open_loop`.
 """
@@ -71,6 +78,23 @@ def _balance(Us: Sequence[np.ndarray], sweeps: int = 8) -> np.ndarray:
     return np.exp(logd)
 
 
+def _branch_spec(label: str, spec: Any) -> tuple[list, Mapping[str, Any] | None]:
+    """``(elements, branches)`` of a branch given as ``elements`` or ``(elements, {point: ...})``."""
+    if isinstance(spec, tuple) and len(spec) == 2 and isinstance(spec[1], Mapping):
+        return list(spec[0]), spec[1]
+    if isinstance(spec, Mapping) or isinstance(spec, (str, bytes)):
+        raise ModelError(f"{label}: give a sequence of elements or (elements, {{point: branch}}), got {spec!r}")
+    return list(spec), None
+
+
+def _all_branches(branches: Mapping[str, "_BranchStiffness"]) -> list["_BranchStiffness"]:
+    """Every branch of ``branches`` and, recursively, their branches (parents first)."""
+    out = []
+    for stiffness in branches.values():
+        out += [stiffness, *_all_branches(stiffness.branches)]
+    return out
+
+
 class _BranchStiffness(Element):
     """A branch condensed onto its attachment point (built by :class:`SpatialBeamTree` only).
 
@@ -85,13 +109,20 @@ class _BranchStiffness(Element):
     name : str
     elements : sequence of Element
         The branch from the attachment outwards, ending in a boundary.
+    branches : mapping, optional
+        The branch's own branches, ``{point: elements or (elements, branches)}`` as for
+        :class:`SpatialBeamTree` (``point``: an element of this branch, not its end boundary).
+    parent : _BranchStiffness, optional
+        The branch this one hangs on (None: the main chain).
     """
 
     layout = SPATIAL_BEAM
     is_point = True
 
-    def __init__(self, name: str, elements: Sequence[Element]) -> None:
+    def __init__(self, name: str, elements: Sequence[Element], branches: Mapping[str, Any] | None = None,
+                 parent: "_BranchStiffness | None" = None) -> None:
         super().__init__(name)
+        self.parent = parent
         elements = list(elements)
         if not elements or not isinstance(elements[-1], Boundary):
             raise ModelError(f"branch {name!r}: give its elements from the attachment outwards and end it with a "
@@ -99,6 +130,16 @@ class _BranchStiffness(Element):
         if not isinstance(elements[-1], (SpatialClamped, SpatialFree, SpatialSupport)):
             raise ModelError(f"branch {name!r} must end in SpatialFree, SpatialClamped or SpatialSupport, got "
                              f"{type(elements[-1]).__name__} (an elastic end: SpatialFree after a SpatialGroundSpring)")
+        self.branches: dict[str, _BranchStiffness] = {}
+        for point, spec in (branches or {}).items():
+            names = [getattr(e, "name", None) for e in elements]
+            if point not in names[:-1]:
+                raise ModelError(f"branch {name!r}: its branch point {point!r} is not one of its elements (before "
+                                 f"the end boundary); available: {names[:-1]}")
+            own, nested = _branch_spec(f"{name}: branch {point!r}", spec)
+            stiffness = _BranchStiffness(f"{point}__branch", own, nested, parent=self)
+            elements.insert(names.index(point) + 1, stiffness)
+            self.branches[point] = stiffness
         self.clamped = Chain(name, [SpatialClamped(f"{name}__attachment"), *elements])
         if self.clamped.layout is not SPATIAL_BEAM:
             raise ModelError(f"branch {name!r} must be made of spatial beam elements (layout {SPATIAL_BEAM.name!r}), "
@@ -212,7 +253,9 @@ class SpatialBeamTree:
     branches : mapping of str to sequence of Element
         ``{point: [element, ..., end boundary]}``: each branch hangs at the outboard point of the
         main-chain element named ``point`` (typically a ``SpatialPointLoad`` marker), listed from
-        the attachment outwards.  Branch element names must be unique in the whole tree.
+        the attachment outwards; a branch with branches of its own is ``(elements, {point: ...})``
+        (its points are its own elements; any depth).  Branch element names must be unique in the
+        whole tree.
 
     Notes
     -----
@@ -233,15 +276,17 @@ class SpatialBeamTree:
             if point not in names[1:-1]:
                 raise ModelError(f"tree {name!r}: branch point {point!r} is not an element of the main chain; "
                                  f"available: {names[1:-1]}")
-            stiffness = _BranchStiffness(f"{point}__branch", branch)
+            own, nested = _branch_spec(f"tree {name!r}: branch {point!r}", branch)
+            stiffness = _BranchStiffness(f"{point}__branch", own, nested)
             main.insert(main.index(next(e for e in main if getattr(e, "name", None) == point)) + 1, stiffness)
             self._branches[point] = stiffness
         self._main = Chain(name, main)
         if self._main.layout is not SPATIAL_BEAM:
             raise ModelError(f"tree {name!r}: the main chain must be made of spatial beam elements")
         seen = {e.name for e in self._main.elements}
-        self._owner: dict[str, _BranchStiffness] = {}
-        for stiffness in self._branches.values():
+        self._owner: dict[str, _BranchStiffness] = {}          # element name -> the branch holding it
+        self._every = _all_branches(self._branches)
+        for stiffness in self._every:
             for element in stiffness.clamped.elements[1:]:
                 if element.name in seen:
                     raise ModelError(f"tree {name!r}: element name {element.name!r} is used twice")
@@ -322,17 +367,24 @@ class SpatialBeamTree:
                 raise ModelError(f"tree {self.name!r}: input {name!r} is on a branch; loads on branches are not "
                                  "supported (give the loaded path as the main chain)")
         s = 1j * omega
-        for point, branch in self._branches.items():
+        for branch in self._every:
             near = np.flatnonzero(branch.pole_ratio(s) < POLE_LIMIT)
             if near.size:
+                point = branch.name[:-len("__branch")]
                 raise ModelError(f"tree {self.name!r}: omega = {omega[near].tolist()} rad/s lies within ~"
                                  f"{POLE_LIMIT:g} of a natural frequency of the branch at {point!r} with its "
                                  "attachment clamped, where the condensed branch stiffness is singular (the "
                                  "response would lose its digits); evaluate beside it, e.g. omega (1 +- 1e-6)")
         main = [name for name in outputs if name.split(".")[0] not in self._owner]
-        needed = {self._owner[name.split(".")[0]] for name in outputs if name.split(".")[0] in self._owner}
+        needed = set()
+        for name in outputs:                   # the branches read and every branch they hang on
+            branch = self._owner.get(name.split(".")[0])
+            while branch is not None:
+                needed.add(branch)
+                branch = branch.parent
         root_names = {b: [f"{b.name}.{c}" for c in SPATIAL_BEAM.displacements] for b in needed}
-        asked = list(dict.fromkeys(main + [n for names in root_names.values() for n in names]))
+        top = [b for b in needed if b.parent is None]
+        asked = list(dict.fromkeys(main + [n for b in top for n in root_names[b]]))
         base = np.empty((len(asked), len(inputs), omega.size), dtype=complex)     # the main chain's responses
         signals = [self._main.signal(name) for name in asked]
         points = sorted({signal.point for signal in signals})
@@ -343,10 +395,16 @@ class SpatialBeamTree:
                 base[o, i] = solution.at(signal.point)[:, signal.component] * s ** signal.derivative
         response = np.empty((len(outputs), len(inputs), omega.size), dtype=complex)
         states = {}
-        for branch in needed:
-            rows = [asked.index(n) for n in root_names[branch]]
+        for branch in [b for b in self._every if b in needed]:          # parents before their branches
             for i in range(len(inputs)):
-                states[(branch, i)] = branch.states(s, np.moveaxis(base[rows, i, :], 0, -1))
+                if branch.parent is None:
+                    rows = [asked.index(n) for n in root_names[branch]]
+                    root = np.moveaxis(base[rows, i, :], 0, -1)
+                else:                          # the parent branch's displacements at this branch's point
+                    signals = [branch.parent.clamped.signal(n) for n in root_names[branch]]
+                    parent = states[(branch.parent, i)]
+                    root = np.stack([parent[:, g.point, g.component] for g in signals], axis=-1)
+                states[(branch, i)] = branch.states(s, root)
         for o, name in enumerate(outputs):
             head = name.split(".")[0]
             if head not in self._owner:

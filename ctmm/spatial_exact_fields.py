@@ -2,8 +2,8 @@
 
 The bridge from a :class:`~ctmm.spatial.model.SpatialModel` built of modal
 :class:`~ctmm.spatial.beam.SpatialBeam` bodies to the exact 12 x 12 spatial beam fields of
-:mod:`ctmm.spatial_beam_fields` (docs/spatial_beams.md): about its rest configuration (no gravity,
-no loads, joints at zero, beams undeformed, nothing moving) a serial spatial chain vibrates as a
+:mod:`ctmm.spatial_beam_fields` (docs/spatial_beams.md): about its rest configuration (gravity only
+along a straight serial chain, :mod:`ctmm.spatial_exact_gravity`; no loads, joints at zero, beams undeformed, nothing moving) a serial spatial chain vibrates as a
 spatial beam chain, answered by the Riccati transfer and the Wittrick-Williams count, so its
 frequencies are exact at any mode number -- the limit the modal beam reaches as its modes increase.
 :func:`exact_form` converts, in **chain axes** (the world axes turned so that a base revolute or
@@ -29,7 +29,8 @@ axes where they allow it):
 * a **tree** (a body with several children) -> :class:`~ctmm.spatial_beam_trees.SpatialBeamTree`: the
   main path is the base and every body's first child (in model order), every other child starts a
   serial branch condensed onto the main chain at its point (a beam station's marker, or a rigid body's
-  root marker through a massless rigid link to the point); inputs on the main path only.
+  root marker through a massless rigid link to the point); a branch's own further children start its
+  branches, condensed onto it first (any depth); inputs on the main path only.
 
 **Rigid directions.**  A direction of a beam without modes (``n_axial_modes = 0``: inextensible,
 ``n_torsion_modes = 0``: torsionally rigid, ``n_modes_y = 0`` or ``n_modes_z = 0``: rigid in that
@@ -44,11 +45,12 @@ Ports: joint coordinates and rates, body ``omega_x|y|z`` and ``omega_body_x|y|z`
 velocities (world), point forces and moments in world and body axes (about the rest configuration the
 body axes stand still: their turning is second order), beam station sensors.
 
-Refused (:class:`~ctmm.errors.ModelError`, naming the part): several bases, branches of branches,
+Refused (:class:`~ctmm.errors.ModelError`, naming the part): several bases,
 actuators on a branch, a main path that goes on from a beam's mid-span station, prismatic and free joints between bodies and joints free in a direction between bodies (no
 transfer matrix), a spherical joint whose damping and stiffness have different principal axes,
-driven joints, nonlinear laws and joint references, gravity, loads, distributed loads and modal
-hooks (a preload or no field counterpart), modal damping ratios, a given operating point, loops in
+driven joints, nonlinear laws and joint references, gravity that a straight chain cannot carry
+(:mod:`ctmm.spatial_exact_gravity`: trees, free or prismatic joints, beams across it, bodies off its
+vertical), loads, distributed loads and modal hooks (a preload or no field counterpart), modal damping ratios, a given operating point, loops in
 :func:`natural_frequencies` (pass ``system.plant``; :func:`frequency_response` closes them), and
 ports without an exact-field counterpart (modal coordinates, quaternion components, body angles
 and rotation vectors).
@@ -64,6 +66,7 @@ import numpy as np
 from . import validation
 from .errors import ModelError
 from .results import FrequencyResponse
+from .spatial_exact_gravity import beam_gravity, check_gravity, rigid_preload
 from .spatial_exact_joints import CONVERTED_KINDS
 
 __all__ = ["SpatialExactForm", "exact_form", "natural_frequencies", "frequency_response", "RIGID_FACTOR"]
@@ -162,9 +165,9 @@ def _chain_axes(model: Any) -> np.ndarray:
     return _axis_rotation(axis)
 
 
-def _paths(model: Any) -> tuple[list[int], list[list[int]]]:
-    """The main path (from the base, every body's first child) and the branches (serial paths hung on it) of
-    a spatial model, or a :class:`ModelError` for several bases or a branch of a branch."""
+def _paths(model: Any) -> tuple[list[int], list[tuple]]:
+    """The main path (from the base, every body's first child) and the branches hung on it, each ``(path,
+    its own branches)`` (recursively), of a spatial model, or a :class:`ModelError` for several bases."""
     children: list[list[int]] = [[] for _ in model.bodies]
     bases = [j for j, p in enumerate(model.parent) if p < 0]
     for j, p in enumerate(model.parent):
@@ -179,14 +182,11 @@ def _paths(model: Any) -> tuple[list[int], list[list[int]]]:
             out.append(children[out[-1]][0])
         return out
 
+    def hung(on: list[int]) -> list[tuple]:
+        return [(path(c), hung(path(c))) for j in on for c in children[j][1:]]
+
     main = path(0)
-    branches = [path(c) for j in main for c in children[j][1:]]
-    for branch in branches:
-        nested = [model.bodies[j].name for j in branch if len(children[j]) > 1]
-        if nested:
-            raise _refuse(model, f"bodies {nested} carry a branch of a branch (the spatial beam tree has branches "
-                                 "on the main path only)")
-    return main, branches
+    return main, hung(main)
 
 
 def _snap(rotation: np.ndarray) -> np.ndarray:
@@ -205,12 +205,10 @@ def _check(model: Any, operating_point: Any) -> None:
     if operating_point is not None:
         raise _refuse(model, "an operating point is given; the exact form is about the rest configuration (leave "
                              "operating_point=None)")
-    if np.any(np.asarray(model.gravity) != 0.0):
-        raise _refuse(model, f"gravity = {np.asarray(model.gravity).tolist()} m/s^2 preloads the chain (give "
-                             "gravity=(0, 0, 0))")
     if model.loads:
         raise _refuse(model, f"loads {[load.name for load in model.loads]} preload the chain")
-    _paths(model)
+    _, branches = _paths(model)
+    check_gravity(model, bool(branches))
     for body, joint in zip(model.bodies, model.joints):
         if joint.kind not in CONVERTED_KINDS:
             raise _refuse(model, f"joint {joint.name!r} is a {joint.kind} joint (converted: {', '.join(CONVERTED_KINDS)})")
@@ -240,6 +238,7 @@ class _Builder:
         self.actuators: dict[str, Terms] = {}
         self.rigid: list[str] = []
         self.Q = _chain_axes(model)
+        self.outboard_mass = 0.0                        # mass beyond the current body's child point [kg]
         self.rotations: dict[int, np.ndarray] = {}      # world rotation of each body at rest
         self.points: dict[int, dict] = {}               # body -> {point: (marker, offset from it, chain axes)}
         self.beam_markers: dict[str, str] = {}          # the last beam's points -> their markers
@@ -290,28 +289,38 @@ class _Builder:
 
     # -- elements -----------------------------------------------------------------------------
     def build(self) -> SpatialExactForm:
-        from .spatial_beam_elements import SpatialPointLoad, SpatialRigidBody
         from .spatial_beam_trees import SpatialBeamTree
         from .system import Chain
 
         model = self.model
         main, branches = _paths(model)
         self.walk(main, np.eye(3))
-        trunk, hung = self.elements, {}
-        for path in branches:                  # each hangs at a marker of the main chain
+        trunk = self.elements
+        hung = self.hang(trunk, branches)
+        chain = (SpatialBeamTree(f"{model.name}_exact", trunk, hung) if hung
+                 else Chain(f"{model.name}_exact", trunk))
+        return SpatialExactForm(chain, self.Q, self.sensors, self.actuators, self.rigid)
+
+    def hang(self, on: list, branches: Sequence[tuple]) -> dict:
+        """``{marker: elements or (elements, their branches)}`` of ``branches`` hung on the elements ``on``."""
+        from .spatial_beam_elements import SpatialPointLoad, SpatialRigidBody
+
+        model = self.model
+        hung: dict = {}
+        for path, nested in branches:          # each hangs at a marker of the chain it hangs on
             joint = model.joints[path[0]]
             marker, offset = self.points[model.parent[path[0]]][joint.point]
             if marker in hung:                 # a second branch there: a marker of its own just after
                 extra = SpatialPointLoad(f"{marker}__{len(hung)}")
-                trunk.insert(next(k for k, e in enumerate(trunk) if e.name == marker) + 1, extra)
+                on.insert(next(k for k, e in enumerate(on) if e.name == marker) + 1, extra)
                 marker = extra.name
             self.elements = [] if not np.any(offset) else [SpatialRigidBody(f"{joint.name}__link", 0.0,
                                                                             offset=offset)]
             self.walk(path, self.rotations[model.parent[path[0]]])
-            hung[marker] = self.elements
-        chain = (SpatialBeamTree(f"{model.name}_exact", trunk, hung) if hung
-                 else Chain(f"{model.name}_exact", trunk))
-        return SpatialExactForm(chain, self.Q, self.sensors, self.actuators, self.rigid)
+            own = self.elements
+            below = self.hang(own, nested)
+            hung[marker] = (own, below) if below else own
+        return hung
 
     def walk(self, path: Sequence[int], parent_rotation: np.ndarray) -> None:
         """Elements and ports of the serial ``path`` of bodies onto ``self.elements``, ending free."""
@@ -344,6 +353,7 @@ class _Builder:
                 self.sensors[f"{body.name}.omega_body_{axis_name}"] = [
                     (f"{root}.theta_{c_}_dot", B[k_, i]) for k_, c_ in enumerate("xyz") if B[k_, i]]
             child = model.joints[path[k + 1]].point if k + 1 < len(path) else None
+            self.outboard_mass = float(sum(model.bodies[i].mass for i in path[k + 1:]))
             if isinstance(body, SpatialBeam):
                 self.beam(body, root, B, child)
                 self.points[j] = {name: (marker, np.zeros(3)) for name, marker in self.beam_markers.items()}
@@ -365,6 +375,7 @@ class _Builder:
         offset = B @ body.points[child] if child is not None else np.zeros(3)
         self.elements.append(SpatialRigidBody(body.name, body.mass, B @ body.inertia @ B.T,
                                               center_of_mass=B @ body.center_of_mass, offset=offset))
+        self.elements += rigid_preload(self.model, self.Q, body, B @ body.center_of_mass, offset, self.outboard_mass)
 
     def stiffness(self, beam: Any) -> dict:
         """Field parameters of ``beam``, rigid directions at ``rigid_factor`` times its stiffness scale."""
@@ -391,13 +402,14 @@ class _Builder:
         return out
 
     def beam(self, beam: Any, root: str, B: np.ndarray, child: str | None) -> None:
-        from .spatial_beam_fields import SpatialBeamField
+        from .spatial_beam_fields import SpatialBeamField, SpatialVaryingTensionField
 
         if child is not None and child != "tip" and beam.points[child][0] < beam.length * (1 - 1e-12):
             raise _refuse(self.model, f"the first child of beam {beam.name!r} hangs at point {child!r} (x = "
                                       f"{beam.points[child][0]} m < L): the path goes on from mid-span (later "
                                       "children hang there as branches: list the body hung at the tip first)")
         parameters = self.stiffness(beam)
+        along = beam_gravity(self.model, self.Q, beam, B[:, 0])
         places = sorted([(x, name) for name, x in beam.stations.items() if 0.0 < x < beam.length]
                         + [(beam.length, "tip")])
         markers = {"origin": (root, 0.0)}
@@ -406,9 +418,17 @@ class _Builder:
         for x, name in places:
             if x - position > 1e-12 * beam.length:
                 pieces += 1
-                field = SpatialBeamField(f"{beam.name}__{pieces}", x - position, rotation=B,
-                                         kelvin_voigt_time=beam.stiffness_damping, **parameters,
-                                         mass_per_length=beam.mass_per_length)
+                if along:
+                    tension = [along * (self.outboard_mass + beam.mass_per_length * (beam.length - end))
+                               for end in (position, x)]
+                    field = SpatialVaryingTensionField(f"{beam.name}__{pieces}", x - position, rotation=B,
+                                                       inboard_tension=tension[0], outboard_tension=tension[1],
+                                                       kelvin_voigt_time=beam.stiffness_damping, **parameters,
+                                                       mass_per_length=beam.mass_per_length)
+                else:
+                    field = SpatialBeamField(f"{beam.name}__{pieces}", x - position, rotation=B,
+                                             kelvin_voigt_time=beam.stiffness_damping, **parameters,
+                                             mass_per_length=beam.mass_per_length)
                 self.elements += ([field] if self.omega_max is None
                                   else list(field.split(field.pieces_for(self.omega_max))))
                 position = x

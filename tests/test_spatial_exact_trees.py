@@ -107,9 +107,4 @@ def test_tree_refusals_name_the_part():
     model = hub_tree()
     with pytest.raises(ModelError, match="side.tip.force_z.*branch"):
         ctmm.frequency_response(model, [1.0], input="side.tip.force_z", output="arm.tip.z", fields="exact")
-    nested = sp.SpatialModel("nested", list(model.bodies) + list(model.joints) + [
-        sp.SpatialBody("a", 0.1, (1e-3, 1e-3, 1e-3)), sp.Weld(name="wa", parent="side", child="a", point="tip"),
-        sp.SpatialBody("b", 0.1, (1e-3, 1e-3, 1e-3)), sp.Weld(name="wb", parent="side", child="b", point="origin")],
-        gravity=(0, 0, 0))
-    with pytest.raises(ModelError, match="branch of a branch"):
-        ctmm.natural_frequencies(nested, n_modes=2, fields="exact")
+    # branches of branches: tests/test_spatial_exact_nested_trees.py
