@@ -40,7 +40,7 @@ from .. import validation
 from ..errors import ModelError, SimulationError
 from ..planar.deformable import DeformableBody
 from .family import SubsystemFamily
-from .model_parts import square_matrix
+from .model_parts import square_matrix, subsystem_boundary, subsystem_nodes
 
 __all__ = ["FloatingInertia", "GlobalSubsystem", "SubsystemData", "lumped_inertia"]
 
@@ -199,45 +199,15 @@ class GlobalSubsystem(DeformableBody):
         n = M.shape[0]
         C = square_matrix(owner, "damping", self.damping_matrix, n)
         K = square_matrix(owner, "stiffness", self.stiffness_matrix, n)
-        if not isinstance(self.nodes, Mapping) or not self.nodes:
-            raise ModelError(f"{owner}: nodes must be a non-empty mapping {{name: ((x, y), dofs)}}, got {self.nodes!r}")
-        positions, kinds, pairs, node_dofs = np.full((n, 2), np.nan), np.full(n, -1), [], {}
-        for node, spec in self.nodes.items():
-            validation.name(f"{owner}: node", node)
-            try:
-                xy, dofs = spec
-                xy = validation.finite_array(f"{owner}: node {node!r} position", xy)
-                dofs = tuple(int(i) for i in dofs)
-            except (TypeError, ValueError) as exc:
-                raise ModelError(f"{owner}: node {node!r} must be ((x, y), (ix, iy[, irz])), got {spec!r}") from exc
-            if xy.shape != (2,) or len(dofs) not in (2, 3) or any(not 0 <= i < n for i in dofs):
-                raise ModelError(f"{owner}: node {node!r} must be ((x, y), (ix, iy[, irz])) with DOF indices in "
-                                 f"0..{n - 1}, got {spec!r}")
-            for k, i in enumerate(dofs):
-                if kinds[i] >= 0:
-                    raise ModelError(f"{owner}: DOF {i} belongs to two nodes (node {node!r})")
-                kinds[i], positions[i] = k, xy
-            pairs.append(dofs[:2])
-            node_dofs[node] = dofs
-        if np.any(kinds < 0):
-            raise ModelError(f"{owner}: DOFs {np.flatnonzero(kinds < 0).tolist()} belong to no node")
-        if not isinstance(self.boundary, (list, tuple)):
-            raise ModelError(f"{owner}: boundary must be a list of node names, the inboard one first; got "
-                             f"{self.boundary!r:.80}, nodes: {', '.join(node_dofs)}")
-        boundary = tuple(self.boundary)
-        if not boundary or any(b not in node_dofs for b in boundary) or len(set(boundary)) != len(boundary):
-            raise ModelError(f"{owner}: boundary must name distinct nodes, the inboard one first; got {self.boundary!r}, "
-                             f"nodes: {', '.join(node_dofs)}")
+        node_position, node_dofs = subsystem_nodes(owner, self.nodes, n, 2, 1)
+        boundary, frame_nodes = subsystem_boundary(owner, self.boundary, self.frame_nodes, node_dofs,
+                                                   self.nonlinear_force, self.potential)
         inboard = boundary[0]
-        frame_nodes = tuple(self.frame_nodes)
-        wrong = [f for f in frame_nodes if f not in node_dofs or f in boundary]
-        if wrong:
-            raise ModelError(f"{owner}: frame_nodes {wrong} must be nodes that are not boundary nodes; nodes: "
-                             f"{', '.join(node_dofs)}")
-        if self.nonlinear_force is not None and not callable(self.nonlinear_force):
-            raise ModelError(f"{owner}: nonlinear_force must be callable f(u, u_dot, t), got {self.nonlinear_force!r}")
-        if self.potential is not None and not callable(self.potential):
-            raise ModelError(f"{owner}: potential must be callable V(u) [J], got {self.potential!r}")
+        positions, kinds, pairs = np.full((n, 2), np.nan), np.full(n, -1), []
+        for node, dofs in node_dofs.items():
+            for k, i in enumerate(dofs):
+                kinds[i], positions[i] = k, node_position[node]
+            pairs.append(dofs[:2])
         frame_inertia = validation.nonnegative(f"{owner}: frame_inertia", self.frame_inertia)
         origin = positions[node_dofs[inboard][0]].copy()
         if self.inertia_integrals is None:
