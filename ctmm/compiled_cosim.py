@@ -33,7 +33,7 @@ from __future__ import annotations
 import math
 import time as clock
 from collections import deque
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -256,7 +256,9 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
 
     intervals = 0
     bar = progress_bar(n_steps, f"ctmm.simulate ({plant.label}, rk4-generated)", enabled=progress)
-    try:
+
+    def advance() -> None:
+        nonlocal intervals
         sample(0, first)
         if chain:
             held_rows.append(held_now())
@@ -282,12 +284,8 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
                 done[0] = step
             state, k = block[-1], following
             bar.update(len(block))
-    except SimulationError as exc:
-        raise with_partial(exc, lambda: result(len(times))) from exc.__cause__
-    finally:
-        bar.close()
-        master.close()
-    return result(len(times))
+
+    return _sampled_run(advance, result, times, bar, master)
 
 
 def simulate_cosimulated_scheme(system: Any, t_final: float, dt: float | None, scheme: Any, *,
@@ -438,7 +436,9 @@ def simulate_cosimulated_scheme(system: Any, t_final: float, dt: float | None, s
     guard = plant.guard(q0, divergence_bound)
     bar = progress_bar(n_steps, f"ctmm.simulate ({plant.label}, {label})",
                        enabled=validation.flag("progress", progress, optional=True))
-    try:
+
+    def advance() -> None:
+        nonlocal intervals
         held = sample(0, q0, w0)
         state = compiled.start(x0, v0, dict(zip(compiled.actuators, held)))
         times.append(0.0)
@@ -464,6 +464,17 @@ def simulate_cosimulated_scheme(system: Any, t_final: float, dt: float | None, s
                 if lumped and np.any(now != held):      # the history's acceleration restarts: a_n + M^-1 dF
                     state[2 * m:3 * m] += compiled.held_columns @ (now - held)
                 held = now
+
+    return _sampled_run(advance, result, times, bar, master)
+
+
+def _sampled_run(advance: Callable[[], None], result: Callable[[int], SimulationResult], times: list, bar: Any,
+                 master: CoSimulation) -> SimulationResult:
+    """Run the sample intervals (``advance``) and return ``result`` of the stored rows; a
+    :class:`~ctmm.errors.SimulationError` carries the partial result of the rows stored so far, and the progress
+    ``bar`` and the controllers of ``master`` are closed whatever happens."""
+    try:
+        advance()
     except SimulationError as exc:
         raise with_partial(exc, lambda: result(len(times))) from exc.__cause__
     finally:
