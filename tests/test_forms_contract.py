@@ -468,3 +468,16 @@ def test_model_sweep_is_one_per_structure():
     first = random_tree(0, 5, allow_translation=False)
     again = random_tree(0, 5, allow_translation=False)
     assert first is not again and model_sweep(first) is model_sweep(again)
+
+
+def test_rigid_tree_sweep_is_safe_in_threads():
+    """The traced sweep runs through one buffer per thread: concurrent calls on one model give the serial numbers."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    model = random_tree(1, 7, allow_translation=False)
+    states = [random_state(model, seed)[:2] for seed in range(40)]
+    serial = [accelerations(model, q, v) for q, v in states]
+    with ThreadPoolExecutor(4) as pool:
+        for _ in range(3):
+            threaded = list(pool.map(lambda state: accelerations(model, *state), states))
+            assert all(np.array_equal(a, b) for a, b in zip(threaded, serial))
