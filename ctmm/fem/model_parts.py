@@ -13,7 +13,8 @@ from .. import validation
 from ..errors import ModelError
 
 __all__ = ["TwoNodeSpring", "node_name", "node_positions", "checked_elements", "rayleigh_pair", "number_dofs", "check_springs",
-           "square_matrix", "clamped_frequencies", "known_nodes", "subsystem_nodes", "subsystem_boundary"]
+           "square_matrix", "clamped_frequencies", "known_nodes", "subsystem_nodes", "subsystem_boundary",
+           "lumped_masses"]
 
 
 def node_name(owner: str, label: str, value: object) -> str:
@@ -145,6 +146,18 @@ def square_matrix(owner: str, label: str, value: Any, n: int | None) -> np.ndarr
     if np.max(np.abs(a - a.T), initial=0.0) > 1e-10 * max(np.max(np.abs(a), initial=0.0), 1e-300):
         raise ModelError(f"{owner}: the {label} matrix must be symmetric")
     return a
+
+
+def lumped_masses(owner: str, M: np.ndarray, couplings: str, model: str, record: str) -> np.ndarray:
+    """The diagonal of a lumped (diagonal) mass matrix ``M`` [kg, kg m^2], else :class:`ModelError`: a consistent
+    ``M`` does not determine the floating-frame ``couplings``; the message names the finite-element ``model`` class
+    and the inertia ``record`` to use instead."""
+    off = M - np.diag(np.diag(M))
+    if np.max(np.abs(off), initial=0.0) > 1e-12 * max(np.max(np.abs(M), initial=0.0), 1e-300):
+        raise ModelError(f"{owner}: M is not lumped (diagonal); a consistent mass matrix does not determine the "
+                         f"floating-frame couplings {couplings}: build the subsystem with ctmm.fem.{model} or pass "
+                         f"inertia_integrals={record}(...)")
+    return np.diag(M)
 
 
 def clamped_frequencies(owner: str, stiffness: np.ndarray, mass: np.ndarray, dofs: Mapping[str, tuple],

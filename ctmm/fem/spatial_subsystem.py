@@ -28,7 +28,7 @@ from ..errors import ModelError, SimulationError
 from ..ops import NUMPY, Ops
 from ..protocol import BodyTerms
 from .family import SMALL_DEFORMATION, SmallDeformationWarning
-from .model_parts import square_matrix, subsystem_boundary, subsystem_nodes
+from .model_parts import lumped_masses, square_matrix, subsystem_boundary, subsystem_nodes
 from .spatial_terms import subsystem_terms
 
 __all__ = ["SpatialInertia", "SpatialSubsystem", "SpatialSubsystemData", "lumped_spatial_inertia"]
@@ -76,12 +76,7 @@ def lumped_spatial_inertia(owner: str, M: np.ndarray, positions: np.ndarray, nod
     """:class:`SpatialInertia` of a lumped (diagonal) ``M``, else :class:`ModelError`.  ``positions``: node
     positions relative to the inboard node (frame) by node name."""
     n = M.shape[0]
-    off = M - np.diag(np.diag(M))
-    if np.max(np.abs(off), initial=0.0) > 1e-12 * max(np.max(np.abs(M), initial=0.0), 1e-300):
-        raise ModelError(f"{owner}: M is not lumped (diagonal); a consistent mass matrix does not determine the "
-                         "floating-frame couplings int S_i^T S_k dm: build the subsystem with "
-                         "ctmm.fem.SpatialFiniteElementModel or pass inertia_integrals=SpatialInertia(...)")
-    d = np.diag(M)
+    d = lumped_masses(owner, M, "int S_i^T S_k dm", "SpatialFiniteElementModel", "SpatialInertia")
     mass, first, second = 0.0, np.zeros(3), np.zeros((3, 3))
     S1, D, E = np.zeros((3, n)), np.zeros((3, 3, n)), np.zeros((3, 3, n, n))
     J_r, R_c = np.array(frame_inertia, dtype=float), np.zeros((3, n))

@@ -26,7 +26,7 @@ The inertia integrals come from :class:`FloatingInertia`: by quadrature of the s
 (:meth:`ctmm.fem.FiniteElementModel.subsystem`) or, for a user's global ``M``, from lumped masses
 (translational DOF pairs with equal diagonal masses and no coupling; rotation DOFs rotary
 inertias).  A consistent ``M`` from elsewhere does not determine ``G`` and ``M_t``: pass
-``inertia=`` or use :class:`~ctmm.fem.FiniteElementModel`; anything else is refused.
+``inertia_integrals=`` or use :class:`~ctmm.fem.FiniteElementModel`; anything else is refused.
 """
 from __future__ import annotations
 
@@ -40,7 +40,7 @@ from .. import validation
 from ..errors import ModelError, SimulationError
 from ..planar.deformable import DeformableBody
 from .family import SubsystemFamily
-from .model_parts import square_matrix, subsystem_boundary, subsystem_nodes
+from .model_parts import lumped_masses, square_matrix, subsystem_boundary, subsystem_nodes
 
 __all__ = ["FloatingInertia", "GlobalSubsystem", "SubsystemData", "lumped_inertia"]
 
@@ -89,12 +89,7 @@ def lumped_inertia(owner: str, M: np.ndarray, positions: np.ndarray, kinds: np.n
     0 = x, 1 = y, 2 = rotation; ``pairs``: ``(ix, iy)`` per node.
     """
     n = M.shape[0]
-    off = M - np.diag(np.diag(M))
-    if np.max(np.abs(off), initial=0.0) > 1e-12 * max(np.max(np.abs(M), initial=0.0), 1e-300):
-        raise ModelError(f"{owner}: M is not lumped (diagonal); a consistent mass matrix does not determine the "
-                         "floating-frame couplings int S^T J S dm: build the subsystem with ctmm.fem.FiniteElementModel "
-                         "or pass inertia=FloatingInertia(...)")
-    d = np.diag(M)
+    d = lumped_masses(owner, M, "int S^T J S dm", "FiniteElementModel", "FloatingInertia")
     for ix, iy in pairs:
         if abs(d[ix] - d[iy]) > 1e-12 * max(abs(d[ix]), 1e-300):
             raise ModelError(f"{owner}: the x and y masses of a node differ (M[{ix},{ix}] = {d[ix]!r}, M[{iy},{iy}] = "
