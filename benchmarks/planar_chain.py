@@ -230,7 +230,8 @@ def run_case(n: int, results: dict, log, generated_only: bool = False) -> None:
 
 def where_time_goes(n: int) -> dict:
     """Split one pure-Python forward-dynamics call into its parts (mean over repeats)."""
-    from ctmm.planar.sweep import accelerations, body_terms, hinge_torques, riccati_kernel
+    from ctmm.planar.rigid_sweep import model_sweep
+    from ctmm.planar.sweep import accelerations, body_terms, hinge_torques
 
     model = chain(n)
     rng = np.random.default_rng(0)
@@ -243,18 +244,21 @@ def where_time_goes(n: int) -> dict:
             out = fn()
         return (time.perf_counter() - start) / repeats, out
 
+    start = time.perf_counter()
+    accelerations(model, q, v, 0.0)                 # the first call traces the sweep (once per structure)
+    trace = time.perf_counter() - start
     total, _ = timed(lambda: accelerations(model, q, v, 0.0))
     angles, (theta, omega) = timed(lambda: model.body_angles(q, v, 0.0))
     terms, (K, b, E, _) = timed(lambda: body_terms(model, theta, omega, 0.0))
     laws, tau = timed(lambda: hinge_torques(model, theta, omega, 0.0))
-    convert, lists = timed(lambda: (K.tolist(), b.tolist(), E.tolist(), tau.tolist()))
-    kernel, _ = timed(lambda: riccati_kernel(model._parent_list, model._kind_list, *lists[:3],
-                                             model._zeros, lists[3], model._zeros,
-                                             want_forces=False))
-    return {"n": n, "accelerations_call_s": total, "body_angles_s": angles,
-            "body_terms_numpy_s": terms, "hinge_laws_s": laws, "tolist_conversions_s": convert,
-            "recursion_python_floats_s": kernel,
-            "recursion_per_body_s": kernel / n}
+    zeros = np.zeros(n)
+    sweep = model_sweep(model)
+    kernel, _ = timed(lambda: sweep(K, b, E, zeros, tau, zeros))
+    numpy_sweep, _ = timed(lambda: sweep.numpy_sweep(K, b, E, zeros, tau, zeros))
+    return {"n": n, "first_call_with_trace_s": trace, "accelerations_call_s": total, "body_angles_s": angles,
+            "body_terms_numpy_s": terms, "hinge_laws_s": laws,
+            "recursion_traced_s": kernel, "recursion_per_body_s": kernel / n,
+            "recursion_numpy_s": numpy_sweep}
 
 
 def plot(results: dict, path: Path) -> None:

@@ -33,7 +33,7 @@ from __future__ import annotations
 import math
 import time as clock
 from collections import deque
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -42,7 +42,7 @@ from .compiled_chain import chain_loop_signals
 from .compiled_control import add_loop_signals
 from .control.chain_plant import ChainPlant
 from .control.controlled_model import ControlledModel
-from .control.cosim import CoSimulation
+from .control.cosim import CoSimulation, check_wiring
 from .control.loops import ControlledChain
 from .control.plants import PlanarPlant, plant_of
 from .errors import ModelError, SimulationError
@@ -155,6 +155,7 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
             ports.check_sensor(name, f"input of {label}")
         for name in c.outputs:
             ports.check_actuator(name, f"output of {label}")
+    check_wiring(controllers, None, None, dt)      # the one rule (before compiling): one controller per actuator
     delays = [_delay_steps(c, dt) for c in controllers]
     chain = isinstance(plant, ChainPlant)
     if chain and tuple(loops) != tuple(getattr(model, "loops", ())):
@@ -227,11 +228,8 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
         master.sample(step, t, measure)
 
     def held_now() -> dict[str, float]:
-        values: dict[str, float] = {}
-        for c, outputs_held in zip(master.controllers, master.held):
-            for name, value in zip(c.outputs, outputs_held):
-                values[name] = values.get(name, 0.0) + float(value)
-        return values
+        return {name: float(value) for c, outputs_held in zip(master.controllers, master.held)
+                for name, value in zip(c.outputs, outputs_held)}
 
     def first_bad(block: np.ndarray, k: int) -> int | None:
         if chain:                                   # positions from rest (the numpy path's guard), every step
@@ -258,7 +256,9 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
 
     intervals = 0
     bar = progress_bar(n_steps, f"ctmm.simulate ({plant.label}, rk4-generated)", enabled=progress)
-    try:
+
+    def advance() -> None:
+        nonlocal intervals
         sample(0, first)
         if chain:
             held_rows.append(held_now())
@@ -284,12 +284,8 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
                 done[0] = step
             state, k = block[-1], following
             bar.update(len(block))
-    except SimulationError as exc:
-        raise with_partial(exc, lambda: result(len(times))) from exc.__cause__
-    finally:
-        bar.close()
-        master.close()
-    return result(len(times))
+
+    return _sampled_run(advance, result, times, bar, master)
 
 
 def simulate_cosimulated_scheme(system: Any, t_final: float, dt: float | None, scheme: Any, *,
@@ -397,7 +393,7 @@ def simulate_cosimulated_scheme(system: Any, t_final: float, dt: float | None, s
                                  "co-simulated controllers cannot drive in time on a DT-TMM scheme; drivable: "
                                  + ", ".join(f"{e.name}.{e.inputs[0]}" for e in chain.body if e.inputs))
             driven.append(name)
-    driven = list(dict.fromkeys(driven))
+    check_wiring(controllers, None, None, dt)      # the one rule (before compiling): one controller per actuator
     if compiled is None:
         compiled = CompiledChainScheme(system, dt, scheme, store_every=1, references=references, actuators=driven)
     elif not isinstance(compiled, CompiledChainScheme) or compiled.dt != dt or compiled.store_every != 1 or \
@@ -441,7 +437,9 @@ def simulate_cosimulated_scheme(system: Any, t_final: float, dt: float | None, s
     guard = plant.guard(q0, divergence_bound)
     bar = progress_bar(n_steps, f"ctmm.simulate ({plant.label}, {label})",
                        enabled=validation.flag("progress", progress, optional=True))
-    try:
+
+    def advance() -> None:
+        nonlocal intervals
         held = sample(0, q0, w0)
         state = compiled.start(x0, v0, dict(zip(compiled.actuators, held)))
         times.append(0.0)
@@ -469,6 +467,17 @@ def simulate_cosimulated_scheme(system: Any, t_final: float, dt: float | None, s
                     if compiled.scheme.restart_on_input_jump:   # and a multistep scheme's start-up (Houbolt)
                         state[compiled.start_up_index] = 0.0
                 held = now
+
+    return _sampled_run(advance, result, times, bar, master)
+
+
+def _sampled_run(advance: Callable[[], None], result: Callable[[int], SimulationResult], times: list, bar: Any,
+                 master: CoSimulation) -> SimulationResult:
+    """Run the sample intervals (``advance``) and return ``result`` of the stored rows; a
+    :class:`~ctmm.errors.SimulationError` carries the partial result of the rows stored so far, and the progress
+    ``bar`` and the controllers of ``master`` are closed whatever happens."""
+    try:
+        advance()
     except SimulationError as exc:
         raise with_partial(exc, lambda: result(len(times))) from exc.__cause__
     finally:
@@ -485,9 +494,9 @@ def _next_sample(master: CoSimulation, step: int, n_steps: int) -> int:
 
 def _held_inputs(master: CoSimulation, index: Mapping[str, int]) -> np.ndarray:
     """The kernel's actuator inputs from the controllers' held outputs: ``index`` maps an actuator name to its
-    input position; outputs of several controllers on one actuator add, as on the numpy path."""
+    input position (each actuator is written by one controller: :func:`~ctmm.control.cosim.check_wiring`)."""
     held = np.zeros(len(index))
     for c, values in zip(master.controllers, master.held):
         for name, value in zip(c.outputs, values):
-            held[index[name]] += float(value)
+            held[index[name]] = float(value)
     return held

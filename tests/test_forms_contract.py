@@ -3,8 +3,9 @@
 Every context is checked against an INDEPENDENT model: explicit accelerations against the Lagrange
 references (``reference/planar_lagrange.py``, ``reference/flexible_lagrange.py``), the frequency
 context's characteristic function and FRF against ``PlanarLagrange.linearize`` ``M, C, K``; casadi
-evaluation against numpy; the "same recursion" equality with the Python-float explicit fast path
-(``planar/fast_sweep.py riccati_kernel``) with arbitrary joint tangents ``kappa`` (the implicit context);
+evaluation against numpy; the sweep of rigid trees (``planar/rigid_sweep.py RigidTreeSweep``, traced on casadi
+and on numpy) equal to the sweep of the scene's own terms with arbitrary joint tangents ``kappa`` (the implicit
+context);
 and ``flexible/kernel.py FlexibleSystem.sweep`` (a call of the one sweep on its own terms) equal to
 the sweep of the scene's tree.
 """
@@ -24,7 +25,7 @@ from ctmm.planar import (ElasticHinge, Fixed, FreeBase, Load, Pinned, PlanarMode
                          SmoothHinge, accelerations, ports)
 from ctmm.planar.body_forms import PlanarScene
 from ctmm.planar.equilibrium import hanging_configuration, static_equilibrium
-from ctmm.planar.fast_sweep import riccati_kernel
+from ctmm.planar.rigid_sweep import RigidTreeSweep, model_sweep
 from ctmm.planar.sweep import body_terms, hinge_torques
 from ctmm.protocol import BodyTerms
 from ctmm.reference.flexible_lagrange import FlexibleLagrange
@@ -244,8 +245,9 @@ def _kernel_inputs(model, q, v, t):
 
 
 @pytest.mark.parametrize("seed", range(4))
-def test_same_recursion_as_the_planar_riccati_kernel_with_joint_tangents(seed):
-    """The implicit context: arbitrary kappa and the kernel's own (K, b, E) as BodyTerms."""
+def test_rigid_tree_sweep_traced_and_numpy_equal_the_scene_sweep_with_joint_tangents(seed):
+    """The implicit context: arbitrary kappa and the rigid sweep's own (K, b, E) as BodyTerms, assembled here from
+    the scene's joints; the traced (casadi) and the numpy evaluation of RigidTreeSweep both give its numbers."""
     model = random_tree(seed, 6, allow_translation=False)
     q, v, t = random_state(model, seed)
     K, b, E, tau = _kernel_inputs(model, q, v, t)
@@ -254,8 +256,11 @@ def test_same_recursion_as_the_planar_riccati_kernel_with_joint_tangents(seed):
     alpha_driven = [0.0] * model.n_bodies
     for i, _, _, acceleration in model.driven(t):
         alpha_driven[i] = acceleration
-    A, F, alpha = riccati_kernel(model.parent.tolist(), model.joint_kind.tolist(), K.tolist(), b.tolist(),
-                                    E.tolist(), kappa.tolist(), tau.tolist(), alpha_driven)
+    sweep = RigidTreeSweep(model.parent, model.joint_kind, model.joint_names)
+    A, F, alpha = sweep(K, b, E, kappa, tau, alpha_driven)
+    A_np, F_np, alpha_np = sweep.numpy_sweep(K, b, E, kappa, tau, np.array(alpha_driven))
+    assert _relative(A_np, A) <= 1e-13 and _relative(F_np, F) <= 1e-13
+    assert np.max(np.abs(alpha_np - alpha)) <= 1e-13 * np.max(np.abs(alpha))
     scene = PlanarScene(model)
     _, joints = scene.terms(NUMPY, q[None, :, None], v[None, :, None], t)
     bodies = []
@@ -420,9 +425,9 @@ def test_frequency_context_with_modal_elimination_equals_the_flexible_lagrange_l
 
 
 @pytest.mark.parametrize("seed", range(3))
-def test_implicit_tangent_sweep_on_the_one_sweep_equals_the_fast_path(seed):
+def test_implicit_tangent_sweep_on_the_one_sweep_equals_the_rigid_tree_sweep(seed):
     """The planar Newton step's tangent relations swept by articulated_sweep (the path of models with
-    translational springs) give the fast path's numbers on rigid revolute trees."""
+    translational springs) give the numbers of RigidTreeSweep (traced) on rigid revolute trees."""
     from ctmm.planar.implicit import _NewtonStep
     from ctmm.planar.sweep import solve_instant
 
@@ -437,3 +442,42 @@ def test_implicit_tangent_sweep_on_the_one_sweep_equals_the_fast_path(seed):
                                                    tangent["alpha_d"], None)
     assert translation == {}
     assert _relative(A_one, A) <= 1e-12 and _relative(F_one, F) <= 1e-12
+
+
+def test_rigid_tree_sweep_refuses_bad_structure_and_names_a_singular_hinge():
+    """Joint kinds off the rigid sweep are refused up front (ModelError naming the joint); a zero articulated
+    inertia gives non-finite accelerations, reported as a SimulationError naming the joint."""
+    from ctmm.errors import SimulationError
+    from ctmm.planar.model import BUSHING, FREE, REVOLUTE
+
+    with pytest.raises(ModelError, match=r"joint 'b' has kind 3; allowed: revolute"):
+        RigidTreeSweep([-1, 0], [REVOLUTE, BUSHING], ["a", "b"])
+    with pytest.raises(ModelError, match=r"joint 'hinge 1' has kind 2"):
+        RigidTreeSweep([-1, 0], [REVOLUTE, FREE])
+    sweep = RigidTreeSweep([-1, 0], [REVOLUTE, REVOLUTE], ["a", "b"])
+    K = np.tile(np.diag([1.0, 1.0, 0.5]).reshape(1, 9), (2, 1))
+    K[1, 8] = 0.0                                  # body "b": no inertia about its hinge
+    args = (K, np.zeros((2, 3)), np.zeros((2, 6)), np.zeros(2), np.ones(2), np.zeros(2))
+    for evaluate in (sweep, lambda *a: sweep(*(np.asarray(x, complex) for x in a))):
+        with pytest.raises(SimulationError, match=r"articulated inertia of joint 'b' is singular"):
+            evaluate(*args)
+
+
+def test_model_sweep_is_one_per_structure():
+    """The traced sweep is built once per tree structure (a memo of the structure, not of the model object)."""
+    first = random_tree(0, 5, allow_translation=False)
+    again = random_tree(0, 5, allow_translation=False)
+    assert first is not again and model_sweep(first) is model_sweep(again)
+
+
+def test_rigid_tree_sweep_is_safe_in_threads():
+    """The traced sweep runs through one buffer per thread: concurrent calls on one model give the serial numbers."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    model = random_tree(1, 7, allow_translation=False)
+    states = [random_state(model, seed)[:2] for seed in range(40)]
+    serial = [accelerations(model, q, v) for q, v in states]
+    with ThreadPoolExecutor(4) as pool:
+        for _ in range(3):
+            threaded = list(pool.map(lambda state: accelerations(model, *state), states))
+            assert all(np.array_equal(a, b) for a, b in zip(threaded, serial))

@@ -129,7 +129,7 @@ class Recorder:
 
 def test_zero_order_hold_samples_every_ratio_steps_once_and_records_them():
     dt = 0.01
-    fast, slow = Recorder(), Recorder(sample_time=0.03)
+    fast, slow = Recorder(), Recorder(sample_time=0.03, outputs=("w",))     # one controller per actuator
     master = CoSimulation([fast, slow], dt, 0.0)
     measured, held = [], []
     for n in range(10):
@@ -141,7 +141,7 @@ def test_zero_order_hold_samples_every_ratio_steps_once_and_records_them():
     assert slow.calls == pytest.approx([0.0, 0.03, 0.06, 0.09])
     assert len(measured) == 14                          # inputs read only when due
     np.testing.assert_allclose(held, [0.0] * 3 + [0.03] * 3 + [0.06] * 3 + [0.09], atol=1e-15)
-    samples = master.outputs(until=0.065)["u@samples"]
+    samples = master.outputs(until=0.065)["w@samples"]
     np.testing.assert_allclose(samples, [[0.0, 0.0], [0.03, 0.03], [0.06, 0.06]], atol=1e-15)
     assert master.describe()[1]["sample_time"] == pytest.approx(0.03)
     master.close()
@@ -172,7 +172,7 @@ def test_direct_feedthrough_from_an_instantaneous_signal_is_an_algebraic_loop():
                                          ("shape", r"'c' returned array\(\[1.\]\) at t = 0.02 s; expected "
                                                    r"\(outputs, state\)")])
 def test_failing_controllers_are_named_with_the_time(fail, match):
-    ok, bad = Recorder(), Recorder(fail=fail)
+    ok, bad = Recorder(outputs=("w",)), Recorder(fail=fail)
     master = CoSimulation([ok, bad], 0.01, 0.0, labels=["controller 'ok'", "controller 'c'"])
     bad.fail = None
     master.sample(0, 0.0, lambda i: np.zeros(1))
@@ -183,7 +183,7 @@ def test_failing_controllers_are_named_with_the_time(fail, match):
 
 
 def test_a_failing_init_is_named_and_closes_the_controllers_already_started():
-    first = Recorder()
+    first = Recorder(outputs=("w",))
     with pytest.raises(SimulationError, match=r"controller 'Recorder' \(outputs \['u'\]\) raised RuntimeError "
                                               r"at t = 0.5 s: no licence"):
         CoSimulation([first, Recorder(fail="init")], 0.01, 0.5)

@@ -17,13 +17,15 @@ signal a name reads and where an output acts -- and the master owns the timing:
   :class:`~ctmm.errors.SimulationError` naming the controller and the time (:mod:`ctmm.guard`);
 * every sample is recorded (``"<output>@samples"``: sample time [s], value).
 
-A stepper whose signals and actuators are a fixed list of names (the manipulator) checks the
-wiring with :func:`check_wiring` and reads the held outputs by actuator name with
-:meth:`CoSimulation.held_values`.
+Every stepper gets one wiring rule, :func:`check_wiring`, run by :class:`CoSimulation` itself: unknown
+signal or actuator names (when the stepper passes its ``signals`` / ``actuators``), an actuator
+written by two controllers (refused on every path -- chains, planar, spatial, numpy and generated --
+never added) and sample times off the step grid are refused together, one per line.  The held outputs
+are read by actuator name with :meth:`CoSimulation.held_values`.
 """
 from __future__ import annotations
 
-from typing import Any, Callable, Collection, Sequence
+from typing import Any, Callable, Collection, Sequence, Union
 
 import numpy as np
 
@@ -58,19 +60,42 @@ def sample_ratio(sample_time: float | None, dt: float) -> int:
     return int(round(ratio))
 
 
-def check_wiring(controllers: Sequence[Any], signals: Sequence[str], actuators: Sequence[str], dt: float, *,
+NameCheck = Union[Sequence[str], Callable[[str], Any], None]
+"""The names a stepper accepts: a sequence of names, a look-up ``check(name)`` that raises
+:class:`~ctmm.errors.ModelError` for a name it refuses (e.g. ``Chain.signal``), or ``None`` (the stepper
+checks the names itself)."""
+
+
+def _name_problem(check: NameCheck, name: str, what: str) -> str | None:
+    """Why ``name`` is refused by ``check`` (:data:`NameCheck`), or ``None``."""
+    if check is None:
+        return None
+    if callable(check):
+        try:
+            check(name)
+        except ModelError as exc:
+            return f"{what}: {exc}"
+        return None
+    return None if name in check else str(unknown_name(what, name, list(check)))
+
+
+def check_wiring(controllers: Sequence[Any], signals: NameCheck, actuators: NameCheck, dt: float, *,
                  what: str = "controllers") -> set[str]:
     """Check that controllers fit a stepper with named signals and actuators; all problems at once.
+
+    The one wiring rule of every co-simulation path (:class:`CoSimulation` runs it): each input a
+    signal of the stepper, each output an actuator of the stepper written by **one** controller only
+    (two controllers on one actuator are refused, not added), each sample time a whole multiple of ``dt``.
 
     Parameters
     ----------
     controllers : sequence of Controller
         Controllers with ``inputs``, ``outputs`` and ``sample_time`` (protocol members already
         validated, e.g. by :func:`~ctmm.control.protocol.check_controllers`).
-    signals : sequence of str
-        The signal names a controller may read.
-    actuators : sequence of str
-        The actuator names a controller may write.
+    signals : sequence of str, callable or None
+        The signal names a controller may read (:data:`NameCheck`; ``None``: not checked here).
+    actuators : sequence of str, callable or None
+        The actuator names a controller may write (:data:`NameCheck`; ``None``: not checked here).
     dt : float
         Time step [s] of the stepper (sample times must be whole multiples of it).
     what : str
@@ -91,13 +116,16 @@ def check_wiring(controllers: Sequence[Any], signals: Sequence[str], actuators: 
     problems = []
     for i, c in enumerate(controllers):
         for name in c.inputs:
-            if name not in signals:
-                problems.append(str(unknown_name(f"input of controller {i}", name, list(signals))))
+            problem = _name_problem(signals, name, f"input of controller {i}")
+            if problem:
+                problems.append(problem)
         for name in c.outputs:
-            if name not in actuators:
-                problems.append(str(unknown_name(f"output of controller {i}", name, list(actuators))))
+            problem = _name_problem(actuators, name, f"output of controller {i}")
+            if problem:
+                problems.append(problem)
             if name in written:
-                problems.append(f"{name!r} is written by controllers {written[name]} and {i}")
+                problems.append(f"{name!r} is written by controllers {written[name]} and {i} (each actuator by one "
+                                "controller: combine their outputs in one controller)")
             written[name] = i
         try:
             sample_ratio(getattr(c, "sample_time", None), dt)
@@ -137,11 +165,15 @@ class CoSimulation:
         Whether the stepper reads the inputs of a controller with a ``measurement_delay``
         (:class:`~ctmm.control.measurement_delay.DelayedController`) late; if not, such a
         controller is refused (it would read on time).
+    signals, actuators : sequence of str, callable or None
+        The stepper's signal and actuator names for :func:`check_wiring` (:data:`NameCheck`;
+        ``None``: the stepper checks the names itself).
 
     Raises
     ------
     ModelError
-        A sample time that is not a whole multiple of ``dt``, an algebraic loop, a bad ``coupling``,
+        The wiring (:func:`check_wiring`: unknown names, an actuator written by two controllers, a
+        sample time that is not a whole multiple of ``dt``), an algebraic loop, a bad ``coupling``,
         a measurement delay the stepper does not apply.
     SimulationError
         A controller's ``init`` failed (controllers already started are closed).
@@ -149,9 +181,11 @@ class CoSimulation:
 
     def __init__(self, controllers: Sequence[Any], dt: float, t0: float, *, coupling: str = "hold",
                  instantaneous: Collection[str] = (), labels: Sequence[str] | None = None,
-                 measurement_delays: bool = False) -> None:
+                 measurement_delays: bool = False, signals: NameCheck = None,
+                 actuators: NameCheck = None) -> None:
         if coupling not in COUPLINGS:
             raise ModelError(f"coupling must be 'hold' or 'previous', got {coupling!r}")
+        check_wiring(controllers, signals, actuators, dt)
         delayed = [c for c in controllers if getattr(c, "measurement_delay", 0.0)]
         if delayed and not measurement_delays:
             raise ModelError(f"{delayed[0]!r} declares a measurement delay, which this stepper does not apply (it "
@@ -162,12 +196,8 @@ class CoSimulation:
         self.t0 = t0
         self.coupling = coupling
         self.labels = list(labels) if labels is not None else [default_label(c) for c in self.controllers]
-        self.ratios = []
+        self.ratios = [sample_ratio(getattr(c, "sample_time", None), dt) for c in self.controllers]
         for c in self.controllers:
-            try:
-                self.ratios.append(sample_ratio(getattr(c, "sample_time", None), dt))
-            except ModelError as exc:
-                raise ModelError(f"controller {str(exc)}") from None
             algebraic = [n for n in c.inputs if n in instantaneous]
             if getattr(c, "direct_feedthrough", False) and algebraic and coupling != "previous":
                 raise ModelError(

@@ -42,7 +42,7 @@ from ..schemes import History, as_scheme
 from ..signals import as_signal
 from ..system import Chain, require_system
 from ..timestep import simulate as simulate_plant
-from .cosim import CoSimulation
+from .cosim import CoSimulation, check_wiring
 from .history import DelayHistory
 from .loops import ControlledChain
 from .protocol import Controller, check_controllers, check_references
@@ -483,6 +483,7 @@ class _ChainControllers:
             if not isinstance(c, Controller):
                 raise ModelError(f"{c!r} does not implement the Controller protocol "
                                  "(inputs, outputs, sample_time, direct_feedthrough, init, step)")
+        check_wiring(controllers, plant.signal, plant.input, dt, what="co-simulated controllers of the chain")
         self.sensing = [[plant.signal(n) for n in c.inputs] for c in controllers]
         self.actuators = [[plant.input(n) for n in c.outputs] for c in controllers]
         for c, actuators in zip(controllers, self.actuators):

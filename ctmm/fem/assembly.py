@@ -11,17 +11,14 @@ planar model.
 """
 from __future__ import annotations
 
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
-from .. import validation
-from ..errors import ModelError
 from .elements import (BeamElement, NodeSpring, PointMass, beam_local_matrices, beam_rotation, beam_section_rotation,
                        beam_shape_functions)
 from .membrane import MembraneElement, membrane_matrices, membrane_shape_points
-from .model_parts import (check_springs, checked_elements, clamped_frequencies, known_nodes, node_positions, number_dofs,
-                          rayleigh_pair)
+from .nodal_model import NodalModel
 from .subsystem import FloatingInertia, GlobalSubsystem
 from .timoshenko import shear_parameter
 
@@ -40,8 +37,9 @@ def _element_nodes(element: Any) -> tuple[str, ...]:
     return (element.start, element.end)
 
 
-class FiniteElementModel:
-    """Planar finite-element model with named nodes.
+class FiniteElementModel(NodalModel):
+    """Planar finite-element model with named nodes (the builder shared with the spatial model:
+    :class:`~ctmm.fem.nodal_model.NodalModel`).
 
     Parameters
     ----------
@@ -62,17 +60,12 @@ class FiniteElementModel:
     9
     """
 
-    def __init__(self, name: str, nodes: Mapping[str, Sequence[float]], elements: Sequence[Any], *,
-                 rayleigh: Sequence[float] = (0.0, 0.0)) -> None:
-        self.name = validation.name("model", name)
-        self.positions = node_positions(name, nodes, 2)
-        self.elements = checked_elements(name, elements, (BeamElement, PointMass, NodeSpring, MembraneElement),
-                                         _element_nodes, self.positions)
-        self.rayleigh = rayleigh_pair(name, rayleigh)
-        rotating = {n for e in self.elements if isinstance(e, BeamElement) for n in (e.start, e.end)}
-        self.dofs, self.n_dofs = number_dofs(self.positions, rotating, 2, 1)
-        check_springs(name, [e for e in self.elements if isinstance(e, NodeSpring)], self.dofs, self.positions, 3)
-        self.mass, self.stiffness, self.damping = self._assemble()
+    dimension, rotations = 2, 1
+    element_types = (BeamElement, PointMass, NodeSpring, MembraneElement)
+    rotating_types = (BeamElement,)
+    point_mass_type, spring_type, subsystem_type = PointMass, NodeSpring, GlobalSubsystem
+
+    element_nodes = staticmethod(_element_nodes)
 
     # ------------------------------------------------------------------------------------
     def _beam(self, e: BeamElement) -> tuple[np.ndarray, float, np.ndarray]:
@@ -84,52 +77,25 @@ class FiniteElementModel:
         idx = np.array([i for node in e.nodes for i in self.dofs[node][:2]])
         return idx, np.array([self.positions[node] for node in e.nodes])
 
-    def _assemble(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        n = self.n_dofs
-        M, K, C = np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, n))
-        for e in self.elements:
-            if isinstance(e, MembraneElement):
-                idx, corners = self._membrane(e)
-                k, m = membrane_matrices(e, corners, self.name)
-                K[np.ix_(idx, idx)] += k
-                M[np.ix_(idx, idx)] += m
-            elif isinstance(e, BeamElement):
-                idx, length, T = self._beam(e)
-                k, m, kg = beam_local_matrices(length, e.bending_stiffness, e.axial_stiffness, e.mass_per_length,
-                                               e.axial_force, shear_stiffness=e.shear_stiffness,
-                                               rotary_inertia_per_length=e.rotary_inertia_per_length)
-                sub = np.ix_(idx, idx)
-                K[sub] += T.T @ (k + kg) @ T
-                M[sub] += T.T @ m @ T
-            elif isinstance(e, PointMass):
-                dofs = self.dofs[e.node]
-                M[dofs[0], dofs[0]] += e.mass
-                M[dofs[1], dofs[1]] += e.mass
-                if len(dofs) == 3:
-                    M[dofs[2], dofs[2]] += e.inertia
-            else:
-                a, b = self.dofs[e.start], self.dofs[e.end]
-                if e.stiffness or e.damping:
-                    d = self.positions[e.end] - self.positions[e.start]
-                    u = d / np.linalg.norm(d)
-                    row = np.zeros(n)
-                    row[[b[0], b[1]]] = u
-                    row[[a[0], a[1]]] -= u
-                    K += e.stiffness * np.outer(row, row)
-                    C += e.damping * np.outer(row, row)
-                if e.rotational_stiffness or e.rotational_damping:
-                    row = np.zeros(n)
-                    row[b[2]], row[a[2]] = 1.0, -1.0
-                    K += e.rotational_stiffness * np.outer(row, row)
-                    C += e.rotational_damping * np.outer(row, row)
-        C += self.rayleigh[0] * M + self.rayleigh[1] * K
-        return M, K, C
+    def add_element(self, e: Any, M: np.ndarray, K: np.ndarray, cache: dict) -> None:
+        """A membrane's or a beam's matrices (global axes) into ``M`` and ``K``."""
+        if isinstance(e, MembraneElement):
+            idx, corners = self._membrane(e)
+            k, m = membrane_matrices(e, corners, self.name)
+            K[np.ix_(idx, idx)] += k
+            M[np.ix_(idx, idx)] += m
+        else:
+            idx, length, T = self._beam(e)
+            k, m, kg = beam_local_matrices(length, e.bending_stiffness, e.axial_stiffness, e.mass_per_length,
+                                           e.axial_force, shear_stiffness=e.shear_stiffness,
+                                           rotary_inertia_per_length=e.rotary_inertia_per_length)
+            sub = np.ix_(idx, idx)
+            K[sub] += T.T @ (k + kg) @ T
+            M[sub] += T.T @ m @ T
 
     def floating_inertia(self, origin: str) -> FloatingInertia:
         """Inertia integrals about node ``origin`` (:class:`~ctmm.fem.subsystem.FloatingInertia`), by quadrature."""
-        if origin not in self.positions:
-            raise ModelError(f"{self.name}: unknown node {origin!r}; nodes: {', '.join(self.positions)}")
-        o = self.positions[origin]
+        o = self.origin(origin)
         n = self.n_dofs
         mass, first, polar = 0.0, np.zeros(2), 0.0
         S1, sigma, gamma = np.zeros((2, n)), np.zeros(n), np.zeros(n)
@@ -191,33 +157,3 @@ class FiniteElementModel:
             G[np.ix_(idx, idx)] += np.einsum("p,pik,ij,pjl->kl", w, S, _J, S)
             Mt[np.ix_(idx, idx)] += np.einsum("p,pik,pil->kl", w, S, S)
         return FloatingInertia(mass, first, polar, S1, sigma, gamma, G, Mt)
-
-    def subsystem(self, name: str, boundary: Sequence[str], *, nonlinear_force: Callable | None = None,
-                  frame_nodes: Sequence[str] = (), potential: Callable | None = None) -> GlobalSubsystem:
-        """This model as a body of a planar model (:class:`~ctmm.fem.GlobalSubsystem`).
-
-        Parameters
-        ----------
-        name : str
-            Body name (coordinates ``"name.theta"``, ``"name.<node>_ux"`` ...).
-        boundary : sequence of str
-            Boundary nodes, the inboard one first (it carries the frame); the others are the body's points.
-        nonlinear_force : callable, optional
-            ``f(u, u_dot, t)`` over all DOFs (:class:`~ctmm.fem.GlobalSubsystem`).
-        frame_nodes : sequence of str
-            Nodes fixed in the frame (:class:`~ctmm.fem.GlobalSubsystem`).
-        potential : callable, optional
-            ``V(u)`` [J] of ``nonlinear_force`` (:class:`~ctmm.fem.GlobalSubsystem`), for the energy.
-        """
-        boundary = known_nodes(self.name, "boundary (the inboard node first)", boundary, self.positions, allow_empty=False)
-        inertia = self.floating_inertia(boundary[0])
-        o = self.positions[boundary[0]]
-        nodes = {node: (tuple(self.positions[node] - o), self.dofs[node]) for node in self.positions}
-        return GlobalSubsystem(name, mass_matrix=self.mass, damping_matrix=self.damping,
-                               stiffness_matrix=self.stiffness, nodes=nodes, boundary=boundary,
-                               nonlinear_force=nonlinear_force, inertia_integrals=inertia, frame_nodes=frame_nodes,
-                               potential=potential)
-
-    def natural_frequencies(self, clamped: Sequence[str] = ()) -> np.ndarray:
-        """Natural frequencies [rad/s] with the DOFs of the ``clamped`` nodes held (``eigh(K, M)``)."""
-        return clamped_frequencies(self.name, self.stiffness, self.mass, self.dofs, clamped)

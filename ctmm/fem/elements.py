@@ -29,7 +29,7 @@ import numpy as np
 
 from .. import validation
 from ..errors import ModelError
-from .model_parts import node_name
+from .model_parts import TwoNodeSpring, node_name
 from .timoshenko import bending_matrices, bending_shapes
 
 __all__ = ["BeamElement", "PointMass", "NodeSpring", "beam_local_matrices", "beam_shape_functions",
@@ -120,7 +120,7 @@ class PointMass:
 
 
 @dataclass(frozen=True)
-class NodeSpring:
+class NodeSpring(TwoNodeSpring):
     """Linear spring and viscous damper between two nodes, along the line joining their undeformed
     positions (small displacements), optionally a rotational spring-damper between their rotations.
 
@@ -134,22 +134,6 @@ class NodeSpring:
     rotational_stiffness, rotational_damping : float
         [N m/rad], [N m s/rad], >= 0; both nodes need rotation DOFs (a beam at each).
     """
-
-    name: str
-    start: str
-    end: str
-    stiffness: float = 0.0
-    damping: float = 0.0
-    rotational_stiffness: float = 0.0
-    rotational_damping: float = 0.0
-
-    def __post_init__(self) -> None:
-        validation.name("element", self.name)
-        node_name(self.name, "start", self.start)
-        node_name(self.name, "end", self.end)
-        for attribute in ("stiffness", "damping", "rotational_stiffness", "rotational_damping"):
-            object.__setattr__(self, attribute, validation.nonnegative(f"{self.name}: {attribute}",
-                                                                       getattr(self, attribute)))
 
 
 def beam_local_matrices(length: float, bending_stiffness: float, axial_stiffness: float, mass_per_length: float,

@@ -1,8 +1,10 @@
 """Checks shared by the planar and spatial finite-element models (:mod:`ctmm.fem.assembly`,
 :mod:`ctmm.fem.spatial_assembly`): node names and positions, the element list, Rayleigh damping, DOF
-numbering and spring sanity."""
+numbering and spring sanity; the one record of a spring between two nodes (:class:`TwoNodeSpring`); the
+inputs of a subsystem body, planar and spatial (:func:`subsystem_nodes`, :func:`subsystem_boundary`)."""
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
@@ -10,8 +12,9 @@ import numpy as np
 from .. import validation
 from ..errors import ModelError
 
-__all__ = ["node_name", "node_positions", "checked_elements", "rayleigh_pair", "number_dofs", "check_springs",
-           "square_matrix", "clamped_frequencies", "known_nodes"]
+__all__ = ["TwoNodeSpring", "node_name", "node_positions", "checked_elements", "rayleigh_pair", "number_dofs", "check_springs",
+           "square_matrix", "clamped_frequencies", "known_nodes", "subsystem_nodes", "subsystem_boundary",
+           "lumped_masses"]
 
 
 def node_name(owner: str, label: str, value: object) -> str:
@@ -19,6 +22,37 @@ def node_name(owner: str, label: str, value: object) -> str:
     if not isinstance(value, str) or not value:
         raise ModelError(f"{owner}: {label} must be a node name (non-empty str), got {value!r}")
     return value
+
+
+@dataclass(frozen=True)
+class TwoNodeSpring:
+    """Linear spring and viscous damper between two nodes, along the line of their undeformed positions, and a
+    rotational spring-damper between their rotations (small displacements): the record of
+    :class:`~ctmm.fem.NodeSpring` (planar) and :class:`~ctmm.fem.SpatialNodeSpring` (spatial; isotropic about
+    each axis), assembled by :class:`~ctmm.fem.nodal_model.NodalModel`.
+
+    Attributes
+    ----------
+    name, start, end : str
+        Element name and the two node names.
+    stiffness, damping, rotational_stiffness, rotational_damping : float
+        [N/m], [N s/m], [N m/rad], [N m s/rad], >= 0 (the subclasses say where each acts).
+    """
+
+    name: str
+    start: str
+    end: str
+    stiffness: float = 0.0
+    damping: float = 0.0
+    rotational_stiffness: float = 0.0
+    rotational_damping: float = 0.0
+
+    def __post_init__(self) -> None:
+        n = validation.name("element", self.name)
+        node_name(n, "start", self.start)
+        node_name(n, "end", self.end)
+        for attribute in ("stiffness", "damping", "rotational_stiffness", "rotational_damping"):
+            object.__setattr__(self, attribute, validation.nonnegative(f"{n}: {attribute}", getattr(self, attribute)))
 
 
 def known_nodes(owner: str, label: str, value: Any, positions: Mapping[str, np.ndarray], *,
@@ -114,6 +148,18 @@ def square_matrix(owner: str, label: str, value: Any, n: int | None) -> np.ndarr
     return a
 
 
+def lumped_masses(owner: str, M: np.ndarray, couplings: str, model: str, record: str) -> np.ndarray:
+    """The diagonal of a lumped (diagonal) mass matrix ``M`` [kg, kg m^2], else :class:`ModelError`: a consistent
+    ``M`` does not determine the floating-frame ``couplings``; the message names the finite-element ``model`` class
+    and the inertia ``record`` to use instead."""
+    off = M - np.diag(np.diag(M))
+    if np.max(np.abs(off), initial=0.0) > 1e-12 * max(np.max(np.abs(M), initial=0.0), 1e-300):
+        raise ModelError(f"{owner}: M is not lumped (diagonal); a consistent mass matrix does not determine the "
+                         f"floating-frame couplings {couplings}: build the subsystem with ctmm.fem.{model} or pass "
+                         f"inertia_integrals={record}(...)")
+    return np.diag(M)
+
+
 def clamped_frequencies(owner: str, stiffness: np.ndarray, mass: np.ndarray, dofs: Mapping[str, tuple],
                         clamped: Sequence[str]) -> np.ndarray:
     """Natural frequencies [rad/s] with the DOFs of the ``clamped`` nodes held (``eigh(K, M)``)."""
@@ -124,3 +170,71 @@ def clamped_frequencies(owner: str, stiffness: np.ndarray, mass: np.ndarray, dof
     keep = [i for i in range(stiffness.shape[0]) if i not in held]
     values = eigh(stiffness[np.ix_(keep, keep)], mass[np.ix_(keep, keep)], eigvals_only=True)
     return np.sqrt(np.clip(values, 0.0, None))
+
+
+def subsystem_nodes(owner: str, nodes: Any, n: int, dimension: int, rotations: int
+                    ) -> tuple[dict[str, np.ndarray], dict[str, tuple[int, ...]]]:
+    """The ``nodes`` of a subsystem body, ``{name: (position, DOF indices)}`` with ``dimension`` coordinates [m] and
+    ``dimension`` or ``dimension + rotations`` DOF indices each, every DOF ``0..n-1`` held by exactly one node.
+
+    Returns
+    -------
+    positions, node_dofs : dict
+        Position array and DOF index tuple by node name.
+
+    Raises
+    ------
+    ModelError
+        Naming the node and what is allowed.
+    """
+    axes = "(x, y)" if dimension == 2 else "(x, y, z)"
+    translations = ", ".join(f"i{a}" for a in "xyz"[:dimension])
+    rotation_names = ", ".join(f"ir{a}" for a in ("z" if rotations == 1 else "xyz"))
+    form = f"({axes}, ({translations}[, {rotation_names}]))"
+    if not isinstance(nodes, Mapping) or not nodes:
+        raise ModelError(f"{owner}: nodes must be a non-empty mapping {{name: {form}}}, got {nodes!r}")
+    owners: list[str | None] = [None] * n
+    positions, node_dofs = {}, {}
+    for node, spec in nodes.items():
+        validation.name(f"{owner}: nodes key {node!r}:", node)
+        try:
+            position, dofs = spec
+            position = validation.finite_array(f"{owner}: nodes[{node!r}] position", position)
+            dofs = tuple(int(i) for i in dofs)
+        except (TypeError, ValueError) as exc:
+            raise ModelError(f"{owner}: nodes[{node!r}] must be {form}, got {spec!r}") from exc
+        if position.shape != (dimension,) or len(dofs) not in (dimension, dimension + rotations) \
+                or any(not 0 <= i < n for i in dofs):
+            raise ModelError(f"{owner}: nodes[{node!r}] must be {form} with DOF indices in 0..{n - 1}, got {spec!r}")
+        for i in dofs:
+            if owners[i] is not None:
+                raise ModelError(f"{owner}: DOF {i} belongs to two nodes ({owners[i]!r} and {node!r})")
+            owners[i] = node
+        positions[node], node_dofs[node] = position, dofs
+    if any(o is None for o in owners):
+        raise ModelError(f"{owner}: nodes must hold every DOF 0..{n - 1}; DOFs "
+                         f"{[i for i, o in enumerate(owners) if o is None]} belong to no node (nodes: {list(node_dofs)})")
+    return positions, node_dofs
+
+
+def subsystem_boundary(owner: str, boundary: Any, frame_nodes: Any, node_dofs: Mapping[str, tuple],
+                       nonlinear_force: Any, potential: Any) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """A subsystem body's ``boundary`` (distinct nodes, the inboard one first) and ``frame_nodes`` (nodes that are not
+    boundary nodes) as tuples; ``nonlinear_force`` and ``potential`` callable or ``None``; else :class:`ModelError`."""
+    if not isinstance(boundary, (list, tuple)):
+        raise ModelError(f"{owner}: boundary must be a list of node names, the inboard one first; got "
+                         f"{boundary!r:.80}, nodes: {', '.join(node_dofs)}")
+    checked = tuple(boundary)
+    if not checked or any(b not in node_dofs for b in checked) or len(set(checked)) != len(checked):
+        raise ModelError(f"{owner}: boundary must name distinct nodes, the inboard one first; got {boundary!r}, "
+                         f"nodes: {', '.join(node_dofs)}")
+    frame = tuple(frame_nodes)
+    wrong = [f for f in frame if f not in node_dofs or f in checked]
+    if wrong:
+        raise ModelError(f"{owner}: frame_nodes {wrong} must be nodes that are not boundary nodes; nodes: "
+                         f"{', '.join(node_dofs)}")
+    if nonlinear_force is not None and not callable(nonlinear_force):
+        raise ModelError(f"{owner}: nonlinear_force must be callable f(u, u_dot, t), got {nonlinear_force!r}")
+    if potential is not None and not callable(potential):
+        raise ModelError(f"{owner}: potential must be callable V(u) [J], got {potential!r}")
+    return checked, frame

@@ -10,14 +10,11 @@ into a :class:`~ctmm.fem.SpatialSubsystem`, a body of a :class:`ctmm.spatial.Spa
 """
 from __future__ import annotations
 
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
-from .. import validation
-from ..errors import ModelError
-from .model_parts import (check_springs, checked_elements, clamped_frequencies, known_nodes, node_positions, number_dofs,
-                          rayleigh_pair)
+from .nodal_model import NodalModel
 from .spatial_elements import (GAUSS_POINTS, GAUSS_WEIGHTS, SpatialBeamElement, SpatialNodeSpring, SpatialPointMass,
                                node_rotation_block, section_rotary_inertia, spatial_beam_axes,
                                spatial_beam_local_matrices, spatial_beam_shapes, spatial_shear_parameters)
@@ -50,8 +47,9 @@ def _add_mass_points(sums: tuple, weights: np.ndarray, X: np.ndarray, S: np.ndar
     E[np.ix_(range(3), range(3), idx, idx)] += np.einsum("p,pik,pjl->ijkl", weights, S, S)
 
 
-class SpatialFiniteElementModel:
-    """Spatial finite-element model with named nodes.
+class SpatialFiniteElementModel(NodalModel):
+    """Spatial finite-element model with named nodes (the builder shared with the planar model:
+    :class:`~ctmm.fem.nodal_model.NodalModel`).
 
     Parameters
     ----------
@@ -74,21 +72,12 @@ class SpatialFiniteElementModel:
     12
     """
 
-    def __init__(self, name: str, nodes: Mapping[str, Sequence[float]], elements: Sequence[Any], *,
-                 rayleigh: Sequence[float] = (0.0, 0.0)) -> None:
-        self.name = validation.name("model", name)
-        self.positions = node_positions(name, nodes, 3)
-        self.elements = checked_elements(name, elements, (SpatialBeamElement, SpatialPlateElement,
-                                                          *_FLAT_SHELLS, SpatialPointMass, SpatialNodeSpring),
-                                         _element_nodes, self.positions)
-        self.rayleigh = rayleigh_pair(name, rayleigh)
-        rotating = {n for e in self.elements
-                    if isinstance(e, (SpatialBeamElement, SpatialPlateElement, *_FLAT_SHELLS))
-                    for n in _element_nodes(e)}
-        self.dofs, self.n_dofs = number_dofs(self.positions, rotating, 3, 3)
-        check_springs(name, [e for e in self.elements if isinstance(e, SpatialNodeSpring)], self.dofs, self.positions, 6)
-        self._shells: dict[tuple, Any] = {}
-        self.mass, self.stiffness, self.damping = self._assemble()
+    dimension, rotations = 3, 3
+    element_types = (SpatialBeamElement, SpatialPlateElement, *_FLAT_SHELLS, SpatialPointMass, SpatialNodeSpring)
+    rotating_types = (SpatialBeamElement, SpatialPlateElement, *_FLAT_SHELLS)
+    point_mass_type, spring_type, subsystem_type = SpatialPointMass, SpatialNodeSpring, SpatialSubsystem
+
+    element_nodes = staticmethod(_element_nodes)
 
     def _beam(self, e: SpatialBeamElement) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
         idx = np.array(self.dofs[e.start] + self.dofs[e.end])
@@ -107,63 +96,37 @@ class SpatialFiniteElementModel:
         corners = np.array([self.positions[node] for node in e.nodes])
         key = (type(e), e.thickness, e.youngs_modulus, e.poisson_ratio, e.density, e.drilling_stiffness_ratio,
                getattr(e, "shear_correction", None), (corners - corners[0]).tobytes())   # a regular mesh: computed once
-        if key not in self._shells:
-            self._shells[key] = _FLAT_SHELLS[type(e)](e, corners, self.name)
-        return idx, self._shells[key]
+        shells = self.__dict__.setdefault("_shells", {})
+        if key not in shells:
+            shells[key] = _FLAT_SHELLS[type(e)](e, corners, self.name)
+        return idx, shells[key]
 
-    def _assemble(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        n = self.n_dofs
-        M, K, C = np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, n))
-        plates: dict[tuple, tuple] = {}
-        for e in self.elements:
-            if isinstance(e, SpatialBeamElement):
-                idx, length, _, T = self._beam(e)
-                k, m_t, m_r, kg = spatial_beam_local_matrices(e, length)
-                sub = np.ix_(idx, idx)
-                K[sub] += T.T @ (k + kg) @ T
-                M[sub] += T.T @ (m_t + m_r) @ T
-            elif isinstance(e, SpatialPlateElement):
-                idx, a, b, _, T = self._plate(e)
-                key = (e.thickness, e.youngs_modulus, e.poisson_ratio, e.density, e.drilling_stiffness_ratio, a, b)
-                if key not in plates:                                   # a regular mesh: one computation
-                    plates[key] = plate_local_matrices(e, a, b)
-                k, m, _ = plates[key]
-                sub = np.ix_(idx, idx)
-                K[sub] += T.T @ k @ T
-                M[sub] += T.T @ m @ T
-            elif isinstance(e, tuple(_FLAT_SHELLS)):
-                idx, parts = self._flat_shell(e)
-                K[np.ix_(idx, idx)] += parts.stiffness
-                M[np.ix_(idx, idx)] += parts.mass
-            elif isinstance(e, SpatialPointMass):
-                dofs = self.dofs[e.node]
-                for i in dofs[:3]:
-                    M[i, i] += e.mass
-                if len(dofs) == 6:
-                    M[np.ix_(dofs[3:], dofs[3:])] += e.inertia
-            else:
-                a, b = self.dofs[e.start], self.dofs[e.end]
-                if e.stiffness or e.damping:
-                    d = self.positions[e.end] - self.positions[e.start]
-                    row = np.zeros(n)
-                    row[list(b[:3])] = d / np.linalg.norm(d)
-                    row[list(a[:3])] -= d / np.linalg.norm(d)
-                    K += e.stiffness * np.outer(row, row)
-                    C += e.damping * np.outer(row, row)
-                if e.rotational_stiffness or e.rotational_damping:
-                    for k in range(3):
-                        row = np.zeros(n)
-                        row[b[3 + k]], row[a[3 + k]] = 1.0, -1.0
-                        K += e.rotational_stiffness * np.outer(row, row)
-                        C += e.rotational_damping * np.outer(row, row)
-        C += self.rayleigh[0] * M + self.rayleigh[1] * K
-        return M, K, C
+    def add_element(self, e: Any, M: np.ndarray, K: np.ndarray, cache: dict) -> None:
+        """A beam's or a plate's matrices (model axes) into ``M`` and ``K``; equal plates of a regular mesh are
+        computed once (``cache``)."""
+        if isinstance(e, SpatialBeamElement):
+            idx, length, _, T = self._beam(e)
+            k, m_t, m_r, kg = spatial_beam_local_matrices(e, length)
+            sub = np.ix_(idx, idx)
+            K[sub] += T.T @ (k + kg) @ T
+            M[sub] += T.T @ (m_t + m_r) @ T
+        elif isinstance(e, tuple(_FLAT_SHELLS)):
+            idx, parts = self._flat_shell(e)
+            K[np.ix_(idx, idx)] += parts.stiffness
+            M[np.ix_(idx, idx)] += parts.mass
+        else:
+            idx, a, b, _, T = self._plate(e)
+            key = (e.thickness, e.youngs_modulus, e.poisson_ratio, e.density, e.drilling_stiffness_ratio, a, b)
+            if key not in cache:
+                cache[key] = plate_local_matrices(e, a, b)
+            k, m, _ = cache[key]
+            sub = np.ix_(idx, idx)
+            K[sub] += T.T @ k @ T
+            M[sub] += T.T @ m @ T
 
     def floating_inertia(self, origin: str) -> SpatialInertia:
         """Inertia integrals about node ``origin`` (:class:`~ctmm.fem.SpatialInertia`), by quadrature."""
-        if origin not in self.positions:
-            raise ModelError(f"{self.name}: unknown node {origin!r}; nodes: {', '.join(self.positions)}")
-        o = self.positions[origin]
+        o = self.origin(origin)
         n = self.n_dofs
         sums = (np.zeros(()), np.zeros(3), np.zeros((3, 3)), np.zeros((3, n)), np.zeros((3, 3, n)),
                 np.zeros((3, 3, n, n)))
@@ -213,32 +176,6 @@ class SpatialFiniteElementModel:
                 if len(dofs) == 6:
                     R_c[:, list(dofs[3:])] += e.inertia
         return SpatialInertia(float(mass), first, second, S1, D, E, J_r, R_c)
-
-    def subsystem(self, name: str, boundary: Sequence[str], *, nonlinear_force: Callable | None = None,
-                  frame_nodes: Sequence[str] = (), potential: Callable | None = None) -> SpatialSubsystem:
-        """This model as a body of a spatial model (:class:`~ctmm.fem.SpatialSubsystem`).
-
-        Parameters
-        ----------
-        name : str
-            Body name (coordinates ``"name.<node>_ux"`` ...).
-        boundary : sequence of str
-            Boundary nodes, the inboard one first (it carries the frame); the others are the body's points.
-        nonlinear_force, frame_nodes, potential
-            As :class:`~ctmm.fem.SpatialSubsystem`.
-        """
-        boundary = known_nodes(self.name, "boundary (the inboard node first)", boundary, self.positions, allow_empty=False)
-        inertia = self.floating_inertia(boundary[0])
-        o = self.positions[boundary[0]]
-        nodes = {node: (tuple(self.positions[node] - o), self.dofs[node]) for node in self.positions}
-        return SpatialSubsystem(name, mass_matrix=self.mass, damping_matrix=self.damping,
-                                stiffness_matrix=self.stiffness, nodes=nodes, boundary=boundary,
-                                nonlinear_force=nonlinear_force, inertia_integrals=inertia, frame_nodes=frame_nodes,
-                                potential=potential)
-
-    def natural_frequencies(self, clamped: Sequence[str] = ()) -> np.ndarray:
-        """Natural frequencies [rad/s] with the DOFs of the ``clamped`` nodes held (``eigh(K, M)``)."""
-        return clamped_frequencies(self.name, self.stiffness, self.mass, self.dofs, clamped)
 
 
 def spatial_finite_element_subsystem(name: str, nodes: dict, elements: list, boundary: list, *,

@@ -37,7 +37,7 @@ import numpy as np
 
 from .. import validation
 from ..errors import ModelError
-from .model_parts import node_name
+from .model_parts import TwoNodeSpring, node_name
 from .timoshenko import bending_shapes, shear_parameter
 
 __all__ = ["SpatialBeamElement", "SpatialPointMass", "SpatialNodeSpring", "spatial_beam_axes", "spatial_beam_shapes",
@@ -152,7 +152,7 @@ class SpatialPointMass:
 
 
 @dataclass(frozen=True)
-class SpatialNodeSpring:
+class SpatialNodeSpring(TwoNodeSpring):
     """Linear spring and viscous damper between two nodes along the line of their undeformed positions,
     optionally an isotropic rotational spring-damper between their rotations (small displacements).
 
@@ -164,21 +164,6 @@ class SpatialNodeSpring:
     rotational_stiffness, rotational_damping : float
         [N m/rad], [N m s/rad], >= 0, on ``r_end - r_start`` (both nodes need rotation DOFs).
     """
-
-    name: str
-    start: str
-    end: str
-    stiffness: float = 0.0
-    damping: float = 0.0
-    rotational_stiffness: float = 0.0
-    rotational_damping: float = 0.0
-
-    def __post_init__(self) -> None:
-        n = validation.name("element", self.name)
-        node_name(n, "start", self.start)
-        node_name(n, "end", self.end)
-        for attribute in ("stiffness", "damping", "rotational_stiffness", "rotational_damping"):
-            object.__setattr__(self, attribute, validation.nonnegative(f"{n}: {attribute}", getattr(self, attribute)))
 
 
 def spatial_beam_axes(start: np.ndarray, end: np.ndarray, orientation: np.ndarray | None, owner: str

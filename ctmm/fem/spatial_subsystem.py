@@ -28,7 +28,7 @@ from ..errors import ModelError, SimulationError
 from ..ops import NUMPY, Ops
 from ..protocol import BodyTerms
 from .family import SMALL_DEFORMATION, SmallDeformationWarning
-from .model_parts import square_matrix
+from .model_parts import lumped_masses, square_matrix, subsystem_boundary, subsystem_nodes
 from .spatial_terms import subsystem_terms
 
 __all__ = ["SpatialInertia", "SpatialSubsystem", "SpatialSubsystemData", "lumped_spatial_inertia"]
@@ -76,12 +76,7 @@ def lumped_spatial_inertia(owner: str, M: np.ndarray, positions: np.ndarray, nod
     """:class:`SpatialInertia` of a lumped (diagonal) ``M``, else :class:`ModelError`.  ``positions``: node
     positions relative to the inboard node (frame) by node name."""
     n = M.shape[0]
-    off = M - np.diag(np.diag(M))
-    if np.max(np.abs(off), initial=0.0) > 1e-12 * max(np.max(np.abs(M), initial=0.0), 1e-300):
-        raise ModelError(f"{owner}: M is not lumped (diagonal); a consistent mass matrix does not determine the "
-                         "floating-frame couplings int S_i^T S_k dm: build the subsystem with "
-                         "ctmm.fem.SpatialFiniteElementModel or pass inertia_integrals=SpatialInertia(...)")
-    d = np.diag(M)
+    d = lumped_masses(owner, M, "int S_i^T S_k dm", "SpatialFiniteElementModel", "SpatialInertia")
     mass, first, second = 0.0, np.zeros(3), np.zeros((3, 3))
     S1, D, E = np.zeros((3, n)), np.zeros((3, 3, n)), np.zeros((3, 3, n, n))
     J_r, R_c = np.array(frame_inertia, dtype=float), np.zeros((3, n))
@@ -167,47 +162,12 @@ class SpatialSubsystem:
         n = M.shape[0]
         C = square_matrix(owner, "damping_matrix", self.damping_matrix, n)
         K = square_matrix(owner, "stiffness_matrix", self.stiffness_matrix, n)
-        if not isinstance(self.nodes, Mapping) or not self.nodes:
-            raise ModelError(f"{owner}: nodes must be a non-empty mapping {{name: ((x, y, z), dofs)}}, got {self.nodes!r}")
-        owners, positions, node_dofs = [None] * n, {}, {}
-        for node, spec in self.nodes.items():
-            validation.name(f"{owner}: nodes key {node!r}:", node)
-            try:
-                xyz, dofs = spec
-                xyz = validation.finite_array(f"{owner}: nodes[{node!r}] position", xyz)
-                dofs = tuple(int(i) for i in dofs)
-            except (TypeError, ValueError) as exc:
-                raise ModelError(f"{owner}: nodes[{node!r}] must be ((x, y, z), (ix, iy, iz[, irx, iry, irz])), got "
-                                 f"{spec!r}") from exc
-            if xyz.shape != (3,) or len(dofs) not in (3, 6) or any(not 0 <= i < n for i in dofs):
-                raise ModelError(f"{owner}: nodes[{node!r}] must be ((x, y, z), 3 or 6 DOF indices in 0..{n - 1}), got "
-                                 f"{spec!r}")
-            for i in dofs:
-                if owners[i] is not None:
-                    raise ModelError(f"{owner}: DOF {i} belongs to two nodes ({owners[i]!r} and {node!r})")
-                owners[i] = node
-            positions[node], node_dofs[node] = xyz, dofs
-        if any(o is None for o in owners):
-            raise ModelError(f"{owner}: nodes must hold every DOF 0..{n - 1}; DOFs "
-                             f"{[i for i, o in enumerate(owners) if o is None]} belong to no node (nodes: {list(node_dofs)})")
-        if not isinstance(self.boundary, (list, tuple)):
-            raise ModelError(f"{owner}: boundary must be a list of node names, the inboard one first; got "
-                             f"{self.boundary!r:.80}, nodes: {', '.join(node_dofs)}")
-        boundary = tuple(self.boundary)
-        if not boundary or any(b not in node_dofs for b in boundary) or len(set(boundary)) != len(boundary):
-            raise ModelError(f"{owner}: boundary must name distinct nodes, the inboard one first; got {self.boundary!r}, "
-                             f"nodes: {', '.join(node_dofs)}")
+        positions, node_dofs = subsystem_nodes(owner, self.nodes, n, 3, 3)
+        boundary, frame_nodes = subsystem_boundary(owner, self.boundary, self.frame_nodes, node_dofs,
+                                                   self.nonlinear_force, self.potential)
         if "origin" in node_dofs and boundary[0] != "origin":
             raise ModelError(f"{owner}: the point name 'origin' is the inboard node; name node 'origin' otherwise "
                              f"(it is not the inboard node {boundary[0]!r})")
-        frame_nodes = tuple(self.frame_nodes)
-        wrong = [f for f in frame_nodes if f not in node_dofs or f in boundary]
-        if wrong:
-            raise ModelError(f"{owner}: frame_nodes {wrong} must be nodes that are not boundary nodes; nodes: "
-                             f"{', '.join(node_dofs)}")
-        for label in ("nonlinear_force", "potential"):
-            if getattr(self, label) is not None and not callable(getattr(self, label)):
-                raise ModelError(f"{owner}: {label} must be callable, got {getattr(self, label)!r}")
         frame_inertia = _inertia_tensor(owner, self.frame_inertia)
         origin = positions[boundary[0]].copy()
         relative = {node: p - origin for node, p in positions.items()}

@@ -26,7 +26,7 @@ The inertia integrals come from :class:`FloatingInertia`: by quadrature of the s
 (:meth:`ctmm.fem.FiniteElementModel.subsystem`) or, for a user's global ``M``, from lumped masses
 (translational DOF pairs with equal diagonal masses and no coupling; rotation DOFs rotary
 inertias).  A consistent ``M`` from elsewhere does not determine ``G`` and ``M_t``: pass
-``inertia=`` or use :class:`~ctmm.fem.FiniteElementModel`; anything else is refused.
+``inertia_integrals=`` or use :class:`~ctmm.fem.FiniteElementModel`; anything else is refused.
 """
 from __future__ import annotations
 
@@ -40,7 +40,7 @@ from .. import validation
 from ..errors import ModelError, SimulationError
 from ..planar.deformable import DeformableBody
 from .family import SubsystemFamily
-from .model_parts import square_matrix
+from .model_parts import lumped_masses, square_matrix, subsystem_boundary, subsystem_nodes
 
 __all__ = ["FloatingInertia", "GlobalSubsystem", "SubsystemData", "lumped_inertia"]
 
@@ -89,12 +89,7 @@ def lumped_inertia(owner: str, M: np.ndarray, positions: np.ndarray, kinds: np.n
     0 = x, 1 = y, 2 = rotation; ``pairs``: ``(ix, iy)`` per node.
     """
     n = M.shape[0]
-    off = M - np.diag(np.diag(M))
-    if np.max(np.abs(off), initial=0.0) > 1e-12 * max(np.max(np.abs(M), initial=0.0), 1e-300):
-        raise ModelError(f"{owner}: M is not lumped (diagonal); a consistent mass matrix does not determine the "
-                         "floating-frame couplings int S^T J S dm: build the subsystem with ctmm.fem.FiniteElementModel "
-                         "or pass inertia=FloatingInertia(...)")
-    d = np.diag(M)
+    d = lumped_masses(owner, M, "int S^T J S dm", "FiniteElementModel", "FloatingInertia")
     for ix, iy in pairs:
         if abs(d[ix] - d[iy]) > 1e-12 * max(abs(d[ix]), 1e-300):
             raise ModelError(f"{owner}: the x and y masses of a node differ (M[{ix},{ix}] = {d[ix]!r}, M[{iy},{iy}] = "
@@ -199,45 +194,15 @@ class GlobalSubsystem(DeformableBody):
         n = M.shape[0]
         C = square_matrix(owner, "damping", self.damping_matrix, n)
         K = square_matrix(owner, "stiffness", self.stiffness_matrix, n)
-        if not isinstance(self.nodes, Mapping) or not self.nodes:
-            raise ModelError(f"{owner}: nodes must be a non-empty mapping {{name: ((x, y), dofs)}}, got {self.nodes!r}")
-        positions, kinds, pairs, node_dofs = np.full((n, 2), np.nan), np.full(n, -1), [], {}
-        for node, spec in self.nodes.items():
-            validation.name(f"{owner}: node", node)
-            try:
-                xy, dofs = spec
-                xy = validation.finite_array(f"{owner}: node {node!r} position", xy)
-                dofs = tuple(int(i) for i in dofs)
-            except (TypeError, ValueError) as exc:
-                raise ModelError(f"{owner}: node {node!r} must be ((x, y), (ix, iy[, irz])), got {spec!r}") from exc
-            if xy.shape != (2,) or len(dofs) not in (2, 3) or any(not 0 <= i < n for i in dofs):
-                raise ModelError(f"{owner}: node {node!r} must be ((x, y), (ix, iy[, irz])) with DOF indices in "
-                                 f"0..{n - 1}, got {spec!r}")
-            for k, i in enumerate(dofs):
-                if kinds[i] >= 0:
-                    raise ModelError(f"{owner}: DOF {i} belongs to two nodes (node {node!r})")
-                kinds[i], positions[i] = k, xy
-            pairs.append(dofs[:2])
-            node_dofs[node] = dofs
-        if np.any(kinds < 0):
-            raise ModelError(f"{owner}: DOFs {np.flatnonzero(kinds < 0).tolist()} belong to no node")
-        if not isinstance(self.boundary, (list, tuple)):
-            raise ModelError(f"{owner}: boundary must be a list of node names, the inboard one first; got "
-                             f"{self.boundary!r:.80}, nodes: {', '.join(node_dofs)}")
-        boundary = tuple(self.boundary)
-        if not boundary or any(b not in node_dofs for b in boundary) or len(set(boundary)) != len(boundary):
-            raise ModelError(f"{owner}: boundary must name distinct nodes, the inboard one first; got {self.boundary!r}, "
-                             f"nodes: {', '.join(node_dofs)}")
+        node_position, node_dofs = subsystem_nodes(owner, self.nodes, n, 2, 1)
+        boundary, frame_nodes = subsystem_boundary(owner, self.boundary, self.frame_nodes, node_dofs,
+                                                   self.nonlinear_force, self.potential)
         inboard = boundary[0]
-        frame_nodes = tuple(self.frame_nodes)
-        wrong = [f for f in frame_nodes if f not in node_dofs or f in boundary]
-        if wrong:
-            raise ModelError(f"{owner}: frame_nodes {wrong} must be nodes that are not boundary nodes; nodes: "
-                             f"{', '.join(node_dofs)}")
-        if self.nonlinear_force is not None and not callable(self.nonlinear_force):
-            raise ModelError(f"{owner}: nonlinear_force must be callable f(u, u_dot, t), got {self.nonlinear_force!r}")
-        if self.potential is not None and not callable(self.potential):
-            raise ModelError(f"{owner}: potential must be callable V(u) [J], got {self.potential!r}")
+        positions, kinds, pairs = np.full((n, 2), np.nan), np.full(n, -1), []
+        for node, dofs in node_dofs.items():
+            for k, i in enumerate(dofs):
+                kinds[i], positions[i] = k, node_position[node]
+            pairs.append(dofs[:2])
         frame_inertia = validation.nonnegative(f"{owner}: frame_inertia", self.frame_inertia)
         origin = positions[node_dofs[inboard][0]].copy()
         if self.inertia_integrals is None:

@@ -26,8 +26,8 @@ current iterate with ``d theta = beta' h^2 d alpha``, ``d omega = gamma' h d alp
 linearised relations keep the transfer form (only the third column of ``X`` and of ``K``
 change), so each Newton iteration is one O(n) articulated sweep with a non-symmetric articulated
 matrix and the joint tangents ``kappa``: :func:`ctmm.articulated.articulated_sweep`
-(:meth:`_NewtonStep.tangent_sweep`), or for rigid revolute trees its registered Python-float fast
-path :func:`ctmm.planar.fast_sweep.riccati_kernel` (the same recursion, gated equal to it).
+(:meth:`_NewtonStep.tangent_sweep`; rigid revolute trees through
+:class:`ctmm.planar.rigid_sweep.RigidTreeSweep`, the same sweep traced once per structure).
 Convergence is quadratic.
 
 Actuator inputs (``inputs=``, :mod:`ctmm.planar.ports`) enter the tangent sweep like loads
@@ -54,7 +54,7 @@ from .integrate import PlanarSimulation, check_store_every, initial_coordinates,
 from .model import BUSHING, DRIVEN, REVOLUTE, PlanarModel
 from .ports import ActuatorInputs
 from .signals import SignalError
-from .fast_sweep import riccati_kernel
+from .rigid_sweep import model_sweep
 from .hinge_laws import law_kappa, radial_force
 from .sweep import accelerations, body_terms, coordinate_accelerations, hinge_torques, solve_instant
 
@@ -167,11 +167,9 @@ class _NewtonStep:
             K[:, 8] += turn
             b[:, 2] -= turn * tangent["alpha"]
             tau_tilde = tau_tilde + inputs.hinge_torque
-        if not len(m.bushing_bodies):           # rigid revolute trees: the registered fast path
-            A_new, F_new, _ = riccati_kernel(self.parent, self.kind, K.tolist(), b.tolist(), tangent["E"],
-                                             tangent["kappa"].tolist(), tau_tilde.tolist(), tangent["alpha_d"])
-            A_new = np.array(A_new)
-            return A_new, np.array(F_new), coordinate_accelerations(m, A_new)
+        if not len(m.bushing_bodies):           # rigid revolute trees: the sweep traced once per structure
+            A_new, F_new, _ = model_sweep(m)(K, b, tangent["E"], tangent["kappa"], tau_tilde, tangent["alpha_d"])
+            return A_new, F_new, coordinate_accelerations(m, A_new)
         joint_force, radial_kappa = None, None
         if len(m.bushing_bodies):
             # translational springs, exactly implicit: f = f(iterate) - kappa_t (d'' - d''_iterate)

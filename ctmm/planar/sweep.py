@@ -7,8 +7,9 @@ outboard part), FORMULAS section 3.4 / seed 003 (6.4)-(6.6) / seed 000 eq. (1).
 
 :func:`body_terms` and :func:`hinge_torques` evaluate a rigid model's body and hinge-law terms for
 all bodies at once with numpy (``K = X_C^T diag(m, m, J_C) X_C``, ``b`` the velocity, gravity and
-load terms, ``E`` the parent-point data).  The sweep is the one articulated sweep: for rigid
-revolute trees its registered Python-float fast path :func:`ctmm.planar.fast_sweep.riccati_kernel`;
+load terms, ``E`` the parent-point data).  The sweep is the one articulated sweep
+(:func:`ctmm.articulated.articulated_sweep`): rigid revolute, driven and free-base trees through
+:class:`ctmm.planar.rigid_sweep.RigidTreeSweep` (their terms, the sweep traced once per structure);
 models with modal beams go through :class:`ctmm.flexible.kernel.FlexibleSystem`, models with
 translational-spring hinges through :class:`ctmm.planar.body_forms.PlanarScene` -- both
 :func:`ctmm.articulated.articulated_sweep`.
@@ -22,10 +23,10 @@ import numpy as np
 
 from .. import validation
 from ..errors import ModelError, SimulationError
-from .fast_sweep import riccati_kernel
 from .hinge_laws import law_torques
 from .model import PlanarModel
 from .ports import ActuatorInputs
+from .rigid_sweep import model_sweep
 
 
 @dataclass(frozen=True)
@@ -183,11 +184,8 @@ def solve_instant(model: PlanarModel, q, qdot, t: float = 0.0, inputs=None) -> I
     theta, omega = model.body_angles(q, qdot, t)
     K, b, E, _ = body_terms(model, theta, omega, t)
     b, tau = _with_inputs(model, theta, b, hinge_torques(model, theta, omega, t), inputs)
-    nb = model.n_bodies
-    A, F, alpha = riccati_kernel(model.parent.tolist(), model.joint_kind.tolist(), K.tolist(), b.tolist(),
-                                 E.tolist(), [0.0] * nb, tau.tolist(), _driven_alpha(model, t))
-    A = np.array(A)
-    return InstantaneousSolution(coordinate_accelerations(model, A), A, np.array(F), np.array(alpha))
+    A, F, alpha = model_sweep(model)(K, b, E, np.zeros(model.n_bodies), tau, _driven_alpha(model, t))
+    return InstantaneousSolution(coordinate_accelerations(model, A), A, F, alpha)
 
 
 def _scene_solution(model: PlanarModel, q: np.ndarray, qdot: np.ndarray, t: float, inputs
@@ -227,9 +225,8 @@ def accelerations(model: PlanarModel, q, qdot, t: float = 0.0, inputs=None) -> n
     theta, omega = model.body_angles(q, qdot, t)
     K, b, E, _ = body_terms(model, theta, omega, t)
     b, tau = _with_inputs(model, theta, b, hinge_torques(model, theta, omega, t), inputs)
-    A, _, _ = riccati_kernel(model._parent_list, model._kind_list, K.tolist(), b.tolist(), E.tolist(), model._zeros,
-                             tau.tolist(), _driven_alpha(model, t), want_forces=False)
-    return coordinate_accelerations(model, np.array(A))
+    A, _, _ = model_sweep(model)(K, b, E, np.zeros(model.n_bodies), tau, _driven_alpha(model, t))
+    return coordinate_accelerations(model, A)
 
 
 def ode_rhs(model: PlanarModel) -> Callable[[float, np.ndarray], np.ndarray]:
@@ -255,6 +252,5 @@ __all__ = [
     "coordinate_accelerations",
     "hinge_torques",
     "ode_rhs",
-    "riccati_kernel",
     "solve_instant",
 ]
