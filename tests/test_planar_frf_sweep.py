@@ -219,7 +219,17 @@ def free_base_tree() -> PlanarModel:
     ], gravity=(0.0, 0.0))
 
 
+def deflected_beam_with_a_link() -> PlanarModel:
+    """A beam out from a spring hinge, bent by gravity (static modal deflection), a link hanging at its tip."""
+    beam = ModalBeam("beam", length=1.0, bending_stiffness=30.0, mass_per_length=0.8, n_modes=3, damping_ratio=0.01)
+    return PlanarModel.chain("beam_tip", [Fixed("ground"), SpringDamperHinge("motor", stiffness=80.0, damping=0.5),
+                                          beam, SmoothHinge("tip"), RigidBody.uniform_link("link", mass=0.3, length=0.4)],
+                             gravity=(0.0, -9.81))
+
+
 CASES = {
+    "deflected_beam": (deflected_beam_with_a_link, ["motor.torque", "beam.q2.force", "link.force_x"],
+                       ["link.theta", "beam.out.y", "beam.q1", "tip.rate"]),
     "hub_beam": (hub_beam, ["beam.q1.force", "beam.mid.force", "beam.mid.moment", "motor.torque", "hub.force_y"],
                  ["beam.mid.w", "beam.mid.slope_rate", "beam.out.y", "beam.theta", "motor.rate"]),
     "tree": (rigid_tree, ["h3.torque", "b0.force_x"], ["b1.out.vx", "b2.inboard.x", "h2.rate"]),
@@ -296,3 +306,20 @@ def test_models_off_the_sweep_take_the_dense_path():
                                           RigidBody.uniform_link("l1", mass=1.0, length=1.0)], gravity=(0.0, -9.81))
     frf = ctmm.frequency_response(model, [1.0, 3.0], input="h1.torque", output="l1.theta")
     assert frf.info["method"].startswith("linearisation") and frf.info["n_dense_frequencies"] == 2
+
+
+def test_finite_element_subsystem_equals_the_global_dynamic_stiffness():
+    """A ctmm.fem beam subsystem (Rayleigh damping) between two links: the sweep states it like a modal body;
+    reference: the global model of tests/test_mixed.py (its own M, K and, by complex step, C)."""
+    from test_mixed import build, global_matrices
+
+    model, reference = build(rayleigh=(0.5, 1e-4))
+    n = reference.n
+    M, C, K = global_matrices(reference)
+    inputs, outputs = ["flex.n3_uy.force", "flex.n1_rz.force"], ["lower.theta", "flex.n2_uy", "upper.theta"]
+    frf = ctmm.frequency_response(model, OMEGA, input=inputs, output=outputs)
+    assert frf.info["method"] == SWEEP and frf.info["n_dense_frequencies"] == 0
+    columns = np.eye(n)[:, [model.coordinates.index(name[:-len(".force")]) for name in inputs]]
+    rows = np.eye(n)[[model.coordinates.index(name) for name in outputs]]
+    expected = np.array([rows @ np.linalg.solve(K - w * w * M + 1j * w * C, columns) for w in OMEGA])
+    assert_close(frf.response, np.moveaxis(expected, 0, -1), 1e-9)
