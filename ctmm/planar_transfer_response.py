@@ -1,6 +1,7 @@
 """Frequency responses of planar models by the one sweep's frequency context, batched over omega.
 
-About a static operating point ``q0`` the linearised body terms are ``Z_j(s) = s^2 M0 + s C0 + K0`` and
+Rigid trees, modal beams and ``ctmm.fem`` subsystems (every body on the element protocol).  About a static
+operating point ``q0`` the linearised body terms are ``Z_j(s) = s^2 M0 + s C0 + K0`` and
 the joints ``kappa(s) = k + c s`` (:meth:`ctmm.planar.body_forms.PlanarScene.linear_terms`).  One
 articulated sweep (:func:`ctmm.articulated.articulated_sweep`) on these terms, numpy-batched over all
 ``s = i omega`` at once, solves the dynamic-stiffness equations ``Z(s) x = f`` of the whole tree in
@@ -102,6 +103,12 @@ class SweepResponse:
         with np.errstate(all="ignore"):
             masses = articulated_sweep(NUMPY, self.terms.tree, inertia, self.terms.joints)
         self.mass_pivots, self.mass_modal = masses.pivot, masses.modal
+        sizes: dict = {}
+        for j, body in enumerate(self.terms.bodies):
+            sizes.setdefault(body[0].shape[0], []).append(j)
+        # (members, M0, C0, K0) per body size, stacked (members, 1, size, size): Z of all of them in one operation
+        self.stacks = [(members, *(np.stack([self.terms.bodies[j][k] for j in members])[:, None] for k in range(3)))
+                       for members in sizes.values()]
         self.undamped = not any(np.any(C0) for _, C0, _, _, _ in self.terms.bodies) and not any(
             joint.tau_v is not None and np.any(joint.tau_v) for joint in self.terms.joints)
 
@@ -166,11 +173,10 @@ class SweepResponse:
         n = self.model.n_coordinates
         column = s.reshape(-1, 1, 1)
         if self.undamped and not np.any(s.real):    # s^2 = -omega^2: the whole sweep is real (same numbers, faster)
-            squared = (column * column).real
-            stiffness = [squared * M0 + K0 for M0, _, K0, _, _ in self.terms.bodies]
+            stiffness = self._dynamic_stiffness((column * column).real, None)
             kappa = frequency_kappa(NUMPY, self.terms.joints, 0.0)
         else:
-            stiffness = [column * column * M0 + column * C0 + K0 for M0, C0, K0, _, _ in self.terms.bodies]
+            stiffness = self._dynamic_stiffness(column * column, column)
             kappa = frequency_kappa(NUMPY, self.terms.joints, column)
         G = np.zeros((s.size, rows.shape[0], len(loads)), dtype=complex)
         good = np.ones(s.size, dtype=bool)
@@ -185,6 +191,16 @@ class SweepResponse:
                 good &= self._pivots_certified(solution, s)
             good &= np.all(np.isfinite(G[:, :, i]), axis=1)
         return G, good
+
+    def _dynamic_stiffness(self, squared: np.ndarray, column: np.ndarray | None) -> list:
+        """``Z_j = s^2 M0 + s C0 + K0`` (B, 3 + n_j, 3 + n_j) of every body (``column`` ``None``: no ``C0`` term),
+        formed for all bodies of one size in one array operation."""
+        out: list = [None] * len(self.terms.bodies)
+        for members, M0, C0, K0 in self.stacks:
+            Z = squared * M0 + K0 if column is None else squared * M0 + column * C0 + K0
+            for position, j in enumerate(members):
+                out[j] = Z[position]
+        return out
 
     def _pivots_certified(self, solution: Any, s: np.ndarray) -> np.ndarray:
         """(B,) True where every pivot ``P(s)`` (joint ``D_j``, modal ``C_j``) is at least :data:`PIVOT_TOLERANCE`
