@@ -35,7 +35,7 @@ from .planar_linearization import linearize_planar, tangent
 from .planar_linearization import operating_point as planar_operating_point
 from .results import FrequencyResponse, ModalResult
 
-__all__ = ["is_planar_system", "frequency_response", "PlanarResponse", "natural_frequencies", "mode_shapes", "eigenvalue_count",
+__all__ = ["is_planar_system", "frequency_response", "PlanarResponse", "acceleration_twin", "natural_frequencies", "mode_shapes", "eigenvalue_count",
            "ZERO_MODE_FACTOR", "RESOLUTION"]
 
 _CLOSED_LOOP = ("ctmm.linearize (eigenvalues of the closed-loop A, delays beside it) or ctmm.stability "
@@ -91,8 +91,10 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
         Actuator names (:func:`ctmm.planar.ports.actuator_names`, e.g. ``"motor.torque"`` [N m])
         or ``"<loop>.reference"``.
     output : str or sequence of str
-        Sensor names (:func:`ctmm.planar.ports.sensor_names`, e.g. ``"arm.out.y"`` [m]) or
-        ``"<loop>.y"``, ``"<loop>.u"``.
+        Sensor names (:func:`ctmm.planar.ports.sensor_names`, e.g. ``"arm.out.y"`` [m]),
+        ``"<loop>.y"``, ``"<loop>.u"``, or accelerations (``s^2`` times the position twin, outputs of this
+        verb only): ``"<body>.<point>.ax|ay"`` [m/s^2], ``"<body>.alpha"`` [rad/s^2],
+        ``"<beam>.<station>.w_ddot"`` [m/s^2], ``"<coordinate>_ddot"``.
     operating_point : optional
         As for :func:`ctmm.linearize` (default: the static equilibrium).
     fields : {"modal", "exact"}
@@ -121,6 +123,8 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
     named = responder.ports                         # resolved once (building them is O(N))
     units = {name: named.actuator_unit(name) for name in inputs if name in named.actuators}
     units.update({name: named.sensor_unit(name) for name in outputs if name in named.sensors})
+    units.update({name: f"{named.sensor_unit(twin)}/s^2" for name, twin in zip(outputs, responder.outputs)
+                  if twin != name})
     for loop in loops:              # loop signals carry a unit when their weights are plain (one term, weight 1)
         plain_sensor = [w for _, w in loop.terms] == [1.0]
         plain_actuator = [w for _, w in loop.actuator_terms] == [1.0]
@@ -170,7 +174,11 @@ class PlanarResponse:
 
         self.model, self.loops = _split(system)
         self.ports = PlanarPorts(self.model)
-        self.inputs, self.outputs, self.operating_point = list(inputs), list(outputs), operating_point
+        self.inputs, self.operating_point = list(inputs), operating_point
+        # an acceleration output is s^2 times its position twin (both paths answer the twin)
+        twins = [acceleration_twin(self.ports, name) for name in outputs]
+        self.outputs = [name if twin is None else twin for name, twin in zip(outputs, twins)]
+        self.accelerations = np.array([twin is not None for twin in twins], dtype=bool)
         self.method, self.dense_count, self.point = "", 0, None
         self._plant: list = []
         self._dense = None
@@ -225,11 +233,32 @@ class PlanarResponse:
             self.method = ("linearisation (ctmm.linearize), delays exact" if self._plant[0] is None
                            else "one sweep's frequency context (ctmm.planar_transfer_response), delays exact")
         if self._plant[0] is None:
-            return self._dense_response(s)
-        response, good = closed_loop_response(self._plant[0], self.loops, s, self.inputs, self.outputs)
-        if not np.all(good):                # frequencies the sweep does not certify: the dense resolvent's rule
-            response[:, :, ~good] = self._dense_response(s[~good])
+            response = self._dense_response(s)
+        else:
+            response, good = closed_loop_response(self._plant[0], self.loops, s, self.inputs, self.outputs)
+            if not np.all(good):            # frequencies the sweep does not certify: the dense resolvent's rule
+                response[:, :, ~good] = self._dense_response(s[~good])
+        response[self.accelerations] *= s * s
         return response
+
+
+#: Acceleration outputs of :func:`frequency_response` (not sensors of the ports: as loop signals they would close
+#: an algebraic loop) -> the suffix of their position twin.
+ACCELERATION_SUFFIXES = {".ax": ".x", ".ay": ".y", ".alpha": ".theta", ".w_ddot": ".w", "_ddot": ""}
+
+
+def acceleration_twin(ports: Any, name: str) -> str | None:
+    """The position sensor whose response times ``s^2`` is the acceleration output ``name``
+    (``"<body>.<point>.ax|ay"`` [m/s^2], ``"<body>.alpha"`` [rad/s^2], ``"<beam>.<station>.w_ddot"`` [m/s^2],
+    ``"<coordinate>_ddot"``), else ``None``."""
+    if not isinstance(name, str) or name in ports.sensors:
+        return None
+    for suffix, twin in ACCELERATION_SUFFIXES.items():
+        if name.endswith(suffix) and name[:-len(suffix)] + twin in ports.sensors:
+            sensor = ports.sensors[name[:-len(suffix)] + twin]
+            if not sensor.is_rate:
+                return sensor.name
+    return None
 
 
 def _undamped_stiffness(system: Any, verb: str, operating_point: Any):

@@ -323,3 +323,25 @@ def test_finite_element_subsystem_equals_the_global_dynamic_stiffness():
     rows = np.eye(n)[[model.coordinates.index(name) for name in outputs]]
     expected = np.array([rows @ np.linalg.solve(K - w * w * M + 1j * w * C, columns) for w in OMEGA])
     assert_close(frf.response, np.moveaxis(expected, 0, -1), 1e-9)
+
+
+def test_acceleration_outputs_are_s_squared_times_the_positions():
+    """Outputs of frequency_response only (not port sensors): the Lagrange model's accelerations -omega^2 x."""
+    model = rigid_chain()
+    ref = RigidReference(model, hanging(model))
+    outputs = ["link2.com.ax", "link2.alpha", "link1.theta_ddot", "link2.com.y"]
+    frf = ctmm.frequency_response(model, OMEGA, input="link2.force_x", output=outputs)
+    assert frf.info["method"] == SWEEP
+    assert [frf.units[name] for name in outputs] == ["m/s^2", "rad/s^2", "rad/s^2", "m"]
+    s = 1j * OMEGA
+    positions = ref.response(s, [ref.com("link2", 0)], [ref.com("link2", 0), ref.angle("link2"), ref.angle("link1"),
+                                                       ref.com("link2", 1)])
+    expected = positions * np.array([s * s, s * s, s * s, np.ones_like(s)])[:, None, :]
+    assert_close(frf.response, expected, 1e-9)
+    undamped = undamped_double_pendulum()       # the dense path (a substructure resonance) answers them too
+    w_sub = math.sqrt(9.81 * 0.5 / (1.0 / 3.0))
+    both = ctmm.frequency_response(undamped, [1.0, w_sub], input="l1.force_x", output=["l1.alpha", "l1.theta"])
+    assert both.info["n_dense_frequencies"] == 1
+    np.testing.assert_allclose(both.response[0], -np.array([1.0, w_sub]) ** 2 * both.response[1], rtol=1e-14)
+    with pytest.raises(ctmm.errors.ModelError, match="l1.beta"):
+        ctmm.frequency_response(undamped, [1.0], input="l1.force_x", output="l1.beta")
