@@ -26,7 +26,8 @@ Certified or handed back, never a silent wrong number: at each frequency every p
 (joint pivots ``D_j``, modal blocks ``C_j``) is measured against the size of the terms it is made of; a
 pivot below :data:`PIVOT_TOLERANCE` of them (``s`` at or next to a pole of the model, or a resonance of a
 substructure that the elimination meets as a zero pivot), a non-finite answer, or a loop matrix
-``I + K G_yu`` with condition number above :data:`~ctmm.controlled_linearization.RESOLVENT_CONDITION`
+``I + K G_yu`` whose smallest singular value is below ``(1 + |K G_yu|_2) / RESOLVENT_CONDITION`` (a closed-loop
+pole at or next to ``s``; :data:`~ctmm.controlled_linearization.RESOLVENT_CONDITION`)
 marks that frequency as not answered here; :func:`ctmm.planar_frequency.frequency_response` answers
 those by the dense resolvent, which answers or refuses them (its rule).
 
@@ -263,11 +264,11 @@ def closed_loop_response(plant: SweepResponse, loops: Sequence[Any], s: np.ndarr
     K = np.zeros((s.size, len(loops), len(loops)), dtype=complex)
     for j, loop in enumerate(loops):
         K[:, j, j] = controller_response(loop.gain, s) * np.exp(-s * loop.delay)
-    if loops:
+    if loops:                       # I + K G_yu against its terms: a closed-loop pole on the axis closes it
         with np.errstate(all="ignore"):
-            matrix = np.eye(len(loops)) + K @ blocks[3]
-            matrix = np.where(good[:, None, None], matrix, np.eye(len(loops)))
-            condition = np.linalg.cond(matrix)
-        good &= condition <= RESOLVENT_CONDITION
+            loop = np.where(good[:, None, None], K @ blocks[3], 0.0)
+            smallest = np.linalg.svd(np.eye(len(loops)) + loop, compute_uv=False)[:, -1]
+            largest = np.linalg.svd(loop, compute_uv=False)[:, 0]
+        good &= smallest * RESOLVENT_CONDITION >= 1.0 + largest
         blocks = tuple(np.where(good[:, None, None], b, 0.0) for b in blocks)
     return close_phasor_loops(blocks, K, inputs, outputs, plain_in, plain_out, loop_signal), good

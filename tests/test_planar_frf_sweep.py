@@ -345,3 +345,26 @@ def test_acceleration_outputs_are_s_squared_times_the_positions():
     np.testing.assert_allclose(both.response[0], -np.array([1.0, w_sub]) ** 2 * both.response[1], rtol=1e-14)
     with pytest.raises(ctmm.errors.ModelError, match="l1.beta"):
         ctmm.frequency_response(undamped, [1.0], input="l1.force_x", output="l1.beta")
+
+
+@pytest.mark.parametrize("delay", [0.0, 0.02])
+def test_a_closed_loop_pole_on_the_axis_goes_to_the_resolvent_rule(delay):
+    """A P loop on the outer hinge of the undamped double pendulum: where I + K G_yu is singular (a closed-loop
+    pole on the imaginary axis) the sweep hands the frequency back; with the loop closed inside A (no delay)
+    the resolvent refuses it; next to it both paths answer alike."""
+    model = undamped_double_pendulum()
+    loop = Feedback("p", sensor="h1.angle", actuator="h1.torque", gain=5.0, delay=delay)
+    system = ControlledModel(model, [loop])
+    kind = (FrequencyAtPoleError,) if delay == 0.0 else ()
+    # closed-loop poles: det(Z(i w) + b K c^T) = 0 on the axis (real for delay 0), from the Lagrange model
+    ref = RigidReference(model, hanging(model))
+    b = ref.hinge("l1")
+    M, K = ref.M, ref.K + 5.0 * np.outer(b, b)
+    poles = np.sqrt(np.sort(np.linalg.eigvals(np.linalg.solve(M, K)).real))
+    if kind:
+        with pytest.raises(FrequencyAtPoleError):
+            ctmm.frequency_response(system, [1.0, float(poles[0])], input="l1.force_x", output="l1.theta")
+    near = poles[0] * (1 + 1e-5)
+    frf = ctmm.frequency_response(system, [1.0, near], input="l1.force_x", output="l1.theta")
+    expected = dense(model, [loop], [1.0, near], ["l1.force_x"], ["l1.theta"], None)
+    assert_close(frf.response, expected, 1e-8)
