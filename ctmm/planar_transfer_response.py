@@ -17,7 +17,8 @@ articulated sweep (:func:`ctmm.articulated.articulated_sweep`) on these terms, n
   (:func:`ctmm.planar_linearization.output_matrix`: angles, positions, their rates ``s x``, hinge angles,
   beam stations, coordinates).
 
-Memory is ``O(outputs x inputs x frequencies)`` besides the sweep's own ``O(N)`` batched terms.  The
+The answer holds ``O(outputs x inputs x frequencies)`` numbers; the sweep's batched terms, while it runs,
+``O(N x CHUNK)`` (frequencies are swept :data:`CHUNK` at a time).  The
 feedback loops of a ``ControlledModel`` (with and without delay, static or LTI ``C(s)``) are closed at
 each frequency by the phasor formula ``(I + K G_yu) u = K (r - G_yw w)``, ``K = diag(C_l(s) e^{-s tau_l})``
 (:func:`ctmm.loop_phasors.close_loops`; a loop without delay is ``tau = 0``).
@@ -48,12 +49,15 @@ from .loop_phasors import close_loops as close_phasor_loops
 from .ops import NUMPY
 from .protocol import BodyTerms, JointTerms
 
-__all__ = ["SweepResponse", "sweep_applies", "PIVOT_TOLERANCE"]
+__all__ = ["SweepResponse", "closed_loop_response", "sweep_applies", "PIVOT_TOLERANCE", "CHUNK"]
 
 PIVOT_TOLERANCE = float(np.sqrt(np.finfo(float).eps))
 """Smallest accepted pivot of the sweep relative to the terms it is made of (``sqrt(eps)``, about 1.5e-8; the
 counterpart of the resolvent's ``1/sqrt(eps)`` condition bound): below it the elimination may lose more than
 half the digits and the frequency is handed to the dense resolvent."""
+
+CHUNK = 512
+"""Frequencies swept at once (the batched terms of the sweep hold ``O(N CHUNK)`` numbers)."""
 
 
 def sweep_applies(model: Any, point: Any) -> bool:
@@ -156,17 +160,20 @@ class SweepResponse:
         s = np.asarray(s, dtype=complex).reshape(-1)
         rows = output_matrix(self.model, list(outputs), self.point)            # (outputs, 2 n): [dy/dq, dy/dqdot]
         loads = [self._loads(name) for name in inputs]
-        try:
-            return self._batch(s, loads, rows)
-        except np.linalg.LinAlgError:   # an exactly singular block at some s (a free base at omega = 0)
-            pass
         G = np.zeros((s.size, len(outputs), len(inputs)), dtype=complex)
         good = np.zeros(s.size, dtype=bool)
-        for k in range(s.size):
+        for start in range(0, s.size, CHUNK):       # the sweep's batched terms: O(N CHUNK) at a time
+            part = slice(start, min(start + CHUNK, s.size))
             try:
-                G[k:k + 1], good[k:k + 1] = self._batch(s[k:k + 1], loads, rows)
-            except np.linalg.LinAlgError:
+                G[part], good[part] = self._batch(s[part], loads, rows)
+                continue
+            except np.linalg.LinAlgError:   # an exactly singular block at some s (a free base at omega = 0)
                 pass
+            for k in range(part.start, part.stop):
+                try:
+                    G[k:k + 1], good[k:k + 1] = self._batch(s[k:k + 1], loads, rows)
+                except np.linalg.LinAlgError:
+                    pass
         return G, good
 
     def _batch(self, s: np.ndarray, loads: list, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
