@@ -135,6 +135,7 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--output", type=Path, default=RESULTS)
     args = parser.parse_args(argv)
     sizes = args.sizes or ([5, 20] if args.quick else [5, 20, 100])
+    resolvent(3, OMEGA[:2])                             # warm-up: the first linearisation imports and builds caches
     rows = [run(n, with_resolvent=n <= 100) for n in sizes]
     result = {"benchmark": "planar_frf", "machine": {"python": platform.python_version(), "numpy": np.__version__,
                                                      "processor": platform.processor() or platform.machine(),
