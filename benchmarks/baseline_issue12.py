@@ -42,7 +42,8 @@ manipulator scene with the laws as ``Feedback`` loops on its ports (was:
 in its ``"rebased"`` entry.  Replaced case: ``planar_chain/rk4_compiled_n5`` (the hand-typed C of
 ``ctmm.planar.compiled``, removed in issue 13) is dropped; ``planar_chain/rk4_generated_n5`` (the same run
 through the generated RK4) was added in its place, measured alone on 2026-11-25 (``timings.added_later``;
-``timings.dropped`` keeps the reason).  Python time-stepping cases whose
+``timings.dropped`` keeps the reason).  ``planar_frf/sweep_n20_500_omega`` (issue 13: planar frequency responses
+by the one sweep's frequency context) was measured alone when its benchmark landed (``timings.added_later``).  Python time-stepping cases whose
 benchmark horizon would make the repeats slow run over a shorter horizon at the benchmark's step
 (stated in ``configuration``): the per-step cost does not depend on the horizon.
 
@@ -280,6 +281,17 @@ def _planar(t: Timings) -> None:
                                                    "on a built CompiledScene)")
 
 
+def _planar_frf(t: Timings) -> None:
+    bench = importlib.import_module("planar_frf")
+    n = 20
+    model = bench.chain(n)
+    bench.sweep(model, n)
+    t.add("planar_frf", f"sweep_n{n}_500_omega", lambda: bench.sweep(model, n), per="call", count=1,
+          configuration=f"pendulum chain N={n} hanging (operating point given), ctmm.frequency_response at "
+                        f"{bench.OMEGA.size} omega, one force input, one angle output: the one sweep's frequency "
+                        "context batched over omega (ctmm.planar_transfer_response)")
+
+
 def _flexible(t: Timings) -> None:
     bench = importlib.import_module("flexible")
     from ctmm.planar import accelerations, simulate_implicit
@@ -435,7 +447,8 @@ def _kernel_cache(t: Timings) -> None:
 
 TIMING_PARTS = (_work_precision, _scaling, _control, _delay_history, _planar, _flexible, _manipulator,
                 _stability_chart, _compiled_scenes, _spatial_chain, _spatial_schemes, _chain_compiled,
-                _chain_schemes_generated, _chain_ode_speed, _compiled_cosim, _batch_parameters, _kernel_cache)
+                _chain_schemes_generated, _chain_ode_speed, _compiled_cosim, _batch_parameters, _kernel_cache,
+                _planar_frf)
 
 
 def timings() -> dict:

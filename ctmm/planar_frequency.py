@@ -4,7 +4,11 @@
 :func:`ctmm.eigenvalue_count` dispatch here for a :class:`~ctmm.planar.model.PlanarModel` (rigid or flexible) or a
 ``ctmm.control.ControlledModel``.  The model is linearised about ``operating_point`` (default:
 its static equilibrium, see :func:`ctmm.linearize`); the response is that of the linearisation,
-``G(s) = C (s I - A)^{-1} B + D``, with delayed loops closed exactly by ``e^{-s tau}``.
+``G(s) = C (s I - A)^{-1} B + D``, with delayed loops closed exactly by ``e^{-s tau}``.  It is computed by
+the one sweep's frequency context batched over omega (:mod:`ctmm.planar_transfer_response`, ``O(N)`` per
+frequency, every loop closed per frequency); the dense resolvent of :func:`ctmm.linearize` answers (or
+refuses) the frequencies the sweep's pivots do not certify and the models it does not state
+(:class:`PlanarResponse`).
 
 Natural frequencies are those of the undamped linearisation ``M qddot + K q = 0``:
 ``omega_k^2`` are the eigenvalues of ``-df/dq`` (``= M^{-1} K``).  As for chains, a model with
@@ -26,12 +30,12 @@ import scipy.linalg
 from . import validation
 from .errors import ModelError
 from .saturation import refuse_saturation
-from .controlled_linearization import delayed_loop_response
+from .controlled_linearization import delayed_loop_response_function
 from .planar_linearization import linearize_planar, tangent
 from .planar_linearization import operating_point as planar_operating_point
 from .results import FrequencyResponse, ModalResult
 
-__all__ = ["is_planar_system", "frequency_response", "natural_frequencies", "mode_shapes", "eigenvalue_count",
+__all__ = ["is_planar_system", "frequency_response", "PlanarResponse", "acceleration_twin", "natural_frequencies", "mode_shapes", "eigenvalue_count",
            "ZERO_MODE_FACTOR", "RESOLUTION"]
 
 _CLOSED_LOOP = ("ctmm.linearize (eigenvalues of the closed-loop A, delays beside it) or ctmm.stability "
@@ -68,9 +72,15 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
                        fields: str = "modal") -> FrequencyResponse:
     """Frequency response of a planar model's linearisation, loops closed with exact delays.
 
-    Loops without delay are closed inside the linearisation (:func:`ctmm.linearize`); each delayed
-    loop ``u = -C(s) e^{-s tau} (y - r)`` is closed here at every frequency:
-    ``(I + K G_yu) u = K (r - G_yw w)``, ``K = diag(C_l(s) e^{-s tau_l})``.
+    The plant's ``G(s)`` comes from the one sweep's frequency context, batched over ``omega``
+    (:mod:`ctmm.planar_transfer_response`), and each loop ``u = -C(s) e^{-s tau} (y - r)`` (``tau = 0``
+    for a loop without delay) is closed at every frequency: ``(I + K G_yu) u = K (r - G_yw w)``,
+    ``K = diag(C_l(s) e^{-s tau_l})``.  Frequencies the sweep does not certify (at or next to a pole, a
+    substructure resonance) and models it does not state (hinges with translational springs, nonlinear
+    hinges, beams with user laws) take the dense resolvent of :func:`ctmm.linearize`, loops without delay
+    closed inside it (:class:`PlanarResponse`); it refuses a frequency at a pole
+    (:class:`~ctmm.controlled_linearization.FrequencyAtPoleError`).  ``info["method"]`` names the path,
+    ``info["n_dense_frequencies"]`` the number of frequencies the resolvent answered.
 
     Parameters
     ----------
@@ -81,8 +91,10 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
         Actuator names (:func:`ctmm.planar.ports.actuator_names`, e.g. ``"motor.torque"`` [N m])
         or ``"<loop>.reference"``.
     output : str or sequence of str
-        Sensor names (:func:`ctmm.planar.ports.sensor_names`, e.g. ``"arm.out.y"`` [m]) or
-        ``"<loop>.y"``, ``"<loop>.u"``.
+        Sensor names (:func:`ctmm.planar.ports.sensor_names`, e.g. ``"arm.out.y"`` [m]),
+        ``"<loop>.y"``, ``"<loop>.u"``, or accelerations (``s^2`` times the position twin, outputs of this
+        verb only): ``"<body>.<point>.ax|ay"`` [m/s^2], ``"<body>.alpha"`` [rad/s^2],
+        ``"<beam>.<station>.w_ddot"`` [m/s^2], ``"<coordinate>_ddot"``.
     operating_point : optional
         As for :func:`ctmm.linearize` (default: the static equilibrium).
     fields : {"modal", "exact"}
@@ -95,7 +107,6 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
     FrequencyResponse
         ``response[i_out, i_in, k]``: output deviation phasor per unit input phasor.
     """
-    from .planar import ports
 
     if validation.option("fields", fields, ("modal", "exact")) == "exact":
         from .exact_fields import frequency_response as exact_response
@@ -107,24 +118,147 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
     s = 1j * validation.frequencies("omega", omega)
     started = time.perf_counter()
 
-    response, lin = delayed_loop_response(
-        lambda lin_in, lin_out: linearize_planar(model, loops, operating_point, inputs=lin_in, outputs=lin_out),
-        loops, s, inputs, outputs, model.name)
-    sensors, actuators = set(ports.sensor_names(model)), set(ports.actuator_names(model))
-    units = {name: ports.actuator_unit(model, name) for name in inputs if name in actuators}
-    units.update({name: ports.sensor_unit(model, name) for name in outputs if name in sensors})
+    responder = PlanarResponse(system, inputs, outputs, operating_point)
+    response = responder(s)
+    named = responder.ports                         # resolved once (building them is O(N))
+    units = {name: named.actuator_unit(name) for name in inputs if name in named.actuators}
+    units.update({name: named.sensor_unit(name) for name in outputs if name in named.sensors})
+    units.update({name: f"{named.sensor_unit(twin)}/s^2" for name, twin in zip(outputs, responder.outputs)
+                  if twin != name})
     for loop in loops:              # loop signals carry a unit when their weights are plain (one term, weight 1)
         plain_sensor = [w for _, w in loop.terms] == [1.0]
         plain_actuator = [w for _, w in loop.actuator_terms] == [1.0]
-        sensed = ports.sensor_unit(model, loop.terms[0][0]) if plain_sensor else ""
-        force = ports.actuator_unit(model, loop.actuator_terms[0][0]) if plain_actuator else ""
+        sensed = named.sensor_unit(loop.terms[0][0]) if plain_sensor else ""
+        force = named.actuator_unit(loop.actuator_terms[0][0]) if plain_actuator else ""
         for name, unit in ((f"{loop.name}.y", sensed), (f"{loop.name}.reference", sensed), (f"{loop.name}.u", force)):
             if name in inputs or name in outputs:
                 units[name] = unit
-    info = {"method": "linearisation (ctmm.linearize), delays exact", "wall_time_s": time.perf_counter() - started,
-            "n_frequencies": int(s.size), "operating_point_q": lin.operating_point.q.tolist(),
-            "jacobian_error": lin.operating_point.jacobian_error}
+    point = responder.point
+    info = {"method": responder.method, "wall_time_s": time.perf_counter() - started, "n_frequencies": int(s.size),
+            "n_dense_frequencies": responder.dense_count, "operating_point_q": point.q.tolist(),
+            "jacobian_error": point.jacobian_error}
     return FrequencyResponse(np.imag(s), response, tuple(inputs), tuple(outputs), model.name, info=info, units=units)
+
+
+class PlanarResponse:
+    """``s -> response[i_out, i_in, k]`` of a planar model (or a ``ControlledModel`` on one) with its loops
+    closed, as :func:`frequency_response` answers it; the model is linearised once, at the first call, and
+    that answers every call (e.g. the repeated evaluations of a crossover search, :func:`ctmm.control.margins`).
+
+    The one sweep's frequency context (:mod:`ctmm.planar_transfer_response`) answers the frequencies it
+    certifies; the dense resolvent of :func:`ctmm.linearize` (:func:`ctmm.controlled_linearization.delayed_loop_response`)
+    answers or refuses the others, and the whole response of what the sweep does not state: hinges with
+    translational springs, nonlinear hinges, beams with user state laws, names that are not plain ports
+    (the dense path's messages for them), an operating point that is not a static equilibrium.
+
+    Parameters
+    ----------
+    system : PlanarModel or ControlledModel
+    inputs, outputs : sequence of str
+        As for :func:`frequency_response`.
+    operating_point : optional
+        As for :func:`ctmm.linearize`.
+
+    Attributes
+    ----------
+    method : str
+        Which path answered (set at the first call).
+    dense_count : int
+        Number of frequencies the dense resolvent answered, over all calls.
+    point : OperatingPoint
+        The operating point (after the first call).
+    """
+
+    def __init__(self, system: Any, inputs: Sequence[str], outputs: Sequence[str], operating_point: Any = None) -> None:
+        from .planar.ports import PlanarPorts
+
+        self.model, self.loops = _split(system)
+        self.ports = PlanarPorts(self.model)
+        self.inputs, self.operating_point = list(inputs), operating_point
+        # an acceleration output is s^2 times its position twin (both paths answer the twin)
+        twins = [acceleration_twin(self.ports, name) for name in outputs]
+        self.outputs = [name if twin is None else twin for name, twin in zip(outputs, twins)]
+        self.accelerations = np.array([twin is not None for twin in twins], dtype=bool)
+        self.method, self.dense_count, self.point = "", 0, None
+        self._plant: list = []
+        self._dense = None
+
+    def _dense_response(self, s: np.ndarray) -> np.ndarray:
+        if self._dense is None:
+            model, loops, point = self.model, self.loops, self.operating_point
+            self._dense = delayed_loop_response_function(
+                lambda lin_in, lin_out: self._record(linearize_planar(model, loops, point, inputs=lin_in,
+                                                                      outputs=lin_out)),
+                loops, self.inputs, self.outputs, model.name)
+        self.dense_count += int(s.size)
+        return self._dense(s)
+
+    def _record(self, lin: Any) -> Any:
+        self.point = lin.operating_point
+        return lin
+
+    def _sweep_plant(self) -> Any:
+        """The :class:`~ctmm.planar_transfer_response.SweepResponse` of the plant, or ``None`` where it does not apply."""
+        from .planar_transfer_response import SweepResponse, sweep_applies
+
+        ports = self.ports
+        loop_names = {lp.name for lp in self.loops}
+        for name in self.inputs:
+            head, _, tail = name.partition(".")
+            if name not in ports.actuators and not (head in loop_names and tail == "reference"):
+                return None
+        for name in self.outputs:
+            head, _, tail = name.partition(".")
+            if name not in ports.sensors and not (head in loop_names and tail in ("y", "u")):
+                return None
+        try:
+            point = planar_operating_point(self.model, self.operating_point)
+        except ModelError:
+            return None
+        if not sweep_applies(self.model, point):
+            return None
+        try:
+            plant = SweepResponse(self.model, point, ports)
+        except ModelError:
+            return None
+        self.point = point
+        return plant
+
+    def __call__(self, s: np.ndarray) -> np.ndarray:
+        from .planar_transfer_response import closed_loop_response
+
+        s = np.asarray(s, dtype=complex).reshape(-1)
+        if not self._plant:
+            self._plant.append(self._sweep_plant())
+            self.method = ("linearisation (ctmm.linearize), delays exact" if self._plant[0] is None
+                           else "one sweep's frequency context (ctmm.planar_transfer_response), delays exact")
+        if self._plant[0] is None:
+            response = self._dense_response(s)
+        else:
+            response, good = closed_loop_response(self._plant[0], self.loops, s, self.inputs, self.outputs)
+            if not np.all(good):            # frequencies the sweep does not certify: the dense resolvent's rule
+                response[:, :, ~good] = self._dense_response(s[~good])
+        response[self.accelerations] *= s * s
+        return response
+
+
+#: Acceleration outputs of :func:`frequency_response` (not sensors of the ports: as loop signals they would close
+#: an algebraic loop) -> the suffix of their position twin.
+ACCELERATION_SUFFIXES = {".ax": ".x", ".ay": ".y", ".alpha": ".theta", ".w_ddot": ".w", "_ddot": ""}
+
+
+def acceleration_twin(ports: Any, name: str) -> str | None:
+    """The position sensor whose response times ``s^2`` is the acceleration output ``name``
+    (``"<body>.<point>.ax|ay"`` [m/s^2], ``"<body>.alpha"`` [rad/s^2], ``"<beam>.<station>.w_ddot"`` [m/s^2],
+    ``"<coordinate>_ddot"``), else ``None``."""
+    if not isinstance(name, str) or name in ports.sensors:
+        return None
+    for suffix, twin in ACCELERATION_SUFFIXES.items():
+        if name.endswith(suffix) and name[:-len(suffix)] + twin in ports.sensors:
+            sensor = ports.sensors[name[:-len(suffix)] + twin]
+            if not sensor.is_rate:
+                return sensor.name
+    return None
 
 
 def _undamped_stiffness(system: Any, verb: str, operating_point: Any):

@@ -128,8 +128,8 @@ def test_natural_frequencies_equal_eigh_of_the_global_linearisation():
     assert omega == pytest.approx(expected, rel=1e-9)
 
 
-def test_frequency_response_equals_the_global_dynamic_stiffness():
-    model, reference = build(rayleigh=(0.5, 1e-4))
+def global_matrices(reference):
+    """``M, C, K`` of the global model about its hanging equilibrium (``C`` by complex step of its rates)."""
     q_rest = np.zeros(reference.n)
     q_rest[reference.theta_index] = -np.pi / 2
     q_rest = reference.equilibrium(q_rest)
@@ -141,6 +141,13 @@ def test_frequency_response_equals_the_global_dynamic_stiffness():
         dv = np.zeros(n, complex)
         dv[k] = 1e-30j
         C[:, k] = -reference._generalised(q_rest.astype(complex), dv, 0.0)[1].imag / 1e-30   # noqa: SLF001
+    return M, C, K
+
+
+def test_frequency_response_equals_the_global_dynamic_stiffness():
+    model, reference = build(rayleigh=(0.5, 1e-4))
+    n = reference.n
+    M, C, K = global_matrices(reference)
     omega = np.array([1.0, 4.0, 30.0, 150.0])
     response = ctmm.frequency_response(model, omega, input="flex.n3_uy.force", output="lower.theta")
     i_in, i_out = model.coordinates.index("flex.n3_uy"), model.coordinates.index("lower.theta")

@@ -100,11 +100,11 @@ def _open_loop_plant_function(system: ControlledChain | ControlledModel, loop: s
                                                                       ("modal", "exact")) == "modal"
     if modal:                                   # one linearisation (at the first call) answers every call
         from ..linearize import linearize
-
-        respond = delayed_loop_response_function(lambda lin_in, lin_out: linearize(open_system, inputs=lin_in,
-                                                                                  outputs=lin_out),
-                                                 getattr(open_system, "loops", ()), inputs, signals,
-                                                 getattr(open_system, "plant", open_system).name)
+        from ..planar_frequency import PlanarResponse, is_planar_system
+        respond = PlanarResponse(open_system, inputs, signals) if is_planar_system(open_system) else \
+            delayed_loop_response_function(lambda into, out: linearize(open_system, inputs=into, outputs=out),
+                                           getattr(open_system, "loops", ()), inputs, signals,
+                                           getattr(open_system, "plant", open_system).name)
 
     def plant(w: np.ndarray) -> np.ndarray:
         frf = FrequencyResponse(w, respond(1j * w), tuple(inputs), tuple(signals), "P") if modal else \
