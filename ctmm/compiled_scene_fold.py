@@ -33,9 +33,9 @@ FOLD_MIN_BODIES = 30
 """Foldable planar chains (:func:`planar_fold_refusal`) with at least this many bodies compile through the
 fold by default (``fold=None``).  Measured (``benchmarks/planar_chain.py``, pendulum chains, loaded 2-core
 machine): the straight-line code's first compile passes 3 s near N = 30 (1.8 s at 20, 16 s at 100, 69 s at
-300), the fold's stays near 1-2 s at N = 100-300.  Per step (session 8, each segment's terms formed once)
-folded / straight-line 6.9 / 2.3 us at N = 20 and 33 / 14 us at N = 100 (the calls, the handed-on
-columns and the numbers taken per segment)."""
+300), the fold's stays near 1-5 s at N = 100-300.  Per step (session 8, each segment's terms formed once; CPU
+time) folded / straight-line 6.7 / 2.4 us at N = 20, 32 / 14 us at N = 100, 104 / 53 us at N = 300 (the
+calls, the handed-on columns and the numbers taken per segment)."""
 SEGMENT_BODIES = 4
 """Preferred bodies per folded segment (:func:`fold_period`): fewer calls per sweep than one body per
 segment, still short code."""

@@ -71,7 +71,7 @@ FOLD_MIN_BODIES = 100
 """Foldable models (:func:`chain_period`) with at least this many bodies are compiled through the fold
 over segments, smaller ones as straight-line code.  Measured (revolute chains, ``docs/spatial.md`` §6b):
 below it the straight-line code runs up to 2x faster (measured when the fold formed each segment's terms
-twice; they are formed once since session 8: 89 / 72 us folded / straight-line at N = 60) and
+twice; they are formed once since session 8: 48 / 42 us folded / straight-line at N = 60, CPU time) and
 compiles in seconds; at N = 100 the fold compiles about 5x faster and runs within 10 %, at N = 300
 it is faster in both."""
 FOLD_KINDS = ("revolute", "prismatic", "universal")
