@@ -11,7 +11,7 @@ compiled=True)``.
 system                                     kernel (compiled once, numbers as inputs ``p``)
 =========================================  ============================================================
 planar model                               :class:`~ctmm.compiled_scene.CompiledScene`, each set's model
-                                           through ``with_model``
+                                           on a copy with its numbers (certified by the parameter space)
 planar model with loops, ``inputs`` or     the scene of the controlled model; each set's loop laws
 ``references``                             (gains as entries of ``p``) on the same compiled functions
 spatial model (held joint ``inputs``,      :class:`~ctmm.compiled_spatial.CompiledSpatialScene` (rigid
@@ -195,14 +195,15 @@ class ParameterKernel:
         SimulationError
             A diverging or non-finite run, with ``partial_result``.
         """
-        return self.finish(values, self.member(values), x0=x0, v0=v0, divergence_bound=divergence_bound,
+        return self._finish(values, self.member(values), x0=x0, v0=v0, divergence_bound=divergence_bound,
                            stability_check=stability_check)
 
-    def finish(self, values: Mapping[str, Any], member: Any, *, x0: Any = None, v0: Any = None,
-               divergence_bound: float | None = None, stability_check: str | None = None,
-               ran: tuple[np.ndarray, float] | None = None) -> SimulationResult:
-        """:meth:`run` of the set ``values`` whose system :meth:`member` is built already; ``ran``: its
-        stored states and wall time [s] computed already (a planar set of :meth:`run_mapped`)."""
+    def _finish(self, values: Mapping[str, Any], member: Any, *, x0: Any = None, v0: Any = None,
+                divergence_bound: float | None = None, stability_check: str | None = None,
+                ran: tuple[np.ndarray, float] | None = None) -> SimulationResult:
+        """:meth:`run` of the set ``values`` whose system ``member`` :meth:`member` built (certified: the
+        structure and parameter vector of the compiled one); ``ran``: its stored states and wall time [s]
+        computed already (a planar set of :meth:`run_mapped`)."""
         references = self.space.references_with(values)
         values = {name: float(value) for name, value in values.items()}
         plant, loops = plant_and_loops(member)
@@ -247,7 +248,7 @@ class ParameterKernel:
         wall = (time.perf_counter() - clock) / len(built)
         for index, k in enumerate(built):
             try:
-                runs[k] = self.finish(sets[k], members[k][0], **start, ran=(states[index], wall)), None
+                runs[k] = self._finish(sets[k], members[k][0], **start, ran=(states[index], wall)), None
             except Exception as exc:  # noqa: BLE001 - as above
                 runs[k] = None, exc
         return runs
@@ -263,7 +264,7 @@ class ParameterKernel:
             try:
                 simulation = simulate_rk4_generated(plant, q0, qdot0, t_final=self.t_final, dt=self.dt,
                                                     store_every=self.store_every, divergence_bound=bound,
-                                                    stability_check=policy, scene=base.with_model(plant), ran=ran)
+                                                    stability_check=policy, scene=self._member_scene(plant), ran=ran)
             except SimulationError as exc:
                 if exc.partial_result is not None:
                     exc.partial_result = to_result(exc.partial_result, outputs=self.outputs,
@@ -279,6 +280,14 @@ class ParameterKernel:
                                              inputs=self.inputs, references=references, outputs=self.outputs,
                                              store_every=self.store_every, divergence_bound=bound,
                                              stability_check=policy, scene=scene)
+
+    def _member_scene(self, plant: PlanarModel) -> Any:
+        """The shared planar scene with the numbers of ``plant``, a member certified by :meth:`member` (its
+        structure key that of the compiled model, its parameter vector the expected one): what
+        :meth:`ctmm.compiled_scene.CompiledScene.with_model` gives, without computing the key again."""
+        scene = copy.copy(self.scene())
+        scene.model, scene.parameters = plant, parameter_vector(plant)
+        return scene
 
     def _run_spatial(self, plant: SpatialModel, loops: tuple, references: dict, x0: Any, v0: Any, bound: Any
                      ) -> SimulationResult:
