@@ -1,5 +1,5 @@
 """Planar generated kernels keyed on the model's description before anything is built (issue 13;
-ctmm.compiled_scene._description, ctmm.model_description.describe(numbers=False)).
+ctmm.compiled_scene_key, ctmm.model_description.describe(numbers=False)).
 
 A cached call builds no symbols (the symbolic builders are replaced by functions that raise); the cache
 folder's files (counted by the operating system) show hits and misses; every scene's accelerations are
@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ctmm import compiled_parameters
+from ctmm import compiled_parameters, compiled_scene_key
 from ctmm.control import Feedback
 from ctmm.control.controlled_model import ControlledModel
 from ctmm.planar import ElasticHinge, Fixed, PlanarModel, RigidBody, SmoothHinge
@@ -85,7 +85,7 @@ def test_numbers_as_constants_miss_on_any_number_and_hit_on_the_same_model(tmp_p
 def test_a_hit_that_does_not_compute_the_model_is_rebuilt(tmp_path, monkeypatch) -> None:
     """A structure key that missed a constant (simulated: every model one key) would find the library of
     another ground angle; the certification against the numpy sweep rejects it and the scene is built."""
-    monkeypatch.setattr(compiled_scene, "structure_key", lambda model: "one key for every model")
+    monkeypatch.setattr(compiled_scene_key, "structure_key", lambda model: "one key for every model")
     CompiledScene(pendulum(), cache_dir=tmp_path, rows=2)
     turned = pendulum(angle=0.4)
     scene = CompiledScene(turned, cache_dir=tmp_path, rows=2)
