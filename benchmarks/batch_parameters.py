@@ -22,6 +22,13 @@ peak (round-off: the same RK4), and for row 3 of set 0 against the independent g
 ``ctmm.reference.spatial_tree`` (its own RK4).  Ratios: per set, (b) and (c) over (a) with its compile
 spread over the sets, and (c) over the runs of (a) alone (what many sets tend to).
 
+Session 8: sequential planar sets without loops (row 1) run their RK4 in one C call per block for all sets
+(``casadi.Function.map``, serial; ``ctmm.batch.ParameterKernel.run_mapped``).  Row 1 measured before (commit
+3254dc0) / after in one sitting, load 8-9 on 2 cores: runs 36.5 / 38.5 ms per set (within the noise: the Python
+per set, model rebuilt and certified, step limit checked, result built, dominates the 1.5 ms of C; measured
+apart with ``stability_check="ignore"``, CPU, load 3-4: 64 sets of N = 20 x 500 steps 343 -> 290 ms, of N = 5 x
+2000 steps 262 -> 176 ms, the latter saving the C calls per block and set).
+
 Run: ``python benchmarks/batch_parameters.py [--quick] [--rows 5]`` (``--rows``: only those rows, the others kept
 in the results file).
 """

@@ -9,7 +9,8 @@ and a cached library is loaded by its functions' names.
 Cases (each in a fresh cache folder): a 1-D chain of 100 masses with a real-time loop
 (``benchmarks/chain_compiled.py`` ``model(100)``, ``start(100)``), 1 s at dt = 1e-3, ``method="rk4"``
 and ``method="newmark"``; a planar pendulum chain of 10 links (RK4, 1 s at 1e-3); a spatial revolute
-chain of 6 and of 16 links (RK4, 1 s at 1e-3); a three-mass chain with a PID on the generated Newmark; the
+chain of 6 and of 16 links (RK4, 1 s at 1e-3); a three-mass chain with a PID on the generated Newmark; a planar pendulum chain of 40 links (folded, RK4, 1 s at
+1e-3; session 8); the
 16-link chain with a real-time loop in the step and a PID co-simulated every 10 steps (0.2 s).  Rows: first
 call (generate + compile), then the best of seven further calls (library from the cache), each as the whole
 ``ctmm.simulate`` wall time, its CPU time (``time.process_time``: less sensitive to other jobs on the machine) and as
@@ -39,6 +40,13 @@ CPU 74-76 -> 21-23 ms; chain 100 + loop Newmark kernel 28 -> 27-28 ms, CPU 91-92
 build it skips is traded for describing the 100-mass model, and the affine form and its certification, which the
 run needs, dominate); chain RK4 and planar unchanged (they keep the built step's key); ``chain3_newmark_pid``
 cached call 29-30 ms for 1000 steps (kernel 4.1 ms); every cached call bit for bit equal to the first.
+
+Session 8 (planar scenes keyed on their description before any symbol is built, ``numbers="inputs"`` without
+the numbers, a hit certified against the numpy sweep; new case ``planar_pendulum40_rk4``, folded).  Measured
+2026-11-25 (``session8_before1/2``: commit 3254dc0, ``session8_after1/2``: this change, alternated, load 6-8 on
+2 cores; best CPU of 7 cached calls, before -> after): planar 10 links 0.027-0.030 -> 0.009 s, planar 40 links
+0.055-0.061 -> 0.035-0.036 s; other cases unchanged; every cached call bit for bit equal to the first.  The
+cached ``CompiledScene`` alone (best of 7 CPU): 21 / 27 / 46 ms -> 4.2 / 11 / 24 ms at N = 10 / 40 / 100.
 
 Run ``python benchmarks/kernel_cache.py [--label after]``; adds the run under its label to
 ``benchmarks/results/kernel_cache.json`` (``before``: the same file run from a checkout of the commit
@@ -94,7 +102,8 @@ def spatial_chain(n: int, actuated: bool = False) -> spatial.SpatialModel:
 def cases() -> dict:
     chain = controlled_chain(100)
     x0 = {f"m{i}": value for i, value in enumerate(start(100))}
-    pendulum, arm, long_arm = pendulum_chain(10), spatial_chain(6), spatial_chain(16)
+    pendulum, long_pendulum = pendulum_chain(10), pendulum_chain(40)
+    arm, long_arm = spatial_chain(6), spatial_chain(16)
     arm_q0 = 0.1 * (np.arange(arm.n_positions) % 2)
     long_q0 = 0.1 * (np.arange(long_arm.n_positions) % 2)
     sys.path.insert(0, str(ROOT / "tests"))
@@ -118,6 +127,8 @@ def cases() -> dict:
         "chain100_loop_newmark": lambda: ctmm.simulate(chain, 1.0, 1e-3, method="newmark", compiled=True, x0=x0),
         "planar_pendulum10_rk4": lambda: ctmm.simulate(pendulum, 1.0, 1e-3, method="rk4", compiled=True,
                                                        x0=np.full(10, 0.2)),
+        "planar_pendulum40_rk4": lambda: ctmm.simulate(long_pendulum, 1.0, 1e-3, method="rk4", compiled=True,
+                                                       x0=np.full(40, 0.2)),
         "spatial_revolute6_rk4": lambda: ctmm.simulate(arm, 1.0, 1e-3, method="rk4", compiled=True, x0=arm_q0),
         "spatial_revolute16_rk4": lambda: ctmm.simulate(long_arm, 1.0, 1e-3, method="rk4", compiled=True,
                                                         x0=long_q0),

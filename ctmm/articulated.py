@@ -32,7 +32,8 @@ from .errors import ModelError
 from .ops import Ops
 from .protocol import BodyTerms, JointTerms
 
-__all__ = ["Tree", "Articulated", "SingularPivotError", "articulated_sweep", "explicit_kappa", "frequency_kappa"]
+__all__ = ["Tree", "Articulated", "Inward", "SingularPivotError", "articulated_inward", "articulated_outward",
+           "articulated_sweep", "explicit_kappa", "frequency_kappa"]
 
 
 class SingularPivotError(np.linalg.LinAlgError):
@@ -141,9 +142,41 @@ def frequency_kappa(ops: Ops, joints: Sequence[JointTerms], s: Any) -> list:
     return out
 
 
+@dataclass(frozen=True)
+class Inward:
+    """Result of the tip-to-base elimination (:func:`articulated_inward`), per body ``j`` (ops matrices,
+    ``None`` where the body or joint has none); all the base-to-tip pass (:func:`articulated_outward`)
+    needs besides the body and joint terms.
+
+    Attributes
+    ----------
+    inertia : list
+        ``Phi_j`` (d, d): articulated inertia at the inboard point before the joint is eliminated.
+    bias : list
+        ``psi'_j`` (d, 1): articulated bias at the inboard point (with ``Phi_j c_joint``).
+    transposed : list
+        ``S^T Phi_j`` (one unit axis) or ``S^T`` (k, d) of free joints.
+    pivot : list
+        ``D_j`` (k, k) of free joints.
+    modal : list
+        ``C_j`` (n_j, n_j) of bodies with internal coordinates.
+    modal_inertia, modal_bias : list
+        ``W_A`` (n_j, d) and ``W_h`` (n_j, 1) of bodies with internal coordinates.
+    """
+
+    inertia: list
+    bias: list
+    transposed: list
+    pivot: list
+    modal: list
+    modal_inertia: list
+    modal_bias: list
+
+
 def articulated_sweep(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints: Sequence[JointTerms],
                       kappa: Sequence[Any] | None = None, *, characteristic: bool = False) -> Articulated:
-    """Tip-to-base elimination and base-to-tip pass (module docstring).
+    """Tip-to-base elimination and base-to-tip pass (module docstring): :func:`articulated_outward` of
+    :func:`articulated_inward`.
 
     Parameters
     ----------
@@ -164,6 +197,25 @@ def articulated_sweep(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints:
         Singular pivots are not detected here (no branching on values): numpy callers check the
         result for finiteness; an exactly singular multi-direction pivot (numpy) raises
         :class:`SingularPivotError` naming the body.
+    """
+    inward = articulated_inward(ops, tree, bodies, joints, kappa)
+    return articulated_outward(ops, tree, bodies, joints, inward, characteristic=characteristic)
+
+
+def articulated_inward(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints: Sequence[JointTerms],
+                       kappa: Sequence[Any] | None = None) -> Inward:
+    """Tip-to-base elimination (module docstring): the articulated terms of every body.
+
+    Parameters are those of :func:`articulated_sweep`.  At the ground only the pivot is formed: the
+    prescribed relative acceleration of a driven joint on the ground is read by the outward pass only
+    (:mod:`ctmm.segment_fold` eliminates with a weld there and prescribes in the outward pass).
+
+    Raises
+    ------
+    ModelError
+        Sizes that do not match the tree.
+    SingularPivotError
+        An exactly singular multi-direction pivot or modal block (numpy).
     """
     nb = len(tree.parent)
     if len(bodies) != nb or len(joints) != nb:
@@ -245,6 +297,33 @@ def articulated_sweep(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints:
         RF = parent.RF[e]
         M[par] = M[par] + ops.matmul(ops.matmul(RF, P_hat), parent.Kin[e])
         h[par] = h[par] + ops.matmul(RF, ops.matmul(P_hat, parent.c[e]) + p_hat)
+    return Inward(Phi, psi, St, D, C, WA, Wh)
+
+
+def articulated_outward(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints: Sequence[JointTerms],
+                        inward: Inward, *, characteristic: bool = False) -> Articulated:
+    """Base-to-tip pass (module docstring) on the elimination ``inward`` of the same tree.
+
+    It reads of ``bodies`` only ``Kin`` and ``c`` of the points carrying children, and of ``joints``
+    ``S``, ``c``, ``tau``, ``prescribed`` and the structure (free directions, ``axis``).
+
+    Parameters
+    ----------
+    ops, tree, bodies, joints
+        As for :func:`articulated_sweep`.
+    inward : Inward
+        :func:`articulated_inward` of these terms (or terms carrying the same numbers).
+    characteristic : bool
+        Also form ``prod det D_j prod det C_j``.
+
+    Returns
+    -------
+    Articulated
+    """
+    nb = len(tree.parent)
+    d = tree.dimension
+    Phi, psi, St, D, C = inward.inertia, inward.bias, inward.transposed, inward.pivot, inward.modal
+    WA, Wh = inward.modal_inertia, inward.modal_bias
     x, force, relative = [None] * nb, [None] * nb, [None] * nb
     for j in range(nb):
         par = tree.parent[j]

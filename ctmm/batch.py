@@ -11,7 +11,7 @@ compiled=True)``.
 system                                     kernel (compiled once, numbers as inputs ``p``)
 =========================================  ============================================================
 planar model                               :class:`~ctmm.compiled_scene.CompiledScene`, each set's model
-                                           through ``with_model``
+                                           on a copy with its numbers (certified by the parameter space)
 planar model with loops, ``inputs`` or     the scene of the controlled model; each set's loop laws
 ``references``                             (gains as entries of ``p``) on the same compiled functions
 spatial model (held joint ``inputs``,      :class:`~ctmm.compiled_spatial.CompiledSpatialScene` (rigid
@@ -22,6 +22,9 @@ spatial model with loops, port inputs,     :class:`~ctmm.compiled_spatial_loops.
 
 :func:`simulate_batch` runs the sets in a loop (or on any executor, :mod:`ctmm.executors`) with
 progress output; a set that fails is reported with its index and exception and the others are kept.
+Sequential planar sets without loops run their RK4 together: one C call per block for all sets
+(``casadi.Function.map``, serial, :meth:`ParameterKernel.run_mapped`), each set then checked and stored
+as alone, with the same numbers.
 """
 from __future__ import annotations
 
@@ -192,7 +195,15 @@ class ParameterKernel:
         SimulationError
             A diverging or non-finite run, with ``partial_result``.
         """
-        member = self.member(values)                # checks the names and values
+        return self._finish(values, self.member(values), x0=x0, v0=v0, divergence_bound=divergence_bound,
+                           stability_check=stability_check)
+
+    def _finish(self, values: Mapping[str, Any], member: Any, *, x0: Any = None, v0: Any = None,
+                divergence_bound: float | None = None, stability_check: str | None = None,
+                ran: tuple[np.ndarray, float] | None = None) -> SimulationResult:
+        """:meth:`run` of the set ``values`` whose system ``member`` :meth:`member` built (certified: the
+        structure and parameter vector of the compiled one); ``ran``: its stored states and wall time [s]
+        computed already (a planar set of :meth:`run_mapped`)."""
         references = self.space.references_with(values)
         values = {name: float(value) for name, value in values.items()}
         plant, loops = plant_and_loops(member)
@@ -205,12 +216,45 @@ class ParameterKernel:
         elif self.kind.startswith("spatial"):
             result = self._run_spatial(plant, loops, references, x0, v0, divergence_bound)
         else:
-            result = self._run_planar(plant, loops, references, x0, v0, divergence_bound, policy)
+            result = self._run_planar(plant, loops, references, x0, v0, divergence_bound, policy, ran)
         result.info.update(parameters=dict(values), kernel="shared")
         return result
 
+    def run_mapped(self, sets: Sequence[Mapping[str, Any]], start: Mapping[str, Any]) -> list[tuple]:
+        """``(result, None)`` or ``(None, exception)`` of each set of a planar kernel without loops
+        (``kind == "planar"``), their RK4 in one C call per block over all sets (``casadi.Function.map``,
+        serial: :func:`ctmm.compiled_scene.simulate_batch`); each set then checked and stored as by
+        :meth:`run`, with the same numbers (the same compiled block per set).  ``start``: the keyword
+        arguments of :meth:`run`."""
+        from .compiled_scene import simulate_batch as scene_batch
+
+        if self.kind != "planar":
+            raise ModelError(f"run_mapped runs planar kernels without loops; this kernel is {self.kind!r}")
+        members: list = []
+        for values in sets:
+            try:
+                members.append((self.member(values), None))
+            except Exception as exc:  # noqa: BLE001 - a failed set is reported with its index, the others kept
+                members.append((None, exc))
+        built = [k for k, (member, _) in enumerate(members) if member is not None]
+        runs: list = [(None, error) for _, error in members]
+        if not built:
+            return runs
+        q0, qdot0 = self.start(start.get("x0"), start.get("v0"))
+        n_steps = step_total(self.t_final, self.dt)
+        clock = time.perf_counter()
+        states = scene_batch(self.scene(), np.array([parameter_vector(members[k][0]) for k in built]), q0, qdot0,
+                             dt=self.t_final / n_steps, n_steps=n_steps)
+        wall = (time.perf_counter() - clock) / len(built)
+        for index, k in enumerate(built):
+            try:
+                runs[k] = self._finish(sets[k], members[k][0], **start, ran=(states[index], wall)), None
+            except Exception as exc:  # noqa: BLE001 - as above
+                runs[k] = None, exc
+        return runs
+
     def _run_planar(self, plant: PlanarModel, loops: tuple, references: dict, x0: Any, v0: Any, bound: Any,
-                    policy: str) -> SimulationResult:
+                    policy: str, ran: tuple[np.ndarray, float] | None = None) -> SimulationResult:
         from .compiled_control import simulate_controlled_generated
         from .compiled_scene import simulate_rk4_generated
 
@@ -220,7 +264,7 @@ class ParameterKernel:
             try:
                 simulation = simulate_rk4_generated(plant, q0, qdot0, t_final=self.t_final, dt=self.dt,
                                                     store_every=self.store_every, divergence_bound=bound,
-                                                    stability_check=policy, scene=base.with_model(plant))
+                                                    stability_check=policy, scene=self._member_scene(plant), ran=ran)
             except SimulationError as exc:
                 if exc.partial_result is not None:
                     exc.partial_result = to_result(exc.partial_result, outputs=self.outputs,
@@ -236,6 +280,14 @@ class ParameterKernel:
                                              inputs=self.inputs, references=references, outputs=self.outputs,
                                              store_every=self.store_every, divergence_bound=bound,
                                              stability_check=policy, scene=scene)
+
+    def _member_scene(self, plant: PlanarModel) -> Any:
+        """The shared planar scene with the numbers of ``plant``, a member certified by :meth:`member` (its
+        structure key that of the compiled model, its parameter vector the expected one): what
+        :meth:`ctmm.compiled_scene.CompiledScene.with_model` gives, without computing the key again."""
+        scene = copy.copy(self.scene())
+        scene.model, scene.parameters = plant, parameter_vector(plant)
+        return scene
 
     def _run_spatial(self, plant: SpatialModel, loops: tuple, references: dict, x0: Any, v0: Any, bound: Any
                      ) -> SimulationResult:
@@ -417,7 +469,8 @@ def simulate_batch(system: Any, parameter_sets: Any, t_final: float, dt: float, 
         As :func:`ctmm.simulate` with ``compiled=True`` (the same for every set).
     executor : None, "threads", "processes" or Executor
         Where the sets run (:func:`ctmm.executors.parallel_map`): sequentially or on threads every set
-        runs on the one compiled scene; a process pool or another executor receives chunks of sets
+        runs on the one compiled scene (sequentially, planar models without loops: the RK4 of all sets in
+        one C call per block, :meth:`ParameterKernel.run_mapped`, unless ``progress=True``); a process pool or another executor receives chunks of sets
         (about four per CPU) and the kernel without its scene, which each chunk builds again from the
         disk cache (the C text generated again, nothing compiled).  Each set also builds and checks its
         model and, on planar models, its step against the linearised RK4 limit
@@ -453,7 +506,9 @@ def simulate_batch(system: Any, parameter_sets: Any, t_final: float, dt: float, 
     kernel.scene()                                  # compiled (or loaded) once, before the sets
     start = {"x0": x0, "v0": v0, "divergence_bound": divergence_bound, "stability_check": stability_check}
     clock = time.perf_counter()
-    if executor is None or (isinstance(executor, str) and executor == "threads") or \
+    if executor is None and kernel.kind == "planar" and progress is not True:     # one C call per block and all sets
+        runs = kernel.run_mapped(sets, start)
+    elif executor is None or (isinstance(executor, str) and executor == "threads") or \
             isinstance(executor, ThreadPoolExecutor):       # one scene shared by every set
         runs = parallel_map(_run_set, [(kernel, values, start) for values in sets], executor=executor,
                             progress=progress, description="simulate_batch")

@@ -33,8 +33,9 @@ FOLD_MIN_BODIES = 30
 """Foldable planar chains (:func:`planar_fold_refusal`) with at least this many bodies compile through the
 fold by default (``fold=None``).  Measured (``benchmarks/planar_chain.py``, pendulum chains, loaded 2-core
 machine): the straight-line code's first compile passes 3 s near N = 30 (1.8 s at 20, 16 s at 100, 69 s at
-300), the fold's stays near 1-2 s at N = 100-300; the folded step runs up to about 2x slower at N = 100
-(each segment's terms are formed twice) and as fast at N = 300."""
+300), the fold's stays near 1-5 s at N = 100-300.  Per step (session 8, each segment's terms formed once; CPU
+time) folded / straight-line 6.7 / 2.4 us at N = 20, 32 / 14 us at N = 100, 104 / 53 us at N = 300 (the
+calls, the handed-on columns and the numbers taken per segment)."""
 SEGMENT_BODIES = 4
 """Preferred bodies per folded segment (:func:`fold_period`): fewer calls per sweep than one body per
 segment, still short code."""
@@ -162,12 +163,14 @@ def folded_acceleration(model: PlanarModel, numbers: SceneNumbers, inputs: Actua
     n = model.n_bodies
     count = n // period
     u_sx, p_sx, t_sx = symbols
-    per_segment = _numbers_map(segment_numbers(model, numbers, inputs, period), u_sx, p_sx, t_sx)
+    entries = segment_numbers(model, numbers, inputs, period)
+    per_segment = _numbers_map(entries, u_sx, p_sx, t_sx)
+    common = _common_constants(entries)
     parent, q, v = ca.SX.sym("parent", 2), ca.SX.sym("q", period), ca.SX.sym("v", period)
     s = ca.SX.sym("s", SEGMENT_ENTRIES * period)
     bodies, joints = [], []
     for i in range(period):
-        e = [s[SEGMENT_ENTRIES * i + k] for k in range(SEGMENT_ENTRIES)]
+        e = [common.get(SEGMENT_ENTRIES * i + k, s[SEGMENT_ENTRIES * i + k]) for k in range(SEGMENT_ENTRIES)]
         th_end, om_end = (parent[0], parent[1]) if i == 0 else (q[i - 1], v[i - 1])
         bodies.append(rigid_body_terms(CASADI, mass=e[0], inertia=e[1], center_of_mass=(e[2], e[3]),
                                        points={"out": (e[4], e[5])}, gravity=(e[6], e[7]), theta=q[i], omega=v[i],
@@ -184,6 +187,23 @@ def folded_acceleration(model: PlanarModel, numbers: SceneNumbers, inputs: Actua
     accelerations = fold_segments(bodies, joints, ["out"] * period, [parent, q, v, s], [parents, Q, V, columns],
                                   lambda solution: ca.vertcat(*[solution.x[i][2] for i in range(1, period + 1)]))
     return ca.Function("acceleration", [q_all, v_all, u, p, t], [ca.reshape(accelerations, n, 1)])
+
+
+def _common_constants(entries: Any) -> dict[int, float]:
+    """``{row: value}`` of the rows of the segments' numbers ``entries`` (SX, one column per segment) that
+    hold the same constant in every segment (zero forces, moments and laws; with ``numbers="constants"``
+    every equal number): the segment's code takes them as constants, as the straight-line code does, so
+    the operations on them fold away (the code stays the same for every segment)."""
+    import casadi as ca
+
+    common = {}
+    for row in range(int(entries.size1())):
+        values = [entries[row, column] for column in range(int(entries.size2()))]
+        if all(value.is_constant() for value in values):
+            numbers = {float(ca.evalf(value)) for value in values}
+            if len(numbers) == 1:
+                common[row] = numbers.pop()
+    return common
 
 
 def _numbers_map(entries: Any, u: Any, p: Any, t: Any) -> Any:

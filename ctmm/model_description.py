@@ -42,17 +42,18 @@ _FUNCTIONS = (types.FunctionType, types.BuiltinFunctionType, types.MethodType, t
 class _Graph:
     """The walk of one description: objects met so far (``id -> index``) and module verdicts (:func:`_in_package`)."""
 
-    def __init__(self, verdicts: dict[str, bool]) -> None:
+    def __init__(self, verdicts: dict[str, bool], numbers: bool = True) -> None:
         self.seen: dict[int, int] = {}
         self.alive: list = []              # every object met stays alive, so no id is reused during the walk
         self.verdicts = verdicts
+        self.numbers = numbers             # False: floats by their zero pattern only (describe(numbers=False))
 
 
 class _NotDescribable(Exception):
     """Raised inside :func:`describe` at the first value it cannot describe exactly."""
 
 
-def describe(value: Any) -> bytes | None:
+def describe(value: Any, *, numbers: bool = True) -> bytes | None:
     """The complete description of ``value`` (module docstring), or ``None`` when some part of it cannot be
     described exactly.
 
@@ -60,6 +61,10 @@ def describe(value: Any) -> bytes | None:
     ----------
     value : object
         A model, options, a tuple of both...
+    numbers : bool
+        ``False``: every float (and complex, and every entry of a float or complex array) is written as
+        zero or non-zero only -- the structure of ``value`` without its numbers, for a kernel that takes
+        the numbers as inputs; the caller must key the constants of its code apart.
 
     Returns
     -------
@@ -67,7 +72,7 @@ def describe(value: Any) -> bytes | None:
     """
     out: list[bytes] = []
     try:
-        _write(value, out, _Graph({}))
+        _write(value, out, _Graph({}, numbers))
     except (_NotDescribable, RecursionError):
         return None
     return b"".join(out)
@@ -110,6 +115,9 @@ def _write(value: Any, out: list[bytes], graph: "_Graph") -> None:
     if kind in _ATOMS:
         out.append(b"a" + kind.__name__.encode() + b":" + repr(value).encode() + b";")
         return
+    if kind in (float, complex) and not graph.numbers:
+        out.append(b"z;" if value == 0 else b"x;")
+        return
     if kind is float:
         out.append(b"f" + value.hex().encode() + b";")
         return
@@ -124,6 +132,9 @@ def _write(value: Any, out: list[bytes], graph: "_Graph") -> None:
         return
     if isinstance(value, np.dtype):
         out.append(b"D" + value.str.encode() + b";")
+        return
+    if isinstance(value, np.generic) and not graph.numbers and np.issubdtype(value.dtype, np.inexact):
+        out.append(b"g" + value.dtype.str.encode() + (b":z;" if value == 0 else b":x;"))
         return
     if isinstance(value, np.generic):
         out.append(b"g" + value.dtype.str.encode() + b":" + value.tobytes() + b";")
@@ -142,7 +153,8 @@ def _write(value: Any, out: list[bytes], graph: "_Graph") -> None:
                 _write(item, out, graph)
             out.append(b"]")
         else:
-            data = np.ascontiguousarray(value).tobytes()
+            data = np.ascontiguousarray(value if graph.numbers or not np.issubdtype(value.dtype, np.inexact)
+                                        else np.packbits(value.reshape(-1) != 0)).tobytes()
             out.append(b"n" + value.dtype.str.encode() + repr(value.shape).encode() + len(data).to_bytes(8, "little")
                        + data)
     elif kind in (tuple, list):
@@ -160,7 +172,7 @@ def _write(value: Any, out: list[bytes], graph: "_Graph") -> None:
         parts = []
         for item in value:
             part: list[bytes] = []
-            _write(item, part, _Graph(graph.verdicts))
+            _write(item, part, _Graph(graph.verdicts, graph.numbers))
             parts.append(b"".join(part))
         out.append(b"s" + str(len(value)).encode() + b"{" + b"".join(sorted(parts)) + b"}")
     elif isinstance(value, _FUNCTIONS):

@@ -4,23 +4,26 @@
 A chain of ``count`` equal segments is swept with the code of one segment, called once per segment
 (``casadi.Function.mapaccum``), so the generated C does not grow with the number of bodies:
 
-* ``eliminate`` (tip to base): the segment's body and joint terms and the one articulated sweep
-  (:func:`~ctmm.articulated.articulated_sweep`) on the segment between a virtual parent (``Kin = I``,
-  ``RF = I``) and a virtual welded child holding the articulated inertia and bias of the rest of the
-  chain; the virtual parent's articulated terms are carried to the next segment inboard;
-* ``accelerate`` (base to tip): the same sweep with the virtual parent's acceleration prescribed (the
-  inboard point's, carried from the previous segment), giving the segment's outputs and the virtual
-  child's acceleration carried on.
+* ``eliminate`` (tip to base): the segment's body and joint terms and the tip-to-base half of the one
+  articulated sweep (:func:`~ctmm.articulated.articulated_inward`) on the segment between a virtual parent
+  (``Kin = I``, ``RF = I``) and a virtual welded child holding the articulated inertia and bias of the rest
+  of the chain; the virtual parent's articulated terms are carried to the next segment inboard, and the
+  formed terms the base-to-tip half reads (articulated inertias, biases and pivots, the points'
+  kinematics, the joints' laws: those of their entries that are not constants) are handed on per segment;
+* ``accelerate`` (base to tip): the base-to-tip half (:func:`~ctmm.articulated.articulated_outward`) on
+  those handed-on terms with the virtual parent's acceleration prescribed (the inboard point's, carried
+  from the previous segment), giving the segment's outputs and the virtual child's acceleration carried on.
 
-The segment's terms are formed twice (once per sweep): about twice the arithmetic of the straight-line
-sweep.  Used by :func:`ctmm.compiled_spatial.folded_velocity_rate` and
+Each segment's terms are formed once, as in the straight-line sweep; the fold adds the calls and the
+handed-on columns.  Used by :func:`ctmm.compiled_spatial.folded_velocity_rate` and
 :func:`ctmm.compiled_scene_fold.folded_acceleration`.
 """
 from __future__ import annotations
 
+from dataclasses import fields, replace
 from typing import Any, Callable, Sequence
 
-from .articulated import Articulated, Tree, articulated_sweep
+from .articulated import Articulated, Inward, Tree, articulated_inward, articulated_outward
 from .errors import ModelError
 from .ops import CASADI
 from .protocol import BodyTerms, JointTerms
@@ -78,19 +81,66 @@ def fold_segments(bodies: Sequence[BodyTerms], joints: Sequence[JointTerms], out
     virtual_child = BodyTerms(M=ca.reshape(carried[:d * d], d, d), h=carried[d * d:])
     tree = Tree(tuple(range(-1, period + 1)), (None, "in") + tuple(outboard), dimension=d)
     weld = JointTerms(S=ca.DM.zeros(d, 0))
-    solution = articulated_sweep(CASADI, tree, [virtual_parent, *bodies, virtual_child], [weld, *joints, weld])
-    reduced = ca.vertcat(ca.reshape(solution.inertia[0], d * d, 1), solution.force[0])
-    eliminate = ca.Function("eliminate", [carried, *symbols], [reduced, carried])
+    all_bodies, all_joints = [virtual_parent, *bodies, virtual_child], [weld, *joints, weld]
+    inward = articulated_inward(CASADI, tree, all_bodies, all_joints)
+    reduced = ca.vertcat(ca.reshape(inward.inertia[0], d * d, 1), inward.bias[0])
+    # the outward pass on stand-ins of the formed terms it reads (the inward results, the points' Kin and
+    # c, the joints' S, c and tau): the eliminate fold hands their values to the accelerate fold
+    formed = _Formed()
+    stand_in = Inward(*[[formed.stand_in(term) for term in getattr(inward, field.name)] for field in fields(inward)])
+    bodies_in = [replace(body, Kin={e: formed.stand_in(body.Kin[e]) for e in body.Kin},
+                         c={e: formed.stand_in(body.c[e]) for e in body.c}) for body in all_bodies]
+    joints_in = [replace(joint, S=formed.stand_in(joint.S), c=formed.stand_in(joint.c), tau=formed.stand_in(joint.tau))
+                 for joint in all_joints]
     inboard_acceleration = ca.SX.sym("A", d)
-    prescribed = JointTerms(S=eye, prescribed=inboard_acceleration)
-    solution = articulated_sweep(CASADI, tree, [virtual_parent, *bodies, virtual_child], [prescribed, *joints, weld])
-    accelerate = ca.Function("accelerate", [inboard_acceleration, carried, *symbols],
-                             [solution.x[period + 1], outputs(solution)])
+    joints_in[0] = JointTerms(S=eye, prescribed=inboard_acceleration)
+    solution = articulated_outward(CASADI, tree, bodies_in, joints_in, stand_in)
+    carried_on, result = solution.x[period + 1], outputs(solution)
+    read, values = formed.read(ca.vertcat(carried_on, result))
+    eliminate = ca.Function("eliminate", [carried, *symbols], [reduced, values])
+    # (casadi refuses a free symbol here: a term the outward pass reads that has no stand-in)
+    accelerate = ca.Function("accelerate", [inboard_acceleration, read], [carried_on, result])
     # the tip-to-base fold runs on the columns reversed by a constant permutation
     reverse = ca.DM(ca.Sparsity.triplet(count, count, list(range(count)), list(range(count - 1, -1, -1))),
                     [1.0] * count)
-    _, carried_reversed = eliminate.mapaccum("eliminate_fold", count)(
+    _, values_reversed = eliminate.mapaccum("eliminate_fold", count)(
         ca.DM.zeros(d * d + d, 1), *[ca.mtimes(column, reverse) for column in columns])
-    _, result = accelerate.mapaccum("accelerate_fold", count)(
-        ca.DM.zeros(d, 1), ca.mtimes(carried_reversed, reverse), *columns)
+    _, result = accelerate.mapaccum("accelerate_fold", count)(ca.DM.zeros(d, 1), ca.mtimes(values_reversed, reverse))
     return result
+
+
+class _Formed:
+    """Stand-ins for formed terms: a symbol for each structural entry that is not a constant (constants are
+    kept, so the outward pass keeps its simplifications), with the expression it stands for."""
+
+    def __init__(self) -> None:
+        self.symbols: list = []
+        self.expressions: list = []
+
+    def stand_in(self, term: Any) -> Any:
+        """``term`` (SX, DM or None) with its non-constant entries replaced by new symbols."""
+        import casadi as ca
+
+        if term is None:
+            return None
+        term = ca.SX(term)
+        entries = []
+        for i in range(term.nnz()):
+            entry = term.nz[i]
+            if not entry.is_constant():
+                symbol = ca.SX.sym(f"formed_{len(self.symbols)}")
+                self.symbols.append(symbol)
+                self.expressions.append(entry)
+                entry = symbol
+            entries.append(entry)
+        return ca.SX(term.sparsity(), ca.vertcat(*entries)) if entries else term
+
+    def read(self, expression: Any) -> tuple[Any, Any]:
+        """``(symbols, expressions)`` columns of the stand-ins ``expression`` depends on (in order)."""
+        import casadi as ca
+
+        if not self.symbols:
+            return ca.SX(0, 1), ca.SX(0, 1)
+        used = ca.which_depends(expression, ca.vertcat(*self.symbols), 1, False)
+        keep = [i for i, flag in enumerate(used) if flag]
+        return (ca.vertcat(*[self.symbols[i] for i in keep]), ca.vertcat(*[self.expressions[i] for i in keep]))

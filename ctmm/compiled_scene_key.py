@@ -1,0 +1,91 @@
+"""The cache key of a planar generated scene, computed before anything is built (issue 13), and the check of a
+hit.
+
+:class:`~ctmm.compiled_scene.CompiledScene` keys its library (:func:`ctmm.generated_loop.compiled_time_loop` with
+``description=``) on :func:`scene_description`: with the numbers as inputs ``p``, the model's description without
+its numbers (:func:`ctmm.model_description.describe` with ``numbers=False``) and its
+:func:`~ctmm.compiled_parameters.structure_key` (the numbers the code keeps as constants), so models that differ
+only in entries of ``p`` share one library; a hit is then certified (:func:`certified_hit`) against the numpy
+sweep of the model, independent of the generated code, else the scene is built and keyed on its functions.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from .compiled_parameters import structure_key
+from .control.controlled_model import ControlledModel
+from .errors import ModelError, SimulationError
+from .planar.body_forms import PlanarScene
+from .planar.model import PlanarModel
+
+__all__ = ["certified_hit", "scene_description"]
+
+
+def scene_description(system: PlanarModel | ControlledModel, numbers: str, period: int,
+                      loop_options: tuple) -> list[tuple[str, bytes]] | None:
+    """The labelled description a :class:`~ctmm.compiled_scene.CompiledScene`'s library is keyed on before
+    anything is built (:func:`ctmm.generated_loop.compiled_time_loop`), or ``None`` (key on the built functions).
+
+    Parameters
+    ----------
+    system : PlanarModel or ControlledModel
+    numbers : {"inputs", "constants"}
+        Of the scene.
+    period : int
+        Bodies per folded segment (0: straight-line code).
+    loop_options : tuple
+        ``(dt, references, signals)`` of the loops.
+
+    With ``numbers="inputs"`` and no loops: the model's description without its numbers (every float by
+    its zero pattern, ``describe(..., numbers=False)``) and its :func:`structure_key` (the numbers the code
+    keeps as constants), so models differing only in numbers of
+    :func:`~ctmm.compiled_parameters.parameter_vector` (entries of ``p``) share a library (as
+    :meth:`ctmm.compiled_scene.CompiledScene.with_model`); a hit is certified against the numpy sweep
+    (:func:`certified_hit`).  Numbers as constants (with or without loops): the description of the whole
+    system and the loops' options, so any changed number gives another library.  Loops with their
+    numbers as inputs: ``None`` (which of the loops' numbers the code keeps as constants has no key of its
+    own yet; their gains and references stay inputs of one library, keyed on the built functions)."""
+    from .model_description import describe
+
+    if numbers == "inputs" and isinstance(system, ControlledModel):
+        return None
+    if numbers == "inputs":
+        text = describe((system, numbers, period), numbers=False)
+        parts = [("planar structure", structure_key(system).encode())]
+    else:
+        text = describe((system, numbers, period, loop_options))
+        parts = []
+    return None if text is None else [*parts, ("planar", text)]
+
+
+def certified_hit(model: PlanarModel, acceleration: Any, parameters: np.ndarray) -> bool:
+    """Whether a cached ``acceleration(q, v, u, p, t)`` gives the numpy sweep's accelerations of ``model``
+    (:class:`~ctmm.planar.body_forms.PlanarScene`, independent of the generated code) with its
+    ``parameters`` at one fixed state, without inputs, to 1e-9 (relative): the check that a library found
+    by the description without numbers (:func:`scene_description`) computes this model.
+
+    Parameters
+    ----------
+    model : PlanarModel
+    acceleration : casadi.Function
+        The library's ``acceleration(q, v, u, p, t)`` [rad/s^2, m/s^2].
+    parameters : ndarray
+        The model's :func:`~ctmm.compiled_parameters.parameter_vector` (SI).
+
+    Returns
+    -------
+    bool
+        ``False`` also when the numpy sweep fails at that state (then the scene is built).
+    """
+    rng = np.random.default_rng(20261125)
+    n = model.n_coordinates
+    q, v, t = rng.uniform(-0.3, 0.3, n), rng.uniform(-0.3, 0.3, n), 0.37
+    try:
+        expected = PlanarScene(model).accelerations(q[None, :], v[None, :], t)[0]
+    except (ModelError, SimulationError, np.linalg.LinAlgError):
+        return False
+    got = np.asarray(acceleration(q, v, np.zeros(acceleration.size1_in(2)), parameters, t)).reshape(-1)
+    return bool(np.all(np.isfinite(expected)) and np.max(np.abs(got - expected), initial=0.0)
+                <= 1e-9 * (1.0 + np.max(np.abs(expected), initial=0.0)))
