@@ -27,7 +27,9 @@ with the constraint Jacobian ``J = dPhi'/dqdot``, exact).  The drift is reported
 The library verbs (``ctmm.simulate`` with every method, ``ctmm.linearize``, ``ctmm.natural_frequencies``,
 ``ctmm.frequency_response``) call this model's functions (:mod:`ctmm.planar.loop_verbs`); feedback loops, actuator
 inputs and controllers act on the tree's ports (``ctmm.control.with_feedback(model, loops)``,
-:mod:`ctmm.planar.loop_plant`, ``docs/closed_loops.md`` §3c).  Not yet: cut joints with laws (refused by name).
+:mod:`ctmm.planar.loop_plant`, ``docs/closed_loops.md`` §3c).  A cut joint may carry a rotary spring / damper law
+and an actuator torque on the relative angle across the cut (:mod:`ctmm.planar.cut_joints`): a moment pair added to
+its constraint force as applied loads of the tree (``docs/closed_loops.md`` §2a).
 Cut points may be ends of a ``ctmm.flexible.ModalBeam`` (a flexible coupler): the cut force enters the beam's frame
 wrench and modal equations as its virtual work, through the end's foreshortening too (``docs/closed_loops.md``
 §4a-4b).
@@ -42,39 +44,13 @@ import numpy as np
 from .. import loop_manifold, validation
 from ..errors import ModelError, SimulationError
 from ..loop_integration import integrate_loop_model
+from .cut_joints import CutJoint
 from .elements import Fixed
 from .model import PlanarModel
 from .ports import ActuatorInputs
 from .sweep import solve_instant
 
 __all__ = ["CutJoint", "KinematicLoopModel", "KinematicLoopSimulation", "simulate_kinematic_loops"]
-
-
-@dataclass(frozen=True)
-class CutJoint:
-    """Smooth revolute joint closing a loop: point ``child`` coincides with point ``parent``.
-
-    Parameters
-    ----------
-    name : str
-        Joint name.
-    parent : str
-        ``"body.end"`` (an end of a rigid body, :attr:`RigidBody.outboard`, or of a ``ModalBeam``) or the name of a
-        :class:`~ctmm.planar.elements.Fixed` ground point of the tree model.
-    child : str
-        ``"body.end"``.
-    """
-
-    name: str
-    parent: str
-    child: str
-
-    def __post_init__(self) -> None:
-        validation.name("cut joint", self.name)
-        for label in ("parent", "child"):
-            value = getattr(self, label)
-            if not isinstance(value, str) or not value:
-                raise ModelError(f"cut joint {self.name!r}: {label} must be 'body.end' or a ground name, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -116,8 +92,10 @@ class KinematicLoopSimulation:
         return self.q[:, self.model.tree.coordinate_index(name)]
 
     def energy(self) -> np.ndarray:
-        """Mechanical energy [J] at every stored time (:meth:`PlanarModel.energy` of the tree)."""
-        return np.array([self.model.tree.energy(q, v, t) for t, q, v in zip(self.t, self.q, self.qdot)])
+        """Mechanical energy [J] at every stored time: :meth:`PlanarModel.energy` of the tree plus the energy
+        stored in the cut joints' moment laws (:meth:`KinematicLoopModel.cut_potential`)."""
+        return np.array([self.model.tree.energy(q, v, t) + self.model.cut_potential(q)
+                         for t, q, v in zip(self.t, self.q, self.qdot)])
 
 
 class KinematicLoopModel:
@@ -221,8 +199,40 @@ class KinematicLoopModel:
     def _points_at(self, q, qdot, t: float) -> dict:
         """:meth:`PlanarModel.points` with the state itself (``"q"``, ``"qdot"``: the modal ends read it)."""
         points = self.tree.points(q, qdot, t)
-        points["q"], points["qdot"] = q, qdot
+        points["q"], points["qdot"], points["t"] = q, qdot, t
         return points
+
+    def _side_angle(self, points: dict, j: int, e: np.ndarray | int) -> tuple[float, float]:
+        """Angle [rad] and rate [rad/s] of one side of a cut: 0 at the ground, the body angle, or at a modal
+        beam's end the frame angle plus the elastic end slope ``phi'(x_e) . w`` (``points``: :meth:`_points_at`)."""
+        if j < 0:
+            return 0.0, 0.0
+        angle, rate = float(points["theta"][j]), float(points["omega"][j])
+        if not isinstance(e, np.ndarray):
+            index = self.tree.modal_index[j][:self.tree.beams[j].data.nq]
+            slope = self.tree.beams[j].data.end_dphi[e]
+            angle += float(slope @ points["q"][index])
+            rate += float(slope @ points["qdot"][index])
+        return angle, rate
+
+    def relative_angles(self, q, qdot, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """Relative angle ``dtheta = theta_child - theta_parent`` [rad] and its rate [rad/s] across every cut
+        (:mod:`ctmm.planar.cut_joints`), each (n_cuts,)."""
+        q, qdot = self.tree.state(q, qdot)
+        points = self._points_at(np.asarray(q, float), np.asarray(qdot, float), t)
+        pairs = [np.subtract(self._side_angle(points, jc, ec), self._side_angle(points, jp, ep))
+                 for (jp, ep), (jc, ec) in self._points]
+        return np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs])
+
+    def cut_moments(self, q, qdot, t: float = 0.0) -> np.ndarray:
+        """Moment of every cut's law and torque on its child side [N m] (:meth:`CutJoint.moment`), (n_cuts,)."""
+        angle, rate = self.relative_angles(q, qdot, t)
+        return np.array([cut.moment(a, r, t) for cut, a, r in zip(self.cuts, angle, rate)])
+
+    def cut_potential(self, q) -> float:
+        """Energy stored in the cut joints' moment laws [J] at the coordinates ``q``."""
+        angle, _ = self.relative_angles(q, np.zeros(self.tree.n_coordinates))
+        return float(sum(cut.potential(a) for cut, a in zip(self.cuts, angle)))
 
     def constraints(self, q, qdot, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """``Phi`` (child point minus parent point [m]) and ``Phi'`` [m/s] of every cut, stacked (2 n_cuts,)."""
@@ -272,6 +282,20 @@ class KinematicLoopModel:
                 com = np.array([c * m.com[j, 0] - s * m.com[j, 1], s * m.com[j, 0] + c * m.com[j, 1]])
                 arm = r - com
                 body_force[j] += (f[0], f[1], arm[0] * f[1] - arm[1] * f[0])
+        for cut, ((jp, ep), (jc, ec)) in zip(self.cuts, self._points):
+            if not cut.has_moment:
+                continue
+            angle, rate = np.subtract(self._side_angle(points, jc, ec), self._side_angle(points, jp, ep))
+            tau = cut.moment(angle, rate, points["t"])
+            for j, e, sign in ((jc, ec, 1.0), (jp, ep, -1.0)):
+                if j < 0:
+                    continue
+                if isinstance(e, np.ndarray):               # a pure moment on a rigid body
+                    body_force[j, 2] += sign * tau
+                    continue
+                data = m.beams[j].data                       # on a beam's end: the frame and the end slope
+                frame[j] = frame.get(j, np.zeros(3)) + (0.0, 0.0, sign * tau)
+                modal.setdefault(j, np.zeros(len(m.modal_index[j])))[:data.nq] += sign * tau * data.end_dphi[e]
         if inputs is None:
             return ActuatorInputs(np.zeros(m.n_bodies), body_force, modal, frame)
         return ActuatorInputs(inputs.hinge_torque, inputs.body_force + body_force, modal, frame)
