@@ -32,8 +32,11 @@ on ``Phi = 0`` along ``q (+) dx`` with the exact velocity Jacobian ``J = dPhi'/d
 it is reported with the cut loads (:class:`SpatialLoopSimulation`).  Linearisation and natural frequencies
 about an equilibrium on the constraint manifold: :mod:`ctmm.spatial.closed_loop_linear`.
 
-Scope: cut points on rigid bodies (not on beams or ``ctmm.fem`` subsystems: refused by name); smooth cuts
-(no spring, damper or actuator in the cut).  The tree may have any joints, actuators and loads.
+Scope: cut points on rigid bodies (not on beams or ``ctmm.fem`` subsystems: refused by name).  A revolute or
+prismatic cut may carry a law and an actuation on its free coordinate (the angle about the axis, the slide along it;
+:func:`~ctmm.spatial.closed_loop_cuts.cut_coordinate`): an applied load of the tree added with the cut loads in every
+load case, so the boundary compliance is unchanged (``docs/closed_loops.md`` §8.1a).  The tree may have any joints,
+actuators and loads.
 """
 from __future__ import annotations
 
@@ -47,7 +50,7 @@ from ..articulated import SingularPivotError, articulated_sweep
 from ..errors import ModelError, SimulationError, unknown_name
 from ..ops import NUMPY
 from .body_forms import SpatialScene
-from .closed_loop_cuts import CUT_KINDS, CutFrame, SpatialCutJoint, cross, cut_frame
+from .closed_loop_cuts import CUT_KINDS, LAW_KINDS, CutFrame, SpatialCutJoint, cross, cut_coordinate, cut_frame
 from .integrate import initial_state
 from .model import SpatialModel
 from .ports import SpatialInputs
@@ -241,17 +244,57 @@ class SpatialKinematicLoopModel:
                 rows.append(((alpha_c - alpha_p) @ n + (omega_c - omega_p) @ n_dot)[:, None])
         return np.concatenate(rows, axis=1)
 
-    def _unit_loads(self, bodies: list) -> dict[int, np.ndarray]:
+    def _law_wrenches(self, bodies: list, t: float) -> list[np.ndarray | None]:
+        """Per cut: ``[force ; moment]`` (world) of its law and actuation on the child, ``f a`` along the cut's
+        coordinate (:func:`~ctmm.spatial.closed_loop_cuts.cut_coordinate`; prismatic: a force at the child point),
+        the parent taking the opposite at the same place; ``None`` for a smooth cut (``bodies``: :meth:`_bodies`)."""
+        out: list[np.ndarray | None] = []
+        for cut, (parent, child) in zip(self.cuts, self._sides):
+            if not cut.has_law:
+                out.append(None)
+                continue
+            coordinate, rate, a = self._coordinate(bodies, cut, parent, child)
+            load = cut.load(coordinate, rate, t)
+            out.append(np.concatenate([np.zeros(3), load * a]) if cut.kind == "revolute" else
+                       np.concatenate([load * a, np.zeros(3)]))
+        return out
+
+    def _coordinate(self, bodies: list, cut: SpatialCutJoint, parent: _Side, child: _Side
+                    ) -> tuple[float, float, np.ndarray]:
+        """:func:`~ctmm.spatial.closed_loop_cuts.cut_coordinate` of one cut at the first state of ``bodies``."""
+        xp, vp, Rp = self._point(bodies, parent)
+        xc, vc, Rc = self._point(bodies, child)
+        omega_p = np.zeros(3) if parent.body < 0 else bodies[parent.body][3][0]
+        return cut_coordinate(cut, None if Rp is None else Rp[0], Rc[0], xc[0] - xp[0], vc[0] - vp[0], omega_p,
+                              bodies[child.body][3][0])
+
+    def cut_coordinates(self, q: Any, v: Any, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """The coordinate across every revolute or prismatic cut (angle [rad] or slide [m]; NaN for the other kinds)
+        and its rate, each ``(n_cuts,)`` (:func:`~ctmm.spatial.closed_loop_cuts.cut_coordinate`)."""
+        bodies = self._bodies(np.asarray(q, float), np.asarray(v, float), t)
+        values, rates = np.full(len(self.cuts), np.nan), np.full(len(self.cuts), np.nan)
+        for k, (cut, (parent, child)) in enumerate(zip(self.cuts, self._sides)):
+            if cut.kind in LAW_KINDS:
+                values[k], rates[k], _ = self._coordinate(bodies, cut, parent, child)
+        return values, rates
+
+    def cut_potential(self, q: Any) -> float:
+        """Energy stored in the cuts' laws [J] at the coordinates ``q``."""
+        values, _ = self.cut_coordinates(q, np.zeros(self.tree.n_velocities))
+        return float(sum(cut.potential(s) for cut, s in zip(self.cuts, values) if cut.kind in LAW_KINDS))
+
+    def _unit_loads(self, bodies: list, t: float) -> dict[int, np.ndarray]:
         """Per loaded body: the change ``[f ; m + r x f]`` (``(1 + m, 6, 1)``, world axes, about its inboard point)
         of its applied load in the ``1 + m`` load cases: case 0 none, case ``1 + k`` the unit value of unknown
-        ``k`` (its force or moment on the child, the opposite on the parent; ``bodies``: :meth:`_bodies`)."""
+        ``k`` (its force or moment on the child, the opposite on the parent; ``bodies``: :meth:`_bodies`); the
+        cuts' laws and actuations (:meth:`_law_wrenches`, at time ``t`` [s]) in every case."""
         m = self.n_constraints
         loads: dict[int, np.ndarray] = {}
         row = 0
-        for (parent, child), frame in zip(self._sides, self._frames):
-            wrench = np.zeros((1 + m, 6))
+        for (parent, child), frame, law in zip(self._sides, self._frames, self._law_wrenches(bodies, t)):
+            wrench = np.zeros((1 + m, 6)) if law is None else np.tile(law, (1 + m, 1))
             unit = self._unit_wrenches(bodies, parent, child, frame)
-            wrench[1 + row:1 + row + len(unit)] = unit
+            wrench[1 + row:1 + row + len(unit)] += unit
             row += len(unit)
             for side, sign in ((child, 1.0), (parent, -1.0)):
                 if side.body < 0:
@@ -293,7 +336,7 @@ class SpatialKinematicLoopModel:
         body_terms, joint_terms, states = scene.terms(NUMPY, q_rows, v_rows, t, scene.numpy_inputs(inputs, t, 1),
                                                       wrenches)
         bodies = self._states(states, 1)
-        for j, load in self._unit_loads(bodies).items():
+        for j, load in self._unit_loads(bodies, t).items():
             body_terms[j] = replace(body_terms[j], h=body_terms[j].h - load)
         try:
             solution = articulated_sweep(NUMPY, scene.tree, body_terms, joint_terms)
@@ -369,9 +412,11 @@ class SpatialKinematicLoopModel:
         if isinstance(inputs, SpatialInputs):
             for body, entries in inputs.wrenches.items():
                 wrenches[body] = list(entries)
+        laws = self._law_wrenches(self._bodies(q, v, t), t)
         bodies = self._bodies(q, np.zeros(self.tree.n_velocities), t)
-        for (parent, child), frame, (force, moment) in zip(self._sides, self._frames, self.cut_loads(q, lam, t)):
-            load = np.concatenate([force, moment]).reshape(1, 6, 1)
+        for (parent, child), frame, (force, moment), law in zip(self._sides, self._frames, self.cut_loads(q, lam, t),
+                                                                laws):
+            load = (np.concatenate([force, moment]) + (0.0 if law is None else law)).reshape(1, 6, 1)
             wrenches.setdefault(child.body, []).append((child.point, load))
             if parent.body >= 0:                       # prismatic: at the child point, in parent body axes
                 R, origin = bodies[parent.body][0][0], bodies[parent.body][1][0]
