@@ -15,6 +15,10 @@ and its rate.  The moment on the child side is (the sign convention of the tree'
 
 and ``-tau`` acts on the parent side: a pure moment pair, added to the cut's constraint force (which it does not
 change: the boundary compliance of the cut points is the same).
+
+A **driven** cut (``angle`` given) prescribes the relative angle instead, ``dtheta = angle(t)``: one more constraint
+row of the cut, whose unknown is the drive's moment on the child (the boundary unknowns of
+:mod:`ctmm.planar.closed_loops` then hold it with the force); it takes no law or torque.
 """
 from __future__ import annotations
 
@@ -24,6 +28,7 @@ from .. import validation
 from ..errors import ModelError
 from ..nonlinear_laws import Law
 from ..signals import SignalLike, TimeFunction, as_signal
+from .elements import DrivenHinge
 
 __all__ = ["CutJoint"]
 
@@ -49,6 +54,10 @@ class CutJoint:
         Relative angle ``dtheta`` [rad] at which the law's deflection is zero.
     torque : float or callable, optional
         Actuator torque ``u(t)`` [N m] on the child side (``-u`` on the parent side); ``None``: none.
+    angle, angle_rate, angle_acceleration : float or callable, optional
+        A driven cut: the prescribed relative angle ``dtheta = angle(t)`` [rad] and its first [rad/s] and second
+        [rad/s^2] time derivatives (checked for consistency by finite differences at a few times, as a
+        :class:`~ctmm.planar.elements.DrivenHinge`'s); ``None`` (default): not driven.
     """
 
     name: str
@@ -57,6 +66,9 @@ class CutJoint:
     moment_law: Law | None = None
     rest_angle: float = 0.0
     torque: SignalLike | None = None
+    angle: SignalLike | None = None
+    angle_rate: SignalLike = 0.0
+    angle_acceleration: SignalLike = 0.0
 
     def __post_init__(self) -> None:
         validation.name("cut joint", self.name)
@@ -71,6 +83,25 @@ class CutJoint:
                                                                  self.rest_angle))
         if self.torque is not None:
             object.__setattr__(self, "torque", as_signal(f"cut joint {self.name!r}: torque", self.torque))
+        if self.angle is None:
+            return
+        if self.has_moment:
+            raise ModelError(f"cut joint {self.name!r}: a driven cut (angle given) takes no moment_law or torque (its "
+                             f"moment is the drive's), got moment_law={self.moment_law!r}, torque={self.torque!r}")
+        try:
+            drive = DrivenHinge(self.name, angle=self.angle, rate=self.angle_rate,
+                                acceleration=self.angle_acceleration)
+        except ModelError as exc:
+            raise ModelError(f"cut joint {self.name!r}: angle, angle_rate and angle_acceleration must be a signal of "
+                             f"time and its first and second derivatives ({exc})") from None
+        for label, value in (("angle", drive.angle), ("angle_rate", drive.rate),
+                             ("angle_acceleration", drive.acceleration)):
+            object.__setattr__(self, label, value)
+
+    @property
+    def driven(self) -> bool:
+        """Whether the relative angle is prescribed (:attr:`angle`)."""
+        return self.angle is not None
 
     @property
     def has_moment(self) -> bool:

@@ -57,6 +57,17 @@ def cut_signal_names(model: KinematicLoopModel) -> tuple[str, ...]:
     return tuple(f"{cut.name}.force_{axis}" for cut in model.cuts for axis in "xy")
 
 
+def cut_moment_signals(model: KinematicLoopModel, t: np.ndarray, q: np.ndarray, qdot: np.ndarray,
+                       inputs: Sequence[Any] | None = None) -> dict[str, np.ndarray]:
+    """``"<cut>.moment"`` [N m] of every cut with a law, a torque or a drive (:meth:`KinematicLoopModel.cut_moments`:
+    the moment on the child side) at the stored rows, with each row's tree actuator ``inputs`` if given."""
+    loaded = [k for k, cut in enumerate(model.cuts) if cut.has_moment or cut.driven]
+    rows = [None] * len(t) if inputs is None else list(inputs)
+    values = np.array([model.cut_moments(q[i], qdot[i], float(t[i]), rows[i]) for i in range(len(t))]
+                      ).reshape(len(t), len(model.cuts))
+    return {f"{model.cuts[k].name}.moment": values[:, k] for k in loaded}
+
+
 def initial_state(model: KinematicLoopModel, x0: Any, v0: Any) -> tuple[np.ndarray, np.ndarray]:
     """Tree coordinates and rates from ``x0``, ``v0`` (arrays or ``{coordinate: value}``, others 0), checked
     against the cut joints (``|Phi| <= 1e-8`` m, ``|Phi'| <= 1e-8`` m/s; :class:`ModelError` otherwise)."""
@@ -76,6 +87,8 @@ def _history_result(model: KinematicLoopModel, run: KinematicLoopSimulation, out
         for axis, column in (("x", 0), ("y", 1)):
             signals[f"{cut.name}.force_{axis}"] = run.cut_force[:, k, column]
             units[f"{cut.name}.force_{axis}"] = "N"
+    signals.update(cut_moment_signals(model, run.t, run.q, run.qdot))
+    units.update({name: "N m" for name in cut_moment_signals(model, run.t[:0], run.q[:0], run.qdot[:0])})
     signals["drift"], units["drift"] = run.drift, "m"
     signals["drift_rate"], units["drift_rate"] = run.drift_rate, "m/s"
     details = {"method": run.method, "wall_time_s": float(run.wall_time_s), "n_evaluations": int(run.n_evaluations),
@@ -251,6 +264,7 @@ def linearize_loops(model: KinematicLoopModel, operating_point: Any = None, *, i
                                      outputs=outputs, allow_nonequilibrium=allow_nonequilibrium)
     tree = model.tree
     ports = PlanarPorts(tree)
+    model.require_static("linearize")
     q_rest, t = _operating_q(model, operating_point)
     input_names = list(actuator_names(tree)) if inputs is None else list(validation.names("input", inputs))
     output_names = list(tree.coordinates) if outputs is None else list(validation.names("output", outputs))
