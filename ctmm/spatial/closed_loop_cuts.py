@@ -70,6 +70,11 @@ class SpatialCutJoint:
     actuation : float or callable, optional
         Revolute and prismatic only: an actuator torque [N m] about the axis / force [N] along the slide ``u(t)``
         on the child (``-u`` on the parent).
+    position, rate, acceleration : float or callable, optional
+        Revolute and prismatic only, all three or none: a driven cut, its coordinate prescribed, ``s = position(t)``
+        [rad or m], with its first and second time derivatives (checked for consistency by finite differences, as a
+        driven tree joint's): one more row, whose unknown is the drive's load along the coordinate; no law or
+        actuation then.
     """
 
     name: str
@@ -85,6 +90,9 @@ class SpatialCutJoint:
     law: Any = None
     rest: float = 0.0
     actuation: Any = None
+    position: Any = None
+    rate: Any = None
+    acceleration: Any = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "name", validation.name("cut joint", self.name))
@@ -134,6 +142,24 @@ class SpatialCutJoint:
         object.__setattr__(self, "rest", validation.finite(f"cut joint {self.name!r}: rest", self.rest))
         if self.actuation is not None:
             object.__setattr__(self, "actuation", as_signal(f"cut joint {self.name!r}: actuation", self.actuation))
+        given = [getattr(self, label) is not None for label in ("position", "rate", "acceleration")]
+        if not any(given):
+            return
+        if self.kind not in LAW_KINDS or not all(given) or self.has_law:
+            raise ModelError(f"cut joint {self.name!r}: a driven cut is revolute or prismatic (kind {self.kind!r}) "
+                             "with position, rate and acceleration all given and no law or actuation; got position="
+                             f"{self.position!r}, rate={self.rate!r}, acceleration={self.acceleration!r}, law="
+                             f"{self.law!r}, actuation={self.actuation!r}")
+        from .elements import Revolute                   # the driven joints' derivative check
+        drive = Revolute(name=self.name, parent=None, child=self.child, position=self.position, rate=self.rate,
+                         acceleration=self.acceleration)
+        for label in ("position", "rate", "acceleration"):
+            object.__setattr__(self, label, getattr(drive, label)[0])
+
+    @property
+    def driven(self) -> bool:
+        """Whether the coordinate is prescribed (:attr:`position`)."""
+        return self.position is not None
 
     @property
     def has_law(self) -> bool:
@@ -154,8 +180,8 @@ class SpatialCutJoint:
 
     @property
     def n_rows(self) -> int:
-        """Constraint rows: 3 (spherical), 4 (universal) or 5 (revolute, prismatic)."""
-        return {"spherical": 3, "universal": 4, "revolute": 5, "prismatic": 5}[self.kind]
+        """Constraint rows: 3 (spherical), 4 (universal) or 5 (revolute, prismatic); a driven cut one more."""
+        return {"spherical": 3, "universal": 4, "revolute": 5, "prismatic": 5}[self.kind] + int(self.driven)
 
 
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -176,21 +202,23 @@ def perpendicular(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def cut_coordinate(cut: SpatialCutJoint, rotation_p: np.ndarray | None, rotation_c: np.ndarray, separation: np.ndarray,
                    relative_velocity: np.ndarray, omega_p: np.ndarray, omega_c: np.ndarray
-                   ) -> tuple[float, float, np.ndarray]:
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The coordinate ``s`` of a revolute or prismatic cut, its rate and its world direction ``a`` (the load
     ``f`` along it is ``f a`` on the child: a moment for a revolute cut, a force at the child point for a prismatic
     one).  Revolute: ``a = R_c axis``, ``s = atan2((n_p x n_c) . a, n_p . n_c)`` with ``n_c = R_c normal``,
     ``n_p = R_p parent_normal``, ``s' = (omega_c - omega_p) . a``; prismatic: ``a = R_p parent_axis``, ``s = d . a``,
-    ``s' = (v_Pc - v_Pp) . a + d . (omega_p x a)`` (``rotation_p`` None at the ground; world vectors)."""
+    ``s' = (v_Pc - v_Pp) . a + d . (omega_p x a)`` (``rotation_p`` None at the ground; world vectors, batched over
+    leading axes: ``(..., 3)``, rotations ``(..., 3, 3)``; ``s`` and ``s'`` ``(...)``)."""
     def parent_fixed(vector: np.ndarray) -> np.ndarray:
         return vector if rotation_p is None else rotation_p @ vector
 
     if cut.kind == "revolute":
         a, n_c, n_p = rotation_c @ cut.axis, rotation_c @ cut.normal, parent_fixed(cut.parent_normal)
-        angle = float(np.arctan2(cross(n_p, n_c) @ a, n_p @ n_c))
-        return angle, float((omega_c - omega_p) @ a), a
+        angle = np.arctan2(np.sum(cross(n_p, n_c) * a, axis=-1), np.sum(n_p * n_c, axis=-1))
+        return angle, np.sum((omega_c - omega_p) * a, axis=-1), a
     a = parent_fixed(cut.parent_axis)
-    return float(separation @ a), float(relative_velocity @ a + separation @ cross(omega_p, a)), a
+    return (np.sum(separation * a, axis=-1),
+            np.sum(relative_velocity * a + separation * cross(omega_p, a), axis=-1), a)
 
 
 @dataclass(frozen=True)
