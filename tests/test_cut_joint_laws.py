@@ -263,3 +263,21 @@ def test_bad_drives_are_refused_by_name():
         CutJoint("h3", parent="rocker.out", child="coupler.out", angle=lambda t: t * t, angle_rate=1.0)
     with pytest.raises(ModelError, match="takes no moment_law or torque"):
         CutJoint("h3", parent="rocker.out", child="coupler.out", angle=0.1, torque=1.0)
+
+
+def test_feedback_loop_on_a_linkage_with_a_cut_spring_matches_the_dae():
+    """A PD loop on the crank torque (``u = -(8 theta + 0.8 theta' - 9.6)``, through ``ctmm.control.with_feedback``)
+    with the spring-damper and torque at the cut: the loop driver carries the law (RK4 1 ms, 0.1 s against the DAE
+    with the PD as a crank motor; measured 7.3e-11 rad)."""
+    from ctmm.control import Feedback, with_feedback
+
+    loop = _loop(SPRING_DAMPER, _torque)
+    q0, v0 = _start(loop)
+    pd = Feedback("pd", sensor=[("h1.angle", 8.0), ("h1.rate", 0.8)], actuator="h1.torque", gain=1.0)
+    run = ctmm.simulate(with_feedback(loop, [pd]), 0.1, 1e-3, x0=q0, v0=v0, references={"pd": 9.6})
+    dae = _dae(SPRING_DAMPER, _torque)
+    dae.add_motor(None, "crank", lambda t, angle, rate: -(8.0 * angle + 0.8 * rate - 9.6))
+    reference = dae.simulate(dae.assemble(dict(zip(BODIES, q0)), dict(zip(BODIES, v0))), 0.1, t_eval=run.time)
+    assert max(np.max(np.abs(run[f"{n}.theta"] - reference.angle(n))) for n in BODIES) < 1e-8
+    angle, rate = loop.relative_angles(q0, v0)
+    assert run["h3.moment"][0] == pytest.approx(-SPRING_DAMPER.force(angle[0] - REST, rate[0]), rel=1e-12)
