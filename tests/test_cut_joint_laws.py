@@ -125,8 +125,9 @@ def _dae_manifold_state(dae, crank: float, crank_rate: float, guess):
 
 def test_frequency_verbs_with_a_cut_spring_damper_match_the_dae():
     """About the static equilibrium with the spring at the cut: the undamped frequency, and with the damper the
-    crank's response to a crank torque ``g / (k - omega^2 + i c omega)``, the DAE's ``k``, ``c`` and ``g`` measured on
-    its own constraints (measured agreement ~1e-9)."""
+    crank's response to a crank torque ``g / (k - omega^2 + i c omega)`` and to a torque across the cut (the input
+    ``"h3.torque"``) ``g_cut / (...)``, the DAE's ``k``, ``c``, ``g``, ``g_cut`` measured on its own constraints
+    (measured agreement ~1e-9)."""
     spring = LinearLaw(3.0, 0.0)
     loop = _loop(spring)
     guess, _ = loop.consistent_state([-1.5, 0.5, 1.8], [0.0, 0.0, 0.0], keep=["crank.theta"])
@@ -148,10 +149,15 @@ def test_frequency_verbs_with_a_cut_spring_damper_match_the_dae():
             assert omega_n ** 2 == pytest.approx(k, rel=1e-7)
             continue
         assert c > 1e-3
+        cut_torque = _dae(law, lambda t: 1.0)                                # 1 N m across the cut
+        g_cut = cut_torque.solve(*state)[0][2] - dae.solve(*state)[0][2]
         omega = np.array([0.0, 0.5, 1.0, 2.0]) * math.sqrt(k)
-        frf = ctmm.frequency_response(_loop(law), omega, input="h1.torque", output="crank.theta",
+        frf = ctmm.frequency_response(_loop(law), omega, input=["h1.torque", "h3.torque"], output="crank.theta",
                                       operating_point=point)
         np.testing.assert_allclose(frf("crank.theta", "h1.torque"), g / (k - omega ** 2 + 1j * c * omega), rtol=1e-6)
+        np.testing.assert_allclose(frf("crank.theta", "h3.torque"), g_cut / (k - omega ** 2 + 1j * c * omega),
+                                   rtol=1e-6)
+        assert abs(g_cut) > 0.1 * abs(g) and frf.units["h3.torque"] == "N m"
         with pytest.raises(ModelError, match="damp"):
             ctmm.natural_frequencies(_loop(law), operating_point=point)
 

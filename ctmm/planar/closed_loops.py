@@ -305,6 +305,25 @@ class KinematicLoopModel:
             return ActuatorInputs(np.zeros(m.n_bodies), body_force, modal, frame)
         return ActuatorInputs(inputs.hinge_torque, inputs.body_force + body_force, modal, frame)
 
+    def torque_inputs(self, name: str) -> ActuatorInputs:
+        """A unit torque [N m] across cut ``name`` (``+1`` on the child side, ``-1`` on the parent; at a beam's end on
+        the frame and, through the end slope, the modal coordinates) as actuator inputs of the tree: state
+        independent, the input ``"<cut>.torque"`` of the linearisation (``docs/closed_loops.md`` §2a)."""
+        names = {cut.name: k for k, cut in enumerate(self.cuts) if not cut.driven}
+        if name not in names:
+            raise ModelError(f"cut torque input: {name!r} names no undriven cut joint of {self.name!r} (allowed: "
+                             f"{list(names)})")
+        m, (parent, child) = self.tree, self._points[names[name]]
+        body, modal, frame = np.zeros((m.n_bodies, 3)), {}, {}
+        for (j, e), sign in ((child, 1.0), (parent, -1.0)):
+            if j >= 0 and isinstance(e, np.ndarray):
+                body[j, 2] += sign
+            elif j >= 0:
+                data = m.beams[j].data
+                frame[j] = frame.get(j, np.zeros(3)) + (0.0, 0.0, sign)
+                modal.setdefault(j, np.zeros(len(m.modal_index[j])))[:data.nq] += sign * data.end_dphi[e]
+        return ActuatorInputs(np.zeros(m.n_bodies), body, modal, frame)
+
     def cut_inputs(self, q, qdot, t: float = 0.0, inputs: ActuatorInputs | None = None) -> ActuatorInputs:
         """The cut forces at ``(q, qdot, t)`` (:meth:`solve`) as actuator inputs of the tree, added to ``inputs``:
         with them the tree's own sweep (e.g. the Newton iterate of a DT-TMM scheme) moves as the closed loop."""
