@@ -275,3 +275,28 @@ def test_cut_law_between_two_moving_bodies_matches_the_dae(kind):
     coordinate = np.array([loop.cut_coordinates(qk, vk)[0][0] for qk, vk in zip(run.q, run.v)])
     assert np.ptp(coordinate) > 0.01
     assert angle < 1e-8 and position < 1e-8
+
+
+def test_cut_torque_and_force_inputs_of_the_linearisation():
+    """``"hinge.torque"`` / ``"guide.force"``: with a spring-damper at the cut, the response of the coordinate to a
+    load along it is ``1 / (M (omega_n^2 - omega^2) + i c omega)`` (``M = I_O`` or ``m``, the pendulum's / slider's
+    closed forms), read through the tree coordinate that moves with it (the quaternion's ``qy = sin(s / 2)``, the
+    position along the guide)."""
+    k, c = 2.0, 0.1
+    loop = _pendulum(LinearLaw(k, c), 0.2)
+    equilibrium = linear.equilibrium(_pendulum(LinearLaw(k, 0.0), 0.2), _start(loop, 0.3, 0.0)[0])
+    s_eq = loop.cut_coordinates(equilibrium, np.zeros(6))[0][0]
+    stiffness = MASS * 9.81 * (COM[0] * math.sin(s_eq) - COM[2] * math.cos(s_eq)) + k
+    omega = np.array([0.0, 1.0, 3.0, 7.0])
+    frf = ctmm.frequency_response(loop, omega, input="hinge.torque", output="free.qy", operating_point=equilibrium)
+    expected = 0.5 * math.cos(s_eq / 2) / (stiffness - I_HINGE * omega ** 2 + 1j * c * omega)
+    np.testing.assert_allclose(frf("free.qy", "hinge.torque"), expected, rtol=1e-6)
+    assert frf.units["hinge.torque"] == "N m"
+    slider = _slider(LinearLaw(50.0, 0.8), -0.1)
+    q, _ = slider.consistent_state({"free.y": 0.03, "free.z": 0.04}, {}, keep=[])
+    point = linear.equilibrium(_slider(LinearLaw(50.0, 0.0), -0.1), q)
+    frf = ctmm.frequency_response(slider, omega, input="guide.force", output="free.z", operating_point=point)
+    np.testing.assert_allclose(frf("free.z", "guide.force"), GUIDE[2] / (50.0 - MASS * omega ** 2 + 0.8j * omega),
+                               rtol=1e-6)
+    with pytest.raises(ModelError, match="hinge.force"):
+        ctmm.linearize(loop, equilibrium, inputs=["hinge.force"])

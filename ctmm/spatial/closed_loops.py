@@ -283,6 +283,32 @@ class SpatialKinematicLoopModel:
                                         omega_p, bodies[child.body][3][0])
         return float(value), float(rate), a
 
+    @property
+    def actuation_names(self) -> tuple[str, ...]:
+        """``"<cut>.torque"`` (revolute) and ``"<cut>.force"`` (prismatic) of the undriven revolute and prismatic cuts:
+        a unit load along the cut's coordinate, inputs of the linearisation (:meth:`actuation_inputs`)."""
+        return tuple(f"{cut.name}.{'torque' if cut.kind == 'revolute' else 'force'}" for cut in self.cuts
+                     if cut.kind in LAW_KINDS and not cut.driven)
+
+    def actuation_inputs(self, name: str, q: Any, t: float = 0.0) -> SpatialInputs:
+        """The unit load ``a`` along the coordinate of the cut named by ``name`` (:attr:`actuation_names`) at the
+        configuration ``q``, as the tree's actuator values: on the child at its point, its opposite on the parent (a
+        prismatic cut's at the child point); world axes, so valid at ``q`` (the linearisation's operating point)."""
+        if name not in self.actuation_names:
+            raise ModelError(f"cut actuation input: {name!r} is not one of {list(self.actuation_names)} of "
+                             f"{self.name!r}")
+        k = [cut.name for cut in self.cuts].index(name.rpartition(".")[0])
+        (parent, child), cut = self._sides[k], self.cuts[k]
+        bodies = self._bodies(np.asarray(q, float), np.zeros(self.tree.n_velocities), t)
+        a = np.broadcast_to(self._coordinate(bodies, cut, parent, child)[2], (3,))
+        load = np.concatenate([np.zeros(3), a] if cut.kind == "revolute" else [a, np.zeros(3)])
+        wrenches = {child.body: [(child.point, load.reshape(1, 6, 1))]}
+        if parent.body >= 0:
+            R, origin = bodies[parent.body][0][0], bodies[parent.body][1][0]
+            at = parent.point if cut.kind == "revolute" else R.T @ (self._point(bodies, child)[0][0] - origin)
+            wrenches[parent.body] = [(at, -load.reshape(1, 6, 1))]
+        return SpatialInputs({}, wrenches)
+
     def cut_coordinates(self, q: Any, v: Any, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """The coordinate across every revolute or prismatic cut (angle [rad] or slide [m]; NaN for the other kinds)
         and its rate, each ``(n_cuts,)`` (:func:`~ctmm.spatial.closed_loop_cuts.cut_coordinate`)."""
