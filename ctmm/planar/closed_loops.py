@@ -251,7 +251,7 @@ class KinematicLoopModel:
         """``J = dPhi/dq`` (rows, n): ``Phi'`` is affine in ``qdot`` (linear without driven cuts), so column ``k`` is
         ``Phi'(q, e_k) - Phi'(q, 0)``."""
         n = self.tree.n_coordinates
-        offset = self.constraints(q, np.zeros(n), t)[1]
+        offset = self.constraints(q, np.zeros(n), t)[1] if self._rows[-1] > 2 * len(self.cuts) else 0.0
         return np.column_stack([self.constraints(q, np.eye(n)[k], t)[1] - offset for k in range(n)])
 
     def _cut_loads(self, points: dict, loads: np.ndarray, inputs: ActuatorInputs | None = None) -> ActuatorInputs:
