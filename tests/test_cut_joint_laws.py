@@ -287,3 +287,18 @@ def test_feedback_loop_on_a_linkage_with_a_cut_spring_matches_the_dae():
     assert max(np.max(np.abs(run[f"{n}.theta"] - reference.angle(n))) for n in BODIES) < 1e-8
     angle, rate = loop.relative_angles(q0, v0)
     assert run["h3.moment"][0] == pytest.approx(-SPRING_DAMPER.force(angle[0] - REST, rate[0]), rel=1e-12)
+
+
+def test_scene_file_cut_joint_with_a_law(tmp_path):
+    """A scene file's cut table carries the law, its rest angle and a drive as value tables / numbers."""
+    from pathlib import Path
+
+    from ctmm.scene_files import load_scene
+
+    text = (Path(__file__).parent.parent / "scenarios" / "files" / "four_bar.toml").read_text()
+    plain = 'cuts = [{ type = "CutJoint", name = "h3", parent = "rocker.out", child = "coupler.out" }]'
+    assert plain in text
+    law = plain[:-3] + ', rest_angle = -1.3, moment_law = { type = "LinearLaw", stiffness = 3.0, damping = 0.05 } }]'
+    (tmp_path / "law.toml").write_text(text.replace(plain, law))
+    (cut,) = load_scene(tmp_path / "law.toml").system.cuts
+    assert (cut.moment_law.stiffness, cut.moment_law.damping, cut.rest_angle, cut.driven) == (3.0, 0.05, -1.3, False)
