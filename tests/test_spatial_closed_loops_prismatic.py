@@ -188,8 +188,8 @@ def test_newmark_with_the_cut_loads_as_tree_inputs_converges_to_the_dae(pendulum
 
 
 def test_refusals():
-    with pytest.raises(ModelError, match="normal is used only by prismatic"):
-        SpatialCutJoint(name="c", parent=None, child="p", kind="revolute", normal=(1, 0, 0))
+    with pytest.raises(ModelError, match="normal is used only by prismatic and revolute"):
+        SpatialCutJoint(name="c", parent=None, child="p", kind="spherical", normal=(1, 0, 0))
     with pytest.raises(ModelError, match="parent_normal must be perpendicular to parent_axis"):
         SpatialCutJoint(name="c", parent=None, child="p", kind="prismatic", parent_normal=(0, 0.1, 1))
     assert SpatialCutJoint(name="c", parent=None, child="p", kind="prismatic").n_rows == 5

@@ -27,7 +27,10 @@ with the constraint Jacobian ``J = dPhi'/dqdot``, exact).  The drift is reported
 The library verbs (``ctmm.simulate`` with every method, ``ctmm.linearize``, ``ctmm.natural_frequencies``,
 ``ctmm.frequency_response``) call this model's functions (:mod:`ctmm.planar.loop_verbs`); feedback loops, actuator
 inputs and controllers act on the tree's ports (``ctmm.control.with_feedback(model, loops)``,
-:mod:`ctmm.planar.loop_plant`, ``docs/closed_loops.md`` §3c).  Not yet: cut joints with laws (refused by name).
+:mod:`ctmm.planar.loop_plant`, ``docs/closed_loops.md`` §3c).  A cut joint may carry a rotary spring / damper law
+and an actuator torque on the relative angle across the cut (:mod:`ctmm.planar.cut_joints`): a moment pair added to
+its constraint force as applied loads of the tree; a driven cut prescribes that angle by one more row, its moment a
+boundary unknown with the force (``docs/closed_loops.md`` §2a).
 Cut points may be ends of a ``ctmm.flexible.ModalBeam`` (a flexible coupler): the cut force enters the beam's frame
 wrench and modal equations as its virtual work, through the end's foreshortening too (``docs/closed_loops.md``
 §4a-4b).
@@ -42,39 +45,13 @@ import numpy as np
 from .. import loop_manifold, validation
 from ..errors import ModelError, SimulationError
 from ..loop_integration import integrate_loop_model
+from .cut_joints import CutJoint
 from .elements import Fixed
 from .model import PlanarModel
 from .ports import ActuatorInputs
 from .sweep import solve_instant
 
 __all__ = ["CutJoint", "KinematicLoopModel", "KinematicLoopSimulation", "simulate_kinematic_loops"]
-
-
-@dataclass(frozen=True)
-class CutJoint:
-    """Smooth revolute joint closing a loop: point ``child`` coincides with point ``parent``.
-
-    Parameters
-    ----------
-    name : str
-        Joint name.
-    parent : str
-        ``"body.end"`` (an end of a rigid body, :attr:`RigidBody.outboard`, or of a ``ModalBeam``) or the name of a
-        :class:`~ctmm.planar.elements.Fixed` ground point of the tree model.
-    child : str
-        ``"body.end"``.
-    """
-
-    name: str
-    parent: str
-    child: str
-
-    def __post_init__(self) -> None:
-        validation.name("cut joint", self.name)
-        for label in ("parent", "child"):
-            value = getattr(self, label)
-            if not isinstance(value, str) or not value:
-                raise ModelError(f"cut joint {self.name!r}: {label} must be 'body.end' or a ground name, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -116,8 +93,10 @@ class KinematicLoopSimulation:
         return self.q[:, self.model.tree.coordinate_index(name)]
 
     def energy(self) -> np.ndarray:
-        """Mechanical energy [J] at every stored time (:meth:`PlanarModel.energy` of the tree)."""
-        return np.array([self.model.tree.energy(q, v, t) for t, q, v in zip(self.t, self.q, self.qdot)])
+        """Mechanical energy [J] at every stored time: :meth:`PlanarModel.energy` of the tree plus the energy
+        stored in the cut joints' moment laws (:meth:`KinematicLoopModel.cut_potential`)."""
+        return np.array([self.model.tree.energy(q, v, t) + self.model.cut_potential(q)
+                         for t, q, v in zip(self.t, self.q, self.qdot)])
 
 
 class KinematicLoopModel:
@@ -151,6 +130,7 @@ class KinematicLoopModel:
         grounds = {e.name: e for e in tree.elements if isinstance(e, Fixed)}
         self._points = [(self._resolve(cut, cut.parent, grounds), self._resolve(cut, cut.child, {}))
                         for cut in cuts]
+        self._rows = np.cumsum([0] + [3 if cut.driven else 2 for cut in cuts])   # first row of each cut, and m
         self.name = tree.name
         self._tangents: dict = {}           # (q0, t, baumgarte) -> (A, N, q0, jacobian error): resting_tangent
         self._equilibria: dict = {}         # (guess, t, tolerance, largest step) -> equilibrium (the last 8)
@@ -221,28 +201,63 @@ class KinematicLoopModel:
     def _points_at(self, q, qdot, t: float) -> dict:
         """:meth:`PlanarModel.points` with the state itself (``"q"``, ``"qdot"``: the modal ends read it)."""
         points = self.tree.points(q, qdot, t)
-        points["q"], points["qdot"] = q, qdot
+        points["q"], points["qdot"], points["t"] = q, qdot, t
         return points
 
+    def _side_angle(self, points: dict, j: int, e: np.ndarray | int) -> tuple[float, float]:
+        """Angle [rad] and rate [rad/s] of one side of a cut: 0 at the ground, the body angle, or at a modal
+        beam's end the frame angle plus the elastic end slope ``phi'(x_e) . w`` (``points``: :meth:`_points_at`)."""
+        if j < 0:
+            return 0.0, 0.0
+        angle, rate = float(points["theta"][j]), float(points["omega"][j])
+        if not isinstance(e, np.ndarray):
+            index = self.tree.modal_index[j][:self.tree.beams[j].data.nq]
+            slope = self.tree.beams[j].data.end_dphi[e]
+            angle += float(slope @ points["q"][index])
+            rate += float(slope @ points["qdot"][index])
+        return angle, rate
+
+    def relative_angles(self, q, qdot, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """Relative angle ``dtheta = theta_child - theta_parent`` [rad] and its rate [rad/s] across every cut
+        (:mod:`ctmm.planar.cut_joints`), each (n_cuts,)."""
+        q, qdot = self.tree.state(q, qdot)
+        points = self._points_at(np.asarray(q, float), np.asarray(qdot, float), t)
+        pairs = [np.subtract(self._side_angle(points, jc, ec), self._side_angle(points, jp, ep))
+                 for (jp, ep), (jc, ec) in self._points]
+        return np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs])
+
+    def cut_potential(self, q) -> float:
+        """Energy stored in the cut joints' moment laws [J] at the coordinates ``q``."""
+        angle, _ = self.relative_angles(q, np.zeros(self.tree.n_coordinates))
+        return float(sum(cut.potential(a) for cut, a in zip(self.cuts, angle)))
+
     def constraints(self, q, qdot, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-        """``Phi`` (child point minus parent point [m]) and ``Phi'`` [m/s] of every cut, stacked (2 n_cuts,)."""
+        """``Phi`` (child point minus parent point [m]; a driven cut also ``dtheta - angle(t)`` [rad]) and ``Phi'``
+        [m/s, rad/s] of every cut, stacked (2 per cut, 3 per driven cut)."""
         points = self._points_at(q, qdot, t)
         phi, rate = [], []
-        for (jp, ep), (jc, ec) in self._points:
+        for cut, ((jp, ep), (jc, ec)) in zip(self.cuts, self._points):
             pp, vp, _ = self._point_kinematics(points, jp, ep)
             pc, vc, _ = self._point_kinematics(points, jc, ec)
             phi.append(pc - pp)
             rate.append(vc - vp)
+            if cut.driven:
+                angle, angle_rate = np.subtract(self._side_angle(points, jc, ec), self._side_angle(points, jp, ep))
+                phi.append([angle - float(cut.angle(t))])
+                rate.append([angle_rate - float(cut.angle_rate(t))])
         return np.concatenate(phi), np.concatenate(rate)
 
     def jacobian(self, q, t: float = 0.0) -> np.ndarray:
-        """``J = dPhi/dq`` (2 n_cuts, n): ``Phi' = J qdot`` is linear in ``qdot``, so column ``k`` is
-        ``Phi'(q, e_k)``."""
+        """``J = dPhi/dq`` (rows, n): ``Phi'`` is affine in ``qdot`` (linear without driven cuts), so column ``k`` is
+        ``Phi'(q, e_k) - Phi'(q, 0)``."""
         n = self.tree.n_coordinates
-        return np.column_stack([self.constraints(q, np.eye(n)[k], t)[1] for k in range(n)])
+        offset = self.constraints(q, np.zeros(n), t)[1] if self._rows[-1] > 2 * len(self.cuts) else 0.0
+        return np.column_stack([self.constraints(q, np.eye(n)[k], t)[1] - offset for k in range(n)])
 
-    def _cut_loads(self, points: dict, forces: np.ndarray, inputs: ActuatorInputs | None = None) -> ActuatorInputs:
-        """Cut forces ``forces`` (n_cuts, 2) as actuator inputs of the tree, added to ``inputs``: on a rigid body a
+    def _cut_loads(self, points: dict, loads: np.ndarray, inputs: ActuatorInputs | None = None) -> ActuatorInputs:
+        """Cut loads ``loads`` (the unknowns, stacked as the rows of :meth:`constraints`: each cut's force, global
+        axes [N], then a driven cut's moment [N m]) with the cuts' laws and torques as actuator inputs of the tree,
+        added to ``inputs``: on a rigid body a
         force at the centre of mass with the moment of its lever; on a modal beam's end the frame wrench
         ``(f_x, f_y, x_P f_y - y_P f_x)`` in the beam frame (``(x_P, y_P)``: the deformed end) and the modal
         forces ``phi(x_e) f_y``, ``psi(x_e) f_x`` (its virtual work).  ``points``: :meth:`_points_at`."""
@@ -254,7 +269,7 @@ class KinematicLoopModel:
             for j, e, sign in ((jc, ec, 1.0), (jp, ep, -1.0)):
                 if j < 0:
                     continue
-                f = sign * forces[k]
+                f = sign * loads[self._rows[k]:self._rows[k] + 2]
                 th = points["theta"][j]
                 c, s = np.cos(th), np.sin(th)
                 if not isinstance(e, np.ndarray):
@@ -272,25 +287,57 @@ class KinematicLoopModel:
                 com = np.array([c * m.com[j, 0] - s * m.com[j, 1], s * m.com[j, 0] + c * m.com[j, 1]])
                 arm = r - com
                 body_force[j] += (f[0], f[1], arm[0] * f[1] - arm[1] * f[0])
+        for k, (cut, ((jp, ep), (jc, ec))) in enumerate(zip(self.cuts, self._points)):
+            if not cut.has_moment and not cut.driven:
+                continue
+            angle, rate = np.subtract(self._side_angle(points, jc, ec), self._side_angle(points, jp, ep))
+            tau = loads[self._rows[k] + 2] if cut.driven else cut.moment(angle, rate, points["t"])
+            for j, e, sign in ((jc, ec, 1.0), (jp, ep, -1.0)):
+                if j < 0:
+                    continue
+                if isinstance(e, np.ndarray):               # a pure moment on a rigid body
+                    body_force[j, 2] += sign * tau
+                    continue
+                data = m.beams[j].data                       # on a beam's end: the frame and the end slope
+                frame[j] = frame.get(j, np.zeros(3)) + (0.0, 0.0, sign * tau)
+                modal.setdefault(j, np.zeros(len(m.modal_index[j])))[:data.nq] += sign * tau * data.end_dphi[e]
         if inputs is None:
             return ActuatorInputs(np.zeros(m.n_bodies), body_force, modal, frame)
         return ActuatorInputs(inputs.hinge_torque, inputs.body_force + body_force, modal, frame)
+
+    def torque_inputs(self, name: str) -> ActuatorInputs:
+        """A unit torque [N m] across cut ``name`` (``+1`` on the child side, ``-1`` on the parent; at a beam's end on
+        the frame and, through the end slope, the modal coordinates) as actuator inputs of the tree: state
+        independent, the input ``"<cut>.torque"`` of the linearisation (``docs/closed_loops.md`` §2a)."""
+        names = {cut.name: k for k, cut in enumerate(self.cuts) if not cut.driven}
+        if name not in names:
+            raise ModelError(f"cut torque input: {name!r} names no undriven cut joint of {self.name!r} (allowed: "
+                             f"{list(names)})")
+        m, (parent, child) = self.tree, self._points[names[name]]
+        body, modal, frame = np.zeros((m.n_bodies, 3)), {}, {}
+        for (j, e), sign in ((child, 1.0), (parent, -1.0)):
+            if j >= 0 and isinstance(e, np.ndarray):
+                body[j, 2] += sign
+            elif j >= 0:
+                data = m.beams[j].data
+                frame[j] = frame.get(j, np.zeros(3)) + (0.0, 0.0, sign)
+                modal.setdefault(j, np.zeros(len(m.modal_index[j])))[:data.nq] += sign * data.end_dphi[e]
+        return ActuatorInputs(np.zeros(m.n_bodies), body, modal, frame)
 
     def cut_inputs(self, q, qdot, t: float = 0.0, inputs: ActuatorInputs | None = None) -> ActuatorInputs:
         """The cut forces at ``(q, qdot, t)`` (:meth:`solve`) as actuator inputs of the tree, added to ``inputs``:
         with them the tree's own sweep (e.g. the Newton iterate of a DT-TMM scheme) moves as the closed loop."""
         q, qdot = self.tree.state(q, qdot)
-        forces = self.solve(q, qdot, t, inputs)[1]
-        return self._cut_loads(self._points_at(q, qdot, t), forces, inputs)
+        return self._cut_loads(self._points_at(q, qdot, t), self.solve_loads(q, qdot, t, inputs)[1], inputs)
 
-    def _solution(self, q, qdot, t, forces: np.ndarray, points: dict, inputs: ActuatorInputs | None = None):
-        """Tree solution with cut forces ``forces`` (n_cuts, 2) and actuator ``inputs``: qddot and the cut
-        points' relative accelerations (``points``: :meth:`PlanarModel.points` at ``(q, qdot, t)``)."""
+    def _solution(self, q, qdot, t, loads: np.ndarray, points: dict, inputs: ActuatorInputs | None = None):
+        """Tree solution with the cut loads ``loads`` (:meth:`_cut_loads`) and actuator ``inputs``: qddot and
+        ``Phi''`` of the cuts (``points``: :meth:`PlanarModel.points` at ``(q, qdot, t)``)."""
         m = self.tree
-        solution = solve_instant(m, q, qdot, t, self._cut_loads(points, forces, inputs))
+        solution = solve_instant(m, q, qdot, t, self._cut_loads(points, loads, inputs))
         A = solution.body_acceleration
         relative = []
-        for (jp, ep), (jc, ec) in self._points:
+        for cut, ((jp, ep), (jc, ec)) in zip(self.cuts, self._points):
             acc = []
             for j, e in ((jp, ep), (jc, ec)):
                 if j < 0:
@@ -307,21 +354,43 @@ class KinematicLoopModel:
                     a = np.array([c * local_a[0] - s * local_a[1], s * local_a[0] + c * local_a[1]])
                     acc[-1] = acc[-1] + 2.0 * om * np.array([-v[1], v[0]]) + a
             relative.append(acc[1] - acc[0])
+            if cut.driven:      # angular accelerations of the sides (a beam end: plus its slope's)
+                sides = [0.0 if j < 0 else A[j, 2] + (0.0 if isinstance(e, np.ndarray) else float(
+                    m.beams[j].data.end_dphi[e] @ solution.qddot[m.modal_index[j][:m.beams[j].data.nq]]))
+                    for j, e in ((jp, ep), (jc, ec))]
+                relative.append([sides[1] - sides[0] - float(cut.angle_acceleration(t))])
         return solution.qddot, np.concatenate(relative)
 
     def solve(self, q, qdot, t: float = 0.0, inputs: ActuatorInputs | None = None) -> tuple[np.ndarray, np.ndarray]:
         """``(qddot, cut forces (n_cuts, 2))`` at ``(q, qdot, t)`` (module docstring), with the tree's actuator
         ``inputs`` (:func:`ctmm.planar.ports.actuator_inputs`) if given."""
-        nc = len(self.cuts)
-        zero = np.zeros((nc, 2))
+        qdd, loads = self.solve_loads(q, qdot, t, inputs)
+        return qdd, np.array([loads[start:start + 2] for start in self._rows[:-1]])
+
+    def cut_moments(self, q, qdot, t: float = 0.0, inputs: ActuatorInputs | None = None) -> np.ndarray:
+        """Moment of every cut on its child side [N m], (n_cuts,): its law and torque (:meth:`CutJoint.moment`), or
+        a driven cut's drive moment (:meth:`solve_loads`, with the tree's actuator ``inputs``)."""
+        angle, rate = self.relative_angles(q, qdot, t)
+        moments = np.array([cut.moment(a, r, t) for cut, a, r in zip(self.cuts, angle, rate)])
+        if any(cut.driven for cut in self.cuts):
+            loads = self.solve_loads(q, qdot, t, inputs)[1]
+            for k, cut in enumerate(self.cuts):
+                moments[k] = loads[self._rows[k] + 2] if cut.driven else moments[k]
+        return moments
+
+    def solve_loads(self, q, qdot, t: float = 0.0, inputs: ActuatorInputs | None = None
+                    ) -> tuple[np.ndarray, np.ndarray]:
+        """``(qddot, cut loads)``: the boundary unknowns stacked as the rows of :meth:`constraints` (each cut's
+        force [N], a driven cut's moment [N m] after it) solved from ``G lambda = -a_0 - 2 alpha Phi' - alpha^2 Phi``."""
+        zero = np.zeros(self._rows[-1])
         points = self._points_at(q, qdot, t)
         qdd0, a0 = self._solution(q, qdot, t, zero, points, inputs)
-        G = np.empty((2 * nc, 2 * nc))
-        dqdd = np.empty((len(qdd0), 2 * nc))
-        for k in range(2 * nc):
-            unit = zero.copy().reshape(-1)
+        G = np.empty((len(zero), len(zero)))
+        dqdd = np.empty((len(qdd0), len(zero)))
+        for k in range(len(zero)):
+            unit = zero.copy()
             unit[k] = 1.0
-            qdd_k, a_k = self._solution(q, qdot, t, unit.reshape(nc, 2), points, inputs)
+            qdd_k, a_k = self._solution(q, qdot, t, unit, points, inputs)
             G[:, k], dqdd[:, k] = a_k - a0, qdd_k - qdd0
         phi, phi_dot = self.constraints(q, qdot, t)
         alpha = self.baumgarte
@@ -332,7 +401,7 @@ class KinematicLoopModel:
                                   f"(condition {condition:.2e}) at t = {t} s: a singular configuration of the loop "
                                   "or redundant cut joints", time=t, element=self.cuts[0].name)
         lam = np.linalg.solve(G, target)
-        return qdd0 + dqdd @ lam, lam.reshape(nc, 2)
+        return qdd0 + dqdd @ lam, lam
 
     def consistent_state(self, q, qdot, *, keep: Sequence[str] = (), tolerance: float = 1e-12
                          ) -> tuple[np.ndarray, np.ndarray]:
@@ -352,8 +421,7 @@ class KinematicLoopModel:
             raise ModelError(f"kinematic loop {self.name!r}: no assembled configuration near the given coordinates "
                              f"(|Phi| = {np.max(np.abs(phi)):.3e} m after 50 Gauss-Newton steps); check the "
                              "geometry and the held coordinates")
-        J = self.jacobian(q)
-        qdot[free] -= np.linalg.lstsq(J[:, free], J @ qdot, rcond=None)[0]
+        qdot[free] -= np.linalg.lstsq(self.jacobian(q)[:, free], self.constraints(q, qdot)[1], rcond=None)[0]
         return q, qdot
 
     def project(self, q: np.ndarray, qdot: np.ndarray, t: float = 0.0, iterations: int = 3
@@ -364,10 +432,18 @@ class KinematicLoopModel:
             if np.max(np.abs(phi)) < 1e-14:
                 break
             q = q - np.linalg.lstsq(self.jacobian(q, t), phi, rcond=None)[0]
-        J = self.jacobian(q, t)
-        return q, qdot - np.linalg.lstsq(J, J @ qdot, rcond=None)[0]
+        return q, qdot - np.linalg.lstsq(self.jacobian(q, t), self.constraints(q, qdot, t)[1], rcond=None)[0]
 
     # -- linearisation on the constraint manifold (the algorithm: :mod:`ctmm.loop_manifold`) -----------
+    def require_static(self, what: str) -> int:
+        """The number of tree coordinates; :class:`ModelError` for a driven cut (its manifold moves in time)."""
+        driven = [cut.name for cut in self.cuts if cut.driven]
+        if driven:
+            raise ModelError(f"{what} of kinematic loop {self.name!r}: the cut joints {driven} are driven (angle "
+                             "given), so the constraint manifold moves in time and has no static equilibrium or "
+                             "tangent; allowed: cuts without angle (smooth, or with moment_law / torque)")
+        return self.tree.n_coordinates
+
     @property
     def n_velocities(self) -> int:
         """The number of tree coordinates' rates (:mod:`ctmm.loop_manifold` protocol)."""
@@ -393,7 +469,7 @@ class KinematicLoopModel:
         (step ``step`` [rad]) of the closed-loop accelerations ``z'' = N^T q''`` on the manifold
         (:func:`ctmm.loop_manifold.tangent_matrix`).
         """
-        n = self.tree.n_coordinates
+        n = self.require_static("linearize")
         q0, _ = self.project(np.asarray(self.tree.state(q0, np.zeros(n))[0], float), np.zeros(n), t, iterations=30)
         basis = loop_manifold.independent_basis(self, q0, t)
         return loop_manifold.tangent_matrix(self, q0, basis, t, step), basis, q0
@@ -428,7 +504,7 @@ class KinematicLoopModel:
         configuration, does not leap across the mechanism's range), converged when the accelerations are below
         ``tolerance`` or the Newton step is below ``tolerance`` [rad] (:func:`ctmm.loop_manifold.newton_equilibrium`);
         the last 8 kept on this model."""
-        n = self.tree.n_coordinates
+        n = self.require_static("equilibrium")
         q = np.asarray(self.tree.state(q_guess, np.zeros(n))[0], float)
         key = (q.tobytes(), float(t), float(tolerance), float(largest_step), self.baumgarte)
         if key not in self._equilibria:

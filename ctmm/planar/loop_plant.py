@@ -25,6 +25,7 @@ import numpy as np
 from .closed_loops import KinematicLoopModel
 from .guards import check_scheme, divergence_guard
 from .integrate import check_state, model_signals
+from .loop_verbs import cut_moment_signals
 from .model import PlanarModel
 from .ports import PlanarPorts
 
@@ -94,6 +95,9 @@ class KinematicLoopPlant:
             for axis, column in (("x", 0), ("y", 1)):
                 signals[f"{cut.name}.force_{axis}"] = forces[:, j, column]
                 units[f"{cut.name}.force_{axis}"] = "N"
+        moments = cut_moment_signals(model, t, q, v, rows)
+        signals.update(moments)
+        units.update(dict.fromkeys(moments, "N m"))
         signals["drift"], units["drift"] = drift, "m"
         signals["drift_rate"], units["drift_rate"] = rate, "m/s"
         return signals, units

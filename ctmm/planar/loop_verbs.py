@@ -57,6 +57,23 @@ def cut_signal_names(model: KinematicLoopModel) -> tuple[str, ...]:
     return tuple(f"{cut.name}.force_{axis}" for cut in model.cuts for axis in "xy")
 
 
+def cut_torque_names(model: KinematicLoopModel) -> tuple[str, ...]:
+    """``"<cut>.torque"`` of every undriven cut joint: a torque across the cut [N m], an input of the linearisation
+    (:meth:`KinematicLoopModel.torque_inputs`; in time the cut's own ``torque`` signal)."""
+    return tuple(f"{cut.name}.torque" for cut in model.cuts if not cut.driven)
+
+
+def cut_moment_signals(model: KinematicLoopModel, t: np.ndarray, q: np.ndarray, qdot: np.ndarray,
+                       inputs: Sequence[Any] | None = None) -> dict[str, np.ndarray]:
+    """``"<cut>.moment"`` [N m] of every cut with a law, a torque or a drive (:meth:`KinematicLoopModel.cut_moments`:
+    the moment on the child side) at the stored rows, with each row's tree actuator ``inputs`` if given."""
+    loaded = [k for k, cut in enumerate(model.cuts) if cut.has_moment or cut.driven]
+    rows = [None] * len(t) if inputs is None else list(inputs)
+    values = np.array([model.cut_moments(q[i], qdot[i], float(t[i]), rows[i]) for i in range(len(t))]
+                      ).reshape(len(t), len(model.cuts))
+    return {f"{model.cuts[k].name}.moment": values[:, k] for k in loaded}
+
+
 def initial_state(model: KinematicLoopModel, x0: Any, v0: Any) -> tuple[np.ndarray, np.ndarray]:
     """Tree coordinates and rates from ``x0``, ``v0`` (arrays or ``{coordinate: value}``, others 0), checked
     against the cut joints (``|Phi| <= 1e-8`` m, ``|Phi'| <= 1e-8`` m/s; :class:`ModelError` otherwise)."""
@@ -76,6 +93,8 @@ def _history_result(model: KinematicLoopModel, run: KinematicLoopSimulation, out
         for axis, column in (("x", 0), ("y", 1)):
             signals[f"{cut.name}.force_{axis}"] = run.cut_force[:, k, column]
             units[f"{cut.name}.force_{axis}"] = "N"
+    signals.update(cut_moment_signals(model, run.t, run.q, run.qdot))
+    units.update({name: "N m" for name in cut_moment_signals(model, run.t[:0], run.q[:0], run.qdot[:0])})
     signals["drift"], units["drift"] = run.drift, "m"
     signals["drift_rate"], units["drift_rate"] = run.drift_rate, "m/s"
     details = {"method": run.method, "wall_time_s": float(run.wall_time_s), "n_evaluations": int(run.n_evaluations),
@@ -232,7 +251,8 @@ def linearize_loops(model: KinematicLoopModel, operating_point: Any = None, *, i
         A resting state (rates zero), projected onto the cut joints; ``None``: the static equilibrium
         (:func:`_operating_q`).
     inputs : str or sequence of str, optional
-        Actuators of the tree (:func:`ctmm.planar.ports.actuator_names`; default: all of them).
+        Actuators of the tree (:func:`ctmm.planar.ports.actuator_names`; default: all of them) and the cut torques
+        ``"<cut>.torque"`` [N m] (:func:`cut_torque_names`).
     outputs : str or sequence of str, optional
         Sensors of the tree and the cut forces ``"<cut>.force_x|y"`` [N] (default: the tree coordinates).
     allow_nonequilibrium : bool
@@ -251,11 +271,14 @@ def linearize_loops(model: KinematicLoopModel, operating_point: Any = None, *, i
                                      outputs=outputs, allow_nonequilibrium=allow_nonequilibrium)
     tree = model.tree
     ports = PlanarPorts(tree)
+    model.require_static("linearize")
     q_rest, t = _operating_q(model, operating_point)
     input_names = list(actuator_names(tree)) if inputs is None else list(validation.names("input", inputs))
     output_names = list(tree.coordinates) if outputs is None else list(validation.names("output", outputs))
+    torques = cut_torque_names(model)
     for name in input_names:
-        ports.check_actuator(name, "input (actuator)")
+        if name not in torques:
+            ports.check_actuator(name, "input (actuator)")
     forces = cut_signal_names(model)
     sensor_names = [name for name in output_names if name not in forces]
     sensors = ports.resolve([ports.check_sensor(name, "output (sensor)") for name in sensor_names])
@@ -274,8 +297,9 @@ def linearize_loops(model: KinematicLoopModel, operating_point: Any = None, *, i
         values.update(zip(forces, lam.reshape(-1)))
         return np.array([values[name] for name in output_names], dtype=float)
 
-    B, C, D = input_output_matrices(model, q0, basis, t, output, [ports.inputs({name: 1.0}) for name in input_names],
-                                    _STEP)
+    B, C, D = input_output_matrices(model, q0, basis, t, output,
+                                    [model.torque_inputs(name[:-len(".torque")]) if name in torques else
+                                     ports.inputs({name: 1.0}) for name in input_names], _STEP)
     states = [f"z{k + 1}" for k in range(f)] + [f"z{k + 1}_dot" for k in range(f)]
     if not input_names and len(output_names) == 1:
         raise ModelError(f"linearize: inputs={inputs!r} leaves {model.name!r} with no input and one output, a state "
@@ -344,6 +368,7 @@ def frequency_response_loops(model: Any, omega: Any, *, input: Any, output: Any,
         loops, 1j * omega, inputs, outputs, plant.name)
     ports = PlanarPorts(plant.tree)
     units = {name: ports.actuator_unit(name) for name in inputs if name in ports.actuators}
+    units.update({name: "N m" for name in inputs if name in cut_torque_names(plant)})
     units.update({name: "N" if name in cut_signal_names(plant) else ports.sensor_unit(name) for name in outputs
                   if name in ports.sensors or name in cut_signal_names(plant)})
     for loop in loops:

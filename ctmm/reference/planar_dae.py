@@ -20,7 +20,8 @@ radial force ``-f(|d|) d / |d|`` on ``b`` of the separation ``d = P_b - P_a`` (a
 (:meth:`PlanarDAE.add_motor`) is a control input: the torque ``T = law(t, delta, rate)`` on ``b`` (``-T`` on ``a``)
 of the relative angle ``delta = theta_b - theta_a`` and its rate read ``delay`` seconds earlier (the initial state
 held before ``t = 0``); with a delay the run is the method of steps (segments of the shortest delay, each reading
-the dense output of the completed ones).  Index-1 form with Baumgarte stabilisation (``gamma - 2 alpha Phi' - beta^2 Phi``)::
+the dense output of the completed ones).  A drive (:meth:`PlanarDAE.add_drive`) is one more constraint row: the
+relative angle ``theta_b - theta_a = angle(t)``, its multiplier the drive's moment on ``b``.  Index-1 form with Baumgarte stabilisation (``gamma - 2 alpha Phi' - beta^2 Phi``)::
 
     [[M, Phi_q^T], [Phi_q, 0]] [q''; mu] = [Q; gamma - 2 alpha Phi' - beta^2 Phi]
 
@@ -103,6 +104,8 @@ class DAESolution:
         Joint force on body ``b`` of each joint, global axes [N].
     names : tuple of str
         Body names.
+    drive_moments : ndarray (N, n_drives)
+        Moment of each drive (:meth:`PlanarDAE.add_drive`) on its body ``b`` [N m].
     """
 
     t: np.ndarray
@@ -111,6 +114,7 @@ class DAESolution:
     drift: np.ndarray
     forces: np.ndarray
     names: tuple
+    drive_moments: np.ndarray | None = None
 
     def angle(self, body: str) -> np.ndarray:
         """Absolute angle history of ``body`` [rad]."""
@@ -141,6 +145,7 @@ class PlanarDAE:
         self.joints: list[_Revolute] = []
         self.bushings: list[_Bushing] = []
         self.motors: list[_Motor] = []
+        self.drives: list[tuple] = []               # (a, b, angle, rate, acceleration): theta_b - theta_a = angle(t)
         self._history: Callable | None = None       # t -> (q, v) of the completed run (delayed motors)
 
     def add_body(self, name: str, *, mass: float, inertia: float, points: Mapping[str, Sequence[float]]) -> None:
@@ -191,6 +196,29 @@ class PlanarDAE:
             raise ModelError(f"PlanarDAE motor: delay must be >= 0 s, got {delay!r}")
         self.motors.append(_Motor(None if body_a is None else self._index(body_a), self._index(body_b), law,
                                   float(delay)))
+
+    def add_drive(self, body_a: str | None, body_b: str, angle: Callable[[float], float],
+                  rate: Callable[[float], float], acceleration: Callable[[float], float]) -> None:
+        """A prescribed relative angle ``theta_b - theta_a = angle(t)`` [rad] (``theta_a = 0`` at the ground) with
+        its rate and acceleration: one more constraint row, appended after the joints' rows; its multiplier is the
+        drive's moment on ``body_b`` [N m] (``-`` of it on ``body_a``)."""
+        self.drives.append((None if body_a is None else self._index(body_a), self._index(body_b), angle, rate,
+                            acceleration))
+
+    def _drive_rows(self, q: np.ndarray, v: np.ndarray, t: float) -> tuple[np.ndarray, ...]:
+        """``Phi``, ``Phi'``, ``Phi_q`` and ``gamma`` of the drives at time ``t`` [s]."""
+        nd, nb = len(self.drives), len(self.bodies)
+        phi, phi_dot, jac, gamma = np.zeros(nd), np.zeros(nd), np.zeros((nd, 3 * nb)), np.zeros(nd)
+        for k, (a, b, angle, rate, acceleration) in enumerate(self.drives):
+            # sign: the joints' rows are Phi = P_a - P_b with the force +mu on b; here Phi = angle(t) - (th_b - th_a)
+            # so that M q'' = Q - Phi_q^T mu puts +mu on body b
+            phi[k] = angle(t) - q[3 * b + 2] + (0.0 if a is None else q[3 * a + 2])
+            phi_dot[k] = rate(t) - v[3 * b + 2] + (0.0 if a is None else v[3 * a + 2])
+            jac[k, 3 * b + 2] = -1.0
+            if a is not None:
+                jac[k, 3 * a + 2] = 1.0
+            gamma[k] = -acceleration(t)
+        return phi, phi_dot, jac, gamma
 
     def _motor_torques(self, t: float, q: np.ndarray, v: np.ndarray, Q: np.ndarray) -> None:
         for motor in self.motors:
@@ -291,7 +319,8 @@ class PlanarDAE:
         ``t`` [s] (the motors' laws; delayed motors read the run in progress)."""
         nb = len(self.bodies)
         mass = np.concatenate([[b.mass, b.mass, b.inertia] for b in self.bodies])
-        phi, phi_dot, jac, gamma = self.constraints(q, v)
+        phi, phi_dot, jac, gamma = (np.concatenate([x, y]) for x, y in zip(self.constraints(q, v),
+                                                                            self._drive_rows(q, v, t)))
         m = len(phi)
         A = np.zeros((3 * nb + m, 3 * nb + m))
         A[:3 * nb, :3 * nb] = np.diag(mass)
@@ -350,8 +379,10 @@ class PlanarDAE:
         y_out = np.concatenate(states, axis=1)
         q, v = y_out[:n].T, y_out[n:].T
         drift = np.array([np.max(np.abs(self.constraints(qi, vi)[0]), initial=0.0) for qi, vi in zip(q, v)])
-        forces = np.array([self.solve(qi, vi, baumgarte, ti)[1].reshape(-1, 2) for ti, qi, vi in zip(t_out, q, v)])
-        return DAESolution(t_out, q, v, drift, forces, tuple(b.name for b in self.bodies))
+        multipliers = np.array([self.solve(qi, vi, baumgarte, ti)[1] for ti, qi, vi in zip(t_out, q, v)])
+        rows = 2 * len(self.joints)
+        forces = multipliers[:, :rows].reshape(len(t_out), -1, 2)
+        return DAESolution(t_out, q, v, drift, forces, tuple(b.name for b in self.bodies), multipliers[:, rows:])
 
     def energy(self, q: np.ndarray, v: np.ndarray, potentials: Sequence[Callable | None] = ()) -> float:
         """Kinetic + gravitational energy [J], plus ``potentials[k](delta)`` of joint ``k`` (joints, then bushings:

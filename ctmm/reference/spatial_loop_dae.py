@@ -232,7 +232,8 @@ class SpatialLoopDAE:
 
     def accelerations(self, y: np.ndarray, torques: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Body accelerations ``[a_i ; alpha_i]`` (6 n) and the multipliers ``mu`` (m) at state ``y``;
-        ``torques``: ``{body: world moment (3,)}`` applied (optional)."""
+        ``torques``: ``{body: world moment (3,)}`` applied (optional), or ``{body: [force ; moment] (6,)}`` (world, the
+        moment about the centre of mass)."""
         _, _, _, w = self.split(y)
         M = self.mass_matrix(y)
         f = np.zeros(6 * self.n)
@@ -240,8 +241,12 @@ class SpatialLoopDAE:
             inertia = M[6 * i + 3:6 * i + 6, 6 * i + 3:6 * i + 6]
             f[6 * i:6 * i + 3] = body.mass * self.gravity
             f[6 * i + 3:6 * i + 6] = -np.cross(w[i], inertia @ w[i])
-        for i, moment in (torques or {}).items():
-            f[6 * i + 3:6 * i + 6] += moment
+        for i, load in (torques or {}).items():
+            load = np.asarray(load, float)
+            if load.shape == (6,):
+                f[6 * i:6 * i + 6] += load
+            else:
+                f[6 * i + 3:6 * i + 6] += load
         phi, J, gamma = self.rows(y)
         a = self.baumgarte
         rhs = -gamma - 2 * a * (J @ self.velocities(y)) - a * a * phi

@@ -10,12 +10,18 @@ import numpy as np
 
 from .. import validation
 from ..errors import ModelError
+from ..nonlinear_laws import Law
+from ..signals import as_signal
 from .elements import parent_point
 
-__all__ = ["SpatialCutJoint", "CUT_KINDS", "CutFrame", "cut_frame", "cross", "perpendicular"]
+__all__ = ["SpatialCutJoint", "CUT_KINDS", "LAW_KINDS", "CutFrame", "cut_frame", "cut_coordinate", "cross",
+           "perpendicular"]
 
 CUT_KINDS = ("spherical", "revolute", "universal", "prismatic")
 """Kinds of :class:`SpatialCutJoint`."""
+
+LAW_KINDS = ("revolute", "prismatic")
+"""Kinds of :class:`SpatialCutJoint` with a free coordinate that a law or an actuation may load."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -48,10 +54,27 @@ class SpatialCutJoint:
         ``axis``; universal: the parent's cross axis there (required; perpendicular to ``axis`` in the assembled
         loop).
     normal, parent_normal : (3,) array, optional
-        Prismatic only: a child vector perpendicular to ``axis`` (child body axes) and the parent vector
+        Prismatic: a child vector perpendicular to ``axis`` (child body axes) and the parent vector
         perpendicular to ``parent_axis`` (parent body axes, world at the ground) it stays parallel to (fixing the
-        roll about the slide axis); default for each a unit vector perpendicular to its axis, ``axis x e_k`` with
-        ``e_k`` the coordinate axis least aligned with it (the same vector for both when the axes are equal).
+        roll about the slide axis); revolute: the pair whose angle is the joint angle of ``law`` (zero when they are
+        parallel); default for each a unit vector perpendicular to its axis, ``axis x e_k`` with ``e_k`` the
+        coordinate axis least aligned with it (the same vector for both when the axes are equal).  Not used by
+        the other kinds.
+    law : ctmm.nonlinear_laws.Law, optional
+        Revolute and prismatic only: restoring moment [N m] or force [N] ``law(s - rest, s')`` of the joint
+        coordinate ``s`` across the cut (revolute: the angle [rad] from ``parent_normal`` to ``normal`` about the
+        axis; prismatic: the slide ``d . a`` [m] of the child point from the parent point along the parent axis
+        ``a``); ``docs/closed_loops.md`` §8.1a.  ``None``: a smooth cut.
+    rest : float
+        The coordinate [rad or m] at which the law's deflection is zero.
+    actuation : float or callable, optional
+        Revolute and prismatic only: an actuator torque [N m] about the axis / force [N] along the slide ``u(t)``
+        on the child (``-u`` on the parent).
+    position, rate, acceleration : float or callable, optional
+        Revolute and prismatic only, all three or none: a driven cut, its coordinate prescribed, ``s = position(t)``
+        [rad or m], with its first and second time derivatives (checked for consistency by finite differences, as a
+        driven tree joint's): one more row, whose unknown is the drive's load along the coordinate; no law or
+        actuation then.
     """
 
     name: str
@@ -64,6 +87,12 @@ class SpatialCutJoint:
     parent_axis: Any = None
     normal: Any = None
     parent_normal: Any = None
+    law: Any = None
+    rest: float = 0.0
+    actuation: Any = None
+    position: Any = None
+    rate: Any = None
+    acceleration: Any = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "name", validation.name("cut joint", self.name))
@@ -87,10 +116,10 @@ class SpatialCutJoint:
                            validation.unit_vector(f"cut joint {self.name!r}: parent_axis", self.parent_axis))
         for label, owner in (("normal", "axis"), ("parent_normal", "parent_axis")):
             value = getattr(self, label)
-            if self.kind != "prismatic":
+            if self.kind not in LAW_KINDS:
                 if value is not None:
-                    raise ModelError(f"cut joint {self.name!r}: {label} is used only by prismatic cuts (kind "
-                                     f"{self.kind!r}), got {value!r}")
+                    raise ModelError(f"cut joint {self.name!r}: {label} is used only by prismatic and revolute cuts "
+                                     f"(kind {self.kind!r}), got {value!r}")
                 continue
             direction = getattr(self, owner)
             vector = (perpendicular(direction)[0] if value is None else
@@ -99,11 +128,60 @@ class SpatialCutJoint:
                 raise ModelError(f"cut joint {self.name!r}: {label} must be perpendicular to {owner} "
                                  f"{direction.tolist()}, got {value!r}")
             object.__setattr__(self, label, vector)
+        self._check_law()
+
+    def _check_law(self) -> None:
+        """Validate ``law``, ``rest`` and ``actuation`` (revolute and prismatic cuts only)."""
+        if (self.law is not None or self.actuation is not None) and self.kind not in LAW_KINDS:
+            raise ModelError(f"cut joint {self.name!r}: law and actuation act on the coordinate of a revolute or "
+                             f"prismatic cut; kind {self.kind!r} has none (got law={self.law!r}, actuation="
+                             f"{self.actuation!r})")
+        if self.law is not None and not isinstance(self.law, Law):
+            raise ModelError(f"cut joint {self.name!r}: law must be None or a ctmm.nonlinear_laws.Law (e.g. "
+                             f"LinearLaw(stiffness, damping)), got {self.law!r}")
+        object.__setattr__(self, "rest", validation.finite(f"cut joint {self.name!r}: rest", self.rest))
+        if self.actuation is not None:
+            object.__setattr__(self, "actuation", as_signal(f"cut joint {self.name!r}: actuation", self.actuation))
+        given = [getattr(self, label) is not None for label in ("position", "rate", "acceleration")]
+        if not any(given):
+            return
+        if self.kind not in LAW_KINDS or not all(given) or self.has_law:
+            raise ModelError(f"cut joint {self.name!r}: a driven cut is revolute or prismatic (kind {self.kind!r}) "
+                             "with position, rate and acceleration all given and no law or actuation; got position="
+                             f"{self.position!r}, rate={self.rate!r}, acceleration={self.acceleration!r}, law="
+                             f"{self.law!r}, actuation={self.actuation!r}")
+        from .elements import Revolute                   # the driven joints' derivative check
+        drive = Revolute(name=self.name, parent=None, child=self.child, position=self.position, rate=self.rate,
+                         acceleration=self.acceleration)
+        for label in ("position", "rate", "acceleration"):
+            object.__setattr__(self, label, getattr(drive, label)[0])
+
+    @property
+    def driven(self) -> bool:
+        """Whether the coordinate is prescribed (:attr:`position`)."""
+        return self.position is not None
+
+    @property
+    def has_law(self) -> bool:
+        """Whether the cut carries a law or an actuation (a load along its free coordinate)."""
+        return self.law is not None or self.actuation is not None
+
+    def load(self, coordinate: float, rate: float, t: float) -> float:
+        """Generalised load on the child along the cut's coordinate, ``actuation(t) - law(s - rest, s')`` [N m or
+        N] of the coordinate ``s`` [rad or m], its rate and the time [s]."""
+        value = 0.0 if self.actuation is None else float(self.actuation(t))
+        if self.law is not None:
+            value -= float(self.law.force(coordinate - self.rest, rate))
+        return value
+
+    def potential(self, coordinate: float) -> float:
+        """Energy stored in the law at the coordinate [J] (0 without one)."""
+        return 0.0 if self.law is None else float(self.law.potential(coordinate - self.rest))
 
     @property
     def n_rows(self) -> int:
-        """Constraint rows: 3 (spherical), 4 (universal) or 5 (revolute, prismatic)."""
-        return {"spherical": 3, "universal": 4, "revolute": 5, "prismatic": 5}[self.kind]
+        """Constraint rows: 3 (spherical), 4 (universal) or 5 (revolute, prismatic); a driven cut one more."""
+        return {"spherical": 3, "universal": 4, "revolute": 5, "prismatic": 5}[self.kind] + int(self.driven)
 
 
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -120,6 +198,27 @@ def perpendicular(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     first = cross(axis, helper)
     first /= np.linalg.norm(first)
     return first, cross(axis, first)
+
+
+def cut_coordinate(cut: SpatialCutJoint, rotation_p: np.ndarray | None, rotation_c: np.ndarray, separation: np.ndarray,
+                   relative_velocity: np.ndarray, omega_p: np.ndarray, omega_c: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The coordinate ``s`` of a revolute or prismatic cut, its rate and its world direction ``a`` (the load
+    ``f`` along it is ``f a`` on the child: a moment for a revolute cut, a force at the child point for a prismatic
+    one).  Revolute: ``a = R_c axis``, ``s = atan2((n_p x n_c) . a, n_p . n_c)`` with ``n_c = R_c normal``,
+    ``n_p = R_p parent_normal``, ``s' = (omega_c - omega_p) . a``; prismatic: ``a = R_p parent_axis``, ``s = d . a``,
+    ``s' = (v_Pc - v_Pp) . a + d . (omega_p x a)`` (``rotation_p`` None at the ground; world vectors, batched over
+    leading axes: ``(..., 3)``, rotations ``(..., 3, 3)``; ``s`` and ``s'`` ``(...)``)."""
+    def parent_fixed(vector: np.ndarray) -> np.ndarray:
+        return vector if rotation_p is None else rotation_p @ vector
+
+    if cut.kind == "revolute":
+        a, n_c, n_p = rotation_c @ cut.axis, rotation_c @ cut.normal, parent_fixed(cut.parent_normal)
+        angle = np.arctan2(np.sum(cross(n_p, n_c) * a, axis=-1), np.sum(n_p * n_c, axis=-1))
+        return angle, np.sum((omega_c - omega_p) * a, axis=-1), a
+    a = parent_fixed(cut.parent_axis)
+    return (np.sum(separation * a, axis=-1),
+            np.sum(relative_velocity * a + separation * cross(omega_p, a), axis=-1), a)
 
 
 @dataclass(frozen=True)

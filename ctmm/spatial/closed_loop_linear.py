@@ -30,7 +30,7 @@ def resting_configuration(model: SpatialKinematicLoopModel, q0: Any, t: float = 
     """``q0`` (array or ``{coordinate: value}`` mapping) projected onto the cut joints (at rest)."""
     if not isinstance(model, SpatialKinematicLoopModel):
         raise ModelError(f"model must be a SpatialKinematicLoopModel, got {model!r:.80}")
-    driven = [joint.name for joint in model.tree.joints if joint.driven]
+    driven = [joint.name for joint in model.tree.joints if joint.driven] + [cut.name for cut in model.cuts if cut.driven]
     if driven:
         raise ModelError(f"spatial kinematic loop {model.name!r}: the driven joints {driven} prescribe a motion in "
                          "time; the linearisation on the constraint manifold is about a resting equilibrium of a "

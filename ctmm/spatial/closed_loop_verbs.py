@@ -78,7 +78,9 @@ def linearize_spatial_loops(model: Any, operating_point: Any = None, *, inputs: 
     operating_point : array, mapping, (q, v) or OperatingPoint
         An equilibrium at rest (:func:`operating_configuration`), projected onto the cut joints.
     inputs : str or sequence of str, optional
-        Actuators of the tree's ports (default: the joint actuators ``model.tree.inputs`` of one component).
+        Actuators of the tree's ports (default: the joint actuators ``model.tree.inputs`` of one component) and the
+        loads along revolute and prismatic cuts ``"<cut>.torque"`` [N m] / ``"<cut>.force"`` [N]
+        (:attr:`SpatialKinematicLoopModel.actuation_names`).
     outputs : str or sequence of str, optional
         Sensors of the tree's ports and the cut forces ``"<cut>.force_x|y|z"`` [N] (default: the cut forces).
     allow_nonequilibrium : bool
@@ -108,7 +110,8 @@ def linearize_spatial_loops(model: Any, operating_point: Any = None, *, inputs: 
     forces = cut_force_names(model)
     output_names = list(forces) if outputs is None else list(validation.names("output", outputs))
     for name in input_names:
-        ports.check_actuator(name, "input (actuator)")
+        if name not in model.actuation_names:
+            ports.check_actuator(name, "input (actuator)")
     sensor_names = [name for name in output_names if name not in forces]
     sensors = ports.resolve([ports.check_sensor(name, "output (sensor)") for name in sensor_names])
     A, basis, q0 = tangent(model, q_rest, t)
@@ -123,8 +126,9 @@ def linearize_spatial_loops(model: Any, operating_point: Any = None, *, inputs: 
         values.update(zip(forces, np.concatenate([force for force, _ in loads])))
         return np.array([values[name] for name in output_names], dtype=float)
 
-    B, C, D = input_output_matrices(model, q0, basis, t, output, [ports.inputs({name: 1.0}) for name in input_names],
-                                    _STEP)
+    B, C, D = input_output_matrices(model, q0, basis, t, output,
+                                    [model.actuation_inputs(name, q0, t) if name in model.actuation_names else
+                                     ports.inputs({name: 1.0}) for name in input_names], _STEP)
     if not input_names and len(output_names) == 1:
         raise ModelError(f"linearize: inputs={inputs!r} leaves {model.name!r} with no input and one output, a state "
                          "space python-control cannot hold; name an input or a second output")
@@ -197,6 +201,7 @@ def frequency_response_spatial_loops(model: Any, omega: Any, *, input: Any, outp
         loops, 1j * np.asarray(omega, dtype=float), inputs, outputs, plant.name)
     ports = SpatialPorts(plant.tree)
     units = {name: ports.actuator_unit(name) for name in inputs if name in ports.actuators}
+    units.update({name: "N m" if name.endswith(".torque") else "N" for name in inputs if name in plant.actuation_names})
     units.update({name: "N" if name in cut_force_names(plant) else ports.sensor_unit(name) for name in outputs
                   if name in ports.sensors or name in cut_force_names(plant)})
     info = {"method": "linearisation on the constraint manifold (ctmm.spatial.closed_loop_linear)"

@@ -32,8 +32,12 @@ on ``Phi = 0`` along ``q (+) dx`` with the exact velocity Jacobian ``J = dPhi'/d
 it is reported with the cut loads (:class:`SpatialLoopSimulation`).  Linearisation and natural frequencies
 about an equilibrium on the constraint manifold: :mod:`ctmm.spatial.closed_loop_linear`.
 
-Scope: cut points on rigid bodies (not on beams or ``ctmm.fem`` subsystems: refused by name); smooth cuts
-(no spring, damper or actuator in the cut).  The tree may have any joints, actuators and loads.
+Scope: cut points on rigid bodies (not on beams or ``ctmm.fem`` subsystems: refused by name).  A revolute or
+prismatic cut may carry a law and an actuation on its free coordinate (the angle about the axis, the slide along it;
+:func:`~ctmm.spatial.closed_loop_cuts.cut_coordinate`): an applied load of the tree added with the cut loads in every
+load case, so the boundary compliance is unchanged; or be driven: that coordinate prescribed by one more row, its load
+one more unknown (``docs/closed_loops.md`` §8.1a).  The tree may have any joints,
+actuators and loads.
 """
 from __future__ import annotations
 
@@ -47,7 +51,7 @@ from ..articulated import SingularPivotError, articulated_sweep
 from ..errors import ModelError, SimulationError, unknown_name
 from ..ops import NUMPY
 from .body_forms import SpatialScene
-from .closed_loop_cuts import CUT_KINDS, CutFrame, SpatialCutJoint, cross, cut_frame
+from .closed_loop_cuts import CUT_KINDS, LAW_KINDS, CutFrame, SpatialCutJoint, cross, cut_coordinate, cut_frame
 from .integrate import initial_state
 from .model import SpatialModel
 from .ports import SpatialInputs
@@ -151,10 +155,11 @@ class SpatialKinematicLoopModel:
         arm = R @ side.point
         return origin + arm, velocity + cross(omega, arm), R
 
-    def _rows(self, bodies: list) -> tuple[np.ndarray, np.ndarray]:
-        """``Phi`` and ``Phi'`` ``(B, m)`` from body states (:meth:`_bodies`)."""
+    def _rows(self, bodies: list, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """``Phi`` and ``Phi'`` ``(B, m)`` from body states (:meth:`_bodies`) at time ``t`` [s] (a driven cut's row
+        ``s - position(t)``)."""
         phi, rate = [], []
-        for (parent, child), frame in zip(self._sides, self._frames):
+        for cut, (parent, child), frame in zip(self.cuts, self._sides, self._frames):
             xp, vp, Rp = self._point(bodies, parent)
             xc, vc, Rc = self._point(bodies, child)
             omega_c = bodies[child.body][3]
@@ -174,13 +179,17 @@ class SpatialKinematicLoopModel:
                 u, b = Rc @ u_local, parent_fixed(b_local)
                 phi.append(np.sum(u * b, axis=-1, keepdims=True))
                 rate.append(np.sum((omega_c - omega_p) * cross(u, b), axis=-1, keepdims=True))
+            if cut.driven:
+                value, value_rate, _ = cut_coordinate(cut, Rp, Rc, xc - xp, vc - vp, omega_p, omega_c)
+                phi.append((value - float(cut.position(t)))[:, None])
+                rate.append((value_rate - float(cut.rate(t)))[:, None])
         batch = max(max(a.shape[0] for a in phi), max(a.shape[0] for a in rate))
         return (np.concatenate([np.broadcast_to(a, (batch, a.shape[1])) for a in phi], axis=1),
                 np.concatenate([np.broadcast_to(a, (batch, a.shape[1])) for a in rate], axis=1))
 
     def constraints(self, q: Any, v: Any, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """``Phi`` (separations [m], alignments [rad]) and ``Phi'`` [m/s, rad/s] of every cut, stacked ``(m,)``."""
-        phi, rate = self._rows(self._bodies(np.asarray(q, float), np.asarray(v, float), t))
+        phi, rate = self._rows(self._bodies(np.asarray(q, float), np.asarray(v, float), t), t)
         return phi[0], rate[0]
 
     def jacobian(self, q: Any, t: float = 0.0) -> np.ndarray:
@@ -201,9 +210,9 @@ class SpatialKinematicLoopModel:
         return self.tree.normalized(q + self.tree.position_rates(q[None], dx[None])[0])
 
     # -- the boundary unknowns ---------------------------------------------------------------------------
-    def _accelerations(self, bodies: list, A: np.ndarray) -> np.ndarray:
+    def _accelerations(self, bodies: list, A: np.ndarray, t: float) -> np.ndarray:
         """``Phi''`` ``(B, m)`` from the inboard point accelerations ``A`` ``(B, n_bodies, 6)`` (``[a ; alpha]``,
-        world) of a batched sweep at one state (body states :meth:`_bodies`)."""
+        world) of a batched sweep at one state (body states :meth:`_bodies`) at time ``t`` [s]."""
         batch = A.shape[0]
 
         def side_acceleration(side: _Side) -> tuple[np.ndarray, ...]:
@@ -218,7 +227,7 @@ class SpatialKinematicLoopModel:
                     A[:, side.body, :3] + cross(alpha, r) + cross(omega, cross(omega, r)), alpha)
 
         rows = []
-        for (parent, child), frame in zip(self._sides, self._frames):
+        for cut, (parent, child), frame in zip(self.cuts, self._sides, self._frames):
             xp, vp, ap, alpha_p = side_acceleration(parent)
             xc, vc, ac, alpha_c = side_acceleration(child)
             Rc, omega_c = bodies[child.body][0][0], bodies[child.body][3][0]
@@ -229,29 +238,104 @@ class SpatialKinematicLoopModel:
 
             if frame.basis is None:
                 rows.append(ac - ap)
-            for b_local in frame.basis or ():      # (d . b)'' with d = xc - xp, b' = omega_p x b
-                b = parent_fixed(b_local)
+            def point_row(b: np.ndarray) -> np.ndarray:
+                """``(d . b)''`` with ``d = xc - xp`` and the parent-fixed ``b`` (world), ``b' = omega_p x b``."""
                 spin = cross(omega_p, b)
-                rows.append(((ac - ap) @ b + 2.0 * (vc - vp) @ spin + cross(alpha_p, b) @ (xc - xp)
-                             + (xc - xp) @ cross(omega_p, spin))[:, None])
+                return ((ac - ap) @ b + 2.0 * (vc - vp) @ spin + cross(alpha_p, b) @ (xc - xp)
+                        + (xc - xp) @ cross(omega_p, spin))[:, None]
+
+            rows.extend(point_row(parent_fixed(b_local)) for b_local in frame.basis or ())
             for u_local, b_local in frame.pairs:
                 u, b = Rc @ u_local, parent_fixed(b_local)
                 n = cross(u, b)
                 n_dot = cross(cross(omega_c, u), b) + cross(u, cross(omega_p, b))
                 rows.append(((alpha_c - alpha_p) @ n + (omega_c - omega_p) @ n_dot)[:, None])
+            if cut.driven and cut.kind == "revolute":      # ((omega_c - omega_p) . a)' with a = R_c axis
+                a = Rc @ cut.axis
+                rows.append(((alpha_c - alpha_p) @ a + (omega_c - omega_p) @ cross(omega_c, a))[:, None]
+                            - float(cut.acceleration(t)))
+            elif cut.driven:                                 # the slide (d . a)'' along the guide a
+                rows.append(point_row(parent_fixed(cut.parent_axis)) - float(cut.acceleration(t)))
         return np.concatenate(rows, axis=1)
 
-    def _unit_loads(self, bodies: list) -> dict[int, np.ndarray]:
+    def _law_wrenches(self, bodies: list, t: float) -> list[np.ndarray | None]:
+        """Per cut: ``[force ; moment]`` (world) of its law and actuation on the child, ``f a`` along the cut's
+        coordinate (:func:`~ctmm.spatial.closed_loop_cuts.cut_coordinate`; prismatic: a force at the child point),
+        the parent taking the opposite at the same place; ``None`` for a smooth cut (``bodies``: :meth:`_bodies`)."""
+        out: list[np.ndarray | None] = []
+        for cut, (parent, child) in zip(self.cuts, self._sides):
+            if not cut.has_law:
+                out.append(None)
+                continue
+            coordinate, rate, a = self._coordinate(bodies, cut, parent, child)
+            load = cut.load(coordinate, rate, t)
+            out.append(np.concatenate([np.zeros(3), load * a]) if cut.kind == "revolute" else
+                       np.concatenate([load * a, np.zeros(3)]))
+        return out
+
+    def _coordinate(self, bodies: list, cut: SpatialCutJoint, parent: _Side, child: _Side
+                    ) -> tuple[float, float, np.ndarray]:
+        """:func:`~ctmm.spatial.closed_loop_cuts.cut_coordinate` of one cut at the first state of ``bodies``."""
+        xp, vp, Rp = self._point(bodies, parent)
+        xc, vc, Rc = self._point(bodies, child)
+        omega_p = np.zeros(3) if parent.body < 0 else bodies[parent.body][3][0]
+        value, rate, a = cut_coordinate(cut, None if Rp is None else Rp[0], Rc[0], xc[0] - xp[0], vc[0] - vp[0],
+                                        omega_p, bodies[child.body][3][0])
+        return float(value), float(rate), a
+
+    @property
+    def actuation_names(self) -> tuple[str, ...]:
+        """``"<cut>.torque"`` (revolute) and ``"<cut>.force"`` (prismatic) of the undriven revolute and prismatic cuts:
+        a unit load along the cut's coordinate, inputs of the linearisation (:meth:`actuation_inputs`)."""
+        return tuple(f"{cut.name}.{'torque' if cut.kind == 'revolute' else 'force'}" for cut in self.cuts
+                     if cut.kind in LAW_KINDS and not cut.driven)
+
+    def actuation_inputs(self, name: str, q: Any, t: float = 0.0) -> SpatialInputs:
+        """The unit load ``a`` along the coordinate of the cut named by ``name`` (:attr:`actuation_names`) at the
+        configuration ``q``, as the tree's actuator values: on the child at its point, its opposite on the parent (a
+        prismatic cut's at the child point); world axes, so valid at ``q`` (the linearisation's operating point)."""
+        if name not in self.actuation_names:
+            raise ModelError(f"cut actuation input: {name!r} is not one of {list(self.actuation_names)} of "
+                             f"{self.name!r}")
+        k = [cut.name for cut in self.cuts].index(name.rpartition(".")[0])
+        (parent, child), cut = self._sides[k], self.cuts[k]
+        bodies = self._bodies(np.asarray(q, float), np.zeros(self.tree.n_velocities), t)
+        a = np.broadcast_to(self._coordinate(bodies, cut, parent, child)[2], (3,))
+        load = np.concatenate([np.zeros(3), a] if cut.kind == "revolute" else [a, np.zeros(3)])
+        wrenches = {child.body: [(child.point, load.reshape(1, 6, 1))]}
+        if parent.body >= 0:
+            R, origin = bodies[parent.body][0][0], bodies[parent.body][1][0]
+            at = parent.point if cut.kind == "revolute" else R.T @ (self._point(bodies, child)[0][0] - origin)
+            wrenches[parent.body] = [(at, -load.reshape(1, 6, 1))]
+        return SpatialInputs({}, wrenches)
+
+    def cut_coordinates(self, q: Any, v: Any, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """The coordinate across every revolute or prismatic cut (angle [rad] or slide [m]; NaN for the other kinds)
+        and its rate, each ``(n_cuts,)`` (:func:`~ctmm.spatial.closed_loop_cuts.cut_coordinate`)."""
+        bodies = self._bodies(np.asarray(q, float), np.asarray(v, float), t)
+        values, rates = np.full(len(self.cuts), np.nan), np.full(len(self.cuts), np.nan)
+        for k, (cut, (parent, child)) in enumerate(zip(self.cuts, self._sides)):
+            if cut.kind in LAW_KINDS:
+                values[k], rates[k], _ = self._coordinate(bodies, cut, parent, child)
+        return values, rates
+
+    def cut_potential(self, q: Any) -> float:
+        """Energy stored in the cuts' laws [J] at the coordinates ``q``."""
+        values, _ = self.cut_coordinates(q, np.zeros(self.tree.n_velocities))
+        return float(sum(cut.potential(s) for cut, s in zip(self.cuts, values) if cut.kind in LAW_KINDS))
+
+    def _unit_loads(self, bodies: list, t: float) -> dict[int, np.ndarray]:
         """Per loaded body: the change ``[f ; m + r x f]`` (``(1 + m, 6, 1)``, world axes, about its inboard point)
         of its applied load in the ``1 + m`` load cases: case 0 none, case ``1 + k`` the unit value of unknown
-        ``k`` (its force or moment on the child, the opposite on the parent; ``bodies``: :meth:`_bodies`)."""
+        ``k`` (its force or moment on the child, the opposite on the parent; ``bodies``: :meth:`_bodies`); the
+        cuts' laws and actuations (:meth:`_law_wrenches`, at time ``t`` [s]) in every case."""
         m = self.n_constraints
         loads: dict[int, np.ndarray] = {}
         row = 0
-        for (parent, child), frame in zip(self._sides, self._frames):
-            wrench = np.zeros((1 + m, 6))
-            unit = self._unit_wrenches(bodies, parent, child, frame)
-            wrench[1 + row:1 + row + len(unit)] = unit
+        for cut, (parent, child), frame, law in zip(self.cuts, self._sides, self._frames, self._law_wrenches(bodies, t)):
+            wrench = np.zeros((1 + m, 6)) if law is None else np.tile(law, (1 + m, 1))
+            unit = self._unit_wrenches(bodies, cut, parent, child, frame)
+            wrench[1 + row:1 + row + len(unit)] += unit
             row += len(unit)
             for side, sign in ((child, 1.0), (parent, -1.0)):
                 if side.body < 0:
@@ -264,17 +348,22 @@ class SpatialKinematicLoopModel:
         return {j: load[:, :, None] for j, load in loads.items()}
 
     @staticmethod
-    def _unit_wrenches(bodies: list, parent: _Side, child: _Side, frame: CutFrame) -> np.ndarray:
-        """``[force ; moment]`` (world) on the child per unit value of each unknown of one cut ``(rows, 6)``."""
+    def _unit_wrenches(bodies: list, cut: SpatialCutJoint, parent: _Side, child: _Side, frame: CutFrame) -> np.ndarray:
+        """``[force ; moment]`` (world) on the child per unit value of each unknown of one cut ``(rows, 6)`` (a
+        driven cut's last: the unit load along its coordinate, a moment about the axis or a force along the guide)."""
         rotation_p = None if parent.body < 0 else bodies[parent.body][0][0]
         rotation_c = bodies[child.body][0][0]
         basis = np.eye(3) if frame.basis is None else np.array([b if rotation_p is None else rotation_p @ b
                                                                  for b in frame.basis])
-        out = np.zeros((len(basis) + len(frame.pairs), 6))
+        out = np.zeros((len(basis) + len(frame.pairs) + int(cut.driven), 6))
         out[:len(basis), :3] = basis
         for i, (u_local, b_local) in enumerate(frame.pairs):
             b = b_local if rotation_p is None else rotation_p @ b_local
             out[len(basis) + i, 3:] = cross(rotation_c @ u_local, b)
+        if cut.driven and cut.kind == "revolute":
+            out[-1, 3:] = rotation_c @ cut.axis
+        elif cut.driven:
+            out[-1, :3] = cut.parent_axis if rotation_p is None else rotation_p @ cut.parent_axis
         return out
 
     def _sweep(self, q: np.ndarray, v: np.ndarray, t: float, inputs: Mapping[str, Any] | None
@@ -293,7 +382,7 @@ class SpatialKinematicLoopModel:
         body_terms, joint_terms, states = scene.terms(NUMPY, q_rows, v_rows, t, scene.numpy_inputs(inputs, t, 1),
                                                       wrenches)
         bodies = self._states(states, 1)
-        for j, load in self._unit_loads(bodies).items():
+        for j, load in self._unit_loads(bodies, t).items():
             body_terms[j] = replace(body_terms[j], h=body_terms[j].h - load)
         try:
             solution = articulated_sweep(NUMPY, scene.tree, body_terms, joint_terms)
@@ -327,9 +416,9 @@ class SpatialKinematicLoopModel:
             the time and the first cut joint.
         """
         bodies, rates, points = self._sweep(np.asarray(q, float), np.asarray(v, float), t, inputs)
-        second = self._accelerations(bodies, points)
+        second = self._accelerations(bodies, points, t)
         G = (second[1:] - second[0]).T
-        phi, phi_dot = self._rows(bodies)
+        phi, phi_dot = self._rows(bodies, t)
         alpha = self.baumgarte
         target = -second[0] - 2.0 * alpha * phi_dot[0] - alpha * alpha * phi[0]
         condition = np.linalg.cond(G)
@@ -348,8 +437,8 @@ class SpatialKinematicLoopModel:
         q = np.asarray(q, float)
         bodies = self._bodies(q, np.zeros(self.tree.n_velocities), t)
         out, row = [], 0
-        for (parent, child), frame in zip(self._sides, self._frames):
-            unit = self._unit_wrenches(bodies, parent, child, frame)
+        for cut, (parent, child), frame in zip(self.cuts, self._sides, self._frames):
+            unit = self._unit_wrenches(bodies, cut, parent, child, frame)
             wrench = np.asarray(lam[row:row + len(unit)], float) @ unit
             out.append((wrench[:3], wrench[3:]))
             row += len(unit)
@@ -369,9 +458,11 @@ class SpatialKinematicLoopModel:
         if isinstance(inputs, SpatialInputs):
             for body, entries in inputs.wrenches.items():
                 wrenches[body] = list(entries)
+        laws = self._law_wrenches(self._bodies(q, v, t), t)
         bodies = self._bodies(q, np.zeros(self.tree.n_velocities), t)
-        for (parent, child), frame, (force, moment) in zip(self._sides, self._frames, self.cut_loads(q, lam, t)):
-            load = np.concatenate([force, moment]).reshape(1, 6, 1)
+        for (parent, child), frame, (force, moment), law in zip(self._sides, self._frames, self.cut_loads(q, lam, t),
+                                                                laws):
+            load = (np.concatenate([force, moment]) + (0.0 if law is None else law)).reshape(1, 6, 1)
             wrenches.setdefault(child.body, []).append((child.point, load))
             if parent.body >= 0:                       # prismatic: at the child point, in parent body axes
                 R, origin = bodies[parent.body][0][0], bodies[parent.body][1][0]
@@ -439,7 +530,7 @@ class SpatialKinematicLoopModel:
         ``(q, e_k)``: ``J`` column ``k`` is ``Phi'(q, e_k) - Phi'(q, 0)``, the rate of driven joints taken out)."""
         nv = self.tree.n_velocities
         phi, rate = self._rows(self._bodies(np.broadcast_to(q, (2 + nv, len(q))),
-                                            np.vstack([v[None], np.zeros((1, nv)), np.eye(nv)]), t))
+                                            np.vstack([v[None], np.zeros((1, nv)), np.eye(nv)]), t), t)
         return phi[0], rate[0], (rate[2:] - rate[1]).T.copy()
 
     def project(self, q: np.ndarray, v: np.ndarray, t: float = 0.0, iterations: int = 3
