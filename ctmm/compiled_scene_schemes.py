@@ -58,7 +58,8 @@ from .planar.integrate import PlanarSimulation, check_store_every, initial_coord
 from .planar.model import PlanarModel
 from .schemes import History, Scheme, as_scheme
 
-__all__ = ["HISTORY", "SecondOrderMaps", "CompiledSceneScheme", "simulate_scheme_generated"]
+__all__ = ["HISTORY", "SecondOrderMaps", "CompiledSceneScheme", "check_step_scaling", "newton_iteration",
+           "scheme_maps", "selected", "simulate_scheme_generated"]
 
 HISTORY = ("q", "v", "a", "equation_acceleration", "q_old1", "q_old2")
 """The stored history of every coordinate, in the order of the generated state (blocks of ``n``)."""
@@ -178,7 +179,27 @@ def scheme_maps(scheme: Scheme, h: float) -> list[SecondOrderMaps]:
                      "generated DT-TMM step of planar models selects); use compiled=None")
 
 
-def _selected(maps: list[SecondOrderMaps], k: Any, value: Any) -> Any:
+def newton_iteration(residual_terms: Any, tolerance: float) -> Any:
+    """One Newton iteration on ``r(a) = 0`` as a casadi ``Function`` ``(z, *arguments) -> z`` with
+    ``z = [a; converged; max |delta a|; iterations]``: ``a <- a - J^-1 r`` (QR) from ``residual_terms(a, *arguments)
+    -> (r, J)``, converged when ``max |delta a| <= tolerance (1 + max |a|)``; a converged ``z`` is returned
+    unchanged (a short-circuit branch: the iterations after convergence cost nothing)."""
+    import casadi as ca
+
+    n = residual_terms.size1_in(0)
+    z = ca.MX.sym("z", n + 3)
+    arguments = [ca.MX.sym(residual_terms.name_in(i), residual_terms.sparsity_in(i))
+                 for i in range(1, residual_terms.n_in())]
+    r, jacobian = residual_terms(z[:n], *arguments)
+    delta = ca.solve(jacobian, r, "qr")
+    new = z[:n] - delta
+    change = ca.mmax(ca.fabs(delta)) if n else ca.MX(0.0)
+    converged = change <= tolerance * (1.0 + (ca.mmax(ca.fabs(new)) if n else 0.0))
+    step = ca.Function("newton_iteration", [z, *arguments], [ca.vertcat(new, converged, change, z[n + 2] + 1.0)])
+    return ca.Function("newton_or_done", [z, *arguments], [ca.if_else(z[n], z, step(z, *arguments), True)])
+
+
+def selected(maps: list[SecondOrderMaps], k: Any, value: Any) -> Any:
     """``value(maps[j])`` of step ``k`` (the last maps from ``len(maps) - 1`` on), on casadi symbols."""
     import casadi as ca
 
@@ -265,19 +286,7 @@ class CompiledSceneScheme:
         value, d_q, d_v = tangent_q(q_hat + w * a, v_hat + g * a, u, p, t)
         residual_terms = ca.Function("residual", [a, q_hat, v_hat, w, g, t, u, p],
                                      [a - value, ca.SX.eye(n) - w * d_q - g * d_v])
-        z = ca.MX.sym("z", n + 3)                 # [a; converged; residual; iterations]
-        qh, vh, u_mx, p_mx = ca.MX.sym("q_hat", n), ca.MX.sym("v_hat", n), ca.MX.sym("u", n_u), ca.MX.sym("p", n_p)
-        w_mx, g_mx, t_mx = ca.MX.sym("w"), ca.MX.sym("g"), ca.MX.sym("t")
-        r, jacobian = residual_terms(z[:n], qh, vh, w_mx, g_mx, t_mx, u_mx, p_mx)
-        delta = ca.solve(jacobian, r, "qr")
-        new_a = z[:n] - delta
-        change = ca.mmax(ca.fabs(delta)) if n else ca.MX(0.0)
-        size = ca.mmax(ca.fabs(new_a)) if n else ca.MX(0.0)
-        converged = change <= self.tolerance * (1.0 + size)
-        iteration = ca.Function("newton_iteration", [z, qh, vh, w_mx, g_mx, t_mx, u_mx, p_mx],
-                                [ca.vertcat(new_a, converged, change, z[n + 2] + 1.0)])
-        skip = ca.Function("newton_or_done", [z, qh, vh, w_mx, g_mx, t_mx, u_mx, p_mx], [ca.if_else(
-            z[n], z, iteration(z, qh, vh, w_mx, g_mx, t_mx, u_mx, p_mx), True)])
+        iterate = newton_iteration(residual_terms, self.tolerance)
         y = ca.MX.sym("y", self.state_size)
         u_in, h, p_in, t0, k = ca.MX.sym("u", n_u), ca.MX.sym("h"), ca.MX.sym("p", n_p), ca.MX.sym("t0"), ca.MX.sym("k")
         history = [y[j * n:(j + 1) * n] for j in range(6)]
@@ -292,16 +301,16 @@ class CompiledSceneScheme:
                 terms.append(float(row[6]) * extra)
             return sum(terms[1:], terms[0]) if terms else ca.MX.zeros(n)
 
-        q_hat_k = _selected(self.maps, k, lambda m: combination(m.predictor[0]))
-        v_hat_k = _selected(self.maps, k, lambda m: combination(m.predictor[1])) / h
-        w_k = _selected(self.maps, k, lambda m: m.position_weight) * h * h
-        g_k = _selected(self.maps, k, lambda m: m.velocity_weight) * h
-        t_eval = t0 + (k + _selected(self.maps, k, lambda m: m.time_fraction)) * h
+        q_hat_k = selected(self.maps, k, lambda m: combination(m.predictor[0]))
+        v_hat_k = selected(self.maps, k, lambda m: combination(m.predictor[1])) / h
+        w_k = selected(self.maps, k, lambda m: m.position_weight) * h * h
+        g_k = selected(self.maps, k, lambda m: m.velocity_weight) * h
+        t_eval = t0 + (k + selected(self.maps, k, lambda m: m.time_fraction)) * h
         state = ca.vertcat(y[3 * n:4 * n], 0.0, np.inf, 0.0)       # Newton from the last acceleration
         for _ in range(self.max_iterations):
-            state = skip(state, q_hat_k, v_hat_k, w_k, g_k, t_eval, u_in, p_in)
+            state = iterate(state, q_hat_k, v_hat_k, w_k, g_k, t_eval, u_in, p_in)
         solved, ok, change, used = state[:n], state[n], state[n + 1], state[n + 2]
-        new = [_selected(self.maps, k, lambda m, i=i: combination(m.update[i], solved * h * h)) / factor
+        new = [selected(self.maps, k, lambda m, i=i: combination(m.update[i], solved * h * h)) / factor
                for i, factor in enumerate(scale)]
         fail = ca.if_else(failed > 0.0, failed, ca.if_else(ok, 0.0, k + 1.0))
         history_out = ca.if_else(fail > 0.0, ca.MX.nan(6 * n, 1), ca.vertcat(*new))
