@@ -59,7 +59,7 @@ from .planar.model import PlanarModel
 from .schemes import History, Scheme, as_scheme
 
 __all__ = ["HISTORY", "SecondOrderMaps", "CompiledSceneScheme", "check_step_scaling", "newton_iteration",
-           "scheme_maps", "selected", "simulate_scheme_generated"]
+           "newton_options", "reused_or_built", "scheme_maps", "selected", "simulate_scheme_generated", "symbolic_scheme_step"]
 
 HISTORY = ("q", "v", "a", "equation_acceleration", "q_old1", "q_old2")
 """The stored history of every coordinate, in the order of the generated state (blocks of ``n``)."""
@@ -199,6 +199,78 @@ def newton_iteration(residual_terms: Any, tolerance: float) -> Any:
     return ca.Function("newton_or_done", [z, *arguments], [ca.if_else(z[n], z, step(z, *arguments), True)])
 
 
+def newton_options(owner: str, tolerance: float, max_iterations: int, store_every: int, rows: int
+                   ) -> tuple[float, int, int, int]:
+    """``(tolerance, max_iterations, store_every, rows)`` of a generated scheme checked (``owner`` names it).
+
+    Raises
+    ------
+    ModelError
+        ``tolerance`` not > 0, ``max_iterations``, ``store_every`` or ``rows`` not integers >= 1.
+    """
+    if isinstance(rows, bool) or not isinstance(rows, (int, np.integer)) or rows < 1:
+        raise ModelError(f"{owner}: rows must be an integer >= 1 (stored states per block), got {rows!r}")
+    return (validation.positive("tolerance", tolerance), validation.integer("max_iterations", max_iterations, minimum=1),
+            check_store_every(validation.integer("store_every", store_every, minimum=1)), int(rows))
+
+
+def symbolic_scheme_step(maps: list[SecondOrderMaps], history: list, h: Any, k: Any, iterate: Any,
+                         max_iterations: int, status: Any) -> tuple[list, Any, Any]:
+    """One scheme step with Newton on casadi MX symbols (the step of both generated families).
+
+    Parameters
+    ----------
+    maps : list of SecondOrderMaps
+        Read at ``h = 1 s`` (:func:`scheme_maps`).
+    history : list of 6 columns or None
+        :data:`HISTORY` at ``t_n`` (``None``: zero, e.g. positions in a chart at ``q_n``).
+    h, k : casadi.MX
+        Step [s] and the index of the step.
+    iterate : callable
+        ``iterate(z, predictor, v_hat, b' h^2, g' h, fraction) -> z``: one Newton iteration
+        (:func:`newton_iteration` bound to the family's other arguments), ``z = [a; converged; change; count]``.
+    max_iterations : int
+    status : casadi.MX
+        :data:`STATUS` before the step.
+
+    Returns
+    -------
+    new : list of 6 casadi.MX
+        :data:`HISTORY` after the step (positions: the predictor's row of the map plus ``b' h^2 a``).
+    failed : casadi.MX
+        True when this or an earlier step did not converge.
+    status : casadi.MX
+        :data:`STATUS` after the step.
+    """
+    import casadi as ca
+
+    n = next(part for part in history if part is not None).numel()
+    scale = [1.0, h, h * h, h * h, 1.0, 1.0]                # the history in units of h = 1 s (TIME_POWER)
+    scaled = [None if part is None else part * factor for part, factor in zip(history, scale)]
+
+    def combination(row: np.ndarray, extra: Any = None) -> Any:
+        terms = [float(c) * scaled[j] for j, c in enumerate(row[:6]) if c != 0.0 and scaled[j] is not None]
+        if extra is not None and row[6] != 0.0:
+            terms.append(float(row[6]) * extra)
+        return sum(terms[1:], terms[0]) if terms else ca.MX.zeros(n)
+
+    predictor = selected(maps, k, lambda m: combination(m.predictor[0]))
+    v_hat = selected(maps, k, lambda m: combination(m.predictor[1])) / h
+    weights = (selected(maps, k, lambda m: m.position_weight) * h * h,
+               selected(maps, k, lambda m: m.velocity_weight) * h)
+    fraction = selected(maps, k, lambda m: m.time_fraction)
+    z = ca.vertcat(history[3], 0.0, np.inf, 0.0)              # Newton from the last acceleration
+    for _ in range(max_iterations):
+        z = iterate(z, predictor, v_hat, *weights, fraction)
+    solved, ok, change, used = z[:n], z[n], z[n + 1], z[n + 2]
+    new = [selected(maps, k, lambda m, i=i: combination(m.update[i], solved * h * h)) / factor
+           for i, factor in enumerate(scale)]
+    failed_before = status[0] > 0.0
+    fail = ca.if_else(failed_before, status[0], ca.if_else(ok, 0.0, k + 1.0))
+    out = ca.vertcat(fail, ca.if_else(failed_before, status[1], ca.if_else(ok, 0.0, change)), status[2] + used)
+    return new, fail > 0.0, out
+
+
 def selected(maps: list[SecondOrderMaps], k: Any, value: Any) -> Any:
     """``value(maps[j])`` of step ``k`` (the last maps from ``len(maps) - 1`` on), on casadi symbols."""
     import casadi as ca
@@ -248,12 +320,8 @@ class CompiledSceneScheme:
         if reason:
             raise ModelError(f"CompiledSceneScheme: {reason}")
         self.scheme = as_scheme(scheme)
-        self.tolerance = validation.positive("tolerance", tolerance)
-        self.max_iterations = validation.integer("max_iterations", max_iterations, minimum=1)
-        self.store_every = check_store_every(validation.integer("store_every", store_every, minimum=1))
-        if isinstance(rows, bool) or not isinstance(rows, (int, np.integer)) or rows < 1:
-            raise ModelError(f"CompiledSceneScheme: rows must be an integer >= 1 (stored states per block), got "
-                             f"{rows!r}")
+        self.tolerance, self.max_iterations, self.store_every, rows = newton_options(
+            "CompiledSceneScheme", tolerance, max_iterations, store_every, rows)
         start = _time.perf_counter()
         self.model = model
         self.maps = scheme_maps(self.scheme, 1.0)
@@ -262,7 +330,7 @@ class CompiledSceneScheme:
         acceleration = symbolic_accelerations_with_inputs(model, self.actuators)
         step = self._step_function(acceleration)
         name = f"scene_{model.n_bodies}b{model.n_coordinates}q_{self.scheme.name}"
-        loop = compiled_time_loop(step, self.store_every, int(rows), name, extra=[acceleration],
+        loop = compiled_time_loop(step, self.store_every, rows, name, extra=[acceleration],
                                   cache_dir=cache_dir, compiler=compiler)
         (self._acceleration,), self._step, self._stride, self._blocks = loop.extra, loop.step, loop.stride, loop.blocks
         self.compile_time_s = _time.perf_counter() - start
@@ -289,33 +357,12 @@ class CompiledSceneScheme:
         iterate = newton_iteration(residual_terms, self.tolerance)
         y = ca.MX.sym("y", self.state_size)
         u_in, h, p_in, t0, k = ca.MX.sym("u", n_u), ca.MX.sym("h"), ca.MX.sym("p", n_p), ca.MX.sym("t0"), ca.MX.sym("k")
-        history = [y[j * n:(j + 1) * n] for j in range(6)]
-        failed, failed_residual, iterations = y[6 * n], y[6 * n + 1], y[6 * n + 2]
-
-        scale = [1.0, h, h * h, h * h, 1.0, 1.0]          # the history in units of h = 1 s (TIME_POWER)
-        history = [part * factor for part, factor in zip(history, scale)]
-
-        def combination(row: np.ndarray, extra: Any = None) -> Any:
-            terms = [float(c) * history[j] for j, c in enumerate(row[:6]) if c != 0.0]
-            if extra is not None and row[6] != 0.0:
-                terms.append(float(row[6]) * extra)
-            return sum(terms[1:], terms[0]) if terms else ca.MX.zeros(n)
-
-        q_hat_k = selected(self.maps, k, lambda m: combination(m.predictor[0]))
-        v_hat_k = selected(self.maps, k, lambda m: combination(m.predictor[1])) / h
-        w_k = selected(self.maps, k, lambda m: m.position_weight) * h * h
-        g_k = selected(self.maps, k, lambda m: m.velocity_weight) * h
-        t_eval = t0 + (k + selected(self.maps, k, lambda m: m.time_fraction)) * h
-        state = ca.vertcat(y[3 * n:4 * n], 0.0, np.inf, 0.0)       # Newton from the last acceleration
-        for _ in range(self.max_iterations):
-            state = iterate(state, q_hat_k, v_hat_k, w_k, g_k, t_eval, u_in, p_in)
-        solved, ok, change, used = state[:n], state[n], state[n + 1], state[n + 2]
-        new = [selected(self.maps, k, lambda m, i=i: combination(m.update[i], solved * h * h)) / factor
-               for i, factor in enumerate(scale)]
-        fail = ca.if_else(failed > 0.0, failed, ca.if_else(ok, 0.0, k + 1.0))
-        history_out = ca.if_else(fail > 0.0, ca.MX.nan(6 * n, 1), ca.vertcat(*new))
-        status = ca.vertcat(fail, ca.if_else(failed > 0.0, failed_residual, ca.if_else(ok, 0.0, change)),
-                            iterations + used)
+        new, failed, status = symbolic_scheme_step(
+            self.maps, [y[j * n:(j + 1) * n] for j in range(6)], h, k,
+            lambda z, q_hat_k, v_hat_k, w_k, g_k, fraction: iterate(z, q_hat_k, v_hat_k, w_k, g_k,
+                                                                    t0 + (k + fraction) * h, u_in, p_in),
+            self.max_iterations, y[6 * n:])
+        history_out = ca.if_else(failed, ca.MX.nan(6 * n, 1), ca.vertcat(*new))
         return ca.Function("step", [y, u_in, h, p_in, t0, k], [ca.vertcat(history_out, status)])
 
     def accelerations(self, q: Any, qdot: Any, t: float = 0.0) -> np.ndarray:
@@ -343,6 +390,24 @@ class CompiledSceneScheme:
         return run_blocks(self._blocks, self._stride, self._step, self.store_every, np.asarray(state)[:, None],
                           np.zeros(len(self.actuators)), dt, validation.integer("n_steps", n_steps, minimum=1),
                           0.0, self.parameters[:, None])[0]
+
+
+def reused_or_built(kind: type, compiled: Any, model: Any, scheme: Scheme, store_every: int, **options: Any) -> Any:
+    """``compiled`` when it is a ``kind`` (a compiled scheme class) of ``model`` with ``scheme`` and ``store_every``;
+    a new ``kind(model, scheme, store_every=store_every, **options)`` when it is ``None``.
+
+    Raises
+    ------
+    ModelError
+        ``compiled`` is something else.
+    """
+    if compiled is None:
+        return kind(model, scheme, store_every=store_every, **options)
+    if not isinstance(compiled, kind) or compiled.model is not model or compiled.scheme != scheme or \
+            compiled.store_every != store_every:
+        raise ModelError(f"compiled must be a {kind.__name__} of this model with scheme={scheme!r} and "
+                         f"store_every={store_every!r}, got {compiled!r}")
+    return compiled
 
 
 def simulate_scheme_generated(model: PlanarModel, q0: Any, qdot0: Any, *, t_final: float, dt: float,
@@ -379,13 +444,8 @@ def simulate_scheme_generated(model: PlanarModel, q0: Any, qdot0: Any, *, t_fina
     q, v = initial_coordinates(model, q0, qdot0)
     n_steps = step_total(t_final, dt)
     h = t_final / n_steps
-    if compiled is None:
-        compiled = CompiledSceneScheme(model, scheme, store_every=store_every, tolerance=tolerance,
-                                       max_iterations=max_iterations, cache_dir=cache_dir)
-    elif not isinstance(compiled, CompiledSceneScheme) or compiled.model is not model or \
-            compiled.scheme != scheme or compiled.store_every != store_every:
-        raise ModelError(f"compiled must be a CompiledSceneScheme of this model with scheme={scheme!r} and "
-                         f"store_every={store_every!r}, got {compiled!r}")
+    compiled = reused_or_built(CompiledSceneScheme, compiled, model, scheme, store_every, tolerance=tolerance,
+                               max_iterations=max_iterations, cache_dir=cache_dir)
     guard = divergence_guard(model, q, divergence_bound)
     check_scheme(model, q, v, h, scheme=scheme, policy=stability_check)
     start = _time.perf_counter()

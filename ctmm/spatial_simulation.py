@@ -1,5 +1,6 @@
 """The spatial branch of :func:`ctmm.simulate`: a :class:`~ctmm.spatial.model.SpatialModel`, plain or controlled,
-by RK4, ``solve_ivp``, a DT-TMM scheme or the generated RK4 (``docs/spatial.md`` §6, §6a, §6b)."""
+by RK4, ``solve_ivp``, a DT-TMM scheme, the generated RK4 or a generated DT-TMM scheme (``docs/spatial.md`` §6, §6a,
+§6b, §6c)."""
 from __future__ import annotations
 
 import math
@@ -49,8 +50,20 @@ def simulate_spatial_system(parts: tuple[SpatialModel, tuple], t_final: float, d
             for name in inputs:
                 if name not in model.inputs and name not in known:
                     raise unknown_name("spatial input", name, list(model.inputs) + list(known))
+        if (isinstance(method, Scheme) or method in SCHEMES) and not controlled:     # ctmm.compiled_spatial_schemes
+            from .compiled_spatial_schemes import simulate_spatial_scheme_generated
+
+            for name, (value, default) in {"rtol": (rtol, 1e-8), "atol": (atol, 1e-10), "max_step": (max_step, None),
+                                           "progress": (progress, None),
+                                           "stability_check": (stability_check, None)}.items():
+                if value is not default and value != default:
+                    raise ModelError(f"{name}={value!r} does not apply to the generated DT-TMM scheme {method!r} of a "
+                                     f"spatial model; leave {name} at {default!r}")
+            return simulate_spatial_scheme_generated(model, t_final, dt, scheme=method, x0=x0, v0=v0, inputs=inputs,
+                                                     store_every=store_every, divergence_bound=divergence_bound)
         if not isinstance(method, str) or method != "rk4":
-            raise ModelError(f"compiled=True runs the generated RK4 of a spatial model; got method={method!r}")
+            raise ModelError(f"compiled=True runs the generated RK4 of a spatial model, or a generated DT-TMM scheme "
+                             f"without {closed}; got method={method!r}" + (f" with {closed}" if controlled else ""))
         if controllers:                 # C between the samples of the controllers (ctmm.compiled_cosim)
             from .compiled_cosim import simulate_cosimulated_generated
 

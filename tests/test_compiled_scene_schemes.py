@@ -84,7 +84,7 @@ def test_generated_step_equals_the_python_stepper_on_a_modal_beam(scheme):
 
 
 # ---------------------------------------------------------------- (2) independent global schemes
-def _newton(residual, guess):
+def newton_root(residual, guess):
     """Root of ``residual`` by Newton with a central-difference Jacobian, to round-off."""
     x = np.array(guess, dtype=float)
     for _ in range(50):
@@ -126,16 +126,16 @@ def global_scheme(f, q0, v0, h, n_steps, scheme):
                 return (q + h * v + h * h * ((0.5 - beta) * A + beta * A1), v + h * ((1.0 - gamma) * A + gamma * A1),
                         A1)
 
-            a1 = _newton(lambda x: x - f(*states(x)[:2], t1), a)
+            a1 = newton_root(lambda x: x - f(*states(x)[:2], t1), a)
             q1, v1, A = states(a1)
         elif name == "forwardeuler" or name == "forward_euler":
-            a1 = _newton(lambda x: x - f(q + h * (v + h * x), v + h * x, t1), a)
+            a1 = newton_root(lambda x: x - f(q + h * (v + h * x), v + h * x, t1), a)
             q1, v1 = q + h * (v + h * a1), v + h * a1
             A = a1
         elif name in ("wilsontheta", "wilson_theta"):
             theta = 1.4 if isinstance(scheme, str) else scheme.theta
             tau = theta * h
-            a_tau = _newton(lambda x: x - f(q + tau * v + tau * tau / 6.0 * (2.0 * a + x),
+            a_tau = newton_root(lambda x: x - f(q + tau * v + tau * tau / 6.0 * (2.0 * a + x),
                                             v + 0.5 * tau * (a + x), step * h + tau), a)
             a1 = a + (a_tau - a) / theta
             q1, v1 = q + h * v + h * h / 6.0 * (2.0 * a + a1), v + 0.5 * h * (a + a1)
@@ -145,7 +145,7 @@ def global_scheme(f, q0, v0, h, n_steps, scheme):
                 return ((2.0 * x - 5.0 * q + 4.0 * old[0] - old[1]) / (h * h),
                         (11.0 * x - 18.0 * q + 9.0 * old[0] - 2.0 * old[1]) / (6.0 * h))
 
-            q1 = _newton(lambda x: rates(x)[0] - f(x, rates(x)[1], t1), q + h * v)
+            q1 = newton_root(lambda x: rates(x)[0] - f(x, rates(x)[1], t1), q + h * v)
             a1, v1 = rates(q1)
             A = a1
         old = [q, old[0]]
