@@ -1,6 +1,6 @@
 """The spatial branch of :func:`ctmm.simulate`: a :class:`~ctmm.spatial.model.SpatialModel`, plain or controlled,
 by RK4, ``solve_ivp``, a DT-TMM scheme, the generated RK4 or a generated DT-TMM scheme (``docs/spatial.md`` §6, §6a,
-§6b, §6c)."""
+§6b)."""
 from __future__ import annotations
 
 import math
