@@ -15,7 +15,7 @@ the independent Lagrange model (:mod:`ctmm.reference.planar_lagrange`, :mod:`ctm
 Spatial part (:mod:`ctmm.compiled_spatial_schemes`): a double pendulum (revolute link carrying a link on a ball
 joint), the same measures against :func:`ctmm.spatial.implicit.simulate_spatial_implicit` and the fine RK4 (dt =
 0.1 ms) of the independent Newton-Euler model (:mod:`ctmm.reference.spatial_tree`), error: the largest difference of
-the coordinates (quaternion of the ball joint) and velocities at ``T``; Houbolt is not generated for spatial models.
+the coordinates (quaternion of the ball joint) and velocities at ``T``.
 Run ``python benchmarks/compiled_schemes_planar.py``; writes ``benchmarks/results/compiled_schemes_planar.json``.
 """
 from __future__ import annotations
@@ -119,7 +119,7 @@ def measure_spatial() -> list[dict]:
     model, x0, v0, exact = spatial_double_pendulum()
     names = [*model.coordinates, *model.velocities]
     rows = []
-    for scheme in ("newmark", "generalized_alpha", "wilson_theta", "forward_euler"):
+    for scheme in SCHEMES:
         began = time.perf_counter()
         compiled = CompiledSpatialScheme(model, scheme)
         first_call = time.perf_counter() - began

@@ -1,10 +1,11 @@
 """Generated DT-TMM schemes of spatial models: the Lie-group step + Newton in C (issues 13 and 14).
 
 ``ctmm.simulate(spatial_model, t_final, dt, method="newmark" | "generalized_alpha" | "wilson_theta" |
-"forward_euler" | <Scheme>, compiled=True)`` runs here (what :func:`ctmm.compiled_spatial.spatial_compile_refusal`
-accepts: rigid trees, :class:`~ctmm.spatial.SpatialBeam`, spatial finite-element subsystems; constant loads; inputs
-held numbers).  The step is the one of :func:`ctmm.spatial.implicit.simulate_spatial_implicit`: in the local chart at
-the last configuration ``q_n`` the scheme's nonlinear second-order form
+"houbolt" | "forward_euler" | <Scheme>, compiled=True)`` runs here (what
+:func:`ctmm.compiled_spatial.spatial_compile_refusal` accepts: rigid trees, :class:`~ctmm.spatial.SpatialBeam`,
+spatial finite-element subsystems; constant loads; inputs held numbers).  The step is the one of
+:func:`ctmm.spatial.implicit.simulate_spatial_implicit`: in the local chart at the last configuration ``q_n`` the
+scheme's nonlinear second-order form
 (:class:`~ctmm.compiled_scene_schemes.SecondOrderMaps` with the history ``x_n = 0``, ``v_n``, ``a_n``,
 ``v_dot_n``) gives
 
@@ -15,17 +16,21 @@ incremental rotation vectors on ``SO(3)``, body twists on ``SE(3)``, series belo
 ``v_dot`` the one articulated sweep of the generated RK4 (:class:`ctmm.compiled_spatial.SpatialRates`).  Newton
 on ``r(a) = a - v_dot(q_n (+) delta(a), v(a), u)`` with its exact tangent (casadi's derivative through the
 retraction and the sweep; :func:`ctmm.compiled_scene_schemes.newton_iteration`), so it converges quadratically where
-the Python stepper's sweep tangent converges linearly; the same root, the same stopping rule.
+the Python stepper's sweep tangent converges linearly; the same root, the same stopping rule.  Houbolt differences
+configurations: after its two Newmark start-up steps the earlier configurations enter in the chart at ``q_n``,
+``x_{n-k} = log(q_n^-1 q_{n-k})`` (:func:`symbolic_local_coordinates`, the group logarithm on symbols), and body
+velocities and rates are the chart's with the brackets of :func:`ctmm.spatial.lie.bracket`
+(:func:`symbolic_bracket`), as on the Python path.
 
-Generated state: ``[q (nq, unit quaternions), v, a, v_dot (nv each), failed step, its residual, Newton
-iterations]`` (the generated RK4's ``[q ; v]`` followed by the scheme's history).  A step that does not converge
-stores NaN from then on and is raised as a :class:`~ctmm.errors.ConvergenceError` (step, time, residual, the
-states before it).  The scheme, the Newton options and the model's numbers are constants of the code; ``dt`` is an
-input (the maps read at 1 s and scaled, :func:`ctmm.compiled_scene_schemes.check_step_scaling`); the cache key is
-the model's description (:func:`ctmm.model_description.describe`), so a cached call builds no symbols.
+Generated state: ``[q (nq, unit quaternions), v, a, v_dot (nv each), (Houbolt: q_{n-1}, q_{n-2}), failed step,
+its residual, Newton iterations]`` (the generated RK4's ``[q ; v]`` followed by the scheme's history).  A step that
+does not converge stores NaN from then on and is raised as a :class:`~ctmm.errors.ConvergenceError` (step, time,
+residual, the states before it).  The scheme, the Newton options and the model's numbers are constants of the
+code; ``dt`` is an input (the maps read at 1 s and scaled, :func:`ctmm.compiled_scene_schemes.check_step_scaling`);
+the cache key is the model's description (:func:`ctmm.model_description.describe`), so a cached call builds no symbols.
 
-Refused (:class:`~ctmm.errors.ModelError`): Houbolt (its chart differences of earlier configurations need the
-group logarithm, not generated: use ``compiled=None``), what the generated RK4 refuses, controlled runs.
+Refused (:class:`~ctmm.errors.ModelError`): what the generated RK4 refuses, controlled runs (loops, controllers,
+references, outputs, port inputs: use ``compiled=None``).
 """
 from __future__ import annotations
 
@@ -52,7 +57,8 @@ from .spatial.integrate import beam_deflection_weights, check_beam_deflection, i
 from .spatial.lie import quaternion_product
 from .spatial.model import SpatialModel
 
-__all__ = ["CompiledSpatialScheme", "simulate_spatial_scheme_generated", "symbolic_retract"]
+__all__ = ["CompiledSpatialScheme", "simulate_spatial_scheme_generated", "symbolic_bracket",
+           "symbolic_local_coordinates", "symbolic_retract"]
 
 
 def _exponential(phi: Any) -> Any:
@@ -95,19 +101,22 @@ def _unit(quaternion: Any) -> Any:
     return quaternion / ca.norm_2(quaternion)
 
 
+def _moving_joints(model: SpatialModel) -> list[tuple[str, slice, slice]]:
+    """``(kind, position slice, velocity slice)`` of every joint with coordinates that is not driven."""
+    return [(joint.kind, layout.position, layout.velocity) for joint, layout in zip(model.joints, model.layout)
+            if not joint.driven and layout.velocity.stop > layout.velocity.start]
+
+
 def symbolic_retract(model: SpatialModel, q: Any, delta: Any) -> Any:
     """``q (+) delta`` (:func:`ctmm.spatial.lie.retract`) on casadi symbols: ``q`` (nq,), ``delta`` (nv,)."""
     import casadi as ca
 
     out = [q[i] for i in range(model.n_positions)]
-    for joint, layout in zip(model.joints, model.layout):
-        if joint.driven or layout.velocity.stop == layout.velocity.start:
-            continue
-        p, v = layout.position, layout.velocity
+    for kind, p, v in _moving_joints(model):
         qj, dj = q[p.start:p.stop], delta[v.start:v.stop]
-        if joint.kind == "spherical":
+        if kind == "spherical":
             new = _unit(_product(_unit(qj), _exponential(dj)))
-        elif joint.kind in ("free", "elastic6"):
+        elif kind in ("free", "elastic6"):
             quaternion = _unit(qj[3:])
             rotation = quaternion_rotation(CASADI, quaternion[0], quaternion[1], quaternion[2], quaternion[3])
             new = ca.vertcat(qj[:3] + ca.mtimes(rotation, ca.mtimes(_left_jacobian(dj[3:]), dj[:3])),
@@ -122,6 +131,61 @@ def symbolic_retract(model: SpatialModel, q: Any, delta: Any) -> Any:
     return ca.vertcat(*out)
 
 
+def _logarithm(quaternion: Any) -> Any:
+    """Rotation vector (``|phi| <= pi``) of a non-zero casadi quaternion, either sign
+    (:func:`ctmm.spatial.lie.quaternion_logarithm`, the same series below ``sin = 1e-8``)."""
+    import casadi as ca
+
+    quaternion = _unit(quaternion)
+    quaternion = ca.if_else(quaternion[0] < 0.0, -quaternion, quaternion)
+    w, vector = quaternion[0], quaternion[1:]
+    s2 = ca.dot(vector, vector)
+    small = s2 <= 1e-16
+    sine = ca.sqrt(ca.if_else(small, 1.0, s2))
+    factor = ca.if_else(small, 2.0 / w * (1.0 - s2 / (3.0 * w * w)), 2.0 * ca.atan2(sine, w) / sine)
+    return factor * vector
+
+
+def symbolic_local_coordinates(model: SpatialModel, q_base: Any, q: Any) -> Any:
+    """``delta`` with ``q_base (+) delta = q`` (:func:`ctmm.spatial.lie.local_coordinates`) on casadi symbols."""
+    import casadi as ca
+
+    out = [ca.SX(0.0) for _ in range(model.n_velocities)]
+    conjugate = np.array([1.0, -1.0, -1.0, -1.0])
+    for kind, p, v in _moving_joints(model):
+        base, target = q_base[p.start:p.stop], q[p.start:p.stop]
+        if kind == "spherical":
+            part = _logarithm(_product(_unit(base) * conjugate, _unit(target)))
+        elif kind in ("free", "elastic6"):
+            quaternion = _unit(base[3:])
+            phi = _logarithm(_product(quaternion * conjugate, _unit(target[3:])))
+            rotation = quaternion_rotation(CASADI, quaternion[0], quaternion[1], quaternion[2], quaternion[3])
+            part = ca.vertcat(ca.solve(_left_jacobian(phi), ca.mtimes(rotation.T, target[:3] - base[:3])), phi)
+        else:
+            part = target - base
+        out[v.start:v.stop] = [part[i] for i in range(v.stop - v.start)]
+    for layout in model.modal:
+        if layout is not None:
+            p, v = layout.position, layout.velocity
+            out[v.start:v.stop] = [q[p.start + i] - q_base[p.start + i] for i in range(v.stop - v.start)]
+    return ca.vertcat(*out)
+
+
+def symbolic_bracket(model: SpatialModel, x: Any, y: Any) -> Any:
+    """Lie bracket ``[x, y]`` (:func:`ctmm.spatial.lie.bracket`) on casadi symbols."""
+    import casadi as ca
+
+    out = [0.0 * x[i] for i in range(model.n_velocities)]
+    for kind, _, v in _moving_joints(model):
+        if kind not in ("spherical", "free", "elastic6"):
+            continue
+        xj, yj = x[v.start:v.stop], y[v.start:v.stop]
+        part = ca.cross(xj, yj) if kind == "spherical" else ca.vertcat(
+            ca.cross(xj[3:], yj[:3]) + ca.cross(xj[:3], yj[3:]), ca.cross(xj[3:], yj[3:]))
+        out[v.start:v.stop] = [part[i] for i in range(v.stop - v.start)]
+    return ca.vertcat(*out)
+
+
 class CompiledSpatialScheme:
     """The Lie-group DT-TMM step of a spatial model without loops, with Newton, in compiled C (module docstring).
 
@@ -130,7 +194,7 @@ class CompiledSpatialScheme:
     model : SpatialModel
         What :func:`ctmm.compiled_spatial.spatial_compile_refusal` accepts.
     scheme : Scheme or str
-        Any :mod:`ctmm.schemes` scheme with a nonlinear form but Houbolt.
+        Any :mod:`ctmm.schemes` scheme with a nonlinear form.
     store_every, tolerance, max_iterations, rows, cache_dir, compiler
         As in :class:`ctmm.compiled_scene_schemes.CompiledSceneScheme` (``max_iterations`` default 50, as the
         Python spatial stepper).
@@ -150,10 +214,7 @@ class CompiledSpatialScheme:
         if reason:
             raise ModelError(f"CompiledSpatialScheme: {reason}")
         self.scheme = as_scheme(scheme)
-        if isinstance(self.scheme, Houbolt):
-            raise ModelError("CompiledSpatialScheme: Houbolt is not generated for spatial models (its chart "
-                             "differences of earlier configurations need the group logarithm); use compiled=None "
-                             "(the Python Lie-group Houbolt) or another scheme")
+        self.chart = isinstance(self.scheme, Houbolt)    # differences of configurations: the chart-rate conversion
         self.tolerance, self.max_iterations, self.store_every, rows = newton_options(
             "CompiledSpatialScheme", tolerance, max_iterations, store_every, rows)
         start = clock.perf_counter()
@@ -175,9 +236,15 @@ class CompiledSpatialScheme:
         self.compile_time_s = clock.perf_counter() - start
 
     @property
+    def status_index(self) -> int:
+        """Where :data:`~ctmm.compiled_scene_schemes.STATUS` starts in the state: after ``[q, v, a, v_dot]`` and,
+        for Houbolt, the two earlier configurations."""
+        return (3 if self.chart else 1) * self.model.n_positions + 3 * self.model.n_velocities
+
+    @property
     def state_size(self) -> int:
-        """``nq + 3 nv`` and :data:`~ctmm.compiled_scene_schemes.STATUS`."""
-        return self.model.n_positions + 3 * self.model.n_velocities + len(STATUS)
+        """:attr:`status_index` and :data:`~ctmm.compiled_scene_schemes.STATUS`."""
+        return self.status_index + len(STATUS)
 
     def _build(self) -> tuple[Any, list]:
         """``(step(y, u, h, p, t0, k), [velocity_rate])`` on casadi symbols."""
@@ -188,21 +255,36 @@ class CompiledSpatialScheme:
         velocity_rate = self.rates.velocity_rate
         a, delta_hat, v_hat, q = ca.SX.sym("a", n), ca.SX.sym("delta_hat", n), ca.SX.sym("v_hat", n), ca.SX.sym("q", nq)
         w, g, u, p = ca.SX.sym("w"), ca.SX.sym("g"), ca.SX.sym("u", n_u), ca.SX.sym("p", 0)
-        value = velocity_rate(symbolic_retract(model, q, delta_hat + w * a), v_hat + g * a, u, p)
-        residual = a - value
-        residual_terms = ca.Function("residual", [a, delta_hat, v_hat, w, g, q, u, p],
+        chart = ca.SX.sym("chart")              # 1: Houbolt after its start-up (body rates from chart rates)
+        delta, rate = delta_hat + w * a, v_hat + g * a
+        body_rates = velocity_rate(symbolic_retract(model, q, delta),
+                                   rate - 0.5 * chart * symbolic_bracket(model, delta, rate), u, p)
+        residual = a - body_rates - 0.5 * chart * symbolic_bracket(model, delta, body_rates)
+        residual_terms = ca.Function("residual", [a, delta_hat, v_hat, w, g, q, chart, u, p],
                                      [residual, ca.jacobian(residual, a)])
         iterate = newton_iteration(residual_terms, self.tolerance)
         y = ca.MX.sym("y", self.state_size)
         u_in, h, p_in, t0, k = ca.MX.sym("u", n_u), ca.MX.sym("h"), ca.MX.sym("p", 0), ca.MX.sym("t0"), ca.MX.sym("k")
-        q_n = y[:nq]
-        history = [None, y[nq:nq + n], y[nq + n:nq + 2 * n], y[nq + 2 * n:nq + 3 * n], None, None]   # chart: x_n = 0
+        q_n, end = y[:nq], nq + 3 * n
+        history = [None, y[nq:nq + n], y[nq + n:nq + 2 * n], y[nq + 2 * n:end], None, None]   # chart: x_n = 0
+        on = ca.MX(0.0)
+        if self.chart:                          # earlier configurations in the chart at q_n (zero at the start)
+            q_base, q_other = ca.SX.sym("q_base", nq), ca.SX.sym("q_other", nq)
+            local = ca.Function("local", [q_base, q_other], [symbolic_local_coordinates(model, q_base, q_other)])
+            on = k >= 1.5
+            history[4:] = [ca.if_else(on, local(q_n, y[end + j * nq:end + (j + 1) * nq]), ca.MX.zeros(n))
+                           for j in range(2)]
         new, failed, status = symbolic_scheme_step(
             self.maps, history, h, k,
-            lambda z, delta_k, v_hat_k, w_k, g_k, fraction: iterate(z, delta_k, v_hat_k, w_k, g_k, q_n, u_in, p_in),
-            self.max_iterations, y[nq + 3 * n:])
+            lambda z, delta_k, v_hat_k, w_k, g_k, fraction: iterate(z, delta_k, v_hat_k, w_k, g_k, q_n, on, u_in, p_in),
+            self.max_iterations, y[self.status_index:])
         retract = ca.Function("retract", [q, delta_hat], [symbolic_retract(model, q, delta_hat)])
-        history_out = ca.if_else(failed, ca.MX.nan(nq + 3 * n, 1), ca.vertcat(retract(q_n, new[0]), *new[1:4]))
+        x_new, v_new = ca.MX.sym("x", n), ca.MX.sym("v", n)
+        bracket = ca.Function("bracket", [x_new, v_new], [symbolic_bracket(model, x_new, v_new)])
+        parts = [retract(q_n, new[0]), new[1] - 0.5 * on * bracket(new[0], new[1]), new[2], new[3]]
+        if self.chart:
+            parts += [q_n, y[end:end + nq]]
+        history_out = ca.if_else(failed, ca.MX.nan(self.status_index, 1), ca.vertcat(*parts))
         return ca.Function("step", [y, u_in, h, p_in, t0, k], [ca.vertcat(history_out, status)]), [velocity_rate]
 
     def initial_state(self, x: np.ndarray, inputs: Mapping[str, Any] | None = None) -> np.ndarray:
@@ -210,7 +292,7 @@ class CompiledSpatialScheme:
         model = self.model
         q, v = model.normalized(x[:model.n_positions]), x[model.n_positions:]
         rates = np.asarray(self._velocity_rate(q, v, self.rates.input_vector(inputs), np.zeros(0))).reshape(-1)
-        return np.concatenate([q, v, rates, rates, np.zeros(len(STATUS))])
+        return np.concatenate([q, v, rates, rates, *([q, q] if self.chart else []), np.zeros(len(STATUS))])
 
     def run(self, state: np.ndarray, dt: float, n_steps: int, inputs: Mapping[str, Any] | None = None) -> np.ndarray:
         """Stored states (rows, :attr:`state_size`) of ``n_steps`` steps of ``dt`` [s] from ``state`` at ``t = 0``
@@ -263,19 +345,19 @@ def simulate_spatial_scheme_generated(model: SpatialModel, t_final: float, dt: f
     began = clock.perf_counter()
     rows = compiled.run(start, dt, n_steps, inputs)
     wall = clock.perf_counter() - began
-    nq, n = model.n_positions, model.n_velocities
+    nq, n, status = model.n_positions, model.n_velocities, compiled.status_index
     steps = np.array([k for k in range(1, n_steps + 1) if k % compiled.store_every == 0 or k == n_steps])[:len(rows)]
     times = np.concatenate([[0.0], steps * dt])
     states = np.vstack([start[None], rows])
     method = f"dt-tmm-generated/{scheme.name}"
-    total = int(states[-1, nq + 3 * n + 2]) if np.isfinite(states[-1, nq + 3 * n + 2]) else -1
+    total = int(states[-1, status + 2]) if np.isfinite(states[-1, status + 2]) else -1
     info = {"dt": dt, "scheme": repr(scheme), "wall_time_s": wall, "compile_time_s": compiled.compile_time_s,
             "newton_iterations": total}
 
     def partial(k: int) -> SimulationResult:
         return state_result(model, times[:k], states[:k, :nq + n], method, info)
 
-    failed = np.flatnonzero(states[:, nq + 3 * n] > 0.0)
+    failed = np.flatnonzero(states[:, status] > 0.0)
     good = len(states) if not failed.size else int(failed[0])
     trajectory = states[:good, :nq + n]
     bad = ~np.all(np.isfinite(trajectory), axis=1)
@@ -295,10 +377,10 @@ def simulate_spatial_scheme_generated(model: SpatialModel, t_final: float, dt: f
         raise
     if failed.size:
         row = states[failed[0]]
-        step = int(row[nq + 3 * n])
+        step = int(row[status])
         raise ConvergenceError(
             f"{model.name}: generated implicit DT-TMM step {step} ({scheme.name}) at t = {step * dt:.6g} s did not "
-            f"converge: max |change of v_dot| = {row[nq + 3 * n + 1]:.3e} after at most {compiled.max_iterations} "
+            f"converge: max |change of v_dot| = {row[status + 1]:.3e} after at most {compiled.max_iterations} "
             f"Newton iterations (tolerance {compiled.tolerance:g}); reduce dt", time=step * dt, element=model.name,
             partial_result=partial(good))
     return state_result(model, times, states[:, :nq + n], method, info)

@@ -169,8 +169,8 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         (inputs held numbers; the numpy path's result to round-off); with loops
         :func:`ctmm.compiled_control.simulate_spatial_controlled_generated` (docs/spatial.md §6b).  Planar, a DT-TMM
         scheme without loops, inputs, references or controllers: the scheme's step with its Newton iterations in
-        generated C (:func:`ctmm.compiled_scene_schemes.simulate_scheme_generated`); spatial, a scheme but Houbolt
-        without loops, ports or controllers: its Lie-group step in generated C
+        generated C (:func:`ctmm.compiled_scene_schemes.simulate_scheme_generated`); spatial, a scheme without
+        loops, ports or controllers: its Lie-group step in generated C
         (:func:`ctmm.compiled_spatial_schemes.simulate_spatial_scheme_generated`).  Default: numpy.
     parameters : mapping, optional
         ``compiled=True``: ``{name: number}`` set at run time in the kernel compiled once (:mod:`ctmm.batch`).

@@ -22,7 +22,7 @@ from ctmm.schemes import GeneralizedAlpha, Newmark, WilsonTheta
 from ctmm.spatial.implicit import simulate_spatial_implicit
 from ctmm.spatial.integrate import initial_state
 
-SCHEMES = ["newmark", "generalized_alpha", "wilson_theta", "forward_euler", GeneralizedAlpha(0.3),
+SCHEMES = ["newmark", "generalized_alpha", "wilson_theta", "houbolt", "forward_euler", GeneralizedAlpha(0.3),
            WilsonTheta(1.0)]
 
 
@@ -45,11 +45,12 @@ def test_generated_step_equals_the_python_lie_group_stepper(scheme):
     assert generated.info["newton_iterations"] <= 4 * 20          # exact tangent: quadratic
 
 
-def test_generated_step_equals_the_python_stepper_on_a_tumbling_free_body():
+def test_generated_houbolt_equals_the_python_stepper_on_a_tumbling_free_body():
+    """SE(3): the chart differences of earlier configurations (group logarithm) and the chart-rate brackets."""
     model, _, x0, v0 = asymmetric_top()
-    generated = ctmm.simulate(model, 0.2, 0.01, method="newmark", x0=x0, v0=v0, compiled=True)
-    python = ctmm.simulate(model, 0.2, 0.01, method="newmark", x0=x0, v0=v0)
-    assert generated.scheme_name == "dt-tmm-generated/newmark"
+    generated = ctmm.simulate(model, 0.2, 0.01, method="houbolt", x0=x0, v0=v0, compiled=True)
+    python = ctmm.simulate(model, 0.2, 0.01, method="houbolt", x0=x0, v0=v0)
+    assert generated.scheme_name == "dt-tmm-generated/houbolt"
     assert _difference(model, generated, python) <= 1e-10
 
 
@@ -90,7 +91,7 @@ def test_generated_step_equals_the_global_lie_group_scheme_on_the_newton_euler_m
     assert pose_error(tree, to_reference(model, tree, q), v, q_ref, v_ref) <= 1e-10
 
 
-@pytest.mark.parametrize("scheme", ["newmark", "generalized_alpha"])
+@pytest.mark.parametrize("scheme", ["newmark", "generalized_alpha", "houbolt"])
 def test_generated_schemes_are_second_order_against_the_reference(scheme):
     model, tree, x0, v0 = double_pendulum()
     q_ref, v_ref = reference_final("double", double_pendulum)
@@ -98,7 +99,8 @@ def test_generated_schemes_are_second_order_against_the_reference(scheme):
     for dt in (0.02, 0.01):
         q, v = final_state(model, simulate_spatial_scheme_generated(model, T_FINAL, dt, scheme=scheme, x0=x0, v0=v0))
         errors.append(pose_error(tree, to_reference(model, tree, q), v, q_ref, v_ref))
-    assert 1.9 < np.log2(errors[0] / errors[1]) < 2.1, errors
+    low = 1.75 if scheme == "houbolt" else 1.9          # Houbolt's measured order here: 1.82 (test_spatial_schemes)
+    assert low < np.log2(errors[0] / errors[1]) < 2.1, errors
 
 
 # ---------------------------------------------------------------- (3) bad input, (4) failures
@@ -106,8 +108,6 @@ def test_bad_input_is_refused():
     model, _, x0, v0 = double_pendulum()
     with pytest.raises(ModelError, match="dt is required"):
         ctmm.simulate(model, 0.1, None, method="newmark", compiled=True)
-    with pytest.raises(ModelError, match="Houbolt is not generated"):
-        ctmm.simulate(model, 0.1, 0.01, method="houbolt", compiled=True)
     with pytest.raises(ModelError, match="rtol=1e-06 does not apply"):
         ctmm.simulate(model, 0.1, 0.01, method="newmark", compiled=True, rtol=1e-6)
     with pytest.raises(ModelError, match="generated DT-TMM scheme without loops.*with loops"):
