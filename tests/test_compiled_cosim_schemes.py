@@ -13,7 +13,8 @@ Independent checks:
   accelerations and forces where the scheme's own acceleration is the equation of motion's: Newmark, Houbolt,
   forward Euler);
 * failures stop at the same time with the same partial result; what the generated step cannot do is refused by name,
-  and planar and spatial models (no generated implicit step) refuse a scheme with ``compiled=True``.
+  and planar and spatial models refuse a scheme with ``compiled=True`` and controllers (their generated implicit
+  step runs without them).
 """
 from __future__ import annotations
 
@@ -128,7 +129,7 @@ def test_what_the_generated_scheme_cosimulation_refuses():
     arm = spatial.SpatialModel("arm", [
         spatial.SpatialBody("link", 1.0, np.diag([0.01, 0.1, 0.1]), (0.5, 0.0, 0.0)),
         spatial.Revolute(name="joint", parent=None, child="link", point=(0.0, 0.0, 0.0), axis=(0.0, 1.0, 0.0))])
-    for scheme in ("newmark", "houbolt"):            # no generated implicit step of a planar or spatial model
+    for scheme in ("newmark", "houbolt"):            # planar and spatial generated schemes: without controllers
         with pytest.raises(ModelError, match=f"generated RK4 of a planar model.*method='{scheme}'"):
             ctmm.simulate(torsion(), 0.1, 5e-3, method=scheme, x0=[0.1], compiled=True,
                           controllers=[pid("h.angle", "h.torque", 0.01)])
