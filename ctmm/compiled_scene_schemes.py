@@ -59,7 +59,8 @@ from .planar.model import PlanarModel
 from .schemes import History, Scheme, as_scheme
 
 __all__ = ["HISTORY", "SecondOrderMaps", "CompiledSceneScheme", "check_step_scaling", "newton_iteration",
-           "newton_options", "reused_or_built", "scheme_maps", "selected", "simulate_scheme_generated", "symbolic_scheme_step"]
+           "newton_options", "not_converged", "reused_or_built", "scheme_maps", "selected", "simulate_scheme_generated",
+           "symbolic_scheme_step"]
 
 HISTORY = ("q", "v", "a", "equation_acceleration", "q_old1", "q_old2")
 """The stored history of every coordinate, in the order of the generated state (blocks of ``n``)."""
@@ -210,7 +211,8 @@ def newton_options(owner: str, tolerance: float, max_iterations: int, store_ever
     """
     if isinstance(rows, bool) or not isinstance(rows, (int, np.integer)) or rows < 1:
         raise ModelError(f"{owner}: rows must be an integer >= 1 (stored states per block), got {rows!r}")
-    return (validation.positive("tolerance", tolerance), validation.integer("max_iterations", max_iterations, minimum=1),
+    return (validation.positive("tolerance", tolerance),
+            validation.integer("max_iterations", max_iterations, minimum=1),
             check_store_every(validation.integer("store_every", store_every, minimum=1)), int(rows))
 
 
@@ -371,10 +373,35 @@ class CompiledSceneScheme:
         return np.asarray(self._acceleration(q, qdot, np.zeros(len(self.actuators)), self.parameters,
                                              validation.finite("t", t))).reshape(-1)
 
-    def initial_state(self, q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
-        """The generated state at ``t = 0``: history ``(q, qdot, qddot, qddot, q, q)``, no failure."""
-        acceleration = self.accelerations(q, qdot, 0.0)
-        return np.concatenate([q, qdot, acceleration, acceleration, q, q, np.zeros(len(STATUS))])
+    def initial_state(self, q: np.ndarray, qdot: np.ndarray, held: np.ndarray | None = None) -> np.ndarray:
+        """The generated state at ``t = 0``: history ``(q, qdot, qddot, qddot, q, q)``, no failure; ``held``: the
+        values of :attr:`actuators` (default zero)."""
+        return self.restarted(np.concatenate([q, qdot, np.zeros(4 * q.size + len(STATUS))]), held, 0.0, start=True)
+
+    def restarted(self, state: np.ndarray, held: np.ndarray | None, t: float, start: bool = False) -> np.ndarray:
+        """``state`` with the acceleration of its history (``a`` and ``qddot``) solved again at its ``(q, qdot)``
+        and time ``t`` [s] with the actuator values ``held`` (the Python stepper's restart where held controller
+        outputs jump); ``start``: also the earlier positions (the state at ``t = 0``)."""
+        n = self.model.n_coordinates
+        out = np.array(state, dtype=float)
+        held = np.zeros(len(self.actuators)) if held is None else np.asarray(held, dtype=float)
+        acceleration = np.asarray(self._acceleration(out[:n], out[n:2 * n], held, self.parameters,
+                                                     validation.finite("t", t))).reshape(-1)
+        out[2 * n:3 * n] = out[3 * n:4 * n] = acceleration
+        if start:
+            out[4 * n:5 * n] = out[5 * n:6 * n] = out[:n]
+        return out
+
+    def continue_run(self, state: np.ndarray, held: np.ndarray, dt: float, n_steps: int, first_step: int
+                     ) -> np.ndarray:
+        """Stored states (rows, :attr:`state_size`) of ``n_steps`` steps of ``dt`` [s] from ``state`` at step
+        ``first_step`` (time ``first_step dt``) with the values ``held`` of :attr:`actuators` held over them (one
+        sample interval of co-simulated controllers, :mod:`ctmm.compiled_scheme_cosim`)."""
+        dt = validation.positive("dt", dt)
+        check_step_scaling(self.scheme, self.maps, dt)
+        return run_blocks(self._blocks, self._stride, self._step, self.store_every, np.asarray(state)[:, None],
+                          np.asarray(held, dtype=float), dt, validation.integer("n_steps", n_steps, minimum=1), 0.0,
+                          self.parameters[:, None], first_step=first_step)[0]
 
     def run(self, state: np.ndarray, dt: float, n_steps: int) -> np.ndarray:
         """Stored states (rows, :attr:`state_size`) of ``n_steps`` steps of ``dt`` [s] from ``state`` at ``t = 0``
@@ -385,11 +412,18 @@ class CompiledSceneScheme:
         ModelError
             Bad arguments; a scheme whose step at ``dt`` is not its step at 1 s scaled (:func:`check_step_scaling`).
         """
-        dt = validation.positive("dt", dt)
-        check_step_scaling(self.scheme, self.maps, dt)
-        return run_blocks(self._blocks, self._stride, self._step, self.store_every, np.asarray(state)[:, None],
-                          np.zeros(len(self.actuators)), dt, validation.integer("n_steps", n_steps, minimum=1),
-                          0.0, self.parameters[:, None])[0]
+        return self.continue_run(state, np.zeros(len(self.actuators)), dt, n_steps, 0)
+
+
+def not_converged(compiled: CompiledSceneScheme, row: np.ndarray, h: float, partial: Any = None) -> ConvergenceError:
+    """The :class:`ConvergenceError` of a stored state ``row`` whose status says a step did not converge (its step,
+    time and residual; ``partial``: the result before it)."""
+    n = compiled.model.n_coordinates
+    step = int(row[6 * n])
+    return ConvergenceError(
+        f"generated implicit DT-TMM step {step} (t = {step * h:.6g} s) did not converge: residual max|delta qdd| = "
+        f"{row[6 * n + 1]:.3e} after at most {compiled.max_iterations} Newton iterations (tolerance "
+        f"{compiled.tolerance:g}); reduce dt", time=step * h, partial_result=partial)
 
 
 def reused_or_built(kind: type, compiled: Any, model: Any, scheme: Scheme, store_every: int, **options: Any) -> Any:
@@ -472,12 +506,7 @@ def simulate_scheme_generated(model: PlanarModel, q0: Any, qdot0: Any, *, t_fina
         except SimulationError as exc:
             raise with_partial(exc, lambda: partial(k)) from None
     if failed.size:
-        row = states[failed[0]]
-        step = int(row[6 * n])
-        raise ConvergenceError(
-            f"generated implicit DT-TMM step {step} (t = {step * h:.6g} s) did not converge: residual "
-            f"max|delta qdd| = {row[6 * n + 1]:.3e} after at most {compiled.max_iterations} Newton iterations "
-            f"(tolerance {compiled.tolerance:g}); reduce dt", time=step * h, partial_result=partial(good))
+        raise not_converged(compiled, states[failed[0]], h, partial(good))
     return PlanarSimulation(model, t, qs, vs, label, wall, n_evaluations=int(states[-1, 6 * n + 2]) + 1,
                             extra={"compile_time_s": compiled.compile_time_s,
                                    "newton_iterations": int(states[-1, 6 * n + 2])})

@@ -168,8 +168,9 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         ``"rk4"``: ``True`` runs the generated RK4 of :func:`ctmm.compiled_spatial.simulate_spatial_generated`
         (inputs held numbers; the numpy path's result to round-off); with loops
         :func:`ctmm.compiled_control.simulate_spatial_controlled_generated` (docs/spatial.md §6b).  Planar, a DT-TMM
-        scheme without loops, inputs, references or controllers: the scheme's step with its Newton iterations in
-        generated C (:func:`ctmm.compiled_scene_schemes.simulate_scheme_generated`); spatial, a scheme without
+        scheme without loops, inputs or references: the scheme's step with its Newton iterations in generated C
+        (:func:`ctmm.compiled_scene_schemes.simulate_scheme_generated`), co-simulated controllers sampled between
+        calls (:func:`ctmm.compiled_scheme_cosim.simulate_cosimulated_planar_scheme`); spatial, a scheme without
         loops, ports or controllers: its Lie-group step in generated C
         (:func:`ctmm.compiled_spatial_schemes.simulate_spatial_scheme_generated`).  Default: numpy.
     parameters : mapping, optional
@@ -456,11 +457,12 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
         max_step = validation.positive("max_step", max_step)        # inf (no limit) is solve_ivp's default
     controlled = bool(loops) or bool(controllers) or bool(inputs) or bool(references)
     is_scheme = isinstance(method, Scheme) or (isinstance(method, str) and method in SCHEMES)
-    if compiled and method != "rk4" and not (is_scheme and not controlled):
+    others = bool(loops) or bool(inputs) or bool(references)        # a generated scheme: controllers only
+    if compiled and method != "rk4" and not (is_scheme and not others):
         raise ModelError(f"compiled=True runs the generated RK4 of a planar model with its loops, inputs, references "
-                         f"and controllers, or a generated DT-TMM scheme without them; got method={method!r} "
-                         f"{'with loops, inputs, references or controllers ' if is_scheme else ''}(leave compiled "
-                         "at None)")
+                         f"and controllers, or a generated DT-TMM scheme with co-simulated controllers only; got "
+                         f"method={method!r} {'with loops, inputs or references ' if is_scheme else ''}(leave "
+                         "compiled at None)")
     adaptive_only = {"rtol": (rtol, 1e-8), "atol": (atol, 1e-10), "max_step": (max_step, None)}
     for name, (value, default) in adaptive_only.items():
         if value != default and method not in SCIPY_METHODS:
@@ -484,6 +486,15 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
     if not is_scheme and method not in FIXED_STEP_METHODS and method not in SCIPY_METHODS:
         raise ModelError(f"method must be 'rk4', a solve_ivp method {SCIPY_METHODS} or a DT-TMM scheme "
                          f"{tuple(sorted(SCHEMES))} (or a ctmm.schemes object), got {method!r}")
+    if compiled and is_scheme:              # co-simulated controllers between calls into the generated scheme
+        from .compiled_scheme_cosim import simulate_cosimulated_planar_scheme
+
+        if dt is None:
+            raise ModelError(f"dt is required with the DT-TMM scheme {method!r} (a fixed step [s], > 0), got None")
+        return simulate_cosimulated_planar_scheme(
+            model, q0, v0, t_final=t_final, dt=dt, scheme=method, controllers=controllers, outputs=outputs,
+            coupling=coupling, store_every=store_every, progress=progress, stability_check=policy,
+            divergence_bound=divergence_bound)
     if compiled:
         if dt is None:
             raise ModelError("dt is required with method='rk4' (a fixed step [s], > 0), got None")
