@@ -338,9 +338,14 @@ class CompiledSceneScheme:
         self.compile_time_s = _time.perf_counter() - start
 
     @property
+    def status_index(self) -> int:
+        """Where :data:`STATUS` starts in the state: after the history ``6 n``."""
+        return 6 * self.model.n_coordinates
+
+    @property
     def state_size(self) -> int:
         """Length of the generated state: the history ``6 n`` and :data:`STATUS`."""
-        return 6 * self.model.n_coordinates + len(STATUS)
+        return self.status_index + len(STATUS)
 
     def _step_function(self, acceleration: Any) -> Any:
         """``step(y, u, h, p, t0, k)``: one scheme step with Newton (module docstring)."""
@@ -415,14 +420,14 @@ class CompiledSceneScheme:
         return self.continue_run(state, np.zeros(len(self.actuators)), dt, n_steps, 0)
 
 
-def not_converged(compiled: CompiledSceneScheme, row: np.ndarray, h: float, partial: Any = None) -> ConvergenceError:
+def not_converged(compiled: Any, row: np.ndarray, h: float, partial: Any = None) -> ConvergenceError:
     """The :class:`ConvergenceError` of a stored state ``row`` whose status says a step did not converge (its step,
     time and residual; ``partial``: the result before it)."""
-    n = compiled.model.n_coordinates
-    step = int(row[6 * n])
+    status = compiled.status_index
+    step = int(row[status])
     return ConvergenceError(
         f"generated implicit DT-TMM step {step} (t = {step * h:.6g} s) did not converge: residual max|delta qdd| = "
-        f"{row[6 * n + 1]:.3e} after at most {compiled.max_iterations} Newton iterations (tolerance "
+        f"{row[status + 1]:.3e} after at most {compiled.max_iterations} Newton iterations (tolerance "
         f"{compiled.tolerance:g}); reduce dt", time=step * h, partial_result=partial)
 
 

@@ -1,12 +1,15 @@
-"""Co-simulated controllers around the generated DT-TMM schemes of planar models (issue 13).
+"""Co-simulated controllers around the generated DT-TMM schemes of planar and spatial models (issue 13).
 
-``ctmm.simulate(planar_model, t_final, dt, method=<scheme>, compiled=True, controllers=[...])`` runs here: the
+``ctmm.simulate(planar_or_spatial_model, t_final, dt, method=<scheme>, compiled=True, controllers=[...])`` runs here:
+the
 controllers are sampled on the step grid by the one co-simulation master (:class:`~ctmm.control.cosim.CoSimulation`)
 and their outputs held, so between two sample instants the plant is a run of the generated scheme step
-(:class:`~ctmm.compiled_scene_schemes.CompiledSceneScheme`) with the held outputs as its actuator inputs ``u``: one
+(:class:`~ctmm.compiled_scene_schemes.CompiledSceneScheme`, :class:`~ctmm.compiled_spatial_schemes.CompiledSpatialScheme`)
+with the held outputs as its actuator inputs ``u``: one
 call into C per sample interval, continued at the interval's step index (Houbolt's start-up and time signals run on).
 The sampling is the Python path's (:func:`ctmm.control.planar_time.simulate_closed_loop` through
-:func:`ctmm.planar.implicit.simulate_implicit` and its ``after_step`` hook): sampled at ``t = 0`` before the start
+:func:`ctmm.planar.implicit.simulate_implicit` / :func:`ctmm.spatial.implicit.simulate_spatial_implicit` and their
+``after_step`` hook): sampled at ``t = 0`` before the start
 acceleration (which includes their outputs), then after every step that ends at a sample instant, where the
 acceleration of the history is solved again with the new held outputs (``a_n`` and ``qddot_n``, the restart of the
 Python stepper; Houbolt keeps its earlier positions).  The result equals the Python path's
@@ -15,7 +18,7 @@ to its Newton tolerance (``tests/test_compiled_scheme_cosim.py``).
 Refused (:class:`~ctmm.errors.ModelError`, by the verb or here): loops, open-loop inputs and references together
 with the controllers (use ``compiled=None``), measurement delays
 (:class:`~ctmm.control.measurement_delay.DelayedController`), controller outputs the generated step does not drive
-(beam station loads), spatial models.
+(planar beam station loads; spatial: actuators that are not one-number inputs of the model, e.g. body-axis ports).
 """
 from __future__ import annotations
 
@@ -27,32 +30,35 @@ import numpy as np
 
 from . import validation
 from .compiled_scene_schemes import CompiledSceneScheme, not_converged
+from .compiled_spatial_schemes import CompiledSpatialScheme, warn_conditionally_stable
 from .control.cosim import CoSimulation
-from .control.plants import PlanarPlant
+from .control.plants import plant_of
 from .errors import ModelError, SimulationError
 from .planar.guards import check_scheme, with_partial
 from .planar.integrate import check_store_every, step_total
 from .planar.model import PlanarModel
+from .spatial.model import SpatialModel
 from .progress import progress_bar
 from .results import SimulationResult
 from .schemes import Scheme, as_scheme
 from .signal_results import SignalSystem, signal_result
 
-__all__ = ["simulate_cosimulated_planar_scheme"]
+__all__ = ["simulate_cosimulated_scheme_generated"]
 
 
-def simulate_cosimulated_planar_scheme(model: PlanarModel, q0: np.ndarray, v0: np.ndarray, *, t_final: float,
-                                       dt: float, scheme: Scheme | str, controllers: Sequence[Any],
-                                       outputs: Sequence[str] = (), coupling: str = "hold", store_every: int = 1,
-                                       progress: bool | None = None, stability_check: str = "warn",
-                                       divergence_bound: float | None = None,
-                                       compiled: CompiledSceneScheme | None = None) -> SimulationResult:
-    """A DT-TMM scheme of a planar model in generated C between the samples of co-simulated controllers.
+def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0: np.ndarray, v0: np.ndarray, *,
+                                          t_final: float, dt: float, scheme: Scheme | str,
+                                          controllers: Sequence[Any], outputs: Sequence[str] = (),
+                                          coupling: str = "hold", store_every: int = 1, progress: bool | None = None,
+                                          stability_check: str = "warn", divergence_bound: float | None = None,
+                                          compiled: Any = None) -> SimulationResult:
+    """A DT-TMM scheme of a planar or spatial model in generated C between the samples of co-simulated controllers.
 
     Parameters
     ----------
-    model : PlanarModel
-        Compilable (:func:`ctmm.compiled_parameters.compile_refusal`).
+    model : PlanarModel or SpatialModel
+        Compilable (:func:`ctmm.compiled_parameters.compile_refusal`,
+        :func:`ctmm.compiled_spatial.spatial_compile_refusal`).
     q0, v0 : ndarray
         Initial coordinates and rates (checked by the caller).
     t_final, dt : float
@@ -65,10 +71,11 @@ def simulate_cosimulated_planar_scheme(model: PlanarModel, q0: np.ndarray, v0: n
         As in :func:`ctmm.compiled_cosim.simulate_cosimulated_generated` (stored sensors, the co-simulation's
         coupling policy, every ``store_every``-th step kept, a progress bar).
     stability_check : {"warn", "error", "ignore"}
-        The step against the scheme's limit before the run (:func:`ctmm.planar.guards.check_scheme`).
+        Planar: the step against the scheme's limit before the run (:func:`ctmm.planar.guards.check_scheme`);
+        spatial: a warning for a conditionally stable scheme, as the Python path.
     divergence_bound : float, optional
-        As in :func:`ctmm.control.planar_time.simulate_closed_loop` (the coordinates from ``q0``), every step.
-    compiled : CompiledSceneScheme, optional
+        As in :func:`ctmm.control.planar_time.simulate_closed_loop` (the plant's guard), every step.
+    compiled : CompiledSceneScheme or CompiledSpatialScheme, optional
         A kernel of this model and scheme with ``store_every=1`` (default: compiled here, cached on disk).
 
     Returns
@@ -90,34 +97,49 @@ def simulate_cosimulated_planar_scheme(model: PlanarModel, q0: np.ndarray, v0: n
     n_steps = step_total(t_final, dt)
     dt = float(t_final) / n_steps
     store_every = check_store_every(store_every)
-    plant = PlanarPlant(model)
+    planar = isinstance(model, PlanarModel)
+    plant = plant_of(model)
     ports = plant.ports
     for c in controllers:
         label = f"controller {getattr(c, 'name', None) or type(c).__name__!r}"
         if getattr(c, "measurement_delay", 0.0):
-            raise ModelError(f"{label} declares a measurement delay, which the generated DT-TMM schemes of planar "
-                             "models do not apply; run with compiled=None (the Python stepper reads it late)")
+            raise ModelError(f"{label} declares a measurement delay, which the generated DT-TMM schemes do not apply; "
+                             "run with compiled=None (the Python stepper reads it late)")
         for name in c.inputs:
             ports.check_sensor(name, f"input of {label}")
         for name in c.outputs:
             ports.check_actuator(name, f"output of {label}")
+    kind = CompiledSceneScheme if planar else CompiledSpatialScheme
     if compiled is None:
-        compiled = CompiledSceneScheme(model, scheme)
-    elif not isinstance(compiled, CompiledSceneScheme) or compiled.model is not model or compiled.scheme != scheme \
+        compiled = kind(model, scheme)
+    elif not isinstance(compiled, kind) or compiled.model is not model or compiled.scheme != scheme \
             or compiled.store_every != 1:
-        raise ModelError(f"compiled must be a CompiledSceneScheme of this model with scheme={scheme!r} and "
+        raise ModelError(f"compiled must be a {kind.__name__} of this model with scheme={scheme!r} and "
                          f"store_every=1, got {compiled!r}")
-    index = {name: k for k, name in enumerate(compiled.actuators)}
+    if planar:
+        drivable = list(compiled.actuators)
+    else:
+        drivable = [name for name, width in zip(compiled.rates.actuators, compiled.rates.widths) if width == 1]
     for c in controllers:
         for name in c.outputs:
-            if name not in index:
-                raise ModelError(f"compiled=True: controller output {name!r} drives a beam station load, which the "
-                                 f"generated step does not drive (it drives {', '.join(compiled.actuators)}); run "
-                                 "with compiled=None")
-    check_scheme(model, np.asarray(q0, float), np.asarray(v0, float), dt, scheme=scheme, policy=stability_check)
+            if name not in drivable:
+                raise ModelError(f"compiled=True: controller output {name!r} is not an input the generated step "
+                                 f"drives (it drives {', '.join(drivable) or 'none'}); run with compiled=None")
+
+    def vector(held: dict[str, float]) -> np.ndarray:
+        """The kernel's input vector ``u`` from the held values by actuator name."""
+        if planar:
+            return np.array([held.get(name, 0.0) for name in compiled.actuators])
+        return compiled.rates.input_vector(held)
+
+    q0, v0 = np.asarray(q0, float), np.asarray(v0, float)
+    if planar:
+        check_scheme(model, q0, v0, dt, scheme=scheme, policy=stability_check)
+    else:
+        warn_conditionally_stable(model, scheme)
     sensors = [ports.resolve(list(c.inputs)) for c in controllers]
-    n = model.n_coordinates
-    guard = plant.guard(np.asarray(q0, float), divergence_bound)
+    nq, nv = plant.n_positions, plant.n_velocities
+    guard = plant.guard(q0, divergence_bound, v0)
     label = f"dt-tmm-generated/{type(scheme).__name__}"
     info: dict = {"dt": dt, "method": label, "compile_time_s": compiled.compile_time_s}
     times: list[float] = []
@@ -127,12 +149,12 @@ def simulate_cosimulated_planar_scheme(model: PlanarModel, q0: np.ndarray, v0: n
 
     def result(count: int) -> SimulationResult:
         t, block = np.array(times[:count]), np.array(rows[:count]).reshape(count, -1)
-        signals, units = plant.signals(t, block[:, :n], block[:, n:2 * n], outputs)
+        signals, units = plant.signals(t, block[:, :nq], block[:, nq:nq + nv], outputs)
         for name, samples in master.outputs(until=t[-1] if count else -math.inf).items():
             signals[name], units[name] = samples, ports.actuator_unit(name.split("@")[0])
         return signal_result(SignalSystem(model, units, []), t, signals, label, {
             **info, "wall_time_s": clock.perf_counter() - start, "controllers": master.describe(),
-            "intervals": intervals, "newton_iterations": int(block[-1, 6 * n + 2]) if count else 0})
+            "intervals": intervals, "newton_iterations": int(block[-1, compiled.status_index + 2]) if count else 0})
 
     try:
         master = CoSimulation(controllers, dt, 0.0, coupling=coupling)
@@ -140,21 +162,22 @@ def simulate_cosimulated_planar_scheme(model: PlanarModel, q0: np.ndarray, v0: n
         raise with_partial(exc, lambda: result(0)) from exc.__cause__
 
     def sample(step: int, state: np.ndarray) -> tuple[np.ndarray, bool]:
-        """Sample the controllers due at ``step``: the held inputs of the kernel after it and whether one was
-        sampled (the Python stepper then solves the acceleration at that time again)."""
+        """Sample the controllers due at ``step``: the kernel's input vector after it and whether one was sampled
+        (the Python stepper then solves the acceleration at that time again)."""
         sampled = master.sample(step, step * dt, lambda i: np.asarray(ports.values(
-            sensors[i], state[:n], state[n:2 * n], step * dt), dtype=float))
-        held = np.zeros(len(index))
+            sensors[i], state[:nq], state[nq:nq + nv], step * dt), dtype=float))
+        held: dict[str, float] = {}
         for c, values in zip(master.controllers, master.held):
             for name, value in zip(c.outputs, values):
-                held[index[name]] += float(value)       # outputs of several controllers on one actuator add
-        return held, bool(sampled)
+                held[name] = held.get(name, 0.0) + float(value)     # outputs on one actuator add
+        return vector(held), bool(sampled)
 
-    bar = progress_bar(n_steps, f"ctmm.simulate (planar, {label})",
+    bar = progress_bar(n_steps, f"ctmm.simulate ({plant.label}, {label})",
                        enabled=validation.flag("progress", progress, optional=True))
     try:
         held, _ = sample(0, np.concatenate([q0, v0]))
-        state = compiled.initial_state(np.asarray(q0, float), np.asarray(v0, float), held)
+        state = compiled.restarted(compiled.initial_state(*((q0, v0) if planar else (np.concatenate([q0, v0]),))),
+                                   held, 0.0)
         times.append(0.0)
         rows.append(state)
         k = 0
@@ -164,9 +187,9 @@ def simulate_cosimulated_planar_scheme(model: PlanarModel, q0: np.ndarray, v0: n
             intervals += 1
             for j, row in enumerate(block):
                 step = k + 1 + j
-                if row[6 * n] > 0.0:
+                if row[compiled.status_index] > 0.0:
                     raise not_converged(compiled, row, dt)
-                guard(step * dt, row[:2 * n], dt, label)
+                guard(step * dt, row[:nq + nv], dt, label)
                 if step == following:       # sampled before the row is stored (also at the end), as the Python path
                     held, sampled = sample(step, row)
                 if step % store_every == 0 or step == n_steps:

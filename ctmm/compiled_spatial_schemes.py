@@ -58,7 +58,7 @@ from .spatial.lie import quaternion_product
 from .spatial.model import SpatialModel
 
 __all__ = ["CompiledSpatialScheme", "simulate_spatial_scheme_generated", "symbolic_bracket",
-           "symbolic_local_coordinates", "symbolic_retract"]
+           "symbolic_local_coordinates", "symbolic_retract", "warn_conditionally_stable"]
 
 
 def _exponential(phi: Any) -> Any:
@@ -291,17 +291,43 @@ class CompiledSpatialScheme:
         """The generated state at ``t = 0`` from ``[q ; v]`` (quaternions normalised): ``a = v_dot``."""
         model = self.model
         q, v = model.normalized(x[:model.n_positions]), x[model.n_positions:]
-        rates = np.asarray(self._velocity_rate(q, v, self.rates.input_vector(inputs), np.zeros(0))).reshape(-1)
-        return np.concatenate([q, v, rates, rates, *([q, q] if self.chart else []), np.zeros(len(STATUS))])
+        state = np.concatenate([q, v, np.zeros(2 * v.size), *([q, q] if self.chart else []), np.zeros(len(STATUS))])
+        return self.restarted(state, self.rates.input_vector(inputs))
+
+    def restarted(self, state: np.ndarray, held: np.ndarray, t: float = 0.0) -> np.ndarray:
+        """``state`` with ``a`` and ``v_dot`` solved again at its ``(q, v)`` with the input vector ``held`` (the Python
+        stepper's restart where held controller outputs jump; the spatial terms do not depend on ``t`` [s])."""
+        nq, n = self.model.n_positions, self.model.n_velocities
+        out = np.array(state, dtype=float)
+        rates = np.asarray(self._velocity_rate(out[:nq], out[nq:nq + n], np.asarray(held, dtype=float),
+                                               np.zeros(0))).reshape(-1)
+        out[nq + n:nq + 2 * n] = out[nq + 2 * n:nq + 3 * n] = rates
+        return out
+
+    def continue_run(self, state: np.ndarray, held: np.ndarray, dt: float, n_steps: int, first_step: int
+                     ) -> np.ndarray:
+        """Stored states (rows, :attr:`state_size`) of ``n_steps`` steps of ``dt`` [s] from ``state`` at step
+        ``first_step`` with the input vector ``held`` over them (:mod:`ctmm.compiled_scheme_cosim`)."""
+        dt = validation.positive("dt", dt)
+        check_step_scaling(self.scheme, self.maps, dt)
+        return run_blocks(self._blocks, self._stride, self._step, self.store_every, np.asarray(state)[:, None],
+                          np.asarray(held, dtype=float), dt, validation.integer("n_steps", n_steps, minimum=1),
+                          0.0, np.zeros((0, 1)), first_step=first_step)[0]
 
     def run(self, state: np.ndarray, dt: float, n_steps: int, inputs: Mapping[str, Any] | None = None) -> np.ndarray:
         """Stored states (rows, :attr:`state_size`) of ``n_steps`` steps of ``dt`` [s] from ``state`` at ``t = 0``
         with ``inputs`` held (numbers), initial state excluded; stops after the first block holding a NaN."""
-        dt = validation.positive("dt", dt)
-        check_step_scaling(self.scheme, self.maps, dt)
-        return run_blocks(self._blocks, self._stride, self._step, self.store_every, np.asarray(state)[:, None],
-                          self.rates.input_vector(inputs), dt, validation.integer("n_steps", n_steps, minimum=1),
-                          0.0, np.zeros((0, 1)))[0]
+        return self.continue_run(state, self.rates.input_vector(inputs), dt, n_steps, 0)
+
+
+def warn_conditionally_stable(model: SpatialModel, scheme: Scheme) -> None:
+    """A :class:`~ctmm.guard.StabilityLimitWarning` for a scheme that is not unconditionally stable (the spatial path
+    does not check the step against the model's frequencies, as the Python stepper)."""
+    limit = scheme.stability_limit()
+    if limit < np.inf:
+        warnings.warn(f"{model.name}: the DT-TMM scheme {scheme!r} is not unconditionally stable (omega_max dt <= "
+                      f"{limit:.4g}); the step is not checked against the model's frequencies on the spatial path",
+                      StabilityLimitWarning, stacklevel=3)
 
 
 def simulate_spatial_scheme_generated(model: SpatialModel, t_final: float, dt: float | None, *,
@@ -336,11 +362,7 @@ def simulate_spatial_scheme_generated(model: SpatialModel, t_final: float, dt: f
         divergence_bound = validation.positive("divergence_bound", divergence_bound)
     compiled = reused_or_built(CompiledSpatialScheme, compiled, model, scheme, store_every, tolerance=tolerance,
                                max_iterations=max_iterations, cache_dir=cache_dir)
-    limit = scheme.stability_limit()
-    if limit < np.inf:
-        warnings.warn(f"{model.name}: the DT-TMM scheme {scheme!r} is not unconditionally stable (omega_max dt <= "
-                      f"{limit:.4g}); the step is not checked against the model's frequencies on the spatial path",
-                      StabilityLimitWarning, stacklevel=2)
+    warn_conditionally_stable(model, scheme)
     start = compiled.initial_state(initial_state(model, x0, v0), inputs)
     began = clock.perf_counter()
     rows = compiled.run(start, dt, n_steps, inputs)

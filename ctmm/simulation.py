@@ -170,9 +170,9 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         :func:`ctmm.compiled_control.simulate_spatial_controlled_generated` (docs/spatial.md §6b).  Planar, a DT-TMM
         scheme without loops, inputs or references: the scheme's step with its Newton iterations in generated C
         (:func:`ctmm.compiled_scene_schemes.simulate_scheme_generated`), co-simulated controllers sampled between
-        calls (:func:`ctmm.compiled_scheme_cosim.simulate_cosimulated_planar_scheme`); spatial, a scheme without
-        loops, ports or controllers: its Lie-group step in generated C
-        (:func:`ctmm.compiled_spatial_schemes.simulate_spatial_scheme_generated`).  Default: numpy.
+        calls (:func:`ctmm.compiled_scheme_cosim.simulate_cosimulated_scheme_generated`); spatial, a scheme without
+        loops, references or port inputs: its Lie-group step in generated C
+        (:func:`ctmm.compiled_spatial_schemes.simulate_spatial_scheme_generated`; controllers as for planar models).  Default: numpy.
     parameters : mapping, optional
         ``compiled=True``: ``{name: number}`` set at run time in the kernel compiled once (:mod:`ctmm.batch`).
     progress : bool, optional
@@ -487,11 +487,11 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
         raise ModelError(f"method must be 'rk4', a solve_ivp method {SCIPY_METHODS} or a DT-TMM scheme "
                          f"{tuple(sorted(SCHEMES))} (or a ctmm.schemes object), got {method!r}")
     if compiled and is_scheme:              # co-simulated controllers between calls into the generated scheme
-        from .compiled_scheme_cosim import simulate_cosimulated_planar_scheme
+        from .compiled_scheme_cosim import simulate_cosimulated_scheme_generated
 
         if dt is None:
             raise ModelError(f"dt is required with the DT-TMM scheme {method!r} (a fixed step [s], > 0), got None")
-        return simulate_cosimulated_planar_scheme(
+        return simulate_cosimulated_scheme_generated(
             model, q0, v0, t_final=t_final, dt=dt, scheme=method, controllers=controllers, outputs=outputs,
             coupling=coupling, store_every=store_every, progress=progress, stability_check=policy,
             divergence_bound=divergence_bound)

@@ -13,6 +13,7 @@ import ctmm
 from ctmm.control.measurement_delay import DelayedController
 from ctmm.errors import ModelError, SimulationError
 
+import ctmm.spatial as sp
 from _controllers_import import load_controllers
 from test_compiled_cosim import Failing
 from test_compiled_scene_schemes import DP_START, double_pendulum
@@ -48,6 +49,31 @@ def test_sampled_controllers_equal_the_python_path(pendulum, scheme):
     assert np.array_equal(generated.time, python.time) and generated.signals() == python.signals()
     for name in python.signals():
         assert np.max(np.abs(np.asarray(generated[name]) - np.asarray(python[name]))) <= 1e-10, name
+
+
+def spatial_double_pendulum() -> sp.SpatialModel:
+    """An actuated revolute link carrying a link on an actuated ball joint."""
+    return sp.SpatialModel("double", [
+        sp.SpatialBody("upper", 1.0, (0.02, 0.03, 0.015), center_of_mass=(0, 0, -0.25), points={"tip": (0, 0, -0.5)}),
+        sp.SpatialBody("lower", 0.7, (0.01, 0.012, 0.006), center_of_mass=(0.1, 0, -0.2)),
+        sp.Revolute(name="hinge", parent=None, child="upper", axis=(1, 0, 0), actuated=True),
+        sp.Spherical(name="ball", parent="upper", point="tip", child="lower", actuated=True)], gravity=(0, 0, -9.81))
+
+
+@pytest.mark.parametrize("scheme", ["newmark", "houbolt"])
+def test_sampled_controllers_on_a_spatial_model_equal_the_python_path(scheme):
+    model = spatial_double_pendulum()
+    arguments = dict(method=scheme, x0={"hinge.angle": 0.4}, v0={"hinge.angle_rate": 1.5, "ball.wy": -2.0},
+                     store_every=2)
+    make = lambda: [pid("hinge.angle", "hinge.torque", 0.03, kp=20.0, kd=2.0, reference=0.3)]  # noqa: E731
+    generated = ctmm.simulate(model, 0.2, 0.01, compiled=True, controllers=make(), **arguments)
+    python = ctmm.simulate(model, 0.2, 0.01, controllers=make(), **arguments)
+    assert generated.info["controllers"] == python.info["controllers"] and generated.signals() == python.signals()
+    for name in python.signals():
+        assert np.max(np.abs(np.asarray(generated[name]) - np.asarray(python[name]))) <= 1e-10, name
+    with pytest.raises(ModelError, match="'ball.torque_x' is not an input the generated step drives"):
+        ctmm.simulate(model, 0.2, 0.01, compiled=True, controllers=[pid("ball.wx", "ball.torque_x", 0.02)],
+                      **arguments)
 
 
 def test_a_failing_controller_stops_both_paths_with_the_same_partial_result(pendulum):
