@@ -4,8 +4,8 @@
 the
 controllers are sampled on the step grid by the one co-simulation master (:class:`~ctmm.control.cosim.CoSimulation`)
 and their outputs held, so between two sample instants the plant is a run of the generated scheme step
-(:class:`~ctmm.compiled_scene_schemes.CompiledSceneScheme`, :class:`~ctmm.compiled_spatial_schemes.CompiledSpatialScheme`)
-with the held outputs as its actuator inputs ``u``: one
+(:class:`~ctmm.compiled_scene_schemes.CompiledSceneScheme`,
+:class:`~ctmm.compiled_spatial_schemes.CompiledSpatialScheme`) with the held outputs as its actuator inputs ``u``: one
 call into C per sample interval, continued at the interval's step index (Houbolt's start-up and time signals run on).
 The sampling is the Python path's (:func:`ctmm.control.planar_time.simulate_closed_loop` through
 :func:`ctmm.planar.implicit.simulate_implicit` / :func:`ctmm.spatial.implicit.simulate_spatial_implicit` and their
@@ -15,8 +15,9 @@ acceleration of the history is solved again with the new held outputs (``a_n`` a
 Python stepper; Houbolt keeps its earlier positions).  The result equals the Python path's
 to its Newton tolerance (``tests/test_compiled_scheme_cosim.py``).
 
-Refused (:class:`~ctmm.errors.ModelError`, by the verb or here): loops, open-loop inputs and references together
-with the controllers (use ``compiled=None``), measurement delays
+Open-loop actuator ``inputs`` that are numbers are added to the held values (also without controllers: one call
+into C).  Refused (:class:`~ctmm.errors.ModelError`, by the verb or here): loops and references, inputs that are
+functions of time or signals (use ``compiled=None``), measurement delays
 (:class:`~ctmm.control.measurement_delay.DelayedController`), controller outputs the generated step does not drive
 (planar beam station loads; spatial: actuators that are not one-number inputs of the model, e.g. body-axis ports).
 """
@@ -24,7 +25,7 @@ from __future__ import annotations
 
 import math
 import time as clock
-from typing import Any, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -48,7 +49,8 @@ __all__ = ["simulate_cosimulated_scheme_generated"]
 
 def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0: np.ndarray, v0: np.ndarray, *,
                                           t_final: float, dt: float, scheme: Scheme | str,
-                                          controllers: Sequence[Any], outputs: Sequence[str] = (),
+                                          controllers: Sequence[Any] = (), inputs: Mapping[str, Any] | None = None,
+                                          outputs: Sequence[str] = (),
                                           coupling: str = "hold", store_every: int = 1, progress: bool | None = None,
                                           stability_check: str = "warn", divergence_bound: float | None = None,
                                           compiled: Any = None) -> SimulationResult:
@@ -67,6 +69,8 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
     controllers : sequence of Controller
         Co-simulated controllers (validated by the caller, :func:`ctmm.control.protocol.check_controllers`) reading
         sensors and writing actuators of the model by name.
+    inputs : mapping, optional
+        ``{actuator: number}`` held over the run [SI], added to the controllers' outputs on the same actuator.
     outputs, coupling, store_every, progress
         As in :func:`ctmm.compiled_cosim.simulate_cosimulated_generated` (stored sensors, the co-simulation's
         coupling policy, every ``store_every``-th step kept, a progress bar).
@@ -125,6 +129,17 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
             if name not in drivable:
                 raise ModelError(f"compiled=True: controller output {name!r} is not an input the generated step "
                                  f"drives (it drives {', '.join(drivable) or 'none'}); run with compiled=None")
+    constant: dict[str, float] = {}
+    for name, value in dict(inputs or {}).items():
+        ports.check_actuator(name, "input")
+        if name not in drivable:
+            raise ModelError(f"compiled=True: input {name!r} is not an input the generated step drives (it drives "
+                             f"{', '.join(drivable) or 'none'}); run with compiled=None")
+        if callable(value) or isinstance(value, (str, bool)) or not np.isfinite(np.asarray(value, dtype=float)).all() \
+                or np.ndim(value) != 0:
+            raise ModelError(f"inputs[{name!r}] = {value!r}: the generated DT-TMM scheme holds open-loop inputs as "
+                             "finite numbers; give a number, or run with compiled=None (functions of time, signals)")
+        constant[name] = float(value)
 
     def vector(held: dict[str, float]) -> np.ndarray:
         """The kernel's input vector ``u`` from the held values by actuator name."""
@@ -166,7 +181,7 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
         (the Python stepper then solves the acceleration at that time again)."""
         sampled = master.sample(step, step * dt, lambda i: np.asarray(ports.values(
             sensors[i], state[:nq], state[nq:nq + nv], step * dt), dtype=float))
-        held: dict[str, float] = {}
+        held = dict(constant)
         for c, values in zip(master.controllers, master.held):
             for name, value in zip(c.outputs, values):
                 held[name] = held.get(name, 0.0) + float(value)     # outputs on one actuator add
@@ -182,7 +197,7 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
         rows.append(state)
         k = 0
         while k < n_steps:
-            following = min(min((k // ratio + 1) * ratio for ratio in master.ratios), n_steps)
+            following = min(min(((k // ratio + 1) * ratio for ratio in master.ratios), default=n_steps), n_steps)
             block = compiled.continue_run(state, held, dt, following - k, k)
             intervals += 1
             for j, row in enumerate(block):

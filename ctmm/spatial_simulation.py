@@ -50,7 +50,7 @@ def simulate_spatial_system(parts: tuple[SpatialModel, tuple], t_final: float, d
             for name in inputs:
                 if name not in model.inputs and name not in known:
                     raise unknown_name("spatial input", name, list(model.inputs) + list(known))
-        cosimulated = bool(controllers) and not (loops or references or inputs)      # ctmm.compiled_scheme_cosim
+        cosimulated = bool(controllers) and not (loops or references or port_inputs)  # ctmm.compiled_scheme_cosim
         if (isinstance(method, Scheme) or method in SCHEMES) and (not controlled or cosimulated):
             from .compiled_scheme_cosim import simulate_cosimulated_scheme_generated
             from .compiled_spatial_schemes import simulate_spatial_scheme_generated
@@ -71,7 +71,7 @@ def simulate_spatial_system(parts: tuple[SpatialModel, tuple], t_final: float, d
             state = initial_state(model, x0, v0)
             return simulate_cosimulated_scheme_generated(
                 model, state[:model.n_positions], state[model.n_positions:], t_final=t_final, dt=dt, scheme=method,
-                controllers=controllers, outputs=tuple(outputs), coupling=coupling,
+                controllers=controllers, inputs=inputs, outputs=tuple(outputs), coupling=coupling,
                 store_every=validation.integer("store_every", store_every, minimum=1),
                 progress=validation.flag("progress", progress, optional=True), divergence_bound=divergence_bound)
         if not isinstance(method, str) or method != "rk4":

@@ -204,7 +204,7 @@ def test_the_verb_runs_the_generated_scheme_with_the_python_paths_numbers(pendul
     ({"dt": None}, "dt is required"),
     ({"method": "newmark2"}, "newmark2"),
     ({"method": "newmark", "rtol": 1e-6}, "rtol"),
-    ({"method": "newmark", "inputs": {"h.torque": 1.0}}, "with loops, inputs or references"),
+    ({"method": "newmark", "inputs": {"h.torque": Harmonic(1.0, 2.0)}}, "open-loop inputs as finite numbers"),
     ({"method": "newmark", "store_every": 0}, "store_every"),
 ])
 def test_bad_options_are_refused(pendulum, options, match):
