@@ -135,11 +135,14 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
         if name not in drivable:
             raise ModelError(f"compiled=True: input {name!r} is not an input the generated step drives (it drives "
                              f"{', '.join(drivable) or 'none'}); run with compiled=None")
-        if callable(value) or isinstance(value, (str, bool)) or not np.isfinite(np.asarray(value, dtype=float)).all() \
-                or np.ndim(value) != 0:
+        try:
+            number = math.nan if callable(value) or isinstance(value, (str, bool)) else float(value)
+        except (TypeError, ValueError):
+            number = math.nan
+        if not math.isfinite(number):
             raise ModelError(f"inputs[{name!r}] = {value!r}: the generated DT-TMM scheme holds open-loop inputs as "
                              "finite numbers; give a number, or run with compiled=None (functions of time, signals)")
-        constant[name] = float(value)
+        constant[name] = number
 
     def vector(held: dict[str, float]) -> np.ndarray:
         """The kernel's input vector ``u`` from the held values by actuator name."""
