@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_compiled_scene_schemes import newton_root
+from test_compiled_scene_schemes import global_scheme, newton_root
+from test_spatial_beam import hub_beam as spatial_hub_beam
 from test_spatial_schemes import T_FINAL, asymmetric_top, double_pendulum, final_state, pose_error, \
     reference_final, to_reference
 
@@ -89,6 +90,22 @@ def test_generated_step_equals_the_global_lie_group_scheme_on_the_newton_euler_m
     generated = simulate_spatial_scheme_generated(model, 0.2, 0.02, scheme=scheme, x0=x0, v0=v0)
     q, v = final_state(model, generated)
     assert pose_error(tree, to_reference(model, tree, q), v, q_ref, v_ref) <= 1e-10
+
+
+def test_a_spatial_beam_equals_the_python_stepper_and_the_global_scheme_on_its_lagrange_model():
+    """A hub on a revolute spring-damper joint carrying a stiffened SpatialBeam with a tip body (bending, torsion,
+    axial modes): the coordinates are a vector space, so the global Newmark of the planar tests applies to the
+    independent assumed-modes model of ``ctmm/reference/spatial_beam_lagrange.py``."""
+    model, reference = spatial_hub_beam(((0, 0, 1),), True)
+    q0, v0 = np.zeros(model.n_positions), np.zeros(model.n_velocities)
+    q0[0], v0[0] = 0.2, 3.0
+    generated = simulate_spatial_scheme_generated(model, 0.02, 2e-3, x0=q0, v0=v0)
+    python = simulate_spatial_implicit(model, 0.02, 2e-3, x0=q0, v0=v0)
+    assert _difference(model, generated, python) <= 1e-10
+    qs, vs = global_scheme(lambda q, v, t: reference.accelerations(q, v), q0, v0, 2e-3, 10, "newmark")
+    assert np.max(np.abs(np.array([generated[name] for name in model.coordinates]).T - qs)) <= 1e-10
+    assert np.max(np.abs(np.array([generated[name] for name in model.velocities]).T - vs)) <= 1e-10
+    assert np.max(np.abs(qs[-1, 1:])) > 1e-4                        # the beam did deform
 
 
 @pytest.mark.parametrize("scheme", ["newmark", "generalized_alpha", "houbolt"])
