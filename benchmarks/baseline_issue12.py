@@ -26,7 +26,8 @@ dt = 10 ms, compiled RK4 at dt = 10 ms; ``stability_chart`` the 100 x 100 chart;
 the hub-beam and of the N = 5 chain; ``spatial_chain`` (issue 14, added later and measured
 alone) one forward dynamics of the spatial reference model at N = 5; ``spatial_schemes`` (issue 14,
 added later, measured alone) Newmark on the spatial double pendulum at dt = 10 ms; ``chain_compiled``
-(issues 12/13, added later, measured alone) the generated RK4 of the 100-mass chain with a real-time loop.  Left out (too long
+(issues 12/13, added later, measured alone) the generated RK4 of the 100-mass chain with a real-time loop;
+``compiled_schemes_planar`` (issue 13, added later, measured alone) the generated Newmark of the N = 5 chain.  Left out (too long
 for a baseline under ~3 min, or needing a build): larger sizes and step ladders, the external
 libraries and references the benchmarks compare with (python-control, pinocchio, MuJoCo, global
 and Lagrange models), the FMU controller variant (builds an FMU with gcc), ``flexible``'s chain of
@@ -436,6 +437,18 @@ def _batch_parameters(t: Timings) -> None:
                         "200 RK4 steps each")
 
 
+def _compiled_schemes_planar(t: Timings) -> None:
+    bench = importlib.import_module("compiled_schemes_planar")
+    model = importlib.import_module("planar_chain").chain(5)
+    q0 = v0 = np.zeros(5)
+    compiled = importlib.import_module("ctmm.compiled_scene_schemes").CompiledSceneScheme(model, "newmark")
+    steps = round(bench.T / bench.DT)
+    t.add("compiled_schemes_planar", "generated_newmark_chain_n5",
+          lambda: bench.generated_run(compiled, model, q0, v0, "newmark"), per="step", count=steps,
+          configuration=f"planar pendulum chain N=5, DT-TMM Newmark with Newton in generated C "
+                        f"(simulate_scheme_generated, library compiled), dt={bench.DT:g} s, {steps} steps")
+
+
 def _kernel_cache(t: Timings) -> None:
     bench = importlib.import_module("kernel_cache")
     run = bench.cases()["spatial_revolute6_rk4"]
@@ -448,7 +461,7 @@ def _kernel_cache(t: Timings) -> None:
 TIMING_PARTS = (_work_precision, _scaling, _control, _delay_history, _planar, _flexible, _manipulator,
                 _stability_chart, _compiled_scenes, _spatial_chain, _spatial_schemes, _chain_compiled,
                 _chain_schemes_generated, _chain_ode_speed, _compiled_cosim, _batch_parameters, _kernel_cache,
-                _planar_frf)
+                _planar_frf, _compiled_schemes_planar)
 
 
 def timings() -> dict:

@@ -18,8 +18,8 @@ With a DT-TMM scheme on a chain (``method="newmark"``, ... ``compiled=True``), :
 does the same around the generated scheme step (:mod:`ctmm.compiled_chain_schemes`, the held outputs its input
 ``u``) with the Python DT-TMM path's sampling (:func:`ctmm.control.simulate.simulate_controlled`: sampled at
 ``t = 0`` before the start acceleration, the history's acceleration restarted by ``M^-1 dF`` where a held output
-jumps).  Planar and spatial models have no generated implicit step: ``compiled=True`` with a scheme is refused
-there (:mod:`ctmm.simulation`, :mod:`ctmm.spatial_simulation`), with or without controllers.
+jumps).  The generated schemes of planar and spatial models take co-simulated controllers in
+:mod:`ctmm.compiled_scheme_cosim`.
 
 A :class:`~ctmm.control.measurement_delay.DelayedController` reads its inputs ``delay`` seconds late from the
 states of the run; the delay must be a whole multiple of ``dt`` here (the numpy path interpolates its delay

@@ -167,7 +167,13 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         interval with their held outputs (:func:`ctmm.compiled_cosim.simulate_cosimulated_generated`).  Spatial,
         ``"rk4"``: ``True`` runs the generated RK4 of :func:`ctmm.compiled_spatial.simulate_spatial_generated`
         (inputs held numbers; the numpy path's result to round-off); with loops
-        :func:`ctmm.compiled_control.simulate_spatial_controlled_generated` (docs/spatial.md §6b).  Default: numpy.
+        :func:`ctmm.compiled_control.simulate_spatial_controlled_generated` (docs/spatial.md §6b).  Planar, a DT-TMM
+        scheme without loops or references: the scheme's step with its Newton iterations in generated C
+        (:func:`ctmm.compiled_scene_schemes.simulate_scheme_generated`), co-simulated controllers sampled between
+        calls (:func:`ctmm.compiled_scheme_cosim.simulate_cosimulated_scheme_generated`); spatial, a scheme without
+        loops, references or port inputs: its Lie-group step in generated C
+        (:func:`ctmm.compiled_spatial_schemes.simulate_spatial_scheme_generated`; controllers as for planar models).
+        Default: numpy.
     parameters : mapping, optional
         ``compiled=True``: ``{name: number}`` set at run time in the kernel compiled once (:mod:`ctmm.batch`).
     progress : bool, optional
@@ -452,9 +458,12 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
         max_step = validation.positive("max_step", max_step)        # inf (no limit) is solve_ivp's default
     controlled = bool(loops) or bool(controllers) or bool(inputs) or bool(references)
     is_scheme = isinstance(method, Scheme) or (isinstance(method, str) and method in SCHEMES)
-    if compiled and method != "rk4":
-        raise ModelError(f"compiled=True runs the generated RK4 of a planar model with its loops, inputs, "
-                         f"references and controllers; got method={method!r} (leave compiled at None)")
+    others = bool(loops) or bool(references)        # a generated scheme: controllers and inputs (numbers) only
+    if compiled and method != "rk4" and not (is_scheme and not others):
+        raise ModelError(f"compiled=True runs the generated RK4 of a planar model with its loops, inputs, references "
+                         f"and controllers, or a generated DT-TMM scheme with co-simulated controllers and inputs "
+                         f"only; got method={method!r} {'with loops or references ' if is_scheme else ''}(leave "
+                         "compiled at None)")
     adaptive_only = {"rtol": (rtol, 1e-8), "atol": (atol, 1e-10), "max_step": (max_step, None)}
     for name, (value, default) in adaptive_only.items():
         if value != default and method not in SCIPY_METHODS:
@@ -463,19 +472,30 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
     if store_every != 1 and method in SCIPY_METHODS:
         raise ModelError(f"store_every={store_every!r} applies to fixed-step methods; with {method!r} give dt "
                          "to store the result on the grid k dt (leave store_every at 1)")
-    if is_scheme and not controlled:
+    if is_scheme and not controlled:       # (compiled, with inputs or controllers: ctmm.compiled_scheme_cosim below)
         if dt is None:
             raise ModelError(f"dt is required with the DT-TMM scheme {method!r} (a fixed step [s], > 0), got None")
-        from .planar.implicit import simulate_implicit
+        from .planar.implicit import simulate_implicit as stepper
 
+        if compiled:                                # Newton and the time loop in generated C
+            from .compiled_scene_schemes import simulate_scheme_generated as stepper
         with _partial_as_result(outputs, dt):
-            simulation = simulate_implicit(model, q0, v0, t_final=t_final, dt=dt, scheme=as_scheme(method),
+            simulation = stepper(model, q0, v0, t_final=t_final, dt=dt, scheme=as_scheme(method),
                                            store_every=store_every, divergence_bound=divergence_bound,
                                            stability_check=policy)
         return to_result(simulation, outputs=outputs, info={"dt": dt})
     if not is_scheme and method not in FIXED_STEP_METHODS and method not in SCIPY_METHODS:
         raise ModelError(f"method must be 'rk4', a solve_ivp method {SCIPY_METHODS} or a DT-TMM scheme "
                          f"{tuple(sorted(SCHEMES))} (or a ctmm.schemes object), got {method!r}")
+    if compiled and is_scheme:              # controllers sampled between calls into the generated scheme, inputs held
+        from .compiled_scheme_cosim import simulate_cosimulated_scheme_generated
+
+        if dt is None:
+            raise ModelError(f"dt is required with the DT-TMM scheme {method!r} (a fixed step [s], > 0), got None")
+        return simulate_cosimulated_scheme_generated(
+            model, q0, v0, t_final=t_final, dt=dt, scheme=method, controllers=controllers, inputs=inputs,
+            outputs=outputs, coupling=coupling, store_every=store_every, progress=progress, stability_check=policy,
+            divergence_bound=divergence_bound)
     if compiled:
         if dt is None:
             raise ModelError("dt is required with method='rk4' (a fixed step [s], > 0), got None")

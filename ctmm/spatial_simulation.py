@@ -1,5 +1,6 @@
 """The spatial branch of :func:`ctmm.simulate`: a :class:`~ctmm.spatial.model.SpatialModel`, plain or controlled,
-by RK4, ``solve_ivp``, a DT-TMM scheme or the generated RK4 (``docs/spatial.md`` §6, §6a, §6b)."""
+by RK4, ``solve_ivp``, a DT-TMM scheme, the generated RK4 or a generated DT-TMM scheme, with co-simulated controllers
+between calls into it (``docs/spatial.md`` §6, §6a, §6b)."""
 from __future__ import annotations
 
 import math
@@ -49,8 +50,33 @@ def simulate_spatial_system(parts: tuple[SpatialModel, tuple], t_final: float, d
             for name in inputs:
                 if name not in model.inputs and name not in known:
                     raise unknown_name("spatial input", name, list(model.inputs) + list(known))
+        cosimulated = bool(controllers) and not (loops or references or port_inputs)  # ctmm.compiled_scheme_cosim
+        if (isinstance(method, Scheme) or method in SCHEMES) and (not controlled or cosimulated):
+            from .compiled_scheme_cosim import simulate_cosimulated_scheme_generated
+            from .compiled_spatial_schemes import simulate_spatial_scheme_generated
+
+            options = {"rtol": (rtol, 1e-8), "atol": (atol, 1e-10), "max_step": (max_step, None)}
+            if not cosimulated:
+                options.update({"progress": (progress, None), "stability_check": (stability_check, None)})
+            for name, (value, default) in options.items():
+                if value is not default and value != default:
+                    raise ModelError(f"{name}={value!r} does not apply to the generated DT-TMM scheme {method!r} of a "
+                                     f"spatial model; leave {name} at {default!r}")
+            if not cosimulated:
+                return simulate_spatial_scheme_generated(model, t_final, dt, scheme=method, x0=x0, v0=v0,
+                                                         inputs=inputs, store_every=store_every,
+                                                         divergence_bound=divergence_bound)
+            if dt is None:
+                raise ModelError(f"dt is required with the DT-TMM scheme {method!r} (a fixed step [s], > 0), got None")
+            state = initial_state(model, x0, v0)
+            return simulate_cosimulated_scheme_generated(
+                model, state[:model.n_positions], state[model.n_positions:], t_final=t_final, dt=dt, scheme=method,
+                controllers=controllers, inputs=inputs, outputs=tuple(outputs), coupling=coupling,
+                store_every=validation.integer("store_every", store_every, minimum=1),
+                progress=validation.flag("progress", progress, optional=True), divergence_bound=divergence_bound)
         if not isinstance(method, str) or method != "rk4":
-            raise ModelError(f"compiled=True runs the generated RK4 of a spatial model; got method={method!r}")
+            raise ModelError(f"compiled=True runs the generated RK4 of a spatial model, or a generated DT-TMM scheme "
+                             f"without {closed}; got method={method!r}" + (f" with {closed}" if controlled else ""))
         if controllers:                 # C between the samples of the controllers (ctmm.compiled_cosim)
             from .compiled_cosim import simulate_cosimulated_generated
 

@@ -13,7 +13,7 @@ Independent checks:
   accelerations and forces where the scheme's own acceleration is the equation of motion's: Newmark, Houbolt,
   forward Euler);
 * failures stop at the same time with the same partial result; what the generated step cannot do is refused by name,
-  and planar and spatial models (no generated implicit step) refuse a scheme with ``compiled=True``.
+  (planar and spatial models' generated schemes with controllers: ``tests/test_compiled_scheme_cosim.py``).
 """
 from __future__ import annotations
 
@@ -123,15 +123,3 @@ def test_what_the_generated_scheme_cosimulation_refuses():
         ctmm.simulate(chain, 1.0, 1e-3, t0=0.5, controllers=[pid("m1.x", "m1.force", 1e-3)], **arguments)
     with pytest.raises(ModelError, match="unknown input 'm1'"):
         ctmm.simulate(chain, 0.1, 1e-3, controllers=[pid("m1.x", "m1", 1e-3)], **arguments)
-    from ctmm import spatial
-
-    arm = spatial.SpatialModel("arm", [
-        spatial.SpatialBody("link", 1.0, np.diag([0.01, 0.1, 0.1]), (0.5, 0.0, 0.0)),
-        spatial.Revolute(name="joint", parent=None, child="link", point=(0.0, 0.0, 0.0), axis=(0.0, 1.0, 0.0))])
-    for scheme in ("newmark", "houbolt"):            # no generated implicit step of a planar or spatial model
-        with pytest.raises(ModelError, match=f"generated RK4 of a planar model.*method='{scheme}'"):
-            ctmm.simulate(torsion(), 0.1, 5e-3, method=scheme, x0=[0.1], compiled=True,
-                          controllers=[pid("h.angle", "h.torque", 0.01)])
-        with pytest.raises(ModelError, match=f"generated RK4 of a spatial model.*method='{scheme}'"):
-            ctmm.simulate(arm, 0.1, 5e-3, method=scheme, x0=np.array([0.1]), compiled=True,
-                          controllers=[pid("joint.angle", "joint.torque", 0.01)])

@@ -350,7 +350,7 @@ def test_refusals():
     with pytest.raises(ModelError, match="contradicts compiled=False"):
         ctmm.simulate(model, 0.1, 1e-2, compiled=False, fast=True)
     with pytest.raises(ModelError, match="compiled=True runs the generated RK4"):
-        ctmm.simulate(model, 0.1, 1e-2, method="newmark", compiled=True)
+        ctmm.simulate(model, 0.1, 1e-2, method="RK45", compiled=True)
     with pytest.raises(ModelError, match="compiled"):
         ctmm.simulate(model, 0.1, 1e-2, compiled="yes")
     with pytest.raises(ModelError, match="unknown actuator"):

@@ -166,8 +166,8 @@ def test_refusals_name_what_cannot_compile() -> None:
         ctmm.simulate(model(), 0.01, 1e-3, compiled=True, inputs={"ball.torque": lambda t: np.zeros(3)})
     with pytest.raises(ModelError, match="generated RK4.*DOP853"):
         ctmm.simulate(model(), 0.01, 1e-3, method="DOP853", compiled=True)
-    with pytest.raises(ModelError, match="generated RK4.*newmark"):
-        ctmm.simulate(model(), 0.01, 1e-3, method="newmark", compiled=True)
+    with pytest.raises(ModelError, match="rtol=1e-06 does not apply to the generated DT-TMM scheme 'newmark'"):
+        ctmm.simulate(model(), 0.01, 1e-3, method="newmark", compiled=True, rtol=1e-6)
     with pytest.raises(ModelError, match="unknown spatial input 'nope'"):
         ctmm.simulate(model(), 0.01, 1e-3, compiled=True, inputs={"nope": 1.0})
     # constant driven motion compiles and equals the numpy path

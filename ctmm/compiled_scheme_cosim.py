@@ -1,0 +1,225 @@
+"""Co-simulated controllers around the generated DT-TMM schemes of planar and spatial models (issue 13).
+
+``ctmm.simulate(planar_or_spatial_model, t_final, dt, method=<scheme>, compiled=True, controllers=[...])`` runs here:
+the
+controllers are sampled on the step grid by the one co-simulation master (:class:`~ctmm.control.cosim.CoSimulation`)
+and their outputs held, so between two sample instants the plant is a run of the generated scheme step
+(:class:`~ctmm.compiled_scene_schemes.CompiledSceneScheme`,
+:class:`~ctmm.compiled_spatial_schemes.CompiledSpatialScheme`) with the held outputs as its actuator inputs ``u``: one
+call into C per sample interval, continued at the interval's step index (Houbolt's start-up and time signals run on).
+The sampling is the Python path's (:func:`ctmm.control.planar_time.simulate_closed_loop` through
+:func:`ctmm.planar.implicit.simulate_implicit` / :func:`ctmm.spatial.implicit.simulate_spatial_implicit` and their
+``after_step`` hook): sampled at ``t = 0`` before the start
+acceleration (which includes their outputs), then after every step that ends at a sample instant, where the
+acceleration of the history is solved again with the new held outputs (``a_n`` and ``qddot_n``, the restart of the
+Python stepper; Houbolt keeps its earlier positions).  The result equals the Python path's
+to its Newton tolerance (``tests/test_compiled_scheme_cosim.py``).
+
+Open-loop actuator ``inputs`` that are numbers are added to the held values (also without controllers: one call
+into C).  Refused (:class:`~ctmm.errors.ModelError`, by the verb or here): loops and references, inputs that are
+functions of time or signals (use ``compiled=None``), measurement delays
+(:class:`~ctmm.control.measurement_delay.DelayedController`), controller outputs the generated step does not drive
+(planar beam station loads; spatial: actuators that are not one-number inputs of the model, e.g. body-axis ports).
+"""
+from __future__ import annotations
+
+import math
+import time as clock
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from . import validation
+from .compiled_scene_schemes import CompiledSceneScheme, not_converged
+from .compiled_spatial_schemes import CompiledSpatialScheme, warn_conditionally_stable
+from .control.cosim import CoSimulation
+from .control.plants import plant_of
+from .errors import ModelError, SimulationError
+from .planar.guards import check_scheme, with_partial
+from .planar.integrate import check_store_every, step_total
+from .planar.model import PlanarModel
+from .spatial.model import SpatialModel
+from .progress import progress_bar
+from .results import SimulationResult
+from .schemes import Scheme, as_scheme
+from .signal_results import SignalSystem, signal_result
+
+__all__ = ["simulate_cosimulated_scheme_generated"]
+
+
+def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0: np.ndarray, v0: np.ndarray, *,
+                                          t_final: float, dt: float, scheme: Scheme | str,
+                                          controllers: Sequence[Any] = (), inputs: Mapping[str, Any] | None = None,
+                                          outputs: Sequence[str] = (),
+                                          coupling: str = "hold", store_every: int = 1, progress: bool | None = None,
+                                          stability_check: str = "warn", divergence_bound: float | None = None,
+                                          compiled: Any = None) -> SimulationResult:
+    """A DT-TMM scheme of a planar or spatial model in generated C between the samples of co-simulated controllers.
+
+    Parameters
+    ----------
+    model : PlanarModel or SpatialModel
+        Compilable (:func:`ctmm.compiled_parameters.compile_refusal`,
+        :func:`ctmm.compiled_spatial.spatial_compile_refusal`).
+    q0, v0 : ndarray
+        Initial coordinates and rates (checked by the caller).
+    t_final, dt : float
+        End time and step [s]; every sample time a whole multiple of ``dt``.
+    scheme : Scheme or str
+    controllers : sequence of Controller
+        Co-simulated controllers (validated by the caller, :func:`ctmm.control.protocol.check_controllers`) reading
+        sensors and writing actuators of the model by name.
+    inputs : mapping, optional
+        ``{actuator: number}`` held over the run [SI], added to the controllers' outputs on the same actuator.
+    outputs, coupling, store_every, progress
+        As in :func:`ctmm.compiled_cosim.simulate_cosimulated_generated` (stored sensors, the co-simulation's
+        coupling policy, every ``store_every``-th step kept, a progress bar).
+    stability_check : {"warn", "error", "ignore"}
+        Planar: the step against the scheme's limit before the run (:func:`ctmm.planar.guards.check_scheme`);
+        spatial: a warning for a conditionally stable scheme, as the Python path.
+    divergence_bound : float, optional
+        As in :func:`ctmm.control.planar_time.simulate_closed_loop` (the plant's guard), every step.
+    compiled : CompiledSceneScheme or CompiledSpatialScheme, optional
+        A kernel of this model and scheme with ``store_every=1`` (default: compiled here, cached on disk).
+
+    Returns
+    -------
+    SimulationResult
+        As the Python path: coordinates, rates, ``outputs`` and ``"<controller output>@samples"``; method
+        ``"dt-tmm-generated/<Scheme>"``, ``info["intervals"]`` (calls into C), ``info["controllers"]``.
+
+    Raises
+    ------
+    ModelError
+        Measurement delays, outputs the generated step does not drive, bad wiring, no compiler.
+    ConvergenceError
+        A step whose Newton iterations did not converge (step, time, residual), with ``partial_result``.
+    SimulationError
+        Failing controller code, divergence or a non-finite state, with ``partial_result``.
+    """
+    scheme = as_scheme(scheme)
+    n_steps = step_total(t_final, dt)
+    dt = float(t_final) / n_steps
+    store_every = check_store_every(store_every)
+    planar = isinstance(model, PlanarModel)
+    plant = plant_of(model)
+    ports = plant.ports
+    for c in controllers:
+        label = f"controller {getattr(c, 'name', None) or type(c).__name__!r}"
+        if getattr(c, "measurement_delay", 0.0):
+            raise ModelError(f"{label} declares a measurement delay, which the generated DT-TMM schemes do not apply; "
+                             "run with compiled=None (the Python stepper reads it late)")
+        for name in c.inputs:
+            ports.check_sensor(name, f"input of {label}")
+        for name in c.outputs:
+            ports.check_actuator(name, f"output of {label}")
+    kind = CompiledSceneScheme if planar else CompiledSpatialScheme
+    if compiled is None:
+        compiled = kind(model, scheme)
+    elif not isinstance(compiled, kind) or compiled.model is not model or compiled.scheme != scheme \
+            or compiled.store_every != 1:
+        raise ModelError(f"compiled must be a {kind.__name__} of this model with scheme={scheme!r} and "
+                         f"store_every=1, got {compiled!r}")
+    if planar:
+        drivable = list(compiled.actuators)
+    else:
+        drivable = [name for name, width in zip(compiled.rates.actuators, compiled.rates.widths) if width == 1]
+    for c in controllers:
+        for name in c.outputs:
+            if name not in drivable:
+                raise ModelError(f"compiled=True: controller output {name!r} is not an input the generated step "
+                                 f"drives (it drives {', '.join(drivable) or 'none'}); run with compiled=None")
+    constant: dict[str, float] = {}
+    for name, value in dict(inputs or {}).items():
+        ports.check_actuator(name, "input")
+        if name not in drivable:
+            raise ModelError(f"compiled=True: input {name!r} is not an input the generated step drives (it drives "
+                             f"{', '.join(drivable) or 'none'}); run with compiled=None")
+        try:
+            number = math.nan if callable(value) or isinstance(value, (str, bool)) else float(value)
+        except (TypeError, ValueError):
+            number = math.nan
+        if not math.isfinite(number):
+            raise ModelError(f"inputs[{name!r}] = {value!r}: the generated DT-TMM scheme holds open-loop inputs as "
+                             "finite numbers; give a number, or run with compiled=None (functions of time, signals)")
+        constant[name] = number
+
+    def vector(held: dict[str, float]) -> np.ndarray:
+        """The kernel's input vector ``u`` from the held values by actuator name."""
+        if planar:
+            return np.array([held.get(name, 0.0) for name in compiled.actuators])
+        return compiled.rates.input_vector(held)
+
+    q0, v0 = np.asarray(q0, float), np.asarray(v0, float)
+    if planar:
+        check_scheme(model, q0, v0, dt, scheme=scheme, policy=stability_check)
+    else:
+        warn_conditionally_stable(model, scheme)
+    sensors = [ports.resolve(list(c.inputs)) for c in controllers]
+    nq, nv = plant.n_positions, plant.n_velocities
+    guard = plant.guard(q0, divergence_bound, v0)
+    label = f"dt-tmm-generated/{type(scheme).__name__}"
+    info: dict = {"dt": dt, "method": label, "compile_time_s": compiled.compile_time_s}
+    times: list[float] = []
+    rows: list[np.ndarray] = []
+    intervals = 0
+    start = clock.perf_counter()
+
+    def result(count: int) -> SimulationResult:
+        t, block = np.array(times[:count]), np.array(rows[:count]).reshape(count, -1)
+        signals, units = plant.signals(t, block[:, :nq], block[:, nq:nq + nv], outputs)
+        for name, samples in master.outputs(until=t[-1] if count else -math.inf).items():
+            signals[name], units[name] = samples, ports.actuator_unit(name.split("@")[0])
+        return signal_result(SignalSystem(model, units, []), t, signals, label, {
+            **info, "wall_time_s": clock.perf_counter() - start, "controllers": master.describe(),
+            "intervals": intervals, "newton_iterations": int(block[-1, compiled.status_index + 2]) if count else 0})
+
+    try:
+        master = CoSimulation(controllers, dt, 0.0, coupling=coupling)
+    except SimulationError as exc:          # a controller's init failed: nothing was simulated
+        raise with_partial(exc, lambda: result(0)) from exc.__cause__
+
+    def sample(step: int, state: np.ndarray) -> tuple[np.ndarray, bool]:
+        """Sample the controllers due at ``step``: the kernel's input vector after it and whether one was sampled
+        (the Python stepper then solves the acceleration at that time again)."""
+        sampled = master.sample(step, step * dt, lambda i: np.asarray(ports.values(
+            sensors[i], state[:nq], state[nq:nq + nv], step * dt), dtype=float))
+        held = dict(constant)
+        for c, values in zip(master.controllers, master.held):
+            for name, value in zip(c.outputs, values):
+                held[name] = held.get(name, 0.0) + float(value)     # outputs on one actuator add
+        return vector(held), bool(sampled)
+
+    bar = progress_bar(n_steps, f"ctmm.simulate ({plant.label}, {label})",
+                       enabled=validation.flag("progress", progress, optional=True))
+    try:
+        held, _ = sample(0, np.concatenate([q0, v0]))
+        state = compiled.restarted(compiled.initial_state(*((q0, v0) if planar else (np.concatenate([q0, v0]),))),
+                                   held, 0.0)
+        times.append(0.0)
+        rows.append(state)
+        k = 0
+        while k < n_steps:
+            following = min(min(((k // ratio + 1) * ratio for ratio in master.ratios), default=n_steps), n_steps)
+            block = compiled.continue_run(state, held, dt, following - k, k)
+            intervals += 1
+            for j, row in enumerate(block):
+                step = k + 1 + j
+                if row[compiled.status_index] > 0.0:
+                    raise not_converged(compiled, row, dt)
+                guard(step * dt, row[:nq + nv], dt, label)
+                if step == following:       # sampled before the row is stored (also at the end), as the Python path
+                    held, sampled = sample(step, row)
+                if step % store_every == 0 or step == n_steps:
+                    times.append(float(step * dt))
+                    rows.append(row)
+            state, k = block[-1].copy(), following
+            bar.update(len(block))
+            if sampled and k < n_steps:     # the held outputs may have jumped: the acceleration at t_k with them
+                state = compiled.restarted(state, held, k * dt)
+    except SimulationError as exc:
+        raise with_partial(exc, lambda: result(len(times))) from exc.__cause__
+    finally:
+        bar.close()
+        master.close()
+    return result(len(times))
