@@ -397,16 +397,20 @@ class CompiledSceneScheme:
             out[4 * n:5 * n] = out[5 * n:6 * n] = out[:n]
         return out
 
-    def continue_run(self, state: np.ndarray, held: np.ndarray, dt: float, n_steps: int, first_step: int
-                     ) -> np.ndarray:
+    def continue_run(self, state: np.ndarray, held: np.ndarray, dt: float, n_steps: int, first_step: int,
+                     since_start: int | None = None) -> np.ndarray:
         """Stored states (rows, :attr:`state_size`) of ``n_steps`` steps of ``dt`` [s] from ``state`` at step
         ``first_step`` (time ``first_step dt``) with the values ``held`` of :attr:`actuators` held over them (one
-        sample interval of co-simulated controllers, :mod:`ctmm.compiled_scheme_cosim`)."""
+        sample interval of co-simulated controllers, :mod:`ctmm.compiled_scheme_cosim`).  ``since_start``: steps
+        since the scheme's start-up last began (default ``first_step``; ``0`` where a multistep scheme restarts
+        at a jump of a held input, :meth:`ctmm.schemes.Scheme.restart`); the failed-step status then counts from
+        that restart."""
         dt = validation.positive("dt", dt)
         check_step_scaling(self.scheme, self.maps, dt)
+        since = first_step if since_start is None else since_start
         return run_blocks(self._blocks, self._stride, self._step, self.store_every, np.asarray(state)[:, None],
-                          np.asarray(held, dtype=float), dt, validation.integer("n_steps", n_steps, minimum=1), 0.0,
-                          self.parameters[:, None], first_step=first_step)[0]
+                          np.asarray(held, dtype=float), dt, validation.integer("n_steps", n_steps, minimum=1),
+                          (first_step - since) * dt, self.parameters[:, None], first_step=since)[0]
 
     def run(self, state: np.ndarray, dt: float, n_steps: int) -> np.ndarray:
         """Stored states (rows, :attr:`state_size`) of ``n_steps`` steps of ``dt`` [s] from ``state`` at ``t = 0``
@@ -420,11 +424,12 @@ class CompiledSceneScheme:
         return self.continue_run(state, np.zeros(len(self.actuators)), dt, n_steps, 0)
 
 
-def not_converged(compiled: Any, row: np.ndarray, h: float, partial: Any = None) -> ConvergenceError:
+def not_converged(compiled: Any, row: np.ndarray, h: float, partial: Any = None, offset: int = 0
+                  ) -> ConvergenceError:
     """The :class:`ConvergenceError` of a stored state ``row`` whose status says a step did not converge (its step,
-    time and residual; ``partial``: the result before it)."""
+    time and residual; ``partial``: the result before it; ``offset``: steps before the run's step count began)."""
     status = compiled.status_index
-    step = int(row[status])
+    step = offset + int(row[status])
     return ConvergenceError(
         f"generated implicit DT-TMM step {step} (t = {step * h:.6g} s) did not converge: residual max|delta qdd| = "
         f"{row[status + 1]:.3e} after at most {compiled.max_iterations} Newton iterations (tolerance "

@@ -6,13 +6,14 @@ controllers are sampled on the step grid by the one co-simulation master (:class
 and their outputs held, so between two sample instants the plant is a run of the generated scheme step
 (:class:`~ctmm.compiled_scene_schemes.CompiledSceneScheme`,
 :class:`~ctmm.compiled_spatial_schemes.CompiledSpatialScheme`) with the held outputs as its actuator inputs ``u``: one
-call into C per sample interval, continued at the interval's step index (Houbolt's start-up and time signals run on).
+call into C per sample interval, continued at the interval's step index (time signals run on; Houbolt's start-up
+begins again after every sample, as :meth:`ctmm.schemes.Scheme.restart` on the Python path).
 The sampling is the Python path's (:func:`ctmm.control.planar_time.simulate_closed_loop` through
 :func:`ctmm.planar.implicit.simulate_implicit` / :func:`ctmm.spatial.implicit.simulate_spatial_implicit` and their
 ``after_step`` hook): sampled at ``t = 0`` before the start
 acceleration (which includes their outputs), then after every step that ends at a sample instant, where the
 acceleration of the history is solved again with the new held outputs (``a_n`` and ``qddot_n``, the restart of the
-Python stepper; Houbolt keeps its earlier positions).  The result equals the Python path's
+Python stepper; Houbolt then runs its two start-up steps again, which keeps it at order two).  The result equals the Python path's
 to its Newton tolerance (``tests/test_compiled_scheme_cosim.py``).
 
 Open-loop actuator ``inputs`` that are numbers are added to the held values (also without controllers: one call
@@ -198,15 +199,15 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
                                    held, 0.0)
         times.append(0.0)
         rows.append(state)
-        k = 0
+        k = restart = 0                     # restart: the step where the scheme's start-up last began
         while k < n_steps:
             following = min(min(((k // ratio + 1) * ratio for ratio in master.ratios), default=n_steps), n_steps)
-            block = compiled.continue_run(state, held, dt, following - k, k)
+            block = compiled.continue_run(state, held, dt, following - k, k, since_start=k - restart)
             intervals += 1
             for j, row in enumerate(block):
                 step = k + 1 + j
                 if row[compiled.status_index] > 0.0:
-                    raise not_converged(compiled, row, dt)
+                    raise not_converged(compiled, row, dt, offset=restart)
                 guard(step * dt, row[:nq + nv], dt, label)
                 if step == following:       # sampled before the row is stored (also at the end), as the Python path
                     held, sampled = sample(step, row)
@@ -217,6 +218,8 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
             bar.update(len(block))
             if sampled and k < n_steps:     # the held outputs may have jumped: the acceleration at t_k with them
                 state = compiled.restarted(state, held, k * dt)
+                if scheme.restart_on_input_jump:    # a multistep scheme (Houbolt) starts up again (Scheme.restart)
+                    restart = k
     except SimulationError as exc:
         raise with_partial(exc, lambda: result(len(times))) from exc.__cause__
     finally:

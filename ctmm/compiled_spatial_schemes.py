@@ -304,15 +304,17 @@ class CompiledSpatialScheme:
         out[nq + n:nq + 2 * n] = out[nq + 2 * n:nq + 3 * n] = rates
         return out
 
-    def continue_run(self, state: np.ndarray, held: np.ndarray, dt: float, n_steps: int, first_step: int
-                     ) -> np.ndarray:
+    def continue_run(self, state: np.ndarray, held: np.ndarray, dt: float, n_steps: int, first_step: int,
+                     since_start: int | None = None) -> np.ndarray:
         """Stored states (rows, :attr:`state_size`) of ``n_steps`` steps of ``dt`` [s] from ``state`` at step
-        ``first_step`` with the input vector ``held`` over them (:mod:`ctmm.compiled_scheme_cosim`)."""
+        ``first_step`` with the input vector ``held`` over them (:mod:`ctmm.compiled_scheme_cosim`); ``since_start``
+        as :meth:`ctmm.compiled_scene_schemes.CompiledSceneScheme.continue_run`."""
         dt = validation.positive("dt", dt)
         check_step_scaling(self.scheme, self.maps, dt)
+        since = first_step if since_start is None else since_start
         return run_blocks(self._blocks, self._stride, self._step, self.store_every, np.asarray(state)[:, None],
                           np.asarray(held, dtype=float), dt, validation.integer("n_steps", n_steps, minimum=1),
-                          0.0, np.zeros((0, 1)), first_step=first_step)[0]
+                          (first_step - since) * dt, np.zeros((0, 1)), first_step=since)[0]
 
     def run(self, state: np.ndarray, dt: float, n_steps: int, inputs: Mapping[str, Any] | None = None) -> np.ndarray:
         """Stored states (rows, :attr:`state_size`) of ``n_steps`` steps of ``dt`` [s] from ``state`` at ``t = 0``
