@@ -179,3 +179,19 @@ def test_gravity_takes_the_dense_path_and_a_pole_is_handed_back():
         ctmm.frequency_response(undamped, [0.5 * first, first * (1.0 + 1e-12)], input="j1.torque", output="j1.angle")
     frf = ctmm.frequency_response(undamped, [0.5 * first, first * (1.0 + 1e-5)], input="j1.torque", output="j1.angle")
     assert frf.info["method"] == SWEEP and frf.info["n_dense_frequencies"] == 0
+
+
+def test_finite_element_subsystem_equals_the_global_fe_model():
+    """The FE L-frame chain of tests/test_spatial_fem.py (a ctmm.fem spatial subsystem between two links, Rayleigh
+    damping) in zero gravity against its global FE reference's (K + i omega C - omega^2 M)^-1."""
+    from test_spatial_fem import chain as fe_chain
+
+    model, reference = fe_chain(gravity=0.0, damping=3e-4)
+    point = operating_point(model)
+    omega = np.array([0.7, 3.0, 20.0, 55.0])
+    outputs = ["frame.n3_uz", "hinge.angle"]
+    frf = ctmm.frequency_response(model, omega, input="yaw.torque", output=outputs)
+    assert frf.info["method"] == SWEEP and frf.info["n_dense_frequencies"] == 0
+    expected = reference.frequency_response(point.q, omega, load=0, output=model.coordinates.index("frame.n3_uz"))
+    assert_close(frf.response[0, 0], expected, 1e-9)
+    assert_close(frf.response, dense(model, (), omega, ["yaw.torque"], outputs, point), 1e-9)
