@@ -195,3 +195,38 @@ def test_finite_element_subsystem_equals_the_global_fe_model():
     expected = reference.frequency_response(point.q, omega, load=0, output=model.coordinates.index("frame.n3_uz"))
     assert_close(frf.response[0, 0], expected, 1e-9)
     assert_close(frf.response, dense(model, (), omega, ["yaw.torque"], outputs, point), 1e-9)
+
+
+@pytest.mark.parametrize("steps, accurate", [(None, True), ((1e-3,), False)], ids=["cross_check_steps", "one_step"])
+def test_dense_fallback_keeps_the_exact_tangent_of_a_long_planar_chain(steps, accurate, monkeypatch):
+    """The dense path's error on the last link's angle of a long hanging chain (1.1e-4 at N = 100) came from its
+    tangent: the Richardson cross-check of the exact complex-step Jacobian, at one relative step 1e-3, exceeded
+    its tolerance past about 54 links and the tangent fell back to differences (~1e-8 max|A|).  With the steps
+    ctmm.planar_linearization.CROSS_CHECK_STEPS the complex step is kept and the resolvent equals the Lagrange
+    model to 1e-9 (the one-step variant shows the test can fail)."""
+    import sys
+    from pathlib import Path
+
+    import ctmm.planar_linearization as planar_linearization
+    from ctmm.reference.planar_lagrange import PlanarLagrange
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from planar_chain import chain
+
+    if steps is not None:
+        monkeypatch.setattr(planar_linearization, "CROSS_CHECK_STEPS", steps)
+    n, omega = 56, np.array([0.38, 0.48, 0.92, 3.0])
+    model = chain(n)
+    q0 = np.full(n, -np.pi / 2)
+    force, angle = f"link{n - 1}.force_x", f"link{n - 1}.theta"
+    got = delayed_loop_response(lambda a, b: planar_linearization.linearize_planar(model, (), (q0, np.zeros(n)),
+                                                                                   inputs=a, outputs=b),
+                                (), 1j * omega, [force], [angle], model.name)[0][0, 0]
+    reference = PlanarLagrange(model)
+    M, _, K = reference.linearize(q0)
+    column = reference.kinematics(q0, np.zeros(n), 0.0)["j_c"][n - 1][0]     # force_x at the last link's centre
+    row = np.zeros(n)
+    row[reference.src[n - 1]] = 1.0                                           # its absolute angle
+    expected = np.array([row @ np.linalg.solve(K - w * w * M, column) for w in omega])
+    error = float(np.max(np.abs(got - expected) / np.abs(expected)))
+    assert (error <= 1e-9) == accurate, error
