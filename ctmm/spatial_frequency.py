@@ -323,8 +323,7 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
     started = time.perf_counter()
 
     ports = SpatialPorts(model)
-    plant = _sweep_plant(model, loops, inputs, outputs, operating_point, ports)
-    point = operating_point if plant is None else plant.point
+    plant, point = _sweep_plant(model, loops, inputs, outputs, operating_point, ports)
     dense = int(s.size)
 
     def resolvent(part: np.ndarray) -> tuple[np.ndarray, Any]:
@@ -352,26 +351,32 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
 
 
 def _sweep_plant(model: Any, loops: Sequence[Any], inputs: Sequence[str], outputs: Sequence[str],
-                 operating_point: Any, ports: Any) -> Any:
+                 operating_point: Any, ports: Any) -> tuple[Any, Any]:
     """The :class:`~ctmm.spatial_transfer_response.SpatialSweepResponse` of the plant, or ``None`` where the
     sweep's frequency context does not state it or a name is not a plain port, tangent coordinate or loop signal
-    (the dense path answers, with its own messages)."""
+    (the dense path answers, with its own messages); and the operating point (as given where it was not
+    resolved here)."""
     from .spatial_linearization import operating_point as spatial_operating_point
     from .spatial_linearization import tangent_names
-    from .spatial_transfer_response import SpatialSweepResponse, sweep_applies
+    from .spatial_transfer_response import SpatialSweepResponse, model_applies, sweep_applies
 
+    if not model_applies(model):            # before the equilibrium search: the dense path makes its own
+        return None, operating_point
     loop_names = {lp.name for lp in loops}
     tangents = set(tangent_names(model)) | set(model.velocities)
     for name in inputs:
         head, _, tail = name.partition(".")
         if name not in ports.actuators and not (head in loop_names and tail == "reference"):
-            return None
+            return None, operating_point
     for name in outputs:
         head, _, tail = name.partition(".")
         if name not in ports.sensors and name not in tangents and not (head in loop_names and tail in ("y", "u")):
-            return None
+            return None, operating_point
     try:
         point = spatial_operating_point(model, operating_point)
-        return SpatialSweepResponse(model, point, ports) if sweep_applies(model, point) else None
     except ModelError:
-        return None
+        return None, operating_point        # the dense path refuses it with its message
+    try:
+        return (SpatialSweepResponse(model, point, ports) if sweep_applies(model, point) else None), point
+    except ModelError:                      # a static joint wrench: the dense path at the same point
+        return None, point

@@ -42,7 +42,7 @@ from .errors import ModelError
 from .ops import NUMPY
 from .sweep_response import ArticulatedResponse
 
-__all__ = ["SpatialSweepResponse", "sweep_applies", "PRELOAD_TOLERANCE"]
+__all__ = ["SpatialSweepResponse", "sweep_applies", "model_applies", "PRELOAD_TOLERANCE"]
 
 PRELOAD_TOLERANCE = 1e-10
 """Largest static joint wrench accepted as no preload, relative to ``1 + `` the largest entry of the mass
@@ -51,19 +51,22 @@ terms and joint stiffnesses (the round-off of an unloaded equilibrium)."""
 _STEP = 1e-30
 
 
+def model_applies(model: Any) -> bool:
+    """The part of :func:`sweep_applies` that does not depend on the operating point: no gravity, and no
+    elastic 6-DOF hinge or sprung spherical joint that is not driven."""
+    if np.any(np.asarray(model.gravity) != 0.0):
+        return False
+    return not any(not joint.driven and (joint.kind == "elastic6" or (joint.kind == "spherical"
+                                                                      and np.any(joint.stiffness)))
+                   for joint in model.joints)
+
+
 def sweep_applies(model: Any, point: Any) -> bool:
     """True when the frequency context states ``model`` about ``point`` (module docstring; the static
     joint wrenches are checked by :class:`SpatialSweepResponse`)."""
-    if not point.equilibrium or np.any(point.qdot != 0.0) or np.any(np.asarray(model.gravity) != 0.0):
+    if not point.equilibrium or np.any(point.qdot != 0.0) or not model_applies(model):
         return False
-    if any(np.any(np.asarray(load.values(point.t)) != 0.0) for load in model.loads):
-        return False
-    for joint in model.joints:
-        if joint.driven:
-            continue
-        if joint.kind == "elastic6" or (joint.kind == "spherical" and np.any(joint.stiffness)):
-            return False
-    return True
+    return not any(np.any(np.asarray(load.values(point.t)) != 0.0) for load in model.loads)
 
 
 class SpatialSweepResponse(ArticulatedResponse):
