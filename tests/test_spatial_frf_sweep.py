@@ -80,7 +80,8 @@ def test_rigid_tree_equals_the_newton_euler_reference(seed):
     q0 = turned(model, seed)
     inputs, forcing = joint_torques(model)
     outputs = list(tangent_names(model))
-    frf = ctmm.frequency_response(model, OMEGA, input=inputs, output=outputs, operating_point=(q0, np.zeros(model.n_velocities)))
+    frf = ctmm.frequency_response(model, OMEGA, input=inputs, output=outputs,
+                                  operating_point=(q0, np.zeros(model.n_velocities)))
     assert frf.info["method"] == SWEEP and frf.info["n_dense_frequencies"] == 0
     assert_close(frf.response, reference_response(model, q0, OMEGA, forcing), 1e-9)
 
@@ -167,6 +168,10 @@ def test_gravity_takes_the_dense_path_and_a_pole_is_handed_back():
     model = weightless(11, 4)
     loaded = sp.SpatialModel("loaded", list(model.bodies) + list(model.joints), gravity=(0.0, 0.0, -9.81))
     frf = ctmm.frequency_response(loaded, OMEGA[:2], input="j1.torque", output="j1.angle")
+    assert frf.info["method"] == DENSE
+    push = sp.Load("push", "b3", force=(0.0, 2.0, 0.0))            # a static load preloads the joints: dense
+    pushed = sp.SpatialModel("pushed", list(model.bodies) + list(model.joints) + [push], gravity=(0.0, 0.0, 0.0))
+    frf = ctmm.frequency_response(pushed, OMEGA[:2], input="j1.torque", output="j1.angle")
     assert frf.info["method"] == DENSE
     # omega = 0: the free spin of the unsprung ball joint is a pole; the sweep hands it to the resolvent, which refuses
     with pytest.raises(ModelError, match="singular at omega = 0.0"):
