@@ -44,7 +44,8 @@ in its ``"rebased"`` entry.  Replaced case: ``planar_chain/rk4_compiled_n5`` (th
 ``ctmm.planar.compiled``, removed in issue 13) is dropped; ``planar_chain/rk4_generated_n5`` (the same run
 through the generated RK4) was added in its place, measured alone on 2026-11-25 (``timings.added_later``;
 ``timings.dropped`` keeps the reason).  ``planar_frf/sweep_n20_500_omega`` (issue 13: planar frequency responses
-by the one sweep's frequency context) was measured alone when its benchmark landed (``timings.added_later``).  Python time-stepping cases whose
+by the one sweep's frequency context) and ``spatial_frf/sweep_n30_500_omega`` (issues 13/14: the same for spatial
+models) were measured alone when their benchmarks landed (``timings.added_later``).  Python time-stepping cases whose
 benchmark horizon would make the repeats slow run over a shorter horizon at the benchmark's step
 (stated in ``configuration``): the per-step cost does not depend on the horizon.
 
@@ -293,6 +294,17 @@ def _planar_frf(t: Timings) -> None:
                         "context batched over omega (ctmm.planar_transfer_response)")
 
 
+def _spatial_frf(t: Timings) -> None:
+    bench = importlib.import_module("spatial_frf")
+    n = 30
+    model = bench.chain(n)
+    bench.sweep(model, n)
+    t.add("spatial_frf", f"sweep_n{n}_500_omega", lambda: bench.sweep(model, n), per="call", count=1,
+          configuration=f"weightless sprung spatial revolute chain N={n} at rest (operating point given), "
+                        f"ctmm.frequency_response at {bench.OMEGA.size} omega, two inputs, two outputs: the one "
+                        "sweep's frequency context batched over omega (ctmm.spatial_transfer_response)")
+
+
 def _flexible(t: Timings) -> None:
     bench = importlib.import_module("flexible")
     from ctmm.planar import accelerations, simulate_implicit
@@ -461,7 +473,7 @@ def _kernel_cache(t: Timings) -> None:
 TIMING_PARTS = (_work_precision, _scaling, _control, _delay_history, _planar, _flexible, _manipulator,
                 _stability_chart, _compiled_scenes, _spatial_chain, _spatial_schemes, _chain_compiled,
                 _chain_schemes_generated, _chain_ode_speed, _compiled_cosim, _batch_parameters, _kernel_cache,
-                _planar_frf, _compiled_schemes_planar)
+                _planar_frf, _compiled_schemes_planar, _spatial_frf)
 
 
 def timings() -> dict:

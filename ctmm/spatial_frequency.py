@@ -23,9 +23,10 @@ them and the range above the highest must hold the count ``eigh`` claims, so no 
 :class:`~ctmm.errors.ModelError` otherwise).  A mode is rigid (``omega = 0``) only within its own round-off
 (:func:`rayleigh_modes`), never by a cut relative to the stiffest mode, so a slow mode beside a stiff part keeps its
 frequency; one above its round-off by less than :data:`RESOLUTION` is refused as unresolved.  The
-articulated *frequency context* of the sweep with ``d = 6`` (the planar :mod:`ctmm.planar_counting`) is not
-built for spatial bodies: their linear body terms need the geometric stiffness of joint axes that turn with
-the parent, not derived yet.
+articulated *frequency context* of the sweep with ``d = 6`` answers frequency responses at unloaded equilibria
+(:mod:`ctmm.spatial_transfer_response`); counting on it (the planar :mod:`ctmm.planar_counting`) is not built for
+spatial bodies: under a preload their linear terms need the geometric stiffness of joint axes that turn with the
+parent, not derived yet.
 """
 from __future__ import annotations
 
@@ -280,11 +281,17 @@ def eigenvalue_count(system: Any, omega: Any, *, operating_point: Any = None) ->
 
 def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  # noqa: A002
                        output: str | Sequence[str], operating_point: Any = None) -> FrequencyResponse:
-    """Frequency response ``C (i omega I - A)^-1 B`` of a spatial model's linearisation, loops closed.
+    """Frequency response of a spatial model's linearisation, loops closed with exact delays.
 
-    Loops of a ``ControlledModel`` without delay are closed inside the linearisation
-    (:func:`ctmm.linearize`); each delayed loop ``u = -C(s) e^{-s tau} (y - r)`` is closed here at every
-    frequency, exactly (:func:`ctmm.controlled_linearization.delayed_loop_response`, as for planar models).
+    At an unloaded equilibrium (no gravity, no applied loads, no static joint wrench; joints as listed in
+    :mod:`ctmm.spatial_transfer_response`) and with ports, tangent coordinates and loop signals as names, the
+    plant's ``G(s)`` comes from the one sweep's frequency context batched over ``omega`` and every loop
+    ``u = -C(s) e^{-s tau} (y - r)`` is closed at each frequency (:mod:`ctmm.sweep_response`); the frequencies
+    whose pivots or loop matrix it does not certify, and every other model, take the dense resolvent
+    ``C (i omega I - A)^-1 B`` of :func:`ctmm.linearize` (loops without delay closed inside ``A``, delayed
+    loops per frequency: :func:`ctmm.controlled_linearization.delayed_loop_response`), which refuses a
+    frequency at a pole.  ``info["method"]`` names the path, ``info["n_dense_frequencies"]`` the number of
+    frequencies the resolvent answered.
 
     Parameters
     ----------
@@ -315,13 +322,61 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
     s = 1j * validation.frequencies("omega", omega)
     started = time.perf_counter()
 
-    response, lin = delayed_loop_response(
-        lambda lin_in, lin_out: linearize_spatial(model, operating_point, inputs=lin_in, outputs=lin_out, loops=loops),
-        loops, s, inputs, outputs, model.name)
     ports = SpatialPorts(model)
+    plant, point = _sweep_plant(model, loops, inputs, outputs, operating_point, ports)
+    dense = int(s.size)
+
+    def resolvent(part: np.ndarray) -> tuple[np.ndarray, Any]:
+        return delayed_loop_response(
+            lambda lin_in, lin_out: linearize_spatial(model, point, inputs=lin_in, outputs=lin_out, loops=loops),
+            loops, part, inputs, outputs, model.name)
+
+    if plant is None:
+        response, lin = resolvent(s)
+        op = lin.operating_point
+    else:
+        from .sweep_response import closed_loop_response
+
+        response, good = closed_loop_response(plant, loops, s, inputs, outputs)
+        dense, op = int(np.sum(~good)), plant.point
+        if dense:                       # frequencies the sweep does not certify: the dense resolvent's rule
+            response[:, :, ~good] = resolvent(s[~good])[0]
     units = {name: ports.actuator_unit(name) for name in inputs if name in ports.actuators}
     units.update({name: ports.sensor_unit(name) for name in outputs if name in ports.sensors})
-    info = {"method": "linearisation (ctmm.linearize), delays exact", "wall_time_s": time.perf_counter() - started,
-            "n_frequencies": int(s.size), "operating_point_q": lin.operating_point.q.tolist(),
-            "jacobian_error": lin.operating_point.jacobian_error}
+    method = ("linearisation (ctmm.linearize), delays exact" if plant is None
+              else "one sweep's frequency context (ctmm.spatial_transfer_response), delays exact")
+    info = {"method": method, "wall_time_s": time.perf_counter() - started, "n_frequencies": int(s.size),
+            "n_dense_frequencies": dense, "operating_point_q": op.q.tolist(), "jacobian_error": op.jacobian_error}
     return FrequencyResponse(np.imag(s), response, tuple(inputs), tuple(outputs), model.name, info=info, units=units)
+
+
+def _sweep_plant(model: Any, loops: Sequence[Any], inputs: Sequence[str], outputs: Sequence[str],
+                 operating_point: Any, ports: Any) -> tuple[Any, Any]:
+    """The :class:`~ctmm.spatial_transfer_response.SpatialSweepResponse` of the plant, or ``None`` where the
+    sweep's frequency context does not state it or a name is not a plain port, tangent coordinate or loop signal
+    (the dense path answers, with its own messages); and the operating point (as given where it was not
+    resolved here)."""
+    from .spatial_linearization import operating_point as spatial_operating_point
+    from .spatial_linearization import tangent_names
+    from .spatial_transfer_response import SpatialSweepResponse, model_applies, sweep_applies
+
+    if not model_applies(model):            # before the equilibrium search: the dense path makes its own
+        return None, operating_point
+    loop_names = {lp.name for lp in loops}
+    tangents = set(tangent_names(model)) | set(model.velocities)
+    for name in inputs:
+        head, _, tail = name.partition(".")
+        if name not in ports.actuators and not (head in loop_names and tail == "reference"):
+            return None, operating_point
+    for name in outputs:
+        head, _, tail = name.partition(".")
+        if name not in ports.sensors and name not in tangents and not (head in loop_names and tail in ("y", "u")):
+            return None, operating_point
+    try:
+        point = spatial_operating_point(model, operating_point)
+    except ModelError:
+        return None, operating_point        # the dense path refuses it with its message
+    try:
+        return (SpatialSweepResponse(model, point, ports) if sweep_applies(model, point) else None), point
+    except ModelError:                      # a static joint wrench: the dense path at the same point
+        return None, point

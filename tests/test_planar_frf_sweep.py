@@ -125,7 +125,7 @@ RIGID_OUTPUTS = ["link2.theta", "link2.com.x", "link2.com.vy", "h1.angle"]
 
 @pytest.mark.parametrize("chunk", [512, 5])
 def test_rigid_chain_equals_the_lagrange_model(chunk, monkeypatch):
-    import ctmm.planar_transfer_response as sweep_module
+    import ctmm.sweep_response as sweep_module
 
     monkeypatch.setattr(sweep_module, "CHUNK", chunk)           # 5: the 37 frequencies swept 5 at a time
     model = rigid_chain()

@@ -1,0 +1,135 @@
+"""Spatial frequency responses: the one sweep's frequency context against the dense resolvent (issues 13/14).
+
+Problem: a serial chain of N rigid links (0.4 m, 1 kg, principal inertias (0.002, 0.014, 0.014) kg m^2) on
+revolute joints whose axes alternate z, y, x (stiffness 50 N m/rad, damping 0.2 N m s/rad, every joint
+actuated), in zero gravity at rest (the unloaded equilibrium the context states, ``ctmm.spatial_transfer_response``);
+``ctmm.frequency_response(chain, np.logspace(-1, 2, 500), input=["j<N-1>.torque", "link<N-1>.tip.force_y"],
+output=["j<N-1>.angle", "link<N-1>.tip.z"])``.
+
+Methods (one run, one machine):
+
+* ``sweep``      -- :func:`ctmm.frequency_response` with the operating point given: the one articulated sweep
+                    (``d = 6``) on the linearised terms, batched over the 500 frequencies, O(N) per frequency;
+* ``sweep_only`` -- :meth:`~ctmm.spatial_transfer_response.SpatialSweepResponse.response` alone (terms
+                    linearised beforehand): the per-frequency work;
+* ``resolvent``  -- the former path: :func:`ctmm.linearize` (complex-step tangent, 2N x 2N) and the dense
+                    ``(s I - A)^-1 B`` with a condition number per frequency
+                    (:func:`ctmm.controlled_linearization.delayed_loop_response`).
+
+Times: best wall time ``*_s`` and best CPU time ``*_cpu_s`` of this process.  Error: largest
+``|G_sweep - G_resolvent|`` over the frequencies, relative to the largest ``|G|`` of each (output, input) pair
+(the accuracy against the independent Newton-Euler and Lagrange references is in
+``tests/test_spatial_frf_sweep.py``).  Run ``python benchmarks/spatial_frf.py`` (``--quick``: N = 5 only;
+``--sizes``, default 5 and 30); writes ``benchmarks/results/spatial_frf.json``.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+import ctmm  # noqa: E402
+import ctmm.spatial as sp  # noqa: E402
+from ctmm.controlled_linearization import delayed_loop_response  # noqa: E402
+from ctmm.spatial_linearization import linearize_spatial, operating_point  # noqa: E402
+from ctmm.spatial_transfer_response import SpatialSweepResponse  # noqa: E402
+
+OMEGA = np.logspace(-1, 2, 500)
+RESULTS = ROOT / "benchmarks" / "results" / "spatial_frf.json"
+AXES = ((0.0, 0.0, 1.0), (0.0, 1.0, 0.0), (1.0, 0.0, 0.0))
+
+
+def chain(n: int) -> sp.SpatialModel:
+    """The weightless sprung chain of the module docstring."""
+    elements: list = []
+    for j in range(n):
+        elements.append(sp.SpatialBody(f"link{j}", 1.0, (0.002, 0.014, 0.014), center_of_mass=(0.2, 0.0, 0.0),
+                                       points={"tip": (0.4, 0.0, 0.0)}))
+        elements.append(sp.Revolute(name=f"j{j}", parent=None if j == 0 else f"link{j - 1}", child=f"link{j}",
+                                    point=(0.0, 0.0, 0.0) if j == 0 else "tip", axis=AXES[j % 3], stiffness=50.0,
+                                    damping=0.2, actuated=True))
+    return sp.SpatialModel(f"spatial_chain{n}", elements, gravity=(0.0, 0.0, 0.0))
+
+
+def ports(n: int) -> tuple[list, list]:
+    return [f"j{n - 1}.torque", f"link{n - 1}.tip.force_y"], [f"j{n - 1}.angle", f"link{n - 1}.tip.z"]
+
+
+def at_rest(model: sp.SpatialModel) -> tuple[np.ndarray, np.ndarray]:
+    return model.neutral(), np.zeros(model.n_velocities)
+
+
+def best(call, repeats: int) -> tuple[float, float, object]:
+    """Best wall time and best CPU time [s] of ``repeats`` calls and the last result."""
+    walls, cpus, result = [], [], None
+    for _ in range(repeats):
+        started, cpu = time.perf_counter(), time.process_time()
+        result = call()
+        walls.append(time.perf_counter() - started)
+        cpus.append(time.process_time() - cpu)
+    return min(walls), min(cpus), result
+
+
+def sweep(model: sp.SpatialModel, n: int, omega: np.ndarray = OMEGA):
+    inputs, outputs = ports(n)
+    return ctmm.frequency_response(model, omega, input=inputs, output=outputs, operating_point=at_rest(model))
+
+
+def resolvent(model: sp.SpatialModel, n: int, omega: np.ndarray = OMEGA) -> np.ndarray:
+    inputs, outputs = ports(n)
+    return delayed_loop_response(lambda a, b: linearize_spatial(model, at_rest(model), inputs=a, outputs=b), (),
+                                 1j * omega, inputs, outputs, model.name)[0]
+
+
+def run(n: int) -> dict:
+    model = chain(n)
+    inputs, outputs = ports(n)
+    plant = SpatialSweepResponse(model, operating_point(model, at_rest(model)))
+    cases = {"sweep": (lambda: sweep(model, n), 5),
+             "sweep_only": (lambda: plant.response(1j * OMEGA, inputs, outputs), 5),
+             "resolvent": (lambda: resolvent(model, n), 1)}
+    out, results = {"n_links": n, "n_frequencies": int(OMEGA.size)}, {}
+    for name, (call, count) in cases.items():
+        out[f"{name}_s"], out[f"{name}_cpu_s"], results[name] = best(call, count)
+    G, dense = results["sweep"].response, results["resolvent"]
+    scale = np.max(np.abs(dense), axis=-1, keepdims=True)
+    scale = np.where(scale > 0.0, scale, 1.0)           # a pair that is zero by structure: absolute error
+    out.update({"error_sweep_vs_resolvent": float(np.max(np.abs(G - dense) / scale)),
+                "dense_frequencies_in_sweep": results["sweep"].info["n_dense_frequencies"],
+                "method": results["sweep"].info["method"]})
+    print(json.dumps(out), flush=True)
+    return out
+
+
+def main(argv: list[str] | None = None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="N = 5 only")
+    parser.add_argument("--sizes", type=int, nargs="+", default=None)
+    parser.add_argument("--output", type=Path, default=RESULTS)
+    args = parser.parse_args(argv)
+    sizes = args.sizes or ([5] if args.quick else [5, 30])
+    resolvent(chain(2), 2, OMEGA[:2])                 # warm-up: the first linearisation imports and builds caches
+    rows = [run(n) for n in sizes]
+    result = {"benchmark": "spatial_frf", "machine": {"python": platform.python_version(), "numpy": np.__version__,
+                                                      "processor": platform.processor() or platform.machine(),
+                                                      "load_average": list(os.getloadavg())},
+              "frequencies": "np.logspace(-1, 2, 500) rad/s", "rows": rows}
+    args.output.parent.mkdir(parents=True, exist_ok=True)
+    args.output.write_text(json.dumps(result, indent=2) + "\n")
+    return result
+
+
+if __name__ == "__main__":
+    main()
