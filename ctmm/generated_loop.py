@@ -244,39 +244,30 @@ def _buffered(function: Any, fixed: Sequence[np.ndarray]) -> Any:
     """``call(y, k, shape)``: ``function(y, u, h, p, t0, k)`` with the ``fixed`` ``(u, h, p, t0)`` into a new C-ordered
     array of ``shape`` (the output's column-major data: a ``(rows, columns)`` output is ``(columns, rows)``).
 
-    One member (``y`` one column): through casadi's buffer interface, with no conversion through Python numbers
-    (a casadi ``DM`` result costs about 25 ns per number to convert, more than a generated step of a chain
-    spends per point).  A mapped function (a batch): the plain call (casadi 3.8's buffer of a ``map`` of these
-    functions returned NaN for the first member)."""
-    if function.size_in(0)[1] != 1:
-        import casadi as ca
-
-        u, h, p, t0 = (ca.DM(value) for value in fixed)
-
-        def plain(y: np.ndarray, k: int, shape: tuple) -> np.ndarray:
-            return np.asarray(function(y, u, h, p, t0, float(k))).T.reshape(shape)
-
-        return plain
+    Through casadi's buffer interface: no conversion through Python numbers (a casadi ``DM`` result costs about
+    25 ns per number to convert, more than a generated step of a chain spends per point).  The buffer holds
+    pointers to the input arrays: ``call`` keeps every one of them alive.  An input given for one member
+    (columns of ``y`` are members) is repeated over a mapped function's members."""
     buffer, evaluate = function.buffer()
-    arrays = []
+    arrays: list[np.ndarray] = []
 
-    def bind(index: int, value: np.ndarray) -> np.ndarray:
+    def bind(index: int, value: np.ndarray) -> None:
         data = np.ascontiguousarray(np.asarray(value, float).T).ravel()        # column-major
         need = function.nnz_in(index)
         if data.size != need:
             data = np.tile(data, need // max(data.size, 1)) if data.size else np.zeros(need)
-        arrays.append(data)                                                    # held: the buffer keeps a pointer
+        arrays.append(data)
         buffer.set_arg(index, memoryview(data))
-        return data
 
-    state = bind(0, np.zeros(function.size_in(0)))
+    bind(0, np.zeros(function.size_in(0)))
     for index, value in zip((1, 2, 3, 4), fixed):
         bind(index, value)
-    first = bind(5, np.zeros(1))
+    bind(5, np.zeros(1))
 
     def call(y: np.ndarray, k: int, shape: tuple) -> np.ndarray:
-        state[:] = np.asarray(y, float).T.ravel()
-        first[:] = float(k)
+        held = arrays                               # every input array, alive as long as the buffer is used
+        held[0][:] = np.asarray(y, float).T.ravel()
+        held[5][:] = float(k)
         result = np.empty(shape)
         buffer.set_res(0, memoryview(result.reshape(-1)))
         evaluate()
