@@ -21,7 +21,7 @@ the C, the two substitutions ``O(n)`` per step), or the constant inverse for cha
 every node.  Up to :data:`UNROLLED_POINTS` moving masses (``unrolled=``) the step is written out as
 straight-line scalar code (casadi ``expand``: the constants folded in, the zeros of the matrices and of the
 loops' rows dropped; code and compile time grow with ``n``); above, as vector operations with the substitutions
-as loops (code size independent of ``n``, about 2x slower per step).  A scheme's start-up (Houbolt's two Newmark steps,
+as loops (code size independent of ``n``, 2-3x slower per step).  A scheme's start-up (Houbolt's two Newmark steps,
 :attr:`~ctmm.schemes.Scheme.start_up_steps`) is the other branch of a short-circuit ``if_else`` on the steps since the
 history (re)started, the last entry of the state: :mod:`ctmm.compiled_cosim` sets it to zero where a held input jumps
 (:meth:`~ctmm.schemes.Scheme.restart`, as the Python path does).  The step, ``store_every`` strides and blocks of stored states are those
@@ -78,7 +78,7 @@ HISTORY = ("x", "v", "a", "x_old1", "x_old2")
 """The stored history of every point, in the order of the generated state."""
 UNROLLED_POINTS = 1000
 """Moving masses up to which :class:`CompiledChainScheme` writes its step out as straight-line code by default
-(``benchmarks/chain_schemes_generated.py``: 2x faster per step; 1000 masses compile in ~25 s instead of 3 s)."""
+(``benchmarks/chain_schemes_generated.py``: 2-3x faster per step; 1000 masses compile in 25-50 s, not 3 s)."""
 
 
 class SchemeMaps:
@@ -233,7 +233,7 @@ class CompiledChainScheme:
         Of :func:`ctmm.codegen.shared_library`.
     unrolled : bool, optional
         Generate the step as straight-line scalar code (every point's arithmetic written out, the constants
-        folded in: about 2x faster per step, code and compile time growing with the chain) instead of
+        folded in: 2-3x faster per step, code and compile time growing with the chain) instead of
         vector operations and substitution loops (code size independent of the chain).  Default: unrolled
         up to :data:`UNROLLED_POINTS` moving masses.
 
