@@ -17,8 +17,11 @@ The step imposes the equation of motion at the scheme's evaluation level, as the
 with the loads weighted ``(1 - w) s(t_n) + w s(t_n + h)`` (``w`` the scheme's load weight), so the
 correction of every node solves ``(C I - cx Ax - A Av) delta = Ax P_dx h + Av P_B h + f_eval - P_D h``:
 a tridiagonal matrix for chains without inerters, factorised once (its LU factors are constants of
-the C, the two substitutions loops in it: ``O(n)`` per step, code size independent of ``n``), or the
-constant inverse for chains whose inerters couple every node.  A scheme's start-up (Houbolt's two Newmark steps,
+the C, the two substitutions ``O(n)`` per step), or the constant inverse for chains whose inerters couple
+every node.  Up to :data:`UNROLLED_POINTS` moving masses (``unrolled=``) the step is written out as
+straight-line scalar code (casadi ``expand``: the constants folded in, the zeros of the matrices and of the
+loops' rows dropped; code and compile time grow with ``n``); above, as vector operations with the substitutions
+as loops (code size independent of ``n``, 2-3x slower per step).  A scheme's start-up (Houbolt's two Newmark steps,
 :attr:`~ctmm.schemes.Scheme.start_up_steps`) is the other branch of a short-circuit ``if_else`` on the steps since the
 history (re)started, the last entry of the state: :mod:`ctmm.compiled_cosim` sets it to zero where a held input jumps
 (:meth:`~ctmm.schemes.Scheme.restart`, as the Python path does).  The step, ``store_every`` strides and blocks of stored states are those
@@ -73,6 +76,9 @@ __all__ = ["SchemeMaps", "CompiledChainScheme", "check_scheme_options", "scheme_
 
 HISTORY = ("x", "v", "a", "x_old1", "x_old2")
 """The stored history of every point, in the order of the generated state."""
+UNROLLED_POINTS = 1000
+"""Moving masses up to which :class:`CompiledChainScheme` writes its step out as straight-line code by default
+(``benchmarks/chain_schemes_generated.py``: 2-3x faster per step; 1000 masses compile in 25-50 s, not 3 s)."""
 
 
 class SchemeMaps:
@@ -139,8 +145,9 @@ class SchemeMaps:
 
 def _solver(matrix: np.ndarray) -> Any:
     """A casadi ``Function`` ``rhs -> matrix^-1 rhs``: for a tridiagonal matrix its LU factors (no pivoting: the
-    step matrices are diagonally dominant) as constants and the two substitutions as ``mapaccum`` loops (a
-    loop in the C, so the code does not grow with the chain); else the constant inverse."""
+    step matrices are diagonally dominant; the reciprocals of the upper diagonal) as constants and the two
+    substitutions as ``mapaccum`` loops (a loop in the C, so the code does not grow with the chain; written out
+    when the step is expanded); else the constant inverse."""
     import casadi as ca
 
     m = matrix.shape[0]
@@ -157,11 +164,11 @@ def _solver(matrix: np.ndarray) -> Any:
     previous, factor, value, scale = (ca.SX.sym(label) for label in ("previous", "factor", "value", "scale"))
     forward = ca.Function("forward", [previous, factor, value], [value - factor * previous]).mapaccum("forward_all", m)
     backward = ca.Function("backward", [previous, factor, value, scale],
-                           [(value - factor * previous) / scale]).mapaccum("backward_all", m)
+                           [(value - factor * previous) * scale]).mapaccum("backward_all", m)
     reverse = list(range(m - 1, -1, -1))
     partial = forward(0, ca.DM(factors).T, rhs.T)
     solution = backward(0, ca.DM(np.concatenate([[0.0], upper[::-1]])).T, partial[:, reverse],
-                        ca.DM(diagonal[::-1]).T)
+                        ca.DM(1.0 / diagonal[::-1]).T)                       # reciprocals: no division per step
     return ca.Function("solve", [rhs], [solution[:, reverse].T])
 
 
@@ -224,6 +231,11 @@ class CompiledChainScheme:
         the generated step (the outputs of co-simulated controllers, :mod:`ctmm.compiled_cosim`).
     cache_dir, compiler
         Of :func:`ctmm.codegen.shared_library`.
+    unrolled : bool, optional
+        Generate the step as straight-line scalar code (every point's arithmetic written out, the constants
+        folded in: 2-3x faster per step, code and compile time growing with the chain) instead of
+        vector operations and substitution loops (code size independent of the chain).  Default: unrolled
+        up to :data:`UNROLLED_POINTS` moving masses.
 
     Attributes
     ----------
@@ -244,7 +256,8 @@ class CompiledChainScheme:
 
     def __init__(self, system: Any, dt: float, scheme: Any = "newmark", *, store_every: int = 1, rows: int = 64,
                  references: Mapping[str, Any] | None = None, actuators: Sequence[str] = (),
-                 cache_dir: str | os.PathLike | None = None, compiler: str | None = None) -> None:
+                 cache_dir: str | os.PathLike | None = None, compiler: str | None = None,
+                 unrolled: bool | None = None) -> None:
         import casadi as ca
 
         started = _time.perf_counter()
@@ -275,6 +288,9 @@ class CompiledChainScheme:
         self.held_columns = np.column_stack([form.B[:, actuators.index(name)] for name in self.actuators]) \
             if self.actuators else np.zeros((form.Ax.shape[0], 0))
         m = self.m = self.plant.n_positions
+        if unrolled is not None and not isinstance(unrolled, bool):
+            raise ModelError(f"unrolled must be True, False or None (up to {UNROLLED_POINTS} masses), got {unrolled!r}")
+        self.unrolled = m <= UNROLLED_POINTS if unrolled is None else unrolled
         self._certify(form)
         self.loops, size = [], 5 * m
         for loop in loops:
@@ -314,7 +330,7 @@ class CompiledChainScheme:
             f"_{len(self.actuators)}u" if self.actuators else "")
         # the step reads the chain, dt, the scheme, the references and the held actuators only (and the code):
         # described, a cached library loads without building it (else the key is the built step's)
-        description = describe((system, self.dt, self.scheme, references, self.actuators))
+        description = describe((system, self.dt, self.scheme, references, self.actuators, self.unrolled))
         options = {"cache_dir": cache_dir, "compiler": compiler}
         loop = compiled_time_loop(build()[0], self.store_every, rows, name, **options) if description is None else \
             compiled_time_loop(build, self.store_every, rows, name, description=[("chain scheme", description)],
@@ -409,7 +425,8 @@ class CompiledChainScheme:
                 new.append(ca.vertcat(y[lp.ring + 1:lp.ring + lp.steps + 1], sample))
         if self.start_up_index is not None:            # one more step since the history (re)started
             new.append(y[self.start_up_index] + 1.0)
-        return ca.Function(label, [y, t_n, u], [ca.vertcat(*new)])
+        step = ca.Function(label, [y, t_n, u], [ca.vertcat(*new)])
+        return step.expand() if self.unrolled else step
 
     def loop_forces(self, t: float, state: np.ndarray) -> list[float]:
         """``u`` [actuator unit] of every loop at ``t`` [s] in a generated ``state`` (a static real-time loop from

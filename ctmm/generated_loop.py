@@ -206,35 +206,73 @@ def run_blocks(blocks: list[tuple[int, Any]], stride: Any, step: Any, store_ever
     :func:`time_loop_functions`, mapped over the batch by ``casadi.Function.map`` (nothing generated
     or compiled); stops after the first block where every member holds a non-finite state.  ``first_step``:
     the index of the first step (steps at ``t0 + k h``, ``k`` from it: a run continued from a stored state)."""
-    import casadi as ca
-
     every, batch = store_every, y.shape[1]
     strides, rest = divmod(n_steps, every)
+    size_y = y.shape[0]
 
     def mapped(function: Any) -> Any:
         return function if batch == 1 else function.map(batch, parallelization, threads)
 
-    def members(value: Any, size: int) -> np.ndarray:          # (n, size B) -> (B, size, n)
-        return np.asarray(value).reshape(y.shape[0], batch, size).transpose(1, 2, 0)
-
-    u, p = ca.DM(u), ca.DM(p)                                   # converted once, not per call
+    fixed = (np.asarray(u, float), np.asarray(h, float), np.asarray(p, float), np.asarray(t0, float))
     out = []
     done = 0
     for size, function in blocks:
-        function = mapped(function) if done + size <= strides else function
+        if done + size > strides:
+            continue
+        call = _buffered(mapped(function), fixed)
         while done + size <= strides:
-            block = members(function(y, u, h, p, t0, float(first_step + done * every)), size)
+            block = call(y, first_step + done * every, (batch, size, size_y))      # (B, size, n)
             out.append(block)
             y = block[:, -1, :].T
             done += size
             if not np.any(np.all(np.isfinite(block), axis=(1, 2))):
                 return np.concatenate(out, axis=1)
-    stride, step = mapped(stride), mapped(step)
-    for j in range(done, strides):
-        y = np.asarray(stride(y, u, h, p, t0, float(first_step + j * every))).reshape(y.shape)
-        out.append(y.T[:, None, :])
-    for j in range(rest):
-        y = np.asarray(step(y, u, h, p, t0, float(first_step + strides * every + j))).reshape(y.shape)
+    if done < strides:
+        call = _buffered(mapped(stride), fixed)
+        for j in range(done, strides):
+            y = call(y, first_step + j * every, (batch, size_y)).T
+            out.append(y.T[:, None, :])
     if rest:
+        call = _buffered(mapped(step), fixed)
+        for j in range(rest):
+            y = call(y, first_step + strides * every + j, (batch, size_y)).T
         out.append(y.T[:, None, :])
     return np.concatenate(out, axis=1) if out else np.zeros((batch, 0, y.shape[0]))
+
+
+def _buffered(function: Any, fixed: Sequence[np.ndarray]) -> Any:
+    """``call(y, k, shape)``: ``function(y, u, h, p, t0, k)`` with the ``fixed`` ``(u, h, p, t0)`` into a new C-ordered
+    array of ``shape`` (the output's column-major data: a ``(rows, columns)`` output is ``(columns, rows)``).
+
+    Through casadi's buffer interface: no conversion through Python numbers (a casadi ``DM`` result costs about
+    25 ns per number to convert, more than a generated step of a chain spends per point).  The buffer holds
+    pointers to the input arrays: ``call`` keeps every one of them alive.  An input given for one member
+    (columns of ``y`` are members) is repeated over a mapped function's members."""
+    buffer, evaluate = function.buffer()
+    arrays: list[np.ndarray] = []
+
+    def bind(index: int, value: np.ndarray) -> None:
+        data = np.ascontiguousarray(np.asarray(value, float).T).ravel()        # column-major
+        need = function.nnz_in(index)
+        if data.size != need:
+            data = np.tile(data, need // max(data.size, 1)) if data.size else np.zeros(need)
+        arrays.append(data)
+        buffer.set_arg(index, memoryview(data))
+
+    bind(0, np.zeros(function.size_in(0)))
+    for index, value in zip((1, 2, 3, 4), fixed):
+        bind(index, value)
+    bind(5, np.zeros(1))
+
+    def call(y: np.ndarray, k: int, shape: tuple) -> np.ndarray:
+        held = arrays                               # every input array, alive as long as the buffer is used
+        held[0][:] = np.asarray(y, float).T.ravel()
+        held[5][:] = float(k)
+        result = np.empty(shape)
+        buffer.set_res(0, memoryview(result.reshape(-1)))
+        evaluate()
+        if buffer.ret():
+            raise RuntimeError(f"the generated function {function.name()!r} failed (status {buffer.ret()})")
+        return result
+
+    return call

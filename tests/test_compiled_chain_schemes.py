@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import ctmm
-from ctmm.compiled_chain_schemes import SchemeMaps
+from ctmm.compiled_chain_schemes import CompiledChainScheme, SchemeMaps, simulate_chain_scheme_generated
 from ctmm.control import ControlledChain, Feedback
 from ctmm.elements import Fixed, Free, Mass, Spring, SpringDamper
 from ctmm.errors import ModelError
@@ -60,7 +60,8 @@ def test_a_loaded_chain_weights_its_loads_as_the_scheme_does():
         assert np.max(np.abs(_positions(generated, ["m0", "m1"]) - _positions(python, ["m0", "m1"]))) < 1e-15
 
 
-def test_generated_newmark_is_a_global_textbook_newmark():
+@pytest.mark.parametrize("unrolled", [True, False])
+def test_generated_newmark_is_a_global_textbook_newmark(unrolled):
     chain, names, x0 = _chain()
     M, C, K = global_chain.assemble(to_global(chain))
     h, beta, gamma, steps = 1e-3, 0.3, 0.6, 200
@@ -75,7 +76,9 @@ def test_generated_newmark_is_a_global_textbook_newmark():
         a = np.linalg.solve(effective, -K @ x_pred - C @ v_pred)
         x, v = x_pred + beta * h * h * a, v_pred + gamma * h * a
         rows.append(x.copy())
-    generated = ctmm.simulate(chain, steps * h, h, method=Newmark(beta, gamma), x0=x0, compiled=True)
+    kernel = CompiledChainScheme(chain, h, Newmark(beta, gamma), unrolled=unrolled)    # straight-line code or loops
+    assert kernel.unrolled is unrolled
+    generated = simulate_chain_scheme_generated(chain, steps * h, h, Newmark(beta, gamma), x0=x0, compiled=kernel)
     assert np.max(np.abs(_positions(generated, names) - np.array(rows))) < 1e-13 * np.max(np.abs(rows))
 
 
@@ -123,6 +126,11 @@ def test_realtime_and_delayed_loops_close_as_the_python_dttmm_step(scheme):
     system, names, x0 = _controlled()
     references = {"rt": Harmonic(0.01, 20.0)}
     generated = ctmm.simulate(system, 0.2, 1e-3, method=scheme, x0=x0, compiled=True, references=references)
+    if scheme == "houbolt":                          # the loop form too: start-up branch, Woodbury, rings
+        kernel = CompiledChainScheme(system, 1e-3, scheme, references=references, unrolled=False)
+        assert kernel.unrolled is False
+        generated = simulate_chain_scheme_generated(system, 0.2, 1e-3, scheme, x0=x0, references=references,
+                                                    compiled=kernel)
     python = ctmm.simulate(system, 0.2, 1e-3, method=scheme, x0=x0, references=references)
     assert np.max(np.abs(_positions(generated, names) - _positions(python, names))) < 1e-12 * 0.05
     for name in ("rt.u", "late.u", "rt.y", "late.y"):
@@ -167,6 +175,8 @@ def test_lti_controllers_advance_as_the_python_dttmm_step(scheme):
 
 def test_what_the_generated_step_refuses():
     system, names, _ = _controlled()
+    with pytest.raises(ModelError, match="unrolled must be True, False or None"):
+        CompiledChainScheme(system, 1e-3, "newmark", unrolled="yes")
     with pytest.raises(ModelError, match="whole multiple"):
         ctmm.simulate(system, 0.012, 3e-3, method="newmark", compiled=True)
     saturated = system.with_loops([Feedback("s", f"{names[-1]}.x", names[0], gain=5.0, saturation=(-1.0, 1.0))])
