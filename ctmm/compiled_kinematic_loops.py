@@ -56,8 +56,8 @@ from .planar.closed_loops import KinematicLoopModel, KinematicLoopSimulation
 from .planar.elements import Fixed
 from .planar.ports import PlanarPorts
 
-__all__ = ["CONDITION_LIMIT", "PROJECTION_TOLERANCE", "CompiledKinematicLoops", "kinematic_loop_compile_refusal",
-           "simulate_kinematic_loops_generated"]
+__all__ = ["CONDITION_LIMIT", "PROJECTION_TOLERANCE", "CompiledKinematicLoops", "failure_message", "first_failure",
+           "kinematic_loop_compile_refusal", "projected_rk4_step", "simulate_kinematic_loops_generated"]
 
 PROJECTION_TOLERANCE = 1e-8
 """Largest ``max |Phi|`` [m] after the generated projection (the bound of a consistent initial state)."""
@@ -219,22 +219,7 @@ class CompiledKinematicLoops:
         projected_v = v - ca.mtimes(J.T, ca.solve(ca.mtimes(J, J.T), ca.mtimes(J, v)))
         project = ca.Function("project", [y], [ca.vertcat(projected_q, projected_v), ca.mmax(ca.fabs(residual))])
 
-        state, u = ca.MX.sym("y", self.state_size), ca.MX.sym("u", 0)
-        h, p_mx, t0, index = ca.MX.sym("h"), ca.MX.sym("p", n_p), ca.MX.sym("t0"), ca.MX.sym("k")
-        conditions: list = []
-
-        def stage_rate(stage: Any, x: Any) -> Any:
-            x_dot, stage_condition = rate(x, p_mx, stage)
-            conditions.append(stage_condition)
-            return x_dot
-
-        stepped = rk4_step(stage_rate, t0 + index * h, state[:2 * n], h)
-        projected, residual = project(stepped)
-        worst = conditions[0]
-        for value in conditions[1:]:
-            worst = ca.fmax(worst, value)
-        carried = ca.vertcat(ca.fmax(state[2 * n], residual), ca.fmax(state[2 * n + 1], worst))   # largest so far
-        step = ca.Function("step", [state, u, h, p_mx, t0, index], [ca.vertcat(projected, carried)])
+        step = projected_rk4_step(rate, project, 2 * n, n_p)
         return step, [outputs]
 
     # -- running --------------------------------------------------------------------------------------
@@ -242,11 +227,11 @@ class CompiledKinematicLoops:
         """Stored times [s] and states ``[q, qdot, residual, condition]`` (rows, :attr:`state_size`) of ``n_steps``
         steps of ``dt`` [s] from ``(q0, v0)`` at ``t = 0``, the initial state first (its residual and condition
         from the outputs function); the rows after the first non-finite block are not computed."""
-        n = self.model.tree.n_coordinates
+        size = self.state_size - 2
         y0 = np.concatenate([q0, v0, [0.0, 0.0]])
-        forces, phi, _, G = self._outputs(y0[:2 * n], self.parameters, 0.0)
-        y0[2 * n] = float(np.max(np.abs(np.asarray(phi))))
-        y0[2 * n + 1] = float(np.linalg.cond(np.asarray(G)))
+        _, phi, _, G = self._outputs(y0[:size], self.parameters, 0.0)
+        y0[size] = float(np.max(np.abs(np.asarray(phi))))
+        y0[size + 1] = float(np.linalg.cond(np.asarray(G)))
         states = run_blocks(self._blocks, self._stride, self._step, self.store_every, y0[:, None], np.zeros(0), dt,
                             n_steps, 0.0, self.parameters[:, None])[0]
         steps = np.array([k for k in range(1, n_steps + 1) if k % self.store_every == 0 or k == n_steps])
@@ -272,6 +257,49 @@ class CompiledKinematicLoops:
         forces, phi, phi_dot, G = self._outputs(np.concatenate([q, qdot]), self.parameters, float(t))
         return (np.asarray(forces).reshape(-1, 2), np.asarray(phi).reshape(-1), np.asarray(phi_dot).reshape(-1),
                 np.asarray(G))
+
+
+def projected_rk4_step(rate: Any, project: Any, size: int, n_parameters: int) -> Any:
+    """The generated ``step(y, u, h, p, t0, k)`` of a kinematic loop model on the state ``[x, residual, condition]``
+    (``x`` of ``size``): one RK4 step of ``rate`` (``(x, p, t) -> (x_dot, condition)``) from ``t0 + k h`` by ``h``
+    (:func:`ctmm.ode.rk4_step` on symbols), then ``project`` (``x -> (x, residual)``); ``residual`` and ``condition``
+    carried as the largest so far (the condition of the four stages)."""
+    import casadi as ca
+
+    state, u = ca.MX.sym("y", size + 2), ca.MX.sym("u", 0)
+    h, p, t0, index = ca.MX.sym("h"), ca.MX.sym("p", n_parameters), ca.MX.sym("t0"), ca.MX.sym("k")
+    conditions: list = []
+
+    def stage_rate(stage: Any, x: Any) -> Any:
+        x_dot, stage_condition = rate(x, p, stage)
+        conditions.append(stage_condition)
+        return x_dot
+
+    projected, residual = project(rk4_step(stage_rate, t0 + index * h, state[:size], h))
+    worst = conditions[0]
+    for value in conditions[1:]:
+        worst = ca.fmax(worst, value)
+    carried = ca.vertcat(ca.fmax(state[size], residual), ca.fmax(state[size + 1], worst))     # largest so far
+    return ca.Function("step", [state, u, h, p, t0, index], [ca.vertcat(projected, carried)])
+
+
+def first_failure(states: np.ndarray, size: int) -> int | None:
+    """The first stored row of ``[x, residual, condition]`` states (``x`` of ``size``) that is not finite, whose
+    residual exceeds :data:`PROJECTION_TOLERANCE` or whose condition exceeds :data:`CONDITION_LIMIT` (``None``)."""
+    bad = np.flatnonzero(~np.all(np.isfinite(states), axis=1) | (states[:, size] > PROJECTION_TOLERANCE)
+                         | (states[:, size + 1] > CONDITION_LIMIT))
+    return int(bad[0]) if bad.size else None
+
+
+def failure_message(state: np.ndarray, size: int, iterations: int) -> str:
+    """What failed in a row :func:`first_failure` found."""
+    if not np.all(np.isfinite(state)):
+        return "a non-finite state (a singular loop configuration or divergence)"
+    if state[size] > PROJECTION_TOLERANCE:
+        return (f"the projection onto the cut joints failed (|Phi| = {state[size]:.3e} after {iterations} "
+                f"Gauss-Newton steps; allowed <= {PROJECTION_TOLERANCE:g})")
+    return (f"the cut joints' boundary compliance is singular (condition {state[size + 1]:.2e} > {CONDITION_LIMIT:g}): "
+            "a singular configuration of the loop or redundant cut joints")
 
 
 def simulate_kinematic_loops_generated(model: KinematicLoopModel, q0: Any, qdot0: Any, *, t_final: float, dt: float,
@@ -323,16 +351,19 @@ def simulate_kinematic_loops_generated(model: KinematicLoopModel, q0: Any, qdot0
     t, states = compiled.run(np.asarray(q, float), np.asarray(v, float), h, n_steps)
     wall = _time.perf_counter() - started
     n = model.tree.n_coordinates
-    bad = np.flatnonzero(~np.all(np.isfinite(states), axis=1) | (states[:, 2 * n] > PROJECTION_TOLERANCE)
-                         | (states[:, 2 * n + 1] > CONDITION_LIMIT))
-    good = len(t) if bad.size == 0 else int(bad[0])
+    bad = first_failure(states, 2 * n)
+    good = len(t) if bad is None else bad
     forces, phi, phi_dot = compiled.cut_history(t[:good], states[:good])
     drift, drift_rate = np.max(np.abs(phi), axis=1), np.max(np.abs(phi_dot), axis=1)
-    if bad.size:
-        k = good
-        what, cut = _failure(model, compiled, states[k], n)
+    if bad is not None:
+        k = bad
+        cut = model.cuts[0].name
+        if np.all(np.isfinite(states[k])):        # the cut joint furthest apart
+            separation = np.abs(model.constraints(states[k, :n], states[k, n:2 * n])[0]).reshape(-1, 2).max(axis=1)
+            cut = model.cuts[int(np.argmax(separation))].name
         partial = _simulation(model, t[:k], states[:k], forces, drift, drift_rate, wall, n_steps)
-        raise SimulationError(f"kinematic loop {model.name!r} (generated RK4): {what} by t = {t[k]} s "
+        raise SimulationError(f"kinematic loop {model.name!r} (generated RK4): "
+                              f"{failure_message(states[k], 2 * n, compiled.iterations)} by t = {t[k]} s "
                               f"(after t = {t[k - 1] if k else 0.0} s, the last good stored state)",
                               time=float(t[k]), element=cut, partial_result=partial)
     return _simulation(model, t, states, forces, drift, drift_rate, wall, n_steps)
@@ -343,20 +374,3 @@ def _simulation(model: KinematicLoopModel, t: np.ndarray, states: np.ndarray, fo
     n = model.tree.n_coordinates
     return KinematicLoopSimulation(model, np.asarray(t), states[:, :n], states[:, n:2 * n], forces, drift, drift_rate,
                                    "rk4-generated", wall, 4 * n_steps)
-
-
-def _failure(model: KinematicLoopModel, compiled: CompiledKinematicLoops, state: np.ndarray, n: int
-             ) -> tuple[str, str]:
-    """``(what failed, cut joint)`` of a stored state that failed."""
-    first = model.cuts[0].name
-    if not np.all(np.isfinite(state)):
-        return "a non-finite state (a singular loop configuration or divergence)", first
-    worst = model.cuts[int(np.argmax(np.abs(model.constraints(state[:n], state[n:2 * n])[0]).reshape(-1, 2).max(
-        axis=1)))].name
-    if state[2 * n] > PROJECTION_TOLERANCE:
-        return (f"the projection onto the cut joints failed (|Phi| = {state[2 * n]:.3e} m after "
-                f"{compiled.iterations} Gauss-Newton steps; allowed <= {PROJECTION_TOLERANCE:g} m)", worst)
-    if state[2 * n + 1] > CONDITION_LIMIT:
-        return (f"the cut joints' boundary compliance is singular (condition {state[2 * n + 1]:.2e} > "
-                f"{CONDITION_LIMIT:g}): a singular configuration of the loop or redundant cut joints", first)
-    raise AssertionError("_failure of a good state")
