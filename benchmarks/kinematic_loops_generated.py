@@ -14,6 +14,11 @@ Methods (one run, one machine):
                    drift of the stored states); ``compile_s``: build, generate and compile in a fresh cache folder.
 * ``dae``       -- the reference: the global DAE (:mod:`ctmm.reference.planar_dae`, DOP853 at 1e-11).
 
+Spatial row: the R-U-S-R four-bar of ``scenarios/spatial_four_bar.py`` (spherical cut ``s3``, crank at 3 rad/s),
+``T`` at dt = 1 ms: :class:`ctmm.compiled_spatial_kinematic_loops.CompiledSpatialKinematicLoops` ``.run`` against
+:func:`ctmm.spatial.closed_loop_time.simulate_spatial_loops` (RK4 with projection), per-step times and their largest
+coordinate difference.
+
 Figures: per-step wall and CPU time [us] (best of 3), the largest angle difference generated - numpy [rad]
 (consistency: round-off) and the largest angle error of each against the DAE [rad].  Run
 ``python benchmarks/kinematic_loops_generated.py`` (``--quick``: T = 0.2 s); writes
@@ -39,6 +44,10 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from ctmm.compiled_kinematic_loops import CompiledKinematicLoops, simulate_kinematic_loops_generated  # noqa: E402
+from ctmm.compiled_spatial_kinematic_loops import (CompiledSpatialKinematicLoops,  # noqa: E402
+                                                   simulate_spatial_kinematic_loops_generated)
+from ctmm.scenarios import spatial_four_bar  # noqa: E402
+from ctmm.spatial.closed_loop_time import simulate_spatial_loops  # noqa: E402
 from ctmm.planar.closed_loops import simulate_kinematic_loops  # noqa: E402
 from ctmm.scenarios.four_bar import DAMPER, SPRING, mechanism, reference, start  # noqa: E402
 
@@ -64,6 +73,25 @@ def best(call, repeats: int = 3) -> tuple[float, float]:
         walls.append(time.perf_counter() - wall)
         cpus.append(time.process_time() - cpu)
     return min(walls), min(cpus)
+
+
+def spatial(t_final: float, steps: int) -> dict:
+    """The spatial row (module docstring)."""
+    loop = spatial_four_bar.mechanism()
+    q0, v0 = spatial_four_bar.start(loop)
+    kernel = CompiledSpatialKinematicLoops(loop)
+    run_wall, run_cpu = best(lambda: kernel.run(q0, v0, DT, steps))
+    numpy_wall, numpy_cpu = best(lambda: simulate_spatial_loops(loop, q0, v0, t_final=t_final, dt=DT), repeats=1)
+    generated = simulate_spatial_kinematic_loops_generated(loop, q0, v0, t_final=t_final, dt=DT, compiled=kernel)
+    numpy_run = simulate_spatial_loops(loop, q0, v0, t_final=t_final, dt=DT)
+    return {"spatial_problem": f"R-U-S-R four-bar (scenarios/spatial_four_bar.py), T = {t_final} s, dt = {DT} s",
+            "spatial_generated_run_us_per_step": 1e6 * run_wall / steps,
+            "spatial_generated_run_cpu_us_per_step": 1e6 * run_cpu / steps,
+            "spatial_numpy_us_per_step": 1e6 * numpy_wall / steps,
+            "spatial_numpy_cpu_us_per_step": 1e6 * numpy_cpu / steps,
+            "spatial_speedup_run_cpu": numpy_cpu / run_cpu,
+            "spatial_generated_minus_numpy": float(np.max(np.abs(generated.q - numpy_run.q))),
+            "spatial_max_drift": float(np.max(generated.drift))}
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -102,6 +130,7 @@ def main(argv: list[str] | None = None) -> dict:
            "generated_vs_dae_rad": float(np.max(np.abs(generated.q - angles))),
            "numpy_vs_dae_rad": float(np.max(np.abs(numpy_run.q - angles))),
            "max_drift_m": float(np.max(generated.drift))}
+    out.update(spatial(t_final, steps))
     for key, value in out.items():
         print(f"{key:36s} {value}")
     if not args.quick:

@@ -56,7 +56,8 @@ from .planar.closed_loops import KinematicLoopModel, KinematicLoopSimulation
 from .planar.elements import Fixed
 from .planar.ports import PlanarPorts
 
-__all__ = ["CONDITION_LIMIT", "PROJECTION_TOLERANCE", "CompiledKinematicLoops", "failure_message", "first_failure",
+__all__ = ["CONDITION_LIMIT", "PROJECTION_TOLERANCE", "CompiledKinematicLoops", "check_consistent", "failure_message",
+           "first_failure", "generated_run",
            "kinematic_loop_compile_refusal", "projected_rk4_step", "simulate_kinematic_loops_generated"]
 
 PROJECTION_TOLERANCE = 1e-8
@@ -126,22 +127,18 @@ class CompiledKinematicLoops:
         Wall time of building, generating and compiling (or loading from the cache) [s].
     """
 
-    def __init__(self, model: KinematicLoopModel, *, store_every: int = 1, rows: int = DEFAULT_ROWS,
-                 iterations: int = 3, cache_dir: str | os.PathLike | None = None, compiler: str | None = None) -> None:
-        reason = kinematic_loop_compile_refusal(model)
+    def __init__(self, model: Any, *, store_every: int = 1, rows: int = DEFAULT_ROWS, iterations: int = 3,
+                 cache_dir: str | os.PathLike | None = None, compiler: str | None = None) -> None:
+        reason = self._refusal(model)
         if reason:
-            raise ModelError(f"CompiledKinematicLoops: {reason}")
+            raise ModelError(f"{type(self).__name__}: {reason}")
         self.store_every = validation.integer("store_every", store_every, minimum=1)
         self.rows = validation.integer("rows", rows, minimum=1)
         self.iterations = validation.integer("iterations", iterations, minimum=1)
         start = _time.perf_counter()
         self.model = model
-        self.parameters = parameter_vector(model.tree)
-        n = model.tree.n_coordinates
-        self.state_size = 2 * n + 2
-        name = f"kinematic_loops_{model.tree.n_bodies}b{n}q{len(model.cuts)}c"
-        description = describe((model.tree, model.cuts, model.baumgarte, model.foreshortening, self.iterations,
-                                "planar kinematic loop rk4 with projection"))
+        self.parameters, self.state_size, name, parts = self._layout()
+        description = describe((*parts, self.iterations))
         options = {"cache_dir": cache_dir, "compiler": compiler}
         if description is None:         # something in the tree cannot be described: key on the built functions
             step, extra = self._build()
@@ -151,6 +148,16 @@ class CompiledKinematicLoops:
                                       description=[("kinematic loop model", description)], **options)
         (self._outputs,), self._step, self._stride, self._blocks = loop.extra, loop.step, loop.stride, loop.blocks
         self.compile_time_s = _time.perf_counter() - start
+
+    @staticmethod
+    def _refusal(model: Any) -> str:
+        return kinematic_loop_compile_refusal(model)
+
+    def _layout(self) -> tuple[np.ndarray, int, str, tuple]:
+        """``(parameters, state size, library name, what the builder reads)``."""
+        model, n = self.model, self.model.tree.n_coordinates
+        return (parameter_vector(model.tree), 2 * n + 2, f"kinematic_loops_{model.tree.n_bodies}b{n}q{len(model.cuts)}c",
+                (model.tree, model.cuts, model.baumgarte, model.foreshortening, "planar kinematic loop rk4"))
 
     # -- the expressions ------------------------------------------------------------------------------
     def _build(self) -> tuple[Any, list]:
@@ -259,6 +266,35 @@ class CompiledKinematicLoops:
                 np.asarray(G))
 
 
+def generated_run(kind: type, model: Any, q: np.ndarray, v: np.ndarray, t_final: float, dt: float, store_every: int,
+                  compiled: Any, cache_dir: str | os.PathLike | None) -> tuple[Any, np.ndarray, np.ndarray, float, int]:
+    """The generated run of the simulate functions: ``compiled`` checked (an instance of ``kind``, a
+    :class:`CompiledKinematicLoops` class, of ``model`` with ``store_every``) or built, the start checked
+    (:func:`check_consistent`), ``round(t_final / dt)`` steps of ``dt`` [s]; ``(compiled, t, states, wall time [s],
+    steps)``."""
+    if compiled is None:
+        compiled = kind(model, store_every=store_every, cache_dir=cache_dir)
+    elif not isinstance(compiled, kind) or compiled.model is not model or compiled.store_every != store_every:
+        raise ModelError(f"compiled must be a {kind.__name__} of this model with store_every={store_every!r}, got "
+                         f"{compiled!r:.80}")
+    t_final, h = validation.positive("t_final", t_final), validation.positive("dt", dt)
+    check_consistent(model, q, v)
+    n_steps = max(1, int(round(t_final / h)))
+    started = _time.perf_counter()
+    t, states = compiled.run(np.asarray(q, float), np.asarray(v, float), h, n_steps)
+    return compiled, t, states, _time.perf_counter() - started, n_steps
+
+
+def check_consistent(model: Any, q: np.ndarray, v: np.ndarray) -> None:
+    """:class:`ModelError` unless ``(q, v)`` is on the cut joints of ``model`` (planar or spatial kinematic loop
+    model): ``|Phi| <= 1e-8``, ``|Phi'| <= 1e-8`` (m, rad, per second)."""
+    phi, phi_dot = model.constraints(q, v)
+    if np.max(np.abs(phi)) > 1e-8 or np.max(np.abs(phi_dot)) > 1e-8:
+        raise ModelError(f"{type(model).__name__} {model.name!r}: the initial state violates the cut joints (|Phi| = "
+                         f"{np.max(np.abs(phi)):.3e}, |Phi'| = {np.max(np.abs(phi_dot)):.3e}; allowed <= 1e-8); start "
+                         f"from {type(model).__name__}.consistent_state")
+
+
 def projected_rk4_step(rate: Any, project: Any, size: int, n_parameters: int) -> Any:
     """The generated ``step(y, u, h, p, t0, k)`` of a kinematic loop model on the state ``[x, residual, condition]``
     (``x`` of ``size``): one RK4 step of ``rate`` (``(x, p, t) -> (x_dot, condition)``) from ``t0 + k h`` by ``h``
@@ -333,23 +369,9 @@ def simulate_kinematic_loops_generated(model: KinematicLoopModel, q0: Any, qdot0
         A non-finite state, a failed projection or a singular loop configuration: the time, the cut joint and the
         partial :class:`KinematicLoopSimulation` up to the last good state.
     """
-    if compiled is None:
-        compiled = CompiledKinematicLoops(model, store_every=store_every, cache_dir=cache_dir)
-    elif not isinstance(compiled, CompiledKinematicLoops) or compiled.model is not model \
-            or compiled.store_every != store_every:
-        raise ModelError(f"compiled must be a CompiledKinematicLoops of this model with store_every={store_every!r}, "
-                         f"got {compiled!r}")
-    t_final, h = validation.positive("t_final", t_final), validation.positive("dt", dt)
     q, v = model.tree.state(q0, qdot0)
-    phi, phi_dot = model.constraints(q, v)
-    if np.max(np.abs(phi)) > 1e-8 or np.max(np.abs(phi_dot)) > 1e-8:
-        raise ModelError(f"kinematic loop {model.name!r}: the initial state violates the cut joints (|Phi| = "
-                         f"{np.max(np.abs(phi)):.3e} m, |Phi'| = {np.max(np.abs(phi_dot)):.3e} m/s; allowed <= 1e-8); "
-                         "start from KinematicLoopModel.consistent_state")
-    n_steps = max(1, int(round(t_final / h)))
-    started = _time.perf_counter()
-    t, states = compiled.run(np.asarray(q, float), np.asarray(v, float), h, n_steps)
-    wall = _time.perf_counter() - started
+    compiled, t, states, wall, n_steps = generated_run(CompiledKinematicLoops, model, q, v, t_final, dt, store_every,
+                                                       compiled, cache_dir)
     n = model.tree.n_coordinates
     bad = first_failure(states, 2 * n)
     good = len(t) if bad is None else bad

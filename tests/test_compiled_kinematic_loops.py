@@ -117,3 +117,85 @@ def test_refusals():
         simulate_kinematic_loops_generated(loop, q0 + 0.1, v0, t_final=0.01, dt=1e-3)
     with pytest.raises(ModelError, match="CompiledKinematicLoops of this model"):
         simulate_kinematic_loops_generated(loop, q0, v0, t_final=0.01, dt=1e-3, compiled="a kernel")
+
+
+# -- spatial cut joints (ctmm.compiled_spatial_kinematic_loops) ---------------------------------------------------
+def _spatial_cases():
+    from spatial_loop_helpers import hinged_pendulum, hooke_pendulum, rusr
+
+    four_bar = rusr()
+    pendulum = hinged_pendulum()
+    hooke = hooke_pendulum()
+    return {
+        "spherical (RUSR four-bar)": (four_bar, four_bar.consistent_state(
+            {"h1.angle": 0.1, "h4.angle": 0.1}, {"h1.angle_rate": 3.0}, keep=["h1"])),
+        "revolute (free body)": (pendulum, pendulum.consistent_state(
+            {"free.qw": np.cos(0.25), "free.qy": np.sin(0.25), "free.x": 0.01}, {"free.wy": 2.0}, keep=["free.wy"])),
+        "universal (free body)": (hooke, hooke.consistent_state(
+            {"free.qw": np.cos(0.15), "free.qx": np.sin(0.15), "free.x": 0.01},
+            {"free.wx": 1.5, "free.wy": -2.0, "free.wz": 0.7})),
+    }
+
+
+SPATIAL = _spatial_cases()
+
+
+@pytest.mark.parametrize("case", list(SPATIAL))
+def test_spatial_generated_run_equals_numpy_and_matches_the_dae(case):
+    """Against the numpy RK4 with projection (<= 1e-12) and the global DAE (tests/test_spatial_closed_loops.py's
+    bounds: rotations and positions 1e-9, cut loads 1e-7 relative)."""
+    from spatial_loop_helpers import dae_of, poses
+
+    from ctmm.compiled_spatial_kinematic_loops import simulate_spatial_kinematic_loops_generated
+    from ctmm.spatial.closed_loop_time import simulate_spatial_loops
+
+    loop, (q, v) = SPATIAL[case]
+    generated = simulate_spatial_kinematic_loops_generated(loop, q, v, t_final=0.06, dt=2e-3)
+    numpy_run = simulate_spatial_loops(loop, q, v, t_final=0.06, dt=2e-3)
+    assert generated.method == "rk4-generated"
+    np.testing.assert_array_equal(generated.t, numpy_run.t)
+    assert np.max(np.abs(generated.q - numpy_run.q)) <= 1e-12 and np.max(np.abs(generated.v - numpy_run.v)) <= 1e-12
+    for name in ("cut_force", "cut_moment"):
+        ours, theirs = getattr(generated, name), getattr(numpy_run, name)
+        assert np.max(np.abs(ours - theirs)) <= 1e-12 * max(1.0, np.max(np.abs(theirs))), name
+    assert generated.drift.max() < 1e-14 and generated.drift_rate.max() < 1e-13
+    dae = dae_of(loop)
+    t, Y = dae.simulate(dae.state(*poses(loop, generated.q[0], generated.v[0])), generated.t)
+    angle = position = 0.0
+    for k in range(len(t)):
+        x, R, _, _ = poses(loop, generated.q[k], generated.v[k])
+        angle = max(angle, max(np.abs(a - b).max() for a, b in zip(R, dae.rotations(Y[k]))))
+        position = max(position, max(np.abs(a - b).max() for a, b in zip(x, dae.split(Y[k])[0])))
+    assert angle < 1e-9 and position < 1e-9
+    force = dae.accelerations(Y[-1])[1][-loop.n_constraints:][:3]     # the cut's rows are the DAE's last
+    assert np.max(np.abs(force - generated.cut_force[-1, 0])) < 1e-7 * np.max(np.abs(force))
+
+
+def test_spatial_simulate_verb_with_compiled_true():
+    loop, (q, v) = SPATIAL["spherical (RUSR four-bar)"]
+    generated = ctmm.simulate(loop, 0.02, 2e-3, x0=q, v0=v, compiled=True)
+    plain = ctmm.simulate(loop, 0.02, 2e-3, x0=q, v0=v)
+    assert generated.info["compiled"] is True and generated["s3.force_z"].shape == (11,)
+    for name in ("h1.angle", "s3.force_z", "drift"):
+        assert np.max(np.abs(generated[name] - plain[name])) <= 1e-12 * max(1.0, np.max(np.abs(plain[name]))), name
+    with pytest.raises(ModelError, match="compiled=True runs the generated RK4.*alone"):
+        ctmm.simulate(loop, 0.02, 2e-3, x0=q, v0=v, compiled=True, outputs=["h1.angle"])
+
+
+def test_spatial_refusals_and_failures():
+    from ctmm.compiled_spatial_kinematic_loops import simulate_spatial_kinematic_loops_generated
+    from ctmm.spatial.closed_loops import SpatialCutJoint, SpatialKinematicLoopModel
+
+    loop, (q, v) = SPATIAL["spherical (RUSR four-bar)"]
+    slider = SpatialKinematicLoopModel(loop.tree, [SpatialCutJoint(name="p3", parent="rocker", point="tip",
+                                                                   child="coupler", child_point="tip",
+                                                                   kind="prismatic")])
+    with pytest.raises(ModelError, match="prismatic cut joints \\(p3\\)"):
+        simulate_spatial_kinematic_loops_generated(slider, q, v, t_final=0.01, dt=1e-3)
+    with pytest.raises(ModelError, match="violates the cut joints"):
+        simulate_spatial_kinematic_loops_generated(loop, q + 0.1, v, t_final=0.01, dt=1e-3)
+    with pytest.raises(SimulationError, match="projection onto the cut joints failed") as failure:
+        simulate_spatial_kinematic_loops_generated(loop, q, 30 * v, t_final=1.0, dt=0.05)
+    partial = failure.value.partial_result
+    assert failure.value.element == "s3" and failure.value.time == pytest.approx(partial.t[-1] + 0.05)
+    assert partial.q.shape == (len(partial.t), 4) and partial.cut_force.shape == (len(partial.t), 1, 3)
