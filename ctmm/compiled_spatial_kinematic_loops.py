@@ -7,9 +7,12 @@ projection onto the cut joints after it, the time loop in generated C.  On casad
 
 * the tree's velocity rates are the generated articulated sweep of its terms on :data:`ctmm.ops.CASADI`
   (:class:`ctmm.spatial.body_forms.SpatialScene`), the cut loads applied as wrenches at the cut points (the force
-  ``lambda`` [N] on the child point and, for revolute and universal cuts, the moments ``mu_i n_i`` [N m],
-  ``n_i = u_i x b_i``; their opposites on the parent point), so ``1 + m`` sweeps give ``v' = v'_0 + D lambda``;
-* ``Phi`` and ``Phi'`` from the same terms' body states (separation ``d = x_c - x_p`` [m], alignments ``u_i . b_i``),
+  ``lambda`` [N] on the child point -- prismatic: ``lambda_j p_j`` -- and for revolute, universal and prismatic cuts
+  the moments ``mu_i n_i`` [N m], ``n_i = u_i x b_i``; their opposites on the parent, a prismatic cut's force at the
+  child point, i.e. at the parent point with the moment ``d x f`` added), so ``1 + m`` sweeps give
+  ``v' = v'_0 + D lambda``;
+* ``Phi`` and ``Phi'`` from the same terms' body states (separation ``d = x_c - x_p`` [m] -- prismatic: ``d . p_j``
+  -- and alignments ``u_i . b_i``),
   ``J = dPhi'/dv``, ``Phi'' = J v' + (dPhi'/dq) G(q) v`` (``q_dot = G(q) v``, quaternions), ``G = J D`` and
   ``G lambda = -Phi''_0 - 2 alpha Phi' - alpha^2 Phi``;
 * after the RK4 step: quaternions normalised, ``iterations`` minimum-norm Gauss-Newton steps
@@ -18,8 +21,8 @@ projection onto the cut joints after it, the time loop in generated C.  On casad
 
 State, failures and result as :mod:`ctmm.compiled_kinematic_loops` (residual and condition carried in the state,
 :class:`~ctmm.errors.SimulationError` with time, cut joint and partial result).  Refused (:class:`ModelError`, by
-name): trees :func:`ctmm.compiled_spatial.spatial_compile_refusal` refuses, driven joints, prismatic cuts (their load
-point moves on the parent), and with feedback loops, inputs or controllers (:mod:`ctmm.spatial_loop_time`).
+name): trees :func:`ctmm.compiled_spatial.spatial_compile_refusal` refuses, driven joints (their prescribed motion enters
+``Phi'`` and ``Phi''`` explicitly in time, which the generated step does not differentiate), and with feedback loops, inputs or controllers (:mod:`ctmm.spatial_loop_time`).
 """
 from __future__ import annotations
 
@@ -54,12 +57,8 @@ def spatial_kinematic_loop_compile_refusal(model: Any) -> str:
         return f"its tree cannot be compiled: {reason}"
     driven = [joint.name for joint in model.tree.joints if joint.driven]
     if driven:
-        return (f"its tree has driven joints ({', '.join(driven)}): their rates make Phi' affine, not linear, in the "
-                "velocities; use compiled=None")
-    prismatic = [cut.name for cut in model.cuts if cut.kind == "prismatic"]
-    if prismatic:
-        return (f"prismatic cut joints ({', '.join(prismatic)}) load the parent at the moving child point, not in the "
-                "generated step yet; use compiled=None")
+        return (f"its tree has driven joints ({', '.join(driven)}): their prescribed motion enters Phi' and Phi'' "
+                "explicitly in time, not in the generated step yet; use compiled=None")
     return ""
 
 
@@ -126,6 +125,9 @@ class CompiledSpatialKinematicLoops(CompiledKinematicLoops):
             arm = ca.mtimes(s.rotation, ca.DM(location))
             return s.origin + arm, s.velocity + ca.cross(s.omega, arm)
 
+        def parent_fixed(states: list, parent: tuple[int, np.ndarray], local: np.ndarray) -> Any:
+            return ca.DM(local) if parent[0] < 0 else ca.mtimes(states[parent[0]].rotation, ca.DM(local))
+
         def rows(q_: Any, v_: Any) -> tuple[Any, Any]:
             states = kinematics(q_, v_)
             phi, rate = [], []
@@ -134,8 +136,13 @@ class CompiledSpatialKinematicLoops(CompiledKinematicLoops):
                 xc, vc = point(states, child)
                 omega_c = states[child[0]].omega
                 omega_p = ca.DM.zeros(3) if parent[0] < 0 else states[parent[0]].omega
-                phi.append(xc - xp)
-                rate.append(vc - vp)
+                if frame.basis is None:
+                    phi.append(xc - xp)
+                    rate.append(vc - vp)
+                for b_local in frame.basis or ():        # prismatic: d . b_j, b_j parent-fixed
+                    b = parent_fixed(states, parent, b_local)
+                    phi.append(ca.dot(xc - xp, b))
+                    rate.append(ca.dot(vc - vp, b) + ca.dot(xc - xp, ca.cross(omega_p, b)))
                 for u_local, b_local in frame.pairs:
                     u = ca.mtimes(states[child[0]].rotation, ca.DM(u_local))
                     b = ca.DM(b_local) if parent[0] < 0 else ca.mtimes(states[parent[0]].rotation, ca.DM(b_local))
@@ -148,8 +155,15 @@ class CompiledSpatialKinematicLoops(CompiledKinematicLoops):
             out: dict[int, list] = {}
             row = 0
             for (parent, child), frame in zip(sides, frames):
-                force, moment = values[row:row + 3], ca.DM.zeros(3)
-                row += 3
+                if frame.basis is None:
+                    force = values[row:row + 3]
+                    row += 3
+                else:                                   # prismatic: lambda_j b_j
+                    force = ca.DM.zeros(3)
+                    for b_local in frame.basis:
+                        force = force + values[row] * parent_fixed(states, parent, b_local)
+                        row += 1
+                moment = ca.DM.zeros(3)
                 for u_local, b_local in frame.pairs:
                     u = ca.mtimes(states[child[0]].rotation, ca.DM(u_local))
                     b = ca.DM(b_local) if parent[0] < 0 else ca.mtimes(states[parent[0]].rotation, ca.DM(b_local))
@@ -157,8 +171,10 @@ class CompiledSpatialKinematicLoops(CompiledKinematicLoops):
                     row += 1
                 load = ca.vertcat(force, moment)
                 out.setdefault(child[0], []).append((child[1], load))
-                if parent[0] >= 0:
-                    out.setdefault(parent[0], []).append((parent[1], -load))
+                if parent[0] >= 0:                      # prismatic: the force acts at the child point
+                    shift = ca.DM.zeros(3) if frame.basis is None else ca.cross(
+                        point(states, child)[0] - point(states, parent)[0], force)
+                    out.setdefault(parent[0], []).append((parent[1], -ca.vertcat(force, moment + shift)))
             return out
 
         states = kinematics(q, v)

@@ -184,14 +184,18 @@ def test_spatial_simulate_verb_with_compiled_true():
 
 def test_spatial_refusals_and_failures():
     from ctmm.compiled_spatial_kinematic_loops import simulate_spatial_kinematic_loops_generated
-    from ctmm.spatial.closed_loops import SpatialCutJoint, SpatialKinematicLoopModel
+    import ctmm.spatial as sp
+    from ctmm.spatial.closed_loops import SpatialKinematicLoopModel
+    from ctmm.scenarios.spatial_four_bar import DOWN
 
     loop, (q, v) = SPATIAL["spherical (RUSR four-bar)"]
-    slider = SpatialKinematicLoopModel(loop.tree, [SpatialCutJoint(name="p3", parent="rocker", point="tip",
-                                                                   child="coupler", child_point="tip",
-                                                                   kind="prismatic")])
-    with pytest.raises(ModelError, match="prismatic cut joints \\(p3\\)"):
-        simulate_spatial_kinematic_loops_generated(slider, q, v, t_final=0.01, dt=1e-3)
+    joints = {joint.name: joint for joint in loop.tree.joints}
+    held = sp.Revolute(name="h1", parent=None, child="crank", axis=(1, 0, 0), rotation=DOWN, position=0.1, rate=0.0,
+                       acceleration=0.0)
+    driven = SpatialKinematicLoopModel(sp.SpatialModel("driven", [
+        *loop.tree.bodies, held, joints["u2"], joints["h4"]]), loop.cuts)
+    with pytest.raises(ModelError, match="driven joints \\(h1\\)"):
+        simulate_spatial_kinematic_loops_generated(driven, q[1:], v[1:], t_final=0.01, dt=1e-3)
     with pytest.raises(ModelError, match="violates the cut joints"):
         simulate_spatial_kinematic_loops_generated(loop, q + 0.1, v, t_final=0.01, dt=1e-3)
     with pytest.raises(SimulationError, match="projection onto the cut joints failed") as failure:
@@ -199,3 +203,31 @@ def test_spatial_refusals_and_failures():
     partial = failure.value.partial_result
     assert failure.value.element == "s3" and failure.value.time == pytest.approx(partial.t[-1] + 0.05)
     assert partial.q.shape == (len(partial.t), 4) and partial.cut_force.shape == (len(partial.t), 1, 3)
+
+
+@pytest.mark.parametrize("which", ["slider_crank", "sliding_pendulum"])
+def test_spatial_prismatic_cuts(which):
+    """Prismatic cuts (the parent loaded at the moving child point): against the numpy RK4 (<= 1e-12) and the DAE with
+    its own prismatic rows at the bounds of tests/test_spatial_closed_loops_prismatic.py (1e-10; cut loads 1e-9)."""
+    import test_spatial_closed_loops_prismatic as prismatic
+
+    from ctmm.compiled_spatial_kinematic_loops import simulate_spatial_kinematic_loops_generated
+    from ctmm.spatial.closed_loop_time import simulate_spatial_loops
+
+    loop = getattr(prismatic, which)()
+    start = ({"h1.angle": 0.3}, {"h1.angle_rate": 2.0}) if which == "slider_crank" else (
+        {"h1.angle": 0.4, "free.z": -0.3}, {"h1.angle_rate": 1.5, "free.vz": 0.2})
+    q, v = loop.consistent_state(*start, keep=["h1"])
+    generated = simulate_spatial_kinematic_loops_generated(loop, q, v, t_final=0.04, dt=1e-3)
+    numpy_run = simulate_spatial_loops(loop, q, v, t_final=0.04, dt=1e-3)
+    assert np.max(np.abs(generated.q - numpy_run.q)) <= 1e-12 and np.max(np.abs(generated.v - numpy_run.v)) <= 1e-12
+    scale = max(np.abs(numpy_run.cut_force).max(), np.abs(numpy_run.cut_moment).max())
+    for name in ("cut_force", "cut_moment"):
+        assert np.max(np.abs(getattr(generated, name) - getattr(numpy_run, name))) <= 1e-12 * scale, name
+    model = prismatic.dae(loop)
+    angle, position, Y = prismatic.errors(loop, generated, model)
+    assert angle < 1e-10 and position < 1e-10 and generated.drift.max() < 1e-14
+    force, moment = prismatic.cut_load_of_dae(loop, model, Y[-1], model.accelerations(Y[-1])[1])
+    scale = max(np.abs(force).max(), np.abs(moment).max())
+    assert np.max(np.abs(generated.cut_force[-1, 0] - force)) < 1e-9 * scale
+    assert np.max(np.abs(generated.cut_moment[-1, 0] - moment)) < 1e-9 * scale
