@@ -44,8 +44,10 @@ in its ``"rebased"`` entry.  Replaced case: ``planar_chain/rk4_compiled_n5`` (th
 ``ctmm.planar.compiled``, removed in issue 13) is dropped; ``planar_chain/rk4_generated_n5`` (the same run
 through the generated RK4) was added in its place, measured alone on 2026-11-25 (``timings.added_later``;
 ``timings.dropped`` keeps the reason).  ``planar_frf/sweep_n20_500_omega`` (issue 13: planar frequency responses
-by the one sweep's frequency context) and ``spatial_frf/sweep_n30_500_omega`` (issues 13/14: the same for spatial
-models) were measured alone when their benchmarks landed (``timings.added_later``).  Python time-stepping cases whose
+by the one sweep's frequency context), ``spatial_frf/sweep_n30_500_omega`` (issues 13/14: the same for spatial
+models), ``kinematic_loops_generated/generated_rk4_projection_four_bar`` and ``..._spatial_four_bar`` (issues 13/16: the
+four-bars' RK4 with projection in generated C) were measured alone when their benchmarks landed
+(``timings.added_later``).  Python time-stepping cases whose
 benchmark horizon would make the repeats slow run over a shorter horizon at the benchmark's step
 (stated in ``configuration``): the per-step cost does not depend on the horizon.
 
@@ -470,10 +472,30 @@ def _kernel_cache(t: Timings) -> None:
                         "library already in the cache (key taken before the time loop is built)")
 
 
+def _kinematic_loops_generated(t: Timings) -> None:
+    bench = importlib.import_module("kinematic_loops_generated")
+    loop, q0, v0 = bench.four_bar()
+    kernel = bench.CompiledKinematicLoops(loop)
+    steps = 1000
+    t.add("kinematic_loops_generated", "generated_rk4_projection_four_bar", lambda: kernel.run(q0, v0, bench.DT, steps),
+          per="step", count=steps,
+          configuration=f"four-bar with the cubic rocker spring and damper closed by a cut joint, RK4 with the cut "
+                        f"forces and the projection in the generated step (CompiledKinematicLoops.run, library "
+                        f"loaded), dt={bench.DT:g} s, {steps} steps")
+    spatial = bench.spatial_four_bar.mechanism()
+    q0, v0 = bench.spatial_four_bar.start(spatial)
+    spatial_kernel = bench.CompiledSpatialKinematicLoops(spatial)
+    t.add("kinematic_loops_generated", "generated_rk4_projection_spatial_four_bar",
+          lambda: spatial_kernel.run(q0, v0, bench.DT, steps), per="step", count=steps,
+          configuration=f"R-U-S-R four-bar closed by a spherical cut, RK4 with the cut loads and the projection in "
+                        f"the generated step (CompiledSpatialKinematicLoops.run, library loaded), dt={bench.DT:g} s, "
+                        f"{steps} steps")
+
+
 TIMING_PARTS = (_work_precision, _scaling, _control, _delay_history, _planar, _flexible, _manipulator,
                 _stability_chart, _compiled_scenes, _spatial_chain, _spatial_schemes, _chain_compiled,
                 _chain_schemes_generated, _chain_ode_speed, _compiled_cosim, _batch_parameters, _kernel_cache,
-                _planar_frf, _compiled_schemes_planar, _spatial_frf)
+                _planar_frf, _compiled_schemes_planar, _spatial_frf, _kinematic_loops_generated)
 
 
 def timings() -> dict:

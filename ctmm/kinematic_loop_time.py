@@ -58,7 +58,8 @@ def simulate_kinematic_loop_system(system: Any, t_final: float, dt: float | None
         As for :func:`ctmm.simulate`.
     unsupported : mapping
         ``{option: (value, default)}`` of options that do not apply to a kinematic loop model (``solver``,
-        ``fast``, ``force_hook``, ``t0``, ``compiled``): refused by name unless at the default.
+        ``fast``, ``force_hook``, ``t0``, ``compiled``): refused by name unless at the default (but ``compiled=True``
+        of the model alone with ``"rk4"``: :mod:`ctmm.compiled_kinematic_loops`).
 
     Returns
     -------
@@ -72,9 +73,12 @@ def simulate_kinematic_loop_system(system: Any, t_final: float, dt: float | None
         others = {name: value for name, (value, _) in unsupported.items()}
         others.update({"inputs": inputs or None, "controllers": list(controllers), "references": dict(references),
                        "coupling": coupling, "progress": progress})
+        generated = None
+        if others["compiled"]:          # the generated RK4 with projection (ctmm.compiled_kinematic_loops)
+            from .compiled_kinematic_loops import simulate_kinematic_loops_generated as generated
         return simulate_loops(model, t_final, dt, method=method, x0=x0, v0=v0, outputs=outputs, rtol=rtol, atol=atol,
                               max_step=max_step, store_every=store_every, divergence_bound=divergence_bound,
-                              stability_check=stability_check, other_options=others)
+                              stability_check=stability_check, other_options=others, generated=generated)
     for name, (value, default) in unsupported.items():
         if value is not default and value != default:
             raise ModelError(f"{name}={value!r} is not available for the kinematic loop model {model.name!r} with "

@@ -40,7 +40,8 @@ def simulate_spatial_loop_system(system: Any, t_final: float, dt: float | None, 
     (:func:`simulate_spatial_loops`) or a DT-TMM scheme (:func:`_scheme_run`).  With feedback loops (``ctmm.control.with_feedback(loop_model, loops)``), port
     actuator inputs, ``references``, sensor ``outputs`` or ``controllers``: the one loop-closing driver
     (:func:`ctmm.control.planar_time.simulate_closed_loop`) on :class:`~ctmm.spatial.closed_loop_plant.SpatialLoopPlant`
-    (``"rk4"`` and ``solve_ivp``; drift held by Baumgarte only).
+    (``"rk4"`` and ``solve_ivp``; drift held by Baumgarte only).  ``compiled=True`` (the model alone, ``"rk4"``): the
+    generated RK4 with projection (:mod:`ctmm.compiled_spatial_kinematic_loops`).
 
     The result holds the tree's signals (:func:`ctmm.spatial.integrate.spatial_signals`: coordinates, velocities,
     body positions and angular velocities), ``"<cut>.force_x|y|z"`` [N] and, for revolute and universal cuts,
@@ -55,6 +56,12 @@ def simulate_spatial_loop_system(system: Any, t_final: float, dt: float | None, 
     """
     model = system if isinstance(system, SpatialKinematicLoopModel) else system.plant
     loops = () if system is model else tuple(system.loops)
+    unsupported = dict(unsupported)
+    compiled = validation.flag("compiled", unsupported.pop("compiled", (None, None))[0], optional=True)
+    if compiled and (loops or controllers or references or tuple(outputs) or inputs or method != "rk4"):
+        raise ModelError(f"compiled=True runs the generated RK4 with projection of the spatial kinematic loop model "
+                         f"{model.name!r} alone (method='rk4'; no loops, controllers, references, outputs or inputs), "
+                         f"got method={method!r}; leave compiled at None")
     for name, (value, default) in unsupported.items():
         if value is not default and value != default:
             raise ModelError(f"{name}={value!r} is not available for the spatial kinematic loop model {model.name!r} "
@@ -99,13 +106,22 @@ def simulate_spatial_loop_system(system: Any, t_final: float, dt: float | None, 
             raise ModelError(f"{name}={value!r} applies to runs with loops, controllers or port inputs; the spatial "
                              f"kinematic loop model {model.name!r} alone runs its own integrator: leave {name} at "
                              f"{default!r}")
-    run = simulate_spatial_loops(model, q0, v0, t_final=t_final, dt=dt, method=method, inputs=inputs, rtol=rtol,
-                                 atol=atol, store_every=store_every, max_step=max_step)
+    if compiled:                # the generated RK4 with projection (ctmm.compiled_spatial_kinematic_loops)
+        from .compiled_spatial_kinematic_loops import simulate_spatial_kinematic_loops_generated
+
+        for name, value, default in (("rtol", rtol, 1e-8), ("atol", atol, 1e-10), ("max_step", max_step, None)):
+            if value != default:
+                raise ModelError(f"{name}={value!r} applies to solve_ivp methods, not to compiled=True (RK4)")
+        run = simulate_spatial_kinematic_loops_generated(model, q0, v0, t_final=t_final,
+                                                         dt=validation.positive("dt", dt), store_every=store_every)
+    else:
+        run = simulate_spatial_loops(model, q0, v0, t_final=t_final, dt=dt, method=method, inputs=inputs, rtol=rtol,
+                                     atol=atol, store_every=store_every, max_step=max_step)
     signals, units = spatial_signals(model.tree, run.t, np.concatenate([run.q, run.v], axis=1))
     add_cut_signals(model, signals, units, run.cut_force, run.cut_moment, run.drift, run.drift_rate)
     info = {"wall_time_s": run.wall_time_s, "n_evaluations": run.n_evaluations, "max_drift": float(run.drift.max()),
-            "projection": method == "rk4", "baumgarte": model.baumgarte}
-    return signal_result(SignalSystem(model, units), run.t, signals, method, info)
+            "projection": method == "rk4", "baumgarte": model.baumgarte, **({"compiled": True} if compiled else {})}
+    return signal_result(SignalSystem(model, units), run.t, signals, run.method if compiled else method, info)
 
 
 def _scheme_run(model: SpatialKinematicLoopModel, t_final: float, dt: float | None, scheme: Any, q0: np.ndarray,

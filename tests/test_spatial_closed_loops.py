@@ -209,8 +209,8 @@ def test_simulate_verb_returns_named_signals(four_bar):
     assert abs(result["h1.angle"][-1] - simulate_spatial_loops(loop, q, v, t_final=0.02, dt=2e-3).q[-1, 0]) < 1e-14
     with pytest.raises(ModelError, match="odd"):
         ctmm.simulate(loop, 0.02, 2e-3, x0=q, v0=v, method="odd")
-    with pytest.raises(ModelError, match="compiled"):
-        ctmm.simulate(loop, 0.02, 2e-3, x0=q, v0=v, compiled=True)
+    with pytest.raises(ModelError, match="compiled"):           # compiled=True: RK4 only (tests/test_compiled_kinematic_loops.py)
+        ctmm.simulate(loop, 0.02, 2e-3, x0=q, v0=v, method="DOP853", compiled=True)
     with pytest.raises(ModelError, match="violates the cut joints"):
         ctmm.simulate(loop, 0.02, 2e-3, x0=loop.tree.neutral(), v0=v)
 

@@ -25,7 +25,7 @@ Feedback loops (``ctmm.control.with_feedback(model, loops)``) close around the s
 from __future__ import annotations
 
 import time
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -106,7 +106,8 @@ def _history_result(model: KinematicLoopModel, run: KinematicLoopSimulation, out
 def simulate_loops(model: KinematicLoopModel, t_final: float, dt: float | None, *, method: Any, x0: Any, v0: Any,
                    outputs: Sequence[str], rtol: float, atol: float, max_step: float | None, store_every: int,
                    divergence_bound: float | None, stability_check: str | None,
-                   other_options: Mapping[str, Any] | None = None) -> SimulationResult:
+                   other_options: Mapping[str, Any] | None = None,
+                   generated: Callable[..., KinematicLoopSimulation] | None = None) -> SimulationResult:
     """:func:`ctmm.simulate` of a kinematic loop model (module docstring).
 
     Parameters
@@ -126,18 +127,28 @@ def simulate_loops(model: KinematicLoopModel, t_final: float, dt: float | None, 
     other_options : mapping, optional
         The other options of :func:`ctmm.simulate` as given (``inputs``, ``controllers``, ``references``,
         ``coupling``, ``solver``, ``fast``, ``force_hook``, ``progress``, ``t0``, ``compiled``): each must be at
-        its default (refused by name otherwise; inputs, controllers and loops run in :mod:`ctmm.kinematic_loop_time`).
+        its default (refused by name otherwise; inputs, controllers and loops run in :mod:`ctmm.kinematic_loop_time`),
+        but ``compiled=True`` with ``method="rk4"`` and ``generated``.
+    generated : callable, optional
+        The generated RK4 with projection that ``compiled=True`` runs
+        (:func:`ctmm.compiled_kinematic_loops.simulate_kinematic_loops_generated`, handed in by the caller: this
+        subpackage does not import the generated kernels).
 
     Returns
     -------
     SimulationResult
         Coordinates, rates, outputs, cut forces [N], ``drift`` [m], ``drift_rate`` [m/s].
     """
-    for name, value in (other_options or {}).items():
+    options = dict(other_options or {})
+    compiled = validation.flag("compiled", options.pop("compiled", None), optional=True)
+    if compiled and (method != "rk4" or generated is None):
+        raise ModelError(f"compiled=True runs the generated RK4 with projection of a kinematic loop model "
+                         f"{model.name!r} (method='rk4'), got method={method!r}; leave compiled at None")
+    for name, value in options.items():
         default = _DEFAULTS[name]
         if value is not default and value != default:
             raise ModelError(f"{name}={value!r} is not available for a kinematic loop model {model.name!r} (no "
-                             f"compiled or fast runs through cut joints yet; runs start at t = 0); "
+                             f"fast runs through cut joints; runs start at t = 0); "
                              f"leave {name} at {default!r}")
     tree = model.tree
     if isinstance(outputs, (str, Mapping)) or not isinstance(outputs, (list, tuple)):
@@ -188,6 +199,9 @@ def simulate_loops(model: KinematicLoopModel, t_final: float, dt: float | None, 
                 raise ModelError(f"{name}={value!r} applies to solve_ivp methods {SCIPY_METHODS}, not to 'rk4'")
         if dt is None:
             raise ModelError("dt is required with method='rk4' (a fixed step [s], > 0), got None")
+        if compiled:
+            run = generated(model, q0, v0, t_final=t_final, dt=dt, store_every=store_every)
+            return _history_result(model, run, outputs, {"dt": dt, "projection": True, "compiled": True})
         run = simulate_kinematic_loops(model, q0, v0, t_final=t_final, dt=dt, method="rk4", store_every=store_every)
         return _history_result(model, run, outputs, {"dt": dt, "projection": True})
     if method not in SCIPY_METHODS:

@@ -1,0 +1,143 @@
+"""Closed kinematic loops in generated C: the four-bar's RK4 with projection, generated vs numpy (issues 13/16).
+
+Problem: the four-bar linkage of ``scenarios/four_bar.py`` (crank 0.2 m, coupler 0.6 m, rocker 0.5 m, the cubic
+rocker spring and quadratic damper, gravity; crank at 90 deg with 3 rad/s), closed by the cut joint ``h3``, over
+``T`` = 1 s at dt = 1 ms.
+
+Methods (one run, one machine):
+
+* ``numpy``     -- :func:`ctmm.planar.closed_loops.simulate_kinematic_loops` (RK4, ``1 + 2 m`` numpy sweeps per
+                   stage, the projection after every step);
+* ``generated`` -- :class:`ctmm.compiled_kinematic_loops.CompiledKinematicLoops` ``.run`` (the same step generated
+                   as C, whole blocks of steps per call, library loaded), and the whole
+                   :func:`~ctmm.compiled_kinematic_loops.simulate_kinematic_loops_generated` (with the cut forces and
+                   drift of the stored states); ``compile_s``: build, generate and compile in a fresh cache folder.
+* ``dae``       -- the reference: the global DAE (:mod:`ctmm.reference.planar_dae`, DOP853 at 1e-11).
+
+Spatial row: the R-U-S-R four-bar of ``scenarios/spatial_four_bar.py`` (spherical cut ``s3``, crank at 3 rad/s),
+``T`` at dt = 1 ms: :class:`ctmm.compiled_spatial_kinematic_loops.CompiledSpatialKinematicLoops` ``.run`` against
+:func:`ctmm.spatial.closed_loop_time.simulate_spatial_loops` (RK4 with projection), per-step times and their largest
+coordinate difference.
+
+Figures: per-step wall and CPU time [us] (best of 3), the largest angle difference generated - numpy [rad]
+(consistency: round-off) and the largest angle error of each against the DAE [rad].  Run
+``python benchmarks/kinematic_loops_generated.py`` (``--quick``: T = 0.2 s); writes
+``benchmarks/results/kinematic_loops_generated.json``.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+from ctmm.compiled_kinematic_loops import CompiledKinematicLoops, simulate_kinematic_loops_generated  # noqa: E402
+from ctmm.compiled_spatial_kinematic_loops import (CompiledSpatialKinematicLoops,  # noqa: E402
+                                                   simulate_spatial_kinematic_loops_generated)
+from ctmm.scenarios import spatial_four_bar  # noqa: E402
+from ctmm.spatial.closed_loop_time import simulate_spatial_loops  # noqa: E402
+from ctmm.planar.closed_loops import simulate_kinematic_loops  # noqa: E402
+from ctmm.scenarios.four_bar import DAMPER, SPRING, mechanism, reference, start  # noqa: E402
+
+RESULTS = ROOT / "benchmarks" / "results" / "kinematic_loops_generated.json"
+DT = 1e-3
+NAMES = ("crank", "coupler", "rocker")
+
+
+def four_bar():
+    """The linkage with the rocker spring and damper and its start ``(loop, q0, v0)``."""
+    loop = mechanism(SPRING + DAMPER)
+    q0, v0 = start(loop)
+    return loop, q0, v0
+
+
+def best(call, repeats: int = 3) -> tuple[float, float]:
+    """Best wall and CPU time [s] of ``call`` after one warm-up."""
+    call()
+    walls, cpus = [], []
+    for _ in range(repeats):
+        wall, cpu = time.perf_counter(), time.process_time()
+        call()
+        walls.append(time.perf_counter() - wall)
+        cpus.append(time.process_time() - cpu)
+    return min(walls), min(cpus)
+
+
+def spatial(t_final: float, steps: int) -> dict:
+    """The spatial row (module docstring)."""
+    loop = spatial_four_bar.mechanism()
+    q0, v0 = spatial_four_bar.start(loop)
+    kernel = CompiledSpatialKinematicLoops(loop)
+    run_wall, run_cpu = best(lambda: kernel.run(q0, v0, DT, steps))
+    numpy_wall, numpy_cpu = best(lambda: simulate_spatial_loops(loop, q0, v0, t_final=t_final, dt=DT), repeats=1)
+    generated = simulate_spatial_kinematic_loops_generated(loop, q0, v0, t_final=t_final, dt=DT, compiled=kernel)
+    numpy_run = simulate_spatial_loops(loop, q0, v0, t_final=t_final, dt=DT)
+    return {"spatial_problem": f"R-U-S-R four-bar (scenarios/spatial_four_bar.py), T = {t_final} s, dt = {DT} s",
+            "spatial_generated_run_us_per_step": 1e6 * run_wall / steps,
+            "spatial_generated_run_cpu_us_per_step": 1e6 * run_cpu / steps,
+            "spatial_numpy_us_per_step": 1e6 * numpy_wall / steps,
+            "spatial_numpy_cpu_us_per_step": 1e6 * numpy_cpu / steps,
+            "spatial_speedup_run_cpu": numpy_cpu / run_cpu,
+            "spatial_generated_minus_numpy": float(np.max(np.abs(generated.q - numpy_run.q))),
+            "spatial_max_drift": float(np.max(generated.drift))}
+
+
+def main(argv: list[str] | None = None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="T = 0.2 s")
+    args = parser.parse_args(argv)
+    t_final = 0.2 if args.quick else 1.0
+    steps = int(round(t_final / DT))
+    loop, q0, v0 = four_bar()
+    with tempfile.TemporaryDirectory() as folder:
+        started = time.perf_counter()
+        CompiledKinematicLoops(loop, cache_dir=folder)
+        compile_s = time.perf_counter() - started
+    kernel = CompiledKinematicLoops(loop)
+    generated_wall, generated_cpu = best(lambda: kernel.run(q0, v0, DT, steps))
+    whole_wall, whole_cpu = best(lambda: simulate_kinematic_loops_generated(loop, q0, v0, t_final=t_final, dt=DT,
+                                                                           compiled=kernel))
+    numpy_wall, numpy_cpu = best(lambda: simulate_kinematic_loops(loop, q0, v0, t_final=t_final, dt=DT), repeats=1)
+    generated = simulate_kinematic_loops_generated(loop, q0, v0, t_final=t_final, dt=DT, compiled=kernel)
+    numpy_run = simulate_kinematic_loops(loop, q0, v0, t_final=t_final, dt=DT)
+    dae = reference(SPRING + DAMPER)
+    exact = dae.simulate(dae.assemble(dict(zip(NAMES, q0)), dict(zip(NAMES, v0))), t_final, t_eval=generated.t)
+    angles = np.column_stack([exact.angle(name) for name in NAMES])
+    out = {"machine": {"python": sys.version.split()[0], "platform": platform.platform(),
+                       "load_average": list(os.getloadavg())},
+           "problem": f"four-bar (scenarios/four_bar.py, rocker spring + damper), T = {t_final} s, dt = {DT} s, "
+                      f"{steps} steps",
+           "compile_s": compile_s,
+           "generated_run_us_per_step": 1e6 * generated_wall / steps,
+           "generated_run_cpu_us_per_step": 1e6 * generated_cpu / steps,
+           "generated_whole_us_per_step": 1e6 * whole_wall / steps,
+           "generated_whole_cpu_us_per_step": 1e6 * whole_cpu / steps,
+           "numpy_us_per_step": 1e6 * numpy_wall / steps, "numpy_cpu_us_per_step": 1e6 * numpy_cpu / steps,
+           "speedup_run_cpu": numpy_cpu / generated_cpu, "speedup_whole_cpu": numpy_cpu / whole_cpu,
+           "generated_minus_numpy_rad": float(np.max(np.abs(generated.q - numpy_run.q))),
+           "generated_vs_dae_rad": float(np.max(np.abs(generated.q - angles))),
+           "numpy_vs_dae_rad": float(np.max(np.abs(numpy_run.q - angles))),
+           "max_drift_m": float(np.max(generated.drift))}
+    out.update(spatial(t_final, steps))
+    for key, value in out.items():
+        print(f"{key:36s} {value}")
+    if not args.quick:
+        RESULTS.parent.mkdir(exist_ok=True)
+        RESULTS.write_text(json.dumps(out, indent=2) + "\n")
+    return out
+
+
+if __name__ == "__main__":
+    main()

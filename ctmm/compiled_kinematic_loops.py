@@ -1,0 +1,398 @@
+"""Generated RK4 of planar kinematic loop models (issues 13 and 16): cut joints inside the generated step.
+
+A :class:`~ctmm.planar.closed_loops.KinematicLoopModel` (a spanning tree plus cut joints, ``docs/closed_loops.md``)
+compiles here into one generated RK4 step with the projection onto the cut joints after it, the whole time loop in
+generated C (:func:`ctmm.generated_loop.compiled_time_loop`).  The step states, on casadi symbols, exactly what
+:meth:`KinematicLoopModel.solve` and :meth:`KinematicLoopModel.project` state in numpy:
+
+* the tree's accelerations ``qddot(q, qdot, u, p, t)`` are the generated articulated sweep of
+  :func:`ctmm.compiled_scene.symbolic_accelerations_with_inputs` (the element definitions on
+  :data:`ctmm.ops.CASADI`), with the cut forces entering as the body forces ``"<body>.force_x"``,
+  ``"<body>.force_y"``, ``"<body>.moment"`` of the bodies they act on (force at the centre of mass and the moment
+  of its lever, :meth:`KinematicLoopModel.cut_inputs`);
+* the cut points' positions and velocities are the symbolic kinematics of the tree
+  (:class:`ctmm.compiled_loops.SymbolicKinematics`): ``Phi`` (child point minus parent point [m]), ``Phi'`` and
+  the constraint Jacobian ``J = dPhi'/dqdot``;
+* one sweep without and ``2 m`` sweeps with unit cut forces give ``qddot = qddot_0 + D lambda`` and the boundary
+  compliance ``G = J D``; the relative acceleration of the cut points is ``a_0 = J qddot_0 + (dPhi'/dq) qdot``; the
+  cut forces solve ``G lambda = -a_0 - 2 alpha Phi' - alpha^2 Phi`` (Baumgarte rate ``alpha`` [1/s]);
+* after the RK4 step, ``iterations`` (default 3) minimum-norm Gauss-Newton steps on ``Phi = 0``
+  (``q <- q - J^T (J J^T)^-1 Phi``, skipped once ``max |Phi| < 1e-14`` m, as the numpy projection stops) and the
+  linear velocity projection ``qdot <- qdot - J^T (J J^T)^-1 J qdot``.
+
+The generated state is ``[q, qdot, residual, condition]``: ``residual`` is the largest ``max |Phi|`` [m] after the
+projection of every step so far, ``condition`` the largest Frobenius condition number ``|G|_F |G^-1|_F`` of every RK4
+stage so far (an upper bound of at most ``2 m`` times the 2-norm condition the numpy path checks at every stage), so
+every step is checked whatever ``store_every``.  The run fails with a :class:`~ctmm.errors.SimulationError` (time,
+cut joint, partial result up to the last good stored state) at the first stored state that is not finite, or by
+which a projection residual exceeded :data:`PROJECTION_TOLERANCE` or a condition :data:`CONDITION_LIMIT` (a singular
+configuration of the loop).  This is stricter than the numpy RK4, which reports its drift but does not check its
+projection.  ``drift`` [m] and ``drift_rate`` [m/s] and the
+cut forces of the result are those of the stored states (as the numpy path reports them), evaluated by a generated
+function of the same library.
+
+Refused (:class:`~ctmm.errors.ModelError`): a tree that :func:`ctmm.compiled_parameters.compile_refusal` refuses,
+cut points on deformable bodies (a ``ModalBeam`` end: its cut force is a floating-frame wrench, not on the element
+protocol yet).  Feedback loops, inputs and controllers on a kinematic loop model keep running in
+:mod:`ctmm.kinematic_loop_time` (``compiled=True`` refused there by name).
+"""
+from __future__ import annotations
+
+import os
+import time as _time
+from typing import Any
+
+import numpy as np
+
+from . import validation
+from .compiled_loops import SymbolicKinematics
+from .compiled_parameters import compile_refusal, parameter_vector
+from .compiled_scene import DEFAULT_ROWS, symbolic_accelerations_with_inputs
+from .errors import ModelError, SimulationError
+from .generated_loop import compiled_time_loop, run_blocks
+from .model_description import describe
+from .ode import rk4_step
+from .planar.closed_loops import KinematicLoopModel, KinematicLoopSimulation
+from .planar.elements import Fixed
+from .planar.ports import PlanarPorts
+
+__all__ = ["CONDITION_LIMIT", "PROJECTION_TOLERANCE", "CompiledKinematicLoops", "check_consistent", "failure_message",
+           "first_failure", "generated_run",
+           "kinematic_loop_compile_refusal", "projected_rk4_step", "simulate_kinematic_loops_generated"]
+
+PROJECTION_TOLERANCE = 1e-8
+"""Largest ``max |Phi|`` [m] after the generated projection (the bound of a consistent initial state)."""
+CONDITION_LIMIT = 1e12
+"""Largest condition number of the boundary compliance ``G`` (the numpy path's limit)."""
+_SKIP = 1e-14       # max |Phi| [m] below which a Gauss-Newton step is skipped (KinematicLoopModel.project)
+_BODY_PARTS = ("force_x", "force_y", "moment")
+
+
+def _cut_points(model: KinematicLoopModel) -> list[tuple[tuple[int, Any], tuple[int, Any]]]:
+    """``[((parent body or -1, end name or ground position), (child body, end name))]`` of the cut joints."""
+    tree = model.tree
+    grounds = {e.name: np.asarray(e.position, dtype=float) for e in tree.elements if isinstance(e, Fixed)}
+    out = []
+    for cut in model.cuts:
+        pair = []
+        for label in (cut.parent, cut.child):
+            if label in grounds:
+                pair.append((-1, grounds[label]))
+            else:
+                body, _, end = label.partition(".")
+                pair.append((tree.body_names.index(body), end))
+        out.append((pair[0], pair[1]))
+    return out
+
+
+def kinematic_loop_compile_refusal(model: Any) -> str:
+    """Why ``model`` cannot run the generated RK4 of this module (an empty string when it can)."""
+    if not isinstance(model, KinematicLoopModel):
+        return f"a ctmm.planar.closed_loops.KinematicLoopModel is compiled here, got {type(model).__name__}"
+    reason = compile_refusal(model.tree)
+    if reason:
+        return f"its tree cannot be compiled: {reason}"
+    for cut, points in zip(model.cuts, _cut_points(model)):
+        for j, _ in points:
+            if j >= 0 and j in model.tree.beams:
+                return (f"cut joint {cut.name!r} acts on the deformable body {model.tree.body_names[j]!r}: a cut force "
+                        "at a ModalBeam end is a floating-frame wrench, not on the element protocol of the generated "
+                        "kernels yet; use compiled=None (the numpy RK4 with projection)")
+    return ""
+
+
+class CompiledKinematicLoops:
+    """The generated RK4 with projection of one planar kinematic loop model (module docstring).
+
+    Parameters
+    ----------
+    model : KinematicLoopModel
+        Compilable (:func:`kinematic_loop_compile_refusal`).
+    store_every : int
+        Steps per stored state [-].
+    rows : int
+        Stored states per generated block (one C call) [-].
+    iterations : int
+        Gauss-Newton steps of the projection after every step (as :meth:`KinematicLoopModel.project`: 3).
+    cache_dir, compiler
+        Of :func:`ctmm.codegen.shared_library`.
+
+    Attributes
+    ----------
+    parameters : ndarray
+        The tree's :func:`ctmm.compiled_parameters.parameter_vector` (the input ``p``).
+    state_size : int
+        ``2 n + 2``: ``[q, qdot, residual, condition]``.
+    compile_time_s : float
+        Wall time of building, generating and compiling (or loading from the cache) [s].
+    """
+
+    def __init__(self, model: Any, *, store_every: int = 1, rows: int = DEFAULT_ROWS, iterations: int = 3,
+                 cache_dir: str | os.PathLike | None = None, compiler: str | None = None) -> None:
+        reason = self._refusal(model)
+        if reason:
+            raise ModelError(f"{type(self).__name__}: {reason}")
+        self.store_every = validation.integer("store_every", store_every, minimum=1)
+        self.rows = validation.integer("rows", rows, minimum=1)
+        self.iterations = validation.integer("iterations", iterations, minimum=1)
+        start = _time.perf_counter()
+        self.model = model
+        self.parameters, self.state_size, name, parts = self._layout()
+        description = describe((*parts, self.iterations))
+        options = {"cache_dir": cache_dir, "compiler": compiler}
+        if description is None:         # something in the tree cannot be described: key on the built functions
+            step, extra = self._build()
+            loop = compiled_time_loop(step, self.store_every, self.rows, name, extra=extra, **options)
+        else:
+            loop = compiled_time_loop(self._build, self.store_every, self.rows, name,
+                                      description=[("kinematic loop model", description)], **options)
+        (self._outputs,), self._step, self._stride, self._blocks = loop.extra, loop.step, loop.stride, loop.blocks
+        self.compile_time_s = _time.perf_counter() - start
+
+    @staticmethod
+    def _refusal(model: Any) -> str:
+        return kinematic_loop_compile_refusal(model)
+
+    def _layout(self) -> tuple[np.ndarray, int, str, tuple]:
+        """``(parameters, state size, library name, what the builder reads)``."""
+        model, n = self.model, self.model.tree.n_coordinates
+        return (parameter_vector(model.tree), 2 * n + 2, f"kinematic_loops_{model.tree.n_bodies}b{n}q{len(model.cuts)}c",
+                (model.tree, model.cuts, model.baumgarte, model.foreshortening, "planar kinematic loop rk4"))
+
+    # -- the expressions ------------------------------------------------------------------------------
+    def _build(self) -> tuple[Any, list]:
+        """``(step, [outputs])`` on symbols: the RK4 step with projection and ``outputs(y, p, t) -> (lambda, Phi,
+        Phi', G)``."""
+        import casadi as ca
+
+        model, tree = self.model, self.model.tree
+        n, m = tree.n_coordinates, len(model.cuts)
+        points = _cut_points(model)
+        bodies = sorted({j for pair in points for j, _ in pair if j >= 0})
+        actuators = [f"{tree.body_names[j]}.{part}" for j in bodies for part in _BODY_PARTS]
+        ports = PlanarPorts(tree)
+        for k, name in enumerate(actuators):         # the ports' body force is the load the cut force is stated as
+            unit = ports.inputs({name: 1.0}).body_force
+            if unit[bodies[k // 3], k % 3] != 1.0 or np.count_nonzero(unit) != 1:
+                raise ModelError(f"CompiledKinematicLoops: actuator {name!r} is not the body force the cut forces "
+                                 "are stated as")
+        acceleration = symbolic_accelerations_with_inputs(tree, actuators)
+        n_p = self.parameters.size
+        q, v, p, t = ca.SX.sym("q", n), ca.SX.sym("v", n), ca.SX.sym("p", n_p), ca.SX.sym("t")
+        lam = ca.SX.sym("lambda", 2 * m)
+        kinematics = SymbolicKinematics(tree, q, v)
+        phi, phi_dot, loads = [], [], [ca.SX(0.0)] * len(actuators)
+        for k, pair in enumerate(points):
+            motion = []
+            for (j, end), sign in zip(pair, (-1.0, 1.0)):
+                if j < 0:
+                    motion.append((ca.DM(end), ca.DM.zeros(2)))
+                    continue
+                position, velocity = kinematics.point(j, end)
+                com, _ = kinematics.point(j, "com")
+                motion.append((ca.vertcat(*position), ca.vertcat(*velocity)))
+                arm = ca.vertcat(*position) - ca.vertcat(*com)
+                f = sign * lam[2 * k:2 * k + 2]
+                b = 3 * bodies.index(j)
+                loads[b] = loads[b] + f[0]
+                loads[b + 1] = loads[b + 1] + f[1]
+                loads[b + 2] = loads[b + 2] + arm[0] * f[1] - arm[1] * f[0]
+            phi.append(motion[1][0] - motion[0][0])
+            phi_dot.append(motion[1][1] - motion[0][1])
+        phi, phi_dot = ca.vertcat(*phi), ca.vertcat(*phi_dot)
+        jacobian = ca.jacobian(phi_dot, v)                      # Phi' = J qdot, J = J(q)
+        load = ca.Function("cut_loads", [q, lam], [ca.vertcat(*loads)])
+        qdd0 = acceleration(q, v, load(q, ca.DM.zeros(2 * m)), p, t)
+        columns = [acceleration(q, v, load(q, ca.DM.eye(2 * m)[:, i]), p, t) - qdd0 for i in range(2 * m)]
+        D = ca.horzcat(*columns)
+        G = ca.mtimes(jacobian, D)
+        a0 = ca.mtimes(jacobian, qdd0) + ca.jtimes(phi_dot, q, v)
+        alpha = model.baumgarte
+        target = -a0 - 2.0 * alpha * phi_dot - alpha * alpha * phi
+        forces = ca.solve(G, target)
+        qdd = qdd0 + ca.mtimes(D, forces)
+        condition = ca.norm_fro(G) * ca.norm_fro(ca.solve(G, ca.SX.eye(2 * m)))
+        y = ca.vertcat(q, v)
+        rate = ca.Function("closed_rate", [y, p, t], [ca.vertcat(v, qdd), condition])
+        outputs = ca.Function("outputs", [y, p, t], [forces, phi, phi_dot, G])
+
+        constraint = ca.Function("constraint", [q], [phi, jacobian])
+        projected_q = q
+        for _ in range(self.iterations):
+            residual, J = constraint(projected_q)
+            correction = ca.mtimes(J.T, ca.solve(ca.mtimes(J, J.T), residual))
+            projected_q = ca.if_else(ca.mmax(ca.fabs(residual)) < _SKIP, projected_q, projected_q - correction)
+        residual, J = constraint(projected_q)
+        projected_v = v - ca.mtimes(J.T, ca.solve(ca.mtimes(J, J.T), ca.mtimes(J, v)))
+        project = ca.Function("project", [y], [ca.vertcat(projected_q, projected_v), ca.mmax(ca.fabs(residual))])
+
+        step = projected_rk4_step(rate, project, 2 * n, n_p)
+        return step, [outputs]
+
+    # -- running --------------------------------------------------------------------------------------
+    def run(self, q0: np.ndarray, v0: np.ndarray, dt: float, n_steps: int) -> tuple[np.ndarray, np.ndarray]:
+        """Stored times [s] and states ``[q, qdot, residual, condition]`` (rows, :attr:`state_size`) of ``n_steps``
+        steps of ``dt`` [s] from ``(q0, v0)`` at ``t = 0``, the initial state first (its residual and condition
+        from the outputs function); the rows after the first non-finite block are not computed."""
+        size = self.state_size - 2
+        y0 = np.concatenate([q0, v0, [0.0, 0.0]])
+        _, phi, _, G = self._outputs(y0[:size], self.parameters, 0.0)
+        y0[size] = float(np.max(np.abs(np.asarray(phi))))
+        y0[size + 1] = float(np.linalg.cond(np.asarray(G)))
+        states = run_blocks(self._blocks, self._stride, self._step, self.store_every, y0[:, None], np.zeros(0), dt,
+                            n_steps, 0.0, self.parameters[:, None])[0]
+        steps = np.array([k for k in range(1, n_steps + 1) if k % self.store_every == 0 or k == n_steps])
+        steps = steps[:len(states)]
+        return np.concatenate([[0.0], steps * dt]), np.vstack([y0[None], states])
+
+    def cut_history(self, t: np.ndarray, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Cut forces (rows, n_cuts, 2) [N], ``Phi`` (rows, 2 n_cuts) [m] and ``Phi'`` [m/s] of stored times ``t``
+        [s] and states (rows, at least ``2 n`` columns ``[q, qdot, ...]``), by the generated function mapped over the
+        rows (one call)."""
+        rows, n, m = len(t), self.model.tree.n_coordinates, len(self.model.cuts)
+        if rows == 0:
+            return np.zeros((0, m, 2)), np.zeros((0, 2 * m)), np.zeros((0, 2 * m))
+        mapped = self._outputs.map(rows)
+        forces, phi, phi_dot, _ = mapped(states[:, :2 * n].T, np.repeat(self.parameters[:, None], rows, axis=1),
+                                         np.asarray(t, dtype=float)[None, :])
+        return (np.asarray(forces).T.reshape(rows, m, 2), np.asarray(phi).T.copy(), np.asarray(phi_dot).T.copy())
+
+    def cut_outputs(self, q: np.ndarray, qdot: np.ndarray, t: float = 0.0
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Cut forces (n_cuts, 2) [N], ``Phi`` [m], ``Phi'`` [m/s] and the boundary compliance ``G`` at a state, by
+        the generated function (as :meth:`KinematicLoopModel.solve` and :meth:`~KinematicLoopModel.constraints`)."""
+        forces, phi, phi_dot, G = self._outputs(np.concatenate([q, qdot]), self.parameters, float(t))
+        return (np.asarray(forces).reshape(-1, 2), np.asarray(phi).reshape(-1), np.asarray(phi_dot).reshape(-1),
+                np.asarray(G))
+
+
+def generated_run(kind: type, model: Any, q: np.ndarray, v: np.ndarray, t_final: float, dt: float, store_every: int,
+                  compiled: Any, cache_dir: str | os.PathLike | None) -> tuple[Any, np.ndarray, np.ndarray, float, int]:
+    """The generated run of the simulate functions: ``compiled`` checked (an instance of ``kind``, a
+    :class:`CompiledKinematicLoops` class, of ``model`` with ``store_every``) or built, the start checked
+    (:func:`check_consistent`), ``round(t_final / dt)`` steps of ``dt`` [s]; ``(compiled, t, states, wall time [s],
+    steps)``."""
+    if compiled is None:
+        compiled = kind(model, store_every=store_every, cache_dir=cache_dir)
+    elif not isinstance(compiled, kind) or compiled.model is not model or compiled.store_every != store_every:
+        raise ModelError(f"compiled must be a {kind.__name__} of this model with store_every={store_every!r}, got "
+                         f"{compiled!r:.80}")
+    t_final, h = validation.positive("t_final", t_final), validation.positive("dt", dt)
+    check_consistent(model, q, v)
+    n_steps = max(1, int(round(t_final / h)))
+    started = _time.perf_counter()
+    t, states = compiled.run(np.asarray(q, float), np.asarray(v, float), h, n_steps)
+    return compiled, t, states, _time.perf_counter() - started, n_steps
+
+
+def check_consistent(model: Any, q: np.ndarray, v: np.ndarray) -> None:
+    """:class:`ModelError` unless ``(q, v)`` is on the cut joints of ``model`` (planar or spatial kinematic loop
+    model): ``|Phi| <= 1e-8``, ``|Phi'| <= 1e-8`` (m, rad, per second)."""
+    phi, phi_dot = model.constraints(q, v)
+    if np.max(np.abs(phi)) > 1e-8 or np.max(np.abs(phi_dot)) > 1e-8:
+        raise ModelError(f"{type(model).__name__} {model.name!r}: the initial state violates the cut joints (|Phi| = "
+                         f"{np.max(np.abs(phi)):.3e}, |Phi'| = {np.max(np.abs(phi_dot)):.3e}; allowed <= 1e-8); start "
+                         f"from {type(model).__name__}.consistent_state")
+
+
+def projected_rk4_step(rate: Any, project: Any, size: int, n_parameters: int) -> Any:
+    """The generated ``step(y, u, h, p, t0, k)`` of a kinematic loop model on the state ``[x, residual, condition]``
+    (``x`` of ``size``): one RK4 step of ``rate`` (``(x, p, t) -> (x_dot, condition)``) from ``t0 + k h`` by ``h``
+    (:func:`ctmm.ode.rk4_step` on symbols), then ``project`` (``x -> (x, residual)``); ``residual`` and ``condition``
+    carried as the largest so far (the condition of the four stages)."""
+    import casadi as ca
+
+    state, u = ca.MX.sym("y", size + 2), ca.MX.sym("u", 0)
+    h, p, t0, index = ca.MX.sym("h"), ca.MX.sym("p", n_parameters), ca.MX.sym("t0"), ca.MX.sym("k")
+    conditions: list = []
+
+    def stage_rate(stage: Any, x: Any) -> Any:
+        x_dot, stage_condition = rate(x, p, stage)
+        conditions.append(stage_condition)
+        return x_dot
+
+    projected, residual = project(rk4_step(stage_rate, t0 + index * h, state[:size], h))
+    worst = conditions[0]
+    for value in conditions[1:]:
+        worst = ca.fmax(worst, value)
+    carried = ca.vertcat(ca.fmax(state[size], residual), ca.fmax(state[size + 1], worst))     # largest so far
+    return ca.Function("step", [state, u, h, p, t0, index], [ca.vertcat(projected, carried)])
+
+
+def first_failure(states: np.ndarray, size: int) -> int | None:
+    """The first stored row of ``[x, residual, condition]`` states (``x`` of ``size``) that is not finite, whose
+    residual exceeds :data:`PROJECTION_TOLERANCE` or whose condition exceeds :data:`CONDITION_LIMIT` (``None``)."""
+    bad = np.flatnonzero(~np.all(np.isfinite(states), axis=1) | (states[:, size] > PROJECTION_TOLERANCE)
+                         | (states[:, size + 1] > CONDITION_LIMIT))
+    return int(bad[0]) if bad.size else None
+
+
+def failure_message(state: np.ndarray, size: int, iterations: int) -> str:
+    """What failed in a row :func:`first_failure` found."""
+    if not np.all(np.isfinite(state)):
+        return "a non-finite state (a singular loop configuration or divergence)"
+    if state[size] > PROJECTION_TOLERANCE:
+        return (f"the projection onto the cut joints failed (|Phi| = {state[size]:.3e} after {iterations} "
+                f"Gauss-Newton steps; allowed <= {PROJECTION_TOLERANCE:g})")
+    return (f"the cut joints' boundary compliance is singular (condition {state[size + 1]:.2e} > {CONDITION_LIMIT:g}): "
+            "a singular configuration of the loop or redundant cut joints")
+
+
+def simulate_kinematic_loops_generated(model: KinematicLoopModel, q0: Any, qdot0: Any, *, t_final: float, dt: float,
+                                       store_every: int = 1, compiled: CompiledKinematicLoops | None = None,
+                                       cache_dir: str | os.PathLike | None = None) -> KinematicLoopSimulation:
+    """RK4 with projection of a planar kinematic loop model, the time loop in generated C (module docstring).
+
+    The same steps as :func:`ctmm.planar.closed_loops.simulate_kinematic_loops` with ``method="rk4"`` (``steps =
+    round(t_final / dt)`` steps of ``dt``, stored every ``store_every`` and at the last), method label
+    ``"rk4-generated"``.
+
+    Parameters
+    ----------
+    model : KinematicLoopModel
+    q0, qdot0 : array_like (n_coordinates,)
+        A consistent initial state (``|Phi| <= 1e-8`` m, ``|Phi'| <= 1e-8`` m/s).
+    t_final, dt : float
+        End time and step [s].
+    store_every : int
+        Store every k-th step (and the last).
+    compiled : CompiledKinematicLoops, optional
+        A compiled model of ``model`` with this ``store_every`` to reuse (default: built now, from the kernel cache).
+    cache_dir : path, optional
+        Of :func:`ctmm.codegen.shared_library`.
+
+    Raises
+    ------
+    ModelError
+        A model that cannot be compiled, bad arguments, an inconsistent initial state.
+    SimulationError
+        A non-finite state, a failed projection or a singular loop configuration: the time, the cut joint and the
+        partial :class:`KinematicLoopSimulation` up to the last good state.
+    """
+    q, v = model.tree.state(q0, qdot0)
+    compiled, t, states, wall, n_steps = generated_run(CompiledKinematicLoops, model, q, v, t_final, dt, store_every,
+                                                       compiled, cache_dir)
+    n = model.tree.n_coordinates
+    bad = first_failure(states, 2 * n)
+    good = len(t) if bad is None else bad
+    forces, phi, phi_dot = compiled.cut_history(t[:good], states[:good])
+    drift, drift_rate = np.max(np.abs(phi), axis=1), np.max(np.abs(phi_dot), axis=1)
+    if bad is not None:
+        k = bad
+        cut = model.cuts[0].name
+        if np.all(np.isfinite(states[k])):        # the cut joint furthest apart
+            separation = np.abs(model.constraints(states[k, :n], states[k, n:2 * n])[0]).reshape(-1, 2).max(axis=1)
+            cut = model.cuts[int(np.argmax(separation))].name
+        partial = _simulation(model, t[:k], states[:k], forces, drift, drift_rate, wall, n_steps)
+        raise SimulationError(f"kinematic loop {model.name!r} (generated RK4): "
+                              f"{failure_message(states[k], 2 * n, compiled.iterations)} by t = {t[k]} s "
+                              f"(after t = {t[k - 1] if k else 0.0} s, the last good stored state)",
+                              time=float(t[k]), element=cut, partial_result=partial)
+    return _simulation(model, t, states, forces, drift, drift_rate, wall, n_steps)
+
+
+def _simulation(model: KinematicLoopModel, t: np.ndarray, states: np.ndarray, forces: np.ndarray, drift: np.ndarray,
+                drift_rate: np.ndarray, wall: float, n_steps: int) -> KinematicLoopSimulation:
+    n = model.tree.n_coordinates
+    return KinematicLoopSimulation(model, np.asarray(t), states[:, :n], states[:, n:2 * n], forces, drift, drift_rate,
+                                   "rk4-generated", wall, 4 * n_steps)

@@ -1,0 +1,273 @@
+"""Generated RK4 of spatial kinematic loop models (issues 13 and 16): cut joints inside the generated step.
+
+The spatial counterpart of :mod:`ctmm.compiled_kinematic_loops`: a
+:class:`~ctmm.spatial.closed_loops.SpatialKinematicLoopModel` compiles into one generated RK4 step with the
+projection onto the cut joints after it, the time loop in generated C.  On casadi symbols, as
+:meth:`SpatialKinematicLoopModel.solve` and :meth:`~SpatialKinematicLoopModel.project` state them in numpy:
+
+* the tree's velocity rates are the generated articulated sweep of its terms on :data:`ctmm.ops.CASADI`
+  (:class:`ctmm.spatial.body_forms.SpatialScene`), the cut loads applied as wrenches at the cut points (the force
+  ``lambda`` [N] on the child point -- prismatic: ``lambda_j p_j`` -- and for revolute, universal and prismatic cuts
+  the moments ``mu_i n_i`` [N m], ``n_i = u_i x b_i``; their opposites on the parent, a prismatic cut's force at the
+  child point, i.e. at the parent point with the moment ``d x f`` added), so ``1 + m`` sweeps give
+  ``v' = v'_0 + D lambda``;
+* ``Phi`` and ``Phi'`` from the same terms' body states (separation ``d = x_c - x_p`` [m] -- prismatic: ``d . p_j``
+  -- and alignments ``u_i . b_i``),
+  ``J = dPhi'/dv``, ``Phi'' = J v' + (dPhi'/dq) G(q) v`` (``q_dot = G(q) v``, quaternions), ``G = J D`` and
+  ``G lambda = -Phi''_0 - 2 alpha Phi' - alpha^2 Phi``;
+* after the RK4 step: quaternions normalised, ``iterations`` minimum-norm Gauss-Newton steps
+  ``q <- normalised(q + G(q) dx)``, ``dx = -J^T (J J^T)^-1 Phi`` (skipped once ``max |Phi| < 1e-14``), then
+  ``v <- v - J^T (J J^T)^-1 Phi'``.
+
+State, failures and result as :mod:`ctmm.compiled_kinematic_loops` (residual and condition carried in the state,
+:class:`~ctmm.errors.SimulationError` with time, cut joint and partial result).  Refused (:class:`ModelError`, by
+name): trees :func:`ctmm.compiled_spatial.spatial_compile_refusal` refuses, driven joints (their prescribed motion enters
+``Phi'`` and ``Phi''`` explicitly in time, which the generated step does not differentiate), and with feedback loops, inputs or controllers (:mod:`ctmm.spatial_loop_time`).
+"""
+from __future__ import annotations
+
+import os
+from typing import Any
+
+import numpy as np
+
+from .articulated import articulated_sweep
+from .compiled_kinematic_loops import (CompiledKinematicLoops, failure_message, first_failure, generated_run,
+                                       projected_rk4_step)
+from .compiled_spatial import position_rates, spatial_compile_refusal
+from .errors import SimulationError
+from .ops import CASADI
+from .spatial.body_forms import SpatialScene
+from .spatial.closed_loop_cuts import cut_frame
+from .spatial.closed_loop_time import SpatialLoopSimulation
+from .spatial.closed_loops import SpatialKinematicLoopModel
+
+__all__ = ["CompiledSpatialKinematicLoops", "spatial_kinematic_loop_compile_refusal",
+           "simulate_spatial_kinematic_loops_generated"]
+
+_SKIP = 1e-14       # max |Phi| below which a Gauss-Newton step is skipped (SpatialKinematicLoopModel.project)
+
+
+def spatial_kinematic_loop_compile_refusal(model: Any) -> str:
+    """Why ``model`` cannot run the generated RK4 of this module (an empty string when it can)."""
+    if not isinstance(model, SpatialKinematicLoopModel):
+        return f"a ctmm.spatial.SpatialKinematicLoopModel is compiled here, got {type(model).__name__}"
+    reason = spatial_compile_refusal(model.tree)
+    if reason:
+        return f"its tree cannot be compiled: {reason}"
+    driven = [joint.name for joint in model.tree.joints if joint.driven]
+    if driven:
+        return (f"its tree has driven joints ({', '.join(driven)}): their prescribed motion enters Phi' and Phi'' "
+                "explicitly in time, not in the generated step yet; use compiled=None")
+    return ""
+
+
+class CompiledSpatialKinematicLoops(CompiledKinematicLoops):
+    """The generated RK4 with projection of one spatial kinematic loop model (module docstring).
+
+    Parameters
+    ----------
+    model : SpatialKinematicLoopModel
+        Compilable (:func:`spatial_kinematic_loop_compile_refusal`).
+    store_every, rows, iterations, cache_dir, compiler
+        As :class:`ctmm.compiled_kinematic_loops.CompiledKinematicLoops`.
+
+    Attributes
+    ----------
+    state_size : int
+        ``nq + nv + 2``: ``[q, v, residual, condition]``.
+    """
+
+    @staticmethod
+    def _refusal(model: Any) -> str:
+        return spatial_kinematic_loop_compile_refusal(model)
+
+    def _layout(self) -> tuple[np.ndarray, int, str, tuple]:
+        """``(parameters, state size, library name, what the builder reads)``."""
+        model, tree = self.model, self.model.tree
+        return (np.zeros(0), tree.n_positions + tree.n_velocities + 2,
+                f"spatial_kinematic_loops_{tree.n_bodies}b{tree.n_velocities}v{len(model.cuts)}c",
+                (tree, model.cuts, model.baumgarte, "spatial kinematic loop rk4"))
+
+    def _sides(self) -> list[tuple[tuple[int, np.ndarray], tuple[int, np.ndarray]]]:
+        """Per cut ``((parent body or -1, point), (child body, point))``: body axes from the body origin, or the
+        ground location in world axes."""
+        bodies = self.model.tree.bodies
+        names = [b.name for b in bodies]
+        out = []
+        for cut in self.model.cuts:
+            parent = ((-1, np.asarray(cut.point, float)) if cut.parent is None else
+                      (names.index(cut.parent), np.asarray(bodies[names.index(cut.parent)].points[cut.point], float)))
+            child = names.index(cut.child)
+            out.append((parent, (child, np.asarray(bodies[child].points[cut.child_point], float))))
+        return out
+
+    def _build(self) -> tuple[Any, list]:
+        """``(step, [outputs])`` on symbols: the RK4 step with projection and ``outputs(y, p, t) -> (lambda, Phi,
+        Phi', G)``."""
+        import casadi as ca
+
+        model, tree = self.model, self.model.tree
+        nq, nv, m = tree.n_positions, tree.n_velocities, model.n_constraints
+        scene = SpatialScene(tree)
+        sides, frames = self._sides(), [cut_frame(cut) for cut in model.cuts]
+        q, v, lam = ca.SX.sym("q", nq), ca.SX.sym("v", nv), ca.SX.sym("lambda", m)
+        p, t = ca.SX.sym("p", 0), ca.SX.sym("t")
+
+        def kinematics(q_: Any, v_: Any) -> list:
+            return scene.terms(CASADI, q_, v_, 0.0)[2]
+
+        def point(states: list, side: tuple[int, np.ndarray]) -> tuple[Any, Any]:
+            body, location = side
+            if body < 0:
+                return ca.DM(location), ca.DM.zeros(3)
+            s = states[body]
+            arm = ca.mtimes(s.rotation, ca.DM(location))
+            return s.origin + arm, s.velocity + ca.cross(s.omega, arm)
+
+        def parent_fixed(states: list, parent: tuple[int, np.ndarray], local: np.ndarray) -> Any:
+            return ca.DM(local) if parent[0] < 0 else ca.mtimes(states[parent[0]].rotation, ca.DM(local))
+
+        def rows(q_: Any, v_: Any) -> tuple[Any, Any]:
+            states = kinematics(q_, v_)
+            phi, rate = [], []
+            for (parent, child), frame in zip(sides, frames):
+                xp, vp = point(states, parent)
+                xc, vc = point(states, child)
+                omega_c = states[child[0]].omega
+                omega_p = ca.DM.zeros(3) if parent[0] < 0 else states[parent[0]].omega
+                if frame.basis is None:
+                    phi.append(xc - xp)
+                    rate.append(vc - vp)
+                for b_local in frame.basis or ():        # prismatic: d . b_j, b_j parent-fixed
+                    b = parent_fixed(states, parent, b_local)
+                    phi.append(ca.dot(xc - xp, b))
+                    rate.append(ca.dot(vc - vp, b) + ca.dot(xc - xp, ca.cross(omega_p, b)))
+                for u_local, b_local in frame.pairs:
+                    u = ca.mtimes(states[child[0]].rotation, ca.DM(u_local))
+                    b = ca.DM(b_local) if parent[0] < 0 else ca.mtimes(states[parent[0]].rotation, ca.DM(b_local))
+                    phi.append(ca.dot(u, b))
+                    rate.append(ca.dot(omega_c - omega_p, ca.cross(u, b)))
+            return ca.vertcat(*phi), ca.vertcat(*rate)
+
+        def wrenches(states: list, values: Any) -> dict:
+            """The cut loads of the unknowns ``values`` as wrenches ``(point, [f ; m] world)`` per body."""
+            out: dict[int, list] = {}
+            row = 0
+            for (parent, child), frame in zip(sides, frames):
+                if frame.basis is None:
+                    force = values[row:row + 3]
+                    row += 3
+                else:                                   # prismatic: lambda_j b_j
+                    force = ca.DM.zeros(3)
+                    for b_local in frame.basis:
+                        force = force + values[row] * parent_fixed(states, parent, b_local)
+                        row += 1
+                moment = ca.DM.zeros(3)
+                for u_local, b_local in frame.pairs:
+                    u = ca.mtimes(states[child[0]].rotation, ca.DM(u_local))
+                    b = ca.DM(b_local) if parent[0] < 0 else ca.mtimes(states[parent[0]].rotation, ca.DM(b_local))
+                    moment = moment + values[row] * ca.cross(u, b)
+                    row += 1
+                load = ca.vertcat(force, moment)
+                out.setdefault(child[0], []).append((child[1], load))
+                if parent[0] >= 0:                      # prismatic: the force acts at the child point
+                    shift = ca.DM.zeros(3) if frame.basis is None else ca.cross(
+                        point(states, child)[0] - point(states, parent)[0], force)
+                    out.setdefault(parent[0], []).append((parent[1], -ca.vertcat(force, moment + shift)))
+            return out
+
+        states = kinematics(q, v)
+        body_terms, joint_terms, _ = scene.terms(CASADI, q, v, 0.0, None, wrenches(states, lam))
+        solution = articulated_sweep(CASADI, scene.tree, body_terms, joint_terms)
+        sweep = ca.Function("loaded_sweep", [q, v, lam], [ca.vertcat(*scene.velocity_rates(solution))])
+        v_dot0 = sweep(q, v, ca.DM.zeros(m))
+        D = ca.horzcat(*[sweep(q, v, ca.DM.eye(m)[:, i]) - v_dot0 for i in range(m)])
+        phi, phi_dot = rows(q, v)
+        J = ca.jacobian(phi_dot, v)
+        q_dot = position_rates(tree, q, v)
+        c0 = ca.mtimes(J, v_dot0) + ca.jtimes(phi_dot, q, q_dot)
+        G = ca.mtimes(J, D)
+        alpha = model.baumgarte
+        forces = ca.solve(G, -c0 - 2.0 * alpha * phi_dot - alpha * alpha * phi)
+        condition = ca.norm_fro(G) * ca.norm_fro(ca.solve(G, ca.SX.eye(m)))
+        y = ca.vertcat(q, v)
+        rate = ca.Function("closed_rate", [y, p, t], [ca.vertcat(q_dot, v_dot0 + ca.mtimes(D, forces)), condition])
+        outputs = ca.Function("outputs", [y, p, t], [forces, phi, phi_dot, G])
+
+        constraint = ca.Function("constraint", [q, v], [phi, phi_dot, J])
+        dx = ca.SX.sym("dx", nv)
+        normalize = ca.Function("normalized", [q], [self._normalized(q)])
+        retract = ca.Function("retract", [q, dx], [normalize(q + position_rates(tree, q, dx))])
+        qk = normalize(q)
+        residual, rate_k, Jk = constraint(qk, v)
+        for _ in range(self.iterations):
+            step_q = retract(qk, -ca.mtimes(Jk.T, ca.solve(ca.mtimes(Jk, Jk.T), residual)))
+            moved = ca.mmax(ca.fabs(residual)) >= _SKIP
+            qk = ca.if_else(moved, step_q, qk)
+            residual, rate_k, Jk = constraint(qk, v)
+        vk = v - ca.mtimes(Jk.T, ca.solve(ca.mtimes(Jk, Jk.T), rate_k))
+        project = ca.Function("project", [y], [ca.vertcat(qk, vk), ca.mmax(ca.fabs(residual))])
+        return projected_rk4_step(rate, project, nq + nv, 0), [outputs]
+
+    def _normalized(self, q: Any) -> Any:
+        """``q`` with every quaternion block scaled to unit norm (:meth:`SpatialModel.normalized` on symbols)."""
+        import casadi as ca
+
+        parts = [q[k] for k in range(q.size1())]
+        for joint, layout in zip(self.model.tree.joints, self.model.tree.layout):
+            start = layout.position.start + (3 if joint.kind in ("free", "elastic6") else 0)
+            if joint.kind not in ("spherical", "free", "elastic6"):
+                continue
+            block = ca.vertcat(*parts[start:start + 4])
+            norm = ca.norm_2(block)
+            for i in range(4):
+                parts[start + i] = block[i] / norm
+        return ca.vertcat(*parts)
+
+    def cut_history(self, t: np.ndarray, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Cut unknowns (rows, m), ``Phi`` and ``Phi'`` (rows, m) of stored times ``t`` [s] and states, by the
+        generated function mapped over the rows (one call)."""
+        rows, m, size = len(t), self.model.n_constraints, self.state_size - 2
+        if rows == 0:
+            return np.zeros((0, m)), np.zeros((0, m)), np.zeros((0, m))
+        forces, phi, phi_dot, _ = self._outputs.map(rows)(states[:, :size].T, np.zeros((0, rows)),
+                                                          np.asarray(t, dtype=float)[None, :])
+        return np.asarray(forces).T.copy(), np.asarray(phi).T.copy(), np.asarray(phi_dot).T.copy()
+
+
+def simulate_spatial_kinematic_loops_generated(model: SpatialKinematicLoopModel, q0: Any, v0: Any, *, t_final: float,
+                                               dt: float, store_every: int = 1,
+                                               compiled: CompiledSpatialKinematicLoops | None = None,
+                                               cache_dir: str | os.PathLike | None = None) -> SpatialLoopSimulation:
+    """RK4 with projection of a spatial kinematic loop model, the time loop in generated C (module docstring): the
+    steps of :func:`ctmm.spatial.closed_loop_time.simulate_spatial_loops` with ``method="rk4"``, method label
+    ``"rk4-generated"``.  Parameters, refusals and failures as
+    :func:`ctmm.compiled_kinematic_loops.simulate_kinematic_loops_generated` (``q0``, ``v0`` arrays or mappings,
+    :meth:`SpatialKinematicLoopModel.state`; ``compiled`` a :class:`CompiledSpatialKinematicLoops`); the partial
+    result of a :class:`~ctmm.errors.SimulationError` is a :class:`SpatialLoopSimulation`.
+    """
+    q, v = model.state(q0, v0) if isinstance(model, SpatialKinematicLoopModel) else (q0, v0)
+    compiled, t, states, wall, n_steps = generated_run(CompiledSpatialKinematicLoops, model, q, v, t_final, dt,
+                                                       store_every, compiled, cache_dir)
+    size = compiled.state_size - 2
+    bad = first_failure(states, size)
+    good = len(t) if bad is None else bad
+    unknowns, phi, phi_dot = compiled.cut_history(t[:good], states[:good])
+
+    def history(k: int) -> SpatialLoopSimulation:
+        nq = model.tree.n_positions
+        loads = [model.cut_loads(states[i, :nq], unknowns[i], t[i]) for i in range(k)]
+        forces = np.array([[f for f, _ in row] for row in loads]).reshape(k, len(model.cuts), 3)
+        moments = np.array([[mu for _, mu in row] for row in loads]).reshape(k, len(model.cuts), 3)
+        return SpatialLoopSimulation(model, t[:k], states[:k, :nq], states[:k, nq:size], forces, moments,
+                                     np.max(np.abs(phi[:k]), axis=1, initial=0.0),
+                                     np.max(np.abs(phi_dot[:k]), axis=1, initial=0.0), "rk4-generated", wall,
+                                     4 * n_steps)
+
+    if bad is not None:
+        raise SimulationError(f"spatial kinematic loop {model.name!r} (generated RK4): "
+                              f"{failure_message(states[bad], size, compiled.iterations)} by t = {t[bad]} s (after "
+                              f"t = {t[bad - 1] if bad else 0.0} s, the last good stored state)", time=float(t[bad]),
+                              element=model.cuts[0].name, partial_result=history(bad))
+    return history(len(t))
