@@ -103,10 +103,10 @@ class SweepResponse:
         self.ports = PlanarPorts(model) if ports is None else ports
         self.theta = np.asarray(model.body_angles(point.q, np.zeros(model.n_coordinates), point.t)[0], dtype=float)
         # the pivots of the mass terms alone (s^2 = 1): the inertia part of every pivot, the scale it is measured by
-        inertia = [BodyTerms(M0[None], np.zeros((1, M0.shape[0], 1)), Kin, {e: np.zeros((1, 3, 1)) for e in Kin}, RF)
+        inertia = [BodyTerms(M0[None], np.zeros((1, M0.shape[0], 1)), Kin, dict.fromkeys(Kin), RF)
                    for M0, _, _, Kin, RF in self.terms.bodies]
         with np.errstate(all="ignore"):
-            masses = articulated_sweep(NUMPY, self.terms.tree, inertia, self.terms.joints)
+            masses = articulated_sweep(NUMPY, self.terms.tree, inertia, self.terms.joints, forces=False)
         self.mass_pivots, self.mass_modal = masses.pivot, masses.modal
         sizes: dict = {}
         for j, body in enumerate(self.terms.bodies):
@@ -189,10 +189,10 @@ class SweepResponse:
         G = np.zeros((s.size, rows.shape[0], len(loads)), dtype=complex)
         good = np.ones(s.size, dtype=bool)
         for i, (body_loads, joints) in enumerate(loads):
-            bodies = [BodyTerms(Z, h, Kin, {e: np.zeros((1, 3, 1)) for e in Kin}, RF)
+            bodies = [BodyTerms(Z, h, Kin, dict.fromkeys(Kin), RF)           # c = None: zero
                       for Z, h, (_, _, _, Kin, RF) in zip(stiffness, body_loads, self.terms.bodies)]
             with np.errstate(all="ignore"):
-                solution = articulated_sweep(NUMPY, self.terms.tree, bodies, joints, kappa)
+                solution = articulated_sweep(NUMPY, self.terms.tree, bodies, joints, kappa, forces=False)
                 amplitudes = self.scene.coordinate_accelerations(solution)       # q_hat (B, n)
                 G[:, :, i] = amplitudes @ rows[:, :n].T + (s[:, None] * amplitudes) @ rows[:, n:].T
             if i == 0:
