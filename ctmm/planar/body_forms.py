@@ -473,13 +473,13 @@ class PlanarScene:
                 if np.any(F):
                     Q = Q + RF @ np.repeat(F, rows, axis=0)
             size = Q.shape[1]
-            slopes = Q.reshape(len(members), rows, size).imag[:, 1:, :] / step    # (members, 2k, 3 + n)
-            own = [2] + list(range(3, size))
+            slopes = Q.reshape(len(members), rows, size).imag.swapaxes(1, 2) / step   # (members, 3 + n, rows)
+            K0, C0 = np.zeros((2, len(members), size, size))
+            K0[:, :, [2, *range(3, size)]] = slopes[:, :, 1:k + 1]
+            C0[:, :, [2, *range(3, size)]] = slopes[:, :, k + 1:]
+            M0 = body.M[::rows].real
             for g, j in enumerate(members):
-                K0, C0 = np.zeros((size, size)), np.zeros((size, size))
-                K0[:, own] = slopes[g, :k].T
-                C0[:, own] = slopes[g, k:].T
-                linear[j] = (body.M[g * rows].real, C0, K0, bodies[j].Kin, bodies[j].RF)
+                linear[j] = (M0[g], C0[g], K0[g], bodies[j].Kin, bodies[j].RF)
         amplitudes = dict(torque or {})
         held = []
         for j, joint in enumerate(joints):
