@@ -19,7 +19,9 @@ joint ``D = S^T Phi S + kappa``, ``Phi_hat = Phi - Phi S D^-1 S^T Phi``,
 ``A_O = Kin_e x_p + c_e`` (ground: 0), ``a_rel = D^-1 (tau - S^T (Phi A_O + psi'))``,
 ``A = A_O + S a_rel + c_joint``, ``eta'' = -(W_A A + W_h)``, ``F = Phi A + psi``.
 
-Written in :mod:`ctmm.ops` only, so it runs batched on numpy (float, complex) and on casadi symbols.
+Written in :mod:`ctmm.ops` only, so it runs batched on numpy (float, complex) and on casadi symbols; on numpy a
+product of a constant matrix (``B = 1``: the points' ``Kin``, ``RF`` of the frequency context) and a batch is one 2-D
+product.  A point's ``c`` may be ``None`` (zero: the frequency context).
 """
 from __future__ import annotations
 
@@ -60,6 +62,33 @@ def _solve(ops: Ops, a: Any, b: Any, body: int, what: str) -> Any:
         return ops.solve(a, b)
     except np.linalg.LinAlgError as exc:
         raise SingularPivotError(f"singular {what} of body {body}: {exc}", body) from exc
+
+
+def _product(ops: Ops, a: Any, b: Any) -> Any:
+    """``ops.matmul(a, b)``; on numpy a constant factor (``B = 1``) times a batch is one 2-D product (numpy's
+    batched product of small matrices costs a BLAS call per matrix)."""
+    if type(a) is np.ndarray and type(b) is np.ndarray and a.ndim == 3 == b.ndim:
+        if a.shape[0] == 1 < b.shape[0]:                # (b^T a^T)^T
+            batch, inner, columns = b.shape
+            flat = b.swapaxes(1, 2).reshape(batch * columns, inner)
+            return (flat @ a[0].T).reshape(batch, columns, -1).swapaxes(1, 2)
+        if b.shape[0] == 1 < a.shape[0]:
+            batch, rows, inner = a.shape
+            return (a.reshape(batch * rows, inner) @ b[0]).reshape(batch, rows, -1)
+    return ops.matmul(a, b)
+
+
+def _congruence(ops: Ops, left: Any, middle: Any, right: Any) -> Any:
+    """``left middle right``; on numpy with constant ``left, right`` (``B = 1``) and a batched ``middle`` one 2-D
+    product of the flattened ``middle`` with ``kron(left^T, right)``."""
+    if (type(middle) is np.ndarray and type(left) is np.ndarray and type(right) is np.ndarray and middle.ndim == 3
+            and left.shape[0] == 1 == right.shape[0] < middle.shape[0]):
+        rows, inner = left.shape[1:]
+        columns = right.shape[2]
+        kron = left[0].T[:, None, :, None] * right[0][None, :, None, :]     # kron(left^T, right)
+        kron = kron.reshape(inner * right.shape[1], rows * columns)
+        return (middle.reshape(middle.shape[0], -1) @ kron).reshape(-1, rows, columns)
+    return _product(ops, _product(ops, left, middle), right)
 
 
 @dataclass(frozen=True)
@@ -174,7 +203,8 @@ class Inward:
 
 
 def articulated_sweep(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints: Sequence[JointTerms],
-                      kappa: Sequence[Any] | None = None, *, characteristic: bool = False) -> Articulated:
+                      kappa: Sequence[Any] | None = None, *, characteristic: bool = False,
+                      forces: bool = True) -> Articulated:
     """Tip-to-base elimination and base-to-tip pass (module docstring): :func:`articulated_outward` of
     :func:`articulated_inward`.
 
@@ -190,6 +220,8 @@ def articulated_sweep(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints:
         Joint tangent ``(k, k)`` per joint (``None`` entries: 0); default explicit.
     characteristic : bool
         Also form ``prod det D_j prod det C_j``.
+    forces : bool
+        Also form the joint wrenches (:func:`articulated_outward`).
 
     Returns
     -------
@@ -199,7 +231,7 @@ def articulated_sweep(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints:
         :class:`SingularPivotError` naming the body.
     """
     inward = articulated_inward(ops, tree, bodies, joints, kappa)
-    return articulated_outward(ops, tree, bodies, joints, inward, characteristic=characteristic)
+    return articulated_outward(ops, tree, bodies, joints, inward, characteristic=characteristic, forces=forces)
 
 
 def articulated_inward(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints: Sequence[JointTerms],
@@ -295,13 +327,15 @@ def articulated_inward(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints
         e = tree.point[j]
         parent = bodies[par]
         RF = parent.RF[e]
-        M[par] = M[par] + ops.matmul(ops.matmul(RF, P_hat), parent.Kin[e])
-        h[par] = h[par] + ops.matmul(RF, ops.matmul(P_hat, parent.c[e]) + p_hat)
+        M[par] = M[par] + _congruence(ops, RF, P_hat, parent.Kin[e])
+        if parent.c[e] is not None:                 # None: c_e = 0 (the frequency context)
+            p_hat = ops.matmul(P_hat, parent.c[e]) + p_hat
+        h[par] = h[par] + _product(ops, RF, p_hat)
     return Inward(Phi, psi, St, D, C, WA, Wh)
 
 
 def articulated_outward(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints: Sequence[JointTerms],
-                        inward: Inward, *, characteristic: bool = False) -> Articulated:
+                        inward: Inward, *, characteristic: bool = False, forces: bool = True) -> Articulated:
     """Base-to-tip pass (module docstring) on the elimination ``inward`` of the same tree.
 
     It reads of ``bodies`` only ``Kin`` and ``c`` of the points carrying children, and of ``joints``
@@ -315,6 +349,8 @@ def articulated_outward(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joint
         :func:`articulated_inward` of these terms (or terms carrying the same numbers).
     characteristic : bool
         Also form ``prod det D_j prod det C_j``.
+    forces : bool
+        Also form the joint wrenches ``F_in`` (``False``: :attr:`Articulated.force` holds ``None``).
 
     Returns
     -------
@@ -330,7 +366,9 @@ def articulated_outward(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joint
         joint = joints[j]
         if par >= 0:
             e = tree.point[j]
-            A_O = ops.matmul(bodies[par].Kin[e], x[par]) + bodies[par].c[e]
+            A_O = _product(ops, bodies[par].Kin[e], x[par])
+            if bodies[par].c[e] is not None:
+                A_O = A_O + bodies[par].c[e]
         else:
             A_O = None                              # the ground does not move
         if joint.prescribed is not None:
@@ -358,8 +396,8 @@ def articulated_outward(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joint
             A = A + joint.c
         relative[j] = a
         x[j] = A if C[j] is None else ops.block([[A], [(ops.matmul(WA[j], A) + Wh[j]) * -1.0]])
-        # F = Phi (A - c_joint) + psi  (psi already carries Phi c_joint)
-        force[j] = ops.matmul(Phi[j], A if joint.c is None else A - joint.c) + psi[j]
+        if forces:                                  # F = Phi (A - c_joint) + psi  (psi carries Phi c_joint)
+            force[j] = ops.matmul(Phi[j], A if joint.c is None else A - joint.c) + psi[j]
     char = None
     if characteristic:
         for block in [b for b in D if b is not None] + [b for b in C if b is not None]:

@@ -50,11 +50,10 @@ class ArticulatedResponse:
         """Keep the linearised terms (``bodies``: ``(M0, C0, K0, Kin, RF)`` per body; ``joints``: held, the laws'
         torques zero) and the pivots of their mass terms alone (the scale the pivots are measured by)."""
         self.tree, self.bodies, self.joints = tree, tuple(bodies), tuple(joints)
-        d = tree.dimension
-        inertia = [BodyTerms(M0[None], np.zeros((1, M0.shape[0], 1)), Kin, {e: np.zeros((1, d, 1)) for e in Kin}, RF)
+        inertia = [BodyTerms(M0[None], np.zeros((1, M0.shape[0], 1)), Kin, dict.fromkeys(Kin), RF)   # c = None: zero
                    for M0, _, _, Kin, RF in self.bodies]
         with np.errstate(all="ignore"):
-            masses = articulated_sweep(NUMPY, tree, inertia, self.joints)
+            masses = articulated_sweep(NUMPY, tree, inertia, self.joints, forces=False)
         self.mass_pivots, self.mass_modal = masses.pivot, masses.modal
         sizes: dict = {}
         for j, body in enumerate(self.bodies):
@@ -102,7 +101,6 @@ class ArticulatedResponse:
     def _batch(self, s: np.ndarray, loads: list, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`response` of the load cases ``loads`` and sensor ``rows`` at ``s`` (B,)."""
         n = rows.shape[1] // 2
-        d = self.tree.dimension
         column = s.reshape(-1, 1, 1)
         if self.undamped and not np.any(s.real):    # s^2 = -omega^2: the whole sweep is real (same numbers, faster)
             stiffness = self._dynamic_stiffness((column * column).real, None)
@@ -113,10 +111,10 @@ class ArticulatedResponse:
         G = np.zeros((s.size, rows.shape[0], len(loads)), dtype=complex)
         good = np.ones(s.size, dtype=bool)
         for i, (body_loads, joints) in enumerate(loads):
-            bodies = [BodyTerms(Z, h, Kin, {e: np.zeros((1, d, 1)) for e in Kin}, RF)
+            bodies = [BodyTerms(Z, h, Kin, dict.fromkeys(Kin), RF)           # c = None: zero
                       for Z, h, (_, _, _, Kin, RF) in zip(stiffness, body_loads, self.bodies)]
             with np.errstate(all="ignore"):
-                solution = articulated_sweep(NUMPY, self.tree, bodies, joints, kappa)
+                solution = articulated_sweep(NUMPY, self.tree, bodies, joints, kappa, forces=False)
                 amplitudes = self.amplitudes(solution)                           # (B, n)
                 G[:, :, i] = amplitudes @ rows[:, :n].T + (s[:, None] * amplitudes) @ rows[:, n:].T
             if i == 0:

@@ -11,11 +11,8 @@ an articulated tree (:class:`PlanarScene`) for the one sweep (:mod:`ctmm.articul
   :func:`bushing_terms` (hinge with translational springs: ``S = I3``, the revolute law about
   ``e3`` and ``f = -k_t d - c_t d_dot`` along the global offset ``d`` of the child's inboard point
   from the parent's point);
-* :func:`beam_terms` -- the modal beam through an adapter over
-  :meth:`ctmm.flexible.beam.BeamData.terms` (a numpy routine that writes in place into its work
-  arrays -- a debt of the one-core migration, plan §2.2, "ModalBeam"; under casadi it runs on object
-  arrays of symbols, ``B = 1``, and its results are assembled into casadi matrices, so
-  :class:`PlanarScene` with beams evaluates and generates code like the rigid families).
+* :func:`beam_terms` -- the modal beam (:mod:`ctmm.planar.beam_body_terms`: an adapter over
+  :meth:`ctmm.flexible.beam.BeamData.terms`, numpy and casadi).
 """
 from __future__ import annotations
 
@@ -28,6 +25,7 @@ from ..articulated import Articulated, Tree, articulated_sweep, frequency_kappa
 from ..errors import ModelError, SimulationError
 from ..ops import NUMPY, Ops
 from ..protocol import BodyTerms, JointTerms
+from .beam_body_terms import beam_terms, symbolic_beam_terms
 from .hinge_laws import law_joint_terms, radial_terms
 from .model import BUSHING, FREE, PlanarModel
 
@@ -201,24 +199,6 @@ def nonlinear_bushing_terms(ops: Ops, hinge: Any, dx: Any, dy: Any, angle: Any, 
                       tau_v=ops.block([[zero, zero, zero], [zero, zero, zero], [zero, zero, tau_v]]))
 
 
-def beam_terms(data: Any, points: Sequence[str], theta: np.ndarray, omega: np.ndarray, eta: np.ndarray,
-               eta_dot: np.ndarray, t: float, gravity: Sequence[float],
-               modal_force: np.ndarray | None = None) -> tuple[BodyTerms, list[tuple[Any, Any]]]:
-    """Adapter: :meth:`ctmm.flexible.beam.BeamData.terms` as :class:`BodyTerms` (numpy only).
-
-    ``theta, omega`` (B,), ``eta, eta_dot`` (B, n); ``modal_force`` (n,) an actuator force on the modal
-    equations.  Returns the terms and, per point, the end's ``(angle, rate)`` (B,).
-    """
-    M, h, ends = data.terms(theta, omega, eta, eta_dot, t, gravity)
-    h = h[:, :, None]
-    if modal_force is not None:
-        h = h - np.concatenate([np.zeros((1, 3, 1)), np.asarray(modal_force, float).reshape(1, -1, 1)], axis=1)
-    Kin = {name: e[0] for name, e in zip(points, ends)}
-    cc = {name: e[1][:, :, None] for name, e in zip(points, ends)}
-    RF = {name: e[2] for name, e in zip(points, ends)}
-    return BodyTerms(M, h, Kin, cc, RF), [(e[3], e[4]) for e in ends]
-
-
 def _entry(ops: Ops, column: Any, k: int) -> Any:
     return ops.sub(column, slice(k, k + 1), slice(0, 1))
 
@@ -247,7 +227,7 @@ class LinearTerms:
         """The frequency context of the one sweep at the Laplace variables ``s`` (B,) [1/s], batched."""
         s = np.asarray(s, dtype=complex).reshape(-1, 1, 1)
         linear = [BodyTerms(s * s * M0 + s * C0 + K0, np.zeros((1, M0.shape[0], 1), dtype=complex), Kin,
-                            {e: np.zeros((1, 3, 1)) for e in Kin}, RF)
+                            dict.fromkeys(Kin), RF)
                   for M0, C0, K0, Kin, RF in self.bodies]
         return articulated_sweep(NUMPY, self.tree, linear, self.joints, frequency_kappa(NUMPY, self.joints, s),
                                  characteristic=True)
@@ -267,31 +247,6 @@ def _modal(ops: Ops, column: Any, idx: np.ndarray) -> Any:
     out = np.empty((1, len(idx)), dtype=object)
     out[0, :] = [column[int(k)] for k in idx]
     return out
-
-
-def _symbolic_beam_terms(ops: Ops, data: Any, points: Sequence[str], theta: Any, omega: Any, eta: np.ndarray,
-                         eta_dot: np.ndarray, t: float, gravity: Sequence[float], modal_force: Any = None
-                         ) -> tuple[BodyTerms, dict]:
-    """:func:`beam_terms` on symbols (casadi): the numpy routine run on object arrays of scalars
-    (``B = 1``), its results assembled into ops matrices.  ``eta, eta_dot``: object arrays ``(1, n)``."""
-    def scalars(x: Any) -> np.ndarray:
-        out = np.empty(1, dtype=object)
-        out[0] = x
-        return out
-
-    def matrix(a: np.ndarray) -> Any:
-        a = np.asarray(a, dtype=object)
-        a = a.reshape(a.shape[0], -1) if a.ndim == 2 else a
-        return ops.block([[a[r, c] for c in range(a.shape[1])] for r in range(a.shape[0])])
-
-    body, ends = beam_terms(data, points, scalars(theta), scalars(omega), eta, eta_dot, t, gravity, None)
-    h = body.h[0]
-    if modal_force is not None:
-        h = h.copy()
-        h[3:, 0] = h[3:, 0] - np.asarray(modal_force, dtype=object).reshape(-1)
-    terms = BodyTerms(matrix(body.M[0]), matrix(h), {e: matrix(v[0]) for e, v in body.Kin.items()},
-                      {e: matrix(v[0]) for e, v in body.c.items()}, {e: matrix(v[0]) for e, v in body.RF.items()})
-    return terms, {name: (a[0], r[0]) for name, (a, r) in zip(points, ends)}
 
 
 class PlanarScene:
@@ -337,7 +292,6 @@ class PlanarScene:
         m = self.model
         driven = {i: (a, r, acc) for i, a, r, acc in m.driven(t)}
         numbers = SceneNumbers.of(m, t) if numbers is None else numbers
-        laws = (numbers.reference, numbers.reference_rate, numbers.torque)
         all_loads = numbers.loads
         end_motion, bodies, joints = {}, [], []
         for j in range(m.n_bodies):
@@ -358,36 +312,41 @@ class PlanarScene:
             body, ends = self.body_terms(ops, j, th, om, e, ed, t, inputs, all_loads, numbers)
             end_motion.update({(j, name): motion for name, motion in ends.items()})
             bodies.append(body)
-            kind = int(m.joint_kind[j])
-            if j in driven:
-                joints.append(driven_terms(ops, driven[j][2]))
-            elif kind == FREE:
-                joints.append(free_base_terms(ops))
-            elif kind == BUSHING and j in m.nonlinear_hinges:
-                ix, iy = (int(i) for i in m.xy_index[j])
-                torque = 0.0 if inputs is None else _value(inputs.hinge_torque[j])
-                joints.append(nonlinear_bushing_terms(ops, m.nonlinear_hinges[j], _entry(ops, q, ix), _entry(ops, q, iy),
-                                                      th - th_end, om - om_end, torque))
-            elif kind == BUSHING:
-                ix, iy = (int(i) for i in m.xy_index[j])
-                torque = laws[2][j] + (0.0 if inputs is None else _value(inputs.hinge_torque[j]))
-                joints.append(bushing_terms(
-                    ops, offset=(_entry(ops, q, ix), _entry(ops, q, iy)),
-                    offset_rate=(_entry(ops, qdot, ix), _entry(ops, qdot, iy)), angle=th - th_end,
-                    rate=om - om_end, translational_stiffness=m.translational_stiffness[j],
-                    translational_damping=m.translational_damping[j], stiffness=numbers.stiffness[j],
-                    damping=numbers.damping[j], reference=laws[0][j], reference_rate=laws[1][j], torque=torque))
-            elif j in m.nonlinear_hinges:
-                torque = 0.0 if inputs is None else _value(inputs.hinge_torque[j])
-                tau, tau_q, tau_v = law_joint_terms(ops, m.nonlinear_hinges[j], th - th_end, om - om_end, torque)
-                joints.append(JointTerms(S=ops.block([[0.0], [0.0], [1.0]]), tau=ops.block([[tau]]),
-                                         tau_q=ops.block([[tau_q]]), tau_v=ops.block([[tau_v]]), axis=2))
-            else:
-                torque = laws[2][j] + (0.0 if inputs is None else _value(inputs.hinge_torque[j]))
-                joints.append(revolute_terms(ops, angle=th - th_end, rate=om - om_end, stiffness=numbers.stiffness[j],
-                                             damping=numbers.damping[j], reference=laws[0][j],
-                                             reference_rate=laws[1][j], torque=torque))
+            joints.append(self._joint_terms(ops, j, th - th_end, om - om_end, q, qdot, inputs, numbers, driven))
         return bodies, joints
+
+    def _joint_terms(self, ops: Ops, j: int, angle: Any, rate: Any, q: Any, qdot: Any, inputs: Any,
+                     numbers: SceneNumbers, driven: Mapping[int, tuple]) -> JointTerms:
+        """The inboard joint of body ``j`` at relative angle ``angle`` [rad] and rate ``rate`` [rad/s] (ops
+        scalars); ``q, qdot``: the coordinate columns of :meth:`terms` (offsets of translational springs);
+        ``driven``: ``{body: (angle, rate, acceleration)}`` of ``model.driven(t)``."""
+        m = self.model
+        kind = int(m.joint_kind[j])
+        if j in driven:
+            return driven_terms(ops, driven[j][2])
+        if kind == FREE:
+            return free_base_terms(ops)
+        extra = 0.0 if inputs is None else _value(inputs.hinge_torque[j])
+        if kind == BUSHING and j in m.nonlinear_hinges:
+            ix, iy = (int(i) for i in m.xy_index[j])
+            return nonlinear_bushing_terms(ops, m.nonlinear_hinges[j], _entry(ops, q, ix), _entry(ops, q, iy), angle,
+                                           rate, extra)
+        if kind == BUSHING:
+            ix, iy = (int(i) for i in m.xy_index[j])
+            return bushing_terms(
+                ops, offset=(_entry(ops, q, ix), _entry(ops, q, iy)),
+                offset_rate=(_entry(ops, qdot, ix), _entry(ops, qdot, iy)), angle=angle, rate=rate,
+                translational_stiffness=m.translational_stiffness[j],
+                translational_damping=m.translational_damping[j], stiffness=numbers.stiffness[j],
+                damping=numbers.damping[j], reference=numbers.reference[j], reference_rate=numbers.reference_rate[j],
+                torque=numbers.torque[j] + extra)
+        if j in m.nonlinear_hinges:
+            tau, tau_q, tau_v = law_joint_terms(ops, m.nonlinear_hinges[j], angle, rate, extra)
+            return JointTerms(S=ops.block([[0.0], [0.0], [1.0]]), tau=ops.block([[tau]]), tau_q=ops.block([[tau_q]]),
+                              tau_v=ops.block([[tau_v]]), axis=2)
+        return revolute_terms(ops, angle=angle, rate=rate, stiffness=numbers.stiffness[j], damping=numbers.damping[j],
+                              reference=numbers.reference[j], reference_rate=numbers.reference_rate[j],
+                              torque=numbers.torque[j] + extra)
 
     def body_terms(self, ops: Ops, j: int, theta: Any, omega: Any, eta: Any, eta_dot: Any, t: float,
                    inputs: Any = None, loads: Any = None, numbers: SceneNumbers | None = None
@@ -403,7 +362,7 @@ class PlanarScene:
             numbers = SceneNumbers(m.mass, m.inertia, m.com, m.ends, m.gravity, m.stiffness, m.damping, (), (), (),
                                    loads, m.load_point)
         if j in m.beams and ops is not NUMPY:
-            return _symbolic_beam_terms(ops, m.beams[j].data, self.beam_points[j], theta, omega, eta, eta_dot, t,
+            return symbolic_beam_terms(ops, m.beams[j].data, self.beam_points[j], theta, omega, eta, eta_dot, t,
                                         m.gravity, None if inputs is None else inputs.modal_force.get(j))
         if j in m.beams:
             th_b, om_b = np.asarray(theta).reshape(-1), np.asarray(omega).reshape(-1)
@@ -458,7 +417,11 @@ class PlanarScene:
     def linear_terms(self, q0: Any, t: float = 0.0, torque: Mapping[int, complex] | None = None,
                      *, step: float = 1e-30) -> "LinearTerms":
         """The terms of :meth:`frequency` about ``q0``, linearised once, to sweep at many ``s``
-        (:meth:`LinearTerms.sweep`); arguments as for :meth:`frequency`."""
+        (:meth:`LinearTerms.sweep`); arguments as for :meth:`frequency`.
+
+        Each body is evaluated at ``q0`` and at a complex step per own coordinate and rate (rigid bodies with
+        the same points and number of loads in one batched :func:`rigid_body_terms`); the evaluation at ``q0``
+        is the static one (equilibrium check, wrenches ``F_e0``)."""
         m = self.model
         q0 = np.asarray(q0, dtype=float)
         n = m.n_coordinates
@@ -466,7 +429,22 @@ class PlanarScene:
             raise ModelError(f"PlanarScene.frequency: q0 must be {n} finite coordinates "
                              f"({', '.join(m.coordinates)}), got {q0!r}")
         zero = np.zeros(n)
-        bodies, joints = self.terms(NUMPY, q0[None, :, None], zero[None, :, None], t)
+        numbers = SceneNumbers.of(m, t)
+        theta, omega = m.body_angles(q0, zero, t)
+        evaluated = self._perturbed_terms(q0, theta, omega, t, numbers, step)
+        driven = {i: (a, r, acc) for i, a, r, acc in m.driven(t)}
+        bodies, joints, end_motion = [], [], {}
+        for j, (body, row, ends) in enumerate(evaluated):
+            at = slice(row, row + 1)
+            bodies.append(BodyTerms(body.M[at].real, body.h[at].real, {e: v[at].real for e, v in body.Kin.items()},
+                                    {e: v[at].real for e, v in body.c.items()},
+                                    {e: v[at].real for e, v in body.RF.items()}))
+            end_motion.update({(j, name): motion for name, motion in ends.items()})
+            p = int(m.parent[j])
+            th_end, om_end = end_motion[(p, self.tree.point[j])] if p >= 0 else (float(m.ground_angle[j]), 0.0)
+            joints.append(self._joint_terms(NUMPY, j, np.full((1, 1, 1), theta[j] - th_end),
+                                            np.full((1, 1, 1), omega[j] - om_end), q0[None, :, None],
+                                            zero[None, :, None], None, numbers, driven))
         static = articulated_sweep(NUMPY, self.tree, bodies, joints)
         residual = float(np.max(np.abs(self.coordinate_accelerations(static)), initial=0.0))
         limit = 1e-8 * (1.0 + float(np.max(np.abs(m.gravity))))
@@ -478,32 +456,30 @@ class PlanarScene:
             if self.tree.parent[c] >= 0:
                 key = (self.tree.parent[c], self.tree.point[c])
                 end_force[key] = end_force.get(key, 0.0) + static.force[c][0]
-        theta, _ = m.body_angles(q0, zero, t)
-        loads = m.loads(t) if len(m.load_body) else np.zeros((0, 3))
-        linear = []
-        for j in range(m.n_bodies):
-            idx = m.modal_index[j]
-            k = 1 + len(idx)                       # own coordinates: theta, eta
-            perturb = np.zeros((1 + 2 * k, 2 * k), dtype=complex)
-            perturb[1:, :] = 1j * step * np.eye(2 * k)
-            th = theta[j] + perturb[:, 0]
-            om = perturb[:, k]
-            eta = q0[idx][None, :] + perturb[:, 1:k] if len(idx) else None
-            eta_dot = perturb[:, k + 1:] if len(idx) else None
-            body, _ = self.body_terms(NUMPY, j, th.reshape(-1, 1, 1), om.reshape(-1, 1, 1), eta, eta_dot, t,
-                                      None, loads)
+        linear: list = [None] * m.n_bodies
+        groups: dict = {}                           # the bodies of one batched evaluation
+        for j, (body, _, _) in enumerate(evaluated):
+            groups.setdefault(id(body), (body, []))[1].append(j)
+        for body, members in groups.values():
+            # Q = h + sum_e RF_e F_e0 at every row; its complex-step slopes are K0 (theta, eta) and C0 (rates)
+            k = (body.M.shape[0] // len(members) - 1) // 2           # own coordinates: theta, eta
+            rows = 1 + 2 * k
             Q = body.h
-            for e in body.Kin:
-                if (j, e) in end_force:
-                    Q = Q + body.RF[e] @ end_force[(j, e)]
-            slopes = Q[1:, :, 0].imag.T / step     # (3 + n, 2k): columns d/dtheta, d/deta, d/domega, ...
+            for e, RF in body.RF.items():
+                F = np.zeros((len(members), 3, 1))
+                for g, j in enumerate(members):
+                    if (j, e) in end_force:
+                        F[g] = end_force[(j, e)]
+                if np.any(F):
+                    Q = Q + RF @ np.repeat(F, rows, axis=0)
             size = Q.shape[1]
-            own = [2] + list(range(3, size))
-            K0, C0 = np.zeros((size, size)), np.zeros((size, size))
-            K0[:, own] = slopes[:, :k]
-            C0[:, own] = slopes[:, k:]
-            linear.append((body.M[0].real, C0, K0, {e: v[:1].real for e, v in body.Kin.items()},
-                           {e: v[:1].real for e, v in body.RF.items()}))
+            slopes = Q.reshape(len(members), rows, size).imag.swapaxes(1, 2) / step   # (members, 3 + n, rows)
+            K0, C0 = np.zeros((2, len(members), size, size))
+            K0[:, :, [2, *range(3, size)]] = slopes[:, :, 1:k + 1]
+            C0[:, :, [2, *range(3, size)]] = slopes[:, :, k + 1:]
+            M0 = body.M[::rows].real
+            for g, j in enumerate(members):
+                linear[j] = (M0[g], C0[g], K0[g], bodies[j].Kin, bodies[j].RF)
         amplitudes = dict(torque or {})
         held = []
         for j, joint in enumerate(joints):
@@ -519,6 +495,49 @@ class PlanarScene:
             raise ModelError(f"PlanarScene.frequency: torque given for bodies {sorted(amplitudes)} whose inboard "
                              "joints are not revolute")
         return LinearTerms(self.tree, tuple(linear), tuple(held))
+
+    def _perturbed_terms(self, q0: np.ndarray, theta: np.ndarray, omega: np.ndarray, t: float,
+                         numbers: SceneNumbers, step: float) -> list:
+        """Per body ``(terms, row, ends)``: its terms at ``1 + 2 k`` rows (``k = 1 + n_j`` own coordinates; row 0
+        at the operating point, then ``i step`` on theta, each eta, omega, each eta rate), stacked in the batch
+        of its group's evaluation from row ``row`` on, and ``{point: (angle, rate)}`` at the operating point."""
+        m = self.model
+        out: list = [None] * m.n_bodies
+        load_rows: dict = {}
+        for k in range(len(m.load_body)):
+            load_rows.setdefault(int(m.load_body[k]), []).append(k)
+        groups: dict = {}
+        for j in range(m.n_bodies):
+            if j in m.beams:
+                idx = m.modal_index[j]
+                k = 1 + len(idx)
+                perturb = np.zeros((1 + 2 * k, 2 * k), dtype=complex)
+                perturb[1:, :] = 1j * step * np.eye(2 * k)
+                body, ends = self.body_terms(NUMPY, j, (theta[j] + perturb[:, 0]).reshape(-1, 1, 1),
+                                             (omega[j] + perturb[:, k]).reshape(-1, 1, 1),
+                                             q0[idx][None, :] + perturb[:, 1:k], perturb[:, k + 1:], t, None,
+                                             numbers.loads)
+                out[j] = (body, 0, {e: (float(a[0, 0, 0].real), float(r[0, 0, 0].real)) for e, (a, r) in ends.items()})
+            else:
+                groups.setdefault((tuple(m.ends[j]), len(load_rows.get(j, ()))), []).append(j)
+        def rows(values: Any) -> np.ndarray:            # one value per member -> (3 members, 1, 1)
+            return np.repeat(np.asarray(values, dtype=float), 3).reshape(-1, 1, 1)
+
+        at_loads = np.column_stack([np.reshape(numbers.load_point, (-1, 2)), np.reshape(numbers.loads, (-1, 3))])
+        for (names, count), members in groups.items():
+            shift, rate = (np.tile(u, len(members)).reshape(-1, 1, 1) for u in ([0, 1j * step, 0], [0, 0, 1j * step]))
+            com = np.asarray([numbers.center_of_mass[j] for j in members], dtype=float).reshape(-1, 2)
+            points = {e: tuple(rows([numbers.ends[j][e][i] for j in members]) for i in (0, 1)) for e in names}
+            loads = [tuple(rows(column) for column in at_loads[[load_rows[j][slot] for j in members]].T)
+                     for slot in range(count)]
+            body = rigid_body_terms(NUMPY, mass=rows(np.asarray(numbers.mass)[members]),
+                                    inertia=rows(np.asarray(numbers.inertia)[members]),
+                                    center_of_mass=(rows(com[:, 0]), rows(com[:, 1])), points=points,
+                                    gravity=numbers.gravity, theta=rows(theta[members]) + shift,
+                                    omega=rows(omega[members]) + rate, loads=loads)
+            for g, j in enumerate(members):
+                out[j] = (body, 3 * g, {e: (float(theta[j]), float(omega[j])) for e in names})
+        return out
 
     def coordinate_accelerations(self, solution: Articulated) -> np.ndarray:
         """``qddot`` (B, n) from a numpy sweep's result."""
