@@ -1,0 +1,199 @@
+"""Cut-joint torques and relative angles as actuators and sensors of the control toolset (planar kinematic loops).
+
+The four-bar linkage (scenario ``four_bar``: cut ``h3`` between the rocker's and the coupler's outboard ends) with a
+PD loop on the cut's relative angle ``"h3.angle"`` / ``"h3.rate"`` driving the cut torque ``"h3.torque"`` (a motor at
+the cut joint), real-time and delayed, through ``ctmm.simulate`` (loops, open-loop inputs, a co-simulated controller)
+and the linear verbs.
+
+Independent references: the global DAE of :mod:`ctmm.reference.planar_dae` with a motor between the rocker and the
+coupler (the same PD law read ``delay`` seconds late, the method of steps), which shares no code with the tree
+sweep, the cut-joint mechanism, the ports or the loop driver; and the closed forms of the one-degree-of-freedom
+tangent ``crank'' = -k crank + b u``, ``dtheta = c crank`` whose ``k``, ``b`` and ``c`` are measured on the DAE's own
+constraints: closed-loop poles ``s^2 + b c kd s + k + b c kp = 0`` and the response
+``b / (s^2 + k + b c (kp + kd s) e^{-s tau})`` of the crank to a torque at the cut.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import scipy.optimize
+
+import ctmm
+from ctmm.control import Feedback, with_feedback
+from ctmm.errors import ModelError
+from ctmm.planar.closed_loops import CutJoint, KinematicLoopModel
+from ctmm.planar.loop_ports import KinematicLoopPorts
+from ctmm.scenarios.four_bar import BODIES, mechanism, reference, start
+
+KP, KD = 6.0, 0.6               # PD on the cut's relative angle [N m/rad], [N m s/rad]
+OFFSET = 0.2                    # set point: the initial relative angle plus this [rad]
+
+
+def _pd(delay: float) -> Feedback:
+    return Feedback("pd", sensor=[("h3.angle", KP), ("h3.rate", KD)], actuator="h3.torque", gain=1.0, delay=delay)
+
+
+def _relative(run_or_dae) -> np.ndarray:
+    return run_or_dae.angle("coupler") - run_or_dae.angle("rocker")
+
+
+@pytest.mark.parametrize("delay", [0.0, 0.01], ids=["real-time", "delayed"])
+def test_pd_loop_on_the_cut_joint_matches_the_dae_with_a_motor_at_the_cut(delay):
+    loop = mechanism()
+    q0, v0 = start(loop)
+    target = float(loop.relative_angles(q0, v0)[0][0]) + OFFSET
+    dae = reference()
+    dae.add_motor("rocker", "coupler", lambda t, angle, rate: -(KP * angle + KD * rate - KP * target), delay=delay)
+    state = dae.assemble(dict(zip(BODIES, q0)), dict(zip(BODIES, v0)))
+    run = ctmm.simulate(with_feedback(loop, [_pd(delay)]), 0.2, 1e-3, x0=q0, v0=v0,
+                        references={"pd": KP * target}, outputs=["h3.angle", "h3.rate"])
+    dae_run = dae.simulate(state, 0.2, t_eval=run.time)
+    error = max(np.max(np.abs(run[f"{n}.theta"] - dae_run.angle(n))) for n in BODIES)
+    assert error < 1e-9                       # RK4 at 1 ms, the bound of the crank-hinge loop tests
+    assert np.max(np.abs(run["h3.angle"] - _relative(dae_run))) < 1e-9
+    relative_rate = dae_run.rate("coupler") - dae_run.rate("rocker")
+    assert np.max(np.abs(run["h3.rate"] - relative_rate)) < 1e-8
+    if delay == 0.0:
+        torque = -(KP * _relative(dae_run) + KD * relative_rate - KP * target)
+        assert np.max(np.abs(run["pd.u"] - torque)) < 1e-7
+    assert run.units(["h3.angle", "h3.rate", "pd.u"]) == {"h3.angle": "rad", "h3.rate": "rad/s", "pd.u": "N m"}
+    assert np.max(run["drift"]) < 1e-10
+    free = ctmm.simulate(loop, 0.2, 1e-3, x0=q0, v0=v0)
+    assert np.max(np.abs(free["coupler.theta"] - run["coupler.theta"])) > 1e-3       # the loop acts
+
+
+def test_open_loop_cut_torque_input_and_cut_sensor_outputs():
+    loop = mechanism()
+    q0, v0 = start(loop)
+    run = ctmm.simulate(loop, 0.1, 1e-3, x0=q0, v0=v0, inputs={"h3.torque": lambda t: 0.8 * math.sin(20.0 * t)},
+                        outputs=["h3.angle"])
+    dae = reference()
+    dae.add_motor("rocker", "coupler", lambda t, angle, rate: 0.8 * math.sin(20.0 * t))
+    dae_run = dae.simulate(dae.assemble(dict(zip(BODIES, q0)), dict(zip(BODIES, v0))), 0.1, t_eval=run.time)
+    assert max(np.max(np.abs(run[f"{n}.theta"] - dae_run.angle(n))) for n in BODIES) < 1e-9
+    assert np.max(np.abs(run["h3.angle"] - _relative(dae_run))) < 1e-9
+    bare = ctmm.simulate(loop, 0.1, 1e-3, x0=q0, v0=v0, outputs=["h3.angle", "h3.rate"])    # the model's own runner
+    free = reference().simulate(dae.assemble(dict(zip(BODIES, q0)), dict(zip(BODIES, v0))), 0.1, t_eval=bare.time)
+    assert np.max(np.abs(bare["h3.angle"] - _relative(free))) < 1e-9
+    assert np.max(np.abs(bare["h3.angle"] - run["h3.angle"])) > 1e-4                 # the torque acts
+
+
+def test_sampled_controller_on_the_cut_converges_to_the_continuous_loop_of_the_dae():
+    """A co-simulated static-gain PD on the cut angle and rate, sampled every step (zero-order hold), approaches
+    the continuous PD of the DAE's cut motor at first order in the sample time."""
+    from ctmm.control.static_gain import StaticGainController
+
+    loop = mechanism()
+    q0, v0 = start(loop)
+    dae = reference()
+    dae.add_motor("rocker", "coupler", lambda t, angle, rate: -(KP * angle + KD * rate))
+    angle = _relative(dae.simulate(dae.assemble(dict(zip(BODIES, q0)), dict(zip(BODIES, v0))), 0.1,
+                                   t_eval=[0.0, 0.1]))[-1]
+    errors = []
+    for dt in (1e-3, 5e-4):
+        controller = StaticGainController(["h3.angle", "h3.rate"], ["h3.torque"], [[-KP, -KD]], sample_time=dt)
+        run = ctmm.simulate(loop, 0.1, dt, x0=q0, v0=v0, controllers=[controller], outputs=["h3.angle"])
+        errors.append(abs(run["h3.angle"][-1] - angle))
+    assert errors[0] < 1e-2 and errors[0] / errors[1] == pytest.approx(2.0, rel=0.05)
+
+
+def _assembled(dae, crank: float, guess):
+    """DAE state at rest with the crank at ``crank`` [rad]; coupler and rocker from the DAE's loop constraint."""
+    def residual(angles):
+        q, v = dae.assemble(dict(zip(BODIES, [crank, *angles])), dict.fromkeys(BODIES, 0.0))
+        return dae.constraints(q, v)[0][-2:]
+
+    angles = scipy.optimize.fsolve(residual, guess, xtol=1e-13)
+    assert np.max(np.abs(residual(angles))) < 1e-13
+    return dae.assemble(dict(zip(BODIES, [crank, *angles])), dict.fromkeys(BODIES, 0.0))
+
+
+@pytest.fixture(scope="module")
+def tangent():
+    """``(k, b, c)`` at the four-bar's hanging equilibrium (the default operating point of the linear verbs,
+    checked to be the DAE's), on the DAE's own constraints: the crank stiffness ``-d crank''/d crank`` [1/s^2], the
+    crank's acceleration per torque at the cut ``d crank''/d u`` [1/(kg m^2)] and the cut's relative angle per
+    crank angle ``c = d dtheta / d crank`` [1]."""
+    q_eq = ctmm.linearize(mechanism(), inputs=["h3.torque"]).operating_point.q
+    dae, driven = reference(), reference()
+    driven.add_motor("rocker", "coupler", lambda t, angle, rate: 1.0)
+    state = _assembled(dae, q_eq[0], q_eq[1:])
+    assert np.max(np.abs(dae.solve(*state)[0])) < 1e-9 and np.max(np.abs(state[0][2::3] - q_eq)) < 1e-12
+    h = 1e-5
+    plus, minus = _assembled(dae, q_eq[0] + h, q_eq[1:]), _assembled(dae, q_eq[0] - h, q_eq[1:])
+    k = -(dae.solve(*plus)[0][2] - dae.solve(*minus)[0][2]) / (2 * h)
+    b = driven.solve(*state)[0][2] - dae.solve(*state)[0][2]
+    c = ((plus[0][5] - plus[0][8]) - (minus[0][5] - minus[0][8])) / (2 * h)
+    return k, b, c
+
+
+def test_linearised_cut_loop_matches_the_dae_tangent(tangent):
+    k, b, c = tangent
+    loop = mechanism()
+    lin = ctmm.linearize(with_feedback(loop, [_pd(0.0)]), inputs=["h3.torque"], outputs=["crank.theta", "h3.angle"])
+    poles = np.sort_complex(np.linalg.eigvals(np.asarray(lin.state_space.A, dtype=float)))
+    np.testing.assert_allclose(poles, np.sort_complex(np.roots([1.0, b * c * KD, k + b * c * KP])), rtol=1e-8)
+    omega = np.array([0.5, 3.0, 9.0, 25.0])
+    s = 1j * omega
+    for delay in (0.0, 0.02):
+        frf = ctmm.frequency_response(with_feedback(loop, [_pd(delay)]), omega, input="h3.torque",
+                                      output=["crank.theta", "h3.angle", "pd.u"])
+        crank = b / (s ** 2 + k + b * c * (KP + KD * s) * np.exp(-delay * s))
+        np.testing.assert_allclose(frf("crank.theta", "h3.torque"), crank, rtol=1e-8)
+        np.testing.assert_allclose(frf("h3.angle", "h3.torque"), c * crank, rtol=1e-8)
+        np.testing.assert_allclose(frf("pd.u", "h3.torque"), -c * (KP + KD * s) * np.exp(-delay * s) * crank,
+                                   rtol=1e-8)
+        assert frf.units["h3.torque"] == "N m" and frf.units["h3.angle"] == "rad"
+    open_loop = ctmm.frequency_response(loop, omega, input="h3.torque", output="h3.angle")
+    np.testing.assert_allclose(open_loop("h3.angle", "h3.torque"), c * b / (s ** 2 + k), rtol=1e-8)
+
+
+def test_margins_of_the_delayed_cut_loop_match_the_dae_tangent(tangent):
+    from ctmm.stability import delay_margin
+
+    k, b, c = tangent
+    gain_p, gain_d = b * c * KP, b * c * KD          # s^2 + k + (gain_p + gain_d s) e^{-s tau}
+    quadratic = np.roots([1.0, -(2 * k + gain_d ** 2), k * k - gain_p ** 2])
+    omega = math.sqrt(max(r.real for r in quadratic))
+    tau = (-np.angle(-(k - omega ** 2) / (gain_p + 1j * gain_d * omega)) % (2 * math.pi)) / omega
+    margin = delay_margin(with_feedback(mechanism(), [_pd(0.01)]))
+    assert margin.stable and margin.critical_delay == pytest.approx(tau, rel=1e-6)
+
+
+def test_cut_port_names_are_listed_and_bad_names_refused():
+    loop = mechanism()
+    ports = KinematicLoopPorts(loop)
+    assert {"h3.angle", "h3.rate"} <= set(ports.sensors) and "h3.torque" in ports.actuators
+    assert "h3.moment" not in ports.sensors            # a smooth cut has no moment
+    assert ports.sensor_unit("h3.rate") == "rad/s" and ports.actuator_unit("h3.torque") == "N m"
+    q0, v0 = start(loop)
+    with pytest.raises(ModelError, match=r"h3\.torq.*h3\.torque"):
+        ctmm.simulate(loop, 0.01, 1e-3, x0=q0, v0=v0, inputs={"h3.torq": 1.0})
+    with pytest.raises(ModelError, match=r"h3\.angel.*h3\.angle"):
+        ctmm.simulate(with_feedback(loop, [Feedback("f", sensor="h3.angel", actuator="h3.torque", gain=1.0)]), 0.01, 1e-3,
+                      x0=q0, v0=v0)
+    with pytest.raises(ModelError, match=r"h3\.moment.*no moment_law or torque.*h3\.angle"):
+        ctmm.linearize(loop, inputs=["h3.torque"], outputs=["h3.moment"])
+    driven = KinematicLoopModel(loop.tree, [CutJoint("h3", parent="rocker.out", child="coupler.out",
+                                                     angle=lambda t: 0.1 * t, angle_rate=0.1)])
+    with pytest.raises(ModelError, match=r"h3\.torque.*driven"):
+        KinematicLoopPorts(driven).check_actuator("h3.torque")
+    with pytest.raises(ModelError, match=r"h3\.moment.*driven"):
+        KinematicLoopPorts(driven).check_sensor("h3.moment")
+
+
+def test_cut_moment_sensor_reads_the_law():
+    from ctmm.nonlinear_laws import LinearLaw
+
+    tree = mechanism().tree
+    sprung = KinematicLoopModel(tree, [CutJoint("h3", parent="rocker.out", child="coupler.out",
+                                                moment_law=LinearLaw(3.0, 0.2), rest_angle=-1.3)])
+    q0, v0 = start(sprung)
+    ports = KinematicLoopPorts(sprung)
+    angle, rate = sprung.relative_angles(q0, v0)
+    value = ports.values(ports.resolve(["h3.moment"]), q0, v0, 0.0)[0]
+    assert value == pytest.approx(-(3.0 * (angle[0] + 1.3) + 0.2 * rate[0]), rel=1e-14)
+    run = ctmm.simulate(sprung, 0.01, 1e-3, x0=q0, v0=v0, inputs={"h3.torque": 0.3}, outputs=["h3.angle"])
+    assert run.units(["h3.moment"]) == {"h3.moment": "N m"}
