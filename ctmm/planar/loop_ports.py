@@ -31,6 +31,7 @@ import numpy as np
 
 from .. import validation
 from ..errors import ModelError
+from ..named_ports import merged_values, split_actuator_values
 from .closed_loops import KinematicLoopModel
 from .ports import ActuatorInputs, PlanarPorts
 
@@ -122,29 +123,20 @@ class KinematicLoopPorts(PlanarPorts):
 
     def values(self, sensors: list, q: np.ndarray, qdot: np.ndarray, t: float) -> np.ndarray:
         """Values of resolved ``sensors`` (no validation of the state: for inner loops)."""
-        cut = [k for k, s in enumerate(sensors) if isinstance(s, _CutSensor)]
-        if not cut:
-            return super().values(sensors, q, qdot, t)
-        values = np.empty(len(sensors))
-        tree = [k for k in range(len(sensors)) if k not in set(cut)]
-        if tree:
-            values[tree] = super().values([sensors[k] for k in tree], q, qdot, t)
-        angle, rate = self.loop_model.relative_angles(q, qdot, t)
-        cuts = self.loop_model.cuts
-        for k in cut:
-            s = sensors[k]
-            values[k] = (angle[s.index] if s.part == "angle" else rate[s.index] if s.part == "rate"
-                         else cuts[s.index].moment(angle[s.index], rate[s.index], t))
-        return values
+        def cut_values(chosen: list) -> list[float]:
+            angle, rate = self.loop_model.relative_angles(q, qdot, t)
+            cuts = self.loop_model.cuts
+            return [angle[s.index] if s.part == "angle" else rate[s.index] if s.part == "rate"
+                    else cuts[s.index].moment(angle[s.index], rate[s.index], t) for s in chosen]
+
+        return merged_values(sensors, _CutSensor, lambda chosen: PlanarPorts.values(self, chosen, q, qdot, t),
+                             cut_values)
 
     def inputs(self, values: Mapping[str, float]) -> ActuatorInputs:
         """Arrange actuator ``values`` (``{actuator name: value}``, SI units) for the tree's sweeps: the tree's
         actuators and the cut torques (each ``u`` times the cut's unit moment pair); entries on one actuator add."""
-        if not isinstance(values, Mapping):
-            raise ModelError(f"values must be a mapping of actuator name to value, got {values!r}")
-        tree = {name: value for name, value in values.items() if not isinstance(self.actuators.get(name), _CutActuator)}
+        tree, cut = split_actuator_values(values, self.actuators, _CutActuator)
         inputs = super().inputs(tree)
-        cut = [(name, value) for name, value in values.items() if isinstance(self.actuators.get(name), _CutActuator)]
         if not cut:
             return inputs
         body = np.array(inputs.body_force, dtype=float)
