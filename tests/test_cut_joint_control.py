@@ -65,6 +65,22 @@ def test_pd_loop_on_the_cut_joint_matches_the_dae_with_a_motor_at_the_cut(delay)
     assert np.max(np.abs(free["coupler.theta"] - run["coupler.theta"])) > 1e-3       # the loop acts
 
 
+def test_delayed_cut_loop_on_a_dt_tmm_scheme_converges_to_the_dae_at_second_order():
+    """Newmark (the tree's implicit stepper, cut forces and the cut torque applied at every Newton iterate)."""
+    loop = mechanism()
+    q0, v0 = start(loop)
+    target = float(loop.relative_angles(q0, v0)[0][0]) + OFFSET
+    dae = reference()
+    dae.add_motor("rocker", "coupler", lambda t, angle, rate: -(KP * angle + KD * rate - KP * target), delay=0.01)
+    state = dae.assemble(dict(zip(BODIES, q0)), dict(zip(BODIES, v0)))
+    errors = []
+    for dt in (2e-3, 1e-3):
+        run = ctmm.simulate(with_feedback(loop, [_pd(0.01)]), 0.05, dt, x0=q0, v0=v0, method="newmark",
+                            references={"pd": KP * target}, outputs=["h3.angle"])
+        errors.append(np.max(np.abs(run["h3.angle"] - _relative(dae.simulate(state, 0.05, t_eval=run.time)))))
+    assert errors[1] < 1e-6 and 3.0 < errors[0] / errors[1] < 5.0
+
+
 def test_open_loop_cut_torque_input_and_cut_sensor_outputs():
     loop = mechanism()
     q0, v0 = start(loop)
@@ -273,6 +289,44 @@ def test_spatial_pd_loop_on_a_revolute_cut_matches_newtons_law(delay):
     free = _spatial_reference(0.5, 2.0, run.time, 0.0) if delay else None
     if free is not None:
         assert np.max(np.abs(free - expected)) > 1e-5               # the delay shows
+
+
+def test_spatial_real_time_cut_loop_matches_the_newton_euler_dae():
+    """The same loop against :mod:`ctmm.reference.spatial_loop_dae`: the body free in space, the revolute to the ground
+    as five constraint rows, the PD torque ``u a`` (``a`` the world hinge axis) with the angle between the cut's
+    normals read off the DAE's rotation."""
+    from ctmm.reference.spatial_loop_dae import DaeBody, DaeJoint, SpatialLoopDAE
+
+    loop = _spatial_pendulum()
+    cut = loop.cuts[0]
+    q0, v0 = _spatial_state(loop, 0.5, 2.0)
+    pd = Feedback("pd", sensor=[("hinge.angle", S_KP), ("hinge.rate", S_KD)], actuator="hinge.torque", gain=1.0)
+    run = ctmm.simulate(with_feedback(loop, [pd]), 0.1, 2e-3, x0=q0, v0=v0, references={"pd": S_KP * S_TARGET},
+                        outputs=["hinge.angle"])
+    com = np.asarray(S_COM, float)
+    dae = SpatialLoopDAE([DaeBody("p", S_MASS, np.diag([0.02, S_INERTIA_Y, 0.025]))],
+                         [DaeJoint("hinge", "revolute", -1, np.zeros(3), 0, -com, parent_axis=np.array([0.0, 1.0, 0.0]),
+                                   child_axis=np.array([0.0, 1.0, 0.0]))], gravity=(0.0, 0.0, -9.81))
+
+    def angle_and_rate(y: np.ndarray) -> tuple[float, float, np.ndarray]:
+        R = dae.rotations(y)[0]
+        a, n_c = R @ cut.axis, R @ cut.normal
+        return (math.atan2(np.cross(cut.parent_normal, n_c) @ a, cut.parent_normal @ n_c),
+                float(dae.split(y)[3][0] @ a), a)
+
+    def torques(t: float, y: np.ndarray) -> dict:
+        s, rate, a = angle_and_rate(y)
+        return {0: -(S_KP * s + S_KD * rate - S_KP * S_TARGET) * a}
+
+    c, s_ = math.cos(0.5), math.sin(0.5)
+    R0 = np.array([[c, 0.0, s_], [0.0, 1.0, 0.0], [-s_, 0.0, c]])          # 0.5 rad about y
+    w0 = np.array([0.0, 2.0, 0.0])
+    y0 = dae.state([R0 @ com], [R0], [np.cross(w0, R0 @ com)], [w0])
+    assert angle_and_rate(y0)[:2] == pytest.approx((0.5, 2.0), abs=1e-14)
+    _, Y = dae.simulate(y0, run.time, torques=torques)
+    expected = np.array([angle_and_rate(y)[0] for y in Y])
+    assert np.max(np.abs(run["hinge.angle"] - expected)) < 1e-9      # RK4 at 2 ms
+    assert np.ptp(expected) > 0.05
 
 
 def test_spatial_open_loop_cut_torque_input():
