@@ -377,3 +377,30 @@ def test_spatial_cut_ports_refused_by_name():
     driven = _spatial_pendulum(position=lambda t: 0.5 + 0.1 * t, rate=0.1, acceleration=0.0)
     with pytest.raises(ModelError, match=r"hinge\.torque.*driven"):
         SpatialLoopPorts(driven).check_actuator("hinge.torque")
+
+
+def test_spatial_cut_force_port_between_two_moving_bodies_equals_the_cuts_own_actuation():
+    """A prismatic cut whose guide moves (a sleeve on a swinging rod): the port ``"<cut>.force"`` (held in the
+    bodies' own axes, the parent's share at its own point) loads the mechanism as the cut's ``actuation`` (world
+    direction at the current state, validated against Newton's law in tests/test_spatial_cut_joint_laws.py) does, to
+    the drift (both runs in the loop driver)."""
+    from dataclasses import replace
+
+    from ctmm.spatial.closed_loops import SpatialKinematicLoopModel
+    from test_spatial_closed_loops_prismatic import sliding_pendulum
+
+    def force(t: float) -> float:
+        return 1.5 * math.sin(15.0 * t)
+
+    loop = sliding_pendulum()
+    q, v = loop.consistent_state({"h1.angle": 0.4, "free.z": -0.3}, {"h1.angle_rate": 1.5, "free.vz": 0.2},
+                                 keep=["h1"])
+    actuated = SpatialKinematicLoopModel(loop.tree, [replace(loop.cuts[0], actuation=force)], baumgarte=20.0)
+    port = ctmm.simulate(loop, 0.1, 2e-3, x0=q, v0=v, inputs={"sleeve_on_arm.force": force},
+                         outputs=["sleeve_on_arm.position", "h1.angle"])
+    own = ctmm.simulate(actuated, 0.1, 2e-3, x0=q, v0=v, outputs=["sleeve_on_arm.position", "h1.angle"])
+    free = ctmm.simulate(loop, 0.1, 2e-3, x0=q, v0=v, outputs=["sleeve_on_arm.position", "h1.angle"])
+    for name in ("sleeve_on_arm.position", "h1.angle"):
+        assert np.max(np.abs(port[name] - own[name])) < 1e-9
+        assert np.max(np.abs(free[name] - own[name])) > 1e-4                # the force acts
+    assert port.units(["sleeve_on_arm.position"]) == {"sleeve_on_arm.position": "m"}

@@ -11,14 +11,12 @@ Sensors
     * prismatic: ``"<cut>.position"`` [m], ``"<cut>.rate"`` [m/s] (the names of the tree's joints).
 
 Actuators (undriven cuts; the names of :attr:`SpatialKinematicLoopModel.actuation_names`)
-    * revolute: ``"<cut>.torque"`` [N m] -- a moment ``u`` about the cut's axis on the child (``axis``, child body
-      axes) and ``-u`` about it on the parent (``parent_axis``, parent body axes);
-    * prismatic: ``"<cut>.force"`` [N] -- a force ``u`` along the slide on the child at its point and ``-u`` on the
-      parent at its point (the two differ by the slide along the same line, so the moment is the same).
+    * revolute: ``"<cut>.torque"`` [N m] -- a moment ``u`` about the cut's axis;
+    * prismatic: ``"<cut>.force"`` [N] -- a force ``u`` along the slide.
 
-Both loads are held in the bodies' own axes, so they need no state: on the constraint manifold the child's and
-the parent's axes coincide and the pair is the cut's own actuation (``actuation``), the load of the linearisation's
-input (:meth:`SpatialKinematicLoopModel.actuation_inputs`).  Spherical and universal cuts have no coordinate and
+Each is added to the cut's own ``actuation`` (:class:`~ctmm.spatial.closed_loop_cuts.CutActuatedInputs`): ``u a`` on
+the child with ``a`` the world direction of the cut's coordinate at the current state, the opposite on the parent,
+the load of :meth:`SpatialKinematicLoopModel.actuation_inputs` (the linearisation's input).  Spherical and universal cuts have no coordinate and
 no ports; the cut loads ``"<cut>.force_x|y|z"`` are outputs, not sensors (a loop on them would be algebraic).
 """
 from __future__ import annotations
@@ -31,7 +29,7 @@ import numpy as np
 from .. import validation
 from ..errors import ModelError
 from ..named_ports import merged_values, split_actuator_values
-from .closed_loop_cuts import LAW_KINDS
+from .closed_loop_cuts import LAW_KINDS, CutActuatedInputs
 from .closed_loops import SpatialKinematicLoopModel
 from .ports import SpatialInputs, SpatialPorts
 
@@ -49,7 +47,7 @@ class _CutSensor:
 @dataclass(frozen=True)
 class _CutActuator:
     name: str
-    loads: tuple         # ((body index, point (3,), [f ; m] (6,) body axes per unit value), ...)
+    cut: str
     unit: str
 
 
@@ -73,7 +71,6 @@ class SpatialLoopPorts(SpatialPorts):
         super().__init__(model.tree)
         self.loop_model = model
         sensors, actuators = dict(self.sensors), dict(self.actuators)
-        names = [body.name for body in model.tree.bodies]
         added_sensors, added_actuators = {}, {}
         for k, cut in enumerate(model.cuts):
             if cut.kind not in LAW_KINDS:
@@ -86,18 +83,7 @@ class SpatialLoopPorts(SpatialPorts):
             label = f"{cut.name}.{'torque' if revolute else 'force'}"
             if label not in model.actuation_names:
                 continue                                    # a driven cut
-            loads = []
-            for body, point, direction, sign in ((cut.child, model.tree.bodies[names.index(cut.child)].points[
-                    cut.child_point], cut.axis, 1.0), (cut.parent, None, cut.parent_axis, -1.0)):
-                if body is None:
-                    continue                                # the ground takes the reaction
-                j = names.index(body)
-                at = point if point is not None else model.tree.bodies[j].points[cut.point]
-                load = np.zeros(6)
-                load[3:6] = sign * np.asarray(direction, float) if revolute else 0.0
-                load[0:3] = 0.0 if revolute else sign * np.asarray(direction, float)
-                loads.append((j, np.asarray(at, float), load))
-            added_actuators[label] = _CutActuator(label, tuple(loads), "N m" if revolute else "N")
+            added_actuators[label] = _CutActuator(label, cut.name, "N m" if revolute else "N")
         clash = sorted([n for n in added_sensors if n in sensors] + [n for n in added_actuators if n in actuators])
         if clash:
             raise ModelError(f"spatial kinematic loop {model.name!r}: the cut joints' ports {clash} are also ports of "
@@ -128,14 +114,13 @@ class SpatialLoopPorts(SpatialPorts):
 
     def inputs(self, values: Mapping[str, float]) -> SpatialInputs:
         """Arrange actuator ``values`` (``{actuator name: value}``, SI units) for the sweep: the tree's actuators and
-        the cut loads (body axes, module docstring); entries on one actuator add up."""
+        the cut loads (:class:`~ctmm.spatial.closed_loop_cuts.CutActuatedInputs`); entries on one actuator add up."""
         tree, cut = split_actuator_values(values, self.actuators, _CutActuator)
         inputs = super().inputs(tree)
         if not cut:
             return inputs
-        wrenches = {j: list(entries) for j, entries in inputs.wrenches.items()}
+        loads: dict[str, float] = {}
         for name, value in cut:
-            value = validation.finite(f"actuator {name!r}", value)
-            for j, point, load in self.actuators[name].loads:
-                wrenches.setdefault(j, []).append((point, (value * load).reshape(1, 6, 1), "body"))
-        return SpatialInputs(inputs.joint, wrenches)
+            target = self.actuators[name].cut
+            loads[target] = loads.get(target, 0.0) + validation.finite(f"actuator {name!r}", value)
+        return CutActuatedInputs(inputs.joint, inputs.wrenches, loads)
