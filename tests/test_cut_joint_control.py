@@ -396,11 +396,50 @@ def test_spatial_cut_force_port_between_two_moving_bodies_equals_the_cuts_own_ac
     q, v = loop.consistent_state({"h1.angle": 0.4, "free.z": -0.3}, {"h1.angle_rate": 1.5, "free.vz": 0.2},
                                  keep=["h1"])
     actuated = SpatialKinematicLoopModel(loop.tree, [replace(loop.cuts[0], actuation=force)], baumgarte=20.0)
-    port = ctmm.simulate(loop, 0.1, 2e-3, x0=q, v0=v, inputs={"sleeve_on_arm.force": force},
+    port = ctmm.simulate(loop, 0.05, 2e-3, x0=q, v0=v, inputs={"sleeve_on_arm.force": force},
                          outputs=["sleeve_on_arm.position", "h1.angle"])
-    own = ctmm.simulate(actuated, 0.1, 2e-3, x0=q, v0=v, outputs=["sleeve_on_arm.position", "h1.angle"])
-    free = ctmm.simulate(loop, 0.1, 2e-3, x0=q, v0=v, outputs=["sleeve_on_arm.position", "h1.angle"])
+    own = ctmm.simulate(actuated, 0.05, 2e-3, x0=q, v0=v, outputs=["sleeve_on_arm.position", "h1.angle"])
+    free = ctmm.simulate(loop, 0.05, 2e-3, x0=q, v0=v, outputs=["sleeve_on_arm.position", "h1.angle"])
     for name in ("sleeve_on_arm.position", "h1.angle"):
         assert np.max(np.abs(port[name] - own[name])) < 1e-9
         assert np.max(np.abs(free[name] - own[name])) > 1e-4                # the force acts
     assert port.units(["sleeve_on_arm.position"]) == {"sleeve_on_arm.position": "m"}
+
+
+def test_spatial_sampled_controller_on_the_cut_converges_to_the_continuous_loop():
+    """A co-simulated static-gain PD on ``"hinge.angle"``, ``"hinge.rate"`` driving ``"hinge.torque"``, sampled every
+    step (zero-order hold), approaches the continuous PD of Newton's law at first order in the sample time."""
+    from ctmm.control.static_gain import StaticGainController
+
+    loop = _spatial_pendulum()
+    q0, v0 = _spatial_state(loop, 0.5, 2.0)
+    sol = scipy.integrate.solve_ivp(lambda t, y: [y[1], (_gravity_moment(y[0]) - S_KP * y[0] - S_KD * y[1]) / S_HINGE],
+                                    (0.0, 0.1), [0.5, 2.0], method="DOP853", rtol=1e-12, atol=1e-13)
+    expected = sol.y[0, -1]                         # the continuous PD (no set point) by Newton's law
+    errors = []
+    for dt in (2e-3, 1e-3):
+        controller = StaticGainController(["hinge.angle", "hinge.rate"], ["hinge.torque"], [[-S_KP, -S_KD]],
+                                          sample_time=dt)
+        run = ctmm.simulate(loop, 0.1, dt, x0=q0, v0=v0, controllers=[controller], outputs=["hinge.angle"])
+        errors.append(abs(run["hinge.angle"][-1] - expected))
+    assert errors[0] < 1e-2 and errors[0] / errors[1] == pytest.approx(2.0, rel=0.1)
+
+
+def test_planar_cut_torque_port_at_a_beam_end_equals_the_cuts_own_torque():
+    """The flexible coupler (a ModalBeam cut at its end): the port ``"h3.torque"`` loads the frame and, through the end
+    slope, the modal coordinates as the cut's own ``torque`` signal does (one load path: a check of the wiring; the
+    cut torque itself is checked against the DAE in tests/test_cut_joint_laws.py)."""
+    from ctmm.scenarios.four_bar import flexible_mechanism, flexible_start
+
+    def torque(t: float) -> float:
+        return 0.6 * math.sin(25.0 * t)
+
+    loop = flexible_mechanism(20.0, n_modes=2)
+    q0, v0 = flexible_start(loop)
+    own = KinematicLoopModel(loop.tree, [CutJoint("h3", parent="rocker.out", child="coupler.out", torque=torque)])
+    port = ctmm.simulate(loop, 0.03, 1e-3, x0=q0, v0=v0, inputs={"h3.torque": torque}, outputs=["h3.angle"])
+    reference_run = ctmm.simulate(own, 0.03, 1e-3, x0=q0, v0=v0, inputs={"h1.torque": 0.0}, outputs=["h3.angle"])
+    free = ctmm.simulate(loop, 0.03, 1e-3, x0=q0, v0=v0, inputs={"h1.torque": 0.0}, outputs=["h3.angle"])
+    assert np.max(np.abs(port["h3.angle"] - reference_run["h3.angle"])) < 1e-12
+    assert np.max(np.abs(port["coupler.q1"] - reference_run["coupler.q1"])) < 1e-12
+    assert np.max(np.abs(free["h3.angle"] - port["h3.angle"])) > 1e-5                 # the torque acts
