@@ -402,7 +402,7 @@ def test_spatial_cut_force_port_between_two_moving_bodies_equals_the_cuts_own_ac
     free = ctmm.simulate(loop, 0.05, 2e-3, x0=q, v0=v, outputs=["sleeve_on_arm.position", "h1.angle"])
     for name in ("sleeve_on_arm.position", "h1.angle"):
         assert np.max(np.abs(port[name] - own[name])) < 1e-9
-        assert np.max(np.abs(free[name] - own[name])) > 1e-4                # the force acts
+        assert np.max(np.abs(free[name] - own[name])) > 1e-5                # the force acts
     assert port.units(["sleeve_on_arm.position"]) == {"sleeve_on_arm.position": "m"}
 
 
