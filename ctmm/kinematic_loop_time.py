@@ -21,7 +21,7 @@ from .control.planar_time import simulate_closed_loop
 from .errors import ModelError, unknown_name
 from .planar.closed_loops import KinematicLoopModel
 from .planar.loop_verbs import initial_state, simulate_loops
-from .planar.ports import PlanarPorts
+from .planar.loop_ports import KinematicLoopPorts
 from .results import SimulationResult
 
 __all__ = ["simulate_kinematic_loop_system"]
@@ -46,12 +46,12 @@ def simulate_kinematic_loop_system(system: Any, t_final: float, dt: float | None
     x0, v0 : mapping or array
         A consistent initial state of the tree coordinates (:meth:`KinematicLoopModel.consistent_state`).
     outputs : sequence of str
-        Tree sensors to store.
+        Sensors to store: the tree's and the cut joints' (:mod:`ctmm.planar.loop_ports`).
     inputs : mapping, optional
-        ``{tree actuator: number or f(t)}`` [N, N m] (the caller moved ``"<loop>.reference"`` entries to
+        ``{actuator: number or f(t)}`` [N, N m]: the tree's and the cut torques ``"<cut>.torque"`` (the caller moved ``"<loop>.reference"`` entries to
         ``references``).
     controllers : list
-        Co-simulated controllers on tree ports.
+        Co-simulated controllers on the model's ports (tree and cut joints).
     references : dict
         ``{loop name: r(t)}``.
     coupling, rtol, atol, max_step, store_every, divergence_bound, stability_check, progress
@@ -86,7 +86,7 @@ def simulate_kinematic_loop_system(system: Any, t_final: float, dt: float | None
                              f"accelerations; runs start at t = 0); leave {name} at {default!r}")
     if isinstance(outputs, (str, Mapping)) or not isinstance(outputs, (list, tuple)):
         raise ModelError(f"outputs must be a list or tuple of sensor names (str), got {outputs!r}")
-    ports = PlanarPorts(model.tree)
+    ports = KinematicLoopPorts(model)
     for name in outputs:
         ports.check_sensor(name, "output (sensor)")
     if inputs is not None and not isinstance(inputs, Mapping):

@@ -13,7 +13,7 @@ from typing import Any
 
 from .errors import ModelError
 
-__all__ = ["NamedPorts"]
+__all__ = ["NamedPorts", "merged_values", "split_actuator_values", "split_by_kind"]
 
 
 class NamedPorts:
@@ -44,3 +44,36 @@ class NamedPorts:
         if not isinstance(names, (list, tuple)):
             raise ModelError(f"names must be a list or tuple of sensor names (str), got {names!r}")
         return [self.sensors[self.check_sensor(name)] for name in names]
+
+
+def split_by_kind(items: Sequence[Any], kind: type) -> tuple[list[int], list[int]]:
+    """Positions of the entries of ``items`` that are not of ``kind`` and of those that are (a kinematic loop model's
+    ports: the tree's resolved entries and the cut joints')."""
+    extra = [k for k, item in enumerate(items) if isinstance(item, kind)]
+    chosen = set(extra)
+    return [k for k in range(len(items)) if k not in chosen], extra
+
+
+def merged_values(sensors: Sequence[Any], kind: type, tree_values: Any, extra_values: Any) -> Any:
+    """Values of resolved ``sensors`` of two kinds: ``tree_values(sensors)`` for those not of ``kind``,
+    ``extra_values(sensors)`` for those of ``kind``, each a sequence of floats in the order given."""
+    import numpy as np
+
+    tree, extra = split_by_kind(sensors, kind)
+    if not extra:
+        return tree_values(list(sensors))
+    values = np.empty(len(sensors))
+    if tree:
+        values[tree] = tree_values([sensors[k] for k in tree])
+    values[extra] = extra_values([sensors[k] for k in extra])
+    return values
+
+
+def split_actuator_values(values: Mapping[str, float], actuators: Mapping[str, Any], kind: type
+                          ) -> tuple[dict[str, float], list[tuple[str, float]]]:
+    """``values`` (``{actuator name: value}``) split into those of the tree (a mapping, checked by the tree's ports)
+    and the ``(name, value)`` pairs whose actuator is of ``kind``; :class:`ModelError` unless a mapping."""
+    if not isinstance(values, Mapping):
+        raise ModelError(f"values must be a mapping of actuator name to value, got {values!r}")
+    tree = {name: value for name, value in values.items() if not isinstance(actuators.get(name), kind)}
+    return tree, [(name, value) for name, value in values.items() if isinstance(actuators.get(name), kind)]

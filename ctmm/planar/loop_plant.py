@@ -5,7 +5,9 @@
 co-simulated controllers act on a mechanism with cut joints (``docs/closed_loops.md`` §3c):
 
 * the ports are those of the spanning tree (:class:`~ctmm.planar.ports.PlanarPorts`: hinge angles and
-  rates, body angles, point positions and velocities; hinge torques, body forces and moments);
+  rates, body angles, point positions and velocities; hinge torques, body forces and moments) and of the cut
+  joints (:class:`~ctmm.planar.loop_ports.KinematicLoopPorts`: ``"<cut>.angle"``, ``"<cut>.rate"``,
+  ``"<cut>.moment"``; ``"<cut>.torque"``);
 * the accelerations are the closed-loop ones, ``qddot`` with the cut forces solved as boundary unknowns
   **with the actuator inputs applied** (:meth:`KinematicLoopModel.solve`: the sweep is affine in the
   applied forces, so the boundary compliance ``G`` is unchanged and the cut forces react to the drive);
@@ -25,9 +27,9 @@ import numpy as np
 from .closed_loops import KinematicLoopModel
 from .guards import check_scheme, divergence_guard
 from .integrate import check_state, model_signals
+from .loop_ports import KinematicLoopPorts, loop_sensor_signals, tree_outputs
 from .loop_verbs import cut_moment_signals
 from .model import PlanarModel
-from .ports import PlanarPorts
 
 __all__ = ["KinematicLoopPlant"]
 
@@ -38,7 +40,7 @@ class KinematicLoopPlant:
     Parameters
     ----------
     model : KinematicLoopModel
-        The tree plus cut joints; its actuators and sensors are the tree's ports.
+        The tree plus cut joints; its actuators and sensors are the tree's and the cut joints' ports.
     """
 
     label = "kinematic loop"
@@ -47,7 +49,7 @@ class KinematicLoopPlant:
 
     def __init__(self, model: KinematicLoopModel) -> None:
         self.model = model
-        self.ports = PlanarPorts(model.tree)
+        self.ports = KinematicLoopPorts(model)
         self.n_positions = self.n_velocities = model.tree.n_coordinates
         self.element_names = (tuple(model.tree.body_names) + tuple(model.tree.joint_names)
                               + tuple(cut.name for cut in model.cuts))
@@ -82,7 +84,10 @@ class KinematicLoopPlant:
         t = np.asarray(t, dtype=float)
         n = self.n_positions
         q, v = np.reshape(q, (len(t), n)), np.reshape(v, (len(t), n))
-        signals, units = model_signals(model.tree, t, q, v, outputs)
+        signals, units = model_signals(model.tree, t, q, v, tree_outputs(self.ports, outputs))
+        cut_signals, cut_units = loop_sensor_signals(self.ports, t, q, v, outputs)
+        signals.update(cut_signals)
+        units.update(cut_units)
         rows = [None] * len(t) if inputs is None else list(inputs)
         forces = np.array([model.solve(q[k], v[k], float(t[k]), rows[k])[1] for k in range(len(t))]
                           ).reshape(len(t), len(model.cuts), 2)

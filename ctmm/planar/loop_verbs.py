@@ -41,7 +41,8 @@ from ..loop_model_feedback import linearize_with_feedback
 from .closed_loops import KinematicLoopModel, KinematicLoopSimulation, simulate_kinematic_loops
 from .equilibrium import hanging_configuration
 from .integrate import SCIPY_METHODS, coordinate_values, model_signals
-from .ports import PlanarPorts, actuator_names
+from .loop_ports import KinematicLoopPorts, loop_sensor_signals, tree_outputs
+from .ports import actuator_names
 
 __all__ = ["initial_state", "simulate_loops", "linearize_loops", "natural_frequencies_loops", "eigenvalue_count_loops",
            "frequency_response_loops", "cut_signal_names"]
@@ -55,12 +56,6 @@ _STEP = 1e-5            # central-difference step of the output rows [rad, rad/s
 def cut_signal_names(model: KinematicLoopModel) -> tuple[str, ...]:
     """``"<cut>.force_x"``, ``"<cut>.force_y"`` of every cut joint (force on the child point, global axes [N])."""
     return tuple(f"{cut.name}.force_{axis}" for cut in model.cuts for axis in "xy")
-
-
-def cut_torque_names(model: KinematicLoopModel) -> tuple[str, ...]:
-    """``"<cut>.torque"`` of every undriven cut joint: a torque across the cut [N m], an input of the linearisation
-    (:meth:`KinematicLoopModel.torque_inputs`; in time the cut's own ``torque`` signal)."""
-    return tuple(f"{cut.name}.torque" for cut in model.cuts if not cut.driven)
 
 
 def cut_moment_signals(model: KinematicLoopModel, t: np.ndarray, q: np.ndarray, qdot: np.ndarray,
@@ -88,7 +83,11 @@ def initial_state(model: KinematicLoopModel, x0: Any, v0: Any) -> tuple[np.ndarr
 
 def _history_result(model: KinematicLoopModel, run: KinematicLoopSimulation, outputs: Sequence[str],
                     info: dict) -> SimulationResult:
-    signals, units = model_signals(model.tree, run.t, run.q, run.qdot, outputs)
+    ports = KinematicLoopPorts(model)
+    signals, units = model_signals(model.tree, run.t, run.q, run.qdot, tree_outputs(ports, outputs))
+    cut_signals, cut_units = loop_sensor_signals(ports, run.t, run.q, run.qdot, outputs)
+    signals.update(cut_signals)
+    units.update(cut_units)
     for k, cut in enumerate(model.cuts):
         for axis, column in (("x", 0), ("y", 1)):
             signals[f"{cut.name}.force_{axis}"] = run.cut_force[:, k, column]
@@ -121,7 +120,8 @@ def simulate_loops(model: KinematicLoopModel, t_final: float, dt: float | None, 
         A consistent initial state of the tree coordinates (:meth:`KinematicLoopModel.consistent_state`);
         checked against the cut joints (``|Phi| <= 1e-8`` m, ``|Phi'| <= 1e-8`` m/s).
     outputs : sequence of str
-        Sensor names of the tree (:mod:`ctmm.planar.ports`) to store.
+        Sensor names of the tree (:mod:`ctmm.planar.ports`) and of the cut joints (:mod:`ctmm.planar.loop_ports`)
+        to store.
     rtol, atol, max_step, store_every, divergence_bound, stability_check
         As for :func:`ctmm.simulate`; ``divergence_bound`` and ``stability_check`` apply to the DT-TMM schemes.
     other_options : mapping, optional
@@ -153,7 +153,7 @@ def simulate_loops(model: KinematicLoopModel, t_final: float, dt: float | None, 
     tree = model.tree
     if isinstance(outputs, (str, Mapping)) or not isinstance(outputs, (list, tuple)):
         raise ModelError(f"outputs must be a list or tuple of sensor names (str), got {outputs!r}")
-    ports = PlanarPorts(tree)
+    ports = KinematicLoopPorts(model)
     for name in outputs:
         ports.check_sensor(name, "output (sensor)")
     q0, v0 = initial_state(model, x0, v0)
@@ -266,9 +266,10 @@ def linearize_loops(model: KinematicLoopModel, operating_point: Any = None, *, i
         (:func:`_operating_q`).
     inputs : str or sequence of str, optional
         Actuators of the tree (:func:`ctmm.planar.ports.actuator_names`; default: all of them) and the cut torques
-        ``"<cut>.torque"`` [N m] (:func:`cut_torque_names`).
+        ``"<cut>.torque"`` [N m] (:mod:`ctmm.planar.loop_ports`).
     outputs : str or sequence of str, optional
-        Sensors of the tree and the cut forces ``"<cut>.force_x|y"`` [N] (default: the tree coordinates).
+        Sensors of the tree and of the cut joints (``"<cut>.angle"``, ``".rate"``, ``".moment"``) and the cut forces
+        ``"<cut>.force_x|y"`` [N] (default: the tree coordinates).
     allow_nonequilibrium : bool
         Accept a resting state that is not an equilibrium (the constant term is then dropped).
 
@@ -284,15 +285,13 @@ def linearize_loops(model: KinematicLoopModel, operating_point: Any = None, *, i
         return _linearize_controlled(model.plant, tuple(model.loops), operating_point, inputs=inputs,
                                      outputs=outputs, allow_nonequilibrium=allow_nonequilibrium)
     tree = model.tree
-    ports = PlanarPorts(tree)
+    ports = KinematicLoopPorts(model)
     model.require_static("linearize")
     q_rest, t = _operating_q(model, operating_point)
     input_names = list(actuator_names(tree)) if inputs is None else list(validation.names("input", inputs))
     output_names = list(tree.coordinates) if outputs is None else list(validation.names("output", outputs))
-    torques = cut_torque_names(model)
     for name in input_names:
-        if name not in torques:
-            ports.check_actuator(name, "input (actuator)")
+        ports.check_actuator(name, "input (actuator)")
     forces = cut_signal_names(model)
     sensor_names = [name for name in output_names if name not in forces]
     sensors = ports.resolve([ports.check_sensor(name, "output (sensor)") for name in sensor_names])
@@ -312,8 +311,7 @@ def linearize_loops(model: KinematicLoopModel, operating_point: Any = None, *, i
         return np.array([values[name] for name in output_names], dtype=float)
 
     B, C, D = input_output_matrices(model, q0, basis, t, output,
-                                    [model.torque_inputs(name[:-len(".torque")]) if name in torques else
-                                     ports.inputs({name: 1.0}) for name in input_names], _STEP)
+                                    [ports.inputs({name: 1.0}) for name in input_names], _STEP)
     states = [f"z{k + 1}" for k in range(f)] + [f"z{k + 1}_dot" for k in range(f)]
     if not input_names and len(output_names) == 1:
         raise ModelError(f"linearize: inputs={inputs!r} leaves {model.name!r} with no input and one output, a state "
@@ -327,13 +325,15 @@ def linearize_loops(model: KinematicLoopModel, operating_point: Any = None, *, i
 
 def _linearize_controlled(model: KinematicLoopModel, loops: tuple, operating_point: Any, *, inputs: Any,
                           outputs: Any, allow_nonequilibrium: bool) -> LinearizedSystem:
-    """:func:`linearize_loops` with feedback ``loops`` on the tree's ports, every actuator a plant input, the cut
+    """:func:`linearize_loops` with feedback ``loops`` on the model's ports, every actuator a plant input, the cut
     forces available as outputs (:func:`ctmm.loop_model_feedback.linearize_with_feedback`)."""
-    actuators = list(actuator_names(model.tree))
+    ports = KinematicLoopPorts(model)
+    actuators = list(ports.actuators)
+    defaults = list(actuator_names(model.tree))
     return linearize_with_feedback(
         lambda lin_in, lin_out: linearize_loops(model, operating_point, inputs=lin_in, outputs=lin_out,
                                                 allow_nonequilibrium=allow_nonequilibrium),
-        loops, PlanarPorts(model.tree), inputs=inputs, outputs=outputs, actuators=actuators, default_inputs=actuators,
+        loops, ports, inputs=inputs, outputs=outputs, actuators=actuators, default_inputs=defaults,
         default_outputs=list(model.tree.coordinates), cut_outputs=cut_signal_names(model), name=model.name)
 
 
@@ -380,9 +380,8 @@ def frequency_response_loops(model: Any, omega: Any, *, input: Any, output: Any,
     response, lin = delayed_loop_response(          # refuses a frequency at or next to a pole, naming the model
         lambda lin_in, lin_out: linearize_loops(model, operating_point, inputs=lin_in, outputs=lin_out),
         loops, 1j * omega, inputs, outputs, plant.name)
-    ports = PlanarPorts(plant.tree)
+    ports = KinematicLoopPorts(plant)
     units = {name: ports.actuator_unit(name) for name in inputs if name in ports.actuators}
-    units.update({name: "N m" for name in inputs if name in cut_torque_names(plant)})
     units.update({name: "N" if name in cut_signal_names(plant) else ports.sensor_unit(name) for name in outputs
                   if name in ports.sensors or name in cut_signal_names(plant)})
     for loop in loops:

@@ -30,6 +30,9 @@ Actuators (inputs, added to what the model's own laws apply)
       equations ``phi_k(x) F``, ``phi_k'(x) M`` and on the floating frame ``F`` and ``x F + M``
       (a station force needs an axially rigid beam, ``n_axial_modes = 0``).
 
+A kinematic loop model (:class:`~ctmm.planar.closed_loops.KinematicLoopModel`) has its tree's ports plus its cut
+joints' (``"<cut>.angle"``, ``"<cut>.rate"``, ``"<cut>.moment"``; ``"<cut>.torque"``): :mod:`ctmm.planar.loop_ports`.
+
 Sensors are kinematic: a position-like sensor (angle, position, coordinate) depends on ``q``
 only and its rate counterpart is linear in ``qdot``, ``y_rate = J(q) qdot (+ dy/dt of driven
 motions)``.  :func:`sensor_jacobians` uses this: ``dy/dq`` of a position-like sensor and

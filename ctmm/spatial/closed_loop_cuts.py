@@ -3,8 +3,8 @@ the geometry of their constraint rows (:class:`CutFrame`), used by :mod:`ctmm.sp
 and the derivation are in its docstring and ``docs/closed_loops.md`` section 8)."""
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, field
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -13,9 +13,10 @@ from ..errors import ModelError
 from ..nonlinear_laws import Law
 from ..signals import as_signal
 from .elements import parent_point
+from .ports import SpatialInputs
 
-__all__ = ["SpatialCutJoint", "CUT_KINDS", "LAW_KINDS", "CutFrame", "cut_frame", "cut_coordinate", "cross",
-           "perpendicular"]
+__all__ = ["SpatialCutJoint", "CUT_KINDS", "LAW_KINDS", "CutFrame", "CutActuatedInputs", "cut_frame", "cut_coordinate",
+           "cross", "perpendicular"]
 
 CUT_KINDS = ("spherical", "revolute", "universal", "prismatic")
 """Kinds of :class:`SpatialCutJoint`."""
@@ -252,3 +253,18 @@ def cut_frame(cut: SpatialCutJoint) -> CutFrame:
         return CutFrame(across, tuple((cut.axis, b) for b in across)
                       + ((cut.normal, cross(cut.parent_axis, cut.parent_normal)),))
     return CutFrame(None, ())
+
+
+@dataclass(frozen=True)
+class CutActuatedInputs(SpatialInputs):
+    """The tree's actuator values plus loads along the coordinates of revolute and prismatic cuts.
+
+    Attributes
+    ----------
+    cut_actuation : dict of str to float
+        By cut name: a load ``u`` [N m or N] along the cut's coordinate, added to its own ``actuation`` (``u a`` on the
+        child with ``a`` the world direction of :func:`cut_coordinate` at the current state, the opposite on the
+        parent): the ``"<cut>.torque"`` / ``"<cut>.force"`` ports (:mod:`ctmm.spatial.closed_loop_ports`).
+    """
+
+    cut_actuation: Mapping[str, float] = field(default_factory=dict)

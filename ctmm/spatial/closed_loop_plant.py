@@ -5,7 +5,8 @@
 (``ctmm.control.with_feedback(loop_model, loops)``), open-loop port actuator inputs, references, sensor outputs and
 co-simulated controllers act on a spatial mechanism with cut joints:
 
-* the ports are the spanning tree's (:class:`~ctmm.spatial.ports.SpatialPorts`);
+* the ports are the spanning tree's (:class:`~ctmm.spatial.ports.SpatialPorts`) and the revolute and prismatic cut
+  joints' (:class:`~ctmm.spatial.closed_loop_ports.SpatialLoopPorts`: coordinate, rate; torque or force);
 * the accelerations are the closed-loop ones with the actuator values of the stage applied to the tree **before**
   the cut loads are solved (:meth:`SpatialKinematicLoopModel.solve`: the sweep is affine in the applied loads, so
   the cut loads react to the drive);
@@ -23,7 +24,7 @@ import numpy as np
 
 from .closed_loops import SpatialKinematicLoopModel
 from .integrate import divergence_check, spatial_signals
-from .ports import SpatialPorts
+from .closed_loop_ports import SpatialLoopPorts
 
 __all__ = ["SpatialLoopPlant", "add_cut_signals"]
 
@@ -57,7 +58,7 @@ class SpatialLoopPlant:
 
     def __init__(self, model: SpatialKinematicLoopModel) -> None:
         self.model = model
-        self.ports = SpatialPorts(model.tree)
+        self.ports = SpatialLoopPorts(model)
         self.n_positions, self.n_velocities = model.tree.n_positions, model.tree.n_velocities
         self.element_names = tuple(self.ports.element_names) + tuple(cut.name for cut in model.cuts)
 

@@ -2,9 +2,10 @@
 
 ``ctmm.linearize``, ``ctmm.natural_frequencies``, ``ctmm.eigenvalue_count`` and ``ctmm.frequency_response`` call
 the tangent on the constraint manifold about an equilibrium (:mod:`ctmm.spatial.closed_loop_linear`); the time verb
-is :func:`ctmm.spatial_loop_time.simulate_spatial_loop_system`.  Inputs are the tree's actuator ports
-(:class:`~ctmm.spatial.ports.SpatialPorts`: joint torques, body forces and moments), outputs its sensors and the cut
-forces ``"<cut>.force_x|y|z"`` [N] (on the child, world axes).  ``docs/closed_loops.md`` section 8.
+is :func:`ctmm.spatial_loop_time.simulate_spatial_loop_system`.  Inputs are the model's actuator ports
+(:class:`~ctmm.spatial.closed_loop_ports.SpatialLoopPorts`: the tree's joint torques, body forces and moments, the
+revolute and prismatic cuts' ``"<cut>.torque"`` / ``"<cut>.force"``), outputs its sensors (the cuts' coordinates
+and rates among them) and the cut forces ``"<cut>.force_x|y|z"`` [N] (on the child, world axes).  ``docs/closed_loops.md`` section 8.
 """
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ from ..loop_manifold import input_output_matrices
 from ..loop_model_feedback import linearize_with_feedback
 from .closed_loop_linear import tangent
 from .closed_loops import SpatialKinematicLoopModel
-from .ports import SpatialPorts
+from .closed_loop_ports import SpatialLoopPorts
 
 __all__ = ["operating_configuration", "linearize_spatial_loops", "natural_frequencies_spatial_loops",
            "eigenvalue_count_spatial_loops", "frequency_response_spatial_loops", "cut_force_names"]
@@ -82,7 +83,8 @@ def linearize_spatial_loops(model: Any, operating_point: Any = None, *, inputs: 
         loads along revolute and prismatic cuts ``"<cut>.torque"`` [N m] / ``"<cut>.force"`` [N]
         (:attr:`SpatialKinematicLoopModel.actuation_names`).
     outputs : str or sequence of str, optional
-        Sensors of the tree's ports and the cut forces ``"<cut>.force_x|y|z"`` [N] (default: the cut forces).
+        Sensors of the model's ports (the tree's; ``"<cut>.angle"`` / ``".position"``, ``".rate"`` of revolute and
+        prismatic cuts) and the cut forces ``"<cut>.force_x|y|z"`` [N] (default: the cut forces).
     allow_nonequilibrium : bool
         Must be False: the chart of :mod:`ctmm.spatial.closed_loop_linear` is exact about equilibria only.
 
@@ -103,15 +105,14 @@ def linearize_spatial_loops(model: Any, operating_point: Any = None, *, inputs: 
         raise ModelError(f"allow_nonequilibrium=True is not available for the spatial kinematic loop model "
                          f"{model.name!r}: its tangent is taken about an equilibrium only; leave it False")
     tree = model.tree
-    ports = SpatialPorts(tree)
+    ports = SpatialLoopPorts(model)
     q_rest, t = operating_configuration(model, operating_point)
     default_inputs = [name for joint in tree.joints for name in joint.inputs if joint.velocity_count == 1]
     input_names = default_inputs if inputs is None else list(validation.names("input", inputs))
     forces = cut_force_names(model)
     output_names = list(forces) if outputs is None else list(validation.names("output", outputs))
     for name in input_names:
-        if name not in model.actuation_names:
-            ports.check_actuator(name, "input (actuator)")
+        ports.check_actuator(name, "input (actuator)")
     sensor_names = [name for name in output_names if name not in forces]
     sensors = ports.resolve([ports.check_sensor(name, "output (sensor)") for name in sensor_names])
     A, basis, q0 = tangent(model, q_rest, t)
@@ -144,7 +145,7 @@ def _linearize_controlled(model: SpatialKinematicLoopModel, loops: tuple, operat
     """:func:`linearize_spatial_loops` with feedback ``loops`` on the tree's ports: the plant's tangent about the
     equilibrium with the default, given and loop actuators as inputs, the cut forces ``"<cut>.force_x|y|z"`` [N]
     available as outputs (:func:`ctmm.loop_model_feedback.linearize_with_feedback`)."""
-    ports = SpatialPorts(model.tree)
+    ports = SpatialLoopPorts(model)
     default_inputs = [name for joint in model.tree.joints for name in joint.inputs if joint.velocity_count == 1]
     given_inputs = [] if inputs is None or (isinstance(inputs, (list, tuple)) and not inputs) else \
         list(validation.names("inputs", inputs))
@@ -199,9 +200,8 @@ def frequency_response_spatial_loops(model: Any, omega: Any, *, input: Any, outp
     response, lin = delayed_loop_response(
         lambda lin_in, lin_out: linearize_spatial_loops(model, operating_point, inputs=lin_in, outputs=lin_out),
         loops, 1j * np.asarray(omega, dtype=float), inputs, outputs, plant.name)
-    ports = SpatialPorts(plant.tree)
+    ports = SpatialLoopPorts(plant)
     units = {name: ports.actuator_unit(name) for name in inputs if name in ports.actuators}
-    units.update({name: "N m" if name.endswith(".torque") else "N" for name in inputs if name in plant.actuation_names})
     units.update({name: "N" if name in cut_force_names(plant) else ports.sensor_unit(name) for name in outputs
                   if name in ports.sensors or name in cut_force_names(plant)})
     info = {"method": "linearisation on the constraint manifold (ctmm.spatial.closed_loop_linear)"

@@ -51,7 +51,8 @@ from ..articulated import SingularPivotError, articulated_sweep
 from ..errors import ModelError, SimulationError, unknown_name
 from ..ops import NUMPY
 from .body_forms import SpatialScene
-from .closed_loop_cuts import CUT_KINDS, LAW_KINDS, CutFrame, SpatialCutJoint, cross, cut_coordinate, cut_frame
+from .closed_loop_cuts import (CUT_KINDS, LAW_KINDS, CutActuatedInputs, CutFrame, SpatialCutJoint, cross, cut_coordinate,
+                               cut_frame)
 from .integrate import initial_state
 from .model import SpatialModel
 from .ports import SpatialInputs
@@ -258,17 +259,20 @@ class SpatialKinematicLoopModel:
                 rows.append(point_row(parent_fixed(cut.parent_axis)) - float(cut.acceleration(t)))
         return np.concatenate(rows, axis=1)
 
-    def _law_wrenches(self, bodies: list, t: float) -> list[np.ndarray | None]:
+    def _law_wrenches(self, bodies: list, t: float, extra: Mapping[str, float] | None = None
+                      ) -> list[np.ndarray | None]:
         """Per cut: ``[force ; moment]`` (world) of its law and actuation on the child, ``f a`` along the cut's
         coordinate (:func:`~ctmm.spatial.closed_loop_cuts.cut_coordinate`; prismatic: a force at the child point),
-        the parent taking the opposite at the same place; ``None`` for a smooth cut (``bodies``: :meth:`_bodies`)."""
+        the parent taking the opposite at the same place; ``None`` for a smooth cut (``bodies``: :meth:`_bodies`);
+        ``extra``: port loads ``u`` by cut name added (:class:`~ctmm.spatial.closed_loop_cuts.CutActuatedInputs`)."""
         out: list[np.ndarray | None] = []
+        extra = extra or {}
         for cut, (parent, child) in zip(self.cuts, self._sides):
-            if not cut.has_law:
+            if not cut.has_law and cut.name not in extra:
                 out.append(None)
                 continue
             coordinate, rate, a = self._coordinate(bodies, cut, parent, child)
-            load = cut.load(coordinate, rate, t)
+            load = (cut.load(coordinate, rate, t) if cut.has_law else 0.0) + float(extra.get(cut.name, 0.0))
             out.append(np.concatenate([np.zeros(3), load * a]) if cut.kind == "revolute" else
                        np.concatenate([load * a, np.zeros(3)]))
         return out
@@ -324,7 +328,7 @@ class SpatialKinematicLoopModel:
         values, _ = self.cut_coordinates(q, np.zeros(self.tree.n_velocities))
         return float(sum(cut.potential(s) for cut, s in zip(self.cuts, values) if cut.kind in LAW_KINDS))
 
-    def _unit_loads(self, bodies: list, t: float) -> dict[int, np.ndarray]:
+    def _unit_loads(self, bodies: list, t: float, extra: Mapping[str, float] | None = None) -> dict[int, np.ndarray]:
         """Per loaded body: the change ``[f ; m + r x f]`` (``(1 + m, 6, 1)``, world axes, about its inboard point)
         of its applied load in the ``1 + m`` load cases: case 0 none, case ``1 + k`` the unit value of unknown
         ``k`` (its force or moment on the child, the opposite on the parent; ``bodies``: :meth:`_bodies`); the
@@ -332,7 +336,8 @@ class SpatialKinematicLoopModel:
         m = self.n_constraints
         loads: dict[int, np.ndarray] = {}
         row = 0
-        for cut, (parent, child), frame, law in zip(self.cuts, self._sides, self._frames, self._law_wrenches(bodies, t)):
+        for cut, (parent, child), frame, law in zip(self.cuts, self._sides, self._frames,
+                                                    self._law_wrenches(bodies, t, extra)):
             wrench = np.zeros((1 + m, 6)) if law is None else np.tile(law, (1 + m, 1))
             unit = self._unit_wrenches(bodies, cut, parent, child, frame)
             wrench[1 + row:1 + row + len(unit)] += unit
@@ -374,6 +379,7 @@ class SpatialKinematicLoopModel:
         scene, tree = self._scene, self.tree
         q_rows, v_rows = tree.check_state(q, v)
         wrenches = None
+        extra = inputs.cut_actuation if isinstance(inputs, CutActuatedInputs) else None
         if isinstance(inputs, SpatialInputs):               # the tree's ports (ctmm.spatial.ports)
             inputs, wrenches = inputs.joint, inputs.wrenches
         elif inputs is not None and not isinstance(inputs, Mapping):
@@ -382,7 +388,7 @@ class SpatialKinematicLoopModel:
         body_terms, joint_terms, states = scene.terms(NUMPY, q_rows, v_rows, t, scene.numpy_inputs(inputs, t, 1),
                                                       wrenches)
         bodies = self._states(states, 1)
-        for j, load in self._unit_loads(bodies, t).items():
+        for j, load in self._unit_loads(bodies, t, extra).items():
             body_terms[j] = replace(body_terms[j], h=body_terms[j].h - load)
         try:
             solution = articulated_sweep(NUMPY, scene.tree, body_terms, joint_terms)
@@ -458,7 +464,8 @@ class SpatialKinematicLoopModel:
         if isinstance(inputs, SpatialInputs):
             for body, entries in inputs.wrenches.items():
                 wrenches[body] = list(entries)
-        laws = self._law_wrenches(self._bodies(q, v, t), t)
+        laws = self._law_wrenches(self._bodies(q, v, t), t,
+                                  inputs.cut_actuation if isinstance(inputs, CutActuatedInputs) else None)
         bodies = self._bodies(q, np.zeros(self.tree.n_velocities), t)
         for (parent, child), frame, (force, moment), law in zip(self._sides, self._frames, self.cut_loads(q, lam, t),
                                                                 laws):

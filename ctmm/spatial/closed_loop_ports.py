@@ -1,0 +1,126 @@
+"""Named sensors and actuators of a spatial kinematic loop model: the tree's ports plus the cut joints'.
+
+A :class:`~ctmm.spatial.closed_loops.SpatialKinematicLoopModel` exposes every port of its spanning tree
+(:mod:`ctmm.spatial.ports`) and, for every revolute or prismatic cut joint ``<cut>``
+(:mod:`ctmm.spatial.closed_loop_cuts`), its coordinate ``s`` (the angle about a revolute cut's axis from
+``parent_normal`` to ``normal``, the slide of a prismatic cut's child point along the guide;
+:meth:`SpatialKinematicLoopModel.cut_coordinates`):
+
+Sensors
+    * revolute: ``"<cut>.angle"`` [rad], ``"<cut>.rate"`` [rad/s];
+    * prismatic: ``"<cut>.position"`` [m], ``"<cut>.rate"`` [m/s] (the names of the tree's joints).
+
+Actuators (undriven cuts; the names of :attr:`SpatialKinematicLoopModel.actuation_names`)
+    * revolute: ``"<cut>.torque"`` [N m] -- a moment ``u`` about the cut's axis;
+    * prismatic: ``"<cut>.force"`` [N] -- a force ``u`` along the slide.
+
+Each is added to the cut's own ``actuation`` (:class:`~ctmm.spatial.closed_loop_cuts.CutActuatedInputs`): ``u a`` on
+the child with ``a`` the world direction of the cut's coordinate at the current state, the opposite on the parent,
+the load of :meth:`SpatialKinematicLoopModel.actuation_inputs` (the linearisation's input).  Spherical and universal cuts have no coordinate and
+no ports; the cut loads ``"<cut>.force_x|y|z"`` are outputs, not sensors (a loop on them would be algebraic).
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import validation
+from ..errors import ModelError
+from ..named_ports import merged_values, split_actuator_values
+from .closed_loop_cuts import LAW_KINDS, CutActuatedInputs
+from .closed_loops import SpatialKinematicLoopModel
+from .ports import SpatialInputs, SpatialPorts
+
+__all__ = ["SpatialLoopPorts"]
+
+
+@dataclass(frozen=True)
+class _CutSensor:
+    name: str
+    index: int           # cut index
+    rate: bool
+    unit: str
+
+
+@dataclass(frozen=True)
+class _CutActuator:
+    name: str
+    cut: str
+    unit: str
+
+
+class SpatialLoopPorts(SpatialPorts):
+    """The sensors and actuators of a spatial kinematic loop model (module docstring), resolved once.
+
+    Parameters
+    ----------
+    model : SpatialKinematicLoopModel
+
+    Attributes
+    ----------
+    model : SpatialModel
+        The spanning tree (whose ports these extend).
+    loop_model : SpatialKinematicLoopModel
+    """
+
+    def __init__(self, model: SpatialKinematicLoopModel) -> None:
+        if not isinstance(model, SpatialKinematicLoopModel):
+            raise ModelError(f"model must be a ctmm.spatial.closed_loops.SpatialKinematicLoopModel, got {model!r}")
+        super().__init__(model.tree)
+        self.loop_model = model
+        sensors, actuators = dict(self.sensors), dict(self.actuators)
+        added_sensors, added_actuators = {}, {}
+        for k, cut in enumerate(model.cuts):
+            if cut.kind not in LAW_KINDS:
+                continue
+            revolute = cut.kind == "revolute"
+            position = "angle" if revolute else "position"
+            added_sensors[f"{cut.name}.{position}"] = _CutSensor(f"{cut.name}.{position}", k, False,
+                                                                 "rad" if revolute else "m")
+            added_sensors[f"{cut.name}.rate"] = _CutSensor(f"{cut.name}.rate", k, True, "rad/s" if revolute else "m/s")
+            label = f"{cut.name}.{'torque' if revolute else 'force'}"
+            if label not in model.actuation_names:
+                continue                                    # a driven cut
+            added_actuators[label] = _CutActuator(label, cut.name, "N m" if revolute else "N")
+        clash = sorted([n for n in added_sensors if n in sensors] + [n for n in added_actuators if n in actuators])
+        if clash:
+            raise ModelError(f"spatial kinematic loop {model.name!r}: the cut joints' ports {clash} are also ports of "
+                             "the tree (a cut joint named like a tree joint or body); rename the cut joint")
+        sensors.update(added_sensors)
+        actuators.update(added_actuators)
+        self.sensors, self.actuators = sensors, actuators
+
+    def check_actuator(self, name: str, what: str = "actuator") -> str:
+        """``name`` if it is an actuator, else an error listing the actuators (a driven cut's load: why not)."""
+        if isinstance(name, str) and name not in self.actuators:
+            cut = next((c for c in self.loop_model.cuts if c.name == name.rpartition(".")[0]), None)
+            if cut is not None:
+                reason = ("is driven (its coordinate is prescribed)" if cut.kind in LAW_KINDS else
+                          f"is {cut.kind} (no coordinate to load; only revolute and prismatic cuts take a load)")
+                raise ModelError(f"{what} {name!r}: cut joint {cut.name!r} {reason}; cut actuators: "
+                                 f"{[a for a in self.actuators if isinstance(self.actuators[a], _CutActuator)]}")
+        return super().check_actuator(name, what)
+
+    def values(self, sensors: list, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        """Values of resolved ``sensors`` at ``(q, v, t)`` (no validation of the state: for inner loops)."""
+        def cut_values(chosen: list) -> list[float]:
+            coordinate, rate = self.loop_model.cut_coordinates(q, v, t)
+            return [(rate if s.rate else coordinate)[s.index] for s in chosen]
+
+        return merged_values(sensors, _CutSensor, lambda chosen: SpatialPorts.values(self, chosen, q, v, t),
+                             cut_values)
+
+    def inputs(self, values: Mapping[str, float]) -> SpatialInputs:
+        """Arrange actuator ``values`` (``{actuator name: value}``, SI units) for the sweep: the tree's actuators and
+        the cut loads (:class:`~ctmm.spatial.closed_loop_cuts.CutActuatedInputs`); entries on one actuator add up."""
+        tree, cut = split_actuator_values(values, self.actuators, _CutActuator)
+        inputs = super().inputs(tree)
+        if not cut:
+            return inputs
+        loads: dict[str, float] = {}
+        for name, value in cut:
+            target = self.actuators[name].cut
+            loads[target] = loads.get(target, 0.0) + validation.finite(f"actuator {name!r}", value)
+        return CutActuatedInputs(inputs.joint, inputs.wrenches, loads)
