@@ -12,6 +12,8 @@ Methods (one run, one machine):
                       frequencies (:mod:`ctmm.planar_transfer_response`), O(N) per frequency;
 * ``sweep_equilibrium`` -- the same call without ``operating_point`` (the static equilibrium is searched
                       first, :func:`ctmm.planar.equilibrium.static_equilibrium`);
+* ``equilibrium_search`` -- that search alone (``stable=True`` from the hanging guess, which already is the
+                      equilibrium: its residual, then the stiffness of the stability check);
 * ``sweep_only``   -- :meth:`~ctmm.planar_transfer_response.SweepResponse.response` alone (terms linearised
                       beforehand): the per-frequency work;
 * ``resolvent``    -- the former path: :func:`ctmm.linearize` (complex-step tangent, 2N x 2N) and the dense
@@ -47,6 +49,7 @@ for folder in (ROOT, ROOT / "benchmarks"):
 
 import ctmm  # noqa: E402
 from ctmm.controlled_linearization import delayed_loop_response  # noqa: E402
+from ctmm.planar.equilibrium import hanging_configuration, static_equilibrium  # noqa: E402
 from ctmm.planar_linearization import linearize_planar, operating_point  # noqa: E402
 from ctmm.planar_transfer_response import SweepResponse  # noqa: E402
 from ctmm.reference.planar_lagrange import PlanarLagrange  # noqa: E402
@@ -110,6 +113,8 @@ def run(n: int, *, with_resolvent: bool) -> dict:
     plant = SweepResponse(model, operating_point(model, hanging(n)))
     cases = {"sweep": (lambda: sweep(model, n), repeats),
              "sweep_equilibrium": (lambda: ctmm.frequency_response(model, OMEGA, input=force, output=angle), 2),
+             "equilibrium_search": (lambda: static_equilibrium(model, hanging_configuration(model), stable=True),
+                                    repeats),
              "sweep_only": (lambda: plant.response(1j * OMEGA, [force], [angle]), repeats),
              "lagrange": (lambda: lagrange(n), 1)}
     if with_resolvent:
