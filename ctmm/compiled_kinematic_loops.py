@@ -22,7 +22,7 @@ generated C (:func:`ctmm.generated_loop.compiled_time_loop`).  The step states, 
 
 The generated state is ``[q, qdot, residual, condition]``: ``residual`` is the largest ``max |Phi|`` [m] after the
 projection of every step so far, ``condition`` the largest Frobenius condition number ``|G|_F |G^-1|_F`` of every RK4
-stage so far (an upper bound of at most ``2 m`` times the 2-norm condition the numpy path checks at every stage), so
+stage so far (:func:`ctmm.loop_integration.compliance_condition`, which the numpy path checks at every stage), so
 every step is checked whatever ``store_every``.  The run fails with a :class:`~ctmm.errors.SimulationError` (time,
 cut joint, partial result up to the last good stored state) at the first stored state that is not finite, or by
 which a projection residual exceeded :data:`~ctmm.loop_integration.PROJECTION_TOLERANCE` or a condition
@@ -53,7 +53,7 @@ from .compiled_scene import DEFAULT_ROWS, symbolic_accelerations_with_inputs
 from .errors import ModelError, SimulationError
 from .generated_loop import compiled_time_loop, run_blocks
 from .loop_integration import (CONDITION_LIMIT, PROJECTION_SKIP, PROJECTION_TOLERANCE, check_consistent,
-                               furthest_cut, projection_failure, singular_compliance)
+                               compliance_condition, furthest_cut, projection_failure, singular_compliance)
 from .model_description import describe
 from .ode import rk4_step
 from .planar.closed_loops import KinematicLoopModel, KinematicLoopSimulation
@@ -248,7 +248,7 @@ class CompiledKinematicLoops:
         y0 = np.concatenate([q0, v0, [0.0, 0.0]])
         _, phi, _, G = self._outputs(y0[:size], self.parameters, 0.0)
         y0[size] = float(np.max(np.abs(np.asarray(phi))))
-        y0[size + 1] = float(np.linalg.cond(np.asarray(G)))
+        y0[size + 1] = compliance_condition(np.asarray(G))
         states = run_blocks(self._blocks, self._stride, self._step, self.store_every, y0[:, None], np.zeros(0), dt,
                             n_steps, 0.0, self.parameters[:, None])[0]
         steps = np.array([k for k in range(1, n_steps + 1) if k % self.store_every == 0 or k == n_steps])

@@ -13,8 +13,9 @@ schemes) applies, stated once here:
 
 * a run starts on the cut joints: ``max |Phi|`` and ``max |Phi'|`` at most :data:`CONSISTENCY_TOLERANCE`
   (:func:`check_consistent`, a :class:`~ctmm.errors.ModelError` otherwise);
-* the boundary compliance ``G`` of the cut loads is regular: its condition number at most :data:`CONDITION_LIMIT`
-  (:func:`singular_compliance`: a singular configuration of the loop or redundant cut joints);
+* the boundary compliance ``G`` of the cut loads is regular: its condition number (:func:`compliance_condition`) at
+  most :data:`CONDITION_LIMIT` (:func:`singular_compliance`: a singular configuration of the loop or redundant cut
+  joints), at every evaluation of the closed-loop accelerations;
 * the projection after a step lands on the cut joints: ``max |Phi|`` at most :data:`PROJECTION_TOLERANCE` after its
   Gauss-Newton steps (:func:`projection_failure`; a step too large for the loop's curvature).  A run that breaks
   either rule stops with a :class:`~ctmm.errors.SimulationError` naming the time, the cut joint
@@ -33,7 +34,7 @@ from .errors import ModelError, SimulationError
 from .ode import rk4_step
 
 __all__ = ["CONDITION_LIMIT", "CONSISTENCY_TOLERANCE", "PROJECTION_SKIP", "PROJECTION_TOLERANCE", "SOLVE_IVP_METHODS",
-           "check_consistent", "furthest_cut", "integrate_loop_model", "projection_failure", "singular_compliance"]
+           "check_consistent", "compliance_condition", "furthest_cut", "integrate_loop_model", "projection_failure", "singular_compliance"]
 
 CONSISTENCY_TOLERANCE = 1e-8
 """Largest ``max |Phi|`` [m, rad] and ``max |Phi'|`` [m/s, rad/s] of an initial state on the cut joints."""
@@ -42,7 +43,7 @@ PROJECTION_TOLERANCE = 1e-8
 PROJECTION_SKIP = 1e-14
 """``max |Phi|`` [m, rad] below which the projection's Gauss-Newton steps stop (already on the cut joints)."""
 CONDITION_LIMIT = 1e12
-"""Largest condition number of the cut joints' boundary compliance ``G`` [-]."""
+"""Largest condition number of the cut joints' boundary compliance ``G`` [-] (:func:`compliance_condition`)."""
 
 SOLVE_IVP_METHODS = ("RK45", "RK23", "DOP853", "Radau", "BDF", "LSODA")
 """``solve_ivp`` methods of the loop integrators."""
@@ -91,6 +92,13 @@ def projection_failure(residual: float, iterations: int) -> str:
     steps (above :data:`PROJECTION_TOLERANCE`)."""
     return (f"the projection onto the cut joints failed (|Phi| = {residual:.3e} after {iterations} Gauss-Newton steps; "
             f"allowed <= {PROJECTION_TOLERANCE:g}: a step too large for the loop, or a singular configuration)")
+
+
+def compliance_condition(G: np.ndarray) -> float:
+    """The condition number ``|G|_F |G^-1|_F`` [-] of the boundary compliance ``G`` checked against
+    :data:`CONDITION_LIMIT` (the Frobenius one: the generated step states it on symbols; at most ``m`` times the
+    2-norm condition of an ``(m, m)`` ``G``); ``inf`` for a singular ``G``."""
+    return float(np.linalg.cond(G, "fro"))
 
 
 def singular_compliance(condition: float) -> str:

@@ -44,8 +44,8 @@ import numpy as np
 
 from .. import loop_manifold, validation
 from ..errors import ModelError, SimulationError
-from ..loop_integration import (CONDITION_LIMIT, PROJECTION_SKIP, check_consistent, integrate_loop_model,
-                                singular_compliance)
+from ..loop_integration import (CONDITION_LIMIT, PROJECTION_SKIP, check_consistent, compliance_condition,
+                                integrate_loop_model, singular_compliance)
 from .cut_joints import CutJoint
 from .elements import Fixed
 from .model import PlanarModel
@@ -396,7 +396,7 @@ class KinematicLoopModel:
         phi, phi_dot = self.constraints(q, qdot, t)
         alpha = self.baumgarte
         target = -a0 - 2.0 * alpha * phi_dot - alpha * alpha * phi
-        condition = np.linalg.cond(G)
+        condition = compliance_condition(G)
         if not condition <= CONDITION_LIMIT:
             raise SimulationError(f"kinematic loop {self.name!r}: {singular_compliance(condition)} at t = {t} s",
                                   time=t, element=self.cuts[0].name)

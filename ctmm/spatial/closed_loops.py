@@ -49,7 +49,7 @@ import numpy as np
 from .. import validation
 from ..articulated import SingularPivotError, articulated_sweep
 from ..errors import ModelError, SimulationError, unknown_name
-from ..loop_integration import CONDITION_LIMIT, PROJECTION_SKIP, singular_compliance
+from ..loop_integration import CONDITION_LIMIT, PROJECTION_SKIP, compliance_condition, singular_compliance
 from ..ops import NUMPY
 from .body_forms import SpatialScene
 from .closed_loop_cuts import (CUT_KINDS, LAW_KINDS, CutActuatedInputs, CutFrame, SpatialCutJoint, cross, cut_coordinate,
@@ -428,7 +428,7 @@ class SpatialKinematicLoopModel:
         phi, phi_dot = self._rows(bodies, t)
         alpha = self.baumgarte
         target = -second[0] - 2.0 * alpha * phi_dot[0] - alpha * alpha * phi[0]
-        condition = np.linalg.cond(G)
+        condition = compliance_condition(G)
         if not condition <= CONDITION_LIMIT:
             raise SimulationError(f"spatial kinematic loop {self.name!r}: {singular_compliance(condition)} at t = {t} "
                                   "s (e.g. a revolute cut closing a planar loop: use a spherical cut there)", time=t,
