@@ -21,8 +21,10 @@ projection onto the cut joints after it, the time loop in generated C.  On casad
 
 State, failures and result as :mod:`ctmm.compiled_kinematic_loops` (residual and condition carried in the state,
 :class:`~ctmm.errors.SimulationError` with time, cut joint and partial result).  Refused (:class:`ModelError`, by
-name): trees :func:`ctmm.compiled_spatial.spatial_compile_refusal` refuses, driven joints (their prescribed motion enters
-``Phi'`` and ``Phi''`` explicitly in time, which the generated step does not differentiate), and with feedback loops, inputs or controllers (:mod:`ctmm.spatial_loop_time`).
+name): trees :func:`ctmm.compiled_spatial.spatial_compile_refusal` refuses, cut joints with a law, an actuation or a
+drive (their load along the cut's coordinate is not in the generated step yet), driven joints (their prescribed
+motion enters ``Phi'`` and ``Phi''`` explicitly in time, which the generated step does not differentiate), and with
+feedback loops, inputs or controllers (:mod:`ctmm.spatial_loop_time`).
 """
 from __future__ import annotations
 
@@ -52,6 +54,10 @@ def spatial_kinematic_loop_compile_refusal(model: Any) -> str:
                           spatial_compile_refusal)
     if reason:
         return reason
+    loaded = [cut.name for cut in model.cuts if cut.has_law or cut.driven]
+    if loaded:
+        return (f"cut joints {loaded} carry a law, an actuation or a drive: their load along the cut's coordinate is "
+                "not in the generated step yet; use compiled=None (the numpy RK4 with projection)")
     driven = [joint.name for joint in model.tree.joints if joint.driven]
     if driven:
         return (f"its tree has driven joints ({', '.join(driven)}): their prescribed motion enters Phi' and Phi'' "

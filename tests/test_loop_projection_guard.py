@@ -6,8 +6,9 @@
   the generated path's to round-off).  Before, the numpy path kept integrating a state off the cut joints.
 * An initial state off the cut joints: one check and one message (the cut furthest off, |Phi| and |Phi'|, the
   arguments named) from every entry point.
-* compiled=True refuses cut joints with a moment law, a torque or a drive: the generated step has no moment row
-  (it ignored them: 0.44 rad off the numpy run after 0.1 s on the four-bar below).
+* compiled=True refuses cut joints with a moment law, a torque or a drive (planar) and with a law, an actuation or
+  a drive (spatial): the generated steps have no row for their load (they ignored them: 0.44 rad off the numpy run
+  after 0.1 s on the planar four-bar below, 0.04 rad on the spatial revolute-cut pendulum).
 """
 from __future__ import annotations
 
@@ -126,3 +127,22 @@ def test_the_generated_rk4_refuses_cut_joints_with_a_moment():
             ctmm.simulate(lawful, 0.01, 1e-3, x0=q0, v0=v0, compiled=True)
         smooth = simulate_kinematic_loops(loop, q0, v0, t_final=0.02, dt=1e-3)
         assert np.max(np.abs(simulate_kinematic_loops(lawful, q0, v0, t_final=0.02, dt=1e-3).q - smooth.q)) > 1e-6
+
+
+def test_the_spatial_generated_rk4_refuses_cut_joints_with_a_law_or_an_actuation():
+    import dataclasses
+
+    from spatial_loop_helpers import hinged_pendulum
+    from ctmm.spatial.closed_loops import SpatialKinematicLoopModel
+
+    pendulum = hinged_pendulum()
+    for extra in ({"law": LinearLaw(5.0, 0.1)}, {"actuation": 2.0}):
+        loaded = SpatialKinematicLoopModel(pendulum.tree, [dataclasses.replace(pendulum.cuts[0], **extra)],
+                                           baumgarte=pendulum.baumgarte)
+        q, v = loaded.consistent_state({"free.qw": np.cos(0.25), "free.qy": np.sin(0.25), "free.x": 0.01},
+                                       {"free.wy": 2.0}, keep=["free.wy"])
+        with pytest.raises(ModelError, match=re.escape("cut joints ['hinge'] carry a law, an actuation or a drive")
+                           + ".*compiled=None"):
+            ctmm.simulate(loaded, 0.01, 1e-3, x0=q, v0=v, compiled=True)
+        free = simulate_spatial_loops(pendulum, q, v, t_final=0.02, dt=1e-3)
+        assert np.max(np.abs(simulate_spatial_loops(loaded, q, v, t_final=0.02, dt=1e-3).q - free.q)) > 1e-6
