@@ -22,18 +22,20 @@ generated C (:func:`ctmm.generated_loop.compiled_time_loop`).  The step states, 
 
 The generated state is ``[q, qdot, residual, condition]``: ``residual`` is the largest ``max |Phi|`` [m] after the
 projection of every step so far, ``condition`` the largest Frobenius condition number ``|G|_F |G^-1|_F`` of every RK4
-stage so far (an upper bound of at most ``2 m`` times the 2-norm condition the numpy path checks at every stage), so
+stage so far (:func:`ctmm.loop_integration.compliance_condition`, which the numpy path checks at every stage), so
 every step is checked whatever ``store_every``.  The run fails with a :class:`~ctmm.errors.SimulationError` (time,
 cut joint, partial result up to the last good stored state) at the first stored state that is not finite, or by
-which a projection residual exceeded :data:`PROJECTION_TOLERANCE` or a condition :data:`CONDITION_LIMIT` (a singular
-configuration of the loop).  This is stricter than the numpy RK4, which reports its drift but does not check its
-projection.  ``drift`` [m] and ``drift_rate`` [m/s] and the
+which a projection residual exceeded :data:`~ctmm.loop_integration.PROJECTION_TOLERANCE` or a condition
+:data:`~ctmm.loop_integration.CONDITION_LIMIT` (a singular configuration of the loop): the rules and messages of the
+numpy RK4 (:mod:`ctmm.loop_integration`), which checks the same after every step.  ``drift`` [m] and ``drift_rate``
+[m/s] and the
 cut forces of the result are those of the stored states (as the numpy path reports them), evaluated by a generated
 function of the same library.
 
 Refused (:class:`~ctmm.errors.ModelError`): a tree that :func:`ctmm.compiled_parameters.compile_refusal` refuses,
 cut points on deformable bodies (a ``ModalBeam`` end: its cut force is a floating-frame wrench, not on the element
-protocol yet).  Feedback loops, inputs and controllers on a kinematic loop model keep running in
+protocol yet), cut joints with a moment law, a torque or a prescribed angle (their moment row is not in the
+generated step yet).  Feedback loops, inputs and controllers on a kinematic loop model keep running in
 :mod:`ctmm.kinematic_loop_time` (``compiled=True`` refused there by name).
 """
 from __future__ import annotations
@@ -50,21 +52,16 @@ from .compiled_parameters import compile_refusal, parameter_vector
 from .compiled_scene import DEFAULT_ROWS, symbolic_accelerations_with_inputs
 from .errors import ModelError, SimulationError
 from .generated_loop import compiled_time_loop, run_blocks
+from .loop_integration import (CONDITION_LIMIT, PROJECTION_SKIP, PROJECTION_TOLERANCE, check_consistent,
+                               compliance_condition, furthest_cut, projection_failure, singular_compliance)
 from .model_description import describe
 from .ode import rk4_step
 from .planar.closed_loops import KinematicLoopModel, KinematicLoopSimulation
 from .planar.elements import Fixed
 from .planar.ports import PlanarPorts
 
-__all__ = ["CONDITION_LIMIT", "PROJECTION_TOLERANCE", "CompiledKinematicLoops", "check_consistent", "failure_message",
-           "first_failure", "generated_run",
-           "kinematic_loop_compile_refusal", "projected_rk4_step", "simulate_kinematic_loops_generated"]
-
-PROJECTION_TOLERANCE = 1e-8
-"""Largest ``max |Phi|`` [m] after the generated projection (the bound of a consistent initial state)."""
-CONDITION_LIMIT = 1e12
-"""Largest condition number of the boundary compliance ``G`` (the numpy path's limit)."""
-_SKIP = 1e-14       # max |Phi| [m] below which a Gauss-Newton step is skipped (KinematicLoopModel.project)
+__all__ = ["CompiledKinematicLoops", "failure_message", "first_failure", "generated_failure", "generated_run",
+           "kinematic_loop_compile_refusal", "projected_rk4_step", "simulate_kinematic_loops_generated", "tree_refusal"]
 _BODY_PARTS = ("force_x", "force_y", "moment")
 
 
@@ -85,13 +82,25 @@ def _cut_points(model: KinematicLoopModel) -> list[tuple[tuple[int, Any], tuple[
     return out
 
 
+def tree_refusal(model: Any, kind: type, kind_label: str, refusal: Any) -> str:
+    """Why ``model`` is not a kinematic loop model of ``kind`` (named ``kind_label``) whose spanning tree compiles
+    (``refusal(tree)``); an empty string when it is: the first checks of :func:`kinematic_loop_compile_refusal` and
+    its spatial counterpart."""
+    if not isinstance(model, kind):
+        return f"a {kind_label} is compiled here, got {type(model).__name__}"
+    reason = refusal(model.tree)
+    return f"its tree cannot be compiled: {reason}" if reason else ""
+
+
 def kinematic_loop_compile_refusal(model: Any) -> str:
     """Why ``model`` cannot run the generated RK4 of this module (an empty string when it can)."""
-    if not isinstance(model, KinematicLoopModel):
-        return f"a ctmm.planar.closed_loops.KinematicLoopModel is compiled here, got {type(model).__name__}"
-    reason = compile_refusal(model.tree)
+    reason = tree_refusal(model, KinematicLoopModel, "ctmm.planar.closed_loops.KinematicLoopModel", compile_refusal)
     if reason:
-        return f"its tree cannot be compiled: {reason}"
+        return reason
+    moments = [cut.name for cut in model.cuts if cut.has_moment or cut.driven]
+    if moments:
+        return (f"cut joints {moments} carry a moment law, a torque or a prescribed angle: their moment row is not in "
+                "the generated step yet; use compiled=None (the numpy RK4 with projection)")
     for cut, points in zip(model.cuts, _cut_points(model)):
         for j, _ in points:
             if j >= 0 and j in model.tree.beams:
@@ -221,7 +230,8 @@ class CompiledKinematicLoops:
         for _ in range(self.iterations):
             residual, J = constraint(projected_q)
             correction = ca.mtimes(J.T, ca.solve(ca.mtimes(J, J.T), residual))
-            projected_q = ca.if_else(ca.mmax(ca.fabs(residual)) < _SKIP, projected_q, projected_q - correction)
+            skip = ca.mmax(ca.fabs(residual)) < PROJECTION_SKIP
+            projected_q = ca.if_else(skip, projected_q, projected_q - correction)
         residual, J = constraint(projected_q)
         projected_v = v - ca.mtimes(J.T, ca.solve(ca.mtimes(J, J.T), ca.mtimes(J, v)))
         project = ca.Function("project", [y], [ca.vertcat(projected_q, projected_v), ca.mmax(ca.fabs(residual))])
@@ -238,7 +248,7 @@ class CompiledKinematicLoops:
         y0 = np.concatenate([q0, v0, [0.0, 0.0]])
         _, phi, _, G = self._outputs(y0[:size], self.parameters, 0.0)
         y0[size] = float(np.max(np.abs(np.asarray(phi))))
-        y0[size + 1] = float(np.linalg.cond(np.asarray(G)))
+        y0[size + 1] = compliance_condition(np.asarray(G))
         states = run_blocks(self._blocks, self._stride, self._step, self.store_every, y0[:, None], np.zeros(0), dt,
                             n_steps, 0.0, self.parameters[:, None])[0]
         steps = np.array([k for k in range(1, n_steps + 1) if k % self.store_every == 0 or k == n_steps])
@@ -270,8 +280,8 @@ def generated_run(kind: type, model: Any, q: np.ndarray, v: np.ndarray, t_final:
                   compiled: Any, cache_dir: str | os.PathLike | None) -> tuple[Any, np.ndarray, np.ndarray, float, int]:
     """The generated run of the simulate functions: ``compiled`` checked (an instance of ``kind``, a
     :class:`CompiledKinematicLoops` class, of ``model`` with ``store_every``) or built, the start checked
-    (:func:`check_consistent`), ``round(t_final / dt)`` steps of ``dt`` [s]; ``(compiled, t, states, wall time [s],
-    steps)``."""
+    (:func:`ctmm.loop_integration.check_consistent`), ``round(t_final / dt)`` steps of ``dt`` [s]; ``(compiled, t,
+    states, wall time [s], steps)``."""
     if compiled is None:
         compiled = kind(model, store_every=store_every, cache_dir=cache_dir)
     elif not isinstance(compiled, kind) or compiled.model is not model or compiled.store_every != store_every:
@@ -283,16 +293,6 @@ def generated_run(kind: type, model: Any, q: np.ndarray, v: np.ndarray, t_final:
     started = _time.perf_counter()
     t, states = compiled.run(np.asarray(q, float), np.asarray(v, float), h, n_steps)
     return compiled, t, states, _time.perf_counter() - started, n_steps
-
-
-def check_consistent(model: Any, q: np.ndarray, v: np.ndarray) -> None:
-    """:class:`ModelError` unless ``(q, v)`` is on the cut joints of ``model`` (planar or spatial kinematic loop
-    model): ``|Phi| <= 1e-8``, ``|Phi'| <= 1e-8`` (m, rad, per second)."""
-    phi, phi_dot = model.constraints(q, v)
-    if np.max(np.abs(phi)) > 1e-8 or np.max(np.abs(phi_dot)) > 1e-8:
-        raise ModelError(f"{type(model).__name__} {model.name!r}: the initial state violates the cut joints (|Phi| = "
-                         f"{np.max(np.abs(phi)):.3e}, |Phi'| = {np.max(np.abs(phi_dot)):.3e}; allowed <= 1e-8); start "
-                         f"from {type(model).__name__}.consistent_state")
 
 
 def projected_rk4_step(rate: Any, project: Any, size: int, n_parameters: int) -> Any:
@@ -328,14 +328,27 @@ def first_failure(states: np.ndarray, size: int) -> int | None:
 
 
 def failure_message(state: np.ndarray, size: int, iterations: int) -> str:
-    """What failed in a row :func:`first_failure` found."""
+    """What failed in a row :func:`first_failure` found (the messages of :mod:`ctmm.loop_integration`)."""
     if not np.all(np.isfinite(state)):
         return "a non-finite state (a singular loop configuration or divergence)"
     if state[size] > PROJECTION_TOLERANCE:
-        return (f"the projection onto the cut joints failed (|Phi| = {state[size]:.3e} after {iterations} "
-                f"Gauss-Newton steps; allowed <= {PROJECTION_TOLERANCE:g})")
-    return (f"the cut joints' boundary compliance is singular (condition {state[size + 1]:.2e} > {CONDITION_LIMIT:g}): "
-            "a singular configuration of the loop or redundant cut joints")
+        return projection_failure(float(state[size]), iterations)
+    return singular_compliance(float(state[size + 1]))
+
+
+def generated_failure(model: Any, label: str, t: np.ndarray, states: np.ndarray, bad: int, size: int,
+                      iterations: int, partial: Any) -> SimulationError:
+    """The :class:`SimulationError` of the stored row ``bad`` that :func:`first_failure` found in a generated run of
+    ``model`` (stored times ``t`` [s], states ``[q, v, residual, condition]`` with ``q, v`` of ``size``): the time, the
+    cut joint furthest apart (:func:`ctmm.loop_integration.furthest_cut`; the first cut when the row is not finite)
+    and the ``partial`` result up to the last good stored state."""
+    cut = model.cuts[0].name
+    if np.all(np.isfinite(states[bad])):
+        nq = size - model.n_velocities
+        cut = furthest_cut(model, model.constraints(states[bad, :nq], states[bad, nq:size], float(t[bad]))[0])
+    return SimulationError(f"{label} (generated RK4): {failure_message(states[bad], size, iterations)} by t = "
+                           f"{t[bad]} s (after t = {t[bad - 1] if bad else 0.0} s, the last good stored state)",
+                           time=float(t[bad]), element=cut, partial_result=partial)
 
 
 def simulate_kinematic_loops_generated(model: KinematicLoopModel, q0: Any, qdot0: Any, *, t_final: float, dt: float,
@@ -378,16 +391,8 @@ def simulate_kinematic_loops_generated(model: KinematicLoopModel, q0: Any, qdot0
     forces, phi, phi_dot = compiled.cut_history(t[:good], states[:good])
     drift, drift_rate = np.max(np.abs(phi), axis=1), np.max(np.abs(phi_dot), axis=1)
     if bad is not None:
-        k = bad
-        cut = model.cuts[0].name
-        if np.all(np.isfinite(states[k])):        # the cut joint furthest apart
-            separation = np.abs(model.constraints(states[k, :n], states[k, n:2 * n])[0]).reshape(-1, 2).max(axis=1)
-            cut = model.cuts[int(np.argmax(separation))].name
-        partial = _simulation(model, t[:k], states[:k], forces, drift, drift_rate, wall, n_steps)
-        raise SimulationError(f"kinematic loop {model.name!r} (generated RK4): "
-                              f"{failure_message(states[k], 2 * n, compiled.iterations)} by t = {t[k]} s "
-                              f"(after t = {t[k - 1] if k else 0.0} s, the last good stored state)",
-                              time=float(t[k]), element=cut, partial_result=partial)
+        raise generated_failure(model, f"kinematic loop {model.name!r}", t, states, bad, 2 * n, compiled.iterations,
+                                _simulation(model, t[:bad], states[:bad], forces, drift, drift_rate, wall, n_steps))
     return _simulation(model, t, states, forces, drift, drift_rate, wall, n_steps)
 
 

@@ -21,8 +21,10 @@ projection onto the cut joints after it, the time loop in generated C.  On casad
 
 State, failures and result as :mod:`ctmm.compiled_kinematic_loops` (residual and condition carried in the state,
 :class:`~ctmm.errors.SimulationError` with time, cut joint and partial result).  Refused (:class:`ModelError`, by
-name): trees :func:`ctmm.compiled_spatial.spatial_compile_refusal` refuses, driven joints (their prescribed motion enters
-``Phi'`` and ``Phi''`` explicitly in time, which the generated step does not differentiate), and with feedback loops, inputs or controllers (:mod:`ctmm.spatial_loop_time`).
+name): trees :func:`ctmm.compiled_spatial.spatial_compile_refusal` refuses, cut joints with a law, an actuation or a
+drive (their load along the cut's coordinate is not in the generated step yet), driven joints (their prescribed
+motion enters ``Phi'`` and ``Phi''`` explicitly in time, which the generated step does not differentiate), and with
+feedback loops, inputs or controllers (:mod:`ctmm.spatial_loop_time`).
 """
 from __future__ import annotations
 
@@ -32,10 +34,10 @@ from typing import Any
 import numpy as np
 
 from .articulated import articulated_sweep
-from .compiled_kinematic_loops import (CompiledKinematicLoops, failure_message, first_failure, generated_run,
-                                       projected_rk4_step)
+from .compiled_kinematic_loops import (CompiledKinematicLoops, first_failure, generated_failure, generated_run,
+                                       projected_rk4_step, tree_refusal)
 from .compiled_spatial import position_rates, spatial_compile_refusal
-from .errors import SimulationError
+from .loop_integration import PROJECTION_SKIP
 from .ops import CASADI
 from .spatial.body_forms import SpatialScene
 from .spatial.closed_loop_cuts import cut_frame
@@ -45,16 +47,17 @@ from .spatial.closed_loops import SpatialKinematicLoopModel
 __all__ = ["CompiledSpatialKinematicLoops", "spatial_kinematic_loop_compile_refusal",
            "simulate_spatial_kinematic_loops_generated"]
 
-_SKIP = 1e-14       # max |Phi| below which a Gauss-Newton step is skipped (SpatialKinematicLoopModel.project)
-
 
 def spatial_kinematic_loop_compile_refusal(model: Any) -> str:
     """Why ``model`` cannot run the generated RK4 of this module (an empty string when it can)."""
-    if not isinstance(model, SpatialKinematicLoopModel):
-        return f"a ctmm.spatial.SpatialKinematicLoopModel is compiled here, got {type(model).__name__}"
-    reason = spatial_compile_refusal(model.tree)
+    reason = tree_refusal(model, SpatialKinematicLoopModel, "ctmm.spatial.SpatialKinematicLoopModel",
+                          spatial_compile_refusal)
     if reason:
-        return f"its tree cannot be compiled: {reason}"
+        return reason
+    loaded = [cut.name for cut in model.cuts if cut.has_law or cut.driven]
+    if loaded:
+        return (f"cut joints {loaded} carry a law, an actuation or a drive: their load along the cut's coordinate is "
+                "not in the generated step yet; use compiled=None (the numpy RK4 with projection)")
     driven = [joint.name for joint in model.tree.joints if joint.driven]
     if driven:
         return (f"its tree has driven joints ({', '.join(driven)}): their prescribed motion enters Phi' and Phi'' "
@@ -203,7 +206,7 @@ class CompiledSpatialKinematicLoops(CompiledKinematicLoops):
         residual, rate_k, Jk = constraint(qk, v)
         for _ in range(self.iterations):
             step_q = retract(qk, -ca.mtimes(Jk.T, ca.solve(ca.mtimes(Jk, Jk.T), residual)))
-            moved = ca.mmax(ca.fabs(residual)) >= _SKIP
+            moved = ca.mmax(ca.fabs(residual)) >= PROJECTION_SKIP
             qk = ca.if_else(moved, step_q, qk)
             residual, rate_k, Jk = constraint(qk, v)
         vk = v - ca.mtimes(Jk.T, ca.solve(ca.mtimes(Jk, Jk.T), rate_k))
@@ -266,8 +269,6 @@ def simulate_spatial_kinematic_loops_generated(model: SpatialKinematicLoopModel,
                                      4 * n_steps)
 
     if bad is not None:
-        raise SimulationError(f"spatial kinematic loop {model.name!r} (generated RK4): "
-                              f"{failure_message(states[bad], size, compiled.iterations)} by t = {t[bad]} s (after "
-                              f"t = {t[bad - 1] if bad else 0.0} s, the last good stored state)", time=float(t[bad]),
-                              element=model.cuts[0].name, partial_result=history(bad))
+        raise generated_failure(model, f"spatial kinematic loop {model.name!r}", t, states, bad, size,
+                                compiled.iterations, history(bad))
     return history(len(t))

@@ -5,31 +5,114 @@ The state is ``y = [q ; v]`` (tree coordinates and velocities) with the closed-l
 (:meth:`ctmm.planar.closed_loops.KinematicLoopModel.solve`,
 :meth:`ctmm.spatial.closed_loops.SpatialKinematicLoopModel.solve`); ``finish(y, t)`` is applied after every RK4 step
 (the projection onto ``Phi = 0``, ``Phi' = 0``, or the renormalisation of quaternions without it).
-``docs/closed_loops.md`` sections 2 and 8.
+``docs/closed_loops.md`` sections 2, 3d and 8.
+
+The rules every integrator of a kinematic loop model (this RK4, the generated RK4 of
+:mod:`ctmm.compiled_kinematic_loops` and :mod:`ctmm.compiled_spatial_kinematic_loops`, the loop driver, the DT-TMM
+schemes) applies, stated once here:
+
+* a run starts on the cut joints: ``max |Phi|`` and ``max |Phi'|`` at most :data:`CONSISTENCY_TOLERANCE`
+  (:func:`check_consistent`, a :class:`~ctmm.errors.ModelError` otherwise);
+* the boundary compliance ``G`` of the cut loads is regular: its condition number (:func:`compliance_condition`) at
+  most :data:`CONDITION_LIMIT` (:func:`singular_compliance`: a singular configuration of the loop or redundant cut
+  joints), at every evaluation of the closed-loop accelerations;
+* the projection after a step lands on the cut joints: ``max |Phi|`` at most :data:`PROJECTION_TOLERANCE` after its
+  Gauss-Newton steps (:func:`projection_failure`; a step too large for the loop's curvature).  A run that breaks
+  either rule stops with a :class:`~ctmm.errors.SimulationError` naming the time, the cut joint
+  (:func:`furthest_cut`) and the partial result.
 """
 from __future__ import annotations
 
 import time as _time
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 import scipy.integrate
 
 from . import validation
-from .errors import SimulationError
+from .errors import ModelError, SimulationError
 from .ode import rk4_step
 
-__all__ = ["SOLVE_IVP_METHODS", "integrate_loop_model"]
+__all__ = ["CONDITION_LIMIT", "CONSISTENCY_TOLERANCE", "PROJECTION_SKIP", "PROJECTION_TOLERANCE", "SOLVE_IVP_METHODS",
+           "check_consistent", "compliance_condition", "furthest_cut", "integrate_loop_model", "projection_failure", "singular_compliance"]
+
+CONSISTENCY_TOLERANCE = 1e-8
+"""Largest ``max |Phi|`` [m, rad] and ``max |Phi'|`` [m/s, rad/s] of an initial state on the cut joints."""
+PROJECTION_TOLERANCE = 1e-8
+"""Largest ``max |Phi|`` [m, rad] after the projection of a step (the bound of a consistent initial state)."""
+PROJECTION_SKIP = 1e-14
+"""``max |Phi|`` [m, rad] below which the projection's Gauss-Newton steps stop (already on the cut joints)."""
+CONDITION_LIMIT = 1e12
+"""Largest condition number of the cut joints' boundary compliance ``G`` [-] (:func:`compliance_condition`)."""
 
 SOLVE_IVP_METHODS = ("RK45", "RK23", "DOP853", "Radau", "BDF", "LSODA")
 """``solve_ivp`` methods of the loop integrators."""
 
 
+def check_consistent(model: Any, q: np.ndarray, v: np.ndarray, names: str = "q0, v0") -> None:
+    """Refuse an initial state ``(q, v)`` off the cut joints of ``model`` (planar or spatial kinematic loop model).
+
+    Parameters
+    ----------
+    model : KinematicLoopModel or SpatialKinematicLoopModel
+    q, v : ndarray
+        Tree coordinates and velocities.
+    names : str
+        The arguments they came from, named in the error.
+
+    Raises
+    ------
+    ModelError
+        ``max |Phi|`` or ``max |Phi'|`` above :data:`CONSISTENCY_TOLERANCE` (both named, and the cut furthest off).
+    """
+    phi, phi_dot = model.constraints(q, v)
+    phi, phi_dot = np.abs(np.asarray(phi, float)), np.abs(np.asarray(phi_dot, float))
+    worst_phi, worst_rate = np.max(phi, initial=0.0), np.max(phi_dot, initial=0.0)
+    if not (worst_phi <= CONSISTENCY_TOLERANCE and worst_rate <= CONSISTENCY_TOLERANCE):
+        kind = type(model).__name__
+        worst = furthest_cut(model, np.maximum(phi, phi_dot))
+        raise ModelError(f"{kind} {model.name!r}: the initial state ({names}) violates the cut joints (|Phi| = "
+                         f"{worst_phi:.3e} m or rad, |Phi'| = {worst_rate:.3e} m/s or rad/s, furthest off at the cut "
+                         f"{worst!r}; allowed <= {CONSISTENCY_TOLERANCE:g}): start from {kind}.consistent_state")
+
+
+def furthest_cut(model: Any, rows: np.ndarray) -> str:
+    """The name of the cut joint of ``model`` whose rows (stacked as ``model.constraints`` returns them: a spatial
+    cut's ``n_rows``, a planar cut's 2, a driven planar cut's 3) hold the largest ``|rows|``."""
+    sizes = [getattr(cut, "n_rows", 3 if getattr(cut, "driven", False) else 2) for cut in model.cuts]
+    values = np.abs(np.asarray(rows, float))
+    if len(values) != sum(sizes) or not np.any(np.isfinite(values)):
+        return model.cuts[0].name
+    owner = np.repeat(np.arange(len(sizes)), sizes)
+    return model.cuts[int(owner[np.nanargmax(values)])].name
+
+
+def projection_failure(residual: float, iterations: int) -> str:
+    """What failed when the projection left ``max |Phi| = residual`` [m, rad] after ``iterations`` Gauss-Newton
+    steps (above :data:`PROJECTION_TOLERANCE`)."""
+    return (f"the projection onto the cut joints failed (|Phi| = {residual:.3e} after {iterations} Gauss-Newton steps; "
+            f"allowed <= {PROJECTION_TOLERANCE:g}: a step too large for the loop, or a singular configuration)")
+
+
+def compliance_condition(G: np.ndarray) -> float:
+    """The condition number ``|G|_F |G^-1|_F`` [-] of the boundary compliance ``G`` checked against
+    :data:`CONDITION_LIMIT` (the Frobenius one: the generated step states it on symbols; at most ``m`` times the
+    2-norm condition of an ``(m, m)`` ``G``); ``inf`` for a singular ``G``."""
+    return float(np.linalg.cond(G, "fro"))
+
+
+def singular_compliance(condition: float) -> str:
+    """What failed when the boundary compliance has the condition number ``condition`` (above
+    :data:`CONDITION_LIMIT`, or not finite)."""
+    return (f"the cut joints' boundary compliance is singular (condition {condition:.2e} > {CONDITION_LIMIT:g}): "
+            "a singular configuration of the loop or redundant cut joints")
+
+
 def integrate_loop_model(rate: Callable[[float, np.ndarray], np.ndarray], y0: np.ndarray, n_positions: int, *,
                          t_final: float, dt: float | None, method: str, finish: Callable[[np.ndarray, float], np.ndarray],
                          rtol: float, atol: float, store_every: int, t_eval: np.ndarray | None,
-                         max_step: float | None, label: str, element: str, velocity_label: str
-                         ) -> tuple[np.ndarray, np.ndarray, float]:
+                         max_step: float | None, label: str, element: str, velocity_label: str,
+                         model: Any = None, iterations: int = 3) -> tuple[np.ndarray, np.ndarray, float]:
     """Integrate ``y' = rate(t, y)`` from ``y0`` over ``[0, t_final]`` [s].
 
     Parameters
@@ -46,6 +129,11 @@ def integrate_loop_model(rate: Callable[[float, np.ndarray], np.ndarray], y0: np
         ``"rk4"`` or a ``solve_ivp`` method (:data:`SOLVE_IVP_METHODS`).
     finish : callable
         ``(y, t) -> y`` after every RK4 step (projection or renormalisation).
+    model : KinematicLoopModel or SpatialKinematicLoopModel, optional
+        Given when ``finish`` projects: its ``constraints(q, v, t)`` after every RK4 step must be within
+        :data:`PROJECTION_TOLERANCE` (:func:`projection_failure` otherwise).
+    iterations : int
+        The Gauss-Newton steps of the projection (named in the error).
     rtol, atol : float
         ``solve_ivp`` tolerances.
     store_every : int
@@ -68,8 +156,9 @@ def integrate_loop_model(rate: Callable[[float, np.ndarray], np.ndarray], y0: np
     Raises
     ------
     SimulationError
-        A failure of the rates (a singular loop configuration), a non-finite state or a failed ``solve_ivp`` run,
-        with the time, the cut joint and the partial result.
+        A failure of the rates (a singular loop configuration), a non-finite state, a failed projection (RK4 with
+        ``model``) or a failed ``solve_ivp`` run, with the time, the cut joint and the partial result up to the last
+        good stored state.
     """
     n = n_positions
     start = _time.perf_counter()
@@ -93,6 +182,12 @@ def integrate_loop_model(rate: Callable[[float, np.ndarray], np.ndarray], y0: np
                 raise SimulationError(f"{label}: non-finite state at t = {k * h} s", time=k * h, element=element,
                                       partial_result=partial())
             y = finish(y, k * h)
+            if model is not None:
+                phi = np.abs(np.asarray(model.constraints(y[:n], y[n:], k * h)[0], float))
+                if not np.max(phi, initial=0.0) <= PROJECTION_TOLERANCE:
+                    raise SimulationError(f"{label}: {projection_failure(float(np.max(phi)), iterations)} at t = "
+                                          f"{k * h} s (after t = {ts[-1]} s, the last good stored state)", time=k * h,
+                                          element=furthest_cut(model, phi), partial_result=partial())
             if k % store_every == 0 or k == steps:
                 ts.append(k * h)
                 ys.append(y)

@@ -40,7 +40,8 @@ TIME_PROBES = (1e-3, 0.0137, 0.1, 0.731, 3.1)
 
 
 CROSS_CHECK_STEPS = (1e-3, 1e-4, 1e-5)
-"""Relative steps of the Richardson cross-check of the complex-step tangent (:func:`tangent`), tried in turn."""
+"""Relative steps of the Richardson cross-check of the complex-step tangent, tried in turn until it agrees: of
+:func:`tangent` and of :func:`ctmm.spatial_linearization.tangent` (one rule for both)."""
 
 
 def jacobian(function: Callable[[np.ndarray], np.ndarray], x: np.ndarray, *, relative_step: float = 1e-3

@@ -17,7 +17,8 @@ followed by the velocities ``v`` (``model.velocities``, their deviations).  Name
   terms of the one articulated sweep (:class:`ctmm.spatial.body_forms.SpatialScene`, ``d = 6``), exact to
   round-off, cross-checked along one direction by a Richardson difference of
   :func:`ctmm.spatial.accelerations` (``OperatingPoint.jacobian_error``, refused above
-  :data:`~ctmm.planar_linearization.JACOBIAN_TOLERANCE` at each of the steps :data:`RICHARDSON_STEPS`: the
+  :data:`~ctmm.planar_linearization.JACOBIAN_TOLERANCE` at each of the steps
+  :data:`~ctmm.planar_linearization.CROSS_CHECK_STEPS`, the planar tangent's: the
   difference's truncation error falls like ``h^4`` where the accelerations are smooth, a kink does not);
 * ``B = [[0], [df/du]]`` -- ``f`` is affine in the actuator inputs, a symmetric unit difference is
   exact; one input per component (:func:`input_names`: ``"yaw.torque"``, ``"ball.torque_x"``,
@@ -52,18 +53,16 @@ from .controlled_linearization import close_model_loops, loop_ports
 from .linearized import LinearizedSystem, OperatingPoint
 from .ops import NUMPY
 from .planar.equilibrium import STABLE_RESTARTS, describe_directions, negative_stiffness, restart_until_stable
-from .planar_linearization import EQUILIBRIUM_TOLERANCE, JACOBIAN_TOLERANCE, TIME_PROBES, jacobian
+from .planar_linearization import CROSS_CHECK_STEPS, EQUILIBRIUM_TOLERANCE, JACOBIAN_TOLERANCE, TIME_PROBES, jacobian
 from .saturation import refuse_saturation
 from .spatial_sensors_complex import complex_sensor_values
 
 __all__ = ["linearize_spatial", "tangent_names", "input_names", "retract", "static_equilibrium",
            "operating_point", "tangent", "input_matrix", "output_matrix", "NEWTON_ITERATIONS",
-           "unstable_directions", "STABLE_RESTARTS", "RICHARDSON_STEPS"]
+           "unstable_directions", "STABLE_RESTARTS"]
 
 NEWTON_ITERATIONS = 200
 """Largest number of (pseudo-transient Newton) steps of :func:`static_equilibrium`."""
-RICHARDSON_STEPS = (1e-3, 1e-4, 1e-5)
-"""Relative steps of the Richardson cross-check of :func:`tangent`, tried in turn until it agrees."""
 _COMPONENTS = {3: ("x", "y", "z"), 6: ("fx", "fy", "fz", "mx", "my", "mz"), 2: ("1", "2")}
 
 
@@ -367,10 +366,10 @@ def tangent(model: Any, point: OperatingPoint) -> tuple[np.ndarray, OperatingPoi
         return accelerations(model, q, point.qdot + e[0] * direction[n:], point.t)
 
     # the truncation error of the Richardson difference falls like h^4 where f is smooth: steps shrink (to
-    # RICHARDSON_STEPS) until it is below the tolerance, as the high modal coordinates of a beam need (their
+    # CROSS_CHECK_STEPS) until it is below the tolerance, as the high modal coordinates of a beam need (their
     # nonlinear terms grow with the mode number); a kink or a wrong Jacobian keeps the disagreement at every step
     errors = []
-    for relative_step in RICHARDSON_STEPS:
+    for relative_step in CROSS_CHECK_STEPS:
         slope, slope_error = jacobian(along, np.zeros(1), relative_step=relative_step)
         disagreement = np.abs(np.hstack([Jq, Jv]) @ direction - slope[:, 0]) + slope_error[:, 0]
         errors.append(float(np.max(disagreement, initial=0.0) / max(float(np.max(np.abs(A))), 1e-300)))
@@ -380,7 +379,7 @@ def tangent(model: Any, point: OperatingPoint) -> tuple[np.ndarray, OperatingPoi
     if not error <= JACOBIAN_TOLERANCE:
         raise ModelError(f"linearize: the Jacobians of {model.name!r} at the operating point disagree with a "
                          f"Richardson difference (relative {', '.join(f'{e:.2e}' for e in errors)} > "
-                         f"{JACOBIAN_TOLERANCE:.0e} at relative steps {list(RICHARDSON_STEPS)}); the accelerations "
+                         f"{JACOBIAN_TOLERANCE:.0e} at relative steps {list(CROSS_CHECK_STEPS)}); the accelerations "
                          "are not smooth there")
     return A, point._replace(jacobian_error=error)
 

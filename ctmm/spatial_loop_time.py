@@ -17,6 +17,7 @@ import numpy as np
 from . import validation
 from .control.planar_time import simulate_closed_loop
 from .errors import ModelError
+from .loop_integration import check_consistent
 from .results import SimulationResult
 from .schemes import SCHEMES, Scheme
 from .signal_results import SignalSystem, signal_result
@@ -77,11 +78,7 @@ def simulate_spatial_loop_system(system: Any, t_final: float, dt: float | None, 
     q0, v0 = model.state(x0, v0)
     driver = bool(loops or controllers or references or tuple(outputs) or port_inputs)
     if driver or scheme:
-        phi, phi_dot = model.constraints(q0, v0)
-        if np.max(np.abs(phi)) > 1e-8 or np.max(np.abs(phi_dot)) > 1e-8:
-            raise ModelError(f"spatial kinematic loop {model.name!r}: the initial state violates the cut joints "
-                             f"(|Phi| = {np.max(np.abs(phi)):.3e}, |Phi'| = {np.max(np.abs(phi_dot)):.3e}); start "
-                             "from SpatialKinematicLoopModel.consistent_state")
+        check_consistent(model, q0, v0, "x0, v0")
     if scheme:
         if driver:
             raise ModelError(f"method={method!r}: the DT-TMM schemes are not implemented for the spatial kinematic loop "

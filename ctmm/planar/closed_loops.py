@@ -44,7 +44,8 @@ import numpy as np
 
 from .. import loop_manifold, validation
 from ..errors import ModelError, SimulationError
-from ..loop_integration import integrate_loop_model
+from ..loop_integration import (CONDITION_LIMIT, PROJECTION_SKIP, check_consistent, compliance_condition,
+                                integrate_loop_model, singular_compliance)
 from .cut_joints import CutJoint
 from .elements import Fixed
 from .model import PlanarModel
@@ -395,11 +396,10 @@ class KinematicLoopModel:
         phi, phi_dot = self.constraints(q, qdot, t)
         alpha = self.baumgarte
         target = -a0 - 2.0 * alpha * phi_dot - alpha * alpha * phi
-        condition = np.linalg.cond(G)
-        if not np.isfinite(condition) or condition > 1e12:
-            raise SimulationError(f"kinematic loop {self.name!r}: the cut joints' boundary compliance is singular "
-                                  f"(condition {condition:.2e}) at t = {t} s: a singular configuration of the loop "
-                                  "or redundant cut joints", time=t, element=self.cuts[0].name)
+        condition = compliance_condition(G)
+        if not condition <= CONDITION_LIMIT:
+            raise SimulationError(f"kinematic loop {self.name!r}: {singular_compliance(condition)} at t = {t} s",
+                                  time=t, element=self.cuts[0].name)
         lam = np.linalg.solve(G, target)
         return qdd0 + dqdd @ lam, lam
 
@@ -429,7 +429,7 @@ class KinematicLoopModel:
         """Minimum-norm projection of ``(q, qdot)`` onto ``Phi = 0``, ``Phi' = 0`` (a few Gauss-Newton steps)."""
         for _ in range(iterations):
             phi, _ = self.constraints(q, qdot, t)
-            if np.max(np.abs(phi)) < 1e-14:
+            if np.max(np.abs(phi)) < PROJECTION_SKIP:
                 break
             q = q - np.linalg.lstsq(self.jacobian(q, t), phi, rcond=None)[0]
         return q, qdot - np.linalg.lstsq(self.jacobian(q, t), self.constraints(q, qdot, t)[1], rcond=None)[0]
@@ -526,7 +526,8 @@ def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: f
     ----------
     model : KinematicLoopModel
     q0, qdot0 : array_like (n_coordinates,)
-        Initial tree coordinates and rates (checked against the constraints: ``|Phi| <= 1e-8`` m).
+        Initial tree coordinates and rates (checked against the constraints: ``|Phi|``, ``|Phi'| <= 1e-8``,
+        :func:`ctmm.loop_integration.check_consistent`).
     t_final : float
         End time [s].
     dt : float, optional
@@ -550,7 +551,8 @@ def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: f
     ModelError
         Bad arguments or an inconsistent initial state.
     SimulationError
-        A singular loop configuration or a non-finite state (time and cut joint named).
+        A singular loop configuration, a non-finite state or (RK4 with projection) a failed projection: ``|Phi|``
+        above :data:`ctmm.loop_integration.PROJECTION_TOLERANCE` after it (time, cut joint, partial result).
     """
     if not isinstance(model, KinematicLoopModel):
         raise ModelError(f"model must be a KinematicLoopModel, got {model!r}")
@@ -558,11 +560,7 @@ def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: f
     store_every = validation.integer("store_every", store_every, minimum=1)
     q, v = model.tree.state(q0, qdot0)
     q, v = np.asarray(q, float).copy(), np.asarray(v, float).copy()
-    phi, phi_dot = model.constraints(q, v)
-    if np.max(np.abs(phi)) > 1e-8 or np.max(np.abs(phi_dot)) > 1e-8:
-        raise ModelError(f"kinematic loop {model.name!r}: the initial state violates the cut joints (|Phi| = "
-                         f"{np.max(np.abs(phi)):.3e} m, |Phi'| = {np.max(np.abs(phi_dot)):.3e} m/s); start from "
-                         "KinematicLoopModel.consistent_state")
+    check_consistent(model, q, v, "q0, qdot0")
     n = len(q)
     evaluations = [0]
 
@@ -577,7 +575,8 @@ def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: f
     t_out, y_out, wall = integrate_loop_model(rate, np.concatenate([q, v]), n, t_final=t_final, dt=dt, method=method,
                                               finish=finish, rtol=rtol, atol=atol, store_every=store_every,
                                               t_eval=t_eval, max_step=max_step, label=f"kinematic loop {model.name!r}",
-                                              element=model.cuts[0].name, velocity_label="qdot")
+                                              element=model.cuts[0].name, velocity_label="qdot",
+                                              model=model if projection else None)
     forces, drift, drift_rate = [], [], []
     for t, y in zip(t_out, y_out):
         phi, phi_dot = model.constraints(y[:n], y[n:], t)

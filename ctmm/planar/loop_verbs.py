@@ -36,6 +36,7 @@ from ..linearized import LinearizedSystem, OperatingPoint, control_name
 from ..results import FrequencyResponse, SimulationResult
 from ..schemes import SCHEMES, Scheme, as_scheme
 from ..signal_results import SignalSystem, signal_result
+from ..loop_integration import check_consistent
 from ..loop_manifold import at_equilibrium, input_output_matrices
 from ..loop_model_feedback import linearize_with_feedback
 from .closed_loops import KinematicLoopModel, KinematicLoopSimulation, simulate_kinematic_loops
@@ -71,13 +72,9 @@ def cut_moment_signals(model: KinematicLoopModel, t: np.ndarray, q: np.ndarray, 
 
 def initial_state(model: KinematicLoopModel, x0: Any, v0: Any) -> tuple[np.ndarray, np.ndarray]:
     """Tree coordinates and rates from ``x0``, ``v0`` (arrays or ``{coordinate: value}``, others 0), checked
-    against the cut joints (``|Phi| <= 1e-8`` m, ``|Phi'| <= 1e-8`` m/s; :class:`ModelError` otherwise)."""
+    against the cut joints (:func:`ctmm.loop_integration.check_consistent`: ``|Phi|``, ``|Phi'| <= 1e-8``)."""
     q0, v0 = coordinate_values(model.tree, "x0", x0), coordinate_values(model.tree, "v0", v0)
-    phi, phi_dot = model.constraints(q0, v0)
-    if np.max(np.abs(phi)) > 1e-8 or np.max(np.abs(phi_dot)) > 1e-8:
-        raise ModelError(f"x0, v0 violate the cut joints of {model.name!r} (|Phi| = {np.max(np.abs(phi)):.3e} m, "
-                         f"|Phi'| = {np.max(np.abs(phi_dot)):.3e} m/s; allowed <= 1e-8): start from "
-                         "KinematicLoopModel.consistent_state(q, qdot, keep=[...])")
+    check_consistent(model, q0, v0, "x0, v0")
     return q0, v0
 
 

@@ -14,7 +14,7 @@ import numpy as np
 
 from .. import validation
 from ..errors import ModelError
-from ..loop_integration import integrate_loop_model
+from ..loop_integration import check_consistent, integrate_loop_model
 from .closed_loops import SpatialKinematicLoopModel
 
 __all__ = ["SpatialLoopSimulation", "simulate_spatial_loops"]
@@ -89,7 +89,8 @@ def simulate_spatial_loops(model: SpatialKinematicLoopModel, q0: Any, v0: Any, *
     ModelError
         Bad arguments or an inconsistent initial state.
     SimulationError
-        A singular loop configuration or a non-finite state (time and cut joint named, partial result).
+        A singular loop configuration, a non-finite state or (RK4 with projection) a failed projection: ``|Phi|``
+        above :data:`ctmm.loop_integration.PROJECTION_TOLERANCE` after it (time, cut joint, partial result).
     """
     if not isinstance(model, SpatialKinematicLoopModel):
         raise ModelError(f"model must be a SpatialKinematicLoopModel, got {model!r:.80}")
@@ -97,11 +98,7 @@ def simulate_spatial_loops(model: SpatialKinematicLoopModel, q0: Any, v0: Any, *
     store_every = validation.integer("store_every", store_every, minimum=1)
     projection = validation.flag("projection", projection)
     q, v = model.state(q0, v0)
-    phi, phi_dot = model.constraints(q, v)
-    if np.max(np.abs(phi)) > 1e-8 or np.max(np.abs(phi_dot)) > 1e-8:
-        raise ModelError(f"spatial kinematic loop {model.name!r}: the initial state violates the cut joints (|Phi| = "
-                         f"{np.max(np.abs(phi)):.3e}, |Phi'| = {np.max(np.abs(phi_dot)):.3e}); start from "
-                         "SpatialKinematicLoopModel.consistent_state")
+    check_consistent(model, q, v)
     nq = len(q)
     tree = model.tree
     evaluations = [0]
@@ -121,7 +118,8 @@ def simulate_spatial_loops(model: SpatialKinematicLoopModel, q0: Any, v0: Any, *
                                               finish=finish, rtol=rtol, atol=atol, store_every=store_every,
                                               t_eval=grid, max_step=max_step,
                                               label=f"spatial kinematic loop {model.name!r}",
-                                              element=model.cuts[0].name, velocity_label="v")
+                                              element=model.cuts[0].name, velocity_label="v",
+                                              model=model if projection else None)
     forces, moments, drift, drift_rate = [], [], [], []
     for t, y in zip(t_out, y_out):
         phi, phi_dot = model.constraints(y[:nq], y[nq:], t)

@@ -49,6 +49,7 @@ import numpy as np
 from .. import validation
 from ..articulated import SingularPivotError, articulated_sweep
 from ..errors import ModelError, SimulationError, unknown_name
+from ..loop_integration import CONDITION_LIMIT, PROJECTION_SKIP, compliance_condition, singular_compliance
 from ..ops import NUMPY
 from .body_forms import SpatialScene
 from .closed_loop_cuts import (CUT_KINDS, LAW_KINDS, CutActuatedInputs, CutFrame, SpatialCutJoint, cross, cut_coordinate,
@@ -427,12 +428,11 @@ class SpatialKinematicLoopModel:
         phi, phi_dot = self._rows(bodies, t)
         alpha = self.baumgarte
         target = -second[0] - 2.0 * alpha * phi_dot[0] - alpha * alpha * phi[0]
-        condition = np.linalg.cond(G)
-        if not np.isfinite(condition) or condition > 1e12:
-            raise SimulationError(f"spatial kinematic loop {self.name!r}: the cut joints' boundary compliance is "
-                                  f"singular (condition {condition:.2e}) at t = {t} s: a singular configuration of "
-                                  "the loop or redundant cut rows (e.g. a revolute cut closing a planar loop: use a "
-                                  "spherical cut there)", time=t, element=self.cuts[0].name)
+        condition = compliance_condition(G)
+        if not condition <= CONDITION_LIMIT:
+            raise SimulationError(f"spatial kinematic loop {self.name!r}: {singular_compliance(condition)} at t = {t} "
+                                  "s (e.g. a revolute cut closing a planar loop: use a spherical cut there)", time=t,
+                                  element=self.cuts[0].name)
         lam = np.linalg.solve(G, target)
         return rates[0] + (rates[1:] - rates[0]).T @ lam, lam
 
@@ -547,7 +547,7 @@ class SpatialKinematicLoopModel:
         q = self.tree.normalized(q)
         phi, rate, J = self._rows_and_jacobian(q, v, t)
         for _ in range(iterations):
-            if np.max(np.abs(phi)) < 1e-14:
+            if np.max(np.abs(phi)) < PROJECTION_SKIP:
                 break
             q = self.retract(q, -np.linalg.lstsq(J, phi, rcond=None)[0])
             phi, rate, J = self._rows_and_jacobian(q, v, t)
