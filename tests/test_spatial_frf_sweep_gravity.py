@@ -5,7 +5,8 @@ with the parent, and the shifted reference point of a sliding joint) and the rot
 Independent references: the global Newton-Euler linearisation ``M, C, K`` of ``ctmm/reference/spatial_tree.py``
 (its ``K`` by complex step of its own generalised forces through its retraction, gravity and world point loads
 included) and the assumed-modes Lagrange model ``ctmm/reference/spatial_beam_lagrange.py`` (hub + beam + tip) in
-gravity.  Second path: the dense resolvent of ``ctmm.linearize``.  Tolerance 1e-9 of each (output, input) pair's
+gravity.  Second path: the dense resolvent of ``ctmm.linearize`` (also with loops closed per frequency, with and
+without delay).  Tolerance 1e-9 of each (output, input) pair's
 largest entry, away from poles.
 """
 from __future__ import annotations
@@ -147,3 +148,15 @@ def test_the_joint_coupling_is_the_same_on_casadi():
     for x_numpy, x_casadi in zip(expected.x, got.x):
         value = np.array(casadi.evalf(x_casadi))
         assert np.max(np.abs(value - x_numpy[0])) <= 1e-12 * (1.0 + np.max(np.abs(x_numpy)))
+
+
+@pytest.mark.parametrize("delay", [0.04, 0.0])
+def test_loops_closed_per_frequency_about_a_loaded_tree_equal_the_dense_path(delay):
+    from ctmm.control import Feedback, with_feedback
+
+    model = random_spring_tree(np.random.default_rng(11), 5, "universal")
+    loop = Feedback("pd", sensor=[("j1.angle", 6.0), ("j1.rate", 0.5)], actuator="j1.torque", gain=1.0, delay=delay)
+    inputs, outputs = ["j0.torque1", "pd.reference"], ["j2.angle1", "pd.u"]
+    frf = ctmm.frequency_response(with_feedback(model, [loop]), OMEGA, input=inputs, output=outputs)
+    assert frf.info["method"] == SWEEP and frf.info["n_dense_frequencies"] == 0
+    assert_close(frf.response, dense(model, [loop], OMEGA, inputs, outputs, operating_point(model)), 1e-9)
