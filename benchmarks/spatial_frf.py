@@ -2,7 +2,9 @@
 
 Problem: a serial chain of N rigid links (0.4 m, 1 kg, principal inertias (0.002, 0.014, 0.014) kg m^2) on
 revolute joints whose axes alternate z, y, x (stiffness 50 N m/rad, damping 0.2 N m s/rad, every joint
-actuated), in zero gravity at rest (the unloaded equilibrium the context states, ``ctmm.spatial_transfer_response``);
+actuated), in zero gravity at rest (``"gravity": "none"``) and hanging in gravity ``GRAVITY`` (along the chain,
+with a sideways part: ``"gravity": "hanging"``) at its static equilibrium (every joint deflected and preloaded: the
+joint coupling and the rotation stiffness of ``ctmm.spatial_transfer_response``);
 ``ctmm.frequency_response(chain, np.logspace(-1, 2, 500), input=["j<N-1>.torque", "link<N-1>.tip.force_y"],
 output=["j<N-1>.angle", "link<N-1>.tip.z"])``.
 
@@ -18,8 +20,10 @@ Methods (one run, one machine):
 
 Times: best wall time ``*_s`` and best CPU time ``*_cpu_s`` of this process.  Error: largest
 ``|G_sweep - G_resolvent|`` over the frequencies, relative to the largest ``|G|`` of each (output, input) pair
+(of a pair zero by structure -- the hanging chain's tip ``z`` under the last torque, 1e-24 of round-off -- to the
+largest ``|G|`` of all pairs)
 (the accuracy against the independent Newton-Euler and Lagrange references is in
-``tests/test_spatial_frf_sweep.py``).  Run ``python benchmarks/spatial_frf.py`` (``--quick``: N = 5 only;
+``tests/test_spatial_frf_sweep.py`` and ``tests/test_spatial_frf_sweep_gravity.py``).  Run ``python benchmarks/spatial_frf.py`` (``--quick``: N = 5 only;
 ``--sizes``, default 5 and 30); writes ``benchmarks/results/spatial_frf.json``.
 """
 from __future__ import annotations
@@ -49,10 +53,12 @@ from ctmm.spatial_transfer_response import SpatialSweepResponse  # noqa: E402
 OMEGA = np.logspace(-1, 2, 500)
 RESULTS = ROOT / "benchmarks" / "results" / "spatial_frf.json"
 AXES = ((0.0, 0.0, 1.0), (0.0, 1.0, 0.0), (1.0, 0.0, 0.0))
+GRAVITY = (-9.81, 0.0, -0.5)
+"""[m/s^2] of the hanging case: along the chain (-x) with a sideways part that deflects it."""
 
 
-def chain(n: int) -> sp.SpatialModel:
-    """The weightless sprung chain of the module docstring."""
+def chain(n: int, gravity: tuple = (0.0, 0.0, 0.0)) -> sp.SpatialModel:
+    """The sprung chain of the module docstring (default weightless)."""
     elements: list = []
     for j in range(n):
         elements.append(sp.SpatialBody(f"link{j}", 1.0, (0.002, 0.014, 0.014), center_of_mass=(0.2, 0.0, 0.0),
@@ -60,7 +66,7 @@ def chain(n: int) -> sp.SpatialModel:
         elements.append(sp.Revolute(name=f"j{j}", parent=None if j == 0 else f"link{j - 1}", child=f"link{j}",
                                     point=(0.0, 0.0, 0.0) if j == 0 else "tip", axis=AXES[j % 3], stiffness=50.0,
                                     damping=0.2, actuated=True))
-    return sp.SpatialModel(f"spatial_chain{n}", elements, gravity=(0.0, 0.0, 0.0))
+    return sp.SpatialModel(f"spatial_chain{n}", elements, gravity=gravity)
 
 
 def ports(n: int) -> tuple[list, list]:
@@ -68,7 +74,10 @@ def ports(n: int) -> tuple[list, list]:
 
 
 def at_rest(model: sp.SpatialModel) -> tuple[np.ndarray, np.ndarray]:
-    return model.neutral(), np.zeros(model.n_velocities)
+    """The equilibrium: the neutral pose in zero gravity, else the static equilibrium."""
+    if not np.any(model.gravity):
+        return model.neutral(), np.zeros(model.n_velocities)
+    return operating_point(model).q, np.zeros(model.n_velocities)
 
 
 def best(call, repeats: int) -> tuple[float, float, object]:
@@ -82,30 +91,37 @@ def best(call, repeats: int) -> tuple[float, float, object]:
     return min(walls), min(cpus), result
 
 
-def sweep(model: sp.SpatialModel, n: int, omega: np.ndarray = OMEGA):
+def sweep(model: sp.SpatialModel, n: int, omega: np.ndarray = OMEGA, point: tuple | None = None):
     inputs, outputs = ports(n)
-    return ctmm.frequency_response(model, omega, input=inputs, output=outputs, operating_point=at_rest(model))
+    return ctmm.frequency_response(model, omega, input=inputs, output=outputs,
+                                   operating_point=at_rest(model) if point is None else point)
 
 
-def resolvent(model: sp.SpatialModel, n: int, omega: np.ndarray = OMEGA) -> np.ndarray:
+def resolvent(model: sp.SpatialModel, n: int, omega: np.ndarray = OMEGA, point: tuple | None = None) -> np.ndarray:
     inputs, outputs = ports(n)
-    return delayed_loop_response(lambda a, b: linearize_spatial(model, at_rest(model), inputs=a, outputs=b), (),
+    point = at_rest(model) if point is None else point
+    return delayed_loop_response(lambda a, b: linearize_spatial(model, point, inputs=a, outputs=b), (),
                                  1j * omega, inputs, outputs, model.name)[0]
 
 
-def run(n: int) -> dict:
-    model = chain(n)
+def run(n: int, hanging: bool = False) -> dict:
+    model = chain(n, GRAVITY if hanging else (0.0, 0.0, 0.0))
     inputs, outputs = ports(n)
-    plant = SpatialSweepResponse(model, operating_point(model, at_rest(model)))
-    cases = {"sweep": (lambda: sweep(model, n), 5),
+    point = at_rest(model)                              # the equilibrium search is not timed
+    plant = SpatialSweepResponse(model, operating_point(model, point))
+    cases = {"sweep": (lambda: sweep(model, n, point=point), 5),
              "sweep_only": (lambda: plant.response(1j * OMEGA, inputs, outputs), 5),
-             "resolvent": (lambda: resolvent(model, n), 1)}
-    out, results = {"n_links": n, "n_frequencies": int(OMEGA.size)}, {}
+             "resolvent": (lambda: resolvent(model, n, point=point), 1)}
+    out, results = {"n_links": n, "gravity": "hanging" if hanging else "none", "n_frequencies": int(OMEGA.size),
+                    "largest_joint_angle_rad": float(np.max(np.abs(point[0]), initial=0.0))}, {}
     for name, (call, count) in cases.items():
         out[f"{name}_s"], out[f"{name}_cpu_s"], results[name] = best(call, count)
     G, dense = results["sweep"].response, results["resolvent"]
     scale = np.max(np.abs(dense), axis=-1, keepdims=True)
-    scale = np.where(scale > 0.0, scale, 1.0)           # a pair that is zero by structure: absolute error
+    overall = float(np.max(scale))
+    # a pair that is zero by structure (its largest entry round-off, below 1e-12 of the largest of all pairs):
+    # its error against the largest of all pairs
+    scale = np.where(scale > 1e-12 * overall, scale, overall)
     out.update({"error_sweep_vs_resolvent": float(np.max(np.abs(G - dense) / scale)),
                 "dense_frequencies_in_sweep": results["sweep"].info["n_dense_frequencies"],
                 "method": results["sweep"].info["method"]})
@@ -121,7 +137,7 @@ def main(argv: list[str] | None = None) -> dict:
     args = parser.parse_args(argv)
     sizes = args.sizes or ([5] if args.quick else [5, 30])
     resolvent(chain(2), 2, OMEGA[:2])                 # warm-up: the first linearisation imports and builds caches
-    rows = [run(n) for n in sizes]
+    rows = [run(n, hanging) for n in sizes for hanging in (False, True)]
     result = {"benchmark": "spatial_frf", "machine": {"python": platform.python_version(), "numpy": np.__version__,
                                                       "processor": platform.processor() or platform.machine(),
                                                       "load_average": list(os.getloadavg())},

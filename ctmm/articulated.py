@@ -204,7 +204,7 @@ class Inward:
 
 def articulated_sweep(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints: Sequence[JointTerms],
                       kappa: Sequence[Any] | None = None, *, characteristic: bool = False,
-                      forces: bool = True) -> Articulated:
+                      forces: bool = True, coupling: Sequence[Any] | None = None) -> Articulated:
     """Tip-to-base elimination and base-to-tip pass (module docstring): :func:`articulated_outward` of
     :func:`articulated_inward`.
 
@@ -222,6 +222,10 @@ def articulated_sweep(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints:
         Also form ``prod det D_j prod det C_j``.
     forces : bool
         Also form the joint wrenches (:func:`articulated_outward`).
+    coupling : sequence, optional
+        Joint coupling ``(G_j, H_j)`` per joint, ``G_j`` ``(k, d)``, ``H_j`` ``(d, k)`` or ``None`` (``None``
+        entries and default: none): the joint equation gains ``G_j A_O`` and the wrench handed to the parent
+        ``H_j a_rel`` (the frequency context about a preloaded equilibrium, :func:`articulated_inward`).
 
     Returns
     -------
@@ -230,15 +234,29 @@ def articulated_sweep(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints:
         result for finiteness; an exactly singular multi-direction pivot (numpy) raises
         :class:`SingularPivotError` naming the body.
     """
-    inward = articulated_inward(ops, tree, bodies, joints, kappa)
-    return articulated_outward(ops, tree, bodies, joints, inward, characteristic=characteristic, forces=forces)
+    inward = articulated_inward(ops, tree, bodies, joints, kappa, coupling)
+    return articulated_outward(ops, tree, bodies, joints, inward, characteristic=characteristic, forces=forces,
+                               coupling=coupling)
 
 
 def articulated_inward(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints: Sequence[JointTerms],
-                       kappa: Sequence[Any] | None = None) -> Inward:
+                       kappa: Sequence[Any] | None = None, coupling: Sequence[Any] | None = None) -> Inward:
     """Tip-to-base elimination (module docstring): the articulated terms of every body.
 
-    Parameters are those of :func:`articulated_sweep`.  At the ground only the pivot is formed: the
+    Parameters are those of :func:`articulated_sweep`.
+
+    **Joint coupling** (``coupling``; the frequency context about a preloaded equilibrium).  The joint equation
+    ``S^T F = tau`` linearised about a static wrench ``F0`` across the joint is
+    ``S0^T dF + dS^T F0 = d tau``; when the joint's free directions turn with its parent (world axes), ``dS``
+    holds a term in the parent point's rotation, ``dS^T F0 = G A_O`` with ``G`` ``(k, d)`` acting on the parent
+    point's displacement ``A_O`` (terms in the joint's own coordinates belong in ``kappa``).  And when the
+    joint moves the child's reference point (the material point at the parent's point ``P`` at the operating
+    point) by ``u a`` relative to ``P``, the wrench reaches the parent at ``P`` as ``F + H a`` with
+    ``H = [0 ; u_i x f0]`` (the static force's moment about the shifted point).  With both
+    ``S^T (Phi (A_O + S a) + psi') + G A_O + kappa a = tau``, so ``D`` is unchanged,
+    ``a = D^-1 (tau - S^T psi' - (S^T Phi + G) A_O)``, and the parent receives
+    ``Phi_hat = Phi - (Phi S + H) D^-1 (S^T Phi + G)`` (not symmetric) and
+    ``psi_hat = psi' + (Phi S + H) D^-1 (tau - S^T psi')``.  A joint on the ground has no coupling.  At the ground only the pivot is formed: the
     prescribed relative acceleration of a driven joint on the ground is read by the outward pass only
     (:mod:`ctmm.segment_fold` eliminates with a weld there and prescribes in the outward pass).
 
@@ -254,6 +272,7 @@ def articulated_inward(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints
         raise ModelError(f"articulated_sweep: {nb} bodies in the tree, got {len(bodies)} body terms and "
                          f"{len(joints)} joint terms")
     kappa = list(kappa) if kappa is not None else explicit_kappa(joints)
+    coupling = [(None, None) if c is None else c for c in coupling] if coupling is not None else [(None, None)] * nb
     d = tree.dimension
     M = [b.M for b in bodies]
     h = [b.h for b in bodies]
@@ -307,6 +326,11 @@ def articulated_inward(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints
                 Dj = Dj + kappa[j]
             D[j] = Dj
             rhs = ops.sub(p, row, slice(0, 1)) * -1.0 if joint.tau is None else joint.tau - ops.sub(p, row, slice(0, 1))
+            G, H = coupling[j]
+            if G is not None:                       # the outward pass reads S^T Phi + G as its row
+                StP = St[j] = StP + G
+            if H is not None:
+                PS = PS + H
             P_hat = P - ops.matmul(PS, StP / Dj)
             p_hat = p + PS * (rhs / Dj)
         else:
@@ -318,6 +342,11 @@ def articulated_inward(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints
                 Dj = Dj + kappa[j]
             D[j] = Dj
             rhs = ops.matmul(St[j], p) * -1.0 if joint.tau is None else joint.tau - ops.matmul(St[j], p)
+            G, H = coupling[j]
+            if G is not None:
+                StP = StP + G
+            if H is not None:
+                PS = PS + H
             if joint.free == 1:                     # one free direction: D is 1 x 1, divide
                 P_hat = P - ops.matmul(PS, StP / Dj)
                 p_hat = p + PS * (rhs / Dj)
@@ -335,7 +364,8 @@ def articulated_inward(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints
 
 
 def articulated_outward(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joints: Sequence[JointTerms],
-                        inward: Inward, *, characteristic: bool = False, forces: bool = True) -> Articulated:
+                        inward: Inward, *, characteristic: bool = False, forces: bool = True,
+                        coupling: Sequence[Any] | None = None) -> Articulated:
     """Base-to-tip pass (module docstring) on the elimination ``inward`` of the same tree.
 
     It reads of ``bodies`` only ``Kin`` and ``c`` of the points carrying children, and of ``joints``
@@ -351,6 +381,8 @@ def articulated_outward(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joint
         Also form ``prod det D_j prod det C_j``.
     forces : bool
         Also form the joint wrenches ``F_in`` (``False``: :attr:`Articulated.force` holds ``None``).
+    coupling : sequence, optional
+        The joint coupling of the same :func:`articulated_inward` (its one-direction rows already carry ``G``).
 
     Returns
     -------
@@ -384,6 +416,8 @@ def articulated_outward(ops: Ops, tree: Tree, bodies: Sequence[BodyTerms], joint
             a = rhs / D[j]
         else:
             load = ops.matmul(St[j], psi[j] if A_O is None else ops.matmul(Phi[j], A_O) + psi[j])
+            if coupling is not None and coupling[j] is not None and coupling[j][0] is not None and A_O is not None:
+                load = load + ops.matmul(coupling[j][0], A_O)
             rhs = load * -1.0 if joint.tau is None else joint.tau - load
             a = rhs / D[j] if joint.free == 1 else _solve(ops, D[j], rhs, j, "joint pivot")
         if a is None:

@@ -23,10 +23,10 @@ them and the range above the highest must hold the count ``eigh`` claims, so no 
 :class:`~ctmm.errors.ModelError` otherwise).  A mode is rigid (``omega = 0``) only within its own round-off
 (:func:`rayleigh_modes`), never by a cut relative to the stiffest mode, so a slow mode beside a stiff part keeps its
 frequency; one above its round-off by less than :data:`RESOLUTION` is refused as unresolved.  The
-articulated *frequency context* of the sweep with ``d = 6`` answers frequency responses at unloaded equilibria
-(:mod:`ctmm.spatial_transfer_response`); counting on it (the planar :mod:`ctmm.planar_counting`) is not built for
-spatial bodies: under a preload their linear terms need the geometric stiffness of joint axes that turn with the
-parent, not derived yet.
+articulated *frequency context* of the sweep with ``d = 6`` answers frequency responses at static equilibria,
+gravity and static loads included (:mod:`ctmm.spatial_transfer_response`); counting on it (the planar
+:mod:`ctmm.planar_counting`) is not built for spatial bodies (under a preload the sweep's terms are not
+symmetric).
 """
 from __future__ import annotations
 
@@ -283,7 +283,7 @@ def frequency_response(system: Any, omega: Any, *, input: str | Sequence[str],  
                        output: str | Sequence[str], operating_point: Any = None) -> FrequencyResponse:
     """Frequency response of a spatial model's linearisation, loops closed with exact delays.
 
-    At an unloaded equilibrium (no gravity, no applied loads, no static joint wrench; joints as listed in
+    At a static equilibrium (gravity and static loads included; joints as listed in
     :mod:`ctmm.spatial_transfer_response`) and with ports, tangent coordinates and loop signals as names, the
     plant's ``G(s)`` comes from the one sweep's frequency context batched over ``omega`` and every loop
     ``u = -C(s) e^{-s tau} (y - r)`` is closed at each frequency (:mod:`ctmm.sweep_response`); the frequencies
@@ -378,5 +378,5 @@ def _sweep_plant(model: Any, loops: Sequence[Any], inputs: Sequence[str], output
         return None, operating_point        # the dense path refuses it with its message
     try:
         return (SpatialSweepResponse(model, point, ports) if sweep_applies(model, point) else None), point
-    except ModelError:                      # a static joint wrench: the dense path at the same point
+    except ModelError:                      # not stated by the sweep: the dense path at the same point
         return None, point

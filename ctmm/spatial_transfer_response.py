@@ -1,9 +1,10 @@
 """Frequency responses of spatial models by the one sweep's frequency context (``d = 6``), batched over omega.
 
 About a static operating point ``q0`` (rates 0) the body terms of :class:`ctmm.spatial.body_forms.SpatialScene`
-are linearised once: ``Z_j(s) = s^2 M0 + s C0 + K0`` with ``M0`` the body's mass terms at ``q0`` and
-``K0 = dh/d eta``, ``C0 = dh/d eta_dot`` of a flexible body (:class:`~ctmm.spatial.SpatialBeam`, ``ctmm.fem``
-spatial subsystems) by complex step through the batched terms (exact to round-off); ``Kin``, ``RF`` and the
+are linearised once: ``Z_j(s) = s^2 M0 + s C0 + K0`` with ``M0`` the body's mass terms at ``q0``, ``K0`` the
+slopes of ``h + sum_e RF_e F_e0`` in the body's rotation (below) and, of a flexible body
+(:class:`~ctmm.spatial.SpatialBeam`, ``ctmm.fem`` spatial subsystems), in ``eta``, ``C0 = dh/d eta_dot``, by
+complex step through the batched terms (exact to round-off); ``Kin``, ``RF`` and the
 joints' free directions ``S`` at ``q0``, velocity products 0; joints ``kappa(s) = -(tau_q + s tau_v)`` of
 their laws, driven joints held.  The unknowns are the displacement amplitudes ``[dp ; dphi ; d eta]`` of
 every body's inboard point (world axes) and the joints' relative amplitudes in their velocity coordinates
@@ -17,18 +18,33 @@ sweep, one per input column, pivots certified per frequency, loops closed per fr
 * a sensor or tangent coordinate is the linear functional ``y = (dy/dr + s dy/dv) r_hat``
   (:func:`ctmm.spatial_linearization.output_matrix`).
 
+**Preloaded equilibria** (gravity, static loads, static joint wrenches).  The static sweep at ``q0`` gives
+every joint's wrench ``F0 = [f0 ; m0]`` (world axes, at the child's inboard point).  Linearising each of the
+sweep's equations about it:
+
+* body ``F_in = M A + h + sum_e RF_e F_e``: ``K0`` also holds ``d(h + sum_e RF_e F_e0)/d phi`` in the body's
+  rotation columns (gravity's and the loads' moment arms, body-axes loads, the children's static wrenches
+  carried by turning arms), by complex step of a rotation ``i h e_k`` of the body's terms alone
+  (:meth:`ctmm.spatial.body_forms.SpatialScene.terms` ``turn``); nothing depends on a body's position;
+* kinematics ``A = Kin_e x_p + S a``: already linear in the displacements (``S`` at ``q0``);
+* joint ``S^T F = tau``: ``S0^T dF + dS^T F0 = d tau``.  A joint's free directions ``[u_i ; w_i]`` (world
+  axes) turn rigidly with its parent point's rotation ``delta`` (the rotational rows of ``A_O``):
+  ``dS_i = [delta x u_i ; delta x w_i]``, so ``dS_i^T F0 = (u_i x f0 + w_i x m0) . delta`` -- the coupling
+  ``G = [0 , (u_i x f0 + w_i x m0)^T]`` (k x 6) of :func:`ctmm.articulated.articulated_inward`.  Directions
+  that also turn with the joint's own coordinates add ``K_own[i, l] = (w_l x w_i) . m0`` to ``kappa``
+  (``tau_q - K_own``): a universal joint's second axis turns with the first (``l = 0, i = 1``); revolute and
+  prismatic directions do not; an unsprung spherical joint (its body axes turn with its coordinates) and a
+  free joint carry no static moment, resp. wrench, at an equilibrium (``S^T F0 = 0``, ``S`` invertible on it).
+  When a joint moves the child's inboard material point relative to the parent's point ``P`` (prismatic:
+  ``u a``), the parent receives the child's wrench about the shifted point: ``H = [0 ; u_i x f0]``
+  (:func:`ctmm.articulated.articulated_inward`).
+
 **What this context states** (:func:`sweep_applies`; the caller answers everything else by the dense
-resolvent of :func:`ctmm.linearize`).  The sweep's joint equation ``S^T F = tau`` linearises to
-``S0^T dF + dS^T F0 = d tau``: the free directions of a spatial joint turn with its parent, and with a
-static wrench ``F0`` across the joint that second term (the geometric stiffness of the preload across the
-joint axes) couples the joint to its parent's rotation -- a term the protocol's joint terms do not carry.
-It vanishes when every static joint wrench does: no gravity, no applied loads at ``q0``, and the static
-sweep's joint wrenches zero (checked, :data:`PRELOAD_TOLERANCE`); then the body terms' rigid columns of
-``K0`` vanish too (``h`` at rest does not depend on the body's pose).  Joints: revolute, prismatic and
-universal (linear or nonlinear laws: their tangents are exact), spherical without a rotary spring, free,
-weld, and any driven joint; not elastic 6-DOF hinges or sprung spherical joints (their law's tangent in
-the rotation vector is the stiffness only at the rest rotation).  Models under gravity or preloaded take
-the dense path whole (``info["method"]`` says which).
+resolvent of :func:`ctmm.linearize`): static operating points (rates 0, an equilibrium) of models whose joints
+are revolute, prismatic and universal (linear or nonlinear laws: their tangents are exact), spherical
+without a rotary spring, free, weld, and any driven joint; not elastic 6-DOF hinges or sprung spherical
+joints (their law's tangent in the rotation vector is the stiffness only at the rest rotation).
+``info["method"]`` says which path answered.
 """
 from __future__ import annotations
 
@@ -42,20 +58,14 @@ from .errors import ModelError
 from .ops import NUMPY
 from .sweep_response import ArticulatedResponse
 
-__all__ = ["SpatialSweepResponse", "sweep_applies", "model_applies", "PRELOAD_TOLERANCE"]
-
-PRELOAD_TOLERANCE = 1e-10
-"""Largest static joint wrench accepted as no preload, relative to ``1 + `` the largest entry of the mass
-terms and joint stiffnesses (the round-off of an unloaded equilibrium)."""
+__all__ = ["SpatialSweepResponse", "sweep_applies", "model_applies"]
 
 _STEP = 1e-30
 
 
 def model_applies(model: Any) -> bool:
-    """The part of :func:`sweep_applies` that does not depend on the operating point: no gravity, and no
-    elastic 6-DOF hinge or sprung spherical joint that is not driven."""
-    if np.any(np.asarray(model.gravity) != 0.0):
-        return False
+    """The part of :func:`sweep_applies` that does not depend on the operating point: no elastic 6-DOF hinge
+    or sprung spherical joint that is not driven."""
     return not any(not joint.driven and (joint.kind == "elastic6" or (joint.kind == "spherical"
                                                                       and np.any(joint.stiffness)))
                    for joint in model.joints)
@@ -64,9 +74,7 @@ def model_applies(model: Any) -> bool:
 def sweep_applies(model: Any, point: Any) -> bool:
     """True when the frequency context states ``model`` about ``point`` (module docstring; the static
     joint wrenches are checked by :class:`SpatialSweepResponse`)."""
-    if not point.equilibrium or np.any(point.qdot != 0.0) or not model_applies(model):
-        return False
-    return not any(np.any(np.asarray(load.values(point.t)) != 0.0) for load in model.loads)
+    return bool(point.equilibrium and not np.any(point.qdot != 0.0) and model_applies(model))
 
 
 class SpatialSweepResponse(ArticulatedResponse):
@@ -83,8 +91,7 @@ class SpatialSweepResponse(ArticulatedResponse):
     Raises
     ------
     ModelError
-        The context does not state the model (:func:`sweep_applies`, or a static joint wrench above
-        :data:`PRELOAD_TOLERANCE`).
+        The context does not state the model (:func:`sweep_applies`).
     """
 
     def __init__(self, model: Any, point: Any, ports: Any = None) -> None:
@@ -93,7 +100,7 @@ class SpatialSweepResponse(ArticulatedResponse):
 
         if not sweep_applies(model, point):
             raise ModelError(f"the one sweep's frequency context does not state {model.name!r} about this point "
-                             "(gravity, applied loads, elastic or sprung spherical joints, or a moving point)")
+                             "(elastic or sprung spherical joints, or a moving point or not an equilibrium)")
         self.model, self.point = model, point
         self.scene = SpatialScene(model)
         self.ports = SpatialPorts(model) if ports is None else ports
@@ -103,34 +110,79 @@ class SpatialSweepResponse(ArticulatedResponse):
                        for k, (p, v) in enumerate(zip(range(layout.position.start, layout.position.stop),
                                                       range(layout.velocity.start, layout.velocity.stop)))]
         m = len(coordinates)
-        q_rows = np.repeat(q0[None], 1 + 2 * m, axis=0).astype(complex)
-        v_rows = np.zeros((1 + 2 * m, n), dtype=complex)
+        rows = 1 + 2 * m + 3                                # q0, modal coordinates, modal rates, 3 rotations
+        q_rows = np.repeat(q0[None], rows, axis=0).astype(complex)
+        v_rows = np.zeros((rows, n), dtype=complex)
+        turn = np.zeros((rows, 3, 1), dtype=complex)
         for r, (_, p, v, _) in enumerate(coordinates):       # complex steps of every modal coordinate and rate
             q_rows[1 + r, p] += 1j * _STEP
             v_rows[1 + m + r, v] += 1j * _STEP
-        bodies, joints, _ = self.scene.terms(NUMPY, q_rows, v_rows, t, self.scene.numpy_inputs(None, t, 1 + 2 * m))
+        for k in range(3):                                  # ... and of every body's rotation (its terms alone)
+            turn[1 + 2 * m + k, k, 0] = 1j * _STEP
+        bodies, joints, _ = self.scene.terms(NUMPY, q_rows, v_rows, t, self.scene.numpy_inputs(None, t, rows),
+                                             turn=turn)
         self.base_bodies, self.base_joints = self._real(bodies), self._real(joints)
         static = articulated_sweep(NUMPY, self.scene.tree, self.base_bodies, self.base_joints)
-        self._check_preload(static)
+        wrench: dict = {}                                   # F_e0: the children's static wrenches at each point
+        for c, parent in enumerate(self.scene.tree.parent):
+            if parent >= 0:
+                key = (parent, self.scene.tree.point[c])
+                wrench[key] = wrench.get(key, 0.0) + static.force[c][0]
         linear = []
         for j, body in enumerate(bodies):
             M0 = np.asarray(body.M)[0].real.copy()
             K0, C0 = np.zeros_like(M0), np.zeros_like(M0)
-            h = np.broadcast_to(body.h, (1 + 2 * m,) + np.shape(body.h)[1:])[:, :, 0]
+            Q = np.broadcast_to(body.h, (rows,) + np.shape(body.h)[1:])
+            for e, RF in body.RF.items():                   # Q = h + sum_e RF_e F_e0 at every row
+                if (j, e) in wrench:
+                    Q = Q + RF @ wrench[(j, e)]
+            Q = Q[:, :, 0]
+            K0[:, 3:6] = Q[1 + 2 * m:].imag.T / _STEP
             for r, (owner, _, _, k) in enumerate(coordinates):
                 if owner == j:
-                    K0[:, 6 + k] = h[1 + r].imag / _STEP
-                    C0[:, 6 + k] = h[1 + m + r].imag / _STEP
+                    K0[:, 6 + k] = Q[1 + r].imag / _STEP
+                    C0[:, 6 + k] = Q[1 + m + r].imag / _STEP
             linear.append((M0, C0, K0, {e: v[:1].real for e, v in body.Kin.items()},
                            {e: v[:1].real for e, v in body.RF.items()}))
-        held = []
-        for joint in self.base_joints:
+        held, coupling = [], []
+        for j, (joint, spec) in enumerate(zip(self.base_joints, model.joints)):
             k = joint.free
             if joint.prescribed is not None:
                 held.append(dataclasses.replace(joint, c=None, prescribed=np.zeros((1, k, 1))))
-            else:
-                held.append(dataclasses.replace(joint, c=None, tau=None if joint.tau is None else np.zeros((1, k, 1))))
-        self.prepare(self.scene.tree, linear, held)
+                coupling.append(None)
+                continue
+            F0 = static.force[j][0]
+            tau_q = self._own_stiffness(spec.kind, joint, F0)
+            if tau_q is not None:
+                tau_q = tau_q if joint.tau_q is None else np.asarray(joint.tau_q)[0] + tau_q
+            tau = None if joint.tau is None and tau_q is None else np.zeros((1, k, 1))
+            held.append(dataclasses.replace(joint, c=None, tau=tau,
+                                            tau_q=joint.tau_q if tau_q is None else tau_q[None]))
+            coupling.append(self._coupling(joint, F0) if k and self.scene.tree.parent[j] >= 0 else None)
+        self.prepare(self.scene.tree, linear, held, coupling)
+
+    @staticmethod
+    def _coupling(joint: Any, F0: np.ndarray) -> tuple | None:
+        """``(G, H)`` of a joint with free directions ``[u_i ; w_i]`` under the static wrench ``F0`` (module
+        docstring): ``G = [0 , (u_i x f0 + w_i x m0)^T]`` (1, k, 6), ``H = [0 ; u_i x f0]`` (1, 6, k);
+        ``None`` where they vanish."""
+        S = np.asarray(joint.S)[0].real
+        shift = np.cross(S[:3].T, F0[:3, 0])                                    # (k, 3): u_i x f0
+        arms = shift + np.cross(S[3:].T, F0[3:, 0])
+        G = np.concatenate([np.zeros_like(arms), arms], axis=1)[None] if np.any(arms) else None
+        H = np.concatenate([np.zeros_like(shift), shift], axis=1).T[None] if np.any(shift) else None
+        return None if G is None and H is None else (G, H)
+
+    @staticmethod
+    def _own_stiffness(kind: str, joint: Any, F0: np.ndarray) -> np.ndarray | None:
+        """``-K_own`` (2, 2), the change of ``tau_q`` of a universal joint whose second axis ``w_1`` turns with its
+        first coordinate under the static moment ``m0`` (module docstring), or ``None`` (the other joints)."""
+        if kind != "universal":
+            return None
+        w = np.asarray(joint.S)[0].real[3:]                # (3, 2): the rotational directions
+        own = np.zeros((2, 2))
+        own[1, 0] = np.dot(np.cross(w[:, 0], w[:, 1]), F0[3:, 0])
+        return -own
 
     @staticmethod
     def _real(terms: list) -> list:
@@ -144,16 +196,6 @@ class SpatialSweepResponse(ArticulatedResponse):
 
         return [dataclasses.replace(item, **{f.name: first(getattr(item, f.name))
                                              for f in dataclasses.fields(item)}) for item in terms]
-
-    def _check_preload(self, static: Any) -> None:
-        """Refuse (``ModelError``) a static joint wrench above :data:`PRELOAD_TOLERANCE` (module docstring)."""
-        scale = 1.0 + max(float(np.max(np.abs(body.M))) for body in self.base_bodies)
-        for joint in self.model.joints:
-            scale += float(np.max(np.abs(getattr(joint, "stiffness", 0.0)), initial=0.0))
-        largest = max(float(np.max(np.abs(force), initial=0.0)) for force in static.force)
-        if not largest <= PRELOAD_TOLERANCE * scale:
-            raise ModelError(f"the one sweep's frequency context does not state {self.model.name!r}: a static joint "
-                             f"wrench of {largest:.3e} (the joints' free directions turn with their parents under it)")
 
     def loads(self, name: str) -> tuple[list, list]:
         """Body load columns ``h`` (1, 6 + n_j, 1) and joint terms of actuator ``name`` at unit amplitude: the

@@ -51,10 +51,16 @@ class ArticulatedResponse:
     bodies: tuple
     joints: tuple
 
-    def prepare(self, tree: Tree, bodies: Sequence[tuple], joints: Sequence[Any]) -> None:
+    coupling: Any = None
+
+    def prepare(self, tree: Tree, bodies: Sequence[tuple], joints: Sequence[Any],
+                coupling: Sequence[Any] | None = None) -> None:
         """Keep the linearised terms (``bodies``: ``(M0, C0, K0, Kin, RF)`` per body; ``joints``: held, the laws'
-        torques zero) and the pivots of their mass terms alone (the scale the pivots are measured by)."""
+        torques zero; ``coupling``: the joints' preload coupling ``G_j`` of
+        :func:`ctmm.articulated.articulated_inward`, ``None`` for none) and the pivots of their mass terms alone
+        (the scale the pivots are measured by)."""
         self.tree, self.bodies, self.joints = tree, tuple(bodies), tuple(joints)
+        self.coupling = None if coupling is None or all(g is None for g in coupling) else tuple(coupling)
         inertia = [BodyTerms(M0[None], np.zeros((1, M0.shape[0], 1)), Kin, dict.fromkeys(Kin), RF)   # c = None: zero
                    for M0, _, _, Kin, RF in self.bodies]
         with np.errstate(all="ignore"):
@@ -119,7 +125,8 @@ class ArticulatedResponse:
             bodies = [BodyTerms(Z, h, Kin, dict.fromkeys(Kin), RF)           # c = None: zero
                       for Z, h, (_, _, _, Kin, RF) in zip(stiffness, body_loads, self.bodies)]
             with np.errstate(all="ignore"):
-                solution = articulated_sweep(NUMPY, self.tree, bodies, joints, kappa, forces=False)
+                solution = articulated_sweep(NUMPY, self.tree, bodies, joints, kappa, forces=False,
+                                             coupling=self.coupling)
                 amplitudes = self.amplitudes(solution)                           # (B, n)
                 G[:, :, i] = amplitudes @ rows[:, :n].T + (s[:, None] * amplitudes) @ rows[:, n:].T
             if i == 0:

@@ -2,8 +2,8 @@
 
 Independent references: the global Newton-Euler linearisation ``M, C, K`` of ``ctmm/reference/spatial_tree.py``
 (rigid trees; joint torques are unit generalised forces of their velocities) and the assumed-modes Lagrange
-model ``ctmm/reference/spatial_beam_lagrange.py`` (hub + spatial beam + tip body), both in zero gravity (the
-context states unloaded equilibria: module docstring).  Second path: the dense resolvent of
+model ``ctmm/reference/spatial_beam_lagrange.py`` (hub + spatial beam + tip body), both in zero gravity
+(preloaded equilibria: tests/test_spatial_frf_sweep_gravity.py).  Second path: the dense resolvent of
 ``ctmm.linearize`` (``delayed_loop_response``), which the sweep must equal to round-off.  Tolerance 1e-9 of
 each (output, input) pair's largest entry, away from poles.
 """
@@ -164,15 +164,9 @@ def test_delayed_loop_closed_per_frequency_equals_the_reference(delay):
                  1e-9)
 
 
-def test_gravity_takes_the_dense_path_and_a_pole_is_handed_back():
+def test_a_pole_is_handed_back():
+    """(Gravity and static loads: tests/test_spatial_frf_sweep_gravity.py.)"""
     model = weightless(11, 4)
-    loaded = sp.SpatialModel("loaded", list(model.bodies) + list(model.joints), gravity=(0.0, 0.0, -9.81))
-    frf = ctmm.frequency_response(loaded, OMEGA[:2], input="j1.torque", output="j1.angle")
-    assert frf.info["method"] == DENSE
-    push = sp.Load("push", "b3", force=(0.0, 2.0, 0.0))            # a static load preloads the joints: dense
-    pushed = sp.SpatialModel("pushed", list(model.bodies) + list(model.joints) + [push], gravity=(0.0, 0.0, 0.0))
-    frf = ctmm.frequency_response(pushed, OMEGA[:2], input="j1.torque", output="j1.angle")
-    assert frf.info["method"] == DENSE
     # omega = 0: the free spin of the unsprung ball joint is a pole; the sweep hands it to the resolvent, which refuses
     with pytest.raises(ModelError, match="singular at omega = 0.0"):
         ctmm.frequency_response(model, [0.0, 1.0], input="j1.torque", output="j1.angle")

@@ -340,7 +340,7 @@ class SpatialScene:
                           for body, names in zip(model.bodies, used)]
 
     def terms(self, ops: Ops, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | None = None,
-              wrenches: Mapping[int, Sequence[tuple[np.ndarray, Any]]] | None = None
+              wrenches: Mapping[int, Sequence[tuple[np.ndarray, Any]]] | None = None, turn: Any = None
               ) -> tuple[list[BodyTerms], list[JointTerms], list[BodyState]]:
         """Body terms, joint terms (world axes) and body states at ``(q, v, t)``.
 
@@ -354,6 +354,11 @@ class SpatialScene:
             ``[f ; m]`` world axes [N, N m]), optional
             Extra applied loads (the body-force actuators of :mod:`ctmm.spatial.ports`); an entry
             ``(point, column, "body")`` has ``[f ; m]`` in the body's axes.
+        turn : ops column (3, 1) (numpy ``(B, 3, 1)``), optional
+            A rotation ``delta`` [rad] (world axes) applied to every body's terms to first order -- its axes
+            ``R + [delta]x R`` and its origin about its inboard point -- but not to the states the children
+            are placed by: the complex step of ``i h e_k`` gives each body's ``d(terms)/d(phi_k)`` (the
+            rotation columns of the frequency context's stiffness, :mod:`ctmm.spatial_transfer_response`).
         """
         model = self.model
         inputs = inputs or {}
@@ -390,6 +395,9 @@ class SpatialScene:
             states.append(motion.state)
             joints.append(motion.joint)
             R_c, offset, w_c = motion.state.rotation, motion.offset, motion.omega
+            if turn is not None:                    # the body's terms turned by delta, its state as it is
+                R_c = R_c + ops.matmul(skew(ops, turn), R_c)
+                offset = None if offset is None else offset + cross(ops, turn, offset)
             loads = []
             for load in self._loads[j]:
                 values = load.values(t)
@@ -408,10 +416,12 @@ class SpatialScene:
             modal = model.modal[j]
             if modal is not None:
                 form = getattr(body, "spatial_terms", None) or partial(spatial_beam_terms, beam=body)  # or ctmm.fem's
-                terms, frames = form(
-                    ops, rotation=R_c, offset=offset, omega=w_c, eta=_modal(ops, q, modal.position),
-                    eta_dot=_modal(ops, v, modal.velocity), t=t, gravity=model.gravity, loads=loads,
-                    points=self._outboard[j], frames=tuple(self._outboard[j]))
+                arguments = dict(omega=w_c, eta=_modal(ops, q, modal.position), eta_dot=_modal(ops, v, modal.velocity),
+                                 t=t, gravity=model.gravity, loads=loads, points=self._outboard[j])
+                terms, frames = form(ops, rotation=R_c, offset=offset, frames=tuple(self._outboard[j]), **arguments)
+                if turn is not None:                # the frames the children are placed by: not turned
+                    frames = form(ops, rotation=motion.state.rotation, offset=motion.offset,
+                                  frames=tuple(self._outboard[j]), **arguments)[1]
                 bodies.append(terms)
                 point_frames.append(frames)
                 continue
