@@ -329,13 +329,21 @@ class CompiledSceneScheme:
         self.maps = scheme_maps(self.scheme, 1.0)
         self.actuators = compiled_actuators(model)
         self.parameters = parameter_vector(model)
-        acceleration = symbolic_accelerations_with_inputs(model, self.actuators)
+        acceleration = self.closed_acceleration()
         step = self._step_function(acceleration)
-        name = f"scene_{model.n_bodies}b{model.n_coordinates}q_{self.scheme.name}"
+        name = f"scene_{model.n_bodies}b{model.n_coordinates}q_{self.scheme.name}" + ("_loops" if self.loops else "")
         loop = compiled_time_loop(step, self.store_every, rows, name, extra=[acceleration],
                                   cache_dir=cache_dir, compiler=compiler)
         (self._acceleration,), self._step, self._stride, self._blocks = loop.extra, loop.step, loop.stride, loop.blocks
         self.compile_time_s = _time.perf_counter() - start
+
+    loops: Any = None
+    """The :class:`~ctmm.compiled_loops.ClosedLoops` closed in the step (:mod:`ctmm.compiled_scheme_loops`), or None."""
+
+    def closed_acceleration(self) -> Any:
+        """``qddot = acceleration(q, v, u, p, t)`` the step solves for (casadi ``Function``): the plant's sweep with
+        the inputs :attr:`actuators` (a subclass closes loops around it, :mod:`ctmm.compiled_scheme_loops`)."""
+        return symbolic_accelerations_with_inputs(self.model, self.actuators)
 
     @property
     def status_index(self) -> int:
@@ -491,7 +499,8 @@ def simulate_scheme_generated(model: PlanarModel, q0: Any, qdot0: Any, *, t_fina
     compiled = reused_or_built(CompiledSceneScheme, compiled, model, scheme, store_every, tolerance=tolerance,
                                max_iterations=max_iterations, cache_dir=cache_dir)
     guard = divergence_guard(model, q, divergence_bound)
-    check_scheme(model, q, v, h, scheme=scheme, policy=stability_check)
+    closed = None if compiled.loops is None else (lambda _, q_k, v_k, t_k: compiled.accelerations(q_k, v_k, t_k))
+    check_scheme(model, q, v, h, scheme=scheme, policy=stability_check, accelerations=closed)   # loops included
     start = _time.perf_counter()
     first = compiled.initial_state(q, v)
     rows = compiled.run(first, h, n_steps)

@@ -1,0 +1,189 @@
+"""Generated DT-TMM schemes of planar models with real-time Feedback loops closed inside the Newton step (issue 13).
+
+``ctmm.simulate(ControlledModel(planar_model, loops), t_final, dt, method=<scheme>, compiled=True)`` (and
+``ctmm.simulate(planar_model, ..., loops=..., method=<scheme>, compiled=True)``) runs here: the step of
+:mod:`ctmm.compiled_scene_schemes` (the scheme's second-order form, Newton in generated C) on the closed-loop
+acceleration
+
+``qddot(q, v, t) = sweep(q, v, u(q, v, t), t)``,   ``u = sum_loops w_j sat(-K (y(q, v) - r(t))) + inputs(t)``
+
+with every loop stated by :class:`~ctmm.compiled_loops.ClosedLoops` (its sensors, weights, saturation,
+references and open-loop inputs on casadi symbols: the ones the generated RK4 compiles).  ``u`` is evaluated at
+the Newton iterate ``(q, v)`` and the scheme's evaluation time ``t_n + fraction dt`` -- where the Python path
+(:mod:`ctmm.control.implicit_loops`, its ``inputs`` hook) evaluates it -- so the loops are implicit in the step
+(no added lag) and their state dependence is in the Newton tangent (casadi's exact derivative through the
+sensors and the sweep).  The initial acceleration is the closed-loop one at ``t = 0``; the scheme's stability
+check uses the closed-loop linearisation (:func:`ctmm.planar.guards.check_scheme`).  The two paths agree to
+round-off (``tests/test_compiled_scene_schemes_loops.py``, which also checks a PD loop against the independent
+Lagrange model in a Newmark step written in the test).
+
+What compiles: static-gain loops ``u = -K e`` with weighted sensor terms (a PD: ``sensor=[(angle, kp),
+(rate, kd)]``, ``gain=1``), saturation, references and open-loop inputs that are numbers or symbolic
+:mod:`ctmm.signals`, loops on beam station moment pairs (:attr:`ctmm.compiled_loops.ClosedLoops.channels`).
+Refused by name (:class:`~ctmm.errors.ModelError`; ``compiled=None`` runs them in Python): LTI controllers with
+states (their trapezoidal states are not in the generated state yet), delayed loops (no history ring in the
+generated scheme yet), co-simulated controllers together with loops, and what :class:`ClosedLoops` and
+:class:`~ctmm.compiled_scene_schemes.CompiledSceneScheme` refuse.
+"""
+from __future__ import annotations
+
+import os
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from .compiled_control import add_loop_signals
+from .compiled_loops import ClosedLoops, controller_realisation
+from .compiled_parameters import compiled_actuators
+from .compiled_scene import symbolic_accelerations_with_inputs
+from .compiled_scene_schemes import CompiledSceneScheme, simulate_scheme_generated
+from .control.controlled_model import ControlledModel
+from .errors import ModelError, SimulationError
+from .planar.integrate import PlanarSimulation, model_signals
+from .planar.model import PlanarModel
+from .results import SimulationResult
+from .schemes import Scheme, as_scheme
+from .signal_results import SignalSystem, signal_result
+
+__all__ = ["CompiledSchemeLoops", "loop_refusal", "simulate_scheme_loops_generated"]
+
+
+def loop_refusal(controlled: Any) -> str:
+    """Why the generated DT-TMM step cannot close the loops of ``controlled`` ("" when it can)."""
+    if not isinstance(controlled, ControlledModel) or not isinstance(controlled.plant, PlanarModel):
+        return f"needs a ctmm.control.ControlledModel of a PlanarModel, got {controlled!r}"
+    for loop in controlled.loops:
+        if loop.delay > 0.0:
+            return (f"loop {loop.name!r} has delay = {loop.delay!r} s: delayed loops need a history ring in the "
+                    "generated scheme step, not implemented yet (use compiled=None, or method='rk4' with "
+                    "compiled=True)")
+        if controller_realisation(loop)[0].shape[0]:
+            return (f"loop {loop.name!r} has a controller C(s) with states: its trapezoidal states are not in the "
+                    "generated scheme step yet (use compiled=None, or method='rk4' with compiled=True; a PD "
+                    "compiles as weighted sensor terms with a static gain)")
+    return ""
+
+
+class CompiledSchemeLoops(CompiledSceneScheme):
+    """The generated and compiled DT-TMM step of a planar plant with its real-time loops closed inside Newton.
+
+    Parameters
+    ----------
+    controlled : ControlledModel
+        A compilable planar plant and loops :func:`loop_refusal` accepts.
+    scheme : Scheme or str
+        A :mod:`ctmm.schemes` scheme or its name.
+    references : mapping, optional
+        ``{loop name: number or symbolic ctmm.signals signal}`` [sensed unit] (default 0), constants of the code.
+    inputs : mapping, optional
+        ``{actuator name: number or symbolic signal}`` open-loop actuator values [SI], constants of the code.
+    store_every, tolerance, max_iterations, rows, cache_dir, compiler
+        As in :class:`~ctmm.compiled_scene_schemes.CompiledSceneScheme`.
+
+    Attributes
+    ----------
+    controlled : ControlledModel
+    loops : ClosedLoops
+        The loops on symbols.
+
+    Raises
+    ------
+    ModelError
+        What :func:`loop_refusal`, :class:`ClosedLoops` or the generated scheme refuses (named).
+    """
+
+    def __init__(self, controlled: ControlledModel, scheme: Scheme | str = "newmark", *,
+                 references: Mapping[str, Any] | None = None, inputs: Mapping[str, Any] | None = None,
+                 store_every: int = 1, tolerance: float = 1e-10, max_iterations: int = 20, rows: int = 64,
+                 cache_dir: str | os.PathLike | None = None, compiler: str | None = None) -> None:
+        reason = loop_refusal(controlled)
+        if reason:
+            raise ModelError(f"CompiledSchemeLoops: {reason}")
+        self.controlled = controlled
+        self.loops = ClosedLoops(controlled, compiled_actuators(controlled.plant), None, references, inputs)
+        super().__init__(controlled.plant, scheme, store_every=store_every, tolerance=tolerance,
+                         max_iterations=max_iterations, rows=rows, cache_dir=cache_dir, compiler=compiler)
+
+    def closed_acceleration(self) -> Any:
+        """``qddot = acceleration(q, v, u, p, t)`` of the closed loop: the plant's sweep with the loops' outputs
+        at ``(q, v, t)`` added to the held inputs ``u`` (:meth:`ctmm.compiled_loops.ClosedLoops.rate`)."""
+        import casadi as ca
+
+        loops, n = self.loops, self.model.n_coordinates
+        sweep = symbolic_accelerations_with_inputs(self.model, self.actuators, [unit for _, unit in loops.channels])
+        q, v, t = ca.SX.sym("q", n), ca.SX.sym("v", n), ca.SX.sym("t")
+        u, p = ca.SX.sym("u", len(self.actuators)), ca.SX.sym("p", self.parameters.size)
+        _, qddot = loops.rate(sweep, u, p, t, ca.vertcat(q, v), ())
+        return ca.Function("acceleration", [q, v, u, p, t], [qddot])
+
+
+def simulate_scheme_loops_generated(controlled: ControlledModel, q0: Any, qdot0: Any, *, t_final: float, dt: float,
+                                    scheme: Scheme | str = "newmark", references: Mapping[str, Any] | None = None,
+                                    inputs: Mapping[str, Any] | None = None, outputs: Sequence[str] = (),
+                                    store_every: int = 1, divergence_bound: float | None = None,
+                                    stability_check: str = "warn", tolerance: float = 1e-10,
+                                    max_iterations: int = 20, cache_dir: str | os.PathLike | None = None,
+                                    compiled: CompiledSchemeLoops | None = None) -> SimulationResult:
+    """A DT-TMM scheme of a controlled planar model with its real-time loops closed in generated C.
+
+    The result is the one of :func:`ctmm.control.planar_time.simulate_closed_loop` with the same scheme
+    (coordinates, rates, ``outputs``, ``"<loop>.y"``, ``"<loop>.u"``; method label ``"dt-tmm-generated/<Scheme>"``,
+    ``info`` with ``dt``, ``compile_time_s`` and ``newton_iterations`` (the total)).
+
+    Parameters
+    ----------
+    controlled : ControlledModel
+        Plant and loops (:func:`loop_refusal`).
+    q0, qdot0 : array_like
+        Initial coordinates [rad, m] and rates.
+    t_final, dt : float
+        End time and step [s].
+    scheme : Scheme or str
+    references, inputs : mapping, optional
+        As in :class:`CompiledSchemeLoops` (with ``compiled``: its own; giving them too is refused).
+    outputs : sequence of str
+        Sensor names stored at every row.
+    store_every, divergence_bound, stability_check, tolerance, max_iterations, cache_dir
+        As in :func:`ctmm.compiled_scene_schemes.simulate_scheme_generated` (the stability check with the loops).
+    compiled : CompiledSchemeLoops, optional
+        Of ``controlled`` with this scheme and ``store_every``, to reuse (default: built now).
+
+    Raises
+    ------
+    ModelError
+        What the generated step refuses (named), bad arguments, no compiler.
+    ConvergenceError, SimulationError
+        As :func:`~ctmm.compiled_scene_schemes.simulate_scheme_generated`, with the result stored before the
+        failure (loop signals included) as ``partial_result``.
+    """
+    if compiled is None:
+        compiled = CompiledSchemeLoops(controlled, scheme, references=references, inputs=inputs,
+                                       store_every=store_every, tolerance=tolerance, max_iterations=max_iterations,
+                                       cache_dir=cache_dir)
+    elif not isinstance(compiled, CompiledSchemeLoops) or compiled.controlled is not controlled or \
+            references or inputs:
+        raise ModelError(f"compiled must be a CompiledSchemeLoops of this controlled model (its references and "
+                         f"inputs are its own: leave references and inputs out), got {compiled!r}")
+    signals_of = compiled.loops.signals()
+
+    def result(simulation: PlanarSimulation, failed: bool = False) -> SimulationResult:
+        model = controlled.plant
+        signals, units = model_signals(model, simulation.t, simulation.q, simulation.qdot, outputs)
+        block = np.hstack([simulation.q, simulation.qdot])
+        extra = add_loop_signals(controlled, compiled.loops, signals_of, block, simulation.t, signals, units)
+        info = {"dt": dt, "method": simulation.method, "wall_time_s": simulation.wall_time_s,
+                "n_evaluations": simulation.n_evaluations, "loops": {law.name: "real-time" for law in compiled.loops.laws},
+                **simulation.extra, **extra, **({"failed": True} if failed else {})}
+        return signal_result(SignalSystem(model, units, list(controlled.loops)), simulation.t, signals,
+                             simulation.method, info)
+
+    try:
+        simulation = simulate_scheme_generated(
+            controlled.plant, q0, qdot0, t_final=t_final, dt=dt, scheme=as_scheme(scheme), store_every=store_every,
+            divergence_bound=divergence_bound, stability_check=stability_check, tolerance=tolerance,
+            max_iterations=max_iterations, compiled=compiled)
+    except SimulationError as exc:
+        if isinstance(exc.partial_result, PlanarSimulation):
+            exc.partial_result = result(exc.partial_result, failed=True)
+        raise
+    return result(simulation)

@@ -1,0 +1,151 @@
+"""Real-time Feedback loops inside the generated DT-TMM step of planar models (:mod:`ctmm.compiled_scheme_loops`).
+
+(1) ``ctmm.simulate(ControlledModel(plant, loops), method=<scheme>, compiled=True)`` equals the Python DT-TMM path
+(``compiled=None``: loops through the ``inputs`` hook of :func:`ctmm.planar.implicit.simulate_implicit`) to
+round-off for every scheme, with a PD loop, a saturating hinge loop, a reference signal and an open-loop input;
+(2) it equals Newmark written here in its global form on the Lagrange equations of
+:mod:`ctmm.reference.planar_lagrange` with the same PD laws as generalised forces (no transfer matrices, no ctmm
+loop or scheme code), solved by a finite-difference Newton; (3) the stability check sees the loops; (4) what is
+not compiled is refused by name; (5) a failed step keeps the loop signals in its partial result.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import ctmm
+from ctmm.compiled_scheme_loops import CompiledSchemeLoops, simulate_scheme_loops_generated
+from ctmm.control import ControlledModel, Feedback
+from ctmm.errors import ConvergenceError, ModelError
+from ctmm.reference.planar_lagrange import PlanarLagrange
+from ctmm.schemes import SCHEMES, GeneralizedAlpha, Newmark
+from ctmm.signals import Harmonic
+from test_compiled_scene_schemes import DP_START, double_pendulum
+from test_compiled_scheme_cosim import pid
+
+KP, KD, KH, DH = 8.0, 1.5, 3.0, 0.4
+START = DP_START
+
+
+def pd_loops(limit: float | None = 0.5) -> list[Feedback]:
+    """A PD on the pivot and a PD on the elbow hinge (saturating at ``limit`` [N m])."""
+    return [Feedback("pd", [("a.theta", KP), ("a.omega", KD)], "o.torque", gain=1.0),
+            Feedback("elbow", [("h.angle", KH), ("h.rate", DH)], "h.torque", gain=1.0,
+                     saturation=None if limit is None else (-limit, limit))]
+
+
+@pytest.fixture(scope="module")
+def plant():
+    return double_pendulum()
+
+
+def _start(model):
+    return dict(zip(model.coordinates, START[0])), dict(zip(model.coordinates, START[1]))
+
+
+# ---------------------------------------------------------------- (1) the Python DT-TMM path
+@pytest.mark.parametrize("scheme", [*SCHEMES, GeneralizedAlpha(0.3)], ids=str)
+def test_generated_loops_equal_the_python_dt_tmm_path(plant, scheme):
+    controlled = ControlledModel(plant, pd_loops())
+    x0, v0 = _start(plant)
+    options = dict(method=scheme, x0=x0, v0=v0, store_every=2, outputs=["b.out.y"],
+                   references={"pd": Harmonic(0.2, 2.0)}, inputs={"b.moment": 0.3})
+    generated = ctmm.simulate(controlled, 0.2, 0.01, compiled=True, **options)
+    python = ctmm.simulate(controlled, 0.2, 0.01, **options)
+    assert generated.info["method"].startswith("dt-tmm-generated/")
+    assert np.array_equal(generated.time, python.time)
+    assert set(python.signals()) <= set(generated.signals())
+    for name in python.signals():
+        assert np.max(np.abs(generated[name] - python[name])) <= 1e-10, name
+    assert np.any(python["elbow.saturated"] > 0.0) and np.any(python["elbow.saturated"] == 0.0)
+    open_loop = ctmm.simulate(plant, 0.2, 0.01, method=scheme, x0=x0, v0=v0, store_every=2, compiled=True)
+    assert np.max(np.abs(open_loop["a.theta"] - generated["a.theta"])) > 1e-3       # the loops act
+
+
+# ---------------------------------------------------------------- (2) independent: Lagrange + global Newmark
+def _newton_root(residual, guess):
+    """Root of ``residual`` by Newton with a central-difference Jacobian, to round-off."""
+    x = np.array(guess, dtype=float)
+    for _ in range(50):
+        jacobian = np.empty((x.size, x.size))
+        for j in range(x.size):
+            e = np.zeros(x.size)
+            e[j] = 1e-6 * (1.0 + abs(x[j]))
+            jacobian[:, j] = (residual(x + e) - residual(x - e)) / (2.0 * e[j])
+        dx = np.linalg.solve(jacobian, -residual(x))
+        x = x + dx
+        if np.max(np.abs(dx)) <= 1e-15 * (1.0 + np.max(np.abs(x))):
+            break
+    return x
+
+
+def test_generated_loops_equal_newmark_on_the_lagrange_equations_with_the_same_pd_laws(plant):
+    lagrange = PlanarLagrange(plant)
+
+    def closed(q, v, t):
+        """Lagrange's accelerations with the pivot PD (on a.theta) and the elbow PD (on b.theta - a.theta, clipped
+        at 0.5 N m) as generalised torques: the pivot torque on a; the elbow torque on b and its reaction on a."""
+        pivot = -(KP * q[0] + KD * v[0])
+        elbow = float(np.clip(-(KH * (q[1] - q[0]) + DH * (v[1] - v[0])), -0.5, 0.5))
+        return lagrange.accelerations(q, v, t) + np.linalg.solve(lagrange.mass_matrix(q, t),
+                                                                 np.array([pivot - elbow, elbow]))
+
+    h, n_steps = 0.01, 30
+    q, v = START[0].copy(), START[1].copy()
+    a = closed(q, v, 0.0)
+    qs = [q]
+    for step in range(n_steps):                      # Newmark beta = 1/4, gamma = 1/2, equations at t_{n+1}
+        def states(a1, q=q, v=v, a=a):
+            return q + h * v + h * h * (0.25 * a + 0.25 * a1), v + 0.5 * h * (a + a1)
+
+        a = _newton_root(lambda x: x - closed(*states(x), (step + 1) * h), a)
+        q, v = states(a)
+        qs.append(q)
+    generated = simulate_scheme_loops_generated(ControlledModel(plant, pd_loops()), *START, t_final=n_steps * h,
+                                                dt=h, scheme="newmark")
+    assert np.max(np.abs(generated["a.theta"] - np.array(qs)[:, 0])) <= 1e-10
+    assert np.max(np.abs(generated["b.theta"] - np.array(qs)[:, 1])) <= 1e-10
+
+
+# ---------------------------------------------------------------- (3) stability check with the loops
+def test_the_stability_check_includes_the_loops(plant):
+    stiff = [Feedback("stiff", [("a.theta", 2e5)], "o.torque", gain=1.0)]
+    x0, v0 = _start(plant)
+    scheme = Newmark(beta=0.1, gamma=0.5)           # conditionally stable: dt omega_max <= 1 / sqrt(0.15)
+    ctmm.simulate(plant, 0.02, 0.01, method=scheme, x0=x0, v0=v0, compiled=True, stability_check="error")
+    for compiled in (True, None):                    # the loop's 2e5 N m/rad sets omega_max on both paths
+        with pytest.raises(ModelError, match="linearised about the initial state"):
+            ctmm.simulate(ControlledModel(plant, stiff), 0.02, 0.01, method=scheme, x0=x0, v0=v0, compiled=compiled,
+                          stability_check="error")
+
+
+# ---------------------------------------------------------------- (4) refusals
+@pytest.mark.parametrize("loop, match", [
+    (Feedback("late", "a.theta", "o.torque", gain=2.0, delay=0.02), "delayed loops"),
+    (Feedback("lag", "a.theta", "o.torque", gain=__import__("control").tf([4.0], [1.0, 2.0])), "states"),
+])
+def test_what_is_not_compiled_is_refused_by_name(plant, loop, match):
+    with pytest.raises(ModelError, match=match):
+        ctmm.simulate(ControlledModel(plant, [loop]), 0.1, 0.01, method="newmark", compiled=True)
+
+
+def test_loops_with_controllers_and_a_foreign_compiled_step_are_refused(plant):
+    controlled = ControlledModel(plant, pd_loops())
+
+    with pytest.raises(ModelError, match="loops and controllers together"):
+        ctmm.simulate(controlled, 0.1, 0.01, method="newmark", compiled=True,
+                      controllers=[pid("b.omega", "h.torque", 0.02, kp=1.5)])
+    with pytest.raises(ModelError, match="CompiledSchemeLoops"):
+        simulate_scheme_loops_generated(controlled, *START, t_final=0.1, dt=0.01, compiled="step")
+    with pytest.raises(ModelError, match="ControlledModel of a PlanarModel"):
+        CompiledSchemeLoops(plant)
+
+
+# ---------------------------------------------------------------- (5) failures
+def test_a_failed_step_keeps_the_loop_signals_in_its_partial_result(plant):
+    with pytest.raises(ConvergenceError, match="did not converge") as info:
+        simulate_scheme_loops_generated(ControlledModel(plant, pd_loops()), *START, t_final=0.5, dt=0.05,
+                                        max_iterations=1)
+    partial = info.value.partial_result
+    assert partial.time.tolist() == [0.0]
+    assert partial["pd.u"][0] == pytest.approx(-(KP * START[0][0] + KD * START[1][0]), rel=1e-12)
