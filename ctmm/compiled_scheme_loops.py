@@ -5,7 +5,8 @@
 :mod:`ctmm.compiled_scene_schemes` (the scheme's second-order form, Newton in generated C) on the closed-loop
 acceleration
 
-``qddot(q, v, t) = sweep(q, v, u(q, v, t), t)``,   ``u = sum_loops w_j sat(-K (y(q, v) - r(t))) + inputs(t)``
+``qddot(q, v, t) = sweep(q, v, u(q, v, t), t)``,   ``u = sum_loops w_j sat(-C_j z_j - D_j e_j) + inputs(t)``,
+``e_j = y_j(q, v) - r_j(t)``
 
 with every loop stated by :class:`~ctmm.compiled_loops.ClosedLoops` (its sensors, weights, saturation,
 references and open-loop inputs on casadi symbols: the ones the generated RK4 compiles).  ``u`` is evaluated at
@@ -17,13 +18,18 @@ check uses the closed-loop linearisation (:func:`ctmm.planar.guards.check_scheme
 round-off (``tests/test_compiled_scene_schemes_loops.py``, which also checks a PD loop against the independent
 Lagrange model in a Newmark step written in the test).
 
+LTI controllers ``C(s)`` (proper, SISO; states ``z``, ``z' = A z + B e``) are stepped as the Python path steps
+them: by the trapezoidal rule from the step start ``t_n`` to the iterate's time ``t_n + s``,
+``(I - s A / 2) z = (I + s A / 2) z_n + s B (e_n + e) / 2`` with ``e`` at the iterate (so implicit in the step and
+in the Newton tangent), and over the whole step at the accepted state.  The generated state carries ``[z_n, e_n]``
+after :data:`~ctmm.compiled_scene_schemes.STATUS` (:attr:`CompiledSchemeLoops.controller_size`).
+
 What compiles: static-gain loops ``u = -K e`` with weighted sensor terms (a PD: ``sensor=[(angle, kp),
-(rate, kd)]``, ``gain=1``), saturation, references and open-loop inputs that are numbers or symbolic
-:mod:`ctmm.signals`, loops on beam station moment pairs (:attr:`ctmm.compiled_loops.ClosedLoops.channels`).
-Refused by name (:class:`~ctmm.errors.ModelError`; ``compiled=None`` runs them in Python): LTI controllers with
-states (their trapezoidal states are not in the generated state yet), delayed loops (no history ring in the
-generated scheme yet), co-simulated controllers together with loops, and what :class:`ClosedLoops` and
-:class:`~ctmm.compiled_scene_schemes.CompiledSceneScheme` refuse.
+(rate, kd)]``, ``gain=1``), LTI controllers, saturation, references and open-loop inputs that are numbers or
+symbolic :mod:`ctmm.signals`, loops on beam station moment pairs (:attr:`ctmm.compiled_loops.ClosedLoops.channels`).
+Refused by name (:class:`~ctmm.errors.ModelError`; ``compiled=None`` runs them in Python): delayed loops (no
+history ring in the generated scheme yet), co-simulated controllers together with loops, and what
+:class:`ClosedLoops` and :class:`~ctmm.compiled_scene_schemes.CompiledSceneScheme` refuse.
 """
 from __future__ import annotations
 
@@ -57,10 +63,7 @@ def loop_refusal(controlled: Any) -> str:
             return (f"loop {loop.name!r} has delay = {loop.delay!r} s: delayed loops need a history ring in the "
                     "generated scheme step, not implemented yet (use compiled=None, or method='rk4' with "
                     "compiled=True)")
-        if controller_realisation(loop)[0].shape[0]:
-            return (f"loop {loop.name!r} has a controller C(s) with states: its trapezoidal states are not in the "
-                    "generated scheme step yet (use compiled=None, or method='rk4' with compiled=True; a PD "
-                    "compiles as weighted sensor terms with a static gain)")
+        controller_realisation(loop)                # an improper C(s) raises, naming the loop
     return ""
 
 
@@ -85,6 +88,10 @@ class CompiledSchemeLoops(CompiledSceneScheme):
     controlled : ControlledModel
     loops : ClosedLoops
         The loops on symbols.
+    stateful : list of (int, int, int)
+        ``(loop index, offset in z, order)`` of the loops with controller states.
+    controller_size : int
+        ``[z, e_n]`` entries of the generated state after the status (0 without controller states).
 
     Raises
     ------
@@ -101,20 +108,71 @@ class CompiledSchemeLoops(CompiledSceneScheme):
             raise ModelError(f"CompiledSchemeLoops: {reason}")
         self.controlled = controlled
         self.loops = ClosedLoops(controlled, compiled_actuators(controlled.plant), None, references, inputs)
+        self.stateful, offset = [], 0          # (loop index, offset in z, order) of the loops with controller states
+        for k, law in enumerate(self.loops.laws):
+            if law.A.shape[0]:
+                self.stateful.append((k, offset, law.A.shape[0]))
+                offset += law.A.shape[0]
+        self.controller_size = offset + len(self.stateful) if self.stateful else 0      # [z, e_n]
         super().__init__(controlled.plant, scheme, store_every=store_every, tolerance=tolerance,
                          max_iterations=max_iterations, rows=rows, cache_dir=cache_dir, compiler=compiler)
 
     def closed_acceleration(self) -> Any:
         """``qddot = acceleration(q, v, u, p, t)`` of the closed loop: the plant's sweep with the loops' outputs
-        at ``(q, v, t)`` added to the held inputs ``u`` (:meth:`ctmm.compiled_loops.ClosedLoops.rate`)."""
+        at ``(q, v, t)`` added to the held inputs ``u`` (:meth:`ctmm.compiled_loops.ClosedLoops.rate`), controller
+        states at zero (their value at ``t = 0``; the step moves them, :meth:`iterate_acceleration`)."""
         import casadi as ca
 
         loops, n = self.loops, self.model.n_coordinates
-        sweep = symbolic_accelerations_with_inputs(self.model, self.actuators, [unit for _, unit in loops.channels])
+        self.sweep = symbolic_accelerations_with_inputs(self.model, self.actuators,
+                                                        [unit for _, unit in loops.channels])
         q, v, t = ca.SX.sym("q", n), ca.SX.sym("v", n), ca.SX.sym("t")
         u, p = ca.SX.sym("u", len(self.actuators)), ca.SX.sym("p", self.parameters.size)
-        _, qddot = loops.rate(sweep, u, p, t, ca.vertcat(q, v), ())
+        self.loop_errors = ca.Function("loop_errors", [q, v, p, t], [ca.vertcat(*self.errors(q, v, p, t))])
+        _, qddot = loops.rate(self.sweep, u, p, t, ca.vertcat(q, v, ca.SX.zeros(loops.n_controller_states)), ())
         return ca.Function("acceleration", [q, v, u, p, t], [qddot])
+
+    def errors(self, q: Any, v: Any, p: Any, t: Any) -> list:
+        """The errors ``e = y - r(t)`` of the loops with controller states (in :attr:`stateful` order), on symbols."""
+        import casadi as ca
+
+        now, numbers = self.loops.sensors(q, v), self.loops.numbers(p)
+        return [ClosedLoops.law_output(self.loops.laws[k], numbers[k], now[k], ca.SX.zeros(size), t)[1]
+                for k, _, size in self.stateful]
+
+    def trapezoidal(self, c: Any, e: list, s: Any) -> Any:
+        """Controller states ``z`` at ``s`` [s] after the step start by the trapezoidal rule of the Python path
+        (:class:`ctmm.control.implicit_loops.LoopSteps`): ``(I - s A / 2) z = (I + s A / 2) z_n + s B (e_n + e) / 2``
+        per loop, ``c = [z_n, e_n]``, ``e`` the errors at ``t_n + s``."""
+        import casadi as ca
+
+        nz, blocks = self.loops.n_controller_states, []
+        for j, (k, offset, size) in enumerate(self.stateful):
+            law = self.loops.laws[k]
+            A, B, z_n = ca.DM(law.A), ca.DM(law.B), c[offset:offset + size]
+            rhs = z_n + 0.5 * s * ca.mtimes(A, z_n) + 0.5 * s * B * (c[nz + j] + e[j])
+            blocks.append(ca.solve(ca.SX.eye(size) - 0.5 * s * A, rhs))
+        return ca.vertcat(*blocks)
+
+    def iterate_acceleration(self, acceleration: Any, q: Any, v: Any, u: Any, p: Any, t: Any, c: Any, s: Any) -> Any:
+        """The closed loop's ``qddot`` at a Newton iterate: controller states advanced trapezoidally from the step
+        start to ``t`` with the iterate's errors (implicit, as the Python path's ``inputs`` hook)."""
+        import casadi as ca
+
+        z = self.trapezoidal(c, self.errors(q, v, p, t), s) if self.stateful else ca.SX(0, 1)
+        return self.loops.rate(self.sweep, u, p, t, ca.vertcat(q, v, z), ())[1]
+
+    def controller_update(self, q: Any, v: Any, u: Any, p: Any, t: Any, c: Any, h: Any) -> Any:
+        """``[z_{n+1}, e_{n+1}]``: the states over the whole step with the errors at the accepted state."""
+        import casadi as ca
+
+        e = self.errors(q, v, p, t)
+        return ca.vertcat(self.trapezoidal(c, e, h), *e)
+
+    def initial_controller(self, q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
+        """``[z = 0, e(q0, qdot0, 0)]``."""
+        errors = np.asarray(self.loop_errors(q, qdot, self.parameters, 0.0), dtype=float).reshape(-1)
+        return np.concatenate([np.zeros(self.loops.n_controller_states), errors])
 
 
 def simulate_scheme_loops_generated(controlled: ControlledModel, q0: Any, qdot0: Any, *, t_final: float, dt: float,
@@ -169,11 +227,12 @@ def simulate_scheme_loops_generated(controlled: ControlledModel, q0: Any, qdot0:
     def result(simulation: PlanarSimulation, failed: bool = False) -> SimulationResult:
         model = controlled.plant
         signals, units = model_signals(model, simulation.t, simulation.q, simulation.qdot, outputs)
-        block = np.hstack([simulation.q, simulation.qdot])
+        states = simulation.extra.get("controller_states", np.zeros((len(simulation.t), 0)))
+        block = np.hstack([simulation.q, simulation.qdot, states[:, :compiled.loops.n_controller_states]])
         extra = add_loop_signals(controlled, compiled.loops, signals_of, block, simulation.t, signals, units)
         info = {"dt": dt, "method": simulation.method, "wall_time_s": simulation.wall_time_s,
                 "n_evaluations": simulation.n_evaluations, "loops": {law.name: "real-time" for law in compiled.loops.laws},
-                **simulation.extra, **extra, **({"failed": True} if failed else {})}
+                **{key: value for key, value in simulation.extra.items() if key != "controller_states"}, **extra, **({"failed": True} if failed else {})}
         return signal_result(SignalSystem(model, units, list(controlled.loops)), simulation.t, signals,
                              simulation.method, info)
 

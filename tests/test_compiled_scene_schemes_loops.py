@@ -10,6 +10,7 @@ not compiled is refused by name; (5) a failed step keeps the loop signals in its
 """
 from __future__ import annotations
 
+import control
 import numpy as np
 import pytest
 
@@ -62,6 +63,33 @@ def test_generated_loops_equal_the_python_dt_tmm_path(plant, scheme):
     assert np.max(np.abs(open_loop["a.theta"] - generated["a.theta"])) > 1e-3       # the loops act
 
 
+def lti_loops() -> list[Feedback]:
+    """A first-order lag on the pivot, a biproper second-order controller on the elbow (saturating), a rate loop."""
+    return [Feedback("lag", "a.theta", "o.torque", gain=control.tf([LAG_GAIN * LAG_POLE], [1.0, LAG_POLE])),
+            Feedback("lead", "h.angle", "h.torque", gain=control.tf([1.0, 2.0, 1.0], [1.0, 5.0, 4.0]),
+                     saturation=(-0.25, 0.25)),
+            Feedback("damp", [("b.omega", 0.3)], "h.torque", gain=1.0)]
+
+
+LAG_GAIN, LAG_POLE = 6.0, 3.0
+
+
+@pytest.mark.parametrize("scheme", ["newmark", "houbolt", "wilson_theta", "generalized_alpha"])
+def test_lti_controller_states_equal_the_python_dt_tmm_path(plant, scheme):
+    """Controller states advanced by the trapezoidal rule from the step start to every Newton iterate, as the
+    Python path (ctmm.control.implicit_loops.LoopSteps) does."""
+    controlled = ControlledModel(plant, lti_loops())
+    x0, v0 = _start(plant)
+    options = dict(method=scheme, x0=x0, v0=v0, store_every=2, references={"lag": 0.1})
+    generated = ctmm.simulate(controlled, 0.3, 0.01, compiled=True, **options)
+    python = ctmm.simulate(controlled, 0.3, 0.01, **options)
+    assert np.array_equal(generated.time, python.time)
+    assert set(python.signals()) <= set(generated.signals())
+    for name in python.signals():
+        assert np.max(np.abs(generated[name] - python[name])) <= 1e-10, name
+    assert np.ptp(python["lag.u"]) > 0.1 and 0.0 < np.mean(python["lead.saturated"]) < 1.0
+
+
 # ---------------------------------------------------------------- (2) independent: Lagrange + global Newmark
 def _newton_root(residual, guess):
     """Root of ``residual`` by Newton with a central-difference Jacobian, to round-off."""
@@ -107,6 +135,38 @@ def test_generated_loops_equal_newmark_on_the_lagrange_equations_with_the_same_p
     assert np.max(np.abs(generated["b.theta"] - np.array(qs)[:, 1])) <= 1e-10
 
 
+def test_a_lag_controller_equals_newmark_and_the_trapezoidal_rule_on_the_lagrange_equations(plant):
+    """u = -C(s) theta_a with C(s) = k p / (s + p) written as z' = -p z + e, u = -k p z (another realisation than
+    python-control's: the trapezoidal rule is invariant under it), solved with Newmark monolithically."""
+    lagrange = PlanarLagrange(plant)
+    h, n_steps, half = 0.01, 30, 0.005
+
+    def lag_state(z, e, e_new):
+        return ((1.0 - half * LAG_POLE) * z + half * (e + e_new)) / (1.0 + half * LAG_POLE)
+
+    def closed(q, v, t, z):
+        torque = -LAG_GAIN * LAG_POLE * z
+        return lagrange.accelerations(q, v, t) + np.linalg.solve(lagrange.mass_matrix(q, t), np.array([torque, 0.0]))
+
+    q, v, z = START[0].copy(), START[1].copy(), 0.0
+    e = q[0]
+    a = closed(q, v, 0.0, z)
+    qs = [q]
+    for step in range(n_steps):
+        def states(a1, q=q, v=v, a=a, z=z, e=e):
+            q1 = q + h * v + h * h * (0.25 * a + 0.25 * a1)
+            return q1, v + 0.5 * h * (a + a1), lag_state(z, e, q1[0])
+
+        a = _newton_root(lambda x: x - closed(*states(x)[:2], (step + 1) * h, states(x)[2]), a)
+        q, v, z = states(a)
+        e = q[0]
+        qs.append(q)
+    generated = simulate_scheme_loops_generated(ControlledModel(plant, lti_loops()[:1]), *START, t_final=n_steps * h,
+                                                dt=h, scheme="newmark")
+    assert np.max(np.abs(generated["a.theta"] - np.array(qs)[:, 0])) <= 1e-10
+    assert np.max(np.abs(generated["b.theta"] - np.array(qs)[:, 1])) <= 1e-10
+
+
 # ---------------------------------------------------------------- (3) stability check with the loops
 def test_the_stability_check_includes_the_loops(plant):
     stiff = [Feedback("stiff", [("a.theta", 2e5)], "o.torque", gain=1.0)]
@@ -122,7 +182,7 @@ def test_the_stability_check_includes_the_loops(plant):
 # ---------------------------------------------------------------- (4) refusals
 @pytest.mark.parametrize("loop, match", [
     (Feedback("late", "a.theta", "o.torque", gain=2.0, delay=0.02), "delayed loops"),
-    (Feedback("lag", "a.theta", "o.torque", gain=__import__("control").tf([4.0], [1.0, 2.0])), "states"),
+    (Feedback("improper", "a.theta", "o.torque", gain=control.tf([1.0, 2.0], [1.0])), "improper"),
 ])
 def test_what_is_not_compiled_is_refused_by_name(plant, loop, match):
     with pytest.raises(ModelError, match=match):
