@@ -24,11 +24,20 @@ them: by the trapezoidal rule from the step start ``t_n`` to the iterate's time 
 in the Newton tangent), and over the whole step at the accepted state.  The generated state carries ``[z_n, e_n]``
 after :data:`~ctmm.compiled_scene_schemes.STATUS` (:attr:`CompiledSchemeLoops.controller_size`).
 
+Delayed loops with ``tau = m dt`` (``m >= 1`` whole; the step ``dt`` is then a constant of the code) read a ring of
+the loop signals stored at the last ``max m + 1`` accepted steps, carried after ``[z_n, e_n]`` (the initial signal
+held before ``t = 0``, as the Python path's delay history): the schemes that impose the equations at ``t_{n+1}``
+(Newmark, generalized-alpha, Houbolt) or ``t_n`` (forward Euler) need the sample of step ``n + 1 - m`` (or
+``n - m``), which the Python path's history returns at its node, so the two agree to round-off; Wilson-theta
+(between the samples) is refused.  The initial acceleration and the stability check take the delayed loops at the
+current state (exact at ``t = 0``; the check then also counts their gain, conservatively).
+
 What compiles: static-gain loops ``u = -K e`` with weighted sensor terms (a PD: ``sensor=[(angle, kp),
 (rate, kd)]``, ``gain=1``), LTI controllers, saturation, references and open-loop inputs that are numbers or
 symbolic :mod:`ctmm.signals`, loops on beam station moment pairs (:attr:`ctmm.compiled_loops.ClosedLoops.channels`).
-Refused by name (:class:`~ctmm.errors.ModelError`; ``compiled=None`` runs them in Python): delayed loops (no
-history ring in the generated scheme yet), co-simulated controllers together with loops, and what
+Delayed loops (whole multiples of ``dt``) with every scheme but Wilson-theta.  Refused by name
+(:class:`~ctmm.errors.ModelError`; ``compiled=None`` runs them in Python): delays that are not whole multiples of
+``dt``, delayed loops with Wilson-theta, co-simulated controllers together with loops, and what
 :class:`ClosedLoops` and :class:`~ctmm.compiled_scene_schemes.CompiledSceneScheme` refuse.
 """
 from __future__ import annotations
@@ -42,10 +51,11 @@ from .compiled_control import add_loop_signals
 from .compiled_loops import ClosedLoops, controller_realisation
 from .compiled_parameters import compiled_actuators
 from .compiled_scene import symbolic_accelerations_with_inputs
-from .compiled_scene_schemes import CompiledSceneScheme, simulate_scheme_generated
+from .compiled_scene_schemes import CompiledSceneScheme, scheme_maps, simulate_scheme_generated
 from .control.controlled_model import ControlledModel
+from . import validation
 from .errors import ModelError, SimulationError
-from .planar.integrate import PlanarSimulation, model_signals
+from .planar.integrate import PlanarSimulation, model_signals, step_total
 from .planar.model import PlanarModel
 from .results import SimulationResult
 from .schemes import Scheme, as_scheme
@@ -59,10 +69,6 @@ def loop_refusal(controlled: Any) -> str:
     if not isinstance(controlled, ControlledModel) or not isinstance(controlled.plant, PlanarModel):
         return f"needs a ctmm.control.ControlledModel of a PlanarModel, got {controlled!r}"
     for loop in controlled.loops:
-        if loop.delay > 0.0:
-            return (f"loop {loop.name!r} has delay = {loop.delay!r} s: delayed loops need a history ring in the "
-                    "generated scheme step, not implemented yet (use compiled=None, or method='rk4' with "
-                    "compiled=True)")
         controller_realisation(loop)                # an improper C(s) raises, naming the loop
     return ""
 
@@ -82,6 +88,8 @@ class CompiledSchemeLoops(CompiledSceneScheme):
         ``{actuator name: number or symbolic signal}`` open-loop actuator values [SI], constants of the code.
     store_every, tolerance, max_iterations, rows, cache_dir, compiler
         As in :class:`~ctmm.compiled_scene_schemes.CompiledSceneScheme`.
+    dt : float, optional
+        The step [s]; required with delayed loops (each delay a whole multiple of it; the library serves it only).
 
     Attributes
     ----------
@@ -91,7 +99,7 @@ class CompiledSchemeLoops(CompiledSceneScheme):
     stateful : list of (int, int, int)
         ``(loop index, offset in z, order)`` of the loops with controller states.
     controller_size : int
-        ``[z, e_n]`` entries of the generated state after the status (0 without controller states).
+        ``[z, e_n, ring]`` entries of the generated state after the status (0 without controller states or delays).
 
     Raises
     ------
@@ -102,18 +110,30 @@ class CompiledSchemeLoops(CompiledSceneScheme):
     def __init__(self, controlled: ControlledModel, scheme: Scheme | str = "newmark", *,
                  references: Mapping[str, Any] | None = None, inputs: Mapping[str, Any] | None = None,
                  store_every: int = 1, tolerance: float = 1e-10, max_iterations: int = 20, rows: int = 64,
-                 cache_dir: str | os.PathLike | None = None, compiler: str | None = None) -> None:
+                 dt: float | None = None, cache_dir: str | os.PathLike | None = None,
+                 compiler: str | None = None) -> None:
         reason = loop_refusal(controlled)
         if reason:
             raise ModelError(f"CompiledSchemeLoops: {reason}")
-        self.controlled = controlled
-        self.loops = ClosedLoops(controlled, compiled_actuators(controlled.plant), None, references, inputs)
+        self.controlled, self.dt = controlled, None if dt is None else validation.positive("dt", dt)
+        self.loops = ClosedLoops(controlled, compiled_actuators(controlled.plant), self.dt, references, inputs)
         self.stateful, offset = [], 0          # (loop index, offset in z, order) of the loops with controller states
         for k, law in enumerate(self.loops.laws):
             if law.A.shape[0]:
                 self.stateful.append((k, offset, law.A.shape[0]))
                 offset += law.A.shape[0]
-        self.controller_size = offset + len(self.stateful) if self.stateful else 0      # [z, e_n]
+        self.fraction, self.columns = 1, self.loops.ring_columns
+        if self.loops.delayed:
+            fractions = {m.time_fraction for m in scheme_maps(as_scheme(scheme), 1.0)}
+            if len(fractions) > 1 or not fractions <= {0.0, 1.0}:
+                name = self.loops.laws[self.loops.delayed[0]].name
+                raise ModelError(f"loop {name!r}: {as_scheme(scheme)!r} imposes the equations of motion between the "
+                                 "samples of the generated delay ring (at t_n + fraction dt, fraction "
+                                 f"{sorted(fractions)}); delayed loops compile with newmark, generalized_alpha, "
+                                 "houbolt or forward_euler (or use compiled=None)")
+            self.fraction = int(fractions.pop())
+        self.ring_start = offset + len(self.stateful)
+        self.controller_size = self.ring_start + len(self.loops.delayed) * self.columns     # [z, e_n, ring]
         super().__init__(controlled.plant, scheme, store_every=store_every, tolerance=tolerance,
                          max_iterations=max_iterations, rows=rows, cache_dir=cache_dir, compiler=compiler)
 
@@ -128,17 +148,32 @@ class CompiledSchemeLoops(CompiledSceneScheme):
                                                         [unit for _, unit in loops.channels])
         q, v, t = ca.SX.sym("q", n), ca.SX.sym("v", n), ca.SX.sym("t")
         u, p = ca.SX.sym("u", len(self.actuators)), ca.SX.sym("p", self.parameters.size)
-        self.loop_errors = ca.Function("loop_errors", [q, v, p, t], [ca.vertcat(*self.errors(q, v, p, t))])
-        _, qddot = loops.rate(self.sweep, u, p, t, ca.vertcat(q, v, ca.SX.zeros(loops.n_controller_states)), ())
+        now = [loops.sensors(q, v)[k] for k in loops.delayed]       # the history before t = 0: held
+        self.loop_errors = ca.Function("loop_errors", [q, v, p, t], [ca.vertcat(*self.errors(q, v, p, t, now))])
+        self.delayed_sensors = ca.Function("delayed_sensors", [q, v], [ca.vertcat(*now)])
+        _, qddot = loops.rate(self.sweep, u, p, t, ca.vertcat(q, v, ca.SX.zeros(loops.n_controller_states)), now)
         return ca.Function("acceleration", [q, v, u, p, t], [qddot])
 
-    def errors(self, q: Any, v: Any, p: Any, t: Any) -> list:
-        """The errors ``e = y - r(t)`` of the loops with controller states (in :attr:`stateful` order), on symbols."""
+    def errors(self, q: Any, v: Any, p: Any, t: Any, delayed: list) -> list:
+        """The errors ``e = y(t - tau) - r(t - tau)`` of the loops with controller states (in :attr:`stateful`
+        order), ``delayed`` the delayed loops' signals, on symbols."""
         import casadi as ca
 
-        now, numbers = self.loops.sensors(q, v), self.loops.numbers(p)
-        return [ClosedLoops.law_output(self.loops.laws[k], numbers[k], now[k], ca.SX.zeros(size), t)[1]
-                for k, _, size in self.stateful]
+        now, numbers, laws = self.loops.sensors(q, v), self.loops.numbers(p), self.loops.laws
+        return [ClosedLoops.law_output(laws[k], numbers[k], delayed[self.loops.delayed.index(k)] if laws[k].steps
+                                       else now[k], ca.SX.zeros(size), t)[1] for k, _, size in self.stateful]
+
+    def ring(self, c: Any) -> Any:
+        """The delay ring of the controller entries ``c``: (delayed loops, :attr:`columns`), column ``j`` the loop
+        signals stored at step ``n - columns + 1 + j`` (the last: ``t_n``)."""
+        import casadi as ca
+
+        return ca.reshape(c[self.ring_start:], len(self.loops.delayed), self.columns)
+
+    def delayed_values(self, c: Any, lead: int) -> list:
+        """The delayed loops' signals ``y(t_n + lead dt - m dt)`` from the ring (exact samples: ``lead`` 0 or 1)."""
+        ring = self.ring(c) if self.loops.delayed else None
+        return [ring[d, self.columns - 1 + lead - self.loops.laws[k].steps] for d, k in enumerate(self.loops.delayed)]
 
     def trapezoidal(self, c: Any, e: list, s: Any) -> Any:
         """Controller states ``z`` at ``s`` [s] after the step start by the trapezoidal rule of the Python path
@@ -159,20 +194,36 @@ class CompiledSchemeLoops(CompiledSceneScheme):
         start to ``t`` with the iterate's errors (implicit, as the Python path's ``inputs`` hook)."""
         import casadi as ca
 
-        z = self.trapezoidal(c, self.errors(q, v, p, t), s) if self.stateful else ca.SX(0, 1)
-        return self.loops.rate(self.sweep, u, p, t, ca.vertcat(q, v, z), ())[1]
+        delayed = self.delayed_values(c, self.fraction)
+        z = self.trapezoidal(c, self.errors(q, v, p, t, delayed), s) if self.stateful else ca.SX(0, 1)
+        return self.loops.rate(self.sweep, u, p, t, ca.vertcat(q, v, z), delayed)[1]
 
     def controller_update(self, q: Any, v: Any, u: Any, p: Any, t: Any, c: Any, h: Any) -> Any:
-        """``[z_{n+1}, e_{n+1}]``: the states over the whole step with the errors at the accepted state."""
+        """``[z_{n+1}, e_{n+1}, ring]``: the states over the whole step with the errors at the accepted state, the
+        ring shifted by one sample, the accepted state's delayed loop signals last."""
         import casadi as ca
 
-        e = self.errors(q, v, p, t)
-        return ca.vertcat(self.trapezoidal(c, e, h), *e)
+        e = self.errors(q, v, p, t, self.delayed_values(c, 1))
+        out = [self.trapezoidal(c, e, h), *e]
+        if self.loops.delayed:
+            ring = ca.horzcat(self.ring(c)[:, 1:], self.delayed_sensors(q, v))
+            out.append(ca.reshape(ring, -1, 1))
+        return ca.vertcat(*out)
 
     def initial_controller(self, q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
-        """``[z = 0, e(q0, qdot0, 0)]``."""
+        """``[z = 0, e(q0, qdot0, 0), ring]``, every ring sample the initial loop signal (the history before 0)."""
         errors = np.asarray(self.loop_errors(q, qdot, self.parameters, 0.0), dtype=float).reshape(-1)
-        return np.concatenate([np.zeros(self.loops.n_controller_states), errors])
+        start = np.asarray(self.delayed_sensors(q, qdot), dtype=float).reshape(-1)
+        return np.concatenate([np.zeros(self.loops.n_controller_states), errors, np.tile(start, self.columns)])
+
+    def signal_states(self, controller: np.ndarray) -> np.ndarray:
+        """Rows of stored controller entries as the ``[z, ring]`` tail of :meth:`ClosedLoops.signals`' state (its
+        ring holds the sample of step ``n - m`` in column ``columns - m``; rates unused there: zero)."""
+        rows, count = controller.shape[0], len(self.loops.delayed)
+        mine = controller[:, self.ring_start:].reshape(rows, self.columns, count)
+        theirs = np.zeros((rows, self.columns, 2 * count))
+        theirs[:, 1:, :count] = mine[:, :-1, :]
+        return np.hstack([controller[:, :self.loops.n_controller_states], theirs.reshape(rows, -1)])
 
 
 def simulate_scheme_loops_generated(controlled: ControlledModel, q0: Any, qdot0: Any, *, t_final: float, dt: float,
@@ -214,21 +265,25 @@ def simulate_scheme_loops_generated(controlled: ControlledModel, q0: Any, qdot0:
         As :func:`~ctmm.compiled_scene_schemes.simulate_scheme_generated`, with the result stored before the
         failure (loop signals included) as ``partial_result``.
     """
+    step = None if dt is None else t_final / step_total(t_final, dt)        # (None: refused by the scheme's run)
     if compiled is None:
         compiled = CompiledSchemeLoops(controlled, scheme, references=references, inputs=inputs,
                                        store_every=store_every, tolerance=tolerance, max_iterations=max_iterations,
-                                       cache_dir=cache_dir)
+                                       dt=step, cache_dir=cache_dir)
     elif not isinstance(compiled, CompiledSchemeLoops) or compiled.controlled is not controlled or \
             references or inputs:
         raise ModelError(f"compiled must be a CompiledSchemeLoops of this controlled model (its references and "
                          f"inputs are its own: leave references and inputs out), got {compiled!r}")
+    elif compiled.loops.delayed and compiled.dt != step:
+        raise ModelError(f"compiled has delay rings for dt = {compiled.dt!r} s, this run's step is {dt!r} s: build "
+                         "a CompiledSchemeLoops with this dt")
     signals_of = compiled.loops.signals()
 
     def result(simulation: PlanarSimulation, failed: bool = False) -> SimulationResult:
         model = controlled.plant
         signals, units = model_signals(model, simulation.t, simulation.q, simulation.qdot, outputs)
-        states = simulation.extra.get("controller_states", np.zeros((len(simulation.t), 0)))
-        block = np.hstack([simulation.q, simulation.qdot, states[:, :compiled.loops.n_controller_states]])
+        states = simulation.extra.get("controller_states", np.zeros((len(simulation.t), compiled.controller_size)))
+        block = np.hstack([simulation.q, simulation.qdot, compiled.signal_states(states)])
         extra = add_loop_signals(controlled, compiled.loops, signals_of, block, simulation.t, signals, units)
         info = {"dt": dt, "method": simulation.method, "wall_time_s": simulation.wall_time_s,
                 "n_evaluations": simulation.n_evaluations, "loops": {law.name: "real-time" for law in compiled.loops.laws},
