@@ -20,7 +20,8 @@ Loops part (:mod:`ctmm.compiled_scheme_loops`, model ``chain_n5_pd_loops``): the
 loop on every hinge (``u_i = -(20 angle_i + 2 rate_i)``, reference 0.3 rad on the base), the loops inside the
 generated Newton step vs the Python DT-TMM path with the same loops (``ctmm.simulate(ControlledModel(chain,
 loops), method=<scheme>)``, loops through its ``inputs`` hook), the same measures; error at ``T``: none (no
-independent reference here; ``tests/test_compiled_scene_schemes_loops.py`` has the Lagrange one).
+independent reference here; ``tests/test_compiled_scene_schemes_loops.py`` has the Lagrange one); the same with
+every loop delayed by 2 ms (``chain_n5_delayed_pd_loops``, the ring; Wilson-theta refused).
 Run ``python benchmarks/compiled_schemes_planar.py`` (``--loops``: the loops part alone, merged into the stored
 rows); writes ``benchmarks/results/compiled_schemes_planar.json``.
 """
@@ -159,29 +160,30 @@ def measure_spatial() -> list[dict]:
     return rows
 
 
-def pd_chain():
-    """``(ControlledModel, x0)``: the N = 5 chain with a real-time PD loop on every hinge, started horizontal."""
+def pd_chain(delay: float = 0.0):
+    """``(ControlledModel, x0)``: the N = 5 chain with a PD loop on every hinge (``delay`` [s]), started horizontal."""
     from ctmm.control import ControlledModel, Feedback
     from planar_chain import chain
 
     model = chain(5)
     hinges = ["base", "h1", "h2", "h3", "h4"]
-    loops = [Feedback(f"pd_{name}", [(f"{name}.angle", 20.0), (f"{name}.rate", 2.0)], f"{name}.torque", gain=1.0)
-             for name in hinges]
+    loops = [Feedback(f"pd_{name}", [(f"{name}.angle", 20.0), (f"{name}.rate", 2.0)], f"{name}.torque", gain=1.0,
+                      delay=delay) for name in hinges]
     return ControlledModel(model, loops), dict.fromkeys(model.coordinates, 0.0)
 
 
-def measure_loops() -> list[dict]:
+def measure_loops(delay: float = 0.0) -> list[dict]:
     import ctmm
     from ctmm.compiled_scheme_loops import CompiledSchemeLoops, simulate_scheme_loops_generated
 
-    controlled, x0 = pd_chain()
+    controlled, x0 = pd_chain(delay)
+    label = "chain_n5_pd_loops" if delay == 0.0 else "chain_n5_delayed_pd_loops"
     q0 = v0 = np.zeros(controlled.plant.n_coordinates)
     references = {"pd_base": 0.3}
     rows = []
-    for scheme in SCHEMES:
+    for scheme in SCHEMES if delay == 0.0 else [name for name in SCHEMES if name != "wilson_theta"]:
         began = time.perf_counter()
-        compiled = CompiledSchemeLoops(controlled, scheme, references=references)
+        compiled = CompiledSchemeLoops(controlled, scheme, references=references, dt=DT)
         first_call = time.perf_counter() - began
         best = min((simulate_scheme_loops_generated(controlled, q0, v0, t_final=T, dt=DT, scheme=scheme,
                                                     compiled=compiled, stability_check="ignore")
@@ -190,11 +192,11 @@ def measure_loops() -> list[dict]:
         python = ctmm.simulate(controlled, PYTHON_STEPS * DT, DT, method=scheme, x0=x0, references=references,
                                stability_check="ignore")
         python_step = (time.perf_counter() - began) / PYTHON_STEPS
-        row = result_row("chain_n5_pd_loops", scheme, best, python, list(controlled.plant.coordinates), first_call,
+        row = result_row(label, scheme, best, python, list(controlled.plant.coordinates), first_call,
                          python_step, None)
         rows.append(row)
         generated = row["generated_per_step_s"]
-        print(f"pd loops  {scheme:18s} generated {generated * 1e6:8.1f} us/step  python {python_step * 1e6:9.1f} "
+        print(f"{label:9s} {scheme:18s} generated {generated * 1e6:8.1f} us/step  python {python_step * 1e6:9.1f} "
               f"us/step  x{row['speedup']:6.1f}  |gen - py| {row['generated_vs_python']:.1e}", flush=True)
     return rows
 
@@ -203,10 +205,10 @@ def main() -> None:
     path = ROOT / "benchmarks" / "results" / "compiled_schemes_planar.json"
     if "--loops" in sys.argv[1:]:               # the loops part alone, the other stored rows kept
         kept = json.loads(path.read_text())["rows"] if path.exists() else []
-        rows = [row for row in kept if row["model"] != "chain_n5_pd_loops"] + measure_loops()
+        rows = [row for row in kept if "pd_loops" not in row["model"]] + measure_loops() + measure_loops(2 * DT)
     else:
         rows = [row for name, case in models().items() for row in measure(name, *case)] + measure_spatial() + \
-            measure_loops()
+            measure_loops() + measure_loops(2 * DT)
     out = {"benchmark": "compiled_schemes_planar", "machine": platform.platform(),
            "python": platform.python_version(), "rows": rows}
     path.write_text(json.dumps(out, indent=2) + "\n")
