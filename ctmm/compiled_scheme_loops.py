@@ -285,9 +285,11 @@ def simulate_scheme_loops_generated(controlled: ControlledModel, q0: Any, qdot0:
         states = simulation.extra.get("controller_states", np.zeros((len(simulation.t), compiled.controller_size)))
         block = np.hstack([simulation.q, simulation.qdot, compiled.signal_states(states)])
         extra = add_loop_signals(controlled, compiled.loops, signals_of, block, simulation.t, signals, units)
+        kept = {key: value for key, value in simulation.extra.items() if key != "controller_states"}
         info = {"dt": dt, "method": simulation.method, "wall_time_s": simulation.wall_time_s,
-                "n_evaluations": simulation.n_evaluations, "loops": {law.name: "real-time" for law in compiled.loops.laws},
-                **{key: value for key, value in simulation.extra.items() if key != "controller_states"}, **extra, **({"failed": True} if failed else {})}
+                "n_evaluations": simulation.n_evaluations,
+                "loops": {law.name: "real-time" if law.steps == 0 else "history" for law in compiled.loops.laws},
+                **kept, **extra, **({"failed": True} if failed else {})}
         return signal_result(SignalSystem(model, units, list(controlled.loops)), simulation.t, signals,
                              simulation.method, info)
 

@@ -170,9 +170,10 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         :func:`ctmm.compiled_control.simulate_spatial_controlled_generated` (docs/spatial.md §6b).  Planar, a DT-TMM
         scheme: the scheme's step with its Newton iterations in generated C
         (:func:`ctmm.compiled_scene_schemes.simulate_scheme_generated`), co-simulated controllers sampled between
-        calls (:func:`ctmm.compiled_scheme_cosim.simulate_cosimulated_scheme_generated`), real-time loops inside its
-        Newton step (:func:`ctmm.compiled_scheme_loops.simulate_scheme_loops_generated`); spatial, a scheme without
-        loops, references or port inputs: its Lie-group step in generated C
+        calls (:func:`ctmm.compiled_scheme_cosim.simulate_cosimulated_scheme_generated`), loops inside its Newton
+        step (:func:`ctmm.compiled_scheme_loops.simulate_scheme_loops_generated`: real-time, LTI controller states,
+        delayed loops with ``delay = m dt``; not with Wilson-theta, not together with controllers); spatial, a
+        scheme without loops, references or port inputs: its Lie-group step in generated C
         (:func:`ctmm.compiled_spatial_schemes.simulate_spatial_scheme_generated`; controllers as for planar models).
         Default: numpy.
     parameters : mapping, optional
