@@ -216,6 +216,21 @@ class CompiledSchemeLoops(CompiledSceneScheme):
         start = np.asarray(self.delayed_sensors(q, qdot), dtype=float).reshape(-1)
         return np.concatenate([np.zeros(self.loops.n_controller_states), errors, np.tile(start, self.columns)])
 
+    def continue_run(self, state: np.ndarray, held: np.ndarray, dt: float, n_steps: int, first_step: int,
+                     since_start: int | None = None) -> np.ndarray:
+        """:meth:`CompiledSceneScheme.continue_run`, refusing a step other than :attr:`dt` with delayed loops (the ring
+        holds one sample per step of :attr:`dt`).
+
+        Raises
+        ------
+        ModelError
+            ``dt`` is not the step the delay rings were built for.
+        """
+        if self.loops.delayed and not np.isclose(dt, self.dt, rtol=1e-12, atol=0.0):
+            raise ModelError(f"compiled has delay rings for dt = {self.dt!r} s, this run's step is {dt!r} s: build a "
+                             "CompiledSchemeLoops with this dt")
+        return super().continue_run(state, held, dt, n_steps, first_step, since_start)
+
     def signal_states(self, controller: np.ndarray) -> np.ndarray:
         """Rows of stored controller entries as the ``[z, ring]`` tail of :meth:`ClosedLoops.signals`' state (its
         ring holds the sample of step ``n - m`` in column ``columns - m``; rates unused there: zero)."""
@@ -274,9 +289,6 @@ def simulate_scheme_loops_generated(controlled: ControlledModel, q0: Any, qdot0:
             references or inputs:
         raise ModelError(f"compiled must be a CompiledSchemeLoops of this controlled model (its references and "
                          f"inputs are its own: leave references and inputs out), got {compiled!r}")
-    elif compiled.loops.delayed and compiled.dt != step:
-        raise ModelError(f"compiled has delay rings for dt = {compiled.dt!r} s, this run's step is {dt!r} s: build "
-                         "a CompiledSchemeLoops with this dt")
     signals_of = compiled.loops.signals()
 
     def result(simulation: PlanarSimulation, failed: bool = False) -> SimulationResult:
