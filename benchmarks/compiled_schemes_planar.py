@@ -16,7 +16,14 @@ Spatial part (:mod:`ctmm.compiled_spatial_schemes`): a double pendulum (revolute
 joint), the same measures against :func:`ctmm.spatial.implicit.simulate_spatial_implicit` and the fine RK4 (dt =
 0.1 ms) of the independent Newton-Euler model (:mod:`ctmm.reference.spatial_tree`), error: the largest difference of
 the coordinates (quaternion of the ball joint) and velocities at ``T``.
-Run ``python benchmarks/compiled_schemes_planar.py``; writes ``benchmarks/results/compiled_schemes_planar.json``.
+Loops part (:mod:`ctmm.compiled_scheme_loops`, model ``chain_n5_pd_loops``): the N = 5 chain with a real-time PD
+loop on every hinge (``u_i = -(20 angle_i + 2 rate_i)``, reference 0.3 rad on the base), the loops inside the
+generated Newton step vs the Python DT-TMM path with the same loops (``ctmm.simulate(ControlledModel(chain,
+loops), method=<scheme>)``, loops through its ``inputs`` hook), the same measures; error at ``T``: none (no
+independent reference here; ``tests/test_compiled_scene_schemes_loops.py`` has the Lagrange one); the same with
+every loop delayed by 2 ms (``chain_n5_delayed_pd_loops``, the ring; Wilson-theta refused).
+Run ``python benchmarks/compiled_schemes_planar.py`` (``--loops``: the loops part alone, merged into the stored
+rows); writes ``benchmarks/results/compiled_schemes_planar.json``.
 """
 from __future__ import annotations
 
@@ -115,6 +122,20 @@ def spatial_double_pendulum():
     return model, x0, v0, np.concatenate([[q[0], q[4], q[1], q[2], q[3]], v])
 
 
+def result_row(label: str, scheme: str, best, python, names: list, first_call: float, python_step: float,
+               error: float | None) -> dict:
+    """The JSON row of a generated run ``best`` (a result over ``T``) against the Python run ``python`` (a result
+    over :data:`PYTHON_STEPS`) on the signals ``names``; ``error`` at ``T`` against a reference (or None)."""
+    generated = best.info["wall_time_s"] / round(T / DT)
+    return {"model": label, "scheme": scheme, "dt_s": DT, "t_final_s": T,
+            "generated_per_step_s": generated, "python_per_step_s": python_step,
+            "speedup": python_step / generated, "first_call_s": first_call,
+            "newton_iterations_per_step": best.info["newton_iterations"] / round(T / DT),
+            "generated_vs_python": max(float(np.max(np.abs(best[name][:PYTHON_STEPS + 1] - python[name])))
+                                       for name in names),
+            "error_at_t_final": error}
+
+
 def measure_spatial() -> list[dict]:
     model, x0, v0, exact = spatial_double_pendulum()
     names = [*model.coordinates, *model.velocities]
@@ -125,30 +146,71 @@ def measure_spatial() -> list[dict]:
         first_call = time.perf_counter() - began
         best = min((simulate_spatial_scheme_generated(model, T, DT, scheme=scheme, x0=x0, v0=v0, compiled=compiled)
                     for _ in range(3)), key=lambda run: run.info["wall_time_s"])
-        generated = best.info["wall_time_s"] / round(T / DT)
         began = time.perf_counter()
         python = simulate_spatial_implicit(model, PYTHON_STEPS * DT, DT, scheme=scheme, x0=x0, v0=v0)
         python_step = (time.perf_counter() - began) / PYTHON_STEPS
         final = np.array([best[name][-1] for name in names])
-        row = {"model": "spatial_double_pendulum", "scheme": scheme, "dt_s": DT, "t_final_s": T,
-               "generated_per_step_s": generated, "python_per_step_s": python_step,
-               "speedup": python_step / generated, "first_call_s": first_call,
-               "newton_iterations_per_step": best.info["newton_iterations"] / round(T / DT),
-               "generated_vs_python": max(float(np.max(np.abs(best[name][:PYTHON_STEPS + 1] - python[name])))
-                                          for name in names),
-               "error_at_t_final": float(np.max(np.abs(final - exact)))}
+        row = result_row("spatial_double_pendulum", scheme, best, python, names, first_call, python_step,
+                         float(np.max(np.abs(final - exact))))
         rows.append(row)
+        generated = row["generated_per_step_s"]
         print(f"spatial   {scheme:18s} generated {generated * 1e6:8.1f} us/step  python {python_step * 1e6:9.1f} "
               f"us/step  x{row['speedup']:6.1f}  |gen - py| {row['generated_vs_python']:.1e}  "
               f"error {row['error_at_t_final']:.2e}", flush=True)
     return rows
 
 
+def pd_chain(delay: float = 0.0):
+    """``(ControlledModel, x0)``: the N = 5 chain with a PD loop on every hinge (``delay`` [s]), started horizontal."""
+    from ctmm.control import ControlledModel, Feedback
+    from planar_chain import chain
+
+    model = chain(5)
+    hinges = ["base", "h1", "h2", "h3", "h4"]
+    loops = [Feedback(f"pd_{name}", [(f"{name}.angle", 20.0), (f"{name}.rate", 2.0)], f"{name}.torque", gain=1.0,
+                      delay=delay) for name in hinges]
+    return ControlledModel(model, loops), dict.fromkeys(model.coordinates, 0.0)
+
+
+def measure_loops(delay: float = 0.0) -> list[dict]:
+    import ctmm
+    from ctmm.compiled_scheme_loops import CompiledSchemeLoops, simulate_scheme_loops_generated
+
+    controlled, x0 = pd_chain(delay)
+    label = "chain_n5_pd_loops" if delay == 0.0 else "chain_n5_delayed_pd_loops"
+    q0 = v0 = np.zeros(controlled.plant.n_coordinates)
+    references = {"pd_base": 0.3}
+    rows = []
+    for scheme in SCHEMES if delay == 0.0 else [name for name in SCHEMES if name != "wilson_theta"]:
+        began = time.perf_counter()
+        compiled = CompiledSchemeLoops(controlled, scheme, references=references, dt=DT)
+        first_call = time.perf_counter() - began
+        best = min((simulate_scheme_loops_generated(controlled, q0, v0, t_final=T, dt=DT, scheme=scheme,
+                                                    compiled=compiled, stability_check="ignore")
+                    for _ in range(3)), key=lambda run: run.info["wall_time_s"])
+        began = time.perf_counter()
+        python = ctmm.simulate(controlled, PYTHON_STEPS * DT, DT, method=scheme, x0=x0, references=references,
+                               stability_check="ignore")
+        python_step = (time.perf_counter() - began) / PYTHON_STEPS
+        row = result_row(label, scheme, best, python, list(controlled.plant.coordinates), first_call,
+                         python_step, None)
+        rows.append(row)
+        generated = row["generated_per_step_s"]
+        print(f"{label:9s} {scheme:18s} generated {generated * 1e6:8.1f} us/step  python {python_step * 1e6:9.1f} "
+              f"us/step  x{row['speedup']:6.1f}  |gen - py| {row['generated_vs_python']:.1e}", flush=True)
+    return rows
+
+
 def main() -> None:
-    rows = [row for name, case in models().items() for row in measure(name, *case)] + measure_spatial()
+    path = ROOT / "benchmarks" / "results" / "compiled_schemes_planar.json"
+    if "--loops" in sys.argv[1:]:               # the loops part alone, the other stored rows kept
+        kept = json.loads(path.read_text())["rows"] if path.exists() else []
+        rows = [row for row in kept if "pd_loops" not in row["model"]] + measure_loops() + measure_loops(2 * DT)
+    else:
+        rows = [row for name, case in models().items() for row in measure(name, *case)] + measure_spatial() + \
+            measure_loops() + measure_loops(2 * DT)
     out = {"benchmark": "compiled_schemes_planar", "machine": platform.platform(),
            "python": platform.python_version(), "rows": rows}
-    path = ROOT / "benchmarks" / "results" / "compiled_schemes_planar.json"
     path.write_text(json.dumps(out, indent=2) + "\n")
     print(f"wrote {path}")
 

@@ -329,13 +329,37 @@ class CompiledSceneScheme:
         self.maps = scheme_maps(self.scheme, 1.0)
         self.actuators = compiled_actuators(model)
         self.parameters = parameter_vector(model)
-        acceleration = symbolic_accelerations_with_inputs(model, self.actuators)
+        acceleration = self.closed_acceleration()
         step = self._step_function(acceleration)
-        name = f"scene_{model.n_bodies}b{model.n_coordinates}q_{self.scheme.name}"
+        name = f"scene_{model.n_bodies}b{model.n_coordinates}q_{self.scheme.name}" + ("_loops" if self.loops else "")
         loop = compiled_time_loop(step, self.store_every, rows, name, extra=[acceleration],
                                   cache_dir=cache_dir, compiler=compiler)
         (self._acceleration,), self._step, self._stride, self._blocks = loop.extra, loop.step, loop.stride, loop.blocks
         self.compile_time_s = _time.perf_counter() - start
+
+    loops: Any = None
+    """The :class:`~ctmm.compiled_loops.ClosedLoops` closed in the step (:mod:`ctmm.compiled_scheme_loops`), or None."""
+    controller_size: int = 0
+    """Entries of the generated state after :data:`STATUS` (a subclass's loop controller states; none here)."""
+
+    def iterate_acceleration(self, acceleration: Any, q: Any, v: Any, u: Any, p: Any, t: Any, c: Any, s: Any) -> Any:
+        """``qddot`` at a Newton iterate ``(q, v)`` and time ``t`` on casadi SX symbols, ``c`` the
+        :attr:`controller_size` entries at the step start, ``s`` [s] the time since it: here
+        ``acceleration(q, v, u, p, t)``."""
+        return acceleration(q, v, u, p, t)
+
+    def controller_update(self, q: Any, v: Any, u: Any, p: Any, t: Any, c: Any, h: Any) -> Any:
+        """The :attr:`controller_size` entries after a step of ``h`` [s] to ``(q, v, t)`` from ``c`` (SX)."""
+        return c
+
+    def initial_controller(self, q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
+        """The :attr:`controller_size` entries at ``t = 0``."""
+        return np.zeros(self.controller_size)
+
+    def closed_acceleration(self) -> Any:
+        """``qddot = acceleration(q, v, u, p, t)`` the step solves for (casadi ``Function``): the plant's sweep with
+        the inputs :attr:`actuators` (a subclass closes loops around it, :mod:`ctmm.compiled_scheme_loops`)."""
+        return symbolic_accelerations_with_inputs(self.model, self.actuators)
 
     @property
     def status_index(self) -> int:
@@ -344,8 +368,8 @@ class CompiledSceneScheme:
 
     @property
     def state_size(self) -> int:
-        """Length of the generated state: the history ``6 n`` and :data:`STATUS`."""
-        return self.status_index + len(STATUS)
+        """Length of the generated state: the history ``6 n``, :data:`STATUS` and :attr:`controller_size`."""
+        return self.status_index + len(STATUS) + self.controller_size
 
     def _step_function(self, acceleration: Any) -> Any:
         """``step(y, u, h, p, t0, k)``: one scheme step with Newton (module docstring)."""
@@ -356,21 +380,31 @@ class CompiledSceneScheme:
         w, g, t = ca.SX.sym("w"), ca.SX.sym("g"), ca.SX.sym("t")
         u, p = ca.SX.sym("u", n_u), ca.SX.sym("p", n_p)
         q, v = ca.SX.sym("q", n), ca.SX.sym("v", n)
-        rates = acceleration(q, v, u, p, t)
-        tangent_q = ca.Function("tangent", [q, v, u, p, t], [rates, ca.jacobian(rates, q), ca.jacobian(rates, v)])
-        value, d_q, d_v = tangent_q(q_hat + w * a, v_hat + g * a, u, p, t)
-        residual_terms = ca.Function("residual", [a, q_hat, v_hat, w, g, t, u, p],
+        c, s = ca.SX.sym("c", self.controller_size), ca.SX.sym("s")        # controller entries, time since t_n
+        rates = self.iterate_acceleration(acceleration, q, v, u, p, t, c, s)
+        tangent_q = ca.Function("tangent", [q, v, u, p, t, c, s],
+                                [rates, ca.jacobian(rates, q), ca.jacobian(rates, v)])
+        value, d_q, d_v = tangent_q(q_hat + w * a, v_hat + g * a, u, p, t, c, s)
+        residual_terms = ca.Function("residual", [a, q_hat, v_hat, w, g, t, u, p, c, s],
                                      [a - value, ca.SX.eye(n) - w * d_q - g * d_v])
         iterate = newton_iteration(residual_terms, self.tolerance)
         y = ca.MX.sym("y", self.state_size)
         u_in, h, p_in, t0, k = ca.MX.sym("u", n_u), ca.MX.sym("h"), ca.MX.sym("p", n_p), ca.MX.sym("t0"), ca.MX.sym("k")
+        controller = y[self.status_index + len(STATUS):]
         new, failed, status = symbolic_scheme_step(
             self.maps, [y[j * n:(j + 1) * n] for j in range(6)], h, k,
             lambda z, q_hat_k, v_hat_k, w_k, g_k, fraction: iterate(z, q_hat_k, v_hat_k, w_k, g_k,
-                                                                    t0 + (k + fraction) * h, u_in, p_in),
-            self.max_iterations, y[6 * n:])
+                                                                    t0 + (k + fraction) * h, u_in, p_in,
+                                                                    controller, fraction * h),
+            self.max_iterations, y[6 * n:6 * n + len(STATUS)])
         history_out = ca.if_else(failed, ca.MX.nan(6 * n, 1), ca.vertcat(*new))
-        return ca.Function("step", [y, u_in, h, p_in, t0, k], [ca.vertcat(history_out, status)])
+        out = [history_out, status]
+        if self.controller_size:
+            update = ca.Function("controller_update", [q, v, u, p, t, c, s],
+                                 [self.controller_update(q, v, u, p, t, c, s)])
+            after = update(new[0], new[1], u_in, p_in, t0 + (k + 1.0) * h, controller, h)
+            out.append(ca.if_else(failed, ca.MX.nan(self.controller_size, 1), after))
+        return ca.Function("step", [y, u_in, h, p_in, t0, k], [ca.vertcat(*out)])
 
     def accelerations(self, q: Any, qdot: Any, t: float = 0.0) -> np.ndarray:
         """``qddot`` [unit/s^2] of the generated sweep at ``(q, qdot, t)`` without actuator inputs."""
@@ -381,7 +415,8 @@ class CompiledSceneScheme:
     def initial_state(self, q: np.ndarray, qdot: np.ndarray, held: np.ndarray | None = None) -> np.ndarray:
         """The generated state at ``t = 0``: history ``(q, qdot, qddot, qddot, q, q)``, no failure; ``held``: the
         values of :attr:`actuators` (default zero)."""
-        return self.restarted(np.concatenate([q, qdot, np.zeros(4 * q.size + len(STATUS))]), held, 0.0, start=True)
+        return self.restarted(np.concatenate([q, qdot, np.zeros(4 * q.size + len(STATUS)),
+                                              self.initial_controller(q, qdot)]), held, 0.0, start=True)
 
     def restarted(self, state: np.ndarray, held: np.ndarray | None, t: float, start: bool = False) -> np.ndarray:
         """``state`` with the acceleration of its history (``a`` and ``qddot``) solved again at its ``(q, qdot)``
@@ -491,7 +526,8 @@ def simulate_scheme_generated(model: PlanarModel, q0: Any, qdot0: Any, *, t_fina
     compiled = reused_or_built(CompiledSceneScheme, compiled, model, scheme, store_every, tolerance=tolerance,
                                max_iterations=max_iterations, cache_dir=cache_dir)
     guard = divergence_guard(model, q, divergence_bound)
-    check_scheme(model, q, v, h, scheme=scheme, policy=stability_check)
+    closed = None if compiled.loops is None else (lambda _, q_k, v_k, t_k: compiled.accelerations(q_k, v_k, t_k))
+    check_scheme(model, q, v, h, scheme=scheme, policy=stability_check, accelerations=closed)   # loops included
     start = _time.perf_counter()
     first = compiled.initial_state(q, v)
     rows = compiled.run(first, h, n_steps)
@@ -503,8 +539,12 @@ def simulate_scheme_generated(model: PlanarModel, q0: Any, qdot0: Any, *, t_fina
     label = f"dt-tmm-generated/{type(scheme).__name__}"
     qs, vs = states[:, :n], states[:, n:2 * n]
 
+    controller = states[:, compiled.status_index + len(STATUS):]       # loop controller entries (a subclass's)
+    extra = {"controller_states": controller} if compiled.controller_size else {}
+
     def partial(k: int) -> PlanarSimulation:
-        return PlanarSimulation(model, t[:k], qs[:k], vs[:k], label, wall)
+        return PlanarSimulation(model, t[:k], qs[:k], vs[:k], label, wall,
+                                extra={name: value[:k] for name, value in extra.items()})
 
     failed = np.flatnonzero(states[:, 6 * n] > 0.0)
     good = len(states) if not failed.size else int(failed[0])
@@ -519,4 +559,4 @@ def simulate_scheme_generated(model: PlanarModel, q0: Any, qdot0: Any, *, t_fina
         raise not_converged(compiled, states[failed[0]], h, partial(good))
     return PlanarSimulation(model, t, qs, vs, label, wall, n_evaluations=int(states[-1, 6 * n + 2]) + 1,
                             extra={"compile_time_s": compiled.compile_time_s,
-                                   "newton_iterations": int(states[-1, 6 * n + 2])})
+                                   "newton_iterations": int(states[-1, 6 * n + 2]), **extra})

@@ -168,10 +168,12 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         ``"rk4"``: ``True`` runs the generated RK4 of :func:`ctmm.compiled_spatial.simulate_spatial_generated`
         (inputs held numbers; the numpy path's result to round-off); with loops
         :func:`ctmm.compiled_control.simulate_spatial_controlled_generated` (docs/spatial.md §6b).  Planar, a DT-TMM
-        scheme without loops or references: the scheme's step with its Newton iterations in generated C
+        scheme: the scheme's step with its Newton iterations in generated C
         (:func:`ctmm.compiled_scene_schemes.simulate_scheme_generated`), co-simulated controllers sampled between
-        calls (:func:`ctmm.compiled_scheme_cosim.simulate_cosimulated_scheme_generated`); spatial, a scheme without
-        loops, references or port inputs: its Lie-group step in generated C
+        calls (:func:`ctmm.compiled_scheme_cosim.simulate_cosimulated_scheme_generated`), loops inside its Newton
+        step (:func:`ctmm.compiled_scheme_loops.simulate_scheme_loops_generated`: real-time, LTI controller states,
+        delayed loops with ``delay = m dt``; not with Wilson-theta, not together with controllers); spatial, a
+        scheme without loops, references or port inputs: its Lie-group step in generated C
         (:func:`ctmm.compiled_spatial_schemes.simulate_spatial_scheme_generated`; controllers as for planar models).
         Default: numpy.
     parameters : mapping, optional
@@ -459,11 +461,11 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
     controlled = bool(loops) or bool(controllers) or bool(inputs) or bool(references)
     is_scheme = isinstance(method, Scheme) or (isinstance(method, str) and method in SCHEMES)
     others = bool(loops) or bool(references)        # a generated scheme: controllers and inputs (numbers) only
-    if compiled and method != "rk4" and not (is_scheme and not others):
+    if compiled and method != "rk4" and not (is_scheme and not (others and controllers)):
         raise ModelError(f"compiled=True runs the generated RK4 of a planar model with its loops, inputs, references "
-                         f"and controllers, or a generated DT-TMM scheme with co-simulated controllers and inputs "
-                         f"only; got method={method!r} {'with loops or references ' if is_scheme else ''}(leave "
-                         "compiled at None)")
+                         f"and controllers, or a generated DT-TMM scheme with real-time loops, references and inputs "
+                         f"or with co-simulated controllers and inputs; got method={method!r} "
+                         f"{'with loops and controllers together ' if is_scheme else ''}(leave compiled at None)")
     adaptive_only = {"rtol": (rtol, 1e-8), "atol": (atol, 1e-10), "max_step": (max_step, None)}
     for name, (value, default) in adaptive_only.items():
         if value != default and method not in SCIPY_METHODS:
@@ -492,6 +494,14 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
 
         if dt is None:
             raise ModelError(f"dt is required with the DT-TMM scheme {method!r} (a fixed step [s], > 0), got None")
+        if others:                          # real-time loops inside the generated Newton step
+            from .compiled_scheme_loops import simulate_scheme_loops_generated
+            from .control.controlled_model import ControlledModel
+
+            return simulate_scheme_loops_generated(
+                ControlledModel(model, loops), q0, v0, t_final=t_final, dt=dt, scheme=as_scheme(method),
+                references=references, inputs=inputs, outputs=outputs, store_every=store_every,
+                divergence_bound=divergence_bound, stability_check=policy)
         return simulate_cosimulated_scheme_generated(
             model, q0, v0, t_final=t_final, dt=dt, scheme=method, controllers=controllers, inputs=inputs,
             outputs=outputs, coupling=coupling, store_every=store_every, progress=progress, stability_check=policy,
