@@ -62,7 +62,10 @@ __all__ = ["linearize_spatial", "tangent_names", "input_names", "retract", "stat
            "unstable_directions", "STABLE_RESTARTS"]
 
 NEWTON_ITERATIONS = 200
-"""Largest number of (pseudo-transient Newton) steps of :func:`static_equilibrium`."""
+"""Largest number of (pseudo-transient Newton) steps of :func:`static_equilibrium` at points without unstable
+directions (the Newton phase, and every step of an uncapped search); the capped fall through unstable
+directions (``stable=True``) has its own budget of ``NEWTON_ITERATIONS + 5 n_v`` steps: a long chain started
+upright passes through ~``n_v / 2`` unstable directions, each with steps no longer than ``0.5 / lambda``."""
 _COMPONENTS = {3: ("x", "y", "z"), 6: ("fx", "fy", "fz", "mx", "my", "mz"), 2: ("1", "2")}
 
 
@@ -265,11 +268,16 @@ def _continuation(model: Any, q: np.ndarray, t: float, *, capped: bool) -> np.nd
     # implicit Euler steps (I / dt - df/dr) step = f, dt grown as |f| falls (Newton once dt is large)
     dt = 0.1 / max(size, 1e-300)
     eye = np.eye(model.n_velocities)
-    for _ in range(NEWTON_ITERATIONS):
+    newton_steps, fall_steps = NEWTON_ITERATIONS, NEWTON_ITERATIONS + 5 * model.n_velocities
+    while newton_steps > 0 and fall_steps > 0:
         if size <= 1e-6 * limit:
             break
         Jq, _ = _position_jacobian(model, q, zero[0], t)
         values, _ = negative_stiffness(Jq) if capped else (np.zeros(0), None)
+        if values.size:
+            fall_steps -= 1                         # the fall through unstable directions (own budget)
+        else:
+            newton_steps -= 1
         step_size = min(dt, -0.5 / values[0]) if values.size else dt
         step = np.linalg.lstsq(eye / step_size - Jq, residual, rcond=1e-13)[0]
         trial = model.normalized(retract(model, q, step)[0])
