@@ -33,7 +33,6 @@ import json
 import os
 import platform
 import sys
-import time
 from pathlib import Path
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
@@ -43,6 +42,8 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
+if str(ROOT / "benchmarks") not in sys.path:
+    sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import ctmm  # noqa: E402
 import ctmm.spatial as sp  # noqa: E402
@@ -50,6 +51,7 @@ from ctmm.controlled_linearization import delayed_loop_response  # noqa: E402
 from ctmm.errors import ModelError  # noqa: E402
 from ctmm.spatial_linearization import linearize_spatial, operating_point  # noqa: E402
 from ctmm.spatial_transfer_response import SpatialSweepResponse  # noqa: E402
+from planar_frf import best  # noqa: E402  (best wall and CPU time of repeated calls)
 
 OMEGA = np.logspace(-1, 2, 500)
 RESULTS = ROOT / "benchmarks" / "results" / "spatial_frf.json"
@@ -79,17 +81,6 @@ def at_rest(model: sp.SpatialModel) -> tuple[np.ndarray, np.ndarray]:
     if not np.any(model.gravity):
         return model.neutral(), np.zeros(model.n_velocities)
     return operating_point(model).q, np.zeros(model.n_velocities)
-
-
-def best(call, repeats: int) -> tuple[float, float, object]:
-    """Best wall time and best CPU time [s] of ``repeats`` calls and the last result."""
-    walls, cpus, result = [], [], None
-    for _ in range(repeats):
-        started, cpu = time.perf_counter(), time.process_time()
-        result = call()
-        walls.append(time.perf_counter() - started)
-        cpus.append(time.process_time() - cpu)
-    return min(walls), min(cpus), result
 
 
 def sweep(model: sp.SpatialModel, n: int, omega: np.ndarray = OMEGA, point: tuple | None = None):

@@ -72,8 +72,8 @@ def model_applies(model: Any) -> bool:
 
 
 def sweep_applies(model: Any, point: Any) -> bool:
-    """True when the frequency context states ``model`` about ``point`` (module docstring; the static
-    joint wrenches are checked by :class:`SpatialSweepResponse`)."""
+    """True when the frequency context states ``model`` about ``point`` (module docstring: a static equilibrium,
+    preloaded or not, of a model whose joints the sweep states)."""
     return bool(point.equilibrium and not np.any(point.qdot != 0.0) and model_applies(model))
 
 
