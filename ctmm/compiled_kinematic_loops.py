@@ -105,8 +105,8 @@ def kinematic_loop_compile_refusal(model: Any) -> str:
         for j, _ in points:
             if j >= 0 and j in model.tree.beams:
                 return (f"cut joint {cut.name!r} acts on the deformable body {model.tree.body_names[j]!r}: a cut force "
-                        "at a ModalBeam end is a floating-frame wrench, not on the element protocol of the generated "
-                        "kernels yet; use compiled=None (the numpy RK4 with projection)")
+                        "at a ModalBeam end or a ctmm.fem subsystem node is a floating-frame wrench, not on the element "
+                        "protocol of the generated kernels yet; use compiled=None (the numpy RK4 with projection)")
     return ""
 
 

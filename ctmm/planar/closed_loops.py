@@ -33,12 +33,13 @@ its constraint force as applied loads of the tree; a driven cut prescribes that 
 boundary unknown with the force (``docs/closed_loops.md`` §2a).
 Cut points may be ends of a ``ctmm.flexible.ModalBeam`` (a flexible coupler): the cut force enters the beam's frame
 wrench and modal equations as its virtual work, through the end's foreshortening too (``docs/closed_loops.md``
-§4a-4b).
+§4a-4b); or outboard boundary nodes of a ``ctmm.fem`` subsystem (a finite-element body closing the loop): the cut
+force is a nodal load at that node (§4c).  The sides of every cut are read through :mod:`ctmm.planar.cut_points`.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Mapping, Sequence
+from typing import Sequence
 
 import numpy as np
 
@@ -47,7 +48,7 @@ from ..errors import ModelError, SimulationError
 from ..loop_integration import (CONDITION_LIMIT, PROJECTION_SKIP, check_consistent, compliance_condition,
                                 integrate_loop_model, singular_compliance)
 from .cut_joints import CutJoint
-from .elements import Fixed
+from .cut_points import CutPoints
 from .model import PlanarModel
 from .ports import ActuatorInputs
 from .sweep import solve_instant
@@ -106,7 +107,8 @@ class KinematicLoopModel:
     Parameters
     ----------
     tree : PlanarModel
-        The mechanism with the cut joints removed (rigid bodies at the cut points).
+        The mechanism with the cut joints removed (cut points: ground points, rigid-body ends, ``ModalBeam`` ends,
+        outboard boundary nodes of ``ctmm.fem`` subsystems).
     cuts : sequence of CutJoint
         The joints closing the loops.
     baumgarte : float
@@ -128,9 +130,8 @@ class KinematicLoopModel:
         self.tree, self.cuts = tree, cuts
         self.baumgarte = validation.nonnegative("baumgarte", baumgarte)
         self.foreshortening = validation.flag("foreshortening", foreshortening)
-        grounds = {e.name: e for e in tree.elements if isinstance(e, Fixed)}
-        self._points = [(self._resolve(cut, cut.parent, grounds), self._resolve(cut, cut.child, {}))
-                        for cut in cuts]
+        self.cut_points = CutPoints(tree, cuts, self.foreshortening)
+        self._points = self.cut_points.sides
         self._rows = np.cumsum([0] + [3 if cut.driven else 2 for cut in cuts])   # first row of each cut, and m
         self.name = tree.name
         self._tangents: dict = {}           # (q0, t, baumgarte) -> (A, N, q0, jacobian error): resting_tangent
@@ -139,91 +140,18 @@ class KinematicLoopModel:
     def __repr__(self) -> str:
         return f"KinematicLoopModel({self.name!r}, cuts={[cut.name for cut in self.cuts]})"
 
-    def _resolve(self, cut: CutJoint, label: str, grounds: Mapping[str, Fixed]) -> tuple[int, np.ndarray | int]:
-        """``(body index or -1 for ground, body-frame vector from the inboard end or ground position)``; on a modal
-        beam ``(body index, end index)``."""
-        m = self.tree
-        if label in grounds:
-            return -1, np.asarray(grounds[label].position, float)
-        body, _, end = label.partition(".")
-        if body not in m.body_names:
-            raise ModelError(f"cut joint {cut.name!r}: {label!r} names no body of {m.name!r} (bodies: "
-                             f"{', '.join(m.body_names)}; grounds: {', '.join(grounds) or 'none'})")
-        j = m.body_names.index(body)
-        if j in m.beams:
-            data = m.beams[j].data
-            if hasattr(data, "point_local") or not hasattr(data, "end_names"):
-                raise ModelError(f"cut joint {cut.name!r}: {label!r} is on {body!r}, a deformable body without modal "
-                                 "end shapes (a ctmm.fem subsystem); cut points on deformable bodies must be ends of "
-                                 "a ctmm.flexible.ModalBeam")
-            if end not in data.end_names:
-                raise ModelError(f"cut joint {cut.name!r}: beam {body!r} has no end {end!r}; ends: "
-                                 f"{', '.join(data.end_names) or '(none)'} (ModalBeam(outboard=...))")
-            return j, list(data.end_names).index(end)
-        if end not in m.ends[j]:
-            raise ModelError(f"cut joint {cut.name!r}: body {body!r} has no end {end!r}; ends: "
-                             f"{', '.join(m.ends[j]) or '(none)'}")
-        return j, np.asarray(m.ends[j][end], float)
-
-    # ------------------------------------------------------------------------------------------------
-    def _end_local(self, j: int, e: int, q: np.ndarray, qdot: np.ndarray, qddot: np.ndarray | None = None
-                   ) -> tuple[np.ndarray, ...]:
-        """End ``e`` of modal beam ``j`` in the beam frame: position, velocity relative to the frame and, with
-        ``qddot``, acceleration relative to the frame [m, m/s, m/s^2]; with the foreshortening
-        ``u = -1/2 w^T G1 w`` of the transverse modal coordinates ``w`` (``u' = -w^T G1 w'``,
-        ``u'' = -w'^T G1 w' - w^T G1 w''``) when :attr:`foreshortening`."""
-        m = self.tree
-        position, velocity = m.beam_point_local(j, e, q, qdot)
-        acceleration = None if qddot is None else m.beam_point_local(j, e, q, qddot)[1]   # linear in the rates
-        if self.foreshortening:
-            data = m.beams[j].data
-            index = m.modal_index[j][:data.nq]
-            G, w, w_dot = data.end_G1[e], q[index], qdot[index]
-            position[0] -= 0.5 * w @ G @ w
-            velocity[0] -= w @ G @ w_dot
-            if acceleration is not None:
-                acceleration[0] -= w_dot @ G @ w_dot + w @ G @ qddot[index]
-        return (position, velocity) if qddot is None else (position, velocity, acceleration)
-
-    def _point_kinematics(self, points: dict, j: int, e: np.ndarray | int):
-        """Position, velocity and lever ``r`` (from the inboard end, global) of a point (:meth:`_resolve`;
-        ``points``: :meth:`_points_at`)."""
-        if j < 0:
-            return e, np.zeros(2), None
-        th, om = points["theta"][j], points["omega"][j]
-        c, s = np.cos(th), np.sin(th)
-        velocity = np.zeros(2)
-        if not isinstance(e, np.ndarray):               # end ``e`` of a modal beam: deformed, moving in the frame
-            e, local = self._end_local(j, e, points["q"], points["qdot"])
-            velocity = np.array([c * local[0] - s * local[1], s * local[0] + c * local[1]])
-        r = np.array([c * e[0] - s * e[1], s * e[0] + c * e[1]])
-        return points["inboard"][j] + r, points["inboard_velocity"][j] + om * np.array([-r[1], r[0]]) + velocity, r
-
     def _points_at(self, q, qdot, t: float) -> dict:
-        """:meth:`PlanarModel.points` with the state itself (``"q"``, ``"qdot"``: the modal ends read it)."""
+        """:meth:`PlanarModel.points` with the state itself (``"q"``, ``"qdot"``: the deformable ends read it)."""
         points = self.tree.points(q, qdot, t)
         points["q"], points["qdot"], points["t"] = q, qdot, t
         return points
-
-    def _side_angle(self, points: dict, j: int, e: np.ndarray | int) -> tuple[float, float]:
-        """Angle [rad] and rate [rad/s] of one side of a cut: 0 at the ground, the body angle, or at a modal
-        beam's end the frame angle plus the elastic end slope ``phi'(x_e) . w`` (``points``: :meth:`_points_at`)."""
-        if j < 0:
-            return 0.0, 0.0
-        angle, rate = float(points["theta"][j]), float(points["omega"][j])
-        if not isinstance(e, np.ndarray):
-            index = self.tree.modal_index[j][:self.tree.beams[j].data.nq]
-            slope = self.tree.beams[j].data.end_dphi[e]
-            angle += float(slope @ points["q"][index])
-            rate += float(slope @ points["qdot"][index])
-        return angle, rate
 
     def relative_angles(self, q, qdot, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """Relative angle ``dtheta = theta_child - theta_parent`` [rad] and its rate [rad/s] across every cut
         (:mod:`ctmm.planar.cut_joints`), each (n_cuts,)."""
         q, qdot = self.tree.state(q, qdot)
         points = self._points_at(np.asarray(q, float), np.asarray(qdot, float), t)
-        pairs = [np.subtract(self._side_angle(points, jc, ec), self._side_angle(points, jp, ep))
+        pairs = [np.subtract(self.cut_points.angle(points, jc, ec), self.cut_points.angle(points, jp, ep))
                  for (jp, ep), (jc, ec) in self._points]
         return np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs])
 
@@ -238,12 +166,12 @@ class KinematicLoopModel:
         points = self._points_at(q, qdot, t)
         phi, rate = [], []
         for cut, ((jp, ep), (jc, ec)) in zip(self.cuts, self._points):
-            pp, vp, _ = self._point_kinematics(points, jp, ep)
-            pc, vc, _ = self._point_kinematics(points, jc, ec)
+            pp, vp, _ = self.cut_points.point(points, jp, ep)
+            pc, vc, _ = self.cut_points.point(points, jc, ec)
             phi.append(pc - pp)
             rate.append(vc - vp)
             if cut.driven:
-                angle, angle_rate = np.subtract(self._side_angle(points, jc, ec), self._side_angle(points, jp, ep))
+                angle, angle_rate = np.subtract(self.cut_points.angle(points, jc, ec), self.cut_points.angle(points, jp, ep))
                 phi.append([angle - float(cut.angle(t))])
                 rate.append([angle_rate - float(cut.angle_rate(t))])
         return np.concatenate(phi), np.concatenate(rate)
@@ -258,57 +186,30 @@ class KinematicLoopModel:
     def _cut_loads(self, points: dict, loads: np.ndarray, inputs: ActuatorInputs | None = None) -> ActuatorInputs:
         """Cut loads ``loads`` (the unknowns, stacked as the rows of :meth:`constraints`: each cut's force, global
         axes [N], then a driven cut's moment [N m]) with the cuts' laws and torques as actuator inputs of the tree,
-        added to ``inputs``: on a rigid body a
-        force at the centre of mass with the moment of its lever; on a modal beam's end the frame wrench
-        ``(f_x, f_y, x_P f_y - y_P f_x)`` in the beam frame (``(x_P, y_P)``: the deformed end) and the modal
-        forces ``phi(x_e) f_y``, ``psi(x_e) f_x`` (its virtual work).  ``points``: :meth:`_points_at`."""
-        m = self.tree
+        added to ``inputs``: on a rigid body a force at the centre of mass with the moment of its lever; at a
+        deformable body's end its frame wrench and generalised forces (virtual work;
+        :meth:`ctmm.planar.cut_points.CutPoints.add_force`).  ``points``: :meth:`_points_at`."""
+        m, sides = self.tree, self.cut_points
         body_force = np.zeros((m.n_bodies, 3))
         modal = {j: np.array(v, dtype=float) for j, v in (inputs.modal_force if inputs else {}).items()}
         frame = {j: np.array(v, dtype=float) for j, v in (inputs.frame_wrench if inputs else {}).items()}
-        for k, ((jp, ep), (jc, ec)) in enumerate(self._points):
-            for j, e, sign in ((jc, ec, 1.0), (jp, ep, -1.0)):
-                if j < 0:
-                    continue
-                f = sign * loads[self._rows[k]:self._rows[k] + 2]
-                th = points["theta"][j]
-                c, s = np.cos(th), np.sin(th)
-                if not isinstance(e, np.ndarray):
-                    data = m.beams[j].data
-                    local, _ = self._end_local(j, e, points["q"], points["qdot"])
-                    fx, fy = c * f[0] + s * f[1], -s * f[0] + c * f[1]
-                    frame[j] = frame.get(j, np.zeros(3)) + (fx, fy, local[0] * fy - local[1] * fx)
-                    transverse = data.end_phi[e] * fy
-                    if self.foreshortening:     # virtual work through the shortening d(-1/2 w^T G1 w) = -G1 w dw
-                        transverse = transverse - fx * (data.end_G1[e] @ points["q"][m.modal_index[j][:data.nq]])
-                    shape = np.concatenate([transverse, data.end_psi[e] * fx])
-                    modal[j] = modal.get(j, np.zeros(len(m.modal_index[j]))) + shape
-                    continue
-                _, _, r = self._point_kinematics(points, j, e)
-                com = np.array([c * m.com[j, 0] - s * m.com[j, 1], s * m.com[j, 0] + c * m.com[j, 1]])
-                arm = r - com
-                body_force[j] += (f[0], f[1], arm[0] * f[1] - arm[1] * f[0])
         for k, (cut, ((jp, ep), (jc, ec))) in enumerate(zip(self.cuts, self._points)):
+            force = loads[self._rows[k]:self._rows[k] + 2]
+            sides.add_force(points, jc, ec, force, body_force, modal, frame)
+            sides.add_force(points, jp, ep, -force, body_force, modal, frame)
             if not cut.has_moment and not cut.driven:
                 continue
-            angle, rate = np.subtract(self._side_angle(points, jc, ec), self._side_angle(points, jp, ep))
+            angle, rate = np.subtract(sides.angle(points, jc, ec), sides.angle(points, jp, ep))
             tau = loads[self._rows[k] + 2] if cut.driven else cut.moment(angle, rate, points["t"])
-            for j, e, sign in ((jc, ec, 1.0), (jp, ep, -1.0)):
-                if j < 0:
-                    continue
-                if isinstance(e, np.ndarray):               # a pure moment on a rigid body
-                    body_force[j, 2] += sign * tau
-                    continue
-                data = m.beams[j].data                       # on a beam's end: the frame and the end slope
-                frame[j] = frame.get(j, np.zeros(3)) + (0.0, 0.0, sign * tau)
-                modal.setdefault(j, np.zeros(len(m.modal_index[j])))[:data.nq] += sign * tau * data.end_dphi[e]
+            sides.add_moment(jc, ec, tau, body_force, modal, frame)
+            sides.add_moment(jp, ep, -tau, body_force, modal, frame)
         if inputs is None:
             return ActuatorInputs(np.zeros(m.n_bodies), body_force, modal, frame)
         return ActuatorInputs(inputs.hinge_torque, inputs.body_force + body_force, modal, frame)
 
     def torque_inputs(self, name: str) -> ActuatorInputs:
-        """A unit torque [N m] across cut ``name`` (``+1`` on the child side, ``-1`` on the parent; at a beam's end on
-        the frame and, through the end slope, the modal coordinates) as actuator inputs of the tree: state
+        """A unit torque [N m] across cut ``name`` (``+1`` on the child side, ``-1`` on the parent; at a deformable
+        end on the frame and, through the end slope, the internal coordinates) as actuator inputs of the tree: state
         independent, the input ``"<cut>.torque"`` of the linearisation (``docs/closed_loops.md`` §2a)."""
         names = {cut.name: k for k, cut in enumerate(self.cuts) if not cut.driven}
         if name not in names:
@@ -317,12 +218,7 @@ class KinematicLoopModel:
         m, (parent, child) = self.tree, self._points[names[name]]
         body, modal, frame = np.zeros((m.n_bodies, 3)), {}, {}
         for (j, e), sign in ((child, 1.0), (parent, -1.0)):
-            if j >= 0 and isinstance(e, np.ndarray):
-                body[j, 2] += sign
-            elif j >= 0:
-                data = m.beams[j].data
-                frame[j] = frame.get(j, np.zeros(3)) + (0.0, 0.0, sign)
-                modal.setdefault(j, np.zeros(len(m.modal_index[j])))[:data.nq] += sign * data.end_dphi[e]
+            self.cut_points.add_moment(j, e, sign, body, modal, frame)
         return ActuatorInputs(np.zeros(m.n_bodies), body, modal, frame)
 
     def cut_inputs(self, q, qdot, t: float = 0.0, inputs: ActuatorInputs | None = None) -> ActuatorInputs:
@@ -333,34 +229,17 @@ class KinematicLoopModel:
 
     def _solution(self, q, qdot, t, loads: np.ndarray, points: dict, inputs: ActuatorInputs | None = None):
         """Tree solution with the cut loads ``loads`` (:meth:`_cut_loads`) and actuator ``inputs``: qddot and
-        ``Phi''`` of the cuts (``points``: :meth:`PlanarModel.points` at ``(q, qdot, t)``)."""
-        m = self.tree
-        solution = solve_instant(m, q, qdot, t, self._cut_loads(points, loads, inputs))
-        A = solution.body_acceleration
+        ``Phi''`` of the cuts (``points``: :meth:`_points_at` at ``(q, qdot, t)``)."""
+        sides = self.cut_points
+        solution = solve_instant(self.tree, q, qdot, t, self._cut_loads(points, loads, inputs))
+        A, qdd = solution.body_acceleration, solution.qddot
         relative = []
         for cut, ((jp, ep), (jc, ec)) in zip(self.cuts, self._points):
-            acc = []
-            for j, e in ((jp, ep), (jc, ec)):
-                if j < 0:
-                    acc.append(np.zeros(2))
-                    continue
-                _, _, r = self._point_kinematics(points, j, e)
-                om, al = points["omega"][j], A[j, 2]
-                acc.append(A[j, :2] + al * np.array([-r[1], r[0]]) - om * om * r)
-                if not isinstance(e, np.ndarray):       # a modal beam's end: Coriolis and deformation terms
-                    th = points["theta"][j]
-                    c, s = np.cos(th), np.sin(th)
-                    _, local_v, local_a = self._end_local(j, e, q, qdot, solution.qddot)
-                    v = np.array([c * local_v[0] - s * local_v[1], s * local_v[0] + c * local_v[1]])
-                    a = np.array([c * local_a[0] - s * local_a[1], s * local_a[0] + c * local_a[1]])
-                    acc[-1] = acc[-1] + 2.0 * om * np.array([-v[1], v[0]]) + a
-            relative.append(acc[1] - acc[0])
-            if cut.driven:      # angular accelerations of the sides (a beam end: plus its slope's)
-                sides = [0.0 if j < 0 else A[j, 2] + (0.0 if isinstance(e, np.ndarray) else float(
-                    m.beams[j].data.end_dphi[e] @ solution.qddot[m.modal_index[j][:m.beams[j].data.nq]]))
-                    for j, e in ((jp, ep), (jc, ec))]
-                relative.append([sides[1] - sides[0] - float(cut.angle_acceleration(t))])
-        return solution.qddot, np.concatenate(relative)
+            relative.append(sides.acceleration(points, A, qdd, jc, ec) - sides.acceleration(points, A, qdd, jp, ep))
+            if cut.driven:      # angular accelerations of the sides (a deformable end: plus its slope's)
+                relative.append([sides.angular_acceleration(A, qdd, jc, ec) - sides.angular_acceleration(A, qdd, jp, ep)
+                                 - float(cut.angle_acceleration(t))])
+        return qdd, np.concatenate(relative)
 
     def solve(self, q, qdot, t: float = 0.0, inputs: ActuatorInputs | None = None) -> tuple[np.ndarray, np.ndarray]:
         """``(qddot, cut forces (n_cuts, 2))`` at ``(q, qdot, t)`` (module docstring), with the tree's actuator

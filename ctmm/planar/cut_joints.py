@@ -6,7 +6,7 @@ mechanism that solves its force as a boundary unknown is :mod:`ctmm.planar.close
 the **relative angle across the cut**
 
 ``dtheta = theta_child - theta_parent``  [rad]  (a ground side: 0; a ``ModalBeam`` end: the frame angle plus the
-elastic end slope ``phi'(x_e) . q``)
+elastic end slope ``phi'(x_e) . q``; a ``ctmm.fem`` subsystem node: the frame angle plus the node's ``r_z``)
 
 and its rate.  The moment on the child side is (the sign convention of the tree's hinges,
 :class:`ctmm.planar.NonlinearHinge`, and of :class:`ctmm.planar.ActuatedHinge`)::

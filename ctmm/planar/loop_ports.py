@@ -6,7 +6,8 @@ A :class:`~ctmm.planar.closed_loops.KinematicLoopModel` exposes every port of it
 Sensors
     * ``"<cut>.angle"``, ``"<cut>.rate"`` -- the relative angle across the cut
       ``dtheta = theta_child - theta_parent`` [rad] and its rate [rad/s]
-      (:meth:`KinematicLoopModel.relative_angles`; at a ``ModalBeam`` end the elastic end slope included);
+      (:meth:`KinematicLoopModel.relative_angles`; at a ``ModalBeam`` end the elastic end slope included, at a
+      ``ctmm.fem`` subsystem node its rotation ``r_z``);
     * ``"<cut>.moment"`` -- the moment of the cut's own law and torque signal on its child side
       ``torque(t) - moment_law(dtheta - rest_angle, dtheta_dot)`` [N m] (:meth:`CutJoint.moment`), for an undriven
       cut with a ``moment_law`` or a ``torque`` (actuator inputs on ``"<cut>.torque"`` are not part of it; a driven

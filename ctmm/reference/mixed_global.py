@@ -278,7 +278,8 @@ class GlobalChain:
     # -- kinematics of all mass points ------------------------------------------------------
     def _points(self, q: np.ndarray, qd: np.ndarray):
         """Per rigid link (one point) or beam (its P points): mass, position (2,) / (P, 2), Jacobian (2, n) /
-        (P, 2, n), bias (2,) / (P, 2), segment; and the rotary inertias (index, J)."""
+        (P, 2, n), bias (2,) / (P, 2), segment; the rotary inertias (index, J); the exact springs; and the
+        outboard point of the last segment (position, Jacobian, bias)."""
         nq = self.n
         base = np.zeros(2)
         J_base = np.zeros((2, nq), dtype=q.dtype)
@@ -355,7 +356,7 @@ class GlobalChain:
                 Jn[:, it] += R @ _J @ rho
                 b_base = b_base - w * w * (R @ rho)
                 base, J_base = base + R @ rho, Jn
-        return out, rotary, springs
+        return out, rotary, springs, (base, J_base, b_base)
 
     def hinge_angles(self, q: np.ndarray) -> np.ndarray:
         """Relative hinge angles (from the parent's outboard cross-section) [rad]."""
@@ -371,7 +372,7 @@ class GlobalChain:
 
     def _generalised(self, q, qd, t):
         """``M (n, n)`` and ``Q - sum m J^T b`` (n,)."""
-        pts, rotary, springs = self._points(q, qd)
+        pts, rotary, springs, _ = self._points(q, qd)
         dtype = np.result_type(q, qd, float)
         M = np.zeros((self.n, self.n), dtype=dtype)
         rhs = np.zeros(self.n, dtype=dtype)
@@ -413,6 +414,17 @@ class GlobalChain:
                 rhs[iu] += np.asarray(bm.force(u, ud, t))
         return M, rhs
 
+    def generalised(self, q: np.ndarray, qd: np.ndarray, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """Mass matrix ``M`` (n, n) and the generalised forces less the bias, ``Q - sum m J^T b`` (n,)
+        (complex allowed)."""
+        return self._generalised(q, qd, t)
+
+    def outboard_point(self, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The outboard point of the last segment (a rigid link's ``(length, 0)``, a beam's last node): position
+        (2,) [m] from the ground pivot, Jacobian ``dr/dq`` (2, n) and bias ``(dJ/dt) q_dot`` (2,) [m/s^2]
+        (complex allowed)."""
+        return self._points(q, qd)[3]
+
     def accelerations(self, q: np.ndarray, qd: np.ndarray, t: float = 0.0) -> np.ndarray:
         """``q''`` [rad/s^2, m/s^2]."""
         M, rhs = self._generalised(np.asarray(q), np.asarray(qd), t)
@@ -442,13 +454,13 @@ class GlobalChain:
         """Force [N] (global axes) exerted on segment ``j`` by its parent at the hinge: the momentum rate of
         segments ``j, j+1, ...`` minus their weight."""
         qdd = self.accelerations(q, qd, t)
-        pts, _, _ = self._points(np.asarray(q, float), np.asarray(qd, float))
+        pts, _, _, _ = self._points(np.asarray(q, float), np.asarray(qd, float))
         return sum(np.einsum("p,pi->i", np.atleast_1d(m), Jp.reshape(-1, 2, self.n) @ qdd + bias.reshape(-1, 2)
                              - self.gravity) for m, _, Jp, bias, k in pts if k >= j)
 
     def energy(self, q: np.ndarray, qd: np.ndarray) -> float:
         """Kinetic + gravity + strain + hinge-spring energy [J] (no ``force`` potential)."""
-        pts, rotary, springs = self._points(np.asarray(q, float), np.asarray(qd, float))
+        pts, rotary, springs, _ = self._points(np.asarray(q, float), np.asarray(qd, float))
         e = sum(0.5 * k * (np.linalg.norm(rb - ra) - rest) ** 2 for (ra, _), (rb, _), k, rest, _ in springs)
         for m, r, Jp, _, _ in pts:
             m, v = np.atleast_1d(m), Jp.reshape(-1, 2, self.n) @ qd
