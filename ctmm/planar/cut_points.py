@@ -77,7 +77,7 @@ class CutPoints:
             data = m.beams[j].data
             if end not in data.end_names:
                 what = ("outboard boundary nodes (subsystem(boundary=...))" if self.is_subsystem(j)
-                        else "ends (ModalBeam(outboard=...))")
+                        else "outboard points, stations named in ModalBeam(outboard={name: x})")
                 raise ModelError(f"cut joint {cut.name!r}: deformable body {body!r} has no end {end!r}; cut points on "
                                  f"it are its {what}: {', '.join(data.end_names) or '(none)'}")
             return j, list(data.end_names).index(end)

@@ -25,8 +25,8 @@ points ``dm = rhoA w_k`` (Euler-Bernoulli, no rotary inertia) at
   rows of the mass matrix) -- what a floating-frame modal beam with geometric stiffening carries;
 * ``"linear"``: ``s = 0``, nothing else.
 
-The loop is closed at the coupler end (``x = L``, shortened by ``u(L)`` when ``end_shortening``) and the rocker tip
-by two holonomic constraints with Lagrange multipliers (index-1 form, DOP853; the drift is reported).  The strain
+The loop is closed at the coupler's station ``x_s`` (``cut_station``, default the end ``x = L``; shortened by
+``u(x_s)`` when ``end_shortening``) and the rocker tip by two holonomic constraints with Lagrange multipliers (index-1 form, DOP853; the drift is reported).  The strain
 energy is ``1/2 q^T K q``, ``K = EI int phi'' phi''^T``.
 """
 from __future__ import annotations
@@ -52,7 +52,7 @@ def _rotation(theta: float) -> np.ndarray:
 
 
 class FlexibleFourBarLagrange:
-    """Crank - flexible coupler - rocker, closed at the coupler end (see the module text).
+    """Crank - flexible coupler - rocker, closed at the coupler's end or a station (see the module text).
 
     Parameters
     ----------
@@ -69,10 +69,14 @@ class FlexibleFourBarLagrange:
         Close the loop at the shortened end ``x = L + u(L)`` (True) or at ``x = L`` (False).
     points : int
         Gauss points along the coupler (and for each ``G1(x_k)``).
+    cut_station : float, optional
+        Station ``x_s`` [m] of the coupler joined to the rocker tip (default ``L``; ``x_s < L``: the coupler
+        overhangs the joint).
     """
 
     def __init__(self, crank, coupler, rocker, ground: float, n_modes: int, *, gravity=(0.0, -9.81),
-                 inertia: str = "second_order", end_shortening: bool = True, points: int = 48) -> None:
+                 inertia: str = "second_order", end_shortening: bool = True, points: int = 48,
+                 cut_station: float | None = None) -> None:
         if inertia not in INERTIA_FORMS:
             raise ValueError(f"inertia must be one of {INERTIA_FORMS}, got {inertia!r}")
         self.mc, self.lc = map(float, crank)
@@ -99,8 +103,11 @@ class FlexibleFourBarLagrange:
         self.x, self.dm = x, self.rhoA * w
         self.phi = shapes(x, 0).T                                  # (points, n)
         self.G1 = np.array([g1(xk) for xk in x])                   # (points, n, n)
-        self.phi_end = shapes([L], 0)[:, 0]
-        self.G1_end = g1(L)
+        self.x_cut = L if cut_station is None else float(cut_station)
+        if not 0.0 < self.x_cut <= L:
+            raise ValueError(f"cut_station must lie on the coupler, 0 < x <= {L}, got {cut_station!r}")
+        self.phi_end = shapes([self.x_cut], 0)[:, 0]
+        self.G1_end = g1(self.x_cut)
         ddphi = shapes(x, 2)
         self.K = self.EI * (ddphi * w) @ ddphi.T
         self.nQ = self.n + 3
@@ -166,7 +173,7 @@ class FlexibleFourBarLagrange:
         """``Phi`` (2,), ``C = dPhi/dQ`` (2, nQ), bias ``gamma`` (``Phi'' = C Q'' + gamma``)."""
         _, _, _, tr = self._split(Q)
         _, _, _, wr = self._split(V)
-        position, J, bias = self._coupler_points(Q, V, np.array([self.L]), self.phi_end[None, :],
+        position, J, bias = self._coupler_points(Q, V, np.array([self.x_cut]), self.phi_end[None, :],
                                                  self.G1_end[None], self.s_end)
         tip = np.array([self.d, 0.0]) + self.lr * np.array([math.cos(tr), math.sin(tr)])
         C = J[0].copy()
