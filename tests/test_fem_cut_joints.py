@@ -17,7 +17,7 @@ from scipy.linalg import null_space
 
 import ctmm
 from ctmm.errors import ModelError
-from ctmm.fem import BeamElement, FiniteElementModel
+from ctmm.fem import BeamElement, FiniteElementModel, NodeSpring, PointMass
 from ctmm.nonlinear_laws import LinearLaw
 from ctmm.planar import Fixed, PlanarModel, RigidBody, SmoothHinge
 from ctmm.planar.equilibrium import hanging_configuration
@@ -178,3 +178,34 @@ def test_a_cut_at_a_node_that_is_not_a_boundary_node_is_refused_by_name():
     loop = fe_four_bar(2)
     with pytest.raises(ModelError, match=r"outboard boundary nodes.*n2"):
         KinematicLoopModel(loop.tree, [CutJoint("h3", parent="rocker.out", child="coupler.n1")])
+
+
+def _particle_tip_four_bar(**cut_options) -> KinematicLoopModel:
+    """The coupler: a beam element n0-n1 and a particle n2 on a spring from n1 (no rotation DOF at n2), cut at n2."""
+    nodes = {"n0": (0.0, 0.0), "n1": (0.45, 0.0), "n2": (0.6, 0.0)}
+    fe = FiniteElementModel("coupler", nodes, [BeamElement("e0", "n0", "n1", EI, EA, RHO_A),
+                                               NodeSpring("s", "n1", "n2", stiffness=4e3), PointMass("p", "n2", 0.2)])
+    tree = PlanarModel("particle_four_bar", [
+        Fixed("g", position=(0.0, 0.0)), Fixed("g4", position=(0.7, 0.0)),
+        RigidBody.uniform_link("crank", mass=0.4, length=0.2), SmoothHinge("h1", parent="g", child="crank"),
+        fe.subsystem("coupler", boundary=("n0", "n2")), SmoothHinge("h2", parent="crank", child="coupler"),
+        RigidBody.uniform_link("rocker", mass=0.8, length=0.5), SmoothHinge("h4", parent="g4", child="rocker")],
+        gravity=(0.0, -9.81))
+    return KinematicLoopModel(tree, [CutJoint("h3", parent="rocker.out", child="coupler.n2", **cut_options)])
+
+
+def test_a_particle_node_closes_the_loop_without_taking_a_moment():
+    """A cut at a subsystem node without a rotation DOF: the smooth cut runs and its nodal load does no work (the
+    undamped linkage's energy, RK4 + projection); a moment law, torque or drive there, and the ``"h3.torque"``
+    actuator, are refused by name."""
+    loop = _particle_tip_four_bar()
+    assert "coupler.n2_rz" not in loop.tree.coordinates
+    q0, v0 = start(loop)
+    run = simulate_kinematic_loops(loop, q0, v0, t_final=0.005, dt=2.5e-4)
+    energy = run.energy()
+    assert np.ptp(run.coordinate("coupler.n2_ux")) > 1e-5 and np.max(run.drift) < 1e-14
+    assert np.max(np.abs(energy - energy[0])) < 1e-9 * np.max(np.abs(energy))
+    with pytest.raises(ModelError, match=r"h3.*coupler.n2.*without a rotation DOF"):
+        _particle_tip_four_bar(moment_law=LinearLaw(1.0, 0.0))
+    with pytest.raises(ModelError, match="h3.torque"):
+        ctmm.linearize(loop, (q0, np.zeros_like(q0)), inputs=["h3.torque"], allow_nonequilibrium=True)

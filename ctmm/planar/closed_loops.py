@@ -210,8 +210,9 @@ class KinematicLoopModel:
     def torque_inputs(self, name: str) -> ActuatorInputs:
         """A unit torque [N m] across cut ``name`` (``+1`` on the child side, ``-1`` on the parent; at a deformable
         end on the frame and, through the end slope, the internal coordinates) as actuator inputs of the tree: state
-        independent, the input ``"<cut>.torque"`` of the linearisation (``docs/closed_loops.md`` §2a)."""
-        names = {cut.name: k for k, cut in enumerate(self.cuts) if not cut.driven}
+        independent, the input ``"<cut>.torque"`` of the linearisation (``docs/closed_loops.md`` §2a); not of a cut
+        at a subsystem node without a rotation DOF (a particle takes no moment)."""
+        names = {cut.name: k for k, cut in enumerate(self.cuts) if not cut.driven and self.cut_points.takes_moment[k]}
         if name not in names:
             raise ModelError(f"cut torque input: {name!r} names no undriven cut joint of {self.name!r} (allowed: "
                              f"{list(names)})")

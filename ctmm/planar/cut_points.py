@@ -61,6 +61,16 @@ class CutPoints:
         self.tree, self.foreshortening = tree, foreshortening
         grounds = {e.name: e for e in tree.elements if isinstance(e, Fixed)}
         self.sides = [(self._resolve(cut, cut.parent, grounds), self._resolve(cut, cut.child, {})) for cut in cuts]
+        self.takes_moment = []
+        """Per cut: whether its sides take a moment (not at a subsystem node without a rotation DOF)."""
+        for cut, sides in zip(cuts, self.sides):
+            particles = [self.tree.body_names[j] + "." + self.tree.beams[j].data.end_names[e] for j, e in sides
+                         if j >= 0 and not isinstance(e, np.ndarray) and self.is_subsystem(j)
+                         and self.tree.beams[j].data.end_rows[e][2] is None]
+            self.takes_moment.append(not particles)
+            if particles and (cut.has_moment or cut.driven):
+                raise ModelError(f"cut joint {cut.name!r}: {particles} are subsystem nodes without a rotation DOF (a "
+                                 "particle takes no moment); a cut there takes no moment_law, torque or angle")
 
     def _resolve(self, cut: CutJoint, label: str, grounds: Mapping[str, Fixed]) -> tuple[int, np.ndarray | int]:
         """``(body index or -1 for ground, body-frame vector from the inboard end or ground position)``; on a

@@ -15,7 +15,8 @@ Sensors
 
 Actuators
     * ``"<cut>.torque"`` -- a torque [N m] across an undriven cut: ``+u`` on the child side, ``-u`` on the parent
-      (:meth:`KinematicLoopModel.torque_inputs`), added to the cut's own law and torque.
+      (:meth:`KinematicLoopModel.torque_inputs`), added to the cut's own law and torque (not at a ``ctmm.fem``
+      subsystem node without a rotation DOF: a particle takes no moment).
 
 These are the one list of the cut joints' port names: :func:`ctmm.simulate` (inputs, outputs, loops,
 controllers), :func:`ctmm.linearize`, :func:`ctmm.frequency_response` and the margins of a kinematic loop model
@@ -88,7 +89,7 @@ class KinematicLoopPorts(PlanarPorts):
             added[f"{cut.name}.rate"] = _CutSensor(f"{cut.name}.rate", k, "rate", "rad/s")
             if cut.has_moment:
                 added[f"{cut.name}.moment"] = _CutSensor(f"{cut.name}.moment", k, "moment", "N m")
-            if not cut.driven:
+            if not cut.driven and model.cut_points.takes_moment[k]:     # a particle node takes no moment
                 added[f"{cut.name}.torque"] = _CutActuator(f"{cut.name}.torque", cut.name)
         clash = sorted(name for name, entry in added.items()
                        if name in (actuators if isinstance(entry, _CutActuator) else sensors))
