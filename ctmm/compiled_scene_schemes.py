@@ -332,13 +332,17 @@ class CompiledSceneScheme:
         acceleration = self.closed_acceleration()
         step = self._step_function(acceleration)
         name = f"scene_{model.n_bodies}b{model.n_coordinates}q_{self.scheme.name}" + ("_loops" if self.loops else "")
-        loop = compiled_time_loop(step, self.store_every, rows, name, extra=[acceleration],
+        loop = compiled_time_loop(step, self.store_every, rows, name, extra=[acceleration, *self.state_functions],
                                   cache_dir=cache_dir, compiler=compiler)
-        (self._acceleration,), self._step, self._stride, self._blocks = loop.extra, loop.step, loop.stride, loop.blocks
+        (self._acceleration, *more), self._step, self._stride, self._blocks = loop.extra, loop.step, loop.stride, \
+            loop.blocks
+        self.state_functions = tuple(more)
         self.compile_time_s = _time.perf_counter() - start
 
     loops: Any = None
     """The :class:`~ctmm.compiled_loops.ClosedLoops` closed in the step (:mod:`ctmm.compiled_scheme_loops`), or None."""
+    state_functions: tuple = ()
+    """Further casadi Functions of the library (a subclass's :meth:`closed_acceleration` sets them; compiled after)."""
     controller_size: int = 0
     """Entries of the generated state after :data:`STATUS` (a subclass's loop controller states; none here)."""
 
