@@ -325,7 +325,7 @@ class CompiledSceneScheme:
         self.tolerance, self.max_iterations, self.store_every, rows = newton_options(
             "CompiledSceneScheme", tolerance, max_iterations, store_every, rows)
         start = _time.perf_counter()
-        self.model = model
+        self.model, self.checked_steps = model, set()      # steps [s] check_step_scaling accepted
         self.maps = scheme_maps(self.scheme, 1.0)
         self.actuators = compiled_actuators(model)
         self.parameters = parameter_vector(model)
@@ -445,7 +445,9 @@ class CompiledSceneScheme:
         at a jump of a held input, :meth:`ctmm.schemes.Scheme.restart`); the failed-step status then counts from
         that restart."""
         dt = validation.positive("dt", dt)
-        check_step_scaling(self.scheme, self.maps, dt)
+        if dt not in self.checked_steps:            # (once per step: a co-simulation calls once per sample)
+            check_step_scaling(self.scheme, self.maps, dt)
+            self.checked_steps.add(dt)
         since = first_step if since_start is None else since_start
         return run_blocks(self._blocks, self._stride, self._step, self.store_every, np.asarray(state)[:, None],
                           np.asarray(held, dtype=float), dt, validation.integer("n_steps", n_steps, minimum=1),
