@@ -135,7 +135,7 @@ def test_a_failing_controller_beside_loops_keeps_the_loop_signals_in_its_partial
     for compiled in (True, None):
         with pytest.raises(SimulationError, match="controller broke") as info:
             ctmm.simulate(controlled, 0.1, 0.01, method="newmark", x0=x0, v0=v0, compiled=compiled,
-                          controllers=[Failing("b.omega", "h.torque")])
+                          references={"late": 0.1}, controllers=[Failing("b.omega", "h.torque")])
         failures.append(info.value.partial_result)
     generated, python = failures
     assert generated.time.tolist() == python.time.tolist() == [0.0, 0.01] and "lag.u" in python.signals()
