@@ -21,7 +21,10 @@ loop on every hinge (``u_i = -(20 angle_i + 2 rate_i)``, reference 0.3 rad on th
 generated Newton step vs the Python DT-TMM path with the same loops (``ctmm.simulate(ControlledModel(chain,
 loops), method=<scheme>)``, loops through its ``inputs`` hook), the same measures; error at ``T``: none (no
 independent reference here; ``tests/test_compiled_scene_schemes_loops.py`` has the Lagrange one); the same with
-every loop delayed by 2 ms (``chain_n5_delayed_pd_loops``, the ring; Wilson-theta refused).
+every loop delayed by 2 ms (``chain_n5_delayed_pd_loops``, the ring: samples, Wilson-theta between them), by
+2.5 ms (``chain_n5_fractional_pd_loops``: cubic Hermite between the samples, the rates stored), and delayed by
+2.5 ms with a co-simulated PID (``ctmm.controllers.PID``, 10 ms) on the last hinge beside the loops
+(``chain_n5_pd_loops_controller``: one call into C per sample interval, :mod:`ctmm.compiled_scheme_cosim`).
 Run ``python benchmarks/compiled_schemes_planar.py`` (``--loops``: the loops part alone, merged into the stored
 rows); writes ``benchmarks/results/compiled_schemes_planar.json``.
 """
@@ -172,25 +175,45 @@ def pd_chain(delay: float = 0.0):
     return ControlledModel(model, loops), dict.fromkeys(model.coordinates, 0.0)
 
 
-def measure_loops(delay: float = 0.0) -> list[dict]:
+def pid_controllers(with_controller: bool) -> list:
+    """A PID on the last hinge sampled every 10 ms (a new one per run: it has state), or none."""
+    if not with_controller:
+        return []
+    sys.path.insert(0, str(ROOT / "tests"))
+    from _controllers_import import load_controllers
+
+    return [load_controllers().PID("h4.angle", "h4.torque", sample_time=0.01, kp=5.0, ki=1.0, kd=0.5,
+                                   derivative_filter_time=0.005, reference=-0.2)]
+
+
+def measure_loops(delay: float = 0.0, with_controller: bool = False) -> list[dict]:
     import ctmm
     from ctmm.compiled_scheme_loops import CompiledSchemeLoops, simulate_scheme_loops_generated
 
     controlled, x0 = pd_chain(delay)
-    label = "chain_n5_pd_loops" if delay == 0.0 else "chain_n5_delayed_pd_loops"
+    label = {0.0: "chain_n5_pd_loops", 2 * DT: "chain_n5_delayed_pd_loops"}.get(delay, "chain_n5_fractional_pd_loops")
+    label = "chain_n5_pd_loops_controller" if with_controller else label
     q0 = v0 = np.zeros(controlled.plant.n_coordinates)
     references = {"pd_base": 0.3}
     rows = []
-    for scheme in SCHEMES if delay == 0.0 else [name for name in SCHEMES if name != "wilson_theta"]:
+    for scheme in SCHEMES:
         began = time.perf_counter()
-        compiled = CompiledSchemeLoops(controlled, scheme, references=references, dt=DT)
+        if with_controller:                 # ctmm.compiled_scheme_cosim: the kernel is built (or loaded) per run
+            def run():
+                return ctmm.simulate(controlled, T, DT, method=scheme, x0=x0, references=references, compiled=True,
+                                     controllers=pid_controllers(True), stability_check="ignore")
+            run()
+        else:
+            compiled = CompiledSchemeLoops(controlled, scheme, references=references, dt=DT)
+
+            def run():
+                return simulate_scheme_loops_generated(controlled, q0, v0, t_final=T, dt=DT, scheme=scheme,
+                                                       compiled=compiled, stability_check="ignore")
         first_call = time.perf_counter() - began
-        best = min((simulate_scheme_loops_generated(controlled, q0, v0, t_final=T, dt=DT, scheme=scheme,
-                                                    compiled=compiled, stability_check="ignore")
-                    for _ in range(3)), key=lambda run: run.info["wall_time_s"])
+        best = min((run() for _ in range(3)), key=lambda result: result.info["wall_time_s"])
         began = time.perf_counter()
         python = ctmm.simulate(controlled, PYTHON_STEPS * DT, DT, method=scheme, x0=x0, references=references,
-                               stability_check="ignore")
+                               stability_check="ignore", controllers=pid_controllers(with_controller))
         python_step = (time.perf_counter() - began) / PYTHON_STEPS
         row = result_row(label, scheme, best, python, list(controlled.plant.coordinates), first_call,
                          python_step, None)
@@ -201,14 +224,19 @@ def measure_loops(delay: float = 0.0) -> list[dict]:
     return rows
 
 
+def loop_rows() -> list[dict]:
+    """The loops part: real-time, delayed 2 ms, delayed 2.5 ms, delayed 2.5 ms with a co-simulated PID."""
+    return measure_loops() + measure_loops(2 * DT) + measure_loops(2.5 * DT) + measure_loops(2.5 * DT, True)
+
+
 def main() -> None:
     path = ROOT / "benchmarks" / "results" / "compiled_schemes_planar.json"
     if "--loops" in sys.argv[1:]:               # the loops part alone, the other stored rows kept
         kept = json.loads(path.read_text())["rows"] if path.exists() else []
-        rows = [row for row in kept if "pd_loops" not in row["model"]] + measure_loops() + measure_loops(2 * DT)
+        rows = [row for row in kept if "pd_loops" not in row["model"]] + loop_rows()
     else:
         rows = [row for name, case in models().items() for row in measure(name, *case)] + measure_spatial() + \
-            measure_loops() + measure_loops(2 * DT)
+            loop_rows()
     out = {"benchmark": "compiled_schemes_planar", "machine": platform.platform(),
            "python": platform.python_version(), "rows": rows}
     path.write_text(json.dumps(out, indent=2) + "\n")

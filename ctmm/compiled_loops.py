@@ -309,7 +309,8 @@ class ClosedLoops:
     actuators : sequence of str
         The actuator inputs ``u`` of the generated kernel, in order.
     dt : float or None
-        Step [s]; required with delayed loops (each delay a whole multiple of it).
+        Step [s]; required with delayed loops (each delay a whole multiple of it, unless ``whole_delays`` is False:
+        then any delay, ``steps`` 1, for a caller that keeps its own history, :mod:`ctmm.compiled_scheme_loops`).
     references : mapping, optional
         ``{loop name: number or symbolic signal}`` [sensed unit] (default 0).
     inputs : mapping, optional
@@ -346,7 +347,7 @@ class ClosedLoops:
 
     def __init__(self, controlled: ControlledModel, actuators: Sequence[str], dt: float | None = None,
                  references: Mapping[str, Any] | None = None, inputs: Mapping[str, Any] | None = None,
-                 symbols: Any = None, numbers: str = "constants") -> None:
+                 symbols: Any = None, numbers: str = "constants", whole_delays: bool = True) -> None:
         if not isinstance(controlled, ControlledModel) and symbols is None:   # (chains come with their symbols)
             raise ModelError(f"ClosedLoops: controlled must be a ctmm.control.ControlledModel, got {controlled!r}")
         if numbers not in ("constants", "inputs"):
@@ -374,8 +375,8 @@ class ClosedLoops:
             A, B, C, D = controller_realisation(loop)
             reference = symbolic_value(f"references[{loop.name!r}]", references.get(loop.name, 0.0))
             laws.append(LoopLaw(loop.name, tuple(loop.terms), tuple(loop.actuator_terms), A, B, C, D,
-                                float(loop.delay), delay_steps(loop.name, loop.delay, dt), reference,
-                                loop.saturation))
+                                float(loop.delay), delay_steps(loop.name, loop.delay, dt) if whole_delays else
+                                int(loop.delay > 0.0), reference, loop.saturation))
         self.laws = tuple(laws)
         symbols = PlanarSymbols(plant, ports) if symbols is None else symbols
         self.nq, self.nv = symbols.n_positions, symbols.n_velocities

@@ -325,20 +325,24 @@ class CompiledSceneScheme:
         self.tolerance, self.max_iterations, self.store_every, rows = newton_options(
             "CompiledSceneScheme", tolerance, max_iterations, store_every, rows)
         start = _time.perf_counter()
-        self.model = model
+        self.model, self.checked_steps = model, set()      # steps [s] check_step_scaling accepted
         self.maps = scheme_maps(self.scheme, 1.0)
         self.actuators = compiled_actuators(model)
         self.parameters = parameter_vector(model)
         acceleration = self.closed_acceleration()
         step = self._step_function(acceleration)
         name = f"scene_{model.n_bodies}b{model.n_coordinates}q_{self.scheme.name}" + ("_loops" if self.loops else "")
-        loop = compiled_time_loop(step, self.store_every, rows, name, extra=[acceleration],
+        loop = compiled_time_loop(step, self.store_every, rows, name, extra=[acceleration, *self.state_functions],
                                   cache_dir=cache_dir, compiler=compiler)
-        (self._acceleration,), self._step, self._stride, self._blocks = loop.extra, loop.step, loop.stride, loop.blocks
+        (self._acceleration, *more), self._step, self._stride, self._blocks = loop.extra, loop.step, loop.stride, \
+            loop.blocks
+        self.state_functions = tuple(more)
         self.compile_time_s = _time.perf_counter() - start
 
     loops: Any = None
     """The :class:`~ctmm.compiled_loops.ClosedLoops` closed in the step (:mod:`ctmm.compiled_scheme_loops`), or None."""
+    state_functions: tuple = ()
+    """Further casadi Functions of the library (a subclass's :meth:`closed_acceleration` sets them; compiled after)."""
     controller_size: int = 0
     """Entries of the generated state after :data:`STATUS` (a subclass's loop controller states; none here)."""
 
@@ -441,7 +445,9 @@ class CompiledSceneScheme:
         at a jump of a held input, :meth:`ctmm.schemes.Scheme.restart`); the failed-step status then counts from
         that restart."""
         dt = validation.positive("dt", dt)
-        check_step_scaling(self.scheme, self.maps, dt)
+        if dt not in self.checked_steps:            # (once per step: a co-simulation calls once per sample)
+            check_step_scaling(self.scheme, self.maps, dt)
+            self.checked_steps.add(dt)
         since = first_step if since_start is None else since_start
         return run_blocks(self._blocks, self._stride, self._step, self.store_every, np.asarray(state)[:, None],
                           np.asarray(held, dtype=float), dt, validation.integer("n_steps", n_steps, minimum=1),

@@ -17,8 +17,12 @@ Python stepper; Houbolt then runs its two start-up steps again, which keeps it a
 to its Newton tolerance (``tests/test_compiled_scheme_cosim.py``).
 
 Open-loop actuator ``inputs`` that are numbers are added to the held values (also without controllers: one call
-into C).  Refused (:class:`~ctmm.errors.ModelError`, by the verb or here): loops and references, inputs that are
-functions of time or signals (use ``compiled=None``), measurement delays
+into C).  Planar ``Feedback`` loops and references beside the controllers: the step is the one of
+:class:`~ctmm.compiled_scheme_loops.CompiledSchemeLoops` (loops inside Newton, delay ring; inputs may then also be
+symbolic signals, compiled in), restarted at the stored controller states and ring; equal to the Python path
+(``tests/test_compiled_scheme_delays.py``).  Refused (:class:`~ctmm.errors.ModelError`, by the verb or here): loops
+on spatial models, inputs that are functions of time or signals without loops (use ``compiled=None``), measurement
+delays
 (:class:`~ctmm.control.measurement_delay.DelayedController`), controller outputs the generated step does not drive
 (planar beam station loads; spatial: actuators that are not one-number inputs of the model, e.g. body-axis ports).
 """
@@ -31,8 +35,11 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from . import validation
-from .compiled_scene_schemes import CompiledSceneScheme, not_converged
+from .compiled_control import add_loop_signals
+from .compiled_scene_schemes import STATUS, CompiledSceneScheme, not_converged
+from .compiled_scheme_loops import CompiledSchemeLoops
 from .compiled_spatial_schemes import CompiledSpatialScheme, warn_conditionally_stable
+from .control.controlled_model import ControlledModel
 from .control.cosim import CoSimulation
 from .control.plants import plant_of
 from .errors import ModelError, SimulationError
@@ -51,7 +58,8 @@ __all__ = ["simulate_cosimulated_scheme_generated"]
 def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0: np.ndarray, v0: np.ndarray, *,
                                           t_final: float, dt: float, scheme: Scheme | str,
                                           controllers: Sequence[Any] = (), inputs: Mapping[str, Any] | None = None,
-                                          outputs: Sequence[str] = (),
+                                          outputs: Sequence[str] = (), loops: Sequence[Any] = (),
+                                          references: Mapping[str, Any] | None = None,
                                           coupling: str = "hold", store_every: int = 1, progress: bool | None = None,
                                           stability_check: str = "warn", divergence_bound: float | None = None,
                                           compiled: Any = None) -> SimulationResult:
@@ -71,7 +79,12 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
         Co-simulated controllers (validated by the caller, :func:`ctmm.control.protocol.check_controllers`) reading
         sensors and writing actuators of the model by name.
     inputs : mapping, optional
-        ``{actuator: number}`` held over the run [SI], added to the controllers' outputs on the same actuator.
+        ``{actuator: number}`` held over the run [SI], added to the controllers' outputs on the same actuator (with
+        ``loops``: also symbolic :mod:`ctmm.signals`, constants of the code).
+    loops, references : optional
+        Planar models: ``Feedback`` loops closed inside the generated Newton step and their references
+        (:class:`~ctmm.compiled_scheme_loops.CompiledSchemeLoops`: real-time, LTI, delayed), the controllers'
+        held outputs added to their actuator values.
     outputs, coupling, store_every, progress
         As in :func:`ctmm.compiled_cosim.simulate_cosimulated_generated` (stored sensors, the co-simulation's
         coupling policy, every ``store_every``-th step kept, a progress bar).
@@ -81,7 +94,8 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
     divergence_bound : float, optional
         As in :func:`ctmm.control.planar_time.simulate_closed_loop` (the plant's guard), every step.
     compiled : CompiledSceneScheme or CompiledSpatialScheme, optional
-        A kernel of this model and scheme with ``store_every=1`` (default: compiled here, cached on disk).
+        A kernel of this model and scheme with ``store_every=1`` (default: compiled here, cached on disk; with
+        ``loops``: always compiled here).
 
     Returns
     -------
@@ -115,7 +129,15 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
         for name in c.outputs:
             ports.check_actuator(name, f"output of {label}")
     kind = CompiledSceneScheme if planar else CompiledSpatialScheme
-    if compiled is None:
+    looped = bool(loops) or bool(references)
+    if looped:                  # loops inside the Newton step, the controllers' held outputs added to theirs
+        if not planar or compiled is not None:
+            raise ModelError("compiled=True with loops and co-simulated controllers together runs planar models, "
+                             f"compiled here (got a {type(model).__name__}, compiled={compiled!r}); use compiled=None")
+        controlled = ControlledModel(model, loops)
+        compiled = CompiledSchemeLoops(controlled, scheme, references=references, inputs=inputs, dt=dt)
+        signals_of, inputs = compiled.loops.signals(), None
+    elif compiled is None:
         compiled = kind(model, scheme)
     elif not isinstance(compiled, kind) or compiled.model is not model or compiled.scheme != scheme \
             or compiled.store_every != 1:
@@ -153,7 +175,8 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
 
     q0, v0 = np.asarray(q0, float), np.asarray(v0, float)
     if planar:
-        check_scheme(model, q0, v0, dt, scheme=scheme, policy=stability_check)
+        closed = (lambda _, q_k, v_k, t_k: compiled.accelerations(q_k, v_k, t_k)) if looped else None
+        check_scheme(model, q0, v0, dt, scheme=scheme, policy=stability_check, accelerations=closed)
     else:
         warn_conditionally_stable(model, scheme)
     sensors = [ports.resolve(list(c.inputs)) for c in controllers]
@@ -171,8 +194,14 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
         signals, units = plant.signals(t, block[:, :nq], block[:, nq:nq + nv], outputs)
         for name, samples in master.outputs(until=t[-1] if count else -math.inf).items():
             signals[name], units[name] = samples, ports.actuator_unit(name.split("@")[0])
-        return signal_result(SignalSystem(model, units, []), t, signals, label, {
-            **info, "wall_time_s": clock.perf_counter() - start, "controllers": master.describe(),
+        more = {}
+        if looped:
+            entries = compiled.signal_states(block[:, compiled.status_index + len(STATUS):], t)
+            more = add_loop_signals(controlled, compiled.loops, signals_of,
+                                    np.hstack([block[:, :nq + nv], entries]), t, signals, units)
+            more["loops"] = {law.name: "real-time" if law.steps == 0 else "history" for law in compiled.loops.laws}
+        return signal_result(SignalSystem(model, units, list(loops)), t, signals, label, {
+            **info, **more, "wall_time_s": clock.perf_counter() - start, "controllers": master.describe(),
             "intervals": intervals, "newton_iterations": int(block[-1, compiled.status_index + 2]) if count else 0})
 
     try:

@@ -219,7 +219,7 @@ class CompiledSpatialScheme:
             "CompiledSpatialScheme", tolerance, max_iterations, store_every, rows)
         start = clock.perf_counter()
         self.model = model
-        self.maps = scheme_maps(self.scheme, 1.0)
+        self.maps, self.checked_steps = scheme_maps(self.scheme, 1.0), set()       # steps the check accepted
         self.rates = SpatialRates(model, fold=False)
         from .model_description import describe       # what build() reads: a cached library loads without symbols
 
@@ -310,7 +310,9 @@ class CompiledSpatialScheme:
         ``first_step`` with the input vector ``held`` over them (:mod:`ctmm.compiled_scheme_cosim`); ``since_start``
         as :meth:`ctmm.compiled_scene_schemes.CompiledSceneScheme.continue_run`."""
         dt = validation.positive("dt", dt)
-        check_step_scaling(self.scheme, self.maps, dt)
+        if dt not in self.checked_steps:            # (once per step: a co-simulation calls once per sample)
+            check_step_scaling(self.scheme, self.maps, dt)
+            self.checked_steps.add(dt)
         since = first_step if since_start is None else since_start
         return run_blocks(self._blocks, self._stride, self._step, self.store_every, np.asarray(state)[:, None],
                           np.asarray(held, dtype=float), dt, validation.integer("n_steps", n_steps, minimum=1),

@@ -172,7 +172,7 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         (:func:`ctmm.compiled_scene_schemes.simulate_scheme_generated`), co-simulated controllers sampled between
         calls (:func:`ctmm.compiled_scheme_cosim.simulate_cosimulated_scheme_generated`), loops inside its Newton
         step (:func:`ctmm.compiled_scheme_loops.simulate_scheme_loops_generated`: real-time, LTI controller states,
-        delayed loops with ``delay = m dt``; not with Wilson-theta, not together with controllers); spatial, a
+        delayed loops, any delay; with controllers too, sampled between calls); spatial, a
         scheme without loops, references or port inputs: its Lie-group step in generated C
         (:func:`ctmm.compiled_spatial_schemes.simulate_spatial_scheme_generated`; controllers as for planar models).
         Default: numpy.
@@ -460,12 +460,11 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
         max_step = validation.positive("max_step", max_step)        # inf (no limit) is solve_ivp's default
     controlled = bool(loops) or bool(controllers) or bool(inputs) or bool(references)
     is_scheme = isinstance(method, Scheme) or (isinstance(method, str) and method in SCHEMES)
-    others = bool(loops) or bool(references)        # a generated scheme: controllers and inputs (numbers) only
-    if compiled and method != "rk4" and not (is_scheme and not (others and controllers)):
+    others = bool(loops) or bool(references)        # a generated scheme: loops in its Newton step
+    if compiled and method != "rk4" and not is_scheme:
         raise ModelError(f"compiled=True runs the generated RK4 of a planar model with its loops, inputs, references "
-                         f"and controllers, or a generated DT-TMM scheme with real-time loops, references and inputs "
-                         f"or with co-simulated controllers and inputs; got method={method!r} "
-                         f"{'with loops and controllers together ' if is_scheme else ''}(leave compiled at None)")
+                         f"and controllers, or a generated DT-TMM scheme with them; got method={method!r} "
+                         "(leave compiled at None)")
     adaptive_only = {"rtol": (rtol, 1e-8), "atol": (atol, 1e-10), "max_step": (max_step, None)}
     for name, (value, default) in adaptive_only.items():
         if value != default and method not in SCIPY_METHODS:
@@ -494,7 +493,7 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
 
         if dt is None:
             raise ModelError(f"dt is required with the DT-TMM scheme {method!r} (a fixed step [s], > 0), got None")
-        if others:                          # real-time loops inside the generated Newton step
+        if others and not controllers:      # loops inside the generated Newton step
             from .compiled_scheme_loops import simulate_scheme_loops_generated
             from .control.controlled_model import ControlledModel
 
@@ -505,7 +504,7 @@ def _simulate_planar(parts: tuple[PlanarModel, tuple], t_final: float, dt: float
         return simulate_cosimulated_scheme_generated(
             model, q0, v0, t_final=t_final, dt=dt, scheme=method, controllers=controllers, inputs=inputs,
             outputs=outputs, coupling=coupling, store_every=store_every, progress=progress, stability_check=policy,
-            divergence_bound=divergence_bound)
+            divergence_bound=divergence_bound, loops=loops, references=references)
     if compiled:
         if dt is None:
             raise ModelError("dt is required with method='rk4' (a fixed step [s], > 0), got None")
