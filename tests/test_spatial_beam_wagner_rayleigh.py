@@ -1,0 +1,217 @@
+"""Wagner term of torsion under tension and the section's rotary inertia in bending (Rayleigh beam) in the
+exact spatial beam fields (issue 15).
+
+References, none of them transfer matrices: the closed form of a uniform bar in torsion under constant
+tension, ``omega_n = (2n - 1) pi / (2L) sqrt((GJ + T I_p / A) / rho I_p)`` (clamped-free); a finite-element
+torsion bar written here (linear elements, the stiffness ``GJ + T(x) I_p / A`` of the linear tension of a
+hanging beam integrated exactly, consistent mass, tip inertia; ``h^2`` convergence, Richardson); the closed
+form of the simply supported Rayleigh beam under tension, ``EI k^4 + T k^2 = omega^2 (rho A + rho I k^2)``,
+``k = n pi / L``; a Hermite finite-element Rayleigh cantilever written here (consistent rotary inertia
+matrix); and the planar hanging-beam FE (``ctmm.reference.hanging_beam_fe``) for the count with preload.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.integrate
+import scipy.linalg
+
+import ctmm
+from ctmm.errors import ModelError
+from ctmm.reference.hanging_beam_fe import HangingBeam
+from ctmm.spatial_beam_elements import SpatialClamped, SpatialFree, SpatialRigidBody, SpatialSupport
+from ctmm.spatial_beam_fields import SpatialBeamField, SpatialVaryingTensionField
+from ctmm.system import Chain
+
+G = 9.81
+SECTION = dict(axial_stiffness=1.4e6, torsional_stiffness=0.05, bending_stiffness_y=120.0, bending_stiffness_z=480.0,
+               mass_per_length=2.0, polar_inertia_per_length=0.01)          # I_p / A = 0.005 m^2: a thin open section
+RADIUS2 = SECTION["polar_inertia_per_length"] / SECTION["mass_per_length"]
+
+
+def torsion_closed_form(length, stiffness, count):
+    return np.array([(2 * n - 1) * np.pi / (2 * length) * np.sqrt(stiffness / SECTION["polar_inertia_per_length"])
+                     for n in range(1, count + 1)])
+
+
+def nearest(found, wanted):
+    """Relative distance of every wanted frequency to the nearest one found."""
+    return np.array([np.min(np.abs(found - w)) / w for w in wanted])
+
+
+@pytest.mark.parametrize("tension", [40.0, -6.0])
+def test_a_cantilever_twists_with_the_wagner_stiffness_gj_plus_t_ip_over_a(tension):
+    L = 1.2
+    beam = SpatialBeamField("b", L, axial_force=tension, wagner_term=True, **SECTION)
+    chain = Chain("c", [SpatialClamped("root"), beam, SpatialFree("tip")])
+    omega = ctmm.natural_frequencies(chain, omega_max=60.0)
+    stiffness = SECTION["torsional_stiffness"] + tension * RADIUS2
+    wanted = torsion_closed_form(L, stiffness, 4)
+    assert np.max(nearest(omega, wanted)) < 1e-12                             # 2e-16 measured
+    plain = Chain("c", [SpatialClamped("root"), SpatialBeamField("b", L, axial_force=tension, **SECTION),
+                        SpatialFree("tip")])
+    without = torsion_closed_form(L, SECTION["torsional_stiffness"], 4)
+    assert np.max(nearest(ctmm.natural_frequencies(plain, omega_max=60.0), without)) < 1e-12
+    between = 0.5 * (without[0] + wanted[0])                                  # the first twist moved past it
+    difference = ctmm.eigenvalue_count(chain, [between])[0] - ctmm.eigenvalue_count(plain, [between])[0]
+    assert difference == (-1 if tension > 0 else 1)
+    # the count steps by one across each torsion frequency (no bending or axial root nearby)
+    counts = ctmm.eigenvalue_count(chain, np.concatenate([wanted * (1 - 1e-9), wanted * (1 + 1e-9)]))
+    np.testing.assert_array_equal(counts[4:] - counts[:4], 1)
+
+
+def test_compression_beyond_the_torsional_buckling_load_is_refused_by_name():
+    buckling = SECTION["torsional_stiffness"] / RADIUS2                      # T = -GJ A / I_p = -10 N
+    with pytest.raises(ModelError, match=r"'?b'?: the compression 12 N with wagner_term .*\(torsional buckling\)"):
+        SpatialBeamField("b", 1.0, axial_force=-1.2 * buckling, wagner_term=True, **SECTION)
+    SpatialBeamField("b", 1.0, axial_force=-1.2 * buckling, **SECTION)      # Saint-Venant torsion alone: accepted
+    with pytest.raises(ModelError, match=r"b: the compression .* wagner_term"):
+        SpatialVaryingTensionField("b", 1.0, inboard_tension=5.0, outboard_tension=-1.2 * buckling, wagner_term=True,
+                                   **SECTION)
+    with pytest.raises(ModelError, match="wagner_term must be True or False"):
+        SpatialBeamField("b", 1.0, wagner_term=1, **SECTION)
+    with pytest.raises(ModelError, match="rotary_inertia_per_length_y"):
+        SpatialBeamField("b", 1.0, rotary_inertia_per_length_y=-1e-3, **SECTION)
+
+
+def torsion_fe(length, tip_mass, tip_inertia, elements, torsional_stiffness=SECTION["torsional_stiffness"]):
+    """Hanging torsion bar: linear elements, ``K(x) = GJ + T(x) I_p / A`` with ``T(x) = g (M + rhoA (L - x))``
+    (linear, so the element integral ``int K / h^2`` is exactly ``K(x_mid) / h``), consistent mass, the
+    tip body's axial inertia on the last node, root clamped."""
+    h, rho = length / elements, SECTION["polar_inertia_per_length"]
+    K, M = np.zeros((elements + 1,) * 2), np.zeros((elements + 1,) * 2)
+    for e in range(elements):
+        middle = (e + 0.5) * h
+        tension = G * (tip_mass + SECTION["mass_per_length"] * (length - middle))
+        k = (torsional_stiffness + tension * RADIUS2) / h
+        K[e:e + 2, e:e + 2] += k * np.array([[1.0, -1.0], [-1.0, 1.0]])
+        M[e:e + 2, e:e + 2] += rho * h / 6 * np.array([[2.0, 1.0], [1.0, 2.0]])
+    M[-1, -1] += tip_inertia
+    return np.sqrt(scipy.linalg.eigh(K[1:, 1:], M[1:, 1:], eigvals_only=True))
+
+
+def test_a_hanging_beam_twists_with_the_wagner_stiffness_of_its_varying_tension():
+    L, tip_mass, tip_inertia = 1.2, 0.5, (4e-3, 2e-3, 3e-3)
+    inboard, outboard = G * (tip_mass + SECTION["mass_per_length"] * L), G * tip_mass
+    field = SpatialVaryingTensionField("arm", L, inboard_tension=inboard, outboard_tension=outboard, wagner_term=True,
+                                       **SECTION)
+    chain = Chain("hanging", [SpatialClamped("root"), field, SpatialRigidBody("tip", tip_mass, tip_inertia),
+                              SpatialFree("end")])
+    omega = ctmm.natural_frequencies(chain, omega_max=40.0)
+    coarse, fine = torsion_fe(L, tip_mass, tip_inertia[0], 200)[:3], torsion_fe(L, tip_mass, tip_inertia[0], 400)[:3]
+    reference = fine + (fine - coarse) / 3.0                                  # h^2: Richardson
+    assert np.max(nearest(omega, reference)) < 1e-8                           # 1.3e-10 measured
+    plain = SpatialVaryingTensionField("arm", L, inboard_tension=inboard, outboard_tension=outboard, **SECTION)
+    plain_omega = ctmm.natural_frequencies(Chain("hanging", [SpatialClamped("root"), plain,
+                                                             SpatialRigidBody("tip", tip_mass, tip_inertia),
+                                                             SpatialFree("end")]), omega_max=5.0)
+    assert nearest(plain_omega, reference[:1])[0] > 0.3                      # without the term: 40 % off
+    # the Magnus torsion bar (theta_x, mx) against an ODE integration of its A(x, s), a damped s included
+    s = np.array([25.0j, 3.0 + 12.0j])
+    U = field.transfer_matrix(s)[:, [[3], [9]], [3, 9]]
+    for k, sk in enumerate(s):
+        def rate(x, z, sk=sk):
+            return (field.state_matrix_at(sk, x)[np.ix_([3, 9], [3, 9])] @ z.reshape(2, 2)).ravel()
+        solution = scipy.integrate.solve_ivp(rate, (0.0, L), np.eye(2, dtype=complex).ravel(), method="DOP853",
+                                             rtol=1e-13, atol=1e-13)
+        reference_U = solution.y[:, -1].reshape(2, 2)
+        assert np.abs(U[k] - reference_U).max() <= 5e-11 * np.abs(reference_U).max()
+
+
+RAYLEIGH = dict(SECTION, torsional_stiffness=250.0, polar_inertia_per_length=0.02,
+                rotary_inertia_per_length_y=0.006, rotary_inertia_per_length_z=0.014)
+
+
+def simply_supported(length, stiffness, rotary, tension, omega_max):
+    k = np.arange(1, 400) * np.pi / length
+    omega = np.sqrt((stiffness * k ** 4 + tension * k * k) / (RAYLEIGH["mass_per_length"] + rotary * k * k))
+    return omega[omega < omega_max]
+
+
+def test_a_simply_supported_rayleigh_beam_has_the_closed_form_frequencies_up_to_mode_sixty():
+    L, T, top = 1.5, 300.0, 5500.0
+    beam = SpatialBeamField("b", L, axial_force=T, **RAYLEIGH)
+    chain = Chain("ss", [SpatialSupport("a", ("ux", "uy", "uz", "theta_x")), beam, SpatialSupport("b_end", ("uy", "uz"))])
+    reference = np.concatenate([simply_supported(L, RAYLEIGH["bending_stiffness_y"], RAYLEIGH["rotary_inertia_per_length_y"],
+                                                 T, top),
+                                simply_supported(L, RAYLEIGH["bending_stiffness_z"], RAYLEIGH["rotary_inertia_per_length_z"],
+                                                 T, top)])
+    bars = [(2 * n - 1) * np.pi / (2 * L) * np.sqrt(stiffness / density) for n in range(1, 60)
+            for stiffness, density in ((RAYLEIGH["axial_stiffness"], RAYLEIGH["mass_per_length"]),
+                                       (RAYLEIGH["torsional_stiffness"], RAYLEIGH["polar_inertia_per_length"]))]
+    reference = np.sort(np.concatenate([reference, [b for b in bars if b < top]]))
+    assert len(reference) >= 60                      # 20 + 15 bending modes of the two planes, axial and twist
+    between = np.concatenate([[0.5 * reference[0]], 0.5 * (reference[1:] + reference[:-1]), [top]])
+    np.testing.assert_array_equal(ctmm.eigenvalue_count(chain, between), np.arange(len(between)))
+    omega = ctmm.natural_frequencies(chain, omega_max=top)
+    np.testing.assert_allclose(omega, reference, rtol=1e-12)                 # 5e-15 measured
+    euler_bernoulli = np.sqrt(RAYLEIGH["bending_stiffness_y"] * (20 * np.pi / L) ** 4 / RAYLEIGH["mass_per_length"])
+    assert euler_bernoulli > 1.5 * simply_supported(L, RAYLEIGH["bending_stiffness_y"],
+                                                    RAYLEIGH["rotary_inertia_per_length_y"], 0.0, np.inf)[19]
+
+
+def rayleigh_cantilever_fe(length, stiffness, rotary, tension, elements, count):
+    """Hermite cubic elements: bending, consistent mass, the consistent rotary inertia ``rho I / (30 h) [..]`` and
+    geometric stiffness ``T / (30 h) [..]`` (the same matrix of the slopes), clamped root, free tip."""
+    h, rho = length / elements, RAYLEIGH["mass_per_length"]
+    k = stiffness / h ** 3 * np.array([[12, 6 * h, -12, 6 * h], [6 * h, 4 * h * h, -6 * h, 2 * h * h],
+                                       [-12, -6 * h, 12, -6 * h], [6 * h, 2 * h * h, -6 * h, 4 * h * h]])
+    m = rho * h / 420 * np.array([[156, 22 * h, 54, -13 * h], [22 * h, 4 * h * h, 13 * h, -3 * h * h],
+                                  [54, 13 * h, 156, -22 * h], [-13 * h, -3 * h * h, -22 * h, 4 * h * h]])
+    slopes = np.array([[36, 3 * h, -36, 3 * h], [3 * h, 4 * h * h, -3 * h, -h * h],
+                       [-36, -3 * h, 36, -3 * h], [3 * h, -h * h, -3 * h, 4 * h * h]]) / (30 * h)
+    n = 2 * (elements + 1)
+    K, M = np.zeros((n, n)), np.zeros((n, n))
+    for e in range(elements):
+        dofs = slice(2 * e, 2 * e + 4)
+        K[dofs, dofs] += k + tension * slopes
+        M[dofs, dofs] += m + rotary * slopes
+    return np.sqrt(scipy.linalg.eigh(K[2:, 2:], M[2:, 2:], eigvals_only=True)[:count])
+
+
+def test_a_rayleigh_cantilever_under_tension_equals_the_finite_element_beam():
+    L, T = 1.1, 150.0
+    beam = SpatialBeamField("b", L, axial_force=T, **RAYLEIGH)
+    omega = ctmm.natural_frequencies(Chain("c", [SpatialClamped("root"), beam, SpatialFree("tip")]), omega_max=900.0)
+    for stiffness, rotary in ((RAYLEIGH["bending_stiffness_y"], RAYLEIGH["rotary_inertia_per_length_y"]),
+                              (RAYLEIGH["bending_stiffness_z"], RAYLEIGH["rotary_inertia_per_length_z"])):
+        coarse = rayleigh_cantilever_fe(L, stiffness, rotary, T, 40, 4)
+        fine = rayleigh_cantilever_fe(L, stiffness, rotary, T, 80, 4)
+        reference = fine + (fine - coarse) / 15.0                             # h^4: Richardson
+        reference = reference[reference < 900.0]
+        assert len(reference) >= 3
+        assert np.max(nearest(omega, reference)) < 1e-8                       # 1e-10 measured
+        euler = rayleigh_cantilever_fe(L, stiffness, 0.0, T, 80, 4)[:len(reference)]
+        assert np.min(nearest(omega, euler)) > 1e-3                          # rotary inertia lowers them
+
+
+def test_the_count_of_a_hanging_spatial_beam_equals_the_finite_element_count_at_several_omega():
+    """Counting with preload: the exact chain of a beam hanging in gravity with a tip body (varying tension in both
+    bending planes, the Wagner term in torsion) counts exactly the modes of the independent references below
+    each omega: the two planes' FE (``ctmm.reference.hanging_beam_fe``), the axial bar's and the FE torsion bar's."""
+    L, tip_mass, tip_inertia = 1.2, 0.5, (4e-3, 2e-3, 3e-3)
+    inboard, outboard = G * (tip_mass + SECTION["mass_per_length"] * L), G * tip_mass
+    section = dict(SECTION, torsional_stiffness=0.5)
+    chain = Chain("hanging", [SpatialClamped("root"),
+                              SpatialVaryingTensionField("arm", L, inboard_tension=inboard, outboard_tension=outboard,
+                                                         wagner_term=True, **section),
+                              SpatialRigidBody("tip", tip_mass, tip_inertia), SpatialFree("end")])
+    top = 300.0
+    reference = []
+    for stiffness, inertia in ((SECTION["bending_stiffness_z"], tip_inertia[2]),
+                               (SECTION["bending_stiffness_y"], tip_inertia[1])):
+        plane = HangingBeam(L, stiffness, SECTION["mass_per_length"], G, tip_mass, inertia)
+        coarse, fine = plane.natural_frequencies(16, 12), plane.natural_frequencies(32, 12)
+        reference += list(fine + (fine - coarse) / 15.0)
+    torsion = torsion_fe(L, tip_mass, tip_inertia[0], 800, section["torsional_stiffness"])
+    reference += list(torsion[torsion < top])
+    axial_k = np.sqrt(SECTION["mass_per_length"] / SECTION["axial_stiffness"])      # tip mass: K k cos kL = M w^2 sin kL
+    grid = np.linspace(1.0, top, 20001)
+    values = SECTION["axial_stiffness"] * axial_k * np.cos(axial_k * grid * L) - tip_mass * grid * np.sin(axial_k * grid * L)
+    reference += list(grid[:-1][np.sign(values[:-1]) != np.sign(values[1:])])
+    reference = np.sort(reference)
+    reference = reference[reference < top]
+    assert len(reference) >= 15
+    gaps = np.flatnonzero(np.diff(reference) > 2e-3 * reference[1:])          # omegas well between two modes
+    omega = 0.5 * (reference[gaps] + reference[gaps + 1])
+    np.testing.assert_array_equal(ctmm.eigenvalue_count(chain, omega), gaps + 1)
