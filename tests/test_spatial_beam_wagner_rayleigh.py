@@ -17,10 +17,11 @@ import scipy.integrate
 import scipy.linalg
 
 import ctmm
+from ctmm.elements.base import Element
 from ctmm.errors import ModelError
 from ctmm.reference.hanging_beam_fe import HangingBeam
 from ctmm.spatial_beam_elements import SpatialClamped, SpatialFree, SpatialRigidBody, SpatialSupport
-from ctmm.spatial_beam_fields import SpatialBeamField, SpatialVaryingTensionField
+from ctmm.spatial_beam_fields import SPATIAL_BEAM, SpatialBeamField, SpatialVaryingTensionField
 from ctmm.system import Chain
 
 G = 9.81
@@ -215,3 +216,38 @@ def test_the_count_of_a_hanging_spatial_beam_equals_the_finite_element_count_at_
     gaps = np.flatnonzero(np.diff(reference) > 2e-3 * reference[1:])          # omegas well between two modes
     omega = 0.5 * (reference[gaps] + reference[gaps + 1])
     np.testing.assert_array_equal(ctmm.eigenvalue_count(chain, omega), gaps + 1)
+
+
+class ArmOffThePreload(Element):
+    """A static force ``f0`` on an arm ``r`` of a rigid body turned by ``theta``: ``(theta x r) x f0`` in world-axes
+    rotations, ``m_out = m_in - (r f0^T - (r . f0) I) theta`` -- not symmetric unless ``r`` is along ``f0``."""
+
+    layout = SPATIAL_BEAM
+    is_point = True
+
+    def __init__(self, name, arm, force):
+        super().__init__(name)
+        self.matrix = np.outer(arm, force) - np.dot(arm, force) * np.eye(3)
+
+    def parameters(self):
+        return {}
+
+    def transfer_matrix(self, s):
+        s = np.asarray(s, dtype=complex)
+        U = np.broadcast_to(np.eye(12, dtype=complex), s.shape + (12, 12)).copy()
+        U[..., 9:12, 3:6] = -self.matrix
+        return U
+
+
+def test_a_preload_moment_off_the_arm_line_is_refused_by_the_count_and_along_it_is_counted():
+    beam = SpatialBeamField("b", 1.0, axial_force=20.0, **dict(SECTION, torsional_stiffness=0.5))
+    body = SpatialRigidBody("tip", 0.5, (4e-3, 2e-3, 3e-3))
+    along = Chain("along", [SpatialClamped("root"), beam, body, ArmOffThePreload("arm", (0.3, 0, 0), (4.9, 0, 0)),
+                            SpatialFree("end")])
+    assert ctmm.eigenvalue_count(along, [50.0])[0] > 0                       # symmetric: counted
+    off = Chain("off", [SpatialClamped("root"), beam, body, ArmOffThePreload("arm", (0.3, 0.1, 0), (4.9, 0, 0)),
+                        SpatialFree("end")])
+    with pytest.raises(ModelError, match=r"reciprocal \(symplectic\).*'arm'"):
+        ctmm.eigenvalue_count(off, [50.0])
+    with pytest.raises(ModelError, match=r"reciprocal \(symplectic\).*'arm'"):
+        ctmm.natural_frequencies(off, n_modes=3)
