@@ -15,12 +15,13 @@ import numpy as np
 import pytest
 import scipy.integrate
 import scipy.linalg
+from scipy.spatial.transform import Rotation
 
 import ctmm
 from ctmm.elements.base import Element
 from ctmm.errors import ModelError
 from ctmm.reference.hanging_beam_fe import HangingBeam
-from ctmm.spatial_beam_elements import SpatialClamped, SpatialFree, SpatialRigidBody, SpatialSupport
+from ctmm.spatial_beam_elements import SpatialClamped, SpatialFree, SpatialPointLoad, SpatialRigidBody, SpatialSupport
 from ctmm.spatial_beam_fields import SPATIAL_BEAM, SpatialBeamField, SpatialVaryingTensionField
 from ctmm.system import Chain
 
@@ -59,6 +60,21 @@ def test_a_cantilever_twists_with_the_wagner_stiffness_gj_plus_t_ip_over_a(tensi
     # the count steps by one across each torsion frequency (no bending or axial root nearby)
     counts = ctmm.eigenvalue_count(chain, np.concatenate([wanted * (1 - 1e-9), wanted * (1 + 1e-9)]))
     np.testing.assert_array_equal(counts[4:] - counts[:4], 1)
+
+
+def test_the_field_with_wagner_term_and_rotary_inertia_is_the_exponential_of_its_system_matrix():
+    """``U = expm(A L)`` of ``state_matrix`` (a turned, damped beam; the closed-form torsion bar and the planes
+    placed in the right rows), and symplectic undamped."""
+    turn = Rotation.from_euler("zyx", [0.3, -0.2, 0.5]).as_matrix()
+    beam = SpatialBeamField("b", 0.9, axial_force=25.0, wagner_term=True, loss_factor=0.02, kelvin_voigt_time=1e-4,
+                            viscous_damping=0.3, torsional_damping=0.01, rotation=turn, **dict(RAYLEIGH, torsional_stiffness=3.0))
+    for s in (3j, 2 + 40j, 200j, -150j):
+        U, E = beam.field_matrix(np.array([s]))[0], scipy.linalg.expm(beam.state_matrix(s) * 0.9)
+        assert np.abs(U - E).max() <= 1e-13 * np.abs(E).max()                # 1.3e-15 measured
+    undamped = SpatialBeamField("u", 0.9, axial_force=25.0, wagner_term=True, rotation=turn, **RAYLEIGH)
+    U = undamped.field_matrix(np.array([50j])).real[0]
+    J = np.block([[np.zeros((6, 6)), np.eye(6)], [-np.eye(6), np.zeros((6, 6))]])
+    assert np.abs(U.T @ J @ U - J).max() <= 1e-12 * np.abs(U).max() ** 2
 
 
 def test_compression_beyond_the_torsional_buckling_load_is_refused_by_name():
@@ -151,7 +167,7 @@ def test_a_simply_supported_rayleigh_beam_has_the_closed_form_frequencies_up_to_
                                                     RAYLEIGH["rotary_inertia_per_length_y"], 0.0, np.inf)[19]
 
 
-def rayleigh_cantilever_fe(length, stiffness, rotary, tension, elements, count):
+def rayleigh_cantilever_fe(length, stiffness, rotary, tension, elements, count, omega=None):
     """Hermite cubic elements: bending, consistent mass, the consistent rotary inertia ``rho I / (30 h) [..]`` and
     geometric stiffness ``T / (30 h) [..]`` (the same matrix of the slopes), clamped root, free tip."""
     h, rho = length / elements, RAYLEIGH["mass_per_length"]
@@ -167,6 +183,10 @@ def rayleigh_cantilever_fe(length, stiffness, rotary, tension, elements, count):
         dofs = slice(2 * e, 2 * e + 4)
         K[dofs, dofs] += k + tension * slopes
         M[dofs, dofs] += m + rotary * slopes
+    if omega is not None:                                                     # tip receptance [m/N]
+        force = np.zeros(n - 2)
+        force[-2] = 1.0
+        return np.array([np.linalg.solve(K[2:, 2:] - w * w * M[2:, 2:], force)[-2] for w in omega])
     return np.sqrt(scipy.linalg.eigh(K[2:, 2:], M[2:, 2:], eigvals_only=True)[:count])
 
 
@@ -184,6 +204,14 @@ def test_a_rayleigh_cantilever_under_tension_equals_the_finite_element_beam():
         assert np.max(nearest(omega, reference)) < 1e-8                       # 1e-10 measured
         euler = rayleigh_cantilever_fe(L, stiffness, 0.0, T, 80, 4)[:len(reference)]
         assert np.min(nearest(omega, euler)) > 1e-3                          # rotary inertia lowers them
+    # tip receptance of the x-y plane (uy per fy; EI_z, rho I_z) between and above its resonances
+    chain = Chain("c", [SpatialClamped("root"), *beam.split(beam.pieces_for(800.0)), SpatialPointLoad("tip_load"),
+                        SpatialFree("tip")])
+    w = np.array([30.0, 250.0, 800.0])
+    frf = ctmm.frequency_response(chain, w, input="tip_load.fy", output="tip_load.uy")
+    coarse, fine = (rayleigh_cantilever_fe(L, RAYLEIGH["bending_stiffness_z"], RAYLEIGH["rotary_inertia_per_length_z"], T,
+                                           n, 0, omega=w) for n in (40, 80))
+    np.testing.assert_allclose(frf("tip_load.uy", "tip_load.fy"), fine + (fine - coarse) / 15.0, rtol=1e-7)
 
 
 def test_the_count_of_a_hanging_spatial_beam_equals_the_finite_element_count_at_several_omega():
