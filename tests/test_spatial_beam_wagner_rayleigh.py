@@ -279,3 +279,48 @@ def test_a_preload_moment_off_the_arm_line_is_refused_by_the_count_and_along_it_
         ctmm.eigenvalue_count(off, [50.0])
     with pytest.raises(ModelError, match=r"reciprocal \(symplectic\).*'arm'"):
         ctmm.natural_frequencies(off, n_modes=3)
+
+
+DOWN = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])      # beam x along world -z
+
+
+def hanging_model(twist_modes, wagner_term=True):
+    import ctmm.spatial as sp
+
+    return sp.SpatialModel("hanging", [
+        sp.SpatialBeam("arm", length=1.2, mass_per_length=SECTION["mass_per_length"],
+                       bending_stiffness_y=SECTION["bending_stiffness_y"], bending_stiffness_z=SECTION["bending_stiffness_z"],
+                       torsional_stiffness=SECTION["torsional_stiffness"],
+                       polar_inertia_per_length=SECTION["polar_inertia_per_length"], n_modes_y=1, n_modes_z=1,
+                       n_torsion_modes=twist_modes, static_shapes=True, wagner_term=wagner_term),
+        sp.Weld(name="root", parent=None, child="arm", rotation=DOWN),
+        sp.SpatialBody("tip", 0.5, np.diag([4e-3, 2e-3, 3e-3])),
+        sp.Weld(name="grip", parent="arm", child="tip", point="tip")], gravity=(0.0, 0.0, -G))
+
+
+def test_the_modal_beam_hanging_with_the_wagner_term_converges_from_above_to_the_exact_field_and_the_fe():
+    """The modal beam's twist stiffened by its gravity tension (global linearisation about the hanging equilibrium)
+    and its exact-field form (``fields="exact"`` passes the term on) against the FE torsion bar."""
+    from ctmm.compiled_spatial_beam_numbers import beam_numbers
+
+    coarse, fine = torsion_fe(1.2, 0.5, 4e-3, 200)[:2], torsion_fe(1.2, 0.5, 4e-3, 400)[:2]
+    reference = fine + (fine - coarse) / 3.0
+    exact = ctmm.natural_frequencies(hanging_model(2), omega_max=15.0, fields="exact")
+    assert np.max(nearest(exact, reference)) < 1e-8                          # 4e-11 measured
+    errors = []
+    for modes in (1, 2, 4):
+        omega = ctmm.natural_frequencies(hanging_model(modes), n_modes=3)
+        twist = np.array([omega[np.argmin(np.abs(omega - r))] for r in reference])
+        errors.append(twist / reference - 1)
+    errors = np.array(errors)
+    assert np.all(errors > 0) and np.all(np.diff(errors, axis=0) < 0)        # from above, monotonically
+    assert np.max(errors[-1]) < 5e-4                                          # 1.5e-5, 2.2e-4 measured
+    plain = ctmm.natural_frequencies(hanging_model(2, wagner_term=False), n_modes=1)
+    assert plain[0] < 0.7 * reference[0]                                      # the term: 2.22 -> 3.72 rad/s
+    numbers = [attribute for attribute, _, _ in beam_numbers(hanging_model(2).bodies[0])]
+    assert "mass_per_length" not in numbers and "polar_inertia_per_length" not in numbers   # not linear in them
+    assert "mass_per_length" in [a for a, _, _ in beam_numbers(hanging_model(2, wagner_term=False).bodies[0])]
+    import ctmm.spatial as sp
+    with pytest.raises(ModelError, match="wagner_term=True needs geometric_stiffening=True"):
+        sp.SpatialBeam("arm", length=1.0, mass_per_length=1.0, bending_stiffness_y=1.0, bending_stiffness_z=1.0,
+                       geometric_stiffening=False, wagner_term=True)
