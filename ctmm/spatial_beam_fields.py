@@ -458,15 +458,9 @@ class SpatialVaryingTensionField(SpatialBeamField):
         ends = [self.wagner_stiffness(t) for t in self.end_tensions()]
         if ends[0] == ends[1]:
             return super()._torsion_matrix(s, factor)
-        q = self.polar_inertia_per_length * s * s
-        if not self.kelvin_voigt_time:
-            GJ = self.torsional_stiffness
-            return varying_bar_matrix(self.name, self.length, GJ + ends[0], GJ + ends[1], q, self.tolerance)
-        flat, stiffness, U = q.reshape(-1), (self.torsional_stiffness * factor).reshape(-1), []
-        for qk, GJ in zip(flat, stiffness):
-            U.append(varying_bar_matrix(self.name, self.length, GJ + ends[0], GJ + ends[1], np.array([qk]),
-                                        self.tolerance)[0])
-        return np.array(U).reshape(s.shape + (2, 2))
+        GJ = self.torsional_stiffness * np.broadcast_to(factor, s.shape)
+        return varying_bar_matrix(self.name, self.length, GJ + ends[0], GJ + ends[1],
+                                  self.polar_inertia_per_length * s * s, self.tolerance)
 
     def state_matrix(self, s: complex) -> np.ndarray:
         """Refused: ``A`` varies along the field (use :meth:`state_matrix_at`)."""

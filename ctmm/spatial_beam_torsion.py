@@ -35,6 +35,7 @@ stiffness.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -71,15 +72,16 @@ def bar_matrix(length: float, stiffness: np.ndarray, inertia_term: np.ndarray) -
     return U
 
 
-def _magnus(length: float, stiffness_in: complex, stiffness_out: complex, inertia_term: np.ndarray,
+def _magnus(length: float, stiffness_in: np.ndarray, stiffness_out: np.ndarray, inertia_term: np.ndarray,
             reference: float, steps: int) -> np.ndarray:
-    """``steps`` Magnus sub-steps; dimensionless matrices ``diag(1, reference / L)^-1 U diag(...)``."""
+    """``steps`` Magnus sub-steps (all arrays of one shape ``(B,)``); dimensionless matrices
+    ``diag(1, reference / L)^-1 U diag(...)``."""
     h = length / steps
     nodes = np.array([0.5 - math.sqrt(15.0) / 10.0, 0.5, 0.5 + math.sqrt(15.0) / 10.0])
     x = (np.arange(steps)[:, None] + nodes[None, :]) / steps                   # (steps, 3) in [0, 1]
-    K = stiffness_in + (stiffness_out - stiffness_in) * x
+    K = stiffness_in + (stiffness_out - stiffness_in) * x[..., None]           # (steps, 3, B)
     A = np.zeros((steps, 3) + inertia_term.shape + (2, 2), dtype=complex)      # h D_h^-1 A D_h
-    A[..., 0, 1] = (-reference / K)[..., None]
+    A[..., 0, 1] = -reference / K
     A[..., 1, 0] = -inertia_term * h * h / reference
     A1, A2, A3 = A[:, 0], A[:, 1], A[:, 2]
     a1, a2, a3 = A2, math.sqrt(15.0) / 3.0 * (A3 - A1), 10.0 / 3.0 * (A3 - 2.0 * A2 + A1)
@@ -103,19 +105,25 @@ def _bracket(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
     return X @ Y - Y @ X
 
 
-def varying_bar_matrix(name: str, length: float, stiffness_in: complex, stiffness_out: complex,
+def varying_bar_matrix(name: str, length: float, stiffness_in: Any, stiffness_out: Any,
                        inertia_term: np.ndarray, tolerance: float) -> np.ndarray:
     """Error-controlled field matrix ``(..., 2, 2)`` of a bar whose stiffness goes linearly from
-    ``stiffness_in`` to ``stiffness_out`` (module docstring).
+    ``stiffness_in`` to ``stiffness_out`` (module docstring; numbers, or arrays of ``inertia_term``'s shape
+    for a stiffness that depends on ``s``).
 
     Raises
     ------
     ModelError
         If :data:`MAX_SUB_STEPS` sub-steps do not reach ``tolerance`` (naming ``name``).
     """
-    q = np.asarray(inertia_term, dtype=complex)
-    reference = max(abs(stiffness_in), abs(stiffness_out))
-    softest = min(abs(stiffness_in), abs(stiffness_out))
+    shape = np.shape(inertia_term)
+    q = np.asarray(inertia_term, dtype=complex).reshape(-1)
+    stiffness_in = np.broadcast_to(np.asarray(stiffness_in, dtype=complex), shape).reshape(-1)
+    stiffness_out = np.broadcast_to(np.asarray(stiffness_out, dtype=complex), shape).reshape(-1)
+    if q.size == 0:
+        return np.broadcast_to(np.eye(2, dtype=complex), shape + (2, 2)).copy()
+    reference = float(max(np.max(np.abs(stiffness_in)), np.max(np.abs(stiffness_out))))
+    softest = float(min(np.min(np.abs(stiffness_in)), np.min(np.abs(stiffness_out))))
     wave = float(np.sqrt(np.max(np.abs(q), initial=0.0) / softest)) * length
     steps = max(2, math.ceil(wave / _STEP_LIMIT))
     if 2 * steps > MAX_SUB_STEPS:
@@ -128,7 +136,7 @@ def varying_bar_matrix(name: str, length: float, stiffness_in: complex, stiffnes
         error = float(np.max(np.abs(fine - coarse), initial=0.0)) / 63.0
         size = max(1.0, float(np.max(np.abs(fine), initial=0.0)))
         if error <= tolerance * size:
-            return fine * scale
+            return (fine * scale).reshape(shape + (2, 2))
         if 2 * steps >= MAX_SUB_STEPS:
             raise ModelError(f"{name}: the varying torsion bar reaches an estimated relative error {error / size:.2e} "
                              f"> tolerance {tolerance:.1e} with {2 * steps} sub-steps; split the field (split(n))")

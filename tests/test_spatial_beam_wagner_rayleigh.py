@@ -123,7 +123,10 @@ def test_a_hanging_beam_twists_with_the_wagner_stiffness_of_its_varying_tension(
                                                              SpatialRigidBody("tip", tip_mass, tip_inertia),
                                                              SpatialFree("end")]), omega_max=5.0)
     assert nearest(plain_omega, reference[:1])[0] > 0.3                      # without the term: 40 % off
-    # the Magnus torsion bar (theta_x, mx) against an ODE integration of its A(x, s), a damped s included
+    # the Magnus torsion bar (theta_x, mx) against an ODE integration of its A(x, s), a damped s and a
+    # Kelvin-Voigt field (GJ (1 + tau s) + T(x) I_p / A) included
+    field = SpatialVaryingTensionField("arm", L, inboard_tension=inboard, outboard_tension=outboard, wagner_term=True,
+                                       kelvin_voigt_time=0.02, **SECTION)
     s = np.array([25.0j, 3.0 + 12.0j])
     U = field.transfer_matrix(s)[:, [[3], [9]], [3, 9]]
     for k, sk in enumerate(s):
