@@ -43,9 +43,12 @@ Damping: a structural loss factor ``eta`` and a Kelvin-Voigt time ``tau`` multip
 (``EA, GJ, EI_y, EI_z``) by ``1 + i eta sgn(Im s) + tau s``; ``c_v`` [N s/m^2] is external viscous
 damping of the translations, ``c_t`` [N m s/m] of the twist.  A beam turned by ``rotation`` (local
 to chain axes, its local ``x`` is ``rotation[:, 0]``) has ``U = R4 U_local R4^T``,
-``R4 = diag(R, R, R, R)``.  Not modelled: shear deformation and rotary inertia of bending
-(Timoshenko), the tension's effect on torsion (Wagner), warping, the axial-bending coupling of
-an unsymmetric section (the section's principal axes are the local ``y``, ``z``).
+``R4 = diag(R, R, R, R)``.  Optional: the tension's effect on torsion (Wagner, ``wagner_term``:
+``GJ -> GJ + T I_p / A``, :mod:`ctmm.spatial_beam_torsion`) and the section's rotary inertia in
+bending (Rayleigh, ``rotary_inertia_per_length_y/z``: ``T -> T + rho I s^2`` in the moment equation,
+:mod:`ctmm.spatial_beam_rayleigh`).  Not modelled: shear deformation (Timoshenko), warping, the
+axial-bending coupling of an unsymmetric section (the section's principal axes are the local ``y``,
+``z``).
 
 :class:`SpatialVaryingTensionField`: the same field with a tension varying linearly along it (a beam
 hanging or standing in gravity); its bending planes are error-controlled Magnus fields
@@ -177,7 +180,7 @@ class SpatialBeamField(Element):
         for a homogeneous section).
     axial_force : float, optional
         Constant tension ``T`` [N] (negative: compression); geometric stiffening of both
-        bending planes.
+        bending planes (and of the twist with ``wagner_term``).
     loss_factor : float, optional
         Structural loss factor ``eta >= 0`` on every stiffness (exact for ``s = i omega``).
     kelvin_voigt_time : float, optional
