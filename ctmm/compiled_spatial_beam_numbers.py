@@ -56,6 +56,8 @@ def beam_numbers(beam: Any) -> list[tuple[str, str, float]]:
         direction = next((d for d, name in _DIRECTIONS if name == attribute), None)
         if value is None or float(value) == 0.0 or (direction is not None and not counts[direction]):
             continue
+        if getattr(beam, "wagner_term", False) and attribute in ("mass_per_length", "polar_inertia_per_length"):
+            continue          # the Wagner block (j_p / rhoA) N is not linear in them: compiled as constants
         out.append((attribute, unit, float(value)))
     return out
 

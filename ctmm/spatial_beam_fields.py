@@ -43,9 +43,12 @@ Damping: a structural loss factor ``eta`` and a Kelvin-Voigt time ``tau`` multip
 (``EA, GJ, EI_y, EI_z``) by ``1 + i eta sgn(Im s) + tau s``; ``c_v`` [N s/m^2] is external viscous
 damping of the translations, ``c_t`` [N m s/m] of the twist.  A beam turned by ``rotation`` (local
 to chain axes, its local ``x`` is ``rotation[:, 0]``) has ``U = R4 U_local R4^T``,
-``R4 = diag(R, R, R, R)``.  Not modelled: shear deformation and rotary inertia of bending
-(Timoshenko), the tension's effect on torsion (Wagner), warping, the axial-bending coupling of
-an unsymmetric section (the section's principal axes are the local ``y``, ``z``).
+``R4 = diag(R, R, R, R)``.  Optional: the tension's effect on torsion (Wagner, ``wagner_term``:
+``GJ -> GJ + T I_p / A``, :mod:`ctmm.spatial_beam_torsion`) and the section's rotary inertia in
+bending (Rayleigh, ``rotary_inertia_per_length_y/z``: ``T -> T + rho I s^2`` in the moment equation,
+:mod:`ctmm.spatial_beam_rayleigh`).  Not modelled: shear deformation (Timoshenko), warping, the
+axial-bending coupling of an unsymmetric section (the section's principal axes are the local ``y``,
+``z``).
 
 :class:`SpatialVaryingTensionField`: the same field with a tension varying linearly along it (a beam
 hanging or standing in gravity); its bending planes are error-controlled Magnus fields
@@ -70,6 +73,8 @@ from .elements.bending import laplace_array
 from .elements.bending_preload import DEFAULT_TOLERANCE, VaryingTensionBeamField
 from .errors import ModelError
 from .layouts import StateLayout
+from .spatial_beam_rayleigh import RayleighPlane
+from .spatial_beam_torsion import bar_matrix, clamped_bar_count, varying_bar_matrix
 
 __all__ = ["SPATIAL_BEAM", "SpatialBeamField", "SpatialVaryingTensionField", "spatial_beam_state_matrix",
            "rotation_matrix_check",
@@ -112,7 +117,8 @@ def spatial_beam_state_matrix(s: complex, *, axial_stiffness: complex, torsional
                               bending_stiffness_y: complex, bending_stiffness_z: complex,
                               mass_per_length: float, polar_inertia_per_length: float,
                               axial_force: float = 0.0, viscous_damping: float = 0.0,
-                              torsional_damping: float = 0.0) -> np.ndarray:
+                              torsional_damping: float = 0.0, rotary_inertia_y: float = 0.0,
+                              rotary_inertia_z: float = 0.0) -> np.ndarray:
     """System matrix ``A`` (12 x 12) of ``z' = A z`` in the beam's local frame, one ``s``.
 
     Parameters
@@ -120,7 +126,8 @@ def spatial_beam_state_matrix(s: complex, *, axial_stiffness: complex, torsional
     s : complex
         Laplace variable [1/s].
     axial_stiffness, torsional_stiffness, bending_stiffness_y, bending_stiffness_z : complex
-        Effective ``EA*`` [N], ``GJ*`` [N m^2], ``EI_y*``, ``EI_z*`` [N m^2].
+        Effective ``EA*`` [N], ``GJ*`` [N m^2] (with the Wagner term ``T I_p / A`` when wanted),
+        ``EI_y*``, ``EI_z*`` [N m^2].
     mass_per_length : float
         ``rhoA`` [kg/m].
     polar_inertia_per_length : float
@@ -129,6 +136,9 @@ def spatial_beam_state_matrix(s: complex, *, axial_stiffness: complex, torsional
         Tension ``T`` [N] (negative: compression).
     viscous_damping, torsional_damping : float
         ``c_v`` [N s/m^2], ``c_t`` [N m s/m].
+    rotary_inertia_y, rotary_inertia_z : float
+        ``rho I_y``, ``rho I_z`` [kg m]: section rotary inertia of bending about the local y (x-z plane)
+        and z (x-y plane) axes (Rayleigh beam, :mod:`ctmm.spatial_beam_rayleigh`; 0: Euler-Bernoulli).
     """
     q = mass_per_length * s * s + viscous_damping * s
     q_t = polar_inertia_per_length * s * s + torsional_damping * s
@@ -142,35 +152,9 @@ def spatial_beam_state_matrix(s: complex, *, axial_stiffness: complex, torsional
     A[5, 11] = -1 / bending_stiffness_z
     A[6, 0] = A[7, 1] = A[8, 2] = -q
     A[9, 3] = -q_t
-    A[10, 8], A[10, 4] = 1.0, -T          # my' = fz - T theta_y
-    A[11, 7], A[11, 5] = -1.0, -T         # mz' = -fy - T theta_z
+    A[10, 8], A[10, 4] = 1.0, -T - rotary_inertia_y * s * s     # my' = fz - (T + rhoI_y s^2) theta_y
+    A[11, 7], A[11, 5] = -1.0, -T - rotary_inertia_z * s * s    # mz' = -fy - (T + rhoI_z s^2) theta_z
     return A
-
-
-def _cosh_sinhc(z2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``cosh z`` and ``sinh z / z`` from ``z^2`` (both even in ``z``; Taylor series for small ``|z|``)."""
-    z = np.sqrt(z2.astype(complex))
-    small = np.abs(z) < 1e-3
-    zs = np.where(small, 1.0, z)
-    cosh = np.where(small, 1 + z2 / 2 + z2 * z2 / 24, np.cosh(zs))
-    sinhc = np.where(small, 1 + z2 / 6 + z2 * z2 / 120, np.sinh(zs) / zs)
-    return cosh, sinhc
-
-
-def _bar(length: float, stiffness: np.ndarray, inertia_term: np.ndarray) -> np.ndarray:
-    """Field matrix ``(..., 2, 2)`` of ``[y; f]' = [[0, -1/K], [-q, 0]] [y; f]`` over the length."""
-    ch, shc = _cosh_sinhc(inertia_term / stiffness * length * length)
-    U = np.empty(np.shape(ch) + (2, 2), dtype=complex)
-    U[..., 0, 0] = U[..., 1, 1] = ch
-    U[..., 0, 1] = -length * shc / stiffness
-    U[..., 1, 0] = -inertia_term * length * shc
-    return U
-
-
-def _clamped_bar_count(length: float, stiffness: float, density: float, omega: np.ndarray) -> np.ndarray:
-    """Clamped-clamped natural frequencies ``n pi / L sqrt(K / rho)`` (n >= 1) strictly below ``omega``."""
-    x = omega * length / (math.pi * math.sqrt(stiffness / density))
-    return np.maximum(np.ceil(x) - 1, 0).astype(np.int64)
 
 
 class SpatialBeamField(Element):
@@ -196,7 +180,7 @@ class SpatialBeamField(Element):
         for a homogeneous section).
     axial_force : float, optional
         Constant tension ``T`` [N] (negative: compression); geometric stiffening of both
-        bending planes.
+        bending planes (and of the twist with ``wagner_term``).
     loss_factor : float, optional
         Structural loss factor ``eta >= 0`` on every stiffness (exact for ``s = i omega``).
     kelvin_voigt_time : float, optional
@@ -207,6 +191,14 @@ class SpatialBeamField(Element):
         External viscous damping of the twist ``c_t >= 0`` [N m s/m].
     rotation : array_like (3, 3), optional
         Local to chain axes (default identity: the beam lies along the chain's ``x``).
+    wagner_term : bool, optional
+        Torsion stiffened by the tension (Wagner): ``GJ + T I_p / A`` with ``I_p / A`` [m^2] taken as
+        ``polar_inertia_per_length / mass_per_length`` (a homogeneous, doubly symmetric section;
+        derivation in :mod:`ctmm.spatial_beam_torsion`).  Default False (Saint-Venant torsion only).
+    rotary_inertia_per_length_y, rotary_inertia_per_length_z : float, optional
+        Section rotary inertia ``rho I_y``, ``rho I_z`` >= 0 [kg m] of bending about the local y (x-z
+        plane) and z (x-y plane) axes: a Rayleigh beam (:mod:`ctmm.spatial_beam_rayleigh`); default 0
+        (Euler-Bernoulli).  For a homogeneous section ``rho I_y + rho I_z = polar_inertia_per_length``.
 
     Notes
     -----
@@ -224,7 +216,8 @@ class SpatialBeamField(Element):
                  bending_stiffness_y: float, bending_stiffness_z: float, mass_per_length: float,
                  polar_inertia_per_length: float, axial_force: float = 0.0, loss_factor: float = 0.0,
                  kelvin_voigt_time: float = 0.0, viscous_damping: float = 0.0, torsional_damping: float = 0.0,
-                 rotation: Any = None) -> None:
+                 rotation: Any = None, wagner_term: bool = False, rotary_inertia_per_length_y: float = 0.0,
+                 rotary_inertia_per_length_z: float = 0.0) -> None:
         super().__init__(name)
         self.length = validation.positive(f"{name}: length", length)
         self.axial_stiffness = validation.positive(f"{name}: axial_stiffness", axial_stiffness)
@@ -240,12 +233,43 @@ class SpatialBeamField(Element):
         self.viscous_damping = validation.nonnegative(f"{name}: viscous_damping", viscous_damping)
         self.torsional_damping = validation.nonnegative(f"{name}: torsional_damping", torsional_damping)
         self.rotation = np.eye(3) if rotation is None else rotation_matrix_check(f"{name}: rotation", rotation)
+        if not isinstance(wagner_term, (bool, np.bool_)):
+            raise ModelError(f"{name}: wagner_term must be True or False, got {wagner_term!r}")
+        self.wagner_term = bool(wagner_term)
+        self.rotary_inertia_per_length_y = validation.nonnegative(f"{name}: rotary_inertia_per_length_y",
+                                                                  rotary_inertia_per_length_y)
+        self.rotary_inertia_per_length_z = validation.nonnegative(f"{name}: rotary_inertia_per_length_z",
+                                                                  rotary_inertia_per_length_z)
+        self._check_torsional_stiffness()
         damping = {"loss_factor": self.loss_factor, "kelvin_voigt_time": self.kelvin_voigt_time,
                    "viscous_damping": self.viscous_damping}
-        self._planes = tuple(BeamField(f"{name}__{plane}", self.length, stiffness, self.mass_per_length,
-                                       axial_force=self.axial_force, **damping)
-                             for plane, stiffness in (("xy", self.bending_stiffness_z),
-                                                      ("xz", self.bending_stiffness_y)))
+        self._planes = tuple(
+            RayleighPlane(self.length, stiffness, self.mass_per_length, rotary, axial_force=self.axial_force, **damping)
+            if rotary else BeamField(f"{name}__{plane}", self.length, stiffness, self.mass_per_length,
+                                     axial_force=self.axial_force, **damping)
+            for plane, stiffness, rotary in (("xy", self.bending_stiffness_z, self.rotary_inertia_per_length_z),
+                                             ("xz", self.bending_stiffness_y, self.rotary_inertia_per_length_y)))
+
+    def end_tensions(self) -> tuple[float, float]:
+        """Axial tension [N] at the inboard and the outboard end."""
+        return self.axial_force, self.axial_force
+
+    def wagner_stiffness(self, tension: float) -> float:
+        """The Wagner term ``T I_p / A`` [N m^2] at the tension ``T`` [N] (0 without ``wagner_term``)."""
+        if not self.wagner_term:
+            return 0.0
+        return tension * self.polar_inertia_per_length / self.mass_per_length
+
+    def torsional_stiffness_at_ends(self) -> tuple[float, float]:
+        """Undamped torsion-bar stiffness ``GJ + T I_p / A`` [N m^2] at the inboard and outboard end."""
+        return tuple(self.torsional_stiffness + self.wagner_stiffness(t) for t in self.end_tensions())
+
+    def _check_torsional_stiffness(self) -> None:
+        for tension, stiffness in zip(self.end_tensions(), self.torsional_stiffness_at_ends()):
+            if stiffness <= 0.0:
+                raise ModelError(f"{self.name}: the compression {-tension:.6g} N with wagner_term makes the torsional "
+                                 f"stiffness GJ + T I_p / A = {stiffness:.6g} N m^2 <= 0 (torsional buckling); the "
+                                 "straight beam is no equilibrium to vibrate about")
 
     # -- parameters --------------------------------------------------------------------
     def parameters(self) -> dict[str, Any]:
@@ -255,7 +279,9 @@ class SpatialBeamField(Element):
                 "polar_inertia_per_length": self.polar_inertia_per_length, "axial_force": self.axial_force,
                 "loss_factor": self.loss_factor, "kelvin_voigt_time": self.kelvin_voigt_time,
                 "viscous_damping": self.viscous_damping, "torsional_damping": self.torsional_damping,
-                "rotation": self.rotation.tolist()}
+                "rotation": self.rotation.tolist(), "wagner_term": self.wagner_term,
+                "rotary_inertia_per_length_y": self.rotary_inertia_per_length_y,
+                "rotary_inertia_per_length_z": self.rotary_inertia_per_length_z}
 
     @property
     def is_conservative(self) -> bool:
@@ -272,12 +298,14 @@ class SpatialBeamField(Element):
         s = complex(s)
         factor = complex(self.stiffness_factor(s))
         A = spatial_beam_state_matrix(
-            s, axial_stiffness=self.axial_stiffness * factor, torsional_stiffness=self.torsional_stiffness * factor,
+            s, axial_stiffness=self.axial_stiffness * factor,
+            torsional_stiffness=self.torsional_stiffness * factor + self.wagner_stiffness(self.axial_force),
             bending_stiffness_y=self.bending_stiffness_y * factor,
             bending_stiffness_z=self.bending_stiffness_z * factor,
             mass_per_length=self.mass_per_length, polar_inertia_per_length=self.polar_inertia_per_length,
             axial_force=self.axial_force, viscous_damping=self.viscous_damping,
-            torsional_damping=self.torsional_damping)
+            torsional_damping=self.torsional_damping, rotary_inertia_y=self.rotary_inertia_per_length_y,
+            rotary_inertia_z=self.rotary_inertia_per_length_z)
         R4 = scipy.linalg.block_diag(*([self.rotation] * 4))
         return R4 @ A @ R4.T
 
@@ -312,9 +340,8 @@ class SpatialBeamField(Element):
         factor = self.stiffness_factor(s)
         L = self.length
         U = np.zeros(s.shape + (12, 12), dtype=complex)
-        axial = _bar(L, self.axial_stiffness * factor, self.mass_per_length * s * s + self.viscous_damping * s)
-        torsion = _bar(L, self.torsional_stiffness * factor,
-                       self.polar_inertia_per_length * s * s + self.torsional_damping * s)
+        axial = bar_matrix(L, self.axial_stiffness * factor, self.mass_per_length * s * s + self.viscous_damping * s)
+        torsion = self._torsion_matrix(s, factor)
         for index, block in ((AXIAL, axial), (TORSION, torsion)):
             U[..., np.array(index)[:, None], np.array(index)[None, :]] = block
         xy = self._planes[0].transfer_matrix(s)
@@ -326,15 +353,21 @@ class SpatialBeamField(Element):
         R4 = scipy.linalg.block_diag(*([self.rotation] * 4))
         return R4 @ U @ R4.T
 
+    def _torsion_matrix(self, s: np.ndarray, factor: np.ndarray) -> np.ndarray:
+        """Torsion bar ``(theta_x, mx)``, stiffness ``GJ* + T I_p / A`` (:mod:`ctmm.spatial_beam_torsion`)."""
+        return bar_matrix(self.length, self.torsional_stiffness * factor + self.wagner_stiffness(self.axial_force),
+                          self.polar_inertia_per_length * s * s + self.torsional_damping * s)
+
     def _wave_numbers(self, omega_max: float) -> list[float]:
         L, w = self.length, omega_max
         rho = self.mass_per_length
         numbers = [L * (rho * w * w / stiffness) ** 0.25
                    for stiffness in (self.bending_stiffness_y, self.bending_stiffness_z)]
         numbers += [w * L * math.sqrt(rho / self.axial_stiffness),
-                    w * L * math.sqrt(self.polar_inertia_per_length / self.torsional_stiffness)]
-        numbers += [math.sqrt(abs(self.axial_force) / stiffness) * L
-                    for stiffness in (self.bending_stiffness_y, self.bending_stiffness_z)]
+                    w * L * math.sqrt(self.polar_inertia_per_length / min(self.torsional_stiffness_at_ends()))]
+        tension = max(abs(t) for t in self.end_tensions())
+        numbers += [math.sqrt(tension / stiffness) * L for stiffness in (self.bending_stiffness_y, self.bending_stiffness_z)]
+        numbers += [plane.wave_number(omega_max) for plane in self._planes if isinstance(plane, RayleighPlane)]
         return numbers
 
     def pieces_for(self, omega_max: float, *, limit: float = SUBDIVISION_LIMIT) -> int:
@@ -369,8 +402,9 @@ class SpatialBeamField(Element):
         omega = np.asarray(omega, dtype=float)
         if not np.all(np.isfinite(omega)) or np.any(omega < 0):
             raise ModelError(f"{self.name}: omega must be finite and >= 0 rad/s, got {omega!r}")
-        count = _clamped_bar_count(self.length, self.axial_stiffness, self.mass_per_length, omega)
-        count = count + _clamped_bar_count(self.length, self.torsional_stiffness, self.polar_inertia_per_length, omega)
+        count = clamped_bar_count(self.length, self.axial_stiffness, self.axial_stiffness, self.mass_per_length, omega)
+        count = count + clamped_bar_count(self.length, *self.torsional_stiffness_at_ends(),
+                                          self.polar_inertia_per_length, omega)
         for plane in self._planes:
             count = count + np.asarray(plane.clamped_frequency_count(omega), dtype=np.int64)
         return count
@@ -383,21 +417,25 @@ class SpatialVaryingTensionField(SpatialBeamField):
     bars are those of :class:`SpatialBeamField`; each bending plane is a
     :class:`~ctmm.elements.bending_preload.VaryingTensionBeamField` (error-controlled sixth-order Magnus
     field, its own clamped count).  Parameters as :class:`SpatialBeamField` but ``axial_force``
-    (``loss_factor``, ``viscous_damping`` and ``torsional_damping`` are not offered); ``tolerance``: the
-    planes' estimated relative error.
+    (``loss_factor``, ``viscous_damping``, ``torsional_damping`` and the rotary inertias are not offered);
+    ``tolerance``: the planes' (and the torsion bar's) estimated relative error.  With ``wagner_term`` the
+    torsion bar's stiffness ``GJ + T(x) I_p / A`` varies linearly along the field: an error-controlled
+    sixth-order Magnus bar (:func:`ctmm.spatial_beam_torsion.varying_bar_matrix`, its own clamped count).
     """
 
     def __init__(self, name: str, length: float, *, inboard_tension: float, outboard_tension: float,
                  axial_stiffness: float, torsional_stiffness: float, bending_stiffness_y: float,
                  bending_stiffness_z: float, mass_per_length: float, polar_inertia_per_length: float,
-                 kelvin_voigt_time: float = 0.0, rotation: Any = None, tolerance: float = DEFAULT_TOLERANCE) -> None:
+                 kelvin_voigt_time: float = 0.0, rotation: Any = None, tolerance: float = DEFAULT_TOLERANCE,
+                 wagner_term: bool = False) -> None:
         tensions = (validation.finite(f"{name}: inboard_tension", inboard_tension),
                     validation.finite(f"{name}: outboard_tension", outboard_tension))
+        self.inboard_tension, self.outboard_tension = tensions
         super().__init__(name, length, axial_stiffness=axial_stiffness, torsional_stiffness=torsional_stiffness,
                          bending_stiffness_y=bending_stiffness_y, bending_stiffness_z=bending_stiffness_z,
                          mass_per_length=mass_per_length, polar_inertia_per_length=polar_inertia_per_length,
-                         axial_force=max(tensions, key=abs), kelvin_voigt_time=kelvin_voigt_time, rotation=rotation)
-        self.inboard_tension, self.outboard_tension = tensions
+                         axial_force=max(tensions, key=abs), kelvin_voigt_time=kelvin_voigt_time, rotation=rotation,
+                         wagner_term=wagner_term)
         self.tolerance = tolerance
         self._planes = tuple(VaryingTensionBeamField(f"{name}__{plane}", self.length, stiffness, self.mass_per_length,
                                                      inboard_tension=tensions[0], outboard_tension=tensions[1],
@@ -407,11 +445,25 @@ class SpatialVaryingTensionField(SpatialBeamField):
 
     def parameters(self) -> dict[str, Any]:
         out = super().parameters()
-        for key in ("axial_force", "loss_factor", "viscous_damping", "torsional_damping"):
+        for key in ("axial_force", "loss_factor", "viscous_damping", "torsional_damping",
+                    "rotary_inertia_per_length_y", "rotary_inertia_per_length_z"):
             del out[key]
         out.update(inboard_tension=self.inboard_tension, outboard_tension=self.outboard_tension,
                    tolerance=self.tolerance)
         return out
+
+    def end_tensions(self) -> tuple[float, float]:
+        """Axial tension [N] at the inboard and the outboard end."""
+        return self.inboard_tension, self.outboard_tension
+
+    def _torsion_matrix(self, s: np.ndarray, factor: np.ndarray) -> np.ndarray:
+        """Torsion bar: the Wagner term makes ``GJ* + T(x) I_p / A`` vary linearly (Magnus bar)."""
+        ends = [self.wagner_stiffness(t) for t in self.end_tensions()]
+        if ends[0] == ends[1]:
+            return super()._torsion_matrix(s, factor)
+        GJ = self.torsional_stiffness * np.broadcast_to(factor, s.shape)
+        return varying_bar_matrix(self.name, self.length, GJ + ends[0], GJ + ends[1],
+                                  self.polar_inertia_per_length * s * s, self.tolerance)
 
     def state_matrix(self, s: complex) -> np.ndarray:
         """Refused: ``A`` varies along the field (use :meth:`state_matrix_at`)."""
@@ -423,7 +475,8 @@ class SpatialVaryingTensionField(SpatialBeamField):
         factor = complex(self.stiffness_factor(s))
         tension = self.inboard_tension + (self.outboard_tension - self.inboard_tension) * float(x) / self.length
         A = spatial_beam_state_matrix(
-            s, axial_stiffness=self.axial_stiffness * factor, torsional_stiffness=self.torsional_stiffness * factor,
+            s, axial_stiffness=self.axial_stiffness * factor,
+            torsional_stiffness=self.torsional_stiffness * factor + self.wagner_stiffness(tension),
             bending_stiffness_y=self.bending_stiffness_y * factor, bending_stiffness_z=self.bending_stiffness_z * factor,
             mass_per_length=self.mass_per_length, polar_inertia_per_length=self.polar_inertia_per_length,
             axial_force=tension)

@@ -383,7 +383,8 @@ class _Builder:
         scale = max(beam.bending_stiffness_y, beam.bending_stiffness_z) / (L * L)
         out = {"bending_stiffness_z": beam.bending_stiffness_y, "bending_stiffness_y": beam.bending_stiffness_z,
                "axial_stiffness": beam.axial_stiffness, "torsional_stiffness": beam.torsional_stiffness,
-               "polar_inertia_per_length": beam.polar_inertia_per_length}
+               "polar_inertia_per_length": beam.polar_inertia_per_length,
+               "wagner_term": bool(beam.wagner_term and beam.n_torsion_modes)}
         for count, key, value, label in (
                 (beam.n_modes_y, "bending_stiffness_z", self.rigid_factor * scale * L * L, "bending_y"),
                 (beam.n_modes_z, "bending_stiffness_y", self.rigid_factor * scale * L * L, "bending_z"),

@@ -72,6 +72,12 @@ class SpatialBeam:
         Move every mass point with the shortening ``-1/2 eta^T G1(x) eta`` of the bent axis: the geometric
         stiffness and its reactions on the frame, energy-conserving (:mod:`ctmm.spatial.beam_second_order`).
         Default False.  Needs ``geometric_stiffening=True`` and no axial modes.
+    wagner_term : bool
+        Twist stiffened by the same axial force (Wagner): ``G(N)`` gains ``int N (I_p / A) chi' chi'^T`` on the twist
+        block, ``I_p / A = polar_inertia_per_length / mass_per_length`` (homogeneous, doubly symmetric section;
+        derivation in :mod:`ctmm.spatial_beam_torsion`).  Default False.  Needs ``geometric_stiffening=True``; not
+        with ``second_order_inertia`` (whose shortening is the bent axis's alone).  The beam's mass and polar
+        inertia are then not parameters of generated kernels (the term is not linear in them).
     damping_ratio : float
         Modal damping ratio ``zeta`` of every mode (>= 0).
     stiffness_damping : float
@@ -118,6 +124,7 @@ class SpatialBeam:
     axial_stiffness: float | None = None
     geometric_stiffening: bool = True
     second_order_inertia: bool = False
+    wagner_term: bool = False
     damping_ratio: float = 0.0
     stiffness_damping: float = 0.0
     static_shapes: bool = False
@@ -155,6 +162,11 @@ class SpatialBeam:
         validation.flag(f"{n}: geometric_stiffening", self.geometric_stiffening)
         validation.flag(f"{n}: static_shapes", self.static_shapes)
         check_second_order(self)
+        validation.flag(f"{n}: wagner_term", self.wagner_term)
+        if self.wagner_term and (not self.geometric_stiffening or self.second_order_inertia):
+            raise ModelError(f"{n}: wagner_term=True needs geometric_stiffening=True and second_order_inertia=False "
+                             f"(the axial force it stiffens the twist with), got geometric_stiffening = "
+                             f"{self.geometric_stiffening}, second_order_inertia = {self.second_order_inertia}")
         for attribute in ("damping_ratio", "stiffness_damping"):
             object.__setattr__(self, attribute, validation.nonnegative(f"{n}: {attribute}", getattr(self, attribute)))
         if self.static_shapes and self.damping_ratio:

@@ -36,7 +36,8 @@ All integrals are over ``[0, L]`` on Gauss-Legendre points (``rhoA`` uniform)::
     G1(x_e) = int_0^x_e w' w'^T,  G2 = int (L - x) w' w'^T,  G3 = int (L^2 - x^2)/2 w' w'^T
 
 (``w' w'^T`` of each bending plane, ``phi'`` on its columns: the geometric stiffness of the axial force in both
-planes, block diagonal -- the axial force couples no plane to the other).
+planes, block diagonal -- the axial force couples no plane to the other; with ``wagner_term`` also
+``(j_p / rhoA) chi' chi'^T`` on the twist block, the Wagner term ``N I_p / A`` of :mod:`ctmm.spatial_beam_torsion`).
 End rotation of a station ``x_e``: ``theta = Lambda(x_e) eta = [gamma ; -w_z' ; w_y']`` (body axes).
 """
 from __future__ import annotations
@@ -159,6 +160,8 @@ class SpatialBeamData:
             np.sqrt(np.clip(np.diag(K) * np.diag(self.modal_mass), 0.0, None)))
         self.K, self.D = K, D
         self.frequencies = np.sqrt(np.diag(K) / np.diag(self.modal_mass))
+        self.wagner = beam.polar_inertia_per_length / rhoA if beam.wagner_term else 0.0
+        """``I_p / A`` [m^2] of the Wagner term (0 without it)."""
         self.G2 = self.geometric(x, w * (L - x))
         self.G3 = self.geometric(x, w * (L * L - x * x) / 2)
         self.stiffening = beam.geometric_stiffening
@@ -221,13 +224,18 @@ class SpatialBeamData:
         return out
 
     def geometric(self, x: np.ndarray, weights: np.ndarray) -> np.ndarray:
-        """``sum_k weights_k (w_y' w_y'^T + w_z' w_z'^T)(x_k)`` (n x n): the geometric stiffness integral, one
-        block per bending plane (the axial force couples no plane to the other)."""
+        """``sum_k weights_k (w_y' w_y'^T + w_z' w_z'^T + (I_p / A) chi' chi'^T)(x_k)`` (n x n): the geometric
+        stiffness integral, one block per bending plane (the axial force couples no plane to the other) and the
+        Wagner term's twist block (:attr:`wagner`, 0 without it)."""
         slopes = self.slopes(x)
         out = np.zeros((self.n, self.n))
         for plane in ("y", "z"):
             rows = self.columns[plane]
             out[rows, rows] = (slopes[rows] * weights) @ slopes[rows].T
+        if self.wagner and self.rods["t"]:
+            rows = self.columns["t"]
+            twist = self.direction_shapes("t", x, 1)
+            out[rows, rows] = self.wagner * (twist * weights) @ twist.T
         return out
 
     def station(self, x_e: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
