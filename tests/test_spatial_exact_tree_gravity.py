@@ -48,7 +48,7 @@ def rigid_tree(gravity: float, spring: float = 1.0, parts=RIGID) -> sp.SpatialMo
     elements: list = []
     for name, parent, kind, mass, center, inertia, points, axes, point, k in parts:
         elements.append(sp.SpatialBody(name, mass, np.diag(inertia), center_of_mass=center, points=points))
-        joint = dict(name=f"j_{name}", parent=parent, child=name, stiffness=spring * k)
+        joint = dict(name=f"j_{name}", parent=parent, child=name, stiffness=spring * k, actuated=parent is None)
         if parent is not None:
             joint["point"] = point
         elements.append(sp.Revolute(axis=axes[0], **joint) if kind == "revolute"
@@ -74,6 +74,18 @@ def test_a_rigid_tree_hanging_off_its_vertical_equals_the_newton_euler_linearisa
     np.testing.assert_allclose(omega, reference, rtol=1e-11)                 # 5e-15 measured
     weightless = ref.natural_frequencies(newton_euler_tree(0.0, spring), np.zeros(8))
     assert np.max(np.abs(omega / weightless - 1.0)) > 0.1                    # gravity matters here
+
+
+def test_the_response_of_a_rigid_tree_in_gravity_equals_the_newton_euler_receptance():
+    omega = np.array([0.7, 6.0, 13.0, 30.0])
+    outputs = ["j_hub.q1", "j_l.angle", "j_r.q1", "j_ra.angle", "j_rb.q1"]      # l swings about y: not excited
+    frf = ctmm.frequency_response(rigid_tree(-G), omega, input="j_hub.torque1", output=outputs, fields="exact")
+    mass, _, stiffness = ref.linearize(newton_euler_tree(-G), np.zeros(8))
+    columns = [0, 2, 3, 5, 6]                       # hub q1 q2, l, r q1 q2, ra, rb q1 q2: the outputs' coordinates
+    for k, w in enumerate(omega):
+        expected = np.linalg.solve(stiffness - w * w * mass, np.eye(8)[0])[columns]
+        got = np.array([frf(name, "j_hub.torque1")[k] for name in outputs])
+        assert np.max(np.abs(got - expected)) <= 1e-9 * np.max(np.abs(expected)), w      # 6e-15 measured
 
 
 # beams of a tree hanging along gravity: name, parent, (station, x), length, rhoA, EI_y, EI_z, tip mass, tip inertia
