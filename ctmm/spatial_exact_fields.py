@@ -3,7 +3,7 @@
 The bridge from a :class:`~ctmm.spatial.model.SpatialModel` built of modal
 :class:`~ctmm.spatial.beam.SpatialBeam` bodies to the exact 12 x 12 spatial beam fields of
 :mod:`ctmm.spatial_beam_fields` (docs/spatial_beams.md): about its rest configuration (gravity only
-along a straight serial chain, :mod:`ctmm.spatial_exact_gravity`; no loads, joints at zero, beams undeformed, nothing moving) a serial spatial chain vibrates as a
+where every branch hangs or stands along it, :mod:`ctmm.spatial_exact_gravity`; no loads, joints at zero, beams undeformed, nothing moving) a serial spatial chain vibrates as a
 spatial beam chain, answered by the Riccati transfer and the Wittrick-Williams count, so its
 frequencies are exact at any mode number -- the limit the modal beam reaches as its modes increase.
 :func:`exact_form` converts, in **chain axes** (the world axes turned so that a base revolute or
@@ -48,9 +48,9 @@ body axes stand still: their turning is second order), beam station sensors.
 Refused (:class:`~ctmm.errors.ModelError`, naming the part): several bases,
 actuators on a branch, a main path that goes on from a beam's mid-span station, prismatic and free joints between bodies and joints free in a direction between bodies (no
 transfer matrix), a spherical joint whose damping and stiffness have different principal axes,
-driven joints, nonlinear laws and joint references, gravity that a straight chain cannot carry
-(:mod:`ctmm.spatial_exact_gravity`: trees, free or prismatic joints, beams across it, bodies off its
-vertical), loads, distributed loads and modal hooks (a preload or no field counterpart), modal damping ratios, a given operating point, loops in
+driven joints, nonlinear laws and joint references, gravity whose rest configuration is no equilibrium
+(:mod:`ctmm.spatial_exact_gravity`: free or prismatic joints, beams across it, bodies whose outboard
+first moment is off its vertical), loads, distributed loads and modal hooks (a preload or no field counterpart), modal damping ratios, a given operating point, loops in
 :func:`natural_frequencies` (pass ``system.plant``; :func:`frequency_response` closes them), and
 ports without an exact-field counterpart (modal coordinates, quaternion components, body angles
 and rotation vectors).
@@ -66,7 +66,7 @@ import numpy as np
 from . import validation
 from .errors import ModelError
 from .results import FrequencyResponse
-from .spatial_exact_gravity import beam_gravity, check_gravity, rigid_preload
+from .spatial_exact_gravity import beam_gravity, beam_tension, check_gravity, hung_masses, rigid_preload, subtree_masses
 from .spatial_exact_joints import CONVERTED_KINDS
 
 __all__ = ["SpatialExactForm", "exact_form", "natural_frequencies", "frequency_response", "RIGID_FACTOR"]
@@ -207,8 +207,8 @@ def _check(model: Any, operating_point: Any) -> None:
                              "operating_point=None)")
     if model.loads:
         raise _refuse(model, f"loads {[load.name for load in model.loads]} preload the chain")
-    _, branches = _paths(model)
-    check_gravity(model, bool(branches))
+    _paths(model)
+    check_gravity(model)
     for body, joint in zip(model.bodies, model.joints):
         if joint.kind not in CONVERTED_KINDS:
             raise _refuse(model, f"joint {joint.name!r} is a {joint.kind} joint (converted: {', '.join(CONVERTED_KINDS)})")
@@ -238,7 +238,7 @@ class _Builder:
         self.actuators: dict[str, Terms] = {}
         self.rigid: list[str] = []
         self.Q = _chain_axes(model)
-        self.outboard_mass = 0.0                        # mass beyond the current body's child point [kg]
+        self.subtree = subtree_masses(model)           # mass of every body's subtree [kg]
         self.rotations: dict[int, np.ndarray] = {}      # world rotation of each body at rest
         self.points: dict[int, dict] = {}               # body -> {point: (marker, offset from it, chain axes)}
         self.beam_markers: dict[str, str] = {}          # the last beam's points -> their markers
@@ -353,16 +353,17 @@ class _Builder:
                 self.sensors[f"{body.name}.omega_body_{axis_name}"] = [
                     (f"{root}.theta_{c_}_dot", B[k_, i]) for k_, c_ in enumerate("xyz") if B[k_, i]]
             child = model.joints[path[k + 1]].point if k + 1 < len(path) else None
-            self.outboard_mass = float(sum(model.bodies[i].mass for i in path[k + 1:]))
+            hung = hung_masses(model, j, self.subtree)
             if isinstance(body, SpatialBeam):
-                self.beam(body, root, B, child)
+                self.beam(body, root, B, child, [(body.points[name][0], mass) for name, mass in hung])
                 self.points[j] = {name: (marker, np.zeros(3)) for name, marker in self.beam_markers.items()}
             else:
-                self.rigid_body(body, root, B, child)
+                self.rigid_body(body, root, B, child, [(B @ body.points[name], mass) for name, mass in hung])
                 self.points[j] = {name: (root, B @ p) for name, p in body.points.items()}
         self.elements.append(SpatialFree(f"{model.bodies[path[-1]].name}__end"))
 
-    def rigid_body(self, body: Any, root: str, B: np.ndarray, child: str | None) -> None:
+    def rigid_body(self, body: Any, root: str, B: np.ndarray, child: str | None,
+                   hung: Sequence[tuple[np.ndarray, float]]) -> None:
         from .spatial_beam_elements import SpatialRigidBody
 
         points = dict(body.points)
@@ -375,7 +376,7 @@ class _Builder:
         offset = B @ body.points[child] if child is not None else np.zeros(3)
         self.elements.append(SpatialRigidBody(body.name, body.mass, B @ body.inertia @ B.T,
                                               center_of_mass=B @ body.center_of_mass, offset=offset))
-        self.elements += rigid_preload(self.model, self.Q, body, B @ body.center_of_mass, offset, self.outboard_mass)
+        self.elements += rigid_preload(self.model, self.Q, body, B @ body.center_of_mass, hung)
 
     def stiffness(self, beam: Any) -> dict:
         """Field parameters of ``beam``, rigid directions at ``rigid_factor`` times its stiffness scale."""
@@ -402,7 +403,8 @@ class _Builder:
             self.rigid.append(f"{beam.name}.polar_inertia")
         return out
 
-    def beam(self, beam: Any, root: str, B: np.ndarray, child: str | None) -> None:
+    def beam(self, beam: Any, root: str, B: np.ndarray, child: str | None,
+             hung: Sequence[tuple[float, float]]) -> None:
         from .spatial_beam_fields import SpatialBeamField, SpatialVaryingTensionField
 
         if child is not None and child != "tip" and beam.points[child][0] < beam.length * (1 - 1e-12):
@@ -420,8 +422,7 @@ class _Builder:
             if x - position > 1e-12 * beam.length:
                 pieces += 1
                 if along:
-                    tension = [along * (self.outboard_mass + beam.mass_per_length * (beam.length - end))
-                               for end in (position, x)]
+                    tension = beam_tension(along, beam, hung, position, x)
                     field = SpatialVaryingTensionField(f"{beam.name}__{pieces}", x - position, rotation=B,
                                                        inboard_tension=tension[0], outboard_tension=tension[1],
                                                        kelvin_voigt_time=beam.stiffness_damping, **parameters,

@@ -39,7 +39,11 @@ accelerations ``f(q0 (+) r, 0) = 0`` from the neutral configuration by pseudo-tr
 step ``dt`` grown as ``|f|`` falls until they are Newton steps; minimum-norm solves, so neutral
 directions such as a free yaw stay where they are).  The default is statically stable
 (``static_equilibrium(..., stable=True)``: pushed off an unstable one along its most unstable direction,
-:func:`unstable_directions`, or refused naming them).  A free joint under gravity has none: refused.
+:func:`unstable_directions`, or refused naming them).  While unstable directions remain, the fall's steps
+(``dt <= 0.5 / lambda``) are judged by the potential energy at rest (:mod:`ctmm.spatial_fall`: taken unless it
+rises beyond its round-off; refused, naming the steps, the largest acceleration and the energy, when it stalls
+or runs away).  The search's answer is certified independently of that rule (residual bound, stiffness
+eigenvalues).  A free joint under gravity has no equilibrium: refused.
 """
 from __future__ import annotations
 
@@ -55,6 +59,7 @@ from .ops import NUMPY
 from .planar.equilibrium import STABLE_RESTARTS, describe_directions, negative_stiffness, restart_until_stable
 from .planar_linearization import CROSS_CHECK_STEPS, EQUILIBRIUM_TOLERANCE, JACOBIAN_TOLERANCE, TIME_PROBES, jacobian
 from .saturation import refuse_saturation
+from .spatial_fall import EnergyFall
 from .spatial_sensors_complex import complex_sensor_values
 
 __all__ = ["linearize_spatial", "tangent_names", "input_names", "retract", "static_equilibrium",
@@ -63,9 +68,10 @@ __all__ = ["linearize_spatial", "tangent_names", "input_names", "retract", "stat
 
 NEWTON_ITERATIONS = 200
 """Largest number of (pseudo-transient Newton) steps of :func:`static_equilibrium` at points without unstable
-directions (the Newton phase, and every step of an uncapped search); the capped fall through unstable
-directions (``stable=True``) has its own budget of ``NEWTON_ITERATIONS + 5 n_v`` steps: a long chain started
-upright passes through ~``n_v / 2`` unstable directions, each with steps no longer than ``0.5 / lambda``."""
+directions (the Newton phase, and every step of an uncapped search).  The capped fall through unstable
+directions (``stable=True``) is not counted against it: its steps are accepted by the decrease of the potential
+energy (:mod:`ctmm.spatial_fall`); only a model whose static forces have no potential here (point loads, springs
+without one) keeps a budget of ``NEWTON_ITERATIONS + 5 n_v`` fall steps."""
 _COMPONENTS = {3: ("x", "y", "z"), 6: ("fx", "fy", "fz", "mx", "my", "mz"), 2: ("1", "2")}
 
 
@@ -259,7 +265,8 @@ def unstable_directions(model: Any, q: Any, t: float = 0.0) -> tuple[np.ndarray,
 def _continuation(model: Any, q: np.ndarray, t: float, *, capped: bool) -> np.ndarray:
     """Pseudo-transient continuation from ``q`` to a root of the accelerations at rest (module docstring);
     ``capped``: the step ``dt`` stays below ``0.5 / lambda`` of the fastest unstable direction at each
-    point (implicit Euler then follows the fall away from an unstable equilibrium instead of jumping back)."""
+    point (implicit Euler then follows the fall away from an unstable equilibrium instead of jumping back),
+    and such fall steps are judged by the potential energy (:class:`ctmm.spatial_fall.EnergyFall`)."""
     zero = np.zeros((1, model.n_velocities))
     limit = _scale(model)
     residual = _rates(model, q[None], zero, t)[0]
@@ -268,24 +275,32 @@ def _continuation(model: Any, q: np.ndarray, t: float, *, capped: bool) -> np.nd
     # implicit Euler steps (I / dt - df/dr) step = f, dt grown as |f| falls (Newton once dt is large)
     dt = 0.1 / max(size, 1e-300)
     eye = np.eye(model.n_velocities)
-    newton_steps, fall_steps = NEWTON_ITERATIONS, NEWTON_ITERATIONS + 5 * model.n_velocities
-    while newton_steps > 0 and fall_steps > 0:
+    fall = EnergyFall(model, q, NEWTON_ITERATIONS + 5 * model.n_velocities) if capped else None
+    newton_steps = NEWTON_ITERATIONS
+    while newton_steps > 0:
         if size <= 1e-6 * limit:
             break
         Jq, _ = _position_jacobian(model, q, zero[0], t)
         values, _ = negative_stiffness(Jq) if capped else (np.zeros(0), None)
-        if values.size:
-            fall_steps -= 1                         # the fall through unstable directions (own budget)
-        else:
+        if values.size and fall.exhausted():
+            break                                   # no potential: the former budget of fall steps
+        if not values.size:
             newton_steps -= 1
         step_size = min(dt, -0.5 / values[0]) if values.size else dt
         step = np.linalg.lstsq(eye / step_size - Jq, residual, rcond=1e-13)[0]
         trial = model.normalized(retract(model, q, step)[0])
         trial_residual = _rates(model, trial[None], zero, t)[0]
         trial_size = float(np.max(np.abs(trial_residual), initial=0.0))
-        if not (np.isfinite(trial_size) and (trial_size < 2.0 * size or values.size)):
+        if values.size:                             # a fall step: judged by the potential energy
+            if not fall.accept(q, trial, trial_size, size):
+                dt = step_size / 4.0
+                continue
+            fall.taken(trial_size)
+        elif not (np.isfinite(trial_size) and trial_size < 2.0 * size):
             dt /= 4.0
             continue
+        elif fall is not None:
+            fall.moved()
         ratio = trial_size / max(size, 1e-300)
         q, residual, size = trial, trial_residual, trial_size
         if size <= limit and ratio > 0.1 and not values.size:

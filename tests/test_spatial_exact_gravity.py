@@ -97,7 +97,7 @@ def test_gravity_the_straight_chain_cannot_carry_is_refused_by_name():
     leaning = sp.SpatialModel("leaning", [
         sp.SpatialBody("a", 1.0, np.eye(3) * 0.1, center_of_mass=(0.05, 0.0, 0.5)),
         sp.Revolute(name="p", parent=None, child="a", axis=(0, 1, 0), stiffness=30.0)], gravity=(0.0, 0.0, G))
-    with pytest.raises(ModelError, match=r"body 'a' has its centre of mass at \[0\.05, 0\.0, 0\.5\].*vertical"):
+    with pytest.raises(ModelError, match=r"body 'a' has its outboard first moment .* at \[0\.05, 0\.0, 0\.5\] kg m.*vertical"):
         ctmm.natural_frequencies(leaning, n_modes=1, fields="exact")
     floating = sp.SpatialModel("floating", [sp.SpatialBody("a", 1.0, np.eye(3) * 0.1),
                                             sp.Free(name="f", parent=None, child="a")], gravity=(0.0, 0.0, -G))
