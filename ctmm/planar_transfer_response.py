@@ -126,6 +126,16 @@ class SweepResponse(ArticulatedResponse):
 
         return output_matrix(self.model, outputs, self.point)
 
+    def point_amplitudes(self, x: np.ndarray) -> np.ndarray:
+        """Coordinate amplitudes ``q_hat`` (L, B, n) from the batched kernel's ``A_in`` (3, L, B) per body (rigid
+        bodies: each body's angle amplitude is its ``x[j][2]``; the kernel takes no free bases)."""
+        index = self.model.theta_index
+        bodies = [j for j in range(len(x)) if index[j] >= 0]
+        out = np.zeros(x[0].shape[1:] + (self.model.n_coordinates,), dtype=x[0].dtype)
+        if bodies:
+            out[:, :, index[bodies]] = np.stack([x[j][2] for j in bodies], axis=-1)
+        return out
+
     def amplitudes(self, solution: Any) -> np.ndarray:
         """Coordinate amplitudes ``q_hat`` (B, n) of a frequency-context sweep."""
         return self.scene.coordinate_accelerations(solution)

@@ -18,6 +18,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from .articulated import Tree, articulated_sweep, frequency_kappa
+from .batched_sweep import BatchedSweep, applies as batched_applies
 from .controlled_linearization import RESOLVENT_CONDITION, controller_response, loop_ports
 from .loop_phasors import close_loops as close_phasor_loops
 from .ops import NUMPY
@@ -52,6 +53,12 @@ class ArticulatedResponse:
     joints: tuple
 
     coupling: Any = None
+    batched: BatchedSweep | None = None
+
+    def point_amplitudes(self, x: np.ndarray) -> np.ndarray | None:
+        """Coordinate amplitudes (L, B, n) from the batched kernel's ``A_in`` (d, L, B) of every body, or
+        ``None`` when the subclass does not read them (then the generic sweep answers)."""
+        return None
 
     def prepare(self, tree: Tree, bodies: Sequence[tuple], joints: Sequence[Any],
                 coupling: Sequence[Any] | None = None) -> None:
@@ -61,6 +68,13 @@ class ArticulatedResponse:
         (the scale the pivots are measured by)."""
         self.tree, self.bodies, self.joints = tree, tuple(bodies), tuple(joints)
         self.coupling = None if coupling is None or all(g is None for g in coupling) else tuple(coupling)
+        self.batched = None
+        if batched_applies(tree, self.bodies, self.joints, self.coupling) and \
+                self.point_amplitudes([np.zeros((tree.dimension, 1, 1))] * len(self.bodies)) is not None:
+            # rigid bodies, welds, held drives and one-direction joints: the kernel of ctmm.batched_sweep
+            self.batched = BatchedSweep(tree, self.bodies, self.joints, self.coupling)
+            self.batched_mass_pivots = None         # with the first sweep (one more column)
+            return
         inertia = [BodyTerms(M0[None], np.zeros((1, M0.shape[0], 1)), Kin, dict.fromkeys(Kin), RF)   # c = None: zero
                    for M0, _, _, Kin, RF in self.bodies]
         with np.errstate(all="ignore"):
@@ -111,6 +125,8 @@ class ArticulatedResponse:
 
     def _batch(self, s: np.ndarray, loads: list, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`response` of the load cases ``loads`` and sensor ``rows`` at ``s`` (B,)."""
+        if self.batched is not None:
+            return self._batched(s, loads, rows)
         n = rows.shape[1] // 2
         column = s.reshape(-1, 1, 1)
         if self.undamped and not np.any(s.real):    # s^2 = -omega^2: the whole sweep is real (same numbers, faster)
@@ -133,6 +149,31 @@ class ArticulatedResponse:
                 good &= self.pivots_certified(solution, s)
             good &= np.all(np.isfinite(G[:, :, i]), axis=1)
         return G, good
+
+    def _batched(self, s: np.ndarray, loads: list, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_batch` by the kernel of :mod:`ctmm.batched_sweep` (every load case in one sweep)."""
+        n, kernel = rows.shape[1] // 2, self.batched
+        h = np.zeros((len(self.bodies), self.tree.dimension, len(loads)))
+        tau = np.zeros((len(kernel.free), len(loads)), dtype=complex)
+        for i, (body_loads, joints) in enumerate(loads):
+            h[:, :, i] = np.stack([column[0, :, 0] for column in body_loads])
+            for k, j in enumerate(kernel.free):
+                if joints[j].tau is not None:
+                    tau[k, i] = np.asarray(joints[j].tau).reshape(-1)[0]
+        if not np.any(tau.imag):
+            tau = tau.real
+        with np.errstate(all="ignore"):
+            solution = kernel.solve(s, h, tau, mass_pivots=self.batched_mass_pivots is None)
+            if solution.mass_pivot is not None:
+                self.batched_mass_pivots = solution.mass_pivot
+            amplitudes = self.point_amplitudes(solution.x)                  # (L, B, n)
+            G = (amplitudes @ rows[:, :n].T + (s[:, None] * amplitudes) @ rows[:, n:].T).transpose(1, 2, 0)
+            squared = (s * s)[None]
+            inertia = squared * self.batched_mass_pivots[:, None]
+            scale = np.abs(inertia) + np.abs(solution.pivot - inertia)
+            good = np.all(np.abs(solution.pivot) >= PIVOT_TOLERANCE * scale, axis=0)
+        good &= np.all(np.isfinite(G), axis=(1, 2))
+        return G.astype(complex, copy=False), good
 
     def _dynamic_stiffness(self, squared: np.ndarray, column: np.ndarray | None) -> list:
         """``Z_j = s^2 M0 + s C0 + K0`` (B, d + n_j, d + n_j) of every body (``column`` ``None``: no ``C0`` term),

@@ -1,0 +1,205 @@
+"""The articulated sweep's frequency context as one numpy kernel, the frequency batch as the last axis.
+
+:func:`ctmm.articulated.articulated_sweep` is written once for every context on :mod:`ctmm.ops` (numpy and
+casadi); on numpy its per-body work is a few dozen calls on ``(B, d, d)`` batches.  For the frequency context of
+trees whose bodies are rigid (``d`` unknowns each) and whose joints are welds, held drives or one unit free
+direction (``JointTerms.axis``: planar hinges), the same recursion is a handful of array operations per body on
+contiguous ``(d, d, B)`` blocks: the dynamic stiffness of all bodies in one product, the joint elimination as a
+rank-one update, the move to the parent point as one ``(d^2, d^2)`` product (``vec(RF Phi Kin) =
+kron(RF, Kin^T) vec(Phi)``, row-major), every load case at once (the articulated inertias do not depend on the
+loads).  Same arithmetic as the generic sweep (answers equal to round-off); :func:`applies` says which terms it
+takes, the others stay on the generic sweep.
+
+Tip to base, body ``j`` with ``P = Z_j + sum_children RF Phi_hat Kin``, ``p = h_j + sum_children RF psi_hat``:
+joint on unit axis ``a``: ``D = P_aa + kappa``, ``w = (P_a: + G) / D``, ``u = (P_:a + H) / D``, ``r = (tau - p_a) / D``,
+``Phi_hat = P - (P_:a + H) w``, ``psi_hat = p + (P_:a + H) r``; weld or held drive: ``Phi_hat = P``, ``psi_hat = p``.
+Base to tip: ``A_O = Kin_e x_parent`` (ground 0), ``a = r - w . A_O``, ``x = A_O + e_a a``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+
+from .articulated import Tree
+
+__all__ = ["BatchedSweep", "applies"]
+
+
+def applies(tree: Tree, bodies: Sequence[tuple], joints: Sequence[Any], coupling: Sequence[Any] | None) -> bool:
+    """True when :class:`BatchedSweep` takes these frequency-context terms: every body rigid (``M0`` of size
+    ``d``), every joint a weld, a drive held at zero or one unit free direction (``axis``) without inertance, no
+    joint offset ``c``, coupling (if any) only on one-direction joints."""
+    d = tree.dimension
+    for j, (M0, _, _, _, _) in enumerate(bodies):
+        if M0.shape != (d, d):
+            return False
+        joint = joints[j]
+        if joint.c is not None or joint.tau_a is not None:
+            return False
+        if any(law is not None and np.size(law) != 1 for law in (joint.tau_q, joint.tau_v)):
+            return False
+        if joint.prescribed is not None:
+            if np.any(joint.prescribed):
+                return False
+        elif joint.free and joint.axis is None:
+            return False
+        if coupling is not None and coupling[j] is not None and any(g is not None for g in coupling[j]) \
+                and (joint.axis is None or joint.prescribed is not None):
+            return False
+    return True
+
+
+@dataclass(frozen=True)
+class Solution:
+    """Result of :meth:`BatchedSweep.solve`.
+
+    Attributes
+    ----------
+    x : list of ndarray, shape (d, L, B)
+        ``A_in`` of every body (load cases, frequencies).
+    pivot : ndarray, shape (F, B)
+        ``D_j`` of the one-direction joints, in :attr:`BatchedSweep.free` order.
+    mass_pivot : ndarray, shape (F,), or None
+        The same pivots of the mass terms alone (when asked for).
+    """
+
+    x: list
+    pivot: np.ndarray
+    mass_pivot: np.ndarray | None = None
+
+
+class BatchedSweep:
+    """The frequency-context sweep of one tree's linearised terms (module docstring), prepared once.
+
+    Parameters
+    ----------
+    tree : Tree
+    bodies : sequence of tuple
+        ``(M0, C0, K0, Kin, RF)`` per body (``Kin``, ``RF``: dicts of ``(1, d, d)`` point maps).
+    joints : sequence of JointTerms
+        The held joints (``tau`` is the load cases' business: :meth:`solve`).
+    coupling : sequence, optional
+        ``(G_j, H_j)`` per joint or ``None`` (:func:`ctmm.articulated.articulated_inward`).
+    """
+
+    def __init__(self, tree: Tree, bodies: Sequence[tuple], joints: Sequence[Any],
+                 coupling: Sequence[Any] | None = None) -> None:
+        d = self.d = tree.dimension
+        self.tree, self.n = tree, len(bodies)
+        self.M0 = [np.asarray(b[0])[..., None] for b in bodies]           # (d, d, 1) each
+        self.C0 = [np.asarray(b[1])[..., None] for b in bodies]
+        self.K0 = [np.asarray(b[2])[..., None] for b in bodies]
+        self.damped_bodies = any(np.any(C0) for C0 in self.C0)
+        self.axis = [None if joint.prescribed is not None or not joint.free else joint.axis for joint in joints]
+        self.free = [j for j, a in enumerate(self.axis) if a is not None]
+        self.slot = {j: k for k, j in enumerate(self.free)}
+        self.stiffness = np.array([0.0 if joints[j].tau_q is None else float(np.real(joints[j].tau_q).reshape(-1)[0])
+                                   for j in self.free])
+        self.damping = np.array([0.0 if joints[j].tau_v is None else float(np.real(joints[j].tau_v).reshape(-1)[0])
+                                 for j in self.free])
+        complex_laws = any(joints[j].tau_q is not None and np.iscomplexobj(joints[j].tau_q) for j in self.free)
+        self.real_laws = not complex_laws and not any(joints[j].tau_v is not None and np.iscomplexobj(joints[j].tau_v)
+                                                      for j in self.free)
+        self.kron, self.RF, self.Kin = [None] * self.n, [None] * self.n, [None] * self.n
+        children = [j for j, parent in enumerate(tree.parent) if parent >= 0]
+        for j in children:
+            e = tree.point[j]
+            self.RF[j], self.Kin[j] = bodies[tree.parent[j]][4][e][0], bodies[tree.parent[j]][3][e][0]
+        if children:                                # vec(RF X Kin) = kron(RF, Kin^T) vec(X), all in one product
+            RF, Kin = np.stack([self.RF[j] for j in children]), np.stack([self.Kin[j] for j in children])
+            kron = (RF[:, :, None, :, None] * Kin.swapaxes(1, 2)[:, None, :, None, :]).reshape(len(children),
+                                                                                             d * d, d * d)
+            for k, j in enumerate(children):
+                self.kron[j] = kron[k]
+        self.G, self.H = [None] * self.n, [None] * self.n
+        for j, pair in enumerate(coupling or ()):
+            if pair is not None and self.axis[j] is not None:
+                G, H = pair
+                self.G[j] = None if G is None else np.asarray(G).reshape(d, 1)
+                self.H[j] = None if H is None else np.asarray(H).reshape(d, 1)
+        self.undamped = not self.damped_bodies and not np.any(self.damping)
+
+    def solve(self, s: np.ndarray, loads: np.ndarray, torques: np.ndarray, *, mass_only: bool = False,
+              mass_pivots: bool = False) -> Solution:
+        """The sweep at the Laplace variables ``s`` (B,) for the load cases ``loads`` (N, d, L) (body load
+        columns ``h``) and ``torques`` (F, L) (the one-direction joints' ``tau``).
+
+        ``mass_only``: the terms ``Z = M0``, ``kappa = 0`` and no coupling (``s`` is ignored but for its size): the
+        pivots of the mass terms alone.  ``mass_pivots``: those pivots too (:attr:`Solution.mass_pivot`; one more
+        column of the same sweep when there is no coupling).  Real arithmetic where every term is real (undamped
+        model, ``s`` on the imaginary axis, real loads).
+        """
+        d, n = self.d, self.n
+        s = np.asarray(s).reshape(-1)
+        coupled = any(g is not None for g in self.G + self.H)
+        if mass_pivots and coupled:
+            mass = self.solve(np.zeros(1), np.zeros((self.n, d, 1)), np.zeros((len(self.free), 1)),
+                              mass_only=True).pivot[:, 0]
+            solution = self.solve(s, loads, torques)
+            return Solution(solution.x, solution.pivot, mass)
+        extra = mass_pivots                         # the last column: Z = M0, kappa = 0
+        real = (mass_only or (self.undamped and not np.any(s.real))) and self.real_laws \
+            and not np.iscomplexobj(loads) and not np.iscomplexobj(torques)
+        squared = np.ones(s.size) if mass_only else (s * s).real if real else s * s
+        if mass_only:
+            kappa = np.zeros((len(self.free), s.size))
+        elif real:
+            kappa = -np.broadcast_to(self.stiffness[:, None], (len(self.free), s.size))
+        else:
+            kappa = -(self.stiffness[:, None] + self.damping[:, None] * s)
+        if extra:
+            s, squared = np.append(s, 0.0), np.append(squared, 1.0)
+            kappa = np.concatenate([kappa, np.zeros((len(self.free), 1))], axis=1)
+        damped = self.damped_bodies and not mass_only and not real
+        L = loads.shape[2]
+        # the children's contributions per parent (no (N, d, d, B) array: first touches of large arrays
+        # cost more than the arithmetic)
+        inertia, bias = [None] * n, [None] * n
+        w_all, r_all = [None] * n, [None] * n
+        pivot = np.empty((len(self.free), s.size), dtype=float if real else complex)
+        for j in range(n - 1, -1, -1):
+            P = self.M0[j] * squared if mass_only else self.M0[j] * squared + self.K0[j]      # (d, d, B)
+            if damped:
+                P = P + self.C0[j] * s
+            if extra:
+                P[..., -1] = self.M0[j][..., 0]
+            if inertia[j] is not None:
+                P += inertia[j]
+            p = loads[j][:, :, None] if bias[j] is None else loads[j][:, :, None] + bias[j]  # (d, L, B)
+            a = self.axis[j]
+            parent = self.tree.parent[j]
+            if a is not None:
+                k = self.slot[j]
+                D = pivot[k] = P[a, a] + kappa[k]
+                row = P[a] if self.G[j] is None or mass_only else P[a] + self.G[j]
+                column = P[:, a] if self.H[j] is None or mass_only else P[:, a] + self.H[j]
+                w = w_all[j] = row / D                                      # (d, B)
+                r = r_all[j] = (torques[k][:, None] - p[a]) / D             # (L, B)
+                if parent < 0:
+                    continue
+                P = P - column[:, None] * w[None]
+                p = p + column[:, None] * r[None]
+            elif parent < 0:
+                continue
+            moved = (self.kron[j] @ P.reshape(d * d, -1)).reshape(d, d, -1)
+            inertia[parent] = moved if inertia[parent] is None else inertia[parent] + moved
+            load = (self.RF[j] @ p.reshape(d, -1)).reshape(d, L, -1)
+            bias[parent] = load if bias[parent] is None else bias[parent] + load
+        x: list = [None] * n
+        for j in range(n):
+            parent = self.tree.parent[j]
+            a = self.axis[j]
+            if parent >= 0:
+                A = (self.Kin[j] @ x[parent].reshape(d, -1)).reshape(d, L, -1)
+                if a is not None:
+                    A[a] += r_all[j] - np.einsum("kb,klb->lb", w_all[j], A)
+            else:
+                A = np.zeros((d, L, s.size), dtype=pivot.dtype)
+                if a is not None:
+                    A[a] = r_all[j]
+            x[j] = A
+        if extra:
+            return Solution([A[..., :-1] for A in x], pivot[:, :-1], pivot[:, -1])
+        return Solution(x, pivot)

@@ -1,0 +1,128 @@
+"""The frequency-context kernel of ``ctmm.batched_sweep`` (issue 13).
+
+It is a second implementation of the generic sweep's recursion (:func:`ctmm.articulated.articulated_sweep`)
+restricted to rigid bodies and one-direction joints, written on the frequency batch as the last axis; here it
+must agree with the generic sweep to round-off on terms that exercise every branch (a branched tree, welds,
+held drives, joint springs and dampers, damped bodies, the preload coupling, complex ``s`` off the axis,
+several load cases).  Its answers as FRFs are checked against the Lagrange models in
+``tests/test_planar_frf_sweep.py`` (rigid chains, trees and closed loops all take this kernel).
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ctmm.articulated import Tree, articulated_sweep, frequency_kappa
+from ctmm.batched_sweep import BatchedSweep, applies
+from ctmm.ops import NUMPY
+from ctmm.flexible import ModalBeam
+from ctmm.planar import Pinned, PlanarModel, RigidBody, SmoothHinge
+from ctmm.planar.elements import FixedMounting
+from ctmm.planar_linearization import operating_point
+from ctmm.planar_transfer_response import SweepResponse
+from ctmm.protocol import BodyTerms, JointTerms
+
+D = 3
+PARENT = (-1, 0, 1, 0, 3, 3, 5)
+POINT = (None, "a", "a", "b", "a", "b", "a")
+HINGE, WELD, HELD = "hinge", "weld", "held"
+KIND = (HINGE, HINGE, WELD, HINGE, HELD, HINGE, HINGE)
+
+
+def terms(seed: int, coupled: bool):
+    """Random symmetric positive ``M0``, symmetric ``K0``, ``C0`` and point maps of the tree above."""
+    rng = np.random.default_rng(seed)
+    bodies = []
+    for _ in PARENT:
+        a = rng.normal(size=(D, D))
+        M0 = a @ a.T + D * np.eye(D)
+        k = rng.normal(size=(D, D))
+        c = rng.normal(size=(D, D))
+        points = {name: (np.eye(D) + 0.3 * rng.normal(size=(D, D)))[None] for name in ("a", "b")}
+        forces = {name: (np.eye(D) + 0.3 * rng.normal(size=(D, D)))[None] for name in ("a", "b")}
+        bodies.append((M0, 0.1 * (c + c.T), k + k.T, points, forces))
+    joints, coupling = [], []
+    for j, kind in enumerate(KIND):
+        unit = np.zeros((1, D, 1))
+        unit[0, 2, 0] = 1.0
+        if kind == HINGE:
+            joints.append(JointTerms(S=unit, tau=np.zeros((1, 1, 1)), tau_q=np.full((1, 1, 1), -rng.uniform(1, 3)),
+                                     tau_v=np.full((1, 1, 1), -rng.uniform(0, 0.4)), axis=2))
+        elif kind == HELD:
+            joints.append(JointTerms(S=unit, prescribed=np.zeros((1, 1, 1)), axis=2))
+        else:
+            joints.append(JointTerms(S=np.zeros((1, D, 0))))
+        pair = None
+        if coupled and kind == HINGE and PARENT[j] >= 0:
+            pair = (rng.normal(size=(1, 1, D)), rng.normal(size=(1, D, 1)))
+        coupling.append(pair)
+    return Tree(PARENT, POINT, D), bodies, joints, coupling
+
+
+def generic(tree, bodies, joints, coupling, s, load, torque):
+    """The generic sweep of ``ctmm.articulated`` on the same terms: ``A_in`` (N, d, B) and the pivots (F, B)."""
+    column = s.reshape(-1, 1, 1)
+    body_terms = [BodyTerms(column * column * M0 + column * C0 + K0, load[j][None, :, None], Kin,
+                            dict.fromkeys(Kin), RF) for j, (M0, C0, K0, Kin, RF) in enumerate(bodies)]
+    loaded = [JointTerms(S=jt.S, tau=np.full((1, 1, 1), torque[j]), tau_q=jt.tau_q, tau_v=jt.tau_v, axis=jt.axis)
+              if jt.tau is not None else jt for j, jt in enumerate(joints)]
+    solution = articulated_sweep(NUMPY, tree, body_terms, loaded, frequency_kappa(NUMPY, loaded, column),
+                                 forces=False, coupling=coupling)
+    x = np.stack([np.broadcast_to(v, (s.size, D, 1))[:, :, 0].T for v in solution.x])
+    pivots = np.array([p[:, 0, 0] for p in solution.pivot if p is not None])
+    return x, pivots
+
+
+@pytest.mark.parametrize("coupled", [False, True])
+@pytest.mark.parametrize("on_axis", [True, False])
+def test_kernel_equals_the_generic_sweep(coupled, on_axis):
+    tree, bodies, joints, coupling = terms(3, coupled)
+    assert applies(tree, bodies, joints, coupling)
+    s = 1j * np.linspace(0.2, 5.0, 9) + (0.0 if on_axis else 0.4)
+    rng = np.random.default_rng(7)
+    loads, torques = rng.normal(size=(len(PARENT), D, 2)), rng.normal(size=(5, 2))     # two load cases
+    kernel = BatchedSweep(tree, bodies, joints, coupling)
+    assert kernel.free == [0, 1, 3, 5, 6]
+    solution = kernel.solve(s, loads, torques, mass_pivots=True)
+    for case in range(2):
+        torque = dict(zip(kernel.free, torques[:, case]))
+        x, pivots = generic(tree, bodies, joints, coupling, s, loads[:, :, case],
+                            [torque.get(j, 0.0) for j in range(len(PARENT))])
+        got = np.stack([v[:, case] for v in solution.x])
+        assert np.max(np.abs(got - x)) <= 1e-12 * np.max(np.abs(x))
+        assert np.max(np.abs(solution.pivot - pivots)) <= 1e-12 * np.max(np.abs(pivots))
+    # the pivots of the mass terms alone (kappa = 0, no coupling), one more column of the same sweep
+    inertia = [BodyTerms(M0[None], np.zeros((1, D, 1)), Kin, dict.fromkeys(Kin), RF) for M0, _, _, Kin, RF in bodies]
+    masses = articulated_sweep(NUMPY, tree, inertia, joints, forces=False)
+    expected = np.array([p[0, 0, 0] for p in masses.pivot if p is not None])
+    assert np.max(np.abs(solution.mass_pivot - expected)) <= 1e-12 * np.max(np.abs(expected))
+
+
+def test_kernel_declines_terms_it_does_not_take():
+    tree, bodies, joints, coupling = terms(4, False)
+    flexible = list(bodies)
+    M0, C0, K0, Kin, RF = bodies[2]
+    flexible[2] = (np.eye(D + 1), np.zeros((D + 1, D + 1)), np.zeros((D + 1, D + 1)), Kin, RF)
+    assert not applies(tree, flexible, joints, coupling)                   # a modal body
+    free = list(joints)
+    free[0] = JointTerms(S=np.eye(D)[None], tau=np.zeros((1, D, 1)))
+    assert not applies(tree, bodies, free, coupling)                       # three free directions
+    driven = list(joints)
+    driven[4] = JointTerms(S=joints[4].S, prescribed=np.ones((1, 1, 1)), axis=2)
+    assert not applies(tree, bodies, driven, coupling)                     # a drive not held at zero
+
+
+def test_planar_plants_take_the_kernel_where_it_applies():
+    arm = PlanarModel.chain("arm", [Pinned("base"), RigidBody("a", mass=1.0, inertia=0.1, center_of_mass=(0.5, 0.0),
+                                                              outboard=(1.0, 0.0)),
+                                    SmoothHinge("h"), RigidBody("b", mass=0.5, inertia=0.05, center_of_mass=(0.4, 0.0))],
+                            gravity=(0.0, -9.81))
+    plant = SweepResponse(arm, operating_point(arm))
+    assert plant.batched is not None
+    G, good = plant.response(1j * np.array([0.5, 2.0]), ["b.force_x"], ["b.theta"])
+    assert good.all() and plant.batched_mass_pivots is not None
+    beam = PlanarModel.chain("beam", [Pinned("base"), RigidBody("hub", mass=1.0, inertia=0.1, outboard=(0.1, 0.0)),
+                                      FixedMounting("m"), ModalBeam("b", length=1.0, bending_stiffness=10.0,
+                                                                    mass_per_length=0.5, n_modes=2)],
+                             gravity=(0.0, 0.0))
+    assert SweepResponse(beam, operating_point(beam)).batched is None       # modal bodies: the generic sweep
