@@ -63,11 +63,14 @@ class Solution:
         ``D_j`` of the one-direction joints, in :attr:`BatchedSweep.free` order.
     mass_pivot : ndarray, shape (F,), or None
         The same pivots of the mass terms alone (when asked for).
+    backward : ndarray, shape (B,), or None
+        The a-posteriori backward error (:meth:`BatchedSweep.backward_error`, when asked for).
     """
 
     x: list
     pivot: np.ndarray
     mass_pivot: np.ndarray | None = None
+    backward: np.ndarray | None = None
 
 
 class BatchedSweep:
@@ -92,6 +95,9 @@ class BatchedSweep:
         self.C0 = [np.asarray(b[1])[..., None] for b in bodies]
         self.K0 = [np.asarray(b[2])[..., None] for b in bodies]
         self.damped_bodies = any(np.any(C0) for C0 in self.C0)
+        # [M0; K0; C0] (3 d, d) per body and its moduli: the products of the a-posteriori residual
+        self.terms = [np.concatenate([np.asarray(b[0]), np.asarray(b[2]), np.asarray(b[1])]) for b in bodies]
+        self.moduli = [np.abs(block) for block in self.terms]
         self.axis = [None if joint.prescribed is not None or not joint.free else joint.axis for joint in joints]
         self.free = [j for j, a in enumerate(self.axis) if a is not None]
         self.slot = {j: k for k, j in enumerate(self.free)}
@@ -122,14 +128,15 @@ class BatchedSweep:
         self.undamped = not self.damped_bodies and not np.any(self.damping)
 
     def solve(self, s: np.ndarray, loads: np.ndarray, torques: np.ndarray, *, mass_only: bool = False,
-              mass_pivots: bool = False) -> Solution:
+              mass_pivots: bool = False, residual: bool = False) -> Solution:
         """The sweep at the Laplace variables ``s`` (B,) for the load cases ``loads`` (N, d, L) (body load
         columns ``h``) and ``torques`` (F, L) (the one-direction joints' ``tau``).
 
         ``mass_only``: the terms ``Z = M0``, ``kappa = 0`` and no coupling (``s`` is ignored but for its size): the
         pivots of the mass terms alone.  ``mass_pivots``: those pivots too (:attr:`Solution.mass_pivot`; one more
-        column of the same sweep when there is no coupling).  Real arithmetic where every term is real (undamped
-        model, ``s`` on the imaginary axis, real loads).
+        column of the same sweep when there is no coupling).  ``residual``: the a-posteriori backward error of
+        the answer too (:meth:`backward_error`, :attr:`Solution.backward`).  Real arithmetic where every term is
+        real (undamped model, ``s`` on the imaginary axis, real loads).
         """
         d, n = self.d, self.n
         s = np.asarray(s).reshape(-1)
@@ -137,8 +144,8 @@ class BatchedSweep:
         if mass_pivots and coupled:
             mass = self.solve(np.zeros(1), np.zeros((self.n, d, 1)), np.zeros((len(self.free), 1)),
                               mass_only=True).pivot[:, 0]
-            solution = self.solve(s, loads, torques)
-            return Solution(solution.x, solution.pivot, mass)
+            solution = self.solve(s, loads, torques, residual=residual)
+            return Solution(solution.x, solution.pivot, mass, solution.backward)
         extra = mass_pivots                         # the last column: Z = M0, kappa = 0
         real = (mass_only or (self.undamped and not np.any(s.real))) and self.real_laws \
             and not np.iscomplexobj(loads) and not np.iscomplexobj(torques)
@@ -157,7 +164,7 @@ class BatchedSweep:
         # the children's contributions per parent (no (N, d, d, B) array: first touches of large arrays
         # cost more than the arithmetic)
         inertia, bias = [None] * n, [None] * n
-        w_all, r_all = [None] * n, [None] * n
+        w_all, r_all, relative = [None] * n, [None] * n, [None] * n
         pivot = np.empty((len(self.free), s.size), dtype=float if real else complex)
         for j in range(n - 1, -1, -1):
             P = self.M0[j] * squared if mass_only else self.M0[j] * squared + self.K0[j]      # (d, d, B)
@@ -194,12 +201,80 @@ class BatchedSweep:
             if parent >= 0:
                 A = (self.Kin[j] @ x[parent].reshape(d, -1)).reshape(d, L, -1)
                 if a is not None:
-                    A[a] += r_all[j] - np.einsum("kb,klb->lb", w_all[j], A)
+                    relative[j] = r_all[j] - np.einsum("kb,klb->lb", w_all[j], A)
+                    A[a] += relative[j]
             else:
                 A = np.zeros((d, L, s.size), dtype=pivot.dtype)
                 if a is not None:
-                    A[a] = r_all[j]
+                    A[a] = relative[j] = r_all[j]
             x[j] = A
+        backward = self.backward_error(squared, s if damped else None, loads, torques, kappa, x, relative) \
+            if residual else None
         if extra:
-            return Solution([A[..., :-1] for A in x], pivot[:, :-1], pivot[:, -1])
-        return Solution(x, pivot)
+            return Solution([A[..., :-1] for A in x], pivot[:, :-1], pivot[:, -1],
+                            None if backward is None else backward[:-1])
+        return Solution(x, pivot, None, backward)
+
+    def backward_error(self, squared: np.ndarray, s: np.ndarray | None, loads: np.ndarray, torques: np.ndarray,
+                       kappa: np.ndarray, x: list, relative: list) -> np.ndarray:
+        """(B,) the largest relative residual of the joint equations at the answer ``x``: the a-posteriori
+        certificate of :mod:`ctmm.sweep_response` (``RESIDUAL_TOLERANCE``).
+
+        The wrenches follow from the amplitudes alone, tip to base, by products and sums (no division):
+        ``F_j = (s^2 M0_j + s C0_j + K0_j) x_j + h_j + sum_children RF_c (F_c + H_c a_c)`` (``s`` ``None``: no
+        ``C0`` term; ``squared``, ``s`` (B,)); each one-direction joint must then satisfy
+        ``F_j[a] + G_j A_O + kappa_j a_j = tau_j``.  Its residual is measured against the moduli of the terms it
+        is made of (``(|s|^2 |M0_j| + ...) |x_j| + |h_j| + ...``, carried along the same sums): a backward error, the relative
+        change of the terms that makes ``x`` exact.  Rounding alone leaves about ``N eps``; errors of
+        eliminations that cancel many digits -- one near-singular pivot, or moderate ones compounding along a
+        path, which the pivot test does not see -- leave their size here.
+        """
+        d, n = self.d, self.n
+        weights = [squared, np.ones(1)] + ([] if s is None else [s])               # of M0, K0, C0
+        moduli_of = [np.abs(w) for w in weights]
+        parts = slice(0, len(weights) * d)
+        residuals, scales = [], []
+        wrench, moduli = [None] * n, [None] * n
+        loaded = np.any(loads != 0.0, axis=(1, 2))
+        for j in range(n - 1, -1, -1):
+            A = x[j]
+            flat = A.reshape(d, -1)
+            # every term block times x in one product: [M0; K0; C0] x, then weighted by s^2, 1, s
+            products = (self.terms[j][parts] @ flat).reshape(len(weights), d, *A.shape[1:])
+            bounds = (self.moduli[j][parts] @ np.abs(flat)).reshape(products.shape)
+            F, size = products[0] * weights[0] + products[1], bounds[0] * moduli_of[0] + bounds[1]
+            if s is not None:
+                F += products[2] * s
+                size += bounds[2] * moduli_of[2]
+            if loaded[j]:
+                F += loads[j][:, :, None]
+                size += np.abs(loads[j])[:, :, None]
+            if wrench[j] is not None:
+                F += wrench[j]
+                size += moduli[j]
+            a, parent = self.axis[j], self.tree.parent[j]
+            if a is not None:
+                k, rate = self.slot[j], relative[j]                       # a_j (L, B)
+                law = kappa[k] * rate
+                residual = F[a] + law - torques[k][:, None]
+                scale = size[a] + np.abs(law) + np.abs(torques[k])[:, None]
+                if self.G[j] is not None and parent >= 0:
+                    origin = (self.Kin[j] @ x[parent].reshape(d, -1)).reshape(d, *rate.shape)
+                    residual = residual + np.einsum("k,klb->lb", self.G[j][:, 0], origin)
+                    scale = scale + np.einsum("k,klb->lb", np.abs(self.G[j][:, 0]), np.abs(origin))
+                if self.H[j] is not None:
+                    F, size = F + self.H[j][:, :, None] * rate, size + np.abs(self.H[j])[:, :, None] * np.abs(rate)
+                residuals.append(residual)
+                scales.append(scale)
+            if parent >= 0:
+                moved = (self.RF[j] @ F.reshape(d, -1)).reshape(F.shape)
+                bound = (np.abs(self.RF[j]) @ size.reshape(d, -1)).reshape(F.shape)
+                wrench[parent] = moved if wrench[parent] is None else wrench[parent] + moved
+                moduli[parent] = bound if moduli[parent] is None else moduli[parent] + bound
+        if not residuals:
+            return np.zeros(x[0].shape[-1])
+        scale = np.stack(scales)
+        with np.errstate(all="ignore"):
+            ratio = np.abs(np.stack(residuals)) / np.where(scale > 0.0, scale, 1.0)
+        ratio[~np.isfinite(ratio)] = np.inf
+        return ratio.max(axis=(0, 1))

@@ -6,21 +6,30 @@ must agree with the generic sweep to round-off on terms that exercise every bran
 held drives, joint springs and dampers, damped bodies, the preload coupling, complex ``s`` off the axis,
 several load cases).  Its answers as FRFs are checked against the Lagrange models in
 ``tests/test_planar_frf_sweep.py`` (rigid chains, trees and closed loops all take this kernel).
+
+Its a-posteriori certificate (the backward error of the joint equations, ``RESIDUAL_TOLERANCE``) against chains
+whose hinge springs tune every sub-chain next to a resonance: moderate pivots, each accepted by the pivot test,
+whose eliminations compound; references: 60-digit solves of the linearised Lagrange model.
 """
 from __future__ import annotations
 
+import mpmath
 import numpy as np
 import pytest
 
+import ctmm
 from ctmm.articulated import Tree, articulated_sweep, frequency_kappa
 from ctmm.batched_sweep import BatchedSweep, applies
+from ctmm.controlled_linearization import FrequencyAtPoleError
 from ctmm.ops import NUMPY
 from ctmm.flexible import ModalBeam
-from ctmm.planar import Pinned, PlanarModel, RigidBody, SmoothHinge
+from ctmm.planar import ElasticHinge, Pinned, PlanarModel, RigidBody, SmoothHinge
 from ctmm.planar.elements import FixedMounting
 from ctmm.planar_linearization import operating_point
 from ctmm.planar_transfer_response import SweepResponse
 from ctmm.protocol import BodyTerms, JointTerms
+from ctmm.reference.planar_lagrange import PlanarLagrange
+from ctmm.sweep_response import PIVOT_TOLERANCE, RESIDUAL_TOLERANCE
 
 D = 3
 PARENT = (-1, 0, 1, 0, 3, 3, 5)
@@ -126,3 +135,94 @@ def test_planar_plants_take_the_kernel_where_it_applies():
                                                                     mass_per_length=0.5, n_modes=2)],
                              gravity=(0.0, 0.0))
     assert SweepResponse(beam, operating_point(beam)).batched is None       # modal bodies: the generic sweep
+
+
+# ------------------------------------------------------------------ the a-posteriori certificate (compounding)
+def tuned_chain(links: int, fraction: float, omega: float) -> PlanarModel:
+    """A chain whose hinge springs put every sub-chain next to a resonance at ``omega``: tip to base, each hinge
+    stiffness leaves its pivot ``D_j = fraction |P_aa|`` (the elimination's pivots are read off the sweep only to
+    build the model; the references below are the Lagrange model's)."""
+    stiffness = np.ones(links)
+    zero = (np.zeros(links), np.zeros(links))
+    for j in range(links - 1, 0, -1):
+        model = uniform_chain(stiffness)
+        kernel = SweepResponse(model, operating_point(model, zero)).batched
+        pivot = kernel.solve(np.array([1j * omega]), np.zeros((links, D, 1)), np.zeros((len(kernel.free), 1))).pivot
+        inertia = pivot[kernel.slot[j], 0].real - stiffness[j]
+        stiffness[j] = -inertia + fraction * abs(inertia)
+    return uniform_chain(stiffness)
+
+
+def uniform_chain(stiffness: np.ndarray) -> PlanarModel:
+    elements = [Pinned("base")]
+    for i, k in enumerate(stiffness):
+        if i:
+            elements.append(ElasticHinge(f"h{i}", stiffness=float(k)))
+        elements.append(RigidBody(f"l{i}", mass=1.0, inertia=0.1, center_of_mass=(0.5, 0.0), outboard=(1.0, 0.0)))
+    return PlanarModel.chain("tuned", elements, gravity=(0.0, 0.0))
+
+
+def reference_angle(model: PlanarModel, omega: float) -> float:
+    """``theta_tip / moment_tip`` of the linearised Lagrange model by a 60-digit solve of ``K - omega^2 M``."""
+    lagrange = PlanarLagrange(model)
+    M, _, K = lagrange.linearize(np.zeros(model.n_coordinates))
+    row = np.zeros(model.n_coordinates)
+    row[lagrange.src[model.n_bodies - 1]] = 1.0
+    with mpmath.workdps(60):
+        x = mpmath.lu_solve(mpmath.matrix((K - omega * omega * M).tolist()), mpmath.matrix(row.tolist()))
+        return float(mpmath.fdot(row.tolist(), x))
+
+
+def certificate(model: PlanarModel, omega: float):
+    """The kernel's answer at ``omega``, its pivots' relative sizes and its backward error."""
+    zero = (np.zeros(model.n_coordinates), np.zeros(model.n_coordinates))
+    plant = SweepResponse(model, operating_point(model, zero))
+    name = f"l{model.n_bodies - 1}"
+    G, good = plant.response(np.array([1j * omega]), [f"{name}.moment"], [f"{name}.theta"])
+    kernel = plant.batched
+    loads = np.stack([h[0, :, 0] for h in plant.loads(f"{name}.moment")[0]])[:, :, None]
+    solution = kernel.solve(np.array([1j * omega]), loads, np.zeros((len(kernel.free), 1)), mass_pivots=True,
+                            residual=True)
+    inertia = -omega * omega * solution.mass_pivot
+    r = np.abs(solution.pivot[:, 0]) / (np.abs(inertia) + np.abs(solution.pivot[:, 0] - inertia))
+    return G[0, 0, 0], bool(good[0]), r, float(solution.backward[0])
+
+
+def test_compounded_eliminations_are_handed_to_the_resolvent():
+    """Three links, both inner sub-chains 5e-6 of their terms from resonance: every pivot passes the pivot
+    test, yet the sweep's answer is 1e-6 off; the backward error sees it and the resolvent answers."""
+    model, omega = tuned_chain(3, 1e-5, 3.0), 3.0
+    reference = reference_angle(model, omega)
+    answer, good, r, backward = certificate(model, omega)
+    assert np.all(r >= PIVOT_TOLERANCE)                     # the pivot test alone would certify it
+    assert abs(answer - reference) > 1e-8 * abs(reference)  # and it would be wrong
+    assert backward > RESIDUAL_TOLERANCE and not good
+    frf = ctmm.frequency_response(model, [2.0, omega], input="l2.moment", output="l2.theta",
+                                  operating_point=(np.zeros(3), np.zeros(3)))
+    assert frf.info["n_dense_frequencies"] == 1
+    assert abs(frf.response[0, 0, 1] - reference) <= 1e-9 * abs(reference)
+    assert abs(frf.response[0, 0, 0] - reference_angle(model, 2.0)) <= 1e-9 * abs(reference_angle(model, 2.0))
+
+
+def test_many_moderate_pivots_compounding_are_not_answered_by_the_sweep():
+    """Six links, four inner pivots each 5e-4 of their terms (moderate): the sweep's answer is 1e-3 off a
+    60-digit solve; the backward error hands the frequency over and the resolvent refuses it (its scaled
+    condition number is 1e14)."""
+    model, omega = tuned_chain(6, 1e-3, 3.0), 3.0
+    answer, good, r, backward = certificate(model, omega)
+    assert np.all(r >= 1e-4)
+    assert abs(answer - reference_angle(model, omega)) > 1e-4 * abs(answer)
+    assert backward > RESIDUAL_TOLERANCE and not good
+    with pytest.raises(FrequencyAtPoleError):
+        ctmm.frequency_response(model, [omega], input="l5.moment", output="l5.theta",
+                                operating_point=(np.zeros(6), np.zeros(6)))
+
+
+def test_backward_error_of_a_plain_chain_is_rounding():
+    """The 30-link pendulum with hinge springs: backward error at the level of rounding, every frequency answered."""
+    model = uniform_chain(np.full(30, 50.0))
+    plant = SweepResponse(model, operating_point(model, (np.zeros(30), np.zeros(30))))
+    G, good = plant.response(1j * np.logspace(-1, 2, 50), ["l29.moment"], ["l29.theta"])
+    loads = np.stack([h[0, :, 0] for h in plant.loads("l29.moment")[0]])[:, :, None]
+    solution = plant.batched.solve(1j * np.logspace(-1, 2, 50), loads, np.zeros((30, 1)), residual=True)
+    assert np.max(solution.backward) < 1e-12
