@@ -224,8 +224,8 @@ class BatchedSweep:
         ``F_j = (s^2 M0_j + s C0_j + K0_j) x_j + h_j + sum_children RF_c (F_c + H_c a_c)`` (``s`` ``None``: no
         ``C0`` term; ``squared``, ``s`` (B,)); each one-direction joint must then satisfy
         ``F_j[a] + G_j A_O + kappa_j a_j = tau_j``.  Its residual is measured against the moduli of the terms it
-        is made of (``(|s|^2 |M0_j| + ...) |x_j| + |h_j| + ...``, carried along the same sums): a backward error, the relative
-        change of the terms that makes ``x`` exact.  Rounding alone leaves about ``N eps``; errors of
+        is made of (``(|s|^2 |M0_j| + ...) |x_j| + |h_j| + ...``, carried along the same sums): a backward error,
+        the relative change of the terms that makes ``x`` exact.  Rounding alone leaves about ``N eps``; errors of
         eliminations that cancel many digits -- one near-singular pivot, or moderate ones compounding along a
         path, which the pivot test does not see -- leave their size here.
         """

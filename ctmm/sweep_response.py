@@ -24,7 +24,7 @@ from .loop_phasors import close_loops as close_phasor_loops
 from .ops import NUMPY
 from .protocol import BodyTerms
 
-__all__ = ["ArticulatedResponse", "closed_loop_response", "smallest_singular", "PIVOT_TOLERANCE",
+__all__ = ["ArticulatedResponse", "closed_loop_response", "backward_error", "smallest_singular", "PIVOT_TOLERANCE",
            "RESIDUAL_TOLERANCE", "CHUNK"]
 
 PIVOT_TOLERANCE = 1e-6
@@ -98,6 +98,7 @@ class ArticulatedResponse:
         # (members, M0, C0, K0) per body size, stacked (members, 1, size, size): Z of all of them in one operation
         self.stacks = [(members, *(np.stack([self.bodies[j][k] for j in members])[:, None] for k in range(3)))
                        for members in sizes.values()]
+        self.moduli = [(members, np.abs(M0), np.abs(C0), np.abs(K0)) for members, M0, C0, K0 in self.stacks]
         self.undamped = not any(np.any(C0) for _, C0, _, _, _ in self.bodies) and not any(
             getattr(joint, "tau_v", None) is not None and np.any(joint.tau_v) for joint in self.joints)
 
@@ -143,9 +144,11 @@ class ArticulatedResponse:
         column = s.reshape(-1, 1, 1)
         if self.undamped and not np.any(s.real):    # s^2 = -omega^2: the whole sweep is real (same numbers, faster)
             stiffness = self._dynamic_stiffness((column * column).real, None)
+            moduli = self._dynamic_stiffness(np.abs(column * column), None, self.moduli)
             kappa = frequency_kappa(NUMPY, self.joints, 0.0)
         else:
             stiffness = self._dynamic_stiffness(column * column, column)
+            moduli = self._dynamic_stiffness(np.abs(column * column), np.abs(column), self.moduli)
             kappa = frequency_kappa(NUMPY, self.joints, column)
         G = np.zeros((s.size, rows.shape[0], len(loads)), dtype=complex)
         good = np.ones(s.size, dtype=bool)
@@ -157,9 +160,10 @@ class ArticulatedResponse:
                                              coupling=self.coupling)
                 amplitudes = self.amplitudes(solution)                           # (B, n)
                 G[:, :, i] = amplitudes @ rows[:, :n].T + (s[:, None] * amplitudes) @ rows[:, n:].T
+                backward = backward_error(self.tree, bodies, moduli, joints, kappa, self.coupling, solution)
             if i == 0:
                 good &= self.pivots_certified(solution, s)
-            good &= np.all(np.isfinite(G[:, :, i]), axis=1)
+            good &= np.all(np.isfinite(G[:, :, i]), axis=1) & (backward <= RESIDUAL_TOLERANCE)
         return G, good
 
     def _batched(self, s: np.ndarray, loads: list, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -188,11 +192,12 @@ class ArticulatedResponse:
         good &= np.all(np.isfinite(G), axis=(1, 2))
         return G.astype(complex, copy=False), good
 
-    def _dynamic_stiffness(self, squared: np.ndarray, column: np.ndarray | None) -> list:
+    def _dynamic_stiffness(self, squared: np.ndarray, column: np.ndarray | None, stacks: list | None = None) -> list:
         """``Z_j = s^2 M0 + s C0 + K0`` (B, d + n_j, d + n_j) of every body (``column`` ``None``: no ``C0`` term),
-        formed for all bodies of one size in one array operation."""
+        formed for all bodies of one size in one array operation (``stacks``: other ``M0, C0, K0``, e.g. their
+        moduli)."""
         out: list = [None] * len(self.bodies)
-        for members, M0, C0, K0 in self.stacks:
+        for members, M0, C0, K0 in self.stacks if stacks is None else stacks:
             Z = squared * M0 + K0 if column is None else squared * M0 + column * C0 + K0
             for position, j in enumerate(members):
                 out[j] = Z[position]
@@ -214,6 +219,73 @@ class ArticulatedResponse:
                 scale = np.abs(inertia).max(axis=(-2, -1)) + np.abs(pivot - inertia).max(axis=(-2, -1))
                 good &= smallest_singular(pivot) >= PIVOT_TOLERANCE * scale
         return good
+
+
+def backward_error(tree: Tree, bodies: Sequence[BodyTerms], moduli: Sequence[np.ndarray], joints: Sequence[Any],
+                   kappa: Sequence[Any], coupling: Sequence[Any] | None, solution: Any) -> np.ndarray:
+    """(B,) the largest relative residual of a numpy frequency-context sweep's answer: the a-posteriori
+    certificate (:data:`RESIDUAL_TOLERANCE`; the batched kernel's twin is
+    :meth:`ctmm.batched_sweep.BatchedSweep.backward_error`).
+
+    Tip to base, from the amplitudes alone (products and sums, no division), every body's generalised force
+    ``Q_j = Z_j x_j + h_j + sum_children RF_c (F_c + H_c a_c)`` (``F_c`` the child's first ``d`` rows): its modal
+    rows must vanish, and each free joint must satisfy ``S^T F_j + G_j A_O + kappa_j a_j = tau_j``.  Each
+    residual is measured against the moduli of its terms (``moduli``: ``|s|^2 |M0| + |s| |C0| + |K0|`` per body,
+    carried along the same sums).
+
+    Parameters
+    ----------
+    tree : Tree
+    bodies : sequence of BodyTerms
+        The terms swept (``M`` holds ``Z_j(s)``, ``h`` the load).
+    moduli : sequence of ndarray
+        ``(B, d + n_j, d + n_j)`` per body.
+    joints, kappa, coupling
+        As swept (:func:`ctmm.articulated.articulated_sweep`).
+    solution : Articulated
+        Its result.
+    """
+    d, count = tree.dimension, len(bodies)
+    coupling = list(coupling) if coupling is not None else [None] * count
+    batch = max(np.shape(x)[0] for x in solution.x)
+    worst = np.zeros(batch)
+    wrench, size = [None] * count, [None] * count
+
+    def ratio(residual: np.ndarray, scale: np.ndarray) -> np.ndarray:
+        value = np.abs(residual) / np.where(scale > 0.0, scale, 1.0)
+        return np.where(np.isfinite(value), value, np.inf).max(axis=(1, 2))
+
+    for j in range(count - 1, -1, -1):
+        x = solution.x[j]
+        Q = bodies[j].M @ x + bodies[j].h
+        S = moduli[j] @ np.abs(x) + np.abs(bodies[j].h)
+        if wrench[j] is not None:
+            Q, S = Q + wrench[j], S + size[j]
+        Q, S = np.broadcast_to(Q, (batch,) + Q.shape[1:]), np.broadcast_to(S, (batch,) + S.shape[1:])
+        if Q.shape[1] > d:                                          # the modal rows: no force reaches them
+            worst = np.maximum(worst, ratio(Q[:, d:], S[:, d:]))
+        F, bound = Q[:, :d], S[:, :d]
+        joint, a, parent = joints[j], solution.relative[j], tree.parent[j]
+        if a is not None and joint.prescribed is None and joint.free:
+            St = np.swapaxes(joint.S, -1, -2)
+            residual, scale = St @ F, np.abs(St) @ bound
+            if kappa[j] is not None:
+                residual, scale = residual + kappa[j] @ a, scale + np.abs(kappa[j]) @ np.abs(a)
+            if joint.tau is not None:
+                residual, scale = residual - joint.tau, scale + np.abs(joint.tau)
+            G, H = coupling[j] if coupling[j] is not None else (None, None)
+            if G is not None and parent >= 0:
+                origin = bodies[parent].Kin[tree.point[j]] @ solution.x[parent]
+                residual, scale = residual + G @ origin, scale + np.abs(G) @ np.abs(origin)
+            if H is not None:
+                F, bound = F + H @ a, bound + np.abs(H) @ np.abs(a)
+            worst = np.maximum(worst, ratio(residual, scale))
+        if parent >= 0:
+            RF = bodies[parent].RF[tree.point[j]]
+            moved, moved_size = RF @ F, np.abs(RF) @ bound
+            wrench[parent] = moved if wrench[parent] is None else wrench[parent] + moved
+            size[parent] = moved_size if size[parent] is None else size[parent] + moved_size
+    return worst
 
 
 def smallest_singular(blocks: np.ndarray) -> np.ndarray:

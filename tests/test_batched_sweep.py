@@ -122,10 +122,9 @@ def test_kernel_declines_terms_it_does_not_take():
 
 
 def test_planar_plants_take_the_kernel_where_it_applies():
-    arm = PlanarModel.chain("arm", [Pinned("base"), RigidBody("a", mass=1.0, inertia=0.1, center_of_mass=(0.5, 0.0),
-                                                              outboard=(1.0, 0.0)),
-                                    SmoothHinge("h"), RigidBody("b", mass=0.5, inertia=0.05, center_of_mass=(0.4, 0.0))],
-                            gravity=(0.0, -9.81))
+    arm = PlanarModel.chain("arm", [
+        Pinned("base"), RigidBody("a", mass=1.0, inertia=0.1, center_of_mass=(0.5, 0.0), outboard=(1.0, 0.0)),
+        SmoothHinge("h"), RigidBody("b", mass=0.5, inertia=0.05, center_of_mass=(0.4, 0.0))], gravity=(0.0, -9.81))
     plant = SweepResponse(arm, operating_point(arm))
     assert plant.batched is not None
     G, good = plant.response(1j * np.array([0.5, 2.0]), ["b.force_x"], ["b.theta"])
