@@ -91,13 +91,12 @@ class BatchedSweep:
                  coupling: Sequence[Any] | None = None) -> None:
         d = self.d = tree.dimension
         self.tree, self.n = tree, len(bodies)
-        self.M0 = [np.asarray(b[0])[..., None] for b in bodies]           # (d, d, 1) each
-        self.C0 = [np.asarray(b[1])[..., None] for b in bodies]
-        self.K0 = [np.asarray(b[2])[..., None] for b in bodies]
-        self.damped_bodies = any(np.any(C0) for C0 in self.C0)
+        stacked = [np.stack([b[k] for b in bodies])[..., None] for k in range(3)]   # (N, d, d, 1)
+        self.M0, self.C0, self.K0 = (list(terms) for terms in stacked)               # (d, d, 1) views
+        self.damped_bodies = bool(np.any(stacked[1]))
         # [M0; K0; C0] (3 d, d) per body and its moduli: the products of the a-posteriori residual
-        self.terms = [np.concatenate([np.asarray(b[0]), np.asarray(b[2]), np.asarray(b[1])]) for b in bodies]
-        self.moduli = [np.abs(block) for block in self.terms]
+        terms = np.concatenate([stacked[0], stacked[2], stacked[1]], axis=1)[..., 0]       # (N, 3 d, d)
+        self.terms, self.moduli = list(terms), list(np.abs(terms))
         self.axis = [None if joint.prescribed is not None or not joint.free else joint.axis for joint in joints]
         self.free = [j for j, a in enumerate(self.axis) if a is not None]
         self.slot = {j: k for k, j in enumerate(self.free)}

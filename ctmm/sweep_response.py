@@ -4,8 +4,10 @@
 (per body ``(M0, C0, K0, Kin, RF)`` of ``Z(s) = s^2 M0 + s C0 + K0``; joints with their laws' tangents,
 driven joints held) and answers ``G(s)`` of named actuators and sensors, batched over ``s``: one
 articulated sweep (:func:`ctmm.articulated.articulated_sweep`, ``d = 3`` planar, ``d = 6`` spatial) per
-input column, :data:`CHUNK` frequencies at a time, every pivot certified per frequency
-(:meth:`ArticulatedResponse.pivots_certified`).  :func:`closed_loop_response` closes the feedback loops of a
+input column (rigid trees on one-direction joints: the kernel of :mod:`ctmm.batched_sweep`, every column in one
+sweep), :data:`CHUNK` frequencies at a time, certified per frequency twice: every pivot against its terms
+(:data:`PIVOT_TOLERANCE`) and the answer's a-posteriori backward error (:data:`RESIDUAL_TOLERANCE`,
+:func:`backward_error`).  :func:`closed_loop_response` closes the feedback loops of a
 ``ControlledModel`` at each frequency (with and without delay) and certifies the loop matrix.  The planar
 (:mod:`ctmm.planar_transfer_response`) and spatial (:mod:`ctmm.spatial_transfer_response`) subclasses say
 how their actuators load the terms, how sensors read the amplitudes and which models the context states;
@@ -33,7 +35,8 @@ that keeps a fraction ``r`` of its terms amplifies their errors by ``1/r``, and 
 rounding of this pivot: they carry the errors of the linearised terms (complex step, assembled finite elements)
 and of the children's inverted pivots, which compound along the tree.  ``r >= 1e-6`` bounds the amplification by
 1e6 (answers to about 1e-8 for terms good to 1e-14); closer to a resonance the frequency is handed to the dense
-resolvent, which answers or refuses by its own scaled-condition rule.  Measured (session 8) on the stiff plate chain of
+resolvent, which answers or refuses by its own scaled-condition rule.  The bound sees one pivot at a time: what the
+children's cancellations left in its terms is the business of :data:`RESIDUAL_TOLERANCE`.  Measured (session 8) on the stiff plate chain of
 ``tests/test_resolvent_scaling.py``, 4e-10 from its hinge mode: hinge pivot 2.5e-8 of its terms (the former bound
 ``sqrt(eps)`` = 1.5e-8 accepted it), plate block 3.2e-8, answer 5e-4 off the global finite-element model."""
 
@@ -68,9 +71,9 @@ class ArticulatedResponse:
     batched: BatchedSweep | None = None
 
     def point_amplitudes(self, x: np.ndarray) -> np.ndarray | None:
-        """Coordinate amplitudes (L, B, n) from the batched kernel's ``A_in`` (d, L, B) of every body, or
-        ``None`` when the subclass does not read them (then the generic sweep answers)."""
-        return None
+        """Coordinate amplitudes (L, B, n) from the batched kernel's ``A_in`` (d, L, B) of every body; subclasses
+        that do not override it are answered by the generic sweep."""
+        raise NotImplementedError
 
     def prepare(self, tree: Tree, bodies: Sequence[tuple], joints: Sequence[Any],
                 coupling: Sequence[Any] | None = None) -> None:
@@ -81,8 +84,8 @@ class ArticulatedResponse:
         self.tree, self.bodies, self.joints = tree, tuple(bodies), tuple(joints)
         self.coupling = None if coupling is None or all(g is None for g in coupling) else tuple(coupling)
         self.batched = None
-        if batched_applies(tree, self.bodies, self.joints, self.coupling) and \
-                self.point_amplitudes([np.zeros((tree.dimension, 1, 1))] * len(self.bodies)) is not None:
+        reads_points = type(self).point_amplitudes is not ArticulatedResponse.point_amplitudes
+        if reads_points and batched_applies(tree, self.bodies, self.joints, self.coupling):
             # rigid bodies, welds, held drives and one-direction joints: the kernel of ctmm.batched_sweep
             self.batched = BatchedSweep(tree, self.bodies, self.joints, self.coupling)
             self.batched_mass_pivots = None         # with the first sweep (one more column)
