@@ -3,12 +3,14 @@
 :func:`ctmm.articulated.articulated_sweep` is written once for every context on :mod:`ctmm.ops` (numpy and
 casadi); on numpy its per-body work is a few dozen calls on ``(B, d, d)`` batches.  For the frequency context of
 trees whose bodies are rigid (``d`` unknowns each) and whose joints are welds, held drives or one unit free
-direction (``JointTerms.axis``: planar hinges), the same recursion is a handful of array operations per body on
-contiguous ``(d, d, B)`` blocks: the dynamic stiffness of all bodies in one product, the joint elimination as a
-rank-one update, the move to the parent point as one ``(d^2, d^2)`` product (``vec(RF Phi Kin) =
+direction (``JointTerms.axis``: planar hinges), the same recursion is about fifteen array operations per body on
+contiguous ``(d, d, B)`` blocks (small enough to stay in cache: no ``(N, d, d, B)`` array is formed): the joint
+elimination as a rank-one update, the move to the parent point as one ``(d^2, d^2)`` product (``vec(RF Phi Kin) =
 kron(RF, Kin^T) vec(Phi)``, row-major), every load case at once (the articulated inertias do not depend on the
-loads).  Same arithmetic as the generic sweep (answers equal to round-off); :func:`applies` says which terms it
-takes, the others stay on the generic sweep.
+loads), real arithmetic for undamped terms on the imaginary axis.  Same arithmetic as the generic sweep (answers
+equal to round-off); :func:`applies` says which terms it takes, the others stay on the generic sweep.  Besides the
+pivots it states the answer's a-posteriori backward error (:meth:`BatchedSweep.backward_error`), the second
+certificate of :mod:`ctmm.sweep_response`.
 
 Tip to base, body ``j`` with ``P = Z_j + sum_children RF Phi_hat Kin``, ``p = h_j + sum_children RF psi_hat``:
 joint on unit axis ``a``: ``D = P_aa + kappa``, ``w = (P_a: + G) / D``, ``u = (P_:a + H) / D``, ``r = (tau - p_a) / D``,
@@ -100,13 +102,13 @@ class BatchedSweep:
         self.axis = [None if joint.prescribed is not None or not joint.free else joint.axis for joint in joints]
         self.free = [j for j, a in enumerate(self.axis) if a is not None]
         self.slot = {j: k for k, j in enumerate(self.free)}
-        self.stiffness = np.array([0.0 if joints[j].tau_q is None else float(np.real(joints[j].tau_q).reshape(-1)[0])
-                                   for j in self.free])
-        self.damping = np.array([0.0 if joints[j].tau_v is None else float(np.real(joints[j].tau_v).reshape(-1)[0])
-                                 for j in self.free])
-        complex_laws = any(joints[j].tau_q is not None and np.iscomplexobj(joints[j].tau_q) for j in self.free)
-        self.real_laws = not complex_laws and not any(joints[j].tau_v is not None and np.iscomplexobj(joints[j].tau_v)
-                                                      for j in self.free)
+        # the joints' law tangents -tau_q, -tau_v (real unless a law says otherwise)
+        laws = np.array([[0.0 if law is None else complex(np.asarray(law).reshape(-1)[0])
+                          for law in (joints[j].tau_q, joints[j].tau_v)] for j in self.free], dtype=complex)
+        laws = laws.reshape(len(self.free), 2)
+        self.real_laws = not np.any(laws.imag)
+        laws = laws.real if self.real_laws else laws
+        self.stiffness, self.damping = laws[:, 0], laws[:, 1]
         self.kron, self.RF, self.Kin = [None] * self.n, [None] * self.n, [None] * self.n
         children = [j for j, parent in enumerate(tree.parent) if parent >= 0]
         for j in children:
