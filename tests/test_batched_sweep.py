@@ -225,3 +225,20 @@ def test_backward_error_of_a_plain_chain_is_rounding():
     loads = np.stack([h[0, :, 0] for h in plant.loads("l29.moment")[0]])[:, :, None]
     solution = plant.batched.solve(1j * np.logspace(-1, 2, 50), loads, np.zeros((30, 1)), residual=True)
     assert np.max(solution.backward) < 1e-12
+
+
+def test_the_generic_sweep_states_the_same_backward_error(monkeypatch):
+    """Modal bodies, finite elements, free bases and spatial models take the generic sweep: its twin of the
+    certificate (``ctmm.sweep_response.backward_error``) hands the tuned three-link chain over as well."""
+    import ctmm.sweep_response as sweep_module
+
+    model, omega = tuned_chain(3, 1e-5, 3.0), 3.0
+    monkeypatch.setattr(sweep_module, "batched_applies", lambda *arguments: False)
+    plant = SweepResponse(model, operating_point(model, (np.zeros(3), np.zeros(3))))
+    assert plant.batched is None
+    _, good = plant.response(np.array([2.0j, 1j * omega]), ["l2.moment"], ["l2.theta"])
+    assert good.tolist() == [True, False]
+    frf = ctmm.frequency_response(model, [omega], input="l2.moment", output="l2.theta",
+                                  operating_point=(np.zeros(3), np.zeros(3)))
+    reference = reference_angle(model, omega)
+    assert frf.info["n_dense_frequencies"] == 1 and abs(frf.response[0, 0, 0] - reference) <= 1e-9 * abs(reference)
