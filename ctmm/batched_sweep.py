@@ -120,6 +120,7 @@ class BatchedSweep:
                                                                                              d * d, d * d)
             for k, j in enumerate(children):
                 self.kron[j] = kron[k]
+        self.RF_moduli = [None if RF is None else np.abs(RF) for RF in self.RF]
         self.G, self.H = [None] * self.n, [None] * self.n
         for j, pair in enumerate(coupling or ()):
             if pair is not None and self.axis[j] is not None:
@@ -237,6 +238,8 @@ class BatchedSweep:
         residuals, scales = [], []
         wrench, moduli = [None] * n, [None] * n
         loaded = np.any(loads != 0.0, axis=(1, 2))
+        lawful = np.any(kappa != 0.0, axis=1)                               # joints with a spring or damper
+        driven = np.any(torques != 0.0, axis=1)                             # joints with a torque
         for j in range(n - 1, -1, -1):
             A = x[j]
             flat = A.reshape(d, -1)
@@ -256,9 +259,12 @@ class BatchedSweep:
             a, parent = self.axis[j], self.tree.parent[j]
             if a is not None:
                 k, rate = self.slot[j], relative[j]                       # a_j (L, B)
-                law = kappa[k] * rate
-                residual = F[a] + law - torques[k][:, None]
-                scale = size[a] + np.abs(law) + np.abs(torques[k])[:, None]
+                residual, scale = F[a], size[a]
+                if lawful[k]:
+                    law = kappa[k] * rate
+                    residual, scale = residual + law, scale + np.abs(law)
+                if driven[k]:
+                    residual, scale = residual - torques[k][:, None], scale + np.abs(torques[k])[:, None]
                 if self.G[j] is not None and parent >= 0:
                     origin = (self.Kin[j] @ x[parent].reshape(d, -1)).reshape(d, *rate.shape)
                     residual = residual + np.einsum("k,klb->lb", self.G[j][:, 0], origin)
@@ -269,7 +275,7 @@ class BatchedSweep:
                 scales.append(scale)
             if parent >= 0:
                 moved = (self.RF[j] @ F.reshape(d, -1)).reshape(F.shape)
-                bound = (np.abs(self.RF[j]) @ size.reshape(d, -1)).reshape(F.shape)
+                bound = (self.RF_moduli[j] @ size.reshape(d, -1)).reshape(F.shape)
                 wrench[parent] = moved if wrench[parent] is None else wrench[parent] + moved
                 moduli[parent] = bound if moduli[parent] is None else moduli[parent] + bound
         if not residuals:
