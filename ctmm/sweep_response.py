@@ -32,24 +32,26 @@ __all__ = ["ArticulatedResponse", "closed_loop_response", "backward_error", "sma
 PIVOT_TOLERANCE = 1e-6
 """Smallest accepted pivot of the sweep relative to the terms it is made of.  A pivot ``P = s^2 P_M + (P - s^2 P_M)``
 that keeps a fraction ``r`` of its terms amplifies their errors by ``1/r``, and those errors are not only the
-rounding of this pivot: they carry the errors of the linearised terms (complex step, assembled finite elements)
-and of the children's inverted pivots, which compound along the tree.  ``r >= 1e-6`` bounds the amplification by
-1e6 (answers to about 1e-8 for terms good to 1e-14); closer to a resonance the frequency is handed to the dense
+rounding of this pivot: they carry the errors of the linearised terms (complex step, assembled finite elements) and
+of the children's inverted pivots, which compound along the tree.  ``r >= 1e-6`` bounds the amplification by 1e6
+(answers to about 1e-8 for terms good to 1e-14); closer to a resonance the frequency is handed to the dense
 resolvent, which answers or refuses by its own scaled-condition rule.  The bound sees one pivot at a time: what the
-children's cancellations left in its terms is the business of :data:`RESIDUAL_TOLERANCE`.  Measured (session 8) on the stiff plate chain of
-``tests/test_resolvent_scaling.py``, 4e-10 from its hinge mode: hinge pivot 2.5e-8 of its terms (the former bound
-``sqrt(eps)`` = 1.5e-8 accepted it), plate block 3.2e-8, answer 5e-4 off the global finite-element model."""
+children's cancellations left in its terms is the business of :data:`RESIDUAL_TOLERANCE`. Measured (session 8) on
+the stiff plate chain of ``tests/test_resolvent_scaling.py``, 4e-10 from its hinge mode: hinge pivot 2.5e-8 of its
+terms (the former bound ``sqrt(eps)`` = 1.5e-8 accepted it), plate block 3.2e-8, answer 5e-4 off the global
+finite-element model."""
 
 RESIDUAL_TOLERANCE = 1e-10
-"""Largest accepted a-posteriori backward error of an answer of the batched kernel (rigid trees,
-:meth:`ctmm.batched_sweep.BatchedSweep.backward_error`): the joint equations' residual at the answer against the
-moduli of their terms.  It complements :data:`PIVOT_TOLERANCE`, which bounds each pivot alone: the errors of
-eliminations compound along a path, and a pivot's ``1/r`` does not bound what its children's cancellations left in
-its terms.  Measured (session 9): a 6-link chain whose hinge springs tune every sub-chain next to a resonance at
-``omega = 3`` (inner pivots ``r = 5e-4``, all accepted by the pivot test) answered 1.7e-3 off a 60-digit solve of the
-Lagrange model with backward error 8e-4; a 3-link one (``r = 5e-6``) 1e-6 off with 4e-7; random chains of 30-60
-links with stiffnesses over six decades at 4 000 frequencies stay below 4e-11 (the 100-link pendulum of the
-benchmark below 3e-13).  Above the bound the frequency goes to the dense resolvent like a small pivot."""
+"""Largest accepted a-posteriori backward error of an answer of the sweep (:func:`backward_error`; the batched kernel's
+:meth:`ctmm.batched_sweep.BatchedSweep.backward_error`): the residual of the joint equations and modal rows at the
+answer against the moduli of their terms.  It complements :data:`PIVOT_TOLERANCE`, which bounds each pivot alone:
+the errors of eliminations compound along a path, and a pivot's ``1/r`` does not bound what its children's
+cancellations left in its terms.  Measured (session 9): a 6-link chain whose hinge springs tune every sub-chain next
+to a resonance at ``omega = 3`` (inner pivots ``r = 5e-4``, all accepted by the pivot test) answered 1.7e-3 off a
+60-digit solve of the Lagrange model with backward error 8e-4; a 3-link one (``r = 5e-6``) 1e-6 off with 4e-7;
+random chains of 30-60 links with stiffnesses over six decades at 4 000 frequencies stay below 4e-11 (the 100-link
+pendulum of the benchmark below 3e-13). Above the bound the frequency goes to the dense resolvent like a small
+pivot."""
 
 CHUNK = 512
 """Frequencies swept at once (the batched terms of the sweep hold ``O(N CHUNK)`` numbers)."""
@@ -70,7 +72,7 @@ class ArticulatedResponse:
     coupling: Any = None
     batched: BatchedSweep | None = None
 
-    def point_amplitudes(self, x: np.ndarray) -> np.ndarray | None:
+    def point_amplitudes(self, x: list) -> np.ndarray:
         """Coordinate amplitudes (L, B, n) from the batched kernel's ``A_in`` (d, L, B) of every body; subclasses
         that do not override it are answered by the generic sweep."""
         raise NotImplementedError
