@@ -19,6 +19,11 @@ Methods (one run, one machine):
 * ``resolvent``    -- the former path: :func:`ctmm.linearize` (complex-step tangent, 2N x 2N) and the dense
                       ``(s I - A)^-1 B`` with a condition number per frequency
                       (:func:`ctmm.controlled_linearization.delayed_loop_response`);
+* ``compiled_bound`` -- the compiled lower bound of ``sweep_only``: the same articulated 3 x 3 recursion on the same
+                      linearised terms (one hinge pivot per body, its certificate against the mass pivots, the
+                      outward pass, the joint residuals' backward error), frequency by frequency in plain C
+                      (``cc -O2``, loaded by ``ctypes``, built at run time as ``benchmarks/chain_schemes_generated.py``
+                      builds its baseline); ``sweep_only_vs_bound`` is the ratio of CPU times;
 * ``lagrange``     -- the reference: ``PlanarLagrange.linearize`` (analytic ``M, K`` about the hanging chain,
                       gravity's geometric stiffness included), ``e^T (K - omega^2 M)^-1 J_C^T e_x`` by a dense
                       solve per frequency (no transfer matrices).
@@ -31,10 +36,13 @@ writes ``benchmarks/results/planar_frf.json``.
 from __future__ import annotations
 
 import argparse
+import ctypes
 import json
 import os
 import platform
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -57,6 +65,147 @@ from planar_chain import chain  # noqa: E402
 
 OMEGA = np.logspace(-1, 2, 500)
 RESULTS = ROOT / "benchmarks" / "results" / "planar_frf.json"
+
+
+BOUND_C = r"""
+#include <math.h>
+/* The articulated sweep of a rigid tree with hinges on axis 2 (free[j] = 1) or welds, undamped, one load case,
+   real s^2; bodies in topological order; Kin, RF: the parent's point maps of body j (row-major 3 x 3); both
+   certificates of ctmm.sweep_response (pivots against the mass pivots, the joint residuals' backward error). */
+void sweep(int n, int B, const int *parent, const int *free_, const double *M0, const double *K0,
+           const double *Kin, const double *RF, const double *load, const double *kappa, const double *mass_pivot,
+           double tol, double residual_tol, const double *squared, double *theta, int *good, double *acc,
+           double *bias, double *w, double *r, double *x, double *rel, double *wrench, double *size)
+{
+    for (int b = 0; b < B; ++b) {
+        const double sq = squared[b];
+        int ok = 1;
+        for (int i = 0; i < 9 * n; ++i) acc[i] = 0.0;
+        for (int i = 0; i < 3 * n; ++i) bias[i] = 0.0;
+        for (int j = n - 1; j >= 0; --j) {
+            double P[9], p[3], T[9];
+            for (int i = 0; i < 9; ++i) P[i] = sq * M0[9 * j + i] + K0[9 * j + i] + acc[9 * j + i];
+            for (int i = 0; i < 3; ++i) p[i] = load[3 * j + i] + bias[3 * j + i];
+            if (free_[j]) {
+                const double D = P[8] + kappa[j], inertia = sq * mass_pivot[j];
+                if (!(fabs(D) >= tol * (fabs(inertia) + fabs(D - inertia)))) ok = 0;
+                const double col[3] = {P[2], P[5], P[8]};
+                for (int k = 0; k < 3; ++k) w[3 * j + k] = P[6 + k] / D;
+                r[j] = -p[2] / D;
+                for (int i = 0; i < 3; ++i) {
+                    for (int k = 0; k < 3; ++k) P[3 * i + k] -= col[i] * w[3 * j + k];
+                    p[i] += col[i] * r[j];
+                }
+            }
+            const int q = parent[j];
+            if (q < 0) continue;
+            const double *F = RF + 9 * j, *K = Kin + 9 * j;
+            for (int i = 0; i < 3; ++i)
+                for (int k = 0; k < 3; ++k)
+                    T[3 * i + k] = F[3 * i] * P[k] + F[3 * i + 1] * P[3 + k] + F[3 * i + 2] * P[6 + k];
+            for (int i = 0; i < 3; ++i) {
+                for (int k = 0; k < 3; ++k)
+                    acc[9 * q + 3 * i + k] += T[3 * i] * K[k] + T[3 * i + 1] * K[3 + k] + T[3 * i + 2] * K[6 + k];
+                bias[3 * q + i] += F[3 * i] * p[0] + F[3 * i + 1] * p[1] + F[3 * i + 2] * p[2];
+            }
+        }
+        for (int j = 0; j < n; ++j) {
+            double *A = x + 3 * j;
+            const int q = parent[j];
+            if (q < 0) {
+                A[0] = A[1] = A[2] = 0.0;
+            } else {
+                const double *K = Kin + 9 * j, *X = x + 3 * q;
+                for (int i = 0; i < 3; ++i) A[i] = K[3 * i] * X[0] + K[3 * i + 1] * X[1] + K[3 * i + 2] * X[2];
+            }
+            rel[j] = 0.0;
+            if (free_[j]) {
+                rel[j] = r[j] - (w[3 * j] * A[0] + w[3 * j + 1] * A[1] + w[3 * j + 2] * A[2]);
+                A[2] += rel[j];
+            }
+            theta[b * n + j] = A[2];
+            if (!isfinite(A[2])) ok = 0;
+        }
+        /* the a-posteriori certificate: joint residuals of F_j = Z_j x_j + h_j + sum RF_c F_c, tip to base */
+        for (int i = 0; i < 3 * n; ++i) wrench[i] = size[i] = 0.0;
+        for (int j = n - 1; j >= 0; --j) {
+            double F[3], S[3];
+            const double *A = x + 3 * j;
+            for (int i = 0; i < 3; ++i) {
+                F[i] = load[3 * j + i] + wrench[3 * j + i];
+                S[i] = fabs(load[3 * j + i]) + size[3 * j + i];
+                for (int k = 0; k < 3; ++k) {
+                    F[i] += (sq * M0[9 * j + 3 * i + k] + K0[9 * j + 3 * i + k]) * A[k];
+                    S[i] += (fabs(sq * M0[9 * j + 3 * i + k]) + fabs(K0[9 * j + 3 * i + k])) * fabs(A[k]);
+                }
+            }
+            if (free_[j]) {
+                const double law = kappa[j] * rel[j];
+                const double scale = S[2] + fabs(law);
+                if (!(fabs(F[2] + law) <= residual_tol * scale)) ok = 0;
+            }
+            const int q = parent[j];
+            if (q < 0) continue;
+            const double *R = RF + 9 * j;
+            for (int i = 0; i < 3; ++i) {
+                wrench[3 * q + i] += R[3 * i] * F[0] + R[3 * i + 1] * F[1] + R[3 * i + 2] * F[2];
+                size[3 * q + i] += fabs(R[3 * i]) * S[0] + fabs(R[3 * i + 1]) * S[1] + fabs(R[3 * i + 2]) * S[2];
+            }
+        }
+        good[b] = ok;
+    }
+}
+"""
+
+
+def bound_library() -> ctypes.CDLL:
+    """:data:`BOUND_C` compiled by the system ``cc`` (``-O2 -shared -fPIC``, the generated kernels' flags)."""
+    folder = Path(tempfile.mkdtemp(prefix="ctmm-bench-frf-"))
+    (folder / "bound.c").write_text(BOUND_C)
+    subprocess.run(["cc", "-O2", "-shared", "-fPIC", "-o", str(folder / "bound.so"), str(folder / "bound.c"),
+                    "-lm"], check=True)
+    return ctypes.CDLL(str(folder / "bound.so"))
+
+
+def compiled_bound(library: ctypes.CDLL, plant: SweepResponse, force: str, angle: str, omega: np.ndarray = OMEGA):
+    """``(call, G)``: the C sweep of ``plant``'s terms as a repeatable call and its ``G`` (B,) of ``force`` to
+    ``angle`` with the certified mask (the plant's kernel must have answered once: its mass pivots)."""
+    kernel, n = plant.batched, len(plant.bodies)
+    eye = np.eye(3)
+    parent = np.array(kernel.tree.parent, dtype=np.intc)
+    free = np.array([a is not None for a in kernel.axis], dtype=np.intc)
+    assert all(a in (None, 2) for a in kernel.axis) and kernel.undamped
+    M0 = np.array([m[..., 0] for m in kernel.M0]).reshape(n, 9)
+    K0 = np.array([k[..., 0] for k in kernel.K0]).reshape(n, 9)
+    Kin = np.array([eye if m is None else m for m in kernel.Kin]).reshape(n, 9)
+    RF = np.array([eye if m is None else m for m in kernel.RF]).reshape(n, 9)
+    load = np.ascontiguousarray(np.array([h[0, :, 0] for h in plant.loads(force)[0]]))
+    kappa, mass = np.zeros(n), np.zeros(n)
+    kappa[kernel.free], mass[kernel.free] = -kernel.stiffness, plant.batched_mass_pivots
+    squared = -omega * omega
+    theta, good = np.zeros((omega.size, n)), np.zeros(omega.size, dtype=np.intc)
+    work = [np.zeros(9 * n), np.zeros(3 * n), np.zeros(3 * n), np.zeros(n), np.zeros(3 * n), np.zeros(n),
+            np.zeros(3 * n), np.zeros(3 * n)]
+    pointer = ctypes.POINTER(ctypes.c_double)
+
+    def p(array: np.ndarray):
+        return array.ctypes.data_as(ctypes.POINTER(ctypes.c_int) if array.dtype == np.intc else pointer)
+
+    from ctmm.sweep_response import PIVOT_TOLERANCE, RESIDUAL_TOLERANCE
+
+    arguments = (ctypes.c_int(n), ctypes.c_int(omega.size), p(parent), p(free), p(M0), p(K0), p(Kin), p(RF), p(load),
+                 p(kappa), p(mass), ctypes.c_double(PIVOT_TOLERANCE), ctypes.c_double(RESIDUAL_TOLERANCE), p(squared),
+                 p(theta), p(good), *(p(a) for a in work))
+
+    def call() -> None:
+        library.sweep(*arguments)
+
+    call()
+    row = plant.rows([angle])[0, :plant.model.n_coordinates]
+    index = np.asarray(plant.model.theta_index)
+    amplitudes = np.zeros((omega.size, plant.model.n_coordinates))
+    amplitudes[:, index[index >= 0]] = theta[:, index >= 0]
+    return call, amplitudes @ row, good.astype(bool)
 
 
 def ports(n: int) -> tuple[str, str]:
@@ -107,7 +256,7 @@ def relative(value: np.ndarray, reference: np.ndarray) -> float:
     return float(np.max(np.abs(value - reference) / np.abs(reference)))
 
 
-def run(n: int, *, with_resolvent: bool) -> dict:
+def run(n: int, *, with_resolvent: bool, library: ctypes.CDLL | None = None) -> dict:
     model, (force, angle) = chain(n), ports(n)
     repeats = 5 if n <= 100 else 2
     plant = SweepResponse(model, operating_point(model, hanging(n)))
@@ -123,6 +272,12 @@ def run(n: int, *, with_resolvent: bool) -> dict:
     for name, (call, count) in cases.items():
         out[f"{name}_s"], out[f"{name}_cpu_s"], results[name] = best(call, count)
     G, reference = results["sweep"].response[0, 0], results["lagrange"]
+    if library is not None:
+        call, bound, certified = compiled_bound(library, plant, force, angle)
+        out["compiled_bound_s"], out["compiled_bound_cpu_s"], _ = best(call, 3 * repeats)
+        out["sweep_only_vs_bound"] = out["sweep_only_cpu_s"] / out["compiled_bound_cpu_s"]
+        out["error_bound_vs_sweep"] = relative(bound, G)
+        out["bound_certifies_the_same"] = bool(np.array_equal(certified, results["sweep_only"][1]))
     out.update({"error_sweep_vs_lagrange": relative(G, reference),
                 "dense_frequencies_in_sweep": results["sweep"].info["n_dense_frequencies"],
                 "method": results["sweep"].info["method"]})
@@ -141,7 +296,8 @@ def main(argv: list[str] | None = None) -> dict:
     args = parser.parse_args(argv)
     sizes = args.sizes or ([5, 20] if args.quick else [5, 20, 100])
     resolvent(3, OMEGA[:2])                             # warm-up: the first linearisation imports and builds caches
-    rows = [run(n, with_resolvent=n <= 100) for n in sizes]
+    library = bound_library()
+    rows = [run(n, with_resolvent=n <= 100, library=library) for n in sizes]
     result = {"benchmark": "planar_frf", "machine": {"python": platform.python_version(), "numpy": np.__version__,
                                                      "processor": platform.processor() or platform.machine(),
                                                      "load_average": list(os.getloadavg())},

@@ -18,7 +18,9 @@ articulated sweep (:func:`ctmm.articulated.articulated_sweep`) on these terms, n
   beam stations, coordinates).
 
 The answer holds ``O(outputs x inputs x frequencies)`` numbers; the sweep's batched terms, while it runs,
-``O(N x CHUNK)`` (frequencies are swept :data:`CHUNK` at a time).  The
+``O(N x CHUNK)`` (frequencies are swept :data:`CHUNK` at a time).  Rigid trees on hinges, welds and held drives
+take the numpy kernel of :mod:`ctmm.batched_sweep` (the frequency batch as the last axis, every input column in
+one sweep); the others the generic :func:`~ctmm.articulated.articulated_sweep`, one sweep per input column.  The
 feedback loops of a ``ControlledModel`` (with and without delay, static or LTI ``C(s)``) are closed at
 each frequency by the phasor formula ``(I + K G_yu) u = K (r - G_yw w)``, ``K = diag(C_l(s) e^{-s tau_l})``
 (:func:`ctmm.loop_phasors.close_loops`; a loop without delay is ``tau = 0``).
@@ -26,7 +28,10 @@ each frequency by the phasor formula ``(I + K G_yu) u = K (r - G_yw w)``, ``K = 
 Certified or handed back, never a silent wrong number: at each frequency every pivot the sweep divides by
 (joint pivots ``D_j``, modal blocks ``C_j``) is measured against the size of the terms it is made of; a
 pivot below :data:`PIVOT_TOLERANCE` of them (``s`` at or next to a pole of the model, or a resonance of a
-substructure that the elimination meets as a zero pivot), a non-finite answer, or a loop matrix
+substructure that the elimination meets as a zero pivot), an answer whose a-posteriori backward error (the
+residual of the joint equations and modal rows against the moduli of their terms) exceeds
+:data:`~ctmm.sweep_response.RESIDUAL_TOLERANCE` (eliminations whose errors compounded along the tree: moderate
+pivots each accepted alone), a non-finite answer, or a loop matrix
 ``I + K G_yu`` whose smallest singular value is below ``(1 + |K G_yu|_2) / RESOLVENT_CONDITION`` (a closed-loop
 pole at or next to ``s``; :data:`~ctmm.controlled_linearization.RESOLVENT_CONDITION`)
 marks that frequency as not answered here; :func:`ctmm.planar_frequency.frequency_response` answers
@@ -125,6 +130,16 @@ class SweepResponse(ArticulatedResponse):
         from .planar_linearization import output_matrix
 
         return output_matrix(self.model, outputs, self.point)
+
+    def point_amplitudes(self, x: np.ndarray) -> np.ndarray:
+        """Coordinate amplitudes ``q_hat`` (L, B, n) from the batched kernel's ``A_in`` (3, L, B) per body (rigid
+        bodies: each body's angle amplitude is its ``x[j][2]``; the kernel takes no free bases)."""
+        index = self.model.theta_index
+        bodies = [j for j in range(len(x)) if index[j] >= 0]
+        out = np.zeros(x[0].shape[1:] + (self.model.n_coordinates,), dtype=x[0].dtype)
+        if bodies:
+            out[:, :, index[bodies]] = np.stack([x[j][2] for j in bodies], axis=-1)
+        return out
 
     def amplitudes(self, solution: Any) -> np.ndarray:
         """Coordinate amplitudes ``q_hat`` (B, n) of a frequency-context sweep."""
