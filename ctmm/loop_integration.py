@@ -34,7 +34,7 @@ from .errors import ModelError, SimulationError
 from .ode import rk4_step
 
 __all__ = ["CONDITION_LIMIT", "CONSISTENCY_TOLERANCE", "PROJECTION_SKIP", "PROJECTION_TOLERANCE", "SOLVE_IVP_METHODS",
-           "check_consistent", "compliance_condition", "furthest_cut", "integrate_loop_model", "projection_failure", "singular_compliance"]
+           "StepProjection", "check_consistent", "compliance_condition", "furthest_cut", "integrate_loop_model", "projection_failure", "singular_compliance"]
 
 CONSISTENCY_TOLERANCE = 1e-8
 """Largest ``max |Phi|`` [m, rad] and ``max |Phi'|`` [m/s, rad/s] of an initial state on the cut joints."""
@@ -106,6 +106,69 @@ def singular_compliance(condition: float) -> str:
     :data:`CONDITION_LIMIT`, or not finite)."""
     return (f"the cut joints' boundary compliance is singular (condition {condition:.2e} > {CONDITION_LIMIT:g}): "
             "a singular configuration of the loop or redundant cut joints")
+
+
+class StepProjection:
+    """The projection of a fixed-step run onto the cut joints after every step, checked by the one rule
+    (:data:`PROJECTION_TOLERANCE`), with the drift before and after each projection recorded.
+
+    The projection is the model's own (``model.project``: Gauss-Newton on ``Phi(q) = 0`` with the minimum-norm
+    correction along the model's retraction, then ``qdot <- qdot - J^+ Phi'``), the one the RK4 of
+    :func:`integrate_loop_model` applies; the DT-TMM schemes call it after every accepted step
+    (:func:`ctmm.planar.implicit.simulate_implicit`, :func:`ctmm.spatial.implicit.simulate_spatial_implicit`
+    ``project=``).
+
+    Parameters
+    ----------
+    model : KinematicLoopModel or SpatialKinematicLoopModel
+    label : str
+        The model as named in errors (``"kinematic loop 'name'"``).
+    iterations : int
+        Gauss-Newton steps of the projection.
+
+    Attributes
+    ----------
+    drift_before, drift_rate_before : list of float
+        ``max |Phi|`` [m, rad] and ``max |Phi'|`` [m/s, rad/s] of each step's state before its projection.
+    drift_after : list of float
+        ``max |Phi|`` after it (each at most :data:`PROJECTION_TOLERANCE`).
+    """
+
+    def __init__(self, model: Any, label: str, iterations: int = 3) -> None:
+        self.model, self.label = model, label
+        self.iterations = validation.integer("iterations", iterations, minimum=1)
+        self.drift_before: list[float] = []
+        self.drift_rate_before: list[float] = []
+        self.drift_after: list[float] = []
+
+    def __call__(self, t: float, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(q, v)`` at time ``t`` [s] projected onto the cut joints.
+
+        Raises
+        ------
+        SimulationError
+            ``max |Phi|`` above :data:`PROJECTION_TOLERANCE` after the projection (:func:`projection_failure`), with
+            the time and the cut joint furthest apart (the stepper adds its partial result).
+        """
+        phi, rate = self.model.constraints(q, v, t)
+        self.drift_before.append(float(np.max(np.abs(phi), initial=0.0)))
+        self.drift_rate_before.append(float(np.max(np.abs(rate), initial=0.0)))
+        q, v = self.model.project(np.asarray(q, float), np.asarray(v, float), t, self.iterations)
+        phi = np.abs(np.asarray(self.model.constraints(q, v, t)[0], float))
+        after = float(np.max(phi, initial=0.0))
+        if not after <= PROJECTION_TOLERANCE:
+            raise SimulationError(f"{self.label}: {projection_failure(after, self.iterations)} at t = {t} s",
+                                  time=t, element=furthest_cut(self.model, phi))
+        self.drift_after.append(after)
+        return q, v
+
+    def report(self) -> dict[str, float | bool]:
+        """The run's ``info`` entries: ``projection`` (True), ``max_drift_before_projection`` [m, rad],
+        ``max_drift_rate_before_projection`` [m/s, rad/s] and ``max_drift_after_projection`` over every step."""
+        return {"projection": True,
+                "max_drift_before_projection": max(self.drift_before, default=0.0),
+                "max_drift_rate_before_projection": max(self.drift_rate_before, default=0.0),
+                "max_drift_after_projection": max(self.drift_after, default=0.0)}
 
 
 def integrate_loop_model(rate: Callable[[float, np.ndarray], np.ndarray], y0: np.ndarray, n_positions: int, *,
