@@ -34,7 +34,7 @@ from .errors import ModelError, SimulationError
 from .ode import rk4_step
 
 __all__ = ["CONDITION_LIMIT", "CONSISTENCY_TOLERANCE", "PROJECTION_SKIP", "PROJECTION_TOLERANCE", "SOLVE_IVP_METHODS",
-           "StepProjection", "check_consistent", "compliance_condition", "furthest_cut", "integrate_loop_model", "projection_failure", "singular_compliance"]
+           "StepProjection", "check_consistent", "projected_residual", "compliance_condition", "furthest_cut", "integrate_loop_model", "projection_failure", "singular_compliance"]
 
 CONSISTENCY_TOLERANCE = 1e-8
 """Largest ``max |Phi|`` [m, rad] and ``max |Phi'|`` [m/s, rad/s] of an initial state on the cut joints."""
@@ -108,6 +108,19 @@ def singular_compliance(condition: float) -> str:
             "a singular configuration of the loop or redundant cut joints")
 
 
+def projected_residual(model: Any, q: np.ndarray, v: np.ndarray, t: float, label: str, iterations: int
+                       ) -> tuple[float, SimulationError | None]:
+    """``max |Phi|`` [m, rad] of a projected state ``(q, v)`` at ``t`` [s] and, above :data:`PROJECTION_TOLERANCE`,
+    the :class:`~ctmm.errors.SimulationError` that stops the run (:func:`projection_failure`, the time, the cut joint
+    furthest apart; the caller adds its partial result), else ``None``."""
+    phi = np.abs(np.asarray(model.constraints(q, v, t)[0], float))
+    residual = float(np.max(phi, initial=0.0))
+    if residual <= PROJECTION_TOLERANCE:
+        return residual, None
+    return residual, SimulationError(f"{label}: {projection_failure(residual, iterations)} at t = {t} s", time=t,
+                                     element=furthest_cut(model, phi))
+
+
 class StepProjection:
     """The projection of a fixed-step run onto the cut joints after every step, checked by the one rule
     (:data:`PROJECTION_TOLERANCE`), with the drift before and after each projection recorded.
@@ -154,11 +167,9 @@ class StepProjection:
         self.drift_before.append(float(np.max(np.abs(phi), initial=0.0)))
         self.drift_rate_before.append(float(np.max(np.abs(rate), initial=0.0)))
         q, v = self.model.project(np.asarray(q, float), np.asarray(v, float), t, self.iterations)
-        phi = np.abs(np.asarray(self.model.constraints(q, v, t)[0], float))
-        after = float(np.max(phi, initial=0.0))
-        if not after <= PROJECTION_TOLERANCE:
-            raise SimulationError(f"{self.label}: {projection_failure(after, self.iterations)} at t = {t} s",
-                                  time=t, element=furthest_cut(self.model, phi))
+        after, failure = projected_residual(self.model, q, v, t, self.label, self.iterations)
+        if failure is not None:
+            raise failure
         self.drift_after.append(after)
         return q, v
 
@@ -246,11 +257,10 @@ def integrate_loop_model(rate: Callable[[float, np.ndarray], np.ndarray], y0: np
                                       partial_result=partial())
             y = finish(y, k * h)
             if model is not None:
-                phi = np.abs(np.asarray(model.constraints(y[:n], y[n:], k * h)[0], float))
-                if not np.max(phi, initial=0.0) <= PROJECTION_TOLERANCE:
-                    raise SimulationError(f"{label}: {projection_failure(float(np.max(phi)), iterations)} at t = "
-                                          f"{k * h} s (after t = {ts[-1]} s, the last good stored state)", time=k * h,
-                                          element=furthest_cut(model, phi), partial_result=partial())
+                _, failure = projected_residual(model, y[:n], y[n:], k * h, label, iterations)
+                if failure is not None:
+                    raise SimulationError(f"{failure} (after t = {ts[-1]} s, the last good stored state)",
+                                          time=failure.time, element=failure.element, partial_result=partial())
             if k % store_every == 0 or k == steps:
                 ts.append(k * h)
                 ys.append(y)
