@@ -78,11 +78,7 @@ def simulate_spatial_loop_system(system: Any, t_final: float, dt: float | None, 
     driver = bool(loops or controllers or references or tuple(outputs) or port_inputs)
     if driver or scheme:
         check_consistent(model, q0, v0, "x0, v0")
-    if scheme:
-        if driver:
-            raise ModelError(f"method={method!r}: the DT-TMM schemes are not implemented for the spatial kinematic loop "
-                             f"model {model.name!r} with loops, controllers, references, outputs or port inputs yet; "
-                             "use 'rk4' or a solve_ivp method there")
+    if scheme and not driver:
         return _scheme_run(model, t_final, dt, method, q0, v0, inputs, store_every, divergence_bound)
     if driver:
         if isinstance(outputs, (str, Mapping)) or not isinstance(outputs, (list, tuple)):

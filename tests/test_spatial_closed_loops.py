@@ -259,8 +259,7 @@ def test_feedback_loop_on_the_crank_matches_the_dae_with_the_law_as_a_motor(four
     assert abs(result["s3.force_z"][-1] - force) < 1e-7 * abs(force)
     with pytest.raises(ModelError, match="not available"):
         ctmm.natural_frequencies(controlled, operating_point=q)
-    with pytest.raises(ModelError, match="DT-TMM schemes are not implemented"):
-        ctmm.simulate(controlled, 0.01, 1e-3, x0=q, v0=v, method="newmark", references={"pd": 1.6})
+    # the DT-TMM schemes run it too: tests/test_loop_scheme_projection.py
 
 
 def test_closed_loop_poles_of_a_crank_pd_match_the_dae(four_bar, four_bar_equilibrium):

@@ -13,8 +13,9 @@ co-simulated controllers act on a spatial mechanism with cut joints:
 * the stored signals add the cut forces ``"<cut>.force_x|y|z"`` [N] (and moments of revolute and universal cuts)
   with the row's actuator values (``signals_need_inputs``), ``"drift"`` and ``"drift_rate"``.
 
-``"rk4"`` and the ``solve_ivp`` methods; drift held by Baumgarte only (the driver does not project).  The DT-TMM
-schemes are refused (``schemes = False``).
+``"rk4"`` and the ``solve_ivp`` methods hold the drift by Baumgarte only (the driver does not project there); the
+DT-TMM schemes step the spanning tree (``implicit_model``) with the cut loads solved under each iterate's actuator
+values (``implicit_inputs``) and project every accepted step onto the cut joints (``step_projection``).
 """
 from __future__ import annotations
 
@@ -22,7 +23,9 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from ..loop_integration import StepProjection
 from .closed_loops import SpatialKinematicLoopModel
+from .model import SpatialModel
 from .integrate import divergence_check, spatial_signals
 from .closed_loop_ports import SpatialLoopPorts
 
@@ -53,7 +56,7 @@ class SpatialLoopPlant:
     """
 
     label = "spatial kinematic loop"
-    schemes = False
+    schemes = True
     signals_need_inputs = True
 
     def __init__(self, model: SpatialKinematicLoopModel) -> None:
@@ -61,6 +64,23 @@ class SpatialLoopPlant:
         self.ports = SpatialLoopPorts(model)
         self.n_positions, self.n_velocities = model.tree.n_positions, model.tree.n_velocities
         self.element_names = tuple(self.ports.element_names) + tuple(cut.name for cut in model.cuts)
+
+    @property
+    def implicit_model(self) -> SpatialModel:
+        """The model an implicit DT-TMM scheme steps: the spanning tree (cut loads through the inputs)."""
+        return self.model.tree
+
+    def implicit_inputs(self, inputs: Callable[[float, np.ndarray, np.ndarray], Any] | None
+                        ) -> Callable[[float, np.ndarray, np.ndarray], Any]:
+        """The ``input_map`` of the tree's implicit stepper: the actuator values of ``inputs`` (or none) plus the cut
+        loads solved with them (:meth:`SpatialKinematicLoopModel.cut_inputs`)."""
+        def hook(t: float, q: np.ndarray, v: np.ndarray) -> Any:
+            return self.model.cut_inputs(q, v, t, inputs(t, q, v) if inputs is not None else None)
+        return hook
+
+    def step_projection(self) -> StepProjection:
+        """A projection onto the cut joints for the accepted steps of a DT-TMM scheme (the RK4's rule)."""
+        return StepProjection(self.model, f"spatial kinematic loop {self.model.name!r}")
 
     def position_rates(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """``q_dot = G(q) v`` (1-D)."""
