@@ -96,6 +96,21 @@ def test_a_failed_projection_stops_the_scheme_with_time_cut_and_partial_result()
     assert len(projector.drift_before) == len(projector.drift_after) + 1       # the failed step is the last
 
 
+def test_a_failed_spatial_projection_stops_the_scheme_with_time_cut_and_partial_result(spatial_four_bar):
+    """Ten times the R-U-S-R four-bar's rate at 20 ms: one Gauss-Newton step leaves 1e-4 m on the spherical cut."""
+    from ctmm.spatial.implicit import simulate_spatial_implicit
+
+    loop, q, v = spatial_four_bar
+    projector = StepProjection(loop, f"spatial kinematic loop {loop.name!r}", iterations=1)
+    with pytest.raises(SimulationError, match=r"the projection onto the cut joints failed .* after 1 Gauss-Newton "
+                                              r"steps; allowed <= 1e-08") as failure:
+        simulate_spatial_implicit(loop.tree, 0.1, 0.02, scheme="newmark", x0=q, v0=10 * v,
+                                  input_map=lambda t, q_at, v_at: loop.cut_inputs(q_at, v_at, t), project=projector)
+    error = failure.value
+    assert error.element == "s3" and error.time == pytest.approx(0.02)
+    assert error.partial_result is not None and error.partial_result.time[-1] == 0.0
+
+
 @pytest.mark.parametrize("method", ["newmark", "generalized_alpha", "houbolt"])
 def test_spatial_schemes_with_projection_converge_to_the_dae_at_second_order(spatial_four_bar, method):
     """The R-U-S-R four-bar (spherical cut) at 4 / 2 ms over 0.016 s against the Newton-Euler DAE: rotations at
