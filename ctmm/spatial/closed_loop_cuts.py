@@ -99,7 +99,7 @@ class SpatialCutJoint:
     normal: Any = None
     parent_normal: Any = None
     law: Any = None
-    rest: float = 0.0
+    rest: Any = 0.0
     actuation: Any = None
     position: Any = None
     rate: Any = None
