@@ -145,6 +145,13 @@ def test_moment_sensor_in_a_run_and_refusals():
     got = np.array([result[f"ball.moment_{a}"] for a in "xyz"]).T
     assert np.allclose(got[-1], loop.law_moments(qs[-1], vs[-1])[0], rtol=1e-12, atol=0)
     assert result.units(["ball.moment_x"]) == {"ball.moment_x": "N m"}
+    for method in ("rk4", "newmark"):                                   # every run reports the law's moment
+        alone = ctmm.simulate(loop, 0.01, 1e-3, x0=q, v0=v, method=method)
+        qn = np.array([alone[name] for name in loop.tree.coordinates]).T
+        vn = np.array([alone[name] for name in loop.tree.velocities]).T
+        assert np.allclose(alone["ball.moment_y"][-1], loop.law_moments(qn[-1], vn[-1])[0, 1], rtol=1e-12, atol=0)
+        assert abs(alone["ball.moment_y"][-1]) > 0.1
+    assert "ball.moment_x" not in ctmm.simulate(_ball(None), 0.002, 1e-3, x0=q, v0=v).signals()
     with pytest.raises(ModelError, match="takes neither"):
         SpatialCutJoint(name="c", parent=None, child="p", kind="spherical", actuation=1.0)
     with pytest.raises(ModelError, match="rest"):

@@ -34,13 +34,13 @@ __all__ = ["SpatialLoopPlant", "add_cut_signals"]
 
 def add_cut_signals(model: SpatialKinematicLoopModel, signals: dict, units: dict, forces: np.ndarray,
                     moments: np.ndarray, drift: np.ndarray, drift_rate: np.ndarray) -> None:
-    """Add ``"<cut>.force_x|y|z"`` [N], ``"<cut>.moment_x|y|z"`` [N m] (all but spherical cuts; on the child,
-    world axes), ``"drift"`` and ``"drift_rate"`` to ``signals`` and ``units`` (``forces``, ``moments``:
+    """Add ``"<cut>.force_x|y|z"`` [N], ``"<cut>.moment_x|y|z"`` [N m] (all but spherical cuts without a law; on the
+    child, world axes), ``"drift"`` and ``"drift_rate"`` to ``signals`` and ``units`` (``forces``, ``moments``:
     ``(N, n_cuts, 3)``)."""
     for j, cut in enumerate(model.cuts):
         for axis, label in enumerate("xyz"):
             signals[f"{cut.name}.force_{label}"], units[f"{cut.name}.force_{label}"] = forces[:, j, axis], "N"
-            if cut.kind != "spherical":
+            if cut.kind != "spherical" or cut.law is not None:
                 signals[f"{cut.name}.moment_{label}"] = moments[:, j, axis]
                 units[f"{cut.name}.moment_{label}"] = "N m"
     signals["drift"], units["drift"] = drift, ""
@@ -113,6 +113,7 @@ class SpatialLoopPlant:
         for k in range(len(t)):
             loads = model.cut_loads(q[k], model.solve(q[k], v[k], float(t[k]), rows[k])[1], float(t[k]))
             forces[k], moments[k] = [f for f, _ in loads], [m for _, m in loads]
+            moments[k] += model.law_moments(q[k], v[k], float(t[k]))     # a spherical cut's law
             phi, phi_dot = model.constraints(q[k], v[k], float(t[k]))
             drift[k], rate[k] = np.max(np.abs(phi)), np.max(np.abs(phi_dot))
         add_cut_signals(model, signals, units, forces, moments, drift, rate)

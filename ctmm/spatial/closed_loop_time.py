@@ -37,7 +37,8 @@ class SpatialLoopSimulation:
     v : ndarray (N, nv)
         Tree velocities (``model.tree.velocities``).
     cut_force, cut_moment : ndarray (N, n_cuts, 3)
-        Force [N] and moment [N m] of each cut joint on its child, world axes (moment zero for spherical cuts).
+        Force [N] and moment [N m] of each cut joint on its child, world axes (a spherical cut's moment: its law's,
+        :meth:`SpatialKinematicLoopModel.law_moments`; zero without one).
     drift, drift_rate : ndarray (N,)
         ``max |Phi|`` (separations [m], alignments [rad]) and ``max |Phi'|`` [m/s, rad/s].
     method : str
@@ -137,7 +138,7 @@ def _history(model: SpatialKinematicLoopModel, t_out: np.ndarray, q: np.ndarray,
         drift_rate.append(np.max(np.abs(phi_dot)))
         loads = model.cut_loads(q_k, model.solve(q_k, v_k, t, inputs)[1], t)
         forces.append([f for f, _ in loads])
-        moments.append([m for _, m in loads])
+        moments.append(np.array([m for _, m in loads]) + model.law_moments(q_k, v_k, t))
     return SpatialLoopSimulation(model, np.asarray(t_out), q, v, np.array(forces), np.array(moments), np.array(drift),
                                  np.array(drift_rate), method, wall, evaluations)
 
