@@ -34,7 +34,8 @@ from .errors import ModelError, SimulationError
 from .ode import rk4_step
 
 __all__ = ["CONDITION_LIMIT", "CONSISTENCY_TOLERANCE", "PROJECTION_SKIP", "PROJECTION_TOLERANCE", "SOLVE_IVP_METHODS",
-           "StepProjection", "check_consistent", "projected_residual", "compliance_condition", "furthest_cut", "integrate_loop_model", "projection_failure", "singular_compliance"]
+           "ProjectionHook", "StepProjection", "check_consistent", "compliance_condition", "furthest_cut",
+           "integrate_loop_model", "projected_residual", "projection_failure", "singular_compliance"]
 
 CONSISTENCY_TOLERANCE = 1e-8
 """Largest ``max |Phi|`` [m, rad] and ``max |Phi'|`` [m/s, rad/s] of an initial state on the cut joints."""
@@ -44,6 +45,11 @@ PROJECTION_SKIP = 1e-14
 """``max |Phi|`` [m, rad] below which the projection's Gauss-Newton steps stop (already on the cut joints)."""
 CONDITION_LIMIT = 1e12
 """Largest condition number of the cut joints' boundary compliance ``G`` [-] (:func:`compliance_condition`)."""
+
+ProjectionHook = Callable[[float, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+"""``project(t, q, v) -> (q, v)``: the state of every accepted step of a DT-TMM scheme mapped onto the cut joints
+(:class:`StepProjection`; the ``project`` hook of :func:`ctmm.planar.implicit.simulate_implicit` and
+:func:`ctmm.spatial.implicit.simulate_spatial_implicit`)."""
 
 SOLVE_IVP_METHODS = ("RK45", "RK23", "DOP853", "Radau", "BDF", "LSODA")
 """``solve_ivp`` methods of the loop integrators."""

@@ -45,6 +45,7 @@ import numpy as np
 from .. import validation
 from ..articulated import Tree, articulated_sweep
 from ..errors import ConvergenceError, ModelError, SimulationError
+from ..loop_integration import ProjectionHook
 from ..ops import NUMPY
 from ..protocol import BodyTerms, JointTerms
 from ..schemes import Newmark, Scheme, as_scheme
@@ -66,9 +67,6 @@ _ZERO3 = np.zeros((3, 1))
 #: ``t`` [s]); returns whether the actuator inputs jumped at ``t`` (held controller outputs).
 StepCallback = Callable[[int, float, np.ndarray, np.ndarray], bool]
 
-#: ``project(t, q, qdot) -> (q, qdot)``: the state after every accepted step mapped onto a constraint manifold (the
-#: cut joints of a kinematic loop model, :class:`ctmm.loop_integration.StepProjection`).
-ProjectionHook = Callable[[float, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
 
 
 def name_of(scheme: Any) -> str:
@@ -448,4 +446,4 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
                             wall, iterations=iterations, n_evaluations=evaluations)
 
 
-__all__ = ["simulate_implicit", "StepCallback", "ProjectionHook"]
+__all__ = ["simulate_implicit", "StepCallback"]

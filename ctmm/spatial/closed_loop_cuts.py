@@ -16,8 +16,8 @@ from .elements import parent_point
 from .lie import left_jacobian, quaternion_exponential, quaternion_logarithm
 from .ports import SpatialInputs
 
-__all__ = ["SpatialCutJoint", "CUT_KINDS", "LAW_KINDS", "ROTATION_LAW_LIMIT", "CutFrame", "CutActuatedInputs", "cut_frame",
-           "cut_coordinate", "cross", "perpendicular", "relative_rotation", "spherical_law_moment"]
+__all__ = ["SpatialCutJoint", "CUT_KINDS", "LAW_KINDS", "ROTATION_LAW_LIMIT", "CutFrame", "CutActuatedInputs",
+           "cut_frame", "cut_coordinate", "cross", "perpendicular", "relative_rotation", "spherical_law_moment"]
 
 CUT_KINDS = ("spherical", "revolute", "universal", "prismatic")
 """Kinds of :class:`SpatialCutJoint`."""

@@ -2,8 +2,9 @@
 
 The state is the tree's ``x = [q ; v]`` with ``q' = G(q) v`` and ``v'`` the closed-loop accelerations (cut loads as
 boundary unknowns, :meth:`SpatialKinematicLoopModel.solve`).  ``"rk4"`` projects onto the cut joints after every
-step (and renormalises the quaternions); the ``solve_ivp`` methods hold the drift by Baumgarte alone; the DT-TMM schemes (:func:`simulate_spatial_loop_scheme`)
-run the tree's implicit stepper with the cut loads as iterate inputs and project after every step.  Every
+step (and renormalises the quaternions); the ``solve_ivp`` methods hold the drift by Baumgarte alone; the DT-TMM
+schemes (:func:`simulate_spatial_loop_scheme`) run the tree's implicit stepper with the cut loads as iterate inputs
+and project after every step.  Every
 result reports the drift ``max |Phi|`` and ``max |Phi'|`` and the cut loads (``docs/closed_loops.md`` section 8).
 """
 from __future__ import annotations

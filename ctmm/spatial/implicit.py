@@ -65,6 +65,7 @@ import numpy as np
 from .. import validation
 from ..articulated import SingularPivotError, articulated_sweep
 from ..errors import ConvergenceError, ModelError, SimulationError
+from ..loop_integration import ProjectionHook
 from ..guard import StabilityLimitWarning
 from ..low_rank import low_rank_solve
 from ..ops import NUMPY
@@ -80,15 +81,12 @@ from .lie import bracket, local_coordinates, retract
 from .model import SpatialModel, input_values
 
 __all__ = ["simulate_spatial_implicit", "implicit_rates", "implicit_terms", "input_response", "ImplicitTerms",
-           "InputMap", "ProjectionHook", "StepCallback"]
+           "InputMap", "StepCallback"]
 
 #: ``input_map(t, q, v) -> SpatialInputs | None``: actuator values at a state (:mod:`ctmm.spatial.ports`).
 InputMap = Callable[[float, np.ndarray, np.ndarray], Any]
 #: ``after_step(step, t, q, v) -> bool``: called after every accepted step; true when the inputs jumped at ``t``.
 StepCallback = Callable[[int, float, np.ndarray, np.ndarray], bool]
-#: ``project(t, q, v) -> (q, v)``: every accepted step's state mapped onto a constraint manifold (the cut joints of a
-#: spatial kinematic loop model, :class:`ctmm.loop_integration.StepProjection`).
-ProjectionHook = Callable[[float, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
 
 
 class ImplicitTerms(NamedTuple):
