@@ -34,7 +34,8 @@ from .errors import ModelError, SimulationError
 from .ode import rk4_step
 
 __all__ = ["CONDITION_LIMIT", "CONSISTENCY_TOLERANCE", "PROJECTION_SKIP", "PROJECTION_TOLERANCE", "SOLVE_IVP_METHODS",
-           "check_consistent", "compliance_condition", "furthest_cut", "integrate_loop_model", "projection_failure", "singular_compliance"]
+           "ProjectionHook", "StepProjection", "check_consistent", "compliance_condition", "furthest_cut",
+           "integrate_loop_model", "projected_residual", "projection_failure", "singular_compliance"]
 
 CONSISTENCY_TOLERANCE = 1e-8
 """Largest ``max |Phi|`` [m, rad] and ``max |Phi'|`` [m/s, rad/s] of an initial state on the cut joints."""
@@ -44,6 +45,11 @@ PROJECTION_SKIP = 1e-14
 """``max |Phi|`` [m, rad] below which the projection's Gauss-Newton steps stop (already on the cut joints)."""
 CONDITION_LIMIT = 1e12
 """Largest condition number of the cut joints' boundary compliance ``G`` [-] (:func:`compliance_condition`)."""
+
+ProjectionHook = Callable[[float, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+"""``project(t, q, v) -> (q, v)``: the state of every accepted step of a DT-TMM scheme mapped onto the cut joints
+(:class:`StepProjection`; the ``project`` hook of :func:`ctmm.planar.implicit.simulate_implicit` and
+:func:`ctmm.spatial.implicit.simulate_spatial_implicit`)."""
 
 SOLVE_IVP_METHODS = ("RK45", "RK23", "DOP853", "Radau", "BDF", "LSODA")
 """``solve_ivp`` methods of the loop integrators."""
@@ -106,6 +112,80 @@ def singular_compliance(condition: float) -> str:
     :data:`CONDITION_LIMIT`, or not finite)."""
     return (f"the cut joints' boundary compliance is singular (condition {condition:.2e} > {CONDITION_LIMIT:g}): "
             "a singular configuration of the loop or redundant cut joints")
+
+
+def projected_residual(model: Any, q: np.ndarray, v: np.ndarray, t: float, label: str, iterations: int
+                       ) -> tuple[float, SimulationError | None]:
+    """``max |Phi|`` [m, rad] of a projected state ``(q, v)`` at ``t`` [s] and, above :data:`PROJECTION_TOLERANCE`,
+    the :class:`~ctmm.errors.SimulationError` that stops the run (:func:`projection_failure`, the time, the cut joint
+    furthest apart; the caller adds its partial result), else ``None``."""
+    phi = np.abs(np.asarray(model.constraints(q, v, t)[0], float))
+    residual = float(np.max(phi, initial=0.0))
+    if residual <= PROJECTION_TOLERANCE:
+        return residual, None
+    return residual, SimulationError(f"{label}: {projection_failure(residual, iterations)} at t = {t} s", time=t,
+                                     element=furthest_cut(model, phi))
+
+
+class StepProjection:
+    """The projection of a fixed-step run onto the cut joints after every step, checked by the one rule
+    (:data:`PROJECTION_TOLERANCE`), with the drift before and after each projection recorded.
+
+    The projection is the model's own (``model.project``: Gauss-Newton on ``Phi(q) = 0`` with the minimum-norm
+    correction along the model's retraction, then ``qdot <- qdot - J^+ Phi'``), the one the RK4 of
+    :func:`integrate_loop_model` applies; the DT-TMM schemes call it after every accepted step
+    (:func:`ctmm.planar.implicit.simulate_implicit`, :func:`ctmm.spatial.implicit.simulate_spatial_implicit`
+    ``project=``).
+
+    Parameters
+    ----------
+    model : KinematicLoopModel or SpatialKinematicLoopModel
+    label : str
+        The model as named in errors (``"kinematic loop 'name'"``).
+    iterations : int
+        Gauss-Newton steps of the projection.
+
+    Attributes
+    ----------
+    drift_before, drift_rate_before : list of float
+        ``max |Phi|`` [m, rad] and ``max |Phi'|`` [m/s, rad/s] of each step's state before its projection.
+    drift_after : list of float
+        ``max |Phi|`` after it (each at most :data:`PROJECTION_TOLERANCE`).
+    """
+
+    def __init__(self, model: Any, label: str, iterations: int = 3) -> None:
+        self.model, self.label = model, label
+        self.iterations = validation.integer("iterations", iterations, minimum=1)
+        self.drift_before: list[float] = []
+        self.drift_rate_before: list[float] = []
+        self.drift_after: list[float] = []
+
+    def __call__(self, t: float, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(q, v)`` at time ``t`` [s] projected onto the cut joints.
+
+        Raises
+        ------
+        SimulationError
+            ``max |Phi|`` above :data:`PROJECTION_TOLERANCE` after the projection (:func:`projection_failure`), with
+            the time and the cut joint furthest apart (the stepper adds its partial result).
+        """
+        phi, rate = self.model.constraints(q, v, t)
+        self.drift_before.append(float(np.max(np.abs(phi), initial=0.0)))
+        self.drift_rate_before.append(float(np.max(np.abs(rate), initial=0.0)))
+        q, v = self.model.project(np.asarray(q, float), np.asarray(v, float), t, self.iterations)
+        after, failure = projected_residual(self.model, q, v, t, self.label, self.iterations)
+        if failure is not None:
+            raise failure
+        self.drift_after.append(after)
+        return q, v
+
+    def report(self) -> dict[str, float | bool]:
+        """The run's ``info`` entries: ``projection`` (True), ``max_drift_before_projection`` [m, rad],
+        ``max_drift_rate_before_projection`` [m/s, rad/s] and ``max_drift_after_projection`` over every step."""
+        return {"projection": True,
+                "max_drift_before_projection": max(self.drift_before, default=0.0),
+                "max_drift_rate_before_projection": max(self.drift_rate_before, default=0.0),
+                "max_drift_after_projection": max(self.drift_after, default=0.0)}
 
 
 def integrate_loop_model(rate: Callable[[float, np.ndarray], np.ndarray], y0: np.ndarray, n_positions: int, *,
@@ -183,11 +263,10 @@ def integrate_loop_model(rate: Callable[[float, np.ndarray], np.ndarray], y0: np
                                       partial_result=partial())
             y = finish(y, k * h)
             if model is not None:
-                phi = np.abs(np.asarray(model.constraints(y[:n], y[n:], k * h)[0], float))
-                if not np.max(phi, initial=0.0) <= PROJECTION_TOLERANCE:
-                    raise SimulationError(f"{label}: {projection_failure(float(np.max(phi)), iterations)} at t = "
-                                          f"{k * h} s (after t = {ts[-1]} s, the last good stored state)", time=k * h,
-                                          element=furthest_cut(model, phi), partial_result=partial())
+                _, failure = projected_residual(model, y[:n], y[n:], k * h, label, iterations)
+                if failure is not None:
+                    raise SimulationError(f"{failure} (after t = {ts[-1]} s, the last good stored state)",
+                                          time=failure.time, element=failure.element, partial_result=partial())
             if k % store_every == 0 or k == steps:
                 ts.append(k * h)
                 ys.append(y)

@@ -3,7 +3,7 @@ feedback loops, port actuator inputs, references, sensor outputs or controllers 
 
 Alone (joint actuator inputs at most) it runs its own integrators
 (:func:`ctmm.spatial.closed_loop_time.simulate_spatial_loops`: RK4 with projection, ``solve_ivp`` with Baumgarte) or
-a DT-TMM scheme on the tree with the cut loads as iterate inputs (:func:`_scheme_run`);
+a DT-TMM scheme on the tree with the cut loads as iterate inputs, projected after every step (:func:`_scheme_run`);
 otherwise the one loop-closing driver (:func:`ctmm.control.planar_time.simulate_closed_loop`) on its plant
 (:class:`~ctmm.spatial.closed_loop_plant.SpatialLoopPlant`).  Top level (not in ``ctmm.spatial``): it reaches into
 ``ctmm.control``, which imports ``ctmm.spatial``.
@@ -22,9 +22,8 @@ from .results import SimulationResult
 from .schemes import SCHEMES, Scheme
 from .signal_results import SignalSystem, signal_result
 from .spatial.closed_loop_plant import add_cut_signals
-from .spatial.closed_loop_time import simulate_spatial_loops
+from .spatial.closed_loop_time import simulate_spatial_loop_scheme, simulate_spatial_loops
 from .spatial.closed_loops import SpatialKinematicLoopModel
-from .spatial.implicit import simulate_spatial_implicit
 from .spatial.integrate import SCIPY_METHODS, spatial_signals
 
 __all__ = ["simulate_spatial_loop_system"]
@@ -79,11 +78,7 @@ def simulate_spatial_loop_system(system: Any, t_final: float, dt: float | None, 
     driver = bool(loops or controllers or references or tuple(outputs) or port_inputs)
     if driver or scheme:
         check_consistent(model, q0, v0, "x0, v0")
-    if scheme:
-        if driver:
-            raise ModelError(f"method={method!r}: the DT-TMM schemes are not implemented for the spatial kinematic loop "
-                             f"model {model.name!r} with loops, controllers, references, outputs or port inputs yet; "
-                             "use 'rk4' or a solve_ivp method there")
+    if scheme and not driver:
         return _scheme_run(model, t_final, dt, method, q0, v0, inputs, store_every, divergence_bound)
     if driver:
         if isinstance(outputs, (str, Mapping)) or not isinstance(outputs, (list, tuple)):
@@ -124,25 +119,13 @@ def simulate_spatial_loop_system(system: Any, t_final: float, dt: float | None, 
 def _scheme_run(model: SpatialKinematicLoopModel, t_final: float, dt: float | None, scheme: Any, q0: np.ndarray,
                 v0: np.ndarray, inputs: Mapping[str, Any] | None, store_every: int,
                 divergence_bound: float | None) -> SimulationResult:
-    """A DT-TMM scheme on the spanning tree (:func:`ctmm.spatial.implicit.simulate_spatial_implicit`) with the cut
-    loads re-solved at every iterate from the boundary compliance and applied as actuator values
-    (:meth:`SpatialKinematicLoopModel.cut_inputs` as its ``input_map``: their state dependence enters the iteration
-    matrix); drift held by Baumgarte only (no projection), reported with the cut loads."""
-    tree = model.tree
-    run = simulate_spatial_implicit(tree, t_final, validation.positive("dt", dt), scheme=scheme, x0=q0, v0=v0,
-                                    input_map=lambda t, q, v: model.cut_inputs(q, v, t, inputs),
-                                    store_every=store_every, divergence_bound=divergence_bound)
-    q = np.array([run[name] for name in tree.coordinates]).T.reshape(len(run.time), tree.n_positions)
-    v = np.array([run[name] for name in tree.velocities]).T.reshape(len(run.time), tree.n_velocities)
-    forces = np.zeros((len(run.time), len(model.cuts), 3))
-    moments = np.zeros_like(forces)
-    drift, rate = np.zeros(len(run.time)), np.zeros(len(run.time))
-    for k, t in enumerate(run.time):
-        loads = model.cut_loads(q[k], model.solve(q[k], v[k], float(t), inputs)[1], float(t))
-        forces[k], moments[k] = [f for f, _ in loads], [m for _, m in loads]
-        phi, phi_dot = model.constraints(q[k], v[k], float(t))
-        drift[k], rate[k] = np.max(np.abs(phi)), np.max(np.abs(phi_dot))
-    signals, units = spatial_signals(tree, run.time, np.concatenate([q, v], axis=1))
-    add_cut_signals(model, signals, units, forces, moments, drift, rate)
-    info = {**run.info, "max_drift": float(drift.max()), "projection": False, "baumgarte": model.baumgarte}
-    return signal_result(SignalSystem(model, units), run.time, signals, run.scheme_name, info)
+    """A DT-TMM scheme on the spanning tree with the cut loads as iterate inputs, projected onto the cut joints after
+    every step (:func:`ctmm.spatial.closed_loop_time.simulate_spatial_loop_scheme`), as a result with the tree's
+    signals, the cut loads and the drift."""
+    run, info = simulate_spatial_loop_scheme(model, q0, v0, t_final=t_final, dt=validation.positive("dt", dt),
+                                             scheme=scheme, inputs=inputs, store_every=store_every,
+                                             divergence_bound=divergence_bound)
+    signals, units = spatial_signals(model.tree, run.t, np.concatenate([run.q, run.v], axis=1))
+    add_cut_signals(model, signals, units, run.cut_force, run.cut_moment, run.drift, run.drift_rate)
+    info = {**info, "max_drift": float(run.drift.max()), "baumgarte": model.baumgarte}
+    return signal_result(SignalSystem(model, units), run.t, signals, run.method, info)

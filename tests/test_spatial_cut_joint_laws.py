@@ -142,9 +142,13 @@ def test_prismatic_cut_law_and_actuation_match_the_slide_equation():
 
 
 def test_laws_are_refused_where_a_cut_has_no_coordinate():
-    with pytest.raises(ModelError, match="kind 'spherical' has none"):
-        SpatialCutJoint(name="c", parent=None, child="p", law=LinearLaw(1.0))
-    with pytest.raises(ModelError, match="kind 'universal' has none"):
+    """Universal cuts take neither a law nor an actuation, spherical cuts no actuation (their 3-axis law:
+    tests/test_spatial_spherical_cut_law.py)."""
+    with pytest.raises(ModelError, match="kind 'spherical' takes neither"):
+        SpatialCutJoint(name="c", parent=None, child="p", actuation=1.0)
+    with pytest.raises(ModelError, match="kind 'universal' takes neither"):
+        SpatialCutJoint(name="c", parent=None, child="p", kind="universal", parent_axis=(1, 0, 0), law=LinearLaw(1.0))
+    with pytest.raises(ModelError, match="kind 'universal' takes neither"):
         SpatialCutJoint(name="c", parent=None, child="p", kind="universal", parent_axis=(1, 0, 0), actuation=1.0)
     with pytest.raises(ModelError, match="law must be None or a ctmm.nonlinear_laws.Law"):
         SpatialCutJoint(name="c", parent=None, child="p", kind="revolute", law=3.0)

@@ -11,7 +11,10 @@ one :func:`ctmm.planar.implicit.simulate_implicit` run (planar plants) or one
 * ``after_step`` callback samples the co-simulated controllers (the one master,
   :class:`~ctmm.control.cosim.CoSimulation`), appends to the delay history and stores the row;
   when a controller was sampled the next step starts from the acceleration with its new held
-  output (second order in ``dt`` with zero-order hold).
+  output (second order in ``dt`` with zero-order hold);
+* a kinematic loop plant (``implicit_model``, ``implicit_inputs``, ``step_projection``) steps its spanning tree with
+  the cut loads added to the inputs at every iterate and projects every accepted step onto its cut joints
+  (:class:`ctmm.loop_integration.StepProjection`) before the controllers see it.
 
 A loop's saturation clips ``u`` at every iterate (piecewise linear: the Newton tangent, by directional
 differences, is the slope of the side the iterate is on).  The states ``z`` of an LTI loop controller
@@ -163,7 +166,8 @@ def run_implicit(system: Any, rows: Any, q0: np.ndarray, qdot0: np.ndarray, t_fi
     Returns
     -------
     dict
-        ``newton_iterations_mean`` and ``newton_iterations_max`` for the result's ``info``.
+        ``newton_iterations_mean`` and ``newton_iterations_max`` for the result's ``info``; with a projection
+        its report (:meth:`ctmm.loop_integration.StepProjection.report`).
 
     Raises
     ------
@@ -190,21 +194,23 @@ def run_implicit(system: Any, rows: Any, q0: np.ndarray, qdot0: np.ndarray, t_fi
         return jumped
 
     steps.begin(0.0, np.concatenate([q0, qdot0, np.zeros(system.size - system.base)]))
+    plant = system.plant
+    hook = steps.actuator_inputs if driven else None
+    if hasattr(plant, "implicit_inputs"):          # a kinematic loop: the tree, the cut loads in the inputs
+        hook = plant.implicit_inputs(hook)
+    projector = plant.step_projection() if hasattr(plant, "step_projection") else None   # onto its cut joints
     try:
-        if system.plant.label == "spatial":
-            simulation = simulate_spatial_implicit(system.model, t_final, dt, scheme=scheme, x0=q0, v0=qdot0,
-                                                   store_every=n_steps, divergence_bound=divergence_bound,
-                                                   input_map=steps.actuator_inputs if driven else None,
-                                                   after_step=after_step)
+        if plant.label.startswith("spatial"):
+            simulation = simulate_spatial_implicit(getattr(plant, "implicit_model", system.model), t_final, dt,
+                                                   scheme=scheme, x0=q0, v0=qdot0, store_every=n_steps,
+                                                   divergence_bound=divergence_bound, input_map=hook,
+                                                   after_step=after_step, project=projector)
             iterations, evaluations = simulation.info["iterations"], simulation.info["n_evaluations"]
         else:
-            hook = steps.actuator_inputs if driven else None
-            if hasattr(system.plant, "implicit_inputs"):    # a kinematic loop: the tree, cut forces in the inputs
-                hook = system.plant.implicit_inputs(hook)
-            simulation = simulate_implicit(getattr(system.plant, "implicit_model", system.model), q0, qdot0,
+            simulation = simulate_implicit(getattr(plant, "implicit_model", system.model), q0, qdot0,
                                            t_final=t_final, dt=dt, scheme=scheme, store_every=n_steps,
                                            divergence_bound=divergence_bound, stability_check=stability_check,
-                                           inputs=hook, after_step=after_step)
+                                           inputs=hook, after_step=after_step, project=projector)
             iterations, evaluations = simulation.iterations, simulation.n_evaluations
     except SimulationError as exc:
         exc.partial_result = None          # the caller's rows are the partial result
@@ -212,4 +218,5 @@ def run_implicit(system: Any, rows: Any, q0: np.ndarray, qdot0: np.ndarray, t_fi
     finally:
         bar.close()
     system.evaluations += int(evaluations)
-    return {"newton_iterations_mean": float(np.mean(iterations)), "newton_iterations_max": int(np.max(iterations))}
+    return {"newton_iterations_mean": float(np.mean(iterations)), "newton_iterations_max": int(np.max(iterations)),
+            **({} if projector is None else projector.report())}

@@ -45,6 +45,7 @@ import numpy as np
 from .. import validation
 from ..articulated import Tree, articulated_sweep
 from ..errors import ConvergenceError, ModelError, SimulationError
+from ..loop_integration import ProjectionHook
 from ..ops import NUMPY
 from ..protocol import BodyTerms, JointTerms
 from ..schemes import Newmark, Scheme, as_scheme
@@ -65,6 +66,7 @@ _ZERO3 = np.zeros((3, 1))
 #: ``after_step(step, t, q, qdot) -> bool``: called once per accepted step (``step`` = 1, 2, ...;
 #: ``t`` [s]); returns whether the actuator inputs jumped at ``t`` (held controller outputs).
 StepCallback = Callable[[int, float, np.ndarray, np.ndarray], bool]
+
 
 
 def name_of(scheme: Any) -> str:
@@ -267,7 +269,8 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
                       scheme: Scheme | str | None = None, tolerance: float = 1e-10, max_iterations: int = 20,
                       store_every: int = 1, divergence_bound: float | None = None,
                       stability_check: str = "warn", inputs: InputMap | None = None,
-                      after_step: StepCallback | None = None) -> PlanarSimulation:
+                      after_step: StepCallback | None = None,
+                      project: ProjectionHook | None = None) -> PlanarSimulation:
     """Implicit DT-TMM (any :mod:`ctmm.schemes` scheme) with Newton iterations per step.
 
     Parameters
@@ -316,6 +319,11 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
         next step starts from it, as a restart of the run at ``t`` would (Houbolt runs its
         start-up again, :meth:`ctmm.schemes.Scheme.restart`).  An exception ends the run as it is (``partial_result`` up to the
         previous stored step).
+    project : callable, optional
+        ``project(t, q, qdot) -> (q, qdot)``, applied to every accepted step before the divergence checks and
+        ``after_step`` (the cut joints of a kinematic loop model: :class:`ctmm.loop_integration.StepProjection`);
+        the scheme's history continues from the projected positions and rates (its accelerations are kept).  A
+        :class:`~ctmm.errors.SimulationError` it raises ends the run with the ``partial_result``.
 
     Returns
     -------
@@ -346,6 +354,8 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
         raise ModelError(f"inputs must be a callable inputs(t, q, qdot) -> ActuatorInputs | None, got {inputs!r}")
     if after_step is not None and not callable(after_step):
         raise ModelError(f"after_step must be a callable after_step(step, t, q, qdot) -> bool, got {after_step!r}")
+    if project is not None and not callable(project):
+        raise ModelError(f"project must be a callable project(t, q, qdot) -> (q, qdot), got {project!r}")
     actuated = None if inputs is None else ActuatedNewton(model, inputs)
     closed = None if actuated is None else (
         lambda m, qk, vk, t: accelerations(m, qk, vk, t, inputs=actuated.evaluate(t, qk, vk)))
@@ -404,6 +414,9 @@ def simulate_implicit(model: PlanarModel, q0, qdot0, *, t_final: float, dt: floa
                     f"max|delta qdd| = {residual:.3e} after {it} Newton iterations "
                     f"(tolerance {tolerance:g}); reduce dt", time=t1)
             history = scheme.second_order_update(history, x, h, plan)
+            if project is not None:
+                history.x, history.v = (np.array(part, dtype=float) for part in project(t1, history.x.copy(),
+                                                                                        history.v.copy()))
             q, v = history.x, history.v
             xdd = x
             guard.check(t1, q)

@@ -14,9 +14,11 @@ co-simulated controllers act on a mechanism with cut joints (``docs/closed_loops
 * the stored signals add the cut forces ``"<cut>.force_x|y"`` [N] (with the row's actuator values:
   ``signals_need_inputs``), the constraint drift ``"drift"`` [m] and ``"drift_rate"`` [m/s];
 * the implicit DT-TMM schemes step the spanning tree (``implicit_model``) with the cut forces added to the
-  actuator inputs at every Newton iterate (``implicit_inputs``), as in the open-loop scheme runs.
+  actuator inputs at every Newton iterate (``implicit_inputs``), as in the open-loop scheme runs, and project every
+  accepted step onto the cut joints (``step_projection``, :class:`ctmm.loop_integration.StepProjection`).
 
-Drift is held by Baumgarte stabilisation only (the driver does not project onto the constraints).
+With ``"rk4"`` and the ``solve_ivp`` methods drift is held by Baumgarte stabilisation only (the driver does not
+project onto the constraints there).
 """
 from __future__ import annotations
 
@@ -24,6 +26,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from ..loop_integration import StepProjection
 from .closed_loops import KinematicLoopModel
 from .guards import check_scheme, divergence_guard
 from .integrate import check_state, model_signals
@@ -67,6 +70,10 @@ class KinematicLoopPlant:
             driven = inputs(t, q, v) if inputs is not None else None
             return self.model.cut_inputs(q, v, t, driven)
         return hook
+
+    def step_projection(self) -> StepProjection:
+        """A projection onto the cut joints for the accepted steps of a DT-TMM scheme (the RK4's rule)."""
+        return StepProjection(self.model, f"kinematic loop {self.model.name!r}")
 
     def position_rates(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """``qdot = v`` [rad/s, m/s]."""

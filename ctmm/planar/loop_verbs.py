@@ -10,7 +10,8 @@ functions of this module, which call the model's own mechanism (the cut forces a
   DT-TMM scheme through the tree's implicit stepper (:func:`ctmm.planar.implicit.simulate_implicit`)
   with the cut forces re-solved from the boundary compliance at every Newton iterate
   (:meth:`KinematicLoopModel.cut_inputs`; their state dependence enters the Newton tangent by
-  directional differences), Baumgarte only.  Every result holds the tree coordinates and rates, the
+  directional differences), projected onto the cut joints after every step
+  (:func:`ctmm.planar.implicit_kinematic_loops.simulate_loop_scheme`).  Every result holds the tree coordinates and rates, the
   cut forces ``"<cut>.force_x"``, ``"<cut>.force_y"`` [N] (on the child point, global axes) and the
   constraint drift ``"drift"`` [m] and ``"drift_rate"`` [m/s].
 * frequency: the linearisation on the constraint manifold (:meth:`KinematicLoopModel.linearize`) in
@@ -147,7 +148,6 @@ def simulate_loops(model: KinematicLoopModel, t_final: float, dt: float | None, 
             raise ModelError(f"{name}={value!r} is not available for a kinematic loop model {model.name!r} (no "
                              f"fast runs through cut joints; runs start at t = 0); "
                              f"leave {name} at {default!r}")
-    tree = model.tree
     if isinstance(outputs, (str, Mapping)) or not isinstance(outputs, (list, tuple)):
         raise ModelError(f"outputs must be a list or tuple of sensor names (str), got {outputs!r}")
     ports = KinematicLoopPorts(model)
@@ -163,27 +163,13 @@ def simulate_loops(model: KinematicLoopModel, t_final: float, dt: float | None, 
                 raise ModelError(f"{name}={value!r} applies to solve_ivp methods, not to the DT-TMM scheme {method!r}")
         if dt is None:
             raise ModelError(f"dt is required with the DT-TMM scheme {method!r} (a fixed step [s], > 0), got None")
-        from .implicit import simulate_implicit
+        from .implicit_kinematic_loops import simulate_loop_scheme
 
         policy = "warn" if stability_check is None else validation.option("stability_check", stability_check,
                                                                            ("warn", "error", "ignore"))
-        started = time.perf_counter()
-        implicit = simulate_implicit(tree, q0, v0, t_final=t_final, dt=dt, scheme=as_scheme(method),
-                                     store_every=store_every, divergence_bound=divergence_bound,
-                                     stability_check=policy, inputs=lambda t, q, v: model.cut_inputs(q, v, t))
-        wall = time.perf_counter() - started
-        forces, drift, rate = [], [], []
-        for t, q, v in zip(implicit.t, implicit.q, implicit.qdot):
-            phi, phi_dot = model.constraints(q, v, t)
-            drift.append(np.max(np.abs(phi)))
-            rate.append(np.max(np.abs(phi_dot)))
-            forces.append(model.solve(q, v, t)[1])
-        run = KinematicLoopSimulation(model, implicit.t, implicit.q, implicit.qdot, np.array(forces), np.array(drift),
-                                      np.array(rate), implicit.method, wall, implicit.n_evaluations)
-        info = {"dt": dt, "projection": False}
-        if implicit.iterations is not None and len(implicit.iterations):
-            info["newton_iterations_mean"] = float(np.mean(implicit.iterations))
-            info["newton_iterations_max"] = int(np.max(implicit.iterations))
+        run, info = simulate_loop_scheme(model, q0, v0, t_final=t_final, dt=dt, scheme=as_scheme(method),
+                                         store_every=store_every, divergence_bound=divergence_bound,
+                                         stability_check=policy)
         return _history_result(model, run, outputs, info)
     for name, value in (("divergence_bound", divergence_bound), ("stability_check", stability_check)):
         if value is not None:

@@ -9,20 +9,25 @@ from typing import Any, Mapping
 import numpy as np
 
 from .. import validation
-from ..errors import ModelError
+from ..errors import ModelError, SimulationError
 from ..nonlinear_laws import Law
 from ..signals import as_signal
 from .elements import parent_point
+from .lie import left_jacobian, quaternion_exponential, quaternion_logarithm
 from .ports import SpatialInputs
 
-__all__ = ["SpatialCutJoint", "CUT_KINDS", "LAW_KINDS", "CutFrame", "CutActuatedInputs", "cut_frame", "cut_coordinate",
-           "cross", "perpendicular"]
+__all__ = ["SpatialCutJoint", "CUT_KINDS", "LAW_KINDS", "ROTATION_LAW_LIMIT", "CutFrame", "CutActuatedInputs",
+           "cut_frame", "cut_coordinate", "cross", "perpendicular", "relative_rotation", "spherical_law_moment"]
 
 CUT_KINDS = ("spherical", "revolute", "universal", "prismatic")
 """Kinds of :class:`SpatialCutJoint`."""
 
 LAW_KINDS = ("revolute", "prismatic")
 """Kinds of :class:`SpatialCutJoint` with a free coordinate that a law or an actuation may load."""
+
+ROTATION_LAW_LIMIT = 3.0
+"""Largest angle ``|phi|`` [rad] of a spherical cut's relative rotation vector its law is evaluated at (the
+logarithm's chart ends at ``pi``)."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -62,12 +67,17 @@ class SpatialCutJoint:
         coordinate axis least aligned with it (the same vector for both when the axes are equal).  Not used by
         the other kinds.
     law : ctmm.nonlinear_laws.Law, optional
-        Revolute and prismatic only: restoring moment [N m] or force [N] ``law(s - rest, s')`` of the joint
+        Revolute and prismatic: restoring moment [N m] or force [N] ``law(s - rest, s')`` of the joint
         coordinate ``s`` across the cut (revolute: the angle [rad] from ``parent_normal`` to ``normal`` about the
         axis; prismatic: the slide ``d . a`` [m] of the child point from the parent point along the parent axis
-        ``a``); ``docs/closed_loops.md`` §8.1a.  ``None``: a smooth cut.
-    rest : float
-        The coordinate [rad or m] at which the law's deflection is zero.
+        ``a``); ``docs/closed_loops.md`` §8.1a.  Spherical: the same law on each component of the relative rotation
+        vector ``phi = log(R_p^T R_c exp(rest)^T)`` [rad] (parent body axes) and its rate ``phi'``, the three
+        loads ``f`` acting as the moment ``-R_p J(phi)^-T f`` on the child (``J`` the left Jacobian of ``SO(3)``: the
+        exact work-conjugate of ``phi``, so the law's potential is the energy stored; ``|phi| <= 3`` rad);
+        ``docs/closed_loops.md`` §8.1b.  ``None``: a smooth cut.
+    rest : float or (3,) array
+        The coordinate [rad or m] at which the law's deflection is zero; spherical: the relative rotation vector
+        [rad] (parent body axes) at rest, default 0 (child axes parallel to parent axes).
     actuation : float or callable, optional
         Revolute and prismatic only: an actuator torque [N m] about the axis / force [N] along the slide ``u(t)``
         on the child (``-u`` on the parent).
@@ -89,7 +99,7 @@ class SpatialCutJoint:
     normal: Any = None
     parent_normal: Any = None
     law: Any = None
-    rest: float = 0.0
+    rest: Any = 0.0
     actuation: Any = None
     position: Any = None
     rate: Any = None
@@ -133,14 +143,25 @@ class SpatialCutJoint:
 
     def _check_law(self) -> None:
         """Validate ``law``, ``rest`` and ``actuation`` (revolute and prismatic cuts only)."""
-        if (self.law is not None or self.actuation is not None) and self.kind not in LAW_KINDS:
+        spherical = self.kind == "spherical"
+        if (self.law is not None and self.kind not in LAW_KINDS + ("spherical",)) or \
+                (self.actuation is not None and self.kind not in LAW_KINDS):
             raise ModelError(f"cut joint {self.name!r}: law and actuation act on the coordinate of a revolute or "
-                             f"prismatic cut; kind {self.kind!r} has none (got law={self.law!r}, actuation="
-                             f"{self.actuation!r})")
+                             f"prismatic cut (a law also on a spherical cut's relative rotation); kind {self.kind!r} "
+                             f"takes neither (got law={self.law!r}, actuation={self.actuation!r})")
         if self.law is not None and not isinstance(self.law, Law):
             raise ModelError(f"cut joint {self.name!r}: law must be None or a ctmm.nonlinear_laws.Law (e.g. "
                              f"LinearLaw(stiffness, damping)), got {self.law!r}")
-        object.__setattr__(self, "rest", validation.finite(f"cut joint {self.name!r}: rest", self.rest))
+        if spherical:
+            rest = np.zeros(3) if np.ndim(self.rest) == 0 and self.rest == 0.0 else \
+                validation.vector(f"cut joint {self.name!r}: rest (the relative rotation vector at rest)", self.rest,
+                                  unit="rad")
+            if float(np.linalg.norm(rest)) >= np.pi:
+                raise ModelError(f"cut joint {self.name!r}: rest must be a rotation vector shorter than pi rad, got "
+                                 f"{rest.tolist()}")
+            object.__setattr__(self, "rest", rest)
+        else:
+            object.__setattr__(self, "rest", validation.finite(f"cut joint {self.name!r}: rest", self.rest))
         if self.actuation is not None:
             object.__setattr__(self, "actuation", as_signal(f"cut joint {self.name!r}: actuation", self.actuation))
         given = [getattr(self, label) is not None for label in ("position", "rate", "acceleration")]
@@ -175,9 +196,14 @@ class SpatialCutJoint:
             value -= float(self.law.force(coordinate - self.rest, rate))
         return value
 
-    def potential(self, coordinate: float) -> float:
-        """Energy stored in the law at the coordinate [J] (0 without one)."""
-        return 0.0 if self.law is None else float(self.law.potential(coordinate - self.rest))
+    def potential(self, coordinate: Any) -> float:
+        """Energy stored in the law at the coordinate [J] (0 without one); spherical: at the relative rotation
+        vector ``phi`` [rad] (:func:`relative_rotation`, the rest already taken out), the sum over its components."""
+        if self.law is None:
+            return 0.0
+        if self.kind == "spherical":
+            return float(sum(self.law.potential(float(p)) for p in np.asarray(coordinate, float)))
+        return float(self.law.potential(coordinate - self.rest))
 
     @property
     def n_rows(self) -> int:
@@ -268,3 +294,59 @@ class CutActuatedInputs(SpatialInputs):
     """
 
     cut_actuation: Mapping[str, float] = field(default_factory=dict)
+
+
+def _quaternion_of(R: np.ndarray) -> np.ndarray:
+    """Unit quaternion ``[w, x, y, z]`` of a rotation matrix (the largest of the four squares first)."""
+    trace = float(np.trace(R))
+    squares = np.array([1.0 + trace, 1.0 + 2.0 * R[0, 0] - trace, 1.0 + 2.0 * R[1, 1] - trace,
+                        1.0 + 2.0 * R[2, 2] - trace])
+    k = int(np.argmax(squares))
+    big = 0.5 * np.sqrt(max(squares[k], 0.0))
+    quarter = 0.25 / big
+    if k == 0:
+        quaternion = [big, (R[2, 1] - R[1, 2]) * quarter, (R[0, 2] - R[2, 0]) * quarter, (R[1, 0] - R[0, 1]) * quarter]
+    elif k == 1:
+        quaternion = [(R[2, 1] - R[1, 2]) * quarter, big, (R[0, 1] + R[1, 0]) * quarter, (R[0, 2] + R[2, 0]) * quarter]
+    elif k == 2:
+        quaternion = [(R[0, 2] - R[2, 0]) * quarter, (R[0, 1] + R[1, 0]) * quarter, big, (R[1, 2] + R[2, 1]) * quarter]
+    else:
+        quaternion = [(R[1, 0] - R[0, 1]) * quarter, (R[0, 2] + R[2, 0]) * quarter, (R[1, 2] + R[2, 1]) * quarter, big]
+    return np.asarray(quaternion)
+
+
+def relative_rotation(cut: SpatialCutJoint, rotation_p: np.ndarray | None, rotation_c: np.ndarray,
+                      omega_p: np.ndarray, omega_c: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A spherical cut's relative rotation vector ``phi = log(R_p^T R_c exp(rest)^T)`` [rad], its rate
+    ``phi' = J(phi)^-1 R_p^T (omega_c - omega_p)`` [rad/s] (parent body axes; ``rotation_p`` None at the ground) and
+    the left Jacobian ``J(phi)`` of ``SO(3)`` (``d/dt exp(phi) exp(phi)^T = [J(phi) phi']x``)."""
+    parent = np.eye(3) if rotation_p is None else rotation_p
+    rest = quaternion_exponential(np.asarray(cut.rest, float))
+    w, x, y, z = rest
+    rest_matrix = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    phi = quaternion_logarithm(_quaternion_of(parent.T @ rotation_c @ rest_matrix.T))
+    jacobian = left_jacobian(phi)
+    return phi, np.linalg.solve(jacobian, parent.T @ (omega_c - omega_p)), jacobian
+
+
+def spherical_law_moment(cut: SpatialCutJoint, rotation_p: np.ndarray | None, rotation_c: np.ndarray,
+                         omega_p: np.ndarray, omega_c: np.ndarray, t: float) -> np.ndarray:
+    """The moment [N m] (world axes) of a spherical cut's law on its child, ``-R_p J(phi)^-T f`` with
+    ``f_i = law(phi_i, phi'_i)`` (:func:`relative_rotation`); the parent takes its opposite.
+
+    Raises
+    ------
+    SimulationError
+        ``|phi|`` above :data:`ROTATION_LAW_LIMIT` (the time and the cut named).
+    """
+    phi, rate, jacobian = relative_rotation(cut, rotation_p, rotation_c, omega_p, omega_c)
+    angle = float(np.linalg.norm(phi))
+    if not angle <= ROTATION_LAW_LIMIT:
+        raise SimulationError(f"cut joint {cut.name!r}: the relative rotation across the spherical cut is {angle:.4g} "
+                              f"rad at t = {t} s, beyond the {ROTATION_LAW_LIMIT:g} rad its law is defined for",
+                              time=t, element=cut.name)
+    loads = np.array([float(cut.law.force(float(p), float(r))) for p, r in zip(phi, rate)])
+    parent = np.eye(3) if rotation_p is None else rotation_p
+    return -parent @ np.linalg.solve(jacobian.T, loads)

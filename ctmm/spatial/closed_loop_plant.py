@@ -13,8 +13,9 @@ co-simulated controllers act on a spatial mechanism with cut joints:
 * the stored signals add the cut forces ``"<cut>.force_x|y|z"`` [N] (and moments of revolute and universal cuts)
   with the row's actuator values (``signals_need_inputs``), ``"drift"`` and ``"drift_rate"``.
 
-``"rk4"`` and the ``solve_ivp`` methods; drift held by Baumgarte only (the driver does not project).  The DT-TMM
-schemes are refused (``schemes = False``).
+``"rk4"`` and the ``solve_ivp`` methods hold the drift by Baumgarte only (the driver does not project there); the
+DT-TMM schemes step the spanning tree (``implicit_model``) with the cut loads solved under each iterate's actuator
+values (``implicit_inputs``) and project every accepted step onto the cut joints (``step_projection``).
 """
 from __future__ import annotations
 
@@ -22,7 +23,9 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from ..loop_integration import StepProjection
 from .closed_loops import SpatialKinematicLoopModel
+from .model import SpatialModel
 from .integrate import divergence_check, spatial_signals
 from .closed_loop_ports import SpatialLoopPorts
 
@@ -31,13 +34,13 @@ __all__ = ["SpatialLoopPlant", "add_cut_signals"]
 
 def add_cut_signals(model: SpatialKinematicLoopModel, signals: dict, units: dict, forces: np.ndarray,
                     moments: np.ndarray, drift: np.ndarray, drift_rate: np.ndarray) -> None:
-    """Add ``"<cut>.force_x|y|z"`` [N], ``"<cut>.moment_x|y|z"`` [N m] (all but spherical cuts; on the child,
-    world axes), ``"drift"`` and ``"drift_rate"`` to ``signals`` and ``units`` (``forces``, ``moments``:
+    """Add ``"<cut>.force_x|y|z"`` [N], ``"<cut>.moment_x|y|z"`` [N m] (all but spherical cuts without a law; on the
+    child, world axes), ``"drift"`` and ``"drift_rate"`` to ``signals`` and ``units`` (``forces``, ``moments``:
     ``(N, n_cuts, 3)``)."""
     for j, cut in enumerate(model.cuts):
         for axis, label in enumerate("xyz"):
             signals[f"{cut.name}.force_{label}"], units[f"{cut.name}.force_{label}"] = forces[:, j, axis], "N"
-            if cut.kind != "spherical":
+            if cut.kind != "spherical" or cut.law is not None:
                 signals[f"{cut.name}.moment_{label}"] = moments[:, j, axis]
                 units[f"{cut.name}.moment_{label}"] = "N m"
     signals["drift"], units["drift"] = drift, ""
@@ -53,7 +56,7 @@ class SpatialLoopPlant:
     """
 
     label = "spatial kinematic loop"
-    schemes = False
+    schemes = True
     signals_need_inputs = True
 
     def __init__(self, model: SpatialKinematicLoopModel) -> None:
@@ -61,6 +64,23 @@ class SpatialLoopPlant:
         self.ports = SpatialLoopPorts(model)
         self.n_positions, self.n_velocities = model.tree.n_positions, model.tree.n_velocities
         self.element_names = tuple(self.ports.element_names) + tuple(cut.name for cut in model.cuts)
+
+    @property
+    def implicit_model(self) -> SpatialModel:
+        """The model an implicit DT-TMM scheme steps: the spanning tree (cut loads through the inputs)."""
+        return self.model.tree
+
+    def implicit_inputs(self, inputs: Callable[[float, np.ndarray, np.ndarray], Any] | None
+                        ) -> Callable[[float, np.ndarray, np.ndarray], Any]:
+        """The ``input_map`` of the tree's implicit stepper: the actuator values of ``inputs`` (or none) plus the cut
+        loads solved with them (:meth:`SpatialKinematicLoopModel.cut_inputs`)."""
+        def hook(t: float, q: np.ndarray, v: np.ndarray) -> Any:
+            return self.model.cut_inputs(q, v, t, inputs(t, q, v) if inputs is not None else None)
+        return hook
+
+    def step_projection(self) -> StepProjection:
+        """A projection onto the cut joints for the accepted steps of a DT-TMM scheme (the RK4's rule)."""
+        return StepProjection(self.model, f"spatial kinematic loop {self.model.name!r}")
 
     def position_rates(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """``q_dot = G(q) v`` (1-D)."""
@@ -93,6 +113,7 @@ class SpatialLoopPlant:
         for k in range(len(t)):
             loads = model.cut_loads(q[k], model.solve(q[k], v[k], float(t[k]), rows[k])[1], float(t[k]))
             forces[k], moments[k] = [f for f, _ in loads], [m for _, m in loads]
+            moments[k] += model.law_moments(q[k], v[k], float(t[k]))     # a spherical cut's law
             phi, phi_dot = model.constraints(q[k], v[k], float(t[k]))
             drift[k], rate[k] = np.max(np.abs(phi)), np.max(np.abs(phi_dot))
         add_cut_signals(model, signals, units, forces, moments, drift, rate)

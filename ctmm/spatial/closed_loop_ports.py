@@ -8,7 +8,9 @@ A :class:`~ctmm.spatial.closed_loops.SpatialKinematicLoopModel` exposes every po
 
 Sensors
     * revolute: ``"<cut>.angle"`` [rad], ``"<cut>.rate"`` [rad/s];
-    * prismatic: ``"<cut>.position"`` [m], ``"<cut>.rate"`` [m/s] (the names of the tree's joints).
+    * prismatic: ``"<cut>.position"`` [m], ``"<cut>.rate"`` [m/s] (the names of the tree's joints);
+    * spherical with a ``law``: ``"<cut>.moment_x"``, ``"<cut>.moment_y"``, ``"<cut>.moment_z"`` [N m] -- the law's
+      moment on the child, world axes (:meth:`SpatialKinematicLoopModel.law_moments`, a function of the state).
 
 Actuators (undriven cuts; the names of :attr:`SpatialKinematicLoopModel.actuation_names`)
     * revolute: ``"<cut>.torque"`` [N m] -- a moment ``u`` about the cut's axis;
@@ -17,7 +19,7 @@ Actuators (undriven cuts; the names of :attr:`SpatialKinematicLoopModel.actuatio
 Each is added to the cut's own ``actuation`` (:class:`~ctmm.spatial.closed_loop_cuts.CutActuatedInputs`): ``u a`` on
 the child with ``a`` the world direction of the cut's coordinate at the current state, the opposite on the parent,
 the load of :meth:`SpatialKinematicLoopModel.actuation_inputs` (the linearisation's input).  Spherical and universal cuts have no coordinate and
-no ports; the cut loads ``"<cut>.force_x|y|z"`` are outputs, not sensors (a loop on them would be algebraic).
+no actuators (a spherical cut with a law its moment sensors); the cut loads ``"<cut>.force_x|y|z"`` are outputs, not sensors (a loop on them would be algebraic).
 """
 from __future__ import annotations
 
@@ -42,6 +44,7 @@ class _CutSensor:
     index: int           # cut index
     rate: bool
     unit: str
+    component: int = -1  # 0, 1, 2: a spherical cut's law moment along world x, y, z; -1: the coordinate or its rate
 
 
 @dataclass(frozen=True)
@@ -73,6 +76,9 @@ class SpatialLoopPorts(SpatialPorts):
         sensors, actuators = dict(self.sensors), dict(self.actuators)
         added_sensors, added_actuators = {}, {}
         for k, cut in enumerate(model.cuts):
+            if cut.kind == "spherical" and cut.law is not None:
+                added_sensors.update({f"{cut.name}.moment_{axis}": _CutSensor(f"{cut.name}.moment_{axis}", k, False,
+                                                                              "N m", j) for j, axis in enumerate("xyz")})
             if cut.kind not in LAW_KINDS:
                 continue
             revolute = cut.kind == "revolute"
@@ -107,7 +113,9 @@ class SpatialLoopPorts(SpatialPorts):
         """Values of resolved ``sensors`` at ``(q, v, t)`` (no validation of the state: for inner loops)."""
         def cut_values(chosen: list) -> list[float]:
             coordinate, rate = self.loop_model.cut_coordinates(q, v, t)
-            return [(rate if s.rate else coordinate)[s.index] for s in chosen]
+            moments = self.loop_model.law_moments(q, v, t) if any(s.component >= 0 for s in chosen) else None
+            return [moments[s.index, s.component] if s.component >= 0 else (rate if s.rate else coordinate)[s.index]
+                    for s in chosen]
 
         return merged_values(sensors, _CutSensor, lambda chosen: SpatialPorts.values(self, chosen, q, v, t),
                              cut_values)

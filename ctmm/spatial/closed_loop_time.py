@@ -2,7 +2,9 @@
 
 The state is the tree's ``x = [q ; v]`` with ``q' = G(q) v`` and ``v'`` the closed-loop accelerations (cut loads as
 boundary unknowns, :meth:`SpatialKinematicLoopModel.solve`).  ``"rk4"`` projects onto the cut joints after every
-step (and renormalises the quaternions); the ``solve_ivp`` methods hold the drift by Baumgarte alone.  Every
+step (and renormalises the quaternions); the ``solve_ivp`` methods hold the drift by Baumgarte alone; the DT-TMM
+schemes (:func:`simulate_spatial_loop_scheme`) run the tree's implicit stepper with the cut loads as iterate inputs
+and project after every step.  Every
 result reports the drift ``max |Phi|`` and ``max |Phi'|`` and the cut loads (``docs/closed_loops.md`` section 8).
 """
 from __future__ import annotations
@@ -14,10 +16,12 @@ import numpy as np
 
 from .. import validation
 from ..errors import ModelError
-from ..loop_integration import check_consistent, integrate_loop_model
+from ..loop_integration import StepProjection, check_consistent, integrate_loop_model
+from ..schemes import Scheme
 from .closed_loops import SpatialKinematicLoopModel
+from .implicit import simulate_spatial_implicit
 
-__all__ = ["SpatialLoopSimulation", "simulate_spatial_loops"]
+__all__ = ["SpatialLoopSimulation", "simulate_spatial_loop_scheme", "simulate_spatial_loops"]
 
 
 @dataclass(frozen=True)
@@ -34,7 +38,8 @@ class SpatialLoopSimulation:
     v : ndarray (N, nv)
         Tree velocities (``model.tree.velocities``).
     cut_force, cut_moment : ndarray (N, n_cuts, 3)
-        Force [N] and moment [N m] of each cut joint on its child, world axes (moment zero for spherical cuts).
+        Force [N] and moment [N m] of each cut joint on its child, world axes (a spherical cut's moment: its law's,
+        :meth:`SpatialKinematicLoopModel.law_moments`; zero without one).
     drift, drift_rate : ndarray (N,)
         ``max |Phi|`` (separations [m], alignments [rad]) and ``max |Phi'|`` [m/s, rad/s].
     method : str
@@ -120,13 +125,85 @@ def simulate_spatial_loops(model: SpatialKinematicLoopModel, q0: Any, v0: Any, *
                                               label=f"spatial kinematic loop {model.name!r}",
                                               element=model.cuts[0].name, velocity_label="v",
                                               model=model if projection else None)
+    return _history(model, t_out, y_out[:, :nq], y_out[:, nq:], inputs, method, wall, evaluations[0])
+
+
+def _history(model: SpatialKinematicLoopModel, t_out: np.ndarray, q: np.ndarray, v: np.ndarray,
+             inputs: Mapping[str, Any] | None, method: str, wall: float, evaluations: int) -> SpatialLoopSimulation:
+    """The run's stored rows with the cut loads (solved again at each row with ``inputs``) and the drift."""
     forces, moments, drift, drift_rate = [], [], [], []
-    for t, y in zip(t_out, y_out):
-        phi, phi_dot = model.constraints(y[:nq], y[nq:], t)
+    for t, q_k, v_k in zip(t_out, q, v):
+        t = float(t)
+        phi, phi_dot = model.constraints(q_k, v_k, t)
         drift.append(np.max(np.abs(phi)))
         drift_rate.append(np.max(np.abs(phi_dot)))
-        loads = model.cut_loads(y[:nq], model.solve(y[:nq], y[nq:], t, inputs)[1], t)
+        loads = model.cut_loads(q_k, model.solve(q_k, v_k, t, inputs)[1], t)
         forces.append([f for f, _ in loads])
-        moments.append([m for _, m in loads])
-    return SpatialLoopSimulation(model, t_out, y_out[:, :nq], y_out[:, nq:], np.array(forces), np.array(moments),
-                                 np.array(drift), np.array(drift_rate), method, wall, evaluations[0])
+        moments.append(np.array([m for _, m in loads]) + model.law_moments(q_k, v_k, t))
+    return SpatialLoopSimulation(model, np.asarray(t_out), q, v, np.array(forces), np.array(moments), np.array(drift),
+                                 np.array(drift_rate), method, wall, evaluations)
+
+
+def simulate_spatial_loop_scheme(model: SpatialKinematicLoopModel, q0: np.ndarray, v0: np.ndarray, *,
+                                 t_final: float, dt: float, scheme: Scheme | str,
+                                 inputs: Mapping[str, Any] | None = None, store_every: int = 1,
+                                 divergence_bound: float | None = None, projection: bool = True
+                                 ) -> tuple[SpatialLoopSimulation, dict]:
+    """A DT-TMM scheme on the spanning tree (:func:`ctmm.spatial.implicit.simulate_spatial_implicit`, Lie-group form)
+    with the cut loads re-solved at every iterate from the boundary compliance and applied as actuator values
+    (:meth:`SpatialKinematicLoopModel.cut_inputs` as its ``input_map``: their state dependence enters the iteration
+    matrix), projected onto the cut joints after every step by the RK4's rule
+    (:class:`ctmm.loop_integration.StepProjection`).
+
+    Parameters
+    ----------
+    model : SpatialKinematicLoopModel
+    q0, v0 : ndarray
+        Tree coordinates and velocities on the cut joints (checked: ``|Phi|``, ``|Phi'| <= 1e-8``).
+    t_final, dt : float
+        End time and step [s].
+    scheme : Scheme or str
+        Any :mod:`ctmm.schemes` scheme (``"newmark"``, ``"generalized_alpha"``, ``"houbolt"``, ...).
+    inputs : mapping, optional
+        The tree's joint actuator inputs ``{"<joint>.torque": number or f(t)}``.
+    store_every : int
+        Store every k-th step (and the last).
+    divergence_bound : float, optional
+        As in :func:`ctmm.spatial.implicit.simulate_spatial_implicit`.
+    projection : bool
+        Project after every step (default); False: Baumgarte alone (the drift grows as the scheme's truncation
+        error), for comparison.
+
+    Returns
+    -------
+    run : SpatialLoopSimulation
+    info : dict
+        The stepper's (``dt``, ``scheme``, ``iterations``, ...), ``projection`` and, when projecting,
+        ``max_drift_before_projection`` [m, rad], ``max_drift_rate_before_projection`` [m/s, rad/s],
+        ``max_drift_after_projection`` over every step.
+
+    Raises
+    ------
+    ModelError
+        Bad arguments or an inconsistent initial state.
+    ConvergenceError, SimulationError
+        As :func:`ctmm.spatial.implicit.simulate_spatial_implicit`; a failed projection (time, cut joint, partial
+        result).
+    """
+    if not isinstance(model, SpatialKinematicLoopModel):
+        raise ModelError(f"model must be a SpatialKinematicLoopModel, got {model!r:.80}")
+    projection = validation.flag("projection", projection)
+    q, v = model.state(q0, v0)
+    check_consistent(model, q, v)
+    tree = model.tree
+    projector = StepProjection(model, f"spatial kinematic loop {model.name!r}") if projection else None
+    run = simulate_spatial_implicit(tree, t_final, validation.positive("dt", dt), scheme=scheme, x0=q, v0=v,
+                                    input_map=lambda t, q_at, v_at: model.cut_inputs(q_at, v_at, t, inputs),
+                                    store_every=store_every, divergence_bound=divergence_bound, project=projector)
+    q_out = np.array([run[name] for name in tree.coordinates]).T.reshape(len(run.time), tree.n_positions)
+    v_out = np.array([run[name] for name in tree.velocities]).T.reshape(len(run.time), tree.n_velocities)
+    info = dict(run.info)
+    history = _history(model, run.time, q_out, v_out, inputs, run.scheme_name, float(info.get("wall_time_s", 0.0)),
+                       int(info.get("n_evaluations", 0)))
+    info.update(projector.report() if projector is not None else {"projection": False})
+    return history, info

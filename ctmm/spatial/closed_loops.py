@@ -53,7 +53,7 @@ from ..loop_integration import CONDITION_LIMIT, PROJECTION_SKIP, compliance_cond
 from ..ops import NUMPY
 from .body_forms import SpatialScene
 from .closed_loop_cuts import (CUT_KINDS, LAW_KINDS, CutActuatedInputs, CutFrame, SpatialCutJoint, cross, cut_coordinate,
-                               cut_frame)
+                               cut_frame, relative_rotation, spherical_law_moment)
 from .integrate import initial_state
 from .model import SpatialModel
 from .ports import SpatialInputs
@@ -272,11 +272,23 @@ class SpatialKinematicLoopModel:
             if not cut.has_law and cut.name not in extra:
                 out.append(None)
                 continue
+            if cut.kind == "spherical":
+                out.append(self._spherical_law_wrench(bodies, cut, parent, child, t))
+                continue
             coordinate, rate, a = self._coordinate(bodies, cut, parent, child)
             load = (cut.load(coordinate, rate, t) if cut.has_law else 0.0) + float(extra.get(cut.name, 0.0))
             out.append(np.concatenate([np.zeros(3), load * a]) if cut.kind == "revolute" else
                        np.concatenate([load * a, np.zeros(3)]))
         return out
+
+    def _spherical_law_wrench(self, bodies: list, cut: SpatialCutJoint, parent: _Side, child: _Side, t: float
+                              ) -> np.ndarray:
+        """``[0 ; m]`` (world) of a spherical cut's law on the child
+        (:func:`~ctmm.spatial.closed_loop_cuts.spherical_law_moment`) at the first state of ``bodies``."""
+        Rp = None if parent.body < 0 else bodies[parent.body][0][0]
+        omega_p = np.zeros(3) if parent.body < 0 else bodies[parent.body][3][0]
+        moment = spherical_law_moment(cut, Rp, bodies[child.body][0][0], omega_p, bodies[child.body][3][0], t)
+        return np.concatenate([np.zeros(3), moment])
 
     def _coordinate(self, bodies: list, cut: SpatialCutJoint, parent: _Side, child: _Side
                     ) -> tuple[float, float, np.ndarray]:
@@ -327,7 +339,31 @@ class SpatialKinematicLoopModel:
     def cut_potential(self, q: Any) -> float:
         """Energy stored in the cuts' laws [J] at the coordinates ``q``."""
         values, _ = self.cut_coordinates(q, np.zeros(self.tree.n_velocities))
-        return float(sum(cut.potential(s) for cut, s in zip(self.cuts, values) if cut.kind in LAW_KINDS))
+        return float(sum(cut.potential(s) for cut, s in zip(self.cuts, values) if cut.kind in LAW_KINDS)) + \
+            sum(cut.potential(pair[0]) for cut, pair in zip(self.cuts, self.relative_rotations(q)) if pair is not None)
+
+    def relative_rotations(self, q: Any, v: Any = None, t: float = 0.0) -> list[tuple[np.ndarray, np.ndarray] | None]:
+        """Per cut: a spherical cut's relative rotation vector ``phi`` [rad] and its rate [rad/s] (parent body axes,
+        :func:`~ctmm.spatial.closed_loop_cuts.relative_rotation`); ``None`` for the other kinds."""
+        v = np.zeros(self.tree.n_velocities) if v is None else v
+        bodies = self._bodies(np.asarray(q, float), np.asarray(v, float), t)
+        out: list[tuple[np.ndarray, np.ndarray] | None] = []
+        for cut, (parent, child) in zip(self.cuts, self._sides):
+            rigid = [(None, np.zeros(3)) if side.body < 0 else (bodies[side.body][0][0], bodies[side.body][3][0])
+                     for side in (parent, child)]
+            out.append(relative_rotation(cut, rigid[0][0], rigid[1][0], rigid[0][1], rigid[1][1])[:2]
+                       if cut.kind == "spherical" else None)
+        return out
+
+    def law_moments(self, q: Any, v: Any, t: float = 0.0) -> np.ndarray:
+        """``(n_cuts, 3)``: the moment [N m] (world axes) of each spherical cut's law on its child
+        (:func:`~ctmm.spatial.closed_loop_cuts.spherical_law_moment`; zero without a law and for the other kinds)."""
+        bodies = self._bodies(np.asarray(q, float), np.asarray(v, float), t)
+        out = np.zeros((len(self.cuts), 3))
+        for k, (cut, (parent, child)) in enumerate(zip(self.cuts, self._sides)):
+            if cut.kind == "spherical" and cut.law is not None:
+                out[k] = self._spherical_law_wrench(bodies, cut, parent, child, t)[3:]
+        return out
 
     def _unit_loads(self, bodies: list, t: float, extra: Mapping[str, float] | None = None) -> dict[int, np.ndarray]:
         """Per loaded body: the change ``[f ; m + r x f]`` (``(1 + m, 6, 1)``, world axes, about its inboard point)

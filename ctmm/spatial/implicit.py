@@ -65,6 +65,7 @@ import numpy as np
 from .. import validation
 from ..articulated import SingularPivotError, articulated_sweep
 from ..errors import ConvergenceError, ModelError, SimulationError
+from ..loop_integration import ProjectionHook
 from ..guard import StabilityLimitWarning
 from ..low_rank import low_rank_solve
 from ..ops import NUMPY
@@ -243,7 +244,8 @@ def simulate_spatial_implicit(model: SpatialModel, t_final: float, dt: float, *,
                               x0: Any = None, v0: Any = None, inputs: Mapping[str, Any] | None = None,
                               tolerance: float = 1e-10, max_iterations: int = 50, store_every: int = 1,
                               divergence_bound: float | None = None, input_map: InputMap | None = None,
-                              after_step: StepCallback | None = None) -> SimulationResult:
+                              after_step: StepCallback | None = None,
+                              project: ProjectionHook | None = None) -> SimulationResult:
     """Implicit DT-TMM run of a spatial model with any scheme (module docstring).
 
     Parameters
@@ -280,6 +282,12 @@ def simulate_spatial_implicit(model: SpatialModel, t_final: float, dt: float, *,
         ``after_step(step, t, q, v) -> bool`` after every accepted step (``step`` = 1, 2, ...,
         ``t = step dt``); a true value says the inputs jumped at ``t`` (new held controller
         outputs): the next step starts from the acceleration solved again with them.
+    project : callable, optional
+        ``project(t, q, v) -> (q, v)``, applied to every accepted step before the divergence check and
+        ``after_step`` (the cut joints of a spatial kinematic loop model:
+        :class:`ctmm.loop_integration.StepProjection`); the next step starts from the projected state (the
+        accelerations are kept).  A :class:`~ctmm.errors.SimulationError` it raises ends the run with the
+        ``partial_result``.
 
     Returns
     -------
@@ -318,6 +326,8 @@ def simulate_spatial_implicit(model: SpatialModel, t_final: float, dt: float, *,
                          f"got input_map={input_map!r}, inputs={inputs!r}")
     if after_step is not None and not callable(after_step):
         raise ModelError(f"after_step must be a callable after_step(step, t, q, v) -> bool, got {after_step!r}")
+    if project is not None and not callable(project):
+        raise ModelError(f"project must be a callable project(t, q, v) -> (q, v), got {project!r}")
     input_values(model, inputs, 0.0, 1)                      # names and values checked before the run
     limit = scheme.stability_limit()
     if limit < math.inf:
@@ -457,6 +467,13 @@ def simulate_spatial_implicit(model: SpatialModel, t_final: float, dt: float, *,
         new = scheme.second_order_update(history, a, dt, plan)
         earlier, since = [q, earlier[0]], since + 1
         q, v = retract(model, q, new.x), (new.v - 0.5 * bracket(model, new.x, new.v) if chart else new.v)
+        if project is not None:
+            try:
+                q, v = (np.array(part, dtype=float) for part in project(t1, q.copy(), v.copy()))
+            except SimulationError as exc:
+                if exc.partial_result is None:
+                    exc.partial_result = partial()
+                raise
         algorithmic = new.a
         rates = new.equation_acceleration if new.equation_acceleration is not None else new.a
         x = np.concatenate([q, v])
