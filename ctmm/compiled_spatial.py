@@ -427,8 +427,8 @@ class CompiledSpatialScene:
     rows : int
         Stored states per generated block (one C call) [-].
     cache_dir, compiler, flags
-        Of :func:`ctmm.codegen.shared_library` (``flags`` default :data:`SPATIAL_FLAGS`; ``-O0``
-        compiles faster still and runs slower, with the same numbers to round-off).
+        Of :func:`ctmm.codegen.shared_library` (``flags`` default :data:`SPATIAL_FLAGS`, folded rates
+        :data:`FOLD_FLAGS`; ``-O0`` compiles faster still and runs slower, same numbers to round-off).
     fold : bool or None
         Compile the rates as folds over equal segments (:func:`chain_period`, :func:`folded_velocity_rate`):
         ``True`` (refused for a model that is not such a chain), ``False`` straight-line code, ``None``
