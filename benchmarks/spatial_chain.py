@@ -12,8 +12,10 @@ rest, simulated for ``T_FINAL`` s):
 
 Error = max over links of the angle of ``R_ref^T R`` (world orientation of each link) at
 ``T_FINAL`` [rad].  Each peer's step is halved from ``DT_START`` until its error is <= 1e-6 rad
-("matched"); every run is recorded (error and wall time side by side; runs shorter than 1 s are
-timed best of 3, for every method).
+("matched"); every run is recorded (error and CPU time side by side; runs shorter than 1 s are
+timed best of 3, for every method).  Times are CPU time of this process (``time.process_time``: every
+peer runs single-threaded in it), not wall-clock, so other processes on the shared machine do not
+enter them.
 
 Peers (optional imports, benchmarks only):
 
@@ -24,10 +26,12 @@ Peers (optional imports, benchmarks only):
 * ``ctmm_rk4``      -- ctmm's generated RK4 (``ctmm.simulate(..., compiled=True)``, the time loop
   in C generated from the spatial body and joint terms, :mod:`ctmm.compiled_spatial`): the compiled
   loop alone is timed (every 10th state stored; compiling and the verb's result assembly outside
-  the timing; first compile time, ``gcc -O1``, and instructions per rate evaluation in the JSON).
-  Chains of ``FOLD_MIN_BODIES`` (100) or more revolute links compile as folds over their segments
-  (``fold_period`` in the JSON; their instruction count is of the calling code only); ``--fold on |
-  off`` forces the fold or the straight-line code.
+  the timing; first compile time, wall and CPU (this process and the compiler), and instructions per
+  rate evaluation in the JSON).  Chains of ``FOLD_MIN_VELOCITIES`` (20) or more velocities (revolute
+  N >= 20, ball N >= 7) compile as folds over their segments (``gcc -O3``; straight-line code
+  ``gcc -O1``; ``fold_period`` in the JSON; their instruction count is of the calling code only);
+  ``--fold on | off`` forces the fold or the straight-line code.  Run it with ``CTMM_CACHE`` set to an
+  empty folder for first-compile times.
 
 (A thinner rod, axial inertia 1e-4 kg m^2 as in the planar benchmark, made the ball chain of
 N = 100 blow up (NaN) in Pinocchio ABA + RK4 within 0.3 s at h = 1 ms while N = 30 and 60 ran
@@ -209,10 +213,10 @@ def mujoco_chain(n: int, kind: str, dt: float):
 
 def mujoco_run(n: int, kind: str, dt: float, steps: int):
     mujoco, model, data = mujoco_chain(n, kind, dt)
-    start = time.perf_counter()
+    start = time.process_time()
     for _ in range(steps):
         mujoco.mj_step(model, data)
-    wall = time.perf_counter() - start
+    wall = time.process_time() - start
     mujoco.mj_kinematics(model, data)
     return data.xmat[1:].reshape(n, 3, 3).copy(), wall
 
@@ -220,7 +224,8 @@ def mujoco_run(n: int, kind: str, dt: float, steps: int):
 # -- ctmm -------------------------------------------------------------------------------------
 CTMM_STORE_EVERY = 10        # every dt of the halvings gives a whole number of strides (100 2^k steps)
 CTMM_SCENES: dict = {}       # (n, kind) -> compiled scene (compiled once per chain, outside the timing)
-CTMM_FOLD = None             # ctmm.compiled_spatial: None = the library's rule (fold from FOLD_MIN_BODIES bodies)
+CTMM_COMPILE_CPU: dict = {}  # (n, kind) -> CPU time of its first compile [s] (this process and the compiler)
+CTMM_FOLD = None             # ctmm.compiled_spatial: None = the library's rule (fold from FOLD_MIN_VELOCITIES)
 
 
 def ctmm_model(n: int, kind: str):
@@ -240,11 +245,19 @@ def ctmm_model(n: int, kind: str):
 def ctmm_scene(n: int, kind: str):
     """The compiled scene of the chain (generated, compiled or loaded from the cache on first use;
     its ``compile_time_s`` is recorded)."""
+    import resource
+
     from ctmm.compiled_spatial import CompiledSpatialScene
 
+    def cpu() -> float:
+        children = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return time.process_time() + children.ru_utime + children.ru_stime
+
     if (n, kind) not in CTMM_SCENES:
+        start = cpu()
         CTMM_SCENES[(n, kind)] = CompiledSpatialScene(ctmm_model(n, kind), store_every=CTMM_STORE_EVERY,
                                                       fold=CTMM_FOLD)
+        CTMM_COMPILE_CPU[(n, kind)] = cpu() - start
     return CTMM_SCENES[(n, kind)]
 
 
@@ -254,7 +267,7 @@ def ctmm_adapter(n: int, kind: str, dt: float):
     10th state stored), compiling outside the timing and the verb's result assembly (body positions and
     angular velocities of every stored row, numpy) excluded, as the peers store nothing.  Quaternions
     are integrated as coordinates, not normalised (rotations use ``q / |q|``).  Returns the (n, 3, 3)
-    world orientations of the links at ``T_FINAL`` and the wall time [s]."""
+    world orientations of the links at ``T_FINAL`` and the CPU time [s]."""
     from ctmm.ops import NUMPY
 
     scene = ctmm_scene(n, kind)
@@ -264,9 +277,9 @@ def ctmm_adapter(n: int, kind: str, dt: float):
     if kind == "ball":                          # ctmm quaternions are scalar-first
         q0 = q0.reshape(-1, 4)[:, [3, 0, 1, 2]].ravel()
     x0 = np.concatenate([q0, v0])
-    start = time.perf_counter()
+    start = time.process_time()
     states = scene.run(x0, dt, steps)
-    wall = time.perf_counter() - start
+    wall = time.process_time() - start
     q_end, v_end = states[-1, :model.n_positions], states[-1, model.n_positions:]
     bodies = ctmm_spatial.SpatialScene(model).terms(NUMPY, q_end[None], v_end[None])[2]
     return np.array([body.rotation[0] for body in bodies]), wall
@@ -333,9 +346,9 @@ def halving_runs(run, estimate_one_step, log, label) -> dict:
         error, wall = run(dt, steps)
         if wall < REPEAT_BELOW_S:          # short runs: best of REPEATS (a shared machine's noise)
             wall = min([wall] + [run(dt, steps)[1] for _ in range(REPEATS - 1)])
-        runs.append({"dt_s": dt, "max_error_rad": error, "wall_time_s": wall,
+        runs.append({"dt_s": dt, "max_error_rad": error, "cpu_time_s": wall,
                      "time_per_step_s": wall / steps})
-        log(f"{label} dt {dt:.2e} wall {wall:8.3f} s  error {error:.2e}")
+        log(f"{label} dt {dt:.2e} cpu {wall:8.3f} s  error {error:.2e}")
         if error <= TARGET_RAD:
             matched = runs[-1]
             break
@@ -343,9 +356,9 @@ def halving_runs(run, estimate_one_step, log, label) -> dict:
 
 
 def one_step_time(run_steps, repeats: int = 3) -> float:
-    start = time.perf_counter()
+    start = time.process_time()
     run_steps(repeats)
-    return (time.perf_counter() - start) / repeats
+    return (time.process_time() - start) / repeats
 
 
 def run_case(n: int, kind: str, log) -> dict:
@@ -373,9 +386,9 @@ def run_case(n: int, kind: str, log) -> dict:
     label = f"N={n:4d} {kind:8s}"
 
     def pin_run(dt, steps):
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         q, _ = chain.rk4(q0.copy(), v0.copy(), dt, steps)
-        wall = time.perf_counter() - t0
+        wall = time.process_time() - t0
         return rotation_error(chain.rotations(q), reference), wall
 
     case["methods"]["pinocchio_rk4"] = halving_runs(
@@ -404,7 +417,9 @@ def run_case(n: int, kind: str, log) -> dict:
             scene = ctmm_scene(n, kind)
             case["methods"]["ctmm_rk4"].update({
                 "first_compile_s": scene.compile_time_s,
-                "compile_note": "generate C, compile (gcc -O1) or load from the cache; once per chain",
+                "first_compile_cpu_s": CTMM_COMPILE_CPU[(n, kind)],
+                "compile_note": ("generate C, compile (gcc -O3 folded, -O1 straight-line) or load from the cache; "
+                                 "once per chain"),
                 "instructions_per_rate": int(scene.rates.velocity_rate.n_instructions()),
                 "fold_period": scene.rates.period})
             log(f"{label} ctmm_rk4 first compile {scene.compile_time_s:.1f} s")
@@ -436,23 +451,23 @@ def plot(results: dict, path: Path) -> None:
                     if case["kind"] == kind else None
                 if matched:
                     ns.append(case["n"])
-                    walls.append(matched["wall_time_s"])
+                    walls.append(matched["cpu_time_s"])
             if ns:
                 ax1.loglog(ns, walls, "o" + styles[kind], label=f"{name} {kind}")
     ax1.set_xlabel("N links")
-    ax1.set_ylabel(f"wall time at error <= {TARGET_RAD:g} rad [s]")
+    ax1.set_ylabel(f"CPU time at error <= {TARGET_RAD:g} rad [s]")
     ax1.legend(fontsize="small")
     for case in results["cases"]:
         if case["n"] != 30:
             continue
         for name, method in case["methods"].items():
-            points = [(r["wall_time_s"], r["max_error_rad"]) for r in method.get("runs", [])
-                      if "wall_time_s" in r]
+            points = [(r["cpu_time_s"], r["max_error_rad"]) for r in method.get("runs", [])
+                      if "cpu_time_s" in r]
             if points:
                 x, y = zip(*points)
                 ax2.loglog(x, y, "o" + styles[case["kind"]], label=f"{name} {case['kind']}")
     ax2.axhline(TARGET_RAD, color="k", lw=0.5)
-    ax2.set_xlabel("wall time [s]")
+    ax2.set_xlabel("CPU time [s]")
     ax2.set_ylabel(f"max link orientation error at {T_FINAL:g} s [rad]")
     ax2.set_title("N = 30: work against precision (dt halved)")
     if ax2.get_legend_handles_labels()[0]:
@@ -492,8 +507,8 @@ def main(argv=None) -> dict:
         for kind in args.kinds:
             results["cases"].append(run_case(n, kind, log))
     results["load_average_end"] = os.getloadavg()
-    results["note"] = ("wall-clock on a shared 2-core machine (see load averages): compare "
-                       "methods within one case, not across runs")
+    results["note"] = ("CPU time of the runs (time.process_time) on a shared 2-core machine (see load averages; "
+                       "first_compile_s is wall-clock, first_compile_cpu_s CPU): compare methods within one case")
     (out / "spatial_chain.json").write_text(json.dumps(results, indent=2) + "\n")
     plot(results, out / "spatial_chain.png")
     return results

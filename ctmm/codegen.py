@@ -32,6 +32,7 @@ import ctypes
 import functools
 import hashlib
 import os
+import re
 import shutil
 import subprocess
 import tempfile
@@ -42,8 +43,8 @@ from typing import Any, Callable, Iterable, Sequence
 from .errors import ModelError
 
 __all__ = ["CompiledLibrary", "DEFAULT_FLAGS", "LINK_FLAGS", "cache_directory", "cache_key", "casadi_source",
-           "compiler_identity", "find_compiler", "load_casadi", "load_casadi_keyed", "load_ctypes", "run_compiler",
-           "shared_library"]
+           "compiler_identity", "find_compiler", "hoisted_input_reads", "load_casadi", "load_casadi_keyed", "load_ctypes",
+           "run_compiler", "shared_library"]
 
 DEFAULT_FLAGS = ("-O2", "-shared", "-fPIC")
 """Compiler flags of :func:`shared_library` unless others are given."""
@@ -346,7 +347,8 @@ def load_ctypes(source: str, name: str, **options: Any) -> ctypes.CDLL:
 
 
 def casadi_source(functions: Sequence[Any], name: str) -> str:
-    """C text of casadi :class:`casadi.Function` objects (one ``casadi.CodeGenerator`` file)."""
+    """C text of casadi :class:`casadi.Function` objects (one ``casadi.CodeGenerator`` file), each function's
+    input reads taken through one pointer per input (:func:`hoisted_input_reads`)."""
     import casadi as ca
 
     generator = ca.CodeGenerator(name, {"with_header": False})
@@ -354,7 +356,35 @@ def casadi_source(functions: Sequence[Any], name: str) -> str:
         generator.add(function)
     with tempfile.TemporaryDirectory() as tmp:
         generator.generate(tmp + os.sep)
-        return Path(tmp, f"{name}.c").read_text()
+        return hoisted_input_reads(Path(tmp, f"{name}.c").read_text())
+
+
+_INPUT_READ = re.compile(r"\barg\[(\d+)\]\? arg\[\1\]\[(\d+)\] : 0")
+_FUNCTION_START = re.compile(r"^static int casadi_f\d+\(const casadi_real\*\* arg, casadi_real\*\* res, "
+                             r"casadi_int\* iw, casadi_real\* w, int mem\) \{\n", re.M)
+
+
+def hoisted_input_reads(text: str) -> str:
+    """Casadi C ``text`` with every read ``arg[i]? arg[i][k] : 0`` of a function's input (casadi's
+    straight-line code: one branch per number read) replaced by ``ctmm_in<i>[k]`` through one pointer per
+    input set at the function's start, ``arg[i]`` or, for an absent input, a static array of zeros: the
+    same numbers.  The branches made gcc's time grow faster than the code (a 1000-mass chain's step of
+    4000 reads: ``-O2`` 24 -> 16 s of CPU, same speed)."""
+    starts = [match.end() for match in _FUNCTION_START.finditer(text)]
+    pieces, largest = [text[:starts[0]] if starts else text], 0
+    for start, following in zip(starts, starts[1:] + [len(text)]):
+        end = text.index("\n}\n", start)
+        body = text[start:end]
+        reads = [(int(match.group(1)), int(match.group(2))) for match in _INPUT_READ.finditer(body)]
+        largest = max([largest] + [k + 1 for _, k in reads])
+        pieces.append("".join(f"  const casadi_real *ctmm_in{i} = arg[{i}] ? arg[{i}] : ctmm_zeros;\n"
+                              for i in sorted({i for i, _ in reads})))
+        pieces.append(_INPUT_READ.sub(lambda match: f"ctmm_in{match.group(1)}[{match.group(2)}]", body)
+                      + text[end:following])
+    if not largest:
+        return text
+    return "".join(pieces).replace("static int casadi_f", f"static const casadi_real ctmm_zeros[{largest}];\n"
+                                   "static int casadi_f", 1)
 
 
 def load_casadi(functions: Sequence[Any], name: str, **options: Any) -> tuple[Any, ...]:

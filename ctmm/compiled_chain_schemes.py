@@ -78,7 +78,7 @@ HISTORY = ("x", "v", "a", "x_old1", "x_old2")
 """The stored history of every point, in the order of the generated state."""
 UNROLLED_POINTS = 1000
 """Moving masses up to which :class:`CompiledChainScheme` writes its step out as straight-line code by default
-(``benchmarks/chain_schemes_generated.py``: 2-3x faster per step; 1000 masses compile in 25-50 s, not 3 s)."""
+(``benchmarks/chain_schemes_generated.py``: 2-3x faster per step; 1000 masses compile in ~18 s of CPU, not 3 s)."""
 
 
 class SchemeMaps:

@@ -17,7 +17,7 @@ Quaternions are integrated as coordinates, as on the numpy path
 formed from the normalised quaternion, stored quaternions as integrated; the two paths agree to
 round-off.
 
-Long serial chains of equal segments (:func:`chain_period`; from :data:`FOLD_MIN_BODIES` bodies, or
+Long serial chains of equal segments (:func:`chain_period`; from :data:`FOLD_MIN_VELOCITIES` velocities, or
 ``fold=True``) are compiled as three folds over their segments (:func:`folded_velocity_rate`): the
 code of one segment, called once per segment, instead of straight-line code of every body, so the C
 and its compile time do not grow with N.
@@ -67,20 +67,23 @@ from .compiled_spatial_parameters import (SpatialNumbers, parametrised_body_term
 __all__ = ["SpatialRates", "CompiledSpatialScene", "spatial_compile_refusal", "simulate_spatial_generated",
            "chain_period"]
 
-FOLD_MIN_BODIES = 100
-"""Foldable models (:func:`chain_period`) with at least this many bodies are compiled through the fold
-over segments, smaller ones as straight-line code.  Measured (revolute chains, ``docs/spatial.md`` §6b):
-below it the straight-line code runs up to 2x faster (measured when the fold formed each segment's terms
-twice; they are formed once since session 8: 48 / 42 us folded / straight-line at N = 60, CPU time) and
-compiles in seconds; at N = 100 the fold compiles about 5x faster and runs within 10 %, at N = 300
-it is faster in both."""
-FOLD_KINDS = ("revolute", "prismatic", "universal")
+FOLD_MIN_VELOCITIES = 20
+"""Foldable models (:func:`chain_period`) with at least this many velocities are compiled through the fold
+over segments, smaller ones as straight-line code (whose C, and gcc's time, grows with the velocities: about
+0.07 s of CPU per revolute and 0.15 s per ball joint).  Measured (session 9, ``docs/spatial.md`` §6b; CPU
+time, fresh cache, load 2-6 on 2 cores): revolute chains N = 20 / 30 first compile 1.6 / 2.7-3.1 s straight,
+0.8 / 0.9 s folded, per step 11.9 / 18-19 us straight, 12.5 / 19-23 us folded; ball chains N = 10 / 30 compile
+1.5 / 7.1 s straight, 0.8 / 1.1 s folded, per step 11.3 / 35.5 and 11.0 / 33.4 us."""
+FOLD_KINDS = ("revolute", "prismatic", "universal", "spherical")
 DEFAULT_ROWS = 64
 """Stored states per generated block call."""
 SPATIAL_FLAGS = ("-O1", "-shared", "-fPIC")
 """Compiler flags of spatial kernels: their straight-line C is long (about 700 instructions per revolute body
 and rate), and ``-O1`` compiles it 3.5x faster than ``-O2`` and runs it as fast (a 100-link revolute
 chain, one run on the 2-core machine: 50 s and 222 us per step against 172 s and 249 us)."""
+FOLD_FLAGS = ("-O3", "-shared", "-fPIC")
+"""Compiler flags of folded kernels (:func:`folded_velocity_rate`): their C holds one segment whatever N (about
+120 kB), so ``-O3`` costs a few tenths of a second more than ``-O1`` and runs the step about 25 % faster."""
 
 
 def spatial_compile_refusal(model: Any) -> str:
@@ -118,7 +121,7 @@ class SpatialRates:
     fold : bool or None
         ``True``: the folds over equal segments (:func:`folded_velocity_rate`; refused for a model
         :func:`chain_period` does not fold); ``False``: straight-line; ``None``: the fold for foldable
-        models of at least :data:`FOLD_MIN_BODIES` bodies.
+        models of at least :data:`FOLD_MIN_VELOCITIES` velocities.
     numbers : {"constants", "inputs"}
         The model's numbers as constants of the code (``p`` empty) or as the parameter column ``p``
         (:func:`~ctmm.compiled_spatial_parameters.spatial_parameter_layout`).
@@ -155,7 +158,7 @@ class SpatialRates:
         if fold and not period:
             raise ModelError(f"SpatialRates: fold=True needs a serial chain of at least two equal segments of "
                              f"{', '.join(FOLD_KINDS)} joints without loads or inputs; model {model.name!r} is not one")
-        self.period = period if (fold or (fold is None and model.n_bodies >= FOLD_MIN_BODIES)) else 0
+        self.period = period if (fold or (fold is None and model.n_velocities >= FOLD_MIN_VELOCITIES)) else 0
         self._symbols: tuple | None = None      # (rate, velocity_rate): built when first read
 
     @property
@@ -181,7 +184,8 @@ class SpatialRates:
         if self.period:
             velocity_rate = folded_velocity_rate(model, self.period, self.layout)
             y, u_mx, p, t = ca.MX.sym("y", nq + nv), ca.MX.sym("u", 0), ca.MX.sym("p", n_p), ca.MX.sym("t")
-            return ca.Function("rate", [y, u_mx, p, t], [ca.vertcat(y[nq:], velocity_rate(
+            q_dot = y[nq:] if nq == nv else folded_position_rate(model, self.period)(y[:nq], y[nq:])
+            return ca.Function("rate", [y, u_mx, p, t], [ca.vertcat(q_dot, velocity_rate(
                 y[:nq], y[nq:], u_mx, p))]), velocity_rate
         q, v = ca.SX.sym("q", nq), ca.SX.sym("v", nv)
         u = ca.SX.sym("u", sum(self.widths))
@@ -233,7 +237,7 @@ def chain_period(model: SpatialModel) -> int:
     """The shortest segment length ``p`` of a model that the fold compiles, 0 when it cannot.
 
     Foldable: a serial chain (body ``j`` on body ``j - 1``, body 0 on the ground) of non-driven
-    revolute, prismatic or universal joints without actuator inputs and loads, whose bodies
+    revolute, prismatic, universal or spherical joints without actuator inputs and loads, whose bodies
     ``0..N-1`` are ``N / p >= 2`` repetitions of ``p`` bodies with equal numbers (mass, inertia,
     centre of mass, the point carrying the next body, joint kind, axes, joint rotation, law, and from
     the second segment on the parent point of the joint).
@@ -250,8 +254,8 @@ def chain_period(model: SpatialModel) -> int:
     def fixed(j: int) -> tuple:
         body, joint = model.bodies[j], model.joints[j]
         return (joint.kind,) + numbers([body.mass, body.inertia, body.center_of_mass, joint.rotation, joint.stiffness,
-                                        joint.damping, joint.reference] + [getattr(joint, name, None) for name in
-                                                                           ("axis", "axis1", "axis2")]) + (
+                                        joint.damping] + [getattr(joint, name, None) for name in
+                                                          ("reference", "axis", "axis1", "axis2")]) + (
             repr(getattr(joint, "law", None)),)
 
     def outboard(j: int, period: int) -> Any:         # the last body: the point of its place in segment 0
@@ -284,6 +288,8 @@ def folded_velocity_rate(model: SpatialModel, period: int, layout: Sequence[Any]
     in code whose size does not grow with N.  With a parameter ``layout``
     (:func:`~ctmm.compiled_spatial_parameters.spatial_parameter_layout`, body by body, then gravity)
     each segment takes its own column of the bodies' entries and every segment the gravity entries.
+    Spherical joints' quaternions enter as in the straight-line code (rotation of ``q / |q|``); their
+    rates ``q_dot`` are :func:`folded_position_rate`.
     """
     import casadi as ca
 
@@ -291,11 +297,12 @@ def folded_velocity_rate(model: SpatialModel, period: int, layout: Sequence[Any]
     count = n // period
     segment = range(period)
     nq = [model.layout[i].position.stop - model.layout[i].position.start for i in segment]
-    nq_segment = sum(nq)
+    nv = [model.layout[i].velocity.stop - model.layout[i].velocity.start for i in segment]
+    nq_segment, nv_segment = sum(nq), sum(nv)
     child_point = model.joints[period % n].point           # the point of body period - 1 carrying the next
     first_point = np.asarray(model.bodies[period - 1].points[child_point], dtype=float)
     ground = np.asarray(model.joints[0].point, dtype=float) - first_point
-    state, q, v = ca.SX.sym("parent", 18), ca.SX.sym("q", nq_segment), ca.SX.sym("v", nq_segment)
+    state, q, v = ca.SX.sym("parent", 18), ca.SX.sym("q", nq_segment), ca.SX.sym("v", nv_segment)
     segment_layout = [entry for entry in layout if entry.kind != "gravity" and entry.index < period]
     gravity_layout = [entry for entry in layout if entry.kind == "gravity"]
     p_segment, p_gravity = ca.SX.sym("p", len(segment_layout)), ca.SX.sym("g", len(gravity_layout))
@@ -306,13 +313,13 @@ def folded_velocity_rate(model: SpatialModel, period: int, layout: Sequence[Any]
 
     def terms(parent: Any) -> tuple[list, list, Any]:
         rotation, origin, velocity, omega = ca.reshape(parent[:9], 3, 3), parent[9:12], parent[12:15], parent[15:18]
-        bodies, joints, offset = [], [], 0
+        bodies, joints, offset_q, offset_v = [], [], 0, 0
         inboard = first_point
         for i in segment:
             body, joint = model.bodies[i], model.joints[i]
-            qi = [q[offset + k] for k in range(nq[i])]
-            vi = [v[offset + k] for k in range(nq[i])]
-            offset += nq[i]
+            qi = [q[offset_q + k] for k in range(nq[i])]
+            vi = [v[offset_v + k] for k in range(nv[i])]
+            offset_q, offset_v = offset_q + nq[i], offset_v + nv[i]
             outboard = model.joints[(i + 1) % n].point
             rotation, origin, velocity, omega, body_terms, joint_terms = _segment_body(
                 model, body, joint, qi, vi, rotation, origin, velocity, omega, inboard, outboard, numbers, i)
@@ -326,7 +333,7 @@ def folded_velocity_rate(model: SpatialModel, period: int, layout: Sequence[Any]
     # the folds (ctmm.segment_fold): columns are segments
     q_all, v_all, u = ca.MX.sym("q", model.n_positions), ca.MX.sym("v", model.n_velocities), ca.MX.sym("u", 0)
     p_all = ca.MX.sym("p", len(layout))
-    Q, V = ca.reshape(q_all, nq_segment, count), ca.reshape(v_all, nq_segment, count)
+    Q, V = ca.reshape(q_all, nq_segment, count), ca.reshape(v_all, nv_segment, count)
     P = ca.reshape(p_all[:count * len(segment_layout)], len(segment_layout), count)
     G = ca.repmat(p_all[count * len(segment_layout):], 1, count)
     start = ca.DM(np.r_[np.eye(3).ravel(), ground, np.zeros(6)])
@@ -335,6 +342,23 @@ def folded_velocity_rate(model: SpatialModel, period: int, layout: Sequence[Any]
                                   [state, q, v, p_segment, p_gravity], [parents, Q, V, P, G],
                                   lambda solution: ca.vertcat(*solution.relative[1:period + 1]))
     return ca.Function("velocity_rate", [q_all, v_all, u, p_all], [ca.reshape(accelerations, model.n_velocities, 1)])
+
+
+def folded_position_rate(model: SpatialModel, period: int) -> Any:
+    """``position_rate(q, v) -> q_dot = G(q) v`` of a chain of equal segments (:func:`chain_period`): the
+    segment's rates (:func:`position_rates` of its joints) mapped over the ``N / period`` segments."""
+    import casadi as ca
+
+    layouts = model.layout[:period]
+    nq, nv = layouts[period - 1].position.stop, layouts[period - 1].velocity.stop
+    q, v = ca.SX.sym("q", nq), ca.SX.sym("v", nv)
+    parts = [_quaternion_rate(q[lay.position], v[lay.velocity]) if joint.kind == "spherical" else v[lay.velocity]
+             for joint, lay in zip(model.joints[:period], layouts)]
+    count = model.n_bodies // period
+    segment = ca.Function("position_rate_segment", [q, v], [ca.vertcat(*parts)]).map(count)
+    q_all, v_all = ca.MX.sym("q", nq * count), ca.MX.sym("v", nv * count)
+    rates = segment(ca.reshape(q_all, nq, count), ca.reshape(v_all, nv, count))
+    return ca.Function("position_rate", [q_all, v_all], [ca.reshape(rates, nq * count, 1)])
 
 
 def _segment_body(model: SpatialModel, body: Any, joint: Any, q: list, v: list, rotation: Any, origin: Any,
@@ -403,12 +427,12 @@ class CompiledSpatialScene:
     rows : int
         Stored states per generated block (one C call) [-].
     cache_dir, compiler, flags
-        Of :func:`ctmm.codegen.shared_library` (``flags`` default :data:`SPATIAL_FLAGS`; ``-O0``
-        compiles faster still and runs slower, with the same numbers to round-off).
+        Of :func:`ctmm.codegen.shared_library` (``flags`` default :data:`SPATIAL_FLAGS`, folded rates
+        :data:`FOLD_FLAGS`; ``-O0`` compiles faster still and runs slower, same numbers to round-off).
     fold : bool or None
         Compile the rates as folds over equal segments (:func:`chain_period`, :func:`folded_velocity_rate`):
         ``True`` (refused for a model that is not such a chain), ``False`` straight-line code, ``None``
-        (default) the fold for foldable models of at least :data:`FOLD_MIN_BODIES` bodies.
+        (default) the fold for foldable models of at least :data:`FOLD_MIN_VELOCITIES` velocities.
     numbers : {"constants", "inputs"}
         The model's numbers as constants of the code (one library per model) or as the parameter
         column ``p`` (one library per structure; :mod:`ctmm.compiled_spatial_parameters`).
@@ -450,7 +474,7 @@ class CompiledSpatialScene:
         name = f"spatial_{model.n_bodies}b{model.n_positions}q{model.n_velocities}v" + (
             f"_fold{self.rates.period}" if self.rates.period else "")
         options = {"cache_dir": cache_dir, "compiler": compiler,
-                   "flags": SPATIAL_FLAGS if flags is None else tuple(flags)}
+                   "flags": (FOLD_FLAGS if self.rates.period else SPATIAL_FLAGS) if flags is None else tuple(flags)}
         from .model_description import describe   # what build() reads: a cached library loads without symbols
 
         description = describe((model, fold, numbers)) if numbers == "constants" else None   # "inputs": by structure

@@ -191,3 +191,28 @@ def test_compiler_identity_asks_the_compiler_once_per_file_state(tmp_path):
     assert codegen.compiler_identity(str(link)) == str(other.resolve()).encode() + b"\0cc 3.0.0\n"
     missing = str(tmp_path / "missing")
     assert codegen.compiler_identity(missing) == os.path.realpath(missing).encode() + b"\0"
+
+
+def test_input_reads_go_through_one_pointer_per_input_and_zeros_for_an_absent_input(tmp_path):
+    """casadi's ``arg[i]? arg[i][k] : 0`` reads are taken through one pointer per input
+    (:func:`codegen.hoisted_input_reads`): the compiled function equals casadi's virtual machine, and called
+    from C with an absent (NULL) input it reads zeros there, as the unchanged code does."""
+    ca = pytest.importorskip("casadi")
+    import numpy as np
+
+    x, y = ca.SX.sym("x", 3), ca.SX.sym("y", 2)
+    f = ca.Function("f", [x, y], [ca.vertcat(x[0] * y[1] + ca.sin(x[2]), x[1] - y[0] * y[1], ca.cos(y[0]))])
+    source = codegen.casadi_source([f], "hoist")
+    assert "? arg[0][" not in source and "? arg[1][" not in source and "ctmm_in1[1]" in source
+    flags = ("-O0", "-shared", "-fPIC")
+    (compiled,) = codegen.load_casadi([f], "hoist", cache_dir=tmp_path, flags=flags)
+    xv, yv = [0.3, -1.2, 0.7], [2.0, 0.5]
+    assert np.max(np.abs(np.asarray(compiled(xv, yv)) - np.asarray(f(xv, yv)))) <= 1e-15
+    library = ctypes.CDLL(str(codegen.shared_library(source, "hoist", cache_dir=tmp_path, flags=flags).path))
+    double_p = ctypes.POINTER(ctypes.c_double)
+    x_in, out = (ctypes.c_double * 3)(*xv), (ctypes.c_double * 3)()
+    arg, res = (double_p * 2)(ctypes.cast(x_in, double_p), None), (double_p * 1)(ctypes.cast(out, double_p))
+    iw, w = (ctypes.c_longlong * 64)(), (ctypes.c_double * 64)()
+    assert library.f(arg, res, iw, w, 0) == 0
+    assert np.max(np.abs(np.array(out[:]) - np.asarray(f(xv, [0.0, 0.0])).ravel())) <= 1e-15
+    assert np.array(out[:])[2] == 1.0

@@ -19,7 +19,7 @@ from ctmm.errors import ModelError
 
 pytest.importorskip("casadi")
 
-from test_spatial_compiled import FAST_COMPILE, folded_chain, random_tree, start  # noqa: E402
+from test_spatial_compiled import FAST_COMPILE, ball_chain, folded_chain, random_tree, start  # noqa: E402
 
 from ctmm.compiled_spatial import CompiledSpatialScene, SpatialRates, simulate_spatial_generated  # noqa: E402
 from ctmm.compiled_spatial_parameters import spatial_parameter_layout, spatial_parameter_vector  # noqa: E402
@@ -46,14 +46,15 @@ def relative(a, b) -> float:
     return float(np.max(np.abs(np.asarray(a) - b)) / max(1.0, np.max(np.abs(b))))
 
 
-@pytest.mark.parametrize("build, fold", [(lambda: random_tree(5, 7, "free"), False),
-                                         (lambda: folded_chain(12, mixed=True), True)])
-def test_rates_built_once_take_the_numbers_of_another_model(build, fold) -> None:
-    """Straight-line (every joint kind, loads, inputs) and folded (per-segment parameter columns): the
-    rates built from one model with the numbers of another equal the numpy sweep of the other."""
+@pytest.mark.parametrize("build, period", [(lambda: random_tree(5, 7, "free"), 0),
+                                           (lambda: folded_chain(12, mixed=True), 3), (lambda: ball_chain(6), 2)])
+def test_rates_built_once_take_the_numbers_of_another_model(build, period) -> None:
+    """Straight-line (every joint kind, loads, inputs) and folded (per-segment parameter columns; a chain with
+    ball joints too): the rates built from one model with the numbers of another equal the numpy sweep of
+    the other."""
     model = build()
-    rates = SpatialRates(model, fold=fold, numbers="inputs")
-    assert rates.period == (3 if fold else 0)
+    rates = SpatialRates(model, fold=bool(period), numbers="inputs")
+    assert rates.period == period
     q, v, inputs = start(5, model)
     for seed in (1, 2):
         other = renumbered(model, seed)

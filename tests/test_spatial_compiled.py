@@ -219,6 +219,60 @@ def folded_chain(n: int, mixed: bool = False) -> sp.SpatialModel:
     return sp.SpatialModel(f"chain{n}", elements, gravity=(0.3, -0.2, -9.81))
 
 
+def ball_chain(n: int) -> sp.SpatialModel:
+    """A chain of ``n`` links (``n`` even) of period two: a sprung and damped ball-and-socket joint (full
+    stiffness and damping matrices, turned joint frame) then a revolute joint, on links with an off-axis
+    centre of mass and a full inertia."""
+    inertia = np.array([[0.02, 0.001, 0.0], [0.001, 0.09, 0.002], [0.0, 0.002, 0.08]])
+    turn = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    stiffness = np.array([[3.0, 0.2, 0.0], [0.2, 2.0, 0.1], [0.0, 0.1, 1.0]])
+    elements = []
+    for i in range(n):
+        elements.append(sp.SpatialBody(f"l{i}", 1.2, inertia, (0.5, 0.03, -0.02), {"end": (1.0, 0.0, 0.1)}))
+        common = dict(name=f"j{i}", parent=None if i == 0 else f"l{i - 1}", child=f"l{i}",
+                      point=(0.1, 0.0, 0.0) if i == 0 else "end")
+        elements.append(sp.Spherical(stiffness=stiffness, damping=0.3 * np.eye(3), rotation=turn, **common)
+                        if i % 2 == 0 else sp.Revolute(axis=(0, 1, 1), stiffness=2.0, damping=0.1, **common))
+    return sp.SpatialModel(f"ball_chain{n}", elements, gravity=(0.3, -0.2, -9.81))
+
+
+def test_fold_with_ball_joints_equals_the_numpy_sweep() -> None:
+    """The fold takes ball-and-socket joints: the folded accelerations of a period-2 chain of sprung ball and
+    revolute joints equal the numpy sweep to 1e-12 relative, and the folded quaternion rates the model's
+    ``position_rates``, at a random state with quaternions of non-unit norm (casadi's virtual machine)."""
+    from ctmm.compiled_spatial import SpatialRates, chain_period
+
+    model = ball_chain(8)
+    assert chain_period(model) == 2
+    rates = SpatialRates(model, fold=True)
+    rng = np.random.default_rng(4)
+    q, v = model.neutral() + 0.3 * rng.normal(size=model.n_positions), rng.normal(size=model.n_velocities)
+    expected = sp.accelerations(model, q, v, 0.0, {})
+    rate = np.asarray(rates.rate(np.r_[q, v], np.zeros(0), np.zeros(0), 0.0)).reshape(-1)
+    assert np.max(np.abs(rate[model.n_positions:] - expected)) < 1e-12 * np.max(np.abs(expected))
+    q_dot = model.position_rates(q[None], v[None])[0]
+    assert np.max(np.abs(rate[:model.n_positions] - q_dot)) < 1e-14 * np.max(np.abs(q_dot))
+    assert np.ptp(np.linalg.norm(q[:4]) - 1.0) == 0.0 and abs(np.linalg.norm(q[:4]) - 1.0) > 1e-3
+
+
+def test_folded_ball_chain_runs_as_the_numpy_path(tmp_path) -> None:
+    """A ball chain of 10 links (20 velocities: folded by default) compiled and run for 30 ms: every
+    coordinate and velocity equal the numpy RK4 to 1e-11 relative."""
+    from ctmm.compiled_spatial import CompiledSpatialScene, simulate_spatial_generated
+
+    model = ball_chain(10)
+    rng = np.random.default_rng(6)
+    q0, v0 = model.neutral() + 0.1 * rng.normal(size=model.n_positions), rng.normal(size=model.n_velocities)
+    scene = CompiledSpatialScene(model, store_every=3, rows=4, cache_dir=tmp_path, flags=FAST_COMPILE)
+    assert scene.rates.period == 2
+    generated = simulate_spatial_generated(model, 0.03, 1e-3, x0=q0, v0=v0, store_every=3, scene=scene)
+    numpy_run = ctmm.simulate(model, 0.03, 1e-3, x0=q0, v0=v0, store_every=3)
+    for name in list(model.coordinates) + list(model.velocities):
+        scale = max(1.0, float(np.max(np.abs(numpy_run[name]))))
+        assert np.max(np.abs(generated[name] - numpy_run[name])) < 1e-11 * scale, name
+    assert min(np.ptp(numpy_run[name]) for name in model.velocities) > 1e-4
+
+
 def test_fold_equals_the_numpy_sweep_with_every_foldable_joint() -> None:
     """The folded rates (three folds over segments, one articulated sweep per segment) of a period-3 chain
     of sprung revolute (turned joint frame), prismatic and universal joints equal the numpy sweep to
@@ -264,14 +318,16 @@ def test_folded_chain_of_60_runs_as_the_numpy_path_in_code_of_one_segment(tmp_pa
 
 
 def test_fold_rule_and_refusals() -> None:
-    """Foldable models of FOLD_MIN_BODIES or more bodies take the fold by default, smaller ones the
+    """Foldable models of FOLD_MIN_VELOCITIES or more velocities take the fold by default, smaller ones the
     straight-line code; trees, loads, inputs and unequal segments are not foldable (period 0) and
     ``fold=True`` on them is refused by name."""
-    from ctmm.compiled_spatial import FOLD_MIN_BODIES, SpatialRates, chain_period
+    from ctmm.compiled_spatial import FOLD_MIN_VELOCITIES, SpatialRates, chain_period
 
-    assert SpatialRates(folded_chain(FOLD_MIN_BODIES)).period == 2
-    assert SpatialRates(folded_chain(10)).period == 0
+    assert FOLD_MIN_VELOCITIES % 2 == 0
+    assert SpatialRates(folded_chain(FOLD_MIN_VELOCITIES)).period == 2
+    assert SpatialRates(folded_chain(FOLD_MIN_VELOCITIES - 2)).period == 0
     assert chain_period(folded_chain(10)) == 2
+    assert [(m.n_velocities, SpatialRates(m).period) for m in (ball_chain(8), ball_chain(10))] == [(16, 0), (20, 2)]
     tree = random_tree(4, 5, "free")
     assert chain_period(tree) == 0
     chain = folded_chain(6)
