@@ -15,16 +15,22 @@ projection onto the cut joints after it, the time loop in generated C.  On casad
   -- and alignments ``u_i . b_i``),
   ``J = dPhi'/dv``, ``Phi'' = J v' + (dPhi'/dq) G(q) v`` (``q_dot = G(q) v``, quaternions), ``G = J D`` and
   ``G lambda = -Phi''_0 - 2 alpha Phi' - alpha^2 Phi``;
-* after the RK4 step: quaternions normalised, ``iterations`` minimum-norm Gauss-Newton steps
+* a revolute or prismatic cut's law and actuation add the load ``actuation(t) - law(s - rest, s')`` along the
+  cut's coordinate ``s`` (:func:`ctmm.spatial.closed_loop_cuts.cut_coordinate` on symbols: a moment about the axis,
+  or a force at the child point along the guide; the opposite on the parent) to the applied wrenches of every load
+  case, the law traced on symbols, the actuation by its symbolic form; a driven cut adds the row ``s -
+  position(t)`` (``s' - rate(t)``, ``- acceleration(t)`` in ``Phi''``), its unknown the drive's load along ``s``;
+* after the RK4 step (at its end time): quaternions normalised, ``iterations`` minimum-norm Gauss-Newton steps
   ``q <- normalised(q + G(q) dx)``, ``dx = -J^T (J J^T)^-1 Phi`` (skipped once ``max |Phi| < 1e-14``), then
   ``v <- v - J^T (J J^T)^-1 Phi'``.
 
 State, failures and result as :mod:`ctmm.compiled_kinematic_loops` (residual and condition carried in the state,
 :class:`~ctmm.errors.SimulationError` with time, cut joint and partial result).  Refused (:class:`ModelError`, by
-name): trees :func:`ctmm.compiled_spatial.spatial_compile_refusal` refuses, cut joints with a law, an actuation or a
-drive (their load along the cut's coordinate is not in the generated step yet), driven joints (their prescribed
-motion enters ``Phi'`` and ``Phi''`` explicitly in time, which the generated step does not differentiate), and with
-feedback loops, inputs or controllers (:mod:`ctmm.spatial_loop_time`).
+name): trees :func:`ctmm.compiled_spatial.spatial_compile_refusal` refuses,
+laws casadi cannot express and actuations or drives without a symbolic form (user callables:
+:func:`spatial_cut_load_refusal`), driven tree joints (their prescribed motion enters ``Phi'`` and ``Phi''``
+explicitly in time through the tree's kinematics, not in the generated step yet), and with feedback loops, inputs or
+controllers (:mod:`ctmm.spatial_loop_time`).
 """
 from __future__ import annotations
 
@@ -35,7 +41,8 @@ import numpy as np
 
 from .articulated import articulated_sweep
 from .compiled_kinematic_loops import (CompiledKinematicLoops, first_failure, generated_failure, generated_run,
-                                       projected_rk4_step, tree_refusal)
+                                       cut_load_refusal, projected_rk4_step, symbolic_time_signal,
+                                       tree_refusal)
 from .compiled_spatial import position_rates, spatial_compile_refusal
 from .loop_integration import PROJECTION_SKIP
 from .ops import CASADI
@@ -44,7 +51,7 @@ from .spatial.closed_loop_cuts import cut_frame
 from .spatial.closed_loop_time import SpatialLoopSimulation
 from .spatial.closed_loops import SpatialKinematicLoopModel
 
-__all__ = ["CompiledSpatialKinematicLoops", "spatial_kinematic_loop_compile_refusal",
+__all__ = ["CompiledSpatialKinematicLoops", "spatial_cut_load_refusal", "spatial_kinematic_loop_compile_refusal",
            "simulate_spatial_kinematic_loops_generated"]
 
 
@@ -54,15 +61,22 @@ def spatial_kinematic_loop_compile_refusal(model: Any) -> str:
                           spatial_compile_refusal)
     if reason:
         return reason
-    loaded = [cut.name for cut in model.cuts if cut.has_law or cut.driven]
-    if loaded:
-        return (f"cut joints {loaded} carry a law, an actuation or a drive: their load along the cut's coordinate is "
-                "not in the generated step yet; use compiled=None (the numpy RK4 with projection)")
+    for cut in model.cuts:
+        reason = spatial_cut_load_refusal(cut)
+        if reason:
+            return reason
     driven = [joint.name for joint in model.tree.joints if joint.driven]
     if driven:
         return (f"its tree has driven joints ({', '.join(driven)}): their prescribed motion enters Phi' and Phi'' "
                 "explicitly in time, not in the generated step yet; use compiled=None")
     return ""
+
+
+def spatial_cut_load_refusal(cut: Any) -> str:
+    """Why the law, actuation or drive of spatial cut joint ``cut`` cannot be stated on symbols (an empty string when
+    it can; :func:`ctmm.compiled_kinematic_loops.cut_load_refusal`)."""
+    fields = ("position", "rate", "acceleration") if cut.driven else ("actuation",)
+    return cut_load_refusal(cut.name, "law", cut.law, {field: getattr(cut, field) for field in fields})
 
 
 class CompiledSpatialKinematicLoops(CompiledKinematicLoops):
@@ -131,10 +145,26 @@ class CompiledSpatialKinematicLoops(CompiledKinematicLoops):
         def parent_fixed(states: list, parent: tuple[int, np.ndarray], local: np.ndarray) -> Any:
             return ca.DM(local) if parent[0] < 0 else ca.mtimes(states[parent[0]].rotation, ca.DM(local))
 
-        def rows(q_: Any, v_: Any) -> tuple[Any, Any]:
+        def coordinate(states: list, cut: Any, parent: tuple, child: tuple) -> tuple[Any, Any, Any]:
+            """The cut's coordinate ``s``, its rate and direction ``a`` on symbols
+            (:func:`ctmm.spatial.closed_loop_cuts.cut_coordinate`)."""
+            xp, vp = point(states, parent)
+            xc, vc = point(states, child)
+            omega_c = states[child[0]].omega
+            omega_p = ca.DM.zeros(3) if parent[0] < 0 else states[parent[0]].omega
+            rotation_c = states[child[0]].rotation
+            if cut.kind == "revolute":
+                a = ca.mtimes(rotation_c, ca.DM(np.asarray(cut.axis, float)))
+                n_c = ca.mtimes(rotation_c, ca.DM(np.asarray(cut.normal, float)))
+                n_p = parent_fixed(states, parent, np.asarray(cut.parent_normal, float))
+                return ca.atan2(ca.dot(ca.cross(n_p, n_c), a), ca.dot(n_p, n_c)), ca.dot(omega_c - omega_p, a), a
+            a = parent_fixed(states, parent, np.asarray(cut.parent_axis, float))
+            return ca.dot(xc - xp, a), ca.dot(vc - vp, a) + ca.dot(xc - xp, ca.cross(omega_p, a)), a
+
+        def rows(q_: Any, v_: Any, t_: Any) -> tuple[Any, Any]:
             states = kinematics(q_, v_)
             phi, rate = [], []
-            for (parent, child), frame in zip(sides, frames):
+            for cut, (parent, child), frame in zip(model.cuts, sides, frames):
                 xp, vp = point(states, parent)
                 xc, vc = point(states, child)
                 omega_c = states[child[0]].omega
@@ -151,13 +181,18 @@ class CompiledSpatialKinematicLoops(CompiledKinematicLoops):
                     b = ca.DM(b_local) if parent[0] < 0 else ca.mtimes(states[parent[0]].rotation, ca.DM(b_local))
                     phi.append(ca.dot(u, b))
                     rate.append(ca.dot(omega_c - omega_p, ca.cross(u, b)))
+                if cut.driven:                           # s - position(t), s' - rate(t)
+                    value, value_rate, _ = coordinate(states, cut, parent, child)
+                    phi.append(value - symbolic_time_signal(cut.position, t_))
+                    rate.append(value_rate - symbolic_time_signal(cut.rate, t_))
             return ca.vertcat(*phi), ca.vertcat(*rate)
 
-        def wrenches(states: list, values: Any) -> dict:
-            """The cut loads of the unknowns ``values`` as wrenches ``(point, [f ; m] world)`` per body."""
+        def wrenches(states: list, values: Any, t_: Any) -> dict:
+            """The cut loads of the unknowns ``values`` and the cuts' laws and actuations at time ``t_`` as wrenches
+            ``(point, [f ; m] world)`` per body."""
             out: dict[int, list] = {}
             row = 0
-            for (parent, child), frame in zip(sides, frames):
+            for cut, (parent, child), frame in zip(model.cuts, sides, frames):
                 if frame.basis is None:
                     force = values[row:row + 3]
                     row += 3
@@ -172,6 +207,21 @@ class CompiledSpatialKinematicLoops(CompiledKinematicLoops):
                     b = ca.DM(b_local) if parent[0] < 0 else ca.mtimes(states[parent[0]].rotation, ca.DM(b_local))
                     moment = moment + values[row] * ca.cross(u, b)
                     row += 1
+                along = None
+                if cut.driven:                          # the drive's load along the coordinate: an unknown
+                    along = values[row]
+                    row += 1
+                elif cut.has_law:                       # actuation(t) - law(s - rest, s')
+                    value, value_rate, _ = coordinate(states, cut, parent, child)
+                    along = 0.0 if cut.actuation is None else symbolic_time_signal(cut.actuation, t_)
+                    if cut.law is not None:
+                        along = along - cut.law.force(value - cut.rest, value_rate)
+                if along is not None:
+                    a = coordinate(states, cut, parent, child)[2]
+                    if cut.kind == "revolute":
+                        moment = moment + along * a
+                    else:                               # prismatic: a force at the child point
+                        force = force + along * a
                 load = ca.vertcat(force, moment)
                 out.setdefault(child[0], []).append((child[1], load))
                 if parent[0] >= 0:                      # prismatic: the force acts at the child point
@@ -181,15 +231,18 @@ class CompiledSpatialKinematicLoops(CompiledKinematicLoops):
             return out
 
         states = kinematics(q, v)
-        body_terms, joint_terms, _ = scene.terms(CASADI, q, v, 0.0, None, wrenches(states, lam))
+        body_terms, joint_terms, _ = scene.terms(CASADI, q, v, 0.0, None, wrenches(states, lam, t))
         solution = articulated_sweep(CASADI, scene.tree, body_terms, joint_terms)
-        sweep = ca.Function("loaded_sweep", [q, v, lam], [ca.vertcat(*scene.velocity_rates(solution))])
-        v_dot0 = sweep(q, v, ca.DM.zeros(m))
-        D = ca.horzcat(*[sweep(q, v, ca.DM.eye(m)[:, i]) - v_dot0 for i in range(m)])
-        phi, phi_dot = rows(q, v)
+        sweep = ca.Function("loaded_sweep", [q, v, t, lam], [ca.vertcat(*scene.velocity_rates(solution))])
+        v_dot0 = sweep(q, v, t, ca.DM.zeros(m))
+        D = ca.horzcat(*[sweep(q, v, t, ca.DM.eye(m)[:, i]) - v_dot0 for i in range(m)])
+        phi, phi_dot = rows(q, v, t)
         J = ca.jacobian(phi_dot, v)
         q_dot = position_rates(tree, q, v)
-        c0 = ca.mtimes(J, v_dot0) + ca.jtimes(phi_dot, q, q_dot)
+        drive = []                                      # - acceleration(t) on a driven cut's row
+        for cut in model.cuts:
+            drive += [0.0] * (cut.n_rows - 1) + [symbolic_time_signal(cut.acceleration, t) if cut.driven else 0.0]
+        c0 = ca.mtimes(J, v_dot0) + ca.jtimes(phi_dot, q, q_dot) - ca.vertcat(*drive)
         G = ca.mtimes(J, D)
         alpha = model.baumgarte
         forces = ca.solve(G, -c0 - 2.0 * alpha * phi_dot - alpha * alpha * phi)
@@ -198,19 +251,19 @@ class CompiledSpatialKinematicLoops(CompiledKinematicLoops):
         rate = ca.Function("closed_rate", [y, p, t], [ca.vertcat(q_dot, v_dot0 + ca.mtimes(D, forces)), condition])
         outputs = ca.Function("outputs", [y, p, t], [forces, phi, phi_dot, G])
 
-        constraint = ca.Function("constraint", [q, v], [phi, phi_dot, J])
+        constraint = ca.Function("constraint", [q, v, t], [phi, phi_dot, J])
         dx = ca.SX.sym("dx", nv)
         normalize = ca.Function("normalized", [q], [self._normalized(q)])
         retract = ca.Function("retract", [q, dx], [normalize(q + position_rates(tree, q, dx))])
         qk = normalize(q)
-        residual, rate_k, Jk = constraint(qk, v)
+        residual, rate_k, Jk = constraint(qk, v, t)
         for _ in range(self.iterations):
             step_q = retract(qk, -ca.mtimes(Jk.T, ca.solve(ca.mtimes(Jk, Jk.T), residual)))
             moved = ca.mmax(ca.fabs(residual)) >= PROJECTION_SKIP
             qk = ca.if_else(moved, step_q, qk)
-            residual, rate_k, Jk = constraint(qk, v)
+            residual, rate_k, Jk = constraint(qk, v, t)
         vk = v - ca.mtimes(Jk.T, ca.solve(ca.mtimes(Jk, Jk.T), rate_k))
-        project = ca.Function("project", [y], [ca.vertcat(qk, vk), ca.mmax(ca.fabs(residual))])
+        project = ca.Function("project", [y, t], [ca.vertcat(qk, vk), ca.mmax(ca.fabs(residual))])
         return projected_rk4_step(rate, project, nq + nv, 0), [outputs]
 
     def _normalized(self, q: Any) -> Any:
