@@ -40,8 +40,9 @@ a generated function of the same library.
 Refused (:class:`~ctmm.errors.ModelError`): a tree that :func:`ctmm.compiled_parameters.compile_refusal` refuses,
 cut points on deformable bodies (a ``ModalBeam`` end: its cut force is a floating-frame wrench, not on the element
 protocol yet), cut laws that casadi cannot express and torques or drives without a symbolic form (user callables:
-:func:`cut_moment_refusal`).  Feedback loops, inputs and controllers on a kinematic loop model keep running in
-:mod:`ctmm.kinematic_loop_time` (``compiled=True`` refused there by name).
+:func:`cut_moment_refusal`).  Feedback loops and open-loop inputs on a kinematic loop model run in
+:mod:`ctmm.compiled_kinematic_loop_control` on the same closed-loop accelerations (:func:`symbolic_closed_loop`);
+co-simulated controllers keep running in :mod:`ctmm.kinematic_loop_time` (``compiled=True`` refused there by name).
 """
 from __future__ import annotations
 
@@ -66,9 +67,10 @@ from .planar.elements import Fixed
 from .planar.ports import PlanarPorts
 from .signals import SYMBOLIC_FIELDS, signal_parameters, symbolic_signal
 
-__all__ = ["CompiledKinematicLoops", "cut_load_refusal", "cut_moment_refusal", "cut_rows", "failure_message", "first_failure",
-           "generated_failure", "generated_run", "kinematic_loop_compile_refusal", "projected_rk4_step",
-           "simulate_kinematic_loops_generated", "symbolic_time_signal", "tree_refusal"]
+__all__ = ["CompiledKinematicLoops", "cut_load_refusal", "cut_moment_refusal", "cut_rows", "failure_message",
+           "first_failure", "generated_failure", "generated_run", "kinematic_loop_compile_refusal",
+           "projected_rk4_step", "simulate_kinematic_loops_generated", "symbolic_closed_loop",
+           "symbolic_relative_angles", "symbolic_time_signal", "tree_refusal"]
 _BODY_PARTS = ("force_x", "force_y", "moment")
 
 
@@ -215,79 +217,13 @@ class CompiledKinematicLoops:
         Phi', G)``."""
         import casadi as ca
 
-        model, tree = self.model, self.model.tree
-        n, m = tree.n_coordinates, len(model.cuts)
-        points = _cut_points(model)
-        bodies = sorted({j for pair in points for j, _ in pair if j >= 0})
-        actuators = [f"{tree.body_names[j]}.{part}" for j in bodies for part in _BODY_PARTS]
-        ports = PlanarPorts(tree)
-        for k, name in enumerate(actuators):         # the ports' body force is the load the cut force is stated as
-            unit = ports.inputs({name: 1.0}).body_force
-            if unit[bodies[k // 3], k % 3] != 1.0 or np.count_nonzero(unit) != 1:
-                raise ModelError(f"CompiledKinematicLoops: actuator {name!r} is not the body force the cut forces "
-                                 "are stated as")
-        acceleration = symbolic_accelerations_with_inputs(tree, actuators)
-        n_p, rows = self.parameters.size, cut_rows(model)
+        n, n_p = self.model.tree.n_coordinates, self.parameters.size
+        closed, constraint = symbolic_closed_loop(self.model, n_p)
         q, v, p, t = ca.SX.sym("q", n), ca.SX.sym("v", n), ca.SX.sym("p", n_p), ca.SX.sym("t")
-        lam = ca.SX.sym("lambda", rows[-1])
-        kinematics = SymbolicKinematics(tree, q, v)
-        phi, phi_dot, drive_acceleration = [], [], []
-        loads, moments = [ca.SX(0.0)] * len(actuators), [ca.SX(0.0)] * len(actuators)
-        for k, (cut, pair) in enumerate(zip(model.cuts, points)):
-            motion, angles = [], []
-            for (j, end), sign in zip(pair, (-1.0, 1.0)):
-                if j < 0:
-                    motion.append((ca.DM(end), ca.DM.zeros(2)))
-                    angles.append((0.0, 0.0))
-                    continue
-                position, velocity = kinematics.point(j, end)
-                com, _ = kinematics.point(j, "com")
-                motion.append((ca.vertcat(*position), ca.vertcat(*velocity)))
-                angles.append((kinematics.theta[j], kinematics.omega[j]))
-                arm = ca.vertcat(*position) - ca.vertcat(*com)
-                f = sign * lam[rows[k]:rows[k] + 2]
-                b = 3 * bodies.index(j)
-                loads[b] = loads[b] + f[0]
-                loads[b + 1] = loads[b + 1] + f[1]
-                loads[b + 2] = loads[b + 2] + arm[0] * f[1] - arm[1] * f[0]
-            phi.append(motion[1][0] - motion[0][0])
-            phi_dot.append(motion[1][1] - motion[0][1])
-            drive_acceleration += [0.0, 0.0]
-            angle, angle_rate = angles[1][0] - angles[0][0], angles[1][1] - angles[0][1]
-            if cut.driven:          # one more row: dtheta = angle(t); its unknown the drive's moment on the child
-                phi.append(angle - symbolic_time_signal(cut.angle, t))
-                phi_dot.append(angle_rate - symbolic_time_signal(cut.angle_rate, t))
-                drive_acceleration.append(symbolic_time_signal(cut.angle_acceleration, t))
-                tau = lam[rows[k] + 2]
-            elif cut.has_moment:    # tau = torque(t) - law(dtheta - rest, dtheta'): applied, not an unknown
-                tau = 0.0 if cut.torque is None else symbolic_time_signal(cut.torque, t)
-                if cut.moment_law is not None:
-                    tau = tau - cut.moment_law.force(angle - cut.rest_angle, angle_rate)
-            else:
-                continue
-            for (j, _), sign in zip(pair, (-1.0, 1.0)):
-                if j >= 0:
-                    b = 3 * bodies.index(j) + 2
-                    moments[b] = moments[b] + sign * tau
-        phi, phi_dot = ca.vertcat(*phi), ca.vertcat(*phi_dot)
-        jacobian = ca.jacobian(phi_dot, v)                      # Phi' = J qdot - (drive rates), J = J(q)
-        unknown = ca.Function("cut_loads", [q, v, t, lam], [ca.vertcat(*loads) + ca.vertcat(*moments)])
-        qdd0 = acceleration(q, v, unknown(q, v, t, ca.DM.zeros(rows[-1])), p, t)
-        columns = [acceleration(q, v, unknown(q, v, t, ca.DM.eye(rows[-1])[:, i]), p, t) - qdd0
-                   for i in range(rows[-1])]
-        D = ca.horzcat(*columns)
-        G = ca.mtimes(jacobian, D)
-        a0 = ca.mtimes(jacobian, qdd0) + ca.jtimes(phi_dot, q, v) - ca.vertcat(*drive_acceleration)
-        alpha = model.baumgarte
-        target = -a0 - 2.0 * alpha * phi_dot - alpha * alpha * phi
-        forces = ca.solve(G, target)
-        qdd = qdd0 + ca.mtimes(D, forces)
-        condition = ca.norm_fro(G) * ca.norm_fro(ca.solve(G, ca.SX.eye(rows[-1])))
+        qdd, condition, forces, phi, phi_dot, G = closed(q, v, ca.DM.zeros(0), p, t)
         y = ca.vertcat(q, v)
         rate = ca.Function("closed_rate", [y, p, t], [ca.vertcat(v, qdd), condition])
         outputs = ca.Function("outputs", [y, p, t], [forces, phi, phi_dot, G])
-
-        constraint = ca.Function("constraint", [q, v, t], [phi, phi_dot, jacobian])
         projected_q = q
         for _ in range(self.iterations):
             residual, _, J = constraint(projected_q, v, t)
@@ -341,6 +277,108 @@ class CompiledKinematicLoops:
         unknowns = np.asarray(unknowns).reshape(-1)
         forces = np.array([unknowns[start:start + 2] for start in cut_rows(self.model)[:-1]])
         return forces, np.asarray(phi).reshape(-1), np.asarray(phi_dot).reshape(-1), np.asarray(G)
+
+
+def symbolic_closed_loop(model: KinematicLoopModel, n_parameters: int, extra_actuators: tuple[str, ...] = ()
+                         ) -> tuple[Any, Any]:
+    """The closed-loop accelerations of a planar kinematic loop model on symbols (module docstring):
+    ``closed(q, qdot, u, p, t) -> (qddot, condition, cut unknowns, Phi, Phi', G)`` with the actuator values ``u`` of
+    ``extra_actuators`` (the tree's actuators of :class:`~ctmm.planar.ports.PlanarPorts` and the undriven cuts'
+    ``"<cut>.torque"``, applied with the cut loads: the cut unknowns react to them), ``p`` the tree's
+    ``n_parameters`` numbers; and ``constraint(q, qdot, t) -> (Phi, Phi', J)``."""
+    import casadi as ca
+
+    tree, n_p, extra_actuators = model.tree, n_parameters, tuple(extra_actuators)
+    n = tree.n_coordinates
+    points = _cut_points(model)
+    bodies = sorted({j for pair in points for j, _ in pair if j >= 0})
+    actuators = [f"{tree.body_names[j]}.{part}" for j in bodies for part in _BODY_PARTS]
+    ports = PlanarPorts(tree)
+    for k, name in enumerate(actuators):         # the ports' body force is the load the cut force is stated as
+        unit = ports.inputs({name: 1.0}).body_force
+        if unit[bodies[k // 3], k % 3] != 1.0 or np.count_nonzero(unit) != 1:
+            raise ModelError(f"kinematic loop {model.name!r}: actuator {name!r} is not the body force the cut forces "
+                             "are stated as")
+    cut_torques = [name for name in extra_actuators if name.endswith(".torque") and name[:-7] in
+                   {cut.name for cut in model.cuts if not cut.driven}]
+    tree_inputs = [name for name in extra_actuators if name not in cut_torques and name not in actuators]
+    acceleration = symbolic_accelerations_with_inputs(tree, actuators + tree_inputs)
+    rows = cut_rows(model)
+    q, v, p, t = ca.SX.sym("q", n), ca.SX.sym("v", n), ca.SX.sym("p", n_p), ca.SX.sym("t")
+    lam, u = ca.SX.sym("lambda", rows[-1]), ca.SX.sym("u", len(extra_actuators))
+    kinematics = SymbolicKinematics(tree, q, v)
+    phi, phi_dot, drive_acceleration = [], [], []
+    loads, moments = [ca.SX(0.0)] * len(actuators), [ca.SX(0.0)] * len(actuators)
+    for k, (cut, pair) in enumerate(zip(model.cuts, points)):
+        motion, angles = [], []
+        for (j, end), sign in zip(pair, (-1.0, 1.0)):
+            if j < 0:
+                motion.append((ca.DM(end), ca.DM.zeros(2)))
+                angles.append((0.0, 0.0))
+                continue
+            position, velocity = kinematics.point(j, end)
+            com, _ = kinematics.point(j, "com")
+            motion.append((ca.vertcat(*position), ca.vertcat(*velocity)))
+            angles.append((kinematics.theta[j], kinematics.omega[j]))
+            arm = ca.vertcat(*position) - ca.vertcat(*com)
+            f = sign * lam[rows[k]:rows[k] + 2]
+            b = 3 * bodies.index(j)
+            loads[b] = loads[b] + f[0]
+            loads[b + 1] = loads[b + 1] + f[1]
+            loads[b + 2] = loads[b + 2] + arm[0] * f[1] - arm[1] * f[0]
+        phi.append(motion[1][0] - motion[0][0])
+        phi_dot.append(motion[1][1] - motion[0][1])
+        drive_acceleration += [0.0, 0.0]
+        angle, angle_rate = angles[1][0] - angles[0][0], angles[1][1] - angles[0][1]
+        if cut.driven:          # one more row: dtheta = angle(t); its unknown the drive's moment on the child
+            phi.append(angle - symbolic_time_signal(cut.angle, t))
+            phi_dot.append(angle_rate - symbolic_time_signal(cut.angle_rate, t))
+            drive_acceleration.append(symbolic_time_signal(cut.angle_acceleration, t))
+            tau = lam[rows[k] + 2]
+        elif cut.has_moment or f"{cut.name}.torque" in cut_torques:   # torque(t) + u - law(...): applied
+            tau = 0.0 if cut.torque is None else symbolic_time_signal(cut.torque, t)
+            if f"{cut.name}.torque" in cut_torques:
+                tau = tau + u[list(extra_actuators).index(f"{cut.name}.torque")]
+            if cut.moment_law is not None:
+                tau = tau - cut.moment_law.force(angle - cut.rest_angle, angle_rate)
+        else:
+            continue
+        for (j, _), sign in zip(pair, (-1.0, 1.0)):
+            if j >= 0:
+                b = 3 * bodies.index(j) + 2
+                moments[b] = moments[b] + sign * tau
+    phi, phi_dot = ca.vertcat(*phi), ca.vertcat(*phi_dot)
+    jacobian = ca.jacobian(phi_dot, v)                      # Phi' = J qdot - (drive rates), J = J(q)
+    applied = ca.vertcat(*loads) + ca.vertcat(*moments)
+    for k, name in enumerate(extra_actuators):      # the tree's own actuators: an input each
+        if name in actuators:
+            applied[actuators.index(name)] += u[k]
+    tree_values = [u[list(extra_actuators).index(name)] for name in tree_inputs]
+    unknown = ca.Function("cut_loads", [q, v, t, lam, u], [ca.vertcat(applied, *tree_values)])
+    qdd0 = acceleration(q, v, unknown(q, v, t, ca.DM.zeros(rows[-1]), u), p, t)
+    columns = [acceleration(q, v, unknown(q, v, t, ca.DM.eye(rows[-1])[:, i], u), p, t) - qdd0
+               for i in range(rows[-1])]
+    D = ca.horzcat(*columns)
+    G = ca.mtimes(jacobian, D)
+    a0 = ca.mtimes(jacobian, qdd0) + ca.jtimes(phi_dot, q, v) - ca.vertcat(*drive_acceleration)
+    alpha = model.baumgarte
+    target = -a0 - 2.0 * alpha * phi_dot - alpha * alpha * phi
+    forces = ca.solve(G, target)
+    qdd = qdd0 + ca.mtimes(D, forces)
+    condition = ca.norm_fro(G) * ca.norm_fro(ca.solve(G, ca.SX.eye(rows[-1])))
+    closed = ca.Function("closed", [q, v, u, p, t], [qdd, condition, forces, phi, phi_dot, G])
+    return closed, ca.Function("constraint", [q, v, t], [phi, phi_dot, jacobian])
+
+
+def symbolic_relative_angles(model: KinematicLoopModel, kinematics: SymbolicKinematics) -> list[tuple[Any, Any]]:
+    """``[(dtheta, dtheta')]`` of every cut on the symbols of ``kinematics`` (of ``model.tree``): the child body's
+    angle and rate minus the parent's (0 at the ground), as :meth:`KinematicLoopModel.relative_angles` (rigid
+    sides)."""
+    out = []
+    for parent, child in _cut_points(model):
+        sides = [(0.0, 0.0) if j < 0 else (kinematics.theta[j], kinematics.omega[j]) for j, _ in (parent, child)]
+        out.append((sides[1][0] - sides[0][0], sides[1][1] - sides[0][1]))
+    return out
 
 
 def generated_run(kind: type, model: Any, q: np.ndarray, v: np.ndarray, t_final: float, dt: float, store_every: int,

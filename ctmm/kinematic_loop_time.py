@@ -9,7 +9,9 @@ With feedback loops (``ctmm.control.with_feedback(loop_model, loops)``), open-lo
 solved as boundary unknowns under the actuator values of every stage or Newton iterate; real-time loops
 at the current state, delayed loops from the delay history; ``"rk4"``, the ``solve_ivp`` methods and the
 DT-TMM schemes.  Constraint drift is held by Baumgarte stabilisation (no projection) and reported
-(``"drift"`` [m], ``"drift_rate"`` [m/s]) with the cut forces (``docs/closed_loops.md`` §3c).
+(``"drift"`` [m], ``"drift_rate"`` [m/s]) with the cut forces (``docs/closed_loops.md`` §3c).  With
+``compiled=True`` and ``"rk4"`` the same run is generated C (:mod:`ctmm.compiled_kinematic_loop_control`;
+co-simulated controllers sampled between calls into it).
 """
 from __future__ import annotations
 
@@ -79,6 +81,11 @@ def simulate_kinematic_loop_system(system: Any, t_final: float, dt: float | None
         return simulate_loops(model, t_final, dt, method=method, x0=x0, v0=v0, outputs=outputs, rtol=rtol, atol=atol,
                               max_step=max_step, store_every=store_every, divergence_bound=divergence_bound,
                               stability_check=stability_check, other_options=others, generated=generated)
+    compiled = unsupported.get("compiled", (None, None))[0]
+    if compiled is True and method == "rk4":     # generated C: ctmm.compiled_kinematic_loop_control
+        from . import compiled_kinematic_loop_control as generated
+
+        unsupported = {name: pair for name, pair in unsupported.items() if name != "compiled"}
     for name, (value, default) in unsupported.items():
         if value is not default and value != default:
             raise ModelError(f"{name}={value!r} is not available for the kinematic loop model {model.name!r} with "
@@ -99,6 +106,19 @@ def simulate_kinematic_loop_system(system: Any, t_final: float, dt: float | None
                                                                        ("warn", "error", "ignore"))
     store_every = validation.integer("store_every", store_every, minimum=1)
     limit = math.inf if max_step is None else validation.positive("max_step", max_step)
+    if compiled is True and method == "rk4" and controllers:
+        return generated.simulate_cosimulated_kinematic_loops_generated(
+            model, loops, q0, v0, t_final=t_final, dt=dt, controllers=controllers, inputs=dict(inputs or {}),
+            references=references, outputs=tuple(outputs), coupling=coupling, store_every=store_every,
+            progress=progress, stability_check=policy, divergence_bound=divergence_bound)
+    if compiled is True and method == "rk4":
+        for name, value in (("divergence_bound", divergence_bound), ("max_step", max_step), ("progress", progress)):
+            if value is not None:
+                raise ModelError(f"{name}={value!r} is not available with compiled=True on the kinematic loop model "
+                                 f"{model.name!r} with loops or inputs; leave it at None")
+        return generated.simulate_controlled_kinematic_loops_generated(
+            system, q0, v0, t_final=t_final, dt=dt, inputs=inputs, references=references, outputs=tuple(outputs),
+            store_every=store_every, stability_check=policy)
     return simulate_closed_loop(model, q0, v0, t_final, dt, method=method, loops=loops, controllers=controllers,
                                 inputs=dict(inputs or {}), references=references, outputs=tuple(outputs),
                                 coupling=coupling, rtol=rtol, atol=atol, max_step=limit, store_every=store_every,

@@ -25,7 +25,8 @@ from ctmm.signals import Harmonic
 
 TORQUE = Harmonic(0.3, 7.0)                                  # 0.3 sin(7 t) [N m]
 DRIVE = {"angle": Harmonic(REST, 3.0, math.pi / 2),          # REST cos(3 t) [rad] and its derivatives
-         "angle_rate": Harmonic(3.0 * REST, 3.0, math.pi), "angle_acceleration": Harmonic(-9.0 * REST, 3.0, math.pi / 2)}
+         "angle_rate": Harmonic(3.0 * REST, 3.0, math.pi),
+         "angle_acceleration": Harmonic(-9.0 * REST, 3.0, math.pi / 2)}
 
 
 def _same(generated, numpy_run) -> None:
