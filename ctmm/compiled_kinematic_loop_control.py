@@ -1,4 +1,4 @@
-"""Generated RK4 of a planar kinematic loop model with feedback loops and open-loop inputs (issues 13 x 16).
+"""Generated RK4 of kinematic loop models with feedback loops, inputs and co-simulated controllers (issues 13 x 16).
 
 ``ctmm.simulate(with_feedback(loop_model, loops), ..., compiled=True)`` (or the model alone with ``inputs=``) runs
 here: the time loop of :func:`ctmm.control.planar_time.simulate_closed_loop` on a
@@ -24,6 +24,12 @@ inside a step is found one step later here).  A non-finite stored row or a condi
 first cut joint and the partial result.  The stored signals are the numpy path's
 (:meth:`KinematicLoopPlant.signals` on the stored rows with their actuator values, ``"<loop>.y"``, ``"<loop>.u"``):
 coordinates, outputs, cut forces, ``"drift"``, ``"drift_rate"``.
+
+Spatial kinematic loop models (:class:`~ctmm.spatial.closed_loops.SpatialKinematicLoopModel`, the loop driver's run
+of :mod:`ctmm.spatial_loop_time`) compile the same way: the closed-loop velocity rates
+:func:`ctmm.compiled_spatial_kinematic_loops.symbolic_spatial_closed_loop` (the tree's port actuators and the cuts'
+``"<cut>.torque"`` / ``"<cut>.force"`` applied with the cut loads), the sensors :class:`SpatialKinematicLoopSymbols`,
+the stored signals :meth:`ctmm.spatial.closed_loop_plant.SpatialLoopPlant.signals`.
 
 Co-simulated controllers (:func:`simulate_cosimulated_kinematic_loops_generated`): the same kernel with the
 controllers' outputs as held inputs ``u``, run one sample interval per call by
@@ -55,13 +61,15 @@ from .generated_loop import compiled_time_loop, run_blocks
 from .loop_integration import CONDITION_LIMIT, check_consistent, compliance_condition, singular_compliance
 from .planar.closed_loops import KinematicLoopModel
 from .planar.integrate import check_store_every, step_total
-from .planar.loop_plant import KinematicLoopPlant
+from .control.plants import plant_of
+from .spatial.closed_loops import SpatialKinematicLoopModel
 from .planar.ports import PlanarPorts
 from .signal_results import SignalSystem, signal_result
 from .signals import Constant, as_signal
 
-__all__ = ["CompiledKinematicLoopControl", "KinematicLoopSymbols", "simulate_controlled_kinematic_loops_generated",
-           "simulate_cosimulated_kinematic_loops_generated"]
+__all__ = ["CompiledKinematicLoopControl", "KinematicLoopSymbols", "SpatialKinematicLoopSymbols",
+           "simulate_controlled_kinematic_loops_generated",
+           "simulate_cosimulated_kinematic_loops_generated", "simulate_generated_driver_run"]
 
 
 class KinematicLoopSymbols:
@@ -115,12 +123,48 @@ class KinematicLoopSymbols:
         return moment
 
 
-def _step(loops: ClosedLoops, closed: Any, n: int, n_inputs: int, n_parameters: int) -> Any:
-    """``step(Y, u, h, p, t0, k)`` on ``[q, qdot, z, ring, condition]``: :meth:`ClosedLoops.step` on the closed-loop
+class SpatialKinematicLoopSymbols:
+    """A spatial kinematic loop model on symbols for :class:`ctmm.compiled_loops.ClosedLoops`: the tree's sensors by
+    :class:`ctmm.compiled_spatial_loops.SpatialSymbols`, the cut sensors ``"<cut>.angle"`` / ``"<cut>.position"``
+    and ``"<cut>.rate"`` by the cut coordinates on symbols
+    (:func:`ctmm.compiled_spatial_kinematic_loops.symbolic_spatial_closed_loop`).
+
+    Parameters
+    ----------
+    model : SpatialKinematicLoopModel
+    ports : SpatialLoopPorts
+        The ports of the controlled model (the tree's and the cut joints').
+    coordinates : casadi.Function
+        ``cut_coordinates(q, v) -> [s_1, s_1', ...]``.
+    """
+
+    def __init__(self, model: Any, ports: Any, coordinates: Any) -> None:
+        from .compiled_spatial_loops import SpatialSymbols
+        from .spatial.ports import SpatialPorts
+
+        self.model, self.ports, self.coordinates = model, ports, coordinates
+        self.tree_symbols = SpatialSymbols(model.tree, SpatialPorts(model.tree))
+        self.n_positions, self.n_velocities = model.tree.n_positions, model.tree.n_velocities
+        self.cut_index = {cut.name: k for k, cut in enumerate(model.cuts)}
+
+    def position_rates(self, q: Any, v: Any) -> Any:
+        """``q' = G(q) v`` (quaternion rates from body-axes angular velocities)."""
+        return self.tree_symbols.position_rates(q, v)
+
+    def sensor(self, name: str, q: Any, v: Any) -> Any:
+        """Sensor ``name`` as an expression of the symbols ``q``, ``v``."""
+        cut_name, _, part = name.rpartition(".")
+        if cut_name in self.cut_index and part in ("angle", "position", "rate"):
+            return self.coordinates(q, v)[2 * self.cut_index[cut_name] + (part == "rate")]
+        return self.tree_symbols.sensor(name, q, v)
+
+
+def _step(loops: ClosedLoops, closed: Any, nq: int, nv: int, n_inputs: int, n_parameters: int) -> Any:
+    """``step(Y, u, h, p, t0, k)`` on ``[q, v, z, ring, condition]``: :meth:`ClosedLoops.step` on the closed-loop
     accelerations, the condition of ``G`` at the step's start and end carried as the largest so far."""
     import casadi as ca
 
-    q, v, u = ca.SX.sym("q", n), ca.SX.sym("v", n), ca.SX.sym("u", n_inputs)
+    q, v, u = ca.SX.sym("q", nq), ca.SX.sym("v", nv), ca.SX.sym("u", n_inputs)
     p, t = ca.SX.sym("p", n_parameters), ca.SX.sym("t")
     acceleration = ca.Function("acceleration", [q, v, u, p, t], [closed(q, v, u, p, t)[0]])
     condition = ca.Function("condition", [q, v, p, t], [closed(q, v, ca.DM.zeros(n_inputs), p, t)[1]])
@@ -130,8 +174,8 @@ def _step(loops: ClosedLoops, closed: Any, n: int, n_inputs: int, n_parameters: 
     P, t0, index = ca.MX.sym("p", n_parameters), ca.MX.sym("t0"), ca.MX.sym("k")
     after = inner(Y[:size], held, h, P, t0, index)
     start = t0 + index * h
-    worst = ca.fmax(Y[size], ca.fmax(condition(Y[:n], Y[n:2 * n], P, start),
-                                     condition(after[:n], after[n:2 * n], P, start + h)))
+    worst = ca.fmax(Y[size], ca.fmax(condition(Y[:nq], Y[nq:nq + nv], P, start),
+                                     condition(after[:nq], after[nq:nq + nv], P, start + h)))
     return ca.Function("step", [Y, held, h, P, t0, index], [ca.vertcat(after, worst)])
 
 
@@ -141,7 +185,8 @@ class CompiledKinematicLoopControl:
     Parameters
     ----------
     controlled : ControlledModel
-        A kinematic loop model (compilable: :func:`kinematic_loop_compile_refusal`) with its loops.
+        A planar or spatial kinematic loop model (compilable: :func:`kinematic_loop_compile_refusal`,
+        :func:`ctmm.compiled_spatial_kinematic_loops.spatial_kinematic_loop_compile_refusal`) with its loops.
     dt : float
         Step [s] (every loop delay a whole multiple of it).
     inputs, references : mapping, optional
@@ -163,7 +208,11 @@ class CompiledKinematicLoopControl:
                  references: Mapping[str, Any] | None = None, held: Sequence[str] = (), store_every: int = 1,
                  rows: int = DEFAULT_ROWS, cache_dir: str | os.PathLike | None = None) -> None:
         model = controlled.plant
-        reason = kinematic_loop_compile_refusal(model)
+        spatial = not isinstance(model, KinematicLoopModel)
+        if spatial:
+            from .compiled_spatial_kinematic_loops import (spatial_kinematic_loop_compile_refusal,
+                                                           symbolic_spatial_closed_loop)
+        reason = (spatial_kinematic_loop_compile_refusal if spatial else kinematic_loop_compile_refusal)(model)
         if reason:
             raise ModelError(f"compiled=True with loops, inputs or controllers: {reason}")
         started = _time.perf_counter()
@@ -172,14 +221,20 @@ class CompiledKinematicLoopControl:
         self.inputs = dict(inputs or {})
         self.actuators = tuple(dict.fromkeys([name for loop in controlled.loops for name, _ in loop.actuator_terms]
                                              + list(self.inputs) + list(held)))
+        if spatial:
+            self.parameters, (self.nq, self.nv) = np.zeros(0), (model.tree.n_positions, model.tree.n_velocities)
+            self.closed, _, coordinates = symbolic_spatial_closed_loop(model, self.actuators)
+            symbols: Any = SpatialKinematicLoopSymbols(model, controlled.ports, coordinates)
+        else:
+            self.parameters, self.nq = parameter_vector(model.tree), model.tree.n_coordinates
+            self.nv = self.nq
+            self.closed, _ = symbolic_closed_loop(model, self.parameters.size, self.actuators)
+            symbols = KinematicLoopSymbols(model, controlled.ports)
         self.loops = ClosedLoops(controlled, self.actuators, dt=self.dt, references=references, inputs=self.inputs,
-                                 symbols=KinematicLoopSymbols(model, controlled.ports))
-        self.parameters = parameter_vector(model.tree)
-        n = model.tree.n_coordinates
-        self.closed, _ = symbolic_closed_loop(model, self.parameters.size, self.actuators)
-        step = _step(self.loops, self.closed, n, len(self.actuators), self.parameters.size)
-        loop = compiled_time_loop(step, self.store_every, rows, f"kinematic_loop_control_{n}q{len(model.cuts)}c",
-                                  cache_dir=cache_dir)
+                                 symbols=symbols)
+        step = _step(self.loops, self.closed, self.nq, self.nv, len(self.actuators), self.parameters.size)
+        loop = compiled_time_loop(step, self.store_every, rows, f"kinematic_loop_control_{'spatial_' * spatial}"
+                                  f"{self.nq}q{len(model.cuts)}c", cache_dir=cache_dir)
         self._blocks, self._stride, self._step = loop.blocks, loop.stride, loop.step
         self._signals = self.loops.signals()
         self._input_signals = {name: as_signal(f"inputs[{name!r}]", value) for name, value in self.inputs.items()}
@@ -194,8 +249,7 @@ class CompiledKinematicLoopControl:
         """Stored states ``[q, qdot, z, ring, condition]`` (rows, :attr:`ClosedLoops.state_size` + 1) of ``n_steps``
         steps of :attr:`dt` from the loops' state ``state`` at step ``first_step``, the ``held`` values of
         :attr:`actuators` held over them."""
-        n = self.model.tree.n_coordinates
-        y = np.concatenate([state, [self.condition(state[:n], state[n:2 * n])]])
+        y = np.concatenate([state, [self.condition(state[:self.nq], state[self.nq:self.nq + self.nv])]])
         return run_blocks(self._blocks, self._stride, self._step, self.store_every, y[:, None], held, self.dt,
                           n_steps, 0.0, self.parameters[:, None], first_step=first_step)[0]
 
@@ -239,6 +293,20 @@ class CompiledKinematicLoopControl:
         return out
 
 
+def _start(model: Any, q0: Any, v0: Any) -> tuple[np.ndarray, np.ndarray]:
+    """The checked initial state ``(q, v)`` of a planar or spatial kinematic loop model (on the cut joints)."""
+    if isinstance(model, KinematicLoopModel):
+        q, v = model.tree.state(q0, v0)
+    elif isinstance(model, SpatialKinematicLoopModel):
+        q, v = model.state(q0, v0)
+    else:
+        raise ModelError(f"a planar or spatial kinematic loop model (or one with loops) is compiled here, got "
+                         f"{model!r:.80}")
+    q, v = np.asarray(q, dtype=float), np.asarray(v, dtype=float)
+    check_consistent(model, q, v, "x0, v0")
+    return q, v
+
+
 def simulate_controlled_kinematic_loops_generated(system: Any, q0: Any, v0: Any, *, t_final: float, dt: float,
                                                   inputs: Mapping[str, Any] | None = None,
                                                   references: Mapping[str, Any] | None = None,
@@ -249,10 +317,11 @@ def simulate_controlled_kinematic_loops_generated(system: Any, q0: Any, v0: Any,
 
     Parameters
     ----------
-    system : ControlledModel or KinematicLoopModel
+    system : ControlledModel, KinematicLoopModel or SpatialKinematicLoopModel
         ``ctmm.control.with_feedback(loop_model, loops)``, or the model alone (open-loop ``inputs``).
-    q0, v0 : array_like (n_coordinates,)
-        A consistent initial state (``|Phi|``, ``|Phi'| <= 1e-8``).
+    q0, v0 : array_like
+        A consistent initial state (``|Phi|``, ``|Phi'| <= 1e-8``): tree coordinates and rates (spatial: positions
+        and velocities, arrays or mappings).
     t_final, dt : float
         End time and step [s]; ``t_final`` a whole multiple of ``dt``, every loop delay too.
     inputs : mapping, optional
@@ -285,17 +354,14 @@ def simulate_controlled_kinematic_loops_generated(system: Any, q0: Any, v0: Any,
     """
     controlled = system if isinstance(system, ControlledModel) else ControlledModel(system, [])
     model = controlled.plant
-    if not isinstance(model, KinematicLoopModel):
-        raise ModelError(f"a planar KinematicLoopModel (or one with loops) is compiled here, got {model!r:.80}")
-    plant = KinematicLoopPlant(model)
-    q, v = (np.asarray(a, dtype=float) for a in model.tree.state(q0, v0))
-    check_consistent(model, q, v, "x0, v0")
+    plant = plant_of(model)
+    q, v = _start(model, q0, v0)
     n_steps = step_total(t_final, dt)
     h = t_final / n_steps
     kernel = CompiledKinematicLoopControl(controlled, h, inputs=inputs, references=references,
                                           store_every=store_every, rows=rows, cache_dir=cache_dir)
     plant.check_step(q, v, h, validation.option("stability_check", stability_check, ("warn", "error", "ignore")))
-    loops, n, every = kernel.loops, model.tree.n_coordinates, kernel.store_every
+    loops, nq, nv, every = kernel.loops, kernel.nq, kernel.nv, kernel.store_every
     start = loops.initial_state(q, v)
     started = _time.perf_counter()
     states = kernel.run_states(start, np.zeros(len(kernel.actuators)), n_steps)
@@ -310,7 +376,7 @@ def simulate_controlled_kinematic_loops_generated(system: Any, q0: Any, v0: Any,
 
     def result(count: int) -> Any:
         time, block = t[:count], full[:count, :loops.state_size]
-        signals, units = plant.signals(time, block[:, :n], block[:, n:2 * n], outputs,
+        signals, units = plant.signals(time, block[:, :nq], block[:, nq:nq + nv], outputs,
                                        inputs=kernel.applied_inputs(time, block))
         extra = add_loop_signals(controlled, loops, signals_of, block, time, signals, units)
         return signal_result(SignalSystem(model, units, list(controlled.loops)), time, signals, "rk4-generated",
@@ -327,7 +393,7 @@ def simulate_controlled_kinematic_loops_generated(system: Any, q0: Any, v0: Any,
     return result(len(t))
 
 
-def simulate_cosimulated_kinematic_loops_generated(model: KinematicLoopModel, loops: Sequence[Any], q0: Any, v0: Any,
+def simulate_cosimulated_kinematic_loops_generated(model: Any, loops: Sequence[Any], q0: Any, v0: Any,
                                                    *, t_final: float, dt: float, controllers: Sequence[Any],
                                                    **options: Any) -> Any:
     """Co-simulated controllers around the generated kernel of a kinematic loop model with its ``loops``: the kernel
@@ -338,11 +404,35 @@ def simulate_cosimulated_kinematic_loops_generated(model: KinematicLoopModel, lo
     The stored cut forces carry each row's actuator values (:meth:`CompiledKinematicLoopControl.applied_inputs`)."""
     from .compiled_cosim import simulate_cosimulated_generated
 
-    q, v = (np.asarray(a, dtype=float) for a in model.tree.state(q0, v0))
-    check_consistent(model, q, v, "x0, v0")
+    q, v = _start(model, q0, v0)
     step = t_final / step_total(t_final, dt)
     held = [name for controller in controllers for name in controller.outputs]
     kernel = CompiledKinematicLoopControl(ControlledModel(model, loops), step, inputs=options.get("inputs"),
                                           references=options.get("references"), held=held)
     return simulate_cosimulated_generated(model, loops, q, v, t_final=t_final, dt=step, controllers=controllers,
                                           scene=kernel, **options)
+
+
+def simulate_generated_driver_run(system: Any, q0: np.ndarray, v0: np.ndarray, *, t_final: float, dt: float,
+                                  controllers: Sequence[Any], inputs: Mapping[str, Any] | None,
+                                  references: Mapping[str, Any], outputs: Sequence[str], coupling: str,
+                                  store_every: int, progress: bool | None, stability_check: str,
+                                  divergence_bound: float | None, max_step: float | None) -> Any:
+    """``ctmm.simulate(..., compiled=True)`` of the loop driver's run of a planar or spatial kinematic loop model
+    (``system``: the model or a ControlledModel on it): with co-simulated ``controllers``
+    :func:`simulate_cosimulated_kinematic_loops_generated`, else :func:`simulate_controlled_kinematic_loops_generated`
+    (``divergence_bound``, ``max_step`` and ``progress`` refused there by name)."""
+    model = getattr(system, "plant", system)
+    loops = tuple(getattr(system, "loops", ()))
+    if controllers:
+        return simulate_cosimulated_kinematic_loops_generated(
+            model, loops, q0, v0, t_final=t_final, dt=dt, controllers=controllers, inputs=dict(inputs or {}),
+            references=references, outputs=tuple(outputs), coupling=coupling, store_every=store_every,
+            progress=progress, stability_check=stability_check, divergence_bound=divergence_bound)
+    for name, value in (("divergence_bound", divergence_bound), ("max_step", max_step), ("progress", progress)):
+        if value is not None:
+            raise ModelError(f"{name}={value!r} is not available with compiled=True on the kinematic loop model "
+                             f"{model.name!r} with loops or inputs (no co-simulated controllers); leave it at None")
+    return simulate_controlled_kinematic_loops_generated(system, q0, v0, t_final=t_final, dt=dt, inputs=inputs,
+                                                         references=references, outputs=tuple(outputs),
+                                                         store_every=store_every, stability_check=stability_check)

@@ -61,7 +61,8 @@ def simulate_kinematic_loop_system(system: Any, t_final: float, dt: float | None
     unsupported : mapping
         ``{option: (value, default)}`` of options that do not apply to a kinematic loop model (``solver``,
         ``fast``, ``force_hook``, ``t0``, ``compiled``): refused by name unless at the default (but ``compiled=True``
-        of the model alone with ``"rk4"``: :mod:`ctmm.compiled_kinematic_loops`).
+        with ``"rk4"``: the model alone :mod:`ctmm.compiled_kinematic_loops`, with loops, inputs or controllers
+        :mod:`ctmm.compiled_kinematic_loop_control`).
 
     Returns
     -------
@@ -106,19 +107,11 @@ def simulate_kinematic_loop_system(system: Any, t_final: float, dt: float | None
                                                                        ("warn", "error", "ignore"))
     store_every = validation.integer("store_every", store_every, minimum=1)
     limit = math.inf if max_step is None else validation.positive("max_step", max_step)
-    if compiled is True and method == "rk4" and controllers:
-        return generated.simulate_cosimulated_kinematic_loops_generated(
-            model, loops, q0, v0, t_final=t_final, dt=dt, controllers=controllers, inputs=dict(inputs or {}),
-            references=references, outputs=tuple(outputs), coupling=coupling, store_every=store_every,
-            progress=progress, stability_check=policy, divergence_bound=divergence_bound)
     if compiled is True and method == "rk4":
-        for name, value in (("divergence_bound", divergence_bound), ("max_step", max_step), ("progress", progress)):
-            if value is not None:
-                raise ModelError(f"{name}={value!r} is not available with compiled=True on the kinematic loop model "
-                                 f"{model.name!r} with loops or inputs; leave it at None")
-        return generated.simulate_controlled_kinematic_loops_generated(
-            system, q0, v0, t_final=t_final, dt=dt, inputs=inputs, references=references, outputs=tuple(outputs),
-            store_every=store_every, stability_check=policy)
+        return generated.simulate_generated_driver_run(
+            system, q0, v0, t_final=t_final, dt=dt, controllers=controllers, inputs=inputs, references=references,
+            outputs=outputs, coupling=coupling, store_every=store_every, progress=progress, stability_check=policy,
+            divergence_bound=divergence_bound, max_step=max_step)
     return simulate_closed_loop(model, q0, v0, t_final, dt, method=method, loops=loops, controllers=controllers,
                                 inputs=dict(inputs or {}), references=references, outputs=tuple(outputs),
                                 coupling=coupling, rtol=rtol, atol=atol, max_step=limit, store_every=store_every,

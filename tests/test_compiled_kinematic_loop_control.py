@@ -118,3 +118,36 @@ def test_co_simulated_controllers_between_calls_into_the_kernel():
             for compiled in (True, None)]
         _equal(runs[0], runs[1])
         assert runs[0].info["intervals"] == 50 and np.ptp(runs[0]["h3.torque@samples"][:, 1]) > 0.1
+
+
+
+# -- spatial kinematic loops (the same kernel on the spatial closed-loop rates) ----------------------------------------
+@pytest.mark.parametrize("delay", [0.0, 0.01], ids=["real-time", "delayed"])
+def test_spatial_pd_loop_on_a_revolute_cut_equals_the_numpy_driver_and_newtons_law(delay):
+    """The pendulum held by a revolute cut with a PD on the cut angle (tests/test_cut_joint_control.py's model and its
+    Newton's-law reference by the method of steps, bound 1e-9 rad; measured 2.3e-11): = the numpy driver to 1e-12."""
+    from test_cut_joint_control import S_KD, S_KP, S_TARGET, _spatial_pendulum, _spatial_reference, _spatial_state
+
+    loop = _spatial_pendulum()
+    q0, v0 = _spatial_state(loop, 0.5, 2.0)
+    pd = Feedback("pd", sensor=[("hinge.angle", S_KP), ("hinge.rate", S_KD)], actuator="hinge.torque", gain=1.0,
+                  delay=delay)
+    options = dict(x0=q0, v0=v0, references={"pd": S_KP * S_TARGET}, outputs=["hinge.angle", "hinge.rate"])
+    generated = ctmm.simulate(with_feedback(loop, [pd]), 0.1, 2e-3, compiled=True, **options)
+    _equal(generated, ctmm.simulate(with_feedback(loop, [pd]), 0.1, 2e-3, **options))
+    assert np.max(np.abs(generated["hinge.angle"] - _spatial_reference(0.5, 2.0, generated.time, delay))) < 1e-9
+
+
+def test_spatial_port_inputs_and_co_simulated_controllers():
+    """A harmonic cut torque (a port input: the driver's run) and a sampled static-gain PD on the cut: = the numpy
+    driver to round-off, the cut loads with each row's held torque."""
+    from test_cut_joint_control import S_KD, S_KP, _spatial_pendulum, _spatial_state
+
+    loop = _spatial_pendulum()
+    q0, v0 = _spatial_state(loop, 0.5, 2.0)
+    for options in ({"inputs": {"hinge.torque": Harmonic(0.5, 10.0)}},
+                    {"controllers": [StaticGainController(["hinge.angle", "hinge.rate"], ["hinge.torque"],
+                                                          [[-S_KP, -S_KD]], sample_time=4e-3)]}):
+        runs = [ctmm.simulate(loop, 0.1, 2e-3, x0=q0, v0=v0, outputs=["hinge.angle"], compiled=compiled, **options)
+                for compiled in (True, None)]
+        _equal(runs[0], runs[1])

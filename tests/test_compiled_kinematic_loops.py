@@ -178,8 +178,8 @@ def test_spatial_simulate_verb_with_compiled_true():
     assert generated.info["compiled"] is True and generated["s3.force_z"].shape == (11,)
     for name in ("h1.angle", "s3.force_z", "drift"):
         assert np.max(np.abs(generated[name] - plain[name])) <= 1e-12 * max(1.0, np.max(np.abs(plain[name]))), name
-    with pytest.raises(ModelError, match="compiled=True runs the generated RK4.*alone"):
-        ctmm.simulate(loop, 0.02, 2e-3, x0=q, v0=v, compiled=True, outputs=["h1.angle"])
+    with pytest.raises(ModelError, match="compiled=True runs the generated RK4.*alone"):   # outputs: the driver's
+        ctmm.simulate(loop, 0.02, 2e-3, x0=q, v0=v, compiled=True, method="DOP853")      # run (loop_control)
 
 
 def test_spatial_refusals_and_failures():
