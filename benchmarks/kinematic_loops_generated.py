@@ -19,6 +19,14 @@ Spatial row: the R-U-S-R four-bar of ``scenarios/spatial_four_bar.py`` (spherica
 :func:`ctmm.spatial.closed_loop_time.simulate_spatial_loops` (RK4 with projection), per-step times and their largest
 coordinate difference.
 
+Controlled row (issue 13 x 16): the same four-bar with a PD loop on the cut's relative angle driving the cut torque
+``"h3.torque"`` (``u = -(6 dtheta + 0.6 dtheta' - 6 target)``, read 10 ms late) through ``ctmm.simulate(with_feedback(
+loop, [pd]), compiled=True)`` (:mod:`ctmm.compiled_kinematic_loop_control`: Baumgarte only, as the numpy loop driver)
+against the numpy driver (``compiled=None``): the generated run alone (``info["wall_time_s"]``) and the whole verb
+(with the stored signals, which the numpy plant computes per stored row: every step, and ``store_every=10``) per
+step, their largest angle difference and
+each one's error against the DAE with the same delayed PD as a motor at the cut (method of steps).
+
 Figures: per-step wall and CPU time [us] (best of 3), the largest angle difference generated - numpy [rad]
 (consistency: round-off) and the largest angle error of each against the DAE [rad].  Run
 ``python benchmarks/kinematic_loops_generated.py`` (``--quick``: T = 0.2 s); writes
@@ -94,6 +102,51 @@ def spatial(t_final: float, steps: int) -> dict:
             "spatial_max_drift": float(np.max(generated.drift))}
 
 
+def controlled(t_final: float, steps: int) -> dict:
+    """The controlled row (module docstring)."""
+    import ctmm
+    from ctmm.control import Feedback, with_feedback
+
+    loop, q0, v0 = four_bar()
+    target = float(loop.relative_angles(q0, v0)[0][0]) + 0.2
+    pd = Feedback("pd", sensor=[("h3.angle", 6.0), ("h3.rate", 0.6)], actuator="h3.torque", gain=1.0, delay=0.01)
+    system = with_feedback(loop, [pd])
+    options = dict(x0=q0, v0=v0, references={"pd": 6.0 * target})
+    runs: list = []
+
+    def generated_call() -> None:
+        runs.append(ctmm.simulate(system, t_final, DT, compiled=True, **options))
+
+    whole_wall, whole_cpu = best(generated_call)
+    kernel_wall = min(run.info["wall_time_s"] for run in runs[1:])
+    ctmm.simulate(system, t_final, DT, compiled=True, store_every=10, **options)     # its library compiled once
+    sparse_wall, sparse_cpu = best(lambda: ctmm.simulate(system, t_final, DT, compiled=True, store_every=10,
+                                                         **options))
+    numpy_wall, numpy_cpu = best(lambda: runs.append(ctmm.simulate(system, t_final, DT, **options)), repeats=1)
+    generated, numpy_run = runs[1], runs[-1]
+    dae = reference(SPRING + DAMPER)
+    dae.add_motor("rocker", "coupler", lambda t, angle, rate: -(6.0 * angle + 0.6 * rate - 6.0 * target), delay=0.01)
+    exact = dae.simulate(dae.assemble(dict(zip(NAMES, q0)), dict(zip(NAMES, v0))), t_final, t_eval=generated.time)
+
+    def error(run) -> float:
+        return float(max(np.max(np.abs(run[f"{name}.theta"] - exact.angle(name))) for name in NAMES))
+
+    return {"controlled_problem": f"four-bar with a 10 ms delayed PD on the cut angle driving h3.torque, T = {t_final} "
+                                  f"s, dt = {DT} s",
+            "controlled_generated_run_us_per_step": 1e6 * kernel_wall / steps,
+            "controlled_generated_whole_us_per_step": 1e6 * whole_wall / steps,
+            "controlled_generated_whole_cpu_us_per_step": 1e6 * whole_cpu / steps,
+            "controlled_generated_whole_every10_cpu_us_per_step": 1e6 * sparse_cpu / steps,
+            "controlled_numpy_us_per_step": 1e6 * numpy_wall / steps,
+            "controlled_numpy_cpu_us_per_step": 1e6 * numpy_cpu / steps,
+            "controlled_speedup_whole_cpu": numpy_cpu / whole_cpu,
+            "controlled_generated_minus_numpy_rad": float(max(np.max(np.abs(generated[f"{name}.theta"]
+                                                                            - numpy_run[f"{name}.theta"]))
+                                                              for name in NAMES)),
+            "controlled_generated_vs_dae_rad": error(generated), "controlled_numpy_vs_dae_rad": error(numpy_run),
+            "controlled_max_drift_m": float(np.max(generated["drift"]))}
+
+
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="T = 0.2 s")
@@ -131,6 +184,7 @@ def main(argv: list[str] | None = None) -> dict:
            "numpy_vs_dae_rad": float(np.max(np.abs(numpy_run.q - angles))),
            "max_drift_m": float(np.max(generated.drift))}
     out.update(spatial(t_final, steps))
+    out.update(controlled(t_final, steps))
     for key, value in out.items():
         print(f"{key:36s} {value}")
     if not args.quick:

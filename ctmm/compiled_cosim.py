@@ -12,7 +12,9 @@ index so that delayed loops' rings and time signals run on), and at each sample 
 master :class:`~ctmm.control.cosim.CoSimulation` calls the controllers in Python exactly as the numpy path
 (:func:`ctmm.control.planar_time.simulate_closed_loop`) does: the same sample instants, coupling policy,
 failure messages and ``"<output>@samples"`` records.  The result equals the numpy path's to round-off
-(``tests/test_compiled_cosim.py``).
+(``tests/test_compiled_cosim.py``).  A plant whose stored signals need each row's actuator values (a planar
+kinematic loop model's cut forces, ``signals_need_inputs``) gets them from the scene's ``applied_inputs``
+(:class:`ctmm.compiled_kinematic_loop_control.CompiledKinematicLoopControl`).
 
 With a DT-TMM scheme on a chain (``method="newmark"``, ... ``compiled=True``), :func:`simulate_cosimulated_scheme`
 does the same around the generated scheme step (:mod:`ctmm.compiled_chain_schemes`, the held outputs its input
@@ -158,6 +160,7 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
     check_wiring(controllers, None, None, dt)      # the one rule (before compiling): one controller per actuator
     delays = [_delay_steps(c, dt) for c in controllers]
     chain = isinstance(plant, ChainPlant)
+    rows_need_inputs = not chain and getattr(plant, "signals_need_inputs", False)   # cut forces: scene.applied_inputs
     if chain and tuple(loops) != tuple(getattr(model, "loops", ())):
         raise ModelError("simulate_cosimulated_generated: a chain's loops are those of its ControlledChain; give "
                          "loops=model.loops")
@@ -205,7 +208,8 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
         if chain:
             signals, units, extra = chain_loop_signals(model, scene, t, block, outputs, held_rows[:count])
         else:
-            signals, units = plant.signals(t, block[:, :nq], block[:, nq:nq + nv], outputs)
+            signals, units = plant.signals(t, block[:, :nq], block[:, nq:nq + nv], outputs, **(
+                {"inputs": scene.applied_inputs(t, block, held_rows[:count])} if rows_need_inputs else {}))
             extra = add_loop_signals(controlled, scene.loops, scene.loops.signals(), block, t, signals, units) \
                 if scene.loops.laws else {}
         for name, samples in master.outputs(until=t[-1] if count else -math.inf).items():
@@ -260,7 +264,7 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
     def advance() -> None:
         nonlocal intervals
         sample(0, first)
-        if chain:
+        if chain or rows_need_inputs:
             held_rows.append(held_now())
         state, k = first, 0
         while k < n_steps:
@@ -279,7 +283,7 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
                 if step % store_every == 0 or step == n_steps:
                     times.append(float(step * dt))
                     rows.append(row)
-                    if chain:
+                    if chain or rows_need_inputs:
                         held_rows.append(held_now())
                 done[0] = step
             state, k = block[-1], following

@@ -16,9 +16,15 @@ generated C (:func:`ctmm.generated_loop.compiled_time_loop`).  The step states, 
 * one sweep without and ``2 m`` sweeps with unit cut forces give ``qddot = qddot_0 + D lambda`` and the boundary
   compliance ``G = J D``; the relative acceleration of the cut points is ``a_0 = J qddot_0 + (dPhi'/dq) qdot``; the
   cut forces solve ``G lambda = -a_0 - 2 alpha Phi' - alpha^2 Phi`` (Baumgarte rate ``alpha`` [1/s]);
-* after the RK4 step, ``iterations`` (default 3) minimum-norm Gauss-Newton steps on ``Phi = 0``
-  (``q <- q - J^T (J J^T)^-1 Phi``, skipped once ``max |Phi| < 1e-14`` m, as the numpy projection stops) and the
-  linear velocity projection ``qdot <- qdot - J^T (J J^T)^-1 J qdot``.
+* a cut's moment law and torque add the moment pair ``tau = torque(t) - law(dtheta - rest, dtheta')`` (``+tau``
+  on the child body, ``-tau`` on the parent; ``dtheta`` the relative angle of the bodies, :mod:`ctmm.planar.cut_joints`)
+  to the applied loads, the law traced on symbols (:attr:`ctmm.nonlinear_laws.Law.expressible`), the torque by its
+  symbolic form (:func:`ctmm.signals.symbolic_signal`); a driven cut adds the row ``dtheta - angle(t)`` to ``Phi``
+  (``dtheta' - angle_rate(t)`` to ``Phi'``, ``- angle_acceleration(t)`` to ``a_0``), its unknown the drive's moment
+  pair, stacked after the cut's force as :meth:`KinematicLoopModel.constraints` stacks them;
+* after the RK4 step, ``iterations`` (default 3) minimum-norm Gauss-Newton steps on ``Phi = 0`` at the step's end
+  time (``q <- q - J^T (J J^T)^-1 Phi``, skipped once ``max |Phi| < 1e-14``, as the numpy projection stops) and the
+  velocity projection ``qdot <- qdot - J^T (J J^T)^-1 Phi'``.
 
 The generated state is ``[q, qdot, residual, condition]``: ``residual`` is the largest ``max |Phi|`` [m] after the
 projection of every step so far, ``condition`` the largest Frobenius condition number ``|G|_F |G^-1|_F`` of every RK4
@@ -28,15 +34,15 @@ cut joint, partial result up to the last good stored state) at the first stored 
 which a projection residual exceeded :data:`~ctmm.loop_integration.PROJECTION_TOLERANCE` or a condition
 :data:`~ctmm.loop_integration.CONDITION_LIMIT` (a singular configuration of the loop): the rules and messages of the
 numpy RK4 (:mod:`ctmm.loop_integration`), which checks the same after every step.  ``drift`` [m] and ``drift_rate``
-[m/s] and the
-cut forces of the result are those of the stored states (as the numpy path reports them), evaluated by a generated
-function of the same library.
+[m/s] and the cut forces of the result are those of the stored states (as the numpy path reports them), evaluated by
+a generated function of the same library.
 
 Refused (:class:`~ctmm.errors.ModelError`): a tree that :func:`ctmm.compiled_parameters.compile_refusal` refuses,
 cut points on deformable bodies (a ``ModalBeam`` end: its cut force is a floating-frame wrench, not on the element
-protocol yet), cut joints with a moment law, a torque or a prescribed angle (their moment row is not in the
-generated step yet).  Feedback loops, inputs and controllers on a kinematic loop model keep running in
-:mod:`ctmm.kinematic_loop_time` (``compiled=True`` refused there by name).
+protocol yet), cut laws that casadi cannot express and torques or drives without a symbolic form (user callables:
+:func:`cut_moment_refusal`).  Feedback loops and open-loop inputs on a kinematic loop model run in
+:mod:`ctmm.compiled_kinematic_loop_control` on the same closed-loop accelerations (:func:`symbolic_closed_loop`);
+co-simulated controllers keep running in :mod:`ctmm.kinematic_loop_time` (``compiled=True`` refused there by name).
 """
 from __future__ import annotations
 
@@ -59,9 +65,12 @@ from .ode import rk4_step
 from .planar.closed_loops import KinematicLoopModel, KinematicLoopSimulation
 from .planar.elements import Fixed
 from .planar.ports import PlanarPorts
+from .signals import SYMBOLIC_FIELDS, signal_parameters, symbolic_signal
 
-__all__ = ["CompiledKinematicLoops", "failure_message", "first_failure", "generated_failure", "generated_run",
-           "kinematic_loop_compile_refusal", "projected_rk4_step", "simulate_kinematic_loops_generated", "tree_refusal"]
+__all__ = ["CompiledKinematicLoops", "cut_load_refusal", "cut_moment_refusal", "cut_rows", "failure_message",
+           "first_failure", "generated_failure", "generated_run", "kinematic_loop_compile_refusal",
+           "projected_rk4_step", "simulate_kinematic_loops_generated", "symbolic_closed_loop",
+           "symbolic_relative_angles", "symbolic_time_signal", "tree_refusal"]
 _BODY_PARTS = ("force_x", "force_y", "moment")
 
 
@@ -97,10 +106,10 @@ def kinematic_loop_compile_refusal(model: Any) -> str:
     reason = tree_refusal(model, KinematicLoopModel, "ctmm.planar.closed_loops.KinematicLoopModel", compile_refusal)
     if reason:
         return reason
-    moments = [cut.name for cut in model.cuts if cut.has_moment or cut.driven]
-    if moments:
-        return (f"cut joints {moments} carry a moment law, a torque or a prescribed angle: their moment row is not in "
-                "the generated step yet; use compiled=None (the numpy RK4 with projection)")
+    for cut in model.cuts:
+        reason = cut_moment_refusal(cut)
+        if reason:
+            return reason
     for cut, points in zip(model.cuts, _cut_points(model)):
         for j, _ in points:
             if j >= 0 and j in model.tree.beams:
@@ -108,6 +117,40 @@ def kinematic_loop_compile_refusal(model: Any) -> str:
                         "at a ModalBeam end or a ctmm.fem subsystem node is a floating-frame wrench, not on the element "
                         "protocol of the generated kernels yet; use compiled=None (the numpy RK4 with projection)")
     return ""
+
+
+def cut_moment_refusal(cut: Any) -> str:
+    """Why the moment law, torque or drive of planar cut joint ``cut`` cannot be stated on symbols (an empty string
+    when it can; :func:`cut_load_refusal`)."""
+    fields = ("angle", "angle_rate", "angle_acceleration") if cut.driven else ("torque",)
+    return cut_load_refusal(cut.name, "moment_law", cut.moment_law, {field: getattr(cut, field) for field in fields})
+
+
+def cut_load_refusal(name: str, law_label: str, law: Any, signals: dict[str, Any]) -> str:
+    """Why cut joint ``name``'s law (field ``law_label``) or time signals (``{field: signal or None}``) cannot be
+    stated on symbols, an empty string when they can: a law must be :attr:`ctmm.nonlinear_laws.Law.expressible`, a
+    signal a :mod:`ctmm.signals` class with a symbolic form (:data:`ctmm.signals.SYMBOLIC_FIELDS`)."""
+    if law is not None and not law.expressible:
+        return (f"cut joint {name!r}: its {law_label} {law!r} is not expressible with casadi (user code without "
+                "automatic differentiation); give a CallableLaw a casadi-compatible force and no derivatives, or use "
+                "compiled=None (the numpy RK4 with projection)")
+    for field, signal in signals.items():
+        if signal is not None and signal_parameters(signal) is None:
+            return (f"cut joint {name!r}: its {field} {signal!r} has no symbolic form (a user callable); allowed "
+                    f"in generated code: ctmm.signals {', '.join(kind.__name__ for kind in SYMBOLIC_FIELDS)}; or use "
+                    "compiled=None (the numpy RK4 with projection)")
+    return ""
+
+
+def symbolic_time_signal(signal: Any, t: Any) -> Any:
+    """The value of a signal with a symbolic form at the time symbol ``t`` (its numbers fixed in the code)."""
+    return symbolic_signal(type(signal), t, signal_parameters(signal))
+
+
+def cut_rows(model: Any) -> list[int]:
+    """First row of every planar cut's unknowns and constraints, then their number: 2 per cut (its force), 3 per
+    driven cut (the drive's moment after the force), as :meth:`KinematicLoopModel.constraints` stacks them."""
+    return [int(row) for row in np.cumsum([0] + [3 if cut.driven else 2 for cut in model.cuts])]
 
 
 class CompiledKinematicLoops:
@@ -174,67 +217,22 @@ class CompiledKinematicLoops:
         Phi', G)``."""
         import casadi as ca
 
-        model, tree = self.model, self.model.tree
-        n, m = tree.n_coordinates, len(model.cuts)
-        points = _cut_points(model)
-        bodies = sorted({j for pair in points for j, _ in pair if j >= 0})
-        actuators = [f"{tree.body_names[j]}.{part}" for j in bodies for part in _BODY_PARTS]
-        ports = PlanarPorts(tree)
-        for k, name in enumerate(actuators):         # the ports' body force is the load the cut force is stated as
-            unit = ports.inputs({name: 1.0}).body_force
-            if unit[bodies[k // 3], k % 3] != 1.0 or np.count_nonzero(unit) != 1:
-                raise ModelError(f"CompiledKinematicLoops: actuator {name!r} is not the body force the cut forces "
-                                 "are stated as")
-        acceleration = symbolic_accelerations_with_inputs(tree, actuators)
-        n_p = self.parameters.size
+        n, n_p = self.model.tree.n_coordinates, self.parameters.size
+        closed, constraint = symbolic_closed_loop(self.model, n_p)
         q, v, p, t = ca.SX.sym("q", n), ca.SX.sym("v", n), ca.SX.sym("p", n_p), ca.SX.sym("t")
-        lam = ca.SX.sym("lambda", 2 * m)
-        kinematics = SymbolicKinematics(tree, q, v)
-        phi, phi_dot, loads = [], [], [ca.SX(0.0)] * len(actuators)
-        for k, pair in enumerate(points):
-            motion = []
-            for (j, end), sign in zip(pair, (-1.0, 1.0)):
-                if j < 0:
-                    motion.append((ca.DM(end), ca.DM.zeros(2)))
-                    continue
-                position, velocity = kinematics.point(j, end)
-                com, _ = kinematics.point(j, "com")
-                motion.append((ca.vertcat(*position), ca.vertcat(*velocity)))
-                arm = ca.vertcat(*position) - ca.vertcat(*com)
-                f = sign * lam[2 * k:2 * k + 2]
-                b = 3 * bodies.index(j)
-                loads[b] = loads[b] + f[0]
-                loads[b + 1] = loads[b + 1] + f[1]
-                loads[b + 2] = loads[b + 2] + arm[0] * f[1] - arm[1] * f[0]
-            phi.append(motion[1][0] - motion[0][0])
-            phi_dot.append(motion[1][1] - motion[0][1])
-        phi, phi_dot = ca.vertcat(*phi), ca.vertcat(*phi_dot)
-        jacobian = ca.jacobian(phi_dot, v)                      # Phi' = J qdot, J = J(q)
-        load = ca.Function("cut_loads", [q, lam], [ca.vertcat(*loads)])
-        qdd0 = acceleration(q, v, load(q, ca.DM.zeros(2 * m)), p, t)
-        columns = [acceleration(q, v, load(q, ca.DM.eye(2 * m)[:, i]), p, t) - qdd0 for i in range(2 * m)]
-        D = ca.horzcat(*columns)
-        G = ca.mtimes(jacobian, D)
-        a0 = ca.mtimes(jacobian, qdd0) + ca.jtimes(phi_dot, q, v)
-        alpha = model.baumgarte
-        target = -a0 - 2.0 * alpha * phi_dot - alpha * alpha * phi
-        forces = ca.solve(G, target)
-        qdd = qdd0 + ca.mtimes(D, forces)
-        condition = ca.norm_fro(G) * ca.norm_fro(ca.solve(G, ca.SX.eye(2 * m)))
+        qdd, condition, forces, phi, phi_dot, G = closed(q, v, ca.DM.zeros(0), p, t)
         y = ca.vertcat(q, v)
         rate = ca.Function("closed_rate", [y, p, t], [ca.vertcat(v, qdd), condition])
         outputs = ca.Function("outputs", [y, p, t], [forces, phi, phi_dot, G])
-
-        constraint = ca.Function("constraint", [q], [phi, jacobian])
         projected_q = q
         for _ in range(self.iterations):
-            residual, J = constraint(projected_q)
+            residual, _, J = constraint(projected_q, v, t)
             correction = ca.mtimes(J.T, ca.solve(ca.mtimes(J, J.T), residual))
             skip = ca.mmax(ca.fabs(residual)) < PROJECTION_SKIP
             projected_q = ca.if_else(skip, projected_q, projected_q - correction)
-        residual, J = constraint(projected_q)
-        projected_v = v - ca.mtimes(J.T, ca.solve(ca.mtimes(J, J.T), ca.mtimes(J, v)))
-        project = ca.Function("project", [y], [ca.vertcat(projected_q, projected_v), ca.mmax(ca.fabs(residual))])
+        residual, residual_rate, J = constraint(projected_q, v, t)
+        projected_v = v - ca.mtimes(J.T, ca.solve(ca.mtimes(J, J.T), residual_rate))
+        project = ca.Function("project", [y, t], [ca.vertcat(projected_q, projected_v), ca.mmax(ca.fabs(residual))])
 
         step = projected_rk4_step(rate, project, 2 * n, n_p)
         return step, [outputs]
@@ -256,24 +254,131 @@ class CompiledKinematicLoops:
         return np.concatenate([[0.0], steps * dt]), np.vstack([y0[None], states])
 
     def cut_history(self, t: np.ndarray, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Cut forces (rows, n_cuts, 2) [N], ``Phi`` (rows, 2 n_cuts) [m] and ``Phi'`` [m/s] of stored times ``t``
-        [s] and states (rows, at least ``2 n`` columns ``[q, qdot, ...]``), by the generated function mapped over the
-        rows (one call)."""
+        """Cut forces (rows, n_cuts, 2) [N], ``Phi`` (rows, constraint rows) [m, rad] and ``Phi'`` [m/s, rad/s] of
+        stored times ``t`` [s] and states (rows, at least ``2 n`` columns ``[q, qdot, ...]``), by the generated
+        function mapped over the rows (one call)."""
         rows, n, m = len(t), self.model.tree.n_coordinates, len(self.model.cuts)
+        starts = cut_rows(self.model)
         if rows == 0:
-            return np.zeros((0, m, 2)), np.zeros((0, 2 * m)), np.zeros((0, 2 * m))
+            return np.zeros((0, m, 2)), np.zeros((0, starts[-1])), np.zeros((0, starts[-1]))
         mapped = self._outputs.map(rows)
-        forces, phi, phi_dot, _ = mapped(states[:, :2 * n].T, np.repeat(self.parameters[:, None], rows, axis=1),
-                                         np.asarray(t, dtype=float)[None, :])
-        return (np.asarray(forces).T.reshape(rows, m, 2), np.asarray(phi).T.copy(), np.asarray(phi_dot).T.copy())
+        unknowns, phi, phi_dot, _ = mapped(states[:, :2 * n].T, np.repeat(self.parameters[:, None], rows, axis=1),
+                                           np.asarray(t, dtype=float)[None, :])
+        unknowns = np.asarray(unknowns).T
+        forces = np.stack([unknowns[:, start:start + 2] for start in starts[:-1]], axis=1)
+        return forces, np.asarray(phi).T.copy(), np.asarray(phi_dot).T.copy()
 
     def cut_outputs(self, q: np.ndarray, qdot: np.ndarray, t: float = 0.0
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Cut forces (n_cuts, 2) [N], ``Phi`` [m], ``Phi'`` [m/s] and the boundary compliance ``G`` at a state, by
-        the generated function (as :meth:`KinematicLoopModel.solve` and :meth:`~KinematicLoopModel.constraints`)."""
-        forces, phi, phi_dot, G = self._outputs(np.concatenate([q, qdot]), self.parameters, float(t))
-        return (np.asarray(forces).reshape(-1, 2), np.asarray(phi).reshape(-1), np.asarray(phi_dot).reshape(-1),
-                np.asarray(G))
+        """Cut forces (n_cuts, 2) [N], ``Phi`` [m, rad], ``Phi'`` [m/s, rad/s] and the boundary compliance ``G`` at a
+        state, by the generated function (as :meth:`KinematicLoopModel.solve` and
+        :meth:`~KinematicLoopModel.constraints`)."""
+        unknowns, phi, phi_dot, G = self._outputs(np.concatenate([q, qdot]), self.parameters, float(t))
+        unknowns = np.asarray(unknowns).reshape(-1)
+        forces = np.array([unknowns[start:start + 2] for start in cut_rows(self.model)[:-1]])
+        return forces, np.asarray(phi).reshape(-1), np.asarray(phi_dot).reshape(-1), np.asarray(G)
+
+
+def symbolic_closed_loop(model: KinematicLoopModel, n_parameters: int, extra_actuators: tuple[str, ...] = ()
+                         ) -> tuple[Any, Any]:
+    """The closed-loop accelerations of a planar kinematic loop model on symbols (module docstring):
+    ``closed(q, qdot, u, p, t) -> (qddot, condition, cut unknowns, Phi, Phi', G)`` with the actuator values ``u`` of
+    ``extra_actuators`` (the tree's actuators of :class:`~ctmm.planar.ports.PlanarPorts` and the undriven cuts'
+    ``"<cut>.torque"``, applied with the cut loads: the cut unknowns react to them), ``p`` the tree's
+    ``n_parameters`` numbers; and ``constraint(q, qdot, t) -> (Phi, Phi', J)``."""
+    import casadi as ca
+
+    tree, n_p, extra_actuators = model.tree, n_parameters, tuple(extra_actuators)
+    n = tree.n_coordinates
+    points = _cut_points(model)
+    bodies = sorted({j for pair in points for j, _ in pair if j >= 0})
+    actuators = [f"{tree.body_names[j]}.{part}" for j in bodies for part in _BODY_PARTS]
+    ports = PlanarPorts(tree)
+    for k, name in enumerate(actuators):         # the ports' body force is the load the cut force is stated as
+        unit = ports.inputs({name: 1.0}).body_force
+        if unit[bodies[k // 3], k % 3] != 1.0 or np.count_nonzero(unit) != 1:
+            raise ModelError(f"kinematic loop {model.name!r}: actuator {name!r} is not the body force the cut forces "
+                             "are stated as")
+    cut_torques = [name for name in extra_actuators if name.endswith(".torque") and name[:-7] in
+                   {cut.name for cut in model.cuts if not cut.driven}]
+    tree_inputs = [name for name in extra_actuators if name not in cut_torques and name not in actuators]
+    acceleration = symbolic_accelerations_with_inputs(tree, actuators + tree_inputs)
+    rows = cut_rows(model)
+    q, v, p, t = ca.SX.sym("q", n), ca.SX.sym("v", n), ca.SX.sym("p", n_p), ca.SX.sym("t")
+    lam, u = ca.SX.sym("lambda", rows[-1]), ca.SX.sym("u", len(extra_actuators))
+    kinematics = SymbolicKinematics(tree, q, v)
+    phi, phi_dot, drive_acceleration = [], [], []
+    loads, moments = [ca.SX(0.0)] * len(actuators), [ca.SX(0.0)] * len(actuators)
+    for k, (cut, pair) in enumerate(zip(model.cuts, points)):
+        motion, angles = [], []
+        for (j, end), sign in zip(pair, (-1.0, 1.0)):
+            if j < 0:
+                motion.append((ca.DM(end), ca.DM.zeros(2)))
+                angles.append((0.0, 0.0))
+                continue
+            position, velocity = kinematics.point(j, end)
+            com, _ = kinematics.point(j, "com")
+            motion.append((ca.vertcat(*position), ca.vertcat(*velocity)))
+            angles.append((kinematics.theta[j], kinematics.omega[j]))
+            arm = ca.vertcat(*position) - ca.vertcat(*com)
+            f = sign * lam[rows[k]:rows[k] + 2]
+            b = 3 * bodies.index(j)
+            loads[b] = loads[b] + f[0]
+            loads[b + 1] = loads[b + 1] + f[1]
+            loads[b + 2] = loads[b + 2] + arm[0] * f[1] - arm[1] * f[0]
+        phi.append(motion[1][0] - motion[0][0])
+        phi_dot.append(motion[1][1] - motion[0][1])
+        drive_acceleration += [0.0, 0.0]
+        angle, angle_rate = angles[1][0] - angles[0][0], angles[1][1] - angles[0][1]
+        if cut.driven:          # one more row: dtheta = angle(t); its unknown the drive's moment on the child
+            phi.append(angle - symbolic_time_signal(cut.angle, t))
+            phi_dot.append(angle_rate - symbolic_time_signal(cut.angle_rate, t))
+            drive_acceleration.append(symbolic_time_signal(cut.angle_acceleration, t))
+            tau = lam[rows[k] + 2]
+        elif cut.has_moment or f"{cut.name}.torque" in cut_torques:   # torque(t) + u - law(...): applied
+            tau = 0.0 if cut.torque is None else symbolic_time_signal(cut.torque, t)
+            if f"{cut.name}.torque" in cut_torques:
+                tau = tau + u[list(extra_actuators).index(f"{cut.name}.torque")]
+            if cut.moment_law is not None:
+                tau = tau - cut.moment_law.force(angle - cut.rest_angle, angle_rate)
+        else:
+            continue
+        for (j, _), sign in zip(pair, (-1.0, 1.0)):
+            if j >= 0:
+                b = 3 * bodies.index(j) + 2
+                moments[b] = moments[b] + sign * tau
+    phi, phi_dot = ca.vertcat(*phi), ca.vertcat(*phi_dot)
+    jacobian = ca.jacobian(phi_dot, v)                      # Phi' = J qdot - (drive rates), J = J(q)
+    applied = ca.vertcat(*loads) + ca.vertcat(*moments)
+    for k, name in enumerate(extra_actuators):      # the tree's own actuators: an input each
+        if name in actuators:
+            applied[actuators.index(name)] += u[k]
+    tree_values = [u[list(extra_actuators).index(name)] for name in tree_inputs]
+    unknown = ca.Function("cut_loads", [q, v, t, lam, u], [ca.vertcat(applied, *tree_values)])
+    qdd0 = acceleration(q, v, unknown(q, v, t, ca.DM.zeros(rows[-1]), u), p, t)
+    columns = [acceleration(q, v, unknown(q, v, t, ca.DM.eye(rows[-1])[:, i], u), p, t) - qdd0
+               for i in range(rows[-1])]
+    D = ca.horzcat(*columns)
+    G = ca.mtimes(jacobian, D)
+    a0 = ca.mtimes(jacobian, qdd0) + ca.jtimes(phi_dot, q, v) - ca.vertcat(*drive_acceleration)
+    alpha = model.baumgarte
+    target = -a0 - 2.0 * alpha * phi_dot - alpha * alpha * phi
+    forces = ca.solve(G, target)
+    qdd = qdd0 + ca.mtimes(D, forces)
+    condition = ca.norm_fro(G) * ca.norm_fro(ca.solve(G, ca.SX.eye(rows[-1])))
+    closed = ca.Function("closed", [q, v, u, p, t], [qdd, condition, forces, phi, phi_dot, G])
+    return closed, ca.Function("constraint", [q, v, t], [phi, phi_dot, jacobian])
+
+
+def symbolic_relative_angles(model: KinematicLoopModel, kinematics: SymbolicKinematics) -> list[tuple[Any, Any]]:
+    """``[(dtheta, dtheta')]`` of every cut on the symbols of ``kinematics`` (of ``model.tree``): the child body's
+    angle and rate minus the parent's (0 at the ground), as :meth:`KinematicLoopModel.relative_angles` (rigid
+    sides)."""
+    out = []
+    for parent, child in _cut_points(model):
+        sides = [(0.0, 0.0) if j < 0 else (kinematics.theta[j], kinematics.omega[j]) for j, _ in (parent, child)]
+        out.append((sides[1][0] - sides[0][0], sides[1][1] - sides[0][1]))
+    return out
 
 
 def generated_run(kind: type, model: Any, q: np.ndarray, v: np.ndarray, t_final: float, dt: float, store_every: int,
@@ -298,7 +403,8 @@ def generated_run(kind: type, model: Any, q: np.ndarray, v: np.ndarray, t_final:
 def projected_rk4_step(rate: Any, project: Any, size: int, n_parameters: int) -> Any:
     """The generated ``step(y, u, h, p, t0, k)`` of a kinematic loop model on the state ``[x, residual, condition]``
     (``x`` of ``size``): one RK4 step of ``rate`` (``(x, p, t) -> (x_dot, condition)``) from ``t0 + k h`` by ``h``
-    (:func:`ctmm.ode.rk4_step` on symbols), then ``project`` (``x -> (x, residual)``); ``residual`` and ``condition``
+    (:func:`ctmm.ode.rk4_step` on symbols), then ``project`` (``(x, t) -> (x, residual)`` at the step's end time
+    ``t``); ``residual`` and ``condition``
     carried as the largest so far (the condition of the four stages)."""
     import casadi as ca
 
@@ -311,7 +417,7 @@ def projected_rk4_step(rate: Any, project: Any, size: int, n_parameters: int) ->
         conditions.append(stage_condition)
         return x_dot
 
-    projected, residual = project(rk4_step(stage_rate, t0 + index * h, state[:size], h))
+    projected, residual = project(rk4_step(stage_rate, t0 + index * h, state[:size], h), t0 + (index + 1) * h)
     worst = conditions[0]
     for value in conditions[1:]:
         worst = ca.fmax(worst, value)

@@ -15,27 +15,34 @@ projection onto the cut joints after it, the time loop in generated C.  On casad
   -- and alignments ``u_i . b_i``),
   ``J = dPhi'/dv``, ``Phi'' = J v' + (dPhi'/dq) G(q) v`` (``q_dot = G(q) v``, quaternions), ``G = J D`` and
   ``G lambda = -Phi''_0 - 2 alpha Phi' - alpha^2 Phi``;
-* after the RK4 step: quaternions normalised, ``iterations`` minimum-norm Gauss-Newton steps
+* a revolute or prismatic cut's law and actuation add the load ``actuation(t) - law(s - rest, s')`` along the
+  cut's coordinate ``s`` (:func:`ctmm.spatial.closed_loop_cuts.cut_coordinate` on symbols: a moment about the axis,
+  or a force at the child point along the guide; the opposite on the parent) to the applied wrenches of every load
+  case, the law traced on symbols, the actuation by its symbolic form; a driven cut adds the row ``s -
+  position(t)`` (``s' - rate(t)``, ``- acceleration(t)`` in ``Phi''``), its unknown the drive's load along ``s``;
+* after the RK4 step (at its end time): quaternions normalised, ``iterations`` minimum-norm Gauss-Newton steps
   ``q <- normalised(q + G(q) dx)``, ``dx = -J^T (J J^T)^-1 Phi`` (skipped once ``max |Phi| < 1e-14``), then
   ``v <- v - J^T (J J^T)^-1 Phi'``.
 
 State, failures and result as :mod:`ctmm.compiled_kinematic_loops` (residual and condition carried in the state,
 :class:`~ctmm.errors.SimulationError` with time, cut joint and partial result).  Refused (:class:`ModelError`, by
-name): trees :func:`ctmm.compiled_spatial.spatial_compile_refusal` refuses, cut joints with a law, an actuation or a
-drive (their load along the cut's coordinate is not in the generated step yet), driven joints (their prescribed
-motion enters ``Phi'`` and ``Phi''`` explicitly in time, which the generated step does not differentiate), and with
-feedback loops, inputs or controllers (:mod:`ctmm.spatial_loop_time`).
+name): trees :func:`ctmm.compiled_spatial.spatial_compile_refusal` refuses,
+laws casadi cannot express and actuations or drives without a symbolic form (user callables:
+:func:`spatial_cut_load_refusal`), driven tree joints (their prescribed motion enters ``Phi'`` and ``Phi''``
+explicitly in time through the tree's kinematics, not in the generated step yet), and with feedback loops, inputs or
+controllers (:mod:`ctmm.spatial_loop_time`).
 """
 from __future__ import annotations
 
 import os
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
 from .articulated import articulated_sweep
 from .compiled_kinematic_loops import (CompiledKinematicLoops, first_failure, generated_failure, generated_run,
-                                       projected_rk4_step, tree_refusal)
+                                       cut_load_refusal, projected_rk4_step, symbolic_time_signal,
+                                       tree_refusal)
 from .compiled_spatial import position_rates, spatial_compile_refusal
 from .loop_integration import PROJECTION_SKIP
 from .ops import CASADI
@@ -43,9 +50,10 @@ from .spatial.body_forms import SpatialScene
 from .spatial.closed_loop_cuts import cut_frame
 from .spatial.closed_loop_time import SpatialLoopSimulation
 from .spatial.closed_loops import SpatialKinematicLoopModel
+from .spatial.ports import SpatialPorts
 
-__all__ = ["CompiledSpatialKinematicLoops", "spatial_kinematic_loop_compile_refusal",
-           "simulate_spatial_kinematic_loops_generated"]
+__all__ = ["CompiledSpatialKinematicLoops", "spatial_cut_load_refusal", "spatial_kinematic_loop_compile_refusal",
+           "simulate_spatial_kinematic_loops_generated", "symbolic_spatial_closed_loop"]
 
 
 def spatial_kinematic_loop_compile_refusal(model: Any) -> str:
@@ -54,15 +62,214 @@ def spatial_kinematic_loop_compile_refusal(model: Any) -> str:
                           spatial_compile_refusal)
     if reason:
         return reason
-    loaded = [cut.name for cut in model.cuts if cut.has_law or cut.driven]
-    if loaded:
-        return (f"cut joints {loaded} carry a law, an actuation or a drive: their load along the cut's coordinate is "
-                "not in the generated step yet; use compiled=None (the numpy RK4 with projection)")
+    for cut in model.cuts:
+        reason = spatial_cut_load_refusal(cut)
+        if reason:
+            return reason
     driven = [joint.name for joint in model.tree.joints if joint.driven]
     if driven:
         return (f"its tree has driven joints ({', '.join(driven)}): their prescribed motion enters Phi' and Phi'' "
                 "explicitly in time, not in the generated step yet; use compiled=None")
     return ""
+
+
+def spatial_cut_load_refusal(cut: Any) -> str:
+    """Why the law, actuation or drive of spatial cut joint ``cut`` cannot be stated on symbols (an empty string when
+    it can; :func:`ctmm.compiled_kinematic_loops.cut_load_refusal`)."""
+    fields = ("position", "rate", "acceleration") if cut.driven else ("actuation",)
+    return cut_load_refusal(cut.name, "law", cut.law, {field: getattr(cut, field) for field in fields})
+
+
+def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuators: Sequence[str] = ()
+                                 ) -> tuple[Any, Any, Any]:
+    """The closed-loop velocity rates of a spatial kinematic loop model on symbols (module docstring):
+    ``closed(q, v, u, p, t) -> (v', condition, cut unknowns, Phi, Phi', G)`` with the actuator values ``u`` of
+    ``extra_actuators`` (the tree's port actuators, :mod:`ctmm.spatial.ports`, and the undriven revolute and
+    prismatic cuts' ``"<cut>.torque"`` / ``"<cut>.force"``, applied with the cut loads), ``p`` empty;
+    ``constraint(q, v, t) -> (Phi, Phi', J)``; ``cut_coordinates(q, v) -> [s_1, s_1', ...]`` (0 for cuts without a
+    coordinate)."""
+    import casadi as ca
+
+    tree = model.tree
+    nq, nv, m = tree.n_positions, tree.n_velocities, model.n_constraints
+    scene = SpatialScene(tree)
+    sides, frames = _cut_sides(model), [cut_frame(cut) for cut in model.cuts]
+    q, v, lam = ca.SX.sym("q", nq), ca.SX.sym("v", nv), ca.SX.sym("lambda", m)
+    extra_actuators = tuple(extra_actuators)
+    u = ca.SX.sym("u", len(extra_actuators))
+    along_ports = {f"{cut.name}.{'torque' if cut.kind == 'revolute' else 'force'}": cut.name
+                   for cut in model.cuts if cut.kind in ("revolute", "prismatic") and not cut.driven}
+    port_loads = {name: sum((u[k] for k, port in enumerate(extra_actuators) if along_ports.get(port) == name),
+                            ca.SX(0.0)) for name in along_ports.values()}
+    joint_inputs, tree_wrenches = _tree_actuators(model, [(k, name) for k, name in enumerate(extra_actuators)
+                                                          if name not in along_ports], u)
+    p, t = ca.SX.sym("p", 0), ca.SX.sym("t")
+
+    def kinematics(q_: Any, v_: Any) -> list:
+        return scene.terms(CASADI, q_, v_, 0.0)[2]
+
+    def point(states: list, side: tuple[int, np.ndarray]) -> tuple[Any, Any]:
+        body, location = side
+        if body < 0:
+            return ca.DM(location), ca.DM.zeros(3)
+        s = states[body]
+        arm = ca.mtimes(s.rotation, ca.DM(location))
+        return s.origin + arm, s.velocity + ca.cross(s.omega, arm)
+
+    def parent_fixed(states: list, parent: tuple[int, np.ndarray], local: np.ndarray) -> Any:
+        return ca.DM(local) if parent[0] < 0 else ca.mtimes(states[parent[0]].rotation, ca.DM(local))
+
+    def coordinate(states: list, cut: Any, parent: tuple, child: tuple) -> tuple[Any, Any, Any]:
+        """The cut's coordinate ``s``, its rate and direction ``a`` on symbols
+        (:func:`ctmm.spatial.closed_loop_cuts.cut_coordinate`)."""
+        xp, vp = point(states, parent)
+        xc, vc = point(states, child)
+        omega_c = states[child[0]].omega
+        omega_p = ca.DM.zeros(3) if parent[0] < 0 else states[parent[0]].omega
+        rotation_c = states[child[0]].rotation
+        if cut.kind == "revolute":
+            a = ca.mtimes(rotation_c, ca.DM(np.asarray(cut.axis, float)))
+            n_c = ca.mtimes(rotation_c, ca.DM(np.asarray(cut.normal, float)))
+            n_p = parent_fixed(states, parent, np.asarray(cut.parent_normal, float))
+            return ca.atan2(ca.dot(ca.cross(n_p, n_c), a), ca.dot(n_p, n_c)), ca.dot(omega_c - omega_p, a), a
+        a = parent_fixed(states, parent, np.asarray(cut.parent_axis, float))
+        return ca.dot(xc - xp, a), ca.dot(vc - vp, a) + ca.dot(xc - xp, ca.cross(omega_p, a)), a
+
+    def rows(q_: Any, v_: Any, t_: Any) -> tuple[Any, Any]:
+        states = kinematics(q_, v_)
+        phi, rate = [], []
+        for cut, (parent, child), frame in zip(model.cuts, sides, frames):
+            xp, vp = point(states, parent)
+            xc, vc = point(states, child)
+            omega_c = states[child[0]].omega
+            omega_p = ca.DM.zeros(3) if parent[0] < 0 else states[parent[0]].omega
+            if frame.basis is None:
+                phi.append(xc - xp)
+                rate.append(vc - vp)
+            for b_local in frame.basis or ():        # prismatic: d . b_j, b_j parent-fixed
+                b = parent_fixed(states, parent, b_local)
+                phi.append(ca.dot(xc - xp, b))
+                rate.append(ca.dot(vc - vp, b) + ca.dot(xc - xp, ca.cross(omega_p, b)))
+            for u_local, b_local in frame.pairs:
+                u = ca.mtimes(states[child[0]].rotation, ca.DM(u_local))
+                b = ca.DM(b_local) if parent[0] < 0 else ca.mtimes(states[parent[0]].rotation, ca.DM(b_local))
+                phi.append(ca.dot(u, b))
+                rate.append(ca.dot(omega_c - omega_p, ca.cross(u, b)))
+            if cut.driven:                           # s - position(t), s' - rate(t)
+                value, value_rate, _ = coordinate(states, cut, parent, child)
+                phi.append(value - symbolic_time_signal(cut.position, t_))
+                rate.append(value_rate - symbolic_time_signal(cut.rate, t_))
+        return ca.vertcat(*phi), ca.vertcat(*rate)
+
+    def wrenches(states: list, values: Any, t_: Any) -> dict:
+        """The cut loads of the unknowns ``values`` and the cuts' laws and actuations at time ``t_`` as wrenches
+        ``(point, [f ; m] world)`` per body."""
+        out: dict[int, list] = {}
+        row = 0
+        for cut, (parent, child), frame in zip(model.cuts, sides, frames):
+            if frame.basis is None:
+                force = values[row:row + 3]
+                row += 3
+            else:                                   # prismatic: lambda_j b_j
+                force = ca.DM.zeros(3)
+                for b_local in frame.basis:
+                    force = force + values[row] * parent_fixed(states, parent, b_local)
+                    row += 1
+            moment = ca.DM.zeros(3)
+            for u_local, b_local in frame.pairs:
+                u = ca.mtimes(states[child[0]].rotation, ca.DM(u_local))
+                b = ca.DM(b_local) if parent[0] < 0 else ca.mtimes(states[parent[0]].rotation, ca.DM(b_local))
+                moment = moment + values[row] * ca.cross(u, b)
+                row += 1
+            along = None
+            if cut.driven:                          # the drive's load along the coordinate: an unknown
+                along = values[row]
+                row += 1
+            elif cut.has_law or cut.name in port_loads:     # actuation(t) + u - law(s - rest, s')
+                value, value_rate, _ = coordinate(states, cut, parent, child)
+                along = 0.0 if cut.actuation is None else symbolic_time_signal(cut.actuation, t_)
+                along = along + port_loads.get(cut.name, 0.0)
+                if cut.law is not None:
+                    along = along - cut.law.force(value - cut.rest, value_rate)
+            if along is not None:
+                a = coordinate(states, cut, parent, child)[2]
+                if cut.kind == "revolute":
+                    moment = moment + along * a
+                else:                               # prismatic: a force at the child point
+                    force = force + along * a
+            load = ca.vertcat(force, moment)
+            out.setdefault(child[0], []).append((child[1], load))
+            if parent[0] >= 0:                      # prismatic: the force acts at the child point
+                shift = ca.DM.zeros(3) if frame.basis is None else ca.cross(
+                    point(states, child)[0] - point(states, parent)[0], force)
+                out.setdefault(parent[0], []).append((parent[1], -ca.vertcat(force, moment + shift)))
+        return out
+
+    states = kinematics(q, v)
+    loads = wrenches(states, lam, t)
+    for body, entries in tree_wrenches.items():
+        loads.setdefault(body, []).extend(entries)
+    body_terms, joint_terms, _ = scene.terms(CASADI, q, v, 0.0, joint_inputs or None, loads)
+    solution = articulated_sweep(CASADI, scene.tree, body_terms, joint_terms)
+    sweep = ca.Function("loaded_sweep", [q, v, t, lam, u], [ca.vertcat(*scene.velocity_rates(solution))])
+    v_dot0 = sweep(q, v, t, ca.DM.zeros(m), u)
+    D = ca.horzcat(*[sweep(q, v, t, ca.DM.eye(m)[:, i], u) - v_dot0 for i in range(m)])
+    phi, phi_dot = rows(q, v, t)
+    J = ca.jacobian(phi_dot, v)
+    q_dot = position_rates(tree, q, v)
+    drive = []                                      # - acceleration(t) on a driven cut's row
+    for cut in model.cuts:
+        drive += [0.0] * (cut.n_rows - 1) + [symbolic_time_signal(cut.acceleration, t) if cut.driven else 0.0]
+    c0 = ca.mtimes(J, v_dot0) + ca.jtimes(phi_dot, q, q_dot) - ca.vertcat(*drive)
+    G = ca.mtimes(J, D)
+    alpha = model.baumgarte
+    forces = ca.solve(G, -c0 - 2.0 * alpha * phi_dot - alpha * alpha * phi)
+    condition = ca.norm_fro(G) * ca.norm_fro(ca.solve(G, ca.SX.eye(m)))
+    states = kinematics(q, v)
+    coordinates = []
+    for cut, (parent, child) in zip(model.cuts, sides):
+        value, value_rate, _ = coordinate(states, cut, parent, child) if cut.kind in ("revolute", "prismatic") \
+            else (0.0, 0.0, None)
+        coordinates += [value, value_rate]
+    closed = ca.Function("closed", [q, v, u, p, t], [v_dot0 + ca.mtimes(D, forces), condition, forces, phi,
+                                                      phi_dot, G])
+    return (closed, ca.Function("constraint", [q, v, t], [phi, phi_dot, J]),
+            ca.Function("cut_coordinates", [q, v], [ca.vertcat(*coordinates)]))
+
+
+def _cut_sides(model: SpatialKinematicLoopModel) -> list[tuple[tuple[int, np.ndarray], tuple[int, np.ndarray]]]:
+    """Per cut ``((parent body or -1, point), (child body, point))``: body axes from the body origin, or the ground
+    location in world axes."""
+    bodies = model.tree.bodies
+    names = [b.name for b in bodies]
+    out = []
+    for cut in model.cuts:
+        parent = ((-1, np.asarray(cut.point, float)) if cut.parent is None else
+                  (names.index(cut.parent), np.asarray(bodies[names.index(cut.parent)].points[cut.point], float)))
+        child = names.index(cut.child)
+        out.append((parent, (child, np.asarray(bodies[child].points[cut.child_point], float))))
+    return out
+
+
+def _tree_actuators(model: SpatialKinematicLoopModel, actuators: Sequence[tuple[int, str]], u: Any
+                    ) -> tuple[dict, dict]:
+    """The tree's port actuators ``[(index in u, name)]`` on the symbols ``u``: ``(joint inputs, wrenches)`` for
+    :meth:`SpatialScene.terms`, each the port's unit load (:meth:`SpatialPorts.inputs`) times its value."""
+    import casadi as ca
+
+    ports = SpatialPorts(model.tree)
+    joints: dict[str, Any] = {}
+    wrenches: dict[int, list] = {}
+    for k, name in actuators:
+        unit = ports.inputs({name: 1.0})
+        for target, value in unit.joint.items():
+            column = ca.DM(np.reshape(np.asarray(value, float), (-1, 1)))
+            joints[target] = joints.get(target, ca.SX.zeros(column.size1(), 1)) + column * u[k]
+        for body, entries in unit.wrenches.items():
+            for point, load, *axes in entries:
+                wrenches.setdefault(int(body), []).append(
+                    (np.asarray(point, float), ca.DM(np.reshape(np.asarray(load, float), (6, 1))) * u[k], *axes))
+    return joints, wrenches
 
 
 class CompiledSpatialKinematicLoops(CompiledKinematicLoops):
@@ -92,125 +299,32 @@ class CompiledSpatialKinematicLoops(CompiledKinematicLoops):
                 f"spatial_kinematic_loops_{tree.n_bodies}b{tree.n_velocities}v{len(model.cuts)}c",
                 (tree, model.cuts, model.baumgarte, "spatial kinematic loop rk4"))
 
-    def _sides(self) -> list[tuple[tuple[int, np.ndarray], tuple[int, np.ndarray]]]:
-        """Per cut ``((parent body or -1, point), (child body, point))``: body axes from the body origin, or the
-        ground location in world axes."""
-        bodies = self.model.tree.bodies
-        names = [b.name for b in bodies]
-        out = []
-        for cut in self.model.cuts:
-            parent = ((-1, np.asarray(cut.point, float)) if cut.parent is None else
-                      (names.index(cut.parent), np.asarray(bodies[names.index(cut.parent)].points[cut.point], float)))
-            child = names.index(cut.child)
-            out.append((parent, (child, np.asarray(bodies[child].points[cut.child_point], float))))
-        return out
-
     def _build(self) -> tuple[Any, list]:
         """``(step, [outputs])`` on symbols: the RK4 step with projection and ``outputs(y, p, t) -> (lambda, Phi,
         Phi', G)``."""
         import casadi as ca
 
-        model, tree = self.model, self.model.tree
-        nq, nv, m = tree.n_positions, tree.n_velocities, model.n_constraints
-        scene = SpatialScene(tree)
-        sides, frames = self._sides(), [cut_frame(cut) for cut in model.cuts]
-        q, v, lam = ca.SX.sym("q", nq), ca.SX.sym("v", nv), ca.SX.sym("lambda", m)
-        p, t = ca.SX.sym("p", 0), ca.SX.sym("t")
-
-        def kinematics(q_: Any, v_: Any) -> list:
-            return scene.terms(CASADI, q_, v_, 0.0)[2]
-
-        def point(states: list, side: tuple[int, np.ndarray]) -> tuple[Any, Any]:
-            body, location = side
-            if body < 0:
-                return ca.DM(location), ca.DM.zeros(3)
-            s = states[body]
-            arm = ca.mtimes(s.rotation, ca.DM(location))
-            return s.origin + arm, s.velocity + ca.cross(s.omega, arm)
-
-        def parent_fixed(states: list, parent: tuple[int, np.ndarray], local: np.ndarray) -> Any:
-            return ca.DM(local) if parent[0] < 0 else ca.mtimes(states[parent[0]].rotation, ca.DM(local))
-
-        def rows(q_: Any, v_: Any) -> tuple[Any, Any]:
-            states = kinematics(q_, v_)
-            phi, rate = [], []
-            for (parent, child), frame in zip(sides, frames):
-                xp, vp = point(states, parent)
-                xc, vc = point(states, child)
-                omega_c = states[child[0]].omega
-                omega_p = ca.DM.zeros(3) if parent[0] < 0 else states[parent[0]].omega
-                if frame.basis is None:
-                    phi.append(xc - xp)
-                    rate.append(vc - vp)
-                for b_local in frame.basis or ():        # prismatic: d . b_j, b_j parent-fixed
-                    b = parent_fixed(states, parent, b_local)
-                    phi.append(ca.dot(xc - xp, b))
-                    rate.append(ca.dot(vc - vp, b) + ca.dot(xc - xp, ca.cross(omega_p, b)))
-                for u_local, b_local in frame.pairs:
-                    u = ca.mtimes(states[child[0]].rotation, ca.DM(u_local))
-                    b = ca.DM(b_local) if parent[0] < 0 else ca.mtimes(states[parent[0]].rotation, ca.DM(b_local))
-                    phi.append(ca.dot(u, b))
-                    rate.append(ca.dot(omega_c - omega_p, ca.cross(u, b)))
-            return ca.vertcat(*phi), ca.vertcat(*rate)
-
-        def wrenches(states: list, values: Any) -> dict:
-            """The cut loads of the unknowns ``values`` as wrenches ``(point, [f ; m] world)`` per body."""
-            out: dict[int, list] = {}
-            row = 0
-            for (parent, child), frame in zip(sides, frames):
-                if frame.basis is None:
-                    force = values[row:row + 3]
-                    row += 3
-                else:                                   # prismatic: lambda_j b_j
-                    force = ca.DM.zeros(3)
-                    for b_local in frame.basis:
-                        force = force + values[row] * parent_fixed(states, parent, b_local)
-                        row += 1
-                moment = ca.DM.zeros(3)
-                for u_local, b_local in frame.pairs:
-                    u = ca.mtimes(states[child[0]].rotation, ca.DM(u_local))
-                    b = ca.DM(b_local) if parent[0] < 0 else ca.mtimes(states[parent[0]].rotation, ca.DM(b_local))
-                    moment = moment + values[row] * ca.cross(u, b)
-                    row += 1
-                load = ca.vertcat(force, moment)
-                out.setdefault(child[0], []).append((child[1], load))
-                if parent[0] >= 0:                      # prismatic: the force acts at the child point
-                    shift = ca.DM.zeros(3) if frame.basis is None else ca.cross(
-                        point(states, child)[0] - point(states, parent)[0], force)
-                    out.setdefault(parent[0], []).append((parent[1], -ca.vertcat(force, moment + shift)))
-            return out
-
-        states = kinematics(q, v)
-        body_terms, joint_terms, _ = scene.terms(CASADI, q, v, 0.0, None, wrenches(states, lam))
-        solution = articulated_sweep(CASADI, scene.tree, body_terms, joint_terms)
-        sweep = ca.Function("loaded_sweep", [q, v, lam], [ca.vertcat(*scene.velocity_rates(solution))])
-        v_dot0 = sweep(q, v, ca.DM.zeros(m))
-        D = ca.horzcat(*[sweep(q, v, ca.DM.eye(m)[:, i]) - v_dot0 for i in range(m)])
-        phi, phi_dot = rows(q, v)
-        J = ca.jacobian(phi_dot, v)
-        q_dot = position_rates(tree, q, v)
-        c0 = ca.mtimes(J, v_dot0) + ca.jtimes(phi_dot, q, q_dot)
-        G = ca.mtimes(J, D)
-        alpha = model.baumgarte
-        forces = ca.solve(G, -c0 - 2.0 * alpha * phi_dot - alpha * alpha * phi)
-        condition = ca.norm_fro(G) * ca.norm_fro(ca.solve(G, ca.SX.eye(m)))
+        tree = self.model.tree
+        nq, nv = tree.n_positions, tree.n_velocities
+        closed, constraint, _ = symbolic_spatial_closed_loop(self.model)
+        q, v, p, t = ca.SX.sym("q", nq), ca.SX.sym("v", nv), ca.SX.sym("p", 0), ca.SX.sym("t")
+        v_dot, condition, forces, phi, phi_dot, G = closed(q, v, ca.DM.zeros(0), p, t)
         y = ca.vertcat(q, v)
-        rate = ca.Function("closed_rate", [y, p, t], [ca.vertcat(q_dot, v_dot0 + ca.mtimes(D, forces)), condition])
+        rate = ca.Function("closed_rate", [y, p, t], [ca.vertcat(position_rates(tree, q, v), v_dot), condition])
         outputs = ca.Function("outputs", [y, p, t], [forces, phi, phi_dot, G])
 
-        constraint = ca.Function("constraint", [q, v], [phi, phi_dot, J])
         dx = ca.SX.sym("dx", nv)
         normalize = ca.Function("normalized", [q], [self._normalized(q)])
         retract = ca.Function("retract", [q, dx], [normalize(q + position_rates(tree, q, dx))])
         qk = normalize(q)
-        residual, rate_k, Jk = constraint(qk, v)
+        residual, rate_k, Jk = constraint(qk, v, t)
         for _ in range(self.iterations):
             step_q = retract(qk, -ca.mtimes(Jk.T, ca.solve(ca.mtimes(Jk, Jk.T), residual)))
             moved = ca.mmax(ca.fabs(residual)) >= PROJECTION_SKIP
             qk = ca.if_else(moved, step_q, qk)
-            residual, rate_k, Jk = constraint(qk, v)
+            residual, rate_k, Jk = constraint(qk, v, t)
         vk = v - ca.mtimes(Jk.T, ca.solve(ca.mtimes(Jk, Jk.T), rate_k))
-        project = ca.Function("project", [y], [ca.vertcat(qk, vk), ca.mmax(ca.fabs(residual))])
+        project = ca.Function("project", [y, t], [ca.vertcat(qk, vk), ca.mmax(ca.fabs(residual))])
         return projected_rk4_step(rate, project, nq + nv, 0), [outputs]
 
     def _normalized(self, q: Any) -> Any:

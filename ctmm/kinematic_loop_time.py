@@ -9,7 +9,9 @@ With feedback loops (``ctmm.control.with_feedback(loop_model, loops)``), open-lo
 solved as boundary unknowns under the actuator values of every stage or Newton iterate; real-time loops
 at the current state, delayed loops from the delay history; ``"rk4"``, the ``solve_ivp`` methods and the
 DT-TMM schemes.  Constraint drift is held by Baumgarte stabilisation (no projection) and reported
-(``"drift"`` [m], ``"drift_rate"`` [m/s]) with the cut forces (``docs/closed_loops.md`` §3c).
+(``"drift"`` [m], ``"drift_rate"`` [m/s]) with the cut forces (``docs/closed_loops.md`` §3c).  With
+``compiled=True`` and ``"rk4"`` the same run is generated C (:mod:`ctmm.compiled_kinematic_loop_control`;
+co-simulated controllers sampled between calls into it).
 """
 from __future__ import annotations
 
@@ -59,7 +61,8 @@ def simulate_kinematic_loop_system(system: Any, t_final: float, dt: float | None
     unsupported : mapping
         ``{option: (value, default)}`` of options that do not apply to a kinematic loop model (``solver``,
         ``fast``, ``force_hook``, ``t0``, ``compiled``): refused by name unless at the default (but ``compiled=True``
-        of the model alone with ``"rk4"``: :mod:`ctmm.compiled_kinematic_loops`).
+        with ``"rk4"``: the model alone :mod:`ctmm.compiled_kinematic_loops`, with loops, inputs or controllers
+        :mod:`ctmm.compiled_kinematic_loop_control`).
 
     Returns
     -------
@@ -79,6 +82,11 @@ def simulate_kinematic_loop_system(system: Any, t_final: float, dt: float | None
         return simulate_loops(model, t_final, dt, method=method, x0=x0, v0=v0, outputs=outputs, rtol=rtol, atol=atol,
                               max_step=max_step, store_every=store_every, divergence_bound=divergence_bound,
                               stability_check=stability_check, other_options=others, generated=generated)
+    compiled = unsupported.get("compiled", (None, None))[0]
+    if compiled is True and method == "rk4":     # generated C: ctmm.compiled_kinematic_loop_control
+        from . import compiled_kinematic_loop_control as generated
+
+        unsupported = {name: pair for name, pair in unsupported.items() if name != "compiled"}
     for name, (value, default) in unsupported.items():
         if value is not default and value != default:
             raise ModelError(f"{name}={value!r} is not available for the kinematic loop model {model.name!r} with "
@@ -99,6 +107,11 @@ def simulate_kinematic_loop_system(system: Any, t_final: float, dt: float | None
                                                                        ("warn", "error", "ignore"))
     store_every = validation.integer("store_every", store_every, minimum=1)
     limit = math.inf if max_step is None else validation.positive("max_step", max_step)
+    if compiled is True and method == "rk4":
+        return generated.simulate_generated_driver_run(
+            system, q0, v0, t_final=t_final, dt=dt, controllers=controllers, inputs=inputs, references=references,
+            outputs=outputs, coupling=coupling, store_every=store_every, progress=progress, stability_check=policy,
+            divergence_bound=divergence_bound, max_step=max_step)
     return simulate_closed_loop(model, q0, v0, t_final, dt, method=method, loops=loops, controllers=controllers,
                                 inputs=dict(inputs or {}), references=references, outputs=tuple(outputs),
                                 coupling=coupling, rtol=rtol, atol=atol, max_step=limit, store_every=store_every,

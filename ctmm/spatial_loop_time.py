@@ -40,8 +40,9 @@ def simulate_spatial_loop_system(system: Any, t_final: float, dt: float | None, 
     (:func:`simulate_spatial_loops`) or a DT-TMM scheme (:func:`_scheme_run`).  With feedback loops (``ctmm.control.with_feedback(loop_model, loops)``), port
     actuator inputs, ``references``, sensor ``outputs`` or ``controllers``: the one loop-closing driver
     (:func:`ctmm.control.planar_time.simulate_closed_loop`) on :class:`~ctmm.spatial.closed_loop_plant.SpatialLoopPlant`
-    (``"rk4"`` and ``solve_ivp``; drift held by Baumgarte only).  ``compiled=True`` (the model alone, ``"rk4"``): the
-    generated RK4 with projection (:mod:`ctmm.compiled_spatial_kinematic_loops`).
+    (``"rk4"`` and ``solve_ivp``; drift held by Baumgarte only).  ``compiled=True`` with ``"rk4"``: the model alone
+    runs the generated RK4 with projection (:mod:`ctmm.compiled_spatial_kinematic_loops`), the driver's run is
+    generated C (:mod:`ctmm.compiled_kinematic_loop_control`).
 
     The result holds the tree's signals (:func:`ctmm.spatial.integrate.spatial_signals`: coordinates, velocities,
     body positions and angular velocities), ``"<cut>.force_x|y|z"`` [N] and, for revolute and universal cuts,
@@ -58,10 +59,13 @@ def simulate_spatial_loop_system(system: Any, t_final: float, dt: float | None, 
     loops = () if system is model else tuple(system.loops)
     unsupported = dict(unsupported)
     compiled = validation.flag("compiled", unsupported.pop("compiled", (None, None))[0], optional=True)
-    if compiled and (loops or controllers or references or tuple(outputs) or inputs or method != "rk4"):
-        raise ModelError(f"compiled=True runs the generated RK4 with projection of the spatial kinematic loop model "
-                         f"{model.name!r} alone (method='rk4'; no loops, controllers, references, outputs or inputs), "
-                         f"got method={method!r}; leave compiled at None")
+    through_driver = bool(loops or controllers or references or tuple(outputs)) or (isinstance(inputs, Mapping) and any(
+        name not in model.tree.inputs for name in inputs))
+    if compiled and (method != "rk4" or (inputs and not through_driver)):
+        raise ModelError(f"compiled=True runs the generated RK4 of the spatial kinematic loop model {model.name!r} "
+                         f"(method='rk4'): alone with projection, or with loops, controllers, references, outputs or "
+                         f"port inputs as the loop driver (ctmm.compiled_kinematic_loop_control); not with joint "
+                         f"inputs alone; got method={method!r}, inputs={inputs!r:.60}; leave compiled at None")
     for name, (value, default) in unsupported.items():
         if value is not default and value != default:
             raise ModelError(f"{name}={value!r} is not available for the spatial kinematic loop model {model.name!r} "
@@ -85,6 +89,13 @@ def simulate_spatial_loop_system(system: Any, t_final: float, dt: float | None, 
             raise ModelError(f"outputs must be a list or tuple of sensor names (str), got {outputs!r}")
         policy = "warn" if stability_check is None else validation.option("stability_check", stability_check,
                                                                            ("warn", "error", "ignore"))
+        if compiled:                # the driver's run in generated C (ctmm.compiled_kinematic_loop_control)
+            from .compiled_kinematic_loop_control import simulate_generated_driver_run
+
+            return simulate_generated_driver_run(
+                system, q0, v0, t_final=t_final, dt=dt, controllers=controllers, inputs=inputs,
+                references=references, outputs=outputs, coupling=coupling, store_every=store_every,
+                progress=progress, stability_check=policy, divergence_bound=divergence_bound, max_step=max_step)
         return simulate_closed_loop(model, q0, v0, t_final, dt, method=method, loops=loops, controllers=controllers,
                                     inputs=dict(inputs or {}), references=references, outputs=tuple(outputs),
                                     coupling=coupling, rtol=rtol, atol=atol,

@@ -106,9 +106,9 @@ def test_refusals():
         ctmm.simulate(loop, 0.01, 1e-3, x0=q0, v0=v0, method="DOP853", compiled=True)
     with pytest.raises(ModelError, match="compiled"):
         ctmm.simulate(loop, 0.01, 1e-3, x0=q0, v0=v0, compiled="yes")
-    with pytest.raises(ModelError, match="compiled"):                  # feedback loops: still refused by name
+    with pytest.raises(ModelError, match="compiled"):      # feedback loops with DOP853 (loops with rk4: compiled)
         ctmm.simulate(with_feedback(loop, [Feedback("pd", sensor="crank.theta", actuator="h1.torque", gain=1.0)]),
-                      0.01, 1e-3, x0=q0, v0=v0, compiled=True)
+                      0.01, 1e-3, x0=q0, v0=v0, compiled=True, method="DOP853")
     flexible = flexible_mechanism(50.0, n_modes=1)
     with pytest.raises(ModelError, match="'h3'.*deformable body 'coupler'"):
         ctmm.simulate(flexible, 0.01, 1e-3, x0=flexible_start(flexible)[0], v0=flexible_start(flexible)[1],
@@ -178,8 +178,8 @@ def test_spatial_simulate_verb_with_compiled_true():
     assert generated.info["compiled"] is True and generated["s3.force_z"].shape == (11,)
     for name in ("h1.angle", "s3.force_z", "drift"):
         assert np.max(np.abs(generated[name] - plain[name])) <= 1e-12 * max(1.0, np.max(np.abs(plain[name]))), name
-    with pytest.raises(ModelError, match="compiled=True runs the generated RK4.*alone"):
-        ctmm.simulate(loop, 0.02, 2e-3, x0=q, v0=v, compiled=True, outputs=["h1.angle"])
+    with pytest.raises(ModelError, match="compiled=True runs the generated RK4.*alone"):   # outputs: the driver's
+        ctmm.simulate(loop, 0.02, 2e-3, x0=q, v0=v, compiled=True, method="DOP853")      # run (loop_control)
 
 
 def test_spatial_refusals_and_failures():
