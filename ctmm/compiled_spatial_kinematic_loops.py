@@ -54,6 +54,9 @@ def spatial_kinematic_loop_compile_refusal(model: Any) -> str:
                           spatial_compile_refusal)
     if reason:
         return reason
+    if model.deformable_cuts:
+        return (f"cut joints {list(model.deformable_cuts)} join a point of a SpatialBeam or ctmm.fem subsystem: the "
+                "generated step places cut points on rigid bodies only; use compiled=None")
     loaded = [cut.name for cut in model.cuts if cut.has_law or cut.driven]
     if loaded:
         return (f"cut joints {loaded} carry a law, an actuation or a drive: their load along the cut's coordinate is "

@@ -1,0 +1,263 @@
+"""Spatial cut joints at deformable points (issue 16 item 2, docs/closed_loops.md §8.7): a spherical cut pins a
+point of a SpatialBeam (its tip or a station, with the beam's modal deflection: both bending planes, twist, axial,
+and the foreshortening of a stiffening beam) or a boundary node of a ``ctmm.fem`` spatial subsystem to the ground.
+
+Independent references, the loop closed by a Lagrange multiplier on their own point kinematics:
+``ctmm/reference/spatial_beam_lagrange.py`` (assumed modes, casadi AD; the pinned point's position written here
+from its mode shapes) and ``ctmm/reference/spatial_fe_global.py`` (the FE frame in minimal coordinates, its node
+position and Jacobian).  No TMM or cut code on the reference side.
+"""
+from __future__ import annotations
+
+import functools
+
+import casadi as ca
+import numpy as np
+import pytest
+
+import ctmm
+from ctmm.errors import ModelError
+from ctmm.reference.beams import beta_roots, clamped_free_mode
+from ctmm.reference.spatial_beam_lagrange import HubBeam, SpatialBeamLagrange
+from ctmm.spatial import Revolute, SpatialBeam, SpatialBody, SpatialCutJoint, SpatialKinematicLoopModel, \
+    SpatialModel, Weld
+from test_spatial_beam import BEAM, GRAVITY, HUB_INERTIA, MOUNT
+from test_spatial_fem import chain
+
+MOUNT_POINT = (0.15, 0.1, 0.05)
+HUB = dict(hub_mass=2.0, hub_inertia=HUB_INERTIA, hub_center=(0.03, 0.01, 0.02))
+
+
+@functools.lru_cache(maxsize=None)
+def hub_beam(stiffening: bool, gravity=GRAVITY) -> SpatialBeamLagrange:
+    return SpatialBeamLagrange(HubBeam(**BEAM, **HUB, axes=((0, 0, 1),), mount=MOUNT_POINT, mount_rotation=MOUNT,
+                                       geometric_stiffening=stiffening, gravity=gravity, points=32))
+
+
+class PinnedBeamReference:
+    """The hub + beam of :class:`HubBeam` with the beam point at ``x`` pinned to the world point ``p0`` by a
+    multiplier ``lambda`` (the force on the beam, world axes): ``M u' = rhs + Q lambda``, ``J u' = -J' u``
+    (``J = d r_x / d q``), the generalised force ``Q lambda`` that of the reference's own point-force actuator at
+    ``x`` (virtual power ``J^T lambda`` and, with geometric stiffening, ``-G1(x) q`` times the beam-axis component)."""
+
+    def __init__(self, stiffening: bool, x: float, gravity=GRAVITY) -> None:
+        self.model = hub_beam(stiffening, gravity)
+        n, L = self.model.n, BEAM["length"]
+        q, u = ca.SX.sym("q", n), ca.SX.sym("u", n)
+        rows = self.model.deflection_rows(x)
+        rho = ca.mtimes(ca.DM(rows), q) + ca.DM([x, 0.0, 0.0])
+        c, sn = ca.cos(q[0]), ca.sin(q[0])
+        Rz = ca.vertcat(ca.horzcat(c, -sn, 0), ca.horzcat(sn, c, 0), ca.horzcat(0, 0, 1))
+        r = ca.mtimes(Rz, ca.DM(MOUNT_POINT) + ca.mtimes(ca.DM(MOUNT), rho))
+        J = ca.jacobian(r, q)
+        self._point = ca.Function("point", [q, u], [r, J, ca.mtimes(ca.jacobian(ca.mtimes(J, u), q), u)])
+        self._axis = ca.Function("axis", [q], [ca.mtimes(Rz, ca.DM(MOUNT[:, 0]))])
+        lam = ca.SX.sym("lambda", 3)
+        self._hessian = ca.Function("hessian", [q, lam], [ca.jacobian(ca.mtimes(J.T, lam), q)])
+        self.G1 = np.zeros((n, n))
+        if stiffening:                  # int_0^x (w_y' dw_y' + w_z' dw_z'), the reference's own shapes
+            nodes, weights = np.polynomial.legendre.leggauss(40)
+            s, w = (nodes + 1) * x / 2, weights * x / 2
+            start = 1
+            for count in (BEAM["n_modes_y"], BEAM["n_modes_z"]):
+                slopes = np.array([clamped_free_mode(b, s / L, 1) / L for b in beta_roots("clamped-free", count)])
+                self.G1[start:start + count, start:start + count] = (slopes * w) @ slopes.T
+                start += count
+
+    def point(self, q, u):
+        return (np.asarray(a, float).reshape(-1) if k != 1 else np.asarray(a, float)
+                for k, a in enumerate(self._point(q, u)))
+
+    def constraint_hessian(self, q, lam):
+        """``d(J^T lambda)/dq`` (n x n) at ``q``: the stiffness of the pin force ``lambda`` (held fixed)."""
+        return np.asarray(self._hessian(q, lam), float)
+
+    def solve(self, q, u):
+        """``(u', lambda)``: accelerations and the force on the beam at the point [N] (world axes)."""
+        M, rhs = self.model.mass_and_bias(q, u)
+        _, J, Jdu = self.point(q, u)
+        n = len(q)
+        Q = J.T - np.outer(self.G1 @ q, np.asarray(self._axis(q), float).ravel())
+        kkt = np.block([[M, -Q], [J, np.zeros((3, 3))]])
+        out = np.linalg.solve(kkt, np.concatenate([rhs, -Jdu]))
+        return out[:n], out[n:]
+
+
+def assembled(reference, q, u_guess):
+    """``(u, p0)``: ``u_guess`` projected onto ``J u = 0`` and the world point the cut holds."""
+    p0, J, _ = reference.point(q, u_guess)
+    N = np.linalg.svd(J)[2][3:].T
+    return N @ (N.T @ u_guess), p0
+
+
+def beam_loop(stiffening: bool, station: str, p0, gravity=GRAVITY, baumgarte=20.0):
+    tree = SpatialModel("pinned_beam", [
+        SpatialBody("hub", mass=2.0, inertia=HUB_INERTIA, center_of_mass=(0.03, 0.01, 0.02),
+                    points={"out": MOUNT_POINT}),
+        Revolute(name="yaw", parent=None, child="hub", axis=(0, 0, 1)),
+        SpatialBeam("b", **BEAM, geometric_stiffening=stiffening, stations={"p": 0.7}),
+        Weld(name="mount", parent="hub", child="b", point="out", rotation=MOUNT)], gravity=gravity)
+    cut = SpatialCutJoint(name="pin", parent=None, point=tuple(p0), child="b", child_point=station)
+    return SpatialKinematicLoopModel(tree, [cut], baumgarte=baumgarte)
+
+
+def beam_state(seed=2):
+    rng = np.random.default_rng(seed)
+    q = np.concatenate([[0.4], rng.normal(size=6) * 0.02])
+    return q, rng.normal(size=7) * 0.5
+
+
+@pytest.mark.parametrize("stiffening", [True, False])
+@pytest.mark.parametrize("station, x", [("tip", BEAM["length"]), ("p", 0.7)])
+def test_beam_point_pinned_accelerations_and_cut_force_equal_the_lagrange_multiplier_model(stiffening, station, x):
+    reference = PinnedBeamReference(stiffening, x)
+    q, u = beam_state()
+    u, p0 = assembled(reference, q, u)
+    loop = beam_loop(stiffening, station, p0)
+    phi, rate = loop.constraints(q, u)
+    assert np.abs(phi).max() < 1e-14 and np.abs(rate).max() < 1e-13      # the same point kinematics
+    expected, force = reference.solve(q, u)
+    got, lam = loop.solve(q, u)
+    assert np.abs(got - expected).max() < 1e-10 * np.abs(expected).max()
+    assert np.abs(lam - force).max() < 1e-10 * np.abs(force).max()
+    free = reference.model.accelerations(q, u)
+    assert np.abs(free - expected).max() > 0.1 * np.abs(expected).max()        # the cut acts
+
+
+def _reference_run(reference, q0, u0, t_final, steps):
+    """The reference's index-1 equations by classical RK4 (written here), ``steps`` steps."""
+    n, y, h = len(q0), np.concatenate([q0, u0]), t_final / steps
+
+    def f(y):
+        return np.concatenate([y[n:], reference.solve(y[:n], y[n:])[0]])
+    for _ in range(steps):
+        k1 = f(y)
+        k2 = f(y + h / 2 * k1)
+        k3 = f(y + h / 2 * k2)
+        y = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + f(y + h * k3))
+    return y
+
+
+def test_beam_tip_pinned_rk4_is_fourth_order_against_the_reference():
+    reference = PinnedBeamReference(True, BEAM["length"])
+    q0, u0 = beam_state(4)
+    u0, p0 = assembled(reference, q0, u0)
+    loop = beam_loop(True, "tip", p0)
+    exact = _reference_run(reference, q0, u0, 0.02, 40)          # dt = 0.5 ms: 1/256 of the 2 ms error
+    errors = []
+    for dt in (4e-3, 2e-3):
+        run = ctmm.simulate(loop, 0.02, dt, x0=q0, v0=u0)
+        final = np.array([run[name][-1] for name in loop.tree.coordinates])
+        errors.append(np.abs(final - exact[:7]).max())
+    assert errors[1] < 1e-7 and errors[0] / errors[1] > 12.0, errors
+
+
+def test_station_pinned_energy_is_conserved_without_stiffening():
+    reference = PinnedBeamReference(False, 0.7)
+    q0, u0 = beam_state(5)
+    u0, p0 = assembled(reference, q0, u0)
+    loop = beam_loop(False, "p", p0)
+    run = ctmm.simulate(loop, 0.03, 1e-3, x0=q0, v0=u0)
+    q = np.column_stack([run[name] for name in loop.tree.coordinates])
+    v = np.column_stack([run[name] for name in loop.tree.velocities])
+    energy = np.array([reference.model.energy(a, b) for a, b in zip(q, v)])
+    kinetic = np.array([reference.model.energy(a, b) - reference.model.energy(a, 0 * b) for a, b in zip(q, v)])
+    assert np.abs(energy - energy[0]).max() < 1e-8 * kinetic.max(), np.abs(energy - energy[0]).max()
+    assert run["drift"].max() < 1e-12
+
+
+def test_subsystem_node_pinned_accelerations_and_cut_force_equal_the_global_model():
+    model, ref = chain(child=False)
+    rng = np.random.default_rng(7)
+    q = rng.normal(size=model.n_positions) * 0.6
+    q[2:] *= 0.01
+    p0, J, _ = ref.node_acceleration_terms(q, np.zeros(ref.n), "n3")
+    N = np.linalg.svd(J)[2][3:].T
+    u = N @ (N.T @ rng.normal(size=ref.n))
+    loop = SpatialKinematicLoopModel(model, [SpatialCutJoint(name="pin", parent=None, point=tuple(p0), child="frame",
+                                                             child_point="n3")])
+    phi, rate = loop.constraints(q, u)
+    assert np.abs(phi).max() < 1e-14 and np.abs(rate).max() < 1e-12
+    M, rhs = ref.mass_and_forces(q, u)
+    _, J, Jdu = ref.node_acceleration_terms(q, u, "n3")
+    out = np.linalg.solve(np.block([[M, -J.T], [J, np.zeros((3, 3))]]), np.concatenate([rhs, -Jdu]))
+    got, lam = loop.solve(q, u)
+    assert np.abs(got - out[:ref.n]).max() < 1e-10 * np.abs(out[:ref.n]).max()
+    assert np.abs(lam - out[ref.n:]).max() < 1e-10 * np.abs(out[ref.n:]).max()
+    assert np.abs(lam).max() > 1.0                                              # the pin carries load
+
+
+def test_cut_kinds_with_alignment_rows_at_deformable_points_are_refused_by_name():
+    q, _ = beam_state()
+    loop = beam_loop(True, "tip", (1.0, 0.0, 0.0))
+    for kind in ("revolute", "universal", "prismatic"):
+        with pytest.raises(ModelError, match=f"deformable body.*{kind} cut.*only spherical cuts"):
+            SpatialKinematicLoopModel(loop.tree, [SpatialCutJoint(name="c", parent=None, child="b", child_point="tip",
+                                                                  kind=kind, parent_axis=(1, 0, 0))])
+    with pytest.raises(ModelError, match="point of b"):
+        SpatialKinematicLoopModel(loop.tree, [SpatialCutJoint(name="c", parent=None, child="b", child_point="nope")])
+
+
+def node_loop(seed=7, scale=0.6):
+    """The yaw link + FE L-frame on a pitch joint (``test_spatial_fem.chain``, undamped) with its node n3 pinned to
+    the ground where it is at a random state, the state's velocities on the pin."""
+    model, ref = chain(child=False)
+    rng = np.random.default_rng(seed)
+    q = rng.normal(size=model.n_positions) * scale
+    q[2:] *= 0.01
+    p0, J, _ = ref.node_acceleration_terms(q, np.zeros(ref.n), "n3")
+    N = np.linalg.svd(J)[2][3:].T
+    loop = SpatialKinematicLoopModel(model, [SpatialCutJoint(name="pin", parent=None, point=tuple(p0), child="frame",
+                                                             child_point="n3")])
+    return loop, ref, q, N @ (N.T @ rng.normal(size=ref.n))
+
+
+def test_subsystem_node_pinned_rk4_energy_error_vanishes_at_fourth_order():
+    """Undamped: the global model's energy along the RK4 runs (with projection) at 0.25 / 0.125 ms; the frame's
+    top frequencies (~3e3 rad/s) keep the steps small."""
+    loop, ref, q0, v0 = node_loop(seed=11)
+    kinetic = ref.energy(q0, v0) - ref.energy(q0, 0 * v0)
+    errors = []
+    for dt in (2.5e-4, 1.25e-4):
+        run = ctmm.simulate(loop, 0.0025, dt, x0=q0, v0=v0)
+        q = np.column_stack([run[name] for name in loop.tree.coordinates])
+        v = np.column_stack([run[name] for name in loop.tree.velocities])
+        energy = np.array([ref.energy(a, b) for a, b in zip(q, v)])
+        errors.append(np.abs(energy - energy[0]).max() / kinetic)
+        assert run["drift"].max() < 1e-12
+    assert errors[1] < 1e-4 and errors[0] / errors[1] > 14.0, errors
+
+
+def test_beam_station_pinned_natural_frequencies_equal_the_reference_on_its_manifold():
+    """About the static equilibrium in gravity (no stiffening: the reference's potential is exact): ctmm's tangent on
+    the cut manifold against ``N^T (K - d(J^T lambda)/dq) N`` and ``N^T M N`` of the reference (``N`` the null space
+    of ``J``)."""
+    from ctmm.spatial.closed_loop_linear import equilibrium
+
+    reference = PinnedBeamReference(False, 0.7)
+    q_guess, _ = beam_state(6)
+    _, p0, = assembled(reference, q_guess, np.zeros(7))
+    loop = beam_loop(False, "p", p0)
+    q_eq = equilibrium(loop, q_guess, tolerance=1e-12)
+    got = ctmm.natural_frequencies(loop, operating_point=q_eq)
+    zero = np.zeros(7)
+    M, rhs = reference.model.mass_and_bias(q_eq, zero)
+    _, J, _ = reference.point(q_eq, zero)
+    lam = np.linalg.lstsq(J.T, -rhs, rcond=None)[0]                # rhs + J^T lambda = 0 at rest
+    assert np.abs(rhs + J.T @ lam).max() < 1e-10 * np.abs(rhs).max()   # ctmm's equilibrium is the reference's
+    h, K = 1e-6, np.zeros((7, 7))
+    for k in range(7):
+        e = np.zeros(7)
+        e[k] = h
+        K[:, k] = -(reference.model.mass_and_bias(q_eq + e, zero)[1] - reference.model.mass_and_bias(q_eq - e, zero)[1]
+                    ) / (2 * h)
+    K -= reference.constraint_hessian(q_eq, lam)
+    N = np.linalg.svd(J)[2][3:].T
+    expected = np.sqrt(np.sort(np.linalg.eigvals(np.linalg.solve(N.T @ M @ N, N.T @ K @ N)).real))
+    assert np.abs(got - expected).max() < 1e-9 * expected.max(), (got, expected)
+
+
+def test_compiled_run_with_a_deformable_cut_point_is_refused_by_name():
+    loop, _, q0, v0 = node_loop()
+    with pytest.raises(ModelError, match=r"\['pin'\] join a point of a SpatialBeam or ctmm.fem subsystem"):
+        ctmm.simulate(loop, 0.001, 5e-4, x0=q0, v0=v0, compiled=True)
