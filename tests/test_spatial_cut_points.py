@@ -40,7 +40,7 @@ class PinnedBeamReference:
     (``J = d r_x / d q``), the generalised force ``Q lambda`` that of the reference's own point-force actuator at
     ``x`` (virtual power ``J^T lambda`` and, with geometric stiffening, ``-G1(x) q`` times the beam-axis component)."""
 
-    def __init__(self, stiffening: bool, x: float, gravity=GRAVITY) -> None:
+    def __init__(self, stiffening: bool, x: float, gravity=GRAVITY, alignments=None) -> None:
         self.model = hub_beam(stiffening, gravity)
         n, L = self.model.n, BEAM["length"]
         q, u = ca.SX.sym("q", n), ca.SX.sym("u", n)
@@ -49,10 +49,25 @@ class PinnedBeamReference:
         c, sn = ca.cos(q[0]), ca.sin(q[0])
         Rz = ca.vertcat(ca.horzcat(c, -sn, 0), ca.horzcat(sn, c, 0), ca.horzcat(0, 0, 1))
         r = ca.mtimes(Rz, ca.DM(MOUNT_POINT) + ca.mtimes(ca.DM(MOUNT), rho))
+        self.rows = 3
+        if alignments is not None:      # (section axis u, [world b_i]): rows (R_s u) . b_i, the reference's section
+            theta = ca.mtimes(ca.DM(self.model.section_rows(x)), q)
+            turn = [ca.vertcat(ca.horzcat(1, 0, 0), ca.horzcat(0, ca.cos(theta[0]), -ca.sin(theta[0])),
+                               ca.horzcat(0, ca.sin(theta[0]), ca.cos(theta[0]))),
+                    ca.vertcat(ca.horzcat(ca.cos(theta[1]), 0, ca.sin(theta[1])), ca.horzcat(0, 1, 0),
+                               ca.horzcat(-ca.sin(theta[1]), 0, ca.cos(theta[1]))),
+                    ca.vertcat(ca.horzcat(ca.cos(theta[2]), -ca.sin(theta[2]), 0),
+                               ca.horzcat(ca.sin(theta[2]), ca.cos(theta[2]), 0), ca.horzcat(0, 0, 1))]
+            R_s = ca.mtimes(ca.mtimes(Rz, ca.DM(MOUNT)), ca.mtimes(turn[2], ca.mtimes(turn[1], turn[0])))
+            axis, across = alignments
+            self._section_axis = ca.Function("section_axis", [q], [ca.mtimes(R_s, ca.DM(axis))])
+            r = ca.vertcat(r, *[ca.dot(ca.mtimes(R_s, ca.DM(axis)), ca.DM(b)) for b in across])
+            self.rows += len(across)
+            self.across = [np.asarray(b, float) for b in across]
         J = ca.jacobian(r, q)
         self._point = ca.Function("point", [q, u], [r, J, ca.mtimes(ca.jacobian(ca.mtimes(J, u), q), u)])
         self._axis = ca.Function("axis", [q], [ca.mtimes(Rz, ca.DM(MOUNT[:, 0]))])
-        lam = ca.SX.sym("lambda", 3)
+        lam = ca.SX.sym("lambda", self.rows)
         self._hessian = ca.Function("hessian", [q, lam], [ca.jacobian(ca.mtimes(J.T, lam), q)])
         self.G1 = np.zeros((n, n))
         if stiffening:                  # int_0^x (w_y' dw_y' + w_z' dw_z'), the reference's own shapes
@@ -77,8 +92,9 @@ class PinnedBeamReference:
         M, rhs = self.model.mass_and_bias(q, u)
         _, J, Jdu = self.point(q, u)
         n = len(q)
-        Q = J.T - np.outer(self.G1 @ q, np.asarray(self._axis(q), float).ravel())
-        kkt = np.block([[M, -Q], [J, np.zeros((3, 3))]])
+        Q = J.T.copy()
+        Q[:, :3] -= np.outer(self.G1 @ q, np.asarray(self._axis(q), float).ravel())
+        kkt = np.block([[M, -Q], [J, np.zeros((self.rows, self.rows))]])
         out = np.linalg.solve(kkt, np.concatenate([rhs, -Jdu]))
         return out[:n], out[n:]
 
@@ -86,18 +102,18 @@ class PinnedBeamReference:
 def assembled(reference, q, u_guess):
     """``(u, p0)``: ``u_guess`` projected onto ``J u = 0`` and the world point the cut holds."""
     p0, J, _ = reference.point(q, u_guess)
-    N = np.linalg.svd(J)[2][3:].T
-    return N @ (N.T @ u_guess), p0
+    N = np.linalg.svd(J)[2][len(p0):].T
+    return N @ (N.T @ u_guess), p0[:3]
 
 
-def beam_loop(stiffening: bool, station: str, p0, gravity=GRAVITY, baumgarte=20.0):
+def beam_loop(stiffening: bool, station: str, p0, gravity=GRAVITY, baumgarte=20.0, **cut_options):
     tree = SpatialModel("pinned_beam", [
         SpatialBody("hub", mass=2.0, inertia=HUB_INERTIA, center_of_mass=(0.03, 0.01, 0.02),
                     points={"out": MOUNT_POINT}),
         Revolute(name="yaw", parent=None, child="hub", axis=(0, 0, 1)),
         SpatialBeam("b", **BEAM, geometric_stiffening=stiffening, stations={"p": 0.7}),
         Weld(name="mount", parent="hub", child="b", point="out", rotation=MOUNT)], gravity=gravity)
-    cut = SpatialCutJoint(name="pin", parent=None, point=tuple(p0), child="b", child_point=station)
+    cut = SpatialCutJoint(name="pin", parent=None, point=tuple(p0), child="b", child_point=station, **cut_options)
     return SpatialKinematicLoopModel(tree, [cut], baumgarte=baumgarte)
 
 
@@ -138,18 +154,60 @@ def _reference_run(reference, q0, u0, t_final, steps):
     return y
 
 
-def test_beam_tip_pinned_rk4_is_fourth_order_against_the_reference():
-    reference = PinnedBeamReference(True, BEAM["length"])
+def hinged_tip(q, kind="revolute", stiffening=True):
+    """``(reference, cut options)`` of a revolute (universal) cut at the beam tip at ``q``: the tip section's z axis
+    (section axes) kept parallel to (perpendicular to) a ground axis."""
+    probe = PinnedBeamReference(True, BEAM["length"])
+    R_b = np.array([[np.cos(q[0]), -np.sin(q[0]), 0], [np.sin(q[0]), np.cos(q[0]), 0], [0, 0, 1]]) @ MOUNT
+    theta = probe.model.section_rows(BEAM["length"]) @ q
+    c, s = np.cos(theta), np.sin(theta)
+    E = (np.array([[c[2], -s[2], 0], [s[2], c[2], 0], [0, 0, 1]])
+         @ np.array([[c[1], 0, s[1]], [0, 1, 0], [-s[1], 0, c[1]]])
+         @ np.array([[1, 0, 0], [0, c[0], -s[0]], [0, s[0], c[0]]]))
+    a = R_b @ E @ np.array([0.0, 0.0, 1.0])                            # the tip section's z axis, world
+    b1 = np.cross(a, [1.0, 0.0, 0.0])
+    b1 /= np.linalg.norm(b1)
+    across = [b1, np.cross(a, b1)] if kind == "revolute" else [b1]
+    reference = PinnedBeamReference(stiffening, BEAM["length"], alignments=((0.0, 0.0, 1.0), across))
+    return reference, dict(kind=kind, axis=(0, 0, 1), parent_axis=tuple(a if kind == "revolute" else b1))
+
+
+@pytest.mark.parametrize("kind", ["spherical", "revolute"])
+def test_beam_tip_cut_rk4_is_fourth_order_against_the_reference(kind):
     q0, u0 = beam_state(4)
+    reference, options = (PinnedBeamReference(True, BEAM["length"]), {}) if kind == "spherical" else hinged_tip(q0)
     u0, p0 = assembled(reference, q0, u0)
-    loop = beam_loop(True, "tip", p0)
+    loop = beam_loop(True, "tip", p0, **options)
     exact = _reference_run(reference, q0, u0, 0.02, 40)          # dt = 0.5 ms: 1/256 of the 2 ms error
     errors = []
     for dt in (4e-3, 2e-3):
         run = ctmm.simulate(loop, 0.02, dt, x0=q0, v0=u0)
         final = np.array([run[name][-1] for name in loop.tree.coordinates])
         errors.append(np.abs(final - exact[:7]).max())
+        assert run["drift"].max() < 1e-12
     assert errors[1] < 1e-7 and errors[0] / errors[1] > 12.0, errors
+
+
+def test_beam_tip_hinge_with_a_spring_conserves_energy_without_stiffening():
+    """A torsion spring across the revolute cut at the tip (``LinearLaw``, rest 0.3 rad off): the reference's energy
+    plus the spring's potential (:meth:`cut_potential`) along the RK4 run."""
+    from ctmm.nonlinear_laws import LinearLaw
+
+    q0, u0 = beam_state(12)
+    reference, options = hinged_tip(q0, stiffening=False)
+    u0, p0 = assembled(reference, q0, u0)
+    loop = beam_loop(False, "tip", p0, **options)
+    rest = loop.cut_coordinates(q0, u0)[0][0] + 0.3
+    loop = beam_loop(False, "tip", p0, **options, law=LinearLaw(5.0), rest=rest)
+    run = ctmm.simulate(loop, 0.02, 1e-3, x0=q0, v0=u0)
+    q = np.column_stack([run[name] for name in loop.tree.coordinates])
+    v = np.column_stack([run[name] for name in loop.tree.velocities])
+    energy = np.array([reference.model.energy(a, b) + loop.cut_potential(a) for a, b in zip(q, v)])
+    kinetic = reference.model.energy(q0, u0) - reference.model.energy(q0, 0 * u0)
+    assert abs(loop.cut_potential(q0) - 0.5 * 5.0 * 0.3 ** 2) < 1e-12
+    assert np.abs(energy - energy[0]).max() < 1e-8 * kinetic, np.abs(energy - energy[0]).max() / kinetic
+    without = np.array([reference.model.energy(a, b) for a, b in zip(q, v)])
+    assert np.abs(without - without[0]).max() > 1e-4 * kinetic                 # the spring works
 
 
 def test_station_pinned_energy_is_conserved_without_stiffening():
@@ -187,15 +245,34 @@ def test_subsystem_node_pinned_accelerations_and_cut_force_equal_the_global_mode
     assert np.abs(lam).max() > 1.0                                              # the pin carries load
 
 
-def test_cut_kinds_with_alignment_rows_at_deformable_points_are_refused_by_name():
-    q, _ = beam_state()
+def test_prismatic_cuts_and_unknown_points_at_deformable_bodies_are_refused_by_name():
     loop = beam_loop(True, "tip", (1.0, 0.0, 0.0))
-    for kind in ("revolute", "universal", "prismatic"):
-        with pytest.raises(ModelError, match=f"deformable body.*{kind} cut.*only spherical cuts"):
-            SpatialKinematicLoopModel(loop.tree, [SpatialCutJoint(name="c", parent=None, child="b", child_point="tip",
-                                                                  kind=kind, parent_axis=(1, 0, 0))])
+    with pytest.raises(ModelError, match="deformable body.*prismatic cut"):
+        SpatialKinematicLoopModel(loop.tree, [SpatialCutJoint(name="c", parent=None, child="b", child_point="tip",
+                                                              kind="prismatic", parent_axis=(1, 0, 0))])
     with pytest.raises(ModelError, match="point of b"):
         SpatialKinematicLoopModel(loop.tree, [SpatialCutJoint(name="c", parent=None, child="b", child_point="nope")])
+
+
+@pytest.mark.parametrize("kind", ["revolute", "universal"])
+def test_beam_tip_hinged_accelerations_and_cut_loads_equal_the_lagrange_multiplier_model(kind):
+    """A revolute (universal) cut at the beam tip: the section axis ``u = e_z`` (section axes) kept parallel to
+    (perpendicular to) a ground axis; the alignment rows read the tip section's rotation ``[twist, -w_z', w_y']``."""
+    q, u = beam_state(8)
+    reference, options = hinged_tip(q, kind)
+    u, p0 = assembled(reference, q, u)
+    loop = beam_loop(True, "tip", p0, **options)
+    phi, rate = loop.constraints(q, u)
+    assert np.abs(phi).max() < 1e-14 and np.abs(rate).max() < 1e-12
+    expected, multipliers = reference.solve(q, u)
+    got, lam = loop.solve(q, u)
+    assert np.abs(got - expected).max() < 1e-10 * np.abs(expected).max()
+    force, moment = loop.cut_loads(q, lam)[0]
+    a_now = np.asarray(reference._section_axis(q), float).ravel()
+    expected_moment = sum(m * np.cross(a_now, b) for m, b in zip(multipliers[3:], reference.across))
+    assert np.abs(force - multipliers[:3]).max() < 1e-10 * np.abs(multipliers[:3]).max()
+    assert np.abs(moment - expected_moment).max() < 1e-10 * np.abs(expected_moment).max()
+    assert np.abs(expected_moment).max() > 0.1                                 # the hinge carries a moment
 
 
 def node_loop(seed=7, scale=0.6):
@@ -261,3 +338,42 @@ def test_compiled_run_with_a_deformable_cut_point_is_refused_by_name():
     loop, _, q0, v0 = node_loop()
     with pytest.raises(ModelError, match=r"\['pin'\] join a point of a SpatialBeam or ctmm.fem subsystem"):
         ctmm.simulate(loop, 0.001, 5e-4, x0=q0, v0=v0, compiled=True)
+
+
+def test_subsystem_node_hinged_accelerations_and_cut_loads_equal_the_global_model():
+    """A revolute cut at the FE node n3 (a beam node: rotation DOFs): the node's x axis kept parallel to a ground
+    axis; the reference's rows ``(R_F E(r) e_x) . b_i`` from its own node frame."""
+    model, ref = chain(child=False)
+    rng = np.random.default_rng(9)
+    q = rng.normal(size=model.n_positions) * 0.6
+    q[2:] *= 0.01
+    zero = np.zeros(ref.n)
+    p0 = ref.node_acceleration_terms(q, zero, "n3")[0]
+    a = ref.node_axis_terms(q, zero, "n3", (1.0, 0.0, 0.0))[0]
+    b1 = np.cross(a, [0.0, 0.0, 1.0])
+    b1 /= np.linalg.norm(b1)
+    across = [b1, np.cross(a, b1)]
+
+    def rows(q, u):
+        _, J_p, Jd_p = ref.node_acceleration_terms(q, u, "n3")
+        a, J_a, Jd_a = ref.node_axis_terms(q, u, "n3", (1.0, 0.0, 0.0))
+        return a, np.vstack([J_p] + [b @ J_a for b in across]), np.concatenate([Jd_p, [b @ Jd_a for b in across]])
+
+    _, J, _ = rows(q, zero)
+    N = np.linalg.svd(J)[2][5:].T
+    u = N @ (N.T @ rng.normal(size=ref.n))
+    loop = SpatialKinematicLoopModel(model, [SpatialCutJoint(name="hinge", parent=None, point=tuple(p0), child="frame",
+                                                             child_point="n3", kind="revolute", axis=(1, 0, 0),
+                                                             parent_axis=tuple(a))])
+    phi, rate = loop.constraints(q, u)
+    assert np.abs(phi).max() < 1e-14 and np.abs(rate).max() < 1e-12
+    M, rhs = ref.mass_and_forces(q, u)
+    a_now, J, Jdu = rows(q, u)
+    out = np.linalg.solve(np.block([[M, -J.T], [J, np.zeros((5, 5))]]), np.concatenate([rhs, -Jdu]))
+    got, lam = loop.solve(q, u)
+    assert np.abs(got - out[:ref.n]).max() < 1e-10 * np.abs(out[:ref.n]).max()
+    force, moment = loop.cut_loads(q, lam)[0]
+    expected_moment = sum(m * np.cross(a_now, b) for m, b in zip(out[ref.n + 3:], across))
+    assert np.abs(force - out[ref.n:ref.n + 3]).max() < 1e-10 * np.abs(force).max()
+    assert np.abs(moment - expected_moment).max() < 1e-10 * np.abs(expected_moment).max()
+    assert np.abs(expected_moment).max() > 0.1

@@ -32,9 +32,10 @@ on ``Phi = 0`` along ``q (+) dx`` with the exact velocity Jacobian ``J = dPhi'/d
 it is reported with the cut loads (:class:`SpatialLoopSimulation`).  Linearisation and natural frequencies
 about an equilibrium on the constraint manifold: :mod:`ctmm.spatial.closed_loop_linear`.
 
-Scope: cut points on rigid bodies, and for spherical cuts also on :class:`~ctmm.spatial.beam.SpatialBeam` points and
-``ctmm.fem`` spatial subsystem boundary nodes (the deformed point, its load a point load of the body:
-:mod:`ctmm.spatial.cut_points`; other kinds there refused by name).  A revolute or
+Scope: cut points on rigid bodies, and for spherical, revolute and universal cuts also on
+:class:`~ctmm.spatial.beam.SpatialBeam` points and ``ctmm.fem`` spatial subsystem boundary nodes (the deformed point
+and its cross-section, the loads point loads of the body: :mod:`ctmm.spatial.cut_points`; prismatic cuts there
+refused by name).  A revolute or
 prismatic cut may carry a law and an actuation on its free coordinate (the angle about the axis, the slide along it;
 :func:`~ctmm.spatial.closed_loop_cuts.cut_coordinate`): an applied load of the tree added with the cut loads in every
 load case, so the boundary compliance is unchanged; or be driven: that coordinate prescribed by one more row, its load
@@ -54,7 +55,7 @@ from ..errors import ModelError, SimulationError, unknown_name
 from ..loop_integration import CONDITION_LIMIT, PROJECTION_SKIP, compliance_condition, singular_compliance
 from ..ops import NUMPY
 from .body_forms import SpatialScene
-from .cut_points import CutSide, resolve_side, side_acceleration, side_point
+from .cut_points import CutSide, resolve_side, side_acceleration, side_frame, side_point
 from .closed_loop_cuts import (CUT_KINDS, LAW_KINDS, CutActuatedInputs, CutFrame, SpatialCutJoint, cross, cut_coordinate,
                                cut_frame)
 from .integrate import initial_state
@@ -79,8 +80,7 @@ class SpatialKinematicLoopModel:
     Raises
     ------
     ModelError
-        Not a spatial tree, no cuts, unknown bodies or points, non-spherical cuts at beam or subsystem points, duplicate
-        names.
+        Not a spatial tree, no cuts, unknown bodies or points, prismatic cuts at beam or subsystem points, duplicate names.
     """
 
     def __init__(self, tree: SpatialModel, cuts: Sequence[SpatialCutJoint], *, baumgarte: float = 20.0) -> None:
@@ -145,10 +145,10 @@ class SpatialKinematicLoopModel:
         ``s - position(t)``)."""
         phi, rate = [], []
         for cut, (parent, child), frame in zip(self.cuts, self._sides, self._frames):
-            xp, vp, Rp = self._point(bodies, parent)
-            xc, vc, Rc = self._point(bodies, child)
-            omega_c = bodies[child.body][3]
-            omega_p = np.zeros_like(omega_c) if parent.body < 0 else bodies[parent.body][3]
+            xp, vp, _ = self._point(bodies, parent)
+            xc, vc, _ = self._point(bodies, child)
+            (Rp, omega_p), (Rc, omega_c) = side_frame(bodies, parent), side_frame(bodies, child)
+            omega_p = np.broadcast_to(omega_p, omega_c.shape)
 
             def parent_fixed(b_local: np.ndarray) -> np.ndarray:
                 return np.broadcast_to(b_local, omega_c.shape) if Rp is None else Rp @ b_local
@@ -203,11 +203,11 @@ class SpatialKinematicLoopModel:
         for cut, (parent, child), frame in zip(self.cuts, self._sides, self._frames):
             xp, vp, ap, alpha_p = side_acceleration(bodies, parent, A, rates)
             xc, vc, ac, alpha_c = side_acceleration(bodies, child, A, rates)
-            Rc, omega_c = bodies[child.body][0][0], bodies[child.body][3][0]
-            omega_p = np.zeros(3) if parent.body < 0 else bodies[parent.body][3][0]
+            (Rp, omega_p), (Rc, omega_c) = side_frame(bodies, parent), side_frame(bodies, child)
+            Rc, omega_c, omega_p = Rc[0], omega_c[0], omega_p[0]
 
             def parent_fixed(b_local: np.ndarray) -> np.ndarray:
-                return b_local if parent.body < 0 else bodies[parent.body][0][0] @ b_local
+                return b_local if Rp is None else Rp[0] @ b_local
 
             if frame.basis is None:
                 rows.append(ac - ap)
@@ -252,11 +252,11 @@ class SpatialKinematicLoopModel:
     def _coordinate(self, bodies: list, cut: SpatialCutJoint, parent: CutSide, child: CutSide
                     ) -> tuple[float, float, np.ndarray]:
         """:func:`~ctmm.spatial.closed_loop_cuts.cut_coordinate` of one cut at the first state of ``bodies``."""
-        xp, vp, Rp = self._point(bodies, parent)
-        xc, vc, Rc = self._point(bodies, child)
-        omega_p = np.zeros(3) if parent.body < 0 else bodies[parent.body][3][0]
+        xp, vp, _ = self._point(bodies, parent)
+        xc, vc, _ = self._point(bodies, child)
+        (Rp, omega_p), (Rc, omega_c) = side_frame(bodies, parent), side_frame(bodies, child)
         value, rate, a = cut_coordinate(cut, None if Rp is None else Rp[0], Rc[0], xc[0] - xp[0], vc[0] - vp[0],
-                                        omega_p, bodies[child.body][3][0])
+                                        omega_p[0], omega_c[0])
         return float(value), float(rate), a
 
     @property
@@ -335,8 +335,8 @@ class SpatialKinematicLoopModel:
     def _unit_wrenches(bodies: list, cut: SpatialCutJoint, parent: CutSide, child: CutSide, frame: CutFrame) -> np.ndarray:
         """``[force ; moment]`` (world) on the child per unit value of each unknown of one cut ``(rows, 6)`` (a
         driven cut's last: the unit load along its coordinate, a moment about the axis or a force along the guide)."""
-        rotation_p = None if parent.body < 0 else bodies[parent.body][0][0]
-        rotation_c = bodies[child.body][0][0]
+        rotation_p, rotation_c = side_frame(bodies, parent)[0], side_frame(bodies, child)[0][0]
+        rotation_p = None if rotation_p is None else rotation_p[0]
         basis = np.eye(3) if frame.basis is None else np.array([b if rotation_p is None else rotation_p @ b
                                                                  for b in frame.basis])
         out = np.zeros((len(basis) + len(frame.pairs) + int(cut.driven), 6))

@@ -9,16 +9,23 @@ A side of a :class:`~ctmm.spatial.closed_loop_cuts.SpatialCutJoint` is one of
   (``SpatialFiniteElementModel.subsystem(...)``).  In the body's floating frame it sits at
   ``rho = p + S eta`` (``eta`` the body's internal coordinates; a beam station: ``S = Phi(x_e)``, the mode-shape
   values of both bending planes and the axial shapes, the deformed point of the beam's sensors and ports; a
-  subsystem node: ``S`` picks the node's ``u_x, u_y, u_z``), so in the world ``x = o + R rho``, ``v = v_o + omega x R rho + R S eta'`` and
-  ``a = a_o + alpha x R rho + omega x (omega x R rho) + 2 omega x R rho' + R rho''``.  A force on it is a point
-  load at that point, through the body's own load path (``spatial_beam_terms`` / ``subsystem_terms`` ``loads``, the
+  subsystem node: ``S`` picks the node's ``u_x, u_y, u_z``), so in the world ``x = o + R rho``,
+  ``v = v_o + omega x R rho + R S eta'`` and
+  ``a = a_o + alpha x R rho + omega x (omega x R rho) + 2 omega x R rho' + R rho''``.  A force on it is a point load
+  at that point, through the body's own load path (``spatial_beam_terms`` / ``subsystem_terms`` ``loads``, the
   path of the point-force actuators): its virtual work ``f . delta x`` gives the frame wrench and the generalised
   force ``S^T R^T f``; on a beam with ``geometric_stiffening`` its beam-axis component ``f_1`` also tensions the
   beam up to the point, ``-f_1 G1(x_e) eta`` (the first-order geometric stiffness of every point load; the loop is
   then energy-exact only to that order, ``docs/closed_loops.md`` §8.7).
 
-Only spherical cuts reach deformable points (their rows are the separation alone); the alignment rows of
-revolute, universal and prismatic cuts would need the section rotation of the point and are refused by name.
+The cross-section at a deformable point turns with the body's frame and by the small rotation ``theta = L eta``
+(a beam: ``Lambda(x_e)``, ``[twist, -w_z', w_y']``; a subsystem node: its ``r_x, r_y, r_z``): its axes
+``R E(theta)``, ``E = Rz(theta_z) Ry(theta_y) Rx(theta_x)``, its angular velocity ``omega + R Theta(theta) theta'``
+and acceleration ``alpha + omega x (R Theta theta') + R (Theta theta'' + Theta' theta')`` -- the convention of the
+beam's and the node's own point frames and moment loads (a moment ``m`` there does the generalised work
+``(Theta L)^T R^T m``), so revolute and universal cuts, whose alignment rows read these axes, join deformable points
+too.  Refused by name: prismatic cuts there (their force acts at the moving child point on the parent), and
+alignment rows at a subsystem node without rotation DOFs (a particle has no axes).
 """
 from __future__ import annotations
 
@@ -30,7 +37,7 @@ from ..errors import ModelError, unknown_name
 from .closed_loop_cuts import SpatialCutJoint, cross
 from .model import SpatialModel
 
-__all__ = ["CutSide", "resolve_side", "side_point", "side_acceleration"]
+__all__ = ["CutSide", "resolve_side", "side_point", "side_frame", "side_acceleration"]
 
 
 @dataclass(frozen=True)
@@ -47,12 +54,16 @@ class CutSide:
         Frame displacement of the point per internal coordinate (deformable bodies only) [m].
     modal : slice or None
         Where the body's internal coordinate rates live in ``v`` (and their accelerations in ``v'``).
+    turn : (3, n) array or None
+        The section's small rotation ``theta`` [rad] per internal coordinate (deformable bodies; ``None`` at a
+        subsystem node without rotation DOFs).
     """
 
     body: int
     point: np.ndarray
     shape: np.ndarray | None = None
     modal: slice | None = None
+    turn: np.ndarray | None = None
 
     @property
     def deformable(self) -> bool:
@@ -82,20 +93,30 @@ def resolve_side(tree: SpatialModel, cut: SpatialCutJoint, body: str | None, poi
     location = np.asarray(points[point], float)
     if tree.modal[j] is None:
         return CutSide(j, location)
-    if cut.kind != "spherical":
+    if cut.kind == "prismatic":
         raise ModelError(f"cut joint {cut.name!r}: {body!r} is a deformable body (a SpatialBeam or ctmm.fem "
-                         f"subsystem); a {cut.kind} cut's alignment rows need the section rotation of the point, not "
-                         "reached yet: only spherical cuts join deformable points (docs/closed_loops.md §8.7)")
+                         "subsystem); a prismatic cut's force acts at the moving child point on the parent, not "
+                         "reached there: spherical, revolute and universal cuts join deformable points "
+                         "(docs/closed_loops.md §8.7)")
     n = tree.modal[j].velocity.stop - tree.modal[j].velocity.start
-    shape = np.zeros((3, n))
+    shape, turn = np.zeros((3, n)), np.zeros((3, n))
     if hasattr(element, "spatial_terms"):                    # a ctmm.fem spatial subsystem: a boundary node
         data = element.data
-        _, trans, _ = data.point_rows[data.node_at_position[tuple(np.round(location, 12))]]
+        _, trans, rot = data.point_rows[data.node_at_position[tuple(np.round(location, 12))]]
         if trans is not None:
             shape[:, list(trans)] = np.eye(3)
+        if rot is None:
+            turn = None
+            if cut.kind != "spherical":
+                raise ModelError(f"cut joint {cut.name!r}: {body}.{point} is a subsystem node without rotation DOFs "
+                                 f"(a particle has no axes); a {cut.kind} cut's alignment rows need them: use a "
+                                 "spherical cut there")
+        else:
+            turn[:, list(rot)] = np.eye(3)
     else:                                                    # a SpatialBeam station
-        shape[:] = element.data.station(float(location[0]))[0]
-    return CutSide(j, location, shape, tree.modal[j].velocity)
+        Phi, Lam, _ = element.data.station(float(location[0]))
+        shape[:], turn[:] = Phi, Lam
+    return CutSide(j, location, shape, tree.modal[j].velocity, turn)
 
 
 def _local(side: CutSide, state: tuple) -> tuple[np.ndarray, np.ndarray]:
@@ -119,10 +140,40 @@ def side_point(bodies: list, side: CutSide) -> tuple[np.ndarray, np.ndarray, np.
     return origin + arm, velocity + cross(omega, arm) + (R @ rho_dot[:, :, None])[:, :, 0], R
 
 
+def _section(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``E = Rz Ry Rx`` of ``theta`` ``(B, 3)`` and the columns ``Rz Ry e1``, ``Rz e2`` of ``Theta`` (``(B, 3)``
+    each) with ``Theta = [Rz Ry e1, Rz e2, e3]`` ``(B, 3, 3)``."""
+    c, s = np.cos(theta), np.sin(theta)
+    one, zero = np.ones(len(theta)), np.zeros(len(theta))
+    Rx = np.stack([np.stack([one, zero, zero], -1), np.stack([zero, c[:, 0], -s[:, 0]], -1),
+                   np.stack([zero, s[:, 0], c[:, 0]], -1)], 1)
+    Ry = np.stack([np.stack([c[:, 1], zero, s[:, 1]], -1), np.stack([zero, one, zero], -1),
+                   np.stack([-s[:, 1], zero, c[:, 1]], -1)], 1)
+    Rz = np.stack([np.stack([c[:, 2], -s[:, 2], zero], -1), np.stack([s[:, 2], c[:, 2], zero], -1),
+                   np.stack([zero, zero, one], -1)], 1)
+    first = np.stack([c[:, 2] * c[:, 1], s[:, 2] * c[:, 1], -s[:, 1]], -1)
+    second = np.stack([-s[:, 2], c[:, 2], zero], -1)
+    return Rz @ Ry @ Rx, np.stack([first, second, np.stack([zero, zero, one], -1)], -1), first, second
+
+
+def side_frame(bodies: list, side: CutSide) -> tuple[np.ndarray | None, np.ndarray]:
+    """Axes ``(B, 3, 3)`` (``None`` at the ground) and angular velocity ``(B, 3)`` (world) of a side: its body's,
+    or at a deformable point its cross-section's (module docstring)."""
+    if side.body < 0:
+        return None, np.zeros((1, 3))
+    state = bodies[side.body]
+    R, omega = state[0], state[3]
+    if not side.deformable or side.turn is None:
+        return R, omega
+    E, Theta, _, _ = _section(state[5] @ side.turn.T)
+    return R @ E, omega + (R @ (Theta @ (state[6] @ side.turn.T)[:, :, None]))[:, :, 0]
+
+
 def side_acceleration(bodies: list, side: CutSide, A: np.ndarray, rates: np.ndarray) -> tuple[np.ndarray, ...]:
     """Position, velocity, acceleration ``(B, 3)`` of a side's point and the angular acceleration of its body
-    frame, from the inboard point accelerations ``A`` ``(B, n_bodies, 6)`` and ``v'`` ``rates`` ``(B, nv)`` of a
-    batched sweep at one state (``bodies`` of that state, :func:`side_point`)."""
+    frame (at a deformable point: of its cross-section, :func:`side_frame`), from the inboard point accelerations
+    ``A`` ``(B, n_bodies, 6)`` and ``v'`` ``rates`` ``(B, nv)`` of a batched sweep at one state (``bodies`` of that
+    state, :func:`side_point`)."""
     batch = A.shape[0]
     if side.body < 0:
         return side.point, np.zeros(3), np.zeros((batch, 3)), np.zeros((batch, 3))
@@ -136,4 +187,12 @@ def side_acceleration(bodies: list, side: CutSide, A: np.ndarray, rates: np.ndar
     if side.deformable:
         relative = rates[:, side.modal] @ side.shape.T
         acceleration = acceleration + 2.0 * cross(omega, moving) + relative @ R.T
+        if side.turn is not None:                # the section: alpha + omega x R Theta theta' + R (Theta theta'')'
+            theta, theta_dot = side.turn @ state[5][0], side.turn @ state[6][0]
+            _, Theta, first, second = (a[0] for a in _section(theta[None]))
+            e3 = np.array([0.0, 0.0, 1.0])
+            spin = (cross(e3 * theta_dot[2], second) * theta_dot[1]
+                    + cross(e3 * theta_dot[2] + second * theta_dot[1], first) * theta_dot[0])
+            alpha = (alpha + cross(omega, R @ (Theta @ theta_dot))
+                     + (rates[:, side.modal] @ side.turn.T @ Theta.T + spin) @ R.T)
     return origin + arm, velocity + cross(omega, arm) + moving, acceleration, alpha
