@@ -397,3 +397,56 @@ def test_beam_tip_pinned_newmark_is_second_order_against_the_reference():
         run = ctmm.simulate(loop, 0.008, dt, x0=q0, v0=u0, method="newmark")
         errors.append(np.abs(np.array([run[name][-1] for name in loop.tree.coordinates]) - exact[:7]).max())
     assert errors[1] < 3e-5 and 3.5 < errors[0] / errors[1] < 4.5, errors          # 4.8e-5 / 1.2e-5
+
+
+def test_link_hinged_to_a_subsystem_node_by_a_cut_equals_the_global_model_with_the_hinge():
+    """The deformable point on the parent side: link2 on a free joint, hinged to the FE node n3 by a revolute cut
+    (axis x of the node's axes and of link2's), against the global model with link2 on a hinge at n3
+    (``test_spatial_fem.chain(child=True)``): at one state the frame's and the hinge's accelerations (link2's
+    angular and centre-of-mass accelerations, world) and the hinge force ``m (a_c - g)``."""
+    from scipy.spatial.transform import Rotation
+
+    from ctmm.spatial import Free
+    from test_spatial_fem import I2
+
+    plant, ref = chain(child=False)[0], chain(child=True)[1]
+    tree = SpatialModel("cut_hinge", [plant.bodies[0], plant.joints[0], plant.bodies[1], plant.joints[1],
+                                      SpatialBody("link2", 0.5, I2, center_of_mass=(0.0, 0.05, -0.1)),
+                                      Free(name="float", parent=None, child="link2")], gravity=(0.0, 0.0, -9.81))
+    loop = SpatialKinematicLoopModel(tree, [SpatialCutJoint(name="h", parent="frame", point="n3", child="link2",
+                                                            kind="revolute", axis=(1, 0, 0), parent_axis=(1, 0, 0))])
+    rng = np.random.default_rng(4)
+    q_ref, qd_ref = rng.normal(size=ref.n) * 0.6, rng.normal(size=ref.n)
+    q_ref[3:] *= 0.01
+    h = 1e-30
+    (R, center, Jv, Jw), moved = ref.kinematics(q_ref)["links"][-1], ref.kinematics(q_ref + 1j * h * qd_ref)["links"][-1]
+    origin, J_o, _ = ref.node_acceleration_terms(q_ref, qd_ref, "n3")
+    x, w, z, y = Rotation.from_matrix(R).as_quat()[[0, 3, 2, 1]]
+    free_q, free_v = [f"float.{c}" for c in ("x", "y", "z", "qw", "qx", "qy", "qz")], \
+        [f"float.{c}" for c in ("vx", "vy", "vz", "wx", "wy", "wz")]
+    plant_q = [name for name in tree.coordinates if name not in free_q]           # yaw, pitch, node DOFs
+    plant_v = [name for name in tree.velocities if name not in free_v]
+    values = dict(zip(plant_q, np.delete(q_ref, 2)), **dict(zip(free_q, [*origin, w, x, y, z])))
+    rates = dict(zip(plant_v, np.delete(qd_ref, 2)), **dict(zip(free_v, [*(R.T @ (J_o @ qd_ref)),
+                                                                        *(R.T @ (Jw @ qd_ref))])))
+    q = np.array([values[name] for name in tree.coordinates])
+    v = np.array([rates[name] for name in tree.velocities])
+    frame = [tree.velocities.index(name) for name in plant_v]
+    linear, angular = ([tree.velocities.index(f"float.{c}") for c in group] for group in (("vx", "vy", "vz"),
+                                                                                       ("wx", "wy", "wz")))
+    phi, rate = loop.constraints(q, v)
+    assert np.abs(phi).max() < 1e-14 and np.abs(rate).max() < 1e-12
+    qdd = ref.accelerations(q_ref, qd_ref)
+    alpha = Jw @ qdd + (moved[3].imag / h) @ qd_ref
+    a_center = Jv @ qdd + (moved[2].imag / h) @ qd_ref
+    vdot, lam = loop.solve(q, v)
+    assert np.abs(vdot[frame] - np.delete(qdd, 2)).max() < 1e-10 * np.abs(qdd).max()
+    omega_b, v_b = v[angular], v[linear]
+    assert np.abs(R @ vdot[angular] - alpha).max() < 1e-10 * np.abs(alpha).max()
+    arm = center - origin
+    a_origin = R @ (np.cross(omega_b, v_b) + vdot[linear])
+    omega = R @ omega_b
+    assert np.abs(a_origin + np.cross(alpha, arm) + np.cross(omega, np.cross(omega, arm)) - a_center).max() < \
+        1e-10 * np.abs(a_center).max()
+    force = loop.cut_loads(q, lam)[0][0]
+    assert np.abs(force - 0.5 * (a_center - np.array([0.0, 0.0, -9.81]))).max() < 1e-10 * np.abs(force).max()
