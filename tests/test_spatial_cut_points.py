@@ -450,3 +450,22 @@ def test_link_hinged_to_a_subsystem_node_by_a_cut_equals_the_global_model_with_t
         1e-10 * np.abs(a_center).max()
     force = loop.cut_loads(q, lam)[0][0]
     assert np.abs(force - 0.5 * (a_center - np.array([0.0, 0.0, -9.81]))).max() < 1e-10 * np.abs(force).max()
+
+
+def test_alignment_cut_at_a_particle_node_is_refused_and_a_spherical_one_accepted():
+    """A node held only by node springs has no rotation DOFs (a particle): no axes for alignment rows."""
+    from ctmm.fem import SpatialBeamElement, SpatialFiniteElementModel, SpatialNodeSpring, SpatialPointMass
+    from ctmm.spatial import Weld
+
+    nodes = {"n0": (0.0, 0.0, 0.0), "n1": (0.4, 0.0, 0.0), "p": (0.6, 0.0, 0.0)}
+    fe = SpatialFiniteElementModel("fe", nodes, [
+        SpatialBeamElement("e0", "n0", "n1", 4e3, 10.0, 25.0, 40.0, 0.9, 5e-3, orientation=(0, 0, 1)),
+        SpatialNodeSpring("s", "n1", "p", 2e3), SpatialPointMass("m", "p", 0.1, np.zeros((3, 3)))])
+    tree = SpatialModel("particle", [fe.subsystem("body", boundary=("n0", "p")),
+                                     Weld(name="clamp", parent=None, child="body")])
+    with pytest.raises(ModelError, match="body.p is a subsystem node without rotation DOFs.*revolute"):
+        SpatialKinematicLoopModel(tree, [SpatialCutJoint(name="c", parent=None, point=(0.6, 0, 0), child="body",
+                                                         child_point="p", kind="revolute")])
+    loop = SpatialKinematicLoopModel(tree, [SpatialCutJoint(name="c", parent=None, point=(0.6, 0, 0), child="body",
+                                                            child_point="p")])
+    assert np.abs(loop.constraints(*loop.state())[0]).max() < 1e-15
