@@ -62,6 +62,9 @@ def spatial_kinematic_loop_compile_refusal(model: Any) -> str:
                           spatial_compile_refusal)
     if reason:
         return reason
+    if model.deformable_cuts:
+        return (f"cut joints {list(model.deformable_cuts)} join a point of a SpatialBeam or ctmm.fem subsystem: the "
+                "generated step places cut points on rigid bodies only; use compiled=None")
     for cut in model.cuts:
         reason = spatial_cut_load_refusal(cut)
         if reason:

@@ -401,6 +401,39 @@ class SpatialFEChain:
         Su[:, self.n_joints:] = np.eye(self.n_u)
         return o_F + R_F @ rho, Jv_F - _hat(R_F @ rho) @ Jw_F + R_F @ Smap @ Su
 
+    def node_acceleration_terms(self, q, qd, node: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(r, J, J' q')`` of a frame node: world position [m], ``J = d r / d q`` (3 x n) and the velocity part
+        of its acceleration ``a = J q'' + J' q'`` [m/s^2] (``J'`` by a complex step of ``J`` along ``q'``)."""
+        def point(qc):
+            R_F, o_F, Jv_F, Jw_F = self.kinematics(qc)["frame"]
+            rho, _, _, Smap = self._node_frame(qc[self.n_joints:], node)
+            Su = np.zeros((self.n_u, self.n))
+            Su[:, self.n_joints:] = np.eye(self.n_u)
+            return o_F + R_F @ rho, Jv_F - _hat(R_F @ rho) @ Jw_F + R_F @ Smap @ Su
+        q, qd = np.asarray(q, float), np.asarray(qd, float)
+        r, J = point(q)
+        return r, J, (point(q + 1j * _H * qd)[1].imag / _H) @ qd
+
+    def node_axis_terms(self, q, qd, node: str, axis) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(a, J, J' q')`` of an axis fixed in a frame node's axes (``axis``, node axes): the world vector
+        ``a = R_F E(r) axis``, ``J = d a / d q = -[a]x J_omega`` (3 x n, ``J_omega`` the node frame's angular velocity
+        Jacobian) and ``J' q'`` (complex step of ``J`` along ``q'``)."""
+        def frame_axis(qc):
+            R_F, _, _, Jw_F = self.kinematics(qc)["frame"]
+            _, E, W, _ = self._node_frame(qc[self.n_joints:], node)
+            Su = np.zeros((self.n_u, self.n))
+            Su[:, self.n_joints:] = np.eye(self.n_u)
+            a = R_F @ E @ np.asarray(axis, float)
+            return a, -_hat(a) @ (Jw_F + R_F @ W @ Su)
+        q, qd = np.asarray(q, float), np.asarray(qd, float)
+        a, J = frame_axis(q)
+        return a, J, (frame_axis(q + 1j * _H * qd)[1].imag / _H) @ qd
+
+    def mass_and_forces(self, q, qd) -> tuple[np.ndarray, np.ndarray]:
+        """``(M, rhs)`` of ``M q'' = rhs`` at ``(q, q')`` (gravity, velocity terms, stiffness, damping, ``force``)."""
+        M, rhs, _, _ = self._terms(np.asarray(q, float), np.asarray(qd, float))
+        return M, rhs
+
     def _rotary_jacobians(self, kin: dict) -> list:
         R_F, _, _, Jw_F = kin["frame"]
         out = []

@@ -32,7 +32,10 @@ on ``Phi = 0`` along ``q (+) dx`` with the exact velocity Jacobian ``J = dPhi'/d
 it is reported with the cut loads (:class:`SpatialLoopSimulation`).  Linearisation and natural frequencies
 about an equilibrium on the constraint manifold: :mod:`ctmm.spatial.closed_loop_linear`.
 
-Scope: cut points on rigid bodies (not on beams or ``ctmm.fem`` subsystems: refused by name).  A revolute or
+Scope: cut points on rigid bodies, and for spherical, revolute and universal cuts also on
+:class:`~ctmm.spatial.beam.SpatialBeam` points and ``ctmm.fem`` spatial subsystem boundary nodes (the deformed point
+and its cross-section, the loads point loads of the body: :mod:`ctmm.spatial.cut_points`; prismatic cuts there
+refused by name).  A revolute or
 prismatic cut may carry a law and an actuation on its free coordinate (the angle about the axis, the slide along it;
 :func:`~ctmm.spatial.closed_loop_cuts.cut_coordinate`): an applied load of the tree added with the cut loads in every
 load case, so the boundary compliance is unchanged; or be driven: that coordinate prescribed by one more row, its load
@@ -41,7 +44,7 @@ actuators and loads.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -52,6 +55,7 @@ from ..errors import ModelError, SimulationError, unknown_name
 from ..loop_integration import CONDITION_LIMIT, PROJECTION_SKIP, compliance_condition, singular_compliance
 from ..ops import NUMPY
 from .body_forms import SpatialScene
+from .cut_points import CutSide, resolve_side, side_acceleration, side_frame, side_point
 from .closed_loop_cuts import (CUT_KINDS, LAW_KINDS, CutActuatedInputs, CutFrame, SpatialCutJoint, cross, cut_coordinate,
                                cut_frame, relative_rotation, spherical_law_moment)
 from .integrate import initial_state
@@ -59,12 +63,6 @@ from .model import SpatialModel
 from .ports import SpatialInputs
 
 __all__ = ["SpatialCutJoint", "SpatialKinematicLoopModel", "CUT_KINDS"]
-
-
-@dataclass(frozen=True)
-class _Side:
-    body: int                   # -1: the ground
-    point: np.ndarray           # body axes from the body origin [m]; at the ground world location
 
 
 class SpatialKinematicLoopModel:
@@ -82,7 +80,7 @@ class SpatialKinematicLoopModel:
     Raises
     ------
     ModelError
-        Not a spatial tree, no cuts, unknown bodies or points, cut points on beams, duplicate names.
+        Not a spatial tree, no cuts, unknown bodies or points, prismatic cuts at beam or subsystem points, duplicate names.
     """
 
     def __init__(self, tree: SpatialModel, cuts: Sequence[SpatialCutJoint], *, baumgarte: float = 20.0) -> None:
@@ -100,8 +98,10 @@ class SpatialKinematicLoopModel:
         self.tree, self.cuts = tree, cuts
         self.name = tree.name
         self.baumgarte = validation.nonnegative("baumgarte", baumgarte)
-        self._sides = [(self._side(cut, cut.parent, cut.point), self._side(cut, cut.child, cut.child_point))
+        self._sides = [(resolve_side(tree, cut, cut.parent, cut.point), resolve_side(tree, cut, cut.child, cut.child_point))
                        for cut in cuts]
+        self.deformable_cuts = tuple(cut.name for cut, sides in zip(cuts, self._sides) if any(s.deformable for s in sides))
+        """Names of the cuts with a side on a SpatialBeam or ``ctmm.fem`` subsystem point (spherical only)."""
         self._frames = [cut_frame(cut) for cut in cuts]
         self.n_constraints = sum(cut.n_rows for cut in cuts)
         self._scene = SpatialScene(tree)
@@ -112,21 +112,6 @@ class SpatialKinematicLoopModel:
     def __repr__(self) -> str:
         return f"SpatialKinematicLoopModel({self.name!r}, cuts={[cut.name for cut in self.cuts]})"
 
-    def _side(self, cut: SpatialCutJoint, body: str | None, point: Any) -> _Side:
-        if body is None:
-            return _Side(-1, np.asarray(point, float))
-        names = [b.name for b in self.tree.bodies]
-        if body not in names:
-            raise unknown_name(f"cut joint {cut.name!r}: body", body, names)
-        j = names.index(body)
-        if self.tree.modal[j] is not None:
-            raise ModelError(f"cut joint {cut.name!r}: {body!r} is a deformable body (a SpatialBeam or ctmm.fem "
-                             "subsystem); spatial cut points must be on rigid bodies (SpatialBody)")
-        points = self.tree.bodies[j].points
-        if point not in points:
-            raise unknown_name(f"cut joint {cut.name!r}: point of {body}", point, sorted(points))
-        return _Side(j, np.asarray(points[point], float))
-
     # -- kinematics ------------------------------------------------------------------------------------
     def state(self, x0: Any = None, v0: Any = None) -> tuple[np.ndarray, np.ndarray]:
         """``(q, v)`` from arrays or ``{coordinate: value}`` / ``{velocity: value}`` mappings over the tree's
@@ -135,37 +120,35 @@ class SpatialKinematicLoopModel:
         return x[:self.tree.n_positions].copy(), x[self.tree.n_positions:].copy()
 
     def _bodies(self, q: np.ndarray, v: np.ndarray, t: float) -> list[tuple[np.ndarray, ...]]:
-        """Per body ``(R, origin, velocity of the origin, omega, inboard point)`` (world, batched ``(B, ...)``)."""
+        """Per body ``(R, origin, velocity of the origin, omega, inboard point)`` (world, batched ``(B, ...)``; on a
+        deformable body also its internal coordinates and their rates ``(B, n)``)."""
         q, v = self.tree.check_state(q, v)
-        return self._states(self._scene.terms(NUMPY, q, v, t)[2], q.shape[0])
+        return self._states(self._scene.terms(NUMPY, q, v, t)[2], q, v)
 
-    @staticmethod
-    def _states(states: list, batch: int) -> list[tuple[np.ndarray, ...]]:
-        """:meth:`_bodies` of the body states of :meth:`SpatialScene.terms`."""
-        out = []
-        for s in states:
-            out.append(tuple(np.broadcast_to(np.asarray(a), (batch,) + np.asarray(a).shape[1:]).reshape(batch, -1)
-                             if k else np.broadcast_to(np.asarray(a), (batch, 3, 3))
-                             for k, a in enumerate((s.rotation, s.origin, s.velocity, s.omega, s.inboard))))
+    def _states(self, states: list, q: np.ndarray, v: np.ndarray) -> list[tuple[np.ndarray, ...]]:
+        """:meth:`_bodies` of the body states of :meth:`SpatialScene.terms` at ``q``, ``v`` ``(B, ...)``."""
+        out, batch = [], q.shape[0]
+        for s, modal in zip(states, self.tree.modal):
+            parts = tuple(np.broadcast_to(np.asarray(a), (batch,) + np.asarray(a).shape[1:]).reshape(batch, -1)
+                          if k else np.broadcast_to(np.asarray(a), (batch, 3, 3))
+                          for k, a in enumerate((s.rotation, s.origin, s.velocity, s.omega, s.inboard)))
+            out.append(parts if modal is None else parts + (q[:, modal.position], v[:, modal.velocity]))
         return out
 
-    def _point(self, bodies: list, side: _Side) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    @staticmethod
+    def _point(bodies: list, side: CutSide) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """World position, velocity (``(B, 3)``) and rotation ``(B, 3, 3)`` of a cut side (ground: fixed)."""
-        if side.body < 0:
-            return side.point[None], np.zeros((1, 3)), None
-        R, origin, velocity, omega, _ = bodies[side.body]
-        arm = R @ side.point
-        return origin + arm, velocity + cross(omega, arm), R
+        return side_point(bodies, side)
 
     def _rows(self, bodies: list, t: float) -> tuple[np.ndarray, np.ndarray]:
         """``Phi`` and ``Phi'`` ``(B, m)`` from body states (:meth:`_bodies`) at time ``t`` [s] (a driven cut's row
         ``s - position(t)``)."""
         phi, rate = [], []
         for cut, (parent, child), frame in zip(self.cuts, self._sides, self._frames):
-            xp, vp, Rp = self._point(bodies, parent)
-            xc, vc, Rc = self._point(bodies, child)
-            omega_c = bodies[child.body][3]
-            omega_p = np.zeros_like(omega_c) if parent.body < 0 else bodies[parent.body][3]
+            xp, vp, _ = self._point(bodies, parent)
+            xc, vc, _ = self._point(bodies, child)
+            (Rp, omega_p), (Rc, omega_c) = side_frame(bodies, parent), side_frame(bodies, child)
+            omega_p = np.broadcast_to(omega_p, omega_c.shape)
 
             def parent_fixed(b_local: np.ndarray) -> np.ndarray:
                 return np.broadcast_to(b_local, omega_c.shape) if Rp is None else Rp @ b_local
@@ -212,31 +195,19 @@ class SpatialKinematicLoopModel:
         return self.tree.normalized(q + self.tree.position_rates(q[None], dx[None])[0])
 
     # -- the boundary unknowns ---------------------------------------------------------------------------
-    def _accelerations(self, bodies: list, A: np.ndarray, t: float) -> np.ndarray:
+    def _accelerations(self, bodies: list, A: np.ndarray, rates: np.ndarray, t: float) -> np.ndarray:
         """``Phi''`` ``(B, m)`` from the inboard point accelerations ``A`` ``(B, n_bodies, 6)`` (``[a ; alpha]``,
-        world) of a batched sweep at one state (body states :meth:`_bodies`) at time ``t`` [s]."""
-        batch = A.shape[0]
-
-        def side_acceleration(side: _Side) -> tuple[np.ndarray, ...]:
-            """Position, velocity, acceleration of the point and angular acceleration of its body."""
-            if side.body < 0:
-                return side.point, np.zeros(3), np.zeros((batch, 3)), np.zeros((batch, 3))
-            R, origin, velocity, omega, inboard = (a[0] for a in bodies[side.body])
-            arm = R @ side.point
-            r = origin + arm - inboard
-            alpha = A[:, side.body, 3:]
-            return (origin + arm, velocity + cross(omega, arm),
-                    A[:, side.body, :3] + cross(alpha, r) + cross(omega, cross(omega, r)), alpha)
-
+        world) and ``v'`` ``(B, nv)`` of a batched sweep at one state (body states :meth:`_bodies`) at time ``t``
+        [s]."""
         rows = []
         for cut, (parent, child), frame in zip(self.cuts, self._sides, self._frames):
-            xp, vp, ap, alpha_p = side_acceleration(parent)
-            xc, vc, ac, alpha_c = side_acceleration(child)
-            Rc, omega_c = bodies[child.body][0][0], bodies[child.body][3][0]
-            omega_p = np.zeros(3) if parent.body < 0 else bodies[parent.body][3][0]
+            xp, vp, ap, alpha_p = side_acceleration(bodies, parent, A, rates)
+            xc, vc, ac, alpha_c = side_acceleration(bodies, child, A, rates)
+            (Rp, omega_p), (Rc, omega_c) = side_frame(bodies, parent), side_frame(bodies, child)
+            Rc, omega_c, omega_p = Rc[0], omega_c[0], omega_p[0]
 
             def parent_fixed(b_local: np.ndarray) -> np.ndarray:
-                return b_local if parent.body < 0 else bodies[parent.body][0][0] @ b_local
+                return b_local if Rp is None else Rp[0] @ b_local
 
             if frame.basis is None:
                 rows.append(ac - ap)
@@ -281,7 +252,7 @@ class SpatialKinematicLoopModel:
                        np.concatenate([load * a, np.zeros(3)]))
         return out
 
-    def _spherical_law_wrench(self, bodies: list, cut: SpatialCutJoint, parent: _Side, child: _Side, t: float
+    def _spherical_law_wrench(self, bodies: list, cut: SpatialCutJoint, parent: CutSide, child: CutSide, t: float
                               ) -> np.ndarray:
         """``[0 ; m]`` (world) of a spherical cut's law on the child
         (:func:`~ctmm.spatial.closed_loop_cuts.spherical_law_moment`) at the first state of ``bodies``."""
@@ -290,14 +261,14 @@ class SpatialKinematicLoopModel:
         moment = spherical_law_moment(cut, Rp, bodies[child.body][0][0], omega_p, bodies[child.body][3][0], t)
         return np.concatenate([np.zeros(3), moment])
 
-    def _coordinate(self, bodies: list, cut: SpatialCutJoint, parent: _Side, child: _Side
+    def _coordinate(self, bodies: list, cut: SpatialCutJoint, parent: CutSide, child: CutSide
                     ) -> tuple[float, float, np.ndarray]:
         """:func:`~ctmm.spatial.closed_loop_cuts.cut_coordinate` of one cut at the first state of ``bodies``."""
-        xp, vp, Rp = self._point(bodies, parent)
-        xc, vc, Rc = self._point(bodies, child)
-        omega_p = np.zeros(3) if parent.body < 0 else bodies[parent.body][3][0]
+        xp, vp, _ = self._point(bodies, parent)
+        xc, vc, _ = self._point(bodies, child)
+        (Rp, omega_p), (Rc, omega_c) = side_frame(bodies, parent), side_frame(bodies, child)
         value, rate, a = cut_coordinate(cut, None if Rp is None else Rp[0], Rc[0], xc[0] - xp[0], vc[0] - vp[0],
-                                        omega_p, bodies[child.body][3][0])
+                                        omega_p[0], omega_c[0])
         return float(value), float(rate), a
 
     @property
@@ -365,13 +336,17 @@ class SpatialKinematicLoopModel:
                 out[k] = self._spherical_law_wrench(bodies, cut, parent, child, t)[3:]
         return out
 
-    def _unit_loads(self, bodies: list, t: float, extra: Mapping[str, float] | None = None) -> dict[int, np.ndarray]:
-        """Per loaded body: the change ``[f ; m + r x f]`` (``(1 + m, 6, 1)``, world axes, about its inboard point)
-        of its applied load in the ``1 + m`` load cases: case 0 none, case ``1 + k`` the unit value of unknown
+    def _unit_loads(self, bodies: list, t: float, extra: Mapping[str, float] | None = None
+                    ) -> tuple[dict[int, np.ndarray], dict[int, list]]:
+        """Per loaded rigid body: the change ``[f ; m + r x f]`` (``(1 + m, 6, 1)``, world axes, about its inboard
+        point) of its applied load in the ``1 + m`` load cases: case 0 none, case ``1 + k`` the unit value of unknown
         ``k`` (its force or moment on the child, the opposite on the parent; ``bodies``: :meth:`_bodies`); the
-        cuts' laws and actuations (:meth:`_law_wrenches`, at time ``t`` [s]) in every case."""
+        cuts' laws and actuations (:meth:`_law_wrenches`, at time ``t`` [s]) in every case.  Per deformable body:
+        the same loads as point wrenches ``[(point, (1 + m, 6, 1))]`` for its own load path
+        (:meth:`SpatialScene.terms` ``wrenches``, :mod:`ctmm.spatial.cut_points`)."""
         m = self.n_constraints
         loads: dict[int, np.ndarray] = {}
+        point_loads: dict[int, list] = {}
         row = 0
         for cut, (parent, child), frame, law in zip(self.cuts, self._sides, self._frames,
                                                     self._law_wrenches(bodies, t, extra)):
@@ -382,19 +357,22 @@ class SpatialKinematicLoopModel:
             for side, sign in ((child, 1.0), (parent, -1.0)):
                 if side.body < 0:
                     continue
+                if side.deformable:                          # spherical: at its own point
+                    point_loads.setdefault(side.body, []).append((side.point, sign * wrench[:, :, None]))
+                    continue
                 R, origin, _, _, inboard = (a[0] for a in bodies[side.body])
                 lever = (origin + R @ side.point if frame.basis is None or side is child else  # prismatic: the
                          self._point(bodies, child)[0][0]) - inboard                          # child point
                 about = np.concatenate([wrench[:, :3], wrench[:, 3:] + cross(lever, wrench[:, :3])], axis=1)
                 loads[side.body] = loads.get(side.body, 0.0) + sign * about
-        return {j: load[:, :, None] for j, load in loads.items()}
+        return {j: load[:, :, None] for j, load in loads.items()}, point_loads
 
     @staticmethod
-    def _unit_wrenches(bodies: list, cut: SpatialCutJoint, parent: _Side, child: _Side, frame: CutFrame) -> np.ndarray:
+    def _unit_wrenches(bodies: list, cut: SpatialCutJoint, parent: CutSide, child: CutSide, frame: CutFrame) -> np.ndarray:
         """``[force ; moment]`` (world) on the child per unit value of each unknown of one cut ``(rows, 6)`` (a
         driven cut's last: the unit load along its coordinate, a moment about the axis or a force along the guide)."""
-        rotation_p = None if parent.body < 0 else bodies[parent.body][0][0]
-        rotation_c = bodies[child.body][0][0]
+        rotation_p, rotation_c = side_frame(bodies, parent)[0], side_frame(bodies, child)[0][0]
+        rotation_p = None if rotation_p is None else rotation_p[0]
         basis = np.eye(3) if frame.basis is None else np.array([b if rotation_p is None else rotation_p @ b
                                                                  for b in frame.basis])
         out = np.zeros((len(basis) + len(frame.pairs) + int(cut.driven), 6))
@@ -424,9 +402,17 @@ class SpatialKinematicLoopModel:
                              f"{inputs!r:.80}")
         body_terms, joint_terms, states = scene.terms(NUMPY, q_rows, v_rows, t, scene.numpy_inputs(inputs, t, 1),
                                                       wrenches)
-        bodies = self._states(states, 1)
-        for j, load in self._unit_loads(bodies, t, extra).items():
+        bodies = self._states(states, q_rows, v_rows)
+        loads, point_loads = self._unit_loads(bodies, t, extra)
+        for j, load in loads.items():
             body_terms[j] = replace(body_terms[j], h=body_terms[j].h - load)
+        if point_loads:                                    # deformable sides: their terms again with the point loads
+            merged = {j: list(entries) for j, entries in (wrenches or {}).items()}
+            for j, entries in point_loads.items():
+                merged[j] = merged.get(j, []) + entries
+            loaded = scene.terms(NUMPY, q_rows, v_rows, t, scene.numpy_inputs(inputs, t, 1), merged)[0]
+            for j in point_loads:
+                body_terms[j] = loaded[j]
         try:
             solution = articulated_sweep(NUMPY, scene.tree, body_terms, joint_terms)
         except SingularPivotError as exc:
@@ -459,7 +445,7 @@ class SpatialKinematicLoopModel:
             the time and the first cut joint.
         """
         bodies, rates, points = self._sweep(np.asarray(q, float), np.asarray(v, float), t, inputs)
-        second = self._accelerations(bodies, points, t)
+        second = self._accelerations(bodies, points, rates, t)
         G = (second[1:] - second[0]).T
         phi, phi_dot = self._rows(bodies, t)
         alpha = self.baumgarte
