@@ -17,6 +17,7 @@ import pytest
 
 import ctmm
 from ctmm.errors import ModelError
+from ctmm.nonlinear_laws import LinearLaw
 from ctmm.reference.beams import beta_roots, clamped_free_mode
 from ctmm.reference.spatial_beam_lagrange import HubBeam, SpatialBeamLagrange
 from ctmm.spatial import Revolute, SpatialBeam, SpatialBody, SpatialCutJoint, SpatialKinematicLoopModel, \
@@ -252,6 +253,9 @@ def test_prismatic_cuts_and_unknown_points_at_deformable_bodies_are_refused_by_n
                                                               kind="prismatic", parent_axis=(1, 0, 0))])
     with pytest.raises(ModelError, match="point of b"):
         SpatialKinematicLoopModel(loop.tree, [SpatialCutJoint(name="c", parent=None, child="b", child_point="nope")])
+    with pytest.raises(ModelError, match="deformable body.*spherical cut's 3-axis law"):
+        SpatialKinematicLoopModel(loop.tree, [SpatialCutJoint(name="c", parent=None, child="b", child_point="tip",
+                                                              law=LinearLaw(5.0))])
 
 
 @pytest.mark.parametrize("kind", ["revolute", "universal"])
