@@ -79,6 +79,9 @@ def spatial_kinematic_loop_compile_refusal(model: Any) -> str:
 def spatial_cut_load_refusal(cut: Any) -> str:
     """Why the law, actuation or drive of spatial cut joint ``cut`` cannot be stated on symbols (an empty string when
     it can; :func:`ctmm.compiled_kinematic_loops.cut_load_refusal`)."""
+    if cut.kind == "spherical" and cut.law is not None:
+        return (f"cut joint {cut.name!r}: a spherical cut's 3-axis law (docs/closed_loops.md §8.1b) is not in the "
+                "generated step yet; use compiled=None (the numpy RK4 with projection)")
     fields = ("position", "rate", "acceleration") if cut.driven else ("actuation",)
     return cut_load_refusal(cut.name, "law", cut.law, {field: getattr(cut, field) for field in fields})
 
