@@ -51,6 +51,19 @@ def simulate_spatial_system(parts: tuple[SpatialModel, tuple], t_final: float, d
                 if name not in model.inputs and name not in known:
                     raise unknown_name("spatial input", name, list(model.inputs) + list(known))
         cosimulated = bool(controllers) and not (loops or references or port_inputs)  # ctmm.compiled_scheme_cosim
+        if (isinstance(method, Scheme) or method in SCHEMES) and controlled and not controllers:
+            from .compiled_spatial_scheme_loops import simulate_spatial_scheme_loops_generated  # loops in Newton
+            from .control.controlled_model import ControlledModel
+
+            for name, (value, default) in {"rtol": (rtol, 1e-8), "atol": (atol, 1e-10), "max_step": (max_step, None),
+                                           "progress": (progress, None), "stability_check": (stability_check, None)}.items():
+                if value is not default and value != default:
+                    raise ModelError(f"{name}={value!r} does not apply to the generated DT-TMM scheme {method!r} of a "
+                                     f"spatial model with loops; leave {name} at {default!r}")
+            inputs, references = split_loop_references(loops, inputs, references)
+            return simulate_spatial_scheme_loops_generated(
+                ControlledModel(model, loops), t_final, dt, scheme=method, x0=x0, v0=v0, references=references,
+                inputs=inputs, outputs=tuple(outputs), store_every=store_every, divergence_bound=divergence_bound)
         if (isinstance(method, Scheme) or method in SCHEMES) and (not controlled or cosimulated):
             from .compiled_scheme_cosim import simulate_cosimulated_scheme_generated
             from .compiled_spatial_schemes import simulate_spatial_scheme_generated
