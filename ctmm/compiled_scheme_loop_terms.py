@@ -18,8 +18,8 @@ states follow the Python path's trapezoidal rule from the step start to the iter
 initial signal held before ``t = 0``): a stored sample when ``tau`` is a whole number of steps after the evaluation
 point, otherwise cubic Hermite between two samples from their values and rates (as
 :class:`ctmm.control.history.DelayHistory`), the rates ``dy/dt = J_q q_dot + J_v a`` with ``a`` the closed loop's
-acceleration at the accepted state.  Details and checks: ``docs/spatial.md`` §6b, ``tests/test_compiled_scheme_delays.py``,
-``tests/test_compiled_spatial_scheme_loops.py``.
+acceleration at the accepted state.  Details and checks: ``docs/spatial.md`` §6b,
+``tests/test_compiled_scheme_delays.py``, ``tests/test_compiled_spatial_scheme_loops.py``.
 """
 from __future__ import annotations
 

@@ -65,6 +65,9 @@ class CompiledSpatialSchemeLoops(SchemeLoopTerms, CompiledSpatialScheme):
     dt : float, optional
         The step [s]; required with delayed loops (each delay at least ``dt``, and ``fraction dt`` with
         Wilson-theta; the library then serves this step only).
+    held : sequence of str
+        Further port actuators of the input ``u``, held between calls (co-simulated controllers' outputs,
+        :mod:`ctmm.compiled_scheme_cosim`).
     store_every, tolerance, max_iterations, rows, cache_dir, compiler
         As in :class:`~ctmm.compiled_spatial_schemes.CompiledSpatialScheme`.
 
@@ -72,7 +75,7 @@ class CompiledSpatialSchemeLoops(SchemeLoopTerms, CompiledSpatialScheme):
     ----------
     controlled : ControlledModel
     actuators : tuple of str
-        The port actuators of the step's input ``u`` (those of the loops and of ``inputs``).
+        The port actuators of the step's input ``u`` (those of the loops, of ``inputs`` and ``held``).
     loops : ClosedLoops
         The loops on spatial symbols.
 
@@ -85,8 +88,9 @@ class CompiledSpatialSchemeLoops(SchemeLoopTerms, CompiledSpatialScheme):
 
     def __init__(self, controlled: ControlledModel, scheme: Scheme | str = "newmark", *,
                  references: Mapping[str, Any] | None = None, inputs: Mapping[str, Any] | None = None,
-                 dt: float | None = None, store_every: int = 1, tolerance: float = 1e-10, max_iterations: int = 50,
-                 rows: int = 64, cache_dir: str | os.PathLike | None = None, compiler: str | None = None) -> None:
+                 dt: float | None = None, held: Sequence[str] = (), store_every: int = 1, tolerance: float = 1e-10,
+                 max_iterations: int = 50, rows: int = 64, cache_dir: str | os.PathLike | None = None,
+                 compiler: str | None = None) -> None:
         if not isinstance(controlled, ControlledModel) or not isinstance(controlled.plant, SpatialModel):
             raise ModelError(f"CompiledSpatialSchemeLoops: controlled must be a ctmm.control.ControlledModel of a "
                              f"SpatialModel, got {controlled!r}")
@@ -95,7 +99,10 @@ class CompiledSpatialSchemeLoops(SchemeLoopTerms, CompiledSpatialScheme):
         ports, model = controlled.ports, controlled.plant
         for name in inputs or {}:
             ports.check_actuator(name, "inputs: actuator")
-        names = [name for loop in controlled.loops for name, _ in loop.actuator_terms] + list(inputs or {})
+        for name in held:
+            ports.check_actuator(name, "held: actuator")
+        names = [name for loop in controlled.loops for name, _ in loop.actuator_terms] + list(inputs or {}) + \
+            list(held)
         self.controlled, self.dt = controlled, None if dt is None else validation.positive("dt", dt)
         self.references, self.open_inputs = dict(references or {}), dict(inputs or {})
         self.actuators, self.parameters = tuple(dict.fromkeys(names)), np.zeros(0)
@@ -106,9 +113,9 @@ class CompiledSpatialSchemeLoops(SchemeLoopTerms, CompiledSpatialScheme):
                          rows=rows, cache_dir=cache_dir, compiler=compiler)
 
     def described(self) -> tuple:
-        """The loops, their references and inputs, and the step with delayed loops (the ring's reads)."""
-        return (self.controlled, self.references, self.open_inputs, self.dt if self.loops.delayed else None,
-                "loops")
+        """The loops, their references and inputs, the actuators of ``u``, and the step with delayed loops."""
+        return (self.controlled, self.references, self.open_inputs, self.actuators,
+                self.dt if self.loops.delayed else None, "loops")
 
     @property
     def input_size(self) -> int:

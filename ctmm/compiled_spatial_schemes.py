@@ -426,9 +426,9 @@ def simulate_spatial_scheme_generated(model: SpatialModel, t_final: float, dt: f
 def checked_spatial_result(compiled: CompiledSpatialScheme, times: np.ndarray, states: np.ndarray, dt: float,
                            method: str, result: Callable[[int], SimulationResult],
                            divergence_bound: float | None = None) -> SimulationResult:
-    """``result(len(times))`` of the stored generated states ``states`` at ``times`` [s] (step ``dt`` [s]) after the checks of a
-    generated spatial scheme run: finite, within ``divergence_bound`` of the start, the beams' deflection bound, no
-    failed step.
+    """``result(len(times))`` of the stored generated states ``states`` at ``times`` [s] (step ``dt`` [s]) after the
+    checks of a generated spatial scheme run: finite, within ``divergence_bound`` of the start, the beams' deflection
+    bound, no failed step.
 
     Raises
     ------
@@ -462,8 +462,9 @@ def checked_spatial_result(compiled: CompiledSpatialScheme, times: np.ndarray, s
         row = states[failed[0]]
         step = int(row[status])
         raise ConvergenceError(
-            f"{model.name}: generated implicit DT-TMM step {step} ({compiled.scheme.name}) at t = {step * dt:.6g} s did not "
-            f"converge: max |change of v_dot| = {row[status + 1]:.3e} after at most {compiled.max_iterations} "
+            f"{model.name}: generated implicit DT-TMM step {step} ({compiled.scheme.name}) at t = {step * dt:.6g} s "
+            "did "
+            f"not converge: max |change of v_dot| = {row[status + 1]:.3e} after at most {compiled.max_iterations} "
             f"Newton iterations (tolerance {compiled.tolerance:g}); reduce dt", time=step * dt, element=model.name,
             partial_result=result(good))
     return result(len(times))

@@ -8,7 +8,8 @@ and a delayed PD 2.5 steps late (cubic Hermite between the ring's samples) equal
 (:func:`ctmm.spatial.implicit.simulate_spatial_implicit` through the loop driver) to round-off for every scheme;
 (2) independent reference: a PD delayed by ``tau = 3.75 dt`` and ``7.5 dt`` on the hinge of a spatial double pendulum
 against the method of steps (DOP853 on the global Newton-Euler equations of :mod:`ctmm.reference.spatial_tree`):
-second order; (3) what does not compile is refused by name.
+second order; (3) what does not compile is refused by name; (4) loops and co-simulated controllers together equal
+the Python path.
 """
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ from ctmm.control import ControlledModel, Feedback
 from ctmm.errors import ModelError
 from ctmm.reference.spatial_tree import configuration_rate, forward_dynamics
 from ctmm.schemes import SCHEMES
+from ctmm.signals import Harmonic
 from ctmm.spatial.integrate import initial_state
 from spatial_control_helpers import q_from_reference, q_to_reference, to_reference
 from test_compiled_scheme_cosim import pid, spatial_double_pendulum
@@ -128,8 +130,18 @@ def test_what_is_not_compiled_is_refused_by_name(plant, loop, scheme, match):
         ctmm.simulate(ControlledModel(plant, [loop]), 0.05, 0.01, method=scheme, compiled=True, x0=X0)
 
 
-def test_loops_and_cosimulated_controllers_together_are_refused_by_name(plant):
-    loop = Feedback("pd", [("hinge.angle", 4.0), ("hinge.rate", 1.0)], "hinge.torque", gain=1.0)
-    with pytest.raises(ModelError, match="generated DT-TMM scheme without loops"):
-        ctmm.simulate(ControlledModel(plant, [loop]), 0.1, 0.01, method="newmark", compiled=True,
-                      controllers=[pid("ball.wx", "ball.torque_x", 0.02)])
+# ---------------------------------------------------------------- (4) loops and co-simulated controllers together
+@pytest.mark.parametrize("scheme", ["newmark", "houbolt", "wilson_theta"])
+def test_loops_and_cosimulated_controllers_together_equal_the_python_path(plant, scheme):
+    """A PID on the hinge every 3 steps and a rate loop on the ball every 2 steps sampled between calls into C, the
+    loops inside Newton (the ring's newest rates and the accelerations solved again after each sample, Houbolt's
+    start-up again), an open-loop harmonic body force compiled in."""
+    controllers = [pid("hinge.angle", "hinge.torque", 0.03, kp=20.0, ki=5.0, kd=2.0, derivative_filter_time=0.01,
+                       reference=0.3),
+                   pid("lower.omega_y", "ball.torque_y", 0.02, kp=0.2)]
+    options = dict(method=scheme, x0=X0, v0=V0, references={"lift": -2.0}, store_every=2,
+                   inputs={"lower.origin.force_x": Harmonic(0.3, 4.0)}, outputs=["upper.tip.y"],
+                   controllers=controllers)
+    generated, python = both_paths(ControlledModel(plant, mixed_loops()), 0.3, options)
+    assert generated.info["intervals"] == 20 and generated.info["controllers"] == python.info["controllers"]
+    assert np.ptp(python["ball.torque_y@samples"]) > 0.01
