@@ -19,6 +19,7 @@ import pytest
 import scipy.integrate
 
 import ctmm
+from ctmm.compiled_scheme_loop_terms import BufferedCall
 from ctmm.compiled_spatial_scheme_loops import CompiledSpatialSchemeLoops, simulate_spatial_scheme_loops_generated
 from ctmm.control import ControlledModel, Feedback
 from ctmm.errors import ModelError
@@ -71,6 +72,26 @@ def test_a_compiled_step_is_reused_and_a_foreign_one_refused(plant):
     with pytest.raises(ModelError, match="CompiledSpatialSchemeLoops of this controlled model"):
         simulate_spatial_scheme_loops_generated(ControlledModel(plant, mixed_loops()[:2]), 0.05, 0.01, x0=X0,
                                                 compiled=compiled)
+
+
+def test_the_restart_through_the_buffer_interface_equals_the_casadi_call(plant):
+    """The restart between sample intervals (:class:`BufferedCall`) gives the numbers of the ordinary call; a function
+    with a sparse output takes the ordinary call."""
+    import casadi as ca
+
+    compiled = CompiledSpatialSchemeLoops(ControlledModel(plant, mixed_loops()), "newmark", dt=0.01)
+    state = compiled.initial_state(initial_state(plant, X0, V0))
+    nq, n = plant.n_positions, plant.n_velocities
+    arguments = (state[:nq], state[nq:nq + n], np.zeros(len(compiled.actuators)), np.zeros(0), 0.37,
+                 state[compiled.status_index + 3:] + 0.01)
+    direct = [np.asarray(out, float).reshape(-1) for out in compiled.state_functions[0](*arguments)]
+    buffered = BufferedCall(compiled.state_functions[0])
+    for _ in range(2):                                          # the buffer is reused
+        for mine, theirs in zip(buffered(*arguments), direct):
+            np.testing.assert_array_equal(mine, theirs)
+    x = ca.SX.sym("x", 2)
+    sparse = BufferedCall(ca.Function("f", [x], [ca.vertcat(x[0] * x[1], ca.SX(1, 1))]))
+    assert sparse.buffer is None and sparse(np.array([2.0, 3.0]))[0].tolist() == [6.0, 0.0]
 
 
 # ---------------------------------------------------------------- (2) independent: the method of steps
