@@ -72,6 +72,12 @@ def test_a_compiled_step_is_reused_and_a_foreign_one_refused(plant):
     with pytest.raises(ModelError, match="CompiledSpatialSchemeLoops of this controlled model"):
         simulate_spatial_scheme_loops_generated(ControlledModel(plant, mixed_loops()[:2]), 0.05, 0.01, x0=X0,
                                                 compiled=compiled)
+    delayed = ControlledModel(plant, mixed_loops()[4:])
+    with pytest.raises(ModelError, match="delay rings for dt = 0.01 s"):
+        simulate_spatial_scheme_loops_generated(delayed, 0.05, 0.005, x0=X0, v0=V0,
+                                                compiled=CompiledSpatialSchemeLoops(delayed, dt=0.01))
+    with pytest.raises(ModelError, match="needs the step dt"):
+        CompiledSpatialSchemeLoops(delayed)
 
 
 def test_the_restart_through_the_buffer_interface_equals_the_casadi_call(plant):
