@@ -39,6 +39,10 @@ the one at the new held outputs, as the Python path's history records it after s
 round-off (``tests/test_compiled_scheme_delays.py``).  The initial acceleration and the stability check take the
 delayed loops at the current state (exact at ``t = 0``; the check then also counts their gain, conservatively).
 
+The loop part (controller states, the delay ring, the restarts) is
+:class:`ctmm.compiled_scheme_loop_terms.SchemeLoopTerms`, shared with the spatial schemes
+(:mod:`ctmm.compiled_spatial_scheme_loops`).
+
 Co-simulated controllers together with loops: :mod:`ctmm.compiled_scheme_cosim` runs this step between their
 samples, their held outputs the input ``u``, and restarts it with :meth:`CompiledSchemeLoops.restarted` (the
 loops at the stored controller states and ring).

@@ -29,8 +29,10 @@ residual, the states before it).  The scheme, the Newton options and the model's
 code; ``dt`` is an input (the maps read at 1 s and scaled, :func:`ctmm.compiled_scene_schemes.check_step_scaling`);
 the cache key is the model's description (:func:`ctmm.model_description.describe`), so a cached call builds no symbols.
 
-Refused (:class:`~ctmm.errors.ModelError`): what the generated RK4 refuses, controlled runs (loops, controllers,
-references, outputs, port inputs: use ``compiled=None``).
+Refused (:class:`~ctmm.errors.ModelError`): what the generated RK4 refuses.  Loops, references, outputs and port
+inputs: :mod:`ctmm.compiled_spatial_scheme_loops` (this step with the hooks of
+:class:`~ctmm.compiled_scene_schemes.SchemeHooks`: time and controller entries in the residual and state);
+co-simulated controllers: :mod:`ctmm.compiled_scheme_cosim`.
 """
 from __future__ import annotations
 
