@@ -25,8 +25,11 @@ every loop delayed by 2 ms (``chain_n5_delayed_pd_loops``, the ring: samples, Wi
 2.5 ms (``chain_n5_fractional_pd_loops``: cubic Hermite between the samples, the rates stored), and delayed by
 2.5 ms with a co-simulated PID (``ctmm.controllers.PID``, 10 ms) on the last hinge beside the loops
 (``chain_n5_pd_loops_controller``: one call into C per sample interval, :mod:`ctmm.compiled_scheme_cosim`).
-Run ``python benchmarks/compiled_schemes_planar.py`` (``--loops``: the loops part alone, merged into the stored
-rows); writes ``benchmarks/results/compiled_schemes_planar.json``.
+Spatial loops part (:mod:`ctmm.compiled_spatial_scheme_loops`, ``spatial_double_pendulum_pd_loop``): the spatial
+double pendulum with a real-time PD on its hinge inside the generated Lie-group Newton step vs the Python DT-TMM path,
+error at ``T`` against DOP853 on the reference tree with the same law; ``..._delayed``: the PD 2.5 ms late (Hermite).
+Run ``python benchmarks/compiled_schemes_planar.py`` (``--loops`` / ``--spatial-loops``: that part alone, merged into
+the stored rows); writes ``benchmarks/results/compiled_schemes_planar.json``.
 """
 from __future__ import annotations
 
@@ -40,6 +43,7 @@ from pathlib import Path
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
+import scipy.integrate  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 for path in (ROOT, ROOT / "benchmarks"):
@@ -106,13 +110,14 @@ def measure(name: str, model, q0, v0, exact) -> list[dict]:
     return rows
 
 
-def spatial_double_pendulum():
-    """``(model, x0, v0, reference [q ; v] at T)``: ctmm coordinates, the ball's quaternion scalar first."""
+def spatial_double_pendulum(pd: tuple[float, float] | None = None):
+    """``(model, x0, v0, reference [q ; v] at T)``: ctmm coordinates, the ball's quaternion scalar first; ``pd``:
+    the hinge actuated and the reference with ``u = -(kp angle + kd rate)`` on it (DOP853, rtol 1e-12)."""
     inertia_a, inertia_b = (0.02, 0.03, 0.015), (0.01, 0.012, 0.006)
     model = sp.SpatialModel("double", [
         sp.SpatialBody("upper", 1.0, inertia_a, center_of_mass=(0, 0, -0.25), points={"tip": (0, 0, -0.5)}),
         sp.SpatialBody("lower", 0.7, inertia_b, center_of_mass=(0.1, 0, -0.2)),
-        sp.Revolute(name="hinge", parent=None, child="upper", axis=(1, 0, 0)),
+        sp.Revolute(name="hinge", parent=None, child="upper", axis=(1, 0, 0), actuated=pd is not None),
         sp.Spherical(name="ball", parent="upper", point="tip", child="lower")], gravity=(0, 0, -9.81))
     tree = ref.SpatialTree((
         ref.SpatialBody("upper", -1, "revolute", 1.0, (0, 0, -0.25), np.diag(inertia_a), axes=[(1, 0, 0)]),
@@ -120,8 +125,18 @@ def spatial_double_pendulum():
         gravity=(0, 0, -9.81))
     x0, v0 = {"hinge.angle": 0.4}, {"hinge.angle_rate": 1.5, "ball.wy": -2.0, "ball.wz": 1.0}
     q0 = np.array([0.4, 0.0, 0.0, 0.0, 1.0])                   # reference order: angle, quaternion scalar last
-    end = ref.simulate(tree, q0, np.array([1.5, 0.0, -2.0, 1.0]), T, 1e-4)
-    q, v = end.q[-1], end.v[-1]
+    if pd is None:
+        end = ref.simulate(tree, q0, np.array([1.5, 0.0, -2.0, 1.0]), T, 1e-4)
+        q, v = end.q[-1], end.v[-1]
+    else:
+        def rate(t, y):
+            torque = np.array([-(pd[0] * y[0] + pd[1] * y[5]), 0.0, 0.0, 0.0])
+            return np.concatenate([ref.configuration_rate(tree, y[:5], y[5:]),
+                                   ref.forward_dynamics(tree, y[:5], y[5:], torque, t)])
+
+        end = scipy.integrate.solve_ivp(rate, (0.0, T), np.concatenate([q0, [1.5, 0.0, -2.0, 1.0]]),
+                                        method="DOP853", rtol=1e-12, atol=1e-13).y[:, -1]
+        q, v = end[:5] / np.r_[1.0, np.full(4, np.linalg.norm(end[1:5]))], end[5:]
     return model, x0, v0, np.concatenate([[q[0], q[4], q[1], q[2], q[3]], v])
 
 
@@ -160,6 +175,40 @@ def measure_spatial() -> list[dict]:
         print(f"spatial   {scheme:18s} generated {generated * 1e6:8.1f} us/step  python {python_step * 1e6:9.1f} "
               f"us/step  x{row['speedup']:6.1f}  |gen - py| {row['generated_vs_python']:.1e}  "
               f"error {row['error_at_t_final']:.2e}", flush=True)
+    return rows
+
+
+def measure_spatial_loops(delay: float = 0.0) -> list[dict]:
+    """A PD on the hinge of the spatial double pendulum (``u = -(20 angle + 2 rate)``, ``delay`` [s]) inside the
+    generated Lie-group Newton step (:mod:`ctmm.compiled_spatial_scheme_loops`) vs the Python DT-TMM path with the
+    same loop; error at ``T`` against the DOP853 run of the reference tree with the same law (real-time only)."""
+    import ctmm
+    from ctmm.compiled_spatial_scheme_loops import CompiledSpatialSchemeLoops, simulate_spatial_scheme_loops_generated
+    from ctmm.control import ControlledModel, Feedback
+
+    model, x0, v0, exact = spatial_double_pendulum((20.0, 2.0))
+    controlled = ControlledModel(model, [Feedback("pd", [("hinge.angle", 20.0), ("hinge.rate", 2.0)], "hinge.torque",
+                                                  gain=1.0, delay=delay)])
+    label = "spatial_double_pendulum_pd_loop" + ("_delayed" if delay else "")
+    names, rows = [*model.coordinates, *model.velocities], []
+    for scheme in SCHEMES:
+        began = time.perf_counter()
+        compiled = CompiledSpatialSchemeLoops(controlled, scheme, dt=DT)
+        first_call = time.perf_counter() - began
+        best = min((simulate_spatial_scheme_loops_generated(controlled, T, DT, scheme=scheme, x0=x0, v0=v0,
+                                                            compiled=compiled) for _ in range(3)),
+                   key=lambda run: run.info["wall_time_s"])
+        began = time.perf_counter()
+        python = ctmm.simulate(controlled, PYTHON_STEPS * DT, DT, method=scheme, x0=x0, v0=v0)
+        python_step = (time.perf_counter() - began) / PYTHON_STEPS
+        final = np.array([best[name][-1] for name in names])
+        row = result_row(label, scheme, best, python, names, first_call, python_step,
+                         None if delay else float(np.max(np.abs(final - exact))))
+        rows.append(row)
+        generated = row["generated_per_step_s"]
+        error = "" if delay else f"  error {row['error_at_t_final']:.2e}"
+        print(f"{label:9s} {scheme:18s} generated {generated * 1e6:8.1f} us/step  python {python_step * 1e6:9.1f} "
+              f"us/step  x{row['speedup']:6.1f}  |gen - py| {row['generated_vs_python']:.1e}{error}", flush=True)
     return rows
 
 
@@ -234,9 +283,13 @@ def main() -> None:
     if "--loops" in sys.argv[1:]:               # the loops part alone, the other stored rows kept
         kept = json.loads(path.read_text())["rows"] if path.exists() else []
         rows = [row for row in kept if "pd_loops" not in row["model"]] + loop_rows()
+    elif "--spatial-loops" in sys.argv[1:]:     # the spatial loops part alone, the other stored rows kept
+        kept = json.loads(path.read_text())["rows"] if path.exists() else []
+        rows = [row for row in kept if "pd_loop" not in row["model"] or "spatial" not in row["model"]] + \
+            measure_spatial_loops() + measure_spatial_loops(2.5 * DT)
     else:
         rows = [row for name, case in models().items() for row in measure(name, *case)] + measure_spatial() + \
-            loop_rows()
+            loop_rows() + measure_spatial_loops() + measure_spatial_loops(2.5 * DT)
     out = {"benchmark": "compiled_schemes_planar", "machine": platform.platform(),
            "python": platform.python_version(), "rows": rows}
     path.write_text(json.dumps(out, indent=2) + "\n")

@@ -58,9 +58,9 @@ from .planar.integrate import PlanarSimulation, check_store_every, initial_coord
 from .planar.model import PlanarModel
 from .schemes import History, Scheme, as_scheme
 
-__all__ = ["HISTORY", "SecondOrderMaps", "CompiledSceneScheme", "check_step_scaling", "newton_iteration",
-           "newton_options", "not_converged", "reused_or_built", "scheme_maps", "selected", "simulate_scheme_generated",
-           "symbolic_scheme_step"]
+__all__ = ["HISTORY", "SecondOrderMaps", "CompiledSceneScheme", "SchemeHooks", "check_step_scaling",
+           "newton_iteration", "newton_options", "not_converged", "reused_or_built", "scheme_maps", "selected",
+           "simulate_scheme_generated", "symbolic_scheme_step"]
 
 HISTORY = ("q", "v", "a", "equation_acceleration", "q_old1", "q_old2")
 """The stored history of every coordinate, in the order of the generated state (blocks of ``n``)."""
@@ -283,7 +283,35 @@ def selected(maps: list[SecondOrderMaps], k: Any, value: Any) -> Any:
     return out
 
 
-class CompiledSceneScheme:
+class SchemeHooks:
+    """Where a generated scheme step (planar :class:`CompiledSceneScheme`, spatial
+    :class:`ctmm.compiled_spatial_schemes.CompiledSpatialScheme`) lets loops in: without loops, the plant's
+    acceleration at the iterate and no controller entries (:class:`ctmm.compiled_scheme_loop_terms.SchemeLoopTerms`
+    overrides them)."""
+
+    loops: Any = None
+    """The :class:`~ctmm.compiled_loops.ClosedLoops` closed in the step (:mod:`ctmm.compiled_scheme_loops`), or None."""
+    state_functions: tuple = ()
+    """Further casadi Functions of the library (a subclass's :meth:`closed_acceleration` sets them; compiled after)."""
+    controller_size: int = 0
+    """Entries of the generated state after :data:`STATUS` (a subclass's loop controller states; none here)."""
+
+    def iterate_acceleration(self, acceleration: Any, q: Any, v: Any, u: Any, p: Any, t: Any, c: Any, s: Any) -> Any:
+        """``qddot`` at a Newton iterate ``(q, v)`` and time ``t`` on casadi SX symbols, ``c`` the
+        :attr:`controller_size` entries at the step start, ``s`` [s] the time since it: here
+        ``acceleration(q, v, u, p, t)``."""
+        return acceleration(q, v, u, p, t)
+
+    def controller_update(self, q: Any, v: Any, u: Any, p: Any, t: Any, c: Any, h: Any) -> Any:
+        """The :attr:`controller_size` entries after a step of ``h`` [s] to ``(q, v, t)`` from ``c`` (SX)."""
+        return c
+
+    def initial_controller(self, q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
+        """The :attr:`controller_size` entries at ``t = 0``."""
+        return np.zeros(self.controller_size)
+
+
+class CompiledSceneScheme(SchemeHooks):
     """The generated and compiled DT-TMM step of one planar model without loops (module docstring).
 
     Parameters
@@ -338,27 +366,6 @@ class CompiledSceneScheme:
             loop.blocks
         self.state_functions = tuple(more)
         self.compile_time_s = _time.perf_counter() - start
-
-    loops: Any = None
-    """The :class:`~ctmm.compiled_loops.ClosedLoops` closed in the step (:mod:`ctmm.compiled_scheme_loops`), or None."""
-    state_functions: tuple = ()
-    """Further casadi Functions of the library (a subclass's :meth:`closed_acceleration` sets them; compiled after)."""
-    controller_size: int = 0
-    """Entries of the generated state after :data:`STATUS` (a subclass's loop controller states; none here)."""
-
-    def iterate_acceleration(self, acceleration: Any, q: Any, v: Any, u: Any, p: Any, t: Any, c: Any, s: Any) -> Any:
-        """``qddot`` at a Newton iterate ``(q, v)`` and time ``t`` on casadi SX symbols, ``c`` the
-        :attr:`controller_size` entries at the step start, ``s`` [s] the time since it: here
-        ``acceleration(q, v, u, p, t)``."""
-        return acceleration(q, v, u, p, t)
-
-    def controller_update(self, q: Any, v: Any, u: Any, p: Any, t: Any, c: Any, h: Any) -> Any:
-        """The :attr:`controller_size` entries after a step of ``h`` [s] to ``(q, v, t)`` from ``c`` (SX)."""
-        return c
-
-    def initial_controller(self, q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
-        """The :attr:`controller_size` entries at ``t = 0``."""
-        return np.zeros(self.controller_size)
 
     def closed_acceleration(self) -> Any:
         """``qddot = acceleration(q, v, u, p, t)`` the step solves for (casadi ``Function``): the plant's sweep with

@@ -17,14 +17,17 @@ Python stepper; Houbolt then runs its two start-up steps again, which keeps it a
 to its Newton tolerance (``tests/test_compiled_scheme_cosim.py``).
 
 Open-loop actuator ``inputs`` that are numbers are added to the held values (also without controllers: one call
-into C).  Planar ``Feedback`` loops and references beside the controllers: the step is the one of
-:class:`~ctmm.compiled_scheme_loops.CompiledSchemeLoops` (loops inside Newton, delay ring; inputs may then also be
-symbolic signals, compiled in), restarted at the stored controller states and ring; equal to the Python path
-(``tests/test_compiled_scheme_delays.py``).  Refused (:class:`~ctmm.errors.ModelError`, by the verb or here): loops
-on spatial models, inputs that are functions of time or signals without loops (use ``compiled=None``), measurement
-delays
-(:class:`~ctmm.control.measurement_delay.DelayedController`), controller outputs the generated step does not drive
-(planar beam station loads; spatial: actuators that are not one-number inputs of the model, e.g. body-axis ports).
+into C).  ``Feedback`` loops and references beside the controllers: the step is the one of
+:class:`~ctmm.compiled_scheme_loops.CompiledSchemeLoops` (planar) or
+:class:`~ctmm.compiled_spatial_scheme_loops.CompiledSpatialSchemeLoops` (spatial; the controllers' outputs port
+actuators of its input) with the loops inside Newton and their delay ring (inputs may then also be symbolic signals,
+compiled in), restarted at the stored controller states and ring; equal to the Python path
+(``tests/test_compiled_scheme_delays.py``, ``tests/test_compiled_spatial_scheme_loops.py``).  Refused
+(:class:`~ctmm.errors.ModelError`, by the verb or here): inputs that are functions of time or signals without loops
+(use ``compiled=None``), measurement delays (:class:`~ctmm.control.measurement_delay.DelayedController`), controller
+outputs the generated step does not drive
+(planar beam station loads; spatial without loops: actuators that are not one-number inputs of the model, e.g.
+body-axis ports).
 """
 from __future__ import annotations
 
@@ -38,6 +41,7 @@ from . import validation
 from .compiled_control import add_loop_signals
 from .compiled_scene_schemes import STATUS, CompiledSceneScheme, not_converged
 from .compiled_scheme_loops import CompiledSchemeLoops
+from .compiled_spatial_scheme_loops import CompiledSpatialSchemeLoops
 from .compiled_spatial_schemes import CompiledSpatialScheme, warn_conditionally_stable
 from .control.controlled_model import ControlledModel
 from .control.cosim import CoSimulation
@@ -82,9 +86,10 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
         ``{actuator: number}`` held over the run [SI], added to the controllers' outputs on the same actuator (with
         ``loops``: also symbolic :mod:`ctmm.signals`, constants of the code).
     loops, references : optional
-        Planar models: ``Feedback`` loops closed inside the generated Newton step and their references
-        (:class:`~ctmm.compiled_scheme_loops.CompiledSchemeLoops`: real-time, LTI, delayed), the controllers'
-        held outputs added to their actuator values.
+        ``Feedback`` loops closed inside the generated Newton step and their references
+        (:class:`~ctmm.compiled_scheme_loops.CompiledSchemeLoops`,
+        :class:`~ctmm.compiled_spatial_scheme_loops.CompiledSpatialSchemeLoops`: real-time, LTI, delayed), the
+        controllers' held outputs added to their actuator values.
     outputs, coupling, store_every, progress
         As in :func:`ctmm.compiled_cosim.simulate_cosimulated_generated` (stored sensors, the co-simulation's
         coupling policy, every ``store_every``-th step kept, a progress bar).
@@ -131,11 +136,15 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
     kind = CompiledSceneScheme if planar else CompiledSpatialScheme
     looped = bool(loops) or bool(references)
     if looped:                  # loops inside the Newton step, the controllers' held outputs added to theirs
-        if not planar or compiled is not None:
-            raise ModelError("compiled=True with loops and co-simulated controllers together runs planar models, "
-                             f"compiled here (got a {type(model).__name__}, compiled={compiled!r}); use compiled=None")
+        if compiled is not None:
+            raise ModelError("compiled=True with loops and co-simulated controllers together: the step is compiled "
+                             f"here, got compiled={compiled!r}; leave compiled out")
         controlled = ControlledModel(model, loops)
-        compiled = CompiledSchemeLoops(controlled, scheme, references=references, inputs=inputs, dt=dt)
+        if planar:
+            compiled = CompiledSchemeLoops(controlled, scheme, references=references, inputs=inputs, dt=dt)
+        else:
+            compiled = CompiledSpatialSchemeLoops(controlled, scheme, references=references, inputs=inputs, dt=dt,
+                                                  held=[name for c in controllers for name in c.outputs])
         signals_of, inputs = compiled.loops.signals(), None
     elif compiled is None:
         compiled = kind(model, scheme)
@@ -143,7 +152,7 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
             or compiled.store_every != 1:
         raise ModelError(f"compiled must be a {kind.__name__} of this model with scheme={scheme!r} and "
                          f"store_every=1, got {compiled!r}")
-    if planar:
+    if planar or looped:
         drivable = list(compiled.actuators)
     else:
         drivable = [name for name, width in zip(compiled.rates.actuators, compiled.rates.widths) if width == 1]
@@ -171,7 +180,7 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
         """The kernel's input vector ``u`` from the held values by actuator name."""
         if planar:
             return np.array([held.get(name, 0.0) for name in compiled.actuators])
-        return compiled.rates.input_vector(held)
+        return compiled.held_inputs(held) if looped else compiled.rates.input_vector(held)
 
     q0, v0 = np.asarray(q0, float), np.asarray(v0, float)
     if planar:

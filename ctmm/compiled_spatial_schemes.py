@@ -29,20 +29,22 @@ residual, the states before it).  The scheme, the Newton options and the model's
 code; ``dt`` is an input (the maps read at 1 s and scaled, :func:`ctmm.compiled_scene_schemes.check_step_scaling`);
 the cache key is the model's description (:func:`ctmm.model_description.describe`), so a cached call builds no symbols.
 
-Refused (:class:`~ctmm.errors.ModelError`): what the generated RK4 refuses, controlled runs (loops, controllers,
-references, outputs, port inputs: use ``compiled=None``).
+Refused (:class:`~ctmm.errors.ModelError`): what the generated RK4 refuses.  Loops, references, outputs and port
+inputs: :mod:`ctmm.compiled_spatial_scheme_loops` (this step with the hooks of
+:class:`~ctmm.compiled_scene_schemes.SchemeHooks`: time and controller entries in the residual and state);
+co-simulated controllers: :mod:`ctmm.compiled_scheme_cosim`.
 """
 from __future__ import annotations
 
 import os
 import time as clock
 import warnings
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
 
 import numpy as np
 
 from . import validation
-from .compiled_scene_schemes import (STATUS, check_step_scaling, newton_iteration, newton_options,
+from .compiled_scene_schemes import (STATUS, SchemeHooks, check_step_scaling, newton_iteration, newton_options,
                                      reused_or_built, scheme_maps, symbolic_scheme_step)
 from .compiled_spatial import SPATIAL_FLAGS, SpatialRates, spatial_compile_refusal
 from .errors import ConvergenceError, ModelError, SimulationError
@@ -57,7 +59,7 @@ from .spatial.integrate import beam_deflection_weights, check_beam_deflection, i
 from .spatial.lie import quaternion_product
 from .spatial.model import SpatialModel
 
-__all__ = ["CompiledSpatialScheme", "simulate_spatial_scheme_generated", "symbolic_bracket",
+__all__ = ["CompiledSpatialScheme", "checked_spatial_result", "simulate_spatial_scheme_generated", "symbolic_bracket",
            "symbolic_local_coordinates", "symbolic_retract", "warn_conditionally_stable"]
 
 
@@ -186,7 +188,7 @@ def symbolic_bracket(model: SpatialModel, x: Any, y: Any) -> Any:
     return ca.vertcat(*out)
 
 
-class CompiledSpatialScheme:
+class CompiledSpatialScheme(SchemeHooks):
     """The Lie-group DT-TMM step of a spatial model without loops, with Newton, in compiled C (module docstring).
 
     Parameters
@@ -223,8 +225,10 @@ class CompiledSpatialScheme:
         self.rates = SpatialRates(model, fold=False)
         from .model_description import describe       # what build() reads: a cached library loads without symbols
 
-        description = describe((model, self.scheme, self.tolerance, self.max_iterations, "spatial DT-TMM scheme"))
-        name = f"spatial_{model.n_bodies}b{model.n_positions}q{model.n_velocities}v_{self.scheme.name}"
+        description = describe((model, self.scheme, self.tolerance, self.max_iterations, "spatial DT-TMM scheme",
+                                *self.described()))
+        name = f"spatial_{model.n_bodies}b{model.n_positions}q{model.n_velocities}v_{self.scheme.name}" + \
+            ("_loops" if self.loops else "")
         options = {"cache_dir": cache_dir, "compiler": compiler, "flags": SPATIAL_FLAGS}
         if description is not None:
             loop = compiled_time_loop(self._build, self.store_every, rows, name,
@@ -232,8 +236,29 @@ class CompiledSpatialScheme:
         else:
             step, extra = self._build()
             loop = compiled_time_loop(step, self.store_every, rows, name, extra=extra, **options)
-        (self._velocity_rate,), self._step, self._stride, self._blocks = loop.extra, loop.step, loop.stride, loop.blocks
+        (self._acceleration, *more), self._step, self._stride, self._blocks = loop.extra, loop.step, loop.stride, \
+            loop.blocks
+        self.state_functions = tuple(more)
         self.compile_time_s = clock.perf_counter() - start
+
+    def described(self) -> tuple:
+        """What a subclass's step reads besides the model, scheme and Newton options (its cache key's part)."""
+        return ()
+
+    @property
+    def input_size(self) -> int:
+        """Entries of the step's input ``u``: the model's inputs (:attr:`SpatialRates.widths`)."""
+        return sum(self.rates.widths)
+
+    def closed_acceleration(self) -> Any:
+        """``v_dot = acceleration(q, v, u, p, t)`` (casadi ``Function``) the step solves for: the sweep of
+        :attr:`rates` (a subclass closes loops around it)."""
+        import casadi as ca
+
+        model = self.model
+        q, v, u = ca.SX.sym("q", model.n_positions), ca.SX.sym("v", model.n_velocities), ca.SX.sym("u", self.input_size)
+        p, t = ca.SX.sym("p", 0), ca.SX.sym("t")
+        return ca.Function("acceleration", [q, v, u, p, t], [self.rates.velocity_rate(q, v, u, p)])
 
     @property
     def status_index(self) -> int:
@@ -243,24 +268,25 @@ class CompiledSpatialScheme:
 
     @property
     def state_size(self) -> int:
-        """:attr:`status_index` and :data:`~ctmm.compiled_scene_schemes.STATUS`."""
-        return self.status_index + len(STATUS)
+        """:attr:`status_index`, :data:`~ctmm.compiled_scene_schemes.STATUS` and :attr:`controller_size`."""
+        return self.status_index + len(STATUS) + self.controller_size
 
     def _build(self) -> tuple[Any, list]:
-        """``(step(y, u, h, p, t0, k), [velocity_rate])`` on casadi symbols."""
+        """``(step(y, u, h, p, t0, k), [acceleration, *state_functions])`` on casadi symbols."""
         import casadi as ca
 
         model, n = self.model, self.model.n_velocities
-        nq, n_u = model.n_positions, sum(self.rates.widths)
-        velocity_rate = self.rates.velocity_rate
+        nq, n_u = model.n_positions, self.input_size
+        acceleration = self.closed_acceleration()
         a, delta_hat, v_hat, q = ca.SX.sym("a", n), ca.SX.sym("delta_hat", n), ca.SX.sym("v_hat", n), ca.SX.sym("q", nq)
         w, g, u, p = ca.SX.sym("w"), ca.SX.sym("g"), ca.SX.sym("u", n_u), ca.SX.sym("p", 0)
+        t, c, s = ca.SX.sym("t"), ca.SX.sym("c", self.controller_size), ca.SX.sym("s")     # time, controller, since t_n
         chart = ca.SX.sym("chart")              # 1: Houbolt after its start-up (body rates from chart rates)
         delta, rate = delta_hat + w * a, v_hat + g * a
-        body_rates = velocity_rate(symbolic_retract(model, q, delta),
-                                   rate - 0.5 * chart * symbolic_bracket(model, delta, rate), u, p)
+        body_rates = self.iterate_acceleration(acceleration, symbolic_retract(model, q, delta),
+                                               rate - 0.5 * chart * symbolic_bracket(model, delta, rate), u, p, t, c, s)
         residual = a - body_rates - 0.5 * chart * symbolic_bracket(model, delta, body_rates)
-        residual_terms = ca.Function("residual", [a, delta_hat, v_hat, w, g, q, chart, u, p],
+        residual_terms = ca.Function("residual", [a, delta_hat, v_hat, w, g, q, chart, u, p, t, c, s],
                                      [residual, ca.jacobian(residual, a)])
         iterate = newton_iteration(residual_terms, self.tolerance)
         y = ca.MX.sym("y", self.state_size)
@@ -274,10 +300,12 @@ class CompiledSpatialScheme:
             on = k >= 1.5
             history[4:] = [ca.if_else(on, local(q_n, y[end + j * nq:end + (j + 1) * nq]), ca.MX.zeros(n))
                            for j in range(2)]
+        controller = y[self.status_index + len(STATUS):]
         new, failed, status = symbolic_scheme_step(
             self.maps, history, h, k,
-            lambda z, delta_k, v_hat_k, w_k, g_k, fraction: iterate(z, delta_k, v_hat_k, w_k, g_k, q_n, on, u_in, p_in),
-            self.max_iterations, y[self.status_index:])
+            lambda z, delta_k, v_hat_k, w_k, g_k, fraction: iterate(z, delta_k, v_hat_k, w_k, g_k, q_n, on, u_in, p_in,
+                                                                    t0 + (k + fraction) * h, controller, fraction * h),
+            self.max_iterations, y[self.status_index:self.status_index + len(STATUS)])
         retract = ca.Function("retract", [q, delta_hat], [symbolic_retract(model, q, delta_hat)])
         x_new, v_new = ca.MX.sym("x", n), ca.MX.sym("v", n)
         bracket = ca.Function("bracket", [x_new, v_new], [symbolic_bracket(model, x_new, v_new)])
@@ -285,22 +313,35 @@ class CompiledSpatialScheme:
         if self.chart:
             parts += [q_n, y[end:end + nq]]
         history_out = ca.if_else(failed, ca.MX.nan(self.status_index, 1), ca.vertcat(*parts))
-        return ca.Function("step", [y, u_in, h, p_in, t0, k], [ca.vertcat(history_out, status)]), [velocity_rate]
+        out = [history_out, status]
+        if self.controller_size:                # at the accepted state: its configuration and body velocity
+            q_c, v_c = ca.SX.sym("q", nq), ca.SX.sym("v", n)
+            update = ca.Function("controller_update", [q_c, v_c, u, p, t, c, s],
+                                 [self.controller_update(q_c, v_c, u, p, t, c, s)])
+            after = update(parts[0], parts[1], u_in, p_in, t0 + (k + 1.0) * h, controller, h)
+            out.append(ca.if_else(failed, ca.MX.nan(self.controller_size, 1), after))
+        return ca.Function("step", [y, u_in, h, p_in, t0, k], [ca.vertcat(*out)]), [acceleration,
+                                                                                    *self.state_functions]
 
     def initial_state(self, x: np.ndarray, inputs: Mapping[str, Any] | None = None) -> np.ndarray:
         """The generated state at ``t = 0`` from ``[q ; v]`` (quaternions normalised): ``a = v_dot``."""
         model = self.model
         q, v = model.normalized(x[:model.n_positions]), x[model.n_positions:]
-        state = np.concatenate([q, v, np.zeros(2 * v.size), *([q, q] if self.chart else []), np.zeros(len(STATUS))])
-        return self.restarted(state, self.rates.input_vector(inputs))
+        state = np.concatenate([q, v, np.zeros(2 * v.size), *([q, q] if self.chart else []), np.zeros(len(STATUS)),
+                                self.initial_controller(q, v)])
+        return self.restarted(state, self.held_inputs(inputs))
+
+    def held_inputs(self, inputs: Mapping[str, Any] | None) -> np.ndarray:
+        """The step's input vector ``u`` of ``inputs`` (numbers by input name)."""
+        return self.rates.input_vector(inputs)
 
     def restarted(self, state: np.ndarray, held: np.ndarray, t: float = 0.0) -> np.ndarray:
         """``state`` with ``a`` and ``v_dot`` solved again at its ``(q, v)`` with the input vector ``held`` (the Python
         stepper's restart where held controller outputs jump; the spatial terms do not depend on ``t`` [s])."""
         nq, n = self.model.n_positions, self.model.n_velocities
         out = np.array(state, dtype=float)
-        rates = np.asarray(self._velocity_rate(out[:nq], out[nq:nq + n], np.asarray(held, dtype=float),
-                                               np.zeros(0))).reshape(-1)
+        rates = np.asarray(self._acceleration(out[:nq], out[nq:nq + n], np.asarray(held, dtype=float),
+                                              np.zeros(0), validation.finite("t", t))).reshape(-1)
         out[nq + n:nq + 2 * n] = out[nq + 2 * n:nq + 3 * n] = rates
         return out
 
@@ -321,7 +362,7 @@ class CompiledSpatialScheme:
     def run(self, state: np.ndarray, dt: float, n_steps: int, inputs: Mapping[str, Any] | None = None) -> np.ndarray:
         """Stored states (rows, :attr:`state_size`) of ``n_steps`` steps of ``dt`` [s] from ``state`` at ``t = 0``
         with ``inputs`` held (numbers), initial state excluded; stops after the first block holding a NaN."""
-        return self.continue_run(state, self.rates.input_vector(inputs), dt, n_steps, 0)
+        return self.continue_run(state, self.held_inputs(inputs), dt, n_steps, 0)
 
 
 def warn_conditionally_stable(model: SpatialModel, scheme: Scheme) -> None:
@@ -380,9 +421,27 @@ def simulate_spatial_scheme_generated(model: SpatialModel, t_final: float, dt: f
     info = {"dt": dt, "scheme": repr(scheme), "wall_time_s": wall, "compile_time_s": compiled.compile_time_s,
             "newton_iterations": total}
 
-    def partial(k: int) -> SimulationResult:
-        return state_result(model, times[:k], states[:k, :nq + n], method, info)
+    return checked_spatial_result(compiled, times, states, dt, method, lambda k: state_result(
+        model, times[:k], states[:k, :nq + n], method, info), divergence_bound)
 
+
+def checked_spatial_result(compiled: CompiledSpatialScheme, times: np.ndarray, states: np.ndarray, dt: float,
+                           method: str, result: Callable[[int], SimulationResult],
+                           divergence_bound: float | None = None) -> SimulationResult:
+    """``result(len(times))`` of the stored generated states ``states`` at ``times`` [s] (step ``dt`` [s]) after the
+    checks of a generated spatial scheme run: finite, within ``divergence_bound`` of the start, the beams' deflection
+    bound, no failed step.
+
+    Raises
+    ------
+    ConvergenceError
+        A step that did not converge (step, time, residual; ``result`` of the states before it as
+        ``partial_result``).
+    SimulationError
+        A non-finite or diverging stored state, a beam's deflection beyond its length (``partial_result``).
+    """
+    model, status = compiled.model, compiled.status_index
+    nq, n = model.n_positions, model.n_velocities
     failed = np.flatnonzero(states[:, status] > 0.0)
     good = len(states) if not failed.size else int(failed[0])
     trajectory = states[:good, :nq + n]
@@ -395,18 +454,19 @@ def simulate_spatial_scheme_generated(model: SpatialModel, t_final: float, dt: f
             "non-finite"
         raise SimulationError(f"{model.name}: the state became {what} at t = {times[first]:.6g} s ({method}; checked "
                               "on the stored states)", time=float(times[first]), element=model.name,
-                              partial_result=partial(first))
+                              partial_result=result(first))
     try:
         check_beam_deflection(model, beam_deflection_weights(model), times[:good], trajectory, method)
     except SimulationError as exc:
-        exc.partial_result = partial(int(np.searchsorted(times, exc.time)))
+        exc.partial_result = result(int(np.searchsorted(times, exc.time)))
         raise
     if failed.size:
         row = states[failed[0]]
         step = int(row[status])
         raise ConvergenceError(
-            f"{model.name}: generated implicit DT-TMM step {step} ({scheme.name}) at t = {step * dt:.6g} s did not "
-            f"converge: max |change of v_dot| = {row[status + 1]:.3e} after at most {compiled.max_iterations} "
+            f"{model.name}: generated implicit DT-TMM step {step} ({compiled.scheme.name}) at t = {step * dt:.6g} s "
+            "did "
+            f"not converge: max |change of v_dot| = {row[status + 1]:.3e} after at most {compiled.max_iterations} "
             f"Newton iterations (tolerance {compiled.tolerance:g}); reduce dt", time=step * dt, element=model.name,
-            partial_result=partial(good))
-    return state_result(model, times, states[:, :nq + n], method, info)
+            partial_result=result(good))
+    return result(len(times))

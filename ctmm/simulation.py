@@ -173,8 +173,10 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         calls (:func:`ctmm.compiled_scheme_cosim.simulate_cosimulated_scheme_generated`), loops inside its Newton
         step (:func:`ctmm.compiled_scheme_loops.simulate_scheme_loops_generated`: real-time, LTI controller states,
         delayed loops, any delay; with controllers too, sampled between calls); spatial, a
-        scheme without loops, references or port inputs: its Lie-group step in generated C
-        (:func:`ctmm.compiled_spatial_schemes.simulate_spatial_scheme_generated`; controllers as for planar models).
+        scheme: its Lie-group step in generated C
+        (:func:`ctmm.compiled_spatial_schemes.simulate_spatial_scheme_generated`; loops inside its Newton step,
+        :func:`ctmm.compiled_spatial_scheme_loops.simulate_spatial_scheme_loops_generated`; controllers as for planar
+        models).
         Default: numpy.
     parameters : mapping, optional
         ``compiled=True``: ``{name: number}`` set at run time in the kernel compiled once (:mod:`ctmm.batch`).

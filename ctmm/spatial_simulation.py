@@ -50,7 +50,21 @@ def simulate_spatial_system(parts: tuple[SpatialModel, tuple], t_final: float, d
             for name in inputs:
                 if name not in model.inputs and name not in known:
                     raise unknown_name("spatial input", name, list(model.inputs) + list(known))
-        cosimulated = bool(controllers) and not (loops or references or port_inputs)  # ctmm.compiled_scheme_cosim
+        cosimulated = bool(controllers)         # between calls into the generated scheme, ctmm.compiled_scheme_cosim
+        if (isinstance(method, Scheme) or method in SCHEMES) and controlled and not controllers:
+            from .compiled_spatial_scheme_loops import simulate_spatial_scheme_loops_generated  # loops in Newton
+            from .control.controlled_model import ControlledModel
+
+            for name, (value, default) in {"rtol": (rtol, 1e-8), "atol": (atol, 1e-10), "max_step": (max_step, None),
+                                           "progress": (progress, None),
+                                           "stability_check": (stability_check, None)}.items():
+                if value is not default and value != default:
+                    raise ModelError(f"{name}={value!r} does not apply to the generated DT-TMM scheme {method!r} of a "
+                                     f"spatial model with loops; leave {name} at {default!r}")
+            inputs, references = split_loop_references(loops, inputs, references)
+            return simulate_spatial_scheme_loops_generated(
+                ControlledModel(model, loops), t_final, dt, scheme=method, x0=x0, v0=v0, references=references,
+                inputs=inputs, outputs=tuple(outputs), store_every=store_every, divergence_bound=divergence_bound)
         if (isinstance(method, Scheme) or method in SCHEMES) and (not controlled or cosimulated):
             from .compiled_scheme_cosim import simulate_cosimulated_scheme_generated
             from .compiled_spatial_schemes import simulate_spatial_scheme_generated
@@ -69,9 +83,11 @@ def simulate_spatial_system(parts: tuple[SpatialModel, tuple], t_final: float, d
             if dt is None:
                 raise ModelError(f"dt is required with the DT-TMM scheme {method!r} (a fixed step [s], > 0), got None")
             state = initial_state(model, x0, v0)
+            inputs, references = split_loop_references(loops, inputs, references)
             return simulate_cosimulated_scheme_generated(
                 model, state[:model.n_positions], state[model.n_positions:], t_final=t_final, dt=dt, scheme=method,
-                controllers=controllers, inputs=inputs, outputs=tuple(outputs), coupling=coupling,
+                controllers=controllers, inputs=inputs, outputs=tuple(outputs), coupling=coupling, loops=loops,
+                references=references,
                 store_every=validation.integer("store_every", store_every, minimum=1),
                 progress=validation.flag("progress", progress, optional=True), divergence_bound=divergence_bound)
         if not isinstance(method, str) or method != "rk4":

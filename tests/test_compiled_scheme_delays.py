@@ -8,7 +8,7 @@ delay of two steps too; (2) with co-simulated controllers as well (sampled betwe
 Houbolt's restart, the ring's newest rates after a sample) equal to the Python path; (3) independent reference:
 a delayed PD with ``tau = 3.75 dt`` and ``7.5 dt`` against the method of steps (DOP853) on the Lagrange equations,
 second order for Newmark and Wilson-theta; (4) what still does not compile is refused by name (delays the Python
-path refuses, spatial loops with a scheme), and a failing controller beside loops keeps the loop signals in its
+path refuses; spatial loops: tests/test_compiled_spatial_scheme_loops.py), and a failing controller beside loops keeps the loop signals in its
 partial result as the Python path.
 """
 from __future__ import annotations
@@ -26,7 +26,7 @@ from ctmm.signals import Harmonic
 from test_compiled_scene_schemes import DP_START, double_pendulum
 from test_compiled_cosim import Failing
 from test_compiled_scene_schemes_loops import delayed_pd_errors
-from test_compiled_scheme_cosim import pid, spatial_double_pendulum
+from test_compiled_scheme_cosim import pid
 
 
 @pytest.fixture(scope="module")
@@ -141,10 +141,3 @@ def test_a_failing_controller_beside_loops_keeps_the_loop_signals_in_its_partial
     assert generated.time.tolist() == python.time.tolist() == [0.0, 0.01] and "lag.u" in python.signals()
     for name in python.signals():
         assert np.max(np.abs(np.asarray(generated[name]) - np.asarray(python[name]))) <= 1e-10, name
-
-
-def test_spatial_loops_with_a_generated_scheme_are_still_refused_by_name():
-    model = spatial_double_pendulum()
-    loop = Feedback("pd", [("hinge.angle", 4.0), ("hinge.rate", 1.0)], "hinge.torque", gain=1.0)
-    with pytest.raises(ModelError, match="generated DT-TMM scheme without loops"):
-        ctmm.simulate(ControlledModel(model, [loop]), 0.1, 0.01, method="newmark", compiled=True)
