@@ -286,7 +286,7 @@ def _point_kinematics(model: PlanarModel, q, qdot, t: float) -> dict:
         rotation = np.array([[c, -s], [s, c]])
         for k, end in enumerate(model.ends[i]):
             if i in model.beams:
-                local, local_rate = model.beam_point_local(i, k, q, qdot)
+                local, local_rate = model.beam_point_local(i, k, q, qdot, shortening=True)
             else:
                 local, local_rate = np.asarray(model.ends[i][end], float), np.zeros(2)
             r = rotation @ local

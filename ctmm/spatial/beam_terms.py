@@ -208,16 +208,23 @@ def spatial_beam_terms(ops: Ops, beam: Any, *, rotation: Any, offset: Any, omega
         ThetaLam = ops.matmul(Theta, constant(ops, Lam_e))
         rho_dot = ops.matmul(constant(ops, Phi_e), eta_dot)
         relative = ops.matmul(Theta, theta_dot)
+        Phi_u, rate_term = constant(ops, Phi_e), ops.zeros(3, 1)
+        if data.second_order is not None:              # the point moves with the shortening (beam_second_order.py)
+            G1_eta, G1_rate = ops.matmul(constant(ops, G1_e), eta), ops.matmul(constant(ops, G1_e), eta_dot)
+            rho = rho + e1 * (ops.matmul(ops.transpose(G1_eta), eta) * -0.5)
+            rho_dot = rho_dot - e1 * ops.matmul(ops.transpose(G1_eta), eta_dot)
+            Phi_u = Phi_u - ops.matmul(e1, ops.transpose(G1_eta))
+            rate_term = e1 * (ops.matmul(ops.transpose(G1_rate), eta_dot) * -1.0)
         if name in (points or {}):
-            K_b = ops.block([[eye3, skew(ops, rho) * -1.0, constant(ops, Phi_e)],
+            K_b = ops.block([[eye3, skew(ops, rho) * -1.0, Phi_u],
                              [ops.zeros(3, 3), eye3, ThetaLam]])
             tx, ty, tz = (entry(ops, theta_dot, i) for i in range(3))
             spin = cross(ops, constant(ops, _E[:, 2]) * tz, second) * ty + cross(
                 ops, constant(ops, _E[:, 2]) * tz + second * ty, first) * tx
-            c_b = ops.block([[cross(ops, w, cross(ops, w, rho)) + cross(ops, w, rho_dot) * 2.0],
+            c_b = ops.block([[cross(ops, w, cross(ops, w, rho)) + cross(ops, w, rho_dot) * 2.0 + rate_term],
                              [cross(ops, w, relative) + spin]])
-            RF_b = ops.transpose(K_b)
-            if data.stiffening:
+            RF_b = ops.transpose(K_b)                  # virtual work (with the option: -e1 eta^T G1 in Phi_u)
+            if data.stiffening and data.second_order is None:
                 RF_b = RF_b - ops.block([[ops.zeros(6, 6)],
                                          [ops.block([[ops.matmul(constant(ops, G1_e), eta), ops.zeros(n, 5)]])]])
             Kin[name] = ops.matmul(ops.matmul(T6, K_b), Tt)
@@ -247,6 +254,9 @@ def _load_rows(ops: Ops, data: Any, Rt: Any, eta: Any, loads: Sequence[tuple[np.
         f = ops.matmul(Rt, ops.sub(wrench, slice(0, 3), slice(0, 1)))
         m = ops.matmul(Rt, ops.sub(wrench, slice(3, 6), slice(0, 1)))
         rho_l = constant(ops, [float(point[0]), 0.0, 0.0]) + ops.matmul(constant(ops, Phi_l), eta)
+        if data.second_order is not None:              # the load point moves with the shortening
+            rho_l = rho_l + constant(ops, _E[:, 0]) * (ops.matmul(ops.transpose(ops.matmul(constant(ops, G1_l), eta)),
+                                                                 eta) * -0.5)
         Theta, _, _ = _rotation_jacobian(ops, ops.matmul(constant(ops, Lam_l), eta))
         lin = f * -1.0
         ang = (cross(ops, rho_l, f) + m) * -1.0
