@@ -15,11 +15,22 @@ import numpy as np
 import pytest
 
 import ctmm
+from ctmm.compiled_parameters import parameter_vector
+from ctmm.compiled_scene import symbolic_plant_accelerations
 from ctmm.flexible import ModalBeam
 from ctmm.flexible.kernel import solve_flexible
 from ctmm.planar import Pinned, PlanarModel, RigidBody
 from ctmm.planar.elements import FixedMounting, Load
 from ctmm.reference.spatial_beam_lagrange import HubBeam, SpatialBeamLagrange
+from ctmm.spatial.beam import SpatialBeam
+from ctmm.spatial.dynamics import accelerations, energy
+from ctmm.spatial.elements import Revolute, SpatialBody, Spherical, Universal, Weld
+from ctmm.spatial.model import SpatialModel
+from ctmm.spatial.ports import SpatialPorts
+from test_spatial_beam_second_order import BEAM as SPATIAL_BEAM
+from test_spatial_beam_second_order import GRAVITY as SPATIAL_GRAVITY
+from test_spatial_beam_second_order import HUB_INERTIA, MOUNT as SPATIAL_MOUNT, Q as SPATIAL_Q, TIP_INERTIA
+from test_spatial_beam_second_order import U as SPATIAL_U
 
 LENGTH, EI, RHO_A, MOUNT, GRAVITY = 1.3, 5.0, 0.7, 0.3, (0.5, -9.81)
 POINTS = 16                                    # Gauss points of both models
@@ -111,11 +122,6 @@ def test_spatial_child_on_a_spherical_joint_at_a_station_conserves_energy():
     """The case that showed the missing point terms (energy drift 3e-4 in 0.05 s before): a body hanging from a
     spherical joint at a station of a second-order spatial beam on a spinning hub.  Undamped RK4: the energy stays
     to 1e-9 (measured 7e-13 over 0.05 s); the first-order stiffened beam drifts (2.6e-3)."""
-    from ctmm.spatial.beam import SpatialBeam
-    from ctmm.spatial.dynamics import energy
-    from ctmm.spatial.elements import Revolute, SpatialBody, Spherical, Weld
-    from ctmm.spatial.model import SpatialModel
-
     drift = {}
     for second_order in (True, False):
         model = SpatialModel("station_child", [
@@ -142,11 +148,34 @@ def test_spatial_child_on_a_spherical_joint_at_a_station_conserves_energy():
 def test_generated_kernel_moves_the_child_too():
     """The generated (casadi) path runs the same point statements on symbols: equal to the numpy sweep with a station
     child on the second-order beam."""
-    from ctmm.compiled_parameters import parameter_vector
-    from ctmm.compiled_scene import symbolic_plant_accelerations
-
     model = planar_arm(True, 0.7)
     function = symbolic_plant_accelerations(model)
     symbolic = np.asarray(function(Q, V, parameter_vector(model), 0.0)).reshape(-1)
     numeric = solve_flexible(model, Q, V, 0.0).qddot
     assert np.max(np.abs(symbolic - numeric)) < 1e-10 * np.max(np.abs(numeric))
+
+
+@pytest.mark.parametrize("axis", [0, 1, 2])
+def test_spatial_body_axis_force_at_a_station_moves_with_the_shortening(axis):
+    """A body-axis force at a station of a second-order spatial beam (universal hub, both planes, twist, tip body):
+    equal to the reference's virtual power at the shortened point to 1e-10 (its axial component's ``-f_1 G1 eta``
+    included), for each axis."""
+    axes = ((0, 0, 1), (0, 1, 0))
+    model = SpatialModel("s", [
+        SpatialBody("hub", mass=2.0, inertia=HUB_INERTIA, center_of_mass=(0.03, 0.01, 0.02),
+                    points={"out": (0.2, 0, 0.05)}),
+        Universal(name="hubj", parent=None, child="hub", axis1=axes[0], axis2=axes[1]),
+        SpatialBeam("b", **SPATIAL_BEAM, second_order_inertia=True, quadrature=12, stations={"p": 0.6}),
+        Weld(name="mount", parent="hub", child="b", point="out", rotation=SPATIAL_MOUNT),
+        SpatialBody("tip", mass=0.3, inertia=TIP_INERTIA, center_of_mass=(0.03, 0.02, -0.01)),
+        Weld(name="m2", parent="b", child="tip", point="tip")], gravity=SPATIAL_GRAVITY)
+    reference = SpatialBeamLagrange(HubBeam(
+        **SPATIAL_BEAM, hub_mass=2.0, hub_inertia=HUB_INERTIA, hub_center=(0.03, 0.01, 0.02), axes=axes,
+        mount=(0.2, 0.0, 0.05), mount_rotation=SPATIAL_MOUNT, tip_mass=0.3, tip_inertia=TIP_INERTIA,
+        tip_center=(0.03, 0.02, -0.01), gravity=SPATIAL_GRAVITY, points=12, second_order_inertia=True,
+        actuators=((0.6, "force", axis),)))
+    inputs = SpatialPorts(model).inputs({f"b.p.force_body_{'xyz'[axis]}": 20.0})
+    got = accelerations(model, SPATIAL_Q, SPATIAL_U, 0.0, inputs.joint, inputs.wrenches)
+    expected = reference.accelerations(SPATIAL_Q, SPATIAL_U, actuation=np.array([20.0]))
+    assert np.abs(got - expected).max() <= 1e-10 * np.abs(expected).max()
+    assert np.abs(reference.accelerations(SPATIAL_Q, SPATIAL_U) - expected).max() > 1e-4 * np.abs(expected).max()   # it acts

@@ -44,8 +44,8 @@ from ..planar.signals import signal_values
 from ..signals import Constant, SignalLike, as_signal
 from .family import ModalBeamFamily
 from .hooks import hook_value
-from .point_terms import end_terms, point_shortening
 from .modes import ModeSet, check_quadrature, check_root_clamped, gauss_points
+from .point_terms import end_terms, point_shortening
 from .second_order import SecondOrderInertia, check_second_order
 from .stations import check_stations
 
@@ -601,8 +601,9 @@ class BeamData:
             fx, fy, mz = loads[k]
             f1, f2 = c * fx + s * fy, -s * fx + c * fy       # load in the frame
             lv = V[:, sl[f"l{k}"]]
-            rb_x = self.load_x[k] + lv[:, 0] + (0 if self.second_order is None       # moved with the shortening
-                                                 else point_shortening(V[:, sl[f"lG{k}"]], q))
+            rb_x = self.load_x[k] + lv[:, 0]
+            if self.second_order is not None:          # the load point moves with the shortening
+                rb_x = rb_x + point_shortening(V[:, sl[f"lG{k}"]], q)
             rb_y = lv[:, 1]
             h[:, 0] -= f1
             h[:, 1] -= f2

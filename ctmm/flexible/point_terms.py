@@ -80,15 +80,16 @@ def end_terms(data: Any, k: int, constant_kin: np.ndarray, V: Any, Vd: Any, slic
     Kb = np.empty((B, 3, N3), dtype=dtype)
     Kb[:] = constant_kin
     cb = np.zeros((B, 3, 1), dtype=dtype)
+    w2 = omega * omega
     if data.second_order is not None:                  # the point moves with the shortening u(x_e)
         rb_x = rb_x + point_shortening(G1q, q)
         rate_x = rate_x - (G1q * qd).sum(1)
         Kb[:, 0, 3:3 + nq] = -G1q
-        cb[:, 0, 0] = -(Vd[:, slices[f"eG{k}"]] * qd).sum(1)
-    w2 = omega * omega
+        cb[:, 0, 0] = -(Vd[:, slices[f"eG{k}"]] * qd).sum(1) - w2 * rb_x - 2 * omega * evd[:, 1]
+    else:
+        cb[:, 0, 0] = -w2 * rb_x - 2 * omega * evd[:, 1]
     Kb[:, 0, 2] = -rb_y
     Kb[:, 1, 2] = rb_x
-    cb[:, 0, 0] = cb[:, 0, 0] - w2 * rb_x - 2 * omega * evd[:, 1]
     cb[:, 1, 0] = -w2 * rb_y + 2 * omega * rate_x
     RFb = np.transpose(Kb, (0, 2, 1)).copy()           # virtual work (with the option: -G1(x_e) q included)
     if data.stiffening and data.second_order is None:   # first order: the one-directional stiffening only

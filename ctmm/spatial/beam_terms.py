@@ -208,7 +208,7 @@ def spatial_beam_terms(ops: Ops, beam: Any, *, rotation: Any, offset: Any, omega
         ThetaLam = ops.matmul(Theta, constant(ops, Lam_e))
         rho_dot = ops.matmul(constant(ops, Phi_e), eta_dot)
         relative = ops.matmul(Theta, theta_dot)
-        Phi_u, rate_term = constant(ops, Phi_e), ops.zeros(3, 1)
+        Phi_u, rate_term = constant(ops, Phi_e), None
         if data.second_order is not None:              # the point moves with the shortening (beam_second_order.py)
             G1_eta, G1_rate = ops.matmul(constant(ops, G1_e), eta), ops.matmul(constant(ops, G1_e), eta_dot)
             rho = rho + e1 * (ops.matmul(ops.transpose(G1_eta), eta) * -0.5)
@@ -221,7 +221,8 @@ def spatial_beam_terms(ops: Ops, beam: Any, *, rotation: Any, offset: Any, omega
             tx, ty, tz = (entry(ops, theta_dot, i) for i in range(3))
             spin = cross(ops, constant(ops, _E[:, 2]) * tz, second) * ty + cross(
                 ops, constant(ops, _E[:, 2]) * tz + second * ty, first) * tx
-            c_b = ops.block([[cross(ops, w, cross(ops, w, rho)) + cross(ops, w, rho_dot) * 2.0 + rate_term],
+            c_lin = cross(ops, w, cross(ops, w, rho)) + cross(ops, w, rho_dot) * 2.0
+            c_b = ops.block([[c_lin if rate_term is None else c_lin + rate_term],
                              [cross(ops, w, relative) + spin]])
             RF_b = ops.transpose(K_b)                  # virtual work (with the option: -e1 eta^T G1 in Phi_u)
             if data.stiffening and data.second_order is None:
