@@ -181,3 +181,32 @@ def test_spatial_body_axis_force_at_a_station_moves_with_the_shortening(axis):
     expected = reference.accelerations(SPATIAL_Q, SPATIAL_U, actuation=np.array([20.0]))
     assert np.abs(got - expected).max() <= 1e-10 * np.abs(expected).max()
     assert np.abs(reference.accelerations(SPATIAL_Q, SPATIAL_U) - expected).max() > 1e-4 * np.abs(expected).max()   # it acts
+
+
+def test_spatial_point_sensors_sit_where_the_children_are():
+    """The spatial beam's point sensors (``"b.tip.x"``, ``"b.tip.vx"`` ...: ``deformed_point``) use the shortened point:
+    equal to the centre of a body welded at the tip with its centre there (computed by the sweep's point
+    kinematics, another path) to 1e-12, on a bent, spinning second-order beam; the first-order beam's sensor is
+    ``|u(L)|`` away."""
+    from ctmm.spatial.ports import sensor_values
+
+    def arm(second_order: bool) -> SpatialModel:
+        return SpatialModel("s", [
+            SpatialBody("hub", mass=2.0, inertia=HUB_INERTIA, center_of_mass=(0.03, 0.01, 0.02),
+                        points={"out": (0.2, 0, 0.05)}),
+            Universal(name="hubj", parent=None, child="hub", axis1=(0, 0, 1), axis2=(0, 1, 0)),
+            SpatialBeam("b", **SPATIAL_BEAM, second_order_inertia=second_order, quadrature=12),
+            Weld(name="mount", parent="hub", child="b", point="out", rotation=SPATIAL_MOUNT),
+            SpatialBody("tip", mass=0.3, inertia=TIP_INERTIA),
+            Weld(name="m2", parent="b", child="tip", point="tip")], gravity=SPATIAL_GRAVITY)
+
+    model = arm(True)
+    names = [f"{body}.{point}.{part}{axis}" for part in ("", "v") for axis in "xyz"
+             for body, point in (("b", "tip"), ("tip", "com"))]
+    values = sensor_values(model, names, SPATIAL_Q, SPATIAL_U).reshape(2, 3, 2)      # (position | rate, axis, body)
+    np.testing.assert_allclose(values[..., 0], values[..., 1], rtol=0, atol=1e-12 * np.abs(values).max())
+    moved = values[0, :, 0] - sensor_values(arm(False), names[0:6:2], SPATIAL_Q, SPATIAL_U)
+    eta = SPATIAL_Q[2:]
+    beam = SpatialBeam("b", **SPATIAL_BEAM, second_order_inertia=True, quadrature=12)
+    u = -0.5 * eta @ beam.data.station(SPATIAL_BEAM["length"])[2] @ eta
+    assert np.linalg.norm(moved) == pytest.approx(abs(u), rel=1e-10) and abs(u) > 1e-4     # along the frame axis
