@@ -33,6 +33,13 @@ angular velocity ``Theta(theta) theta_dot``, ``Theta = [Rz Ry e1, Rz e2, e3]``. 
     c_e = [omega x (omega x rho_e) + 2 omega x Phi_e eta_dot ;
            omega x Theta Lambda_e eta_dot + Theta_dot theta_dot]
 
+With ``second_order_inertia`` a point moves with the shortening, ``rho_e = rho0_e + Phi_e eta + e1 u_e``,
+``u_e = -1/2 eta^T G1(x_e) eta``: ``rho_e' = Phi_u eta_dot``, ``rho_e'' = Phi_u eta'' - e1 eta_dot^T G1 eta_dot`` with
+``Phi_u = Phi_e - e1 (G1 eta)^T``, so ``Phi_u`` replaces ``Phi_e`` in ``Kin_e``, ``c_e`` gains
+``- e1 eta_dot^T G1 eta_dot`` (and ``rho_e``, ``rho_e'`` the shortening), and ``RF_e = Kin_e^T`` exactly (the
+axial force's ``-G1(x_e) eta f_1`` is its ``Phi_u^T`` part; no separate stiffening).  Point loads act at the
+shortened point; their modal force ``Phi_u^T f`` is the stiffened ``Phi_e^T f - G1 eta f_1``.
+
 All in frame axes, then turned to world axes with ``T = diag(R, R, I_n)``.  Restricted to the ``x-y``
 plane (``omega = omega_3 e3``, no ``z`` or twist modes) every term is the planar
 :class:`~ctmm.flexible.beam.ModalBeam`'s.
