@@ -180,7 +180,8 @@ def test_spatial_body_axis_force_at_a_station_moves_with_the_shortening(axis):
     got = accelerations(model, SPATIAL_Q, SPATIAL_U, 0.0, inputs.joint, inputs.wrenches)
     expected = reference.accelerations(SPATIAL_Q, SPATIAL_U, actuation=np.array([20.0]))
     assert np.abs(got - expected).max() <= 1e-10 * np.abs(expected).max()
-    assert np.abs(reference.accelerations(SPATIAL_Q, SPATIAL_U) - expected).max() > 1e-4 * np.abs(expected).max()   # it acts
+    free = reference.accelerations(SPATIAL_Q, SPATIAL_U)
+    assert np.abs(free - expected).max() > 1e-4 * np.abs(expected).max()                  # it acts
 
 
 def test_spatial_point_sensors_sit_where_the_children_are():
@@ -210,3 +211,17 @@ def test_spatial_point_sensors_sit_where_the_children_are():
     beam = SpatialBeam("b", **SPATIAL_BEAM, second_order_inertia=True, quadrature=12)
     u = -0.5 * eta @ beam.data.station(SPATIAL_BEAM["length"])[2] @ eta
     assert np.linalg.norm(moved) == pytest.approx(abs(u), rel=1e-10) and abs(u) > 1e-4     # along the frame axis
+
+
+def test_a_station_force_port_is_refused_on_a_second_order_beam():
+    """The planar station force port applies a constant moment arm ``x`` (a state-independent input row); on a
+    second-order beam the arm is ``x + u(x)``: refused by name (station moments and ``Load`` remain)."""
+    from ctmm.errors import ModelError
+    from ctmm.planar import ports
+
+    beam = ModalBeam("b", length=LENGTH, bending_stiffness=EI, mass_per_length=RHO_A, n_modes=3,
+                     second_order_inertia=True, stations={"s": 0.7})
+    model = PlanarModel("arm", [Pinned("o", child="b"), beam], gravity=GRAVITY)
+    with pytest.raises(ModelError, match="second_order_inertia = False"):
+        ports.actuator_inputs(model, {"b.s.force": 1.0})
+    assert "b.s.moment" in ports.actuator_names(model)

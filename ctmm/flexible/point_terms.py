@@ -44,8 +44,8 @@ def point_shortening(G1q: Any, q: Any) -> Any:
     return -0.5 * (G1q * q).sum(1)
 
 
-def end_terms(data: Any, k: int, constant_kin: np.ndarray, V: Any, Vd: Any, slices: dict, q: Any, qd: Any, theta: Any, omega: Any,
-              T: Any) -> tuple:
+def end_terms(data: Any, k: int, constant_kin: np.ndarray, V: Any, Vd: Any, slices: dict, q: Any, qd: Any,
+              theta: Any, omega: Any, T: Any) -> tuple:
     """Kinematics and force map of end ``k`` of a modal beam (module docstring), rotated to global axes.
 
     Parameters

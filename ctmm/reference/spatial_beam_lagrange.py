@@ -25,9 +25,9 @@ with the geometric stiffness of the axial force of the overall motion (both bend
 bending plane: ``int N (w_y' delta w_y' + w_z' delta w_z')``, no coupling of the planes),
 
 ``a_1``, ``g_1``, ``f_1``, ``q_1`` the beam-axis components of the root acceleration, gravity, the force of
-the beam on the tip body (``m_tip (a_c - g)``, ``G1`` to its station, affine in ``u_dot``) and of the uniform follower load
-``distributed_load = (q_1, q_2, q_3)`` [N/m] in the beam frame (its generalised force: its virtual power at the
-mass points) -- the consistent first-order geometric stiffness (Kane, Ryan, Banerjee 1987 for the spinning beam).
+the beam on the tip body (``m_tip (a_c - g)``, ``G1`` to its station, affine in ``u_dot``) and of the uniform
+follower load ``distributed_load = (q_1, q_2, q_3)`` [N/m] in the beam frame (its generalised force: its virtual
+power at the mass points) -- the consistent first-order geometric stiffness (Kane, Ryan, Banerjee 1987 for the spinning beam).
 
 **Second-order inertia** (``second_order_inertia=True``, axially rigid beams only): every mass point also moves
 along the axis by its foreshortening ``u(x) = -1/2 int_0^x (w_y'^2 + w_z'^2)`` (inner Gauss-Legendre rule on
