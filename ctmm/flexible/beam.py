@@ -45,6 +45,7 @@ from ..signals import Constant, SignalLike, as_signal
 from .family import ModalBeamFamily
 from .hooks import hook_value
 from .modes import ModeSet, check_quadrature, check_root_clamped, gauss_points
+from .point_terms import end_terms, point_shortening
 from .second_order import SecondOrderInertia, check_second_order
 from .stations import check_stations
 
@@ -443,6 +444,17 @@ class BeamData:
         dphi = self.beam.shapes(x, 1)
         return (dphi * w) @ dphi.T
 
+    def end_point(self, end: int, eta, eta_dot, shortening: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """End ``end`` in the frame: position [m] and velocity relative to the frame [m/s]; with ``shortening`` and
+        ``second_order_inertia`` moved by ``u_e = -1/2 q^T G1(x_e) q`` (:mod:`ctmm.flexible.point_terms`)."""
+        q, qd = eta[:self.nq], eta_dot[:self.nq]
+        position = np.array([self.end_x[end] + eta[self.nq:] @ self.end_psi[end], q @ self.end_phi[end]])
+        velocity = np.array([eta_dot[self.nq:] @ self.end_psi[end], qd @ self.end_phi[end]])
+        if shortening and self.second_order is not None:
+            position[0] -= 0.5 * q @ self.end_G1[end] @ q
+            velocity[0] -= q @ self.end_G1[end] @ qd
+        return position, velocity
+
     # ---------------------------------------------------------------------------------------
     def external(self, t: float):
         """Point loads ``(n_loads, 3)`` and distributed load ``(q_x, q_y)`` at time ``t``."""
@@ -590,6 +602,8 @@ class BeamData:
             f1, f2 = c * fx + s * fy, -s * fx + c * fy       # load in the frame
             lv = V[:, sl[f"l{k}"]]
             rb_x = self.load_x[k] + lv[:, 0]
+            if self.second_order is not None:          # the load point moves with the shortening
+                rb_x = rb_x + point_shortening(V[:, sl[f"lG{k}"]], q)
             rb_y = lv[:, 1]
             h[:, 0] -= f1
             h[:, 1] -= f2
@@ -619,26 +633,9 @@ class BeamData:
         Tt = np.transpose(T, (0, 2, 1))
         M = T @ M @ Tt
         h = (T @ h[:, :, None])[:, :, 0]
-        T3, T3t = T[:, :3, :3], Tt[:, :3, :3]
-        # -- ends ----------------------------------------------------------------------------
-        ends = []
-        for k, Kin0 in enumerate(self._constant_ends):
-            ev = V[:, sl[f"e{k}"]]
-            evd = Vd[:, sl[f"e{k}"]]
-            rb_x = self.end_x[k] + ev[:, 0]
-            rb_y = ev[:, 1]
-            Kb = np.empty((B, 3, N3), dtype=dtype)
-            Kb[:] = Kin0
-            Kb[:, 0, 2] = -rb_y
-            Kb[:, 1, 2] = rb_x
-            cb = np.zeros((B, 3, 1), dtype=dtype)
-            cb[:, 0, 0] = -w2 * rb_x - 2 * omega * evd[:, 1]
-            cb[:, 1, 0] = -w2 * rb_y + 2 * omega * evd[:, 0]
-            RFb = np.transpose(Kb, (0, 2, 1)).copy()
-            if self.stiffening:
-                RFb[:, 3:3 + nq, 0] -= V[:, sl[f"eG{k}"]]
-            ends.append((T3 @ Kb @ Tt, (T3 @ cb)[:, :, 0], T @ RFb @ T3t,
-                         theta + ev[:, 2], omega + evd[:, 2]))
+        # -- ends (point_terms.py) -----------------------------------------------------------
+        ends = [end_terms(self, k, Kin0, V, Vd, sl, q, qd, theta, omega, T)
+                for k, Kin0 in enumerate(self._constant_ends)]
         return M, h, ends
 
 

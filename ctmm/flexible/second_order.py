@@ -34,9 +34,13 @@ The body terms are written in this module as the *difference* to the first-order
 ``gamma_2 = g_2 + q_y / rhoA`` the transverse gravity and distributed load per unit mass in the frame.  Complex-safe
 and object-array-safe (the generated kernels run the same numpy statements on casadi scalars).
 
+The beam's points (children at its ends and stations, point loads) move with the shortening too; their kinematics
+and force maps are stated in :mod:`ctmm.flexible.point_terms` (``Kin_e[a_1, q] = -(G1(x_e) q)^T``, the rate term
+``-q'^T G1(x_e) q'``, ``RF_e = Kin_e^T``), the children's positions by ``BeamData.end_point`` (so the energy of the
+whole model is conserved).  A cut joint at an end is not a child: it adds the end shortening itself
+(``docs/closed_loops.md`` §4b).
 Not covered: axial modes (``n_axial_modes > 0``: the extensible beam's shortening belongs to its axial strain;
-refused), and the beam's ends keep their first-order position (a cut joint adds the end shortening itself,
-``docs/closed_loops.md`` §4b).
+refused).
 """
 from __future__ import annotations
 

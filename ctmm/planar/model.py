@@ -603,7 +603,7 @@ class PlanarModel:
                 e = self.end_vector[i]
                 ed = np.zeros(2)
                 if p in self.beams:                     # deformed end of a flexible parent
-                    e, ed = self.beam_point_local(p, self.parent_end_index[i], q, qdot)
+                    e, ed = self.beam_point_local(p, self.parent_end_index[i], q, qdot, True)
                 rx, ry = c[p] * e[0] - s[p] * e[1], s[p] * e[0] + c[p] * e[1]
                 r_in[i] = r_in[p] + (rx, ry)
                 v_in[i] = v_in[p] + omega[p] * np.array([-ry, rx]) + (
@@ -634,14 +634,14 @@ class PlanarModel:
         return {"inboard": r_in, "inboard_velocity": v_in, "com": com, "com_velocity": v_com,
                 "theta": theta, "omega": omega}
 
-    def beam_point_local(self, j: int, end: int, q, qdot) -> tuple[np.ndarray, np.ndarray]:
-        """Deformed end ``end`` of beam ``j`` in its frame (position, velocity rel. frame)."""
+    def beam_point_local(self, j: int, end: int, q, qdot, shortening: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """Deformed end ``end`` of beam ``j`` in its frame (position, velocity rel. frame); ``shortening``: with a
+        second-order beam's foreshortening (where its children and ports sit, ``ctmm.flexible.point_terms``)."""
         d = self.beams[j].data
         eta, eta_dot = q[self.modal_index[j]], qdot[self.modal_index[j]]
         if hasattr(d, "point_local"):                # ctmm.fem subsystems state their own
             return d.point_local(end, eta, eta_dot)
-        return (np.array([d.end_x[end] + eta[d.nq:] @ d.end_psi[end], eta[:d.nq] @ d.end_phi[end]]),
-                np.array([eta_dot[d.nq:] @ d.end_psi[end], eta_dot[:d.nq] @ d.end_phi[end]]))
+        return d.end_point(end, eta, eta_dot, shortening)
 
     def energy(self, q: np.ndarray, qdot: np.ndarray, t: float = 0.0) -> float:
         """Kinetic + gravity + hinge-spring energy [J], constant references (stiffened beams: flexible.md §1.3)."""

@@ -130,8 +130,8 @@ def _build(model: PlanarModel) -> tuple[dict, dict]:
                     label = f"{body}.{station}.{part}"
                     sensors[label] = _Sensor(label, "station", i, part, station, unit)
                 for k, part in ((1, "force"), (2, "moment")):
-                    if k == 1 and model.beams[i].n_axial_modes:
-                        continue        # the moment arm x + psi(x) . p would depend on the state
+                    if k == 1 and (model.beams[i].n_axial_modes or getattr(model.beams[i], "second_order_inertia", 0)):
+                        continue        # the moment arm x + psi(x) . p (+ u(x)) would depend on the state
                     label = f"{body}.{station}.{part}"
                     actuators[label] = _Actuator(label, "station", i, k, "N" if k == 1 else "N m", station)
     for j, hinge in enumerate(model.joint_names):
@@ -190,9 +190,9 @@ class PlanarPorts(NamedPorts):
             station = self.actuators.get(name[:-len(".force")] + ".moment") if isinstance(name, str) \
                 and name.endswith(".force") else None
             if station is not None and station.kind == "station":
-                raise ModelError(f"{what} {name!r}: a station force needs an axially rigid beam "
-                                 "(n_axial_modes = 0: its moment arm would move with the axial modes); "
-                                 "station moments are available")
+                raise ModelError(f"{what} {name!r}: a station force needs an axially rigid first-order beam "
+                                 "(n_axial_modes = 0, second_order_inertia = False: its moment arm would move with "
+                                 "the axial modes or the shortening); station moments and Load are available")
             raise _unknown(what, name, self.model, self.actuators)
         return name
 
@@ -286,7 +286,7 @@ def _point_kinematics(model: PlanarModel, q, qdot, t: float) -> dict:
         rotation = np.array([[c, -s], [s, c]])
         for k, end in enumerate(model.ends[i]):
             if i in model.beams:
-                local, local_rate = model.beam_point_local(i, k, q, qdot)
+                local, local_rate = model.beam_point_local(i, k, q, qdot, shortening=True)
             else:
                 local, local_rate = np.asarray(model.ends[i][end], float), np.zeros(2)
             r = rotation @ local

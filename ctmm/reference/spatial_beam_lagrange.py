@@ -25,14 +25,17 @@ with the geometric stiffness of the axial force of the overall motion (both bend
 bending plane: ``int N (w_y' delta w_y' + w_z' delta w_z')``, no coupling of the planes),
 
 ``a_1``, ``g_1``, ``f_1``, ``q_1`` the beam-axis components of the root acceleration, gravity, the force of
-the beam on the tip body (``m_tip (a_c - g)``, affine in ``u_dot``) and of the uniform follower load
-``distributed_load = (q_1, q_2, q_3)`` [N/m] in the beam frame (its generalised force: its virtual power at the
-mass points) -- the consistent first-order geometric stiffness (Kane, Ryan, Banerjee 1987 for the spinning beam).
+the beam on the tip body (``m_tip (a_c - g)``, ``G1`` to its station, affine in ``u_dot``) and of the uniform
+follower load ``distributed_load = (q_1, q_2, q_3)`` [N/m] in the beam frame (its generalised force: its virtual
+power at the mass points) -- the consistent first-order geometric stiffness (Kane, Ryan, Banerjee 1987 for the spinning beam).
 
 **Second-order inertia** (``second_order_inertia=True``, axially rigid beams only): every mass point also moves
 along the axis by its foreshortening ``u(x) = -1/2 int_0^x (w_y'^2 + w_z'^2)`` (inner Gauss-Legendre rule on
-``[0, x]``), in ``T`` and ``V`` exactly; the beam's own axial force then comes out of Lagrange's equations, and
-``G(N)`` keeps only the tip body's ``- f_1 G1(L)`` (the tip body sits at the first-order tip position).
+``[0, x]``), in ``T`` and ``V`` exactly, and so do the tip body (at ``[x_t + u(x_t), w_y(x_t), w_z(x_t)]``) and the
+points of the body-axis force actuators; every axial force then comes out of Lagrange's equations (virtual power
+at the moved points) and ``G(N)`` is dropped.
+
+``tip_station``: the abscissa ``x_t`` where the tip body is welded (default ``L``; a child at a station).
 
 Two-link arms (the 3-D flexible manipulator): with two axes and ``shoulder`` the hub's origin is
 ``Rot(a1, q1) shoulder`` (the second axis passes through it), and an optional rigid **base** body
@@ -99,6 +102,7 @@ class HubBeam:
     base_center: Sequence[float] = (0.0, 0.0, 0.0)
     actuators: Sequence[tuple] = ()
     second_order_inertia: bool = False
+    tip_station: float | None = None
     distributed_load: Sequence[float] = (0.0, 0.0, 0.0)
 
 
@@ -145,23 +149,30 @@ class SpatialBeamLagrange:
         betas_z = beta_roots("clamped-free", nz) if nz else np.zeros(0)
 
         def bend(betas, x, d):
+            if not len(betas):                         # a plane without modes (planar motion)
+                return np.zeros((0, np.asarray(x).size))
             return (np.array([clamped_free_mode(b, np.asarray(x) / L, d) for b in betas]).reshape(len(betas), -1)
                     / L ** d)
 
         xg, wg = np.polynomial.legendre.leggauss(p.points)
         x, w = (xg + 1) / 2 * L, wg / 2 * L
         shortening = [0.0] * p.points
-        if p.second_order_inertia:
-            if na:
-                raise ValueError("second_order_inertia needs an axially rigid beam (n_axial_modes = 0)")
-            for k in range(p.points):                  # u(x_k) = -1/2 int_0^x_k (w_y'^2 + w_z'^2), Gauss on [0, x_k]
-                s_in, s_w = (xg + 1) / 2 * x[k], wg / 2 * x[k]
-                slope2 = 0
-                for betas, coordinates in ((betas_y, qy), (betas_z, qz)):
-                    if len(betas):
-                        slopes = ca.mtimes(ca.DM(bend(betas, s_in, 1).T), coordinates)     # (points, 1)
-                        slope2 = slope2 + ca.dot(ca.DM(s_w), slopes * slopes)
-                shortening[k] = -0.5 * slope2
+
+        def shortening_at(x_k: float):
+            """u(x_k) = -1/2 int_0^x_k (w_y'^2 + w_z'^2), Gauss-Legendre on [0, x_k] (0 without the option)."""
+            if not p.second_order_inertia:
+                return 0.0
+            s_in, s_w = (xg + 1) / 2 * x_k, wg / 2 * x_k
+            slope2 = 0
+            for betas, coordinates in ((betas_y, qy), (betas_z, qz)):
+                if len(betas):
+                    slopes = ca.mtimes(ca.DM(bend(betas, s_in, 1).T), coordinates)     # (points, 1)
+                    slope2 = slope2 + ca.dot(ca.DM(s_w), slopes * slopes)
+            return -0.5 * slope2
+
+        if p.second_order_inertia and na:
+            raise ValueError("second_order_inertia needs an axially rigid beam (n_axial_modes = 0)")
+        shortening = [shortening_at(x[k]) for k in range(p.points)]
         # hub rotation and beam frame
         R_h = ca.DM.eye(3)
         for i, axis in enumerate(p.axes):
@@ -223,8 +234,9 @@ class SpatialBeamLagrange:
         # tip body
         tip = {}
         if p.tip_mass > 0:
-            x_tip = np.array([L])
-            rho_L = ca.vertcat(L + (ca.dot(ca.DM(_rod(x_tip, L, na)[:, 0]), ax) if na else 0),
+            x_tip = np.array([L if p.tip_station is None else float(p.tip_station)])
+            rho_L = ca.vertcat(x_tip[0] + shortening_at(x_tip[0])
+                               + (ca.dot(ca.DM(_rod(x_tip, L, na)[:, 0]), ax) if na else 0),
                                ca.dot(ca.DM(bend(betas_y, x_tip, 0)[:, 0]), qy) if ny else 0,
                                ca.dot(ca.DM(bend(betas_z, x_tip, 0)[:, 0]), qz) if nz else 0)
             twist = ca.dot(ca.DM(_rod(x_tip, L, nt)[:, 0]), tw) if nt else 0
@@ -249,6 +261,7 @@ class SpatialBeamLagrange:
             generalized[i] -= c_joint * u[i]
         generalized[nh:] -= ca.mtimes(ca.DM(D), eta_dot)
         generalized += load_force
+        x_tip_station = L if p.tip_station is None else float(p.tip_station)
         if p.geometric_stiffening and (ny or nz):
             a_I = ca.mtimes(ca.jacobian(ca.mtimes(ca.jacobian(r_I, q), u), q), u) + ca.mtimes(ca.jacobian(r_I, q), ud)
             frame_a = ca.mtimes(R_b.T, a_I)
@@ -263,23 +276,26 @@ class SpatialBeamLagrange:
             def gram(weights):
                 return scipy.linalg.block_diag(*[(s * weights) @ s.T for s in blocks])
 
-            G1, G2, G3 = gram(w), gram(w * (L - x)), gram(w * (L * L - x * x) / 2)
+            x_in = (xg + 1) / 2 * x_tip_station
+            G1 = scipy.linalg.block_diag(*[(s_ * (wg / 2 * x_tip_station)) @ s_.T
+                                           for s_ in (bend(betas_y, x_in, 1), bend(betas_z, x_in, 1))])
+            G2, G3 = gram(w * (L - x)), gram(w * (L * L - x * x) / 2)
             G = (ca.DM(G2) * (rhoA * (frame_g[0] - frame_a[0])) + ca.DM(G3) * (rhoA * (w_b[1] ** 2 + w_b[2] ** 2))
                  - ca.DM(G1) * frame_f[0] + ca.DM(G2) * float(p.distributed_load[0]))
-            if p.second_order_inertia:                 # the beam's own axial force is in T and V; the tip's is not
-                G = -ca.DM(G1) * frame_f[0]
-            generalized[nh:nh + ny + nz] -= ca.mtimes(G, q[nh:nh + ny + nz])
+            if not p.second_order_inertia:             # with it every axial force (beam's and tip's) is in T and V
+                generalized[nh:nh + ny + nz] -= ca.mtimes(G, q[nh:nh + ny + nz])
         # body-axis actuators: generalised forces by virtual power (module docstring)
         act = ca.SX.sym("act", len(p.actuators))
         for k, (x_a, kind, axis) in enumerate(p.actuators):
             x_a = np.array([float(x_a)])
             direction = ca.mtimes(R_b, ca.DM(np.eye(3)[int(axis)]))
             if kind == "force":
-                rho_a = ca.vertcat(x_a[0] + (ca.dot(ca.DM(_rod(x_a, L, na)[:, 0]), ax) if na else 0),
+                rho_a = ca.vertcat(x_a[0] + shortening_at(x_a[0])
+                                   + (ca.dot(ca.DM(_rod(x_a, L, na)[:, 0]), ax) if na else 0),
                                    ca.dot(ca.DM(bend(betas_y, x_a, 0)[:, 0]), qy) if ny else 0,
                                    ca.dot(ca.DM(bend(betas_z, x_a, 0)[:, 0]), qz) if nz else 0)
                 jac = ca.jacobian(ca.mtimes(ca.jacobian(r_I + ca.mtimes(R_b, rho_a), q), u), u)
-                if p.geometric_stiffening and (ny or nz) and int(axis) == 0:
+                if p.geometric_stiffening and (ny or nz) and int(axis) == 0 and not p.second_order_inertia:
                     x_in, w_in = (xg + 1) / 2 * x_a[0], wg / 2 * x_a[0]       # Gauss points on [0, x]
                     blocks_a = [bend(betas_y, x_in, 1), bend(betas_z, x_in, 1)]
                     G1_a = scipy.linalg.block_diag(*[(s_ * w_in) @ s_.T for s_ in blocks_a])

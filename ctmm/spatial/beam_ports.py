@@ -119,13 +119,22 @@ def patch_sensor(beam: Any, first: str, second: str, *, axis: str = "z", gain: f
     return [(f"{beam.name}.{first}.{suffix}", -k), (f"{beam.name}.{second}.{suffix}", k)]
 
 
-def deformed_point(beam: Any, point: Any, eta: np.ndarray, *, rate: bool = False) -> np.ndarray:
+def deformed_point(beam: Any, point: Any, eta: np.ndarray, *, rate: bool = False,
+                   coordinates: np.ndarray | None = None) -> np.ndarray:
     """Body-axes position ``rho0 + Phi eta`` [m] of the beam axis point at ``point[0]`` (``rate``: its
     velocity relative to the frame ``Phi eta_dot`` [m/s]); ``eta`` (n_eta,) or a batch (B, n_eta), real or
-    complex step (:mod:`ctmm.spatial.sensor_maps`) -> (3,) or (B, 3)."""
+    complex step (:mod:`ctmm.spatial.sensor_maps`) -> (3,) or (B, 3).  With ``second_order_inertia`` the point
+    moves with the shortening, ``+ e1 u``, ``u = -1/2 eta^T G1(x) eta`` (its rate ``-eta^T G1 eta_dot`` needs the
+    modal ``coordinates`` beside the rates ``eta``), like the beam's children (:mod:`ctmm.spatial.beam_terms`)."""
     if hasattr(beam, "deformed_point"):                                 # a ctmm.fem.SpatialSubsystem: its nodes
         return beam.deformed_point(point, eta, rate=rate)
-    Phi = beam.data.station(float(point[0]))[0]
+    Phi, _, G1 = beam.data.station(float(point[0]))
     eta = np.asarray(eta)
-    moved = (eta if np.iscomplexobj(eta) else eta.astype(float)) @ Phi.T
+    eta = eta if np.iscomplexobj(eta) else eta.astype(float)
+    moved = eta @ Phi.T
+    if beam.data.second_order is not None:
+        if rate and coordinates is None:
+            raise ModelError(f"{beam.name}: the rate of a point of a second-order beam needs its modal coordinates")
+        left = np.asarray(coordinates) if rate else eta
+        moved = moved - np.multiply.outer(((left @ G1) * eta).sum(-1) * (1.0 if rate else 0.5), [1.0, 0.0, 0.0])
     return moved if rate else moved + np.array([float(point[0]), 0.0, 0.0])

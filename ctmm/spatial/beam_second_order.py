@@ -31,7 +31,11 @@ polynomials in ``eta`` with the constant tensors (built once by :class:`SecondOr
 ``T_r[k, i, j] = int Phi_rk G1_ij`` (``r = y, z``),  ``H_ijkl = int G1_ij G1_kl``,  ``G2 = int G1``,  ``G3 = int x G1``.
 
 Restricted to a plane every term is the planar ``ModalBeam(second_order_inertia=True)``'s.  The points (children,
-loads, ports) keep their first-order position, as on the planar beam.
+point loads, body-axis forces) move with the shortening too, as on the planar beam (:mod:`ctmm.flexible.point_terms`):
+``rho_e = rho1_e + e1 u(x_e)``, ``Kin_e[lin, mod] = Phi_u(x_e) = Phi_e - e1 (G1(x_e) eta)^T``, the rate term
+``-e1 eta_dot^T G1(x_e) eta_dot`` in ``c_e`` and ``RF_e = Kin_e^T`` (virtual work; it holds the axial force's
+``-f_1 G1(x_e) eta``), stated in :func:`ctmm.spatial.beam_terms.spatial_beam_terms`; the point sensors
+(:func:`ctmm.spatial.beam_ports.deformed_point`) report the shortened point too.
 Not covered: axial modes (the extensible beam's shortening belongs to its axial strain) -- refused by
 :func:`ctmm.flexible.second_order.check_second_order` (the planar option's refusals, same attributes).
 """

@@ -33,6 +33,13 @@ angular velocity ``Theta(theta) theta_dot``, ``Theta = [Rz Ry e1, Rz e2, e3]``. 
     c_e = [omega x (omega x rho_e) + 2 omega x Phi_e eta_dot ;
            omega x Theta Lambda_e eta_dot + Theta_dot theta_dot]
 
+With ``second_order_inertia`` a point moves with the shortening, ``rho_e = rho0_e + Phi_e eta + e1 u_e``,
+``u_e = -1/2 eta^T G1(x_e) eta``: ``rho_e' = Phi_u eta_dot``, ``rho_e'' = Phi_u eta'' - e1 eta_dot^T G1 eta_dot`` with
+``Phi_u = Phi_e - e1 (G1 eta)^T``, so ``Phi_u`` replaces ``Phi_e`` in ``Kin_e``, ``c_e`` gains
+``- e1 eta_dot^T G1 eta_dot`` (and ``rho_e``, ``rho_e'`` the shortening), and ``RF_e = Kin_e^T`` exactly (the
+axial force's ``-G1(x_e) eta f_1`` is its ``Phi_u^T`` part; no separate stiffening).  Point loads act at the
+shortened point; their modal force ``Phi_u^T f`` is the stiffened ``Phi_e^T f - G1 eta f_1``.
+
 All in frame axes, then turned to world axes with ``T = diag(R, R, I_n)``.  Restricted to the ``x-y``
 plane (``omega = omega_3 e3``, no ``z`` or twist modes) every term is the planar
 :class:`~ctmm.flexible.beam.ModalBeam`'s.
@@ -208,16 +215,24 @@ def spatial_beam_terms(ops: Ops, beam: Any, *, rotation: Any, offset: Any, omega
         ThetaLam = ops.matmul(Theta, constant(ops, Lam_e))
         rho_dot = ops.matmul(constant(ops, Phi_e), eta_dot)
         relative = ops.matmul(Theta, theta_dot)
+        Phi_u, rate_term = constant(ops, Phi_e), None
+        if data.second_order is not None:              # the point moves with the shortening (beam_second_order.py)
+            G1_eta, G1_rate = ops.matmul(constant(ops, G1_e), eta), ops.matmul(constant(ops, G1_e), eta_dot)
+            rho = rho + e1 * (ops.matmul(ops.transpose(G1_eta), eta) * -0.5)
+            rho_dot = rho_dot - e1 * ops.matmul(ops.transpose(G1_eta), eta_dot)
+            Phi_u = Phi_u - ops.matmul(e1, ops.transpose(G1_eta))
+            rate_term = e1 * (ops.matmul(ops.transpose(G1_rate), eta_dot) * -1.0)
         if name in (points or {}):
-            K_b = ops.block([[eye3, skew(ops, rho) * -1.0, constant(ops, Phi_e)],
+            K_b = ops.block([[eye3, skew(ops, rho) * -1.0, Phi_u],
                              [ops.zeros(3, 3), eye3, ThetaLam]])
             tx, ty, tz = (entry(ops, theta_dot, i) for i in range(3))
             spin = cross(ops, constant(ops, _E[:, 2]) * tz, second) * ty + cross(
                 ops, constant(ops, _E[:, 2]) * tz + second * ty, first) * tx
-            c_b = ops.block([[cross(ops, w, cross(ops, w, rho)) + cross(ops, w, rho_dot) * 2.0],
+            c_lin = cross(ops, w, cross(ops, w, rho)) + cross(ops, w, rho_dot) * 2.0
+            c_b = ops.block([[c_lin if rate_term is None else c_lin + rate_term],
                              [cross(ops, w, relative) + spin]])
-            RF_b = ops.transpose(K_b)
-            if data.stiffening:
+            RF_b = ops.transpose(K_b)                  # virtual work (with the option: -e1 eta^T G1 in Phi_u)
+            if data.stiffening and data.second_order is None:
                 RF_b = RF_b - ops.block([[ops.zeros(6, 6)],
                                          [ops.block([[ops.matmul(constant(ops, G1_e), eta), ops.zeros(n, 5)]])]])
             Kin[name] = ops.matmul(ops.matmul(T6, K_b), Tt)
@@ -247,6 +262,9 @@ def _load_rows(ops: Ops, data: Any, Rt: Any, eta: Any, loads: Sequence[tuple[np.
         f = ops.matmul(Rt, ops.sub(wrench, slice(0, 3), slice(0, 1)))
         m = ops.matmul(Rt, ops.sub(wrench, slice(3, 6), slice(0, 1)))
         rho_l = constant(ops, [float(point[0]), 0.0, 0.0]) + ops.matmul(constant(ops, Phi_l), eta)
+        if data.second_order is not None:              # the load point moves with the shortening
+            rho_l = rho_l + constant(ops, _E[:, 0]) * (ops.matmul(ops.transpose(ops.matmul(constant(ops, G1_l), eta)),
+                                                                 eta) * -0.5)
         Theta, _, _ = _rotation_jacobian(ops, ops.matmul(constant(ops, Lam_l), eta))
         lin = f * -1.0
         ang = (cross(ops, rho_l, f) + m) * -1.0

@@ -241,7 +241,8 @@ def sensor_values(model: Any, scene: Any, sensors: Sequence[Any], q: np.ndarray,
                 body = model.bodies[sensor.index]
                 arm = np.einsum("bij,bj->bi", R, deformed_point(body, sensor.point, q[:, modal.position]))
                 omega_arm = np.cross(omega, arm) + np.einsum(
-                    "bij,bj->bi", R, deformed_point(body, sensor.point, v[:, modal.velocity], rate=True))
+                    "bij,bj->bi", R, deformed_point(body, sensor.point, v[:, modal.velocity], rate=True,
+                                                    coordinates=q[:, modal.position]))
             if kind == "point":
                 out[:, n] = _rows(state.origin, batch)[:, sensor.component] + arm[:, sensor.component]
             else:
