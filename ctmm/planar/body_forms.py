@@ -282,19 +282,24 @@ class PlanarScene:
             at_point[key] = (rows, BodyTerms(body.M[::rows].real, body.h[::rows].real,
                                              *({e: v[::rows].real for e, v in part.items()}
                                                for part in (body.Kin, body.c, body.RF))))
+        # Python floats in the loop (the same IEEE arithmetic as numpy scalars, without their overhead)
+        angle, rate, parent, is_plain = theta.tolist(), omega.tolist(), m.parent.tolist(), plain.tolist()
+        reference, reference_rate, torque_law, stiffness, damping = (
+            np.asarray(x, dtype=float).tolist() for x in (numbers.reference, numbers.reference_rate, numbers.torque,
+                                                         numbers.stiffness, numbers.damping))
         bodies, joints, end_motion = [], [], {}
         for j, (body, row, ends) in enumerate(evaluated):
             rows, own = at_point[id(body)]
             at = slice(row // rows, row // rows + 1)
             bodies.append(BodyTerms(own.M[at], own.h[at], {e: v[at] for e, v in own.Kin.items()},
                                     {e: v[at] for e, v in own.c.items()}, {e: v[at] for e, v in own.RF.items()}))
-            end_motion.update({(j, name): motion for name, motion in ends.items()})
-            p = int(m.parent[j])
+            for name, motion in ends.items():
+                end_motion[(j, name)] = motion
+            p = parent[j]
             th_end, om_end = end_motion[(p, self.tree.point[j])] if p >= 0 else (float(m.ground_angle[j]), 0.0)
-            if plain[j]:
-                tau = ((theta[j] - th_end) - numbers.reference[j]) * -float(numbers.stiffness[j]) \
-                    - ((omega[j] - om_end) - numbers.reference_rate[j]) * float(numbers.damping[j]) \
-                    + (numbers.torque[j] + 0.0)
+            if is_plain[j]:
+                tau = ((angle[j] - th_end) - reference[j]) * -stiffness[j] \
+                    - ((rate[j] - om_end) - reference_rate[j]) * damping[j] + (torque_law[j] + 0.0)
                 joints.append(JointTerms(S=_HINGE_AXIS, tau=np.full((1, 1, 1), tau), tau_q=tau_q[j:j + 1],
                                          tau_v=tau_v[j:j + 1], axis=2))
                 continue
@@ -335,7 +340,11 @@ class PlanarScene:
         amplitudes = dict(torque or {})
         held = []
         for j, joint in enumerate(joints):
-            if joint.prescribed is not None:
+            if is_plain[j]:
+                amplitude = complex(amplitudes.pop(j, 0.0))
+                held.append(JointTerms(S=_HINGE_AXIS, tau=np.full((1, 1, 1), amplitude) if amplitude else _NO_TORQUE,
+                                       tau_q=joint.tau_q, tau_v=joint.tau_v, axis=2))
+            elif joint.prescribed is not None:
                 held.append(JointTerms(S=joint.S, prescribed=np.zeros((1, 1, 1)), axis=joint.axis))
             elif joint.free == 3:
                 held.append(JointTerms(S=joint.S, tau=np.zeros((1, 3, 1)), tau_q=joint.tau_q, tau_v=joint.tau_v))
@@ -363,11 +372,12 @@ class PlanarScene:
                     [f[0] for f in static.force])
         nb = m.n_bodies
         E = np.zeros((nb, 6))
-        for j in range(nb):
-            if m.parent[j] >= 0:
-                parent, point = bodies[m.parent[j]], self.tree.point[j]
-                Kin, RF, c = parent.Kin[point][0], parent.RF[point][0], parent.c[point][0]
-                E[j] = Kin[0, 2], Kin[1, 2], RF[2, 0], RF[2, 1], c[0, 0], c[1, 0]
+        hung = np.flatnonzero(m.parent >= 0)
+        if hung.size:
+            carried = [(bodies[self.tree.parent[j]], self.tree.point[j]) for j in hung]
+            Kin, RF, c = (np.concatenate([getattr(body, part)[point] for body, point in carried])
+                          for part in ("Kin", "RF", "c"))
+            E[hung] = np.column_stack([Kin[:, 0, 2], Kin[:, 1, 2], RF[:, 2, 0], RF[:, 2, 1], c[:, 0, 0], c[:, 1, 0]])
         tau, driven = np.zeros(nb), np.zeros(nb)
         for j, joint in enumerate(joints):
             if joint.prescribed is not None:

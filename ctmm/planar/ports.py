@@ -244,7 +244,12 @@ class _PortTable(Mapping):
 
 
 class PlanarPorts(NamedPorts):
-    """The sensors and actuators of one model, resolved once (hold one in a time loop).
+    """The sensors and actuators of one model, each name resolved once, when first asked (hold one in a time loop).
+
+    ``sensors`` and ``actuators`` are read-only mappings of name to resolved entry: a look-up builds only the
+    entries of the body, hinge or coordinate whose name the port name starts with (a model of N bodies has about
+    20 N names, most never asked); iterating them (``sensor_names``, an error listing the names) builds the
+    whole table once.
 
     Parameters
     ----------
