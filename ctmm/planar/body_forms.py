@@ -257,7 +257,8 @@ class PlanarScene:
 
         Each body is evaluated at ``q0`` and at a complex step per own coordinate and rate (rigid bodies with
         the same points and number of loads in one batched :func:`rigid_body_terms`); the evaluation at ``q0``
-        is the static one (equilibrium check, wrenches ``F_e0``)."""
+        is the static one (equilibrium check, wrenches ``F_e0``: the explicit sweep on those terms, traced for rigid
+        trees)."""
         m = self.model
         q0 = np.asarray(q0, dtype=float)
         n = m.n_coordinates
@@ -366,7 +367,8 @@ class PlanarScene:
         parent points' ``Kin``, ``RF``, ``c``), the others :func:`~ctmm.articulated.articulated_sweep` on numpy."""
         m = self.model
         kinds = set(m.joint_kind.tolist())
-        if m.beams or not kinds <= {REVOLUTE, DRIVEN, FREE} or any(m.joint_kind[m.parent >= 0] == FREE):
+        if m.beams or not kinds <= {REVOLUTE, DRIVEN, FREE} or any(m.joint_kind[m.parent >= 0] == FREE) or \
+                any(body.M.shape[-1] != 3 for body in bodies):
             static = articulated_sweep(NUMPY, self.tree, bodies, joints)
             return (float(np.max(np.abs(self.coordinate_accelerations(static)), initial=0.0)),
                     [f[0] for f in static.force])
