@@ -95,6 +95,7 @@ class SweepResponse(ArticulatedResponse):
         self.scene = PlanarScene(model)
         self.terms = self.scene.linear_terms(point.q, point.t)
         self.ports = PlanarPorts(model) if ports is None else ports
+        self.rigid = all(body[0].shape[0] == 3 for body in self.terms.bodies)     # no internal coordinates
         self.theta = np.asarray(model.body_angles(point.q, np.zeros(model.n_coordinates), point.t)[0], dtype=float)
         self.prepare(self.terms.tree, self.terms.bodies, self.terms.joints)
 
@@ -102,13 +103,16 @@ class SweepResponse(ArticulatedResponse):
         """Body load columns ``h`` (1, 3 + n_j, 1) and joint terms of actuator ``name`` at unit amplitude."""
         inputs = self.ports.inputs({name: 1.0})
         wrench = inputs.inboard_wrench(self.model, self.theta)
-        loads = []
-        for j, (M0, _, _, _, _) in enumerate(self.terms.bodies):
-            h = np.zeros((1, M0.shape[0], 1))
-            h[0, :3, 0] = -wrench[j]
-            if j in inputs.modal_force:
-                h[0, 3:, 0] = -np.asarray(inputs.modal_force[j], dtype=float)
-            loads.append(h)
+        if self.rigid:                              # rigid bodies: one array, a view per body
+            loads = list(np.negative(wrench).reshape(-1, 1, 3, 1))
+        else:
+            loads = []
+            for j, (M0, _, _, _, _) in enumerate(self.terms.bodies):
+                h = np.zeros((1, M0.shape[0], 1))
+                h[0, :3, 0] = -wrench[j]
+                if j in inputs.modal_force:
+                    h[0, 3:, 0] = -np.asarray(inputs.modal_force[j], dtype=float)
+                loads.append(h)
         joints = []
         for j, joint in enumerate(self.terms.joints):
             if joint.axis is not None and joint.prescribed is None and inputs.hinge_torque[j] != 0.0:

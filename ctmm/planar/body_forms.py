@@ -1,23 +1,17 @@
-"""Planar families stated once on the element protocol (:mod:`ctmm.protocol`), and a planar model as
-an articulated tree (:class:`PlanarScene`) for the one sweep (:mod:`ctmm.articulated`).
+"""A planar model as an articulated tree (:class:`PlanarScene`) for the one sweep (:mod:`ctmm.articulated`):
+its bodies and joints on the element protocol (:mod:`ctmm.protocol`), and their terms linearised about a
+static operating point (:class:`LinearTerms`, the frequency context).
 
-* :func:`rigid_body_terms` -- :class:`~ctmm.planar.elements.RigidBody` in :mod:`ctmm.ops`
-  (numpy batched, complex, casadi): ``M = X_C^T diag(m, m, J_C) X_C``, ``h`` velocity, gravity,
-  load and input terms, ``Kin_e = X(r_e)``, ``c_e = -omega^2 r_e``, ``RF_e = X(r_e)^T``
-  (``docs/planar.md`` FORMULAS 3.4);
-* :func:`revolute_terms` -- one law for the smooth, elastic, damper, spring-damper and actuated
-  hinges, ``tau = u - k (q_rel - r) - c (v_rel - r_dot)`` along ``S = e3``; :func:`driven_terms`
-  (driven hinge, fixed mounting: prescribed ``a_rel``); :func:`free_base_terms` (``S = I3``);
-  :func:`bushing_terms` (hinge with translational springs: ``S = I3``, the revolute law about
-  ``e3`` and ``f = -k_t d - c_t d_dot`` along the global offset ``d`` of the child's inboard point
-  from the parent's point);
+* the rigid-body and hinge families -- :mod:`ctmm.planar.family_terms` (:func:`rigid_body_terms`,
+  :func:`revolute_terms`, :func:`driven_terms`, :func:`free_base_terms`, :func:`bushing_terms`,
+  :class:`SceneNumbers`; re-exported here);
 * :func:`beam_terms` -- the modal beam (:mod:`ctmm.planar.beam_body_terms`: an adapter over
   :meth:`ctmm.flexible.beam.BeamData.terms`, numpy and casadi).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Mapping, Sequence
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -26,177 +20,22 @@ from ..errors import ModelError, SimulationError
 from ..ops import NUMPY, Ops
 from ..protocol import BodyTerms, JointTerms
 from .beam_body_terms import beam_terms, symbolic_beam_terms
-from .hinge_laws import law_joint_terms, radial_terms
-from .model import BUSHING, FREE, PlanarModel
+from .family_terms import (SceneNumbers, bushing_terms, driven_terms, free_base_terms, nonlinear_bushing_terms,
+                           numeric_value, revolute_terms, rigid_body_terms)
+from .hinge_laws import law_joint_terms
+from .model import BUSHING, DRIVEN, FREE, REVOLUTE, PlanarModel
+from .rigid_sweep import model_sweep
 
 __all__ = ["rigid_body_terms", "revolute_terms", "driven_terms", "free_base_terms", "bushing_terms", "beam_terms",
            "PlanarScene", "LinearTerms", "SceneNumbers"]
 
 
-@dataclass(frozen=True)
-class SceneNumbers:
-    """The numbers of a planar model's rigid bodies, hinge laws and loads that :class:`PlanarScene`
-    states its terms with: numeric (:meth:`of`, the model's own) or symbols (generated code that takes
-    them as inputs, :mod:`ctmm.compiled_scene`).  Modal beams keep their own data.
-
-    Attributes
-    ----------
-    mass, inertia : sequence (n_bodies,)
-        [kg], about the centre of mass [kg m^2].
-    center_of_mass : sequence (n_bodies,) of (x, y)
-        Relative to the inboard point, body frame [m].
-    ends : sequence (n_bodies,) of mapping str -> (x, y)
-        Outboard points relative to the inboard point, body frame [m].
-    gravity : (gx, gy)
-        [m/s^2].
-    stiffness, damping : sequence (n_bodies,)
-        Hinge law [N m/rad], [N m s/rad].
-    reference, reference_rate, torque : sequence (n_bodies,)
-        Hinge law [rad], [rad/s], [N m] (at the time of the terms).
-    loads : sequence (n_loads,) of (fx, fy, moment)
-        [N, N, N m] (at the time of the terms).
-    load_point : sequence (n_loads,) of (x, y)
-        Body frame [m].
-    """
-
-    mass: Sequence[Any]
-    inertia: Sequence[Any]
-    center_of_mass: Sequence[Any]
-    ends: Sequence[Mapping[str, Any]]
-    gravity: Sequence[Any]
-    stiffness: Sequence[Any]
-    damping: Sequence[Any]
-    reference: Sequence[Any]
-    reference_rate: Sequence[Any]
-    torque: Sequence[Any]
-    loads: Sequence[Any]
-    load_point: Sequence[Any]
-
-    @classmethod
-    def of(cls, model: PlanarModel, t: float = 0.0) -> "SceneNumbers":
-        """The numbers of ``model`` at time ``t`` [s] (hinge-law and load signals evaluated)."""
-        reference, reference_rate, torque = model.hinge_laws(t)
-        loads = model.loads(t) if len(model.load_body) else np.zeros((0, 3))
-        return cls(model.mass, model.inertia, model.com, model.ends, model.gravity, model.stiffness, model.damping,
-                   reference, reference_rate, torque, loads, model.load_point)
-
-
-def rigid_body_terms(ops: Ops, *, mass: float, inertia: float, center_of_mass: Sequence[float],
-                     points: Mapping[str, Sequence[float]], gravity: Sequence[float], theta: Any, omega: Any,
-                     loads: Sequence[Sequence[float]] = (), body_force: Sequence[Any] | None = None
-                     ) -> BodyTerms:
-    """Transfer relations of a planar rigid body about its inboard point.
-
-    Parameters
-    ----------
-    ops : Ops
-    mass : float or symbol
-        [kg].  Numbers (``mass`` ... ``gravity``, loads) may be symbols (casadi) for generated code
-        that takes them as inputs (:class:`SceneNumbers`).
-    inertia : float
-        About the centre of mass [kg m^2].
-    center_of_mass : (float, float)
-        Relative to the inboard point, body frame [m].
-    points : mapping of str to (float, float)
-        Outboard points relative to the inboard point, body frame [m].
-    gravity : (float, float)
-        [m/s^2], global axes.
-    theta, omega : ops scalars
-        Absolute angle [rad] and angular velocity [rad/s].
-    loads : sequence of (px, py, fx, fy, moment)
-        External loads at body-frame points [m] (global forces [N], moment [N m]).
-    body_force : (fx, fy, moment), optional
-        Actuator force at the centre of mass (global axes) [N, N m].
-
-    Returns
-    -------
-    BodyTerms
-        ``d = 3``, ``n = 0``.
-    """
-    c, s = ops.cos(theta), ops.sin(theta)
-    cx, cy = _value(center_of_mass[0]), _value(center_of_mass[1])
-    rcx, rcy = c * cx - s * cy, s * cx + c * cy
-    m, gx, gy = _value(mass), _value(gravity[0]), _value(gravity[1])
-    w2 = omega * omega
-    M = ops.block([[m, 0.0, rcy * -m], [0.0, m, rcx * m],
-                   [rcy * -m, rcx * m, (rcx * rcx + rcy * rcy) * m + _value(inertia)]])
-    hx = (w2 * rcx + gx) * -m
-    hy = (w2 * rcy + gy) * -m
-    hz = (rcx * gy - rcy * gx) * -m
-    for px, py, fx, fy, mz in loads:
-        rex, rey = c * px - s * py, s * px + c * py
-        hx, hy, hz = hx - fx, hy - fy, hz - (rex * fy - rey * fx + mz)
-    if body_force is not None:
-        fx, fy, mz = body_force
-        hx, hy, hz = hx - fx, hy - fy, hz - (rcx * fy - rcy * fx + mz)
-    h = ops.block([[hx], [hy], [hz]])
-    Kin, cc, RF = {}, {}, {}
-    for name, (vx, vy) in points.items():
-        vx, vy = _value(vx), _value(vy)
-        rx, ry = c * vx - s * vy, s * vx + c * vy
-        Kin[name] = ops.block([[1.0, 0.0, ry * -1.0], [0.0, 1.0, rx], [0.0, 0.0, 1.0]])
-        cc[name] = ops.block([[w2 * rx * -1.0], [w2 * ry * -1.0], [0.0]])
-        RF[name] = ops.transpose(Kin[name])
-    return BodyTerms(M, h, Kin, cc, RF)
-
-
-def revolute_terms(ops: Ops, *, angle: Any, rate: Any, stiffness: float = 0.0, damping: float = 0.0,
-                   reference: float = 0.0, reference_rate: float = 0.0, torque: Any = 0.0) -> JointTerms:
-    """Revolute hinge law ``tau = torque - k (angle - reference) - c (rate - reference_rate)``.
-
-    ``angle``, ``rate``: relative hinge angle [rad] and rate [rad/s] (ops scalars); ``stiffness`` k
-    [N m/rad], ``damping`` c [N m s/rad]; ``torque`` the input across the hinge [N m].  Numbers may
-    be symbols (casadi).  Smooth
-    (k = c = 0), elastic, damper, spring-damper and actuated hinges are this one law.
-    """
-    k, c = _value(stiffness), _value(damping)
-    tau = (angle - reference) * -k - (rate - reference_rate) * c + torque
-    return JointTerms(S=ops.block([[0.0], [0.0], [1.0]]), tau=ops.block([[tau]]),
-                      tau_q=ops.block([[-k]]), tau_v=ops.block([[-c]]), axis=2)
-
-
-def driven_terms(ops: Ops, acceleration: Any) -> JointTerms:
-    """Driven hinge / fixed mounting: prescribed relative angular acceleration [rad/s^2]."""
-    return JointTerms(S=ops.block([[0.0], [0.0], [1.0]]), prescribed=ops.block([[acceleration]]), axis=2)
-
-
-def free_base_terms(ops: Ops) -> JointTerms:
-    """Free base: every direction free, zero force (``S = I3``, ``tau = 0``)."""
-    return JointTerms(S=ops.eye(3), tau=ops.zeros(3, 1), tau_q=ops.zeros(3, 3), tau_v=ops.zeros(3, 3))
-
-
-def bushing_terms(ops: Ops, *, offset: Sequence[Any], offset_rate: Sequence[Any], angle: Any, rate: Any,
-                  translational_stiffness: float, translational_damping: float, stiffness: float = 0.0,
-                  damping: float = 0.0, reference: float = 0.0, reference_rate: float = 0.0,
-                  torque: Any = 0.0) -> JointTerms:
-    """Hinge with translational springs: every direction free (``S = I3``, ``c = 0``).
-
-    The child's inboard point sits at the parent's point plus the offset ``d = (dx, dy)`` [m] in
-    global axes (``offset_rate`` [m/s]); the joint's wrench on the child is
-    ``(f, tau) = (-k_t d - c_t d_dot, torque - k (angle - reference) - c (rate - reference_rate))``
-    and ``-(f, tau)`` acts on the parent at its point (a force pair, power ``f . d_dot + tau rate``).
-    ``translational_stiffness`` k_t [N/m], ``translational_damping`` c_t [N s/m]; the rotational law
-    as :func:`revolute_terms`.
-    """
-    kt, ct = _value(translational_stiffness), _value(translational_damping)
-    k, c = _value(stiffness), _value(damping)
-    fx = offset[0] * -kt - offset_rate[0] * ct
-    fy = offset[1] * -kt - offset_rate[1] * ct
-    tau = (angle - reference) * -k - (rate - reference_rate) * c + torque
-    return JointTerms(S=ops.eye(3), tau=ops.block([[fx], [fy], [tau]]),
-                      tau_q=ops.block([[-kt, 0.0, 0.0], [0.0, -kt, 0.0], [0.0, 0.0, -k]]),
-                      tau_v=ops.block([[-ct, 0.0, 0.0], [0.0, -ct, 0.0], [0.0, 0.0, -c]]))
-
-
-def nonlinear_bushing_terms(ops: Ops, hinge: Any, dx: Any, dy: Any, angle: Any, rate: Any, torque: Any) -> JointTerms:
-    """A :class:`~ctmm.planar.elements.NonlinearHinge` with a radial spring: every direction free (``S = I3``),
-    the radial force and its 2 x 2 tangent (:func:`ctmm.planar.hinge_laws.radial_terms`) and the moment law."""
-    fx, fy, kxx, kxy, kyy = radial_terms(ops, hinge, dx, dy)
-    tau, tau_q, tau_v = law_joint_terms(ops, hinge, angle, rate, torque)
-    zero = 0.0 * tau_q
-    return JointTerms(S=ops.eye(3), tau=ops.block([[fx], [fy], [tau]]),
-                      tau_q=ops.block([[kxx, kxy, zero], [kxy, kyy, zero], [zero, zero, tau_q]]),
-                      tau_v=ops.block([[zero, zero, zero], [zero, zero, zero], [zero, zero, tau_v]]))
+#: ``S`` of a planar revolute hinge (the rotation about e3), shared by the hinges of :meth:`PlanarScene.linear_terms`
+_HINGE_AXIS = np.array([[[0.0], [0.0], [1.0]]])
+_HINGE_AXIS.flags.writeable = False
+#: a held hinge's zero torque amplitude (read-only, shared)
+_NO_TORQUE = np.zeros((1, 1, 1), dtype=complex)
+_NO_TORQUE.flags.writeable = False
 
 
 def _entry(ops: Ops, column: Any, k: int) -> Any:
@@ -233,9 +72,6 @@ class LinearTerms:
                                  characteristic=True)
 
 
-def _value(entry: Any) -> Any:
-    """A numeric actuator value as float; a symbolic one (casadi, object arrays) as it is."""
-    return float(entry) if isinstance(entry, (int, float, np.number)) else entry
 
 
 def _modal(ops: Ops, column: Any, idx: np.ndarray) -> Any:
@@ -326,7 +162,7 @@ class PlanarScene:
             return driven_terms(ops, driven[j][2])
         if kind == FREE:
             return free_base_terms(ops)
-        extra = 0.0 if inputs is None else _value(inputs.hinge_torque[j])
+        extra = 0.0 if inputs is None else numeric_value(inputs.hinge_torque[j])
         if kind == BUSHING and j in m.nonlinear_hinges:
             ix, iy = (int(i) for i in m.xy_index[j])
             return nonlinear_bushing_terms(ops, m.nonlinear_hinges[j], _entry(ops, q, ix), _entry(ops, q, iy), angle,
@@ -374,7 +210,7 @@ class PlanarScene:
             return body, {name: (a.reshape(-1, 1, 1), r.reshape(-1, 1, 1))
                           for name, (a, r) in zip(self.beam_points[j], ends)}
         rows = [k for k in range(len(m.load_body)) if int(m.load_body[k]) == j]
-        force = None if inputs is None else tuple(_value(v) for v in inputs.body_force[j])
+        force = None if inputs is None else tuple(numeric_value(v) for v in inputs.body_force[j])
         body = rigid_body_terms(ops, mass=numbers.mass[j], inertia=numbers.inertia[j],
                                 center_of_mass=numbers.center_of_mass[j], points=numbers.ends[j],
                                 gravity=numbers.gravity, theta=theta, omega=omega,
@@ -421,7 +257,8 @@ class PlanarScene:
 
         Each body is evaluated at ``q0`` and at a complex step per own coordinate and rate (rigid bodies with
         the same points and number of loads in one batched :func:`rigid_body_terms`); the evaluation at ``q0``
-        is the static one (equilibrium check, wrenches ``F_e0``)."""
+        is the static one (equilibrium check, wrenches ``F_e0``: the explicit sweep on those terms, traced for rigid
+        trees)."""
         m = self.model
         q0 = np.asarray(q0, dtype=float)
         n = m.n_coordinates
@@ -433,20 +270,44 @@ class PlanarScene:
         theta, omega = m.body_angles(q0, zero, t)
         evaluated = self._perturbed_terms(q0, theta, omega, t, numbers, step)
         driven = {i: (a, r, acc) for i, a, r, acc in m.driven(t)}
+        # plain revolute hinges (the law of revolute_terms) stated here directly: numbers, not ops
+        plain = (m.joint_kind == REVOLUTE) & ~np.isin(np.arange(m.n_bodies), [*driven, *m.nonlinear_hinges])
+        tau_q = np.negative(np.asarray(numbers.stiffness, dtype=float)).reshape(-1, 1, 1)
+        tau_v = np.negative(np.asarray(numbers.damping, dtype=float)).reshape(-1, 1, 1)
+        groups: dict = {}                           # the bodies of one batched evaluation
+        for j, (body, _, _) in enumerate(evaluated):
+            groups.setdefault(id(body), (body, []))[1].append(j)
+        at_point = {}                               # each group's terms at the operating point: (members, ...)
+        for key, (body, members) in groups.items():
+            rows = body.M.shape[0] // len(members)
+            at_point[key] = (rows, BodyTerms(body.M[::rows].real, body.h[::rows].real,
+                                             *({e: v[::rows].real for e, v in part.items()}
+                                               for part in (body.Kin, body.c, body.RF))))
+        # Python floats in the loop (the same IEEE arithmetic as numpy scalars, without their overhead)
+        angle, rate, parent, is_plain = theta.tolist(), omega.tolist(), m.parent.tolist(), plain.tolist()
+        reference, reference_rate, torque_law, stiffness, damping = (
+            np.asarray(x, dtype=float).tolist() for x in (numbers.reference, numbers.reference_rate, numbers.torque,
+                                                         numbers.stiffness, numbers.damping))
         bodies, joints, end_motion = [], [], {}
         for j, (body, row, ends) in enumerate(evaluated):
-            at = slice(row, row + 1)
-            bodies.append(BodyTerms(body.M[at].real, body.h[at].real, {e: v[at].real for e, v in body.Kin.items()},
-                                    {e: v[at].real for e, v in body.c.items()},
-                                    {e: v[at].real for e, v in body.RF.items()}))
-            end_motion.update({(j, name): motion for name, motion in ends.items()})
-            p = int(m.parent[j])
+            rows, own = at_point[id(body)]
+            at = slice(row // rows, row // rows + 1)
+            bodies.append(BodyTerms(own.M[at], own.h[at], {e: v[at] for e, v in own.Kin.items()},
+                                    {e: v[at] for e, v in own.c.items()}, {e: v[at] for e, v in own.RF.items()}))
+            for name, motion in ends.items():
+                end_motion[(j, name)] = motion
+            p = parent[j]
             th_end, om_end = end_motion[(p, self.tree.point[j])] if p >= 0 else (float(m.ground_angle[j]), 0.0)
+            if is_plain[j]:
+                tau = ((angle[j] - th_end) - reference[j]) * -stiffness[j] \
+                    - ((rate[j] - om_end) - reference_rate[j]) * damping[j] + (torque_law[j] + 0.0)
+                joints.append(JointTerms(S=_HINGE_AXIS, tau=np.full((1, 1, 1), tau), tau_q=tau_q[j:j + 1],
+                                         tau_v=tau_v[j:j + 1], axis=2))
+                continue
             joints.append(self._joint_terms(NUMPY, j, np.full((1, 1, 1), theta[j] - th_end),
                                             np.full((1, 1, 1), omega[j] - om_end), q0[None, :, None],
                                             zero[None, :, None], None, numbers, driven))
-        static = articulated_sweep(NUMPY, self.tree, bodies, joints)
-        residual = float(np.max(np.abs(self.coordinate_accelerations(static)), initial=0.0))
+        residual, static_force = self._static(bodies, joints)
         limit = 1e-8 * (1.0 + float(np.max(np.abs(m.gravity))))
         if not residual <= limit:
             raise ModelError(f"PlanarScene.frequency: q0 is not an equilibrium of {m.name!r} (largest acceleration "
@@ -455,11 +316,8 @@ class PlanarScene:
         for c in range(m.n_bodies):
             if self.tree.parent[c] >= 0:
                 key = (self.tree.parent[c], self.tree.point[c])
-                end_force[key] = end_force.get(key, 0.0) + static.force[c][0]
+                end_force[key] = end_force.get(key, 0.0) + static_force[c]
         linear: list = [None] * m.n_bodies
-        groups: dict = {}                           # the bodies of one batched evaluation
-        for j, (body, _, _) in enumerate(evaluated):
-            groups.setdefault(id(body), (body, []))[1].append(j)
         for body, members in groups.values():
             # Q = h + sum_e RF_e F_e0 at every row; its complex-step slopes are K0 (theta, eta) and C0 (rates)
             k = (body.M.shape[0] // len(members) - 1) // 2           # own coordinates: theta, eta
@@ -477,24 +335,68 @@ class PlanarScene:
             K0, C0 = np.zeros((2, len(members), size, size))
             K0[:, :, [2, *range(3, size)]] = slopes[:, :, 1:k + 1]
             C0[:, :, [2, *range(3, size)]] = slopes[:, :, k + 1:]
-            M0 = body.M[::rows].real
+            M0 = at_point[id(body)][1].M
             for g, j in enumerate(members):
                 linear[j] = (M0[g], C0[g], K0[g], bodies[j].Kin, bodies[j].RF)
         amplitudes = dict(torque or {})
         held = []
         for j, joint in enumerate(joints):
-            if joint.prescribed is not None:
+            if is_plain[j]:
+                amplitude = complex(amplitudes.pop(j, 0.0))
+                held.append(JointTerms(S=_HINGE_AXIS, tau=np.full((1, 1, 1), amplitude) if amplitude else _NO_TORQUE,
+                                       tau_q=joint.tau_q, tau_v=joint.tau_v, axis=2))
+            elif joint.prescribed is not None:
                 held.append(JointTerms(S=joint.S, prescribed=np.zeros((1, 1, 1)), axis=joint.axis))
             elif joint.free == 3:
                 held.append(JointTerms(S=joint.S, tau=np.zeros((1, 3, 1)), tau_q=joint.tau_q, tau_v=joint.tau_v))
             else:
                 amplitude = complex(amplitudes.pop(j, 0.0))
-                held.append(JointTerms(S=joint.S, tau=np.full((1, 1, 1), amplitude), tau_q=joint.tau_q,
-                                       tau_v=joint.tau_v, axis=joint.axis))
+                held.append(JointTerms(S=joint.S, tau=np.full((1, 1, 1), amplitude) if amplitude else _NO_TORQUE,
+                                       tau_q=joint.tau_q, tau_v=joint.tau_v, axis=joint.axis))
         if amplitudes:
             raise ModelError(f"PlanarScene.frequency: torque given for bodies {sorted(amplitudes)} whose inboard "
                              "joints are not revolute")
         return LinearTerms(self.tree, tuple(linear), tuple(held))
+
+    def _static(self, bodies: list, joints: list) -> tuple[float, Any]:
+        """The explicit sweep on the terms at the operating point (B = 1): the largest coordinate acceleration
+        (``nan`` where the articulated inertia is singular) and each body's inboard joint wrench ``(3, 1)``.
+
+        Rigid trees on revolute and driven hinges (a free base at the ground) run the traced sweep of
+        :func:`ctmm.planar.rigid_sweep.model_sweep` (the one recursion, the same terms: ``K = M``, ``b = h``, the
+        parent points' ``Kin``, ``RF``, ``c``), the others :func:`~ctmm.articulated.articulated_sweep` on numpy."""
+        m = self.model
+        kinds = set(m.joint_kind.tolist())
+        if m.beams or not kinds <= {REVOLUTE, DRIVEN, FREE} or any(m.joint_kind[m.parent >= 0] == FREE) or \
+                any(body.M.shape[-1] != 3 for body in bodies):
+            static = articulated_sweep(NUMPY, self.tree, bodies, joints)
+            return (float(np.max(np.abs(self.coordinate_accelerations(static)), initial=0.0)),
+                    [f[0] for f in static.force])
+        nb = m.n_bodies
+        E = np.zeros((nb, 6))
+        hung = np.flatnonzero(m.parent >= 0)
+        if hung.size:
+            carried = [(bodies[self.tree.parent[j]], self.tree.point[j]) for j in hung]
+            Kin, RF, c = (np.concatenate([getattr(body, part)[point] for body, point in carried])
+                          for part in ("Kin", "RF", "c"))
+            E[hung] = np.column_stack([Kin[:, 0, 2], Kin[:, 1, 2], RF[:, 2, 0], RF[:, 2, 1], c[:, 0, 0], c[:, 1, 0]])
+        tau, driven = np.zeros(nb), np.zeros(nb)
+        for j, joint in enumerate(joints):
+            if joint.prescribed is not None:
+                driven[j] = joint.prescribed[0, 0, 0]
+            elif joint.free == 1:
+                tau[j] = joint.tau[0, 0, 0]
+        K = np.concatenate([body.M for body in bodies]).reshape(nb, 9)
+        b = np.concatenate([body.h for body in bodies]).reshape(nb, 3)
+        try:
+            A, F, _ = model_sweep(m)(K, b, E, np.zeros(nb), tau, driven)
+        except SimulationError:
+            return float("nan"), None
+        qddot = np.zeros(m.n_coordinates)
+        qddot[m.theta_index[m.theta_index >= 0]] = A[m.theta_index >= 0, 2]
+        for j in np.flatnonzero(m.joint_kind == FREE):
+            qddot[m.xy_index[j]] = A[j, :2]
+        return float(np.max(np.abs(qddot), initial=0.0)), F[:, :, None]
 
     def _perturbed_terms(self, q0: np.ndarray, theta: np.ndarray, omega: np.ndarray, t: float,
                          numbers: SceneNumbers, step: float) -> list:
@@ -546,7 +448,8 @@ class PlanarScene:
         dtype = np.result_type(*solution.x)
         out = np.zeros((batch, m.n_coordinates), dtype=dtype)
         for j, x in enumerate(solution.x):
-            x = np.broadcast_to(x, (batch,) + np.shape(x)[1:])
+            if np.shape(x)[0] != batch:
+                x = np.broadcast_to(x, (batch,) + np.shape(x)[1:])
             if m.theta_index[j] >= 0:
                 out[:, m.theta_index[j]] = x[:, 2, 0]
             if m.joint_kind[j] == FREE:

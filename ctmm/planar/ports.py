@@ -28,7 +28,8 @@ Actuators (inputs, added to what the model's own laws apply)
     * ``"<beam>.<station>.force"`` -- transverse force [N] (beam frame, turning with the beam)
       and ``"<beam>.<station>.moment"`` [N m] at a named station: physical loads, on the modal
       equations ``phi_k(x) F``, ``phi_k'(x) M`` and on the floating frame ``F`` and ``x F + M``
-      (a station force needs an axially rigid beam, ``n_axial_modes = 0``).
+      (a station force needs an axially rigid first-order beam, ``n_axial_modes = 0`` and no
+      ``second_order_inertia``).
 
 A kinematic loop model (:class:`~ctmm.planar.closed_loops.KinematicLoopModel`) has its tree's ports plus its cut
 joints' (``"<cut>.angle"``, ``"<cut>.rate"``, ``"<cut>.moment"``; ``"<cut>.torque"``): :mod:`ctmm.planar.loop_ports`.
@@ -43,7 +44,7 @@ Accelerations are not sensors here (they would close an algebraic loop through t
 """
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -107,54 +108,149 @@ def _body_points(model: PlanarModel, i: int) -> tuple[str, ...]:
     return ("inboard", "com") + tuple(model.ends[i])
 
 
-def _build(model: PlanarModel) -> tuple[dict, dict]:
+def _body_entries(model: PlanarModel, i: int, sensors: dict, actuators: dict) -> None:
+    """Add the sensors and actuators of body ``i`` (every name starts with the body's name and a dot)."""
+    body = model.body_names[i]
+    sensors[f"{body}.theta"] = _Sensor(f"{body}.theta", "body_angle", i, "theta", unit="rad")
+    sensors[f"{body}.omega"] = _Sensor(f"{body}.omega", "body_angle", i, "omega", unit="rad/s")
+    for point in _body_points(model, i):
+        for part, (_, _, unit) in _POINT_PARTS.items():
+            label = f"{body}.{point}.{part}"
+            sensors[label] = _Sensor(label, "point", i, part, point, unit)
+    if i not in model.beams:
+        for k, part in enumerate(("force_x", "force_y", "moment")):
+            label = f"{body}.{part}"
+            actuators[label] = _Actuator(label, "body", i, k, "N m" if k == 2 else "N")
+        return
+    for k, suffix in enumerate(model.beams[i].coordinate_suffixes):
+        label = f"{body}.{suffix}.force"
+        actuators[label] = _Actuator(label, "modal", i, k, "N")
+    for station in getattr(model.beams[i], "stations", None) or {}:
+        for part, (unit, _, _) in _STATION_PARTS.items():
+            label = f"{body}.{station}.{part}"
+            sensors[label] = _Sensor(label, "station", i, part, station, unit)
+        for k, part in ((1, "force"), (2, "moment")):
+            if k == 1 and (model.beams[i].n_axial_modes or getattr(model.beams[i], "second_order_inertia", 0)):
+                continue        # the moment arm x + psi(x) . p (+ u(x)) would depend on the state
+            label = f"{body}.{station}.{part}"
+            actuators[label] = _Actuator(label, "station", i, k, "N" if k == 1 else "N m", station)
+
+
+def _joint_entries(model: PlanarModel, j: int, sensors: dict, actuators: dict) -> None:
+    """Add the sensors and actuators of hinge ``j`` (names ``"<hinge>.angle|rate|torque"``)."""
+    hinge, kind = model.joint_names[j], model.joint_kind[j]
+    if kind in (REVOLUTE, BUSHING, DRIVEN):
+        sensors[f"{hinge}.angle"] = _Sensor(f"{hinge}.angle", "hinge", j, "angle", unit="rad")
+        sensors[f"{hinge}.rate"] = _Sensor(f"{hinge}.rate", "hinge", j, "rate", unit="rad/s")
+    if kind in (REVOLUTE, BUSHING):
+        actuators[f"{hinge}.torque"] = _Actuator(f"{hinge}.torque", "hinge", j, 0, "N m")
+
+
+def _coordinate_entries(model: PlanarModel, k: int, sensors: dict) -> None:
+    """Add the sensors of coordinate ``k``: itself (unless an earlier entry has its name) and ``"<coordinate>_dot"``."""
+    coordinate = model.coordinates[k]
+    unit = "m" if coordinate.rsplit(".", 1)[-1] in ("x", "y", "dx", "dy") else (
+        "rad" if coordinate.endswith(".theta") else "1")
+    rate_unit = {"m": "m/s", "rad": "rad/s", "1": "1/s"}[unit]
+    sensors.setdefault(coordinate, _Sensor(coordinate, "coordinate", k, "", unit=unit))
+    sensors[f"{coordinate}_dot"] = _Sensor(f"{coordinate}_dot", "coordinate", k, "dot", unit=rate_unit)
+
+
+def _build(model: PlanarModel, bodies: Iterable[int] | None = None, joints: Iterable[int] | None = None,
+           coordinates: Iterable[int] | None = None) -> tuple[dict, dict]:
+    """The sensor and actuator tables of the given bodies, hinges and coordinates (default all), in this order:
+    bodies, hinges, coordinates, each ascending (a later entry of one name replaces an earlier one, except a
+    coordinate's own sensor)."""
     sensors: dict[str, _Sensor] = {}
     actuators: dict[str, _Actuator] = {}
-    for i, body in enumerate(model.body_names):
-        sensors[f"{body}.theta"] = _Sensor(f"{body}.theta", "body_angle", i, "theta", unit="rad")
-        sensors[f"{body}.omega"] = _Sensor(f"{body}.omega", "body_angle", i, "omega", unit="rad/s")
-        for point in _body_points(model, i):
-            for part, (_, _, unit) in _POINT_PARTS.items():
-                label = f"{body}.{point}.{part}"
-                sensors[label] = _Sensor(label, "point", i, part, point, unit)
-        if i not in model.beams:
-            for k, part in enumerate(("force_x", "force_y", "moment")):
-                label = f"{body}.{part}"
-                actuators[label] = _Actuator(label, "body", i, k, "N m" if k == 2 else "N")
-        else:
-            for k, suffix in enumerate(model.beams[i].coordinate_suffixes):
-                label = f"{body}.{suffix}.force"
-                actuators[label] = _Actuator(label, "modal", i, k, "N")
-            for station in getattr(model.beams[i], "stations", None) or {}:
-                for part, (unit, _, _) in _STATION_PARTS.items():
-                    label = f"{body}.{station}.{part}"
-                    sensors[label] = _Sensor(label, "station", i, part, station, unit)
-                for k, part in ((1, "force"), (2, "moment")):
-                    if k == 1 and (model.beams[i].n_axial_modes or getattr(model.beams[i], "second_order_inertia", 0)):
-                        continue        # the moment arm x + psi(x) . p (+ u(x)) would depend on the state
-                    label = f"{body}.{station}.{part}"
-                    actuators[label] = _Actuator(label, "station", i, k, "N" if k == 1 else "N m", station)
-    for j, hinge in enumerate(model.joint_names):
-        kind = model.joint_kind[j]
-        if kind in (REVOLUTE, BUSHING):
-            sensors[f"{hinge}.angle"] = _Sensor(f"{hinge}.angle", "hinge", j, "angle", unit="rad")
-            sensors[f"{hinge}.rate"] = _Sensor(f"{hinge}.rate", "hinge", j, "rate", unit="rad/s")
-            actuators[f"{hinge}.torque"] = _Actuator(f"{hinge}.torque", "hinge", j, 0, "N m")
-        elif kind == DRIVEN:
-            sensors[f"{hinge}.angle"] = _Sensor(f"{hinge}.angle", "hinge", j, "angle", unit="rad")
-            sensors[f"{hinge}.rate"] = _Sensor(f"{hinge}.rate", "hinge", j, "rate", unit="rad/s")
-    for k, coordinate in enumerate(model.coordinates):
-        unit = "m" if coordinate.rsplit(".", 1)[-1] in ("x", "y", "dx", "dy") else (
-            "rad" if coordinate.endswith(".theta") else "1")
-        rate_unit = {"m": "m/s", "rad": "rad/s", "1": "1/s"}[unit]
-        sensors.setdefault(coordinate, _Sensor(coordinate, "coordinate", k, "", unit=unit))
-        sensors[f"{coordinate}_dot"] = _Sensor(f"{coordinate}_dot", "coordinate", k, "dot",
-                                               unit=rate_unit)
+    for i in range(model.n_bodies) if bodies is None else bodies:
+        _body_entries(model, i, sensors, actuators)
+    for j in range(len(model.joint_names)) if joints is None else joints:
+        _joint_entries(model, j, sensors, actuators)
+    for k in range(len(model.coordinates)) if coordinates is None else coordinates:
+        _coordinate_entries(model, k, sensors)
     return sensors, actuators
 
 
+class _Owners:
+    """Which bodies, hinges and coordinates of a model can own a port name, and their entries resolved on demand
+    (one per :class:`PlanarPorts`; the model is immutable)."""
+
+    def __init__(self, model: PlanarModel) -> None:
+        self.model = model
+        self.body = {name: i for i, name in enumerate(model.body_names)}
+        self.joint = {name: j for j, name in enumerate(model.joint_names)}
+        self.coordinate = {name: k for k, name in enumerate(model.coordinates)}
+        self.resolved: dict[str, tuple] = {}          # name -> (sensor or None, actuator or None)
+        self.whole: tuple[dict, dict] | None = None
+
+    def entries(self, name: str) -> tuple:
+        """``(sensor, actuator)`` named ``name`` (``None`` where there is none), as the whole tables have them."""
+        if name in self.resolved:
+            return self.resolved[name]
+        if self.whole is not None:
+            found = (self.whole[0].get(name), self.whole[1].get(name))
+        else:
+            # every entry of a body or hinge starts with its name and a dot; a coordinate owns itself and "_dot"
+            prefixes = [name[:p] for p, letter in enumerate(name) if letter == "."]
+            bodies = sorted(self.body[p] for p in prefixes if p in self.body)
+            joints = sorted(self.joint[p] for p in prefixes if p in self.joint)
+            coordinates = sorted(self.coordinate[c] for c in (name, name[:-4] if name.endswith("_dot") else None)
+                                 if c in self.coordinate)
+            sensors, actuators = _build(self.model, bodies, joints, coordinates)
+            found = (sensors.get(name), actuators.get(name))
+        self.resolved[name] = found
+        return found
+
+    def tables(self) -> tuple[dict, dict]:
+        """The whole sensor and actuator tables (built at the first call)."""
+        if self.whole is None:
+            self.whole = _build(self.model)
+        return self.whole
+
+
+class _PortTable(Mapping):
+    """Read-only mapping of port name to resolved sensor or actuator of one model, resolved name by name on
+    demand: a look-up builds only the entries of the bodies, hinges and coordinates that can own that name;
+    iterating (or ``len``) builds the whole table once.  Equal, entry for entry and in order, to the whole table.
+
+    Parameters
+    ----------
+    owners : _Owners
+        The model's owners (shared by its sensor and actuator tables).
+    actuators : bool
+        The actuator table (else the sensor table).
+    """
+
+    def __init__(self, owners: _Owners, actuators: bool) -> None:
+        self._owners, self._column = owners, int(actuators)
+
+    def __getitem__(self, name: object) -> object:
+        entry = self._owners.entries(name)[self._column] if isinstance(name, str) else None
+        if entry is None:
+            raise KeyError(name)
+        return entry
+
+    def __contains__(self, name: object) -> bool:
+        return isinstance(name, str) and self._owners.entries(name)[self._column] is not None
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._owners.tables()[self._column])
+
+    def __len__(self) -> int:
+        return len(self._owners.tables()[self._column])
+
+    def __repr__(self) -> str:
+        return f"_PortTable({dict(self)!r})"
+
+
 class PlanarPorts(NamedPorts):
-    """The sensors and actuators of one model, resolved once (hold one in a time loop).
+    """The sensors and actuators of one model, each name resolved once, when first asked (hold one in a time loop).
+
+    ``sensors`` and ``actuators`` are read-only mappings of name to resolved entry: a look-up builds only the
+    entries of the body, hinge or coordinate whose name the port name starts with (a model of N bodies has about
+    20 N names, most never asked); iterating them (``sensor_names``, an error listing the names) builds the
+    whole table once.
 
     Parameters
     ----------
@@ -165,7 +261,9 @@ class PlanarPorts(NamedPorts):
         if not isinstance(model, PlanarModel):
             raise ModelError(f"model must be a ctmm.planar.PlanarModel, got {model!r}")
         self.model = model
-        self.sensors, self.actuators = _build(model)
+        owners = _Owners(model)             # entries resolved by name on demand (O(N) names, most never asked)
+        self.sensors: Mapping[str, _Sensor] = _PortTable(owners, actuators=False)
+        self.actuators: Mapping[str, _Actuator] = _PortTable(owners, actuators=True)
         # mode-shape rows of beam stations, computed on first use (the model is immutable); they were
         # recomputed on every evaluation, most of a station-loop step
         self._station_rows: dict = {}
