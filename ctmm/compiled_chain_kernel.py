@@ -1,20 +1,22 @@
 """The ``O(n)`` part of the generated DT-TMM step of a 1-D chain as C loops over the nodes (issue 13).
 
 :class:`ctmm.compiled_chain_schemes.CompiledChainScheme` imposes the equation of motion at a scheme's evaluation
-level: every node's correction solves ``S delta = Ax dx + Av B + f - D`` with ``dx, B, D`` the scheme's linear maps
-of the node's stored history ``h = (x_n, v_n, a_n, x_{n-1}, x_{n-2})`` and ``S = C I - cx Ax - A Av``.  For a
-chain without inerters ``Ax``, ``Av`` and ``S`` are tridiagonal, and this module writes that step as two small C
-functions with one loop per sweep over the nodes (casadi ``Function.jit`` bodies, inlined into the generated
-library), the chain's bands and the factors of ``S`` as constant arrays:
+level: every node's correction solves ``S delta = Ax dx + Av B + a0 + f - D`` with ``dx, B, D`` the scheme's linear
+maps of the node's stored history ``h = (x_n, v_n, a_n, x_{n-1}, x_{n-2})`` and ``S = C I - cx Ax - A Av``.  For a
+chain without inerters ``Ax``, ``Av`` and ``S`` are tridiagonal, and :func:`step_kernel` writes the whole node part
+of the step as one C function (a casadi ``Function.jit`` body, inlined into the generated library, its inputs read
+in place), the chain's bands, the factors of ``S`` and the loops' solved columns as constant arrays:
 
-* :func:`correction_kernel` -- ``(h, f) -> (dx, B, delta0)``: the maps, the tridiagonal right-hand side fused with
-  the forward substitution, the backward substitution (``delta0 = S^-1 (Ax dx + Av B + a0 + f - D)``);
-* :func:`update_kernel` -- ``(h, delta) -> new history`` (the scheme's update map).
+1. the maps ``dx``, ``B`` of node ``i + 1`` and the right-hand side of node ``i`` fused with the forward
+   substitution; 2. the backward substitution (``delta0 = S^-1 (Ax dx + Av B + a0 + f - D)``); 3. the real-time
+   loops' forces ``s = gain (row [dx; B]) + c`` (``c`` from the caller's graph: references, controller states) and
+   their implicit part by the Woodbury identity (:func:`woodbury_parts`); 4. the scheme's update of every node.
 
-The loops' rank-``k`` parts stay in the caller's casadi graph (their columns solved once: ``S^-1 b``).  The code
-size does not depend on the chain (its numbers are data), so 1000 masses compile in about the time of 10
-(straight-line code of every node's arithmetic, casadi ``expand``, made gcc's optimisation passes dominate:
-~18 s of CPU at 1000 masses), at the speed of the straight-line code.
+The code size does not depend on the chain (its numbers are data): the first compile takes about 1 s of CPU at
+1000 masses, against 15-18 s for the straight-line code of every node's arithmetic (casadi ``expand``, where gcc's
+optimisation passes over one function of 40 000 statements dominate), at that code's speed within a few per cent
+(``benchmarks/chain_schemes_generated.py``).  A serialized casadi ``Function.jit`` does not hold its body: the
+caller keys its cache on the bodies (:class:`ctmm.compiled_chain_schemes.CompiledChainScheme`).
 
 :func:`banded_solver` is the same solve as a casadi graph (``mapaccum`` substitutions), for the straight-line step.
 """
@@ -176,11 +178,12 @@ def step_kernel(label: str, Ax: np.ndarray, Av: np.ndarray, a0: np.ndarray, coef
     body += (                                       # scratch in out: d0 read before out[2m + i] is written
         f"casadi_int i;\ncasadi_real r, previous = 0.0, delta;\n"
         f"casadi_real *d0 = out + {2 * m}, *dx = out + {3 * m}, *B = out + {4 * m};\n"
-        f"if (!out) return 0;\n"
-        + ("static const casadi_real no_force[1] = {0.0};\nif (!f) f = no_force;\n" if forced else "")
-        + ("static const casadi_real no_offset[1] = {0.0};\nif (!c) c = no_offset;\n" if loops else "")
-        + "".join(f"dx[{j}] = {_combination(coefficients[0], m, str(j))};\nB[{j}] = {_combination(coefficients[1], m, str(j))};\n"
-                  for j in (0, 1))
+        f"if (!out) return 0;\n"                    # a structurally zero input arrives as NULL: zeros
+        f"static const casadi_real no_history[{5 * m}] = {{0.0}};\nif (!h) h = no_history;\n"
+        + (f"static const casadi_real no_force[{m}] = {{0.0}};\nif (!f) f = no_force;\n" if forced else "")
+        + (f"static const casadi_real no_offset[{k}] = {{0.0}};\nif (!c) c = no_offset;\n" if loops else "")
+        + "".join(f"dx[{j}] = {_combination(coefficients[0], m, str(j))};\n"
+                  f"B[{j}] = {_combination(coefficients[1], m, str(j))};\n" for j in (0, 1))
         + f"i = 0;\n{forward(False, True)}"
         f"for (i = 1; i < {m - 1}; ++i) {{\n  dx[i + 1] = {_combination(coefficients[0], m, 'i + 1')};\n"
         f"  B[i + 1] = {_combination(coefficients[1], m, 'i + 1')};\n{forward(True, True)}}}\n"
