@@ -20,8 +20,10 @@ a tridiagonal matrix for chains without inerters, factorised once (its LU factor
 the C, the two substitutions ``O(n)`` per step), or the constant inverse for chains whose inerters couple
 every node.  Up to :data:`UNROLLED_POINTS` moving masses (``unrolled=``) the step is written out as
 straight-line scalar code (casadi ``expand``: the constants folded in, the zeros of the matrices and of the
-loops' rows dropped; code and compile time grow with ``n``); above, as vector operations with the substitutions
-as loops (code size independent of ``n``, 2-3x slower per step).  A scheme's start-up (Houbolt's two Newmark steps,
+loops' rows dropped; code and compile time grow with ``n``); above, a tridiagonal step is one C function with a
+loop per sweep over the nodes (:mod:`ctmm.compiled_chain_kernel`: the chain's numbers as constant arrays, code size
+independent of ``n``, the real-time loops' rank-``k`` part inside it), and the inerters' dense inverse is vector
+operations.  A scheme's start-up (Houbolt's two Newmark steps,
 :attr:`~ctmm.schemes.Scheme.start_up_steps`) is the other branch of a short-circuit ``if_else`` on the steps since the
 history (re)started, the last entry of the state: :mod:`ctmm.compiled_cosim` sets it to zero where a held input jumps
 (:meth:`~ctmm.schemes.Scheme.restart`, as the Python path does).  The step, ``store_every`` strides and blocks of stored states are those
@@ -57,6 +59,7 @@ import scipy.sparse
 from . import validation
 from .chain_ode import ChainDynamics, chain_result
 from .compiled_chain import affine_form, sensor_row, whole_steps
+from .compiled_chain_kernel import banded_solver, step_kernel, tridiagonal_factors, woodbury_parts
 from .compiled_loops import controller_realisation, delay_steps
 from .compiled_references import reference_at, symbolic_reference
 from .control.chain_plant import ChainPlant
@@ -76,9 +79,10 @@ __all__ = ["SchemeMaps", "CompiledChainScheme", "check_scheme_options", "scheme_
 
 HISTORY = ("x", "v", "a", "x_old1", "x_old2")
 """The stored history of every point, in the order of the generated state."""
-UNROLLED_POINTS = 1000
-"""Moving masses up to which :class:`CompiledChainScheme` writes its step out as straight-line code by default
-(``benchmarks/chain_schemes_generated.py``: 2-3x faster per step; 1000 masses compile in ~18 s of CPU, not 3 s)."""
+UNROLLED_POINTS = 100
+"""Moving masses up to which :class:`CompiledChainScheme` writes its step out as straight-line code by default; above,
+the C loops of :mod:`ctmm.compiled_chain_kernel` (``benchmarks/chain_schemes_generated.py``: as fast within ~10 %,
+first compile ~1 s of CPU at 1000 masses instead of ~18 s)."""
 
 
 class SchemeMaps:
@@ -143,35 +147,6 @@ class SchemeMaps:
         return scalars, parts, after
 
 
-def _solver(matrix: np.ndarray) -> Any:
-    """A casadi ``Function`` ``rhs -> matrix^-1 rhs``: for a tridiagonal matrix its LU factors (no pivoting: the
-    step matrices are diagonally dominant; the reciprocals of the upper diagonal) as constants and the two
-    substitutions as ``mapaccum`` loops (a loop in the C, so the code does not grow with the chain; written out
-    when the step is expanded); else the constant inverse."""
-    import casadi as ca
-
-    m = matrix.shape[0]
-    rhs = ca.MX.sym("rhs", m)
-    banded = m >= 3 and not np.any(np.triu(matrix, 2)) and not np.any(np.tril(matrix, -2))
-    if not banded:
-        return ca.Function("solve", [rhs], [ca.mtimes(ca.DM(np.linalg.inv(matrix)), rhs)])
-    diagonal = np.diag(matrix).astype(float).copy()
-    lower, upper = np.diag(matrix, -1).astype(float), np.diag(matrix, 1).astype(float)
-    factors = np.zeros(m)                                        # Thomas: L U with unit lower L
-    for i in range(1, m):
-        factors[i] = lower[i - 1] / diagonal[i - 1]
-        diagonal[i] -= factors[i] * upper[i - 1]
-    previous, factor, value, scale = (ca.SX.sym(label) for label in ("previous", "factor", "value", "scale"))
-    forward = ca.Function("forward", [previous, factor, value], [value - factor * previous]).mapaccum("forward_all", m)
-    backward = ca.Function("backward", [previous, factor, value, scale],
-                           [(value - factor * previous) * scale]).mapaccum("backward_all", m)
-    reverse = list(range(m - 1, -1, -1))
-    partial = forward(0, ca.DM(factors).T, rhs.T)
-    solution = backward(0, ca.DM(np.concatenate([[0.0], upper[::-1]])).T, partial[:, reverse],
-                        ca.DM(1.0 / diagonal[::-1]).T)                       # reciprocals: no division per step
-    return ca.Function("solve", [rhs], [solution[:, reverse].T])
-
-
 @dataclass(frozen=True)
 class SchemeLoop:
     """One loop of a controlled chain in the generated DT-TMM step: ``u = -C[y - r]`` with ``y = row [x; v] +
@@ -233,9 +208,10 @@ class CompiledChainScheme:
         Of :func:`ctmm.codegen.shared_library`.
     unrolled : bool, optional
         Generate the step as straight-line scalar code (every point's arithmetic written out, the constants
-        folded in: 2-3x faster per step, code and compile time growing with the chain) instead of
-        vector operations and substitution loops (code size independent of the chain).  Default: unrolled
-        up to :data:`UNROLLED_POINTS` moving masses.
+        folded in; code and compile time growing with the chain) instead of C loops over the nodes
+        (:mod:`ctmm.compiled_chain_kernel`, code size independent of the chain, within ~10 % per step; chains
+        with inerters: vector operations, 2-3x slower).  Default: unrolled up to :data:`UNROLLED_POINTS`
+        moving masses.
 
     Attributes
     ----------
@@ -332,9 +308,17 @@ class CompiledChainScheme:
         # described, a cached library loads without building it (else the key is the built step's)
         description = describe((system, self.dt, self.scheme, references, self.actuators, self.unrolled))
         options = {"cache_dir": cache_dir, "compiler": compiler}
-        loop = compiled_time_loop(build()[0], self.store_every, rows, name, **options) if description is None else \
-            compiled_time_loop(build, self.store_every, rows, name, description=[("chain scheme", description)],
-                               **options)
+        self._bodies: list[str] = []                            # C bodies of the node loops, if any
+        if description is None:
+            built = build()
+            # a serialized step does not hold its node loops' C bodies: the key is the step and the bodies
+            parts = [("chain scheme step", built[0].serialize().encode())] + [
+                (f"node loops {j}", body.encode()) for j, body in enumerate(self._bodies)]
+            loop = compiled_time_loop(built[0], self.store_every, rows, name, **options) if not self._bodies else \
+                compiled_time_loop(lambda: built, self.store_every, rows, name, description=parts, **options)
+        else:
+            loop = compiled_time_loop(build, self.store_every, rows, name, description=[("chain scheme", description)],
+                                      **options)
         self._step, self._stride, self._blocks = loop.step, loop.stride, loop.blocks
         self.form = form
         self.compile_time_s = _time.perf_counter() - started
@@ -367,52 +351,63 @@ class CompiledChainScheme:
         m, dt, w = self.m, self.dt, maps.load_weight
         Ax, Av = form.Ax, form.Av
         matrix = maps.C * np.eye(m) - maps.cx * Ax - maps.A * Av
-        solve = _solver(matrix)
+        factors = None if self.unrolled else tridiagonal_factors(matrix, Ax, Av)
         y, t_n, u = ca.MX.sym("y", self.state_size), ca.MX.sym("t"), ca.MX.sym("u", len(self.actuators))
         parts = [y[j * m:(j + 1) * m] for j in range(5)]
-        dx, B, D = (sum((float(maps.coefficients[r, c]) * parts[c] for c in range(5) if maps.coefficients[r, c]),
-                        ca.MX.zeros(m)) for r in range(3))
-        forcing = ca.DM(form.a0)
+        forcing = []                                   # beyond a0: the loads, held inputs, delayed loops
         for column, signal in form.loads:
             symbolic = symbolic_signal(type(signal), t_n + dt, signal_parameters(signal))
             if w != 1.0:
                 symbolic = (1.0 - w) * symbolic_signal(type(signal), t_n, signal_parameters(signal)) + w * symbolic
-            forcing = forcing + ca.DM(column) * symbolic
+            forcing.append(ca.DM(column) * symbolic)
         if self.actuators:                             # held over the step: (1 - w) u + w u = u
-            forcing = forcing + ca.mtimes(ca.DM(self.held_columns), u)
-        rhs = ca.mtimes(ca.DM(scipy.sparse.csc_matrix(Ax)), dx) + ca.mtimes(ca.DM(scipy.sparse.csc_matrix(Av)), B) \
-            + forcing - D
+            forcing.append(ca.mtimes(ca.DM(self.held_columns), u))
         t_eval = t_n + maps.offset
-        now = [lp for lp in self.loops if lp.steps == 0]
+        now, offsets = [lp for lp in self.loops if lp.steps == 0], {}
         for lp in self.loops:                          # u_eval = -(gain e_eval + controller offset)
             k, memory = lp.order, lp.memory
-            offset = 0.0
+            offsets[lp.loop.name] = 0.0
             if k:
                 z, e_n = y[memory:memory + k], y[memory + k]
-                offset = ca.dot(ca.DM(lp.Cz), ca.mtimes(ca.DM(lp.M1), z) + ca.DM(lp.M2) * e_n)
-            if lp.steps == 0:                          # real time: the known part here, the rest implicit
-                known = ca.dot(ca.DM(lp.row[:m]), dx) + ca.dot(ca.DM(lp.row[m:]), B) + lp.offset
-                rhs = rhs - ca.DM(lp.column) * (lp.gain * (known - reference_at(lp.reference, t_eval)) + offset)
-            else:
+                offsets[lp.loop.name] = ca.dot(ca.DM(lp.Cz), ca.mtimes(ca.DM(lp.M1), z) + ca.DM(lp.M2) * e_n)
+            if lp.steps:
                 tau = lp.steps * dt
-                after = -(lp.gain * (y[lp.ring + 1] - reference_at(lp.reference, t_n + dt - tau)) + offset)
-                rhs = rhs + ca.DM(lp.column) * ((1.0 - w) * y[memory + k + 1] + w * after if w != 1.0 else after)
-        delta = solve(rhs)
-        if now:                                        # (S + b g r_delta^T) delta = rhs, r_delta = cx r_x + A r_v
-            columns = np.column_stack([lp.column for lp in now])
-            rows = np.array([lp.gain * (maps.cx * lp.row[:m] + maps.A * lp.row[m:]) for lp in now])
-            W = np.linalg.solve(matrix, columns)
-            small = np.eye(len(now)) + rows @ W
-            if np.linalg.cond(small) > 1e12:
-                raise ModelError(f"the real-time loops {[lp.loop.name for lp in now]} make the step singular at "
-                                 f"dt = {dt!r} s (their gains cancel the inertia); change their gains")
-            delta = delta - ca.mtimes(ca.DM(W), ca.mtimes(ca.DM(np.linalg.solve(small, rows)), delta))
-        every = parts + [delta]
-        new = [sum((float(maps.update[r, c]) * every[c] for c in range(6) if maps.update[r, c]), ca.MX.zeros(m))
-               for r in range(5)]
+                after = -(lp.gain * (y[lp.ring + 1] - reference_at(lp.reference, t_n + dt - tau))
+                          + offsets[lp.loop.name])
+                forcing.append(ca.DM(lp.column) * ((1.0 - w) * y[memory + k + 1] + w * after if w != 1.0 else after))
+        if factors is None:                            # the banded solve (or the inverse) as a casadi graph
+            dx, B, D = (sum((float(maps.coefficients[r, c]) * parts[c] for c in range(5) if maps.coefficients[r, c]),
+                            ca.MX.zeros(m)) for r in range(3))
+            rhs = ca.mtimes(ca.DM(scipy.sparse.csc_matrix(Ax)), dx) + ca.mtimes(ca.DM(scipy.sparse.csc_matrix(Av)), B) \
+                + sum(forcing, ca.DM(form.a0)) - D
+            for lp in now:                             # real time: the known part here, the rest implicit
+                known = ca.dot(ca.DM(lp.row[:m]), dx) + ca.dot(ca.DM(lp.row[m:]), B) + lp.offset
+                rhs = rhs - ca.DM(lp.column) * (lp.gain * (known - reference_at(lp.reference, t_eval))
+                                                + offsets[lp.loop.name])
+            delta = banded_solver(matrix)(rhs)
+        W, Q = woodbury_parts([lp.loop.name for lp in now], np.array([lp.column for lp in now]).reshape(-1, m).T,
+                              np.array([lp.gain * (maps.cx * lp.row[:m] + maps.A * lp.row[m:]) for lp in now]
+                                       ).reshape(-1, m), matrix, dt)
+        if factors is None:
+            if now:                                    # (S + b g r_delta^T) delta = rhs, r_delta = cx r_x + A r_v
+                delta = delta - ca.mtimes(ca.DM(W), ca.mtimes(ca.DM(Q), delta))
+            every = parts + [delta]
+            new = [sum((float(maps.update[r, c]) * every[c] for c in range(6) if maps.update[r, c]), ca.MX.zeros(m))
+                   for r in range(5)]
+            history = ca.vertcat(new[0], new[1])
+        else:                                          # one C loop per sweep over the nodes
+            kernel, body = step_kernel(f"{label}_nodes", Ax, Av, form.a0, maps.coefficients, maps.update, factors,
+                                 bool(forcing), [(lp.gain, lp.row) for lp in now], W, Q)
+            self._bodies.append(body)
+            arguments = [y[:5 * m]] + ([sum(forcing[1:], forcing[0])] if forcing else []) + (
+                [ca.vertcat(*[lp.gain * (lp.offset - reference_at(lp.reference, t_eval)) + offsets[lp.loop.name]
+                              for lp in now])] if now else [])
+            new = [kernel(*arguments)]
+            history = new[0]
         for lp in self.loops:                          # the controller advances, the ring takes the new sample
             k, memory = lp.order, lp.memory
-            sample = ca.dot(ca.DM(lp.row[:m]), new[0]) + ca.dot(ca.DM(lp.row[m:]), new[1]) + lp.offset
+            row = scipy.sparse.csc_matrix(np.concatenate([lp.row, np.zeros(history.numel() - 2 * m)])[None, :])
+            sample = ca.mtimes(ca.DM(row), history) + lp.offset     # the new [x; v] sensed
             if memory < 0:
                 continue
             t_next = t_n + dt - lp.steps * dt
