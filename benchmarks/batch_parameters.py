@@ -29,12 +29,20 @@ per set, model rebuilt and certified, step limit checked, result built, dominate
 apart with ``stability_check="ignore"``, CPU, load 3-4: 64 sets of N = 20 x 500 steps 343 -> 290 ms, of N = 5 x
 2000 steps 262 -> 176 ms, the latter saving the C calls per block and set).
 
-Run: ``python benchmarks/batch_parameters.py [--quick] [--rows 5]`` (``--rows``: only those rows, the others kept
-in the results file).
+Session 9: sequential spatial sets without loops are mapped too.  ``--mapped`` measures, on one compiled kernel,
+the spatial chain N = 5 (rows of row 3's kind) x 64 sets x 500 steps: ``ParameterKernel.run_mapped`` (all sets in
+one C call per block) against ``ParameterKernel.run`` set by set, CPU time (``time.process_time``), best of 3
+interleaved, both the whole batch (results built and checked) and the C runs alone
+(``CompiledSpatialScene.run`` with ``parameters`` against one call per set); results in
+``benchmarks/results/batch_parameters_mapped.json``.
+
+Run: ``python benchmarks/batch_parameters.py [--quick] [--rows 5] [--mapped]`` (``--rows``: only those rows, the
+others kept in the results file; ``--mapped``: only the mapped-against-set-by-set measurement).
 """
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 import os
 import platform
@@ -205,12 +213,72 @@ def measure(row: dict) -> dict:
     return out
 
 
+def mapped_against_set_by_set(quick: bool) -> dict:
+    """Sets per CPU second of the spatial chain N = 5 (64 sets, 500 steps; ``quick``: 8 sets, 100 steps) mapped
+    (one C call per block over all sets) and set by set, on one compiled kernel (module docstring)."""
+    from ctmm.batch import ParameterKernel
+    from ctmm.compiled_spatial_parameters import spatial_parameter_vector
+
+    n, count, steps, dt = 5, 8 if quick else 64, 100 if quick else 500, 1e-3
+    rng = np.random.default_rng(9)
+    masses, stiff = rng.uniform(0.5, 2.0, (count, n)), rng.uniform(0.5, 5.0, (count, n))
+    sets = [{**{f"l{i}.mass": m[i] for i in range(n)}, **{f"j{i}.stiffness": k[i] for i in range(n)}}
+            for m, k in zip(masses, stiff)]
+    base = spatial_chain([1.0] * n, [1.0] * n)
+    start = {"x0": np.full(n, 0.2), "v0": None}
+    with tempfile.TemporaryDirectory() as folder:
+        os.environ["CTMM_CACHE"] = folder
+        kernel = ParameterKernel(base, steps * dt, dt)
+        scene = kernel.scene()
+        members = [kernel.member(values) for values in sets]
+        numbers = np.array([spatial_parameter_vector(member) for member in members])
+        x = np.concatenate([start["x0"], np.zeros(n)])
+
+        def one_by_one_c() -> None:
+            for member in members:              # the shared scene with each set's numbers (as ParameterKernel.run)
+                member_scene = copy.copy(scene)
+                member_scene.parameters = spatial_parameter_vector(member)
+                member_scene.run(x, dt, steps)
+
+        timed = {"mapped": lambda: kernel.run_mapped(sets, start),
+                 "set_by_set": lambda: [kernel.run(values, **start) for values in sets],
+                 "mapped_c": lambda: scene.run(x, dt, steps, parameters=numbers),
+                 "set_by_set_c": one_by_one_c}
+        best = {name: float("inf") for name in timed}
+        for _ in range(3):
+            for name, call in timed.items():
+                clock = time.process_time()
+                call()
+                best[name] = min(best[name], time.process_time() - clock)
+        mapped = [result for result, _ in kernel.run_mapped(sets, start)]
+        alone = [kernel.run(values, **start) for values in sets]
+    equal = all(np.array_equal(a[name], b[name]) for a, b in zip(mapped, alone) for name in base.coordinates)
+    out = {"scene": f"spatial chain N = {n}", "sets": count, "steps": steps, "load": os.getloadavg()[0],
+           "equal_to_the_bit": equal, **{f"{name}_cpu_s": value for name, value in best.items()},
+           **{f"{name}_sets_per_s": count / value for name, value in best.items()}}
+    print(f"{out['scene']}: {count} sets x {steps} steps (load {out['load']:.1f}), CPU best of 3 | whole batch: "
+          f"mapped {best['mapped'] * 1e3:.0f} ms ({count / best['mapped']:.0f} sets/s), set by set "
+          f"{best['set_by_set'] * 1e3:.0f} ms ({count / best['set_by_set']:.0f} sets/s) | C runs alone: mapped "
+          f"{best['mapped_c'] * 1e3:.1f} ms, one call per set {best['set_by_set_c'] * 1e3:.1f} ms | same bits: {equal}")
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="small scenes and 4 sets (a smoke run)")
     parser.add_argument("--rows", type=int, nargs="+", help="measure only these rows (1-based); the others are "
                         "kept from the written results")
+    parser.add_argument("--mapped", action="store_true", help="only the mapped-against-set-by-set measurement "
+                        "(spatial chain N = 5 x 64 sets)")
     args = parser.parse_args()
+    if args.mapped:
+        out = mapped_against_set_by_set(args.quick)
+        if not args.quick:
+            target = ROOT / "benchmarks" / "results" / "batch_parameters_mapped.json"
+            target.write_text(json.dumps({"machine": platform.platform(), "python": platform.python_version(),
+                                          "cpus": os.cpu_count(), **out}, indent=2) + "\n")
+            print(f"written {target}")
+        return
     chosen = scenes(args.quick)
     if args.rows:
         if not all(1 <= k <= len(chosen) for k in args.rows):

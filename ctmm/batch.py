@@ -22,9 +22,10 @@ spatial model with loops, port inputs,     :class:`~ctmm.compiled_spatial_loops.
 
 :func:`simulate_batch` runs the sets in a loop (or on any executor, :mod:`ctmm.executors`) with
 progress output; a set that fails is reported with its index and exception and the others are kept.
-Sequential planar sets without loops run their RK4 together: one C call per block for all sets
+Sequential planar and spatial sets without loops run their RK4 together: one C call per block for all sets
 (``casadi.Function.map``, serial, :meth:`ParameterKernel.run_mapped`), each set then checked and stored
-as alone, with the same numbers.
+as alone, with the same numbers.  Sets with loops, ``references``, port inputs or ``outputs`` of a spatial
+model, or co-simulated controllers run set by set (their loop laws and stored loop signals are per set).
 """
 from __future__ import annotations
 
@@ -203,7 +204,7 @@ class ParameterKernel:
                 ran: tuple[np.ndarray, float] | None = None) -> SimulationResult:
         """:meth:`run` of the set ``values`` whose system ``member`` :meth:`member` built (certified: the
         structure and parameter vector of the compiled one); ``ran``: its stored states and wall time [s]
-        computed already (a planar set of :meth:`run_mapped`)."""
+        computed already (a set of :meth:`run_mapped`)."""
         references = self.space.references_with(values)
         values = {name: float(value) for name, value in values.items()}
         plant, loops = plant_and_loops(member)
@@ -214,22 +215,32 @@ class ParameterKernel:
         if self.controllers:
             result = self._run_cosimulated(plant, loops, references, x0, v0, divergence_bound, policy)
         elif self.kind.startswith("spatial"):
-            result = self._run_spatial(plant, loops, references, x0, v0, divergence_bound)
+            result = self._run_spatial(plant, loops, references, x0, v0, divergence_bound, ran)
         else:
             result = self._run_planar(plant, loops, references, x0, v0, divergence_bound, policy, ran)
         result.info.update(parameters=dict(values), kernel="shared")
         return result
 
     def run_mapped(self, sets: Sequence[Mapping[str, Any]], start: Mapping[str, Any]) -> list[tuple]:
-        """``(result, None)`` or ``(None, exception)`` of each set of a planar kernel without loops
-        (``kind == "planar"``), their RK4 in one C call per block over all sets (``casadi.Function.map``,
-        serial: :func:`ctmm.compiled_scene.simulate_batch`); each set then checked and stored as by
-        :meth:`run`, with the same numbers (the same compiled block per set).  ``start``: the keyword
-        arguments of :meth:`run`."""
+        """``(result, None)`` or ``(None, exception)`` of each set of a kernel without loops (``kind``
+        ``"planar"`` or ``"spatial"``), their RK4 in one C call per block over all sets
+        (``casadi.Function.map``, serial: :func:`ctmm.compiled_scene.simulate_batch`,
+        :meth:`ctmm.compiled_spatial.CompiledSpatialScene.run` with ``parameters``); each set then checked
+        and stored as by :meth:`run`, with the same numbers (the same compiled block per set; a diverging
+        set fails alone).  ``start``: the keyword arguments of :meth:`run`.
+
+        Raises
+        ------
+        ModelError
+            A kernel with loops, ``references``, port inputs, ``outputs`` of a spatial model or co-simulated
+            ``controllers`` (``kind`` ending in ``" loops"``): their loop laws are per set; run them by :meth:`run`.
+        """
         from .compiled_scene import simulate_batch as scene_batch
 
-        if self.kind != "planar":
-            raise ModelError(f"run_mapped runs planar kernels without loops; this kernel is {self.kind!r}")
+        if self.kind not in ("planar", "spatial"):
+            raise ModelError(f"run_mapped runs planar and spatial kernels without loops, references, port inputs, "
+                             f"outputs of spatial models or controllers; this kernel is {self.kind!r} (run its sets "
+                             "one by one, ParameterKernel.run)")
         members: list = []
         for values in sets:
             try:
@@ -240,11 +251,17 @@ class ParameterKernel:
         runs: list = [(None, error) for _, error in members]
         if not built:
             return runs
-        q0, qdot0 = self.start(start.get("x0"), start.get("v0"))
         n_steps = step_total(self.t_final, self.dt)
-        clock = time.perf_counter()
-        states = scene_batch(self.scene(), np.array([parameter_vector(members[k][0]) for k in built]), q0, qdot0,
-                             dt=self.t_final / n_steps, n_steps=n_steps)
+        if self.kind == "spatial":          # as simulate_spatial_generated: steps of dt from the checked state
+            numbers = np.array([spatial_parameter_vector(members[k][0]) for k in built])
+            x = initial_state(self.plant, start.get("x0"), start.get("v0"))
+            clock = time.perf_counter()
+            states = self.scene().run(x, self.dt, n_steps, self.inputs or None, parameters=numbers)
+        else:
+            q0, qdot0 = self.start(start.get("x0"), start.get("v0"))
+            numbers = np.array([parameter_vector(members[k][0]) for k in built])
+            clock = time.perf_counter()
+            states = scene_batch(self.scene(), numbers, q0, qdot0, dt=self.t_final / n_steps, n_steps=n_steps)
         wall = (time.perf_counter() - clock) / len(built)
         for index, k in enumerate(built):
             try:
@@ -289,8 +306,8 @@ class ParameterKernel:
         scene.model, scene.parameters = plant, parameter_vector(plant)
         return scene
 
-    def _run_spatial(self, plant: SpatialModel, loops: tuple, references: dict, x0: Any, v0: Any, bound: Any
-                     ) -> SimulationResult:
+    def _run_spatial(self, plant: SpatialModel, loops: tuple, references: dict, x0: Any, v0: Any, bound: Any,
+                     ran: tuple[np.ndarray, float] | None = None) -> SimulationResult:
         from .compiled_control import simulate_spatial_controlled_generated
         from .compiled_spatial import simulate_spatial_generated
 
@@ -301,7 +318,8 @@ class ParameterKernel:
                 raise ModelError(f"parameters: model {plant.name!r} with these numbers has another parameter layout "
                                  "than the compiled one; run it with ctmm.simulate without parameters=")
             return simulate_spatial_generated(plant, self.t_final, self.dt, x0=x0, v0=v0, inputs=self.inputs or None,
-                                              store_every=self.store_every, divergence_bound=bound, scene=scene)
+                                              store_every=self.store_every, divergence_bound=bound, scene=scene,
+                                              ran=ran)
         from .compiled_spatial_loops import SpatialSymbols
 
         controlled = ControlledModel(plant, loops)
@@ -469,8 +487,10 @@ def simulate_batch(system: Any, parameter_sets: Any, t_final: float, dt: float, 
         As :func:`ctmm.simulate` with ``compiled=True`` (the same for every set).
     executor : None, "threads", "processes" or Executor
         Where the sets run (:func:`ctmm.executors.parallel_map`): sequentially or on threads every set
-        runs on the one compiled scene (sequentially, planar models without loops: the RK4 of all sets in
-        one C call per block, :meth:`ParameterKernel.run_mapped`, unless ``progress=True``); a process pool or another executor receives chunks of sets
+        runs on the one compiled scene (sequentially, planar and spatial models without loops, references,
+        spatial port inputs or outputs: the RK4 of all sets in one C call per block,
+        :meth:`ParameterKernel.run_mapped`, unless ``progress=True``, which steps set by set to report each); a
+        process pool or another executor receives chunks of sets
         (about four per CPU) and the kernel without its scene, which each chunk builds again from the
         disk cache (the C text generated again, nothing compiled).  Each set also builds and checks its
         model and, on planar models, its step against the linearised RK4 limit
@@ -506,7 +526,7 @@ def simulate_batch(system: Any, parameter_sets: Any, t_final: float, dt: float, 
     kernel.scene()                                  # compiled (or loaded) once, before the sets
     start = {"x0": x0, "v0": v0, "divergence_bound": divergence_bound, "stability_check": stability_check}
     clock = time.perf_counter()
-    if executor is None and kernel.kind == "planar" and progress is not True:     # one C call per block and all sets
+    if executor is None and kernel.kind in ("planar", "spatial") and progress is not True:  # one C call per block
         runs = kernel.run_mapped(sets, start)
     elif executor is None or (isinstance(executor, str) and executor == "threads") or \
             isinstance(executor, ThreadPoolExecutor):       # one scene shared by every set

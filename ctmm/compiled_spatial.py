@@ -494,29 +494,38 @@ class CompiledSpatialScene:
         return np.asarray(self._velocity_rate(q[0], v[0], self.rates.input_vector(inputs), self.parameters)
                           ).reshape(-1)
 
-    def run(self, x0: np.ndarray, dt: float, n_steps: int, inputs: Mapping[str, Any] | None = None) -> np.ndarray:
+    def run(self, x0: np.ndarray, dt: float, n_steps: int, inputs: Mapping[str, Any] | None = None,
+            parameters: np.ndarray | None = None) -> np.ndarray:
         """Stored states ``[q ; v]`` (rows, nq + nv) after each ``store_every`` steps and after the last of
         ``n_steps`` RK4 steps of ``dt`` [s] from ``x0`` at ``t = 0`` (initial state excluded); a step after which a
         flexible body leaves its bounds gives NaN (:func:`~ctmm.compiled_spatial_guard.guarded_step`); stops
-        after the first block holding a non-finite state."""
+        after the first block holding a non-finite state.  ``parameters`` (B, n_p): B parameter columns of models
+        of this structure (``numbers="inputs"``), run together in one C call per block (``casadi.Function.map``,
+        serial; rows of a diverged member non-finite): states (B, rows, nq + nv)."""
         x0 = np.asarray(x0, dtype=float).reshape(-1)
         nq = self.model.n_positions
         self.model.check_state(x0[:nq], x0[nq:])
-        return run_blocks(self._blocks, self._stride, self._step, self.store_every, x0[:, None],
-                          self.rates.input_vector(inputs), validation.positive("dt", dt),
-                          validation.integer("n_steps", n_steps, minimum=1), 0.0, self.parameters[:, None])[0]
+        p = self.parameters[None] if parameters is None else np.asarray(parameters, dtype=float)
+        if p.ndim != 2 or p.shape[1] != self.parameters.size or not len(p):
+            raise ModelError(f"parameters must be a (B, {self.parameters.size}) array, got shape {p.shape}")
+        states = run_blocks(self._blocks, self._stride, self._step, self.store_every, np.repeat(x0[:, None], len(p), 1),
+                            self.rates.input_vector(inputs), validation.positive("dt", dt),
+                            validation.integer("n_steps", n_steps, minimum=1), 0.0, p.T.copy())
+        return states[0] if parameters is None else states
 
 
 def simulate_spatial_generated(model: SpatialModel, t_final: float, dt: float, *, x0: Any = None, v0: Any = None,
                                inputs: Mapping[str, Any] | None = None, store_every: int = 1,
                                divergence_bound: float | None = None, cache_dir: str | os.PathLike | None = None,
-                               scene: CompiledSpatialScene | None = None) -> SimulationResult:
+                               scene: CompiledSpatialScene | None = None,
+                               ran: tuple[np.ndarray, float] | None = None) -> SimulationResult:
     """RK4 of a spatial model with the time loop in generated C (``ctmm.simulate(..., compiled=True)``).
 
     Same arguments and result as :func:`ctmm.spatial.integrate.simulate_spatial` with ``method="rk4"``
     (signals, units, times; ``scheme_name`` ``"rk4-generated"``; ``info`` adds ``compile_time_s``);
     inputs are numbers held over the run.  ``scene``: a :class:`CompiledSpatialScene` of ``model`` with
-    this ``store_every`` to reuse (default: built now, the C cached on disk).
+    this ``store_every`` to reuse (default: built now, the C cached on disk); ``ran``: its stored states and wall
+    time [s] computed already (one member of :meth:`CompiledSpatialScene.run` with ``parameters``).
 
     Raises
     ------
@@ -549,8 +558,8 @@ def simulate_spatial_generated(model: SpatialModel, t_final: float, dt: float, *
         raise ModelError(f"scene must be a CompiledSpatialScene of this model with store_every={store_every!r}, got "
                          f"{scene!r}")
     start = clock.perf_counter()
-    states = scene.run(x, dt, n_steps, inputs)
-    wall = clock.perf_counter() - start
+    states = scene.run(x, dt, n_steps, inputs) if ran is None else ran[0]
+    wall = clock.perf_counter() - start if ran is None else ran[1]
     steps = np.array([k for k in range(1, n_steps + 1) if k % store_every == 0 or k == n_steps])[:len(states)]
     times = np.concatenate([[0.0], steps * dt])
     states = np.vstack([x[None], states])
