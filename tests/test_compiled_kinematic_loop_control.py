@@ -163,3 +163,21 @@ def test_spatial_port_inputs_and_co_simulated_controllers():
         runs = [run(loop, 0.1, 2e-3, x0=q0, v0=v0, outputs=["hinge.angle"], **options)
                 for run in (partial(ctmm.simulate, compiled=True), _baumgarte)]
         _equal(runs[0], runs[1])
+
+
+def test_spatial_cut_law_sensor_in_a_generated_loop_equals_the_numpy_driver():
+    """A loop on a revolute cut's ``"c.law_moment"`` (``-law(s - rest, s')`` on the cut coordinates' symbols) driving the
+    cut's torque, on the double pendulum of tests/test_spatial_cut_joint_laws.py (its law kept, a harmonic actuation):
+    = the numpy driver without projection to round-off."""
+    from dataclasses import replace
+
+    from ctmm.spatial.closed_loops import SpatialKinematicLoopModel
+    from test_spatial_cut_joint_laws import two_moving
+
+    loop, cut, *_, q0, v0 = two_moving("revolute")
+    loop = SpatialKinematicLoopModel(loop.tree, [replace(cut, actuation=Harmonic(0.3, 5.0))])
+    follow = Feedback("f", sensor="c.law_moment", actuator="c.torque", gain=0.5)
+    options = dict(x0=q0, v0=v0, outputs=["c.law_moment"])
+    generated = ctmm.simulate(with_feedback(loop, [follow]), 0.02, 2e-3, compiled=True, **options)
+    _equal(generated, _baumgarte(with_feedback(loop, [follow]), 0.02, 2e-3, **options))
+    assert np.max(np.abs(generated["f.y"] - generated["c.law_moment"])) < 1e-12 and np.ptp(generated["f.y"]) > 0.01

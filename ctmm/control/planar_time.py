@@ -27,8 +27,8 @@ flexible beams) or a :class:`~ctmm.spatial.model.SpatialModel` -- any model with
 Methods: fixed-step ``"rk4"`` (:func:`ctmm.ode.integrate_rk4`), a ``scipy.integrate``
 solver (``"RK45"``, ``"DOP853"``, ``"Radau"``, ...; stepped here, every accepted step checked;
 ``max_step`` at most the shortest loop delay) -- both in :mod:`ctmm.control.explicit_loops`, which projects a
-kinematic loop plant onto its cut joints after every RK4 step and at every controller sample of ``solve_ivp`` --, or an implicit DT-TMM scheme of
-:mod:`ctmm.schemes` (:mod:`ctmm.control.implicit_loops`: one
+kinematic loop plant onto its cut joints after every RK4 step and at every controller sample of ``solve_ivp`` --,
+or an implicit DT-TMM scheme of :mod:`ctmm.schemes` (:mod:`ctmm.control.implicit_loops`: one
 :func:`~ctmm.planar.implicit.simulate_implicit` run): loops, inputs and
 held controller outputs enter through its ``inputs`` hook, evaluated at every Newton iterate
 (a real-time loop is implicit in the step, its state dependence in the Newton tangent), and its
