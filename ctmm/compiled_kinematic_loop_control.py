@@ -126,8 +126,8 @@ class KinematicLoopSymbols:
 class SpatialKinematicLoopSymbols:
     """A spatial kinematic loop model on symbols for :class:`ctmm.compiled_loops.ClosedLoops`: the tree's sensors by
     :class:`ctmm.compiled_spatial_loops.SpatialSymbols`, the cut sensors ``"<cut>.angle"`` / ``"<cut>.position"``
-    and ``"<cut>.rate"`` by the cut coordinates on symbols
-    (:func:`ctmm.compiled_spatial_kinematic_loops.symbolic_spatial_closed_loop`).
+    and ``"<cut>.rate"`` (a cut law's ``"<cut>.law_moment"`` / ``"<cut>.law_force"`` too) by the cut coordinates on
+    symbols (:func:`ctmm.compiled_spatial_kinematic_loops.symbolic_spatial_closed_loop`).
 
     Parameters
     ----------
@@ -156,6 +156,9 @@ class SpatialKinematicLoopSymbols:
         cut_name, _, part = name.rpartition(".")
         if cut_name in self.cut_index and part in ("angle", "position", "rate"):
             return self.coordinates(q, v)[2 * self.cut_index[cut_name] + (part == "rate")]
+        if cut_name in self.cut_index and part in ("law_moment", "law_force"):     # -law(s - rest, s')
+            k, cut = self.cut_index[cut_name], self.model.cuts[self.cut_index[cut_name]]
+            return -cut.law.force(self.coordinates(q, v)[2 * k] - cut.rest, self.coordinates(q, v)[2 * k + 1])
         return self.tree_symbols.sensor(name, q, v)
 
 

@@ -8,8 +8,8 @@ With feedback loops (``ctmm.control.with_feedback(loop_model, loops)``), open-lo
 (:class:`~ctmm.planar.loop_plant.KinematicLoopPlant`): the closed-loop accelerations with the cut forces
 solved as boundary unknowns under the actuator values of every stage or Newton iterate; real-time loops
 at the current state, delayed loops from the delay history; ``"rk4"``, the ``solve_ivp`` methods and the
-DT-TMM schemes.  Constraint drift is held by Baumgarte stabilisation (no projection) and reported
-(``"drift"`` [m], ``"drift_rate"`` [m/s]) with the cut forces (``docs/closed_loops.md`` §3c).  With
+DT-TMM schemes.  Constraint drift is held by Baumgarte stabilisation and projection (RK4 and the schemes after every
+step, ``solve_ivp`` at every controller sample) and reported (``"drift"`` [m], ``"drift_rate"`` [m/s]) with the cut forces (``docs/closed_loops.md`` §3c).  With
 ``compiled=True`` and ``"rk4"`` the same run is generated C (:mod:`ctmm.compiled_kinematic_loop_control`;
 co-simulated controllers sampled between calls into it).
 """

@@ -40,7 +40,7 @@ def simulate_spatial_loop_system(system: Any, t_final: float, dt: float | None, 
     (:func:`simulate_spatial_loops`) or a DT-TMM scheme (:func:`_scheme_run`).  With feedback loops (``ctmm.control.with_feedback(loop_model, loops)``), port
     actuator inputs, ``references``, sensor ``outputs`` or ``controllers``: the one loop-closing driver
     (:func:`ctmm.control.planar_time.simulate_closed_loop`) on :class:`~ctmm.spatial.closed_loop_plant.SpatialLoopPlant`
-    (``"rk4"`` and ``solve_ivp``; drift held by Baumgarte only).  ``compiled=True`` with ``"rk4"``: the model alone
+    (``"rk4"`` projected after every step, ``solve_ivp`` at every controller sample).  ``compiled=True`` with ``"rk4"``: the model alone
     runs the generated RK4 with projection (:mod:`ctmm.compiled_spatial_kinematic_loops`), the driver's run is
     generated C (:mod:`ctmm.compiled_kinematic_loop_control`).
 

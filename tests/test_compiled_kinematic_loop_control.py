@@ -2,14 +2,16 @@
 (ctmm.compiled_kinematic_loop_control, issues 13 x 16).
 
 The generated run states the numpy loop driver's run on symbols (the loops by ctmm.compiled_loops.ClosedLoops, the
-closed-loop accelerations with the actuator values applied, Baumgarte only as the driver), so every stored signal
-equals it to round-off (<= 1e-12 relative).  Independent reference: the global DAE of ctmm.reference.planar_dae with a
+closed-loop accelerations with the actuator values applied, Baumgarte only), so every stored signal equals the
+driver's run without its projection (``simulate_closed_loop(..., projection=False)``) to round-off (<= 1e-12
+relative).  Independent reference: the global DAE of ctmm.reference.planar_dae with a
 motor between the rocker and the coupler carrying the same PD law, read ``delay`` seconds late by the method of
 steps (tests/test_cut_joint_control.py's model and bounds).
 """
 from __future__ import annotations
 
 import math
+from functools import partial
 
 import control
 import numpy as np
@@ -24,6 +26,16 @@ from ctmm.nonlinear_laws import LinearLaw
 from ctmm.planar.closed_loops import CutJoint, KinematicLoopModel
 from ctmm.scenarios.four_bar import mechanism, reference, start
 from ctmm.signals import Harmonic
+
+
+def _baumgarte(system, t_final: float, dt: float, *, x0, v0, **options):
+    """The numpy loop driver's run with the drift held by Baumgarte alone (``projection=False``): the algorithm the
+    generated run states (``ctmm.simulate`` projects the numpy run onto the cut joints after every RK4 step)."""
+    from ctmm.control.planar_time import simulate_closed_loop
+
+    model = getattr(system, "plant", system)
+    return simulate_closed_loop(model, x0, v0, t_final, dt, loops=tuple(getattr(system, "loops", ())),
+                                projection=False, **options)
 
 
 def _equal(generated, plain) -> None:
@@ -43,7 +55,7 @@ def test_pd_loop_on_the_cut_equals_the_numpy_driver_and_matches_the_dae(delay):
     target = float(loop.relative_angles(q0, v0)[0][0]) + OFFSET
     options = dict(x0=q0, v0=v0, references={"pd": KP * target}, outputs=["h3.angle", "h3.rate", "coupler.out.x"])
     generated = ctmm.simulate(with_feedback(loop, [_pd(delay)]), 0.2, 1e-3, compiled=True, **options)
-    _equal(generated, ctmm.simulate(with_feedback(loop, [_pd(delay)]), 0.2, 1e-3, **options))
+    _equal(generated, _baumgarte(with_feedback(loop, [_pd(delay)]), 0.2, 1e-3, **options))
     assert generated.info["loops"] == {"pd": "history" if delay else "real-time"}
     dae = reference()
     dae.add_motor("rocker", "coupler", lambda t, angle, rate: -(KP * angle + KD * rate - KP * target), delay=delay)
@@ -61,8 +73,8 @@ def test_open_loop_inputs_and_an_lti_controller_on_a_linkage_with_a_cut_law():
     q0, v0 = start(loop)
     generated = ctmm.simulate(loop, 0.1, 1e-3, x0=q0, v0=v0, inputs={"h3.torque": Harmonic(0.8, 20.0)},
                               outputs=["h3.angle"], compiled=True)
-    _equal(generated, ctmm.simulate(loop, 0.1, 1e-3, x0=q0, v0=v0, inputs={"h3.torque": Harmonic(0.8, 20.0)},
-                                    outputs=["h3.angle"]))
+    _equal(generated, _baumgarte(loop, 0.1, 1e-3, x0=q0, v0=v0, inputs={"h3.torque": Harmonic(0.8, 20.0)},
+                                 outputs=["h3.angle"]))
     dae = reference()
     dae.add_motor("rocker", "coupler", lambda t, angle, rate: 0.8 * math.sin(20.0 * t))
     dae_run = dae.simulate(dae.assemble(dict(zip(BODIES, q0)), dict(zip(BODIES, v0))), 0.1, t_eval=generated.time)
@@ -76,7 +88,7 @@ def test_open_loop_inputs_and_an_lti_controller_on_a_linkage_with_a_cut_law():
     options = dict(x0=q0, v0=v0, inputs={"h1.torque": Harmonic(2.0, 10.0)}, references={"hold": -1.3 * 4.0},
                    store_every=4)
     generated = ctmm.simulate(with_feedback(lawful, loops), 0.1, 1e-3, compiled=True, **options)
-    _equal(generated, ctmm.simulate(with_feedback(lawful, loops), 0.1, 1e-3, **options))
+    _equal(generated, _baumgarte(with_feedback(lawful, loops), 0.1, 1e-3, **options))
     assert np.ptp(generated["pi.u"]) > 0.1 and np.max(generated["hold.saturated"]) == 1.0
 
 
@@ -113,9 +125,9 @@ def test_co_simulated_controllers_between_calls_into_the_kernel():
     for system, options in [(loop, {"outputs": ["h3.angle"]}),
                             (with_feedback(loop, [pd]), {"references": {"hold": 9.6},
                                                          "inputs": {"crank.moment": Harmonic(0.2, 5.0)}})]:
-        runs = [ctmm.simulate(system, 0.1, 1e-3, x0=q0, v0=v0, compiled=compiled, controllers=[StaticGainController(
+        runs = [run(system, 0.1, 1e-3, x0=q0, v0=v0, controllers=[StaticGainController(
             ["h3.angle", "h3.rate"], ["h3.torque"], [[-KP, -KD]], sample_time=2e-3)], **options)
-            for compiled in (True, None)]
+            for run in (partial(ctmm.simulate, compiled=True), _baumgarte)]
         _equal(runs[0], runs[1])
         assert runs[0].info["intervals"] == 50 and np.ptp(runs[0]["h3.torque@samples"][:, 1]) > 0.1
 
@@ -134,7 +146,7 @@ def test_spatial_pd_loop_on_a_revolute_cut_equals_the_numpy_driver_and_newtons_l
                   delay=delay)
     options = dict(x0=q0, v0=v0, references={"pd": S_KP * S_TARGET}, outputs=["hinge.angle", "hinge.rate"])
     generated = ctmm.simulate(with_feedback(loop, [pd]), 0.1, 2e-3, compiled=True, **options)
-    _equal(generated, ctmm.simulate(with_feedback(loop, [pd]), 0.1, 2e-3, **options))
+    _equal(generated, _baumgarte(with_feedback(loop, [pd]), 0.1, 2e-3, **options))
     assert np.max(np.abs(generated["hinge.angle"] - _spatial_reference(0.5, 2.0, generated.time, delay))) < 1e-9
 
 
@@ -148,6 +160,24 @@ def test_spatial_port_inputs_and_co_simulated_controllers():
     for options in ({"inputs": {"hinge.torque": Harmonic(0.5, 10.0)}},
                     {"controllers": [StaticGainController(["hinge.angle", "hinge.rate"], ["hinge.torque"],
                                                           [[-S_KP, -S_KD]], sample_time=4e-3)]}):
-        runs = [ctmm.simulate(loop, 0.1, 2e-3, x0=q0, v0=v0, outputs=["hinge.angle"], compiled=compiled, **options)
-                for compiled in (True, None)]
+        runs = [run(loop, 0.1, 2e-3, x0=q0, v0=v0, outputs=["hinge.angle"], **options)
+                for run in (partial(ctmm.simulate, compiled=True), _baumgarte)]
         _equal(runs[0], runs[1])
+
+
+def test_spatial_cut_law_sensor_in_a_generated_loop_equals_the_numpy_driver():
+    """A loop on a revolute cut's ``"c.law_moment"`` (``-law(s - rest, s')`` on the cut coordinates' symbols) driving the
+    cut's torque, on the double pendulum of tests/test_spatial_cut_joint_laws.py (its law kept, a harmonic actuation):
+    = the numpy driver without projection to round-off."""
+    from dataclasses import replace
+
+    from ctmm.spatial.closed_loops import SpatialKinematicLoopModel
+    from test_spatial_cut_joint_laws import two_moving
+
+    loop, cut, *_, q0, v0 = two_moving("revolute")
+    loop = SpatialKinematicLoopModel(loop.tree, [replace(cut, actuation=Harmonic(0.3, 5.0))])
+    follow = Feedback("f", sensor="c.law_moment", actuator="c.torque", gain=0.5)
+    options = dict(x0=q0, v0=v0, outputs=["c.law_moment"])
+    generated = ctmm.simulate(with_feedback(loop, [follow]), 0.02, 2e-3, compiled=True, **options)
+    _equal(generated, _baumgarte(with_feedback(loop, [follow]), 0.02, 2e-3, **options))
+    assert np.max(np.abs(generated["f.y"] - generated["c.law_moment"])) < 1e-12 and np.ptp(generated["f.y"]) > 0.01

@@ -237,15 +237,10 @@ def _rod(name, mass, length):
                           points={"tip": (0.0, 0.0, -length)})
 
 
-@pytest.mark.parametrize("kind", ["revolute", "prismatic"])
-def test_cut_law_between_two_moving_bodies_matches_the_dae(kind):
-    """Revolute: a double pendulum whose second hinge (about world x at the arm's tip) is a cut with a spring-damper
-    and an actuation; prismatic: a sleeve on the swinging arm, the slide a cut with a spring-damper and an actuation.
-    Both sides move, so the parent's reaction is checked too.  RK4 + projection over 0.2 s (revolute 1 ms: the hinge
-    swings 0.86 rad; prismatic 2 ms) against the DAE with the law written on its own state.  Measured: revolute
-    7.9e-10 rad, 1.3e-10 m (2 ms: 1.25e-8 rad, RK4's fourth order); prismatic 8.4e-12 rad, 5.8e-11 m."""
-    from ctmm.scenarios.spatial_four_bar import dae_of, poses
-
+def two_moving(kind: str):
+    """``(loop, cut, law, arm, other, q, v)``: a double pendulum whose second hinge (about world x at the arm's tip) is
+    a revolute cut, or a sleeve on the swinging arm whose slide is a prismatic cut; each with a spring-damper law and
+    an actuation (both sides move); ``q, v`` on the cut with the arm at 0.4 rad, 1.5 rad/s."""
     law = LinearLaw(3.0, 0.05) if kind == "revolute" else LinearLaw(40.0, 0.3)
     arm = _rod("arm", 0.8, 0.6)
     if kind == "revolute":
@@ -262,13 +257,35 @@ def test_cut_law_between_two_moving_bodies_matches_the_dae(kind):
                                           other, sp.Free(name="free", parent=None, child="link")])
     loop = SpatialKinematicLoopModel(tree, [cut])
     q, v = loop.consistent_state(keep, {"h1.angle_rate": 1.5}, keep=["h1"])
-    run = simulate_spatial_loops(loop, q, v, t_final=0.2, dt=1e-3 if kind == "revolute" else 2e-3)
+    return loop, cut, law, arm, other, q, v
+
+
+def two_moving_dae(loop, cut, arm, other):
+    """``(dae, points)``: the Newton-Euler DAE of :func:`two_moving`'s mechanism (Baumgarte 10/s; a prismatic cut's
+    roll reference its own) and the cut points from the bodies' centres of mass (body axes)."""
+    from dataclasses import replace
+
+    from ctmm.scenarios.spatial_four_bar import dae_of
+
     dae = dae_of(loop, 10.0)
-    if kind == "prismatic":                             # the DAE's own roll reference of the prismatic rows
-        from dataclasses import replace
+    if cut.kind == "prismatic":                         # the DAE's own roll reference of the prismatic rows
         dae.joints[-1] = replace(dae.joints[-1], child_normal=np.asarray(cut.normal),
                                  parent_normal=np.asarray(cut.parent_normal))
-    points = (arm.points[cut.point] - arm.center_of_mass, other.points[cut.child_point] - other.center_of_mass)
+    return dae, (arm.points[cut.point] - arm.center_of_mass, other.points[cut.child_point] - other.center_of_mass)
+
+
+@pytest.mark.parametrize("kind", ["revolute", "prismatic"])
+def test_cut_law_between_two_moving_bodies_matches_the_dae(kind):
+    """Revolute: a double pendulum whose second hinge (about world x at the arm's tip) is a cut with a spring-damper
+    and an actuation; prismatic: a sleeve on the swinging arm, the slide a cut with a spring-damper and an actuation.
+    Both sides move, so the parent's reaction is checked too.  RK4 + projection over 0.2 s (revolute 1 ms: the hinge
+    swings 0.86 rad; prismatic 2 ms) against the DAE with the law written on its own state.  Measured: revolute
+    7.9e-10 rad, 1.3e-10 m (2 ms: 1.25e-8 rad, RK4's fourth order); prismatic 8.4e-12 rad, 5.8e-11 m."""
+    from ctmm.scenarios.spatial_four_bar import poses
+
+    loop, cut, law, arm, other, q, v = two_moving(kind)
+    run = simulate_spatial_loops(loop, q, v, t_final=0.2, dt=1e-3 if kind == "revolute" else 2e-3)
+    dae, points = two_moving_dae(loop, cut, arm, other)
     loads = lambda t, y: _dae_law_loads(dae, y, cut, 0, 1, *points, law, t)      # noqa: E731
     _, Y = dae.simulate(dae.state(*poses(loop, run.q[0], run.v[0])), run.t, torques=loads)
     angle = position = 0.0

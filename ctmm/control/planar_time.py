@@ -26,8 +26,9 @@ flexible beams) or a :class:`~ctmm.spatial.model.SpatialModel` -- any model with
 
 Methods: fixed-step ``"rk4"`` (:func:`ctmm.ode.integrate_rk4`), a ``scipy.integrate``
 solver (``"RK45"``, ``"DOP853"``, ``"Radau"``, ...; stepped here, every accepted step checked;
-``max_step`` at most the shortest loop delay), or an implicit DT-TMM scheme of
-:mod:`ctmm.schemes` (:mod:`ctmm.control.implicit_loops`: one
+``max_step`` at most the shortest loop delay) -- both in :mod:`ctmm.control.explicit_loops`, which projects a
+kinematic loop plant onto its cut joints after every RK4 step and at every controller sample of ``solve_ivp`` --,
+or an implicit DT-TMM scheme of :mod:`ctmm.schemes` (:mod:`ctmm.control.implicit_loops`: one
 :func:`~ctmm.planar.implicit.simulate_implicit` run): loops, inputs and
 held controller outputs enter through its ``inputs`` hook, evaluated at every Newton iterate
 (a real-time loop is implicit in the step, its state dependence in the Newton tangent), and its
@@ -51,22 +52,21 @@ import math
 import time as _time
 import warnings
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
-import scipy.integrate
 
 from .. import validation
 from ..errors import ModelError, SimulationError, unknown_name
 from ..planar.guards import with_partial
-from ..planar.integrate import SCIPY_METHODS, accepted_steps, run_fixed_step
+from ..planar.integrate import SCIPY_METHODS
 from ..planar.signals import signal_values
-from ..progress import progress_bar
 from ..results import SimulationResult
 from ..schemes import SCHEMES, Scheme, as_scheme
 from ..signal_results import SignalSystem, signal_result
 from ..signals import as_signal
 from .cosim import CoSimulation
+from .explicit_loops import run_rk4, run_scipy
 from .history import DelayHistory
 from .implicit_loops import check_scheme_delays, run_implicit
 from .plants import Plant, plant_of
@@ -400,7 +400,8 @@ def simulate_closed_loop(model: Any, q0: np.ndarray, qdot0: np.ndarray, t_final:
                          references: Mapping[str, Any] | None = None, outputs: Sequence[str] = (),
                          coupling: str = "hold", rtol: float = 1e-8, atol: float = 1e-10,
                          max_step: float = math.inf, store_every: int = 1, progress: bool | None = None,
-                         stability_check: str = "warn", divergence_bound: float | None = None) -> SimulationResult:
+                         stability_check: str = "warn", divergence_bound: float | None = None,
+                         projection: bool = True) -> SimulationResult:
     """Integrate a planar or spatial model with its loops, controllers and inputs (module docstring).
 
     Parameters
@@ -442,6 +443,11 @@ def simulate_closed_loop(model: Any, q0: np.ndarray, qdot0: np.ndarray, t_final:
         (:func:`~ctmm.planar.implicit.simulate_implicit`).
     divergence_bound : float, optional
         As in :func:`~ctmm.planar.integrate.simulate_rk4`.
+    projection : bool
+        A kinematic loop plant, ``"rk4"`` and ``solve_ivp``: project onto the cut joints
+        (:mod:`ctmm.control.explicit_loops`; ``info`` reports the drift before and after); ``False`` holds the
+        drift by Baumgarte alone (the algorithm of the generated loop-driver run,
+        :mod:`ctmm.compiled_kinematic_loop_control`, for comparison).
 
     Returns
     -------
@@ -469,6 +475,7 @@ def simulate_closed_loop(model: Any, q0: np.ndarray, qdot0: np.ndarray, t_final:
                          f"got {method!r}")
     fixed = method == "rk4" or scheme is not None
     t_final = validation.positive("t_final", t_final)
+    projection = validation.flag("projection", projection)
     if dt is not None:
         dt = validation.positive("dt", dt)
     if fixed and dt is None:
@@ -513,6 +520,9 @@ def simulate_closed_loop(model: Any, q0: np.ndarray, qdot0: np.ndarray, t_final:
         def partial() -> SimulationResult:
             return _result(rows, outputs, label, {**info, "wall_time_s": _time.perf_counter() - start})
 
+        def check(t: float, y: np.ndarray) -> None:
+            _check_state(system, guard, t, y, dt if method == "rk4" else None, method)
+
         try:
             system.begin(0.0, y0)
             system.sample(0, 0.0, y0)
@@ -523,74 +533,15 @@ def simulate_closed_loop(model: Any, q0: np.ndarray, qdot0: np.ndarray, t_final:
 
                 n_steps = step_total(t_final, dt)
                 plant.check_step(q0, qdot0, dt, stability_check)
-                _run_rk4(system, rows, guard, dt, n_steps, store_every, progress)
+                info.update(run_rk4(system, rows, check, dt, n_steps, store_every, progress, projection))
             elif scheme is not None:
                 info.update(run_implicit(system, rows, q0, qdot0, t_final, dt, scheme, store_every, progress,
                                           stability_check, divergence_bound))
             else:
-                _run_scipy(system, rows, guard, y0, t_final, dt, method, rtol, atol, max_step, progress)
+                info.update(run_scipy(system, rows, check, y0, t_final, dt, method, rtol, atol, max_step, progress,
+                                      projection))
         except SimulationError as exc:
             raise with_partial(exc, partial) from exc.__cause__
         return _result(rows, outputs, label, {**info, "wall_time_s": _time.perf_counter() - start})
     finally:
         system.close()
-
-
-def _run_rk4(system: _ClosedLoop, rows: _Rows, guard, dt: float, n_steps: int, store_every: int,
-             progress: bool | None) -> None:
-    system.use_cache = True
-
-    def on_step(k: int, t: float, y: np.ndarray) -> None:
-        system.sample(k, t, y)
-        system.remember(t, y)
-
-    run_fixed_step(system.rate, rows.y[0], h=dt, n_steps=n_steps, store_every=store_every,
-                   check=lambda t, y: _check_state(system, guard, t, y, dt, "rk4"), record=rows.add,
-                   on_step=on_step, progress=progress, description=f"ctmm.simulate ({system.plant.label}, rk4)")
-
-
-def _run_scipy(system: _ClosedLoop, rows: _Rows, guard, y0: np.ndarray, t_final: float, dt: float | None,
-               method: str, rtol: float, atol: float, max_step: float, progress: bool | None) -> None:
-    """Solver stepped segment by segment: one segment per controller sample (restart), else one."""
-    rtol, atol = validation.positive("rtol", rtol), validation.positive("atol", atol)
-    if system.master is not None:
-        from ..planar.integrate import step_total
-
-        n_segments = step_total(t_final, dt)
-        ends = [(k + 1) * dt for k in range(n_segments)]
-    else:
-        ends = [t_final]
-    grid_next = 1
-    y, t = y0, 0.0
-    solver_type: Callable = getattr(scipy.integrate, method)
-    bar = progress_bar(len(ends), f"ctmm.simulate ({system.plant.label}, {method})", enabled=progress and len(ends) > 1)
-    try:
-        for k, t_end in enumerate(ends):
-            if k > 0:
-                system.sample(k, t, y)
-            # a finite max_step (a loop delay) bounds the first step too: scipy's own first-step guess
-            # evaluates the rate at t + h0 with h0 unbounded, i.e. beyond the stored delay history
-            first = {"first_step": min(max_step, t_end - t)} if math.isfinite(max_step) else {}
-            solver = solver_type(system.rate, t, y, t_end, rtol=rtol, atol=atol, max_step=max_step, **first)
-            for t_old in accepted_steps(solver, method):
-                t_new, y_new = float(solver.t), solver.y.copy()
-                _check_state(system, guard, t_new, y_new, None, method)
-                if dt is None:
-                    rows.add(t_new, y_new)
-                else:
-                    dense = None
-                    while grid_next * dt <= t_new + 1e-12 * max(1.0, t_new) and grid_next * dt > t_old:
-                        t_row = grid_next * dt
-                        if abs(t_row - t_new) <= 1e-12 * max(1.0, t_new):
-                            rows.add(t_new, y_new)
-                        else:
-                            dense = dense or solver.dense_output()
-                            rows.add(t_row, dense(t_row))
-                        grid_next += 1
-                system.remember(t_new, y_new)
-            t, y = float(solver.t), solver.y.copy()
-            bar.update()
-    finally:
-        bar.close()
-    if dt is not None and (not rows.t or rows.t[-1] < t_final - 1e-9 * t_final):
-        rows.add(t, y)

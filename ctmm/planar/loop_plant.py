@@ -14,11 +14,10 @@ co-simulated controllers act on a mechanism with cut joints (``docs/closed_loops
 * the stored signals add the cut forces ``"<cut>.force_x|y"`` [N] (with the row's actuator values:
   ``signals_need_inputs``), the constraint drift ``"drift"`` [m] and ``"drift_rate"`` [m/s];
 * the implicit DT-TMM schemes step the spanning tree (``implicit_model``) with the cut forces added to the
-  actuator inputs at every Newton iterate (``implicit_inputs``), as in the open-loop scheme runs, and project every
-  accepted step onto the cut joints (``step_projection``, :class:`ctmm.loop_integration.StepProjection`).
-
-With ``"rk4"`` and the ``solve_ivp`` methods drift is held by Baumgarte stabilisation only (the driver does not
-project onto the constraints there).
+  actuator inputs at every Newton iterate (``implicit_inputs``), as in the open-loop scheme runs;
+* every accepted step is projected onto the cut joints (``step_projection``,
+  :class:`ctmm.loop_integration.StepProjection`): the schemes' and RK4's; ``solve_ivp`` runs at every controller
+  sample (:mod:`ctmm.control.explicit_loops`; Baumgarte alone holds the drift between).
 """
 from __future__ import annotations
 
@@ -72,7 +71,7 @@ class KinematicLoopPlant:
         return hook
 
     def step_projection(self) -> StepProjection:
-        """A projection onto the cut joints for the accepted steps of a DT-TMM scheme (the RK4's rule)."""
+        """A projection onto the cut joints for the accepted steps of the loop driver's runs (the RK4's rule)."""
         return StepProjection(self.model, f"kinematic loop {self.model.name!r}")
 
     def position_rates(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:

@@ -13,9 +13,10 @@ co-simulated controllers act on a spatial mechanism with cut joints:
 * the stored signals add the cut forces ``"<cut>.force_x|y|z"`` [N] (and moments of revolute and universal cuts)
   with the row's actuator values (``signals_need_inputs``), ``"drift"`` and ``"drift_rate"``.
 
-``"rk4"`` and the ``solve_ivp`` methods hold the drift by Baumgarte only (the driver does not project there); the
-DT-TMM schemes step the spanning tree (``implicit_model``) with the cut loads solved under each iterate's actuator
-values (``implicit_inputs``) and project every accepted step onto the cut joints (``step_projection``).
+The DT-TMM schemes step the spanning tree (``implicit_model``) with the cut loads solved under each iterate's actuator
+values (``implicit_inputs``); they and ``"rk4"`` project every accepted step onto the cut joints
+(``step_projection``), the ``solve_ivp`` methods at every controller sample (:mod:`ctmm.control.explicit_loops`;
+Baumgarte alone holds the drift between).
 """
 from __future__ import annotations
 
@@ -79,7 +80,7 @@ class SpatialLoopPlant:
         return hook
 
     def step_projection(self) -> StepProjection:
-        """A projection onto the cut joints for the accepted steps of a DT-TMM scheme (the RK4's rule)."""
+        """A projection onto the cut joints for the accepted steps of the loop driver's runs (the RK4's rule)."""
         return StepProjection(self.model, f"spatial kinematic loop {self.model.name!r}")
 
     def position_rates(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:

@@ -9,8 +9,15 @@ A :class:`~ctmm.spatial.closed_loops.SpatialKinematicLoopModel` exposes every po
 Sensors
     * revolute: ``"<cut>.angle"`` [rad], ``"<cut>.rate"`` [rad/s];
     * prismatic: ``"<cut>.position"`` [m], ``"<cut>.rate"`` [m/s] (the names of the tree's joints);
+    * revolute with a ``law``: ``"<cut>.law_moment"`` [N m] -- the law's moment on the child about the cut's axis,
+      ``-law(s - rest, s')`` (the cut's ``"<cut>.moment_x|y|z"`` outputs are the constraint's moment, without it);
+    * prismatic with a ``law``: ``"<cut>.law_force"`` [N] -- the law's force on the child along the guide, the same;
     * spherical with a ``law``: ``"<cut>.moment_x"``, ``"<cut>.moment_y"``, ``"<cut>.moment_z"`` [N m] -- the law's
       moment on the child, world axes (:meth:`SpatialKinematicLoopModel.law_moments`, a function of the state).
+
+A law sensor holds the law alone: the cut's ``actuation(t)`` and a port input ``"<cut>.torque"`` / ``"<cut>.force"``
+(both known signals) are not in it, so the cut's whole load on the child along ``a`` is
+``law_moment + actuation(t) + u`` plus the constraint's (``docs/closed_loops.md`` §8.6).
 
 Actuators (undriven cuts; the names of :attr:`SpatialKinematicLoopModel.actuation_names`)
     * revolute: ``"<cut>.torque"`` [N m] -- a moment ``u`` about the cut's axis;
@@ -45,6 +52,7 @@ class _CutSensor:
     rate: bool
     unit: str
     component: int = -1  # 0, 1, 2: a spherical cut's law moment along world x, y, z; -1: the coordinate or its rate
+    law: bool = False    # a revolute / prismatic cut's law load along its coordinate
 
 
 @dataclass(frozen=True)
@@ -86,6 +94,9 @@ class SpatialLoopPorts(SpatialPorts):
             added_sensors[f"{cut.name}.{position}"] = _CutSensor(f"{cut.name}.{position}", k, False,
                                                                  "rad" if revolute else "m")
             added_sensors[f"{cut.name}.rate"] = _CutSensor(f"{cut.name}.rate", k, True, "rad/s" if revolute else "m/s")
+            if cut.law is not None:
+                law = f"{cut.name}.law_{'moment' if revolute else 'force'}"
+                added_sensors[law] = _CutSensor(law, k, False, "N m" if revolute else "N", law=True)
             label = f"{cut.name}.{'torque' if revolute else 'force'}"
             if label not in model.actuation_names:
                 continue                                    # a driven cut
@@ -111,11 +122,20 @@ class SpatialLoopPorts(SpatialPorts):
 
     def values(self, sensors: list, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
         """Values of resolved ``sensors`` at ``(q, v, t)`` (no validation of the state: for inner loops)."""
+        cuts = self.loop_model.cuts
+
         def cut_values(chosen: list) -> list[float]:
             coordinate, rate = self.loop_model.cut_coordinates(q, v, t)
             moments = self.loop_model.law_moments(q, v, t) if any(s.component >= 0 for s in chosen) else None
-            return [moments[s.index, s.component] if s.component >= 0 else (rate if s.rate else coordinate)[s.index]
-                    for s in chosen]
+
+            def value(s: _CutSensor) -> float:
+                if s.component >= 0:
+                    return moments[s.index, s.component]
+                if s.law:
+                    cut = cuts[s.index]
+                    return -float(cut.law.force(coordinate[s.index] - cut.rest, rate[s.index]))
+                return (rate if s.rate else coordinate)[s.index]
+            return [value(s) for s in chosen]
 
         return merged_values(sensors, _CutSensor, lambda chosen: SpatialPorts.values(self, chosen, q, v, t),
                              cut_values)
