@@ -41,7 +41,7 @@ from .control.loops import ControlledChain
 from .control.chain_plant import ChainPlant
 from .control.planar_time import loop_unit
 from .errors import ModelError, SimulationError
-from .generated_loop import compiled_time_loop, rk4_step_function, run_blocks
+from .generated_loop import BlockRunner, compiled_time_loop, rk4_step_function, run_blocks
 from .results import SimulationResult
 from .signal_results import SignalSystem, signal_result
 from .signals import Constant, signal_parameters, symbolic_signal
@@ -275,13 +275,14 @@ class CompiledChain:
                                  "inputs (an element family with non-linear terms); generated kernels of chains read "
                                  "the affine form only: use compiled=False")
 
-    def continue_run(self, state: np.ndarray, held: np.ndarray, dt: float, n_steps: int, first_step: int
-                     ) -> np.ndarray:
+    def continue_run(self, state: np.ndarray, held: np.ndarray, dt: float, n_steps: int, first_step: int,
+                     runner: BlockRunner | None = None) -> np.ndarray:
         """Stored states (rows, :attr:`state_size`) of ``n_steps`` RK4 steps of ``dt`` [s] from the whole state
         ``state`` at step ``first_step`` (time ``first_step dt``), the values ``held`` [N] of :attr:`actuators`
         held over them (one sample interval of co-simulated controllers, :mod:`ctmm.compiled_cosim`)."""
         return run_blocks(self._blocks, self._stride, self._step, self.store_every, np.asarray(state, float)[:, None],
-                          np.asarray(held, float), dt, n_steps, 0.0, np.zeros((0, 1)), first_step=first_step)[0]
+                          np.asarray(held, float), dt, n_steps, 0.0, np.zeros((0, 1)), first_step=first_step,
+                          runner=runner)[0]
 
     def run(self, state: np.ndarray, dt: float, n_steps: int) -> np.ndarray:
         """Stored states (rows, :attr:`state_size`) after each ``store_every`` steps and the last, from ``state``

@@ -65,7 +65,7 @@ from .compiled_references import reference_at, symbolic_reference
 from .control.chain_plant import ChainPlant
 from .control.planar_time import loop_unit
 from .errors import ModelError, SimulationError
-from .generated_loop import compiled_time_loop, run_blocks
+from .generated_loop import BlockRunner, compiled_time_loop, run_blocks
 from .model_description import describe
 from .results import SimulationResult
 from .saturation import refuse_saturation
@@ -468,12 +468,12 @@ class CompiledChainScheme:
         """Stored states (rows, :attr:`state_size`) after every ``store_every`` steps and the last."""
         return self.continue_run(state, np.zeros(len(self.actuators)), n_steps, 0)
 
-    def continue_run(self, state: np.ndarray, held: np.ndarray, n_steps: int, first_step: int) -> np.ndarray:
-        """Stored states (rows, :attr:`state_size`) of ``n_steps`` steps from the whole ``state`` at step
-        ``first_step`` (time ``first_step dt``), the values ``held`` [N] of :attr:`actuators` held over them (one
-        sample interval of co-simulated controllers, :mod:`ctmm.compiled_cosim`)."""
+    def continue_run(self, state: np.ndarray, held: np.ndarray, n_steps: int, first_step: int,
+                     runner: BlockRunner | None = None) -> np.ndarray:
+        """Stored states (rows, :attr:`state_size`) of ``n_steps`` steps from ``state`` at step ``first_step`` with the
+        values ``held`` [N] of :attr:`actuators` (one co-simulation interval, :mod:`ctmm.compiled_cosim`)."""
         return run_blocks(self._blocks, self._stride, self._step, self.store_every, np.asarray(state, float)[:, None],
-                          np.asarray(held, float), self.dt, n_steps, 0.0, np.zeros((0, 1)), first_step=first_step)[0]
+                          held, self.dt, n_steps, 0.0, np.zeros((0, 1)), first_step=first_step, runner=runner)[0]
 
 
 def simulate_chain_scheme_generated(system: Any, t_final: float, dt: float, scheme: Any = "newmark", *,

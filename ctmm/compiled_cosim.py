@@ -48,6 +48,7 @@ from .control.cosim import CoSimulation, check_wiring
 from .control.loops import ControlledChain
 from .control.plants import PlanarPlant, plant_of
 from .errors import ModelError, SimulationError
+from .generated_loop import BlockRunner
 from .planar.guards import divergence_guard, with_partial
 from .planar.integrate import check_store_every, step_total
 from .progress import progress_bar
@@ -259,6 +260,7 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
                               element=getattr(model, "name", None))
 
     intervals = 0
+    runner = BlockRunner()                          # the call buffers of this run's intervals, set up once
     bar = progress_bar(n_steps, f"ctmm.simulate ({plant.label}, rk4-generated)", enabled=progress)
 
     def advance() -> None:
@@ -269,7 +271,7 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
         state, k = first, 0
         while k < n_steps:
             following = _next_sample(master, k, n_steps)
-            block = scene.continue_run(state, _held_inputs(master, index), dt, following - k, k)
+            block = scene.continue_run(state, _held_inputs(master, index), dt, following - k, k, runner=runner)
             intervals += 1
             bad = first_bad(block, k)
             for j, row in enumerate(block):
@@ -415,6 +417,7 @@ def simulate_cosimulated_scheme(system: Any, t_final: float, dt: float | None, s
     rows: list[np.ndarray] = []
     held_rows: list[dict[str, float]] = []          # the held outputs of the step that ended at each row
     intervals = 0
+    runner = BlockRunner()                          # the call buffers of this run's intervals, set up once
     started = clock.perf_counter()
 
     def result(count: int) -> SimulationResult:
@@ -452,7 +455,7 @@ def simulate_cosimulated_scheme(system: Any, t_final: float, dt: float | None, s
         k = 0
         while k < n_steps:
             following = _next_sample(master, k, n_steps)
-            block = compiled.continue_run(state, held, following - k, k)
+            block = compiled.continue_run(state, held, following - k, k, runner=runner)
             intervals += 1
             applied = dict(zip(compiled.actuators, held))
             for j, row in enumerate(block):

@@ -57,7 +57,7 @@ from .compiled_parameters import parameter_vector
 from .compiled_scene import DEFAULT_ROWS
 from .control.controlled_model import ControlledModel
 from .errors import ModelError, SimulationError
-from .generated_loop import compiled_time_loop, run_blocks
+from .generated_loop import BlockRunner, compiled_time_loop, run_blocks
 from .loop_integration import CONDITION_LIMIT, check_consistent, compliance_condition, singular_compliance
 from .planar.closed_loops import KinematicLoopModel
 from .planar.integrate import check_store_every, step_total
@@ -248,16 +248,17 @@ class CompiledKinematicLoopControl:
         G = self.closed(q, v, np.zeros(len(self.actuators)), self.parameters, 0.0)[5]
         return compliance_condition(np.asarray(G))
 
-    def run_states(self, state: np.ndarray, held: np.ndarray, n_steps: int, first_step: int = 0) -> np.ndarray:
+    def run_states(self, state: np.ndarray, held: np.ndarray, n_steps: int, first_step: int = 0,
+                   runner: BlockRunner | None = None) -> np.ndarray:
         """Stored states ``[q, qdot, z, ring, condition]`` (rows, :attr:`ClosedLoops.state_size` + 1) of ``n_steps``
         steps of :attr:`dt` from the loops' state ``state`` at step ``first_step``, the ``held`` values of
         :attr:`actuators` held over them."""
         y = np.concatenate([state, [self.condition(state[:self.nq], state[self.nq:self.nq + self.nv])]])
         return run_blocks(self._blocks, self._stride, self._step, self.store_every, y[:, None], held, self.dt,
-                          n_steps, 0.0, self.parameters[:, None], first_step=first_step)[0]
+                          n_steps, 0.0, self.parameters[:, None], first_step=first_step, runner=runner)[0]
 
-    def continue_run(self, state: np.ndarray, held: np.ndarray, dt: float, n_steps: int, first_step: int
-                     ) -> np.ndarray:
+    def continue_run(self, state: np.ndarray, held: np.ndarray, dt: float, n_steps: int, first_step: int,
+                     runner: BlockRunner | None = None) -> np.ndarray:
         """The loops' states (rows, :attr:`ClosedLoops.state_size`) of one sample interval of co-simulated
         controllers (:func:`ctmm.compiled_cosim.simulate_cosimulated_generated`; every step stored).
 
@@ -269,7 +270,7 @@ class CompiledKinematicLoopControl:
         if abs(dt - self.dt) > 1e-12 * self.dt or self.store_every != 1:
             raise ModelError(f"continue_run: this kernel steps dt = {self.dt!r} s storing every step, got dt = "
                              f"{dt!r}, store_every = {self.store_every!r}")
-        block = self.run_states(state, held, n_steps, first_step)
+        block = self.run_states(state, held, n_steps, first_step, runner)
         over = np.flatnonzero(block[:, -1] > CONDITION_LIMIT)
         if over.size:
             t = (first_step + 1 + int(over[0])) * dt

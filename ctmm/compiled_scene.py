@@ -68,7 +68,7 @@ from .compiled_parameters import (compile_refusal, compiled_actuators, constants
                                   structure_key, symbolic_numbers)
 from .control.controlled_model import ControlledModel
 from .errors import ModelError
-from .generated_loop import compiled_time_loop, rk4_step_function, run_blocks
+from .generated_loop import BlockRunner, compiled_time_loop, rk4_step_function, run_blocks
 from .ops import CASADI
 from .planar.body_forms import PlanarScene
 from .planar.guards import check_scheme, check_stored, divergence_guard
@@ -363,13 +363,13 @@ class CompiledScene:
         first = np.concatenate([q, qdot]) if self.loops is None else self.loops.initial_state(q, qdot)
         return np.concatenate([[0.0], steps * h]), np.vstack([first[None], states]), wall
 
-    def continue_run(self, state: np.ndarray, held: np.ndarray, dt: float, n_steps: int, first_step: int
-                     ) -> np.ndarray:
+    def continue_run(self, state: np.ndarray, held: np.ndarray, dt: float, n_steps: int, first_step: int,
+                     runner: BlockRunner | None = None) -> np.ndarray:
         """Stored states (rows, :attr:`state_size`) of ``n_steps`` RK4 steps of ``dt`` [s] from the whole state
         ``state`` at step ``first_step`` (time ``first_step dt``), the values ``held`` [SI] of :attr:`actuators`
         held over them (one sample interval of co-simulated controllers, :mod:`ctmm.compiled_cosim`)."""
         return run_blocks(self._blocks, self._stride, self._step, self.store_every, state[:, None], held, dt,
-                          n_steps, 0.0, self.parameters[:, None], first_step=first_step)[0]
+                          n_steps, 0.0, self.parameters[:, None], first_step=first_step, runner=runner)[0]
 
     def _run(self, y: np.ndarray, u: np.ndarray, h: float, n_steps: int, t0: float) -> np.ndarray:
         return self._run_batch(y[:, None], u, h, n_steps, t0, self.parameters[:, None], "serial", 1)[0]

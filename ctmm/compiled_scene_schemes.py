@@ -52,7 +52,7 @@ from . import validation
 from .compiled_parameters import compile_refusal, compiled_actuators, parameter_vector
 from .compiled_scene import symbolic_accelerations_with_inputs
 from .errors import ConvergenceError, ModelError, SimulationError
-from .generated_loop import compiled_time_loop, run_blocks
+from .generated_loop import BlockRunner, compiled_time_loop, run_blocks
 from .planar.guards import check_scheme, check_stored, divergence_guard, with_partial
 from .planar.integrate import PlanarSimulation, check_store_every, initial_coordinates, step_total
 from .planar.model import PlanarModel
@@ -444,7 +444,7 @@ class CompiledSceneScheme(SchemeHooks):
         return out
 
     def continue_run(self, state: np.ndarray, held: np.ndarray, dt: float, n_steps: int, first_step: int,
-                     since_start: int | None = None) -> np.ndarray:
+                     since_start: int | None = None, runner: BlockRunner | None = None) -> np.ndarray:
         """Stored states (rows, :attr:`state_size`) of ``n_steps`` steps of ``dt`` [s] from ``state`` at step
         ``first_step`` (time ``first_step dt``) with the values ``held`` of :attr:`actuators` held over them (one
         sample interval of co-simulated controllers, :mod:`ctmm.compiled_scheme_cosim`).  ``since_start``: steps
@@ -458,7 +458,7 @@ class CompiledSceneScheme(SchemeHooks):
         since = first_step if since_start is None else since_start
         return run_blocks(self._blocks, self._stride, self._step, self.store_every, np.asarray(state)[:, None],
                           np.asarray(held, dtype=float), dt, validation.integer("n_steps", n_steps, minimum=1),
-                          (first_step - since) * dt, self.parameters[:, None], first_step=since)[0]
+                          (first_step - since) * dt, self.parameters[:, None], first_step=since, runner=runner)[0]
 
     def run(self, state: np.ndarray, dt: float, n_steps: int) -> np.ndarray:
         """Stored states (rows, :attr:`state_size`) of ``n_steps`` steps of ``dt`` [s] from ``state`` at ``t = 0``

@@ -47,6 +47,7 @@ from .control.controlled_model import ControlledModel
 from .control.cosim import CoSimulation
 from .control.plants import plant_of
 from .errors import ModelError, SimulationError
+from .generated_loop import BlockRunner
 from .planar.guards import check_scheme, with_partial
 from .planar.integrate import check_store_every, step_total
 from .planar.model import PlanarModel
@@ -196,6 +197,7 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
     times: list[float] = []
     rows: list[np.ndarray] = []
     intervals = 0
+    runner = BlockRunner()                  # the call buffers of this run's intervals, set up once
     start = clock.perf_counter()
 
     def result(count: int) -> SimulationResult:
@@ -240,7 +242,7 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
         k = restart = 0                     # restart: the step where the scheme's start-up last began
         while k < n_steps:
             following = min(min(((k // ratio + 1) * ratio for ratio in master.ratios), default=n_steps), n_steps)
-            block = compiled.continue_run(state, held, dt, following - k, k, since_start=k - restart)
+            block = compiled.continue_run(state, held, dt, following - k, k, since_start=k - restart, runner=runner)
             intervals += 1
             for j, row in enumerate(block):
                 step = k + 1 + j

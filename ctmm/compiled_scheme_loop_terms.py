@@ -33,6 +33,7 @@ from .compiled_loops import ClosedLoops
 from .compiled_scene_schemes import scheme_maps
 from .control.implicit_loops import check_scheme_delays
 from .errors import ModelError
+from .generated_loop import BlockRunner
 from .schemes import Scheme
 
 __all__ = ["BufferedCall", "SchemeLoopTerms"]
@@ -303,7 +304,7 @@ class SchemeLoopTerms:
         return acceleration, controller
 
     def continue_run(self, state: np.ndarray, held: np.ndarray, dt: float, n_steps: int, first_step: int,
-                     since_start: int | None = None) -> np.ndarray:
+                     since_start: int | None = None, runner: BlockRunner | None = None) -> np.ndarray:
         """The scheme's ``continue_run``, refusing a step other than :attr:`dt` with delayed loops (the ring holds
         one sample per step of :attr:`dt`).
 
@@ -316,7 +317,8 @@ class SchemeLoopTerms:
         if self.loops.delayed and not abs(dt - self.dt) <= 1e-12 * self.dt:        # (np.isclose: 10 us a call)
             raise ModelError(f"compiled has delay rings for dt = {self.dt!r} s, this run's step is {dt!r} s: build "
                              f"a {type(self).__name__} with this dt")
-        return super().continue_run(state, held, dt, n_steps, first_step, since_start)   # type: ignore[misc]
+        return super().continue_run(state, held, dt, n_steps, first_step, since_start,   # type: ignore[misc]
+                                      runner=runner)
 
     def signal_states(self, controller: np.ndarray, times: np.ndarray) -> np.ndarray:
         """Rows of stored controller entries at ``times`` [s] as the ``[z, ring]`` tail of

@@ -41,7 +41,7 @@ from .compiled_spatial_parameters import (SpatialNumbers, parametrised_scene_ter
                                           spatial_parameter_vector, unparametrised_refusal)
 from .control.controlled_model import ControlledModel
 from .errors import ModelError
-from .generated_loop import compiled_time_loop, run_blocks
+from .generated_loop import BlockRunner, compiled_time_loop, run_blocks
 from .ops import CASADI
 from .spatial.body_forms import SpatialScene
 from .spatial.model import SpatialModel
@@ -238,13 +238,13 @@ class CompiledControlledSpatial:
         self._step, self._stride, self._blocks = loop.step, loop.stride, loop.blocks
         self.compile_time_s = clock.perf_counter() - start
 
-    def continue_run(self, state: np.ndarray, held: np.ndarray, dt: float, n_steps: int, first_step: int
-                     ) -> np.ndarray:
+    def continue_run(self, state: np.ndarray, held: np.ndarray, dt: float, n_steps: int, first_step: int,
+                     runner: BlockRunner | None = None) -> np.ndarray:
         """Stored states (rows, state size) of ``n_steps`` RK4 steps of ``dt`` [s] from the whole state ``state``
         at step ``first_step`` (time ``first_step dt``), the values ``held`` [SI] of :attr:`actuators` held over
         them (one sample interval of co-simulated controllers, :mod:`ctmm.compiled_cosim`)."""
         return run_blocks(self._blocks, self._stride, self._step, self.store_every, state[:, None], held, dt,
-                          n_steps, 0.0, self.parameters[:, None], first_step=first_step)[0]
+                          n_steps, 0.0, self.parameters[:, None], first_step=first_step, runner=runner)[0]
 
     def run(self, q0: np.ndarray, v0: np.ndarray, dt: float, n_steps: int) -> tuple[np.ndarray, np.ndarray]:
         """The initial state ``[q, v, z, ring]`` and the stored states (rows, state size) after each

@@ -48,7 +48,7 @@ from .compiled_scene_schemes import (STATUS, SchemeHooks, check_step_scaling, ne
                                      reused_or_built, scheme_maps, symbolic_scheme_step)
 from .compiled_spatial import SPATIAL_FLAGS, SpatialRates, spatial_compile_refusal
 from .errors import ConvergenceError, ModelError, SimulationError
-from .generated_loop import compiled_time_loop, run_blocks
+from .generated_loop import BlockRunner, compiled_time_loop, run_blocks
 from .guard import StabilityLimitWarning
 from .ops import CASADI
 from .planar.integrate import step_total
@@ -346,7 +346,7 @@ class CompiledSpatialScheme(SchemeHooks):
         return out
 
     def continue_run(self, state: np.ndarray, held: np.ndarray, dt: float, n_steps: int, first_step: int,
-                     since_start: int | None = None) -> np.ndarray:
+                     since_start: int | None = None, runner: BlockRunner | None = None) -> np.ndarray:
         """Stored states (rows, :attr:`state_size`) of ``n_steps`` steps of ``dt`` [s] from ``state`` at step
         ``first_step`` with the input vector ``held`` over them (:mod:`ctmm.compiled_scheme_cosim`); ``since_start``
         as :meth:`ctmm.compiled_scene_schemes.CompiledSceneScheme.continue_run`."""
@@ -357,7 +357,7 @@ class CompiledSpatialScheme(SchemeHooks):
         since = first_step if since_start is None else since_start
         return run_blocks(self._blocks, self._stride, self._step, self.store_every, np.asarray(state)[:, None],
                           np.asarray(held, dtype=float), dt, validation.integer("n_steps", n_steps, minimum=1),
-                          (first_step - since) * dt, np.zeros((0, 1)), first_step=since)[0]
+                          (first_step - since) * dt, np.zeros((0, 1)), first_step=since, runner=runner)[0]
 
     def run(self, state: np.ndarray, dt: float, n_steps: int, inputs: Mapping[str, Any] | None = None) -> np.ndarray:
         """Stored states (rows, :attr:`state_size`) of ``n_steps`` steps of ``dt`` [s] from ``state`` at ``t = 0``

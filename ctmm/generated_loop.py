@@ -19,7 +19,8 @@ Generated functions (all with the inputs ``y, u, h, p, t0, k``: state, held actu
   call per block and a remainder costs one call per binary digit.
 
 :func:`run_blocks` runs them over an interval (and a batch of members through
-``casadi.Function.map``).  :func:`compiled_time_loop` compiles them (every generated-kernel path goes
+``casadi.Function.map``); a run of many short intervals (co-simulated controllers end one at each sample) passes
+the run's :class:`BlockRunner`, which sets each function's call buffer up once.  :func:`compiled_time_loop` compiles them (every generated-kernel path goes
 through it): the cache key is computed from the serialized step before the blocks and the C text are
 built, so a call whose library is cached builds and generates nothing; or, where a family describes
 everything its builder reads (``description``: the model and options by
@@ -43,7 +44,7 @@ from .version import __version__
 from .ode import rk4_step
 
 __all__ = ["SymbolicRates", "TimeLoop", "block_sizes", "compiled_time_loop", "rk4_step_function",
-           "time_loop_functions", "run_blocks"]
+           "time_loop_functions", "run_blocks", "BlockRunner"]
 
 _LOOP_CODE = Path(__file__).read_bytes()        # this module builds stride and blocks: part of every key
 
@@ -197,21 +198,54 @@ def time_loop_functions(step: Any, store_every: int, rows: int) -> tuple[Any, li
     return stride, sizes, blocks
 
 
+class BlockRunner:
+    """Reusable call buffers of :func:`run_blocks` for the intervals of one run (one ``ctmm.simulate`` call).
+
+    A co-simulated controller ends the generated interval at each sample, so a run calls :func:`run_blocks` once
+    per sample interval, often for a few steps only.  Setting up a casadi buffer (``Function.buffer()``, every
+    input bound: about 15 us CPU per function) then costs as much as the steps; a runner sets each compiled
+    function up once (per batch size) and afterwards only copies the interval's state, inputs and start index into
+    the bound arrays.  Create one per run and pass it to every :func:`run_blocks` call of that run (not shared
+    between threads); the answers are those of a call without it, bit for bit (the same generated functions on the
+    same numbers).
+
+    Attributes
+    ----------
+    calls : dict
+        ``(function id, batch, parallelization, threads) -> (function, buffered call)``, filled at first use.
+    """
+
+    def __init__(self) -> None:
+        self.calls: dict[tuple, tuple[Any, Any]] = {}
+
+    def bound(self, function: Any, batch: int, parallelization: str, threads: int,
+              fixed: Sequence[np.ndarray]) -> Any:
+        """``call(y, k, shape)`` of :func:`run_blocks` for ``function`` (mapped over ``batch`` members) with the
+        ``fixed`` ``(u, h, p, t0)`` of this interval: set up at its first use, its inputs rewritten after."""
+        key = (id(function), batch, parallelization, threads)
+        entry = self.calls.get(key)
+        if entry is None or entry[0] is not function:
+            mapped = function if batch == 1 else function.map(batch, parallelization, threads)
+            entry = (function, _BufferedFunction(mapped))
+            self.calls[key] = entry
+        entry[1].fix(fixed)
+        return entry[1].call
+
+
 def run_blocks(blocks: list[tuple[int, Any]], stride: Any, step: Any, store_every: int, y: np.ndarray,
                u: np.ndarray, h: float, n_steps: int, t0: float, p: np.ndarray, parallelization: str = "serial",
-               threads: int = 1, first_step: int = 0) -> np.ndarray:
+               threads: int = 1, first_step: int = 0, runner: BlockRunner | None = None) -> np.ndarray:
     """Stored states (B, rows, state size) after each ``store_every`` steps and after the last step of
     ``n_steps`` RK4 steps of ``h`` [s] from ``t0`` [s], for the B members (columns of ``y`` (state size,
     B) and ``p``); compiled ``blocks`` ``[(size, function)]``, ``stride`` and ``step`` of
     :func:`time_loop_functions`, mapped over the batch by ``casadi.Function.map`` (nothing generated
     or compiled); stops after the first block where every member holds a non-finite state.  ``first_step``:
-    the index of the first step (steps at ``t0 + k h``, ``k`` from it: a run continued from a stored state)."""
+    the index of the first step (steps at ``t0 + k h``, ``k`` from it: a run continued from a stored state).
+    ``runner``: the run's :class:`BlockRunner` (its buffers reused over the run's intervals; default a new one)."""
     every, batch = store_every, y.shape[1]
     strides, rest = divmod(n_steps, every)
     size_y = y.shape[0]
-
-    def mapped(function: Any) -> Any:
-        return function if batch == 1 else function.map(batch, parallelization, threads)
+    runner = BlockRunner() if runner is None else runner
 
     fixed = (np.asarray(u, float), np.asarray(h, float), np.asarray(p, float), np.asarray(t0, float))
     out = []
@@ -219,7 +253,7 @@ def run_blocks(blocks: list[tuple[int, Any]], stride: Any, step: Any, store_ever
     for size, function in blocks:
         if done + size > strides:
             continue
-        call = _buffered(mapped(function), fixed)
+        call = runner.bound(function, batch, parallelization, threads, fixed)
         while done + size <= strides:
             block = call(y, first_step + done * every, (batch, size, size_y))      # (B, size, n)
             out.append(block)
@@ -228,51 +262,54 @@ def run_blocks(blocks: list[tuple[int, Any]], stride: Any, step: Any, store_ever
             if not np.any(np.all(np.isfinite(block), axis=(1, 2))):
                 return np.concatenate(out, axis=1)
     if done < strides:
-        call = _buffered(mapped(stride), fixed)
+        call = runner.bound(stride, batch, parallelization, threads, fixed)
         for j in range(done, strides):
             y = call(y, first_step + j * every, (batch, size_y)).T
             out.append(y.T[:, None, :])
     if rest:
-        call = _buffered(mapped(step), fixed)
+        call = runner.bound(step, batch, parallelization, threads, fixed)
         for j in range(rest):
             y = call(y, first_step + strides * every + j, (batch, size_y)).T
         out.append(y.T[:, None, :])
+    if len(out) == 1:
+        return out[0]
     return np.concatenate(out, axis=1) if out else np.zeros((batch, 0, y.shape[0]))
 
 
-def _buffered(function: Any, fixed: Sequence[np.ndarray]) -> Any:
-    """``call(y, k, shape)``: ``function(y, u, h, p, t0, k)`` with the ``fixed`` ``(u, h, p, t0)`` into a new C-ordered
-    array of ``shape`` (the output's column-major data: a ``(rows, columns)`` output is ``(columns, rows)``).
+class _BufferedFunction:
+    """``function(y, u, h, p, t0, k)`` through casadi's buffer interface, its inputs bound once to arrays held here.
 
-    Through casadi's buffer interface: no conversion through Python numbers (a casadi ``DM`` result costs about
-    25 ns per number to convert, more than a generated step of a chain spends per point).  The buffer holds
-    pointers to the input arrays: ``call`` keeps every one of them alive.  An input given for one member
-    (columns of ``y`` are members) is repeated over a mapped function's members."""
-    buffer, evaluate = function.buffer()
-    arrays: list[np.ndarray] = []
+    No conversion through Python numbers (a casadi ``DM`` result costs about 25 ns per number to convert, more
+    than a generated step of a chain spends per point).  The buffer holds pointers to the input arrays: this
+    object keeps every one of them alive and only rewrites their contents.  An input given for one member (columns
+    of ``y`` are members) is repeated over a mapped function's members."""
 
-    def bind(index: int, value: np.ndarray) -> None:
-        data = np.ascontiguousarray(np.asarray(value, float).T).ravel()        # column-major
-        need = function.nnz_in(index)
-        if data.size != need:
-            data = np.tile(data, need // max(data.size, 1)) if data.size else np.zeros(need)
-        arrays.append(data)
-        buffer.set_arg(index, memoryview(data))
+    def __init__(self, function: Any) -> None:
+        self.function = function
+        self.buffer, self.evaluate = function.buffer()
+        self.arrays = [np.zeros(function.nnz_in(index)) for index in range(6)]
+        for index, array in enumerate(self.arrays):
+            self.buffer.set_arg(index, memoryview(array))
 
-    bind(0, np.zeros(function.size_in(0)))
-    for index, value in zip((1, 2, 3, 4), fixed):
-        bind(index, value)
-    bind(5, np.zeros(1))
+    def fix(self, fixed: Sequence[np.ndarray]) -> None:
+        """Write the ``(u, h, p, t0)`` (float arrays) of an interval into the bound input arrays (an empty one
+        stays zero)."""
+        for array, value in zip(self.arrays[1:5], fixed):
+            data = value.ravel(order="F")                       # column-major (a view where it can be)
+            if data.size == array.size:
+                array[:] = data
+            elif data.size:
+                array[:] = np.tile(data, array.size // data.size)
 
-    def call(y: np.ndarray, k: int, shape: tuple) -> np.ndarray:
-        held = arrays                               # every input array, alive as long as the buffer is used
-        held[0][:] = np.asarray(y, float).T.ravel()
-        held[5][:] = float(k)
+    def call(self, y: np.ndarray, k: int, shape: tuple) -> np.ndarray:
+        """The output for the state ``y`` from step ``k`` into a new C-ordered array of ``shape`` (the output's
+        column-major data: a ``(rows, columns)`` output is ``(columns, rows)``)."""
+        arrays = self.arrays
+        arrays[0][:] = np.asarray(y, float).T.ravel()
+        arrays[5][:] = float(k)
         result = np.empty(shape)
-        buffer.set_res(0, memoryview(result.reshape(-1)))
-        evaluate()
-        if buffer.ret():
-            raise RuntimeError(f"the generated function {function.name()!r} failed (status {buffer.ret()})")
+        self.buffer.set_res(0, memoryview(result.reshape(-1)))
+        self.evaluate()
+        if self.buffer.ret():
+            raise RuntimeError(f"the generated function {self.function.name()!r} failed (status {self.buffer.ret()})")
         return result
-
-    return call
