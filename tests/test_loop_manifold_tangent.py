@@ -5,15 +5,19 @@ not smooth (issue 16).  The accuracy against independent references is checked w
 ``test_spatial_cut_joint_laws.py``."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
 import ctmm
-from ctmm import loop_manifold
+import ctmm.spatial as sp
 from ctmm.errors import ModelError
 from ctmm.nonlinear_laws import CallableLaw, LinearLaw
 from ctmm.planar import Fixed, PlanarModel, RigidBody, SmoothHinge
 from ctmm.planar.closed_loops import CutJoint, KinematicLoopModel
+from ctmm.spatial import closed_loop_linear as linear
+from ctmm.spatial.closed_loops import SpatialCutJoint, SpatialKinematicLoopModel
 
 REST = -1.3
 
@@ -66,3 +70,30 @@ def test_a_kink_at_the_equilibrium_is_refused_by_name(spring_equilibrium):
         kinked.natural_frequencies(q_eq)
     with pytest.raises(ModelError, match="not accurate"):
         ctmm.linearize(kinked, (q_eq, np.zeros(3)), inputs=["h1.torque"])
+
+
+def hinged(law) -> SpatialKinematicLoopModel:
+    """A body on a free joint held at the ground by a revolute cut about world y with ``law`` (1 DOF)."""
+    tree = sp.SpatialModel("hinged_tangent", [
+        sp.SpatialBody("p", 1.2, np.diag([0.02, 0.03, 0.025]), center_of_mass=(0.1, 0.0, -0.3)),
+        sp.Free(name="free", parent=None, child="p")])
+    return SpatialKinematicLoopModel(tree, [SpatialCutJoint(name="hinge", parent=None, child="p", kind="revolute",
+                                                            axis=(0, 1, 0), law=law, rest=0.2)])
+
+
+def test_spatial_tangent_error_is_the_linearisation_s_and_a_kink_is_refused():
+    """The spatial loops share the tangent: its estimate is ``ctmm.linearize``'s ``jacobian_error`` (small), plain
+    central differences remain available by ``step``; a kink at the equilibrium (``2 |delta - delta_eq|`` added to
+    the cut spring) is refused by name."""
+    loop = hinged(LinearLaw(2.0, 0.0))
+    q, _ = loop.consistent_state({"free.qw": math.cos(0.15), "free.qy": math.sin(0.15)}, {}, keep=[])
+    q_eq = linear.equilibrium(loop, q)
+    error = linear.tangent_error(loop, q_eq)
+    assert error < 1e-9
+    assert ctmm.linearize(loop, q_eq, inputs=["hinge.torque"]).operating_point.jacobian_error == error
+    A = linear.tangent(loop, q_eq)[0]
+    assert np.max(np.abs(A - linear.tangent(loop, q_eq, step=1e-5)[0])) < 1e-8 * np.max(np.abs(A))
+    delta_eq = float(loop.cut_coordinates(q_eq, np.zeros(6))[0][0]) - 0.2
+    kinked = hinged(CallableLaw(lambda d, v: 2.0 * d + 2.0 * abs(d - delta_eq), name="kinked spring"))
+    with pytest.raises(ModelError, match=r"hinged_tangent.*tangent on the constraint manifold is not accurate"):
+        linear.natural_frequencies(kinked, q_eq)
