@@ -19,9 +19,10 @@ coordinates, first order for quaternions, so the spatial tangent is exact about 
 second-order terms multiply the accelerations, zero there).  The tangent ``A = [[0, I], [dz''/dz, dz''/dz']]`` is
 formed by Richardson-extrapolated central differences with an error estimate (:func:`accurate_tangent`, refused by
 name beyond :data:`ctmm.planar_linearization.JACOBIAN_TOLERANCE`); the Newton search for an equilibrium uses plain
-central differences (:func:`tangent_matrix`: its error only slows Newton, it does not move the equilibrium).  The
-chart (a Gauss-Newton projection, ``lstsq``) and the quaternion renormalisation are not analytic in a complex
-increment, so no complex step here.  ``docs/closed_loops.md`` sections 2, 3a and 8.4.
+central differences (:func:`tangent_matrix`: its error only slows Newton, it does not move the equilibrium).  No
+complex step here: the loop models' ``solve`` and ``constraints`` take real states (the planar model casts a
+complex state to real, dropping the increment), and the chart's minimum-norm projection (``lstsq``) and the
+quaternion renormalisation are not analytic in it.  ``docs/closed_loops.md`` sections 2, 3a and 8.4.
 """
 from __future__ import annotations
 
