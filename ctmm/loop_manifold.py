@@ -17,7 +17,12 @@ configurations by the chart ``q = (q0 (+) N z) (+) J0^T y`` with ``y`` from ``Ph
 rates by ``v = N z' + J0^T w`` with ``J(q) v = 0``; ``z'' = N^T v'``.  ``(+)`` is :meth:`retract`: exact for planar
 coordinates, first order for quaternions, so the spatial tangent is exact about an equilibrium (the chart's
 second-order terms multiply the accelerations, zero there).  The tangent ``A = [[0, I], [dz''/dz, dz''/dz']]`` is
-formed by central differences.  ``docs/closed_loops.md`` sections 2 and 8.
+formed by Richardson-extrapolated central differences with an error estimate (:func:`accurate_tangent`, refused by
+name beyond :data:`ctmm.planar_linearization.JACOBIAN_TOLERANCE`); the Newton search for an equilibrium uses plain
+central differences (:func:`tangent_matrix`: its error only slows Newton, it does not move the equilibrium).  No
+complex step here: the loop models' ``solve`` and ``constraints`` take real states (the planar model casts a
+complex state to real, dropping the increment), and the chart's minimum-norm projection (``lstsq``) and the
+quaternion renormalisation are not analytic in it.  ``docs/closed_loops.md`` sections 2, 3a and 8.4.
 """
 from __future__ import annotations
 
@@ -26,9 +31,19 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from .errors import ModelError
+from .planar_linearization import JACOBIAN_TOLERANCE, jacobian
 
-__all__ = ["independent_basis", "chart", "tangent_matrix", "at_equilibrium", "require_equilibrium",
-           "newton_equilibrium", "undamped_frequencies", "input_output_matrices"]
+__all__ = ["independent_basis", "chart", "tangent_matrix", "accurate_tangent", "at_equilibrium",
+           "require_equilibrium", "newton_equilibrium", "undamped_frequencies", "input_output_matrices",
+           "TANGENT_STEPS", "TANGENT_TARGET"]
+
+TANGENT_STEPS = (1e-3, 1e-4, 1e-5)
+"""Steps [rad, m, modal, and their rates] of the Richardson differences of :func:`accurate_tangent`, tried in turn
+until the estimated error is below :data:`TANGENT_TARGET` (a modal beam's stiff coordinates need ``1e-4``: at
+``1e-3`` the ``h^4`` term leaves ``2e-7 max |A|``)."""
+TANGENT_TARGET = 1e-10
+"""Estimated error of the tangent, relative to ``max |A|``, at which :func:`accurate_tangent` stops refining the
+step (smaller steps trade truncation for round-off, which the estimate does not see)."""
 
 
 def _label(model: Any) -> str:
@@ -71,8 +86,9 @@ def chart(model: Any, q0: np.ndarray, basis: np.ndarray, z: np.ndarray, zdot: np
 
 def tangent_matrix(model: Any, q0: np.ndarray, basis: np.ndarray, t: float = 0.0, step: float = 1e-5
                    ) -> np.ndarray:
-    """``A = [[0, I], [dz''/dz, dz''/dz']]`` ``(2 f, 2 f)`` [1/s^2, 1/s] about ``q0`` on the cut joints, by central
-    differences of ``z'' = N^T v'`` along the chart (step ``step`` [rad, m])."""
+    """``A = [[0, I], [dz''/dz, dz''/dz']]`` ``(2 f, 2 f)`` [1/s^2, 1/s] about ``q0`` on the cut joints, by plain
+    central differences of ``z'' = N^T v'`` along the chart (step ``step`` [rad, m]; error ``O(step^2)``, no
+    estimate): the Newton tangent of :func:`newton_equilibrium`.  For linearisation use :func:`accurate_tangent`."""
     f = basis.shape[1]
 
     def rates(x: np.ndarray) -> np.ndarray:
@@ -88,6 +104,61 @@ def tangent_matrix(model: Any, q0: np.ndarray, basis: np.ndarray, t: float = 0.0
     A[:f, f:] = np.eye(f)
     A[f:] = np.column_stack(columns)
     return A
+
+
+def accurate_tangent(model: Any, q0: np.ndarray, basis: np.ndarray, t: float = 0.0) -> tuple[np.ndarray, float]:
+    """``A = [[0, I], [dz''/dz, dz''/dz']]`` ``(2 f, 2 f)`` [1/s^2, 1/s] about ``q0`` on the cut joints and its
+    estimated error relative to ``max |A|``.
+
+    Richardson-extrapolated central differences of ``z'' = N^T v'`` along the chart
+    (:func:`ctmm.planar_linearization.jacobian`: error ``O(h^4)``, estimated from two extrapolations, a kink
+    detected) at the steps :data:`TANGENT_STEPS` in turn, stopping at the first whose estimate is below
+    :data:`TANGENT_TARGET`, else keeping the best.  (Plain central differences at step ``1e-5`` limited a modal
+    beam four-bar's natural frequencies to ``7e-7``; these give ``2e-11``, ``tests/test_flexible_station_cut.py``.)
+
+    Raises
+    ------
+    ModelError
+        The best estimated error exceeds :data:`ctmm.planar_linearization.JACOBIAN_TOLERANCE` (the closed-loop
+        accelerations are not smooth about ``q0``: a switching law, a saturation, a singular loop position).
+    """
+    f = basis.shape[1]
+
+    def rates(x: np.ndarray) -> np.ndarray:
+        q, v = chart(model, q0, basis, x[:f], x[f:], t)
+        return basis.T @ model.solve(q, v, t)[0]
+
+    def tangent_of(rows: np.ndarray) -> np.ndarray:
+        A = np.zeros((2 * f, 2 * f))
+        A[:f, f:] = np.eye(f)
+        A[f:] = rows
+        return A
+
+    rows, error = _refined_jacobian(model, rates, 2 * f, tangent_of, "the tangent on the constraint manifold")
+    return tangent_of(rows), error
+
+
+def _refined_jacobian(model: Any, function: Callable[[np.ndarray], np.ndarray], size: int,
+                      matrix: Callable[[np.ndarray], np.ndarray], what: str) -> tuple[np.ndarray, float]:
+    """The Richardson Jacobian of ``function`` at ``0`` (``size`` inputs) at the steps :data:`TANGENT_STEPS` in turn
+    (:func:`accurate_tangent`) and its estimated error relative to ``max |matrix(J)|``; refused beyond
+    :data:`ctmm.planar_linearization.JACOBIAN_TOLERANCE`."""
+    best: tuple[np.ndarray, float] | None = None
+    for step in TANGENT_STEPS:
+        rows, estimate = jacobian(function, np.zeros(size), relative_step=step)
+        scale = max(float(np.max(np.abs(matrix(rows)), initial=0.0)), 1e-300)
+        error = float(np.max(estimate, initial=0.0) / scale)
+        if best is None or not error >= best[1]:
+            best = (rows, error)
+        if error <= TANGENT_TARGET:
+            break
+    rows, error = best
+    if not error <= JACOBIAN_TOLERANCE:
+        raise ModelError(f"{_label(model)}: {what} is not accurate (estimated relative error {error:.2e} > "
+                         f"{JACOBIAN_TOLERANCE:.0e} at steps {list(TANGENT_STEPS)}); the closed-loop accelerations "
+                         "or outputs are not smooth about q0 (a switching law, a saturation, or a singular position "
+                         "of the loop?)")
+    return rows, error
 
 
 def at_equilibrium(A: np.ndarray, basis: np.ndarray, accelerations: np.ndarray, *, acceleration: float = 1e-8,
@@ -175,13 +246,15 @@ def undamped_frequencies(model: Any, A: np.ndarray) -> np.ndarray:
 
 def input_output_matrices(model: Any, q0: np.ndarray, basis: np.ndarray, t: float,
                           output: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray],
-                          unit_inputs: Sequence[Any], step: float = 1e-5
+                          unit_inputs: Sequence[Any], step: float | None = None
                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``B``, ``C``, ``D`` of the tangent about the resting ``q0``: the outputs ``output(q, v, cut loads)`` and the
     inputs ``unit_inputs`` (one actuator-input object per input, at unit value, as ``model.solve`` takes them).
 
-    ``B`` and ``D`` are exact (the sweep is affine in the inputs); ``C`` by central differences along the chart
-    (step ``step`` [rad, m, rad/s, m/s]).
+    ``B`` and ``D`` are exact (the sweep is affine in the inputs); ``C`` along the chart by Richardson differences
+    with an error estimate as :func:`accurate_tangent` (``step=None``; refused by name beyond
+    :data:`ctmm.planar_linearization.JACOBIAN_TOLERANCE` relative to ``max |C|``), or by plain central differences
+    at ``step`` [rad, m, rad/s, m/s].
     """
     f = basis.shape[1]
     rest = np.zeros(model.n_velocities)
@@ -192,7 +265,11 @@ def input_output_matrices(model: Any, q0: np.ndarray, basis: np.ndarray, t: floa
         q, v = chart(model, q0, basis, x[:f], x[f:], t)
         return output(q, v, model.solve(q, v, t)[1])
 
-    C = np.column_stack([(row(e) - row(-e)) / (2.0 * step) for e in step * np.eye(2 * f)])
+    if step is None:
+        C = _refined_jacobian(model, row, 2 * f, lambda rows: rows, "the output matrix C")[0]
+    else:
+        C = np.column_stack([(row(e) - row(-e)) / (2.0 * step) for e in step * np.eye(2 * f)])
+    C = C.reshape(len(output0), 2 * f)
     B = np.zeros((2 * f, len(unit_inputs)))
     D = np.zeros((len(output0), len(unit_inputs)))
     for k, inputs in enumerate(unit_inputs):

@@ -143,7 +143,8 @@ def test_newmark_dt_tmm_run_tracks_the_global_model():
 def test_natural_frequencies_match_the_constrained_global_model():
     """About the hanging equilibrium (found by the global model's Newton on ``(q, lambda)``; the library checks it is
     one, else refuses): the library's manifold tangent vs ``eig(N^T K N, N^T M N)`` of the global model's Lagrangian
-    (with the static cut force's curvature term)."""
+    (with the static cut force's curvature term, by complex step): measured 3.2e-11 (the Richardson tangent of
+    :func:`ctmm.loop_manifold.accurate_tangent`)."""
     loop, ref = fe_four_bar(2), reference(2)
     q_eq, lam = equilibrium(loop, ref)
     assert np.max(np.abs(loop.solve(q_eq, np.zeros_like(q_eq))[0])) < 1e-8
@@ -151,13 +152,13 @@ def test_natural_frequencies_match_the_constrained_global_model():
     omega = ctmm.natural_frequencies(loop, operating_point=(q_eq, np.zeros_like(q_eq)))
     omega_ref = ref.natural_frequencies(q_eq, lam)
     assert len(omega) == len(omega_ref) == loop.tree.n_coordinates - 2
-    assert np.max(np.abs(omega - omega_ref) / omega_ref) < 1e-7
+    assert np.max(np.abs(omega - omega_ref) / omega_ref) < 3e-10
 
 
 def test_cut_torque_response_matches_the_constrained_global_model():
     """A torque across the cut (on the tip node's rotation and on the rocker) -> the node's deflection and the cut
     angle, about the hanging equilibrium: ``ctmm.linearize`` vs ``C N (N^T (K - w^2 M) N)^-1 N^T b`` of the global
-    model (``b`` the torque's generalised force, ``K`` the Lagrangian's stiffness)."""
+    model (``b`` the torque's generalised force, ``K`` the Lagrangian's stiffness): measured 2.1e-10 at 3 rad/s."""
     loop, ref = fe_four_bar(2), reference(2)
     q_eq, lam = equilibrium(loop, ref)
     rest = np.zeros_like(q_eq)
@@ -171,7 +172,7 @@ def test_cut_torque_response_matches_the_constrained_global_model():
     for w in (3.0, 50.0, 200.0):
         H = C @ np.linalg.solve(1j * w * np.eye(A.shape[0]) - A, B) + D
         H_ref = C_ref @ N @ np.linalg.solve(N.T @ (K - w * w * M) @ N, N.T @ torque)
-        assert np.max(np.abs(H[:, 0] - H_ref)) < 1e-6 * np.max(np.abs(H_ref))
+        assert np.max(np.abs(H[:, 0] - H_ref)) < 2e-9 * np.max(np.abs(H_ref))
 
 
 def test_a_cut_at_a_node_that_is_not_a_boundary_node_is_refused_by_name():

@@ -340,7 +340,7 @@ def test_beam_cut_natural_frequencies_equal_the_reference_on_its_manifold(kind):
     K -= reference.constraint_hessian(q_eq, lam)
     N = np.linalg.svd(J)[2][reference.rows:].T
     expected = np.sqrt(np.sort(np.linalg.eigvals(np.linalg.solve(N.T @ M @ N, N.T @ K @ N)).real))
-    assert np.abs(got - expected).max() < 1e-9 * expected.max(), (got, expected)
+    assert np.abs(got - expected).max() < 1e-11 * expected.max(), (got, expected)   # measured 8.6e-13, 9.2e-13
 
 
 def test_compiled_run_with_a_deformable_cut_point_is_refused_by_name():

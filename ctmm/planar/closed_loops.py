@@ -341,39 +341,45 @@ class KinematicLoopModel:
         :func:`ctmm.loop_manifold.chart`)."""
         return loop_manifold.chart(self, q0, basis, z, zdot, t)
 
-    def linearize(self, q0, t: float = 0.0, *, step: float = 1e-5) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def linearize(self, q0, t: float = 0.0, *, step: float | None = None
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Linearisation about the resting state ``q0`` (projected onto the constraints) in independent
         coordinates ``z = N^T (q - q0)`` (``N``: orthonormal null space of ``J(q0)``, ``f`` columns).
 
-        Returns ``(A, N, q0)`` with ``A = [[0, I], [dz''/dz, dz''/dz']]`` (2 f x 2 f) by central differences
-        (step ``step`` [rad]) of the closed-loop accelerations ``z'' = N^T q''`` on the manifold
-        (:func:`ctmm.loop_manifold.tangent_matrix`).
+        Returns ``(A, N, q0)`` with ``A = [[0, I], [dz''/dz, dz''/dz']]`` (2 f x 2 f) of the closed-loop
+        accelerations ``z'' = N^T q''`` on the manifold: by Richardson-extrapolated differences with an error
+        estimate (:func:`ctmm.loop_manifold.accurate_tangent`, refused by name when not accurate; ``step=None``), or
+        by plain central differences at ``step`` [rad] (:func:`ctmm.loop_manifold.tangent_matrix`, no estimate).
         """
+        return self._tangent(q0, t, step)[:3]
+
+    def _tangent(self, q0, t: float, step: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
         n = self.require_static("linearize")
         q0, _ = self.project(np.asarray(self.tree.state(q0, np.zeros(n))[0], float), np.zeros(n), t, iterations=30)
         basis = loop_manifold.independent_basis(self, q0, t)
-        return loop_manifold.tangent_matrix(self, q0, basis, t, step), basis, q0
+        if step is None:
+            A, error = loop_manifold.accurate_tangent(self, q0, basis, t)
+            return A, basis, q0, error
+        return loop_manifold.tangent_matrix(self, q0, basis, t, validation.positive("step", step)), basis, q0, np.nan
 
     def resting_tangent(self, q0, t: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-        """:meth:`linearize` about the resting state ``q0`` and its relative Jacobian error (against the step
-        2e-5), ``(A, N, q0, error)``; kept per ``(q0, t, baumgarte)`` on this model (the frequency-domain tools
-        ask for the same tangent at every frequency they refine; at most 8 kept)."""
+        """:meth:`linearize` about the resting state ``q0`` and its estimated Jacobian error relative to
+        ``max |A|`` (:func:`ctmm.loop_manifold.accurate_tangent`), ``(A, N, q0, error)``; kept per
+        ``(q0, t, baumgarte)`` on this model (the frequency-domain tools ask for the same tangent at every frequency
+        they refine; at most 8 kept)."""
         q0 = np.asarray(q0, dtype=float)
         key = (q0.tobytes(), float(t), self.baumgarte)
         if key not in self._tangents:
-            A, basis, q_on = self.linearize(q0, t)
-            A_coarse, _, _ = self.linearize(q_on, t, step=2e-5)
-            error = float(np.max(np.abs(A - A_coarse)) / max(np.max(np.abs(A)), 1e-300))
             if len(self._tangents) >= 8:
                 self._tangents.pop(next(iter(self._tangents)))
-            self._tangents[key] = (A, basis, q_on, error)
+            self._tangents[key] = self._tangent(q0, t, None)
         A, basis, q_on, error = self._tangents[key]
         return A.copy(), basis.copy(), q_on.copy(), error
 
     def natural_frequencies(self, q0, t: float = 0.0) -> np.ndarray:
         """Undamped natural frequencies [rad/s] about the resting state ``q0`` (an equilibrium: refused
-        otherwise), ascending, from :meth:`linearize` (:func:`ctmm.loop_manifold.undamped_frequencies`)."""
-        A, basis, q0 = self.linearize(q0, t)
+        otherwise), ascending, from :meth:`resting_tangent` (:func:`ctmm.loop_manifold.undamped_frequencies`)."""
+        A, basis, q0, _ = self.resting_tangent(q0, t)
         loop_manifold.require_equilibrium(self, A, basis, q0, t, "KinematicLoopModel.equilibrium")
         return loop_manifold.undamped_frequencies(self, A)
 

@@ -52,7 +52,6 @@ __all__ = ["initial_state", "simulate_loops", "linearize_loops", "natural_freque
 _DEFAULTS: dict[str, Any] = {"inputs": None, "controllers": [], "references": {}, "coupling": "hold",
                              "solver": "riccati", "fast": None, "force_hook": None, "progress": None, "t0": 0.0,
                              "compiled": None}
-_STEP = 1e-5            # central-difference step of the output rows [rad, rad/s]
 
 
 def cut_signal_names(model: KinematicLoopModel) -> tuple[str, ...]:
@@ -294,7 +293,7 @@ def linearize_loops(model: KinematicLoopModel, operating_point: Any = None, *, i
         return np.array([values[name] for name in output_names], dtype=float)
 
     B, C, D = input_output_matrices(model, q0, basis, t, output,
-                                    [ports.inputs({name: 1.0}) for name in input_names], _STEP)
+                                    [ports.inputs({name: 1.0}) for name in input_names])
     states = [f"z{k + 1}" for k in range(f)] + [f"z{k + 1}_dot" for k in range(f)]
     if not input_names and len(output_names) == 1:
         raise ModelError(f"linearize: inputs={inputs!r} leaves {model.name!r} with no input and one output, a state "

@@ -9,7 +9,8 @@ independent coordinates ``z`` parametrise the constrained configurations by the 
 (:meth:`SpatialKinematicLoopModel.retract`: quaternions move by ``G(q) dx`` and are renormalised), so the chart is
 exact to first order in ``z``: the tangent is exact **about an equilibrium** (the second-order terms of the chart
 multiply the accelerations, zero there), and the functions here refuse other resting states by name.  The tangent
-``A = [[0, I], [dz''/dz, dz''/dz']]`` is formed by central differences (step 1e-5).  The algorithm is the one of
+``A = [[0, I], [dz''/dz, dz''/dz']]`` is formed by Richardson-extrapolated central differences with an error
+estimate, refused by name when not accurate (:func:`ctmm.loop_manifold.accurate_tangent`).  The algorithm is the one of
 the planar loops (:mod:`ctmm.loop_manifold`); this module adds the spatial resting configuration and the tangent
 cache.  ``docs/closed_loops.md`` section 8.
 """
@@ -19,11 +20,11 @@ from typing import Any
 
 import numpy as np
 
-from .. import loop_manifold
+from .. import loop_manifold, validation
 from ..errors import ModelError
 from .closed_loops import SpatialKinematicLoopModel
 
-__all__ = ["resting_configuration", "chart", "tangent", "equilibrium", "natural_frequencies"]
+__all__ = ["resting_configuration", "chart", "tangent", "tangent_error", "equilibrium", "natural_frequencies"]
 
 
 def resting_configuration(model: SpatialKinematicLoopModel, q0: Any, t: float = 0.0) -> np.ndarray:
@@ -46,14 +47,45 @@ def chart(model: SpatialKinematicLoopModel, q0: np.ndarray, basis: np.ndarray, z
     return loop_manifold.chart(model, q0, basis, z, zdot, t)
 
 
-def _tangent(model: SpatialKinematicLoopModel, q0: np.ndarray, t: float, step: float) -> tuple[np.ndarray, np.ndarray]:
+def _tangent(model: SpatialKinematicLoopModel, q0: np.ndarray, t: float, step: float | None
+             ) -> tuple[np.ndarray, np.ndarray, float]:
     basis = loop_manifold.independent_basis(model, q0, t)
-    return loop_manifold.tangent_matrix(model, q0, basis, t, step), basis
+    if step is None:
+        A, error = loop_manifold.accurate_tangent(model, q0, basis, t)
+        return A, basis, error
+    return loop_manifold.tangent_matrix(model, q0, basis, t, step), basis, np.nan
 
 
-def tangent(model: SpatialKinematicLoopModel, q0: Any, t: float = 0.0, *, step: float = 1e-5
+def _cached(model: SpatialKinematicLoopModel, q0: Any, t: float, step: float | None
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    q0 = resting_configuration(model, q0, t)
+    if step is not None:
+        step = validation.positive("step", step)
+    key = ("tangent", q0.tobytes(), float(t), step, model.baumgarte)
+    cache = model.linear_cache
+    if key not in cache:
+        if len(cache) >= 8:
+            cache.pop(next(iter(cache)))
+        cache[key] = _tangent(model, q0, t, step)
+    A, basis, error = cache[key]
+    A, basis = A.copy(), basis.copy()
+    loop_manifold.require_equilibrium(model, A, basis, q0, t, "ctmm.spatial.closed_loop_linear.equilibrium")
+    return A, basis, q0, error
+
+
+def tangent_error(model: SpatialKinematicLoopModel, q0: Any, t: float = 0.0) -> float:
+    """The estimated error of :func:`tangent` (``step=None``) about the equilibrium ``q0``, relative to ``max |A|``
+    (:func:`ctmm.loop_manifold.accurate_tangent`; the tangent is cached on the model, so this costs nothing after
+    it)."""
+    return _cached(model, q0, t, None)[3]
+
+
+def tangent(model: SpatialKinematicLoopModel, q0: Any, t: float = 0.0, *, step: float | None = None
             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The linearisation about the equilibrium ``q0`` (projected onto the cut joints, at rest).
+    """The linearisation about the equilibrium ``q0`` (projected onto the cut joints, at rest): by
+    Richardson-extrapolated differences with an error estimate (``step=None``:
+    :func:`ctmm.loop_manifold.accurate_tangent`; the estimate from :func:`tangent_error`), or by plain central
+    differences at ``step`` [rad, m] (no estimate).
 
     Returns
     -------
@@ -68,18 +100,10 @@ def tangent(model: SpatialKinematicLoopModel, q0: Any, t: float = 0.0, *, step: 
     ------
     ModelError
         ``q0`` is not an equilibrium (the first-order chart is exact only there; find one with
-        :func:`equilibrium`), or no degree of freedom is left.
+        :func:`equilibrium`), no degree of freedom is left, or the tangent is not accurate (the estimated error
+        beyond :data:`ctmm.planar_linearization.JACOBIAN_TOLERANCE`).
     """
-    q0 = resting_configuration(model, q0, t)
-    key = ("tangent", q0.tobytes(), float(t), float(step), model.baumgarte)
-    cache = model.linear_cache
-    if key not in cache:
-        if len(cache) >= 8:
-            cache.pop(next(iter(cache)))
-        cache[key] = _tangent(model, q0, t, step)
-    A, basis = (a.copy() for a in cache[key])
-    loop_manifold.require_equilibrium(model, A, basis, q0, t, "ctmm.spatial.closed_loop_linear.equilibrium")
-    return A, basis, q0
+    return _cached(model, q0, t, step)[:3]
 
 
 def equilibrium(model: SpatialKinematicLoopModel, q_guess: Any, t: float = 0.0, *, tolerance: float = 1e-10,
