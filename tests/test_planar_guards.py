@@ -141,6 +141,12 @@ def test_wrong_state_lengths_are_refused_by_every_state_function():
         model.points([0.0, 0.0, 1.0], [0.0, 0.0])
     with pytest.raises(ModelError, match="q must be 2 real number"):
         accelerations(model, "ab", [0.0, 0.0])
+    with pytest.raises(ModelError, match=r"qdot must be 2 real number\(s\) \(a planar model's states\)"):
+        accelerations(model, [0.1, 0.2], np.array([0.0, 1e-20j]))      # not dropped silently
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")                                  # no ComplexWarning either
+        real = accelerations(model, np.array([0.1 + 0j, 0.2]), [0.0, 0.0])
+    assert np.array_equal(real, accelerations(model, [0.1, 0.2], [0.0, 0.0]))
     with pytest.raises(ModelError, match=r"qdot must have length 2 .*\(shape \(3,\)\)"):
         model.body_angles(np.zeros(2), np.zeros(3), 0.0)
     from ctmm.flexible import ModalBeam

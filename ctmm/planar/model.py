@@ -456,8 +456,10 @@ class PlanarModel:
             return q, qdot
         out = []
         for label, value in (("q", q), ("qdot", qdot)):
+            if np.iscomplexobj(value) and np.any(np.imag(value) != 0):      # float() would drop it silently
+                raise ModelError(f"{label} must be {n} real number(s) (a planar model's states), got {value!r}")
             try:
-                array = np.asarray(value, dtype=float)
+                array = np.asarray(np.real(value), dtype=float)
             except (TypeError, ValueError):
                 raise ModelError(f"{label} must be {n} real number(s) (coordinates {', '.join(self.coordinates)}), "
                                  f"got {value!r}") from None
