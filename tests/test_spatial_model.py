@@ -65,6 +65,10 @@ def test_tree_validation() -> None:
         sp.accelerations(model, np.zeros(4), np.zeros(3))
     with pytest.raises(ModelError, match="q must have 4 entries"):
         sp.accelerations(model, np.zeros(3), np.zeros(3))
+    with pytest.raises(ModelError, match="v must be real numbers"):          # not dropped silently
+        sp.accelerations(model, [1.0, 0.0, 0.0, 0.0], np.array([0.0, 1e-20j, 0.0]))
+    real = sp.accelerations(model, np.array([1.0 + 0j, 0.0, 0.0, 0.0]), np.zeros(3))
+    assert np.array_equal(real, sp.accelerations(model, [1.0, 0.0, 0.0, 0.0], np.zeros(3)))
     assert model.coordinates == ("s.qw", "s.qx", "s.qy", "s.qz") and model.velocities == ("s.wx", "s.wy", "s.wz")
 
 

@@ -317,8 +317,10 @@ def _numbers(model_name: str, label: str, value: Any) -> np.ndarray:
     mappings and other objects are not numbers)."""
     if isinstance(value, (str, bytes, bool, Mapping)) or value is None:
         raise ModelError(f"{model_name}: {label} must be an array of numbers, got {value!r:.80}")
+    if np.iscomplexobj(value) and np.any(np.imag(value) != 0):      # a float conversion would drop it silently
+        raise ModelError(f"{model_name}: {label} must be real numbers (a spatial model's states), got {value!r:.80}")
     try:
-        array = np.asarray(value, dtype=float)
+        array = np.asarray(np.real(value), dtype=float)
     except (TypeError, ValueError):
         raise ModelError(f"{model_name}: {label} must be an array of numbers, got {value!r:.80}") from None
     return array
