@@ -15,12 +15,18 @@ Nothing of the loop engine is new:
   with the plant, delayed loops (``tau = m dt``) from the ring of samples in the state, saturation, references and
   open-loop inputs with a symbolic form; its step is :meth:`ClosedLoops.step`.
 
-As the numpy driver, the run holds the drift by Baumgarte stabilisation only (no projection; the drift is reported).
-The generated state is ``[q, qdot, z, ring, condition]``: ``condition`` the largest Frobenius condition of the
-boundary compliance ``G`` (:func:`ctmm.loop_integration.compliance_condition`) at every step's start and end state
-so far (``G`` depends on ``q`` only; the numpy path checks every stage, so a singular configuration reached only
-inside a step is found one step later here).  A non-finite stored row or a condition above
-:data:`~ctmm.loop_integration.CONDITION_LIMIT` raises :class:`~ctmm.errors.SimulationError` with the time, the
+As the numpy driver (:class:`ctmm.loop_integration.StepProjection` after every RK4 step), the state is projected onto
+the cut joints after every step, before the loops' delay ring and the co-simulated controllers read it: the
+projection of the generated RK4 of the model alone on symbols
+(:func:`ctmm.compiled_kinematic_loops.symbolic_projection`,
+:func:`ctmm.compiled_spatial_kinematic_loops.symbolic_spatial_projection`; ``projection=False``: Baumgarte alone, as
+the numpy driver's ``projection=False``).  The generated state is ``[q, qdot, z, ring, condition, residual]``:
+``condition`` the largest Frobenius condition of the boundary compliance ``G``
+(:func:`ctmm.loop_integration.compliance_condition`) at every step's start and end state so far (``G`` depends on
+``q`` only; the numpy path checks every stage, so a singular configuration reached only inside a step is found one
+step later here), ``residual`` the largest ``max |Phi|`` after a projection so far.  A non-finite stored row, a
+condition above :data:`~ctmm.loop_integration.CONDITION_LIMIT` or a residual above
+:data:`~ctmm.loop_integration.PROJECTION_TOLERANCE` raises :class:`~ctmm.errors.SimulationError` with the time, the
 first cut joint and the partial result.  The stored signals are the numpy path's
 (:meth:`KinematicLoopPlant.signals` on the stored rows with their actuator values, ``"<loop>.y"``, ``"<loop>.u"``):
 coordinates, outputs, cut forces, ``"drift"``, ``"drift_rate"``.
@@ -37,7 +43,8 @@ controllers' outputs as held inputs ``u``, run one sample interval per call by
 stored cut forces with each row's held values (:meth:`CompiledKinematicLoopControl.applied_inputs`).
 
 Refused (:class:`~ctmm.errors.ModelError`, by name): models :func:`kinematic_loop_compile_refusal` refuses, methods
-other than ``"rk4"``, a ``"<cut>.moment"`` sensor of a cut with a time-varying torque, and what
+other than ``"rk4"``, a ``"<cut>.moment"`` sensor of a cut with a time-varying torque, a spatial cut's moment or
+force sensor (``"<cut>.moment_x"``, ...: functions of the cut unknowns, not of the state), and what
 :class:`ClosedLoops` refuses (non-integer delays, references and inputs without a symbolic form).
 """
 from __future__ import annotations
@@ -50,15 +57,16 @@ import numpy as np
 
 from . import validation
 from .compiled_control import add_loop_signals
-from .compiled_kinematic_loops import (kinematic_loop_compile_refusal, symbolic_closed_loop, symbolic_relative_angles,
-                                       symbolic_time_signal)
+from .compiled_kinematic_loops import (kinematic_loop_compile_refusal, symbolic_closed_loop, symbolic_projection,
+                                       symbolic_relative_angles, symbolic_time_signal)
 from .compiled_loops import ClosedLoops, SymbolicKinematics, sensor_expression
 from .compiled_parameters import parameter_vector
 from .compiled_scene import DEFAULT_ROWS
 from .control.controlled_model import ControlledModel
 from .errors import ModelError, SimulationError
 from .generated_loop import BlockRunner, compiled_time_loop, run_blocks
-from .loop_integration import CONDITION_LIMIT, check_consistent, compliance_condition, singular_compliance
+from .loop_integration import (CONDITION_LIMIT, PROJECTION_TOLERANCE, check_consistent, compliance_condition,
+                               projection_failure, singular_compliance)
 from .planar.closed_loops import KinematicLoopModel
 from .planar.integrate import check_store_every, step_total
 from .control.plants import plant_of
@@ -152,8 +160,18 @@ class SpatialKinematicLoopSymbols:
         return self.tree_symbols.position_rates(q, v)
 
     def sensor(self, name: str, q: Any, v: Any) -> Any:
-        """Sensor ``name`` as an expression of the symbols ``q``, ``v``."""
+        """Sensor ``name`` as an expression of the symbols ``q``, ``v``.
+
+        Raises
+        ------
+        ModelError
+            A spherical cut's law moment ``"<cut>.moment_x|y|z"`` (its 3-axis law is not on symbols here).
+        """
         cut_name, _, part = name.rpartition(".")
+        if cut_name in self.cut_index and part in ("moment_x", "moment_y", "moment_z"):
+            raise ModelError(f"sensor {name!r}: the law moment of the spherical cut joint {cut_name!r} is not in the "
+                             "generated loop sensors (its 3-axis law is not on symbols yet); use compiled=None (the "
+                             "numpy loop driver)")
         if cut_name in self.cut_index and part in ("angle", "position", "rate"):
             return self.coordinates(q, v)[2 * self.cut_index[cut_name] + (part == "rate")]
         if cut_name in self.cut_index and part in ("law_moment", "law_force"):     # -law(s - rest, s')
@@ -162,9 +180,11 @@ class SpatialKinematicLoopSymbols:
         return self.tree_symbols.sensor(name, q, v)
 
 
-def _step(loops: ClosedLoops, closed: Any, nq: int, nv: int, n_inputs: int, n_parameters: int) -> Any:
-    """``step(Y, u, h, p, t0, k)`` on ``[q, v, z, ring, condition]``: :meth:`ClosedLoops.step` on the closed-loop
-    accelerations, the condition of ``G`` at the step's start and end carried as the largest so far."""
+def _step(loops: ClosedLoops, closed: Any, project: Any, nq: int, nv: int, n_inputs: int, n_parameters: int) -> Any:
+    """``step(Y, u, h, p, t0, k)`` on ``[q, v, z, ring, condition, residual]``: :meth:`ClosedLoops.step` on the
+    closed-loop accelerations, then ``project`` (``([q, v], t) -> ([q, v], max |Phi|)``, ``None``: none) of ``q, v``
+    at the step's end; the condition of ``G`` at the step's start and end (projected) and the residual after the
+    projection carried as the largest so far."""
     import casadi as ca
 
     q, v, u = ca.SX.sym("q", nq), ca.SX.sym("v", nv), ca.SX.sym("u", n_inputs)
@@ -173,13 +193,18 @@ def _step(loops: ClosedLoops, closed: Any, nq: int, nv: int, n_inputs: int, n_pa
     condition = ca.Function("condition", [q, v, p, t], [closed(q, v, ca.DM.zeros(n_inputs), p, t)[1]])
     inner = loops.step(acceleration, n_inputs, n_parameters)
     size = loops.state_size
-    Y, held, h = ca.MX.sym("y", size + 1), ca.MX.sym("u", n_inputs), ca.MX.sym("h")
+    Y, held, h = ca.MX.sym("y", size + 2), ca.MX.sym("u", n_inputs), ca.MX.sym("h")
     P, t0, index = ca.MX.sym("p", n_parameters), ca.MX.sym("t0"), ca.MX.sym("k")
     after = inner(Y[:size], held, h, P, t0, index)
     start = t0 + index * h
+    residual = Y[size + 1]
+    if project is not None:
+        moved, after_residual = project(after[:nq + nv], start + h)
+        after = ca.vertcat(moved, after[nq + nv:])
+        residual = ca.fmax(residual, after_residual)
     worst = ca.fmax(Y[size], ca.fmax(condition(Y[:nq], Y[nq:nq + nv], P, start),
                                      condition(after[:nq], after[nq:nq + nv], P, start + h)))
-    return ca.Function("step", [Y, held, h, P, t0, index], [ca.vertcat(after, worst)])
+    return ca.Function("step", [Y, held, h, P, t0, index], [ca.vertcat(after, worst, residual)])
 
 
 class CompiledKinematicLoopControl:
@@ -198,6 +223,11 @@ class CompiledKinematicLoopControl:
         Actuators driven by held values (co-simulated controllers' outputs): inputs ``u`` of the kernel too.
     store_every, rows, cache_dir
         Steps per stored state, stored states per generated block, :func:`ctmm.codegen.shared_library` folder.
+    projection : bool
+        Project ``q, v`` onto the cut joints after every step (the numpy driver's default); ``False``: Baumgarte
+        alone.
+    iterations : int
+        Gauss-Newton steps of the projection (as :class:`~ctmm.loop_integration.StepProjection`: 3).
 
     Attributes
     ----------
@@ -209,12 +239,13 @@ class CompiledKinematicLoopControl:
 
     def __init__(self, controlled: ControlledModel, dt: float, *, inputs: Mapping[str, Any] | None = None,
                  references: Mapping[str, Any] | None = None, held: Sequence[str] = (), store_every: int = 1,
-                 rows: int = DEFAULT_ROWS, cache_dir: str | os.PathLike | None = None) -> None:
+                 rows: int = DEFAULT_ROWS, cache_dir: str | os.PathLike | None = None, projection: bool = True,
+                 iterations: int = 3) -> None:
         model = controlled.plant
         spatial = not isinstance(model, KinematicLoopModel)
         if spatial:
             from .compiled_spatial_kinematic_loops import (spatial_kinematic_loop_compile_refusal,
-                                                           symbolic_spatial_closed_loop)
+                                                           symbolic_spatial_closed_loop, symbolic_spatial_projection)
         reason = (spatial_kinematic_loop_compile_refusal if spatial else kinematic_loop_compile_refusal)(model)
         if reason:
             raise ModelError(f"compiled=True with loops, inputs or controllers: {reason}")
@@ -222,20 +253,25 @@ class CompiledKinematicLoopControl:
         self.controlled, self.model, self.dt = controlled, model, validation.positive("dt", dt)
         self.store_every, rows = check_store_every(store_every), validation.integer("rows", rows, minimum=1)
         self.inputs = dict(inputs or {})
+        self.projection = validation.flag("projection", projection)
+        self.iterations = validation.integer("iterations", iterations, minimum=1)
         self.actuators = tuple(dict.fromkeys([name for loop in controlled.loops for name, _ in loop.actuator_terms]
                                              + list(self.inputs) + list(held)))
         if spatial:
             self.parameters, (self.nq, self.nv) = np.zeros(0), (model.tree.n_positions, model.tree.n_velocities)
-            self.closed, _, coordinates = symbolic_spatial_closed_loop(model, self.actuators)
+            self.closed, constraint, coordinates = symbolic_spatial_closed_loop(model, self.actuators)
             symbols: Any = SpatialKinematicLoopSymbols(model, controlled.ports, coordinates)
+            project = symbolic_spatial_projection(model.tree, constraint, self.iterations)
         else:
             self.parameters, self.nq = parameter_vector(model.tree), model.tree.n_coordinates
             self.nv = self.nq
-            self.closed, _ = symbolic_closed_loop(model, self.parameters.size, self.actuators)
+            self.closed, constraint = symbolic_closed_loop(model, self.parameters.size, self.actuators)
             symbols = KinematicLoopSymbols(model, controlled.ports)
+            project = symbolic_projection(constraint, self.nq, self.iterations)
         self.loops = ClosedLoops(controlled, self.actuators, dt=self.dt, references=references, inputs=self.inputs,
                                  symbols=symbols)
-        step = _step(self.loops, self.closed, self.nq, self.nv, len(self.actuators), self.parameters.size)
+        step = _step(self.loops, self.closed, project if self.projection else None, self.nq, self.nv,
+                     len(self.actuators), self.parameters.size)
         loop = compiled_time_loop(step, self.store_every, rows, f"kinematic_loop_control_{'spatial_' * spatial}"
                                   f"{self.nq}q{len(model.cuts)}c", cache_dir=cache_dir)
         self._blocks, self._stride, self._step = loop.blocks, loop.stride, loop.step
@@ -250,10 +286,11 @@ class CompiledKinematicLoopControl:
 
     def run_states(self, state: np.ndarray, held: np.ndarray, n_steps: int, first_step: int = 0,
                    runner: BlockRunner | None = None) -> np.ndarray:
-        """Stored states ``[q, qdot, z, ring, condition]`` (rows, :attr:`ClosedLoops.state_size` + 1) of ``n_steps``
+        """Stored states ``[q, qdot, z, ring, condition, residual]`` (rows, :attr:`ClosedLoops.state_size` + 2) of
+        ``n_steps``
         steps of :attr:`dt` from the loops' state ``state`` at step ``first_step``, the ``held`` values of
         :attr:`actuators` held over them."""
-        y = np.concatenate([state, [self.condition(state[:self.nq], state[self.nq:self.nq + self.nv])]])
+        y = np.concatenate([state, [self.condition(state[:self.nq], state[self.nq:self.nq + self.nv]), 0.0]])
         return run_blocks(self._blocks, self._stride, self._step, self.store_every, y[:, None], held, self.dt,
                           n_steps, 0.0, self.parameters[:, None], first_step=first_step, runner=runner)[0]
 
@@ -265,19 +302,28 @@ class CompiledKinematicLoopControl:
         Raises
         ------
         SimulationError
-            A singular loop configuration in the interval (time, first cut joint).
+            A singular loop configuration or a failed projection in the interval (time, first cut joint).
         """
         if abs(dt - self.dt) > 1e-12 * self.dt or self.store_every != 1:
             raise ModelError(f"continue_run: this kernel steps dt = {self.dt!r} s storing every step, got dt = "
                              f"{dt!r}, store_every = {self.store_every!r}")
         block = self.run_states(state, held, n_steps, first_step, runner)
-        over = np.flatnonzero(block[:, -1] > CONDITION_LIMIT)
+        over = np.flatnonzero((block[:, -2] > CONDITION_LIMIT) | (block[:, -1] > PROJECTION_TOLERANCE))
         if over.size:
             t = (first_step + 1 + int(over[0])) * dt
             raise SimulationError(f"kinematic loop {self.model.name!r} (generated RK4): "
-                                  f"{singular_compliance(float(block[over[0], -1]))} by t = {t:.6g} s", time=t,
+                                  f"{self.failure(block[over[0]])} by t = {t:.6g} s", time=t,
                                   element=self.model.cuts[0].name)
-        return block[:, :-1]
+        return block[:, :-2]
+
+    def failure(self, row: np.ndarray) -> str:
+        """What failed in a stored row ``[..., condition, residual]``: a non-finite state, a singular configuration
+        or a projection left off the cut joints."""
+        if not np.all(np.isfinite(row[:-2])):
+            return "a non-finite state (a singular loop configuration or divergence)"
+        if not row[-2] <= CONDITION_LIMIT:
+            return singular_compliance(float(row[-2]))
+        return projection_failure(float(row[-1]), self.iterations)
 
     def applied_inputs(self, t: np.ndarray, block: np.ndarray, held: Sequence[Mapping[str, float]] | None = None
                        ) -> list:
@@ -316,7 +362,8 @@ def simulate_controlled_kinematic_loops_generated(system: Any, q0: Any, v0: Any,
                                                   references: Mapping[str, Any] | None = None,
                                                   outputs: Sequence[str] = (), store_every: int = 1,
                                                   stability_check: str = "warn", rows: int = DEFAULT_ROWS,
-                                                  cache_dir: str | os.PathLike | None = None) -> Any:
+                                                  cache_dir: str | os.PathLike | None = None,
+                                                  projection: bool = True) -> Any:
     """Fixed-step RK4 of a kinematic loop model with its feedback loops and inputs in generated C (module docstring).
 
     Parameters
@@ -343,18 +390,22 @@ def simulate_controlled_kinematic_loops_generated(system: Any, q0: Any, v0: Any,
         Stored states per generated block.
     cache_dir : path, optional
         Of :func:`ctmm.codegen.shared_library`.
+    projection : bool
+        Project onto the cut joints after every step (default, as the numpy driver); ``False``: Baumgarte alone.
 
     Returns
     -------
     SimulationResult
-        As the numpy driver's, method ``"rk4-generated"``, ``info["compiled"] = True``.
+        As the numpy driver's, method ``"rk4-generated"``, ``info["compiled"] = True``, ``info["projection"]`` and
+        ``info["max_drift_after_projection"]`` [m, rad] (the largest ``max |Phi|`` after a projection).
 
     Raises
     ------
     ModelError
         What the generated kernel cannot do (named), bad arguments, an inconsistent initial state.
     SimulationError
-        A non-finite state or a singular loop configuration: time, cut joint and partial result.
+        A non-finite state, a singular loop configuration or a failed projection: time, cut joint and partial
+        result.
     """
     controlled = system if isinstance(system, ControlledModel) else ControlledModel(system, [])
     model = controlled.plant
@@ -363,7 +414,7 @@ def simulate_controlled_kinematic_loops_generated(system: Any, q0: Any, v0: Any,
     n_steps = step_total(t_final, dt)
     h = t_final / n_steps
     kernel = CompiledKinematicLoopControl(controlled, h, inputs=inputs, references=references,
-                                          store_every=store_every, rows=rows, cache_dir=cache_dir)
+                                          store_every=store_every, rows=rows, cache_dir=cache_dir, projection=projection)
     plant.check_step(q, v, h, validation.option("stability_check", stability_check, ("warn", "error", "ignore")))
     loops, nq, nv, every = kernel.loops, kernel.nq, kernel.nv, kernel.store_every
     start = loops.initial_state(q, v)
@@ -372,11 +423,14 @@ def simulate_controlled_kinematic_loops_generated(system: Any, q0: Any, v0: Any,
     wall = _time.perf_counter() - started
     steps = np.array([k for k in range(1, n_steps + 1) if k % every == 0 or k == n_steps])[:len(states)]
     t = np.concatenate([[0.0], steps * h])
-    full = np.vstack([np.concatenate([start, [kernel.condition(q, v)]])[None], states])
+    full = np.vstack([np.concatenate([start, [kernel.condition(q, v), 0.0]])[None], states])
     signals_of = loops.signals()
     info = {"dt": h, "method": "rk4-generated", "compiled": True, "compile_time_s": kernel.compile_time_s,
             "wall_time_s": wall, "n_evaluations": 4 * n_steps,
-            "loops": {law.name: ("real-time" if law.steps == 0 else "history") for law in loops.laws}}
+            "loops": {law.name: ("real-time" if law.steps == 0 else "history") for law in loops.laws},
+            "projection": kernel.projection}
+    if kernel.projection:
+        info["max_drift_after_projection"] = float(np.max(full[:, -1]))
 
     def result(count: int) -> Any:
         time, block = t[:count], full[:count, :loops.state_size]
@@ -386,12 +440,12 @@ def simulate_controlled_kinematic_loops_generated(system: Any, q0: Any, v0: Any,
         return signal_result(SignalSystem(model, units, list(controlled.loops)), time, signals, "rk4-generated",
                              {**info, **extra})
 
-    bad = np.flatnonzero(~np.all(np.isfinite(full), axis=1) | (full[:, -1] > CONDITION_LIMIT))
+    bad = np.flatnonzero(~np.all(np.isfinite(full), axis=1) | (full[:, -2] > CONDITION_LIMIT)
+                         | (full[:, -1] > PROJECTION_TOLERANCE))
     if bad.size:
         k = int(bad[0])
-        what = (singular_compliance(float(full[k, -1])) if np.all(np.isfinite(full[k, :-1])) else
-                "a non-finite state (a singular loop configuration or divergence)")
-        raise SimulationError(f"kinematic loop {model.name!r} with loops (generated RK4): {what} by t = {t[k]} s "
+        raise SimulationError(f"kinematic loop {model.name!r} with loops (generated RK4): {kernel.failure(full[k])} by "
+                              f"t = {t[k]} s "
                               f"(after t = {t[k - 1] if k else 0.0} s, the last good stored state)", time=float(t[k]),
                               element=model.cuts[0].name, partial_result=result(k))
     return result(len(t))

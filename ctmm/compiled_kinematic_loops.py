@@ -70,7 +70,7 @@ from .signals import SYMBOLIC_FIELDS, signal_parameters, symbolic_signal
 __all__ = ["CompiledKinematicLoops", "cut_load_refusal", "cut_moment_refusal", "cut_rows", "failure_message",
            "first_failure", "generated_failure", "generated_run", "kinematic_loop_compile_refusal",
            "projected_rk4_step", "simulate_kinematic_loops_generated", "symbolic_closed_loop",
-           "symbolic_relative_angles", "symbolic_time_signal", "tree_refusal"]
+           "symbolic_projection", "symbolic_relative_angles", "symbolic_time_signal", "tree_refusal"]
 _BODY_PARTS = ("force_x", "force_y", "moment")
 
 
@@ -224,16 +224,7 @@ class CompiledKinematicLoops:
         y = ca.vertcat(q, v)
         rate = ca.Function("closed_rate", [y, p, t], [ca.vertcat(v, qdd), condition])
         outputs = ca.Function("outputs", [y, p, t], [forces, phi, phi_dot, G])
-        projected_q = q
-        for _ in range(self.iterations):
-            residual, _, J = constraint(projected_q, v, t)
-            correction = ca.mtimes(J.T, ca.solve(ca.mtimes(J, J.T), residual))
-            skip = ca.mmax(ca.fabs(residual)) < PROJECTION_SKIP
-            projected_q = ca.if_else(skip, projected_q, projected_q - correction)
-        residual, residual_rate, J = constraint(projected_q, v, t)
-        projected_v = v - ca.mtimes(J.T, ca.solve(ca.mtimes(J, J.T), residual_rate))
-        project = ca.Function("project", [y, t], [ca.vertcat(projected_q, projected_v), ca.mmax(ca.fabs(residual))])
-
+        project = symbolic_projection(constraint, n, self.iterations)
         step = projected_rk4_step(rate, project, 2 * n, n_p)
         return step, [outputs]
 
@@ -277,6 +268,27 @@ class CompiledKinematicLoops:
         unknowns = np.asarray(unknowns).reshape(-1)
         forces = np.array([unknowns[start:start + 2] for start in cut_rows(self.model)[:-1]])
         return forces, np.asarray(phi).reshape(-1), np.asarray(phi_dot).reshape(-1), np.asarray(G)
+
+
+def symbolic_projection(constraint: Any, n: int, iterations: int) -> Any:
+    """The projection onto the cut joints of a planar kinematic loop model on symbols (module docstring, as
+    :meth:`KinematicLoopModel.project`): ``project(y, t) -> (y projected, max |Phi| after)`` on ``y = [q, qdot]``
+    (``n`` coordinates each), ``iterations`` Gauss-Newton steps on ``Phi(q) = 0`` (each skipped once
+    ``max |Phi| < PROJECTION_SKIP``), then ``qdot <- qdot - J^T (J J^T)^-1 Phi'``; ``constraint(q, qdot, t) -> (Phi,
+    Phi', J)`` of :func:`symbolic_closed_loop`."""
+    import casadi as ca
+
+    q, v, t = ca.SX.sym("q", n), ca.SX.sym("v", n), ca.SX.sym("t")
+    projected_q = q
+    for _ in range(iterations):
+        residual, _, J = constraint(projected_q, v, t)
+        correction = ca.mtimes(J.T, ca.solve(ca.mtimes(J, J.T), residual))
+        skip = ca.mmax(ca.fabs(residual)) < PROJECTION_SKIP
+        projected_q = ca.if_else(skip, projected_q, projected_q - correction)
+    residual, residual_rate, J = constraint(projected_q, v, t)
+    projected_v = v - ca.mtimes(J.T, ca.solve(ca.mtimes(J, J.T), residual_rate))
+    return ca.Function("project", [ca.vertcat(q, v), t], [ca.vertcat(projected_q, projected_v),
+                                                          ca.mmax(ca.fabs(residual))])
 
 
 def symbolic_closed_loop(model: KinematicLoopModel, n_parameters: int, extra_actuators: tuple[str, ...] = ()

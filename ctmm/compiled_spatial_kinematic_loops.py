@@ -53,7 +53,8 @@ from .spatial.closed_loops import SpatialKinematicLoopModel
 from .spatial.ports import SpatialPorts
 
 __all__ = ["CompiledSpatialKinematicLoops", "spatial_cut_load_refusal", "spatial_kinematic_loop_compile_refusal",
-           "simulate_spatial_kinematic_loops_generated", "symbolic_spatial_closed_loop"]
+           "simulate_spatial_kinematic_loops_generated", "symbolic_normalized", "symbolic_spatial_closed_loop",
+           "symbolic_spatial_projection"]
 
 
 def spatial_kinematic_loop_compile_refusal(model: Any) -> str:
@@ -319,34 +320,8 @@ class CompiledSpatialKinematicLoops(CompiledKinematicLoops):
         rate = ca.Function("closed_rate", [y, p, t], [ca.vertcat(position_rates(tree, q, v), v_dot), condition])
         outputs = ca.Function("outputs", [y, p, t], [forces, phi, phi_dot, G])
 
-        dx = ca.SX.sym("dx", nv)
-        normalize = ca.Function("normalized", [q], [self._normalized(q)])
-        retract = ca.Function("retract", [q, dx], [normalize(q + position_rates(tree, q, dx))])
-        qk = normalize(q)
-        residual, rate_k, Jk = constraint(qk, v, t)
-        for _ in range(self.iterations):
-            step_q = retract(qk, -ca.mtimes(Jk.T, ca.solve(ca.mtimes(Jk, Jk.T), residual)))
-            moved = ca.mmax(ca.fabs(residual)) >= PROJECTION_SKIP
-            qk = ca.if_else(moved, step_q, qk)
-            residual, rate_k, Jk = constraint(qk, v, t)
-        vk = v - ca.mtimes(Jk.T, ca.solve(ca.mtimes(Jk, Jk.T), rate_k))
-        project = ca.Function("project", [y, t], [ca.vertcat(qk, vk), ca.mmax(ca.fabs(residual))])
+        project = symbolic_spatial_projection(tree, constraint, self.iterations)
         return projected_rk4_step(rate, project, nq + nv, 0), [outputs]
-
-    def _normalized(self, q: Any) -> Any:
-        """``q`` with every quaternion block scaled to unit norm (:meth:`SpatialModel.normalized` on symbols)."""
-        import casadi as ca
-
-        parts = [q[k] for k in range(q.size1())]
-        for joint, layout in zip(self.model.tree.joints, self.model.tree.layout):
-            start = layout.position.start + (3 if joint.kind in ("free", "elastic6") else 0)
-            if joint.kind not in ("spherical", "free", "elastic6"):
-                continue
-            block = ca.vertcat(*parts[start:start + 4])
-            norm = ca.norm_2(block)
-            for i in range(4):
-                parts[start + i] = block[i] / norm
-        return ca.vertcat(*parts)
 
     def cut_history(self, t: np.ndarray, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Cut unknowns (rows, m), ``Phi`` and ``Phi'`` (rows, m) of stored times ``t`` [s] and states, by the
@@ -392,3 +367,43 @@ def simulate_spatial_kinematic_loops_generated(model: SpatialKinematicLoopModel,
         raise generated_failure(model, f"spatial kinematic loop {model.name!r}", t, states, bad, size,
                                 compiled.iterations, history(bad))
     return history(len(t))
+
+
+def symbolic_normalized(tree: Any, q: Any) -> Any:
+    """``q`` (symbols) with every quaternion block of ``tree`` scaled to unit norm (:meth:`SpatialModel.normalized` on
+    symbols)."""
+    import casadi as ca
+
+    parts = [q[k] for k in range(q.size1())]
+    for joint, layout in zip(tree.joints, tree.layout):
+        start = layout.position.start + (3 if joint.kind in ("free", "elastic6") else 0)
+        if joint.kind not in ("spherical", "free", "elastic6"):
+            continue
+        block = ca.vertcat(*parts[start:start + 4])
+        norm = ca.norm_2(block)
+        for i in range(4):
+            parts[start + i] = block[i] / norm
+    return ca.vertcat(*parts)
+
+
+def symbolic_spatial_projection(tree: Any, constraint: Any, iterations: int) -> Any:
+    """The projection onto the cut joints of a spatial kinematic loop model on symbols (as
+    :meth:`SpatialKinematicLoopModel.project`): ``project(y, t) -> (y projected, max |Phi| after)`` on ``y = [q, v]``
+    of ``tree``: ``q`` normalized, ``iterations`` Gauss-Newton steps along the retraction ``q + G(q) dx`` (each
+    skipped once ``max |Phi| < PROJECTION_SKIP``), then ``v <- v - J^T (J J^T)^-1 Phi'``; ``constraint(q, v, t) ->
+    (Phi, Phi', J)`` of :func:`symbolic_spatial_closed_loop`."""
+    import casadi as ca
+
+    nq, nv = tree.n_positions, tree.n_velocities
+    q, v, t, dx = ca.SX.sym("q", nq), ca.SX.sym("v", nv), ca.SX.sym("t"), ca.SX.sym("dx", nv)
+    normalize = ca.Function("normalized", [q], [symbolic_normalized(tree, q)])
+    retract = ca.Function("retract", [q, dx], [normalize(q + position_rates(tree, q, dx))])
+    qk = normalize(q)
+    residual, rate_k, Jk = constraint(qk, v, t)
+    for _ in range(iterations):
+        step_q = retract(qk, -ca.mtimes(Jk.T, ca.solve(ca.mtimes(Jk, Jk.T), residual)))
+        moved = ca.mmax(ca.fabs(residual)) >= PROJECTION_SKIP
+        qk = ca.if_else(moved, step_q, qk)
+        residual, rate_k, Jk = constraint(qk, v, t)
+    vk = v - ca.mtimes(Jk.T, ca.solve(ca.mtimes(Jk, Jk.T), rate_k))
+    return ca.Function("project", [ca.vertcat(q, v), t], [ca.vertcat(qk, vk), ca.mmax(ca.fabs(residual))])

@@ -446,8 +446,8 @@ def simulate_closed_loop(model: Any, q0: np.ndarray, qdot0: np.ndarray, t_final:
     projection : bool
         A kinematic loop plant, ``"rk4"`` and ``solve_ivp``: project onto the cut joints
         (:mod:`ctmm.control.explicit_loops`; ``info`` reports the drift before and after); ``False`` holds the
-        drift by Baumgarte alone (the algorithm of the generated loop-driver run,
-        :mod:`ctmm.compiled_kinematic_loop_control`, for comparison).
+        drift by Baumgarte alone (as :mod:`ctmm.compiled_kinematic_loop_control` with ``projection=False``, for
+        comparison).
 
     Returns
     -------
