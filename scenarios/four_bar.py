@@ -15,6 +15,10 @@ Reference: the global DAE (:mod:`ctmm.reference.planar_dae`, absolute coordinate
 multipliers, DOP853 at 1e-11).  Energy check: the same linkage without the damper.  Extra panel: a PD
 crank-angle loop (``ctmm.control.with_feedback`` on the kinematic loop model; kp = 8 N m/rad, kd = 0.8 N m s/rad,
 set point 1.2 rad), real-time and with a 10 ms delay, against the DAE with the same law as a crank motor.
+Flexible variant (issue 16 item 4): the smooth linkage with the coupler a ``ModalBeam`` (EI = 80 N m^2, 5 modes,
+second-order inertia; RK4 0.25 ms with projection; 0.12 s, quick 0.06 s) against the finite-segment DAE
+(:func:`flexible_reference`) at 8 and 16 segments (quick 4 and 8) extrapolated in ``1/N^2``; its crank-angle error as
+a share of the flexible effect (rigid vs DAE).
 """
 from __future__ import annotations
 
@@ -47,6 +51,9 @@ BODIES = ("crank", "coupler", "rocker")
 PD_GAINS = (8.0, 0.8)            # crank-angle PD loop: kp [N m/rad], kd [N m s/rad]
 PD_TARGET = 1.2                  # its set point [rad]
 PD_DELAY = 0.01                  # the delayed variant's loop delay [s]
+FLEX_EI = 80.0                   # flexible variant: the coupler's bending stiffness [N m^2]
+FLEX_MODES = 5                   # its clamped-free modes (with second-order inertia, docs/closed_loops.md §4b)
+FLEX_STEP = 2.5e-4               # its RK4 step [s] (1 ms and 0.5 ms fail the projection: the stiff bent modes)
 
 
 def mechanism(rocker_law: Law | None = None) -> KinematicLoopModel:
@@ -77,15 +84,16 @@ def reference(rocker_law: Law | None = None) -> PlanarDAE:
     return dae
 
 
-def flexible_mechanism(bending_stiffness: float, *, n_modes: int = 3, geometric_stiffening: bool = True
-                       ) -> KinematicLoopModel:
+def flexible_mechanism(bending_stiffness: float, *, n_modes: int = 3, geometric_stiffening: bool = True,
+                       second_order_inertia: bool = False) -> KinematicLoopModel:
     """The smooth linkage with the coupler a ``ModalBeam`` (``EI`` [N m^2], 1 kg over 0.6 m, ``n_modes``
-    clamped-free modes in its root-tangent frame, axially rigid), cut at its outboard end ``"out"``."""
+    clamped-free modes in its root-tangent frame, axially rigid), cut at its outboard end ``"out"``;
+    ``second_order_inertia`` moves the beam's mass points with their foreshortening (``docs/closed_loops.md`` §4b)."""
     from ctmm.flexible import ModalBeam
 
     coupler = ModalBeam("coupler", length=COUPLER, bending_stiffness=bending_stiffness,
                         mass_per_length=MASSES["coupler"] / COUPLER, n_modes=n_modes,
-                        geometric_stiffening=geometric_stiffening)
+                        geometric_stiffening=geometric_stiffening, second_order_inertia=second_order_inertia)
     tree = PlanarModel("four_bar_flexible", [
         Fixed("g", position=(0.0, 0.0)), Fixed("g4", position=(GROUND, 0.0)),
         RigidBody.uniform_link("crank", mass=MASSES["crank"], length=CRANK), SmoothHinge("h1", parent="g", child="crank"),
@@ -145,6 +153,34 @@ def start(loop: KinematicLoopModel) -> tuple[np.ndarray, np.ndarray]:
     return loop.consistent_state([math.pi / 2, 0.5, 1.8], [3.0, 0.0, 0.0], keep=["crank.theta"])
 
 
+def flexible_variant(t_final: float, segments: tuple[int, int]) -> dict:
+    """The flexible-coupler linkage (``FLEX_EI``, ``FLEX_MODES`` modes, second-order inertia; RK4 ``FLEX_STEP``
+    with projection) against the finite-segment DAE at the coarse and fine segment counts ``segments`` and their
+    Richardson extrapolation in ``1/N^2`` (the converged reference), plus the rigid linkage (the flexible effect).
+
+    Returns the time [s], crank angles [rad] (ctmm, rigid, each DAE, extrapolated), ``coupler.q1`` [m], the
+    cut-joint drift [m] and the wall times [s]."""
+    loop = flexible_mechanism(FLEX_EI, n_modes=FLEX_MODES, second_order_inertia=True)
+    q0, v0 = flexible_start(loop)
+    flexible = simulate_kinematic_loops(loop, q0, v0, t_final=t_final, dt=FLEX_STEP)
+    rigid_loop = mechanism()
+    rigid_q0, rigid_v0 = start(rigid_loop)
+    rigid = simulate_kinematic_loops(rigid_loop, rigid_q0, rigid_v0, t_final=t_final, dt=FLEX_STEP)
+    crank_dae, began = {}, time.perf_counter()
+    for n in segments:
+        dae = flexible_reference(FLEX_EI, n)
+        state = dae.assemble({"crank": q0[0], "rocker": q0[-1], **{f"s{i}": q0[1] for i in range(n)}},
+                             {"crank": v0[0], "rocker": v0[-1], **{f"s{i}": v0[1] for i in range(n)}})
+        crank_dae[n] = dae.simulate(state, t_final, t_eval=flexible.t, rtol=1e-8, atol=1e-12).angle("crank")
+    coarse, fine = segments
+    ratio = (fine / coarse) ** 2
+    extrapolated = crank_dae[fine] + (crank_dae[fine] - crank_dae[coarse]) / (ratio - 1.0)
+    return {"t": flexible.t, "crank": flexible.coordinate("crank.theta"), "rigid": rigid.coordinate("crank.theta"),
+            "dae": crank_dae, "extrapolated": extrapolated, "q1": flexible.coordinate("coupler.q1"),
+            "drift": flexible.drift, "wall_time_s": flexible.wall_time_s,
+            "reference_wall_time_s": time.perf_counter() - began}
+
+
 def _angle_error(simulation, solution) -> np.ndarray:
     return np.max([np.abs(simulation.coordinate(f"{n}.theta") - solution.angle(n)) for n in BODIES], axis=0)
 
@@ -187,7 +223,15 @@ def run(output_dir: Path, quick: bool = False) -> dict:
         controlled_error[delay] = float(max(np.max(np.abs(controlled[delay][f"{n}.theta"] - ref_pd.angle(n)))
                                             for n in BODIES))
 
-    fig, axes = plt.subplots(3, 2, figsize=(12, 12))
+    # the flexible coupler (a 5-mode ModalBeam with second-order inertia) vs the finite-segment DAE, extrapolated
+    segments = (4, 8) if quick else (8, 16)
+    flex = flexible_variant(0.06 if quick else 0.12, segments)     # 16 segments: ~25 s for 0.12 s
+    effect = float(np.max(np.abs(flex["rigid"] - flex["extrapolated"])))       # what the flexibility changes
+    flex_error = float(np.max(np.abs(flex["crank"] - flex["extrapolated"]))) / effect
+    flex_reference_change = float(np.max(np.abs(flex["dae"][segments[1]] - flex["extrapolated"]))) / effect
+    coarse_change = np.max(np.abs(flex["dae"][segments[1]] - flex["dae"][segments[0]]))
+
+    fig, axes = plt.subplots(4, 2, figsize=(12, 16))
     for n in BODIES:
         axes[0, 0].plot(rk4.t, rk4.coordinate(f"{n}.theta"), label=f"{n} (ctmm)")
         axes[0, 0].plot(ref.t, ref.angle(n), "k--", lw=0.8)
@@ -221,6 +265,17 @@ def run(output_dir: Path, quick: bool = False) -> dict:
     axes[2, 1].set(xlabel="t [s]", ylabel="crank torque [N m]",
                    title=f"max angle error vs DAE: {controlled_error[0.0]:.1e} / {controlled_error[PD_DELAY]:.1e} rad")
     axes[2, 1].legend(fontsize="small")
+    axes[3, 0].plot(flex["t"], flex["rigid"] - flex["rigid"], "k:", lw=0.8, label="rigid coupler")
+    axes[3, 0].plot(flex["t"], flex["crank"] - flex["rigid"], label=f"modal coupler ({FLEX_MODES} modes, ctmm)")
+    for n in segments:
+        axes[3, 0].plot(flex["t"], flex["dae"][n] - flex["rigid"], "--", lw=0.8, label=f"DAE, {n} segments")
+    axes[3, 0].plot(flex["t"], flex["extrapolated"] - flex["rigid"], "k-.", lw=0.8, label="DAE, extrapolated")
+    axes[3, 0].set(xlabel="t [s]", ylabel="crank angle - rigid linkage's [rad]",
+                   title=f"flexible coupler EI = {FLEX_EI:g} N m^2: error {100 * flex_error:.2f} % of the effect")
+    axes[3, 0].legend(fontsize="small")
+    axes[3, 1].plot(flex["t"], flex["q1"], label="coupler.q1 (ctmm)")
+    axes[3, 1].set(xlabel="t [s]", ylabel="first modal coordinate [m]", title="coupler bending")
+    axes[3, 1].legend(fontsize="small")
     save_figure(fig, output_dir, NAME)
     source = "docs/closed_loops.md: four-bar targets"
     return {
@@ -240,7 +295,20 @@ def run(output_dir: Path, quick: bool = False) -> dict:
                      "the same PD law as a crank motor", source=source),
             accuracy("PD crank loop angle error vs DAE, delayed", controlled_error[PD_DELAY], "rad", 1e-8,
                      f"as above with the loop delay {PD_DELAY} s (ctmm: delay history; DAE: method of steps)",
-                     source=source)],
+                     source=source),
+            accuracy("flexible coupler crank-angle error vs extrapolated DAE", flex_error, "share of the effect", 0.02,
+                     f"max |theta_crank,ctmm - theta_crank,DAE| / max |theta_crank,rigid - theta_crank,DAE|: coupler "
+                     f"EI = {FLEX_EI:g} N m^2, {FLEX_MODES} modes, second-order inertia, RK4 {FLEX_STEP:g} s with "
+                     f"projection; DAE: {segments[0]} and {segments[1]} rigid segments extrapolated in 1/N^2. Bound: "
+                     "the truncation to 5 modes (the independent same-truncation Lagrange model: 0.55 % at 0.06 s, "
+                     "docs/closed_loops.md §4b)", source=source),
+            accuracy("flexible coupler DAE reference change, fine to extrapolated", flex_reference_change,
+                     "share of the effect", 0.005,
+                     "max |theta_crank,DAE(fine) - theta_crank,DAE(extrapolated)| / the flexible effect: the "
+                     "reference's own discretisation error estimate, a quarter of the error bound above so that "
+                     "the reference resolves it", source=source),
+            accuracy("flexible coupler constraint drift", float(np.max(flex["drift"])), "m", 1e-9,
+                     "max |Phi| of the cut joint at the modal beam's end (RK4 with projection)", source=source)],
         "angle_max_error_dop853_rad": float(np.max(error_dop)),
         "max_cut_force_N": force_scale,
         "crank_turns": float(np.ptp(rk4.coordinate("crank.theta")) / (2 * np.pi)),
@@ -250,5 +318,10 @@ def run(output_dir: Path, quick: bool = False) -> dict:
         "energy_drift": energy_drift,
         "evaluations_rk4": rk4.n_evaluations,
         "pd_loop_wall_time_s": controlled_wall,
+        "flexible_effect_rad": effect,
+        "flexible_dae_segments": list(segments),
+        "flexible_dae_change_coarse_to_fine_rad": float(coarse_change),
+        "flexible_wall_time_s": flex["wall_time_s"],
+        "flexible_reference_wall_time_s": flex["reference_wall_time_s"],
         "pd_loop_final_crank_rad": {delay: float(run_pd["crank.theta"][-1]) for delay, run_pd in controlled.items()},
     }
