@@ -35,7 +35,7 @@ from . import validation
 from .errors import ModelError
 from .linearized import DelayedLoop, LinearizedSystem, control_name
 from .loop_closure import close_loops
-from .loop_phasors import close_loops as close_phasor_loops
+from .loop_phasors import close_loops as close_phasor_loops, loop_signal
 
 __all__ = ["loop_ports", "exogenous_inputs", "requested_outputs", "close_model_loops", "controller_response",
            "delayed_loop_response", "delayed_loop_response_function", "resolvent", "FrequencyAtPoleError", "RESOLVENT_CONDITION"]
@@ -210,13 +210,8 @@ def delayed_loop_response(linearize: Callable[[list[str], list[str]], Linearized
     linearized : LinearizedSystem
     """
     delayed = {lp.name: j for j, lp in enumerate(lp for lp in loops if lp.delay > 0.0)}
-
-    def delayed_signal(name: str, parts: tuple) -> tuple | None:
-        head, _, tail = name.partition(".")
-        return (delayed[head], tail) if head in delayed and tail in parts else None
-
-    lin_in = [x for x in inputs if delayed_signal(x, ("reference",)) is None]
-    lin_out = [x for x in outputs if delayed_signal(x, ("y", "u")) is None]
+    lin_in = [x for x in inputs if loop_signal(x, delayed, ("reference",)) is None]
+    lin_out = [x for x in outputs if loop_signal(x, delayed, ("y", "u")) is None]
     lin = linearize(lin_in, lin_out)
     ss = lin.state_space
     A, B, C, D = (np.asarray(m, dtype=float) for m in (ss.A, ss.B, ss.C, ss.D))
@@ -226,7 +221,7 @@ def delayed_loop_response(linearize: Callable[[list[str], list[str]], Linearized
     K = np.zeros((s.size, n_d, n_d), dtype=complex)
     for j, loop in enumerate(lin.delays):
         K[:, j, j] = controller_response(loop.gain, s) * np.exp(-s * loop.delay)
-    return close_phasor_loops(blocks, K, inputs, outputs, lin_in, lin_out, delayed_signal), lin
+    return close_phasor_loops(blocks, K, inputs, outputs, lin_in, lin_out, delayed), lin
 
 
 class FrequencyAtPoleError(ModelError):

@@ -49,7 +49,7 @@ import numpy as np
 from . import validation
 from .errors import ModelError
 from .saturation import refuse_saturation
-from .loop_phasors import close_loops
+from .loop_phasors import close_loops, loop_signal
 from .results import FrequencyResponse
 
 __all__ = ["ExactForm", "exact_form", "form_response", "frequency_response", "natural_frequencies"]
@@ -423,13 +423,8 @@ def form_response(form: Any, loops: Sequence[Any], omega: np.ndarray, inputs: li
     """
     s = 1j * omega
     index = {lp.name: j for j, lp in enumerate(loops)}
-
-    def loop_part(name: str, parts: tuple) -> tuple | None:
-        head, _, tail = name.partition(".")
-        return (index[head], tail) if head in index and tail in parts else None
-
-    plain_in = [x for x in inputs if loop_part(x, ("reference",)) is None]
-    plain_out = [x for x in outputs if loop_part(x, ("y", "u")) is None]
+    plain_in = [x for x in inputs if loop_signal(x, index, ("reference",)) is None]
+    plain_out = [x for x in outputs if loop_signal(x, index, ("y", "u")) is None]
     in_terms: dict = {x: form.actuator(x) for x in plain_in}       # loops keyed ("loop", name)
     out_terms: dict = {x: form.sensor(x) for x in plain_out}
     in_terms.update({("loop", lp.name): _expand(lp.actuator_terms, form.actuator) for lp in loops})
@@ -447,7 +442,7 @@ def form_response(form: Any, loops: Sequence[Any], omega: np.ndarray, inputs: li
     K = np.zeros((s.size, len(loops), len(loops)), dtype=complex)
     for j, loop in enumerate(loops):
         K[:, j, j] = loop.loop_gain(s)
-    return close_loops(blocks, K, inputs, outputs, plain_in, plain_out, loop_part)
+    return close_loops(blocks, K, inputs, outputs, plain_in, plain_out, index)
 
 
 def natural_frequencies(system: Any, *, n_modes: int | None = None, omega_max: float | None = None,

@@ -11,16 +11,22 @@ the exact-field form (on the bending chain, :mod:`ctmm.exact_fields`).
 """
 from __future__ import annotations
 
-from typing import Callable, Sequence
+from typing import Sequence
 
 import numpy as np
 
-__all__ = ["close_loops"]
+__all__ = ["close_loops", "loop_signal"]
+
+
+def loop_signal(name: str, index: dict[str, int], parts: tuple[str, ...]) -> tuple[int, str] | None:
+    """``(loop index, part)`` when ``name`` is ``"<loop>.<part>"`` of a loop in ``index`` (loop name -> index) with
+    ``part`` in ``parts`` (e.g. ``("reference",)`` or ``("y", "u")``); ``None`` for any other name (a plant port)."""
+    head, _, tail = name.partition(".")
+    return (index[head], tail) if head in index and tail in parts else None
 
 
 def close_loops(blocks: tuple, K: np.ndarray, inputs: Sequence[str], outputs: Sequence[str],
-                plain_inputs: Sequence[str], plain_outputs: Sequence[str],
-                loop_of: Callable[[str, tuple], tuple | None]) -> np.ndarray:
+                plain_inputs: Sequence[str], plain_outputs: Sequence[str], index: dict[str, int]) -> np.ndarray:
     """Closed-loop responses ``response[i_out, i_in, k]`` (module docstring).
 
     Parameters
@@ -35,16 +41,15 @@ def close_loops(blocks: tuple, K: np.ndarray, inputs: Sequence[str], outputs: Se
         ``"<loop>.u"`` outputs.
     plain_inputs, plain_outputs : sequence of str
         The plain names, in the order of the blocks' columns / rows.
-    loop_of : callable
-        ``loop_of(name, parts)`` -> ``(loop index, part)`` if ``name`` is ``"<loop>.<part>"``
-        with ``part`` in ``parts``, else ``None``.
+    index : dict
+        Loop name -> loop index (the order of ``K``); names are read by :func:`loop_signal`.
     """
     Gzw, Gzu, Gyw, Gyu = blocks
     n_frequencies, n_loops = K.shape[0], K.shape[1]
     E_w = np.zeros((len(plain_inputs), len(inputs)))
     E_r = np.zeros((n_loops, len(inputs)))
     for k, name in enumerate(inputs):
-        loop = loop_of(name, ("reference",))
+        loop = loop_signal(name, index, ("reference",))
         if loop is None:
             E_w[list(plain_inputs).index(name), k] = 1.0
         else:
@@ -55,7 +60,7 @@ def close_loops(blocks: tuple, K: np.ndarray, inputs: Sequence[str], outputs: Se
     y = Gyw @ E_w + Gyu @ u
     response = np.empty((len(outputs), len(inputs), n_frequencies), dtype=complex)
     for k, name in enumerate(outputs):
-        loop = loop_of(name, ("y", "u"))
+        loop = loop_signal(name, index, ("y", "u"))
         rows = z[:, list(plain_outputs).index(name)] if loop is None else (y if loop[1] == "y" else u)[:, loop[0]]
         response[k] = rows.T
     return response

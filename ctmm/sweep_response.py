@@ -22,7 +22,7 @@ import numpy as np
 from .articulated import Tree, articulated_sweep, frequency_kappa
 from .batched_sweep import BatchedSweep, applies as batched_applies
 from .controlled_linearization import RESOLVENT_CONDITION, controller_response, loop_ports
-from .loop_phasors import close_loops as close_phasor_loops
+from .loop_phasors import close_loops as close_phasor_loops, loop_signal
 from .ops import NUMPY
 from .protocol import BodyTerms
 
@@ -311,13 +311,8 @@ def closed_loop_response(plant: ArticulatedResponse, loops: Sequence[Any], s: np
     singular value is below ``(1 + |K G_yu|_2) / RESOLVENT_CONDITION`` (a closed-loop pole at or next to ``s``)
     marks the frequency as not certified."""
     index = {lp.name: j for j, lp in enumerate(loops)}
-
-    def loop_signal(name: str, parts: tuple) -> tuple | None:
-        head, _, tail = name.partition(".")
-        return (index[head], tail) if head in index and tail in parts else None
-
-    plain_in = [x for x in inputs if loop_signal(x, ("reference",)) is None]
-    plain_out = [x for x in outputs if loop_signal(x, ("y", "u")) is None]
+    plain_in = [x for x in inputs if loop_signal(x, index, ("reference",)) is None]
+    plain_out = [x for x in outputs if loop_signal(x, index, ("y", "u")) is None]
     actuators, sensors = loop_ports(loops)
     plant_in = list(dict.fromkeys(plain_in + actuators))
     plant_out = list(dict.fromkeys(plain_out + sensors))
@@ -347,4 +342,4 @@ def closed_loop_response(plant: ArticulatedResponse, loops: Sequence[Any], s: np
             largest = np.linalg.svd(loop, compute_uv=False)[:, 0]
         good &= smallest * RESOLVENT_CONDITION >= 1.0 + largest
         blocks = tuple(np.where(good[:, None, None], b, 0.0) for b in blocks)
-    return close_phasor_loops(blocks, K, inputs, outputs, plain_in, plain_out, loop_signal), good
+    return close_phasor_loops(blocks, K, inputs, outputs, plain_in, plain_out, index), good
