@@ -298,12 +298,17 @@ def main(argv: list[str] | None = None) -> dict:
     resolvent(3, OMEGA[:2])                             # warm-up: the first linearisation imports and builds caches
     library = bound_library()
     rows = [run(n, with_resolvent=n <= 100, library=library) for n in sizes]
-    result = {"benchmark": "planar_frf", "machine": {"python": platform.python_version(), "numpy": np.__version__,
-                                                     "processor": platform.processor() or platform.machine(),
-                                                     "load_average": list(os.getloadavg())},
+    return write_result("planar_frf", rows, args.output)
+
+
+def write_result(name: str, rows: list, output: Path) -> dict:
+    """The benchmark's JSON (machine, load average, the frequency grid, ``rows``) written to ``output``."""
+    result = {"benchmark": name, "machine": {"python": platform.python_version(), "numpy": np.__version__,
+                                             "processor": platform.processor() or platform.machine(),
+                                             "load_average": list(os.getloadavg())},
               "frequencies": "np.logspace(-1, 2, 500) rad/s", "rows": rows}
-    args.output.parent.mkdir(parents=True, exist_ok=True)
-    args.output.write_text(json.dumps(result, indent=2) + "\n")
+    output.parent.mkdir(parents=True, exist_ok=True)
+    output.write_text(json.dumps(result, indent=2) + "\n")
     return result
 
 

@@ -31,7 +31,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import sys
 from pathlib import Path
 
@@ -51,7 +50,7 @@ from ctmm.controlled_linearization import delayed_loop_response  # noqa: E402
 from ctmm.errors import ModelError  # noqa: E402
 from ctmm.spatial_linearization import linearize_spatial, operating_point  # noqa: E402
 from ctmm.spatial_transfer_response import SpatialSweepResponse  # noqa: E402
-from planar_frf import best  # noqa: E402  (best wall and CPU time of repeated calls)
+from planar_frf import best, write_result  # noqa: E402  (best wall and CPU time; the JSON)
 
 OMEGA = np.logspace(-1, 2, 500)
 RESULTS = ROOT / "benchmarks" / "results" / "spatial_frf.json"
@@ -135,13 +134,7 @@ def main(argv: list[str] | None = None) -> dict:
     sizes = args.sizes or ([5] if args.quick else [5, 30])
     resolvent(chain(2), 2, OMEGA[:2])                 # warm-up: the first linearisation imports and builds caches
     rows = [run(n, hanging) for n in sizes for hanging in (False, True)]
-    result = {"benchmark": "spatial_frf", "machine": {"python": platform.python_version(), "numpy": np.__version__,
-                                                      "processor": platform.processor() or platform.machine(),
-                                                      "load_average": list(os.getloadavg())},
-              "frequencies": "np.logspace(-1, 2, 500) rad/s", "rows": rows}
-    args.output.parent.mkdir(parents=True, exist_ok=True)
-    args.output.write_text(json.dumps(result, indent=2) + "\n")
-    return result
+    return write_result("spatial_frf", rows, args.output)
 
 
 if __name__ == "__main__":
