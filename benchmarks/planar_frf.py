@@ -15,7 +15,13 @@ Methods (one run, one machine):
 * ``equilibrium_search`` -- that search alone (``stable=True`` from the hanging guess, which already is the
                       equilibrium: its residual, then the stiffness of the stability check);
 * ``sweep_only``   -- :meth:`~ctmm.planar_transfer_response.SweepResponse.response` alone (terms linearised
-                      beforehand): the per-frequency work;
+                      beforehand): the per-frequency work, by the compiled kernel of :mod:`ctmm.compiled_sweep`
+                      (the default with a C compiler); ``kernel_only`` its C call alone;
+* ``sweep_only_generic`` -- the same without a compiler: the generic numpy sweep
+                      (:func:`ctmm.articulated.articulated_sweep`);
+* ``first_compile`` -- wall time and the compiler's CPU time of building each kernel variant into an empty
+                      cache folder (:func:`ctmm.codegen.shared_library`; the real variant on the first call, the
+                      complex one on the first damped or delayed call; then cached on disk);
 * ``resolvent``    -- the former path: :func:`ctmm.linearize` (complex-step tangent, 2N x 2N) and the dense
                       ``(s I - A)^-1 B`` with a condition number per frequency
                       (:func:`ctmm.controlled_linearization.delayed_loop_response`);
@@ -56,11 +62,14 @@ for folder in (ROOT, ROOT / "benchmarks"):
         sys.path.insert(0, str(folder))
 
 import ctmm  # noqa: E402
+from ctmm.codegen import shared_library  # noqa: E402
+from ctmm.compiled_sweep import COMPLEX_FLAGS, REAL_FLAGS, kernel_source  # noqa: E402
 from ctmm.controlled_linearization import delayed_loop_response  # noqa: E402
 from ctmm.planar.equilibrium import hanging_configuration, static_equilibrium  # noqa: E402
 from ctmm.planar_linearization import linearize_planar, operating_point  # noqa: E402
 from ctmm.planar_transfer_response import SweepResponse  # noqa: E402
 from ctmm.reference.planar_lagrange import PlanarLagrange  # noqa: E402
+from ctmm.sweep_response import PIVOT_TOLERANCE, RESIDUAL_TOLERANCE  # noqa: E402
 from planar_chain import chain  # noqa: E402
 
 OMEGA = np.logspace(-1, 2, 500)
@@ -170,18 +179,14 @@ def bound_library() -> ctypes.CDLL:
 def compiled_bound(library: ctypes.CDLL, plant: SweepResponse, force: str, angle: str, omega: np.ndarray = OMEGA):
     """``(call, G)``: the C sweep of ``plant``'s terms as a repeatable call and its ``G`` (B,) of ``force`` to
     ``angle`` with the certified mask (the plant's kernel must have answered once: its mass pivots)."""
-    kernel, n = plant.batched, len(plant.bodies)
-    eye = np.eye(3)
+    kernel, n = plant.compiled, len(plant.bodies)
     parent = np.array(kernel.tree.parent, dtype=np.intc)
-    free = np.array([a is not None for a in kernel.axis], dtype=np.intc)
-    assert all(a in (None, 2) for a in kernel.axis) and kernel.undamped
-    M0 = np.array([m[..., 0] for m in kernel.M0]).reshape(n, 9)
-    K0 = np.array([k[..., 0] for k in kernel.K0]).reshape(n, 9)
-    Kin = np.array([eye if m is None else m for m in kernel.Kin]).reshape(n, 9)
-    RF = np.array([eye if m is None else m for m in kernel.RF]).reshape(n, 9)
+    free = np.array(kernel.axis >= 0, dtype=np.intc)
+    assert all(a in (-1, 2) for a in kernel.axis) and kernel.undamped
+    M0, K0 = kernel.M0.reshape(n, 9), kernel.K0.reshape(n, 9)
+    Kin, RF = kernel.Kin.reshape(n, 9), kernel.RF.reshape(n, 9)
     load = np.ascontiguousarray(np.array([h[0, :, 0] for h in plant.loads(force)[0]]))
-    kappa, mass = np.zeros(n), np.zeros(n)
-    kappa[kernel.free], mass[kernel.free] = -kernel.stiffness, plant.batched_mass_pivots
+    kappa, mass = -kernel.stiffness.real, kernel.mass_pivot.copy()
     squared = -omega * omega
     theta, good = np.zeros((omega.size, n)), np.zeros(omega.size, dtype=np.intc)
     work = [np.zeros(9 * n), np.zeros(3 * n), np.zeros(3 * n), np.zeros(n), np.zeros(3 * n), np.zeros(n),
@@ -190,8 +195,6 @@ def compiled_bound(library: ctypes.CDLL, plant: SweepResponse, force: str, angle
 
     def p(array: np.ndarray):
         return array.ctypes.data_as(ctypes.POINTER(ctypes.c_int) if array.dtype == np.intc else pointer)
-
-    from ctmm.sweep_response import PIVOT_TOLERANCE, RESIDUAL_TOLERANCE
 
     arguments = (ctypes.c_int(n), ctypes.c_int(omega.size), p(parent), p(free), p(M0), p(K0), p(Kin), p(RF), p(load),
                  p(kappa), p(mass), ctypes.c_double(PIVOT_TOLERANCE), ctypes.c_double(RESIDUAL_TOLERANCE), p(squared),
@@ -206,6 +209,35 @@ def compiled_bound(library: ctypes.CDLL, plant: SweepResponse, force: str, angle
     amplitudes = np.zeros((omega.size, plant.model.n_coordinates))
     amplitudes[:, index[index >= 0]] = theta[:, index >= 0]
     return call, amplitudes @ row, good.astype(bool)
+
+
+def generic_plant(model, n: int) -> SweepResponse:
+    """The plant as it is without a C compiler (the generic numpy sweep)."""
+    import ctmm.sweep_response as sweep_module
+
+    present = sweep_module.compiler_present
+    sweep_module.compiler_present = lambda: False
+    try:
+        plant = SweepResponse(model, operating_point(model, hanging(n)))
+    finally:
+        sweep_module.compiler_present = present
+    assert plant.compiled is None
+    return plant
+
+
+def first_compile() -> dict:
+    """Wall time and the compiler's CPU time [s] of building each kernel variant (d = 3) into an empty cache
+    folder (the real one on the first call, the complex one on the first damped or delayed call)."""
+    out = {}
+    for label, complex_scalar, flags in (("real", False, REAL_FLAGS), ("complex", True, COMPLEX_FLAGS)):
+        folder = tempfile.mkdtemp(prefix="ctmm-bench-frf-cache-")
+        started, before = time.perf_counter(), os.times()
+        shared_library(kernel_source(3, complex_scalar), "first_compile", flags=flags, cache_dir=folder)
+        after = os.times()
+        out[f"first_compile_{label}_s"] = time.perf_counter() - started
+        out[f"first_compile_{label}_cpu_s"] = (after.children_user - before.children_user
+                                               + after.children_system - before.children_system)
+    return out
 
 
 def ports(n: int) -> tuple[str, str]:
@@ -260,11 +292,17 @@ def run(n: int, *, with_resolvent: bool, library: ctypes.CDLL | None = None) -> 
     model, (force, angle) = chain(n), ports(n)
     repeats = 5 if n <= 100 else 2
     plant = SweepResponse(model, operating_point(model, hanging(n)))
+    generic = generic_plant(model, n)
+    h = np.stack([column[0, :, 0] for column in plant.loads(force)[0]])[:, :, None]
+    torque = np.zeros((len(plant.compiled.free), 1))
     cases = {"sweep": (lambda: sweep(model, n), repeats),
              "sweep_equilibrium": (lambda: ctmm.frequency_response(model, OMEGA, input=force, output=angle), 2),
              "equilibrium_search": (lambda: static_equilibrium(model, hanging_configuration(model), stable=True),
                                     repeats),
              "sweep_only": (lambda: plant.response(1j * OMEGA, [force], [angle]), repeats),
+             "kernel_only": (lambda: plant.compiled.solve(1j * OMEGA, h, torque, pivot_tolerance=PIVOT_TOLERANCE,
+                                                          residual_tolerance=RESIDUAL_TOLERANCE), repeats),
+             "sweep_only_generic": (lambda: generic.response(1j * OMEGA, [force], [angle]), repeats),
              "lagrange": (lambda: lagrange(n), 1)}
     if with_resolvent:
         cases["resolvent"] = (lambda: resolvent(n), 1)
@@ -276,8 +314,14 @@ def run(n: int, *, with_resolvent: bool, library: ctypes.CDLL | None = None) -> 
         call, bound, certified = compiled_bound(library, plant, force, angle)
         out["compiled_bound_s"], out["compiled_bound_cpu_s"], _ = best(call, 3 * repeats)
         out["sweep_only_vs_bound"] = out["sweep_only_cpu_s"] / out["compiled_bound_cpu_s"]
+        out["kernel_only_vs_bound"] = out["kernel_only_cpu_s"] / out["compiled_bound_cpu_s"]
+        out["generic_vs_bound"] = out["sweep_only_generic_cpu_s"] / out["compiled_bound_cpu_s"]
         out["error_bound_vs_sweep"] = relative(bound, G)
         out["bound_certifies_the_same"] = bool(np.array_equal(certified, results["sweep_only"][1]))
+    out["error_generic_vs_compiled"] = relative(results["sweep_only_generic"][0][:, 0, 0],
+                                                results["sweep_only"][0][:, 0, 0])
+    out["generic_certifies_the_same"] = bool(np.array_equal(results["sweep_only_generic"][1],
+                                                             results["sweep_only"][1]))
     out.update({"error_sweep_vs_lagrange": relative(G, reference),
                 "dense_frequencies_in_sweep": results["sweep"].info["n_dense_frequencies"],
                 "method": results["sweep"].info["method"]})
@@ -297,16 +341,19 @@ def main(argv: list[str] | None = None) -> dict:
     sizes = args.sizes or ([5, 20] if args.quick else [5, 20, 100])
     resolvent(3, OMEGA[:2])                             # warm-up: the first linearisation imports and builds caches
     library = bound_library()
+    compile_time = first_compile()
+    print(json.dumps(compile_time), flush=True)
     rows = [run(n, with_resolvent=n <= 100, library=library) for n in sizes]
-    return write_result("planar_frf", rows, args.output)
+    return write_result("planar_frf", rows, args.output, compile_time)
 
 
-def write_result(name: str, rows: list, output: Path) -> dict:
-    """The benchmark's JSON (machine, load average, the frequency grid, ``rows``) written to ``output``."""
+def write_result(name: str, rows: list, output: Path, extra: dict | None = None) -> dict:
+    """The benchmark's JSON (machine, load average, the frequency grid, ``extra`` entries, ``rows``) written to
+    ``output``."""
     result = {"benchmark": name, "machine": {"python": platform.python_version(), "numpy": np.__version__,
                                              "processor": platform.processor() or platform.machine(),
                                              "load_average": list(os.getloadavg())},
-              "frequencies": "np.logspace(-1, 2, 500) rad/s", "rows": rows}
+              "frequencies": "np.logspace(-1, 2, 500) rad/s", **(extra or {}), "rows": rows}
     output.parent.mkdir(parents=True, exist_ok=True)
     output.write_text(json.dumps(result, indent=2) + "\n")
     return result

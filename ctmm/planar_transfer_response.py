@@ -19,8 +19,9 @@ articulated sweep (:func:`ctmm.articulated.articulated_sweep`) on these terms, n
 
 The answer holds ``O(outputs x inputs x frequencies)`` numbers; the sweep's batched terms, while it runs,
 ``O(N x CHUNK)`` (frequencies are swept :data:`CHUNK` at a time).  Rigid trees on hinges, welds and held drives
-take the numpy kernel of :mod:`ctmm.batched_sweep` (the frequency batch as the last axis, every input column in
-one sweep); the others the generic :func:`~ctmm.articulated.articulated_sweep`, one sweep per input column.  The
+take the compiled kernel of :mod:`ctmm.compiled_sweep` when a C compiler is present (frequency by frequency in C,
+every input column in one sweep, both certificates decided there); the others, and every model without a
+compiler, the generic :func:`~ctmm.articulated.articulated_sweep`, one sweep per input column.  The
 feedback loops of a ``ControlledModel`` (with and without delay, static or LTI ``C(s)``) are closed at
 each frequency by the phasor formula ``(I + K G_yu) u = K (r - G_yw w)``, ``K = diag(C_l(s) e^{-s tau_l})``
 (:func:`ctmm.loop_phasors.close_loops`; a loop without delay is ``tau = 0``).
@@ -136,13 +137,13 @@ class SweepResponse(ArticulatedResponse):
         return output_matrix(self.model, outputs, self.point)
 
     def point_amplitudes(self, x: np.ndarray) -> np.ndarray:
-        """Coordinate amplitudes ``q_hat`` (L, B, n) from the batched kernel's ``A_in`` (3, L, B) per body (rigid
-        bodies: each body's angle amplitude is its ``x[j][2]``; the kernel takes no free bases)."""
-        index = self.model.theta_index
-        bodies = [j for j in range(len(x)) if index[j] >= 0]
-        out = np.zeros(x[0].shape[1:] + (self.model.n_coordinates,), dtype=x[0].dtype)
-        if bodies:
-            out[:, :, index[bodies]] = np.stack([x[j][2] for j in bodies], axis=-1)
+        """Coordinate amplitudes ``q_hat`` (L, B, n) from the compiled kernel's ``A_in`` (n, 3, L, B) (rigid
+        bodies: each body's angle amplitude is its ``x[j, 2]``; the kernel takes no free bases)."""
+        index = np.asarray(self.model.theta_index)
+        bodies = np.flatnonzero(index >= 0)
+        out = np.zeros(x.shape[2:] + (self.model.n_coordinates,), dtype=x.dtype)
+        if bodies.size:
+            out[:, :, index[bodies]] = np.moveaxis(x[bodies, 2], 0, -1)
         return out
 
     def amplitudes(self, solution: Any) -> np.ndarray:

@@ -4,8 +4,8 @@
 (per body ``(M0, C0, K0, Kin, RF)`` of ``Z(s) = s^2 M0 + s C0 + K0``; joints with their laws' tangents,
 driven joints held) and answers ``G(s)`` of named actuators and sensors, batched over ``s``: one
 articulated sweep (:func:`ctmm.articulated.articulated_sweep`, ``d = 3`` planar, ``d = 6`` spatial) per
-input column (rigid trees on one-direction joints: the kernel of :mod:`ctmm.batched_sweep`, every column in one
-sweep), :data:`CHUNK` frequencies at a time, certified per frequency twice: every pivot against its terms
+input column (rigid trees on one-direction joints, when a C compiler is present: the compiled kernel of
+:mod:`ctmm.compiled_sweep`, every column in one sweep), :data:`CHUNK` frequencies at a time, certified per frequency twice: every pivot against its terms
 (:data:`PIVOT_TOLERANCE`) and the answer's a-posteriori backward error (:data:`RESIDUAL_TOLERANCE`,
 :func:`backward_error`).  :func:`closed_loop_response` closes the feedback loops of a
 ``ControlledModel`` at each frequency (with and without delay) and certifies the loop matrix.  The planar
@@ -15,13 +15,15 @@ frequencies not certified are answered by the callers' dense resolvent.
 """
 from __future__ import annotations
 
+import warnings
 from typing import Any, Sequence
 
 import numpy as np
 
 from .articulated import Tree, articulated_sweep, frequency_kappa
-from .batched_sweep import BatchedSweep, applies as batched_applies
+from .compiled_sweep import CompiledSweep, applies as compiled_applies, compiler_present
 from .controlled_linearization import RESOLVENT_CONDITION, controller_response, loop_ports
+from .errors import ModelError
 from .loop_phasors import close_loops as close_phasor_loops, loop_signal
 from .ops import NUMPY
 from .protocol import BodyTerms
@@ -42,8 +44,8 @@ terms (the former bound ``sqrt(eps)`` = 1.5e-8 accepted it), plate block 3.2e-8,
 finite-element model."""
 
 RESIDUAL_TOLERANCE = 1e-10
-"""Largest accepted a-posteriori backward error of an answer of the sweep (:func:`backward_error`; the batched kernel's
-:meth:`ctmm.batched_sweep.BatchedSweep.backward_error`): the residual of the joint equations and modal rows at the
+"""Largest accepted a-posteriori backward error of an answer of the sweep (:func:`backward_error`; the compiled kernel
+of :mod:`ctmm.compiled_sweep` decides the same in C): the residual of the joint equations and modal rows at the
 answer against the moduli of their terms.  It complements :data:`PIVOT_TOLERANCE`, which bounds each pivot alone:
 the errors of eliminations compound along a path, and a pivot's ``1/r`` does not bound what its children's
 cancellations left in its terms.  Measured (session 9): a 6-link chain whose hinge springs tune every sub-chain next
@@ -70,11 +72,11 @@ class ArticulatedResponse:
     joints: tuple
 
     coupling: Any = None
-    batched: BatchedSweep | None = None
+    compiled: CompiledSweep | None = None
 
-    def point_amplitudes(self, x: list) -> np.ndarray:
-        """Coordinate amplitudes (L, B, n) from the batched kernel's ``A_in`` (d, L, B) of every body; subclasses
-        that do not override it are answered by the generic sweep."""
+    def point_amplitudes(self, x: np.ndarray) -> np.ndarray:
+        """Coordinate amplitudes (L, B, n) from the compiled kernel's ``A_in`` (n, d, L, B) of every body;
+        subclasses that do not override it are answered by the generic sweep."""
         raise NotImplementedError
 
     def prepare(self, tree: Tree, bodies: Sequence[tuple], joints: Sequence[Any],
@@ -85,13 +87,16 @@ class ArticulatedResponse:
         (the scale the pivots are measured by)."""
         self.tree, self.bodies, self.joints = tree, tuple(bodies), tuple(joints)
         self.coupling = None if coupling is None or all(g is None for g in coupling) else tuple(coupling)
-        self.batched = None
+        self.compiled = None
         reads_points = type(self).point_amplitudes is not ArticulatedResponse.point_amplitudes
-        if reads_points and batched_applies(tree, self.bodies, self.joints, self.coupling):
-            # rigid bodies, welds, held drives and one-direction joints: the kernel of ctmm.batched_sweep
-            self.batched = BatchedSweep(tree, self.bodies, self.joints, self.coupling)
-            self.batched_mass_pivots = None         # with the first sweep (one more column)
-            return
+        if reads_points and compiled_applies(tree, self.bodies, self.joints, self.coupling) and compiler_present():
+            # rigid bodies, welds, held drives and one-direction joints: the kernel of ctmm.compiled_sweep
+            try:
+                self.compiled = CompiledSweep(tree, self.bodies, self.joints, self.coupling)
+                return
+            except ModelError as exc:               # a compiler that cannot build it: the generic sweep answers
+                warnings.warn(f"the compiled frequency sweep is not available ({exc}); the generic numpy sweep "
+                              "answers", RuntimeWarning, stacklevel=3)
         inertia = [BodyTerms(M0[None], np.zeros((1, M0.shape[0], 1)), Kin, dict.fromkeys(Kin), RF)   # c = None: zero
                    for M0, _, _, Kin, RF in self.bodies]
         with np.errstate(all="ignore"):
@@ -143,8 +148,8 @@ class ArticulatedResponse:
 
     def _batch(self, s: np.ndarray, loads: list, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`response` of the load cases ``loads`` and sensor ``rows`` at ``s`` (B,)."""
-        if self.batched is not None:
-            return self._batched(s, loads, rows)
+        if self.compiled is not None:
+            return self._compiled(s, loads, rows)
         n = rows.shape[1] // 2
         column = s.reshape(-1, 1, 1)
         if self.undamped and not np.any(s.real):    # s^2 = -omega^2: the whole sweep is real (same numbers, faster)
@@ -171,9 +176,10 @@ class ArticulatedResponse:
             good &= np.all(np.isfinite(G[:, :, i]), axis=1) & (backward <= RESIDUAL_TOLERANCE)
         return G, good
 
-    def _batched(self, s: np.ndarray, loads: list, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`_batch` by the kernel of :mod:`ctmm.batched_sweep` (every load case in one sweep)."""
-        n, kernel = rows.shape[1] // 2, self.batched
+    def _compiled(self, s: np.ndarray, loads: list, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_batch` by the kernel of :mod:`ctmm.compiled_sweep` (every load case in one sweep, both
+        certificates decided there)."""
+        n, kernel = rows.shape[1] // 2, self.compiled
         h = np.zeros((len(self.bodies), self.tree.dimension, len(loads)))
         tau = np.zeros((len(kernel.free), len(loads)), dtype=complex)
         for i, (body_loads, joints) in enumerate(loads):
@@ -183,18 +189,11 @@ class ArticulatedResponse:
                     tau[k, i] = np.asarray(joints[j].tau).reshape(-1)[0]
         if not np.any(tau.imag):
             tau = tau.real
+        solution = kernel.solve(s, h, tau, pivot_tolerance=PIVOT_TOLERANCE, residual_tolerance=RESIDUAL_TOLERANCE)
         with np.errstate(all="ignore"):
-            solution = kernel.solve(s, h, tau, mass_pivots=self.batched_mass_pivots is None, residual=True)
-            if solution.mass_pivot is not None:
-                self.batched_mass_pivots = solution.mass_pivot
             amplitudes = self.point_amplitudes(solution.x)                  # (L, B, n)
             G = (amplitudes @ rows[:, :n].T + (s[:, None] * amplitudes) @ rows[:, n:].T).transpose(1, 2, 0)
-            squared = (s * s)[None]
-            inertia = squared * self.batched_mass_pivots[:, None]
-            scale = np.abs(inertia) + np.abs(solution.pivot - inertia)
-            good = np.all(np.abs(solution.pivot) >= PIVOT_TOLERANCE * scale, axis=0)
-            good &= solution.backward <= RESIDUAL_TOLERANCE                  # compounded eliminations
-        good &= np.all(np.isfinite(G), axis=(1, 2))
+        good = solution.good & np.all(np.isfinite(G), axis=(1, 2))
         return G.astype(complex, copy=False), good
 
     def _dynamic_stiffness(self, squared: np.ndarray, column: np.ndarray | None, stacks: list | None = None) -> list:
@@ -229,8 +228,8 @@ class ArticulatedResponse:
 def backward_error(tree: Tree, bodies: Sequence[BodyTerms], moduli: Sequence[np.ndarray], joints: Sequence[Any],
                    kappa: Sequence[Any], coupling: Sequence[Any] | None, solution: Any) -> np.ndarray:
     """(B,) the largest relative residual of a numpy frequency-context sweep's answer: the a-posteriori
-    certificate (:data:`RESIDUAL_TOLERANCE`; the batched kernel's twin is
-    :meth:`ctmm.batched_sweep.BatchedSweep.backward_error`).
+    certificate (:data:`RESIDUAL_TOLERANCE`; the compiled kernel of
+    :mod:`ctmm.compiled_sweep` decides its twin in C).
 
     Tip to base, from the amplitudes alone (products and sums, no division), every body's generalised force
     ``Q_j = Z_j x_j + h_j + sum_children RF_c (F_c + H_c a_c)`` (``F_c`` the child's first ``d`` rows): its modal

@@ -1,11 +1,12 @@
-"""The frequency-context kernel of ``ctmm.batched_sweep`` (issue 13).
+"""The compiled frequency-context kernel of ``ctmm.compiled_sweep`` (issue 13).
 
 It is a second implementation of the generic sweep's recursion (:func:`ctmm.articulated.articulated_sweep`)
-restricted to rigid bodies and one-direction joints, written on the frequency batch as the last axis; here it
-must agree with the generic sweep to round-off on terms that exercise every branch (a branched tree, welds,
-held drives, joint springs and dampers, damped bodies, the preload coupling, complex ``s`` off the axis,
-several load cases).  Its answers as FRFs are checked against the Lagrange models in
-``tests/test_planar_frf_sweep.py`` (rigid chains, trees and closed loops all take this kernel).
+restricted to rigid bodies and one-direction joints, in C; here it must agree with the generic sweep to
+round-off on terms that exercise every branch (a branched tree, welds, held drives, joint springs and dampers,
+damped bodies, the preload coupling, complex ``s`` off the axis, several load cases, both scalar variants), and
+as FRFs of random branched trees (damped and undamped) with the generic sweep and the Lagrange model.  Its
+answers as FRFs are also checked against the Lagrange models in ``tests/test_planar_frf_sweep.py`` (rigid
+chains, trees and closed loops all take this kernel when a compiler is present).
 
 Its a-posteriori certificate (the backward error of the joint equations, ``RESIDUAL_TOLERANCE``) against chains
 whose hinge springs tune every sub-chain next to a resonance: moderate pivots, each accepted by the pivot test,
@@ -18,18 +19,21 @@ import numpy as np
 import pytest
 
 import ctmm
+import ctmm.sweep_response as sweep_module
 from ctmm.articulated import Tree, articulated_sweep, frequency_kappa
-from ctmm.batched_sweep import BatchedSweep, applies
+from ctmm.compiled_sweep import CompiledSweep, applies, compiler_present
 from ctmm.controlled_linearization import FrequencyAtPoleError
 from ctmm.ops import NUMPY
 from ctmm.flexible import ModalBeam
-from ctmm.planar import ElasticHinge, Pinned, PlanarModel, RigidBody, SmoothHinge
+from ctmm.planar import ElasticHinge, Pinned, PlanarModel, RigidBody, SmoothHinge, SpringDamperHinge
 from ctmm.planar.elements import FixedMounting
 from ctmm.planar_linearization import operating_point
 from ctmm.planar_transfer_response import SweepResponse
 from ctmm.protocol import BodyTerms, JointTerms
 from ctmm.reference.planar_lagrange import PlanarLagrange
 from ctmm.sweep_response import PIVOT_TOLERANCE, RESIDUAL_TOLERANCE
+
+pytestmark = pytest.mark.skipif(not compiler_present(), reason="no C compiler: the generic sweep answers")
 
 D = 3
 PARENT = (-1, 0, 1, 0, 3, 3, 5)
@@ -82,29 +86,54 @@ def generic(tree, bodies, joints, coupling, s, load, torque):
     return x, pivots
 
 
+TOLERANCES = {"pivot_tolerance": PIVOT_TOLERANCE, "residual_tolerance": RESIDUAL_TOLERANCE}
+
+
 @pytest.mark.parametrize("coupled", [False, True])
 @pytest.mark.parametrize("on_axis", [True, False])
 def test_kernel_equals_the_generic_sweep(coupled, on_axis):
+    """Damped terms (or s off the axis): the complex variant, against the generic sweep, two load cases."""
     tree, bodies, joints, coupling = terms(3, coupled)
     assert applies(tree, bodies, joints, coupling)
     s = 1j * np.linspace(0.2, 5.0, 9) + (0.0 if on_axis else 0.4)
     rng = np.random.default_rng(7)
     loads, torques = rng.normal(size=(len(PARENT), D, 2)), rng.normal(size=(5, 2))     # two load cases
-    kernel = BatchedSweep(tree, bodies, joints, coupling)
+    kernel = CompiledSweep(tree, bodies, joints, coupling)
     assert kernel.free == [0, 1, 3, 5, 6]
-    solution = kernel.solve(s, loads, torques, mass_pivots=True)
+    solution = kernel.solve(s, loads, torques, **TOLERANCES)
+    assert solution.x.dtype == complex and solution.x.shape == (len(PARENT), D, 2, s.size)
     for case in range(2):
         torque = dict(zip(kernel.free, torques[:, case]))
         x, pivots = generic(tree, bodies, joints, coupling, s, loads[:, :, case],
                             [torque.get(j, 0.0) for j in range(len(PARENT))])
-        got = np.stack([v[:, case] for v in solution.x])
-        assert np.max(np.abs(got - x)) <= 1e-12 * np.max(np.abs(x))
+        assert np.max(np.abs(solution.x[:, :, case] - x)) <= 1e-12 * np.max(np.abs(x))
         assert np.max(np.abs(solution.pivot - pivots)) <= 1e-12 * np.max(np.abs(pivots))
-    # the pivots of the mass terms alone (kappa = 0, no coupling), one more column of the same sweep
+    assert np.all(solution.backward < 1e-13)
+    # the pivots of the mass terms alone (kappa = 0, no coupling)
     inertia = [BodyTerms(M0[None], np.zeros((1, D, 1)), Kin, dict.fromkeys(Kin), RF) for M0, _, _, Kin, RF in bodies]
     masses = articulated_sweep(NUMPY, tree, inertia, joints, forces=False)
     expected = np.array([p[0, 0, 0] for p in masses.pivot if p is not None])
-    assert np.max(np.abs(solution.mass_pivot - expected)) <= 1e-12 * np.max(np.abs(expected))
+    assert np.max(np.abs(kernel.mass_pivot[kernel.free] - expected)) <= 1e-12 * np.max(np.abs(expected))
+
+
+def test_real_variant_equals_the_generic_sweep():
+    """Undamped terms on the imaginary axis with real loads: the real variant (s^2 = -omega^2), 20 load cases
+    (two groups of the kernel's load cases)."""
+    tree, bodies, joints, coupling = terms(5, True)
+    bodies = [(M0, np.zeros_like(C0), K0, Kin, RF) for M0, C0, K0, Kin, RF in bodies]
+    joints = [JointTerms(S=j.S, tau=j.tau, tau_q=j.tau_q, axis=j.axis) if j.tau is not None else j for j in joints]
+    s = 1j * np.linspace(0.2, 5.0, 7)
+    rng = np.random.default_rng(8)
+    loads, torques = rng.normal(size=(len(PARENT), D, 20)), rng.normal(size=(5, 20))
+    kernel = CompiledSweep(tree, bodies, joints, coupling)
+    solution = kernel.solve(s, loads, torques, **TOLERANCES)
+    assert solution.x.dtype == float and solution.x.shape == (len(PARENT), D, 20, s.size)
+    for case in (0, 19):
+        torque = dict(zip(kernel.free, torques[:, case]))
+        x, _ = generic(tree, bodies, joints, coupling, s, loads[:, :, case],
+                       [torque.get(j, 0.0) for j in range(len(PARENT))])
+        assert np.max(np.abs(solution.x[:, :, case] - x)) <= 1e-12 * np.max(np.abs(x))
+    assert solution.good.all()
 
 
 def test_kernel_declines_terms_it_does_not_take():
@@ -126,14 +155,36 @@ def test_planar_plants_take_the_kernel_where_it_applies():
         Pinned("base"), RigidBody("a", mass=1.0, inertia=0.1, center_of_mass=(0.5, 0.0), outboard=(1.0, 0.0)),
         SmoothHinge("h"), RigidBody("b", mass=0.5, inertia=0.05, center_of_mass=(0.4, 0.0))], gravity=(0.0, -9.81))
     plant = SweepResponse(arm, operating_point(arm))
-    assert plant.batched is not None
+    assert plant.compiled is not None
     G, good = plant.response(1j * np.array([0.5, 2.0]), ["b.force_x"], ["b.theta"])
-    assert good.all() and plant.batched_mass_pivots is not None
+    assert good.all()
     beam = PlanarModel.chain("beam", [Pinned("base"), RigidBody("hub", mass=1.0, inertia=0.1, outboard=(0.1, 0.0)),
                                       FixedMounting("m"), ModalBeam("b", length=1.0, bending_stiffness=10.0,
                                                                     mass_per_length=0.5, n_modes=2)],
                              gravity=(0.0, 0.0))
-    assert SweepResponse(beam, operating_point(beam)).batched is None       # modal bodies: the generic sweep
+    assert SweepResponse(beam, operating_point(beam)).compiled is None      # modal bodies: the generic sweep
+
+
+def test_a_compiler_that_cannot_build_the_kernel_leaves_the_generic_sweep(monkeypatch):
+    """A compile error (here: a stand-in for a compiler refusing the kernel's flags) is warned about and the
+    generic sweep answers, the same numbers."""
+    import ctmm.compiled_sweep as compiled_module
+    from ctmm.errors import ModelError
+
+    model = uniform_chain(np.full(4, 20.0))
+    point = operating_point(model, (np.zeros(4), np.zeros(4)))
+    s = 1j * np.array([0.5, 2.0, 7.0])
+    expected, _ = SweepResponse(model, point).response(s, ["l3.moment"], ["l3.theta"])
+
+    def refuse(*arguments):
+        raise ModelError("compiling the kernel failed (exit 1)")
+
+    monkeypatch.setattr(compiled_module, "kernel_library", refuse)
+    with pytest.warns(RuntimeWarning, match="generic numpy sweep"):
+        plant = SweepResponse(model, point)
+    assert plant.compiled is None
+    G, good = plant.response(s, ["l3.moment"], ["l3.theta"])
+    assert good.all() and np.max(np.abs(G - expected)) <= 1e-12 * np.max(np.abs(expected))
 
 
 # ------------------------------------------------------------------ the a-posteriori certificate (compounding)
@@ -145,9 +196,10 @@ def tuned_chain(links: int, fraction: float, omega: float) -> PlanarModel:
     zero = (np.zeros(links), np.zeros(links))
     for j in range(links - 1, 0, -1):
         model = uniform_chain(stiffness)
-        kernel = SweepResponse(model, operating_point(model, zero)).batched
-        pivot = kernel.solve(np.array([1j * omega]), np.zeros((links, D, 1)), np.zeros((len(kernel.free), 1))).pivot
-        inertia = pivot[kernel.slot[j], 0].real - stiffness[j]
+        kernel = SweepResponse(model, operating_point(model, zero)).compiled
+        pivot = kernel.solve(np.array([1j * omega]), np.zeros((links, D, 1)), np.zeros((len(kernel.free), 1)),
+                             **TOLERANCES).pivot
+        inertia = pivot[kernel.free.index(j), 0].real - stiffness[j]
         stiffness[j] = -inertia + fraction * abs(inertia)
     return uniform_chain(stiffness)
 
@@ -178,11 +230,10 @@ def certificate(model: PlanarModel, omega: float):
     plant = SweepResponse(model, operating_point(model, zero))
     name = f"l{model.n_bodies - 1}"
     G, good = plant.response(np.array([1j * omega]), [f"{name}.moment"], [f"{name}.theta"])
-    kernel = plant.batched
+    kernel = plant.compiled
     loads = np.stack([h[0, :, 0] for h in plant.loads(f"{name}.moment")[0]])[:, :, None]
-    solution = kernel.solve(np.array([1j * omega]), loads, np.zeros((len(kernel.free), 1)), mass_pivots=True,
-                            residual=True)
-    inertia = -omega * omega * solution.mass_pivot
+    solution = kernel.solve(np.array([1j * omega]), loads, np.zeros((len(kernel.free), 1)), **TOLERANCES)
+    inertia = -omega * omega * kernel.mass_pivot[kernel.free]
     r = np.abs(solution.pivot[:, 0]) / (np.abs(inertia) + np.abs(solution.pivot[:, 0] - inertia))
     return G[0, 0, 0], bool(good[0]), r, float(solution.backward[0])
 
@@ -223,22 +274,72 @@ def test_backward_error_of_a_plain_chain_is_rounding():
     plant = SweepResponse(model, operating_point(model, (np.zeros(30), np.zeros(30))))
     G, good = plant.response(1j * np.logspace(-1, 2, 50), ["l29.moment"], ["l29.theta"])
     loads = np.stack([h[0, :, 0] for h in plant.loads("l29.moment")[0]])[:, :, None]
-    solution = plant.batched.solve(1j * np.logspace(-1, 2, 50), loads, np.zeros((30, 1)), residual=True)
+    solution = plant.compiled.solve(1j * np.logspace(-1, 2, 50), loads, np.zeros((30, 1)), **TOLERANCES)
     assert np.max(solution.backward) < 1e-12
 
 
 def test_the_generic_sweep_states_the_same_backward_error(monkeypatch):
-    """Modal bodies, finite elements, free bases and spatial models take the generic sweep: its twin of the
-    certificate (``ctmm.sweep_response.backward_error``) hands the tuned three-link chain over as well."""
-    import ctmm.sweep_response as sweep_module
-
+    """Modal bodies, finite elements, free bases, spatial models and every model without a C compiler take the
+    generic sweep: its twin of the certificate (``ctmm.sweep_response.backward_error``) hands the tuned three-link
+    chain over as well."""
     model, omega = tuned_chain(3, 1e-5, 3.0), 3.0
-    monkeypatch.setattr(sweep_module, "batched_applies", lambda *arguments: False)
+    monkeypatch.setattr(sweep_module, "compiler_present", lambda: False)
     plant = SweepResponse(model, operating_point(model, (np.zeros(3), np.zeros(3))))
-    assert plant.batched is None
+    assert plant.compiled is None
     _, good = plant.response(np.array([2.0j, 1j * omega]), ["l2.moment"], ["l2.theta"])
     assert good.tolist() == [True, False]
     frf = ctmm.frequency_response(model, [omega], input="l2.moment", output="l2.theta",
                                   operating_point=(np.zeros(3), np.zeros(3)))
     reference = reference_angle(model, omega)
     assert frf.info["n_dense_frequencies"] == 1 and abs(frf.response[0, 0, 0] - reference) <= 1e-9 * abs(reference)
+
+
+# ------------------------------------------------------------------ random branched trees: generated, numpy, Lagrange
+def random_tree(seed: int, damped: bool) -> PlanarModel:
+    """A random branched tree of 6-9 rigid bodies on spring(-damper) hinges, each hanging on a random earlier body
+    (no gravity: the straight configuration is the equilibrium; the preloaded trees of
+    ``tests/test_planar_frf_sweep.py`` carry gravity's coupling)."""
+    rng = np.random.default_rng(seed)
+    count = int(rng.integers(6, 10))
+    elements = [Pinned("base", child="b0")]
+    for j in range(count):
+        elements.append(RigidBody(f"b{j}", mass=float(rng.uniform(0.3, 2.0)), inertia=float(rng.uniform(0.02, 0.2)),
+                                  center_of_mass=tuple(rng.uniform(-0.2, 0.6, 2)),
+                                  outboard={f"e{k}": tuple(rng.uniform(-0.8, 0.8, 2)) for k in range(2)}))
+        if j:
+            parent = f"b{int(rng.integers(0, j))}.e{int(rng.integers(0, 2))}"
+            stiffness = float(rng.uniform(1.0, 20.0))
+            hinge = SpringDamperHinge(f"h{j}", parent=parent, child=f"b{j}", stiffness=stiffness,
+                                      damping=float(rng.uniform(0.05, 0.5))) if damped else \
+                ElasticHinge(f"h{j}", parent=parent, child=f"b{j}", stiffness=stiffness)
+            elements.append(hinge)
+    return PlanarModel(f"random{seed}", elements, gravity=(0.0, 0.0))
+
+
+@pytest.mark.parametrize("seed, damped", [(11, False), (12, True), (13, True)])
+def test_random_trees_generated_equal_the_generic_sweep_and_the_lagrange_model(seed, damped, monkeypatch):
+    model = random_tree(seed, damped)
+    point = operating_point(model, (np.zeros(model.n_coordinates), np.zeros(model.n_coordinates)))
+    omega = np.logspace(-1, 1.5, 40)
+    last = f"b{model.n_bodies - 1}"
+    inputs, outputs = [f"{last}.moment", "b1.moment"], [f"{last}.theta", "b2.theta"]
+    plant = SweepResponse(model, point)
+    assert plant.compiled is not None
+    G, good = plant.response(1j * omega, inputs, outputs)
+    monkeypatch.setattr(sweep_module, "compiler_present", lambda: False)
+    generic_plant = SweepResponse(model, point)
+    assert generic_plant.compiled is None
+    G_generic, good_generic = generic_plant.response(1j * omega, inputs, outputs)
+    assert good.all() and np.array_equal(good, good_generic)
+    assert np.max(np.abs(G - G_generic)) <= 1e-11 * np.max(np.abs(G_generic))
+    lagrange = PlanarLagrange(model)
+    M, C, K = lagrange.linearize(point.q)
+    angle = np.zeros((model.n_bodies, model.n_coordinates))
+    for j in range(model.n_bodies):
+        angle[j, lagrange.src[j]] = 1.0
+    index = model.body_names.index                  # the model's bodies in topological order
+    rows = angle[[index(last), index("b2")]]
+    columns = angle[[index(last), index("b1")]].T
+    reference = np.array([rows @ np.linalg.solve(-w * w * M + 1j * w * C + K, columns) for w in omega])
+    scale = np.max(np.abs(reference), axis=0)
+    assert np.max(np.abs(G - reference) / scale) <= 1e-9
