@@ -341,8 +341,7 @@ def compiler_present() -> bool:
     return True
 
 
-_POINTER = ctypes.POINTER(ctypes.c_double)
-_INTEGERS = ctypes.POINTER(ctypes.c_int)
+_ADDRESS, _INT, _DOUBLE = ctypes.c_void_p, ctypes.c_int, ctypes.c_double
 
 
 def kernel_source(dimension: int, complex_scalar: bool) -> str:
@@ -358,7 +357,9 @@ def kernel_library(dimension: int, complex_scalar: bool) -> ctypes.CDLL:
     library = load_ctypes(kernel_source(dimension, complex_scalar), name,
                           flags=COMPLEX_FLAGS if complex_scalar else REAL_FLAGS)
     library.sweep.restype = ctypes.c_int
+    library.sweep.argtypes = [_INT] * 3 + [_ADDRESS] * 17 + [_DOUBLE] * 2 + [_ADDRESS] * 4
     library.mass_pivots.restype = None
+    library.mass_pivots.argtypes = [_INT] + [_ADDRESS] * 7
     return library
 
 
@@ -386,16 +387,18 @@ def applies(tree: Tree, bodies: Sequence[tuple], joints: Sequence[Any], coupling
     return True
 
 
-def _pointer(array: np.ndarray) -> Any:
-    return array.ctypes.data_as(_INTEGERS if array.dtype == np.intc else _POINTER)
+def _address(array: np.ndarray) -> int:
+    """The address of a C-contiguous array's data (the caller keeps the array alive during the call)."""
+    assert array.flags.c_contiguous
+    return array.ctypes.data
 
 
 def mass_pivots(library: ctypes.CDLL, kernel: "CompiledSweep") -> np.ndarray:
     """(n,) the pivots of the mass terms alone (``Z = M0``, ``kappa = 0``, no coupling; 0 at bodies without a free
     joint): the scale the pivot certificate measures by."""
     out, work = np.zeros(kernel.n), np.zeros(kernel.n * kernel.d * kernel.d)
-    library.mass_pivots(ctypes.c_int(kernel.n), _pointer(kernel.parent), _pointer(kernel.axis), _pointer(kernel.M0),
-                        _pointer(kernel.Kin), _pointer(kernel.RF), _pointer(out), _pointer(work))
+    library.mass_pivots(kernel.n, *(_address(a) for a in (kernel.parent, kernel.axis, kernel.M0, kernel.Kin,
+                                                             kernel.RF, out, work)))
     return out
 
 
@@ -478,6 +481,8 @@ class CompiledSweep:
         self.real_laws = not np.any(laws.imag)
         self.stiffness, self.damping = laws[0].copy(), laws[1].copy()   # kappa = -(stiffness + damping s)
         self.undamped = not self.damped_bodies and not np.any(self.damping)
+        self.addresses = tuple(_address(a) for a in (self.parent, self.axis))
+        self.terms = tuple(_address(a) for a in (self.M0, self.C0, self.K0, self.Kin, self.RF, self.G, self.H))
         self.libraries = {False: kernel_library(d, False)}
         if not self.undamped or not self.real_laws:     # the complex variant answers every call: built now
             self.library(True)
@@ -496,10 +501,10 @@ class CompiledSweep:
         certificates decided at ``pivot_tolerance`` and ``residual_tolerance`` (module docstring).  Real
         arithmetic where every term is real (undamped, ``s`` on the imaginary axis, real laws and torques)."""
         d, n = self.d, self.n
-        s = np.asarray(s, dtype=complex).reshape(-1)
+        s = np.ascontiguousarray(np.asarray(s, dtype=complex).reshape(-1))
         if np.any(np.imag(loads)):
             raise ModelError("CompiledSweep.solve: loads must be real body load columns (the planar ports' are)")
-        loads = np.asarray(np.real(loads), dtype=float)
+        loads = np.ascontiguousarray(np.real(loads), dtype=float)
         torques = np.asarray(torques)
         real = self.undamped and not np.any(s.real) and self.real_laws and not np.any(np.imag(torques))
         dtype = float if real else complex
@@ -523,12 +528,9 @@ class CompiledSweep:
         backward, good = np.empty(s.size), np.empty(s.size, dtype=np.intc)
         library = self.library(not real)
         status = library.sweep(
-            ctypes.c_int(n), ctypes.c_int(L), ctypes.c_int(s.size), _pointer(self.parent), _pointer(self.axis),
-            _pointer(flags), _pointer(self.M0), _pointer(self.C0), _pointer(self.K0), _pointer(self.Kin),
-            _pointer(self.RF), _pointer(self.G), _pointer(self.H), _pointer(stiffness), _pointer(damping),
-            _pointer(self.mass_pivot), _pointer(np.ascontiguousarray(loads)), _pointer(torque), _pointer(squared),
-            _pointer(rate), ctypes.c_double(pivot_tolerance),
-            ctypes.c_double(residual_tolerance), _pointer(x), _pointer(pivot), _pointer(backward), _pointer(good))
+            n, L, s.size, *self.addresses, _address(flags), *self.terms, *(_address(a) for a in (
+                stiffness, damping, self.mass_pivot, loads, torque, squared, rate)), pivot_tolerance,
+            residual_tolerance, *(_address(a) for a in (x, pivot, backward, good)))
         if status == -1:
             raise MemoryError(f"the compiled sweep could not allocate its work space ({n} bodies, {L} load cases)")
         if status != 0:
