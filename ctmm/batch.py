@@ -41,7 +41,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from . import validation
-from .batch_loops import LoopRun, run_members
+from .batch_loops import LoopRun, SharedSensors, run_members
 from .compiled_loops import ClosedLoops
 from .compiled_parameters import parameter_vector, structure_key
 from .compiled_spatial_parameters import spatial_parameter_vector
@@ -122,6 +122,7 @@ class ParameterKernel:
         self.kind = ("spatial" if spatial else "planar") + (" loops" if controlled else "")
         self.compile_time_s = 0.0
         self._scene: Any = None
+        self._sensors: SharedSensors | None = None
 
     def _check_outputs(self) -> None:
         if isinstance(self.plant, SpatialModel):
@@ -140,7 +141,7 @@ class ParameterKernel:
 
     def __getstate__(self) -> dict:
         """Picklable (process pools): the compiled scene is loaded again from the disk cache."""
-        return {**self.__dict__, "_scene": None}
+        return {**self.__dict__, "_scene": None, "_sensors": None}
 
     def scene(self) -> Any:
         """The shared compiled scene (numbers as inputs), built (or loaded from the cache) on first use."""
@@ -298,18 +299,27 @@ class ParameterKernel:
         ModelError
             A planar plant of another structure than the compiled one, a bad initial state.
         """
-        controlled = ControlledModel(plant, loops)
-        if isinstance(plant, SpatialModel):
-            from .compiled_spatial_loops import SpatialSymbols
+        from .compiled_loops import PlanarSymbols
+        from .compiled_spatial_loops import SpatialSymbols
 
-            numbers = spatial_parameter_vector(plant)
-            scene = self._loop_scene(controlled, references, SpatialSymbols(plant, controlled.ports, numbers.size),
-                                     numbers)
+        controlled = ControlledModel(plant, loops)
+        spatial = isinstance(plant, SpatialModel)
+        numbers = spatial_parameter_vector(plant) if spatial else parameter_vector(plant)
+        if spatial and any(layout is not None for layout in plant.modal):     # beam shapes from a set's numbers
+            symbols: Any = SpatialSymbols(plant, controlled.ports, numbers.size)
+        else:                               # the kernel's sensors, stated once (ctmm.batch_loops.SharedSensors)
+            if self._sensors is None:
+                ports = ControlledModel(self.plant, self.loops).ports
+                self._sensors = SharedSensors(SpatialSymbols(self.plant, ports, numbers.size) if spatial
+                                              else PlanarSymbols(self.plant, ports))
+            symbols = self._sensors
+        if spatial:
+            scene = self._loop_scene(controlled, references, symbols, numbers)
             state = initial_state(plant, x0, v0)
             q0, v0 = state[:plant.n_positions], state[plant.n_positions:]
             first = scene.loops.initial_state(np.asarray(q0, float), np.asarray(v0, float))
         else:
-            scene = self._loop_scene(controlled, references, None, parameter_vector(plant))
+            scene = self._loop_scene(controlled, references, symbols, numbers)
             if structure_key(plant) != self.scene().structure:
                 raise ModelError(f"parameters: model {plant.name!r} with these numbers has another structure than "
                                  "the compiled one; run it with ctmm.simulate without parameters=")

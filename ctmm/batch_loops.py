@@ -19,6 +19,11 @@ alone, so the same numbers to the bit).  Each set is then checked and stored fro
 ``"<loop>.y|u"`` from the set's own laws, ``outputs``, step check, divergence bound): a diverging set's rows turn
 non-finite without touching the others' and it fails alone, with its partial result.
 
+Every set states its loops on symbols again (its gains, references and controllers are its own); the loop
+sensors, functions of the state and the geometry only, are stated once per kernel (:class:`SharedSensors`) where
+no number of a set enters them: planar plants (geometry and beam data are structure) and spatial plants without
+modal beams (a beam's station shapes are computed from its data; those sets state their sensors per set).
+
 Co-simulated controllers (Python objects or FMUs) are called between sample intervals of each set: their sets
 run one by one (:meth:`ctmm.batch.ParameterKernel.run`).
 """
@@ -33,7 +38,7 @@ import numpy as np
 from .control.controlled_model import ControlledModel
 from .errors import ModelError
 
-__all__ = ["LoopRun", "run_members"]
+__all__ = ["LoopRun", "SharedSensors", "run_members"]
 
 
 @dataclass(frozen=True)
@@ -58,6 +63,45 @@ class LoopRun:
     q0: np.ndarray
     v0: np.ndarray
     first: np.ndarray
+
+
+class SharedSensors:
+    """A plant on symbols for :class:`~ctmm.compiled_loops.ClosedLoops` (``symbols=``) whose sensors are each
+    stated once and then called on the symbols of every later set (a ``casadi.Function`` of ``(q, v)``: the same
+    expression, no kinematics built again).
+
+    Parameters
+    ----------
+    symbols : PlanarSymbols or SpatialSymbols
+        The kernel's plant on symbols (:class:`~ctmm.compiled_loops.PlanarSymbols`,
+        :class:`~ctmm.compiled_spatial_loops.SpatialSymbols`); only for plants whose sensors hold no parameter.
+
+    Attributes
+    ----------
+    functions : dict of str to casadi.Function
+        ``sensor(q, v)`` by sensor name, filled at first use.
+    """
+
+    def __init__(self, symbols: Any) -> None:
+        self.symbols, self.ports = symbols, symbols.ports
+        self.n_positions, self.n_velocities = symbols.n_positions, symbols.n_velocities
+        self.parameter_count = getattr(symbols, "parameter_count", 0)
+        self.functions: dict[str, Any] = {}
+
+    def position_rates(self, q: Any, v: Any) -> Any:
+        """``q_dot`` on symbols (the plant's own rule)."""
+        return self.symbols.position_rates(q, v)
+
+    def sensor(self, name: str, q: Any, v: Any) -> Any:
+        """Sensor ``name`` on the symbols ``q``, ``v``: the expression stated once, called on them."""
+        import casadi as ca
+
+        function = self.functions.get(name)
+        if function is None:
+            q_first, v_first = ca.SX.sym("q", self.n_positions), ca.SX.sym("v", self.n_velocities)
+            function = ca.Function("sensor", [q_first, v_first], [self.symbols.sensor(name, q_first, v_first)])
+            self.functions[name] = function
+        return function(q, v)
 
 
 def run_members(scene: Any, runs: Sequence[LoopRun], dt: float, n_steps: int) -> tuple[np.ndarray, float]:
