@@ -40,7 +40,8 @@ Session 10: sets with loops are mapped too (``ctmm.batch_loops``: each set's con
 its state, its loop numbers in its parameter column).  ``--mapped`` measures three scenes, 64 sets x 500 steps each:
 the spatial chain above, the controlled planar pendulum of row 2 (real-time PD with a harmonic reference whose
 amplitude is swept, a loop delayed 3 steps) and a controlled spatial chain N = 4 (real-time joint-torque loop, a
-body force at a point delayed 2 steps); ``benchmarks/results/batch_parameters_mapped.json`` holds one row per scene.
+body force at a point delayed 2 steps), CPU best of 5 interleaved; ``benchmarks/results/batch_parameters_mapped.json``
+holds one row per scene.
 
 Run: ``python benchmarks/batch_parameters.py [--quick] [--rows 5] [--mapped]`` (``--rows``: only those rows, the
 others kept in the results file; ``--mapped``: only the mapped-against-set-by-set measurement).
@@ -262,7 +263,7 @@ def mapped_scene(label: str, base, sets: list, start: dict, steps: int, dt: floa
                  "set_by_set": lambda: [kernel.run(values, **start) for values in sets],
                  "mapped_c": mapped_c, "set_by_set_c": one_by_one_c}
         best = {name: float("inf") for name in timed}
-        for _ in range(3):
+        for _ in range(5):
             for name, call in timed.items():
                 clock = time.process_time()
                 call()
@@ -274,7 +275,7 @@ def mapped_scene(label: str, base, sets: list, start: dict, steps: int, dt: floa
            "equal_to_the_bit": equal, "compared": names,
            **{f"{name}_cpu_s": value for name, value in best.items()},
            **{f"{name}_sets_per_s": count / value for name, value in best.items()}}
-    print(f"{label}: {count} sets x {steps} steps (load {out['load']:.1f}), CPU best of 3 | whole batch: "
+    print(f"{label}: {count} sets x {steps} steps (load {out['load']:.1f}), CPU best of 5 | whole batch: "
           f"mapped {best['mapped'] * 1e3:.0f} ms ({count / best['mapped']:.0f} sets/s), set by set "
           f"{best['set_by_set'] * 1e3:.0f} ms ({count / best['set_by_set']:.0f} sets/s) | C runs alone: mapped "
           f"{best['mapped_c'] * 1e3:.1f} ms, one call per set {best['set_by_set_c'] * 1e3:.1f} ms | same bits: {equal}")
