@@ -36,6 +36,13 @@ interleaved, both the whole batch (results built and checked) and the C runs alo
 (``CompiledSpatialScene.run`` with ``parameters`` against one call per set); results in
 ``benchmarks/results/batch_parameters_mapped.json``.
 
+Session 10: sets with loops are mapped too (``ctmm.batch_loops``: each set's controller states and delay ring in
+its state, its loop numbers in its parameter column).  ``--mapped`` measures three scenes, 64 sets x 500 steps each:
+the spatial chain above, the controlled planar pendulum of row 2 (real-time PD with a harmonic reference whose
+amplitude is swept, a loop delayed 3 steps) and a controlled spatial chain N = 4 (real-time joint-torque loop, a
+body force at a point delayed 2 steps), CPU best of 5 interleaved; ``benchmarks/results/batch_parameters_mapped.json``
+holds one row per scene.
+
 Run: ``python benchmarks/batch_parameters.py [--quick] [--rows 5] [--mapped]`` (``--rows``: only those rows, the
 others kept in the results file; ``--mapped``: only the mapped-against-set-by-set measurement).
 """
@@ -213,54 +220,99 @@ def measure(row: dict) -> dict:
     return out
 
 
-def mapped_against_set_by_set(quick: bool) -> dict:
-    """Sets per CPU second of the spatial chain N = 5 (64 sets, 500 steps; ``quick``: 8 sets, 100 steps) mapped
-    (one C call per block over all sets) and set by set, on one compiled kernel (module docstring)."""
+def mapped_scene(label: str, base, sets: list, start: dict, steps: int, dt: float, names: list,
+                 references=None) -> dict:
+    """Sets per CPU second of ``sets`` on one compiled kernel of ``base``, mapped (one C call per block over all
+    sets) and set by set: the whole batch (results built and checked) and the C runs alone (module docstring)."""
     from ctmm.batch import ParameterKernel
+    from ctmm.batch_loops import run_members
     from ctmm.compiled_spatial_parameters import spatial_parameter_vector
+    from ctmm.parameter_sets import plant_and_loops
 
-    n, count, steps, dt = 5, 8 if quick else 64, 100 if quick else 500, 1e-3
-    rng = np.random.default_rng(9)
-    masses, stiff = rng.uniform(0.5, 2.0, (count, n)), rng.uniform(0.5, 5.0, (count, n))
-    sets = [{**{f"l{i}.mass": m[i] for i in range(n)}, **{f"j{i}.stiffness": k[i] for i in range(n)}}
-            for m, k in zip(masses, stiff)]
-    base = spatial_chain([1.0] * n, [1.0] * n)
-    start = {"x0": np.full(n, 0.2), "v0": None}
+    count = len(sets)
     with tempfile.TemporaryDirectory() as folder:
         os.environ["CTMM_CACHE"] = folder
-        kernel = ParameterKernel(base, steps * dt, dt)
+        kernel = ParameterKernel(base, steps * dt, dt, references=references)
         scene = kernel.scene()
         members = [kernel.member(values) for values in sets]
-        numbers = np.array([spatial_parameter_vector(member) for member in members])
-        x = np.concatenate([start["x0"], np.zeros(n)])
+        if kernel.kind == "spatial":
+            numbers = np.array([spatial_parameter_vector(member) for member in members])
+            x = np.concatenate([start["x0"], np.zeros(len(start["x0"]))])
 
-        def one_by_one_c() -> None:
-            for member in members:              # the shared scene with each set's numbers (as ParameterKernel.run)
-                member_scene = copy.copy(scene)
-                member_scene.parameters = spatial_parameter_vector(member)
-                member_scene.run(x, dt, steps)
+            def mapped_c() -> None:
+                scene.run(x, dt, steps, parameters=numbers)
+
+            def one_by_one_c() -> None:
+                for member in members:          # the shared scene with each set's numbers (as ParameterKernel.run)
+                    member_scene = copy.copy(scene)
+                    member_scene.parameters = spatial_parameter_vector(member)
+                    member_scene.run(x, dt, steps)
+        else:                               # loops: each set prepared on the kernel (its laws, numbers, state)
+            x0, v0 = kernel.start(start["x0"], start.get("v0"))
+            prepared = [kernel.loop_run(*plant_and_loops(member), kernel.space.references_with(values), x0, v0)
+                        for member, values in zip(members, sets)]
+
+            def mapped_c() -> None:
+                run_members(scene, prepared, kernel.step, steps)
+
+            def one_by_one_c() -> None:
+                for run in prepared:
+                    run.scene.run(run.q0, run.v0, kernel.step, steps)
 
         timed = {"mapped": lambda: kernel.run_mapped(sets, start),
                  "set_by_set": lambda: [kernel.run(values, **start) for values in sets],
-                 "mapped_c": lambda: scene.run(x, dt, steps, parameters=numbers),
-                 "set_by_set_c": one_by_one_c}
+                 "mapped_c": mapped_c, "set_by_set_c": one_by_one_c}
         best = {name: float("inf") for name in timed}
-        for _ in range(3):
+        for _ in range(5):
             for name, call in timed.items():
                 clock = time.process_time()
                 call()
                 best[name] = min(best[name], time.process_time() - clock)
         mapped = [result for result, _ in kernel.run_mapped(sets, start)]
         alone = [kernel.run(values, **start) for values in sets]
-    equal = all(np.array_equal(a[name], b[name]) for a, b in zip(mapped, alone) for name in base.coordinates)
-    out = {"scene": f"spatial chain N = {n}", "sets": count, "steps": steps, "load": os.getloadavg()[0],
-           "equal_to_the_bit": equal, **{f"{name}_cpu_s": value for name, value in best.items()},
+    equal = all(np.array_equal(a[name], b[name]) for a, b in zip(mapped, alone) for name in names)
+    out = {"scene": label, "kind": kernel.kind, "sets": count, "steps": steps, "load": os.getloadavg()[0],
+           "equal_to_the_bit": equal, "compared": names,
+           **{f"{name}_cpu_s": value for name, value in best.items()},
            **{f"{name}_sets_per_s": count / value for name, value in best.items()}}
-    print(f"{out['scene']}: {count} sets x {steps} steps (load {out['load']:.1f}), CPU best of 3 | whole batch: "
+    print(f"{label}: {count} sets x {steps} steps (load {out['load']:.1f}), CPU best of 5 | whole batch: "
           f"mapped {best['mapped'] * 1e3:.0f} ms ({count / best['mapped']:.0f} sets/s), set by set "
           f"{best['set_by_set'] * 1e3:.0f} ms ({count / best['set_by_set']:.0f} sets/s) | C runs alone: mapped "
           f"{best['mapped_c'] * 1e3:.1f} ms, one call per set {best['set_by_set_c'] * 1e3:.1f} ms | same bits: {equal}")
     return out
+
+
+def mapped_against_set_by_set(quick: bool) -> list[dict]:
+    """Mapped against set by set (:func:`mapped_scene`): the spatial chain N = 5 without loops, a looped planar
+    double pendulum (real-time PD with a harmonic reference, a loop delayed 3 steps) and a looped spatial chain
+    N = 4 (a real-time joint-torque loop, a body force delayed 2 steps); 64 sets x 500 steps (``quick``: 8 x 100)."""
+    from ctmm.signals import Harmonic
+
+    count, steps, dt = 8 if quick else 64, 100 if quick else 500, 1e-3
+    rng = np.random.default_rng(9)
+    n = 5
+    masses, stiff = rng.uniform(0.5, 2.0, (count, n)), rng.uniform(0.5, 5.0, (count, n))
+    rows = [mapped_scene(f"spatial chain N = {n}", spatial_chain([1.0] * n, [1.0] * n),
+                         [{**{f"l{i}.mass": m[i] for i in range(n)}, **{f"j{i}.stiffness": k[i] for i in range(n)}}
+                          for m, k in zip(masses, stiff)], {"x0": np.full(n, 0.2), "v0": None}, steps, dt,
+                         [f"j{i}.angle" for i in range(n)])]
+    gains = rng.uniform(2.0, 12.0, (count, 4))
+    rows.append(mapped_scene("controlled planar pendulum (PD + harmonic reference + delayed loop)",
+                             controlled_pendulum(4.0, -1.0, 1.0),
+                             [{"pd.gain": g[0], "late.gain": -0.2 * g[1], "l0.mass": g[2] / 6.0,
+                               "l0.inertia": g[2] / 72.0, "pd.reference.amplitude": 0.02 * g[3]} for g in gains],
+                             {"x0": np.array([0.4, -0.3])}, steps, dt,
+                             ["l0.theta", "l1.theta", "pd.u", "late.y", "late.u"],
+                             references={"pd": Harmonic(0.1, 7.0, 0.0)}))
+    plant_masses = rng.uniform(0.5, 2.0, (count, 4))
+    looped = ControlledModel(spatial_chain([1.0] * 4, [1.0] * 4, actuated=True),
+                             [Feedback("hold", "j1.angle", "j1.torque", gain=3.0),
+                              Feedback("push", "l3.end.vz", "l3.end.force_z", gain=0.5, delay=2 * dt)])
+    rows.append(mapped_scene("controlled spatial chain N = 4 (joint-torque loop + delayed body force)", looped,
+                             [{"hold.gain": 4.0 * m[0], "push.gain": m[1] - 1.0,
+                               **{f"l{i}.mass": m[i] for i in range(4)}} for m in plant_masses],
+                             {"x0": np.full(4, 0.2)}, steps, dt, ["j0.angle", "j3.angle", "hold.u", "push.u"]))
+    return rows
 
 
 def main() -> None:
@@ -269,14 +321,14 @@ def main() -> None:
     parser.add_argument("--rows", type=int, nargs="+", help="measure only these rows (1-based); the others are "
                         "kept from the written results")
     parser.add_argument("--mapped", action="store_true", help="only the mapped-against-set-by-set measurement "
-                        "(spatial chain N = 5 x 64 sets)")
+                        "(spatial chain N = 5, looped planar pendulum, looped spatial chain N = 4; 64 sets each)")
     args = parser.parse_args()
     if args.mapped:
-        out = mapped_against_set_by_set(args.quick)
+        rows = mapped_against_set_by_set(args.quick)
         if not args.quick:
             target = ROOT / "benchmarks" / "results" / "batch_parameters_mapped.json"
             target.write_text(json.dumps({"machine": platform.platform(), "python": platform.python_version(),
-                                          "cpus": os.cpu_count(), **out}, indent=2) + "\n")
+                                          "cpus": os.cpu_count(), "rows": rows}, indent=2) + "\n")
             print(f"written {target}")
         return
     chosen = scenes(args.quick)

@@ -22,10 +22,11 @@ spatial model with loops, port inputs,     :class:`~ctmm.compiled_spatial_loops.
 
 :func:`simulate_batch` runs the sets in a loop (or on any executor, :mod:`ctmm.executors`) with
 progress output; a set that fails is reported with its index and exception and the others are kept.
-Sequential planar and spatial sets without loops run their RK4 together: one C call per block for all sets
+Sequential planar and spatial sets run their RK4 together: one C call per block for all sets
 (``casadi.Function.map``, serial, :meth:`ParameterKernel.run_mapped`), each set then checked and stored
-as alone, with the same numbers.  Sets with loops, ``references``, port inputs or ``outputs`` of a spatial
-model, or co-simulated controllers run set by set (their loop laws and stored loop signals are per set).
+as alone, with the same numbers.  With loops, ``references``, inputs or spatial ``outputs`` each set's
+controller states and delay ring are part of its state and its loop numbers of its parameter column
+(:mod:`ctmm.batch_loops`).  Co-simulated controllers run set by set (called between sample intervals).
 """
 from __future__ import annotations
 
@@ -40,6 +41,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from . import validation
+from .batch_loops import LoopRun, SharedSensors, run_members
 from .compiled_loops import ClosedLoops
 from .compiled_parameters import parameter_vector, structure_key
 from .compiled_spatial_parameters import spatial_parameter_vector
@@ -47,7 +49,7 @@ from .control.controlled_model import ControlledModel
 from .control.protocol import check_controllers
 from .errors import ModelError, SimulationError, unknown_name
 from .executors import parallel_map
-from .parameter_sets import ParameterSpace, plant_and_loops
+from .parameter_sets import ParameterSpace, parameter_set_list, plant_and_loops
 from .planar.integrate import coordinate_values, initial_coordinates, step_total, to_result
 from .planar.model import PlanarModel
 from .results import SimulationResult
@@ -120,6 +122,7 @@ class ParameterKernel:
         self.kind = ("spatial" if spatial else "planar") + (" loops" if controlled else "")
         self.compile_time_s = 0.0
         self._scene: Any = None
+        self._sensors: SharedSensors | None = None
 
     def _check_outputs(self) -> None:
         if isinstance(self.plant, SpatialModel):
@@ -138,7 +141,7 @@ class ParameterKernel:
 
     def __getstate__(self) -> dict:
         """Picklable (process pools): the compiled scene is loaded again from the disk cache."""
-        return {**self.__dict__, "_scene": None}
+        return {**self.__dict__, "_scene": None, "_sensors": None}
 
     def scene(self) -> Any:
         """The shared compiled scene (numbers as inputs), built (or loaded from the cache) on first use."""
@@ -201,10 +204,11 @@ class ParameterKernel:
 
     def _finish(self, values: Mapping[str, Any], member: Any, *, x0: Any = None, v0: Any = None,
                 divergence_bound: float | None = None, stability_check: str | None = None,
-                ran: tuple[np.ndarray, float] | None = None) -> SimulationResult:
+                ran: tuple[np.ndarray, float] | None = None, prepared: LoopRun | None = None) -> SimulationResult:
         """:meth:`run` of the set ``values`` whose system ``member`` :meth:`member` built (certified: the
         structure and parameter vector of the compiled one); ``ran``: its stored states and wall time [s]
-        computed already (a set of :meth:`run_mapped`)."""
+        computed already (a set of :meth:`run_mapped`), of a kernel with loops from ``prepared``
+        (:meth:`loop_run`)."""
         references = self.space.references_with(values)
         values = {name: float(value) for name, value in values.items()}
         plant, loops = plant_and_loops(member)
@@ -215,32 +219,32 @@ class ParameterKernel:
         if self.controllers:
             result = self._run_cosimulated(plant, loops, references, x0, v0, divergence_bound, policy)
         elif self.kind.startswith("spatial"):
-            result = self._run_spatial(plant, loops, references, x0, v0, divergence_bound, ran)
+            result = self._run_spatial(plant, loops, references, x0, v0, divergence_bound, ran, prepared)
         else:
-            result = self._run_planar(plant, loops, references, x0, v0, divergence_bound, policy, ran)
+            result = self._run_planar(plant, loops, references, x0, v0, divergence_bound, policy, ran, prepared)
         result.info.update(parameters=dict(values), kernel="shared")
         return result
 
     def run_mapped(self, sets: Sequence[Mapping[str, Any]], start: Mapping[str, Any]) -> list[tuple]:
-        """``(result, None)`` or ``(None, exception)`` of each set of a kernel without loops (``kind``
-        ``"planar"`` or ``"spatial"``), their RK4 in one C call per block over all sets
-        (``casadi.Function.map``, serial: :func:`ctmm.compiled_scene.simulate_batch`,
-        :meth:`ctmm.compiled_spatial.CompiledSpatialScene.run` with ``parameters``); each set then checked
-        and stored as by :meth:`run`, with the same numbers (the same compiled block per set; a diverging
-        set fails alone).  ``start``: the keyword arguments of :meth:`run`.
+        """``(result, None)`` or ``(None, exception)`` of each set, their RK4 in one C call per block over all
+        sets (``casadi.Function.map``, serial: :func:`ctmm.compiled_scene.simulate_batch`,
+        :meth:`ctmm.compiled_spatial.CompiledSpatialScene.run` with ``parameters``; with loops each set's
+        controller states, delay ring and loop numbers per member, :func:`ctmm.batch_loops.run_members`); each
+        set then checked and stored as by :meth:`run`, with the same numbers (the same compiled block per set; a
+        diverging set fails alone).  ``start``: the keyword arguments of :meth:`run`.
 
         Raises
         ------
         ModelError
-            A kernel with loops, ``references``, port inputs, ``outputs`` of a spatial model or co-simulated
-            ``controllers`` (``kind`` ending in ``" loops"``): their loop laws are per set; run them by :meth:`run`.
+            A kernel with co-simulated ``controllers`` (called between sample intervals of each set): run its
+            sets by :meth:`run`.
         """
         from .compiled_scene import simulate_batch as scene_batch
 
-        if self.kind not in ("planar", "spatial"):
-            raise ModelError(f"run_mapped runs planar and spatial kernels without loops, references, port inputs, "
-                             f"outputs of spatial models or controllers; this kernel is {self.kind!r} (run its sets "
-                             "one by one, ParameterKernel.run)")
+        if self.controllers:
+            raise ModelError(f"run_mapped runs planar and spatial kernels with or without loops; this {self.kind!r} "
+                             f"kernel has co-simulated controllers ({len(self.controllers)}), called between sample "
+                             "intervals of each set (run its sets one by one, ParameterKernel.run)")
         members: list = []
         for values in sets:
             try:
@@ -252,7 +256,20 @@ class ParameterKernel:
         if not built:
             return runs
         n_steps = step_total(self.t_final, self.dt)
-        if self.kind == "spatial":          # as simulate_spatial_generated: steps of dt from the checked state
+        prepared: dict[int, LoopRun] = {}
+        if self.kind.endswith(" loops"):    # each set's loop laws, controller states and ring per member
+            x0, v0 = self.start(start.get("x0"), start.get("v0"))
+            for k in built:
+                try:
+                    plant, loops = plant_and_loops(members[k][0])
+                    prepared[k] = self.loop_run(plant, loops, self.space.references_with(sets[k]), x0, v0)
+                except Exception as exc:  # noqa: BLE001 - as above
+                    runs[k] = None, exc
+            built = list(prepared)
+            if not built:
+                return runs
+            states, wall = run_members(self.scene(), [prepared[k] for k in built], self.step, n_steps)
+        elif self.kind == "spatial":        # as simulate_spatial_generated: steps of dt from the checked state
             numbers = np.array([spatial_parameter_vector(members[k][0]) for k in built])
             x = initial_state(self.plant, start.get("x0"), start.get("v0"))
             clock = time.perf_counter()
@@ -262,21 +279,61 @@ class ParameterKernel:
             numbers = np.array([parameter_vector(members[k][0]) for k in built])
             clock = time.perf_counter()
             states = scene_batch(self.scene(), numbers, q0, qdot0, dt=self.t_final / n_steps, n_steps=n_steps)
-        wall = (time.perf_counter() - clock) / len(built)
+        if not prepared:
+            wall = (time.perf_counter() - clock) / len(built)
         for index, k in enumerate(built):
             try:
-                runs[k] = self._finish(sets[k], members[k][0], **start, ran=(states[index], wall)), None
+                runs[k] = self._finish(sets[k], members[k][0], **start, ran=(states[index], wall),
+                                       prepared=prepared.get(k)), None
             except Exception as exc:  # noqa: BLE001 - as above
                 runs[k] = None, exc
         return runs
 
+    def loop_run(self, plant: Any, loops: tuple, references: dict, x0: Any, v0: Any) -> LoopRun:
+        """A set's run with loops prepared on the shared kernel (:class:`~ctmm.batch_loops.LoopRun`): the
+        controlled model of its ``plant`` and ``loops``, the scene with its loop laws, ``references`` and
+        numbers (:meth:`_loop_scene`), its initial state; ``x0``, ``v0`` as :meth:`start` gives them.
+
+        Raises
+        ------
+        ModelError
+            A planar plant of another structure than the compiled one, a bad initial state.
+        """
+        from .compiled_loops import PlanarSymbols
+        from .compiled_spatial_loops import SpatialSymbols
+
+        controlled = ControlledModel(plant, loops)
+        spatial = isinstance(plant, SpatialModel)
+        numbers = spatial_parameter_vector(plant) if spatial else parameter_vector(plant)
+        if spatial and any(layout is not None for layout in plant.modal):     # beam shapes from a set's numbers
+            symbols: Any = SpatialSymbols(plant, controlled.ports, numbers.size)
+        else:                               # the kernel's sensors, stated once (ctmm.batch_loops.SharedSensors)
+            if self._sensors is None:
+                ports = ControlledModel(self.plant, self.loops).ports
+                self._sensors = SharedSensors(SpatialSymbols(self.plant, ports, numbers.size) if spatial
+                                              else PlanarSymbols(self.plant, ports))
+            symbols = self._sensors
+        if spatial:
+            scene = self._loop_scene(controlled, references, symbols, numbers)
+            state = initial_state(plant, x0, v0)
+            q0, v0 = state[:plant.n_positions], state[plant.n_positions:]
+            first = scene.loops.initial_state(np.asarray(q0, float), np.asarray(v0, float))
+        else:
+            scene = self._loop_scene(controlled, references, symbols, numbers)
+            if structure_key(plant) != self.scene().structure:
+                raise ModelError(f"parameters: model {plant.name!r} with these numbers has another structure than "
+                                 "the compiled one; run it with ctmm.simulate without parameters=")
+            q0, v0 = x0, v0         # the start of CompiledScene.checked_run (simulate_controlled_generated)
+            first = scene.loops.initial_state(*plant.state(*initial_coordinates(plant, q0, v0)))
+        return LoopRun(controlled, scene, q0, v0, first)
+
     def _run_planar(self, plant: PlanarModel, loops: tuple, references: dict, x0: Any, v0: Any, bound: Any,
-                    policy: str, ran: tuple[np.ndarray, float] | None = None) -> SimulationResult:
+                    policy: str, ran: tuple[np.ndarray, float] | None = None,
+                    prepared: LoopRun | None = None) -> SimulationResult:
         from .compiled_control import simulate_controlled_generated
         from .compiled_scene import simulate_rk4_generated
 
         q0, qdot0 = x0, v0
-        base = self.scene()
         if self.kind == "planar":
             try:
                 simulation = simulate_rk4_generated(plant, q0, qdot0, t_final=self.t_final, dt=self.dt,
@@ -288,15 +345,11 @@ class ParameterKernel:
                                                    info={"dt": self.dt, "failed": True})
                 raise
             return to_result(simulation, outputs=self.outputs, info={"dt": self.dt})
-        controlled = ControlledModel(plant, loops)
-        scene = self._loop_scene(controlled, references, None, parameter_vector(plant))
-        if structure_key(plant) != base.structure:
-            raise ModelError(f"parameters: model {plant.name!r} with these numbers has another structure than the "
-                             "compiled one; run it with ctmm.simulate without parameters=")
-        return simulate_controlled_generated(controlled, q0, qdot0, t_final=self.t_final, dt=self.dt,
+        run = prepared or self.loop_run(plant, loops, references, q0, qdot0)
+        return simulate_controlled_generated(run.controlled, run.q0, run.v0, t_final=self.t_final, dt=self.dt,
                                              inputs=self.inputs, references=references, outputs=self.outputs,
                                              store_every=self.store_every, divergence_bound=bound,
-                                             stability_check=policy, scene=scene)
+                                             stability_check=policy, scene=run.scene, ran=ran)
 
     def _member_scene(self, plant: PlanarModel) -> Any:
         """The shared planar scene with the numbers of ``plant``, a member certified by :meth:`member` (its
@@ -307,7 +360,7 @@ class ParameterKernel:
         return scene
 
     def _run_spatial(self, plant: SpatialModel, loops: tuple, references: dict, x0: Any, v0: Any, bound: Any,
-                     ran: tuple[np.ndarray, float] | None = None) -> SimulationResult:
+                     ran: tuple[np.ndarray, float] | None = None, prepared: LoopRun | None = None) -> SimulationResult:
         from .compiled_control import simulate_spatial_controlled_generated
         from .compiled_spatial import simulate_spatial_generated
 
@@ -320,16 +373,11 @@ class ParameterKernel:
             return simulate_spatial_generated(plant, self.t_final, self.dt, x0=x0, v0=v0, inputs=self.inputs or None,
                                               store_every=self.store_every, divergence_bound=bound, scene=scene,
                                               ran=ran)
-        from .compiled_spatial_loops import SpatialSymbols
-
-        controlled = ControlledModel(plant, loops)
-        numbers = spatial_parameter_vector(plant)
-        scene = self._loop_scene(controlled, references, SpatialSymbols(plant, controlled.ports, numbers.size), numbers)
-        state = initial_state(plant, x0, v0)
+        run = prepared or self.loop_run(plant, loops, references, x0, v0)
         return simulate_spatial_controlled_generated(
-            controlled, state[:plant.n_positions], state[plant.n_positions:], t_final=self.t_final, dt=self.dt,
-            inputs=self.inputs, references=references, outputs=self.outputs, store_every=self.store_every,
-            divergence_bound=bound, scene=scene)
+            run.controlled, run.q0, run.v0, t_final=self.t_final, dt=self.dt, inputs=self.inputs,
+            references=references, outputs=self.outputs, store_every=self.store_every, divergence_bound=bound,
+            scene=run.scene, ran=ran)
 
     def _run_cosimulated(self, plant: Any, loops: tuple, references: dict, x0: Any, v0: Any, bound: Any,
                          policy: str) -> SimulationResult:
@@ -487,9 +535,9 @@ def simulate_batch(system: Any, parameter_sets: Any, t_final: float, dt: float, 
         As :func:`ctmm.simulate` with ``compiled=True`` (the same for every set).
     executor : None, "threads", "processes" or Executor
         Where the sets run (:func:`ctmm.executors.parallel_map`): sequentially or on threads every set
-        runs on the one compiled scene (sequentially, planar and spatial models without loops, references,
-        spatial port inputs or outputs: the RK4 of all sets in one C call per block,
-        :meth:`ParameterKernel.run_mapped`, unless ``progress=True``, which steps set by set to report each); a
+        runs on the one compiled scene (sequentially: the RK4 of all sets in one C call per block, with loops
+        each set's controller states, delay ring and loop numbers per member, :meth:`ParameterKernel.run_mapped`,
+        unless ``progress=True``, which steps set by set to report each); a
         process pool or another executor receives chunks of sets
         (about four per CPU) and the kernel without its scene, which each chunk builds again from the
         disk cache (the C text generated again, nothing compiled).  Each set also builds and checks its
@@ -512,7 +560,7 @@ def simulate_batch(system: Any, parameter_sets: Any, t_final: float, dt: float, 
     ModelError
         Bad arguments; a set with unknown names (the allowed ones listed) or bad values, with its index.
     """
-    sets = _parameter_sets(parameter_sets)
+    sets = parameter_set_list(parameter_sets)
     kernel = ParameterKernel(system, t_final, dt, store_every=store_every, inputs=inputs, references=references,
                              outputs=outputs, cache_dir=cache_dir)
     for index, values in enumerate(sets):
@@ -526,7 +574,7 @@ def simulate_batch(system: Any, parameter_sets: Any, t_final: float, dt: float, 
     kernel.scene()                                  # compiled (or loaded) once, before the sets
     start = {"x0": x0, "v0": v0, "divergence_bound": divergence_bound, "stability_check": stability_check}
     clock = time.perf_counter()
-    if executor is None and kernel.kind in ("planar", "spatial") and progress is not True:  # one C call per block
+    if executor is None and progress is not True:      # one C call per block for all sets (controllers: one by one)
         runs = kernel.run_mapped(sets, start)
     elif executor is None or (isinstance(executor, str) and executor == "threads") or \
             isinstance(executor, ThreadPoolExecutor):       # one scene shared by every set
@@ -542,20 +590,3 @@ def simulate_batch(system: Any, parameter_sets: Any, t_final: float, dt: float, 
                        {k: error for k, (_, error) in enumerate(runs) if error is not None},
                        kernel.compile_time_s, wall)
 
-
-def _parameter_sets(parameter_sets: Any) -> list[dict]:
-    """A list of ``{name: number}`` from a sequence of mappings or a mapping of columns."""
-    if isinstance(parameter_sets, Mapping):
-        columns = {name: np.atleast_1d(validation.finite_array(f"parameter_sets[{name!r}]", values))
-                   for name, values in parameter_sets.items()}
-        lengths = {column.shape for column in columns.values()}
-        if len(lengths) != 1 or len(next(iter(lengths))) != 1 or next(iter(lengths))[0] < 1:
-            raise ModelError(f"parameter_sets as a mapping must hold equally long 1-D columns (non-empty) {{name: "
-                             f"[value per set]}}, got shapes {sorted(lengths)}: {parameter_sets!r:.80}")
-        count = next(iter(lengths))[0]
-        return [{name: float(column[k]) for name, column in columns.items()} for k in range(count)]
-    if isinstance(parameter_sets, (str, bytes)) or not isinstance(parameter_sets, Sequence) or not parameter_sets \
-            or not all(isinstance(values, Mapping) for values in parameter_sets):
-        raise ModelError(f"parameter_sets must be a non-empty sequence of mappings {{name: number}} or a mapping "
-                         f"{{name: [value per set]}}, got {parameter_sets!r}")
-    return [dict(values) for values in parameter_sets]

@@ -37,7 +37,8 @@ def simulate_controlled_generated(controlled: ControlledModel, q0: Any, qdot0: A
                                   references: Mapping[str, Any] | None = None, outputs: Sequence[str] = (),
                                   store_every: int = 1, divergence_bound: float | None = None,
                                   stability_check: str = "warn", cache_dir: str | os.PathLike | None = None,
-                                  scene: CompiledScene | None = None) -> SimulationResult:
+                                  scene: CompiledScene | None = None,
+                                  ran: tuple[np.ndarray, float] | None = None) -> SimulationResult:
     """Fixed-step RK4 of ``controlled`` with its loops closed in generated C.
 
     Parameters
@@ -63,6 +64,9 @@ def simulate_controlled_generated(controlled: ControlledModel, q0: Any, qdot0: A
         Of :func:`ctmm.codegen.shared_library`.
     scene : CompiledScene, optional
         A scene of ``controlled`` built with this step, ``store_every``, inputs and references, to reuse.
+    ran : (ndarray, float), optional
+        The stored states of this run and its wall time [s], computed already as one member of a batch
+        (:mod:`ctmm.batch_loops`; the scene's :meth:`~ctmm.compiled_scene.CompiledScene.run` is not called).
 
     Returns
     -------
@@ -92,7 +96,7 @@ def simulate_controlled_generated(controlled: ControlledModel, q0: Any, qdot0: A
         raise ModelError(f"scene must be a CompiledScene of this controlled model with store_every={store_every!r}, "
                          f"got {scene!r}")
     guard = divergence_guard(model, q, divergence_bound)
-    t, full, wall = scene.checked_run(q, v, h, n_steps, stability_check)
+    t, full, wall = scene.checked_run(q, v, h, n_steps, stability_check, ran=ran)
     n = model.n_coordinates
     signals_of = scene.loops.signals()
     info = {"dt": h, "method": "rk4-generated", "compile_time_s": scene.compile_time_s, "wall_time_s": wall,
@@ -120,7 +124,8 @@ def simulate_spatial_controlled_generated(controlled: ControlledModel, q0: np.nd
                                           references: Mapping[str, Any] | None = None, outputs: Sequence[str] = (),
                                           store_every: int = 1, divergence_bound: float | None = None,
                                           cache_dir: str | os.PathLike | None = None,
-                                          scene: Any = None) -> SimulationResult:
+                                          scene: Any = None, ran: tuple[np.ndarray, float] | None = None
+                                          ) -> SimulationResult:
     """Fixed-step RK4 of a controlled spatial model with its loops closed in generated C.
 
     Parameters
@@ -144,6 +149,9 @@ def simulate_spatial_controlled_generated(controlled: ControlledModel, q0: np.nd
         Of :func:`ctmm.codegen.shared_library`.
     scene : CompiledControlledSpatial, optional
         A compiled kernel of ``controlled`` with this step, ``store_every``, inputs and references, to reuse.
+    ran : (ndarray, float), optional
+        The stored states of this run and its wall time [s], computed already as one member of a batch
+        (:mod:`ctmm.batch_loops`; the scene's ``run`` is not called).
 
     Returns
     -------
@@ -175,9 +183,12 @@ def simulate_spatial_controlled_generated(controlled: ControlledModel, q0: np.nd
             scene.store_every != store_every:
         raise ModelError(f"scene must be a CompiledControlledSpatial of this controlled model with store_every="
                          f"{store_every!r}, got {scene!r}")
-    start = time.perf_counter()
-    first, states = scene.run(q0, v0, h, n_steps)
-    wall = time.perf_counter() - start
+    if ran is None:
+        start = time.perf_counter()
+        first, states = scene.run(q0, v0, h, n_steps)
+        wall = time.perf_counter() - start
+    else:                               # one member of a batch: the initial state as scene.run states it
+        first, (states, wall) = scene.loops.initial_state(np.asarray(q0, float), np.asarray(v0, float)), ran
     steps = np.array([k for k in range(1, n_steps + 1) if k % store_every == 0 or k == n_steps])[:len(states)]
     t = np.concatenate([[0.0], steps * h])
     full = np.vstack([first[None], states])

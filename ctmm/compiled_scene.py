@@ -371,6 +371,13 @@ class CompiledScene:
         return run_blocks(self._blocks, self._stride, self._step, self.store_every, state[:, None], held, dt,
                           n_steps, 0.0, self.parameters[:, None], first_step=first_step, runner=runner)[0]
 
+    def run_members(self, states: np.ndarray, parameters: np.ndarray, dt: float, n_steps: int) -> np.ndarray:
+        """Stored states (B, rows, :attr:`state_size`) of B members run together from ``t = 0`` without held
+        inputs, one C call per block for all (``casadi.Function.map``, serial; :mod:`ctmm.batch_loops`): whole
+        initial states ``states`` (state size, B), parameter columns ``parameters`` (parameters, B); each member's
+        rows are those of :meth:`run` of it alone (a non-finite member does not stop the others)."""
+        return self._run_batch(states, self._inputs(None), dt, n_steps, 0.0, parameters, "serial", 1)
+
     def _run(self, y: np.ndarray, u: np.ndarray, h: float, n_steps: int, t0: float) -> np.ndarray:
         return self._run_batch(y[:, None], u, h, n_steps, t0, self.parameters[:, None], "serial", 1)[0]
 

@@ -246,6 +246,14 @@ class CompiledControlledSpatial:
         return run_blocks(self._blocks, self._stride, self._step, self.store_every, state[:, None], held, dt,
                           n_steps, 0.0, self.parameters[:, None], first_step=first_step, runner=runner)[0]
 
+    def run_members(self, states: np.ndarray, parameters: np.ndarray, dt: float, n_steps: int) -> np.ndarray:
+        """Stored states (B, rows, state size) of B members run together from ``t = 0``, one C call per block for
+        all (``casadi.Function.map``, serial; :mod:`ctmm.batch_loops`): whole initial states ``states`` (state
+        size, B), parameter columns ``parameters`` (parameters, B); each member's rows are those of :meth:`run` of
+        it alone (a non-finite member does not stop the others)."""
+        return run_blocks(self._blocks, self._stride, self._step, self.store_every, states,
+                          np.zeros(len(self.actuators)), dt, n_steps, 0.0, parameters)
+
     def run(self, q0: np.ndarray, v0: np.ndarray, dt: float, n_steps: int) -> tuple[np.ndarray, np.ndarray]:
         """The initial state ``[q, v, z, ring]`` and the stored states (rows, state size) after each
         ``store_every`` steps and after the last of ``n_steps`` RK4 steps of ``dt`` [s] from ``t = 0``;

@@ -33,10 +33,11 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from . import validation
 from .compiled_parameters import parameter_vector, structure_key
 from .compiled_spatial_beam_numbers import BEAM_NUMBERS, beam_numbers
 from .compiled_spatial_parameters import (INERTIA_ENTRIES, spatial_parameter_layout, spatial_parameter_vector,
@@ -50,7 +51,8 @@ from .spatial.model import SpatialModel
 
 _BEAM_KINDS = tuple(kind for kind, _ in BEAM_NUMBERS)
 
-__all__ = ["ParameterSpace", "parameter_names", "parameter_values", "plant_and_loops", "with_parameters"]
+__all__ = ["ParameterSpace", "parameter_names", "parameter_set_list", "parameter_values", "plant_and_loops",
+           "with_parameters"]
 
 _HINGE_FIELDS = {"stiffness": ("stiffness", "kp"), "damping": ("damping", "kd"),
                  "reference": ("reference", "rest_angle"), "reference_rate": ("reference_rate",),
@@ -315,3 +317,27 @@ def _certify(name: str, got: np.ndarray, expected: np.ndarray, same_structure: b
                          "vector or structure (an element class that keeps the number elsewhere); build the model "
                          "with these numbers and run it without parameters=")
 
+
+def parameter_set_list(parameter_sets: Any) -> list[dict]:
+    """A list of ``{name: number}`` from a sequence of mappings or a mapping of equally long columns
+    ``{name: [value per set]}`` (the ``parameter_sets`` of :func:`ctmm.simulate_batch`; names checked later).
+
+    Raises
+    ------
+    ModelError
+        Neither form, empty, columns of different lengths or with non-finite values.
+    """
+    if isinstance(parameter_sets, Mapping):
+        columns = {name: np.atleast_1d(validation.finite_array(f"parameter_sets[{name!r}]", values))
+                   for name, values in parameter_sets.items()}
+        lengths = {column.shape for column in columns.values()}
+        if len(lengths) != 1 or len(next(iter(lengths))) != 1 or next(iter(lengths))[0] < 1:
+            raise ModelError(f"parameter_sets as a mapping must hold equally long 1-D columns (non-empty) {{name: "
+                             f"[value per set]}}, got shapes {sorted(lengths)}: {parameter_sets!r:.80}")
+        count = next(iter(lengths))[0]
+        return [{name: float(column[k]) for name, column in columns.items()} for k in range(count)]
+    if isinstance(parameter_sets, (str, bytes)) or not isinstance(parameter_sets, Sequence) or not parameter_sets \
+            or not all(isinstance(values, Mapping) for values in parameter_sets):
+        raise ModelError(f"parameter_sets must be a non-empty sequence of mappings {{name: number}} or a mapping "
+                         f"{{name: [value per set]}}, got {parameter_sets!r}")
+    return [dict(values) for values in parameter_sets]

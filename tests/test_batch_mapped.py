@@ -1,4 +1,4 @@
-"""``ctmm.simulate_batch`` of planar and spatial sets without loops runs their RK4 in one C call per block over
+"""``ctmm.simulate_batch`` of planar and spatial sets runs their RK4 in one C call per block over
 all sets (``casadi.Function.map``, ctmm.batch.ParameterKernel.run_mapped): every result equals, to the bit, the
 run of its set alone (the per-set path, executor="threads"); a diverging set fails alone, as in the per-set path.
 The per-set path itself is checked against models built with the sets' numbers in tests/test_batch.py (whose
@@ -25,6 +25,21 @@ from test_batch import DT, PLANAR_SETS, SPATIAL_SETS, X0, V0, arm, spatial_arm  
 
 T_FINAL = 0.1
 NAMES = ["rod.theta", "fore.theta", "rod.theta_dot", "fore.theta_dot", "fore.out.y"]
+
+
+def assert_fails_alone(mapped, alone, failed: list, names: list, partial_names: list) -> None:
+    """The sets ``failed`` failed on both paths with the same error and partial result; the others equal to the bit."""
+    assert sorted(mapped.failures) == sorted(alone.failures) == failed
+    for k in failed:
+        assert isinstance(mapped.failures[k], SimulationError) and type(mapped.failures[k]) is type(alone.failures[k])
+        assert str(mapped.failures[k]) == str(alone.failures[k])
+        partial, partial_alone = mapped.failures[k].partial_result, alone.failures[k].partial_result
+        assert np.array_equal(partial.time, partial_alone.time)
+        for name in partial_names:
+            assert np.array_equal(partial[name], partial_alone[name]), (k, name)
+    for k in sorted(set(range(len(mapped.results))) - set(failed)):
+        for name in names:
+            assert np.array_equal(mapped.results[k][name], alone.results[k][name]), (k, name)
 
 
 def test_mapped_sets_equal_each_set_run_alone_to_the_bit(tmp_path, monkeypatch) -> None:
@@ -59,16 +74,10 @@ def test_a_diverging_set_fails_alone_as_in_the_per_set_path(tmp_path, monkeypatc
     options = dict(x0=X0, v0=V0, divergence_bound=50.0, stability_check="ignore")
     mapped = ctmm.simulate_batch(arm(), sets, T_FINAL, DT, **options)
     alone = ctmm.simulate_batch(arm(), sets, T_FINAL, DT, executor="threads", **options)
-    assert sorted(mapped.failures) == sorted(alone.failures) == [1]
-    assert isinstance(mapped.failures[1], SimulationError) and type(mapped.failures[1]) is type(alone.failures[1])
-    assert str(mapped.failures[1]) == str(alone.failures[1])
-    partial, partial_alone = mapped.failures[1].partial_result, alone.failures[1].partial_result
-    assert np.array_equal(partial["rod.theta"], partial_alone["rod.theta"])
-    for k in (0, 2):
-        assert np.array_equal(mapped.results[k]["fore.theta"], alone.results[k]["fore.theta"])
+    assert_fails_alone(mapped, alone, [1], ["fore.theta"], ["rod.theta"])
 
 
-def _count_mapped(monkeypatch) -> list:
+def count_mapped(monkeypatch) -> list:
     calls: list = []
     mapped_run = batch_module.ParameterKernel.run_mapped
     monkeypatch.setattr(batch_module.ParameterKernel, "run_mapped",
@@ -87,7 +96,7 @@ SPATIAL_X0, SPATIAL_V0 = np.array([0.3, -0.5, 0.2]), np.array([0.1, 0.4, -0.2])
 
 def test_mapped_spatial_sets_equal_each_set_run_alone_to_the_bit(spatial_cache, monkeypatch) -> None:
     monkeypatch.setenv("CTMM_CACHE", str(spatial_cache))
-    calls = _count_mapped(monkeypatch)
+    calls = count_mapped(monkeypatch)
     sets = [values for values, _ in SPATIAL_SETS] + [{"l0.mass": 0.8, "j2.stiffness": 3.0}]
     options = dict(x0=SPATIAL_X0, v0=SPATIAL_V0, inputs={"j1.torque": 0.3}, store_every=3)
     mapped = ctmm.simulate_batch(spatial_arm(), sets, T_FINAL, DT, **options)
@@ -109,26 +118,26 @@ def test_a_diverging_spatial_set_fails_alone_as_in_the_per_set_path(spatial_cach
     options = dict(x0=SPATIAL_X0, v0=SPATIAL_V0, divergence_bound=50.0, store_every=3)
     mapped = ctmm.simulate_batch(spatial_arm(), sets, T_FINAL, DT, **options)
     alone = ctmm.simulate_batch(spatial_arm(), sets, T_FINAL, DT, executor="threads", **options)
-    assert sorted(mapped.failures) == sorted(alone.failures) == [1]
-    assert isinstance(mapped.failures[1], SimulationError) and str(mapped.failures[1]) == str(alone.failures[1])
-    partial, partial_alone = mapped.failures[1].partial_result, alone.failures[1].partial_result
-    assert np.array_equal(partial.time, partial_alone.time)
-    assert np.array_equal(partial["j2.angle"], partial_alone["j2.angle"])
-    for k in (0, 2):
-        assert np.array_equal(mapped.results[k]["j2.angle"], alone.results[k]["j2.angle"])
+    assert_fails_alone(mapped, alone, [1], ["j2.angle"], ["j2.angle"])
 
 
-def test_kernels_with_loops_refuse_the_mapped_run_and_progress_runs_set_by_set(spatial_cache, monkeypatch) -> None:
-    """(The runs of controlled sets, set by set, are checked in tests/test_batch.py.)"""
+def test_kernels_with_loops_or_inputs_run_mapped_and_progress_runs_set_by_set(spatial_cache, monkeypatch) -> None:
+    """Kernels with loops (or open-loop inputs, planar: a kernel of kind "planar loops" without laws) map too, equal
+    to their sets run alone (loops with delays, controllers, references, failures: tests/test_batch_mapped_loops.py);
+    progress=True steps set by set."""
     monkeypatch.setenv("CTMM_CACHE", str(spatial_cache))
-    calls = _count_mapped(monkeypatch)
+    calls = count_mapped(monkeypatch)
     controlled = ControlledModel(spatial_arm(), [Feedback("hold", "j1.angle", "j1.torque", gain=2.0)])
-    for system, kind in ((controlled, "spatial loops"), (arm(), "planar loops")):
+    for system, kind, start in ((controlled, "spatial loops", {"x0": SPATIAL_X0}), (arm(), "planar loops", {"x0": X0})):
         kernel = batch_module.ParameterKernel(system, T_FINAL, DT, **({} if kind.startswith("spatial") else
                                                                        {"inputs": {"pivot.torque": 0.1}}))
         assert kernel.kind == kind
-        with pytest.raises(ModelError, match=f"run_mapped runs planar and spatial kernels without loops.*'{kind}'"):
-            kernel.run_mapped([{}], {})
+        sets = [{"j1.stiffness": 0.9}, {"j1.stiffness": 0.2}] if kind.startswith("spatial") else \
+            [{"rod.mass": 1.2}, {"rod.mass": 0.8}]
+        runs = kernel.run_mapped(sets, start)
+        for values, (result, error) in zip(sets, runs):
+            alone = kernel.run(values, **start)
+            assert error is None and all(np.array_equal(result[name], alone[name]) for name in alone.time_signals())
     calls.clear()
     ctmm.simulate_batch(spatial_arm(), [{"l0.mass": 1.2}], T_FINAL, DT, x0=SPATIAL_X0, v0=SPATIAL_V0, store_every=3,
                         inputs={"j1.torque": 0.3}, progress=True)
