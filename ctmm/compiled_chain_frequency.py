@@ -63,8 +63,8 @@ static inline void reciprocal(double br, double bi, double *qr, double *qi)
    field type (U12 = v), bit 1 v = 1 / poly, else v = poly = a2 s^2 + a1 s + a0 (coefficients[3 u..]); loads sorted by
    element, terms[8 l..]: alpha_f, beta_f, alpha_e, beta_e (re, im), u = alpha + beta v; s[2 b..]; start[4 b..]:
    S0, P0; end[6 b..]: Bm_f, Bm_e, b; B a multiple of K; slot[j] (j = 0..n): the stored point's index or -1;
-   states[((k B + b) 2 + c) 2 ..]; finite[b]: the certificate; work: stack 4 K n, kept 4 K per stored point, table
-   2 K n_unique doubles. */
+   states[((k B + b) 2 + c) 2 ..]; finite[b]: the certificate; work: stack 4 K per point-type or loaded element,
+   kept 4 K per stored point, table 2 K n_unique doubles. */
 void chain_frequency(int n, int B, int f, const int *unique_of, int n_unique, const int *kind_of,
                      const double *coefficients, int n_loads, const int *load_element,
                      const double *terms, const double *s, const double *start, const double *end, const int *slot,
@@ -245,7 +245,8 @@ def solve_entries(library: ctypes.CDLL, s: np.ndarray, unique_of: Sequence[int],
                                       dtype=complex)
     states = np.empty((len(unique), padded, 2), dtype=complex)
     finite = np.zeros(padded, dtype=np.intc)
-    work = [np.empty(4 * BLOCK * max(n, 1)), np.empty(4 * BLOCK * len(unique)), np.empty(2 * BLOCK * len(values))]
+    pushed = int(np.count_nonzero(kind_of[unique_of] & POINT)) + len(order)   # G_j, r_j kept for the way back
+    work = [np.empty(4 * BLOCK * max(pushed, 1)), np.empty(4 * BLOCK * len(unique)), np.empty(2 * BLOCK * len(values))]
     integers, doubles = ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_double)
 
     def pointer(array: np.ndarray, kind=doubles):

@@ -111,3 +111,19 @@ def test_compiled_flag_is_checked():
     chain = ctmm.Chain("sdof", [Fixed("wall"), Spring("k", 4.0), Mass("m", 1.0), Free("end")])
     with pytest.raises(ModelError, match="compiled must be True, False or None, got 'yes'"):
         solve(chain, laplace_variables([1.0]), {2: {"force": 1.0}}, points=[2], compiled="yes")
+
+
+def test_without_a_compiler_numpy_answers_and_compiled_true_refuses(monkeypatch):
+    """No library (no compiler): the default falls back to the numpy recursion (bit-identical to compiled=False);
+    compiled=True refuses by name."""
+    import ctmm.compiled_chain_frequency as kernel
+
+    chain = random_chain(np.random.default_rng(1), 4, start="fixed", end="free", damped=True)
+    omega = np.linspace(0.5, 30.0, 11)
+    source = chain.input("m1.force")
+    numpy = _states(chain, omega, source.position, source.input, [3], False)
+    monkeypatch.setattr(kernel, "compiled_library", lambda: None)
+    np.testing.assert_array_equal(_states(chain, omega, source.position, source.input, [3], None).states,
+                                  numpy.states)
+    with pytest.raises(ModelError, match="compiled=True: the compiled chain recursion needs a C compiler"):
+        _states(chain, omega, source.position, source.input, [3], True)
