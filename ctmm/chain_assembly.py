@@ -4,6 +4,8 @@ Every element's ``U(s)`` is evaluated for the whole vector of Laplace variables 
 chain is solved by batched Riccati transfer (:mod:`ctmm.assembly`).  Used by
 :mod:`ctmm.frequency` (forced response, characteristic function), :mod:`ctmm.natural` (counting
 and mode shapes), :mod:`ctmm.sweeps` and the controlled chain's plant (:mod:`ctmm.control.loops`).
+A lumped chain asked for some points only (:func:`ctmm.frequency_response`) is solved by the same
+recursion in C when a compiler is present (:mod:`ctmm.compiled_chain_frequency`, ``docs/riccati.md`` §7.1).
 """
 from __future__ import annotations
 

@@ -4,9 +4,10 @@
 (:class:`~ctmm.elements.axial.AxialBody`, :class:`~ctmm.elements.axial.AxialJoint`) by the scalar Riccati recursion of
 :func:`ctmm.assembly.riccati_scalar_entries` batched over the frequencies (numpy: one array operation per element
 and step, ``G_j, r_j`` of every element kept for the back-substitution, memory ``O(N B)``).  This module runs the
-same recursion frequency by frequency in C: for each ``s`` the forward pass over the elements, the end condition,
-its certificate and the back-substitution, with ``G_j, r_j`` in a work array of ``O(N)`` reused for every frequency
-and only the requested points' states stored (memory ``O(N + points x B)``).
+same recursion in C on blocks of :data:`BLOCK` frequencies side by side (independent recursions: one frequency at a
+time the loop waits on each division's latency, about 3x slower): per block the forward pass over the elements, the
+end condition, its certificate and the back-substitution, with ``G_j^-1, r_j`` of the point steps in a work array of
+``O(N)`` reused for every block and only the requested points' states stored (memory ``O(N + points x B)``).
 
 What is typed here and what is derived
 --------------------------------------
@@ -18,8 +19,10 @@ derivatives).  In the start partition (``f`` known at the start, ``e`` unknown) 
 them (a joint's ``-1 / (k + c s + b s^2)``, a body's ``-(m s^2 + c s + k)``); loads are ``u = alpha + beta v``.
 The C text types only the two scalar Riccati steps of ``docs/riccati.md`` §2 (field: ``S <- S + v``, ``G = 1``;
 point: ``G = v S + 1``, ``S <- S / G``, ``r = v P + u_e``, ``P <- P / G``), complex numbers by real and imaginary
-parts, division by Smith's rule as numpy's.  The C text does not depend on the chain (one compile per machine,
-cached on disk by :func:`ctmm.codegen.load_ctypes`).
+parts; a division is a reciprocal by Smith's rule (without branches) times the numerator, so the answers equal
+the numpy recursion's to round-off, not bit for bit.  The C text does not depend on the chain (its numbers are
+data): one compile per machine (0.3 s), cached on disk by :func:`ctmm.codegen.load_ctypes`; there is nothing to
+generate per chain, so no casadi graph is built.
 
 Certificate: the same as the numpy recursion's.  The end unknown ``e_N = (b - Bm_f P_N) / H`` must be finite at
 every frequency, else :class:`~ctmm.errors.SingularSystemError` names the batch entries (a free-free chain under a
