@@ -219,7 +219,7 @@ def solve_entries(library: ctypes.CDLL, s: np.ndarray, unique_of: Sequence[int],
     Returns
     -------
     ChainSolution
-        ``states`` ``(len(points), B, 2)``, ``points``; ``log_det`` zeros (not computed).
+        ``states`` ``(len(points), B, 2)``, ``points``, ``kernel = "compiled"``; ``log_det`` zeros (not computed).
 
     Raises
     ------
@@ -267,4 +267,4 @@ def solve_entries(library: ctypes.CDLL, s: np.ndarray, unique_of: Sequence[int],
     states = states[:, :B]
     if rows != unique:
         states = states[[unique.index(j) for j in rows]]
-    return ChainSolution(states, np.zeros(B, dtype=complex), tuple(rows))
+    return ChainSolution(states, np.zeros(B, dtype=complex), tuple(rows), kernel="compiled")

@@ -37,6 +37,7 @@ def test_compiled_equals_dense_and_numpy(start, end):
     omega = np.linspace(0.2, 70.0, 37)
     outputs = ["m0.x", "m3.v", "m8.x", "m5.a"]
     frf = ctmm.frequency_response(chain, omega, input="m2.force", output=outputs)
+    assert frf.info["kernel"] == "compiled"
     for name, (mass, quantity) in zip(outputs, [(0, "displacement"), (3, "velocity"), (8, "displacement"),
                                                 (5, "acceleration")]):
         np.testing.assert_allclose(frf(name, "m2.force"), reference.frequency_response(g, omega, 2, mass, quantity),
@@ -123,6 +124,7 @@ def test_without_a_compiler_numpy_answers_and_compiled_true_refuses(monkeypatch)
     source = chain.input("m1.force")
     numpy = _states(chain, omega, source.position, source.input, [3], False)
     monkeypatch.setattr(kernel, "compiled_library", lambda: None)
+    assert ctmm.frequency_response(chain, omega, input="m1.force", output="m2.x").info["kernel"] == "numpy"
     np.testing.assert_array_equal(_states(chain, omega, source.position, source.input, [3], None).states,
                                   numpy.states)
     with pytest.raises(ModelError, match="compiled=True: the compiled chain recursion needs a C compiler"):
