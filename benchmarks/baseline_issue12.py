@@ -46,8 +46,8 @@ through the generated RK4) was added in its place, measured alone on 2026-11-25 
 ``timings.dropped`` keeps the reason).  ``planar_frf/sweep_n20_500_omega`` (issue 13: planar frequency responses
 by the one sweep's frequency context), ``spatial_frf/sweep_n30_500_omega`` (issues 13/14: the same for spatial
 models), ``kinematic_loops_generated/generated_rk4_projection_four_bar`` and ``..._spatial_four_bar`` (issues 13/16: the
-four-bars' RK4 with projection in generated C) were measured alone when their benchmarks landed
-(``timings.added_later``).  Python time-stepping cases whose
+four-bars' RK4 with projection in generated C) and ``chain_frf/frequency_response_n1000`` (issue 13: the 1-D
+chain FRF by the compiled Riccati solve) were measured alone when their benchmarks landed (``timings.added_later``).  Python time-stepping cases whose
 benchmark horizon would make the repeats slow run over a shorter horizon at the benchmark's step
 (stated in ``configuration``): the per-step cost does not depend on the horizon.
 
@@ -492,10 +492,21 @@ def _kinematic_loops_generated(t: Timings) -> None:
                         f"{steps} steps")
 
 
+def _chain_frf(t: Timings) -> None:
+    bench = importlib.import_module("foundation_scaling")
+    n = 1000
+    system, omega = bench.ctmm_chain(n), bench.omega_grid(n)
+    t.add("chain_frf", f"frequency_response_n{n}",
+          lambda: ctmm.frequency_response(system, omega, input="m1.force", output=["m1.x", f"m{n}.x"]),
+          per="call", count=1,
+          configuration=f"fixed-free chain of {n} masses, {omega.size} frequencies, two outputs: the compiled "
+                        "Riccati solve (ctmm.compiled_chain_frequency, library loaded; benchmarks/chain_frf.py)")
+
+
 TIMING_PARTS = (_work_precision, _scaling, _control, _delay_history, _planar, _flexible, _manipulator,
                 _stability_chart, _compiled_scenes, _spatial_chain, _spatial_schemes, _chain_compiled,
                 _chain_schemes_generated, _chain_ode_speed, _compiled_cosim, _batch_parameters, _kernel_cache,
-                _planar_frf, _compiled_schemes_planar, _spatial_frf, _kinematic_loops_generated)
+                _planar_frf, _compiled_schemes_planar, _spatial_frf, _kinematic_loops_generated, _chain_frf)
 
 
 def timings() -> dict:

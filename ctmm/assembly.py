@@ -63,6 +63,7 @@ class ChainSolution:
     states: np.ndarray
     log_det: np.ndarray  # (B,) complex: log of the characteristic determinant (up to a constant)
     points: tuple[int, ...] | None = None
+    kernel: str = "numpy"  # "compiled": the C recursion of ctmm.compiled_chain_frequency answered
 
     def at(self, point: int) -> np.ndarray:
         """States ``(B, n)`` at connection point ``point`` (0 = start)."""

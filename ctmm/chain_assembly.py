@@ -4,6 +4,8 @@ Every element's ``U(s)`` is evaluated for the whole vector of Laplace variables 
 chain is solved by batched Riccati transfer (:mod:`ctmm.assembly`).  Used by
 :mod:`ctmm.frequency` (forced response, characteristic function), :mod:`ctmm.natural` (counting
 and mode shapes), :mod:`ctmm.sweeps` and the controlled chain's plant (:mod:`ctmm.control.loops`).
+A lumped chain asked for some points only (:func:`ctmm.frequency_response`) is solved by the same
+recursion in C when a compiler is present (:mod:`ctmm.compiled_chain_frequency`, ``docs/riccati.md`` §7.1).
 """
 from __future__ import annotations
 
@@ -115,21 +117,27 @@ def assemble_body(system: Chain, body: Sequence, points: Sequence[int], s: np.nd
 
 
 def solve(system: Chain, s: np.ndarray, amplitudes=None, *, solver: str = "riccati",
-          want_log_det: bool = False, points: Sequence[int] | None = None) -> ChainSolution:
+          want_log_det: bool = False, points: Sequence[int] | None = None,
+          compiled: bool | None = None) -> ChainSolution:
     """States at every connection point for harmonic loads (phasors), batched over ``s``
     (with ``want_log_det``, the Riccati solvers also return the characteristic log-determinant).
     The Riccati solve of a chain cuts elements with a ``subdivide`` hook (long beams) into exact
     pieces for ``max |s|`` (:func:`subdivided`) and returns the states at the chain's own points.
 
-    ``points``: the connection points whose states are needed.  Lumped chains then keep only
-    those (:attr:`~ctmm.assembly.ChainSolution.points`, memory ``O(len(points) B)``); other chains
-    return every point.  Read the result with :meth:`~ctmm.assembly.ChainSolution.at`.
+    ``points``: the connection points whose states are needed.  Lumped chains then return only
+    those (:attr:`~ctmm.assembly.ChainSolution.points`; the numpy recursion still keeps ``G_j, r_j``
+    of every element, memory ``O(N B)``); other chains return every point.  Read the result with :meth:`~ctmm.assembly.ChainSolution.at`.
+
+    ``compiled``: for lumped chains with ``points`` and without ``want_log_det``, the recursion in C
+    (:mod:`ctmm.compiled_chain_frequency`, memory ``O(N + len(points) B)``): None (default) when a C
+    compiler is present, True always (:class:`~ctmm.errors.ModelError` without a compiler), False never.
     """
     solver = validation.option("solver", solver, SOLVERS)
+    compiled = validation.flag("compiled", compiled, optional=True)
     if solver == "riccati" and not hasattr(system, "assemble_frequency") and _lumped(system):
         index = getattr(system, "state_index", None)
         sol = _solve_lumped(system, np.asarray(s, dtype=complex), amplitudes or {}, want_log_det,
-                            points if index is None else None)
+                            points if index is None else None, compiled)
     elif solver == "riccati" and not hasattr(system, "assemble_frequency"):
         # long fields (BeamField: entries ~ cosh(beta)) lose every digit in one piece at high
         # frequency; their pieces of the subdivide hook keep the transfer exact (states are read
@@ -151,7 +159,8 @@ def solve(system: Chain, s: np.ndarray, amplitudes=None, *, solver: str = "ricca
 
 
 def _lumped(system) -> bool:
-    return system.layout.size == 2 and all(isinstance(e, (AxialBody, AxialJoint)) for e in system.body)
+    return system.layout.size == 2 and all(issubclass(kind, (AxialBody, AxialJoint))
+                                           for kind in {type(e) for e in system.body})
 
 
 class _PolynomialCache:
@@ -180,11 +189,13 @@ class _PolynomialCache:
 
 
 def _solve_lumped(system: Chain, s: np.ndarray, amplitudes: Mapping, want_log_det: bool = False,
-                  points: Sequence[int] | None = None) -> ChainSolution:
+                  points: Sequence[int] | None = None, compiled: bool | None = None) -> ChainSolution:
     """Riccati solve of a 1-D lumped chain from element scalars (impedance, compliance).
 
     Same recursion as :func:`ctmm.assembly.riccati_solve`; the unit and zero entries of the
-    element matrices stay Python scalars instead of ``(B, 2, 2)`` arrays.
+    element matrices stay Python scalars instead of ``(B, 2, 2)`` arrays.  With ``points`` given and
+    no log-determinant wanted, the compiled recursion of :mod:`ctmm.compiled_chain_frequency` answers
+    when ``compiled`` is True, or None and a C compiler is present (memory ``O(N + points B)``).
     """
     from .assembly import riccati_scalar_entries
 
@@ -192,26 +203,89 @@ def _solve_lumped(system: Chain, s: np.ndarray, amplitudes: Mapping, want_log_de
     Bm, b = system.end.end(system.layout, s, amplitudes.get(len(system.elements) - 1, {}))
     e = e_idx[0]
     f = 1 - e
+    start, end = BoundaryStart(e_idx, S0, P0), BoundaryEnd(Bm, b)
+    library = _compiled_library(compiled, want_log_det, points, len(system.body))
+    table = None if library is None else _compiled_table(system, amplitudes, f)
+    if table is not None:
+        from .compiled_chain_frequency import solve_entries
+
+        return solve_entries(library, s, *table, start, end, f, e, points)
+    if compiled and library is not None:
+        raise ModelError(f"compiled=True: the compiled chain recursion takes float element coefficients; "
+                         f"{system.name!r} has others (use compiled=None or False)")
+    terms = _lumped_terms(system, amplitudes)
     entries = []
     polynomial = _PolynomialCache(s)
-    for pos, element in enumerate(system.body, start=1):
-        amps = amplitudes.get(pos)
-        load = 0.0
-        if amps:                            # d tau / d u (joints), d h / d u (bodies) of the derived form
-            inputs = element.axial_coefficients().inputs
-            load = sum((inputs[key] * value for key, value in amps.items()), 0.0)
-        co = element.axial_coefficients()
-        if isinstance(element, AxialJoint):   # x_out = x_in - F/k_c (+ F_act/k_c)
-            compliance = polynomial(co.inertia, co.damping, co.stiffness, reciprocal=True)
-            minus_compliance = polynomial(-co.inertia, -co.damping, -co.stiffness, reciprocal=True)
+    for joint, (a2, a1, a0), load in terms:
+        if joint:   # x_out = x_in - F/k_c (+ F_act/k_c)
+            compliance = polynomial(a2, a1, a0, reciprocal=True)
+            minus_compliance = polynomial(-a2, -a1, -a0, reciprocal=True)
             ux, uF = (load * compliance if load else 0.0), 0.0
             Uxx, UxF, UFx, UFF = 1.0, minus_compliance, 0.0, 1.0
         else:                                # F_out = F_in - Z x + F
-            Uxx, UxF, UFx, UFF = 1.0, 0.0, polynomial(-co.inertia, -co.damping, -co.stiffness), 1.0
+            Uxx, UxF, UFx, UFF = 1.0, 0.0, polynomial(-a2, -a1, -a0), 1.0
             ux, uF = 0.0, -load
         if f == 0:   # partition f = x (displacement known at the start), e = force
             entries.append((Uxx, UxF, UFx, UFF, ux, uF))
         else:        # f = force, e = x
             entries.append((UFF, UFx, UxF, Uxx, uF, ux))
-    return riccati_scalar_entries(entries, BoundaryStart(e_idx, S0, P0), BoundaryEnd(Bm, b), f, e, want_log_det,
-                                  points)
+    return riccati_scalar_entries(entries, start, end, f, e, want_log_det, points)
+
+
+def _lumped_terms(system: Chain, amplitudes: Mapping) -> list[tuple[bool, tuple[Any, Any, Any], Any]]:
+    """Per body element: is it a joint, its ``(inertia, damping, stiffness)`` and its load
+    (``d tau / d u`` of a joint, ``d h / d u`` of a body, times the amplitudes)."""
+    terms = []
+    joints: dict[type, bool] = {}
+    for pos, element in enumerate(system.body, start=1):
+        co = element.axial_coefficients()
+        amps = amplitudes.get(pos)
+        load = sum((co.inputs[key] * value for key, value in amps.items()), 0.0) if amps else 0.0
+        joint = joints.get(type(element))
+        if joint is None:
+            joint = joints[type(element)] = isinstance(element, AxialJoint)
+        terms.append((joint, (co.inertia, co.damping, co.stiffness), load))
+    return terms
+
+
+def _compiled_table(system: Chain, amplitudes: Mapping, f: int):
+    """``(unique_of, rows, loads)`` of :func:`ctmm.compiled_chain_frequency.solve_entries` for a lumped chain
+    (one pass over the elements), or None when a coefficient is not a float (numpy answers then)."""
+    from .compiled_chain_frequency import FIELD, POINT, RECIPROCAL
+
+    field_kind, point_kind = FIELD | RECIPROCAL, POINT     # of a joint, a body in the x-partition (f = 0)
+    if f == 1:                                            # the force-partition swaps the two types
+        field_kind, point_kind = POINT | RECIPROCAL, FIELD
+    rows: dict[tuple, int] = {}                           # distinct elements (kind, -a2, -a1, -a0)
+    unique_of, loads = [], {}
+    joints: dict[type, bool] = {}
+    for j, element in enumerate(system.body):
+        co = element.axial_coefficients()
+        joint = joints.get(type(element))
+        if joint is None:
+            joint = joints[type(element)] = isinstance(element, AxialJoint)
+        key = (field_kind if joint else point_kind, -co.inertia, -co.damping, -co.stiffness)
+        row = rows.get(key)
+        if row is None:
+            if not all(type(value) is float for value in key[1:]):
+                return None
+            row = rows[key] = len(rows)
+        unique_of.append(row)
+        amps = amplitudes.get(j + 1)
+        load = sum((co.inputs[name] * value for name, value in amps.items()), 0.0) if amps else 0.0
+        if load:                         # joint: u_x = -load v; body: u_F = -load
+            x_part, force_part = ((0.0, -load), (0.0, 0.0)) if joint else ((0.0, 0.0), (-load, 0.0))
+            loads[j] = (*x_part, *force_part) if f == 0 else (*force_part, *x_part)
+    return unique_of, list(rows), loads
+
+
+def _compiled_library(compiled: bool | None, want_log_det: bool, points: Sequence[int] | None, size: int):
+    """The compiled recursion's library when it may answer this solve (see :func:`_solve_lumped`), else None."""
+    if compiled is False or want_log_det or points is None or not size:
+        return None
+    from .compiled_chain_frequency import compiled_library
+
+    library = compiled_library()
+    if library is None and compiled:
+        raise ModelError("compiled=True: the compiled chain recursion needs a C compiler ('gcc' or 'cc' on PATH)")
+    return library

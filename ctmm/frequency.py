@@ -71,7 +71,9 @@ def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],
     Returns
     -------
     FrequencyResponse
-        ``response[i_out, i_in, k]`` = output phasor per unit input phasor at ``omega[k]``.
+        ``response[i_out, i_in, k]`` = output phasor per unit input phasor at ``omega[k]``.  A chain's
+        ``info["kernel"]`` says which recursion answered: ``"compiled"`` (a lumped chain with a C compiler
+        present, :mod:`ctmm.compiled_chain_frequency`) or ``"numpy"``.
 
     Examples
     --------
@@ -122,13 +124,16 @@ def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],
     resolved = [system.input(i) for i in inputs]
     response = np.empty((len(outputs), len(inputs), s.size), dtype=complex)
     started = time.perf_counter()
+    kernels = set()
     for k, inp in enumerate(resolved):
         amps = {inp.position: {inp.input: 1.0}}
         sol = solve(system, s, amps, solver=solver, points=points)
+        kernels.add(sol.kernel)
         for j, o in enumerate(outputs):
             response[j, k] = _output_value(system, sol, s, o, amps)
     units = {name: signal_unit(name, system) for name in (*inputs, *outputs)}
-    info = {"solver": solver, "wall_time_s": time.perf_counter() - started, "n_frequencies": int(s.size)}
+    info = {"solver": solver, "wall_time_s": time.perf_counter() - started, "n_frequencies": int(s.size),
+            "kernel": "/".join(sorted(kernels))}
     return FrequencyResponse(np.imag(s), response, inputs, outputs, system.name, info=info, units=units)
 
 

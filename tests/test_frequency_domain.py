@@ -222,7 +222,7 @@ def test_frf_of_many_outputs_from_points_only_solve():
     amplitudes = {chain.input("m4.force").position: {"force": 1.0}}
     full = solve(chain, s, amplitudes)
     points = [9, 2, 9, 0]
-    part = solve(chain, s, amplitudes, points=points)
+    part = solve(chain, s, amplitudes, points=points, compiled=False)   # the numpy recursion: bit-identical
     assert part.points == (9, 2, 9, 0) and part.states.shape[0] == 4
     for j in points:
         np.testing.assert_array_equal(part.at(j), full.at(j))
