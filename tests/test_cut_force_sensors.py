@@ -144,3 +144,65 @@ def test_what_the_time_driver_cannot_honour_is_refused_by_name():
     strong = Feedback("force", sensor="h3.force_y", actuator="h1.torque", gain=50.0, delay=0.01)
     with pytest.raises(ModelError, match="neutral"):
         ctmm.simulate(with_feedback(loop, [strong]), 0.01, 1e-3, x0=q0, v0=v0)
+
+
+@pytest.fixture(scope="module")
+def pendulum():
+    """The hinged pendulum (a free body held by a revolute cut about world y at its origin), a start and its
+    hanging equilibrium."""
+    from ctmm.spatial import closed_loop_linear as linear
+    from spatial_loop_helpers import hinged_pendulum
+
+    loop = hinged_pendulum()
+    q, v = loop.consistent_state({"free.qw": np.cos(0.25), "free.qy": np.sin(0.25), "free.x": 0.01},
+                                 {"free.wy": 2.0}, keep=["free.wy"])
+    return loop, q, v, linear.equilibrium(loop, q)
+
+
+@pytest.mark.parametrize("delay", [0.0, 0.01], ids=["real-time", "delayed"])
+def test_spatial_cut_force_loop_linearised_as_the_compound_pendulum(delay, pendulum):
+    """``"hinge.force_x"`` -> ``"hinge.torque"``: the compound pendulum's closed form about the hanging equilibrium,
+    ``J theta'' = -m g r theta + u``, the horizontal cut force on the body ``F_x = -m r theta''`` (the centre of mass
+    ``r`` below the pivot), closed as above (measured 2e-11)."""
+    loop, _, _, point = pendulum
+    mass, arm = 1.2, np.hypot(0.1, 0.3)
+    inertia = 0.03 + mass * arm ** 2
+    k, b = mass * 9.81 * arm / inertia, 1.0 / inertia
+    s_force, g_force = mass * arm * k, -mass * arm * b
+    controlled = with_feedback(loop, [Feedback("force", sensor="hinge.force_x", actuator="hinge.torque", gain=0.2,
+                                               delay=delay)])
+    omega = np.array([0.0, 2.0, 7.0])
+    frf = ctmm.frequency_response(controlled, omega, input="force.reference", output=["hinge.angle", "force.u"],
+                                  operating_point=point)
+    E = 0.2 * np.exp(-1j * omega * delay)
+    theta = b * E / ((k - omega ** 2) * (1.0 + E * g_force) + b * E * s_force)
+    np.testing.assert_allclose(frf("hinge.angle", "force.reference"), theta, rtol=1e-9)
+    np.testing.assert_allclose(frf("force.u", "force.reference"), E * (1.0 - s_force * theta) / (1.0 + E * g_force),
+                               rtol=1e-9)
+
+
+def test_spatial_delayed_cut_force_loop_reads_the_dae_multiplier(pendulum):
+    """RK4, ``tau = 5 dt``: the value the loop read is the spatial DAE's multiplier (its own rows, bodies in world
+    coordinates) at the run's state under the run's cut torque about world y (measured 3e-14 N of 4.7 N); refused:
+    ``compiled=True``, a real-time loop."""
+    from spatial_loop_helpers import dae_of, poses
+
+    loop, q, v, _ = pendulum
+    controlled = with_feedback(loop, [Feedback("force", sensor="hinge.force_x", actuator="hinge.torque", gain=0.2,
+                                               delay=0.01)])
+    run = ctmm.simulate(controlled, 0.03, 2e-3, x0=q, v0=v, outputs=["hinge.force_x"])
+    dae = dae_of(loop)
+    positions = np.column_stack([run[name] for name in loop.tree.coordinates])
+    velocities = np.column_stack([run[name] for name in loop.tree.velocities])
+    multiplier = np.array([dae.accelerations(dae.state(*poses(loop, positions[k], velocities[k])),
+                                             {0: run["force.u"][k] * np.array([0.0, 1.0, 0.0])})[1][0]
+                           for k in range(len(run.time))])
+    scale = np.max(np.abs(multiplier))
+    assert np.max(np.abs(run["force.y"] - multiplier)) < 1e-11 * scale
+    assert np.max(np.abs(run["hinge.force_x"] - multiplier)) < 1e-11 * scale
+    np.testing.assert_allclose(run["force.u"][5:], -0.2 * run["force.y"][:-5], rtol=0, atol=1e-13 * scale)
+    with pytest.raises(ModelError, match="cut force"):
+        ctmm.simulate(controlled, 0.01, 1e-3, x0=q, v0=v, compiled=True)
+    with pytest.raises(ModelError, match="algebraic"):
+        ctmm.simulate(with_feedback(loop, [Feedback("force", sensor="hinge.force_x", actuator="hinge.torque",
+                                                    gain=0.2)]), 0.01, 1e-3, x0=q, v0=v)

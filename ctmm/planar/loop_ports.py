@@ -39,14 +39,11 @@ import numpy as np
 
 from .. import validation
 from ..errors import ModelError
-from ..named_ports import merged_values, split_actuator_values
+from ..named_ports import NOT_GIVEN, merged_values, split_actuator_values
 from .closed_loops import KinematicLoopModel
 from .ports import ActuatorInputs, PlanarPorts
 
-__all__ = ["KinematicLoopPorts", "loop_sensor_signals", "tree_outputs", "NOT_GIVEN"]
-
-NOT_GIVEN = object()
-"""The default ``inputs`` of :meth:`KinematicLoopPorts.values`: not given (the cut-force sensors are refused)."""
+__all__ = ["KinematicLoopPorts", "loop_sensor_signals", "tree_outputs"]
 
 
 @dataclass(frozen=True)
