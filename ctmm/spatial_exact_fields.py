@@ -21,9 +21,9 @@ axes where they allow it):
 * a :class:`~ctmm.spatial.elements.SpatialBody` -> :class:`SpatialRigidBody` (mass, inertia and
   centre of mass turned to chain axes, its child's point as the offset);
 * a :class:`~ctmm.spatial.beam.SpatialBeam` -> :class:`SpatialBeamField` pieces between its stations
-  (``EA``, ``GJ``, ``rho I_p``, Kelvin-Voigt ``stiffness_damping``; the modal beam's
-  ``bending_stiffness_y`` governs ``w_y``, bending in the x-y plane, which is the field's
-  ``bending_stiffness_z``) with a :class:`SpatialPointLoad` marker at the root, every station and
+  (``EA``, ``GJ``, ``rho I_p``, Kelvin-Voigt ``stiffness_damping``, the sections' rotary inertias (Rayleigh; refused
+  in gravity); the modal beam's ``bending_stiffness_y`` and ``rotary_inertia_per_length_y`` govern ``w_y``, bending
+  in the x-y plane, which are the field's ``bending_stiffness_z`` and ``rotary_inertia_per_length_z``) with a :class:`SpatialPointLoad` marker at the root, every station and
   the tip;
 * the free outboard end -> :class:`SpatialFree`;
 * a **tree** (a body with several children) -> :class:`~ctmm.spatial_beam_trees.SpatialBeamTree`: the
@@ -385,7 +385,9 @@ class _Builder:
         out = {"bending_stiffness_z": beam.bending_stiffness_y, "bending_stiffness_y": beam.bending_stiffness_z,
                "axial_stiffness": beam.axial_stiffness, "torsional_stiffness": beam.torsional_stiffness,
                "polar_inertia_per_length": beam.polar_inertia_per_length,
-               "wagner_term": bool(beam.wagner_term and beam.n_torsion_modes)}
+               "wagner_term": bool(beam.wagner_term and beam.n_torsion_modes),
+               "rotary_inertia_per_length_z": beam.rotary_inertia_per_length_y,     # x-y plane, turning with w_y
+               "rotary_inertia_per_length_y": beam.rotary_inertia_per_length_z}
         for count, key, value, label in (
                 (beam.n_modes_y, "bending_stiffness_z", self.rigid_factor * scale * L * L, "bending_y"),
                 (beam.n_modes_z, "bending_stiffness_y", self.rigid_factor * scale * L * L, "bending_z"),
@@ -422,6 +424,11 @@ class _Builder:
             if x - position > 1e-12 * beam.length:
                 pieces += 1
                 if along:
+                    rotary = {key: parameters.pop(key) for key in list(parameters) if key.startswith("rotary")}
+                    if any(rotary.values()):
+                        raise _refuse(self.model, f"beam {beam.name!r} has section rotary inertia {rotary} kg m in "
+                                                  "gravity: the varying-tension field has no Rayleigh term (give "
+                                                  "gravity=(0, 0, 0) or use fields='modal')")
                     tension = beam_tension(along, beam, hung, position, x)
                     field = SpatialVaryingTensionField(f"{beam.name}__{pieces}", x - position, rotation=B,
                                                        inboard_tension=tension[0], outboard_tension=tension[1],
