@@ -23,8 +23,8 @@ axes where they allow it):
 * a :class:`~ctmm.spatial.beam.SpatialBeam` -> :class:`SpatialBeamField` pieces between its stations
   (``EA``, ``GJ``, ``rho I_p``, Kelvin-Voigt ``stiffness_damping``, the sections' rotary inertias (Rayleigh; refused
   in gravity); the modal beam's ``bending_stiffness_y`` and ``rotary_inertia_per_length_y`` govern ``w_y``, bending
-  in the x-y plane, which are the field's ``bending_stiffness_z`` and ``rotary_inertia_per_length_z``) with a :class:`SpatialPointLoad` marker at the root, every station and
-  the tip;
+  in the x-y plane, which are the field's ``bending_stiffness_z`` and ``rotary_inertia_per_length_z``) with a
+  :class:`SpatialPointLoad` marker at the root, every station and the tip;
 * the free outboard end -> :class:`SpatialFree`;
 * a **tree** (a body with several children) -> :class:`~ctmm.spatial_beam_trees.SpatialBeamTree`: the
   main path is the base and every body's first child (in model order), every other child starts a
@@ -66,7 +66,8 @@ import numpy as np
 from . import validation
 from .errors import ModelError
 from .results import FrequencyResponse
-from .spatial_exact_gravity import beam_gravity, beam_tension, check_gravity, hung_masses, rigid_preload, subtree_masses
+from .spatial_exact_gravity import (beam_gravity, beam_tension, check_gravity, hung_masses, rigid_preload,
+                                    subtree_masses, warn_stretch)
 from .spatial_exact_joints import CONVERTED_KINDS
 
 __all__ = ["SpatialExactForm", "exact_form", "natural_frequencies", "frequency_response", "RIGID_FACTOR"]
@@ -415,6 +416,8 @@ class _Builder:
                                       "children hang there as branches: list the body hung at the tip first)")
         parameters = self.stiffness(beam)
         along = beam_gravity(self.model, self.Q, beam, B[:, 0])
+        if along:
+            warn_stretch(self.model, beam, beam_tension(along, beam, hung, 0.0, 0.0)[0])
         places = sorted([(x, name) for name, x in beam.stations.items() if 0.0 < x < beam.length]
                         + [(beam.length, "tip")])
         markers = {"origin": (root, 0.0)}

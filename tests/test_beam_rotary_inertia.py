@@ -101,7 +101,7 @@ def test_the_modal_beams_converge_from_above_to_the_rayleigh_frequency_equation(
     equals the equation to 1e-10 in both planes."""
     exact = rayleigh_cantilever(L, EI, RHO_A, RHO_I, 4)
     euler = beta_roots("clamped-free", 4) ** 2 * math.sqrt(EI / RHO_A / L ** 4)
-    assert np.all(exact < euler * (1 - 5e-3))                                  # the rotary inertia matters (9e-3 .. 0.2)
+    assert np.all(exact < euler * (1 - 5e-3))                       # the rotary inertia matters (9e-3 .. 0.2)
     gaps = []
     for modes in (4, 8):
         planar = ctmm.natural_frequencies(planar_cantilever(modes), n_modes=4)
