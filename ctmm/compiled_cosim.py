@@ -246,7 +246,11 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
                 except SimulationError:
                     return j
             return None
-        with np.errstate(invalid="ignore"):
+        with np.errstate(invalid="ignore", over="ignore"):
+            # the usual case in two reductions: a NaN or infinity anywhere makes the sum non-finite (an overflow
+            # of finite numbers too: then the exact test below decides), a NaN fails the comparison
+            if math.isfinite(block.sum()) and np.abs(block[:, :watched] - reference).max(initial=0.0) <= bound:
+                return None
             bad = ~np.all(np.isfinite(block), axis=1) | (np.max(np.abs(block[:, :watched] - reference), axis=1,
                                                                 initial=0.0) > bound)
         return int(np.argmax(bad)) if np.any(bad) else None
@@ -263,10 +267,12 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
     runner = BlockRunner()                          # the call buffers of this run's intervals, set up once
     bar = progress_bar(n_steps, f"ctmm.simulate ({plant.label}, rk4-generated)", enabled=progress)
 
+    delays_on, per_row_inputs = any(delays), chain or rows_need_inputs
+
     def advance() -> None:
         nonlocal intervals
         sample(0, first)
-        if chain or rows_need_inputs:
+        if per_row_inputs:
             held_rows.append(held_now())
         state, k = first, 0
         while k < n_steps:
@@ -274,20 +280,32 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
             block = scene.continue_run(state, _held_inputs(master, index), dt, following - k, k, runner=runner)
             intervals += 1
             bad = first_bad(block, k)
-            for j, row in enumerate(block):
-                step = k + 1 + j
-                if j == bad:
-                    fail(step, row)
-                if any(delays):
-                    history.append((step, row))
-                if step == following:
-                    sample(step, row)
+            good = len(block) if bad is None else bad       # the rows before the first bad one
+            if delays_on:
+                history.extend(zip(range(k + 1, k + 1 + good), block[:good]))
+            sampled = bad is None and k + len(block) == following     # the interval's last row is a sample
+            before = good - 1 if sampled else good                  # the rows stored with the interval's held outputs
+            first_stored = -(k + 1) % store_every                   # the first j with (k + 1 + j) % store_every == 0
+            stored = list(range(first_stored, before, store_every))
+            if k + before == n_steps and (not stored or stored[-1] != before - 1):
+                stored.append(before - 1)
+            if stored:
+                times.extend(float((k + 1 + j) * dt) for j in stored)
+                rows.extend(block[stored])
+                if per_row_inputs:
+                    held_rows.extend([held_now()] * len(stored))
+            done[0] = k + before
+            if bad is not None:
+                fail(k + 1 + bad, block[bad])
+            if sampled:
+                step, row = following, block[-1]
+                sample(step, row)
                 if step % store_every == 0 or step == n_steps:
                     times.append(float(step * dt))
                     rows.append(row)
-                    if chain or rows_need_inputs:
+                    if per_row_inputs:
                         held_rows.append(held_now())
-                done[0] = step
+            done[0] = k + len(block)
             state, k = block[-1], following
             bar.update(len(block))
 
