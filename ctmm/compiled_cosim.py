@@ -56,7 +56,7 @@ from .results import SimulationResult
 from .signal_results import SignalSystem, signal_result
 from .spatial.model import SpatialModel
 
-__all__ = ["simulate_cosimulated_generated", "simulate_cosimulated_scheme"]
+__all__ = ["simulate_cosimulated_generated", "simulate_cosimulated_scheme", "stored_offsets"]
 
 
 def _scene(controlled: Any, dt: float, controllers: Sequence[Any], inputs: Mapping[str, Any],
@@ -285,10 +285,7 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
                 history.extend(zip(range(k + 1, k + 1 + good), block[:good]))
             sampled = bad is None and k + len(block) == following     # the interval's last row is a sample
             before = good - 1 if sampled else good                  # the rows stored with the interval's held outputs
-            first_stored = -(k + 1) % store_every                   # the first j with (k + 1 + j) % store_every == 0
-            stored = list(range(first_stored, before, store_every))
-            if k + before == n_steps and (not stored or stored[-1] != before - 1):
-                stored.append(before - 1)
+            stored = stored_offsets(k, 0, before, store_every, n_steps)
             if stored:
                 times.extend(float((k + 1 + j) * dt) for j in stored)
                 rows.extend(block[stored])
@@ -494,6 +491,15 @@ def simulate_cosimulated_scheme(system: Any, t_final: float, dt: float | None, s
                 held = now
 
     return _sampled_run(advance, result, times, bar, master)
+
+
+def stored_offsets(start: int, first: int, stop: int, store_every: int, n_steps: int) -> list[int]:
+    """The offsets ``j`` in ``[first, stop)`` of the rows of an interval from step ``start`` (row ``j`` ends step
+    ``start + 1 + j``) that a run keeps: every ``store_every``-th step and the last one, ``n_steps``."""
+    offsets = list(range(first + (-(start + 1 + first) % store_every), stop, store_every))
+    if first <= n_steps - start - 1 < stop and (not offsets or offsets[-1] != n_steps - start - 1):
+        offsets.append(n_steps - start - 1)
+    return offsets
 
 
 def _sampled_run(advance: Callable[[], None], result: Callable[[int], SimulationResult], times: list, bar: Any,
