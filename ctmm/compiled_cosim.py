@@ -285,7 +285,7 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
                 history.extend(zip(range(k + 1, k + 1 + good), block[:good]))
             sampled = bad is None and k + len(block) == following     # the interval's last row is a sample
             before = good - 1 if sampled else good                  # the rows stored with the interval's held outputs
-            stored = stored_offsets(k, 0, before, store_every, n_steps)
+            stored = stored_offsets(k, 0, before, store_every, n_steps) if before else []
             if stored:
                 times.extend(float((k + 1 + j) * dt) for j in stored)
                 rows.extend(block[stored])

@@ -250,10 +250,12 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
             intervals += 1
             # rows that converged and pass the screen (the guard's rules on the block) are stored at once; the
             # others and the interval's last row go one by one through the status check and the guard itself
-            fine = (block[:, compiled.status_index] <= 0.0) & screen(block)
+            head = block[:-1]
+            suspects = np.flatnonzero((head[:, compiled.status_index] > 0.0) | ~screen(head)).tolist() if len(head) \
+                else []
             done = 0
-            for j in [*np.flatnonzero(~fine[:-1]).tolist(), len(block) - 1]:
-                for i in stored_offsets(k, done, j, store_every, n_steps):
+            for j in [*suspects, len(block) - 1]:
+                for i in stored_offsets(k, done, j, store_every, n_steps) if j > done else ():
                     times.append(float((k + 1 + i) * dt))
                     rows.append(block[i])
                 row, step, done = block[j], k + 1 + j, j + 1
