@@ -33,6 +33,7 @@ every step as on the numpy path.
 from __future__ import annotations
 
 import math
+import operator
 import time as clock
 from collections import deque
 from typing import Any, Callable, Mapping, Sequence
@@ -186,6 +187,7 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
     else:                                   # spatial: q and v from the start (default: finiteness only)
         watched, reference = nq + nv, first[:nq + nv]
         bound = math.inf if divergence_bound is None else divergence_bound
+    reference_list = reference.tolist()
     history: deque = deque(maxlen=max(delays, default=0) + 1)     # (step, state) of the delayed reads
     history.append((0, first))
     times, rows = [0.0], [first]
@@ -246,9 +248,14 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
                 except SimulationError:
                     return j
             return None
+        # the usual case first: a NaN or infinity anywhere makes a sum non-finite (an overflow of finite numbers
+        # too: then the exact test below decides), so the distances compared with the bound are of finite numbers
+        if len(block) == 1:                         # one row (an interval of one step): Python numbers are cheaper
+            row = block[0].tolist()
+            if math.isfinite(sum(row)) and max(map(abs, map(operator.sub, row[:watched], reference_list)),
+                                               default=0.0) <= bound:
+                return None
         with np.errstate(invalid="ignore", over="ignore"):
-            # the usual case in two reductions: a NaN or infinity anywhere makes the sum non-finite (an overflow
-            # of finite numbers too: then the exact test below decides), a NaN fails the comparison
             if math.isfinite(block.sum()) and np.abs(block[:, :watched] - reference).max(initial=0.0) <= bound:
                 return None
             bad = ~np.all(np.isfinite(block), axis=1) | (np.max(np.abs(block[:, :watched] - reference), axis=1,
