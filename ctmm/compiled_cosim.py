@@ -240,8 +240,9 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
 
     def first_bad(block: np.ndarray, k: int) -> int | None:
         if chain:                                   # positions from rest (the numpy path's guard), every step
+            finite = np.all(np.isfinite(block), axis=1).tolist()
             for j, row in enumerate(block):
-                if not np.all(np.isfinite(row)):
+                if not finite[j]:
                     return j
                 try:
                     guard((k + 1 + j) * dt, row, dt, "rk4-generated")
