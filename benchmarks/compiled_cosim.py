@@ -42,10 +42,10 @@ formed in Python on both).
 (2.3x), both 1.85e-2 m from it (Houbolt's backward differences span the jumps of the held force), difference 0;
 N = 5 masses Newmark 2.41 ms / 116 us (21x), N = 50: 14.9 ms / 186 us (80x), differences <= 5e-16 m.  The generated
 side is a Python loop per sample interval (the chain's guard at every step, the sample, one call into C).
-  Short intervals (6., 2026-11-25, load 5-7, CPU, best of 5, four runs before / two after the rows of an
+  Short intervals (6., 2026-11-25, load 5-7, CPU, best of 5, four runs before / three after the rows of an
 interval were handled as a block, alternating): overhead per sample, every step / 10 / 100 steps: planar RK4
-29-32 / 39-51 / 75-95 us -> 20-21 / 49-50 / 60-73 us; Newmark 80-94 / 127-181 / 629-658 -> 81-82 / 110-121 / 146-169
-us; chain 24-26 / 74-84 / 392-479 -> 22-24 / 63-76 / 376-407 us (docs/control.md, "Short sample intervals").
+29-32 / 39-51 / 75-95 us -> 20-22 / 47-50 / 60-73 us; Newmark 80-94 / 127-181 / 629-658 -> 81-89 / 110-132 / 125-169
+us; chain 24-26 / 74-84 / 392-479 -> 24-25 / 51-67 / 181-210 us (docs/control.md, "Short sample intervals").
 
 Run: ``python benchmarks/compiled_cosim.py [--quick] [--only schemes | intervals]``.
 """
