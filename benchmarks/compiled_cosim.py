@@ -22,6 +22,9 @@ and the error:
    the controllers' held outputs as its input, ``--only schemes``): the one-mass P loop of 4. (T = 10 s) with both
    paths' error against the exact sampled-data solution and their difference; N = 5 and 50 masses, a real-time loop
    in the step and a PID every 10 steps, 2 s at 1 ms: their difference [m].
+6. **Short intervals** (``--only intervals``, :func:`interval_rows`, ``benchmarks/results/compiled_cosim_intervals.json``):
+   the planar pendulum N = 5 (RK4 and Newmark) and the one-mass chain with a PID every 1, 10 and 100 steps of 1 ms,
+   CPU time: the overhead per sample beyond the generated run without controllers, and the whole-run ratio.
 
 The first compile is excluded (a warm-up run fills the kernel cache); each timed ``ctmm.simulate`` call still
 builds its kernel from the cache (expressions, C text and its hash, loading the library), which weighs on
@@ -39,13 +42,18 @@ formed in Python on both).
 (2.3x), both 1.85e-2 m from it (Houbolt's backward differences span the jumps of the held force), difference 0;
 N = 5 masses Newmark 2.41 ms / 116 us (21x), N = 50: 14.9 ms / 186 us (80x), differences <= 5e-16 m.  The generated
 side is a Python loop per sample interval (the chain's guard at every step, the sample, one call into C).
+  Short intervals (6., 2026-11-25, load 5-7, CPU, best of 5, four runs before / three after the rows of an
+interval were handled as a block, alternating): overhead per sample, every step / 10 / 100 steps: planar RK4
+29-32 / 39-51 / 75-95 us -> 20-22 / 47-50 / 60-73 us; Newmark 80-94 / 127-181 / 629-658 -> 81-89 / 110-132 / 125-169
+us; chain 24-26 / 74-84 / 392-479 -> 24-25 / 51-67 / 181-210 us (docs/control.md, "Short sample intervals").
 
-Run: ``python benchmarks/compiled_cosim.py [--quick] [--only schemes]``.
+Run: ``python benchmarks/compiled_cosim.py [--quick] [--only schemes | intervals]``.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -64,6 +72,7 @@ from _controllers_import import load_controllers  # noqa: E402
 from test_compiled_cosim import sampled_p_loop  # noqa: E402
 
 REPEATS = 3
+INTERVAL_REPEATS = 5     # the short-interval rows (6.): CPU time, best of five
 STIFFNESS, INERTIA = 40.0, 0.5
 
 
@@ -197,6 +206,60 @@ def chain_case(n: int, t_final: float, method: str = "rk4") -> dict:
                run(True), difference([f"m{i}.x" for i in range(n)]))
 
 
+def cpu_best(run, repeats: int = REPEATS) -> float:
+    """Best CPU time [s] (``time.process_time``: the machine is shared) of ``run()`` after one warm-up call."""
+    run()
+    times = []
+    for _ in range(repeats):
+        start = time.process_time()
+        run()
+        times.append(time.process_time() - start)
+    return min(times)
+
+
+def interval_rows(kind: str, lengths: tuple[float, float]) -> list[dict]:
+    """Per-sample cost of short co-simulation intervals (6.): a PID sampled every 1, 10 and 100 steps (one call into
+    C per interval), CPU time of ``ctmm.simulate(..., compiled=True)`` at two run lengths against the same generated
+    run without controllers; the per-sample overhead is the slope ``((co_2 - co_1) - (pure_2 - pure_1)) /
+    (samples_2 - samples_1)`` (the fixed cost of loading the kernel from the cache drops out), the whole-run ratio
+    ``co_2 / pure_2`` keeps it."""
+    dt = 1e-3
+    if kind in ("planar", "planar newmark"):
+        model, x0 = pendulum(5), np.full(5, 0.1)
+        sensor, actuator, extra = "o.angle", "o.torque", {"x0": x0, "stability_check": "ignore"}
+        label = "planar pendulum N = 5"
+        if kind == "planar newmark":        # the generated DT-TMM step (compiled_scheme_cosim)
+            extra["method"], label = "newmark", label + ", Newmark"
+    else:
+        from ctmm.elements import Fixed as Wall, Free, Mass, Spring
+
+        model = ctmm.Chain("one", [Wall("w"), Spring("k", 50.0), Mass("m", 2.0), Free("e")])
+        sensor, actuator, extra, label = "m.x", "m.force", {"method": "rk4", "x0": {"m": 0.05}}, "chain, one mass"
+    out = []
+    pure_runs: dict = {}
+    for every in (1, 10, 100):
+        if every == 100:                # five times longer runs: enough samples for the slope
+            lengths = (5 * lengths[0], 5 * lengths[1])
+        if lengths not in pure_runs:
+            pure_runs[lengths] = [cpu_best(lambda: ctmm.simulate(model, t_final, dt, compiled=True, **extra),
+                                           INTERVAL_REPEATS) for t_final in lengths]
+        pure = pure_runs[lengths]
+        pid = load_controllers().PID(sensor, actuator, kp=20.0, ki=5.0, kd=2.0, derivative_filter_time=0.01,
+                                     sample_time=every * dt, reference=0.03)
+        cosim = [cpu_best(lambda: ctmm.simulate(model, t_final, dt, controllers=[pid], compiled=True, **extra),
+                          INTERVAL_REPEATS) for t_final in lengths]
+        samples = [round(t_final / dt) / every for t_final in lengths]
+        steps = round(lengths[1] / dt)
+        entry = {"case": f"{label}, PID every {every} steps (CPU)", "steps": steps,
+                 "overhead_us_per_sample": 1e6 * ((cosim[1] - cosim[0]) - (pure[1] - pure[0])) / (samples[1] - samples[0]),
+                 "cosim_us_per_step": 1e6 * cosim[1] / steps, "pure_generated_us_per_step": 1e6 * pure[1] / steps,
+                 "whole_run_ratio": cosim[1] / pure[1], "fixed_ms": 1e3 * (cosim[0] - (cosim[1] - cosim[0])
+                                                                           * lengths[0] / (lengths[1] - lengths[0]))}
+        print(json.dumps(entry))
+        out.append(entry)
+    return out
+
+
 def main(quick: bool, only: str | None = None) -> None:
     scale = 0.2 if quick else 1.0
     if only == "schemes":           # the DT-TMM rows only (5.)
@@ -205,6 +268,14 @@ def main(quick: bool, only: str | None = None) -> None:
         out = ROOT / "benchmarks" / "results" / "compiled_cosim_schemes.json"
         out.parent.mkdir(exist_ok=True)
         out.write_text(json.dumps({"quick": quick, "rows": rows}, indent=2))
+        print(f"wrote {out}")
+        return
+    if only == "intervals":         # the per-sample cost of short intervals only (6.)
+        lengths = (0.05, 0.5) if quick else (0.2, 2.0)
+        rows = [row for kind in ("planar", "planar newmark", "chain") for row in interval_rows(kind, lengths)]
+        out = ROOT / "benchmarks" / "results" / "compiled_cosim_intervals.json"
+        out.parent.mkdir(exist_ok=True)
+        out.write_text(json.dumps({"quick": quick, "load": os.getloadavg(), "rows": rows}, indent=2))
         print(f"wrote {out}")
         return
     scale = 0.2 if quick else 1.0
@@ -223,6 +294,7 @@ def main(quick: bool, only: str | None = None) -> None:
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="short runs (a smoke test)")
-    parser.add_argument("--only", choices=("schemes",), help="only the DT-TMM scheme rows (5.)")
+    parser.add_argument("--only", choices=("schemes", "intervals"),
+                        help="only the DT-TMM scheme rows (5.) or the short-interval rows (6.)")
     arguments = parser.parse_args()
     main(arguments.quick, arguments.only)

@@ -33,6 +33,7 @@ every step as on the numpy path.
 from __future__ import annotations
 
 import math
+import operator
 import time as clock
 from collections import deque
 from typing import Any, Callable, Mapping, Sequence
@@ -56,7 +57,7 @@ from .results import SimulationResult
 from .signal_results import SignalSystem, signal_result
 from .spatial.model import SpatialModel
 
-__all__ = ["simulate_cosimulated_generated", "simulate_cosimulated_scheme"]
+__all__ = ["simulate_cosimulated_generated", "simulate_cosimulated_scheme", "stored_offsets"]
 
 
 def _scene(controlled: Any, dt: float, controllers: Sequence[Any], inputs: Mapping[str, Any],
@@ -186,6 +187,7 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
     else:                                   # spatial: q and v from the start (default: finiteness only)
         watched, reference = nq + nv, first[:nq + nv]
         bound = math.inf if divergence_bound is None else divergence_bound
+    reference_list = reference.tolist()
     history: deque = deque(maxlen=max(delays, default=0) + 1)     # (step, state) of the delayed reads
     history.append((0, first))
     times, rows = [0.0], [first]
@@ -238,15 +240,25 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
 
     def first_bad(block: np.ndarray, k: int) -> int | None:
         if chain:                                   # positions from rest (the numpy path's guard), every step
+            finite = np.all(np.isfinite(block), axis=1).tolist()
             for j, row in enumerate(block):
-                if not np.all(np.isfinite(row)):
+                if not finite[j]:
                     return j
                 try:
                     guard((k + 1 + j) * dt, row, dt, "rk4-generated")
                 except SimulationError:
                     return j
             return None
-        with np.errstate(invalid="ignore"):
+        # the usual case first: a NaN or infinity anywhere makes a sum non-finite (an overflow of finite numbers
+        # too: then the exact test below decides), so the distances compared with the bound are of finite numbers
+        if len(block) == 1:                         # one row (an interval of one step): Python numbers are cheaper
+            row = block[0].tolist()
+            if math.isfinite(sum(row)) and max(map(abs, map(operator.sub, row[:watched], reference_list)),
+                                               default=0.0) <= bound:
+                return None
+        with np.errstate(invalid="ignore", over="ignore"):
+            if math.isfinite(block.sum()) and np.abs(block[:, :watched] - reference).max(initial=0.0) <= bound:
+                return None
             bad = ~np.all(np.isfinite(block), axis=1) | (np.max(np.abs(block[:, :watched] - reference), axis=1,
                                                                 initial=0.0) > bound)
         return int(np.argmax(bad)) if np.any(bad) else None
@@ -263,10 +275,12 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
     runner = BlockRunner()                          # the call buffers of this run's intervals, set up once
     bar = progress_bar(n_steps, f"ctmm.simulate ({plant.label}, rk4-generated)", enabled=progress)
 
+    delays_on, per_row_inputs = any(delays), chain or rows_need_inputs
+
     def advance() -> None:
         nonlocal intervals
         sample(0, first)
-        if chain or rows_need_inputs:
+        if per_row_inputs:
             held_rows.append(held_now())
         state, k = first, 0
         while k < n_steps:
@@ -274,20 +288,29 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
             block = scene.continue_run(state, _held_inputs(master, index), dt, following - k, k, runner=runner)
             intervals += 1
             bad = first_bad(block, k)
-            for j, row in enumerate(block):
-                step = k + 1 + j
-                if j == bad:
-                    fail(step, row)
-                if any(delays):
-                    history.append((step, row))
-                if step == following:
-                    sample(step, row)
+            good = len(block) if bad is None else bad       # the rows before the first bad one
+            if delays_on:
+                history.extend(zip(range(k + 1, k + 1 + good), block[:good]))
+            sampled = bad is None and k + len(block) == following     # the interval's last row is a sample
+            before = good - 1 if sampled else good                  # the rows stored with the interval's held outputs
+            stored = stored_offsets(k, 0, before, store_every, n_steps) if before else []
+            if stored:
+                times.extend(float((k + 1 + j) * dt) for j in stored)
+                rows.extend(block[stored])
+                if per_row_inputs:
+                    held_rows.extend([held_now()] * len(stored))
+            done[0] = k + before
+            if bad is not None:
+                fail(k + 1 + bad, block[bad])
+            if sampled:
+                step, row = following, block[-1]
+                sample(step, row)
                 if step % store_every == 0 or step == n_steps:
                     times.append(float(step * dt))
                     rows.append(row)
-                    if chain or rows_need_inputs:
+                    if per_row_inputs:
                         held_rows.append(held_now())
-                done[0] = step
+            done[0] = k + len(block)
             state, k = block[-1], following
             bar.update(len(block))
 
@@ -476,6 +499,15 @@ def simulate_cosimulated_scheme(system: Any, t_final: float, dt: float | None, s
                 held = now
 
     return _sampled_run(advance, result, times, bar, master)
+
+
+def stored_offsets(start: int, first: int, stop: int, store_every: int, n_steps: int) -> list[int]:
+    """The offsets ``j`` in ``[first, stop)`` of the rows of an interval from step ``start`` (row ``j`` ends step
+    ``start + 1 + j``) that a run keeps: every ``store_every``-th step and the last one, ``n_steps``."""
+    offsets = list(range(first + (-(start + 1 + first) % store_every), stop, store_every))
+    if first <= n_steps - start - 1 < stop and (not offsets or offsets[-1] != n_steps - start - 1):
+        offsets.append(n_steps - start - 1)
+    return offsets
 
 
 def _sampled_run(advance: Callable[[], None], result: Callable[[int], SimulationResult], times: list, bar: Any,

@@ -33,12 +33,13 @@ from __future__ import annotations
 
 import math
 import time as clock
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
 from . import validation
 from .compiled_control import add_loop_signals
+from .compiled_cosim import stored_offsets
 from .compiled_scene_schemes import STATUS, CompiledSceneScheme, not_converged
 from .compiled_scheme_loops import CompiledSchemeLoops
 from .compiled_spatial_scheme_loops import CompiledSpatialSchemeLoops
@@ -48,9 +49,11 @@ from .control.cosim import CoSimulation
 from .control.plants import plant_of
 from .errors import ModelError, SimulationError
 from .generated_loop import BlockRunner
-from .planar.guards import check_scheme, with_partial
+from .guard import DivergenceGuard
+from .planar.guards import check_scheme, divergence_guard, with_partial
 from .planar.integrate import check_store_every, step_total
 from .planar.model import PlanarModel
+from .spatial.integrate import beam_deflection_weights
 from .spatial.model import SpatialModel
 from .progress import progress_bar
 from .results import SimulationResult
@@ -192,6 +195,7 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
     sensors = [ports.resolve(list(c.inputs)) for c in controllers]
     nq, nv = plant.n_positions, plant.n_velocities
     guard = plant.guard(q0, divergence_bound, v0)
+    screen = _guard_screen(model, q0, v0, divergence_bound)
     label = f"dt-tmm-generated/{type(scheme).__name__}"
     info: dict = {"dt": dt, "method": label, "compile_time_s": compiled.compile_time_s}
     times: list[float] = []
@@ -244,8 +248,17 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
             following = min(min(((k // ratio + 1) * ratio for ratio in master.ratios), default=n_steps), n_steps)
             block = compiled.continue_run(state, held, dt, following - k, k, since_start=k - restart, runner=runner)
             intervals += 1
-            for j, row in enumerate(block):
-                step = k + 1 + j
+            # rows that converged and pass the screen (the guard's rules on the block) are stored at once; the
+            # others and the interval's last row go one by one through the status check and the guard itself
+            head = block[:-1]
+            suspects = np.flatnonzero((head[:, compiled.status_index] > 0.0) | ~screen(head)).tolist() if len(head) \
+                else []
+            done = 0
+            for j in [*suspects, len(block) - 1]:
+                for i in stored_offsets(k, done, j, store_every, n_steps) if j > done else ():
+                    times.append(float((k + 1 + i) * dt))
+                    rows.append(block[i])
+                row, step, done = block[j], k + 1 + j, j + 1
                 if row[compiled.status_index] > 0.0:
                     raise not_converged(compiled, row, dt, offset=restart)
                 guard(step * dt, row[:nq + nv], dt, label)
@@ -266,3 +279,24 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
         bar.close()
         master.close()
     return result(len(times))
+
+
+def _guard_screen(model: PlanarModel | SpatialModel, q0: np.ndarray, v0: np.ndarray, bound: float | None
+                  ) -> Callable[[np.ndarray], np.ndarray]:
+    """``screen(block)``: which stored rows (rows, state) the plant's guard accepts, for a block at once
+    (:meth:`~ctmm.guard.DivergenceGuard.passes`): a rigid planar model's coordinates from ``q0`` within the bound and
+    finite rates (:func:`ctmm.planar.integrate.check_state`), a spatial model's ``[q ; v]`` from the start within
+    ``bound`` (``None``: finite; :func:`ctmm.spatial.integrate.divergence_check`).  Where the guard checks more (a
+    deformable family, spatial beams) every row is ``False``: each goes through the guard."""
+    nq = len(q0)
+    if isinstance(model, PlanarModel):
+        if model.deformable_family is not None:
+            return lambda block: np.zeros(len(block), dtype=bool)
+        coordinates = divergence_guard(model, q0, bound)
+        return lambda block: coordinates.passes(block[:, :nq]) & np.all(np.isfinite(block[:, nq:2 * nq]), axis=1)
+    if beam_deflection_weights(model):
+        return lambda block: np.zeros(len(block), dtype=bool)
+    start = np.concatenate([q0, v0])
+    state = DivergenceGuard(tuple(model.coordinates) + tuple(model.velocities), start,
+                            math.inf if bound is None else float(bound))
+    return lambda block: state.passes(block[:, :start.size])

@@ -235,6 +235,15 @@ class DivergenceGuard:
             bound = float(bound)
         return cls(tuple(names), reference, bound, hint)
 
+    def passes(self, values: Any) -> np.ndarray:
+        """Whether :meth:`check` accepts each row of ``values`` (rows, coordinates): all finite and within the bound
+        of the reference; for a block of stored rows at once (a ``False`` row is then given to :meth:`check`,
+        which raises with its message)."""
+        values = np.asarray(values, dtype=float)
+        with np.errstate(invalid="ignore", over="ignore"):
+            largest = np.max(np.abs(values - self.reference), axis=-1, initial=0.0)
+            return np.all(np.isfinite(values), axis=-1) & (largest <= self.bound)
+
     def check(self, time: float, values: Any) -> None:
         """Raise :class:`SimulationError` if ``values`` are non-finite or out of bound at ``time`` [s]."""
         values = np.asarray(values, dtype=float).reshape(-1)

@@ -214,3 +214,40 @@ def test_planar_divergence_bound_is_the_numpy_paths():
                           stability_check="ignore")
         stops.append((diverged.value.time, len(diverged.value.partial_result.time)))
     assert stops[0] == stops[1]
+
+
+def test_rows_of_long_and_one_step_intervals_are_the_numpy_paths():
+    """The rows of an interval are checked, stored and handed to the delayed reads as a block: a controller read
+    2 steps late every 3 steps and one every step, stored every 4th step of 19 (the last one too), equal to the
+    numpy path; a divergence inside a 10-step interval stops both paths at the same step with the same message and
+    partial result (the rows before it, every 3rd), the evaluations counted to the step before it."""
+    pid = load_controllers().PID("h.angle", "h.torque", kp=6.0, ki=1.0, kd=0.1, derivative_filter_time=0.01,
+                                 sample_time=0.015, reference=0.2)
+    arguments = dict(x0=[0.1], controllers=[DelayedController(pid, 0.01)], store_every=4)
+    generated = ctmm.simulate(torsion(), 0.095, 5e-3, compiled=True, **arguments)
+    assert generated.info["intervals"] == 7 and generated.time[-1] == pytest.approx(0.095)
+    assert_same(generated, ctmm.simulate(torsion(), 0.095, 5e-3, **arguments), ["b.theta", "b.theta_dot"])
+    every_step = load_controllers().PID("h.angle", "h.torque", kp=6.0, ki=1.0, kd=0.1, derivative_filter_time=0.01,
+                                        sample_time=5e-3, reference=0.2)
+    arguments = dict(x0=[0.1], controllers=[every_step], store_every=4)
+    generated = ctmm.simulate(torsion(), 0.095, 5e-3, compiled=True, **arguments)
+    assert generated.info["intervals"] == 19
+    assert_same(generated, ctmm.simulate(torsion(), 0.095, 5e-3, **arguments), ["b.theta", "b.theta_dot"])
+    wild = load_controllers().PID("h.angle", "h.torque", kp=-2e3, ki=0.0, kd=0.0, derivative_filter_time=0.0,
+                                  sample_time=0.05)
+    stops = []
+    for compiled in (True, None):
+        with pytest.raises(SimulationError) as diverged:
+            ctmm.simulate(torsion(), 3.0, 5e-3, x0=[0.1], controllers=[wild], compiled=compiled, store_every=3,
+                          divergence_bound=50.0, stability_check="ignore")
+        stops.append(diverged.value)
+    step = round(stops[0].time / 5e-3)
+    assert stops[0].time == stops[1].time and step % 10 not in (0, 1)      # inside an interval
+    assert str(stops[0]).split(" at t =")[0] == str(stops[1]).split(" at t =")[0]
+    partial, python = stops[0].partial_result, stops[1].partial_result
+    np.testing.assert_array_equal(partial.time, python.time)
+    np.testing.assert_allclose(partial["b.theta"], python["b.theta"], rtol=0, atol=1e-12 * np.max(np.abs(python["b.theta"])))
+    assert partial.info["n_evaluations"] == 4 * (step - 1)
+    with pytest.raises(SimulationError, match="controller broke") as failed:     # at its third sample, step 4
+        ctmm.simulate(torsion(), 0.1, 5e-3, x0=[0.1], controllers=[Failing()], compiled=True)
+    assert failed.value.partial_result.info["n_evaluations"] == 4 * 3

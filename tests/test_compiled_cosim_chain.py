@@ -115,3 +115,14 @@ def assert_partial_equal(generated: ctmm.SimulationResult, python: ctmm.Simulati
     for name in ("m.x", "m.v", "m.a", "k.f"):
         scale = max(1.0, float(np.max(np.abs(python[name]))))
         np.testing.assert_allclose(generated[name], python[name], rtol=0, atol=1e-12 * scale, err_msg=name)
+
+
+def test_stored_rows_carry_the_held_outputs_of_their_interval():
+    """Stored every 4th of 19 steps, sampled every 3rd: each stored row's force and acceleration use the output
+    held over the step that ended there (the new one at a sample row), equal to the numpy path."""
+    pid = load_controllers().PID("m.x", "m.force", kp=30.0, ki=2.0, kd=1.0, derivative_filter_time=0.01,
+                                 sample_time=0.015, reference=0.02)
+    arguments = dict(method="rk4", x0={"m": 0.05}, controllers=[pid], store_every=4)
+    generated = ctmm.simulate(one_mass(), 0.095, 5e-3, compiled=True, **arguments)
+    assert generated.info["intervals"] == 7
+    assert_same(generated, ctmm.simulate(one_mass(), 0.095, 5e-3, **arguments), ["m.x", "m.v", "m.a", "k.f"])

@@ -111,3 +111,29 @@ def test_what_the_generated_scheme_does_not_close_is_refused(pendulum):
                       controllers=[DelayedController(pid("a.theta", "o.torque", 0.02), 0.02)])
     with pytest.raises(ModelError, match="dt is required"):
         ctmm.simulate(model, 0.1, None, method="newmark", compiled=True, controllers=controllers())
+
+
+@pytest.mark.parametrize("spatial", [False, True])
+def test_a_divergence_inside_an_interval_stops_both_paths_at_the_same_row(pendulum, spatial):
+    """Rows screened as a block (``DivergenceGuard.passes``): a bound crossed inside a 10-step interval stops the
+    generated path where the Python path stops, with its message and the rows stored before (every 2nd)."""
+    if spatial:                 # the lower link spins up about x on its ball joint: 'ball.wx' leaves the bound
+        model, dt, bound, watched = spatial_double_pendulum(), 0.002, 8.0, "hinge.angle"
+        start = dict(x0={"hinge.angle": 0.4}, v0={"hinge.angle_rate": 1.5})
+    else:                       # the PID drives the base far from the start: 'b.theta' leaves the bound
+        (model, x0, v0), dt, bound, watched = pendulum, 0.01, 0.6, "a.theta"
+        start = dict(x0=x0, v0=v0)
+    sensor, actuator = ("hinge.angle", "hinge.torque") if spatial else ("a.theta", "o.torque")
+    errors = []
+    for compiled in (True, None):
+        with pytest.raises(SimulationError) as info:
+            ctmm.simulate(model, 1.0, dt, method="newmark", compiled=compiled, store_every=2, divergence_bound=bound,
+                          controllers=[pid(sensor, actuator, 10 * dt, kp=50.0, reference=2.0)], **start)
+        errors.append(info.value)
+    step = round(errors[0].time / dt)
+    assert errors[0].time == errors[1].time and step % 10 not in (0, 1)
+    assert str(errors[0]).split(" at t =")[0] == str(errors[1]).split(" at t =")[0]
+    generated, python = errors[0].partial_result, errors[1].partial_result
+    np.testing.assert_array_equal(generated.time, python.time)
+    assert len(generated.time) > 1
+    np.testing.assert_allclose(generated[watched], python[watched], rtol=0, atol=1e-10)

@@ -73,6 +73,27 @@ def test_divergence_guard():
         DivergenceGuard.from_start(["a"], [0.0], [0.0], bound=-1.0)
 
 
+@pytest.mark.parametrize("bound", [2.5, math.inf])
+def test_divergence_guard_passes_a_block_where_check_accepts_each_row(bound):
+    """``passes`` on a block of rows is ``check`` row by row (NaN, infinities, values at and beyond the bound,
+    differences that overflow to infinity)."""
+    guard = DivergenceGuard.from_start(["a", "b", "c"], [0.0, 1.0, -1e308], [0.0, 1.0, -1e308], bound=bound)
+    rng = np.random.default_rng(3)
+    pool = np.array([0.0, 1.0, 2.5, -2.5, 3.5, -1.5, 1e308, -1e308, np.nan, np.inf, -np.inf, 2.5000000001])
+    rows = rng.choice(pool, size=(400, 3))
+    rows[:3] = [[2.5, 3.5, -1e308], [0.0, 1.0, 1e308], [2.5000000001, 1.0, -1e308]]
+    accepted = []
+    for row in rows:
+        try:
+            guard.check(0.0, row)
+            accepted.append(True)
+        except SimulationError:
+            accepted.append(False)
+    np.testing.assert_array_equal(guard.passes(rows), accepted)
+    assert 0 < sum(accepted) < len(rows)
+    assert accepted[:3] == ([True, True, True] if math.isinf(bound) else [True, False, False])
+
+
 def test_user_code_is_named():
     def bad(t):
         raise KeyError("oops")
