@@ -1,0 +1,131 @@
+"""Spherical cut joints with a 3-axis law in the generated kinematic-loop steps (issue 13; docs/closed_loops.md §8.1b):
+the law's moment on symbols (ctmm.compiled_spherical_cut_law) in the generated RK4 with projection
+(ctmm.compiled_spatial_kinematic_loops) and in the generated loop driver with the ``"<cut>.moment_x|y|z"`` sensors
+(ctmm.compiled_kinematic_loop_control).
+
+Checks: the symbolic moment against the numpy definition at random rotations; the generated runs against the numpy
+paths to round-off; the generated RK4 against the Newton-Euler DAE of tests/test_spatial_spherical_cut_law.py (its law
+moment written from the definition with scipy, no ctmm.spatial code) at that file's bound; a run turned beyond the
+law's 3 rad stopped by name.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+from test_compiled_kinematic_loop_control import _equal, _numpy
+from test_spatial_spherical_cut_law import COM, INERTIA, LAW, MASS, REST, _ball, _dae_run, _rotation_error, _start
+
+import ctmm
+import ctmm.spatial as sp
+from ctmm.control import Feedback, with_feedback
+from ctmm.errors import SimulationError
+from ctmm.nonlinear_laws import LinearLaw
+from ctmm.spatial.closed_loop_cuts import SpatialCutJoint, spherical_law_moment
+from ctmm.spatial.closed_loops import SpatialKinematicLoopModel
+
+
+def test_symbolic_law_moment_equals_the_numpy_definition():
+    """Random parent and child orientations at relative rotations from 1e-9 to 2.95 rad from the rest (both sides of
+    the series switches), with and without a parent body: = spatial_law_moment to 1e-13 relative (the logarithm
+    from the matrix here, through a quaternion there); NaN beyond 3 rad, where the numpy path raises."""
+    import casadi as ca
+
+    from ctmm.compiled_spherical_cut_law import symbolic_spherical_law_moment
+
+    cut = SpatialCutJoint(name="c", parent="a", child="b", law=LAW, rest=REST)
+    Rp, Rc, wp, wc = (ca.SX.sym("Rp", 3, 3), ca.SX.sym("Rc", 3, 3), ca.SX.sym("wp", 3), ca.SX.sym("wc", 3))
+    with_parent = ca.Function("m", [Rp, Rc, wp, wc], [symbolic_spherical_law_moment(cut, Rp, Rc, wp, wc)])
+    at_ground = ca.Function("m", [Rc, wc], [symbolic_spherical_law_moment(cut, None, Rc, ca.DM.zeros(3), wc)])
+    rng = np.random.default_rng(7)
+    rest = Rotation.from_rotvec(REST).as_matrix()
+    for angle in (1e-9, 3e-5, 1e-3, 0.5, 1.7, 2.95):
+        for _ in range(3):
+            axis = rng.normal(size=3)
+            relative = Rotation.from_rotvec(angle * axis / np.linalg.norm(axis)).as_matrix()
+            parent = Rotation.from_rotvec(rng.normal(size=3)).as_matrix()
+            omega_p, omega_c = rng.normal(size=3), rng.normal(size=3)
+            child = parent @ relative @ rest
+            expected = spherical_law_moment(cut, parent, child, omega_p, omega_c, 0.0)
+            got = np.asarray(with_parent(parent, child, omega_p, omega_c)).ravel()
+            assert np.abs(got - expected).max() <= 1e-13 * max(1.0, np.abs(expected).max()), angle
+            expected = spherical_law_moment(cut, None, relative @ rest, np.zeros(3), omega_c, 0.0)
+            got = np.asarray(at_ground(relative @ rest, omega_c)).ravel()
+            assert np.abs(got - expected).max() <= 1e-13 * max(1.0, np.abs(expected).max()), angle
+    beyond = Rotation.from_rotvec([0.0, 3.05, 0.0]).as_matrix() @ rest
+    assert np.all(np.isnan(np.asarray(at_ground(beyond, np.zeros(3)))))
+    with pytest.raises(SimulationError, match="beyond the 3 rad"):
+        spherical_law_moment(cut, None, beyond, np.zeros(3), np.zeros(3), 0.0)
+
+
+def test_generated_rk4_equals_numpy_and_matches_the_dae():
+    """The ball held by a spherical cut with a cubic spring and a damper, gravity: the generated RK4 with projection =
+    the numpy RK4 with projection to 1e-12 (states, cut forces and the law's moment), both 5e-9 rad from the DAE (the
+    numpy path's bound, tests/test_spatial_spherical_cut_law.py); ctmm.simulate(..., compiled=True) too."""
+    from ctmm.compiled_spatial_kinematic_loops import simulate_spatial_kinematic_loops_generated
+    from ctmm.spatial.closed_loop_time import simulate_spatial_loops
+
+    loop = _ball(LAW)
+    q, v = _start(loop)
+    generated = simulate_spatial_kinematic_loops_generated(loop, q, v, t_final=0.1, dt=1e-3, store_every=10)
+    numpy_run = simulate_spatial_loops(loop, q, v, t_final=0.1, dt=1e-3, store_every=10)
+    np.testing.assert_array_equal(generated.t, numpy_run.t)
+    assert np.max(np.abs(generated.q - numpy_run.q)) <= 1e-12 and np.max(np.abs(generated.v - numpy_run.v)) <= 1e-12
+    for name in ("cut_force", "cut_moment"):
+        ours, theirs = getattr(generated, name), getattr(numpy_run, name)
+        assert np.max(np.abs(ours - theirs)) <= 1e-12 * max(1.0, np.max(np.abs(theirs))), name
+    assert np.abs(generated.cut_moment).max() > 0.1                       # the law's moment is stored
+    dae, Y = _dae_run(loop, LAW, q, v, generated.t)
+    assert _rotation_error(loop, generated.q, generated.v, dae, Y) < 5e-9
+    assert _rotation_error(loop, numpy_run.q, numpy_run.v, dae, Y) < 5e-9
+    outputs = ["ball.moment_x", "ball.moment_y", "ball.moment_z", "ball.force_z"]
+    compiled = ctmm.simulate(loop, 0.01, 1e-3, x0=q, v0=v, compiled=True)
+    plain = ctmm.simulate(loop, 0.01, 1e-3, x0=q, v0=v)
+    assert compiled.info["compiled"] is True
+    for name in outputs:
+        assert np.max(np.abs(compiled[name] - plain[name])) <= 1e-12 * max(1.0, np.max(np.abs(plain[name]))), name
+
+
+def _actuated(law=LAW) -> SpatialKinematicLoopModel:
+    tree = sp.SpatialModel("ball", [sp.SpatialBody("p", MASS, INERTIA, center_of_mass=tuple(COM)),
+                                    sp.Free(name="free", parent=None, child="p", actuated=True)])
+    return SpatialKinematicLoopModel(tree, [SpatialCutJoint(name="ball", parent=None, child="p", law=law, rest=REST)])
+
+
+def test_loops_on_the_law_moment_sensors_equal_the_numpy_driver():
+    """A loop per axis feeding the law's moment ``"ball.moment_x|y|z"`` back as a body torque (x and y three steps
+    late from the loops' ring, z real-time; one kernel): = the numpy loop driver (projected) to 1e-12, and the loops
+    act."""
+    loop = _actuated()
+    q0, v0 = _start(loop)
+    loops = [Feedback(f"m{a}", sensor=f"ball.moment_{a}", actuator=f"free.torque_{a}", gain=-0.8,
+                      delay=0.0 if a == "z" else 3e-3) for a in "xyz"]
+    options = dict(x0=q0, v0=v0, outputs=["ball.moment_x", "ball.moment_y", "ball.moment_z"])
+    generated = ctmm.simulate(with_feedback(loop, loops), 0.05, 1e-3, compiled=True, **options)
+    _equal(generated, _numpy(with_feedback(loop, loops), 0.05, 1e-3, **options))
+    assert generated.info["loops"] == {"mx": "history", "my": "history", "mz": "real-time"}
+    assert np.max(np.abs(generated["mz.u"] - 0.8 * generated["ball.moment_z"])) < 1e-12   # u = -gain y
+    free = ctmm.simulate(loop, 0.05, 1e-3, x0=q0, v0=v0)
+    assert np.max(np.abs(free["ball.moment_x"] - generated["ball.moment_x"])) > 1e-3
+
+
+def test_a_turn_beyond_the_law_limit_stops_the_generated_runs_by_name():
+    """A weak spring spun about the cut's z axis: the relative rotation passes 3 rad near t = 0.3 s; the numpy RK4
+    raises there (at a stage inside the step), the generated RK4 and the generated loop driver at the end of that step,
+    with the cut named and the partial result."""
+    from ctmm.compiled_spatial_kinematic_loops import simulate_spatial_kinematic_loops_generated
+    from ctmm.spatial.closed_loop_time import simulate_spatial_loops
+
+    loop = _actuated(LinearLaw(0.01, 0.0))
+    w, x, y, z = Rotation.from_rotvec(REST).as_quat()[[3, 0, 1, 2]]
+    q0, v0 = loop.consistent_state({"free.qw": w, "free.qx": x, "free.qy": y, "free.qz": z}, {"free.wz": 10.0})
+    with pytest.raises(SimulationError, match="beyond the 3 rad") as numpy_error:
+        simulate_spatial_loops(loop, q0, v0, t_final=0.5, dt=5e-3)
+    with pytest.raises(SimulationError, match="cut joint 'ball' is turned 2.9.* rad") as error:
+        simulate_spatial_kinematic_loops_generated(loop, q0, v0, t_final=0.5, dt=5e-3)
+    assert error.value.element == "ball" and abs(error.value.time - numpy_error.value.time) <= 5e-3 * (1 + 1e-9)
+    assert len(error.value.partial_result.t) > 10
+    held = Feedback("h", sensor="ball.moment_z", actuator="free.torque_z", gain=0.0)
+    with pytest.raises(SimulationError, match="cut joint 'ball' is turned 2.9.* rad") as error:
+        ctmm.simulate(with_feedback(loop, [held]), 0.5, 5e-3, x0=q0, v0=v0, compiled=True)
+    assert error.value.element == "ball"
