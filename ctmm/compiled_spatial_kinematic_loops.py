@@ -179,12 +179,13 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
                 rate.append(value_rate - symbolic_time_signal(cut.rate, t_))
         return ca.vertcat(*phi), ca.vertcat(*rate)
 
-    def wrenches(states: list, values: Any, t_: Any) -> dict:
+    def wrenches(states: list, values: Any, t_: Any, spherical_laws: Any) -> dict:
         """The cut loads of the unknowns ``values`` and the cuts' laws and actuations at time ``t_`` as wrenches
-        ``(point, [f ; m] world)`` per body."""
+        ``(point, [f ; m] world)`` per body (``spherical_laws``: 3 per cut, the spherical laws' moments, formed once
+        outside the ``1 + m`` load cases)."""
         out: dict[int, list] = {}
         row = 0
-        for cut, (parent, child), frame in zip(model.cuts, sides, frames):
+        for k, (cut, (parent, child), frame) in enumerate(zip(model.cuts, sides, frames)):
             if frame.basis is None:
                 force = values[row:row + 3]
                 row += 3
@@ -204,7 +205,7 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
                 along = values[row]
                 row += 1
             elif cut.kind == "spherical" and cut.law is not None:     # the 3-axis law's moment
-                moment = moment + law_moment(states, cut, parent, child)
+                moment = moment + spherical_laws[3 * k:3 * k + 3]
             elif cut.has_law or cut.name in port_loads:     # actuation(t) + u - law(s - rest, s')
                 value, value_rate, _ = coordinate(states, cut, parent, child)
                 along = 0.0 if cut.actuation is None else symbolic_time_signal(cut.actuation, t_)
@@ -226,14 +227,19 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
         return out
 
     states = kinematics(q, v)
-    loads = wrenches(states, lam, t)
+    moments = [law_moment(states, cut, parent, child) if cut.kind == "spherical" and cut.law is not None
+               else ca.DM.zeros(3) for cut, (parent, child) in zip(model.cuts, sides)]
+    spherical_laws = ca.SX.sym("spherical_laws", 3 * len(model.cuts))
+    loads = wrenches(states, lam, t, spherical_laws)
     for body, entries in tree_wrenches.items():
         loads.setdefault(body, []).extend(entries)
     body_terms, joint_terms, _ = scene.terms(CASADI, q, v, 0.0, joint_inputs or None, loads)
     solution = articulated_sweep(CASADI, scene.tree, body_terms, joint_terms)
-    sweep = ca.Function("loaded_sweep", [q, v, t, lam, u], [ca.vertcat(*scene.velocity_rates(solution))])
-    v_dot0 = sweep(q, v, t, ca.DM.zeros(m), u)
-    D = ca.horzcat(*[sweep(q, v, t, ca.DM.eye(m)[:, i], u) - v_dot0 for i in range(m)])
+    sweep = ca.Function("loaded_sweep", [q, v, t, lam, u, spherical_laws],
+                        [ca.vertcat(*scene.velocity_rates(solution))])
+    law_values = ca.vertcat(*moments)
+    v_dot0 = sweep(q, v, t, ca.DM.zeros(m), u, law_values)
+    D = ca.horzcat(*[sweep(q, v, t, ca.DM.eye(m)[:, i], u, law_values) - v_dot0 for i in range(m)])
     phi, phi_dot = rows(q, v, t)
     J = ca.jacobian(phi_dot, v)
     q_dot = position_rates(tree, q, v)
@@ -246,18 +252,16 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
     forces = ca.solve(G, -c0 - 2.0 * alpha * phi_dot - alpha * alpha * phi)
     condition = ca.norm_fro(G) * ca.norm_fro(ca.solve(G, ca.SX.eye(m)))
     states = kinematics(q, v)
-    coordinates, moments = [], []
+    coordinates = []
     for cut, (parent, child) in zip(model.cuts, sides):
         value, value_rate, _ = coordinate(states, cut, parent, child) if cut.kind in ("revolute", "prismatic") \
             else (0.0, 0.0, None)
         coordinates += [value, value_rate]
-        moments.append(law_moment(states, cut, parent, child) if cut.kind == "spherical" and cut.law is not None
-                       else ca.DM.zeros(3))
     closed = ca.Function("closed", [q, v, u, p, t], [v_dot0 + ca.mtimes(D, forces), condition, forces, phi,
                                                       phi_dot, G])
     return (closed, ca.Function("constraint", [q, v, t], [phi, phi_dot, J]),
             ca.Function("cut_coordinates", [q, v], [ca.vertcat(*coordinates)]),
-            ca.Function("law_moments", [q, v], [ca.vertcat(*moments)]))
+            ca.Function("law_moments", [q, v], [law_values]))
 
 
 def _cut_sides(model: SpatialKinematicLoopModel) -> list[tuple[tuple[int, np.ndarray], tuple[int, np.ndarray]]]:
