@@ -305,12 +305,23 @@ class CompiledKinematicLoopControl:
         Raises
         ------
         SimulationError
-            A singular loop configuration or a failed projection in the interval (time, first cut joint).
+            A singular loop configuration or a failed projection in the interval (time, first cut joint); a
+            non-finite state of a spatial model with a spherical cut law (time, the cut turned furthest, its angle:
+            :func:`ctmm.compiled_spherical_cut_law.rotation_limit_note`).
         """
         if abs(dt - self.dt) > 1e-12 * self.dt or self.store_every != 1:
             raise ModelError(f"continue_run: this kernel steps dt = {self.dt!r} s storing every step, got dt = "
                              f"{dt!r}, store_every = {self.store_every!r}")
         block = self.run_states(state, held, n_steps, first_step, runner)
+        broken = np.flatnonzero(~np.all(np.isfinite(block), axis=1))
+        if broken.size and isinstance(self.model, SpatialKinematicLoopModel):     # a spherical law beyond 3 rad?
+            k, size = int(broken[0]), self.nq + self.nv
+            before = block[k - 1, :size] if k else np.asarray(state[:size], dtype=float)
+            note, cut = rotation_limit_note(self.model, before[:self.nq], before[self.nq:], (first_step + k) * dt)
+            if note:
+                t = (first_step + 1 + k) * dt
+                raise SimulationError(f"kinematic loop {self.model.name!r} (generated RK4): a non-finite state by t = "
+                                      f"{t:.6g} s{note}", time=t, element=cut)
         over = np.flatnonzero((block[:, -2] > CONDITION_LIMIT) | (block[:, -1] > PROJECTION_TOLERANCE))
         if over.size:
             t = (first_step + 1 + int(over[0])) * dt

@@ -19,6 +19,7 @@ from test_spatial_spherical_cut_law import COM, INERTIA, LAW, MASS, REST, _ball,
 import ctmm
 import ctmm.spatial as sp
 from ctmm.control import Feedback, with_feedback
+from ctmm.control.static_gain import StaticGainController
 from ctmm.errors import SimulationError
 from ctmm.nonlinear_laws import LinearLaw
 from ctmm.spatial.closed_loop_cuts import SpatialCutJoint, spherical_law_moment
@@ -67,8 +68,8 @@ def test_generated_rk4_equals_numpy_and_matches_the_dae():
 
     loop = _ball(LAW)
     q, v = _start(loop)
-    generated = simulate_spatial_kinematic_loops_generated(loop, q, v, t_final=0.1, dt=1e-3, store_every=10)
-    numpy_run = simulate_spatial_loops(loop, q, v, t_final=0.1, dt=1e-3, store_every=10)
+    generated = simulate_spatial_kinematic_loops_generated(loop, q, v, t_final=0.1, dt=1e-3)   # the kernel of
+    numpy_run = simulate_spatial_loops(loop, q, v, t_final=0.1, dt=1e-3)                     # ctmm.simulate below
     np.testing.assert_array_equal(generated.t, numpy_run.t)
     assert np.max(np.abs(generated.q - numpy_run.q)) <= 1e-12 and np.max(np.abs(generated.v - numpy_run.v)) <= 1e-12
     for name in ("cut_force", "cut_moment"):
@@ -111,8 +112,8 @@ def test_loops_on_the_law_moment_sensors_equal_the_numpy_driver():
 
 def test_a_turn_beyond_the_law_limit_stops_the_generated_runs_by_name():
     """A weak spring spun about the cut's z axis: the relative rotation passes 3 rad near t = 0.3 s; the numpy RK4
-    raises there (at a stage inside the step), the generated RK4 and the generated loop driver at the end of that step,
-    with the cut named and the partial result."""
+    raises there (at a stage inside the step), the generated RK4, the generated loop driver and the co-simulated
+    run at the end of that step, with the cut named and the partial result."""
     from ctmm.compiled_spatial_kinematic_loops import simulate_spatial_kinematic_loops_generated
     from ctmm.spatial.closed_loop_time import simulate_spatial_loops
 
@@ -129,3 +130,17 @@ def test_a_turn_beyond_the_law_limit_stops_the_generated_runs_by_name():
     with pytest.raises(SimulationError, match="cut joint 'ball' is turned 2.9.* rad") as error:
         ctmm.simulate(with_feedback(loop, [held]), 0.5, 5e-3, x0=q0, v0=v0, compiled=True)
     assert error.value.element == "ball"
+    sampled = StaticGainController(["ball.moment_z"], ["free.torque_x"], [[0.0]], sample_time=1e-2)
+    with pytest.raises(SimulationError, match="cut joint 'ball' is turned 2.9.* rad") as error:
+        ctmm.simulate(loop, 0.5, 5e-3, x0=q0, v0=v0, controllers=[sampled], compiled=True)
+    assert error.value.element == "ball" and error.value.partial_result is not None
+
+
+def test_co_simulated_controller_on_the_law_moment_sensors_equals_the_numpy_driver():
+    """A sampled static gain on ``"ball.moment_x|y"`` driving a body torque (4 ms samples): = the numpy driver."""
+    loop = _actuated()
+    q0, v0 = _start(loop)
+    sampled = StaticGainController(["ball.moment_x", "ball.moment_y"], ["free.torque_x"], [[-0.5, 0.3]],
+                                   sample_time=4e-3)
+    options = dict(x0=q0, v0=v0, outputs=["ball.moment_x"], controllers=[sampled])
+    _equal(ctmm.simulate(loop, 0.04, 1e-3, compiled=True, **options), _numpy(loop, 0.04, 1e-3, **options))
