@@ -200,3 +200,18 @@ def test_a_law_between_two_moving_bodies_equals_numpy_and_matches_the_dae():
                     for R, S in zip(poses(loop, run.q[k], run.v[k])[1], dae.rotations(Y[k])))
         assert error < 1e-9
     assert np.abs(loop.law_moments(q, v)).max() > 0.01                         # the law acts (0.02 N m)
+
+
+def test_a_spherical_law_casadi_cannot_express_is_refused_by_name():
+    """A CallableLaw with its own derivatives (plain Python, not traced) on a spherical cut: compiled=True refuses the
+    model by name before building (the numpy path runs it)."""
+    from ctmm.errors import ModelError
+    from ctmm.nonlinear_laws import CallableLaw
+
+    law = CallableLaw(lambda d, r: 2.0 * float(d) + 0.02 * float(r), stiffness=lambda d, r: 2.0,
+                      damping=lambda d, r: 0.02, name="python spring")
+    loop = _ball(law)
+    q, v = _start(loop)
+    with pytest.raises(ModelError, match="cut joint 'ball'.*python spring.*not expressible with casadi"):
+        ctmm.simulate(loop, 0.002, 1e-3, x0=q, v0=v, compiled=True)
+    assert ctmm.simulate(loop, 0.002, 1e-3, x0=q, v0=v)["ball.moment_x"].shape == (3,)
