@@ -58,8 +58,8 @@ from .spatial.closed_loop_time import SpatialLoopSimulation
 from .spatial.closed_loops import SpatialKinematicLoopModel
 from .spatial.ports import SpatialPorts
 
-__all__ = ["CompiledSpatialKinematicLoops", "spatial_cut_load_refusal", "spatial_kinematic_loop_compile_refusal",
-           "simulate_spatial_kinematic_loops_generated", "symbolic_normalized", "symbolic_spatial_closed_loop",
+__all__ = ["CompiledSpatialKinematicLoops", "loop_simulation", "spatial_cut_load_refusal",
+           "spatial_kinematic_loop_compile_refusal", "simulate_spatial_kinematic_loops_generated", "symbolic_normalized", "symbolic_spatial_closed_loop",
            "symbolic_spatial_projection"]
 
 
@@ -374,17 +374,8 @@ def simulate_spatial_kinematic_loops_generated(model: SpatialKinematicLoopModel,
     unknowns, phi, phi_dot = compiled.cut_history(t[:good], states[:good])
 
     def history(k: int) -> SpatialLoopSimulation:
-        nq = model.tree.n_positions
-        loads = [model.cut_loads(states[i, :nq], unknowns[i], t[i]) for i in range(k)]
-        forces = np.array([[f for f, _ in row] for row in loads]).reshape(k, len(model.cuts), 3)
-        moments = np.array([[mu for _, mu in row] for row in loads]).reshape(k, len(model.cuts), 3)
-        if spherical_law_cuts(model):               # a spherical cut's law moment, as the numpy run stores it
-            moments = moments + np.array([model.law_moments(states[i, :nq], states[i, nq:size], t[i])
-                                          for i in range(k)]).reshape(k, len(model.cuts), 3)
-        return SpatialLoopSimulation(model, t[:k], states[:k, :nq], states[:k, nq:size], forces, moments,
-                                     np.max(np.abs(phi[:k]), axis=1, initial=0.0),
-                                     np.max(np.abs(phi_dot[:k]), axis=1, initial=0.0), "rk4-generated", wall,
-                                     4 * n_steps)
+        return loop_simulation(model, t[:k], states[:k, :size], unknowns[:k], "rk4-generated", wall, 4 * n_steps,
+                               phi[:k], phi_dot[:k])
 
     if bad is not None:
         error = generated_failure(model, f"spatial kinematic loop {model.name!r}", t, states, bad, size,
@@ -397,6 +388,27 @@ def simulate_spatial_kinematic_loops_generated(model: SpatialKinematicLoopModel,
                                   partial_result=error.partial_result) from None
         raise error
     return history(len(t))
+
+
+def loop_simulation(model: SpatialKinematicLoopModel, t: np.ndarray, states: np.ndarray, unknowns: np.ndarray,
+                    method: str, wall: float, evaluations: int, phi: np.ndarray | None = None,
+                    phi_dot: np.ndarray | None = None) -> SpatialLoopSimulation:
+    """The :class:`SpatialLoopSimulation` of stored times ``t`` [s], states ``[q, v]`` and cut unknowns (rows, m):
+    the cut loads (:meth:`SpatialKinematicLoopModel.cut_loads`, a spherical cut's law moment added as the numpy run
+    stores it) and the drift from ``Phi``, ``Phi'`` (rows, m; ``None``: evaluated here)."""
+    k, nq = len(t), model.tree.n_positions
+    if phi is None:
+        rows = [model.constraints(states[i, :nq], states[i, nq:], float(t[i])) for i in range(k)]
+        phi, phi_dot = np.array([r[0] for r in rows]).reshape(k, -1), np.array([r[1] for r in rows]).reshape(k, -1)
+    loads = [model.cut_loads(states[i, :nq], unknowns[i], t[i]) for i in range(k)]
+    forces = np.array([[f for f, _ in row] for row in loads]).reshape(k, len(model.cuts), 3)
+    moments = np.array([[mu for _, mu in row] for row in loads]).reshape(k, len(model.cuts), 3)
+    if spherical_law_cuts(model):               # a spherical cut's law moment, as the numpy run stores it
+        moments = moments + np.array([model.law_moments(states[i, :nq], states[i, nq:], t[i])
+                                      for i in range(k)]).reshape(k, len(model.cuts), 3)
+    return SpatialLoopSimulation(model, np.asarray(t), states[:, :nq], states[:, nq:], forces, moments,
+                                 np.max(np.abs(phi), axis=1, initial=0.0), np.max(np.abs(phi_dot), axis=1, initial=0.0),
+                                 method, wall, evaluations)
 
 
 def symbolic_normalized(tree: Any, q: Any) -> Any:
