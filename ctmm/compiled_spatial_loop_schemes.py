@@ -27,7 +27,6 @@ from typing import Any
 
 import numpy as np
 
-from .compiled_scene_schemes import STATUS, reused_or_built
 from .compiled_spatial_kinematic_loops import (loop_simulation, spatial_kinematic_loop_compile_refusal,
                                                symbolic_spatial_closed_loop, symbolic_spatial_projection)
 from .compiled_spatial_schemes import CompiledSpatialScheme, checked_spatial_result, warn_conditionally_stable
@@ -136,8 +135,13 @@ def simulate_spatial_loop_scheme_generated(model: SpatialKinematicLoopModel, q0:
     q, v = model.state(q0, v0)
     n_steps = step_total(t_final, dt)
     dt = float(t_final) / n_steps
-    compiled = reused_or_built(CompiledSpatialLoopScheme, compiled, model, scheme, store_every,
-                               projection=projection, cache_dir=cache_dir) if compiled is None else compiled
+    if compiled is None:
+        compiled = CompiledSpatialLoopScheme(model, scheme, store_every=store_every, projection=projection,
+                                             cache_dir=cache_dir)
+    elif not isinstance(compiled, CompiledSpatialLoopScheme) or compiled.loop_model is not model or \
+            compiled.scheme != scheme or compiled.store_every != store_every or compiled.projection != projection:
+        raise ModelError(f"compiled must be a CompiledSpatialLoopScheme of this model with scheme={scheme!r}, "
+                         f"store_every={store_every!r} and projection={projection!r}, got {compiled!r:.80}")
     warn_conditionally_stable(model.tree, scheme)
     start = compiled.initial_state(np.concatenate([q, v]))
     began = clock.perf_counter()

@@ -64,6 +64,10 @@ def test_failures_and_refusals_are_named(four_bar):
         simulate_spatial_loop_scheme_generated(loop, q, 10 * v, t_final=0.1, dt=0.02, scheme="newmark", compiled=one)
     assert failure.value.element == "s3" and failure.value.time == pytest.approx(0.02)
     assert failure.value.partial_result.t[-1] == 0.0
+    with pytest.raises(ModelError, match="compiled must be a CompiledSpatialLoopScheme of this model with "
+                                         "scheme=GeneralizedAlpha"):
+        simulate_spatial_loop_scheme_generated(loop, q, v, t_final=0.1, dt=0.02, scheme="generalized_alpha",
+                                               compiled=one)
     with pytest.raises(ModelError, match="compiled=True .* DT-TMM scheme .* not with joint inputs alone"):
         ctmm.simulate(loop, 0.016, 4e-3, x0=q, v0=v, method="newmark", compiled=True, inputs={"h1.torque": 0.1})
     with pytest.raises(ModelError, match="divergence_bound"):
