@@ -34,6 +34,12 @@ rest (0.1, -0.2, 0.05) rad, gravity; the model of ``tests/test_spatial_spherical
 :func:`~ctmm.spatial.closed_loop_time.simulate_spatial_loops`, per-step times and their largest coordinate
 difference (the DAE check is the test's); ``--spherical`` runs this row alone and merges it into the stored JSON.
 
+Spatial scheme row (issue 13): the R-U-S-R four-bar with Newmark at dt = 1 ms over ``T`` / 5 (the numpy scheme
+re-solves the cut loads at every Newton iterate: ~70 ms per step):
+:class:`~ctmm.compiled_spatial_loop_schemes.CompiledSpatialLoopScheme` against
+:func:`~ctmm.spatial.closed_loop_time.simulate_spatial_loop_scheme`, both projected after every step;
+``--spatial-scheme`` runs this row alone and merges it into the stored JSON.
+
 Figures: per-step wall and CPU time [us] (best of 3), the largest angle difference generated - numpy [rad]
 (consistency: round-off) and the largest angle error of each against the DAE [rad].  Run
 ``python benchmarks/kinematic_loops_generated.py`` (``--quick``: T = 0.2 s); writes
@@ -152,6 +158,33 @@ def spherical(t_final: float, steps: int) -> dict:
             **spatial_timings("spherical", loop, q0, v0, kernel, t_final, steps)}
 
 
+def spatial_scheme(t_final: float) -> dict:
+    """The spatial scheme row (module docstring)."""
+    from ctmm.compiled_spatial_loop_schemes import CompiledSpatialLoopScheme, simulate_spatial_loop_scheme_generated
+    from ctmm.spatial.closed_loop_time import simulate_spatial_loop_scheme
+
+    loop = spatial_four_bar.mechanism()
+    q0, v0 = spatial_four_bar.start(loop)
+    span = t_final / 5.0
+    steps = int(round(span / DT))
+    kernel, compile_s = compiled_fresh(CompiledSpatialLoopScheme, loop)
+    generated: list = []
+    run_wall, run_cpu = best(lambda: generated.append(simulate_spatial_loop_scheme_generated(
+        loop, q0, v0, t_final=span, dt=DT, scheme="newmark", compiled=kernel)))
+    kernel_wall = min(info["wall_time_s"] for _, info in generated[1:])
+    plain: list = []
+    numpy_wall, numpy_cpu = best(lambda: plain.append(simulate_spatial_loop_scheme(loop, q0, v0, t_final=span, dt=DT,
+                                                                                   scheme="newmark")), repeats=1)
+    return {"scheme_problem": f"R-U-S-R four-bar, Newmark with projection, T = {span} s, dt = {DT} s",
+            "scheme_load_average": list(os.getloadavg()), "scheme_compile_s": compile_s,
+            "scheme_generated_run_us_per_step": 1e6 * kernel_wall / steps,
+            "scheme_generated_whole_cpu_us_per_step": 1e6 * run_cpu / steps,
+            "scheme_numpy_us_per_step": 1e6 * numpy_wall / steps,
+            "scheme_numpy_cpu_us_per_step": 1e6 * numpy_cpu / steps,
+            "scheme_speedup_whole_cpu": numpy_cpu / run_cpu,
+            "scheme_generated_minus_numpy": float(np.max(np.abs(generated[-1][0].q - plain[-1][0].q)))}
+
+
 def controlled(t_final: float, steps: int) -> dict:
     """The controlled row (module docstring)."""
     import ctmm
@@ -202,11 +235,14 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--quick", action="store_true", help="T = 0.2 s")
     parser.add_argument("--spherical", action="store_true",
                         help="the spherical-law row alone, merged into the stored JSON")
+    parser.add_argument("--spatial-scheme", action="store_true",
+                        help="the spatial scheme row alone, merged into the stored JSON")
     args = parser.parse_args(argv)
     t_final = 0.2 if args.quick else 1.0
     steps = int(round(t_final / DT))
-    if args.spherical:
-        row = spherical(t_final, steps)
+    if args.spherical or args.spatial_scheme:
+        row = {**(spherical(t_final, steps) if args.spherical else {}),
+               **(spatial_scheme(t_final) if args.spatial_scheme else {})}
         for key, value in row.items():
             print(f"{key:40s} {value}")
         if not args.quick:
@@ -242,6 +278,7 @@ def main(argv: list[str] | None = None) -> dict:
     out.update(spatial(t_final, steps))
     out.update(controlled(t_final, steps))
     out.update(spherical(t_final, steps))
+    out.update(spatial_scheme(t_final))
     for key, value in out.items():
         print(f"{key:36s} {value}")
     if not args.quick:

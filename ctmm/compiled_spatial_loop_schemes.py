@@ -96,6 +96,16 @@ class CompiledSpatialLoopScheme(CompiledSpatialScheme):
         """``[condition of G at the start, 0]``."""
         return np.array([float(self._closed(q, qdot, np.zeros(0), np.zeros(0), 0.0)[1]), 0.0])
 
+    def cut_history(self, t: np.ndarray, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Cut unknowns, ``Phi`` and ``Phi'`` (rows, m) of stored times ``t`` [s] and states ``[q, v]``: the closed-loop
+        functions on symbols mapped over the rows (one call)."""
+        m, rows, nq = self.loop_model.n_constraints, len(t), self.model.n_positions
+        if rows == 0:
+            return np.zeros((0, m)), np.zeros((0, m)), np.zeros((0, m))
+        q, v, t = states[:, :nq].T, states[:, nq:].T, np.asarray(t, dtype=float)[None, :]
+        _, _, unknowns, phi, phi_dot, _ = self._closed.map(rows)(q, v, np.zeros((0, rows)), np.zeros((0, rows)), t)
+        return np.asarray(unknowns).T.copy(), np.asarray(phi).T.copy(), np.asarray(phi_dot).T.copy()
+
     def _build(self) -> tuple[Any, list]:
         """The scheme's step followed by the projection of ``q``, ``v`` at the step's end (module docstring)."""
         import casadi as ca
@@ -157,9 +167,8 @@ def simulate_spatial_loop_scheme_generated(model: SpatialKinematicLoopModel, q0:
             "newton_iterations": total, "projection": compiled.projection}
 
     def result(k: int) -> SpatialLoopSimulation:
-        unknowns = [model.solve(states[i, :nq], states[i, nq:size], float(times[i]))[1] for i in range(k)]
-        return loop_simulation(model, times[:k], states[:k, :size], np.array(unknowns).reshape(k, -1), method, wall,
-                               total)
+        unknowns, phi, phi_dot = compiled.cut_history(times[:k], states[:k, :size])
+        return loop_simulation(model, times[:k], states[:k, :size], unknowns, method, wall, total, phi, phi_dot)
 
     run = checked_spatial_result(compiled, times, states, dt, method, result)
     condition, residual = states[:, -2], states[:, -1]
