@@ -27,6 +27,19 @@ against the numpy driver (``compiled=None``): the generated run alone (``info["w
 step, their largest angle difference and
 each one's error against the DAE with the same delayed PD as a motor at the cut (method of steps).
 
+Spherical-law row (issue 13): a body on a free joint held at the ground by a spherical cut carrying a 3-axis law
+(cubic spring 2 N m/rad + 15 N m/rad^3 and a 0.02 N m s/rad damper per component of the relative rotation vector,
+rest (0.1, -0.2, 0.05) rad, gravity; the model of ``tests/test_spatial_spherical_cut_law.py``), ``T`` at dt = 1 ms:
+:class:`~ctmm.compiled_spatial_kinematic_loops.CompiledSpatialKinematicLoops` ``.run`` against
+:func:`~ctmm.spatial.closed_loop_time.simulate_spatial_loops`, per-step times and their largest coordinate
+difference (the DAE check is the test's); ``--spherical`` runs this row alone and merges it into the stored JSON.
+
+Spatial scheme row (issue 13): the R-U-S-R four-bar with Newmark at dt = 1 ms over ``T`` / 5 (the numpy scheme
+re-solves the cut loads at every Newton iterate: ~70 ms per step):
+:class:`~ctmm.compiled_spatial_loop_schemes.CompiledSpatialLoopScheme` against
+:func:`~ctmm.spatial.closed_loop_time.simulate_spatial_loop_scheme`, both projected after every step;
+``--spatial-scheme`` runs this row alone and merges it into the stored JSON.
+
 Figures: per-step wall and CPU time [us] (best of 3), the largest angle difference generated - numpy [rad]
 (consistency: round-off) and the largest angle error of each against the DAE [rad].  Run
 ``python benchmarks/kinematic_loops_generated.py`` (``--quick``: T = 0.2 s); writes
@@ -83,23 +96,93 @@ def best(call, repeats: int = 3) -> tuple[float, float]:
     return min(walls), min(cpus)
 
 
-def spatial(t_final: float, steps: int) -> dict:
-    """The spatial row (module docstring)."""
-    loop = spatial_four_bar.mechanism()
-    q0, v0 = spatial_four_bar.start(loop)
-    kernel = CompiledSpatialKinematicLoops(loop)
+def compiled_fresh(kind, loop):
+    """``(kernel, compile_s)``: the generated kernel ``kind(loop)`` from the shared cache, and the seconds to build,
+    generate and compile it in a fresh cache folder."""
+    with tempfile.TemporaryDirectory() as folder:
+        started = time.perf_counter()
+        kind(loop, cache_dir=folder)
+        compile_s = time.perf_counter() - started
+    return kind(loop), compile_s
+
+
+def spatial_timings(prefix: str, loop, q0, v0, kernel, t_final: float, steps: int) -> dict:
+    """``<prefix>_...`` figures of a spatial loop model: the generated ``kernel``'s run against the numpy RK4 with
+    projection, per step, and their largest coordinate difference and drift."""
     run_wall, run_cpu = best(lambda: kernel.run(q0, v0, DT, steps))
     numpy_wall, numpy_cpu = best(lambda: simulate_spatial_loops(loop, q0, v0, t_final=t_final, dt=DT), repeats=1)
     generated = simulate_spatial_kinematic_loops_generated(loop, q0, v0, t_final=t_final, dt=DT, compiled=kernel)
     numpy_run = simulate_spatial_loops(loop, q0, v0, t_final=t_final, dt=DT)
+    return {f"{prefix}_generated_run_us_per_step": 1e6 * run_wall / steps,
+            f"{prefix}_generated_run_cpu_us_per_step": 1e6 * run_cpu / steps,
+            f"{prefix}_numpy_us_per_step": 1e6 * numpy_wall / steps,
+            f"{prefix}_numpy_cpu_us_per_step": 1e6 * numpy_cpu / steps,
+            f"{prefix}_speedup_run_cpu": numpy_cpu / run_cpu,
+            f"{prefix}_generated_minus_numpy": float(np.max(np.abs(generated.q - numpy_run.q))),
+            f"{prefix}_max_drift": float(np.max(generated.drift))}
+
+
+def spatial(t_final: float, steps: int) -> dict:
+    """The spatial row (module docstring)."""
+    loop = spatial_four_bar.mechanism()
+    q0, v0 = spatial_four_bar.start(loop)
     return {"spatial_problem": f"R-U-S-R four-bar (scenarios/spatial_four_bar.py), T = {t_final} s, dt = {DT} s",
-            "spatial_generated_run_us_per_step": 1e6 * run_wall / steps,
-            "spatial_generated_run_cpu_us_per_step": 1e6 * run_cpu / steps,
-            "spatial_numpy_us_per_step": 1e6 * numpy_wall / steps,
-            "spatial_numpy_cpu_us_per_step": 1e6 * numpy_cpu / steps,
-            "spatial_speedup_run_cpu": numpy_cpu / run_cpu,
-            "spatial_generated_minus_numpy": float(np.max(np.abs(generated.q - numpy_run.q))),
-            "spatial_max_drift": float(np.max(generated.drift))}
+            **spatial_timings("spatial", loop, q0, v0, CompiledSpatialKinematicLoops(loop), t_final, steps)}
+
+
+def spherical_ball():
+    """The spherical-law row's model and start ``(loop, q0, v0)`` (module docstring)."""
+    import ctmm.spatial as sp
+    from ctmm.nonlinear_laws import CubicSpring, LinearLaw, ParallelLaw
+    from ctmm.spatial.closed_loops import SpatialCutJoint, SpatialKinematicLoopModel
+
+    tree = sp.SpatialModel("ball", [sp.SpatialBody("p", 1.2, np.diag([0.02, 0.03, 0.025]),
+                                                   center_of_mass=(0.1, 0.0, -0.3)),
+                                    sp.Free(name="free", parent=None, child="p")])
+    law = ParallelLaw(CubicSpring(2.0, 15.0), LinearLaw(0.0, 0.02))
+    loop = SpatialKinematicLoopModel(tree, [SpatialCutJoint(name="ball", parent=None, child="p", law=law,
+                                                            rest=(0.1, -0.2, 0.05))])
+    turn = np.sin(0.3)
+    q0, v0 = loop.consistent_state({"free.qw": np.cos(0.3), "free.qx": 0.6 * turn, "free.qy": 0.8 * turn},
+                                   {"free.wx": 1.0, "free.wz": 2.0})
+    return loop, q0, v0
+
+
+def spherical(t_final: float, steps: int) -> dict:
+    """The spherical-law row (module docstring)."""
+    loop, q0, v0 = spherical_ball()
+    kernel, compile_s = compiled_fresh(CompiledSpatialKinematicLoops, loop)
+    return {"spherical_problem": f"body on a free joint held by a spherical cut with a 3-axis cubic spring + damper "
+                                 f"(tests/test_spatial_spherical_cut_law.py), T = {t_final} s, dt = {DT} s",
+            "spherical_load_average": list(os.getloadavg()), "spherical_compile_s": compile_s,
+            **spatial_timings("spherical", loop, q0, v0, kernel, t_final, steps)}
+
+
+def spatial_scheme(t_final: float) -> dict:
+    """The spatial scheme row (module docstring)."""
+    from ctmm.compiled_spatial_loop_schemes import CompiledSpatialLoopScheme, simulate_spatial_loop_scheme_generated
+    from ctmm.spatial.closed_loop_time import simulate_spatial_loop_scheme
+
+    loop = spatial_four_bar.mechanism()
+    q0, v0 = spatial_four_bar.start(loop)
+    span = t_final / 5.0
+    steps = int(round(span / DT))
+    kernel, compile_s = compiled_fresh(CompiledSpatialLoopScheme, loop)
+    generated: list = []
+    run_wall, run_cpu = best(lambda: generated.append(simulate_spatial_loop_scheme_generated(
+        loop, q0, v0, t_final=span, dt=DT, scheme="newmark", compiled=kernel)))
+    kernel_wall = min(info["wall_time_s"] for _, info in generated[1:])
+    plain: list = []
+    numpy_wall, numpy_cpu = best(lambda: plain.append(simulate_spatial_loop_scheme(loop, q0, v0, t_final=span, dt=DT,
+                                                                                   scheme="newmark")), repeats=1)
+    return {"scheme_problem": f"R-U-S-R four-bar, Newmark with projection, T = {span} s, dt = {DT} s",
+            "scheme_load_average": list(os.getloadavg()), "scheme_compile_s": compile_s,
+            "scheme_generated_run_us_per_step": 1e6 * kernel_wall / steps,
+            "scheme_generated_whole_cpu_us_per_step": 1e6 * run_cpu / steps,
+            "scheme_numpy_us_per_step": 1e6 * numpy_wall / steps,
+            "scheme_numpy_cpu_us_per_step": 1e6 * numpy_cpu / steps,
+            "scheme_speedup_whole_cpu": numpy_cpu / run_cpu,
+            "scheme_generated_minus_numpy": float(np.max(np.abs(generated[-1][0].q - plain[-1][0].q)))}
 
 
 def controlled(t_final: float, steps: int) -> dict:
@@ -150,15 +233,24 @@ def controlled(t_final: float, steps: int) -> dict:
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="T = 0.2 s")
+    parser.add_argument("--spherical", action="store_true",
+                        help="the spherical-law row alone, merged into the stored JSON")
+    parser.add_argument("--spatial-scheme", action="store_true",
+                        help="the spatial scheme row alone, merged into the stored JSON")
     args = parser.parse_args(argv)
     t_final = 0.2 if args.quick else 1.0
     steps = int(round(t_final / DT))
+    if args.spherical or args.spatial_scheme:
+        row = {**(spherical(t_final, steps) if args.spherical else {}),
+               **(spatial_scheme(t_final) if args.spatial_scheme else {})}
+        for key, value in row.items():
+            print(f"{key:40s} {value}")
+        if not args.quick:
+            stored = json.loads(RESULTS.read_text()) if RESULTS.exists() else {}
+            RESULTS.write_text(json.dumps({**stored, **row}, indent=2) + "\n")
+        return row
     loop, q0, v0 = four_bar()
-    with tempfile.TemporaryDirectory() as folder:
-        started = time.perf_counter()
-        CompiledKinematicLoops(loop, cache_dir=folder)
-        compile_s = time.perf_counter() - started
-    kernel = CompiledKinematicLoops(loop)
+    kernel, compile_s = compiled_fresh(CompiledKinematicLoops, loop)
     generated_wall, generated_cpu = best(lambda: kernel.run(q0, v0, DT, steps))
     whole_wall, whole_cpu = best(lambda: simulate_kinematic_loops_generated(loop, q0, v0, t_final=t_final, dt=DT,
                                                                            compiled=kernel))
@@ -185,6 +277,8 @@ def main(argv: list[str] | None = None) -> dict:
            "max_drift_m": float(np.max(generated.drift))}
     out.update(spatial(t_final, steps))
     out.update(controlled(t_final, steps))
+    out.update(spherical(t_final, steps))
+    out.update(spatial_scheme(t_final))
     for key, value in out.items():
         print(f"{key:36s} {value}")
     if not args.quick:

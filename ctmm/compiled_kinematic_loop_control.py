@@ -43,9 +43,11 @@ controllers' outputs as held inputs ``u``, run one sample interval per call by
 stored cut forces with each row's held values (:meth:`CompiledKinematicLoopControl.applied_inputs`).
 
 Refused (:class:`~ctmm.errors.ModelError`, by name): models :func:`kinematic_loop_compile_refusal` refuses, methods
-other than ``"rk4"``, a ``"<cut>.moment"`` sensor of a cut with a time-varying torque, a spatial cut's moment or
-force sensor (``"<cut>.moment_x"``, ...: functions of the cut unknowns, not of the state), and what
-:class:`ClosedLoops` refuses (non-integer delays, references and inputs without a symbolic form).
+other than ``"rk4"``, a ``"<cut>.moment"`` sensor of a cut with a time-varying torque, and what
+:class:`ClosedLoops` refuses (non-integer delays, references and inputs without a symbolic form).  A spherical cut
+with a law senses its law's moment ``"<cut>.moment_x|y|z"`` (world axes, a function of the state:
+:func:`ctmm.compiled_spherical_cut_law.symbolic_spherical_law_moment`); the cut loads ``"<cut>.force_x|y|z"`` are
+outputs, not sensors, on every path.
 """
 from __future__ import annotations
 
@@ -62,6 +64,7 @@ from .compiled_kinematic_loops import (kinematic_loop_compile_refusal, symbolic_
 from .compiled_loops import ClosedLoops, SymbolicKinematics, sensor_expression
 from .compiled_parameters import parameter_vector
 from .compiled_scene import DEFAULT_ROWS
+from .compiled_spherical_cut_law import rotation_limit_note
 from .control.controlled_model import ControlledModel
 from .errors import ModelError, SimulationError
 from .generated_loop import BlockRunner, compiled_time_loop, run_blocks
@@ -138,7 +141,8 @@ class SpatialKinematicLoopSymbols:
     """A spatial kinematic loop model on symbols for :class:`ctmm.compiled_loops.ClosedLoops`: the tree's sensors by
     :class:`ctmm.compiled_spatial_loops.SpatialSymbols`, the cut sensors ``"<cut>.angle"`` / ``"<cut>.position"``
     and ``"<cut>.rate"`` (a cut law's ``"<cut>.law_moment"`` / ``"<cut>.law_force"`` too) by the cut coordinates on
-    symbols (:func:`ctmm.compiled_spatial_kinematic_loops.symbolic_spatial_closed_loop`).
+    symbols, a spherical cut law's ``"<cut>.moment_x|y|z"`` by its moment on symbols
+    (:func:`ctmm.compiled_spatial_kinematic_loops.symbolic_spatial_closed_loop`).
 
     Parameters
     ----------
@@ -147,13 +151,15 @@ class SpatialKinematicLoopSymbols:
         The ports of the controlled model (the tree's and the cut joints').
     coordinates : casadi.Function
         ``cut_coordinates(q, v) -> [s_1, s_1', ...]``.
+    law_moments : casadi.Function, optional
+        ``law_moments(q, v) -> [m_1 ; m_2 ; ...]`` (3 per cut; needed by the spherical law moment sensors).
     """
 
-    def __init__(self, model: Any, ports: Any, coordinates: Any) -> None:
+    def __init__(self, model: Any, ports: Any, coordinates: Any, law_moments: Any = None) -> None:
         from .compiled_spatial_loops import SpatialSymbols
         from .spatial.ports import SpatialPorts
 
-        self.model, self.ports, self.coordinates = model, ports, coordinates
+        self.model, self.ports, self.coordinates, self.law_moments = model, ports, coordinates, law_moments
         self.tree_symbols = SpatialSymbols(model.tree, SpatialPorts(model.tree))
         self.n_positions, self.n_velocities = model.tree.n_positions, model.tree.n_velocities
         self.cut_index = {cut.name: k for k, cut in enumerate(model.cuts)}
@@ -165,19 +171,21 @@ class SpatialKinematicLoopSymbols:
     def sensor(self, name: str, q: Any, v: Any) -> Any:
         """Sensor ``name`` as an expression of the symbols ``q``, ``v``.
 
+        A spherical cut's law moment ``"<cut>.moment_x|y|z"`` [N m] (world axes) is ``law_moments(q, v)``
+        (:func:`ctmm.compiled_spherical_cut_law.symbolic_spherical_law_moment`).
+
         Raises
         ------
         ModelError
-            A spherical cut's law moment ``"<cut>.moment_x|y|z"`` (its 3-axis law is not on symbols here).
+            A cut force ``"<cut>.force_x|y|z"`` (it responds to the actuators at once: the numpy loop driver's).
         """
         cut_name, _, part = name.rpartition(".")
         if cut_name in self.cut_index and part in ("force_x", "force_y", "force_z"):
             raise ModelError(f"sensor {name!r}: a cut force responds to the actuators at once, not a function of the "
                              "state as the generated loop sensors are; use compiled=None (the numpy loop driver)")
-        if cut_name in self.cut_index and part in ("moment_x", "moment_y", "moment_z"):
-            raise ModelError(f"sensor {name!r}: the law moment of the spherical cut joint {cut_name!r} is not in the "
-                             "generated loop sensors (its 3-axis law is not on symbols yet); use compiled=None (the "
-                             "numpy loop driver)")
+        if cut_name in self.cut_index and part in ("moment_x", "moment_y", "moment_z") and \
+                self.model.cuts[self.cut_index[cut_name]].kind == "spherical":
+            return self.law_moments(q, v)[3 * self.cut_index[cut_name] + "xyz".index(part[-1])]
         if cut_name in self.cut_index and part in ("angle", "position", "rate"):
             return self.coordinates(q, v)[2 * self.cut_index[cut_name] + (part == "rate")]
         if cut_name in self.cut_index and part in ("law_moment", "law_force"):     # -law(s - rest, s')
@@ -265,8 +273,8 @@ class CompiledKinematicLoopControl:
                                              + list(self.inputs) + list(held)))
         if spatial:
             self.parameters, (self.nq, self.nv) = np.zeros(0), (model.tree.n_positions, model.tree.n_velocities)
-            self.closed, constraint, coordinates = symbolic_spatial_closed_loop(model, self.actuators)
-            symbols: Any = SpatialKinematicLoopSymbols(model, controlled.ports, coordinates)
+            self.closed, constraint, coordinates, law_moments = symbolic_spatial_closed_loop(model, self.actuators)
+            symbols: Any = SpatialKinematicLoopSymbols(model, controlled.ports, coordinates, law_moments)
             project = symbolic_spatial_projection(model.tree, constraint, self.iterations)
         else:
             self.parameters, self.nq = parameter_vector(model.tree), model.tree.n_coordinates
@@ -308,12 +316,23 @@ class CompiledKinematicLoopControl:
         Raises
         ------
         SimulationError
-            A singular loop configuration or a failed projection in the interval (time, first cut joint).
+            A singular loop configuration or a failed projection in the interval (time, first cut joint); a
+            non-finite state of a spatial model with a spherical cut law (time, the cut turned furthest, its angle:
+            :func:`ctmm.compiled_spherical_cut_law.rotation_limit_note`).
         """
         if abs(dt - self.dt) > 1e-12 * self.dt or self.store_every != 1:
             raise ModelError(f"continue_run: this kernel steps dt = {self.dt!r} s storing every step, got dt = "
                              f"{dt!r}, store_every = {self.store_every!r}")
         block = self.run_states(state, held, n_steps, first_step, runner)
+        broken = np.flatnonzero(~np.all(np.isfinite(block), axis=1))
+        if broken.size and isinstance(self.model, SpatialKinematicLoopModel):     # a spherical law beyond 3 rad?
+            k, size = int(broken[0]), self.nq + self.nv
+            before = block[k - 1, :size] if k else np.asarray(state[:size], dtype=float)
+            note, cut = rotation_limit_note(self.model, before[:self.nq], before[self.nq:], (first_step + k) * dt)
+            if note:
+                t = (first_step + 1 + k) * dt
+                raise SimulationError(f"kinematic loop {self.model.name!r} (generated RK4): a non-finite state by t = "
+                                      f"{t:.6g} s{note}", time=t, element=cut)
         over = np.flatnonzero((block[:, -2] > CONDITION_LIMIT) | (block[:, -1] > PROJECTION_TOLERANCE))
         if over.size:
             t = (first_step + 1 + int(over[0])) * dt
@@ -450,10 +469,13 @@ def simulate_controlled_kinematic_loops_generated(system: Any, q0: Any, v0: Any,
                          | (full[:, -1] > PROJECTION_TOLERANCE))
     if bad.size:
         k = int(bad[0])
+        note, cut = "", None
+        if k and isinstance(model, SpatialKinematicLoopModel) and not np.all(np.isfinite(full[k])):
+            note, cut = rotation_limit_note(model, full[k - 1, :nq], full[k - 1, nq:nq + nv], float(t[k - 1]))
         raise SimulationError(f"kinematic loop {model.name!r} with loops (generated RK4): {kernel.failure(full[k])} by "
                               f"t = {t[k]} s "
-                              f"(after t = {t[k - 1] if k else 0.0} s, the last good stored state)", time=float(t[k]),
-                              element=model.cuts[0].name, partial_result=result(k))
+                              f"(after t = {t[k - 1] if k else 0.0} s, the last good stored state){note}",
+                              time=float(t[k]), element=cut or model.cuts[0].name, partial_result=result(k))
     return result(len(t))
 
 

@@ -20,6 +20,10 @@ projection onto the cut joints after it, the time loop in generated C.  On casad
   or a force at the child point along the guide; the opposite on the parent) to the applied wrenches of every load
   case, the law traced on symbols, the actuation by its symbolic form; a driven cut adds the row ``s -
   position(t)`` (``s' - rate(t)``, ``- acceleration(t)`` in ``Phi''``), its unknown the drive's load along ``s``;
+* a spherical cut's 3-axis law (``docs/closed_loops.md`` §8.1b) adds its moment ``-R_p J(phi)^-T f`` on the child
+  (the opposite on the parent) to the applied wrenches of every load case, the law traced on symbols
+  (:func:`ctmm.compiled_spherical_cut_law.symbolic_spherical_law_moment`; beyond ``|phi| = 3`` rad the moment is NaN
+  and the run stops with a :class:`~ctmm.errors.SimulationError` naming the cut, as the numpy path refuses there);
 * after the RK4 step (at its end time): quaternions normalised, ``iterations`` minimum-norm Gauss-Newton steps
   ``q <- normalised(q + G(q) dx)``, ``dx = -J^T (J J^T)^-1 Phi`` (skipped once ``max |Phi| < 1e-14``), then
   ``v <- v - J^T (J J^T)^-1 Phi'``.
@@ -44,6 +48,8 @@ from .compiled_kinematic_loops import (CompiledKinematicLoops, first_failure, ge
                                        cut_load_refusal, projected_rk4_step, symbolic_time_signal,
                                        tree_refusal)
 from .compiled_spatial import position_rates, spatial_compile_refusal
+from .compiled_spherical_cut_law import rotation_limit_note, spherical_law_cuts, symbolic_spherical_law_moment
+from .errors import SimulationError
 from .loop_integration import PROJECTION_SKIP
 from .ops import CASADI
 from .spatial.body_forms import SpatialScene
@@ -52,8 +58,8 @@ from .spatial.closed_loop_time import SpatialLoopSimulation
 from .spatial.closed_loops import SpatialKinematicLoopModel
 from .spatial.ports import SpatialPorts
 
-__all__ = ["CompiledSpatialKinematicLoops", "spatial_cut_load_refusal", "spatial_kinematic_loop_compile_refusal",
-           "simulate_spatial_kinematic_loops_generated", "symbolic_normalized", "symbolic_spatial_closed_loop",
+__all__ = ["CompiledSpatialKinematicLoops", "loop_simulation", "spatial_cut_load_refusal",
+           "spatial_kinematic_loop_compile_refusal", "simulate_spatial_kinematic_loops_generated", "symbolic_normalized", "symbolic_spatial_closed_loop",
            "symbolic_spatial_projection"]
 
 
@@ -80,21 +86,19 @@ def spatial_kinematic_loop_compile_refusal(model: Any) -> str:
 def spatial_cut_load_refusal(cut: Any) -> str:
     """Why the law, actuation or drive of spatial cut joint ``cut`` cannot be stated on symbols (an empty string when
     it can; :func:`ctmm.compiled_kinematic_loops.cut_load_refusal`)."""
-    if cut.kind == "spherical" and cut.law is not None:
-        return (f"cut joint {cut.name!r}: a spherical cut's 3-axis law (docs/closed_loops.md §8.1b) is not in the "
-                "generated step yet; use compiled=None (the numpy RK4 with projection)")
     fields = ("position", "rate", "acceleration") if cut.driven else ("actuation",)
     return cut_load_refusal(cut.name, "law", cut.law, {field: getattr(cut, field) for field in fields})
 
 
 def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuators: Sequence[str] = ()
-                                 ) -> tuple[Any, Any, Any]:
+                                 ) -> tuple[Any, Any, Any, Any]:
     """The closed-loop velocity rates of a spatial kinematic loop model on symbols (module docstring):
     ``closed(q, v, u, p, t) -> (v', condition, cut unknowns, Phi, Phi', G)`` with the actuator values ``u`` of
     ``extra_actuators`` (the tree's port actuators, :mod:`ctmm.spatial.ports`, and the undriven revolute and
     prismatic cuts' ``"<cut>.torque"`` / ``"<cut>.force"``, applied with the cut loads), ``p`` empty;
     ``constraint(q, v, t) -> (Phi, Phi', J)``; ``cut_coordinates(q, v) -> [s_1, s_1', ...]`` (0 for cuts without a
-    coordinate)."""
+    coordinate); ``law_moments(q, v) -> [m_1 ; m_2 ; ...]`` (3 per cut: a spherical cut's law moment on the child
+    [N m], world axes, :meth:`SpatialKinematicLoopModel.law_moments`; zeros for the other cuts)."""
     import casadi as ca
 
     tree = model.tree
@@ -142,6 +146,13 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
         a = parent_fixed(states, parent, np.asarray(cut.parent_axis, float))
         return ca.dot(xc - xp, a), ca.dot(vc - vp, a) + ca.dot(xc - xp, ca.cross(omega_p, a)), a
 
+    def law_moment(states: list, cut: Any, parent: tuple, child: tuple) -> Any:
+        """A spherical cut's law moment on the child (world; :func:`symbolic_spherical_law_moment`)."""
+        rotation_p, omega_p = (None, ca.DM.zeros(3)) if parent[0] < 0 else (states[parent[0]].rotation,
+                                                                           states[parent[0]].omega)
+        return symbolic_spherical_law_moment(cut, rotation_p, states[child[0]].rotation, omega_p,
+                                             states[child[0]].omega)
+
     def rows(q_: Any, v_: Any, t_: Any) -> tuple[Any, Any]:
         states = kinematics(q_, v_)
         phi, rate = [], []
@@ -168,12 +179,13 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
                 rate.append(value_rate - symbolic_time_signal(cut.rate, t_))
         return ca.vertcat(*phi), ca.vertcat(*rate)
 
-    def wrenches(states: list, values: Any, t_: Any) -> dict:
+    def wrenches(states: list, values: Any, t_: Any, spherical_laws: Any) -> dict:
         """The cut loads of the unknowns ``values`` and the cuts' laws and actuations at time ``t_`` as wrenches
-        ``(point, [f ; m] world)`` per body."""
+        ``(point, [f ; m] world)`` per body (``spherical_laws``: 3 per cut, the spherical laws' moments, formed once
+        outside the ``1 + m`` load cases)."""
         out: dict[int, list] = {}
         row = 0
-        for cut, (parent, child), frame in zip(model.cuts, sides, frames):
+        for k, (cut, (parent, child), frame) in enumerate(zip(model.cuts, sides, frames)):
             if frame.basis is None:
                 force = values[row:row + 3]
                 row += 3
@@ -192,6 +204,8 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
             if cut.driven:                          # the drive's load along the coordinate: an unknown
                 along = values[row]
                 row += 1
+            elif cut.kind == "spherical" and cut.law is not None:     # the 3-axis law's moment
+                moment = moment + spherical_laws[3 * k:3 * k + 3]
             elif cut.has_law or cut.name in port_loads:     # actuation(t) + u - law(s - rest, s')
                 value, value_rate, _ = coordinate(states, cut, parent, child)
                 along = 0.0 if cut.actuation is None else symbolic_time_signal(cut.actuation, t_)
@@ -213,14 +227,19 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
         return out
 
     states = kinematics(q, v)
-    loads = wrenches(states, lam, t)
+    moments = [law_moment(states, cut, parent, child) if cut.kind == "spherical" and cut.law is not None
+               else ca.DM.zeros(3) for cut, (parent, child) in zip(model.cuts, sides)]
+    spherical_laws = ca.SX.sym("spherical_laws", 3 * len(model.cuts))
+    loads = wrenches(states, lam, t, spherical_laws)
     for body, entries in tree_wrenches.items():
         loads.setdefault(body, []).extend(entries)
     body_terms, joint_terms, _ = scene.terms(CASADI, q, v, 0.0, joint_inputs or None, loads)
     solution = articulated_sweep(CASADI, scene.tree, body_terms, joint_terms)
-    sweep = ca.Function("loaded_sweep", [q, v, t, lam, u], [ca.vertcat(*scene.velocity_rates(solution))])
-    v_dot0 = sweep(q, v, t, ca.DM.zeros(m), u)
-    D = ca.horzcat(*[sweep(q, v, t, ca.DM.eye(m)[:, i], u) - v_dot0 for i in range(m)])
+    sweep = ca.Function("loaded_sweep", [q, v, t, lam, u, spherical_laws],
+                        [ca.vertcat(*scene.velocity_rates(solution))])
+    law_values = ca.vertcat(*moments)
+    v_dot0 = sweep(q, v, t, ca.DM.zeros(m), u, law_values)
+    D = ca.horzcat(*[sweep(q, v, t, ca.DM.eye(m)[:, i], u, law_values) - v_dot0 for i in range(m)])
     phi, phi_dot = rows(q, v, t)
     J = ca.jacobian(phi_dot, v)
     q_dot = position_rates(tree, q, v)
@@ -241,7 +260,8 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
     closed = ca.Function("closed", [q, v, u, p, t], [v_dot0 + ca.mtimes(D, forces), condition, forces, phi,
                                                       phi_dot, G])
     return (closed, ca.Function("constraint", [q, v, t], [phi, phi_dot, J]),
-            ca.Function("cut_coordinates", [q, v], [ca.vertcat(*coordinates)]))
+            ca.Function("cut_coordinates", [q, v], [ca.vertcat(*coordinates)]),
+            ca.Function("law_moments", [q, v], [law_values]))
 
 
 def _cut_sides(model: SpatialKinematicLoopModel) -> list[tuple[tuple[int, np.ndarray], tuple[int, np.ndarray]]]:
@@ -313,7 +333,7 @@ class CompiledSpatialKinematicLoops(CompiledKinematicLoops):
 
         tree = self.model.tree
         nq, nv = tree.n_positions, tree.n_velocities
-        closed, constraint, _ = symbolic_spatial_closed_loop(self.model)
+        closed, constraint, _, _ = symbolic_spatial_closed_loop(self.model)
         q, v, p, t = ca.SX.sym("q", nq), ca.SX.sym("v", nv), ca.SX.sym("p", 0), ca.SX.sym("t")
         v_dot, condition, forces, phi, phi_dot, G = closed(q, v, ca.DM.zeros(0), p, t)
         y = ca.vertcat(q, v)
@@ -354,19 +374,41 @@ def simulate_spatial_kinematic_loops_generated(model: SpatialKinematicLoopModel,
     unknowns, phi, phi_dot = compiled.cut_history(t[:good], states[:good])
 
     def history(k: int) -> SpatialLoopSimulation:
-        nq = model.tree.n_positions
-        loads = [model.cut_loads(states[i, :nq], unknowns[i], t[i]) for i in range(k)]
-        forces = np.array([[f for f, _ in row] for row in loads]).reshape(k, len(model.cuts), 3)
-        moments = np.array([[mu for _, mu in row] for row in loads]).reshape(k, len(model.cuts), 3)
-        return SpatialLoopSimulation(model, t[:k], states[:k, :nq], states[:k, nq:size], forces, moments,
-                                     np.max(np.abs(phi[:k]), axis=1, initial=0.0),
-                                     np.max(np.abs(phi_dot[:k]), axis=1, initial=0.0), "rk4-generated", wall,
-                                     4 * n_steps)
+        return loop_simulation(model, t[:k], states[:k, :size], unknowns[:k], "rk4-generated", wall, 4 * n_steps,
+                               phi[:k], phi_dot[:k])
 
     if bad is not None:
-        raise generated_failure(model, f"spatial kinematic loop {model.name!r}", t, states, bad, size,
-                                compiled.iterations, history(bad))
+        error = generated_failure(model, f"spatial kinematic loop {model.name!r}", t, states, bad, size,
+                                  compiled.iterations, history(bad))
+        note, cut = ("", None) if bad == 0 or np.all(np.isfinite(states[bad])) else rotation_limit_note(
+            model, states[bad - 1, :model.tree.n_positions], states[bad - 1, model.tree.n_positions:size],
+            float(t[bad - 1]))
+        if note:
+            raise SimulationError(str(error) + note, time=error.time, element=cut,
+                                  partial_result=error.partial_result) from None
+        raise error
     return history(len(t))
+
+
+def loop_simulation(model: SpatialKinematicLoopModel, t: np.ndarray, states: np.ndarray, unknowns: np.ndarray,
+                    method: str, wall: float, evaluations: int, phi: np.ndarray | None = None,
+                    phi_dot: np.ndarray | None = None) -> SpatialLoopSimulation:
+    """The :class:`SpatialLoopSimulation` of stored times ``t`` [s], states ``[q, v]`` and cut unknowns (rows, m):
+    the cut loads (:meth:`SpatialKinematicLoopModel.cut_loads`, a spherical cut's law moment added as the numpy run
+    stores it) and the drift from ``Phi``, ``Phi'`` (rows, m; ``None``: evaluated here)."""
+    k, nq = len(t), model.tree.n_positions
+    if phi is None:
+        rows = [model.constraints(states[i, :nq], states[i, nq:], float(t[i])) for i in range(k)]
+        phi, phi_dot = np.array([r[0] for r in rows]).reshape(k, -1), np.array([r[1] for r in rows]).reshape(k, -1)
+    loads = [model.cut_loads(states[i, :nq], unknowns[i], t[i]) for i in range(k)]
+    forces = np.array([[f for f, _ in row] for row in loads]).reshape(k, len(model.cuts), 3)
+    moments = np.array([[mu for _, mu in row] for row in loads]).reshape(k, len(model.cuts), 3)
+    if spherical_law_cuts(model):               # a spherical cut's law moment, as the numpy run stores it
+        moments = moments + np.array([model.law_moments(states[i, :nq], states[i, nq:], t[i])
+                                      for i in range(k)]).reshape(k, len(model.cuts), 3)
+    return SpatialLoopSimulation(model, np.asarray(t), states[:, :nq], states[:, nq:], forces, moments,
+                                 np.max(np.abs(phi), axis=1, initial=0.0), np.max(np.abs(phi_dot), axis=1, initial=0.0),
+                                 method, wall, evaluations)
 
 
 def symbolic_normalized(tree: Any, q: Any) -> Any:

@@ -61,10 +61,13 @@ def simulate_spatial_loop_system(system: Any, t_final: float, dt: float | None, 
     compiled = validation.flag("compiled", unsupported.pop("compiled", (None, None))[0], optional=True)
     through_driver = bool(loops or controllers or references or tuple(outputs)) or (isinstance(inputs, Mapping) and any(
         name not in model.tree.inputs for name in inputs))
-    if compiled and (method != "rk4" or (inputs and not through_driver)):
+    generated_scheme = compiled and not through_driver and (isinstance(method, Scheme) or (isinstance(method, str)
+                                                                                    and method in SCHEMES))
+    if compiled and ((method != "rk4" and not generated_scheme) or (inputs and not through_driver)):
         raise ModelError(f"compiled=True runs the generated RK4 of the spatial kinematic loop model {model.name!r} "
                          f"(method='rk4'): alone with projection, or with loops, controllers, references, outputs or "
-                         f"port inputs as the loop driver (ctmm.compiled_kinematic_loop_control); not with joint "
+                         f"port inputs as the loop driver (ctmm.compiled_kinematic_loop_control); the model alone "
+                         f"also with a DT-TMM scheme (ctmm.compiled_spatial_loop_schemes); not with joint "
                          f"inputs alone; got method={method!r}, inputs={inputs!r:.60}; leave compiled at None")
     for name, (value, default) in unsupported.items():
         if value is not default and value != default:
@@ -83,7 +86,7 @@ def simulate_spatial_loop_system(system: Any, t_final: float, dt: float | None, 
     if driver or scheme:
         check_consistent(model, q0, v0, "x0, v0")
     if scheme and not driver:
-        return _scheme_run(model, t_final, dt, method, q0, v0, inputs, store_every, divergence_bound)
+        return _scheme_run(model, t_final, dt, method, q0, v0, inputs, store_every, divergence_bound, compiled)
     if driver:
         if isinstance(outputs, (str, Mapping)) or not isinstance(outputs, (list, tuple)):
             raise ModelError(f"outputs must be a list or tuple of sensor names (str), got {outputs!r}")
@@ -129,13 +132,25 @@ def simulate_spatial_loop_system(system: Any, t_final: float, dt: float | None, 
 
 def _scheme_run(model: SpatialKinematicLoopModel, t_final: float, dt: float | None, scheme: Any, q0: np.ndarray,
                 v0: np.ndarray, inputs: Mapping[str, Any] | None, store_every: int,
-                divergence_bound: float | None) -> SimulationResult:
+                divergence_bound: float | None, compiled: bool | None = None) -> SimulationResult:
     """A DT-TMM scheme on the spanning tree with the cut loads as iterate inputs, projected onto the cut joints after
-    every step (:func:`ctmm.spatial.closed_loop_time.simulate_spatial_loop_scheme`), as a result with the tree's
+    every step (:func:`ctmm.spatial.closed_loop_time.simulate_spatial_loop_scheme`; ``compiled``: in generated C,
+    :func:`ctmm.compiled_spatial_loop_schemes.simulate_spatial_loop_scheme_generated`), as a result with the tree's
     signals, the cut loads and the drift."""
-    run, info = simulate_spatial_loop_scheme(model, q0, v0, t_final=t_final, dt=validation.positive("dt", dt),
-                                             scheme=scheme, inputs=inputs, store_every=store_every,
-                                             divergence_bound=divergence_bound)
+    if compiled:
+        from .compiled_spatial_loop_schemes import simulate_spatial_loop_scheme_generated
+
+        if divergence_bound is not None:
+            raise ModelError(f"divergence_bound={divergence_bound!r} is not available with compiled=True and a DT-TMM "
+                             "scheme on a spatial kinematic loop model; leave it at None")
+        run, info = simulate_spatial_loop_scheme_generated(model, q0, v0, t_final=t_final,
+                                                           dt=validation.positive("dt", dt), scheme=scheme,
+                                                           store_every=store_every)
+        info["compiled"] = True
+    else:
+        run, info = simulate_spatial_loop_scheme(model, q0, v0, t_final=t_final, dt=validation.positive("dt", dt),
+                                                 scheme=scheme, inputs=inputs, store_every=store_every,
+                                                 divergence_bound=divergence_bound)
     signals, units = spatial_signals(model.tree, run.t, np.concatenate([run.q, run.v], axis=1))
     add_cut_signals(model, signals, units, run.cut_force, run.cut_moment, run.drift, run.drift_rate)
     info = {**info, "max_drift": float(run.drift.max()), "baumgarte": model.baumgarte}

@@ -197,27 +197,3 @@ def test_without_projection_the_generated_run_equals_the_baumgarte_numpy_driver(
     assert plain.info["projection"] is False and "max_drift_after_projection" not in plain.info
     projected = ctmm.simulate(with_feedback(loop, [_pd(0.01)]), 0.1, 1e-3, x0=q0, v0=v0, compiled=True, **options)
     assert 0.0 < np.max(np.abs(projected["h3.angle"] - plain["h3.angle"])) < 1e-6
-
-
-def test_a_spherical_cut_law_moment_sensor_is_refused_by_name():
-    """A spherical cut's ``"<cut>.moment_x|y|z"`` (its 3-axis law's moment) is not on symbols: a named refusal from the
-    generated loop sensors (the model itself is refused by ctmm.simulate(..., compiled=True) before, by its law)."""
-    import casadi as ca
-
-    import ctmm.spatial as sp
-    from ctmm.compiled_kinematic_loop_control import SpatialKinematicLoopSymbols
-    from ctmm.spatial.closed_loops import SpatialCutJoint, SpatialKinematicLoopModel
-    from test_spatial_spherical_cut_law import COM, INERTIA, LAW, MASS, REST, _start
-
-    tree = sp.SpatialModel("ball", [sp.SpatialBody("p", MASS, INERTIA, center_of_mass=tuple(COM)),
-                                    sp.Free(name="free", parent=None, child="p", actuated=True)])
-    loop = SpatialKinematicLoopModel(tree, [SpatialCutJoint(name="ball", parent=None, child="p", law=LAW, rest=REST)])
-    symbols = SpatialKinematicLoopSymbols(loop, None, None)
-    q, v = ca.SX.sym("q", tree.n_positions), ca.SX.sym("v", tree.n_velocities)
-    for axis in "xyz":
-        with pytest.raises(ModelError, match=f"sensor 'ball.moment_{axis}'.*spherical cut joint 'ball'.*compiled=None"):
-            symbols.sensor(f"ball.moment_{axis}", q, v)
-    q0, v0 = _start(loop)
-    law_loop = Feedback("m", sensor="ball.moment_x", actuator="free.torque_x", gain=1.0)
-    with pytest.raises(ModelError, match="spherical cut's 3-axis law.*compiled=None"):
-        ctmm.simulate(with_feedback(loop, [law_loop]), 0.002, 1e-3, x0=q0, v0=v0, compiled=True)

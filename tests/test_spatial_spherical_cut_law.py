@@ -157,5 +157,3 @@ def test_moment_sensor_in_a_run_and_refusals():
         SpatialCutJoint(name="c", parent=None, child="p", kind="spherical", actuation=1.0)
     with pytest.raises(ModelError, match="rest"):
         SpatialCutJoint(name="c", parent=None, child="p", law=SPRING, rest=(4.0, 0.0, 0.0))
-    with pytest.raises(ModelError, match="law"):
-        ctmm.simulate(loop, 0.01, 1e-3, x0=q, v0=v, compiled=True)
