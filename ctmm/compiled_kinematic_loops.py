@@ -47,7 +47,7 @@ Refused (:class:`~ctmm.errors.ModelError`): a tree that :func:`ctmm.compiled_par
 cut laws that casadi cannot express and torques or drives without a symbolic form (user callables:
 :func:`cut_moment_refusal`).  Feedback loops and open-loop inputs on a kinematic loop model run in
 :mod:`ctmm.compiled_kinematic_loop_control` on the same closed-loop accelerations (:func:`symbolic_closed_loop`;
-cut points on deformable bodies refused there by name, :func:`kinematic_loop_compile_refusal`);
+cut points on deformable bodies too);
 co-simulated controllers keep running in :mod:`ctmm.kinematic_loop_time` (``compiled=True`` refused there by name).
 """
 from __future__ import annotations
@@ -109,10 +109,9 @@ def tree_refusal(model: Any, kind: type, kind_label: str, refusal: Any) -> str:
     return f"its tree cannot be compiled: {reason}" if reason else ""
 
 
-def kinematic_loop_compile_refusal(model: Any, deformable_sides: bool = False) -> str:
-    """Why ``model`` cannot run a generated RK4 (an empty string when it can); ``deformable_sides``: cut points on
-    deformable bodies are accepted (the RK4 of this module, :mod:`ctmm.compiled_cut_points`; the loop-closing driver
-    of :mod:`ctmm.compiled_kinematic_loop_control` does not take them yet)."""
+def kinematic_loop_compile_refusal(model: Any) -> str:
+    """Why ``model`` cannot run a generated RK4 (this module's, or the loop-closing driver's of
+    :mod:`ctmm.compiled_kinematic_loop_control`; an empty string when it can)."""
     reason = tree_refusal(model, KinematicLoopModel, "ctmm.planar.closed_loops.KinematicLoopModel", compile_refusal)
     if reason:
         return reason
@@ -120,17 +119,7 @@ def kinematic_loop_compile_refusal(model: Any, deformable_sides: bool = False) -
         reason = cut_moment_refusal(cut)
         if reason:
             return reason
-    reason = hanging_refusal(model)
-    if reason:
-        return reason
-    for cut, points in zip(model.cuts, _cut_points(model)):
-        for j, _ in points:
-            if j >= 0 and j in model.tree.beams and not deformable_sides:
-                return (f"cut joint {cut.name!r} acts on the deformable body {model.tree.body_names[j]!r}: a cut point "
-                        "at a ModalBeam point or a ctmm.fem subsystem node compiles in the generated RK4 with "
-                        "projection (ctmm.simulate(model, compiled=True) without loops, inputs or controllers), not "
-                        "yet in the loop-closing driver; use compiled=None (the numpy driver)")
-    return ""
+    return hanging_refusal(model)
 
 
 def cut_moment_refusal(cut: Any) -> str:
@@ -217,7 +206,7 @@ class CompiledKinematicLoops:
 
     @staticmethod
     def _refusal(model: Any) -> str:
-        return kinematic_loop_compile_refusal(model, deformable_sides=True)
+        return kinematic_loop_compile_refusal(model)
 
     def _layout(self) -> tuple[np.ndarray, int, str, tuple]:
         """``(parameters, state size, library name, what the builder reads)``."""
@@ -409,12 +398,14 @@ def symbolic_closed_loop(model: KinematicLoopModel, n_parameters: int, extra_act
 
 
 def symbolic_relative_angles(model: KinematicLoopModel, kinematics: SymbolicKinematics) -> list[tuple[Any, Any]]:
-    """``[(dtheta, dtheta')]`` of every cut on the symbols of ``kinematics`` (of ``model.tree``): the child body's
-    angle and rate minus the parent's (0 at the ground), as :meth:`KinematicLoopModel.relative_angles` (rigid
-    sides)."""
+    """``[(dtheta, dtheta')]`` of every cut on the symbols of ``kinematics`` (of ``model.tree``): the child side's
+    angle and rate minus the parent's (0 at the ground; a deformable side's cross-section angle,
+    :class:`ctmm.compiled_cut_points.SymbolicCutSides`), as :meth:`KinematicLoopModel.relative_angles`."""
+    deformable = SymbolicCutSides(model, kinematics)
     out = []
-    for parent, child in _cut_points(model):
-        sides = [(0.0, 0.0) if j < 0 else (kinematics.theta[j], kinematics.omega[j]) for j, _ in (parent, child)]
+    for pair in model.cut_points.sides:
+        sides = [deformable.angle(side) if is_deformable_side(side) else (0.0, 0.0) if side[0] < 0
+                 else (kinematics.theta[side[0]], kinematics.omega[side[0]]) for side in pair]
         out.append((sides[1][0] - sides[0][0], sides[1][1] - sides[0][1]))
     return out
 
