@@ -24,10 +24,15 @@ projection onto the cut joints after it, the time loop in generated C.  On casad
   ``q <- normalised(q + G(q) dx)``, ``dx = -J^T (J J^T)^-1 Phi`` (skipped once ``max |Phi| < 1e-14``), then
   ``v <- v - J^T (J J^T)^-1 Phi'``.
 
+A spherical cut at a deformable point (a ``SpatialBeam`` tip or station, a ``ctmm.fem`` subsystem node) is placed by
+:mod:`ctmm.compiled_spatial_cut_points` (the numpy ``side_point`` traced); its force is the same wrench at that point,
+taken by the body's own load path.
+
 State, failures and result as :mod:`ctmm.compiled_kinematic_loops` (residual and condition carried in the state,
 :class:`~ctmm.errors.SimulationError` with time, cut joint and partial result).  Refused (:class:`ModelError`, by
 name): trees :func:`ctmm.compiled_spatial.spatial_compile_refusal` refuses,
-laws casadi cannot express and actuations or drives without a symbolic form (user callables:
+revolute and universal cuts at deformable points (their section axes), laws casadi cannot express and actuations
+or drives without a symbolic form (user callables:
 :func:`spatial_cut_load_refusal`), driven tree joints (their prescribed motion enters ``Phi'`` and ``Phi''``
 explicitly in time through the tree's kinematics, not in the generated step yet), and with feedback loops, inputs or
 controllers (:mod:`ctmm.spatial_loop_time`).
@@ -44,6 +49,8 @@ from .compiled_kinematic_loops import (CompiledKinematicLoops, first_failure, ge
                                        cut_load_refusal, projected_rk4_step, symbolic_time_signal,
                                        tree_refusal)
 from .compiled_spatial import position_rates, spatial_compile_refusal
+from .compiled_spatial_cut_points import (SymbolicStates, deformable_cut_refusal, deformable_sides,
+                                          symbolic_deformable_point)
 from .loop_integration import PROJECTION_SKIP
 from .ops import CASADI
 from .spatial.body_forms import SpatialScene
@@ -63,9 +70,9 @@ def spatial_kinematic_loop_compile_refusal(model: Any) -> str:
                           spatial_compile_refusal)
     if reason:
         return reason
-    if model.deformable_cuts:
-        return (f"cut joints {list(model.deformable_cuts)} join a point of a SpatialBeam or ctmm.fem subsystem: the "
-                "generated step places cut points on rigid bodies only; use compiled=None")
+    reason = deformable_cut_refusal(model)
+    if reason:
+        return reason
     for cut in model.cuts:
         reason = spatial_cut_load_refusal(cut)
         if reason:
@@ -101,6 +108,7 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
     nq, nv, m = tree.n_positions, tree.n_velocities, model.n_constraints
     scene = SpatialScene(tree)
     sides, frames = _cut_sides(model), [cut_frame(cut) for cut in model.cuts]
+    deformable = deformable_sides(model)
     q, v, lam = ca.SX.sym("q", nq), ca.SX.sym("v", nv), ca.SX.sym("lambda", m)
     extra_actuators = tuple(extra_actuators)
     u = ca.SX.sym("u", len(extra_actuators))
@@ -113,12 +121,15 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
     p, t = ca.SX.sym("p", 0), ca.SX.sym("t")
 
     def kinematics(q_: Any, v_: Any) -> list:
-        return scene.terms(CASADI, q_, v_, 0.0)[2]
+        return SymbolicStates(scene.terms(CASADI, q_, v_, 0.0)[2], q_, v_)
 
     def point(states: list, side: tuple[int, np.ndarray]) -> tuple[Any, Any]:
         body, location = side
         if body < 0:
             return ca.DM(location), ca.DM.zeros(3)
+        if (body, tuple(float(x) for x in location)) in deformable:     # ctmm.compiled_spatial_cut_points
+            return symbolic_deformable_point(states[body], deformable[body, tuple(float(x) for x in location)],
+                                             states.q, states.v, tree.modal[body])
         s = states[body]
         arm = ca.mtimes(s.rotation, ca.DM(location))
         return s.origin + arm, s.velocity + ca.cross(s.omega, arm)

@@ -343,10 +343,7 @@ def test_beam_cut_natural_frequencies_equal_the_reference_on_its_manifold(kind):
     assert np.abs(got - expected).max() < 1e-11 * expected.max(), (got, expected)   # measured 8.6e-13, 9.2e-13
 
 
-def test_compiled_run_with_a_deformable_cut_point_is_refused_by_name():
-    loop, _, q0, v0 = node_loop()
-    with pytest.raises(ModelError, match=r"\['pin'\] join a point of a SpatialBeam or ctmm.fem subsystem"):
-        ctmm.simulate(loop, 0.001, 5e-4, x0=q0, v0=v0, compiled=True)
+# compiled=True with deformable cut points: tests/test_compiled_kinematic_loops_spatial_flexible.py
 
 
 def test_subsystem_node_hinged_accelerations_and_cut_loads_equal_the_global_model():
