@@ -1,11 +1,12 @@
-"""Generated spatial kinematic loops with spherical cuts at deformable points (ctmm.compiled_spatial_cut_points).
+"""Generated spatial kinematic loops with cuts at deformable points (ctmm.compiled_spatial_cut_points).
 
-A spherical cut pinning a SpatialBeam's tip or station, or a ctmm.fem spatial subsystem node, runs in the generated
+A cut pinning or hinging a SpatialBeam's tip or station, or a ctmm.fem spatial subsystem node, runs in the generated
 RK4 with projection: the point is placed by the numpy path's own ``ctmm.spatial.cut_points.side_point`` traced on
 casadi scalars, the cut force goes through the body's own load path, so the generated run equals the numpy one to
-round-off.  Independent reference at the numpy path's bound: the beam's Lagrange multiplier model
-(``ctmm.reference.spatial_beam_lagrange``, tests/test_spatial_cut_points.py: 1e-7 at 2 ms over 20 ms).  Revolute
-and universal cuts there (section axes) stay refused by name.
+round-off; revolute and universal cuts there read the cross-section's axes by the traced ``side_frame``.
+Independent reference at the numpy path's bound: the beam's Lagrange multiplier model
+(``ctmm.reference.spatial_beam_lagrange``, tests/test_spatial_cut_points.py: 1e-7 at 2 ms over 20 ms), pinned and
+hinged.
 """
 from __future__ import annotations
 
@@ -13,7 +14,6 @@ import numpy as np
 import pytest
 
 import ctmm
-from ctmm.errors import ModelError
 from test_spatial_cut_points import (BEAM, PinnedBeamReference, _reference_run, assembled, beam_loop, beam_state,
                                      hinged_tip, node_loop)
 
@@ -60,13 +60,28 @@ def test_pinned_subsystem_node_equals_the_numpy_rk4():
     _agree(loop, generated, ctmm.simulate(loop, 0.0025, 2.5e-4, x0=q0, v0=v0), 1e-11)
 
 
-def test_aligned_cuts_at_deformable_points_stay_refused_by_name():
+@pytest.mark.parametrize("kind", ["revolute", "universal"])
+def test_hinged_beam_tip_equals_the_numpy_rk4(kind):
+    """The alignment rows read the tip's cross-section axes (side_frame traced)."""
+    q0, u0 = beam_state(4)
+    reference, options = hinged_tip(q0, kind)
+    u0, p0 = assembled(reference, q0, u0)
+    loop = beam_loop(True, "tip", p0, **options)
+    generated = ctmm.simulate(loop, 0.02, 1e-3, x0=q0, v0=u0, compiled=True)
+    _agree(loop, generated, ctmm.simulate(loop, 0.02, 1e-3, x0=q0, v0=u0), 1e-14)
+    assert np.ptp(generated["b.twist1"]) > 1e-4
+
+
+def test_hinged_beam_tip_matches_the_lagrange_multiplier_model():
+    """At the numpy path's bound (tests/test_spatial_cut_points.py: 1e-7 at 2 ms over 20 ms)."""
     q0, u0 = beam_state(4)
     reference, options = hinged_tip(q0)
     u0, p0 = assembled(reference, q0, u0)
     loop = beam_loop(True, "tip", p0, **options)
-    with pytest.raises(ModelError, match=r"\['pin'\] align the cross-section at a point of a SpatialBeam"):
-        ctmm.simulate(loop, 0.002, 1e-3, x0=q0, v0=u0, compiled=True)
+    exact = _reference_run(reference, q0, u0, 0.02, 40)
+    run = ctmm.simulate(loop, 0.02, 2e-3, x0=q0, v0=u0, compiled=True)
+    final = np.array([run[name][-1] for name in loop.tree.coordinates])
+    assert np.abs(final - exact[:7]).max() < 1e-7
 
 
 def test_pd_loop_on_the_pinned_beam_equals_the_numpy_driver():
@@ -87,3 +102,20 @@ def test_pd_loop_on_the_pinned_beam_equals_the_numpy_driver():
     generated = ctmm.simulate(with_feedback(loop, [pd]), 0.02, 1e-3, compiled=True, **options)
     _equal(generated, _numpy(with_feedback(loop, [pd]), 0.02, 1e-3, **options))
     assert np.ptp(generated["pd.u"]) > 0.05
+
+
+def test_hinged_subsystem_node_equals_the_numpy_rk4():
+    """A revolute cut at the L-frame's node n3 (its rotation DOFs turn the node's axes), as
+    tests/test_spatial_cut_points.py states it: = the numpy RK4 (rates 1e-11 of the largest, the frame's stiff modes)."""
+    from ctmm.spatial import SpatialCutJoint, SpatialKinematicLoopModel
+    from test_spatial_cut_points import hinged_node
+
+    model, ref, q, rng, p0, a = hinged_node()
+    loop = SpatialKinematicLoopModel(model, [SpatialCutJoint(name="hinge", parent=None, point=tuple(p0), child="frame",
+                                                             child_point="n3", kind="revolute", axis=(1, 0, 0),
+                                                             parent_axis=tuple(a))])
+    J = np.column_stack([loop.constraints(q, np.eye(ref.n)[k])[1] for k in range(ref.n)])
+    N = np.linalg.svd(J)[2][5:].T
+    v0 = N @ (N.T @ rng.normal(size=ref.n))
+    generated = ctmm.simulate(loop, 0.0025, 2.5e-4, x0=q, v0=v0, compiled=True)
+    _agree(loop, generated, ctmm.simulate(loop, 0.0025, 2.5e-4, x0=q, v0=v0), 1e-11)

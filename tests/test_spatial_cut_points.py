@@ -346,16 +346,23 @@ def test_beam_cut_natural_frequencies_equal_the_reference_on_its_manifold(kind):
 # compiled=True with deformable cut points: tests/test_compiled_kinematic_loops_spatial_flexible.py
 
 
-def test_subsystem_node_hinged_accelerations_and_cut_loads_equal_the_global_model():
-    """A revolute cut at the FE node n3 (a beam node: rotation DOFs): the node's x axis kept parallel to a ground
-    axis; the reference's rows ``(R_F E(r) e_x) . b_i`` from its own node frame."""
+def hinged_node(seed=9):
+    """``(model, reference, q, rng, p0, a)``: the yaw link + FE L-frame at a random state, its node n3's position
+    ``p0`` and x axis ``a`` there (a revolute cut at n3 keeps them)."""
     model, ref = chain(child=False)
-    rng = np.random.default_rng(9)
+    rng = np.random.default_rng(seed)
     q = rng.normal(size=model.n_positions) * 0.6
     q[2:] *= 0.01
     zero = np.zeros(ref.n)
-    p0 = ref.node_acceleration_terms(q, zero, "n3")[0]
-    a = ref.node_axis_terms(q, zero, "n3", (1.0, 0.0, 0.0))[0]
+    return (model, ref, q, rng, ref.node_acceleration_terms(q, zero, "n3")[0],
+            ref.node_axis_terms(q, zero, "n3", (1.0, 0.0, 0.0))[0])
+
+
+def test_subsystem_node_hinged_accelerations_and_cut_loads_equal_the_global_model():
+    """A revolute cut at the FE node n3 (a beam node: rotation DOFs): the node's x axis kept parallel to a ground
+    axis; the reference's rows ``(R_F E(r) e_x) . b_i`` from its own node frame."""
+    model, ref, q, rng, p0, a = hinged_node()
+    zero = np.zeros(ref.n)
     b1 = np.cross(a, [0.0, 0.0, 1.0])
     b1 /= np.linalg.norm(b1)
     across = [b1, np.cross(a, b1)]
