@@ -46,8 +46,9 @@ through the generated RK4) was added in its place, measured alone on 2026-11-25 
 ``timings.dropped`` keeps the reason).  ``planar_frf/sweep_n20_500_omega`` (issue 13: planar frequency responses
 by the one sweep's frequency context), ``spatial_frf/sweep_n30_500_omega`` (issues 13/14: the same for spatial
 models), ``kinematic_loops_generated/generated_rk4_projection_four_bar`` and ``..._spatial_four_bar`` (issues 13/16: the
-four-bars' RK4 with projection in generated C) and ``chain_frf/frequency_response_n1000`` (issue 13: the 1-D
-chain FRF by the compiled Riccati solve) were measured alone when their benchmarks landed (``timings.added_later``).  Python time-stepping cases whose
+four-bars' RK4 with projection in generated C; ``..._flexible_four_bar`` with a ModalBeam coupler, issue 13 item 1)
+and ``chain_frf/frequency_response_n1000`` (issue 13: the 1-D chain FRF by the compiled Riccati solve) were measured
+alone when their benchmarks landed (``timings.added_later``).  Python time-stepping cases whose
 benchmark horizon would make the repeats slow run over a shorter horizon at the benchmark's step
 (stated in ``configuration``): the per-step cost does not depend on the horizon.
 
@@ -490,6 +491,15 @@ def _kinematic_loops_generated(t: Timings) -> None:
           configuration=f"R-U-S-R four-bar closed by a spherical cut, RK4 with the cut loads and the projection in "
                         f"the generated step (CompiledSpatialKinematicLoops.run, library loaded), dt={bench.DT:g} s, "
                         f"{steps} steps")
+    flexible, q0, v0 = bench.flexible_four_bar()
+    flexible_kernel = bench.CompiledKinematicLoops(flexible)
+    flexible_steps = int(round(bench.T_FLEX / bench.FLEX_STEP))
+    t.add("kinematic_loops_generated", "generated_rk4_projection_flexible_four_bar",
+          lambda: flexible_kernel.run(q0, v0, bench.FLEX_STEP, flexible_steps), per="step", count=flexible_steps,
+          configuration=f"four-bar with a 5-mode ModalBeam coupler (second-order inertia) cut at its end, RK4 with "
+                        f"the cut force on the beam's frame and modes and the projection in the generated step "
+                        f"(CompiledKinematicLoops.run, library loaded), dt={bench.FLEX_STEP:g} s, {flexible_steps} "
+                        "steps")
 
 
 def _chain_frf(t: Timings) -> None:

@@ -40,6 +40,13 @@ re-solves the cut loads at every Newton iterate: ~70 ms per step):
 :func:`~ctmm.spatial.closed_loop_time.simulate_spatial_loop_scheme`, both projected after every step;
 ``--spatial-scheme`` runs this row alone and merges it into the stored JSON.
 
+Flexible row (issue 13 item 1): the flexible-coupler four-bar of the scenario (``FLEX_EI`` = 80 N m^2, ``FLEX_MODES``
+= 5 clamped-free modes with second-order inertia, the cut at the beam's end, ``FLEX_STEP`` = 0.25 ms) over
+``T_FLEX`` (0.05 s; quick 0.02 s): :class:`~ctmm.compiled_kinematic_loops.CompiledKinematicLoops` ``.run`` (the cut
+point on the beam through :mod:`ctmm.compiled_cut_points`) against the numpy RK4 with projection, per-step times and
+their largest coordinate difference (the numpy path is checked against the extrapolated finite-segment DAE by the
+scenario).
+
 Figures: per-step wall and CPU time [us] (best of 3), the largest angle difference generated - numpy [rad]
 (consistency: round-off) and the largest angle error of each against the DAE [rad].  Run
 ``python benchmarks/kinematic_loops_generated.py`` (``--quick``: T = 0.2 s); writes
@@ -70,10 +77,12 @@ from ctmm.compiled_spatial_kinematic_loops import (CompiledSpatialKinematicLoops
 from ctmm.scenarios import spatial_four_bar  # noqa: E402
 from ctmm.spatial.closed_loop_time import simulate_spatial_loops  # noqa: E402
 from ctmm.planar.closed_loops import simulate_kinematic_loops  # noqa: E402
-from ctmm.scenarios.four_bar import DAMPER, SPRING, mechanism, reference, start  # noqa: E402
+from ctmm.scenarios.four_bar import (DAMPER, FLEX_EI, FLEX_MODES, FLEX_STEP, SPRING,  # noqa: E402
+                                     flexible_mechanism, flexible_start, mechanism, reference, start)
 
 RESULTS = ROOT / "benchmarks" / "results" / "kinematic_loops_generated.json"
 DT = 1e-3
+T_FLEX = 0.05           # the flexible row's horizon [s]
 NAMES = ("crank", "coupler", "rocker")
 
 
@@ -106,13 +115,13 @@ def compiled_fresh(kind, loop):
     return kind(loop), compile_s
 
 
-def spatial_timings(prefix: str, loop, q0, v0, kernel, t_final: float, steps: int) -> dict:
-    """``<prefix>_...`` figures of a spatial loop model: the generated ``kernel``'s run against the numpy RK4 with
-    projection, per step, and their largest coordinate difference and drift."""
-    run_wall, run_cpu = best(lambda: kernel.run(q0, v0, DT, steps))
-    numpy_wall, numpy_cpu = best(lambda: simulate_spatial_loops(loop, q0, v0, t_final=t_final, dt=DT), repeats=1)
-    generated = simulate_spatial_kinematic_loops_generated(loop, q0, v0, t_final=t_final, dt=DT, compiled=kernel)
-    numpy_run = simulate_spatial_loops(loop, q0, v0, t_final=t_final, dt=DT)
+def kernel_row(prefix: str, steps: int, kernel_call, numpy_call, generated_call) -> dict:
+    """``"<prefix>_..."`` figures of a row: per-step wall and CPU times [us] of the generated kernel's run
+    (``kernel_call``) and of the numpy run (``numpy_call``, its result a simulation), the CPU speed-up, the largest
+    coordinate difference of the whole generated run (``generated_call``) from the numpy one and its largest drift."""
+    run_wall, run_cpu = best(kernel_call)
+    numpy_wall, numpy_cpu = best(numpy_call, repeats=1)
+    generated, numpy_run = generated_call(), numpy_call()
     return {f"{prefix}_generated_run_us_per_step": 1e6 * run_wall / steps,
             f"{prefix}_generated_run_cpu_us_per_step": 1e6 * run_cpu / steps,
             f"{prefix}_numpy_us_per_step": 1e6 * numpy_wall / steps,
@@ -120,6 +129,36 @@ def spatial_timings(prefix: str, loop, q0, v0, kernel, t_final: float, steps: in
             f"{prefix}_speedup_run_cpu": numpy_cpu / run_cpu,
             f"{prefix}_generated_minus_numpy": float(np.max(np.abs(generated.q - numpy_run.q))),
             f"{prefix}_max_drift": float(np.max(generated.drift))}
+
+
+def spatial_timings(prefix: str, loop, q0, v0, kernel, t_final: float, steps: int) -> dict:
+    """``<prefix>_...`` figures of a spatial loop model (:func:`kernel_row`): the generated ``kernel``'s run against
+    the numpy RK4 with projection."""
+    return kernel_row(prefix, steps, lambda: kernel.run(q0, v0, DT, steps),
+                      lambda: simulate_spatial_loops(loop, q0, v0, t_final=t_final, dt=DT),
+                      lambda: simulate_spatial_kinematic_loops_generated(loop, q0, v0, t_final=t_final, dt=DT,
+                                                                         compiled=kernel))
+
+
+def flexible_four_bar() -> tuple:
+    """The scenario's flexible-coupler linkage (second-order inertia) and its start ``(loop, q0, v0)``."""
+    loop = flexible_mechanism(FLEX_EI, n_modes=FLEX_MODES, second_order_inertia=True)
+    q0, v0 = flexible_start(loop)
+    return loop, q0, v0
+
+
+def flexible(t_final: float) -> dict:
+    """The flexible row (module docstring)."""
+    loop, q0, v0 = flexible_four_bar()
+    steps = int(round(t_final / FLEX_STEP))
+    kernel, compile_s = compiled_fresh(CompiledKinematicLoops, loop)
+    return {"flexible_problem": f"four-bar with a ModalBeam coupler (EI = {FLEX_EI:g} N m^2, {FLEX_MODES} modes, "
+                                f"second-order inertia, cut at its end), T = {t_final} s, dt = {FLEX_STEP} s",
+            "flexible_compile_s": compile_s,
+            **kernel_row("flexible", steps, lambda: kernel.run(q0, v0, FLEX_STEP, steps),
+                         lambda: simulate_kinematic_loops(loop, q0, v0, t_final=t_final, dt=FLEX_STEP),
+                         lambda: simulate_kinematic_loops_generated(loop, q0, v0, t_final=t_final, dt=FLEX_STEP,
+                                                                    compiled=kernel))}
 
 
 def spatial(t_final: float, steps: int) -> dict:
@@ -279,6 +318,7 @@ def main(argv: list[str] | None = None) -> dict:
     out.update(controlled(t_final, steps))
     out.update(spherical(t_final, steps))
     out.update(spatial_scheme(t_final))
+    out.update(flexible(0.02 if args.quick else T_FLEX))
     for key, value in out.items():
         print(f"{key:36s} {value}")
     if not args.quick:

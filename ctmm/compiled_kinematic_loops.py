@@ -10,6 +10,12 @@ generated C (:func:`ctmm.generated_loop.compiled_time_loop`).  The step states, 
   :data:`ctmm.ops.CASADI`), with the cut forces entering as the body forces ``"<body>.force_x"``,
   ``"<body>.force_y"``, ``"<body>.moment"`` of the bodies they act on (force at the centre of mass and the moment
   of its lever, :meth:`KinematicLoopModel.cut_inputs`);
+* a cut point on a deformable body (a ``ModalBeam`` end or outboard station, a ``ctmm.fem`` subsystem's outboard
+  node) is stated by :mod:`ctmm.compiled_cut_points`: the numpy path's :class:`ctmm.planar.cut_points.CutPoints`
+  traced on casadi scalars gives its position, velocity and cross-section angle and turns the cut's force and
+  moment into a wrench on the body's floating frame and generalised forces on its internal coordinates (with the
+  foreshortening of a bent modal beam's end), which enter the body's element terms
+  (:func:`~ctmm.compiled_cut_points.symbolic_accelerations_with_frame_loads`);
 * the cut points' positions and velocities are the symbolic kinematics of the tree
   (:class:`ctmm.compiled_loops.SymbolicKinematics`): ``Phi`` (child point minus parent point [m]), ``Phi'`` and
   the constraint Jacobian ``J = dPhi'/dqdot``;
@@ -38,10 +44,10 @@ numpy RK4 (:mod:`ctmm.loop_integration`), which checks the same after every step
 a generated function of the same library.
 
 Refused (:class:`~ctmm.errors.ModelError`): a tree that :func:`ctmm.compiled_parameters.compile_refusal` refuses,
-cut points on deformable bodies (a ``ModalBeam`` end: its cut force is a floating-frame wrench, not on the element
-protocol yet), cut laws that casadi cannot express and torques or drives without a symbolic form (user callables:
+cut laws that casadi cannot express and torques or drives without a symbolic form (user callables:
 :func:`cut_moment_refusal`).  Feedback loops and open-loop inputs on a kinematic loop model run in
-:mod:`ctmm.compiled_kinematic_loop_control` on the same closed-loop accelerations (:func:`symbolic_closed_loop`);
+:mod:`ctmm.compiled_kinematic_loop_control` on the same closed-loop accelerations (:func:`symbolic_closed_loop`;
+cut points on deformable bodies too);
 co-simulated controllers keep running in :mod:`ctmm.kinematic_loop_time` (``compiled=True`` refused there by name).
 """
 from __future__ import annotations
@@ -53,6 +59,8 @@ from typing import Any
 import numpy as np
 
 from . import validation
+from .compiled_cut_points import (SymbolicCutSides, deformable_bodies, hanging_refusal, is_deformable_side,
+                                  symbolic_accelerations_with_frame_loads)
 from .compiled_loops import SymbolicKinematics
 from .compiled_parameters import compile_refusal, parameter_vector
 from .compiled_scene import DEFAULT_ROWS, symbolic_accelerations_with_inputs
@@ -102,7 +110,8 @@ def tree_refusal(model: Any, kind: type, kind_label: str, refusal: Any) -> str:
 
 
 def kinematic_loop_compile_refusal(model: Any) -> str:
-    """Why ``model`` cannot run the generated RK4 of this module (an empty string when it can)."""
+    """Why ``model`` cannot run a generated RK4 (this module's, or the loop-closing driver's of
+    :mod:`ctmm.compiled_kinematic_loop_control`; an empty string when it can)."""
     reason = tree_refusal(model, KinematicLoopModel, "ctmm.planar.closed_loops.KinematicLoopModel", compile_refusal)
     if reason:
         return reason
@@ -110,13 +119,7 @@ def kinematic_loop_compile_refusal(model: Any) -> str:
         reason = cut_moment_refusal(cut)
         if reason:
             return reason
-    for cut, points in zip(model.cuts, _cut_points(model)):
-        for j, _ in points:
-            if j >= 0 and j in model.tree.beams:
-                return (f"cut joint {cut.name!r} acts on the deformable body {model.tree.body_names[j]!r}: a cut force "
-                        "at a ModalBeam end or a ctmm.fem subsystem node is a floating-frame wrench, not on the element "
-                        "protocol of the generated kernels yet; use compiled=None (the numpy RK4 with projection)")
-    return ""
+    return hanging_refusal(model)
 
 
 def cut_moment_refusal(cut: Any) -> str:
@@ -302,8 +305,9 @@ def symbolic_closed_loop(model: KinematicLoopModel, n_parameters: int, extra_act
 
     tree, n_p, extra_actuators = model.tree, n_parameters, tuple(extra_actuators)
     n = tree.n_coordinates
-    points = _cut_points(model)
-    bodies = sorted({j for pair in points for j, _ in pair if j >= 0})
+    points, sides = _cut_points(model), model.cut_points.sides
+    flexible = deformable_bodies(model)
+    bodies = sorted({j for pair in points for j, _ in pair if j >= 0 and j not in flexible})
     actuators = [f"{tree.body_names[j]}.{part}" for j in bodies for part in _BODY_PARTS]
     ports = PlanarPorts(tree)
     for k, name in enumerate(actuators):         # the ports' body force is the load the cut force is stated as
@@ -314,19 +318,28 @@ def symbolic_closed_loop(model: KinematicLoopModel, n_parameters: int, extra_act
     cut_torques = [name for name in extra_actuators if name.endswith(".torque") and name[:-7] in
                    {cut.name for cut in model.cuts if not cut.driven}]
     tree_inputs = [name for name in extra_actuators if name not in cut_torques and name not in actuators]
-    acceleration = symbolic_accelerations_with_inputs(tree, actuators + tree_inputs)
+    if flexible:        # cut points on deformable bodies: their loads as frame wrenches (ctmm.compiled_cut_points)
+        acceleration = symbolic_accelerations_with_frame_loads(tree, actuators + tree_inputs, flexible)
+    else:
+        acceleration = symbolic_accelerations_with_inputs(tree, actuators + tree_inputs)
     rows = cut_rows(model)
     q, v, p, t = ca.SX.sym("q", n), ca.SX.sym("v", n), ca.SX.sym("p", n_p), ca.SX.sym("t")
     lam, u = ca.SX.sym("lambda", rows[-1]), ca.SX.sym("u", len(extra_actuators))
     kinematics = SymbolicKinematics(tree, q, v)
+    deformable = SymbolicCutSides(model, kinematics)
     phi, phi_dot, drive_acceleration = [], [], []
     loads, moments = [ca.SX(0.0)] * len(actuators), [ca.SX(0.0)] * len(actuators)
     for k, (cut, pair) in enumerate(zip(model.cuts, points)):
         motion, angles = [], []
-        for (j, end), sign in zip(pair, (-1.0, 1.0)):
+        for (j, end), side, sign in zip(pair, sides[k], (-1.0, 1.0)):
             if j < 0:
                 motion.append((ca.DM(end), ca.DM.zeros(2)))
                 angles.append((0.0, 0.0))
+                continue
+            if is_deformable_side(side):
+                motion.append(deformable.motion(side))
+                angles.append(deformable.angle(side))
+                deformable.add_force(side, sign * lam[rows[k]:rows[k] + 2])
                 continue
             position, velocity = kinematics.point(j, end)
             com, _ = kinematics.point(j, "com")
@@ -355,8 +368,10 @@ def symbolic_closed_loop(model: KinematicLoopModel, n_parameters: int, extra_act
                 tau = tau - cut.moment_law.force(angle - cut.rest_angle, angle_rate)
         else:
             continue
-        for (j, _), sign in zip(pair, (-1.0, 1.0)):
-            if j >= 0:
+        for (j, _), side, sign in zip(pair, sides[k], (-1.0, 1.0)):
+            if is_deformable_side(side):
+                deformable.add_moment(side, sign * tau)
+            elif j >= 0:
                 b = 3 * bodies.index(j) + 2
                 moments[b] = moments[b] + sign * tau
     phi, phi_dot = ca.vertcat(*phi), ca.vertcat(*phi_dot)
@@ -366,7 +381,7 @@ def symbolic_closed_loop(model: KinematicLoopModel, n_parameters: int, extra_act
         if name in actuators:
             applied[actuators.index(name)] += u[k]
     tree_values = [u[list(extra_actuators).index(name)] for name in tree_inputs]
-    unknown = ca.Function("cut_loads", [q, v, t, lam, u], [ca.vertcat(applied, *tree_values)])
+    unknown = ca.Function("cut_loads", [q, v, t, lam, u], [ca.vertcat(applied, *tree_values, *deformable.loads())])
     qdd0 = acceleration(q, v, unknown(q, v, t, ca.DM.zeros(rows[-1]), u), p, t)
     columns = [acceleration(q, v, unknown(q, v, t, ca.DM.eye(rows[-1])[:, i], u), p, t) - qdd0
                for i in range(rows[-1])]
@@ -383,12 +398,14 @@ def symbolic_closed_loop(model: KinematicLoopModel, n_parameters: int, extra_act
 
 
 def symbolic_relative_angles(model: KinematicLoopModel, kinematics: SymbolicKinematics) -> list[tuple[Any, Any]]:
-    """``[(dtheta, dtheta')]`` of every cut on the symbols of ``kinematics`` (of ``model.tree``): the child body's
-    angle and rate minus the parent's (0 at the ground), as :meth:`KinematicLoopModel.relative_angles` (rigid
-    sides)."""
+    """``[(dtheta, dtheta')]`` of every cut on the symbols of ``kinematics`` (of ``model.tree``): the child side's
+    angle and rate minus the parent's (0 at the ground; a deformable side's cross-section angle,
+    :class:`ctmm.compiled_cut_points.SymbolicCutSides`), as :meth:`KinematicLoopModel.relative_angles`."""
+    deformable = SymbolicCutSides(model, kinematics)
     out = []
-    for parent, child in _cut_points(model):
-        sides = [(0.0, 0.0) if j < 0 else (kinematics.theta[j], kinematics.omega[j]) for j, _ in (parent, child)]
+    for pair in model.cut_points.sides:
+        sides = [deformable.angle(side) if is_deformable_side(side) else (0.0, 0.0) if side[0] < 0
+                 else (kinematics.theta[side[0]], kinematics.omega[side[0]]) for side in pair]
         out.append((sides[1][0] - sides[0][0], sides[1][1] - sides[0][1]))
     return out
 

@@ -76,8 +76,8 @@ from .planar.integrate import PlanarSimulation, check_store_every, initial_coord
 from .planar.model import FREE, PlanarModel
 from .planar.ports import ActuatorInputs, PlanarPorts
 
-__all__ = ["CompiledScene", "compile_refusal", "compiled_actuators", "parameter_vector", "simulate_batch",
-           "simulate_rk4_generated", "structure_key", "symbolic_accelerations_with_inputs",
+__all__ = ["CompiledScene", "compile_refusal", "compiled_actuators", "coordinate_accelerations", "parameter_vector",
+           "simulate_batch", "simulate_rk4_generated", "structure_key", "symbolic_accelerations_with_inputs",
            "symbolic_plant_accelerations"]
 
 DEFAULT_ROWS = 64
@@ -197,7 +197,7 @@ class CompiledScene:
                 bodies, joints = scene.terms(CASADI, q, v, 0.0, inputs, scene_numbers)
                 solution = articulated_sweep(CASADI, scene.tree, bodies, joints)
                 acceleration = ca.Function("acceleration", [q, v, u, p, t],
-                                           [_coordinate_accelerations(model, solution.x)])
+                                           [coordinate_accelerations(model, solution.x)])
                 if self.loops is None:
                     y = ca.SX.sym("y", 2 * n)
                     step = rk4_step_function(ca.Function("rate", [y, u, p, t], [ca.vertcat(
@@ -470,7 +470,7 @@ def _fold_period(model: PlanarModel, fold: bool | None, controlled: bool) -> int
     return fold_period(model)
 
 
-def _coordinate_accelerations(model: PlanarModel, x: Sequence[Any]) -> Any:
+def coordinate_accelerations(model: PlanarModel, x: Sequence[Any]) -> Any:
     """``qddot`` (casadi column) from the sweep's per-body unknowns ``x_j = [A_in ; eta_ddot]``."""
     import casadi as ca
 
@@ -559,4 +559,4 @@ def symbolic_accelerations_with_inputs(model: PlanarModel, actuators: Sequence[s
     scene = PlanarScene(model)
     bodies, joints = scene.terms(CASADI, q, v, 0.0, symbolic_inputs(model, units, u), symbolic_numbers(model, p, t))
     solution = articulated_sweep(CASADI, scene.tree, bodies, joints)
-    return ca.Function("acceleration", [q, v, u, p, t], [_coordinate_accelerations(model, solution.x)])
+    return ca.Function("acceleration", [q, v, u, p, t], [coordinate_accelerations(model, solution.x)])

@@ -28,6 +28,11 @@ projection onto the cut joints after it, the time loop in generated C.  On casad
   ``q <- normalised(q + G(q) dx)``, ``dx = -J^T (J J^T)^-1 Phi`` (skipped once ``max |Phi| < 1e-14``), then
   ``v <- v - J^T (J J^T)^-1 Phi'``.
 
+A cut at a deformable point (a ``SpatialBeam`` tip or station, a ``ctmm.fem`` subsystem node) is placed and, for
+revolute and universal cuts, turned with the cross-section by :mod:`ctmm.compiled_spatial_cut_points` (the numpy
+``side_point`` and ``side_frame`` traced); its loads are the same wrench at that point, taken by the body's own load
+path.
+
 State, failures and result as :mod:`ctmm.compiled_kinematic_loops` (residual and condition carried in the state,
 :class:`~ctmm.errors.SimulationError` with time, cut joint and partial result).  Refused (:class:`ModelError`, by
 name): trees :func:`ctmm.compiled_spatial.spatial_compile_refusal` refuses,
@@ -50,6 +55,8 @@ from .compiled_kinematic_loops import (CompiledKinematicLoops, first_failure, ge
 from .compiled_spatial import position_rates, spatial_compile_refusal
 from .compiled_spherical_cut_law import rotation_limit_note, spherical_law_cuts, symbolic_spherical_law_moment
 from .errors import SimulationError
+from .compiled_spatial_cut_points import (SymbolicStates, deformable_sides, symbolic_deformable_frame,
+                                          symbolic_deformable_point)
 from .loop_integration import PROJECTION_SKIP
 from .ops import CASADI
 from .spatial.body_forms import SpatialScene
@@ -69,9 +76,6 @@ def spatial_kinematic_loop_compile_refusal(model: Any) -> str:
                           spatial_compile_refusal)
     if reason:
         return reason
-    if model.deformable_cuts:
-        return (f"cut joints {list(model.deformable_cuts)} join a point of a SpatialBeam or ctmm.fem subsystem: the "
-                "generated step places cut points on rigid bodies only; use compiled=None")
     for cut in model.cuts:
         reason = spatial_cut_load_refusal(cut)
         if reason:
@@ -105,6 +109,7 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
     nq, nv, m = tree.n_positions, tree.n_velocities, model.n_constraints
     scene = SpatialScene(tree)
     sides, frames = _cut_sides(model), [cut_frame(cut) for cut in model.cuts]
+    deformable = deformable_sides(model)
     q, v, lam = ca.SX.sym("q", nq), ca.SX.sym("v", nv), ca.SX.sym("lambda", m)
     extra_actuators = tuple(extra_actuators)
     u = ca.SX.sym("u", len(extra_actuators))
@@ -117,27 +122,38 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
     p, t = ca.SX.sym("p", 0), ca.SX.sym("t")
 
     def kinematics(q_: Any, v_: Any) -> list:
-        return scene.terms(CASADI, q_, v_, 0.0)[2]
+        return SymbolicStates(scene.terms(CASADI, q_, v_, 0.0)[2], q_, v_)
 
     def point(states: list, side: tuple[int, np.ndarray]) -> tuple[Any, Any]:
         body, location = side
         if body < 0:
             return ca.DM(location), ca.DM.zeros(3)
+        if (body, tuple(float(x) for x in location)) in deformable:     # ctmm.compiled_spatial_cut_points
+            return symbolic_deformable_point(states[body], deformable[body, tuple(float(x) for x in location)],
+                                             states.q, states.v, tree.modal[body])
         s = states[body]
         arm = ca.mtimes(s.rotation, ca.DM(location))
         return s.origin + arm, s.velocity + ca.cross(s.omega, arm)
 
+    def axes(states: list, side: tuple[int, np.ndarray]) -> tuple[Any, Any]:
+        """Axes and angular velocity of a side's body, or at a deformable point of its cross-section."""
+        body, location = side
+        if (body, tuple(float(x) for x in location)) in deformable:     # ctmm.compiled_spatial_cut_points
+            return symbolic_deformable_frame(states[body], deformable[body, tuple(float(x) for x in location)],
+                                             states.q, states.v, tree.modal[body])
+        return states[body].rotation, states[body].omega
+
     def parent_fixed(states: list, parent: tuple[int, np.ndarray], local: np.ndarray) -> Any:
-        return ca.DM(local) if parent[0] < 0 else ca.mtimes(states[parent[0]].rotation, ca.DM(local))
+        return ca.DM(local) if parent[0] < 0 else ca.mtimes(axes(states, parent)[0], ca.DM(local))
 
     def coordinate(states: list, cut: Any, parent: tuple, child: tuple) -> tuple[Any, Any, Any]:
         """The cut's coordinate ``s``, its rate and direction ``a`` on symbols
         (:func:`ctmm.spatial.closed_loop_cuts.cut_coordinate`)."""
         xp, vp = point(states, parent)
         xc, vc = point(states, child)
-        omega_c = states[child[0]].omega
-        omega_p = ca.DM.zeros(3) if parent[0] < 0 else states[parent[0]].omega
-        rotation_c = states[child[0]].rotation
+        omega_c = axes(states, child)[1]
+        omega_p = ca.DM.zeros(3) if parent[0] < 0 else axes(states, parent)[1]
+        rotation_c = axes(states, child)[0]
         if cut.kind == "revolute":
             a = ca.mtimes(rotation_c, ca.DM(np.asarray(cut.axis, float)))
             n_c = ca.mtimes(rotation_c, ca.DM(np.asarray(cut.normal, float)))
@@ -159,8 +175,8 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
         for cut, (parent, child), frame in zip(model.cuts, sides, frames):
             xp, vp = point(states, parent)
             xc, vc = point(states, child)
-            omega_c = states[child[0]].omega
-            omega_p = ca.DM.zeros(3) if parent[0] < 0 else states[parent[0]].omega
+            omega_c = axes(states, child)[1]
+            omega_p = ca.DM.zeros(3) if parent[0] < 0 else axes(states, parent)[1]
             if frame.basis is None:
                 phi.append(xc - xp)
                 rate.append(vc - vp)
@@ -169,8 +185,8 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
                 phi.append(ca.dot(xc - xp, b))
                 rate.append(ca.dot(vc - vp, b) + ca.dot(xc - xp, ca.cross(omega_p, b)))
             for u_local, b_local in frame.pairs:
-                u = ca.mtimes(states[child[0]].rotation, ca.DM(u_local))
-                b = ca.DM(b_local) if parent[0] < 0 else ca.mtimes(states[parent[0]].rotation, ca.DM(b_local))
+                u = ca.mtimes(axes(states, child)[0], ca.DM(u_local))
+                b = ca.DM(b_local) if parent[0] < 0 else ca.mtimes(axes(states, parent)[0], ca.DM(b_local))
                 phi.append(ca.dot(u, b))
                 rate.append(ca.dot(omega_c - omega_p, ca.cross(u, b)))
             if cut.driven:                           # s - position(t), s' - rate(t)
@@ -196,8 +212,8 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
                     row += 1
             moment = ca.DM.zeros(3)
             for u_local, b_local in frame.pairs:
-                u = ca.mtimes(states[child[0]].rotation, ca.DM(u_local))
-                b = ca.DM(b_local) if parent[0] < 0 else ca.mtimes(states[parent[0]].rotation, ca.DM(b_local))
+                u = ca.mtimes(axes(states, child)[0], ca.DM(u_local))
+                b = ca.DM(b_local) if parent[0] < 0 else ca.mtimes(axes(states, parent)[0], ca.DM(b_local))
                 moment = moment + values[row] * ca.cross(u, b)
                 row += 1
             along = None

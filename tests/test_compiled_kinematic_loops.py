@@ -16,7 +16,7 @@ from ctmm.compiled_kinematic_loops import CompiledKinematicLoops, simulate_kinem
 from ctmm.control import Feedback, with_feedback
 from ctmm.errors import ModelError, SimulationError
 from ctmm.planar.closed_loops import CutJoint, KinematicLoopModel, simulate_kinematic_loops
-from ctmm.scenarios.four_bar import DAMPER, SPRING, flexible_mechanism, flexible_start, mechanism, start
+from ctmm.scenarios.four_bar import DAMPER, SPRING, mechanism, start
 from ctmm.scenarios.four_bar import reference as four_bar_dae
 
 LAWS = {"smooth": None, "cubic spring + damper": SPRING + DAMPER}
@@ -109,10 +109,6 @@ def test_refusals():
     with pytest.raises(ModelError, match="compiled"):      # feedback loops with DOP853 (loops with rk4: compiled)
         ctmm.simulate(with_feedback(loop, [Feedback("pd", sensor="crank.theta", actuator="h1.torque", gain=1.0)]),
                       0.01, 1e-3, x0=q0, v0=v0, compiled=True, method="DOP853")
-    flexible = flexible_mechanism(50.0, n_modes=1)
-    with pytest.raises(ModelError, match="'h3'.*deformable body 'coupler'"):
-        ctmm.simulate(flexible, 0.01, 1e-3, x0=flexible_start(flexible)[0], v0=flexible_start(flexible)[1],
-                      compiled=True)
     with pytest.raises(ModelError, match="violates the cut joints"):
         simulate_kinematic_loops_generated(loop, q0 + 0.1, v0, t_final=0.01, dt=1e-3)
     with pytest.raises(ModelError, match="CompiledKinematicLoops of this model"):

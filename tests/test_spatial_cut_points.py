@@ -343,22 +343,26 @@ def test_beam_cut_natural_frequencies_equal_the_reference_on_its_manifold(kind):
     assert np.abs(got - expected).max() < 1e-11 * expected.max(), (got, expected)   # measured 8.6e-13, 9.2e-13
 
 
-def test_compiled_run_with_a_deformable_cut_point_is_refused_by_name():
-    loop, _, q0, v0 = node_loop()
-    with pytest.raises(ModelError, match=r"\['pin'\] join a point of a SpatialBeam or ctmm.fem subsystem"):
-        ctmm.simulate(loop, 0.001, 5e-4, x0=q0, v0=v0, compiled=True)
+# compiled=True with deformable cut points: tests/test_compiled_kinematic_loops_spatial_flexible.py
+
+
+def hinged_node(seed=9):
+    """``(model, reference, q, rng, p0, a)``: the yaw link + FE L-frame at a random state, its node n3's position
+    ``p0`` and x axis ``a`` there (a revolute cut at n3 keeps them)."""
+    model, ref = chain(child=False)
+    rng = np.random.default_rng(seed)
+    q = rng.normal(size=model.n_positions) * 0.6
+    q[2:] *= 0.01
+    zero = np.zeros(ref.n)
+    return (model, ref, q, rng, ref.node_acceleration_terms(q, zero, "n3")[0],
+            ref.node_axis_terms(q, zero, "n3", (1.0, 0.0, 0.0))[0])
 
 
 def test_subsystem_node_hinged_accelerations_and_cut_loads_equal_the_global_model():
     """A revolute cut at the FE node n3 (a beam node: rotation DOFs): the node's x axis kept parallel to a ground
     axis; the reference's rows ``(R_F E(r) e_x) . b_i`` from its own node frame."""
-    model, ref = chain(child=False)
-    rng = np.random.default_rng(9)
-    q = rng.normal(size=model.n_positions) * 0.6
-    q[2:] *= 0.01
+    model, ref, q, rng, p0, a = hinged_node()
     zero = np.zeros(ref.n)
-    p0 = ref.node_acceleration_terms(q, zero, "n3")[0]
-    a = ref.node_axis_terms(q, zero, "n3", (1.0, 0.0, 0.0))[0]
     b1 = np.cross(a, [0.0, 0.0, 1.0])
     b1 /= np.linalg.norm(b1)
     across = [b1, np.cross(a, b1)]

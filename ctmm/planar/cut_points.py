@@ -178,14 +178,14 @@ class CutPoints:
 
     def angle(self, points: dict, j: int, e: np.ndarray | int) -> tuple[float, float]:
         """Angle [rad] and rate [rad/s] of a side: 0 at the ground, the body angle, or at a deformable end the frame
-        angle plus ``d_e . eta``."""
+        angle plus ``d_e . eta`` (no conversion to float: traced on symbols, :mod:`ctmm.compiled_cut_points`)."""
         if j < 0:
             return 0.0, 0.0
-        angle, rate = float(points["theta"][j]), float(points["omega"][j])
+        angle, rate = points["theta"][j], points["omega"][j]
         if not isinstance(e, np.ndarray):
             index, slope = self.tree.modal_index[j], self.end_slope(j, e)
-            angle += float(slope @ points["q"][index])
-            rate += float(slope @ points["qdot"][index])
+            angle = angle + slope @ points["q"][index]
+            rate = rate + slope @ points["qdot"][index]
         return angle, rate
 
     def angular_acceleration(self, A: np.ndarray, qddot: np.ndarray, j: int, e: np.ndarray | int) -> float:
