@@ -161,7 +161,8 @@ def steady_state_response(system: Chain, omega: float, *, outputs: Sequence[str]
     outputs : sequence of str, optional
         Output signal names (default: every signal).
     solver : {"riccati", "plain"}
-        Chain solver.
+        Chain solver.  ``"riccati"`` on a lumped chain (or a controlled chain on one) with a C compiler present:
+        the compiled recursion at the outputs' points only (``docs/riccati.md`` §7.1).
     """
     require_chain(system, "steady_state_response")
     system = require_system(system)
@@ -179,8 +180,12 @@ def steady_state_response(system: Chain, omega: float, *, outputs: Sequence[str]
                     raise ModelError(f"{element.name}.{key} varies at {sig_omega} rad/s, not at omega={omega}")
                 amps[key] = value
             amplitudes[pos] = amps
-    sol = solve(system, s, amplitudes, solver=solver)
     names = names or system.signal_names()
+    points = sorted({system.signal(n).point for n in names})       # lumped chains: the compiled recursion
+    if solver == "riccati" and controlled_chain_frequency.applies(system):
+        sol = closed_loop_solve(system, s, amplitudes, points)
+    else:
+        sol = solve(system, s, amplitudes, solver=solver, points=points)
     return {n: complex(_output_value(system, sol, s, n)[0]) for n in names}
 
 

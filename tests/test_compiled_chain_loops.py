@@ -159,3 +159,26 @@ def test_without_a_compiler_the_extended_numpy_recursion_answers(monkeypatch):
     assert not closed.applies(setup.system)
     frf = ctmm.frequency_response(setup.system, OMEGA[:5], input="m0.force", output="m1.x")
     assert frf.info["kernel"] == "numpy"
+
+
+def test_steady_state_response_compiled_equals_dense_solve():
+    """``steady_state_response`` at the outputs' points only (compiled): a harmonic load on one mass of a random
+    chain, plain and closed by a delayed loop, against the dense global solves."""
+    from ctmm.signals import Harmonic
+
+    setup = build([1.0, 1.5, 2.0], [100.0, 80.0, 120.0, 0.0], [0.5, 0.3, 0.4, 0.0], [0.0] * 3,
+                  start="fixed", end="free", loops=[(2, "displacement", 0, 5.0, 0.05, None, False)])
+    elements = list(setup.plant.elements)
+    position = setup.plant.position("m1")
+    load = Harmonic(2.0, 7.0, phase=0.3)
+    elements[position] = Mass("m1", elements[position].mass, force=load)
+    plant = ctmm.Chain("loaded", elements)
+    phasor = -1j * 2.0 * np.exp(0.3j)                      # 2 sin(7 t + 0.3) = Re(phasor e^{7 i t})
+    outputs = ["m0.x", "m2.x"]
+    for system, closed_loop in ((plant, False), (ControlledChain(plant, setup.loops), True)):
+        result = ctmm.steady_state_response(system, 7.0, outputs=outputs)
+        for name, mass in zip(outputs, (0, 2)):
+            ref = (closed_loop_frequency_response(setup.chain, setup.global_loops, np.array([7.0]), 1, mass)
+                   if closed_loop else reference.frequency_response(setup.chain, np.array([7.0]), 1, mass,
+                                                                    "displacement"))
+            np.testing.assert_allclose(result[name], phasor * ref[0], rtol=1e-12)
