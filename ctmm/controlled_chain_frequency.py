@@ -15,8 +15,8 @@ columns of the Riccati matrix ``S`` are the plant's responses to the loop forces
   (the determinant lemma; the sign is the extended chain's constraint rows ``acc - y = 0``).
 
 Certificates.  The superposition can lose digits where the plant alone responds much more than the closed loop
-(a lightly damped plant resonance tamed by the loop: ``x_0`` and ``u_k x_k`` nearly cancel).  Every returned value
-``q`` carries the amplification ``A = (|q_0| + sum_k |u_k q_k|) / |q|``; where ``A > AMPLIFICATION_LIMIT`` (or a
+(a lightly damped plant resonance tamed by the loop: ``x_0`` and ``u_k x_k`` nearly cancel).  Every returned state
+and sensed value ``q`` carries the amplification ``A = (|q_0| + sum_k |u_k q_k|) / |q|``; where ``A > AMPLIFICATION_LIMIT`` (or a
 plant solve or the loop system is singular) those frequencies are answered by the extended numpy recursion
 instead, so the answer equals the numpy recursion's to about ``AMPLIFICATION_LIMIT`` times round-off.  Without a C
 compiler, for plants that are not lumped chains, saturated loops or coefficients that are not floats, the extended
@@ -46,7 +46,7 @@ def applies(system: Any) -> bool:
 
     plant = getattr(system, "plant", None)
     loops = getattr(system, "loops", None)
-    if plant is None or loops is None or not hasattr(system, "assemble_frequency"):
+    if plant is None or not loops or not hasattr(system, "assemble_frequency"):
         return False
     if hasattr(plant, "assemble_frequency") or not is_lumped(plant) or not plant.body:
         return False
@@ -167,8 +167,12 @@ def closed_loop_solve(system: Any, s: np.ndarray, amplitudes: Mapping[Any, Mappi
                 plant_states[index] += term
                 magnitude[index] += np.abs(term)
         amplification = np.where(magnitude > 0, magnitude / np.abs(plant_states), 1.0)
+        terms = Y * forces[:, None, :]                   # the sensed values: y = y_0 + Y u, the same check
+        sensed_magnitude = np.abs(y0) + np.sum(np.abs(terms), axis=2)
+        sensed_amplification = np.where(sensed_magnitude > 0, sensed_magnitude / np.abs(y), 1.0)
     good = np.all(np.isfinite(plant_states), axis=(0, 2)) & np.all(np.isfinite(y), axis=1)
     good &= np.all(amplification <= AMPLIFICATION_LIMIT, axis=(0, 2))
+    good &= np.all(sensed_amplification <= AMPLIFICATION_LIMIT, axis=1)
     n = d0 + 2 * nl
     states = np.empty((len(rows), B, n), dtype=complex)
     position = {point: index for index, point in enumerate(wanted)}

@@ -74,8 +74,10 @@ def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],
     -------
     FrequencyResponse
         ``response[i_out, i_in, k]`` = output phasor per unit input phasor at ``omega[k]``.  A chain's
-        ``info["kernel"]`` says which recursion answered: ``"compiled"`` (a lumped chain with a C compiler
-        present, :mod:`ctmm.compiled_chain_frequency`) or ``"numpy"``.
+        ``info["kernel"]`` says which recursion answered: ``"compiled"`` (a lumped chain, or a controlled chain on
+        one, with a C compiler present: :mod:`ctmm.compiled_chain_frequency`, :mod:`ctmm.controlled_chain_frequency`),
+        ``"numpy"``, or ``"compiled/numpy"`` (some frequencies of a controlled chain failed the superposition's
+        certificate and the extended numpy recursion answered them).
 
     Examples
     --------
@@ -132,7 +134,7 @@ def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],
         amps = {inp.position: {inp.input: 1.0}}
         sol = closed_loop_solve(system, s, amps, points) if closed else solve(system, s, amps, solver=solver,
                                                                                 points=points)
-        kernels.add(sol.kernel)
+        kernels.update(sol.kernel.split("/"))
         for j, o in enumerate(outputs):
             response[j, k] = _output_value(system, sol, s, o, amps)
     units = {name: signal_unit(name, system) for name in (*inputs, *outputs)}
