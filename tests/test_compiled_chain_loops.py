@@ -182,3 +182,27 @@ def test_steady_state_response_compiled_equals_dense_solve():
                    if closed_loop else reference.frequency_response(setup.chain, np.array([7.0]), 1, mass,
                                                                     "displacement"))
             np.testing.assert_allclose(result[name], phasor * ref[0], rtol=1e-12)
+
+
+def test_closed_loop_memory_is_independent_of_the_elements_times_frequencies():
+    """500 masses x 512 frequencies, a delayed loop on the tip, two outputs: the closed loop on the compiled plant
+    solves allocates O(N + points x B) (below 1 MB); the extended numpy recursion holds (B, 4, 4) matrices of
+    every element (measured: 0.35 MB against 297 MB)."""
+    import tracemalloc
+
+    elements = [Fixed("wall")] + [e for i in range(500) for e in (SpringDamper(f"k{i}", 1000.0, 0.2),
+                                                                 Mass(f"m{i}", 0.1))] + [Free("end")]
+    system = ControlledChain(ctmm.Chain("long", elements), [Feedback("pd", [("m499.x", 20.0), ("m499.v", 5.0)],
+                                                                     "m499", gain=1.0, delay=0.01)])
+    s = laplace_variables(np.linspace(1.0, 190.0, 512))
+    amplitudes = {system.input("m0.force").position: {"force": 1.0}}
+    points = [system.signal("m0.x").point, system.signal("m499.x").point]
+    closed.closed_loop_solve(system, s, amplitudes, points)
+    tracemalloc.start()
+    try:
+        solution = closed.closed_loop_solve(system, s, amplitudes, points)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert solution.kernel == "compiled"
+    assert peak < 1_000_000
