@@ -16,11 +16,12 @@ columns of the Riccati matrix ``S`` are the plant's responses to the loop forces
 
 Certificates.  The superposition can lose digits where the plant alone responds much more than the closed loop
 (a lightly damped plant resonance tamed by the loop: ``x_0`` and ``u_k x_k`` nearly cancel).  Every returned state
-and sensed value ``q`` carries the amplification ``A = (|q_0| + sum_k |u_k q_k|) / |q|``; where ``A > AMPLIFICATION_LIMIT`` (or a
-plant solve or the loop system is singular) those frequencies are answered by the extended numpy recursion
-instead, so the answer equals the numpy recursion's to about ``AMPLIFICATION_LIMIT`` times round-off.  Without a C
-compiler, for plants that are not lumped chains, saturated loops or coefficients that are not floats, the extended
-numpy recursion answers everything (``kernel = "numpy"``).
+and sensed value ``q`` carries the amplification ``A = (|q_0| + sum_k |u_k q_k|) / |q|``; where
+``A > AMPLIFICATION_LIMIT`` (or a plant solve or the loop system is singular) those frequencies are answered by
+the extended numpy recursion instead, so the answer equals the numpy recursion's to about ``AMPLIFICATION_LIMIT``
+times round-off.  Without a C compiler, for plants that are not lumped chains and for saturated loops the extended
+numpy recursion answers everything (:func:`applies` is False); element coefficients that are not floats put the
+plant solves on the numpy scalar recursion (the same superposition and certificate, ``kernel = "numpy"``).
 """
 from __future__ import annotations
 
@@ -183,11 +184,12 @@ def closed_loop_solve(system: Any, s: np.ndarray, amplitudes: Mapping[Any, Mappi
             states[index, :, d0 + 2 * k + 1] = sum(
                 (weight * plant_states[position[p]][:, c] * s ** deriv for p, c, deriv, weight in terms if p <= point),
                 np.zeros(B, dtype=complex))
-    kernel = "compiled"
+    kernel = "compiled" if all(solution is None or solution.kernel == "compiled" for solution in solutions) \
+        else "numpy"
     if not good.all():
         bad = np.flatnonzero(~good)
         states[:, bad] = _extended_numpy(system, s[bad], amplitudes, rows)
-        kernel = "compiled/numpy" if good.any() else "numpy"
+        kernel = f"{kernel}/numpy" if good.any() and kernel != "numpy" else "numpy"
     return ChainSolution(states, np.zeros(B, dtype=complex), tuple(rows), kernel=kernel)
 
 

@@ -196,9 +196,9 @@ def characteristic_function(system, s: Any, *, normalize: bool = True) -> np.nda
 
     ``Delta`` is the determinant of the boundary equations accumulated by the Riccati sweep
     (product of the ``det G_j`` and of the end matrix; for lumped chains and controlled chains on lumped
-    plants the compiled recursion of ``docs/riccati.md`` §7.1 when a C compiler is present), multiplied by the factors that clear the
-    poles of the element matrices (connectors ``k + c s``, controller denominators), so that it
-    is entire in ``s`` and vanishes exactly at the (closed-loop) characteristic roots, including
+    plants the compiled recursion of ``docs/riccati.md`` §7.1 when a C compiler is present), multiplied
+    by the factors that clear the poles of the element matrices (connectors ``k + c s``, controller
+    denominators), so that it is entire in ``s`` and vanishes exactly at the (closed-loop) characteristic roots, including
     exact delays ``e^{-s tau}``.  Where the sweep itself fails although ``Delta`` is finite (a
     connector without spring at ``s = 0``, a substructure resonance), the value is the certified
     mean of ``Delta`` on a small circle (:func:`ctmm.entire_values.entire_logs`).
