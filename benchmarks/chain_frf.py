@@ -23,6 +23,19 @@ max relative error against a 30-digit mpmath solve (the Thomas algorithm on the 
 ``foundation_scaling.high_precision_frf``) at 10 probe frequencies, driving point and tip.  Memory: peak traced
 allocations (``tracemalloc``: numpy arrays count) of one call of each solve.
 
+Controlled chains and the characteristic function (``controlled_rows``, :mod:`ctmm.controlled_chain_frequency`):
+the same chain closed by a delayed PD loop on the tip, ``u = -(20 x + 5 v)(t - 0.01 s)`` at ``m<n>`` (``--controlled``
+masses, every 10th frequency of the grid: the extended numpy recursion holds ``(B, 4, 4)`` matrices per element):
+
+* ``closed_loop_compiled`` -- :func:`ctmm.controlled_chain_frequency.closed_loop_solve` (plant solves in C, the loop
+  closed per frequency), ``closed_loop_numpy`` -- :func:`ctmm.chain_assembly.solve` of the extended chain (numpy);
+* ``log_det_compiled`` / ``log_det_numpy`` -- the characteristic log-determinant of the controlled chain at
+  ``s = 0.1 + i omega`` (determinant lemma on the compiled plant / the extended numpy recursion), and
+  ``plain_log_det_compiled`` / ``plain_log_det_numpy`` of the plant alone (``solve(points=(), want_log_det=True)``
+  / :func:`ctmm.assembly.riccati_solve` with ``want_states=False``).
+
+Agreement: largest difference of the outputs relative to the largest output, and of ``exp(log det)`` ratios.
+
 Run ``python benchmarks/chain_frf.py`` (``--sizes 1000`` for one size); writes ``benchmarks/results/chain_frf.json``.
 """
 from __future__ import annotations
@@ -223,17 +236,66 @@ def run(n: int, bounds: dict[int, ctypes.CDLL]) -> dict:
     return row
 
 
+def run_controlled(n: int) -> dict:
+    """Controlled-chain FRF and log-determinants, compiled against numpy (see the module text)."""
+    from ctmm.assembly import riccati_solve
+    from ctmm.chain_assembly import assemble
+    from ctmm.control import ControlledChain, Feedback
+    from ctmm.controlled_chain_frequency import closed_loop_solve, log_determinant
+
+    plant = ctmm_chain(n)
+    system = ControlledChain(plant, [Feedback("pd", [(f"m{n}.x", 20.0), (f"m{n}.v", 5.0)], f"m{n}", gain=1.0,
+                                              delay=0.01)])
+    omega = omega_grid(n)[::10]
+    s = laplace_variables(omega)
+    source = system.input("m1.force")
+    amplitudes = {source.position: {source.input: 1.0}}
+    points = sorted({system.signal(o).point for o in ("m1.x", f"m{n}.x")})
+    z = 0.1 + s
+
+    def numpy_log_det(chain):
+        Us, us, start, end = assemble(chain, z)
+        return riccati_solve(Us, us, start, end, want_states=False).log_det
+
+    cases = {"closed_loop_compiled": lambda: closed_loop_solve(system, s, amplitudes, points).states[:, :, 0],
+             "closed_loop_numpy": lambda: solve(system, s, amplitudes).states[points][:, :, 0],
+             "log_det_compiled": lambda: log_determinant(system, z),
+             "log_det_numpy": lambda: numpy_log_det(system),
+             "plain_log_det_compiled": lambda: solve(plant, z, points=(), want_log_det=True, certify=False).log_det,
+             "plain_log_det_numpy": lambda: numpy_log_det(plant)}
+    row: dict = {"n_masses": n, "n_frequencies": int(omega.size), "load_average": list(os.getloadavg()),
+                 "kernel": closed_loop_solve(system, s, amplitudes, points).kernel}
+    results = {}
+    for name, call in cases.items():
+        call()
+        row[f"{name}_s"], row[f"{name}_cpu_s"], results[name] = best(call, 3)
+    for name in ("closed_loop", "log_det", "plain_log_det"):
+        row[f"{name}_numpy_over_compiled_cpu"] = row[f"{name}_numpy_cpu_s"] / row[f"{name}_compiled_cpu_s"]
+    compiled, numpy = results["closed_loop_compiled"], results["closed_loop_numpy"]
+    row["closed_loop_compiled_vs_numpy_normwise"] = float(np.max(np.abs(compiled - numpy)) / np.max(np.abs(numpy)))
+    for name in ("log_det", "plain_log_det"):
+        row[f"{name}_compiled_vs_numpy_max"] = float(np.max(np.abs(np.expm1(results[f"{name}_compiled"]
+                                                                              - results[f"{name}_numpy"]))))
+    row["peak_bytes_closed_loop_compiled"] = peak_bytes(cases["closed_loop_compiled"])
+    row["peak_bytes_closed_loop_numpy"] = peak_bytes(cases["closed_loop_numpy"])
+    print(json.dumps(row), flush=True)
+    return row
+
+
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sizes", type=int, nargs="+", default=[1000, 10_000])
+    parser.add_argument("--sizes", type=int, nargs="*", default=[1000, 10_000])
+    parser.add_argument("--controlled", type=int, nargs="*", default=[20, 1000])
     parser.add_argument("--output", type=Path, default=RESULTS)
     args = parser.parse_args(argv)
     bounds = {block: bound_library(block) for block in (1, 8)}
     rows = [run(n, bounds) for n in args.sizes]
+    controlled_rows = [run_controlled(n) for n in args.controlled]
     result = {"benchmark": "chain_frf", "machine": {"python": platform.python_version(), "numpy": np.__version__,
                                                     "processor": platform.processor() or platform.machine(),
                                                     "load_average": list(os.getloadavg())},
-              "frequencies": "foundation_scaling.omega_grid(n): 1000 log-spaced omega", "rows": rows}
+              "frequencies": "foundation_scaling.omega_grid(n): 1000 log-spaced omega", "rows": rows,
+              "controlled_rows": controlled_rows}
     args.output.parent.mkdir(parents=True, exist_ok=True)
     args.output.write_text(json.dumps(result, indent=2) + "\n")
     return result

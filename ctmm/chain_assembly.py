@@ -118,7 +118,7 @@ def assemble_body(system: Chain, body: Sequence, points: Sequence[int], s: np.nd
 
 def solve(system: Chain, s: np.ndarray, amplitudes=None, *, solver: str = "riccati",
           want_log_det: bool = False, points: Sequence[int] | None = None,
-          compiled: bool | None = None) -> ChainSolution:
+          compiled: bool | None = None, certify: bool = True) -> ChainSolution:
     """States at every connection point for harmonic loads (phasors), batched over ``s``
     (with ``want_log_det``, the Riccati solvers also return the characteristic log-determinant).
     The Riccati solve of a chain cuts elements with a ``subdivide`` hook (long beams) into exact
@@ -128,16 +128,20 @@ def solve(system: Chain, s: np.ndarray, amplitudes=None, *, solver: str = "ricca
     those (:attr:`~ctmm.assembly.ChainSolution.points`; the numpy recursion still keeps ``G_j, r_j``
     of every element, memory ``O(N B)``); other chains return every point.  Read the result with :meth:`~ctmm.assembly.ChainSolution.at`.
 
-    ``compiled``: for lumped chains with ``points`` and without ``want_log_det``, the recursion in C
-    (:mod:`ctmm.compiled_chain_frequency`, memory ``O(N + len(points) B)``): None (default) when a C
+    ``compiled``: for lumped chains with ``points``, the recursion in C (:mod:`ctmm.compiled_chain_frequency`,
+    memory ``O(N + len(points) B)``, with the log-determinant when wanted): None (default) when a C
     compiler is present, True always (:class:`~ctmm.errors.ModelError` without a compiler), False never.
+    Controlled chains on a lumped plant with ``points`` are answered on the same kernel
+    (:mod:`ctmm.controlled_chain_frequency`: the loops closed over the plant's responses).
+    ``certify=False``: where the compiled recursion answers, non-finite states (a singular end equation) are
+    returned instead of refused (the other recursions raise :class:`~ctmm.errors.SingularSystemError` there).
     """
     solver = validation.option("solver", solver, SOLVERS)
     compiled = validation.flag("compiled", compiled, optional=True)
-    if solver == "riccati" and not hasattr(system, "assemble_frequency") and _lumped(system):
+    if solver == "riccati" and not hasattr(system, "assemble_frequency") and is_lumped(system):
         index = getattr(system, "state_index", None)
         sol = _solve_lumped(system, np.asarray(s, dtype=complex), amplitudes or {}, want_log_det,
-                            points if index is None else None, compiled)
+                            points if index is None else None, compiled, certify)
     elif solver == "riccati" and not hasattr(system, "assemble_frequency"):
         # long fields (BeamField: entries ~ cosh(beta)) lose every digit in one piece at high
         # frequency; their pieces of the subdivide hook keep the transfer exact (states are read
@@ -158,7 +162,9 @@ def solve(system: Chain, s: np.ndarray, amplitudes=None, *, solver: str = "ricca
     return sol
 
 
-def _lumped(system) -> bool:
+def is_lumped(system: Any) -> bool:
+    """True for a chain of lumped axial elements only (springs, dampers, masses, ...): the scalar recursion
+    (and the compiled one, :mod:`ctmm.compiled_chain_frequency`) answers it."""
     return system.layout.size == 2 and all(issubclass(kind, (AxialBody, AxialJoint))
                                            for kind in {type(e) for e in system.body})
 
@@ -189,13 +195,15 @@ class _PolynomialCache:
 
 
 def _solve_lumped(system: Chain, s: np.ndarray, amplitudes: Mapping, want_log_det: bool = False,
-                  points: Sequence[int] | None = None, compiled: bool | None = None) -> ChainSolution:
+                  points: Sequence[int] | None = None, compiled: bool | None = None,
+                  certify: bool = True) -> ChainSolution:
     """Riccati solve of a 1-D lumped chain from element scalars (impedance, compliance).
 
     Same recursion as :func:`ctmm.assembly.riccati_solve`; the unit and zero entries of the
-    element matrices stay Python scalars instead of ``(B, 2, 2)`` arrays.  With ``points`` given and
-    no log-determinant wanted, the compiled recursion of :mod:`ctmm.compiled_chain_frequency` answers
-    when ``compiled`` is True, or None and a C compiler is present (memory ``O(N + points B)``).
+    element matrices stay Python scalars instead of ``(B, 2, 2)`` arrays.  With ``points`` given, the
+    compiled recursion of :mod:`ctmm.compiled_chain_frequency` answers when ``compiled`` is True, or None
+    and a C compiler is present (memory ``O(N + points B)``; the log-determinant too when wanted).
+    ``certify=False`` (the compiled recursion only): non-finite states are returned instead of refused.
     """
     from .assembly import riccati_scalar_entries
 
@@ -204,12 +212,13 @@ def _solve_lumped(system: Chain, s: np.ndarray, amplitudes: Mapping, want_log_de
     e = e_idx[0]
     f = 1 - e
     start, end = BoundaryStart(e_idx, S0, P0), BoundaryEnd(Bm, b)
-    library = _compiled_library(compiled, want_log_det, points, len(system.body))
+    library = _compiled_library(compiled, points, len(system.body))
     table = None if library is None else _compiled_table(system, amplitudes, f)
     if table is not None:
         from .compiled_chain_frequency import solve_entries
 
-        return solve_entries(library, s, *table, start, end, f, e, points)
+        return solve_entries(library, s, *table, start, end, f, e, points, want_log_det=want_log_det,
+                             certify=certify)
     if compiled and library is not None:
         raise ModelError(f"compiled=True: the compiled chain recursion takes float element coefficients; "
                          f"{system.name!r} has others (use compiled=None or False)")
@@ -279,9 +288,18 @@ def _compiled_table(system: Chain, amplitudes: Mapping, f: int):
     return unique_of, list(rows), loads
 
 
-def _compiled_library(compiled: bool | None, want_log_det: bool, points: Sequence[int] | None, size: int):
+def compiled_log_det_applies(system: Any) -> bool:
+    """True when the compiled recursion computes the characteristic log-determinant of ``system`` (a lumped chain
+    without loops, a C compiler present): :func:`solve` with ``points=()`` and ``want_log_det``."""
+    from .compiled_chain_frequency import compiled_library
+
+    return (not hasattr(system, "assemble_frequency") and is_lumped(system) and bool(system.body)
+            and compiled_library() is not None)
+
+
+def _compiled_library(compiled: bool | None, points: Sequence[int] | None, size: int):
     """The compiled recursion's library when it may answer this solve (see :func:`_solve_lumped`), else None."""
-    if compiled is False or want_log_det or points is None or not size:
+    if compiled is False or points is None or not size:
         return None
     from .compiled_chain_frequency import compiled_library
 

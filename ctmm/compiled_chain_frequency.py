@@ -28,8 +28,11 @@ Certificate: the same as the numpy recursion's.  The end unknown ``e_N = (b - Bm
 every frequency, else :class:`~ctmm.errors.SingularSystemError` names the batch entries (a free-free chain under a
 static load, a frequency exactly at a natural frequency of an undamped chain).
 
-Not here: the characteristic log-determinant (``want_log_det``: numpy), chains with controlled elements or beams
-(numpy, :func:`ctmm.assembly.riccati_solve`), coefficients that are arrays (numpy).
+The characteristic log-determinant (``want_log_det``) is the product of the pivots ``G_j`` and ``H`` accumulated as a
+mantissa times a power of two (one complex product per point step, one logarithm per frequency at the end).
+Controlled chains are answered on this kernel by :mod:`ctmm.controlled_chain_frequency` (the loops closed over the
+plant's responses).  Not here: chains with beams (numpy, :func:`ctmm.assembly.riccati_solve`), coefficients that are
+arrays (numpy).
 """
 from __future__ import annotations
 
@@ -67,15 +70,37 @@ static inline void reciprocal(double br, double bi, double *qr, double *qi)
    element, terms[8 l..]: alpha_f, beta_f, alpha_e, beta_e (re, im), u = alpha + beta v; s[2 b..]; start[4 b..]:
    S0, P0; end[6 b..]: Bm_f, Bm_e, b; B a multiple of K; slot[j] (j = 0..n): the stored point's index or -1;
    states[((k B + b) 2 + c) 2 ..]; finite[b]: the certificate; work: stack 4 K per point-type or loaded element,
-   kept 4 K per stored point, table 2 K n_unique doubles. */
+   kept 4 K per stored point, table 2 K n_unique doubles.  determinant (NULL: not wanted): per frequency the
+   product of the pivots G_j and of H as mantissa (re, im) times 2^exponent, determinant[3 b..] = re, im, exponent
+   (the log-determinant of docs/riccati.md section 4 without one logarithm per element). */
+static inline void renormalise(double *mr, double *mi, double *ex)
+{
+    const double big = fmax(fabs(*mr), fabs(*mi));
+    if (big > 0x1p-200 && big < 0x1p200) return;
+    if (!(big > 0.0) || !isfinite(big)) return;   /* zero, infinite or NaN: the logarithm says so */
+    int shift;
+    frexp(big, &shift);
+    *mr = ldexp(*mr, -shift); *mi = ldexp(*mi, -shift); *ex += shift;
+}
+
+static inline void multiply(double *mr, double *mi, double *ex, double gr, double gi)
+{
+    const double tr = *mr * gr - *mi * gi, ti = *mr * gi + *mi * gr;
+    *mr = tr; *mi = ti;
+    renormalise(mr, mi, ex);
+}
+
 void chain_frequency(int n, int B, int f, const int *unique_of, int n_unique, const int *kind_of,
                      const double *coefficients, int n_loads, const int *load_element,
                      const double *terms, const double *s, const double *start, const double *end, const int *slot,
-                     double *states, int *finite, double *stack, double *kept, double *table)
+                     double *states, int *finite, double *stack, double *kept, double *table, double *determinant)
 {
     const int e = 1 - f;
+    int any_slot = 0;
+    for (int j = 0; j <= n; ++j) any_slot |= slot[j] >= 0;
     for (int b0 = 0; b0 < B; b0 += K) {
-        double sr[K], si[K], Sr[K], Si[K], Pr[K], Pi[K];
+        double sr[K], si[K], Sr[K], Si[K], Pr[K], Pi[K], Dr[K], Di[K], De[K];
+        for (int k = 0; k < K; ++k) { Dr[k] = 1.0; Di[k] = 0.0; De[k] = 0.0; }
         for (int k = 0; k < K; ++k) {
             sr[k] = s[2 * (b0 + k)]; si[k] = s[2 * (b0 + k) + 1];
             const double *z = start + 4 * (b0 + k);
@@ -102,7 +127,9 @@ void chain_frequency(int n, int B, int f, const int *unique_of, int n_unique, co
                 double *w = stack + 4 * K * top++;
                 for (int k = 0; k < K; ++k) {
                     double gr, gi;
-                    reciprocal(vr[k] * Sr[k] - vi[k] * Si[k] + 1.0, vr[k] * Si[k] + vi[k] * Sr[k], &gr, &gi);
+                    const double Gr = vr[k] * Sr[k] - vi[k] * Si[k] + 1.0, Gi = vr[k] * Si[k] + vi[k] * Sr[k];
+                    if (determinant) multiply(Dr + k, Di + k, De + k, Gr, Gi);
+                    reciprocal(Gr, Gi, &gr, &gi);
                     const double tr = Sr[k] * gr - Si[k] * gi, ti = Sr[k] * gi + Si[k] * gr;
                     w[k] = gr; w[K + k] = gi;           /* 1 / G and r = v P (+ u_e below) */
                     w[2 * K + k] = vr[k] * Pr[k] - vi[k] * Pi[k]; w[3 * K + k] = vr[k] * Pi[k] + vi[k] * Pr[k];
@@ -137,11 +164,18 @@ void chain_frequency(int n, int B, int f, const int *unique_of, int n_unique, co
         for (int k = 0; k < K; ++k) {                   /* H e_N = b - Bm_f P_N, H = Bm_f S_N + Bm_e */
             const double *m = end + 6 * (b0 + k);
             double hr, hi;
-            reciprocal(m[0] * Sr[k] - m[1] * Si[k] + m[2], m[0] * Si[k] + m[1] * Sr[k] + m[3], &hr, &hi);
+            const double Hr = m[0] * Sr[k] - m[1] * Si[k] + m[2], Hi = m[0] * Si[k] + m[1] * Sr[k] + m[3];
+            if (determinant) {
+                multiply(Dr + k, Di + k, De + k, Hr, Hi);
+                double *d = determinant + 3 * (b0 + k);
+                d[0] = Dr[k]; d[1] = Di[k]; d[2] = De[k];
+            }
+            reciprocal(Hr, Hi, &hr, &hi);
             const double xr = m[4] - (m[0] * Pr[k] - m[1] * Pi[k]), xi = m[5] - (m[0] * Pi[k] + m[1] * Pr[k]);
             er[k] = xr * hr - xi * hi; ei[k] = xr * hi + xi * hr;
             finite[b0 + k] = isfinite(er[k]) && isfinite(ei[k]);
         }
+        if (!any_slot) continue;                         /* the determinant only: no way back */
         next = n_loads - 1;
         for (int j = n; j >= 0; --j) {                  /* e_{j-1} = (e_j - r_j) / G_j; f_j = S_j e_j + P_j */
             if (slot[j] >= 0) {
@@ -186,14 +220,15 @@ def compiled_library() -> ctypes.CDLL | None:
     integers, doubles = ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_double)
     library.chain_frequency.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.c_int, integers, ctypes.c_int, integers,
                                         doubles, ctypes.c_int, integers, doubles, doubles, doubles, doubles, integers,
-                                        doubles, integers, doubles, doubles, doubles]
+                                        doubles, integers, doubles, doubles, doubles, doubles]
     library.chain_frequency.restype = None
     return library
 
 
 def solve_entries(library: ctypes.CDLL, s: np.ndarray, unique_of: Sequence[int], table: Sequence[tuple],
                   loads: dict[int, tuple[complex, complex, complex, complex]], start: BoundaryStart, end: BoundaryEnd,
-                  f: int, e: int, points: Sequence[int]) -> ChainSolution:
+                  f: int, e: int, points: Sequence[int], *, want_log_det: bool = False,
+                  certify: bool = True) -> ChainSolution:
     """States at ``points`` of a lumped chain by the compiled recursion (see the module text).
 
     Parameters
@@ -214,12 +249,18 @@ def solve_entries(library: ctypes.CDLL, s: np.ndarray, unique_of: Sequence[int],
     f, e : int
         State components known (``f``) and unknown (``e``) at the start.
     points : sequence of int
-        Connection points ``0..N`` to return, in that order.
+        Connection points ``0..N`` to return, in that order (empty: the determinant only, no back-substitution).
+    want_log_det : bool
+        Also the characteristic log-determinant ``sum log G_j + log H`` (``docs/riccati.md`` §4), accumulated in C
+        as a product scaled by powers of two (no overflow); equal to the numpy recursion's modulo ``2 pi i``.
+    certify : bool
+        Raise where the end unknown is not finite (default).  False: return the non-finite entries (the
+        characteristic function repairs them by circle means, :func:`ctmm.entire_values.entire_logs`).
 
     Returns
     -------
     ChainSolution
-        ``states`` ``(len(points), B, 2)``, ``points``, ``kernel = "compiled"``; ``log_det`` zeros (not computed).
+        ``states`` ``(len(points), B, 2)``, ``points``, ``kernel = "compiled"``; ``log_det`` zeros unless wanted.
 
     Raises
     ------
@@ -247,6 +288,7 @@ def solve_entries(library: ctypes.CDLL, s: np.ndarray, unique_of: Sequence[int],
     end_values = np.ascontiguousarray(np.stack([end.Bm[:, 0, f], end.Bm[:, 0, e], end.b[:, 0]], axis=1)[take],
                                       dtype=complex)
     states = np.empty((len(unique), padded, 2), dtype=complex)
+    determinant = np.empty((padded, 3)) if want_log_det else None
     finite = np.zeros(padded, dtype=np.intc)
     pushed = int(np.count_nonzero(kind_of[unique_of] & POINT)) + len(order)   # G_j, r_j kept for the way back
     work = [np.empty(4 * BLOCK * max(pushed, 1)), np.empty(4 * BLOCK * len(unique)), np.empty(2 * BLOCK * len(values))]
@@ -258,8 +300,14 @@ def solve_entries(library: ctypes.CDLL, s: np.ndarray, unique_of: Sequence[int],
     library.chain_frequency(n, padded, f, pointer(unique_of, integers), len(values), pointer(kind_of, integers),
                             pointer(coefficients), len(order), pointer(load_element, integers), pointer(terms),
                             pointer(s_values), pointer(start_values), pointer(end_values), pointer(slot, integers),
-                            pointer(states), pointer(finite, integers), *(pointer(w) for w in work))
-    if not np.all(finite[:B]):
+                            pointer(states), pointer(finite, integers), *(pointer(w) for w in work),
+                            pointer(determinant) if want_log_det else None)
+    log_det = np.zeros(B, dtype=complex)
+    if want_log_det:
+        mantissa = determinant[:B, 0] + 1j * determinant[:B, 1]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            log_det = np.log(mantissa) + determinant[:B, 2] * np.log(2.0)
+    if certify and not np.all(finite[:B]):
         bad = np.flatnonzero(finite[:B] == 0)
         raise SingularSystemError(
             f"the boundary equations are singular for batch entries {bad[:10].tolist()}"
@@ -267,4 +315,4 @@ def solve_entries(library: ctypes.CDLL, s: np.ndarray, unique_of: Sequence[int],
     states = states[:, :B]
     if rows != unique:
         states = states[[unique.index(j) for j in rows]]
-    return ChainSolution(states, np.zeros(B, dtype=complex), tuple(rows), kernel="compiled")
+    return ChainSolution(states, log_det, tuple(rows), kernel="compiled")

@@ -20,6 +20,8 @@ from .assembly import SOLVERS, ChainSolution
 from . import planar_frequency, spatial_exact_fields, spatial_frequency
 from .capabilities import require_chain
 from .chain_assembly import assemble, laplace_variables, solve  # noqa: F401  (assemble, solve: public here too)
+from . import controlled_chain_frequency
+from .controlled_chain_frequency import closed_loop_solve, compiled_log_det
 from .elements.axial import AxialJoint
 from .entire_values import entire_logs
 from .errors import ModelError
@@ -72,8 +74,10 @@ def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],
     -------
     FrequencyResponse
         ``response[i_out, i_in, k]`` = output phasor per unit input phasor at ``omega[k]``.  A chain's
-        ``info["kernel"]`` says which recursion answered: ``"compiled"`` (a lumped chain with a C compiler
-        present, :mod:`ctmm.compiled_chain_frequency`) or ``"numpy"``.
+        ``info["kernel"]`` says which recursion answered: ``"compiled"`` (a lumped chain, or a controlled chain on
+        one, with a C compiler present: :mod:`ctmm.compiled_chain_frequency`, :mod:`ctmm.controlled_chain_frequency`),
+        ``"numpy"``, or ``"compiled/numpy"`` (some frequencies of a controlled chain failed the superposition's
+        certificate and the extended numpy recursion answered them).
 
     Examples
     --------
@@ -125,10 +129,12 @@ def frequency_response(system: Chain, omega: Any, *, input: str | Sequence[str],
     response = np.empty((len(outputs), len(inputs), s.size), dtype=complex)
     started = time.perf_counter()
     kernels = set()
+    closed = solver == "riccati" and controlled_chain_frequency.applies(system)
     for k, inp in enumerate(resolved):
         amps = {inp.position: {inp.input: 1.0}}
-        sol = solve(system, s, amps, solver=solver, points=points)
-        kernels.add(sol.kernel)
+        sol = closed_loop_solve(system, s, amps, points) if closed else solve(system, s, amps, solver=solver,
+                                                                                points=points)
+        kernels.update(sol.kernel.split("/"))
         for j, o in enumerate(outputs):
             response[j, k] = _output_value(system, sol, s, o, amps)
     units = {name: signal_unit(name, system) for name in (*inputs, *outputs)}
@@ -157,7 +163,8 @@ def steady_state_response(system: Chain, omega: float, *, outputs: Sequence[str]
     outputs : sequence of str, optional
         Output signal names (default: every signal).
     solver : {"riccati", "plain"}
-        Chain solver.
+        Chain solver.  ``"riccati"`` on a lumped chain (or a controlled chain on one) with a C compiler present:
+        the compiled recursion at the outputs' points only (``docs/riccati.md`` §7.1).
     """
     require_chain(system, "steady_state_response")
     system = require_system(system)
@@ -175,8 +182,12 @@ def steady_state_response(system: Chain, omega: float, *, outputs: Sequence[str]
                     raise ModelError(f"{element.name}.{key} varies at {sig_omega} rad/s, not at omega={omega}")
                 amps[key] = value
             amplitudes[pos] = amps
-    sol = solve(system, s, amplitudes, solver=solver)
     names = names or system.signal_names()
+    points = sorted({system.signal(n).point for n in names})       # lumped chains: the compiled recursion
+    if solver == "riccati" and controlled_chain_frequency.applies(system):
+        sol = closed_loop_solve(system, s, amplitudes, points)
+    else:
+        sol = solve(system, s, amplitudes, solver=solver, points=points)
     return {n: complex(_output_value(system, sol, s, n)[0]) for n in names}
 
 
@@ -184,9 +195,10 @@ def characteristic_function(system, s: Any, *, normalize: bool = True) -> np.nda
     """Characteristic function ``Delta(s)`` of a (controlled) chain, vectorised over ``s``.
 
     ``Delta`` is the determinant of the boundary equations accumulated by the Riccati sweep
-    (product of the ``det G_j`` and of the end matrix), multiplied by the factors that clear the
-    poles of the element matrices (connectors ``k + c s``, controller denominators), so that it
-    is entire in ``s`` and vanishes exactly at the (closed-loop) characteristic roots, including
+    (product of the ``det G_j`` and of the end matrix; for lumped chains and controlled chains on lumped
+    plants the compiled recursion of ``docs/riccati.md`` §7.1 when a C compiler is present), multiplied
+    by the factors that clear the poles of the element matrices (connectors ``k + c s``, controller
+    denominators), so that it is entire in ``s`` and vanishes exactly at the (closed-loop) characteristic roots, including
     exact delays ``e^{-s tau}``.  Where the sweep itself fails although ``Delta`` is finite (a
     connector without spring at ``s = 0``, a substructure resonance), the value is the certified
     mean of ``Delta`` on a small circle (:func:`ctmm.entire_values.entire_logs`).
@@ -216,6 +228,9 @@ def _log_delta(system, s: np.ndarray) -> np.ndarray:
     zero of a connector's stiffness, e.g. s = 0 for a pure damper, or a substructure resonance;
     :func:`ctmm.entire_values.entire_logs` then evaluates the finite value by a circle mean)."""
     with np.errstate(divide="ignore", invalid="ignore"):
+        log_det = compiled_log_det(system, s)     # the compiled recursion (docs/riccati.md §7.1) when it answers
+        if log_det is not None:
+            return log_det + np.log(_scale(system, s).astype(complex))
         Us, us, start, end = assemble(system, s, subdivide=True)     # long beams: exact pieces
         sol = SOLVERS["riccati"](Us, us, start, end, want_states=False)
         return sol.log_det + np.log(_scale(system, s).astype(complex))

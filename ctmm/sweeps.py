@@ -35,10 +35,11 @@ from typing import Any
 
 import numpy as np
 
-from .assembly import SOLVERS
+from .assembly import SOLVERS, ChainSolution
 from .control.loops import ControlledChain, Feedback
 from .elements.lumped import Connector
 from .errors import ModelError, SingularSystemError, unknown_name
+from .controlled_chain_frequency import compiled_log_det
 from .frequency import assemble, characteristic_function, solve
 from .entire_values import entire_logs
 from .executors import executor_workers, managed_executor, parallel_map
@@ -113,6 +114,9 @@ def _log_characteristic(system: Any, s: np.ndarray) -> np.ndarray:
 def _direct_log_characteristic(system: Any, s: np.ndarray) -> np.ndarray:
     """``log Delta(s)`` by one Riccati sweep (NaN or ``LinAlgError`` where the sweep fails)."""
     with np.errstate(divide="ignore", invalid="ignore"):
+        log_det = compiled_log_det(system, s)      # lumped (controlled) chains: the compiled recursion
+        if log_det is not None:
+            return log_det + _log_pole_factor(system, s)
         Us, us, start, end = assemble(system, s, subdivide=True)     # long beams: exact pieces
         sol = SOLVERS["riccati"](Us, us, start, end, want_states=False)
         return sol.log_det + _log_pole_factor(system, s)
@@ -334,6 +338,7 @@ class LoopCharacteristic(AffineCharacteristic):
             slot = self._amplitudes.setdefault(resolved.position, {})
             slot[resolved.input] = slot.get(resolved.input, 0.0) + weight
         self._sensed = [(sig.point, sig.component, sig.derivative) for sig in signals]
+        self._points = sorted({point for point, _, _ in self._sensed})   # lumped plants: the compiled recursion
         self.executor = None
         self.n_evaluations = 0
         self._phase = None
@@ -355,10 +360,10 @@ class LoopCharacteristic(AffineCharacteristic):
         out = np.empty((1 + len(self._sensed), s.size), dtype=complex)
         try:             # one sweep for the determinant and the responses (a regular open chain)
             with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-                solution = solve(self.open_system, s, self._amplitudes, want_log_det=True)
+                solution = solve(self.open_system, s, self._amplitudes, want_log_det=True, points=self._points)
                 log_open = solution.log_det + _log_pole_factor(self.open_system, s)
             if np.all(np.isfinite(log_open)):
-                logs = self._component_logs(s, log_open, solution.states)
+                logs = self._component_logs(s, log_open, solution)
                 if not np.isnan(logs).any():
                     out[:] = normalised_columns(logs)
                     return out
@@ -399,18 +404,18 @@ class LoopCharacteristic(AffineCharacteristic):
         """Unnormalised logs of ``[D Delta_0, T_1, ...]`` from one open-chain sweep (NaN or an
         exception where the sweep fails: :func:`ctmm.entire_values.entire_logs` repairs them)."""
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            solution = solve(self.open_system, s, self._amplitudes, want_log_det=True)
+            solution = solve(self.open_system, s, self._amplitudes, want_log_det=True, points=self._points)
             log_open = solution.log_det + _log_pole_factor(self.open_system, s)
-        return self._component_logs(s, log_open, solution.states)
+        return self._component_logs(s, log_open, solution)
 
     def _components_open(self, s: np.ndarray, log_open: np.ndarray,
-                         states: np.ndarray | None = None) -> np.ndarray:
+                         states: ChainSolution | None = None) -> np.ndarray:
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             if states is None:
-                states = solve(self.open_system, s, self._amplitudes).states
+                states = solve(self.open_system, s, self._amplitudes, points=self._points)
         return normalised_columns(self._component_logs(s, log_open, states))
 
-    def _component_logs(self, s: np.ndarray, log_open: np.ndarray, states: np.ndarray) -> np.ndarray:
+    def _component_logs(self, s: np.ndarray, log_open: np.ndarray, states: ChainSolution) -> np.ndarray:
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             log_base = log_open
             controller = np.zeros(s.size, complex)
@@ -419,7 +424,7 @@ class LoopCharacteristic(AffineCharacteristic):
                 controller = np.log(self.loop.controller_response(s).astype(complex))
             logs = [log_base]
             for point, component, derivative in self._sensed:
-                response = states[point, :, component] * s ** derivative
+                response = states.at(point)[:, component] * s ** derivative
                 logs.append(log_base + controller + np.log(response.astype(complex)))
             return np.array(logs)
 
