@@ -114,6 +114,9 @@ class KinematicLoopSymbols:
             self._kinematics = (q, v, kinematics, symbolic_relative_angles(self.model, kinematics))
         kinematics, angles = self._kinematics[2], self._kinematics[3]
         cut_name, _, part = name.rpartition(".")
+        if cut_name in self.cut_index and part in ("force_x", "force_y"):
+            raise ModelError(f"sensor {name!r}: a cut force responds to the actuators at once, not a function of the "
+                             "state as the generated loop sensors are; use compiled=None (the numpy loop driver)")
         if cut_name not in self.cut_index or part not in ("angle", "rate", "moment"):
             return sensor_expression(self.tree_ports, name, kinematics)
         k = self.cut_index[cut_name]
@@ -168,6 +171,9 @@ class SpatialKinematicLoopSymbols:
             A spherical cut's law moment ``"<cut>.moment_x|y|z"`` (its 3-axis law is not on symbols here).
         """
         cut_name, _, part = name.rpartition(".")
+        if cut_name in self.cut_index and part in ("force_x", "force_y", "force_z"):
+            raise ModelError(f"sensor {name!r}: a cut force responds to the actuators at once, not a function of the "
+                             "state as the generated loop sensors are; use compiled=None (the numpy loop driver)")
         if cut_name in self.cut_index and part in ("moment_x", "moment_y", "moment_z"):
             raise ModelError(f"sensor {name!r}: the law moment of the spherical cut joint {cut_name!r} is not in the "
                              "generated loop sensors (its 3-axis law is not on symbols yet); use compiled=None (the "

@@ -100,7 +100,8 @@ def close_model_loops(A: np.ndarray, loops: Sequence[Any], *, inputs: Any, outpu
                       default_inputs: Sequence[str], default_outputs: Sequence[str],
                       input_columns: Callable[[list[str]], np.ndarray],
                       output_rows: Callable[[list[str]], np.ndarray],
-                      states: Sequence[str], name: str, point: Any) -> LinearizedSystem:
+                      states: Sequence[str], name: str, point: Any,
+                      output_feedthrough: Callable[[list[str], list[str]], np.ndarray] | None = None) -> LinearizedSystem:
     """The :class:`LinearizedSystem` of a plant's tangent ``A`` with ``loops`` (module docstring).
 
     Parameters
@@ -123,6 +124,9 @@ def close_model_loops(A: np.ndarray, loops: Sequence[Any], *, inputs: Any, outpu
         The model's name.
     point : OperatingPoint
         Where ``A`` was taken.
+    output_feedthrough : callable, optional
+        (Sensor names, actuator names) -> ``D`` rows of sensors that respond to the actuators at once (a kinematic
+        loop's cut forces); ``None``: no feedthrough.
 
     Returns
     -------
@@ -157,7 +161,8 @@ def close_model_loops(A: np.ndarray, loops: Sequence[Any], *, inputs: Any, outpu
     n = A.shape[0]
     B = np.asarray(input_columns(plant_in), dtype=float).reshape(n, len(plant_in)) @ S_in
     C = S_out @ np.asarray(output_rows(plant_out), dtype=float).reshape(len(plant_out), n)
-    D = np.zeros((C.shape[0], B.shape[1]))
+    D = np.zeros((C.shape[0], B.shape[1])) if output_feedthrough is None else S_out @ np.asarray(
+        output_feedthrough(plant_out, plant_in), dtype=float).reshape(len(plant_out), len(plant_in)) @ S_in
     for k, j in references.items():
         D[len(req) + j, k] = -1.0                   # the loop acts on y - r
     A_cl, B_cl, C_cl, D_cl, sizes, C_u, D_u = close_loops((A, B, C, D), loops, len(exo))

@@ -311,11 +311,18 @@ def mode_shapes(system: Any, **options: Any):
 
     Chains: :func:`ctmm.natural.mode_shapes` (states at the connection points); planar models:
     :func:`ctmm.planar_frequency.mode_shapes` (shapes in the generalised coordinates); spatial models:
-    :func:`ctmm.spatial_frequency.mode_shapes` (shapes in the tangent coordinates).
+    :func:`ctmm.spatial_frequency.mode_shapes` (shapes in the tangent coordinates); kinematic loop models:
+    :func:`ctmm.planar.loop_verbs.mode_shapes_loops` (tree coordinates) and
+    :func:`ctmm.spatial.closed_loop_verbs.mode_shapes_spatial_loops` (the tree's tangent coordinates).
     """
+    if _is_spatial_loop(system):
+        from .spatial.closed_loop_verbs import mode_shapes_spatial_loops
+
+        return mode_shapes_spatial_loops(system, **options)
     if _is_kinematic_loop(system):
-        raise ModelError(f"mode_shapes does not take the kinematic loop model {system.name!r} yet; use "
-                         "ctmm.natural_frequencies and ctmm.linearize (states z = N^T (q - q0), docs/closed_loops.md)")
+        from .planar.loop_verbs import mode_shapes_loops
+
+        return mode_shapes_loops(system, **options)
     if is_planar_system(system):
         return planar_frequency.mode_shapes(system, **options)
     if _is_spatial(system):

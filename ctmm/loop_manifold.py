@@ -34,8 +34,8 @@ from .errors import ModelError
 from .planar_linearization import JACOBIAN_TOLERANCE, jacobian
 
 __all__ = ["independent_basis", "chart", "tangent_matrix", "accurate_tangent", "at_equilibrium",
-           "require_equilibrium", "newton_equilibrium", "undamped_frequencies", "input_output_matrices",
-           "TANGENT_STEPS", "TANGENT_TARGET"]
+           "require_equilibrium", "newton_equilibrium", "undamped_frequencies", "undamped_modes",
+           "input_output_matrices", "TANGENT_STEPS", "TANGENT_TARGET"]
 
 TANGENT_STEPS = (1e-3, 1e-4, 1e-5)
 """Steps [rad, m, modal, and their rates] of the Richardson differences of :func:`accurate_tangent`, tried in turn
@@ -223,6 +223,19 @@ def newton_equilibrium(model: Any, q: np.ndarray, t: float = 0.0, *, tolerance: 
                      "80 Newton steps, or a singular or neutral tangent stiffness: give a better guess)")
 
 
+def _squared_frequencies(model: Any, A: np.ndarray, verb: str) -> np.ndarray:
+    """``omega^2`` [1/s^2] of the tangent ``A`` about an equilibrium, ascending (checks of
+    :func:`undamped_frequencies`)."""
+    f = A.shape[0] // 2
+    if np.max(np.abs(A[f:, f:]), initial=0.0) > 1e-6 * np.sqrt(np.max(np.abs(A[f:, :f]), initial=1e-300)):
+        raise ModelError(f"{_label(model)}: {verb} needs an undamped model (velocity-dependent forces at q0)")
+    squared = np.linalg.eigvals(-A[f:, :f])
+    scale = np.max(np.abs(squared), initial=1e-300)
+    if np.any(squared.real < -1e-8 * scale) or np.max(np.abs(squared.imag), initial=0.0) > 1e-8 * scale:
+        raise ModelError(f"{_label(model)}: q0 is not a stable equilibrium (omega^2 = {squared})")
+    return np.sort(np.clip(squared.real, 0.0, None))
+
+
 def undamped_frequencies(model: Any, A: np.ndarray) -> np.ndarray:
     """Undamped natural frequencies [rad/s] of the tangent ``A`` about an equilibrium, ascending (a neutral
     direction, e.g. the free spin of a coupler between two ball joints, gives 0).
@@ -233,15 +246,47 @@ def undamped_frequencies(model: Any, A: np.ndarray) -> np.ndarray:
         Velocity-dependent forces (damping), an unstable equilibrium (``omega^2 < 0`` beyond round-off ``1e-8`` of
         the largest) or complex ``omega^2``.
     """
-    f = A.shape[0] // 2
-    if np.max(np.abs(A[f:, f:]), initial=0.0) > 1e-6 * np.sqrt(np.max(np.abs(A[f:, :f]), initial=1e-300)):
-        raise ModelError(f"{_label(model)}: natural_frequencies needs an undamped model (velocity-dependent forces "
-                         "at q0)")
-    squared = np.linalg.eigvals(-A[f:, :f])
-    scale = np.max(np.abs(squared), initial=1e-300)
-    if np.any(squared.real < -1e-8 * scale) or np.max(np.abs(squared.imag), initial=0.0) > 1e-8 * scale:
-        raise ModelError(f"{_label(model)}: q0 is not a stable equilibrium (omega^2 = {squared})")
-    return np.sort(np.sqrt(np.clip(squared.real, 0.0, None)))
+    return np.sqrt(_squared_frequencies(model, A, "natural_frequencies"))
+
+
+def undamped_modes(model: Any, A: np.ndarray, basis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Undamped natural frequencies [rad/s] (as :func:`undamped_frequencies`) and mode shapes in the tree's velocity
+    space (planar: the tree coordinates) of the tangent ``A`` about an equilibrium.
+
+    With ``K_z = -dz''/dz`` (``A``'s lower left block) a mode is ``N phi`` (``basis``: ``N``) with
+    ``K_z phi = omega^2 phi``: ``phi`` the right singular vectors of ``K_z - omega^2 I`` with the smallest singular
+    values, one per frequency -- for a cluster of ``omega^2`` within ``1e-8`` of the largest (a repeated frequency)
+    as many as it holds, an orthonormal basis of its eigenspace in ``z``.  Each shape is normalised to unit largest
+    entry (``+1``).
+
+    Returns
+    -------
+    omega : ndarray (f,)
+        Ascending [rad/s].
+    shapes : ndarray (nv, f)
+        Column ``k``: mode ``k`` in the velocity space [rad, m, per unit of its largest entry].
+
+    Raises
+    ------
+    ModelError
+        As :func:`undamped_frequencies` (verb ``mode_shapes``).
+    """
+    squared = _squared_frequencies(model, A, "mode_shapes")
+    f = squared.size
+    stiffness = -A[f:, :f]
+    cluster = 1e-8 * max(float(squared[-1]) if f else 0.0, 1e-300)
+    vectors = np.zeros((f, f))
+    first = 0
+    while first < f:
+        last = first + 1
+        while last < f and squared[last] - squared[first] <= cluster:
+            last += 1
+        shift = float(np.mean(squared[first:last]))
+        vectors[:, first:last] = np.linalg.svd(stiffness - shift * np.eye(f))[2][f - (last - first):].T
+        first = last
+    shapes = basis @ vectors
+    largest = shapes[np.argmax(np.abs(shapes), axis=0), np.arange(f)]
+    return np.sqrt(squared), shapes / largest
 
 
 def input_output_matrices(model: Any, q0: np.ndarray, basis: np.ndarray, t: float,

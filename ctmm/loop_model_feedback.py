@@ -1,5 +1,5 @@
 """``ctmm.linearize`` of a kinematic loop model with feedback loops, planar and spatial: the loops closed around the
-plant's tangent on the constraint manifold (:mod:`ctmm.loop_manifold`), with the cut forces as outputs.
+plant's tangent on the constraint manifold (:mod:`ctmm.loop_manifold`), with the cut forces as outputs and sensors.
 
 The plant (:class:`ctmm.planar.closed_loops.KinematicLoopModel` or
 :class:`ctmm.spatial.closed_loops.SpatialKinematicLoopModel`) is linearised with the needed actuators as inputs and
@@ -7,7 +7,10 @@ the needed sensors and cut forces as outputs; :func:`ctmm.controlled_linearizati
 loops (real-time loops inside ``A``, LTI controller states appended, delayed loops beside it; the loops act on the
 deviations of their sensors from the operating point).  Cut-force outputs feed through from the actuators (the
 plant's ``D``): their rows are ``C_f x + D_f u`` with the actuator values ``u`` of the closed system (exogenous
-actuator inputs, the real-time loops' forces, the delayed loops' force inputs).  ``docs/closed_loops.md`` §3c, §8.
+actuator inputs, the real-time loops' forces, the delayed loops' force inputs).  A loop may sense a cut force: its
+row carries the plant's feedthrough ``D`` into the closure (``close_model_loops(output_feedthrough=...)``), which
+solves a real-time loop on it as the algebraic loop it is and keeps a delayed one's ``D`` beside ``A`` (a neutral
+delay loop when ``|K D|`` is not small: the stability tools say so).  ``docs/closed_loops.md`` §3c, §8.
 """
 from __future__ import annotations
 
@@ -55,11 +58,12 @@ def linearize_with_feedback(linearize_plant: Callable[[list[str], list[str]], Li
     requested = [] if empty else list(validation.names("outputs", outputs))
     cut = [name for name in requested if name in forces]
     sensors = set(ports.sensors)
-    needed = list(dict.fromkeys([name for name in list(default_outputs) + requested if name in sensors]
+    needed = list(dict.fromkeys([name for name in list(default_outputs) + requested
+                                 if name in sensors and name not in forces]
                                 + [name for lp in loops for name, _ in lp.terms]))
     plant = linearize_plant(actuators, needed + cut)
     ss = plant.state_space
-    B, C = np.asarray(ss.B, dtype=float), np.asarray(ss.C, dtype=float)
+    B, C, D = (np.asarray(m, dtype=float) for m in (ss.B, ss.C, ss.D))
 
     def columns(names: list[str]) -> np.ndarray:
         return B[:, [actuators.index(ports.check_actuator(name, "input (actuator)")) for name in names]]
@@ -69,13 +73,18 @@ def linearize_with_feedback(linearize_plant: Callable[[list[str], list[str]], Li
             ports.check_sensor(name, "output (sensor)")
         return C[[needed.index(name) for name in names], :]
 
+    def feedthrough(names: list[str], inputs_of_plant: list[str]) -> np.ndarray:
+        """The plant's ``D`` rows of the loop sensors: nonzero for the cut forces, which respond to the actuators."""
+        return D[np.ix_([needed.index(name) for name in names], [actuators.index(name) for name in inputs_of_plant])]
+
     real_time = [lp for lp in loops if lp.delay == 0.0]
     others = [name for name in requested if name not in forces]
     helpers = [f"{lp.name}.u" for lp in real_time if f"{lp.name}.u" not in others] if cut else []
     closed = close_model_loops(np.asarray(ss.A, dtype=float), loops, inputs=inputs,
                                outputs=outputs if not cut else others + helpers, default_inputs=list(default_inputs),
                                default_outputs=list(default_outputs), input_columns=columns, output_rows=rows,
-                               states=list(ss.state_labels), name=name, point=plant.operating_point)
+                               states=list(ss.state_labels), name=name, point=plant.operating_point,
+                               output_feedthrough=feedthrough)
     if not cut:
         return closed
     # the cut forces: C_f x + D_f u, u the actuator values of the closed system (module docstring of close_model_loops)
@@ -96,7 +105,7 @@ def linearize_with_feedback(linearize_plant: Callable[[list[str], list[str]], Li
     for j, lp in enumerate(delayed):
         for name, weight in lp.actuator_terms:
             U_in[actuators.index(name), len(exo) + j] += weight
-    C_f, D_f = C[len(needed):], np.asarray(ss.D, dtype=float)[len(needed):]
+    C_f, D_f = C[len(needed):], D[len(needed):]
     force_rows = np.hstack([C_f, np.zeros((len(cut), A_cl.shape[0] - C_f.shape[1]))]) + D_f @ U_x
     force_feed = D_f @ U_in
     C_new = np.vstack([force_rows[cut.index(name)] if name in forces else C_cl[listed.index(name)]

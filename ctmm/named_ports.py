@@ -13,7 +13,11 @@ from typing import Any
 
 from .errors import ModelError
 
-__all__ = ["NamedPorts", "merged_values", "split_actuator_values", "split_by_kind"]
+__all__ = ["NamedPorts", "merged_values", "split_actuator_values", "split_by_kind", "NOT_GIVEN"]
+
+NOT_GIVEN = object()
+"""The default ``inputs`` of the kinematic loop ports' ``values``: not given (their cut-force sensors, which depend on
+the actuator values, are then refused by name)."""
 
 
 class NamedPorts:

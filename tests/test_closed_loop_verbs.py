@@ -126,8 +126,9 @@ def test_the_verbs_refuse_what_they_cannot_honour():
     with pytest.raises(ModelError, match="natural_frequencies"):
         ctmm.natural_frequencies(with_feedback(loop, [Feedback("pd", sensor="h1.angle", actuator="h1.torque",
                                                                gain=1.0)]))
-    with pytest.raises(ModelError, match="kinematic loop"):
-        ctmm.mode_shapes(loop)
+    with pytest.raises(ModelError, match="mode_shapes answers the open kinematic loop model"):
+        ctmm.mode_shapes(with_feedback(loop, [Feedback("pd", sensor="h1.angle", actuator="h1.torque", gain=1.0)]),
+                         n_modes=1)                        # the modes: tests/test_loop_mode_shapes.py
     with pytest.raises(ModelError, match="rates must be zero"):
         ctmm.linearize(loop, (q0, v0))
     with pytest.raises(ModelError, match="not an equilibrium"):

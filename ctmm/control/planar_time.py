@@ -193,6 +193,9 @@ class _ClosedLoop:
         self.delayed_sensors = ports.resolve(self.delayed_names)
         self.controller_sensors = [ports.resolve(list(c.inputs)) for c in self.controllers]
         self.delayed_index = {name: k for k, name in enumerate(self.delayed_names)}
+        self.input_dependent = frozenset(getattr(ports, "input_dependent", ())) & set(
+            self.all_names + [name for c in self.controllers for name in c.inputs])
+        self._refuse_input_dependent(loops)
         self.max_delay = max([lp.delay for lp in loops] + self.controller_delays + [0.0])
         self.history_step = history_step
         self.history: DelayHistory | None = None
@@ -200,14 +203,40 @@ class _ClosedLoop:
         self.use_cache = False      # RK4 only: its first stage reuses the history's evaluation
         self._cache: tuple[float, np.ndarray, np.ndarray] | None = None
 
+    def _refuse_input_dependent(self, loops: list[_Loop]) -> None:
+        """Refuse by name what this driver cannot honour of sensors that respond to the actuators at once (cut
+        forces): a real-time loop on one (algebraic), a delayed one beside co-simulated controllers or read with a
+        measurement delay (the held outputs make the force jump at every sample; the delay history is smooth)."""
+        for lp in loops:
+            sensed = sorted(self.input_dependent.intersection(lp.sensors))
+            if sensed and (lp.delay == 0.0 or self.controllers):
+                raise ModelError(f"loop {lp.name!r} on {sensed}: " + (
+                    "a real-time loop on a cut force is algebraic (it responds to the loop's own actuator at once), "
+                    "which the time driver does not solve; give it a delay >= dt (ctmm.linearize closes it exactly)"
+                    if lp.delay == 0.0 else "a delayed loop on a cut force beside co-simulated controllers is not "
+                    "available (their held outputs make it jump at every sample); sense it in a controller"))
+        late = [x for c, d in zip(self.controllers, self.controller_delays) if d > 0 for x in c.inputs
+                if x in self.input_dependent]
+        if late:
+            raise ModelError(f"controller inputs {late}: a cut force read with a measurement delay is not available "
+                             "(it jumps at every sample of the held outputs); read it without measurement_delay")
+
+    def sensor_values(self, names: Sequence[str], sensors: list, t: float, y: np.ndarray) -> np.ndarray:
+        """Values of the resolved ``sensors`` (named ``names``) at ``(t, y)``; those that depend on the actuators
+        (:attr:`input_dependent`) solved with the actuator values there (inputs, loops, held controller outputs)."""
+        q, v = y[:self.n], y[self.n:self.base]
+        if not self.input_dependent.intersection(names):
+            return self.ports.values(sensors, q, v, t)
+        actuators = self.actuator_values(t, y, self.loop_values(t, y))
+        return self.ports.values(sensors, q, v, t, inputs=self.ports.inputs(actuators) if actuators else None)
+
     # -- signals --------------------------------------------------------------------------
     def loop_values(self, t: float, y: np.ndarray, record: bool = False) -> list[tuple[float, float, float]]:
         """``(y now, e, u)`` of every loop at state ``y`` and time ``t``, with the error
         ``e = y(t - tau) - r(t - tau)`` and ``u = -C e`` (``y now`` is NaN for a delayed loop
         unless ``record``: the integrator needs only ``u``)."""
-        q, v = y[:self.n], y[self.n:self.base]
         names, sensors = (self.all_names, self.all_sensors) if record else (self.now_names, self.now_sensors)
-        now = self.ports.values(sensors, q, v, t) if names else np.zeros(0)
+        now = self.sensor_values(names, sensors, t, y) if names else np.zeros(0)
         index = self.all_index if record else self.now_index
         past_by_delay: dict[float, np.ndarray] = {}
         out = []
@@ -274,23 +303,46 @@ class _ClosedLoop:
         Jacobians would cost one column per coordinate; this costs four sensor evaluations)."""
         q, v = y[:self.n], y[self.n:self.base]
         qdot, a = rate[:self.n], rate[self.n:self.base]
-        values = np.asarray(self.ports.values(self.delayed_sensors, q, v, t), float)
+        names, sensors = self.delayed_names, self.delayed_sensors
+        values = np.asarray(self.sensor_values(names, sensors, t, y), float)
         speed = max(float(np.max(np.abs(v), initial=0.0)) / max(1.0, float(np.max(np.abs(q), initial=0.0))),
                     float(np.max(np.abs(a), initial=0.0)) / max(1.0, float(np.max(np.abs(v), initial=0.0))))
         h = 1e-3 / max(speed, 1.0)      # the state moves by ~1e-3 of its size: truncation ~1e-12
 
         def along(s: float) -> np.ndarray:
-            return np.asarray(self.ports.values(self.delayed_sensors, q + s * qdot, v + s * a, t + s), float)
+            return np.asarray(self.sensor_values(names, sensors, t + s, y + s * rate), float)
 
-        derivative = (8.0 * (along(h) - along(-h)) - (along(2 * h) - along(-2 * h))) / (12.0 * h)
+        if self.input_dependent.intersection(names):
+            # a cut force reads the delayed loops' forces, from the history up to t - tau: backward differences
+            # only (the history holds nothing after the last step), fourth order
+            derivative = (25.0 * values - 48.0 * along(-h) + 36.0 * along(-2 * h) - 16.0 * along(-3 * h)
+                          + 3.0 * along(-4 * h)) / (12.0 * h)
+        else:
+            derivative = (8.0 * (along(h) - along(-h)) - (along(2 * h) - along(-2 * h))) / (12.0 * h)
         return values, derivative
 
     def begin(self, t0: float, y0: np.ndarray) -> None:
-        """Start the delay history at ``t0`` (the initial state, held before ``t0``)."""
-        if self.delayed_names:
-            q, v = y0[:self.n], y0[self.n:self.base]
-            values = np.asarray(self.ports.values(self.delayed_sensors, q, v, t0), float)
-            self.history = DelayHistory(t0, values, None, delay=self.max_delay, step=self.history_step)
+        """Start the delay history at ``t0`` (the initial state, held before ``t0``; a cut force: the fixed point
+        ``F = F(u(F))`` the loops reading it would hold at that state, by iteration, which converges when their gain
+        through the force's response to their own actuators is below 1 -- else a neutral delay loop, refused)."""
+        if not self.delayed_names:
+            return
+        q, v = y0[:self.n], y0[self.n:self.base]
+        values = np.asarray(self.ports.values(self.delayed_sensors, q, v, t0, **(
+            {"inputs": None} if self.input_dependent.intersection(self.delayed_names) else {})), float)
+        window = self.max_delay + (5e-3 if self.input_dependent else 0.0)     # _delayed_now reaches 4e-3 s further back
+        self.history, before = DelayHistory(t0, values, None, delay=window, step=self.history_step), math.inf
+        while self.input_dependent.intersection(self.delayed_names):
+            new = np.asarray(self.sensor_values(self.delayed_names, self.delayed_sensors, t0, y0), float)
+            change = float(np.max(np.abs(new - values), initial=0.0))
+            if not change < before:         # not contracting
+                raise ModelError(f"delayed loops on the cut forces {sorted(self.input_dependent)}: the force held "
+                                 "before the start does not settle (the loops' gain through its response to their own "
+                                 "actuators is 1 or more: a neutral delay loop, unstable at high frequency)")
+            values, before = new, change
+            self.history = DelayHistory(t0, values, None, delay=window, step=self.history_step)
+            if change <= 1e-13 * max(1.0, float(np.max(np.abs(new)))):
+                return
 
     def remember(self, t: float, y: np.ndarray) -> None:
         """Store the delayed sensors and their rates at ``(t, y)`` (after the controllers due at ``t``
@@ -308,14 +360,13 @@ class _ClosedLoop:
         whether one was sampled (its held outputs may have jumped)."""
         if self.master is None:
             return False
-        q, v = y[:self.n], y[self.n:self.base]
 
         def measure(i: int) -> np.ndarray:
             c, delay = self.controllers[i], self.controller_delays[i]
             if delay > 0.0:
                 past = self.history(t - delay)
                 return np.array([past[self.delayed_index[name]] for name in c.inputs], dtype=float)
-            return np.asarray(self.ports.values(self.controller_sensors[i], q, v, t), dtype=float)
+            return np.asarray(self.sensor_values(c.inputs, self.controller_sensors[i], t, y), dtype=float)
 
         if self.master.sample(step, t, measure):
             self._cache = None          # held outputs changed: the rate at (t, y) changed too

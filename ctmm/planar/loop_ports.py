@@ -11,7 +11,12 @@ Sensors
     * ``"<cut>.moment"`` -- the moment of the cut's own law and torque signal on its child side
       ``torque(t) - moment_law(dtheta - rest_angle, dtheta_dot)`` [N m] (:meth:`CutJoint.moment`), for an undriven
       cut with a ``moment_law`` or a ``torque`` (actuator inputs on ``"<cut>.torque"`` are not part of it; a driven
-      cut's moment is a reaction, solved with the accelerations, and not a sensor).
+      cut's moment is a reaction, solved with the accelerations, and not a sensor);
+    * ``"<cut>.force_x"``, ``"<cut>.force_y"`` -- the cut force on the child point, global axes [N], solved with the
+      accelerations **under the actuator values of that instant** (:meth:`KinematicLoopModel.solve`): the one kind of
+      sensor that depends on the inputs (:attr:`KinematicLoopPorts.input_dependent`); :meth:`KinematicLoopPorts.values`
+      refuses it by name unless given the actuator inputs, so a path that reads sensors from the state alone cannot
+      return it without them.
 
 Actuators
     * ``"<cut>.torque"`` -- a torque [N m] across an undriven cut: ``+u`` on the child side, ``-u`` on the parent
@@ -20,20 +25,21 @@ Actuators
 
 These are the one list of the cut joints' port names: :func:`ctmm.simulate` (inputs, outputs, loops,
 controllers), :func:`ctmm.linearize`, :func:`ctmm.frequency_response` and the margins of a kinematic loop model
-resolve names through :class:`KinematicLoopPorts`.  The cut forces ``"<cut>.force_x|y"`` [N] are outputs of the
-linearisation and stored signals, not sensors (they are solved with the accelerations: a loop on them would be
-algebraic).
+resolve names through :class:`KinematicLoopPorts`.  A loop on a cut force with no delay is algebraic (the force
+responds to the loop's own actuator at once): the linearisation closes it exactly, the time driver refuses it by name
+(``docs/closed_loops.md`` §3c).
 """
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from typing import Any
 from dataclasses import dataclass
 
 import numpy as np
 
 from .. import validation
 from ..errors import ModelError
-from ..named_ports import merged_values, split_actuator_values
+from ..named_ports import NOT_GIVEN, merged_values, split_actuator_values
 from .closed_loops import KinematicLoopModel
 from .ports import ActuatorInputs, PlanarPorts
 
@@ -42,7 +48,8 @@ __all__ = ["KinematicLoopPorts", "loop_sensor_signals", "tree_outputs"]
 
 @dataclass(frozen=True)
 class _CutSensor:
-    """A sensor of cut joint number ``index``: ``part`` is ``"angle"``, ``"rate"`` or ``"moment"``."""
+    """A sensor of cut joint number ``index``: ``part`` is ``"angle"``, ``"rate"``, ``"moment"``, ``"force_x"`` or
+    ``"force_y"``."""
 
     name: str
     index: int
@@ -75,6 +82,8 @@ class KinematicLoopPorts(PlanarPorts):
     model : PlanarModel
         The spanning tree (whose ports these extend).
     loop_model : KinematicLoopModel
+    input_dependent : frozenset of str
+        The sensors whose values depend on the actuator inputs (the cut forces).
     """
 
     def __init__(self, model: KinematicLoopModel) -> None:
@@ -89,6 +98,8 @@ class KinematicLoopPorts(PlanarPorts):
             added[f"{cut.name}.rate"] = _CutSensor(f"{cut.name}.rate", k, "rate", "rad/s")
             if cut.has_moment:
                 added[f"{cut.name}.moment"] = _CutSensor(f"{cut.name}.moment", k, "moment", "N m")
+            for axis in "xy":
+                added[f"{cut.name}.force_{axis}"] = _CutSensor(f"{cut.name}.force_{axis}", k, f"force_{axis}", "N")
             if not cut.driven and model.cut_points.takes_moment[k]:     # a particle node takes no moment
                 added[f"{cut.name}.torque"] = _CutActuator(f"{cut.name}.torque", cut.name)
         clash = sorted(name for name, entry in added.items()
@@ -99,6 +110,8 @@ class KinematicLoopPorts(PlanarPorts):
         for name, entry in added.items():
             (actuators if isinstance(entry, _CutActuator) else sensors)[name] = entry
         self.sensors, self.actuators = sensors, actuators
+        self.input_dependent = frozenset(name for name, entry in added.items()
+                                         if isinstance(entry, _CutSensor) and entry.part.startswith("force_"))
         self._unit_inputs = {entry.cut: model.torque_inputs(entry.cut) for entry in added.values()
                              if isinstance(entry, _CutActuator)}
 
@@ -123,12 +136,23 @@ class KinematicLoopPorts(PlanarPorts):
                                  "prescribed); only undriven cut joints take a torque input")
         return super().check_actuator(name, what)
 
-    def values(self, sensors: list, q: np.ndarray, qdot: np.ndarray, t: float) -> np.ndarray:
-        """Values of resolved ``sensors`` (no validation of the state: for inner loops)."""
+    def values(self, sensors: list, q: np.ndarray, qdot: np.ndarray, t: float, inputs: Any = NOT_GIVEN) -> np.ndarray:
+        """Values of resolved ``sensors`` (no validation of the state: for inner loops); the cut forces solved with the
+        actuator ``inputs`` (an :class:`ActuatorInputs` or ``None``: none), refused by name when ``inputs`` is not
+        given."""
         def cut_values(chosen: list) -> list[float]:
             angle, rate = self.loop_model.relative_angles(q, qdot, t)
             cuts = self.loop_model.cuts
+            forces = None
+            if any(s.part.startswith("force_") for s in chosen):
+                if inputs is NOT_GIVEN:
+                    named = [s.name for s in chosen if s.part.startswith("force_")]
+                    raise ModelError(f"sensors {named}: a cut force depends on the actuator values of the instant, "
+                                     "and this path reads its sensors from the state alone; read it in the loop "
+                                     "driver (ctmm.simulate with compiled=None) or ctmm.linearize")
+                forces = np.asarray(self.loop_model.solve(q, qdot, t, inputs)[1], dtype=float).reshape(-1, 2)
             return [angle[s.index] if s.part == "angle" else rate[s.index] if s.part == "rate"
+                    else forces[s.index, 0 if s.part == "force_x" else 1] if s.part.startswith("force_")
                     else cuts[s.index].moment(angle[s.index], rate[s.index], t) for s in chosen]
 
         return merged_values(sensors, _CutSensor, lambda chosen: PlanarPorts.values(self, chosen, q, qdot, t),
@@ -158,7 +182,8 @@ def loop_sensor_signals(ports: KinematicLoopPorts, t: np.ndarray, q: np.ndarray,
                         outputs: Sequence[str]) -> tuple[dict[str, np.ndarray], dict[str, str]]:
     """The cut-joint sensors among ``outputs`` at the stored rows ``(t, q, qdot)`` (each row a state of the tree),
     with their units; the tree's sensors are left to :func:`ctmm.planar.integrate.model_signals`."""
-    names = [name for name in outputs if isinstance(ports.sensors.get(name), _CutSensor)]
+    names = [name for name in outputs if isinstance(ports.sensors.get(name), _CutSensor)
+             and name not in ports.input_dependent]      # the cut forces: stored with every result, solved with inputs
     if not names:
         return {}, {}
     sensors = ports.resolve(names)

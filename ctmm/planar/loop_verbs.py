@@ -1,6 +1,6 @@
 """The library verbs on closed kinematic loops (:class:`~ctmm.planar.closed_loops.KinematicLoopModel`).
 
-:func:`ctmm.simulate`, :func:`ctmm.linearize`, :func:`ctmm.natural_frequencies`,
+:func:`ctmm.simulate`, :func:`ctmm.linearize`, :func:`ctmm.natural_frequencies`, :func:`ctmm.mode_shapes`,
 :func:`ctmm.eigenvalue_count` and :func:`ctmm.frequency_response` hand a kinematic loop model to the
 functions of this module, which call the model's own mechanism (the cut forces as boundary unknowns,
 ``docs/closed_loops.md`` §2):
@@ -34,11 +34,11 @@ from .. import validation
 from ..controlled_linearization import delayed_loop_response
 from ..errors import ModelError
 from ..linearized import LinearizedSystem, OperatingPoint, control_name
-from ..results import FrequencyResponse, SimulationResult
+from ..results import FrequencyResponse, ModalResult, SimulationResult
 from ..schemes import SCHEMES, Scheme, as_scheme
 from ..signal_results import SignalSystem, signal_result
 from ..loop_integration import check_consistent
-from ..loop_manifold import at_equilibrium, input_output_matrices
+from ..loop_manifold import at_equilibrium, input_output_matrices, require_equilibrium, undamped_modes
 from ..loop_model_feedback import linearize_with_feedback
 from .closed_loops import KinematicLoopModel, KinematicLoopSimulation, simulate_kinematic_loops
 from .equilibrium import hanging_configuration
@@ -46,8 +46,8 @@ from .integrate import SCIPY_METHODS, coordinate_values, model_signals
 from .loop_ports import KinematicLoopPorts, loop_sensor_signals, tree_outputs
 from .ports import actuator_names
 
-__all__ = ["initial_state", "simulate_loops", "linearize_loops", "natural_frequencies_loops", "eigenvalue_count_loops",
-           "frequency_response_loops", "cut_signal_names"]
+__all__ = ["initial_state", "simulate_loops", "linearize_loops", "natural_frequencies_loops", "mode_shapes_loops",
+           "eigenvalue_count_loops", "frequency_response_loops", "cut_signal_names"]
 
 _DEFAULTS: dict[str, Any] = {"inputs": None, "controllers": [], "references": {}, "coupling": "hold",
                              "solver": "riccati", "fast": None, "force_hook": None, "progress": None, "t0": 0.0,
@@ -336,6 +336,29 @@ def natural_frequencies_loops(model: KinematicLoopModel, *, n_modes: int | None 
     if n_modes is not None:
         omega = omega[:validation.integer("n_modes", n_modes, minimum=1)]
     return omega
+
+
+def mode_shapes_loops(model: KinematicLoopModel, *, n_modes: int | None = None, omega_max: float | None = None,
+                      operating_point: Any = None) -> ModalResult:
+    """:func:`ctmm.mode_shapes` of a kinematic loop model: the undamped modes about its static equilibrium (or the
+    resting ``operating_point``, refused unless an equilibrium) on the constraint manifold, in the tree coordinates.
+
+    ``shapes[k, i, 0]`` is tree coordinate ``i`` (``point_names``: ``model.tree.coordinates``) in mode ``k``: the
+    independent-coordinate mode mapped back by the null-space basis, ``N phi`` (:func:`ctmm.loop_manifold.undamped_modes`;
+    it satisfies the cut joints to first order), normalised to unit largest entry.  Exactly one of ``n_modes`` and
+    ``omega_max`` [rad/s] selects the modes, as for the other models; the frequencies are those of
+    :func:`natural_frequencies_loops`.  A controlled model (feedback loops) is refused as there."""
+    if not isinstance(model, KinematicLoopModel):
+        raise ModelError(f"mode_shapes answers the open kinematic loop model, not {model!r:.80} with feedback loops: "
+                         "use ctmm.linearize (eigenvectors of the closed-loop A) or pass model.plant")
+    validation.one_mode_limit(n_modes, omega_max)
+    q_rest, t = _operating_q(model, operating_point)
+    A, basis, q0, _ = model.resting_tangent(q_rest, t)
+    require_equilibrium(model, A, basis, q0, t, "KinematicLoopModel.equilibrium")
+    omega, shapes = undamped_modes(model, A, basis)
+    keep = validation.selected_modes(omega, n_modes, omega_max,
+                                     f"kinematic loop model {model.name!r} (one per degree of freedom)")
+    return ModalResult(omega[keep], shapes[:, keep].T[:, :, None], ("amplitude",), tuple(model.tree.coordinates))
 
 
 def eigenvalue_count_loops(model: KinematicLoopModel, omega: Any, *, operating_point: Any = None) -> np.ndarray:

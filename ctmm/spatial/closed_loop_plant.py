@@ -100,7 +100,7 @@ class SpatialLoopPlant:
         nq, nv = self.n_positions, self.n_velocities
         q, v = np.reshape(q, (len(t), nq)), np.reshape(v, (len(t), nv))
         signals, units = spatial_signals(model.tree, t, np.concatenate([q, v], axis=1))
-        outputs = list(dict.fromkeys(outputs))
+        outputs = [name for name in dict.fromkeys(outputs) if name not in ports.input_dependent]  # cut forces: below
         if outputs:
             sensors = ports.resolve(outputs)
             values = np.array([ports.values(sensors, q[k], v[k], float(t[k])) for k in range(len(t))]

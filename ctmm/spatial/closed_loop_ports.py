@@ -26,18 +26,24 @@ Actuators (undriven cuts; the names of :attr:`SpatialKinematicLoopModel.actuatio
 Each is added to the cut's own ``actuation`` (:class:`~ctmm.spatial.closed_loop_cuts.CutActuatedInputs`): ``u a`` on
 the child with ``a`` the world direction of the cut's coordinate at the current state, the opposite on the parent,
 the load of :meth:`SpatialKinematicLoopModel.actuation_inputs` (the linearisation's input).  Spherical and universal cuts have no coordinate and
-no actuators (a spherical cut with a law its moment sensors); the cut loads ``"<cut>.force_x|y|z"`` are outputs, not sensors (a loop on them would be algebraic).
+no actuators (a spherical cut with a law its moment sensors).
+
+Every cut's force on the child ``"<cut>.force_x"``, ``"<cut>.force_y"``, ``"<cut>.force_z"`` [N] (world axes) is a
+sensor too, solved with the accelerations **under the actuator values of that instant**: the sensors that respond
+to the actuators at once (:attr:`SpatialLoopPorts.input_dependent`), refused by name by :meth:`SpatialLoopPorts.values`
+unless it is given the actuator inputs (the planar rule, :mod:`ctmm.planar.loop_ports`; ``docs/closed_loops.md`` §3c).
 """
 from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from .. import validation
 from ..errors import ModelError
-from ..named_ports import merged_values, split_actuator_values
+from ..named_ports import NOT_GIVEN, merged_values, split_actuator_values
 from .closed_loop_cuts import LAW_KINDS, CutActuatedInputs
 from .closed_loops import SpatialKinematicLoopModel
 from .ports import SpatialInputs, SpatialPorts
@@ -53,6 +59,7 @@ class _CutSensor:
     unit: str
     component: int = -1  # 0, 1, 2: a spherical cut's law moment along world x, y, z; -1: the coordinate or its rate
     law: bool = False    # a revolute / prismatic cut's law load along its coordinate
+    force: int = -1      # 0, 1, 2: the cut force on the child along world x, y, z
 
 
 @dataclass(frozen=True)
@@ -84,6 +91,8 @@ class SpatialLoopPorts(SpatialPorts):
         sensors, actuators = dict(self.sensors), dict(self.actuators)
         added_sensors, added_actuators = {}, {}
         for k, cut in enumerate(model.cuts):
+            added_sensors.update({f"{cut.name}.force_{axis}": _CutSensor(f"{cut.name}.force_{axis}", k, False, "N",
+                                                                         force=j) for j, axis in enumerate("xyz")})
             if cut.kind == "spherical" and cut.law is not None:
                 added_sensors.update({f"{cut.name}.moment_{axis}": _CutSensor(f"{cut.name}.moment_{axis}", k, False,
                                                                               "N m", j) for j, axis in enumerate("xyz")})
@@ -108,6 +117,7 @@ class SpatialLoopPorts(SpatialPorts):
         sensors.update(added_sensors)
         actuators.update(added_actuators)
         self.sensors, self.actuators = sensors, actuators
+        self.input_dependent = frozenset(name for name, entry in added_sensors.items() if entry.force >= 0)
 
     def check_actuator(self, name: str, what: str = "actuator") -> str:
         """``name`` if it is an actuator, else an error listing the actuators (a driven cut's load: why not)."""
@@ -120,15 +130,27 @@ class SpatialLoopPorts(SpatialPorts):
                                  f"{[a for a in self.actuators if isinstance(self.actuators[a], _CutActuator)]}")
         return super().check_actuator(name, what)
 
-    def values(self, sensors: list, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
-        """Values of resolved ``sensors`` at ``(q, v, t)`` (no validation of the state: for inner loops)."""
+    def values(self, sensors: list, q: np.ndarray, v: np.ndarray, t: float, inputs: Any = NOT_GIVEN) -> np.ndarray:
+        """Values of resolved ``sensors`` at ``(q, v, t)`` (no validation of the state: for inner loops); the cut
+        forces solved with the actuator ``inputs`` (``None``: none), refused by name when ``inputs`` is not given."""
         cuts = self.loop_model.cuts
 
         def cut_values(chosen: list) -> list[float]:
             coordinate, rate = self.loop_model.cut_coordinates(q, v, t)
             moments = self.loop_model.law_moments(q, v, t) if any(s.component >= 0 for s in chosen) else None
+            forces = None
+            if any(s.force >= 0 for s in chosen):
+                if inputs is NOT_GIVEN:
+                    raise ModelError(f"sensors {[s.name for s in chosen if s.force >= 0]}: a cut force depends on "
+                                     "the actuator values of the instant, and this path reads its sensors from the "
+                                     "state alone; read it in the loop driver (ctmm.simulate, compiled=None) or "
+                                     "ctmm.linearize")
+                loads = self.loop_model.cut_loads(q, self.loop_model.solve(q, v, t, inputs)[1], t)
+                forces = np.array([force for force, _ in loads], dtype=float).reshape(-1, 3)
 
             def value(s: _CutSensor) -> float:
+                if s.force >= 0:
+                    return forces[s.index, s.force]
                 if s.component >= 0:
                     return moments[s.index, s.component]
                 if s.law:

@@ -1,6 +1,7 @@
 """The library's frequency verbs on spatial kinematic loop models (:class:`SpatialKinematicLoopModel`).
 
-``ctmm.linearize``, ``ctmm.natural_frequencies``, ``ctmm.eigenvalue_count`` and ``ctmm.frequency_response`` call
+``ctmm.linearize``, ``ctmm.natural_frequencies``, ``ctmm.mode_shapes``, ``ctmm.eigenvalue_count`` and
+``ctmm.frequency_response`` call
 the tangent on the constraint manifold about an equilibrium (:mod:`ctmm.spatial.closed_loop_linear`); the time verb
 is :func:`ctmm.spatial_loop_time.simulate_spatial_loop_system`.  Inputs are the model's actuator ports
 (:class:`~ctmm.spatial.closed_loop_ports.SpatialLoopPorts`: the tree's joint torques, body forces and moments, the
@@ -18,15 +19,16 @@ from .. import validation
 from ..controlled_linearization import delayed_loop_response
 from ..errors import ModelError
 from ..linearized import LinearizedSystem, OperatingPoint, control_name
-from ..results import FrequencyResponse
-from ..loop_manifold import input_output_matrices
+from ..results import FrequencyResponse, ModalResult
+from ..loop_manifold import input_output_matrices, undamped_modes
 from ..loop_model_feedback import linearize_with_feedback
 from .closed_loop_linear import tangent, tangent_error
 from .closed_loops import SpatialKinematicLoopModel
 from .closed_loop_ports import SpatialLoopPorts
 
 __all__ = ["operating_configuration", "linearize_spatial_loops", "natural_frequencies_spatial_loops",
-           "eigenvalue_count_spatial_loops", "frequency_response_spatial_loops", "cut_force_names"]
+           "mode_shapes_spatial_loops", "eigenvalue_count_spatial_loops", "frequency_response_spatial_loops",
+           "cut_force_names"]
 
 
 
@@ -172,6 +174,34 @@ def natural_frequencies_spatial_loops(model: Any, *, n_modes: int | None = None,
     if n_modes is not None:
         omega = omega[:validation.integer("n_modes", n_modes, minimum=1)]
     return omega
+
+
+def mode_shapes_spatial_loops(model: Any, *, n_modes: int | None = None, omega_max: float | None = None,
+                              operating_point: Any = None) -> ModalResult:
+    """:func:`ctmm.mode_shapes` of a spatial kinematic loop model: the undamped modes about the equilibrium
+    ``operating_point`` on the constraint manifold, in the tree's tangent coordinates.
+
+    ``shapes[k, i, 0]`` is tangent coordinate ``i`` (``point_names``:
+    :func:`ctmm.spatial_linearization.tangent_names` of the tree, one per velocity) in mode ``k``: the
+    independent-coordinate mode mapped back by the null-space basis, ``N phi``
+    (:func:`ctmm.loop_manifold.undamped_modes`), normalised to unit largest entry; a repeated frequency's modes are an
+    orthonormal basis of its eigenspace in ``z``.  Exactly one of ``n_modes`` and ``omega_max`` [rad/s], as for the
+    other models; the frequencies are those of :func:`natural_frequencies_spatial_loops`."""
+    from ..spatial_linearization import tangent_names
+    from .closed_loop_linear import tangent
+
+    model = _plain(model, "mode_shapes")
+    validation.one_mode_limit(n_modes, omega_max)
+    q0, t = operating_configuration(model, operating_point)
+    A, basis, _ = tangent(model, q0, t)
+    omega, shapes = undamped_modes(model, A, basis)
+    names = tangent_names(model.tree)
+    if len(names) != shapes.shape[0]:
+        raise ModelError(f"mode_shapes: the tree of {model.name!r} has {shapes.shape[0]} velocities but "
+                         f"{len(names)} tangent coordinate names; its modes cannot be named")
+    keep = validation.selected_modes(omega, n_modes, omega_max,
+                                     f"spatial kinematic loop model {model.name!r} (one per degree of freedom)")
+    return ModalResult(omega[keep], shapes[:, keep].T[:, :, None], ("amplitude",), names)
 
 
 def eigenvalue_count_spatial_loops(model: Any, omega: Any, *, operating_point: Any = None) -> np.ndarray:
