@@ -31,6 +31,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from .errors import ModelError
 from .ops import CASADI
 from .protocol import BodyTerms
 from .signals import Constant
@@ -92,6 +93,10 @@ def parametrised_beam_terms(beam: Any, terms: BodyTerms, numbers: Mapping[str, A
     import casadi as ca
 
     data = beam.data
+    if np.any(data.rotary):           # _view does not scale the bending sections' terms: refused, not mis-scaled
+        raise ModelError(f"{beam.name}: numbers='inputs' (parameters=, simulate_batch) does not take a SpatialBeam with "
+                         "section rotary inertia (rotary_inertia_per_length_y|z); use compiled=True without "
+                         "parameters= or compiled=False")
     value = {attribute: numbers.get(attribute, getattr(beam, attribute) or 0.0) for attribute, _ in BEAM_NUMBERS}
     pose = dict(rotation=rotation, offset=offset, omega=omega, eta=eta, eta_dot=eta_dot, t=0.0)
 

@@ -34,7 +34,7 @@ loops are mapped term by term and closed by the chain's extended-state sweep wit
 
 Refused (:class:`~ctmm.errors.ModelError`): trees and mid-span branches, free or translational
 bases, gravity with a component across the chain (named; the equilibrium is not straight), loads or modal hooks (preload / no field counterpart), modal damping ratios,
-kinked or moving operating points, free hinges between bodies (no transfer matrix), and ports
+section rotary inertia (the planar field is Euler-Bernoulli), kinked or moving operating points, free hinges between bodies (no transfer matrix), and ports
 without an exact-field counterpart (modal coordinates, axial point coordinates, beam centres
 of mass).
 """
@@ -176,6 +176,10 @@ def _check_beam(model: Any, beam: Any) -> None:
                              "station ports instead)")
     if beam.loads or any(getattr(f, "value", None) != 0.0 for f in beam.distributed_load):
         raise _refuse(model, f"beam {beam.name!r} carries loads (a preload)")
+    if beam.rotary_inertia_per_length:
+        raise _refuse(model, f"beam {beam.name!r} has section rotary inertia {beam.rotary_inertia_per_length!r} kg m "
+                             "(the planar bending field is Euler-Bernoulli; the spatial SpatialBeam's exact field has "
+                             "the Rayleigh term)")
 
 
 class _Builder:

@@ -21,10 +21,10 @@ axes where they allow it):
 * a :class:`~ctmm.spatial.elements.SpatialBody` -> :class:`SpatialRigidBody` (mass, inertia and
   centre of mass turned to chain axes, its child's point as the offset);
 * a :class:`~ctmm.spatial.beam.SpatialBeam` -> :class:`SpatialBeamField` pieces between its stations
-  (``EA``, ``GJ``, ``rho I_p``, Kelvin-Voigt ``stiffness_damping``; the modal beam's
-  ``bending_stiffness_y`` governs ``w_y``, bending in the x-y plane, which is the field's
-  ``bending_stiffness_z``) with a :class:`SpatialPointLoad` marker at the root, every station and
-  the tip;
+  (``EA``, ``GJ``, ``rho I_p``, Kelvin-Voigt ``stiffness_damping``, the sections' rotary inertias (Rayleigh; refused
+  in gravity); the modal beam's ``bending_stiffness_y`` and ``rotary_inertia_per_length_y`` govern ``w_y``, bending
+  in the x-y plane, which are the field's ``bending_stiffness_z`` and ``rotary_inertia_per_length_z``) with a
+  :class:`SpatialPointLoad` marker at the root, every station and the tip;
 * the free outboard end -> :class:`SpatialFree`;
 * a **tree** (a body with several children) -> :class:`~ctmm.spatial_beam_trees.SpatialBeamTree`: the
   main path is the base and every body's first child (in model order), every other child starts a
@@ -66,7 +66,8 @@ import numpy as np
 from . import validation
 from .errors import ModelError
 from .results import FrequencyResponse
-from .spatial_exact_gravity import beam_gravity, beam_tension, check_gravity, hung_masses, rigid_preload, subtree_masses
+from .spatial_exact_gravity import (beam_gravity, beam_tension, check_gravity, hung_masses, rigid_preload,
+                                    subtree_masses, warn_stretch)
 from .spatial_exact_joints import CONVERTED_KINDS
 
 __all__ = ["SpatialExactForm", "exact_form", "natural_frequencies", "frequency_response", "RIGID_FACTOR"]
@@ -385,7 +386,9 @@ class _Builder:
         out = {"bending_stiffness_z": beam.bending_stiffness_y, "bending_stiffness_y": beam.bending_stiffness_z,
                "axial_stiffness": beam.axial_stiffness, "torsional_stiffness": beam.torsional_stiffness,
                "polar_inertia_per_length": beam.polar_inertia_per_length,
-               "wagner_term": bool(beam.wagner_term and beam.n_torsion_modes)}
+               "wagner_term": bool(beam.wagner_term and beam.n_torsion_modes),
+               "rotary_inertia_per_length_z": beam.rotary_inertia_per_length_y,     # x-y plane, turning with w_y
+               "rotary_inertia_per_length_y": beam.rotary_inertia_per_length_z}
         for count, key, value, label in (
                 (beam.n_modes_y, "bending_stiffness_z", self.rigid_factor * scale * L * L, "bending_y"),
                 (beam.n_modes_z, "bending_stiffness_y", self.rigid_factor * scale * L * L, "bending_z"),
@@ -413,6 +416,8 @@ class _Builder:
                                       "children hang there as branches: list the body hung at the tip first)")
         parameters = self.stiffness(beam)
         along = beam_gravity(self.model, self.Q, beam, B[:, 0])
+        if along:
+            warn_stretch(self.model, beam, beam_tension(along, beam, hung, 0.0, 0.0)[0])
         places = sorted([(x, name) for name, x in beam.stations.items() if 0.0 < x < beam.length]
                         + [(beam.length, "tip")])
         markers = {"origin": (root, 0.0)}
@@ -422,6 +427,11 @@ class _Builder:
             if x - position > 1e-12 * beam.length:
                 pieces += 1
                 if along:
+                    rotary = {key: parameters.pop(key) for key in list(parameters) if key.startswith("rotary")}
+                    if any(rotary.values()):
+                        raise _refuse(self.model, f"beam {beam.name!r} has section rotary inertia {rotary} kg m in "
+                                                  "gravity: the varying-tension field has no Rayleigh term (give "
+                                                  "gravity=(0, 0, 0) or use fields='modal')")
                     tension = beam_tension(along, beam, hung, position, x)
                     field = SpatialVaryingTensionField(f"{beam.name}__{pieces}", x - position, rotation=B,
                                                        inboard_tension=tension[0], outboard_tension=tension[1],

@@ -39,20 +39,46 @@ beam add their own ``K_a`` from their own rotations.
 
 About the unstretched rest geometry: the static axial stretch of extensible beams and elastic joints
 under the preload (relative ``T / EA``, ``T / k``) is neglected, as in the consistent geometric
-stiffness of linear finite elements.  Refused (:class:`~ctmm.errors.ModelError`, naming the part): free
-and prismatic joints in gravity (their rest configuration is not the equilibrium), beams across gravity
-(they bend under their weight) and bodies whose outboard first moment ``S_a`` is off the vertical
-through their joint (they swing, or their joint carries a static moment).
+stiffness of linear finite elements.  Adding it is not only geometry: about the stretched state the
+bending fields' coefficients change by ``O(T / EA)`` in a way that depends on the finite-strain law (an
+extensible elastica with ``M = EI dtheta/dS`` has, per stretched length ``ds = (1 + T/EA) dS``, the
+bending stiffness ``EI (1 + T/EA)`` and mass ``rhoA / (1 + T/EA)``; the modal beam's ``EI int w''^2 dS`` with
+its axial modes is another law), which the linear theory of the exact fields does not choose.  So the
+stretch stays out and is **warned** (:class:`StretchWarning`, :func:`warn_stretch`) when a beam with axial
+modes (finite ``EA``) carries a relative stretch ``max |T| / EA`` above :data:`STRETCH_TOLERANCE`: its
+frequencies are then that order away from the stretched beam's.  Measured
+(``tests/test_spatial_exact_stretch.py``, a beam with a tip body hanging from a revolute joint, against an
+extensible finite-segment chain linearised about its stretched equilibrium): the pendulum frequency of the
+exact fields is above the stretched one by ``6.9e-4, 6.8e-5`` at ``EA = 5e3, 5e4 N`` (``max T / EA = 1.8e-3,
+1.8e-4``: about half the mean strain, the lengthened pendulum), while the modal beam with axial modes, which
+keeps the stretch, is within ``2e-6`` of the chain; in the first bending mode the two laws differ at the
+same order (the modal beam ``8e-4`` from the chain, the exact fields ``1.1e-3``).  A beam without axial
+modes is inextensible in both forms (no warning).
+
+Refused (:class:`~ctmm.errors.ModelError`, naming the part): free and prismatic joints in gravity (their rest
+configuration is not the equilibrium), beams across gravity (they bend under their weight) and bodies whose
+outboard first moment ``S_a`` is off the vertical through their joint (they swing, or their joint carries a static
+moment).
 """
 from __future__ import annotations
 
+import warnings
 from typing import Any, Sequence
 
 import numpy as np
 
 from .errors import ModelError
 
-__all__ = ["check_gravity", "beam_gravity", "beam_tension", "rigid_preload", "subtree_masses", "hung_masses"]
+__all__ = ["check_gravity", "beam_gravity", "beam_tension", "rigid_preload", "subtree_masses", "hung_masses",
+           "StretchWarning", "STRETCH_TOLERANCE", "warn_stretch"]
+
+STRETCH_TOLERANCE = 1e-9
+"""Largest relative static stretch ``max |T| / EA`` of a beam with axial modes that the exact fields neglect without
+a :class:`StretchWarning` (the accuracy the bridge certifies elsewhere, ``RIGID_TOLERANCE``)."""
+
+
+class StretchWarning(UserWarning):
+    """The exact fields neglect a beam's static axial stretch above :data:`STRETCH_TOLERANCE` (module docstring)."""
 
 
 def _refuse(model: Any, reason: str) -> ModelError:
@@ -142,3 +168,19 @@ def rigid_preload(model: Any, axes: np.ndarray, body: Any, center: np.ndarray,
                              "vertical through their joint")
     stiffness = float(moment @ g)
     return [SpatialGeometricStiffness(f"{body.name}__gravity", stiffness, g)] if stiffness else []
+
+
+def warn_stretch(model: Any, beam: Any, tension: float) -> None:
+    """Warn (:class:`StretchWarning`) when ``beam``, with axial modes, stretches by more than :data:`STRETCH_TOLERANCE`
+    under its largest static tension ``tension`` [N] (at its root; module docstring)."""
+    if not beam.n_axial_modes or not beam.axial_stiffness:
+        return
+    strain = abs(tension) / beam.axial_stiffness
+    if strain > STRETCH_TOLERANCE:
+        warnings.warn(f"fields='exact' on spatial model {model.name!r}: beam {beam.name!r} (EA = "
+                      f"{beam.axial_stiffness:g} N, axial modes) carries a static axial force of up to "
+                      f"{abs(tension):.6g} N, a relative stretch of {strain:.3g} that the exact fields neglect "
+                      "(linear theory about the unstretched beam): its frequencies differ from the stretched beam's "
+                      "by that order (a pendulum mode by about half the mean strain).  fields='modal' keeps the "
+                      "stretch; n_axial_modes=0 makes the beam inextensible in both forms", StretchWarning,
+                      stacklevel=4)

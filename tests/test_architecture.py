@@ -289,7 +289,7 @@ ALLOWED: dict[tuple[str, str], str] = {
 
 #: Allowlisted long modules and their line count when they were listed: they may not grow.
 LONG_MODULES: dict[str, int] = {
-    "ctmm.flexible.beam": 645,
+    "ctmm.flexible.beam": 644,
     "ctmm.natural": 708,
     "ctmm.planar.model": 671,
     "ctmm.reference.chain": 641,

@@ -22,6 +22,7 @@ The sweep (:mod:`ctmm.flexible.kernel`) eliminates ``eta''`` locally, like a hin
 Notation of the numeric kernel (all integrals over ``[0, L]``, ``rhoA`` uniform):
 ``m = rhoA L``, ``S = rhoA L^2/2``, ``I0 = rhoA L^3/3``, ``b_q = rhoA int phi``,
 ``c_q = rhoA int x phi``, ``M_q = rhoA int phi phi^T``, ``K_q = EI int phi'' phi''^T``,
+sections (Rayleigh, ``rho I``) ``J_r = rho I L``, ``r_q = rho I int phi'``, ``R_q = rho I int phi' phi'^T``,
 axial ``b_p, c_p, M_p, K_p = EA int psi' psi'^T``, coupling ``N = rhoA int psi phi^T``,
 stiffening ``G1(x) = int_0^x phi' phi'^T``, ``G2 = int (L - x) phi' phi'^T``,
 ``G3 = int (L^2 - x^2)/2 phi' phi'^T`` (Kane-Ryan-Banerjee ``KG = rhoA G3``).
@@ -47,7 +48,7 @@ from .hooks import hook_value
 from .modes import ModeSet, check_quadrature, check_root_clamped, gauss_points
 from .point_terms import end_terms, point_shortening
 from .second_order import SecondOrderInertia, check_second_order
-from .stations import check_stations
+from .stations import check_stations, station_abscissa
 
 
 @dataclass(frozen=True)
@@ -92,13 +93,6 @@ class ModalForce:
             value = getattr(self, attribute)
             if value is not None and not callable(value):
                 raise ModelError(f"{self.label}: {attribute} must be callable, got {value!r}")
-
-
-def _station(owner: str, label: str, value, length: float) -> float:
-    x = validation.finite(f"{owner}: {label}", value)
-    if x < -1e-12 * length or x > length * (1 + 1e-12):
-        raise ModelError(f"{owner}: {label} = {value!r} must lie on the beam, 0 <= x <= {length}")
-    return min(max(x, 0.0), length)
 
 
 @dataclass(frozen=True)
@@ -153,6 +147,9 @@ class ModalBeam(DeformableBody):
         ``2 max(n_modes, n_axial_modes) + 8`` (fewer integrate the higher shapes wrongly).
     stations : mapping of str to float, optional
         Named stations ``{name: x}`` [m from the root]: ports ``"arm.<name>.w"`` ... (:mod:`ctmm.flexible.stations`).
+    rotary_inertia_per_length : float
+        Section rotary inertia ``rho I`` [kg m] (Rayleigh beam), >= 0; default 0 (Euler-Bernoulli).  Kinetic energy
+        ``1/2 rho I int (omega + phi' . q_dot)^2``: the terms ``J_r``, ``r_q``, ``R_q`` above (``docs/flexible.md``).
 
     Examples
     --------
@@ -181,6 +178,7 @@ class ModalBeam(DeformableBody):
     modal_forces: Sequence[ModalForce] = ()
     quadrature: int = 160
     stations: Mapping[str, float] | None = None
+    rotary_inertia_per_length: float = 0.0
     family: ClassVar[type[ModalBeamFamily]] = ModalBeamFamily
 
     def __post_init__(self) -> None:
@@ -189,6 +187,8 @@ class ModalBeam(DeformableBody):
         for attribute in ("length", "bending_stiffness", "mass_per_length"):
             object.__setattr__(self, attribute,
                                validation.positive(f"{n}: {attribute}", getattr(self, attribute)))
+        object.__setattr__(self, "rotary_inertia_per_length",
+                           validation.nonnegative(f"{n}: rotary_inertia_per_length", self.rotary_inertia_per_length))
         for attribute, low in (("n_modes", 1), ("n_axial_modes", 0), ("quadrature", 8)):
             value = getattr(self, attribute)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
@@ -218,9 +218,9 @@ class ModalBeam(DeformableBody):
             checked = {}
             for end_name, x in ends.items():
                 validation.name(f"{n}: outboard end", end_name)
-                checked[end_name] = _station(n, f"outboard[{end_name!r}]", x, self.length)
+                checked[end_name] = station_abscissa(n, f"outboard[{end_name!r}]", x, self.length)
         else:
-            checked = {"out": _station(n, "outboard", ends, self.length)}
+            checked = {"out": station_abscissa(n, "outboard", ends, self.length)}
         object.__setattr__(self, "outboard", checked)
         object.__setattr__(self, "stations", check_stations(self, self.stations))
         loads = tuple(self.loads)
@@ -230,7 +230,7 @@ class ModalBeam(DeformableBody):
             if abs(load.point[1]) > 0.0:
                 raise ModelError(f"{n}: a beam load acts on the axis; Load.point must be (x, 0), "
                                  f"got {load.point}")
-            _station(n, "load station", load.point[0], self.length)
+            station_abscissa(n, "load station", load.point[0], self.length)
         object.__setattr__(self, "loads", loads)
         if len(self.distributed_load) != 2:
             raise ModelError(f"{n}: distributed_load must be (q_x, q_y) [N/m], "
@@ -265,8 +265,8 @@ class ModalBeam(DeformableBody):
 
     @property
     def inertia(self) -> float:
-        """Undeformed inertia about the centre ``rhoA L^3 / 12`` [kg m^2]."""
-        return self.mass * self.length ** 2 / 12.0
+        """Undeformed inertia about the centre ``rhoA L^3 / 12 + rho I L`` [kg m^2] (with the sections' turning)."""
+        return self.mass * self.length ** 2 / 12.0 + self.rotary_inertia_per_length * self.length
 
     @property
     def center_of_mass(self) -> tuple[float, float]:
@@ -315,7 +315,7 @@ class ModalBeam(DeformableBody):
     def mode_slopes(self, x: float) -> np.ndarray:
         """``phi'(x)`` of all transverse modes [1/m]: e.g. a piezo moment pair between ``x1``
         and ``x2`` with moment ``M`` gives the generalised force ``M (phi'(x2) - phi'(x1))``."""
-        return self.shapes([_station(self.name, "station", x, self.length)], 1)[:, 0]
+        return self.shapes([station_abscissa(self.name, "station", x, self.length)], 1)[:, 0]
 
     def moment_pair(self, x1: float, x2: float, moment: SignalLike, *,
                     label: str = "moment pair") -> ModalForce:
@@ -379,6 +379,8 @@ class BeamData:
         EA = beam.axial_stiffness or 0.0
         self.K_p = EA * (dpsi * w) @ dpsi.T
         self.N = rhoA * (psi * w) @ phi.T                     # (np, nq)
+        rhoI = beam.rotary_inertia_per_length                  # the sections' turning (Rayleigh)
+        self.J_r, self.r_q, self.R_q = rhoI * L, rhoI * dphi @ w, rhoI * (dphi * w) @ dphi.T
         self.G2 = (dphi * (w * (L - x))) @ dphi.T
         self.G3 = (dphi * (w * (L * L - x * x) / 2)) @ dphi.T
         self.stiffening = beam.geometric_stiffening
@@ -388,7 +390,7 @@ class BeamData:
         Mm = np.zeros((self.n, self.n))
         K[:self.nq, :self.nq] = self.K_q
         K[self.nq:, self.nq:] = self.K_p
-        Mm[:self.nq, :self.nq] = self.M_q
+        Mm[:self.nq, :self.nq] = self.M_q + self.R_q
         Mm[self.nq:, self.nq:] = self.M_p
         D = beam.stiffness_damping * K + 2 * beam.damping_ratio * np.diag(
             np.sqrt(np.clip(np.diag(K) * np.diag(Mm), 0.0, None)))
@@ -473,11 +475,11 @@ class BeamData:
         M0 = np.zeros((3 + n, 3 + n))
         M0[0, 0] = M0[1, 1] = self.m
         M0[1, 2] = M0[2, 1] = self.Sx
-        M0[2, 2] = self.I0
+        M0[2, 2] = self.I0 + self.J_r
         M0[1, 3:3 + nq] = M0[3:3 + nq, 1] = self.b_q
         M0[0, 3 + nq:] = M0[3 + nq:, 0] = self.b_p
-        M0[2, 3:3 + nq] = M0[3:3 + nq, 2] = self.c_q
-        M0[3:3 + nq, 3:3 + nq] = self.M_q
+        M0[2, 3:3 + nq] = M0[3:3 + nq, 2] = self.c_q + self.r_q
+        M0[3:3 + nq, 3:3 + nq] = self.M_q + self.R_q
         M0[3 + nq:, 3 + nq:] = self.M_p
         return M0
 
@@ -578,8 +580,8 @@ class BeamData:
         M[:] = self._constant_mass
         M[:, 0, 2] = M[:, 2, 0] = -bq_q
         M[:, 1, 2] = M[:, 2, 1] = sx
-        M[:, 2, 2] = self.I0 + 2 * V[:, sl["cp"]][:, 0] + (Mpp * p).sum(1) + (Mqq * q).sum(1)
-        M[:, 2, 3:3 + nq] = M[:, 3:3 + nq, 2] = self.c_q + Np
+        M[:, 2, 2] = self.I0 + self.J_r + 2 * V[:, sl["cp"]][:, 0] + (Mpp * p).sum(1) + (Mqq * q).sum(1)
+        M[:, 2, 3:3 + nq] = M[:, 3:3 + nq, 2] = self.c_q + self.r_q + Np
         M[:, 2, 3 + nq:] = M[:, 3 + nq:, 2] = -Nq
         # -- velocity, gravity and load terms in the frame ----------------------------------
         h = np.empty((B, N3), dtype=dtype)

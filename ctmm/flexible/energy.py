@@ -11,7 +11,8 @@ def flexible_energy(model, q, qdot, t: float = 0.0) -> float:
 
     Beam kinetic energy from the floating-frame kinematics (``docs/flexible.md``):
     ``T = m |v_I|^2/2 + v_I . (omega k x s + R s_bar') + omega^2 I_P/2
-    + omega ((c_q + N^T p) . q' - (N q) . p') + eta'^T M eta'/2``.  Conserved by the exact
+    + omega ((c_q + N^T p) . q' - (N q) . p') + eta'^T M eta'/2`` plus the sections' turning ``1/2 (J_r omega^2
+    + 2 omega r_q . q' + q'^T R_q q')`` (zero without rotary inertia).  Conserved by the exact
     solution when the model has no damping, no time-varying inputs and no geometric stiffening
     (the stiffening force is a first-order, non-conservative addition) -- or when every stiffened
     beam has ``second_order_inertia=True``, whose terms this energy includes
@@ -36,7 +37,8 @@ def flexible_energy(model, q, qdot, t: float = 0.0) -> float:
             IP = d.I0 + 2 * pp @ d.c_p + pp @ d.M_p @ pp + qq @ d.M_q @ qq
             energy += (0.5 * d.m * vI @ vI + vI @ (w * np.array([-sg[1], sg[0]]) + R @ sbd)
                        + 0.5 * w * w * IP + w * ((d.c_q + d.N.T @ pp) @ qd - (d.N @ qq) @ pd)
-                       + 0.5 * qd @ d.M_q @ qd + 0.5 * pd @ d.M_p @ pd)
+                       + 0.5 * qd @ d.M_q @ qd + 0.5 * pd @ d.M_p @ pd
+                       + 0.5 * (d.J_r * w * w + 2 * w * d.r_q @ qd + qd @ d.R_q @ qd))     # the sections' turning
             energy += 0.5 * eta @ d.K @ eta - g @ (d.m * pts["inboard"][j] + sg)
             if getattr(d, "second_order", None) is not None:     # the mass points' shortening (second_order.py)
                 energy += d.second_order.energy_delta(qq, qd, R.T @ vI, w, R.T @ g)

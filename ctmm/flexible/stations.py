@@ -28,7 +28,7 @@ import numpy as np
 from .. import validation
 from ..errors import ModelError
 
-__all__ = ["check_stations", "RESERVED_STATION_NAMES", "station_shapes"]
+__all__ = ["check_stations", "RESERVED_STATION_NAMES", "station_shapes", "station_abscissa"]
 
 #: Point names a station may not take (they are the beam's own point sensors).
 RESERVED_STATION_NAMES = ("inboard", "com", "theta", "omega")
@@ -65,3 +65,12 @@ def station_shapes(beam: Any, station: str) -> tuple[float, np.ndarray, np.ndarr
     slopes [1/m] of the ``n_modes`` transverse modes."""
     x = beam.stations[station]
     return x, beam.shapes([x], 0)[:, 0], beam.shapes([x], 1)[:, 0]
+
+
+def station_abscissa(owner: str, label: str, value: Any, length: float) -> float:
+    """``value`` as an abscissa on a beam of ``length`` [m] (round-off outside ``[0, L]`` clipped), or a
+    :class:`ModelError` naming ``owner`` and ``label``."""
+    x = validation.finite(f"{owner}: {label}", value)
+    if x < -1e-12 * length or x > length * (1 + 1e-12):
+        raise ModelError(f"{owner}: {label} = {value!r} must lie on the beam, 0 <= x <= {length}")
+    return min(max(x, 0.0), length)

@@ -8,8 +8,9 @@ switches, stations, loads and modal-force hooks.  Shapes come from
 :mod:`ctmm.flexible` or of the TMM sweep is used.
 
 Formulation (Kane / Lagrange in generalised speeds ``u = qdot``): every beam is lumped into
-Gauss-Legendre mass points ``dm = rhoA w_k`` on its axis (Euler-Bernoulli, no rotary inertia),
-rigid bodies into their centre of mass plus rotary inertia.  For every point the position
+Gauss-Legendre mass points ``dm = rhoA w_k`` on its axis, each with the section's rotary inertia ``rho I w_k``
+turning with ``theta + phi'(x_k) . q`` (``rotary_inertia_per_length``, 0: Euler-Bernoulli), rigid bodies into
+their centre of mass plus rotary inertia.  For every point the position
 Jacobian ``J_P`` and the bias acceleration ``a_P(u, udot = 0)`` follow from a forward recursion
 over the tree (``r_P = r_frame + R(theta) [x + psi . p, phi . q]``, children attached at the
 deformed end with angle ``theta + phi'(x_e) . q``).  Then
@@ -58,6 +59,7 @@ class _Beam:
         self.L = float(beam.length)
         self.rhoA = float(beam.mass_per_length)
         self.EI = float(beam.bending_stiffness)
+        self.rhoI = float(getattr(beam, "rotary_inertia_per_length", 0.0))
         self.nq, self.np_ = int(beam.n_modes), int(beam.n_axial_modes)
         self.betas = beta_roots("clamped-free", self.nq)
         xg, wg = np.polynomial.legendre.leggauss(points)
@@ -78,7 +80,7 @@ class _Beam:
         self.K[:self.nq, :self.nq] = Kq
         self.K[self.nq:, self.nq:] = Kp
         Mm = np.zeros((n, n))
-        Mm[:self.nq, :self.nq] = M
+        Mm[:self.nq, :self.nq] = M + self.rhoI * (self.dphi * self.w) @ self.dphi.T
         Mm[self.nq:, self.nq:] = Mp
         omega = np.sqrt(np.diag(self.K) / np.diag(Mm))
         self.D = beam.stiffness_damping * self.K + 2 * beam.damping_ratio * np.diag(
@@ -330,6 +332,10 @@ class FlexibleLagrange:
                 Jth = frames[j]["Jth"]
                 A += m.inertia[j] * np.outer(Jth, Jth)
                 b -= m.inertia[j] * Jth * frames[j]["ab"]
+            elif self.beams[j].rhoI:
+                inertia, turn = self._sections(j, frames)
+                A += np.einsum("k,kn,km->nm", inertia, turn, turn)
+                b -= frames[j]["ab"] * (inertia @ turn)
         g = np.asarray(m.gravity, float)
         # geometric stiffening: -G(N) q with N affine in udot
         for j, bm in self.beams.items():
@@ -359,6 +365,14 @@ class FlexibleLagrange:
                 b[rows] += (f0 @ e1) * gq
                 A[rows] -= np.outer(gq, e1 @ f1)
         return A, b, frames, pts, ext
+
+    def _sections(self, j, frames):
+        """Rotary inertias ``rho I w_k`` [kg m^2] of beam ``j``'s sections and the Jacobians ``(K, n)`` of their
+        angles ``theta + phi'(x_k) . q`` (their bias acceleration is the frame's)."""
+        bm = self.beams[j]
+        turn = np.tile(frames[j]["Jth"], (len(bm.x), 1))
+        turn[:, self.eta_index[j][:bm.nq]] += bm.dphi.T
+        return bm.rhoI * bm.w, turn
 
     def _subtree_force(self, c, pts, ext):
         """Force on the subtree of body ``c`` from its parent, affine in udot: ``f0 + f1 udot``."""
@@ -405,6 +419,8 @@ class FlexibleLagrange:
             if j in self.beams:
                 eta = q[self.eta_index[j]]
                 energy += 0.5 * eta @ self.beams[j].K @ eta
+                inertia, turn = self._sections(j, frames)
+                energy += 0.5 * inertia @ (turn @ u) ** 2
             else:
                 energy += 0.5 * m.inertia[j] * (frames[j]["Jth"] @ u) ** 2
         reference, _, _ = m.hinge_laws(t)
@@ -445,6 +461,9 @@ class FlexibleLagrange:
                 tau += sum(_cross(P["r"][i] - r0, force[i]) for i in range(len(P["m"])))
                 if k not in self.beams:
                     tau += m.inertia[k] * (frames[k]["Jth"] @ ud + frames[k]["ab"])
+                else:
+                    inertia, turn = self._sections(k, frames)
+                    tau += inertia @ (turn @ ud + frames[k]["ab"])
                 for (point, fe, me) in ext[k]:
                     f -= fe
                     tau -= _cross(point - r0, fe) + me

@@ -12,8 +12,11 @@ rigid **tip body** welded at the beam tip, its axes those of the tip section
 ``R_tip = R_beam Rz(w_y'(L)) Ry(-w_z'(L)) Rx(gamma(L))``.  Coordinates ``[hub angles ; q_y ; q_z ; r ; p]``.
 
 Energy: the beam lumped into Gauss-Legendre mass points ``dm = rhoA w_k`` at
-``r_k = r_I + R_b [x_k + psi . p, phi . q_y, phi . q_z]`` (Euler-Bernoulli, no bending rotary
-inertia), the twist's section inertia ``1/2 j_p w_k (omega_b1 + chi . r_dot)^2``; hub and tip body
+``r_k = r_I + R_b [x_k + psi . p, phi . q_y, phi . q_z]``, the twist's section inertia ``1/2 j_p w_k (omega_b1 +
+chi . r_dot)^2`` and the bending sections' ``1/2 w_k (j_y (omega_b2 - phi' . q_z_dot)^2 + j_z (omega_b3 + phi' .
+q_y_dot)^2)`` (``j_y = rotary_inertia_per_length_z``, turning with ``w_z``, ``j_z = rotary_inertia_per_length_y``;
+0 by default: Euler-Bernoulli; frame angular velocity plus the section's small turning, the same order as the
+twist's); hub and tip body
 ``1/2 m v_c^2 + 1/2 omega^T I omega`` with ``omega`` from ``[omega]x = R_dot R^T`` (AD of the rotation
 matrices); ``V = 1/2 eta^T K eta - sum m g . r`` plus joint springs.  Lagrange's equations
 
@@ -104,6 +107,8 @@ class HubBeam:
     second_order_inertia: bool = False
     tip_station: float | None = None
     distributed_load: Sequence[float] = (0.0, 0.0, 0.0)
+    rotary_inertia_per_length_y: float = 0.0
+    rotary_inertia_per_length_z: float = 0.0
 
 
 def _rot(axis: np.ndarray, angle) -> ca.SX:
@@ -216,6 +221,12 @@ class SpatialBeamLagrange:
             if nt:
                 spin = w_b[0] + ca.dot(ca.DM(chi[:, k]), u[nh + ny + nz:nh + ny + nz + nt])
                 T += 0.5 * p.polar_inertia_per_length * w[k] * spin * spin
+            if ny and p.rotary_inertia_per_length_y:        # the section turning with w_y' about the frame's z
+                turn = w_b[2] + ca.dot(ca.DM(bend(betas_y, x, 1)[:, k]), u[nh:nh + ny])
+                T += 0.5 * p.rotary_inertia_per_length_y * w[k] * turn * turn
+            if nz and p.rotary_inertia_per_length_z:        # with -w_z' about the frame's y
+                turn = w_b[1] - ca.dot(ca.DM(bend(betas_z, x, 1)[:, k]), u[nh + ny:nh + ny + nz])
+                T += 0.5 * p.rotary_inertia_per_length_z * w[k] * turn * turn
         # stiffness and damping
         K = np.zeros((ne, ne))
         K[:ny, :ny] = np.diag(p.bending_stiffness_y * betas_y ** 4 / L ** 3)

@@ -61,6 +61,18 @@ class SpatialBeam:
         ``GJ`` [N m^2].
     polar_inertia_per_length : float
         ``rho I_p`` [kg m] (cross-section rotary inertia about the axis; 0 allowed without twist modes).
+    rotary_inertia_per_length_y, rotary_inertia_per_length_z : float
+        Section rotary inertia in bending (Rayleigh) [kg m], >= 0, paired like the stiffnesses:
+        ``rotary_inertia_per_length_y`` is the section's ``rho I`` about body ``z``, turning with the
+        deflection ``w_y`` (slope ``w_y'``), ``rotary_inertia_per_length_z`` about body ``y``, turning with
+        ``w_z``.  Default 0 (Euler-Bernoulli: the section's turning carries no kinetic energy); for a
+        homogeneous section their sum is ``polar_inertia_per_length``.  The kinetic energy ``1/2 int (omega +
+        Lambda eta_dot)^T J_s (omega + Lambda eta_dot)`` of the sections (``J_s = diag(rho I_p, rho I about y,
+        rho I about z)``, ``Lambda`` the modal section rotation) gives the modal rotary-inertia matrix ``int
+        rho I w' w'^T`` and its coupling to the frame (:mod:`ctmm.spatial.beam_modes`); the second-order
+        coupling of the turned section with the frame's spin (a spinning shaft's gyroscopic ``2 Omega rho I_p``
+        and spin-softening terms) is not modelled, as for the twist.  Generated kernels with
+        ``numbers="inputs"`` refuse a beam with it.
     n_axial_modes : int
         Axial modes (default 0: axially rigid); needs ``axial_stiffness``.
     axial_stiffness : float, optional
@@ -120,6 +132,8 @@ class SpatialBeam:
     n_torsion_modes: int = 0
     torsional_stiffness: float | None = None
     polar_inertia_per_length: float = 0.0
+    rotary_inertia_per_length_y: float = 0.0
+    rotary_inertia_per_length_z: float = 0.0
     n_axial_modes: int = 0
     axial_stiffness: float | None = None
     geometric_stiffening: bool = True
@@ -156,6 +170,8 @@ class SpatialBeam:
                 object.__setattr__(self, attribute, validation.positive(f"{n}: {attribute}", value))
         object.__setattr__(self, "polar_inertia_per_length",
                            validation.nonnegative(f"{n}: polar_inertia_per_length", self.polar_inertia_per_length))
+        for attribute in ("rotary_inertia_per_length_y", "rotary_inertia_per_length_z"):
+            object.__setattr__(self, attribute, validation.nonnegative(f"{n}: {attribute}", getattr(self, attribute)))
         if self.n_torsion_modes and self.polar_inertia_per_length == 0.0:
             raise ModelError(f"{n}: polar_inertia_per_length (rho I_p [kg m]) must be > 0 with twist modes "
                              f"(n_torsion_modes = {self.n_torsion_modes}), got 0.0")
@@ -227,10 +243,12 @@ class SpatialBeam:
 
     @property
     def inertia(self) -> np.ndarray:
-        """Undeformed inertia about the centre of mass, body axes [kg m^2] (slender: no section inertia in
-        bending)."""
+        """Undeformed inertia about the centre of mass, body axes [kg m^2] (with the sections' rotary inertias;
+        about body ``y`` the one turning with ``w_z``, about ``z`` the one turning with ``w_y``)."""
         transverse = self.mass * self.length ** 2 / 12.0
-        return np.diag([self.polar_inertia_per_length * self.length, transverse, transverse])
+        return np.diag([self.polar_inertia_per_length * self.length,
+                        transverse + self.rotary_inertia_per_length_z * self.length,
+                        transverse + self.rotary_inertia_per_length_y * self.length])
 
     @property
     def direction_counts(self) -> dict[str, int]:

@@ -32,6 +32,7 @@ All integrals are over ``[0, L]`` on Gauss-Legendre points (``rhoA`` uniform)::
     E[k][i] = rhoA int Phi_k^T Phi_i      (n x n, k, i in x, y, z)
     b_i     = rhoA int Phi_i,  c_i = rhoA int x Phi_i
     b_t     = j_p int chi,     M_t = j_p int chi chi^T          (j_p: polar mass moment per length)
+    b_r     = int J_b Lambda,  M_r = int Lambda^T J_b Lambda   (J_b = diag(0, rho I_y', rho I_z'): bending sections)
     K       = diag(EI_y int phi''phi''^T, EI_z int phi''phi''^T, GJ int chi'chi'^T, EA int psi'psi'^T)
     G1(x_e) = int_0^x_e w' w'^T,  G2 = int (L - x) w' w'^T,  G3 = int (L^2 - x^2)/2 w' w'^T
 
@@ -39,6 +40,21 @@ All integrals are over ``[0, L]`` on Gauss-Legendre points (``rhoA`` uniform)::
 planes, block diagonal -- the axial force couples no plane to the other; with ``wagner_term`` also
 ``(j_p / rhoA) chi' chi'^T`` on the twist block, the Wagner term ``N I_p / A`` of :mod:`ctmm.spatial_beam_torsion`).
 End rotation of a station ``x_e``: ``theta = Lambda(x_e) eta = [gamma ; -w_z' ; w_y']`` (body axes).
+
+Section rotary inertia in bending (Rayleigh; ``rotary_inertia_per_length_y|z`` of the beam, 0 by default).  A
+section turns by ``Lambda(x) eta`` relative to the frame; its kinetic energy per length, to the order the twist's is
+kept, is ``1/2 (omega + Lambda eta_dot)^T J_s (omega + Lambda eta_dot)`` with ``J_s = diag(j_p, rho I_y', rho
+I_z')`` in frame axes (``rho I_y'`` about body ``y``, turning with ``-w_z'``: the beam's
+``rotary_inertia_per_length_z``; ``rho I_z'`` about ``z`` with ``w_y'``: its ``rotary_inertia_per_length_y``).
+Integrated: ``1/2 omega^T L J_s omega + omega^T (e1 b_t^T + b_r) eta_dot + 1/2 eta_dot^T (M_t + M_r) eta_dot``,
+whose coefficients are constant: the Euler-Poincare equations add ``L J_s`` to the frame's inertia ``J``, the
+coupling ``b_r`` beside ``e1 b_t^T`` (and its transpose in the modal rows), ``M_r`` to the modal mass and the
+gyroscopic moment ``omega x (b_r eta_dot)``; no other velocity term (``d/dt dT/d eta_dot = b_r^T alpha + M_r
+eta''``, ``dT/d eta = 0``): conservative.  ``M_r`` is the modal rotary-inertia matrix ``sum over the planes of rho I
+int w' w'^T`` (the Rayleigh term of the beam equation ``EI w'''' - rho I w''_tt + rhoA w_tt = 0``; its natural end
+condition ``EI w''' - rho I w'_tt = 0`` is reached in the Ritz limit).  Not kept: the turned section's inertia
+``R(theta) J_s R(theta)^T`` and its angular velocity's dependence on ``theta`` (second order in ``eta``: the
+gyroscopic ``2 Omega rho I_p`` coupling and spin softening of a spinning shaft).
 """
 from __future__ import annotations
 
@@ -155,7 +171,15 @@ class SpatialBeamData:
             else:                                # int psi'^2 = ((2k - 1) pi / 2L)^2 L
                 k = np.arange(1, self.rods[direction] + 1)
                 K[block, block] = np.diag(value * ((2 * k - 1) * math.pi / (2 * L)) ** 2 * L)
-        self.modal_mass = self.E[0][0] + self.E[1][1] + self.E[2][2] + self.M_t
+        # bending sections (Rayleigh): Lambda rows theta_y = -w_z', theta_z = w_y', rho I about y (with w_z), about z
+        self.rotary = np.array([0.0, beam.rotary_inertia_per_length_z, beam.rotary_inertia_per_length_y])
+        turn = np.zeros((3, n, len(x)))
+        slopes = self.slopes(x)
+        turn[1, self.columns["z"]] = -slopes[self.columns["z"]]
+        turn[2, self.columns["y"]] = slopes[self.columns["y"]]
+        self.b_r = np.array([self.rotary[k] * turn[k] @ w for k in range(3)])                  # (3, n)
+        self.M_r = sum(self.rotary[k] * (turn[k] * w) @ turn[k].T for k in (1, 2))           # (n, n)
+        self.modal_mass = self.E[0][0] + self.E[1][1] + self.E[2][2] + self.M_t + self.M_r
         D = beam.stiffness_damping * K + 2 * beam.damping_ratio * np.diag(
             np.sqrt(np.clip(np.diag(K) * np.diag(self.modal_mass), 0.0, None)))
         self.K, self.D = K, D

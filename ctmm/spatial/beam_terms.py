@@ -10,15 +10,18 @@ acceleration of the root ``I`` and the frame's angular acceleration, ``omega`` i
 **Newton-Euler about I** (integrals of ``rhoA dx``; derivation in ``docs/spatial_modal_beam.md``)::
 
     F_I = m a - [s]x alpha + B eta'' + omega x (omega x s) + 2 omega x B eta_dot - m g - L q + sum_e f_e
-    M_I = [s]x a + J alpha + (Gamma + e1 b_t^T) eta'' + omega x (J omega) + omega x e1 (b_t . eta_dot)
+    M_I = [s]x a + J alpha + (Gamma + e1 b_t^T + b_r) eta'' + omega x (J omega)
+          + omega x (e1 b_t^T + b_r) eta_dot
           + 2 (omega tr P - P^T omega) - s x g - s/rhoA x q + sum_e (rho_e x f_e + m_e)
 
-with ``s = int rho`` (``= s0 + B eta``), ``J = tr(S) I - S + j_p L e1 e1^T`` (``S = int rho rho^T``),
-``Gamma = int [rho]x Phi``, ``P = int rho (Phi eta_dot)^T``, and the twist's section inertia
-``j_p (omega_1 + chi . eta_dot)`` about the axis.  **Modal equations** (virtual work, ``delta rho =
-Phi delta eta``, ``delta theta = Theta Lambda delta eta`` at the points)::
+with ``s = int rho`` (``= s0 + B eta``), ``J = tr(S) I - S + L J_s`` (``S = int rho rho^T``, ``J_s =
+diag(j_p, rho I_y', rho I_z')`` the sections' inertia per length), ``Gamma = int [rho]x Phi``, ``P = int rho (Phi
+eta_dot)^T``, the twist's section inertia ``j_p (omega_1 + chi . eta_dot)`` about the axis and the bending
+sections' ``b_r`` (:mod:`ctmm.spatial.beam_modes`; zero without rotary inertia).  **Modal equations**
+(virtual work, ``delta rho = Phi delta eta``, ``delta theta = Theta Lambda delta eta`` at the points)::
 
-    0 = B^T a + (Gamma^T + b_t e1^T) alpha + M_mod eta'' + int Phi^T (omega x (omega x rho) + 2 omega x Phi eta_dot)
+    0 = B^T a + (Gamma^T + b_t e1^T + b_r^T) alpha + M_mod eta''
+        + int Phi^T (omega x (omega x rho) + 2 omega x Phi eta_dot)
         - B^T g - B^T q / rhoA + K eta + D eta_dot - Q_hooks(t)
         + sum_e ((Phi_e)^T f_e + (Theta Lambda_e)^T m_e) + G(N) eta
 
@@ -146,20 +149,21 @@ def spatial_beam_terms(ops: Ops, beam: Any, *, rotation: Any, offset: Any, omega
         ops.matmul(constant(ops, _E[:, :1]), top)
     trace = _scalar_sum(ops, [entry(ops, S, i, i) for i in range(3)])
     e1e1 = constant(ops, np.diag([1.0, 0.0, 0.0]))
-    J = eye3 * trace - S + e1e1 * (data.jp * data.L)
+    J = eye3 * trace - S + e1e1 * (data.jp * data.L) + constant(ops, np.diag(data.rotary * data.L))
     Gamma = _scalar_sum(ops, [ops.matmul(constant(ops, skew_constant(k)), Q[k]) for k in range(3)])
     P = ops.block([[ops.transpose(ops.matmul(Q[k], eta_dot))] for k in range(3)])
     trace_P = _scalar_sum(ops, [entry(ops, P, i, i) for i in range(3)])
     bt = constant(ops, data.b_t)                                      # (n, 1)
     e1 = constant(ops, _E[:, 0])
-    e1_bt = ops.matmul(e1, ops.transpose(bt))                          # (3, n)
+    e1_bt = ops.matmul(e1, ops.transpose(bt)) + constant(ops, data.b_r)   # (3, n): twist and bending sections
     s_x = skew(ops, s)
     lower_left = ops.transpose(Bmat)
     w_parts = [entry(ops, w, i) for i in range(3)]
     twist_rate = ops.matmul(ops.transpose(bt), eta_dot)
     Jw = ops.matmul(J, w)
     h_lin = cross(ops, w, cross(ops, w, s)) + cross(ops, w, ops.matmul(Bmat, eta_dot)) * 2.0 - g * data.m - qv * data.L
-    h_ang = (cross(ops, w, Jw) + cross(ops, w, e1) * twist_rate
+    section_rate = ops.matmul(constant(ops, data.b_r), eta_dot)        # the bending sections' momentum (3, 1)
+    h_ang = (cross(ops, w, Jw) + cross(ops, w, e1) * twist_rate + cross(ops, w, section_rate)
              + (w * trace_P - ops.matmul(ops.transpose(P), w)) * 2.0 - cross(ops, s, g) - cross(ops, s, qv) * (1 / rhoA))
     # modal rows: int Phi^T (Omega2 rho + 2 [omega]x Phi eta_dot), Omega2 = omega omega^T - |omega|^2 I
     w2 = _scalar_sum(ops, [w_parts[i] * w_parts[i] for i in range(3)])
@@ -193,7 +197,7 @@ def spatial_beam_terms(ops: Ops, beam: Any, *, rotation: Any, offset: Any, omega
         h_lin, h_ang, h_mod = h_lin + load_lin, h_ang + load_ang, h_mod + load_mod
     M_b = ops.block([[eye3 * data.m, s_x * -1.0, Bmat],
                      [s_x, J, Gamma + e1_bt],
-                     [modal_left, ops.transpose(Gamma) + ops.matmul(bt, ops.transpose(e1)),
+                     [modal_left, ops.transpose(Gamma) + ops.transpose(e1_bt),
                       constant(ops, data.modal_mass)]])
     h_b = ops.block([[h_lin], [h_ang], [h_mod]])
     if data.second_order is not None:                  # the mass points' shortening (beam_second_order.py)
