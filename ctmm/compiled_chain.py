@@ -143,7 +143,7 @@ def sensor_row(ports: Any, terms: Sequence[tuple[str, float]], size: int) -> tup
 
 class ChainSymbols:
     """A lumped chain on casadi symbols for :class:`~ctmm.compiled_loops.ClosedLoops` (as
-    :class:`~ctmm.compiled_loops.PlanarSymbols` and :class:`~ctmm.compiled_spatial_loops.SpatialSymbols`
+    :class:`~ctmm.compiled_planar_sensors.PlanarSymbols` and :class:`~ctmm.compiled_spatial_loops.SpatialSymbols`
     are for planar and spatial plants): ``q = x_I`` [m] and ``v = q_dot`` [m/s] of the ``m`` moving masses,
     every sensor of :class:`~ctmm.control.chain_plant.ChainPorts` affine in them (read exactly by unit probes).
 

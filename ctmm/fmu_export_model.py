@@ -42,7 +42,8 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from .compiled_loops import ClosedLoops, SymbolicKinematics, sensor_expression
+from .compiled_loops import ClosedLoops
+from .compiled_planar_sensors import SymbolicKinematics, sensor_expression
 from .compiled_parameters import compile_refusal, parameter_vector
 from .compiled_scene import CompiledScene
 from .control.controlled_model import ControlledModel
