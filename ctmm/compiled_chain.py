@@ -39,7 +39,7 @@ from .chain_ode import ChainDynamics, chain_result
 from .compiled_loops import ClosedLoops
 from .control.loops import ControlledChain
 from .control.chain_plant import ChainPlant
-from .control.planar_time import loop_unit
+from .control.loop_rows import loop_unit
 from .errors import ModelError, SimulationError
 from .generated_loop import BlockRunner, compiled_time_loop, rk4_step_function, run_blocks
 from .results import SimulationResult

@@ -19,7 +19,7 @@ import numpy as np
 from .chain_ode import chain_result
 from .compiled_chain import whole_steps
 from .compiled_chain_schemes import CompiledChainScheme
-from .control.planar_time import loop_unit
+from .control.loop_rows import loop_unit
 from .errors import ModelError, SimulationError
 from .results import SimulationResult
 from .schemes import as_scheme

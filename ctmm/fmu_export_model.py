@@ -47,7 +47,7 @@ from .compiled_planar_sensors import SymbolicKinematics, sensor_expression
 from .compiled_parameters import compile_refusal, parameter_vector
 from .compiled_scene import CompiledScene
 from .control.controlled_model import ControlledModel
-from .control.planar_time import loop_unit
+from .control.loop_rows import loop_unit
 from .errors import ModelError
 from .planar.guards import check_scheme
 from .planar.integrate import initial_coordinates
