@@ -39,7 +39,7 @@ from .chain_ode import ChainDynamics, chain_result
 from .compiled_loops import ClosedLoops
 from .control.loops import ControlledChain
 from .control.chain_plant import ChainPlant
-from .control.planar_time import loop_unit
+from .control.loop_rows import loop_unit
 from .errors import ModelError, SimulationError
 from .generated_loop import BlockRunner, compiled_time_loop, rk4_step_function, run_blocks
 from .results import SimulationResult
@@ -143,7 +143,7 @@ def sensor_row(ports: Any, terms: Sequence[tuple[str, float]], size: int) -> tup
 
 class ChainSymbols:
     """A lumped chain on casadi symbols for :class:`~ctmm.compiled_loops.ClosedLoops` (as
-    :class:`~ctmm.compiled_loops.PlanarSymbols` and :class:`~ctmm.compiled_spatial_loops.SpatialSymbols`
+    :class:`~ctmm.compiled_planar_sensors.PlanarSymbols` and :class:`~ctmm.compiled_spatial_loops.SpatialSymbols`
     are for planar and spatial plants): ``q = x_I`` [m] and ``v = q_dot`` [m/s] of the ``m`` moving masses,
     every sensor of :class:`~ctmm.control.chain_plant.ChainPorts` affine in them (read exactly by unit probes).
 

@@ -1,7 +1,8 @@
 """Generated DT-TMM steps of 1-D lumped chains: every implicit scheme of :mod:`ctmm.schemes` in C (issue 13).
 
 ``ctmm.simulate(chain, t_final, dt, method="newmark" | "generalized_alpha" | "wilson_theta" | "houbolt" |
-"forward_euler" | <Scheme>, compiled=True)`` runs here.  Two readings, both exact and both certified
+"forward_euler" | <Scheme>, compiled=True)`` runs the step generated here (:class:`CompiledChainScheme`; the run, its
+guard and its result: :mod:`ctmm.compiled_chain_scheme_runs`).  Two readings, both exact and both certified
 before anything is generated:
 
 * **the chain** -- its explicit rates are affine (:func:`ctmm.compiled_chain.affine_form`:
@@ -57,25 +58,20 @@ import numpy as np
 import scipy.sparse
 
 from . import validation
-from .chain_ode import ChainDynamics, chain_result
-from .compiled_chain import affine_form, sensor_row, whole_steps
+from .chain_ode import ChainDynamics
+from .compiled_chain import affine_form, sensor_row
 from .compiled_chain_kernel import banded_solver, step_kernel, tridiagonal_factors, woodbury_parts
 from .compiled_loops import controller_realisation, delay_steps
 from .compiled_references import reference_at, symbolic_reference
 from .control.chain_plant import ChainPlant
-from .control.planar_time import loop_unit
-from .errors import ModelError, SimulationError
+from .errors import ModelError
 from .generated_loop import BlockRunner, compiled_time_loop, run_blocks
 from .model_description import describe
-from .results import SimulationResult
 from .saturation import refuse_saturation
 from .schemes import History, Scheme, as_scheme
-from .signal_results import SignalSystem, signal_result
-from .step_limit import check_scheme_step
 from .signals import signal_parameters, symbolic_signal
 
-__all__ = ["SchemeMaps", "CompiledChainScheme", "check_scheme_options", "scheme_result",
-           "simulate_chain_scheme_generated", "simulate_scheme_verb"]
+__all__ = ["SchemeMaps", "CompiledChainScheme"]
 
 HISTORY = ("x", "v", "a", "x_old1", "x_old2")
 """The stored history of every point, in the order of the generated state."""
@@ -474,122 +470,3 @@ class CompiledChainScheme:
         values ``held`` [N] of :attr:`actuators` (one co-simulation interval, :mod:`ctmm.compiled_cosim`)."""
         return run_blocks(self._blocks, self._stride, self._step, self.store_every, np.asarray(state, float)[:, None],
                           held, self.dt, n_steps, 0.0, np.zeros((0, 1)), first_step=first_step, runner=runner)[0]
-
-
-def simulate_chain_scheme_generated(system: Any, t_final: float, dt: float, scheme: Any = "newmark", *,
-                                    x0: Mapping[str, float] | None = None, v0: Mapping[str, float] | None = None,
-                                    references: Mapping[str, Any] | None = None, outputs: Sequence[str] = (),
-                                    store_every: int = 1, divergence_bound: float | None = None,
-                                    cache_dir: str | os.PathLike | None = None,
-                                    compiled: CompiledChainScheme | None = None) -> SimulationResult:
-    """A DT-TMM scheme on a chain (with its loops) in generated C.
-
-    Parameters
-    ----------
-    system : Chain or ControlledChain
-    t_final, dt : float
-        End time and step [s] (``t_final`` and each loop delay whole multiples of ``dt``).
-    scheme : Scheme or str
-    x0, v0 : mapping, optional
-        Initial positions [m] / velocities [m/s] by element name.
-    references : mapping, optional
-        ``{loop: number or signal}`` [sensed unit].
-    outputs : sequence of str
-        Extra signal names (every chain signal is stored).
-    store_every : int
-        Keep every ``store_every``-th step (the last one always).
-    divergence_bound : float, optional
-        As in :func:`ctmm.chain_ode.simulate_chain_ode` (checked on the stored rows).
-    cache_dir : path, optional
-    compiled : CompiledChainScheme, optional
-        A compiled kernel of this system, step, scheme, references and ``store_every`` to reuse.
-
-    Returns
-    -------
-    SimulationResult
-        The point signals of :func:`ctmm.chain_ode.simulate_chain_ode` (with loops: named signals and
-        ``"<loop>.y"``, ``"<loop>.u"``); ``info["method"]`` is ``"<scheme>-generated"``, with
-        ``info["compile_time_s"]`` [s].
-
-    Raises
-    ------
-    ModelError
-        Bad arguments, no compiler, or what the generated step cannot do (named).
-    SimulationError
-        A diverging or non-finite state (``partial_result``: the rows before it).
-    """
-    t_final, dt, n_steps = whole_steps(t_final, dt)
-    if compiled is None:
-        compiled = CompiledChainScheme(system, dt, scheme, store_every=store_every, references=references,
-                                       cache_dir=cache_dir)
-    elif not isinstance(compiled, CompiledChainScheme) or compiled.dt != dt or compiled.store_every != store_every \
-            or compiled.scheme != as_scheme(scheme):
-        raise ModelError(f"compiled must be a CompiledChainScheme of this chain with dt={dt!r}, scheme={scheme!r} and "
-                         f"store_every={store_every!r}, got {compiled!r}")
-    for name in outputs:
-        system.signal(name)
-    check_scheme_step(compiled.plant.chain, compiled.scheme, dt, None)     # the scheme's step limit, as in Python
-    first = compiled.start(x0, v0)
-    started = _time.perf_counter()
-    states = compiled.run(first, n_steps)
-    wall = _time.perf_counter() - started
-    every, m = compiled.store_every, compiled.m
-    steps = np.array([k for k in range(1, n_steps + 1) if k % every == 0 or k == n_steps])[:len(states)]
-    times = np.concatenate([[0.0], steps * dt])
-    states = np.vstack([first[None], states])
-    label = f"{compiled.scheme.name}-generated"
-    info = {"dt": dt, "method": label, "path": "generated-dttmm", "compile_time_s": compiled.compile_time_s,
-            "wall_time_s": wall, "n_steps": n_steps}
-    guard = compiled.plant.guard(states[0, :m], divergence_bound)
-    for k in range(len(times)):
-        try:
-            guard(float(times[k]), states[k, :2 * m], dt, label)
-        except SimulationError as exc:
-            exc.partial_result = scheme_result(compiled, times[:k], states[:k], outputs, info)
-            raise
-    return scheme_result(compiled, times, states, outputs, info)
-
-
-def scheme_result(compiled: CompiledChainScheme, times: np.ndarray, states: np.ndarray, outputs: Sequence[str],
-                  info: dict, held: Sequence[Mapping[str, float]] | None = None) -> SimulationResult:
-    """The stored rows as a result: point signals from the states (accelerations and forces of the equation of
-    motion with the loops' forces and the ``held`` inputs ``{actuator: value}`` [N] of each row), and each loop's
-    ``y`` and ``u``."""
-    m, label = compiled.m, info["method"]
-    if not compiled.loops and held is None:
-        return chain_result(compiled.dynamics, list(times), list(states[:, :2 * m]), label, dict(info))
-    forces = np.array([compiled.loop_forces(float(t), row) for t, row in zip(times, states)])
-    forces = forces.reshape(len(times), len(compiled.loops))
-    inputs = [compiled.actuator_inputs(row, None if held is None else held[k]) for k, row in enumerate(forces)]
-    plant, system = compiled.plant, compiled.system
-    signals, units = plant.signals(times, states[:, :m], states[:, m:2 * m], outputs, inputs=inputs)
-    for j, lp in enumerate(compiled.loops):
-        name = lp.loop.name
-        signals[f"{name}.y"] = states[:, :2 * m] @ lp.row + lp.offset
-        signals[f"{name}.u"] = forces[:, j]
-        units[f"{name}.y"], units[f"{name}.u"] = loop_unit(plant.ports, lp.loop, "y"), loop_unit(plant.ports, lp.loop,
-                                                                                                  "u")
-    info = {**info, "loops": {lp.loop.name: ("real-time" if lp.steps == 0 else "history") for lp in compiled.loops}}
-    return signal_result(SignalSystem(system, units, list(getattr(system, "loops", ()))), times, signals, label, info)
-
-
-def simulate_scheme_verb(system: Any, t_final: float, dt: float | None, scheme: Any, x0: Any, v0: Any,
-                         store_every: int, divergence_bound: float | None, others: Mapping[str, tuple], *,
-                         t0: float, inputs: Any, outputs: Any, references: Mapping[str, Any]) -> SimulationResult:
-    """``ctmm.simulate(chain, method=<scheme>, compiled=True)``: the options that do not apply are refused by
-    name (``others``: ``{name: (value, default)}`` of the verb), then :func:`simulate_chain_scheme_generated`."""
-    check_scheme_options(dt, {**others, "t0": (t0, 0.0), "inputs": (inputs or None, None)})
-    return simulate_chain_scheme_generated(system, t_final, dt, scheme, x0=x0, v0=v0, references=references or None,
-                                           outputs=tuple(outputs), store_every=store_every,
-                                           divergence_bound=divergence_bound)
-
-
-def check_scheme_options(dt: float | None, options: Mapping[str, tuple]) -> None:
-    """Refuse, by name, the options ``{name: (value, default)}`` of :func:`ctmm.simulate` that do not apply to the
-    generated DT-TMM step of a chain (any value but the default), and a missing ``dt``."""
-    for name, (value, default) in options.items():
-        if value is not default and value != default:
-            raise ModelError(f"{name}={value!r} does not apply to the generated DT-TMM step of a chain (leave {name} "
-                             f"at {default!r}, or use compiled=False)")
-    if dt is None:
-        raise ModelError("dt is required to simulate a chain (the DT-TMM step [s], > 0), got None")

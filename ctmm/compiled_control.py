@@ -20,7 +20,7 @@ import numpy as np
 
 from .compiled_scene import CompiledScene
 from .control.controlled_model import ControlledModel
-from .control.planar_time import loop_unit
+from .control.loop_rows import loop_unit
 from .errors import ModelError, SimulationError
 from .planar.guards import check_stored, divergence_guard
 from .planar.integrate import check_store_every, initial_coordinates, model_signals, step_total

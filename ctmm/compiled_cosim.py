@@ -383,7 +383,8 @@ def simulate_cosimulated_scheme(system: Any, t_final: float, dt: float | None, s
         Failing controller code, divergence or a non-finite state, with ``partial_result``.
     """
     from .compiled_chain import whole_steps
-    from .compiled_chain_schemes import CompiledChainScheme, scheme_result
+    from .compiled_chain_scheme_runs import scheme_result
+    from .compiled_chain_schemes import CompiledChainScheme
     from .schemes import as_scheme
     from .step_limit import check_scheme_step
 

@@ -7,10 +7,11 @@ A :class:`~ctmm.control.controlled_model.ControlledModel` is a planar (or spatia
 :class:`~ctmm.compiled_scene.CompiledScene` closes it inside the generated RK4 step, exactly as the
 numpy path of :mod:`ctmm.control.planar_time` does:
 
-* **sensors** (:func:`sensor_expression`): coordinates and their rates, body angles and rates,
-  hinge angles and rates, positions and velocities of named points, beam station deflections,
-  slopes and their rates -- every port of :mod:`ctmm.planar.ports` (all are functions of the
-  state ``(q, qdot)``; no port reads an acceleration, so no loop is algebraic);
+* **sensors** (planar: :mod:`ctmm.compiled_planar_sensors`; spatial and chain plants give their own):
+  coordinates and their rates, body angles and rates, hinge angles and rates, positions and velocities
+  of named points, beam station deflections, slopes and their rates -- every port of
+  :mod:`ctmm.planar.ports` (all are functions of the state ``(q, qdot)``; no port reads an
+  acceleration, so no loop is algebraic);
 * **real-time loops** (``tau = 0``): evaluated at the state of every RK4 stage (no added lag);
 * **saturation** ``(low, high)``: ``u`` clipped at every evaluation (the controller states integrate
   the unclipped error, as on the numpy path);
@@ -47,17 +48,17 @@ import numpy as np
 from .control.controlled_model import ControlledModel
 from .errors import ModelError
 from .ode import rk4_step
-from .planar.model import FREE, PlanarModel
+from .planar.model import PlanarModel
 from .planar.ports import ActuatorInputs, PlanarPorts
+from .compiled_planar_sensors import PlanarSymbols, SymbolicKinematics, sensor_expression
 from .compiled_parameters import LoopNumbers, loop_parameter_layout, parameter_vector, symbolic_loop_numbers
 from .compiled_references import SymbolicReference, reference_at, symbolic_reference
 from .signals import symbolic_signal
 
+# PlanarSymbols, SymbolicKinematics and sensor_expression live in ctmm.compiled_planar_sensors; re-exported here for
+# code that imports them from this module (batch, compiled_kinematic_loops, compiled_kinematic_loop_control)
 __all__ = ["ClosedLoops", "PlanarSymbols", "LoopLaw", "SymbolicKinematics", "SymbolicReference", "controller_realisation",
            "delay_steps", "sensor_expression", "symbolic_value"]
-
-_POINT_AXES = {"x": (0, 0), "y": (0, 1), "vx": (1, 0), "vy": (1, 1)}
-_STATION_PARTS = {"w": (0, False), "slope": (1, False), "w_dot": (0, True), "slope_rate": (1, True)}
 
 
 @dataclass(frozen=True)
@@ -147,154 +148,6 @@ def controller_realisation(loop: Any) -> tuple[np.ndarray, np.ndarray, np.ndarra
 
 # the references' own module (:mod:`ctmm.compiled_references`)
 symbolic_value, _at = symbolic_reference, reference_at
-
-
-# ------------------------------------------------------------------------------------------
-# sensors on symbols
-# ------------------------------------------------------------------------------------------
-def _dot(row: Any, column: Any, index: Sequence[int]) -> Any:
-    """``sum_k row[k] column[index[k]]`` on symbols (zero weights left out)."""
-    return sum((float(w) * column[int(k)] for w, k in zip(row, index) if w != 0.0), 0.0)
-
-
-class SymbolicKinematics:
-    """Angles, rates and point motions of a planar model on casadi symbols ``q, v`` (the numbers of
-    :meth:`~ctmm.planar.model.PlanarModel.points`; driven motions are constant, as generated kernels
-    require).
-
-    Parameters
-    ----------
-    model : PlanarModel
-    q, v : casadi SX
-        Coordinate and rate symbols (``n_coordinates`` each).
-    """
-
-    def __init__(self, model: PlanarModel, q: Any, v: Any) -> None:
-        import casadi as ca
-
-        self.model, self.q, self.v = model, q, v
-        driven = {i: (a, r) for i, a, r, _ in model.driven(0.0)}
-        nb = model.n_bodies
-        self.theta: list = [None] * nb
-        self.omega: list = [None] * nb
-        self.end_angle: list = [None] * nb         # angle and rate of the parent end body i hangs on
-        for i in range(nb):
-            p = int(model.parent[i])
-            if p >= 0:
-                th, om = self.theta[p], self.omega[p]
-                if p in model.beams:
-                    slope = model.end_slope(i)
-                    index = model.modal_index[p][:len(slope)]
-                    th, om = th + _dot(slope, q, index), om + _dot(slope, v, index)
-            else:
-                th, om = float(model.ground_angle[i]), 0.0
-            self.end_angle[i] = (th, om)
-            if model.theta_index[i] >= 0:
-                k = int(model.theta_index[i])
-                self.theta[i], self.omega[i] = q[k], v[k]
-            else:
-                angle, rate = driven[i]
-                self.theta[i], self.omega[i] = th + angle, om + rate
-        self.cos = [ca.cos(th) for th in self.theta]
-        self.sin = [ca.sin(th) for th in self.theta]
-        self._inboard: dict[int, tuple] = {}
-
-    def rotate(self, i: int, x: Any, y: Any) -> tuple:
-        return self.cos[i] * x - self.sin[i] * y, self.sin[i] * x + self.cos[i] * y
-
-    def beam_local(self, j: int, end: int) -> tuple:
-        """Deformed end ``end`` of beam ``j`` in its frame: position and velocity (2-tuples)."""
-        d, m = self.model.beams[j].data, self.model
-        index = m.modal_index[j]
-        nq = d.nq
-        position = (d.end_x[end] + _dot(d.end_psi[end], self.q, index[nq:]), _dot(d.end_phi[end], self.q, index[:nq]))
-        velocity = (_dot(d.end_psi[end], self.v, index[nq:]), _dot(d.end_phi[end], self.v, index[:nq]))
-        return position, velocity
-
-    def inboard(self, i: int) -> tuple:
-        """Position and velocity of body ``i``'s inboard end (2-tuples), global axes."""
-        if i in self._inboard:
-            return self._inboard[i]
-        m, q, v = self.model, self.q, self.v
-        p = int(m.parent[i])
-        if p >= 0:
-            (rp, vp), omega = self.inboard(p), self.omega[p]
-            if p in m.beams:
-                e, ed = self.beam_local(p, int(m.parent_end_index[i]))
-            else:
-                e, ed = tuple(float(x) for x in m.end_vector[i]), (0.0, 0.0)
-            rx, ry = self.rotate(p, *e)
-            dx, dy = self.rotate(p, *ed)
-            out = ((rp[0] + rx, rp[1] + ry), (vp[0] - omega * ry + dx, vp[1] + omega * rx + dy))
-        elif m.joint_kind[i] == FREE:
-            ix, iy = (int(k) for k in m.xy_index[i])
-            out = ((q[ix], q[iy]), (v[ix], v[iy]))
-        else:
-            out = (tuple(float(x) for x in m.ground_position[i]), (0.0, 0.0))
-        self._inboard[i] = out
-        return out
-
-    def point(self, i: int, name: str) -> tuple:
-        """Position and velocity of point ``name`` (``"inboard"``, ``"com"`` or an end) of body ``i``."""
-        m = self.model
-        (r, v), omega = self.inboard(i), self.omega[i]
-        if name == "inboard":
-            return r, v
-        if name == "com" and i in m.beams:         # the deformed centroid s_bar / m
-            d, index = m.beams[i].data, m.modal_index[i]
-            local = ((d.Sx + _dot(d.b_p, self.q, index[d.nq:])) / d.m, _dot(d.b_q, self.q, index[:d.nq]) / d.m)
-            rate = (_dot(d.b_p, self.v, index[d.nq:]) / d.m, _dot(d.b_q, self.v, index[:d.nq]) / d.m)
-        elif name == "com":
-            local, rate = tuple(float(x) for x in m.com[i]), (0.0, 0.0)
-        elif i in m.beams:
-            local, rate = self.beam_local(i, list(m.ends[i]).index(name))
-        else:
-            local, rate = tuple(float(x) for x in m.ends[i][name]), (0.0, 0.0)
-        x, y = self.rotate(i, *local)
-        dx, dy = self.rotate(i, *rate)
-        return (r[0] + x, r[1] + y), (v[0] - omega * y + dx, v[1] + omega * x + dy)
-
-
-def sensor_expression(ports: PlanarPorts, name: str, kinematics: SymbolicKinematics) -> Any:
-    """The value of sensor ``name`` of :mod:`ctmm.planar.ports` as a casadi expression of the
-    symbols of ``kinematics``."""
-    sensor = ports.resolve([name])[0]
-    m, q, v = kinematics.model, kinematics.q, kinematics.v
-    if sensor.kind == "coordinate":
-        return (v if sensor.part == "dot" else q)[sensor.index]
-    if sensor.kind == "body_angle":
-        return (kinematics.omega if sensor.part == "omega" else kinematics.theta)[sensor.index]
-    if sensor.kind == "hinge":
-        th, om = kinematics.end_angle[sensor.index]
-        if sensor.part == "rate":
-            return kinematics.omega[sensor.index] - om
-        return kinematics.theta[sensor.index] - th
-    if sensor.kind == "station":
-        derivative, rate = _STATION_PARTS[sensor.part]
-        beam = m.beams[sensor.index]
-        row = beam.shapes([beam.stations[sensor.point]], derivative)[:, 0]
-        return _dot(row, v if rate else q, m.modal_index[sensor.index][:row.size])
-    which, axis = _POINT_AXES[sensor.part]
-    return kinematics.point(sensor.index, sensor.point)[which][axis]
-
-
-class PlanarSymbols:
-    """A planar plant on symbols for :class:`ClosedLoops`: ``q`` and ``v = qdot`` of ``n_coordinates``
-    each, sensors by :func:`sensor_expression`."""
-
-    def __init__(self, model: PlanarModel, ports: PlanarPorts) -> None:
-        self.model, self.ports = model, ports
-        self.n_positions = self.n_velocities = model.n_coordinates
-        self._kinematics: tuple[Any, Any, SymbolicKinematics] | None = None
-
-    def position_rates(self, q: Any, v: Any) -> Any:
-        return v
-
-    def sensor(self, name: str, q: Any, v: Any) -> Any:
-        """Sensor ``name`` as an expression of the symbols ``q``, ``v``."""
-        if self._kinematics is None or self._kinematics[0] is not q or self._kinematics[1] is not v:
-            self._kinematics = (q, v, SymbolicKinematics(self.model, q, v))
-        return sensor_expression(self.ports, name, self._kinematics[2])
 
 
 # ------------------------------------------------------------------------------------------

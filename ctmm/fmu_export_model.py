@@ -42,11 +42,12 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from .compiled_loops import ClosedLoops, SymbolicKinematics, sensor_expression
+from .compiled_loops import ClosedLoops
+from .compiled_planar_sensors import SymbolicKinematics, sensor_expression
 from .compiled_parameters import compile_refusal, parameter_vector
 from .compiled_scene import CompiledScene
 from .control.controlled_model import ControlledModel
-from .control.planar_time import loop_unit
+from .control.loop_rows import loop_unit
 from .errors import ModelError
 from .planar.guards import check_scheme
 from .planar.integrate import initial_coordinates

@@ -361,7 +361,7 @@ def _simulate_chain_generated(system: Any, t_final: float, dt: float | None, *, 
     """:func:`simulate` of a chain with ``compiled=True``: the generated RK4 (:mod:`ctmm.compiled_chain`; with
     ``controllers`` sampled between its calls, :mod:`ctmm.compiled_cosim`) or DT-TMM."""
     if method != "rk4" and (isinstance(method, Scheme) or method in SCHEMES):
-        from .compiled_chain_schemes import check_scheme_options, simulate_scheme_verb
+        from .compiled_chain_scheme_runs import check_scheme_options, simulate_scheme_verb
         if controllers:                 # their held outputs: the input of the generated step (ctmm.compiled_cosim)
             from .compiled_cosim import simulate_cosimulated_scheme
             check_scheme_options(dt, {**others, "t0": (t0, 0.0), "inputs": (inputs or None, None)})

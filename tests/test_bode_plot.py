@@ -1,4 +1,4 @@
-"""One Bode drawing: ``control.analysis.bode_plot`` draws through ``FrequencyResponse.plot``.
+"""One Bode drawing: ``control.loop_plots.bode_plot`` draws through ``FrequencyResponse.plot``.
 
 The curves are checked against the closed-form receptance of a spring-mass oscillator
 ``x / F = 1 / (k - m omega^2)`` (independent of the TMM), the axis labels against the units.
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import ctmm
-from ctmm.control.analysis import bode_plot
+from ctmm.control.loop_plots import bode_plot
 from ctmm.elements import Fixed, Free, Mass, Spring
 from ctmm.errors import ModelError
 

@@ -7,7 +7,8 @@ import pytest
 
 import ctmm
 from ctmm.compiled_chain_kernel import tridiagonal_factors
-from ctmm.compiled_chain_schemes import CompiledChainScheme, simulate_chain_scheme_generated
+from ctmm.compiled_chain_scheme_runs import simulate_chain_scheme_generated
+from ctmm.compiled_chain_schemes import CompiledChainScheme
 from ctmm.control import ControlledChain, Feedback
 from ctmm.elements import Fixed, Free, Mass, SpringDamper
 from ctmm.signals import Constant, Harmonic

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 import ctmm
-from ctmm.compiled_chain_schemes import CompiledChainScheme, SchemeMaps, simulate_chain_scheme_generated
+from ctmm.compiled_chain_scheme_runs import simulate_chain_scheme_generated
+from ctmm.compiled_chain_schemes import CompiledChainScheme, SchemeMaps
 from ctmm.control import ControlledChain, Feedback
 from ctmm.elements import Fixed, Free, Mass, Spring, SpringDamper
 from ctmm.errors import ModelError

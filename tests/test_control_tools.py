@@ -19,8 +19,9 @@ from scipy.optimize import brentq
 
 import ctmm
 from ctmm.control import ControlledChain, Feedback
-from ctmm.control.analysis import (bode_plot, closed_loop_response, encirclements, loop_transfer_function,
-                                   margins, nyquist_plot, open_loop_plant)
+from ctmm.control.analysis import (closed_loop_response, encirclements, loop_transfer_function, margins,
+                                   open_loop_plant)
+from ctmm.control.loop_plots import bode_plot, nyquist_plot
 from ctmm.results import FrequencyResponse
 from ctmm.control.design import PlantCache
 from ctmm.elements import Damper, Elastic, Fixed, Free, GroundedSpring, Mass, PrescribedDisplacement, Spring, SpringDamper

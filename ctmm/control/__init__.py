@@ -11,7 +11,8 @@
   :func:`nyquist_plot`, :class:`PlantCache` (cheap re-evaluation in control-design loops).
 * :func:`tune` -- gradient-based tuning on the exact sensitivities of :mod:`ctmm.sensitivity`.
 """
-from .analysis import bode_plot, closed_loop_response, encirclements, loop_transfer_function, margins, nyquist_plot
+from .analysis import closed_loop_response, encirclements, loop_transfer_function, margins
+from .loop_plots import bode_plot, nyquist_plot
 from .design import PlantCache
 from .fmu import FMUController, build_fmu
 from .loops import ControlledChain, Feedback

@@ -44,7 +44,8 @@ to the last good step.
 
 The state is ``y = [q, v, controller states]`` with ``q_dot = G(q) v`` (planar: ``v = q_dot``;
 spatial: quaternion rates from child-axes angular velocities), so the same code closes the loops
-on both plants.
+on both plants.  The stored rows and their result (loop signals and units, saturation, controller samples):
+:mod:`ctmm.control.loop_rows`.
 """
 from __future__ import annotations
 
@@ -69,9 +70,10 @@ from .cosim import CoSimulation
 from .explicit_loops import run_rk4, run_scipy
 from .history import DelayHistory
 from .implicit_loops import check_scheme_delays, run_implicit
+from .loop_rows import LoopRows, rows_result
 from .plants import Plant, plant_of
 
-__all__ = ["simulate_closed_loop", "loop_unit"]
+__all__ = ["simulate_closed_loop"]
 
 
 @dataclass(frozen=True)
@@ -132,16 +134,6 @@ def _resolve(ports: Any, loops: Sequence[Any], step: float | None, n: int) -> li
                               tuple(loop.actuator_terms), A, B, C, D, slice(offset, offset + k)))
         offset += k
     return resolved
-
-
-def loop_unit(ports: Any, loop: Any, quantity: str) -> str:
-    """Unit of ``"<loop>.y"`` (``quantity="y"``) or ``"<loop>.u"`` (``"u"``) on a model with ``ports``
-    (:class:`~ctmm.planar.ports.PlanarPorts`, :class:`~ctmm.spatial.ports.SpatialPorts`; ``""`` when the
-    terms mix units)."""
-    names = [t for t, _ in (loop.terms if quantity == "y" else loop.actuator_terms)]
-    unit = ports.sensor_unit if quantity == "y" else ports.actuator_unit
-    units = {unit(name) for name in names}
-    return units.pop() if len(units) == 1 else ""
 
 
 class _ClosedLoop:
@@ -378,65 +370,6 @@ class _ClosedLoop:
             self.master.close()
 
 
-class _Rows:
-    """Stored rows: times, states and loop signals (a partial result on failure)."""
-
-    def __init__(self, system: _ClosedLoop) -> None:
-        self.system = system
-        self.t: list[float] = []
-        self.y: list[np.ndarray] = []
-        self.loops: list[list[tuple[float, float, float]]] = []
-        self.inputs: list[Any] | None = [] if getattr(system.plant, "signals_need_inputs", False) else None
-
-    def add(self, t: float, y: np.ndarray) -> None:
-        self.t.append(float(t))
-        self.y.append(np.array(y, dtype=float))
-        values = self.system.loop_values(t, y, record=True) if self.system.loops else []
-        self.loops.append(values)
-        if self.inputs is not None:     # a plant whose stored signals depend on the actuators (chains)
-            actuators = self.system.actuator_values(t, y, values)
-            self.inputs.append(self.system.ports.inputs(actuators) if actuators else None)
-
-
-def _result(rows: _Rows, outputs: Sequence[str], method: str, info: dict) -> SimulationResult:
-    system = rows.system
-    model, n = system.model, system.n
-    t = np.array(rows.t)
-    y = np.array(rows.y).reshape(len(t), system.size)
-    extra = {} if rows.inputs is None else {"inputs": rows.inputs}
-    signals, units = system.plant.signals(t, y[:, :n], y[:, n:system.base], outputs, **extra)
-    saturated_time = {}
-    for k, lp in enumerate(system.loops):
-        values = np.array([row[k] for row in rows.loops]).reshape(len(t), 3)
-        signals[f"{lp.name}.y"], signals[f"{lp.name}.u"] = values[:, 0], values[:, 2]
-        units[f"{lp.name}.y"] = loop_unit(system.ports, lp.loop, "y")
-        units[f"{lp.name}.u"] = loop_unit(system.ports, lp.loop, "u")
-        if lp.loop.saturation is not None:
-            demand, at_limit = _saturation_signals(lp, y[:, lp.states], values[:, 1])
-            signals[f"{lp.name}.u_demand"], units[f"{lp.name}.u_demand"] = demand, units[f"{lp.name}.u"]
-            signals[f"{lp.name}.saturated"], units[f"{lp.name}.saturated"] = at_limit.astype(float), ""
-            saturated_time[lp.name] = float(np.sum(np.diff(t)[at_limit[:-1]])) if len(t) > 1 else 0.0
-    if saturated_time:
-        info = {**info, "time_saturated_s": saturated_time}
-    if system.master is not None:
-        last = t[-1] if len(t) else -math.inf
-        for name, samples in system.master.outputs(until=last).items():
-            signals[name] = samples
-            units[name] = system.ports.actuator_unit(name.split("@")[0])
-        info = {**info, "controllers": system.master.describe()}
-    info = {**info, "loops": {lp.name: ("real-time" if lp.delay == 0.0 else "history") for lp in system.loops},
-            "n_evaluations": system.evaluations}
-    return signal_result(SignalSystem(model, units, [lp.loop for lp in system.loops]), t, signals, method, info)
-
-
-def _saturation_signals(lp: _Loop, z: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The unsaturated demand ``-C z - D e`` of a saturating loop on the stored rows [actuator unit]
-    and where it is beyond the limits (the applied ``"<loop>.u"`` is at a limit there)."""
-    demand = -(z @ lp.C[0]) - lp.D * e if z.shape[1] else -lp.D * e
-    low, high = lp.loop.saturation
-    return demand, (demand < low) | (demand > high)
-
-
 def _check_state(system: _ClosedLoop, guard, t: float, y: np.ndarray, step: float | None, method: str) -> None:
     guard(t, y, step, method)
     if not np.all(np.isfinite(y[system.base:])):
@@ -564,12 +497,12 @@ def simulate_closed_loop(model: Any, q0: np.ndarray, qdot0: np.ndarray, t_final:
     try:
         y0 = np.concatenate([q0, qdot0, np.zeros(system.size - n - nv)])
         guard = plant.guard(q0, divergence_bound, qdot0)
-        rows = _Rows(system)
+        rows = LoopRows(system)
         start = _time.perf_counter()
         info = {"dt": dt, "method": label}
 
         def partial() -> SimulationResult:
-            return _result(rows, outputs, label, {**info, "wall_time_s": _time.perf_counter() - start})
+            return rows_result(rows, outputs, label, {**info, "wall_time_s": _time.perf_counter() - start})
 
         def check(t: float, y: np.ndarray) -> None:
             _check_state(system, guard, t, y, dt if method == "rk4" else None, method)
@@ -593,6 +526,6 @@ def simulate_closed_loop(model: Any, q0: np.ndarray, qdot0: np.ndarray, t_final:
                                       projection))
         except SimulationError as exc:
             raise with_partial(exc, partial) from exc.__cause__
-        return _result(rows, outputs, label, {**info, "wall_time_s": _time.perf_counter() - start})
+        return rows_result(rows, outputs, label, {**info, "wall_time_s": _time.perf_counter() - start})
     finally:
         system.close()
