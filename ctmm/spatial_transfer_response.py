@@ -10,7 +10,11 @@ their laws, driven joints held.  The unknowns are the displacement amplitudes ``
 every body's inboard point (world axes) and the joints' relative amplitudes in their velocity coordinates
 (the tangent coordinates of :mod:`ctmm.spatial_linearization`).  The dimension-generic part (the batched
 sweep, one per input column, pivots certified per frequency, loops closed per frequency) is
-:mod:`ctmm.sweep_response`.
+:mod:`ctmm.sweep_response`.  Rigid trees whose joints are revolute, prismatic, welds or driven (one free
+direction ``S`` each, or held) take the compiled kernel of :mod:`ctmm.compiled_sweep` at ``d = 6`` when a C
+compiler is present (every input column in one sweep, both certificates decided in C; the tangent amplitudes
+are the joints' relative amplitudes, :meth:`SpatialSweepResponse.point_amplitudes`); beams, finite-element
+subsystems, universal, spherical and free joints, and every model without a compiler, the generic sweep.
 
 * An actuator loads the terms by the difference of the sweep's terms at unit and zero input: joint
   torques and forces enter their joint's ``tau``, body forces and moments (world or body axes, at any
@@ -226,6 +230,17 @@ class SpatialSweepResponse(ArticulatedResponse):
         from .spatial_linearization import output_matrix
 
         return output_matrix(self.model, outputs, self.point)
+
+    reads_joint_amplitudes = True
+
+    def point_amplitudes(self, answer: Any) -> np.ndarray:
+        """Tangent amplitudes ``r_hat`` (L, B, nv) from the compiled kernel's answer (rigid trees on one-direction
+        joints, welds and held drives: the velocity coordinates are the free joints' relative amplitudes, in
+        joint order -- :meth:`ctmm.spatial.body_forms.SpatialScene.velocity_rates`)."""
+        if answer.relative.shape[0] != self.model.n_velocities:         # the kernel takes no other trees
+            raise ModelError(f"the compiled sweep answered {answer.relative.shape[0]} joint amplitudes for "
+                             f"{self.model.n_velocities} velocities of {self.model.name!r}")
+        return np.moveaxis(answer.relative, 0, -1)
 
     def amplitudes(self, solution: Any) -> np.ndarray:
         """Tangent amplitudes ``r_hat`` (B, nv) of a frequency-context sweep (velocity order)."""
