@@ -76,6 +76,10 @@ class ArticulatedResponse:
     reads_joint_amplitudes = False
     """True when :meth:`point_amplitudes` reads the joints' relative amplitudes of the compiled kernel's answer."""
 
+    def load_cases(self, names: list) -> list:
+        """``loads(name)`` of every actuator in ``names`` (subclasses may form them at once)."""
+        return [self.loads(name) for name in names]
+
     def point_amplitudes(self, answer: SweepAnswer) -> np.ndarray:
         """Coordinate amplitudes (L, B, n) from the compiled kernel's answer (``A_in`` (n, d, L, B) of every body,
         the joints' relative amplitudes (F, L, B)); subclasses that do not override it are answered by the generic
@@ -132,7 +136,7 @@ class ArticulatedResponse:
         self.check(inputs, outputs)
         s = np.asarray(s, dtype=complex).reshape(-1)
         rows = self.rows(list(outputs))
-        loads = [self.loads(name) for name in inputs]
+        loads = self.load_cases(list(inputs))
         G = np.zeros((s.size, len(outputs), len(inputs)), dtype=complex)
         good = np.zeros(s.size, dtype=bool)
         for start in range(0, s.size, CHUNK):       # the sweep's batched terms: O(N CHUNK) at a time
