@@ -13,7 +13,17 @@ Methods (one run, one machine):
 * ``sweep``      -- :func:`ctmm.frequency_response` with the operating point given: the one articulated sweep
                     (``d = 6``) on the linearised terms, batched over the 500 frequencies, O(N) per frequency;
 * ``sweep_only`` -- :meth:`~ctmm.spatial_transfer_response.SpatialSweepResponse.response` alone (terms
-                    linearised beforehand): the per-frequency work;
+                    linearised beforehand): the per-frequency work, by the compiled kernel of
+                    :mod:`ctmm.compiled_sweep` at ``d = 6`` (the default with a C compiler; the chain is damped: its
+                    complex variant); ``kernel_only`` its C call alone (both inputs in one call);
+* ``sweep_only_generic`` -- the same without a compiler: the generic numpy sweep
+                    (:func:`ctmm.articulated.articulated_sweep`), one sweep per input;
+* ``planar_kernel_only`` -- for scale, the same kernel at ``d = 3`` on the planar pendulum chain of
+                    ``benchmarks/planar_chain.py`` with N links (one load case, undamped: the real variant);
+                    ``kernel_vs_planar_kernel`` the ratio of CPU times (the spatial kernel's arithmetic: 6 x 6 blocks,
+                    products with ``S``, two load cases, complex numbers);
+* ``first_compile`` -- wall time and the compiler's CPU time of building each ``d = 6`` variant into an empty cache
+                    folder (then cached on disk);
 * ``resolvent``  -- the former path: :func:`ctmm.linearize` (complex-step tangent, 2N x 2N) and the dense
                     ``(s I - A)^-1 B`` with a condition number per frequency
                     (:func:`ctmm.controlled_linearization.delayed_loop_response`).
@@ -50,6 +60,7 @@ from ctmm.controlled_linearization import delayed_loop_response  # noqa: E402
 from ctmm.errors import ModelError  # noqa: E402
 from ctmm.spatial_linearization import linearize_spatial, operating_point  # noqa: E402
 from ctmm.spatial_transfer_response import SpatialSweepResponse  # noqa: E402
+from ctmm.sweep_response import PIVOT_TOLERANCE, RESIDUAL_TOLERANCE  # noqa: E402
 from planar_frf import best, write_result  # noqa: E402  (best wall and CPU time; the JSON)
 
 OMEGA = np.logspace(-1, 2, 500)
@@ -95,6 +106,68 @@ def resolvent(model: sp.SpatialModel, n: int, omega: np.ndarray = OMEGA, point: 
                                  1j * omega, inputs, outputs, model.name)[0]
 
 
+def generic_plant(model: sp.SpatialModel, point) -> SpatialSweepResponse:
+    """The plant as it is without a C compiler (the generic numpy sweep)."""
+    import ctmm.sweep_response as sweep_module
+
+    present = sweep_module.compiler_present
+    sweep_module.compiler_present = lambda: False
+    try:
+        plant = SpatialSweepResponse(model, point)
+    finally:
+        sweep_module.compiler_present = present
+    assert plant.compiled is None
+    return plant
+
+
+def kernel_call(plant, inputs: list):
+    """The compiled kernel's C call of ``plant`` for ``inputs`` (body loads and joint torques as the plant forms
+    them) as a repeatable call."""
+    kernel = plant.compiled
+    h = np.zeros((len(plant.bodies), kernel.d, len(inputs)))
+    tau = np.zeros((len(kernel.free), len(inputs)))
+    for i, (body_loads, joints) in enumerate(plant.loads(name) for name in inputs):
+        h[:, :, i] = np.stack([column[0, :, 0] for column in body_loads])
+        for k, j in enumerate(kernel.free):
+            if joints[j].tau is not None:
+                tau[k, i] = np.asarray(joints[j].tau).reshape(-1)[0].real
+    return lambda: kernel.solve(1j * OMEGA, h, tau, pivot_tolerance=PIVOT_TOLERANCE,
+                                residual_tolerance=RESIDUAL_TOLERANCE)
+
+
+def planar_kernel(n: int):
+    """The d = 3 kernel's C call on the planar pendulum chain of N links (hanging, one load case)."""
+    from planar_chain import chain as planar_chain
+    from planar_frf import hanging, ports as planar_ports
+    from ctmm.planar_linearization import operating_point as planar_point
+    from ctmm.planar_transfer_response import SweepResponse
+
+    model = planar_chain(n)
+    plant = SweepResponse(model, planar_point(model, hanging(n)))
+    assert plant.compiled is not None
+    return kernel_call(plant, [planar_ports(n)[0]])
+
+
+def first_compile() -> dict:
+    """Wall time and the compiler's CPU time [s] of building each d = 6 kernel variant into an empty cache folder."""
+    import tempfile
+    import time
+
+    from ctmm.codegen import shared_library
+    from ctmm.compiled_sweep import COMPLEX_FLAGS, REAL_FLAGS, kernel_source
+
+    out = {}
+    for label, complex_scalar, flags in (("real", False, REAL_FLAGS), ("complex", True, COMPLEX_FLAGS)):
+        folder = tempfile.mkdtemp(prefix="ctmm-bench-spatial-frf-cache-")
+        started, before = time.perf_counter(), os.times()
+        shared_library(kernel_source(6, complex_scalar, True), "first_compile", flags=flags, cache_dir=folder)
+        after = os.times()
+        out[f"first_compile_d6_{label}_s"] = time.perf_counter() - started
+        out[f"first_compile_d6_{label}_cpu_s"] = (after.children_user - before.children_user
+                                                  + after.children_system - before.children_system)
+    return out
+
+
 def run(n: int, hanging: bool = False) -> dict:
     model = chain(n, GRAVITY if hanging else (0.0, 0.0, 0.0))
     inputs, outputs = ports(n)
@@ -105,9 +178,14 @@ def run(n: int, hanging: bool = False) -> dict:
         print(json.dumps(out), flush=True)
         return out
     plant = SpatialSweepResponse(model, operating_point(model, point))
+    generic = generic_plant(model, operating_point(model, point))
     cases = {"sweep": (lambda: sweep(model, n, point=point), 5),
              "sweep_only": (lambda: plant.response(1j * OMEGA, inputs, outputs), 5),
+             "sweep_only_generic": (lambda: generic.response(1j * OMEGA, inputs, outputs), 3),
              "resolvent": (lambda: resolvent(model, n, point=point), 1)}
+    if plant.compiled is not None:
+        cases["kernel_only"] = (kernel_call(plant, inputs), 5)
+        cases["planar_kernel_only"] = (planar_kernel(n), 5)
     out, results = {"n_links": n, "gravity": "hanging" if hanging else "none", "n_frequencies": int(OMEGA.size),
                     "largest_joint_angle_rad": float(np.max(np.abs(point[0]), initial=0.0))}, {}
     for name, (call, count) in cases.items():
@@ -118,6 +196,11 @@ def run(n: int, hanging: bool = False) -> dict:
     # a pair that is zero by structure (its largest entry round-off, below 1e-12 of the largest of all pairs):
     # its error against the largest of all pairs
     scale = np.where(scale > 1e-12 * overall, scale, overall)
+    if plant.compiled is not None:
+        out["kernel_vs_planar_kernel"] = out["kernel_only_cpu_s"] / out["planar_kernel_only_cpu_s"]
+    compiled, fallback = results["sweep_only"], results["sweep_only_generic"]
+    out["error_generic_vs_compiled"] = float(np.max(np.abs(compiled[0] - fallback[0])) / np.max(np.abs(fallback[0])))
+    out["generic_certifies_the_same"] = bool(np.array_equal(compiled[1], fallback[1]))
     out.update({"error_sweep_vs_resolvent": float(np.max(np.abs(G - dense) / scale)),
                 "dense_frequencies_in_sweep": results["sweep"].info["n_dense_frequencies"],
                 "method": results["sweep"].info["method"]})
@@ -133,8 +216,10 @@ def main(argv: list[str] | None = None) -> dict:
     args = parser.parse_args(argv)
     sizes = args.sizes or ([5] if args.quick else [5, 30])
     resolvent(chain(2), 2, OMEGA[:2])                 # warm-up: the first linearisation imports and builds caches
+    compile_time = first_compile()
+    print(json.dumps(compile_time), flush=True)
     rows = [run(n, hanging) for n in sizes for hanging in (False, True)]
-    return write_result("spatial_frf", rows, args.output)
+    return write_result("spatial_frf", rows, args.output, compile_time)
 
 
 if __name__ == "__main__":

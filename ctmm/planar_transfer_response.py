@@ -136,9 +136,10 @@ class SweepResponse(ArticulatedResponse):
 
         return output_matrix(self.model, outputs, self.point)
 
-    def point_amplitudes(self, x: np.ndarray) -> np.ndarray:
+    def point_amplitudes(self, answer: Any) -> np.ndarray:
         """Coordinate amplitudes ``q_hat`` (L, B, n) from the compiled kernel's ``A_in`` (n, 3, L, B) (rigid
         bodies: each body's angle amplitude is its ``x[j, 2]``; the kernel takes no free bases)."""
+        x = answer.x
         index = np.asarray(self.model.theta_index)
         bodies = np.flatnonzero(index >= 0)
         out = np.zeros(x.shape[2:] + (self.model.n_coordinates,), dtype=x.dtype)

@@ -10,7 +10,11 @@ their laws, driven joints held.  The unknowns are the displacement amplitudes ``
 every body's inboard point (world axes) and the joints' relative amplitudes in their velocity coordinates
 (the tangent coordinates of :mod:`ctmm.spatial_linearization`).  The dimension-generic part (the batched
 sweep, one per input column, pivots certified per frequency, loops closed per frequency) is
-:mod:`ctmm.sweep_response`.
+:mod:`ctmm.sweep_response`.  Rigid trees whose joints are revolute, prismatic, welds or driven (one free
+direction ``S`` each, or held) take the compiled kernel of :mod:`ctmm.compiled_sweep` at ``d = 6`` when a C
+compiler is present (every input column in one sweep, both certificates decided in C; the tangent amplitudes
+are the joints' relative amplitudes, :meth:`SpatialSweepResponse.point_amplitudes`); beams, finite-element
+subsystems, universal, spherical and free joints, and every model without a compiler, the generic sweep.
 
 * An actuator loads the terms by the difference of the sweep's terms at unit and zero input: joint
   torques and forces enter their joint's ``tau``, body forces and moments (world or body axes, at any
@@ -200,21 +204,40 @@ class SpatialSweepResponse(ArticulatedResponse):
     def loads(self, name: str) -> tuple[list, list]:
         """Body load columns ``h`` (1, 6 + n_j, 1) and joint terms of actuator ``name`` at unit amplitude: the
         difference of the sweep's terms at unit and zero input."""
-        inputs = self.ports.inputs({name: 1.0})
-        t = float(self.point.t)
-        bodies, joints, _ = self.scene.terms(NUMPY, np.asarray(self.point.q, float)[None],
-                                             np.zeros((1, self.model.n_velocities)), t,
-                                             self.scene.numpy_inputs(inputs.joint, t, 1), inputs.wrenches)
-        loads = [np.asarray(unit.h)[:1].real - base.h
-                 for unit, base in zip(bodies, self.base_bodies)]
-        out = []
-        for unit, base, held in zip(joints, self.base_joints, self.joints):
-            if unit.tau is None or held.prescribed is not None:
-                out.append(held)
-                continue
-            amplitude = np.asarray(unit.tau)[:1].real - (0.0 if base.tau is None else base.tau)
-            out.append(dataclasses.replace(held, tau=amplitude) if np.any(amplitude) else held)
-        return loads, out
+        return self.load_cases([name])[0]
+
+    def load_cases(self, names: list) -> list:
+        """:meth:`loads` of every actuator in ``names``, from one batched evaluation of the terms (row ``i``: the
+        unit input of ``names[i]``)."""
+        count, t = len(names), float(self.point.t)
+        if not count:
+            return []
+        joint_inputs: dict = {}
+        wrenches: dict = {}
+        for i, name in enumerate(names):
+            inputs = self.ports.inputs({name: 1.0})
+            for key, value in inputs.joint.items():
+                joint_inputs.setdefault(key, np.zeros((count, np.size(value))))[i] += value
+            for j, entries in inputs.wrenches.items():
+                for point, column, *axes in entries:
+                    rows = np.zeros((count,) + np.shape(column)[1:])
+                    rows[i] = column[0]
+                    wrenches.setdefault(j, []).append((point, rows, *axes))
+        bodies, joints, _ = self.scene.terms(NUMPY, np.repeat(np.asarray(self.point.q, float)[None], count, axis=0),
+                                             np.zeros((count, self.model.n_velocities)), t,
+                                             self.scene.numpy_inputs(joint_inputs, t, count), wrenches)
+        cases = []
+        for i in range(count):
+            loads = [row(unit.h, i, count) - base.h for unit, base in zip(bodies, self.base_bodies)]
+            out = []
+            for unit, base, held in zip(joints, self.base_joints, self.joints):
+                if unit.tau is None or held.prescribed is not None:
+                    out.append(held)
+                    continue
+                amplitude = row(unit.tau, i, count) - (0.0 if base.tau is None else base.tau)
+                out.append(dataclasses.replace(held, tau=amplitude) if np.any(amplitude) else held)
+            cases.append((loads, out))
+        return cases
 
     def check(self, inputs: Sequence[str], outputs: Sequence[str]) -> None:
         """Every input an actuator of the model's ports (else its error); outputs are checked by :meth:`rows`."""
@@ -227,9 +250,26 @@ class SpatialSweepResponse(ArticulatedResponse):
 
         return output_matrix(self.model, outputs, self.point)
 
+    reads_joint_amplitudes = True
+
+    def point_amplitudes(self, answer: Any) -> np.ndarray:
+        """Tangent amplitudes ``r_hat`` (L, B, nv) from the compiled kernel's answer (rigid trees on one-direction
+        joints, welds and held drives: the velocity coordinates are the free joints' relative amplitudes, in
+        joint order -- :meth:`ctmm.spatial.body_forms.SpatialScene.velocity_rates`)."""
+        if answer.relative.shape[0] != self.model.n_velocities:         # the kernel takes no other trees
+            raise ModelError(f"the compiled sweep answered {answer.relative.shape[0]} joint amplitudes for "
+                             f"{self.model.n_velocities} velocities of {self.model.name!r}")
+        return np.moveaxis(answer.relative, 0, -1)
+
     def amplitudes(self, solution: Any) -> np.ndarray:
         """Tangent amplitudes ``r_hat`` (B, nv) of a frequency-context sweep (velocity order)."""
         parts = self.scene.velocity_rates(solution)
         batch = max(np.shape(part)[0] for part in parts) if parts else 1
         return np.concatenate([np.broadcast_to(part, (batch,) + np.shape(part)[1:])[:, :, 0] for part in parts],
                               axis=1) if parts else np.zeros((batch, 0))
+
+
+def row(value: Any, index: int, count: int) -> np.ndarray:
+    """Row ``index`` (1, ...) of a batched numpy term of ``count`` rows (or of one row broadcast), real."""
+    value = np.asarray(value)
+    return np.broadcast_to(value, (count,) + value.shape[1:])[index:index + 1].real

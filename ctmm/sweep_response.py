@@ -21,7 +21,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from .articulated import Tree, articulated_sweep, frequency_kappa
-from .compiled_sweep import CompiledSweep, applies as compiled_applies, compiler_present
+from .compiled_sweep import CompiledSweep, SweepAnswer, applies as compiled_applies, compiler_present
 from .controlled_linearization import RESOLVENT_CONDITION, controller_response, loop_ports
 from .errors import ModelError
 from .loop_phasors import close_loops as close_phasor_loops, loop_signal
@@ -73,10 +73,17 @@ class ArticulatedResponse:
 
     coupling: Any = None
     compiled: CompiledSweep | None = None
+    reads_joint_amplitudes = False
+    """True when :meth:`point_amplitudes` reads the joints' relative amplitudes of the compiled kernel's answer."""
 
-    def point_amplitudes(self, x: np.ndarray) -> np.ndarray:
-        """Coordinate amplitudes (L, B, n) from the compiled kernel's ``A_in`` (n, d, L, B) of every body;
-        subclasses that do not override it are answered by the generic sweep."""
+    def load_cases(self, names: list) -> list:
+        """``loads(name)`` of every actuator in ``names`` (subclasses may form them at once)."""
+        return [self.loads(name) for name in names]
+
+    def point_amplitudes(self, answer: SweepAnswer) -> np.ndarray:
+        """Coordinate amplitudes (L, B, n) from the compiled kernel's answer (``A_in`` (n, d, L, B) of every body,
+        the joints' relative amplitudes (F, L, B)); subclasses that do not override it are answered by the generic
+        sweep."""
         raise NotImplementedError
 
     def prepare(self, tree: Tree, bodies: Sequence[tuple], joints: Sequence[Any],
@@ -129,7 +136,7 @@ class ArticulatedResponse:
         self.check(inputs, outputs)
         s = np.asarray(s, dtype=complex).reshape(-1)
         rows = self.rows(list(outputs))
-        loads = [self.loads(name) for name in inputs]
+        loads = self.load_cases(list(inputs))
         G = np.zeros((s.size, len(outputs), len(inputs)), dtype=complex)
         good = np.zeros(s.size, dtype=bool)
         for start in range(0, s.size, CHUNK):       # the sweep's batched terms: O(N CHUNK) at a time
@@ -189,9 +196,10 @@ class ArticulatedResponse:
                     tau[k, i] = np.asarray(joints[j].tau).reshape(-1)[0]
         if not np.any(tau.imag):
             tau = tau.real
-        solution = kernel.solve(s, h, tau, pivot_tolerance=PIVOT_TOLERANCE, residual_tolerance=RESIDUAL_TOLERANCE)
+        solution = kernel.solve(s, h, tau, pivot_tolerance=PIVOT_TOLERANCE, residual_tolerance=RESIDUAL_TOLERANCE,
+                                relative=self.reads_joint_amplitudes)
         with np.errstate(all="ignore"):
-            amplitudes = self.point_amplitudes(solution.x)                  # (L, B, n)
+            amplitudes = self.point_amplitudes(solution)                   # (L, B, n)
             G = (amplitudes @ rows[:, :n].T + (s[:, None] * amplitudes) @ rows[:, n:].T).transpose(1, 2, 0)
         good = solution.good & np.all(np.isfinite(G), axis=(1, 2))
         return G.astype(complex, copy=False), good
