@@ -39,8 +39,9 @@ from .ops import CASADI
 from .planar.body_forms import PlanarScene
 from .planar.model import PlanarModel
 from .planar.ports import ActuatorInputs, PlanarPorts
+from .traced_scalar import TracedScalar, traced_array as _objects, untraced as _untraced
 
-__all__ = ["SymbolicCutSides", "TracedScalar", "deformable_bodies", "hanging_refusal", "is_deformable_side",
+__all__ = ["SymbolicCutSides", "TracedScalar", "deformable_bodies", "is_deformable_side",
            "load_sizes",
            "symbolic_accelerations_with_frame_loads"]
 
@@ -56,113 +57,10 @@ def deformable_bodies(model: Any) -> list[int]:
     return sorted({side[0] for pair in model.cut_points.sides for side in pair if is_deformable_side(side)})
 
 
-def hanging_refusal(model: Any) -> str:
-    """Why a cut point of ``model`` cannot be placed by :class:`ctmm.compiled_loops.SymbolicKinematics` (an empty
-    string when it can): its body hangs, at any depth, from a ``ctmm.fem`` subsystem or from a ``ModalBeam`` with
-    second-order inertia, whose outboard points move with the subsystem's nodes or the beam's foreshortening in the
-    numpy tree (:meth:`ctmm.planar.model.PlanarModel.points`) but not in those symbolic kinematics yet."""
-    tree = model.tree
-    for cut, pair in zip(model.cuts, model.cut_points.sides):
-        for j, _ in pair:
-            p = int(tree.parent[j]) if j >= 0 else -1
-            while p >= 0:
-                data = tree.beams[p].data if p in tree.beams else None
-                if data is not None and (hasattr(data, "point_local") or getattr(data, "second_order", None)
-                                         is not None):
-                    return (f"cut joint {cut.name!r}: body {tree.body_names[j]!r} hangs from the deformable body "
-                            f"{tree.body_names[p]!r} (a ctmm.fem subsystem or a ModalBeam with second-order "
-                            "inertia), whose outboard points the generated kinematics do not move with its nodes or "
-                            "foreshortening yet; use compiled=None (the numpy RK4 with projection)")
-                p = int(tree.parent[p])
-    return ""
-
-
 def load_sizes(tree: PlanarModel, bodies: Sequence[int]) -> list[int]:
     """Load inputs per deformable body of :func:`symbolic_accelerations_with_frame_loads`: its frame wrench (3) and
     one generalised force per internal coordinate."""
     return [3 + len(tree.modal_index[j]) for j in bodies]
-
-
-class TracedScalar:
-    """A casadi SX scalar that numpy's object arrays and functions treat as a number (:class:`SymbolicCutSides`).
-
-    ``np.cos`` / ``np.sin`` call :meth:`cos` / :meth:`sin`; ``+ - * /`` with numbers or other traced scalars give
-    traced scalars, with a numpy array numpy's own element-wise operator; ``float()`` refuses (a symbol has no
-    value: the numpy routine traced must not convert it).  :attr:`value` is the casadi expression.
-    """
-
-    __slots__ = ("value",)
-    __array_priority__ = -1.0
-
-    def __init__(self, value: Any) -> None:
-        self.value = value
-
-    @staticmethod
-    def _of(other: Any) -> Any:
-        if isinstance(other, TracedScalar):
-            return other.value
-        if isinstance(other, (int, float, np.floating, np.integer)):
-            return float(other)
-        return NotImplemented
-
-    def _apply(self, other: Any, operation: Any) -> Any:
-        other = self._of(other)
-        return NotImplemented if other is NotImplemented else TracedScalar(operation(self.value, other))
-
-    def __add__(self, other: Any) -> Any:
-        return self._apply(other, lambda a, b: a + b)
-
-    def __radd__(self, other: Any) -> Any:
-        return self._apply(other, lambda a, b: b + a)
-
-    def __sub__(self, other: Any) -> Any:
-        return self._apply(other, lambda a, b: a - b)
-
-    def __rsub__(self, other: Any) -> Any:
-        return self._apply(other, lambda a, b: b - a)
-
-    def __mul__(self, other: Any) -> Any:
-        return self._apply(other, lambda a, b: a * b)
-
-    def __rmul__(self, other: Any) -> Any:
-        return self._apply(other, lambda a, b: b * a)
-
-    def __truediv__(self, other: Any) -> Any:
-        return self._apply(other, lambda a, b: a / b)
-
-    def __neg__(self) -> "TracedScalar":
-        return TracedScalar(-self.value)
-
-    def __pos__(self) -> "TracedScalar":
-        return self
-
-    def cos(self) -> "TracedScalar":
-        import casadi as ca
-
-        return TracedScalar(ca.cos(self.value))
-
-    def sin(self) -> "TracedScalar":
-        import casadi as ca
-
-        return TracedScalar(ca.sin(self.value))
-
-    def __float__(self) -> float:
-        raise TypeError("a traced casadi symbol has no float value (the traced numpy routine converted it)")
-
-    def __bool__(self) -> bool:
-        raise TypeError("a traced casadi symbol has no truth value (the traced numpy routine branched on it)")
-
-
-def _untraced(value: Any) -> Any:
-    """The casadi expression of a traced scalar (numbers as they are)."""
-    return value.value if isinstance(value, TracedScalar) else value
-
-
-def _objects(values: Sequence[Any]) -> np.ndarray:
-    """A 1-D object array of :class:`TracedScalar` of the casadi scalars ``values``."""
-    out = np.empty(len(values), dtype=object)
-    out[:] = [TracedScalar(value) for value in values]
-    return out
 
 
 class SymbolicCutSides:

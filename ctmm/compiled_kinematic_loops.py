@@ -59,7 +59,7 @@ from typing import Any
 import numpy as np
 
 from . import validation
-from .compiled_cut_points import (SymbolicCutSides, deformable_bodies, hanging_refusal, is_deformable_side,
+from .compiled_cut_points import (SymbolicCutSides, deformable_bodies, is_deformable_side,
                                   symbolic_accelerations_with_frame_loads)
 from .compiled_loops import SymbolicKinematics
 from .compiled_parameters import compile_refusal, parameter_vector
@@ -119,7 +119,7 @@ def kinematic_loop_compile_refusal(model: Any) -> str:
         reason = cut_moment_refusal(cut)
         if reason:
             return reason
-    return hanging_refusal(model)
+    return ""
 
 
 def cut_moment_refusal(cut: Any) -> str:

@@ -15,6 +15,7 @@ from typing import Any, Sequence
 
 from .planar.model import FREE, PlanarModel
 from .planar.ports import PlanarPorts
+from .symbolic_beam_points import DeformedPoints
 
 __all__ = ["PlanarSymbols", "SymbolicKinematics", "sensor_expression"]
 
@@ -43,6 +44,7 @@ class SymbolicKinematics:
         import casadi as ca
 
         self.model, self.q, self.v = model, q, v
+        self.deformed = DeformedPoints(model, q, v)
         driven = {i: (a, r) for i, a, r, _ in model.driven(0.0)}
         nb = model.n_bodies
         self.theta: list = [None] * nb
@@ -73,13 +75,9 @@ class SymbolicKinematics:
         return self.cos[i] * x - self.sin[i] * y, self.sin[i] * x + self.cos[i] * y
 
     def beam_local(self, j: int, end: int) -> tuple:
-        """Deformed end ``end`` of beam ``j`` in its frame: position and velocity (2-tuples)."""
-        d, m = self.model.beams[j].data, self.model
-        index = m.modal_index[j]
-        nq = d.nq
-        position = (d.end_x[end] + _dot(d.end_psi[end], self.q, index[nq:]), _dot(d.end_phi[end], self.q, index[:nq]))
-        velocity = (_dot(d.end_psi[end], self.v, index[nq:]), _dot(d.end_phi[end], self.v, index[:nq]))
-        return position, velocity
+        """Deformed end ``end`` of beam ``j`` in its frame: position and velocity (2-tuples; the numpy definition,
+        foreshortening and ``ctmm.fem`` nodes included, :mod:`ctmm.symbolic_beam_points`)."""
+        return self.deformed.end(j, end)
 
     def inboard(self, i: int) -> tuple:
         """Position and velocity of body ``i``'s inboard end (2-tuples), global axes."""
@@ -110,10 +108,8 @@ class SymbolicKinematics:
         (r, v), omega = self.inboard(i), self.omega[i]
         if name == "inboard":
             return r, v
-        if name == "com" and i in m.beams:         # the deformed centroid s_bar / m
-            d, index = m.beams[i].data, m.modal_index[i]
-            local = ((d.Sx + _dot(d.b_p, self.q, index[d.nq:])) / d.m, _dot(d.b_q, self.q, index[:d.nq]) / d.m)
-            rate = (_dot(d.b_p, self.v, index[d.nq:]) / d.m, _dot(d.b_q, self.v, index[:d.nq]) / d.m)
+        if name == "com" and i in m.beams:         # the deformed centroid
+            local, rate = self.deformed.centroid(i)
         elif name == "com":
             local, rate = tuple(float(x) for x in m.com[i]), (0.0, 0.0)
         elif i in m.beams:

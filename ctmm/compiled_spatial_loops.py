@@ -46,6 +46,7 @@ from .ops import CASADI
 from .spatial.body_forms import SpatialScene
 from .spatial.model import SpatialModel
 from .spatial.ports import SpatialPorts
+from .symbolic_beam_points import spatial_deformed_point
 
 __all__ = ["SpatialSymbols", "loop_acceleration", "CompiledControlledSpatial"]
 
@@ -112,10 +113,10 @@ class SpatialSymbols:
         if layout is None:
             arm = ca.mtimes(rotation, ca.DM(np.asarray(sensor.point, float)))
             relative = ca.DM.zeros(3, 1)
-        else:                                                  # a beam: the deformed point
-            Phi = ca.DM(self.model.bodies[sensor.index].data.station(float(sensor.point[0]))[0])
-            arm = ca.mtimes(rotation, ca.DM([float(sensor.point[0]), 0.0, 0.0]) + ca.mtimes(Phi, q[layout.position]))
-            relative = ca.mtimes(rotation, ca.mtimes(Phi, v[layout.velocity]))
+        else:                                                  # a beam or FE subsystem: the deformed point (numpy's)
+            local, rate = spatial_deformed_point(self.model.bodies[sensor.index], sensor.point, q[layout.position],
+                                                 v[layout.velocity])
+            arm, relative = ca.mtimes(rotation, local), ca.mtimes(rotation, rate)
         if sensor.kind == "point":
             return state.origin[c] + arm[c]
         return state.velocity[c] + ca.cross(omega, arm)[c] + relative[c]

@@ -7,7 +7,7 @@ node (smooth and with a rotary law across the cut).  Independent references at t
 global Lagrange model of ``ctmm.reference.fem_loop_global`` (no shared code) for the finite-element coupler
 (tests/test_fem_cut_joints.py: 2e-7 at 0.25 ms), and energy conservation of the undamped flexible four-bar (the cut
 force does no work; tests/test_closed_loops_foreshortening.py).  With feedback loops and inputs: the loop-closing
-driver's generated run = its numpy run.  Refused by name: cut bodies hanging from a foreshortening beam.
+driver's generated run = its numpy run; a cut body hanging from a foreshortening beam too.
 """
 from __future__ import annotations
 
@@ -162,9 +162,10 @@ def test_the_traced_scalar_refuses_a_value():
     assert str((np.cos(traced) * 2.0 - 1.0).value) == "((2.*cos(x))-1)"
 
 
-def test_cut_bodies_hanging_from_a_foreshortening_beam_are_refused():
+def test_cut_bodies_hanging_from_a_foreshortening_beam_equal_the_numpy_rk4():
     """A rigid cut body on the tip of a ModalBeam with second-order inertia: the numpy tree moves the tip with the
-    beam's foreshortening, the generated kinematics do not yet (measured 3e-6 rad apart before this refusal)."""
+    beam's foreshortening, and so do the generated kinematics (ctmm.symbolic_beam_points; 3e-6 rad apart and refused
+    before them)."""
     beam = ModalBeam("b", length=0.5, bending_stiffness=20.0, mass_per_length=1.0, n_modes=2,
                      second_order_inertia=True)
     tree = PlanarModel("on_beam", [
@@ -174,5 +175,36 @@ def test_cut_bodies_hanging_from_a_foreshortening_beam_are_refused():
         RigidBody.uniform_link("k", mass=0.5, length=0.4), SmoothHinge("h4", parent="g4", child="k")],
         gravity=(0.0, -9.81))
     loop = KinematicLoopModel(tree, [CutJoint("h3", parent="k.out", child="r.out")])
-    with pytest.raises(ModelError, match="'h3'.*body 'r' hangs from the deformable body 'b'"):
-        CompiledKinematicLoops(loop)
+    names = tree.coordinates
+    guess = {"b.theta": 0.3, "r.theta": -0.9, "k.theta": 2.0, "b.q1": 0.02, "b.q2": -0.005}
+    q0, v0 = loop.consistent_state([guess.get(n, 0.0) for n in names], [3.0 if n == "b.theta" else 0.0 for n in names],
+                                   keep=["b.theta", "b.q1", "b.q2"])
+    generated = simulate_kinematic_loops_generated(loop, q0, v0, t_final=0.04, dt=1e-3)
+    numpy_run = simulate_kinematic_loops(loop, q0, v0, t_final=0.04, dt=1e-3)
+    _agree(generated, numpy_run, 1e-12)
+    assert np.ptp(generated.coordinate("b.q1")) > 1e-3
+
+
+def test_cut_bodies_hanging_from_a_fem_subsystem_equal_the_numpy_rk4():
+    """A rigid cut body hinged at a ctmm.fem subsystem's far node: its inboard end moves with the node in the numpy
+    tree and in the generated kinematics (ctmm.symbolic_beam_points; refused before them)."""
+    from ctmm.fem import BeamElement, FiniteElementModel
+
+    fe = FiniteElementModel("arm", {f"n{k}": (0.25 * k, 0.0) for k in range(3)},
+                            [BeamElement(f"e{k}", f"n{k}", f"n{k + 1}", 20.0, 2e3, 1.0) for k in range(2)])
+    tree = PlanarModel("on_fem", [
+        Fixed("g", position=(0.0, 0.0)), Fixed("g4", position=(0.8, -0.3)),
+        fe.subsystem("b", boundary=("n0", "n2")), SmoothHinge("h1", parent="g", child="b"),
+        RigidBody.uniform_link("r", mass=0.5, length=0.4), SmoothHinge("h2", parent="b.n2", child="r"),
+        RigidBody.uniform_link("k", mass=0.5, length=0.4), SmoothHinge("h4", parent="g4", child="k")],
+        gravity=(0.0, -9.81))
+    loop = KinematicLoopModel(tree, [CutJoint("h3", parent="k.out", child="r.out")])
+    names = tree.coordinates
+    nodal = [n for n in names if n.startswith("b.n")]
+    guess = {"b.theta": 0.3, "r.theta": -0.9, "k.theta": 2.0}
+    q0, v0 = loop.consistent_state([guess.get(n, 0.0) for n in names], [3.0 if n == "b.theta" else 0.0 for n in names],
+                                   keep=["b.theta", *nodal])
+    generated = simulate_kinematic_loops_generated(loop, q0, v0, t_final=0.01, dt=5e-4)
+    numpy_run = simulate_kinematic_loops(loop, q0, v0, t_final=0.01, dt=5e-4)
+    _agree(generated, numpy_run, 1e-10)
+    assert np.ptp(generated.q[:, [names.index(n) for n in nodal]], axis=0).max() > 1e-3       # the nodes move

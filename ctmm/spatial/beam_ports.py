@@ -130,7 +130,7 @@ def deformed_point(beam: Any, point: Any, eta: np.ndarray, *, rate: bool = False
         return beam.deformed_point(point, eta, rate=rate)
     Phi, _, G1 = beam.data.station(float(point[0]))
     eta = np.asarray(eta)
-    eta = eta if np.iscomplexobj(eta) else eta.astype(float)
+    eta = eta if np.iscomplexobj(eta) or eta.dtype == object else eta.astype(float)   # object: traced symbols
     moved = eta @ Phi.T
     if beam.data.second_order is not None:
         if rate and coordinates is None:
