@@ -58,7 +58,8 @@ def simulate_controlled_generated(controlled: ControlledModel, q0: Any, qdot0: A
         Keep every ``store_every``-th step (the last one always).
     divergence_bound, stability_check
         As in :func:`ctmm.control.planar_time.simulate_closed_loop` (the step checked against the
-        plant's linearised limit, loops not included; the bound on the stored rows after the run).
+        plant's linearised limit, loops not included; the bound and modal beams' deflection on the stored
+        rows after the run).
     cache_dir : path, optional
         Of :func:`ctmm.codegen.shared_library`.
     scene : CompiledScene, optional
@@ -106,7 +107,7 @@ def simulate_controlled_generated(controlled: ControlledModel, q0: Any, qdot0: A
         return signal_result(SignalSystem(model, units, list(controlled.loops)), time, signals, "rk4-generated",
                              {**info, **extra})
 
-    check_stored(guard, t, full[:, :n], full[:, n:2 * n], result)
+    check_stored(guard, t, full[:, :n], full[:, n:2 * n], result, model=model, step=h)
     controller = full[:, 2 * n:]
     if not np.all(np.isfinite(controller)):
         k = int(np.flatnonzero(~np.all(np.isfinite(controller), axis=1))[0])

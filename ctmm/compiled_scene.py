@@ -488,8 +488,9 @@ def simulate_rk4_generated(model: PlanarModel, q0: Any, qdot0: Any, *, t_final: 
 
     Same arguments and result as :func:`ctmm.planar.integrate.simulate_rk4` (method label
     ``"rk4-generated"``, ``extra["compile_time_s"]``).  The stability limit is checked before the run
-    (linearisation through the generated accelerations); the divergence bound on the stored states
-    after the run (:class:`~ctmm.errors.SimulationError` with the history up to the last good state).
+    (linearisation through the generated accelerations); the divergence bound and modal beams' deflection
+    on the stored states after the run (:class:`~ctmm.errors.SimulationError` with the history up to the
+    last good state).
 
     ``scene``: a :class:`CompiledScene` of ``model`` with this ``store_every`` to reuse (building one
     whose library is in the cache builds no symbols: milliseconds); default: built now (``cache_dir``,
@@ -514,7 +515,8 @@ def simulate_rk4_generated(model: PlanarModel, q0: Any, qdot0: Any, *, t_final: 
     t, states, wall = scene.checked_run(q, v, h, n_steps, stability_check, ran)
     n = model.n_coordinates
     qs, vs = states[:, :n], states[:, n:]
-    check_stored(guard, t, qs, vs, lambda k: PlanarSimulation(model, t[:k], qs[:k], vs[:k], "rk4-generated", wall))
+    check_stored(guard, t, qs, vs, lambda k: PlanarSimulation(model, t[:k], qs[:k], vs[:k], "rk4-generated", wall),
+                 model=model, step=h)
     return PlanarSimulation(model, t, qs, vs, "rk4-generated", wall, n_evaluations=4 * n_steps,
                             extra={"compile_time_s": scene.compile_time_s})
 

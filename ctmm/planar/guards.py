@@ -162,19 +162,30 @@ def divergence_guard(model: PlanarModel, q0: np.ndarray, bound: float | None) ->
 
 
 def check_stored(guard: DivergenceGuard, t: np.ndarray, q: np.ndarray, qdot: np.ndarray,
-                 build: Callable[[int], object]) -> None:
+                 build: Callable[[int], object], *, model: PlanarModel | None = None, step: float | None = None,
+                 method: str = "rk4") -> None:
     """Check a whole stored history (compiled paths: no per-step Python work).
 
     Raises the :class:`SimulationError` of the first stored row that is non-finite or beyond
-    the bound, with ``partial_result = build(k)``: the history truncated before that row.
+    the bound, with ``partial_result = build(k)``: the history truncated before that row.  With
+    ``model``, a deformable family's own rule (modal beams, finite-element subsystems:
+    ``family.check_divergence`` with the fixed step ``step`` [s] of ``method``, the numpy path's label, so
+    that the message is the numpy path's) is checked on the stored rows after the first, in the order of
+    :func:`ctmm.planar.integrate.check_state`: at one row the coordinates and rates first.
     """
     bad = ~np.all(np.isfinite(q), axis=1) | ~np.all(np.isfinite(qdot), axis=1)
     if not math.isinf(guard.bound):
         with np.errstate(invalid="ignore"):
             bad |= np.max(np.abs(q - guard.reference), axis=1, initial=0.0) > guard.bound
-    if not np.any(bad):
+    k = int(np.argmax(bad)) if np.any(bad) else len(t)
+    family = None if model is None else model.deformable_family
+    for row in range(1, k if family is not None else 0):
+        try:
+            family.check_divergence(model, q[row], float(t[row]), step, method)
+        except SimulationError as exc:
+            raise with_partial(exc, lambda: build(row)) from None
+    if k == len(t):
         return
-    k = int(np.argmax(bad))
     try:
         guard.check(t[k], q[k])
         column = int(np.flatnonzero(~np.isfinite(qdot[k]))[0])
