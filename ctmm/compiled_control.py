@@ -25,7 +25,7 @@ from .errors import ModelError, SimulationError
 from .planar.guards import check_stored, divergence_guard
 from .planar.integrate import check_store_every, initial_coordinates, model_signals, step_total
 from .results import SimulationResult
-from .spatial.integrate import beam_deflection_weights, check_beam_deflection
+from .spatial.integrate import divergence_check
 from .spatial.model import SpatialModel
 from .signal_results import SignalSystem, signal_result
 
@@ -157,8 +157,9 @@ def simulate_spatial_controlled_generated(controlled: ControlledModel, q0: np.nd
     ModelError
         What the generated kernel cannot do (named), bad arguments, no compiler.
     SimulationError
-        A non-finite or diverging stored state, or a stored state in which a flexible body leaves its bounds
-        (:func:`~ctmm.spatial.integrate.check_beam_deflection`, after the run), with ``partial_result``.
+        A non-finite or diverging stored state, or a stored state in which a flexible body leaves its bounds: the
+        numpy loop driver's guard (:func:`~ctmm.spatial.integrate.divergence_check`, its message, time and
+        element) on the stored rows after the run, with ``partial_result``.
     """
     from .compiled_spatial_loops import CompiledControlledSpatial
     from .control.plants import plant_of
@@ -195,21 +196,15 @@ def simulate_spatial_controlled_generated(controlled: ControlledModel, q0: np.nd
         return signal_result(SignalSystem(model, units, list(controlled.loops)), time_rows, signals, "rk4-generated",
                              {**info, **extra})
 
-    distance = np.abs(full[:, :nq + nv] - full[:1, :nq + nv])
-    bad = ~np.all(np.isfinite(full), axis=1)
-    if divergence_bound is not None:
-        bad |= np.any(np.where(np.isfinite(distance), distance, 0.0) > divergence_bound, axis=1)
-    good = int(np.flatnonzero(bad)[0]) if np.any(bad) else len(t)
-    try:                                # flexible bodies' bounds, before any other failure (on the stored rows)
-        check_beam_deflection(model, beam_deflection_weights(model), t[:good], full[:good, :nq + nv],
-                              "rk4-generated; checked on the stored rows")
+    try:                                # the numpy loop driver's guard (the plant's): bound, finiteness, beams
+        divergence_check(model, full[0, :nq + nv], divergence_bound)(t, full[:, :nq + nv], "rk4")
     except SimulationError as exc:
         exc.partial_result = result(int(np.searchsorted(t, exc.time)))
         raise
+    bad = ~np.all(np.isfinite(full), axis=1)
     if np.any(bad):
         k = int(np.flatnonzero(bad)[0])
-        what = "non-finite" if not np.all(np.isfinite(full[k])) else f"beyond divergence_bound = {divergence_bound}"
-        raise SimulationError(f"{model.name}: the state (with controller states and delay ring) became {what} at "
+        raise SimulationError(f"{model.name}: the state (with controller states and delay ring) became non-finite at "
                               f"t = {t[k]:.6g} s (rk4-generated; checked on the stored rows)", time=float(t[k]),
                               element=model.name, partial_result=result(k))
     return result(len(t))

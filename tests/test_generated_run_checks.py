@@ -110,3 +110,29 @@ def test_a_kinematic_loop_model_bounds_the_coordinates_of_its_tree_as_on_the_num
     # the rates leave 1.0 from their start at t = 0.08 s, the crank angle at t = 0.206 s
     assert_same_failure(loop, "crank.theta", t_final=0.3, dt=1e-3, x0=q0, v0=v0, controllers=[idle],
                         divergence_bound=1.0, numpy=None)
+
+
+def test_a_spinning_modal_beam_stops_on_its_deflection_before_a_later_coordinate_bound_on_the_scheme_path():
+    """Newmark on a beam spun above its first critical speed without geometric stiffening, ``divergence_bound = 2``:
+    the deflection bound exceeds the length at t = 0.035 s, a modal coordinate leaves the bound at t = 0.105 s; the
+    numpy path checks both rules at every step and stops at the first (the generated scheme path reported the
+    later coordinate bound)."""
+    from ctmm.schemes import Newmark
+
+    model = PlanarModel.chain("spinning_beam", [Pinned("o"), ModalBeam(
+        "b", length=1.3, bending_stiffness=5.0, mass_per_length=0.7, n_modes=2, geometric_stiffening=False)],
+        gravity=(0.0, 0.0))
+    assert_same_failure(model, "b", method=Newmark(), t_final=0.5, dt=0.005, x0=[0.0, 0.01, 0.0],
+                        v0=[30.0, 0.0, 0.0], divergence_bound=2.0)
+
+
+@pytest.mark.parametrize("case", ["beam", "bound"])
+def test_a_controlled_spatial_run_stops_with_the_numpy_loop_drivers_message(case):
+    """Loops inside the generated spatial step: a beam past its deflection bound (no stiffening) and the hub angle
+    past ``divergence_bound`` (stiffened, a stable run) stop with the message of the numpy loop driver's guard
+    (:func:`ctmm.spatial.integrate.divergence_check`), not a message of the generated path's own."""
+    controlled = with_feedback(spinner(case == "bound"), [Feedback("rate", "hub.angle_rate", "arm.force_y",
+                                                                   gain=0.0)])
+    options = dict(divergence_bound=0.5) if case == "bound" else {}
+    assert_same_failure(controlled, "spinner" if case == "bound" else "arm", method="rk4", t_final=2.0, dt=0.01,
+                        **SPIN, **options)
