@@ -136,3 +136,20 @@ def test_a_controlled_spatial_run_stops_with_the_numpy_loop_drivers_message(case
     options = dict(divergence_bound=0.5) if case == "bound" else {}
     assert_same_failure(controlled, "spinner" if case == "bound" else "arm", method="rk4", t_final=2.0, dt=0.01,
                         **SPIN, **options)
+
+
+@pytest.mark.parametrize("case", ["beam", "bound"])
+def test_a_spatial_scheme_run_stops_with_the_numpy_schemes_message(case):
+    """Newmark in generated C on the spinning beam: past its deflection bound (no stiffening) and the hub angle past
+    ``divergence_bound`` (stiffened): the numpy scheme path's message (its method label aside), time, element and
+    partial result."""
+    from ctmm.schemes import Newmark
+
+    options = dict(divergence_bound=0.5) if case == "bound" else {}
+    model = spinner(case == "bound")
+    numpy_error, generated = (failure(model, compiled, method=Newmark(), t_final=2.0, dt=0.01, **SPIN, **options)
+                              for compiled in (False, True))
+    assert generated.element == numpy_error.element == ("spinner" if case == "bound" else "arm")
+    assert generated.time == numpy_error.time and 0.0 < generated.time < 2.0
+    assert str(generated) == str(numpy_error).replace("(dt-tmm/", "(dt-tmm-generated/")
+    np.testing.assert_array_equal(generated.partial_result.time, numpy_error.partial_result.time)
