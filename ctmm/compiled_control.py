@@ -19,6 +19,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from .compiled_scene import CompiledScene
+from .compiled_spatial_guard import replay_failure
 from .control.controlled_model import ControlledModel
 from .control.planar_time import loop_unit
 from .errors import ModelError, SimulationError
@@ -198,8 +199,12 @@ def simulate_spatial_controlled_generated(controlled: ControlledModel, q0: np.nd
 
     try:                                # the numpy loop driver's guard (the plant's): bound, finiteness, beams
         divergence_check(model, full[0, :nq + nv], divergence_bound)(t, full[:, :nq + nv], "rk4")
-    except SimulationError as exc:
-        exc.partial_result = result(int(np.searchsorted(t, exc.time)))
+    except SimulationError as exc:      # on the stored rows; the steps since the last good one replayed one by one
+        k = int(np.searchsorted(t, exc.time))
+        replay_failure(model, scene.plain_step, full[0], full[k - 1], np.zeros(len(scene.actuators)),
+                       scene.parameters, h, int(round(t[k - 1] / h)), int(round(t[k] / h)), divergence_bound,
+                       lambda: result(k), label="rk4", size=nq + nv)
+        exc.partial_result = result(k)
         raise
     bad = ~np.all(np.isfinite(full), axis=1)
     if np.any(bad):

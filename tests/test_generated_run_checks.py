@@ -126,16 +126,18 @@ def test_a_spinning_modal_beam_stops_on_its_deflection_before_a_later_coordinate
                         v0=[30.0, 0.0, 0.0], divergence_bound=2.0)
 
 
+@pytest.mark.parametrize("store_every", [1, 7])
 @pytest.mark.parametrize("case", ["beam", "bound"])
-def test_a_controlled_spatial_run_stops_with_the_numpy_loop_drivers_message(case):
+def test_a_controlled_spatial_run_stops_with_the_numpy_loop_drivers_message(case, store_every):
     """Loops inside the generated spatial step: a beam past its deflection bound (no stiffening) and the hub angle
     past ``divergence_bound`` (stiffened, a stable run) stop with the message of the numpy loop driver's guard
-    (:func:`ctmm.spatial.integrate.divergence_check`), not a message of the generated path's own."""
+    (:func:`ctmm.spatial.integrate.divergence_check`), not a message of the generated path's own, at the failing
+    step also between stored rows (``store_every = 7``: the interval replayed step by step)."""
     controlled = with_feedback(spinner(case == "bound"), [Feedback("rate", "hub.angle_rate", "arm.force_y",
                                                                    gain=0.0)])
     options = dict(divergence_bound=0.5) if case == "bound" else {}
     assert_same_failure(controlled, "spinner" if case == "bound" else "arm", method="rk4", t_final=2.0, dt=0.01,
-                        **SPIN, **options)
+                        store_every=store_every, **SPIN, **options)
 
 
 @pytest.mark.parametrize("case", ["beam", "bound"])
