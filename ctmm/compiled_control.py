@@ -108,7 +108,8 @@ def simulate_controlled_generated(controlled: ControlledModel, q0: Any, qdot0: A
         return signal_result(SignalSystem(model, units, list(controlled.loops)), time, signals, "rk4-generated",
                              {**info, **extra})
 
-    check_stored(guard, t, full[:, :n], full[:, n:2 * n], result, model=model, step=h)
+    check_stored(guard, t, full[:, :n], full[:, n:2 * n], result, model=model, step=h, states=full,
+                 replay=scene.replay_step(h))
     controller = full[:, 2 * n:]
     if not np.all(np.isfinite(controller)):
         k = int(np.flatnonzero(~np.all(np.isfinite(controller), axis=1))[0])

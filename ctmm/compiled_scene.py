@@ -54,7 +54,7 @@ import copy
 import math
 import os
 import time as _time
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -363,6 +363,12 @@ class CompiledScene:
         first = np.concatenate([q, qdot]) if self.loops is None else self.loops.initial_state(q, qdot)
         return np.concatenate([[0.0], steps * h]), np.vstack([first[None], states]), wall
 
+    def replay_step(self, dt: float) -> Callable[[np.ndarray, int], np.ndarray]:
+        """``step(state, k)``: the whole state after RK4 step ``k`` of ``dt`` [s] from ``state``, no inputs (a
+        failing stored interval run again step by step, :func:`ctmm.planar.guards.check_stored`)."""
+        held = np.zeros(len(self.actuators))
+        return lambda state, k: self.continue_run(np.asarray(state, float), held, dt, 1, k)[-1]
+
     def continue_run(self, state: np.ndarray, held: np.ndarray, dt: float, n_steps: int, first_step: int,
                      runner: BlockRunner | None = None) -> np.ndarray:
         """Stored states (rows, :attr:`state_size`) of ``n_steps`` RK4 steps of ``dt`` [s] from the whole state
@@ -516,7 +522,7 @@ def simulate_rk4_generated(model: PlanarModel, q0: Any, qdot0: Any, *, t_final: 
     n = model.n_coordinates
     qs, vs = states[:, :n], states[:, n:]
     check_stored(guard, t, qs, vs, lambda k: PlanarSimulation(model, t[:k], qs[:k], vs[:k], "rk4-generated", wall),
-                 model=model, step=h)
+                 model=model, step=h, states=states, replay=scene.replay_step(h))
     return PlanarSimulation(model, t, qs, vs, "rk4-generated", wall, n_evaluations=4 * n_steps,
                             extra={"compile_time_s": scene.compile_time_s})
 

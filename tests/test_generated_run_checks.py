@@ -75,16 +75,19 @@ def assert_same_failure(model, element: str, numpy: bool | None = False, **optio
         np.testing.assert_allclose(ours[name], theirs[name], rtol=1e-9, atol=1e-12, err_msg=name)
 
 
-def test_a_diverging_modal_beam_stops_the_same_on_the_plain_generated_path():
+@pytest.mark.parametrize("store_every", [1, 3])
+def test_a_diverging_modal_beam_stops_the_same_on_the_plain_generated_path(store_every):
+    """Also between stored rows (``store_every = 3``: the failing step 7 is replayed from the stored step 6)."""
     model = hub_beam()
-    assert_same_failure(model, "b", method="rk4", stability_check="ignore", **START)
+    assert_same_failure(model, "b", method="rk4", stability_check="ignore", store_every=store_every, **START)
     bounded = failure(model, True, method="rk4", stability_check="ignore", **START)
     assert "deflection bound" in str(bounded) and "exceeds its length 1.3 m" in str(bounded)
 
 
-def test_a_diverging_modal_beam_stops_the_same_with_a_loop_in_the_step():
+@pytest.mark.parametrize("store_every", [1, 4])
+def test_a_diverging_modal_beam_stops_the_same_with_a_loop_in_the_step(store_every):
     controlled = with_feedback(hub_beam(), [Feedback("hold", "b.theta", "o.torque", gain=0.0)])
-    assert_same_failure(controlled, "b", method="rk4", stability_check="ignore", **START)
+    assert_same_failure(controlled, "b", method="rk4", stability_check="ignore", store_every=store_every, **START)
 
 
 def test_a_diverging_modal_beam_stops_the_same_with_a_cosimulated_controller():

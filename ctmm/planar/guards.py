@@ -163,7 +163,8 @@ def divergence_guard(model: PlanarModel, q0: np.ndarray, bound: float | None) ->
 
 def check_stored(guard: DivergenceGuard, t: np.ndarray, q: np.ndarray, qdot: np.ndarray,
                  build: Callable[[int], object], *, model: PlanarModel | None = None, step: float | None = None,
-                 method: str = "rk4") -> None:
+                 method: str = "rk4", replay: Callable[[np.ndarray, int], np.ndarray] | None = None,
+                 states: np.ndarray | None = None) -> None:
     """Check a whole stored history (compiled paths: no per-step Python work).
 
     Raises the :class:`SimulationError` of the first stored row that is non-finite or beyond
@@ -171,28 +172,47 @@ def check_stored(guard: DivergenceGuard, t: np.ndarray, q: np.ndarray, qdot: np.
     ``model``, a deformable family's own rule (modal beams, finite-element subsystems:
     ``family.check_divergence`` with the fixed step ``step`` [s] of ``method``, the numpy path's label, so
     that the message is the numpy path's) is checked on the stored rows after the first, in the order of
-    :func:`ctmm.planar.integrate.check_state`: at one row the coordinates and rates first.
+    :func:`ctmm.planar.integrate.check_state`: at one row the coordinates and rates first.  With ``replay``
+    (``replay(state, k)``: the state after step ``k`` from ``state`` after step ``k - 1``; needs ``step`` and the
+    whole stored ``states`` of which ``q`` and ``qdot`` are the first columns), the steps between the last good
+    stored row and the failing one are run again one by one and checked, so that the failure is reported at its
+    step (time) as on the numpy path, which checks after every step.
     """
+    n = q.shape[1]
+
+    def rules(time: float, q_k: np.ndarray, qdot_k: np.ndarray) -> None:    # check_state's, in its order
+        guard.check(time, q_k)
+        if not np.all(np.isfinite(qdot_k)):
+            column = int(np.flatnonzero(~np.isfinite(qdot_k))[0])
+            raise SimulationError(f"non-finite rate at t = {time:.6g} s in {guard.names[column] + '_dot'!r}",
+                                  time=float(time), element=guard.names[column])
+        if family is not None:
+            family.check_divergence(model, q_k, float(time), step, method)
+
+    def fail(row: int) -> None:
+        try:
+            if replay is not None and row > 0:
+                state = states[row - 1]
+                for k in range(int(round(t[row - 1] / step)), int(round(t[row] / step))):
+                    state = replay(state, k)
+                    rules((k + 1) * step, state[:n], state[n:2 * n])
+            rules(t[row], q[row], qdot[row])
+        except SimulationError as exc:
+            raise with_partial(exc, lambda: build(row)) from None
+
     bad = ~np.all(np.isfinite(q), axis=1) | ~np.all(np.isfinite(qdot), axis=1)
     if not math.isinf(guard.bound):
         with np.errstate(invalid="ignore"):
             bad |= np.max(np.abs(q - guard.reference), axis=1, initial=0.0) > guard.bound
-    k = int(np.argmax(bad)) if np.any(bad) else len(t)
+    first = int(np.argmax(bad)) if np.any(bad) else len(t)
     family = None if model is None else model.deformable_family
-    for row in range(1, k if family is not None else 0):
+    for row in range(1, first if family is not None else 0):
         try:
             family.check_divergence(model, q[row], float(t[row]), step, method)
-        except SimulationError as exc:
-            raise with_partial(exc, lambda: build(row)) from None
-    if k == len(t):
-        return
-    try:
-        guard.check(t[k], q[k])
-        column = int(np.flatnonzero(~np.isfinite(qdot[k]))[0])
-        raise SimulationError(f"non-finite rate at t = {t[k]:.6g} s in {guard.names[column] + '_dot'!r}",
-                              time=float(t[k]), element=guard.names[column])
-    except SimulationError as exc:
-        raise with_partial(exc, lambda: build(k)) from None
+        except SimulationError:
+            fail(row)
+    if first < len(t):
+        fail(first)
 
 
 def with_partial(error: SimulationError, build: Callable[[], object]) -> SimulationError:
