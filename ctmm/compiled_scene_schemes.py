@@ -561,8 +561,9 @@ def simulate_scheme_generated(model: PlanarModel, q0: Any, qdot0: Any, *, t_fina
 
     failed = np.flatnonzero(states[:, 6 * n] > 0.0)
     good = len(states) if not failed.size else int(failed[0])
-    check_stored(guard, t[:good], qs[:good], vs[:good], partial, model=model, step=h,    # and modal beams' deflection
-                 method=type(scheme).__name__.lower())
+    held = np.zeros(len(compiled.actuators))   # modal beams' deflection too; a failing interval replayed step by step
+    check_stored(guard, t[:good], qs[:good], vs[:good], partial, model=model, step=h, states=states,
+                 method=type(scheme).__name__.lower(), replay=lambda x, k: compiled.continue_run(x, held, h, 1, k)[-1])
     if failed.size:
         raise not_converged(compiled, states[failed[0]], h, partial(good))
     return PlanarSimulation(model, t, qs, vs, label, wall, n_evaluations=int(states[-1, 6 * n + 2]) + 1,

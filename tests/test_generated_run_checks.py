@@ -115,18 +115,20 @@ def test_a_kinematic_loop_model_bounds_the_coordinates_of_its_tree_as_on_the_num
                         divergence_bound=1.0, numpy=None)
 
 
-def test_a_spinning_modal_beam_stops_on_its_deflection_before_a_later_coordinate_bound_on_the_scheme_path():
+@pytest.mark.parametrize("store_every", [1, 4])
+def test_a_spinning_modal_beam_stops_on_its_deflection_before_a_later_coordinate_bound_on_the_scheme_path(
+        store_every):
     """Newmark on a beam spun above its first critical speed without geometric stiffening, ``divergence_bound = 2``:
     the deflection bound exceeds the length at t = 0.035 s, a modal coordinate leaves the bound at t = 0.105 s; the
     numpy path checks both rules at every step and stops at the first (the generated scheme path reported the
-    later coordinate bound)."""
+    later coordinate bound); with ``store_every = 4`` the failing step 7 is replayed from the stored step 4."""
     from ctmm.schemes import Newmark
 
     model = PlanarModel.chain("spinning_beam", [Pinned("o"), ModalBeam(
         "b", length=1.3, bending_stiffness=5.0, mass_per_length=0.7, n_modes=2, geometric_stiffening=False)],
         gravity=(0.0, 0.0))
     assert_same_failure(model, "b", method=Newmark(), t_final=0.5, dt=0.005, x0=[0.0, 0.01, 0.0],
-                        v0=[30.0, 0.0, 0.0], divergence_bound=2.0)
+                        v0=[30.0, 0.0, 0.0], divergence_bound=2.0, store_every=store_every)
 
 
 @pytest.mark.parametrize("store_every", [1, 7])
