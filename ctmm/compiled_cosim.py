@@ -28,7 +28,8 @@ states of the run; the delay must be a whole multiple of ``dt`` here (the numpy 
 history between steps; on the grid both read the stored step).  Before ``t = 0`` the initial state is held.
 Controller outputs must drive actuators of the generated kernel (planar: not beam station loads).  A chain's
 divergence guard is its own (point positions from rest, :class:`~ctmm.control.chain_plant.ChainPlant`), checked at
-every step as on the numpy path.
+every step as on the numpy path; so are a planar model's modal beams and a spatial model's beams (each row through the
+plant's guard: the numpy path's rules and messages), and a kinematic loop model's bound is its tree's coordinates.
 """
 from __future__ import annotations
 
