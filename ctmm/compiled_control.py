@@ -19,13 +19,14 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from .compiled_scene import CompiledScene
+from .compiled_spatial_guard import replay_failure
 from .control.controlled_model import ControlledModel
 from .control.loop_rows import loop_unit
 from .errors import ModelError, SimulationError
 from .planar.guards import check_stored, divergence_guard
 from .planar.integrate import check_store_every, initial_coordinates, model_signals, step_total
 from .results import SimulationResult
-from .spatial.integrate import beam_deflection_weights, check_beam_deflection
+from .spatial.integrate import divergence_check
 from .spatial.model import SpatialModel
 from .signal_results import SignalSystem, signal_result
 
@@ -59,7 +60,8 @@ def simulate_controlled_generated(controlled: ControlledModel, q0: Any, qdot0: A
         Keep every ``store_every``-th step (the last one always).
     divergence_bound, stability_check
         As in :func:`ctmm.control.planar_time.simulate_closed_loop` (the step checked against the
-        plant's linearised limit, loops not included; the bound on the stored rows after the run).
+        plant's linearised limit, loops not included; the bound and modal beams' deflection on the stored
+        rows after the run).
     cache_dir : path, optional
         Of :func:`ctmm.codegen.shared_library`.
     scene : CompiledScene, optional
@@ -110,7 +112,8 @@ def simulate_controlled_generated(controlled: ControlledModel, q0: Any, qdot0: A
         return signal_result(SignalSystem(model, units, list(controlled.loops)), time, signals, "rk4-generated",
                              {**info, **extra})
 
-    check_stored(guard, t, full[:, :n], full[:, n:2 * n], result)
+    check_stored(guard, t, full[:, :n], full[:, n:2 * n], result, model=model, step=h, states=full,
+                 replay=scene.replay_step(h))
     controller = full[:, 2 * n:]
     if not np.all(np.isfinite(controller)):
         k = int(np.flatnonzero(~np.all(np.isfinite(controller), axis=1))[0])
@@ -164,8 +167,9 @@ def simulate_spatial_controlled_generated(controlled: ControlledModel, q0: np.nd
     ModelError
         What the generated kernel cannot do (named), bad arguments, no compiler.
     SimulationError
-        A non-finite or diverging stored state, or a stored state in which a flexible body leaves its bounds
-        (:func:`~ctmm.spatial.integrate.check_beam_deflection`, after the run), with ``partial_result``.
+        A non-finite or diverging stored state, or a stored state in which a flexible body leaves its bounds: the
+        numpy loop driver's guard (:func:`~ctmm.spatial.integrate.divergence_check`, its message, time and
+        element) on the stored rows after the run, with ``partial_result``.
     """
     from .compiled_spatial_loops import CompiledControlledSpatial
     from .control.plants import plant_of
@@ -205,21 +209,19 @@ def simulate_spatial_controlled_generated(controlled: ControlledModel, q0: np.nd
         return signal_result(SignalSystem(model, units, list(controlled.loops)), time_rows, signals, "rk4-generated",
                              {**info, **extra})
 
-    distance = np.abs(full[:, :nq + nv] - full[:1, :nq + nv])
-    bad = ~np.all(np.isfinite(full), axis=1)
-    if divergence_bound is not None:
-        bad |= np.any(np.where(np.isfinite(distance), distance, 0.0) > divergence_bound, axis=1)
-    good = int(np.flatnonzero(bad)[0]) if np.any(bad) else len(t)
-    try:                                # flexible bodies' bounds, before any other failure (on the stored rows)
-        check_beam_deflection(model, beam_deflection_weights(model), t[:good], full[:good, :nq + nv],
-                              "rk4-generated; checked on the stored rows")
-    except SimulationError as exc:
-        exc.partial_result = result(int(np.searchsorted(t, exc.time)))
+    try:                                # the numpy loop driver's guard (the plant's): bound, finiteness, beams
+        divergence_check(model, full[0, :nq + nv], divergence_bound)(t, full[:, :nq + nv], "rk4")
+    except SimulationError as exc:      # on the stored rows; the steps since the last good one replayed one by one
+        k = int(np.searchsorted(t, exc.time))
+        replay_failure(model, scene.plain_step, full[0], full[k - 1], np.zeros(len(scene.actuators)),
+                       scene.parameters, h, int(round(t[k - 1] / h)), int(round(t[k] / h)), divergence_bound,
+                       lambda: result(k), label="rk4", size=nq + nv)
+        exc.partial_result = result(k)
         raise
+    bad = ~np.all(np.isfinite(full), axis=1)
     if np.any(bad):
         k = int(np.flatnonzero(bad)[0])
-        what = "non-finite" if not np.all(np.isfinite(full[k])) else f"beyond divergence_bound = {divergence_bound}"
-        raise SimulationError(f"{model.name}: the state (with controller states and delay ring) became {what} at "
+        raise SimulationError(f"{model.name}: the state (with controller states and delay ring) became non-finite at "
                               f"t = {t[k]:.6g} s (rk4-generated; checked on the stored rows)", time=float(t[k]),
                               element=model.name, partial_result=result(k))
     return result(len(t))

@@ -28,7 +28,8 @@ states of the run; the delay must be a whole multiple of ``dt`` here (the numpy 
 history between steps; on the grid both read the stored step).  Before ``t = 0`` the initial state is held.
 Controller outputs must drive actuators of the generated kernel (planar: not beam station loads).  A chain's
 divergence guard is its own (point positions from rest, :class:`~ctmm.control.chain_plant.ChainPlant`), checked at
-every step as on the numpy path.
+every step as on the numpy path; so are a planar model's modal beams and a spatial model's beams (each row through the
+plant's guard: the numpy path's rules and messages), and a kinematic loop model's bound is its tree's coordinates.
 """
 from __future__ import annotations
 
@@ -47,14 +48,16 @@ from .control.chain_plant import ChainPlant
 from .control.controlled_model import ControlledModel
 from .control.cosim import CoSimulation, check_wiring
 from .control.loops import ControlledChain
-from .control.plants import PlanarPlant, plant_of
+from .control.plants import plant_of
 from .errors import ModelError, SimulationError
 from .generated_loop import BlockRunner
 from .planar.guards import divergence_guard, with_partial
 from .planar.integrate import check_store_every, step_total
+from .planar.model import PlanarModel
 from .progress import progress_bar
 from .results import SimulationResult
 from .signal_results import SignalSystem, signal_result
+from .spatial.integrate import beam_deflection_weights
 from .spatial.model import SpatialModel
 
 __all__ = ["simulate_cosimulated_generated", "simulate_cosimulated_scheme", "stored_offsets"]
@@ -181,13 +184,11 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
     nq, nv = plant.n_positions, plant.n_velocities
     first = scene.loops.initial_state(np.asarray(q0, float), np.asarray(v0, float))
     guard = plant.guard(q0, divergence_bound, v0)
-    if isinstance(plant, PlanarPlant):      # the numpy path's bound: the coordinates from q0 (default 1e6 max(1, .))
-        planar = divergence_guard(model, np.asarray(q0, float), divergence_bound)
-        watched, reference, bound = nq, np.asarray(planar.reference, float), planar.bound
-    else:                                   # spatial: q and v from the start (default: finiteness only)
-        watched, reference = nq + nv, first[:nq + nv]
-        bound = math.inf if divergence_bound is None else divergence_bound
-    reference_list = reference.tolist()
+    screen = None if chain else _guard_screen(plant, q0, first, divergence_bound)    # None: each row to the guard
+    if screen is not None:
+        watched, reference, bound = screen
+        reference_list = reference.tolist()
+    label = "rk4-generated" if chain else "rk4"     # the numpy path's label in the plant's own messages
     history: deque = deque(maxlen=max(delays, default=0) + 1)     # (step, state) of the delayed reads
     history.append((0, first))
     times, rows = [0.0], [first]
@@ -239,13 +240,13 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
                 for name, value in zip(c.outputs, outputs_held)}
 
     def first_bad(block: np.ndarray, k: int) -> int | None:
-        if chain:                                   # positions from rest (the numpy path's guard), every step
+        if screen is None:          # a chain (positions from rest), modal beams, spatial beams: the guard, every step
             finite = np.all(np.isfinite(block), axis=1).tolist()
             for j, row in enumerate(block):
                 if not finite[j]:
                     return j
                 try:
-                    guard((k + 1 + j) * dt, row, dt, "rk4-generated")
+                    guard((k + 1 + j) * dt, row, dt, label)
                 except SimulationError:
                     return j
             return None
@@ -265,7 +266,7 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
 
     def fail(step: int, row: np.ndarray) -> None:
         t = float(step * dt)
-        guard(t, row, dt, "rk4-generated" if chain else "rk4")   # the plant's own message where it applies
+        guard(t, row, dt, label)                    # the plant's own message where it applies
         what = "non-finite" if not np.all(np.isfinite(row)) else f"beyond divergence_bound = {divergence_bound}"
         raise SimulationError(f"{getattr(model, 'name', 'model')}: the state (with controller states and delay "
                               f"ring) became {what} at t = {t:.6g} s (rk4-generated)", time=t,
@@ -315,6 +316,27 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
             bar.update(len(block))
 
     return _sampled_run(advance, result, times, bar, master)
+
+
+def _guard_screen(plant: Any, q0: np.ndarray, first: np.ndarray, bound: float | None
+                 ) -> tuple[int, np.ndarray, float] | None:
+    """The run guard of a planar or spatial plant (:meth:`~ctmm.control.plants.Plant.guard`, the numpy path's) as
+    one test of a block of stored rows: ``(watched, reference, bound)``, a row passes when every entry is finite
+    and its first ``watched`` entries are within ``bound`` of ``reference`` (planar: the coordinates from ``q0``,
+    default ``1e6 max(1, |q0|)``, :func:`ctmm.planar.guards.divergence_guard`; spatial: ``[q ; v]`` from the
+    initial state ``first``, default finiteness only, :func:`ctmm.spatial.integrate.divergence_check`; a kinematic
+    loop model's: its tree's).  ``None`` where the guard checks more than that (a planar deformable family's
+    deflection, spatial beams' deflection): then each row goes through the guard itself, as on the numpy path."""
+    tree = getattr(plant.model, "tree", plant.model)
+    if isinstance(tree, PlanarModel):
+        if tree.deformable_family is not None:
+            return None
+        coordinates = divergence_guard(tree, np.asarray(q0, float), bound)
+        return plant.n_positions, np.asarray(coordinates.reference, float), coordinates.bound
+    if beam_deflection_weights(tree):
+        return None
+    size = plant.n_positions + plant.n_velocities
+    return size, np.asarray(first[:size], float), math.inf if bound is None else float(bound)
 
 
 def simulate_cosimulated_scheme(system: Any, t_final: float, dt: float | None, scheme: Any, *,

@@ -54,7 +54,7 @@ import copy
 import math
 import os
 import time as _time
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -363,6 +363,12 @@ class CompiledScene:
         first = np.concatenate([q, qdot]) if self.loops is None else self.loops.initial_state(q, qdot)
         return np.concatenate([[0.0], steps * h]), np.vstack([first[None], states]), wall
 
+    def replay_step(self, dt: float) -> Callable[[np.ndarray, int], np.ndarray]:
+        """``step(state, k)``: the whole state after RK4 step ``k`` of ``dt`` [s] from ``state``, no inputs (a
+        failing stored interval run again step by step, :func:`ctmm.planar.guards.check_stored`)."""
+        held = np.zeros(len(self.actuators))
+        return lambda state, k: self.continue_run(np.asarray(state, float), held, dt, 1, k)[-1]
+
     def continue_run(self, state: np.ndarray, held: np.ndarray, dt: float, n_steps: int, first_step: int,
                      runner: BlockRunner | None = None) -> np.ndarray:
         """Stored states (rows, :attr:`state_size`) of ``n_steps`` RK4 steps of ``dt`` [s] from the whole state
@@ -495,8 +501,9 @@ def simulate_rk4_generated(model: PlanarModel, q0: Any, qdot0: Any, *, t_final: 
 
     Same arguments and result as :func:`ctmm.planar.integrate.simulate_rk4` (method label
     ``"rk4-generated"``, ``extra["compile_time_s"]``).  The stability limit is checked before the run
-    (linearisation through the generated accelerations); the divergence bound on the stored states
-    after the run (:class:`~ctmm.errors.SimulationError` with the history up to the last good state).
+    (linearisation through the generated accelerations); the divergence bound and modal beams' deflection
+    on the stored states after the run (:class:`~ctmm.errors.SimulationError` with the history up to the
+    last good state).
 
     ``scene``: a :class:`CompiledScene` of ``model`` with this ``store_every`` to reuse (building one
     whose library is in the cache builds no symbols: milliseconds); default: built now (``cache_dir``,
@@ -521,7 +528,8 @@ def simulate_rk4_generated(model: PlanarModel, q0: Any, qdot0: Any, *, t_final: 
     t, states, wall = scene.checked_run(q, v, h, n_steps, stability_check, ran)
     n = model.n_coordinates
     qs, vs = states[:, :n], states[:, n:]
-    check_stored(guard, t, qs, vs, lambda k: PlanarSimulation(model, t[:k], qs[:k], vs[:k], "rk4-generated", wall))
+    check_stored(guard, t, qs, vs, lambda k: PlanarSimulation(model, t[:k], qs[:k], vs[:k], "rk4-generated", wall),
+                 model=model, step=h, states=states, replay=scene.replay_step(h))
     return PlanarSimulation(model, t, qs, vs, "rk4-generated", wall, n_evaluations=4 * n_steps,
                             extra={"compile_time_s": scene.compile_time_s})
 

@@ -51,9 +51,9 @@ import numpy as np
 from . import validation
 from .compiled_parameters import compile_refusal, compiled_actuators, parameter_vector
 from .compiled_scene import symbolic_accelerations_with_inputs
-from .errors import ConvergenceError, ModelError, SimulationError
+from .errors import ConvergenceError, ModelError
 from .generated_loop import BlockRunner, compiled_time_loop, run_blocks
-from .planar.guards import check_scheme, check_stored, divergence_guard, with_partial
+from .planar.guards import check_scheme, check_stored, divergence_guard
 from .planar.integrate import PlanarSimulation, check_store_every, initial_coordinates, step_total
 from .planar.model import PlanarModel
 from .schemes import History, Scheme, as_scheme
@@ -561,13 +561,9 @@ def simulate_scheme_generated(model: PlanarModel, q0: Any, qdot0: Any, *, t_fina
 
     failed = np.flatnonzero(states[:, 6 * n] > 0.0)
     good = len(states) if not failed.size else int(failed[0])
-    check_stored(guard, t[:good], qs[:good], vs[:good], partial)
-    family = model.deformable_family
-    for k in range(1, good if family is not None else 0):      # modal beams: deflection beyond the length
-        try:
-            family.check_divergence(model, qs[k], float(t[k]), h, type(scheme).__name__.lower())
-        except SimulationError as exc:
-            raise with_partial(exc, lambda: partial(k)) from None
+    held = np.zeros(len(compiled.actuators))   # modal beams' deflection too; a failing interval replayed step by step
+    check_stored(guard, t[:good], qs[:good], vs[:good], partial, model=model, step=h, states=states,
+                 method=type(scheme).__name__.lower(), replay=lambda x, k: compiled.continue_run(x, held, h, 1, k)[-1])
     if failed.size:
         raise not_converged(compiled, states[failed[0]], h, partial(good))
     return PlanarSimulation(model, t, qs, vs, label, wall, n_evaluations=int(states[-1, 6 * n + 2]) + 1,

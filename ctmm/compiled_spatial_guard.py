@@ -68,14 +68,17 @@ def guarded_step(model: SpatialModel, step: Any) -> Any:
 
 def replay_failure(model: SpatialModel, plain_step: Callable[..., Any], start: np.ndarray, stored: np.ndarray,
                    u: np.ndarray, p: np.ndarray, dt: float, first_step: int, last_step: int,
-                   divergence_bound: float | None, partial: Callable[[], Any]) -> None:
+                   divergence_bound: float | None, partial: Callable[[], Any], *, label: str = "rk4-generated",
+                   size: int | None = None) -> None:
     """Run ``plain_step`` (the unguarded generated step) from the stored state ``stored`` after
     ``first_step`` steps up to step ``last_step``, checking each new state as the numpy RK4 does
     (:func:`~ctmm.spatial.integrate.divergence_check` from the initial state ``start``, at
-    ``t = k dt + dt``); raises its :class:`~ctmm.errors.SimulationError` (method ``"rk4-generated"``,
-    ``partial()`` as the partial result) and returns when no step fails."""
-    check = divergence_check(model, start, divergence_bound)
+    ``t = k dt + dt``, on the first ``size`` entries ``[q ; v]`` of a state that carries more, e.g. controller
+    states); raises its :class:`~ctmm.errors.SimulationError` (method ``label``, ``partial()`` as the partial
+    result) and returns when no step fails."""
+    size = len(start) if size is None else size
+    check = divergence_check(model, np.asarray(start, dtype=float)[:size], divergence_bound)
     x = np.asarray(stored, dtype=float).reshape(-1)
     for k in range(first_step, last_step):
         x = np.asarray(plain_step(x, u, dt, p, 0.0, float(k))).reshape(-1)
-        check(k * dt + dt, x, "rk4-generated", partial)
+        check(k * dt + dt, x[:size], label, partial)

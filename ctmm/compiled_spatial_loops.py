@@ -237,6 +237,7 @@ class CompiledControlledSpatial:
             else compiled_time_loop(build, self.store_every, self.rows, name,
                                     description=[("spatial loops", description)], **options)
         self._step, self._stride, self._blocks = loop.step, loop.stride, loop.blocks
+        self.plain_step = loop.step             # step(y, u, h, p, t0, k): a failing interval replayed step by step
         self.compile_time_s = clock.perf_counter() - start
 
     def continue_run(self, state: np.ndarray, held: np.ndarray, dt: float, n_steps: int, first_step: int,

@@ -55,7 +55,7 @@ from .planar.integrate import step_total
 from .results import SimulationResult
 from .schemes import Houbolt, Scheme, as_scheme
 from .spatial.frames import quaternion_rotation
-from .spatial.integrate import beam_deflection_weights, check_beam_deflection, initial_state, state_result
+from .spatial.integrate import divergence_check, initial_state, state_result
 from .spatial.lie import quaternion_product
 from .spatial.model import SpatialModel
 
@@ -445,18 +445,8 @@ def checked_spatial_result(compiled: CompiledSpatialScheme, times: np.ndarray, s
     failed = np.flatnonzero(states[:, status] > 0.0)
     good = len(states) if not failed.size else int(failed[0])
     trajectory = states[:good, :nq + n]
-    bad = ~np.all(np.isfinite(trajectory), axis=1)
-    if divergence_bound is not None:
-        bad |= np.any(np.abs(trajectory - trajectory[:1]) > divergence_bound, axis=1)
-    if np.any(bad):
-        first = int(np.flatnonzero(bad)[0])
-        what = f"beyond divergence_bound = {divergence_bound}" if np.all(np.isfinite(trajectory[first])) else \
-            "non-finite"
-        raise SimulationError(f"{model.name}: the state became {what} at t = {times[first]:.6g} s ({method}; checked "
-                              "on the stored states)", time=float(times[first]), element=model.name,
-                              partial_result=result(first))
-    try:
-        check_beam_deflection(model, beam_deflection_weights(model), times[:good], trajectory, method)
+    try:        # the numpy path's guard (bound, finiteness, beams: the first failing row, its message with this label)
+        divergence_check(model, trajectory[0], divergence_bound)(times[:good], trajectory, method)
     except SimulationError as exc:
         exc.partial_result = result(int(np.searchsorted(times, exc.time)))
         raise

@@ -125,6 +125,7 @@ def test_generated_accelerations_equal_the_lagrange_models(name):
 def test_generated_hub_beam_run_equals_rk4_of_the_lagrange_model():
     model = hub_beam()
     q0, v0 = _state(model, 2)
+    q0 = 0.5 * q0           # at twice this the deflection bound passes the beam's length at 0.028 s: both paths stop
     n = model.n_coordinates
     lagrange = FlexibleLagrange(model)
     expected = integrate_rk4(second_order_rate(lambda q, v, t: lagrange.accelerations(q, v, t), n),

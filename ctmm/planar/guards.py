@@ -162,26 +162,75 @@ def divergence_guard(model: PlanarModel, q0: np.ndarray, bound: float | None) ->
 
 
 def check_stored(guard: DivergenceGuard, t: np.ndarray, q: np.ndarray, qdot: np.ndarray,
-                 build: Callable[[int], object]) -> None:
+                 build: Callable[[int], object], *, model: PlanarModel | None = None, step: float | None = None,
+                 method: str = "rk4", replay: Callable[[np.ndarray, int], np.ndarray] | None = None,
+                 states: np.ndarray | None = None) -> None:
     """Check a whole stored history (compiled paths: no per-step Python work).
 
     Raises the :class:`SimulationError` of the first stored row that is non-finite or beyond
-    the bound, with ``partial_result = build(k)``: the history truncated before that row.
+    the bound, with ``partial_result = build(k)``: the history truncated before that row.  With
+    ``model``, a deformable family's own rule (modal beams, finite-element subsystems:
+    ``family.check_divergence`` with the fixed step ``step`` [s] of ``method``, the numpy path's label, so
+    that the message is the numpy path's) is checked on the stored rows after the first, in the order of
+    :func:`ctmm.planar.integrate.check_state`: at one row the coordinates and rates first.  With ``replay``
+    (``replay(state, k)``: the state after step ``k`` from ``state`` after step ``k - 1``; needs ``step`` and the
+    whole stored ``states`` of which ``q`` and ``qdot`` are the first columns), the steps between the last good
+    stored row and the failing one are run again one by one and checked, so that the failure is reported at its
+    step (time) as on the numpy path, which checks after every step.
     """
+    n = q.shape[1]
+
+    def rules(time: float, q_k: np.ndarray, qdot_k: np.ndarray) -> None:    # check_state's, in its order
+        guard.check(time, q_k)
+        if not np.all(np.isfinite(qdot_k)):
+            column = int(np.flatnonzero(~np.isfinite(qdot_k))[0])
+            raise SimulationError(f"non-finite rate at t = {time:.6g} s in {guard.names[column] + '_dot'!r}",
+                                  time=float(time), element=guard.names[column])
+        if family is not None:
+            family.check_divergence(model, q_k, float(time), step, method)
+
+    def fail(row: int) -> None:
+        try:
+            if replay is not None and row > 0:
+                state = states[row - 1]
+                for k in range(int(round(t[row - 1] / step)), int(round(t[row] / step))):
+                    state = replay(state, k)
+                    rules((k + 1) * step, state[:n], state[n:2 * n])
+            rules(t[row], q[row], qdot[row])
+        except SimulationError as exc:
+            raise with_partial(exc, lambda: build(row)) from None
+
     bad = ~np.all(np.isfinite(q), axis=1) | ~np.all(np.isfinite(qdot), axis=1)
     if not math.isinf(guard.bound):
         with np.errstate(invalid="ignore"):
             bad |= np.max(np.abs(q - guard.reference), axis=1, initial=0.0) > guard.bound
-    if not np.any(bad):
-        return
-    k = int(np.argmax(bad))
-    try:
-        guard.check(t[k], q[k])
-        column = int(np.flatnonzero(~np.isfinite(qdot[k]))[0])
-        raise SimulationError(f"non-finite rate at t = {t[k]:.6g} s in {guard.names[column] + '_dot'!r}",
-                              time=float(t[k]), element=guard.names[column])
-    except SimulationError as exc:
-        raise with_partial(exc, lambda: build(k)) from None
+    first = int(np.argmax(bad)) if np.any(bad) else len(t)
+    family = None if model is None else model.deformable_family
+    for row in (_deformation_suspects(model, q[1:first]) + 1).tolist() if family is not None else ():
+        try:
+            family.check_divergence(model, q[row], float(t[row]), step, method)
+        except SimulationError:
+            fail(row)
+    if first < len(t):
+        fail(first)
+
+
+def _deformation_suspects(model: PlanarModel, q: np.ndarray) -> np.ndarray:
+    """Indices of the rows of ``q`` (rows, coordinates) that the deformable family's rule must see: every row,
+    except for modal beams only (:func:`ctmm.flexible.outputs.check_divergence`: ``sum |eta_i| max|phi_i|`` plus
+    ``sqrt 2 sum |u_j|`` of the axial modes), whose rows with that bound below 0.999 of every beam's length
+    pass at once (a block test in place of one Python call per row)."""
+    suspect = np.zeros(len(q), dtype=bool)
+    for j, beam in model.beams.items():
+        data = beam.data
+        if not all(hasattr(data, name) for name in ("phi_bound", "nq", "np_")):
+            return np.arange(len(q))                       # another family (finite-element subsystems): each row
+        eta = np.abs(q[:, model.modal_index[j]])
+        with np.errstate(invalid="ignore", over="ignore"):
+            bound = eta[:, :data.nq] @ np.asarray(data.phi_bound, dtype=float) + math.sqrt(2.0) * eta[:, data.nq:].sum(
+                axis=1)
+            suspect |= ~(bound <= 0.999 * beam.length)
+    return np.flatnonzero(suspect)
 
 
 def with_partial(error: SimulationError, build: Callable[[], object]) -> SimulationError:
