@@ -47,7 +47,7 @@ import numpy as np
 from .control.controlled_model import ControlledModel
 from .errors import ModelError
 from .ode import rk4_step
-from .planar.model import FREE, PlanarModel
+from .planar.model import BUSHING, FREE, PlanarModel
 from .planar.ports import ActuatorInputs, PlanarPorts
 from .compiled_parameters import LoopNumbers, loop_parameter_layout, parameter_vector, symbolic_loop_numbers
 from .compiled_references import SymbolicReference, reference_at, symbolic_reference
@@ -195,8 +195,7 @@ class SymbolicKinematics:
             else:
                 angle, rate = driven[i]
                 self.theta[i], self.omega[i] = th + angle, om + rate
-        self.cos = [ca.cos(th) for th in self.theta]
-        self.sin = [ca.sin(th) for th in self.theta]
+        self.cos, self.sin = [ca.cos(th) for th in self.theta], [ca.sin(th) for th in self.theta]
         self._inboard: dict[int, tuple] = {}
 
     def rotate(self, i: int, x: Any, y: Any) -> tuple:
@@ -231,6 +230,8 @@ class SymbolicKinematics:
             out = ((q[ix], q[iy]), (v[ix], v[iy]))
         else:
             out = (tuple(float(x) for x in m.ground_position[i]), (0.0, 0.0))
+        if m.joint_kind[i] == BUSHING:      # plus the translational spring's offset (as PlanarModel.points)
+            out = tuple((a + x[int(m.xy_index[i][0])], b + x[int(m.xy_index[i][1])]) for (a, b), x in zip(out, (q, v)))
         self._inboard[i] = out
         return out
 
