@@ -258,7 +258,7 @@ class CompiledSpatialScheme(SchemeHooks):
         model = self.model
         q, v, u = ca.SX.sym("q", model.n_positions), ca.SX.sym("v", model.n_velocities), ca.SX.sym("u", self.input_size)
         p, t = ca.SX.sym("p", 0), ca.SX.sym("t")
-        return ca.Function("acceleration", [q, v, u, p, t], [self.rates.velocity_rate(q, v, u, p)])
+        return ca.Function("acceleration", [q, v, u, p, t], [self.rates.velocity_rate(q, v, u, p, t)])
 
     @property
     def status_index(self) -> int:
