@@ -85,3 +85,32 @@ def test_symbolic_points_follow_the_offsets():
     points = model.points(Q0, V0)
     got = np.asarray(f(Q0, V0)).ravel()
     assert np.max(np.abs(got - np.concatenate([points["com"][1], points["com_velocity"][1]]))) < 1e-14
+
+
+def test_a_loop_on_a_point_of_the_offset_body_equals_the_numpy_path():
+    """A real-time loop reading the tip link's centre of mass (it moves with the bushing offset) and driving
+    the elbow torque: the generated RK4 with the loop in the step equals the numpy loop driver's RK4."""
+    import ctmm
+    from ctmm.control import Feedback, with_feedback
+
+    controlled = with_feedback(arm(), [Feedback("tip", [("b.com.y", 3.0), ("b.com.vx", 0.2)], "elbow.torque",
+                                                gain=0.5)])
+    x0 = dict(zip(arm().coordinates, Q0))
+    generated = ctmm.simulate(controlled, 0.1, 1e-3, method="rk4", compiled=True, x0=x0, store_every=10)
+    plain = ctmm.simulate(controlled, 0.1, 1e-3, method="rk4", x0=x0, store_every=10)
+    for name in arm().coordinates:
+        np.testing.assert_allclose(generated[name], plain[name], rtol=0, atol=1e-12)
+    assert np.ptp(generated["b.dy"]) > 1e-3
+
+
+def test_the_generated_newmark_scheme_equals_the_numpy_scheme():
+    """The generated DT-TMM Newmark (Newton on the generated accelerations' exact tangent) on the bushing arm."""
+    import ctmm
+
+    model = arm()
+    x0 = dict(zip(model.coordinates, Q0))
+    generated = ctmm.simulate(model, 0.1, 1e-3, method="newmark", compiled=True, x0=x0)
+    plain = ctmm.simulate(model, 0.1, 1e-3, method="newmark", x0=x0)
+    assert generated.info["method"] == "dt-tmm-generated/Newmark"
+    for name in model.coordinates:
+        np.testing.assert_allclose(generated[name], plain[name], rtol=0, atol=1e-11)
