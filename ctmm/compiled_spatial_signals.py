@@ -5,11 +5,12 @@ moments; prescribed positions, rates and accelerations).  The terms
 (:meth:`ctmm.spatial.body_forms.SpatialScene.terms`) evaluate them at a number ``t``; at a casadi time symbol
 they take the symbolic form of the :mod:`ctmm.signals` classes (:func:`ctmm.signals.symbolic_signal`:
 constants, sines, steps, square waves -- the same operations as the classes' ``__call__``), so the generated
-RK4 (:class:`~ctmm.compiled_spatial.CompiledSpatialScene`) follows them at every stage time.  User callables
-have no symbolic form and are refused by name.
+RK4 (:class:`~ctmm.compiled_spatial.CompiledSpatialScene`) follows them at every stage time, and the generated
+DT-TMM schemes without loops (:class:`~ctmm.compiled_spatial_schemes.CompiledSpatialScheme`) at the step time.
+User callables have no symbolic form and are refused by name.
 
 :func:`spatial_compile_refusal` says why a model cannot be compiled; with ``time_signals=False`` (the generated
-paths that state the terms at one time: the DT-TMM schemes, closed loops, kinematic loops, exported FMUs,
+paths that state the terms at one time: closed loops in the RK4 or a scheme, kinematic loops, exported FMUs,
 sensitivities) every load and driven motion must be a :class:`~ctmm.signals.Constant`.
 """
 from __future__ import annotations
@@ -32,8 +33,8 @@ def spatial_compile_refusal(model: Any, *, time_signals: bool = False) -> str:
         form and beams without time-dependent loads or modal force hooks.
     time_signals : bool
         ``True``: loads and driven joints may carry signals with a symbolic form
-        (:data:`ctmm.signals.SYMBOLIC_FIELDS`; the generated RK4 states them on the time symbol); ``False``:
-        they must be constants (paths that state the terms at one time).
+        (:data:`ctmm.signals.SYMBOLIC_FIELDS`; the generated RK4 and DT-TMM schemes without loops state them on
+        the time symbol); ``False``: they must be constants (paths that state the terms at one time).
     """
     if not isinstance(model, SpatialModel):
         return f"a ctmm.spatial.SpatialModel is compiled here, got {type(model).__name__}"
@@ -58,9 +59,10 @@ def spatial_compile_refusal(model: Any, *, time_signals: bool = False) -> str:
         return (f"model {model.name!r} has time signals without a symbolic form in " + ", ".join(reasons) + " (Python "
                 "callables are not compiled; use ctmm.signals " + ", ".join(kind.__name__ for kind in SYMBOLIC_FIELDS)
                 + ", or ctmm.simulate without compiled=True)")
-    return (f"model {model.name!r} has signals that are not constants in " + ", ".join(reasons) + " (this generated "
-            "path states the terms at one time; ctmm.simulate(..., compiled=True, method='rk4') follows ctmm.signals "
-            + ", ".join(kind.__name__ for kind in SYMBOLIC_FIELDS) + "; or use ctmm.simulate without compiled=True)")
+    return (f"model {model.name!r} has signals that are not constants in " + ", ".join(reasons) + " (generated "
+            "closed loops, kinematic loops, FMUs and sensitivities state the terms at one time; the generated RK4 "
+            "and DT-TMM schemes of a spatial model without loops follow ctmm.signals " + ", ".join(
+                kind.__name__ for kind in SYMBOLIC_FIELDS) + "; or use ctmm.simulate without compiled=True)")
 
 
 def _offending(element: Any, fields: Sequence[str], allowed: Any) -> str:

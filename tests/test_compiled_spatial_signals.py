@@ -90,3 +90,16 @@ def test_time_signals_with_the_numbers_as_inputs() -> None:
         expected = sp.accelerations(model, q, v, t)
         np.testing.assert_allclose(scene.accelerations(q, v, t=t), expected, rtol=0,
                                    atol=1e-12 * np.abs(expected).max())
+
+
+@pytest.mark.parametrize("method", ["newmark", "houbolt"])
+def test_generated_dt_tmm_scheme_with_time_signals_equals_the_numpy_scheme(method) -> None:
+    """The generated Lie-group step (Newton in C) states the signals at its time symbol, as the numpy scheme."""
+    model = driven_chain()
+    v0 = {"ja.angle_rate": 0.5, "jc.wx": 0.3}
+    generated = ctmm.simulate(model, 0.1, 1e-3, method=method, compiled=True, v0=v0)
+    reference = ctmm.simulate(model, 0.1, 1e-3, method=method, v0=v0)
+    assert generated.scheme_name == f"dt-tmm-generated/{method}"
+    for name in model.coordinates + model.velocities:
+        np.testing.assert_allclose(generated[name], reference[name], rtol=0, atol=1e-11)
+    assert np.ptp(generated["jc.wx"]) > 1e-2

@@ -459,7 +459,7 @@ def _signal_column(ops: Ops, signals: Sequence[Any], t: Any) -> Any:
     """Time ``signals`` at ``t`` as an ops column ``(k, 1)``: their values at a number ``t`` [s]; at a casadi
     time symbol (generated code, :mod:`ctmm.compiled_spatial_signals`) their symbolic forms
     (:func:`ctmm.signals.symbolic_signal`, which refuses a user callable)."""
-    if isinstance(t, (int, float, np.number)):
+    if type(t).__module__.split(".")[0] != "casadi":           # a number (float, numpy scalar or 0-d array)
         return constant(ops, [[float(f(t))] for f in signals])
     import casadi as ca
 
