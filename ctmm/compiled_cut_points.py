@@ -165,4 +165,4 @@ def symbolic_accelerations_with_frame_loads(tree: PlanarModel, actuators: Sequen
                              ca.SX.zeros(len(tree.modal_index[j])))
         terms[j] = replace(terms[j], h=terms[j].h - applied)
     solution = articulated_sweep(CASADI, scene.tree, terms, joints)
-    return ca.Function("acceleration", [q, v, u, p, t], [coordinate_accelerations(tree, solution.x)])
+    return ca.Function("acceleration", [q, v, u, p, t], [coordinate_accelerations(tree, solution.x, solution.relative)])

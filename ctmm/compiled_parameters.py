@@ -23,7 +23,7 @@ from .errors import ModelError
 from .planar.body_forms import PlanarScene, SceneNumbers
 from .planar.deformable import DeformableBody
 from .planar.elements import DrivenHinge, Hinge
-from .planar.model import REVOLUTE, PlanarModel
+from .planar.model import BUSHING, REVOLUTE, PlanarModel
 from .planar.ports import PlanarPorts
 from .signals import SYMBOLIC_FIELDS, Constant, signal_parameters, symbolic_signal
 
@@ -37,10 +37,6 @@ def compile_refusal(model: Any) -> str:
         return f"a ctmm.planar.PlanarModel is compiled, got {type(model).__name__}"
     reasons = [f"time-dependent signals without a symbolic form in {name!r}"
                for name in _time_dependent_elements(model)]
-    if len(model.bushing_bodies):       # documented as refused (compiled_scene); the generated sweep has no offsets
-        return (f"model {model.name!r} has hinges with translational or radial springs "
-                f"({', '.join(model.joint_names[j] for j in model.bushing_bodies)}), not in the generated kernels; "
-                "use the numpy path, compiled=False")
     laws = [f"{model.joint_names[j]!r} ({law!r})" for j, hinge in model.nonlinear_hinges.items()
             for law in (hinge.moment_law, hinge.radial_law) if law is not None and not law.expressible]
     if laws:
@@ -120,7 +116,7 @@ def _signals(model: PlanarModel) -> list:
     laws = []
     for name, kind in zip(model.joint_names, model.joint_kind):
         element = by_name.get(name)
-        if kind == REVOLUTE and isinstance(element, Hinge):
+        if kind in (REVOLUTE, BUSHING) and isinstance(element, Hinge):     # bushings: their rotary law
             laws.append(tuple(zero if f is None else f for f in element.law()[2:]))
         else:
             laws.append((zero, zero, zero))
@@ -165,7 +161,8 @@ def symbolic_numbers(model: PlanarModel, p: Any, t: Any) -> SceneNumbers:
 def structure_key(model: PlanarModel) -> str:
     """SHA-256 (hex) of what a generated kernel keeps as constants: the tree, joint kinds, point and
     load layout, coordinates, actuators, ground angles, fixed mountings, the kinds of the time signals,
-    which numbers are zero (constants 0 of the code) and the modal beams' data (with gravity, which the
+    which numbers are zero (constants 0 of the code), the translational springs of bushings (stiffness
+    and damping of hinges with translational springs) and the modal beams' data (with gravity, which the
     beams take as a constant).  Two models with one key run on one compiled
     :class:`CompiledScene` with their own :func:`parameter_vector`; a beam whose definition holds an
     object without a value ``repr`` makes the key unique to the model (never shared)."""
@@ -177,7 +174,8 @@ def structure_key(model: PlanarModel) -> str:
                         [type(signal).__name__ for signal in _signals(model)],
                         np.flatnonzero(parameter_vector(model) == 0.0),
                         [(j, repr(h.moment_law), repr(h.radial_law), h.rest_angle)
-                         for j, h in sorted(model.nonlinear_hinges.items())]]
+                         for j, h in sorted(model.nonlinear_hinges.items())],
+                        model.translational_stiffness, model.translational_damping]
     # the actuators' unit patterns follow from their names (a hinge torque, a force at a centre of mass)
     # and, on beams, from the beam definitions below
     if model.beams:

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from typing import Any, Sequence
 
-from .planar.model import FREE, PlanarModel
+from .planar.model import BUSHING, FREE, PlanarModel
 from .planar.ports import PlanarPorts
 from .symbolic_beam_points import DeformedPoints
 
@@ -99,6 +99,8 @@ class SymbolicKinematics:
             out = ((q[ix], q[iy]), (v[ix], v[iy]))
         else:
             out = (tuple(float(x) for x in m.ground_position[i]), (0.0, 0.0))
+        if m.joint_kind[i] == BUSHING:      # plus the translational spring's offset (as PlanarModel.points)
+            out = tuple((a + x[int(m.xy_index[i][0])], b + x[int(m.xy_index[i][1])]) for (a, b), x in zip(out, (q, v)))
         self._inboard[i] = out
         return out
 

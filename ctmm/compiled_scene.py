@@ -32,12 +32,16 @@ A :class:`~ctmm.control.controlled_model.ControlledModel` compiles with its loop
 the step (:mod:`ctmm.compiled_loops`: real-time loops and controller states at every stage, delayed
 loops from a ring of samples in the fold state; :mod:`ctmm.compiled_control` builds the result).
 
-Refused (:class:`~ctmm.errors.ModelError`): anything but a planar model, hinges with translational
-springs (not on the protocol), and time-dependent data without a symbolic form (user callables in
-hinge laws or rigid-body loads; any non-constant driven motion, beam load, distributed load; modal
-force hooks).  Hinge references, rates, torques and rigid-body loads that are
-:mod:`ctmm.signals` objects with a symbolic form (:func:`ctmm.signals.symbolic_signal`: constants,
-sines, steps, square waves) are evaluated inside the generated code at the stage times.
+Hinges with translational springs (bushings, linear or with a radial law) compile as any joint: their
+terms (:func:`~ctmm.planar.family_terms.bushing_terms`, ``S = I3``) enter the one sweep and the offsets'
+accelerations are the joints' relative ones (:func:`coordinate_accelerations`).
+
+Refused (:class:`~ctmm.errors.ModelError`): anything but a planar model, and time-dependent data
+without a symbolic form (user callables in hinge laws or rigid-body loads; any non-constant driven
+motion, beam load, distributed load; modal force hooks).  Hinge references, rates, torques and
+rigid-body loads that are :mod:`ctmm.signals` objects with a symbolic form
+(:func:`ctmm.signals.symbolic_signal`: constants, sines, steps, square waves) are evaluated inside the
+generated code at the stage times.
 
 Parameters as inputs: the numbers of the rigid bodies, hinge laws and loads (masses, inertias,
 centres of mass, points, gravity, stiffnesses, dampings, references, torques, loads;
@@ -73,7 +77,7 @@ from .ops import CASADI
 from .planar.body_forms import PlanarScene
 from .planar.guards import check_scheme, check_stored, divergence_guard
 from .planar.integrate import PlanarSimulation, check_store_every, initial_coordinates, step_total
-from .planar.model import FREE, PlanarModel
+from .planar.model import BUSHING, FREE, PlanarModel
 from .planar.ports import ActuatorInputs, PlanarPorts
 
 __all__ = ["CompiledScene", "compile_refusal", "compiled_actuators", "coordinate_accelerations", "parameter_vector",
@@ -197,7 +201,7 @@ class CompiledScene:
                 bodies, joints = scene.terms(CASADI, q, v, 0.0, inputs, scene_numbers)
                 solution = articulated_sweep(CASADI, scene.tree, bodies, joints)
                 acceleration = ca.Function("acceleration", [q, v, u, p, t],
-                                           [coordinate_accelerations(model, solution.x)])
+                                           [coordinate_accelerations(model, solution.x, solution.relative)])
                 if self.loops is None:
                     y = ca.SX.sym("y", 2 * n)
                     step = rk4_step_function(ca.Function("rate", [y, u, p, t], [ca.vertcat(
@@ -476,8 +480,10 @@ def _fold_period(model: PlanarModel, fold: bool | None, controlled: bool) -> int
     return fold_period(model)
 
 
-def coordinate_accelerations(model: PlanarModel, x: Sequence[Any]) -> Any:
-    """``qddot`` (casadi column) from the sweep's per-body unknowns ``x_j = [A_in ; eta_ddot]``."""
+def coordinate_accelerations(model: PlanarModel, x: Sequence[Any], relative: Sequence[Any]) -> Any:
+    """``qddot`` (casadi column) from the sweep's per-body unknowns ``x_j = [A_in ; eta_ddot]`` and the
+    joints' relative accelerations ``relative`` (a bushing's offset accelerations: the first two rows, as
+    :meth:`~ctmm.planar.body_forms.PlanarScene.coordinate_accelerations`)."""
     import casadi as ca
 
     out = [None] * model.n_coordinates
@@ -487,6 +493,9 @@ def coordinate_accelerations(model: PlanarModel, x: Sequence[Any]) -> Any:
         if model.joint_kind[j] == FREE:
             for c, k in enumerate(model.xy_index[j]):
                 out[int(k)] = xj[c]
+        elif model.joint_kind[j] == BUSHING:        # the offset's acceleration: the joint's relative one
+            for c, k in enumerate(model.xy_index[j]):
+                out[int(k)] = relative[j][c]
         for c, k in enumerate(model.modal_index[j]):
             out[int(k)] = xj[3 + c]
     return ca.vertcat(*out)
@@ -567,4 +576,5 @@ def symbolic_accelerations_with_inputs(model: PlanarModel, actuators: Sequence[s
     scene = PlanarScene(model)
     bodies, joints = scene.terms(CASADI, q, v, 0.0, symbolic_inputs(model, units, u), symbolic_numbers(model, p, t))
     solution = articulated_sweep(CASADI, scene.tree, bodies, joints)
-    return ca.Function("acceleration", [q, v, u, p, t], [coordinate_accelerations(model, solution.x)])
+    return ca.Function("acceleration", [q, v, u, p, t],
+                       [coordinate_accelerations(model, solution.x, solution.relative)])

@@ -34,9 +34,11 @@ takes one column of ``p`` per segment.  Actuator inputs
 (``"<joint>.torque" | ".force" | ".wrench"``) are inputs ``u`` of every function, numbers held over
 a run.
 
-Refused (:class:`~ctmm.errors.ModelError`, by name): anything but a spatial model, a model without
-coordinates, loads and driven joints whose signals are not constants (the terms evaluate them
-numerically), and actuator inputs that are functions of time.
+Loads and driven joints may carry :mod:`ctmm.signals` Constant, Harmonic, Step or SquareWave signals: the
+terms state them on the time symbol of the rates (:mod:`ctmm.compiled_spatial_signals`), evaluated at every
+RK4 stage time.  Refused (:class:`~ctmm.errors.ModelError`, by name): anything but a spatial model, a model
+without coordinates, loads and driven joints whose signals are Python callables (no symbolic form), and
+actuator inputs that are functions of time.
 """
 from __future__ import annotations
 
@@ -54,12 +56,12 @@ from .ops import CASADI
 from .results import SimulationResult
 from .segment_fold import fold_segments
 from .signal_results import SignalSystem, signal_result
-from .signals import Constant
 from .spatial.body_forms import SpatialScene, child_motion, joint_motion, rigid_body_terms
 from .spatial.frames import constant, cross, quaternion_rate, quaternion_rotation
 from .spatial.integrate import beam_deflection_weights, check_beam_deflection, initial_state, spatial_signals
 from .spatial.model import SpatialModel
 from .compiled_spatial_guard import guarded_step, replay_failure
+from .compiled_spatial_signals import spatial_compile_refusal
 from .compiled_spatial_parameters import (SpatialNumbers, parametrised_body_terms, parametrised_joint_law,
                                           parametrised_scene_terms, spatial_parameter_layout, spatial_parameter_vector,
                                           unparametrised_refusal)
@@ -86,30 +88,6 @@ FOLD_FLAGS = ("-O3", "-shared", "-fPIC")
 120 kB), so ``-O3`` costs a few tenths of a second more than ``-O1`` and runs the step about 25 % faster."""
 
 
-def spatial_compile_refusal(model: Any) -> str:
-    """Why ``model`` cannot be compiled by :class:`CompiledSpatialScene` (empty string when it can)."""
-    if not isinstance(model, SpatialModel):
-        return f"a ctmm.spatial.SpatialModel is compiled here, got {type(model).__name__}"
-    if model.n_velocities == 0:
-        return f"model {model.name!r} has no coordinates (every joint is welded or driven): nothing to integrate"
-    laws = [f"{joint.name!r} ({joint.law!r})" for joint in model.joints
-            if getattr(joint, "law", None) is not None and not joint.law.expressible]
-    if laws:
-        return (f"model {model.name!r} has nonlinear joint laws without a casadi form: {', '.join(laws)}; give "
-                "CallableLaw a casadi-compatible force and no derivatives, or use ctmm.simulate without compiled=True")
-    reasons = [f"driven joint {joint.name!r}" for joint in model.joints if joint.driven and not all(
-        isinstance(f, Constant) for f in joint.position + joint.rate + joint.acceleration)]
-    reasons += [f"load {load.name!r}" for load in model.loads
-                if not all(isinstance(f, Constant) for f in load.force + load.moment)]
-    reasons += [f"beam {body.name!r} (modal forces or distributed load)" for body in model.bodies
-                if getattr(body, "time_dependent", False)]
-    if reasons:
-        return (f"model {model.name!r} has signals that are not constants in " + ", ".join(reasons) + " (the spatial "
-                "terms evaluate them numerically, so generated code cannot follow them in time); use ctmm.simulate "
-                "without compiled=True")
-    return ""
-
-
 class SpatialRates:
     """The rates ``y_dot = [G(q) v ; v_dot]`` of a spatial model on casadi symbols (a
     :class:`~ctmm.generated_loop.SymbolicRates`).
@@ -133,7 +111,7 @@ class SpatialRates:
     rate : casadi.Function
         ``(y, u, p, t) -> y_dot``, calling :attr:`velocity_rate`.
     velocity_rate : casadi.Function
-        ``(q, v, u, p) -> v_dot``.
+        ``(q, v, u, p, t) -> v_dot`` (``t`` [s]: the loads' and driven joints' signals).
     layout : list of SpatialParameter
         The entries of ``p`` (empty with ``numbers="constants"``).
     actuators : tuple of str
@@ -141,7 +119,7 @@ class SpatialRates:
     """
 
     def __init__(self, model: SpatialModel, *, fold: bool | None = None, numbers: str = "constants") -> None:
-        reason = spatial_compile_refusal(model)
+        reason = spatial_compile_refusal(model, time_signals=True)
         if reason:
             raise ModelError(f"SpatialRates: {reason}")
         if numbers not in ("constants", "inputs"):
@@ -170,7 +148,7 @@ class SpatialRates:
 
     @property
     def velocity_rate(self) -> Any:
-        """``(q, v, u, p) -> v_dot`` (casadi.Function, built on first use)."""
+        """``(q, v, u, p, t) -> v_dot`` (casadi.Function, built on first use)."""
         if self._symbols is None:
             self._symbols = self._build()
         return self._symbols[1]
@@ -186,26 +164,26 @@ class SpatialRates:
             y, u_mx, p, t = ca.MX.sym("y", nq + nv), ca.MX.sym("u", 0), ca.MX.sym("p", n_p), ca.MX.sym("t")
             q_dot = y[nq:] if nq == nv else folded_position_rate(model, self.period)(y[:nq], y[nq:])
             return ca.Function("rate", [y, u_mx, p, t], [ca.vertcat(q_dot, velocity_rate(
-                y[:nq], y[nq:], u_mx, p))]), velocity_rate
-        q, v = ca.SX.sym("q", nq), ca.SX.sym("v", nv)
+                y[:nq], y[nq:], u_mx, p, t))]), velocity_rate
+        q, v, t_sx = ca.SX.sym("q", nq), ca.SX.sym("v", nv), ca.SX.sym("t")
         u = ca.SX.sym("u", sum(self.widths))
         offsets = np.concatenate([[0], np.cumsum(self.widths)]).astype(int)
         inputs = {name: u[int(offsets[i]):int(offsets[i + 1])] for i, name in enumerate(self.actuators)}
-        scene = SpatialScene(model)
-        bodies, joints, states = scene.terms(CASADI, q, v, 0.0, inputs)
+        scene = SpatialScene(model)     # signals that are not constants (strict refusal): on the symbol t
+        bodies, joints, states = scene.terms(CASADI, q, v, t_sx if spatial_compile_refusal(model) else 0.0, inputs)
         p_sx = ca.SX.sym("p", n_p)
         if self.layout:
             bodies, joints = parametrised_scene_terms(model, SpatialNumbers(self.layout, p_sx), bodies, joints, states,
                                                       q, v, inputs)
         solution = articulated_sweep(CASADI, scene.tree, bodies, joints)
         v_dot = ca.vertcat(*scene.velocity_rates(solution))
-        velocity_rate = ca.Function("velocity_rate", [q, v, u, p_sx], [v_dot])
+        velocity_rate = ca.Function("velocity_rate", [q, v, u, p_sx, t_sx], [v_dot])
         position_rate = ca.Function("position_rate", [q, v], [position_rates(model, q, v)])
         # on MX symbols the sweep stays one C function (an SX call would inline a second copy of it)
         y, u_mx, p, t = ca.MX.sym("y", nq + nv), ca.MX.sym("u", u.size1()), ca.MX.sym("p", n_p), ca.MX.sym("t")
         q_y, v_y = y[:nq], y[nq:]
         return ca.Function("rate", [y, u_mx, p, t], [ca.vertcat(position_rate(q_y, v_y),
-                                                                velocity_rate(q_y, v_y, u_mx, p))]), velocity_rate
+                                                                velocity_rate(q_y, v_y, u_mx, p, t))]), velocity_rate
 
     def input_vector(self, inputs: Mapping[str, Any] | None) -> np.ndarray:
         """``u`` from ``{input name: number or (k,) numbers}`` held over a run (missing inputs zero).
@@ -276,7 +254,7 @@ def chain_period(model: SpatialModel) -> int:
 
 
 def folded_velocity_rate(model: SpatialModel, period: int, layout: Sequence[Any] = ()) -> Any:
-    """``velocity_rate(q, v, u, p) -> v_dot`` of a chain of equal segments (:func:`chain_period`) as three
+    """``velocity_rate(q, v, u, p, t) -> v_dot`` of a chain of equal segments (:func:`chain_period`) as three
     folds over its ``N / period`` segments, so the generated code holds one segment whatever N:
 
     * ``kinematics`` (base to tip): pose and velocity of each segment's parent;
@@ -332,7 +310,7 @@ def folded_velocity_rate(model: SpatialModel, period: int, layout: Sequence[Any]
     kinematics = ca.Function("kinematics", [state, q, v], [last, state])
     # the folds (ctmm.segment_fold): columns are segments
     q_all, v_all, u = ca.MX.sym("q", model.n_positions), ca.MX.sym("v", model.n_velocities), ca.MX.sym("u", 0)
-    p_all = ca.MX.sym("p", len(layout))
+    p_all, t = ca.MX.sym("p", len(layout)), ca.MX.sym("t")          # t: no time signals in a folded chain
     Q, V = ca.reshape(q_all, nq_segment, count), ca.reshape(v_all, nv_segment, count)
     P = ca.reshape(p_all[:count * len(segment_layout)], len(segment_layout), count)
     G = ca.repmat(p_all[count * len(segment_layout):], 1, count)
@@ -341,7 +319,8 @@ def folded_velocity_rate(model: SpatialModel, period: int, layout: Sequence[Any]
     accelerations = fold_segments(bodies, joints, [model.joints[(i + 1) % n].point for i in segment],
                                   [state, q, v, p_segment, p_gravity], [parents, Q, V, P, G],
                                   lambda solution: ca.vertcat(*solution.relative[1:period + 1]))
-    return ca.Function("velocity_rate", [q_all, v_all, u, p_all], [ca.reshape(accelerations, model.n_velocities, 1)])
+    return ca.Function("velocity_rate", [q_all, v_all, u, p_all, t], [ca.reshape(accelerations, model.n_velocities,
+                                                                                 1)])
 
 
 def folded_position_rate(model: SpatialModel, period: int) -> Any:
@@ -454,7 +433,7 @@ class CompiledSpatialScene:
     def __init__(self, model: SpatialModel, *, store_every: int = 1, rows: int = DEFAULT_ROWS,
                  cache_dir: str | os.PathLike | None = None, compiler: str | None = None,
                  flags: Sequence[str] | None = None, fold: bool | None = None, numbers: str = "constants") -> None:
-        reason = spatial_compile_refusal(model)
+        reason = spatial_compile_refusal(model, time_signals=True)
         if reason:
             raise ModelError(f"CompiledSpatialScene: {reason}")
         store_every = validation.integer("store_every", store_every, minimum=1)
@@ -488,11 +467,11 @@ class CompiledSpatialScene:
         self.plain_step = loop.extra[1] if len(loop.extra) > 1 else self._step
         self.compile_time_s = clock.perf_counter() - start
 
-    def accelerations(self, q: Any, v: Any, inputs: Mapping[str, Any] | None = None) -> np.ndarray:
-        """``v_dot`` (nv,) at ``q`` (nq,), ``v`` (nv,) with held ``inputs`` (generated code)."""
+    def accelerations(self, q: Any, v: Any, inputs: Mapping[str, Any] | None = None, t: float = 0.0) -> np.ndarray:
+        """``v_dot`` (nv,) at ``q`` (nq,), ``v`` (nv,), time ``t`` [s] with held ``inputs`` (generated code)."""
         q, v = self.model.check_state(q, v)
-        return np.asarray(self._velocity_rate(q[0], v[0], self.rates.input_vector(inputs), self.parameters)
-                          ).reshape(-1)
+        return np.asarray(self._velocity_rate(q[0], v[0], self.rates.input_vector(inputs), self.parameters,
+                                              validation.finite("t", t))).reshape(-1)
 
     def run(self, x0: np.ndarray, dt: float, n_steps: int, inputs: Mapping[str, Any] | None = None,
             parameters: np.ndarray | None = None) -> np.ndarray:
@@ -548,7 +527,7 @@ def simulate_spatial_generated(model: SpatialModel, t_final: float, dt: float, *
     n_steps = int(round(t_final / dt))
     if n_steps < 1 or abs(n_steps * dt - t_final) > 1e-9 * t_final:
         raise ModelError(f"t_final = {t_final!r} must be a whole multiple of dt = {dt!r}")
-    reason = spatial_compile_refusal(model)
+    reason = spatial_compile_refusal(model, time_signals=True)
     if reason:
         raise ModelError(f"compiled=True: {reason}")
     x = initial_state(model, x0, v0)

@@ -3,7 +3,8 @@
 ``ctmm.simulate(spatial_model, t_final, dt, method="newmark" | "generalized_alpha" | "wilson_theta" |
 "houbolt" | "forward_euler" | <Scheme>, compiled=True)`` runs here (what
 :func:`ctmm.compiled_spatial.spatial_compile_refusal` accepts: rigid trees, :class:`~ctmm.spatial.SpatialBeam`,
-spatial finite-element subsystems; constant loads; inputs held numbers).  The step is the one of
+spatial finite-element subsystems; loads and driven joints with ctmm.signals on the time symbol, constants with loops;
+inputs held numbers).  The step is the one of
 :func:`ctmm.spatial.implicit.simulate_spatial_implicit`: in the local chart at the last configuration ``q_n`` the
 scheme's nonlinear second-order form
 (:class:`~ctmm.compiled_scene_schemes.SecondOrderMaps` with the history ``x_n = 0``, ``v_n``, ``a_n``,
@@ -212,7 +213,7 @@ class CompiledSpatialScheme(SchemeHooks):
     def __init__(self, model: SpatialModel, scheme: Scheme | str = "newmark", *, store_every: int = 1,
                  tolerance: float = 1e-10, max_iterations: int = 50, rows: int = 64,
                  cache_dir: str | os.PathLike | None = None, compiler: str | None = None) -> None:
-        reason = spatial_compile_refusal(model)
+        reason = spatial_compile_refusal(model, time_signals=not self.loops)    # signals on the step's time symbol
         if reason:
             raise ModelError(f"CompiledSpatialScheme: {reason}")
         self.scheme = as_scheme(scheme)
@@ -258,7 +259,7 @@ class CompiledSpatialScheme(SchemeHooks):
         model = self.model
         q, v, u = ca.SX.sym("q", model.n_positions), ca.SX.sym("v", model.n_velocities), ca.SX.sym("u", self.input_size)
         p, t = ca.SX.sym("p", 0), ca.SX.sym("t")
-        return ca.Function("acceleration", [q, v, u, p, t], [self.rates.velocity_rate(q, v, u, p)])
+        return ca.Function("acceleration", [q, v, u, p, t], [self.rates.velocity_rate(q, v, u, p, t)])
 
     @property
     def status_index(self) -> int:

@@ -60,7 +60,7 @@ def test_rates_built_once_take_the_numbers_of_another_model(build, period) -> No
         other = renumbered(model, seed)
         assert [e.name for e in spatial_parameter_layout(other)] == [e.name for e in rates.layout]
         expected = sp.accelerations(other, q, v, 0.0, inputs)
-        got = rates.velocity_rate(q, v, rates.input_vector(inputs), spatial_parameter_vector(other))
+        got = rates.velocity_rate(q, v, rates.input_vector(inputs), spatial_parameter_vector(other), 0.0)
         assert relative(np.asarray(got).reshape(-1), expected) < 1e-12, seed
         assert relative(expected, sp.accelerations(model, q, v, 0.0, inputs)) > 1e-3     # the numbers matter
     names = [e.name for e in rates.layout]

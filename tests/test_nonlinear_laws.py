@@ -377,14 +377,15 @@ def test_radial_spring_energy_and_tangent():
         NonlinearHinge("h", parent="g", child="l", radial_law=PowerDamper(1.0, 2.0))
 
 
-def test_generated_kernel_refuses_translational_and_radial_springs_by_name():
-    from ctmm.planar import ElasticHinge
-
-    linear = PlanarModel("p", [Fixed("g"), RigidBody.uniform_link("l", mass=1.0, length=1.0),
-                               ElasticHinge("h", parent="g", child="l", stiffness=3.0, translational_stiffness=1e3)])
-    for model in (linear, bushing_link(RADIAL)):
-        with pytest.raises(ModelError, match="translational or radial springs \\(h\\)"):
-            ctmm.simulate(model, 0.01, 1e-3, method="rk4", compiled=True, x0={"l.theta": 0.1})
+def test_generated_kernel_of_translational_and_radial_springs_equals_the_numpy_rk4():
+    """Was refused by name; now compiled from the same terms (tests/test_compiled_bushings.py)."""
+    for model in (bushing_link(RADIAL), bushing_link(ClearanceSpring(3000.0, clearance=0.002))):
+        x0 = {"l.theta": 0.1, "l.dx": 0.003}
+        generated = ctmm.simulate(model, 0.05, 1e-4, method="rk4", compiled=True, x0=x0, store_every=50)
+        plain = ctmm.simulate(model, 0.05, 1e-4, method="rk4", x0=x0, store_every=50)
+        for name in model.coordinates:
+            np.testing.assert_allclose(generated[name], plain[name], rtol=0, atol=1e-12)
+        assert np.ptp(generated["l.dx"]) > 1e-4
 
 
 def test_linear_references_refuse_nonlinear_hinges():

@@ -157,11 +157,12 @@ def test_refusals_name_what_cannot_compile() -> None:
                                         position=driven[0], rate=driven[1], acceleration=driven[2]))
         return sp.SpatialModel("m", elements)
 
+    # ctmm.signals compile (tests/test_compiled_spatial_signals.py); user callables do not
     with pytest.raises(ModelError, match="load 'push'"):
-        ctmm.simulate(model(load_force=(Harmonic(1.0, 2.0), 0.0, 0.0)), 0.01, 1e-3, compiled=True)
+        ctmm.simulate(model(load_force=(lambda t: 1.0, 0.0, 0.0)), 0.01, 1e-3, compiled=True)
     with pytest.raises(ModelError, match="driven joint 'hinge'"):
         ctmm.simulate(model(driven=(Harmonic(0.1, 1.0, 0.0), Harmonic(0.1, 1.0, np.pi / 2),
-                                    Harmonic(-0.1, 1.0, 0.0))), 0.01, 1e-3, compiled=True)
+                                    lambda t: -0.1 * np.sin(t))), 0.01, 1e-3, compiled=True)
     with pytest.raises(ModelError, match="'ball.torque' is a function of time"):
         ctmm.simulate(model(), 0.01, 1e-3, compiled=True, inputs={"ball.torque": lambda t: np.zeros(3)})
     with pytest.raises(ModelError, match="generated RK4.*DOP853"):
@@ -285,7 +286,7 @@ def test_fold_equals_the_numpy_sweep_with_every_foldable_joint() -> None:
     rng = np.random.default_rng(3)
     q, v = 0.4 * rng.normal(size=model.n_positions), rng.normal(size=model.n_velocities)
     expected = sp.accelerations(model, q, v, 0.0, {})
-    folded = np.asarray(rates.velocity_rate(q, v, np.zeros(0), np.zeros(0))).reshape(-1)
+    folded = np.asarray(rates.velocity_rate(q, v, np.zeros(0), np.zeros(0), 0.0)).reshape(-1)
     assert np.max(np.abs(folded - expected)) < 1e-12 * np.max(np.abs(expected))
 
 

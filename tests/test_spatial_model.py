@@ -76,6 +76,8 @@ def test_driven_joint_matches_pinocchio_partitioned_dynamics() -> None:
     """A driven revolute in the middle of a chain: the free joints' accelerations and the driven joint's
     torque (an output) equal Pinocchio's with the driven acceleration moved to the right-hand side."""
     pin = pytest.importorskip("pinocchio")
+    from spatial_pinocchio_helpers import pinocchio_driven_chain
+
     angle, rate, accel = (lambda t: 0.4 * np.sin(2 * t)), (lambda t: 0.8 * np.cos(2 * t)), (lambda t: -1.6 * np.sin(2 * t))
     elements = [body("a"), body("b"), body("c"),
                 sp.Revolute(name="ja", parent=None, child="a", axis=(1, 0, 0)),
@@ -87,14 +89,7 @@ def test_driven_joint_matches_pinocchio_partitioned_dynamics() -> None:
     q, v = np.array([0.3, 0.9, 0.1, -0.3, 0.2]), np.array([0.5, 0.2, -0.4, 0.3])
     ours = sp.solve(model, q, v, t)
 
-    pm = pin.Model()
-    pm.gravity = pin.Motion(model.gravity, np.zeros(3))
-    j1 = pm.addJoint(0, pin.JointModelRevoluteUnaligned(np.array([1.0, 0, 0])), pin.SE3.Identity(), "ja")
-    j2 = pm.addJoint(j1, pin.JointModelRevoluteUnaligned(np.array([0, 1.0, 1.0]) / np.sqrt(2)),
-                     pin.SE3(np.eye(3), np.array([0, 0, -1.0])), "jb")
-    j3 = pm.addJoint(j2, pin.JointModelSpherical(), pin.SE3(np.eye(3), np.array([0, 0, -1.0])), "jc")
-    for j, b in zip((j1, j2, j3), model.bodies):
-        pm.appendBodyToJoint(j, pin.Inertia(b.mass, b.center_of_mass, b.inertia), pin.SE3.Identity())
+    pm, j2 = pinocchio_driven_chain(pin, model)
     data = pm.createData()
     quat = q[1:] / np.linalg.norm(q[1:])
     qp = np.r_[q[0], angle(t), quat[1:], quat[0]]

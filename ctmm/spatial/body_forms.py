@@ -26,6 +26,7 @@ from ..protocol import BodyTerms, JointTerms
 from .frames import axis_rotation, block_diagonal, column, constant, cross, entry, quaternion_rotation, skew
 from .beam_terms import spatial_beam_terms
 from .model import SpatialModel, input_values
+from ..signals import signal_parameters, symbolic_signal
 
 __all__ = ["rigid_body_terms", "JointMotion", "joint_motion", "SpatialScene", "BodyState", "ChildMotion", "child_motion"]
 
@@ -347,8 +348,8 @@ class SpatialScene:
         Parameters
         ----------
         q, v : numpy ``(B, nq)``, ``(B, nv)`` or casadi columns
-        t : float
-            Time [s] (signals of loads and driven joints are evaluated numerically).
+        t : float or casadi symbol
+            Time [s] (signals of loads and driven joints: their values; at a symbol their symbolic forms).
         inputs : mapping of input name to ops column ``(k, 1)`` (numpy ``(B, k, 1)``), optional
         wrenches : mapping of body index to a list of (point (3,) body axes [m], ops column (6, 1)
             ``[f ; m]`` world axes [N, N m]), optional
@@ -368,9 +369,9 @@ class SpatialScene:
         bodies, joints = [], []
         for j, (body, joint, layout) in enumerate(zip(model.bodies, model.joints, model.layout)):
             if joint.driven:
-                qj = [constant(ops, [[float(f(t))]]) for f in joint.position]
-                vj = [constant(ops, [[float(f(t))]]) for f in joint.rate]
-                acc = [constant(ops, [[float(f(t))]]) for f in joint.acceleration]
+                qj = [_signal_column(ops, [f], t) for f in joint.position]
+                vj = [_signal_column(ops, [f], t) for f in joint.rate]
+                acc = [_signal_column(ops, [f], t) for f in joint.acceleration]
             else:
                 qj, vj, acc = qs[layout.position], vs[layout.velocity], None
             u = inputs.get(joint.inputs[0]) if joint.inputs else None
@@ -400,12 +401,10 @@ class SpatialScene:
                 offset = None if offset is None else offset + cross(ops, turn, offset)
             loads = []
             for load in self._loads[j]:
-                values = load.values(t)
+                wrench = _signal_column(ops, load.force + load.moment, t)
                 if load.axes == "body":
-                    wrench = ops.block([[ops.matmul(R_c, constant(ops, values[:3]))],
-                                        [ops.matmul(R_c, constant(ops, values[3:]))]])
-                else:
-                    wrench = constant(ops, values)
+                    wrench = ops.block([[ops.matmul(R_c, ops.sub(wrench, slice(0, 3), slice(0, 1)))],
+                                        [ops.matmul(R_c, ops.sub(wrench, slice(3, 6), slice(0, 1)))]])
                 loads.append((body.points[load.point], wrench))
             for entry in (wrenches or {}).get(j, ()):       # (point, [f ; m] world) or (point, [f ; m], "body")
                 wrench = entry[1]
@@ -454,6 +453,17 @@ class SpatialScene:
         ``wrenches`` as in :meth:`terms`)."""
         q, v = self.model.check_state(q, v)
         return self.sweep(NUMPY, q, v, t, self.numpy_inputs(inputs, t, q.shape[0]), wrenches)
+
+
+def _signal_column(ops: Ops, signals: Sequence[Any], t: Any) -> Any:
+    """Time ``signals`` at ``t`` as an ops column ``(k, 1)``: their values at a number ``t`` [s]; at a casadi
+    time symbol (generated code, :mod:`ctmm.compiled_spatial_signals`) their symbolic forms
+    (:func:`ctmm.signals.symbolic_signal`, which refuses a user callable)."""
+    if type(t).__module__.split(".")[0] != "casadi":           # a number (float, numpy scalar or 0-d array)
+        return constant(ops, [[float(f(t))] for f in signals])
+    import casadi as ca
+
+    return ca.vertcat(*[symbolic_signal(type(f), t, signal_parameters(f) or ()) for f in signals])
 
 
 def _modal(ops: Ops, values: Any, rows: slice) -> Any:
