@@ -46,6 +46,7 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from .control.controlled_model import ControlledModel
+from .control.planar_time import controller_realisation
 from .errors import ModelError
 from .ode import rk4_step
 from .planar.model import PlanarModel
@@ -57,8 +58,9 @@ from .signals import symbolic_signal
 
 # PlanarSymbols, SymbolicKinematics and sensor_expression live in ctmm.compiled_planar_sensors; re-exported here for
 # code that imports them from this module (batch, compiled_kinematic_loops, compiled_kinematic_loop_control)
+# controller_realisation is the numpy driver's (ctmm.control.planar_time), re-exported for the generated scheme steps
 __all__ = ["ClosedLoops", "PlanarSymbols", "LoopLaw", "SymbolicKinematics", "SymbolicReference", "controller_realisation",
-           "delay_steps", "sensor_expression", "symbolic_value"]
+           "delay_steps", "sensor_expression"]
 
 
 @dataclass(frozen=True)
@@ -127,27 +129,6 @@ def delay_steps(name: str, delay: float, dt: float | None) -> int:
                          "kernels keep the history as a ring of samples stored every step (cubic Hermite at the "
                          "half steps): choose dt = delay / m for a whole m >= 1, or compiled=False")
     return steps
-
-
-def controller_realisation(loop: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """``(A, B, C, D)`` of the loop's controller, ``B`` and ``C`` flat; a static gain is ``D`` alone."""
-    if not loop.is_lti:
-        return np.zeros((0, 0)), np.zeros(0), np.zeros(0), float(loop.gain)
-    import control
-
-    try:
-        system = control.ss(loop.gain)
-    except ValueError as exc:
-        raise ModelError(f"loop {loop.name!r}: the controller C(s) is improper and has no state-space form "
-                         f"({exc}); write a PD as weighted sensor terms with gain=1") from None
-    k = system.nstates
-    A = np.asarray(system.A, dtype=float).reshape(k, k)
-    return A, np.asarray(system.B, float).reshape(k), np.asarray(system.C, float).reshape(k), \
-        float(np.asarray(system.D, float).reshape(-1)[0])
-
-
-# the references' own module (:mod:`ctmm.compiled_references`)
-symbolic_value, _at = symbolic_reference, reference_at
 
 
 # ------------------------------------------------------------------------------------------
@@ -220,13 +201,13 @@ class ClosedLoops:
                 raise ModelError(f"inputs[{name!r}]: generated kernels drive the actuators "
                                  f"{', '.join(self.actuators) or '(none)'}; station forces and moments of beams are "
                                  "not on the element protocol yet (use compiled=False)")
-            self.inputs.append((self.actuators.index(name), symbolic_value(f"inputs[{name!r}]", value)))
+            self.inputs.append((self.actuators.index(name), symbolic_reference(f"inputs[{name!r}]", value)))
         laws, self.channels = [], []
         for loop in controlled.loops:
             if any(actuator not in self.actuators for actuator, _ in loop.actuator_terms):
                 self.channels.append((len(laws), self._channel(ports, loop)))
             A, B, C, D = controller_realisation(loop)
-            reference = symbolic_value(f"references[{loop.name!r}]", references.get(loop.name, 0.0))
+            reference = symbolic_reference(f"references[{loop.name!r}]", references.get(loop.name, 0.0))
             laws.append(LoopLaw(loop.name, tuple(loop.terms), tuple(loop.actuator_terms), A, B, C, D,
                                 float(loop.delay), delay_steps(loop.name, loop.delay, dt) if whole_delays else
                                 int(loop.delay > 0.0), reference, loop.saturation))
@@ -343,7 +324,7 @@ class ClosedLoops:
         for index, signal in self.inputs:
             unit = np.zeros(len(self.actuators))
             unit[index] = 1.0
-            total = total + ca.DM(unit) * _at(signal, t)
+            total = total + ca.DM(unit) * reference_at(signal, t)
         total = ca.vertcat(total, *[outputs[k] for k, _ in self.channels])
         qddot = acceleration(q, v, total, p[:self.plant_parameter_count] if self.parameter_layout else p, t)
         return ca.vertcat(self.position_rates(q, v), qddot, *rates), qddot

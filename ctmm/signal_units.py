@@ -68,23 +68,53 @@ def _quantity_unit(quantity: str, layout: Any = None) -> str:
     return QUANTITY_UNITS.get(quantity, UNKNOWN)
 
 
-def _loop_unit(system: Any, loop: Any, quantity: str) -> str:
-    """Unit of ``<loop>.y``, ``.reference``, ``.u`` or ``.L``."""
+def loop_unit(ports: Any, loop: Any, quantity: str) -> str:
+    """Unit of ``"<loop>.<quantity>"``: the one rule for every model and for stored systems.
+
+    Parameters
+    ----------
+    ports : object
+        Gives the unit of one term: ``ports.sensor_unit(name)`` and ``ports.actuator_unit(name)``
+        (:class:`~ctmm.named_ports.NamedPorts` of a chain, planar or spatial plant).
+    loop : Feedback
+        The loop (its weighted ``terms`` and ``actuator_terms``).
+    quantity : str
+        ``"y"`` or ``"reference"`` (the unit of the sensed terms), ``"u"`` (of the actuator terms)
+        or ``"L"`` (``"1"``, the loop transfer function).
+
+    Returns
+    -------
+    str
+        The terms' common unit; :data:`UNKNOWN` when they mix units or for another quantity.
+    """
     if quantity == "L":
         return "1"
     if quantity in ("y", "reference"):
-        units = {signal_unit(name, system.plant) for name, _ in getattr(loop, "terms", ())}
-        return units.pop() if len(units) == 1 else UNKNOWN
-    if quantity == "u":
-        units = set()
-        for name, _ in getattr(loop, "actuator_terms", ()):
-            element_name, _, input_name = name.partition(".")
-            if not input_name:
-                inputs = getattr(system.plant.element(element_name), "inputs", ())
-                input_name = inputs[0] if inputs else ""
-            units.add(_quantity_unit(input_name, system.plant.layout))
-        return units.pop() if len(units) == 1 else UNKNOWN
-    return UNKNOWN
+        names, unit = getattr(loop, "terms", ()), ports.sensor_unit
+    elif quantity == "u":
+        names, unit = getattr(loop, "actuator_terms", ()), ports.actuator_unit
+    else:
+        return UNKNOWN
+    units = {unit(name) for name, _ in names}
+    return units.pop() if len(units) == 1 else UNKNOWN
+
+
+class _ChainUnits:
+    """Units of the sensor and actuator names of a chain ``plant``, from the names alone (for
+    :func:`loop_unit` on a :class:`~ctmm.control.loops.ControlledChain` or a stored system)."""
+
+    def __init__(self, plant: Any) -> None:
+        self.plant = plant
+
+    def sensor_unit(self, name: str) -> str:
+        return signal_unit(name, self.plant)
+
+    def actuator_unit(self, name: str) -> str:
+        element_name, _, input_name = name.partition(".")
+        if not input_name:
+            inputs = getattr(self.plant.element(element_name), "inputs", ())
+            input_name = inputs[0] if inputs else ""
+        return _quantity_unit(input_name, self.plant.layout)
 
 
 def signal_unit(name: str, system: Any = None) -> str:
@@ -113,7 +143,7 @@ def signal_unit(name: str, system: Any = None) -> str:
     owner, quantity = name.split(".", 1)[0], name.rsplit(".", 1)[-1]
     for loop in getattr(system, "loops", ()) or ():
         if getattr(loop, "name", None) == owner and "." not in name[len(owner) + 1:]:
-            return _loop_unit(system, loop, quantity)
+            return loop_unit(_ChainUnits(system.plant), loop, quantity)
     if system is None:
         # names alone are read as the 1-D (axial) kinds; "y" (planar displacement or loop sensor)
         # and "reference" (loop sensor unit) cannot be resolved without the system

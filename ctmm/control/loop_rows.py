@@ -3,8 +3,8 @@
 :class:`LoopRows` keeps the times, states ``[q, v, controller states]`` and every loop's ``(y, e, u)`` of the
 stored steps (and, for plants whose stored signals depend on the actuators, the actuator values);
 :func:`rows_result` turns them into a :class:`~ctmm.results.SimulationResult` -- also the partial result of a failed
-run -- with each loop's ``"<loop>.y"`` and ``"<loop>.u"`` in the units of :func:`loop_unit`, a saturating loop's
-unclipped demand and time at its limits, and the co-simulated controllers' samples.
+run -- with each loop's ``"<loop>.y"`` and ``"<loop>.u"`` in the units of :func:`ctmm.signal_units.loop_unit`, a
+saturating loop's unclipped demand and time at its limits, and the co-simulated controllers' samples.
 """
 from __future__ import annotations
 
@@ -15,18 +15,11 @@ import numpy as np
 
 from ..results import SimulationResult
 from ..signal_results import SignalSystem, signal_result
+from ..signal_units import loop_unit
 
+# loop_unit (the one rule of a loop signal's unit) lives in ctmm.signal_units; re-exported here for the compiled
+# runs and the FMU export, which import it from this module
 __all__ = ["LoopRows", "loop_unit", "rows_result"]
-
-
-def loop_unit(ports: Any, loop: Any, quantity: str) -> str:
-    """Unit of ``"<loop>.y"`` (``quantity="y"``) or ``"<loop>.u"`` (``"u"``) on a model with ``ports``
-    (:class:`~ctmm.planar.ports.PlanarPorts`, :class:`~ctmm.spatial.ports.SpatialPorts`; ``""`` when the
-    terms mix units)."""
-    names = [t for t, _ in (loop.terms if quantity == "y" else loop.actuator_terms)]
-    unit = ports.sensor_unit if quantity == "y" else ports.actuator_unit
-    units = {unit(name) for name in names}
-    return units.pop() if len(units) == 1 else ""
 
 
 class LoopRows:

@@ -73,7 +73,7 @@ from .implicit_loops import check_scheme_delays, run_implicit
 from .loop_rows import LoopRows, rows_result
 from .plants import Plant, plant_of
 
-__all__ = ["simulate_closed_loop"]
+__all__ = ["controller_realisation", "simulate_closed_loop"]
 
 
 @dataclass(frozen=True)
@@ -99,20 +99,44 @@ class _Loop:
         return float(self.loop.delay)
 
 
-def _realisation(loop: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """``(A, B, C, D)`` of the loop's controller: a static gain is ``D`` alone."""
+def controller_realisation(loop: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """``(A, B, C, D)`` of a loop's controller ``z' = A z + B e``, ``u = -(C z + D e)``.
+
+    The one realisation of the time paths (this driver and the generated kernels of
+    :mod:`ctmm.compiled_loops`): an LTI ``C(s)`` as ``control.ss`` realises it, a static gain as
+    ``D`` alone (no states).
+
+    Parameters
+    ----------
+    loop : Feedback
+        The loop; its ``gain`` is a number or a proper SISO python-control system.
+
+    Returns
+    -------
+    A : ndarray, shape (k, k)
+    B, C : ndarray, shape (k,)
+        Flat input and output vectors (``k = 0`` for a static gain).
+    D : float
+        Feedthrough [actuator unit per sensed unit].
+
+    Raises
+    ------
+    ModelError
+        An improper ``C(s)`` (e.g. ``kp + kd s``), which has no state-space form.
+    """
     if not loop.is_lti:
-        return np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), float(loop.gain)
+        return np.zeros((0, 0)), np.zeros(0), np.zeros(0), float(loop.gain)
     import control
 
     try:
         ss = control.ss(loop.gain)
     except ValueError as exc:   # an improper C(s) (e.g. kp + kd s) has no state-space realisation
         raise ModelError(f"loop {loop.name!r}: the controller C(s) cannot be realised in time ({exc}); an "
-                         "improper PD kp + kd s is the sensor terms [(angle, kp), (rate, kd)] with gain=1, or "
+                         "improper PD kp + kd s is the sensor terms [(signal, kp), (its rate, kd)] with gain=1, or "
                          "add a derivative filter") from None
-    A, B, C, D = (np.atleast_2d(np.asarray(m, dtype=float)) for m in (ss.A, ss.B, ss.C, ss.D))
-    return A, B.reshape(-1, 1), C.reshape(1, -1), float(D[0, 0])
+    k = ss.nstates
+    return np.asarray(ss.A, dtype=float).reshape(k, k), np.asarray(ss.B, dtype=float).reshape(k), \
+        np.asarray(ss.C, dtype=float).reshape(k), float(np.asarray(ss.D, dtype=float).reshape(-1)[0])
 
 
 def _resolve(ports: Any, loops: Sequence[Any], step: float | None, n: int) -> list[_Loop]:
@@ -128,10 +152,11 @@ def _resolve(ports: Any, loops: Sequence[Any], step: float | None, n: int) -> li
             raise ModelError(f"loop {loop.name!r}: delay = {loop.delay!r} s is shorter than the step dt = {step!r} s; "
                              "a fixed-step integrator evaluates the loop inside the step, so the delay must be 0 "
                              f"or at least dt: use dt <= {loop.delay!r} s (or delay=0)")
-        A, B, C, D = _realisation(loop)
+        A, B, C, D = controller_realisation(loop)
         k = A.shape[0]
         resolved.append(_Loop(loop, tuple(t for t, _ in loop.terms), np.array([w for _, w in loop.terms], float),
-                              tuple(loop.actuator_terms), A, B, C, D, slice(offset, offset + k)))
+                              tuple(loop.actuator_terms), A, B.reshape(k, 1), C.reshape(1, k), D,
+                              slice(offset, offset + k)))
         offset += k
     return resolved
 
