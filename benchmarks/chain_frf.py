@@ -17,10 +17,19 @@ edge, unit force on ``m1``, outputs ``m1.x`` (driving point) and ``m<n>.x`` (tip
   frequency (``K = 1``) and in blocks of 8 frequencies side by side (``K = 8``, the library kernel's layout); the
   faster is the bound.  No Python work is in it (the arrays are prepared before timing).
 
+* ``banded_loop`` / ``banded_vectorised`` -- the global baselines of ``foundation_scaling``, imported from it:
+  ``scipy.linalg.solve_banded`` on the tridiagonal dynamic stiffness per frequency, and the same banded system
+  solved for all frequencies at once by a Thomas elimination vectorised over omega (the fastest plain-numpy global
+  baseline); timed on banded ``M, C, K`` prepared before timing (the reference assembly goes through dense
+  ``n x n`` matrices; its CPU time and memory are reported apart and left out of the ratios, in the baselines'
+  favour).  ``frequency_response_over_<baseline>_cpu`` < 1: the compiled path is faster.
+
 Times: best CPU time (``time.process_time``, single-threaded code; the machine is shared, so CPU time is the
 figure to compare) and best wall time.  Ratios ``*_vs_bound`` are CPU-time ratios to the faster bound.  Errors:
 max relative error against a 30-digit mpmath solve (the Thomas algorithm on the tridiagonal dynamic stiffness,
-``foundation_scaling.high_precision_frf``) at 10 probe frequencies, driving point and tip.  Memory: peak traced
+``foundation_scaling.high_precision_frf``) at 10 probe frequencies and, per output, the frequency where the
+compiled answer and the ``solve_banded`` loop differ most (as ``foundation_scaling`` does), driving point and tip;
+``error_<baseline>_over_compiled`` is the baseline's error over the compiled path's.  Memory: peak traced
 allocations (``tracemalloc``: numpy arrays count) of one call of each solve.
 
 Controlled chains and the characteristic function (``controlled_rows``, :mod:`ctmm.controlled_chain_frequency`):
@@ -48,6 +57,7 @@ import platform
 import subprocess
 import sys
 import tempfile
+import time
 import tracemalloc
 from pathlib import Path
 
@@ -62,8 +72,10 @@ for folder in (ROOT, ROOT / "benchmarks"):
 
 import ctmm  # noqa: E402
 from ctmm.chain_assembly import laplace_variables, solve  # noqa: E402
-from foundation_scaling import (DAMPING, MASS, STIFFNESS, ctmm_chain, high_precision_frf, omega_grid,  # noqa: E402
-                                probe_indices, relative_difference)
+from ctmm.reference import chain as reference  # noqa: E402  (benchmarks may use the validation models)
+from foundation_scaling import (DAMPING, MASS, STIFFNESS, banded_frequency_loop, ctmm_chain,  # noqa: E402
+                                global_chain, high_precision_frf, omega_grid, probe_indices, relative_difference,
+                                thomas_frequency_batch)
 from planar_frf import best  # noqa: E402  (best wall and CPU time of repeated calls)
 
 RESULTS = ROOT / "benchmarks" / "results" / "chain_frf.json"
@@ -201,7 +213,7 @@ def run(n: int, bounds: dict[int, ctypes.CDLL]) -> dict:
 
     cases = {"frequency_response": lambda: ctmm.frequency_response(system, omega, input="m1.force", output=outputs),
              "compiled_solve": lambda: solved(True), "numpy_solve": lambda: solved(False)}
-    row: dict = {"n_masses": n, "n_frequencies": int(omega.size)}
+    row: dict = {"n_masses": n, "n_frequencies": int(omega.size), "load_average": list(os.getloadavg())}
     results = {}
     for name, call in cases.items():
         call()                                                   # warm-up (the library is loaded once)
@@ -215,25 +227,61 @@ def run(n: int, bounds: dict[int, ctypes.CDLL]) -> dict:
     row["compiled_bound_cpu_s"] = bound_cpu
     for name in cases:
         row[f"{name}_vs_bound"] = row[f"{name}_cpu_s"] / bound_cpu
+    row["peak_bytes_frequency_response"] = peak_bytes(cases["frequency_response"])
     row["peak_bytes_compiled_solve"] = peak_bytes(lambda: solved(True))
     row["peak_bytes_numpy_solve"] = peak_bytes(lambda: solved(False))
+    banded_rows(row, results, n, omega, max(2, repeats // 2))
     frf = results["frequency_response"].response[:, 0]
-    probe = probe_indices()
-    reference = high_precision_frf(n, omega[probe])
-    row["error_vs_mpmath"] = {"frequency_response_driving_point": relative(frf[0, probe], reference[0]),
-                              "frequency_response_tip": relative(frf[1, probe], reference[1]),
-                              "numpy_solve_driving_point": relative(results["numpy_solve"][0, probe], reference[0]),
-                              "numpy_solve_tip": relative(results["numpy_solve"][1, probe], reference[1])}
+    # the 10 probe frequencies and, per output, where the compiled answer and the banded loop differ most
+    compiled, loop = np.stack([frf[0], frf[1]]), results["banded_loop"]
+    worst = [int(np.argmax(np.abs(compiled[k] - loop[k]) / np.maximum(np.abs(loop[k]), 1e-300))) for k in range(2)]
+    probe = np.unique(np.concatenate([probe_indices(), worst]))
+    row["mpmath_frequencies"] = {"indices": probe.tolist(), "largest_compiled_banded_difference_at": worst}
+    exact = high_precision_frf(n, omega[probe])
+    answers = {"frequency_response": compiled, "numpy_solve": results["numpy_solve"], "banded_loop": loop,
+               "banded_vectorised": results["banded_vectorised"]}
+    answers.update({f"bound_k{block}": results[f"bound_k{block}"][0] for block in bounds})
+    row["error_vs_mpmath"] = {f"{name}_{label}": relative(H[k, probe], exact[k])
+                              for name, H in answers.items() for k, label in enumerate(("driving_point", "tip"))}
     for block in bounds:
-        H, good = results[f"bound_k{block}"]
-        row["error_vs_mpmath"][f"bound_k{block}_driving_point"] = relative(H[0, probe], reference[0])
-        row["error_vs_mpmath"][f"bound_k{block}_tip"] = relative(H[1, probe], reference[1])
-        row[f"bound_k{block}_certifies_every_frequency"] = bool(good.all())
+        row[f"bound_k{block}_certifies_every_frequency"] = bool(results[f"bound_k{block}"][1].all())
+    for name in ("banded_loop", "banded_vectorised"):
+        row[f"error_{name}_over_compiled"] = {
+            label: row["error_vs_mpmath"][f"{name}_{label}"] / row["error_vs_mpmath"][f"frequency_response_{label}"]
+            for label in ("driving_point", "tip")}
     row["compiled_vs_numpy_max_relative"] = relative(results["compiled_solve"], results["numpy_solve"])
     row["compiled_vs_numpy_max_normwise"] = float(np.max(np.abs(results["compiled_solve"] - results["numpy_solve"]))
                                                   / np.max(np.abs(results["numpy_solve"])))
     print(json.dumps(row), flush=True)
     return row
+
+
+def banded_rows(row: dict, results: dict, n: int, omega: np.ndarray, repeats: int) -> None:
+    """The two banded baselines of ``foundation_scaling`` on the same chain and grid, into ``row`` and ``results``.
+
+    ``banded_loop`` -- ``scipy.linalg.solve_banded`` per frequency (:func:`foundation_scaling.banded_frequency_loop`),
+    ``banded_vectorised`` -- the Thomas elimination vectorised over omega
+    (:func:`foundation_scaling.thomas_frequency_batch`).  Both are timed on banded ``M, C, K`` prepared before
+    timing (``reference.assemble_banded`` goes through dense ``n x n`` matrices: its time and memory are reported
+    apart, ``banded_assembly_*``, and left out of the ratios, which favours the baselines).  Ratios
+    ``frequency_response_over_*`` are CPU-time ratios (< 1: the compiled path is faster).
+    """
+    glob = global_chain(n)
+    started = time.process_time()
+    tracemalloc.start()
+    try:
+        Mb, Cb, Kb = reference.assemble_banded(glob)
+        row["peak_bytes_banded_assembly"] = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    row["banded_assembly_cpu_s"] = time.process_time() - started
+    cases = {"banded_loop": lambda: banded_frequency_loop(Mb, Cb, Kb, omega),
+             "banded_vectorised": lambda: thomas_frequency_batch(Mb, Cb, Kb, omega)}
+    for name, call in cases.items():
+        row[f"{name}_s"], row[f"{name}_cpu_s"], results[name] = best(call, repeats)
+        row[f"frequency_response_over_{name}_cpu"] = row["frequency_response_cpu_s"] / row[f"{name}_cpu_s"]
+        row[f"peak_bytes_{name}"] = peak_bytes(call)
+    row["banded_repeats"] = repeats
 
 
 def run_controlled(n: int) -> dict:
