@@ -299,7 +299,7 @@ class ParameterKernel:
         ModelError
             A planar plant of another structure than the compiled one, a bad initial state.
         """
-        from .compiled_loops import PlanarSymbols
+        from .compiled_planar_sensors import PlanarSymbols
         from .compiled_spatial_loops import SpatialSymbols
 
         controlled = ControlledModel(plant, loops)

@@ -73,7 +73,7 @@ class SharedSensors:
     Parameters
     ----------
     symbols : PlanarSymbols or SpatialSymbols
-        The kernel's plant on symbols (:class:`~ctmm.compiled_loops.PlanarSymbols`,
+        The kernel's plant on symbols (:class:`~ctmm.compiled_planar_sensors.PlanarSymbols`,
         :class:`~ctmm.compiled_spatial_loops.SpatialSymbols`); only for plants whose sensors hold no parameter.
 
     Attributes

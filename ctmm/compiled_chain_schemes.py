@@ -61,7 +61,8 @@ from . import validation
 from .chain_ode import ChainDynamics
 from .compiled_chain import affine_form, sensor_row
 from .compiled_chain_kernel import banded_solver, step_kernel, tridiagonal_factors, woodbury_parts
-from .compiled_loops import controller_realisation, delay_steps
+from .compiled_loops import delay_steps
+from .control.planar_time import controller_realisation
 from .compiled_references import reference_at, symbolic_reference
 from .control.chain_plant import ChainPlant
 from .errors import ModelError

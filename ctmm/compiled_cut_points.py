@@ -7,7 +7,7 @@ numpy path's own statements: the methods of :class:`ctmm.planar.cut_points.CutPo
 casadi SX scalars (as :func:`ctmm.planar.beam_body_terms.symbolic_beam_terms` runs the beam's numpy terms), so
 
 * the point's position and velocity are :meth:`CutPoints.point` (the frame's inboard motion from
-  :class:`ctmm.compiled_loops.SymbolicKinematics`, the deformed point ``X_e + S_e eta`` in the frame with the
+  :class:`ctmm.compiled_planar_sensors.SymbolicKinematics`, the deformed point ``X_e + S_e eta`` in the frame with the
   foreshortening ``-1/2 w^T G1(x_e) w`` of a modal beam when the model has it); its acceleration is the exact time
   derivative of that velocity (``J qddot + (dPhi'/dq) qdot`` in :func:`ctmm.compiled_kinematic_loops.symbolic_closed_loop`);
 * its cross-section angle is :meth:`CutPoints.angle` (the frame angle plus ``d_e . eta``);
@@ -30,7 +30,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from .articulated import articulated_sweep
-from .compiled_loops import SymbolicKinematics
+from .compiled_planar_sensors import SymbolicKinematics
 from .compiled_parameters import compile_refusal, parameter_vector, symbolic_numbers
 from .compiled_scene import coordinate_accelerations
 from .compiled_scene_fold import symbolic_inputs

@@ -10,7 +10,7 @@ Nothing of the loop engine is new:
   the loads of the tree's actuators and of the cut torques ``"<cut>.torque"`` included, as
   :meth:`KinematicLoopModel.solve` with ``inputs``);
 * the loops are :class:`ctmm.compiled_loops.ClosedLoops` on :class:`KinematicLoopSymbols` (the tree's sensors by
-  :func:`ctmm.compiled_loops.sensor_expression`, the cut sensors ``"<cut>.angle"``, ``"<cut>.rate"`` and, for a cut
+  :func:`ctmm.compiled_planar_sensors.sensor_expression`, the cut sensors ``"<cut>.angle"``, ``"<cut>.rate"`` and, for a cut
   whose torque is constant, ``"<cut>.moment"``): real-time loops at every RK4 stage, LTI controller states integrated
   with the plant, delayed loops (``tau = m dt``) from the ring of samples in the state, saturation, references and
   open-loop inputs with a symbolic form; its step is :meth:`ClosedLoops.step`.
@@ -61,7 +61,8 @@ from . import validation
 from .compiled_control import add_loop_signals
 from .compiled_kinematic_loops import (kinematic_loop_compile_refusal, symbolic_closed_loop, symbolic_projection,
                                        symbolic_relative_angles, symbolic_time_signal)
-from .compiled_loops import ClosedLoops, SymbolicKinematics, sensor_expression
+from .compiled_loops import ClosedLoops
+from .compiled_planar_sensors import SymbolicKinematics, sensor_expression
 from .compiled_parameters import parameter_vector
 from .compiled_scene import DEFAULT_ROWS
 from .compiled_spherical_cut_law import rotation_limit_note

@@ -17,7 +17,7 @@ generated C (:func:`ctmm.generated_loop.compiled_time_loop`).  The step states, 
   foreshortening of a bent modal beam's end), which enter the body's element terms
   (:func:`~ctmm.compiled_cut_points.symbolic_accelerations_with_frame_loads`);
 * the cut points' positions and velocities are the symbolic kinematics of the tree
-  (:class:`ctmm.compiled_loops.SymbolicKinematics`): ``Phi`` (child point minus parent point [m]), ``Phi'`` and
+  (:class:`ctmm.compiled_planar_sensors.SymbolicKinematics`): ``Phi`` (child point minus parent point [m]), ``Phi'`` and
   the constraint Jacobian ``J = dPhi'/dqdot``;
 * one sweep without and ``2 m`` sweeps with unit cut forces give ``qddot = qddot_0 + D lambda`` and the boundary
   compliance ``G = J D``; the relative acceleration of the cut points is ``a_0 = J qddot_0 + (dPhi'/dq) qdot``; the
@@ -61,7 +61,7 @@ import numpy as np
 from . import validation
 from .compiled_cut_points import (SymbolicCutSides, deformable_bodies, is_deformable_side,
                                   symbolic_accelerations_with_frame_loads)
-from .compiled_loops import SymbolicKinematics
+from .compiled_planar_sensors import SymbolicKinematics
 from .compiled_parameters import compile_refusal, parameter_vector
 from .compiled_scene import DEFAULT_ROWS, symbolic_accelerations_with_inputs
 from .errors import ModelError, SimulationError

@@ -51,16 +51,12 @@ from .errors import ModelError
 from .ode import rk4_step
 from .planar.model import PlanarModel
 from .planar.ports import ActuatorInputs, PlanarPorts
-from .compiled_planar_sensors import PlanarSymbols, SymbolicKinematics, sensor_expression
+from .compiled_planar_sensors import PlanarSymbols
 from .compiled_parameters import LoopNumbers, loop_parameter_layout, parameter_vector, symbolic_loop_numbers
 from .compiled_references import SymbolicReference, reference_at, symbolic_reference
 from .signals import symbolic_signal
 
-# PlanarSymbols, SymbolicKinematics and sensor_expression live in ctmm.compiled_planar_sensors; re-exported here for
-# code that imports them from this module (batch, compiled_kinematic_loops, compiled_kinematic_loop_control)
-# controller_realisation is the numpy driver's (ctmm.control.planar_time), re-exported for the generated scheme steps
-__all__ = ["ClosedLoops", "PlanarSymbols", "LoopLaw", "SymbolicKinematics", "SymbolicReference", "controller_realisation",
-           "delay_steps", "sensor_expression"]
+__all__ = ["ClosedLoops", "LoopLaw", "delay_steps"]
 
 
 @dataclass(frozen=True)

@@ -225,7 +225,7 @@ class LoopNumbers:
         Controller realisation; a static gain is ``D`` alone (``k = 0``).
     reference : sequence
         The reference's :func:`ctmm.signals.signal_parameters` (empty for a
-        :class:`~ctmm.compiled_loops.SymbolicReference`, whose numbers stay constants of the code).
+        :class:`~ctmm.compiled_references.SymbolicReference`, whose numbers stay constants of the code).
     """
 
     A: Any

@@ -47,7 +47,7 @@ def symbolic_reference(label: str, value: Any) -> Any:
     if signal_parameters(signal) is None:
         raise ModelError(f"{label} is a Python callable of time, which generated kernels cannot evaluate; give a "
                          "number, a ctmm.signals Constant, Harmonic, Step or SquareWave, or a "
-                         "ctmm.compiled_loops.SymbolicReference, or use compiled=False")
+                         "ctmm.compiled_references.SymbolicReference, or use compiled=False")
     return signal
 
 

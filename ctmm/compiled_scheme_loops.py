@@ -64,7 +64,8 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from .compiled_control import add_loop_signals
-from .compiled_loops import ClosedLoops, controller_realisation
+from .compiled_loops import ClosedLoops
+from .control.planar_time import controller_realisation
 from .compiled_scheme_loop_terms import SchemeLoopTerms
 from .compiled_parameters import compiled_actuators
 from .compiled_scene import symbolic_accelerations_with_inputs

@@ -31,7 +31,8 @@ import numpy as np
 
 from . import validation
 from .compiled_control import add_loop_signals
-from .compiled_loops import ClosedLoops, controller_realisation
+from .compiled_loops import ClosedLoops
+from .control.planar_time import controller_realisation
 from .compiled_scene_schemes import STATUS
 from .compiled_scheme_loop_terms import SchemeLoopTerms
 from .compiled_spatial_loops import SpatialSymbols, loop_acceleration

@@ -44,7 +44,7 @@ def is_loop_number(loops: Sequence[Any], name: str) -> bool:
 
 
 def _realisation_names(loop: Any) -> list[str]:
-    from .compiled_loops import controller_realisation
+    from .control.planar_time import controller_realisation
 
     A = controller_realisation(loop)[0]
     k = A.shape[0]
@@ -83,7 +83,7 @@ def split_loops(controlled: Any, names: Sequence[str], what: str = "simulation_s
     (module docstring): a ``ControlledModel`` (``controlled`` itself when nothing is split)."""
     import control
 
-    from .compiled_loops import controller_realisation
+    from .control.planar_time import controller_realisation
     from .control.loops import Feedback
 
     wanted = _check(controlled, names, what)
@@ -114,7 +114,7 @@ def loop_directions(controlled: Any, split: Any, layout: Sequence[tuple[str, str
     """Directions ``(size, len(names))`` in the parameter column of the step of ``split``
     (:func:`split_loops` of ``controlled``) for the loop numbers among ``names`` (zero columns for the others);
     ``layout`` the step's :attr:`~ctmm.compiled_loops.ClosedLoops.parameter_layout`, placed from ``offset``."""
-    from .compiled_loops import controller_realisation
+    from .control.planar_time import controller_realisation
 
     position = {entry: offset + k for k, (entry, _, _) in enumerate(layout)}
     directions = np.zeros((size, len(names)))

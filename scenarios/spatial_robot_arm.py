@@ -13,7 +13,7 @@ actuated.
 Control (``Feedback`` loops, gains ours): each of yaw, shoulder and elbow a PD ``u = -(kp (q - q_d) +
 kd (q_dot - q_d_dot))(t - tau)`` with kp = 150, 300, 300 N m/rad, kd = 20, 10, 10 N m s/rad, tracking a
 quintic point-to-point move from (0, -0.3, 0.6) to (1.2, 0.2, 1.0) rad in 1 s (the reference
-``kp q_d + kd q_d_dot`` of each loop, a :class:`~ctmm.compiled_loops.SymbolicReference` so that the
+``kp q_d + kd q_d_dot`` of each loop, a :class:`~ctmm.compiled_references.SymbolicReference` so that the
 generated code follows it); the wrist held straight by three real-time PDs on its quaternion,
 ``u_i = -(40 q_i + w_i)`` (``2 q_vec`` is the rotation vector to first order).  No gravity
 compensation: the shoulder and elbow settle with a static error ``torque / kp``.  Runs (a) real-time
@@ -37,7 +37,7 @@ import scipy.integrate
 
 import ctmm
 import ctmm.spatial as sp
-from ctmm.compiled_loops import SymbolicReference
+from ctmm.compiled_references import SymbolicReference
 from ctmm.control import Feedback, with_feedback
 from ctmm.reference import spatial_tree as ref
 from ctmm.reference.spatial_kinematics import kinematics

@@ -73,7 +73,7 @@ def test_symbolic_points_follow_the_offsets():
     """The loops' sensor and cut kinematics on symbols (``SymbolicKinematics``) = ``PlanarModel.points``."""
     import casadi as ca
 
-    from ctmm.compiled_loops import SymbolicKinematics
+    from ctmm.compiled_planar_sensors import SymbolicKinematics
 
     model = PlanarModel.chain("arm", [Pinned("o"), RigidBody.uniform_link("a", mass=1.0, length=1.0),
                                       ElasticHinge("elbow", stiffness=8.0, translational_stiffness=200.0),

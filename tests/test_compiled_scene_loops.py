@@ -18,7 +18,8 @@ import scipy.integrate
 
 import ctmm
 from ctmm.compiled_control import simulate_controlled_generated
-from ctmm.compiled_loops import ClosedLoops, SymbolicReference
+from ctmm.compiled_loops import ClosedLoops
+from ctmm.compiled_references import SymbolicReference
 from ctmm.compiled_planar_sensors import SymbolicKinematics, sensor_expression
 from ctmm.control import Feedback
 from ctmm.control.controlled_model import ControlledModel

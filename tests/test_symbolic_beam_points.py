@@ -1,5 +1,5 @@
 """Generated kinematics of points outboard of second-order beams and ``ctmm.fem`` subsystems
-(:mod:`ctmm.symbolic_beam_points`, used by :class:`ctmm.compiled_loops.SymbolicKinematics` and
+(:mod:`ctmm.symbolic_beam_points`, used by :class:`ctmm.compiled_planar_sensors.SymbolicKinematics` and
 :class:`ctmm.compiled_spatial_loops.SpatialSymbols`).
 
 Before it, a loop sensing a body on the tip of a ``ModalBeam(second_order_inertia=True)`` ran 0.45 N m (loop output)
@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import ctmm
-from ctmm.compiled_loops import SymbolicKinematics, sensor_expression
+from ctmm.compiled_planar_sensors import SymbolicKinematics, sensor_expression
 from ctmm.control import Feedback, with_feedback
 from ctmm.fem import BeamElement, FiniteElementModel
 from ctmm.planar import Pinned, PlanarModel, RigidBody

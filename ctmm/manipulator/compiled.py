@@ -8,7 +8,7 @@ co-simulated controller) as the controlled scene
 definitions, the loops closed inside the generated RK4 stage (:mod:`ctmm.compiled_loops`; the patch
 moment pairs cancel on the arm's floating frame, so they act as modal forces), whole intervals of
 ``block`` steps and ``chunks`` stored states per C call.  The cycloidal reference enters the generated
-code as a :class:`~ctmm.compiled_loops.SymbolicReference`.  It replaced a hand-derived closed form of
+code as a :class:`~ctmm.compiled_references.SymbolicReference`.  It replaced a hand-derived closed form of
 the same sweep (same results to round-off, measured in ``benchmarks/compiled_scenes.py``).
 
 The C library is cached on disk by :mod:`ctmm.codegen` (keyed by the serialized step and sizes, before
@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from .. import validation
-from ..compiled_loops import SymbolicReference
+from ..compiled_references import SymbolicReference
 from ..compiled_scene import CompiledScene
 from ..errors import ModelError, SimulationError
 from ..guard import DivergenceGuard
