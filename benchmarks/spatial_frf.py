@@ -22,6 +22,10 @@ Methods (one run, one machine):
                     ``benchmarks/planar_chain.py`` with N links (one load case, undamped: the real variant);
                     ``kernel_vs_planar_kernel`` the ratio of CPU times (the spatial kernel's arithmetic: 6 x 6 blocks,
                     products with ``S``, two load cases, complex numbers);
+* ``operating_point_check`` -- :func:`ctmm.spatial_linearization.operating_point` of the given point (the
+                    equilibrium check of the whole call; the later time probes only where the time enters);
+                    ``output_rows`` -- :func:`ctmm.spatial_linearization.output_matrix` of the two outputs (the
+                    complex step of the sensors along the position directions);
 * ``first_compile`` -- wall time and the compiler's CPU time of building each ``d = 6`` variant into an empty cache
                     folder (then cached on disk);
 * ``resolvent``  -- the former path: :func:`ctmm.linearize` (complex-step tangent, 2N x 2N) and the dense
@@ -58,7 +62,7 @@ import ctmm  # noqa: E402
 import ctmm.spatial as sp  # noqa: E402
 from ctmm.controlled_linearization import delayed_loop_response  # noqa: E402
 from ctmm.errors import ModelError  # noqa: E402
-from ctmm.spatial_linearization import linearize_spatial, operating_point  # noqa: E402
+from ctmm.spatial_linearization import linearize_spatial, operating_point, output_matrix  # noqa: E402
 from ctmm.spatial_transfer_response import SpatialSweepResponse  # noqa: E402
 from ctmm.sweep_response import PIVOT_TOLERANCE, RESIDUAL_TOLERANCE  # noqa: E402
 from planar_frf import best, write_result  # noqa: E402  (best wall and CPU time; the JSON)
@@ -182,6 +186,8 @@ def run(n: int, hanging: bool = False) -> dict:
     cases = {"sweep": (lambda: sweep(model, n, point=point), 5),
              "sweep_only": (lambda: plant.response(1j * OMEGA, inputs, outputs), 5),
              "sweep_only_generic": (lambda: generic.response(1j * OMEGA, inputs, outputs), 3),
+             "operating_point_check": (lambda: operating_point(model, point), 5),
+             "output_rows": (lambda: output_matrix(model, outputs, plant.point, plant.ports), 5),
              "resolvent": (lambda: resolvent(model, n, point=point), 1)}
     if plant.compiled is not None:
         cases["kernel_only"] = (kernel_call(plant, inputs), 5)

@@ -72,6 +72,8 @@ directions (the Newton phase, and every step of an uncapped search).  The capped
 directions (``stable=True``) is not counted against it: its steps are accepted by the decrease of the potential
 energy (:mod:`ctmm.spatial_fall`); only a model whose static forces have no potential here (point loads, springs
 without one) keeps a budget of ``NEWTON_ITERATIONS + 5 n_v`` fall steps."""
+_CONFIGURATION_SENSORS = frozenset({"q", "modal", "angles", "rotation", "point"})
+"""Kinds of :class:`ctmm.spatial.ports.SpatialPorts` sensors whose values depend on ``q`` alone."""
 _COMPONENTS = {3: ("x", "y", "z"), 6: ("fx", "fy", "fz", "mx", "my", "mz"), 2: ("1", "2")}
 
 
@@ -329,10 +331,20 @@ def _parse_point(model: Any, point: Any) -> tuple[Any, Any, float]:
                      f"{point!r}")
 
 
+def _time_varying(model: Any) -> bool:
+    """True when the sweep's accelerations without inputs may depend on the time: the time enters
+    :meth:`ctmm.spatial.body_forms.SpatialScene.terms` only through driven joints' motions, applied loads'
+    signals and the terms of flexible bodies (beams, ``ctmm.fem`` subsystems)."""
+    return bool(model.loads) or any(joint.driven for joint in model.joints) or any(
+        layout is not None for layout in model.modal)
+
+
 def operating_point(model: Any, point: Any = None, *, allow_nonequilibrium: bool = False) -> OperatingPoint:
     """The :class:`OperatingPoint` of a spatial model: the static equilibrium for ``None``
     (:func:`static_equilibrium`), else ``(q, v)``, ``(q, v, t)``, a mapping or an OperatingPoint,
-    checked to be an equilibrium (at rest now and at a few later times) unless allowed."""
+    checked to be an equilibrium (at rest now and at a few later times
+    :data:`~ctmm.planar_linearization.TIME_PROBES` unless nothing in the model depends on the time: no driven
+    joint, load or flexible body) unless allowed."""
     _require_model(model, "operating_point")
     if point is None:                       # then checked like a given point (time-varying loads)
         q, v, t = static_equilibrium(model, stable=True), np.zeros(model.n_velocities), 0.0
@@ -355,7 +367,7 @@ def operating_point(model: Any, point: Any = None, *, allow_nonequilibrium: bool
     limit = _scale(model)
     residual = float(np.max(np.abs(_rates(model, q[None], v[None], t)[0]), initial=0.0))
     equilibrium = residual <= limit and not np.any(v != 0.0)
-    if equilibrium:
+    if equilibrium and _time_varying(model):    # else every later probe repeats this evaluation exactly
         for later in (t + offset for offset in TIME_PROBES):
             drift = float(np.max(np.abs(_rates(model, q[None], v[None], later)[0]), initial=0.0))
             if not drift <= limit:
@@ -447,20 +459,32 @@ def input_matrix(model: Any, names: Sequence[str], point: OperatingPoint) -> np.
     return columns
 
 
-def output_matrix(model: Any, names: Sequence[str], point: OperatingPoint) -> np.ndarray:
+def output_matrix(model: Any, names: Sequence[str], point: OperatingPoint, ports: Any = None) -> np.ndarray:
     """``dy/dx`` (len(names), 2 nv) of sensor ports (:class:`ctmm.spatial.ports.SpatialPorts`) and of the
     tangent coordinates that are not ports (``"ball.rx"``, ``"u.angle1"``), in the state ``x = [r ; v]``.
 
     Sensor rows by complex step through :func:`ctmm.spatial_sensors_complex.complex_sensor_values` (exact to
     round-off); a name that is both (joint angles, velocities, free-joint positions) is the sensor: for
-    ``"<free joint>.x|y|z"`` the world position, equal to the tangent coordinate where ``R0 = I``."""
+    ``"<free joint>.x|y|z"`` the world position, equal to the tangent coordinate where ``R0 = I``.  When every
+    sensor asked for reads the configuration alone (coordinates, angles, rotation vectors, point positions), only
+    the ``nv`` position directions are stepped: the velocity columns are zero.
+
+    Parameters
+    ----------
+    model : SpatialModel
+    names : sequence of str
+        Sensor ports and tangent coordinates.
+    point : OperatingPoint
+    ports : SpatialPorts, optional
+        The model's resolved ports (built when omitted).
+    """
     _require_model(model, "output_matrix")
     from .spatial.ports import SpatialPorts
 
     n = model.n_velocities
     states = list(tangent_names(model)) + list(model.velocities)
     index = {name: k for k, name in enumerate(states)}
-    ports = SpatialPorts(model)
+    ports = SpatialPorts(model) if ports is None else ports
     rows = np.zeros((len(names), 2 * n))
     sensed = []
     for k, name in enumerate(names):
@@ -476,11 +500,15 @@ def output_matrix(model: Any, names: Sequence[str], point: OperatingPoint) -> np
                                    sorted(set(states) | set(ports.sensors))) from None
     if sensed and n:
         step = 1e-30
-        perturb = 1j * step * np.eye(2 * n)
+        sensors = [names[k] for k in sensed]
+        # sensors of the configuration alone (coordinates, angles, rotation vectors, point positions) read no
+        # velocity: their velocity columns are zero, and only the n position directions are stepped
+        count = n if all(sensor.kind in _CONFIGURATION_SENSORS for sensor in ports.resolve(sensors)) else 2 * n
+        perturb = 1j * step * np.eye(2 * n)[:count]
         q = retract(model, point.q, perturb[:, :n])
         v = point.qdot[None, :] + perturb[:, n:]
-        values = complex_sensor_values(model, [names[k] for k in sensed], q, v, point.t)
-        rows[sensed] = (values.imag / step).T
+        values = complex_sensor_values(model, sensors, q, v, point.t, ports)
+        rows[np.ix_(sensed, range(count))] = (values.imag / step).T
     return rows
 
 

@@ -23,7 +23,8 @@ from .spatial.sensor_maps import SINGULAR_MARGIN, sensor_values
 __all__ = ["complex_sensor_values", "SINGULAR_MARGIN"]
 
 
-def complex_sensor_values(model: Any, names: Sequence[str], q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+def complex_sensor_values(model: Any, names: Sequence[str], q: np.ndarray, v: np.ndarray, t: float,
+                          ports: SpatialPorts | None = None) -> np.ndarray:
     """Values ``(B, len(names))`` of the sensors ``names`` at a batch of complex-step states (module docstring).
 
     Parameters
@@ -36,12 +37,14 @@ def complex_sensor_values(model: Any, names: Sequence[str], q: np.ndarray, v: np
         ``q0 (+) i h e_k``, :func:`ctmm.spatial_linearization.retract`).
     t : float
         Time [s].
+    ports : SpatialPorts, optional
+        The model's resolved ports (built when omitted).
 
     Returns
     -------
     ndarray, shape (B, len(names)), complex
         ``Im / h`` is the derivative along each row's step.
     """
-    ports = SpatialPorts(model)
+    ports = SpatialPorts(model) if ports is None else ports
     return sensor_values(model, ports.scene, ports.resolve(list(names)), np.asarray(q, dtype=complex),
                          np.asarray(v, dtype=complex), float(t), differentiable="linearize")

@@ -248,7 +248,7 @@ class SpatialSweepResponse(ArticulatedResponse):
         """``(outputs, 2 nv)``: ``[dy/dr, dy/dv]`` (:func:`ctmm.spatial_linearization.output_matrix`)."""
         from .spatial_linearization import output_matrix
 
-        return output_matrix(self.model, outputs, self.point)
+        return output_matrix(self.model, outputs, self.point, self.ports)
 
     reads_joint_amplitudes = True
 
