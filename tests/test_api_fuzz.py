@@ -507,7 +507,8 @@ def check_refused(case: Case, value: Any) -> None:
     message = str(error)
     assert case.parameter.split()[0] in message, f"{case!r}: message does not name the parameter: {message}"
     assert _mentions(message, value), f"{case!r}: message does not show the value {value!r}: {message}"
-    assert time.process_time() - started < 5.0, f"{case!r} took {time.process_time() - started:.1f} s of CPU to refuse {value!r}"
+    spent = time.process_time() - started
+    assert spent < 5.0, f"{case!r} took {spent:.1f} s of CPU to refuse {value!r}"
 
 
 @settings(max_examples=400, deadline=None, derandomize=True, database=None,
