@@ -32,7 +32,7 @@ from .flexible.beam import ModalBeam
 from .planar.model import REVOLUTE, PlanarModel
 from .planar.ports import ActuatorInputs
 
-__all__ = ["generalized_force_units", "inverse_mass_terms"]
+__all__ = ["generalized_force_units", "inverse_mass_terms", "weighted_residual_terms"]
 
 
 def generalized_force_units(model: PlanarModel) -> list[ActuatorInputs] | None:
@@ -59,9 +59,9 @@ def generalized_force_units(model: PlanarModel) -> list[ActuatorInputs] | None:
 
 
 def inverse_mass_terms(model: PlanarModel) -> Any:
-    """``inverse_mass(q, v, p, t, s) -> (G, d(G s)/dq)`` (casadi ``Function`` on SX): ``G = M(q)^-1`` of the
-    coordinates in the basis of :func:`generalized_force_units` and the derivative of ``G s`` at fixed ``s``;
-    ``None`` where that basis does not exist."""
+    """``(inverse_mass(q, v, p, t) -> G, inverse_mass_derivative(q, v, p, t, s) -> d(G s)/dq)`` (casadi
+    ``Function`` s on SX): ``G = M(q)^-1`` of the coordinates in the basis of :func:`generalized_force_units`
+    and the derivative of ``G s`` at fixed ``s``; ``None`` where that basis does not exist."""
     import casadi as ca
 
     units = generalized_force_units(model)
@@ -71,5 +71,24 @@ def inverse_mass_terms(model: PlanarModel) -> Any:
     n = model.n_coordinates
     q, v, u, s = (ca.SX.sym(label, n) for label in ("q", "v", "u", "s"))
     p, t = ca.SX.sym("p", acceleration.sparsity_in(3)), ca.SX.sym("t")
-    inverse = ca.substitute(ca.jacobian(acceleration(q, v, u, p, t), u), u, ca.SX.zeros(n))
-    return ca.Function("inverse_mass", [q, v, p, t, s], [inverse, ca.jacobian(ca.mtimes(inverse, s), q)])
+    rates = acceleration(q, v, u, p, t)
+    inverse = ca.substitute(ca.jacobian(rates, u), u, ca.SX.zeros(n))
+    product = ca.substitute(ca.jtimes(rates, u, s), u, ca.SX.zeros(n))      # G s: one directional derivative
+    return (ca.Function("inverse_mass", [q, v, p, t], [inverse]),
+            ca.Function("inverse_mass_derivative", [q, v, p, t, s], [ca.jacobian(product, q)]))
+
+
+def weighted_residual_terms(residual_terms: Any, inverse_mass: Any, derivative: Any) -> Any:
+    """``residual_terms(a, q_hat, v_hat, w, g, t, u, p, ...) -> (r, J)`` of the plain residual with ``J``
+    replaced by ``J - w d(G s)/dq`` at ``q = q_hat + w a``, ``v = v_hat + g a``, ``s = G^-1 r`` (a QR solve of
+    numbers in the generated code): the tangent whose Newton steps are those on ``M r`` (module docstring).
+    ``inverse_mass``, ``derivative``: the pair of :func:`inverse_mass_terms`."""
+    import casadi as ca
+
+    arguments = [ca.MX.sym(residual_terms.name_in(i), residual_terms.sparsity_in(i))
+                 for i in range(residual_terms.n_in())]
+    a, q_hat, v_hat, w, g, t, _, p = arguments[:8]
+    residual, tangent = residual_terms(*arguments)
+    q, v = q_hat + w * a, v_hat + g * a
+    weight = ca.solve(inverse_mass(q, v, p, t), residual, "qr")
+    return ca.Function("weighted_residual", arguments, [residual, tangent - w * derivative(q, v, p, t, weight)])

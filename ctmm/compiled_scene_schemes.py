@@ -52,7 +52,7 @@ import numpy as np
 
 from . import validation
 from .compiled_parameters import compile_refusal, compiled_actuators, parameter_vector
-from .compiled_newton_weighting import inverse_mass_terms
+from .compiled_newton_weighting import inverse_mass_terms, weighted_residual_terms
 from .compiled_scene import symbolic_accelerations_with_inputs
 from .errors import ConvergenceError, ModelError
 from .generated_loop import BlockRunner, compiled_time_loop, run_blocks
@@ -399,12 +399,11 @@ class CompiledSceneScheme(SchemeHooks):
         tangent_q = ca.Function("tangent", [q, v, u, p, t, c, s],
                                 [rates, ca.jacobian(rates, q), ca.jacobian(rates, v)])
         value, d_q, d_v = tangent_q(q_hat + w * a, v_hat + g * a, u, p, t, c, s)
-        residual, tangent = a - value, ca.SX.eye(n) - w * d_q - g * d_v
+        residual_terms = ca.Function("residual", [a, q_hat, v_hat, w, g, t, u, p, c, s],
+                                     [a - value, ca.SX.eye(n) - w * d_q - g * d_v])
         weighting = inverse_mass_terms(self.model)      # Newton on M (a - qddot), as the Python stepper
         if weighting is not None:
-            inverse, _ = weighting(q_hat + w * a, v_hat + g * a, p, t, ca.SX.zeros(n))
-            tangent -= w * weighting(q_hat + w * a, v_hat + g * a, p, t, ca.solve(inverse, residual))[1]
-        residual_terms = ca.Function("residual", [a, q_hat, v_hat, w, g, t, u, p, c, s], [residual, tangent])
+            residual_terms = weighted_residual_terms(residual_terms, *weighting)
         iterate = newton_iteration(residual_terms, self.tolerance)
         y = ca.MX.sym("y", self.state_size)
         u_in, h, p_in, t0, k = ca.MX.sym("u", n_u), ca.MX.sym("h"), ca.MX.sym("p", n_p), ca.MX.sym("t0"), ca.MX.sym("k")
