@@ -26,7 +26,9 @@ generated RK4 compiles (:func:`ctmm.compiled_scene.symbolic_accelerations_with_i
   solve per iteration, at most ``max_iterations`` iterations (each a short-circuit branch: converged steps
   skip the rest), the stopping rule of the Python stepper (``max |delta a| <= tolerance (1 + max |a|)``).
   Same root as :func:`~ctmm.planar.implicit.simulate_implicit` (whose Newton runs on the transfer form of
-  the same equations): the two agree to round-off (``tests/test_compiled_scene_schemes.py``).
+  the same equations): the two agree to round-off (``tests/test_compiled_scene_schemes.py``); same iterates
+  where :mod:`ctmm.compiled_newton_weighting` gives the tangent of the mass-weighted residual ``M r`` (hinge
+  angles and modal coordinates), as the transfer form is (``tests/test_compiled_newton_weighting.py``).
 
 Generated state: the history ``6 n`` followed by ``[first failed step, its residual, Newton iterations so
 far]``.  A step that does not converge (or gives a non-finite acceleration) stores NaN from then on, which
@@ -50,6 +52,7 @@ import numpy as np
 
 from . import validation
 from .compiled_parameters import compile_refusal, compiled_actuators, parameter_vector
+from .compiled_newton_weighting import inverse_mass_terms, weighted_residual_terms
 from .compiled_scene import symbolic_accelerations_with_inputs
 from .errors import ConvergenceError, ModelError
 from .generated_loop import BlockRunner, compiled_time_loop, run_blocks
@@ -398,6 +401,9 @@ class CompiledSceneScheme(SchemeHooks):
         value, d_q, d_v = tangent_q(q_hat + w * a, v_hat + g * a, u, p, t, c, s)
         residual_terms = ca.Function("residual", [a, q_hat, v_hat, w, g, t, u, p, c, s],
                                      [a - value, ca.SX.eye(n) - w * d_q - g * d_v])
+        weighting = inverse_mass_terms(self.model)      # Newton on M (a - qddot), as the Python stepper
+        if weighting is not None:
+            residual_terms = weighted_residual_terms(residual_terms, *weighting)
         iterate = newton_iteration(residual_terms, self.tolerance)
         y = ca.MX.sym("y", self.state_size)
         u_in, h, p_in, t0, k = ca.MX.sym("u", n_u), ca.MX.sym("h"), ca.MX.sym("p", n_p), ca.MX.sym("t0"), ca.MX.sym("k")
@@ -480,7 +486,7 @@ def not_converged(compiled: Any, row: np.ndarray, h: float, partial: Any = None,
     step = offset + int(row[status])
     return ConvergenceError(
         f"generated implicit DT-TMM step {step} (t = {step * h:.6g} s) did not converge: residual max|delta qdd| = "
-        f"{row[status + 1]:.3e} after at most {compiled.max_iterations} Newton iterations (tolerance "
+        f"{row[status + 1]:.3e} after {compiled.max_iterations} Newton iterations (tolerance "
         f"{compiled.tolerance:g}); reduce dt", time=step * h, partial_result=partial)
 
 

@@ -1,11 +1,14 @@
 """Beam outputs of simulations and the divergence check of the integrators."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .. import validation
 from ..errors import ModelError, SimulationError
 from ..guard import RK4_LIMIT
+from ..planar.guards import linearised_omega_max
 
 
 def _coordinates(model, q) -> np.ndarray:
@@ -66,12 +69,34 @@ def highest_frequency(model) -> tuple[float, str]:
     return best, name
 
 
+def model_highest_frequency(model, t: float = 0.0) -> tuple[float, str]:
+    """Highest frequency [rad/s] for a step's stability limit, and where it comes from: the larger of the
+    beams' own modal frequencies (:func:`highest_frequency`, each beam clamped in its floating frame) and the
+    spectral radius of the model's linearisation about the undeformed state at rest at ``t`` [s]
+    (:func:`ctmm.planar.guards.linearised_omega_max`: the joints and the bodies the beams hang on included,
+    e.g. a pinned beam, whose modes are higher than its clamped ones)."""
+    beams, which = highest_frequency(model)
+    zero = np.zeros(model.n_coordinates)
+    try:
+        linearised = float(linearised_omega_max(model, zero, zero, t))
+    except (SimulationError, FloatingPointError, np.linalg.LinAlgError):
+        linearised = math.inf                       # no linearisation: the RK4 step cannot be cleared
+    if not linearised > beams:
+        return beams, f"highest modal frequency {beams:.4g} rad/s of beam {which!r}"
+    return linearised, (f"highest frequency {linearised:.4g} rad/s of the model linearised about its undeformed "
+                        f"state at rest (beam {which!r} alone: {beams:.4g} rad/s)")
+
+
 def check_divergence(model, q, t: float, dt: float | None, method: str, partial=None) -> None:
     """Raise :class:`SimulationError` when a beam's deflection bound exceeds its length.
 
     ``sum_i |eta_i| max|phi_i|`` > ``L`` is far outside the small-deformation model; the message
-    says whether the explicit step is above the RK4 stability limit (numerical instability) or
-    the model itself is unstable (e.g. no geometric stiffening above the first critical speed).
+    gives the reason.  With ``method == "rk4"`` and a fixed step ``dt`` [s] it compares ``dt`` with the
+    RK4 limit ``2 sqrt 2 / omega_max`` of :func:`model_highest_frequency` (the model's own highest
+    frequency, not only the beams' clamped modes): above it, numerical instability; below it, the model
+    itself is unstable (e.g. no geometric stiffening above the first critical speed).  Other methods
+    (the implicit schemes, checked against their own limit before the run) are not judged here: the message
+    says to look at that check's warning.
     """
     for j, beam in model.beams.items():
         d = beam.data
@@ -79,17 +104,23 @@ def check_divergence(model, q, t: float, dt: float | None, method: str, partial=
         bound = float(np.abs(eta[:d.nq]) @ d.phi_bound) + (
             float(np.sum(np.abs(eta[d.nq:]))) * np.sqrt(2.0) if d.np_ else 0.0)
         if not np.isfinite(bound) or bound > beam.length:
-            w_max, which = highest_frequency(model)
-            if dt is not None and method == "rk4" and dt * w_max > RK4_LIMIT:
-                reason = (f"the explicit RK4 step is unstable: dt = {dt:g} s exceeds the stability "
-                          f"limit 2 sqrt 2/omega_max = "
-                          f"{RK4_LIMIT / w_max:.4g} s (highest modal frequency "
-                          f"{w_max:.4g} rad/s of beam {which!r}); reduce dt or use an implicit "
-                          f"scheme")
+            if dt is not None and method == "rk4":
+                w_max, source = model_highest_frequency(model, t)
+                if not dt * w_max <= RK4_LIMIT:
+                    reason = (f"the explicit RK4 step is unstable: dt = {dt:g} s exceeds the stability "
+                              f"limit 2 sqrt 2/omega_max = {RK4_LIMIT / w_max:.4g} s ({source}); reduce dt or "
+                              "use an implicit scheme")
+                else:
+                    reason = (f"the model's response grows without bound (dt = {dt:g} s is within the RK4 "
+                              f"stability limit 2 sqrt 2/omega_max = {RK4_LIMIT / w_max:.4g} s, {source}, so the "
+                              "model itself is unstable, e.g. geometric stiffening is off above the first "
+                              "critical speed)")
             else:
-                reason = ("the model's response grows without bound (the step is within the "
-                          "integrator's stability limit, so the model itself is unstable, e.g. "
-                          "geometric stiffening is off above the first critical speed)")
+                reason = (f"the model's response grows without bound; {method!r} is not checked against its "
+                          "stability limit here: if the run warned that the step exceeds the scheme's limit "
+                          "(StabilityLimitWarning, checked before the run), reduce dt or choose a stable "
+                          "scheme; otherwise the model itself is unstable (e.g. geometric stiffening is off "
+                          "above the first critical speed)")
             raise SimulationError(
                 f"simulation diverged at t = {t:.6g} s: beam {beam.name!r} deflection bound "
                 f"{bound:.3g} m exceeds its length {beam.length:g} m; {reason}",
@@ -136,4 +167,5 @@ def spinup_law(final_rate: float = 6.0, ramp_time: float = 15.0):
 
 
 __all__ = ["mape", "spinup_law", "tip_deflection", "axial_tip_displacement", "highest_frequency",
+           "model_highest_frequency",
            "check_divergence"]
