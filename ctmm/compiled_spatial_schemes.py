@@ -423,15 +423,18 @@ def simulate_spatial_scheme_generated(model: SpatialModel, t_final: float, dt: f
             "newton_iterations": total}
 
     return checked_spatial_result(compiled, times, states, dt, method, lambda k: state_result(
-        model, times[:k], states[:k, :nq + n], method, info), divergence_bound)
+        model, times[:k], states[:k, :nq + n], method, info), divergence_bound, compiled.held_inputs(inputs))
 
 
 def checked_spatial_result(compiled: CompiledSpatialScheme, times: np.ndarray, states: np.ndarray, dt: float,
                            method: str, result: Callable[[int], SimulationResult],
-                           divergence_bound: float | None = None) -> SimulationResult:
+                           divergence_bound: float | None = None, held: np.ndarray | None = None) -> SimulationResult:
     """``result(len(times))`` of the stored generated states ``states`` at ``times`` [s] (step ``dt`` [s]) after the
     checks of a generated spatial scheme run: finite, within ``divergence_bound`` of the start, the beams' deflection
-    bound, no failed step.
+    bound, no failed step.  ``held``: the step's input vector over the run (:meth:`CompiledSpatialScheme.held_inputs`);
+    with it, the steps between the last good stored state and the first failing one are run again one at a time
+    and checked as the numpy path checks every step, so that the failure is reported at its step (time) as there;
+    without it, at the first failing stored state.
 
     Raises
     ------
@@ -446,10 +449,21 @@ def checked_spatial_result(compiled: CompiledSpatialScheme, times: np.ndarray, s
     failed = np.flatnonzero(states[:, status] > 0.0)
     good = len(states) if not failed.size else int(failed[0])
     trajectory = states[:good, :nq + n]
+    check = divergence_check(model, trajectory[0], divergence_bound)
     try:        # the numpy path's guard (bound, finiteness, beams: the first failing row, its message with this label)
-        divergence_check(model, trajectory[0], divergence_bound)(times[:good], trajectory, method)
+        check(times[:good], trajectory, method)
     except SimulationError as exc:
-        exc.partial_result = result(int(np.searchsorted(times, exc.time)))
+        row = int(np.searchsorted(times, exc.time))
+        if held is not None and row > 0:        # the failing interval again, step by step from its last good state
+            state = states[row - 1]
+            try:
+                for k in range(int(round(times[row - 1] / dt)), int(round(times[row] / dt))):
+                    state = compiled.continue_run(state, held, dt, 1, k)[-1]
+                    check((k + 1) * dt, state[:nq + n], method)
+            except SimulationError as earlier:
+                earlier.partial_result = result(row)
+                raise earlier from None
+        exc.partial_result = result(row)
         raise
     if failed.size:
         row = states[failed[0]]

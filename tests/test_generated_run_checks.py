@@ -145,18 +145,28 @@ def test_a_controlled_spatial_run_stops_with_the_numpy_loop_drivers_message(case
                         store_every=store_every, **SPIN, **options)
 
 
+@pytest.mark.parametrize("loops", [False, True])
+@pytest.mark.parametrize("store_every", [1, 7])
 @pytest.mark.parametrize("case", ["beam", "bound"])
-def test_a_spatial_scheme_run_stops_with_the_numpy_schemes_message(case):
-    """Newmark in generated C on the spinning beam: past its deflection bound (no stiffening) and the hub angle past
-    ``divergence_bound`` (stiffened): the numpy scheme path's message (its method label aside), time, element and
-    partial result."""
+def test_a_spatial_scheme_run_stops_with_the_numpy_schemes_message(case, store_every, loops):
+    """Newmark in generated C on the spinning beam, alone and with a loop inside the step
+    (``compiled_spatial_scheme_loops``): past its deflection bound (no stiffening, step 19) and an entry past
+    ``divergence_bound`` (stiffened, step 2): the numpy scheme path's message (its method label aside), time,
+    element and partial result, also between stored rows (``store_every = 7``: the interval replayed step by step;
+    the stored rows alone gave t = 0.21 s and 0.07 s)."""
     from ctmm.schemes import Newmark
 
     options = dict(divergence_bound=0.5) if case == "bound" else {}
     model = spinner(case == "bound")
-    numpy_error, generated = (failure(model, compiled, method=Newmark(), t_final=2.0, dt=0.01, **SPIN, **options)
-                              for compiled in (False, True))
+    if loops:
+        model = with_feedback(model, [Feedback("rate", "hub.angle_rate", "arm.force_y", gain=0.0)])
+    numpy_error, generated = (failure(model, compiled, method=Newmark(), t_final=2.0, dt=0.01, store_every=store_every,
+                                      **SPIN, **options) for compiled in (False, True))
+    assert numpy_error.time == pytest.approx(0.02 if case == "bound" else 0.19, abs=1e-12)
     assert generated.element == numpy_error.element == ("spinner" if case == "bound" else "arm")
     assert generated.time == numpy_error.time and 0.0 < generated.time < 2.0
     assert str(generated) == str(numpy_error).replace("(dt-tmm/", "(dt-tmm-generated/")
     np.testing.assert_array_equal(generated.partial_result.time, numpy_error.partial_result.time)
+    for name in ("hub.angle", "arm.qy1"):
+        np.testing.assert_allclose(generated.partial_result[name], numpy_error.partial_result[name], rtol=1e-9,
+                                   atol=1e-12, err_msg=name)
