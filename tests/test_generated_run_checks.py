@@ -170,3 +170,38 @@ def test_a_spatial_scheme_run_stops_with_the_numpy_schemes_message(case, store_e
     for name in ("hub.angle", "arm.qy1"):
         np.testing.assert_allclose(generated.partial_result[name], numpy_error.partial_result[name], rtol=1e-9,
                                    atol=1e-12, err_msg=name)
+
+
+def test_a_diverging_spatial_beam_set_of_a_mapped_batch_stops_as_on_the_numpy_path():
+    """``simulate_batch`` runs spatial sets mapped in one C call per block (``ParameterKernel.run_mapped``) with the
+    guarded step: the set of the spinning beam without stiffening stops at the numpy RK4's step (t = 0.19 s, between
+    the stored rows 0.14 s and 0.21 s), with its message (method label aside), element and partial result; the stiffer
+    set (first critical speed above the spin) runs to the end."""
+    sets = [{"arm.bending_stiffness_y": 1.4e5}, {"arm.mass_per_length": 1.2}]
+    batch = ctmm.simulate_batch(spinner(False), sets, 2.0, 0.01, store_every=7, **SPIN)
+    assert list(batch.failures) == [1] and batch.results[0] is not None
+    generated, numpy_error = batch.failures[1], failure(spinner(False), False, method="rk4", t_final=2.0, dt=0.01,
+                                                        store_every=7, **SPIN)
+    assert generated.element == numpy_error.element == "arm"
+    assert generated.time == numpy_error.time == pytest.approx(0.19, abs=1e-12)
+    assert str(generated) == str(numpy_error).replace("(rk4)", "(rk4-generated)")
+    np.testing.assert_array_equal(generated.partial_result.time, numpy_error.partial_result.time)
+    np.testing.assert_allclose(generated.partial_result["arm.qy1"], numpy_error.partial_result["arm.qy1"],
+                               rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("compiled", [None, True])
+@pytest.mark.parametrize("kind", ["planar", "spatial"])
+def test_a_kinematic_loop_model_alone_refuses_divergence_bound_by_name(kind, compiled):
+    """A kinematic loop model without loops, inputs or controllers runs its own RK4 with projection (numpy:
+    :func:`ctmm.loop_integration.integrate_loop_model`; generated: ``compiled_kinematic_loops``,
+    ``compiled_spatial_kinematic_loops``), which has no ``divergence_bound`` check: the argument is refused by name,
+    not dropped (the DT-TMM schemes and the loop-closing driver take it)."""
+    if kind == "planar":
+        from ctmm.scenarios.four_bar import mechanism, start
+    else:
+        from ctmm.scenarios.spatial_four_bar import mechanism, start
+    loop = mechanism()
+    q0, v0 = start(loop)
+    with pytest.raises(ctmm.ModelError, match=r"divergence_bound=1\.0"):
+        ctmm.simulate(loop, 0.01, 1e-3, method="rk4", x0=q0, v0=v0, divergence_bound=1.0, compiled=compiled)
