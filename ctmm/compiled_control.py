@@ -232,31 +232,36 @@ def simulate_spatial_controlled_generated(controlled: ControlledModel, q0: np.nd
     return result(len(t))
 
 
-def first_loop_failure(loops: Any, states: np.ndarray) -> int:
-    """The index of the first stored row of ``states`` (rows, the generated state of :class:`~ctmm.compiled_loops.
-    ClosedLoops` ``loops``) whose controller states or delay ring are non-finite; the number of rows if none."""
-    bad = ~np.all(np.isfinite(states[:, loops.base:]), axis=1)
+def first_loop_failure(loops: Any, states: np.ndarray, first: int | None = None) -> int:
+    """The index of the first stored row of ``states`` (rows, a generated state carrying the loop entries of
+    :class:`~ctmm.compiled_loops.ClosedLoops` ``loops`` from its entry ``first``, default ``loops.base``: controller
+    states law by law, then their other entries and delay ring) whose loop entries are non-finite; the number of
+    rows if none."""
+    bad = ~np.all(np.isfinite(states[:, loops.base if first is None else first:]), axis=1)
     return int(np.argmax(bad)) if np.any(bad) else len(states)
 
 
 def loop_state_failure(loops: Any, times: np.ndarray, states: np.ndarray, row: int, dt: float,
-                       step: Any, plant_rules: Any, result: Any) -> SimulationError:
-    """The numpy loop driver's error (:func:`ctmm.control.planar_time.simulate_closed_loop`) for the stored row
-    ``row`` of ``states`` at ``times`` [s], the first with non-finite loop entries (:func:`first_loop_failure`): the
-    steps of ``dt`` [s] since the stored row before are run again one at a time (``step(state, k)``: the state after
-    step ``k``), each checked as the numpy path checks every step -- the plant first (``plant_rules(times, pair)``
-    on the states before and after the step: raises its error), then each loop's controller states, named by loop
-    (the delay ring alone: the whole loop state); the partial result ``result(row)``."""
+                       step: Any, plant_rules: Any, result: Any, first: int | None = None) -> SimulationError:
+    """The numpy loop driver's error (:func:`ctmm.control.planar_time.simulate_closed_loop`, the schemes'
+    :class:`ctmm.control.implicit_loops` step end) for the stored row ``row`` of ``states`` at ``times`` [s], the
+    first with non-finite loop entries (:func:`first_loop_failure`, ``first`` as there): the steps of ``dt`` [s]
+    since the stored row before are run again one at a time (``step(state, k)``: the state after step ``k``; ``None``:
+    reported at the stored row), each
+    checked as the numpy path checks every step -- the plant first (``plant_rules(times, pair)`` on the states
+    before and after the step: raises its error), then each loop's controller states, named by loop (the other
+    entries alone: the whole loop state); the partial result ``result(row)``."""
+    start = loops.base if first is None else first
     state, failed_at = states[row - 1], float(times[row])
-    for k in range(int(round(times[row - 1] / dt)), int(round(times[row] / dt))):
-        previous, state = state, step(state, k)
+    for k in range(int(round(times[row - 1] / dt)), int(round(times[row] / dt))) if step is not None else ():
+        previous, state = state, np.asarray(step(state, k), dtype=float).reshape(-1)
         plant_rules(np.array([k * dt, (k + 1) * dt]), np.vstack([previous, state]))
-        if not np.all(np.isfinite(state[loops.base:])):
+        if not np.all(np.isfinite(state[start:])):
             failed_at = (k + 1) * dt
             break
     else:
         state = states[row]
-    offset = loops.base
+    offset = start
     for law in loops.laws:
         size = law.A.shape[0]
         if not np.all(np.isfinite(state[offset:offset + size])):

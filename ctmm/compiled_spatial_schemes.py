@@ -388,7 +388,7 @@ def simulate_spatial_scheme_generated(model: SpatialModel, t_final: float, dt: f
     ``"dt-tmm-generated/<scheme>"``; ``info`` with ``compile_time_s`` and ``newton_iterations``, the total); inputs
     are numbers held over the run.  ``compiled``: a :class:`CompiledSpatialScheme` of ``model`` with this scheme
     and ``store_every`` to reuse.  The divergence bound and the beams' deflection bound are checked on the stored
-    states after the run.
+    states after the run, the steps into the first failing one run again one at a time (:func:`checked_spatial_result`).
 
     Raises
     ------
@@ -444,14 +444,18 @@ def checked_spatial_result(compiled: CompiledSpatialScheme, times: np.ndarray, s
     SimulationError
         A non-finite or diverging stored state, a beam's deflection beyond its length (``partial_result``).
     """
+    from .compiled_control import first_loop_failure, loop_state_failure
+
     model, status = compiled.model, compiled.status_index
     nq, n = model.n_positions, model.n_velocities
     failed = np.flatnonzero(states[:, status] > 0.0)
     good = len(states) if not failed.size else int(failed[0])
-    trajectory = states[:good, :nq + n]
-    check = divergence_check(model, trajectory[0], divergence_bound)
+    loops, controller = getattr(compiled, "loops", None), status + len(STATUS)      # loops in the step: their states
+    loop_row = first_loop_failure(loops, states[:good], controller) if hasattr(loops, "laws") else good
+    trajectory = states[:loop_row, :nq + n]
+    check = divergence_check(model, states[0, :nq + n], divergence_bound)
     try:        # the numpy path's guard (bound, finiteness, beams: the first failing row, its message with this label)
-        check(times[:good], trajectory, method)
+        check(times[:loop_row], trajectory, method)
     except SimulationError as exc:
         row = int(np.searchsorted(times, exc.time))
         if held is not None and row > 0:        # the failing interval again, step by step from its last good state
@@ -465,6 +469,11 @@ def checked_spatial_result(compiled: CompiledSpatialScheme, times: np.ndarray, s
                 raise earlier from None
         exc.partial_result = result(row)
         raise
+    if loop_row < good:         # a loop's controller state non-finite: named by loop, at its step with ``held``
+        raise loop_state_failure(
+            loops, times, states, loop_row, dt,
+            None if held is None else (lambda state, k: compiled.continue_run(state, held, dt, 1, k)[-1]),
+            lambda pair_times, pair: check(pair_times[-1], pair[-1, :nq + n], method), result, controller)
     if failed.size:
         row = states[failed[0]]
         step = int(row[status])

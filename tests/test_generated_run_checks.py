@@ -207,26 +207,30 @@ def test_a_kinematic_loop_model_alone_refuses_divergence_bound_by_name(kind, com
         ctmm.simulate(loop, 0.01, 1e-3, method="rk4", x0=q0, v0=v0, divergence_bound=1.0, compiled=compiled)
 
 
-def runaway_loops(sensor: str, actuator: str) -> list:
-    """An idle loop, then a loop whose controller ``C(s) = 1 / (s - 10^6)`` grows without bound (RK4 of ``dt = 0.01``
-    multiplies its state by about 4e14 a step) behind an actuator saturated at 1e-3: its state overflows while the
-    plant's coordinates and rates stay finite and small."""
+def runaway_loops(sensor: str, actuator: str, pole: float) -> list:
+    """An idle loop, then a loop whose controller ``C(s) = 1 / (s - pole)`` grows without bound behind an actuator
+    saturated at 1e-3: its state overflows while the plant's coordinates and rates stay finite and small (RK4 of
+    ``dt = 0.01`` and ``pole = 10^6`` multiplies it by about 4e14 a step, the schemes' trapezoidal controller step
+    with ``pole = 199.5`` by (1 + pole dt / 2) / (1 - pole dt / 2) = 1199)."""
     import control
 
     return [Feedback("calm", sensor, actuator, gain=0.0),
-            Feedback("runaway", sensor, actuator, gain=control.tf([1.0], [1.0, -1.0e6]), saturation=(-1e-3, 1e-3))]
+            Feedback("runaway", sensor, actuator, gain=control.tf([1.0], [1.0, -pole]), saturation=(-1e-3, 1e-3))]
 
 
 @pytest.mark.filterwarnings("ignore::RuntimeWarning")       # the numpy path's overflow of the runaway state
 @pytest.mark.parametrize("store_every", [1, 5])
+@pytest.mark.parametrize("method", ["rk4", "newmark"])
 @pytest.mark.parametrize("kind", ["planar", "spatial"])
-def test_a_loop_controller_state_that_overflows_stops_the_same_named_by_its_loop(kind, store_every):
-    """Loops inside the generated RK4 step (``compiled_control``, planar and spatial): a controller state that goes
-    non-finite while ``q`` and ``v`` stay finite stops with the numpy loop driver's message naming the loop
-    (element: the loop), at its step also between stored rows (``store_every = 5``: the interval replayed step by
-    step); the generated paths reported "the state (with controller states and delay ring)" or "controller state or
-    delay history" at the stored row, no loop named."""
+def test_a_loop_controller_state_that_overflows_stops_the_same_named_by_its_loop(kind, method, store_every):
+    """Loops inside the generated step (RK4: ``compiled_control``; Newmark: ``compiled_scheme_loops``,
+    ``compiled_spatial_scheme_loops``), planar and spatial: a controller state that goes non-finite while ``q`` and
+    ``v`` stay finite stops with the numpy path's message naming the loop (element: the loop), at its step also
+    between stored rows (``store_every = 5``: the interval replayed step by step).  Before, the generated RK4
+    reported "the state (with controller states and delay ring)" or "controller state or delay history" at the
+    stored row, no loop named, and the generated schemes ran to the end (a silent wrong answer)."""
     import ctmm.spatial as sp
+    from ctmm.schemes import Newmark
 
     if kind == "planar":
         plant, start = hub_beam(), dict(stability_check="ignore", **START)
@@ -235,7 +239,10 @@ def test_a_loop_controller_state_that_overflows_stops_the_same_named_by_its_loop
         plant = sp.SpatialModel("wheel", [sp.SpatialBody("disc", 1.0, np.diag([0.1, 0.1, 0.2])), sp.Revolute(
             name="hub", parent=None, child="disc", axis=(0.0, 0.0, 1.0), actuated=True)])
         start, sensor, actuator = dict(v0={"hub.angle_rate": 1.0}), "hub.angle_rate", "hub.torque"
-    controlled = with_feedback(plant, runaway_loops(sensor, actuator))
-    assert_same_failure(controlled, "runaway", method="rk4", t_final=0.5, dt=0.01, store_every=store_every, **start)
-    error = failure(controlled, True, method="rk4", t_final=0.5, dt=0.01, store_every=store_every, **start)
+    pole, t_final = (1.0e6, 0.5) if method == "rk4" else (199.5, 1.5)
+    controlled = with_feedback(plant, runaway_loops(sensor, actuator, pole))
+    options = dict(method="rk4" if method == "rk4" else Newmark(), t_final=t_final, dt=0.01, store_every=store_every,
+                   **start)
+    assert_same_failure(controlled, "runaway", **options)
+    error = failure(controlled, True, **options)
     assert str(error).startswith("non-finite controller state of loop 'runaway' at t = ")
