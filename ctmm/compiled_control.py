@@ -30,7 +30,8 @@ from .spatial.integrate import divergence_check
 from .spatial.model import SpatialModel
 from .signal_results import SignalSystem, signal_result
 
-__all__ = ["add_loop_signals", "simulate_controlled_generated", "simulate_spatial_controlled_generated"]
+__all__ = ["add_loop_signals", "first_loop_failure", "loop_state_failure", "simulate_controlled_generated",
+           "simulate_spatial_controlled_generated"]
 
 
 def simulate_controlled_generated(controlled: ControlledModel, q0: Any, qdot0: Any, *, t_final: float, dt: float,
@@ -112,13 +113,15 @@ def simulate_controlled_generated(controlled: ControlledModel, q0: Any, qdot0: A
         return signal_result(SignalSystem(model, units, list(controlled.loops)), time, signals, "rk4-generated",
                              {**info, **extra})
 
-    check_stored(guard, t, full[:, :n], full[:, n:2 * n], result, model=model, step=h, states=full,
-                 replay=scene.replay_step(h))
-    controller = full[:, 2 * n:]
-    if not np.all(np.isfinite(controller)):
-        k = int(np.flatnonzero(~np.all(np.isfinite(controller), axis=1))[0])
-        raise SimulationError(f"non-finite controller state or delay history at t = {t[k]:.6g} s", time=float(t[k]),
-                              partial_result=result(k))
+    replay = scene.replay_step(h)
+    rows = first_loop_failure(scene.loops, full)           # the plant's rules on the rows before it first
+    check_stored(guard, t[:rows], full[:rows, :n], full[:rows, n:2 * n], result, model=model, step=h,
+                 states=full[:rows], replay=replay)
+
+    def plant_rules(times: np.ndarray, pair: np.ndarray) -> None:   # check_state's order: the plant, then the loops
+        check_stored(guard, times, pair[:, :n], pair[:, n:2 * n], lambda _: result(rows), model=model, step=h)
+    if rows < len(t):
+        raise loop_state_failure(scene.loops, t, full, rows, h, replay, plant_rules, result)
     return result(len(t))
 
 
@@ -209,8 +212,10 @@ def simulate_spatial_controlled_generated(controlled: ControlledModel, q0: np.nd
         return signal_result(SignalSystem(model, units, list(controlled.loops)), time_rows, signals, "rk4-generated",
                              {**info, **extra})
 
+    rows = first_loop_failure(scene.loops, full)           # the plant's rules on the rows before it first
+    check = divergence_check(model, full[0, :nq + nv], divergence_bound)
     try:                                # the numpy loop driver's guard (the plant's): bound, finiteness, beams
-        divergence_check(model, full[0, :nq + nv], divergence_bound)(t, full[:, :nq + nv], "rk4")
+        check(t[:rows], full[:rows, :nq + nv], "rk4")
     except SimulationError as exc:      # on the stored rows; the steps since the last good one replayed one by one
         k = int(np.searchsorted(t, exc.time))
         replay_failure(model, scene.plain_step, full[0], full[k - 1], np.zeros(len(scene.actuators)),
@@ -218,13 +223,53 @@ def simulate_spatial_controlled_generated(controlled: ControlledModel, q0: np.nd
                        lambda: result(k), label="rk4", size=nq + nv)
         exc.partial_result = result(k)
         raise
-    bad = ~np.all(np.isfinite(full), axis=1)
-    if np.any(bad):
-        k = int(np.flatnonzero(bad)[0])
-        raise SimulationError(f"{model.name}: the state (with controller states and delay ring) became non-finite at "
-                              f"t = {t[k]:.6g} s (rk4-generated; checked on the stored rows)", time=float(t[k]),
-                              element=model.name, partial_result=result(k))
+    if rows < len(t):
+        held = np.zeros(len(scene.actuators))
+        raise loop_state_failure(
+            scene.loops, t, full, rows, h,
+            lambda state, k: np.asarray(scene.plain_step(state, held, h, scene.parameters, 0.0, float(k))).reshape(-1),
+            lambda times, pair: check(times[-1], pair[-1, :nq + nv], "rk4", lambda: result(rows)), result)
     return result(len(t))
+
+
+def first_loop_failure(loops: Any, states: np.ndarray, first: int | None = None) -> int:
+    """The index of the first stored row of ``states`` (rows, a generated state carrying the loop entries of
+    :class:`~ctmm.compiled_loops.ClosedLoops` ``loops`` from its entry ``first``, default ``loops.base``: controller
+    states law by law, then their other entries and delay ring) whose loop entries are non-finite; the number of
+    rows if none."""
+    bad = ~np.all(np.isfinite(states[:, loops.base if first is None else first:]), axis=1)
+    return int(np.argmax(bad)) if np.any(bad) else len(states)
+
+
+def loop_state_failure(loops: Any, times: np.ndarray, states: np.ndarray, row: int, dt: float,
+                       step: Any, plant_rules: Any, result: Any, first: int | None = None) -> SimulationError:
+    """The numpy loop driver's error (:func:`ctmm.control.planar_time.simulate_closed_loop`, the schemes'
+    :class:`ctmm.control.implicit_loops` step end) for the stored row ``row`` of ``states`` at ``times`` [s], the
+    first with non-finite loop entries (:func:`first_loop_failure`, ``first`` as there): the steps of ``dt`` [s]
+    since the stored row before are run again one at a time (``step(state, k)``: the state after step ``k``; ``None``:
+    reported at the stored row), each
+    checked as the numpy path checks every step -- the plant first (``plant_rules(times, pair)`` on the states
+    before and after the step: raises its error), then each loop's controller states, named by loop (the other
+    entries alone: the whole loop state); the partial result ``result(row)``."""
+    start = loops.base if first is None else first
+    state, failed_at = states[row - 1], float(times[row])
+    for k in range(int(round(times[row - 1] / dt)), int(round(times[row] / dt))) if step is not None else ():
+        previous, state = state, np.asarray(step(state, k), dtype=float).reshape(-1)
+        plant_rules(np.array([k * dt, (k + 1) * dt]), np.vstack([previous, state]))
+        if not np.all(np.isfinite(state[start:])):
+            failed_at = (k + 1) * dt
+            break
+    else:
+        state = states[row]
+    offset = start
+    for law in loops.laws:
+        size = law.A.shape[0]
+        if not np.all(np.isfinite(state[offset:offset + size])):
+            return SimulationError(f"non-finite controller state of loop {law.name!r} at t = {failed_at:.6g} s",
+                                   time=failed_at, element=law.name, partial_result=result(row))
+        offset += size
+    return SimulationError(f"non-finite controller state or delay history at t = {failed_at:.6g} s", time=failed_at,
+                           partial_result=result(row))
 
 
 def add_loop_signals(controlled: ControlledModel, loops: Any, signals_of: Any, block: np.ndarray, time: np.ndarray,

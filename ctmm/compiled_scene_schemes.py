@@ -565,11 +565,20 @@ def simulate_scheme_generated(model: PlanarModel, q0: Any, qdot0: Any, *, t_fina
         return PlanarSimulation(model, t[:k], qs[:k], vs[:k], label, wall,
                                 extra={name: value[:k] for name, value in extra.items()})
 
+    from .compiled_control import first_loop_failure, loop_state_failure
+
     failed = np.flatnonzero(states[:, 6 * n] > 0.0)
     good = len(states) if not failed.size else int(failed[0])
     held = np.zeros(len(compiled.actuators))   # modal beams' deflection too; a failing interval replayed step by step
-    check_stored(guard, t[:good], qs[:good], vs[:good], partial, model=model, step=h, states=states,
-                 method=type(scheme).__name__.lower(), replay=lambda x, k: compiled.continue_run(x, held, h, 1, k)[-1])
+    replay, rule = (lambda x, k: compiled.continue_run(x, held, h, 1, k)[-1]), type(scheme).__name__.lower()
+    controller_entries = compiled.status_index + len(STATUS)
+    loop_row = good if compiled.loops is None else first_loop_failure(compiled.loops, states[:good], controller_entries)
+    check_stored(guard, t[:loop_row], qs[:loop_row], vs[:loop_row], partial, model=model, step=h, states=states,
+                 method=rule, replay=replay)
+    if loop_row < good:                 # a loop's controller state non-finite: named by loop, at its step
+        raise loop_state_failure(compiled.loops, t, states, loop_row, h, replay, lambda times, pair: check_stored(
+            guard, times, pair[:, :n], pair[:, n:2 * n], lambda _: partial(loop_row), model=model, step=h,
+            method=rule), partial, controller_entries)
     if failed.size:
         raise not_converged(compiled, states[failed[0]], h, partial(good))
     return PlanarSimulation(model, t, qs, vs, label, wall, n_evaluations=int(states[-1, 6 * n + 2]) + 1,

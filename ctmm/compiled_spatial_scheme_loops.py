@@ -235,4 +235,5 @@ def simulate_spatial_scheme_loops_generated(controlled: ControlledModel, t_final
         return signal_result(SignalSystem(model, units, list(controlled.loops)), t, signals, method,
                              {**info, **extra, **failed})
 
-    return checked_spatial_result(compiled, times, states, dt, method, result, divergence_bound)
+    return checked_spatial_result(compiled, times, states, dt, method, result, divergence_bound,
+                                  compiled.held_inputs(None))

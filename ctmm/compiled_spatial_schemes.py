@@ -388,7 +388,7 @@ def simulate_spatial_scheme_generated(model: SpatialModel, t_final: float, dt: f
     ``"dt-tmm-generated/<scheme>"``; ``info`` with ``compile_time_s`` and ``newton_iterations``, the total); inputs
     are numbers held over the run.  ``compiled``: a :class:`CompiledSpatialScheme` of ``model`` with this scheme
     and ``store_every`` to reuse.  The divergence bound and the beams' deflection bound are checked on the stored
-    states after the run.
+    states after the run, the steps into the first failing one run again one at a time (:func:`checked_spatial_result`).
 
     Raises
     ------
@@ -423,15 +423,18 @@ def simulate_spatial_scheme_generated(model: SpatialModel, t_final: float, dt: f
             "newton_iterations": total}
 
     return checked_spatial_result(compiled, times, states, dt, method, lambda k: state_result(
-        model, times[:k], states[:k, :nq + n], method, info), divergence_bound)
+        model, times[:k], states[:k, :nq + n], method, info), divergence_bound, compiled.held_inputs(inputs))
 
 
 def checked_spatial_result(compiled: CompiledSpatialScheme, times: np.ndarray, states: np.ndarray, dt: float,
                            method: str, result: Callable[[int], SimulationResult],
-                           divergence_bound: float | None = None) -> SimulationResult:
+                           divergence_bound: float | None = None, held: np.ndarray | None = None) -> SimulationResult:
     """``result(len(times))`` of the stored generated states ``states`` at ``times`` [s] (step ``dt`` [s]) after the
     checks of a generated spatial scheme run: finite, within ``divergence_bound`` of the start, the beams' deflection
-    bound, no failed step.
+    bound, no failed step.  ``held``: the step's input vector over the run (:meth:`CompiledSpatialScheme.held_inputs`);
+    with it, the steps between the last good stored state and the first failing one are run again one at a time
+    and checked as the numpy path checks every step, so that the failure is reported at its step (time) as there;
+    without it, at the first failing stored state.
 
     Raises
     ------
@@ -441,16 +444,36 @@ def checked_spatial_result(compiled: CompiledSpatialScheme, times: np.ndarray, s
     SimulationError
         A non-finite or diverging stored state, a beam's deflection beyond its length (``partial_result``).
     """
+    from .compiled_control import first_loop_failure, loop_state_failure
+
     model, status = compiled.model, compiled.status_index
     nq, n = model.n_positions, model.n_velocities
     failed = np.flatnonzero(states[:, status] > 0.0)
     good = len(states) if not failed.size else int(failed[0])
-    trajectory = states[:good, :nq + n]
+    loops, controller = getattr(compiled, "loops", None), status + len(STATUS)      # loops in the step: their states
+    loop_row = first_loop_failure(loops, states[:good], controller) if hasattr(loops, "laws") else good
+    trajectory = states[:loop_row, :nq + n]
+    check = divergence_check(model, states[0, :nq + n], divergence_bound)
     try:        # the numpy path's guard (bound, finiteness, beams: the first failing row, its message with this label)
-        divergence_check(model, trajectory[0], divergence_bound)(times[:good], trajectory, method)
+        check(times[:loop_row], trajectory, method)
     except SimulationError as exc:
-        exc.partial_result = result(int(np.searchsorted(times, exc.time)))
+        row = int(np.searchsorted(times, exc.time))
+        if held is not None and row > 0:        # the failing interval again, step by step from its last good state
+            state = states[row - 1]
+            try:
+                for k in range(int(round(times[row - 1] / dt)), int(round(times[row] / dt))):
+                    state = compiled.continue_run(state, held, dt, 1, k)[-1]
+                    check((k + 1) * dt, state[:nq + n], method)
+            except SimulationError as earlier:
+                earlier.partial_result = result(row)
+                raise earlier from None
+        exc.partial_result = result(row)
         raise
+    if loop_row < good:         # a loop's controller state non-finite: named by loop, at its step with ``held``
+        raise loop_state_failure(
+            loops, times, states, loop_row, dt,
+            None if held is None else (lambda state, k: compiled.continue_run(state, held, dt, 1, k)[-1]),
+            lambda pair_times, pair: check(pair_times[-1], pair[-1, :nq + n], method), result, controller)
     if failed.size:
         row = states[failed[0]]
         step = int(row[status])

@@ -145,18 +145,104 @@ def test_a_controlled_spatial_run_stops_with_the_numpy_loop_drivers_message(case
                         store_every=store_every, **SPIN, **options)
 
 
+@pytest.mark.parametrize("loops", [False, True])
+@pytest.mark.parametrize("store_every", [1, 7])
 @pytest.mark.parametrize("case", ["beam", "bound"])
-def test_a_spatial_scheme_run_stops_with_the_numpy_schemes_message(case):
-    """Newmark in generated C on the spinning beam: past its deflection bound (no stiffening) and the hub angle past
-    ``divergence_bound`` (stiffened): the numpy scheme path's message (its method label aside), time, element and
-    partial result."""
+def test_a_spatial_scheme_run_stops_with_the_numpy_schemes_message(case, store_every, loops):
+    """Newmark in generated C on the spinning beam, alone and with a loop inside the step
+    (``compiled_spatial_scheme_loops``): past its deflection bound (no stiffening, step 19) and an entry past
+    ``divergence_bound`` (stiffened, step 2): the numpy scheme path's message (its method label aside), time,
+    element and partial result, also between stored rows (``store_every = 7``: the interval replayed step by step;
+    the stored rows alone gave t = 0.21 s and 0.07 s)."""
     from ctmm.schemes import Newmark
 
     options = dict(divergence_bound=0.5) if case == "bound" else {}
     model = spinner(case == "bound")
-    numpy_error, generated = (failure(model, compiled, method=Newmark(), t_final=2.0, dt=0.01, **SPIN, **options)
-                              for compiled in (False, True))
+    if loops:
+        model = with_feedback(model, [Feedback("rate", "hub.angle_rate", "arm.force_y", gain=0.0)])
+    numpy_error, generated = (failure(model, compiled, method=Newmark(), t_final=2.0, dt=0.01, store_every=store_every,
+                                      **SPIN, **options) for compiled in (False, True))
+    assert numpy_error.time == pytest.approx(0.02 if case == "bound" else 0.19, abs=1e-12)
     assert generated.element == numpy_error.element == ("spinner" if case == "bound" else "arm")
     assert generated.time == numpy_error.time and 0.0 < generated.time < 2.0
     assert str(generated) == str(numpy_error).replace("(dt-tmm/", "(dt-tmm-generated/")
     np.testing.assert_array_equal(generated.partial_result.time, numpy_error.partial_result.time)
+    for name in ("hub.angle", "arm.qy1"):
+        np.testing.assert_allclose(generated.partial_result[name], numpy_error.partial_result[name], rtol=1e-9,
+                                   atol=1e-12, err_msg=name)
+
+
+def test_a_diverging_spatial_beam_set_of_a_mapped_batch_stops_as_on_the_numpy_path():
+    """``simulate_batch`` runs spatial sets mapped in one C call per block (``ParameterKernel.run_mapped``) with the
+    guarded step: the set of the spinning beam without stiffening stops at the numpy RK4's step (t = 0.19 s, between
+    the stored rows 0.14 s and 0.21 s), with its message (method label aside), element and partial result; the stiffer
+    set (first critical speed above the spin) runs to the end."""
+    sets = [{"arm.bending_stiffness_y": 1.4e5}, {"arm.mass_per_length": 1.2}]
+    batch = ctmm.simulate_batch(spinner(False), sets, 2.0, 0.01, store_every=7, **SPIN)
+    assert list(batch.failures) == [1] and batch.results[0] is not None
+    generated, numpy_error = batch.failures[1], failure(spinner(False), False, method="rk4", t_final=2.0, dt=0.01,
+                                                        store_every=7, **SPIN)
+    assert generated.element == numpy_error.element == "arm"
+    assert generated.time == numpy_error.time == pytest.approx(0.19, abs=1e-12)
+    assert str(generated) == str(numpy_error).replace("(rk4)", "(rk4-generated)")
+    np.testing.assert_array_equal(generated.partial_result.time, numpy_error.partial_result.time)
+    np.testing.assert_allclose(generated.partial_result["arm.qy1"], numpy_error.partial_result["arm.qy1"],
+                               rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("compiled", [None, True])
+@pytest.mark.parametrize("kind", ["planar", "spatial"])
+def test_a_kinematic_loop_model_alone_refuses_divergence_bound_by_name(kind, compiled):
+    """A kinematic loop model without loops, inputs or controllers runs its own RK4 with projection (numpy:
+    :func:`ctmm.loop_integration.integrate_loop_model`; generated: ``compiled_kinematic_loops``,
+    ``compiled_spatial_kinematic_loops``), which has no ``divergence_bound`` check: the argument is refused by name,
+    not dropped (the DT-TMM schemes and the loop-closing driver take it)."""
+    if kind == "planar":
+        from ctmm.scenarios.four_bar import mechanism, start
+    else:
+        from ctmm.scenarios.spatial_four_bar import mechanism, start
+    loop = mechanism()
+    q0, v0 = start(loop)
+    with pytest.raises(ctmm.ModelError, match=r"divergence_bound=1\.0"):
+        ctmm.simulate(loop, 0.01, 1e-3, method="rk4", x0=q0, v0=v0, divergence_bound=1.0, compiled=compiled)
+
+
+def runaway_loops(sensor: str, actuator: str, pole: float) -> list:
+    """An idle loop, then a loop whose controller ``C(s) = 1 / (s - pole)`` grows without bound behind an actuator
+    saturated at 1e-3: its state overflows while the plant's coordinates and rates stay finite and small (RK4 of
+    ``dt = 0.01`` and ``pole = 10^6`` multiplies it by about 4e14 a step, the schemes' trapezoidal controller step
+    with ``pole = 199.5`` by (1 + pole dt / 2) / (1 - pole dt / 2) = 1199)."""
+    import control
+
+    return [Feedback("calm", sensor, actuator, gain=0.0),
+            Feedback("runaway", sensor, actuator, gain=control.tf([1.0], [1.0, -pole]), saturation=(-1e-3, 1e-3))]
+
+
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")       # the numpy path's overflow of the runaway state
+@pytest.mark.parametrize("store_every", [1, 5])
+@pytest.mark.parametrize("method", ["rk4", "newmark"])
+@pytest.mark.parametrize("kind", ["planar", "spatial"])
+def test_a_loop_controller_state_that_overflows_stops_the_same_named_by_its_loop(kind, method, store_every):
+    """Loops inside the generated step (RK4: ``compiled_control``; Newmark: ``compiled_scheme_loops``,
+    ``compiled_spatial_scheme_loops``), planar and spatial: a controller state that goes non-finite while ``q`` and
+    ``v`` stay finite stops with the numpy path's message naming the loop (element: the loop), at its step also
+    between stored rows (``store_every = 5``: the interval replayed step by step).  Before, the generated RK4
+    reported "the state (with controller states and delay ring)" or "controller state or delay history" at the
+    stored row, no loop named, and the generated schemes ran to the end (a silent wrong answer)."""
+    import ctmm.spatial as sp
+    from ctmm.schemes import Newmark
+
+    if kind == "planar":
+        plant, start = hub_beam(), dict(stability_check="ignore", **START)
+        sensor, actuator = "b.theta", "o.torque"
+    else:
+        plant = sp.SpatialModel("wheel", [sp.SpatialBody("disc", 1.0, np.diag([0.1, 0.1, 0.2])), sp.Revolute(
+            name="hub", parent=None, child="disc", axis=(0.0, 0.0, 1.0), actuated=True)])
+        start, sensor, actuator = dict(v0={"hub.angle_rate": 1.0}), "hub.angle_rate", "hub.torque"
+    pole, t_final = (1.0e6, 0.5) if method == "rk4" else (199.5, 1.5)
+    controlled = with_feedback(plant, runaway_loops(sensor, actuator, pole))
+    options = dict(method="rk4" if method == "rk4" else Newmark(), t_final=t_final, dt=0.01, store_every=store_every,
+                   **start)
+    assert_same_failure(controlled, "runaway", **options)
+    error = failure(controlled, True, **options)
+    assert str(error).startswith("non-finite controller state of loop 'runaway' at t = ")
