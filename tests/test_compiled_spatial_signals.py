@@ -258,3 +258,20 @@ def test_an_exported_fmu_follows_the_time_signals_as_the_numpy_rk4(tmp_path, mon
     for name in outputs:
         np.testing.assert_allclose(out[name], reference[name], rtol=0, atol=1e-12, err_msg=name)
     assert np.ptp(out["c.position_x"]) > 1e-2                  # the drive moved it
+
+
+def test_a_feedback_loop_on_a_kinematic_loop_model_with_load_signals_equals_the_numpy_driver() -> None:
+    """A PD on the revolute cut of the pushed pendulum, closed in the generated RK4 (the loop driver's kernel,
+    :mod:`ctmm.compiled_kinematic_loop_control`): every state and loop signal equal to the numpy driver's."""
+    from ctmm.control import Feedback, with_feedback
+
+    loop, (q, v) = loaded_hinge()
+    pd = Feedback("pd", sensor=[("hinge.angle", 4.0), ("hinge.rate", 0.5)], actuator="hinge.torque", gain=1.0)
+    options = dict(x0=q, v0=v, outputs=["hinge.angle"])
+    generated = ctmm.simulate(with_feedback(loop, [pd]), 0.02, 1e-3, compiled=True, **options)
+    python = ctmm.simulate(with_feedback(loop, [pd]), 0.02, 1e-3, **options)
+    np.testing.assert_array_equal(generated.time, python.time)
+    for name in list(loop.tree.coordinates) + list(loop.tree.velocities) + ["hinge.angle", "pd.u"]:
+        scale = max(1.0, float(np.max(np.abs(python[name]))))
+        assert np.max(np.abs(generated[name] - python[name])) <= 1e-12 * scale, name
+    assert np.ptp(python["pd.u"]) > 1e-3
