@@ -35,7 +35,8 @@ path.
 
 State, failures and result as :mod:`ctmm.compiled_kinematic_loops` (residual and condition carried in the state,
 :class:`~ctmm.errors.SimulationError` with time, cut joint and partial result).  Refused (:class:`ModelError`, by
-name): trees :func:`ctmm.compiled_spatial.spatial_compile_refusal` refuses,
+name): trees :func:`ctmm.compiled_spatial.spatial_compile_refusal` refuses with ``time_signals=True`` (the tree's
+loads may carry :mod:`ctmm.signals` with a symbolic form, stated at the sweep's time symbol; user callables refused),
 laws casadi cannot express and actuations or drives without a symbolic form (user callables:
 :func:`spatial_cut_load_refusal`), driven tree joints (their prescribed motion enters ``Phi'`` and ``Phi''``
 explicitly in time through the tree's kinematics, not in the generated step yet), and with feedback loops, inputs or
@@ -73,7 +74,7 @@ __all__ = ["CompiledSpatialKinematicLoops", "loop_simulation", "spatial_cut_load
 def spatial_kinematic_loop_compile_refusal(model: Any) -> str:
     """Why ``model`` cannot run the generated RK4 of this module (an empty string when it can)."""
     reason = tree_refusal(model, SpatialKinematicLoopModel, "ctmm.spatial.SpatialKinematicLoopModel",
-                          spatial_compile_refusal)
+                          _tree_compile_refusal)
     if reason:
         return reason
     for cut in model.cuts:
@@ -85,6 +86,12 @@ def spatial_kinematic_loop_compile_refusal(model: Any) -> str:
         return (f"its tree has driven joints ({', '.join(driven)}): their prescribed motion enters Phi' and Phi'' "
                 "explicitly in time, not in the generated step yet; use compiled=None")
     return ""
+
+
+def _tree_compile_refusal(tree: Any) -> str:
+    """Why a loop model's tree cannot be compiled: loads may carry signals with a symbolic form (stated at the time
+    symbol of the sweep; they do not move the cut joints), driven joints are refused afterwards."""
+    return spatial_compile_refusal(tree, time_signals=True)
 
 
 def spatial_cut_load_refusal(cut: Any) -> str:
@@ -249,7 +256,8 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
     loads = wrenches(states, lam, t, spherical_laws)
     for body, entries in tree_wrenches.items():
         loads.setdefault(body, []).extend(entries)
-    body_terms, joint_terms, _ = scene.terms(CASADI, q, v, 0.0, joint_inputs or None, loads)
+    # the tree's load signals on the time symbol (no driven tree joint: the kinematics above hold at any time)
+    body_terms, joint_terms, _ = scene.terms(CASADI, q, v, t, joint_inputs or None, loads)
     solution = articulated_sweep(CASADI, scene.tree, body_terms, joint_terms)
     sweep = ca.Function("loaded_sweep", [q, v, t, lam, u, spherical_laws],
                         [ca.vertcat(*scene.velocity_rates(solution))])

@@ -21,10 +21,16 @@ spatial plant on symbols:
   with ``numbers="inputs"`` the plant's numbers (:mod:`ctmm.compiled_spatial_parameters`) and the loops'
   gains, controllers and references are its input ``p`` (one library per structure, :mod:`ctmm.batch`).
 
+Loads and driven joints may carry :mod:`ctmm.signals` with a symbolic form (Constant, Harmonic, Step,
+SquareWave): the sweep states them on its time symbol ``t``, the RK4 stage time
+(:func:`~ctmm.compiled_spatial.spatial_compile_refusal` with ``time_signals=True``, as the generated RK4 without
+loops).  The sensors are stated at the state ``(q, v)`` only: a sensor that moves with a driven joint's time
+signal (a body outboard of it) is refused by name.
+
 Refused by name (:class:`~ctmm.errors.ModelError`): the rotation-vector sensors
-``"<body>.rotation_x|y|z"`` (their branch at ``|phi| = pi`` is not stated on symbols yet), what
-:func:`~ctmm.compiled_spatial.spatial_compile_refusal` refuses, and (by the caller) co-simulated
-controllers.
+``"<body>.rotation_x|y|z"`` (their branch at ``|phi| = pi`` is not stated on symbols yet), sensors that move
+with driven joints' time signals, what :func:`~ctmm.compiled_spatial.spatial_compile_refusal` refuses (user
+callables), and (by the caller) co-simulated controllers.
 """
 from __future__ import annotations
 
@@ -67,6 +73,9 @@ class SpatialSymbols:
         self.model, self.ports, self.parameter_count = model, ports, parameter_count
         self.n_positions, self.n_velocities = model.n_positions, model.n_velocities
         self._states: tuple[Any, Any, list] | None = None
+        # driven joints with time signals: the body states on a time symbol, so a sensor that moves with them is seen
+        symbolic = not spatial_compile_refusal(model, time_signals=True)       # (user callables: refused elsewhere)
+        self._time: Any = _time_symbol() if symbolic and spatial_compile_refusal(model) else 0.0
 
     def position_rates(self, q: Any, v: Any) -> Any:
         """``q_dot = G(q) v`` on symbols."""
@@ -74,7 +83,7 @@ class SpatialSymbols:
 
     def _body_states(self, q: Any, v: Any) -> list:
         if self._states is None or self._states[0] is not q or self._states[1] is not v:
-            self._states = (q, v, SpatialScene(self.model).terms(CASADI, q, v, 0.0)[2])
+            self._states = (q, v, SpatialScene(self.model).terms(CASADI, q, v, self._time)[2])
         return self._states[2]
 
     def sensor(self, name: str, q: Any, v: Any) -> Any:
@@ -83,8 +92,21 @@ class SpatialSymbols:
         Raises
         ------
         ModelError
-            A rotation-vector sensor (not on symbols yet).
+            A rotation-vector sensor (not on symbols yet); a sensor that moves with a driven joint's time signals
+            (the loops state their sensors at the state only).
         """
+        expression = self._sensor(name, q, v)
+        if not isinstance(self._time, float) and _depends_on_time(expression, self._time):
+            driven = ", ".join(repr(joint.name) for joint in self.model.joints if joint.driven)
+            raise ModelError(f"sensor {name!r} moves with the time signals of the driven joints {driven} of model "
+                             f"{self.model.name!r}; generated loops state their sensors (and the delayed loops' "
+                             "sensor rates) at the state only, so compiled=True cannot close a loop on it; drive "
+                             "those joints with ctmm.signals.Constant, sense a body inboard of them, or use "
+                             "compiled=False")
+        return expression
+
+    def _sensor(self, name: str, q: Any, v: Any) -> Any:
+        """Sensor ``name`` on symbols (:meth:`sensor`), the body states at :attr:`_time`."""
         import casadi as ca
 
         sensor = self.ports.resolve([name])[0]
@@ -122,6 +144,20 @@ class SpatialSymbols:
         return state.velocity[c] + ca.cross(omega, arm)[c] + relative[c]
 
 
+def _time_symbol() -> Any:
+    """A casadi time symbol (the body states of :class:`SpatialSymbols` of a model with time signals)."""
+    import casadi as ca
+
+    return ca.SX.sym("t")
+
+
+def _depends_on_time(expression: Any, time: Any) -> bool:
+    """Whether a sensor ``expression`` (casadi or a number) depends on the symbol ``time``."""
+    import casadi as ca
+
+    return isinstance(expression, (ca.SX, ca.MX)) and ca.depends_on(expression, time)
+
+
 def loop_acceleration(model: SpatialModel, ports: SpatialPorts, actuators: Sequence[str], layout: Sequence[Any] = ()
                       ) -> Any:
     """``v_dot = acceleration(q, v, u, p, t)`` (a ``casadi.Function``) of ``model`` with ``u`` one value per
@@ -154,7 +190,7 @@ def loop_acceleration(model: SpatialModel, ports: SpatialPorts, actuators: Seque
         entry = (np.asarray(point, float), wrench)
         wrenches.setdefault(body, []).append(entry if axes == "world" else entry + (axes,))
     scene = SpatialScene(model)
-    bodies, joints, states = scene.terms(CASADI, q, v, 0.0, inputs, wrenches)
+    bodies, joints, states = scene.terms(CASADI, q, v, t, inputs, wrenches)       # time signals on the symbol t
     if layout:                          # the numbers as inputs (ctmm.compiled_spatial_parameters)
         bodies, joints = parametrised_scene_terms(model, SpatialNumbers(layout, p), bodies, joints, states, q, v,
                                                   inputs, applied=list(wrenches))
@@ -203,7 +239,7 @@ class CompiledControlledSpatial:
             raise ModelError(f"CompiledControlledSpatial: controlled must be a ControlledModel of a spatial model, "
                              f"got {controlled!r}")
         model = controlled.plant
-        reason = spatial_compile_refusal(model)
+        reason = spatial_compile_refusal(model, time_signals=True)
         if reason:
             raise ModelError(f"compiled=True: {reason}")
         start = clock.perf_counter()

@@ -8,7 +8,8 @@
 (:class:`~ctmm.compiled_scheme_loops.CompiledSchemeLoops`): real-time loops evaluated at the Newton iterate (their
 state dependence in the exact Newton tangent), LTI controller states by the Python path's trapezoidal rule, delayed
 loops read from a ring of samples (cubic Hermite between samples), saturation, references and open-loop port inputs
-that are numbers or symbolic :mod:`ctmm.signals`.  The sensors are the spatial ones of
+that are numbers or symbolic :mod:`ctmm.signals`; the plant's loads and driven joints may carry symbolic signals too
+(stated at the step's time symbol).  The sensors are the spatial ones of
 :class:`~ctmm.compiled_spatial_loops.SpatialSymbols`, the loops' actuators port actuators of
 :func:`~ctmm.compiled_spatial_loops.loop_acceleration` (the input ``u`` of the step).  Generated state: the one of
 :class:`~ctmm.compiled_spatial_schemes.CompiledSpatialScheme` followed by the controller entries ``[z_n, e_n, ring]``.
@@ -36,6 +37,7 @@ from .control.planar_time import controller_realisation
 from .compiled_scene_schemes import STATUS
 from .compiled_scheme_loop_terms import SchemeLoopTerms
 from .compiled_spatial_loops import SpatialSymbols, loop_acceleration
+from .compiled_spatial_signals import spatial_compile_refusal
 from .compiled_spatial_schemes import CompiledSpatialScheme, checked_spatial_result, warn_conditionally_stable
 from .control.controlled_model import ControlledModel
 from .control.plants import plant_of
@@ -98,6 +100,9 @@ class CompiledSpatialSchemeLoops(SchemeLoopTerms, CompiledSpatialScheme):
         for loop in controlled.loops:
             controller_realisation(loop)                # an improper C(s) raises, naming the loop
         ports, model = controlled.ports, controlled.plant
+        reason = spatial_compile_refusal(model, time_signals=True)         # signals on the step's time symbol
+        if reason:
+            raise ModelError(f"CompiledSpatialSchemeLoops: {reason}")
         for name in inputs or {}:
             ports.check_actuator(name, "inputs: actuator")
         for name in held:

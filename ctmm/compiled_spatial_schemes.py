@@ -3,7 +3,7 @@
 ``ctmm.simulate(spatial_model, t_final, dt, method="newmark" | "generalized_alpha" | "wilson_theta" |
 "houbolt" | "forward_euler" | <Scheme>, compiled=True)`` runs here (what
 :func:`ctmm.compiled_spatial.spatial_compile_refusal` accepts: rigid trees, :class:`~ctmm.spatial.SpatialBeam`,
-spatial finite-element subsystems; loads and driven joints with ctmm.signals on the time symbol, constants with loops;
+spatial finite-element subsystems; loads and driven joints with ctmm.signals on the time symbol, with loops too;
 inputs held numbers).  The step is the one of
 :func:`ctmm.spatial.implicit.simulate_spatial_implicit`: in the local chart at the last configuration ``q_n`` the
 scheme's nonlinear second-order form
@@ -213,7 +213,7 @@ class CompiledSpatialScheme(SchemeHooks):
     def __init__(self, model: SpatialModel, scheme: Scheme | str = "newmark", *, store_every: int = 1,
                  tolerance: float = 1e-10, max_iterations: int = 50, rows: int = 64,
                  cache_dir: str | os.PathLike | None = None, compiler: str | None = None) -> None:
-        reason = spatial_compile_refusal(model, time_signals=not self.loops)    # signals on the step's time symbol
+        reason = spatial_compile_refusal(model, time_signals=True)    # signals on the step's time symbol (loops too)
         if reason:
             raise ModelError(f"CompiledSpatialScheme: {reason}")
         self.scheme = as_scheme(scheme)

@@ -6,12 +6,15 @@ moments; prescribed positions, rates and accelerations).  The terms
 they take the symbolic form of the :mod:`ctmm.signals` classes (:func:`ctmm.signals.symbolic_signal`:
 constants, sines, steps, square waves -- the same operations as the classes' ``__call__``), so the generated
 RK4 (:class:`~ctmm.compiled_spatial.CompiledSpatialScene`) follows them at every stage time, and the generated
-DT-TMM schemes without loops (:class:`~ctmm.compiled_spatial_schemes.CompiledSpatialScheme`) at the step time.
-User callables have no symbolic form and are refused by name.
+DT-TMM schemes (:class:`~ctmm.compiled_spatial_schemes.CompiledSpatialScheme`) at the step time, with feedback
+loops too (:mod:`ctmm.compiled_spatial_loops`, :mod:`ctmm.compiled_spatial_scheme_loops`; their sensors at the
+state only: one that moves with a driven joint's signal is refused there), the tree's loads of kinematic loop
+models (:mod:`ctmm.compiled_spatial_kinematic_loops`; driven tree joints refused there) and exported FMUs
+(:mod:`ctmm.fmu_export_spatial`, at the FMU's time).  User callables have no symbolic form and are refused by name.
 
 :func:`spatial_compile_refusal` says why a model cannot be compiled; with ``time_signals=False`` (the generated
-paths that state the terms at one time: closed loops in the RK4 or a scheme, kinematic loops, exported FMUs,
-sensitivities) every load and driven motion must be a :class:`~ctmm.signals.Constant`.
+paths that state the terms at one time: sensitivities) every load and driven motion must be a
+:class:`~ctmm.signals.Constant`.
 """
 from __future__ import annotations
 
@@ -33,8 +36,9 @@ def spatial_compile_refusal(model: Any, *, time_signals: bool = False) -> str:
         form and beams without time-dependent loads or modal force hooks.
     time_signals : bool
         ``True``: loads and driven joints may carry signals with a symbolic form
-        (:data:`ctmm.signals.SYMBOLIC_FIELDS`; the generated RK4 and DT-TMM schemes without loops state them on
-        the time symbol); ``False``: they must be constants (paths that state the terms at one time).
+        (:data:`ctmm.signals.SYMBOLIC_FIELDS`; the generated RK4 and DT-TMM schemes, with or without feedback
+        loops, state them on the time symbol); ``False``: they must be constants (paths that state the terms at
+        one time).
     """
     if not isinstance(model, SpatialModel):
         return f"a ctmm.spatial.SpatialModel is compiled here, got {type(model).__name__}"
@@ -60,8 +64,8 @@ def spatial_compile_refusal(model: Any, *, time_signals: bool = False) -> str:
                 "callables are not compiled; use ctmm.signals " + ", ".join(kind.__name__ for kind in SYMBOLIC_FIELDS)
                 + ", or ctmm.simulate without compiled=True)")
     return (f"model {model.name!r} has signals that are not constants in " + ", ".join(reasons) + " (generated "
-            "closed loops, kinematic loops, FMUs and sensitivities state the terms at one time; the generated RK4 "
-            "and DT-TMM schemes of a spatial model without loops follow ctmm.signals " + ", ".join(
+            "sensitivities state the terms at one time; the generated RK4 and DT-TMM schemes of a spatial model, "
+            "with or without feedback loops, and exported FMUs follow ctmm.signals " + ", ".join(
                 kind.__name__ for kind in SYMBOLIC_FIELDS) + "; or use ctmm.simulate without compiled=True)")
 
 

@@ -31,7 +31,9 @@ Variables (names as in ctmm):
   [N m^2], ``".axial_stiffness"`` [N], ``".damping_ratio"`` [-], ``".stiffness_damping"`` [s]; a stiffness of
   a direction without modes enters nothing and is left out), the non-zero ``"gravity.x|y|z"`` -- the names
   of ``ctmm.parameter_names``; geometry, axes, loads, driven motions, zeros, beams' lengths and mode counts
-  and the laws of spherical, free and elastic joints are constants of the code; a model with a
+  and the laws of spherical, free and elastic joints are constants of the code (loads and driven joints may
+  carry :mod:`ctmm.signals` with a symbolic form: stated at the time symbol of the step and of the outputs, the
+  FMU's time; user callables refused, :func:`~ctmm.compiled_spatial.spatial_compile_refusal`); a model with a
   finite-element body (:class:`ctmm.fem.SpatialSubsystem`,
   :func:`~ctmm.compiled_spatial_parameters.unparametrised_bodies`) has no parameters -- every number,
   gravity included, is a constant of the code;
@@ -83,7 +85,7 @@ def spatial_export(model: SpatialModel, *, inputs: Sequence[str] | None, outputs
     """
     import casadi as ca
 
-    reason = spatial_compile_refusal(model)
+    reason = spatial_compile_refusal(model, time_signals=True)     # signals on the step's and outputs' time
     if reason:
         raise ModelError(f"export_fmu: system: {reason}")
     start_values = initial_state(model, q0, qdot0)
@@ -108,7 +110,8 @@ def spatial_export(model: SpatialModel, *, inputs: Sequence[str] | None, outputs
     y_sym = ca.SX.sym("y", nq + nv)
     q_sym, v_sym = y_sym[:nq], y_sym[nq:]
     zero_inputs = {name: ca.SX.zeros(width, 1) for name, width in zip(rates.actuators, rates.widths)}
-    bodies = SpatialScene(model).terms(CASADI, q_sym, v_sym, 0.0, zero_inputs)[2]
+    t_sym, p_outputs = ca.SX.sym("t"), ca.SX.sym("p", len(layout))
+    bodies = SpatialScene(model).terms(CASADI, q_sym, v_sym, t_sym, zero_inputs)[2]     # driven joints at t
     expressions = {name: y_sym[k] for k, name in enumerate(list(model.coordinates) + list(model.velocities))}
     for body, state in zip(model.bodies, bodies):
         for axis, label in enumerate("xyz"):
@@ -116,7 +119,6 @@ def spatial_export(model: SpatialModel, *, inputs: Sequence[str] | None, outputs
             expressions[f"{body.name}.omega_{label}"] = state.omega[axis]
     default_outputs = list(model.coordinates) + list(model.velocities)
     output_names = chosen_names("outputs", outputs, list(expressions), default_outputs)
-    t_sym, p_outputs = ca.SX.sym("t"), ca.SX.sym("p", len(layout))
     output_function = ca.Function("ctmm_outputs", [y_sym, t_sym, p_outputs],
                                   [ca.vertcat(*[expressions[name] for name in output_names])
                                    if output_names else ca.SX(0, 1)])
