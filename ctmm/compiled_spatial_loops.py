@@ -12,8 +12,8 @@ spatial plant on symbols:
   smooth function of the state, from the body states of
   :meth:`~ctmm.spatial.body_forms.SpatialScene.terms` on casadi symbols (joint coordinates and rates,
   body angular velocities in world and body axes, x-y-z angles, positions and velocities of named
-  points); the loop signal's time derivative for the ring is its forward derivative along
-  ``(G(q) v, v_dot)``, exact;
+  points, rotation vectors through :func:`~ctmm.compiled_spherical_cut_law.symbolic_rotation_vector`); the
+  loop signal's time derivative for the ring is its forward derivative along ``(G(q) v, v_dot)``, exact;
 * :func:`loop_acceleration` -- ``v_dot(q, v, u, p, t)`` with ``u`` one scalar per port actuator (joint
   torques and forces, body forces at points and moments), through the one articulated sweep;
 * :class:`CompiledControlledSpatial` -- the generated step, strides and blocks
@@ -21,8 +21,7 @@ spatial plant on symbols:
   with ``numbers="inputs"`` the plant's numbers (:mod:`ctmm.compiled_spatial_parameters`) and the loops'
   gains, controllers and references are its input ``p`` (one library per structure, :mod:`ctmm.batch`).
 
-Refused by name (:class:`~ctmm.errors.ModelError`): the rotation-vector sensors
-``"<body>.rotation_x|y|z"`` (their branch at ``|phi| = pi`` is not stated on symbols yet), what
+Refused by name (:class:`~ctmm.errors.ModelError`): what
 :func:`~ctmm.compiled_spatial.spatial_compile_refusal` refuses, and (by the caller) co-simulated
 controllers.
 """
@@ -39,6 +38,7 @@ from .compiled_loops import ClosedLoops
 from .compiled_spatial import DEFAULT_ROWS, SPATIAL_FLAGS, position_rates, spatial_compile_refusal
 from .compiled_spatial_parameters import (SpatialNumbers, parametrised_scene_terms, spatial_parameter_layout,
                                           spatial_parameter_vector, unparametrised_refusal)
+from .compiled_spherical_cut_law import symbolic_rotation_vector
 from .control.controlled_model import ControlledModel
 from .errors import ModelError
 from .generated_loop import BlockRunner, compiled_time_loop, run_blocks
@@ -80,10 +80,8 @@ class SpatialSymbols:
     def sensor(self, name: str, q: Any, v: Any) -> Any:
         """Sensor ``name`` of :mod:`ctmm.spatial.ports` as an expression of the symbols ``q`` (nq), ``v`` (nv).
 
-        Raises
-        ------
-        ModelError
-            A rotation-vector sensor (not on symbols yet).
+        The rotation vector ``"<body>.rotation_x|y|z"`` is
+        :func:`~ctmm.compiled_spherical_cut_law.symbolic_rotation_vector` of the body's rotation matrix.
         """
         import casadi as ca
 
@@ -96,12 +94,10 @@ class SpatialSymbols:
             layout = self.model.modal[sensor.index]
             values = q[layout.position] if sensor.kind == "modal" else v[layout.velocity]
             return ca.dot(ca.DM(np.asarray(sensor.weights, float)), values)
-        if sensor.kind == "rotation":
-            raise ModelError(f"sensor {name!r}: rotation-vector sensors are not stated on symbols yet, so "
-                             "compiled=True cannot close a loop on it; use the x-y-z angles "
-                             f"'{name.split('.')[0]}.angle_x|y|z', body rates, or compiled=False")
         state = self._body_states(q, v)[sensor.index]
         rotation, omega, c = state.rotation, state.omega, sensor.component
+        if sensor.kind == "rotation":                      # the one logarithm on symbols (numpy's, to pi)
+            return symbolic_rotation_vector(rotation)[c]
         if sensor.kind == "omega":
             return omega[c]
         if sensor.kind == "omega_body":
