@@ -18,7 +18,8 @@ states follow the Python path's trapezoidal rule from the step start to the iter
 initial signal held before ``t = 0``): a stored sample when ``tau`` is a whole number of steps after the evaluation
 point, otherwise cubic Hermite between two samples from their values and rates (as
 :class:`ctmm.control.history.DelayHistory`), the rates ``dy/dt = J_q q_dot + J_v a`` with ``a`` the closed loop's
-acceleration at the accepted state.  Details and checks: ``docs/spatial.md`` §6b,
+acceleration at the accepted state; a scheme whose start-up evaluates at another fraction of the step is read at each
+step's own fraction (:attr:`SchemeLoopTerms.fractions`).  Details and checks: ``docs/spatial.md`` §6b,
 ``tests/test_compiled_scheme_delays.py``, ``tests/test_compiled_spatial_scheme_loops.py``.
 """
 from __future__ import annotations
@@ -97,11 +98,14 @@ class SchemeLoopTerms:
     stateful : list of (int, int, int)
         ``(loop index, offset in z, order)`` of the loops with controller states.
     fraction : float
-        The scheme's evaluation time after ``t_n`` as a fraction of the step.
+        The scheme's evaluation time after ``t_n`` as a fraction of the step (after its start-up).
+    fractions : tuple of float
+        Every evaluation fraction of its steps, sorted (more than one: a start-up at another fraction, whose steps
+        the ring reads at their own; :meth:`iterate_acceleration`).
     reads : dict
         ``{lead: [(j, f) per delayed loop]}``: ``y(t_n + lead dt - tau)`` lies ``j + f`` steps after ``t_n``
-        (``j`` whole, ``0 <= f < 1``), for the leads 0 (restarts, records), :attr:`fraction` (Newton) and 1 (the
-        accepted state).
+        (``j`` whole, ``0 <= f < 1``), for the leads 0 (restarts, records), each of :attr:`fractions` (Newton) and
+        1 (the accepted state).
     hermite : bool
         Some read falls between two samples: the ring also stores the signals' rates (cubic Hermite).
     columns : int
@@ -133,6 +137,7 @@ class SchemeLoopTerms:
                 self.stateful.append((k, offset, law.A.shape[0]))
                 offset += law.A.shape[0]
         self.fraction, self.reads, self.hermite, self.columns = 1.0, {}, False, 0
+        self.fractions: tuple = (1.0,)
         if self.loops.delayed:
             self._plan_ring(scheme)
         self.ring_start = offset + len(self.stateful)
@@ -141,24 +146,29 @@ class SchemeLoopTerms:
 
     def _plan_ring(self, scheme: Scheme) -> None:
         """:attr:`fraction`, :attr:`reads`, :attr:`hermite` and :attr:`columns` of the delayed loops, after the
-        checks of the Python path (each delay at least ``dt``; ``fraction dt`` with Wilson-theta)."""
+        checks of the Python path (each delay at least ``dt``; ``fraction dt`` with Wilson-theta), and each delay at
+        least every fraction of :attr:`fractions` times ``dt`` (a start-up's later fraction: the Python path checks
+        its first step's)."""
         laws = [self.loops.laws[k] for k in self.loops.delayed]
         if self.dt is None:
             raise ModelError(f"loop {laws[0].name!r}: a delayed loop (delay = {laws[0].delay!r} s) needs the step "
                              "dt to compile its history ring")
-        fractions = {m.time_fraction for m in scheme_maps(scheme, 1.0)}
-        if len(fractions) > 1:
-            raise ModelError(f"loop {laws[0].name!r}: {scheme!r} imposes the equations of motion at different "
-                             f"fractions of the step {sorted(fractions)} (a start-up), which the generated delay "
-                             "ring does not follow; use compiled=None")
-        self.fraction = float(fractions.pop())
+        per_step = [float(m.time_fraction) for m in scheme_maps(scheme, 1.0)]
+        self.fraction, self.fractions = per_step[-1], tuple(sorted(set(per_step)))
         for law in laws:
             if law.delay < self.dt * (1.0 - 1e-9):
                 raise ModelError(f"loop {law.name!r}: delay = {law.delay!r} s is shorter than the step dt = "
                                  f"{self.dt!r} s; a fixed-step integrator evaluates the loop inside the step, so "
                                  f"the delay must be 0 or at least dt: use dt <= {law.delay!r} s (or delay=0)")
         check_scheme_delays(laws, scheme, self.dt)
-        for lead in (0.0, self.fraction, 1.0):
+        for fraction in self.fractions:                 # a start-up's later fraction too (the ring holds the past)
+            for law in laws:
+                if law.delay < fraction * self.dt * (1.0 - 1e-9):
+                    raise ModelError(f"loop {law.name!r}: delay = {law.delay!r} s is shorter than {fraction:g} dt "
+                                     f"= {fraction * self.dt!r} s; {scheme!r} imposes the equations of motion at "
+                                     f"t_n + {fraction:g} dt in some steps, where the loop needs y(t - delay) from "
+                                     f"a completed step: use dt <= {law.delay / fraction!r} s or delay=0")
+        for lead in (0.0, *self.fractions, 1.0):
             self.reads[lead] = []
             for law in laws:
                 x = lead - law.delay / self.dt
@@ -233,6 +243,20 @@ class SchemeLoopTerms:
             out.append(ca.if_else(t_n + (j + 1) * h < 0.5 * h, ring[d, right], hermite))
         return out
 
+    def _delayed_at_evaluation(self, c: Any, s: Any, t_n: Any) -> list:
+        """:meth:`delayed_values` at the scheme's evaluation time ``t_n + s`` inside Newton, ``s`` [s] the step's
+        evaluation offset (symbolic: a start-up's steps evaluate at other fractions of ``dt`` than the later ones,
+        :attr:`fractions`; the read of the fraction nearest ``s / dt``, as the Python path reads its history at
+        each step's own evaluation time)."""
+        import casadi as ca
+
+        values = self.delayed_values(c, self.fractions[-1], t_n)
+        for k in range(len(self.fractions) - 2, -1, -1):
+            lower = self.delayed_values(c, self.fractions[k], t_n)
+            middle = 0.5 * (self.fractions[k] + self.fractions[k + 1]) * self.dt
+            values = [ca.if_else(s < middle, a, b) for a, b in zip(lower, values)]
+        return values
+
     def with_sample(self, c: Any, q: Any, v: Any, acceleration: Any, replace: bool = False) -> Any:
         """``c`` with the delayed loops' signals at ``(q, v)`` [and their rates along ``acceleration``] as the
         ring's newest sample: shifted in (``replace``: the newest sample's rates replaced, a restart at the same
@@ -267,7 +291,7 @@ class SchemeLoopTerms:
         step start to ``t`` with the iterate's errors (implicit, as the Python path's ``inputs`` hook)."""
         import casadi as ca
 
-        delayed = self.delayed_values(c, self.fraction, t - s)
+        delayed = self._delayed_at_evaluation(c, s, t - s)
         z = self.trapezoidal(c, self.errors(q, v, p, t, delayed), s) if self.stateful else ca.SX(0, 1)
         return self.loops.rate(self.sweep, u, p, t, ca.vertcat(q, v, z), delayed)[1]
 

@@ -50,11 +50,11 @@ loops at the stored controller states and ring).
 What compiles: static-gain loops ``u = -K e`` with weighted sensor terms (a PD: ``sensor=[(angle, kp),
 (rate, kd)]``, ``gain=1``), LTI controllers, saturation, references and open-loop inputs that are numbers or
 symbolic :mod:`ctmm.signals`, loops on beam station moment pairs (:attr:`ctmm.compiled_loops.ClosedLoops.channels`),
-delayed loops with every scheme, co-simulated controllers beside them.  Refused by name
-(:class:`~ctmm.errors.ModelError`; ``compiled=None`` runs them in Python): a scheme whose start-up evaluates at
-another fraction of the step than its later steps (with delayed loops; none of :data:`ctmm.schemes.SCHEMES`), and
-what :class:`ClosedLoops`, the Python path (delays shorter than ``dt`` or ``1.4 dt``) and
-:class:`~ctmm.compiled_scene_schemes.CompiledSceneScheme` refuse.
+delayed loops with every scheme (a start-up at another evaluation fraction: the ring read at each step's own),
+co-simulated controllers beside them.  Refused by name (:class:`~ctmm.errors.ModelError`; ``compiled=None`` runs
+them in Python): a delay shorter than a start-up's later fraction times ``dt``, and what :class:`ClosedLoops`, the
+Python path (delays shorter than ``dt`` or ``1.4 dt``) and :class:`~ctmm.compiled_scene_schemes.CompiledSceneScheme`
+refuse.
 """
 from __future__ import annotations
 

@@ -12,8 +12,8 @@ spatial plant on symbols:
   smooth function of the state, from the body states of
   :meth:`~ctmm.spatial.body_forms.SpatialScene.terms` on casadi symbols (joint coordinates and rates,
   body angular velocities in world and body axes, x-y-z angles, positions and velocities of named
-  points); the loop signal's time derivative for the ring is its forward derivative along
-  ``(G(q) v, v_dot)``, exact;
+  points, rotation vectors through :func:`~ctmm.compiled_spherical_cut_law.symbolic_rotation_vector`); the
+  loop signal's time derivative for the ring is its forward derivative along ``(G(q) v, v_dot)``, exact;
 * :func:`loop_acceleration` -- ``v_dot(q, v, u, p, t)`` with ``u`` one scalar per port actuator (joint
   torques and forces, body forces at points and moments), through the one articulated sweep;
 * :class:`CompiledControlledSpatial` -- the generated step, strides and blocks
@@ -25,12 +25,12 @@ Loads and driven joints may carry :mod:`ctmm.signals` with a symbolic form (Cons
 SquareWave): the sweep states them on its time symbol ``t``, the RK4 stage time
 (:func:`~ctmm.compiled_spatial.spatial_compile_refusal` with ``time_signals=True``, as the generated RK4 without
 loops).  The sensors are stated at the state ``(q, v)`` only: a sensor that moves with a driven joint's time
-signal (a body outboard of it) is refused by name.
+signal (a body outboard of it) is refused by name.  The rotation vector ``"<body>.rotation_x|y|z"`` is
+:func:`~ctmm.compiled_spherical_cut_law.symbolic_rotation_vector` of the body's rotation matrix.
 
-Refused by name (:class:`~ctmm.errors.ModelError`): the rotation-vector sensors
-``"<body>.rotation_x|y|z"`` (their branch at ``|phi| = pi`` is not stated on symbols yet), sensors that move
-with driven joints' time signals, what :func:`~ctmm.compiled_spatial.spatial_compile_refusal` refuses (user
-callables), and (by the caller) co-simulated controllers.
+Refused by name (:class:`~ctmm.errors.ModelError`): sensors that move with driven joints' time signals, what
+:func:`~ctmm.compiled_spatial.spatial_compile_refusal` refuses (user callables), and (by the caller) co-simulated
+controllers.
 """
 from __future__ import annotations
 
@@ -45,6 +45,7 @@ from .compiled_loops import ClosedLoops
 from .compiled_spatial import DEFAULT_ROWS, SPATIAL_FLAGS, position_rates, spatial_compile_refusal
 from .compiled_spatial_parameters import (SpatialNumbers, parametrised_scene_terms, spatial_parameter_layout,
                                           spatial_parameter_vector, unparametrised_refusal)
+from .compiled_spherical_cut_law import symbolic_rotation_vector
 from .control.controlled_model import ControlledModel
 from .errors import ModelError
 from .generated_loop import BlockRunner, compiled_time_loop, run_blocks
@@ -89,11 +90,14 @@ class SpatialSymbols:
     def sensor(self, name: str, q: Any, v: Any) -> Any:
         """Sensor ``name`` of :mod:`ctmm.spatial.ports` as an expression of the symbols ``q`` (nq), ``v`` (nv).
 
+        The rotation vector ``"<body>.rotation_x|y|z"`` is
+        :func:`~ctmm.compiled_spherical_cut_law.symbolic_rotation_vector` of the body's rotation matrix.
+
         Raises
         ------
         ModelError
-            A rotation-vector sensor (not on symbols yet); a sensor that moves with a driven joint's time signals
-            (the loops state their sensors at the state only).
+            A sensor that moves with a driven joint's time signals (the loops state their sensors at the state
+            only).
         """
         expression = self._sensor(name, q, v)
         if not isinstance(self._time, float) and _depends_on_time(expression, self._time):
@@ -118,12 +122,10 @@ class SpatialSymbols:
             layout = self.model.modal[sensor.index]
             values = q[layout.position] if sensor.kind == "modal" else v[layout.velocity]
             return ca.dot(ca.DM(np.asarray(sensor.weights, float)), values)
-        if sensor.kind == "rotation":
-            raise ModelError(f"sensor {name!r}: rotation-vector sensors are not stated on symbols yet, so "
-                             "compiled=True cannot close a loop on it; use the x-y-z angles "
-                             f"'{name.split('.')[0]}.angle_x|y|z', body rates, or compiled=False")
         state = self._body_states(q, v)[sensor.index]
         rotation, omega, c = state.rotation, state.omega, sensor.component
+        if sensor.kind == "rotation":                      # the one logarithm on symbols (numpy's, to pi)
+            return symbolic_rotation_vector(rotation)[c]
         if sensor.kind == "omega":
             return omega[c]
         if sensor.kind == "omega_body":

@@ -18,9 +18,8 @@ The result equals the Python path's (:func:`ctmm.control.planar_time.simulate_cl
 which also checks a delayed PD pendulum against the Newton-Euler equations by the method of steps).
 
 Refused by name (:class:`~ctmm.errors.ModelError`; ``compiled=None`` runs them in Python): what
-:func:`~ctmm.compiled_spatial.spatial_compile_refusal`, :class:`~ctmm.compiled_loops.ClosedLoops`, the rotation-vector
-sensors of :class:`~ctmm.compiled_spatial_loops.SpatialSymbols` and the delay checks of the Python path refuse; a
-scheme with a start-up at another evaluation fraction with delayed loops.
+:func:`~ctmm.compiled_spatial.spatial_compile_refusal`, :class:`~ctmm.compiled_loops.ClosedLoops` and the delay
+checks of the Python path refuse (and a delay shorter than a start-up's later evaluation fraction times ``dt``).
 """
 from __future__ import annotations
 

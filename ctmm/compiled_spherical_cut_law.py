@@ -6,13 +6,14 @@ body axes; ``R_rest = exp(rest)``), its rate ``phi' = J(phi)^-1 R_p^T (omega_c -
 Jacobian ``J(phi) = I + (1 - cos a)/a^2 [phi]x + (a - sin a)/a^3 [phi]x^2`` of ``SO(3)`` (``a = |phi|``; the same
 series below ``a^2 = 1e-6``), the law ``f_i = law(phi_i, phi'_i)`` on each component (the cut's
 :class:`~ctmm.nonlinear_laws.Law` traced on symbols) and the moment ``-R_p J(phi)^-T f`` [N m] (world axes) on the
-child, its opposite on the parent.  Only the logarithm is written differently: from the matrix directly (``cos a =
-(tr R - 1)/2``, ``[phi]x = a/(2 sin a) (R - R^T)``, the series ``a/sin a = 1 + sin^2 a/6`` below ``sin a = 1e-8``)
-instead of through a quaternion, which needs a branch per largest diagonal entry; the law is defined for ``a <=``
-:data:`~ctmm.spatial.closed_loop_cuts.ROTATION_LAW_LIMIT` ``= 3`` rad, where ``sin a >= 0.14``, so the two agree to
-round-off (``tests/test_compiled_spherical_cut_law.py``: 1e-14 at random rotations).
+child, its opposite on the parent.  The logarithm is :func:`symbolic_rotation_vector`, the symbolic form of
+:func:`ctmm.spatial.sensor_maps.rotation_vector` (through the unit quaternion formed from its largest component,
+one branch per choice), the one logarithm on symbols: also the generated ``"<body>.rotation_x|y|z"`` sensors
+(:class:`ctmm.compiled_spatial_loops.SpatialSymbols`); ``tests/test_compiled_spherical_cut_law.py``: 1e-13 at random
+rotations from 1e-9 rad to ``pi``.
 
-Beyond the limit the numpy path raises :class:`~ctmm.errors.SimulationError`; a generated step cannot raise, so the
+The law is defined for ``a <=`` :data:`~ctmm.spatial.closed_loop_cuts.ROTATION_LAW_LIMIT` ``= 3`` rad.  Beyond the
+limit the numpy path raises :class:`~ctmm.errors.SimulationError`; a generated step cannot raise, so the
 moment is NaN there: the state turns non-finite and the run stops with a ``SimulationError`` whose message names the
 cut (:func:`rotation_limit_note` on the last good stored state).
 """
@@ -26,11 +27,12 @@ from .spatial.closed_loop_cuts import ROTATION_LAW_LIMIT
 from .spatial.lie import quaternion_exponential
 from .spatial.model import rotation_matrix
 
-__all__ = ["symbolic_relative_rotation", "symbolic_spherical_law_moment", "spherical_law_cuts",
-           "rotation_limit_note"]
+__all__ = ["symbolic_rotation_vector", "symbolic_relative_rotation", "symbolic_spherical_law_moment",
+           "spherical_law_cuts", "rotation_limit_note"]
 
-SMALL_SINE_SQUARED = 1e-16
-"""``sin^2 a`` below which the logarithm takes its series ``a / sin a = 1 + sin^2 a / 6`` (error < 1e-32)."""
+SMALL_HALF_SINE_SQUARED = 1e-8
+"""``|vec|^2 = sin^2(a / 2)`` below which the logarithm takes the series of ``2 atan(s / w) / s`` in ``s^2 / w^2``
+(as :func:`ctmm.spatial.sensor_maps.rotation_vector`)."""
 
 SMALL_ANGLE_SQUARED = 1e-6
 """``a^2`` below which the left Jacobian takes its series (as :func:`ctmm.spatial.lie.left_jacobian`)."""
@@ -40,6 +42,46 @@ def _skew(v: Any) -> Any:
     import casadi as ca
 
     return ca.vertcat(ca.horzcat(0.0, -v[2], v[1]), ca.horzcat(v[2], 0.0, -v[0]), ca.horzcat(-v[1], v[0], 0.0))
+
+
+def symbolic_rotation_vector(rotation: Any) -> Any:
+    """The rotation vector ``phi`` [rad] (a 3-column; ``R = exp([phi]x)``, ``|phi| <= pi``) of a rotation matrix on
+    casadi symbols, the logarithm of :func:`ctmm.spatial.sensor_maps.rotation_vector` step by step: the unit
+    quaternion ``(w, vec)`` formed from its largest component (chosen as numpy's ``argmax`` of ``(tr R, R00, R11,
+    R22)``, ties to the first), turned to ``w >= 0``, then ``phi = 2 atan2(|vec|, w) vec / |vec|`` (its series below
+    ``|vec|^2 =`` :data:`SMALL_HALF_SINE_SQUARED`).  Well conditioned up to and at ``|phi| = pi``, where ``phi`` flips
+    to its opposite as numpy's does.  The branches not chosen are evaluated with their square root's argument held
+    at 1 or more (the chosen one's is at least 1: the four sum to 4), so none is NaN."""
+    import casadi as ca
+
+    R = rotation
+    trace = R[0, 0] + R[1, 1] + R[2, 2]
+    branches = []
+    for k in range(4):
+        if k == 0:
+            w = 0.5 * ca.sqrt(ca.fmax(1.0 + trace, 1.0))
+            vec = ca.vertcat(R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]) / (4.0 * w)
+        else:
+            i = k - 1
+            j, m = (i + 1) % 3, (i + 2) % 3
+            largest = 0.5 * ca.sqrt(ca.fmax(1.0 + R[i, i] - R[j, j] - R[m, m], 1.0))
+            entries = [None, None, None]
+            entries[i] = largest
+            entries[j] = (R[j, i] + R[i, j]) / (4.0 * largest)
+            entries[m] = (R[m, i] + R[i, m]) / (4.0 * largest)
+            w, vec = (R[m, j] - R[j, m]) / (4.0 * largest), ca.vertcat(*entries)
+        branches.append(ca.vertcat(w, vec))
+    first_rest = ca.if_else(R[0, 0] >= ca.fmax(R[1, 1], R[2, 2]), branches[1],
+                            ca.if_else(R[1, 1] >= R[2, 2], branches[2], branches[3]))
+    quaternion = ca.if_else(trace >= ca.fmax(R[0, 0], ca.fmax(R[1, 1], R[2, 2])), branches[0], first_rest)
+    quaternion = ca.if_else(quaternion[0] < 0.0, -quaternion, quaternion)
+    w, vec = quaternion[0], quaternion[1:]
+    s2 = ca.dot(vec, vec)
+    small = s2 < SMALL_HALF_SINE_SQUARED
+    x = s2 / (w * w)
+    series = (2.0 / w) * (1.0 - x / 3.0 + x * x / 5.0 - x ** 3 / 7.0 + x ** 4 / 9.0)
+    s = ca.sqrt(ca.if_else(small, 1.0, s2))
+    return vec * ca.if_else(small, series, 2.0 * ca.atan2(s, w) / s)
 
 
 def symbolic_relative_rotation(cut: Any, rotation_p: Any | None, rotation_c: Any, omega_p: Any, omega_c: Any
@@ -52,15 +94,7 @@ def symbolic_relative_rotation(cut: Any, rotation_p: Any | None, rotation_c: Any
 
     parent = ca.DM.eye(3) if rotation_p is None else rotation_p
     rest = ca.DM(rotation_matrix(quaternion_exponential(np.asarray(cut.rest, float))))
-    R = ca.mtimes(ca.mtimes(parent.T, rotation_c), rest.T)
-    vee = ca.vertcat(R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1])      # 2 sin(a) n
-    sine_squared = 0.25 * ca.dot(vee, vee)
-    cosine = 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0)
-    small = sine_squared <= SMALL_SINE_SQUARED
-    sine = ca.sqrt(ca.if_else(small, 1.0, sine_squared))
-    angle = ca.atan2(ca.sqrt(sine_squared), cosine)
-    factor = ca.if_else(small, 1.0 + sine_squared / 6.0, ca.atan2(sine, cosine) / sine)
-    phi = 0.5 * factor * vee
+    phi = symbolic_rotation_vector(ca.mtimes(ca.mtimes(parent.T, rotation_c), rest.T))
     a2 = ca.dot(phi, phi)
     tiny = a2 <= SMALL_ANGLE_SQUARED
     a = ca.sqrt(ca.if_else(tiny, 1.0, a2))
@@ -69,7 +103,7 @@ def symbolic_relative_rotation(cut: Any, rotation_p: Any | None, rotation_c: Any
     K = _skew(phi)
     jacobian = ca.DM.eye(3) + first * K + second * ca.mtimes(K, K)
     rate = ca.solve(jacobian, ca.mtimes(parent.T, omega_c - omega_p))
-    return phi, rate, jacobian, angle
+    return phi, rate, jacobian, ca.sqrt(a2)
 
 
 def symbolic_spherical_law_moment(cut: Any, rotation_p: Any | None, rotation_c: Any, omega_p: Any, omega_c: Any

@@ -13,6 +13,9 @@ partial result as the Python path.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import ClassVar
+
 import control
 import numpy as np
 import pytest
@@ -21,7 +24,7 @@ import ctmm
 from ctmm.compiled_scheme_loops import CompiledSchemeLoops
 from ctmm.control import ControlledModel, Feedback
 from ctmm.errors import ModelError, SimulationError
-from ctmm.schemes import SCHEMES
+from ctmm.schemes import SCHEMES, Newmark, WilsonTheta
 from ctmm.signals import Harmonic
 from test_compiled_scene_schemes import DP_START, double_pendulum
 from test_compiled_cosim import Failing
@@ -81,6 +84,41 @@ def test_wilson_theta_reads_a_delay_of_whole_steps_between_the_samples(plant):
     assert compiled.hermite and compiled.reads[compiled.fraction] == [(-1, pytest.approx(0.4))]
     both_paths(ControlledModel(plant, loops), 0.2, dict(method="wilson_theta", x0=x0, v0=v0))
 
+
+@dataclass(frozen=True)
+class WilsonAfterNewmark(WilsonTheta):
+    """Wilson-theta (equations at ``t_n + 1.4 dt``) after two average-acceleration Newmark steps (at ``t_n + dt``):
+    a start-up at another evaluation fraction (none of ctmm.schemes.SCHEMES has one)."""
+
+    name: ClassVar[str] = "wilson_after_newmark"
+    start_up_steps: ClassVar[int] = 2
+
+    def coefficients(self, history, h):
+        if history.steps < self.start_up_steps:
+            return Newmark().coefficients(history, h)
+        return super().coefficients(history, h)
+
+    def update(self, history, delta, h, coeffs):
+        if history.steps < self.start_up_steps:
+            return Newmark().update(history, delta, h, coeffs)
+        return super().update(history, delta, h, coeffs)
+
+
+def test_a_start_up_at_another_fraction_reads_the_ring_at_each_steps_own_time(plant):
+    """The delay ring read at the start-up's fraction (1) in its two steps and at 1.4 later, as the Python delay
+    history is read at each step's own evaluation time: equal to round-off (the PD 2.5 steps late, the lag 1.7)."""
+    x0, v0 = _start(plant)
+    loops = fractional_loops()[:2]
+    compiled = CompiledSchemeLoops(ControlledModel(plant, loops), WilsonAfterNewmark(), dt=0.01)
+    assert compiled.fractions == (1.0, 1.4) and compiled.fraction == 1.4
+    assert compiled.reads[1.0] == [(-2, pytest.approx(0.5)), (-1, pytest.approx(0.3))]
+    assert compiled.reads[1.4] == [(-2, pytest.approx(0.9)), (-1, pytest.approx(0.7))]
+    _, python = both_paths(ControlledModel(plant, loops), 0.2, dict(method=WilsonAfterNewmark(), x0=x0, v0=v0,
+                                                                    references={"late": 0.1}))
+    assert np.ptp(python["late.u"]) > 0.05
+    with pytest.raises(ModelError, match=r"shorter than 1.4 dt .* in some steps"):
+        CompiledSchemeLoops(ControlledModel(plant, [Feedback("late", "a.theta", "o.torque", gain=2.0, delay=0.012)]),
+                            WilsonAfterNewmark(), dt=0.01)
 
 # ---------------------------------------------------------------- (2) loops and controllers together
 @pytest.mark.parametrize("scheme", ["newmark", "houbolt", "wilson_theta"])

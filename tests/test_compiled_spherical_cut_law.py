@@ -29,7 +29,7 @@ from ctmm.spatial.closed_loops import SpatialKinematicLoopModel
 def test_symbolic_law_moment_equals_the_numpy_definition():
     """Random parent and child orientations at relative rotations from 1e-9 to 2.95 rad from the rest (both sides of
     the series switches), with and without a parent body: = spatial_law_moment to 1e-13 relative (the logarithm
-    from the matrix here, through a quaternion there); NaN beyond 3 rad, where the numpy path raises."""
+    through the unit quaternion on both sides); NaN beyond 3 rad, where the numpy path raises."""
     import casadi as ca
 
     from ctmm.compiled_spherical_cut_law import symbolic_spherical_law_moment
@@ -57,6 +57,40 @@ def test_symbolic_law_moment_equals_the_numpy_definition():
     assert np.all(np.isnan(np.asarray(at_ground(beyond, np.zeros(3)))))
     with pytest.raises(SimulationError, match="beyond the 3 rad"):
         spherical_law_moment(cut, None, beyond, np.zeros(3), np.zeros(3), 0.0)
+
+
+def test_symbolic_rotation_vector_equals_numpy_up_to_pi():
+    """The one logarithm on symbols (the law's and the ``"<body>.rotation_x|y|z"`` sensors') against
+    ctmm.spatial.sensor_maps.rotation_vector: random axes at angles from 1e-9 rad to pi - 1e-9 (every branch of the
+    quaternion's largest component, the series), exactly pi about each axis (the sign numpy chooses) to 1e-13; its
+    forward derivative along ``R' = [w]x R`` (the delay ring's rates) against numpy's complex step to 1e-9."""
+    import casadi as ca
+
+    from ctmm.compiled_spherical_cut_law import symbolic_rotation_vector
+    from ctmm.spatial.sensor_maps import rotation_vector
+
+    R, w = ca.SX.sym("R", 3, 3), ca.SX.sym("w", 3)
+    phi = symbolic_rotation_vector(R)
+    skew = ca.vertcat(ca.horzcat(0, -w[2], w[1]), ca.horzcat(w[2], 0, -w[0]), ca.horzcat(-w[1], w[0], 0))
+    log = ca.Function("log", [R, w], [phi, ca.jtimes(phi, ca.vec(R), ca.vec(ca.mtimes(skew, R)))])
+    rng = np.random.default_rng(3)
+    rotations = [np.diag([1.0, -1.0, -1.0]), np.diag([-1.0, 1.0, -1.0]), np.diag([-1.0, -1.0, 1.0])]
+    for angle in (1e-9, 1e-4, 3e-4, 0.5, 2.0, 3.0, np.pi - 1e-6, np.pi - 1e-9):
+        for _ in range(4):
+            axis = rng.normal(size=3)
+            rotations.append(Rotation.from_rotvec(angle * axis / np.linalg.norm(axis)).as_matrix())
+    branches = set()
+    for matrix in rotations:
+        omega = rng.normal(size=3)
+        got, rate = (np.asarray(x).ravel() for x in log(matrix, omega))
+        expected = rotation_vector(matrix)
+        assert np.abs(got - expected).max() <= 1e-13, (matrix, got, expected)
+        if np.linalg.norm(expected) < np.pi - 1e-3:              # the flip at pi has no derivative
+            bent = matrix + 1e-30j * np.cross(omega[None, :], matrix.T).T      # (I + i h [w]x) R
+            numeric = np.imag(rotation_vector(bent)) / 1e-30
+            assert np.abs(rate - numeric).max() <= 1e-9 * max(1.0, np.abs(numeric).max()), matrix
+        branches.add(int(np.argmax([np.trace(matrix), *np.diag(matrix)])))
+    assert branches == {0, 1, 2, 3}
 
 
 def test_generated_rk4_equals_numpy_and_matches_the_dae():
