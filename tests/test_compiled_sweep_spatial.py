@@ -6,7 +6,7 @@ gravity-loaded -- the joint coupling ``G`` and, below prismatic joints, ``H`` --
 variant, undamped: the real one; a held drive), hand over exactly the frequencies the generic sweep hands over
 (next to an undamped pole), and equal the independent Newton-Euler linearisation of
 ``ctmm/reference/spatial_tree.py`` to the bound of ``tests/test_spatial_frf_sweep_gravity.py`` (1e-9).  Joints with
-more directions (universal, spherical, free) leave the tree to the generic sweep.
+more directions (universal, spherical, free): the multi-direction variant, ``tests/test_compiled_sweep_multi.py``.
 """
 from __future__ import annotations
 
@@ -105,6 +105,10 @@ def test_the_pivot_certificate_decides_as_the_generic_sweep(monkeypatch):
     assert np.max(np.abs(G[good] - G_generic[good])) <= 1e-9 * np.max(np.abs(G_generic[good]))
 
 
-def test_trees_with_multi_direction_joints_take_the_generic_sweep():
+def test_trees_with_multi_direction_joints_take_the_multi_direction_variant():
+    """(Its checks: tests/test_compiled_sweep_multi.py.)  Trees of one-direction joints keep the one-direction
+    variant."""
     model = random_spring_tree(np.random.default_rng(11), 5, "universal")
-    assert SpatialSweepResponse(model, operating_point(model)).compiled is None
+    assert SpatialSweepResponse(model, operating_point(model)).compiled.multi
+    model = one_direction_tree(3, 5, False)
+    assert not SpatialSweepResponse(model, operating_point(model)).compiled.multi
