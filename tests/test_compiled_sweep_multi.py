@@ -15,15 +15,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import ctmm
 import ctmm.spatial as sp
 import ctmm.sweep_response as sweep_module
 from ctmm.compiled_sweep import compiler_present, kernel_library
-from ctmm.spatial_linearization import operating_point, tangent_names
+from ctmm.spatial_linearization import operating_point
+from spatial_linear_helpers import random_spring_tree
 from ctmm.spatial_transfer_response import SpatialSweepResponse
-from spatial_linear_helpers import random_spring_tree, reference_configuration, reference_tree
-from test_spatial_frf_sweep import SWEEP, assert_close, joint_torques, weightless
-from test_spatial_frf_sweep_gravity import reference_response
+from test_compiled_sweep_spatial import both as both_sweeps, equals_the_generic_sweep_and_the_reference, \
+    hands_over_as_the_generic_sweep
+from test_spatial_frf_sweep import weightless
 
 pytestmark = pytest.mark.skipif(not compiler_present(), reason="no C compiler: the generic sweep answers")
 
@@ -31,15 +31,10 @@ OMEGA = np.array([0.07, 0.4, 1.3, 3.1, 7.7, 16.0])
 
 
 def both(model: sp.SpatialModel, point, s: np.ndarray, inputs: list, outputs: list, monkeypatch):
-    """``(plant, (G, good))`` of the compiled kernel and ``(G, good)`` of the generic sweep on the same plant."""
-    plant = SpatialSweepResponse(model, point)
-    assert plant.compiled is not None and plant.compiled.multi
-    answer = plant.response(s, inputs, outputs)
-    with monkeypatch.context() as patch:
-        patch.setattr(sweep_module, "compiler_present", lambda: False)
-        generic = SpatialSweepResponse(model, point)
-    assert generic.compiled is None
-    return plant, answer, generic.response(s, inputs, outputs)
+    """:func:`test_compiled_sweep_spatial.both` on a tree the multi-direction variant takes."""
+    plant, answer, generic = both_sweeps(model, point, s, inputs, outputs, monkeypatch)
+    assert plant.compiled.multi
+    return plant, answer, generic
 
 
 @pytest.mark.parametrize("seed, base, n, damped, gravity", [(11, "universal", 6, True, True),
@@ -51,21 +46,10 @@ def test_multi_direction_trees_equal_the_generic_sweep_and_the_newton_euler_refe
     model = random_spring_tree(np.random.default_rng(seed), n, base, damped=damped)
     if not gravity:
         model = sp.SpatialModel("weightless", list(model.bodies) + list(model.joints), gravity=(0.0, 0.0, 0.0))
-    point = operating_point(model)
-    inputs, forcing = joint_torques(model)
-    outputs = list(tangent_names(model))
-    plant, (G, good), (G_generic, good_generic) = both(model, point, 1j * OMEGA, inputs, outputs, monkeypatch)
-    kernel = plant.compiled
-    assert {2, 3} <= set(kernel.axis.tolist())                          # universal and spherical blocks
-    assert kernel.undamped == (not damped)                              # undamped: the real variant
-    assert (kernel.flags != 0).any() == gravity                         # the preload coupling G (and H)
-    assert good.all() and np.array_equal(good, good_generic)
-    assert np.max(np.abs(G - G_generic)) <= 1e-12 * np.max(np.abs(G_generic))
-    expected = reference_response(reference_tree(model), reference_configuration(model, point.q), OMEGA, forcing)
-    assert_close(np.moveaxis(G, 0, -1), expected, 1e-9)
-    frf = ctmm.frequency_response(model, OMEGA, input=inputs, output=outputs)
-    assert frf.info["method"] == SWEEP and frf.info["n_dense_frequencies"] == 0
-    assert_close(frf.response, expected, 1e-9)
+    kernel = equals_the_generic_sweep_and_the_reference(model, monkeypatch)
+    assert kernel.multi and {2, 3} <= set(kernel.axis.tolist())             # universal and spherical blocks
+    assert kernel.undamped == (not damped)                                  # undamped: the real variant
+    assert (kernel.flags != 0).any() == gravity                             # the preload coupling G (and H)
 
 
 def test_a_free_base_and_complex_s_equal_the_generic_sweep(monkeypatch):
@@ -89,13 +73,8 @@ def test_the_pivot_certificate_decides_as_the_generic_sweep(monkeypatch):
     """Undamped, weightless, universal and spherical joints: at an undamped pole (1e-12 from it) and next to it
     (1e-5) the kernel hands over the frequencies the generic sweep hands over and agrees with it at the others."""
     model = weightless(11, 4, damped=False)
-    first = ctmm.natural_frequencies(model, n_modes=4)
-    first = first[first > 0][0]
-    omega = np.array([0.5 * first, first * (1 + 1e-12), first * (1 + 1e-5), 2.0 * first])
-    _, (G, good), (G_generic, good_generic) = both(model, operating_point(model), 1j * omega, ["j1.torque"],
-                                                   ["j1.angle", "j0.angle2"], monkeypatch)
-    assert good.tolist() == good_generic.tolist() == [True, False, True, True]
-    assert np.max(np.abs(G[good] - G_generic[good])) <= 1e-9 * np.max(np.abs(G_generic[good]))
+    assert SpatialSweepResponse(model, operating_point(model)).compiled.multi
+    hands_over_as_the_generic_sweep(model, 4, ["j1.angle", "j0.angle2"], monkeypatch)
 
 
 def kernel_singular(blocks: np.ndarray, k: int, complex_scalar: bool) -> np.ndarray:
