@@ -21,9 +21,10 @@ its terms (``|D| >= PIVOT_TOLERANCE (|s^2 m| + |D - s^2 m|)``, ``m`` the same pi
 callers' (the dense resolvent), exactly as for the generic sweep.
 
 Spatial trees (``d = 6``) with universal, spherical or free joints take the multi-direction variant
-(:data:`ctmm.compiled_sweep_multi_kernel.KERNEL_MULTI_C`, its own C text: the one-direction variants are
-unchanged): every free joint on the ``k`` columns of its ``S`` (``k x k`` laws, coupling ``G`` (k, 6) and ``H`` (6, k)), the same
-recursion with ``D`` a ``k x k`` block (Gaussian elimination with partial pivoting; an exactly singular block
+(:data:`ctmm.compiled_sweep_multi_kernel.KERNEL_MULTI_C`, its own C text, sharing the blocks of
+:mod:`ctmm.compiled_sweep_kernel` that are the same: the one-direction variants are unchanged): every free joint on
+the ``k`` columns of its ``S`` (``k x k`` laws, coupling ``G`` (k, 6) and ``H`` (6, k)), the same recursion with
+``D`` a ``k x k`` block (Gaussian elimination with partial pivoting; an exactly singular block
 leaves a non-finite answer, not certified) and the pivot certificate of the generic sweep on blocks
 (:meth:`ctmm.sweep_response.ArticulatedResponse.pivots_certified`): the smallest singular value of ``D`` (one-sided
 Jacobi rotations of its columns; 0 for a non-finite block) at least ``PIVOT_TOLERANCE (max|s^2 M_D| + max|D - s^2

@@ -5,6 +5,9 @@ from __future__ import annotations
 
 __all__ = ["KERNEL_MULTI_C"]
 
+from .compiled_sweep_kernel import (BODY_FORCES, BODY_TERMS, INBOARD_ORIGIN, MASS_PARENT_TERMS, PARENT_TERMS,
+                                   WRENCH_TO_PARENT)
+
 KERNEL_MULTI_C = r"""
 #include <math.h>
 #include <stdlib.h>
@@ -97,6 +100,19 @@ static void solve_block(int k, int m, scalar D[DIM][DIM], scalar X[DIM][DIM + __
         }
 }
 
+/* The rows S^T P (k x DIM, into the first DIM columns of X) and the columns P S (DIM x k) of a joint on the k
+   columns of S (DIM x DIM, row-major). */
+static void project(int k, const double *S, scalar P[DIM][DIM], scalar X[DIM][DIM + __LMAX__], scalar column[DIM][DIM])
+{
+    for (int c = 0; c < k; ++c)
+        for (int e = 0; e < DIM; ++e) {
+            scalar r = 0.0, t = 0.0;
+            for (int i = 0; i < DIM; ++i) { r += S[DIM * i + c] * P[i][e]; t += P[e][i] * S[DIM * i + c]; }
+            X[c][e] = r;
+            column[e][c] = t;
+        }
+}
+
 /* The k x k pivots of the mass terms alone (Z = M0, kappa = 0, no coupling), tip to base, in pivot (n, DIM, DIM). */
 void mass_pivots(int n, const int *parent, const int *count, const double *direction, const double *M0,
                  const double *Kin, const double *RF, double *pivot, double *acc)
@@ -104,20 +120,15 @@ void mass_pivots(int n, const int *parent, const int *count, const double *direc
     const int DD = DIM * DIM;
     for (int i = 0; i < n * DD; ++i) { acc[i] = 0.0; pivot[i] = 0.0; }
     for (int j = n - 1; j >= 0; --j) {
-        scalar P[DIM][DIM], T[DIM][DIM];
+        double P[DIM][DIM], T[DIM][DIM];
+        scalar Z[DIM][DIM];
         const double *Mj = M0 + DD * j, *Aj = acc + DD * j, *S = direction + DD * j;
         for (int i = 0; i < DIM; ++i)
-            for (int e = 0; e < DIM; ++e) P[i][e] = Mj[DIM * i + e] + Aj[DIM * i + e];
+            for (int e = 0; e < DIM; ++e) Z[i][e] = P[i][e] = Mj[DIM * i + e] + Aj[DIM * i + e];
         const int k = count[j], q = parent[j];
         if (k > 0) {
             scalar D[DIM][DIM], X[DIM][DIM + __LMAX__], column[DIM][DIM];
-            for (int c = 0; c < k; ++c)
-                for (int e = 0; e < DIM; ++e) {
-                    scalar r = 0.0, t = 0.0;
-                    for (int i = 0; i < DIM; ++i) { r += S[DIM * i + c] * P[i][e]; t += P[e][i] * S[DIM * i + c]; }
-                    X[c][e] = r;
-                    column[e][c] = t;
-                }
+            project(k, S, Z, X, column);
             for (int c = 0; c < k; ++c)
                 for (int e = 0; e < k; ++e) {
                     scalar t = 0.0;
@@ -129,23 +140,9 @@ void mass_pivots(int n, const int *parent, const int *count, const double *direc
             solve_block(k, DIM, D, X);
             for (int i = 0; i < DIM; ++i)
                 for (int e = 0; e < DIM; ++e)
-                    for (int c = 0; c < k; ++c) P[i][e] -= column[i][c] * X[c][e];
+                    for (int c = 0; c < k; ++c) P[i][e] -= creal(column[i][c] * X[c][e]);
         } else if (q < 0) continue;
-        const double *F = RF + DD * j, *K = Kin + DD * j;
-        double *Aq = acc + DD * q;
-        for (int i = 0; i < DIM; ++i)
-            for (int e = 0; e < DIM; ++e) {
-                scalar t = 0.0;
-                for (int m = 0; m < DIM; ++m) t += F[DIM * i + m] * P[m][e];
-                T[i][e] = t;
-            }
-        for (int i = 0; i < DIM; ++i)
-            for (int e = 0; e < DIM; ++e) {
-                scalar t = 0.0;
-                for (int m = 0; m < DIM; ++m) t += T[i][m] * K[DIM * m + e];
-                Aq[DIM * i + e] += creal(t);
-            }
-    }
+""" + MASS_PARENT_TERMS + r"""    }
 }
 
 /* The sweep of ctmm.compiled_sweep with joints of k directions; arguments as the one-direction kernel's, with
@@ -164,6 +161,7 @@ int sweep(int n, int L, int B, const int *parent, const int *count, const int *f
     scalar *acc = malloc(sizeof(scalar) * (size_t)(n * DD + 2 * n * DL + n * DD + n * DL + n * DL + 1));
     double *size = malloc(sizeof(double) * (size_t)(n * DL + 1));
     if (!acc || !size) { free(acc); free(size); return -1; }
+    const int damped = __COMPLEX__;             /* the damping terms (BODY_FORCES) */
     scalar *bias = acc + n * DD, *wrench = bias + n * DL, *w = wrench + n * DL, *r = w + n * DD;
     scalar *own = r + n * DL;
     for (int b = 0; b < B; ++b) {
@@ -177,33 +175,13 @@ int sweep(int n, int L, int B, const int *parent, const int *count, const int *f
         for (int i = 0; i < n * DL; ++i) bias[i] = 0.0;
         /* tip to base */
         for (int j = n - 1; j >= 0; --j) {
-            scalar P[DIM][DIM], T[DIM][DIM];
-            const double *Mj = M0 + DD * j, *Kj = K0 + DD * j, *Cj = C0 + DD * j;
-            const scalar *Aj = acc + DD * j;
-            for (int i = 0; i < DIM; ++i)
-                for (int e = 0; e < DIM; ++e) {
-                    scalar z = sq * Mj[DIM * i + e] + Kj[DIM * i + e] + Aj[DIM * i + e];
-#if __COMPLEX__
-                    z += s * Cj[DIM * i + e];
-#endif
-                    P[i][e] = z;
-                }
-            scalar *pj = bias + DL * j;
-            const double *hj = load + DL * j;
-            for (int i = 0; i < DL; ++i) pj[i] += hj[i];
-            const int k = count[j], q = parent[j];
+""" + BODY_TERMS + r"""            const int k = count[j], q = parent[j];
             pb[j] = 0.0;
             if (k > 0) {
                 const double *S = direction + DD * j, *Gj = G + DD * j, *Hj = H + DD * j, *Mp = mass + DD * j;
                 const scalar *stiff = stiffness + DD * j, *damp = damping + DD * j, *tj = torque + DL * j;
                 scalar D[DIM][DIM], X[DIM][DIM + __LMAX__], column[DIM][DIM];
-                for (int c = 0; c < k; ++c)
-                    for (int e = 0; e < DIM; ++e) {
-                        scalar u = 0.0, t = 0.0;
-                        for (int i = 0; i < DIM; ++i) { u += S[DIM * i + c] * P[i][e]; t += P[e][i] * S[DIM * i + c]; }
-                        X[c][e] = u;
-                        column[e][c] = t;
-                    }
+                project(k, S, P, X, column);
                 double inertia = 0.0, rest = 0.0;
                 for (int c = 0; c < k; ++c)
                     for (int e = 0; e < k; ++e) {
@@ -240,44 +218,12 @@ int sweep(int n, int L, int B, const int *parent, const int *count, const int *f
                         for (int l = 0; l < L; ++l) pj[i * L + l] += column[i][c] * X[c][DIM + l];
                     }
             } else if (q < 0) continue;
-            const double *F = RF + DD * j, *K = Kin + DD * j;
-            scalar *Aq = acc + DD * q, *pq = bias + DL * q;
-            for (int i = 0; i < DIM; ++i)
-                for (int e = 0; e < DIM; ++e) {
-                    scalar t = 0.0;
-                    for (int m = 0; m < DIM; ++m) t += F[DIM * i + m] * P[m][e];
-                    T[i][e] = t;
-                }
-            for (int i = 0; i < DIM; ++i) {
-                for (int e = 0; e < DIM; ++e) {
-                    scalar t = 0.0;
-                    for (int m = 0; m < DIM; ++m) t += T[i][m] * K[DIM * m + e];
-                    Aq[DIM * i + e] += t;
-                }
-                for (int l = 0; l < L; ++l) {
-                    scalar t = 0.0;
-                    for (int m = 0; m < DIM; ++m) t += F[DIM * i + m] * pj[m * L + l];
-                    pq[i * L + l] += t;
-                }
-            }
-        }
+""" + PARENT_TERMS + r"""        }
         /* base to tip: a = r - w A_O, x = A_O + S a */
         for (int j = 0; j < n; ++j) {
             scalar *A = xb + DL * j, *aj = rel + DL * j;
             const int k = count[j], q = parent[j];
-            if (q < 0) {
-                for (int i = 0; i < DL; ++i) A[i] = 0.0;
-            } else {
-                const double *K = Kin + DD * j;
-                const scalar *X = xb + DL * q;
-                for (int i = 0; i < DIM; ++i)
-                    for (int l = 0; l < L; ++l) {
-                        scalar t = 0.0;
-                        for (int m = 0; m < DIM; ++m) t += K[DIM * i + m] * X[m * L + l];
-                        A[i * L + l] = t;
-                    }
-            }
-            for (int i = 0; i < DL; ++i) aj[i] = 0.0;
+""" + INBOARD_ORIGIN + r"""            for (int i = 0; i < DL; ++i) aj[i] = 0.0;
             if (k > 0) {
                 const scalar *wj = w + DD * j, *rj = r + DL * j;
                 const double *S = direction + DD * j;
@@ -301,38 +247,21 @@ int sweep(int n, int L, int B, const int *parent, const int *count, const int *f
         double worst = 0.0;
         for (int j = n - 1; j >= 0; --j) {
             scalar F[DIM * __LMAX__];
-            double Sb[DIM * __LMAX__];
+            double S[DIM * __LMAX__];
             const scalar *A = xb + DL * j, *Wj = wrench + DL * j, *aj = rel + DL * j;
             const double *Mj = M0 + DD * j, *Kj = K0 + DD * j, *Cj = C0 + DD * j, *hj = load + DL * j;
             const double *Sj = size + DL * j;
-            for (int i = 0; i < DIM; ++i)
-                for (int l = 0; l < L; ++l) {
-                    scalar f = hj[i * L + l] + Wj[i * L + l];
-                    double bound = fabs(hj[i * L + l]) + Sj[i * L + l];
-                    for (int e = 0; e < DIM; ++e) {
-                        scalar z = sq * Mj[DIM * i + e] + Kj[DIM * i + e];
-                        double zm = sq_modulus * fabs(Mj[DIM * i + e]) + fabs(Kj[DIM * i + e]);
-#if __COMPLEX__
-                        z += s * Cj[DIM * i + e];
-                        zm += s_modulus * fabs(Cj[DIM * i + e]);
-#endif
-                        f += z * A[e * L + l];
-                        bound += zm * MODULUS(A[e * L + l]);
-                    }
-                    F[i * L + l] = f;
-                    Sb[i * L + l] = bound;
-                }
-            const int k = count[j], q = parent[j];
+""" + BODY_FORCES + r"""            const int k = count[j], q = parent[j];
             if (k > 0) {
-                const double *S = direction + DD * j, *Gj = G + DD * j, *Hj = H + DD * j;
+                const double *U = direction + DD * j, *Gj = G + DD * j, *Hj = H + DD * j;
                 const scalar *stiff = stiffness + DD * j, *damp = damping + DD * j, *tj = torque + DL * j;
                 for (int c = 0; c < k; ++c)
                     for (int l = 0; l < L; ++l) {
                         scalar residual = -tj[c * L + l];
                         double scale = MODULUS(tj[c * L + l]);
                         for (int i = 0; i < DIM; ++i) {
-                            residual += S[DIM * i + c] * F[i * L + l];
-                            scale += fabs(S[DIM * i + c]) * Sb[i * L + l];
+                            residual += U[DIM * i + c] * F[i * L + l];
+                            scale += fabs(U[DIM * i + c]) * S[i * L + l];
                         }
                         for (int e = 0; e < k; ++e) {
                             const scalar kappa = -(stiff[DIM * c + e] + damp[DIM * c + e] * s);
@@ -358,25 +287,10 @@ int sweep(int n, int L, int B, const int *parent, const int *count, const int *f
                         for (int l = 0; l < L; ++l)
                             for (int c = 0; c < k; ++c) {
                                 F[i * L + l] += Hj[DIM * i + c] * aj[c * L + l];
-                                Sb[i * L + l] += fabs(Hj[DIM * i + c]) * MODULUS(aj[c * L + l]);
+                                S[i * L + l] += fabs(Hj[DIM * i + c]) * MODULUS(aj[c * L + l]);
                             }
             }
-            if (q < 0) continue;
-            const double *R = RF + DD * j;
-            scalar *Wq = wrench + DL * q;
-            double *Sq = size + DL * q;
-            for (int i = 0; i < DIM; ++i)
-                for (int l = 0; l < L; ++l) {
-                    scalar t = 0.0;
-                    double u = 0.0;
-                    for (int m = 0; m < DIM; ++m) {
-                        t += R[DIM * i + m] * F[m * L + l];
-                        u += fabs(R[DIM * i + m]) * Sb[m * L + l];
-                    }
-                    Wq[i * L + l] += t;
-                    Sq[i * L + l] += u;
-                }
-        }
+""" + WRENCH_TO_PARENT + r"""        }
         backward[b] = worst;
         if (!(worst <= residual_tolerance)) ok = 0;
         good[b] = ok;
