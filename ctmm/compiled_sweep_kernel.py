@@ -1,8 +1,121 @@
 """The C text of the compiled frequency sweep of :mod:`ctmm.compiled_sweep` (its recursion, both certificates and
-the variants' constants are described there); kept apart from its Python driver, one text compiled per variant."""
+the variants' constants are described there); kept apart from its Python driver, one text compiled per variant.
+The blocks both this kernel and the multi-direction one (:mod:`ctmm.compiled_sweep_multi_kernel`) run are named
+constants here, joined into :data:`KERNEL_C` (its text is unchanged by the split)."""
 from __future__ import annotations
 
-__all__ = ["KERNEL_C"]
+__all__ = ["BODY_FORCES", "BODY_TERMS", "INBOARD_ORIGIN", "KERNEL_C", "MASS_PARENT_TERMS", "PARENT_TERMS",
+           "WRENCH_TO_PARENT"]
+
+BODY_TERMS = r"""            scalar P[DIM][DIM], T[DIM][DIM];
+            const double *Mj = M0 + DD * j, *Kj = K0 + DD * j, *Cj = C0 + DD * j;
+            const scalar *Aj = acc + DD * j;
+            for (int i = 0; i < DIM; ++i)
+                for (int k = 0; k < DIM; ++k) {
+                    scalar z = sq * Mj[DIM * i + k] + Kj[DIM * i + k] + Aj[DIM * i + k];
+                    if (damped) z += s * Cj[DIM * i + k];
+                    P[i][k] = z;
+                }
+            scalar *pj = bias + DL * j;                     /* p = h_j + children: in place */
+            const double *hj = load + DL * j;
+            for (int i = 0; i < DL; ++i) pj[i] += hj[i];
+"""
+"""C text of the sweep shared by both kernels: body ``j``'s ``P = Z_j(s) + children`` and ``p = h_j + children``."""
+
+MASS_PARENT_TERMS = r"""        const double *F = RF + DIM * DIM * j, *K = Kin + DIM * DIM * j;
+        double *Aq = acc + DIM * DIM * q;
+        for (int i = 0; i < DIM; ++i)
+            for (int k = 0; k < DIM; ++k) {
+                double t = 0.0;
+                for (int m = 0; m < DIM; ++m) t += F[DIM * i + m] * P[m][k];
+                T[i][k] = t;
+            }
+        for (int i = 0; i < DIM; ++i)
+            for (int k = 0; k < DIM; ++k) {
+                double t = 0.0;
+                for (int m = 0; m < DIM; ++m) t += T[i][m] * K[DIM * m + k];
+                Aq[DIM * i + k] += t;
+            }
+"""
+"""C text shared by both kernels' mass pivots: body ``j``'s eliminated mass terms carried to its parent
+(``Aq += RF P Kin``, real)."""
+
+PARENT_TERMS = r"""            const double *F = RF + DD * j, *K = Kin + DD * j;
+            scalar *Aq = acc + DD * q, *pq = bias + DL * q;
+            for (int i = 0; i < DIM; ++i)
+                for (int k = 0; k < DIM; ++k) {
+                    scalar t = 0.0;
+                    for (int m = 0; m < DIM; ++m) t += F[DIM * i + m] * P[m][k];
+                    T[i][k] = t;
+                }
+            for (int i = 0; i < DIM; ++i) {
+                for (int k = 0; k < DIM; ++k) {
+                    scalar t = 0.0;
+                    for (int m = 0; m < DIM; ++m) t += T[i][m] * K[DIM * m + k];
+                    Aq[DIM * i + k] += t;
+                }
+                for (int l = 0; l < L; ++l) {
+                    scalar t = 0.0;
+                    for (int m = 0; m < DIM; ++m) t += F[DIM * i + m] * pj[m * L + l];
+                    pq[i * L + l] += t;
+                }
+            }
+"""
+"""C text of the sweep shared by both kernels: body ``j``'s eliminated terms carried to its parent
+(``Aq += RF P Kin``, ``pq += RF p``)."""
+
+INBOARD_ORIGIN = r"""            if (q < 0) {
+                for (int i = 0; i < DL; ++i) A[i] = 0.0;
+            } else {
+                const double *K = Kin + DD * j;
+                const scalar *X = xb + DL * q;
+                for (int i = 0; i < DIM; ++i)
+                    for (int l = 0; l < L; ++l) {
+                        scalar t = 0.0;
+                        for (int m = 0; m < DIM; ++m) t += K[DIM * i + m] * X[m * L + l];
+                        A[i * L + l] = t;
+                    }
+            }
+"""
+"""C text of the sweep shared by both kernels: the inboard point's amplitude ``A_O = Kin x_parent`` (0 on the
+ground)."""
+
+BODY_FORCES = r"""            for (int i = 0; i < DIM; ++i)
+                for (int l = 0; l < L; ++l) {
+                    scalar f = hj[i * L + l] + Wj[i * L + l];
+                    double bound = fabs(hj[i * L + l]) + Sj[i * L + l];
+                    for (int k = 0; k < DIM; ++k) {
+                        scalar z = sq * Mj[DIM * i + k] + Kj[DIM * i + k];
+                        double zm = sq_modulus * fabs(Mj[DIM * i + k]) + fabs(Kj[DIM * i + k]);
+                        if (damped) { z += s * Cj[DIM * i + k]; zm += s_modulus * fabs(Cj[DIM * i + k]); }
+                        f += z * A[k * L + l];
+                        bound += zm * MODULUS(A[k * L + l]);
+                    }
+                    F[i * L + l] = f;
+                    S[i * L + l] = bound;
+                }
+"""
+"""C text of the sweep shared by both kernels: the body's force ``F = Z x + h + children`` and its size ``S`` (the
+moduli of its terms)."""
+
+WRENCH_TO_PARENT = r"""            if (q < 0) continue;
+            const double *R = RF + DD * j;
+            scalar *Wq = wrench + DL * q;
+            double *Sq = size + DL * q;
+            for (int i = 0; i < DIM; ++i)
+                for (int l = 0; l < L; ++l) {
+                    scalar t = 0.0;
+                    double u = 0.0;
+                    for (int m = 0; m < DIM; ++m) {
+                        t += R[DIM * i + m] * F[m * L + l];
+                        u += fabs(R[DIM * i + m]) * S[m * L + l];
+                    }
+                    Wq[i * L + l] += t;
+                    Sq[i * L + l] += u;
+                }
+"""
+"""C text of the sweep shared by both kernels: the joint's wrench and its size carried to the parent (``RF F``,
+``|RF| S``)."""
 
 KERNEL_C = r"""
 #include <math.h>
@@ -53,21 +166,7 @@ void mass_pivots(int n, const int *parent, const int *axis, const double *direct
             for (int i = 0; i < DIM; ++i)
                 for (int k = 0; k < DIM; ++k) P[i][k] -= column[i] * w[k];
         } else if (q < 0) continue;
-        const double *F = RF + DIM * DIM * j, *K = Kin + DIM * DIM * j;
-        double *Aq = acc + DIM * DIM * q;
-        for (int i = 0; i < DIM; ++i)
-            for (int k = 0; k < DIM; ++k) {
-                double t = 0.0;
-                for (int m = 0; m < DIM; ++m) t += F[DIM * i + m] * P[m][k];
-                T[i][k] = t;
-            }
-        for (int i = 0; i < DIM; ++i)
-            for (int k = 0; k < DIM; ++k) {
-                double t = 0.0;
-                for (int m = 0; m < DIM; ++m) t += T[i][m] * K[DIM * m + k];
-                Aq[DIM * i + k] += t;
-            }
-    }
+""" + MASS_PARENT_TERMS + r"""    }
 }
 
 /* The loop over the frequencies; inlined by sweep() with the damping flag and, for one load case, the load-case
@@ -92,19 +191,7 @@ static inline __attribute__((always_inline)) void frequencies(
         for (int i = 0; i < n * DL; ++i) bias[i] = 0.0;
         /* tip to base */
         for (int j = n - 1; j >= 0; --j) {
-            scalar P[DIM][DIM], T[DIM][DIM];
-            const double *Mj = M0 + DD * j, *Kj = K0 + DD * j, *Cj = C0 + DD * j;
-            const scalar *Aj = acc + DD * j;
-            for (int i = 0; i < DIM; ++i)
-                for (int k = 0; k < DIM; ++k) {
-                    scalar z = sq * Mj[DIM * i + k] + Kj[DIM * i + k] + Aj[DIM * i + k];
-                    if (damped) z += s * Cj[DIM * i + k];
-                    P[i][k] = z;
-                }
-            scalar *pj = bias + DL * j;                     /* p = h_j + children: in place */
-            const double *hj = load + DL * j;
-            for (int i = 0; i < DL; ++i) pj[i] += hj[i];
-            const int a = axis[j], q = parent[j];
+""" + BODY_TERMS + r"""            const int a = axis[j], q = parent[j];
             pb[j] = 0.0;
             if (a != -1) {
                 const double *u = direction + DIM * j;
@@ -132,44 +219,12 @@ static inline __attribute__((always_inline)) void frequencies(
                     for (int l = 0; l < L; ++l) pj[i * L + l] += column[i] * rj[l];
                 }
             } else if (q < 0) continue;
-            const double *F = RF + DD * j, *K = Kin + DD * j;
-            scalar *Aq = acc + DD * q, *pq = bias + DL * q;
-            for (int i = 0; i < DIM; ++i)
-                for (int k = 0; k < DIM; ++k) {
-                    scalar t = 0.0;
-                    for (int m = 0; m < DIM; ++m) t += F[DIM * i + m] * P[m][k];
-                    T[i][k] = t;
-                }
-            for (int i = 0; i < DIM; ++i) {
-                for (int k = 0; k < DIM; ++k) {
-                    scalar t = 0.0;
-                    for (int m = 0; m < DIM; ++m) t += T[i][m] * K[DIM * m + k];
-                    Aq[DIM * i + k] += t;
-                }
-                for (int l = 0; l < L; ++l) {
-                    scalar t = 0.0;
-                    for (int m = 0; m < DIM; ++m) t += F[DIM * i + m] * pj[m * L + l];
-                    pq[i * L + l] += t;
-                }
-            }
-        }
+""" + PARENT_TERMS + r"""        }
         /* base to tip */
         for (int j = 0; j < n; ++j) {
             scalar *A = xb + DL * j;
             const int a = axis[j], q = parent[j];
-            if (q < 0) {
-                for (int i = 0; i < DL; ++i) A[i] = 0.0;
-            } else {
-                const double *K = Kin + DD * j;
-                const scalar *X = xb + DL * q;
-                for (int i = 0; i < DIM; ++i)
-                    for (int l = 0; l < L; ++l) {
-                        scalar t = 0.0;
-                        for (int m = 0; m < DIM; ++m) t += K[DIM * i + m] * X[m * L + l];
-                        A[i * L + l] = t;
-                    }
-            }
-            if (a != -1) {
+""" + INBOARD_ORIGIN + r"""            if (a != -1) {
                 const scalar *wj = w + DIM * j, *rj = r + L * j;
                 const double *u = direction + DIM * j;
                 for (int l = 0; l < L; ++l) {
@@ -193,21 +248,7 @@ static inline __attribute__((always_inline)) void frequencies(
             const scalar *A = xb + DL * j, *Wj = wrench + DL * j;
             const double *Mj = M0 + DD * j, *Kj = K0 + DD * j, *Cj = C0 + DD * j, *hj = load + DL * j;
             const double *Sj = size + DL * j;
-            for (int i = 0; i < DIM; ++i)
-                for (int l = 0; l < L; ++l) {
-                    scalar f = hj[i * L + l] + Wj[i * L + l];
-                    double bound = fabs(hj[i * L + l]) + Sj[i * L + l];
-                    for (int k = 0; k < DIM; ++k) {
-                        scalar z = sq * Mj[DIM * i + k] + Kj[DIM * i + k];
-                        double zm = sq_modulus * fabs(Mj[DIM * i + k]) + fabs(Kj[DIM * i + k]);
-                        if (damped) { z += s * Cj[DIM * i + k]; zm += s_modulus * fabs(Cj[DIM * i + k]); }
-                        f += z * A[k * L + l];
-                        bound += zm * MODULUS(A[k * L + l]);
-                    }
-                    F[i * L + l] = f;
-                    S[i * L + l] = bound;
-                }
-            const int a = axis[j], q = parent[j];
+""" + BODY_FORCES + r"""            const int a = axis[j], q = parent[j];
             if (a != -1) {
                 const scalar kappa = -(stiffness[j] + damping[j] * s);
                 const double *Gj = G + DIM * j, *Hj = H + DIM * j, *u = direction + DIM * j;
@@ -249,22 +290,7 @@ static inline __attribute__((always_inline)) void frequencies(
                     if (ratio > worst) worst = ratio;
                 }
             }
-            if (q < 0) continue;
-            const double *R = RF + DD * j;
-            scalar *Wq = wrench + DL * q;
-            double *Sq = size + DL * q;
-            for (int i = 0; i < DIM; ++i)
-                for (int l = 0; l < L; ++l) {
-                    scalar t = 0.0;
-                    double u = 0.0;
-                    for (int m = 0; m < DIM; ++m) {
-                        t += R[DIM * i + m] * F[m * L + l];
-                        u += fabs(R[DIM * i + m]) * S[m * L + l];
-                    }
-                    Wq[i * L + l] += t;
-                    Sq[i * L + l] += u;
-                }
-        }
+""" + WRENCH_TO_PARENT + r"""        }
         backward[b] = worst;
         if (!(worst <= residual_tolerance)) ok = 0;
         good[b] = ok;

@@ -13,8 +13,9 @@ sweep, one per input column, pivots certified per frequency, loops closed per fr
 :mod:`ctmm.sweep_response`.  Rigid trees whose joints are revolute, prismatic, welds or driven (one free
 direction ``S`` each, or held) take the compiled kernel of :mod:`ctmm.compiled_sweep` at ``d = 6`` when a C
 compiler is present (every input column in one sweep, both certificates decided in C; the tangent amplitudes
-are the joints' relative amplitudes, :meth:`SpatialSweepResponse.point_amplitudes`); beams, finite-element
-subsystems, universal, spherical and free joints, and every model without a compiler, the generic sweep.
+are the joints' relative amplitudes, :meth:`SpatialSweepResponse.point_amplitudes`), rigid trees with universal,
+spherical or free joints its multi-direction variant; beams, finite-element subsystems and every model without a
+compiler, the generic sweep.
 
 * An actuator loads the terms by the difference of the sweep's terms at unit and zero input: joint
   torques and forces enter their joint's ``tau``, body forces and moments (world or body axes, at any

@@ -4,8 +4,8 @@
 (per body ``(M0, C0, K0, Kin, RF)`` of ``Z(s) = s^2 M0 + s C0 + K0``; joints with their laws' tangents,
 driven joints held) and answers ``G(s)`` of named actuators and sensors, batched over ``s``: one
 articulated sweep (:func:`ctmm.articulated.articulated_sweep`, ``d = 3`` planar, ``d = 6`` spatial) per
-input column (rigid trees on one-direction joints, when a C compiler is present: the compiled kernel of
-:mod:`ctmm.compiled_sweep`, every column in one sweep), :data:`CHUNK` frequencies at a time, certified per frequency twice: every pivot against its terms
+input column (rigid trees -- spatial ones also on joints of several directions -- when a C compiler is
+present: the compiled kernel of :mod:`ctmm.compiled_sweep`, every column in one sweep), :data:`CHUNK` frequencies at a time, certified per frequency twice: every pivot against its terms
 (:data:`PIVOT_TOLERANCE`) and the answer's a-posteriori backward error (:data:`RESIDUAL_TOLERANCE`,
 :func:`backward_error`).  :func:`closed_loop_response` closes the feedback loops of a
 ``ControlledModel`` at each frequency (with and without delay) and certifies the loop matrix.  The planar
@@ -97,7 +97,7 @@ class ArticulatedResponse:
         self.compiled = None
         reads_points = type(self).point_amplitudes is not ArticulatedResponse.point_amplitudes
         if reads_points and compiled_applies(tree, self.bodies, self.joints, self.coupling) and compiler_present():
-            # rigid bodies, welds, held drives and one-direction joints: the kernel of ctmm.compiled_sweep
+            # rigid bodies, welds, held drives and free joints (ctmm.compiled_sweep.applies): its kernel
             try:
                 self.compiled = CompiledSweep(tree, self.bodies, self.joints, self.coupling)
                 return
@@ -188,12 +188,9 @@ class ArticulatedResponse:
         certificates decided there)."""
         n, kernel = rows.shape[1] // 2, self.compiled
         h = np.zeros((len(self.bodies), self.tree.dimension, len(loads)))
-        tau = np.zeros((len(kernel.free), len(loads)), dtype=complex)
-        for i, (body_loads, joints) in enumerate(loads):
+        for i, (body_loads, _) in enumerate(loads):
             h[:, :, i] = np.stack([column[0, :, 0] for column in body_loads])
-            for k, j in enumerate(kernel.free):
-                if joints[j].tau is not None:
-                    tau[k, i] = np.asarray(joints[j].tau).reshape(-1)[0]
+        tau = kernel.torques([joints for _, joints in loads])
         if not np.any(tau.imag):
             tau = tau.real
         solution = kernel.solve(s, h, tau, pivot_tolerance=PIVOT_TOLERANCE, residual_tolerance=RESIDUAL_TOLERANCE,

@@ -6,7 +6,7 @@ gravity-loaded -- the joint coupling ``G`` and, below prismatic joints, ``H`` --
 variant, undamped: the real one; a held drive), hand over exactly the frequencies the generic sweep hands over
 (next to an undamped pole), and equal the independent Newton-Euler linearisation of
 ``ctmm/reference/spatial_tree.py`` to the bound of ``tests/test_spatial_frf_sweep_gravity.py`` (1e-9).  Joints with
-more directions (universal, spherical, free) leave the tree to the generic sweep.
+more directions (universal, spherical, free): the multi-direction variant, ``tests/test_compiled_sweep_multi.py``.
 """
 from __future__ import annotations
 
@@ -53,15 +53,20 @@ def both(model: sp.SpatialModel, point, s: np.ndarray, inputs: list, outputs: li
 @pytest.mark.parametrize("seed, n, damped, weightless", [(5, 7, True, False), (8, 6, False, False),
                                                          (11, 6, True, True), (3, 5, False, True)])
 def test_kernel_equals_the_generic_sweep_and_the_newton_euler_reference(seed, n, damped, weightless, monkeypatch):
-    model = one_direction_tree(seed, n, damped, weightless)
+    kernel = equals_the_generic_sweep_and_the_reference(one_direction_tree(seed, n, damped, weightless), monkeypatch)
+    assert set(kernel.axis.tolist()) <= {-2, -1} and -2 in kernel.axis         # general directions, welds
+    assert kernel.undamped == (not damped)                                      # undamped: the real variant
+    assert (kernel.flags[kernel.free] != 0).any() == (not weightless)          # the preload coupling G (and H)
+
+
+def equals_the_generic_sweep_and_the_reference(model: sp.SpatialModel, monkeypatch):
+    """Joint torques to the tangent coordinates at the equilibrium: the kernel certifies every frequency as the
+    generic sweep does, equals it to 1e-12 and the Newton-Euler reference to 1e-9 (also through
+    ``ctmm.frequency_response``); returns the kernel."""
     point = operating_point(model)
     inputs, forcing = joint_torques(model)
     outputs = list(tangent_names(model))
     plant, (G, good), (G_generic, good_generic) = both(model, point, 1j * OMEGA, inputs, outputs, monkeypatch)
-    kernel = plant.compiled
-    assert set(kernel.axis.tolist()) <= {-2, -1} and -2 in kernel.axis         # general directions, welds
-    assert kernel.undamped == (not damped)                                      # undamped: the real variant
-    assert (kernel.flags[kernel.free] != 0).any() == (not weightless)          # the preload coupling G (and H)
     assert good.all() and np.array_equal(good, good_generic)
     assert np.max(np.abs(G - G_generic)) <= 1e-12 * np.max(np.abs(G_generic))
     expected = reference_response(reference_tree(model), reference_configuration(model, point.q), OMEGA, forcing)
@@ -69,6 +74,7 @@ def test_kernel_equals_the_generic_sweep_and_the_newton_euler_reference(seed, n,
     frf = ctmm.frequency_response(model, OMEGA, input=inputs, output=outputs)
     assert frf.info["method"] == SWEEP and frf.info["n_dense_frequencies"] == 0
     assert_close(frf.response, expected, 1e-9)
+    return plant.compiled
 
 
 def test_body_loads_sensors_and_a_held_drive_equal_the_generic_sweep(monkeypatch):
@@ -95,16 +101,27 @@ def test_body_loads_sensors_and_a_held_drive_equal_the_generic_sweep(monkeypatch
 def test_the_pivot_certificate_decides_as_the_generic_sweep(monkeypatch):
     """Undamped, weightless: at an undamped pole (1e-12 from it) and next to it (1e-5) the kernel hands over the
     frequencies the generic sweep hands over and agrees with it at the others."""
-    model = one_direction_tree(3, 5, False, weightless=True)
-    first = ctmm.natural_frequencies(model, n_modes=3)
+    hands_over_as_the_generic_sweep(one_direction_tree(3, 5, False, weightless=True), 3, ["j1.angle", "j3.angle"],
+                                    monkeypatch)
+
+
+def hands_over_as_the_generic_sweep(model: sp.SpatialModel, modes: int, outputs: list, monkeypatch) -> None:
+    """From ``j1.torque`` at half, 1 + 1e-12 and 1 + 1e-5 times and twice the first of ``modes`` natural
+    frequencies: the kernel certifies ``[True, False, True, True]`` as the generic sweep does and agrees with it
+    to 1e-9 at those."""
+    first = ctmm.natural_frequencies(model, n_modes=modes)
     first = first[first > 0][0]
     omega = np.array([0.5 * first, first * (1 + 1e-12), first * (1 + 1e-5), 2.0 * first])
     _, (G, good), (G_generic, good_generic) = both(model, operating_point(model), 1j * omega, ["j1.torque"],
-                                                   ["j1.angle", "j3.angle"], monkeypatch)
+                                                   outputs, monkeypatch)
     assert good.tolist() == good_generic.tolist() == [True, False, True, True]
     assert np.max(np.abs(G[good] - G_generic[good])) <= 1e-9 * np.max(np.abs(G_generic[good]))
 
 
-def test_trees_with_multi_direction_joints_take_the_generic_sweep():
+def test_trees_with_multi_direction_joints_take_the_multi_direction_variant():
+    """(Its checks: tests/test_compiled_sweep_multi.py.)  Trees of one-direction joints keep the one-direction
+    variant."""
     model = random_spring_tree(np.random.default_rng(11), 5, "universal")
-    assert SpatialSweepResponse(model, operating_point(model)).compiled is None
+    assert SpatialSweepResponse(model, operating_point(model)).compiled.multi
+    model = one_direction_tree(3, 5, False)
+    assert not SpatialSweepResponse(model, operating_point(model)).compiled.multi
