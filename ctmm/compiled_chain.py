@@ -269,8 +269,9 @@ class CompiledChain:
             scale = max(1.0, float(np.max(np.abs(python))))
             if not np.all(np.abs(python - affine) <= 1e-10 * scale):
                 raise ModelError(f"chain {self.plant.chain.name!r}: its rates are not affine in the state and the "
-                                 "inputs (an element family with non-linear terms); generated kernels of chains read "
-                                 "the affine form only: use compiled=False")
+                                 "inputs (an element family with non-linear terms), or their time terms (loads, "
+                                 f"a prescribed motion) differ from the Python sweep at t = {t:.6g} s; generated "
+                                 "kernels of chains read the affine form only: use compiled=False")
 
     def continue_run(self, state: np.ndarray, held: np.ndarray, dt: float, n_steps: int, first_step: int,
                      runner: BlockRunner | None = None) -> np.ndarray:

@@ -123,6 +123,14 @@ def test_a_kelvin_maxwell_chain_with_massless_nodes_and_a_driven_base_as_the_pyt
     _same(generated, python)
 
 
+def test_constant_supports_away_from_zero_with_a_maxwell_node_at_the_wall():
+    chain = ctmm.Chain("held", [PrescribedDisplacement("base", 0.05), Spring("k0", 70.0), Mass("m0", 1.2),
+                                Spring("k1", 40.0), Damper("c1", 2.5), Fixed("wall", position=0.3)])
+    generated, python = _both(chain, 0.3, 0.005, x0={"m0": 0.1})
+    _same(generated, python)
+    assert np.all(generated["base.x"] == 0.05)
+
+
 def test_refusals_name_what_the_generated_rk4_does_not_take():
     massless = ctmm.Chain("q", [Fixed("s"), Spring("k0", 100.0), Mass("m0", 1.0), Spring("k1", 50.0),
                                 Spring("k2", 50.0), Mass("m1", 1.0), Free("e")])
