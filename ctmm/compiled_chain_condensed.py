@@ -53,7 +53,8 @@ class AffineRates:
 def needs_condensed_form(dynamics: ChainDynamics) -> bool:
     """Whether the chain has massless nodes or a prescribed (signal) start or end motion."""
     chain = dynamics.chain
-    return bool(dynamics.index_Q.size) or any(hasattr(boundary, "displacement") for boundary in (chain.start, chain.end))
+    moving = any(hasattr(boundary, "displacement") for boundary in (chain.start, chain.end))
+    return bool(dynamics.index_Q.size) or moving
 
 
 def _motion(boundary: Any) -> tuple[list[float], list[tuple[int, Any]]]:

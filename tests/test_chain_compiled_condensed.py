@@ -1,4 +1,4 @@
-"""Generated RK4 of 1-D chains with massless points and prescribed boundary motion (``ctmm/compiled_chain_condensed.py``).
+"""Generated RK4 of 1-D chains with massless points and prescribed boundary motion (``compiled_chain_condensed``).
 
 Independent references: closed-form / hand-written state equations of small chains (two springs in series, a
 Maxwell spring--damper node by the matrix exponential, base excitation by DOP853 at 1e-12); RK4's fourth order
