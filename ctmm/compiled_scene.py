@@ -66,6 +66,7 @@ from . import validation
 from .articulated import articulated_sweep
 from .compiled_loops import ClosedLoops
 from .compiled_scene_key import certified_hit, scene_description
+from .compiled_station_loads import symbolic_terms_with_station_loads
 from .compiled_scene_fold import (FOLD_MIN_BODIES, fold_period, folded_acceleration, planar_fold_refusal,
                                   symbolic_inputs)
 from .compiled_parameters import (compile_refusal, compiled_actuators, constants_key, parameter_vector,
@@ -74,7 +75,6 @@ from .control.controlled_model import ControlledModel
 from .errors import ModelError
 from .generated_loop import BlockRunner, compiled_time_loop, rk4_step_function, run_blocks
 from .ops import CASADI
-from .planar.body_forms import PlanarScene
 from .planar.guards import check_scheme, check_stored, divergence_guard
 from .planar.integrate import PlanarSimulation, check_store_every, initial_coordinates, step_total
 from .planar.model import BUSHING, FREE, PlanarModel
@@ -188,17 +188,16 @@ class CompiledScene:
             units += [unit for _, unit in (self.loops.channels if self.loops else [])]
             q, v = ca.SX.sym("q", n), ca.SX.sym("v", n)
             u, p, t = ca.SX.sym("u", len(units)), ca.SX.sym("p", n_p), ca.SX.sym("t")
-            inputs = symbolic_inputs(model, units, u)
             scene_numbers = symbolic_numbers(model, p if numbers == "inputs" else None, t)
             if self.period:         # one segment's code, called once per segment (ctmm.compiled_scene_fold)
-                acceleration = folded_acceleration(model, scene_numbers, inputs, (u, p, t), self.period)
+                acceleration = folded_acceleration(model, scene_numbers, symbolic_inputs(model, units, u), (u, p, t),
+                                                   self.period)
                 y, u_mx, p_mx, t_mx = (ca.MX.sym("y", 2 * n), ca.MX.sym("u", u.numel()), ca.MX.sym("p", n_p),
                                        ca.MX.sym("t"))
                 step = rk4_step_function(ca.Function("rate", [y, u_mx, p_mx, t_mx], [ca.vertcat(
                     y[n:], acceleration(y[:n], y[n:], u_mx, p_mx, t_mx))]))
-            else:
-                scene = PlanarScene(model)
-                bodies, joints = scene.terms(CASADI, q, v, 0.0, inputs, scene_numbers)
+            else:           # station loads of loop channels: their frame wrench too (ctmm.compiled_station_loads)
+                scene, bodies, joints = symbolic_terms_with_station_loads(model, units, q, v, u, scene_numbers)
                 solution = articulated_sweep(CASADI, scene.tree, bodies, joints)
                 acceleration = ca.Function("acceleration", [q, v, u, p, t],
                                            [coordinate_accelerations(model, solution.x, solution.relative)])
@@ -573,8 +572,7 @@ def symbolic_accelerations_with_inputs(model: PlanarModel, actuators: Sequence[s
     units = [ports.inputs({name: 1.0}) for name in actuators] + list(channels)
     q, v, u = ca.SX.sym("q", n), ca.SX.sym("v", n), ca.SX.sym("u", len(units))
     p, t = ca.SX.sym("p", n_p), ca.SX.sym("t")
-    scene = PlanarScene(model)
-    bodies, joints = scene.terms(CASADI, q, v, 0.0, symbolic_inputs(model, units, u), symbolic_numbers(model, p, t))
+    scene, bodies, joints = symbolic_terms_with_station_loads(model, units, q, v, u, symbolic_numbers(model, p, t))
     solution = articulated_sweep(CASADI, scene.tree, bodies, joints)
     return ca.Function("acceleration", [q, v, u, p, t],
                        [coordinate_accelerations(model, solution.x, solution.relative)])
