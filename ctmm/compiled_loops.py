@@ -34,9 +34,10 @@ entries of the step's parameter vector ``p`` after the plant's numbers
 (:func:`ctmm.compiled_parameters.loop_parameter_layout`; :attr:`ClosedLoops.parameter_values`), so
 one library serves a sweep of them; with ``numbers="constants"`` they are constants of the code.  The
 sensors, delays, controller orders, reference classes and open-loop inputs are always constants.
-Refused: user callables as references or inputs,
-loops acting on beam station forces or moments (not on the element protocol yet,
-:func:`ctmm.compiled_scene.compiled_actuators`), co-simulated controllers.
+Loops and open-loop inputs acting on beam station forces or moments (not among the held actuator inputs,
+:func:`ctmm.compiled_scene.compiled_actuators`) enter the sweep as extra inputs, :attr:`ClosedLoops.channels`:
+their modal forces and floating-frame wrench in the beam's element terms (:mod:`ctmm.compiled_station_loads`).
+Refused: user callables as references or inputs, co-simulated controllers.
 """
 from __future__ import annotations
 
@@ -157,9 +158,10 @@ class ClosedLoops:
     Attributes
     ----------
     laws : tuple of LoopLaw
-    channels : list of (int, ActuatorInputs)
-        Loops acting on beam station forces or moments whose floating-frame wrenches cancel: the loop's
-        index and its loads per unit output (extra inputs of the sweep after ``actuators``).
+    channels : list of (int or signal, ActuatorInputs)
+        Loops acting on beam station forces or moments (the loop's index) and open-loop ``inputs`` on them
+        (the input's symbolic signal), with their loads per unit value, modal and floating-frame
+        (:mod:`ctmm.compiled_station_loads`): extra inputs of the sweep after ``actuators``.
     n_controller_states : int
     plant_parameter_count : int
         Length of the plant's numbers, the first entries of ``p`` (0 for a spatial plant with its numbers
@@ -190,14 +192,18 @@ class ClosedLoops:
         for name in references:
             controlled.loop(name)                   # unknown loop names raise
         self.actuators = tuple(actuators)
-        self.inputs = []
+        self.inputs, station_inputs = [], []
         for name, value in dict(inputs or {}).items():
             ports.check_actuator(name, "inputs: actuator")
-            if name not in self.actuators:
+            signal = symbolic_reference(f"inputs[{name!r}]", value)
+            if name in self.actuators:
+                self.inputs.append((self.actuators.index(name), signal))
+            elif isinstance(ports, PlanarPorts) and ports.actuators[name].kind == "station":
+                station_inputs.append((signal, ports.inputs({name: 1.0})))     # a channel of its own
+            else:
                 raise ModelError(f"inputs[{name!r}]: generated kernels drive the actuators "
-                                 f"{', '.join(self.actuators) or '(none)'}; station forces and moments of beams are "
-                                 "not on the element protocol yet (use compiled=False)")
-            self.inputs.append((self.actuators.index(name), symbolic_reference(f"inputs[{name!r}]", value)))
+                                 f"{', '.join(self.actuators) or '(none)'} and the station forces and moments of "
+                                 "planar beams; use compiled=False")
         laws, self.channels = [], []
         for loop in controlled.loops:
             if any(actuator not in self.actuators for actuator, _ in loop.actuator_terms):
@@ -208,6 +214,7 @@ class ClosedLoops:
                                 float(loop.delay), delay_steps(loop.name, loop.delay, dt) if whole_delays else
                                 int(loop.delay > 0.0), reference, loop.saturation))
         self.laws = tuple(laws)
+        self.channels += station_inputs
         symbols = PlanarSymbols(plant, ports) if symbols is None else symbols
         self.nq, self.nv = symbols.n_positions, symbols.n_velocities
         self.base = self.nq + self.nv           # [q, v] (planar: v = qdot), then z and the ring
@@ -233,7 +240,7 @@ class ClosedLoops:
         rates = ca.jtimes(y, ca.vertcat(q, v), ca.vertcat(self.position_rates(q, v), a)) if laws else ca.SX(0, 1)
         self.sensor_rates = ca.Function("loop_sensor_rates", [q, v, a], [rates])
         weights = np.zeros((len(self.actuators), len(laws)))
-        channelled = {k for k, _ in self.channels}
+        channelled = {k for k, _ in self.channels if isinstance(k, int)}
         for k, law in enumerate(laws):
             for actuator, w in ([] if k in channelled else law.actuators):
                 weights[self.actuators.index(actuator), k] += float(w)
@@ -241,20 +248,16 @@ class ClosedLoops:
 
     @staticmethod
     def _channel(ports: PlanarPorts, loop: Any) -> ActuatorInputs:
-        """The loads of a loop acting on beam station forces or moments, per unit output: allowed when
-        their floating-frame wrenches cancel (e.g. a piezo patch's moment pair ``-M`` at ``x1``, ``+M`` at
-        ``x2``), which leaves modal forces only (on the element protocol)."""
+        """The loads of a loop acting on beam station forces or moments, per unit output: modal forces and the
+        wrench on the beam's floating frame (:mod:`ctmm.compiled_station_loads`; a piezo patch's moment pair
+        ``-M`` at ``x1``, ``+M`` at ``x2`` leaves modal forces only)."""
+        if not isinstance(ports, PlanarPorts):
+            raise ModelError(f"loop {loop.name!r} acts on actuators outside the generated kernel's inputs; use "
+                             "compiled=False")
         weights: dict[str, float] = {}
         for actuator, w in loop.actuator_terms:
             weights[actuator] = weights.get(actuator, 0.0) + float(w)
-        unit = ports.inputs(weights)
-        scale = max(abs(w) for w in weights.values())
-        if any(np.max(np.abs(wrench)) > 1e-12 * scale for wrench in unit.frame_wrench.values()):
-            raise ModelError(f"loop {loop.name!r} acts on beam station forces or moments whose wrench on the beam's "
-                             "floating frame does not cancel; that wrench is not on the element protocol yet, so "
-                             "generated kernels cannot close this loop (a moment pair -M, +M at two stations "
-                             "compiles); use compiled=False")
-        return ActuatorInputs(unit.hinge_torque, unit.body_force, unit.modal_force)
+        return ports.inputs(weights)
 
     # -- pieces of the state -----------------------------------------------------------------
     def _split(self, x: Any) -> tuple:
@@ -321,7 +324,7 @@ class ClosedLoops:
             unit = np.zeros(len(self.actuators))
             unit[index] = 1.0
             total = total + ca.DM(unit) * reference_at(signal, t)
-        total = ca.vertcat(total, *[outputs[k] for k, _ in self.channels])
+        total = ca.vertcat(total, *[outputs[k] if isinstance(k, int) else reference_at(k, t) for k, _ in self.channels])
         qddot = acceleration(q, v, total, p[:self.plant_parameter_count] if self.parameter_layout else p, t)
         return ca.vertcat(self.position_rates(q, v), qddot, *rates), qddot
 

@@ -211,12 +211,6 @@ def test_refusals_name_the_feature():
         ctmm.simulate(pd, 0.1, 1e-3, compiled=True, inputs={"pivot.torque": lambda t: t})
     with pytest.raises(ModelError, match="compiled=True runs the generated RK4"):
         ctmm.simulate(pd, 0.1, 1e-3, compiled=True, method="RK45")
-    beam = ModalBeam("arm", length=1.0, bending_stiffness=2.0, mass_per_length=0.5, n_modes=2,
-                     stations={"s": 0.5})
-    arm = PlanarModel.chain("arm", [Fixed("g"), ActuatedHinge("m"), beam])
-    station = ControlledModel(arm, [Feedback("v", "arm.s.slope_rate", "arm.s.moment", gain=1.0)])
-    with pytest.raises(ModelError, match="floating frame does not cancel"):
-        ctmm.simulate(station, 0.1, 1e-3, compiled=True)
     with pytest.raises(ModelError, match="apply to a ControlledModel"):
         ctmm.compiled_scene.CompiledScene(plant, dt=1e-3)
     scene = ctmm.compiled_scene.CompiledScene(pd, dt=1e-3)
