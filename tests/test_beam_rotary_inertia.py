@@ -243,9 +243,9 @@ def test_generated_kernels_take_the_term_as_constants_and_refuse_it_as_parameter
                                                      axis2=(0, 1, 0))], gravity=(0.0, 0.0, -9.81))
     q, v = np.array([0.3, 0.2, 0.01, -0.02]), np.array([2.0, -1.0, 0.5, 0.3])
     rates = SpatialRates(model)
-    got = np.asarray(rates.velocity_rate(q, v, rates.input_vector({}), [])).reshape(-1)
+    got = np.asarray(rates.velocity_rate(q, v, rates.input_vector({}), [], 0.0)).reshape(-1)
     expected = accelerations(model, q, v)
     assert np.abs(got - expected).max() <= 1e-12 * np.abs(expected).max()
     rates = SpatialRates(model, numbers="inputs")
     with pytest.raises(ModelError, match="b: numbers='inputs' .* section rotary inertia"):
-        rates.velocity_rate(q, v, rates.input_vector({}), spatial_parameter_vector(model))
+        rates.velocity_rate(q, v, rates.input_vector({}), spatial_parameter_vector(model), 0.0)
