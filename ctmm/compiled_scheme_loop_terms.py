@@ -146,9 +146,9 @@ class SchemeLoopTerms:
 
     def _plan_ring(self, scheme: Scheme) -> None:
         """:attr:`fraction`, :attr:`reads`, :attr:`hermite` and :attr:`columns` of the delayed loops, after the
-        checks of the Python path (each delay at least ``dt``; ``fraction dt`` with Wilson-theta), and each delay at
-        least every fraction of :attr:`fractions` times ``dt`` (a start-up's later fraction: the Python path checks
-        its first step's)."""
+        checks of the Python path (each delay at least ``dt``, and at least the largest evaluation fraction of any
+        step times ``dt``: Wilson-theta's ``1.4 dt``, a start-up's later fraction too,
+        :func:`ctmm.control.implicit_loops.check_scheme_delays`)."""
         laws = [self.loops.laws[k] for k in self.loops.delayed]
         if self.dt is None:
             raise ModelError(f"loop {laws[0].name!r}: a delayed loop (delay = {laws[0].delay!r} s) needs the step "
@@ -160,14 +160,7 @@ class SchemeLoopTerms:
                 raise ModelError(f"loop {law.name!r}: delay = {law.delay!r} s is shorter than the step dt = "
                                  f"{self.dt!r} s; a fixed-step integrator evaluates the loop inside the step, so "
                                  f"the delay must be 0 or at least dt: use dt <= {law.delay!r} s (or delay=0)")
-        check_scheme_delays(laws, scheme, self.dt)
-        for fraction in self.fractions:                 # a start-up's later fraction too (the ring holds the past)
-            for law in laws:
-                if law.delay < fraction * self.dt * (1.0 - 1e-9):
-                    raise ModelError(f"loop {law.name!r}: delay = {law.delay!r} s is shorter than {fraction:g} dt "
-                                     f"= {fraction * self.dt!r} s; {scheme!r} imposes the equations of motion at "
-                                     f"t_n + {fraction:g} dt in some steps, where the loop needs y(t - delay) from "
-                                     f"a completed step: use dt <= {law.delay / fraction!r} s or delay=0")
+        check_scheme_delays(laws, scheme, self.dt)      # every step's fraction, a start-up's too (the Python rule)
         for lead in (0.0, *self.fractions, 1.0):
             self.reads[lead] = []
             for law in laws:

@@ -116,9 +116,12 @@ def test_a_start_up_at_another_fraction_reads_the_ring_at_each_steps_own_time(pl
     _, python = both_paths(ControlledModel(plant, loops), 0.2, dict(method=WilsonAfterNewmark(), x0=x0, v0=v0,
                                                                     references={"late": 0.1}))
     assert np.ptp(python["late.u"]) > 0.05
+    short = ControlledModel(plant, [Feedback("late", "a.theta", "o.torque", gain=2.0, delay=0.012)])
     with pytest.raises(ModelError, match=r"shorter than 1.4 dt .* in some steps"):
-        CompiledSchemeLoops(ControlledModel(plant, [Feedback("late", "a.theta", "o.torque", gain=2.0, delay=0.012)]),
-                            WilsonAfterNewmark(), dt=0.01)
+        CompiledSchemeLoops(short, WilsonAfterNewmark(), dt=0.01)
+    for compiled in (None, False):      # the Python path reads every step's fraction too (not only the first one's)
+        with pytest.raises(ModelError, match=r"loop 'late': delay = 0.012 s is shorter than 1.4 dt .* in some steps"):
+            ctmm.simulate(short, 0.1, 0.01, method=WilsonAfterNewmark(), compiled=compiled, x0=x0, v0=v0)
 
 # ---------------------------------------------------------------- (2) loops and controllers together
 @pytest.mark.parametrize("scheme", ["newmark", "houbolt", "wilson_theta"])

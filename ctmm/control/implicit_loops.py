@@ -37,7 +37,10 @@ from ..errors import ModelError, SimulationError
 from ..progress import progress_bar
 from ..schemes import Scheme
 
-__all__ = ["check_scheme_delays", "LoopSteps", "run_implicit"]
+__all__ = ["FRACTION_STEPS", "check_scheme_delays", "LoopSteps", "run_implicit"]
+
+FRACTION_STEPS = 8
+"""Steps whose evaluation fractions :func:`check_scheme_delays` reads (start-ups are shorter: Houbolt's is 2)."""
 
 
 def check_scheme_delays(loops: Any, scheme: Scheme, dt: float) -> None:
@@ -55,16 +58,23 @@ def check_scheme_delays(loops: Any, scheme: Scheme, dt: float) -> None:
     Raises
     ------
     ModelError
-        A delay ``0 < tau < fraction dt`` (the step ``dt`` itself is checked with the loops).
+        A delay ``0 < tau < fraction dt`` with the largest fraction of the scheme's first
+        :data:`FRACTION_STEPS` steps (a start-up may evaluate at another fraction than the steps after it; the step
+        ``dt`` itself is checked with the loops).
     """
     probe = scheme.start_history(np.zeros(1), np.zeros(1), np.zeros(1))
-    fraction = scheme.second_order_step(probe, dt).time_fraction
+    fractions = []
+    for steps in range(FRACTION_STEPS):
+        probe.steps = steps
+        fractions.append(float(scheme.second_order_step(probe, dt).time_fraction))
+    fraction = max(fractions)
+    some = "" if fraction == fractions[0] and fraction == fractions[-1] else " in some steps"
     for loop in loops:
         if fraction > 1.0 and 0.0 < loop.delay < fraction * dt * (1.0 - 1e-9):
             raise ModelError(f"loop {loop.name!r}: delay = {loop.delay!r} s is shorter than {fraction:g} dt = "
                              f"{fraction * dt!r} s; {type(scheme).__name__} imposes the equations of motion at "
-                             f"t_n + {fraction:g} dt, where the loop needs y(t - delay) from a completed step: use "
-                             f"dt <= {loop.delay / fraction!r} s, another scheme or delay=0")
+                             f"t_n + {fraction:g} dt{some}, where the loop needs y(t - delay) from a completed step: "
+                             f"use dt <= {loop.delay / fraction!r} s, another scheme or delay=0")
 
 
 class LoopSteps:
