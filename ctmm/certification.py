@@ -58,6 +58,7 @@ from typing import Any
 
 import numpy as np
 
+from .controller_state_space import controller_state_space
 from .errors import ModelError
 
 __all__ = ["ContourCertificate", "LoopBound", "loop_bound", "StabilityWarning", "MAX_EIGEN_STATES"]
@@ -270,8 +271,6 @@ def loop_bound(model: Any, weight_bound: np.ndarray) -> LoopBound:
         No realisation (distributed elements, other delayed loops) or an improper controller;
         the message says which.
     """
-    import control
-
     A, b, C, d = plant_realisation(model)
     if getattr(model, "open_loop_realisation", None) is not None:   # controller states included
         poles = np.linalg.eigvals(A) if 0 < A.shape[0] <= MAX_EIGEN_STATES else np.zeros(0)
@@ -281,17 +280,12 @@ def loop_bound(model: Any, weight_bound: np.ndarray) -> LoopBound:
     factors = [_factor(A, b, C, d, np.asarray(weight_bound, float))]
     poles = [np.linalg.eigvals(A)] if 0 < A.shape[0] <= MAX_EIGEN_STATES else []
     if lp.is_lti:
-        try:
-            css = control.ss(lp.gain)
-        except (ValueError, TypeError) as exc:
-            raise ModelError(f"loop {lp.name!r}: the controller is not proper ({exc}), so it has no "
-                             "state-space bound (with the plant the loop may still decay, or be neutral or "
-                             "advanced)") from exc
-        Ac, Bc, Cc, Dc = (np.atleast_2d(np.asarray(m, float)) for m in (css.A, css.B, css.C, css.D))
-        if css.nstates:
-            factors.append(_factor(Ac, Bc[:, 0], Cc[:1, :], Dc[:1, 0], np.ones(1)))
+        Ac, Bc, Cc, dc = controller_state_space(lp.name, lp.gain, "for the state-space bound of the certificate "
+                                                "(with the plant the loop may still decay, or be neutral or advanced)")
+        if Ac.shape[0]:
+            factors.append(_factor(Ac, Bc, Cc.reshape(1, -1), np.array([dc]), np.ones(1)))
             poles.append(np.linalg.eigvals(Ac))
         else:
-            factors.append((0.0, 0.0, float(abs(Dc[0, 0]))))
+            factors.append((0.0, 0.0, abs(dc)))
     poles_all = np.concatenate(poles) if poles else np.zeros(0, complex)
     return LoopBound(tuple(factors), poles_all.astype(complex), int(A.shape[0]))

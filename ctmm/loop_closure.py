@@ -9,6 +9,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from .controller_state_space import controller_state_space
 from .errors import ModelError
 
 __all__ = ["controller_matrices", "block_controller", "close_loops"]
@@ -16,19 +17,13 @@ __all__ = ["controller_matrices", "block_controller", "close_loops"]
 
 def controller_matrices(loop: Any, verb: str = "to_state_space"
                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``(A, B, C, D)`` of a loop's controller: its LTI ``C(s)`` realised, or ``D = gain`` (no states).
+    """``(A, B, C, D)`` of a loop's controller as 2-D arrays: its LTI ``C(s)`` realised, or ``D = gain`` (no states),
+    by :func:`ctmm.controller_state_space.controller_state_space`.
 
     ``verb`` names the caller in the refusal of an improper ``C(s)``."""
-    if loop.is_lti:
-        import control
-
-        try:
-            ss = control.ss(loop.gain)
-        except ValueError as exc:  # improper C(s): no finite-dimensional realisation
-            raise ModelError(f"loop {loop.name!r}: {verb} cannot realise the controller C(s) ({exc}); "
-                             "use to_frd, or the sensor terms [(x, kp), (v, kd)] with gain=1 for a PD") from None
-        return tuple(np.atleast_2d(np.asarray(m, dtype=float)) for m in (ss.A, ss.B, ss.C, ss.D))  # type: ignore
-    return np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), np.array([[float(loop.gain)]])
+    A, B, C, D = controller_state_space(loop.name, loop.gain, f"by {verb}")
+    k = A.shape[0]
+    return A, B.reshape(k, 1), C.reshape(1, k), np.array([[D]])
 
 
 def block_controller(loops: Sequence[Any], verb: str = "to_state_space") -> tuple:

@@ -57,6 +57,7 @@ import numpy as np
 
 from .control.controlled_model import ControlledModel
 from .control.loops import ControlledChain
+from .controller_state_space import controller_state_space
 from .errors import ModelError, unknown_name
 from .linearized import control_name
 from .planar.model import PlanarModel
@@ -305,19 +306,9 @@ def _augmented(A, b, C, d, lp: StateSpaceLoop):
     """Append the states of an LTI controller (module docstring)."""
     if not lp.is_lti:
         return A, b, C, d
-    import control
-
-    try:
-        css = control.ss(lp.gain)
-    except (ValueError, TypeError) as exc:
-        raise ModelError(f"loop {lp.name!r}: the controller is not proper ({exc}); it has no realisation "
-                         "(the loop may be neutral or advanced)") from exc
-    if css.ninputs != 1 or css.noutputs != 1:
-        raise ModelError(f"loop {lp.name!r}: the controller must be SISO, got {css.ninputs} inputs, "
-                         f"{css.noutputs} outputs")
-    Ac, Bc, Cc, Dc = (np.atleast_2d(np.asarray(m, float)) for m in (css.A, css.B, css.C, css.D))
-    nc = css.nstates
-    Ac, Bc, Cc, dc = Ac.reshape(nc, nc), Bc.reshape(nc), Cc.reshape(nc), float(Dc.ravel()[0])
+    Ac, Bc, Cc, dc = controller_state_space(lp.name, lp.gain, "for the state-space characteristic (the loop may "
+                                            "be neutral or advanced)")
+    nc = Ac.shape[0]
     n = A.shape[0]
     A2 = np.zeros((n + nc, n + nc))
     A2[:n, :n], A2[:n, n:], A2[n:, n:] = A, -np.outer(b, Cc), Ac

@@ -354,5 +354,5 @@ def test_improper_controller_is_refused_where_it_cannot_be_realised():
     np.testing.assert_allclose(frf("m0.x", "m0.force"), 1 / (110.0 - omega ** 2 + 1j * omega), rtol=1e-13)
     with pytest.raises(ctmm.ModelError, match=r"loop 'pd': the controller C\(s\) cannot be realised in time"):
         ctmm.simulate(system, 0.1, 0.01)
-    with pytest.raises(ctmm.ModelError, match=r"loop 'pd': to_state_space cannot realise the controller"):
+    with pytest.raises(ctmm.ModelError, match=r"loop 'pd': the controller C\(s\) cannot be realised by to_state_space"):
         to_state_space(system, inputs="m0.force", outputs="m0.x")

@@ -58,6 +58,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from .. import validation
+from ..controller_state_space import controller_state_space
 from ..errors import ModelError, SimulationError, unknown_name
 from ..planar.guards import with_partial
 from ..planar.integrate import SCIPY_METHODS
@@ -102,9 +103,9 @@ class _Loop:
 def controller_realisation(loop: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """``(A, B, C, D)`` of a loop's controller ``z' = A z + B e``, ``u = -(C z + D e)``.
 
-    The one realisation of the time paths (this driver and the generated kernels of
-    :mod:`ctmm.compiled_loops`): an LTI ``C(s)`` as ``control.ss`` realises it, a static gain as
-    ``D`` alone (no states).
+    The time paths' reading (this driver and the generated kernels of :mod:`ctmm.compiled_loops`) of the
+    one realisation, :func:`ctmm.controller_state_space.controller_state_space`: an LTI ``C(s)`` as
+    ``control.ss`` realises it, a static gain as ``D`` alone (no states).
 
     Parameters
     ----------
@@ -122,21 +123,9 @@ def controller_realisation(loop: Any) -> tuple[np.ndarray, np.ndarray, np.ndarra
     Raises
     ------
     ModelError
-        An improper ``C(s)`` (e.g. ``kp + kd s``), which has no state-space form.
+        An improper (e.g. ``kp + kd s``), non-SISO or non-finite ``C(s)``.
     """
-    if not loop.is_lti:
-        return np.zeros((0, 0)), np.zeros(0), np.zeros(0), float(loop.gain)
-    import control
-
-    try:
-        ss = control.ss(loop.gain)
-    except ValueError as exc:   # an improper C(s) (e.g. kp + kd s) has no state-space realisation
-        raise ModelError(f"loop {loop.name!r}: the controller C(s) cannot be realised in time ({exc}); an "
-                         "improper PD kp + kd s is the sensor terms [(signal, kp), (its rate, kd)] with gain=1, or "
-                         "add a derivative filter") from None
-    k = ss.nstates
-    return np.asarray(ss.A, dtype=float).reshape(k, k), np.asarray(ss.B, dtype=float).reshape(k), \
-        np.asarray(ss.C, dtype=float).reshape(k), float(np.asarray(ss.D, dtype=float).reshape(-1)[0])
+    return controller_state_space(loop.name, loop.gain, "in time")
 
 
 def _resolve(ports: Any, loops: Sequence[Any], step: float | None, n: int) -> list[_Loop]:

@@ -33,6 +33,7 @@ from .. import validation
 from ..assembly import SOLVERS, predicted_forces, shift_forces
 from ..capabilities import require_chain
 from ..chain_start import NodeInertia, acceleration_change, initial_acceleration, initial_forces
+from ..controller_state_space import controller_state_space
 from ..elements.base import Linearisation
 from ..elements.lumped import PointElement
 from ..errors import ModelError, SimulationError, unknown_name
@@ -52,19 +53,8 @@ class _TustinLTI:
     """Trapezoidal realisation of a SISO ``C(s)``: ``u_{n+1} = gain * e_{n+1} + offset(state, e_n)``."""
 
     def __init__(self, system: Any, dt: float, loop: str = "") -> None:
-        import control
-
-        try:
-            ss = control.ss(system)
-        except ValueError as exc:  # an improper C(s) (e.g. kp + kd s) has no state-space realisation
-            raise ModelError(f"loop {loop!r}: the controller C(s) cannot be realised in time ({exc}); "
-                             "an improper PD kp + kd s is the sensor terms [(x, kp), (v, kd)] with gain=1, "
-                             "or add a derivative filter") from None
-        A, B, C, D = (np.atleast_2d(np.asarray(m, dtype=float)) for m in (ss.A, ss.B, ss.C, ss.D))
-        for label, matrix in zip("ABCD", (A, B, C, D)):
-            if not np.all(np.isfinite(matrix)):
-                raise ModelError(f"loop {loop!r}: the controller C(s) has a non-finite coefficient "
-                                 f"(state-space {label} = {matrix.tolist()!r}); every coefficient must be finite")
+        A, B, C, D = controller_state_space(loop, system, "in time")
+        B, C = B.reshape(-1, 1), C.reshape(1, -1)
         n = A.shape[0]
         self.n = n
         if n == 0:
@@ -76,7 +66,7 @@ class _TustinLTI:
             self.M1 = np.linalg.solve(left, np.eye(n) + 0.5 * dt * A)
             self.M2 = np.linalg.solve(left, 0.5 * dt * B)
             self.C = C
-        self.D = float(D[0, 0])
+        self.D = D
         self.gain = float((self.C @ self.M2)[0, 0]) + self.D if n else self.D
 
     def offset(self, state: np.ndarray, e_n: float) -> float:
