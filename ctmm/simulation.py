@@ -39,6 +39,7 @@ from .control.loops import ControlledChain
 from .control.planar_time import simulate_closed_loop
 from .control.protocol import Controller, check_controllers, check_references, split_loop_references
 from .control.simulate import simulate_controlled
+from .compiled_default import default_refusal, run_default
 from .errors import ModelError, SimulationError, unknown_name
 from .planar.closed_loops import KinematicLoopModel
 from .planar.guards import check_resolution
@@ -177,7 +178,11 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         (:func:`ctmm.compiled_spatial_schemes.simulate_spatial_scheme_generated`; loops inside its Newton step,
         :func:`ctmm.compiled_spatial_scheme_loops.simulate_spatial_scheme_loops_generated`; controllers as for planar
         models).
-        Default: numpy.
+        ``False``: the numpy path always.  Default (``None``): the generated path where it pays and a C compiler
+        is present -- RK4 of chains, planar and spatial models (with their loops, inputs and references) and the
+        DT-TMM schemes of chains, for runs of at least ``ctmm.compiled_default.MINIMUM_STEPS`` (5000) steps and
+        no co-simulated controllers -- falling back to numpy for what it refuses (the reason in
+        ``result.info["compiled"]``); else numpy (:mod:`ctmm.compiled_default`).
     parameters : mapping, optional
         ``compiled=True``: ``{name: number}`` set at run time in the kernel compiled once (:mod:`ctmm.batch`).
     progress : bool, optional
@@ -215,6 +220,18 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
     if parameters is not None:                  # a generated kernel's numbers at run time (ctmm.batch)
         from .batch import simulate_with_parameters
         return simulate_with_parameters(system, parameters, {**locals(), "method": _method(method, scheme, "rk4")})
+    if compiled is None:                        # the default: generated code where it pays (ctmm.compiled_default)
+        call = dict(locals())
+        try:
+            chosen = _method(method, scheme, "newmark" if isinstance(system, (Chain, ControlledChain)) else "rk4")
+        except ModelError:
+            chosen = None                       # refused below, as without the default
+        if chosen is not None:
+            refusal = default_refusal(system, chosen, t_final, t0, dt, controllers=controllers, fast=fast,
+                                      force_hook=force_hook, solver=solver)
+            if refusal is None:
+                return run_default(lambda: simulate(**{**call, "compiled": True}),
+                                   lambda: simulate(**{**call, "compiled": False}))
     controllers = check_controllers(controllers)
     references = check_references(references)
     validation.step_budget(t_final, t0, dt)

@@ -1,0 +1,127 @@
+"""When ``ctmm.simulate``'s default (``compiled=None``) runs the generated code (issue 13 item 2).
+
+``compiled=True`` always takes the generated path (or refuses by name what it cannot compile) and
+``compiled=False`` always the numpy path.  The default takes the generated path where it pays and is safe:
+
+* a C compiler is present (:func:`ctmm.codegen.find_compiler`);
+* the run is a fixed-step RK4 of a 1-D chain, a planar or a spatial model (plain, or with feedback loops,
+  inputs and references), or a DT-TMM scheme of a 1-D chain (its step is one data-driven kernel compiled
+  once per variant);
+* a chain has at most :data:`MAXIMUM_CHAIN_POINTS` points (the set-up of its generated step grows faster);
+* it is long: at least :data:`MINIMUM_STEPS` steps, so that a first compile (about 1-2.5 s CPU for the
+  planar, spatial and chain scenes measured below) costs a fraction of the numpy run it replaces, and a
+  cached kernel (milliseconds to load) is far ahead;
+* no co-simulated ``controllers`` (user objects with state, possibly FMUs: a run that the generated path
+  refused after their first sample could not be repeated with them as they were), no numpy-only options
+  (``fast``, ``force_hook``, another ``solver``, a ``solve_ivp`` method).
+
+The generated path is then tried; what it refuses by name (a :class:`~ctmm.errors.ModelError`: user
+callables of time, elements it does not state, ...) runs on the numpy path instead, with the reason in the
+result's ``info["compiled"]``.  Warnings raised while the generated path was tried are shown only when it
+ran (the numpy path shows its own).  A run that fails (:class:`~ctmm.errors.SimulationError`) fails as it
+does on the numpy path (the contract of the generated paths: the numpy answer to round-off, failures at the
+same step and time); it is not repeated.  The choice depends on the call only, never on what the disk cache
+holds, so the same call takes the same path on every machine with a compiler.
+
+Measured (CPU time, cold cache, 200-step RK4 runs, load 13-15 on 2 cores, session 11): planar pendulum chain
+N = 5: numpy 0.83 ms/step, first generated call 0.99 s (break-even 1 200 steps), cached call 14 ms; N = 20:
+1.3 ms/step, 2.5 s (1 900 steps), 47 ms; spatial revolute chain N = 5: 17.8 ms/step, 1.2 s (70 steps);
+1-D chain of 100 masses: 0.82 ms/step, 1.05 s (1 300 steps), 0.2 s.  At :data:`MINIMUM_STEPS` the first
+compile is at most about half the numpy time of those runs.
+"""
+from __future__ import annotations
+
+import math
+import warnings
+from typing import Any, Callable
+
+from .control.loops import ControlledChain
+from .errors import ModelError
+from .planar.model import PlanarModel
+from .results import SimulationResult
+from .schemes import SCHEMES, Scheme
+from .spatial.model import SpatialModel
+from .system import Chain
+
+__all__ = ["MAXIMUM_CHAIN_POINTS", "MINIMUM_STEPS", "default_refusal", "run_default"]
+
+MINIMUM_STEPS = 5000
+"""Fewest fixed steps for which ``compiled=None`` tries the generated path (module docstring)."""
+MAXIMUM_CHAIN_POINTS = 2002
+"""Largest 1-D chain (points: 2 per mass between springs, plus the ends) the default generates: the set-up of a chain's generated step (its implicit
+corrections, :mod:`ctmm.lumped_forms`) took 0.15 s CPU per call at 100 masses, 2-4 s at 1000 and passed 19 GB
+of memory at 10 000 (session 11), so larger chains stay on the numpy path unless ``compiled=True``."""
+
+
+def _plant(system: Any) -> Any:
+    return getattr(system, "plant", system)
+
+
+def default_refusal(system: Any, method: Any, t_final: Any, t0: Any, dt: Any, *, controllers: Any, fast: Any,
+                    force_hook: Any, solver: Any) -> str | None:
+    """``None`` when the default tries the generated path for this call, else why it stays on numpy.
+
+    Parameters
+    ----------
+    system : Chain, ControlledChain, PlanarModel, SpatialModel or a ControlledModel on one
+        The system of the call (other kinds stay on numpy).
+    method : str or Scheme
+        The integrator after the verb's default (``"rk4"`` planar / spatial, ``"newmark"`` chains).
+    t_final, t0, dt : float
+        The run's end, start and fixed step [s].
+    controllers, fast, force_hook, solver
+        The call's options (any co-simulated controller, ``fast``, a force hook or another solver keep numpy).
+    """
+    plant = _plant(system)
+    is_scheme = isinstance(method, Scheme) or (isinstance(method, str) and method in SCHEMES)
+    if isinstance(system, (Chain, ControlledChain)):
+        if method != "rk4" and not is_scheme:
+            return f"method {method!r} has no generated form"
+        points = getattr(getattr(system, "plant", system), "n_points", 0)
+        if points > MAXIMUM_CHAIN_POINTS:
+            return f"a chain of {points} points (> {MAXIMUM_CHAIN_POINTS}: the generated set-up grows too fast)"
+    elif isinstance(plant, (PlanarModel, SpatialModel)):
+        if method != "rk4":
+            return "the default runs the generated RK4 of planar and spatial models only (give compiled=True)"
+    else:
+        return "only chains, planar and spatial models (with or without loops) take the generated path by default"
+    if controllers:
+        return "co-simulated controllers (give compiled=True)"
+    if fast is not None or force_hook is not None or solver != "riccati":
+        return "numpy-path options (fast, force_hook, solver)"
+    try:
+        steps = math.ceil((float(t_final) - float(t0)) / float(dt) - 1e-9)
+    except (TypeError, ValueError, ZeroDivisionError):
+        return "no fixed step"
+    if not steps >= MINIMUM_STEPS:
+        return f"short run ({steps} steps < {MINIMUM_STEPS})"
+    from .codegen import find_compiler
+
+    try:
+        find_compiler()
+    except ModelError:
+        return "no C compiler"
+    return None
+
+
+def run_default(generated: Callable[[], SimulationResult], numpy_path: Callable[[], SimulationResult]
+                ) -> SimulationResult:
+    """The default's run of a call :func:`default_refusal` accepts: ``generated()``, or ``numpy_path()`` when the
+    generated path refuses the call (a :class:`~ctmm.errors.ModelError`); ``info["compiled"]`` says which ran and
+    why."""
+    refusal = None
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            result = generated()
+        except ModelError as exc:
+            refusal = str(exc)
+        shown = list(caught)
+    if refusal is None:
+        for entry in shown:
+            warnings.warn_explicit(entry.message, entry.category, entry.filename, entry.lineno)
+        result.info["compiled"] = "generated (the default for this run)"
+        return result
+    result = numpy_path()
+    result.info["compiled"] = f"numpy (the default for this run; the generated path refused it: {refusal})"
+    return result

@@ -1,0 +1,106 @@
+"""``ctmm.simulate``'s default (``compiled=None``) runs the generated code where it pays (issue 13 item 2,
+:mod:`ctmm.compiled_default`).
+
+References: a long pendulum run against an independent ``solve_ivp`` (DOP853, rtol 1e-12) of the pendulum's own
+equation ``(I_O) theta'' = -m g c sin(theta)`` (not ctmm's sweep), the numpy path for the contract "generated =
+numpy to round-off", and the numpy path's own result where the default must fall back to it.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+import ctmm
+from ctmm.codegen import find_compiler
+from ctmm.compiled_default import MINIMUM_STEPS, default_refusal
+from ctmm.elements import Fixed, Free, Mass, SpringDamper
+from ctmm.errors import ModelError
+from ctmm.planar import Pinned, PlanarModel, RigidBody, SmoothHinge
+
+try:
+    find_compiler()
+    HAVE_COMPILER = True
+except ModelError:
+    HAVE_COMPILER = False
+
+needs_compiler = pytest.mark.skipif(not HAVE_COMPILER, reason="no C compiler")
+G = 9.81
+
+
+def pendulum(n: int = 1) -> PlanarModel:
+    elements = [Pinned("base")]
+    for i in range(n):
+        if i:
+            elements.append(SmoothHinge(f"h{i}"))
+        elements.append(RigidBody.uniform_link(f"link{i}", mass=1.0, length=1.0))
+    return PlanarModel.chain(f"pendulum{n}", elements, gravity=(0.0, -G))
+
+
+def chain() -> ctmm.Chain:
+    return ctmm.Chain("two", [Fixed("wall"), SpringDamper("k0", 400.0, 0.2), Mass("m0", 1.0),
+                              SpringDamper("k1", 100.0, 0.1), Mass("m1", 0.5), Free("end")])
+
+
+@needs_compiler
+def test_long_planar_run_is_generated_and_matches_an_independent_solution():
+    dt, t_final = 1e-3, MINIMUM_STEPS * 1e-3
+    result = ctmm.simulate(pendulum(), t_final, dt, x0={"link0.theta": 0.8})
+    assert result.info["compiled"].startswith("generated")
+    # uniform link about its pin: I_O = m L^2 / 3, centre of mass at L / 2; angle from the x axis, gravity -y
+    rates = lambda t, y: [y[1], -1.0 * G * 0.5 * np.cos(y[0]) / (1.0 / 3.0)]
+    reference = solve_ivp(rates, (0.0, t_final), [0.8, 0.0], method="DOP853", rtol=1e-12, atol=1e-12,
+                          t_eval=np.asarray(result.time), max_step=0.01)
+    assert np.max(np.abs(np.asarray(result["link0.theta"]) - reference.y[0])) < 1e-9     # RK4 at h = 1 ms
+
+
+def test_short_run_stays_on_numpy():
+    result = ctmm.simulate(pendulum(), 0.1, 1e-3, x0={"link0.theta": 0.3})
+    assert "compiled" not in result.info and result.info["method"] == "rk4"
+
+
+@needs_compiler
+def test_what_the_generated_path_refuses_runs_on_numpy_with_the_reason():
+    """A Python callable of time cannot be generated: the default runs numpy (the same numbers as
+    compiled=False, bit for bit) and says why; compiled=True refuses it by name."""
+    def forced() -> ctmm.Chain:
+        return ctmm.Chain("forced", [Fixed("wall"), SpringDamper("k0", 400.0, 0.2),
+                                     Mass("m0", 1.0, force=lambda t: np.sin(3.0 * t)), Free("end")])
+
+    t_final = MINIMUM_STEPS * 1e-3
+    result = ctmm.simulate(forced(), t_final, 1e-3)
+    assert result.info["compiled"].startswith("numpy") and "Python callable" in result.info["compiled"]
+    reference = ctmm.simulate(forced(), t_final, 1e-3, compiled=False)
+    assert "compiled" not in reference.info
+    np.testing.assert_array_equal(result["m0.x"], reference["m0.x"])
+    with pytest.raises(ModelError, match="Python callable"):
+        ctmm.simulate(forced(), 0.01, 1e-3, compiled=True)
+
+
+@needs_compiler
+def test_long_chain_newmark_is_generated_and_matches_numpy_and_the_energy_identity():
+    dt, t_final = 1e-3, MINIMUM_STEPS * 1e-3
+    result = ctmm.simulate(chain(), t_final, dt, x0={"m0": 0.01})
+    assert result.info["compiled"].startswith("generated")
+    numpy_result = ctmm.simulate(chain(), t_final, dt, x0={"m0": 0.01}, compiled=False)
+    np.testing.assert_allclose(result["m1.x"], numpy_result["m1.x"], rtol=0, atol=1e-12)
+    # independent: Newmark (average acceleration) of the undamped pair conserves x' M x'/2 + x' K x/2 to
+    # round-off; with the light dampers the energy only decays
+    energy = lambda r: 0.5 * (np.asarray(r["m0.v"]) ** 2 + 0.5 * np.asarray(r["m1.v"]) ** 2) + 0.5 * (
+        400.0 * np.asarray(r["m0.x"]) ** 2 + 100.0 * (np.asarray(r["m1.x"]) - np.asarray(r["m0.x"])) ** 2)
+    assert np.all(np.diff(energy(result)) <= 1e-15)
+
+
+def test_default_refusal_names_why_numpy_runs(monkeypatch):
+    model, plain = pendulum(), chain()
+    long_run = dict(t_final=10.0, t0=0.0, dt=1e-3, controllers=(), fast=None, force_hook=None, solver="riccati")
+    assert "short run" in default_refusal(model, "rk4", **{**long_run, "t_final": 0.1})
+    assert "RK4 of planar and spatial models only" in default_refusal(model, "newmark", **long_run)
+    assert "co-simulated controllers" in default_refusal(model, "rk4", **{**long_run, "controllers": (object(),)})
+    assert "no generated form" in default_refusal(plain, "DOP853", **long_run)
+    assert "numpy-path options" in default_refusal(plain, "newmark", **{**long_run, "solver": "dense"})
+    big = ctmm.Chain("big", [Fixed("wall")] + [e for i in range(1001) for e in (SpringDamper(f"k{i}", 1.0, 0.0),
+                                                                                 Mass(f"m{i}", 1.0))] + [Free("end")])
+    assert "a chain of 2003 points" in default_refusal(big, "newmark", **long_run)
+    monkeypatch.setenv("PATH", "")
+    assert default_refusal(model, "rk4", **long_run) == "no C compiler"
