@@ -35,7 +35,10 @@ Spatial kinematic loop models (:class:`~ctmm.spatial.closed_loops.SpatialKinemat
 of :mod:`ctmm.spatial_loop_time`) compile the same way: the closed-loop velocity rates
 :func:`ctmm.compiled_spatial_kinematic_loops.symbolic_spatial_closed_loop` (the tree's port actuators and the cuts'
 ``"<cut>.torque"`` / ``"<cut>.force"`` applied with the cut loads), the sensors :class:`SpatialKinematicLoopSymbols`,
-the stored signals :meth:`ctmm.spatial.closed_loop_plant.SpatialLoopPlant.signals`.
+the stored signals :meth:`ctmm.spatial.closed_loop_plant.SpatialLoopPlant.signals`.  A spatial model whose tree has
+driven joints is refused by name (:func:`ctmm.compiled_spatial_kinematic_loops.driven_tree_refusal`): the sensors
+here are functions of the state only, and with a driven tree joint they move with its signals (the model alone runs
+generated with them).
 
 Co-simulated controllers (:func:`simulate_cosimulated_kinematic_loops_generated`): the same kernel with the
 controllers' outputs as held inputs ``u``, run one sample interval per call by
@@ -259,9 +262,10 @@ class CompiledKinematicLoopControl:
         model = controlled.plant
         spatial = not isinstance(model, KinematicLoopModel)
         if spatial:
-            from .compiled_spatial_kinematic_loops import (spatial_kinematic_loop_compile_refusal,
+            from .compiled_spatial_kinematic_loops import (driven_tree_refusal, spatial_kinematic_loop_compile_refusal,
                                                            symbolic_spatial_closed_loop, symbolic_spatial_projection)
-        reason = (spatial_kinematic_loop_compile_refusal if spatial else kinematic_loop_compile_refusal)(model)
+        reason = (spatial_kinematic_loop_compile_refusal(model) or driven_tree_refusal(model)) if spatial else \
+            kinematic_loop_compile_refusal(model)
         if reason:
             raise ModelError(f"compiled=True with loops, inputs or controllers: {reason}")
         started = _time.perf_counter()

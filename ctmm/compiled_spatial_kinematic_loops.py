@@ -11,10 +11,12 @@ projection onto the cut joints after it, the time loop in generated C.  On casad
   the moments ``mu_i n_i`` [N m], ``n_i = u_i x b_i``; their opposites on the parent, a prismatic cut's force at the
   child point, i.e. at the parent point with the moment ``d x f`` added), so ``1 + m`` sweeps give
   ``v' = v'_0 + D lambda``;
-* ``Phi`` and ``Phi'`` from the same terms' body states (separation ``d = x_c - x_p`` [m] -- prismatic: ``d . p_j``
-  -- and alignments ``u_i . b_i``),
-  ``J = dPhi'/dv``, ``Phi'' = J v' + (dPhi'/dq) G(q) v`` (``q_dot = G(q) v``, quaternions), ``G = J D`` and
-  ``G lambda = -Phi''_0 - 2 alpha Phi' - alpha^2 Phi``;
+* ``Phi`` and ``Phi'`` from the same terms' body states at the time symbol (separation ``d = x_c - x_p`` [m] --
+  prismatic: ``d . p_j`` -- and alignments ``u_i . b_i``),
+  ``J = dPhi'/dv``, ``Phi'' = J v' + (dPhi'/dq) G(q) v + (dPhi'/dtheta) rate(t) + (dPhi'/dtheta') acceleration(t)``
+  (``q_dot = G(q) v``, quaternions; ``theta``, ``theta'``: the driven tree joints' coordinates and rates, symbols
+  while differentiating, then their signals' symbolic forms -- the prescribed rate and acceleration the numpy path's
+  body accelerations carry), ``G = J D`` and ``G lambda = -Phi''_0 - 2 alpha Phi' - alpha^2 Phi``;
 * a revolute or prismatic cut's law and actuation add the load ``actuation(t) - law(s - rest, s')`` along the
   cut's coordinate ``s`` (:func:`ctmm.spatial.closed_loop_cuts.cut_coordinate` on symbols: a moment about the axis,
   or a force at the child point along the guide; the opposite on the parent) to the applied wrenches of every load
@@ -38,9 +40,10 @@ State, failures and result as :mod:`ctmm.compiled_kinematic_loops` (residual and
 name): trees :func:`ctmm.compiled_spatial.spatial_compile_refusal` refuses with ``time_signals=True`` (the tree's
 loads may carry :mod:`ctmm.signals` with a symbolic form, stated at the sweep's time symbol; user callables refused),
 laws casadi cannot express and actuations or drives without a symbolic form (user callables:
-:func:`spatial_cut_load_refusal`), driven tree joints (their prescribed motion enters ``Phi'`` and ``Phi''``
-explicitly in time through the tree's kinematics, not in the generated step yet), and with feedback loops, inputs or
-controllers (:mod:`ctmm.spatial_loop_time`).
+:func:`spatial_cut_load_refusal`; a driven tree joint's signals likewise, by :func:`spatial_compile_refusal`).  Driven
+tree joints run here and in :mod:`ctmm.compiled_spatial_loop_schemes`; the loop driver's generated run
+(:mod:`ctmm.compiled_kinematic_loop_control`, with feedback loops, inputs or controllers) refuses them by name
+(:func:`driven_tree_refusal`: its sensors are read at the state only).
 """
 from __future__ import annotations
 
@@ -66,7 +69,8 @@ from .spatial.closed_loop_time import SpatialLoopSimulation
 from .spatial.closed_loops import SpatialKinematicLoopModel
 from .spatial.ports import SpatialPorts
 
-__all__ = ["CompiledSpatialKinematicLoops", "loop_simulation", "spatial_cut_load_refusal",
+__all__ = ["CompiledSpatialKinematicLoops", "driven_tree_refusal", "loop_simulation",
+           "spatial_cut_load_refusal",
            "spatial_kinematic_loop_compile_refusal", "simulate_spatial_kinematic_loops_generated", "symbolic_normalized", "symbolic_spatial_closed_loop",
            "symbolic_spatial_projection"]
 
@@ -81,16 +85,24 @@ def spatial_kinematic_loop_compile_refusal(model: Any) -> str:
         reason = spatial_cut_load_refusal(cut)
         if reason:
             return reason
-    driven = [joint.name for joint in model.tree.joints if joint.driven]
-    if driven:
-        return (f"its tree has driven joints ({', '.join(driven)}): their prescribed motion enters Phi' and Phi'' "
-                "explicitly in time, not in the generated step yet; use compiled=None")
     return ""
 
 
+def driven_tree_refusal(model: Any) -> str:
+    """Why the loop driver's generated run (:mod:`ctmm.compiled_kinematic_loop_control`) cannot take ``model``'s
+    driven tree joints (an empty string when the tree has none): its sensors (the cut coordinates, a spherical
+    cut's law moment) are read at the state only, and with a driven tree joint they move with its signals."""
+    driven = [joint.name for joint in model.tree.joints if joint.driven]
+    if not driven:
+        return ""
+    return (f"its tree has driven joints ({', '.join(driven)}): the loop driver's generated run reads its sensors "
+            "at the state only, and they move with the prescribed motion; the generated RK4 and DT-TMM schemes of "
+            "the model alone take driven joints; use compiled=None with loops, inputs or controllers")
+
+
 def _tree_compile_refusal(tree: Any) -> str:
-    """Why a loop model's tree cannot be compiled: loads may carry signals with a symbolic form (stated at the time
-    symbol of the sweep; they do not move the cut joints), driven joints are refused afterwards."""
+    """Why a loop model's tree cannot be compiled: loads and driven joints may carry signals with a symbolic form
+    (stated at the time symbol of the sweep and of the rows)."""
     return spatial_compile_refusal(tree, time_signals=True)
 
 
@@ -109,7 +121,8 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
     prismatic cuts' ``"<cut>.torque"`` / ``"<cut>.force"``, applied with the cut loads), ``p`` empty;
     ``constraint(q, v, t) -> (Phi, Phi', J)``; ``cut_coordinates(q, v) -> [s_1, s_1', ...]`` (0 for cuts without a
     coordinate); ``law_moments(q, v) -> [m_1 ; m_2 ; ...]`` (3 per cut: a spherical cut's law moment on the child
-    [N m], world axes, :meth:`SpatialKinematicLoopModel.law_moments`; zeros for the other cuts)."""
+    [N m], world axes, :meth:`SpatialKinematicLoopModel.law_moments`; zeros for the other cuts).  With driven tree
+    joints the last two are ``None``: they move with time (:func:`driven_tree_refusal`)."""
     import casadi as ca
 
     tree = model.tree
@@ -127,9 +140,10 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
     joint_inputs, tree_wrenches = _tree_actuators(model, [(k, name) for k, name in enumerate(extra_actuators)
                                                           if name not in along_ports], u)
     p, t = ca.SX.sym("p", 0), ca.SX.sym("t")
+    held, (held_q, held_v), (signal_q, signal_v, signal_a) = _driven_symbols(tree, t)
 
-    def kinematics(q_: Any, v_: Any) -> list:
-        return SymbolicStates(scene.terms(CASADI, q_, v_, 0.0)[2], q_, v_)
+    def kinematics(q_: Any, v_: Any, t_: Any, driven: dict | None = None) -> list:
+        return SymbolicStates(scene.terms(CASADI, q_, v_, t_, driven=driven)[2], q_, v_)
 
     def point(states: list, side: tuple[int, np.ndarray]) -> tuple[Any, Any]:
         body, location = side
@@ -176,8 +190,8 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
         return symbolic_spherical_law_moment(cut, rotation_p, states[child[0]].rotation, omega_p,
                                              states[child[0]].omega)
 
-    def rows(q_: Any, v_: Any, t_: Any) -> tuple[Any, Any]:
-        states = kinematics(q_, v_)
+    def rows(q_: Any, v_: Any, t_: Any, driven: dict | None = None) -> tuple[Any, Any]:
+        states = kinematics(q_, v_, t_, driven)
         phi, rate = [], []
         for cut, (parent, child), frame in zip(model.cuts, sides, frames):
             xp, vp = point(states, parent)
@@ -249,14 +263,14 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
                 out.setdefault(parent[0], []).append((parent[1], -ca.vertcat(force, moment + shift)))
         return out
 
-    states = kinematics(q, v)
+    states = kinematics(q, v, t)
     moments = [law_moment(states, cut, parent, child) if cut.kind == "spherical" and cut.law is not None
                else ca.DM.zeros(3) for cut, (parent, child) in zip(model.cuts, sides)]
     spherical_laws = ca.SX.sym("spherical_laws", 3 * len(model.cuts))
     loads = wrenches(states, lam, t, spherical_laws)
     for body, entries in tree_wrenches.items():
         loads.setdefault(body, []).extend(entries)
-    # the tree's load signals on the time symbol (no driven tree joint: the kinematics above hold at any time)
+    # the tree's load signals and driven joints on the time symbol
     body_terms, joint_terms, _ = scene.terms(CASADI, q, v, t, joint_inputs or None, loads)
     solution = articulated_sweep(CASADI, scene.tree, body_terms, joint_terms)
     sweep = ca.Function("loaded_sweep", [q, v, t, lam, u, spherical_laws],
@@ -264,28 +278,53 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
     law_values = ca.vertcat(*moments)
     v_dot0 = sweep(q, v, t, ca.DM.zeros(m), u, law_values)
     D = ca.horzcat(*[sweep(q, v, t, ca.DM.eye(m)[:, i], u, law_values) - v_dot0 for i in range(m)])
-    phi, phi_dot = rows(q, v, t)
+    phi, phi_dot = rows(q, v, t, held)              # driven tree joints' position and rate as symbols
     J = ca.jacobian(phi_dot, v)
     q_dot = position_rates(tree, q, v)
     drive = []                                      # - acceleration(t) on a driven cut's row
     for cut in model.cuts:
         drive += [0.0] * (cut.n_rows - 1) + [symbolic_time_signal(cut.acceleration, t) if cut.driven else 0.0]
     c0 = ca.mtimes(J, v_dot0) + ca.jtimes(phi_dot, q, q_dot) - ca.vertcat(*drive)
+    if held:                                        # along the prescribed motion: its rate and acceleration
+        c0 = c0 + ca.jtimes(phi_dot, held_q, signal_v) + ca.jtimes(phi_dot, held_v, signal_a)
+        phi, phi_dot, J, c0 = ca.substitute([phi, phi_dot, J, c0], [held_q, held_v], [signal_q, signal_v])
     G = ca.mtimes(J, D)
     alpha = model.baumgarte
     forces = ca.solve(G, -c0 - 2.0 * alpha * phi_dot - alpha * alpha * phi)
     condition = ca.norm_fro(G) * ca.norm_fro(ca.solve(G, ca.SX.eye(m)))
-    states = kinematics(q, v)
+    closed = ca.Function("closed", [q, v, u, p, t], [v_dot0 + ca.mtimes(D, forces), condition, forces, phi,
+                                                      phi_dot, G])
+    if held:                                        # sensors at the state only: none (driven_tree_refusal)
+        return (closed, ca.Function("constraint", [q, v, t], [phi, phi_dot, J]), None, None)
+    states = kinematics(q, v, 0.0)
     coordinates = []
     for cut, (parent, child) in zip(model.cuts, sides):
         value, value_rate, _ = coordinate(states, cut, parent, child) if cut.kind in ("revolute", "prismatic") \
             else (0.0, 0.0, None)
         coordinates += [value, value_rate]
-    closed = ca.Function("closed", [q, v, u, p, t], [v_dot0 + ca.mtimes(D, forces), condition, forces, phi,
-                                                      phi_dot, G])
     return (closed, ca.Function("constraint", [q, v, t], [phi, phi_dot, J]),
             ca.Function("cut_coordinates", [q, v], [ca.vertcat(*coordinates)]),
             ca.Function("law_moments", [q, v], [law_values]))
+
+
+def _driven_symbols(tree: Any, t: Any) -> tuple[dict, tuple[Any, Any], tuple[Any, Any, Any]]:
+    """The driven joints of ``tree`` on symbols: ``({joint index: (positions, rates)}, (position symbols, rate
+    symbols), (positions, rates, accelerations))``, the last their signals' symbolic forms at the time symbol ``t``
+    (:meth:`ctmm.spatial.body_forms.SpatialScene.terms` ``driven``; empty when none is driven)."""
+    import casadi as ca
+
+    joints = [(j, joint) for j, joint in enumerate(tree.joints) if joint.driven]
+    count = sum(len(joint.position) for _, joint in joints)
+    positions, rates = ca.SX.sym("driven_q", count), ca.SX.sym("driven_v", count)
+    held, start, signals = {}, 0, ([], [], [])
+    for j, joint in joints:
+        n = len(joint.position)
+        held[j] = ([positions[start + i] for i in range(n)], [rates[start + i] for i in range(n)])
+        for values, field in zip(signals, ("position", "rate", "acceleration")):
+            values += [symbolic_time_signal(f, t) for f in getattr(joint, field)]
+        start += n
+    return held, (positions, rates), tuple(ca.SX(ca.vertcat(*values)) if values else ca.SX(0, 1)
+                                            for values in signals)
 
 
 def _cut_sides(model: SpatialKinematicLoopModel) -> list[tuple[tuple[int, np.ndarray], tuple[int, np.ndarray]]]:

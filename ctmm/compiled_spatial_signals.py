@@ -9,7 +9,8 @@ RK4 (:class:`~ctmm.compiled_spatial.CompiledSpatialScene`) follows them at every
 DT-TMM schemes (:class:`~ctmm.compiled_spatial_schemes.CompiledSpatialScheme`) at the step time, with feedback
 loops too (:mod:`ctmm.compiled_spatial_loops`, :mod:`ctmm.compiled_spatial_scheme_loops`; their sensors at the
 state only: one that moves with a driven joint's signal is refused there), the tree's loads of kinematic loop
-models (:mod:`ctmm.compiled_spatial_kinematic_loops`; driven tree joints refused there) and exported FMUs
+models with their driven joints (:mod:`ctmm.compiled_spatial_kinematic_loops`,
+:mod:`ctmm.compiled_spatial_loop_schemes`; not in the loop driver's generated run) and exported FMUs
 (:mod:`ctmm.fmu_export_spatial`, at the FMU's time).  User callables have no symbolic form and are refused by name.
 
 :func:`spatial_compile_refusal` says why a model cannot be compiled; with ``time_signals=False`` (the generated

@@ -180,18 +180,8 @@ def test_spatial_simulate_verb_with_compiled_true():
 
 def test_spatial_refusals_and_failures():
     from ctmm.compiled_spatial_kinematic_loops import simulate_spatial_kinematic_loops_generated
-    import ctmm.spatial as sp
-    from ctmm.spatial.closed_loops import SpatialKinematicLoopModel
-    from ctmm.scenarios.spatial_four_bar import DOWN
 
-    loop, (q, v) = SPATIAL["spherical (RUSR four-bar)"]
-    joints = {joint.name: joint for joint in loop.tree.joints}
-    held = sp.Revolute(name="h1", parent=None, child="crank", axis=(1, 0, 0), rotation=DOWN, position=0.1, rate=0.0,
-                       acceleration=0.0)
-    driven = SpatialKinematicLoopModel(sp.SpatialModel("driven", [
-        *loop.tree.bodies, held, joints["u2"], joints["h4"]]), loop.cuts)
-    with pytest.raises(ModelError, match="driven joints \\(h1\\)"):
-        simulate_spatial_kinematic_loops_generated(driven, q[1:], v[1:], t_final=0.01, dt=1e-3)
+    loop, (q, v) = SPATIAL["spherical (RUSR four-bar)"]         # driven tree joints: test_compiled_spatial_driven_loops
     with pytest.raises(ModelError, match="violates the cut joints"):
         simulate_spatial_kinematic_loops_generated(loop, q + 0.1, v, t_final=0.01, dt=1e-3)
     with pytest.raises(SimulationError, match="projection onto the cut joints failed") as failure:

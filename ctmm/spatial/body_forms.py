@@ -341,7 +341,8 @@ class SpatialScene:
                           for body, names in zip(model.bodies, used)]
 
     def terms(self, ops: Ops, q: Any, v: Any, t: float = 0.0, inputs: Mapping[str, Any] | None = None,
-              wrenches: Mapping[int, Sequence[tuple[np.ndarray, Any]]] | None = None, turn: Any = None
+              wrenches: Mapping[int, Sequence[tuple[np.ndarray, Any]]] | None = None, turn: Any = None,
+              driven: Mapping[int, tuple[list, list]] | None = None
               ) -> tuple[list[BodyTerms], list[JointTerms], list[BodyState]]:
         """Body terms, joint terms (world axes) and body states at ``(q, v, t)``.
 
@@ -360,6 +361,11 @@ class SpatialScene:
             ``R + [delta]x R`` and its origin about its inboard point -- but not to the states the children
             are placed by: the complex step of ``i h e_k`` gives each body's ``d(terms)/d(phi_k)`` (the
             rotation columns of the frequency context's stiffness, :mod:`ctmm.spatial_transfer_response`).
+        driven : mapping of joint index to (positions, rates), optional
+            Values (lists of ops scalars [rad, m; rad/s, m/s]) taking the place of a driven joint's position and
+            rate signals at ``t`` (its acceleration stays the signal's): symbols standing for the prescribed motion,
+            so that generated code can differentiate the kinematics along it
+            (:mod:`ctmm.compiled_spatial_kinematic_loops`).
         """
         model = self.model
         inputs = inputs or {}
@@ -372,6 +378,8 @@ class SpatialScene:
                 qj = [_signal_column(ops, [f], t) for f in joint.position]
                 vj = [_signal_column(ops, [f], t) for f in joint.rate]
                 acc = [_signal_column(ops, [f], t) for f in joint.acceleration]
+                if driven is not None and j in driven:
+                    qj, vj = list(driven[j][0]), list(driven[j][1])
             else:
                 qj, vj, acc = qs[layout.position], vs[layout.velocity], None
             u = inputs.get(joint.inputs[0]) if joint.inputs else None
