@@ -17,7 +17,7 @@ edge, unit force on ``m1``, outputs ``m1.x`` (driving point) and ``m<n>.x`` (tip
   frequency (``K = 1``) and in blocks of 8 frequencies side by side (``K = 8``, the library kernel's layout); the
   faster is the bound.  No Python work is in it (the arrays are prepared before timing).
 
-* ``banded_loop`` / ``banded_vectorised`` -- the global baselines of ``foundation_scaling``, imported from it:
+* ``banded_loop`` / ``banded_vectorised`` -- the global baselines of ``lumped_chain.global_baselines``:
   ``scipy.linalg.solve_banded`` on the tridiagonal dynamic stiffness per frequency, and the same banded system
   solved for all frequencies at once by a Thomas elimination vectorised over omega (the fastest plain-numpy global
   baseline); timed on banded ``M, C, K`` prepared before timing (the reference assembly goes through dense
@@ -27,7 +27,7 @@ edge, unit force on ``m1``, outputs ``m1.x`` (driving point) and ``m<n>.x`` (tip
 Times: best CPU time (``time.process_time``, single-threaded code; the machine is shared, so CPU time is the
 figure to compare) and best wall time.  Ratios ``*_vs_bound`` are CPU-time ratios to the faster bound.  Errors:
 max relative error against a 30-digit mpmath solve (the Thomas algorithm on the tridiagonal dynamic stiffness,
-``foundation_scaling.high_precision_frf``) at 10 probe frequencies and, per output, the frequency where the
+``lumped_chain.model.high_precision_frf``) at 10 probe frequencies and, per output, the frequency where the
 compiled answer and the ``solve_banded`` loop differ most (as ``foundation_scaling`` does), driving point and tip;
 ``error_<baseline>_over_compiled`` is the baseline's error over the compiled path's.  Memory: peak traced
 allocations (``tracemalloc``: numpy arrays count) of one call of each solve.
@@ -73,9 +73,9 @@ for folder in (ROOT, ROOT / "benchmarks"):
 import ctmm  # noqa: E402
 from ctmm.chain_assembly import laplace_variables, solve  # noqa: E402
 from ctmm.reference import chain as reference  # noqa: E402  (benchmarks may use the validation models)
-from foundation_scaling import (DAMPING, MASS, STIFFNESS, banded_frequency_loop, ctmm_chain,  # noqa: E402
-                                global_chain, high_precision_frf, omega_grid, probe_indices, relative_difference,
-                                thomas_frequency_batch)
+from lumped_chain.global_baselines import banded_frequency_loop, thomas_frequency_batch  # noqa: E402
+from lumped_chain.model import (DAMPING, MASS, STIFFNESS, ctmm_chain, global_chain, high_precision_frf,  # noqa: E402
+                                omega_grid, probe_indices, relative_difference)
 from planar_frf import best  # noqa: E402  (best wall and CPU time of repeated calls)
 
 RESULTS = ROOT / "benchmarks" / "results" / "chain_frf.json"
@@ -194,7 +194,7 @@ def peak_bytes(call) -> int:
 
 def relative(value: np.ndarray, reference: np.ndarray) -> float:
     """Max ``|value - reference| / |reference|`` where ``|reference| > 1e-280`` (the tip's response underflows at the
-    highest frequencies of n = 10 000: evanescent waves), as ``foundation_scaling.relative_difference``."""
+    highest frequencies of n = 10 000: evanescent waves), as ``lumped_chain.model.relative_difference``."""
     return relative_difference(value, reference)["max"]
 
 
@@ -257,11 +257,12 @@ def run(n: int, bounds: dict[int, ctypes.CDLL]) -> dict:
 
 
 def banded_rows(row: dict, results: dict, n: int, omega: np.ndarray, repeats: int) -> None:
-    """The two banded baselines of ``foundation_scaling`` on the same chain and grid, into ``row`` and ``results``.
+    """The two banded baselines of :mod:`lumped_chain.global_baselines` on the same chain and grid, into ``row``
+    and ``results``.
 
-    ``banded_loop`` -- ``scipy.linalg.solve_banded`` per frequency (:func:`foundation_scaling.banded_frequency_loop`),
-    ``banded_vectorised`` -- the Thomas elimination vectorised over omega
-    (:func:`foundation_scaling.thomas_frequency_batch`).  Both are timed on banded ``M, C, K`` prepared before
+    ``banded_loop`` -- ``scipy.linalg.solve_banded`` per frequency (:func:`~lumped_chain.global_baselines.
+    banded_frequency_loop`), ``banded_vectorised`` -- the Thomas elimination vectorised over omega
+    (:func:`~lumped_chain.global_baselines.thomas_frequency_batch`).  Both are timed on banded ``M, C, K`` prepared before
     timing (``reference.assemble_banded`` goes through dense ``n x n`` matrices: its time and memory are reported
     apart, ``banded_assembly_*``, and left out of the ratios, which favours the baselines).  Ratios
     ``frequency_response_over_*`` are CPU-time ratios (< 1: the compiled path is faster).
@@ -342,7 +343,7 @@ def main(argv: list[str] | None = None) -> dict:
     result = {"benchmark": "chain_frf", "machine": {"python": platform.python_version(), "numpy": np.__version__,
                                                     "processor": platform.processor() or platform.machine(),
                                                     "load_average": list(os.getloadavg())},
-              "frequencies": "foundation_scaling.omega_grid(n): 1000 log-spaced omega", "rows": rows,
+              "frequencies": "lumped_chain.model.omega_grid(n): 1000 log-spaced omega", "rows": rows,
               "controlled_rows": controlled_rows}
     args.output.parent.mkdir(parents=True, exist_ok=True)
     args.output.write_text(json.dumps(result, indent=2) + "\n")

@@ -42,7 +42,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
 import shutil
 import sys
 import time
@@ -53,10 +52,10 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 import control  # noqa: E402  (imported before any timing)
 import fmpy  # noqa: E402
-import scipy  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import ctmm  # noqa: E402
 from ctmm.control import ControlledChain, Feedback, FMUController, build_fmu, simulate_controlled  # noqa: E402
@@ -64,6 +63,7 @@ from ctmm.control.design import PlantCache  # noqa: E402
 from ctmm.elements import Fixed, Free, Mass, SpringDamper  # noqa: E402
 from ctmm.interop import to_state_space  # noqa: E402
 from ctmm.scenario import write_json_atomic  # noqa: E402
+from benchmark_support.measure import machine  # noqa: E402
 
 from _controllers_import import load_controllers  # noqa: E402
 
@@ -79,23 +79,6 @@ def chain(n: int) -> ctmm.Chain:
     for i in range(n):
         elements += [SpringDamper(f"k{i}", 10.0, 1.0), Mass(f"m{i}", 1.0)]
     return ctmm.Chain(f"chain{n}", elements + [Free("tip")])
-
-
-def machine() -> dict:
-    info = {"platform": platform.platform(), "processor": platform.processor() or platform.machine(),
-            "python": platform.python_version(), "numpy": np.__version__, "scipy": scipy.__version__,
-            "control": control.__version__, "fmpy": fmpy.__version__, "cpu_count": os.cpu_count(),
-            "OPENBLAS_NUM_THREADS": os.environ.get("OPENBLAS_NUM_THREADS")}
-    try:
-        with open("/proc/cpuinfo") as handle:
-            for line in handle:
-                if line.startswith("model name"):
-                    info["cpu_model"] = line.split(":", 1)[1].strip()
-                    break
-        info["load_average_1_5_15min"] = list(os.getloadavg())
-    except OSError:
-        pass
-    return info
 
 
 def best_of(fn, repeats: int = REPEATS):
@@ -256,7 +239,7 @@ def main(argv=None) -> dict:
     results = {
         "benchmark": "control_overhead",
         "description": __doc__.split("\n\n")[0],
-        "machine": machine(),
+        "machine": {**machine(), "fmpy": fmpy.__version__},
         "time_domain": time_domain(0.5 if args.quick else 2.0, fmu_path, 3 if args.quick else 7),
         "frequency_domain": frequency_domain((3, 30) if args.quick else (3, 30, 100)),
         "quick": args.quick,

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
 import sys
 import time
 from pathlib import Path
@@ -37,14 +36,16 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
+for folder in (ROOT, ROOT / "benchmarks"):
+    if str(folder) not in sys.path:
+        sys.path.insert(0, str(folder))
 
 import ctmm  # noqa: E402
 from ctmm.elements.boundary import Fixed, Free  # noqa: E402
 from ctmm.elements.lumped import Mass, Spring  # noqa: E402
 from ctmm.reference import chain as reference  # noqa: E402
 from ctmm.scenario import write_json_atomic  # noqa: E402
+from benchmark_support.measure import code_version, machine, timed  # noqa: E402
 
 STIFFNESS, FREE_LENGTH, MASS, FORCE, N_MASSES = 1000.0, 0.1, 0.1, 100.0, 5
 T_FINAL = 0.5
@@ -93,54 +94,12 @@ def exact_positions(glob: reference.GlobalChain) -> np.ndarray:
     return rest + exact.displacement[-1]
 
 
-def timed(call):
-    """Run ``call()`` repeatedly (short calls); return (last result, best wall [s], best CPU [s], runs).
-
-    The CPU time (``time.process_time``) is recorded beside the wall time because the benchmark
-    machine is shared: under load the wall time of a single-threaded call is inflated, its CPU
-    time much less.
-    """
-    best, best_cpu, spent, runs = np.inf, np.inf, 0.0, 0
-    result = None
-    while runs < MAX_REPEATS and (runs == 0 or spent < REPEAT_UNTIL_S):
-        start, start_cpu = time.perf_counter(), time.process_time()
-        result = call()
-        elapsed, cpu = time.perf_counter() - start, time.process_time() - start_cpu
-        best, best_cpu, spent, runs = min(best, elapsed), min(best_cpu, cpu), spent + elapsed, runs + 1
-    return result, best, best_cpu, runs
-
-
 def observed_orders(dts, errors) -> dict:
     dts, errors = np.asarray(dts, float), np.asarray(errors, float)
     ok = errors > 0
     slope = float(np.polyfit(np.log(dts[ok]), np.log(errors[ok]), 1)[0]) if ok.sum() >= 2 else float("nan")
     local = np.log(errors[:-1] / errors[1:]) / np.log(dts[:-1] / dts[1:])
     return {"least_squares": slope, "between_neighbours": local.tolist()}
-
-
-def code_version() -> dict:
-    """Commit of the measured code and the files of ctmm/ that differ from it (shared tree)."""
-    import subprocess
-
-    def git(*args):
-        try:
-            return subprocess.run(["git", *args], cwd=ROOT, capture_output=True, text=True, timeout=30).stdout.strip()
-        except (OSError, subprocess.SubprocessError):
-            return None
-    status = git("status", "--porcelain", "--", "ctmm")
-    return {"commit": git("rev-parse", "HEAD"),
-            "uncommitted_ctmm_files": status.splitlines() if status else []}
-
-
-def machine() -> dict:
-    info = {"platform": platform.platform(), "processor": platform.processor() or platform.machine(),
-            "python": platform.python_version(), "numpy": np.__version__,
-            "cpu_count": os.cpu_count(), "OPENBLAS_NUM_THREADS": os.environ.get("OPENBLAS_NUM_THREADS")}
-    try:
-        info["load_average_1_5_15min"] = list(os.getloadavg())
-    except OSError:
-        pass
-    return info
 
 
 def run(ladder=DT_LADDER) -> dict:
@@ -154,7 +113,8 @@ def run(ladder=DT_LADDER) -> dict:
     for scheme in SCHEMES:
         rows = []
         for dt in ladder:
-            sim, wall, cpu, runs = timed(lambda: ctmm.simulate(system, T_FINAL, dt, method=scheme, x0=x0))
+            sim, wall, cpu, runs = timed(lambda: ctmm.simulate(system, T_FINAL, dt, method=scheme, x0=x0),
+                                       repeat_until=REPEAT_UNTIL_S, max_repeats=MAX_REPEATS)
             x_end = np.array([sim[n][-1] for n in names])
             rows.append({"dt": dt, "error_m": float(np.max(np.abs(x_end - x_exact))), "wall_time_s": wall,
                          "cpu_time_s": cpu, "n_steps": sim.info["n_steps"], "runs": runs, "path": sim.info["path"]})
@@ -166,7 +126,8 @@ def run(ladder=DT_LADDER) -> dict:
     rows = []
     for dt in ladder:
         hist, wall, cpu, runs = timed(lambda: reference.newmark_global(glob, T_FINAL, dt, x0_rel, np.zeros(N_MASSES),
-                                                                  lambda t: force))
+                                                                  lambda t: force),
+                                      repeat_until=REPEAT_UNTIL_S, max_repeats=MAX_REPEATS)
         x_end = rest + hist.displacement[-1]
         rows.append({"dt": dt, "error_m": float(np.max(np.abs(x_end - x_exact))), "wall_time_s": wall,
                      "cpu_time_s": cpu, "n_steps": int(round(T_FINAL / dt)), "runs": runs})
