@@ -19,7 +19,11 @@ schemes) applies, stated once here:
 * the projection after a step lands on the cut joints: ``max |Phi|`` at most :data:`PROJECTION_TOLERANCE` after its
   Gauss-Newton steps (:func:`projection_failure`; a step too large for the loop's curvature).  A run that breaks
   either rule stops with a :class:`~ctmm.errors.SimulationError` naming the time, the cut joint
-  (:func:`furthest_cut`) and the partial result.
+  (:func:`furthest_cut`) and the partial result;
+* a deformable body of the tree stays in its range (the tree runs' rule, given as ``check`` to
+  :func:`integrate_loop_model`: a modal beam's deflection bound within its length, a finite-element subsystem within
+  its size), after every RK4 step and at every stored ``solve_ivp`` state, with the time, the body and the partial
+  result.
 """
 from __future__ import annotations
 
@@ -192,7 +196,9 @@ def integrate_loop_model(rate: Callable[[float, np.ndarray], np.ndarray], y0: np
                          t_final: float, dt: float | None, method: str, finish: Callable[[np.ndarray, float], np.ndarray],
                          rtol: float, atol: float, store_every: int, t_eval: np.ndarray | None,
                          max_step: float | None, label: str, element: str, velocity_label: str,
-                         model: Any = None, iterations: int = 3) -> tuple[np.ndarray, np.ndarray, float]:
+                         model: Any = None, iterations: int = 3,
+                         check: Callable[[float, np.ndarray], None] | None = None
+                         ) -> tuple[np.ndarray, np.ndarray, float]:
     """Integrate ``y' = rate(t, y)`` from ``y0`` over ``[0, t_final]`` [s].
 
     Parameters
@@ -214,6 +220,12 @@ def integrate_loop_model(rate: Callable[[float, np.ndarray], np.ndarray], y0: np
         :data:`PROJECTION_TOLERANCE` (:func:`projection_failure` otherwise).
     iterations : int
         The Gauss-Newton steps of the projection (named in the error).
+    check : callable, optional
+        ``check(t, y)``: the tree's own run guards (a deformable body's range: a modal beam's deflection bound
+        beyond its length, a finite-element subsystem's displacement beyond its size), raising
+        :class:`SimulationError`; applied after every RK4 step (after the projection, before its residual is
+        checked: a body beyond its range is the cause of a projection that then fails) and, with ``solve_ivp``, to
+        every stored state.  The error gets the partial result up to the last good stored state.
     rtol, atol : float
         ``solve_ivp`` tolerances.
     store_every : int
@@ -238,7 +250,7 @@ def integrate_loop_model(rate: Callable[[float, np.ndarray], np.ndarray], y0: np
     SimulationError
         A failure of the rates (a singular loop configuration), a non-finite state, a failed projection (RK4 with
         ``model``) or a failed ``solve_ivp`` run, with the time, the cut joint and the partial result up to the last
-        good stored state.
+        good stored state; a failed ``check`` with its own time and element and that partial result.
     """
     n = n_positions
     start = _time.perf_counter()
@@ -262,6 +274,8 @@ def integrate_loop_model(rate: Callable[[float, np.ndarray], np.ndarray], y0: np
                 raise SimulationError(f"{label}: non-finite state at t = {k * h} s", time=k * h, element=element,
                                       partial_result=partial())
             y = finish(y, k * h)
+            if check is not None:       # a body beyond its range first: the cause of a projection that then fails
+                _checked(check, k * h, y, partial)
             if model is not None:
                 _, failure = projected_residual(model, y[:n], y[n:], k * h, label, iterations)
                 if failure is not None:
@@ -275,6 +289,21 @@ def integrate_loop_model(rate: Callable[[float, np.ndarray], np.ndarray], y0: np
     limit = max_step if max_step is not None else (np.inf if dt is None else dt)
     sol = scipy.integrate.solve_ivp(rate, (0.0, t_final), y0, method=method, rtol=rtol, atol=atol, t_eval=t_eval,
                                     max_step=limit)
+    if check is not None:
+        for row in range(1, len(sol.t)):
+            _checked(check, float(sol.t[row]), sol.y[:, row], lambda row=row: {
+                "t": sol.t[:row], "q": sol.y[:n, :row].T, velocity_label: sol.y[n:, :row].T})
     if not sol.success:
         raise SimulationError(f"{label}: solve_ivp failed: {sol.message}", time=float(sol.t[-1]), element=element)
     return sol.t, sol.y.T, _time.perf_counter() - start
+
+
+def _checked(check: Callable[[float, np.ndarray], None], t: float, y: np.ndarray, partial: Callable[[], dict]
+             ) -> None:
+    """``check(t, y)``; its :class:`SimulationError` completed with ``partial()`` when it carries no partial result."""
+    try:
+        check(t, y)
+    except SimulationError as exc:
+        if exc.partial_result is None:
+            exc.partial_result = partial()
+        raise
