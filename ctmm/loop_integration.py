@@ -23,7 +23,8 @@ schemes) applies, stated once here:
 * a deformable body of the tree stays in its range (the tree runs' rule, given as ``check`` to
   :func:`integrate_loop_model`: a modal beam's deflection bound within its length, a finite-element subsystem within
   its size), after every RK4 step and at every stored ``solve_ivp`` state, with the time, the body and the partial
-  result.
+  result; the generated RK4 by :func:`deformation_failure` on its stored states (the steps in between run again by
+  the numpy step).
 """
 from __future__ import annotations
 
@@ -38,7 +39,8 @@ from .errors import ModelError, SimulationError
 from .ode import rk4_step
 
 __all__ = ["CONDITION_LIMIT", "CONSISTENCY_TOLERANCE", "PROJECTION_SKIP", "PROJECTION_TOLERANCE", "SOLVE_IVP_METHODS",
-           "ProjectionHook", "StepProjection", "check_consistent", "compliance_condition", "furthest_cut",
+           "ProjectionHook", "StepProjection", "check_consistent", "compliance_condition", "deformation_failure",
+           "furthest_cut",
            "integrate_loop_model", "projected_residual", "projection_failure", "singular_compliance"]
 
 CONSISTENCY_TOLERANCE = 1e-8
@@ -307,3 +309,39 @@ def _checked(check: Callable[[float, np.ndarray], None], t: float, y: np.ndarray
         if exc.partial_result is None:
             exc.partial_result = partial()
         raise
+
+
+def deformation_failure(model: Any, t: np.ndarray, states: np.ndarray, bad: int | None, dt: float, size: int,
+                        beyond: Any, step: Any) -> tuple[int, SimulationError] | None:
+    """The tree runs' deformable-body rule on a generated run of a kinematic loop model.
+
+    Stored times ``t`` [s], states ``[x, ...]`` with ``x = [q ; v]`` of ``size``, ``bad`` the row
+    :func:`ctmm.compiled_kinematic_loops.first_failure` found.  Returns ``(row, error)`` when a step before the
+    generated failure (or, without one, any step) puts a body beyond its range: the error that of the numpy RK4 at
+    that step (``beyond(x, t)``: the error or ``None``), ``row`` the first stored row after it; ``None`` otherwise
+    (none beyond its range, or the generated failure comes first).  The first stored row beyond the rule, or
+    ``bad``, is found on the stored states; the steps since the stored row before it are run again by the numpy
+    RK4 step with projection (``step(x, k)``: step ``k`` from ``x`` after step ``k - 1``, ``None`` when not
+    finite; generated = numpy to round-off) and checked in the numpy RK4's order (finite, the body, the projection
+    residual).
+    """
+    for row in range(1, len(t) if bad is None else bad + 1):
+        if row == bad or beyond(states[row, :size], float(t[row])) is not None:
+            break
+    else:
+        return None
+    x = states[row - 1, :size]
+    for k in range(int(round(t[row - 1] / dt)) + 1, int(round(t[row] / dt)) + 1):
+        try:
+            x = step(x, k)
+        except SimulationError:
+            return None                                 # a singular configuration: the generated failure's
+        if x is None:
+            return None                                 # non-finite before the projection: the generated failure's
+        error = beyond(x, k * dt)
+        if error is not None:
+            return row, error
+        nq = size - model.n_velocities
+        if np.max(np.abs(model.constraints(x[:nq], x[nq:], k * dt)[0]), initial=0.0) > PROJECTION_TOLERANCE:
+            return None
+    return None

@@ -71,17 +71,23 @@ def test_a_struck_flexible_four_bar_stops_at_the_step_its_coupler_passes_its_len
     assert stated == pytest.approx(hand_bound(loop, q_next)[0], rel=5e-3)       # stated to 3 digits
 
 
+def struck_spatial_loop():
+    """The pinned SpatialBeam loop of tests/test_spatial_cut_points.py, struck (``(loop, q0, v0)``)."""
+    from test_spatial_cut_points import PinnedBeamReference, assembled, beam_loop, beam_state
+
+    q0, u0 = beam_state(4)
+    u0, p0 = assembled(PinnedBeamReference(True, 1.1), q0, 100.0 * u0)
+    return beam_loop(True, "tip", p0), q0, u0
+
+
 def test_a_struck_spatial_beam_loop_stops_at_the_step_its_beam_passes_its_length():
     """The spatial RK4 of a kinematic loop model (:func:`ctmm.spatial.closed_loop_time.simulate_spatial_loops`): a
     SpatialBeam on a yawing hub, its tip pinned to the ground, struck (velocities 100 times those of
     tests/test_spatial_cut_points.py's state, projected onto the pin by the Lagrange reference): the tree runs' rule
     (:func:`ctmm.spatial.integrate.check_beam_deflection`), bound by hand from the beam's station shapes."""
-    from test_spatial_cut_points import PinnedBeamReference, assembled, beam_loop, beam_state
     from ctmm.spatial.closed_loop_time import simulate_spatial_loops
 
-    q0, u0 = beam_state(4)
-    u0, p0 = assembled(PinnedBeamReference(True, 1.1), q0, 100.0 * u0)
-    loop = beam_loop(True, "tip", p0)
+    loop, q0, u0 = struck_spatial_loop()
     beam = next(b for b in loop.tree.bodies if b.name == "b")
     peaks = np.max([np.abs(beam.data.station(x)[0]).max(axis=0) for x in np.linspace(0.0, beam.length, 2001)],
                    axis=0)
@@ -102,3 +108,42 @@ def test_a_struck_spatial_beam_loop_stops_at_the_step_its_beam_passes_its_length
     assert np.all(bound(before.q) <= beam.length)
     stated = float(str(error).split("deflection bound ")[1].split(" m")[0])
     assert stated > beam.length
+
+
+@pytest.mark.parametrize("store_every", [1, 4])
+def test_the_generated_rk4_stops_with_the_numpy_error(struck, store_every):
+    """The generated RK4 of the same loop (:func:`ctmm.compiled_kinematic_loops.simulate_kinematic_loops_generated`)
+    stops with the numpy RK4's error: time, body, message, partial rows (generated = numpy to round-off); with
+    ``store_every=4`` the failing step lies between stored rows and is found as the numpy path finds it."""
+    from ctmm.compiled_kinematic_loops import simulate_kinematic_loops_generated
+
+    loop, q0, v0 = struck
+    with pytest.raises(SimulationError) as numpy_info:
+        simulate_kinematic_loops(loop, q0, v0, t_final=0.05, dt=DT, store_every=store_every)
+    with pytest.raises(SimulationError) as generated_info:
+        simulate_kinematic_loops_generated(loop, q0, v0, t_final=0.05, dt=DT, store_every=store_every)
+    expected, got = numpy_info.value, generated_info.value
+    assert (got.element, got.time) == (expected.element, expected.time) == ("coupler", got.time)
+    assert str(got) == str(expected)
+    np.testing.assert_array_equal(got.partial_result.t, expected.partial_result["t"])
+    assert np.max(np.abs(got.partial_result.q - expected.partial_result["q"])) <= 1e-12
+
+
+@pytest.mark.parametrize("store_every", [1, 3])
+def test_the_generated_spatial_rk4_stops_with_the_numpy_error(store_every):
+    """The generated RK4 of the struck spatial loop
+    (:func:`ctmm.compiled_spatial_kinematic_loops.simulate_spatial_kinematic_loops_generated`) stops with the numpy
+    RK4's error: time, body, message, partial rows."""
+    from ctmm.compiled_spatial_kinematic_loops import simulate_spatial_kinematic_loops_generated
+    from ctmm.spatial.closed_loop_time import simulate_spatial_loops
+
+    loop, q0, u0 = struck_spatial_loop()
+    with pytest.raises(SimulationError) as numpy_info:
+        simulate_spatial_loops(loop, q0, u0, t_final=0.3, dt=DT, store_every=store_every)
+    with pytest.raises(SimulationError) as generated_info:
+        simulate_spatial_kinematic_loops_generated(loop, q0, u0, t_final=0.3, dt=DT, store_every=store_every)
+    expected, got = numpy_info.value, generated_info.value
+    assert (got.element, got.time) == (expected.element, expected.time) == ("b", got.time)
+    assert str(got) == str(expected)
+    np.testing.assert_array_equal(got.partial_result.t, expected.partial_result["t"])
+    assert np.max(np.abs(got.partial_result.q - expected.partial_result["q"])) <= 1e-12
