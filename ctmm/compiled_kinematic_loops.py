@@ -39,7 +39,11 @@ every step is checked whatever ``store_every``.  The run fails with a :class:`~c
 cut joint, partial result up to the last good stored state) at the first stored state that is not finite, or by
 which a projection residual exceeded :data:`~ctmm.loop_integration.PROJECTION_TOLERANCE` or a condition
 :data:`~ctmm.loop_integration.CONDITION_LIMIT` (a singular configuration of the loop): the rules and messages of the
-numpy RK4 (:mod:`ctmm.loop_integration`), which checks the same after every step.  ``drift`` [m] and ``drift_rate``
+numpy RK4 (:mod:`ctmm.loop_integration`), which checks the same after every step.  A deformable body of the tree
+beyond its range (the tree runs' rule: a modal beam's deflection bound beyond its length, a ``ctmm.fem`` subsystem
+beyond its size) stops it with the numpy RK4's error, time, body and partial rows
+(:func:`planar_deformation_failure`: the stored states checked, the steps since the stored row before the first one
+beyond it run again by the numpy step).  ``drift`` [m] and ``drift_rate``
 [m/s] and the cut forces of the result are those of the stored states (as the numpy path reports them), evaluated by
 a generated function of the same library.
 
@@ -67,7 +71,8 @@ from .compiled_scene import DEFAULT_ROWS, symbolic_accelerations_with_inputs
 from .errors import ModelError, SimulationError
 from .generated_loop import compiled_time_loop, run_blocks
 from .loop_integration import (CONDITION_LIMIT, PROJECTION_SKIP, PROJECTION_TOLERANCE, check_consistent,
-                               compliance_condition, furthest_cut, projection_failure, singular_compliance)
+                               compliance_condition, deformation_failure, furthest_cut, projection_failure,
+                               singular_compliance)
 from .model_description import describe
 from .ode import rk4_step
 from .planar.closed_loops import KinematicLoopModel, KinematicLoopSimulation
@@ -77,8 +82,9 @@ from .signals import SYMBOLIC_FIELDS, signal_parameters, symbolic_signal
 
 __all__ = ["CompiledKinematicLoops", "cut_load_refusal", "cut_moment_refusal", "cut_rows", "failure_message",
            "first_failure", "generated_failure", "generated_run", "kinematic_loop_compile_refusal",
-           "projected_rk4_step", "simulate_kinematic_loops_generated", "symbolic_closed_loop",
-           "symbolic_projection", "symbolic_relative_angles", "symbolic_time_signal", "tree_refusal"]
+           "planar_deformation_failure", "projected_rk4_step", "simulate_kinematic_loops_generated",
+           "symbolic_closed_loop", "symbolic_projection", "symbolic_relative_angles", "symbolic_time_signal",
+           "tree_refusal"]
 _BODY_PARTS = ("force_x", "force_y", "moment")
 
 
@@ -486,6 +492,34 @@ def generated_failure(model: Any, label: str, t: np.ndarray, states: np.ndarray,
                            time=float(t[bad]), element=cut, partial_result=partial)
 
 
+def planar_deformation_failure(model: KinematicLoopModel, t: np.ndarray, states: np.ndarray, bad: int | None,
+                               dt: float, iterations: int) -> tuple[int, SimulationError] | None:
+    """:func:`ctmm.loop_integration.deformation_failure` of a planar loop model: the tree's
+    ``family.check_divergence`` (``"rk4"``, ``dt`` [s]; a modal beam's deflection bound, a ``ctmm.fem`` subsystem's
+    size), the numpy step :func:`ctmm.ode.rk4_step`
+    then :meth:`KinematicLoopModel.project` with the generated step's Gauss-Newton ``iterations``."""
+    tree = model.tree
+    family, n = tree.deformable_family, tree.n_coordinates
+    if family is None:
+        return None
+
+    def beyond(x: np.ndarray, time: float) -> SimulationError | None:
+        try:
+            family.check_divergence(tree, x[:n], time, dt, "rk4")
+        except SimulationError as exc:
+            return exc
+        return None
+
+    def rate(time: float, x: np.ndarray) -> np.ndarray:
+        return np.concatenate([x[n:], model.solve(x[:n], x[n:], time)[0]])
+
+    def step(x: np.ndarray, k: int) -> np.ndarray | None:
+        x = rk4_step(rate, (k - 1) * dt, x, dt)
+        return np.concatenate(model.project(x[:n], x[n:], k * dt, iterations)) if np.all(np.isfinite(x)) else None
+
+    return deformation_failure(model, t, states, bad, dt, 2 * n, beyond, step)
+
+
 def simulate_kinematic_loops_generated(model: KinematicLoopModel, q0: Any, qdot0: Any, *, t_final: float, dt: float,
                                        store_every: int = 1, compiled: CompiledKinematicLoops | None = None,
                                        cache_dir: str | os.PathLike | None = None) -> KinematicLoopSimulation:
@@ -515,7 +549,8 @@ def simulate_kinematic_loops_generated(model: KinematicLoopModel, q0: Any, qdot0
         A model that cannot be compiled, bad arguments, an inconsistent initial state.
     SimulationError
         A non-finite state, a failed projection or a singular loop configuration: the time, the cut joint and the
-        partial :class:`KinematicLoopSimulation` up to the last good state.
+        partial :class:`KinematicLoopSimulation` up to the last good state; a deformable body of the tree beyond its
+        range (:func:`planar_deformation_failure`: the numpy RK4's error, time and body).
     """
     q, v = model.tree.state(q0, qdot0)
     compiled, t, states, wall, n_steps = generated_run(CompiledKinematicLoops, model, q, v, t_final, dt, store_every,
@@ -525,6 +560,13 @@ def simulate_kinematic_loops_generated(model: KinematicLoopModel, q0: Any, qdot0
     good = len(t) if bad is None else bad
     forces, phi, phi_dot = compiled.cut_history(t[:good], states[:good])
     drift, drift_rate = np.max(np.abs(phi), axis=1), np.max(np.abs(phi_dot), axis=1)
+    out_of_range = planar_deformation_failure(model, t, states, bad, validation.positive("dt", dt),
+                                              compiled.iterations)
+    if out_of_range is not None:
+        row, error = out_of_range
+        error.partial_result = _simulation(model, t[:row], states[:row], forces[:row], drift[:row], drift_rate[:row],
+                                           wall, n_steps)
+        raise error
     if bad is not None:
         raise generated_failure(model, f"kinematic loop {model.name!r}", t, states, bad, 2 * n, compiled.iterations,
                                 _simulation(model, t[:bad], states[:bad], forces, drift, drift_rate, wall, n_steps))

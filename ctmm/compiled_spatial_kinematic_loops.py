@@ -61,12 +61,14 @@ from .compiled_spherical_cut_law import rotation_limit_note, spherical_law_cuts,
 from .errors import SimulationError
 from .compiled_spatial_cut_points import (SymbolicStates, deformable_sides, symbolic_deformable_frame,
                                           symbolic_deformable_point)
-from .loop_integration import PROJECTION_SKIP
+from .loop_integration import PROJECTION_SKIP, deformation_failure
+from .ode import rk4_step
 from .ops import CASADI
 from .spatial.body_forms import SpatialScene
 from .spatial.closed_loop_cuts import cut_frame
 from .spatial.closed_loop_time import SpatialLoopSimulation
 from .spatial.closed_loops import SpatialKinematicLoopModel
+from .spatial.integrate import beam_deflection_weights, divergence_check
 from .spatial.ports import SpatialPorts
 
 __all__ = ["CompiledSpatialKinematicLoops", "driven_tree_refusal", "loop_simulation",
@@ -440,6 +442,11 @@ def simulate_spatial_kinematic_loops_generated(model: SpatialKinematicLoopModel,
         return loop_simulation(model, t[:k], states[:k, :size], unknowns[:k], "rk4-generated", wall, 4 * n_steps,
                                phi[:k], phi_dot[:k])
 
+    out_of_range = _deformation_failure(model, t, states, bad, float(dt), size, compiled.iterations)
+    if out_of_range is not None:
+        row, error = out_of_range
+        error.partial_result = history(row)
+        raise error
     if bad is not None:
         error = generated_failure(model, f"spatial kinematic loop {model.name!r}", t, states, bad, size,
                                   compiled.iterations, history(bad))
@@ -451,6 +458,37 @@ def simulate_spatial_kinematic_loops_generated(model: SpatialKinematicLoopModel,
                                   partial_result=error.partial_result) from None
         raise error
     return history(len(t))
+
+
+def _deformation_failure(model: SpatialKinematicLoopModel, t: np.ndarray, states: np.ndarray, bad: int | None,
+                         dt: float, size: int, iterations: int) -> tuple[int, SimulationError] | None:
+    """:func:`ctmm.loop_integration.deformation_failure` of a spatial loop model: the tree's guard
+    (:func:`ctmm.spatial.integrate.divergence_check` without a bound: a SpatialBeam's deflection bound, a ``ctmm.fem``
+    subsystem's size and rotation; ``"rk4"``), the numpy step of
+    :func:`ctmm.spatial.closed_loop_time.simulate_spatial_loops` (:func:`ctmm.ode.rk4_step` of ``[G(q) v ; v']``, then
+    :meth:`SpatialKinematicLoopModel.project` with the generated step's Gauss-Newton ``iterations``)."""
+    tree = model.tree
+    if not beam_deflection_weights(tree):
+        return None
+    nq = tree.n_positions
+    guard = divergence_check(tree, states[0, :size], None)
+
+    def beyond(x: np.ndarray, time: float) -> SimulationError | None:
+        try:
+            guard(time, x, "rk4")
+        except SimulationError as exc:
+            return exc
+        return None
+
+    def rate(time: float, x: np.ndarray) -> np.ndarray:
+        return np.concatenate([tree.position_rates(x[None, :nq], x[None, nq:])[0],
+                               model.solve(x[:nq], x[nq:], time)[0]])
+
+    def step(x: np.ndarray, k: int) -> np.ndarray | None:
+        x = rk4_step(rate, (k - 1) * dt, x, dt)
+        return np.concatenate(model.project(x[:nq], x[nq:], k * dt, iterations)) if np.all(np.isfinite(x)) else None
+
+    return deformation_failure(model, t, states, bad, dt, size, beyond, step)
 
 
 def loop_simulation(model: SpatialKinematicLoopModel, t: np.ndarray, states: np.ndarray, unknowns: np.ndarray,

@@ -19,7 +19,12 @@ schemes) applies, stated once here:
 * the projection after a step lands on the cut joints: ``max |Phi|`` at most :data:`PROJECTION_TOLERANCE` after its
   Gauss-Newton steps (:func:`projection_failure`; a step too large for the loop's curvature).  A run that breaks
   either rule stops with a :class:`~ctmm.errors.SimulationError` naming the time, the cut joint
-  (:func:`furthest_cut`) and the partial result.
+  (:func:`furthest_cut`) and the partial result;
+* a deformable body of the tree stays in its range (the tree runs' rule, given as ``check`` to
+  :func:`integrate_loop_model`: a modal beam's deflection bound within its length, a finite-element subsystem within
+  its size), after every RK4 step and at every stored ``solve_ivp`` state, with the time, the body and the partial
+  result; the generated RK4 by :func:`deformation_failure` on its stored states (the steps in between run again by
+  the numpy step).
 """
 from __future__ import annotations
 
@@ -34,7 +39,8 @@ from .errors import ModelError, SimulationError
 from .ode import rk4_step
 
 __all__ = ["CONDITION_LIMIT", "CONSISTENCY_TOLERANCE", "PROJECTION_SKIP", "PROJECTION_TOLERANCE", "SOLVE_IVP_METHODS",
-           "ProjectionHook", "StepProjection", "check_consistent", "compliance_condition", "furthest_cut",
+           "ProjectionHook", "StepProjection", "check_consistent", "compliance_condition", "deformation_failure",
+           "furthest_cut",
            "integrate_loop_model", "projected_residual", "projection_failure", "singular_compliance"]
 
 CONSISTENCY_TOLERANCE = 1e-8
@@ -192,7 +198,9 @@ def integrate_loop_model(rate: Callable[[float, np.ndarray], np.ndarray], y0: np
                          t_final: float, dt: float | None, method: str, finish: Callable[[np.ndarray, float], np.ndarray],
                          rtol: float, atol: float, store_every: int, t_eval: np.ndarray | None,
                          max_step: float | None, label: str, element: str, velocity_label: str,
-                         model: Any = None, iterations: int = 3) -> tuple[np.ndarray, np.ndarray, float]:
+                         model: Any = None, iterations: int = 3,
+                         check: Callable[[float, np.ndarray], None] | None = None
+                         ) -> tuple[np.ndarray, np.ndarray, float]:
     """Integrate ``y' = rate(t, y)`` from ``y0`` over ``[0, t_final]`` [s].
 
     Parameters
@@ -214,6 +222,12 @@ def integrate_loop_model(rate: Callable[[float, np.ndarray], np.ndarray], y0: np
         :data:`PROJECTION_TOLERANCE` (:func:`projection_failure` otherwise).
     iterations : int
         The Gauss-Newton steps of the projection (named in the error).
+    check : callable, optional
+        ``check(t, y)``: the tree's own run guards (a deformable body's range: a modal beam's deflection bound
+        beyond its length, a finite-element subsystem's displacement beyond its size), raising
+        :class:`SimulationError`; applied after every RK4 step (after the projection, before its residual is
+        checked: a body beyond its range is the cause of a projection that then fails) and, with ``solve_ivp``, to
+        every stored state.  The error gets the partial result up to the last good stored state.
     rtol, atol : float
         ``solve_ivp`` tolerances.
     store_every : int
@@ -238,7 +252,7 @@ def integrate_loop_model(rate: Callable[[float, np.ndarray], np.ndarray], y0: np
     SimulationError
         A failure of the rates (a singular loop configuration), a non-finite state, a failed projection (RK4 with
         ``model``) or a failed ``solve_ivp`` run, with the time, the cut joint and the partial result up to the last
-        good stored state.
+        good stored state; a failed ``check`` with its own time and element and that partial result.
     """
     n = n_positions
     start = _time.perf_counter()
@@ -262,6 +276,8 @@ def integrate_loop_model(rate: Callable[[float, np.ndarray], np.ndarray], y0: np
                 raise SimulationError(f"{label}: non-finite state at t = {k * h} s", time=k * h, element=element,
                                       partial_result=partial())
             y = finish(y, k * h)
+            if check is not None:       # a body beyond its range first: the cause of a projection that then fails
+                _checked(check, k * h, y, partial)
             if model is not None:
                 _, failure = projected_residual(model, y[:n], y[n:], k * h, label, iterations)
                 if failure is not None:
@@ -275,6 +291,57 @@ def integrate_loop_model(rate: Callable[[float, np.ndarray], np.ndarray], y0: np
     limit = max_step if max_step is not None else (np.inf if dt is None else dt)
     sol = scipy.integrate.solve_ivp(rate, (0.0, t_final), y0, method=method, rtol=rtol, atol=atol, t_eval=t_eval,
                                     max_step=limit)
+    if check is not None:
+        for row in range(1, len(sol.t)):
+            _checked(check, float(sol.t[row]), sol.y[:, row], lambda row=row: {
+                "t": sol.t[:row], "q": sol.y[:n, :row].T, velocity_label: sol.y[n:, :row].T})
     if not sol.success:
         raise SimulationError(f"{label}: solve_ivp failed: {sol.message}", time=float(sol.t[-1]), element=element)
     return sol.t, sol.y.T, _time.perf_counter() - start
+
+
+def _checked(check: Callable[[float, np.ndarray], None], t: float, y: np.ndarray, partial: Callable[[], dict]
+             ) -> None:
+    """``check(t, y)``; its :class:`SimulationError` completed with ``partial()`` when it carries no partial result."""
+    try:
+        check(t, y)
+    except SimulationError as exc:
+        if exc.partial_result is None:
+            exc.partial_result = partial()
+        raise
+
+
+def deformation_failure(model: Any, t: np.ndarray, states: np.ndarray, bad: int | None, dt: float, size: int,
+                        beyond: Any, step: Any) -> tuple[int, SimulationError] | None:
+    """The tree runs' deformable-body rule on a generated run of a kinematic loop model.
+
+    Stored times ``t`` [s], states ``[x, ...]`` with ``x = [q ; v]`` of ``size``, ``bad`` the row
+    :func:`ctmm.compiled_kinematic_loops.first_failure` found.  Returns ``(row, error)`` when a step before the
+    generated failure (or, without one, any step) puts a body beyond its range: the error that of the numpy RK4 at
+    that step (``beyond(x, t)``: the error or ``None``), ``row`` the first stored row after it; ``None`` otherwise
+    (none beyond its range, or the generated failure comes first).  The first stored row beyond the rule, or
+    ``bad``, is found on the stored states; the steps since the stored row before it are run again by the numpy
+    RK4 step with projection (``step(x, k)``: step ``k`` from ``x`` after step ``k - 1``, ``None`` when not
+    finite; generated = numpy to round-off) and checked in the numpy RK4's order (finite, the body, the projection
+    residual).
+    """
+    for row in range(1, len(t) if bad is None else bad + 1):
+        if row == bad or beyond(states[row, :size], float(t[row])) is not None:
+            break
+    else:
+        return None
+    x = states[row - 1, :size]
+    for k in range(int(round(t[row - 1] / dt)) + 1, int(round(t[row] / dt)) + 1):
+        try:
+            x = step(x, k)
+        except SimulationError:
+            return None                                 # a singular configuration: the generated failure's
+        if x is None:
+            return None                                 # non-finite before the projection: the generated failure's
+        error = beyond(x, k * dt)
+        if error is not None:
+            return row, error
+        nq = size - model.n_velocities
+        if np.max(np.abs(model.constraints(x[:nq], x[nq:], k * dt)[0]), initial=0.0) > PROJECTION_TOLERANCE:
+            return None
+    return None

@@ -16,6 +16,7 @@ import numpy as np
 
 from ..errors import SimulationError
 from ..flexible.family import ModalBeamFamily
+from ..flexible.outputs import divergence_reason
 
 __all__ = ["SubsystemFamily", "SmallDeformationWarning", "subsystem_energy", "SMALL_DEFORMATION"]
 
@@ -69,7 +70,10 @@ class SubsystemFamily(ModalBeamFamily):
     def check_divergence(model: Any, q: np.ndarray, t: float, dt: float | None, method: str) -> None:
         """Raise :class:`SimulationError` when a subsystem's displacement is larger than the subsystem itself
         (divergence); warn (:class:`SmallDeformationWarning`) beyond :data:`SMALL_DEFORMATION` of its size when
-        it has a linear stiffness (the kinematics are exact for any displacement: only ``K u`` is linearised)."""
+        it has a linear stiffness (the kinematics are exact for any displacement: only ``K u`` is linearised).
+        The message decides the cause (:func:`ctmm.flexible.outputs.divergence_reason`): with ``"rk4"`` and a fixed
+        step ``dt`` [s], a step above ``2 sqrt 2 / omega_max`` (the subsystem's highest clamped frequency
+        ``eigh(K, M)`` or the model's linearised one, the larger) is named as the cause, else the model."""
         for j, body in model.beams.items():
             d = body.data
             u = np.asarray(q)[model.modal_index[j]]
@@ -79,11 +83,13 @@ class SubsystemFamily(ModalBeamFamily):
                               f"subsystem's size {d.size:.3g} m: outside the small-deformation range of its floating "
                               "frame (docs/mixed.md §5)", SmallDeformationWarning, stacklevel=2)
             if not np.isfinite(bound) or bound > d.size:
+                reason = divergence_reason(model, t, dt, method,
+                                           "a compressive load above its buckling load, or loads that deform it "
+                                           "beyond its size")
                 raise SimulationError(
                     f"simulation diverged at t = {t:.6g} s: subsystem {body.name!r} displacement {bound:.3g} m exceeds "
-                    f"its size {d.size:.3g} m (small deformation in the floating frame); with {method!r} and "
-                    f"dt = {dt} s the step may be above the stability limit 2 sqrt 2 / omega_max = "
-                    f"{2 * np.sqrt(2) / max(float(np.max(d.frequencies)), 1e-300):.3g} s", time=t, element=body.name)
+                    f"its size {d.size:.3g} m (small deformation in the floating frame); {reason}", time=t,
+                    element=body.name)
 
     @staticmethod
     def energy(model: Any, q: np.ndarray, qdot: np.ndarray, t: float) -> float:

@@ -82,21 +82,43 @@ def model_highest_frequency(model, t: float = 0.0) -> tuple[float, str]:
     except (SimulationError, FloatingPointError, np.linalg.LinAlgError):
         linearised = math.inf                       # no linearisation: the RK4 step cannot be cleared
     if not linearised > beams:
-        return beams, f"highest modal frequency {beams:.4g} rad/s of beam {which!r}"
+        return beams, f"highest modal frequency {beams:.4g} rad/s of {which!r}"
     return linearised, (f"highest frequency {linearised:.4g} rad/s of the model linearised about its undeformed "
-                        f"state at rest (beam {which!r} alone: {beams:.4g} rad/s)")
+                        f"state at rest ({which!r} alone: {beams:.4g} rad/s)")
+
+
+def divergence_reason(model, t: float, dt: float | None, method: str, example: str) -> str:
+    """Why a deformable body left its range at ``t`` [s], decided where it can be.
+
+    With ``method == "rk4"`` and a fixed step ``dt`` [s] it compares ``dt`` with the RK4 limit
+    ``2 sqrt 2 / omega_max`` of :func:`model_highest_frequency` (the model's own highest frequency: the larger of
+    the deformable bodies' clamped modes, e.g. a finite-element subsystem's ``eigh(K, M)``, and the model linearised
+    about its undeformed state): above it, the explicit step is unstable; within it, the model itself (``example``
+    names a typical cause).  Other methods (the implicit schemes, checked against their own limit before the
+    run, and the adaptive ``solve_ivp`` methods) are not judged here: the reason says to look at that check's
+    warning.
+    """
+    if dt is not None and method == "rk4":
+        w_max, source = model_highest_frequency(model, t)
+        if not dt * w_max <= RK4_LIMIT:
+            return (f"the explicit RK4 step is unstable: dt = {dt:g} s exceeds the stability "
+                    f"limit 2 sqrt 2/omega_max = {RK4_LIMIT / w_max:.4g} s ({source}); reduce dt or "
+                    "use an implicit scheme")
+        return (f"the model's response grows without bound (dt = {dt:g} s is within the RK4 "
+                f"stability limit 2 sqrt 2/omega_max = {RK4_LIMIT / w_max:.4g} s, {source}, so the "
+                f"model itself is unstable, e.g. {example})")
+    return (f"the model's response grows without bound; {method!r} is not checked against its "
+            "stability limit here: if the run warned that the step exceeds the scheme's limit "
+            "(StabilityLimitWarning, checked before the run), reduce dt or choose a stable "
+            f"scheme; otherwise the model itself is unstable (e.g. {example})")
 
 
 def check_divergence(model, q, t: float, dt: float | None, method: str, partial=None) -> None:
     """Raise :class:`SimulationError` when a beam's deflection bound exceeds its length.
 
     ``sum_i |eta_i| max|phi_i|`` > ``L`` is far outside the small-deformation model; the message
-    gives the reason.  With ``method == "rk4"`` and a fixed step ``dt`` [s] it compares ``dt`` with the
-    RK4 limit ``2 sqrt 2 / omega_max`` of :func:`model_highest_frequency` (the model's own highest
-    frequency, not only the beams' clamped modes): above it, numerical instability; below it, the model
-    itself is unstable (e.g. no geometric stiffening above the first critical speed).  Other methods
-    (the implicit schemes, checked against their own limit before the run) are not judged here: the message
-    says to look at that check's warning.
+    gives the reason (:func:`divergence_reason`: with ``method == "rk4"`` and a fixed step, the step against the
+    model's RK4 limit decides between an unstable step and an unstable model).
     """
     for j, beam in model.beams.items():
         d = beam.data
@@ -104,23 +126,8 @@ def check_divergence(model, q, t: float, dt: float | None, method: str, partial=
         bound = float(np.abs(eta[:d.nq]) @ d.phi_bound) + (
             float(np.sum(np.abs(eta[d.nq:]))) * np.sqrt(2.0) if d.np_ else 0.0)
         if not np.isfinite(bound) or bound > beam.length:
-            if dt is not None and method == "rk4":
-                w_max, source = model_highest_frequency(model, t)
-                if not dt * w_max <= RK4_LIMIT:
-                    reason = (f"the explicit RK4 step is unstable: dt = {dt:g} s exceeds the stability "
-                              f"limit 2 sqrt 2/omega_max = {RK4_LIMIT / w_max:.4g} s ({source}); reduce dt or "
-                              "use an implicit scheme")
-                else:
-                    reason = (f"the model's response grows without bound (dt = {dt:g} s is within the RK4 "
-                              f"stability limit 2 sqrt 2/omega_max = {RK4_LIMIT / w_max:.4g} s, {source}, so the "
-                              "model itself is unstable, e.g. geometric stiffening is off above the first "
-                              "critical speed)")
-            else:
-                reason = (f"the model's response grows without bound; {method!r} is not checked against its "
-                          "stability limit here: if the run warned that the step exceeds the scheme's limit "
-                          "(StabilityLimitWarning, checked before the run), reduce dt or choose a stable "
-                          "scheme; otherwise the model itself is unstable (e.g. geometric stiffening is off "
-                          "above the first critical speed)")
+            reason = divergence_reason(model, t, dt, method,
+                                       "geometric stiffening is off above the first critical speed")
             raise SimulationError(
                 f"simulation diverged at t = {t:.6g} s: beam {beam.name!r} deflection bound "
                 f"{bound:.3g} m exceeds its length {beam.length:g} m; {reason}",
@@ -168,4 +175,4 @@ def spinup_law(final_rate: float = 6.0, ramp_time: float = 15.0):
 
 __all__ = ["mape", "spinup_law", "tip_deflection", "axial_tip_displacement", "highest_frequency",
            "model_highest_frequency",
-           "check_divergence"]
+           "check_divergence", "divergence_reason"]

@@ -438,7 +438,10 @@ def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: f
         Bad arguments or an inconsistent initial state.
     SimulationError
         A singular loop configuration, a non-finite state or (RK4 with projection) a failed projection: ``|Phi|``
-        above :data:`ctmm.loop_integration.PROJECTION_TOLERANCE` after it (time, cut joint, partial result).
+        above :data:`ctmm.loop_integration.PROJECTION_TOLERANCE` after it (time, cut joint, partial result); a
+        deformable body of the tree beyond its range (the tree runs' rule, ``family.check_divergence``: a modal beam's
+        deflection bound beyond its length, a finite-element subsystem's displacement beyond its size; time, body,
+        partial result), checked after every RK4 step and at every stored ``solve_ivp`` state.
     """
     if not isinstance(model, KinematicLoopModel):
         raise ModelError(f"model must be a KinematicLoopModel, got {model!r}")
@@ -458,11 +461,14 @@ def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: f
     def finish(y: np.ndarray, t: float) -> np.ndarray:
         return np.concatenate(model.project(y[:n], y[n:], t)) if projection else y
 
+    family, step = model.tree.deformable_family, dt if method == "rk4" else None
+    check = None if family is None else (    # the tree runs' rule: a modal beam's deflection, a subsystem's size
+        lambda t, y: family.check_divergence(model.tree, y[:n], float(t), step, method))
     t_out, y_out, wall = integrate_loop_model(rate, np.concatenate([q, v]), n, t_final=t_final, dt=dt, method=method,
                                               finish=finish, rtol=rtol, atol=atol, store_every=store_every,
                                               t_eval=t_eval, max_step=max_step, label=f"kinematic loop {model.name!r}",
                                               element=model.cuts[0].name, velocity_label="qdot",
-                                              model=model if projection else None)
+                                              model=model if projection else None, check=check)
     forces, drift, drift_rate = [], [], []
     for t, y in zip(t_out, y_out):
         phi, phi_dot = model.constraints(y[:n], y[n:], t)

@@ -20,6 +20,7 @@ from ..loop_integration import StepProjection, check_consistent, integrate_loop_
 from ..schemes import Scheme
 from .closed_loops import SpatialKinematicLoopModel
 from .implicit import simulate_spatial_implicit
+from .integrate import divergence_check
 
 __all__ = ["SpatialLoopSimulation", "simulate_spatial_loop_scheme", "simulate_spatial_loops"]
 
@@ -95,7 +96,11 @@ def simulate_spatial_loops(model: SpatialKinematicLoopModel, q0: Any, v0: Any, *
         Bad arguments or an inconsistent initial state.
     SimulationError
         A singular loop configuration, a non-finite state or (RK4 with projection) a failed projection: ``|Phi|``
-        above :data:`ctmm.loop_integration.PROJECTION_TOLERANCE` after it (time, cut joint, partial result).
+        above :data:`ctmm.loop_integration.PROJECTION_TOLERANCE` after it (time, cut joint, partial result); a
+        deformable body of the tree beyond its range (the tree runs' rule,
+        :func:`ctmm.spatial.integrate.check_beam_deflection`: a beam's deflection bound beyond its length, a
+        finite-element subsystem beyond its size or 1 rad; time, body, partial result), checked after every RK4
+        step and at every stored ``solve_ivp`` state.
     """
     if not isinstance(model, SpatialKinematicLoopModel):
         raise ModelError(f"model must be a SpatialKinematicLoopModel, got {model!r:.80}")
@@ -117,6 +122,11 @@ def simulate_spatial_loops(model: SpatialKinematicLoopModel, q0: Any, v0: Any, *
         return np.concatenate(model.project(y[:nq], y[nq:], t)) if projection else \
             np.concatenate([tree.normalized(y[:nq]), y[nq:]])
 
+    guard = divergence_check(tree, np.concatenate([q, v]), None)      # finite, and the tree's deformable bodies
+
+    def check(t: float, y: np.ndarray) -> None:
+        guard(t, y, method)
+
     grid = None if method == "rk4" or dt is None else \
         np.linspace(0.0, t_final, max(1, int(round(t_final / dt))) + 1)
     t_out, y_out, wall = integrate_loop_model(rate, np.concatenate([q, v]), nq, t_final=t_final, dt=dt, method=method,
@@ -124,7 +134,7 @@ def simulate_spatial_loops(model: SpatialKinematicLoopModel, q0: Any, v0: Any, *
                                               t_eval=grid, max_step=max_step,
                                               label=f"spatial kinematic loop {model.name!r}",
                                               element=model.cuts[0].name, velocity_label="v",
-                                              model=model if projection else None)
+                                              model=model if projection else None, check=check)
     return _history(model, t_out, y_out[:, :nq], y_out[:, nq:], inputs, method, wall, evaluations[0])
 
 

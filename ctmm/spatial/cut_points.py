@@ -11,7 +11,9 @@ A side of a :class:`~ctmm.spatial.closed_loop_cuts.SpatialCutJoint` is one of
   values of both bending planes and the axial shapes, the deformed point of the beam's sensors and ports; a
   subsystem node: ``S`` picks the node's ``u_x, u_y, u_z``), so in the world ``x = o + R rho``,
   ``v = v_o + omega x R rho + R S eta'`` and
-  ``a = a_o + alpha x R rho + omega x (omega x R rho) + 2 omega x R rho' + R rho''``.  A force on it is a point load
+  ``a = a_o + alpha x R rho + omega x (omega x R rho) + 2 omega x R rho' + R rho''``; on a ``SpatialBeam`` with
+  ``second_order_inertia`` ``rho`` also moves along the axis by the shortening ``-1/2 eta^T G1(x_e) eta`` of the bent
+  axis, as the beam's own points, sensors and point loads do.  A force on it is a point load
   at that point, through the body's own load path (``spatial_beam_terms`` / ``subsystem_terms`` ``loads``, the
   path of the point-force actuators): its virtual work ``f . delta x`` gives the frame wrench and the generalised
   force ``S^T R^T f``; on a beam with ``geometric_stiffening`` its beam-axis component ``f_1`` also tensions the
@@ -39,6 +41,9 @@ from .model import SpatialModel
 
 __all__ = ["CutSide", "resolve_side", "side_point", "side_frame", "side_acceleration"]
 
+_AXIS = np.array([1.0, 0.0, 0.0])
+"""The beam axis ``e1`` in the beam's frame (the direction of a second-order beam's shortening)."""
+
 
 @dataclass(frozen=True)
 class CutSide:
@@ -57,6 +62,11 @@ class CutSide:
     turn : (3, n) array or None
         The section's small rotation ``theta`` [rad] per internal coordinate (deformable bodies; ``None`` at a
         subsystem node without rotation DOFs).
+    shortening : (n, n) array or None
+        ``G1(x_e)`` [1/m] at a point of a ``SpatialBeam`` with ``second_order_inertia``: the point moves along the
+        beam axis by the shortening ``u = -1/2 eta^T G1 eta`` [m] of the bent axis, as the beam's own points, sensors
+        and point loads do (:func:`ctmm.spatial.beam_ports.deformed_point`, :mod:`ctmm.spatial.beam_terms`);
+        ``None`` elsewhere.
     """
 
     body: int
@@ -64,6 +74,7 @@ class CutSide:
     shape: np.ndarray | None = None
     modal: slice | None = None
     turn: np.ndarray | None = None
+    shortening: np.ndarray | None = None
 
     @property
     def deformable(self) -> bool:
@@ -119,8 +130,10 @@ def resolve_side(tree: SpatialModel, cut: SpatialCutJoint, body: str | None, poi
         else:
             turn[:, list(rot)] = np.eye(3)
     else:                                                    # a SpatialBeam station
-        Phi, Lam, _ = element.data.station(float(location[0]))
+        Phi, Lam, G1 = element.data.station(float(location[0]))
         shape[:], turn[:] = Phi, Lam
+        if element.data.second_order is not None:
+            return CutSide(j, location, shape, tree.modal[j].velocity, turn, np.asarray(G1, float))
     return CutSide(j, location, shape, tree.modal[j].velocity, turn)
 
 
@@ -129,7 +142,12 @@ def _local(side: CutSide, state: tuple) -> tuple[np.ndarray, np.ndarray]:
     if not side.deformable:
         return side.point[None], np.zeros((1, 3))
     eta, eta_dot = state[5], state[6]
-    return side.point + eta @ side.shape.T, eta_dot @ side.shape.T
+    rho, rho_dot = side.point + eta @ side.shape.T, eta_dot @ side.shape.T
+    if side.shortening is not None:     # u = -1/2 eta^T G1 eta along the axis, u' = -eta^T G1 eta'
+        bent = eta @ side.shortening
+        rho = rho - np.multiply.outer((bent * eta).sum(-1) * 0.5, _AXIS)
+        rho_dot = rho_dot - np.multiply.outer((bent * eta_dot).sum(-1), _AXIS)
+    return rho, rho_dot
 
 
 def side_point(bodies: list, side: CutSide) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
@@ -191,6 +209,10 @@ def side_acceleration(bodies: list, side: CutSide, A: np.ndarray, rates: np.ndar
     acceleration = A[:, side.body, :3] + cross(alpha, r) + cross(omega, cross(omega, r))
     if side.deformable:
         relative = rates[:, side.modal] @ side.shape.T
+        if side.shortening is not None:         # u'' = -eta^T G1 eta'' - eta'^T G1 eta'
+            eta, eta_dot = state[5][0], state[6][0]
+            relative = relative - np.multiply.outer(rates[:, side.modal] @ (side.shortening @ eta)
+                                                    + eta_dot @ side.shortening @ eta_dot, _AXIS)
         acceleration = acceleration + 2.0 * cross(omega, moving) + relative @ R.T
         if side.turn is not None:                # the section: alpha + omega x R Theta theta' + R (Theta theta'')'
             theta, theta_dot = side.turn @ state[5][0], side.turn @ state[6][0]
