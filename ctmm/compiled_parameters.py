@@ -24,7 +24,7 @@ from .planar.body_forms import PlanarScene, SceneNumbers
 from .planar.deformable import DeformableBody
 from .planar.elements import DrivenHinge, Hinge
 from .planar.model import BUSHING, REVOLUTE, PlanarModel
-from .planar.ports import PlanarPorts
+from .planar.ports import actuator_names
 from .signals import SYMBOLIC_FIELDS, Constant, signal_parameters, symbolic_signal
 
 __all__ = ["LoopNumbers", "compile_refusal", "compiled_actuators", "constants_key", "loop_parameter_layout",
@@ -206,10 +206,10 @@ def _plain(value: Any) -> Any:
 
 
 def compiled_actuators(model: PlanarModel) -> tuple[str, ...]:
-    """The actuators a generated kernel takes as inputs: every actuator of ``model`` but the station
-    forces and moments of beams (their floating-frame part is not on the element protocol yet)."""
-    ports = PlanarPorts(model)
-    return tuple(name for name, actuator in ports.actuators.items() if actuator.kind != "station")
+    """The actuators a generated kernel takes as inputs ``u``: every actuator of ``model``
+    (:func:`ctmm.planar.ports.actuator_names`), beam station forces and moments included (their modal forces and
+    floating-frame wrench, :mod:`ctmm.compiled_station_loads`)."""
+    return actuator_names(model)
 
 
 # ------------------------------------------------------------------------------------------

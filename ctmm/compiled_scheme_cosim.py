@@ -26,8 +26,8 @@ compiled in), restarted at the stored controller states and ring; equal to the P
 (:class:`~ctmm.errors.ModelError`, by the verb or here): inputs that are functions of time or signals without loops
 (use ``compiled=None``), measurement delays (:class:`~ctmm.control.measurement_delay.DelayedController`), controller
 outputs the generated step does not drive
-(planar beam station loads; spatial without loops: actuators that are not one-number inputs of the model, e.g.
-body-axis ports).
+(spatial without loops: actuators that are not one-number inputs of the model, e.g. body-axis ports; planar
+models drive every actuator of their ports, beam station forces and moments included).
 """
 from __future__ import annotations
 

@@ -125,8 +125,7 @@ class SchemeLoopTerms:
     state_functions: tuple = ()
 
     def plant_sweep(self) -> Any:
-        """``acceleration(q, v, u, p, t)`` of the plant (casadi ``Function``), ``u`` the :attr:`actuators` followed
-        by the loops' channels (:attr:`ClosedLoops.channels`)."""
+        """``acceleration(q, v, u, p, t)`` of the plant (casadi ``Function``), ``u`` the :attr:`actuators`."""
         raise NotImplementedError
 
     def setup_loops(self, scheme: Scheme) -> None:

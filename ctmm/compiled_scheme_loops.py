@@ -49,7 +49,8 @@ loops at the stored controller states and ring).
 
 What compiles: static-gain loops ``u = -K e`` with weighted sensor terms (a PD: ``sensor=[(angle, kp),
 (rate, kd)]``, ``gain=1``), LTI controllers, saturation, references and open-loop inputs that are numbers or
-symbolic :mod:`ctmm.signals`, loops on beam station moment pairs (:attr:`ctmm.compiled_loops.ClosedLoops.channels`),
+symbolic :mod:`ctmm.signals`, loops on beam station forces, moments and moment pairs (inputs of the sweep,
+:mod:`ctmm.compiled_station_loads`),
 delayed loops with every scheme (a start-up at another evaluation fraction: the ring read at each step's own),
 co-simulated controllers beside them.  Refused by name (:class:`~ctmm.errors.ModelError`; ``compiled=None`` runs
 them in Python): a delay shorter than a start-up's later fraction times ``dt``, and what :class:`ClosedLoops`, the
@@ -139,9 +140,8 @@ class CompiledSchemeLoops(SchemeLoopTerms, CompiledSceneScheme):
                          max_iterations=max_iterations, rows=rows, cache_dir=cache_dir, compiler=compiler)
 
     def plant_sweep(self) -> Any:
-        """The planar sweep with the inputs :attr:`actuators` and the loops' channels."""
-        return symbolic_accelerations_with_inputs(self.model, self.actuators,
-                                                  [unit for _, unit in self.loops.channels])
+        """The planar sweep with the inputs :attr:`actuators` (beam station loads included)."""
+        return symbolic_accelerations_with_inputs(self.model, self.actuators)
 
     def restarted(self, state: np.ndarray, held: np.ndarray | None, t: float, start: bool = False) -> np.ndarray:
         """:meth:`CompiledSceneScheme.restarted` with the loops at the stored controller entries (states, delayed

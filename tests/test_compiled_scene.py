@@ -373,9 +373,10 @@ def test_refusals():
         ctmm.simulate(chain, 0.1, 1e-2, method="DOP853", compiled=True)   # rk4 and the DT-TMM schemes only
 
 
-def test_beam_station_loads_are_not_taken_by_generated_kernels_and_never_dropped():
-    """A station force on a beam has a floating-frame part the protocol does not carry yet: the
-    generated scene leaves those actuators out (other inputs still work) and refuses them by name."""
+def test_beam_station_loads_are_inputs_of_generated_kernels_and_never_dropped():
+    """A station force on a beam has a floating-frame part the element protocol does not carry: the numpy element
+    terms refuse it by name, the generated scene takes it as an input with its frame wrench
+    (ctmm.compiled_station_loads; runs against the numpy path: tests/test_compiled_station_held_inputs.py)."""
     from ctmm.compiled_scene import CompiledScene, compiled_actuators
     from ctmm.flexible import ModalBeam
     from ctmm.planar import ActuatedHinge, Fixed, PlanarModel, RigidBody
@@ -388,7 +389,7 @@ def test_beam_station_loads_are_not_taken_by_generated_kernels_and_never_dropped
                                      FixedMounting("mount"), beam], gravity=(0.0, 0.0))
     names = compiled_actuators(model)
     assert "motor.torque" in names and "beam.q1.force" in names
-    assert not any(name.startswith("beam.mid.") for name in names)
+    assert "beam.mid.force" in names and "beam.mid.moment" in names
     from ctmm.planar.ports import actuator_inputs
 
     with pytest.raises(ModelError, match="station forces and moments"):
