@@ -34,9 +34,9 @@ entries of the step's parameter vector ``p`` after the plant's numbers
 (:func:`ctmm.compiled_parameters.loop_parameter_layout`; :attr:`ClosedLoops.parameter_values`), so
 one library serves a sweep of them; with ``numbers="constants"`` they are constants of the code.  The
 sensors, delays, controller orders, reference classes and open-loop inputs are always constants.
-Loops and open-loop inputs acting on beam station forces or moments act on them as on any actuator input of the
-sweep (:func:`ctmm.compiled_parameters.compiled_actuators`): their modal forces and floating-frame wrench enter the
-beam's element terms (:mod:`ctmm.compiled_station_loads`).
+Loops and open-loop inputs acting on beam station forces or moments (not among the held actuator inputs,
+:func:`ctmm.compiled_scene.compiled_actuators`) enter the sweep as extra inputs, :attr:`ClosedLoops.channels`:
+their modal forces and floating-frame wrench in the beam's element terms (:mod:`ctmm.compiled_station_loads`).
 Refused: user callables as references or inputs, co-simulated controllers.
 """
 from __future__ import annotations
@@ -51,6 +51,7 @@ from .control.planar_time import controller_realisation
 from .errors import ModelError
 from .ode import rk4_step
 from .planar.model import PlanarModel
+from .planar.ports import ActuatorInputs, PlanarPorts
 from .compiled_planar_sensors import PlanarSymbols
 from .compiled_parameters import LoopNumbers, loop_parameter_layout, parameter_vector, symbolic_loop_numbers
 from .compiled_references import SymbolicReference, reference_at, symbolic_reference
@@ -157,6 +158,10 @@ class ClosedLoops:
     Attributes
     ----------
     laws : tuple of LoopLaw
+    channels : list of (int or signal, ActuatorInputs)
+        Loops acting on beam station forces or moments (the loop's index) and open-loop ``inputs`` on them
+        (the input's symbolic signal), with their loads per unit value, modal and floating-frame
+        (:mod:`ctmm.compiled_station_loads`): extra inputs of the sweep after ``actuators``.
     n_controller_states : int
     plant_parameter_count : int
         Length of the plant's numbers, the first entries of ``p`` (0 for a spatial plant with its numbers
@@ -187,26 +192,29 @@ class ClosedLoops:
         for name in references:
             controlled.loop(name)                   # unknown loop names raise
         self.actuators = tuple(actuators)
-        self.inputs = []
+        self.inputs, station_inputs = [], []
         for name, value in dict(inputs or {}).items():
             ports.check_actuator(name, "inputs: actuator")
             signal = symbolic_reference(f"inputs[{name!r}]", value)
-            if name not in self.actuators:
+            if name in self.actuators:
+                self.inputs.append((self.actuators.index(name), signal))
+            elif isinstance(ports, PlanarPorts) and ports.actuators[name].kind == "station":
+                station_inputs.append((signal, ports.inputs({name: 1.0})))     # a channel of its own
+            else:
                 raise ModelError(f"inputs[{name!r}]: generated kernels drive the actuators "
-                                 f"{', '.join(self.actuators) or '(none)'}; use compiled=False")
-            self.inputs.append((self.actuators.index(name), signal))
-        laws = []
+                                 f"{', '.join(self.actuators) or '(none)'} and the station forces and moments of "
+                                 "planar beams; use compiled=False")
+        laws, self.channels = [], []
         for loop in controlled.loops:
-            outside = [actuator for actuator, _ in loop.actuator_terms if actuator not in self.actuators]
-            if outside:
-                raise ModelError(f"loop {loop.name!r} acts on {', '.join(map(repr, outside))}, outside the generated "
-                                 f"kernel's inputs {', '.join(self.actuators) or '(none)'}; use compiled=False")
+            if any(actuator not in self.actuators for actuator, _ in loop.actuator_terms):
+                self.channels.append((len(laws), self._channel(ports, loop)))
             A, B, C, D = controller_realisation(loop)
             reference = symbolic_reference(f"references[{loop.name!r}]", references.get(loop.name, 0.0))
             laws.append(LoopLaw(loop.name, tuple(loop.terms), tuple(loop.actuator_terms), A, B, C, D,
                                 float(loop.delay), delay_steps(loop.name, loop.delay, dt) if whole_delays else
                                 int(loop.delay > 0.0), reference, loop.saturation))
         self.laws = tuple(laws)
+        self.channels += station_inputs
         symbols = PlanarSymbols(plant, ports) if symbols is None else symbols
         self.nq, self.nv = symbols.n_positions, symbols.n_velocities
         self.base = self.nq + self.nv           # [q, v] (planar: v = qdot), then z and the ring
@@ -232,10 +240,24 @@ class ClosedLoops:
         rates = ca.jtimes(y, ca.vertcat(q, v), ca.vertcat(self.position_rates(q, v), a)) if laws else ca.SX(0, 1)
         self.sensor_rates = ca.Function("loop_sensor_rates", [q, v, a], [rates])
         weights = np.zeros((len(self.actuators), len(laws)))
+        channelled = {k for k, _ in self.channels if isinstance(k, int)}
         for k, law in enumerate(laws):
-            for actuator, w in law.actuators:
+            for actuator, w in ([] if k in channelled else law.actuators):
                 weights[self.actuators.index(actuator), k] += float(w)
         self.weights = weights
+
+    @staticmethod
+    def _channel(ports: PlanarPorts, loop: Any) -> ActuatorInputs:
+        """The loads of a loop acting on beam station forces or moments, per unit output: modal forces and the
+        wrench on the beam's floating frame (:mod:`ctmm.compiled_station_loads`; a piezo patch's moment pair
+        ``-M`` at ``x1``, ``+M`` at ``x2`` leaves modal forces only)."""
+        if not isinstance(ports, PlanarPorts):
+            raise ModelError(f"loop {loop.name!r} acts on actuators outside the generated kernel's inputs; use "
+                             "compiled=False")
+        weights: dict[str, float] = {}
+        for actuator, w in loop.actuator_terms:
+            weights[actuator] = weights.get(actuator, 0.0) + float(w)
+        return ports.inputs(weights)
 
     # -- pieces of the state -----------------------------------------------------------------
     def _split(self, x: Any) -> tuple:
@@ -302,6 +324,7 @@ class ClosedLoops:
             unit = np.zeros(len(self.actuators))
             unit[index] = 1.0
             total = total + ca.DM(unit) * reference_at(signal, t)
+        total = ca.vertcat(total, *[outputs[k] if isinstance(k, int) else reference_at(k, t) for k, _ in self.channels])
         qddot = acceleration(q, v, total, p[:self.plant_parameter_count] if self.parameter_layout else p, t)
         return ca.vertcat(self.position_rates(q, v), qddot, *rates), qddot
 
@@ -309,7 +332,8 @@ class ClosedLoops:
         """``step(Y, u, h, p, t0, k)``: RK4 step ``k`` (from ``t0 + k h``) of the closed loop, ``Y`` the
         state ``[q, qdot, z, ring]`` (:attr:`state_size`), ``u`` the ``n_inputs`` held actuator values,
         ``p`` the plant's ``n_parameters`` numbers, then the loops' :attr:`parameter_values` entries;
-        ``acceleration(q, v, u, p_plant, t)`` the plant's generated sweep (a casadi Function).
+        ``acceleration(q, v, [u; channels], p_plant, t)`` the plant's generated sweep (a casadi Function)
+        whose inputs continue with one per :attr:`channels` entry.
 
         Raises
         ------

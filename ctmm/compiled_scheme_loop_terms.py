@@ -125,7 +125,8 @@ class SchemeLoopTerms:
     state_functions: tuple = ()
 
     def plant_sweep(self) -> Any:
-        """``acceleration(q, v, u, p, t)`` of the plant (casadi ``Function``), ``u`` the :attr:`actuators`."""
+        """``acceleration(q, v, u, p, t)`` of the plant (casadi ``Function``), ``u`` the :attr:`actuators` followed
+        by the loops' channels (:attr:`ClosedLoops.channels`)."""
         raise NotImplementedError
 
     def setup_loops(self, scheme: Scheme) -> None:

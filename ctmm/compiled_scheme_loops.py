@@ -49,8 +49,7 @@ loops at the stored controller states and ring).
 
 What compiles: static-gain loops ``u = -K e`` with weighted sensor terms (a PD: ``sensor=[(angle, kp),
 (rate, kd)]``, ``gain=1``), LTI controllers, saturation, references and open-loop inputs that are numbers or
-symbolic :mod:`ctmm.signals`, loops on beam station forces, moments and moment pairs (inputs of the sweep,
-:mod:`ctmm.compiled_station_loads`),
+symbolic :mod:`ctmm.signals`, loops on beam station moment pairs (:attr:`ctmm.compiled_loops.ClosedLoops.channels`),
 delayed loops with every scheme (a start-up at another evaluation fraction: the ring read at each step's own),
 co-simulated controllers beside them.  Refused by name (:class:`~ctmm.errors.ModelError`; ``compiled=None`` runs
 them in Python): a delay shorter than a start-up's later fraction times ``dt``, and what :class:`ClosedLoops`, the
@@ -128,20 +127,22 @@ class CompiledSchemeLoops(SchemeLoopTerms, CompiledSceneScheme):
                  references: Mapping[str, Any] | None = None, inputs: Mapping[str, Any] | None = None,
                  store_every: int = 1, tolerance: float = 1e-10, max_iterations: int = 20, rows: int = 64,
                  dt: float | None = None, cache_dir: str | os.PathLike | None = None,
-                 compiler: str | None = None) -> None:
+                 compiler: str | None = None, station_inputs: Sequence[str] = ()) -> None:
         reason = loop_refusal(controlled)
         if reason:
             raise ModelError(f"CompiledSchemeLoops: {reason}")
         self.controlled, self.dt = controlled, None if dt is None else validation.positive("dt", dt)
-        self.loops = ClosedLoops(controlled, compiled_actuators(controlled.plant), self.dt, references, inputs,
-                                 whole_delays=False)
+        self.loops = ClosedLoops(controlled, compiled_actuators(controlled.plant, station_inputs), self.dt,
+                                 references, inputs, whole_delays=False)
         self.setup_loops(as_scheme(scheme))
         super().__init__(controlled.plant, scheme, store_every=store_every, tolerance=tolerance,
-                         max_iterations=max_iterations, rows=rows, cache_dir=cache_dir, compiler=compiler)
+                         max_iterations=max_iterations, rows=rows, cache_dir=cache_dir, compiler=compiler,
+                         station_inputs=station_inputs)
 
     def plant_sweep(self) -> Any:
-        """The planar sweep with the inputs :attr:`actuators` (beam station loads included)."""
-        return symbolic_accelerations_with_inputs(self.model, self.actuators)
+        """The planar sweep with the inputs :attr:`actuators` and the loops' channels."""
+        return symbolic_accelerations_with_inputs(self.model, self.actuators,
+                                                  [unit for _, unit in self.loops.channels])
 
     def restarted(self, state: np.ndarray, held: np.ndarray | None, t: float, start: bool = False) -> np.ndarray:
         """:meth:`CompiledSceneScheme.restarted` with the loops at the stored controller entries (states, delayed

@@ -192,7 +192,8 @@ def planar_simulation_sensitivity(model: Any, parameters: str | Sequence[str], *
 
     actuators = compiled_actuators(model)
     loops = None if controlled is None else ClosedLoops(controlled, actuators, h, numbers="inputs")
-    acceleration = symbolic_accelerations_with_inputs(model, actuators)
+    acceleration = symbolic_accelerations_with_inputs(model, actuators,
+                                                      [unit for _, unit in loops.channels] if loops else ())
     if loops is None:
         y_sx, u_sx, p_sx, t_sx = ca.SX.sym("y", 2 * n), ca.SX.sym("u", len(actuators)), ca.SX.sym("p", p0.size), \
             ca.SX.sym("t")

@@ -1,9 +1,10 @@
 """Beam station forces and moments as held inputs of the generated planar kernels (issue 13).
 
-``"<beam>.<station>.force|moment"`` are inputs ``u`` of every generated kernel like any other actuator
-(:func:`ctmm.compiled_parameters.compiled_actuators`; their modal forces and floating-frame wrench:
+``"<beam>.<station>.force|moment"`` named in ``station_inputs`` are inputs ``u`` of a generated kernel like any other
+actuator (:func:`ctmm.compiled_parameters.compiled_actuators`; their modal forces and floating-frame wrench:
 :mod:`ctmm.compiled_station_loads`): held through :meth:`CompiledScene.advance`, over the members of an unlooped
-:func:`simulate_batch`, by a co-simulated controller around the generated RK4 and around a generated DT-TMM scheme.
+:func:`simulate_batch`; a co-simulated controller driving one names it for the generated RK4 and the generated DT-TMM
+scheme itself.
 
 Independent checks:
 
@@ -69,8 +70,8 @@ def euler_bernoulli(x: float) -> float:
 
 def test_a_held_station_force_settles_to_the_static_deflection_and_hinge_angle():
     model = hub_cantilever()
-    scene = CompiledScene(model)
-    assert "arm.a.force" in scene.actuators and "arm.tip.moment" in scene.actuators
+    scene = CompiledScene(model, station_inputs=["arm.a.force"])
+    assert scene.actuators[-1] == "arm.a.force" and "arm.tip.moment" not in scene.actuators
     zero = np.zeros(model.n_coordinates)
     q, qdot = zero, zero
     for k in range(12):                      # one held interval of 1 s after another, as a sampled controller would
@@ -87,7 +88,7 @@ def test_a_held_station_force_settles_to_the_static_deflection_and_hinge_angle()
 
 def test_held_station_loads_through_advance_equal_the_numpy_path():
     model = hub_cantilever()
-    scene = CompiledScene(model)
+    scene = CompiledScene(model, station_inputs=["arm.a.force", "arm.tip.moment"])
     x0 = np.array([0.05, 0.002, -0.0005, 0.0, 0.0])
     inputs = {"arm.a.force": FORCE, "arm.tip.moment": -0.15, "motor.torque": 0.05}
     python = ctmm.simulate(model, 0.2, 1e-3, x0=x0, inputs=inputs, method="rk4")
@@ -103,7 +104,7 @@ def test_held_station_loads_through_advance_equal_the_numpy_path():
 def test_an_unlooped_batch_with_a_held_station_force_runs_each_member_as_the_numpy_path():
     stiffnesses = (2.0, 3.0, 5.0)
     models = [hub_cantilever(kp) for kp in stiffnesses]
-    scene = CompiledScene(models[0])
+    scene = CompiledScene(models[0], station_inputs=["arm.tip.force", "arm.a.force"])
     parameters = np.array([parameter_vector(model) for model in models])
     x0 = np.array([0.02, 0.001, 0.0, 0.0, 0.0])
     states = simulate_batch(scene, parameters, x0, np.zeros(5), dt=1e-3, n_steps=150, inputs={"arm.tip.force": -0.3})
@@ -151,3 +152,24 @@ def test_a_cosimulated_controller_on_a_station_force_beside_a_generated_scheme_e
     assert np.ptp(python["arm.tip.force@samples"][:, 1]) > 1e-3
     for name in python.signals():
         assert np.max(np.abs(np.asarray(generated[name]) - np.asarray(python[name]))) <= 1e-10, name
+
+
+def test_a_cosimulated_controller_on_a_spatial_beam_station_force_beside_a_generated_scheme_equals_the_python_path():
+    """A spatial beam's body-axis station force (a port actuator, not an input of the plain generated scheme) driven by
+    a sampled controller: the generated Newmark step with the port actuators (no loops) = the Python path."""
+    from test_spatial_beam_body_actuators import spatial_arm
+
+    model = spatial_arm("xy")
+
+    def controller():
+        return load_controllers().PID("b.p2.w_y", "b.p2.force_body_y", kp=5.0, ki=0.0, kd=0.1,
+                                      derivative_filter_time=0.0, sample_time=2e-3, reference=0.01)
+
+    generated = ctmm.simulate(model, 0.05, 1e-3, compiled=True, controllers=[controller()], method="newmark",
+                              outputs=["b.p2.w_y"])
+    python = ctmm.simulate(model, 0.05, 1e-3, controllers=[controller()], method="newmark", outputs=["b.p2.w_y"])
+    assert generated.scheme_name.startswith("dt-tmm-generated/")
+    assert np.ptp(python["b.p2.w_y"]) > 1e-6
+    for name in python.signals():
+        scale = max(1e-6, float(np.max(np.abs(np.asarray(python[name])))))
+        assert np.max(np.abs(np.asarray(generated[name]) - np.asarray(python[name]))) <= 1e-10 * scale, name
