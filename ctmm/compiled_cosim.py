@@ -26,8 +26,9 @@ jumps).  The generated schemes of planar and spatial models take co-simulated co
 A :class:`~ctmm.control.measurement_delay.DelayedController` reads its inputs ``delay`` seconds late from the
 states of the run; the delay must be a whole multiple of ``dt`` here (the numpy path interpolates its delay
 history between steps; on the grid both read the stored step).  Before ``t = 0`` the initial state is held.
-Controller outputs must drive actuators of the generated kernel (planar: not beam station loads).  A chain's
-divergence guard is its own (point positions from rest, :class:`~ctmm.control.chain_plant.ChainPlant`), checked at
+Controller outputs must drive actuators of the generated kernel (planar: beam station forces and moments that
+controllers drive are inputs of the scene, ``station_inputs`` of :class:`~ctmm.compiled_scene.CompiledScene`).
+A chain's divergence guard is its own (point positions from rest, :class:`~ctmm.control.chain_plant.ChainPlant`), checked at
 every step as on the numpy path; so are a planar model's modal beams and a spatial model's beams (each row through the
 plant's guard: the numpy path's rules and messages), and a kinematic loop model's bound is its tree's coordinates.
 """
@@ -44,6 +45,7 @@ import numpy as np
 from . import validation
 from .compiled_chain import chain_loop_signals
 from .compiled_control import add_loop_signals
+from .compiled_parameters import station_loads
 from .control.chain_plant import ChainPlant
 from .control.controlled_model import ControlledModel
 from .control.cosim import CoSimulation, check_wiring
@@ -79,7 +81,9 @@ def _scene(controlled: Any, dt: float, controllers: Sequence[Any], inputs: Mappi
                                          store_every=1)
     from .compiled_scene import CompiledScene
 
-    return CompiledScene(controlled, store_every=1, dt=dt, references=references, signals=inputs)
+    outputs = [name for c in controllers for name in c.outputs]         # beam station loads among them: inputs too
+    return CompiledScene(controlled, store_every=1, dt=dt, references=references, signals=inputs,
+                         station_inputs=station_loads(controlled.plant, outputs))
 
 
 def _delay_steps(controller: Any, dt: float) -> int:
@@ -175,9 +179,8 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
     for c in controllers:
         for name in c.outputs:
             if name not in scene.actuators:
-                raise ModelError(f"compiled=True: controller output {name!r} drives a beam station load, which "
-                                 f"generated kernels do not drive yet (they drive {', '.join(scene.actuators)}); "
-                                 "run with compiled=False")
+                raise ModelError(f"compiled=True: controller output {name!r} is not an input of the generated "
+                                 f"kernel (it drives {', '.join(scene.actuators) or 'none'}); run with compiled=False")
     plant.check_step(q0, v0, dt, stability_check)
     sensors = [ports.resolve(list(c.inputs)) for c in controllers]
     index = {name: k for k, name in enumerate(scene.actuators)}

@@ -24,7 +24,6 @@ The frame's second-order inertia (``ModalBeam(second_order_inertia=True)``) is i
 """
 from __future__ import annotations
 
-from dataclasses import replace
 from typing import Any, Sequence
 
 import numpy as np
@@ -33,12 +32,11 @@ from .articulated import articulated_sweep
 from .compiled_planar_sensors import SymbolicKinematics
 from .compiled_parameters import compile_refusal, parameter_vector, symbolic_numbers
 from .compiled_scene import coordinate_accelerations
-from .compiled_scene_fold import symbolic_inputs
+from .compiled_station_loads import symbolic_terms_with_station_loads
 from .errors import ModelError
 from .ops import CASADI
-from .planar.body_forms import PlanarScene
 from .planar.model import PlanarModel
-from .planar.ports import ActuatorInputs, PlanarPorts
+from .planar.ports import PlanarPorts
 from .traced_scalar import TracedScalar, traced_array as _objects, untraced as _untraced
 
 __all__ = ["SymbolicCutSides", "TracedScalar", "deformable_bodies", "is_deformable_side",
@@ -126,9 +124,9 @@ def symbolic_accelerations_with_frame_loads(tree: PlanarModel, actuators: Sequen
                                             ) -> Any:
     """``qddot = acceleration(q, qdot, u, p, t)`` of a compilable planar tree on casadi SX symbols (as
     :func:`ctmm.compiled_scene.symbolic_accelerations_with_inputs`) whose inputs ``u`` are the ports' ``actuators``
-    and then, per deformable body of ``bodies`` (:func:`load_sizes`), a wrench on its floating frame ``(f_x, f_y,
-    moment about the root)`` [N, N, N m] in frame axes and the generalised forces on its internal coordinates
-    (module docstring)."""
+    (beam station loads with their frame wrench, :mod:`ctmm.compiled_station_loads`) and then, per deformable body of
+    ``bodies`` (:func:`load_sizes`), a wrench on its floating frame ``(f_x, f_y, moment about the root)`` [N, N, N m]
+    in frame axes and the generalised forces on its internal coordinates (module docstring)."""
     import casadi as ca
 
     reason = compile_refusal(tree)
@@ -138,31 +136,17 @@ def symbolic_accelerations_with_frame_loads(tree: PlanarModel, actuators: Sequen
     if any(j not in tree.beams for j in bodies):
         raise ModelError(f"symbolic accelerations: bodies {bodies} must be deformable bodies of {tree.name!r} "
                          f"(allowed: {sorted(tree.beams)})")
-    n, n_p, nb = tree.n_coordinates, parameter_vector(tree).size, tree.n_bodies
+    n, n_p = tree.n_coordinates, parameter_vector(tree).size
     ports = PlanarPorts(tree)
     units = [ports.inputs({name: 1.0}) for name in actuators]
     sizes = load_sizes(tree, bodies)
     q, v, u = ca.SX.sym("q", n), ca.SX.sym("v", n), ca.SX.sym("u", len(units) + sum(sizes))
     p, t = ca.SX.sym("p", n_p), ca.SX.sym("t")
-    given = symbolic_inputs(tree, units, u[:len(units)])
-    if given is None:
-        given = ActuatorInputs(np.zeros(nb, dtype=object), np.zeros((nb, 3), dtype=object), {})
-    modal = dict(given.modal_force)
-    frame, offset = {}, len(units)
+    loads, offset = {}, len(units)
     for j, size in zip(bodies, sizes):
-        current = modal.get(j, np.zeros(size - 3, dtype=object))
-        modal[j] = np.empty(size - 3, dtype=object)
-        modal[j][:] = [current[i] + u[offset + 3 + i] for i in range(size - 3)]
-        frame[j] = u[offset:offset + 3]
+        loads[j] = (u[offset:offset + 3], [u[offset + 3 + i] for i in range(size - 3)])
         offset += size
-    scene = PlanarScene(tree)
-    terms, joints = scene.terms(CASADI, q, v, 0.0, ActuatorInputs(given.hinge_torque, given.body_force, modal),
-                                symbolic_numbers(tree, p, t))
-    kinematics = SymbolicKinematics(tree, q, v)
-    for j, wrench in frame.items():     # the frame wrench: an applied wrench at the inboard point, global axes
-        c, s = kinematics.cos[j], kinematics.sin[j]
-        applied = ca.vertcat(c * wrench[0] - s * wrench[1], s * wrench[0] + c * wrench[1], wrench[2],
-                             ca.SX.zeros(len(tree.modal_index[j])))
-        terms[j] = replace(terms[j], h=terms[j].h - applied)
+    scene, terms, joints = symbolic_terms_with_station_loads(tree, units, q, v, u[:len(units)],
+                                                             symbolic_numbers(tree, p, t), loads)
     solution = articulated_sweep(CASADI, scene.tree, terms, joints)
     return ca.Function("acceleration", [q, v, u, p, t], [coordinate_accelerations(tree, solution.x, solution.relative)])

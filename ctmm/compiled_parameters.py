@@ -28,7 +28,7 @@ from .planar.ports import PlanarPorts
 from .signals import SYMBOLIC_FIELDS, Constant, signal_parameters, symbolic_signal
 
 __all__ = ["LoopNumbers", "compile_refusal", "compiled_actuators", "constants_key", "loop_parameter_layout",
-           "parameter_vector", "structure_key", "symbolic_loop_numbers", "symbolic_numbers"]
+           "parameter_vector", "station_loads", "structure_key", "symbolic_loop_numbers", "symbolic_numbers"]
 
 
 def compile_refusal(model: Any) -> str:
@@ -205,11 +205,36 @@ def _plain(value: Any) -> Any:
     return value
 
 
-def compiled_actuators(model: PlanarModel) -> tuple[str, ...]:
-    """The actuators a generated kernel takes as inputs: every actuator of ``model`` but the station
-    forces and moments of beams (their floating-frame part is not on the element protocol yet)."""
+def station_loads(model: PlanarModel, names: Sequence[str]) -> tuple[str, ...]:
+    """The beam station forces and moments among the actuator ``names`` of ``model``, in order, each once (other and
+    unknown names are left to the caller): the ``stations`` of :func:`compiled_actuators` that drive them."""
+    actuators = PlanarPorts(model).actuators
+    return tuple(dict.fromkeys(name for name in names if getattr(actuators.get(name), "kind", "") == "station"))
+
+
+def compiled_actuators(model: PlanarModel, stations: Sequence[str] = ()) -> tuple[str, ...]:
+    """The actuators a generated kernel takes as inputs ``u``: every actuator of ``model`` but the station forces and
+    moments of beams, then the station loads named in ``stations`` (``"<beam>.<station>.force|moment"``).
+
+    Each station load in ``u`` adds its modal forces and floating-frame wrench to the generated sweep
+    (:mod:`ctmm.compiled_station_loads`), so only the named ones are inputs (a loop or open-loop input on another
+    one reaches it as a channel of its own, :attr:`ctmm.compiled_loops.ClosedLoops.channels`).
+
+    Raises
+    ------
+    ModelError
+        A name in ``stations`` that is not a station force or moment of ``model`` (the message lists them).
+    """
     ports = PlanarPorts(model)
-    return tuple(name for name, actuator in ports.actuators.items() if actuator.kind != "station")
+    if isinstance(stations, str):
+        stations = (stations,)
+    allowed = [name for name, actuator in ports.actuators.items() if actuator.kind == "station"]
+    for name in stations:
+        if name not in allowed:
+            raise ModelError(f"station input {name!r} is not a beam station force or moment of model {model.name!r}; "
+                             f"allowed: {', '.join(allowed) or '(none)'}")
+    return tuple(name for name, actuator in ports.actuators.items() if actuator.kind != "station") + tuple(
+        dict.fromkeys(stations))
 
 
 # ------------------------------------------------------------------------------------------

@@ -10,7 +10,7 @@ sweep of the model, independent of the generated code, else the scene is built a
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -24,7 +24,7 @@ __all__ = ["certified_hit", "scene_description"]
 
 
 def scene_description(system: PlanarModel | ControlledModel, numbers: str, period: int,
-                      loop_options: tuple) -> list[tuple[str, bytes]] | None:
+                      loop_options: tuple, stations: Sequence[str] = ()) -> list[tuple[str, bytes]] | None:
     """The labelled description a :class:`~ctmm.compiled_scene.CompiledScene`'s library is keyed on before
     anything is built (:func:`ctmm.generated_loop.compiled_time_loop`), or ``None`` (key on the built functions).
 
@@ -37,6 +37,8 @@ def scene_description(system: PlanarModel | ControlledModel, numbers: str, perio
         Bodies per folded segment (0: straight-line code).
     loop_options : tuple
         ``(dt, references, signals)`` of the loops.
+    stations : sequence of str
+        The beam station loads that are inputs of the scene (:func:`~ctmm.compiled_parameters.compiled_actuators`).
 
     With ``numbers="inputs"`` and no loops: the model's description without its numbers (every float by
     its zero pattern, ``describe(..., numbers=False)``) and its :func:`structure_key` (the numbers the code
@@ -52,10 +54,10 @@ def scene_description(system: PlanarModel | ControlledModel, numbers: str, perio
     if numbers == "inputs" and isinstance(system, ControlledModel):
         return None
     if numbers == "inputs":
-        text = describe((system, numbers, period), numbers=False)
+        text = describe((system, numbers, period) + ((tuple(stations),) if stations else ()), numbers=False)
         parts = [("planar structure", structure_key(system).encode())]
     else:
-        text = describe((system, numbers, period, loop_options))
+        text = describe((system, numbers, period, loop_options) + ((tuple(stations),) if stations else ()))
         parts = []
     return None if text is None else [*parts, ("planar", text)]
 

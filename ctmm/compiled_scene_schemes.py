@@ -46,7 +46,7 @@ from __future__ import annotations
 
 import os
 import time as _time
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -333,6 +333,9 @@ class CompiledSceneScheme(SchemeHooks):
         Stored states per generated block.
     cache_dir, compiler
         Of :func:`ctmm.codegen.shared_library`.
+    station_inputs : sequence of str
+        Beam station forces and moments that are inputs too (:func:`~ctmm.compiled_parameters.compiled_actuators`;
+        co-simulated controllers driving them, :mod:`ctmm.compiled_scheme_cosim`).
 
     Attributes
     ----------
@@ -346,7 +349,8 @@ class CompiledSceneScheme(SchemeHooks):
 
     def __init__(self, model: PlanarModel, scheme: Scheme | str = "newmark", *, store_every: int = 1,
                  tolerance: float = 1e-10, max_iterations: int = 20, rows: int = 64,
-                 cache_dir: str | os.PathLike | None = None, compiler: str | None = None) -> None:
+                 cache_dir: str | os.PathLike | None = None, compiler: str | None = None,
+                 station_inputs: Sequence[str] = ()) -> None:
         if not isinstance(model, PlanarModel):
             raise ModelError(f"CompiledSceneScheme: model must be a PlanarModel, got {type(model).__name__}")
         reason = compile_refusal(model)
@@ -358,7 +362,7 @@ class CompiledSceneScheme(SchemeHooks):
         start = _time.perf_counter()
         self.model, self.checked_steps = model, set()      # steps [s] check_step_scaling accepted
         self.maps = scheme_maps(self.scheme, 1.0)
-        self.actuators = compiled_actuators(model)
+        self.actuators = compiled_actuators(model, station_inputs)
         self.parameters = parameter_vector(model)
         acceleration = self.closed_acceleration()
         step = self._step_function(acceleration)

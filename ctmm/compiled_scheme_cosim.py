@@ -25,9 +25,14 @@ compiled in), restarted at the stored controller states and ring; equal to the P
 (``tests/test_compiled_scheme_delays.py``, ``tests/test_compiled_spatial_scheme_loops.py``).  Refused
 (:class:`~ctmm.errors.ModelError`, by the verb or here): inputs that are functions of time or signals without loops
 (use ``compiled=None``), measurement delays (:class:`~ctmm.control.measurement_delay.DelayedController`), controller
-outputs the generated step does not drive
-(planar beam station loads; spatial without loops: actuators that are not one-number inputs of the model, e.g.
-body-axis ports).
+outputs the generated step does not drive (a given ``compiled`` step without them).  Spatial port actuators that
+are not one-number inputs of the model (beam station and body-axis forces and moments, joint components) driven by
+controllers: the step of :class:`~ctmm.compiled_spatial_scheme_loops.CompiledSpatialSchemeLoops` without loops,
+whose input they are.  Planar beam
+station forces and moments that controllers drive (or numeric inputs hold) are inputs of the generated step
+(``station_inputs`` of :class:`~ctmm.compiled_scene_schemes.CompiledSceneScheme` and
+:class:`~ctmm.compiled_scheme_loops.CompiledSchemeLoops`: their modal forces and frame wrench,
+:mod:`ctmm.compiled_station_loads`).
 """
 from __future__ import annotations
 
@@ -39,6 +44,7 @@ import numpy as np
 
 from . import validation
 from .compiled_control import add_loop_signals
+from .compiled_parameters import station_loads
 from .compiled_cosim import stored_offsets
 from .compiled_scene_schemes import STATUS, CompiledSceneScheme, not_converged
 from .compiled_scheme_loops import CompiledSchemeLoops
@@ -138,20 +144,27 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
         for name in c.outputs:
             ports.check_actuator(name, f"output of {label}")
     kind = CompiledSceneScheme if planar else CompiledSpatialScheme
-    looped = bool(loops) or bool(references)
+    held = [name for c in controllers for name in c.outputs]
+    joint_inputs = () if planar else [name for joint in model.joints for name in joint.inputs
+                                      if joint.velocity_count == 1]
+    # spatial port actuators (beam station and body-axis forces and moments) are inputs of the step with loops only
+    ported = not planar and compiled is None and any(name not in joint_inputs for name in held)
+    looped = bool(loops) or bool(references) or ported
     if looped:                  # loops inside the Newton step, the controllers' held outputs added to theirs
         if compiled is not None:
             raise ModelError("compiled=True with loops and co-simulated controllers together: the step is compiled "
                              f"here, got compiled={compiled!r}; leave compiled out")
         controlled = ControlledModel(model, loops)
         if planar:
-            compiled = CompiledSchemeLoops(controlled, scheme, references=references, inputs=inputs, dt=dt)
+            compiled = CompiledSchemeLoops(controlled, scheme, references=references, inputs=inputs, dt=dt,
+                                           station_inputs=station_loads(model, held))
         else:
             compiled = CompiledSpatialSchemeLoops(controlled, scheme, references=references, inputs=inputs, dt=dt,
-                                                  held=[name for c in controllers for name in c.outputs])
+                                                  held=held)
         signals_of, inputs = compiled.loops.signals(), None
     elif compiled is None:
-        compiled = kind(model, scheme)
+        stations = station_loads(model, [*held, *dict(inputs or {})]) if planar else ()
+        compiled = CompiledSceneScheme(model, scheme, station_inputs=stations) if planar else kind(model, scheme)
     elif not isinstance(compiled, kind) or compiled.model is not model or compiled.scheme != scheme \
             or compiled.store_every != 1:
         raise ModelError(f"compiled must be a {kind.__name__} of this model with scheme={scheme!r} and "

@@ -127,16 +127,17 @@ class CompiledSchemeLoops(SchemeLoopTerms, CompiledSceneScheme):
                  references: Mapping[str, Any] | None = None, inputs: Mapping[str, Any] | None = None,
                  store_every: int = 1, tolerance: float = 1e-10, max_iterations: int = 20, rows: int = 64,
                  dt: float | None = None, cache_dir: str | os.PathLike | None = None,
-                 compiler: str | None = None) -> None:
+                 compiler: str | None = None, station_inputs: Sequence[str] = ()) -> None:
         reason = loop_refusal(controlled)
         if reason:
             raise ModelError(f"CompiledSchemeLoops: {reason}")
         self.controlled, self.dt = controlled, None if dt is None else validation.positive("dt", dt)
-        self.loops = ClosedLoops(controlled, compiled_actuators(controlled.plant), self.dt, references, inputs,
-                                 whole_delays=False)
+        self.loops = ClosedLoops(controlled, compiled_actuators(controlled.plant, station_inputs), self.dt,
+                                 references, inputs, whole_delays=False)
         self.setup_loops(as_scheme(scheme))
         super().__init__(controlled.plant, scheme, store_every=store_every, tolerance=tolerance,
-                         max_iterations=max_iterations, rows=rows, cache_dir=cache_dir, compiler=compiler)
+                         max_iterations=max_iterations, rows=rows, cache_dir=cache_dir, compiler=compiler,
+                         station_inputs=station_inputs)
 
     def plant_sweep(self) -> Any:
         """The planar sweep with the inputs :attr:`actuators` and the loops' channels."""

@@ -15,7 +15,9 @@ cut force on a beam point).
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Any, Sequence
+from typing import Any, Mapping, Sequence
+
+import numpy as np
 
 from .compiled_planar_sensors import SymbolicKinematics
 from .compiled_scene_fold import symbolic_inputs
@@ -41,17 +43,36 @@ def frame_wrenches(units: Sequence[ActuatorInputs], u: Any) -> dict[int, list]:
 
 
 def symbolic_terms_with_station_loads(model: PlanarModel, units: Sequence[ActuatorInputs], q: Any, v: Any, u: Any,
-                                      numbers: Any) -> tuple[PlanarScene, list, list]:
+                                      numbers: Any, frame_loads: Mapping[int, tuple[Any, Any]] | None = None
+                                      ) -> tuple[PlanarScene, list, list]:
     """``(scene, bodies, joints)``: the element terms of ``model`` on the casadi SX symbols ``q, v`` with the inputs
     ``u`` (one per entry of ``units``, each input's loads per unit value, station loads included: module docstring)
     and the scene's numbers ``numbers`` (:func:`ctmm.compiled_parameters.symbolic_numbers`), for
-    :func:`ctmm.articulated.articulated_sweep` on ``scene.tree``."""
+    :func:`ctmm.articulated.articulated_sweep` on ``scene.tree``.
+
+    ``frame_loads``: further loads ``{deformable body: (wrench, generalised forces)}`` (expressions), the wrench
+    ``(f_x, f_y, moment about the root)`` [N, N, N m] in frame axes on its floating frame and the forces on its
+    internal coordinates, added to those of ``u`` (cut forces at deformable points, :mod:`ctmm.compiled_cut_points`).
+    """
     import casadi as ca
 
     plain = [ActuatorInputs(unit.hinge_torque, unit.body_force, unit.modal_force) for unit in units]
-    scene = PlanarScene(model)
-    bodies, joints = scene.terms(CASADI, q, v, 0.0, symbolic_inputs(model, plain, u), numbers)
+    given = symbolic_inputs(model, plain, u)
     frame = frame_wrenches(units, u)
+    if frame_loads:
+        if given is None:
+            given = ActuatorInputs(np.zeros(model.n_bodies, dtype=object), np.zeros((model.n_bodies, 3), dtype=object),
+                                   {})
+        modal = dict(given.modal_force)
+        for j, (wrench, forces) in frame_loads.items():
+            current = modal.get(j, np.zeros(len(forces), dtype=object))
+            modal[j] = np.empty(len(forces), dtype=object)
+            modal[j][:] = [current[i] + forces[i] for i in range(len(forces))]
+            row = frame.setdefault(int(j), [0.0, 0.0, 0.0])
+            frame[int(j)] = [row[c] + wrench[c] for c in range(3)]
+        given = ActuatorInputs(given.hinge_torque, given.body_force, modal)
+    scene = PlanarScene(model)
+    bodies, joints = scene.terms(CASADI, q, v, 0.0, given, numbers)
     if frame:
         kinematics = SymbolicKinematics(model, q, v)
         for j, (f1, f2, moment) in frame.items():

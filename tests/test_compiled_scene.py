@@ -373,9 +373,11 @@ def test_refusals():
         ctmm.simulate(chain, 0.1, 1e-2, method="DOP853", compiled=True)   # rk4 and the DT-TMM schemes only
 
 
-def test_beam_station_loads_are_not_taken_by_generated_kernels_and_never_dropped():
-    """A station force on a beam has a floating-frame part the protocol does not carry yet: the
-    generated scene leaves those actuators out (other inputs still work) and refuses them by name."""
+def test_beam_station_loads_are_inputs_of_generated_kernels_when_named_and_never_dropped():
+    """A station force on a beam has a floating-frame part the element protocol does not carry: the numpy element
+    terms refuse it by name; a generated scene takes the station loads named in ``station_inputs`` as inputs with their
+    frame wrench (ctmm.compiled_station_loads; runs against the numpy path: tests/test_compiled_station_held_inputs.py)
+    and refuses the others by name, saying how to take them."""
     from ctmm.compiled_scene import CompiledScene, compiled_actuators
     from ctmm.flexible import ModalBeam
     from ctmm.planar import ActuatedHinge, Fixed, PlanarModel, RigidBody
@@ -389,8 +391,14 @@ def test_beam_station_loads_are_not_taken_by_generated_kernels_and_never_dropped
     names = compiled_actuators(model)
     assert "motor.torque" in names and "beam.q1.force" in names
     assert not any(name.startswith("beam.mid.") for name in names)
+    assert compiled_actuators(model, ["beam.mid.moment"]) == names + ("beam.mid.moment",)
+    with pytest.raises(ModelError, match=r"'beam.tip.force' is not a beam station force or moment.*beam.mid.force"):
+        compiled_actuators(model, ["beam.tip.force"])
     from ctmm.planar.ports import actuator_inputs
 
     with pytest.raises(ModelError, match="station forces and moments"):
         PlanarScene(model).accelerations(np.zeros(3), np.zeros(3), inputs=actuator_inputs(model, {"beam.mid.force": 1.0}))
-    assert CompiledScene(model).actuators == names
+    scene = CompiledScene(model)
+    assert scene.actuators == names
+    with pytest.raises(ModelError, match=r"'beam.mid.force' is a beam station load .*station_inputs=\['beam.mid.force'\]"):
+        scene.advance(np.zeros(3), np.zeros(3), 1e-3, 1, inputs={"beam.mid.force": 1.0})
