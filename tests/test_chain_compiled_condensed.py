@@ -158,8 +158,8 @@ def test_a_feedback_loop_on_a_base_excited_mass():
 def test_refusals_name_what_the_generated_rk4_does_not_take():
     massless = ctmm.Chain("q", [Fixed("s"), Spring("k0", 100.0), Mass("m0", 1.0), Spring("k1", 50.0),
                                 Spring("k2", 50.0), Mass("m1", 1.0), Free("e")])
-    looped = ControlledChain(massless, [Feedback("l", "m1.x", "m0", gain=1.0)])
-    with pytest.raises(ModelError, match="without inertia"):
+    looped = ControlledChain(massless, [Feedback("l", "m1.x", "k2", gain=1.0)])
+    with pytest.raises(ModelError, match="'k2' acts on a point without inertia"):
         ctmm.simulate(looped, 0.1, 0.01, method="rk4", compiled=True)
     with pytest.raises(ModelError, match="without inertia"):
         ctmm.simulate(massless, 0.1, 0.01, method="newmark", compiled=True)
