@@ -73,20 +73,21 @@ def affine_form(dynamics: ChainDynamics, actuators: Sequence[Mapping[int, Mappin
     ------
     ModelError
         Massless nodes, a prescribed start or end motion: their form is
-        :func:`ctmm.compiled_chain_condensed.condensed_affine_form` (the generated RK4 takes it; the callers
-        of this form need a mass at every moving point and still supports).
+        :func:`ctmm.compiled_chain_condensed.condensed_affine_form` (the generated RK4 takes it, the generated
+        DT-TMM schemes :mod:`ctmm.compiled_chain_scheme_nodes`; the callers of this form need a mass at every
+        moving point and still supports).
         (A connector with inertance couples every node: its form is exact but dense.)
     """
     chain = dynamics.chain
     if dynamics.index_Q.size:
         names = ", ".join(dynamics.node_name(k) for k in dynamics.index_Q)
         raise ModelError(f"chain {chain.name!r}: points without inertia ({names}) are condensed in Python and in "
-                         "the generated RK4 (method='rk4'); this generated path needs a mass at every moving point "
+                         "the generated RK4 and DT-TMM steps; this generated path needs a mass at every moving point "
                          "(or use compiled=False)")
     for boundary in (chain.start, chain.end):
         if hasattr(boundary, "displacement"):
             raise ModelError(f"chain {chain.name!r}: the prescribed motion of {boundary.name!r} is generated in the "
-                             "RK4 only, not on this path (use compiled=False)")
+                             "RK4 and DT-TMM steps, not on this path (use compiled=False)")
     I, n = dynamics.index_I, dynamics.tree.n_nodes
     m = I.size
     x, v = np.zeros((1 + 2 * m, n)), np.zeros((1 + 2 * m, n))
