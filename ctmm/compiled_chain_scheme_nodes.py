@@ -32,6 +32,7 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 import numpy as np
+import scipy.sparse
 
 from .chain_ode import ChainDynamics
 from .chain_point_rows import point_forces_rows
@@ -203,7 +204,8 @@ def node_step(form: NodeForm, maps: Any, dt: float, size: int) -> Any:
 
     dx, B, D = (rows(r, parts) for r in range(3))
     mass = form.inertial.astype(float)
-    rhs = ca.mtimes(ca.DM(form.Rx), dx) + ca.mtimes(ca.DM(form.Rv), B) + ca.DM(form.r0) - ca.DM(mass) * D
+    sparse = [ca.DM(scipy.sparse.csc_matrix(matrix)) for matrix in (form.Rx, form.Rv)]
+    rhs = ca.mtimes(sparse[0], dx) + ca.mtimes(sparse[1], B) + ca.DM(form.r0) - ca.DM(mass) * D
     for column, signal in form.loads:
         parameters = signal_parameters(signal)
         value = symbolic_signal(type(signal), t_n + dt, parameters)
@@ -314,22 +316,20 @@ def node_result(dynamics: ChainDynamics, form: NodeForm, times: np.ndarray, step
     nodes = dynamics.node_of_point
     x, v, a, x_nodes, v_nodes, motion = node_kinematics(dynamics, form, states)
     start_moving = 0 in motion
-    still_start = _still(chain.start)
-    # accelerations and forces of the equation of motion at the stored states
-    for row, t in enumerate(times):
-        loads: dict[int, dict[str, float]] = {}          # (not dynamics.inputs: a Step support has no rates)
-        for position, name, signal, _ in dynamics.loads:
-            loads.setdefault(position, {})[name] = float(signal(float(t)))
-        if hasattr(chain.start, "displacement"):
-            loads.setdefault(0, {})["displacement"] = float(motion[0][2][row]) if start_moving else 0.0
-        wall_row = (x[row, -1], v[row, -1], a[row, -1]) if chain.end.known == "displacement" else (0.0, 0.0, 0.0)
-        node_a = dynamics.forces(x_nodes[row][None], v_nodes[row][None], float(t), loads, wall_row)[0]
-        for p, k in enumerate(nodes):
-            if k >= 0 and dynamics.inertial[k]:
-                a[row, p] = node_a[k]
-            elif k >= 0 and dynamics.held[k]:
-                a[row, p] = motion[0][2][row] if start_moving else still_start[2]
-    forces = point_forces_rows(chain, np.asarray(times, float), x, v, np.where(np.isnan(a), 0.0, a),
+    # accelerations of the equation of motion at the stored states: the rows of the masses (exact, affine)
+    times = np.asarray(times, float)
+    rows = states[:, :f] @ form.Rx.T + states[:, f:2 * f] @ form.Rv.T + form.r0
+    for column, signal in form.loads:
+        rows += np.array([float(signal(t)) for t in times])[:, None] * column
+    for k, (columns, _) in enumerate(form.supports):
+        rows += states[:, 5 * f + 5 * k:5 * f + 5 * k + 3] @ columns.T
+    column_of = {int(k): j for j, k in enumerate(form.free)}
+    for p, k in enumerate(nodes):
+        if k >= 0 and dynamics.inertial[k]:
+            a[:, p] = rows[:, column_of[int(k)]]
+        elif k >= 0 and dynamics.held[k]:
+            a[:, p] = motion[0][2] if start_moving else _still(chain.start)[2]
+    forces = point_forces_rows(chain, times, x, v, np.where(np.isnan(a), 0.0, a),
                                [None] * count)
     algebraic = algebraic_points(chain)
     if np.any(algebraic):                               # their velocity from the positions the history keeps
@@ -339,15 +339,11 @@ def node_result(dynamics: ChainDynamics, form: NodeForm, times: np.ndarray, step
                 j = int(np.flatnonzero(form.free == k)[0])
                 old1[:, p], old2[:, p] = states[:, 3 * f + j], states[:, 4 * f + j]
         first = v[0, algebraic] if consistent else np.full(int(algebraic.sum()), np.nan)
-        for row in range(count):
-            if steps[row] >= 2:
-                v[row, algebraic] = (3.0 * x[row, algebraic] - 4.0 * old1[row, algebraic] + old2[row, algebraic]) / (
-                    2.0 * dt)
-            elif steps[row] == 1:
-                v[row, algebraic] = 2.0 * (x[row, algebraic] - old1[row, algebraic]) / dt - first if consistent \
-                    else (x[row, algebraic] - old1[row, algebraic]) / dt
-            else:
-                v[row, algebraic] = first
+        xa, o1, o2 = x[:, algebraic], old1[:, algebraic], old2[:, algebraic]
+        later = (3.0 * xa - 4.0 * o1 + o2) / (2.0 * dt)
+        one = 2.0 * (xa - o1) / dt - first if consistent else (xa - o1) / dt
+        step = np.asarray(steps)[:, None]
+        v[:, algebraic] = np.where(step >= 2, later, np.where(step == 1, one, first))
         a[:, algebraic] = np.nan
     array = np.stack([x, forces], axis=2)
     return SimulationResult(np.asarray(times, float), array, v[:, :, None], a[:, :, None], chain, method, dict(info))
