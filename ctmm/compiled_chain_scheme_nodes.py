@@ -169,7 +169,15 @@ def node_form(dynamics: ChainDynamics) -> NodeForm:
             for slot in range(3):
                 unit = tuple(float(slot == k) for k in range(3))
                 case(start_motion=unit) if boundary is start else case(end_motion=unit)
-    rows = np.array([dynamics.forces(x[None], v[None], 0.0, inputs, wall)[0, free] for x, v, inputs, wall in cases])
+    rows = np.zeros((len(cases), f))              # one batched sweep per (inputs, wall): the state probes together
+    start = 0
+    while start < len(cases):
+        stop = start + 1
+        while stop < len(cases) and cases[stop][2:] == cases[start][2:]:
+            stop += 1
+        x, v = np.array([c[0] for c in cases[start:stop]]), np.array([c[1] for c in cases[start:stop]])
+        rows[start:stop] = dynamics.forces(x, v, 0.0, cases[start][2], cases[start][3])[:, free]
+        start = stop
     base = rows[0]
     Rx, Rv = (rows[1:1 + f] - base).T, (rows[1 + f:1 + 2 * f] - base).T
     at = 1 + 2 * f
