@@ -18,6 +18,7 @@ import numpy as np
 
 from .chain_ode import chain_result
 from .compiled_chain import whole_steps
+from .compiled_chain_scheme_nodes import node_guard, node_result
 from .compiled_chain_schemes import CompiledChainScheme
 from .control.loop_rows import loop_unit
 from .errors import ModelError, SimulationError
@@ -93,10 +94,15 @@ def simulate_chain_scheme_generated(system: Any, t_final: float, dt: float, sche
     label = f"{compiled.scheme.name}-generated"
     info = {"dt": dt, "method": label, "path": "generated-dttmm", "compile_time_s": compiled.compile_time_s,
             "wall_time_s": wall, "n_steps": n_steps}
-    guard = compiled.plant.guard(states[0, :m], divergence_bound)
+    if compiled.nodes is not None:
+        node_check = node_guard(compiled.dynamics, compiled.nodes, states, divergence_bound)
+        guard = lambda t, k: node_check(t, k)                                               # noqa: E731
+    else:
+        plant_check = compiled.plant.guard(states[0, :m], divergence_bound)
+        guard = lambda t, k: plant_check(t, states[k, :2 * m], dt, label)                   # noqa: E731
     for k in range(len(times)):
         try:
-            guard(float(times[k]), states[k, :2 * m], dt, label)
+            guard(float(times[k]), k)
         except SimulationError as exc:
             exc.partial_result = scheme_result(compiled, times[:k], states[:k], outputs, info)
             raise
@@ -109,6 +115,10 @@ def scheme_result(compiled: CompiledChainScheme, times: np.ndarray, states: np.n
     motion with the loops' forces and the ``held`` inputs ``{actuator: value}`` [N] of each row), and each loop's
     ``y`` and ``u``."""
     m, label = compiled.m, info["method"]
+    if compiled.nodes is not None:
+        steps = np.rint(np.asarray(times, float) / compiled.dt).astype(int)
+        return node_result(compiled.dynamics, compiled.nodes, times, steps, states, compiled.dt, compiled.consistent,
+                           label, info)
     if not compiled.loops and held is None:
         return chain_result(compiled.dynamics, list(times), list(states[:, :2 * m]), label, dict(info))
     forces = np.array([compiled.loop_forces(float(t), row) for t, row in zip(times, states)])

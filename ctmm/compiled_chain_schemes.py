@@ -39,9 +39,13 @@ the step (their rank-``k`` part by the Woodbury identity on the banded solve), d
 dt``) from rings of samples in the generated state with the scheme's load weighting, LTI controllers on
 the step grid by the trapezoidal rule, references as :mod:`ctmm.signals` signals.
 
-Refused (:class:`~ctmm.errors.ModelError`): what the generated RK4 of chains refuses (massless points,
-prescribed boundary motions, load signals without a symbolic form, delays that are not whole multiples
-of ``dt``) and saturated loops (linear in the step).
+Chains with massless points or a prescribed (signal) start or end motion step their every node and moving support
+(:mod:`ctmm.compiled_chain_scheme_nodes`, as the Python DT-TMM path keeps a history at every point); loops and
+held actuators on them are refused by name (the generated RK4 takes them).
+
+Refused (:class:`~ctmm.errors.ModelError`): what the generated RK4 of chains refuses (load signals without a
+symbolic form, delays that are not whole multiples of ``dt``), loops and held actuators on chains with massless
+points or a prescribed motion, and saturated loops (linear in the step).
 
 Co-simulated controllers: their held outputs are the input ``u`` of the step (``actuators``, constant over a
 step, so the load weighting leaves them unchanged), and :func:`ctmm.compiled_cosim.simulate_cosimulated_scheme`
@@ -60,6 +64,8 @@ import scipy.sparse
 from . import validation
 from .chain_ode import ChainDynamics
 from .compiled_chain import affine_form, sensor_row
+from .compiled_chain_condensed import needs_condensed_form
+from .compiled_chain_scheme_nodes import node_form, node_start, node_step
 from .compiled_chain_kernel import banded_solver, step_kernel, tridiagonal_factors, woodbury_parts
 from .compiled_loops import delay_steps
 from .control.planar_time import controller_realisation
@@ -103,6 +109,9 @@ class SchemeMaps:
         Time of the evaluation level after ``t_n`` [s].
     coefficients : ndarray, shape (3, 5)
         Rows ``dx``, ``B``, ``D`` on the history ``(x, v, a, x_{n-1}, x_{n-2})``.
+    predictor : ndarray, shape (5,)
+        The predictor ``x_pred`` on the history (``delta = x - x_pred``; a prescribed point's correction is
+        ``X(t_eval) - x_pred``, as :meth:`ctmm.elements.boundary.Boundary.start_discrete` states it).
     update : ndarray, shape (5, 6)
         The new history from ``[history; delta]``.
     """
@@ -111,7 +120,7 @@ class SchemeMaps:
         self.scheme, self.h, self.steps = scheme, float(h), int(steps)
         zero = self._apply(np.zeros(5), 0.0)
         self.cx, self.A, self.C, self.load_weight, self.offset = zero[0]
-        self.coefficients = np.zeros((3, 5))
+        self.coefficients = np.zeros((4, 5))
         self.update = np.zeros((5, 6))
         for k in range(6):
             unit = np.zeros(6)
@@ -129,16 +138,18 @@ class SchemeMaps:
                     atol=1e-12 * (1.0 + np.max(np.abs(new)))) and np.allclose(scalars, zero[0])):
                 raise ModelError(f"scheme {scheme!r}: its step is not linear in the stored history, which the "
                                  "generated DT-TMM step of chains needs (use compiled=False)")
+        self.coefficients, self.predictor = self.coefficients[:3], self.coefficients[3]
 
     def _apply(self, history: np.ndarray, delta: float) -> tuple[tuple, np.ndarray, np.ndarray]:
-        """``((cx, A, C, w), (dx, B, D), new history)`` of one point with this history and correction."""
+        """``((cx, A, C, w), (dx, B, D, x_pred), new history)`` of one point with this history and correction."""
         point = [np.array([[value]]) for value in history]
         state = History(point[0], point[1], point[2], [point[3], point[4]], self.steps)
         coefficients = self.scheme.coefficients(state, self.h)
         new = self.scheme.update(state, np.array([[delta]]), self.h, coefficients)
         scalars = (float(coefficients.cx), float(coefficients.A), float(coefficients.C),
                    float(coefficients.load_weight), float(coefficients.unknown_offset))
-        parts = np.array([float(coefficients.dx[0, 0]), float(coefficients.B[0, 0]), float(coefficients.D[0, 0])])
+        parts = np.array([float(coefficients.dx[0, 0]), float(coefficients.B[0, 0]), float(coefficients.D[0, 0]),
+                          float(np.ravel(coefficients.x_pred)[0])])
         after = np.array([float(new.x[0, 0]), float(new.v[0, 0]), float(new.a[0, 0]), float(new.x_old[0][0, 0]),
                           float(new.x_old[1][0, 0])])
         return scalars, parts, after
@@ -255,6 +266,14 @@ class CompiledChainScheme:
             if name not in [loop.name for loop in loops]:
                 raise ModelError(f"references[{name!r}]: not a loop; loops: {', '.join(lp.name for lp in loops) or '(none)'}")
         self.actuators = tuple(ports.check_actuator(name, "held actuator") for name in actuators)
+        self.nodes = None
+        if needs_condensed_form(self.dynamics):
+            if loops or self.actuators:
+                raise ModelError(f"chain {chain.name!r}: loops and held actuators on a chain with points without "
+                                 "inertia or a prescribed motion are generated in the RK4 (method='rk4'), not in the "
+                                 "DT-TMM step; use method='rk4' or compiled=False")
+            self._compile_nodes(rows, cache_dir, compiler, started)
+            return
         looped = list(dict.fromkeys(name for loop in loops for name, _ in loop.actuator_terms))
         actuators = list(dict.fromkeys([*looped, *self.actuators]))
         form = affine_form(self.dynamics, [ports.inputs({name: 1.0}) for name in actuators])
@@ -318,6 +337,41 @@ class CompiledChainScheme:
                                       **options)
         self._step, self._stride, self._blocks = loop.step, loop.stride, loop.blocks
         self.form = form
+        self.compile_time_s = _time.perf_counter() - started
+
+    def _compile_nodes(self, rows: int, cache_dir: Any, compiler: Any, started: float) -> None:
+        """The step of a chain with massless points or a prescribed motion (:mod:`ctmm.compiled_chain_scheme_nodes`):
+        the histories of the free nodes and the moving supports, then (a start-up) the steps since the start."""
+        import casadi as ca
+
+        self.nodes = form = node_form(self.dynamics)
+        self.form, self.loops, self.unrolled, self.m = form, [], True, self.plant.n_positions
+        self.held_columns = np.zeros((self.m, 0))
+        start_up = self.scheme.start_up_steps
+        maps = [SchemeMaps(self.scheme, self.dt, 0)] + ([SchemeMaps(self.scheme, self.dt, max(start_up, 2))]
+                                                          if start_up else [])
+        used = 5 * (form.free.size + len(form.supports))
+        self.start_up_index = used if start_up else None
+        self.state_size = size = used + (1 if start_up else 0)
+
+        def build() -> tuple[Any, list]:
+            y, u, h = ca.MX.sym("y", size), ca.MX.sym("u", 0), ca.MX.sym("h")
+            p, t0, k = ca.MX.sym("p", 0), ca.MX.sym("t0"), ca.MX.sym("k")
+            branches = [node_step(form, scheme_maps, self.dt, size).expand() for scheme_maps in maps]
+            t_n = t0 + k * self.dt
+            new = branches[0](y, t_n) if len(maps) == 1 else ca.if_else(
+                y[used] < start_up, branches[0](y, t_n), branches[1](y, t_n), True)
+            if start_up:
+                new = ca.vertcat(new, y[used] + 1.0)
+            return ca.Function("step", [y, u, h, p, t0, k], [new]), []
+
+        description = describe(("nodes", self.system, self.dt, self.scheme))
+        name = f"chain_{form.free.size}n{len(form.supports)}s_{self.scheme.name}"
+        options = {"cache_dir": cache_dir, "compiler": compiler}
+        loop = compiled_time_loop(build()[0], self.store_every, rows, name, **options) if description is None else \
+            compiled_time_loop(build, self.store_every, rows, name, description=[("chain scheme nodes", description)],
+                               **options)
+        self._step, self._stride, self._blocks = loop.step, loop.stride, loop.blocks
         self.compile_time_s = _time.perf_counter() - started
 
     def _certify(self, form: Any) -> None:
@@ -448,6 +502,9 @@ class CompiledChainScheme:
         [N], the positions as the older history, each loop's ``[z = 0, e_0 = y_0 - r(0), u_0]`` and ring holding
         ``y_0`` (the state held before ``t = 0``, as :func:`ctmm.control.simulate.simulate_controlled` starts), and zero
         steps since the start (a scheme with a start-up)."""
+        if self.nodes is not None:
+            state, self.consistent = node_start(self.dynamics, self.nodes, x0, v0)
+            return np.concatenate([state, [0.0] if self.start_up_index is not None else []])
         q, w = self.plant.start(x0, v0)
         blocks, forces = [], []
         for lp in self.loops:

@@ -362,7 +362,7 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
     n_steps = int(round((t_final - t0) / dt))
     if n_steps < 1 or abs(n_steps * dt - (t_final - t0)) > 1e-9 * max(1.0, abs(t_final)):
         raise ModelError(f"(t_final - t0) = {t_final - t0!r} s must be a whole number of steps dt={dt!r} (>= 1)")
-    x, v, consistent = (*mesh.initial_state(x0, v0), False) if mesh else _start_state(system, x0, v0, t0)
+    x, v, consistent = (*mesh.initial_state(x0, v0), False) if mesh else dttmm_start_state(system, x0, v0, t0)
     algebraic = np.zeros(system.n_points, dtype=bool) if mesh else algebraic_points(system)
     consistent = consistent and force_hook is None    # a loop force's rate at t0 is not known here
     check_scheme_step(system, scheme, dt, stability_check)
@@ -460,7 +460,7 @@ def _newton_info(iterations: list | None) -> dict:
         if iterations else {}
 
 
-def _start_state(system: Chain, x0, v0, t0: float) -> tuple[np.ndarray, np.ndarray, bool]:
+def dttmm_start_state(system: Chain, x0, v0, t0: float) -> tuple[np.ndarray, np.ndarray, bool]:
     """:func:`~ctmm.chain_start.initial_state` with the massless points of a lumped chain at their
     consistent start (:meth:`ctmm.chain_ode.ChainDynamics.start_points`: static balance under the given
     positions, velocities from the balance), so the first step sees the right connector forces.  Chains

@@ -81,8 +81,8 @@ def test_refusals_name_what_does_not_compile():
         ctmm.simulate(setup.system, 0.3, 0.004, method="newmark", compiled=True)
     massless = ctmm.Chain("q", [Fixed("s"), Spring("k0", 100.0), Mass("m0", 1.0), Spring("k1", 50.0),
                                 Spring("k2", 50.0), Mass("m1", 1.0), Free("e")])
-    with pytest.raises(ModelError, match="without inertia"):        # with loops (without: compiled_chain_condensed)
-        ctmm.simulate(ControlledChain(massless, [Feedback("l", "m1.x", "m0", gain=1.0)]), 0.1, 0.01, method="rk4",
-                      compiled=True)
+    with pytest.raises(ModelError, match="'k1' acts on a point without inertia"):    # (loops sensing massless
+        ctmm.simulate(ControlledChain(massless, [Feedback("l", "m1.x", "k1", gain=1.0)]), 0.1, 0.01, method="rk4",
+                      compiled=True)                                  # nodes: test_chain_compiled_massless_loops)
     with pytest.raises(ModelError, match="Python callable"):
         ctmm.simulate(setup.plant, 0.1, 0.01, method="rk4", compiled=True, inputs={"m0.force": lambda t: t})
