@@ -67,7 +67,7 @@ def spatial_simulation_sensitivity(model: Any, parameters: str | Sequence[str], 
     ModelError
         Finite-element subsystems, a model that cannot be compiled (user-callable signals), unknown or zero plant
         numbers, loop delays, weights of saturated loops, loop sensors that move with a driven joint's signals,
-        unknown outputs, rotation-vector sensors, a diverging run.
+        unknown outputs, a diverging run.
     """
     import casadi as ca
 

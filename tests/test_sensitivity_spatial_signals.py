@@ -104,7 +104,7 @@ def test_driven_joint_and_load_signals_match_differences_of_the_simulation(loop)
                                                gain=1.0)])
         names = ["a.mass", "pd.gain", "pd.ja.angle"]
     v0 = {"ja.angle_rate": 0.5, "jc.wx": 0.3}
-    outputs = ["ja.angle", "jc.wx", "c.tip.z", "b.omega_y"]
+    outputs = ["ja.angle", "jc.wx", "c.tip.z", "b.omega_y", "c.rotation_x"]          # a rotation vector too
     T, dt = 0.2, 2e-3
     found = S.simulation_sensitivity(model, names, t_final=T, dt=dt, v0=v0, outputs=outputs)
 
