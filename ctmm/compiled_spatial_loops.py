@@ -103,11 +103,22 @@ class SpatialSymbols:
         if not isinstance(self._time, float) and _depends_on_time(expression, self._time):
             driven = ", ".join(repr(joint.name) for joint in self.model.joints if joint.driven)
             raise ModelError(f"sensor {name!r} moves with the time signals of the driven joints {driven} of model "
-                             f"{self.model.name!r}; generated loops state their sensors (and the delayed loops' "
-                             "sensor rates) at the state only, so compiled=True cannot close a loop on it; drive "
-                             "those joints with ctmm.signals.Constant, sense a body inboard of them, or use "
-                             "compiled=False")
+                             f"{self.model.name!r}; generated loops (compiled=True, time-history sensitivities) "
+                             "state their sensors (and the delayed loops' sensor rates) at the state only, so they "
+                             "cannot close a loop on it; drive those joints with ctmm.signals.Constant, sense a body "
+                             "inboard of them, or use compiled=False")
         return expression
+
+    @property
+    def time(self) -> Any:
+        """The time [s] the body states are stated at: a casadi symbol when driven joints or loads carry time
+        signals (:func:`~ctmm.compiled_spatial_signals.spatial_compile_refusal`), else ``0.0``."""
+        return self._time
+
+    def sensor_at_time(self, name: str, q: Any, v: Any) -> Any:
+        """Sensor ``name`` as an expression of ``q``, ``v`` and :attr:`time` (one that moves with a driven joint's
+        signals depends on it: for outputs evaluated at known times, e.g. sensitivities; loops use :meth:`sensor`)."""
+        return self._sensor(name, q, v)
 
     def _sensor(self, name: str, q: Any, v: Any) -> Any:
         """Sensor ``name`` on symbols (:meth:`sensor`), the body states at :attr:`_time`."""

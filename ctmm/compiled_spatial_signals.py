@@ -14,8 +14,9 @@ models with their driven joints (:mod:`ctmm.compiled_spatial_kinematic_loops`,
 (:mod:`ctmm.fmu_export_spatial`, at the FMU's time).  User callables have no symbolic form and are refused by name.
 
 :func:`spatial_compile_refusal` says why a model cannot be compiled; with ``time_signals=False`` (the generated
-paths that state the terms at one time: sensitivities) every load and driven motion must be a
-:class:`~ctmm.signals.Constant`.
+paths that state the terms at one time: the frequency-domain sensitivities about an equilibrium) every load and
+driven motion must be a :class:`~ctmm.signals.Constant`; the time-history sensitivities
+(:mod:`ctmm.sensitivity_time_spatial`) take the signals on the time symbol of their RK4 step.
 """
 from __future__ import annotations
 
@@ -64,8 +65,9 @@ def spatial_compile_refusal(model: Any, *, time_signals: bool = False) -> str:
         return (f"model {model.name!r} has time signals without a symbolic form in " + ", ".join(reasons) + " (Python "
                 "callables are not compiled; use ctmm.signals " + ", ".join(kind.__name__ for kind in SYMBOLIC_FIELDS)
                 + ", or ctmm.simulate without compiled=True)")
-    return (f"model {model.name!r} has signals that are not constants in " + ", ".join(reasons) + " (generated "
-            "sensitivities state the terms at one time; the generated RK4 and DT-TMM schemes of a spatial model, "
+    return (f"model {model.name!r} has signals that are not constants in " + ", ".join(reasons) + " (frequency-"
+            "domain sensitivities linearise about one equilibrium, the terms at one time; time-history sensitivities "
+            "(ctmm.sensitivity.simulation_sensitivity), the generated RK4 and DT-TMM schemes of a spatial model, "
             "with or without feedback loops, and exported FMUs follow ctmm.signals " + ", ".join(
                 kind.__name__ for kind in SYMBOLIC_FIELDS) + "; or use ctmm.simulate without compiled=True)")
 

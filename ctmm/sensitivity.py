@@ -566,9 +566,9 @@ def simulation_sensitivity(system: Any, parameters: str | Sequence[str], *, t_fi
     (``"<loop>.gain"``, ``"<loop>.<sensor>"``, realisation entries ``"<loop>.A[i,j]"``...) as directions in the
     step's parameters (:mod:`ctmm.sensitivity_loop_numbers`); chains: the RK4 of their explicit form with its
     stages differentiated (:func:`ctmm.sensitivity_time.chain_simulation_sensitivity`: ``x0``, ``v0``
-    by point name, outputs ``"<point>.x"`` / ``".v"``); controlled chains in their element and loop numbers
-    through the generated chain step (:func:`ctmm.sensitivity_time_chain.controlled_chain_simulation_sensitivity`).  Returns a
-    :class:`ctmm.sensitivity_time.TimeSensitivity`.
+    by point name, outputs ``"<point>.x"`` / ``".v"``); controlled chains, and chains with loads as a
+    ``ControlledChain`` without loops, in their element and loop numbers through the generated chain step
+    (:func:`ctmm.sensitivity_time_chain.controlled_chain_simulation_sensitivity`).  Returns a :class:`TimeSensitivity`.
 
     Raises
     ------
@@ -578,16 +578,16 @@ def simulation_sensitivity(system: Any, parameters: str | Sequence[str], *, t_fi
     """
     from .sensitivity_planar import is_planar_system
     from .sensitivity_spatial import is_spatial_system
-    from .sensitivity_time import chain_simulation_sensitivity, planar_simulation_sensitivity
+    from .sensitivity_time import chain_loads, chain_simulation_sensitivity, planar_simulation_sensitivity
     from .sensitivity_time_spatial import spatial_simulation_sensitivity
 
     if is_spatial_system(system):
         return spatial_simulation_sensitivity(system, parameters, t_final=t_final, dt=dt, x0=x0, v0=v0,
                                               outputs=outputs)
-    if isinstance(system, ControlledChain):
+    if isinstance(system, ControlledChain) or isinstance(system, Chain) and chain_loads(system):
         from .sensitivity_time_chain import controlled_chain_simulation_sensitivity
-
-        return controlled_chain_simulation_sensitivity(system, parameters, t_final=t_final, dt=dt, x0=x0, v0=v0,
+        controlled = system if isinstance(system, ControlledChain) else ControlledChain(system, [])   # loaded chain
+        return controlled_chain_simulation_sensitivity(controlled, parameters, t_final=t_final, dt=dt, x0=x0, v0=v0,
                                                        outputs=outputs)
     if isinstance(system, Chain):
         return chain_simulation_sensitivity(system, parameters, t_final=t_final, dt=dt, x0=x0, v0=v0, outputs=outputs)

@@ -70,12 +70,14 @@ def _split(system: Any) -> tuple[Any, tuple]:
     return (system, ()) if isinstance(system, SpatialModel) else (system.plant, tuple(system.loops))
 
 
-def check_differentiable(model: Any, what: str = "ctmm.sensitivity") -> None:
+def check_differentiable(model: Any, what: str = "ctmm.sensitivity", *, time_signals: bool = False) -> None:
     """Refuse (``ModelError``) a spatial model whose numbers are not parameters of a generated expression:
-    one that cannot be compiled or that has finite-element subsystems."""
+    one that cannot be compiled or that has finite-element subsystems.  ``time_signals``: loads and driven
+    joints may carry :mod:`ctmm.signals` with a symbolic form (time runs state them on the time symbol);
+    otherwise they must be constants (linearisations about one equilibrium)."""
     from .compiled_spatial import spatial_compile_refusal
 
-    reason = spatial_compile_refusal(model)
+    reason = spatial_compile_refusal(model, time_signals=time_signals)
     if reason:
         raise ModelError(f"{what}: the derivatives of a spatial model are taken on its generated expression, "
                          f"and {reason}")
@@ -107,12 +109,14 @@ def spatial_parameter_index(model: Any, name: str) -> int:
     return names.index(name)
 
 
-def _resolve(system: Any, names: Sequence[str]) -> tuple[list[ParameterDerivative], list[int]]:
-    """Parameters of a spatial system and the layout index of each plant number (-1 for loop numbers)."""
+def _resolve(system: Any, names: Sequence[str], *, time_signals: bool = False
+             ) -> tuple[list[ParameterDerivative], list[int]]:
+    """Parameters of a spatial system and the layout index of each plant number (-1 for loop numbers);
+    ``time_signals`` as :func:`check_differentiable` (reading and setting numbers: any symbolic signal)."""
     from .compiled_spatial_parameters import spatial_parameter_layout
 
     model, loops = _split(system)
-    check_differentiable(model)
+    check_differentiable(model, time_signals=time_signals)
     layout = spatial_parameter_layout(model)
     out, indices = [], []
     for name in names:
@@ -134,7 +138,7 @@ def _resolve(system: Any, names: Sequence[str]) -> tuple[list[ParameterDerivativ
 
 def spatial_parameter_values(system: Any, names: Sequence[str]) -> dict[str, float]:
     """Current values of named parameters of a spatial (controlled) model."""
-    return {p.name: p.value for p in _resolve(system, names)[0]}
+    return {p.name: p.value for p in _resolve(system, names, time_signals=True)[0]}
 
 
 def _rebuilt(model: Any, changes: Mapping[int, float]) -> Any:
@@ -179,7 +183,7 @@ def spatial_with_parameters(system: Any, values: Mapping[str, float]) -> Any:
     """
     from .stability import with_loop_parameters
 
-    parameters, indices = _resolve(system, list(values))
+    parameters, indices = _resolve(system, list(values), time_signals=True)
     model, _ = _split(system)
     changes: dict[int, float] = {}
     per_loop: dict[str, dict] = {}

@@ -32,8 +32,8 @@ import numpy as np
 from . import validation
 from .errors import ModelError, unknown_name
 
-__all__ = ["TimeSensitivity", "chain_simulation_sensitivity", "forward_sensitivities", "parameter_index",
-           "planar_simulation_sensitivity"]
+__all__ = ["TimeSensitivity", "chain_loads", "chain_simulation_sensitivity", "forward_sensitivities",
+           "parameter_index", "planar_simulation_sensitivity"]
 
 
 @dataclass(frozen=True)
@@ -219,6 +219,16 @@ def planar_simulation_sensitivity(model: Any, parameters: str | Sequence[str], *
     return TimeSensitivity(time, tuple(wanted), tuple(names), values, derivative)
 
 
+def chain_loads(chain: Any) -> list[str]:
+    """Names of the elements of a plain :class:`~ctmm.system.Chain` that carry a load: a time signal, or a
+    constant other than 0 (:class:`ctmm.chain_ode.ChainDynamics` ``loads``)."""
+    from .chain_ode import ChainDynamics
+    from .signals import Constant
+
+    return [element.name for _, _, signal, element in ChainDynamics(chain).loads
+            if not (isinstance(signal, Constant) and signal.value == 0.0)]
+
+
 def chain_simulation_sensitivity(chain: Any, parameters: str | Sequence[str], *, t_final: float, dt: float,
                                  x0: Mapping[str, float] | None = None, v0: Mapping[str, float] | None = None,
                                  outputs: str | Sequence[str] | None = None) -> TimeSensitivity:
@@ -236,7 +246,9 @@ def chain_simulation_sensitivity(chain: Any, parameters: str | Sequence[str], *,
     ----------
     chain : Chain
         Lumped elements; every point that is not held has a mass (massless points are condensed
-        in the explicit form: refused here); no inputs.
+        in the explicit form: refused here); no inputs, no loads (:func:`chain_loads`; refused here:
+        :func:`ctmm.sensitivity.simulation_sensitivity` differentiates a loaded chain as a ``ControlledChain``
+        without loops, :mod:`ctmm.sensitivity_time_chain`).
     parameters : str or sequence of str
         ``"<point>.mass"``, ``"<point>.damping"``, ``"<point>.stiffness"``, ``"<connector>.stiffness"``,
         ``"<connector>.damping"``.
@@ -260,6 +272,12 @@ def chain_simulation_sensitivity(chain: Any, parameters: str | Sequence[str], *,
     if not isinstance(chain, Chain):
         raise ModelError("chain_simulation_sensitivity: a plain ctmm.Chain is differentiated in time; controlled "
                          f"chains: ctmm.sensitivity_time_chain (loop numbers); got {type(chain).__name__}")
+    loaded = chain_loads(chain)
+    if loaded:
+        raise ModelError(f"chain_simulation_sensitivity: chain {chain.name!r} carries loads on {loaded}; the "
+                         "explicit form here is the free response about the rest positions; "
+                         "ctmm.sensitivity.simulation_sensitivity differentiates a loaded chain as a ControlledChain "
+                         "without loops (ctmm.sensitivity_time_chain)")
     model = LoopCharacteristicMatrix(chain, validation.names("parameters", parameters))
     n = model.n
     if np.any(np.diag(model.M) <= 0.0):

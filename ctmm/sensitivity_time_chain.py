@@ -23,8 +23,10 @@ casadi symbols and the forward sensitivities are folded with the state by casadi
 (:func:`ctmm.sensitivity_time.forward_sensitivities`): the exact derivative of the RK4 solution
 ``ctmm.simulate(system, ..., method="rk4")`` computes (the Python and generated RK4 agree to round-off).
 
-Refused (:class:`~ctmm.errors.ModelError`, by name): loop delays, time-varying loads, massless points, inerter
-numbers, what :class:`~ctmm.compiled_loops.ClosedLoops` refuses.
+Time-varying loads with a symbolic form (:mod:`ctmm.signals` Constant, Harmonic, Step, SquareWave) are force
+columns ``Fl_j s_j(t)`` of ``F`` (each certified independent of the numbers) on the step's time, as the generated
+chain RK4 states them.  Refused (:class:`~ctmm.errors.ModelError`, by name): loop delays, load signals that are
+Python callables, massless points, inerter numbers, what :class:`~ctmm.compiled_loops.ClosedLoops` refuses.
 """
 from __future__ import annotations
 
@@ -68,7 +70,7 @@ def controlled_chain_simulation_sensitivity(system: Any, parameters: str | Seque
     Raises
     ------
     ModelError
-        Unknown numbers, loop delays, saturated loops, time-varying loads, massless points, a chain whose affine
+        Unknown numbers, loop delays, saturated loops, user-callable load signals, massless points, a chain whose affine
         form does not match its mass, stiffness and damping matrices (certified), a diverging run.
     """
     import casadi as ca
@@ -79,6 +81,7 @@ def controlled_chain_simulation_sensitivity(system: Any, parameters: str | Seque
     from .planar.integrate import step_total
     from .sensitivity_loop_numbers import is_loop_number, loop_directions, split_loops
     from .sensitivity_time import forward_sensitivities
+    from .signals import signal_parameters
 
     what = "controlled_chain_simulation_sensitivity"
     names = validation.names("parameters", parameters)
@@ -90,9 +93,11 @@ def controlled_chain_simulation_sensitivity(system: Any, parameters: str | Seque
     plant = ChainPlant(split)
     actuators = tuple(dict.fromkeys(name for loop in split.loops for name, _ in loop.actuator_terms))
     form = affine_form(plant.dynamics, [plant.ports.inputs({name: 1.0}) for name in actuators])
-    if form.loads:
-        raise ModelError(f"{what}: chain {plant.chain.name!r} has time-varying loads; the free response under its "
-                         "loops is differentiated (constant loads are fine)")
+    callables = [repr(signal) for _, signal in form.loads if signal_parameters(signal) is None]
+    if callables:
+        raise ModelError(f"{what}: chain {plant.chain.name!r} has load signals that are Python callables of time "
+                         f"({', '.join(callables)}), which the generated step cannot state; give ctmm.signals "
+                         "Constant, Harmonic, Step or SquareWave")
     forces = _element_forces(plant, form, plant_numbers, what)
     n_steps = step_total(t_final, dt)
     h = t_final / n_steps
@@ -103,7 +108,7 @@ def controlled_chain_simulation_sensitivity(system: Any, parameters: str | Seque
     loops = ClosedLoops(split, actuators, h, symbols=symbols, numbers="inputs")
     q, v, u, p, t = (ca.MX.sym(label, size) for label, size in (("q", m), ("v", m), ("u", len(actuators)),
                                                                 ("p", k), ("t", 1)))
-    step = loops.step(ca.Function("acceleration", [q, v, u, p, t], [forces.rate(q, v, u, p)]), len(actuators), k)
+    step = loops.step(ca.Function("acceleration", [q, v, u, p, t], [forces.rate(q, v, u, p, t)]), len(actuators), k)
     first = loops.initial_state(*plant.start(x0, v0))
     size = k + loops.parameter_values.size
     directions = loop_directions(system, split, loops.parameter_layout, names, k, size)
@@ -140,9 +145,13 @@ class ElementForces:
     values : ndarray
         The numbers' current values ``p0`` (SI units).
     M0, Fx, Fv, Fb, F0 : ndarray
-        ``M`` [kg] and the force form ``F = Fx x + Fv v + Fb u + F0`` [N] at ``p0``.
+        ``M`` [kg] and the force form ``F = Fx x + Fv v + Fb u + F0 + sum_j Fl_j s_j(t)`` [N] at ``p0``.
     dM, dFx, dFv, dF0 : list of ndarray
         Their derivatives per number.
+    Fl : ndarray, shape (nodes, n_loads)
+        The time-varying loads' force columns (independent of the numbers: certified).
+    signals : tuple
+        Their :mod:`ctmm.signals` (each with a symbolic form).
     """
 
     values: np.ndarray
@@ -155,10 +164,15 @@ class ElementForces:
     dFx: list
     dFv: list
     dF0: list
+    Fl: np.ndarray
+    signals: tuple
 
-    def rate(self, q: Any, v: Any, u: Any, p: Any) -> Any:
-        """``a = M(p)^{-1} F(p)`` on casadi symbols (``p`` the numbers' values; ``q``, ``v``, ``u`` columns)."""
+    def rate(self, q: Any, v: Any, u: Any, p: Any, t: Any) -> Any:
+        """``a = M(p)^{-1} F(p, t)`` on casadi symbols (``p`` the numbers' values; ``q``, ``v``, ``u`` columns;
+        ``t`` [s] the loads' time)."""
         import casadi as ca
+
+        from .signals import signal_parameters, symbolic_signal
 
         M, Fx, Fv, F0 = ca.DM(np.diag(self.M0)), ca.DM(self.Fx), ca.DM(self.Fv), ca.DM(self.F0)
         for i in range(self.values.size):
@@ -168,6 +182,8 @@ class ElementForces:
         force = ca.mtimes(Fx, q) + ca.mtimes(Fv, v) + F0
         if self.Fb.shape[1]:
             force = force + ca.mtimes(ca.DM(self.Fb), u)
+        for column, signal in zip(self.Fl.T, self.signals):
+            force = force + ca.DM(column) * symbolic_signal(type(signal), t, signal_parameters(signal))
         return force / M if self.values.size else force          # M diagonal (one mass per node)
 
 
@@ -179,8 +195,11 @@ def _element_forces(plant: Any, form: Any, names: Sequence[str], what: str) -> E
     from .sensitivity_model import LoopCharacteristicMatrix
 
     chain, m = plant.chain, plant.n_positions
+    signals = tuple(signal for _, signal in form.loads)
+    columns = np.column_stack([column for column, _ in form.loads]) if form.loads else np.zeros((m, 0))
     if not names:                                      # loop numbers only: the affine form as it is
-        return ElementForces(np.zeros(0), np.eye(m), form.Ax, form.Av, form.B, form.a0, [], [], [], [])
+        return ElementForces(np.zeros(0), np.eye(m), form.Ax, form.Av, form.B, form.a0, [], [], [], [], columns,
+                             signals)
     model = LoopCharacteristicMatrix(chain, list(names))
     T = np.zeros((m, model.n))                         # nodes <- degrees of freedom of the characteristic matrix
     for element in chain.body:
@@ -214,6 +233,9 @@ def _element_forces(plant: Any, form: Any, names: Sequence[str], what: str) -> E
         M1 = M0 + step * pattern if p.kind == "mass" else M0
         pairs = ((M1 @ changed.Ax - M0 @ form.Ax) / step, -pattern if p.kind == "stiffness" else zero), \
             ((M1 @ changed.Av - M0 @ form.Av) / step, -pattern if p.kind == "damping" else zero)
+        if form.loads:                                 # a load's force depends on none of the numbers
+            loads = np.column_stack([column for column, _ in changed.loads])
+            pairs += ((M1 @ loads - M0 @ columns) / step, np.zeros_like(columns)),
         for secant, expected in pairs:
             if np.abs(secant - expected).max() > 1e-9 * max(scale, np.abs(expected).max()):
                 raise ModelError(f"{what}: {p.name!r} of chain {chain.name!r} does not enter its affine form as its "
@@ -223,7 +245,7 @@ def _element_forces(plant: Any, form: Any, names: Sequence[str], what: str) -> E
         dFv.append(-pattern if p.kind == "damping" else zero)
         dF0.append((M1 @ changed.a0 - M0 @ form.a0) / step)       # exact: the forces are affine in the number
     return ElementForces(np.array([p.value for p in model.parameters], dtype=float), M0, M0 @ form.Ax,
-                         M0 @ form.Av, M0 @ form.B, M0 @ form.a0, dM, dFx, dFv, dF0)
+                         M0 @ form.Av, M0 @ form.B, M0 @ form.a0, dM, dFx, dFv, dF0, M0 @ columns, signals)
 
 
 def _changed(chain: Any, name: str, value: float) -> Any:

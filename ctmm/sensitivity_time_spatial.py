@@ -18,6 +18,12 @@ Parameters: the names of :mod:`ctmm.sensitivity_spatial` (``"<body>.mass"``, ``"
 ``"<loop>.<sensor>"`` and realisation entries; outputs: coordinates (``model.coordinates``), velocities
 (``model.velocities``) and sensor ports stated on symbols (``"body.angle_z"``, ``"link.tip.x"``; their
 derivative ``dy/dp = dy/dx S``).
+
+Loads and driven joints may carry :mod:`ctmm.signals` with a symbolic form (Constant, Harmonic, Step,
+SquareWave): the step states them on its stage times, as the generated RK4 does
+(:mod:`ctmm.compiled_spatial_signals`), and an output that moves with a driven joint's signals (a body outboard
+of it) is evaluated at each stored time.  User callables are refused by name, and so is a loop sensor that
+moves with a driven joint's signals (the generated loops state their sensors at the state only).
 """
 from __future__ import annotations
 
@@ -40,7 +46,8 @@ def spatial_simulation_sensitivity(model: Any, parameters: str | Sequence[str], 
     Parameters
     ----------
     model : SpatialModel or ControlledModel (spatial plant)
-        Rigid bodies and modal beams; compilable; no open-loop actuator inputs; loop references 0.
+        Rigid bodies and modal beams; compilable (load and driven-joint signals with a symbolic form); no
+        open-loop actuator inputs; loop references 0.
     parameters : str or sequence of str
         Plant and loop numbers (module docstring).
     t_final, dt : float
@@ -58,8 +65,9 @@ def spatial_simulation_sensitivity(model: Any, parameters: str | Sequence[str], 
     Raises
     ------
     ModelError
-        Finite-element subsystems, a model that cannot be compiled, unknown or zero plant numbers, loop delays, weights of
-        saturated loops, unknown outputs, rotation-vector sensors, a diverging run.
+        Finite-element subsystems, a model that cannot be compiled (user-callable signals), unknown or zero plant
+        numbers, loop delays, weights of saturated loops, loop sensors that move with a driven joint's signals,
+        unknown outputs, a diverging run.
     """
     import casadi as ca
 
@@ -82,7 +90,7 @@ def spatial_simulation_sensitivity(model: Any, parameters: str | Sequence[str], 
     if not isinstance(plant, SpatialModel):
         raise ModelError(f"{what}: model must be a ctmm.spatial.SpatialModel or a ControlledModel on one, got "
                          f"{type(plant).__name__}")
-    check_differentiable(plant, what)
+    check_differentiable(plant, what, time_signals=True)
     names = validation.names("parameters", parameters)
     loop_list = controlled.loops if controlled is not None else ()
     split = split_loops(controlled, names, what) if controlled is not None else None
@@ -121,9 +129,9 @@ def spatial_simulation_sensitivity(model: Any, parameters: str | Sequence[str], 
     state_names = list(plant.coordinates) + list(plant.velocities)
     q_sym, v_sym = ca.SX.sym("q", nq), ca.SX.sym("v", nv)
     rows = []
-    for name in wanted:
+    for name in wanted:            # sensors that move with a driven joint's signals: on the time symbol
         if name in ports.sensors and name not in state_names:
-            rows.append(symbols.sensor(name, q_sym, v_sym))
+            rows.append(symbols.sensor_at_time(name, q_sym, v_sym))
         elif name in state_names:
             rows.append(ca.vertcat(q_sym, v_sym)[state_names.index(name)])
         else:
@@ -131,9 +139,11 @@ def spatial_simulation_sensitivity(model: Any, parameters: str | Sequence[str], 
                                state_names + [s for s in ports.sensors if s not in state_names])
     x = ca.vertcat(q_sym, v_sym)
     y = ca.vertcat(*rows)
-    evaluate = ca.Function("outputs", [x], [y, ca.jacobian(y, x)]).map(n_steps + 1)
-    values, slopes = evaluate(states[:, :nq + nv].T)
+    t = symbols.time if isinstance(symbols.time, ca.SX) else ca.SX.sym("t")
+    evaluate = ca.Function("outputs", [x, t], [y, ca.jacobian(y, x)]).map(n_steps + 1)
+    time = h * np.arange(n_steps + 1)
+    values, slopes = evaluate(states[:, :nq + nv].T, time[None, :])
     values = np.asarray(values, dtype=float).reshape(len(wanted), n_steps + 1)
     slopes = np.asarray(slopes, dtype=float).reshape(len(wanted), n_steps + 1, nq + nv)
     derivative = np.einsum("okx,kxm->mok", slopes, tangents[:, :nq + nv, :])
-    return TimeSensitivity(h * np.arange(n_steps + 1), tuple(wanted), tuple(names), values, derivative)
+    return TimeSensitivity(time, tuple(wanted), tuple(names), values, derivative)
