@@ -15,6 +15,9 @@ of the sweep's accelerations with respect to unit generalised forces ``u`` (``qd
 
 so Newton's step ``delta = (dR/da)^-1 R`` is ``(J - b' h^2 d(G s)/dq)^-1 r`` with ``J`` the plain tangent:
 one extra term that vanishes at the root (``r = 0``), the iterates of the Python stepper to round-off.
+With the tangent by mapped forward derivatives (:mod:`ctmm.mapped_tangent`, from 8 coordinates) no second
+derivative is formed: ``qddot`` is affine in the forces ``f`` and ``G`` depends on ``q`` alone, so
+``J - b' h^2 d(G s)/dq`` is the forward derivative of ``qddot(q, v, [u; s])`` (:func:`mapped_weighted_residual`).
 
 The generalised forces are the hinge torques of revolute hinges and the modal forces of modal beams (their
 map to the coordinates is constant, so any such basis gives the same Newton iterates).  A model with other

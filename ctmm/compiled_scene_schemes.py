@@ -22,9 +22,9 @@ generated RK4 compiles (:func:`ctmm.compiled_scene.symbolic_accelerations_with_i
   model structure and scheme serves every step.  Houbolt's two average-acceleration start-up steps are the
   maps at steps 0 and 1, selected on the step index.
 * **Newton** -- on the residual ``r(a) = a - qddot(q_hat + b' h^2 a, v_hat + g' h a, t)`` with its exact
-  tangent ``I - b' h^2 d qddot/dq - g' h d qddot/dv`` (casadi's algorithmic derivative of the sweep), a QR
-  solve per iteration, at most ``max_iterations`` iterations (each a short-circuit branch: converged steps
-  skip the rest), the stopping rule of the Python stepper (``max |delta a| <= tolerance (1 + max |a|)``).
+  tangent ``I - b' h^2 d qddot/dq - g' h d qddot/dv`` (algorithmic derivative of the sweep, :mod:`ctmm.mapped_tangent`),
+  a QR solve per iteration, at most ``max_iterations`` (each a short-circuit branch: converged steps skip the rest),
+  the stopping rule of the Python stepper (``max |delta a| <= tolerance (1 + max |a|)``).
   Same root as :func:`~ctmm.planar.implicit.simulate_implicit` (whose Newton runs on the transfer form of
   the same equations): the two agree to round-off (``tests/test_compiled_scene_schemes.py``); same iterates
   where :mod:`ctmm.compiled_newton_weighting` gives the tangent of the mass-weighted residual ``M r`` (hinge
@@ -333,8 +333,9 @@ class CompiledSceneScheme(SchemeHooks):
         Newton iterations allowed per step.
     rows : int
         Stored states per generated block.
-    cache_dir, compiler
-        Of :func:`ctmm.codegen.shared_library`.
+    cache_dir, compiler, tangent
+        Of :func:`ctmm.codegen.shared_library`; ``tangent``: the Newton tangent's construction, "mapped", "symbolic"
+        or None (by size, :func:`ctmm.mapped_tangent.tangent_construction`).
 
     Attributes
     ----------
@@ -416,8 +417,7 @@ class CompiledSceneScheme(SchemeHooks):
                 residual_terms = ca.Function("residual", [a, q_hat, v_hat, w, g, t, u, p, c, s],
                                              [a - value, ca.SX.eye(n) - w * d_q - g * d_v])
             weighting = inverse_mass_terms(self.model, mapped)      # Newton on M (a - qddot), as the Python stepper
-            if weighting is not None:
-                residual_terms = weighted_residual_terms(residual_terms, *weighting)
+            residual_terms = weighted_residual_terms(residual_terms, *weighting) if weighting else residual_terms
         iterate = newton_iteration(residual_terms, self.tolerance)
         y = ca.MX.sym("y", self.state_size)
         u_in, h, p_in, t0, k = ca.MX.sym("u", n_u), ca.MX.sym("h"), ca.MX.sym("p", n_p), ca.MX.sym("t0"), ca.MX.sym("k")
