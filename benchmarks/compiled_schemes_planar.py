@@ -28,8 +28,12 @@ every loop delayed by 2 ms (``chain_n5_delayed_pd_loops``, the ring: samples, Wi
 Spatial loops part (:mod:`ctmm.compiled_spatial_scheme_loops`, ``spatial_double_pendulum_pd_loop``): the spatial
 double pendulum with a real-time PD on its hinge inside the generated Lie-group Newton step vs the Python DT-TMM path,
 error at ``T`` against DOP853 on the reference tree with the same law; ``..._delayed``: the PD 2.5 ms late (Hermite).
-Run ``python benchmarks/compiled_schemes_planar.py`` (``--loops`` / ``--spatial-loops``: that part alone, merged into
-the stored rows); writes ``benchmarks/results/compiled_schemes_planar.json``.
+Chain sizes part (:func:`chain_size_rows`, ``--chain-sizes``): the first compile and CPU per step of the generated
+Newmark on pendulum chains of N = 10, 20, 30, 100 with the Newton tangent by mapped forward derivatives
+(:mod:`ctmm.mapped_tangent`, the sweep folded from ``SCHEME_FOLD_MIN_BODIES``) and, up to :data:`SYMBOLIC_MAX_N`, with the symbolic
+Jacobian it replaces (the ratios in the same run), and the difference to the Python stepper.
+Run ``python benchmarks/compiled_schemes_planar.py`` (``--loops`` / ``--spatial-loops`` / ``--chain-sizes``: that
+part alone, merged into the stored rows); writes ``benchmarks/results/compiled_schemes_planar.json``.
 """
 from __future__ import annotations
 
@@ -51,6 +55,7 @@ for path in (ROOT, ROOT / "benchmarks"):
         sys.path.insert(0, str(path))
 
 from ctmm.compiled_scene_schemes import CompiledSceneScheme, simulate_scheme_generated  # noqa: E402
+from ctmm.errors import ModelError  # noqa: E402
 from ctmm.planar import simulate_implicit  # noqa: E402
 from ctmm.reference.flexible_lagrange import FlexibleLagrange  # noqa: E402
 from ctmm.reference.planar_lagrange import PlanarLagrange  # noqa: E402
@@ -278,9 +283,83 @@ def loop_rows() -> list[dict]:
     return measure_loops() + measure_loops(2 * DT) + measure_loops(2.5 * DT) + measure_loops(2.5 * DT, True)
 
 
+CHAIN_SIZES = (10, 20, 30, 100)
+"""Pendulum chains (``planar_chain.chain``) of the compile-time part (``--chain-sizes``)."""
+SYMBOLIC_MAX_N = 10
+"""Largest chain built with the symbolic-Jacobian tangent too (the construction before :mod:`ctmm.mapped_tangent`:
+its first compile grows as N^2..N^3: 52 s of CPU at N = 20 at load ~12, 127 s at N = 30 in session 10; at load
+14-19 on the 2-core machine gcc passed its 600 s wall-clock limit at N = 20 and 30, recorded as a failed row)."""
+CHAIN_STEPS, CHAIN_PYTHON_STEPS = 100, 10
+
+
+def _cpu() -> float:
+    """CPU time [s] of this process and its finished children (the C compiler)."""
+    import resource
+
+    own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+
+
+def chain_size_rows(sizes=CHAIN_SIZES, symbolic_max: int = SYMBOLIC_MAX_N) -> list[dict]:
+    """Newmark on pendulum chains (start horizontal at rest), per N and tangent construction (``mapped``: the
+    default from ``MAPPED_MIN_COORDINATES``, folded sweep from ``SCHEME_FOLD_MIN_BODIES``; ``symbolic``: the old
+    one): first compile (CPU incl. gcc, fresh cache), CPU per step over :data:`CHAIN_STEPS` steps, Newton
+    iterations per step, ``|q_generated - q_python|`` over the first :data:`CHAIN_PYTHON_STEPS` steps against
+    :func:`simulate_implicit` (the transfer form's Newton, independent code), the load average; per N with both
+    the ratios mapped / symbolic."""
+    import tempfile
+
+    from planar_chain import chain
+
+    rows = []
+    for n in sizes:
+        model, q0, v0 = chain(n), np.zeros(n), np.zeros(n)
+        began = time.process_time()
+        python = simulate_implicit(model, q0, v0, t_final=CHAIN_PYTHON_STEPS * DT, dt=DT, stability_check="ignore")
+        python_step = (time.process_time() - began) / CHAIN_PYTHON_STEPS
+        measured = {}
+        for tangent in ("mapped", "symbolic") if n <= symbolic_max else ("mapped",):
+            began = _cpu()
+            try:
+                compiled = CompiledSceneScheme(model, "newmark", tangent=tangent, cache_dir=tempfile.mkdtemp())
+            except ModelError as error:         # gcc over its time limit (the symbolic Jacobian on a loaded machine)
+                rows.append({"model": f"chain_n{n}", "scheme": "newmark", "tangent": tangent,
+                             "compile_cpu_s": _cpu() - began, "compile_error": str(error)[:200],
+                             "load_average_1min": os.getloadavg()[0]})
+                print(f"chain N={n:3d} {tangent:8s} compile failed after {rows[-1]['compile_cpu_s']:.1f} s CPU: "
+                      f"{rows[-1]['compile_error']}", flush=True)
+                continue
+            compile_cpu = _cpu() - began
+            began = time.process_time()
+            run = simulate_scheme_generated(model, q0, v0, t_final=CHAIN_STEPS * DT, dt=DT, compiled=compiled,
+                                            stability_check="ignore")
+            step = (time.process_time() - began) / CHAIN_STEPS
+            row = {"model": f"chain_n{n}", "scheme": "newmark", "tangent": tangent, "folded": bool(compiled.period),
+                   "compile_cpu_s": compile_cpu, "generated_cpu_per_step_s": step,
+                   "python_cpu_per_step_s": python_step,
+                   "newton_iterations_per_step": run.extra["newton_iterations"] / CHAIN_STEPS,
+                   "generated_vs_python": float(np.max(np.abs(run.q[:CHAIN_PYTHON_STEPS + 1] - python.q))),
+                   "load_average_1min": os.getloadavg()[0]}
+            measured[tangent] = row
+            rows.append(row)
+            print(f"chain N={n:3d} {tangent:8s} folded={row['folded']!s:5s} compile {compile_cpu:7.2f} s  "
+                  f"step {step * 1e6:9.1f} us  python {python_step * 1e6:9.1f} us  |gen - py| "
+                  f"{row['generated_vs_python']:.1e}  load {row['load_average_1min']:.1f}", flush=True)
+        if len(measured) == 2:
+            new, old = measured["mapped"], measured["symbolic"]
+            new["compile_ratio_to_symbolic"] = new["compile_cpu_s"] / old["compile_cpu_s"]
+            new["step_ratio_to_symbolic"] = new["generated_cpu_per_step_s"] / old["generated_cpu_per_step_s"]
+            print(f"chain N={n:3d} mapped / symbolic: compile x{new['compile_ratio_to_symbolic']:.2f}, "
+                  f"step x{new['step_ratio_to_symbolic']:.2f}", flush=True)
+    return rows
+
+
 def main() -> None:
     path = ROOT / "benchmarks" / "results" / "compiled_schemes_planar.json"
-    if "--loops" in sys.argv[1:]:               # the loops part alone, the other stored rows kept
+    if "--chain-sizes" in sys.argv[1:]:         # the compile-time part alone, the other stored rows kept
+        kept = json.loads(path.read_text())["rows"] if path.exists() else []
+        rows = [row for row in kept if "tangent" not in row] + chain_size_rows()
+    elif "--loops" in sys.argv[1:]:               # the loops part alone, the other stored rows kept
         kept = json.loads(path.read_text())["rows"] if path.exists() else []
         rows = [row for row in kept if "pd_loops" not in row["model"]] + loop_rows()
     elif "--spatial-loops" in sys.argv[1:]:     # the spatial loops part alone, the other stored rows kept
@@ -289,7 +368,7 @@ def main() -> None:
             measure_spatial_loops() + measure_spatial_loops(2.5 * DT)
     else:
         rows = [row for name, case in models().items() for row in measure(name, *case)] + measure_spatial() + \
-            loop_rows() + measure_spatial_loops() + measure_spatial_loops(2.5 * DT)
+            loop_rows() + measure_spatial_loops() + measure_spatial_loops(2.5 * DT) + chain_size_rows()
     out = {"benchmark": "compiled_schemes_planar", "machine": platform.platform(),
            "python": platform.python_version(), "rows": rows}
     path.write_text(json.dumps(out, indent=2) + "\n")

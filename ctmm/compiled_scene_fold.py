@@ -19,15 +19,17 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from .compiled_parameters import parameter_vector, symbolic_numbers
 from .errors import ModelError
 from .ops import CASADI
 from .planar.body_forms import SceneNumbers, revolute_terms, rigid_body_terms
 from .planar.model import REVOLUTE, PlanarModel
-from .planar.ports import ActuatorInputs
+from .planar.ports import ActuatorInputs, PlanarPorts
 from .segment_fold import fold_segments
 
-__all__ = ["FOLD_MIN_BODIES", "SEGMENT_BODIES", "SEGMENT_ENTRIES", "fold_period", "folded_acceleration",
-           "planar_fold_refusal", "segment_numbers", "symbolic_inputs"]
+__all__ = ["FOLD_MIN_BODIES", "SCHEME_FOLD_MIN_BODIES", "SEGMENT_BODIES", "SEGMENT_ENTRIES", "fold_period",
+           "folded_acceleration", "folded_accelerations_with_inputs", "planar_fold_refusal", "scheme_fold_period",
+           "segment_numbers", "symbolic_inputs"]
 
 FOLD_MIN_BODIES = 30
 """Foldable planar chains (:func:`planar_fold_refusal`) with at least this many bodies compile through the
@@ -36,6 +38,13 @@ machine): the straight-line code's first compile passes 3 s near N = 30 (1.8 s a
 300), the fold's stays near 1-5 s at N = 100-300.  Per step (session 8, each segment's terms formed once; CPU
 time) folded / straight-line 6.7 / 2.4 us at N = 20, 32 / 14 us at N = 100, 104 / 53 us at N = 300 (the
 calls, the handed-on columns and the numbers taken per segment)."""
+SCHEME_FOLD_MIN_BODIES = 20
+"""Foldable planar chains with at least this many bodies and no loops sweep folded inside the generated DT-TMM
+schemes whose Newton tangent is mapped (:mod:`ctmm.mapped_tangent`, :func:`scheme_fold_period`).  Measured
+(pendulum chain, Newmark, mapped tangent, CPU incl. gcc, fresh cache, load ~18 on 2 cores, 2026-11-25): first
+compile folded / straight-line 1.7 / 3.4 s at N = 12, 2.5 / 6.6 s at 20, 2.9 / 10.9 s at 30; per step 0.35 / 0.17
+ms, 1.4 / 0.42 ms, 2.9 / 1.2 ms (the fold's calls, ``2 n`` directional derivatives per Newton iteration).  The
+straight-line compile passes ~3 s from N ~ 12; from 20 the fold's is a third of it."""
 SEGMENT_BODIES = 4
 """Preferred bodies per folded segment (:func:`fold_period`): fewer calls per sweep than one body per
 segment, still short code."""
@@ -107,6 +116,15 @@ def fold_period(model: PlanarModel) -> int:
     """Bodies per segment the fold uses for ``model``: the largest of ``SEGMENT_BODIES, ..., 1`` that
     :func:`planar_fold_refusal` accepts (0: the model does not fold)."""
     return next((period for period in range(SEGMENT_BODIES, 0, -1) if not planar_fold_refusal(model, period)), 0)
+
+
+def scheme_fold_period(model: PlanarModel, tangent: str, loops: Any) -> int:
+    """Bodies per folded segment of the sweep of a generated DT-TMM scheme of ``model`` (0: straight-line code):
+    folded where its tangent is ``"mapped"``, it has no ``loops`` (``None``), it folds (:func:`fold_period`) and
+    has at least :data:`SCHEME_FOLD_MIN_BODIES` bodies."""
+    if tangent != "mapped" or loops is not None or model.n_bodies < SCHEME_FOLD_MIN_BODIES:
+        return 0
+    return fold_period(model)
 
 
 def segment_numbers(model: PlanarModel, numbers: SceneNumbers, inputs: ActuatorInputs | None, period: int) -> Any:
@@ -187,6 +205,26 @@ def folded_acceleration(model: PlanarModel, numbers: SceneNumbers, inputs: Actua
     accelerations = fold_segments(bodies, joints, ["out"] * period, [parent, q, v, s], [parents, Q, V, columns],
                                   lambda solution: ca.vertcat(*[solution.x[i][2] for i in range(1, period + 1)]))
     return ca.Function("acceleration", [q_all, v_all, u, p, t], [ca.reshape(accelerations, n, 1)])
+
+
+def folded_accelerations_with_inputs(model: PlanarModel, actuators: Sequence[str],
+                                     channels: Sequence[ActuatorInputs] = (), period: int = 0) -> Any:
+    """:func:`ctmm.compiled_scene.symbolic_accelerations_with_inputs` folded over segments of ``period`` bodies
+    (default :func:`fold_period`): ``acceleration(q, v, u, p, t)`` (casadi.Function on MX) with the inputs ``u``
+    of the ports ``actuators`` then of ``channels`` (loads per unit value).
+
+    Raises
+    ------
+    ModelError
+        A model that does not fold (:func:`planar_fold_refusal`).
+    """
+    import casadi as ca
+
+    ports = PlanarPorts(model)
+    units = [ports.inputs({name: 1.0}) for name in actuators] + list(channels)
+    u, p, t = ca.SX.sym("u", len(units)), ca.SX.sym("p", parameter_vector(model).size), ca.SX.sym("t")
+    return folded_acceleration(model, symbolic_numbers(model, p, t), symbolic_inputs(model, units, u), (u, p, t),
+                               period or fold_period(model) or 1)
 
 
 def _common_constants(entries: Any) -> dict[int, float]:

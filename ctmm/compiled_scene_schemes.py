@@ -22,9 +22,9 @@ generated RK4 compiles (:func:`ctmm.compiled_scene.symbolic_accelerations_with_i
   model structure and scheme serves every step.  Houbolt's two average-acceleration start-up steps are the
   maps at steps 0 and 1, selected on the step index.
 * **Newton** -- on the residual ``r(a) = a - qddot(q_hat + b' h^2 a, v_hat + g' h a, t)`` with its exact
-  tangent ``I - b' h^2 d qddot/dq - g' h d qddot/dv`` (casadi's algorithmic derivative of the sweep), a QR
-  solve per iteration, at most ``max_iterations`` iterations (each a short-circuit branch: converged steps
-  skip the rest), the stopping rule of the Python stepper (``max |delta a| <= tolerance (1 + max |a|)``).
+  tangent ``I - b' h^2 d qddot/dq - g' h d qddot/dv`` (algorithmic derivative of the sweep, :mod:`ctmm.mapped_tangent`),
+  a QR solve per iteration, at most ``max_iterations`` (each a short-circuit branch: converged steps skip the rest),
+  the stopping rule of the Python stepper (``max |delta a| <= tolerance (1 + max |a|)``).
   Same root as :func:`~ctmm.planar.implicit.simulate_implicit` (whose Newton runs on the transfer form of
   the same equations): the two agree to round-off (``tests/test_compiled_scene_schemes.py``); same iterates
   where :mod:`ctmm.compiled_newton_weighting` gives the tangent of the mass-weighted residual ``M r`` (hinge
@@ -38,9 +38,8 @@ and the Newton options are constants of the code (the cache key is the serialize
 :func:`ctmm.generated_loop.compiled_time_loop`, as for the generated RK4 of planar scenes); the model's
 numbers are the input ``p`` (:func:`ctmm.compiled_parameters.parameter_vector`).
 
-Refused (:class:`~ctmm.errors.ModelError`): what the generated RK4 refuses, controlled runs (loops, inputs,
-references, co-simulated controllers: use ``compiled=None``), a scheme whose step is not linear in its
-history.
+Refused (:class:`~ctmm.errors.ModelError`): what the generated RK4 refuses, a scheme whose step is not linear in its
+history (loops: :mod:`ctmm.compiled_scheme_loops`; controllers: :mod:`ctmm.compiled_scheme_cosim`).
 """
 from __future__ import annotations
 
@@ -52,10 +51,12 @@ import numpy as np
 
 from . import validation
 from .compiled_parameters import compile_refusal, compiled_actuators, parameter_vector
-from .compiled_newton_weighting import inverse_mass_terms, weighted_residual_terms
+from .compiled_newton_weighting import inverse_mass_terms, mapped_weighted_residual, weighted_residual_terms
 from .compiled_scene import symbolic_accelerations_with_inputs
+from .compiled_scene_fold import folded_accelerations_with_inputs, scheme_fold_period
 from .errors import ConvergenceError, ModelError
 from .generated_loop import BlockRunner, compiled_time_loop, run_blocks
+from .mapped_tangent import residual_terms as mapped_residual_terms, tangent_construction
 from .planar.guards import check_scheme, check_stored, divergence_guard
 from .planar.integrate import PlanarSimulation, check_store_every, initial_coordinates, step_total
 from .planar.model import PlanarModel
@@ -331,11 +332,10 @@ class CompiledSceneScheme(SchemeHooks):
         Newton iterations allowed per step.
     rows : int
         Stored states per generated block.
-    cache_dir, compiler
-        Of :func:`ctmm.codegen.shared_library`.
-    station_inputs : sequence of str
-        Beam station forces and moments that are inputs too (:func:`~ctmm.compiled_parameters.compiled_actuators`;
-        co-simulated controllers driving them, :mod:`ctmm.compiled_scheme_cosim`).
+    cache_dir, compiler, tangent, station_inputs
+        Of :func:`ctmm.codegen.shared_library`; the Newton tangent's construction ("mapped", "symbolic", None: by
+        size, :func:`ctmm.mapped_tangent.tangent_construction`); beam station loads that are inputs too
+        (:func:`~ctmm.compiled_parameters.compiled_actuators`, :mod:`ctmm.compiled_scheme_cosim`).
 
     Attributes
     ----------
@@ -350,13 +350,15 @@ class CompiledSceneScheme(SchemeHooks):
     def __init__(self, model: PlanarModel, scheme: Scheme | str = "newmark", *, store_every: int = 1,
                  tolerance: float = 1e-10, max_iterations: int = 20, rows: int = 64,
                  cache_dir: str | os.PathLike | None = None, compiler: str | None = None,
-                 station_inputs: Sequence[str] = ()) -> None:
+                 tangent: str | None = None, station_inputs: Sequence[str] = ()) -> None:
         if not isinstance(model, PlanarModel):
             raise ModelError(f"CompiledSceneScheme: model must be a PlanarModel, got {type(model).__name__}")
         reason = compile_refusal(model)
         if reason:
             raise ModelError(f"CompiledSceneScheme: {reason}")
         self.scheme = as_scheme(scheme)
+        self.tangent = tangent_construction("CompiledSceneScheme", tangent, model.n_coordinates)
+        self.period = scheme_fold_period(model, self.tangent, self.loops)     # sweep folded over segments (0: not)
         self.tolerance, self.max_iterations, self.store_every, rows = newton_options(
             "CompiledSceneScheme", tolerance, max_iterations, store_every, rows)
         start = _time.perf_counter()
@@ -377,6 +379,8 @@ class CompiledSceneScheme(SchemeHooks):
     def closed_acceleration(self) -> Any:
         """``qddot = acceleration(q, v, u, p, t)`` the step solves for (casadi ``Function``): the plant's sweep with
         the inputs :attr:`actuators` (a subclass closes loops around it, :mod:`ctmm.compiled_scheme_loops`)."""
+        if self.period:
+            return folded_accelerations_with_inputs(self.model, self.actuators, (), self.period)
         return symbolic_accelerations_with_inputs(self.model, self.actuators)
 
     @property
@@ -399,15 +403,21 @@ class CompiledSceneScheme(SchemeHooks):
         u, p = ca.SX.sym("u", n_u), ca.SX.sym("p", n_p)
         q, v = ca.SX.sym("q", n), ca.SX.sym("v", n)
         c, s = ca.SX.sym("c", self.controller_size), ca.SX.sym("s")        # controller entries, time since t_n
-        rates = self.iterate_acceleration(acceleration, q, v, u, p, t, c, s)
-        tangent_q = ca.Function("tangent", [q, v, u, p, t, c, s],
-                                [rates, ca.jacobian(rates, q), ca.jacobian(rates, v)])
-        value, d_q, d_v = tangent_q(q_hat + w * a, v_hat + g * a, u, p, t, c, s)
-        residual_terms = ca.Function("residual", [a, q_hat, v_hat, w, g, t, u, p, c, s],
-                                     [a - value, ca.SX.eye(n) - w * d_q - g * d_v])
-        weighting = inverse_mass_terms(self.model)      # Newton on M (a - qddot), as the Python stepper
-        if weighting is not None:
-            residual_terms = weighted_residual_terms(residual_terms, *weighting)
+        mapped = self.tangent == "mapped"   # columns by mapped forward derivatives (code O(sweep)), one sweep
+        residual_terms = mapped_weighted_residual(self.model, self.actuators, self.period) if mapped and \
+            self.loops is None else None
+        if residual_terms is None:
+            rates = self.iterate_acceleration(acceleration, q, v, u, p, t, c, s)
+            if mapped:
+                residual_terms = mapped_residual_terms(ca.Function("rates", [q, v, u, p, t, c, s], [rates]))
+            else:                       # the symbolic Jacobian of the straight-line sweep
+                tangent_q = ca.Function("tangent", [q, v, u, p, t, c, s],
+                                        [rates, ca.jacobian(rates, q), ca.jacobian(rates, v)])
+                value, d_q, d_v = tangent_q(q_hat + w * a, v_hat + g * a, u, p, t, c, s)
+                residual_terms = ca.Function("residual", [a, q_hat, v_hat, w, g, t, u, p, c, s],
+                                             [a - value, ca.SX.eye(n) - w * d_q - g * d_v])
+            weighting = inverse_mass_terms(self.model, mapped)      # Newton on M (a - qddot), as the Python stepper
+            residual_terms = weighted_residual_terms(residual_terms, *weighting) if weighting else residual_terms
         iterate = newton_iteration(residual_terms, self.tolerance)
         y = ca.MX.sym("y", self.state_size)
         u_in, h, p_in, t0, k = ca.MX.sym("u", n_u), ca.MX.sym("h"), ca.MX.sym("p", n_p), ca.MX.sym("t0"), ca.MX.sym("k")

@@ -51,6 +51,7 @@ from .compiled_spatial import SPATIAL_FLAGS, SpatialRates, spatial_compile_refus
 from .errors import ConvergenceError, ModelError, SimulationError
 from .generated_loop import BlockRunner, compiled_time_loop, run_blocks
 from .guard import StabilityLimitWarning
+from .mapped_tangent import tangent_construction, value_and_jacobian
 from .ops import CASADI
 from .planar.integrate import step_total
 from .results import SimulationResult
@@ -198,9 +199,10 @@ class CompiledSpatialScheme(SchemeHooks):
         What :func:`ctmm.compiled_spatial.spatial_compile_refusal` accepts.
     scheme : Scheme or str
         Any :mod:`ctmm.schemes` scheme with a nonlinear form.
-    store_every, tolerance, max_iterations, rows, cache_dir, compiler
+    store_every, tolerance, max_iterations, rows, cache_dir, compiler, tangent
         As in :class:`ctmm.compiled_scene_schemes.CompiledSceneScheme` (``max_iterations`` default 50, as the
-        Python spatial stepper).
+        Python spatial stepper; ``tangent``: the residual's Jacobian symbolic or by mapped forward derivatives,
+        :mod:`ctmm.mapped_tangent`, by the velocities' count when None).
 
     Attributes
     ----------
@@ -212,11 +214,13 @@ class CompiledSpatialScheme(SchemeHooks):
 
     def __init__(self, model: SpatialModel, scheme: Scheme | str = "newmark", *, store_every: int = 1,
                  tolerance: float = 1e-10, max_iterations: int = 50, rows: int = 64,
-                 cache_dir: str | os.PathLike | None = None, compiler: str | None = None) -> None:
+                 cache_dir: str | os.PathLike | None = None, compiler: str | None = None,
+                 tangent: str | None = None) -> None:
         reason = spatial_compile_refusal(model, time_signals=True)    # signals on the step's time symbol (loops too)
         if reason:
             raise ModelError(f"CompiledSpatialScheme: {reason}")
         self.scheme = as_scheme(scheme)
+        self.tangent = tangent_construction("CompiledSpatialScheme", tangent, model.n_velocities)
         self.chart = isinstance(self.scheme, Houbolt)    # differences of configurations: the chart-rate conversion
         self.tolerance, self.max_iterations, self.store_every, rows = newton_options(
             "CompiledSpatialScheme", tolerance, max_iterations, store_every, rows)
@@ -227,7 +231,7 @@ class CompiledSpatialScheme(SchemeHooks):
         from .model_description import describe       # what build() reads: a cached library loads without symbols
 
         description = describe((model, self.scheme, self.tolerance, self.max_iterations, "spatial DT-TMM scheme",
-                                *self.described()))
+                                self.tangent, *self.described()))
         name = f"spatial_{model.n_bodies}b{model.n_positions}q{model.n_velocities}v_{self.scheme.name}" + \
             ("_loops" if self.loops else "")
         options = {"cache_dir": cache_dir, "compiler": compiler, "flags": SPATIAL_FLAGS}
@@ -287,8 +291,9 @@ class CompiledSpatialScheme(SchemeHooks):
         body_rates = self.iterate_acceleration(acceleration, symbolic_retract(model, q, delta),
                                                rate - 0.5 * chart * symbolic_bracket(model, delta, rate), u, p, t, c, s)
         residual = a - body_rates - 0.5 * chart * symbolic_bracket(model, delta, body_rates)
-        residual_terms = ca.Function("residual", [a, delta_hat, v_hat, w, g, q, chart, u, p, t, c, s],
-                                     [residual, ca.jacobian(residual, a)])
+        arguments = [a, delta_hat, v_hat, w, g, q, chart, u, p, t, c, s]
+        residual_terms = value_and_jacobian(ca.Function("residual_value", arguments, [residual]), 0, "residual") \
+            if self.tangent == "mapped" else ca.Function("residual", arguments, [residual, ca.jacobian(residual, a)])
         iterate = newton_iteration(residual_terms, self.tolerance)
         y = ca.MX.sym("y", self.state_size)
         u_in, h, p_in, t0, k = ca.MX.sym("u", n_u), ca.MX.sym("h"), ca.MX.sym("p", 0), ca.MX.sym("t0"), ca.MX.sym("k")
