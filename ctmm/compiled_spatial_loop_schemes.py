@@ -14,19 +14,23 @@ states and the largest ``max |Phi|`` after a projection; above :data:`~ctmm.loop
 cut joint, partial result).  The numpy path checks ``G`` at every Newton iterate, here at the accepted states.
 
 Every scheme of :class:`CompiledSpatialScheme` (Houbolt's earlier configurations are the projected states, as in
-the numpy path).  Refused by name (:class:`~ctmm.errors.ModelError`, by :mod:`ctmm.spatial_loop_time`): what
-:func:`ctmm.compiled_spatial_kinematic_loops.spatial_kinematic_loop_compile_refusal` refuses, joint inputs (the
-numpy path takes them; the generated step holds none), ``divergence_bound``, feedback loops and controllers (the
-loop driver's run: generated with ``"rk4"`` only).
+the numpy path).  The tree's joint inputs are the step's input ``u`` (:attr:`CompiledSpatialLoopScheme.actuators`,
+applied with the cut loads as :meth:`SpatialKinematicLoopModel.cut_inputs` applies them), numbers held over a run;
+``divergence_bound`` is the numpy path's rule (:func:`ctmm.spatial.integrate.divergence_check` on the projected
+states, the failing step found by :func:`ctmm.compiled_spatial_schemes.checked_spatial_result`).  Refused by name
+(:class:`~ctmm.errors.ModelError`, by :mod:`ctmm.spatial_loop_time`): what
+:func:`ctmm.compiled_spatial_kinematic_loops.spatial_kinematic_loop_compile_refusal` refuses, joint inputs that are
+functions of time, feedback loops and controllers (the loop driver's run: generated with ``"rk4"`` only).
 """
 from __future__ import annotations
 
 import os
 import time as clock
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 
+from . import validation
 from .compiled_spatial_kinematic_loops import (loop_simulation, spatial_kinematic_loop_compile_refusal,
                                                symbolic_spatial_closed_loop, symbolic_spatial_projection)
 from .compiled_spatial_schemes import CompiledSpatialScheme, checked_spatial_result, warn_conditionally_stable
@@ -36,8 +40,21 @@ from .planar.integrate import step_total
 from .schemes import Scheme, as_scheme
 from .spatial.closed_loop_time import SpatialLoopSimulation
 from .spatial.closed_loops import SpatialKinematicLoopModel
+from .spatial.ports import SpatialPorts
 
 __all__ = ["CompiledSpatialLoopScheme", "simulate_spatial_loop_scheme_generated"]
+
+
+def joint_input_ports(tree: Any) -> tuple[str, ...]:
+    """The port actuator names (:class:`~ctmm.spatial.ports.SpatialPorts`) of the joint inputs of spatial model
+    ``tree``, one per input component in the order of its input vector (:meth:`SpatialRates.input_vector`:
+    ``tree.inputs`` by name, then component; e.g. ``"s.torque_x|y|z"`` for a spherical joint's ``"s.torque"``)."""
+    ports, order = SpatialPorts(tree).actuators, list(tree.inputs)
+    first: dict[tuple[int, int], str] = {}
+    for name, actuator in ports.items():
+        if actuator.kind == "joint" and actuator.target in order:
+            first.setdefault((order.index(actuator.target), int(actuator.component)), name)
+    return tuple(first[key] for key in sorted(first))
 
 
 class CompiledSpatialLoopScheme(CompiledSpatialScheme):
@@ -67,43 +84,48 @@ class CompiledSpatialLoopScheme(CompiledSpatialScheme):
         if reason:
             raise ModelError(f"CompiledSpatialLoopScheme: {reason}")
         self.loop_model, self.projection, self.iterations = loop_model, bool(projection), int(iterations)
-        self._closed, self._constraint, _, _ = symbolic_spatial_closed_loop(loop_model)
+        self.actuators = joint_input_ports(loop_model.tree)
+        self._closed, self._constraint, _, _ = symbolic_spatial_closed_loop(loop_model, self.actuators)
         super().__init__(loop_model.tree, scheme, store_every=store_every, tolerance=tolerance,
                          max_iterations=max_iterations, rows=rows, cache_dir=cache_dir, compiler=compiler)
 
     def described(self) -> tuple:
         """The cuts, the Baumgarte rate and the projection options (the cache key's part)."""
-        return (self.loop_model.cuts, self.loop_model.baumgarte, self.projection, self.iterations,
+        return (self.loop_model.cuts, self.loop_model.baumgarte, self.projection, self.iterations, self.actuators,
                 "spatial kinematic loop scheme")
 
     def closed_acceleration(self) -> Any:
-        """``v_dot = acceleration(q, v, u, p, t)``: the closed-loop velocity rates (``u`` the tree's inputs, held at
-        zero: refused on the verb's path)."""
+        """``v_dot = acceleration(q, v, u, p, t)``: the closed-loop velocity rates, ``u`` the tree's joint inputs
+        (:attr:`actuators`, the layout of :meth:`held_inputs`) applied with the cut loads."""
         import casadi as ca
 
         tree = self.model
         q, v, u = ca.SX.sym("q", tree.n_positions), ca.SX.sym("v", tree.n_velocities), ca.SX.sym("u", self.input_size)
         p, t = ca.SX.sym("p", 0), ca.SX.sym("t")
-        return ca.Function("acceleration", [q, v, u, p, t], [self._closed(q, v, ca.DM.zeros(0), p, t)[0]])
+        return ca.Function("acceleration", [q, v, u, p, t], [self._closed(q, v, u, p, t)[0]])
 
     def controller_update(self, q: Any, v: Any, u: Any, p: Any, t: Any, c: Any, h: Any) -> Any:
         """``[max(c_0, condition of G at (q, v, t)), c_1]`` at the accepted state (before its projection)."""
         import casadi as ca
 
-        return ca.vertcat(ca.fmax(c[0], self._closed(q, v, ca.DM.zeros(0), p, t)[1]), c[1])
+        return ca.vertcat(ca.fmax(c[0], self._closed(q, v, u, p, t)[1]), c[1])
 
     def initial_controller(self, q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
-        """``[condition of G at the start, 0]``."""
-        return np.array([float(self._closed(q, qdot, np.zeros(0), np.zeros(0), 0.0)[1]), 0.0])
+        """``[condition of G at the start, 0]`` (``G`` does not depend on the inputs)."""
+        return np.array([float(self._closed(q, qdot, np.zeros(self.input_size), np.zeros(0), 0.0)[1]), 0.0])
 
-    def cut_history(self, t: np.ndarray, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Cut unknowns, ``Phi`` and ``Phi'`` (rows, m) of stored times ``t`` [s] and states ``[q, v]``: the closed-loop
-        functions on symbols mapped over the rows (one call)."""
+    def cut_history(self, t: np.ndarray, states: np.ndarray, held: np.ndarray | None = None
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Cut unknowns, ``Phi`` and ``Phi'`` (rows, m) of stored times ``t`` [s] and states ``[q, v]`` with the input
+        vector ``held`` (:meth:`held_inputs`; default zero): the closed-loop functions on symbols mapped over the rows
+        (one call)."""
         m, rows, nq = self.loop_model.n_constraints, len(t), self.model.n_positions
         if rows == 0:
             return np.zeros((0, m)), np.zeros((0, m)), np.zeros((0, m))
         q, v, t = states[:, :nq].T, states[:, nq:].T, np.asarray(t, dtype=float)[None, :]
-        _, _, unknowns, phi, phi_dot, _ = self._closed.map(rows)(q, v, np.zeros((0, rows)), np.zeros((0, rows)), t)
+        u = np.zeros(self.input_size) if held is None else np.asarray(held, dtype=float)
+        _, _, unknowns, phi, phi_dot, _ = self._closed.map(rows)(q, v, np.tile(u[:, None], (1, rows)),
+                                                                 np.zeros((0, rows)), t)
         return np.asarray(unknowns).T.copy(), np.asarray(phi).T.copy(), np.asarray(phi_dot).T.copy()
 
     def _build(self) -> tuple[Any, list]:
@@ -126,12 +148,19 @@ class CompiledSpatialLoopScheme(CompiledSpatialScheme):
 
 
 def simulate_spatial_loop_scheme_generated(model: SpatialKinematicLoopModel, q0: Any, v0: Any, *, t_final: float,
-                                           dt: float, scheme: Scheme | str, store_every: int = 1,
+                                           dt: float, scheme: Scheme | str, inputs: Mapping[str, Any] | None = None,
+                                           store_every: int = 1, divergence_bound: float | None = None,
                                            projection: bool = True, compiled: CompiledSpatialLoopScheme | None = None,
                                            cache_dir: str | os.PathLike | None = None
                                            ) -> tuple[SpatialLoopSimulation, dict]:
     """:func:`ctmm.spatial.closed_loop_time.simulate_spatial_loop_scheme` with the steps in generated C (module
     docstring): ``(run, info)``, the method ``"dt-tmm-generated/<scheme>"``.
+
+    ``inputs``: the tree's joint inputs ``{"<joint>.torque": number or (k,) numbers}`` held over the run (functions
+    of time refused by name).  ``divergence_bound``: the rule of the numpy path
+    (:func:`ctmm.spatial.integrate.divergence_check` on the projected states), checked on the stored states after the
+    run and, in the first failing stored interval, step by step (:func:`checked_spatial_result`): the failure is
+    reported at its step's time with the states before it.
 
     Raises
     ------
@@ -145,6 +174,8 @@ def simulate_spatial_loop_scheme_generated(model: SpatialKinematicLoopModel, q0:
     q, v = model.state(q0, v0)
     n_steps = step_total(t_final, dt)
     dt = float(t_final) / n_steps
+    if divergence_bound is not None:
+        divergence_bound = validation.positive("divergence_bound", divergence_bound)
     if compiled is None:
         compiled = CompiledSpatialLoopScheme(model, scheme, store_every=store_every, projection=projection,
                                              cache_dir=cache_dir)
@@ -153,9 +184,10 @@ def simulate_spatial_loop_scheme_generated(model: SpatialKinematicLoopModel, q0:
         raise ModelError(f"compiled must be a CompiledSpatialLoopScheme of this model with scheme={scheme!r}, "
                          f"store_every={store_every!r} and projection={projection!r}, got {compiled!r:.80}")
     warn_conditionally_stable(model.tree, scheme)
-    start = compiled.initial_state(np.concatenate([q, v]))
+    held = compiled.held_inputs(inputs)
+    start = compiled.initial_state(np.concatenate([q, v]), inputs)
     began = clock.perf_counter()
-    rows = compiled.run(start, dt, n_steps)
+    rows = compiled.run(start, dt, n_steps, inputs)
     wall = clock.perf_counter() - began
     steps = np.array([k for k in range(1, n_steps + 1) if k % compiled.store_every == 0 or k == n_steps])[:len(rows)]
     times = np.concatenate([[0.0], steps * dt])
@@ -167,10 +199,10 @@ def simulate_spatial_loop_scheme_generated(model: SpatialKinematicLoopModel, q0:
             "newton_iterations": total, "projection": compiled.projection}
 
     def result(k: int) -> SpatialLoopSimulation:
-        unknowns, phi, phi_dot = compiled.cut_history(times[:k], states[:k, :size])
+        unknowns, phi, phi_dot = compiled.cut_history(times[:k], states[:k, :size], held)
         return loop_simulation(model, times[:k], states[:k, :size], unknowns, method, wall, total, phi, phi_dot)
 
-    run = checked_spatial_result(compiled, times, states, dt, method, result)
+    run = checked_spatial_result(compiled, times, states, dt, method, result, divergence_bound, held)
     condition, residual = states[:, -2], states[:, -1]
     over = np.flatnonzero((condition > CONDITION_LIMIT) | (residual > PROJECTION_TOLERANCE))
     if over.size:

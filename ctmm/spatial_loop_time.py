@@ -63,12 +63,15 @@ def simulate_spatial_loop_system(system: Any, t_final: float, dt: float | None, 
         name not in model.tree.inputs for name in inputs))
     generated_scheme = compiled and not through_driver and (isinstance(method, Scheme) or (isinstance(method, str)
                                                                                     and method in SCHEMES))
-    if compiled and ((method != "rk4" and not generated_scheme) or (inputs and not through_driver)):
+    if compiled and ((method != "rk4" and not generated_scheme) or (inputs and not through_driver
+                                                                     and not generated_scheme)):
         raise ModelError(f"compiled=True runs the generated RK4 of the spatial kinematic loop model {model.name!r} "
                          f"(method='rk4'): alone with projection, or with loops, controllers, references, outputs or "
-                         f"port inputs as the loop driver (ctmm.compiled_kinematic_loop_control); the model alone "
-                         f"also with a DT-TMM scheme (ctmm.compiled_spatial_loop_schemes); not with joint "
-                         f"inputs alone; got method={method!r}, inputs={inputs!r:.60}; leave compiled at None")
+                         f"port inputs as the loop driver (ctmm.compiled_kinematic_loop_control); the model alone, "
+                         f"with held joint inputs too, also with a DT-TMM scheme (ctmm.compiled_spatial_loop_schemes); "
+                         f"not the RK4 with joint inputs alone, not a DT-TMM scheme with loops, controllers, "
+                         f"references, outputs or port inputs; got method={method!r}, inputs={inputs!r:.60}; leave "
+                         f"compiled at None")
     for name, (value, default) in unsupported.items():
         if value is not default and value != default:
             raise ModelError(f"{name}={value!r} is not available for the spatial kinematic loop model {model.name!r} "
@@ -140,12 +143,10 @@ def _scheme_run(model: SpatialKinematicLoopModel, t_final: float, dt: float | No
     if compiled:
         from .compiled_spatial_loop_schemes import simulate_spatial_loop_scheme_generated
 
-        if divergence_bound is not None:
-            raise ModelError(f"divergence_bound={divergence_bound!r} is not available with compiled=True and a DT-TMM "
-                             "scheme on a spatial kinematic loop model; leave it at None")
         run, info = simulate_spatial_loop_scheme_generated(model, q0, v0, t_final=t_final,
                                                            dt=validation.positive("dt", dt), scheme=scheme,
-                                                           store_every=store_every)
+                                                           inputs=inputs, store_every=store_every,
+                                                           divergence_bound=divergence_bound)
         info["compiled"] = True
     else:
         run, info = simulate_spatial_loop_scheme(model, q0, v0, t_final=t_final, dt=validation.positive("dt", dt),
