@@ -25,7 +25,6 @@ functions of time, feedback loops and controllers (the loop driver's run: genera
 from __future__ import annotations
 
 import os
-import time as clock
 from typing import Any, Mapping
 
 import numpy as np
@@ -33,7 +32,8 @@ import numpy as np
 from . import validation
 from .compiled_spatial_kinematic_loops import (loop_simulation, spatial_kinematic_loop_compile_refusal,
                                                symbolic_spatial_closed_loop, symbolic_spatial_projection)
-from .compiled_spatial_schemes import CompiledSpatialScheme, checked_spatial_result, warn_conditionally_stable
+from .compiled_spatial_schemes import (CompiledSpatialScheme, checked_spatial_result, generated_rows,
+                                       warn_conditionally_stable)
 from .errors import ModelError, SimulationError
 from .loop_integration import CONDITION_LIMIT, PROJECTION_TOLERANCE, projection_failure, singular_compliance
 from .planar.integrate import step_total
@@ -42,7 +42,7 @@ from .spatial.closed_loop_time import SpatialLoopSimulation
 from .spatial.closed_loops import SpatialKinematicLoopModel
 from .spatial.ports import SpatialPorts
 
-__all__ = ["CompiledSpatialLoopScheme", "simulate_spatial_loop_scheme_generated"]
+__all__ = ["CompiledSpatialLoopScheme", "check_cut_rows", "joint_input_ports", "simulate_spatial_loop_scheme_generated"]
 
 
 def joint_input_ports(tree: Any) -> tuple[str, ...]:
@@ -84,10 +84,24 @@ class CompiledSpatialLoopScheme(CompiledSpatialScheme):
         if reason:
             raise ModelError(f"CompiledSpatialLoopScheme: {reason}")
         self.loop_model, self.projection, self.iterations = loop_model, bool(projection), int(iterations)
-        self.actuators = joint_input_ports(loop_model.tree)
-        self._closed, self._constraint, _, _ = symbolic_spatial_closed_loop(loop_model, self.actuators)
+        self.actuators = self.step_actuators()
+        self._closed, self._constraint, self.cut_coordinates, self.law_moments = symbolic_spatial_closed_loop(
+            loop_model, self.actuators)
+        self.prepare()
         super().__init__(loop_model.tree, scheme, store_every=store_every, tolerance=tolerance,
                          max_iterations=max_iterations, rows=rows, cache_dir=cache_dir, compiler=compiler)
+
+    def step_actuators(self) -> tuple[str, ...]:
+        """The port actuators of the step's input ``u``: the tree's joint inputs (:func:`joint_input_ports`)."""
+        return joint_input_ports(self.loop_model.tree)
+
+    def prepare(self) -> None:
+        """What a subclass sets up on the closed-loop functions before the step is built (nothing here)."""
+
+    @property
+    def input_size(self) -> int:
+        """Entries of the step's input ``u``: one per port actuator of :attr:`actuators`."""
+        return len(self.actuators)
 
     def described(self) -> tuple:
         """The cuts, the Baumgarte rate and the projection options (the cache key's part)."""
@@ -105,10 +119,11 @@ class CompiledSpatialLoopScheme(CompiledSpatialScheme):
         return ca.Function("acceleration", [q, v, u, p, t], [self._closed(q, v, u, p, t)[0]])
 
     def controller_update(self, q: Any, v: Any, u: Any, p: Any, t: Any, c: Any, h: Any) -> Any:
-        """``[max(c_0, condition of G at (q, v, t)), c_1]`` at the accepted state (before its projection)."""
+        """``c`` with its last two entries ``[condition, residual]`` as ``[max(condition, condition of G at (q, v,
+        t)), residual]`` at the accepted state (before its projection); the entries before them kept."""
         import casadi as ca
 
-        return ca.vertcat(ca.fmax(c[0], self._closed(q, v, u, p, t)[1]), c[1])
+        return ca.vertcat(c[:-2], ca.fmax(c[-2], self._closed(q, v, u, p, t)[1]), c[-1])
 
     def initial_controller(self, q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
         """``[condition of G at the start, 0]`` (``G`` does not depend on the inputs)."""
@@ -186,15 +201,9 @@ def simulate_spatial_loop_scheme_generated(model: SpatialKinematicLoopModel, q0:
     warn_conditionally_stable(model.tree, scheme)
     held = compiled.held_inputs(inputs)
     start = compiled.initial_state(np.concatenate([q, v]), inputs)
-    began = clock.perf_counter()
-    rows = compiled.run(start, dt, n_steps, inputs)
-    wall = clock.perf_counter() - began
-    steps = np.array([k for k in range(1, n_steps + 1) if k % compiled.store_every == 0 or k == n_steps])[:len(rows)]
-    times = np.concatenate([[0.0], steps * dt])
-    states = np.vstack([start[None], rows])
+    times, states, wall, total = generated_rows(compiled, start, dt, n_steps, inputs)
     method = f"dt-tmm-generated/{scheme.name}"
-    nq, size, status = model.tree.n_positions, model.tree.n_positions + model.tree.n_velocities, compiled.status_index
-    total = int(states[-1, status + 2]) if np.isfinite(states[-1, status + 2]) else -1
+    size = model.tree.n_positions + model.tree.n_velocities
     info = {"dt": dt, "scheme": repr(scheme), "wall_time_s": wall, "compile_time_s": compiled.compile_time_s,
             "newton_iterations": total, "projection": compiled.projection}
 
@@ -203,14 +212,28 @@ def simulate_spatial_loop_scheme_generated(model: SpatialKinematicLoopModel, q0:
         return loop_simulation(model, times[:k], states[:k, :size], unknowns, method, wall, total, phi, phi_dot)
 
     run = checked_spatial_result(compiled, times, states, dt, method, result, divergence_bound, held)
+    check_cut_rows(compiled, times, states, f"spatial kinematic loop {model.name!r} ({method})", result)
+    if compiled.projection:
+        info["max_drift_after_projection"] = float(np.max(states[:, -1]))
+    return run, info
+
+
+def check_cut_rows(compiled: CompiledSpatialLoopScheme, times: np.ndarray, states: np.ndarray, label: str,
+                   result: Any) -> None:
+    """Stop at the first stored row (times ``times`` [s]) whose ``[condition, residual]`` (the last two entries of
+    the generated ``states``) exceeds :data:`~ctmm.loop_integration.CONDITION_LIMIT` or
+    :data:`~ctmm.loop_integration.PROJECTION_TOLERANCE`.
+
+    Raises
+    ------
+    SimulationError
+        ``"<label>: <what> by t = ..."`` with the time, the first cut joint and ``result(row)`` as partial result.
+    """
     condition, residual = states[:, -2], states[:, -1]
     over = np.flatnonzero((condition > CONDITION_LIMIT) | (residual > PROJECTION_TOLERANCE))
     if over.size:
         k = int(over[0])
         what = singular_compliance(float(condition[k])) if condition[k] > CONDITION_LIMIT else \
             projection_failure(float(residual[k]), compiled.iterations)
-        raise SimulationError(f"spatial kinematic loop {model.name!r} ({method}): {what} by t = {times[k]:.6g} s",
-                              time=float(times[k]), element=model.cuts[0].name, partial_result=result(k))
-    if compiled.projection:
-        info["max_drift_after_projection"] = float(np.max(residual))
-    return run, info
+        raise SimulationError(f"{label}: {what} by t = {times[k]:.6g} s", time=float(times[k]),
+                              element=compiled.loop_model.cuts[0].name, partial_result=result(k))
