@@ -82,7 +82,7 @@ from .planar.ports import PlanarPorts
 from .signal_results import SignalSystem, signal_result
 from .signals import Constant, as_signal
 
-__all__ = ["CompiledKinematicLoopControl", "KinematicLoopSymbols", "SpatialKinematicLoopSymbols",
+__all__ = ["CompiledKinematicLoopControl", "KinematicLoopSymbols", "SpatialKinematicLoopSymbols", "applied_loop_inputs",
            "simulate_controlled_kinematic_loops_generated",
            "simulate_cosimulated_kinematic_loops_generated", "simulate_generated_driver_run"]
 
@@ -361,16 +361,25 @@ class CompiledKinematicLoopControl:
         inputs, the loops' outputs and the ``held`` values of each row (``{actuator: value}``), as
         :meth:`KinematicLoopPorts.inputs` (``None`` where nothing drives)."""
         _, u = self._signals(block[:, :self.loops.state_size], t)
-        out = []
-        for k, moment in enumerate(t):
-            values = {name: float(signal(moment)) for name, signal in self._input_signals.items()}
-            for j, law in enumerate(self.loops.laws):
-                for name, weight in law.actuators:
-                    values[name] = values.get(name, 0.0) + float(weight) * float(u[k, j])
-            for name, value in (held[k] if held is not None else {}).items():
-                values[name] = values.get(name, 0.0) + float(value)
-            out.append(self.controlled.ports.inputs(values) if values else None)
-        return out
+        return applied_loop_inputs(self.controlled, self.loops, self._input_signals, t, u, held)
+
+
+def applied_loop_inputs(controlled: ControlledModel, loops: ClosedLoops, input_signals: Mapping[str, Any],
+                        t: np.ndarray, u: np.ndarray, held: Sequence[Mapping[str, float]] | None = None) -> list:
+    """The actuator inputs of stored rows at times ``t`` [s] of a controlled kinematic loop model: the open-loop
+    ``input_signals`` (``{actuator: signal}``), the loops' outputs ``u`` (rows, loops; :meth:`ClosedLoops.signals`)
+    and the ``held`` values of each row (``{actuator: value}``), as the ports' inputs
+    (``controlled.ports.inputs``; ``None`` where nothing drives)."""
+    out = []
+    for k, moment in enumerate(t):
+        values = {name: float(signal(moment)) for name, signal in input_signals.items()}
+        for j, law in enumerate(loops.laws):
+            for name, weight in law.actuators:
+                values[name] = values.get(name, 0.0) + float(weight) * float(u[k, j])
+        for name, value in (held[k] if held is not None else {}).items():
+            values[name] = values.get(name, 0.0) + float(value)
+        out.append(controlled.ports.inputs(values) if values else None)
+    return out
 
 
 def _start(model: Any, q0: Any, v0: Any) -> tuple[np.ndarray, np.ndarray]:

@@ -33,6 +33,13 @@ station forces and moments that controllers drive (or numeric inputs hold) are i
 (``station_inputs`` of :class:`~ctmm.compiled_scene_schemes.CompiledSceneScheme` and
 :class:`~ctmm.compiled_scheme_loops.CompiledSchemeLoops`: their modal forces and frame wrench,
 :mod:`ctmm.compiled_station_loads`).
+
+Spatial kinematic loop models (:class:`~ctmm.spatial.closed_loops.SpatialKinematicLoopModel`): the step is the one of
+:class:`~ctmm.compiled_spatial_loop_scheme_control.CompiledSpatialLoopSchemeControl` (cut loads solved at the
+iterate, projection after every step, the loops beside the controllers inside Newton, open-loop inputs compiled in),
+the cut loads stored with each row's held outputs (the values after a sample at a sample instant, as the Python
+path stores them), the compliance condition and the projection residual checked at every step (named by the first
+cut joint).
 """
 from __future__ import annotations
 
@@ -46,9 +53,11 @@ from . import validation
 from .compiled_control import add_loop_signals
 from .compiled_parameters import station_loads
 from .compiled_cosim import stored_offsets
+from .compiled_kinematic_loop_control import applied_loop_inputs
 from .compiled_scene_schemes import STATUS, CompiledSceneScheme, not_converged
 from .compiled_scheme_loops import CompiledSchemeLoops
 from .compiled_spatial_scheme_loops import CompiledSpatialSchemeLoops
+from .compiled_spatial_loop_schemes import check_cut_rows
 from .compiled_spatial_schemes import CompiledSpatialScheme, warn_conditionally_stable
 from .control.controlled_model import ControlledModel
 from .control.cosim import CoSimulation
@@ -56,17 +65,20 @@ from .control.plants import plant_of
 from .errors import ModelError, SimulationError
 from .generated_loop import BlockRunner
 from .guard import DivergenceGuard
+from .loop_integration import CONDITION_LIMIT, PROJECTION_TOLERANCE
 from .planar.guards import check_scheme, divergence_guard, with_partial
 from .planar.integrate import check_store_every, step_total
 from .planar.model import PlanarModel
 from .spatial.integrate import beam_deflection_weights
+from .spatial.closed_loops import SpatialKinematicLoopModel
 from .spatial.model import SpatialModel
 from .progress import progress_bar
 from .results import SimulationResult
 from .schemes import Scheme, as_scheme
+from .signals import as_signal
 from .signal_results import SignalSystem, signal_result
 
-__all__ = ["simulate_cosimulated_scheme_generated"]
+__all__ = ["cut_rows_pass", "simulate_cosimulated_scheme_generated"]
 
 
 def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0: np.ndarray, v0: np.ndarray, *,
@@ -81,9 +93,10 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
 
     Parameters
     ----------
-    model : PlanarModel or SpatialModel
+    model : PlanarModel, SpatialModel or SpatialKinematicLoopModel
         Compilable (:func:`ctmm.compiled_parameters.compile_refusal`,
-        :func:`ctmm.compiled_spatial.spatial_compile_refusal`).
+        :func:`ctmm.compiled_spatial.spatial_compile_refusal`,
+        :func:`ctmm.compiled_spatial_kinematic_loops.spatial_kinematic_loop_compile_refusal`).
     q0, v0 : ndarray
         Initial coordinates and rates (checked by the caller).
     t_final, dt : float
@@ -132,6 +145,8 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
     dt = float(t_final) / n_steps
     store_every = check_store_every(store_every)
     planar = isinstance(model, PlanarModel)
+    kinematic = isinstance(model, SpatialKinematicLoopModel)      # cut joints: their step with the loops' part
+    tree = model.tree if kinematic else model
     plant = plant_of(model)
     ports = plant.ports
     for c in controllers:
@@ -145,11 +160,13 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
             ports.check_actuator(name, f"output of {label}")
     kind = CompiledSceneScheme if planar else CompiledSpatialScheme
     held = [name for c in controllers for name in c.outputs]
-    joint_inputs = () if planar else [name for joint in model.joints for name in joint.inputs
-                                      if joint.velocity_count == 1]
+    joint_inputs = () if planar or kinematic else [name for joint in model.joints for name in joint.inputs
+                                                   if joint.velocity_count == 1]
     # spatial port actuators (beam station and body-axis forces and moments) are inputs of the step with loops only
-    ported = not planar and compiled is None and any(name not in joint_inputs for name in held)
-    looped = bool(loops) or bool(references) or ported
+    ported = not planar and not kinematic and compiled is None and any(name not in joint_inputs for name in held)
+    looped = bool(loops) or bool(references) or ported or kinematic
+    input_signals = {name: as_signal(f"inputs[{name!r}]", value) for name, value in (inputs or {}).items()} \
+        if kinematic else {}
     if looped:                  # loops inside the Newton step, the controllers' held outputs added to theirs
         if compiled is not None:
             raise ModelError("compiled=True with loops and co-simulated controllers together: the step is compiled "
@@ -158,6 +175,11 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
         if planar:
             compiled = CompiledSchemeLoops(controlled, scheme, references=references, inputs=inputs, dt=dt,
                                            station_inputs=station_loads(model, held))
+        elif kinematic:
+            from .compiled_spatial_loop_scheme_control import CompiledSpatialLoopSchemeControl
+
+            compiled = CompiledSpatialLoopSchemeControl(controlled, scheme, references=references, inputs=inputs,
+                                                        dt=dt, held=held)
         else:
             compiled = CompiledSpatialSchemeLoops(controlled, scheme, references=references, inputs=inputs, dt=dt,
                                                   held=held)
@@ -204,22 +226,31 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
         closed = (lambda _, q_k, v_k, t_k: compiled.accelerations(q_k, v_k, t_k)) if looped else None
         check_scheme(model, q0, v0, dt, scheme=scheme, policy=stability_check, accelerations=closed)
     else:
-        warn_conditionally_stable(model, scheme)
+        warn_conditionally_stable(tree, scheme)
     sensors = [ports.resolve(list(c.inputs)) for c in controllers]
     nq, nv = plant.n_positions, plant.n_velocities
     guard = plant.guard(q0, divergence_bound, v0)
-    screen = _guard_screen(model, q0, v0, divergence_bound)
+    screen = _guard_screen(tree, q0, v0, divergence_bound)
     label = f"dt-tmm-generated/{type(scheme).__name__}"
     info: dict = {"dt": dt, "method": label, "compile_time_s": compiled.compile_time_s}
     times: list[float] = []
     rows: list[np.ndarray] = []
+    held_rows: list[dict[str, float]] = []      # cut joints: the held outputs of each stored row (its cut loads)
+    held_now: dict[str, float] = {}
     intervals = 0
     runner = BlockRunner()                  # the call buffers of this run's intervals, set up once
     start = clock.perf_counter()
 
     def result(count: int) -> SimulationResult:
         t, block = np.array(times[:count]), np.array(rows[:count]).reshape(count, -1)
-        signals, units = plant.signals(t, block[:, :nq], block[:, nq:nq + nv], outputs)
+        applied = None
+        if kinematic:                   # the cut loads with each row's actuator values
+            entries = compiled.signal_states(block[:, compiled.status_index + len(STATUS):], t)
+            applied = applied_loop_inputs(controlled, compiled.loops, input_signals, t,
+                                          signals_of(np.hstack([block[:, :nq + nv], entries]), t)[1],
+                                          held_rows[:count])
+        signals, units = plant.signals(t, block[:, :nq], block[:, nq:nq + nv], outputs,
+                                       **({"inputs": applied} if kinematic else {}))
         for name, samples in master.outputs(until=t[-1] if count else -math.inf).items():
             signals[name], units[name] = samples, ports.actuator_unit(name.split("@")[0])
         more = {}
@@ -246,6 +277,8 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
         for c, values in zip(master.controllers, master.held):
             for name, value in zip(c.outputs, values):
                 held[name] = held.get(name, 0.0) + float(value)     # outputs on one actuator add
+        held_now.clear()
+        held_now.update(held)
         return vector(held), bool(sampled)
 
     bar = progress_bar(n_steps, f"ctmm.simulate ({plant.label}, {label})",
@@ -256,6 +289,7 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
                                    held, 0.0)
         times.append(0.0)
         rows.append(state)
+        held_rows.append(dict(held_now))
         k = restart = 0                     # restart: the step where the scheme's start-up last began
         while k < n_steps:
             following = min(min(((k // ratio + 1) * ratio for ratio in master.ratios), default=n_steps), n_steps)
@@ -264,22 +298,27 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
             # rows that converged and pass the screen (the guard's rules on the block) are stored at once; the
             # others and the interval's last row go one by one through the status check and the guard itself
             head = block[:-1]
-            suspects = np.flatnonzero((head[:, compiled.status_index] > 0.0) | ~screen(head)).tolist() if len(head) \
-                else []
+            suspects = np.flatnonzero((head[:, compiled.status_index] > 0.0) | ~screen(head)
+                                      | (kinematic and ~cut_rows_pass(head))).tolist() if len(head) else []
             done = 0
             for j in [*suspects, len(block) - 1]:
                 for i in stored_offsets(k, done, j, store_every, n_steps) if j > done else ():
                     times.append(float((k + 1 + i) * dt))
                     rows.append(block[i])
+                    held_rows.append(dict(held_now))
                 row, step, done = block[j], k + 1 + j, j + 1
                 if row[compiled.status_index] > 0.0:
                     raise not_converged(compiled, row, dt, offset=restart)
                 guard(step * dt, row[:nq + nv], dt, label)
+                if kinematic:               # a singular loop configuration or a projection left off the cuts
+                    check_cut_rows(compiled, np.array([step * dt]), row[None], f"spatial kinematic loop "
+                                   f"{model.name!r} with controllers ({label})", lambda _: result(len(times)))
                 if step == following:       # sampled before the row is stored (also at the end), as the Python path
                     held, sampled = sample(step, row)
                 if step % store_every == 0 or step == n_steps:
                     times.append(float(step * dt))
                     rows.append(row)
+                    held_rows.append(dict(held_now))
             state, k = block[-1].copy(), following
             bar.update(len(block))
             if sampled and k < n_steps:     # the held outputs may have jumped: the acceleration at t_k with them
@@ -292,6 +331,13 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
         bar.close()
         master.close()
     return result(len(times))
+
+
+def cut_rows_pass(block: np.ndarray) -> np.ndarray:
+    """Which generated rows of a spatial kinematic loop scheme (rows, state) keep their last two entries
+    ``[condition, residual]`` within :data:`~ctmm.loop_integration.CONDITION_LIMIT` and
+    :data:`~ctmm.loop_integration.PROJECTION_TOLERANCE`."""
+    return (block[:, -2] <= CONDITION_LIMIT) & (block[:, -1] <= PROJECTION_TOLERANCE)
 
 
 def _guard_screen(model: PlanarModel | SpatialModel, q0: np.ndarray, v0: np.ndarray, bound: float | None

@@ -37,7 +37,25 @@ from .errors import ModelError
 from .generated_loop import BlockRunner
 from .schemes import Scheme
 
-__all__ = ["BufferedCall", "SchemeLoopTerms"]
+__all__ = ["BufferedCall", "SchemeLoopTerms", "loop_actuators"]
+
+
+def loop_actuators(controlled: Any, inputs: Any, held: Any) -> tuple[str, ...]:
+    """The port actuators of a generated step's input ``u``: the loops', then those of the open-loop ``inputs``
+    (mapping) and the ``held`` ones (names), each once, checked against ``controlled.ports``.
+
+    Raises
+    ------
+    ModelError
+        An unknown actuator (named by the ports' check).
+    """
+    ports = controlled.ports
+    for name in inputs or {}:
+        ports.check_actuator(name, "inputs: actuator")
+    for name in held:
+        ports.check_actuator(name, "held: actuator")
+    return tuple(dict.fromkeys([name for loop in controlled.loops for name, _ in loop.actuator_terms]
+                               + list(inputs or {}) + list(held)))
 
 
 class BufferedCall:
@@ -309,6 +327,22 @@ class SchemeLoopTerms:
         start = np.asarray(delayed_sensors(q, v), dtype=float).reshape(-1)
         column = np.concatenate([start, np.zeros(self.ring_rows - start.size)])
         return np.concatenate([np.zeros(self.loops.n_controller_states), errors, np.tile(column, self.columns)])
+
+    def held_inputs(self, inputs: Any) -> np.ndarray:
+        """The step's input vector ``u`` of held port actuator values ``{name: number}`` (open-loop ``inputs`` are
+        compiled in; zero for the others).
+
+        Raises
+        ------
+        ModelError
+            A name that is not among :attr:`actuators`.
+        """
+        held = dict(inputs or {})
+        for name in held:
+            if name not in self.actuators:
+                raise ModelError(f"held input {name!r}: the generated step drives the port actuators "
+                                 f"{', '.join(self.actuators) or '(none)'}")
+        return np.array([float(held.get(name, 0.0)) for name in self.actuators])
 
     def restart_terms(self, q: np.ndarray, v: np.ndarray, held: np.ndarray, t: float, c: np.ndarray
                       ) -> tuple[np.ndarray, np.ndarray]:

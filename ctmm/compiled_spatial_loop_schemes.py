@@ -14,22 +14,26 @@ states and the largest ``max |Phi|`` after a projection; above :data:`~ctmm.loop
 cut joint, partial result).  The numpy path checks ``G`` at every Newton iterate, here at the accepted states.
 
 Every scheme of :class:`CompiledSpatialScheme` (Houbolt's earlier configurations are the projected states, as in
-the numpy path).  Refused by name (:class:`~ctmm.errors.ModelError`, by :mod:`ctmm.spatial_loop_time`): what
-:func:`ctmm.compiled_spatial_kinematic_loops.spatial_kinematic_loop_compile_refusal` refuses, joint inputs (the
-numpy path takes them; the generated step holds none), ``divergence_bound``, feedback loops and controllers (the
-loop driver's run: generated with ``"rk4"`` only).
+the numpy path).  The tree's joint inputs are the step's input ``u`` (:attr:`CompiledSpatialLoopScheme.actuators`,
+applied with the cut loads as :meth:`SpatialKinematicLoopModel.cut_inputs` applies them), numbers held over a run;
+``divergence_bound`` is the numpy path's rule (:func:`ctmm.spatial.integrate.divergence_check` on the projected
+states, the failing step found by :func:`ctmm.compiled_spatial_schemes.checked_spatial_result`).  Refused by name
+(:class:`~ctmm.errors.ModelError`, by :mod:`ctmm.spatial_loop_time`): what
+:func:`ctmm.compiled_spatial_kinematic_loops.spatial_kinematic_loop_compile_refusal` refuses, joint inputs that are
+functions of time, feedback loops and controllers (the loop driver's run: generated with ``"rk4"`` only).
 """
 from __future__ import annotations
 
 import os
-import time as clock
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 
+from . import validation
 from .compiled_spatial_kinematic_loops import (loop_simulation, spatial_kinematic_loop_compile_refusal,
                                                symbolic_spatial_closed_loop, symbolic_spatial_projection)
-from .compiled_spatial_schemes import CompiledSpatialScheme, checked_spatial_result, warn_conditionally_stable
+from .compiled_spatial_schemes import (CompiledSpatialScheme, checked_spatial_result, generated_rows,
+                                       warn_conditionally_stable)
 from .compiled_spherical_cut_law import spherical_law_cuts
 from .errors import ModelError, SimulationError
 from .loop_integration import CONDITION_LIMIT, PROJECTION_TOLERANCE, projection_failure, singular_compliance
@@ -37,8 +41,21 @@ from .planar.integrate import step_total
 from .schemes import Scheme, as_scheme
 from .spatial.closed_loop_time import SpatialLoopSimulation
 from .spatial.closed_loops import SpatialKinematicLoopModel
+from .spatial.ports import SpatialPorts
 
-__all__ = ["CompiledSpatialLoopScheme", "simulate_spatial_loop_scheme_generated"]
+__all__ = ["CompiledSpatialLoopScheme", "check_cut_rows", "joint_input_ports", "simulate_spatial_loop_scheme_generated"]
+
+
+def joint_input_ports(tree: Any) -> tuple[str, ...]:
+    """The port actuator names (:class:`~ctmm.spatial.ports.SpatialPorts`) of the joint inputs of spatial model
+    ``tree``, one per input component in the order of its input vector (:meth:`SpatialRates.input_vector`:
+    ``tree.inputs`` by name, then component; e.g. ``"s.torque_x|y|z"`` for a spherical joint's ``"s.torque"``)."""
+    ports, order = SpatialPorts(tree).actuators, list(tree.inputs)
+    first: dict[tuple[int, int], str] = {}
+    for name, actuator in ports.items():
+        if actuator.kind == "joint" and actuator.target in order:
+            first.setdefault((order.index(actuator.target), int(actuator.component)), name)
+    return tuple(first[key] for key in sorted(first))
 
 
 class CompiledSpatialLoopScheme(CompiledSpatialScheme):
@@ -69,46 +86,66 @@ class CompiledSpatialLoopScheme(CompiledSpatialScheme):
         if reason:
             raise ModelError(f"CompiledSpatialLoopScheme: {reason}")
         self.loop_model, self.projection, self.iterations = loop_model, bool(projection), int(iterations)
-        self._closed, self._constraint, _, _ = symbolic_spatial_closed_loop(loop_model)
+        self.actuators = self.step_actuators()
+        self._closed, self._constraint, self.cut_coordinates, self.law_moments = symbolic_spatial_closed_loop(
+            loop_model, self.actuators)
+        self.prepare()
         if tangent is None and spherical_law_cuts(loop_model):     # the law inside the symbolic Jacobian: slow
             tangent = "mapped"          # compile (ball, Newmark, CPU incl. gcc: 16.6 s -> 5.8 s; 61 -> 107 us/step)
         super().__init__(loop_model.tree, scheme, store_every=store_every, tolerance=tolerance,
                          max_iterations=max_iterations, rows=rows, cache_dir=cache_dir, compiler=compiler,
                          tangent=tangent)
 
+    def step_actuators(self) -> tuple[str, ...]:
+        """The port actuators of the step's input ``u``: the tree's joint inputs (:func:`joint_input_ports`)."""
+        return joint_input_ports(self.loop_model.tree)
+
+    def prepare(self) -> None:
+        """What a subclass sets up on the closed-loop functions before the step is built (nothing here)."""
+
+    @property
+    def input_size(self) -> int:
+        """Entries of the step's input ``u``: one per port actuator of :attr:`actuators`."""
+        return len(self.actuators)
+
     def described(self) -> tuple:
         """The cuts, the Baumgarte rate and the projection options (the cache key's part)."""
-        return (self.loop_model.cuts, self.loop_model.baumgarte, self.projection, self.iterations,
+        return (self.loop_model.cuts, self.loop_model.baumgarte, self.projection, self.iterations, self.actuators,
                 "spatial kinematic loop scheme")
 
     def closed_acceleration(self) -> Any:
-        """``v_dot = acceleration(q, v, u, p, t)``: the closed-loop velocity rates (``u`` the tree's inputs, held at
-        zero: refused on the verb's path)."""
+        """``v_dot = acceleration(q, v, u, p, t)``: the closed-loop velocity rates, ``u`` the tree's joint inputs
+        (:attr:`actuators`, the layout of :meth:`held_inputs`) applied with the cut loads."""
         import casadi as ca
 
         tree = self.model
         q, v, u = ca.SX.sym("q", tree.n_positions), ca.SX.sym("v", tree.n_velocities), ca.SX.sym("u", self.input_size)
         p, t = ca.SX.sym("p", 0), ca.SX.sym("t")
-        return ca.Function("acceleration", [q, v, u, p, t], [self._closed(q, v, ca.DM.zeros(0), p, t)[0]])
+        return ca.Function("acceleration", [q, v, u, p, t], [self._closed(q, v, u, p, t)[0]])
 
     def controller_update(self, q: Any, v: Any, u: Any, p: Any, t: Any, c: Any, h: Any) -> Any:
-        """``[max(c_0, condition of G at (q, v, t)), c_1]`` at the accepted state (before its projection)."""
+        """``c`` with its last two entries ``[condition, residual]`` as ``[max(condition, condition of G at (q, v,
+        t)), residual]`` at the accepted state (before its projection); the entries before them kept."""
         import casadi as ca
 
-        return ca.vertcat(ca.fmax(c[0], self._closed(q, v, ca.DM.zeros(0), p, t)[1]), c[1])
+        return ca.vertcat(c[:-2], ca.fmax(c[-2], self._closed(q, v, u, p, t)[1]), c[-1])
 
     def initial_controller(self, q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
-        """``[condition of G at the start, 0]``."""
-        return np.array([float(self._closed(q, qdot, np.zeros(0), np.zeros(0), 0.0)[1]), 0.0])
+        """``[condition of G at the start, 0]`` (``G`` does not depend on the inputs)."""
+        return np.array([float(self._closed(q, qdot, np.zeros(self.input_size), np.zeros(0), 0.0)[1]), 0.0])
 
-    def cut_history(self, t: np.ndarray, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Cut unknowns, ``Phi`` and ``Phi'`` (rows, m) of stored times ``t`` [s] and states ``[q, v]``: the closed-loop
-        functions on symbols mapped over the rows (one call)."""
+    def cut_history(self, t: np.ndarray, states: np.ndarray, held: np.ndarray | None = None
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Cut unknowns, ``Phi`` and ``Phi'`` (rows, m) of stored times ``t`` [s] and states ``[q, v]`` with the input
+        vector ``held`` (:meth:`held_inputs`; default zero): the closed-loop functions on symbols mapped over the rows
+        (one call)."""
         m, rows, nq = self.loop_model.n_constraints, len(t), self.model.n_positions
         if rows == 0:
             return np.zeros((0, m)), np.zeros((0, m)), np.zeros((0, m))
         q, v, t = states[:, :nq].T, states[:, nq:].T, np.asarray(t, dtype=float)[None, :]
-        _, _, unknowns, phi, phi_dot, _ = self._closed.map(rows)(q, v, np.zeros((0, rows)), np.zeros((0, rows)), t)
+        u = np.zeros(self.input_size) if held is None else np.asarray(held, dtype=float)
+        _, _, unknowns, phi, phi_dot, _ = self._closed.map(rows)(q, v, np.tile(u[:, None], (1, rows)),
+                                                                 np.zeros((0, rows)), t)
         return np.asarray(unknowns).T.copy(), np.asarray(phi).T.copy(), np.asarray(phi_dot).T.copy()
 
     def _build(self) -> tuple[Any, list]:
@@ -131,12 +168,19 @@ class CompiledSpatialLoopScheme(CompiledSpatialScheme):
 
 
 def simulate_spatial_loop_scheme_generated(model: SpatialKinematicLoopModel, q0: Any, v0: Any, *, t_final: float,
-                                           dt: float, scheme: Scheme | str, store_every: int = 1,
+                                           dt: float, scheme: Scheme | str, inputs: Mapping[str, Any] | None = None,
+                                           store_every: int = 1, divergence_bound: float | None = None,
                                            projection: bool = True, compiled: CompiledSpatialLoopScheme | None = None,
                                            cache_dir: str | os.PathLike | None = None
                                            ) -> tuple[SpatialLoopSimulation, dict]:
     """:func:`ctmm.spatial.closed_loop_time.simulate_spatial_loop_scheme` with the steps in generated C (module
     docstring): ``(run, info)``, the method ``"dt-tmm-generated/<scheme>"``.
+
+    ``inputs``: the tree's joint inputs ``{"<joint>.torque": number or (k,) numbers}`` held over the run (functions
+    of time refused by name).  ``divergence_bound``: the rule of the numpy path
+    (:func:`ctmm.spatial.integrate.divergence_check` on the projected states), checked on the stored states after the
+    run and, in the first failing stored interval, step by step (:func:`checked_spatial_result`): the failure is
+    reported at its step's time with the states before it.
 
     Raises
     ------
@@ -150,6 +194,8 @@ def simulate_spatial_loop_scheme_generated(model: SpatialKinematicLoopModel, q0:
     q, v = model.state(q0, v0)
     n_steps = step_total(t_final, dt)
     dt = float(t_final) / n_steps
+    if divergence_bound is not None:
+        divergence_bound = validation.positive("divergence_bound", divergence_bound)
     if compiled is None:
         compiled = CompiledSpatialLoopScheme(model, scheme, store_every=store_every, projection=projection,
                                              cache_dir=cache_dir)
@@ -158,32 +204,41 @@ def simulate_spatial_loop_scheme_generated(model: SpatialKinematicLoopModel, q0:
         raise ModelError(f"compiled must be a CompiledSpatialLoopScheme of this model with scheme={scheme!r}, "
                          f"store_every={store_every!r} and projection={projection!r}, got {compiled!r:.80}")
     warn_conditionally_stable(model.tree, scheme)
-    start = compiled.initial_state(np.concatenate([q, v]))
-    began = clock.perf_counter()
-    rows = compiled.run(start, dt, n_steps)
-    wall = clock.perf_counter() - began
-    steps = np.array([k for k in range(1, n_steps + 1) if k % compiled.store_every == 0 or k == n_steps])[:len(rows)]
-    times = np.concatenate([[0.0], steps * dt])
-    states = np.vstack([start[None], rows])
+    held = compiled.held_inputs(inputs)
+    start = compiled.initial_state(np.concatenate([q, v]), inputs)
+    times, states, wall, total = generated_rows(compiled, start, dt, n_steps, inputs)
     method = f"dt-tmm-generated/{scheme.name}"
-    nq, size, status = model.tree.n_positions, model.tree.n_positions + model.tree.n_velocities, compiled.status_index
-    total = int(states[-1, status + 2]) if np.isfinite(states[-1, status + 2]) else -1
+    size = model.tree.n_positions + model.tree.n_velocities
     info = {"dt": dt, "scheme": repr(scheme), "wall_time_s": wall, "compile_time_s": compiled.compile_time_s,
             "newton_iterations": total, "projection": compiled.projection}
 
     def result(k: int) -> SpatialLoopSimulation:
-        unknowns, phi, phi_dot = compiled.cut_history(times[:k], states[:k, :size])
+        unknowns, phi, phi_dot = compiled.cut_history(times[:k], states[:k, :size], held)
         return loop_simulation(model, times[:k], states[:k, :size], unknowns, method, wall, total, phi, phi_dot)
 
-    run = checked_spatial_result(compiled, times, states, dt, method, result)
+    run = checked_spatial_result(compiled, times, states, dt, method, result, divergence_bound, held)
+    check_cut_rows(compiled, times, states, f"spatial kinematic loop {model.name!r} ({method})", result)
+    if compiled.projection:
+        info["max_drift_after_projection"] = float(np.max(states[:, -1]))
+    return run, info
+
+
+def check_cut_rows(compiled: CompiledSpatialLoopScheme, times: np.ndarray, states: np.ndarray, label: str,
+                   result: Any) -> None:
+    """Stop at the first stored row (times ``times`` [s]) whose ``[condition, residual]`` (the last two entries of
+    the generated ``states``) exceeds :data:`~ctmm.loop_integration.CONDITION_LIMIT` or
+    :data:`~ctmm.loop_integration.PROJECTION_TOLERANCE`.
+
+    Raises
+    ------
+    SimulationError
+        ``"<label>: <what> by t = ..."`` with the time, the first cut joint and ``result(row)`` as partial result.
+    """
     condition, residual = states[:, -2], states[:, -1]
     over = np.flatnonzero((condition > CONDITION_LIMIT) | (residual > PROJECTION_TOLERANCE))
     if over.size:
         k = int(over[0])
         what = singular_compliance(float(condition[k])) if condition[k] > CONDITION_LIMIT else \
             projection_failure(float(residual[k]), compiled.iterations)
-        raise SimulationError(f"spatial kinematic loop {model.name!r} ({method}): {what} by t = {times[k]:.6g} s",
-                              time=float(times[k]), element=model.cuts[0].name, partial_result=result(k))
-    if compiled.projection:
-        info["max_drift_after_projection"] = float(np.max(residual))
-    return run, info
+        raise SimulationError(f"{label}: {what} by t = {times[k]:.6g} s", time=float(times[k]),
+                              element=compiled.loop_model.cuts[0].name, partial_result=result(k))

@@ -24,7 +24,6 @@ checks of the Python path refuse (and a delay shorter than a start-up's later ev
 from __future__ import annotations
 
 import os
-import time as clock
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -34,10 +33,11 @@ from .compiled_control import add_loop_signals
 from .compiled_loops import ClosedLoops
 from .control.planar_time import controller_realisation
 from .compiled_scene_schemes import STATUS
-from .compiled_scheme_loop_terms import SchemeLoopTerms
+from .compiled_scheme_loop_terms import SchemeLoopTerms, loop_actuators
 from .compiled_spatial_loops import SpatialSymbols, loop_acceleration
 from .compiled_spatial_signals import spatial_compile_refusal
-from .compiled_spatial_schemes import CompiledSpatialScheme, checked_spatial_result, warn_conditionally_stable
+from .compiled_spatial_schemes import (CompiledSpatialScheme, checked_spatial_result, generated_rows,
+                                       warn_conditionally_stable)
 from .control.controlled_model import ControlledModel
 from .control.plants import plant_of
 from .errors import ModelError
@@ -48,7 +48,7 @@ from .signal_results import SignalSystem, signal_result
 from .spatial.integrate import initial_state
 from .spatial.model import SpatialModel
 
-__all__ = ["CompiledSpatialSchemeLoops", "simulate_spatial_scheme_loops_generated"]
+__all__ = ["CompiledSpatialSchemeLoops", "restarted_loop_state", "simulate_spatial_scheme_loops_generated"]
 
 
 class CompiledSpatialSchemeLoops(SchemeLoopTerms, CompiledSpatialScheme):
@@ -102,15 +102,9 @@ class CompiledSpatialSchemeLoops(SchemeLoopTerms, CompiledSpatialScheme):
         reason = spatial_compile_refusal(model, time_signals=True)         # signals on the step's time symbol
         if reason:
             raise ModelError(f"CompiledSpatialSchemeLoops: {reason}")
-        for name in inputs or {}:
-            ports.check_actuator(name, "inputs: actuator")
-        for name in held:
-            ports.check_actuator(name, "held: actuator")
-        names = [name for loop in controlled.loops for name, _ in loop.actuator_terms] + list(inputs or {}) + \
-            list(held)
         self.controlled, self.dt = controlled, None if dt is None else validation.positive("dt", dt)
         self.references, self.open_inputs = dict(references or {}), dict(inputs or {})
-        self.actuators, self.parameters = tuple(dict.fromkeys(names)), np.zeros(0)
+        self.actuators, self.parameters = loop_actuators(controlled, inputs, held), np.zeros(0)
         self.loops = ClosedLoops(controlled, self.actuators, self.dt, references, inputs,
                                  symbols=SpatialSymbols(model, ports), whole_delays=False)
         self.setup_loops(as_scheme(scheme))
@@ -127,16 +121,6 @@ class CompiledSpatialSchemeLoops(SchemeLoopTerms, CompiledSpatialScheme):
         """Entries of the step's input ``u``: one per port actuator of :attr:`actuators`."""
         return len(self.actuators)
 
-    def held_inputs(self, inputs: Mapping[str, Any] | None) -> np.ndarray:
-        """The step's input vector ``u`` of held port actuator values ``{name: number}`` (open-loop ``inputs`` are
-        compiled in; zero for the others)."""
-        held = dict(inputs or {})
-        for name in held:
-            if name not in self.actuators:
-                raise ModelError(f"held input {name!r}: the generated step drives the port actuators "
-                                 f"{', '.join(self.actuators) or '(none)'}")
-        return np.array([float(held.get(name, 0.0)) for name in self.actuators])
-
     def plant_sweep(self) -> Any:
         """The spatial sweep with the port actuators :attr:`actuators` (:func:`loop_acceleration`)."""
         return loop_acceleration(self.model, self.controlled.ports, self.actuators)
@@ -144,13 +128,23 @@ class CompiledSpatialSchemeLoops(SchemeLoopTerms, CompiledSpatialScheme):
     def restarted(self, state: np.ndarray, held: np.ndarray | None, t: float = 0.0) -> np.ndarray:
         """``state`` with ``a`` and ``v_dot`` solved again at its ``(q, v)``, time ``t`` [s] and the held inputs with
         the loops at the stored controller entries, and the newest ring sample's rates from that acceleration."""
-        nq, n, first = self.model.n_positions, self.model.n_velocities, self.status_index + len(STATUS)
-        out = np.array(state, dtype=float)
-        held = np.zeros(len(self.actuators)) if held is None else np.asarray(held, dtype=float)
-        acceleration, out[first:] = self.restart_terms(out[:nq], out[nq:nq + n], held, validation.finite("t", t),
-                                                       out[first:])
-        out[nq + n:nq + 2 * n] = out[nq + 2 * n:nq + 3 * n] = acceleration
-        return out
+        return restarted_loop_state(self, state, held, t, self.controller_size)
+
+
+def restarted_loop_state(compiled: Any, state: np.ndarray, held: np.ndarray | None, t: float, entries: int
+                         ) -> np.ndarray:
+    """The generated state ``state`` of a spatial scheme with loops in its step (``compiled``: a
+    :class:`CompiledSpatialScheme` with :class:`SchemeLoopTerms`) with ``a`` and ``v_dot`` solved again at its
+    ``(q, v)``, time ``t`` [s] and the ``held`` input vector, the loops at their stored controller entries (the first
+    ``entries`` after the status), and the newest ring sample's rates from that acceleration."""
+    model = compiled.model
+    nq, n, first = model.n_positions, model.n_velocities, compiled.status_index + len(STATUS)
+    out = np.array(state, dtype=float)
+    held = np.zeros(len(compiled.actuators)) if held is None else np.asarray(held, dtype=float)
+    acceleration, out[first:first + entries] = compiled.restart_terms(
+        out[:nq], out[nq:nq + n], held, validation.finite("t", t), out[first:first + entries])
+    out[nq + n:nq + 2 * n] = out[nq + 2 * n:nq + 3 * n] = acceleration
+    return out
 
 
 def simulate_spatial_scheme_loops_generated(controlled: ControlledModel, t_final: float, dt: float | None, *,
@@ -215,15 +209,9 @@ def simulate_spatial_scheme_loops_generated(controlled: ControlledModel, t_final
         controlled.ports.check_sensor(name, "output (sensor)")
     warn_conditionally_stable(model, scheme)
     start = compiled.initial_state(initial_state(model, x0, v0))
-    began = clock.perf_counter()
-    rows = compiled.run(start, dt, n_steps)
-    wall = clock.perf_counter() - began
+    times, states, wall, total = generated_rows(compiled, start, dt, n_steps)
     nq, n, status = model.n_positions, model.n_velocities, compiled.status_index
-    steps = np.array([k for k in range(1, n_steps + 1) if k % store_every == 0 or k == n_steps])[:len(rows)]
-    times = np.concatenate([[0.0], steps * dt])
-    states = np.vstack([start[None], rows])
     method = f"dt-tmm-generated/{scheme.name}"
-    total = int(states[-1, status + 2]) if np.isfinite(states[-1, status + 2]) else -1
     info = {"dt": dt, "method": method, "scheme": repr(scheme), "wall_time_s": wall,
             "compile_time_s": compiled.compile_time_s, "newton_iterations": total,
             "loops": {law.name: "real-time" if law.steps == 0 else "history" for law in compiled.loops.laws}}

@@ -61,7 +61,8 @@ from .spatial.integrate import divergence_check, initial_state, state_result
 from .spatial.lie import quaternion_product
 from .spatial.model import SpatialModel
 
-__all__ = ["CompiledSpatialScheme", "checked_spatial_result", "simulate_spatial_scheme_generated", "symbolic_bracket",
+__all__ = ["CompiledSpatialScheme", "checked_spatial_result", "generated_rows", "simulate_spatial_scheme_generated",
+           "symbolic_bracket",
            "symbolic_local_coordinates", "symbolic_retract", "warn_conditionally_stable"]
 
 
@@ -415,20 +416,30 @@ def simulate_spatial_scheme_generated(model: SpatialModel, t_final: float, dt: f
                                max_iterations=max_iterations, cache_dir=cache_dir)
     warn_conditionally_stable(model, scheme)
     start = compiled.initial_state(initial_state(model, x0, v0), inputs)
-    began = clock.perf_counter()
-    rows = compiled.run(start, dt, n_steps, inputs)
-    wall = clock.perf_counter() - began
-    nq, n, status = model.n_positions, model.n_velocities, compiled.status_index
-    steps = np.array([k for k in range(1, n_steps + 1) if k % compiled.store_every == 0 or k == n_steps])[:len(rows)]
-    times = np.concatenate([[0.0], steps * dt])
-    states = np.vstack([start[None], rows])
+    times, states, wall, total = generated_rows(compiled, start, dt, n_steps, inputs)
+    nq, n = model.n_positions, model.n_velocities
     method = f"dt-tmm-generated/{scheme.name}"
-    total = int(states[-1, status + 2]) if np.isfinite(states[-1, status + 2]) else -1
     info = {"dt": dt, "scheme": repr(scheme), "wall_time_s": wall, "compile_time_s": compiled.compile_time_s,
             "newton_iterations": total}
 
     return checked_spatial_result(compiled, times, states, dt, method, lambda k: state_result(
         model, times[:k], states[:k, :nq + n], method, info), divergence_bound, compiled.held_inputs(inputs))
+
+
+def generated_rows(compiled: CompiledSpatialScheme, start: np.ndarray, dt: float, n_steps: int,
+                   inputs: Mapping[str, Any] | None = None) -> tuple[np.ndarray, np.ndarray, float, int]:
+    """``(times, states, wall, total)`` of a run of ``n_steps`` steps of ``dt`` [s] of ``compiled`` from its generated
+    state ``start`` with ``inputs`` held: the stored times [s] and generated states with the start first (every
+    ``store_every``-th step and the last, up to the first block holding a NaN), the run's wall time [s] and its total
+    Newton iterations (-1 when the last stored state is not finite)."""
+    began = clock.perf_counter()
+    rows = compiled.run(start, dt, n_steps, inputs)
+    wall = clock.perf_counter() - began
+    every, status = compiled.store_every, compiled.status_index
+    steps = np.array([k for k in range(1, n_steps + 1) if k % every == 0 or k == n_steps])[:len(rows)]
+    states = np.vstack([start[None], rows])
+    total = int(states[-1, status + 2]) if np.isfinite(states[-1, status + 2]) else -1
+    return np.concatenate([[0.0], steps * dt]), states, wall, total
 
 
 def checked_spatial_result(compiled: CompiledSpatialScheme, times: np.ndarray, states: np.ndarray, dt: float,

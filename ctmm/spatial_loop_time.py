@@ -42,7 +42,9 @@ def simulate_spatial_loop_system(system: Any, t_final: float, dt: float | None, 
     (:func:`ctmm.control.planar_time.simulate_closed_loop`) on :class:`~ctmm.spatial.closed_loop_plant.SpatialLoopPlant`
     (``"rk4"`` projected after every step, ``solve_ivp`` at every controller sample).  ``compiled=True`` with ``"rk4"``: the model alone
     runs the generated RK4 with projection (:mod:`ctmm.compiled_spatial_kinematic_loops`), the driver's run is
-    generated C (:mod:`ctmm.compiled_kinematic_loop_control`).
+    generated C (:mod:`ctmm.compiled_kinematic_loop_control`); with a DT-TMM scheme the model alone (held joint
+    inputs) runs :mod:`ctmm.compiled_spatial_loop_schemes`, with loops, references, outputs or port inputs
+    :mod:`ctmm.compiled_spatial_loop_scheme_control`.
 
     The result holds the tree's signals (:func:`ctmm.spatial.integrate.spatial_signals`: coordinates, velocities,
     body positions and angular velocities), ``"<cut>.force_x|y|z"`` [N] and, for revolute and universal cuts,
@@ -61,14 +63,16 @@ def simulate_spatial_loop_system(system: Any, t_final: float, dt: float | None, 
     compiled = validation.flag("compiled", unsupported.pop("compiled", (None, None))[0], optional=True)
     through_driver = bool(loops or controllers or references or tuple(outputs)) or (isinstance(inputs, Mapping) and any(
         name not in model.tree.inputs for name in inputs))
-    generated_scheme = compiled and not through_driver and (isinstance(method, Scheme) or (isinstance(method, str)
-                                                                                    and method in SCHEMES))
-    if compiled and ((method != "rk4" and not generated_scheme) or (inputs and not through_driver)):
+    generated_scheme = compiled and (isinstance(method, Scheme) or (isinstance(method, str) and method in SCHEMES))
+    if compiled and ((method != "rk4" and not generated_scheme) or (inputs and not through_driver
+                                                                     and not generated_scheme)):
         raise ModelError(f"compiled=True runs the generated RK4 of the spatial kinematic loop model {model.name!r} "
                          f"(method='rk4'): alone with projection, or with loops, controllers, references, outputs or "
-                         f"port inputs as the loop driver (ctmm.compiled_kinematic_loop_control); the model alone "
-                         f"also with a DT-TMM scheme (ctmm.compiled_spatial_loop_schemes); not with joint "
-                         f"inputs alone; got method={method!r}, inputs={inputs!r:.60}; leave compiled at None")
+                         f"port inputs as the loop driver (ctmm.compiled_kinematic_loop_control); also a DT-TMM "
+                         f"scheme, alone with held joint inputs (ctmm.compiled_spatial_loop_schemes) or with loops, "
+                         f"references, outputs, port inputs (ctmm.compiled_spatial_loop_scheme_control) or "
+                         f"co-simulated controllers (ctmm.compiled_scheme_cosim); not the RK4 with joint inputs alone; "
+                         f"got method={method!r}, inputs={inputs!r:.60}; leave compiled at None")
     for name, (value, default) in unsupported.items():
         if value is not default and value != default:
             raise ModelError(f"{name}={value!r} is not available for the spatial kinematic loop model {model.name!r} "
@@ -92,6 +96,17 @@ def simulate_spatial_loop_system(system: Any, t_final: float, dt: float | None, 
             raise ModelError(f"outputs must be a list or tuple of sensor names (str), got {outputs!r}")
         policy = "warn" if stability_check is None else validation.option("stability_check", stability_check,
                                                                            ("warn", "error", "ignore"))
+        if compiled and scheme and controllers:     # generated scheme steps between the controllers' samples
+            from .compiled_scheme_cosim import simulate_cosimulated_scheme_generated
+
+            return simulate_cosimulated_scheme_generated(
+                model, q0, v0, t_final=t_final, dt=validation.positive("dt", dt), scheme=method,
+                controllers=controllers, inputs=dict(inputs or {}), outputs=tuple(outputs), loops=loops,
+                references=references, coupling=coupling, store_every=store_every, progress=progress,
+                stability_check=policy, divergence_bound=divergence_bound)
+        if compiled and scheme:     # the DT-TMM scheme with the loops in the generated Newton step
+            return _scheme_loops_run(system, model, t_final, dt, method, q0, v0, inputs, references, outputs,
+                                     store_every, divergence_bound, progress, max_step)
         if compiled:                # the driver's run in generated C (ctmm.compiled_kinematic_loop_control)
             from .compiled_kinematic_loop_control import simulate_generated_driver_run
 
@@ -140,12 +155,10 @@ def _scheme_run(model: SpatialKinematicLoopModel, t_final: float, dt: float | No
     if compiled:
         from .compiled_spatial_loop_schemes import simulate_spatial_loop_scheme_generated
 
-        if divergence_bound is not None:
-            raise ModelError(f"divergence_bound={divergence_bound!r} is not available with compiled=True and a DT-TMM "
-                             "scheme on a spatial kinematic loop model; leave it at None")
         run, info = simulate_spatial_loop_scheme_generated(model, q0, v0, t_final=t_final,
                                                            dt=validation.positive("dt", dt), scheme=scheme,
-                                                           store_every=store_every)
+                                                           inputs=inputs, store_every=store_every,
+                                                           divergence_bound=divergence_bound)
         info["compiled"] = True
     else:
         run, info = simulate_spatial_loop_scheme(model, q0, v0, t_final=t_final, dt=validation.positive("dt", dt),
@@ -155,3 +168,23 @@ def _scheme_run(model: SpatialKinematicLoopModel, t_final: float, dt: float | No
     add_cut_signals(model, signals, units, run.cut_force, run.cut_moment, run.drift, run.drift_rate)
     info = {**info, "max_drift": float(run.drift.max()), "baumgarte": model.baumgarte}
     return signal_result(SignalSystem(model, units), run.t, signals, run.method, info)
+
+
+def _scheme_loops_run(system: Any, model: SpatialKinematicLoopModel, t_final: float, dt: float | None, scheme: Any,
+                      q0: np.ndarray, v0: np.ndarray, inputs: Mapping[str, Any] | None, references: dict,
+                      outputs: Sequence[str], store_every: int, divergence_bound: float | None,
+                      progress: bool | None, max_step: float | None) -> SimulationResult:
+    """``compiled=True`` with a DT-TMM scheme and loops, references, outputs or port inputs:
+    :func:`ctmm.compiled_spatial_loop_scheme_control.simulate_spatial_loop_scheme_control_generated` (``progress``
+    and ``max_step`` refused by name)."""
+    from .compiled_spatial_loop_scheme_control import simulate_spatial_loop_scheme_control_generated
+    from .control.controlled_model import ControlledModel
+
+    for name, value in (("progress", progress), ("max_step", max_step)):
+        if value is not None:
+            raise ModelError(f"{name}={value!r} is not available with compiled=True and a DT-TMM scheme on the spatial "
+                             f"kinematic loop model {model.name!r} with loops; leave it at None")
+    controlled = system if isinstance(system, ControlledModel) else ControlledModel(model, [])
+    return simulate_spatial_loop_scheme_control_generated(
+        controlled, q0, v0, t_final=t_final, dt=validation.positive("dt", dt), scheme=scheme, references=references,
+        inputs=dict(inputs or {}), outputs=tuple(outputs), store_every=store_every, divergence_bound=divergence_bound)
