@@ -90,8 +90,11 @@ def default_refusal(system: Any, method: Any, t_final: Any, t0: Any, dt: Any, *,
     if fast is not None or force_hook is not None or solver != "riccati":
         return "numpy-path options (fast, force_hook, solver)"
     try:
-        steps = math.ceil((float(t_final) - float(t0)) / float(dt) - 1e-9)
-    except (TypeError, ValueError, ZeroDivisionError):
+        span = (float(t_final) - float(t0)) / float(dt)
+        steps = math.ceil(span - 1e-9) if math.isfinite(span) else 0
+    except (TypeError, ValueError, ZeroDivisionError, OverflowError):
+        return "no fixed step"          # the verb's own checks refuse bad numbers by name
+    if not steps > 0:
         return "no fixed step"
     if not steps >= MINIMUM_STEPS:
         return f"short run ({steps} steps < {MINIMUM_STEPS})"

@@ -102,5 +102,7 @@ def test_default_refusal_names_why_numpy_runs(monkeypatch):
     big = ctmm.Chain("big", [Fixed("wall")] + [e for i in range(1001) for e in (SpringDamper(f"k{i}", 1.0, 0.0),
                                                                                  Mass(f"m{i}", 1.0))] + [Free("end")])
     assert "a chain of 2003 points" in default_refusal(big, "newmark", **long_run)
+    for bad in (dict(t_final=float("inf")), dict(t_final=float("nan")), dict(dt=0.0), dict(dt=None), dict(dt=-1e-3)):
+        assert default_refusal(model, "rk4", **{**long_run, **bad}) == "no fixed step"     # the verb refuses them
     monkeypatch.setenv("PATH", "")
     assert default_refusal(model, "rk4", **long_run) == "no C compiler"
