@@ -201,3 +201,16 @@ def test_a_harmonic_end_force_is_weighted_as_the_python_step_weights_it(scheme):
     motion = _positions(python, ["m0", "m1"])
     assert generated.info["method"] == f"{scheme}-generated"
     assert np.max(np.abs(_positions(generated, ["m0", "m1"]) - motion)) < 1e-12 * np.max(np.abs(motion))
+
+
+@pytest.mark.parametrize("scheme", ["generalized_alpha", "wilson_theta"])
+def test_a_controlled_chain_weights_its_end_force_as_the_python_step(scheme):
+    chain = ctmm.Chain("cend", [Fixed("s"), SpringDamper("k0", 2e3, 1.0), Mass("m0", 1.0),
+                                SpringDamper("k1", 1e3, 0.5), Mass("m1", 0.5),
+                                PrescribedForce("e", Harmonic(3.0, 40.0, 0.3))])
+    system = ControlledChain(chain, [Feedback("rt", [("m1.x", 1.0), ("m1.v", 0.05)], "m0", gain=80.0)])
+    generated = ctmm.simulate(system, 0.2, 2e-3, method=scheme, compiled=True)
+    python = ctmm.simulate(system, 0.2, 2e-3, method=scheme)
+    motion = _positions(python, ["m0", "m1"])
+    assert generated.info["method"] == f"{scheme}-generated"
+    assert np.max(np.abs(_positions(generated, ["m0", "m1"]) - motion)) < 1e-12 * np.max(np.abs(motion))
