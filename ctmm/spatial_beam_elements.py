@@ -403,10 +403,12 @@ class SpatialSupport(Boundary):
             Bm[..., row, index] = 1.0
         return Bm, np.zeros(s.shape + (6,), dtype=complex)
 
-    def start_discrete(self, layout: StateLayout, t: float, lin: Linearisation):
+    def start_discrete(self, layout: StateLayout, t: float, lin: Linearisation, *,
+                       load_step: tuple[float, float, float] | None = None):
         raise ModelError(f"boundary {self.name!r}: spatial beam chains are frequency-domain structures")
 
-    def end_discrete(self, layout: StateLayout, t: float, lin: Linearisation):
+    def end_discrete(self, layout: StateLayout, t: float, lin: Linearisation, *,
+                     load_step: tuple[float, float, float] | None = None):
         raise ModelError(f"boundary {self.name!r}: spatial beam chains are frequency-domain structures")
 
 

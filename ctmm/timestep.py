@@ -411,7 +411,7 @@ def simulate(system: Chain, t_final: float, dt: float, *, scheme: Scheme | str =
                             load[pos - 1] += value
                         else:
                             across[pos - 1] += value
-                    x_new, f_new = _fast_step(system, kernel, coeffs, load, t_eval, cache, across)
+                    x_new, f_new = _fast_step(system, kernel, coeffs, load, (t_n, dt, w), cache, across)
                 else:
                     solve = lambda: _generic_step(system, discrete, coeffs, t_n, dt, w, t_eval, extra, solver)  # noqa: E731
                     x_new, f_new = newton_step(solve, discrete, coeffs, t_eval, newton) if newton is not None else solve()
@@ -488,7 +488,7 @@ def dttmm_start_state(system: Chain, x0, v0, t0: float) -> tuple[np.ndarray, np.
     return x, v, consistent
 
 
-def _fast_step(system: Chain, kernel: _LumpedKernel, coeffs, load, t_eval: float, cache: dict,
+def _fast_step(system: Chain, kernel: _LumpedKernel, coeffs, load, step: tuple, cache: dict,
                across: np.ndarray | None = None):
     """One DT-TMM step of a lumped chain: the correction ``delta`` to the predictor and the forces.
 
@@ -502,11 +502,11 @@ def _fast_step(system: Chain, kernel: _LumpedKernel, coeffs, load, t_eval: float
         cache.clear()
         cache["key"] = key
         cache["const"] = kernel.constant_part(*key)
-    delta, phi, f_reference = _fast_solve(system, kernel, coeffs, load, t_eval, cache, across)
+    delta, phi, f_reference = _fast_solve(system, kernel, coeffs, load, step, cache, across)
     forces = phi + f_reference
     if _refinement_needed(phi, forces):
         around = _coefficients_around(coeffs, delta[:, None])
-        xi, phi, f_reference = _fast_solve(system, kernel, around, load, t_eval, cache, across)
+        xi, phi, f_reference = _fast_solve(system, kernel, around, load, step, cache, across)
         delta = delta + xi
         forces = phi + f_reference
     return delta, forces
@@ -538,17 +538,17 @@ def _refinement_needed(phi: np.ndarray, forces: np.ndarray) -> bool:
     return bool(phi @ phi > forces @ forces)
 
 
-def _fast_solve(system: Chain, kernel: _LumpedKernel, coeffs, load, t_eval: float, cache: dict,
+def _fast_solve(system: Chain, kernel: _LumpedKernel, coeffs, load, step: tuple, cache: dict,
                 across: np.ndarray | None):
-    """Solve one step for ``delta`` and the force corrections ``phi`` about the reference forces."""
+    """Solve one step ``step = (t_n, h, w)`` for ``delta`` and the force corrections ``phi``."""
     U12, U21, k_eff = cache["const"]
     u0, u1, f_pred = kernel.affine_part(coeffs, k_eff, load, across)
     lin0 = Linearisation(coeffs.cx, coeffs.dx[0, 0], coeffs.A, coeffs.B[0, 0], coeffs.C, coeffs.D[0, 0],
                          coeffs.x_pred[0, 0])
     linN = Linearisation(coeffs.cx, coeffs.dx[-1, 0], coeffs.A, coeffs.B[-1, 0], coeffs.C, coeffs.D[-1, 0],
                          coeffs.x_pred[-1, 0])
-    _, S0, P0 = system.start.start_discrete(system.layout, t_eval, lin0)
-    Bm, b = system.end.end_discrete(system.layout, t_eval, linN)
+    _, S0, P0 = system.start.start_discrete(system.layout, step[0] + coeffs.unknown_offset, lin0, load_step=step)
+    Bm, b = system.end.end_discrete(system.layout, step[0] + coeffs.unknown_offset, linN, load_step=step)
     fixed_start = system.start.known == "displacement"
     P0_phi = float(P0[0]) if fixed_start else float(P0[0]) - f_pred[0]   # known force -> its correction
     b_phi = float(b[0]) - float(Bm[0, 1]) * f_pred[-1]
@@ -581,8 +581,8 @@ def _generic_solve(system, discrete, coeffs, t_n, dt, w, t_eval, extra, solver):
         U, u = disc.step_matrices(t_eval, lins[j - 1], lins[j], force)
         Us.append(np.asarray(U, dtype=float)[None])
         us.append(np.asarray(u, dtype=float).reshape(1, -1))
-    e_idx, S0, P0 = system.start.start_discrete(system.layout, t_eval, lins[0])
-    Bm, b = system.end.end_discrete(system.layout, t_eval, lins[-1])
+    e_idx, S0, P0 = system.start.start_discrete(system.layout, t_eval, lins[0], load_step=(t_n, dt, w))
+    Bm, b = system.end.end_discrete(system.layout, t_eval, lins[-1], load_step=(t_n, dt, w))
     d = system.layout.half
     start, end = BoundaryStart(e_idx, S0[None], P0[None]), BoundaryEnd(Bm[None], b[None])
     if solver == "riccati":  # incremental-force form (see ctmm.assembly.shift_forces), stiffness form

@@ -14,7 +14,7 @@ import ctmm
 from ctmm.compiled_chain_scheme_runs import simulate_chain_scheme_generated
 from ctmm.compiled_chain_schemes import CompiledChainScheme, SchemeMaps
 from ctmm.control import ControlledChain, Feedback
-from ctmm.elements import Fixed, Free, Mass, Spring, SpringDamper
+from ctmm.elements import Fixed, Free, Mass, PrescribedForce, Spring, SpringDamper
 from ctmm.errors import ModelError
 from ctmm.reference import chain as global_chain
 from ctmm.reference.delay_chain import GlobalLoop, method_of_steps
@@ -189,3 +189,28 @@ def test_what_the_generated_step_refuses():
                       method="newmark", compiled=True)                # test_compiled_chain_scheme_nodes)
     with pytest.raises(ModelError, match="gamma"):                   # no stable step: refused before the run
         ctmm.simulate(system.plant, 0.01, 1e-3, method=Newmark(0.25, 0.4), compiled=True)
+
+
+@pytest.mark.parametrize("scheme", SCHEMES)
+def test_a_harmonic_end_force_is_weighted_as_the_python_step_weights_it(scheme):
+    chain = ctmm.Chain("end", [Fixed("s"), SpringDamper("k0", 2e3, 1.0), Mass("m0", 1.0, force=Harmonic(1.0, 25.0)),
+                               SpringDamper("k1", 1e3, 0.5), Mass("m1", 0.5),
+                               PrescribedForce("e", Harmonic(3.0, 40.0, 0.3))])
+    generated = ctmm.simulate(chain, 0.2, 2e-3, method=scheme, compiled=True)
+    python = ctmm.simulate(chain, 0.2, 2e-3, method=scheme)
+    motion = _positions(python, ["m0", "m1"])
+    assert generated.info["method"] == f"{scheme}-generated"
+    assert np.max(np.abs(_positions(generated, ["m0", "m1"]) - motion)) < 1e-12 * np.max(np.abs(motion))
+
+
+@pytest.mark.parametrize("scheme", ["generalized_alpha", "wilson_theta"])
+def test_a_controlled_chain_weights_its_end_force_as_the_python_step(scheme):
+    chain = ctmm.Chain("cend", [Fixed("s"), SpringDamper("k0", 2e3, 1.0), Mass("m0", 1.0),
+                                SpringDamper("k1", 1e3, 0.5), Mass("m1", 0.5),
+                                PrescribedForce("e", Harmonic(3.0, 40.0, 0.3))])
+    system = ControlledChain(chain, [Feedback("rt", [("m1.x", 1.0), ("m1.v", 0.05)], "m0", gain=80.0)])
+    generated = ctmm.simulate(system, 0.2, 2e-3, method=scheme, compiled=True)
+    python = ctmm.simulate(system, 0.2, 2e-3, method=scheme)
+    motion = _positions(python, ["m0", "m1"])
+    assert generated.info["method"] == f"{scheme}-generated"
+    assert np.max(np.abs(_positions(generated, ["m0", "m1"]) - motion)) < 1e-12 * np.max(np.abs(motion))

@@ -241,8 +241,8 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
                 unit[j] = np.asarray(disc.step_matrices(t_eval, lins[j - 1], lins[j], force + 1.0)[1], float) - u
             Us_p.append(np.asarray(U, float)[None])
             us_p.append(np.asarray(u, float)[None])
-        e_idx, S0, P0 = plant.start.start_discrete(plant.layout, t_eval, lins[0])
-        Bm, b = plant.end.end_discrete(plant.layout, t_eval, lins[-1])
+        e_idx, S0, P0 = plant.start.start_discrete(plant.layout, t_eval, lins[0], load_step=(t_n, h, w))
+        Bm, b = plant.end.end_discrete(plant.layout, t_eval, lins[-1], load_step=(t_n, h, w))
         from ..assembly import BoundaryEnd, BoundaryStart
 
         dt_e = coeffs.unknown_offset

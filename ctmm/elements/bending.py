@@ -320,11 +320,13 @@ class _MixedBeamBoundary(Boundary):
         predictor = np.broadcast_to(np.asarray(lin.xp, dtype=float), (layout.half,))
         return np.array([-predictor[i] if i < layout.half else 0.0 for i in self.known_indices(layout)])
 
-    def start_discrete(self, layout: StateLayout, t: float, lin: Linearisation):
+    def start_discrete(self, layout: StateLayout, t: float, lin: Linearisation, *,
+                       load_step: tuple[float, float, float] | None = None):
         """Time-domain start relation: the two zero components at the step's unknown time."""
         return self.unknown_indices(layout), np.zeros((2, 2)), self._held_corrections(layout, lin)
 
-    def end_discrete(self, layout: StateLayout, t: float, lin: Linearisation):
+    def end_discrete(self, layout: StateLayout, t: float, lin: Linearisation, *,
+                     load_step: tuple[float, float, float] | None = None):
         """Time-domain end conditions ``Bm z = b`` selecting the two zero components."""
         Bm = np.zeros((2, layout.size))
         for row, index in enumerate(self.known_indices(layout)):

@@ -154,8 +154,15 @@ class Boundary(Element):
         return self._value_phasor(amplitudes)
 
     # -- time domain --------------------------------------------------------------------
-    def start_discrete(self, layout: StateLayout, t: float, lin: Linearisation):
-        """Time-domain start relation at the unknown's time ``t`` [s] (see :meth:`start`)."""
+    def start_discrete(self, layout: StateLayout, t: float, lin: Linearisation, *,
+                       load_step: tuple[float, float, float] | None = None):
+        """Time-domain start relation at the unknown's time ``t`` [s] (see :meth:`start`).
+
+        ``load_step = (t_n [s], h [s], w)`` weights a prescribed force as the scheme weights its loads,
+        ``(1 - w) F(t_n) + w F(t_n + h)`` (the balance's time for generalized-alpha, Wilson-theta's linear
+        extrapolation), as the elements' loads are; ``None`` evaluates it at ``t``.  Prescribed
+        displacements are always taken at ``t``, the unknown's time.
+        """
         d = layout.half
         k_eff, offset = self._discrete_spring(lin)
         S0 = np.zeros((d, d))
@@ -163,13 +170,15 @@ class Boundary(Element):
         for i in range(d):
             if self.known == "force":
                 S0[i, i] = -k_eff
-                P0[i] = self._force_signal(t) - offset
+                P0[i] = self._weighted_force(t, load_step) - offset
             else:  # the unknown is the correction to the predictor xp
                 P0[i] = self._position_signal(t) - float(np.ravel(lin.xp)[i] if np.ndim(lin.xp) else lin.xp)
         return self.unknown_indices(layout), S0, P0
 
-    def end_discrete(self, layout: StateLayout, t: float, lin: Linearisation):
-        """Time-domain end condition ``Bm z_n = b`` at the unknown's time ``t`` [s]."""
+    def end_discrete(self, layout: StateLayout, t: float, lin: Linearisation, *,
+                     load_step: tuple[float, float, float] | None = None):
+        """Time-domain end condition ``Bm z_n = b`` at the unknown's time ``t`` [s] (``load_step`` as in
+        :meth:`start_discrete`)."""
         d, n = layout.half, layout.size
         k_eff, offset = self._discrete_spring(lin)
         Bm = np.zeros((d, n))
@@ -181,8 +190,15 @@ class Boundary(Element):
             else:
                 Bm[i, d + i] = 1.0
                 Bm[i, i] = -k_eff
-                b[i] = offset - self._force_signal(t)
+                b[i] = offset - self._weighted_force(t, load_step)
         return Bm, b
+
+    def _weighted_force(self, t: float, load_step: tuple[float, float, float] | None) -> float:
+        if load_step is None:
+            return self._force_signal(t)
+        t_n, h, w = load_step
+        after = self._force_signal(t_n + h)
+        return after if w == 1.0 else (1.0 - w) * self._force_signal(t_n) + w * after
 
     def _discrete_spring(self, lin: Linearisation) -> tuple[float, float]:
         return 0.0, 0.0
