@@ -196,3 +196,27 @@ def test_loaded_chain_history_equals_the_simulation_and_differences(force):
         assert relative(found.derivative[i], richardson(history, chain, name)) < 1e-6, name
     with pytest.raises(ModelError, match=r"carries loads on \['m2'\]"):
         chain_simulation_sensitivity(chain, names, t_final=1.0, dt=0.01)
+
+
+def test_controlled_chain_connector_force_outputs_carry_their_own_number_derivative():
+    # a connector's law force "K3.f" = k3 (x4 - x2) + c3 (v4 - v2) depends on K3's numbers directly: its derivative is
+    # dF/dx S + dF/dp (the second term was missing: errors of 1.8 and 1.2 relative); against Richardson differences of
+    # the numpy RK4 (h = 1e-3 |p|, error O(h^4) ~ 1e-12; bound 1e-6, found ~5e-12)
+    from ctmm.control import ControlledChain, Feedback
+    from tests.test_sensitivity import relative, richardson, seed_chain
+
+    system = ControlledChain(seed_chain(), [Feedback("pd", [("m6.x", 5.0), ("m6.v", 1.0)], "m2", gain=1.0)])
+    names = ["K3.stiffness", "K3.damping", "K1.stiffness", "m4.mass", "pd.gain"]
+    outputs = ["K3.f", "K1.f", "m6.x"]
+    start = dict(v0={"m4": 0.5}, x0={"m6": 0.3})
+    found = S.simulation_sensitivity(system, names, t_final=1.0, dt=0.01, outputs=outputs, **start)
+
+    def history(s):
+        run = ctmm.simulate(s, 1.0, 0.01, method="rk4", outputs=outputs, **start)
+        return np.array([run[name] for name in outputs])
+
+    assert np.max(np.abs(found.values - history(system))) < 1e-12
+    for i, name in enumerate(names):
+        expected = richardson(history, system, name)
+        for o, output in enumerate(outputs):
+            assert relative(found.derivative[i, o], expected[o]) < 1e-6, (name, output)
