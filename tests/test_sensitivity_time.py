@@ -198,17 +198,33 @@ def test_loaded_chain_history_equals_the_simulation_and_differences(force):
         chain_simulation_sensitivity(chain, names, t_final=1.0, dt=0.01)
 
 
-def test_controlled_chain_connector_force_outputs_carry_their_own_number_derivative():
-    # a connector's law force "K3.f" = k3 (x4 - x2) + c3 (v4 - v2) depends on K3's numbers directly: its derivative is
-    # dF/dx S + dF/dp (the second term was missing: errors of 1.8 and 1.2 relative); against Richardson differences of
-    # the numpy RK4 (h = 1e-3 |p|, error O(h^4) ~ 1e-12; bound 1e-6, found ~5e-12)
+def prestressed_chain() -> ctmm.Chain:
+    """Two masses between walls 2 m apart, springs with free lengths and a constant force: the law forces at the
+    rest positions are not zero (they move with the stiffnesses: the offset term of the outputs' derivative)."""
+    from ctmm.elements import Fixed, Mass, Spring, SpringDamper
+
+    return ctmm.Chain("pre", [Fixed("g"), Spring("K1", 10.0, free_length=0.5), Mass("m2", 1.0),
+                              SpringDamper("K3", 8.0, 0.5, free_length=0.3), Mass("m4", 1.5, force=2.0),
+                              Spring("K5", 12.0, free_length=0.4), Fixed("e", position=2.0)])
+
+
+@pytest.mark.parametrize("case", ["seed", "prestressed"])
+def test_controlled_chain_connector_force_outputs_carry_their_own_number_derivative(case):
+    # a connector's law force "K3.f" = k3 (x4 - x2 - L3) + c3 (v4 - v2) depends on K3's numbers directly: its
+    # derivative is dF/dx S + dF/dp (the second term was missing: relative errors 1.0 to 1.8 on the old code); against
+    # Richardson differences of the numpy RK4 (h = 1e-3 |p|, error O(h^4); bound 1e-6, found <= 3e-11)
     from ctmm.control import ControlledChain, Feedback
     from tests.test_sensitivity import relative, richardson, seed_chain
 
-    system = ControlledChain(seed_chain(), [Feedback("pd", [("m6.x", 5.0), ("m6.v", 1.0)], "m2", gain=1.0)])
-    names = ["K3.stiffness", "K3.damping", "K1.stiffness", "m4.mass", "pd.gain"]
-    outputs = ["K3.f", "K1.f", "m6.x"]
-    start = dict(v0={"m4": 0.5}, x0={"m6": 0.3})
+    if case == "seed":
+        system = ControlledChain(seed_chain(), [Feedback("pd", [("m6.x", 5.0), ("m6.v", 1.0)], "m2", gain=1.0)])
+        names = ["K3.stiffness", "K3.damping", "K1.stiffness", "m4.mass", "pd.gain"]
+        outputs, start = ["K3.f", "K1.in.f", "K5.out.f", "m6.x"], dict(v0={"m4": 0.5}, x0={"m6": 0.3})
+    else:
+        system = ControlledChain(prestressed_chain(), [Feedback("pd", [("m4.x", 5.0), ("m4.v", 1.0)], "m2",
+                                                                      gain=1.0)])
+        names = ["K1.stiffness", "K3.stiffness", "K3.damping", "K5.stiffness", "m4.mass"]
+        outputs, start = ["K1.f", "K3.f", "K5.f", "m4.x"], dict(v0={"m4": 0.5}, x0={"m2": 0.7})
     found = S.simulation_sensitivity(system, names, t_final=1.0, dt=0.01, outputs=outputs, **start)
 
     def history(s):
