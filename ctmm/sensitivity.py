@@ -578,14 +578,14 @@ def simulation_sensitivity(system: Any, parameters: str | Sequence[str], *, t_fi
     """
     from .sensitivity_planar import is_planar_system
     from .sensitivity_spatial import is_spatial_system
-    from .sensitivity_time import chain_loads, chain_simulation_sensitivity, planar_simulation_sensitivity
+    from .sensitivity_time import chain_forced, chain_simulation_sensitivity, planar_simulation_sensitivity
+    from .sensitivity_time_chain import controlled_chain_simulation_sensitivity
     from .sensitivity_time_spatial import spatial_simulation_sensitivity
 
     if is_spatial_system(system):
         return spatial_simulation_sensitivity(system, parameters, t_final=t_final, dt=dt, x0=x0, v0=v0,
                                               outputs=outputs)
-    if isinstance(system, ControlledChain) or isinstance(system, Chain) and chain_loads(system):
-        from .sensitivity_time_chain import controlled_chain_simulation_sensitivity
+    if isinstance(system, ControlledChain) or isinstance(system, Chain) and chain_forced(system):
         controlled = system if isinstance(system, ControlledChain) else ControlledChain(system, [])   # loaded chain
         return controlled_chain_simulation_sensitivity(controlled, parameters, t_final=t_final, dt=dt, x0=x0, v0=v0,
                                                        outputs=outputs)

@@ -32,8 +32,8 @@ import numpy as np
 from . import validation
 from .errors import ModelError, unknown_name
 
-__all__ = ["TimeSensitivity", "chain_loads", "chain_simulation_sensitivity", "forward_sensitivities",
-           "parameter_index", "planar_simulation_sensitivity"]
+__all__ = ["TimeSensitivity", "chain_forced", "chain_loads", "chain_prestressed", "chain_simulation_sensitivity",
+           "forward_sensitivities", "parameter_index", "planar_simulation_sensitivity"]
 
 
 @dataclass(frozen=True)
@@ -229,6 +229,27 @@ def chain_loads(chain: Any) -> list[str]:
             if not (isinstance(signal, Constant) and signal.value == 0.0)]
 
 
+def chain_prestressed(chain: Any) -> bool:
+    """Whether the rest positions (every connector at its free length) of a plain :class:`~ctmm.system.Chain` are not
+    its equilibrium: free lengths that do not fit between held ends leave forces [N] at rest (the accelerations of the
+    unloaded chain there are not zero).  False for a chain whose affine form is not defined (massless points, a
+    prescribed motion: :func:`chain_simulation_sensitivity` refuses those by name)."""
+    from .compiled_chain import affine_form
+    from .control.chain_plant import ChainPlant
+
+    try:
+        rest = affine_form(ChainPlant(chain).dynamics).a0
+    except ModelError:
+        return False
+    return bool(np.any(rest != 0.0))
+
+
+def chain_forced(chain: Any) -> bool:
+    """Whether a plain :class:`~ctmm.system.Chain` is not free about its rest positions: it carries loads
+    (:func:`chain_loads`) or is prestressed (:func:`chain_prestressed`)."""
+    return bool(chain_loads(chain)) or chain_prestressed(chain)
+
+
 def chain_simulation_sensitivity(chain: Any, parameters: str | Sequence[str], *, t_final: float, dt: float,
                                  x0: Mapping[str, float] | None = None, v0: Mapping[str, float] | None = None,
                                  outputs: str | Sequence[str] | None = None) -> TimeSensitivity:
@@ -246,9 +267,9 @@ def chain_simulation_sensitivity(chain: Any, parameters: str | Sequence[str], *,
     ----------
     chain : Chain
         Lumped elements; every point that is not held has a mass (massless points are condensed
-        in the explicit form: refused here); no inputs, no loads (:func:`chain_loads`; refused here:
-        :func:`ctmm.sensitivity.simulation_sensitivity` differentiates a loaded chain as a ``ControlledChain``
-        without loops, :mod:`ctmm.sensitivity_time_chain`).
+        in the explicit form: refused here); no inputs, no loads (:func:`chain_loads`) and rest positions that are
+        its equilibrium (:func:`chain_prestressed`) (both refused here: :func:`ctmm.sensitivity.simulation_sensitivity`
+        differentiates such a chain as a ``ControlledChain`` without loops, :mod:`ctmm.sensitivity_time_chain`).
     parameters : str or sequence of str
         ``"<point>.mass"``, ``"<point>.damping"``, ``"<point>.stiffness"``, ``"<connector>.stiffness"``,
         ``"<connector>.damping"``.
@@ -284,6 +305,12 @@ def chain_simulation_sensitivity(chain: Any, parameters: str | Sequence[str], *,
         raise ModelError(f"chain_simulation_sensitivity: chain {chain.name!r} has massless free points (condensed in "
                          "its explicit form); time histories are differentiated for chains whose every free point "
                          "has a mass")
+    if chain_prestressed(chain):
+        raise ModelError(f"chain_simulation_sensitivity: the rest positions of chain {chain.name!r} (its connectors at "
+                         "their free lengths) are not its equilibrium (the free lengths do not fit between its held "
+                         "ends); the explicit form here is the free response about them; "
+                         "ctmm.sensitivity.simulation_sensitivity differentiates it as a ControlledChain without loops "
+                         "(ctmm.sensitivity_time_chain)")
     rest = rest_positions(chain)
     masses = [e.name for e in chain.body if e.is_point and getattr(e, "mass", 0.0) > 0.0]
     wanted = [f"{name}.x" for name in masses] if outputs is None else list(validation.names("outputs", outputs))

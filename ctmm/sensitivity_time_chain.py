@@ -23,6 +23,11 @@ casadi symbols and the forward sensitivities are folded with the state by casadi
 (:func:`ctmm.sensitivity_time.forward_sensitivities`): the exact derivative of the RK4 solution
 ``ctmm.simulate(system, ..., method="rk4")`` computes (the Python and generated RK4 agree to round-off).
 
+Outputs are the chain's sensors, affine in the node state: ``y = R(p) [x; v] + c(p)``; a connector's law force
+``"<connector>.f"`` depends on that connector's stiffness and damping directly, so ``dy/dp = R S + dR/dp [x; v] +
+dc/dp`` (``dR/dp``, ``dc/dp`` the central secants of the sensors of the chain rebuilt with the number changed: exact,
+the law force being linear in the number; certified by the one-sided secants agreeing, else refused).
+
 Time-varying loads with a symbolic form (:mod:`ctmm.signals` Constant, Harmonic, Step, SquareWave) are force
 columns ``Fl_j s_j(t)`` of ``F`` (each certified independent of the numbers) on the step's time, as the generated
 chain RK4 states them.  Refused (:class:`~ctmm.errors.ModelError`, by name): loop delays, load signals that are
@@ -61,7 +66,8 @@ def controlled_chain_simulation_sensitivity(system: Any, parameters: str | Seque
     x0, v0 : mapping, optional
         Initial absolute positions [m] and velocities [m/s] by point element name (as :func:`ctmm.simulate`).
     outputs : str or sequence of str, optional
-        ``"<point>.x"`` [m], ``"<point>.v"`` [m/s] (any sensor of the chain's ports); default every point's ``.x``.
+        ``"<point>.x"`` [m], ``"<point>.v"`` [m/s], ``"<connector>.f"`` [N] (any sensor of the chain's ports; a law
+        force's own dependence on its connector's numbers included); default every point's ``.x``.
 
     Returns
     -------
@@ -118,20 +124,12 @@ def controlled_chain_simulation_sensitivity(system: Any, parameters: str | Seque
     states, tangents = forward_sensitivities(step, first, values0, directions, n_steps, h, what)
     points = [e.name for e in plant.chain.body if e.is_point and getattr(e, "mass", 0.0) > 0.0]
     wanted = [f"{name}.x" for name in points] if outputs is None else list(validation.names("outputs", outputs))
-    rows, offsets = [], []
-    for name in wanted:
-        plant.ports.check_sensor(name, "output")
-        sensor = plant.ports.resolve([name])
-
-        def value(state: np.ndarray, sensor: Any = sensor) -> float:
-            return float(plant.ports.values(sensor, state[:m], state[m:], 0.0)[0])
-
-        zero = np.zeros(2 * m)
-        offsets.append(value(zero))
-        rows.append([value(row) - offsets[-1] for row in np.eye(2 * m)])   # sensors are affine in the state
-    rows = np.array(rows)
-    values = rows @ states[:, :2 * m].T + np.array(offsets)[:, None]
+    rows, offsets = _affine_sensors(plant, wanted)
+    values = rows @ states[:, :2 * m].T + offsets[:, None]
     derivative = np.einsum("ox,kxm->mok", rows, tangents[:, :2 * m, :])
+    for i, name in enumerate(plant_numbers):            # the outputs' own dependence (a connector's law force)
+        slope_rows, slope_offsets = _sensor_slopes(plant, wanted, name, float(forces.values[i]), rows, offsets, what)
+        derivative[names.index(name)] += slope_rows @ states[:, :2 * m].T + slope_offsets[:, None]
     return TimeSensitivity(h * np.arange(n_steps + 1), tuple(wanted), tuple(names), values, derivative)
 
 
@@ -246,6 +244,48 @@ def _element_forces(plant: Any, form: Any, names: Sequence[str], what: str) -> E
         dF0.append((M1 @ changed.a0 - M0 @ form.a0) / step)       # exact: the forces are affine in the number
     return ElementForces(np.array([p.value for p in model.parameters], dtype=float), M0, M0 @ form.Ax,
                          M0 @ form.Av, M0 @ form.B, M0 @ form.a0, dM, dFx, dFv, dF0, M0 @ columns, signals)
+
+
+def _affine_sensors(plant: Any, names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Rows ``R`` [unit/m, unit s/m] and offsets ``c`` of the sensors ``names`` of a ChainPlant as affine functions
+    ``y = R [x; v] + c`` of its node state (sensors are affine in the state).
+
+    Raises
+    ------
+    ModelError
+        A name that is not a sensor the plant can output.
+    """
+    m = plant.n_positions
+    rows, offsets = [], []
+    for name in names:
+        plant.ports.check_sensor(name, "output")
+        sensor = plant.ports.resolve([name])
+
+        def value(state: np.ndarray, sensor: Any = sensor) -> float:
+            return float(plant.ports.values(sensor, state[:m], state[m:], 0.0)[0])
+
+        offsets.append(value(np.zeros(2 * m)))
+        rows.append([value(row) - offsets[-1] for row in np.eye(2 * m)])
+    return np.array(rows).reshape(len(names), 2 * m), np.array(offsets, dtype=float)
+
+
+def _sensor_slopes(plant: Any, outputs: Sequence[str], name: str, value: float, rows: np.ndarray,
+                   offsets: np.ndarray, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """``dR/dp``, ``dc/dp`` of the outputs' affine forms (:func:`_affine_sensors`) in the element number ``name``
+    (value ``value``): a connector's law force is linear in its stiffness and damping, so the central secant over the
+    chain rebuilt at ``value +- value/2`` is exact; certified (the two one-sided secants agree), else refused."""
+    from .control.chain_plant import ChainPlant
+
+    step = 0.5 * abs(value) if value else 1.0
+    up, up_offsets = _affine_sensors(ChainPlant(_changed(plant.chain, name, value + step)), outputs)
+    down, down_offsets = _affine_sensors(ChainPlant(_changed(plant.chain, name, value - step)), outputs)
+    for k, output in enumerate(outputs):
+        forward = np.append(up[k] - rows[k], up_offsets[k] - offsets[k]) / step
+        backward = np.append(rows[k] - down[k], offsets[k] - down_offsets[k]) / step
+        if np.abs(forward - backward).max() > 1e-9 * max(np.abs(forward).max(), np.abs(backward).max(), 1e-300):
+            raise ModelError(f"{what}: output {output!r} of chain {plant.chain.name!r} is not affine in {name!r} "
+                             "(its one-sided secants differ); its derivative in that number is not stated here")
+    return (up - down) / (2 * step), (up_offsets - down_offsets) / (2 * step)
 
 
 def _changed(chain: Any, name: str, value: float) -> Any:

@@ -196,3 +196,68 @@ def test_loaded_chain_history_equals_the_simulation_and_differences(force):
         assert relative(found.derivative[i], richardson(history, chain, name)) < 1e-6, name
     with pytest.raises(ModelError, match=r"carries loads on \['m2'\]"):
         chain_simulation_sensitivity(chain, names, t_final=1.0, dt=0.01)
+
+
+def prestressed_chain(force: float = 2.0) -> ctmm.Chain:
+    """Two masses between walls 2 m apart, springs with free lengths (1.2 m in all) and a constant force on m4: the
+    law forces at the rest positions are not zero (they move with the stiffnesses: the offset term of the outputs'
+    derivative)."""
+    from ctmm.elements import Fixed, Mass, Spring, SpringDamper
+
+    return ctmm.Chain("pre", [Fixed("g"), Spring("K1", 10.0, free_length=0.5), Mass("m2", 1.0),
+                              SpringDamper("K3", 8.0, 0.5, free_length=0.3), Mass("m4", 1.5, force=force),
+                              Spring("K5", 12.0, free_length=0.4), Fixed("e", position=2.0)])
+
+
+@pytest.mark.parametrize("case", ["seed", "prestressed"])
+def test_controlled_chain_connector_force_outputs_carry_their_own_number_derivative(case):
+    # a connector's law force "K3.f" = k3 (x4 - x2 - L3) + c3 (v4 - v2) depends on K3's numbers directly: its
+    # derivative is dF/dx S + dF/dp (the second term was missing: relative errors 1.0 to 1.8 on the old code); against
+    # Richardson differences of the numpy RK4 (h = 1e-3 |p|, error O(h^4); bound 1e-6, found <= 3e-11)
+    from ctmm.control import ControlledChain, Feedback
+    from tests.test_sensitivity import relative, richardson, seed_chain
+
+    if case == "seed":
+        system = ControlledChain(seed_chain(), [Feedback("pd", [("m6.x", 5.0), ("m6.v", 1.0)], "m2", gain=1.0)])
+        names = ["K3.stiffness", "K3.damping", "K1.stiffness", "m4.mass", "pd.gain"]
+        outputs, start = ["K3.f", "K1.in.f", "K5.out.f", "m6.x"], dict(v0={"m4": 0.5}, x0={"m6": 0.3})
+    else:
+        system = ControlledChain(prestressed_chain(), [Feedback("pd", [("m4.x", 5.0), ("m4.v", 1.0)], "m2",
+                                                                      gain=1.0)])
+        names = ["K1.stiffness", "K3.stiffness", "K3.damping", "K5.stiffness", "m4.mass"]
+        outputs, start = ["K1.f", "K3.f", "K5.f", "m4.x"], dict(v0={"m4": 0.5}, x0={"m2": 0.7})
+    found = S.simulation_sensitivity(system, names, t_final=1.0, dt=0.01, outputs=outputs, **start)
+
+    def history(s):
+        run = ctmm.simulate(s, 1.0, 0.01, method="rk4", outputs=outputs, **start)
+        return np.array([run[name] for name in outputs])
+
+    assert np.max(np.abs(found.values - history(system))) < 1e-12
+    for i, name in enumerate(names):
+        expected = richardson(history, system, name)
+        for o, output in enumerate(outputs):
+            assert relative(found.derivative[i, o], expected[o]) < 1e-6, (name, output)
+
+
+def test_prestressed_chain_without_loads_is_differentiated_about_its_equilibrium():
+    # free lengths that do not fit between the walls: the rest positions are not the equilibrium, so the free
+    # response about them (chain_simulation_sensitivity) was a silent wrong answer (values off by 1.2 m from
+    # ctmm.simulate); such a chain is now differentiated as a ControlledChain without loops and refused by name by the
+    # free-response path; against the simulation (1e-12) and Richardson differences (bound 1e-6, found <= 3e-11)
+    from ctmm.sensitivity_time import chain_simulation_sensitivity
+    from tests.test_sensitivity import relative, richardson
+
+    chain = prestressed_chain(force=0.0)
+    names, outputs = ["K1.stiffness", "K3.stiffness", "K3.damping", "m4.mass"], ["m2.x", "m4.x", "m2.v"]
+    start = dict(v0={"m4": 0.5}, x0={"m2": 0.7})
+    found = S.simulation_sensitivity(chain, names, t_final=1.0, dt=0.01, outputs=outputs, **start)
+
+    def history(s):
+        run = ctmm.simulate(s, 1.0, 0.01, method="rk4", **start)
+        return np.array([run[name] for name in outputs])
+
+    assert np.max(np.abs(found.values - history(chain))) < 1e-12
+    for i, name in enumerate(names):
+        assert relative(found.derivative[i], richardson(history, chain, name)) < 1e-6, name
+    with pytest.raises(ModelError, match="not its equilibrium"):
+        chain_simulation_sensitivity(chain, names, t_final=1.0, dt=0.01, **start)
