@@ -39,6 +39,7 @@ import numpy as np
 import scipy.sparse
 
 from . import validation
+from .chain_affine import LinearRates
 from .chain_ode import ChainDynamics, chain_result
 from .compiled_chain_condensed import AffineRates, condensed_affine_form, needs_condensed_form
 from .compiled_loops import ClosedLoops
@@ -58,12 +59,18 @@ DEFAULT_ROWS = 64
 """Stored states per generated block call."""
 
 
-def affine_form(dynamics: ChainDynamics, actuators: Sequence[Mapping[int, Mapping[str, float]]] = ()) -> AffineRates:
+def affine_form(dynamics: ChainDynamics, actuators: Sequence[Mapping[int, Mapping[str, float]]] = (), *,
+                sparse: bool = False) -> AffineRates:
     """The accelerations as ``a = Ax x_I + Av v_I + B u + a0 + sum_j L_j s_j(t)`` (exact for the
-    lumped families, whose terms are affine in the motion and the inputs): one batched sweep of
-    unit probes, one sweep per actuator (``actuators``: unit inputs ``{position: {input: 1}}``) and
-    one per time-varying load of the chain's elements (``s_j`` its signal; constant loads are in
-    ``a0``).
+    lumped families, whose terms are affine in the motion and the inputs), ``actuators`` the unit inputs
+    ``{position: {input: 1}}`` of ``B``'s columns (constant loads are in ``a0``, ``s_j`` the time-varying ones).
+
+    The chain's certified affine rates (:attr:`ctmm.chain_ode.ChainDynamics.linear`,
+    :mod:`ctmm.chain_affine`: tridiagonal ``Ax``, ``Av`` from three interleaved probes, ``O(n)`` in time and
+    memory; the inerters' coupled form column by column) where it has them, else unit probes of the sweep, one
+    batched sweep of ``1 + 2 m`` probes (``O(n^2)``: connectors with a law the certified rates leave out;
+    the callers certify the form against the sweep).  ``sparse``: ``Ax``, ``Av`` as
+    :class:`scipy.sparse.csr_matrix` where they are banded (``O(n)`` memory), else dense arrays.
 
     Raises
     ------
@@ -72,7 +79,6 @@ def affine_form(dynamics: ChainDynamics, actuators: Sequence[Mapping[int, Mappin
         :func:`ctmm.compiled_chain_condensed.condensed_affine_form` (the generated RK4 takes it; massless
         points there without loops only; the callers of this form need a mass at every moving point and
         still supports).
-        (A connector with inertance couples every node: its form is exact but dense.)
     """
     chain = dynamics.chain
     if dynamics.index_Q.size:
@@ -84,6 +90,35 @@ def affine_form(dynamics: ChainDynamics, actuators: Sequence[Mapping[int, Mappin
         if hasattr(boundary, "displacement"):
             raise ModelError(f"chain {chain.name!r}: the prescribed motion of {boundary.name!r} is generated in the "
                              "RK4 only, not on this path (use compiled=False)")
+    linear = dynamics.linear
+    form = _probed_form(dynamics, actuators) if linear is None else _linear_form(linear, actuators)
+    if sparse or not scipy.sparse.issparse(form.Ax):
+        return form
+    return AffineRates(form.Ax.toarray(), form.Av.toarray(), form.B, form.a0, form.loads)
+
+
+def _linear_form(linear: LinearRates, actuators: Sequence[Mapping[int, Mapping[str, float]]]) -> AffineRates:
+    """:func:`affine_form` from the certified rates (still supports: the motion's part of ``a0`` at ``t = 0``)."""
+    m = linear.m
+    stiffness = linear.stiffness
+    if scipy.sparse.issparse(stiffness):
+        stiffness = scipy.sparse.csc_matrix(stiffness)
+        Ax, Av = scipy.sparse.csr_matrix(stiffness[:, :m]), scipy.sparse.csr_matrix(stiffness[:, m:])
+    else:
+        Ax, Av = stiffness[:, :m], stiffness[:, m:]
+    a0 = linear.constant + linear.motion @ linear.motion_values(0.0)
+
+    def column(inputs: Mapping[int, Mapping[str, float]]) -> np.ndarray:
+        return sum((float(value) * linear.column(position, name) for position, values in inputs.items()
+                    for name, value in values.items()), np.zeros(m))
+
+    B = np.column_stack([column(unit) for unit in actuators]) if len(actuators) else np.zeros((m, 0))
+    return AffineRates(Ax, Av, B, a0, list(linear.loads))
+
+
+def _probed_form(dynamics: ChainDynamics, actuators: Sequence[Mapping[int, Mapping[str, float]]]) -> AffineRates:
+    """:func:`affine_form` by one batched sweep of ``1 + 2 m`` unit probes, one sweep per actuator and per
+    time-varying load (dense)."""
     I, n = dynamics.index_I, dynamics.tree.n_nodes
     m = I.size
     x, v = np.zeros((1 + 2 * m, n)), np.zeros((1 + 2 * m, n))
@@ -113,11 +148,16 @@ def affine_form(dynamics: ChainDynamics, actuators: Sequence[Mapping[int, Mappin
     return AffineRates(Ax, Av, B, base, loads)
 
 
-
 def sensor_row(ports: Any, terms: Sequence[tuple[str, float]], size: int) -> tuple[np.ndarray, float]:
     """``(row, offset)`` of the weighted sensed signal ``y = row [q; v] + offset`` of a chain (``terms``
     ``[(sensor, weight)]`` of :class:`ctmm.control.chain_plant.ChainPorts`; ``size = 2 m``): unit probes, exact
-    because the chain's sensors are affine in its state."""
+    because the chain's sensors are affine in its state.
+
+    A sensor reads one connection point (a position or a velocity) or the two ends of one connector (a law
+    force), so without massless nodes (no condensation couples the states) only the states of those points'
+    nodes are probed (``O(1)`` probes of ``O(n)`` each); the row is then certified at a random state
+    (relative 1e-12) and every state is probed where it differs (or with massless nodes).
+    """
     names = [name for name, _ in terms]
     weights = np.array([w for _, w in terms], dtype=float)
     sensors = ports.resolve(names)
@@ -129,10 +169,27 @@ def sensor_row(ports: Any, terms: Sequence[tuple[str, float]], size: int) -> tup
     zero = np.zeros(size)
     offset = value(zero)
     row = np.zeros(size)
-    for i in range(size):
-        zero[i] = 1.0
-        row[i] = value(zero) - offset
-        zero[i] = 0.0
+
+    def probe(indices: Any) -> None:
+        for i in indices:
+            zero[i] = 1.0
+            row[i] = value(zero) - offset
+            zero[i] = 0.0
+
+    dynamics = ports.dynamics
+    if dynamics.index_Q.size or dynamics.index_I.size != half:
+        probe(range(size))
+        return row, offset
+    points = {p for sensor in sensors for p in ((sensor.position - 1, sensor.position) if sensor.force
+                                                 else (sensor.point,))}
+    nodes = {int(dynamics.node_of_point[p]) for p in points}
+    states = np.flatnonzero(np.isin(dynamics.index_I, list(nodes)))
+    probe(np.concatenate([states, half + states]))
+    sample = np.random.default_rng(5).standard_normal(size)
+    expected, found = value(sample), float(row @ sample) + offset
+    if abs(expected - found) > 1e-12 * max(1.0, abs(expected), float(np.abs(row) @ np.abs(sample)) + abs(offset)):
+        row[:] = 0.0
+        probe(range(size))
     return row, offset
 
 
@@ -178,7 +235,7 @@ class ChainSymbols:
         import casadi as ca
 
         row, offset = sensor_row(self.ports, [(name, 1.0)], 2 * self.n_positions)
-        return ca.mtimes(ca.DM(row[None, :]), ca.vertcat(q, v)) + offset
+        return ca.mtimes(ca.DM(scipy.sparse.csc_matrix(row[None, :])), ca.vertcat(q, v)) + offset
 
 
 class CompiledChain:
@@ -236,12 +293,13 @@ class CompiledChain:
             if dynamics.index_Q.size:
                 affine_form(dynamics, units)                  # its refusal names the massless points
             still_sensors(plant, loops)
-        form = condensed_affine_form(dynamics, units) if condensed else affine_form(dynamics, units)
+        form = condensed_affine_form(dynamics, units) if condensed else affine_form(dynamics, units, sparse=True)
         m, r = plant.n_positions, plant.n_velocities
         self._certify(dynamics, form, units)
         q, v = ca.MX.sym("q", m), ca.MX.sym("v", r)
         u, p, t = ca.MX.sym("u", len(units)), ca.MX.sym("p", 0), ca.MX.sym("t")
-        stiffness = ca.DM(scipy.sparse.csc_matrix(np.hstack([form.Ax, form.Av])))
+        stiffness = ca.DM(scipy.sparse.hstack([scipy.sparse.csc_matrix(form.Ax), scipy.sparse.csc_matrix(form.Av)],
+                                              format="csc"))
         acceleration = ca.mtimes(stiffness, ca.vertcat(q, v))
         if units:
             acceleration += ca.mtimes(ca.DM(scipy.sparse.csc_matrix(form.B)), u)
