@@ -41,13 +41,16 @@ class AffineRates:
     """``a = Ax x_I + Av v + B u + a0 + sum_j L_j s_j(t)`` of a lumped chain
     (:func:`ctmm.compiled_chain.affine_form`, :func:`condensed_affine_form`): ``Ax`` [1/s^2] (r, m), ``Av``
     [1/s] (r, r), ``B`` (r, actuators) [1/kg], ``a0`` [m/s^2] (r,), ``loads`` ``[(L_j (r,), signal s_j)]``;
-    ``m`` masses, ``r = m`` (or ``m + n_r`` with first-order massless parts: ``v = [v_I; z_r]``)."""
+    ``m`` masses, ``r = m`` (or ``m + n_r`` with first-order massless parts: ``v = [v_I; z_r]``).  ``certified``:
+    ``Ax``, ``Av``, ``a0`` and the loads were already certified against the sweep at random states and times
+    (:func:`ctmm.chain_affine.linear_rates`); ``B`` is certified by the callers."""
 
-    Ax: np.ndarray
-    Av: np.ndarray
+    Ax: Any
+    Av: Any
     B: np.ndarray
     a0: np.ndarray
     loads: list
+    certified: bool = False
 
 
 def needs_condensed_form(dynamics: ChainDynamics) -> bool:
