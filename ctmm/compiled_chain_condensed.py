@@ -28,7 +28,9 @@ from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
 import numpy as np
+import scipy.sparse
 
+from .chain_affine import LinearRates
 from .chain_ode import ChainDynamics
 from .errors import ModelError
 from .signals import Constant, Harmonic
@@ -163,6 +165,9 @@ def condensed_affine_form(dynamics: ChainDynamics, actuators: Sequence[Mapping[i
             constant[offset:offset + 3] = values
             terms += [(offset + slot, signal) for slot, signal in varying]
     m = dynamics.index_I.size
+    linear = None if dynamics.index_Q.size else dynamics.linear
+    if linear is not None:
+        return _from_linear_rates(linear, probe, constant, terms, actuators)
     size = 2 * m + dynamics.n_r
     zero = np.zeros(size)
     base = probe.rate(zero, constant, {})
@@ -181,3 +186,28 @@ def condensed_affine_form(dynamics: ChainDynamics, actuators: Sequence[Mapping[i
         moved[slot] += 1.0
         loads.append((probe.rate(zero, moved, {}) - base, signal))
     return AffineRates(Ax, Av, B, base, loads)
+
+
+def _from_linear_rates(linear: LinearRates, probe: _Probe, constant: np.ndarray, terms: list[tuple[int, Any]],
+                       actuators: Sequence[Mapping[int, Mapping[str, float]]]) -> AffineRates:
+    """:func:`condensed_affine_form` of a chain without massless nodes from its certified rates
+    (:mod:`ctmm.chain_affine`: ``a = Sx x + Sv v + a_0 + sum_j L_j s_j + H m(t)``, tridiagonal, ``O(n)``): the time
+    slots ``constant`` / ``terms`` (loads, then the start's and the wall's position, velocity, acceleration) on
+    ``L_j`` and the columns of ``H``."""
+    m, L = linear.m, probe.n_loads
+    stiffness = scipy.sparse.csc_matrix(linear.stiffness)
+    Ax, Av = scipy.sparse.csr_matrix(stiffness[:, :m]), scipy.sparse.csr_matrix(stiffness[:, m:])
+    motion = np.zeros(6)
+    for offset, used in ((0, probe.start), (3, probe.wall)):
+        if used:
+            motion[offset:offset + 3] = constant[L + offset:L + offset + 3]
+    a0 = linear.constant + linear.motion @ motion
+    varying = iter(linear.loads)
+    loads = [(next(varying)[0] if slot < L else linear.motion[:, slot - L], signal) for slot, signal in terms]
+
+    def column(inputs: Mapping[int, Mapping[str, float]]) -> np.ndarray:
+        return sum((float(value) * linear.column(position, name) for position, values in inputs.items()
+                    for name, value in values.items()), np.zeros(m))
+
+    B = np.column_stack([column(unit) for unit in actuators]) if len(actuators) else np.zeros((m, 0))
+    return AffineRates(Ax, Av, B, a0, loads, certified=True)

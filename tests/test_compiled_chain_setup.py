@@ -20,7 +20,8 @@ from ctmm.compiled_chain import affine_form, sensor_row
 from ctmm.compiled_chain_kernel import step_matrix, tridiagonal_factors, woodbury_parts
 from ctmm.control import ControlledChain, Feedback
 from ctmm.control.chain_plant import ChainPlant, ChainPorts
-from ctmm.elements import Fixed, Free, Mass, SpringDamper
+from ctmm.elements import Fixed, Free, Mass, PrescribedDisplacement, SpringDamper
+from ctmm.signals import Harmonic
 
 pytest.importorskip("casadi")
 STIFFNESS, DAMPING = 1.0e4, 2.0
@@ -30,11 +31,15 @@ def _masses(n: int) -> np.ndarray:
     return 1.0 + 0.5 * np.sin(np.arange(n))
 
 
-def _chain(n: int) -> ctmm.Chain:
-    elements = [Fixed("start")]
+def _chain(n: int, base: bool = False) -> ctmm.Chain:
+    """Fixed - [k, c] - m_0 - ... - m_{n-1} - Free; ``base``: a harmonic start and end motion instead and a
+    harmonic force on ``m_1``."""
+    elements = [PrescribedDisplacement("start", Harmonic(0.01, 5.0)) if base else Fixed("start")]
     for i, mass in enumerate(_masses(n)):
-        elements += [SpringDamper(f"k{i}", STIFFNESS * (1.0 + 0.1 * i), DAMPING), Mass(f"m{i}", float(mass))]
-    return ctmm.Chain(f"chain{n}", elements + [Free("end")])
+        force = Harmonic(2.0, 3.0) if base and i == 1 else 0.0
+        elements += [SpringDamper(f"k{i}", STIFFNESS * (1.0 + 0.1 * i), DAMPING), Mass(f"m{i}", float(mass), force=force)]
+    end = [SpringDamper("k_end", STIFFNESS, DAMPING), PrescribedDisplacement("end", Harmonic(0.02, 7.0, 0.5))]
+    return ctmm.Chain(f"chain{n}", elements + (end if base else [Free("end")]))
 
 
 def _global(n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -90,7 +95,8 @@ class _Stop(Exception):
 
 
 def _counted_setup(monkeypatch, n: int, kind: str) -> tuple[int, int]:
-    """``(probe entries, sensor evaluations)`` of one set-up of a chain of ``n`` masses with a real-time loop."""
+    """``(probe entries, sensor evaluations)`` of one set-up of a chain of ``n`` masses with a real-time loop
+    (``"base"``: the base-excited chain without loops on the generated RK4)."""
     counts = {"entries": 0, "sensors": 0}
     forces, values = ChainDynamics.forces, ChainPorts.values
 
@@ -108,6 +114,8 @@ def _counted_setup(monkeypatch, n: int, kind: str) -> tuple[int, int]:
     monkeypatch.setattr(ChainDynamics, "forces", counted_forces)
     monkeypatch.setattr(ChainPorts, "values", counted_values)
     system = ControlledChain(_chain(n), [Feedback("tip", f"m{n - 1}.x", "m0", gain=500.0)])
+    if kind == "base":
+        system, kind = _chain(n, base=True), "rk4"
     if kind == "rk4":
         monkeypatch.setattr(compiled_chain, "compiled_time_loop", stop)
         build = lambda: compiled_chain.CompiledChain(system, dt=1e-4)               # noqa: E731
@@ -119,7 +127,7 @@ def _counted_setup(monkeypatch, n: int, kind: str) -> tuple[int, int]:
     return counts["entries"], counts["sensors"]
 
 
-@pytest.mark.parametrize("kind", ["rk4", "newmark"])
+@pytest.mark.parametrize("kind", ["rk4", "newmark", "base"])
 def test_setup_probes_grow_linearly_with_the_chain(monkeypatch, kind):
     """Doubling the chain doubles the probe entries (one unit probe per state: four times) and keeps the number
     of sensor evaluations (one per state before: twice as many)."""
