@@ -3,8 +3,9 @@
 ``ctmm.simulate(chain_or_controlled_chain, t_final, dt, method="rk4", compiled=True)`` runs here.
 The rate is the chain's explicit form (:mod:`ctmm.chain_ode`: the one articulated sweep of the element
 terms), which for the lumped families is affine in the motion and the inputs:
-:func:`affine_form` reads it exactly from one batched sweep of unit
-probes, ``a = Ax x + Av v + B u + a0 + sum_j L_j s_j(t)``, and :class:`CompiledChain` certifies it
+:func:`affine_form` reads it exactly, ``a = Ax x + Av v + B u + a0 + sum_j L_j s_j(t)``, from the chain's certified
+tridiagonal rates (:mod:`ctmm.chain_affine`: three interleaved probes of the sweep, sparse, so the set-up grows like
+the chain), and :class:`CompiledChain` certifies it
 against the Python sweep at random states, times and inputs before anything is generated (a family
 whose terms were not affine would be refused, not silently linearised).  The generated functions are
 those of every scene (:mod:`ctmm.generated_loop`: ``step``, ``stride``, ``block``), the matrices

@@ -15,7 +15,10 @@ the end wall -- position, velocity and acceleration, in closed form as the Pytho
 :class:`~ctmm.signals.Harmonic` motion; the velocity and acceleration of ``a sin(w t + p)`` are the harmonics
 ``a w sin(w t + p + pi/2)`` and ``a w^2 sin(w t + p + pi)``).  The probes are exact because every step is affine
 in the state and the time terms; :class:`ctmm.compiled_chain.CompiledChain` certifies the form against the Python
-sweep at random states and times before generating anything.
+sweep at random states and times before generating anything.  Without massless nodes the form is that of the
+certified rates of the ODE path (:mod:`ctmm.chain_affine`: tridiagonal, sparse, ``O(n)`` probes; the motion's
+columns ``H`` carry the time slots); with them, one probe of the condensation and sweep per state (``O(n)`` sweeps,
+the condensation itself dense).
 
 Refused (:class:`~ctmm.errors.ModelError`, named): a prescribed motion without closed-form rates (a
 :class:`~ctmm.signals.Step`, :class:`~ctmm.signals.SquareWave` or user callable), a varying load on a massless
