@@ -526,7 +526,8 @@ def _chain_setup_scaling(t: Timings) -> None:
 
     call()                                      # compile once (or find the library in the cache)
     t.add("chain_setup_scaling", f"cached_call_rk4_n{n}", call, per="call", count=1,
-          configuration=f"ctmm.simulate(compiled=True) of the plain chain of {n} masses (benchmarks/chain_compiled.py), "
+          configuration=f"ctmm.simulate(compiled=True) of the plain chain of {n} masses "
+                        "(benchmarks/chain_compiled.py), "
                         f"RK4, {steps} steps of dt={bench.DT:g} s, the library already in the cache: the call's set-up "
                         "(affine form read and certified, key, loading) and result")
 

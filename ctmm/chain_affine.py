@@ -83,7 +83,8 @@ class LinearRates:
                 probes[c, I[colour[I] == c]] = 1.0
             zeros, zero = np.zeros((3, n)), np.zeros((1, n))       # the base in the same sweep (row 0)
             wall = np.hstack([np.zeros((3, 7)), walls])
-            forces = dynamics.forces(np.vstack([zero, probes, zeros, motion_x]), np.vstack([zero, zeros, probes, motion_v]),
+            forces = dynamics.forces(np.vstack([zero, probes, zeros, motion_x]),
+                                     np.vstack([zero, zeros, probes, motion_v]),
                                      0.0, {}, (wall[0], wall[1], wall[2]))[:, I]
             self._base = forces[0]
             responses = forces[1:] - self._base

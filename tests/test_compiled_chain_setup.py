@@ -37,13 +37,14 @@ def _chain(n: int, base: bool = False) -> ctmm.Chain:
     elements = [PrescribedDisplacement("start", Harmonic(0.01, 5.0)) if base else Fixed("start")]
     for i, mass in enumerate(_masses(n)):
         force = Harmonic(2.0, 3.0) if base and i == 1 else 0.0
-        elements += [SpringDamper(f"k{i}", STIFFNESS * (1.0 + 0.1 * i), DAMPING), Mass(f"m{i}", float(mass), force=force)]
+        elements += [SpringDamper(f"k{i}", STIFFNESS * (1.0 + 0.1 * i), DAMPING),
+                     Mass(f"m{i}", float(mass), force=force)]
     end = [SpringDamper("k_end", STIFFNESS, DAMPING), PrescribedDisplacement("end", Harmonic(0.02, 7.0, 0.5))]
     return ctmm.Chain(f"chain{n}", elements + (end if base else [Free("end")]))
 
 
 def _global(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """``-M^-1 K`` and ``-M^-1 C`` of the fixed-free chain, by hand (connector ``i`` between ``m_{i-1}`` and ``m_i``)."""
+    """``-M^-1 K`` and ``-M^-1 C`` of the fixed-free chain, by hand (connector ``i`` between ``m_{i-1}``, ``m_i``)."""
     K, C = np.zeros((n, n)), np.zeros((n, n))
     for i in range(n):
         k, c = STIFFNESS * (1.0 + 0.1 * i), DAMPING
