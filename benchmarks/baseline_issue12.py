@@ -46,8 +46,9 @@ through the generated RK4) was added in its place, measured alone on 2026-11-25 
 ``timings.dropped`` keeps the reason).  ``planar_frf/sweep_n20_500_omega`` (issue 13: planar frequency responses
 by the one sweep's frequency context), ``spatial_frf/sweep_n30_500_omega`` (issues 13/14: the same for spatial
 models), ``kinematic_loops_generated/generated_rk4_projection_four_bar`` and ``..._spatial_four_bar`` (issues 13/16: the
-four-bars' RK4 with projection in generated C; ``..._flexible_four_bar`` with a ModalBeam coupler, issue 13 item 1)
-and ``chain_frf/frequency_response_n1000`` (issue 13: the 1-D chain FRF by the compiled Riccati solve) were measured
+four-bars' RK4 with projection in generated C; ``..._flexible_four_bar`` with a ModalBeam coupler, issue 13 item 1),
+``chain_frf/frequency_response_n1000`` (issue 13: the 1-D chain FRF by the compiled Riccati solve) and
+``chain_setup_scaling/cached_call_rk4_n1000`` (issue 13: the per-call set-up of a generated chain kernel) were measured
 alone when their benchmarks landed (``timings.added_later``).  Python time-stepping cases whose
 benchmark horizon would make the repeats slow run over a shorter horizon at the benchmark's step
 (stated in ``configuration``): the per-step cost does not depend on the horizon.
@@ -513,10 +514,29 @@ def _chain_frf(t: Timings) -> None:
                         "Riccati solve (ctmm.compiled_chain_frequency, library loaded; benchmarks/chain_frf.py)")
 
 
+def _chain_setup_scaling(t: Timings) -> None:
+    bench = importlib.import_module("chain_compiled")
+    n, steps = 1000, 10
+    system = bench.model(n).plant
+    x0 = {f"m{i}": float(value) for i, value in enumerate(bench.start(n))}
+
+    def call() -> object:
+        return ctmm.simulate(system, steps * bench.DT, bench.DT, method="rk4", x0=x0, compiled=True,
+                             store_every=steps)
+
+    call()                                      # compile once (or find the library in the cache)
+    t.add("chain_setup_scaling", f"cached_call_rk4_n{n}", call, per="call", count=1,
+          configuration=f"ctmm.simulate(compiled=True) of the plain chain of {n} masses "
+                        "(benchmarks/chain_compiled.py), "
+                        f"RK4, {steps} steps of dt={bench.DT:g} s, the library already in the cache: the call's set-up "
+                        "(affine form read and certified, key, loading) and result")
+
+
 TIMING_PARTS = (_work_precision, _scaling, _control, _delay_history, _planar, _flexible, _manipulator,
                 _stability_chart, _compiled_scenes, _spatial_chain, _spatial_schemes, _chain_compiled,
                 _chain_schemes_generated, _chain_ode_speed, _compiled_cosim, _batch_parameters, _kernel_cache,
-                _planar_frf, _compiled_schemes_planar, _spatial_frf, _kinematic_loops_generated, _chain_frf)
+                _planar_frf, _compiled_schemes_planar, _spatial_frf, _kinematic_loops_generated, _chain_frf,
+                _chain_setup_scaling)
 
 
 def timings() -> dict:

@@ -69,8 +69,6 @@ class LinearRates:
         self.index = I
         m = self.m = I.size
         self._columns: dict[tuple[int, str], np.ndarray] = {}
-        zero_wall = (np.zeros(1), np.zeros(1), np.zeros(1))
-        self._base = dynamics.forces(np.zeros((1, n)), np.zeros((1, n)), 0.0, {}, zero_wall)[0, I]
         held = dynamics.held.astype(float)
         motion_x = np.zeros((5, n))
         motion_x[0] = held
@@ -83,13 +81,19 @@ class LinearRates:
             colour = np.arange(n) % 3
             for c in range(3):
                 probes[c, I[colour[I] == c]] = 1.0
-            zeros = np.zeros((3, n))
-            responses = self._responses(np.vstack([probes, zeros, motion_x]), np.vstack([zeros, probes, motion_v]),
-                                        np.hstack([np.zeros((3, 6)), walls]))
+            zeros, zero = np.zeros((3, n)), np.zeros((1, n))       # the base in the same sweep (row 0)
+            wall = np.hstack([np.zeros((3, 7)), walls])
+            forces = dynamics.forces(np.vstack([zero, probes, zeros, motion_x]),
+                                     np.vstack([zero, zeros, probes, motion_v]),
+                                     0.0, {}, (wall[0], wall[1], wall[2]))[:, I]
+            self._base = forces[0]
+            responses = forces[1:] - self._base
             self.stiffness = scipy.sparse.hstack([self._tridiagonal(responses[:3], colour[I]),
                                                   self._tridiagonal(responses[3:6], colour[I])]).tocsr()
             motion = responses[6:]
         else:
+            zero_wall = (np.zeros(1), np.zeros(1), np.zeros(1))
+            self._base = dynamics.forces(np.zeros((1, n)), np.zeros((1, n)), 0.0, {}, zero_wall)[0, I]
             columns = []
             for offset in range(0, 2 * m, 256):
                 rows = np.arange(offset, min(offset + 256, 2 * m))

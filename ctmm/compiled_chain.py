@@ -3,8 +3,9 @@
 ``ctmm.simulate(chain_or_controlled_chain, t_final, dt, method="rk4", compiled=True)`` runs here.
 The rate is the chain's explicit form (:mod:`ctmm.chain_ode`: the one articulated sweep of the element
 terms), which for the lumped families is affine in the motion and the inputs:
-:func:`affine_form` reads it exactly from one batched sweep of unit
-probes, ``a = Ax x + Av v + B u + a0 + sum_j L_j s_j(t)``, and :class:`CompiledChain` certifies it
+:func:`affine_form` reads it exactly, ``a = Ax x + Av v + B u + a0 + sum_j L_j s_j(t)``, from the chain's certified
+tridiagonal rates (:mod:`ctmm.chain_affine`: three interleaved probes of the sweep, sparse, so the set-up grows like
+the chain), and :class:`CompiledChain` certifies it
 against the Python sweep at random states, times and inputs before anything is generated (a family
 whose terms were not affine would be refused, not silently linearised).  The generated functions are
 those of every scene (:mod:`ctmm.generated_loop`: ``step``, ``stride``, ``block``), the matrices
@@ -43,6 +44,7 @@ import numpy as np
 import scipy.sparse
 
 from . import validation
+from .chain_affine import LinearRates
 from .chain_ode import ChainDynamics, chain_result
 from .compiled_chain_condensed import AffineRates, condensed_affine_form, needs_condensed_form
 from .compiled_loops import ClosedLoops
@@ -62,12 +64,18 @@ DEFAULT_ROWS = 64
 """Stored states per generated block call."""
 
 
-def affine_form(dynamics: ChainDynamics, actuators: Sequence[Mapping[int, Mapping[str, float]]] = ()) -> AffineRates:
+def affine_form(dynamics: ChainDynamics, actuators: Sequence[Mapping[int, Mapping[str, float]]] = (), *,
+                sparse: bool = False) -> AffineRates:
     """The accelerations as ``a = Ax x_I + Av v_I + B u + a0 + sum_j L_j s_j(t)`` (exact for the
-    lumped families, whose terms are affine in the motion and the inputs): one batched sweep of
-    unit probes, one sweep per actuator (``actuators``: unit inputs ``{position: {input: 1}}``) and
-    one per time-varying load of the chain's elements (``s_j`` its signal; constant loads are in
-    ``a0``).
+    lumped families, whose terms are affine in the motion and the inputs), ``actuators`` the unit inputs
+    ``{position: {input: 1}}`` of ``B``'s columns (constant loads are in ``a0``, ``s_j`` the time-varying ones).
+
+    The chain's certified affine rates (:attr:`ctmm.chain_ode.ChainDynamics.linear`,
+    :mod:`ctmm.chain_affine`: tridiagonal ``Ax``, ``Av`` from three interleaved probes, ``O(n)`` in time and
+    memory; the inerters' coupled form column by column) where it has them, else unit probes of the sweep, one
+    batched sweep of ``1 + 2 m`` probes (``O(n^2)``: connectors with a law the certified rates leave out;
+    the callers certify the form against the sweep).  ``sparse``: ``Ax``, ``Av`` as
+    :class:`scipy.sparse.csr_matrix` where they are banded (``O(n)`` memory), else dense arrays.
 
     Raises
     ------
@@ -88,6 +96,35 @@ def affine_form(dynamics: ChainDynamics, actuators: Sequence[Mapping[int, Mappin
         if hasattr(boundary, "displacement"):
             raise ModelError(f"chain {chain.name!r}: the prescribed motion of {boundary.name!r} is generated in the "
                              "RK4 and DT-TMM steps, not on this path (use compiled=False)")
+    linear = dynamics.linear
+    form = _probed_form(dynamics, actuators) if linear is None else _linear_form(linear, actuators)
+    if sparse or not scipy.sparse.issparse(form.Ax):
+        return form
+    return AffineRates(form.Ax.toarray(), form.Av.toarray(), form.B, form.a0, form.loads, form.certified)
+
+
+def _linear_form(linear: LinearRates, actuators: Sequence[Mapping[int, Mapping[str, float]]]) -> AffineRates:
+    """:func:`affine_form` from the certified rates (still supports: the motion's part of ``a0`` at ``t = 0``)."""
+    m = linear.m
+    stiffness = linear.stiffness
+    if scipy.sparse.issparse(stiffness):
+        stiffness = scipy.sparse.csc_matrix(stiffness)
+        Ax, Av = scipy.sparse.csr_matrix(stiffness[:, :m]), scipy.sparse.csr_matrix(stiffness[:, m:])
+    else:
+        Ax, Av = stiffness[:, :m], stiffness[:, m:]
+    a0 = linear.constant + linear.motion @ linear.motion_values(0.0)
+
+    def column(inputs: Mapping[int, Mapping[str, float]]) -> np.ndarray:
+        return sum((float(value) * linear.column(position, name) for position, values in inputs.items()
+                    for name, value in values.items()), np.zeros(m))
+
+    B = np.column_stack([column(unit) for unit in actuators]) if len(actuators) else np.zeros((m, 0))
+    return AffineRates(Ax, Av, B, a0, list(linear.loads), certified=True)
+
+
+def _probed_form(dynamics: ChainDynamics, actuators: Sequence[Mapping[int, Mapping[str, float]]]) -> AffineRates:
+    """:func:`affine_form` by one batched sweep of ``1 + 2 m`` unit probes, one sweep per actuator and per
+    time-varying load (dense)."""
     I, n = dynamics.index_I, dynamics.tree.n_nodes
     m = I.size
     x, v = np.zeros((1 + 2 * m, n)), np.zeros((1 + 2 * m, n))
@@ -124,7 +161,13 @@ def sensor_row(ports: Any, terms: Sequence[tuple[str, float]], size: int, positi
     ``[(sensor, weight)]`` of :class:`ctmm.control.chain_plant.ChainPorts`; ``size = m + r``, ``positions = m``,
     default ``size / 2``; ``v = [v_I; z_r]`` with the first-order parts of massless nodes): unit probes, exact
     because the chain's sensors are affine in its state (a massless node's position and velocity come from its
-    balance, :meth:`~ctmm.control.chain_plant.ChainPorts.point_kinematics`, linear in the state)."""
+    balance, :meth:`~ctmm.control.chain_plant.ChainPorts.point_kinematics`, linear in the state).
+
+    A sensor reads one connection point (a position or a velocity) or the two ends of one connector (a law
+    force), so without massless nodes (no condensation couples the states) only the states of those points'
+    nodes are probed (``O(1)`` probes of ``O(n)`` each); the row is then certified at a random state
+    (relative 1e-12) and every state is probed where it differs (or with massless nodes).
+    """
     names = [name for name, _ in terms]
     weights = np.array([w for _, w in terms], dtype=float)
     sensors = ports.resolve(names)
@@ -136,10 +179,27 @@ def sensor_row(ports: Any, terms: Sequence[tuple[str, float]], size: int, positi
     zero = np.zeros(size)
     offset = value(zero)
     row = np.zeros(size)
-    for i in range(size):
-        zero[i] = 1.0
-        row[i] = value(zero) - offset
-        zero[i] = 0.0
+
+    def probe(indices: Any) -> None:
+        for i in indices:
+            zero[i] = 1.0
+            row[i] = value(zero) - offset
+            zero[i] = 0.0
+
+    dynamics = ports.dynamics
+    if dynamics.index_Q.size or dynamics.index_I.size != half:
+        probe(range(size))
+        return row, offset
+    points = {p for sensor in sensors for p in ((sensor.position - 1, sensor.position) if sensor.force
+                                                 else (sensor.point,))}
+    nodes = {int(dynamics.node_of_point[p]) for p in points}
+    states = np.flatnonzero(np.isin(dynamics.index_I, list(nodes)))
+    probe(np.concatenate([states, half + states]))
+    sample = np.random.default_rng(5).standard_normal(size)
+    expected, found = value(sample), float(row @ sample) + offset
+    if abs(expected - found) > 1e-12 * max(1.0, abs(expected), float(np.abs(row) @ np.abs(sample)) + abs(offset)):
+        row[:] = 0.0
+        probe(range(size))
     return row, offset
 
 
@@ -188,7 +248,7 @@ class ChainSymbols:
         import casadi as ca
 
         row, offset = sensor_row(self.ports, [(name, 1.0)], self.n_positions + self.n_velocities, self.n_positions)
-        return ca.mtimes(ca.DM(row[None, :]), ca.vertcat(q, v)) + offset
+        return ca.mtimes(ca.DM(scipy.sparse.csc_matrix(row[None, :])), ca.vertcat(q, v)) + offset
 
 
 class CompiledChain:
@@ -244,12 +304,13 @@ class CompiledChain:
         condensed = needs_condensed_form(dynamics)
         if condensed and (loops or inputs):
             still_sensors(plant, loops)
-        form = condensed_affine_form(dynamics, units) if condensed else affine_form(dynamics, units)
+        form = condensed_affine_form(dynamics, units) if condensed else affine_form(dynamics, units, sparse=True)
         m, r = plant.n_positions, plant.n_velocities
         self._certify(dynamics, form, units)
         q, v = ca.MX.sym("q", m), ca.MX.sym("v", r)
         u, p, t = ca.MX.sym("u", len(units)), ca.MX.sym("p", 0), ca.MX.sym("t")
-        stiffness = ca.DM(scipy.sparse.csc_matrix(np.hstack([form.Ax, form.Av])))
+        stiffness = ca.DM(scipy.sparse.hstack([scipy.sparse.csc_matrix(form.Ax), scipy.sparse.csc_matrix(form.Av)],
+                                              format="csc"))
         acceleration = ca.mtimes(stiffness, ca.vertcat(q, v))
         if units:
             acceleration += ca.mtimes(ca.DM(scipy.sparse.csc_matrix(form.B)), u)
@@ -280,7 +341,10 @@ class CompiledChain:
         self.compile_time_s = _time.perf_counter() - start
 
     def _certify(self, dynamics: ChainDynamics, form: Any, units: Sequence[Mapping]) -> None:
-        """The affine form equals the Python sweep at random states, times and inputs (1e-10 relative)."""
+        """The affine form equals the Python sweep at random states, times and inputs (1e-10 relative); a form
+        read from the certified rates without actuators was checked so already (the same check)."""
+        if form.certified and not units:
+            return
         rng = np.random.default_rng(12)
         m, size = self.plant.n_positions, self.plant.n_positions + self.plant.n_velocities
         for trial in range(2):

@@ -15,7 +15,10 @@ the end wall -- position, velocity and acceleration, in closed form as the Pytho
 :class:`~ctmm.signals.Harmonic` motion; the velocity and acceleration of ``a sin(w t + p)`` are the harmonics
 ``a w sin(w t + p + pi/2)`` and ``a w^2 sin(w t + p + pi)``).  The probes are exact because every step is affine
 in the state and the time terms; :class:`ctmm.compiled_chain.CompiledChain` certifies the form against the Python
-sweep at random states and times before generating anything.
+sweep at random states and times before generating anything.  Without massless nodes the form is that of the
+certified rates of the ODE path (:mod:`ctmm.chain_affine`: tridiagonal, sparse, ``O(n)`` probes; the motion's
+columns ``H`` carry the time slots); with them, one probe of the condensation and sweep per state (``O(n)`` sweeps,
+the condensation itself dense).
 
 Refused (:class:`~ctmm.errors.ModelError`, named): a prescribed motion without closed-form rates (a
 :class:`~ctmm.signals.Step`, :class:`~ctmm.signals.SquareWave` or user callable), a varying load on a massless
@@ -28,7 +31,9 @@ from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
 import numpy as np
+import scipy.sparse
 
+from .chain_affine import LinearRates
 from .chain_ode import ChainDynamics
 from .errors import ModelError
 from .signals import Constant, Harmonic
@@ -41,13 +46,16 @@ class AffineRates:
     """``a = Ax x_I + Av v + B u + a0 + sum_j L_j s_j(t)`` of a lumped chain
     (:func:`ctmm.compiled_chain.affine_form`, :func:`condensed_affine_form`): ``Ax`` [1/s^2] (r, m), ``Av``
     [1/s] (r, r), ``B`` (r, actuators) [1/kg], ``a0`` [m/s^2] (r,), ``loads`` ``[(L_j (r,), signal s_j)]``;
-    ``m`` masses, ``r = m`` (or ``m + n_r`` with first-order massless parts: ``v = [v_I; z_r]``)."""
+    ``m`` masses, ``r = m`` (or ``m + n_r`` with first-order massless parts: ``v = [v_I; z_r]``).  ``certified``:
+    ``Ax``, ``Av``, ``a0`` and the loads were already certified against the sweep at random states and times
+    (:func:`ctmm.chain_affine.linear_rates`); ``B`` is certified by the callers."""
 
-    Ax: np.ndarray
-    Av: np.ndarray
+    Ax: Any
+    Av: Any
     B: np.ndarray
     a0: np.ndarray
     loads: list
+    certified: bool = False
 
 
 def needs_condensed_form(dynamics: ChainDynamics) -> bool:
@@ -160,6 +168,9 @@ def condensed_affine_form(dynamics: ChainDynamics, actuators: Sequence[Mapping[i
             constant[offset:offset + 3] = values
             terms += [(offset + slot, signal) for slot, signal in varying]
     m = dynamics.index_I.size
+    linear = None if dynamics.index_Q.size else dynamics.linear
+    if linear is not None:
+        return _from_linear_rates(linear, probe, constant, terms, actuators)
     size = 2 * m + dynamics.n_r
     zero = np.zeros(size)
     base = probe.rate(zero, constant, {})
@@ -178,3 +189,28 @@ def condensed_affine_form(dynamics: ChainDynamics, actuators: Sequence[Mapping[i
         moved[slot] += 1.0
         loads.append((probe.rate(zero, moved, {}) - base, signal))
     return AffineRates(Ax, Av, B, base, loads)
+
+
+def _from_linear_rates(linear: LinearRates, probe: _Probe, constant: np.ndarray, terms: list[tuple[int, Any]],
+                       actuators: Sequence[Mapping[int, Mapping[str, float]]]) -> AffineRates:
+    """:func:`condensed_affine_form` of a chain without massless nodes from its certified rates
+    (:mod:`ctmm.chain_affine`: ``a = Sx x + Sv v + a_0 + sum_j L_j s_j + H m(t)``, tridiagonal, ``O(n)``): the time
+    slots ``constant`` / ``terms`` (loads, then the start's and the wall's position, velocity, acceleration) on
+    ``L_j`` and the columns of ``H``."""
+    m, L = linear.m, probe.n_loads
+    stiffness = scipy.sparse.csc_matrix(linear.stiffness)
+    Ax, Av = scipy.sparse.csr_matrix(stiffness[:, :m]), scipy.sparse.csr_matrix(stiffness[:, m:])
+    motion = np.zeros(6)
+    for offset, used in ((0, probe.start), (3, probe.wall)):
+        if used:
+            motion[offset:offset + 3] = constant[L + offset:L + offset + 3]
+    a0 = linear.constant + linear.motion @ motion
+    varying = iter(linear.loads)
+    loads = [(next(varying)[0] if slot < L else linear.motion[:, slot - L], signal) for slot, signal in terms]
+
+    def column(inputs: Mapping[int, Mapping[str, float]]) -> np.ndarray:
+        return sum((float(value) * linear.column(position, name) for position, values in inputs.items()
+                    for name, value in values.items()), np.zeros(m))
+
+    B = np.column_stack([column(unit) for unit in actuators]) if len(actuators) else np.zeros((m, 0))
+    return AffineRates(Ax, Av, B, a0, loads, certified=True)

@@ -25,10 +25,44 @@ from __future__ import annotations
 from typing import Any, Sequence
 
 import numpy as np
+import scipy.sparse
 
 from .errors import ModelError
 
-__all__ = ["TridiagonalFactors", "banded_solver", "step_kernel", "tridiagonal_factors", "woodbury_parts"]
+__all__ = ["TridiagonalFactors", "banded_solver", "step_kernel", "step_matrix", "tridiagonal_factors",
+           "woodbury_parts"]
+
+
+def step_matrix(C: float, cx: float, A: float, Ax: Any, Av: Any) -> Any:
+    """``S = C I - cx Ax - A Av`` of a scheme's step (``C`` [1/s^2], ``cx`` [-], ``A`` [1/s]); sparse
+    (:class:`scipy.sparse.csr_matrix`, ``O(n)``) when ``Ax`` and ``Av`` are, else a dense array."""
+    m = Ax.shape[0]
+    if scipy.sparse.issparse(Ax) and scipy.sparse.issparse(Av):
+        return scipy.sparse.csr_matrix(C * scipy.sparse.identity(m, format="csr") - cx * Ax - A * Av)
+    return C * np.eye(m) - cx * _dense(Ax) - A * _dense(Av)
+
+
+def _dense(matrix: Any) -> np.ndarray:
+    return matrix.toarray() if scipy.sparse.issparse(matrix) else np.asarray(matrix)
+
+
+def _diagonal(matrix: Any, k: int = 0) -> np.ndarray:
+    """Diagonal ``k`` of a dense or sparse matrix (a copy, float)."""
+    return np.asarray(matrix.diagonal(k) if scipy.sparse.issparse(matrix) else np.diag(matrix, k), dtype=float).copy()
+
+
+def _outside_bands(matrix: Any) -> float:
+    """Largest ``|entry|`` outside the three central diagonals of a dense or sparse matrix."""
+    if scipy.sparse.issparse(matrix):
+        entries = scipy.sparse.coo_matrix(matrix)
+        outside = np.abs(entries.row - entries.col) >= 2
+        return float(np.max(np.abs(entries.data[outside]), initial=0.0))
+    return float(np.max(np.abs(np.triu(matrix, 2) + np.tril(matrix, -2)), initial=0.0))
+
+
+def _largest(matrix: Any) -> float:
+    values = matrix.data if scipy.sparse.issparse(matrix) else matrix
+    return float(np.max(np.abs(values), initial=0.0))
 
 
 class TridiagonalFactors:
@@ -44,31 +78,42 @@ class TridiagonalFactors:
         Reciprocals of the eliminated diagonal: backward ``d_i = (p_i - upper_i d_{i+1}) reciprocals_i``.
     """
 
-    def __init__(self, matrix: np.ndarray) -> None:
+    def __init__(self, matrix: Any) -> None:
         m = matrix.shape[0]
-        diagonal = np.diag(matrix).astype(float).copy()
-        lower, self.upper = np.diag(matrix, -1).astype(float), np.diag(matrix, 1).astype(float)
+        diagonal = _diagonal(matrix)
+        lower, self.upper = _diagonal(matrix, -1), _diagonal(matrix, 1)
         self.factors = np.zeros(m)
         for i in range(1, m):
             self.factors[i] = lower[i - 1] / diagonal[i - 1]
             diagonal[i] -= self.factors[i] * self.upper[i - 1]
         self.reciprocals = 1.0 / diagonal
 
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        """``S^-1 rhs`` for ``rhs`` of shape ``(m,)`` or ``(m, k)`` (the two substitutions, ``O(m k)``)."""
+        out = np.array(rhs, dtype=float)
+        m = out.shape[0]
+        for i in range(1, m):
+            out[i] -= self.factors[i] * out[i - 1]
+        out[m - 1] *= self.reciprocals[m - 1]
+        for i in range(m - 2, -1, -1):
+            out[i] = (out[i] - self.upper[i] * out[i + 1]) * self.reciprocals[i]
+        return out
 
-def tridiagonal_factors(matrix: np.ndarray, *others: np.ndarray) -> TridiagonalFactors | None:
+
+def tridiagonal_factors(matrix: Any, *others: Any) -> TridiagonalFactors | None:
     """The factors of ``matrix`` (``m >= 3``) if it and the ``others`` (its terms, ``Ax`` and ``Av``) are tridiagonal,
     else None.  Entries outside the three central diagonals count as zero up to round-off of the affine form read
-    from the sweep (``|entry| <= 1e-13 max |matrix|``, each matrix against itself); they are then left out."""
+    from the sweep (``|entry| <= 1e-13 max |matrix|``, each matrix against itself); they are then left out.  Dense
+    arrays or :mod:`scipy.sparse` matrices (read in ``O(nonzeros)``)."""
     if matrix.shape[0] < 3:
         return None
     for each in (matrix, *others):
-        outside = np.triu(each, 2) + np.tril(each, -2)
-        if np.any(np.abs(outside) > 1e-13 * np.max(np.abs(each), initial=0.0)):
+        if _outside_bands(each) > 1e-13 * _largest(each):
             return None
     return TridiagonalFactors(matrix)
 
 
-def banded_solver(matrix: np.ndarray) -> Any:
+def banded_solver(matrix: Any) -> Any:
     """A casadi ``Function`` ``rhs -> matrix^-1 rhs``: for a tridiagonal matrix its factors as constants and the two
     substitutions as ``mapaccum`` (written out when the step is expanded); else the constant inverse."""
     import casadi as ca
@@ -77,7 +122,7 @@ def banded_solver(matrix: np.ndarray) -> Any:
     rhs = ca.MX.sym("rhs", m)
     factors = tridiagonal_factors(matrix)
     if factors is None:
-        return ca.Function("solve", [rhs], [ca.mtimes(ca.DM(np.linalg.inv(matrix)), rhs)])
+        return ca.Function("solve", [rhs], [ca.mtimes(ca.DM(np.linalg.inv(_dense(matrix))), rhs)])
     previous, factor, value, scale = (ca.SX.sym(label) for label in ("previous", "factor", "value", "scale"))
     forward = ca.Function("forward", [previous, factor, value], [value - factor * previous]).mapaccum("forward_all", m)
     backward = ca.Function("backward", [previous, factor, value, scale],
@@ -89,16 +134,17 @@ def banded_solver(matrix: np.ndarray) -> Any:
     return ca.Function("solve", [rhs], [solution[:, reverse].T])
 
 
-def woodbury_parts(names: Sequence[str], columns: np.ndarray, rows: np.ndarray, matrix: np.ndarray,
-                   dt: float) -> tuple[np.ndarray, np.ndarray]:
+def woodbury_parts(names: Sequence[str], columns: np.ndarray, rows: np.ndarray, matrix: Any,
+                   dt: float, factors: TridiagonalFactors | None = None) -> tuple[np.ndarray, np.ndarray]:
     """``(W, Q)`` of the real-time loops ``names``: ``W = S^-1 columns`` (shape (m, k), their weighted actuator
     columns [1/kg] through the step matrix ``S``) and ``Q = (I + R W)^-1 R`` with ``R = rows`` (shape (k, m), their
     gains times rows on the correction), so that ``(S + columns R) delta = rhs`` is ``delta = S^-1 rhs - W Q S^-1
-    rhs`` (Woodbury).  ModelError if ``I + R W`` is singular at the step ``dt`` [s]."""
+    rhs`` (Woodbury).  ``factors``: those of a tridiagonal ``S`` (then ``O(m k)``; else a dense solve).
+    ModelError if ``I + R W`` is singular at the step ``dt`` [s]."""
     m = matrix.shape[0]
     if not len(names):
         return np.zeros((m, 0)), np.zeros((0, m))
-    W = np.linalg.solve(matrix, columns)
+    W = factors.solve(columns) if factors is not None else np.linalg.solve(_dense(matrix), columns)
     small = np.eye(len(names)) + rows @ W
     if np.linalg.cond(small) > 1e12:
         raise ModelError(f"the real-time loops {list(names)} make the step singular at dt = {dt!r} s (their gains "
@@ -135,7 +181,7 @@ def step_kernel(label: str, Ax: np.ndarray, Av: np.ndarray, a0: np.ndarray, coef
     ----------
     label : str
         Function name (unique within the library).
-    Ax, Av : ndarray, shape (m, m)
+    Ax, Av : ndarray or scipy.sparse matrix, shape (m, m)
         Tridiagonal ``d a / d x`` [1/s^2] and ``d a / d v`` [1/s] of the chain's affine rates.
     a0 : ndarray, shape (m,)
         Constant accelerations [m/s^2].
@@ -162,7 +208,7 @@ def step_kernel(label: str, Ax: np.ndarray, Av: np.ndarray, a0: np.ndarray, coef
     import casadi as ca
 
     m, k = Ax.shape[0], len(loops)
-    bands = [np.diag(Ax), np.diag(Ax, -1), np.diag(Ax, 1), np.diag(Av), np.diag(Av, -1), np.diag(Av, 1)]
+    bands = [_diagonal(Ax), _diagonal(Ax, -1), _diagonal(Ax, 1), _diagonal(Av), _diagonal(Av, -1), _diagonal(Av, 1)]
     names = ["xd", "xl", "xu", "vd", "vl", "vu"]
     body = "".join(_array(name, band) for name, band in zip(names, bands))
     body += _array("a0", a0) + _array("lf", factors.factors) + _array("up", factors.upper) + \
