@@ -91,7 +91,7 @@ def default_refusal(system: Any, method: Any, t_final: Any, t0: Any, dt: Any, *,
         return "numpy-path options (fast, force_hook, solver)"
     try:
         steps = math.ceil((float(t_final) - float(t0)) / float(dt) - 1e-9)
-    except (TypeError, ValueError, ZeroDivisionError):
+    except (TypeError, ValueError, ZeroDivisionError, OverflowError):    # the verb names the bad number
         return "no fixed step"
     if not steps >= MINIMUM_STEPS:
         return f"short run ({steps} steps < {MINIMUM_STEPS})"
