@@ -22,7 +22,7 @@ spatial plant on symbols:
   gains, controllers and references are its input ``p`` (one library per structure, :mod:`ctmm.batch`).
 
 Loads and driven joints may carry :mod:`ctmm.signals` with a symbolic form (Constant, Harmonic, Step,
-SquareWave): the sweep states them on its time symbol ``t``, the RK4 stage time
+SquareWave, Ramp): the sweep states them on its time symbol ``t``, the RK4 stage time
 (:func:`~ctmm.compiled_spatial.spatial_compile_refusal` with ``time_signals=True``, as the generated RK4 without
 loops).  The sensors are stated at the state ``(q, v)`` only: a sensor that moves with a driven joint's time
 signal (a body outboard of it) is refused by name.  The rotation vector ``"<body>.rotation_x|y|z"`` is
