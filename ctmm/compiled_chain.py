@@ -319,7 +319,7 @@ class CompiledChain:
             if parameters is None:
                 raise ModelError(f"chain {plant.chain.name!r}: a load signal {signal!r} is a Python callable of time, "
                                  "which generated kernels cannot evaluate; give a ctmm.signals Constant, Harmonic, "
-                                 "Step or SquareWave, or use compiled=False")
+                                 "Step, SquareWave or Ramp, or use compiled=False")
             acceleration += ca.DM(column) * symbolic_signal(type(signal), t, parameters)
         acceleration += ca.DM(form.a0)
         accelerations = ca.Function("acceleration", [q, v, u, p, t], [acceleration])

@@ -13,7 +13,8 @@ call, on unit probes) and the time terms ``s_j`` the varying loads and the presc
 the end wall -- position, velocity and acceleration, in closed form as the Python path needs them
 (:func:`ctmm.closed_form_rates.signal_derivatives`: a :class:`~ctmm.signals.Constant` or
 :class:`~ctmm.signals.Harmonic` motion; the velocity and acceleration of ``a sin(w t + p)`` are the harmonics
-``a w sin(w t + p + pi/2)`` and ``a w^2 sin(w t + p + pi)``).  The probes are exact because every step is affine
+``a w sin(w t + p + pi/2)`` and ``a w^2 sin(w t + p + pi)``; a :class:`~ctmm.signals.Ramp` from ``start <= 0``
+moves at its constant slope, without acceleration).  The probes are exact because every step is affine
 in the state and the time terms; :class:`ctmm.compiled_chain.CompiledChain` certifies the form against the Python
 sweep at random states and times before generating anything.  Without massless nodes the form is that of the
 certified rates of the ODE path (:mod:`ctmm.chain_affine`: tridiagonal, sparse, ``O(n)`` probes; the motion's
@@ -21,8 +22,8 @@ columns ``H`` carry the time slots); with them, one probe of the condensation an
 the condensation itself dense).
 
 Refused (:class:`~ctmm.errors.ModelError`, named): a prescribed motion without closed-form rates (a
-:class:`~ctmm.signals.Step`, :class:`~ctmm.signals.SquareWave` or user callable), a varying load on a massless
-node (its rate enters the balance).
+:class:`~ctmm.signals.Step`, :class:`~ctmm.signals.SquareWave`, a ramp starting after t = 0 or a user callable), a
+varying load on a massless node (its rate enters the balance).
 """
 from __future__ import annotations
 
@@ -36,7 +37,7 @@ import scipy.sparse
 from .chain_affine import LinearRates
 from .chain_ode import ChainDynamics
 from .errors import ModelError
-from .signals import Constant, Harmonic
+from .signals import Constant, Harmonic, Ramp
 
 __all__ = ["AffineRates", "condensed_affine_form", "needs_condensed_form"]
 
@@ -76,9 +77,11 @@ def _motion(boundary: Any) -> tuple[list[float], list[tuple[int, Any]]]:
         a, w, p = signal.amplitude, signal.omega, signal.phase
         return [0.0, 0.0, 0.0], [(0, signal), (1, Harmonic(a * w, w, p + 0.5 * math.pi)),
                                  (2, Harmonic(a * w * w, w, p + math.pi))]
+    if isinstance(signal, Ramp) and signal.start <= 0.0:
+        return [0.0, 0.0, 0.0], [(0, signal), (1, signal.rate())]
     raise ModelError(f"{boundary.name}: the displacement signal {signal!r} has no closed-form velocity and "
-                     "acceleration, which the generated RK4 needs (as the Python ODE path); give a Constant or "
-                     "Harmonic signal, or use a DT-TMM scheme (method='newmark', ...)")
+                     "acceleration, which the generated RK4 needs (as the Python ODE path); give a Constant, "
+                     "Harmonic or Ramp signal (a ramp with start <= 0), or use a DT-TMM scheme (method='newmark', ...)")
 
 
 def _check_massless_loads(dynamics: ChainDynamics) -> None:

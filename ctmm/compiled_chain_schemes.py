@@ -391,7 +391,7 @@ class CompiledChainScheme:
             if signal_parameters(signal) is None:
                 raise ModelError(f"chain {self.plant.chain.name!r}: a load signal {signal!r} is a Python callable of "
                                  "time, which generated kernels cannot evaluate; give a ctmm.signals Constant, "
-                                 "Harmonic, Step or SquareWave, or use compiled=False")
+                                 "Harmonic, Step, SquareWave or Ramp, or use compiled=False")
 
     def _step_function(self, label: str, form: Any, maps: SchemeMaps) -> Any:
         """``(state, t_n, u) -> new state`` for one set of scheme maps: the equation of motion at the evaluation

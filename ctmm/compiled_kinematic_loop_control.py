@@ -35,10 +35,10 @@ Spatial kinematic loop models (:class:`~ctmm.spatial.closed_loops.SpatialKinemat
 of :mod:`ctmm.spatial_loop_time`) compile the same way: the closed-loop velocity rates
 :func:`ctmm.compiled_spatial_kinematic_loops.symbolic_spatial_closed_loop` (the tree's port actuators and the cuts'
 ``"<cut>.torque"`` / ``"<cut>.force"`` applied with the cut loads), the sensors :class:`SpatialKinematicLoopSymbols`,
-the stored signals :meth:`ctmm.spatial.closed_loop_plant.SpatialLoopPlant.signals`.  A spatial model whose tree has
-driven joints is refused by name (:func:`ctmm.compiled_spatial_kinematic_loops.driven_tree_refusal`): the sensors
-here are functions of the state only, and with a driven tree joint they move with its signals (the model alone runs
-generated with them).
+the stored signals :meth:`ctmm.spatial.closed_loop_plant.SpatialLoopPlant.signals`.  A tree with driven joints
+(signals with a symbolic form) runs too: the sensors read the time as well as the state (the tree's sensors outboard
+of a drive, the cut coordinates and law moments at the time symbol; a delayed loop's sampled sensor rate adds
+``dy/dt``), as the numpy driver reads them at each stage time.
 
 Co-simulated controllers (:func:`simulate_cosimulated_kinematic_loops_generated`): the same kernel with the
 controllers' outputs as held inputs ``u``, run one sample interval per call by
@@ -154,10 +154,15 @@ class SpatialKinematicLoopSymbols:
     ports : SpatialLoopPorts
         The ports of the controlled model (the tree's and the cut joints').
     coordinates : casadi.Function
-        ``cut_coordinates(q, v) -> [s_1, s_1', ...]``.
+        ``cut_coordinates(q, v, t) -> [s_1, s_1', ...]``.
     law_moments : casadi.Function, optional
-        ``law_moments(q, v) -> [m_1 ; m_2 ; ...]`` (3 per cut; needed by the spherical law moment sensors).
+        ``law_moments(q, v, t) -> [m_1 ; m_2 ; ...]`` (3 per cut; needed by the spherical law moment sensors).
+
+    The sensors read the time ``t`` too (:attr:`time_sensors`): with driven tree joints the tree's sensors outboard
+    of them, the cut coordinates and the law moments move with the prescribed motion, as in the numpy driver.
     """
+
+    time_sensors = True
 
     def __init__(self, model: Any, ports: Any, coordinates: Any, law_moments: Any = None) -> None:
         from .compiled_spatial_loops import SpatialSymbols
@@ -172,10 +177,10 @@ class SpatialKinematicLoopSymbols:
         """``q' = G(q) v`` (quaternion rates from body-axes angular velocities)."""
         return self.tree_symbols.position_rates(q, v)
 
-    def sensor(self, name: str, q: Any, v: Any) -> Any:
-        """Sensor ``name`` as an expression of the symbols ``q``, ``v``.
+    def sensor(self, name: str, q: Any, v: Any, t: Any = 0.0) -> Any:
+        """Sensor ``name`` as an expression of the symbols ``q``, ``v`` and the time ``t`` [s].
 
-        A spherical cut's law moment ``"<cut>.moment_x|y|z"`` [N m] (world axes) is ``law_moments(q, v)``
+        A spherical cut's law moment ``"<cut>.moment_x|y|z"`` [N m] (world axes) is ``law_moments(q, v, t)``
         (:func:`ctmm.compiled_spherical_cut_law.symbolic_spherical_law_moment`).
 
         Raises
@@ -189,13 +194,14 @@ class SpatialKinematicLoopSymbols:
                              "state as the generated loop sensors are; use compiled=None (the numpy loop driver)")
         if cut_name in self.cut_index and part in ("moment_x", "moment_y", "moment_z") and \
                 self.model.cuts[self.cut_index[cut_name]].kind == "spherical":
-            return self.law_moments(q, v)[3 * self.cut_index[cut_name] + "xyz".index(part[-1])]
+            return self.law_moments(q, v, t)[3 * self.cut_index[cut_name] + "xyz".index(part[-1])]
         if cut_name in self.cut_index and part in ("angle", "position", "rate"):
-            return self.coordinates(q, v)[2 * self.cut_index[cut_name] + (part == "rate")]
+            return self.coordinates(q, v, t)[2 * self.cut_index[cut_name] + (part == "rate")]
         if cut_name in self.cut_index and part in ("law_moment", "law_force"):     # -law(s - rest, s')
             k, cut = self.cut_index[cut_name], self.model.cuts[self.cut_index[cut_name]]
-            return -cut.law.force(self.coordinates(q, v)[2 * k] - cut.rest, self.coordinates(q, v)[2 * k + 1])
-        return self.tree_symbols.sensor(name, q, v)
+            coordinates = self.coordinates(q, v, t)
+            return -cut.law.force(coordinates[2 * k] - cut.rest, coordinates[2 * k + 1])
+        return self.tree_symbols.sensor(name, q, v, t)
 
 
 def _step(loops: ClosedLoops, closed: Any, project: Any, nq: int, nv: int, n_inputs: int, n_parameters: int) -> Any:
@@ -262,10 +268,9 @@ class CompiledKinematicLoopControl:
         model = controlled.plant
         spatial = not isinstance(model, KinematicLoopModel)
         if spatial:
-            from .compiled_spatial_kinematic_loops import (driven_tree_refusal, spatial_kinematic_loop_compile_refusal,
+            from .compiled_spatial_kinematic_loops import (spatial_kinematic_loop_compile_refusal,
                                                            symbolic_spatial_closed_loop, symbolic_spatial_projection)
-        reason = (spatial_kinematic_loop_compile_refusal(model) or driven_tree_refusal(model)) if spatial else \
-            kinematic_loop_compile_refusal(model)
+        reason = spatial_kinematic_loop_compile_refusal(model) if spatial else kinematic_loop_compile_refusal(model)
         if reason:
             raise ModelError(f"compiled=True with loops, inputs or controllers: {reason}")
         started = _time.perf_counter()
@@ -298,9 +303,10 @@ class CompiledKinematicLoopControl:
         self._input_signals = {name: as_signal(f"inputs[{name!r}]", value) for name, value in self.inputs.items()}
         self.compile_time_s = _time.perf_counter() - started
 
-    def condition(self, q: np.ndarray, v: np.ndarray) -> float:
-        """The Frobenius condition of the boundary compliance ``G`` at ``(q, qdot)``."""
-        G = self.closed(q, v, np.zeros(len(self.actuators)), self.parameters, 0.0)[5]
+    def condition(self, q: np.ndarray, v: np.ndarray, t: float = 0.0) -> float:
+        """The Frobenius condition of the boundary compliance ``G`` at ``(q, qdot)`` and time ``t`` [s] (driven tree
+        joints move the configuration)."""
+        G = self.closed(q, v, np.zeros(len(self.actuators)), self.parameters, t)[5]
         return compliance_condition(np.asarray(G))
 
     def run_states(self, state: np.ndarray, held: np.ndarray, n_steps: int, first_step: int = 0,
@@ -309,7 +315,8 @@ class CompiledKinematicLoopControl:
         ``n_steps``
         steps of :attr:`dt` from the loops' state ``state`` at step ``first_step``, the ``held`` values of
         :attr:`actuators` held over them."""
-        y = np.concatenate([state, [self.condition(state[:self.nq], state[self.nq:self.nq + self.nv]), 0.0]])
+        y = np.concatenate([state, [self.condition(state[:self.nq], state[self.nq:self.nq + self.nv],
+                                                   first_step * self.dt), 0.0]])
         return run_blocks(self._blocks, self._stride, self._step, self.store_every, y[:, None], held, self.dt,
                           n_steps, 0.0, self.parameters[:, None], first_step=first_step, runner=runner)[0]
 

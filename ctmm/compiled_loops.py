@@ -106,6 +106,14 @@ class LoopLaw:
         return ca.fmin(ca.fmax(demand, float(low)), float(high))
 
 
+def _state_only_refusal(*_: Any) -> Any:
+    """``ClosedLoops.sensors`` of loops whose sensors move with time (driven joints): the paths that read the sensors
+    at the state only refuse them."""
+    raise ModelError("the loop sensors move with the prescribed motion of driven joints (functions of the state and "
+                     "the time); this generated path states them at the state only: use the generated RK4 "
+                     "(method='rk4', compiled=True) or compiled=False")
+
+
 def delay_steps(name: str, delay: float, dt: float | None) -> int:
     """``tau / dt`` of loop ``name`` as a whole number (0 for ``tau = 0``).
 
@@ -228,17 +236,27 @@ class ClosedLoops:
         self.ring_columns = max((law.steps for law in laws), default=0) + 1 if self.delayed else 0
         self.state_size = self.base + self.n_controller_states + 2 * len(self.delayed) * self.ring_columns
         q, v, a = ca.SX.sym("q", self.nq), ca.SX.sym("v", self.nv), ca.SX.sym("a", self.nv)
+        time, timed = ca.SX.sym("t"), bool(getattr(symbols, "time_sensors", False))
         cache: dict[str, Any] = {}
 
         def sensed(name: str) -> Any:
             if name not in cache:
-                cache[name] = symbols.sensor(name, q, v)
+                cache[name] = symbols.sensor(name, q, v, time) if timed else symbols.sensor(name, q, v)
             return cache[name]
 
         y = ca.vertcat(*[sum((w * sensed(s) for s, w in law.sensors), 0.0) for law in laws]) if laws else ca.SX(0, 1)
-        self.sensors = ca.Function("loop_sensors", [q, v], [y])
         rates = ca.jtimes(y, ca.vertcat(q, v), ca.vertcat(self.position_rates(q, v), a)) if laws else ca.SX(0, 1)
-        self.sensor_rates = ca.Function("loop_sensor_rates", [q, v, a], [rates])
+        self.time_dependent_sensors = bool(laws) and bool(ca.depends_on(y, time))
+        if self.time_dependent_sensors:         # sensors moving with driven joints: y(q, v, t), y' + dy/dt
+            self.sensors_at = ca.Function("loop_sensors", [q, v, time], [y])
+            self.sensor_rates_at = ca.Function("loop_sensor_rates", [q, v, a, time],
+                                               [rates + ca.jacobian(y, time)])
+            self.sensors = self.sensor_rates = _state_only_refusal
+        else:
+            self.sensors = ca.Function("loop_sensors", [q, v], [y])
+            self.sensor_rates = ca.Function("loop_sensor_rates", [q, v, a], [rates])
+            self.sensors_at = lambda q_, v_, t_: self.sensors(q_, v_)                   # noqa: E731
+            self.sensor_rates_at = lambda q_, v_, a_, t_: self.sensor_rates(q_, v_, a_)  # noqa: E731
         weights = np.zeros((len(self.actuators), len(laws)))
         channelled = {k for k, _ in self.channels if isinstance(k, int)}
         for k, law in enumerate(laws):
@@ -270,10 +288,10 @@ class ClosedLoops:
         start = self.base + self.n_controller_states
         return ca.reshape(state[start:], 2 * len(self.delayed), self.ring_columns)
 
-    def initial_state(self, q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
-        """``[q, qdot, z = 0, ring]`` at the start: every stored sample the initial loop signal with rate
-        0 (the history before ``t = 0`` is the initial state held)."""
-        y0 = np.asarray(self.sensors(q, qdot), dtype=float).reshape(-1)[self.delayed]
+    def initial_state(self, q: np.ndarray, qdot: np.ndarray, t: float = 0.0) -> np.ndarray:
+        """``[q, qdot, z = 0, ring]`` at the start time ``t`` [s]: every stored sample the initial loop signal
+        with rate 0 (the history before the start is the initial state held)."""
+        y0 = np.asarray(self.sensors_at(q, qdot, t), dtype=float).reshape(-1)[self.delayed]
         column = np.concatenate([y0, np.zeros(len(self.delayed))])
         ring = np.tile(column[:, None], (1, self.ring_columns)).reshape(-1, order="F")
         return np.concatenate([q, qdot, np.zeros(self.n_controller_states), ring])
@@ -306,7 +324,7 @@ class ClosedLoops:
         import casadi as ca
 
         q, v, z = self._split(x)
-        now = self.sensors(q, v)
+        now = self.sensors_at(q, v, t)
         outputs, rates, offset = [], [], 0
         for k, (law, numbers) in enumerate(zip(self.laws, self.numbers(p))):
             signal = delayed[self.delayed.index(k)] if law.steps else now[k]
@@ -377,7 +395,8 @@ class ClosedLoops:
         placeholder = ca.horzcat(shifted, ca.MX.zeros(2 * count, 1))       # sample n not read at t_n
         first, qddot = self.rate(acceleration, u, p, t, x, read(placeholder, "start"))
         q, v, _ = self._split(x)
-        sample = ca.vertcat(self.sensors(q, v)[self.delayed], self.sensor_rates(q, v, qddot)[self.delayed])
+        sample = ca.vertcat(self.sensors_at(q, v, t)[self.delayed],
+                            self.sensor_rates_at(q, v, qddot, t)[self.delayed])
         table = ca.horzcat(shifted, sample)
         calls = [0]
 
@@ -398,7 +417,7 @@ class ClosedLoops:
         import casadi as ca
 
         q, v, z = self._split(Y[:self.base + self.n_controller_states])
-        now = self.sensors(q, v)
+        now = self.sensors_at(q, v, t)
         ring = self._ring(Y) if self.delayed else None
         demands, offset = [], 0
         for k, (law, numbers) in enumerate(zip(self.laws, self.numbers(p))):

@@ -35,6 +35,12 @@ def compile_refusal(model: Any) -> str:
     """Why ``model`` cannot be compiled by :class:`CompiledScene` (empty string when it can)."""
     if not isinstance(model, PlanarModel):
         return f"a ctmm.planar.PlanarModel is compiled, got {type(model).__name__}"
+    moving = [element.name for element in model.elements if isinstance(element, DrivenHinge)
+              and any(not isinstance(f, Constant) for f in (element.angle, element.rate, element.acceleration))]
+    if moving:
+        return (f"model {model.name!r} has driven hinges whose motion is not constant: {', '.join(map(repr, moving))} "
+                "(generated planar kernels take a driven hinge's constant angle only, as a fixed mounting; a moving "
+                "drive, a ctmm.signals Ramp or Harmonic included, runs on the numpy path, compiled=False)")
     reasons = [f"time-dependent signals without a symbolic form in {name!r}"
                for name in _time_dependent_elements(model)]
     laws = [f"{model.joint_names[j]!r} ({law!r})" for j, hinge in model.nonlinear_hinges.items()
@@ -49,7 +55,7 @@ def compile_refusal(model: Any) -> str:
             reasons.append(f"time-dependent loads or modal force hooks on beam {model.body_names[j]!r}")
     if reasons:
         return (f"model {model.name!r} has " + "; ".join(reasons) + " (Python callables of time, not compiled; "
-                "use ctmm.signals Constant, Harmonic, Step or SquareWave, or the numpy path, compiled=False)")
+                "use ctmm.signals Constant, Harmonic, Step, SquareWave or Ramp, or the numpy path, compiled=False)")
     try:
         PlanarScene(model)
     except ModelError as exc:
@@ -102,7 +108,7 @@ def parameter_vector(model: PlanarModel) -> np.ndarray:
     without = [signal for signal, part in zip(signals, signal_parts) if part is None]
     if without:
         raise ModelError(f"parameter_vector: model {model.name!r} has hinge or load signals without a symbolic form "
-                         f"({without[0]!r}); allowed: ctmm.signals Constant, Harmonic, Step, SquareWave")
+                         f"({without[0]!r}); allowed: ctmm.signals Constant, Harmonic, Step, SquareWave, Ramp")
     parts += signal_parts + [np.reshape(numbers.load_point, -1)]
     return np.concatenate([np.asarray(part, dtype=float).reshape(-1) for part in parts])
 

@@ -46,7 +46,7 @@ def symbolic_reference(label: str, value: Any) -> Any:
     signal = as_signal(label, value)
     if signal_parameters(signal) is None:
         raise ModelError(f"{label} is a Python callable of time, which generated kernels cannot evaluate; give a "
-                         "number, a ctmm.signals Constant, Harmonic, Step or SquareWave, or a "
+                         "number, a ctmm.signals Constant, Harmonic, Step, SquareWave or Ramp, or a "
                          "ctmm.compiled_references.SymbolicReference, or use compiled=False")
     return signal
 

@@ -34,7 +34,7 @@ takes one column of ``p`` per segment.  Actuator inputs
 (``"<joint>.torque" | ".force" | ".wrench"``) are inputs ``u`` of every function, numbers held over
 a run.
 
-Loads and driven joints may carry :mod:`ctmm.signals` Constant, Harmonic, Step or SquareWave signals: the
+Loads and driven joints may carry :mod:`ctmm.signals` Constant, Harmonic, Step, SquareWave or Ramp signals: the
 terms state them on the time symbol of the rates (:mod:`ctmm.compiled_spatial_signals`), evaluated at every
 RK4 stage time.  Refused (:class:`~ctmm.errors.ModelError`, by name): anything but a spatial model, a model
 without coordinates, loads and driven joints whose signals are Python callables (no symbolic form), and

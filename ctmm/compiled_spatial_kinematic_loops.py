@@ -41,9 +41,9 @@ name): trees :func:`ctmm.compiled_spatial.spatial_compile_refusal` refuses with 
 loads may carry :mod:`ctmm.signals` with a symbolic form, stated at the sweep's time symbol; user callables refused),
 laws casadi cannot express and actuations or drives without a symbolic form (user callables:
 :func:`spatial_cut_load_refusal`; a driven tree joint's signals likewise, by :func:`spatial_compile_refusal`).  Driven
-tree joints run here and in :mod:`ctmm.compiled_spatial_loop_schemes`; the loop driver's generated run
-(:mod:`ctmm.compiled_kinematic_loop_control`, with feedback loops, inputs or controllers) refuses them by name
-(:func:`driven_tree_refusal`: its sensors are read at the state only).
+tree joints run here, in :mod:`ctmm.compiled_spatial_loop_schemes` and in the loop driver's generated run
+(:mod:`ctmm.compiled_kinematic_loop_control`, with feedback loops, inputs or controllers: its sensors, the cut
+coordinates and law moments read the time too).
 """
 from __future__ import annotations
 
@@ -71,7 +71,7 @@ from .spatial.closed_loops import SpatialKinematicLoopModel
 from .spatial.integrate import beam_deflection_weights, divergence_check
 from .spatial.ports import SpatialPorts
 
-__all__ = ["CompiledSpatialKinematicLoops", "driven_tree_refusal", "loop_simulation",
+__all__ = ["CompiledSpatialKinematicLoops", "loop_simulation",
            "spatial_cut_load_refusal",
            "spatial_kinematic_loop_compile_refusal", "simulate_spatial_kinematic_loops_generated", "symbolic_normalized", "symbolic_spatial_closed_loop",
            "symbolic_spatial_projection"]
@@ -88,18 +88,6 @@ def spatial_kinematic_loop_compile_refusal(model: Any) -> str:
         if reason:
             return reason
     return ""
-
-
-def driven_tree_refusal(model: Any) -> str:
-    """Why the loop driver's generated run (:mod:`ctmm.compiled_kinematic_loop_control`) cannot take ``model``'s
-    driven tree joints (an empty string when the tree has none): its sensors (the cut coordinates, a spherical
-    cut's law moment) are read at the state only, and with a driven tree joint they move with its signals."""
-    driven = [joint.name for joint in model.tree.joints if joint.driven]
-    if not driven:
-        return ""
-    return (f"its tree has driven joints ({', '.join(driven)}): the loop driver's generated run reads its sensors "
-            "at the state only, and they move with the prescribed motion; the generated RK4 and DT-TMM schemes of "
-            "the model alone take driven joints; use compiled=None with loops, inputs or controllers")
 
 
 def _tree_compile_refusal(tree: Any) -> str:
@@ -121,10 +109,11 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
     ``closed(q, v, u, p, t) -> (v', condition, cut unknowns, Phi, Phi', G)`` with the actuator values ``u`` of
     ``extra_actuators`` (the tree's port actuators, :mod:`ctmm.spatial.ports`, and the undriven revolute and
     prismatic cuts' ``"<cut>.torque"`` / ``"<cut>.force"``, applied with the cut loads), ``p`` empty;
-    ``constraint(q, v, t) -> (Phi, Phi', J)``; ``cut_coordinates(q, v) -> [s_1, s_1', ...]`` (0 for cuts without a
-    coordinate); ``law_moments(q, v) -> [m_1 ; m_2 ; ...]`` (3 per cut: a spherical cut's law moment on the child
-    [N m], world axes, :meth:`SpatialKinematicLoopModel.law_moments`; zeros for the other cuts).  With driven tree
-    joints the last two are ``None``: they move with time (:func:`driven_tree_refusal`)."""
+    ``constraint(q, v, t) -> (Phi, Phi', J)``; ``cut_coordinates(q, v, t) -> [s_1, s_1', ...]`` (0 for cuts without
+    a coordinate); ``law_moments(q, v, t) -> [m_1 ; m_2 ; ...]`` (3 per cut: a spherical cut's law moment on the
+    child [N m], world axes, :meth:`SpatialKinematicLoopModel.law_moments`; zeros for the other cuts); the last two
+    at the time ``t`` [s] too: driven tree joints move them (the loop driver's sensors,
+    :mod:`ctmm.compiled_kinematic_loop_control`)."""
     import casadi as ca
 
     tree = model.tree
@@ -296,17 +285,14 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
     condition = ca.norm_fro(G) * ca.norm_fro(ca.solve(G, ca.SX.eye(m)))
     closed = ca.Function("closed", [q, v, u, p, t], [v_dot0 + ca.mtimes(D, forces), condition, forces, phi,
                                                       phi_dot, G])
-    if held:                                        # sensors at the state only: none (driven_tree_refusal)
-        return (closed, ca.Function("constraint", [q, v, t], [phi, phi_dot, J]), None, None)
-    states = kinematics(q, v, 0.0)
-    coordinates = []
+    coordinates = []                                # at time t: driven tree joints move them
     for cut, (parent, child) in zip(model.cuts, sides):
         value, value_rate, _ = coordinate(states, cut, parent, child) if cut.kind in ("revolute", "prismatic") \
             else (0.0, 0.0, None)
         coordinates += [value, value_rate]
     return (closed, ca.Function("constraint", [q, v, t], [phi, phi_dot, J]),
-            ca.Function("cut_coordinates", [q, v], [ca.vertcat(*coordinates)]),
-            ca.Function("law_moments", [q, v], [law_values]))
+            ca.Function("cut_coordinates", [q, v, t], [ca.vertcat(*coordinates)]),
+            ca.Function("law_moments", [q, v, t], [law_values]))
 
 
 def _driven_symbols(tree: Any, t: Any) -> tuple[dict, tuple[Any, Any], tuple[Any, Any, Any]]:

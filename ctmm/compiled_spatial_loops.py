@@ -22,13 +22,15 @@ spatial plant on symbols:
   gains, controllers and references are its input ``p`` (one library per structure, :mod:`ctmm.batch`).
 
 Loads and driven joints may carry :mod:`ctmm.signals` with a symbolic form (Constant, Harmonic, Step,
-SquareWave): the sweep states them on its time symbol ``t``, the RK4 stage time
+SquareWave, Ramp): the sweep states them on its time symbol ``t``, the RK4 stage time
 (:func:`~ctmm.compiled_spatial.spatial_compile_refusal` with ``time_signals=True``, as the generated RK4 without
-loops).  The sensors are stated at the state ``(q, v)`` only: a sensor that moves with a driven joint's time
-signal (a body outboard of it) is refused by name.  The rotation vector ``"<body>.rotation_x|y|z"`` is
+loops).  The sensors are stated at the state ``(q, v)`` and the time ``t``: a sensor that moves with a driven
+joint's time signal (a body outboard of it) is read as the numpy path reads it, a delayed loop's sampled sensor rate
+with ``dy/dt`` (the DT-TMM scheme loops, :mod:`ctmm.compiled_spatial_scheme_loops`, state them at the state only and
+refuse such a sensor by name).  The rotation vector ``"<body>.rotation_x|y|z"`` is
 :func:`~ctmm.compiled_spherical_cut_law.symbolic_rotation_vector` of the body's rotation matrix.
 
-Refused by name (:class:`~ctmm.errors.ModelError`): sensors that move with driven joints' time signals, what
+Refused by name (:class:`~ctmm.errors.ModelError`): what
 :func:`~ctmm.compiled_spatial.spatial_compile_refusal` refuses (user callables), and (by the caller) co-simulated
 controllers.
 """
@@ -68,10 +70,15 @@ class SpatialSymbols:
         Its sensors and actuators.
     parameter_count : int
         Length of the plant's part of the parameter column ``p`` (0: its numbers are constants of the code).
+    time_sensors : bool
+        Whether :class:`~ctmm.compiled_loops.ClosedLoops` states the sensors at its time symbol too (the RK4 with
+        loops: sensors that move with a driven joint's signals); ``False``: at the state only, such sensors refused.
     """
 
-    def __init__(self, model: SpatialModel, ports: SpatialPorts, parameter_count: int = 0) -> None:
+    def __init__(self, model: SpatialModel, ports: SpatialPorts, parameter_count: int = 0,
+                 time_sensors: bool = False) -> None:
         self.model, self.ports, self.parameter_count = model, ports, parameter_count
+        self.time_sensors = bool(time_sensors)
         self.n_positions, self.n_velocities = model.n_positions, model.n_velocities
         self._states: tuple[Any, Any, list] | None = None
         # driven joints with time signals: the body states on a time symbol, so a sensor that moves with them is seen
@@ -87,8 +94,9 @@ class SpatialSymbols:
             self._states = (q, v, SpatialScene(self.model).terms(CASADI, q, v, self._time)[2])
         return self._states[2]
 
-    def sensor(self, name: str, q: Any, v: Any) -> Any:
-        """Sensor ``name`` of :mod:`ctmm.spatial.ports` as an expression of the symbols ``q`` (nq), ``v`` (nv).
+    def sensor(self, name: str, q: Any, v: Any, t: Any = None) -> Any:
+        """Sensor ``name`` of :mod:`ctmm.spatial.ports` as an expression of the symbols ``q`` (nq), ``v`` (nv) and,
+        given, the time symbol ``t`` [s] (the driven joints' signals at ``t``).
 
         The rotation vector ``"<body>.rotation_x|y|z"`` is
         :func:`~ctmm.compiled_spherical_cut_law.symbolic_rotation_vector` of the body's rotation matrix.
@@ -96,18 +104,22 @@ class SpatialSymbols:
         Raises
         ------
         ModelError
-            A sensor that moves with a driven joint's time signals (the loops state their sensors at the state
-            only).
+            Without ``t``, a sensor that moves with a driven joint's time signals (these loops state their
+            sensors at the state only).
         """
         expression = self._sensor(name, q, v)
-        if not isinstance(self._time, float) and _depends_on_time(expression, self._time):
-            driven = ", ".join(repr(joint.name) for joint in self.model.joints if joint.driven)
-            raise ModelError(f"sensor {name!r} moves with the time signals of the driven joints {driven} of model "
-                             f"{self.model.name!r}; generated loops (compiled=True, time-history sensitivities) "
-                             "state their sensors (and the delayed loops' sensor rates) at the state only, so they "
-                             "cannot close a loop on it; drive those joints with ctmm.signals.Constant, sense a body "
-                             "inboard of them, or use compiled=False")
-        return expression
+        if isinstance(self._time, float) or not _depends_on_time(expression, self._time):
+            return expression
+        if t is not None:
+            import casadi as ca
+
+            return ca.substitute(expression, self._time, t)
+        driven = ", ".join(repr(joint.name) for joint in self.model.joints if joint.driven)
+        raise ModelError(f"sensor {name!r} moves with the time signals of the driven joints {driven} of model "
+                         f"{self.model.name!r}; generated loops (compiled=True, time-history sensitivities) "
+                         "state their sensors (and the delayed loops' sensor rates) at the state only, so they "
+                         "cannot close a loop on it; drive those joints with ctmm.signals.Constant, sense a body "
+                         "inboard of them, or use compiled=False")
 
     @property
     def time(self) -> Any:
@@ -269,8 +281,8 @@ class CompiledControlledSpatial:
         if refusal:
             raise ModelError(refusal)
         layout = spatial_parameter_layout(model) if numbers == "inputs" else []
-        self.loops = ClosedLoops(controlled, self.actuators, dt, references, inputs,
-                                 symbols=SpatialSymbols(model, ports, len(layout)), numbers=numbers)
+        symbols = SpatialSymbols(model, ports, len(layout), time_sensors=True)
+        self.loops = ClosedLoops(controlled, self.actuators, dt, references, inputs, symbols=symbols, numbers=numbers)
         self.parameters = np.concatenate([spatial_parameter_vector(model), self.loops.parameter_values]) \
             if layout else np.zeros(0)
 

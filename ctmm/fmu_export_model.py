@@ -128,7 +128,14 @@ class ExportedSystem:
 _PARAMETER_UNITS = {"mass": "kg", "inertia": "kg m^2", "gravity": "m/s^2", "stiffness": "N m/rad",
                     "damping": "N m s/rad"}
 _LAW_UNITS = {"reference": "rad", "reference_rate": "rad/s", "torque": "N m"}
-_FIELD_UNITS = {"omega": "rad/s", "phase": "rad", "time": "s", "period": "s", "duration": "s"}
+_FIELD_UNITS = {"omega": "rad/s", "phase": "rad", "time": "s", "period": "s", "duration": "s", "start": "s"}
+
+
+def _field_unit(field: str, unit: str) -> str:
+    """The unit of a signal's ``field`` when the signal's value is in ``unit`` (a ramp's slope: per second)."""
+    if field == "slope":
+        return f"{unit}/s" if unit else "1/s"
+    return _FIELD_UNITS.get(field, unit)
 
 
 def parameter_names(model: PlanarModel) -> list[tuple[str, str, bool]]:
@@ -183,7 +190,7 @@ def _signal_names(prefix: str, signal: Any, unit: str) -> list[tuple[str, str, b
     fields = SYMBOLIC_FIELDS.get(type(signal), ("value",)) if signal is not None else ("value",)
     if len(fields) == 1:
         return [(prefix, unit, True)]
-    return [(f"{prefix}.{field}", _FIELD_UNITS.get(field, unit), True) for field in fields]
+    return [(f"{prefix}.{field}", _field_unit(field, unit), True) for field in fields]
 
 
 def chosen_names(label: str, given: Sequence[str] | None, allowed: Sequence[str],
@@ -357,7 +364,7 @@ def loop_parameter_names(controlled: ControlledModel, loops: ClosedLoops) -> lis
         else:
             field = role.split(".")[1] if "." in role else ""
             owner = name[:name.index(".reference")]
-            names.append((name, _FIELD_UNITS.get(field, units[owner][0]), True))
+            names.append((name, _field_unit(field, units[owner][0]), True))
     return names
 
 

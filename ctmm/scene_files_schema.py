@@ -322,7 +322,8 @@ def value_types() -> dict[str, Constructor]:
     """``type`` values of inline tables usable as any value: time signals, grids, transfer functions."""
     from . import signals
 
-    out = {name: constructor(name, getattr(signals, name)) for name in ("Constant", "Harmonic", "Step", "SquareWave")}
+    out = {name: constructor(name, getattr(signals, name))
+           for name in ("Constant", "Harmonic", "Step", "SquareWave", "Ramp")}
     for name in ("linspace", "logspace", "geomspace"):
         out[name] = Constructor(name, getattr(np, name), (
             Parameter("start", True, "float", ""), Parameter("stop", True, "float", ""),

@@ -104,6 +104,41 @@ class SquareWave:
         return self.amplitude if (t % self.period) < 0.5 * self.period else -self.amplitude
 
 
+@dataclass(frozen=True)
+class Ramp:
+    """Ramp ``offset + slope * max(t - start, 0)``: ``offset`` until ``start``, then rising at ``slope``.
+
+    A crank turning at constant speed ``omega`` from ``theta0`` is ``Ramp(omega, theta0)`` (its rate the
+    constant ``omega``, its acceleration 0); a force growing linearly from 0 is ``Ramp(slope)``.  A ramp
+    has no steady-state harmonic amplitude: the frequency verbs refuse it (:func:`harmonic_amplitude`).
+
+    Parameters
+    ----------
+    slope : float
+        Rate of rise [unit of the signal / s].
+    offset : float, optional
+        Value until ``start`` [unit of the signal].
+    start : float, optional
+        Time the rise begins [s]; the signal's rate jumps from 0 to ``slope`` there.
+    """
+
+    slope: float
+    offset: float = 0.0
+    start: float = 0.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "slope", validation.finite("slope", self.slope))
+        object.__setattr__(self, "offset", validation.finite("offset", self.offset))
+        object.__setattr__(self, "start", validation.finite("start", self.start))
+
+    def __call__(self, t: float) -> float:
+        return self.offset + self.slope * max(t - self.start, 0.0)
+
+    def rate(self) -> Step:
+        """The ramp's time derivative: ``slope`` from ``start`` on, 0 before [unit of the signal / s]."""
+        return Step(self.slope, self.start)
+
+
 SignalLike = Union[float, int, TimeFunction]
 
 
@@ -124,7 +159,7 @@ def as_signal(name: str, value: SignalLike) -> TimeFunction:
             raise ModelError(f"{name} must be callable as f(t) -> float; f(0.0) raised {exc!r}") from exc
         if not np.isfinite(probe):
             raise ModelError(f"{name}(0.0) must be finite, got {probe!r}")
-        known = (Constant, Harmonic, Step, SquareWave, UserFunction)
+        known = (Constant, Harmonic, Step, SquareWave, Ramp, UserFunction)
         return value if isinstance(value, known) else UserFunction(name, value)  # failures named (guard)
     return Constant(validation.finite(name, value))
 
@@ -132,19 +167,21 @@ def as_signal(name: str, value: SignalLike) -> TimeFunction:
 def harmonic_amplitude(signal: TimeFunction) -> complex:
     """Complex amplitude of a signal in the frequency domain (phasor of ``e^{i w t}``).
 
-    Constants and harmonics have one; other callables are not steady-state signals.
+    Constants and harmonics have one; other callables (a :class:`Step`, :class:`SquareWave`,
+    :class:`Ramp` or a user function) are not steady-state signals and are refused by name.
     """
     if isinstance(signal, Constant):
         return complex(signal.value)
     if isinstance(signal, Harmonic):
         # a sin(wt + phi) = Im(a e^{i phi} e^{i w t}) -> phasor convention: Re(A e^{iwt}) with A = a e^{i(phi - pi/2)}
         return complex(signal.amplitude * np.exp(1j * (signal.phase - 0.5 * np.pi)))
-    raise ModelError(f"signal {signal!r} has no steady-state harmonic amplitude")
+    raise ModelError(f"signal {signal!r} has no steady-state harmonic amplitude; the "
+                     "frequency domain takes ctmm.signals Constant or Harmonic signals only")
 
 
 SYMBOLIC_FIELDS: dict[type, tuple[str, ...]] = {
     Constant: ("value",), Harmonic: ("amplitude", "omega", "phase"), Step: ("value", "time"),
-    SquareWave: ("amplitude", "period", "duration")}
+    SquareWave: ("amplitude", "period", "duration"), Ramp: ("slope", "offset", "start")}
 """The signal classes with a symbolic form (:func:`symbolic_signal`) and the fields it takes, in order."""
 
 
@@ -179,5 +216,8 @@ def symbolic_signal(kind: type, t: Any, parameters: Sequence[Any]) -> Any:
         amplitude, period, duration = parameters
         level = ca.if_else(ca.fmod(t, period) < 0.5 * period, amplitude, -amplitude)
         return ca.if_else(ca.logic_or(t < 0, t >= duration), 0.0, level)
+    if kind is Ramp:
+        slope, offset, start = parameters
+        return offset + slope * ca.fmax(t - start, 0.0)
     raise ModelError(f"signal class {getattr(kind, '__name__', kind)!r} has no symbolic form; symbolic signals: "
                      + ", ".join(k.__name__ for k in SYMBOLIC_FIELDS))

@@ -135,14 +135,14 @@ PUBLIC_API: dict[str, str] = {
     "ctmm.interop.assemble_matrices": FUZZED, "ctmm.interop.control_name": "string helper",
     "ctmm.interop.default_signal_names": "tests/test_linearize.py",
     "ctmm.signals.Constant": FUZZED, "ctmm.signals.Harmonic": FUZZED, "ctmm.signals.Step": FUZZED,
-    "ctmm.signals.SquareWave": FUZZED, "ctmm.signals.as_signal": FUZZED,
+    "ctmm.signals.SquareWave": FUZZED, "ctmm.signals.Ramp": FUZZED, "ctmm.signals.as_signal": FUZZED,
     "ctmm.signals.harmonic_amplitude": "internal use by the frequency domain", "ctmm.modal.modal_response": FUZZED,
     # result objects
     "FrequencyResponse.__call__": FUZZED, "FrequencyResponse.plot": "tests/test_frequency_domain.py",
     "SimulationResult.__getitem__": FUZZED, "SimulationResult.to_dataframe": "optional pandas",
     "SimulationResult.plot": "tests/test_time_domain.py",
 }
-SIGNALS_API = ("Constant", "Harmonic", "Step", "SquareWave", "as_signal", "harmonic_amplitude")
+SIGNALS_API = ("Constant", "Harmonic", "Step", "SquareWave", "Ramp", "as_signal", "harmonic_amplitude")
 
 
 def test_public_api_list_is_complete():
@@ -368,6 +368,9 @@ CASES: list[Case] = [
     Case("ctmm.signals.SquareWave", "period", "positive", lambda v: signals.SquareWave(1.0, v)),
     Case("ctmm.signals.SquareWave", "duration", "positive",
          lambda v: signals.SquareWave(1.0, 1.0, v), valid=(math.inf,)),
+    Case("ctmm.signals.Ramp", "slope", "real", lambda v: signals.Ramp(v)),
+    Case("ctmm.signals.Ramp", "offset", "real", lambda v: signals.Ramp(1.0, v)),
+    Case("ctmm.signals.Ramp", "start", "real", lambda v: signals.Ramp(1.0, 0.0, v)),
     Case("ctmm.signals.as_signal", "force", "real", lambda v: signals.as_signal("force", v)),
     Case("ctmm.controllers.SaturatedPD", "kp", "real",
          lambda v: controllers.SaturatedPD(("m.x", "m.v"), "m.force", kp=v, kd=1.0)),

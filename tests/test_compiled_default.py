@@ -106,3 +106,10 @@ def test_default_refusal_names_why_numpy_runs(monkeypatch):
         assert default_refusal(model, "rk4", **{**long_run, **bad}) == "no fixed step"     # the verb refuses them
     monkeypatch.setenv("PATH", "")
     assert default_refusal(model, "rk4", **long_run) == "no C compiler"
+
+
+@pytest.mark.parametrize("t_final", [np.inf, -np.inf, np.nan])
+def test_a_non_finite_end_time_is_refused_by_the_verb_by_name(t_final):
+    """The default's step count does not overflow on an infinite end time: the verb names the bad number."""
+    with pytest.raises(ModelError, match="t_final"):
+        ctmm.simulate(chain(), t_final, 0.01)

@@ -229,7 +229,8 @@ def test_symbolic_time_signals_are_evaluated_in_the_generated_code(tmp_path):
 
 
 @pytest.mark.parametrize("signal", [Harmonic(0.7, 3.0, 0.4), Step(-1.5, 0.25), SquareWave(2.0, 0.3),
-                                    SquareWave(2.0, 0.3, duration=0.5), ctmm.signals.Constant(3.5)])
+                                    SquareWave(2.0, 0.3, duration=0.5), ctmm.signals.Constant(3.5),
+                                    ctmm.signals.Ramp(1.3, -0.4, 0.25), ctmm.signals.Ramp(-2.0)])
 def test_symbolic_forms_equal_the_signals(signal):
     t = casadi.SX.sym("t")
     parameters = ctmm.signals.signal_parameters(signal)

@@ -4,8 +4,9 @@ The generated RK4 with projection (:mod:`ctmm.compiled_spatial_kinematic_loops`)
 (:mod:`ctmm.compiled_spatial_loop_schemes`) state the driven joints' signals on the time symbol; ``Phi''`` takes the
 prescribed motion's rate and acceleration along the driven coordinates.  Checked against the numpy runs (equal to
 round-off) and, independently, against the closed-form kinematics of a spatial slider-crank whose crank is driven at a
-prescribed angle (the slide and its rate) and Lagrange's equation of the pendulum it carries.  User callables on the drive and the loop driver's generated run (its
-sensors at the state only) are refused by name.
+prescribed angle (the slide and its rate) and Lagrange's equation of the pendulum it carries.  User callables on the
+drive are refused by name.  The loop driver's generated run (feedback loops on the driven tree) reads its sensors at
+the state and the time: equal to the numpy driver to round-off, a delayed loop's sampled sensor rate with ``dy/dt``.
 """
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ import ctmm
 import ctmm.spatial as sp
 from ctmm.control import Feedback, with_feedback
 from ctmm.errors import ModelError
-from ctmm.signals import Harmonic
+from ctmm.signals import Harmonic, Ramp
 from ctmm.spatial.closed_loops import SpatialCutJoint, SpatialKinematicLoopModel
 
 # crank radius, coupler length, the guide's offsets from the crank's axis [m]; the crank angle A sin(W t + PHASE)
@@ -33,15 +34,16 @@ def _rod(name: str, mass: float, length: float, direction: int = 0, sign: float 
     return sp.SpatialBody(name, mass, np.diag(moments), center_of_mass=tip / 2, points={"tip": tip})
 
 
-def slider_crank(position=None, bob_actuated: bool = False) -> SpatialKinematicLoopModel:
+def slider_crank(position=None, bob_actuated: bool = False, rate=None, acceleration=None) -> SpatialKinematicLoopModel:
     """A spatial R-U-S-P slider-crank: the crank (``h1`` about world z, driven), the coupler on a universal joint at
     the crank's tip, the slider on a prismatic guide along world x offset by ``(OFFSET_Y, OFFSET_Z)`` from the
     crank's axis, a spherical cut closing the coupler's tip on the slider; a pendulum ``bob`` hinged on the slider
     (the loop's one degree of freedom, under gravity)."""
     position = Harmonic(AMPLITUDE, FREQUENCY, PHASE) if position is None else position
-    crank = sp.Revolute(name="h1", parent=None, child="crank", axis=(0, 0, 1), position=position,
-                        rate=Harmonic(AMPLITUDE * FREQUENCY, FREQUENCY, PHASE + np.pi / 2),
-                        acceleration=Harmonic(-AMPLITUDE * FREQUENCY ** 2, FREQUENCY, PHASE))
+    rate = Harmonic(AMPLITUDE * FREQUENCY, FREQUENCY, PHASE + np.pi / 2) if rate is None else rate
+    acceleration = Harmonic(-AMPLITUDE * FREQUENCY ** 2, FREQUENCY, PHASE) if acceleration is None else acceleration
+    crank = sp.Revolute(name="h1", parent=None, child="crank", axis=(0, 0, 1), position=position, rate=rate,
+                        acceleration=acceleration)
     tree = sp.SpatialModel("slider_crank", [
         _rod("crank", 0.3, RADIUS), crank,
         _rod("coupler", 0.5, LENGTH),
@@ -163,9 +165,8 @@ def test_held_crank_of_the_four_bar_equals_numpy():
            simulate_spatial_loops(driven, q, v, t_final=0.02, dt=1e-3))
 
 
-def test_user_callable_drives_and_the_loop_driver_are_refused_by_name():
-    """A drive given as a Python callable has no symbolic form; the loop driver's generated run reads its sensors at
-    the state only (they move with the drive): both refused, naming the joint."""
+def test_user_callable_drives_are_refused_by_name():
+    """A drive given as a Python callable has no symbolic form: refused, naming the joint."""
     from ctmm.compiled_spatial_kinematic_loops import simulate_spatial_kinematic_loops_generated
 
     user = slider_crank(position=lambda t: AMPLITUDE * np.sin(FREQUENCY * t + PHASE))
@@ -174,8 +175,30 @@ def test_user_callable_drives_and_the_loop_driver_are_refused_by_name():
         simulate_spatial_kinematic_loops_generated(user, q, v, t_final=0.01, dt=1e-3)
     with pytest.raises(ModelError, match=r"driven joint 'h1' \(position\[0\] is a UserFunction\)"):
         ctmm.simulate(user, 0.01, 1e-3, x0=q, v0=v, method="newmark", compiled=True)
-    loop = slider_crank(bob_actuated=True)
-    q, v = start(loop)
+    loop = slider_crank(position=lambda t: AMPLITUDE * np.sin(FREQUENCY * t + PHASE), bob_actuated=True)
     damper = Feedback("damper", sensor="h5.angle_rate", actuator="h5.torque", gain=-0.1)
-    with pytest.raises(ModelError, match=r"driven joints \(h1\): the loop driver's generated run reads its sensors"):
+    with pytest.raises(ModelError, match=r"driven joint 'h1' \(position\[0\] is a UserFunction\)"):
         ctmm.simulate(with_feedback(loop, [damper]), 0.01, 1e-3, x0=q, v0=v, compiled=True)
+
+
+@pytest.mark.parametrize("drive", ["harmonic", "ramp"])
+def test_loops_on_the_driven_slider_crank_generated_equal_the_numpy_driver(drive):
+    """A PD on the pendulum (its reference a ramp), a loop delayed two steps on the coupler's angular velocity and
+    one on the crank's tip (both move with the drive: sensors of the state and the time): every signal of the
+    generated run = the numpy loop driver's to round-off.  Without ``dy/dt`` in the delayed loop's sampled rate the
+    runs differ by 3e-8 rad (measured); the old kernel refused the driven tree."""
+    position = None if drive == "harmonic" else Ramp(FREQUENCY, 0.2)
+    extra = {} if drive == "harmonic" else {"rate": FREQUENCY, "acceleration": 0.0}
+    loop = slider_crank(position=position, bob_actuated=True, **extra)
+    q, v = start(loop)
+    loops = [Feedback("p", sensor="h5.angle", actuator="h5.torque", gain=0.5),
+             Feedback("d", sensor="h5.angle_rate", actuator="h5.torque", gain=0.02),
+             Feedback("late", sensor="coupler.omega_z", actuator="h5.torque", gain=0.003, delay=4e-3),
+             Feedback("tip", sensor="crank.tip.y", actuator="h5.torque", gain=0.2)]
+    options = dict(x0=q, v0=v, references={"p": Ramp(0.5)})
+    generated = ctmm.simulate(with_feedback(loop, loops), 0.1, 2e-3, compiled=True, **options)
+    plain = ctmm.simulate(with_feedback(loop, loops), 0.1, 2e-3, compiled=False, **options)
+    assert generated.info["method"] == "rk4-generated" and plain.info["method"] == "rk4"
+    assert np.ptp(plain["h5.angle"]) > 0.1 and np.ptp(plain["late.y"]) > 0.1 and np.ptp(plain["tip.u"]) > 1e-3
+    for name in plain.signals():
+        assert np.max(np.abs(generated[name] - plain[name])) <= 1e-12 * max(1.0, np.max(np.abs(plain[name]))), name
