@@ -10,19 +10,20 @@ otherwise the one loop-closing driver (:func:`ctmm.control.planar_time.simulate_
 """
 from __future__ import annotations
 
-from typing import Any, Mapping, Sequence
+import contextlib
+from typing import Any, Iterator, Mapping, Sequence
 
 import numpy as np
 
 from . import validation
 from .control.planar_time import simulate_closed_loop
-from .errors import ModelError
+from .errors import ModelError, SimulationError
 from .loop_integration import check_consistent
 from .results import SimulationResult
 from .schemes import SCHEMES, Scheme
 from .signal_results import SignalSystem, signal_result
 from .spatial.closed_loop_plant import add_cut_signals
-from .spatial.closed_loop_time import simulate_spatial_loop_scheme, simulate_spatial_loops
+from .spatial.closed_loop_time import SpatialLoopSimulation, simulate_spatial_loop_scheme, simulate_spatial_loops
 from .spatial.closed_loops import SpatialKinematicLoopModel
 from .spatial.integrate import SCIPY_METHODS, spatial_signals
 
@@ -127,22 +128,45 @@ def simulate_spatial_loop_system(system: Any, t_final: float, dt: float | None, 
             raise ModelError(f"{name}={value!r} applies to runs with loops, controllers or port inputs; the spatial "
                              f"kinematic loop model {model.name!r} alone runs its own integrator: leave {name} at "
                              f"{default!r}")
+    details = {"projection": method == "rk4", **({"compiled": True} if compiled else {})}
     if compiled:                # the generated RK4 with projection (ctmm.compiled_spatial_kinematic_loops)
         from .compiled_spatial_kinematic_loops import simulate_spatial_kinematic_loops_generated
 
         for name, value, default in (("rtol", rtol, 1e-8), ("atol", atol, 1e-10), ("max_step", max_step, None)):
             if value != default:
                 raise ModelError(f"{name}={value!r} applies to solve_ivp methods, not to compiled=True (RK4)")
-        run = simulate_spatial_kinematic_loops_generated(model, q0, v0, t_final=t_final,
-                                                         dt=validation.positive("dt", dt), store_every=store_every)
+        with _partial_as_result(model, details):
+            run = simulate_spatial_kinematic_loops_generated(model, q0, v0, t_final=t_final,
+                                                             dt=validation.positive("dt", dt), store_every=store_every)
     else:
-        run = simulate_spatial_loops(model, q0, v0, t_final=t_final, dt=dt, method=method, inputs=inputs, rtol=rtol,
-                                     atol=atol, store_every=store_every, max_step=max_step)
+        with _partial_as_result(model, details, method):
+            run = simulate_spatial_loops(model, q0, v0, t_final=t_final, dt=dt, method=method, inputs=inputs,
+                                         rtol=rtol, atol=atol, store_every=store_every, max_step=max_step)
+    info = {"wall_time_s": run.wall_time_s, "n_evaluations": run.n_evaluations, **details}
+    return _loop_result(model, run, info, None if compiled else method)
+
+
+def _loop_result(model: SpatialKinematicLoopModel, run: SpatialLoopSimulation, info: dict,
+                 method: str | None = None) -> SimulationResult:
+    """A loop run as the result of :func:`ctmm.simulate`: the tree's signals, the cut loads, ``"drift"`` and
+    ``"drift_rate"``; ``info`` with ``"max_drift"`` and ``"baumgarte"`` added; ``method``: the label (default the
+    run's)."""
     signals, units = spatial_signals(model.tree, run.t, np.concatenate([run.q, run.v], axis=1))
     add_cut_signals(model, signals, units, run.cut_force, run.cut_moment, run.drift, run.drift_rate)
-    info = {"wall_time_s": run.wall_time_s, "n_evaluations": run.n_evaluations, "max_drift": float(run.drift.max()),
-            "projection": method == "rk4", "baumgarte": model.baumgarte, **({"compiled": True} if compiled else {})}
-    return signal_result(SignalSystem(model, units), run.t, signals, run.method if compiled else method, info)
+    info = {**info, "max_drift": float(run.drift.max(initial=0.0)), "baumgarte": model.baumgarte}
+    return signal_result(SignalSystem(model, units), run.t, signals, run.method if method is None else method, info)
+
+
+@contextlib.contextmanager
+def _partial_as_result(model: SpatialKinematicLoopModel, info: dict, method: str | None = None) -> Iterator[None]:
+    """Turn the partial :class:`SpatialLoopSimulation` of a failed run into the :class:`SimulationResult` a whole run
+    returns (:func:`_loop_result`: the same signals, cut loads and drift included; ``info["failed"]``)."""
+    try:
+        yield
+    except SimulationError as exc:
+        if isinstance(exc.partial_result, SpatialLoopSimulation):
+            exc.partial_result = _loop_result(model, exc.partial_result, {**info, "failed": True}, method)
+        raise
 
 
 def _scheme_run(model: SpatialKinematicLoopModel, t_final: float, dt: float | None, scheme: Any, q0: np.ndarray,
@@ -152,22 +176,22 @@ def _scheme_run(model: SpatialKinematicLoopModel, t_final: float, dt: float | No
     every step (:func:`ctmm.spatial.closed_loop_time.simulate_spatial_loop_scheme`; ``compiled``: in generated C,
     :func:`ctmm.compiled_spatial_loop_schemes.simulate_spatial_loop_scheme_generated`), as a result with the tree's
     signals, the cut loads and the drift."""
+    details = {"dt": dt, **({"compiled": True} if compiled else {})}
     if compiled:
         from .compiled_spatial_loop_schemes import simulate_spatial_loop_scheme_generated
 
-        run, info = simulate_spatial_loop_scheme_generated(model, q0, v0, t_final=t_final,
-                                                           dt=validation.positive("dt", dt), scheme=scheme,
-                                                           inputs=inputs, store_every=store_every,
-                                                           divergence_bound=divergence_bound)
+        with _partial_as_result(model, details):
+            run, info = simulate_spatial_loop_scheme_generated(model, q0, v0, t_final=t_final,
+                                                               dt=validation.positive("dt", dt), scheme=scheme,
+                                                               inputs=inputs, store_every=store_every,
+                                                               divergence_bound=divergence_bound)
         info["compiled"] = True
     else:
-        run, info = simulate_spatial_loop_scheme(model, q0, v0, t_final=t_final, dt=validation.positive("dt", dt),
-                                                 scheme=scheme, inputs=inputs, store_every=store_every,
-                                                 divergence_bound=divergence_bound)
-    signals, units = spatial_signals(model.tree, run.t, np.concatenate([run.q, run.v], axis=1))
-    add_cut_signals(model, signals, units, run.cut_force, run.cut_moment, run.drift, run.drift_rate)
-    info = {**info, "max_drift": float(run.drift.max()), "baumgarte": model.baumgarte}
-    return signal_result(SignalSystem(model, units), run.t, signals, run.method, info)
+        with _partial_as_result(model, details):
+            run, info = simulate_spatial_loop_scheme(model, q0, v0, t_final=t_final, dt=validation.positive("dt", dt),
+                                                     scheme=scheme, inputs=inputs, store_every=store_every,
+                                                     divergence_bound=divergence_bound)
+    return _loop_result(model, run, info)
 
 
 def _scheme_loops_run(system: Any, model: SpatialKinematicLoopModel, t_final: float, dt: float | None, scheme: Any,

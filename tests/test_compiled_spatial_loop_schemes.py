@@ -136,6 +136,6 @@ def test_divergence_bound_stops_where_the_numpy_path_stops(four_bar):
         ctmm.simulate(loop, 0.2, 4e-3, store_every=5, divergence_bound=0.05, **options)
     assert generated.value.time == pytest.approx(numpy_path.value.time, abs=1e-12)
     assert generated.value.time == pytest.approx(free.time[first], abs=1e-12)
-    assert generated.value.partial_result.t[-1] < generated.value.time
+    assert generated.value.partial_result.time[-1] < generated.value.time
     bounded = ctmm.simulate(loop, 0.2, 4e-3, compiled=True, divergence_bound=100.0, **options)
     assert np.array_equal(bounded["h1.angle"], free["h1.angle"])

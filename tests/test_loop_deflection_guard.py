@@ -54,10 +54,10 @@ def test_a_struck_flexible_four_bar_stops_at_the_step_its_coupler_passes_its_len
     assert error.element == "coupler"
     partial = error.partial_result
     steps = int(round(error.time / DT))
-    assert partial["t"][-1] == pytest.approx(error.time - DT, abs=1e-12) and len(partial["t"]) == steps
+    assert partial.t[-1] == pytest.approx(error.time - DT, abs=1e-12) and len(partial.t) == steps
     # the run up to the step before passes, every row within the length by hand; one more step is beyond it
     before = simulate_kinematic_loops(loop, q0, v0, t_final=(steps - 1) * DT, dt=DT)
-    np.testing.assert_allclose(before.q, partial["q"], rtol=0.0, atol=0.0)
+    np.testing.assert_allclose(before.q, partial.q, rtol=0.0, atol=0.0)
     assert np.all(hand_bound(loop, before.q) <= COUPLER)
     n = loop.tree.n_coordinates
 
@@ -101,10 +101,10 @@ def test_a_struck_spatial_beam_loop_stops_at_the_step_its_beam_passes_its_length
     error = info.value
     assert error.element == "b"
     steps = int(round(error.time / DT))
-    assert len(error.partial_result["t"]) == steps and error.partial_result["t"][-1] == pytest.approx(
+    assert len(error.partial_result.t) == steps and error.partial_result.t[-1] == pytest.approx(
         error.time - DT, abs=1e-12)
     before = simulate_spatial_loops(loop, q0, u0, t_final=(steps - 1) * DT, dt=DT)
-    np.testing.assert_allclose(before.q, error.partial_result["q"], rtol=0.0, atol=0.0)
+    np.testing.assert_allclose(before.q, error.partial_result.q, rtol=0.0, atol=0.0)
     assert np.all(bound(before.q) <= beam.length)
     stated = float(str(error).split("deflection bound ")[1].split(" m")[0])
     assert stated > beam.length
@@ -125,8 +125,8 @@ def test_the_generated_rk4_stops_with_the_numpy_error(struck, store_every):
     expected, got = numpy_info.value, generated_info.value
     assert (got.element, got.time) == (expected.element, expected.time) == ("coupler", got.time)
     assert str(got) == str(expected)
-    np.testing.assert_array_equal(got.partial_result.t, expected.partial_result["t"])
-    assert np.max(np.abs(got.partial_result.q - expected.partial_result["q"])) <= 1e-12
+    np.testing.assert_array_equal(got.partial_result.t, expected.partial_result.t)
+    assert np.max(np.abs(got.partial_result.q - expected.partial_result.q)) <= 1e-12
 
 
 @pytest.mark.parametrize("store_every", [1, 3])
@@ -145,5 +145,5 @@ def test_the_generated_spatial_rk4_stops_with_the_numpy_error(store_every):
     expected, got = numpy_info.value, generated_info.value
     assert (got.element, got.time) == (expected.element, expected.time) == ("b", got.time)
     assert str(got) == str(expected)
-    np.testing.assert_array_equal(got.partial_result.t, expected.partial_result["t"])
-    assert np.max(np.abs(got.partial_result.q - expected.partial_result["q"])) <= 1e-12
+    np.testing.assert_array_equal(got.partial_result.t, expected.partial_result.t)
+    assert np.max(np.abs(got.partial_result.q - expected.partial_result.q)) <= 1e-12

@@ -61,8 +61,8 @@ def test_a_planar_step_too_large_is_refused_alike_by_the_numpy_and_the_generated
         lambda: simulate_kinematic_loops_generated(loop, q0, 10 * v0, t_final=2.0, dt=0.05))
     assert numpy_error.time == pytest.approx(0.5) and numpy_error.element == "h3"
     partial, generated = numpy_error.partial_result, generated_error.partial_result
-    assert partial["t"][-1] == pytest.approx(0.45) and partial["q"].shape == generated.q.shape == (10, 3)
-    assert np.max(np.abs(partial["q"] - generated.q)) <= 1e-10          # the same good states before it
+    assert partial.t[-1] == pytest.approx(0.45) and partial.q.shape == generated.q.shape == (10, 3)
+    assert np.max(np.abs(partial.q - generated.q)) <= 1e-10          # the same good states before it
     run = simulate_kinematic_loops(loop, q0, 3 * v0, t_final=1.0, dt=0.05, projection=False)  # no projection, no check
     assert run.t[-1] == pytest.approx(1.0) and np.max(run.drift) > 1e-3
 
@@ -73,7 +73,7 @@ def test_a_spatial_step_too_large_is_refused_alike_by_the_numpy_and_the_generate
         lambda: simulate_spatial_loops(loop, q, 30 * v, t_final=1.0, dt=0.05),
         lambda: simulate_spatial_kinematic_loops_generated(loop, q, 30 * v, t_final=1.0, dt=0.05))
     assert numpy_error.time == pytest.approx(0.05) and numpy_error.element == "s3"
-    assert numpy_error.partial_result["t"].tolist() == generated_error.partial_result.t.tolist() == [0.0]
+    assert numpy_error.partial_result.t.tolist() == generated_error.partial_result.t.tolist() == [0.0]
     with pytest.raises(SimulationError, match=FAILED):                   # the verb's default path
         ctmm.simulate(loop, 1.0, 0.05, x0=q, v0=30 * v)
 

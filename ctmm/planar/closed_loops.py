@@ -464,16 +464,30 @@ def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: f
     family, step = model.tree.deformable_family, dt if method == "rk4" else None
     check = None if family is None else (    # the tree runs' rule: a modal beam's deflection, a subsystem's size
         lambda t, y: family.check_divergence(model.tree, y[:n], float(t), step, method))
-    t_out, y_out, wall = integrate_loop_model(rate, np.concatenate([q, v]), n, t_final=t_final, dt=dt, method=method,
-                                              finish=finish, rtol=rtol, atol=atol, store_every=store_every,
-                                              t_eval=t_eval, max_step=max_step, label=f"kinematic loop {model.name!r}",
-                                              element=model.cuts[0].name, velocity_label="qdot",
-                                              model=model if projection else None, check=check)
+    try:
+        t_out, y_out, wall = integrate_loop_model(
+            rate, np.concatenate([q, v]), n, t_final=t_final, dt=dt, method=method, finish=finish, rtol=rtol,
+            atol=atol, store_every=store_every, t_eval=t_eval, max_step=max_step,
+            label=f"kinematic loop {model.name!r}", element=model.cuts[0].name, velocity_label="qdot",
+            model=model if projection else None, check=check)
+    except SimulationError as exc:      # the stored rows before the failure, with the cut forces and the drift
+        if isinstance(exc.partial_result, dict):
+            rows = exc.partial_result
+            exc.partial_result = loop_history(model, rows["t"], rows["q"], rows["qdot"], method, 0.0, evaluations[0])
+        raise
+    return loop_history(model, t_out, y_out[:, :n], y_out[:, n:], method, wall, evaluations[0])
+
+
+def loop_history(model: KinematicLoopModel, t: np.ndarray, q: np.ndarray, qdot: np.ndarray, method: str,
+                 wall: float, evaluations: int) -> KinematicLoopSimulation:
+    """Stored rows of a run (times [s], tree coordinates, rates) with the cut forces [N] solved again at each row and
+    the drift ``max |Phi|`` [m], ``max |Phi'|`` [m/s]; ``wall`` [s] and ``evaluations`` as the run reports them."""
     forces, drift, drift_rate = [], [], []
-    for t, y in zip(t_out, y_out):
-        phi, phi_dot = model.constraints(y[:n], y[n:], t)
+    for t_k, q_k, v_k in zip(t, q, qdot):
+        phi, phi_dot = model.constraints(q_k, v_k, t_k)
         drift.append(np.max(np.abs(phi)))
         drift_rate.append(np.max(np.abs(phi_dot)))
-        forces.append(model.solve(y[:n], y[n:], t)[1])
-    return KinematicLoopSimulation(model, t_out, y_out[:, :n], y_out[:, n:], np.array(forces), np.array(drift),
-                                np.array(drift_rate), method, wall, evaluations[0])
+        forces.append(model.solve(q_k, v_k, t_k)[1])
+    return KinematicLoopSimulation(model, np.asarray(t), np.asarray(q), np.asarray(qdot),
+                                   np.array(forces).reshape(len(t), len(model.cuts), 2), np.array(drift),
+                                   np.array(drift_rate), method, wall, evaluations)

@@ -15,10 +15,12 @@ import time
 
 import numpy as np
 
+from ..errors import SimulationError
 from ..loop_integration import StepProjection
 from ..schemes import Scheme
-from .closed_loops import KinematicLoopModel, KinematicLoopSimulation
+from .closed_loops import KinematicLoopModel, KinematicLoopSimulation, loop_history
 from .implicit import simulate_implicit
+from .integrate import PlanarSimulation
 
 __all__ = ["simulate_loop_scheme"]
 
@@ -67,20 +69,24 @@ def simulate_loop_scheme(model: KinematicLoopModel, q0: np.ndarray, v0: np.ndarr
     """
     projector = StepProjection(model, f"kinematic loop {model.name!r}") if projection else None
     started = time.perf_counter()
-    implicit = simulate_implicit(model.tree, q0, v0, t_final=t_final, dt=dt, scheme=scheme, store_every=store_every,
-                                 divergence_bound=divergence_bound, stability_check=stability_check,
-                                 inputs=lambda t, q, v: model.cut_inputs(q, v, t), project=projector)
-    wall = time.perf_counter() - started
-    forces, drift, rate = [], [], []
-    for t, q, v in zip(implicit.t, implicit.q, implicit.qdot):
-        phi, phi_dot = model.constraints(q, v, t)
-        drift.append(np.max(np.abs(phi)))
-        rate.append(np.max(np.abs(phi_dot)))
-        forces.append(model.solve(q, v, t)[1])
-    run = KinematicLoopSimulation(model, implicit.t, implicit.q, implicit.qdot, np.array(forces), np.array(drift),
-                                  np.array(rate), implicit.method, wall, implicit.n_evaluations)
+    try:
+        implicit = simulate_implicit(model.tree, q0, v0, t_final=t_final, dt=dt, scheme=scheme,
+                                     store_every=store_every, divergence_bound=divergence_bound,
+                                     stability_check=stability_check, inputs=lambda t, q, v: model.cut_inputs(q, v, t),
+                                     project=projector)
+    except SimulationError as exc:       # the tree's partial run, with the cut forces and the drift as a whole run's
+        if isinstance(exc.partial_result, PlanarSimulation):
+            exc.partial_result = _tree_history(model, exc.partial_result, time.perf_counter() - started)
+        raise
+    run = _tree_history(model, implicit, time.perf_counter() - started)
     info: dict = {"dt": dt, **(projector.report() if projector is not None else {"projection": False})}
     if implicit.iterations is not None and len(implicit.iterations):
         info["newton_iterations_mean"] = float(np.mean(implicit.iterations))
         info["newton_iterations_max"] = int(np.max(implicit.iterations))
     return run, info
+
+
+
+def _tree_history(model: KinematicLoopModel, implicit: PlanarSimulation, wall: float) -> KinematicLoopSimulation:
+    """The tree run's stored rows as a kinematic loop run (:func:`ctmm.planar.closed_loops.loop_history`)."""
+    return loop_history(model, implicit.t, implicit.q, implicit.qdot, implicit.method, wall, implicit.n_evaluations)

@@ -25,14 +25,15 @@ Feedback loops (``ctmm.control.with_feedback(model, loops)``) close around the s
 """
 from __future__ import annotations
 
+import contextlib
 import time
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Callable, Iterator, Mapping, Sequence
 
 import numpy as np
 
 from .. import validation
 from ..controlled_linearization import delayed_loop_response
-from ..errors import ModelError
+from ..errors import ModelError, SimulationError
 from ..linearized import LinearizedSystem, OperatingPoint, control_name
 from ..results import FrequencyResponse, ModalResult, SimulationResult
 from ..schemes import SCHEMES, Scheme, as_scheme
@@ -97,6 +98,18 @@ def _history_result(model: KinematicLoopModel, run: KinematicLoopSimulation, out
                "baumgarte": model.baumgarte, "max_drift_m": float(np.max(run.drift))}
     details.update(info)
     return signal_result(SignalSystem(model, units), run.t, signals, run.method, details)
+
+
+@contextlib.contextmanager
+def _partial_as_result(model: KinematicLoopModel, outputs: Sequence[str], info: dict) -> Iterator[None]:
+    """Turn the partial :class:`KinematicLoopSimulation` of a failed run into the :class:`SimulationResult` a whole run
+    returns (the same signals, cut forces and drift included; ``info["failed"]``)."""
+    try:
+        yield
+    except SimulationError as exc:
+        if isinstance(exc.partial_result, KinematicLoopSimulation):
+            exc.partial_result = _history_result(model, exc.partial_result, outputs, {**info, "failed": True})
+        raise
 
 
 def simulate_loops(model: KinematicLoopModel, t_final: float, dt: float | None, *, method: Any, x0: Any, v0: Any,
@@ -166,9 +179,10 @@ def simulate_loops(model: KinematicLoopModel, t_final: float, dt: float | None, 
 
         policy = "warn" if stability_check is None else validation.option("stability_check", stability_check,
                                                                            ("warn", "error", "ignore"))
-        run, info = simulate_loop_scheme(model, q0, v0, t_final=t_final, dt=dt, scheme=as_scheme(method),
-                                         store_every=store_every, divergence_bound=divergence_bound,
-                                         stability_check=policy)
+        with _partial_as_result(model, outputs, {"dt": dt}):
+            run, info = simulate_loop_scheme(model, q0, v0, t_final=t_final, dt=dt, scheme=as_scheme(method),
+                                             store_every=store_every, divergence_bound=divergence_bound,
+                                             stability_check=policy)
         return _history_result(model, run, outputs, info)
     for name, value in (("divergence_bound", divergence_bound), ("stability_check", stability_check)):
         if value is not None:
@@ -182,9 +196,12 @@ def simulate_loops(model: KinematicLoopModel, t_final: float, dt: float | None, 
         if dt is None:
             raise ModelError("dt is required with method='rk4' (a fixed step [s], > 0), got None")
         if compiled:
-            run = generated(model, q0, v0, t_final=t_final, dt=dt, store_every=store_every)
+            with _partial_as_result(model, outputs, {"dt": dt, "projection": True, "compiled": True}):
+                run = generated(model, q0, v0, t_final=t_final, dt=dt, store_every=store_every)
             return _history_result(model, run, outputs, {"dt": dt, "projection": True, "compiled": True})
-        run = simulate_kinematic_loops(model, q0, v0, t_final=t_final, dt=dt, method="rk4", store_every=store_every)
+        with _partial_as_result(model, outputs, {"dt": dt, "projection": True}):
+            run = simulate_kinematic_loops(model, q0, v0, t_final=t_final, dt=dt, method="rk4",
+                                           store_every=store_every)
         return _history_result(model, run, outputs, {"dt": dt, "projection": True})
     if method not in SCIPY_METHODS:
         raise ModelError(f"method must be 'rk4', a solve_ivp method {SCIPY_METHODS} or a DT-TMM scheme "
@@ -196,8 +213,10 @@ def simulate_loops(model: KinematicLoopModel, t_final: float, dt: float | None, 
     if dt is not None:
         h = validation.positive("dt", dt)
         grid = np.linspace(0.0, t_final, max(1, int(round(t_final / h))) + 1)
-    run = simulate_kinematic_loops(model, q0, v0, t_final=t_final, method=method, rtol=rtol, atol=atol, t_eval=grid,
-                                   max_step=np.inf if max_step is None else validation.positive("max_step", max_step))
+    with _partial_as_result(model, outputs, {"dt": dt, "projection": False}):
+        run = simulate_kinematic_loops(model, q0, v0, t_final=t_final, method=method, rtol=rtol, atol=atol,
+                                       t_eval=grid, max_step=np.inf if max_step is None else
+                                       validation.positive("max_step", max_step))
     return _history_result(model, run, outputs, {"dt": dt, "projection": False})
 
 

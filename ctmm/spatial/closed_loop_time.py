@@ -15,8 +15,9 @@ from typing import Any, Mapping
 import numpy as np
 
 from .. import validation
-from ..errors import ModelError
+from ..errors import ModelError, SimulationError
 from ..loop_integration import StepProjection, check_consistent, integrate_loop_model
+from ..results import SimulationResult
 from ..schemes import Scheme
 from .closed_loops import SpatialKinematicLoopModel
 from .implicit import simulate_spatial_implicit
@@ -129,12 +130,18 @@ def simulate_spatial_loops(model: SpatialKinematicLoopModel, q0: Any, v0: Any, *
 
     grid = None if method == "rk4" or dt is None else \
         np.linspace(0.0, t_final, max(1, int(round(t_final / dt))) + 1)
-    t_out, y_out, wall = integrate_loop_model(rate, np.concatenate([q, v]), nq, t_final=t_final, dt=dt, method=method,
-                                              finish=finish, rtol=rtol, atol=atol, store_every=store_every,
-                                              t_eval=grid, max_step=max_step,
-                                              label=f"spatial kinematic loop {model.name!r}",
-                                              element=model.cuts[0].name, velocity_label="v",
-                                              model=model if projection else None, check=check)
+    try:
+        t_out, y_out, wall = integrate_loop_model(
+            rate, np.concatenate([q, v]), nq, t_final=t_final, dt=dt, method=method, finish=finish, rtol=rtol,
+            atol=atol, store_every=store_every, t_eval=grid, max_step=max_step,
+            label=f"spatial kinematic loop {model.name!r}", element=model.cuts[0].name, velocity_label="v",
+            model=model if projection else None, check=check)
+    except SimulationError as exc:      # the stored rows before the failure, with the cut loads and the drift
+        if isinstance(exc.partial_result, dict):
+            rows = exc.partial_result
+            exc.partial_result = _history(model, rows["t"], rows["q"], rows["v"], inputs, method, 0.0,
+                                          evaluations[0])
+        raise
     return _history(model, t_out, y_out[:, :nq], y_out[:, nq:], inputs, method, wall, evaluations[0])
 
 
@@ -207,13 +214,25 @@ def simulate_spatial_loop_scheme(model: SpatialKinematicLoopModel, q0: np.ndarra
     check_consistent(model, q, v)
     tree = model.tree
     projector = StepProjection(model, f"spatial kinematic loop {model.name!r}") if projection else None
-    run = simulate_spatial_implicit(tree, t_final, validation.positive("dt", dt), scheme=scheme, x0=q, v0=v,
-                                    input_map=lambda t, q_at, v_at: model.cut_inputs(q_at, v_at, t, inputs),
-                                    store_every=store_every, divergence_bound=divergence_bound, project=projector)
-    q_out = np.array([run[name] for name in tree.coordinates]).T.reshape(len(run.time), tree.n_positions)
-    v_out = np.array([run[name] for name in tree.velocities]).T.reshape(len(run.time), tree.n_velocities)
+    try:
+        run = simulate_spatial_implicit(tree, t_final, validation.positive("dt", dt), scheme=scheme, x0=q, v0=v,
+                                        input_map=lambda t, q_at, v_at: model.cut_inputs(q_at, v_at, t, inputs),
+                                        store_every=store_every, divergence_bound=divergence_bound, project=projector)
+    except SimulationError as exc:      # the tree's partial run, with the cut loads and the drift as a whole run's
+        if isinstance(exc.partial_result, SimulationResult):
+            exc.partial_result = _tree_history(model, exc.partial_result, inputs)
+        raise
     info = dict(run.info)
-    history = _history(model, run.time, q_out, v_out, inputs, run.scheme_name, float(info.get("wall_time_s", 0.0)),
-                       int(info.get("n_evaluations", 0)))
+    history = _tree_history(model, run, inputs)
     info.update(projector.report() if projector is not None else {"projection": False})
     return history, info
+
+
+def _tree_history(model: SpatialKinematicLoopModel, run: SimulationResult, inputs: Mapping[str, Any] | None
+                  ) -> SpatialLoopSimulation:
+    """The tree scheme's result as a loop run (:func:`_history`: the cut loads and the drift at its stored rows)."""
+    tree = model.tree
+    q_out = np.array([run[name] for name in tree.coordinates]).T.reshape(len(run.time), tree.n_positions)
+    v_out = np.array([run[name] for name in tree.velocities]).T.reshape(len(run.time), tree.n_velocities)
+    return _history(model, run.time, q_out, v_out, inputs, run.scheme_name, float(run.info.get("wall_time_s", 0.0)),
+                    int(run.info.get("n_evaluations", 0)))
