@@ -26,7 +26,10 @@ cached call 2.3 -> 0.6-1.4, 189 -> 6-14, ... -> 64-138 MB.  Before, the affine f
 call is a fixed number of sweeps of ``O(n)`` each (about 0.2 ms of CPU per node per sweep: the numpy path's own
 set-up of the same 10-step RK4 call is 7.5 s at n = 10 000).  At n = 100 the RK4 with its loop makes a few more
 (small) sweeps than the one batched probe did.  First call at n = 10 000 (generate and compile, wall-clock of the
-kernel object): 10-24 s.  Cached calls equal the first bit for bit.
+kernel object): 10-24 s.  Cached calls equal the first bit for bit.  Measured apart (same session, load ~6): the
+base-excited chain of ``tests/test_compiled_chain_setup.py`` (harmonic start and end motion, a harmonic force; the
+condensed form, one sweep per state before) on the generated RK4, cached call 21.4 s -> 0.27 s CPU at n = 300, 0.7 s
+at n = 1000.
 
 Run ``python benchmarks/chain_setup_scaling.py [--label after] [--tree PATH] [--sizes 100 1000 10000]``; adds the
 run under its label to ``benchmarks/results/chain_setup_scaling.json``.
