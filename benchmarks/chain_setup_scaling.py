@@ -16,6 +16,21 @@ imports, the whole process), ``cached_call_python_peak_mb`` (the ``tracemalloc``
 heap of one cached call), and the largest difference of the cached call's stored positions to the first's.  The
 load average is recorded: the machine is shared (2 cores), CPU times vary by tens of per cent between runs.
 
+Measured 2026-11-25 (session 11; ``before_5c990b6``: a checkout of commit 5c990b6 by ``--tree``, then ``after``: this
+change, one sample each, load average 4-10 on 2 cores).  Cached call, CPU [s], RK4 / RK4 + loop / Newmark / Newmark +
+loop: n = 100 0.19 / 0.16 / 0.16 / 0.16 -> 0.10 / 0.19 / 0.09 / 0.14; n = 1000 1.31 / 2.08 / 1.54 / 2.03 -> 0.91 / 1.38
+/ 0.87 / 0.76; n = 10 000 stopped by the 4 GB cap (3.07 GB resident; 19 GB seen uncapped) -> 7.6 / 14.5 / 7.3 / 10.9.
+Peak RSS [MB]: 18-21 -> 17-21 at n = 100, 221-229 -> 29-47 at 1000, > 3070 -> 138-324 at 10 000; Python heap of one
+cached call 2.3 -> 0.6-1.4, 189 -> 6-14, ... -> 64-138 MB.  Before, the affine form probed every state at once (a
+``(1 + 2 m) x n`` batch through the sweep); now it comes from the certified tridiagonal rates (three probes), so the
+call is a fixed number of sweeps of ``O(n)`` each (about 0.2 ms of CPU per node per sweep: the numpy path's own
+set-up of the same 10-step RK4 call is 7.5 s at n = 10 000).  At n = 100 the RK4 with its loop makes a few more
+(small) sweeps than the one batched probe did.  First call at n = 10 000 (generate and compile, wall-clock of the
+kernel object): 10-24 s.  Cached calls equal the first bit for bit.  Measured apart (same session, load ~6): the
+base-excited chain of ``tests/test_compiled_chain_setup.py`` (harmonic start and end motion, a harmonic force; the
+condensed form, one sweep per state before) on the generated RK4, cached call 21.4 s -> 0.27 s CPU at n = 300, 0.7 s
+at n = 1000.
+
 Run ``python benchmarks/chain_setup_scaling.py [--label after] [--tree PATH] [--sizes 100 1000 10000]``; adds the
 run under its label to ``benchmarks/results/chain_setup_scaling.json``.
 """
