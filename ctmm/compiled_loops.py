@@ -247,22 +247,29 @@ class ClosedLoops:
         y = ca.vertcat(*[sum((w * sensed(s) for s, w in law.sensors), 0.0) for law in laws]) if laws else ca.SX(0, 1)
         rates = ca.jtimes(y, ca.vertcat(q, v), ca.vertcat(self.position_rates(q, v), a)) if laws else ca.SX(0, 1)
         self.time_dependent_sensors = bool(laws) and bool(ca.depends_on(y, time))
+        self._timed: tuple[Any, Any] | None = None
         if self.time_dependent_sensors:         # sensors moving with driven joints: y(q, v, t), y' + dy/dt
-            self.sensors_at = ca.Function("loop_sensors", [q, v, time], [y])
-            self.sensor_rates_at = ca.Function("loop_sensor_rates", [q, v, a, time],
-                                               [rates + ca.jacobian(y, time)])
+            self._timed = (ca.Function("loop_sensors", [q, v, time], [y]),
+                           ca.Function("loop_sensor_rates", [q, v, a, time], [rates + ca.jacobian(y, time)]))
             self.sensors = self.sensor_rates = _state_only_refusal
         else:
             self.sensors = ca.Function("loop_sensors", [q, v], [y])
             self.sensor_rates = ca.Function("loop_sensor_rates", [q, v, a], [rates])
-            self.sensors_at = lambda q_, v_, t_: self.sensors(q_, v_)                   # noqa: E731
-            self.sensor_rates_at = lambda q_, v_, a_, t_: self.sensor_rates(q_, v_, a_)  # noqa: E731
         weights = np.zeros((len(self.actuators), len(laws)))
         channelled = {k for k, _ in self.channels if isinstance(k, int)}
         for k, law in enumerate(laws):
             for actuator, w in ([] if k in channelled else law.actuators):
                 weights[self.actuators.index(actuator), k] += float(w)
         self.weights = weights
+
+    def sensors_at(self, q: Any, v: Any, t: Any) -> Any:
+        """The loops' signals at the state ``(q, v)`` and time ``t`` [s] (:attr:`sensors` when they do not move with
+        time)."""
+        return self._timed[0](q, v, t) if self._timed is not None else self.sensors(q, v)
+
+    def sensor_rates_at(self, q: Any, v: Any, a: Any, t: Any) -> Any:
+        """The loops' signal rates at ``(q, v)``, accelerations ``a`` and time ``t`` [s] (with ``dy/dt``)."""
+        return self._timed[1](q, v, a, t) if self._timed is not None else self.sensor_rates(q, v, a)
 
     @staticmethod
     def _channel(ports: PlanarPorts, loop: Any) -> ActuatorInputs:

@@ -202,3 +202,23 @@ def test_loops_on_the_driven_slider_crank_generated_equal_the_numpy_driver(drive
     assert np.ptp(plain["h5.angle"]) > 0.1 and np.ptp(plain["late.y"]) > 0.1 and np.ptp(plain["tip.u"]) > 1e-3
     for name in plain.signals():
         assert np.max(np.abs(generated[name] - plain[name])) <= 1e-12 * max(1.0, np.max(np.abs(plain[name]))), name
+
+
+def test_a_co_simulated_controller_on_the_driven_slider_crank_equals_the_numpy_driver():
+    """A static-gain controller sampled every 2 ms on the pendulum (zero-order hold) beside a loop on the crank's tip
+    (it moves with the drive): one call into C per sample interval, every stored signal = the numpy driver's (the old
+    kernel refused the driven tree)."""
+    from ctmm.control.planar_time import simulate_closed_loop
+    from ctmm.control.static_gain import StaticGainController
+
+    loop = slider_crank(bob_actuated=True)
+    q, v = start(loop)
+    tip = [Feedback("tip", sensor="crank.tip.y", actuator="h5.torque", gain=0.2)]
+    controller = StaticGainController(["h5.angle", "h5.angle_rate"], ["h5.torque"], [[-0.5, -0.02]], sample_time=2e-3)
+    generated = ctmm.simulate(with_feedback(loop, tip), 0.06, 1e-3, x0=q, v0=v, compiled=True,
+                              controllers=[controller])
+    plain = simulate_closed_loop(loop, q, v, 0.06, 1e-3, loops=tuple(tip), controllers=[controller])
+    assert generated.info["intervals"] == 30
+    assert np.ptp(plain["h5.torque@samples"][:, 1]) > 1e-3
+    for name in plain.signals():
+        assert np.max(np.abs(generated[name] - plain[name])) <= 1e-12 * max(1.0, np.max(np.abs(plain[name]))), name
