@@ -22,6 +22,7 @@ from .compiled_chain_scheme_nodes import node_guard, node_result
 from .compiled_chain_schemes import CompiledChainScheme
 from .control.loop_rows import loop_unit
 from .errors import ModelError, SimulationError
+from .guard import unstable_loops_hint
 from .results import SimulationResult
 from .schemes import as_scheme
 from .signal_results import SignalSystem, signal_result
@@ -98,7 +99,8 @@ def simulate_chain_scheme_generated(system: Any, t_final: float, dt: float, sche
         node_check = node_guard(compiled.dynamics, compiled.nodes, states, divergence_bound)
         guard = lambda t, k: node_check(t, k)                                               # noqa: E731
     else:
-        plant_check = compiled.plant.guard(states[0, :m], divergence_bound)
+        hint = unstable_loops_hint([lp.loop.name for lp in compiled.loops]) if compiled.loops else ""
+        plant_check = compiled.plant.guard(states[0, :m], divergence_bound, hint=hint)    # the numpy path's message
         guard = lambda t, k: plant_check(t, states[k, :2 * m], dt, label)                   # noqa: E731
     for k in range(len(times)):
         try:

@@ -52,7 +52,7 @@ from . import validation
 from .errors import ModelError, SimulationError
 
 __all__ = ["StabilityLimitWarning", "DivergenceGuard", "newmark_limit", "wilson_limit", "wilson_amplification", "RK4_LIMIT",
-           "check_step", "call_user", "user_output", "UserFunction", "DEFAULT_GROWTH"]
+           "check_step", "call_user", "user_output", "UserFunction", "DEFAULT_GROWTH", "unstable_loops_hint"]
 
 #: Largest ``omega h`` of classical RK4 on an undamped mode (imaginary-axis stability boundary).
 RK4_LIMIT = 2.0 * math.sqrt(2.0)
@@ -179,6 +179,13 @@ def check_step(what: str, omega_max: float, dt: float, limit: float, *, policy: 
     if policy == "warn":
         warnings.warn(message, StabilityLimitWarning, stacklevel=3)
     return message
+
+
+def unstable_loops_hint(loop_names: Sequence[str]) -> str:
+    """The hint a diverging run with feedback loops appends to its message (the numpy and the generated DT-TMM paths
+    of chains say the same)."""
+    return (f"the closed loop(s) {list(loop_names)} may be unstable: check ctmm.stability.unstable_root_count(system) "
+            "and ctmm.stability.delay_margin(system)")
 
 
 @dataclass(frozen=True)

@@ -256,16 +256,18 @@ class ChainPlant:
                 signals[name], units[name] = f[:, signal.point], "N"
         return signals, units
 
-    def guard(self, q0: np.ndarray, bound: float | None, v0: np.ndarray | None = None
+    def guard(self, q0: np.ndarray, bound: float | None, v0: np.ndarray | None = None, hint: str = ""
               ) -> Callable[[float, np.ndarray, float | None, str], None]:
         """The chain's divergence guard on the points that are states or held, and finiteness (``v0`` is
-        accepted for the :class:`~ctmm.control.plants.Plant` protocol; a chain's bound is on positions)."""
+        accepted for the :class:`~ctmm.control.plants.Plant` protocol; a chain's bound is on positions; ``hint``
+        appended to the message, :class:`~ctmm.guard.DivergenceGuard`)."""
         dynamics, chain, size = self.dynamics, self.chain, self.n_positions + self.n_velocities
         y0 = np.concatenate([q0, np.zeros(self.n_velocities)])
         start = dynamics.point_positions(0.0, y0)
         watched = ~np.isnan(start)
         guard = DivergenceGuard.from_start([name for name, w in zip(point_labels(chain), watched) if w],
-                                           rest_positions(chain)[watched], start[watched], bound=bound)
+                                           rest_positions(chain)[watched], start[watched], bound=bound,
+                                           hint=hint)
 
         def check(t: float, y: np.ndarray, step: float | None, method: str) -> None:
             state = y[:size]

@@ -37,6 +37,7 @@ from ..controller_state_space import controller_state_space
 from ..elements.base import Linearisation
 from ..elements.lumped import PointElement
 from ..errors import ModelError, SimulationError, unknown_name
+from ..guard import unstable_loops_hint
 from ..results import SimulationResult
 from ..saturation import refuse_saturation
 from ..schemes import History, as_scheme
@@ -346,8 +347,7 @@ def simulate_controlled(system: ControlledChain | Chain, t_final: float, dt: flo
 
     hints = []
     if loops:
-        hints.append(f"the closed loop(s) {[r.loop.name for r in loops]} may be unstable: check "
-                     "ctmm.stability.unstable_root_count(system) and ctmm.stability.delay_margin(system)")
+        hints.append(unstable_loops_hint([r.loop.name for r in loops]))
     if len(cosim.master):
         written = [o for c in cosim.master.controllers for o in c.outputs]
         hints.append(f"or a co-simulated controller (outputs {written}) destabilises the plant")
