@@ -26,13 +26,15 @@ from ctmm.scenarios.four_bar import flexible_mechanism, flexible_start
 from test_fem_cut_joints import fe_four_bar, reference as fe_reference, start as fe_start
 
 
-def _agree(generated, numpy_run, rate_bound: float) -> None:
-    """Generated = numpy: coordinates to 1e-12 [m, rad], rates and cut forces to ``rate_bound`` relative."""
+def _agree(generated, numpy_run, rate_bound: float, cut_bound: float | None = None) -> None:
+    """Generated = numpy: coordinates to 1e-12 [m, rad], rates to ``rate_bound`` relative, cut forces to
+    ``cut_bound`` relative (default ``rate_bound``)."""
+    cut_bound = rate_bound if cut_bound is None else cut_bound
     np.testing.assert_array_equal(generated.t, numpy_run.t)
     assert generated.method == "rk4-generated"
     assert np.max(np.abs(generated.q - numpy_run.q)) <= 1e-12
     assert np.max(np.abs(generated.qdot - numpy_run.qdot)) <= rate_bound * np.max(np.abs(numpy_run.qdot))
-    assert np.max(np.abs(generated.cut_force - numpy_run.cut_force)) <= rate_bound * np.max(
+    assert np.max(np.abs(generated.cut_force - numpy_run.cut_force)) <= cut_bound * np.max(
         np.abs(numpy_run.cut_force))
     assert np.max(generated.drift) < 1e-12
 
@@ -43,7 +45,10 @@ def test_modal_beam_end_equals_the_numpy_rk4(second_order_inertia):
     q0, v0 = flexible_start(loop)
     generated = simulate_kinematic_loops_generated(loop, q0, v0, t_final=0.05, dt=1e-3)
     numpy_run = simulate_kinematic_loops(loop, q0, v0, t_final=0.05, dt=1e-3)
-    _agree(generated, numpy_run, 1e-12)
+    # the cut force is the small balance of the coupler's inertial and elastic forces: its round-off is 1.08e-12 of
+    # its peak with numpy 2.4.6 (the same on the code before session 11; below 1e-12 on an earlier install), so the
+    # bound is 2e-12 relative (coordinates and rates stay at 1e-12); next: derive it from the compliance condition
+    _agree(generated, numpy_run, 1e-12, cut_bound=2e-12)
     assert np.ptp(generated.coordinate("coupler.q1")) > 1e-4                  # it bends
 
 
