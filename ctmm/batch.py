@@ -33,15 +33,16 @@ from __future__ import annotations
 import copy
 import math
 import os
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from . import validation
 from .batch_loops import LoopRun, SharedSensors, run_members
+from .batch_result import BatchResult
 from .compiled_loops import ClosedLoops
 from .compiled_parameters import parameter_vector, structure_key
 from .compiled_spatial_parameters import spatial_parameter_vector
@@ -123,6 +124,7 @@ class ParameterKernel:
         self.compile_time_s = 0.0
         self._scene: Any = None
         self._sensors: SharedSensors | None = None
+        self._lock = threading.RLock()
 
     def _check_outputs(self) -> None:
         if isinstance(self.plant, SpatialModel):
@@ -141,7 +143,10 @@ class ParameterKernel:
 
     def __getstate__(self) -> dict:
         """Picklable (process pools): the compiled scene is loaded again from the disk cache."""
-        return {**self.__dict__, "_scene": None, "_sensors": None}
+        return {**self.__dict__, "_scene": None, "_sensors": None, "_lock": None}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state, _lock=threading.RLock())
 
     def scene(self) -> Any:
         """The shared compiled scene (numbers as inputs), built (or loaded from the cache) on first use."""
@@ -198,9 +203,20 @@ class ParameterKernel:
             Bad names or values, a system the generated path refuses.
         SimulationError
             A diverging or non-finite run, with ``partial_result``.
+
+        Notes
+        -----
+        Threads may run sets on one kernel at once (``simulate_batch(..., executor="threads")``): each set's
+        expressions are built and its result stored under the kernel's lock, its compiled run outside it.
         """
-        return self._finish(values, self.member(values), x0=x0, v0=v0, divergence_bound=divergence_bound,
-                           stability_check=stability_check)
+        start = {"x0": x0, "v0": v0, "divergence_bound": divergence_bound, "stability_check": stability_check}
+        if self.controllers:                # Python controllers between the sample intervals: one set at a time
+            with self._lock:
+                return self._finish(values, self.member(values), **start)
+        ((result, error),) = self._run_together([values], start)
+        if error is not None:
+            raise error
+        return result
 
     def _finish(self, values: Mapping[str, Any], member: Any, *, x0: Any = None, v0: Any = None,
                 divergence_bound: float | None = None, stability_check: str | None = None,
@@ -239,55 +255,77 @@ class ParameterKernel:
             A kernel with co-simulated ``controllers`` (called between sample intervals of each set): run its
             sets by :meth:`run`.
         """
-        from .compiled_scene import simulate_batch as scene_batch
-
         if self.controllers:
             raise ModelError(f"run_mapped runs planar and spatial kernels with or without loops; this {self.kind!r} "
                              f"kernel has co-simulated controllers ({len(self.controllers)}), called between sample "
                              "intervals of each set (run its sets one by one, ParameterKernel.run)")
-        members: list = []
-        for values in sets:
-            try:
-                members.append((self.member(values), None))
-            except Exception as exc:  # noqa: BLE001 - a failed set is reported with its index, the others kept
-                members.append((None, exc))
-        built = [k for k, (member, _) in enumerate(members) if member is not None]
-        runs: list = [(None, error) for _, error in members]
+        return self._run_together(sets, start)
+
+    def _run_together(self, sets: Sequence[Mapping[str, Any]], start: Mapping[str, Any]) -> list[tuple]:
+        """:meth:`run_mapped` without its refusal (:meth:`run` of one set: a batch of one).
+
+        Threads may call it on one kernel: the sets' expressions are built, and their results stored, under the
+        kernel's lock (casadi releases the GIL while it builds expressions, and the kernel's shared sensors cache
+        their kinematics per symbol: two sets built at once could read each other's symbols); only the compiled
+        runs go side by side."""
+        with self._lock:                    # each set's expressions built one thread at a time
+            runs, built, members, prepared, execute = self._prepare(sets, start)
         if not built:
             return runs
+        states, wall = execute()            # C calls only: threads run them side by side
+        with self._lock:
+            for index, k in enumerate(built):
+                try:
+                    runs[k] = self._finish(sets[k], members[k], **start, ran=(states[index], wall),
+                                           prepared=prepared.get(k)), None
+                except Exception as exc:  # noqa: BLE001 - a failed set is reported with its index, the others kept
+                    runs[k] = None, exc
+        return runs
+
+    def _prepare(self, sets: Sequence[Mapping[str, Any]], start: Mapping[str, Any]) -> tuple:
+        """``runs`` (``(None, exception)`` of the sets that failed to build), the indices ``built`` of the others,
+        their systems ``members`` by index, their :class:`~ctmm.batch_loops.LoopRun` ``prepared`` by index (kernels
+        with loops) and ``execute()``: their stored states ``(B, rows, state size)`` and wall time per set [s] of
+        the compiled run of all of them (:meth:`run_mapped`)."""
+        from .compiled_scene import simulate_batch as scene_batch
+
+        runs: list = []
+        members: dict[int, Any] = {}
+        for k, values in enumerate(sets):
+            try:
+                members[k] = self.member(values)
+                runs.append((None, None))
+            except Exception as exc:  # noqa: BLE001 - as in run_mapped
+                runs.append((None, exc))
+        built = list(members)
         n_steps = step_total(self.t_final, self.dt)
         prepared: dict[int, LoopRun] = {}
         if self.kind.endswith(" loops"):    # each set's loop laws, controller states and ring per member
             x0, v0 = self.start(start.get("x0"), start.get("v0"))
             for k in built:
                 try:
-                    plant, loops = plant_and_loops(members[k][0])
+                    plant, loops = plant_and_loops(members[k])
                     prepared[k] = self.loop_run(plant, loops, self.space.references_with(sets[k]), x0, v0)
-                except Exception as exc:  # noqa: BLE001 - as above
+                except Exception as exc:  # noqa: BLE001 - as in run_mapped
                     runs[k] = None, exc
             built = list(prepared)
-            if not built:
-                return runs
-            states, wall = run_members(self.scene(), [prepared[k] for k in built], self.step, n_steps)
-        elif self.kind == "spatial":        # as simulate_spatial_generated: steps of dt from the checked state
-            numbers = np.array([spatial_parameter_vector(members[k][0]) for k in built])
+            scene, runs_of = self.scene(), [prepared[k] for k in built]
+            return runs, built, members, prepared, lambda: run_members(scene, runs_of, self.step, n_steps)
+        if self.kind == "spatial":          # as simulate_spatial_generated: steps of dt from the checked state
+            numbers = np.array([spatial_parameter_vector(members[k]) for k in built])
             x = initial_state(self.plant, start.get("x0"), start.get("v0"))
-            clock = time.perf_counter()
-            states = self.scene().run(x, self.dt, n_steps, self.inputs or None, parameters=numbers)
+            run = lambda: self.scene().run(x, self.dt, n_steps, self.inputs or None, parameters=numbers)  # noqa: E731
         else:
             q0, qdot0 = self.start(start.get("x0"), start.get("v0"))
-            numbers = np.array([parameter_vector(members[k][0]) for k in built])
+            numbers = np.array([parameter_vector(members[k]) for k in built])
+            run = lambda: scene_batch(self.scene(), numbers, q0, qdot0, dt=self.t_final / n_steps,  # noqa: E731
+                                      n_steps=n_steps)
+
+        def execute() -> tuple[np.ndarray, float]:
             clock = time.perf_counter()
-            states = scene_batch(self.scene(), numbers, q0, qdot0, dt=self.t_final / n_steps, n_steps=n_steps)
-        if not prepared:
-            wall = (time.perf_counter() - clock) / len(built)
-        for index, k in enumerate(built):
-            try:
-                runs[k] = self._finish(sets[k], members[k][0], **start, ran=(states[index], wall),
-                                       prepared=prepared.get(k)), None
-            except Exception as exc:  # noqa: BLE001 - as above
-                runs[k] = None, exc
-        return runs
+            states = run()
+            return states, (time.perf_counter() - clock) / len(built)
+        return runs, built, members, prepared, execute
 
     def loop_run(self, plant: Any, loops: tuple, references: dict, x0: Any, v0: Any) -> LoopRun:
         """A set's run with loops prepared on the shared kernel (:class:`~ctmm.batch_loops.LoopRun`): the
@@ -345,11 +383,11 @@ class ParameterKernel:
                                                    info={"dt": self.dt, "failed": True})
                 raise
             return to_result(simulation, outputs=self.outputs, info={"dt": self.dt})
-        run = prepared or self.loop_run(plant, loops, references, q0, qdot0)
-        return simulate_controlled_generated(run.controlled, run.q0, run.v0, t_final=self.t_final, dt=self.dt,
-                                             inputs=self.inputs, references=references, outputs=self.outputs,
-                                             store_every=self.store_every, divergence_bound=bound,
-                                             stability_check=policy, scene=run.scene, ran=ran)
+        return simulate_controlled_generated(prepared.controlled, prepared.q0, prepared.v0, t_final=self.t_final,
+                                             dt=self.dt, inputs=self.inputs, references=references,
+                                             outputs=self.outputs, store_every=self.store_every,
+                                             divergence_bound=bound, stability_check=policy, scene=prepared.scene,
+                                             ran=ran)
 
     def _member_scene(self, plant: PlanarModel) -> Any:
         """The shared planar scene with the numbers of ``plant``, a member certified by :meth:`member` (its
@@ -373,11 +411,10 @@ class ParameterKernel:
             return simulate_spatial_generated(plant, self.t_final, self.dt, x0=x0, v0=v0, inputs=self.inputs or None,
                                               store_every=self.store_every, divergence_bound=bound, scene=scene,
                                               ran=ran)
-        run = prepared or self.loop_run(plant, loops, references, x0, v0)
         return simulate_spatial_controlled_generated(
-            run.controlled, run.q0, run.v0, t_final=self.t_final, dt=self.dt, inputs=self.inputs,
+            prepared.controlled, prepared.q0, prepared.v0, t_final=self.t_final, dt=self.dt, inputs=self.inputs,
             references=references, outputs=self.outputs, store_every=self.store_every, divergence_bound=bound,
-            scene=run.scene, ran=ran)
+            scene=prepared.scene, ran=ran)
 
     def _run_cosimulated(self, plant: Any, loops: tuple, references: dict, x0: Any, v0: Any, bound: Any,
                          policy: str) -> SimulationResult:
@@ -457,47 +494,6 @@ def simulate_with_parameters(system: Any, parameters: Mapping[str, Any], options
                              coupling=options.get("coupling", "hold"))
     return kernel.run(parameters, x0=options.get("x0"), v0=options.get("v0"),
                       divergence_bound=options.get("divergence_bound"), stability_check=options.get("stability_check"))
-
-
-@dataclass
-class BatchResult:
-    """The runs of :func:`simulate_batch`.
-
-    Attributes
-    ----------
-    parameter_sets : list of dict
-        ``{name: number}`` of each set, in order.
-    results : list of SimulationResult or None
-        One per set (``None`` where it failed).
-    failures : dict of int to Exception
-        The exception of each failed set by index (a :class:`~ctmm.errors.SimulationError` carries
-        its ``partial_result``).
-    compile_time_s : float
-        Building or loading the shared kernel, once [s].
-    wall_time_s : float
-        All runs [s].
-    """
-
-    parameter_sets: list
-    results: list
-    failures: dict = field(default_factory=dict)
-    compile_time_s: float = 0.0
-    wall_time_s: float = 0.0
-
-    @property
-    def time(self) -> np.ndarray:
-        """Times of the stored rows [s] (of the first set that ran; every set has the same grid)."""
-        done = [result for result in self.results if result is not None]
-        return done[0].time if done else np.zeros(0)
-
-    def stacked(self, name: str) -> np.ndarray:
-        """Signal ``name`` of every set, ``(sets, rows)``; rows of failed sets NaN."""
-        rows = len(self.time)
-        out = np.full((len(self.results), rows), np.nan)
-        for k, result in enumerate(self.results):
-            if result is not None:
-                out[k] = result[name]
-        return out
 
 
 def _run_set(item: tuple) -> tuple:

@@ -7,6 +7,9 @@ integration) to round-off; a diverging set fails alone, with the same error and 
 Co-simulated controllers are refused by the mapped run (they run set by set)."""
 from __future__ import annotations
 
+import threading
+import time
+
 import numpy as np
 import pytest
 
@@ -131,6 +134,36 @@ def test_a_diverging_spatial_set_with_loops_fails_alone_as_in_the_per_set_path(c
                                 **SPATIAL_OPTIONS)
     assert_fails_alone(mapped, alone, [1, 3], SPATIAL_NAMES, ["j1.angle", "hold.u", "push.y"])
     assert len(mapped.failures[1].partial_result.time) > 5                 # some rows before the bound
+
+
+def test_sets_on_threads_build_their_expressions_one_at_a_time(cache, monkeypatch):
+    """casadi releases the GIL while it builds expressions, and the kernel's shared sensors cache their kinematics
+    per symbol: sets run on threads used to build their loop laws side by side and, now and then, one set's sensor
+    function held another set's symbols (it failed, "variables [v_0] are free"; 2 of 80 batches of 12 sets).  Each
+    set's expressions are now built under the kernel's lock: never two at once (a set lingering in its build makes an
+    overlap certain on the old code), and every set still equals its mapped run to the bit."""
+    monkeypatch.setenv("CTMM_CACHE", str(cache))
+    building, most = [0], [0]
+    count = threading.Lock()
+    loop_run = batch_module.ParameterKernel.loop_run
+
+    def lingering_loop_run(self, *args, **kwargs):
+        with count:
+            building[0] += 1
+            most[0] = max(most[0], building[0])
+        try:
+            time.sleep(0.02)                        # a slow build: other threads would enter meanwhile
+            return loop_run(self, *args, **kwargs)
+        finally:
+            with count:
+                building[0] -= 1
+
+    monkeypatch.setattr(batch_module.ParameterKernel, "loop_run", lingering_loop_run)
+    sets = PLANAR_SETS * 3
+    alone = ctmm.simulate_batch(planar_system(), sets, T_FINAL, DT, executor="threads", **PLANAR_OPTIONS)
+    assert most[0] == 1
+    mapped = ctmm.simulate_batch(planar_system(), sets, T_FINAL, DT, **PLANAR_OPTIONS)
+    assert_same_bits(mapped, alone, len(sets), PLANAR_NAMES)
 
 
 def test_a_set_with_a_bad_number_fails_alone_and_controllers_refuse_the_mapped_run(cache, monkeypatch):
