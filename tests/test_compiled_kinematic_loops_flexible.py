@@ -140,9 +140,11 @@ def fe_loop():
 def test_fem_node_equals_the_numpy_rk4(fe_loop):
     """The coupler's axial mode (accelerations ~1e4 m/s^2 against rates of 3 m/s) scales the round-off of the two
     orders of operation: rates and forces agree to 1e-10 relative (measured 3e-11), coordinates to 1e-12 (5e-13).  The
-    forces keep a constant bound: at the numpy run's own states the generated force differs from the numpy one by up
-    to 1.3e3 times the numpy force's change under a 1-ulp change of the state (3e-10 N), so cut_force_allowance
-    does not hold for a finite-element coupler (cause open; 2 to 9 times it for the modal beams)."""
+    forces keep a constant bound: at the numpy run's own states the generated force is offset from the numpy one by
+    up to 3.2e-10 N (the accelerations without cut forces 1.6e-11 of their size apart, the compliance G 2e-12), the
+    same offset after a 1-ulp change of any coordinate or rate, 1.3e3 times the force's change under it and 270 times
+    its change under a 1-ulp change of EI, EA, rho A or the length: not the round-off that cut_force_allowance
+    measures (2 to 9 times it for the modal beams); cause open."""
     loop, kernel = fe_loop
     q0, v0 = fe_start(loop, 1e-3)
     generated = simulate_kinematic_loops_generated(loop, q0, v0, t_final=0.01, dt=5e-4, compiled=kernel)
