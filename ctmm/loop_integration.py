@@ -39,9 +39,9 @@ from .errors import ModelError, SimulationError
 from .ode import rk4_step
 
 __all__ = ["CONDITION_LIMIT", "CONSISTENCY_TOLERANCE", "PROJECTION_SKIP", "PROJECTION_TOLERANCE", "SOLVE_IVP_METHODS",
-           "ProjectionHook", "StepProjection", "check_consistent", "compliance_condition", "deformation_failure",
-           "furthest_cut",
-           "integrate_loop_model", "projected_residual", "projection_failure", "singular_compliance"]
+           "LoopHistory", "ProjectionHook", "StepProjection", "check_consistent", "compliance_condition",
+           "deformation_failure", "furthest_cut", "integrate_loop_model", "integrate_loop_run", "projected_residual",
+           "projection_failure", "singular_compliance"]
 
 CONSISTENCY_TOLERANCE = 1e-8
 """Largest ``max |Phi|`` [m, rad] and ``max |Phi'|`` [m/s, rad/s] of an initial state on the cut joints."""
@@ -59,6 +59,11 @@ ProjectionHook = Callable[[float, np.ndarray, np.ndarray], tuple[np.ndarray, np.
 
 SOLVE_IVP_METHODS = ("RK45", "RK23", "DOP853", "Radau", "BDF", "LSODA")
 """``solve_ivp`` methods of the loop integrators."""
+
+LoopHistory = Callable[[np.ndarray, np.ndarray, np.ndarray, float], Any]
+"""``history(t, q, v, wall_time_s) -> run``: a loop model's run from stored times [s], coordinates and velocities
+(rows) and the wall time [s] (0 for a failure's partial rows), with its cut loads and drift
+(:func:`integrate_loop_run`)."""
 
 
 def check_consistent(model: Any, q: np.ndarray, v: np.ndarray, names: str = "q0, v0") -> None:
@@ -298,6 +303,28 @@ def integrate_loop_model(rate: Callable[[float, np.ndarray], np.ndarray], y0: np
     if not sol.success:
         raise SimulationError(f"{label}: solve_ivp failed: {sol.message}", time=float(sol.t[-1]), element=element)
     return sol.t, sol.y.T, _time.perf_counter() - start
+
+
+def integrate_loop_run(history: LoopHistory, rate: Callable[[float, np.ndarray], np.ndarray], y0: np.ndarray,
+                       n_positions: int, **integration: Any) -> Any:
+    """:func:`integrate_loop_model` (``integration``: its keyword arguments) with its stored rows made the model's run
+    by ``history`` (:data:`LoopHistory`), and so the partial rows of a failure: its :class:`SimulationError`
+    (message, time and element unchanged) carries ``history`` of the rows before it (wall time 0) as its partial
+    result.
+
+    Returns
+    -------
+    run
+        ``history(t, q, v, wall_time_s)`` of the stored rows.
+    """
+    try:
+        t, y, wall = integrate_loop_model(rate, y0, n_positions, **integration)
+    except SimulationError as exc:      # the stored rows before the failure, with the cut loads and the drift
+        if isinstance(exc.partial_result, dict):
+            rows = exc.partial_result
+            exc.partial_result = history(rows["t"], rows["q"], rows[integration["velocity_label"]], 0.0)
+        raise
+    return history(t, y[:, :n_positions], y[:, n_positions:], wall)
 
 
 def _checked(check: Callable[[float, np.ndarray], None], t: float, y: np.ndarray, partial: Callable[[], dict]

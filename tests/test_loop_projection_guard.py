@@ -151,3 +151,37 @@ def test_the_spatial_generated_rk4_carries_cut_joint_laws_and_actuations():
         assert np.max(np.abs(generated["free.qy"] - numpy_run.q[:, index])) <= 1e-12
         free = simulate_spatial_loops(pendulum, q, v, t_final=0.02, dt=1e-3)
         assert np.max(np.abs(numpy_run.q - free.q)) > 1e-6
+
+
+def test_one_loop_run_hook_turns_stored_and_failed_rows_into_the_models_run():
+    """:func:`ctmm.loop_integration.integrate_loop_run` (the planar and spatial numpy loop runs through one hook): the
+    stored rows go to ``history`` with the wall time, a failure's rows before it with wall time 0, and the error keeps
+    its message, time and element."""
+    from ctmm.loop_integration import integrate_loop_run
+
+    calls = []
+
+    def history(t, q, v, wall):
+        calls.append((np.array(t), np.array(q), np.array(v), wall))
+        return len(calls)
+
+    def rate(t, y):             # q'' = -q until t = 0.0025 s, then a singular configuration
+        if t >= 0.0025:
+            raise SimulationError("singular at the rate", time=t, element="rate")
+        return np.array([y[1], -y[0]])
+
+    options = dict(t_final=0.01, dt=1e-3, method="rk4", finish=lambda y, t: y, rtol=1e-9, atol=1e-11, store_every=1,
+                   t_eval=None, max_step=None, label="kinematic loop 'x'", element="cut", velocity_label="qdot")
+    assert integrate_loop_run(history, lambda t, y: np.array([y[1], -y[0]]), np.array([1.0, 0.0]), 1,
+                              **options) == 1
+    t, q, v, wall = calls[0]
+    np.testing.assert_allclose(t, np.linspace(0.0, 0.01, 11), rtol=0.0, atol=1e-15)
+    assert q.shape == v.shape == (11, 1) and wall > 0.0
+    assert abs(q[-1, 0] - np.cos(0.01)) < 1e-12 and abs(v[-1, 0] + np.sin(0.01)) < 1e-12       # q = cos t
+    with pytest.raises(SimulationError, match="^singular at the rate$") as failure:
+        integrate_loop_run(history, rate, np.array([1.0, 0.0]), 1, **options)
+    assert failure.value.partial_result == 2 and failure.value.element == "cut"
+    assert failure.value.time == pytest.approx(0.002)          # the step that started at t = 2 ms
+    t, q, v, wall = calls[1]
+    np.testing.assert_allclose(t, [0.0, 1e-3, 2e-3], rtol=0.0, atol=1e-15)
+    assert q.shape == v.shape == (3, 1) and wall == 0.0

@@ -46,7 +46,7 @@ import numpy as np
 from .. import loop_manifold, validation
 from ..errors import ModelError, SimulationError
 from ..loop_integration import (CONDITION_LIMIT, PROJECTION_SKIP, check_consistent, compliance_condition,
-                                integrate_loop_model, singular_compliance)
+                                integrate_loop_run, singular_compliance)
 from .cut_joints import CutJoint
 from .cut_points import CutPoints
 from .model import PlanarModel
@@ -464,18 +464,11 @@ def simulate_kinematic_loops(model: KinematicLoopModel, q0, qdot0, *, t_final: f
     family, step = model.tree.deformable_family, dt if method == "rk4" else None
     check = None if family is None else (    # the tree runs' rule: a modal beam's deflection, a subsystem's size
         lambda t, y: family.check_divergence(model.tree, y[:n], float(t), step, method))
-    try:
-        t_out, y_out, wall = integrate_loop_model(
-            rate, np.concatenate([q, v]), n, t_final=t_final, dt=dt, method=method, finish=finish, rtol=rtol,
-            atol=atol, store_every=store_every, t_eval=t_eval, max_step=max_step,
-            label=f"kinematic loop {model.name!r}", element=model.cuts[0].name, velocity_label="qdot",
-            model=model if projection else None, check=check)
-    except SimulationError as exc:      # the stored rows before the failure, with the cut forces and the drift
-        if isinstance(exc.partial_result, dict):
-            rows = exc.partial_result
-            exc.partial_result = loop_history(model, rows["t"], rows["q"], rows["qdot"], method, 0.0, evaluations[0])
-        raise
-    return loop_history(model, t_out, y_out[:, :n], y_out[:, n:], method, wall, evaluations[0])
+    return integrate_loop_run(
+        lambda t, q_rows, qdot_rows, wall: loop_history(model, t, q_rows, qdot_rows, method, wall, evaluations[0]),
+        rate, np.concatenate([q, v]), n, t_final=t_final, dt=dt, method=method, finish=finish, rtol=rtol, atol=atol,
+        store_every=store_every, t_eval=t_eval, max_step=max_step, label=f"kinematic loop {model.name!r}",
+        element=model.cuts[0].name, velocity_label="qdot", model=model if projection else None, check=check)
 
 
 def loop_history(model: KinematicLoopModel, t: np.ndarray, q: np.ndarray, qdot: np.ndarray, method: str,

@@ -16,7 +16,7 @@ import numpy as np
 
 from .. import validation
 from ..errors import ModelError, SimulationError
-from ..loop_integration import StepProjection, check_consistent, integrate_loop_model
+from ..loop_integration import StepProjection, check_consistent, integrate_loop_run
 from ..results import SimulationResult
 from ..schemes import Scheme
 from .closed_loops import SpatialKinematicLoopModel
@@ -130,19 +130,11 @@ def simulate_spatial_loops(model: SpatialKinematicLoopModel, q0: Any, v0: Any, *
 
     grid = None if method == "rk4" or dt is None else \
         np.linspace(0.0, t_final, max(1, int(round(t_final / dt))) + 1)
-    try:
-        t_out, y_out, wall = integrate_loop_model(
-            rate, np.concatenate([q, v]), nq, t_final=t_final, dt=dt, method=method, finish=finish, rtol=rtol,
-            atol=atol, store_every=store_every, t_eval=grid, max_step=max_step,
-            label=f"spatial kinematic loop {model.name!r}", element=model.cuts[0].name, velocity_label="v",
-            model=model if projection else None, check=check)
-    except SimulationError as exc:      # the stored rows before the failure, with the cut loads and the drift
-        if isinstance(exc.partial_result, dict):
-            rows = exc.partial_result
-            exc.partial_result = _history(model, rows["t"], rows["q"], rows["v"], inputs, method, 0.0,
-                                          evaluations[0])
-        raise
-    return _history(model, t_out, y_out[:, :nq], y_out[:, nq:], inputs, method, wall, evaluations[0])
+    return integrate_loop_run(
+        lambda t, q_rows, v_rows, wall: _history(model, t, q_rows, v_rows, inputs, method, wall, evaluations[0]),
+        rate, np.concatenate([q, v]), nq, t_final=t_final, dt=dt, method=method, finish=finish, rtol=rtol, atol=atol,
+        store_every=store_every, t_eval=grid, max_step=max_step, label=f"spatial kinematic loop {model.name!r}",
+        element=model.cuts[0].name, velocity_label="v", model=model if projection else None, check=check)
 
 
 def _history(model: SpatialKinematicLoopModel, t_out: np.ndarray, q: np.ndarray, v: np.ndarray,
