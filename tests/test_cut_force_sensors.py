@@ -171,6 +171,34 @@ def _algebraic_dae(gain: float, reference_value: float):
     return dae
 
 
+def test_the_generated_cut_force_is_affine_in_the_actuators_as_the_dae_multiplier():
+    """What the algebraic solve rests on: ``F = F_0 + J w`` on symbols (the generated kernel's cut-force map) is
+    the DAE's multiplier at one moving state under crank and cut torques ``w`` of either sign and size (measured
+    7e-15 of the force)."""
+    import casadi as ca
+
+    from ctmm.compiled_kinematic_loop_control import CompiledKinematicLoopControl
+
+    loop = mechanism()
+    q0, v0 = start(loop)
+    q, v = np.asarray(q0, float), 3.0 * np.asarray(v0, float)         # on the cut joints, moving faster
+    controlled = with_feedback(loop, [Feedback("force", sensor="h3.force_y", actuator="h1.torque", gain=GAIN),
+                                      Feedback("hold", sensor="h3.angle", actuator="h3.torque", gain=1.0)])
+    kernel = CompiledKinematicLoopControl(controlled, 1e-3)
+    assert kernel.actuators == ("h1.torque", "h3.torque")
+    mapping = kernel.loops.dependent.map
+    F0, J = (np.asarray(a, float) for a in mapping(ca.DM(q), ca.DM(v), ca.DM(kernel.parameters), 0.0))
+    torques = [0.0, 0.0]
+    dae = reference()
+    dae.add_motor(None, "crank", lambda t, angle, rate: torques[0])
+    dae.add_motor("rocker", "coupler", lambda t, angle, rate: torques[1])
+    state = dae.assemble(dict(zip(BODIES, q)), dict(zip(BODIES, v)))
+    for w in ([0.0, 0.0], [0.7, 0.0], [0.0, -1.3], [25.0, 4.0]):
+        torques[:] = w
+        expected = dae.solve(*state)[1][7]
+        assert abs(float(F0[0, 0] + J[0] @ np.array(w)) - expected) < 1e-13 * max(1.0, abs(expected)), w
+
+
 def test_generated_delayed_cut_force_loops_equal_the_numpy_driver_and_read_the_dae_multiplier():
     """``compiled=True`` (refused before): the delayed force loop (tau = 5 dt) beside a real-time PD on the crank, an
     open-loop cut torque and a reference: every stored signal = the numpy driver to round-off (measured 8e-15 of
