@@ -11,7 +11,10 @@ Nothing of the loop engine is new:
   :meth:`KinematicLoopModel.solve` with ``inputs``);
 * the loops are :class:`ctmm.compiled_loops.ClosedLoops` on :class:`KinematicLoopSymbols` (the tree's sensors by
   :func:`ctmm.compiled_planar_sensors.sensor_expression`, the cut sensors ``"<cut>.angle"``, ``"<cut>.rate"`` and, for a cut
-  whose torque is constant, ``"<cut>.moment"``): real-time loops at every RK4 stage, LTI controller states integrated
+  whose torque is constant, ``"<cut>.moment"``; the cut forces ``"<cut>.force_x|y"`` under the kernel's actuator
+  values, :meth:`KinematicLoopSymbols.input_sensor_map`, closed by
+  :class:`~ctmm.compiled_input_sensors.InputDependentSensors`: a real-time loop on one solved as an algebraic loop, a
+  delayed one sampled with its exact rate): real-time loops at every RK4 stage, LTI controller states integrated
   with the plant, delayed loops (``tau = m dt``) from the ring of samples in the state, saturation, references and
   open-loop inputs with a symbolic form; its step is :meth:`ClosedLoops.step`.
 
@@ -46,11 +49,13 @@ controllers' outputs as held inputs ``u``, run one sample interval per call by
 stored cut forces with each row's held values (:meth:`CompiledKinematicLoopControl.applied_inputs`).
 
 Refused (:class:`~ctmm.errors.ModelError`, by name): models :func:`kinematic_loop_compile_refusal` refuses, methods
-other than ``"rk4"``, a ``"<cut>.moment"`` sensor of a cut with a time-varying torque, and what
+other than ``"rk4"``, a ``"<cut>.moment"`` sensor of a cut with a time-varying torque, loops on cut forces beside
+co-simulated controllers, what :class:`~ctmm.compiled_input_sensors.InputDependentSensors` refuses (a saturating
+real-time loop on a cut force, an algebraic loop singular at the start, a neutral delayed one) and what
 :class:`ClosedLoops` refuses (non-integer delays, references and inputs without a symbolic form).  A spherical cut
 with a law senses its law's moment ``"<cut>.moment_x|y|z"`` (world axes, a function of the state:
-:func:`ctmm.compiled_spherical_cut_law.symbolic_spherical_law_moment`); the cut loads ``"<cut>.force_x|y|z"`` are
-outputs, not sensors, on every path.
+:func:`ctmm.compiled_spherical_cut_law.symbolic_spherical_law_moment`); the spatial cut loads ``"<cut>.force_x|y|z"``
+are outputs, not loop sensors, of the generated kernel (refused by name; the numpy driver's delayed loops read them).
 """
 from __future__ import annotations
 
@@ -62,8 +67,8 @@ import numpy as np
 
 from . import validation
 from .compiled_control import add_loop_signals
-from .compiled_kinematic_loops import (kinematic_loop_compile_refusal, symbolic_closed_loop, symbolic_projection,
-                                       symbolic_relative_angles, symbolic_time_signal)
+from .compiled_kinematic_loops import (cut_rows, kinematic_loop_compile_refusal, symbolic_closed_loop,
+                                       symbolic_projection, symbolic_relative_angles, symbolic_time_signal)
 from .compiled_loops import ClosedLoops
 from .compiled_planar_sensors import SymbolicKinematics, sensor_expression
 from .compiled_parameters import parameter_vector
@@ -97,12 +102,34 @@ class KinematicLoopSymbols:
         The ports of the controlled model (the tree's and the cut joints').
     """
 
-    def __init__(self, model: KinematicLoopModel, ports: Any) -> None:
-        self.model, self.ports = model, ports
+    def __init__(self, model: KinematicLoopModel, ports: Any, closed: Any = None, parameters: Any = None) -> None:
+        self.model, self.ports, self.closed = model, ports, closed
+        self.parameters = parameter_vector(model.tree) if parameters is None else np.asarray(parameters, float)
         self.tree_ports = PlanarPorts(model.tree)
         self.n_positions = self.n_velocities = model.tree.n_coordinates
         self.cut_index = {cut.name: k for k, cut in enumerate(model.cuts)}
+        self.input_dependent = frozenset(f"{cut.name}.{part}" for cut in model.cuts for part in ("force_x", "force_y")
+                                         ) if closed is not None else frozenset()
         self._kinematics: tuple[Any, Any, SymbolicKinematics, list] | None = None
+
+    def input_sensor_map(self, names: Sequence[str], n_actuators: int) -> Any:
+        """``(q, v, p, t) -> (F_0, J)``: the cut forces ``names`` (``"<cut>.force_x|y"`` [N], on the child point,
+        global axes, as :meth:`KinematicLoopModel.solve`) ``F = F_0 + J w`` under the kernel's actuator values ``w``
+        (``n_actuators``, the ``closed`` accelerations' inputs), exactly: the cut unknowns are affine in ``w`` (the
+        applied loads are linear in ``w``, the tree's accelerations affine in the loads, the boundary compliance
+        ``G`` a function of ``q`` alone), so ``J`` is the Jacobian at ``w = 0``.
+        """
+        import casadi as ca
+
+        n = self.model.tree.n_coordinates
+        q, v, w = ca.SX.sym("q", n), ca.SX.sym("v", n), ca.SX.sym("w", n_actuators)
+        p, t = ca.SX.sym("p", self.parameters.size), ca.SX.sym("t")
+        forces, rows = self.closed(q, v, w, p, t)[2], cut_rows(self.model)
+        F = ca.vertcat(*[forces[rows[self.cut_index[name.rpartition(".")[0]]] + name.endswith("force_y")]
+                         for name in names])
+        zero = ca.DM.zeros(n_actuators)
+        return ca.Function("cut_forces", [q, v, p, t], [ca.substitute(F, w, zero),
+                                                          ca.substitute(ca.jacobian(F, w), w, zero)])
 
     def position_rates(self, q: Any, v: Any) -> Any:
         """``qdot = v``."""
@@ -121,9 +148,9 @@ class KinematicLoopSymbols:
             self._kinematics = (q, v, kinematics, symbolic_relative_angles(self.model, kinematics))
         kinematics, angles = self._kinematics[2], self._kinematics[3]
         cut_name, _, part = name.rpartition(".")
-        if cut_name in self.cut_index and part in ("force_x", "force_y"):
+        if cut_name in self.cut_index and part in ("force_x", "force_y"):     # (input_sensor_map, with closed)
             raise ModelError(f"sensor {name!r}: a cut force responds to the actuators at once, not a function of the "
-                             "state as the generated loop sensors are; use compiled=None (the numpy loop driver)")
+                             "state alone; read it with the kernel's actuator values (input_sensor_map)")
         if cut_name not in self.cut_index or part not in ("angle", "rate", "moment"):
             return sensor_expression(self.tree_ports, name, kinematics)
         k = self.cut_index[cut_name]
@@ -290,10 +317,14 @@ class CompiledKinematicLoopControl:
             self.parameters, self.nq = parameter_vector(model.tree), model.tree.n_coordinates
             self.nv = self.nq
             self.closed, constraint = symbolic_closed_loop(model, self.parameters.size, self.actuators)
-            symbols = KinematicLoopSymbols(model, controlled.ports)
+            symbols = KinematicLoopSymbols(model, controlled.ports, self.closed, self.parameters)
             project = symbolic_projection(constraint, self.nq, self.iterations)
         self.loops = ClosedLoops(controlled, self.actuators, dt=self.dt, references=references, inputs=self.inputs,
                                  symbols=symbols)
+        if held and self.loops.dependent is not None:
+            raise ModelError(f"loops on the cut forces {list(self.loops.dependent.names)} beside co-simulated "
+                             "controllers are not available (their held outputs make the forces jump at every sample); "
+                             "sense them in a controller")
         step = _step(self.loops, self.closed, project if self.projection else None, self.nq, self.nv,
                      len(self.actuators), self.parameters.size)
         loop = compiled_time_loop(step, self.store_every, rows, f"kinematic_loop_control_{'spatial_' * spatial}"
@@ -463,6 +494,8 @@ def simulate_controlled_kinematic_loops_generated(system: Any, q0: Any, v0: Any,
                                           store_every=store_every, rows=rows, cache_dir=cache_dir, projection=projection)
     plant.check_step(q, v, h, validation.option("stability_check", stability_check, ("warn", "error", "ignore")))
     loops, nq, nv, every = kernel.loops, kernel.nq, kernel.nv, kernel.store_every
+    if loops.dependent is not None:
+        loops.dependent.check_start(loops, q, v)
     start = loops.initial_state(q, v)
     started = _time.perf_counter()
     states = kernel.run_states(start, np.zeros(len(kernel.actuators)), n_steps)

@@ -10,8 +10,10 @@ numpy path of :mod:`ctmm.control.planar_time` does:
 * **sensors** (planar: :mod:`ctmm.compiled_planar_sensors`; spatial and chain plants give their own):
   coordinates and their rates, body angles and rates, hinge angles and rates, positions and velocities
   of named points, beam station deflections, slopes and their rates -- every port of
-  :mod:`ctmm.planar.ports` (all are functions of the state ``(q, qdot)``; no port reads an
-  acceleration, so no loop is algebraic);
+  :mod:`ctmm.planar.ports` (all are functions of the state ``(q, qdot)``); plants whose symbols name sensors that
+  respond to the actuators at once (``symbols.input_dependent``: the cut forces of planar kinematic loops) close
+  them by :class:`~ctmm.compiled_input_sensors.InputDependentSensors` (:meth:`ClosedLoops.close`: real-time loops on
+  them solved as an algebraic system, delayed ones sampled with their exact rate);
 * **real-time loops** (``tau = 0``): evaluated at the state of every RK4 stage (no added lag);
 * **saturation** ``(low, high)``: ``u`` clipped at every evaluation (the controller states integrate
   the unclipped error, as on the numpy path);
@@ -52,6 +54,7 @@ from .errors import ModelError
 from .ode import rk4_step
 from .planar.model import PlanarModel
 from .planar.ports import ActuatorInputs, PlanarPorts
+from .compiled_input_sensors import InputDependentSensors
 from .compiled_planar_sensors import PlanarSymbols
 from .compiled_parameters import LoopNumbers, loop_parameter_layout, parameter_vector, symbolic_loop_numbers
 from .compiled_references import SymbolicReference, reference_at, symbolic_reference
@@ -238,12 +241,17 @@ class ClosedLoops:
         q, v, a = ca.SX.sym("q", self.nq), ca.SX.sym("v", self.nv), ca.SX.sym("a", self.nv)
         time, timed = ca.SX.sym("t"), bool(getattr(symbols, "time_sensors", False))
         cache: dict[str, Any] = {}
+        dependent = frozenset(getattr(symbols, "input_dependent", ())) & {s for law in laws for s, _ in law.sensors}
 
         def sensed(name: str) -> Any:
+            if name in dependent:               # the input-dependent part: InputDependentSensors
+                return 0.0
             if name not in cache:
                 cache[name] = symbols.sensor(name, q, v, time) if timed else symbols.sensor(name, q, v)
             return cache[name]
 
+        self.dependent = InputDependentSensors(symbols, self.laws, sorted(dependent), self.actuators, self.channels) \
+            if dependent else None
         y = ca.vertcat(*[sum((w * sensed(s) for s, w in law.sensors), 0.0) for law in laws]) if laws else ca.SX(0, 1)
         rates = ca.jtimes(y, ca.vertcat(q, v), ca.vertcat(self.position_rates(q, v), a)) if laws else ca.SX(0, 1)
         self.time_dependent_sensors = bool(laws) and bool(ca.depends_on(y, time))
@@ -255,6 +263,9 @@ class ClosedLoops:
         else:
             self.sensors = ca.Function("loop_sensors", [q, v], [y])
             self.sensor_rates = ca.Function("loop_sensor_rates", [q, v, a], [rates])
+        self._state_sensors = (self.sensors, self.sensor_rates)
+        if self.dependent is not None:          # the state part alone is not the loop signal: other paths refuse
+            self.sensors = self.sensor_rates = self.dependent.refusal
         weights = np.zeros((len(self.actuators), len(laws)))
         channelled = {k for k, _ in self.channels if isinstance(k, int)}
         for k, law in enumerate(laws):
@@ -265,11 +276,11 @@ class ClosedLoops:
     def sensors_at(self, q: Any, v: Any, t: Any) -> Any:
         """The loops' signals at the state ``(q, v)`` and time ``t`` [s] (:attr:`sensors` when they do not move with
         time)."""
-        return self._timed[0](q, v, t) if self._timed is not None else self.sensors(q, v)
+        return self._timed[0](q, v, t) if self._timed is not None else self._state_sensors[0](q, v)
 
     def sensor_rates_at(self, q: Any, v: Any, a: Any, t: Any) -> Any:
         """The loops' signal rates at ``(q, v)``, accelerations ``a`` and time ``t`` [s] (with ``dy/dt``)."""
-        return self._timed[1](q, v, a, t) if self._timed is not None else self.sensor_rates(q, v, a)
+        return self._timed[1](q, v, a, t) if self._timed is not None else self._state_sensors[1](q, v, a)
 
     @staticmethod
     def _channel(ports: PlanarPorts, loop: Any) -> ActuatorInputs:
@@ -298,7 +309,8 @@ class ClosedLoops:
     def initial_state(self, q: np.ndarray, qdot: np.ndarray, t: float = 0.0) -> np.ndarray:
         """``[q, qdot, z = 0, ring]`` at the start time ``t`` [s]: every stored sample the initial loop signal
         with rate 0 (the history before the start is the initial state held)."""
-        y0 = np.asarray(self.sensors_at(q, qdot, t), dtype=float).reshape(-1)[self.delayed]
+        y0 = np.asarray(self.sensors_at(q, qdot, t), dtype=float).reshape(-1)[self.delayed] \
+            if self.dependent is None or not self.delayed else self.dependent.initial_samples(self, q, qdot, t)
         column = np.concatenate([y0, np.zeros(len(self.delayed))])
         ring = np.tile(column[:, None], (1, self.ring_columns)).reshape(-1, order="F")
         return np.concatenate([q, qdot, np.zeros(self.n_controller_states), ring])
@@ -324,33 +336,74 @@ class ClosedLoops:
         controller = ca.dot(numbers.C, z) if law.A.shape[0] else 0.0
         return -controller - numbers.D * e, e
 
+    def close(self, u: Any, p: Any, t: Any, x: Any, delayed: Sequence[Any]) -> tuple:
+        """The loops closed at time ``t`` and ``x = [q, qdot, z]`` with the held actuator values ``u`` and the delayed
+        loop signals ``delayed`` (one per delayed loop, in order), on symbols; ``p`` the whole parameter column, or
+        ``None`` for the laws' and the plant's own numbers.  Returns ``(y, outputs, demands, z rates, total)``: every
+        loop's signal now, its applied output (clipped) and unclipped demand, the controller states' rates, and the
+        actuator values ``total`` (``u``, the loops' outputs and the open-loop inputs; then one entry per
+        :attr:`channels` entry).  Real-time loops on sensors that respond to the actuators at once (cut forces,
+        :class:`~ctmm.compiled_input_sensors.InputDependentSensors`) are solved exactly with their actuators: the
+        sensors are affine in them."""
+        import casadi as ca
+
+        q, v, z = self._split(x)
+        now, numbers = self.sensors_at(q, v, t), self.numbers(p)
+        dependent = self.dependent
+        algebraic = dependent.algebraic if dependent is not None else ()
+        base = u
+        for index, signal in self.inputs:
+            unit = np.zeros(len(self.actuators))
+            unit[index] = 1.0
+            base = base + ca.DM(unit) * reference_at(signal, t)
+        offsets = np.cumsum([0] + [law.A.shape[0] for law in self.laws])
+        demands: list[Any] = [None] * len(self.laws)
+        errors: list[Any] = [None] * len(self.laws)
+        for k, (law, number) in enumerate(zip(self.laws, numbers)):
+            if k not in algebraic:
+                signal = delayed[self.delayed.index(k)] if law.steps else now[k]
+                demands[k], errors[k] = self.law_output(law, number, signal, z[offsets[k]:offsets[k + 1]], t)
+        outputs = [None if d is None else law.output(d) for law, d in zip(self.laws, demands)]
+        weights = ca.DM(self.weights)
+        known = base
+        for k, out in enumerate(outputs):
+            if out is not None:
+                known = known + weights[:, k] * out
+        y = now
+        if dependent is not None:
+            offset, gain = dependent.law_terms(q, v, self.plant_numbers(p), t)
+            if algebraic:
+                solved = dependent.solve_algebraic(
+                    [self.law_output(self.laws[k], numbers[k], now[k] + offset[k] + ca.mtimes(gain[k, :], known),
+                                     z[offsets[k]:offsets[k + 1]], t)[0] for k in algebraic],
+                    [numbers[k].D for k in algebraic], gain, weights)
+                for j, k in enumerate(algebraic):
+                    outputs[k] = demands[k] = solved[j]
+                    known = known + weights[:, k] * solved[j]
+            y = now + offset + ca.mtimes(gain, known)
+            for k in algebraic:
+                errors[k] = self.law_output(self.laws[k], numbers[k], y[k], z[offsets[k]:offsets[k + 1]], t)[1]
+        rates = [ca.mtimes(number.A, z[offsets[k]:offsets[k + 1]]) + number.B * errors[k]
+                 for k, (law, number) in enumerate(zip(self.laws, numbers)) if law.A.shape[0]]
+        total = ca.vertcat(known, *[outputs[k] if isinstance(k, int) else reference_at(k, t)
+                                    for k, _ in self.channels])
+        return y, outputs, demands, rates, total
+
+    def plant_numbers(self, p: Any) -> Any:
+        """The plant's part of the whole parameter column ``p`` (``None``: the plant's own numbers)."""
+        if p is None:
+            return None
+        return p[:self.plant_parameter_count] if self.parameter_layout else p
+
     def rate(self, acceleration: Any, u: Any, p: Any, t: Any, x: Any, delayed: Sequence[Any]) -> tuple:
         """``(dx/dt, qddot)`` at time ``t`` and ``x = [q, qdot, z]`` with the delayed loop signals
         ``delayed`` (one per delayed loop, in order); ``p`` the whole parameter column (the plant's
         numbers, then :attr:`parameter_layout`)."""
         import casadi as ca
 
-        q, v, z = self._split(x)
-        now = self.sensors_at(q, v, t)
-        outputs, rates, offset = [], [], 0
-        for k, (law, numbers) in enumerate(zip(self.laws, self.numbers(p))):
-            signal = delayed[self.delayed.index(k)] if law.steps else now[k]
-            size = law.A.shape[0]
-            zk = z[offset:offset + size]
-            offset += size
-            demand, e = self.law_output(law, numbers, signal, zk, t)
-            outputs.append(law.output(demand))
-            if size:
-                rates.append(ca.mtimes(numbers.A, zk) + numbers.B * e)
-        total = u
-        if self.laws:
-            total = total + ca.mtimes(ca.DM(self.weights), ca.vertcat(*outputs))
-        for index, signal in self.inputs:
-            unit = np.zeros(len(self.actuators))
-            unit[index] = 1.0
-            total = total + ca.DM(unit) * reference_at(signal, t)
-        total = ca.vertcat(total, *[outputs[k] if isinstance(k, int) else reference_at(k, t) for k, _ in self.channels])
-        qddot = acceleration(q, v, total, p[:self.plant_parameter_count] if self.parameter_layout else p, t)
+        q, v, _ = self._split(x)
+        _, _, _, rates, total = self.close(u, p, t, x, delayed)
+        qddot = acceleration(q, v, total, self.plant_numbers(p), t)
         return ca.vertcat(self.position_rates(q, v), qddot, *rates), qddot
 
     def step(self, acceleration: Any, n_inputs: int, n_parameters: int) -> Any:
@@ -402,8 +455,14 @@ class ClosedLoops:
         placeholder = ca.horzcat(shifted, ca.MX.zeros(2 * count, 1))       # sample n not read at t_n
         first, qddot = self.rate(acceleration, u, p, t, x, read(placeholder, "start"))
         q, v, _ = self._split(x)
-        sample = ca.vertcat(self.sensors_at(q, v, t)[self.delayed],
-                            self.sensor_rates_at(q, v, qddot, t)[self.delayed])
+        if self.dependent is None:
+            sample = ca.vertcat(self.sensors_at(q, v, t)[self.delayed],
+                                self.sensor_rates_at(q, v, qddot, t)[self.delayed])
+        else:       # under the actuator values now, the rate along the motion: the delayed signals read move too,
+            # but not those held before the start (the numpy driver's backward difference: 0 at t - tau = 0)
+            held = [ca.if_else(k > m, placeholder[count + d, last - m], 0.0) for d, m in enumerate(steps)]
+            sample = ca.vertcat(*self.dependent.sample_function(self, n_inputs, p.size1())(
+                x, first, ca.vertcat(*read(placeholder, "start")), ca.vertcat(*held), u, p, t))
         table = ca.horzcat(shifted, sample)
         calls = [0]
 
@@ -420,21 +479,16 @@ class ClosedLoops:
         """``(y, u, u_demand)`` columns (one entry per loop) at the stored state ``Y`` (:attr:`state_size`) and
         time ``t`` [s] on symbols: each loop's signal now, its output (clipped to its saturation) and its
         unclipped demand (a delayed loop's from its sample ``steps`` columns back in the ring); ``p`` the
-        whole parameter column, or ``None`` for the laws' own numbers."""
+        whole parameter column, or ``None`` for the laws' own numbers.  Signals that respond to the actuators (cut
+        forces) are read under the loops' and inputs' actuator values (no held values)."""
         import casadi as ca
 
-        q, v, z = self._split(Y[:self.base + self.n_controller_states])
-        now = self.sensors_at(q, v, t)
+        x = Y[:self.base + self.n_controller_states]
         ring = self._ring(Y) if self.delayed else None
-        demands, offset = [], 0
-        for k, (law, numbers) in enumerate(zip(self.laws, self.numbers(p))):
-            signal = ring[self.delayed.index(k), self.ring_columns - law.steps] if law.steps else now[k]
-            size = law.A.shape[0]
-            demands.append(self.law_output(law, numbers, signal, z[offset:offset + size], t)[0])
-            offset += size
+        delayed = [ring[d, self.ring_columns - self.laws[k].steps] for d, k in enumerate(self.delayed)]
+        now, outputs, demands, _, _ = self.close(ca.DM.zeros(len(self.actuators)), p, t, x, delayed)
         empty = ca.SX(0, 1)
-        outputs = ca.vertcat(*[law.output(d) for law, d in zip(self.laws, demands)]) if demands else empty
-        return now, outputs, ca.vertcat(*demands) if demands else empty
+        return (now, ca.vertcat(*outputs) if outputs else empty, ca.vertcat(*demands) if demands else empty)
 
     def signals(self) -> Callable[..., tuple]:
         """``(y, u)`` (rows, loops) of stored states ``Y`` (rows, :attr:`state_size`) at times ``t``

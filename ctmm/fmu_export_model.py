@@ -13,7 +13,8 @@ The step is the one of ``ctmm.simulate(..., compiled=True)``: the symbolic
 Variables (names as in ctmm):
 
 * inputs -- actuators of :mod:`ctmm.planar.ports` (``"<hinge>.torque"``, ``"<body>.force_x"``, modal
-  forces ``"<beam>.<coordinate>.force"``), held over a communication step, added to the model's own
+  forces ``"<beam>.<coordinate>.force"``; beam station forces and moments ``"<beam>.<station>.force|moment"``
+  when named in ``inputs``, :func:`station_inputs`), held over a communication step, added to the model's own
   laws and the loops' outputs;
 * outputs -- sensors of :mod:`ctmm.planar.ports` (coordinates ``"<coordinate>"`` and
   ``"<coordinate>_dot"``, angles, rates, point positions and velocities, beam stations) and, of a
@@ -56,8 +57,7 @@ from .planar.ports import PlanarPorts
 from .signals import SYMBOLIC_FIELDS
 
 __all__ = ["ExportedSystem", "ExportedVariable", "chosen_names", "loop_expressions", "loop_parameter_names",
-           "parameter_names",
-           "planar_export"]
+           "parameter_names", "planar_export", "station_inputs"]
 
 
 @dataclass(frozen=True)
@@ -209,6 +209,17 @@ def chosen_names(label: str, given: Sequence[str] | None, allowed: Sequence[str]
     return chosen
 
 
+def station_inputs(model: PlanarModel, inputs: Sequence[str] | None) -> list[str]:
+    """The beam station forces and moments (``"<beam>.<station>.force|moment"``) among the names ``inputs`` of
+    :func:`ctmm.export_fmu`: inputs of the exported step only when named (each adds its modal forces and frame
+    wrench to the generated sweep, :mod:`ctmm.compiled_station_loads`)."""
+    if inputs is None or isinstance(inputs, str):
+        return []
+    actuators = PlanarPorts(model).actuators
+    return [name for name in dict.fromkeys(inputs) if isinstance(name, str) and name in actuators
+            and actuators[name].kind == "station"]
+
+
 def planar_export(system: PlanarModel | ControlledModel, *, step: float, inputs: Sequence[str] | None,
                   outputs: Sequence[str] | None, parameters: Sequence[str] | None, q0: Any, qdot0: Any,
                   references: Mapping[str, Any] | None, stability_check: str,
@@ -221,8 +232,8 @@ def planar_export(system: PlanarModel | ControlledModel, *, step: float, inputs:
     step : float
         RK4 step [s] (each loop delay a whole multiple of it).
     inputs, outputs, parameters : sequence of str or None
-        Names to expose (module docstring); ``None``: every actuator, every coordinate and rate, every
-        exposable parameter.
+        Names to expose (module docstring); ``None``: every actuator (but beam station loads: those are inputs when
+        named), every coordinate and rate, every exposable parameter.
     q0, qdot0 : array_like or None
         Start values [rad, m, modal] (default zeros).
     references : mapping, optional
@@ -247,7 +258,8 @@ def planar_export(system: PlanarModel | ControlledModel, *, step: float, inputs:
     n = model.n_coordinates
     q, v = initial_coordinates(model, np.zeros(n) if q0 is None else q0, np.zeros(n) if qdot0 is None else qdot0)
     scene = CompiledScene(controlled if controlled is not None else model, cache_dir=cache_dir, rows=1,
-                          dt=step if controlled is not None else None, references=references)
+                          dt=step if controlled is not None else None, references=references,
+                          station_inputs=station_inputs(model, inputs))
     check_scheme(model, q, v, step, scheme="rk4", policy=stability_check,
                  accelerations=lambda m, a, b, t: scene.accelerations(a, b, t=t))
     ports = PlanarPorts(model)

@@ -139,11 +139,154 @@ def test_what_the_time_driver_cannot_honour_is_refused_by_name():
     controller = _Recording(["h1.angle"], ["h1.torque"], [[-1.0]], 1e-3)
     with pytest.raises(ModelError, match="beside co-simulated controllers"):
         ctmm.simulate(with_feedback(loop, [_force_loop(0.01)]), 0.01, 1e-3, x0=q0, v0=v0, controllers=[controller])
-    with pytest.raises(ModelError, match="cut force"):
-        ctmm.simulate(with_feedback(loop, [_force_loop(0.01)]), 0.01, 1e-3, x0=q0, v0=v0, compiled=True)
     strong = Feedback("force", sensor="h3.force_y", actuator="h1.torque", gain=50.0, delay=0.01)
     with pytest.raises(ModelError, match="neutral"):
         ctmm.simulate(with_feedback(loop, [strong]), 0.01, 1e-3, x0=q0, v0=v0)
+
+
+def _numpy(system, t_final: float, dt: float, *, x0, v0, **options):
+    """The numpy loop driver's run (projected RK4), as ``compiled=None`` would run it without a compiler."""
+    from ctmm.control.planar_time import simulate_closed_loop
+
+    return simulate_closed_loop(system.plant, x0, v0, t_final, dt, loops=tuple(system.loops), **options)
+
+
+def _algebraic_dae(gain: float, reference_value: float):
+    """The DAE with a crank motor closing the real-time loop ``u = -K (lambda_y(u) - r)`` on its own multiplier:
+    ``lambda_y`` is affine in the torque (two solves give it), so ``u = -K (lambda_0 - r) / (1 + K g)``."""
+    torque = [0.0]
+    dae = reference()
+    dae.add_motor(None, "crank", lambda t, angle, rate: torque[0])
+    plain = dae.solve
+
+    def solve(q, v, baumgarte=0.0, t=0.0):
+        torque[0] = 0.0
+        free = plain(q, v, baumgarte, t)[1][7]
+        torque[0] = 1.0
+        response = plain(q, v, baumgarte, t)[1][7] - free
+        torque[0] = -gain * (free - reference_value) / (1.0 + gain * response)
+        return plain(q, v, baumgarte, t)
+
+    dae.solve = solve
+    return dae
+
+
+def test_the_generated_cut_force_is_affine_in_the_actuators_as_the_dae_multiplier():
+    """What the algebraic solve rests on: ``F = F_0 + J w`` on symbols (the generated kernel's cut-force map) is
+    the DAE's multiplier at one moving state under crank and cut torques ``w`` of either sign and size (measured
+    7e-15 of the force)."""
+    import casadi as ca
+
+    from ctmm.compiled_kinematic_loop_control import CompiledKinematicLoopControl
+
+    loop = mechanism()
+    q0, v0 = start(loop)
+    q, v = np.asarray(q0, float), 3.0 * np.asarray(v0, float)         # on the cut joints, moving faster
+    controlled = with_feedback(loop, [Feedback("force", sensor="h3.force_y", actuator="h1.torque", gain=GAIN),
+                                      Feedback("hold", sensor="h3.angle", actuator="h3.torque", gain=1.0)])
+    kernel = CompiledKinematicLoopControl(controlled, 1e-3)
+    assert kernel.actuators == ("h1.torque", "h3.torque")
+    mapping = kernel.loops.dependent.map
+    F0, J = (np.asarray(a, float) for a in mapping(ca.DM(q), ca.DM(v), ca.DM(kernel.parameters), 0.0))
+    torques = [0.0, 0.0]
+    dae = reference()
+    dae.add_motor(None, "crank", lambda t, angle, rate: torques[0])
+    dae.add_motor("rocker", "coupler", lambda t, angle, rate: torques[1])
+    state = dae.assemble(dict(zip(BODIES, q)), dict(zip(BODIES, v)))
+    for w in ([0.0, 0.0], [0.7, 0.0], [0.0, -1.3], [25.0, 4.0]):
+        torques[:] = w
+        expected = dae.solve(*state)[1][7]
+        assert abs(float(F0[0, 0] + J[0] @ np.array(w)) - expected) < 1e-13 * max(1.0, abs(expected)), w
+
+
+def test_generated_delayed_cut_force_loops_equal_the_numpy_driver_and_read_the_dae_multiplier():
+    """``compiled=True`` (refused before): the delayed force loop (tau = 5 dt) beside a real-time PD on the crank, an
+    open-loop cut torque and a reference: every stored signal = the numpy driver to round-off (measured 8e-15 of
+    each signal's peak; the sample's rate along the motion is exact in the C, a backward difference in numpy: 3e-9
+    with its former step, 1e-3 of the state's size), and the value the loop read is the DAE's multiplier at the run's
+    state under the run's crank torque."""
+    from ctmm.signals import Harmonic
+
+    loop = mechanism()
+    q0, v0 = start(loop)
+    pd = Feedback("pd", sensor=[("h1.angle", 2.0), ("h1.rate", 0.2)], actuator="h1.torque", gain=1.0)
+    controlled = with_feedback(loop, [_force_loop(0.01), pd])
+    options = dict(x0=q0, v0=v0, outputs=["h3.force_y"], references={"force": 2.0, "pd": 2.0 * q0[0]},
+                   inputs={"h3.torque": Harmonic(0.3, 15.0)})
+    generated = ctmm.simulate(controlled, 0.1, 2e-3, compiled=True, **options)
+    plain = _numpy(controlled, 0.1, 2e-3, **options)
+    assert generated.info["method"] == "rk4-generated" and generated.info["loops"]["force"] == "history"
+    assert sorted(generated.time_signals()) == sorted(plain.time_signals())
+    for name in plain.time_signals():
+        scale = max(1.0, float(np.max(np.abs(plain[name]))))
+        assert np.max(np.abs(generated[name] - plain[name])) <= 1e-12 * scale, name
+    torque = generated["force.u"] + generated["pd.u"]
+    dae = reference()
+    held = [0.0, 0.0]
+    dae.add_motor(None, "crank", lambda t, angle, rate: held[0])
+    dae.add_motor("rocker", "coupler", lambda t, angle, rate: held[1])
+    multiplier = []
+    for k, t in enumerate(generated.time):
+        held[:] = [float(torque[k]), 0.3 * np.sin(15.0 * t)]
+        state = dae.assemble({b: generated[f"{b}.theta"][k] for b in BODIES},
+                             {b: generated[f"{b}.theta_dot"][k] for b in BODIES})
+        multiplier.append(dae.solve(*state)[1][7])
+    reference_force = np.array(multiplier)
+    scale = np.max(np.abs(reference_force))
+    assert np.max(np.abs(generated["force.y"] - reference_force)) < 1e-11 * scale
+    np.testing.assert_allclose(generated["force.u"][5:], -GAIN * (generated["force.y"][:-5] - 2.0), rtol=0,
+                               atol=1e-14 * scale)
+
+
+@pytest.mark.parametrize("reference_value", [0.0, 3.0])
+def test_generated_real_time_cut_force_loop_is_the_algebraic_loop_of_the_dae(reference_value):
+    """A real-time loop on the cut force (algebraic: the numpy driver refuses it) solved exactly in the generated
+    step: the run follows the DAE whose motor closes the same algebraic loop on its own multiplier (measured 1.4e-10
+    rad over 0.2 s at dt = 1 ms), every row's ``u = -K (y - r)`` to round-off with ``y`` the DAE's multiplier at the
+    row's state under ``u``, and the loop acts."""
+    loop = mechanism()
+    q0, v0 = start(loop)
+    controlled = with_feedback(loop, [_force_loop(0.0)])
+    run = ctmm.simulate(controlled, 0.2, 1e-3, x0=q0, v0=v0, compiled=True, references={"force": reference_value},
+                        outputs=["h3.force_y"])
+    assert run.info["loops"] == {"force": "real-time"}
+    dae = _algebraic_dae(GAIN, reference_value)
+    dae_run = dae.simulate(dae.assemble(dict(zip(BODIES, q0)), dict(zip(BODIES, v0))), 0.2, t_eval=run.time)
+    assert max(np.max(np.abs(run[f"{n}.theta"] - dae_run.angle(n))) for n in BODIES) < 1e-9
+    reference_force = _dae_forces(run, run["force.u"])
+    scale = np.max(np.abs(reference_force))
+    assert np.max(np.abs(run["force.y"] - reference_force)) < 1e-11 * scale
+    assert np.max(np.abs(run["h3.force_y"] - run["force.y"])) < 1e-13 * scale
+    np.testing.assert_allclose(run["force.u"], -GAIN * (run["force.y"] - reference_value), rtol=0,
+                               atol=1e-14 * scale)
+    free = ctmm.simulate(loop, 0.2, 1e-3, x0=q0, v0=v0)
+    assert np.max(np.abs(free["crank.theta"] - run["crank.theta"])) > 1e-3
+
+
+def test_generated_cut_force_loops_refuse_by_name():
+    """A singular algebraic loop (``1 + K g = 0`` at the start: ``g`` from the numpy model's solve) names the loop and
+    its gain; saturation on a real-time one, co-simulated controllers beside one and a neutral delayed one too."""
+    from ctmm.control.static_gain import StaticGainController
+
+    loop = mechanism()
+    q0, v0 = start(loop)
+    ports = with_feedback(loop, []).ports
+    response = (loop.solve(q0, v0, 0.0, ports.inputs({"h1.torque": 1.0}))[1][0, 1]
+                - loop.solve(q0, v0, 0.0, None)[1][0, 1])
+    gain = -1.0 / float(response)
+    singular = Feedback("force", sensor="h3.force_y", actuator="h1.torque", gain=gain)
+    with pytest.raises(ModelError, match=f"real-time loops 'force' \\(gain {gain!r}.*singular"):
+        ctmm.simulate(with_feedback(loop, [singular]), 0.01, 1e-3, x0=q0, v0=v0, compiled=True)
+    saturated = Feedback("force", sensor="h3.force_y", actuator="h1.torque", gain=GAIN, saturation=(-1.0, 1.0))
+    with pytest.raises(ModelError, match="loop 'force': a real-time loop on \\['h3.force_y'\\] with saturation"):
+        ctmm.simulate(with_feedback(loop, [saturated]), 0.01, 1e-3, x0=q0, v0=v0, compiled=True)
+    controller = StaticGainController(["h1.angle"], ["h3.torque"], [[-1.0]], sample_time=1e-3)
+    with pytest.raises(ModelError, match="beside co-simulated controllers"):
+        ctmm.simulate(with_feedback(loop, [_force_loop(0.01)]), 0.01, 1e-3, x0=q0, v0=v0, compiled=True,
+                      controllers=[controller])
+    strong = Feedback("force", sensor="h3.force_y", actuator="h1.torque", gain=50.0, delay=0.01)
+    with pytest.raises(ModelError, match="neutral"):
+        ctmm.simulate(with_feedback(loop, [strong]), 0.01, 1e-3, x0=q0, v0=v0, compiled=True)
 
 
 @pytest.fixture(scope="module")

@@ -382,3 +382,62 @@ def test_a_spatial_tree_equals_ctmm_simulate(tmp_path):
     assert max(np.ptp(native[name]) for name in model.coordinates) > 1e-3          # it moved
     with pytest.raises(ModelError, match="parameters has the unknown name 'b0.center_of_mass.x'; allowed: b0.mass"):
         ctmm.export_fmu(model, tmp_path / "tree.fmu", step=1e-3, parameters=["b0.center_of_mass.x"])
+
+
+def test_beam_station_loads_are_inputs_of_the_fmu_when_named(tmp_path):
+    """A station force and a station moment on a modal cantilever (``inputs=["arm.a.force", "arm.tip.moment"]``;
+    refused as unknown inputs before): named FMU inputs with SI units, and fmpy's run with them set (held) equals
+    ctmm.simulate's numpy RK4 with the same constant loads (the station loads' modal forces and frame wrench in the
+    Python sweep) to round-off of the FMU's RK4 (1e-13 of each signal's peak); unnamed, they are no inputs."""
+    from test_compiled_station_held_inputs import hub_cantilever
+
+    model = hub_cantilever()
+    x0 = np.array([0.05, 0.002, -0.0005, 0.0, 0.0])
+    outputs = list(model.coordinates) + ["arm.tip.w", "arm.a.slope"]
+    loads = {"arm.a.force": 0.4, "arm.tip.moment": -0.15, "motor.torque": 0.05}
+    path = ctmm.export_fmu(model, tmp_path / "stations.fmu", step=1e-3, q0=x0, outputs=outputs,
+                           inputs=["motor.torque", "arm.a.force", "arm.tip.moment"])
+    assert validate_fmu(str(path)) == []
+    description = fmpy.read_model_description(str(path))
+    inputs = {v.name: v for v in description.modelVariables if v.causality == "input"}
+    assert list(inputs) == ["motor.torque", "arm.a.force", "arm.tip.moment"]
+    assert {name: variable.unit for name, variable in inputs.items()} == {
+        "motor.torque": "N m", "arm.a.force": "N", "arm.tip.moment": "N m"}
+    out = fmpy.simulate_fmu(str(path), stop_time=0.2, output_interval=0.01, start_values=loads)
+    native = ctmm.simulate(model, 0.2, 1e-3, x0=x0, inputs=loads, outputs=["arm.tip.w", "arm.a.slope"],
+                           method="rk4")
+    rows = at(native, out["time"])
+    for name in outputs:                # measured 2.4e-16 of the peak
+        assert_peak_round_off(out[name], native[name][rows], name)
+    alone = ctmm.simulate(model, 0.2, 1e-3, x0=x0, inputs={"motor.torque": 0.05}, outputs=["arm.tip.w"],
+                          method="rk4")
+    assert np.max(np.abs(alone["arm.tip.w"] - native["arm.tip.w"])) > 1e-4          # the station loads act
+    plain = fmpy.read_model_description(str(ctmm.export_fmu(model, tmp_path / "plain.fmu", step=1e-3, q0=x0)))
+    assert not [v.name for v in plain.modelVariables if v.causality == "input" and ".a." in v.name]
+
+
+def test_a_station_force_driven_by_a_controller_in_the_master_equals_ctmm_cosimulation(tmp_path):
+    """The station force as the output of a sampled PD on the station's deflection (zero-order hold every INTERVAL)
+    in an fmpy master loop around the exported plant = ctmm.simulate's numpy RK4 with the same controller and a
+    held motor torque, to round-off (the same held signal on both sides)."""
+    from test_compiled_station_held_inputs import hub_cantilever, station_controller
+
+    model = hub_cantilever()
+    x0 = np.array([0.05, 0.002, 0.0, 0.0, 0.0])
+    path = ctmm.export_fmu(model, tmp_path / "station_loop.fmu", step=H, q0=x0, inputs=["motor.torque", "arm.tip.force"],
+                           outputs=[*model.coordinates, "arm.a.w"])
+    times, fmu_out = master_loop(path, station_controller(INTERVAL), 0.2, start_values={"motor.torque": 0.05})
+    native = ctmm.simulate(model, 0.2, H, x0=x0, inputs={"motor.torque": 0.05}, outputs=["arm.a.w"], method="rk4",
+                           controllers=[station_controller(INTERVAL)])
+    rows = at(native, times)
+    samples = native["arm.tip.force@samples"][:len(times) - 1]
+    assert np.ptp(samples[:, 1]) > 1e-3                                  # the controller drove the station force
+    assert_peak_round_off(fmu_out["arm.tip.force"], samples[:, 1], "arm.tip.force@samples")
+    for name in [*model.coordinates, "arm.a.w"]:        # measured 8e-16 of the peak (7e-16 the force)
+        assert_peak_round_off(fmu_out[name], native[name][rows], name)
+
+
+def assert_peak_round_off(fmu_values, native, name):
+    """Round-off of the signal's own peak (a beam's modal coordinates and deflections are ~1e-3)."""
+    scale = float(np.max(np.abs(native)))
+    assert scale > 0.0 and np.max(np.abs(np.asarray(fmu_values) - native)) < 1e-13 * scale, name

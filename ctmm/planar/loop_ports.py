@@ -26,8 +26,8 @@ Actuators
 These are the one list of the cut joints' port names: :func:`ctmm.simulate` (inputs, outputs, loops,
 controllers), :func:`ctmm.linearize`, :func:`ctmm.frequency_response` and the margins of a kinematic loop model
 resolve names through :class:`KinematicLoopPorts`.  A loop on a cut force with no delay is algebraic (the force
-responds to the loop's own actuator at once): the linearisation closes it exactly, the time driver refuses it by name
-(``docs/closed_loops.md`` §3c).
+responds to the loop's own actuator at once): the linearisation and the generated RK4 (``compiled=True``) close it
+exactly, the numpy time driver refuses it by name (``docs/closed_loops.md`` §3c).
 """
 from __future__ import annotations
 
