@@ -51,9 +51,9 @@ def compile_refusal(model: Any, *, driven_signals: bool = False) -> str:
     moving = [model.joint_names[j] for j, _ in moving_drives(model)]
     if moving and not driven_signals:
         return (f"model {model.name!r} has driven hinges whose motion is not constant: {', '.join(map(repr, moving))} "
-                "(this generated path takes a driven hinge's constant angle only, as a fixed mounting; a moving "
-                "drive, a ctmm.signals Ramp or Harmonic included, runs on the generated RK4 (CompiledScene, "
-                "ctmm.simulate(method='rk4', compiled=True)) or on the numpy path, compiled=False)")
+                "(this generated path takes a driven hinge's constant angle only, as a fixed mounting; the generated "
+                "RK4 and DT-TMM schemes of a planar model without kinematic loops follow ctmm.signals drives, Ramp "
+                "and Harmonic included; or use the numpy path, compiled=False)")
     reasons = [f"time-dependent signals without a symbolic form in {name!r}"
                for name in [model.joint_names[j] for j, hinge in moving_drives(model)
                             if any(signal_parameters(f) is None for f in _drive_signals(hinge))]

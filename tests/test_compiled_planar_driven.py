@@ -133,6 +133,21 @@ def test_driven_double_pendulum_generated_scheme_equals_numpy_scheme(method):
         assert_round_off(generated[name], python[name], name, 1e-10)
 
 
+def test_driven_crank_scheme_with_loops_on_coordinates_and_moving_sensors_refused():
+    """A generated Newmark step closes loops whose sensors are coordinates (= the numpy scheme to round-off); loop
+    sensors that move with the drive are read at the state only there, so refused by name (the RK4 takes them)."""
+    plant = crank_system().plant
+    still = ControlledModel(plant, [Feedback("pd", [("arm.theta", 1.0), ("arm.omega", 0.2)], "h.torque", gain=3.0)])
+    options = dict(method="newmark", x0={"arm.theta": 0.5})
+    generated = ctmm.simulate(still, 0.3, 1e-3, compiled=True, **options)
+    python = ctmm.simulate(still, 0.3, 1e-3, compiled=False, **options)
+    assert "generated" in generated.info["method"] and np.ptp(python["pd.u"]) > 0.1
+    for name in ("arm.theta", "pd.u"):
+        assert_round_off(generated[name], python[name], name, 1e-10)
+    with pytest.raises(ModelError, match=r"loop sensors move with the prescribed motion of driven joints"):
+        ctmm.simulate(crank_system(), 0.1, 1e-3, compiled=True, **options)
+
+
 def test_reaction_torque_of_a_driven_rod_against_newton_euler():
     """A uniform rod (m, L) driven about its end by a harmonic angle: the moment of the ground on the rod at the
     hinge is ``tau = (m L^2 / 3) theta'' + m g (L / 2) cos(theta)``; here from the articulated sweep on the time
@@ -172,3 +187,19 @@ def test_signals_without_a_symbolic_form_and_one_time_paths_refuse_by_name(tmp_p
         ctmm.export_fmu(model, tmp_path / "driven.fmu", step=1e-3)
     with pytest.raises(ModelError, match=r"planar_simulation_sensitivity: .*motion is not constant: .motor."):
         ctmm.sensitivity.simulation_sensitivity(model, ["l2.mass"], t_final=0.1, dt=1e-3)
+
+
+def test_a_kinematic_loop_tree_with_a_moving_drive_is_refused_by_name():
+    """The generated kinematic-loop paths state the tree's kinematics at the state only: a four-bar whose crank is a
+    moving driven hinge is refused by name (the numpy loop driver runs it)."""
+    from ctmm.compiled_kinematic_loops import kinematic_loop_compile_refusal
+    from ctmm.planar.closed_loops import CutJoint, KinematicLoopModel
+
+    tree = PlanarModel("driven_four_bar", [
+        planar_elements.Fixed("g", position=(0.0, 0.0)), planar_elements.Fixed("g4", position=(0.6, 0.0)),
+        RigidBody.uniform_link("crank", mass=0.3, length=0.2), ramp_drive(parent="g", child="crank"),
+        RigidBody.uniform_link("coupler", mass=0.5, length=0.6), SmoothHinge("h2", parent="crank", child="coupler"),
+        RigidBody.uniform_link("rocker", mass=0.4, length=0.4), SmoothHinge("h4", parent="g4", child="rocker")],
+        gravity=(0.0, -G))
+    loop = KinematicLoopModel(tree, [CutJoint("h3", parent="rocker.out", child="coupler.out")])
+    assert "driven hinges whose motion is not constant: 'motor'" in kinematic_loop_compile_refusal(loop)
