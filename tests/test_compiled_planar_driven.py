@@ -62,6 +62,28 @@ def test_driven_double_pendulum_generated_equals_numpy_rk4(drive):
         assert_round_off(generated[name], python[name], name)
 
 
+def test_a_crank_driving_modal_beams_generated_equals_numpy_rk4():
+    """Crank at constant speed -> modal beam -> fixed mounting -> damped beam -> spring-damper hinge -> link: the
+    drive's angle and rate enter the beams' kinematics on the time symbol (generated = numpy to round-off)."""
+    from ctmm.flexible import ModalBeam
+    from ctmm.planar.elements import FixedMounting
+
+    def beam(name, **options):
+        return ModalBeam(name, length=0.8, bending_stiffness=4.0, mass_per_length=0.6, n_modes=2, **options)
+
+    model = PlanarModel.chain("driven_beams", [
+        planar_elements.Fixed("g"), DrivenHinge("motor", angle=Ramp(1.5, 0.1), rate=1.5), beam("b1"),
+        FixedMounting("w", angle=0.2), beam("b2", damping_ratio=0.01),
+        SpringDamperHinge("e", stiffness=3.0, damping=0.05, rest_angle=0.1),
+        RigidBody.uniform_link("l", mass=0.3, length=0.4)], gravity=(0.0, -G))
+    x0 = {"l.theta": 0.4}
+    generated = ctmm.simulate(model, 0.3, 1e-3, method="rk4", compiled=True, x0=x0)
+    python = ctmm.simulate(model, 0.3, 1e-3, method="rk4", compiled=False, x0=x0)
+    assert generated.info["method"] == "rk4-generated" and np.ptp(python["b1.q1"]) > 1e-2
+    for name in model.coordinates:
+        assert_round_off(generated[name], python[name], name)
+
+
 def test_the_drive_numbers_are_inputs_of_one_library():
     """Two drives of one class with other numbers run on one compiled scene (their numbers are entries of ``p``),
     each equal to its own numpy run; a drive of another signal class is another structure."""
