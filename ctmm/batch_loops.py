@@ -86,22 +86,29 @@ class SharedSensors:
         self.symbols, self.ports = symbols, symbols.ports
         self.n_positions, self.n_velocities = symbols.n_positions, symbols.n_velocities
         self.parameter_count = getattr(symbols, "parameter_count", 0)
+        self.time_sensors = bool(getattr(symbols, "time_sensors", False))     # sensors moving with driven joints
         self.functions: dict[str, Any] = {}
 
     def position_rates(self, q: Any, v: Any) -> Any:
         """``q_dot`` on symbols (the plant's own rule)."""
         return self.symbols.position_rates(q, v)
 
-    def sensor(self, name: str, q: Any, v: Any) -> Any:
-        """Sensor ``name`` on the symbols ``q``, ``v``: the expression stated once, called on them."""
+    def sensor(self, name: str, q: Any, v: Any, t: Any = None) -> Any:
+        """Sensor ``name`` on the symbols ``q``, ``v`` (and the time ``t`` [s] when the sensors move with driven
+        joints, :attr:`time_sensors`): the expression stated once, called on them."""
         import casadi as ca
 
         function = self.functions.get(name)
         if function is None:
             q_first, v_first = ca.SX.sym("q", self.n_positions), ca.SX.sym("v", self.n_velocities)
-            function = ca.Function("sensor", [q_first, v_first], [self.symbols.sensor(name, q_first, v_first)])
+            if self.time_sensors:
+                t_first = ca.SX.sym("t")
+                function = ca.Function("sensor", [q_first, v_first, t_first],
+                                       [self.symbols.sensor(name, q_first, v_first, t_first)])
+            else:
+                function = ca.Function("sensor", [q_first, v_first], [self.symbols.sensor(name, q_first, v_first)])
             self.functions[name] = function
-        return function(q, v)
+        return function(q, v, t) if self.time_sensors else function(q, v)
 
 
 def run_members(scene: Any, runs: Sequence[LoopRun], dt: float, n_steps: int) -> tuple[np.ndarray, float]:

@@ -28,21 +28,36 @@ from .planar.ports import PlanarPorts
 from .signals import SYMBOLIC_FIELDS, Constant, signal_parameters, symbolic_signal
 
 __all__ = ["LoopNumbers", "compile_refusal", "compiled_actuators", "constants_key", "loop_parameter_layout",
-           "parameter_vector", "station_loads", "structure_key", "symbolic_loop_numbers", "symbolic_numbers"]
+           "moving_drives", "parameter_vector", "station_loads", "structure_key", "symbolic_drives",
+           "symbolic_loop_numbers", "symbolic_numbers"]
 
 
-def compile_refusal(model: Any) -> str:
-    """Why ``model`` cannot be compiled by :class:`CompiledScene` (empty string when it can)."""
+def compile_refusal(model: Any, *, driven_signals: bool = False) -> str:
+    """Why ``model`` cannot be compiled by :class:`CompiledScene` (empty string when it can).
+
+    Parameters
+    ----------
+    model : object
+        A :class:`~ctmm.planar.model.PlanarModel` compiles when its time signals have a symbolic form, its hinge
+        laws a casadi form and its beams no time-dependent loads or modal force hooks.
+    driven_signals : bool
+        ``True``: driven hinges may move by signals with a symbolic form (:data:`ctmm.signals.SYMBOLIC_FIELDS`;
+        the generated RK4 of :class:`~ctmm.compiled_scene.CompiledScene`, with or without loops and over
+        parameter sets, states their angle, rate and acceleration on its time symbol); ``False``: every driven
+        hinge must be constant (a fixed mounting; the paths that state the model at one time or export it).
+    """
     if not isinstance(model, PlanarModel):
         return f"a ctmm.planar.PlanarModel is compiled, got {type(model).__name__}"
-    moving = [element.name for element in model.elements if isinstance(element, DrivenHinge)
-              and any(not isinstance(f, Constant) for f in (element.angle, element.rate, element.acceleration))]
-    if moving:
+    moving = [model.joint_names[j] for j, _ in moving_drives(model)]
+    if moving and not driven_signals:
         return (f"model {model.name!r} has driven hinges whose motion is not constant: {', '.join(map(repr, moving))} "
-                "(generated planar kernels take a driven hinge's constant angle only, as a fixed mounting; a moving "
-                "drive, a ctmm.signals Ramp or Harmonic included, runs on the numpy path, compiled=False)")
+                "(this generated path takes a driven hinge's constant angle only, as a fixed mounting; the generated "
+                "RK4 and DT-TMM schemes of a planar model without kinematic loops follow ctmm.signals drives, Ramp "
+                "and Harmonic included; or use the numpy path, compiled=False)")
     reasons = [f"time-dependent signals without a symbolic form in {name!r}"
-               for name in _time_dependent_elements(model)]
+               for name in [model.joint_names[j] for j, hinge in moving_drives(model)
+                            if any(signal_parameters(f) is None for f in _drive_signals(hinge))]
+               + _time_dependent_elements(model)]
     laws = [f"{model.joint_names[j]!r} ({law!r})" for j, hinge in model.nonlinear_hinges.items()
             for law in (hinge.moment_law, hinge.radial_law) if law is not None and not law.expressible]
     if laws:
@@ -64,16 +79,16 @@ def compile_refusal(model: Any) -> str:
 
 
 def _time_dependent_elements(model: PlanarModel) -> list[str]:
-    """Names of the elements with a time signal that the generated code cannot evaluate: driven motions
-    that are not constant (fixed mountings are), hinge references and torques and rigid-body loads
+    """Names of the elements with a time signal that the generated code cannot evaluate (driven hinges aside,
+    :func:`compile_refusal`): hinge references and torques and rigid-body loads
     without a symbolic form (:data:`ctmm.signals.SYMBOLIC_FIELDS`: user callables), beam loads that are
     not constant."""
     names = []
     for element in model.elements:
         symbolic: list = []
         constant: list = []
-        if isinstance(element, DrivenHinge):
-            constant = [element.angle, element.rate, element.acceleration]
+        if isinstance(element, DrivenHinge):      # moving drives: compile_refusal
+            pass
         elif isinstance(element, Hinge):
             symbolic = list(element.law()[2:])
         loads = [f for load in getattr(element, "loads", ()) for f in (load.force_x, load.force_y, load.moment)]
@@ -92,12 +107,14 @@ def parameter_vector(model: PlanarModel) -> np.ndarray:
     centres of mass, outboard points, gravity, hinge stiffnesses, dampings, then the parameters of the
     hinge references, reference rates, torques and loads (each signal's
     :func:`ctmm.signals.signal_parameters`: a constant's value, a sine's amplitude, frequency and phase,
-    ...) and the load points (:class:`~ctmm.planar.body_forms.SceneNumbers`, SI units).
+    ...), the load points (:class:`~ctmm.planar.body_forms.SceneNumbers`, SI units) and, for every driven hinge
+    whose motion is not constant (:func:`moving_drives`, in joint order), the parameters of its angle [rad], rate
+    [rad/s] and acceleration [rad/s^2] signals (fixed mountings stay constants of the code).
 
     Raises
     ------
     ModelError
-        A hinge or load signal without a symbolic form (a user callable).
+        A hinge, load or drive signal without a symbolic form (a user callable).
     """
     numbers = SceneNumbers.of(model)
     parts = [numbers.mass, numbers.inertia, np.reshape(numbers.center_of_mass, -1)]
@@ -109,7 +126,11 @@ def parameter_vector(model: PlanarModel) -> np.ndarray:
     if without:
         raise ModelError(f"parameter_vector: model {model.name!r} has hinge or load signals without a symbolic form "
                          f"({without[0]!r}); allowed: ctmm.signals Constant, Harmonic, Step, SquareWave, Ramp")
-    parts += signal_parts + [np.reshape(numbers.load_point, -1)]
+    drives = [signal_parameters(f) for _, hinge in moving_drives(model) for f in _drive_signals(hinge)]
+    if any(part is None for part in drives):
+        raise ModelError(f"parameter_vector: model {model.name!r} has driven hinges moving by signals without a "
+                         "symbolic form; allowed: ctmm.signals " + ", ".join(kind.__name__ for kind in SYMBOLIC_FIELDS))
+    parts += signal_parts + [np.reshape(numbers.load_point, -1)] + drives
     return np.concatenate([np.asarray(part, dtype=float).reshape(-1) for part in parts])
 
 
@@ -160,8 +181,47 @@ def symbolic_numbers(model: PlanarModel, p: Any, t: Any) -> SceneNumbers:
     reference, reference_rate, torque = values[:nb], values[nb:2 * nb], values[2 * nb:3 * nb]
     loads = [values[3 * nb + 3 * k:3 * nb + 3 * k + 3] for k in range(nl)]
     load_point = pairs(nl)
+    driven = {i: values for i, *values in model.driven(0.0)}           # fixed mountings: constants of the code
+    for j, hinge in moving_drives(model):
+        driven[j] = tuple(symbolic_signal(type(f), t, take(len(SYMBOLIC_FIELDS[type(f)])))
+                          for f in _drive_signals(hinge))
     return SceneNumbers(mass, inertia, com, ends, gravity, stiffness, damping, reference, reference_rate, torque,
-                        loads, load_point)
+                        loads, load_point, driven)
+
+
+def moving_drives(model: PlanarModel) -> list[tuple[int, DrivenHinge]]:
+    """``(body, hinge)`` of every driven hinge of ``model`` whose angle, rate or acceleration is not a
+    :class:`~ctmm.signals.Constant` (fixed mountings are constants), in joint order."""
+    by_name = {getattr(element, "name", None): element for element in model.elements}
+    return [(j, by_name[name]) for j, name in enumerate(model.joint_names)
+            if isinstance(by_name.get(name), DrivenHinge)
+            and any(not isinstance(f, Constant) for f in _drive_signals(by_name[name]))]
+
+
+def _drive_signals(hinge: DrivenHinge) -> tuple:
+    """The angle [rad], rate [rad/s] and acceleration [rad/s^2] signals of a driven hinge."""
+    return hinge.angle, hinge.rate, hinge.acceleration
+
+
+def symbolic_drives(model: PlanarModel, t: Any) -> dict[int, tuple]:
+    """``{body: (angle, rate, acceleration)}`` of every driven hinge of ``model`` at the time symbol ``t``
+    [rad, rad/s, rad/s^2]: the moving ones by the symbolic form of their signals with the model's numbers
+    (:func:`ctmm.signals.symbolic_signal`), fixed mountings by their constants.
+
+    Raises
+    ------
+    ModelError
+        A moving drive's signal without a symbolic form.
+    """
+    driven = {i: tuple(values) for i, *values in model.driven(0.0)}
+    for j, hinge in moving_drives(model):
+        for f in _drive_signals(hinge):
+            if signal_parameters(f) is None:
+                raise ModelError(f"driven hinge {model.joint_names[j]!r} of model {model.name!r}: the signal {f!r} "
+                                 "has no symbolic form; allowed: ctmm.signals "
+                                 + ", ".join(kind.__name__ for kind in SYMBOLIC_FIELDS))
+        driven[j] = tuple(symbolic_signal(type(f), t, signal_parameters(f)) for f in _drive_signals(hinge))
+    return driven
 
 
 def structure_key(model: PlanarModel) -> str:
@@ -176,12 +236,15 @@ def structure_key(model: PlanarModel) -> str:
     parts: list[Any] = [model.parent, model.joint_kind, model.ground_angle, model.theta_index, model.load_body,
                         [list(ends) for ends in model.ends], [np.asarray(idx).tolist() for idx in model.modal_index],
                         [np.asarray(idx).tolist() for idx in model.xy_index], model.n_coordinates,
-                        model.parent_end, model.parent_end_index, list(compiled_actuators(model)), model.driven(0.0),
+                        model.parent_end, model.parent_end_index, list(compiled_actuators(model)),
+                        [drive for drive in model.driven(0.0) if drive[0] not in dict(moving_drives(model))],
                         [type(signal).__name__ for signal in _signals(model)],
                         np.flatnonzero(parameter_vector(model) == 0.0),
                         [(j, repr(h.moment_law), repr(h.radial_law), h.rest_angle)
                          for j, h in sorted(model.nonlinear_hinges.items())],
                         model.translational_stiffness, model.translational_damping]
+    if moving_drives(model):        # their numbers are entries of p (parameter_vector), their classes structure
+        parts.append([(j, [type(f).__name__ for f in _drive_signals(hinge)]) for j, hinge in moving_drives(model)])
     # the actuators' unit patterns follow from their names (a hinge torque, a force at a centre of mass)
     # and, on beams, from the beam definitions below
     if model.beams:

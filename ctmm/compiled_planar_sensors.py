@@ -1,18 +1,20 @@
 """A planar model's sensors on casadi symbols (issue 13): the ports of :mod:`ctmm.planar.ports` as expressions of
-the state ``(q, qdot)``, for loops closed inside generated kernels.
+the state ``(q, qdot)`` (and the time, when a driven hinge moves), for loops closed inside generated kernels.
 
 :class:`SymbolicKinematics` gives the body angles, rates and point motions of a
 :class:`~ctmm.planar.model.PlanarModel` on symbols ``q, v`` (modal beams' deformed ends, centroids and stations
-included; driven motions constant, as generated kernels require); :func:`sensor_expression` reads one named sensor --
-coordinates and their rates, body angles and rates, hinge angles and rates, positions and velocities of named points,
+included; driven motions on a time symbol, :func:`ctmm.compiled_parameters.symbolic_drives`);
+:func:`sensor_expression` reads one named sensor -- coordinates and their rates, body angles and rates, hinge angles and rates, positions and velocities of named points,
 beam station deflections, slopes and their rates -- from it; :class:`PlanarSymbols` is the planar plant on symbols
 that :class:`ctmm.compiled_loops.ClosedLoops` closes its loops on.  No port reads an acceleration, so no loop
 built on them is algebraic.
 """
 from __future__ import annotations
 
-from typing import Any, Sequence
+from typing import Any, Mapping, Sequence
 
+from .compiled_parameters import moving_drives, symbolic_drives
+from .errors import ModelError
 from .planar.model import BUSHING, FREE, PlanarModel
 from .planar.ports import PlanarPorts
 from .symbolic_beam_points import DeformedPoints
@@ -30,22 +32,32 @@ def _dot(row: Any, column: Any, index: Sequence[int]) -> Any:
 
 class SymbolicKinematics:
     """Angles, rates and point motions of a planar model on casadi symbols ``q, v`` (the numbers of
-    :meth:`~ctmm.planar.model.PlanarModel.points`; driven motions are constant, as generated kernels
-    require).
+    :meth:`~ctmm.planar.model.PlanarModel.points`; driven motions at the time symbol ``t``, their numbers
+    constants of the code, :func:`~ctmm.compiled_parameters.symbolic_drives`).
 
     Parameters
     ----------
     model : PlanarModel
     q, v : casadi SX
         Coordinate and rate symbols (``n_coordinates`` each).
+    t : casadi SX, optional
+        Time symbol [s]; needed when a driven hinge moves (:func:`~ctmm.compiled_parameters.moving_drives`).
+    driven : mapping int -> (angle, rate, acceleration), optional
+        The driven hinges' motion by body (expressions, e.g. :attr:`SceneNumbers.driven
+        <ctmm.planar.family_terms.SceneNumbers>` of the generated sweep, numbers as inputs); default
+        :func:`~ctmm.compiled_parameters.symbolic_drives` at ``t``.
     """
 
-    def __init__(self, model: PlanarModel, q: Any, v: Any) -> None:
+    def __init__(self, model: PlanarModel, q: Any, v: Any, t: Any = None, driven: Mapping[int, tuple] | None = None
+                 ) -> None:
         import casadi as ca
 
         self.model, self.q, self.v = model, q, v
         self.deformed = DeformedPoints(model, q, v)
-        driven = {i: (a, r) for i, a, r, _ in model.driven(0.0)}
+        if driven is None and t is None and moving_drives(model):
+            raise ModelError(f"the sensors of model {model.name!r} move with its driven hinges "
+                             f"{[model.joint_names[j] for j, _ in moving_drives(model)]}: they need the time symbol")
+        driven = {i: motion[:2] for i, motion in (symbolic_drives(model, t) if driven is None else driven).items()}
         nb = model.n_bodies
         self.theta: list = [None] * nb
         self.omega: list = [None] * nb
@@ -148,18 +160,22 @@ def sensor_expression(ports: PlanarPorts, name: str, kinematics: SymbolicKinemat
 
 class PlanarSymbols:
     """A planar plant on symbols for :class:`~ctmm.compiled_loops.ClosedLoops`: ``q`` and ``v = qdot`` of
-    ``n_coordinates`` each, sensors by :func:`sensor_expression`."""
+    ``n_coordinates`` each, sensors by :func:`sensor_expression`.  With a moving driven hinge
+    (:attr:`time_sensors`) the sensors are functions of the state and the time symbol as well, which the loops
+    state at every stage time (the generated RK4) and the paths that read them at the state only refuse."""
 
     def __init__(self, model: PlanarModel, ports: PlanarPorts) -> None:
         self.model, self.ports = model, ports
         self.n_positions = self.n_velocities = model.n_coordinates
-        self._kinematics: tuple[Any, Any, SymbolicKinematics] | None = None
+        self.time_sensors = bool(moving_drives(model))
+        self._kinematics: tuple[Any, Any, Any, SymbolicKinematics] | None = None
 
     def position_rates(self, q: Any, v: Any) -> Any:
         return v
 
-    def sensor(self, name: str, q: Any, v: Any) -> Any:
-        """Sensor ``name`` as an expression of the symbols ``q``, ``v``."""
-        if self._kinematics is None or self._kinematics[0] is not q or self._kinematics[1] is not v:
-            self._kinematics = (q, v, SymbolicKinematics(self.model, q, v))
-        return sensor_expression(self.ports, name, self._kinematics[2])
+    def sensor(self, name: str, q: Any, v: Any, t: Any = None) -> Any:
+        """Sensor ``name`` as an expression of the symbols ``q``, ``v`` (and the time ``t`` [s] with a moving
+        driven hinge)."""
+        if self._kinematics is None or any(a is not b for a, b in zip(self._kinematics[:3], (q, v, t))):
+            self._kinematics = (q, v, t, SymbolicKinematics(self.model, q, v, t))
+        return sensor_expression(self.ports, name, self._kinematics[3])

@@ -39,11 +39,13 @@ terms (:func:`~ctmm.planar.family_terms.bushing_terms`, ``S = I3``) enter the on
 accelerations are the joints' relative ones (:func:`coordinate_accelerations`).
 
 Refused (:class:`~ctmm.errors.ModelError`): anything but a planar model, and time-dependent data
-without a symbolic form (user callables in hinge laws or rigid-body loads; any non-constant driven
-motion, beam load, distributed load; modal force hooks).  Hinge references, rates, torques and
-rigid-body loads that are :mod:`ctmm.signals` objects with a symbolic form
-(:func:`ctmm.signals.symbolic_signal`: constants, sines, steps, square waves) are evaluated inside the
-generated code at the stage times.
+without a symbolic form (user callables in hinge laws, rigid-body loads or driven motions; any
+non-constant beam load, distributed load; modal force hooks).  Hinge references, rates, torques,
+rigid-body loads and the angle, rate and acceleration of driven hinges that are :mod:`ctmm.signals`
+objects with a symbolic form (:func:`ctmm.signals.symbolic_signal`: constants, sines, steps, square
+waves, ramps) are evaluated inside the generated code at the stage times (a moving drive's numbers are
+entries of ``p``, :func:`~ctmm.compiled_parameters.parameter_vector`; loop sensors that move with it are
+functions of the stage time, :class:`~ctmm.compiled_planar_sensors.PlanarSymbols`).
 
 Parameters as inputs: the numbers of the rigid bodies, hinge laws and loads (masses, inertias,
 centres of mass, points, gravity, stiffnesses, dampings, references, torques, loads;
@@ -163,7 +165,7 @@ class CompiledScene:
         elif dt is not None or references or signals:
             raise ModelError("CompiledScene: dt, references and signals apply to a ControlledModel (its loops), "
                              f"got the model {getattr(model, 'name', model)!r} without loops")
-        reason = compile_refusal(model)
+        reason = compile_refusal(model, driven_signals=True)     # moving drives on the time symbol
         if reason:
             raise ModelError(f"CompiledScene: {reason}")
         if numbers not in ("inputs", "constants"):
@@ -264,7 +266,7 @@ class CompiledScene:
         if self.loops is not None:
             raise ModelError("CompiledScene.with_model: a scene with loops keeps its sensors' geometry and loop laws "
                              "as constants of its code; build a CompiledScene of the other ControlledModel")
-        reason = compile_refusal(model)
+        reason = compile_refusal(model, driven_signals=True)
         if reason:
             raise ModelError(f"CompiledScene.with_model: {reason}")
         if (structure_key(model) if self.numbers == "inputs" else constants_key(model)) != self.structure:
@@ -575,10 +577,12 @@ def symbolic_accelerations_with_inputs(model: PlanarModel, actuators: Sequence[s
     :func:`compiled_actuators`, then one input per loop channel's loads ``channels``,
     :attr:`ctmm.compiled_loops.ClosedLoops.channels`) on casadi SX symbols: the expression
     :class:`CompiledScene` compiles, for algorithmic differentiation (:mod:`ctmm.sensitivity_planar`,
-    :mod:`ctmm.sensitivity_time`)."""
+    :mod:`ctmm.sensitivity_time`, the generated DT-TMM schemes), at the time symbol ``t`` (moving drives
+    included: a caller that states the expression at one time refuses them itself,
+    :func:`~ctmm.compiled_parameters.compile_refusal`)."""
     import casadi as ca
 
-    reason = compile_refusal(model)
+    reason = compile_refusal(model, driven_signals=True)
     if reason:
         raise ModelError(f"symbolic accelerations: {reason}")
     n, n_p = model.n_coordinates, parameter_vector(model).size

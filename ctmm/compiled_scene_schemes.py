@@ -353,7 +353,7 @@ class CompiledSceneScheme(SchemeHooks):
                  tangent: str | None = None, station_inputs: Sequence[str] = ()) -> None:
         if not isinstance(model, PlanarModel):
             raise ModelError(f"CompiledSceneScheme: model must be a PlanarModel, got {type(model).__name__}")
-        reason = compile_refusal(model)
+        reason = compile_refusal(model, driven_signals=True)    # moving drives at the step's evaluation time
         if reason:
             raise ModelError(f"CompiledSceneScheme: {reason}")
         self.scheme = as_scheme(scheme)

@@ -74,7 +74,7 @@ def symbolic_terms_with_station_loads(model: PlanarModel, units: Sequence[Actuat
     scene = PlanarScene(model)
     bodies, joints = scene.terms(CASADI, q, v, 0.0, given, numbers)
     if frame:
-        kinematics = SymbolicKinematics(model, q, v)
+        kinematics = SymbolicKinematics(model, q, v, driven=numbers.driven)
         for j, (f1, f2, moment) in frame.items():
             c, s = kinematics.cos[j], kinematics.sin[j]
             applied = ca.vertcat(c * f1 - s * f2, s * f1 + c * f2, moment, ca.SX.zeros(len(model.modal_index[j])))

@@ -45,7 +45,7 @@ import numpy as np
 
 from .compiled_loops import ClosedLoops
 from .compiled_planar_sensors import SymbolicKinematics, sensor_expression
-from .compiled_parameters import compile_refusal, parameter_vector
+from .compiled_parameters import compile_refusal, moving_drives, parameter_vector
 from .compiled_scene import CompiledScene
 from .control.controlled_model import ControlledModel
 from .control.loop_rows import loop_unit
@@ -143,11 +143,14 @@ def parameter_names(model: PlanarModel) -> list[tuple[str, str, bool]]:
     (same order and length): ``"<body>.mass"``, ``"<body>.inertia"``, ``"<body>.center_of_mass.x"``,
     ``"<body>.<point>.x"``, ``"gravity.x"``, ``"<joint>.stiffness"``, ``"<joint>.damping"``,
     ``"<joint>.law.reference[.<field>]"`` (``reference_rate``, ``torque``),
-    ``"<body>.load<k>.force_x[.<field>]"`` (``force_y``, ``moment``), ``"<body>.load<k>.point.x"``;
+    ``"<body>.load<k>.force_x[.<field>]"`` (``force_y``, ``moment``), ``"<body>.load<k>.point.x"``,
+    ``"<joint>.drive.angle[.<field>]"`` (``rate``, ``acceleration``) of a moving driven hinge;
     a signal with one field (a constant) has no field suffix.
 
     ``exposed`` is False for what must stay a constant of the code: geometry (it also enters the
-    sensors), the numbers of modal beams (they keep their own data) and gravity with beams.
+    sensors), the numbers of modal beams (they keep their own data), gravity with beams and the signals of
+    moving drives (a drive's angle, rate and acceleration are one motion, checked consistent when the hinge is
+    built, and enter the loop sensors).
 
     Raises
     ------
@@ -179,6 +182,10 @@ def parameter_names(model: PlanarModel) -> list[tuple[str, str, bool]]:
         for part, unit in (("force_x", "N"), ("force_y", "N"), ("moment", "N m")):
             names += _signal_names(f"{body}.load{k}.{part}", getattr(load, part), unit)
     names += [(f"{body}.load{k}.point.{axis}", "m", False) for body, k, _ in loads for axis in "xy"]
+    for j, hinge in moving_drives(model):       # one motion: its three signals change together or not at all
+        for part, unit in (("angle", "rad"), ("rate", "rad/s"), ("acceleration", "rad/s^2")):
+            names += [(name, name_unit, False) for name, name_unit, _ in
+                      _signal_names(f"{model.joint_names[j]}.drive.{part}", getattr(hinge, part), unit)]
     if len(names) != values.size:
         raise ModelError(f"export_fmu: the parameters of model {model.name!r} are laid out as this version does not "
                          f"know ({values.size} numbers, {len(names)} names); export with parameters=()")

@@ -158,7 +158,7 @@ def planar_simulation_sensitivity(model: Any, parameters: str | Sequence[str], *
     import casadi as ca
 
     from .compiled_loops import ClosedLoops
-    from .compiled_parameters import compiled_actuators, parameter_vector
+    from .compiled_parameters import compile_refusal, compiled_actuators, parameter_vector
     from .compiled_scene import symbolic_accelerations_with_inputs
     from .control.controlled_model import ControlledModel
     from .generated_loop import rk4_step_function
@@ -172,6 +172,9 @@ def planar_simulation_sensitivity(model: Any, parameters: str | Sequence[str], *
     if not isinstance(model, PlanarModel):
         raise ModelError(f"planar_simulation_sensitivity: model must be a ctmm.planar.PlanarModel or a "
                          f"ControlledModel on one, got {type(model).__name__}")
+    reason = compile_refusal(model)     # moving drives: not here (the generated RK4 and schemes take them)
+    if reason:
+        raise ModelError(f"planar_simulation_sensitivity: {reason}")
     names = validation.names("parameters", parameters)
     original, loop_list = controlled, (controlled.loops if controlled else ())
     if controlled is not None:

@@ -3,7 +3,7 @@
 Independent references: closed forms (a free mass under a ramped force, ``x = slope t^3 / (6 m)``, which RK4
 integrates exactly; a mass on a spring behind a base moving at constant speed, ``x = v t - (v / w) sin(w t)``),
 Newton's equation of a pendulum hinged on a crank turning at constant speed (DOP853 at 1e-12); the generated code
-against the numpy path (chains, spatial trees, loop references and inputs).  The frequency domain and the rate
+against the numpy path (chains, planar and spatial trees, loop references and inputs).  The frequency domain and the rate
 paths refuse what they cannot take by name.
 """
 from __future__ import annotations
@@ -103,8 +103,8 @@ def _crank_arm():
 
 
 def test_a_planar_crank_driven_at_constant_speed():
-    """The crank's angle is ``TH0 + W t`` exactly; the arm follows Newton-Euler; the generated planar kernels refuse
-    the moving drive by name."""
+    """The crank's angle is ``TH0 + W t`` exactly; the arm follows Newton-Euler; the generated RK4 follows the ramp
+    on its time symbol (= numpy to round-off); the time-history sensitivities refuse the moving drive by name."""
     model = PlanarModel.chain("crank", [
         planar_elements.Fixed("g"), DrivenHinge("motor", angle=Ramp(W, TH0), rate=W),
         RigidBody.uniform_link("crank", mass=0.5, length=L1), SpringDamperHinge("h", stiffness=K, damping=C),
@@ -116,8 +116,11 @@ def test_a_planar_crank_driven_at_constant_speed():
     exact = solve_ivp(_crank_arm(), (0.0, 1.0), [0.5, 0.0], t_eval=run.time, rtol=1e-12, atol=1e-14,
                       method="DOP853").y
     np.testing.assert_allclose(run["arm.theta"], exact[0], rtol=0, atol=1e-9)
+    generated = ctmm.simulate(model, 1.0, 1e-3, method="rk4", compiled=True, x0={"arm.theta": 0.5})
+    assert generated.info["method"] == "rk4-generated"
+    np.testing.assert_allclose(generated["arm.theta"], run["arm.theta"], rtol=0, atol=1e-12)
     with pytest.raises(ModelError, match=r"driven hinges whose motion is not constant: 'motor'"):
-        ctmm.simulate(model, 0.1, 1e-3, method="rk4", compiled=True)
+        ctmm.sensitivity.simulation_sensitivity(model, ["arm.mass"], t_final=0.1, dt=1e-3)
 
 
 def _spatial_model() -> sp.SpatialModel:

@@ -126,8 +126,9 @@ class PlanarScene:
                              "'<beam>.<station>.force|moment') are not on the element protocol yet; use the "
                              "sweep of ctmm.planar.accelerations (ctmm.simulate without compiled=True)")
         m = self.model
-        driven = {i: (a, r, acc) for i, a, r, acc in m.driven(t)}
         numbers = SceneNumbers.of(m, t) if numbers is None else numbers
+        # the prescribed motions: the numbers' (symbols of t in generated code) or the model's at t
+        driven = numbers.driven if numbers.driven is not None else {i: (a, r, acc) for i, a, r, acc in m.driven(t)}
         all_loads = numbers.loads
         end_motion, bodies, joints = {}, [], []
         for j in range(m.n_bodies):

@@ -53,6 +53,9 @@ class SceneNumbers:
         [N, N, N m] (at the time of the terms).
     load_point : sequence (n_loads,) of (x, y)
         Body frame [m].
+    driven : mapping int -> (angle, rate, acceleration), optional
+        The prescribed relative motion of every driven joint by body [rad, rad/s, rad/s^2] (at the time of
+        the terms); ``None``: the model's ``driven(t)`` at the time of the terms.
     """
 
     mass: Sequence[Any]
@@ -67,14 +70,16 @@ class SceneNumbers:
     torque: Sequence[Any]
     loads: Sequence[Any]
     load_point: Sequence[Any]
+    driven: Mapping[int, tuple] | None = None
 
     @classmethod
     def of(cls, model: PlanarModel, t: float = 0.0) -> "SceneNumbers":
         """The numbers of ``model`` at time ``t`` [s] (hinge-law and load signals evaluated)."""
         reference, reference_rate, torque = model.hinge_laws(t)
         loads = model.loads(t) if len(model.load_body) else np.zeros((0, 3))
+        driven = {i: (angle, rate, acceleration) for i, angle, rate, acceleration in model.driven(t)}
         return cls(model.mass, model.inertia, model.com, model.ends, model.gravity, model.stiffness, model.damping,
-                   reference, reference_rate, torque, loads, model.load_point)
+                   reference, reference_rate, torque, loads, model.load_point, driven)
 
 
 def rigid_body_terms(ops: Ops, *, mass: float, inertia: float, center_of_mass: Sequence[float],
