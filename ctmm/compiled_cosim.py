@@ -62,7 +62,7 @@ from .signal_results import SignalSystem, signal_result
 from .spatial.integrate import beam_deflection_weights
 from .spatial.model import SpatialModel
 
-__all__ = ["simulate_cosimulated_generated", "simulate_cosimulated_scheme", "stored_offsets"]
+__all__ = ["sampled_run", "simulate_cosimulated_generated", "simulate_cosimulated_scheme", "stored_offsets"]
 
 
 def _scene(controlled: Any, dt: float, controllers: Sequence[Any], inputs: Mapping[str, Any],
@@ -318,7 +318,7 @@ def simulate_cosimulated_generated(model: Any, loops: Sequence[Any], q0: np.ndar
             state, k = block[-1], following
             bar.update(len(block))
 
-    return _sampled_run(advance, result, times, bar, master)
+    return sampled_run(advance, result, times, bar, master)
 
 
 def _guard_screen(plant: Any, q0: np.ndarray, first: np.ndarray, bound: float | None
@@ -524,7 +524,7 @@ def simulate_cosimulated_scheme(system: Any, t_final: float, dt: float | None, s
                         state[compiled.start_up_index] = 0.0
                 held = now
 
-    return _sampled_run(advance, result, times, bar, master)
+    return sampled_run(advance, result, times, bar, master)
 
 
 def stored_offsets(start: int, first: int, stop: int, store_every: int, n_steps: int) -> list[int]:
@@ -536,7 +536,7 @@ def stored_offsets(start: int, first: int, stop: int, store_every: int, n_steps:
     return offsets
 
 
-def _sampled_run(advance: Callable[[], None], result: Callable[[int], SimulationResult], times: list, bar: Any,
+def sampled_run(advance: Callable[[], None], result: Callable[[int], SimulationResult], times: list, bar: Any,
                  master: CoSimulation) -> SimulationResult:
     """Run the sample intervals (``advance``) and return ``result`` of the stored rows; a
     :class:`~ctmm.errors.SimulationError` carries the partial result of the rows stored so far, and the progress

@@ -299,6 +299,23 @@ class SchemeHooks:
     """Further casadi Functions of the library (a subclass's :meth:`closed_acceleration` sets them; compiled after)."""
     controller_size: int = 0
     """Entries of the generated state after :data:`STATUS` (a subclass's loop controller states; none here)."""
+    parameters: np.ndarray
+    """The step's input ``p`` (numbers; empty where they are constants of the code), set by the subclass."""
+
+    def continue_run(self, state: np.ndarray, held: np.ndarray, dt: float, n_steps: int, first_step: int,
+                     since_start: int | None = None, runner: BlockRunner | None = None) -> np.ndarray:
+        """Stored states (rows, :attr:`state_size`) of ``n_steps`` steps of ``dt`` [s] from ``state`` at step
+        ``first_step`` with the input vector ``held`` over them (a sample interval, :mod:`ctmm.compiled_scheme_cosim`).
+        ``since_start``: steps since the scheme's start-up last began (default ``first_step``; ``0`` where a multistep
+        scheme restarts at a held input's jump, :meth:`ctmm.schemes.Scheme.restart`): the failed-step status's count."""
+        dt = validation.positive("dt", dt)
+        if dt not in self.checked_steps:            # (once per step: a co-simulation calls once per sample)
+            check_step_scaling(self.scheme, self.maps, dt)
+            self.checked_steps.add(dt)
+        since = first_step if since_start is None else since_start
+        return run_blocks(self._blocks, self._stride, self._step, self.store_every, np.asarray(state)[:, None],
+                          np.asarray(held, dtype=float), dt, validation.integer("n_steps", n_steps, minimum=1),
+                          (first_step - since) * dt, self.parameters[:, None], first_step=since, runner=runner)[0]
 
     def iterate_acceleration(self, acceleration: Any, q: Any, v: Any, u: Any, p: Any, t: Any, c: Any, s: Any) -> Any:
         """``qddot`` at a Newton iterate ``(q, v)`` and time ``t`` on casadi SX symbols, ``c`` the
@@ -462,23 +479,6 @@ class CompiledSceneScheme(SchemeHooks):
         if start:
             out[4 * n:5 * n] = out[5 * n:6 * n] = out[:n]
         return out
-
-    def continue_run(self, state: np.ndarray, held: np.ndarray, dt: float, n_steps: int, first_step: int,
-                     since_start: int | None = None, runner: BlockRunner | None = None) -> np.ndarray:
-        """Stored states (rows, :attr:`state_size`) of ``n_steps`` steps of ``dt`` [s] from ``state`` at step
-        ``first_step`` (time ``first_step dt``) with the values ``held`` of :attr:`actuators` held over them (one
-        sample interval of co-simulated controllers, :mod:`ctmm.compiled_scheme_cosim`).  ``since_start``: steps
-        since the scheme's start-up last began (default ``first_step``; ``0`` where a multistep scheme restarts
-        at a jump of a held input, :meth:`ctmm.schemes.Scheme.restart`); the failed-step status then counts from
-        that restart."""
-        dt = validation.positive("dt", dt)
-        if dt not in self.checked_steps:            # (once per step: a co-simulation calls once per sample)
-            check_step_scaling(self.scheme, self.maps, dt)
-            self.checked_steps.add(dt)
-        since = first_step if since_start is None else since_start
-        return run_blocks(self._blocks, self._stride, self._step, self.store_every, np.asarray(state)[:, None],
-                          np.asarray(held, dtype=float), dt, validation.integer("n_steps", n_steps, minimum=1),
-                          (first_step - since) * dt, self.parameters[:, None], first_step=since, runner=runner)[0]
 
     def run(self, state: np.ndarray, dt: float, n_steps: int) -> np.ndarray:
         """Stored states (rows, :attr:`state_size`) of ``n_steps`` steps of ``dt`` [s] from ``state`` at ``t = 0``

@@ -52,7 +52,7 @@ import numpy as np
 from . import validation
 from .compiled_control import add_loop_signals
 from .compiled_parameters import station_loads
-from .compiled_cosim import stored_offsets
+from .compiled_cosim import sampled_run, stored_offsets
 from .compiled_kinematic_loop_control import applied_loop_inputs
 from .compiled_scene_schemes import STATUS, CompiledSceneScheme, not_converged
 from .compiled_scheme_loops import CompiledSchemeLoops
@@ -283,7 +283,9 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
 
     bar = progress_bar(n_steps, f"ctmm.simulate ({plant.label}, {label})",
                        enabled=validation.flag("progress", progress, optional=True))
-    try:
+
+    def advance() -> None:
+        nonlocal intervals
         held, _ = sample(0, np.concatenate([q0, v0]))
         state = compiled.restarted(compiled.initial_state(*((q0, v0) if planar else (np.concatenate([q0, v0]),))),
                                    held, 0.0)
@@ -325,12 +327,8 @@ def simulate_cosimulated_scheme_generated(model: PlanarModel | SpatialModel, q0:
                 state = compiled.restarted(state, held, k * dt)
                 if scheme.restart_on_input_jump:    # a multistep scheme (Houbolt) starts up again (Scheme.restart)
                     restart = k
-    except SimulationError as exc:
-        raise with_partial(exc, lambda: result(len(times))) from exc.__cause__
-    finally:
-        bar.close()
-        master.close()
-    return result(len(times))
+
+    return sampled_run(advance, result, times, bar, master)
 
 
 def cut_rows_pass(block: np.ndarray) -> np.ndarray:

@@ -98,7 +98,9 @@ class SpatialSymbols:
         """Sensor ``name`` of :mod:`ctmm.spatial.ports` as an expression of the symbols ``q`` (nq), ``v`` (nv) and,
         given, the time symbol ``t`` [s] (the driven joints' signals at ``t``).
 
-        The rotation vector ``"<body>.rotation_x|y|z"`` is
+        The one reading of a sensor on symbols: loops that state their sensors at their stage time
+        (:attr:`time_sensors`) and outputs evaluated at known times (time-history sensitivities) pass ``t``; a
+        sensor that does not move with time signals does not depend on it.  The rotation vector ``"<body>.rotation_x|y|z"`` is
         :func:`~ctmm.compiled_spherical_cut_law.symbolic_rotation_vector` of the body's rotation matrix.
 
         Raises
@@ -120,17 +122,6 @@ class SpatialSymbols:
                          "state their sensors (and the delayed loops' sensor rates) at the state only, so they "
                          "cannot close a loop on it; drive those joints with ctmm.signals.Constant, sense a body "
                          "inboard of them, or use compiled=False")
-
-    @property
-    def time(self) -> Any:
-        """The time [s] the body states are stated at: a casadi symbol when driven joints or loads carry time
-        signals (:func:`~ctmm.compiled_spatial_signals.spatial_compile_refusal`), else ``0.0``."""
-        return self._time
-
-    def sensor_at_time(self, name: str, q: Any, v: Any) -> Any:
-        """Sensor ``name`` as an expression of ``q``, ``v`` and :attr:`time` (one that moves with a driven joint's
-        signals depends on it: for outputs evaluated at known times, e.g. sensitivities; loops use :meth:`sensor`)."""
-        return self._sensor(name, q, v)
 
     def _sensor(self, name: str, q: Any, v: Any) -> Any:
         """Sensor ``name`` on symbols (:meth:`sensor`), the body states at :attr:`_time`."""

@@ -45,11 +45,11 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from . import validation
-from .compiled_scene_schemes import (STATUS, SchemeHooks, check_step_scaling, newton_iteration, newton_options,
-                                     reused_or_built, scheme_maps, symbolic_scheme_step)
+from .compiled_scene_schemes import (STATUS, SchemeHooks, newton_iteration, newton_options, reused_or_built,
+                                     scheme_maps, symbolic_scheme_step)
 from .compiled_spatial import SPATIAL_FLAGS, SpatialRates, spatial_compile_refusal
 from .errors import ConvergenceError, ModelError, SimulationError
-from .generated_loop import BlockRunner, compiled_time_loop, run_blocks
+from .generated_loop import compiled_time_loop
 from .guard import StabilityLimitWarning
 from .mapped_tangent import tangent_construction, value_and_jacobian
 from .ops import CASADI
@@ -226,7 +226,7 @@ class CompiledSpatialScheme(SchemeHooks):
         self.tolerance, self.max_iterations, self.store_every, rows = newton_options(
             "CompiledSpatialScheme", tolerance, max_iterations, store_every, rows)
         start = clock.perf_counter()
-        self.model = model
+        self.model, self.parameters = model, np.zeros(0)      # the numbers are constants of the code
         self.maps, self.checked_steps = scheme_maps(self.scheme, 1.0), set()       # steps the check accepted
         self.rates = SpatialRates(model, fold=False)
         from .model_description import describe       # what build() reads: a cached library loads without symbols
@@ -351,20 +351,6 @@ class CompiledSpatialScheme(SchemeHooks):
                                               np.zeros(0), validation.finite("t", t))).reshape(-1)
         out[nq + n:nq + 2 * n] = out[nq + 2 * n:nq + 3 * n] = rates
         return out
-
-    def continue_run(self, state: np.ndarray, held: np.ndarray, dt: float, n_steps: int, first_step: int,
-                     since_start: int | None = None, runner: BlockRunner | None = None) -> np.ndarray:
-        """Stored states (rows, :attr:`state_size`) of ``n_steps`` steps of ``dt`` [s] from ``state`` at step
-        ``first_step`` with the input vector ``held`` over them (:mod:`ctmm.compiled_scheme_cosim`); ``since_start``
-        as :meth:`ctmm.compiled_scene_schemes.CompiledSceneScheme.continue_run`."""
-        dt = validation.positive("dt", dt)
-        if dt not in self.checked_steps:            # (once per step: a co-simulation calls once per sample)
-            check_step_scaling(self.scheme, self.maps, dt)
-            self.checked_steps.add(dt)
-        since = first_step if since_start is None else since_start
-        return run_blocks(self._blocks, self._stride, self._step, self.store_every, np.asarray(state)[:, None],
-                          np.asarray(held, dtype=float), dt, validation.integer("n_steps", n_steps, minimum=1),
-                          (first_step - since) * dt, np.zeros((0, 1)), first_step=since, runner=runner)[0]
 
     def run(self, state: np.ndarray, dt: float, n_steps: int, inputs: Mapping[str, Any] | None = None) -> np.ndarray:
         """Stored states (rows, :attr:`state_size`) of ``n_steps`` steps of ``dt`` [s] from ``state`` at ``t = 0``

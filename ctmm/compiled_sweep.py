@@ -90,21 +90,20 @@ def compiler_present() -> bool:
 _ADDRESS, _INT, _DOUBLE = ctypes.c_void_p, ctypes.c_int, ctypes.c_double
 
 
-def kernel_source(dimension: int, complex_scalar: bool, general: bool = False, multi: bool = False) -> str:
+def kernel_source(dimension: int, complex_scalar: bool, multi: bool = False) -> str:
     """The C text of one kernel variant (point ``dimension``, scalar type ``double _Complex`` or ``double``;
-    ``general``: joints on a column ``S``, else unit axes only; ``multi``: joints of several directions,
-    :data:`ctmm.compiled_sweep_multi_kernel.KERNEL_MULTI_C`)."""
+    ``multi``: joints of several directions, :data:`ctmm.compiled_sweep_multi_kernel.KERNEL_MULTI_C`).  Unit axes
+    and joints on a column ``S`` share one text (the axes say which, :data:`KERNEL_C`)."""
     source = (KERNEL_MULTI_C if multi else KERNEL_C).replace("__DIM__", str(int(dimension)))
     source = source.replace("__COMPLEX__", "1" if complex_scalar else "0")
-    return source.replace("__LMAX__", str(LOAD_CASES)).replace("__GENERAL__", "1" if general else "0")
+    return source.replace("__LMAX__", str(LOAD_CASES))
 
 
-def kernel_library(dimension: int, complex_scalar: bool, general: bool = False, multi: bool = False) -> ctypes.CDLL:
+def kernel_library(dimension: int, complex_scalar: bool, multi: bool = False) -> ctypes.CDLL:
     """The compiled kernel of one variant (:func:`kernel_source`), from the disk cache or built now
     (:func:`ctmm.codegen.load_ctypes`; ModelError without a compiler or when the compile fails)."""
-    name = (f"ctmm_sweep_d{int(dimension)}_{'complex' if complex_scalar else 'real'}{'_general' if general else ''}"
-            f"{'_multi' if multi else ''}")
-    library = load_ctypes(kernel_source(dimension, complex_scalar, general, multi), name,
+    name = f"ctmm_sweep_d{int(dimension)}_{'complex' if complex_scalar else 'real'}{'_multi' if multi else ''}"
+    library = load_ctypes(kernel_source(dimension, complex_scalar, multi), name,
                           flags=COMPLEX_FLAGS if complex_scalar else REAL_FLAGS)
     library.sweep.restype = ctypes.c_int
     library.sweep.argtypes = [_INT] * 3 + [_ADDRESS] * 18 + [_DOUBLE] * 2 + [_ADDRESS] * 5
@@ -285,7 +284,6 @@ class CompiledSweep:
             for k, law in enumerate((joints[j].tau_q, joints[j].tau_v)):
                 if law is not None:
                     laws[k, j] = complex(np.asarray(law).reshape(-1)[0])
-        self.general = bool(np.any(self.axis == -2))     # a column S: the variant with its products
         self._build(laws)
 
     def _build(self, laws: np.ndarray) -> None:
@@ -328,14 +326,12 @@ class CompiledSweep:
                     self.G[j, :k], self.flags[j] = np.real(np.asarray(G)).reshape(k, d), self.flags[j] | 1
                 if H is not None:
                     self.H[j, :, :k], self.flags[j] = np.real(np.asarray(H)).reshape(d, k), self.flags[j] | 2
-        self.general = True
         self._build(laws)
 
     def library(self, complex_scalar: bool) -> ctypes.CDLL:
         """The kernel variant (compiled or loaded on first use)."""
         if complex_scalar not in self.libraries:
-            self.libraries[complex_scalar] = (kernel_library(self.d, complex_scalar, self.general, multi=True)
-                                              if self.multi else kernel_library(self.d, complex_scalar, self.general))
+            self.libraries[complex_scalar] = kernel_library(self.d, complex_scalar, self.multi)
         return self.libraries[complex_scalar]
 
     def _call(self, complex_scalar: bool, L: int, B: int, flags: np.ndarray, inputs: tuple, tolerances: tuple,

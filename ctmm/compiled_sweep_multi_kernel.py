@@ -313,4 +313,4 @@ void smallest_singular_values(int B, int k, const scalar *blocks, double *out)
 """
 """The C text of the kernel variant with joints of several free directions (universal, spherical, free: ``k x k``
 pivot blocks, solved by Gaussian elimination with partial pivoting, certified by their smallest singular value from
-one-sided Jacobi rotations); placeholders as :data:`KERNEL_C`'s (``__GENERAL__`` unused)."""
+one-sided Jacobi rotations); placeholders as :data:`KERNEL_C`'s."""

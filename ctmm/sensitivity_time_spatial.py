@@ -127,11 +127,11 @@ def spatial_simulation_sensitivity(model: Any, parameters: str | Sequence[str], 
     states, tangents = forward_sensitivities(step, first, p0, directions, n_steps, h, what)
     wanted = list(plant.coordinates) if outputs is None else list(validation.names("outputs", outputs))
     state_names = list(plant.coordinates) + list(plant.velocities)
-    q_sym, v_sym = ca.SX.sym("q", nq), ca.SX.sym("v", nv)
+    q_sym, v_sym, t = ca.SX.sym("q", nq), ca.SX.sym("v", nv), ca.SX.sym("t")
     rows = []
     for name in wanted:            # sensors that move with a driven joint's signals: on the time symbol
         if name in ports.sensors and name not in state_names:
-            rows.append(symbols.sensor_at_time(name, q_sym, v_sym))
+            rows.append(symbols.sensor(name, q_sym, v_sym, t))
         elif name in state_names:
             rows.append(ca.vertcat(q_sym, v_sym)[state_names.index(name)])
         else:
@@ -139,7 +139,6 @@ def spatial_simulation_sensitivity(model: Any, parameters: str | Sequence[str], 
                                state_names + [s for s in ports.sensors if s not in state_names])
     x = ca.vertcat(q_sym, v_sym)
     y = ca.vertcat(*rows)
-    t = symbols.time if isinstance(symbols.time, ca.SX) else ca.SX.sym("t")
     evaluate = ca.Function("outputs", [x, t], [y, ca.jacobian(y, x)]).map(n_steps + 1)
     time = h * np.arange(n_steps + 1)
     values, slopes = evaluate(states[:, :nq + nv].T, time[None, :])

@@ -136,6 +136,33 @@ def test_real_variant_equals_the_generic_sweep():
     assert solution.good.all()
 
 
+@pytest.mark.parametrize("damped", [False, True])
+def test_unit_axes_and_columns_share_one_kernel_bit_for_bit(damped):
+    """One kernel text serves joints on a unit axis (a row and column of ``P``) and on a column ``S`` (products with
+    ``S``): one library per dimension and scalar type, which reads from the axes whether to run the products.  The
+    tree with its hinges and held drives stated on the column ``S = e_z`` (no unit axis) is answered by the same
+    library as with ``axis=2``, and bit for bit the same numbers (the products with a unit column are exact)."""
+    tree, bodies, joints, coupling = terms(6, True)
+    if not damped:                                  # undamped, on the imaginary axis: the real variant
+        bodies = [(M0, np.zeros_like(C0), K0, Kin, RF) for M0, C0, K0, Kin, RF in bodies]
+        joints = [JointTerms(S=j.S, tau=j.tau, tau_q=j.tau_q, axis=j.axis) if j.tau is not None else j
+                  for j in joints]
+    columns = [JointTerms(S=j.S, tau=j.tau, tau_q=j.tau_q, tau_v=j.tau_v, prescribed=j.prescribed)
+               if j.axis is not None else j for j in joints]
+    s = 1j * np.linspace(0.2, 5.0, 11)
+    rng = np.random.default_rng(9)
+    loads, torques = rng.normal(size=(len(PARENT), D, 3)), rng.normal(size=(5, 3))
+    unit, column = CompiledSweep(tree, bodies, joints, coupling), CompiledSweep(tree, bodies, columns, coupling)
+    assert list(unit.axis) != list(column.axis) and -2 in list(column.axis)
+    assert unit.library(damped)._name == column.library(damped)._name          # one library, compiled once
+    first = unit.solve(s, loads, torques, relative=True, **TOLERANCES)
+    second = column.solve(s, loads, torques, relative=True, **TOLERANCES)
+    assert first.x.dtype == (complex if damped else float)
+    for name in ("x", "relative", "pivot", "backward", "good"):
+        assert np.array_equal(getattr(first, name), getattr(second, name)), name
+    assert np.array_equal(unit.mass_pivot, column.mass_pivot)
+
+
 def test_kernel_declines_terms_it_does_not_take():
     tree, bodies, joints, coupling = terms(4, False)
     flexible = list(bodies)

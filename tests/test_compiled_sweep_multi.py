@@ -79,7 +79,7 @@ def test_the_pivot_certificate_decides_as_the_generic_sweep(monkeypatch):
 
 def kernel_singular(blocks: np.ndarray, k: int, complex_scalar: bool) -> np.ndarray:
     """The kernel's smallest singular value of each (B, k, k) block."""
-    library = kernel_library(6, complex_scalar, True, multi=True)
+    library = kernel_library(6, complex_scalar, multi=True)
     padded = np.zeros((blocks.shape[0], 6, 6), dtype=complex if complex_scalar else float)
     padded[:, :k, :k] = blocks
     out = np.empty(blocks.shape[0])

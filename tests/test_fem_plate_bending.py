@@ -114,7 +114,7 @@ def test_refusals_name_the_problem():
         SpatialPlateElement("p", ("a", "b", "c", "d"), 0.01, 2e11, 0.5, 7850.0)
     with pytest.raises(ModelError, match="density"):
         SpatialPlateElement("p", ("a", "b", "c", "d"), 0.01, 2e11, 0.3, 0.0)
-    with pytest.raises(ModelError, match="four distinct"):
+    with pytest.raises(ModelError, match="4 distinct node names"):
         SpatialPlateElement("p", ("a", "b", "c", "c"), 0.01, **STEEL)
     with pytest.raises(ModelError, match="thickness"):
         SpatialPlateElement("p", ("a", "b", "c", "d"), -0.01, **STEEL)

@@ -34,8 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import validation
 from ..errors import ModelError
+from .flat_shell import check_flat_shell
 from .membrane import MembraneElement, membrane_matrices
 
 __all__ = ["SpatialPlateElement", "plate_axes", "plate_local_matrices", "plate_shapes", "plate_rotation_block",
@@ -89,18 +89,7 @@ class SpatialPlateElement:
     drilling_stiffness_ratio: float = 0.1
 
     def __post_init__(self) -> None:
-        n = validation.name("element", self.name)
-        nodes = tuple(self.nodes) if isinstance(self.nodes, (tuple, list)) else ()
-        if len(nodes) != 4 or not all(isinstance(k, str) and k for k in nodes) or len(set(nodes)) != 4:
-            raise ModelError(f"{n}: nodes must be four distinct node names (corners of a rectangle, counter-clockwise "
-                             f"about its normal), got {self.nodes!r}")
-        object.__setattr__(self, "nodes", nodes)
-        for attribute in ("thickness", "youngs_modulus", "density", "drilling_stiffness_ratio"):
-            object.__setattr__(self, attribute, validation.positive(f"{n}: {attribute}", getattr(self, attribute)))
-        nu = validation.nonnegative(f"{n}: poisson_ratio", self.poisson_ratio)
-        if not nu < 0.5:
-            raise ModelError(f"{n}: poisson_ratio must be in [0, 0.5), got {self.poisson_ratio!r}")
-        object.__setattr__(self, "poisson_ratio", nu)
+        check_flat_shell(self, 4, "rectangle")
 
     @property
     def bending_stiffness(self) -> float:
