@@ -5,9 +5,14 @@
 
 * a C compiler is present (:func:`ctmm.codegen.find_compiler`);
 * the run is a fixed-step RK4 of a 1-D chain, a planar or a spatial model (plain, or with feedback loops,
-  inputs and references), or a DT-TMM scheme of a 1-D chain (its step is one data-driven kernel compiled
+  inputs and references), or a DT-TMM scheme of any of them (a chain's step is one data-driven kernel compiled
   once per variant);
 * a chain has at most :data:`MAXIMUM_CHAIN_POINTS` points (the set-up of its generated step grows faster);
+* a DT-TMM scheme of a planar model has at most :data:`SCHEME_MAXIMUM_COORDINATES` coordinates and one of a
+  spatial model at most :data:`SCHEME_MAXIMUM_VELOCITIES` velocities: their generated Newton step forms the
+  ``n x n`` tangent of the sweep (``2 n`` directional derivatives, :mod:`ctmm.mapped_tangent`) and factors it,
+  O(n^2 .. n^3) per iteration, where the numpy planar stepper iterates with one linearised articulated sweep
+  (O(n)), so beyond these sizes the generated step is slower (planar) or its first compile too long (spatial);
 * it is long: at least :data:`MINIMUM_STEPS` steps, so that a first compile (about 1-2.5 s CPU for the
   planar, spatial and chain scenes measured below) costs a fraction of the numpy run it replaces, and a
   cached kernel (milliseconds to load) is far ahead;
@@ -28,6 +33,13 @@ N = 5: numpy 0.83 ms/step, first generated call 0.99 s (break-even 1 200 steps),
 1.3 ms/step, 2.5 s (1 900 steps), 47 ms; spatial revolute chain N = 5: 17.8 ms/step, 1.2 s (70 steps);
 1-D chain of 100 masses: 0.82 ms/step, 1.05 s (1 300 steps), 0.2 s.  At :data:`MINIMUM_STEPS` the first
 compile is at most about half the numpy time of those runs.
+
+DT-TMM schemes (``benchmarks/compiled_schemes_default.py``, Newmark, dt = 1 ms, CPU time, load 9-14 on 2 cores,
+session 12; generated step on the loaded library / numpy step): planar pendulum chains N = 5: 10.7 / 589 us, first
+call 2.6 s; N = 10: 166 / 951 us, 3.5 s; N = 15: 274 / 741 us (ratio 0.37), 5.3 s; N = 20 (sweep folded): 1362 /
+842 us (ratio 1.6); N = 40: 6.1 / 1.8 ms; N = 80: 26.9 / 2.9 ms.  Spatial revolute chains N = 3: first call 2.2 s,
+numpy 4.8 ms per step; N = 5: 9.3 s, 7.2 ms; N = 10: 22 s, 12.2 ms (generated 0.22 ms); N = 20: gcc passed its
+600 s wall-clock limit (load 15).
 """
 from __future__ import annotations
 
@@ -43,7 +55,8 @@ from .schemes import SCHEMES, Scheme
 from .spatial.model import SpatialModel
 from .system import Chain
 
-__all__ = ["MAXIMUM_CHAIN_POINTS", "MINIMUM_STEPS", "default_refusal", "run_default"]
+__all__ = ["MAXIMUM_CHAIN_POINTS", "MINIMUM_STEPS", "SCHEME_MAXIMUM_COORDINATES", "SCHEME_MAXIMUM_VELOCITIES",
+           "default_refusal", "run_default"]
 
 MINIMUM_STEPS = 5000
 """Fewest fixed steps for which ``compiled=None`` tries the generated path (module docstring)."""
@@ -52,9 +65,32 @@ MAXIMUM_CHAIN_POINTS = 2002
 corrections, :mod:`ctmm.lumped_forms`) took 0.15 s CPU per call at 100 masses, 2-4 s at 1000 and passed 19 GB
 of memory at 10 000 (session 11), so larger chains stay on the numpy path unless ``compiled=True``."""
 
+SCHEME_MAXIMUM_COORDINATES = 15
+"""Largest planar model (coordinates) whose DT-TMM schemes the default generates: the generated step was 0.37 of
+the numpy step at 15 coordinates and 1.6 times it at 20 (module docstring); larger ones stay on numpy unless
+``compiled=True``."""
+SCHEME_MAXIMUM_VELOCITIES = 10
+"""Largest spatial model (velocities) whose DT-TMM schemes the default generates: the generated step is far ahead
+(0.22 ms against 12 ms at 10), but the first compile grows steeply (22 s CPU at 10 velocities, over 600 s at 20;
+module docstring), a fraction of the numpy time of :data:`MINIMUM_STEPS` steps only up to about this size."""
+
 
 def _plant(system: Any) -> Any:
     return getattr(system, "plant", system)
+
+
+def _scheme_size_refusal(plant: PlanarModel | SpatialModel) -> str | None:
+    """Why a DT-TMM scheme of ``plant`` stays on numpy by its size (:data:`SCHEME_MAXIMUM_COORDINATES`,
+    :data:`SCHEME_MAXIMUM_VELOCITIES`), or ``None``."""
+    if isinstance(plant, PlanarModel):
+        size, limit, what = plant.n_coordinates, SCHEME_MAXIMUM_COORDINATES, "coordinates"
+    else:
+        size, limit, what = plant.n_velocities, SCHEME_MAXIMUM_VELOCITIES, "velocities"
+    if size > limit:
+        return (f"a DT-TMM scheme of {size} {what} (> {limit}: the generated Newton step forms and factors an "
+                f"{size} x {size} tangent, slower than the numpy stepper there or too long to compile; give "
+                "compiled=True)")
+    return None
 
 
 def default_refusal(system: Any, method: Any, t_final: Any, t0: Any, dt: Any, *, controllers: Any, fast: Any,
@@ -81,8 +117,12 @@ def default_refusal(system: Any, method: Any, t_final: Any, t0: Any, dt: Any, *,
         if points > MAXIMUM_CHAIN_POINTS:
             return f"a chain of {points} points (> {MAXIMUM_CHAIN_POINTS}: the generated set-up grows too fast)"
     elif isinstance(plant, (PlanarModel, SpatialModel)):
-        if method != "rk4":
-            return "the default runs the generated RK4 of planar and spatial models only (give compiled=True)"
+        if method != "rk4" and not is_scheme:
+            return f"method {method!r} has no generated form"
+        if is_scheme:
+            reason = _scheme_size_refusal(plant)
+            if reason:
+                return reason
     else:
         return "only chains, planar and spatial models (with or without loops) take the generated path by default"
     if controllers:
