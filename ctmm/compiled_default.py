@@ -8,8 +8,10 @@
   inputs and references), or a DT-TMM scheme of any of them (a chain's step is one data-driven kernel compiled
   once per variant);
 * a chain has at most :data:`MAXIMUM_CHAIN_POINTS` points (the set-up of its generated step grows faster);
-* a DT-TMM scheme of a planar model has at most :data:`SCHEME_MAXIMUM_COORDINATES` coordinates and one of a
-  spatial model at most :data:`SCHEME_MAXIMUM_VELOCITIES` velocities: their generated Newton step forms the
+* a DT-TMM scheme of a planar model has at most :data:`SCHEME_MAXIMUM_COORDINATES` coordinates (with feedback
+  loops :data:`SCHEME_LOOPS_MAXIMUM_COORDINATES`: the numpy path's loops cost more than the generated tangent
+  there) and one of a spatial model at most :data:`SCHEME_MAXIMUM_VELOCITIES` velocities: their generated Newton
+  step forms the
   ``n x n`` tangent of the sweep (``2 n`` directional derivatives, :mod:`ctmm.mapped_tangent`) and factors it,
   O(n^2 .. n^3) per iteration, where the numpy planar stepper iterates with one linearised articulated sweep
   (O(n)), so beyond these sizes the generated step is slower (planar) or its first compile too long (spatial);
@@ -34,12 +36,13 @@ N = 5: numpy 0.83 ms/step, first generated call 0.99 s (break-even 1 200 steps),
 1-D chain of 100 masses: 0.82 ms/step, 1.05 s (1 300 steps), 0.2 s.  At :data:`MINIMUM_STEPS` the first
 compile is at most about half the numpy time of those runs.
 
-DT-TMM schemes (``benchmarks/compiled_schemes_default.py``, Newmark, dt = 1 ms, CPU time, load 9-14 on 2 cores,
-session 12; generated step on the loaded library / numpy step): planar pendulum chains N = 5: 10.7 / 589 us, first
-call 2.6 s; N = 10: 166 / 951 us, 3.5 s; N = 15: 274 / 741 us (ratio 0.37), 5.3 s; N = 20 (sweep folded): 1362 /
-842 us (ratio 1.6); N = 40: 6.1 / 1.8 ms; N = 80: 26.9 / 2.9 ms.  Spatial revolute chains N = 3: first call 2.2 s,
-numpy 4.8 ms per step; N = 5: 9.3 s, 7.2 ms; N = 10: 22 s, 12.2 ms (generated 0.22 ms); N = 20: gcc passed its
-600 s wall-clock limit (load 15).
+DT-TMM schemes (``benchmarks/compiled_schemes_default.py``, Newmark, dt = 1 ms, CPU time, load 12-16 on 2 cores,
+session 12; generated step on the loaded library / numpy step, first generated call): planar pendulum chains N = 5:
+10.8 / 633 us, 2.4 s; N = 10: 151 / 895 us, 3.8 s; N = 15: 255 / 949 us (ratio 0.27), 5.0 s; N = 20 (sweep
+folded): 1362 / 932 us (ratio 1.5); N = 40: 5.7 / 1.5 ms (3.9); N = 80: 20.3 / 2.0 ms (10).  With a PD loop on
+every hinge: N = 15: 0.46 / 15.3 ms (0.030), 7.0 s; N = 30: 2.0 / 19.3 ms (0.10), 17 s.  Spatial revolute chains
+(generated 15-280 us per step): N = 3: numpy 5.5 ms per step, first call 2.2 s; N = 5: 9.7 ms, 8.0 s; N = 10:
+14.3 ms, 20 s; N = 20: gcc passed its 600 s wall-clock limit (load 15).
 """
 from __future__ import annotations
 
@@ -55,8 +58,8 @@ from .schemes import SCHEMES, Scheme
 from .spatial.model import SpatialModel
 from .system import Chain
 
-__all__ = ["MAXIMUM_CHAIN_POINTS", "MINIMUM_STEPS", "SCHEME_MAXIMUM_COORDINATES", "SCHEME_MAXIMUM_VELOCITIES",
-           "default_refusal", "run_default"]
+__all__ = ["MAXIMUM_CHAIN_POINTS", "MINIMUM_STEPS", "SCHEME_LOOPS_MAXIMUM_COORDINATES", "SCHEME_MAXIMUM_COORDINATES",
+           "SCHEME_MAXIMUM_VELOCITIES", "default_refusal", "run_default"]
 
 MINIMUM_STEPS = 5000
 """Fewest fixed steps for which ``compiled=None`` tries the generated path (module docstring)."""
@@ -66,12 +69,17 @@ corrections, :mod:`ctmm.lumped_forms`) took 0.15 s CPU per call at 100 masses, 2
 of memory at 10 000 (session 11), so larger chains stay on the numpy path unless ``compiled=True``."""
 
 SCHEME_MAXIMUM_COORDINATES = 15
-"""Largest planar model (coordinates) whose DT-TMM schemes the default generates: the generated step was 0.37 of
-the numpy step at 15 coordinates and 1.6 times it at 20 (module docstring); larger ones stay on numpy unless
-``compiled=True``."""
+"""Largest planar model (coordinates) without loops whose DT-TMM schemes the default generates: the generated step
+was 0.27 of the numpy step at 15 coordinates and 1.5 times it at 20 (module docstring); larger ones stay on numpy
+unless ``compiled=True``."""
+SCHEME_LOOPS_MAXIMUM_COORDINATES = 30
+"""Largest planar model (coordinates) with feedback loops (a ``ControlledModel``) whose DT-TMM schemes the default
+generates: the numpy path closes the loops around its stepper (about 0.7 ms per body and step), the generated step
+inside its Newton iteration; measured with a PD on every hinge of pendulum chains, generated / numpy step 0.030 at
+15 coordinates and 0.10 at 30 (first call 7.0 s and 17 s CPU; module docstring); not measured beyond."""
 SCHEME_MAXIMUM_VELOCITIES = 10
 """Largest spatial model (velocities) whose DT-TMM schemes the default generates: the generated step is far ahead
-(0.22 ms against 12 ms at 10), but the first compile grows steeply (22 s CPU at 10 velocities, over 600 s at 20;
+(0.28 ms against 14 ms at 10), but the first compile grows steeply (20 s CPU at 10 velocities, over 600 s at 20;
 module docstring), a fraction of the numpy time of :data:`MINIMUM_STEPS` steps only up to about this size."""
 
 
@@ -79,11 +87,14 @@ def _plant(system: Any) -> Any:
     return getattr(system, "plant", system)
 
 
-def _scheme_size_refusal(plant: PlanarModel | SpatialModel) -> str | None:
-    """Why a DT-TMM scheme of ``plant`` stays on numpy by its size (:data:`SCHEME_MAXIMUM_COORDINATES`,
+def _scheme_size_refusal(system: Any, plant: PlanarModel | SpatialModel) -> str | None:
+    """Why a DT-TMM scheme of ``system`` (on ``plant``) stays on numpy by its size
+    (:data:`SCHEME_MAXIMUM_COORDINATES`, with feedback loops :data:`SCHEME_LOOPS_MAXIMUM_COORDINATES`,
     :data:`SCHEME_MAXIMUM_VELOCITIES`), or ``None``."""
     if isinstance(plant, PlanarModel):
-        size, limit, what = plant.n_coordinates, SCHEME_MAXIMUM_COORDINATES, "coordinates"
+        loops = system is not plant and bool(getattr(system, "loops", ()))
+        limit = SCHEME_LOOPS_MAXIMUM_COORDINATES if loops else SCHEME_MAXIMUM_COORDINATES
+        size, what = plant.n_coordinates, "coordinates" + (" with loops" if loops else "")
     else:
         size, limit, what = plant.n_velocities, SCHEME_MAXIMUM_VELOCITIES, "velocities"
     if size > limit:
@@ -120,7 +131,7 @@ def default_refusal(system: Any, method: Any, t_final: Any, t0: Any, dt: Any, *,
         if method != "rk4" and not is_scheme:
             return f"method {method!r} has no generated form"
         if is_scheme:
-            reason = _scheme_size_refusal(plant)
+            reason = _scheme_size_refusal(system, plant)
             if reason:
                 return reason
     else:

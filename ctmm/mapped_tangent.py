@@ -14,8 +14,8 @@ schemes.  The price is the evaluation, O(N^2) per Newton iteration: on a folded 
 the first compile is 4.1 s but a step costs 37 ms of CPU, about 20 times the Python stepper's transfer-form Newton
 (1.8 ms, one linearised sweep per iteration, O(N); 23 ms was its first steps, which trace its sweep once;
 ``benchmarks/compiled_schemes_planar.py --chain-sizes``).  The generated step is ahead up to about 15 coordinates
-(``benchmarks/compiled_schemes_default.py``), which is where :mod:`ctmm.compiled_default` generates planar schemes
-by default.  An O(N) generated iteration would solve the Newton correction with the transfer form's own tangent
+(``benchmarks/compiled_schemes_default.py``; 30 and more with loops), which is where :mod:`ctmm.compiled_default`
+generates planar schemes by default.  An O(N) generated iteration would solve the Newton correction with the transfer form's own tangent
 sweep (the body relations linearised about the iterate, :mod:`ctmm.planar.implicit`) instead of forming this
 tangent; not done yet.
 """

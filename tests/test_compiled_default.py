@@ -15,6 +15,7 @@ import ctmm
 import ctmm.spatial
 from ctmm import compiled_default
 from ctmm.codegen import find_compiler
+from ctmm.control import ControlledModel, Feedback
 from ctmm.compiled_default import MINIMUM_STEPS, default_refusal
 from ctmm.elements import Fixed, Free, Mass, SpringDamper
 from ctmm.errors import ModelError
@@ -112,6 +113,9 @@ def test_default_refusal_names_why_numpy_runs(monkeypatch):
     assert "no generated form" in default_refusal(model, "DOP853", **long_run)
     assert default_refusal(model, "newmark", **long_run) is None
     assert "a DT-TMM scheme of 16 coordinates (> 15" in default_refusal(pendulum(16), "houbolt", **long_run)
+    pd = lambda n: ControlledModel(pendulum(n), [Feedback("pd", [("link0.theta", 5.0)], "base.torque", gain=1.0)])
+    assert default_refusal(pd(30), "newmark", **long_run) is None          # the numpy loops cost more there
+    assert "31 coordinates with loops (> 30" in default_refusal(pd(31), "newmark", **long_run)
     assert default_refusal(pendulum(16), "rk4", **long_run) is None          # the RK4 has no size limit
     assert default_refusal(spatial_chain(10), "newmark", **long_run) is None
     assert "a DT-TMM scheme of 11 velocities (> 10" in default_refusal(spatial_chain(11), "newmark", **long_run)
@@ -143,6 +147,25 @@ def test_a_planar_scheme_is_generated_by_default_and_equals_numpy(monkeypatch, m
         np.testing.assert_allclose(result[name], reference[name], rtol=0, atol=1e-12)
     big = ctmm.simulate(pendulum(16), 0.1, dt, method=method)       # beyond the measured crossover: numpy
     assert "compiled" not in big.info
+
+
+@needs_compiler
+def test_a_planar_scheme_with_loops_is_generated_by_default_and_equals_numpy(monkeypatch):
+    """Loops inside the generated Newton step (:mod:`ctmm.compiled_scheme_loops`) by default: the Python DT-TMM path
+    with the same loops to the loops' round-off contract (1e-10, ``tests/test_compiled_scene_schemes_loops.py``)."""
+    from test_compiled_scene_schemes import DP_START, double_pendulum
+    from test_compiled_scene_schemes_loops import pd_loops
+
+    monkeypatch.setattr(compiled_default, "MINIMUM_STEPS", 20)
+    plant = double_pendulum()
+    controlled = ControlledModel(plant, pd_loops())
+    options = dict(method="newmark", x0=dict(zip(plant.coordinates, DP_START[0])),
+                   v0=dict(zip(plant.coordinates, DP_START[1])))
+    result = ctmm.simulate(controlled, 0.2, 0.01, **options)
+    assert result.info["compiled"].startswith("generated")
+    reference = ctmm.simulate(controlled, 0.2, 0.01, compiled=False, **options)
+    for name in reference.signals():
+        assert np.max(np.abs(result[name] - reference[name])) <= 1e-10, name
 
 
 @needs_compiler
