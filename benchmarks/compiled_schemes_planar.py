@@ -307,7 +307,8 @@ def chain_size_rows(sizes=CHAIN_SIZES, symbolic_max: int = SYMBOLIC_MAX_N) -> li
     iterations per step, ``|q_generated - q_python|`` over the first :data:`CHAIN_PYTHON_STEPS` steps against
     :func:`simulate_implicit` (the transfer form's Newton, independent code; timed after a 2-step warm-up: the rows
     stored before session 12 timed its first steps, which include tracing the rigid sweep once per structure, about
-    1 ms per body, e.g. 23 ms instead of 1.8 ms per step at N = 100), the load average; per N with both the ratios
+    1 ms per body: 23 ms per step at N = 100, where ``compiled_schemes_default.py`` measures 2.0 ms at N = 80 after
+    the warm-up), the load average; per N with both the ratios
     mapped / symbolic."""
     import tempfile
 
