@@ -27,7 +27,9 @@ the hub-beam and of the N = 5 chain; ``spatial_chain`` (issue 14, added later an
 alone) one forward dynamics of the spatial reference model at N = 5; ``spatial_schemes`` (issue 14,
 added later, measured alone) Newmark on the spatial double pendulum at dt = 10 ms; ``chain_compiled``
 (issues 12/13, added later, measured alone) the generated RK4 of the 100-mass chain with a real-time loop;
-``compiled_schemes_planar`` (issue 13, added later, measured alone) the generated Newmark of the N = 5 chain.  Left out (too long
+``compiled_schemes_planar`` (issue 13, added later, measured alone) the generated Newmark of the N = 5 chain;
+``compiled_schemes_default`` (issue 13, added later, measured alone) the generated and the numpy Newmark step of
+the N = 15 chain (the default's largest planar scheme).  Left out (too long
 for a baseline under ~3 min, or needing a build): larger sizes and step ladders, the external
 libraries and references the benchmarks compare with (python-control, pinocchio, MuJoCo, global
 and Lagrange models), the FMU controller variant (builds an FMU with gcc), ``flexible``'s chain of
@@ -465,6 +467,24 @@ def _compiled_schemes_planar(t: Timings) -> None:
                         f"(simulate_scheme_generated, library compiled), dt={bench.DT:g} s, {steps} steps")
 
 
+def _compiled_schemes_default(t: Timings) -> None:
+    bench = importlib.import_module("compiled_schemes_default")
+    model = bench.planar_model(15)
+    zero = np.zeros(model.n_coordinates)
+    schemes = importlib.import_module("ctmm.compiled_scene_schemes")
+    compiled, steps = schemes.CompiledSceneScheme(model, "newmark"), 20
+    planar = importlib.import_module("ctmm.planar")
+    for case, call in (("generated", lambda: schemes.simulate_scheme_generated(
+                            model, zero, zero, t_final=steps * bench.DT, dt=bench.DT, compiled=compiled,
+                            stability_check="ignore")),
+                       ("numpy", lambda: planar.simulate_implicit(model, zero, zero, t_final=steps * bench.DT,
+                                                                  dt=bench.DT, stability_check="ignore"))):
+        t.add("compiled_schemes_default", f"{case}_newmark_chain_n15", call, per="step", count=steps,
+              configuration=f"planar pendulum chain N=15 (the default's largest planar scheme), Newmark, {case} "
+                            f"step ({'library compiled' if case == 'generated' else 'transfer-form Newton'}), "
+                            f"dt={bench.DT:g} s, {steps} steps")
+
+
 def _kernel_cache(t: Timings) -> None:
     bench = importlib.import_module("kernel_cache")
     run = bench.cases()["spatial_revolute6_rk4"]
@@ -535,8 +555,8 @@ def _chain_setup_scaling(t: Timings) -> None:
 TIMING_PARTS = (_work_precision, _scaling, _control, _delay_history, _planar, _flexible, _manipulator,
                 _stability_chart, _compiled_scenes, _spatial_chain, _spatial_schemes, _chain_compiled,
                 _chain_schemes_generated, _chain_ode_speed, _compiled_cosim, _batch_parameters, _kernel_cache,
-                _planar_frf, _compiled_schemes_planar, _spatial_frf, _kinematic_loops_generated, _chain_frf,
-                _chain_setup_scaling)
+                _planar_frf, _compiled_schemes_planar, _compiled_schemes_default, _spatial_frf,
+                _kinematic_loops_generated, _chain_frf, _chain_setup_scaling)
 
 
 def timings() -> dict:

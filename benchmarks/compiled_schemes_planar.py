@@ -305,8 +305,11 @@ def chain_size_rows(sizes=CHAIN_SIZES, symbolic_max: int = SYMBOLIC_MAX_N) -> li
     default from ``MAPPED_MIN_COORDINATES``, folded sweep from ``SCHEME_FOLD_MIN_BODIES``; ``symbolic``: the old
     one): first compile (CPU incl. gcc, fresh cache), CPU per step over :data:`CHAIN_STEPS` steps, Newton
     iterations per step, ``|q_generated - q_python|`` over the first :data:`CHAIN_PYTHON_STEPS` steps against
-    :func:`simulate_implicit` (the transfer form's Newton, independent code), the load average; per N with both
-    the ratios mapped / symbolic."""
+    :func:`simulate_implicit` (the transfer form's Newton, independent code; timed after a 2-step warm-up: the rows
+    stored before session 12 timed its first steps, which include tracing the rigid sweep once per structure, about
+    1 ms per body: 23 ms per step at N = 100, where ``compiled_schemes_default.py`` measures 2.0 ms at N = 80 after
+    the warm-up), the load average; per N with both the ratios
+    mapped / symbolic."""
     import tempfile
 
     from planar_chain import chain
@@ -314,6 +317,7 @@ def chain_size_rows(sizes=CHAIN_SIZES, symbolic_max: int = SYMBOLIC_MAX_N) -> li
     rows = []
     for n in sizes:
         model, q0, v0 = chain(n), np.zeros(n), np.zeros(n)
+        simulate_implicit(model, q0, v0, t_final=2 * DT, dt=DT, stability_check="ignore")   # warm-up: sweep traced
         began = time.process_time()
         python = simulate_implicit(model, q0, v0, t_final=CHAIN_PYTHON_STEPS * DT, dt=DT, stability_check="ignore")
         python_step = (time.process_time() - began) / CHAIN_PYTHON_STEPS

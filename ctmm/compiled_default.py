@@ -5,9 +5,16 @@
 
 * a C compiler is present (:func:`ctmm.codegen.find_compiler`);
 * the run is a fixed-step RK4 of a 1-D chain, a planar or a spatial model (plain, or with feedback loops,
-  inputs and references), or a DT-TMM scheme of a 1-D chain (its step is one data-driven kernel compiled
+  inputs and references), or a DT-TMM scheme of any of them (a chain's step is one data-driven kernel compiled
   once per variant);
 * a chain has at most :data:`MAXIMUM_CHAIN_POINTS` points (the set-up of its generated step grows faster);
+* a DT-TMM scheme of a planar model has at most :data:`SCHEME_MAXIMUM_COORDINATES` coordinates (with feedback
+  loops :data:`SCHEME_LOOPS_MAXIMUM_COORDINATES`: the numpy path's loops cost more than the generated tangent
+  there) and one of a spatial model at most :data:`SCHEME_MAXIMUM_VELOCITIES` velocities: their generated Newton
+  step forms the
+  ``n x n`` tangent of the sweep (``2 n`` directional derivatives, :mod:`ctmm.mapped_tangent`) and factors it,
+  O(n^2 .. n^3) per iteration, where the numpy planar stepper iterates with one linearised articulated sweep
+  (O(n)), so beyond these sizes the generated step is slower (planar) or its first compile too long (spatial);
 * it is long: at least :data:`MINIMUM_STEPS` steps, so that a first compile (about 1-2.5 s CPU for the
   planar, spatial and chain scenes measured below) costs a fraction of the numpy run it replaces, and a
   cached kernel (milliseconds to load) is far ahead;
@@ -28,6 +35,14 @@ N = 5: numpy 0.83 ms/step, first generated call 0.99 s (break-even 1 200 steps),
 1.3 ms/step, 2.5 s (1 900 steps), 47 ms; spatial revolute chain N = 5: 17.8 ms/step, 1.2 s (70 steps);
 1-D chain of 100 masses: 0.82 ms/step, 1.05 s (1 300 steps), 0.2 s.  At :data:`MINIMUM_STEPS` the first
 compile is at most about half the numpy time of those runs.
+
+DT-TMM schemes (``benchmarks/compiled_schemes_default.py``, Newmark, dt = 1 ms, CPU time, load 12-16 on 2 cores,
+session 12; generated step on the loaded library / numpy step, first generated call): planar pendulum chains N = 5:
+10.8 / 633 us, 2.4 s; N = 10: 151 / 895 us, 3.8 s; N = 15: 255 / 949 us (ratio 0.27), 5.0 s; N = 20 (sweep
+folded): 1362 / 932 us (ratio 1.5); N = 40: 5.7 / 1.5 ms (3.9); N = 80: 20.3 / 2.0 ms (10).  With a PD loop on
+every hinge: N = 15: 0.46 / 15.3 ms (0.030), 7.0 s; N = 30: 2.0 / 19.3 ms (0.10), 17 s.  Spatial revolute chains
+(generated 15-280 us per step): N = 3: numpy 5.5 ms per step, first call 2.2 s; N = 5: 9.7 ms, 8.0 s; N = 10:
+14.3 ms, 20 s; N = 20: gcc passed its 600 s wall-clock limit (load 15).
 """
 from __future__ import annotations
 
@@ -43,7 +58,8 @@ from .schemes import SCHEMES, Scheme
 from .spatial.model import SpatialModel
 from .system import Chain
 
-__all__ = ["MAXIMUM_CHAIN_POINTS", "MINIMUM_STEPS", "default_refusal", "run_default"]
+__all__ = ["MAXIMUM_CHAIN_POINTS", "MINIMUM_STEPS", "SCHEME_LOOPS_MAXIMUM_COORDINATES", "SCHEME_MAXIMUM_COORDINATES",
+           "SCHEME_MAXIMUM_VELOCITIES", "default_refusal", "run_default"]
 
 MINIMUM_STEPS = 5000
 """Fewest fixed steps for which ``compiled=None`` tries the generated path (module docstring)."""
@@ -52,9 +68,40 @@ MAXIMUM_CHAIN_POINTS = 2002
 corrections, :mod:`ctmm.lumped_forms`) took 0.15 s CPU per call at 100 masses, 2-4 s at 1000 and passed 19 GB
 of memory at 10 000 (session 11), so larger chains stay on the numpy path unless ``compiled=True``."""
 
+SCHEME_MAXIMUM_COORDINATES = 15
+"""Largest planar model (coordinates) without loops whose DT-TMM schemes the default generates: the generated step
+was 0.27 of the numpy step at 15 coordinates and 1.5 times it at 20 (module docstring); larger ones stay on numpy
+unless ``compiled=True``."""
+SCHEME_LOOPS_MAXIMUM_COORDINATES = 30
+"""Largest planar model (coordinates) with feedback loops (a ``ControlledModel``) whose DT-TMM schemes the default
+generates: the numpy path closes the loops around its stepper (about 0.7 ms per body and step), the generated step
+inside its Newton iteration; measured with a PD on every hinge of pendulum chains, generated / numpy step 0.030 at
+15 coordinates and 0.10 at 30 (first call 7.0 s and 17 s CPU; module docstring); not measured beyond."""
+SCHEME_MAXIMUM_VELOCITIES = 10
+"""Largest spatial model (velocities) whose DT-TMM schemes the default generates: the generated step is far ahead
+(0.28 ms against 14 ms at 10), but the first compile grows steeply (20 s CPU at 10 velocities, over 600 s at 20;
+module docstring), a fraction of the numpy time of :data:`MINIMUM_STEPS` steps only up to about this size."""
+
 
 def _plant(system: Any) -> Any:
     return getattr(system, "plant", system)
+
+
+def _scheme_size_refusal(system: Any, plant: PlanarModel | SpatialModel) -> str | None:
+    """Why a DT-TMM scheme of ``system`` (on ``plant``) stays on numpy by its size
+    (:data:`SCHEME_MAXIMUM_COORDINATES`, with feedback loops :data:`SCHEME_LOOPS_MAXIMUM_COORDINATES`,
+    :data:`SCHEME_MAXIMUM_VELOCITIES`), or ``None``."""
+    if isinstance(plant, PlanarModel):
+        loops = system is not plant and bool(getattr(system, "loops", ()))
+        limit = SCHEME_LOOPS_MAXIMUM_COORDINATES if loops else SCHEME_MAXIMUM_COORDINATES
+        size, what = plant.n_coordinates, "coordinates" + (" with loops" if loops else "")
+    else:
+        size, limit, what = plant.n_velocities, SCHEME_MAXIMUM_VELOCITIES, "velocities"
+    if size > limit:
+        return (f"a DT-TMM scheme of {size} {what} (> {limit}: the generated Newton step forms and factors an "
+                f"{size} x {size} tangent, slower than the numpy stepper there or too long to compile; give "
+                "compiled=True)")
+    return None
 
 
 def default_refusal(system: Any, method: Any, t_final: Any, t0: Any, dt: Any, *, controllers: Any, fast: Any,
@@ -81,8 +128,12 @@ def default_refusal(system: Any, method: Any, t_final: Any, t0: Any, dt: Any, *,
         if points > MAXIMUM_CHAIN_POINTS:
             return f"a chain of {points} points (> {MAXIMUM_CHAIN_POINTS}: the generated set-up grows too fast)"
     elif isinstance(plant, (PlanarModel, SpatialModel)):
-        if method != "rk4":
-            return "the default runs the generated RK4 of planar and spatial models only (give compiled=True)"
+        if method != "rk4" and not is_scheme:
+            return f"method {method!r} has no generated form"
+        if is_scheme:
+            reason = _scheme_size_refusal(system, plant)
+            if reason:
+                return reason
     else:
         return "only chains, planar and spatial models (with or without loops) take the generated path by default"
     if controllers:

@@ -11,8 +11,14 @@ evaluation costs ``n`` directional derivatives (each a small multiple of one swe
 same derivatives as the symbolic Jacobian's (algorithmic differentiation of the same operations), equal to
 round-off.  Used by :mod:`ctmm.compiled_scene_schemes`, :mod:`ctmm.compiled_newton_weighting` and the spatial
 schemes.  The price is the evaluation, O(N^2) per Newton iteration: on a folded 100-body pendulum chain (Newmark)
-the first compile is 4.1 s but a step costs 37 ms of CPU, more than the Python stepper's transfer-form Newton
-(23 ms, one linearised sweep per iteration; ``benchmarks/compiled_schemes_planar.py --chain-sizes``).
+the first compile is 4.1 s but a step costs 37 ms of CPU (``benchmarks/compiled_schemes_planar.py --chain-sizes``);
+against the Python stepper's transfer-form Newton (one linearised sweep per iteration, O(N)) in the same run the
+generated step is 0.27 of it at 15 coordinates, 1.5 times it at 20 and 10 times at 80 (20.3 against 2.0 ms,
+``benchmarks/compiled_schemes_default.py``; the 23 ms per Python step at N = 100 recorded earlier were its first
+steps, which trace its sweep once), so :mod:`ctmm.compiled_default` generates planar schemes by default up to 15
+coordinates (30 with loops, whose Python path costs more).  An O(N) generated iteration would solve the Newton
+correction with the transfer form's own tangent sweep (the body relations linearised about the iterate,
+:mod:`ctmm.planar.implicit`) instead of forming this tangent; not done yet.
 """
 from __future__ import annotations
 

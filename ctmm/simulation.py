@@ -180,9 +180,11 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
         models).
         ``False``: the numpy path always.  Default (``None``): the generated path where it pays and a C compiler
         is present -- RK4 of chains, planar and spatial models (with their loops, inputs and references) and the
-        DT-TMM schemes of chains, for runs of at least ``ctmm.compiled_default.MINIMUM_STEPS`` (5000) steps and
-        no co-simulated controllers -- falling back to numpy for what it refuses (the reason in
-        ``result.info["compiled"]``); else numpy (:mod:`ctmm.compiled_default`).
+        DT-TMM schemes of chains, of planar models up to 15 coordinates (30 with loops) and of spatial models up to
+        10 velocities (``ctmm.compiled_default.SCHEME_MAXIMUM_COORDINATES``, ...), for runs of at least
+        ``ctmm.compiled_default.MINIMUM_STEPS`` (5000) steps and no co-simulated controllers -- falling back to
+        numpy for what it refuses (the reason in ``result.info["compiled"]``); else numpy
+        (:mod:`ctmm.compiled_default`).
     parameters : mapping, optional
         ``compiled=True``: ``{name: number}`` set at run time in the kernel compiled once (:mod:`ctmm.batch`).
     progress : bool, optional

@@ -12,7 +12,10 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import ctmm
+import ctmm.spatial
+from ctmm import compiled_default
 from ctmm.codegen import find_compiler
+from ctmm.control import ControlledModel, Feedback
 from ctmm.compiled_default import MINIMUM_STEPS, default_refusal
 from ctmm.elements import Fixed, Free, Mass, SpringDamper
 from ctmm.errors import ModelError
@@ -35,6 +38,18 @@ def pendulum(n: int = 1) -> PlanarModel:
             elements.append(SmoothHinge(f"h{i}"))
         elements.append(RigidBody.uniform_link(f"link{i}", mass=1.0, length=1.0))
     return PlanarModel.chain(f"pendulum{n}", elements, gravity=(0.0, -G))
+
+
+def spatial_chain(n: int) -> ctmm.spatial.SpatialModel:
+    """Links of 1 kg, 1 m along x on revolute joints about y (even) and z (odd), gravity -z."""
+    sp = ctmm.spatial
+    elements = []
+    for i in range(n):
+        elements.append(sp.SpatialBody(f"l{i}", 1.0, (5e-3, 0.086, 0.086), (0.5, 0.0, 0.0), {"end": (1.0, 0.0, 0.0)}))
+        elements.append(sp.Revolute(name=f"j{i}", parent=None if i == 0 else f"l{i - 1}", child=f"l{i}",
+                                    point=(0.0, 0.0, 0.0) if i == 0 else "end",
+                                    axis=(0.0, 1.0, 0.0) if i % 2 == 0 else (0.0, 0.0, 1.0)))
+    return sp.SpatialModel(f"chain{n}", elements, gravity=(0.0, 0.0, -G))
 
 
 def chain() -> ctmm.Chain:
@@ -95,7 +110,15 @@ def test_default_refusal_names_why_numpy_runs(monkeypatch):
     model, plain = pendulum(), chain()
     long_run = dict(t_final=10.0, t0=0.0, dt=1e-3, controllers=(), fast=None, force_hook=None, solver="riccati")
     assert "short run" in default_refusal(model, "rk4", **{**long_run, "t_final": 0.1})
-    assert "RK4 of planar and spatial models only" in default_refusal(model, "newmark", **long_run)
+    assert "no generated form" in default_refusal(model, "DOP853", **long_run)
+    assert default_refusal(model, "newmark", **long_run) is None
+    assert "a DT-TMM scheme of 16 coordinates (> 15" in default_refusal(pendulum(16), "houbolt", **long_run)
+    pd = lambda n: ControlledModel(pendulum(n), [Feedback("pd", [("link0.theta", 5.0)], "base.torque", gain=1.0)])
+    assert default_refusal(pd(30), "newmark", **long_run) is None          # the numpy loops cost more there
+    assert "31 coordinates with loops (> 30" in default_refusal(pd(31), "newmark", **long_run)
+    assert default_refusal(pendulum(16), "rk4", **long_run) is None          # the RK4 has no size limit
+    assert default_refusal(spatial_chain(10), "newmark", **long_run) is None
+    assert "a DT-TMM scheme of 11 velocities (> 10" in default_refusal(spatial_chain(11), "newmark", **long_run)
     assert "co-simulated controllers" in default_refusal(model, "rk4", **{**long_run, "controllers": (object(),)})
     assert "no generated form" in default_refusal(plain, "DOP853", **long_run)
     assert "numpy-path options" in default_refusal(plain, "newmark", **{**long_run, "solver": "dense"})
@@ -106,6 +129,55 @@ def test_default_refusal_names_why_numpy_runs(monkeypatch):
         assert default_refusal(model, "rk4", **{**long_run, **bad}) == "no fixed step"     # the verb refuses them
     monkeypatch.setenv("PATH", "")
     assert default_refusal(model, "rk4", **long_run) == "no C compiler"
+
+
+@needs_compiler
+@pytest.mark.parametrize("method", ["newmark", "houbolt"])
+def test_a_planar_scheme_is_generated_by_default_and_equals_numpy(monkeypatch, method):
+    """Schemes of small planar models take the generated path by default (a long run: the step threshold lowered
+    for the test) and give the numpy stepper's answer to round-off (the contract of the generated path)."""
+    monkeypatch.setattr(compiled_default, "MINIMUM_STEPS", 100)
+    model, dt, t_final = pendulum(3), 1e-3, 0.1
+    result = ctmm.simulate(model, t_final, dt, method=method, x0={"link0.theta": 0.8, "link2.theta": -0.4})
+    assert result.info["compiled"].startswith("generated")
+    reference = ctmm.simulate(model, t_final, dt, method=method, x0={"link0.theta": 0.8, "link2.theta": -0.4},
+                              compiled=False)
+    assert "compiled" not in reference.info
+    for name in ("link0.theta", "link2.theta", "link1.theta_dot"):
+        np.testing.assert_allclose(result[name], reference[name], rtol=0, atol=1e-12)
+    big = ctmm.simulate(pendulum(16), 0.1, dt, method=method)       # beyond the measured crossover: numpy
+    assert "compiled" not in big.info
+
+
+@needs_compiler
+def test_a_planar_scheme_with_loops_is_generated_by_default_and_equals_numpy(monkeypatch):
+    """Loops inside the generated Newton step (:mod:`ctmm.compiled_scheme_loops`) by default: the Python DT-TMM path
+    with the same loops to the loops' round-off contract (1e-10, ``tests/test_compiled_scene_schemes_loops.py``)."""
+    from test_compiled_scene_schemes import DP_START, double_pendulum
+    from test_compiled_scene_schemes_loops import pd_loops
+
+    monkeypatch.setattr(compiled_default, "MINIMUM_STEPS", 20)
+    plant = double_pendulum()
+    controlled = ControlledModel(plant, pd_loops())
+    options = dict(method="newmark", x0=dict(zip(plant.coordinates, DP_START[0])),
+                   v0=dict(zip(plant.coordinates, DP_START[1])))
+    result = ctmm.simulate(controlled, 0.2, 0.01, **options)
+    assert result.info["compiled"].startswith("generated")
+    reference = ctmm.simulate(controlled, 0.2, 0.01, compiled=False, **options)
+    for name in reference.signals():
+        assert np.max(np.abs(result[name] - reference[name])) <= 1e-10, name
+
+
+@needs_compiler
+def test_a_spatial_scheme_is_generated_by_default_and_equals_numpy(monkeypatch):
+    monkeypatch.setattr(compiled_default, "MINIMUM_STEPS", 50)
+    model, dt, t_final = spatial_chain(2), 1e-3, 0.05
+    start = {"j0.angle": 0.3, "j1.angle": 0.5}
+    result = ctmm.simulate(model, t_final, dt, method="generalized_alpha", x0=start)
+    assert result.info["compiled"].startswith("generated")
+    reference = ctmm.simulate(model, t_final, dt, method="generalized_alpha", x0=start, compiled=False)
+    for name in ("j0.angle", "j1.angle", "j1.angle_rate"):
+        np.testing.assert_allclose(result[name], reference[name], rtol=0, atol=1e-12)
 
 
 @pytest.mark.parametrize("t_final", [np.inf, -np.inf, np.nan])
