@@ -14,7 +14,7 @@ from scipy.integrate import solve_ivp
 import ctmm
 from ctmm.codegen import find_compiler
 from ctmm.compiled_default import MINIMUM_STEPS, default_refusal
-from ctmm.elements import Fixed, Free, Mass, SpringDamper
+from ctmm.elements import Fixed, Free, Inerter, Mass, SpringDamper
 from ctmm.errors import ModelError
 from ctmm.planar import Pinned, PlanarModel, RigidBody, SmoothHinge
 
@@ -99,9 +99,10 @@ def test_default_refusal_names_why_numpy_runs(monkeypatch):
     assert "co-simulated controllers" in default_refusal(model, "rk4", **{**long_run, "controllers": (object(),)})
     assert "no generated form" in default_refusal(plain, "DOP853", **long_run)
     assert "numpy-path options" in default_refusal(plain, "newmark", **{**long_run, "solver": "dense"})
-    big = ctmm.Chain("big", [Fixed("wall")] + [e for i in range(1001) for e in (SpringDamper(f"k{i}", 1.0, 0.0),
-                                                                                 Mass(f"m{i}", 1.0))] + [Free("end")])
-    assert "a chain of 2003 points" in default_refusal(big, "newmark", **long_run)
+    big = ctmm.Chain("big", [Fixed("wall"), Inerter("b", 1.0, stiffness=1.0)]
+                     + [e for i in range(1001) for e in (Mass(f"m{i}", 1.0), SpringDamper(f"k{i}", 1.0, 0.0))]
+                     + [Mass("last", 1.0), Free("end")])       # an inerter: a dense generated set-up
+    assert "a chain of 2005 points with inerters (b)" in default_refusal(big, "newmark", **long_run)
     for bad in (dict(t_final=float("inf")), dict(t_final=float("nan")), dict(dt=0.0), dict(dt=None), dict(dt=-1e-3)):
         assert default_refusal(model, "rk4", **{**long_run, **bad}) == "no fixed step"     # the verb refuses them
     monkeypatch.setenv("PATH", "")
