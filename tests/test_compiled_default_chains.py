@@ -14,20 +14,13 @@ import pytest
 
 import ctmm
 import ctmm.compiled_default as compiled_default
-from ctmm.codegen import find_compiler
 from ctmm.compiled_default import MAXIMUM_BANDED_CHAIN_POINTS, MAXIMUM_CHAIN_POINTS, default_refusal
 from ctmm.control import ControlledChain, Feedback
 from ctmm.elements import Fixed, Free, Inerter, Mass, PrescribedDisplacement, SpringDamper
 from ctmm.errors import ModelError
 from ctmm.signals import Harmonic, Ramp
+from test_compiled_default import needs_compiler
 
-try:
-    find_compiler()
-    HAVE_COMPILER = True
-except ModelError:
-    HAVE_COMPILER = False
-
-needs_compiler = pytest.mark.skipif(not HAVE_COMPILER, reason="no C compiler")
 LONG = dict(t_final=10.0, t0=0.0, dt=1e-3, controllers=(), fast=None, force_hook=None, solver="riccati")
 DT = 1e-4
 
