@@ -51,7 +51,8 @@ four-bars' RK4 with projection in generated C; ``..._flexible_four_bar`` with a 
 ``chain_setup_scaling/cached_call_rk4_n1000`` (issue 13: the per-call set-up of a generated chain kernel) were measured
 alone when their benchmarks landed (``timings.added_later``); ``chain_default_limits/dense_chain_reason_n1002`` and
 ``.../cached_call_newmark_n1002`` (issue 13: the default's chain kind check, and a cached generated Newmark call just
-above the dense kinds' limit) were added with their benchmark and are to be measured alone the same way.  Python time-stepping cases whose
+above the dense kinds' limit) were added with their benchmark and are to be measured alone the same way.
+Python time-stepping cases whose
 benchmark horizon would make the repeats slow run over a shorter horizon at the benchmark's step
 (stated in ``configuration``): the per-step cost does not depend on the horizon.
 

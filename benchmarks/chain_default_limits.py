@@ -2,12 +2,13 @@
 
 :func:`ctmm.compiled_default.default_refusal` sends a fixed-step run of at least
 :data:`~ctmm.compiled_default.MINIMUM_STEPS` steps to the generated path up to a chain size that depends on the
-chain's kind (:data:`~ctmm.compiled_default.MAXIMUM_CHAIN_POINTS`, :data:`~ctmm.compiled_default.MAXIMUM_BANDED_CHAIN_POINTS`).
-This benchmark measures the banded kind (every moving point a mass, no inerters, fixed supports: the generated
-set-up is ``O(n)``, ``benchmarks/chain_setup_scaling.py``) at its sizes: the chain of ``benchmarks/chain_compiled.py``
-(``Fixed - [k, c] - m_0 - ... - m_{n-1} - Free``, n = 1 000, 2 500, 5 000 and 10 000 masses: 2 001, 5 001, 10 001 and
-20 001 points), plain, with its real-time loop ``u = -500 x_{n-1}`` on ``m_0`` and with that loop delayed by
-:data:`DELAY_STEPS` steps, on RK4 and on Newmark (a DT-TMM scheme), dt = 1e-4 s, a run of ``MINIMUM_STEPS`` steps.
+chain's kind (:data:`~ctmm.compiled_default.MAXIMUM_CHAIN_POINTS`,
+:data:`~ctmm.compiled_default.MAXIMUM_BANDED_CHAIN_POINTS`). This benchmark measures the banded kind (every moving
+point a mass, no inerters, fixed supports: the generated set-up is ``O(n)``, ``benchmarks/chain_setup_scaling.py``)
+at its sizes: the chain of ``benchmarks/chain_compiled.py`` (``Fixed - [k, c] - m_0 - ... - m_{n-1} - Free``, n = 1
+000, 2 500, 5 000 and 10 000 masses: 2 001, 5 001, 10 001 and 20 001 points), plain, with its real-time loop ``u =
+-500 x_{n-1}`` on ``m_0`` and with that loop delayed by :data:`DELAY_STEPS` steps, on RK4 and on Newmark (a DT-TMM
+scheme), dt = 1e-4 s, a run of ``MINIMUM_STEPS`` steps.
 
 Every case runs in a fresh process with an empty ``CTMM_CACHE`` folder (cold: generate and compile) and its address
 space capped at :data:`MEMORY_LIMIT_GB`.  CPU time is the process's ``time.process_time`` plus its children's
@@ -17,9 +18,10 @@ space capped at :data:`MEMORY_LIMIT_GB`.  CPU time is the process's ``time.proce
   every :data:`STORE_EVERY` th step; ``compile_time_s`` from its ``info``.
 * ``numpy_cpu_s``: ``compiled=False`` (each call on a fresh model) for :data:`SHORT_STEPS` and the whole run is
   **extrapolated** from them, ``T(s1) + (MINIMUM_STEPS - s1) (T(s2) - T(s1)) / (s2 - s1)``: its per-step cost is
-  constant (a fixed step of a linear chain) and a whole numpy run at 20 002 points would take hours; the short
-  runs store every step (the numpy DT-TMM path has no ``store_every``).  Before them (and before the generated run) a numpy
-  run of a 5-mass chain, not counted, imports the modules both paths use (which favours the numpy path slightly).  ``numpy_setup_cpu_s`` and ``numpy_step_cpu_s`` are the two parts.
+  constant (a fixed step of a linear chain) and a whole numpy run at 20 002 points would take hours; the short runs
+  store every step (the numpy DT-TMM path has no ``store_every``). Before them (and before the generated run) a
+  numpy run of a 5-mass chain, not counted, imports the modules both paths use (which favours the numpy path
+  slightly). ``numpy_setup_cpu_s`` and ``numpy_step_cpu_s`` are the two parts.
 * ``speedup``: ``numpy_cpu_s / generated_cpu_s`` (> 1: the generated path is faster end to end).
 * ``error``: the largest difference of the positions of the generated run at step ``s2`` (a stored row) to the numpy
   run's last row, relative to the largest of the latter (the round-off contract).
@@ -42,9 +44,9 @@ work; only n = 10 000 masses, 20 001 points, in the time available; ``benchmarks
   DT-TMM step in Python): **438x**; error 3.5e-16.
 
 So a plain banded chain gains nothing above the old limit (its numpy run is one sparse mat-vec per stage or a banded
-solve per step, against a compile that grows with the chain), a banded chain with feedback loops gains 4x at
-20 001 points with RK4 and 438x with Newmark: the default's banded limit applies to chains with loops.  Not measured here: 2 001 to 10 001 points
-and the delayed loop (its numpy step is that of the real-time loop plus the ring of samples).
+solve per step, against a compile that grows with the chain), a banded chain with feedback loops gains 4x at 20 001
+points with RK4 and 438x with Newmark: the default's banded limit applies to chains with loops. Not measured here: 2
+001 to 10 001 points and the delayed loop (its numpy step is that of the real-time loop plus the ring of samples).
 """
 from __future__ import annotations
 

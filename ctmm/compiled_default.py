@@ -41,8 +41,9 @@ compile is at most about half the numpy time of those runs.
 
 Chains of 20 001 points (10 000 masses, ``benchmarks/chain_default_limits.py``: a cold ``MINIMUM_STEPS``-step run,
 CPU time with the compiler's, load 4-12 on 2 cores, session 12): with a real-time loop, RK4, generated 57.5 s
-against numpy 230 s (4.0x, equal bit for bit), Newmark 39.2 s against 17 150 s (438x, 3.5e-16); without loops the generated path is not faster (RK4 42.2 s against
-29.1 s, Newmark 28.5 s against a numpy set-up of 21.6 s and a step too cheap to resolve).
+against numpy 230 s (4.0x, equal bit for bit), Newmark 39.2 s against 17 150 s (438x, 3.5e-16); without loops the
+generated path is not faster (RK4 42.2 s against 29.1 s, Newmark 28.5 s against a numpy set-up of 21.6 s and a step
+too cheap to resolve).
 """
 from __future__ import annotations
 
@@ -190,13 +191,13 @@ def default_refusal(system: Any, method: Any, t_final: Any, t0: Any, dt: Any, *,
             return f"method {method!r} has no generated form"
         points = getattr(plant, "n_points", 0)
         if points > MAXIMUM_BANDED_CHAIN_POINTS:
-            return (f"{_SIZE_REFUSAL} {points} points (> {MAXIMUM_BANDED_CHAIN_POINTS}, the largest banded chain the default "
-                    "generates; give compiled=True)")
+            return (f"{_SIZE_REFUSAL} {points} points (> {MAXIMUM_BANDED_CHAIN_POINTS}, the largest banded chain "
+                    "the default generates; give compiled=True)")
         if points > MAXIMUM_CHAIN_POINTS:
             dense = dense_chain_reason(plant)
             if dense is not None:
-                return (f"{_SIZE_REFUSAL} {points} points with {dense} (> {MAXIMUM_CHAIN_POINTS}: its generated set-up is "
-                        "dense; give compiled=True)")
+                return (f"{_SIZE_REFUSAL} {points} points with {dense} (> {MAXIMUM_CHAIN_POINTS}: its generated "
+                        "set-up is dense; give compiled=True)")
             if not getattr(system, "loops", ()):
                 return (f"{_SIZE_REFUSAL} {points} points without feedback loops (> {MAXIMUM_CHAIN_POINTS}: the numpy "
                         "run of a plain banded chain is cheaper than the generated path's compile; give compiled=True)")
