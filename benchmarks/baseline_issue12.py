@@ -29,7 +29,8 @@ added later, measured alone) Newmark on the spatial double pendulum at dt = 10 m
 (issues 12/13, added later, measured alone) the generated RK4 of the 100-mass chain with a real-time loop;
 ``compiled_schemes_planar`` (issue 13, added later, measured alone) the generated Newmark of the N = 5 chain;
 ``compiled_schemes_default`` (issue 13, added later, measured alone) the generated and the numpy Newmark step of
-the N = 15 chain (the default's largest planar scheme).  Left out (too long
+the N = 15 chain (the default's largest planar scheme); ``chain_default_limits`` (issue 13, added later,
+measured alone) the default's chain kind check and a cached generated Newmark call of the 1 002-mass chain.  Left out (too long
 for a baseline under ~3 min, or needing a build): larger sizes and step ladders, the external
 libraries and references the benchmarks compare with (python-control, pinocchio, MuJoCo, global
 and Lagrange models), the FMU controller variant (builds an FMU with gcc), ``flexible``'s chain of
@@ -51,7 +52,10 @@ models), ``kinematic_loops_generated/generated_rk4_projection_four_bar`` and ``.
 four-bars' RK4 with projection in generated C; ``..._flexible_four_bar`` with a ModalBeam coupler, issue 13 item 1),
 ``chain_frf/frequency_response_n1000`` (issue 13: the 1-D chain FRF by the compiled Riccati solve) and
 ``chain_setup_scaling/cached_call_rk4_n1000`` (issue 13: the per-call set-up of a generated chain kernel) were measured
-alone when their benchmarks landed (``timings.added_later``).  Python time-stepping cases whose
+alone when their benchmarks landed (``timings.added_later``); ``chain_default_limits/dense_chain_reason_n1002`` and
+``.../cached_call_newmark_n1002`` (issue 13: the default's chain kind check, and a cached generated Newmark call just
+above the dense kinds' limit) were added with their benchmark and are to be measured alone the same way.
+Python time-stepping cases whose
 benchmark horizon would make the repeats slow run over a shorter horizon at the benchmark's step
 (stated in ``configuration``): the per-step cost does not depend on the horizon.
 
@@ -552,11 +556,32 @@ def _chain_setup_scaling(t: Timings) -> None:
                         "(affine form read and certified, key, loading) and result")
 
 
+def _chain_default_limits(t: Timings) -> None:
+    bench = importlib.import_module("chain_compiled")
+    from ctmm.compiled_default import MAXIMUM_CHAIN_POINTS, dense_chain_reason
+
+    n, steps = MAXIMUM_CHAIN_POINTS // 2 + 1, 10
+    system = bench.model(n).plant
+    x0 = {f"m{i}": float(value) for i, value in enumerate(bench.start(n))}
+    t.add("chain_default_limits", f"dense_chain_reason_n{n}", lambda: dense_chain_reason(system), per="call", count=1,
+          configuration=f"the default's kind check (ctmm.compiled_default.dense_chain_reason) of the plain chain of {n} "
+                        "masses (benchmarks/chain_compiled.py), the smallest chain above the dense kinds' limit")
+
+    def call() -> object:
+        return ctmm.simulate(system, steps * bench.DT, bench.DT, method="newmark", x0=x0, compiled=True)
+
+    call()                                      # compile once (or find the library in the cache)
+    t.add("chain_default_limits", f"cached_call_newmark_n{n}", call, per="call", count=1,
+          configuration=f"ctmm.simulate(compiled=True) of that chain, Newmark, {steps} steps of dt={bench.DT:g} s, "
+                        "the library already in the cache: the generated DT-TMM call's set-up and result "
+                        "(benchmarks/chain_default_limits.py measures the cold run end to end)")
+
+
 TIMING_PARTS = (_work_precision, _scaling, _control, _delay_history, _planar, _flexible, _manipulator,
                 _stability_chart, _compiled_scenes, _spatial_chain, _spatial_schemes, _chain_compiled,
                 _chain_schemes_generated, _chain_ode_speed, _compiled_cosim, _batch_parameters, _kernel_cache,
                 _planar_frf, _compiled_schemes_planar, _compiled_schemes_default, _spatial_frf,
-                _kinematic_loops_generated, _chain_frf, _chain_setup_scaling)
+                _kinematic_loops_generated, _chain_frf, _chain_setup_scaling, _chain_default_limits)
 
 
 def timings() -> dict:

@@ -39,7 +39,7 @@ from .control.loops import ControlledChain
 from .control.planar_time import simulate_closed_loop
 from .control.protocol import Controller, check_controllers, check_references, split_loop_references
 from .control.simulate import simulate_controlled
-from .compiled_default import default_refusal, run_default
+from .compiled_default import default_refusal, is_size_refusal, note_size_refusal, run_default
 from .errors import ModelError, SimulationError, unknown_name
 from .planar.closed_loops import KinematicLoopModel
 from .planar.guards import check_resolution
@@ -230,10 +230,12 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
             chosen = None                       # refused below, as without the default
         if chosen is not None:
             refusal = default_refusal(system, chosen, t_final, t0, dt, controllers=controllers, fast=fast,
-                                      force_hook=force_hook, solver=solver)
+                                      force_hook=force_hook, solver=solver, options=call)
             if refusal is None:
                 return run_default(lambda: simulate(**{**call, "compiled": True}),
                                    lambda: simulate(**{**call, "compiled": False}))
+            if is_size_refusal(refusal):
+                return note_size_refusal(simulate(**{**call, "compiled": False}), refusal)
     controllers = check_controllers(controllers)
     references = check_references(references)
     validation.step_budget(t_final, t0, dt)
