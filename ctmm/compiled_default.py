@@ -36,7 +36,11 @@ callables of time, elements it does not state, ...) runs on the numpy path inste
 result's ``info["compiled"]``.  Warnings raised while the generated path was tried are shown only when it
 ran (the numpy path shows its own).  A run that fails (:class:`~ctmm.errors.SimulationError`) fails as it
 does on the numpy path (the contract of the generated paths: the numpy answer to round-off, failures at the
-same step and time); it is not repeated.  The choice depends on the call only, never on what the disk cache
+same step and time); it is not repeated.  One exception: the Newton iteration of a planar or spatial DT-TMM
+scheme.  Both paths converge to the same step to round-off, but the generated one forms the exact tangent and
+the numpy one iterates with the transfer form, so where a state grows fast (an unstable closed loop) one may
+still converge where the other stops (``tests/test_loop_convergence_hint.py``: 75 steps apart, both naming
+the loops that may be unstable).  The choice depends on the call only, never on what the disk cache
 holds, so the same call takes the same path on every machine with a compiler.
 
 Measured (CPU time, cold cache, 200-step RK4 runs, load 13-15 on 2 cores, session 11): planar pendulum chain

@@ -184,8 +184,10 @@ def check_step(what: str, omega_max: float, dt: float, limit: float, *, policy: 
 def unstable_loops_hint(loop_names: Sequence[str]) -> str:
     """The hint a diverging run with feedback loops appends to its message (the numpy and the generated DT-TMM paths
     of chains say the same)."""
-    return (f"the closed loop(s) {list(loop_names)} may be unstable: check ctmm.stability.unstable_root_count(system) "
-            "and ctmm.stability.delay_margin(system)")
+    names = list(loop_names)
+    chosen = "" if len(names) == 1 else f", loop={names[0]!r}"       # several loops: the analysis names the one swept
+    return (f"the closed loop(s) {names} may be unstable: check ctmm.stability.unstable_root_count(system{chosen}) "
+            f"and ctmm.stability.delay_margin(system{chosen})")
 
 
 @dataclass(frozen=True)

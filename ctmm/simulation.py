@@ -40,7 +40,8 @@ from .control.planar_time import simulate_closed_loop
 from .control.protocol import Controller, check_controllers, check_references, split_loop_references
 from .control.simulate import simulate_controlled
 from .compiled_default import default_refusal, is_size_refusal, note_size_refusal, run_default
-from .errors import ModelError, SimulationError, unknown_name
+from .errors import ConvergenceError, ModelError, SimulationError, unknown_name
+from .guard import unstable_loops_hint
 from .planar.closed_loops import KinematicLoopModel
 from .planar.guards import check_resolution
 from .planar.integrate import SCIPY_METHODS, PlanarSimulation, coordinate_values, initial_coordinates, to_result
@@ -67,11 +68,6 @@ def _model_parts(system: Any, kind: type) -> tuple[Any, tuple] | None:
     if isinstance(plant, kind) and hasattr(system, "loops"):
         return plant, tuple(system.loops)
     return None
-
-
-def _planar_parts(system: Any) -> tuple[PlanarModel, tuple] | None:
-    """``(model, loops)`` of a planar model or a controlled planar model, else ``None``."""
-    return _model_parts(system, PlanarModel)
 
 
 class _Default:
@@ -269,21 +265,15 @@ def simulate(system: Any, t_final: float, dt: float | None = None, *, method: Sc
             divergence_bound=divergence_bound, unsupported={"solver": (solver, "riccati"), "fast": (fast, None),
                                                             "force_hook": (force_hook, None), "t0": (t0, 0.0),
                                                             "compiled": (compiled, None)})
-    spatial = _model_parts(system, SpatialModel)
-    if spatial is not None:
-        return simulate_spatial_system(spatial, t_final, dt, method=_method(method, scheme, "rk4"), x0=x0, v0=v0, t0=t0,
-                                 inputs=inputs, outputs=outputs, controllers=controllers, references=references,
-                                 coupling=coupling, solver=solver, fast=fast, force_hook=force_hook, progress=progress,
-                                 stability_check=stability_check, divergence_bound=divergence_bound, rtol=rtol,
-                                 atol=atol, max_step=max_step, store_every=store_every, compiled=compiled)
-    planar = _planar_parts(system)
-    if planar is not None:
-        return _simulate_planar(planar, t_final, dt, method=_method(method, scheme, "rk4"), x0=x0, v0=v0, t0=t0,
-                                inputs=inputs, outputs=outputs, controllers=controllers, references=references,
-                                coupling=coupling, solver=solver, fast=fast, force_hook=force_hook,
-                                progress=progress, stability_check=stability_check,
-                                divergence_bound=divergence_bound, rtol=rtol, atol=atol, max_step=max_step,
-                                store_every=store_every, compiled=compiled)
+    for kind, run in ((SpatialModel, simulate_spatial_system), (PlanarModel, _simulate_planar)):
+        parts = _model_parts(system, kind)
+        if parts is not None:
+            with _loops_hint(parts[1]):
+                return run(parts, t_final, dt, method=_method(method, scheme, "rk4"), x0=x0, v0=v0, t0=t0,
+                           inputs=inputs, outputs=outputs, controllers=controllers, references=references,
+                           coupling=coupling, solver=solver, fast=fast, force_hook=force_hook, progress=progress,
+                           stability_check=stability_check, divergence_bound=divergence_bound, rtol=rtol, atol=atol,
+                           max_step=max_step, store_every=store_every, compiled=compiled)
     require_chain(system, "ctmm.simulate")
     chosen = _method(method, scheme, "newmark")
     if validation.flag("compiled", compiled, optional=True):
@@ -423,6 +413,21 @@ def _simulate_chain_generated(system: Any, t_final: float, dt: float | None, *, 
     return simulate_chain_generated(system, t_final, dt, x0=x0, v0=v0, inputs=inputs or None,
                                     references=references or None, outputs=tuple(outputs), store_every=store_every,
                                     divergence_bound=divergence_bound)
+
+
+@contextlib.contextmanager
+def _loops_hint(loops: Sequence[Any]) -> Iterator[None]:
+    """A DT-TMM step of a planar or spatial model with feedback ``loops`` that does not converge: its message also
+    says which loops may be unstable (:func:`ctmm.guard.unstable_loops_hint`, as a diverging run with loops says):
+    a Newton iteration that fails as the state grows fast is more often a closed loop's instability than a step too
+    long."""
+    try:
+        yield
+    except ConvergenceError as exc:
+        names = [str(getattr(loop, "name", loop)) for loop in loops]
+        if names and exc.args and "may be unstable" not in str(exc.args[0]):
+            exc.args = (f"{exc.args[0]}, or {unstable_loops_hint(names)}",) + exc.args[1:]
+        raise
 
 
 @contextlib.contextmanager
