@@ -43,7 +43,6 @@ def simulate_spatial_system(parts: tuple[SpatialModel, tuple], t_final: float, d
         raise ModelError(f"inputs must be a mapping {{actuator name: number or f(t)}}, got {inputs!r}")
     port_inputs = any(name not in model.inputs for name in inputs or {})
     controlled = bool(loops or controllers or references or tuple(outputs) or port_inputs)
-    closed = "loops, controllers, references, outputs and port actuator inputs"
     if validation.flag("compiled", compiled, optional=True):        # the generated RK4 (ctmm.compiled_spatial)
         if port_inputs and not (loops or controllers or references or tuple(outputs)):
             known = SpatialPorts(model).actuators
@@ -91,8 +90,9 @@ def simulate_spatial_system(parts: tuple[SpatialModel, tuple], t_final: float, d
                 store_every=validation.integer("store_every", store_every, minimum=1),
                 progress=validation.flag("progress", progress, optional=True), divergence_bound=divergence_bound)
         if not isinstance(method, str) or method != "rk4":
-            raise ModelError(f"compiled=True runs the generated RK4 of a spatial model, or a generated DT-TMM scheme "
-                             f"without {closed}; got method={method!r}" + (f" with {closed}" if controlled else ""))
+            raise ModelError(f"compiled=True runs the generated RK4 of a spatial model or a generated DT-TMM scheme "
+                             f"({', '.join(map(repr, SCHEMES))}), with its loops, inputs, references and controllers; "
+                             f"got method={method!r} (leave compiled at None for the solve_ivp methods)")
         if controllers:                 # C between the samples of the controllers (ctmm.compiled_cosim)
             from .compiled_cosim import simulate_cosimulated_generated
 
