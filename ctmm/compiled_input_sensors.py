@@ -4,8 +4,10 @@ A cut force of a kinematic loop model is solved with the accelerations under the
 ``F = F(q, v, w, t)`` with ``w`` the kernel's actuator values (held inputs, the loops' outputs, open-loop inputs).
 For given ``(q, v, t)`` the constrained dynamics are linear in the applied loads, so ``F = F_0(q, v, t) + J(q, v,
 t) w`` exactly; the plant's symbols state ``F_0`` and ``J`` on casadi symbols
-(``symbols.input_sensor_map(names, n_actuators)``; the planar kinematic loop models of
-:class:`ctmm.compiled_kinematic_loop_control.KinematicLoopSymbols`, affine certified: ``J`` does not depend on ``w``).
+(``symbols.input_sensor_map(names, n_actuators)``, by :func:`affine_sensor_map`; the planar kinematic loop models of
+:class:`ctmm.compiled_kinematic_loop_control.KinematicLoopSymbols` and the spatial ones of
+:class:`ctmm.compiled_spatial_loop_symbols.SpatialKinematicLoopSymbols`, affine certified: ``J`` does not depend on
+``w``).
 :class:`InputDependentSensors` closes the loops of :class:`ctmm.compiled_loops.ClosedLoops` that read them:
 
 * **real-time loops** (``tau = 0``) on them are algebraic, ``u = -(C z + D (y_0 + g (w_0 + W u) - r))``: the small
@@ -28,9 +30,21 @@ import numpy as np
 
 from .errors import ModelError
 
-__all__ = ["InputDependentSensors"]
+__all__ = ["InputDependentSensors", "affine_sensor_map"]
 
 SINGULAR_LIMIT = 1e12     # the largest (1 + |D g W|) / sigma_min(I + D g W) of an algebraic loop at the start state
+
+
+def affine_sensor_map(sensors: Any, actuators: Any, arguments: Sequence[Any]) -> Any:
+    """``(q, v, p, t) -> (F_0, J)`` of sensors ``sensors`` (a casadi column on the symbols ``arguments = [q, v, p,
+    t]`` and the actuator values ``actuators``) affine in the actuator values, ``F = F_0 + J w``: the value and the
+    Jacobian at ``w = 0`` (exact for the cut forces of kinematic loop models: the applied loads are linear in ``w``,
+    the tree's accelerations affine in the loads, the boundary compliance a function of the positions alone)."""
+    import casadi as ca
+
+    zero = ca.DM.zeros(actuators.numel())
+    return ca.Function("cut_forces", list(arguments), [ca.substitute(sensors, actuators, zero),
+                                                       ca.substitute(ca.jacobian(sensors, actuators), actuators, zero)])
 
 
 class InputDependentSensors:

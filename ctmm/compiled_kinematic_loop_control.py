@@ -37,8 +37,11 @@ coordinates, outputs, cut forces, ``"drift"``, ``"drift_rate"``.
 Spatial kinematic loop models (:class:`~ctmm.spatial.closed_loops.SpatialKinematicLoopModel`, the loop driver's run
 of :mod:`ctmm.spatial_loop_time`) compile the same way: the closed-loop velocity rates
 :func:`ctmm.compiled_spatial_kinematic_loops.symbolic_spatial_closed_loop` (the tree's port actuators and the cuts'
-``"<cut>.torque"`` / ``"<cut>.force"`` applied with the cut loads), the sensors :class:`SpatialKinematicLoopSymbols`,
-the stored signals :meth:`ctmm.spatial.closed_loop_plant.SpatialLoopPlant.signals`.  A tree with driven joints
+``"<cut>.torque"`` / ``"<cut>.force"`` applied with the cut loads), the sensors
+:class:`ctmm.compiled_spatial_loop_symbols.SpatialKinematicLoopSymbols` (the cut forces ``"<cut>.force_x|y|z"`` of
+every cut kind under the kernel's actuator values, closed by
+:class:`~ctmm.compiled_input_sensors.InputDependentSensors` as the planar ones), the stored signals
+:meth:`ctmm.spatial.closed_loop_plant.SpatialLoopPlant.signals`.  A tree with driven joints
 (signals with a symbolic form) runs too: the sensors read the time as well as the state (the tree's sensors outboard
 of a drive, the cut coordinates and law moments at the time symbol; a delayed loop's sampled sensor rate adds
 ``dy/dt``), as the numpy driver reads them at each stage time.
@@ -54,8 +57,10 @@ co-simulated controllers, what :class:`~ctmm.compiled_input_sensors.InputDepende
 real-time loop on a cut force, an algebraic loop singular at the start, a neutral delayed one) and what
 :class:`ClosedLoops` refuses (non-integer delays, references and inputs without a symbolic form).  A spherical cut
 with a law senses its law's moment ``"<cut>.moment_x|y|z"`` (world axes, a function of the state:
-:func:`ctmm.compiled_spherical_cut_law.symbolic_spherical_law_moment`); the spatial cut loads ``"<cut>.force_x|y|z"``
-are outputs, not loop sensors, of the generated kernel (refused by name; the numpy driver's delayed loops read them).
+:func:`ctmm.compiled_spherical_cut_law.symbolic_spherical_law_moment`); the spatial cut forces ``"<cut>.force_x|y|z"``
+are loop sensors as the planar ones (a real-time loop on one solved as an algebraic loop, a delayed one sampled with
+its exact rate; the same refusals), not in the generated DT-TMM schemes with loops
+(:mod:`ctmm.compiled_spatial_loop_scheme_control`, refused by name there).
 """
 from __future__ import annotations
 
@@ -67,12 +72,14 @@ import numpy as np
 
 from . import validation
 from .compiled_control import add_loop_signals
+from .compiled_input_sensors import affine_sensor_map
 from .compiled_kinematic_loops import (cut_rows, kinematic_loop_compile_refusal, symbolic_closed_loop,
                                        symbolic_projection, symbolic_relative_angles, symbolic_time_signal)
 from .compiled_loops import ClosedLoops
 from .compiled_planar_sensors import SymbolicKinematics, sensor_expression
 from .compiled_parameters import parameter_vector
 from .compiled_scene import DEFAULT_ROWS
+from .compiled_spatial_loop_symbols import SpatialKinematicLoopSymbols
 from .compiled_spherical_cut_law import rotation_limit_note
 from .control.controlled_model import ControlledModel
 from .errors import ModelError, SimulationError
@@ -87,7 +94,7 @@ from .planar.ports import PlanarPorts
 from .signal_results import SignalSystem, signal_result
 from .signals import Constant, as_signal
 
-__all__ = ["CompiledKinematicLoopControl", "KinematicLoopSymbols", "SpatialKinematicLoopSymbols", "applied_loop_inputs",
+__all__ = ["CompiledKinematicLoopControl", "KinematicLoopSymbols", "applied_loop_inputs",
            "simulate_controlled_kinematic_loops_generated",
            "simulate_cosimulated_kinematic_loops_generated", "simulate_generated_driver_run"]
 
@@ -127,9 +134,7 @@ class KinematicLoopSymbols:
         forces, rows = self.closed(q, v, w, p, t)[2], cut_rows(self.model)
         F = ca.vertcat(*[forces[rows[self.cut_index[name.rpartition(".")[0]]] + name.endswith("force_y")]
                          for name in names])
-        zero = ca.DM.zeros(n_actuators)
-        return ca.Function("cut_forces", [q, v, p, t], [ca.substitute(F, w, zero),
-                                                          ca.substitute(ca.jacobian(F, w), w, zero)])
+        return affine_sensor_map(F, w, [q, v, p, t])
 
     def position_rates(self, q: Any, v: Any) -> Any:
         """``qdot = v``."""
@@ -166,69 +171,6 @@ class KinematicLoopSymbols:
         if cut.moment_law is not None:
             moment = moment - cut.moment_law.force(angle - cut.rest_angle, rate)
         return moment
-
-
-class SpatialKinematicLoopSymbols:
-    """A spatial kinematic loop model on symbols for :class:`ctmm.compiled_loops.ClosedLoops`: the tree's sensors by
-    :class:`ctmm.compiled_spatial_loops.SpatialSymbols`, the cut sensors ``"<cut>.angle"`` / ``"<cut>.position"``
-    and ``"<cut>.rate"`` (a cut law's ``"<cut>.law_moment"`` / ``"<cut>.law_force"`` too) by the cut coordinates on
-    symbols, a spherical cut law's ``"<cut>.moment_x|y|z"`` by its moment on symbols
-    (:func:`ctmm.compiled_spatial_kinematic_loops.symbolic_spatial_closed_loop`).
-
-    Parameters
-    ----------
-    model : SpatialKinematicLoopModel
-    ports : SpatialLoopPorts
-        The ports of the controlled model (the tree's and the cut joints').
-    coordinates : casadi.Function
-        ``cut_coordinates(q, v, t) -> [s_1, s_1', ...]``.
-    law_moments : casadi.Function, optional
-        ``law_moments(q, v, t) -> [m_1 ; m_2 ; ...]`` (3 per cut; needed by the spherical law moment sensors).
-
-    The sensors read the time ``t`` too (:attr:`time_sensors`): with driven tree joints the tree's sensors outboard
-    of them, the cut coordinates and the law moments move with the prescribed motion, as in the numpy driver.
-    """
-
-    time_sensors = True
-
-    def __init__(self, model: Any, ports: Any, coordinates: Any, law_moments: Any = None) -> None:
-        from .compiled_spatial_loops import SpatialSymbols
-        from .spatial.ports import SpatialPorts
-
-        self.model, self.ports, self.coordinates, self.law_moments = model, ports, coordinates, law_moments
-        self.tree_symbols = SpatialSymbols(model.tree, SpatialPorts(model.tree))
-        self.n_positions, self.n_velocities = model.tree.n_positions, model.tree.n_velocities
-        self.cut_index = {cut.name: k for k, cut in enumerate(model.cuts)}
-
-    def position_rates(self, q: Any, v: Any) -> Any:
-        """``q' = G(q) v`` (quaternion rates from body-axes angular velocities)."""
-        return self.tree_symbols.position_rates(q, v)
-
-    def sensor(self, name: str, q: Any, v: Any, t: Any = 0.0) -> Any:
-        """Sensor ``name`` as an expression of the symbols ``q``, ``v`` and the time ``t`` [s].
-
-        A spherical cut's law moment ``"<cut>.moment_x|y|z"`` [N m] (world axes) is ``law_moments(q, v, t)``
-        (:func:`ctmm.compiled_spherical_cut_law.symbolic_spherical_law_moment`).
-
-        Raises
-        ------
-        ModelError
-            A cut force ``"<cut>.force_x|y|z"`` (it responds to the actuators at once: the numpy loop driver's).
-        """
-        cut_name, _, part = name.rpartition(".")
-        if cut_name in self.cut_index and part in ("force_x", "force_y", "force_z"):
-            raise ModelError(f"sensor {name!r}: a cut force responds to the actuators at once, not a function of the "
-                             "state as the generated loop sensors are; use compiled=None (the numpy loop driver)")
-        if cut_name in self.cut_index and part in ("moment_x", "moment_y", "moment_z") and \
-                self.model.cuts[self.cut_index[cut_name]].kind == "spherical":
-            return self.law_moments(q, v, t)[3 * self.cut_index[cut_name] + "xyz".index(part[-1])]
-        if cut_name in self.cut_index and part in ("angle", "position", "rate"):
-            return self.coordinates(q, v, t)[2 * self.cut_index[cut_name] + (part == "rate")]
-        if cut_name in self.cut_index and part in ("law_moment", "law_force"):     # -law(s - rest, s')
-            k, cut = self.cut_index[cut_name], self.model.cuts[self.cut_index[cut_name]]
-            coordinates = self.coordinates(q, v, t)
-            return -cut.law.force(coordinates[2 * k] - cut.rest, coordinates[2 * k + 1])
-        return self.tree_symbols.sensor(name, q, v, t)
 
 
 def _step(loops: ClosedLoops, closed: Any, project: Any, nq: int, nv: int, n_inputs: int, n_parameters: int) -> Any:
@@ -311,7 +253,7 @@ class CompiledKinematicLoopControl:
         if spatial:
             self.parameters, (self.nq, self.nv) = np.zeros(0), (model.tree.n_positions, model.tree.n_velocities)
             self.closed, constraint, coordinates, law_moments = symbolic_spatial_closed_loop(model, self.actuators)
-            symbols: Any = SpatialKinematicLoopSymbols(model, controlled.ports, coordinates, law_moments)
+            symbols: Any = SpatialKinematicLoopSymbols(model, controlled.ports, coordinates, law_moments, self.closed)
             project = symbolic_spatial_projection(model.tree, constraint, self.iterations)
         else:
             self.parameters, self.nq = parameter_vector(model.tree), model.tree.n_coordinates

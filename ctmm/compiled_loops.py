@@ -11,7 +11,7 @@ numpy path of :mod:`ctmm.control.planar_time` does:
   coordinates and their rates, body angles and rates, hinge angles and rates, positions and velocities
   of named points, beam station deflections, slopes and their rates -- every port of
   :mod:`ctmm.planar.ports` (all are functions of the state ``(q, qdot)``); plants whose symbols name sensors that
-  respond to the actuators at once (``symbols.input_dependent``: the cut forces of planar kinematic loops) close
+  respond to the actuators at once (``symbols.input_dependent``: the cut forces of planar and spatial kinematic loops) close
   them by :class:`~ctmm.compiled_input_sensors.InputDependentSensors` (:meth:`ClosedLoops.close`: real-time loops on
   them solved as an algebraic system, delayed ones sampled with their exact rate);
 * **real-time loops** (``tau = 0``): evaluated at the state of every RK4 stage (no added lag);

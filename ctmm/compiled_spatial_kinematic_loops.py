@@ -106,9 +106,10 @@ def spatial_cut_load_refusal(cut: Any) -> str:
 def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuators: Sequence[str] = ()
                                  ) -> tuple[Any, Any, Any, Any]:
     """The closed-loop velocity rates of a spatial kinematic loop model on symbols (module docstring):
-    ``closed(q, v, u, p, t) -> (v', condition, cut unknowns, Phi, Phi', G)`` with the actuator values ``u`` of
+    ``closed(q, v, u, p, t) -> (v', condition, cut unknowns, Phi, Phi', G, F)`` with the actuator values ``u`` of
     ``extra_actuators`` (the tree's port actuators, :mod:`ctmm.spatial.ports`, and the undriven revolute and
-    prismatic cuts' ``"<cut>.torque"`` / ``"<cut>.force"``, applied with the cut loads), ``p`` empty;
+    prismatic cuts' ``"<cut>.torque"`` / ``"<cut>.force"``, applied with the cut loads), ``p`` empty, ``F`` the cuts'
+    forces on the child [N] (3 per cut, world axes; the ``"<cut>.force_x|y|z"`` sensors);
     ``constraint(q, v, t) -> (Phi, Phi', J)``; ``cut_coordinates(q, v, t) -> [s_1, s_1', ...]`` (0 for cuts without
     a coordinate); ``law_moments(q, v, t) -> [m_1 ; m_2 ; ...]`` (3 per cut: a spherical cut's law moment on the
     child [N m], world axes, :meth:`SpatialKinematicLoopModel.law_moments`; zeros for the other cuts); the last two
@@ -207,10 +208,12 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
                 rate.append(value_rate - symbolic_time_signal(cut.rate, t_))
         return ca.vertcat(*phi), ca.vertcat(*rate)
 
-    def wrenches(states: list, values: Any, t_: Any, spherical_laws: Any) -> dict:
+    def wrenches(states: list, values: Any, t_: Any, spherical_laws: Any, constraint_forces: list) -> dict:
         """The cut loads of the unknowns ``values`` and the cuts' laws and actuations at time ``t_`` as wrenches
         ``(point, [f ; m] world)`` per body (``spherical_laws``: 3 per cut, the spherical laws' moments, formed once
-        outside the ``1 + m`` load cases)."""
+        outside the ``1 + m`` load cases); each cut's force on the child from the unknowns alone appended to
+        ``constraint_forces`` (:meth:`SpatialKinematicLoopModel.cut_loads`: a driven prismatic cut's drive force
+        included, laws and actuations not)."""
         out: dict[int, list] = {}
         row = 0
         for k, (cut, (parent, child), frame) in enumerate(zip(model.cuts, sides, frames)):
@@ -240,12 +243,15 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
                 along = along + port_loads.get(cut.name, 0.0)
                 if cut.law is not None:
                     along = along - cut.law.force(value - cut.rest, value_rate)
+            constraint = force
             if along is not None:
                 a = coordinate(states, cut, parent, child)[2]
                 if cut.kind == "revolute":
                     moment = moment + along * a
                 else:                               # prismatic: a force at the child point
                     force = force + along * a
+                    constraint = force if cut.driven else constraint
+            constraint_forces.append(constraint)
             load = ca.vertcat(force, moment)
             out.setdefault(child[0], []).append((child[1], load))
             if parent[0] >= 0:                      # prismatic: the force acts at the child point
@@ -258,7 +264,8 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
     moments = [law_moment(states, cut, parent, child) if cut.kind == "spherical" and cut.law is not None
                else ca.DM.zeros(3) for cut, (parent, child) in zip(model.cuts, sides)]
     spherical_laws = ca.SX.sym("spherical_laws", 3 * len(model.cuts))
-    loads = wrenches(states, lam, t, spherical_laws)
+    constraint_forces: list = []
+    loads = wrenches(states, lam, t, spherical_laws, constraint_forces)
     for body, entries in tree_wrenches.items():
         loads.setdefault(body, []).extend(entries)
     # the tree's load signals and driven joints on the time symbol
@@ -283,8 +290,9 @@ def symbolic_spatial_closed_loop(model: SpatialKinematicLoopModel, extra_actuato
     alpha = model.baumgarte
     forces = ca.solve(G, -c0 - 2.0 * alpha * phi_dot - alpha * alpha * phi)
     condition = ca.norm_fro(G) * ca.norm_fro(ca.solve(G, ca.SX.eye(m)))
+    child_forces = ca.substitute(ca.vertcat(*constraint_forces), lam, forces)
     closed = ca.Function("closed", [q, v, u, p, t], [v_dot0 + ca.mtimes(D, forces), condition, forces, phi,
-                                                      phi_dot, G])
+                                                      phi_dot, G, child_forces])
     coordinates = []                                # at time t: driven tree joints move them
     for cut, (parent, child) in zip(model.cuts, sides):
         value, value_rate, _ = coordinate(states, cut, parent, child) if cut.kind in ("revolute", "prismatic") \
@@ -386,7 +394,7 @@ class CompiledSpatialKinematicLoops(CompiledKinematicLoops):
         nq, nv = tree.n_positions, tree.n_velocities
         closed, constraint, _, _ = symbolic_spatial_closed_loop(self.model)
         q, v, p, t = ca.SX.sym("q", nq), ca.SX.sym("v", nv), ca.SX.sym("p", 0), ca.SX.sym("t")
-        v_dot, condition, forces, phi, phi_dot, G = closed(q, v, ca.DM.zeros(0), p, t)
+        v_dot, condition, forces, phi, phi_dot, G, _ = closed(q, v, ca.DM.zeros(0), p, t)
         y = ca.vertcat(q, v)
         rate = ca.Function("closed_rate", [y, p, t], [ca.vertcat(position_rates(tree, q, v), v_dot), condition])
         outputs = ca.Function("outputs", [y, p, t], [forces, phi, phi_dot, G])

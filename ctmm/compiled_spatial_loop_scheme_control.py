@@ -8,7 +8,7 @@ velocity rates of the cut joints, projected after every step) with the loop part
 states by the Python path's trapezoidal rule, delayed loops from the ring of samples.  The loops' actuators are port
 actuators of the tree and the cuts' ``"<cut>.torque"`` / ``"<cut>.force"`` applied with the cut loads
 (:func:`ctmm.compiled_spatial_kinematic_loops.symbolic_spatial_closed_loop`), the sensors the ones of the generated
-loop driver (:class:`ctmm.compiled_kinematic_loop_control.SpatialKinematicLoopSymbols`).
+loop driver (:class:`ctmm.compiled_spatial_loop_symbols.SpatialKinematicLoopSymbols`).
 
 As the numpy path (:func:`ctmm.control.implicit_loops.run_implicit` with the plant's ``step_projection``), every
 accepted step is projected onto the cut joints before the controller states, the loop errors and the delay ring
@@ -31,7 +31,8 @@ import numpy as np
 
 from . import validation
 from .compiled_control import add_loop_signals
-from .compiled_kinematic_loop_control import SpatialKinematicLoopSymbols, applied_loop_inputs
+from .compiled_kinematic_loop_control import applied_loop_inputs
+from .compiled_spatial_loop_symbols import SpatialKinematicLoopSymbols
 from .compiled_loops import ClosedLoops
 from .compiled_scene_schemes import STATUS
 from .compiled_scheme_loop_terms import SchemeLoopTerms, loop_actuators

@@ -144,7 +144,7 @@ class CompiledSpatialLoopScheme(CompiledSpatialScheme):
             return np.zeros((0, m)), np.zeros((0, m)), np.zeros((0, m))
         q, v, t = states[:, :nq].T, states[:, nq:].T, np.asarray(t, dtype=float)[None, :]
         u = np.zeros(self.input_size) if held is None else np.asarray(held, dtype=float)
-        _, _, unknowns, phi, phi_dot, _ = self._closed.map(rows)(q, v, np.tile(u[:, None], (1, rows)),
+        _, _, unknowns, phi, phi_dot, _, _ = self._closed.map(rows)(q, v, np.tile(u[:, None], (1, rows)),
                                                                  np.zeros((0, rows)), t)
         return np.asarray(unknowns).T.copy(), np.asarray(phi).T.copy(), np.asarray(phi_dot).T.copy()
 
