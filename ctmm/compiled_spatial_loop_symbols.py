@@ -29,7 +29,8 @@ class SpatialKinematicLoopSymbols:
     :class:`ctmm.compiled_spatial_loops.SpatialSymbols`, the cut sensors ``"<cut>.angle"`` / ``"<cut>.position"``
     and ``"<cut>.rate"`` (a cut law's ``"<cut>.law_moment"`` / ``"<cut>.law_force"`` too) by the cut coordinates on
     symbols, a spherical cut law's ``"<cut>.moment_x|y|z"`` by its moment on symbols
-    (:func:`ctmm.compiled_spatial_kinematic_loops.symbolic_spatial_closed_loop`).
+    (:func:`ctmm.compiled_spatial_kinematic_loops.symbolic_spatial_closed_loop`) and, given ``closed``, every cut's
+    force ``"<cut>.force_x|y|z"`` under the kernel's actuator values (:meth:`input_sensor_map`).
 
     Parameters
     ----------
@@ -45,6 +46,13 @@ class SpatialKinematicLoopSymbols:
         the kernel's actuators: the cut forces ``"<cut>.force_x|y|z"`` become sensors that respond to the actuators
         at once (:attr:`input_dependent`, closed by :class:`~ctmm.compiled_input_sensors.InputDependentSensors`);
         without it they are refused by name.
+
+    Attributes
+    ----------
+    input_dependent : frozenset of str
+        The sensors that respond to the actuators at once (the cut forces; empty without ``closed``).
+    parameters : numpy.ndarray
+        The plant's numbers of the kernel's parameter column (none: every number is a constant of the code).
 
     The sensors read the time ``t`` too (:attr:`time_sensors`): with driven tree joints the tree's sensors outboard
     of them, the cut coordinates and the law moments move with the prescribed motion, as in the numpy driver.
