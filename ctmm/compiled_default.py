@@ -79,6 +79,7 @@ from .system import Chain
 
 __all__ = ["MAXIMUM_BANDED_CHAIN_POINTS", "MAXIMUM_CHAIN_POINTS", "MINIMUM_STEPS",
            "SCHEME_LOOPS_MAXIMUM_COORDINATES", "SCHEME_MAXIMUM_COORDINATES", "SCHEME_MAXIMUM_VELOCITIES",
+           "SCHEME_SWEEP_MAXIMUM_COORDINATES",
            "default_refusal", "dense_chain_reason", "is_size_refusal", "note_size_refusal", "run_default"]
 
 MINIMUM_STEPS = 5000
@@ -144,6 +145,11 @@ SCHEME_MAXIMUM_COORDINATES = 15
 """Largest planar model (coordinates) without loops whose DT-TMM schemes the default generates: the generated step
 was 0.27 of the numpy step at 15 coordinates and 1.5 times it at 20 (module docstring); larger ones stay on numpy
 unless ``compiled=True``."""
+SCHEME_SWEEP_MAXIMUM_COORDINATES = 300
+"""Largest planar model (coordinates) without loops whose DT-TMM schemes the default generates where the generated
+step iterates with the implicit sweep (:mod:`ctmm.compiled_sweep_newton`: linear hinge laws, no modal bodies; one
+articulated sweep per iteration, O(n)): measured generated / numpy step MEASURED (module docstring); not measured
+beyond."""
 SCHEME_LOOPS_MAXIMUM_COORDINATES = 30
 """Largest planar model (coordinates) with feedback loops (a ``ControlledModel``) whose DT-TMM schemes the default
 generates: the numpy path closes the loops around its stepper (about 0.7 ms per body and step), the generated step
@@ -165,12 +171,20 @@ _SCHEME_SIZE_REFUSAL = "a DT-TMM scheme of"
 
 def _scheme_size_refusal(system: Any, plant: PlanarModel | SpatialModel) -> str | None:
     """Why a DT-TMM scheme of ``system`` (on ``plant``) stays on numpy by its size
-    (:data:`SCHEME_MAXIMUM_COORDINATES`, with feedback loops :data:`SCHEME_LOOPS_MAXIMUM_COORDINATES`,
+    (:data:`SCHEME_MAXIMUM_COORDINATES`, :data:`SCHEME_SWEEP_MAXIMUM_COORDINATES` where the generated step iterates
+    with the implicit sweep, with feedback loops :data:`SCHEME_LOOPS_MAXIMUM_COORDINATES`,
     :data:`SCHEME_MAXIMUM_VELOCITIES`), or ``None``."""
     if isinstance(plant, PlanarModel):
+        from .compiled_sweep_newton import sweep_refusal
+
         loops = system is not plant and bool(getattr(system, "loops", ()))
-        limit = SCHEME_LOOPS_MAXIMUM_COORDINATES if loops else SCHEME_MAXIMUM_COORDINATES
+        sweep = not loops and not sweep_refusal(plant)
+        limit = SCHEME_LOOPS_MAXIMUM_COORDINATES if loops else \
+            SCHEME_SWEEP_MAXIMUM_COORDINATES if sweep else SCHEME_MAXIMUM_COORDINATES
         size, what = plant.n_coordinates, "coordinates" + (" with loops" if loops else "")
+        if sweep and size > limit:
+            return (f"{_SCHEME_SIZE_REFUSAL} {size} {what} (> {limit}: the generated step (one implicit sweep per "
+                    "iteration) was not measured beyond; give compiled=True)")
     else:
         size, limit, what = plant.n_velocities, SCHEME_MAXIMUM_VELOCITIES, "velocities"
     if size > limit:

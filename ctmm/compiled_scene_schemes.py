@@ -54,6 +54,7 @@ from .compiled_parameters import compile_refusal, compiled_actuators, parameter_
 from .compiled_newton_weighting import inverse_mass_terms, mapped_weighted_residual, weighted_residual_terms
 from .compiled_scene import symbolic_accelerations_with_inputs
 from .compiled_scene_fold import folded_accelerations_with_inputs, scheme_fold_period
+from .compiled_sweep_newton import sweep_iteration, sweep_refusal
 from .errors import ConvergenceError, ModelError
 from .generated_loop import BlockRunner, compiled_time_loop, run_blocks
 from .mapped_tangent import residual_terms as mapped_residual_terms, tangent_construction
@@ -350,8 +351,9 @@ class CompiledSceneScheme(SchemeHooks):
     rows : int
         Stored states per generated block.
     cache_dir, compiler, tangent, station_inputs
-        Of :func:`ctmm.codegen.shared_library`; the Newton tangent's construction ("mapped", "symbolic", None: by
-        size, :func:`ctmm.mapped_tangent.tangent_construction`); beam station loads that are inputs too
+        Of :func:`ctmm.codegen.shared_library`; the Newton tangent's construction ("mapped", "symbolic", "sweep":
+        :mod:`ctmm.compiled_sweep_newton`; None: by size, :func:`ctmm.mapped_tangent.tangent_construction`); beam
+        station loads that are inputs too
         (:func:`~ctmm.compiled_parameters.compiled_actuators`, :mod:`ctmm.compiled_scheme_cosim`).
 
     Attributes
@@ -374,7 +376,8 @@ class CompiledSceneScheme(SchemeHooks):
         if reason:
             raise ModelError(f"CompiledSceneScheme: {reason}")
         self.scheme = as_scheme(scheme)
-        self.tangent = tangent_construction("CompiledSceneScheme", tangent, model.n_coordinates)
+        self.tangent = tangent_construction("CompiledSceneScheme", tangent, model.n_coordinates,
+                                            sweep_refusal(model, self.loops))
         self.period = scheme_fold_period(model, self.tangent, self.loops)     # sweep folded over segments (0: not)
         self.tolerance, self.max_iterations, self.store_every, rows = newton_options(
             "CompiledSceneScheme", tolerance, max_iterations, store_every, rows)
@@ -396,9 +399,8 @@ class CompiledSceneScheme(SchemeHooks):
     def closed_acceleration(self) -> Any:
         """``qddot = acceleration(q, v, u, p, t)`` the step solves for (casadi ``Function``): the plant's sweep with
         the inputs :attr:`actuators` (a subclass closes loops around it, :mod:`ctmm.compiled_scheme_loops`)."""
-        if self.period:
-            return folded_accelerations_with_inputs(self.model, self.actuators, (), self.period)
-        return symbolic_accelerations_with_inputs(self.model, self.actuators)
+        return folded_accelerations_with_inputs(self.model, self.actuators, (), self.period) if self.period else \
+            symbolic_accelerations_with_inputs(self.model, self.actuators)
 
     @property
     def status_index(self) -> int:
@@ -423,7 +425,7 @@ class CompiledSceneScheme(SchemeHooks):
         mapped = self.tangent == "mapped"   # columns by mapped forward derivatives (code O(sweep)), one sweep
         residual_terms = mapped_weighted_residual(self.model, self.actuators, self.period) if mapped and \
             self.loops is None else None
-        if residual_terms is None:
+        if residual_terms is None and self.tangent != "sweep":
             rates = self.iterate_acceleration(acceleration, q, v, u, p, t, c, s)
             if mapped:
                 residual_terms = mapped_residual_terms(ca.Function("rates", [q, v, u, p, t, c, s], [rates]))
@@ -435,7 +437,8 @@ class CompiledSceneScheme(SchemeHooks):
                                              [a - value, ca.SX.eye(n) - w * d_q - g * d_v])
             weighting = inverse_mass_terms(self.model, mapped)      # Newton on M (a - qddot), as the Python stepper
             residual_terms = weighted_residual_terms(residual_terms, *weighting) if weighting else residual_terms
-        iterate = newton_iteration(residual_terms, self.tolerance)
+        iterate = sweep_iteration(self.model, self.actuators, self.period, self.tolerance, self.loops) \
+            if self.tangent == "sweep" else newton_iteration(residual_terms, self.tolerance)     # O(N) / Newton
         y = ca.MX.sym("y", self.state_size)
         u_in, h, p_in, t0, k = ca.MX.sym("u", n_u), ca.MX.sym("h"), ca.MX.sym("p", n_p), ca.MX.sym("t0"), ca.MX.sym("k")
         controller = y[self.status_index + len(STATUS):]
@@ -564,14 +567,12 @@ def simulate_scheme_generated(model: PlanarModel, q0: Any, qdot0: Any, *, t_fina
     start = _time.perf_counter()
     first = compiled.initial_state(q, v)
     rows = compiled.run(first, h, n_steps)
-    wall = _time.perf_counter() - start
-    every, n = compiled.store_every, model.n_coordinates
+    wall, every, n = _time.perf_counter() - start, compiled.store_every, model.n_coordinates
     steps = np.array([k for k in range(1, n_steps + 1) if k % every == 0 or k == n_steps])[:len(rows)]
     states = np.vstack([first[None], rows])
     t = np.concatenate([[0.0], steps * h])
     label = f"dt-tmm-generated/{type(scheme).__name__}"
     qs, vs = states[:, :n], states[:, n:2 * n]
-
     controller = states[:, compiled.status_index + len(STATUS):]       # loop controller entries (a subclass's)
     extra = {"controller_states": controller} if compiled.controller_size else {}
 
@@ -580,7 +581,6 @@ def simulate_scheme_generated(model: PlanarModel, q0: Any, qdot0: Any, *, t_fina
                                 extra={name: value[:k] for name, value in extra.items()})
 
     from .compiled_control import first_loop_failure, loop_state_failure
-
     failed = np.flatnonzero(states[:, 6 * n] > 0.0)
     good = len(states) if not failed.size else int(failed[0])
     held = np.zeros(len(compiled.actuators))   # modal beams' deflection too; a failing interval replayed step by step

@@ -1,0 +1,146 @@
+"""An O(N) iteration for the generated DT-TMM schemes of planar models: one implicit articulated sweep (issue 13).
+
+The generated scheme step (:mod:`ctmm.compiled_scene_schemes`) solves, with ``q = q_hat + w a``,
+``v = v_hat + g a`` (``w = b' h^2`` [s^2], ``g = g' h`` [s]), the equations of motion
+
+``M(q) a + b(q, v) = tau_law(q, v) + f(q, v, t)``
+
+for the accelerations ``a`` (``tau_law`` the hinge laws, ``f`` gravity, loads and inputs).  Its ``"mapped"`` and
+``"symbolic"`` tangents form the ``n x n`` Newton tangent and factor it: O(N^2) .. O(N^3) per iterate.  Here each
+iterate is **one articulated sweep** (O(N)):
+
+``a_(k+1) = (M(q_k) + g C + w K)^-1 (tau_law(q_hat, v_hat) + f(q_k, v_k, t) - b(q_k, v_k))``
+
+with ``K = -d tau_law/dq_rel``, ``C = -d tau_law/dv_rel`` the joint laws' stiffness and damping: the articulated
+sweep of the model at the iterate ``(q_k, v_k)`` whose joints carry the tangent ``kappa = w K + g C`` in their
+pivots ``D`` (:func:`ctmm.articulated.articulated_sweep`, the Python stepper's ``kappa = k b' h^2 + c g' h``) and
+whose laws are evaluated at the predictor.  For laws linear in the relative angle and rate (a relative coordinate
+that is linear in ``q``), ``tau_law(q, v) = tau_law(q_hat, v_hat) - (w K + g C) a_rel``, so the sweep solves the
+laws **exactly** (implicitly) with the geometry, the inertia and the velocity terms frozen at the iterate.
+
+* **Same root.**  A fixed point ``a = a_(k+1) = a_k`` satisfies the equations of motion at ``q(a), v(a)``: the
+  root of the residual ``r(a) = a - qddot(q(a), v(a))`` the other tangents solve.
+* **Convergence.**  It is Newton's method on the mass-weighted residual ``R(a) = M(q) r(a)`` (the Python stepper's,
+  :mod:`ctmm.compiled_newton_weighting`) with the tangent ``M + g C + w K`` in place of
+  ``M + g C + w K + w (dM/dq a + db/dq - df/dq) + g db/dv``: the dropped terms are the configuration dependence of
+  the inertia, gravity and loads (``O(w)``) and the velocity products (``O(g |v|)``), so the iteration converges
+  linearly with a factor of order ``w (|a| + g_0 / L) + g |omega|`` relative to the inertia (pendulum chain at
+  ``dt = 1 ms``: ~1e-3 .. 1e-2 per iterate) while the stiff part, the hinge laws, is solved exactly.
+* **Stop.**  The stopping rule of the other tangents, ``max |a_(k+1) - a_k| <= tolerance (1 + max |a_(k+1)|)``,
+  keeping ``a_(k+1)``: its error is the factor times the last change, where Newton's is the change squared.
+  Not converging in ``max_iterations`` stays a :class:`~ctmm.errors.ConvergenceError` naming the step, time and
+  residual (:func:`ctmm.compiled_scene_schemes.not_converged`).
+
+Scope (:func:`sweep_refusal`, a :class:`~ctmm.errors.ModelError` otherwise): planar models without loops whose
+joint laws are linear (no :class:`~ctmm.planar.hinge_laws.NonlinearHinge`, no radial bushing law) and without
+modal beams (their modal stiffness is not in the sweep's pivots here).  Foldable chains sweep folded
+(:func:`ctmm.compiled_scene_fold.folded_acceleration` with ``implicit=True``).
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any, Sequence
+
+from .articulated import articulated_sweep
+from .compiled_parameters import parameter_vector, symbolic_numbers
+from .compiled_scene import coordinate_accelerations
+from .compiled_scene_fold import folded_accelerations_with_inputs
+from .compiled_station_loads import symbolic_terms_with_station_loads
+from .errors import ModelError
+from .ops import CASADI
+from .planar.model import PlanarModel
+from .planar.ports import PlanarPorts
+
+__all__ = ["SWEEP", "implicit_accelerations", "sweep_iteration", "sweep_refusal"]
+
+SWEEP = "sweep"
+"""The name of this iteration among the generated planar schemes' tangents (``tangent="sweep"``)."""
+
+
+def sweep_refusal(model: PlanarModel, loops: Any = None) -> str:
+    """Why the implicit-sweep iteration does not apply to ``model`` (``""``: it does).  ``loops``: the closed loops
+    of the step (``None``: none)."""
+    if loops is not None:
+        return "feedback loops (their controller terms are not in the implicit sweep)"
+    if model.nonlinear_hinges:
+        names = [model.joint_names[j] for j in sorted(model.nonlinear_hinges)]
+        return f"nonlinear hinge laws {names} (the sweep solves linear laws implicitly)"
+    modal = [model.body_names[j] for j in range(model.n_bodies) if len(model.modal_index[j])]
+    if modal:
+        return f"modal bodies {modal} (their modal stiffness is not in the sweep's pivots)"
+    return ""
+
+
+def implicit_accelerations(model: PlanarModel, actuators: Sequence[str], period: int = 0) -> Any:
+    """``implicit(q, v, q_hat, v_hat, w, g, u, p, t) -> a`` (casadi ``Function``): the articulated sweep at
+    ``(q, v)`` with the joint laws at ``(q_hat, v_hat)`` and the joint tangents ``kappa = -(w tau_q + g tau_v)``
+    in the pivots (module docstring), the inputs ``u`` of the ports ``actuators``; folded over segments of
+    ``period`` bodies (0: straight-line code).  At ``q = q_hat + w a``, ``v = v_hat + g a`` its value at ``a``
+    equals ``a`` exactly where ``a`` solves the equations of motion.
+
+    Raises
+    ------
+    ModelError
+        A model :func:`sweep_refusal` refuses.
+    """
+    import casadi as ca
+
+    reason = sweep_refusal(model)
+    if reason:
+        raise ModelError(f"tangent='sweep': not for a model with {reason}; use tangent='mapped' or 'symbolic'")
+    if period:
+        return folded_accelerations_with_inputs(model, actuators, (), period, implicit=True)
+    n, n_p = model.n_coordinates, parameter_vector(model).size
+    ports = PlanarPorts(model)
+    units = [ports.inputs({name: 1.0}) for name in actuators]
+    q, v, q_hat, v_hat = (ca.SX.sym(label, n) for label in ("q", "v", "q_hat", "v_hat"))
+    w, g, u, p, t = ca.SX.sym("w"), ca.SX.sym("g"), ca.SX.sym("u", len(units)), ca.SX.sym("p", n_p), ca.SX.sym("t")
+    numbers = symbolic_numbers(model, p, t)
+    scene, bodies, joints = symbolic_terms_with_station_loads(model, units, q, v, u, numbers)
+    _, _, laws = symbolic_terms_with_station_loads(model, units, q_hat, v_hat, u, numbers)
+    implicit, kappa = [], []
+    for joint, law in zip(joints, laws):
+        if joint.tau is None:                       # driven, weld
+            implicit.append(joint)
+            kappa.append(None)
+            continue
+        size = int(joint.tau.numel())
+        stiffness = joint.tau_q if joint.tau_q is not None else ca.SX.zeros(size, size)
+        damping = joint.tau_v if joint.tau_v is not None else ca.SX.zeros(size, size)
+        implicit.append(replace(joint, tau=law.tau))
+        kappa.append(-(w * stiffness + g * damping))
+    solution = articulated_sweep(CASADI, scene.tree, bodies, implicit, kappa)
+    return ca.Function("implicit_acceleration", [q, v, q_hat, v_hat, w, g, u, p, t],
+                       [coordinate_accelerations(model, solution.x, solution.relative)])
+
+
+def sweep_iteration(model: PlanarModel, actuators: Sequence[str], period: int, tolerance: float,
+                    loops: Any = None) -> Any:
+    """One iteration of the implicit sweep as the casadi ``Function``
+    ``(z, q_hat, v_hat, w, g, t, u, p, c, s) -> z`` of :func:`ctmm.compiled_scene_schemes.newton_iteration`
+    (``z = [a; converged; max |delta a|; iterations]``, a converged ``z`` returned unchanged): ``a <-``
+    :func:`implicit_accelerations` at ``q_hat + w a, v_hat + g a``, converged when ``max |delta a| <= tolerance
+    (1 + max |a|)``.  ``c``, ``s`` (loop controller entries, time since the step start) are not read.
+
+    Raises
+    ------
+    ModelError
+        A model or loops :func:`sweep_refusal` refuses.
+    """
+    import casadi as ca
+
+    reason = sweep_refusal(model, loops)
+    if reason:
+        raise ModelError(f"tangent='sweep': not for a model with {reason}; use tangent='mapped' or 'symbolic'")
+    implicit = implicit_accelerations(model, actuators, period)
+    n = model.n_coordinates
+    z, q_hat, v_hat = ca.MX.sym("z", n + 3), ca.MX.sym("q_hat", n), ca.MX.sym("v_hat", n)
+    w, g, t, s = ca.MX.sym("w"), ca.MX.sym("g"), ca.MX.sym("t"), ca.MX.sym("s")
+    u, p, c = ca.MX.sym("u", len(actuators)), ca.MX.sym("p", implicit.sparsity_in(7)), ca.MX.sym("c", 0)
+    a = z[:n]
+    new = implicit(q_hat + w * a, v_hat + g * a, q_hat, v_hat, w, g, u, p, t)
+    change = ca.mmax(ca.fabs(new - a)) if n else ca.MX(0.0)
+    converged = change <= tolerance * (1.0 + (ca.mmax(ca.fabs(new)) if n else 0.0))
+    arguments = [q_hat, v_hat, w, g, t, u, p, c, s]
+    step = ca.Function("sweep_iteration", [z, *arguments], [ca.vertcat(new, converged, change, z[n + 2] + 1.0)])
+    return ca.Function("sweep_or_done", [z, *arguments], [ca.if_else(z[n], z, step(z, *arguments), True)])
