@@ -7,10 +7,13 @@
 * the run is a fixed-step RK4 of a 1-D chain, a planar or a spatial model (plain, or with feedback loops,
   inputs and references), or a DT-TMM scheme of any of them (a chain's step is one data-driven kernel compiled
   once per variant);
-* a DT-TMM scheme of a planar model has at most :data:`SCHEME_MAXIMUM_COORDINATES` coordinates (with feedback
-  loops :data:`SCHEME_LOOPS_MAXIMUM_COORDINATES`: the numpy path's loops cost more than the generated tangent
-  there) and one of a spatial model at most :data:`SCHEME_MAXIMUM_VELOCITIES` velocities: their generated Newton
-  step forms the ``n x n`` tangent of the sweep (``2 n`` directional derivatives, :mod:`ctmm.mapped_tangent`) and factors it,
+* a DT-TMM scheme of a planar model whose generated step iterates with one implicit articulated sweep per
+  iteration (:mod:`ctmm.compiled_sweep_newton`, O(n): linear hinge laws, no modal bodies, no loops) has at most
+  :data:`SCHEME_SWEEP_MAXIMUM_COORDINATES` coordinates (measured up to there: 0.1-0.2 of the numpy step, first
+  compile ~3 s), another planar model at most :data:`SCHEME_MAXIMUM_COORDINATES` (with feedback loops
+  :data:`SCHEME_LOOPS_MAXIMUM_COORDINATES`: the numpy path's loops cost more than the generated tangent there) and
+  a spatial model at most :data:`SCHEME_MAXIMUM_VELOCITIES` velocities: their generated Newton step forms the
+  ``n x n`` tangent of the sweep (``2 n`` directional derivatives, :mod:`ctmm.mapped_tangent`) and factors it,
   O(n^2 .. n^3) per iteration, where the numpy planar stepper iterates with one linearised articulated sweep
   (O(n)), so beyond these sizes the generated step is slower (planar) or its first compile too long (spatial);
 * a chain is not larger than its kind allows: :data:`MAXIMUM_BANDED_CHAIN_POINTS` points for a *banded* chain (every
@@ -49,8 +52,12 @@ N = 5: numpy 0.83 ms/step, first generated call 0.99 s (break-even 1 200 steps),
 1-D chain of 100 masses: 0.82 ms/step, 1.05 s (1 300 steps), 0.2 s.  At :data:`MINIMUM_STEPS` the first
 compile is at most about half the numpy time of those runs.
 
-DT-TMM schemes (``benchmarks/compiled_schemes_default.py``, Newmark, dt = 1 ms, CPU time, load 12-16 on 2 cores,
-session 12; generated step on the loaded library / numpy step, first generated call): planar pendulum chains N = 5:
+DT-TMM schemes (``benchmarks/compiled_schemes_default.py``, Newmark, dt = 1 ms, CPU time, load ~6 on 2 cores,
+session 13; generated step on the loaded library / numpy step, first generated call), pendulum chains with the
+implicit-sweep iteration (from 8 coordinates): N = 10: 7.0 / 585 us (0.012), 1.5 s; N = 20: 39 / 1057 us (0.037),
+1.8 s; N = 40: 70 / 1315 us (0.053), 2.1 s; N = 80: 132 / 1865 us (0.071), 2.1 s; N = 150: 199 / 1969 us (0.10),
+2.6 s; N = 300: 447 / 2730 us (0.16), 3.2 s.  Session 12 (load 12-16), with the ``n x n`` tangent: planar
+pendulum chains N = 5:
 10.8 / 633 us, 2.4 s; N = 10: 151 / 895 us, 3.8 s; N = 15: 255 / 949 us (ratio 0.27), 5.0 s; N = 20 (sweep
 folded): 1362 / 932 us (ratio 1.5); N = 40: 5.7 / 1.5 ms (3.9); N = 80: 20.3 / 2.0 ms (10).  With a PD loop on
 every hinge: N = 15: 0.46 / 15.3 ms (0.030), 7.0 s; N = 30: 2.0 / 19.3 ms (0.10), 17 s.  Spatial revolute chains
@@ -142,14 +149,15 @@ def _names(names: list) -> str:
 
 
 SCHEME_MAXIMUM_COORDINATES = 15
-"""Largest planar model (coordinates) without loops whose DT-TMM schemes the default generates: the generated step
-was 0.27 of the numpy step at 15 coordinates and 1.5 times it at 20 (module docstring); larger ones stay on numpy
-unless ``compiled=True``."""
+"""Largest planar model (coordinates) without loops whose DT-TMM schemes the default generates where its generated
+step forms the ``n x n`` tangent (nonlinear hinge laws, modal bodies: not :data:`SCHEME_SWEEP_MAXIMUM_COORDINATES`):
+that step was 0.27 of the numpy step at 15 coordinates and 1.5 times it at 20 (module docstring); larger ones stay
+on numpy unless ``compiled=True``."""
 SCHEME_SWEEP_MAXIMUM_COORDINATES = 300
 """Largest planar model (coordinates) without loops whose DT-TMM schemes the default generates where the generated
 step iterates with the implicit sweep (:mod:`ctmm.compiled_sweep_newton`: linear hinge laws, no modal bodies; one
-articulated sweep per iteration, O(n)): measured generated / numpy step MEASURED (module docstring); not measured
-beyond."""
+articulated sweep per iteration, O(n)): measured generated / numpy step 0.012 at 10 coordinates, 0.071 at 80 and 0.16 at 300, first compile 1.5-3.2 s
+CPU (pendulum chains, folded from 20 bodies; module docstring); not measured beyond."""
 SCHEME_LOOPS_MAXIMUM_COORDINATES = 30
 """Largest planar model (coordinates) with feedback loops (a ``ControlledModel``) whose DT-TMM schemes the default
 generates: the numpy path closes the loops around its stepper (about 0.7 ms per body and step), the generated step

@@ -23,7 +23,8 @@ generated RK4 compiles (:func:`ctmm.compiled_scene.symbolic_accelerations_with_i
   maps at steps 0 and 1, selected on the step index.
 * **Newton** -- on the residual ``r(a) = a - qddot(q_hat + b' h^2 a, v_hat + g' h a, t)`` with its exact
   tangent ``I - b' h^2 d qddot/dq - g' h d qddot/dv`` (algorithmic derivative of the sweep, :mod:`ctmm.mapped_tangent`),
-  a QR solve per iteration, at most ``max_iterations`` (each a short-circuit branch: converged steps skip the rest),
+  a QR solve per iteration (``tangent="sweep"``: O(N) iterates, :mod:`ctmm.compiled_sweep_newton`), at most
+  ``max_iterations`` (each a short-circuit branch: converged steps skip the rest),
   the stopping rule of the Python stepper (``max |delta a| <= tolerance (1 + max |a|)``).
   Same root as :func:`~ctmm.planar.implicit.simulate_implicit` (whose Newton runs on the transfer form of
   the same equations): the two agree to round-off (``tests/test_compiled_scene_schemes.py``); same iterates
@@ -393,8 +394,7 @@ class CompiledSceneScheme(SchemeHooks):
                                   cache_dir=cache_dir, compiler=compiler)
         (self._acceleration, *more), self._step, self._stride, self._blocks = loop.extra, loop.step, loop.stride, \
             loop.blocks
-        self.state_functions = tuple(more)
-        self.compile_time_s = _time.perf_counter() - start
+        self.state_functions, self.compile_time_s = tuple(more), _time.perf_counter() - start
 
     def closed_acceleration(self) -> Any:
         """``qddot = acceleration(q, v, u, p, t)`` the step solves for (casadi ``Function``): the plant's sweep with

@@ -16,9 +16,9 @@ against the Python stepper's transfer-form Newton (one linearised sweep per iter
 generated step is 0.27 of it at 15 coordinates, 1.5 times it at 20 and 10 times at 80 (20.3 against 2.0 ms,
 ``benchmarks/compiled_schemes_default.py``; the 23 ms per Python step at N = 100 recorded earlier were its first
 steps, which trace its sweep once), so :mod:`ctmm.compiled_default` generates planar schemes by default up to 15
-coordinates (30 with loops, whose Python path costs more).  An O(N) generated iteration would solve the Newton
-correction with the transfer form's own tangent sweep (the body relations linearised about the iterate,
-:mod:`ctmm.planar.implicit`) instead of forming this tangent; not done yet.
+coordinates (30 with loops, whose Python path costs more).  Planar models with linear hinge laws and no modal bodies
+or loops iterate from 8 coordinates with one implicit articulated sweep per iteration instead
+(:mod:`ctmm.compiled_sweep_newton`, O(N)); the tangents here serve the others.
 """
 from __future__ import annotations
 

@@ -96,3 +96,17 @@ def test_a_step_that_does_not_converge_is_a_convergence_error_with_the_result_so
                                   compiled=compiled)
     assert info.value.time == pytest.approx(0.01)
     assert len(info.value.partial_result.t) == 1
+
+
+def test_a_stiff_bushing_equals_the_python_stepper_with_the_stricter_stop():
+    """A 2e5 N/m translational spring (solved implicitly in the pivots) and a free base: linear convergence, so the
+    common stopping rule alone left the numpy answer by 3.5e-10 in the rates (1 ms Newmark); the error estimate
+    (:data:`ctmm.compiled_sweep_newton.ERROR_FRACTION`) keeps it at round-off."""
+    from test_compiled_bushings import Q0, V0, arm
+
+    model = arm(2e5)
+    compiled = CompiledSceneScheme(model, "newmark", tangent="sweep")
+    generated = simulate_scheme_generated(model, Q0, V0, t_final=0.1, dt=1e-3, compiled=compiled)
+    python = simulate_implicit(model, Q0, V0, t_final=0.1, dt=1e-3)
+    assert np.max(np.abs(generated.q - python.q)) <= 1e-11
+    assert np.max(np.abs(generated.qdot - python.qdot)) <= 1e-10
